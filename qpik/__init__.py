@@ -1,0 +1,42 @@
+"""qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
+
+from .configuration import Configuration, FrameType, frame_names, joint_names
+from .errors import (
+    InfeasibleLimits,
+    InvalidConfiguration,
+    InvalidTarget,
+    JointLimitViolation,
+    MissingExtra,
+    NoSolutionFound,
+    ProblemFileError,
+    QpikError,
+    RobotFileError,
+    UnknownFrame,
+    UnknownFrameType,
+    UnknownRobot,
+)
+from .robots import list_robots, load_robot
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Configuration",
+    "FrameType",
+    "InfeasibleLimits",
+    "InvalidConfiguration",
+    "InvalidTarget",
+    "JointLimitViolation",
+    "MissingExtra",
+    "NoSolutionFound",
+    "ProblemFileError",
+    "QpikError",
+    "RobotFileError",
+    "UnknownFrame",
+    "UnknownFrameType",
+    "UnknownRobot",
+    "__version__",
+    "frame_names",
+    "joint_names",
+    "list_robots",
+    "load_robot",
+]

@@ -1,0 +1,294 @@
+"""The one state object: a robot model, its data, and the configuration ``q``.
+
+:class:`Configuration` subclasses :class:`mink.Configuration`, so every mink task and
+limit accepts it. It adds validated updates, world-aligned frame Jacobians in the
+lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and typed errors.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from .errors import InvalidConfiguration, JointLimitViolation, UnknownFrame, UnknownFrameType
+
+__all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
+
+
+class FrameType(str, enum.Enum):
+    """Kinds of frames a MuJoCo model has. The strings ``"body"``, ``"site"``, ``"geom"``
+    are accepted wherever a ``FrameType`` is."""
+
+    BODY = "body"
+    SITE = "site"
+    GEOM = "geom"
+
+    @classmethod
+    def parse(cls, value: FrameType | str) -> FrameType:
+        """Convert a string or FrameType to a FrameType, with a clear error otherwise."""
+        if isinstance(value, FrameType):
+            return value
+        try:
+            return cls(str(value).lower())
+        except ValueError:
+            raise UnknownFrameType(
+                f"unknown frame type {value!r}; expected one of: body, site, geom"
+            ) from None
+
+
+_OBJ = {
+    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+}
+_COUNT = {FrameType.BODY: "nbody", FrameType.SITE: "nsite", FrameType.GEOM: "ngeom"}
+_JAC = {
+    FrameType.BODY: mujoco.mj_jacBody,
+    FrameType.SITE: mujoco.mj_jacSite,
+    FrameType.GEOM: mujoco.mj_jacGeom,
+}
+_POS = {FrameType.BODY: "xpos", FrameType.SITE: "site_xpos", FrameType.GEOM: "geom_xpos"}
+#: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "geom_xmat"}
+
+
+def frame_names(model: mujoco.MjModel, frame_type: FrameType | str) -> list[str]:
+    """Names of all frames of one type in ``model`` (unnamed frames are left out)."""
+    kind = FrameType.parse(frame_type)
+    names = (mujoco.mj_id2name(model, _OBJ[kind], i) for i in range(getattr(model, _COUNT[kind])))
+    return [n for n in names if n]
+
+
+def joint_names(model: mujoco.MjModel) -> list[str]:
+    """Joint names, with ``joint<i>`` standing in for unnamed joints."""
+    return [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+        for j in range(model.njnt)
+    ]
+
+
+def _qpos_joint_names(model: mujoco.MjModel) -> list[str]:
+    """For every qpos index, the name of the joint it belongs to."""
+    names = [""] * model.nq
+    widths = {
+        mujoco.mjtJoint.mjJNT_FREE: 7,
+        mujoco.mjtJoint.mjJNT_BALL: 4,
+        mujoco.mjtJoint.mjJNT_SLIDE: 1,
+        mujoco.mjtJoint.mjJNT_HINGE: 1,
+    }
+    for j, name in enumerate(joint_names(model)):
+        adr = model.jnt_qposadr[j]
+        for k in range(widths[mujoco.mjtJoint(model.jnt_type[j])]):
+            names[adr + k] = name
+    return names
+
+
+class Configuration(mink.Configuration):
+    """Model, data and configuration ``q`` of a robot, with forward kinematics up to date.
+
+    Args:
+        model: The MuJoCo model (see :func:`qpik.load_robot`).
+        q: Initial configuration ``(nq,)``; defaults to the model's ``qpos0``.
+    """
+
+    def __init__(self, model: mujoco.MjModel, q: npt.ArrayLike | None = None):
+        if not isinstance(model, mujoco.MjModel):
+            raise TypeError(
+                f"Configuration needs a mujoco.MjModel (see qpik.load_robot), "
+                f"got {type(model).__name__}"
+            )
+        lower = np.full(model.nq, -np.inf)
+        upper = np.full(model.nq, np.inf)
+        for j in range(model.njnt):
+            kind = model.jnt_type[j]
+            if model.jnt_limited[j] and kind in _SCALAR_JOINTS:
+                adr = model.jnt_qposadr[j]
+                lower[adr], upper[adr] = model.jnt_range[j]
+        self._lower = lower
+        self._upper = upper
+        self._lower.setflags(write=False)
+        self._upper.setflags(write=False)
+        self._qpos_joint = _qpos_joint_names(model)
+        super().__init__(model, q)  # mink calls self.update(q), which validates q
+
+    # ------------------------------------------------------------------ state
+    def _validated(self, q: npt.ArrayLike) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 1 or q.shape[0] != self.model.nq:
+            raise InvalidConfiguration(
+                f"configuration has shape {q.shape}, expected ({self.model.nq},) "
+                f"for this model (joints: {', '.join(joint_names(self.model))})"
+            )
+        bad = np.flatnonzero(~np.isfinite(q))
+        if bad.size:
+            i = int(bad[0])
+            raise InvalidConfiguration(
+                f"configuration entry q[{i}] (joint {self._qpos_joint[i]!r}) is {q[i]}; "
+                "every entry must be finite",
+                index=i,
+            )
+        return q
+
+    def update(self, q: npt.ArrayLike | None = None) -> None:
+        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics."""
+        if q is not None:
+            q = self._validated(q)
+        super().update(q)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits ``(nq,)`` [rad or m]; ``-inf`` where a joint is unlimited."""
+        return self._lower
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits ``(nq,)`` [rad or m]; ``+inf`` where a joint is unlimited."""
+        return self._upper
+
+    def check_limits(self, tol: float = 1e-6, safety_break: bool = True) -> None:
+        """Raise :class:`JointLimitViolation` if ``q`` is outside the limits by > ``tol``.
+
+        With ``safety_break=False`` nothing is raised (mink's signature, kept for mink's
+        ``solve_ik``).
+        """
+        if not safety_break:
+            return
+        q = self.data.qpos
+        outside = np.flatnonzero((q < self._lower - tol) | (q > self._upper + tol))
+        if outside.size:
+            i = int(outside[0])
+            raise JointLimitViolation(
+                self._qpos_joint[i], i, float(q[i]), float(self._lower[i]), float(self._upper[i])
+            )
+
+    def within_limits(self, tol: float = 1e-6) -> bool:
+        """Whether ``q`` lies within the joint limits (up to ``tol``)."""
+        q = self.data.qpos
+        return bool(np.all((q >= self._lower - tol) & (q <= self._upper + tol)))
+
+    # ----------------------------------------------------------------- frames
+    def frame_id(self, name: str | int, frame_type: FrameType | str = FrameType.SITE) -> int:
+        """Id of a frame; raises :class:`UnknownFrame` listing the valid names."""
+        kind = FrameType.parse(frame_type)
+        key = (name, kind.value)
+        cached = self._frame_id_cache.get(key)
+        if cached is not None:
+            return cached
+        if isinstance(name, str):
+            fid = mujoco.mj_name2id(self.model, _OBJ[kind], name)
+        else:
+            fid = int(name)
+            if not 0 <= fid < getattr(self.model, _COUNT[kind]):
+                fid = -1
+        if fid < 0:
+            raise UnknownFrame(name, kind.value, frame_names(self.model, kind))
+        self._frame_id_cache[key] = fid
+        return fid
+
+    # mink resolves frames through this hook: route it to the typed error above.
+    def _resolve_frame_id(self, frame_name: str | int, frame_type: str) -> int:
+        return self.frame_id(frame_name, frame_type)
+
+    def frame_pose(
+        self, name: str | int, frame_type: FrameType | str = FrameType.SITE
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Pose of a frame in the world frame: position ``(3,)`` [m], rotation ``(3, 3)``."""
+        kind = FrameType.parse(frame_type)
+        fid = self.frame_id(name, kind)
+        position = getattr(self.data, _POS[kind])[fid].copy()
+        rotation = getattr(self.data, _MAT[kind])[fid].reshape(3, 3).copy()
+        return position, rotation
+
+    def frame_jacobian(
+        self, name: str | int, frame_type: FrameType | str = FrameType.SITE
+    ) -> np.ndarray:
+        """Jacobian ``(6, nv)`` of the frame's twist ``[v; omega]``, world-aligned.
+
+        ``v`` [m/s] is the velocity of the frame origin and ``omega`` [rad/s] the angular
+        velocity, both expressed in the world frame: the lecture's ``xi = J(q) qdot``.
+        (mink's ``get_frame_jacobian`` returns the same twist expressed in the local frame.)
+        """
+        kind = FrameType.parse(frame_type)
+        fid = self.frame_id(name, kind)
+        jac = np.empty((6, self.model.nv))
+        _JAC[kind](self.model, self.data, jac[:3], jac[3:], fid)
+        return jac
+
+    def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:
+        """Configuration reached from ``q`` moving at ``velocity`` ``(nv,)`` for ``dt`` [s]."""
+        return super().integrate(self._validated_velocity(velocity), dt)
+
+    def integrate_inplace(self, velocity: npt.ArrayLike, dt: float) -> None:
+        """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics."""
+        super().integrate_inplace(self._validated_velocity(velocity), dt)
+
+    def _validated_velocity(self, velocity: npt.ArrayLike) -> np.ndarray:
+        v = np.asarray(velocity, dtype=float)
+        if v.shape != (self.model.nv,):
+            raise InvalidConfiguration(f"velocity has shape {v.shape}, expected ({self.model.nv},)")
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise InvalidConfiguration(
+                f"velocity entry v[{int(bad[0])}] is {v[bad[0]]}; every entry must be finite",
+                index=int(bad[0]),
+            )
+        return v
+
+    def copy(self) -> Configuration:
+        """An independent configuration on the same model, at the same ``q``."""
+        return Configuration(self.model, self.q)
+
+    def random_q(self, rng: np.random.Generator | None = None) -> np.ndarray:
+        """A configuration drawn uniformly within the limits (unlimited joints: [-pi, pi])."""
+        rng = rng or np.random.default_rng()
+        lo = np.where(np.isfinite(self._lower), self._lower, -np.pi)
+        hi = np.where(np.isfinite(self._upper), self._upper, np.pi)
+        q = self.model.qpos0.copy()
+        scalar = _scalar_qpos_mask(self.model)
+        q[scalar] = rng.uniform(lo[scalar], hi[scalar])
+        return q
+
+    def mid_q(self) -> np.ndarray:
+        """The mid-range configuration (``qpos0`` for unlimited joints)."""
+        q = self.model.qpos0.copy()
+        limited = np.isfinite(self._lower) & np.isfinite(self._upper)
+        q[limited] = 0.5 * (self._lower[limited] + self._upper[limited])
+        return q
+
+    def velocity_limits(self) -> np.ndarray | None:
+        """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric
+        ``velocity_limit``, or ``None`` when the model has none."""
+        nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
+        if nid < 0:
+            return None
+        adr, size = self.model.numeric_adr[nid], self.model.numeric_size[nid]
+        return np.array(self.model.numeric_data[adr : adr + size])
+
+
+def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
+    """Mask of qpos entries that belong to hinge or slide joints."""
+    mask = np.zeros(model.nq, dtype=bool)
+    for j in range(model.njnt):
+        if model.jnt_type[j] in _SCALAR_JOINTS:
+            mask[model.jnt_qposadr[j]] = True
+    return mask
+
+
+def as_configuration(
+    robot: Configuration | mujoco.MjModel | str, q: Sequence[float] | None = None
+) -> Configuration:
+    """A :class:`Configuration` from a Configuration, an MjModel or anything
+    :func:`qpik.load_robot` accepts."""
+    from .robots import load_robot
+
+    if isinstance(robot, Configuration):
+        if q is not None:
+            robot.update(q)
+        return robot
+    return Configuration(load_robot(robot), q)

@@ -1,0 +1,191 @@
+"""Configuration: FK and Jacobians against closed forms and finite differences."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import configuration_of
+from scipy.spatial.transform import Rotation
+
+import qpik
+
+
+def planar_tip(q: np.ndarray) -> np.ndarray:
+    """Closed-form tip of a planar arm with unit links."""
+    angles = np.cumsum(q)
+    return np.array([np.cos(angles).sum(), np.sin(angles).sum(), 0.0])
+
+
+@pytest.mark.parametrize("name, n", [("planar_2r", 2), ("planar_4r", 4)])
+def test_planar_fk_matches_closed_form(name, n, rng):
+    configuration = configuration_of(name)
+    for _ in range(100):
+        q = rng.uniform(-np.pi, np.pi, n)
+        configuration.update(q)
+        position, rotation = configuration.frame_pose("ee")
+        np.testing.assert_allclose(position, planar_tip(q), atol=1e-12)
+        np.testing.assert_allclose(
+            rotation, Rotation.from_euler("z", q.sum()).as_matrix(), atol=1e-12
+        )
+
+
+def test_planar_2r_jacobian_is_the_lectures(rng):
+    configuration = configuration_of("planar_2r")
+    for _ in range(100):
+        q1, q2 = rng.uniform(-np.pi, np.pi, 2)
+        configuration.update([q1, q2])
+        s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q1 + q2), np.cos(q1 + q2)
+        expected = np.array([[-s1 - s12, -s12], [c1 + c12, c12]])
+        np.testing.assert_allclose(configuration.frame_jacobian("ee")[:2], expected, atol=1e-12)
+
+
+def test_lecture_2r_singular_point_digits():
+    configuration = configuration_of("planar_2r", [np.pi / 4, 0.001])
+    J = configuration.frame_jacobian("ee")[:2]
+    np.testing.assert_allclose(J, [[-1.4149, -0.7078], [1.4135, 0.7064]], atol=5e-5)
+
+
+def test_lecture_4r_q1_reaches_minus1_2():
+    configuration = configuration_of("planar_4r", [0.76, 0.90, 0.69, 1.19])
+    position, _ = configuration.frame_pose("ee")
+    assert np.linalg.norm(position[:2] - np.array([-1.0, 2.0])) < 0.02
+
+
+def _dh_standard(d, a, alpha, q):
+    T = np.eye(4)
+    for di, ai, al, qi in zip(d, a, alpha, q):
+        ct, st, ca, sa = math.cos(qi), math.sin(qi), math.cos(al), math.sin(al)
+        T = T @ np.array(
+            [
+                [ct, -st * ca, st * sa, ai * ct],
+                [st, ct * ca, -ct * sa, ai * st],
+                [0, sa, ca, di],
+                [0, 0, 0, 1],
+            ]
+        )
+    return T
+
+
+def _dh_craig(d, a, alpha, q):
+    T = np.eye(4)
+    for di, ai, al, qi in zip(d, a, alpha, q):
+        ct, st, ca, sa = math.cos(qi), math.sin(qi), math.cos(al), math.sin(al)
+        T = T @ np.array(
+            [
+                [ct, -st, 0, ai],
+                [st * ca, ct * ca, -sa, -di * sa],
+                [st * sa, ct * sa, ca, di * ca],
+                [0, 0, 0, 1],
+            ]
+        )
+    return T
+
+
+def test_ur5e_matches_published_dh(rng):
+    configuration = configuration_of("ur5e")
+    d = [0.1625, 0, 0, 0.1333, 0.0997, 0.0996]
+    a = [0, -0.425, -0.3922, 0, 0, 0]
+    alpha = [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0]
+    for _ in range(20):
+        q = configuration.random_q(rng)
+        configuration.update(q)
+        T = _dh_standard(d, a, alpha, q)
+        position, rotation = configuration.frame_pose("ee")
+        np.testing.assert_allclose(position, T[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(rotation, T[:3, :3], atol=1e-9)
+
+
+def test_panda_matches_published_craig_dh(rng):
+    configuration = configuration_of("panda")
+    a = [0, 0, 0, 0.0825, -0.0825, 0, 0.088, 0]
+    d = [0.333, 0, 0.316, 0, 0.384, 0, 0, 0.107]
+    alpha = [0, -np.pi / 2, np.pi / 2, np.pi / 2, -np.pi / 2, np.pi / 2, np.pi / 2, 0]
+    hand = np.eye(4)
+    hand[:3, :3] = Rotation.from_euler("z", -np.pi / 4).as_matrix()
+    tcp = np.eye(4)
+    tcp[2, 3] = 0.1034
+    for _ in range(20):
+        q = configuration.random_q(rng)
+        configuration.update(q)
+        T = _dh_craig(d, a, alpha, [*q, 0.0]) @ hand @ tcp
+        position, rotation = configuration.frame_pose("ee")
+        np.testing.assert_allclose(position, T[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(rotation, T[:3, :3], atol=1e-9)
+    # Franka's documented "ready" pose puts the TCP at (0.307, 0, 0.487).
+    configuration.update([0, -np.pi / 4, 0, -3 * np.pi / 4, 0, np.pi / 2, np.pi / 4])
+    np.testing.assert_allclose(configuration.frame_pose("ee")[0], [0.307, 0, 0.487], atol=1e-3)
+
+
+def test_jacobian_matches_finite_differences(bundled_robot, rng):
+    configuration = configuration_of(bundled_robot)
+    model = configuration.model
+    h = 1e-6
+    for _ in range(20):
+        q = configuration.random_q(rng)
+        configuration.update(q)
+        J = configuration.frame_jacobian("ee")
+        numeric = np.zeros_like(J)
+        for i in range(model.nv):
+            dq = np.zeros(model.nv)
+            dq[i] = h
+            q_plus, q_minus = q.copy(), q.copy()
+            mujoco.mj_integratePos(model, q_plus, dq, 1.0)
+            mujoco.mj_integratePos(model, q_minus, -dq, 1.0)
+            configuration.update(q_plus)
+            p_plus, R_plus = configuration.frame_pose("ee")
+            configuration.update(q_minus)
+            p_minus, R_minus = configuration.frame_pose("ee")
+            numeric[:3, i] = (p_plus - p_minus) / (2 * h)
+            numeric[3:, i] = Rotation.from_matrix(R_plus @ R_minus.T).as_rotvec() / (2 * h)
+        np.testing.assert_allclose(J, numeric, atol=1e-6)
+        configuration.update(q)
+
+
+def test_frame_types_accept_enum_and_string():
+    configuration = configuration_of("ur5e")
+    by_enum = configuration.frame_pose("tool0", qpik.FrameType.BODY)
+    by_string = configuration.frame_pose("tool0", "body")
+    np.testing.assert_array_equal(by_enum[0], by_string[0])
+    # tool0 body and ee site coincide on the bundled UR5e.
+    np.testing.assert_allclose(by_enum[0], configuration.frame_pose("ee")[0], atol=1e-12)
+
+
+def test_limits_and_integration():
+    configuration = configuration_of("panda")
+    assert configuration.lower.shape == (7,) and np.all(configuration.lower < configuration.upper)
+    assert configuration.upper[3] == pytest.approx(-0.0698)
+    q0 = configuration.mid_q()
+    configuration.update(q0)
+    v = np.arange(7) * 0.1
+    q1 = configuration.integrate(v, 0.5)
+    np.testing.assert_allclose(q1, q0 + 0.5 * v)
+    np.testing.assert_array_equal(configuration.q, q0)  # integrate does not move q
+    configuration.integrate_inplace(v, 0.5)
+    np.testing.assert_allclose(configuration.q, q1)
+    configuration.q[0] = 100.0  # .q is a copy
+    np.testing.assert_allclose(configuration.q, q1)
+    np.testing.assert_allclose(configuration.velocity_limits(), [2.175] * 4 + [2.61] * 3)
+
+
+def test_check_limits_names_the_joint():
+    configuration = configuration_of("panda")
+    q = configuration.mid_q()
+    q[3] = 0.5
+    configuration.update(q)
+    assert not configuration.within_limits()
+    with pytest.raises(qpik.JointLimitViolation, match="joint4") as info:
+        configuration.check_limits()
+    assert info.value.index == 3 and info.value.upper == pytest.approx(-0.0698)
+
+
+def test_mink_tasks_accept_a_qpik_configuration():
+    import mink
+
+    configuration = configuration_of("panda")
+    configuration.update(configuration.mid_q())
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    task.set_target_from_configuration(configuration)
+    np.testing.assert_allclose(task.compute_error(configuration), 0.0, atol=1e-12)
