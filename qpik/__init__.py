@@ -1,5 +1,6 @@
 """qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
 
+from . import baselines, limits, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
 from .errors import (
     InfeasibleLimits,
@@ -15,11 +16,19 @@ from .errors import (
     UnknownFrameType,
     UnknownRobot,
 )
+from .hierarchy import DampingLaw, IKSolver, StepResult, solve_ik
 from .robots import list_robots, load_robot
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "DampingLaw",
+    "IKSolver",
+    "StepResult",
+    "baselines",
+    "limits",
+    "solve_ik",
+    "tasks",
     "Configuration",
     "FrameType",
     "InfeasibleLimits",

@@ -1,0 +1,410 @@
+r"""Strict task priorities as a cascade of QPs, one persistent workspace per level.
+
+The variable of every level is the displacement ``dq = v dt`` (``nv``). Level ``k`` has the
+weighted residual ``A_k dq - b_k`` of its tasks (``A = diag(cost) J``, ``b = -gain cost e``)
+and solves
+
+.. math::
+
+    \min_{dq} \tfrac12 \|A_k dq - b_k\|^2 + \tfrac12 (\delta + \mu_k + \lambda_k^2) \|dq\|^2
+    \quad \text{s.t.} \quad dq \in d_{k-1} + \mathcal{N}_{k-1}, \;
+    lb \le dq \le ub, \; G dq \le h
+
+where :math:`d_{k-1}` is the solution of the level above and :math:`\mathcal{N}_{k-1}` the
+null space of the rows of every level above (``N_{-1}`` is everything). Writing
+``dq = d + P z`` with ``P`` the orthogonal projector onto that null space, each level is a
+QP in ``z`` whose only constraints are the limits: it is always feasible (``z = 0`` is the
+level above's solution) and a lower level cannot change any higher level's ``A_j dq``
+(up to the rank tolerance), whatever the solver's tolerance.
+
+Damping (singularity robustness), per level, from that level's smallest singular value
+*after projection* into the null space of the levels above (so algorithmic singularities,
+where two levels conflict, count as well as kinematic ones)::
+
+    sigma  = the r-th singular value of A_k P, r = min(rows_k, nv - rank of the levels above)
+    lambda^2 = max_damping^2 * (1 - (sigma / singular_threshold)^2)   if sigma < singular_threshold
+             = 0                                                        otherwise
+
+(Nakamura & Hanafusa 1986; Chiaverini 1997). Far from singularities the step is the exact
+(prioritised) least-squares step; near them it is damped least squares with the damping
+growing smoothly to ``max_damping^2``, which bounds the step by ``|b| / (2 max_damping)``.
+``delta`` (``damping``) is a small constant Tikhonov term on every level, as in mink, and
+``mu_k`` the tasks' own Levenberg-Marquardt terms.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import mink
+import mujoco
+import numpy as np
+
+from .configuration import Configuration, joint_names
+from .errors import InfeasibleLimits, NoSolutionFound
+from .qp import make_workspace
+from .tasks import BaseTask
+
+__all__ = ["IKSolver", "StepResult", "normalize_stack", "solve_ik", "DampingLaw"]
+
+
+@dataclass(frozen=True)
+class DampingLaw:
+    """Adaptive damping from the smallest (projected) singular value of a level.
+
+    Attributes:
+        singular_threshold: ``sigma`` below which damping starts (units of the level's
+            weighted Jacobian, e.g. [m/rad] for a position task of cost 1).
+        max_damping: ``lambda`` reached at ``sigma = 0``.
+    """
+
+    singular_threshold: float = 0.05
+    max_damping: float = 0.05
+
+    def __call__(self, sigma: float) -> float:
+        """``lambda^2`` for smallest singular value ``sigma``."""
+        if not sigma < self.singular_threshold:
+            return 0.0
+        ratio = sigma / self.singular_threshold
+        return self.max_damping**2 * (1.0 - ratio * ratio)
+
+
+@dataclass
+class StepResult:
+    """What one differential IK step computed.
+
+    Attributes:
+        velocity: joint velocity ``(nv,)`` [rad/s or m/s] (``displacement / dt``).
+        displacement: ``dq = velocity * dt`` ``(nv,)``.
+        residuals: per level, the norm of its weighted residual ``|A_k dq - b_k|`` at the
+            final ``dq``.
+        sigma_min: per level, the smallest singular value that drove its damping.
+        damping: per level, ``lambda^2`` applied.
+        active_limits: the limits that bind at the final ``dq``, e.g.
+            ``"joint4 upper (ConfigurationLimit)"``.
+        status: per level: ``"solved"``, ``"solved_after_retry"``, ``"relaxed"`` (level solved
+            without its general inequality rows, which could not be met), ``"kept_previous"``
+            (the level failed; the level above's ``dq`` is kept) or ``"failed"``.
+        iterations: per level, solver iterations (0 where the backend does not report them).
+        solve_time: wall time of the whole step [s].
+    """
+
+    velocity: np.ndarray
+    displacement: np.ndarray
+    residuals: list[float]
+    sigma_min: list[float]
+    damping: list[float]
+    active_limits: list[str]
+    status: list[str]
+    iterations: list[int]
+    solve_time: float
+    level_residuals_at_solve: list[float] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """True when every level was solved (possibly after a retry)."""
+        return all(s in ("solved", "solved_after_retry") for s in self.status)
+
+
+def normalize_stack(stack) -> list[list[BaseTask]]:
+    """Levels from a stack description.
+
+    * a task: one level with that task;
+    * a sequence of tasks only: **one** level (weighted, like ``mink.solve_ik``);
+    * a sequence whose items are tasks or sequences of tasks, at least one a sequence: one
+      level per item, item 0 the highest priority.
+    """
+    if isinstance(stack, BaseTask):
+        return [[stack]]
+    items = list(stack)
+    if not items:
+        raise ValueError("the task stack is empty")
+    if all(isinstance(item, BaseTask) for item in items):
+        return [items]
+    levels = []
+    for index, item in enumerate(items):
+        level = [item] if isinstance(item, BaseTask) else list(item)
+        if not level or not all(isinstance(t, BaseTask) for t in level):
+            raise TypeError(
+                f"level {index} of the stack must be a task or a non-empty list of tasks, "
+                f"got {item!r}"
+            )
+        levels.append(level)
+    return levels
+
+
+def _level_residual(
+    tasks: Sequence[BaseTask], configuration: Configuration, nv: int
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Stacked weighted residual ``(A, b, mu)`` of a level: objective ``1/2 |A dq - b|^2``.
+
+    Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c``.
+    Rows with zero weight are dropped (they would count as lost rank).
+    """
+    A_parts, b_parts = [], []
+    mu = 0.0
+    for task in tasks:
+        residual = task.compute_qp_residual(configuration)
+        if residual is None:
+            H, c = task.compute_qp_objective(configuration)
+            values, vectors = np.linalg.eigh(0.5 * (H + H.T))
+            keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
+            root = np.sqrt(values[keep])
+            A_parts.append(root[:, None] * vectors[:, keep].T)
+            b_parts.append(-(vectors[:, keep].T @ c) / root)
+        else:
+            weighted_jacobian, weighted_error, task_mu = residual
+            A_parts.append(np.atleast_2d(weighted_jacobian))
+            b_parts.append(np.atleast_1d(weighted_error))
+            mu += float(task_mu)
+    A = np.vstack(A_parts) if A_parts else np.zeros((0, nv))
+    b = np.concatenate(b_parts) if b_parts else np.zeros(0)
+    nonzero = np.any(A != 0.0, axis=1)
+    if not nonzero.all():
+        A, b = A[nonzero], b[nonzero]
+    return A, b, mu
+
+
+class IKSolver:
+    """Differential IK with strict priorities, keeping one QP workspace per level.
+
+    Args:
+        model: the MuJoCo model (its ``nv`` fixes the QP size).
+        stack: the task stack (see :func:`normalize_stack`); tasks are kept by reference,
+            so ``task.set_target(...)`` between steps is how targets move.
+        limits: mink or qpik limits, enforced at every level.
+        solver: ``"osqp"`` (default; persistent workspaces, warm starts) or a qpsolvers
+            backend (``"daqp"``, ``"quadprog"``, ``"proxqp"``) with the same semantics.
+        damping: constant Tikhonov term ``delta`` on every level.
+        damping_law: the adaptive (singularity) damping, see :class:`DampingLaw`.
+        rank_tolerance: singular values below ``rank_tolerance * max(1, sigma_max)`` of a
+            level's projected rows are treated as zero when locking that level.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        stack,
+        limits: Sequence[mink.Limit] = (),
+        *,
+        solver: str = "osqp",
+        damping: float = 1e-6,
+        damping_law: DampingLaw | None = DampingLaw(),
+        rank_tolerance: float = 1e-9,
+    ):
+        if damping < 0 or not np.isfinite(damping):
+            raise ValueError(f"damping must be finite and >= 0, got {damping}")
+        self.model = model
+        self.levels = normalize_stack(stack)
+        self.limits = list(limits)
+        self.solver = solver
+        self.damping = float(damping)
+        self.damping_law = damping_law
+        self.rank_tolerance = rank_tolerance
+        self._nv = model.nv
+        make_workspace(solver, 1, 1)  # fail early, naming the extra, if the backend is missing
+        self._workspaces: list = [None] * len(self.levels)
+        names = joint_names(model)
+        self._dof_names = [names[model.dof_jntid[i]] for i in range(model.nv)]
+        self._eye = np.eye(self._nv)
+
+    @property
+    def workspace_setups(self) -> int:
+        """How many QP workspaces were built so far (OSQP: one per level, once)."""
+        return sum(getattr(ws, "setups", 0) for ws in self._workspaces if ws is not None)
+
+    # ----------------------------------------------------------------- limits
+    def _limit_rows(self, configuration: Configuration, dt: float):
+        """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits."""
+        nv = self._nv
+        hard_lb, hard_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
+        pos_lb, pos_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
+        source_lb = [""] * nv
+        source_ub = [""] * nv
+        general_G, general_h, general_names = [], [], []
+        for limit in self.limits:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            if constraint.inactive:
+                continue
+            G = np.atleast_2d(np.asarray(constraint.G, dtype=float))
+            h = np.atleast_1d(np.asarray(constraint.h, dtype=float))
+            name = type(limit).__name__
+            recoverable = isinstance(limit, mink.ConfigurationLimit) or getattr(
+                limit, "recoverable", False
+            )
+            nonzero = G != 0.0
+            count = nonzero.sum(axis=1)
+            empty = count == 0
+            if np.any(h[empty] < 0):
+                raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[empty].min():.3g}")
+            unit = count == 1
+            lb, ub = (pos_lb, pos_ub) if recoverable else (hard_lb, hard_ub)
+            for row in np.flatnonzero(unit):
+                dof = int(np.argmax(nonzero[row]))
+                coefficient = G[row, dof]
+                bound = h[row] / coefficient
+                if coefficient > 0:
+                    if bound < ub[dof]:
+                        ub[dof] = bound
+                        source_ub[dof] = name
+                elif bound > lb[dof]:
+                    lb[dof] = bound
+                    source_lb[dof] = name
+            general = ~unit & ~empty
+            if general.any():
+                general_G.append(G[general])
+                general_h.append(h[general])
+                general_names.extend(f"{name} row {int(r)}" for r in np.flatnonzero(general))
+        bad = np.flatnonzero(hard_lb > hard_ub)
+        if bad.size:
+            i = int(bad[0])
+            raise InfeasibleLimits(
+                f"limits on {self._dof_names[i]} need {hard_lb[i]:.6g} <= dq <= "
+                f"{hard_ub[i]:.6g}: no displacement satisfies them"
+            )
+        # Position limits are recoverable: where they conflict with the hard limits (a start
+        # outside the limits that cannot be left in one step), move toward them at the
+        # hard limit's pace.
+        lb = np.maximum(hard_lb, pos_lb)
+        ub = np.minimum(hard_ub, pos_ub)
+        conflict = lb > ub
+        if conflict.any():
+            too_high = conflict & (pos_ub < hard_lb)
+            too_low = conflict & (pos_lb > hard_ub)
+            lb[too_high] = ub[too_high] = hard_lb[too_high]
+            lb[too_low] = ub[too_low] = hard_ub[too_low]
+        G = np.vstack(general_G) if general_G else np.zeros((0, self._nv))
+        h = np.concatenate(general_h) if general_h else np.zeros(0)
+        return lb, ub, G, h, (source_lb, source_ub), general_names
+
+    # ------------------------------------------------------------------- step
+    def step(self, configuration: Configuration, dt: float) -> StepResult:
+        """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
+        if not dt > 0 or not np.isfinite(dt):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt}")
+        start = time.perf_counter()
+        nv = self._nv
+        lb, ub, G, h, sources, general_names = self._limit_rows(configuration, dt)
+        m_general = G.shape[0]
+        d = np.zeros(nv)
+        P = self._eye.copy()
+        locked_rank = 0
+        statuses, sigmas, dampings, iterations, at_solve = [], [], [], [], []
+        residual_parts = []
+        for k, tasks in enumerate(self.levels):
+            A, b, mu = _level_residual(tasks, configuration, nv)
+            residual_parts.append((A, b))
+            if A.shape[0] == 0 or locked_rank >= nv:
+                statuses.append("solved")
+                sigmas.append(np.inf)
+                dampings.append(0.0)
+                iterations.append(0)
+                at_solve.append(float(np.linalg.norm(A @ d - b)) if A.size else 0.0)
+                continue
+            AP = A @ P
+            _, s, Vt = np.linalg.svd(AP, full_matrices=False)
+            expected = min(A.shape[0], nv - locked_rank)
+            sigma = float(s[expected - 1]) if expected > 0 else np.inf
+            lam2 = self.damping_law(sigma) if self.damping_law is not None else 0.0
+            reg = self.damping + mu + lam2
+            H = AP.T @ AP + reg * P + (self._eye - P)
+            H = 0.5 * (H + H.T)
+            c = AP.T @ (A @ d - b) + reg * (P @ d)
+            M = np.vstack([P, G @ P]) if m_general else P
+            lower = np.concatenate([lb - d, np.full(m_general, -np.inf)])
+            upper = np.concatenate([ub - d, h - G @ d]) if m_general else ub - d
+            z, status, its = self._solve_level(k, H, c, M, lower, upper, m_general)
+            if z is not None:
+                d = d + P @ z
+                d = np.clip(d, lb, ub)  # box limits hold exactly, not to solver tolerance
+            statuses.append(status)
+            sigmas.append(sigma)
+            dampings.append(lam2)
+            iterations.append(its)
+            at_solve.append(float(np.linalg.norm(A @ d - b)))
+            if z is None and k == 0:
+                break
+            # Lock this level's rows for the levels below.
+            tol = self.rank_tolerance * max(1.0, float(s[0]) if s.size else 1.0)
+            r = int(np.sum(s > tol))
+            if r:
+                V = Vt[:r].T
+                P = P - V @ V.T
+                locked_rank += r
+        residuals = [float(np.linalg.norm(A @ d - b)) if A.size else 0.0 for A, b in residual_parts]
+        residuals += [float("nan")] * (len(self.levels) - len(residuals))
+        active = self._active_limits(d, lb, ub, G, h, sources, general_names)
+        return StepResult(
+            velocity=d / dt,
+            displacement=d,
+            residuals=residuals,
+            sigma_min=sigmas,
+            damping=dampings,
+            active_limits=active,
+            status=statuses + ["not_reached"] * (len(self.levels) - len(statuses)),
+            iterations=iterations,
+            solve_time=time.perf_counter() - start,
+            level_residuals_at_solve=at_solve,
+        )
+
+    def _solve_level(self, k, H, c, M, lower, upper, m_general):
+        """Solve level ``k``; on failure retry cold with more iterations, then without the
+        general inequality rows. Returns ``(z or None, status, iterations)``."""
+        rows = M.shape[0]
+        workspace = self._workspaces[k]
+        if workspace is None or workspace.m != rows:
+            workspace = self._workspaces[k] = make_workspace(self.solver, self._nv, rows)
+        solution = workspace.solve(H, c, M, lower, upper)
+        if solution.found:
+            return solution.x, "solved", solution.iterations
+        workspace.reset(cold=True, scale_iterations=10)
+        retry = workspace.solve(H, c, M, lower, upper)
+        workspace.reset(scale_iterations=1)
+        if retry.found:
+            return retry.x, "solved_after_retry", solution.iterations + retry.iterations
+        if m_general:
+            relaxed_lower = lower.copy()
+            relaxed_upper = upper.copy()
+            relaxed_lower[self._nv :] = -np.inf
+            relaxed_upper[self._nv :] = np.inf
+            workspace.reset(cold=True)
+            relaxed = workspace.solve(H, c, M, relaxed_lower, relaxed_upper)
+            if relaxed.found:
+                return relaxed.x, "relaxed", relaxed.iterations
+        return None, ("failed" if k == 0 else "kept_previous"), retry.iterations
+
+    def _active_limits(self, d, lb, ub, G, h, sources, general_names) -> list[str]:
+        tol = 1e-9
+        active = []
+        for i in np.flatnonzero(np.isfinite(ub) & (d >= ub - tol)):
+            active.append(f"{self._dof_names[i]} upper ({sources[1][i] or 'limit'})")
+        for i in np.flatnonzero(np.isfinite(lb) & (d <= lb + tol)):
+            active.append(f"{self._dof_names[i]} lower ({sources[0][i] or 'limit'})")
+        if G.shape[0]:
+            for j in np.flatnonzero(G @ d >= h - 1e-7):
+                active.append(general_names[j])
+        return active
+
+
+def solve_ik(
+    configuration: Configuration,
+    stack,
+    dt: float,
+    *,
+    limits: Sequence[mink.Limit] = (),
+    solver: str = "osqp",
+    damping: float = 1e-6,
+) -> np.ndarray:
+    """One differential IK step: the joint velocity ``(nv,)`` [rad/s] for a step of ``dt`` [s].
+
+    A one-shot convenience around :class:`IKSolver` (which keeps workspaces between steps
+    and should be preferred in loops). Raises :class:`qpik.NoSolutionFound` only when the
+    highest priority level cannot be solved even after the fallbacks.
+    """
+    solver_ = IKSolver(configuration.model, stack, limits, solver=solver, damping=damping)
+    result = solver_.step(configuration, dt)
+    if result.status[0] == "failed":
+        raise NoSolutionFound(solver, result.status[0], level=0)
+    return result.velocity

@@ -1,0 +1,46 @@
+"""Tasks: mink's, re-exported so one import serves, and the ones qpik adds.
+
+Every task follows mink's contract: ``compute_error(configuration) -> e (k,)``,
+``compute_jacobian(configuration) -> J (k, nv)`` with ``J = de/dq``, a ``cost`` vector that
+weights the rows and a ``gain`` in [0, 1]; the QP asks ``J dq = -gain * e``. Any task with
+that contract works at any priority level of :class:`qpik.IKSolver`.
+"""
+
+from mink import (
+    AxisAlignTask,
+    ComTask,
+    DampingTask,
+    DofFreezingTask,
+    EqualityConstraintTask,
+    FrameTask,
+    KineticEnergyRegularizationTask,
+    LookAtTask,
+    Objective,
+    PostureTask,
+    RelativeFrameTask,
+    Task,
+)
+from mink.tasks.task import BaseTask
+
+from .frame import OrientationTask, PositionTask
+from .secondary import JointLimitDistanceTask, ManipulabilityTask
+
+__all__ = [
+    "AxisAlignTask",
+    "BaseTask",
+    "ComTask",
+    "DampingTask",
+    "DofFreezingTask",
+    "EqualityConstraintTask",
+    "FrameTask",
+    "JointLimitDistanceTask",
+    "KineticEnergyRegularizationTask",
+    "LookAtTask",
+    "ManipulabilityTask",
+    "Objective",
+    "OrientationTask",
+    "PositionTask",
+    "PostureTask",
+    "RelativeFrameTask",
+    "Task",
+]

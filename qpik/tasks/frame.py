@@ -1,0 +1,134 @@
+"""Position-only and orientation-only frame tasks, in the world frame.
+
+mink's :class:`~mink.FrameTask` with a zero orientation cost also regulates position only,
+but keeps six rows (three of them zero) and expresses its error in the local frame. These
+tasks have exactly the rows they regulate, world-aligned, so that a level's rank and
+smallest singular value (which drive qpik's damping) mean what they say.
+"""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import Configuration, FrameType
+from ..errors import InvalidTarget
+
+
+def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
+    cost = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(cost)) or np.any(cost < 0):
+        raise InvalidTarget(f"{name} must be finite and >= 0, got {cost}")
+    return cost
+
+
+class PositionTask(mink.Task):
+    """Bring a frame's origin to a target position (world frame, [m]).
+
+    Error ``e = p(q) - p_target`` (3,), Jacobian the linear rows of the world-aligned frame
+    Jacobian.
+    """
+
+    k = 3
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: FrameType | str = FrameType.SITE,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        super().__init__(_cost_vector(cost, "position cost"), gain, lm_damping)
+        self.frame_name = frame_name
+        self.frame_type = FrameType.parse(frame_type)
+        self.target: np.ndarray | None = None
+
+    def set_target(self, position: npt.ArrayLike) -> None:
+        """Target position of the frame origin in the world frame [m]."""
+        position = np.asarray(position, dtype=float)
+        if position.shape != (3,) or not np.all(np.isfinite(position)):
+            raise InvalidTarget(f"position target must be 3 finite numbers, got {position!r}")
+        self.target = position.copy()
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current position."""
+        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[0])
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        if self.target is None:
+            raise mink.TargetNotSet(type(self).__name__)
+        return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
+
+
+def so3_log(rotation: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, [rad]) of a rotation matrix."""
+    return mink.SO3.from_matrix(rotation).log()
+
+
+def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
+    """Inverse left Jacobian of SO(3) at rotation vector ``phi``: ``d log(R) = Jl^-1 omega``
+    for a world (left) perturbation ``dR = [omega] R``."""
+    theta = float(np.linalg.norm(phi))
+    skew = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
+    if theta < 1e-6:
+        return np.eye(3) - 0.5 * skew + skew @ skew / 12.0
+    coefficient = 1.0 / theta**2 - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
+    return np.eye(3) - 0.5 * skew + coefficient * skew @ skew
+
+
+class OrientationTask(mink.Task):
+    """Bring a frame's orientation to a target rotation (world frame).
+
+    Error ``e = log(R(q) R_target^T)`` (3,) [rad], the rotation vector from the target to the
+    current orientation in world coordinates; Jacobian ``Jl^-1(e) J_omega`` (exact).
+    """
+
+    k = 3
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: FrameType | str = FrameType.SITE,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        super().__init__(_cost_vector(cost, "orientation cost"), gain, lm_damping)
+        self.frame_name = frame_name
+        self.frame_type = FrameType.parse(frame_type)
+        self.target: np.ndarray | None = None
+
+    def set_target(self, rotation: npt.ArrayLike) -> None:
+        """Target rotation matrix (3, 3) of the frame in the world frame."""
+        rotation = np.asarray(rotation, dtype=float)
+        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+            raise InvalidTarget(f"rotation target must be a finite 3x3 matrix, got {rotation!r}")
+        if (
+            not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6)
+            or np.linalg.det(rotation) < 0
+        ):
+            raise InvalidTarget("rotation target is not a rotation matrix (R R^T != I or det < 0)")
+        self.target = rotation.copy()
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current orientation."""
+        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[1])
+
+    def _error(self, configuration: Configuration) -> np.ndarray:
+        if self.target is None:
+            raise mink.TargetNotSet(type(self).__name__)
+        rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
+        return so3_log(rotation @ self.target.T)
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        return self._error(configuration)
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        error = self._error(configuration)
+        angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
+        return so3_left_jacobian_inverse(error) @ angular

@@ -1,0 +1,71 @@
+"""qpik's own tasks: Jacobians against finite differences of their errors."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import configuration_of
+from scipy.spatial.transform import Rotation
+
+import qpik
+from qpik.tasks import JointLimitDistanceTask, ManipulabilityTask, OrientationTask, PositionTask
+
+
+def numeric_jacobian(task, configuration, h=1e-6):
+    q = configuration.q
+    model = configuration.model
+    columns = []
+    for i in range(model.nv):
+        dq = np.zeros(model.nv)
+        dq[i] = h
+        q_plus, q_minus = q.copy(), q.copy()
+        mujoco.mj_integratePos(model, q_plus, dq, 1.0)
+        mujoco.mj_integratePos(model, q_minus, -dq, 1.0)
+        configuration.update(q_plus)
+        e_plus = task.compute_error(configuration)
+        configuration.update(q_minus)
+        e_minus = task.compute_error(configuration)
+        columns.append((e_plus - e_minus) / (2 * h))
+    configuration.update(q)
+    return np.stack(columns, axis=1)
+
+
+def make_tasks(configuration, rng):
+    other = configuration.copy()
+    other.update(other.random_q(rng))
+    position = PositionTask("ee")
+    position.set_target(other.frame_pose("ee")[0])
+    orientation = OrientationTask("ee")
+    orientation.set_target(other.frame_pose("ee")[1])
+    return [position, orientation, JointLimitDistanceTask(), ManipulabilityTask("ee")]
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "panda"])
+def test_task_jacobians_match_finite_differences(robot, rng):
+    configuration = configuration_of(robot)
+    for _ in range(5):
+        configuration.update(configuration.random_q(rng))
+        for task in make_tasks(configuration, rng):
+            J = task.compute_jacobian(configuration)
+            np.testing.assert_allclose(
+                J, numeric_jacobian(task, configuration), atol=2e-5, err_msg=type(task).__name__
+            )
+
+
+def test_orientation_error_is_world_rotation_vector():
+    configuration = configuration_of("panda", configuration_of("panda").mid_q())
+    rotation = configuration.frame_pose("ee")[1]
+    task = OrientationTask("ee")
+    offset = Rotation.from_rotvec([0.1, -0.2, 0.05])
+    task.set_target(offset.as_matrix().T @ rotation)
+    np.testing.assert_allclose(task.compute_error(configuration), [0.1, -0.2, 0.05], atol=1e-12)
+
+
+def test_bad_targets():
+    with pytest.raises(qpik.InvalidTarget, match="3 finite"):
+        PositionTask("ee").set_target([0.0, np.nan, 1.0])
+    with pytest.raises(qpik.InvalidTarget, match="not a rotation"):
+        OrientationTask("ee").set_target(np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(qpik.InvalidTarget, match=">= 0"):
+        PositionTask("ee", cost=-1.0)
