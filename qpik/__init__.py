@@ -1,6 +1,6 @@
 """qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
 
-from . import baselines, limits, tasks
+from . import baselines, limits, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
 from .errors import (
     InfeasibleLimits,
@@ -48,4 +48,5 @@ __all__ = [
     "joint_names",
     "list_robots",
     "load_robot",
+    "statics",
 ]

@@ -120,3 +120,8 @@ class ProblemFileError(QpikError, ValueError):
         self.field = field
         self.expected = expected
         super().__init__(f"{path}: field {field!r}: {expected}")
+
+
+class InvalidInput(QpikError, ValueError):
+    """An array argument of the wrong shape, or with NaN / inf entries (for example a
+    Jacobian or a task velocity passed to :mod:`qpik.analysis`)."""
