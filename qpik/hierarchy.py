@@ -35,16 +35,17 @@ growing smoothly to ``max_damping^2``, which bounds the step by ``|b| / (2 max_d
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import mink
 import mujoco
 import numpy as np
+from scipy.linalg import lapack
 
 from .configuration import Configuration, joint_names
 from .errors import InfeasibleLimits, NoSolutionFound
-from .qp import make_workspace
+from .qp import make_workspace, solve_linear
 from .tasks import BaseTask
 
 __all__ = ["IKSolver", "StepResult", "normalize_stack", "solve_ik", "DampingLaw"]
@@ -96,11 +97,20 @@ class StepResult:
     residuals: list[float]
     sigma_min: list[float]
     damping: list[float]
-    active_limits: list[str]
     status: list[str]
     iterations: list[int]
     solve_time: float
     level_residuals_at_solve: list[float] = field(default_factory=list)
+    _name_active_limits: Callable[[], list[str]] | None = field(default=None, repr=False)
+    _active_limits: list[str] | None = field(default=None, repr=False)
+
+    @property
+    def active_limits(self) -> list[str]:
+        """The limits that bind at the final ``dq`` (named on first access)."""
+        if self._active_limits is None:
+            names = self._name_active_limits() if self._name_active_limits else []
+            self._active_limits = names
+        return self._active_limits
 
     @property
     def ok(self) -> bool:
@@ -143,6 +153,15 @@ def _level_residual(
     Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c``.
     Rows with zero weight are dropped (they would count as lost rank).
     """
+    if len(tasks) == 1:
+        residual = tasks[0].compute_qp_residual(configuration)
+        if residual is not None:
+            A, b, mu = residual
+            A, b = np.atleast_2d(A), np.atleast_1d(b)
+            nonzero = A.any(axis=1)
+            if not nonzero.all():
+                A, b = A[nonzero], b[nonzero]
+            return A, b, float(mu)
     A_parts, b_parts = [], []
     mu = 0.0
     for task in tasks:
@@ -167,6 +186,32 @@ def _level_residual(
     return A, b, mu
 
 
+@dataclass(frozen=True)
+class _RowStructure:
+    """Rows of a limit's ``G``: single-dof upper / lower bounds (row, dof, 1/coefficient),
+    general rows, and empty rows; ``unique`` when no dof is bounded twice on one side."""
+
+    upper_rows: np.ndarray
+    upper_dofs: np.ndarray
+    upper_scale: np.ndarray
+    lower_rows: np.ndarray
+    lower_dofs: np.ndarray
+    lower_scale: np.ndarray
+    general: np.ndarray
+    empty: np.ndarray | None
+    unique: bool
+
+
+def _svd(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Singular values and right singular vectors (rows of ``Vt``) of a small matrix."""
+    if matrix.shape[0] == 0:
+        return np.zeros(0), np.zeros((0, matrix.shape[1]))
+    _, s, vt, info = lapack.dgesdd(matrix, full_matrices=0)
+    if info != 0:  # pragma: no cover - LAPACK failure, fall back to numpy's driver
+        _, s, vt = np.linalg.svd(matrix, full_matrices=False)
+    return s, vt
+
+
 class IKSolver:
     """Differential IK with strict priorities, keeping one QP workspace per level.
 
@@ -181,6 +226,10 @@ class IKSolver:
         damping_law: the adaptive (singularity) damping, see :class:`DampingLaw`.
         rank_tolerance: singular values below ``rank_tolerance * max(1, sigma_max)`` of a
             level's projected rows are treated as zero when locking that level.
+        fast_path: first solve each level's QP without its inequalities (one linear solve);
+            if that minimiser satisfies every limit it *is* the QP's solution (the QP is
+            strictly convex), and the QP solver is called only when a limit binds. Exact;
+            ``False`` sends every level to the QP solver.
     """
 
     def __init__(
@@ -193,6 +242,7 @@ class IKSolver:
         damping: float = 1e-6,
         damping_law: DampingLaw | None = DampingLaw(),
         rank_tolerance: float = 1e-9,
+        fast_path: bool = True,
     ):
         if damping < 0 or not np.isfinite(damping):
             raise ValueError(f"damping must be finite and >= 0, got {damping}")
@@ -209,6 +259,9 @@ class IKSolver:
         names = joint_names(model)
         self._dof_names = [names[model.dof_jntid[i]] for i in range(model.nv)]
         self._eye = np.eye(self._nv)
+        self._structure_cache: dict[int, tuple] = {}
+        self._no_rows = np.zeros((0, self._nv))
+        self.fast_path = fast_path
 
     @property
     def workspace_setups(self) -> int:
@@ -216,47 +269,72 @@ class IKSolver:
         return sum(getattr(ws, "setups", 0) for ws in self._workspaces if ws is not None)
 
     # ----------------------------------------------------------------- limits
+    def _row_structure(self, limit, G: np.ndarray) -> _RowStructure:
+        """How a limit's rows split into single-dof bounds and general rows. Cached while
+        ``G`` is unchanged (mink's position and velocity limits return the same ``G``)."""
+        key = id(limit)
+        cached = self._structure_cache.get(key)
+        if cached is not None and cached[0].shape == G.shape and np.array_equal(cached[0], G):
+            return cached[1]
+        nonzero = G != 0.0
+        count = nonzero.sum(axis=1)
+        unit = np.flatnonzero(count == 1)
+        dofs = np.argmax(nonzero[unit], axis=1) if unit.size else np.zeros(0, dtype=int)
+        coefficients = G[unit, dofs]
+        up = coefficients > 0
+        empty = np.flatnonzero(count == 0)
+        structure = _RowStructure(
+            upper_rows=unit[up],
+            upper_dofs=dofs[up],
+            upper_scale=1.0 / coefficients[up],
+            lower_rows=unit[~up],
+            lower_dofs=dofs[~up],
+            lower_scale=1.0 / coefficients[~up],
+            general=np.flatnonzero(count > 1),
+            empty=empty if empty.size else None,
+            unique=len(set(dofs[up].tolist())) == up.sum()
+            and len(set(dofs[~up].tolist())) == (~up).sum(),
+        )
+        self._structure_cache[key] = (G.copy(), structure)
+        return structure
+
     def _limit_rows(self, configuration: Configuration, dt: float):
-        """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits."""
+        """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits, and
+        the per-limit box contributions (to name the active limits afterwards)."""
         nv = self._nv
         hard_lb, hard_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
         pos_lb, pos_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
-        source_lb = [""] * nv
-        source_ub = [""] * nv
+        contributions = []  # (name, dofs, bounds) for each side of each limit
         general_G, general_h, general_names = [], [], []
         for limit in self.limits:
             constraint = limit.compute_qp_inequalities(configuration, dt)
             if constraint.inactive:
                 continue
-            G = np.atleast_2d(np.asarray(constraint.G, dtype=float))
-            h = np.atleast_1d(np.asarray(constraint.h, dtype=float))
+            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+            h = np.atleast_1d(constraint.h)
             name = type(limit).__name__
             recoverable = isinstance(limit, mink.ConfigurationLimit) or getattr(
                 limit, "recoverable", False
             )
-            nonzero = G != 0.0
-            count = nonzero.sum(axis=1)
-            empty = count == 0
-            if np.any(h[empty] < 0):
-                raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[empty].min():.3g}")
-            unit = count == 1
+            structure = self._row_structure(limit, G)
+            if structure.empty is not None and np.any(h[structure.empty] < 0):
+                raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[structure.empty].min():.3g}")
             lb, ub = (pos_lb, pos_ub) if recoverable else (hard_lb, hard_ub)
-            for row in np.flatnonzero(unit):
-                dof = int(np.argmax(nonzero[row]))
-                coefficient = G[row, dof]
-                bound = h[row] / coefficient
-                if coefficient > 0:
-                    if bound < ub[dof]:
-                        ub[dof] = bound
-                        source_ub[dof] = name
-                elif bound > lb[dof]:
-                    lb[dof] = bound
-                    source_lb[dof] = name
-            general = ~unit & ~empty
-            if general.any():
-                general_G.append(G[general])
-                general_h.append(h[general])
-                general_names.extend(f"{name} row {int(r)}" for r in np.flatnonzero(general))
+            for rows, dofs, scale, side, pick in (
+                (structure.upper_rows, structure.upper_dofs, structure.upper_scale, ub, np.minimum),
+                (structure.lower_rows, structure.lower_dofs, structure.lower_scale, lb, np.maximum),
+            ):
+                if rows.size:
+                    bounds = h[rows] * scale
+                    if structure.unique:
+                        side[dofs] = pick(side[dofs], bounds)
+                    else:
+                        pick.at(side, dofs, bounds)
+                    contributions.append((name, dofs, bounds))
+            if structure.general.size:
+                general_G.append(G[structure.general])
+                general_h.append(h[structure.general])
+                general_names.extend(f"{name} row {int(r)}" for r in structure.general)
         bad = np.flatnonzero(hard_lb > hard_ub)
         if bad.size:
             i = int(bad[0])
@@ -275,9 +353,9 @@ class IKSolver:
             too_low = conflict & (pos_lb > hard_ub)
             lb[too_high] = ub[too_high] = hard_lb[too_high]
             lb[too_low] = ub[too_low] = hard_ub[too_low]
-        G = np.vstack(general_G) if general_G else np.zeros((0, self._nv))
+        G = np.vstack(general_G) if general_G else self._no_rows
         h = np.concatenate(general_h) if general_h else np.zeros(0)
-        return lb, ub, G, h, (source_lb, source_ub), general_names
+        return lb, ub, G, h, contributions, general_names
 
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
@@ -286,13 +364,14 @@ class IKSolver:
             raise ValueError(f"dt must be a positive number of seconds, got {dt}")
         start = time.perf_counter()
         nv = self._nv
-        lb, ub, G, h, sources, general_names = self._limit_rows(configuration, dt)
+        lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
         m_general = G.shape[0]
         d = np.zeros(nv)
-        P = self._eye.copy()
+        P = self._eye
         locked_rank = 0
         statuses, sigmas, dampings, iterations, at_solve = [], [], [], [], []
         residual_parts = []
+        eye = self._eye
         for k, tasks in enumerate(self.levels):
             A, b, mu = _level_residual(tasks, configuration, nv)
             residual_parts.append((A, b))
@@ -303,22 +382,32 @@ class IKSolver:
                 iterations.append(0)
                 at_solve.append(float(np.linalg.norm(A @ d - b)) if A.size else 0.0)
                 continue
-            AP = A @ P
-            _, s, Vt = np.linalg.svd(AP, full_matrices=False)
+            first = locked_rank == 0  # nothing locked yet: P = I, d = 0
+            AP = A if first else A @ P
+            s, Vt = _svd(AP)
             expected = min(A.shape[0], nv - locked_rank)
-            sigma = float(s[expected - 1]) if expected > 0 else np.inf
+            sigma = float(s[expected - 1]) if expected > 0 and expected <= s.size else 0.0
             lam2 = self.damping_law(sigma) if self.damping_law is not None else 0.0
             reg = self.damping + mu + lam2
-            H = AP.T @ AP + reg * P + (self._eye - P)
-            H = 0.5 * (H + H.T)
-            c = AP.T @ (A @ d - b) + reg * (P @ d)
-            M = np.vstack([P, G @ P]) if m_general else P
-            lower = np.concatenate([lb - d, np.full(m_general, -np.inf)])
-            upper = np.concatenate([ub - d, h - G @ d]) if m_general else ub - d
+            if first:
+                H = AP.T @ AP
+                H.flat[:: nv + 1] += reg
+                c = -(AP.T @ b) if not d.any() else AP.T @ (A @ d - b) + reg * d
+                M = np.vstack([eye, G]) if m_general else eye
+            else:
+                H = AP.T @ AP + reg * P + (eye - P)
+                H = 0.5 * (H + H.T)
+                c = AP.T @ (A @ d - b) + reg * (P @ d)
+                M = np.vstack([P, G @ P]) if m_general else P
+            if m_general:
+                lower = np.concatenate([lb - d, np.full(m_general, -np.inf)])
+                upper = np.concatenate([ub - d, h - G @ d])
+            else:
+                lower, upper = lb - d, ub - d
             z, status, its = self._solve_level(k, H, c, M, lower, upper, m_general)
             if z is not None:
-                d = d + P @ z
-                d = np.clip(d, lb, ub)  # box limits hold exactly, not to solver tolerance
+                d = d + (z if first else P @ z)
+                np.clip(d, lb, ub, out=d)  # box limits hold exactly, not to solver tolerance
             statuses.append(status)
             sigmas.append(sigma)
             dampings.append(lam2)
@@ -331,18 +420,19 @@ class IKSolver:
             r = int(np.sum(s > tol))
             if r:
                 V = Vt[:r].T
-                P = P - V @ V.T
+                P = (eye if first else P) - V @ V.T
                 locked_rank += r
         residuals = [float(np.linalg.norm(A @ d - b)) if A.size else 0.0 for A, b in residual_parts]
         residuals += [float("nan")] * (len(self.levels) - len(residuals))
-        active = self._active_limits(d, lb, ub, G, h, sources, general_names)
         return StepResult(
             velocity=d / dt,
             displacement=d,
             residuals=residuals,
             sigma_min=sigmas,
             damping=dampings,
-            active_limits=active,
+            _name_active_limits=lambda: self._active_limits(
+                d, lb, ub, G, h, contributions, general_names
+            ),
             status=statuses + ["not_reached"] * (len(self.levels) - len(statuses)),
             iterations=iterations,
             solve_time=time.perf_counter() - start,
@@ -352,6 +442,12 @@ class IKSolver:
     def _solve_level(self, k, H, c, M, lower, upper, m_general):
         """Solve level ``k``; on failure retry cold with more iterations, then without the
         general inequality rows. Returns ``(z or None, status, iterations)``."""
+        if self.fast_path:
+            x = solve_linear(H, -c)
+            if x is not None:
+                Mx = M @ x
+                if (Mx <= upper).all() and (Mx >= lower).all():
+                    return x, "solved", 0
         rows = M.shape[0]
         workspace = self._workspaces[k]
         if workspace is None or workspace.m != rows:
@@ -375,13 +471,23 @@ class IKSolver:
                 return relaxed.x, "relaxed", relaxed.iterations
         return None, ("failed" if k == 0 else "kept_previous"), retry.iterations
 
-    def _active_limits(self, d, lb, ub, G, h, sources, general_names) -> list[str]:
+    def _active_limits(self, d, lb, ub, G, h, contributions, general_names) -> list[str]:
         tol = 1e-9
         active = []
-        for i in np.flatnonzero(np.isfinite(ub) & (d >= ub - tol)):
-            active.append(f"{self._dof_names[i]} upper ({sources[1][i] or 'limit'})")
-        for i in np.flatnonzero(np.isfinite(lb) & (d <= lb + tol)):
-            active.append(f"{self._dof_names[i]} lower ({sources[0][i] or 'limit'})")
+        for side, bound, at_bound in (
+            ("upper", ub, np.isfinite(ub) & (d >= ub - tol)),
+            ("lower", lb, np.isfinite(lb) & (d <= lb + tol)),
+        ):
+            for i in np.flatnonzero(at_bound):
+                source = next(
+                    (
+                        name
+                        for name, dofs, bounds in contributions
+                        if np.any((dofs == i) & (np.abs(bounds - bound[i]) <= tol))
+                    ),
+                    "limit",
+                )
+                active.append(f"{self._dof_names[i]} {side} ({source})")
         if G.shape[0]:
             for j in np.flatnonzero(G @ d >= h - 1e-7):
                 active.append(general_names[j])

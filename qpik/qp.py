@@ -22,10 +22,19 @@ from typing import Protocol
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import lapack
 
 from .errors import MissingExtra
 
-__all__ = ["BACKENDS", "QPSolution", "QPWorkspace", "OSQPWorkspace", "make_workspace"]
+__all__ = [
+    "BACKENDS",
+    "OSQPWorkspace",
+    "QPSolution",
+    "QPWorkspace",
+    "make_workspace",
+    "refine_active_set",
+    "solve_linear",
+]
 
 _INF = 1e20  # what OSQP treats as infinity (OSQP_INFTY is 1e30; any value above 1e20 works)
 
@@ -118,24 +127,33 @@ class OSQPWorkspace:
         start = time.perf_counter()
         if self._solver is None:
             self._setup(H, c, M, lower, upper)
-        else:
-            self._solver.update(
-                Px=H[self._h_rows, self._h_cols],
-                Ax=M.ravel(order="F"),
-                q=c,
-                l=lower,
-                u=upper,
+        # The extension object behind osqp.OSQP: calling it directly skips the Python
+        # wrapper's per-call bookkeeping (about half the time of a small solve).
+        ext = getattr(self._solver, "_solver", None)
+        if ext is not None and hasattr(ext, "update_data_vec"):
+            ext.update_data_vec(q=c, l=lower, u=upper)
+            ext.update_data_mat(
+                P_x=H[self._h_rows, self._h_cols], P_i=None, A_x=M.ravel(order="F"), A_i=None
             )
-        result = self._solver.solve(raise_error=False)
-        status = self._status_names.get(int(result.info.status_val), "unknown")
+            ext.solve()
+            status_val, iterations = int(ext.info.status_val), int(ext.info.iter)
+            x_raw, y_raw = ext.solution.x, ext.solution.y
+        else:  # pragma: no cover - other osqp versions
+            self._solver.update(
+                Px=H[self._h_rows, self._h_cols], Ax=M.ravel(order="F"), q=c, l=lower, u=upper
+            )
+            result = self._solver.solve(raise_error=False)
+            status_val, iterations = int(result.info.status_val), int(result.info.iter)
+            x_raw, y_raw = result.x, result.y
+        status = self._status_names.get(status_val, "unknown")
         if status == "max_iter_reached":
             status = "max_iter"
-        x = np.array(result.x) if status in ("solved", "solved_inaccurate") else None
+        x = np.array(x_raw) if status in ("solved", "solved_inaccurate") else None
         if x is not None and not np.all(np.isfinite(x)):
             x, status = None, "non_finite"
         if x is not None:
-            x = refine_active_set(H, c, M, lower, upper, x, np.asarray(result.y))
-        return QPSolution(x, status, int(result.info.iter), time.perf_counter() - start)
+            x = refine_active_set(H, c, M, lower, upper, x, np.asarray(y_raw))
+        return QPSolution(x, status, iterations, time.perf_counter() - start)
 
     def reset(self, *, cold: bool = False, scale_iterations: int = 1) -> None:
         """Drop the warm start (``cold``) and/or raise the iteration limit."""
@@ -145,6 +163,15 @@ class OSQPWorkspace:
             self._solver.warm_start(x=np.zeros(self.n), y=np.zeros(self.m))
         if scale_iterations != 1:
             self._solver.update_settings(max_iter=self.settings.max_iter * scale_iterations)
+
+
+def solve_linear(A: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """``A^-1 b`` for a small dense square ``A`` (LAPACK gesv without numpy's wrapper
+    overhead); ``None`` when ``A`` is singular or the result is not finite."""
+    _, _, x, info = lapack.dgesv(A, b)
+    if info != 0 or not np.isfinite(x).all():
+        return None
+    return x
 
 
 def refine_active_set(
@@ -167,11 +194,9 @@ def refine_active_set(
     k = int(active.sum())
     n = len(x)
     if k == 0:
-        try:
-            refined = np.linalg.solve(H, -c)
-        except np.linalg.LinAlgError:
+        refined = solve_linear(H, -c)
+        if refined is None:
             return x
-        multipliers = np.empty(0)
     else:
         A = M[active]
         b = np.where(at_upper[active], upper[active], lower[active])
@@ -179,20 +204,16 @@ def refine_active_set(
         kkt[:n, :n] = H
         kkt[:n, n:] = A.T
         kkt[n:, :n] = A
-        rhs = np.concatenate([-c, b])
-        try:
-            solution = np.linalg.solve(kkt, rhs)
-        except np.linalg.LinAlgError:
+        solution = solve_linear(kkt, np.concatenate([-c, b]))
+        if solution is None:
             return x
         refined, multipliers = solution[:n], solution[n:]
         # Dual feasibility: an upper-active row pushes down (multiplier >= 0), a lower one up.
         signs = np.where(at_upper[active], 1.0, -1.0)
-        if np.any(signs * multipliers < -1e-9):
+        if (signs * multipliers < -1e-9).any():
             return x
-    if not np.all(np.isfinite(refined)):
-        return x
     Mx = M @ refined
-    if np.any(Mx > upper + feasibility_tol) or np.any(Mx < lower - feasibility_tol):
+    if (Mx > upper + feasibility_tol).any() or (Mx < lower - feasibility_tol).any():
         return x
     return refined
 
