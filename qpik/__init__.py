@@ -1,6 +1,6 @@
 """qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
 
-from . import baselines, limits, statics, tasks
+from . import analysis, baselines, limits, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
 from .errors import (
     InfeasibleLimits,
@@ -44,6 +44,7 @@ __all__ = [
     "UnknownFrameType",
     "UnknownRobot",
     "__version__",
+    "analysis",
     "frame_names",
     "joint_names",
     "list_robots",
