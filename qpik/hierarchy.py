@@ -202,6 +202,31 @@ class _RowStructure:
     unique: bool
 
 
+def _configuration_box(limit: mink.ConfigurationLimit, configuration: Configuration, dt: float):
+    """mink's ConfigurationLimit as box bounds on ``dq`` (hinge/slide joints: dof = qpos)."""
+    q = configuration.data.qpos[limit.indices]
+    upper = limit.gain * (limit.upper[limit.indices] - q)
+    lower = -limit.gain * (q - limit.lower[limit.indices])
+    return limit.indices, lower, upper
+
+
+def _velocity_box(limit: mink.VelocityLimit, configuration: Configuration, dt: float):
+    """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt``."""
+    bound = limit.limit * dt
+    return limit.indices, -bound, bound
+
+
+#: Limits whose rows are known to be single-dof bounds, computed directly as boxes (exact
+#: type match: a subclass may change the rows). Used on models whose joints are all
+#: hinges or slides; other limits go through ``compute_qp_inequalities``.
+_BOX_LIMITS = {mink.ConfigurationLimit: _configuration_box, mink.VelocityLimit: _velocity_box}
+
+
+def _norm(vector: np.ndarray) -> float:
+    """Euclidean norm of a small vector (0 for an empty one)."""
+    return float(np.sqrt(vector @ vector))
+
+
 def _svd(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Singular values and right singular vectors (rows of ``Vt``) of a small matrix."""
     if matrix.shape[0] == 0:
@@ -261,6 +286,11 @@ class IKSolver:
         self._eye = np.eye(self._nv)
         self._structure_cache: dict[int, tuple] = {}
         self._no_rows = np.zeros((0, self._nv))
+        self._scalar_joints = model.nq == model.nv and bool(
+            np.all(
+                np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
+            )
+        )
         self.fast_path = fast_path
 
     @property
@@ -307,6 +337,20 @@ class IKSolver:
         contributions = []  # (name, dofs, bounds) for each side of each limit
         general_G, general_h, general_names = [], [], []
         for limit in self.limits:
+            box = _BOX_LIMITS.get(type(limit)) if self._scalar_joints else None
+            if box is not None:
+                dofs, lower, upper = box(limit, configuration, dt)
+                if len(dofs):
+                    if isinstance(limit, mink.ConfigurationLimit):
+                        lb, ub = pos_lb, pos_ub
+                    else:
+                        lb, ub = hard_lb, hard_ub
+                    ub[dofs] = np.minimum(ub[dofs], upper)
+                    lb[dofs] = np.maximum(lb[dofs], lower)
+                    name = type(limit).__name__
+                    contributions.append((name, dofs, upper))
+                    contributions.append((name, dofs, lower))
+                continue
             constraint = limit.compute_qp_inequalities(configuration, dt)
             if constraint.inactive:
                 continue
@@ -380,7 +424,7 @@ class IKSolver:
                 sigmas.append(np.inf)
                 dampings.append(0.0)
                 iterations.append(0)
-                at_solve.append(float(np.linalg.norm(A @ d - b)) if A.size else 0.0)
+                at_solve.append(_norm(A @ d - b))
                 continue
             first = locked_rank == 0  # nothing locked yet: P = I, d = 0
             AP = A if first else A @ P
@@ -395,8 +439,9 @@ class IKSolver:
                 c = -(AP.T @ b) if not d.any() else AP.T @ (A @ d - b) + reg * d
                 M = np.vstack([eye, G]) if m_general else eye
             else:
-                H = AP.T @ AP + reg * P + (eye - P)
-                H = 0.5 * (H + H.T)
+                # P (A^T A + reg I) P on N, identity on its complement (pins z there).
+                H = AP.T @ AP + (reg - 1.0) * P
+                H.flat[:: nv + 1] += 1.0
                 c = AP.T @ (A @ d - b) + reg * (P @ d)
                 M = np.vstack([P, G @ P]) if m_general else P
             if m_general:
@@ -412,7 +457,7 @@ class IKSolver:
             sigmas.append(sigma)
             dampings.append(lam2)
             iterations.append(its)
-            at_solve.append(float(np.linalg.norm(A @ d - b)))
+            at_solve.append(_norm(A @ d - b))
             if z is None and k == 0:
                 break
             # Lock this level's rows for the levels below.
@@ -422,7 +467,7 @@ class IKSolver:
                 V = Vt[:r].T
                 P = (eye if first else P) - V @ V.T
                 locked_rank += r
-        residuals = [float(np.linalg.norm(A @ d - b)) if A.size else 0.0 for A, b in residual_parts]
+        residuals = [_norm(A @ d - b) for A, b in residual_parts]
         residuals += [float("nan")] * (len(self.levels) - len(residuals))
         return StepResult(
             velocity=d / dt,

@@ -1,0 +1,127 @@
+"""Per-step time of differential IK on the bundled 7-DoF arm, methods side by side.
+
+Scenario: the `panda` tracks a pose target moving on a 10 cm circle at 100 Hz (dt = 10 ms):
+level 0 a FrameTask on site `ee`, level 1 a posture (or joint-limit distance) task, under
+position and velocity limits. Every method steps its own copy of the robot along the same
+target trajectory, interleaved step by step, so machine noise hits all alike.
+
+Methods: qpik + OSQP (two strict levels; with and without the exact unconstrained fast
+path), mink + osqp and mink + daqp (the same tasks as one weighted level, as mink has no
+priorities), and the lecture's pseudoinverse step (no limits, no second task).
+
+    python benchmarks/step_time.py [--steps 2000] [--secondary posture|limit-distance]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mink
+import numpy as np
+
+import qpik
+from qpik.baselines import pseudoinverse_step
+from qpik.limits import joint_limits
+from qpik.tasks import FrameTask, JointLimitDistanceTask, PostureTask
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--secondary", choices=["posture", "limit-distance"], default="posture")
+    parser.add_argument("--robot", default="panda")
+    args = parser.parse_args(argv)
+
+    model = qpik.load_robot(args.robot)
+    start = qpik.Configuration(model)
+    start.update(model.key_qpos[0] if model.nkey else start.mid_q())
+    limits = joint_limits(model)
+    centre, rotation = start.frame_pose("ee")
+    dt = 0.01
+
+    def make_tasks():
+        frame = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+        if args.secondary == "posture":
+            secondary = PostureTask(model, cost=0.1)
+            secondary.set_target(start.q)
+        else:
+            secondary = JointLimitDistanceTask(cost=0.1)
+        return frame, secondary
+
+    methods = {}
+
+    def add_qpik(name, fast_path):
+        frame, secondary = make_tasks()
+        solver = qpik.IKSolver(model, [[frame], [secondary]], limits, fast_path=fast_path)
+        methods[name] = (frame, lambda c: solver.step(c, dt).velocity)
+
+    def add_mink(name, backend):
+        frame, secondary = make_tasks()
+        tasks = [frame, secondary]
+        methods[name] = (
+            frame,
+            lambda c: mink.solve_ik(c, tasks, dt, backend, damping=1e-6, limits=limits),
+        )
+
+    def add_pinv():
+        frame, _ = make_tasks()
+
+        def step(c):
+            J = c.frame_jacobian("ee")
+            # mink's error is a local twist; use the world-aligned position/rotation error.
+            target = frame.transform_target_to_world
+            p_err = target.translation() - c.frame_pose("ee")[0]
+            r_err = (
+                target.rotation() @ mink.SO3.from_matrix(c.frame_pose("ee")[1]).inverse()
+            ).log()
+            return pseudoinverse_step(J, np.concatenate([p_err, r_err])) / dt
+
+        methods["pseudoinverse (no limits)"] = (frame, step)
+
+    add_qpik("qpik osqp, 2 levels", fast_path=True)
+    add_qpik("qpik osqp, 2 levels, no fast path", fast_path=False)
+    add_mink("mink + osqp, 1 level", "osqp")
+    add_mink("mink + daqp, 1 level", "daqp")
+    add_pinv()
+
+    configurations = {name: start.copy() for name in methods}
+    times = {name: [] for name in methods}
+    errors = {name: [] for name in methods}
+    violations = dict.fromkeys(methods, 0)
+    for k in range(args.steps):
+        angle = 2 * np.pi * k / 400
+        target = centre + 0.1 * np.array([np.cos(angle) - 1.0, np.sin(angle), 0.0])
+        pose = mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), target)
+        for name, (frame, step) in methods.items():
+            configuration = configurations[name]
+            frame.set_target(pose)
+            t0 = time.perf_counter()
+            velocity = step(configuration)
+            times[name].append(time.perf_counter() - t0)
+            configuration.integrate_inplace(velocity, dt)
+            if not configuration.within_limits(tol=1e-9):
+                violations[name] += 1
+            errors[name].append(np.linalg.norm(configuration.frame_pose("ee")[0] - target))
+
+    reference = np.median(times["qpik osqp, 2 levels"])
+    print(f"robot {args.robot}, {args.steps} steps at dt = {dt} s, secondary = {args.secondary}")
+    print(
+        f"{'method':38s} {'median us':>10s} {'p95 us':>9s} {'x qpik':>7s} "
+        f"{'track err mm':>13s} {'limit viol.':>11s}"
+    )
+    summary = {}
+    for name in methods:
+        t = np.array(times[name]) * 1e6
+        median = float(np.median(t))
+        summary[name] = {"median_us": median, "p95_us": float(np.percentile(t, 95))}
+        print(
+            f"{name:38s} {median:10.1f} {np.percentile(t, 95):9.1f} "
+            f"{median / (reference * 1e6):7.2f} {1e3 * np.median(errors[name]):13.3f} "
+            f"{violations[name]:11d}"
+        )
+    return summary
+
+
+if __name__ == "__main__":
+    main()
