@@ -2,6 +2,7 @@
 
 from . import analysis, baselines, limits, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
+from .converge import IKResult, solve, solve_many
 from .errors import (
     InfeasibleLimits,
     InvalidConfiguration,
@@ -23,11 +24,14 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DampingLaw",
+    "IKResult",
     "IKSolver",
     "StepResult",
     "baselines",
     "limits",
+    "solve",
     "solve_ik",
+    "solve_many",
     "tasks",
     "Configuration",
     "FrameType",

@@ -45,7 +45,7 @@ from scipy.linalg import lapack
 
 from .configuration import Configuration, joint_names
 from .errors import InfeasibleLimits, NoSolutionFound
-from .qp import make_workspace, solve_linear
+from .qp import OSQPSettings, make_workspace, solve_linear
 from .tasks import BaseTask
 
 __all__ = ["IKSolver", "StepResult", "normalize_stack", "solve_ik", "DampingLaw"]
@@ -59,17 +59,30 @@ class DampingLaw:
         singular_threshold: ``sigma`` below which damping starts (units of the level's
             weighted Jacobian, e.g. [m/rad] for a position task of cost 1).
         max_damping: ``lambda`` reached at ``sigma = 0``.
+        error_scale: if set, damping also fades with the level's error (see ``__call__``);
+            :func:`qpik.solve` uses this, velocity control does not.
     """
 
     singular_threshold: float = 0.05
     max_damping: float = 0.05
+    error_scale: float | None = None
 
-    def __call__(self, sigma: float) -> float:
-        """``lambda^2`` for smallest singular value ``sigma``."""
+    def __call__(self, sigma: float, error_norm: float | None = None) -> float:
+        """``lambda^2`` for smallest singular value ``sigma``.
+
+        With ``error_scale`` set, ``lambda^2`` is further scaled by
+        ``min(1, |b| / error_scale)`` (``|b|`` the level's weighted error): damping fades as
+        the error vanishes, in the spirit of Levenberg-Marquardt (Sugihara 2011), so that an
+        iterative solve converges quickly to targets at or near singular configurations;
+        the step stays bounded by ``sqrt(|b| error_scale) / (2 max_damping)``.
+        """
         if not sigma < self.singular_threshold:
             return 0.0
         ratio = sigma / self.singular_threshold
-        return self.max_damping**2 * (1.0 - ratio * ratio)
+        lam2 = self.max_damping**2 * (1.0 - ratio * ratio)
+        if self.error_scale is not None and error_norm is not None:
+            lam2 *= min(1.0, error_norm / self.error_scale)
+        return lam2
 
 
 @dataclass
@@ -255,6 +268,8 @@ class IKSolver:
             if that minimiser satisfies every limit it *is* the QP's solution (the QP is
             strictly convex), and the QP solver is called only when a limit binds. Exact;
             ``False`` sends every level to the QP solver.
+        osqp_settings: OSQP settings (default :class:`qpik.qp.OSQPSettings`: tolerances
+            1e-7, then an exact active-set refinement).
     """
 
     def __init__(
@@ -268,6 +283,7 @@ class IKSolver:
         damping_law: DampingLaw | None = DampingLaw(),
         rank_tolerance: float = 1e-9,
         fast_path: bool = True,
+        osqp_settings: OSQPSettings | None = None,
     ):
         if damping < 0 or not np.isfinite(damping):
             raise ValueError(f"damping must be finite and >= 0, got {damping}")
@@ -292,6 +308,7 @@ class IKSolver:
             )
         )
         self.fast_path = fast_path
+        self.osqp_settings = osqp_settings
 
     @property
     def workspace_setups(self) -> int:
@@ -431,7 +448,12 @@ class IKSolver:
             s, Vt = _svd(AP)
             expected = min(A.shape[0], nv - locked_rank)
             sigma = float(s[expected - 1]) if expected > 0 and expected <= s.size else 0.0
-            lam2 = self.damping_law(sigma) if self.damping_law is not None else 0.0
+            if self.damping_law is None:
+                lam2 = 0.0
+            elif self.damping_law.error_scale is None:
+                lam2 = self.damping_law(sigma)
+            else:
+                lam2 = self.damping_law(sigma, _norm(b - A @ d))
             reg = self.damping + mu + lam2
             if first:
                 H = AP.T @ AP
@@ -496,7 +518,9 @@ class IKSolver:
         rows = M.shape[0]
         workspace = self._workspaces[k]
         if workspace is None or workspace.m != rows:
-            workspace = self._workspaces[k] = make_workspace(self.solver, self._nv, rows)
+            workspace = self._workspaces[k] = make_workspace(
+                self.solver, self._nv, rows, self.osqp_settings
+            )
         solution = workspace.solve(H, c, M, lower, upper)
         if solution.found:
             return solution.x, "solved", solution.iterations

@@ -28,6 +28,7 @@ from .errors import MissingExtra
 
 __all__ = [
     "BACKENDS",
+    "OSQPSettings",
     "OSQPWorkspace",
     "QPSolution",
     "QPWorkspace",
@@ -261,11 +262,13 @@ _PACKAGES = {"daqp": "daqp", "quadprog": "quadprog", "proxqp": "proxsuite", "cla
 BACKENDS = ("osqp", "daqp", "quadprog", "proxqp", "clarabel")
 
 
-def make_workspace(solver: str, n: int, m: int) -> OSQPWorkspace | QPSolversWorkspace:
+def make_workspace(
+    solver: str, n: int, m: int, osqp_settings: OSQPSettings | None = None
+) -> OSQPWorkspace | QPSolversWorkspace:
     """A workspace of the named backend for QPs with ``n`` variables and ``m`` rows."""
     if solver == "osqp":
         try:
-            return OSQPWorkspace(n, m)
+            return OSQPWorkspace(n, m, osqp_settings)
         except ImportError as exc:  # pragma: no cover - osqp is a hard dependency
             raise MissingExtra("the OSQP backend", "solvers", "osqp") from exc
     if solver not in BACKENDS:

@@ -1,0 +1,38 @@
+"""``qpik demo``: solve a reaching problem on a bundled arm and print the result."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from ..configuration import Configuration
+from ..converge import solve
+from ..robots import load_robot
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "demo",
+        help="solve a reaching problem on a bundled arm and print the result",
+        description="Solve inverse kinematics for the pose of site `ee` reached by a "
+        "random configuration (seeded), starting from mid-range, under joint limits.",
+        epilog="example: qpik demo --robot panda --seed 3",
+    )
+    parser.add_argument("--robot", default="panda", help="bundled robot (default: panda)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the target (default: 0)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    model = load_robot(args.robot)
+    configuration = Configuration(model)
+    goal_q = configuration.random_q(np.random.default_rng(args.seed))
+    configuration.update(goal_q)
+    position, rotation = configuration.frame_pose("ee")
+    print(f"robot {args.robot} ({model.nv} DoF): reach site 'ee' to")
+    print(f"  position [m] = {np.array2string(position, precision=4)}")
+    print(f"  rotation = {np.array2string(rotation, precision=3).replace(chr(10), '')}")
+    result = solve(model, {"ee": (position, rotation)}, seed=args.seed)
+    print(result)
+    return 0 if result.converged else 1

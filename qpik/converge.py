@@ -1,0 +1,510 @@
+r"""The inverse geometric model: iterate differential IK steps until the targets are met.
+
+The lecture's recursion, for each frame with a target,
+
+.. math::
+
+    c = x_{des} - x(q_i), \qquad J(q_i)\, \dot q = \alpha\, c, \qquad
+    q_{i+1} = q_i + \beta\, \dot q,
+
+runs here on :class:`qpik.IKSolver` steps with ``dt = 1``: ``alpha`` is the gain of the
+target tasks (the QP asks ``J dq = -alpha e``, ``e = x(q) - x_des``) and ``beta`` scales the
+displacement the QP returns before it is applied. The QP adds what the lecture's
+pseudoinverse lacks: joint limits hold at every iterate (``beta <= 1`` keeps them by
+convexity; a ``beta > 1`` iterate is clipped into the limits), steps stay bounded near
+singularities (adaptive damping), and lower levels (by default, distance from the joint
+limits, on redundant arms) act only in the null space of the targets.
+
+Errors: position error is the distance of the frame origin to its target [m]; orientation
+error the angle of ``R R_des^T`` [rad]. A solve has converged when every frame is within
+``tol_position`` and ``tol_orientation``.
+
+When an attempt stops making progress the reason is diagnosed (``at_limit``: a joint limit
+binds; ``singular``: the target level's smallest singular value is below the damping
+threshold; ``stalled`` otherwise) and the solve restarts from a random configuration
+within the limits, while restarts and time remain. The best iterate over all attempts is
+returned.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from .configuration import Configuration, FrameType, as_configuration, frame_names
+from .errors import InvalidTarget, UnknownFrame
+from .hierarchy import DampingLaw, IKSolver, normalize_stack
+from .limits import ConfigurationLimit
+from .qp import OSQPSettings
+from .tasks import (
+    FrameTask,
+    JointLimitDistanceTask,
+    OrientationTask,
+    PositionTask,
+)
+
+__all__ = ["REASONS", "IKResult", "Target", "parse_target", "solve", "solve_many"]
+
+#: Why a solve ended. ``converged`` is the only success.
+REASONS = {
+    "converged": "every frame is within tolerance of its target",
+    "max_iters": "the iteration limit of the last attempt was reached",
+    "time_budget": "the time budget ran out",
+    "stalled": "no progress, for no diagnosed reason (the target may be out of reach)",
+    "at_limit": "no progress while a joint limit binds",
+    "singular": "no progress at a singular configuration",
+}
+
+
+#: The damping law of :func:`solve`: the velocity-control law, fading with the error.
+IGM_DAMPING = DampingLaw(error_scale=0.01)
+
+
+@dataclass(frozen=True)
+class Target:
+    """A target for one frame: a position [m] in the world frame and, optionally, a
+    rotation matrix (world frame)."""
+
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+
+
+def parse_target(value) -> Target:
+    """A :class:`Target` from a position ``(3,)``, a ``(position, rotation)`` pair, a 4x4
+    homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
+    :class:`qpik.InvalidTarget`."""
+    if isinstance(value, Target):
+        position, rotation = value.position, value.rotation
+    elif isinstance(value, mink.SE3):
+        position, rotation = value.translation(), value.rotation().as_matrix()
+    elif isinstance(value, tuple) and len(value) == 2:
+        position, rotation = value
+    else:
+        array = np.asarray(value, dtype=float)
+        if array.shape == (4, 4):
+            if not np.allclose(array[3], [0, 0, 0, 1]):
+                raise InvalidTarget("a 4x4 target's last row must be (0, 0, 0, 1)")
+            position, rotation = array[:3, 3], array[:3, :3]
+        elif array.shape == (3,):
+            position, rotation = array, None
+        else:
+            raise InvalidTarget(
+                f"a target is a position (3,), (position, rotation), a 4x4 matrix or an SE3; "
+                f"got an array of shape {array.shape}"
+            )
+    position = np.asarray(position, dtype=float)
+    if position.shape != (3,) or not np.all(np.isfinite(position)):
+        raise InvalidTarget(f"target position must be 3 finite numbers, got {position!r}")
+    if rotation is not None:
+        rotation = np.asarray(rotation, dtype=float)
+        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+            raise InvalidTarget(f"target rotation must be a finite 3x3 matrix, got {rotation!r}")
+        if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or (
+            np.linalg.det(rotation) < 0
+        ):
+            raise InvalidTarget("target rotation is not a rotation matrix (R R^T != I or det < 0)")
+    return Target(position.copy(), None if rotation is None else rotation.copy())
+
+
+def _resolve_frame(configuration: Configuration, key) -> tuple[str, FrameType]:
+    """A target key: ``"name"`` (a site, else a body, else a geom) or ``(name, type)``."""
+    if isinstance(key, tuple):
+        name, kind = key
+        kind = FrameType.parse(kind)
+        configuration.frame_id(name, kind)
+        return name, kind
+    for kind in (FrameType.SITE, FrameType.BODY, FrameType.GEOM):
+        if mujoco.mj_name2id(configuration.model, _OBJ[kind], key) >= 0:
+            return key, kind
+    raise UnknownFrame(
+        key,
+        "site or body",
+        frame_names(configuration.model, "site") + frame_names(configuration.model, "body"),
+    )
+
+
+_OBJ = {
+    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+}
+
+
+@dataclass
+class IKResult:
+    """The outcome of :func:`solve`.
+
+    Attributes:
+        q: the best configuration found ``(nq,)``, always within the joint limits.
+        converged: whether every frame is within tolerance at ``q``.
+        reason: one of :data:`REASONS`.
+        iterations: IK steps taken, all attempts together.
+        restarts_used: random restarts made after the first attempt.
+        position_error: largest frame position error at ``q`` [m].
+        orientation_error: largest frame orientation error at ``q`` [rad] (0 without
+            orientation targets).
+        frame_errors: per frame, ``(position_error, orientation_error)``.
+        residual_history: per iteration of the returned attempt, each level's residual.
+        solve_time: wall time [s].
+    """
+
+    q: np.ndarray
+    converged: bool
+    reason: str
+    iterations: int
+    restarts_used: int
+    position_error: float
+    orientation_error: float
+    frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    residual_history: list[list[float]] = field(default_factory=list, repr=False)
+    solve_time: float = 0.0
+
+    def __str__(self) -> str:
+        state = "converged" if self.converged else f"not converged ({self.reason})"
+        return (
+            f"IK {state} in {self.iterations} iterations, {self.restarts_used} restarts, "
+            f"{1e3 * self.solve_time:.2f} ms: position error {self.position_error:.3g} m, "
+            f"orientation error {self.orientation_error:.3g} rad\n"
+            f"q = {np.array2string(self.q, precision=4)}"
+        )
+
+
+class _Problem:
+    """Targets resolved on a configuration, the stack and the solver to iterate."""
+
+    def __init__(
+        self, configuration, targets, stack, limits, alpha, solver, damping_law, secondary
+    ):
+        if not targets:
+            raise InvalidTarget("no targets given: pass {frame: target, ...}")
+        self.frames: list[tuple[str, FrameType, Target]] = []
+        for key, value in targets.items():
+            name, kind = _resolve_frame(configuration, key)
+            self.frames.append((name, kind, parse_target(value)))
+        if not 0.0 < alpha <= 1.0:
+            raise ValueError(f"alpha must be in (0, 1] (a task gain), got {alpha}")
+        model = configuration.model
+        if stack is None:
+            primary = []
+            rows = 0
+            for name, kind, target in self.frames:
+                position = PositionTask(name, kind, gain=alpha)
+                position.set_target(target.position)
+                primary.append(position)
+                rows += 3
+                if target.rotation is not None:
+                    orientation = OrientationTask(name, kind, gain=alpha)
+                    orientation.set_target(target.rotation)
+                    primary.append(orientation)
+                    rows += 3
+            levels = [primary]
+            if model.nv > rows and secondary:
+                levels.append([JointLimitDistanceTask(cost=1.0, gain=0.5)])
+        else:
+            levels = normalize_stack(stack)
+            _set_stack_targets(levels, self.frames)
+        if isinstance(limits, str):
+            if limits != "joint":
+                raise ValueError(
+                    f"limits must be 'joint', None or a list of limits, got {limits!r}"
+                )
+            limits = [ConfigurationLimit(model)]
+        self.limits = list(limits or ())
+        # Iterates need no more accuracy than it takes to find the active set: the
+        # refinement step then makes each step exact.
+        self.solver = IKSolver(
+            model,
+            levels,
+            self.limits,
+            solver=solver,
+            damping_law=damping_law,
+            osqp_settings=OSQPSettings(eps_abs=1e-5, eps_rel=1e-5),
+        )
+        self.levels = levels
+        self.alpha = alpha
+        self.primary = [t for t in levels[0] if isinstance(t, (PositionTask, OrientationTask))]
+
+    def clamp_gains(self, errors, max_position_step: float, max_orientation_step: float) -> None:
+        """Trust region: scale the target tasks' gains so that no iteration asks for more
+        than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
+        for task in self.primary:
+            position_error, orientation_error = errors[task.frame_name]
+            if isinstance(task, PositionTask):
+                limit = max_position_step / max(position_error, 1e-12)
+            else:
+                limit = max_orientation_step / max(orientation_error, 1e-12)
+            task.gain = min(self.alpha, limit)
+
+    def errors(self, configuration: Configuration) -> dict[str, tuple[float, float]]:
+        result = {}
+        for name, kind, target in self.frames:
+            position, rotation = configuration.frame_pose(name, kind)
+            position_error = float(np.linalg.norm(position - target.position))
+            orientation_error = 0.0
+            if target.rotation is not None:
+                cosine = (np.trace(rotation @ target.rotation.T) - 1.0) / 2.0
+                orientation_error = float(math.acos(min(1.0, max(-1.0, cosine))))
+            result[name] = (position_error, orientation_error)
+        return result
+
+
+def _set_stack_targets(levels, frames) -> None:
+    """Set each frame's target on the stack's tasks that regulate that frame."""
+    for name, _kind, target in frames:
+        matched = False
+        for task in (t for level in levels for t in level):
+            if getattr(task, "frame_name", None) != name:
+                continue
+            matched = True
+            if isinstance(task, PositionTask):
+                task.set_target(target.position)
+            elif isinstance(task, OrientationTask):
+                if target.rotation is not None:
+                    task.set_target(target.rotation)
+            elif isinstance(task, FrameTask):
+                rotation = target.rotation
+                if rotation is None:
+                    raise InvalidTarget(
+                        f"frame {name!r} has a FrameTask (pose) in the stack but a "
+                        "position-only target"
+                    )
+                task.set_target(
+                    mink.SE3.from_rotation_and_translation(
+                        mink.SO3.from_matrix(rotation), target.position
+                    )
+                )
+        if not matched:
+            raise InvalidTarget(f"no task in the given stack regulates frame {name!r}")
+
+
+def solve(
+    robot,
+    targets: Mapping,
+    *,
+    q0: npt.ArrayLike | None = None,
+    stack=None,
+    limits="joint",
+    tol_position: float = 1e-4,
+    tol_orientation: float = 1e-3,
+    max_iters: int = 100,
+    time_budget: float | None = None,
+    restarts: int = 20,
+    seed: int | np.random.Generator | None = None,
+    alpha: float = 1.0,
+    beta: float = 1.0,
+    solver: str = "osqp",
+    stall_window: int = 5,
+    damping_law: DampingLaw | None = IGM_DAMPING,
+    max_step: tuple[float, float] | None = (0.2, 0.5),
+    secondary: bool = False,
+) -> IKResult:
+    """Solve inverse kinematics for one or several frame targets.
+
+    Args:
+        robot: anything :func:`qpik.load_robot` accepts, or a :class:`qpik.Configuration`
+            (left unchanged; its ``q`` is the default start).
+        targets: ``{frame: target}``; a frame is a site, body or geom name (sites first) or
+            ``(name, frame_type)``; a target is a position (3,) [m], ``(position,
+            rotation)``, a 4x4 matrix or a ``mink.SE3``, all in the world frame.
+        q0: start configuration (default: the configuration's ``q``, or the mid-range).
+            Must lie within the joint limits.
+        stack: a task stack to use instead of the default (position/orientation tasks in
+            level 0; see ``secondary``); targets are set on its tasks whose ``frame_name``
+            matches.
+        limits: ``"joint"`` (position limits of the model), ``None`` or a list of limits.
+        tol_position: [m]; tol_orientation: [rad].
+        max_iters: iterations per attempt.
+        time_budget: [s] for the whole solve, restarts included (``None``: no limit).
+        restarts: random restarts allowed after the first attempt.
+        seed: seed of the restarts' random configurations (same seed, same result).
+        alpha: gain of the target tasks in (0, 1]; beta: step scale (> 0).
+        solver: QP backend (see :class:`qpik.IKSolver`).
+        stall_window: iterations without a 1 % improvement that count as no progress.
+        damping_law: singularity damping; for a solve it also fades with the error.
+        max_step: trust region ``(metres, radians)``: no iteration asks a target task for
+            more than this (``None``: full steps, the lecture's recursion).
+        secondary: with the default stack on a redundant arm, add distance from the joint
+            limits as a level-1 objective in the null space of the targets (about 1.5x the
+            time per iteration).
+    """
+    start_time = time.perf_counter()
+    if not beta > 0 or not math.isfinite(beta):
+        raise ValueError(f"beta must be a positive number, got {beta}")
+    base = as_configuration(robot)
+    configuration = Configuration(base.model, base.q)
+    if q0 is not None:
+        configuration.update(q0)
+    elif not isinstance(robot, Configuration):
+        configuration.update(configuration.mid_q())
+    configuration.check_limits()
+    problem = _Problem(configuration, targets, stack, limits, alpha, solver, damping_law, secondary)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    lower, upper = configuration.lower, configuration.upper
+    threshold = damping_law.singular_threshold if damping_law is not None else 0.0
+
+    def score(errors) -> float:
+        return max(p / tol_position + o / tol_orientation for p, o in errors.values())
+
+    best_q, best_errors, best_history = configuration.q, problem.errors(configuration), []
+    best_score = score(best_errors)
+    total_iterations = 0
+    attempt = 0
+    reason = "max_iters"
+    while True:
+        history: list[list[float]] = []
+        errors = problem.errors(configuration)
+        current = score(errors)
+        window_start = current
+        since_progress = 0
+        attempt_reason = "max_iters"
+        last_step = None
+        for _ in range(max_iters):
+            if current <= 1.0:
+                attempt_reason = "converged"
+                break
+            if time_budget is not None and time.perf_counter() - start_time > time_budget:
+                attempt_reason = "time_budget"
+                break
+            if max_step is not None:
+                problem.clamp_gains(errors, *max_step)
+            last_step = problem.solver.step(configuration, 1.0)
+            total_iterations += 1
+            history.append(last_step.residuals)
+            q = configuration.integrate(beta * last_step.displacement, 1.0)
+            if beta > 1.0:
+                q = np.clip(q, lower, upper)
+            configuration.update(q)
+            errors = problem.errors(configuration)
+            current = score(errors)
+            if current < 0.99 * window_start:
+                window_start = current
+                since_progress = 0
+            else:
+                since_progress += 1
+                if since_progress >= stall_window:
+                    attempt_reason = _diagnose(last_step, threshold)
+                    break
+        else:
+            if current <= 1.0:
+                attempt_reason = "converged"
+        if current < best_score:
+            best_q, best_errors, best_history, best_score = (
+                configuration.q,
+                errors,
+                history,
+                current,
+            )
+        reason = attempt_reason
+        out_of_time = time_budget is not None and time.perf_counter() - start_time > time_budget
+        if attempt_reason == "converged" or attempt >= restarts or out_of_time:
+            if out_of_time and attempt_reason != "converged":
+                reason = "time_budget"
+            break
+        attempt += 1
+        configuration.update(configuration.random_q(rng))
+    converged = best_score <= 1.0
+    return IKResult(
+        q=best_q,
+        converged=converged,
+        reason="converged" if converged else reason,
+        iterations=total_iterations,
+        restarts_used=attempt,
+        position_error=max(p for p, _ in best_errors.values()),
+        orientation_error=max(o for _, o in best_errors.values()),
+        frame_errors=best_errors,
+        residual_history=best_history,
+        solve_time=time.perf_counter() - start_time,
+    )
+
+
+def _diagnose(step, singular_threshold: float) -> str:
+    """Why an attempt stopped making progress."""
+    if step is None:
+        return "stalled"
+    if step.active_limits:
+        return "at_limit"
+    if step.sigma_min and step.sigma_min[0] < singular_threshold:
+        return "singular"
+    return "stalled"
+
+
+def _solve_one(args) -> IKResult:
+    robot, targets, seed, kwargs = args
+    return solve(robot, targets, seed=seed, **kwargs)
+
+
+def solve_many(
+    robot,
+    targets_list: Sequence[Mapping],
+    *,
+    seed: int | None = 0,
+    workers: int | None = None,
+    progress: bool = True,
+    **kwargs,
+) -> list[IKResult]:
+    """Solve a batch of problems (one ``targets`` mapping each) with the same options.
+
+    Deterministic for a fixed ``seed``: problem ``i`` gets its own stream spawned from it,
+    whatever ``workers`` is. ``workers > 1`` solves in a process pool (pass the robot as a
+    name, a path or an ``MjModel``). ``progress`` prints a progress line to stderr on runs
+    of more than a few seconds.
+    """
+    targets_list = list(targets_list)
+    seeds = np.random.SeedSequence(seed).spawn(len(targets_list))
+    if isinstance(robot, Configuration):
+        robot, kwargs = robot.model, {"q0": robot.q, **kwargs}
+    jobs = [
+        (robot, targets, np.random.default_rng(s), kwargs)
+        for targets, s in zip(targets_list, seeds)
+    ]
+    report = _progress_printer(len(jobs)) if progress else (lambda done: None)
+    results: list[IKResult] = []
+    if workers is not None and workers > 1:
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            for result in pool.map(_solve_one, jobs, chunksize=max(1, len(jobs) // (8 * workers))):
+                results.append(result)
+                report(len(results))
+    else:
+        for job in jobs:
+            results.append(_solve_one(job))
+            report(len(results))
+    report(None)
+    return results
+
+
+def _progress_printer(total: int, stream=sys.stderr) -> Callable[[int | None], None]:
+    """A tiny progress bar: silent for the first 2 s, then updated at most 4 times a second;
+    ``None`` ends the line."""
+    start = time.perf_counter()
+    state = {"last": 0.0, "shown": False}
+    interactive = stream.isatty() or os.environ.get("QPIK_PROGRESS") == "1"
+
+    def report(done: int | None) -> None:
+        now = time.perf_counter()
+        if done is None:
+            if state["shown"]:
+                stream.write("\n")
+            return
+        if now - start < 2.0 or now - state["last"] < 0.25 or not interactive:
+            return
+        state["last"], state["shown"] = now, True
+        width = 30
+        filled = int(width * done / max(total, 1))
+        rate = done / (now - start)
+        eta = (total - done) / rate if rate > 0 else float("inf")
+        stream.write(
+            f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {rate:.0f}/s eta {eta:.0f}s"
+        )
+        stream.flush()
+
+    return report
