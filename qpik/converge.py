@@ -28,13 +28,16 @@ returned.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
 import time
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mink
 import mujoco
@@ -46,10 +49,12 @@ from .errors import InvalidTarget, UnknownFrame
 from .hierarchy import DampingLaw, IKSolver, normalize_stack
 from .limits import ConfigurationLimit
 from .qp import OSQPSettings
+from .robots import load_robot, robots_dir
 from .tasks import (
     FrameTask,
     JointLimitDistanceTask,
     OrientationTask,
+    PoseTask,
     PositionTask,
 )
 
@@ -116,28 +121,35 @@ def parse_target(value) -> Target:
     return Target(position.copy(), None if rotation is None else rotation.copy())
 
 
-def _resolve_frame(configuration: Configuration, key) -> tuple[str, FrameType]:
-    """A target key: ``"name"`` (a site, else a body, else a geom) or ``(name, type)``."""
-    if isinstance(key, tuple):
-        name, kind = key
-        kind = FrameType.parse(kind)
-        configuration.frame_id(name, kind)
-        return name, kind
-    for kind in (FrameType.SITE, FrameType.BODY, FrameType.GEOM):
-        if mujoco.mj_name2id(configuration.model, _OBJ[kind], key) >= 0:
-            return key, kind
-    raise UnknownFrame(
-        key,
-        "site or body",
-        frame_names(configuration.model, "site") + frame_names(configuration.model, "body"),
-    )
-
-
 _OBJ = {
     FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
     FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
     FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
 }
+
+
+def _resolve_frame(model: mujoco.MjModel, key) -> tuple[str, FrameType]:
+    """A target key: ``"name"`` (a site, else a body, else a geom) or ``(name, type)``."""
+    if isinstance(key, tuple):
+        name, kind = key
+        kind = FrameType.parse(kind)
+        if mujoco.mj_name2id(model, _OBJ[kind], name) < 0:
+            raise UnknownFrame(name, kind.value, frame_names(model, kind))
+        return name, kind
+    for kind in (FrameType.SITE, FrameType.BODY, FrameType.GEOM):
+        if mujoco.mj_name2id(model, _OBJ[kind], key) >= 0:
+            return key, kind
+    raise UnknownFrame(key, "site or body", frame_names(model, "site") + frame_names(model, "body"))
+
+
+def _parse_targets(model: mujoco.MjModel, targets: Mapping) -> list[tuple[str, FrameType, Target]]:
+    if not targets:
+        raise InvalidTarget("no targets given: pass {frame: target, ...}")
+    frames = []
+    for key, value in targets.items():
+        name, kind = _resolve_frame(model, key)
+        frames.append((name, kind, parse_target(value)))
+    return frames
 
 
 @dataclass
@@ -180,39 +192,36 @@ class IKResult:
 
 
 class _Problem:
-    """Targets resolved on a configuration, the stack and the solver to iterate."""
+    """What a solve iterates: a scratch configuration, the stack and its solver.
 
-    def __init__(
-        self, configuration, targets, stack, limits, alpha, solver, damping_law, secondary
-    ):
-        if not targets:
-            raise InvalidTarget("no targets given: pass {frame: target, ...}")
-        self.frames: list[tuple[str, FrameType, Target]] = []
-        for key, value in targets.items():
-            name, kind = _resolve_frame(configuration, key)
-            self.frames.append((name, kind, parse_target(value)))
+    Problems built from the default stack are pooled per model and target structure (see
+    :func:`_acquire`), so that repeated solves skip allocating MuJoCo data, tasks and QP
+    workspaces; the targets are set anew for every solve.
+    """
+
+    def __init__(self, model, frames, stack, limits, alpha, solver, damping_law, secondary):
         if not 0.0 < alpha <= 1.0:
             raise ValueError(f"alpha must be in (0, 1] (a task gain), got {alpha}")
-        model = configuration.model
+        self.configuration = Configuration(model)
+        self.custom_stack = stack is not None
+        self.target_tasks: list[PositionTask | PoseTask] = []
         if stack is None:
             primary = []
             rows = 0
-            for name, kind, target in self.frames:
-                position = PositionTask(name, kind, gain=alpha)
-                position.set_target(target.position)
-                primary.append(position)
-                rows += 3
-                if target.rotation is not None:
-                    orientation = OrientationTask(name, kind, gain=alpha)
-                    orientation.set_target(target.rotation)
-                    primary.append(orientation)
+            for name, kind, target in frames:
+                if target.rotation is None:
+                    task = PositionTask(name, kind, gain=alpha)
                     rows += 3
+                else:
+                    task = PoseTask(name, kind, gain=alpha)
+                    rows += 6
+                primary.append(task)
+                self.target_tasks.append(task)
             levels = [primary]
             if model.nv > rows and secondary:
                 levels.append([JointLimitDistanceTask(cost=1.0, gain=0.5)])
         else:
             levels = normalize_stack(stack)
-            _set_stack_targets(levels, self.frames)
         if isinstance(limits, str):
             if limits != "joint":
                 raise ValueError(
@@ -232,20 +241,41 @@ class _Problem:
         )
         self.levels = levels
         self.alpha = alpha
-        self.primary = [t for t in levels[0] if isinstance(t, (PositionTask, OrientationTask))]
+        self.primary = [
+            t for t in levels[0] if isinstance(t, (PositionTask, OrientationTask, PoseTask))
+        ]
+        self.frames = frames
+
+    def set_targets(self, frames) -> None:
+        """Set the targets of this solve on the stack's tasks."""
+        self.frames = frames
+        if self.custom_stack:
+            _set_stack_targets(self.levels, frames)
+            return
+        for task, (_, _, target) in zip(self.target_tasks, frames):
+            if isinstance(task, PoseTask):
+                task.set_target(target.position, target.rotation)
+            else:
+                task.set_target(target.position)
+            task.gain = self.alpha
 
     def clamp_gains(self, errors, max_position_step: float, max_orientation_step: float) -> None:
         """Trust region: scale the target tasks' gains so that no iteration asks for more
         than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
         for task in self.primary:
             position_error, orientation_error = errors[task.frame_name]
+            position_limit = max_position_step / max(position_error, 1e-12)
+            orientation_limit = max_orientation_step / max(orientation_error, 1e-12)
             if isinstance(task, PositionTask):
-                limit = max_position_step / max(position_error, 1e-12)
-            else:
-                limit = max_orientation_step / max(orientation_error, 1e-12)
+                limit = position_limit
+            elif isinstance(task, OrientationTask):
+                limit = orientation_limit
+            else:  # a pose: one gain for both parts, the tighter one
+                limit = min(position_limit, orientation_limit)
             task.gain = min(self.alpha, limit)
 
     def errors(self, configuration: Configuration) -> dict[str, tuple[float, float]]:
+        """Per frame, (position error [m], orientation error [rad]) at ``configuration``."""
         result = {}
         for name, kind, target in self.frames:
             position, rotation = configuration.frame_pose(name, kind)
@@ -256,6 +286,58 @@ class _Problem:
                 orientation_error = float(math.acos(min(1.0, max(-1.0, cosine))))
             result[name] = (position_error, orientation_error)
         return result
+
+
+_POOL: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary) -> _Problem:
+    """A problem for this model and target structure: from the pool when the stack is the
+    default and the limits are ``"joint"`` or none, else a new one."""
+    poolable = stack is None and (limits is None or isinstance(limits, str))
+    if poolable:
+        structure = tuple((name, kind, t.rotation is not None) for name, kind, t in frames)
+        key = (structure, limits, alpha, solver, damping_law, secondary)
+        free = _POOL.setdefault(model, {}).setdefault(key, [])
+        if free:
+            problem = free.pop()
+            problem.set_targets(frames)
+            return problem
+    problem = _Problem(model, frames, stack, limits, alpha, solver, damping_law, secondary)
+    problem.set_targets(frames)
+    problem.pool_key = key if poolable else None
+    return problem
+
+
+def _release(problem: _Problem) -> None:
+    """Give a pooled problem back (at most a few per key are kept)."""
+    if problem.pool_key is None:
+        return
+    free = _POOL.setdefault(problem.configuration.model, {}).setdefault(problem.pool_key, [])
+    if len(free) < 4:
+        free.append(problem)
+
+
+@functools.lru_cache(maxsize=16)
+def _load_cached(source: str, mtime: float) -> mujoco.MjModel:
+    return load_robot(source)
+
+
+def _model_of(robot) -> tuple[mujoco.MjModel, np.ndarray | None]:
+    """The model of ``robot`` and, for a Configuration, its ``q``. Names and paths are
+    loaded once (and again when the file changes)."""
+    if isinstance(robot, Configuration):
+        return robot.model, robot.q
+    if isinstance(robot, mujoco.MjModel):
+        return robot, None
+    if isinstance(robot, (str, os.PathLike)):
+        text = os.fspath(robot)
+        path = Path(text)
+        if not path.exists() and not text.startswith("erd:"):
+            path = robots_dir() / f"{text}.xml"
+        mtime = path.stat().st_mtime if path.exists() else 0.0
+        return _load_cached(text, mtime), None
+    return as_configuration(robot).model, None
 
 
 def _set_stack_targets(levels, frames) -> None:
@@ -340,14 +422,48 @@ def solve(
     start_time = time.perf_counter()
     if not beta > 0 or not math.isfinite(beta):
         raise ValueError(f"beta must be a positive number, got {beta}")
-    base = as_configuration(robot)
-    configuration = Configuration(base.model, base.q)
-    if q0 is not None:
-        configuration.update(q0)
-    elif not isinstance(robot, Configuration):
-        configuration.update(configuration.mid_q())
+    model, robot_q = _model_of(robot)
+    frames = _parse_targets(model, targets)
+    problem = _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary)
+    try:
+        return _iterate(
+            problem,
+            q0 if q0 is not None else robot_q,
+            start_time,
+            tol_position,
+            tol_orientation,
+            max_iters,
+            time_budget,
+            restarts,
+            seed,
+            beta,
+            stall_window,
+            damping_law,
+            max_step,
+        )
+    finally:
+        _release(problem)
+
+
+def _iterate(
+    problem,
+    q0,
+    start_time,
+    tol_position,
+    tol_orientation,
+    max_iters,
+    time_budget,
+    restarts,
+    seed,
+    beta,
+    stall_window,
+    damping_law,
+    max_step,
+) -> IKResult:
+    """The IGM loop of :func:`solve` on a prepared problem."""
+    configuration = problem.configuration
+    configuration.update(q0 if q0 is not None else configuration.mid_q())
     configuration.check_limits()
-    problem = _Problem(configuration, targets, stack, limits, alpha, solver, damping_law, secondary)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     lower, upper = configuration.lower, configuration.upper
     threshold = damping_law.singular_threshold if damping_law is not None else 0.0
@@ -386,6 +502,10 @@ def solve(
             configuration.update(q)
             errors = problem.errors(configuration)
             current = score(errors)
+            if _norm(last_step.displacement) < 1e-9:
+                # A vanishing step that leaves the error: nothing more comes of this start.
+                attempt_reason = _diagnose(last_step, threshold)
+                break
             if current < 0.99 * window_start:
                 window_start = current
                 since_progress = 0
@@ -425,6 +545,10 @@ def solve(
         residual_history=best_history,
         solve_time=time.perf_counter() - start_time,
     )
+
+
+def _norm(vector: np.ndarray) -> float:
+    return float(np.sqrt(vector @ vector))
 
 
 def _diagnose(step, singular_threshold: float) -> str:

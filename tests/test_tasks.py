@@ -9,7 +9,13 @@ from conftest import configuration_of
 from scipy.spatial.transform import Rotation
 
 import qpik
-from qpik.tasks import JointLimitDistanceTask, ManipulabilityTask, OrientationTask, PositionTask
+from qpik.tasks import (
+    JointLimitDistanceTask,
+    ManipulabilityTask,
+    OrientationTask,
+    PoseTask,
+    PositionTask,
+)
 
 
 def numeric_jacobian(task, configuration, h=1e-6):
@@ -38,7 +44,9 @@ def make_tasks(configuration, rng):
     position.set_target(other.frame_pose("ee")[0])
     orientation = OrientationTask("ee")
     orientation.set_target(other.frame_pose("ee")[1])
-    return [position, orientation, JointLimitDistanceTask(), ManipulabilityTask("ee")]
+    pose = PoseTask("ee")
+    pose.set_target(*other.frame_pose("ee"))
+    return [position, orientation, pose, JointLimitDistanceTask(), ManipulabilityTask("ee")]
 
 
 @pytest.mark.parametrize("robot", ["ur5e", "panda"])
@@ -69,3 +77,23 @@ def test_bad_targets():
         OrientationTask("ee").set_target(np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(qpik.InvalidTarget, match=">= 0"):
         PositionTask("ee", cost=-1.0)
+
+
+def test_pose_task_equals_position_and_orientation_tasks(rng):
+    configuration = configuration_of("panda")
+    configuration.update(configuration.random_q(rng))
+    position, orientation, pose = make_tasks(configuration, rng)[:3]
+    np.testing.assert_allclose(
+        pose.compute_error(configuration),
+        np.concatenate(
+            [position.compute_error(configuration), orientation.compute_error(configuration)]
+        ),
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(
+        pose.compute_jacobian(configuration),
+        np.vstack(
+            [position.compute_jacobian(configuration), orientation.compute_jacobian(configuration)]
+        ),
+        atol=1e-12,
+    )

@@ -22,7 +22,7 @@ from mink import (
 )
 from mink.tasks.task import BaseTask
 
-from .frame import OrientationTask, PositionTask
+from .frame import OrientationTask, PoseTask, PositionTask
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 
 __all__ = [
@@ -39,6 +39,7 @@ __all__ = [
     "ManipulabilityTask",
     "Objective",
     "OrientationTask",
+    "PoseTask",
     "PositionTask",
     "PostureTask",
     "RelativeFrameTask",

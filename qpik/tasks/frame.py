@@ -132,3 +132,70 @@ class OrientationTask(mink.Task):
         error = self._error(configuration)
         angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
         return so3_left_jacobian_inverse(error) @ angular
+
+
+class PoseTask(mink.Task):
+    """Bring a frame to a target pose, errors in the world frame.
+
+    Error ``e = [p(q) - p_target; log(R(q) R_target^T)]`` (6,) [m, rad]; Jacobian
+    ``[J_v; Jl^-1(e_rot) J_omega]`` (exact). The same rows as :class:`PositionTask` and
+    :class:`OrientationTask` together, computed from one frame pose and one Jacobian.
+    (mink's :class:`~mink.FrameTask` regulates the same pose with a local-frame error.)
+    """
+
+    k = 6
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: FrameType | str = FrameType.SITE,
+        position_cost: npt.ArrayLike = 1.0,
+        orientation_cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        cost = np.concatenate(
+            [
+                _cost_vector(position_cost, "position cost"),
+                _cost_vector(orientation_cost, "orientation cost"),
+            ]
+        )
+        super().__init__(cost, gain, lm_damping)
+        self.frame_name = frame_name
+        self.frame_type = FrameType.parse(frame_type)
+        self.position: PositionTask = PositionTask(frame_name, frame_type)
+        self.target_position: np.ndarray | None = None
+        self.target_rotation: np.ndarray | None = None
+
+    def set_target(self, position: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
+        """Target position [m] and rotation matrix, in the world frame."""
+        check = OrientationTask(self.frame_name, self.frame_type)
+        check.set_target(rotation)
+        self.position.set_target(position)
+        self.target_position = self.position.target
+        self.target_rotation = check.target
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current pose."""
+        self.set_target(*configuration.frame_pose(self.frame_name, self.frame_type))
+
+    def _error_and_jacobian(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        if self.target_position is None or self.target_rotation is None:
+            raise mink.TargetNotSet(type(self).__name__)
+        position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
+        jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
+        rotation_error = so3_log(rotation @ self.target_rotation.T)
+        error = np.concatenate([position - self.target_position, rotation_error])
+        jacobian[3:] = so3_left_jacobian_inverse(rotation_error) @ jacobian[3:]
+        return error, jacobian
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        return self._error_and_jacobian(configuration)[0]
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        return self._error_and_jacobian(configuration)[1]
+
+    def compute_qp_residual(
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        return self._weighted_residual(*self._error_and_jacobian(configuration))
