@@ -380,7 +380,7 @@ def solve(
     tol_orientation: float = 1e-3,
     max_iters: int = 100,
     time_budget: float | None = None,
-    restarts: int = 20,
+    restarts: int | None = None,
     seed: int | np.random.Generator | None = None,
     alpha: float = 1.0,
     beta: float = 1.0,
@@ -407,7 +407,8 @@ def solve(
         tol_position: [m]; tol_orientation: [rad].
         max_iters: iterations per attempt.
         time_budget: [s] for the whole solve, restarts included (``None``: no limit).
-        restarts: random restarts allowed after the first attempt.
+        restarts: random restarts allowed after the first attempt; ``None`` (default):
+            as many as ``time_budget`` allows, or 20 without a budget.
         seed: seed of the restarts' random configurations (same seed, same result).
         alpha: gain of the target tasks in (0, 1]; beta: step scale (> 0).
         solver: QP backend (see :class:`qpik.IKSolver`).
@@ -422,6 +423,8 @@ def solve(
     start_time = time.perf_counter()
     if not beta > 0 or not math.isfinite(beta):
         raise ValueError(f"beta must be a positive number, got {beta}")
+    if restarts is None:
+        restarts = 20 if time_budget is None else sys.maxsize
     model, robot_q = _model_of(robot)
     frames = _parse_targets(model, targets)
     problem = _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary)
