@@ -5,9 +5,10 @@ level 0 a FrameTask on site `ee`, level 1 a posture (or joint-limit distance) ta
 position and velocity limits. Every method steps its own copy of the robot along the same
 target trajectory, interleaved step by step, so machine noise hits all alike.
 
-Methods: qpik + OSQP (two strict levels; with and without the exact unconstrained fast
-path), mink + osqp and mink + daqp (the same tasks as one weighted level, as mink has no
-priorities), and the lecture's pseudoinverse step (no limits, no second task).
+Methods: qpik + OSQP (two strict levels, with and without the exact unconstrained fast
+path; and the same tasks as one weighted level, mink's problem), mink + osqp and
+mink + daqp (the same tasks as one weighted level, as mink has no priorities), and the
+lecture's pseudoinverse step (no limits, no second task).
 
     python benchmarks/step_time.py [--steps 2000] [--secondary posture|limit-distance]
 """
@@ -51,9 +52,10 @@ def main(argv=None) -> dict:
 
     methods = {}
 
-    def add_qpik(name, fast_path):
+    def add_qpik(name, fast_path, levels=2):
         frame, secondary = make_tasks()
-        solver = qpik.IKSolver(model, [[frame], [secondary]], limits, fast_path=fast_path)
+        stack = [[frame], [secondary]] if levels == 2 else [frame, secondary]
+        solver = qpik.IKSolver(model, stack, limits, fast_path=fast_path)
         methods[name] = (frame, lambda c: solver.step(c, dt).velocity)
 
     def add_mink(name, backend):
@@ -81,6 +83,7 @@ def main(argv=None) -> dict:
 
     add_qpik("qpik osqp, 2 levels", fast_path=True)
     add_qpik("qpik osqp, 2 levels, no fast path", fast_path=False)
+    add_qpik("qpik osqp, 1 level (as mink)", fast_path=True, levels=1)
     add_mink("mink + osqp, 1 level", "osqp")
     add_mink("mink + daqp, 1 level", "daqp")
     add_pinv()
