@@ -57,6 +57,7 @@ from .tasks import (
     PoseTask,
     PositionTask,
 )
+from .tasks.frame import checked_position, checked_rotation
 
 __all__ = ["REASONS", "IKResult", "Target", "parse_target", "solve", "solve_many"]
 
@@ -107,18 +108,10 @@ def parse_target(value) -> Target:
                 f"a target is a position (3,), (position, rotation), a 4x4 matrix or an SE3; "
                 f"got an array of shape {array.shape}"
             )
-    position = np.asarray(position, dtype=float)
-    if position.shape != (3,) or not np.all(np.isfinite(position)):
-        raise InvalidTarget(f"target position must be 3 finite numbers, got {position!r}")
+    position = checked_position(position)
     if rotation is not None:
-        rotation = np.asarray(rotation, dtype=float)
-        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
-            raise InvalidTarget(f"target rotation must be a finite 3x3 matrix, got {rotation!r}")
-        if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or (
-            np.linalg.det(rotation) < 0
-        ):
-            raise InvalidTarget("target rotation is not a rotation matrix (R R^T != I or det < 0)")
-    return Target(position.copy(), None if rotation is None else rotation.copy())
+        rotation = checked_rotation(rotation)
+    return Target(position, rotation)
 
 
 _OBJ = {

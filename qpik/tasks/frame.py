@@ -16,6 +16,24 @@ from ..configuration import Configuration, FrameType
 from ..errors import InvalidTarget
 
 
+def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
+    """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
+    position = np.array(value, dtype=float)
+    if position.shape != (3,) or not np.all(np.isfinite(position)):
+        raise InvalidTarget(f"{what} must be 3 finite numbers, got {position!r}")
+    return position
+
+
+def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
+    """A copy of ``value`` as a rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
+    rotation = np.array(value, dtype=float)
+    if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+        raise InvalidTarget(f"{what} must be a finite 3x3 matrix, got {rotation!r}")
+    if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0:
+        raise InvalidTarget(f"{what} is not a rotation matrix (R R^T != I or det < 0)")
+    return rotation
+
+
 def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
     cost = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
     if not np.all(np.isfinite(cost)) or np.any(cost < 0):
@@ -47,10 +65,7 @@ class PositionTask(mink.Task):
 
     def set_target(self, position: npt.ArrayLike) -> None:
         """Target position of the frame origin in the world frame [m]."""
-        position = np.asarray(position, dtype=float)
-        if position.shape != (3,) or not np.all(np.isfinite(position)):
-            raise InvalidTarget(f"position target must be 3 finite numbers, got {position!r}")
-        self.target = position.copy()
+        self.target = checked_position(position)
 
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current position."""
@@ -105,15 +120,7 @@ class OrientationTask(mink.Task):
 
     def set_target(self, rotation: npt.ArrayLike) -> None:
         """Target rotation matrix (3, 3) of the frame in the world frame."""
-        rotation = np.asarray(rotation, dtype=float)
-        if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
-            raise InvalidTarget(f"rotation target must be a finite 3x3 matrix, got {rotation!r}")
-        if (
-            not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6)
-            or np.linalg.det(rotation) < 0
-        ):
-            raise InvalidTarget("rotation target is not a rotation matrix (R R^T != I or det < 0)")
-        self.target = rotation.copy()
+        self.target = checked_rotation(rotation)
 
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current orientation."""
@@ -163,17 +170,13 @@ class PoseTask(mink.Task):
         super().__init__(cost, gain, lm_damping)
         self.frame_name = frame_name
         self.frame_type = FrameType.parse(frame_type)
-        self.position: PositionTask = PositionTask(frame_name, frame_type)
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None
 
     def set_target(self, position: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
         """Target position [m] and rotation matrix, in the world frame."""
-        check = OrientationTask(self.frame_name, self.frame_type)
-        check.set_target(rotation)
-        self.position.set_target(position)
-        self.target_position = self.position.target
-        self.target_rotation = check.target
+        self.target_position = checked_position(position)
+        self.target_rotation = checked_rotation(rotation)
 
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current pose."""
