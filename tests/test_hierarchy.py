@@ -328,3 +328,28 @@ def test_active_limits_are_named():
         configuration, DT
     )
     assert result.active_limits == ["joint2 upper (VelocityLimit)"]
+
+
+class SumLimit(mink.Limit):
+    """A general row: dq0 + dq1 <= 0.001 (no single-dof bound)."""
+
+    def compute_qp_inequalities(self, configuration, dt):
+        G = np.zeros((1, configuration.nv))
+        G[0, :2] = 1.0
+        return mink.Constraint(G=G, h=np.array([0.001]))
+
+
+def test_general_rows_hold_at_every_level():
+    configuration = panda()
+    model = configuration.model
+    ee, elbow = conflicting_tasks(configuration)
+    posture = PostureTask(model, cost=1.0)
+    posture.set_target(configuration.mid_q() + 1.0)  # pulls dq0 + dq1 up
+    limits = [SumLimit(), mink.ConfigurationLimit(model)]
+    for stack in ([posture], [[ee], [posture]], [[elbow], [ee], [posture]]):
+        result = IKSolver(model, stack, limits).step(configuration, DT)
+        assert result.ok
+        dq = result.displacement
+        assert dq[0] + dq[1] <= 0.001 + 1e-9
+        if stack == [posture]:  # alone, the posture pushes against the row
+            assert "SumLimit row 0" in result.active_limits

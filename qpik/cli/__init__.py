@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from ..errors import QpikError
 
 #: Command modules, in the order ``qpik --help`` lists them.
-COMMANDS = ["robots", "fk", "demo", "analyze", "statics"]
+COMMANDS = ["robots", "fk", "demo", "analyze", "statics", "bench"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,6 +36,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:  # output piped into `head` and the like: stop quietly
+        sys.stderr.close()
+        return 0
     except QpikError as exc:
         print(f"qpik {args.command}: error: {exc}", file=sys.stderr)
         return 2
