@@ -6,6 +6,7 @@ from .converge import IKResult, solve, solve_many
 from .errors import (
     InfeasibleLimits,
     InvalidConfiguration,
+    InvalidInput,
     InvalidTarget,
     JointLimitViolation,
     MissingExtra,
@@ -37,6 +38,7 @@ __all__ = [
     "FrameType",
     "InfeasibleLimits",
     "InvalidConfiguration",
+    "InvalidInput",
     "InvalidTarget",
     "JointLimitViolation",
     "MissingExtra",

@@ -45,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .configuration import Configuration, FrameType, as_configuration, frame_names
-from .errors import InvalidTarget, UnknownFrame
+from .errors import InvalidInput, InvalidTarget, UnknownFrame
 from .hierarchy import DampingLaw, IKSolver, normalize_stack
 from .limits import ConfigurationLimit
 from .qp import OSQPSettings
@@ -194,7 +194,7 @@ class _Problem:
 
     def __init__(self, model, frames, stack, limits, alpha, solver, damping_law, secondary):
         if not 0.0 < alpha <= 1.0:
-            raise ValueError(f"alpha must be in (0, 1] (a task gain), got {alpha}")
+            raise InvalidInput(f"alpha must be in (0, 1] (a task gain), got {alpha}")
         self.configuration = Configuration(model)
         self.custom_stack = stack is not None
         self.target_tasks: list[PositionTask | PoseTask] = []
@@ -217,7 +217,7 @@ class _Problem:
             levels = normalize_stack(stack)
         if isinstance(limits, str):
             if limits != "joint":
-                raise ValueError(
+                raise InvalidInput(
                     f"limits must be 'joint', None or a list of limits, got {limits!r}"
                 )
             limits = [ConfigurationLimit(model)]
@@ -415,7 +415,7 @@ def solve(
     """
     start_time = time.perf_counter()
     if not beta > 0 or not math.isfinite(beta):
-        raise ValueError(f"beta must be a positive number, got {beta}")
+        raise InvalidInput(f"beta must be a positive number, got {beta}")
     if restarts is None:
         restarts = 20 if time_budget is None else sys.maxsize
     model, robot_q = _model_of(robot)

@@ -44,11 +44,11 @@ import numpy as np
 from scipy.linalg import lapack
 
 from .configuration import Configuration, joint_names
-from .errors import InfeasibleLimits, NoSolutionFound
+from .errors import InfeasibleLimits, InvalidInput, NoSolutionFound
 from .qp import OSQPSettings, make_workspace, solve_linear
 from .tasks import BaseTask
 
-__all__ = ["IKSolver", "StepResult", "normalize_stack", "solve_ik", "DampingLaw"]
+__all__ = ["DampingLaw", "IKSolver", "Stack", "StepResult", "normalize_stack", "solve_ik"]
 
 
 @dataclass(frozen=True)
@@ -131,7 +131,12 @@ class StepResult:
         return all(s in ("solved", "solved_after_retry") for s in self.status)
 
 
-def normalize_stack(stack) -> list[list[BaseTask]]:
+#: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
+#: task or a list of tasks (level 0 first). See :func:`normalize_stack`.
+Stack = BaseTask | Sequence[BaseTask | Sequence[BaseTask]]
+
+
+def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
     """Levels from a stack description.
 
     * a task: one level with that task;
@@ -143,14 +148,14 @@ def normalize_stack(stack) -> list[list[BaseTask]]:
         return [[stack]]
     items = list(stack)
     if not items:
-        raise ValueError("the task stack is empty")
+        raise InvalidInput("the task stack is empty")
     if all(isinstance(item, BaseTask) for item in items):
         return [items]
     levels = []
     for index, item in enumerate(items):
         level = [item] if isinstance(item, BaseTask) else list(item)
         if not level or not all(isinstance(t, BaseTask) for t in level):
-            raise TypeError(
+            raise InvalidInput(
                 f"level {index} of the stack must be a task or a non-empty list of tasks, "
                 f"got {item!r}"
             )
@@ -275,7 +280,7 @@ class IKSolver:
     def __init__(
         self,
         model: mujoco.MjModel,
-        stack,
+        stack: Stack,
         limits: Sequence[mink.Limit] = (),
         *,
         solver: str = "osqp",
@@ -286,7 +291,7 @@ class IKSolver:
         osqp_settings: OSQPSettings | None = None,
     ):
         if damping < 0 or not np.isfinite(damping):
-            raise ValueError(f"damping must be finite and >= 0, got {damping}")
+            raise InvalidInput(f"damping must be finite and >= 0, got {damping}")
         self.model = model
         self.levels = normalize_stack(stack)
         self.limits = list(limits)
@@ -422,7 +427,7 @@ class IKSolver:
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
         if not dt > 0 or not np.isfinite(dt):
-            raise ValueError(f"dt must be a positive number of seconds, got {dt}")
+            raise InvalidInput(f"dt must be a positive number of seconds, got {dt}")
         start = time.perf_counter()
         nv = self._nv
         lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
@@ -565,7 +570,7 @@ class IKSolver:
 
 def solve_ik(
     configuration: Configuration,
-    stack,
+    stack: Stack,
     dt: float,
     *,
     limits: Sequence[mink.Limit] = (),

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lapack
 
-from .errors import MissingExtra
+from .errors import InvalidInput, MissingExtra
 
 __all__ = [
     "BACKENDS",
@@ -272,5 +272,5 @@ def make_workspace(
         except ImportError as exc:  # pragma: no cover - osqp is a hard dependency
             raise MissingExtra("the OSQP backend", "solvers", "osqp") from exc
     if solver not in BACKENDS:
-        raise ValueError(f"unknown QP solver {solver!r}; known solvers: {', '.join(BACKENDS)}")
+        raise InvalidInput(f"unknown QP solver {solver!r}; known solvers: {', '.join(BACKENDS)}")
     return QPSolversWorkspace(solver, n, m)

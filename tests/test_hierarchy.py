@@ -53,9 +53,9 @@ def test_normalize_stack():
     assert normalize_stack(a) == [[a]]
     assert normalize_stack([a, b]) == [[a, b]]  # a flat list is one weighted level
     assert normalize_stack([[a], b]) == [[a], [b]]
-    with pytest.raises(TypeError, match="level 1"):
+    with pytest.raises(qpik.InvalidInput, match="level 1"):
         normalize_stack([[a], []])
-    with pytest.raises(ValueError, match="empty"):
+    with pytest.raises(qpik.InvalidInput, match="empty"):
         normalize_stack([])
 
 
@@ -273,7 +273,7 @@ def test_missing_backend_names_the_extra(monkeypatch):
     configuration = panda()
     with pytest.raises(qpik.MissingExtra, match=r"qpik\[solvers\]"):
         IKSolver(configuration.model, [PostureTask(configuration.model, 1.0)], solver="daqp")
-    with pytest.raises(ValueError, match="unknown QP solver 'gurobix'"):
+    with pytest.raises(qpik.InvalidInput, match="unknown QP solver 'gurobix'"):
         IKSolver(configuration.model, [PostureTask(configuration.model, 1.0)], solver="gurobix")
 
 
@@ -315,7 +315,7 @@ def test_solve_ik_returns_velocity_and_validates_dt():
     posture.set_target(configuration.mid_q() + 0.01)
     v = solve_ik(configuration, [posture], 0.1)
     np.testing.assert_allclose(v, 0.1, atol=1e-5)
-    with pytest.raises(ValueError, match="dt"):
+    with pytest.raises(qpik.InvalidInput, match="dt"):
         solve_ik(configuration, [posture], 0.0)
 
 
