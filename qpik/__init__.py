@@ -19,6 +19,7 @@ from .errors import (
     UnknownRobot,
 )
 from .hierarchy import DampingLaw, IKSolver, StepResult, solve_ik
+from .problem import load_problem
 from .robots import list_robots, load_robot
 
 __version__ = "0.1.0"
@@ -54,6 +55,7 @@ __all__ = [
     "frame_names",
     "joint_names",
     "list_robots",
+    "load_problem",
     "load_robot",
     "statics",
 ]

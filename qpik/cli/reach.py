@@ -1,0 +1,53 @@
+"""``qpik reach``: solve a problem file (tasks/*.toml), print, save JSON and a figure."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from ..problem import load_problem
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "reach",
+        help="solve an IK problem file (TOML) and report, optionally as JSON and a figure",
+        description="Load an IK problem file (schema: tasks/README.md), solve it (qpik.solve "
+        "per target or waypoint, or differential tracking with mode = 'track'), and print "
+        "the outcome. Exit status: 0 converged, 1 not converged (with the reason), 2 "
+        "invalid input (the file, the field and what was expected).",
+        epilog="examples: qpik reach tasks/panda_pose_reach.toml; "
+        "qpik reach tasks/planar_4r_self_motion.toml --plot self_motion.png; "
+        "qpik reach tasks/ur5e_velocity_limits.toml --json out.json --quiet",
+    )
+    parser.add_argument("file", metavar="FILE", help="problem file (.toml)")
+    parser.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
+    parser.add_argument(
+        "--plot", metavar="OUT.png", help="save a figure (needs the plots extra: matplotlib)"
+    )
+    parser.add_argument(
+        "--quiet", action="store_true", help="print nothing on success (errors still go to stderr)"
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    problem = load_problem(args.file)
+    if args.plot is not None:
+        from ..plots import _matplotlib
+
+        _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
+    result = problem.solve()
+    if not args.quiet:
+        print(result.summary())
+    if args.json is not None:
+        Path(args.json).write_text(result.to_json() + "\n")
+    if args.plot is not None:
+        from ..plots import plot_result
+
+        plot_result(result, args.plot)
+    if not result.converged:
+        print(f"qpik reach: not converged: {result.reason}", file=sys.stderr)
+        return 1
+    return 0
