@@ -1,0 +1,166 @@
+"""The IK success benchmark (qpik.bench, qpik bench) and the lecture's IGM baselines."""
+
+from __future__ import annotations
+
+import json
+
+import mink
+import numpy as np
+import pytest
+from conftest import configuration_of
+
+from qpik import bench
+from qpik.baselines import (
+    IGM_REASONS,
+    damped_least_squares_igm,
+    pose_error,
+    pseudoinverse_igm,
+    pseudoinverse_step,
+)
+from qpik.cli import main
+
+
+@pytest.fixture(scope="module")
+def small_run() -> dict:
+    return bench.run_ik_success(["ur5e", "panda"], n=5, budget=0.05, progress=False)
+
+
+def test_benchmark_result_structure(small_run):
+    protocol = small_run["protocol"]
+    assert protocol["n"] == 5 and protocol["budget_s"] == 0.05
+    assert protocol["tol_position_m"] == 1e-4 and protocol["tol_orientation_rad"] == 1e-3
+    assert list(small_run["robots"]) == ["ur5e", "panda"]
+    assert protocol["methods"] == bench.available_methods()
+    for robot, dof in (("ur5e", 6), ("panda", 7)):
+        entry = small_run["robots"][robot]
+        assert entry["nv"] == entry["arm_dof"] == dof
+        assert (entry["frame"], entry["frame_type"]) == ("ee", "site")
+        assert list(entry["methods"]) == protocol["methods"]
+        for summary in entry["methods"].values():
+            assert summary["n"] == 5 and 0 <= summary["successes"] <= 5
+            assert summary["success_rate"] == summary["successes"] / 5
+            assert summary["first_attempt_successes"] <= summary["successes"]
+            assert 0 < summary["median_ms"] <= summary["p95_ms"]
+            assert summary["limit_violations"] == 0
+            assert sum(summary["failure_reasons"].values()) == 5 - summary["successes"]
+    json.dumps(small_run)  # JSON-ready
+
+
+def test_qpik_solves_every_small_target(small_run):
+    for robot in ("ur5e", "panda"):
+        summary = small_run["robots"][robot]["methods"]["qpik"]
+        assert summary["successes"] == 5, summary["failure_examples"]
+
+
+def test_table_has_a_row_per_robot_and_method(small_run):
+    table = bench.format_table(small_run)
+    rows = [line for line in table.splitlines() if line.startswith(("ur5e ", "panda "))]
+    assert len(rows) == 2 * len(bench.available_methods())
+    assert "100.0% (5/5)" in table and "median ms" in table
+
+
+def test_unknown_method_and_frame_are_named():
+    with pytest.raises(ValueError, match="known: qpik, pinv, dls, mink"):
+        bench.run_ik_success(["ur5e"], n=1, methods=["newton"], progress=False)
+    with pytest.raises(ValueError, match="no tool frame known"):
+        bench.robot_frame("mystery", _model_without_ee())
+
+
+def _model_without_ee():
+    import mujoco
+
+    return mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><joint/><geom size='0.1'/></body></worldbody></mujoco>"
+    )
+
+
+# ------------------------------------------------------------------ IGM baselines
+def _reachable_2r(rng, count):
+    """Positions of the 2R tip at elbows away from the singularities q2 = 0, +-pi."""
+    configuration = configuration_of("planar_2r")
+    for _ in range(count):
+        q = np.array([rng.uniform(-np.pi, np.pi), rng.uniform(0.4, 2.6) * rng.choice([-1, 1])])
+        configuration.update(q)
+        yield configuration.frame_pose("ee")[0]
+
+
+@pytest.mark.parametrize("igm", [pseudoinverse_igm, damped_least_squares_igm])
+def test_igm_baselines_converge_on_2r_targets(igm, rng):
+    configuration = configuration_of("planar_2r", [0.3, 1.0])
+    for i, position in enumerate(_reachable_2r(rng, 20)):
+        result = igm(configuration, "ee", position, seed=i)
+        assert result.converged and result.reason == "converged", result
+        assert result.position_error <= 1e-4 and result.orientation_error == 0.0
+        check = configuration_of("planar_2r", result.q)
+        np.testing.assert_allclose(check.frame_pose("ee")[0], position, atol=1e-4)
+        assert check.within_limits(tol=0.0)
+    np.testing.assert_array_equal(configuration.q, [0.3, 1.0])  # left unchanged
+
+
+@pytest.mark.parametrize("igm", [pseudoinverse_igm, damped_least_squares_igm])
+def test_igm_baselines_converge_on_arm_poses(igm, rng):
+    model_configuration = configuration_of("panda")
+    for i in range(5):
+        model_configuration.update(model_configuration.random_q(rng))
+        position, rotation = model_configuration.frame_pose("ee")
+        start = configuration_of("panda", model_configuration.mid_q())
+        result = igm(start, "ee", position, rotation, seed=i, time_budget=1.0)
+        assert result.converged, result
+        assert result.position_error <= 1e-4 and result.orientation_error <= 1e-3
+        assert configuration_of("panda", result.q).within_limits(tol=0.0)
+
+
+def test_igm_out_of_reach_reports_why_and_stays_within_limits():
+    configuration = configuration_of("planar_2r", [0.3, 1.0])
+    result = pseudoinverse_igm(configuration, "ee", np.array([5.0, 0.0, 0.0]), restarts=2, seed=0)
+    assert not result.converged and result.reason in IGM_REASONS
+    assert result.reason in ("stalled", "max_iters") and result.restarts_used == 2
+    assert configuration_of("planar_2r", result.q).within_limits(tol=0.0)
+
+
+def test_pinv_step_at_the_2r_singularity_is_huge():
+    """Near the stretched 2R (q2 = 1e-3), asking for motion along the arm costs a joint step
+    of order 1 / q2 with the pseudoinverse; damped least squares stays bounded."""
+    configuration = configuration_of("planar_2r", [0.0, 1e-3])
+    position, _ = configuration.frame_pose("ee")
+    target = position - np.array([0.01, 0.0, 0.0])  # 1 cm back along the stretched arm
+    J = configuration.frame_jacobian("ee")[:3]
+    c = pose_error(configuration, "ee", target, None)
+    np.testing.assert_allclose(c, [-0.01, 0.0, 0.0], atol=1e-12)
+    pinv = pseudoinverse_step(J, c)
+    assert np.linalg.norm(pinv) > 1000 * np.linalg.norm(c)  # about 22 rad for 1 cm
+    dls = damped_least_squares_igm(configuration, "ee", target, max_iters=1, restarts=0)
+    assert dls.iterations == 1
+    assert np.linalg.norm(dls.q - configuration.q) <= 0.01 / (2 * 0.05)  # |c| / (2 damping)
+
+
+def test_pose_error_rotation_matches_so3_log(rng):
+    configuration = configuration_of("ur5e")
+    configuration.update(configuration.random_q(rng))
+    position, rotation = configuration.frame_pose("ee")
+    for angle in (0.3, np.pi - 1e-6, np.pi):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        target = mink.SO3.exp(angle * axis).as_matrix() @ rotation
+        c = pose_error(configuration, "ee", position + 0.1, target)
+        np.testing.assert_allclose(c[:3], 0.1, atol=1e-12)
+        assert np.linalg.norm(c[3:]) == pytest.approx(angle, abs=1e-9)
+        np.testing.assert_allclose(mink.SO3.exp(c[3:]).as_matrix() @ rotation, target, atol=1e-9)
+
+
+# ------------------------------------------------------------------ CLI
+def test_cli_bench_writes_table_and_json(tmp_path, capsys):
+    out = tmp_path / "bench.json"
+    argv = ["bench", "--robots", "planar_2r", "--n", "3", "--methods", "qpik", "pinv"]
+    assert main([*argv, "--quiet", "--json", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "planar_2r" in captured.out and "qpik" in captured.out and "pinv" in captured.out
+    assert captured.err == ""
+    data = json.loads(out.read_text())
+    assert data["protocol"]["n"] == 3 and data["protocol"]["methods"] == ["qpik", "pinv"]
+    assert data["robots"]["planar_2r"]["methods"]["qpik"]["n"] == 3
+
+
+def test_cli_bench_unknown_robot_exits_2(capsys):
+    assert main(["bench", "--robots", "nope", "--n", "1", "--quiet"]) == 2
+    assert "unknown robot 'nope'" in capsys.readouterr().err
