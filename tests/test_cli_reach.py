@@ -128,3 +128,14 @@ def test_unknown_option_exits_nonzero(capsys):
         main(["robots", "--frobnicate"])
     assert info.value.code == 2
     assert "unrecognized arguments" in capsys.readouterr().err
+
+
+def test_plot_without_matplotlib_names_the_extra(tmp_path, monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    argv = ["reach", str(TASKS["panda_pose_reach"]), "--plot", str(tmp_path / "x.png")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "qpik[plots]" in err and err.count("\n") == 1
+    assert not (tmp_path / "x.png").exists()
