@@ -73,7 +73,7 @@ REASONS = {
 
 
 #: The damping law of :func:`solve`: the velocity-control law, fading with the error.
-IGM_DAMPING = DampingLaw(error_scale=0.01)
+IGM_DAMPING = DampingLaw(error_scale=0.3)
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,11 @@ class IKResult:
         orientation_error: largest frame orientation error at ``q`` [rad] (0 without
             orientation targets).
         frame_errors: per frame, ``(position_error, orientation_error)``.
-        residual_history: per iteration of the returned attempt, each level's residual.
+        residual_history: per iteration of the returned attempt, each level's QP residual
+            ``|A_k dq - b_k|`` (what the solver minimised at that step).
+        error_history: per iteration of the returned attempt (its start first), the largest
+            frame ``(position_error [m], orientation_error [rad])``.
+        path: the configurations of the returned attempt, its start first ``(k, nq)``.
         solve_time: wall time [s].
     """
 
@@ -172,6 +176,8 @@ class IKResult:
     orientation_error: float
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
     residual_history: list[list[float]] = field(default_factory=list, repr=False)
+    error_history: list[tuple[float, float]] = field(default_factory=list, repr=False)
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     solve_time: float = 0.0
 
     def __str__(self) -> str:
@@ -192,7 +198,9 @@ class _Problem:
     workspaces; the targets are set anew for every solve.
     """
 
-    def __init__(self, model, frames, stack, limits, alpha, solver, damping_law, secondary):
+    def __init__(
+        self, model, frames, stack, limits, alpha, solver, damping_law, secondary, damping
+    ):
         if not 0.0 < alpha <= 1.0:
             raise InvalidInput(f"alpha must be in (0, 1] (a task gain), got {alpha}")
         self.configuration = Configuration(model)
@@ -229,14 +237,18 @@ class _Problem:
             levels,
             self.limits,
             solver=solver,
+            damping=damping,
             damping_law=damping_law,
             osqp_settings=OSQPSettings(eps_abs=1e-5, eps_rel=1e-5),
         )
         self.levels = levels
         self.alpha = alpha
         self.primary = [
-            t for t in levels[0] if isinstance(t, (PositionTask, OrientationTask, PoseTask))
+            t
+            for t in levels[0]
+            if isinstance(t, (PositionTask, OrientationTask, PoseTask, FrameTask))
         ]
+        self.base_gains = [alpha] * len(self.primary)
         self.frames = frames
 
     def set_targets(self, frames) -> None:
@@ -244,6 +256,7 @@ class _Problem:
         self.frames = frames
         if self.custom_stack:
             _set_stack_targets(self.levels, frames)
+            self.base_gains = [task.gain for task in self.primary]  # the user's gains
             return
         for task, (_, _, target) in zip(self.target_tasks, frames):
             if isinstance(task, PoseTask):
@@ -255,7 +268,9 @@ class _Problem:
     def clamp_gains(self, errors, max_position_step: float, max_orientation_step: float) -> None:
         """Trust region: scale the target tasks' gains so that no iteration asks for more
         than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
-        for task in self.primary:
+        for task, base_gain in zip(self.primary, self.base_gains):
+            if task.frame_name not in errors:
+                continue
             position_error, orientation_error = errors[task.frame_name]
             position_limit = max_position_step / max(position_error, 1e-12)
             orientation_limit = max_orientation_step / max(orientation_error, 1e-12)
@@ -265,7 +280,12 @@ class _Problem:
                 limit = orientation_limit
             else:  # a pose: one gain for both parts, the tighter one
                 limit = min(position_limit, orientation_limit)
-            task.gain = min(self.alpha, limit)
+            task.gain = min(base_gain, limit)
+
+    def restore_gains(self) -> None:
+        """Give the target tasks back the gains they had before the solve."""
+        for task, base_gain in zip(self.primary, self.base_gains):
+            task.gain = base_gain
 
     def errors(self, configuration: Configuration) -> dict[str, tuple[float, float]]:
         """Per frame, (position error [m], orientation error [rad]) at ``configuration``."""
@@ -284,19 +304,21 @@ class _Problem:
 _POOL: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary) -> _Problem:
+def _acquire(
+    model, frames, stack, limits, alpha, solver, damping_law, secondary, damping
+) -> _Problem:
     """A problem for this model and target structure: from the pool when the stack is the
     default and the limits are ``"joint"`` or none, else a new one."""
     poolable = stack is None and (limits is None or isinstance(limits, str))
     if poolable:
         structure = tuple((name, kind, t.rotation is not None) for name, kind, t in frames)
-        key = (structure, limits, alpha, solver, damping_law, secondary)
+        key = (structure, limits, alpha, solver, damping_law, secondary, damping)
         free = _POOL.setdefault(model, {}).setdefault(key, [])
         if free:
             problem = free.pop()
             problem.set_targets(frames)
             return problem
-    problem = _Problem(model, frames, stack, limits, alpha, solver, damping_law, secondary)
+    problem = _Problem(model, frames, stack, limits, alpha, solver, damping_law, secondary, damping)
     problem.set_targets(frames)
     problem.pool_key = key if poolable else None
     return problem
@@ -304,6 +326,7 @@ def _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary
 
 def _release(problem: _Problem) -> None:
     """Give a pooled problem back (at most a few per key are kept)."""
+    problem.restore_gains()
     if problem.pool_key is None:
         return
     free = _POOL.setdefault(problem.configuration.model, {}).setdefault(problem.pool_key, [])
@@ -382,6 +405,7 @@ def solve(
     damping_law: DampingLaw | None = IGM_DAMPING,
     max_step: tuple[float, float] | None = (0.2, 0.5),
     secondary: bool = False,
+    damping: float = 1e-6,
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 
@@ -409,6 +433,7 @@ def solve(
         damping_law: singularity damping; for a solve it also fades with the error.
         max_step: trust region ``(metres, radians)``: no iteration asks a target task for
             more than this (``None``: full steps, the lecture's recursion).
+        damping: constant Tikhonov damping of every level (see :class:`qpik.IKSolver`).
         secondary: with the default stack on a redundant arm, add distance from the joint
             limits as a level-1 objective in the null space of the targets (about 1.5x the
             time per iteration).
@@ -420,7 +445,7 @@ def solve(
         restarts = 20 if time_budget is None else sys.maxsize
     model, robot_q = _model_of(robot)
     frames = _parse_targets(model, targets)
-    problem = _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary)
+    problem = _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary, damping)
     try:
         return _iterate(
             problem,
@@ -467,7 +492,13 @@ def _iterate(
     def score(errors) -> float:
         return max(p / tol_position + o / tol_orientation for p, o in errors.values())
 
-    best_q, best_errors, best_history = configuration.q, problem.errors(configuration), []
+    def worst(errors) -> tuple[float, float]:
+        return max(p for p, _ in errors.values()), max(o for _, o in errors.values())
+
+    best_q, best_errors = configuration.q, problem.errors(configuration)
+    best_history: list[list[float]] = []
+    best_error_history = [worst(best_errors)]
+    best_path = [best_q]
     best_score = score(best_errors)
     total_iterations = 0
     attempt = 0
@@ -475,6 +506,8 @@ def _iterate(
     while True:
         history: list[list[float]] = []
         errors = problem.errors(configuration)
+        error_history = [worst(errors)]
+        path = [configuration.q]
         current = score(errors)
         window_start = current
         since_progress = 0
@@ -497,6 +530,8 @@ def _iterate(
                 q = np.clip(q, lower, upper)
             configuration.update(q)
             errors = problem.errors(configuration)
+            error_history.append(worst(errors))
+            path.append(q)
             current = score(errors)
             if _norm(last_step.displacement) < 1e-9:
                 # A vanishing step that leaves the error: nothing more comes of this start.
@@ -514,12 +549,8 @@ def _iterate(
             if current <= 1.0:
                 attempt_reason = "converged"
         if current < best_score:
-            best_q, best_errors, best_history, best_score = (
-                configuration.q,
-                errors,
-                history,
-                current,
-            )
+            best_q, best_errors, best_score = configuration.q, errors, current
+            best_history, best_error_history, best_path = history, error_history, path
         reason = attempt_reason
         out_of_time = time_budget is not None and time.perf_counter() - start_time > time_budget
         if attempt_reason == "converged" or attempt >= restarts or out_of_time:
@@ -535,10 +566,12 @@ def _iterate(
         reason="converged" if converged else reason,
         iterations=total_iterations,
         restarts_used=attempt,
-        position_error=max(p for p, _ in best_errors.values()),
-        orientation_error=max(o for _, o in best_errors.values()),
+        position_error=worst(best_errors)[0],
+        orientation_error=worst(best_errors)[1],
         frame_errors=best_errors,
         residual_history=best_history,
+        error_history=best_error_history,
+        path=np.array(best_path),
         solve_time=time.perf_counter() - start_time,
     )
 

@@ -148,3 +148,21 @@ def test_solve_many_is_deterministic_and_parallel(rng):
         np.testing.assert_array_equal(a.q, b.q)
         np.testing.assert_array_equal(a.q, c.q)
     assert all(r.converged for r in serial)
+
+
+def test_history_and_path_of_the_returned_attempt(rng):
+    position, rotation = reachable_pose("ur5e", rng)
+    result = qpik.solve("ur5e", {"ee": (position, rotation)}, seed=2)
+    assert result.converged
+    assert result.path.shape[1] == 6 and len(result.path) == len(result.error_history)
+    np.testing.assert_array_equal(result.path[-1], result.q)
+    assert result.error_history[-1] == (result.position_error, result.orientation_error)
+    assert result.error_history[0][0] > result.error_history[-1][0]
+
+
+def test_custom_stack_keeps_the_users_gains(rng):
+    model = qpik.load_robot("panda")
+    position, rotation = reachable_pose("panda", rng)
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0, gain=0.7)
+    qpik.solve(model, {"ee": (position, rotation)}, stack=[frame], seed=1)
+    assert frame.gain == 0.7
