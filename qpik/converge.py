@@ -59,7 +59,15 @@ from .tasks import (
 )
 from .tasks.frame import checked_position, checked_rotation
 
-__all__ = ["REASONS", "IKResult", "Target", "parse_target", "solve", "solve_many"]
+__all__ = [
+    "REASONS",
+    "IKResult",
+    "Target",
+    "parse_target",
+    "set_frame_target",
+    "solve",
+    "solve_many",
+]
 
 #: Why a solve ended. ``converged`` is the only success.
 REASONS = {
@@ -356,32 +364,39 @@ def _model_of(robot) -> tuple[mujoco.MjModel, np.ndarray | None]:
     return as_configuration(robot).model, None
 
 
-def _set_stack_targets(levels, frames) -> None:
-    """Set each frame's target on the stack's tasks that regulate that frame."""
-    for name, _kind, target in frames:
-        matched = False
-        for task in (t for level in levels for t in level):
-            if getattr(task, "frame_name", None) != name:
-                continue
-            matched = True
-            if isinstance(task, PositionTask):
-                task.set_target(target.position)
-            elif isinstance(task, OrientationTask):
-                if target.rotation is not None:
-                    task.set_target(target.rotation)
-            elif isinstance(task, FrameTask):
-                rotation = target.rotation
-                if rotation is None:
-                    raise InvalidTarget(
-                        f"frame {name!r} has a FrameTask (pose) in the stack but a "
-                        "position-only target"
-                    )
+def set_frame_target(levels: Sequence[Sequence], frame: str, target: Target) -> bool:
+    """Set ``target`` on every task of ``levels`` that regulates ``frame`` (position,
+    orientation, pose and mink frame tasks); returns whether any task does."""
+    matched = False
+    for task in (t for level in levels for t in level):
+        if getattr(task, "frame_name", None) != frame:
+            continue
+        matched = True
+        if isinstance(task, PositionTask):
+            task.set_target(target.position)
+        elif isinstance(task, OrientationTask):
+            if target.rotation is not None:
+                task.set_target(target.rotation)
+        elif isinstance(task, (PoseTask, FrameTask)):
+            if target.rotation is None:
+                raise InvalidTarget(
+                    f"frame {frame!r} has a pose task in the stack but a position-only target"
+                )
+            if isinstance(task, PoseTask):
+                task.set_target(target.position, target.rotation)
+            else:
                 task.set_target(
                     mink.SE3.from_rotation_and_translation(
-                        mink.SO3.from_matrix(rotation), target.position
+                        mink.SO3.from_matrix(target.rotation), target.position
                     )
                 )
-        if not matched:
+    return matched
+
+
+def _set_stack_targets(levels, frames) -> None:
+    """Set each frame's target on the stack's tasks; every frame must have a task."""
+    for name, _kind, target in frames:
+        if not set_frame_target(levels, name, target):
             raise InvalidTarget(f"no task in the given stack regulates frame {name!r}")
 
 
@@ -446,42 +461,44 @@ def solve(
     model, robot_q = _model_of(robot)
     frames = _parse_targets(model, targets)
     problem = _acquire(model, frames, stack, limits, alpha, solver, damping_law, secondary, damping)
+    settings = _Settings(
+        tol_position,
+        tol_orientation,
+        max_iters,
+        time_budget,
+        restarts,
+        beta,
+        stall_window,
+        damping_law,
+        max_step,
+    )
     try:
-        return _iterate(
-            problem,
-            q0 if q0 is not None else robot_q,
-            start_time,
-            tol_position,
-            tol_orientation,
-            max_iters,
-            time_budget,
-            restarts,
-            seed,
-            beta,
-            stall_window,
-            damping_law,
-            max_step,
-        )
+        return _iterate(problem, q0 if q0 is not None else robot_q, start_time, seed, settings)
     finally:
         _release(problem)
 
 
-def _iterate(
-    problem,
-    q0,
-    start_time,
-    tol_position,
-    tol_orientation,
-    max_iters,
-    time_budget,
-    restarts,
-    seed,
-    beta,
-    stall_window,
-    damping_law,
-    max_step,
-) -> IKResult:
+@dataclass(frozen=True)
+class _Settings:
+    """The loop options of :func:`solve` (documented there)."""
+
+    tol_position: float
+    tol_orientation: float
+    max_iters: int
+    time_budget: float | None
+    restarts: int
+    beta: float
+    stall_window: int
+    damping_law: DampingLaw | None
+    max_step: tuple[float, float] | None
+
+
+def _iterate(problem: _Problem, q0, start_time: float, seed, settings: _Settings) -> IKResult:
     """The IGM loop of :func:`solve` on a prepared problem."""
+    tol_position, tol_orientation = settings.tol_position, settings.tol_orientation
+    max_iters, time_budget, restarts = settings.max_iters, settings.time_budget, settings.restarts
+    beta, stall_window, max_step = settings.beta, settings.stall_window, settings.max_step
+    damping_law = settings.damping_law
     configuration = problem.configuration
     configuration.update(q0 if q0 is not None else configuration.mid_q())
     configuration.check_limits()

@@ -111,7 +111,7 @@ import numpy as np
 
 from . import statics as _statics
 from .configuration import Configuration, FrameType, frame_names, joint_names
-from .converge import IGM_DAMPING, IKResult, Target, solve
+from .converge import IGM_DAMPING, IKResult, Target, set_frame_target, solve
 from .errors import ProblemFileError, QpikError, UnknownFrame, UnknownRobot
 from .hierarchy import DampingLaw, IKSolver
 from .limits import ConfigurationLimit, VelocityLimit
@@ -454,7 +454,7 @@ class Problem:
         first goal)."""
         start = start if start is not None else self.start_configuration()
         levels = [[spec.build(self.model, start) for spec in level] for level in self.levels]
-        _apply_goal(levels, self.goals[0])
+        set_frame_target(levels, self.goals[0].frame, self.goals[0].target)
         return levels
 
     def build_limits(self) -> list:
@@ -571,7 +571,7 @@ class Problem:
         reached: list[bool] = []
         for index, goal in enumerate(self.goals):
             if index > 0:
-                _apply_goal(levels, goal)
+                set_frame_target(levels, goal.frame, goal.target)
                 errors[-1] = _goal_error(configuration, goal)
             for _ in range(self.steps):
                 if self.stop_at_goal and errors[-1][0] <= tol_p and errors[-1][1] <= tol_o:
@@ -677,25 +677,6 @@ class Problem:
     def to_json(self, indent: int | None = 2) -> str:
         """:meth:`to_dict` as JSON."""
         return json.dumps(self.to_dict(), indent=indent)
-
-
-def _apply_goal(levels: list[list], goal: Goal) -> None:
-    """Set a goal on the tasks of ``levels`` that regulate its frame."""
-    target = goal.target
-    for task in (t for level in levels for t in level):
-        if getattr(task, "frame_name", None) != goal.frame:
-            continue
-        if isinstance(task, PositionTask):
-            task.set_target(target.position)
-        elif isinstance(task, OrientationTask):
-            if target.rotation is not None:
-                task.set_target(target.rotation)
-        elif isinstance(task, FrameTask):
-            task.set_target(
-                mink.SE3.from_rotation_and_translation(
-                    mink.SO3.from_matrix(target.rotation), target.position
-                )
-            )
 
 
 def _goal_error(configuration: Configuration, goal: Goal) -> tuple[float, float]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -21,3 +22,33 @@ def bundled_robot(request) -> str:
 def configuration_of(name: str, q=None) -> qpik.Configuration:
     """A fresh configuration of a bundled robot (fresh per test: tests never share state)."""
     return qpik.Configuration(qpik.load_robot(name), q)
+
+
+def central_difference(configuration: qpik.Configuration, function, h: float = 1e-6):
+    """d function(configuration) / dq by central differences along each tangent direction
+    (columns of the result); ``function`` maps the configuration to an array, or to a
+    ``(position, rotation)`` pair whose rotation part is differentiated through the log of
+    the relative rotation (world frame). ``configuration`` ends where it started."""
+    from scipy.spatial.transform import Rotation
+
+    q = configuration.q
+    model = configuration.model
+    columns = []
+    for i in range(model.nv):
+        dq = np.zeros(model.nv)
+        dq[i] = h
+        values = []
+        for sign in (1.0, -1.0):
+            shifted = q.copy()
+            mujoco.mj_integratePos(model, shifted, sign * dq, 1.0)
+            configuration.update(shifted)
+            values.append(function(configuration))
+        plus, minus = values
+        if isinstance(plus, tuple):
+            linear = (plus[0] - minus[0]) / (2 * h)
+            angular = Rotation.from_matrix(plus[1] @ minus[1].T).as_rotvec() / (2 * h)
+            columns.append(np.concatenate([linear, angular]))
+        else:
+            columns.append((plus - minus) / (2 * h))
+    configuration.update(q)
+    return np.stack(columns, axis=1)

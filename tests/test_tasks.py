@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 import pytest
-from conftest import configuration_of
+from conftest import central_difference, configuration_of
 from scipy.spatial.transform import Rotation
 
 import qpik
@@ -18,23 +17,8 @@ from qpik.tasks import (
 )
 
 
-def numeric_jacobian(task, configuration, h=1e-6):
-    q = configuration.q
-    model = configuration.model
-    columns = []
-    for i in range(model.nv):
-        dq = np.zeros(model.nv)
-        dq[i] = h
-        q_plus, q_minus = q.copy(), q.copy()
-        mujoco.mj_integratePos(model, q_plus, dq, 1.0)
-        mujoco.mj_integratePos(model, q_minus, -dq, 1.0)
-        configuration.update(q_plus)
-        e_plus = task.compute_error(configuration)
-        configuration.update(q_minus)
-        e_minus = task.compute_error(configuration)
-        columns.append((e_plus - e_minus) / (2 * h))
-    configuration.update(q)
-    return np.stack(columns, axis=1)
+def numeric_jacobian(task, configuration):
+    return central_difference(configuration, task.compute_error)
 
 
 def make_tasks(configuration, rng):

@@ -41,14 +41,11 @@ def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
     return cost
 
 
-class PositionTask(mink.Task):
-    """Bring a frame's origin to a target position (world frame, [m]).
-
-    Error ``e = p(q) - p_target`` (3,), Jacobian the linear rows of the world-aligned frame
-    Jacobian.
-    """
+class _FrameRowsTask(mink.Task):
+    """A task on three rows of one frame's pose (see the subclasses)."""
 
     k = 3
+    _cost_name = "cost"
 
     def __init__(
         self,
@@ -58,10 +55,21 @@ class PositionTask(mink.Task):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ):
-        super().__init__(_cost_vector(cost, "position cost"), gain, lm_damping)
+        super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
         self.frame_name = frame_name
         self.frame_type = FrameType.parse(frame_type)
         self.target: np.ndarray | None = None
+
+
+class PositionTask(_FrameRowsTask):
+    """Bring a frame's origin to a target position (world frame, [m]).
+
+    Error ``e = p(q) - p_target`` (3,), Jacobian the linear rows of the world-aligned frame
+    Jacobian.
+    """
+
+    k = 3
+    _cost_name = "position cost"
 
     def set_target(self, position: npt.ArrayLike) -> None:
         """Target position of the frame origin in the world frame [m]."""
@@ -96,7 +104,7 @@ def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) - 0.5 * skew + coefficient * skew @ skew
 
 
-class OrientationTask(mink.Task):
+class OrientationTask(_FrameRowsTask):
     """Bring a frame's orientation to a target rotation (world frame).
 
     Error ``e = log(R(q) R_target^T)`` (3,) [rad], the rotation vector from the target to the
@@ -104,19 +112,7 @@ class OrientationTask(mink.Task):
     """
 
     k = 3
-
-    def __init__(
-        self,
-        frame_name: str,
-        frame_type: FrameType | str = FrameType.SITE,
-        cost: npt.ArrayLike = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-    ):
-        super().__init__(_cost_vector(cost, "orientation cost"), gain, lm_damping)
-        self.frame_name = frame_name
-        self.frame_type = FrameType.parse(frame_type)
-        self.target: np.ndarray | None = None
+    _cost_name = "orientation cost"
 
     def set_target(self, rotation: npt.ArrayLike) -> None:
         """Target rotation matrix (3, 3) of the frame in the world frame."""
