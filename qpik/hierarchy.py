@@ -107,15 +107,28 @@ class StepResult:
 
     velocity: np.ndarray
     displacement: np.ndarray
-    residuals: list[float]
     sigma_min: list[float]
     damping: list[float]
     status: list[str]
     iterations: list[int]
     solve_time: float
-    level_residuals_at_solve: list[float] = field(default_factory=list)
+    _levels: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
+        default_factory=list, repr=False
+    )  # per level: (A, b, dq right after that level was solved)
     _name_active_limits: Callable[[], list[str]] | None = field(default=None, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
+
+    @property
+    def residuals(self) -> list[float]:
+        """Per level, ``|A_k dq - b_k|`` at the final ``dq`` (NaN for levels not reached)."""
+        values = [_norm(A @ self.displacement - b) for A, b, _ in self._levels]
+        return values + [float("nan")] * (len(self.status) - len(values))
+
+    @property
+    def level_residuals_at_solve(self) -> list[float]:
+        """Per level, ``|A_k dq - b_k|`` right after level ``k`` was solved (lower levels
+        must leave it unchanged: the tests of strict priority compare the two)."""
+        return [_norm(A @ d - b) for A, b, d in self._levels]
 
     @property
     def active_limits(self) -> list[str]:
@@ -175,7 +188,8 @@ def _level_residual(
         residual = tasks[0].compute_qp_residual(configuration)
         if residual is not None:
             A, b, mu = residual
-            A, b = np.atleast_2d(A), np.atleast_1d(b)
+            if A.ndim != 2:
+                A, b = np.atleast_2d(A), np.atleast_1d(b)
             nonzero = A.any(axis=1)
             if not nonzero.all():
                 A, b = A[nonzero], b[nonzero]
@@ -307,6 +321,7 @@ class IKSolver:
         self._eye = np.eye(self._nv)
         self._structure_cache: dict[int, tuple] = {}
         self._no_rows = np.zeros((0, self._nv))
+        self._bounds = tuple(np.empty(self._nv) for _ in range(4))  # scratch for _limit_rows
         self._scalar_joints = model.nq == model.nv and bool(
             np.all(
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
@@ -353,9 +368,11 @@ class IKSolver:
     def _limit_rows(self, configuration: Configuration, dt: float):
         """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits, and
         the per-limit box contributions (to name the active limits afterwards)."""
-        nv = self._nv
-        hard_lb, hard_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
-        pos_lb, pos_ub = np.full(nv, -np.inf), np.full(nv, np.inf)
+        hard_lb, hard_ub, pos_lb, pos_ub = self._bounds
+        hard_lb.fill(-np.inf)
+        hard_ub.fill(np.inf)
+        pos_lb.fill(-np.inf)
+        pos_ub.fill(np.inf)
         contributions = []  # (name, dofs, bounds) for each side of each limit
         general_G, general_h, general_names = [], [], []
         for limit in self.limits:
@@ -401,9 +418,8 @@ class IKSolver:
                 general_G.append(G[structure.general])
                 general_h.append(h[structure.general])
                 general_names.extend(f"{name} row {int(r)}" for r in structure.general)
-        bad = np.flatnonzero(hard_lb > hard_ub)
-        if bad.size:
-            i = int(bad[0])
+        if (hard_lb > hard_ub).any():
+            i = int(np.flatnonzero(hard_lb > hard_ub)[0])
             raise InfeasibleLimits(
                 f"limits on {self._dof_names[i]} need {hard_lb[i]:.6g} <= dq <= "
                 f"{hard_ub[i]:.6g}: no displacement satisfies them"
@@ -435,18 +451,17 @@ class IKSolver:
         d = np.zeros(nv)
         P = self._eye
         locked_rank = 0
-        statuses, sigmas, dampings, iterations, at_solve = [], [], [], [], []
-        residual_parts = []
+        statuses, sigmas, dampings, iterations = [], [], [], []
+        solved_levels = []
         eye = self._eye
         for k, tasks in enumerate(self.levels):
             A, b, mu = _level_residual(tasks, configuration, nv)
-            residual_parts.append((A, b))
             if A.shape[0] == 0 or locked_rank >= nv:
                 statuses.append("solved")
                 sigmas.append(np.inf)
                 dampings.append(0.0)
                 iterations.append(0)
-                at_solve.append(_norm(A @ d - b))
+                solved_levels.append((A, b, d))
                 continue
             first = locked_rank == 0  # nothing locked yet: P = I, d = 0
             AP = A if first else A @ P
@@ -479,27 +494,26 @@ class IKSolver:
             z, status, its = self._solve_level(k, H, c, M, lower, upper, m_general)
             if z is not None:
                 d = d + (z if first else P @ z)
-                np.clip(d, lb, ub, out=d)  # box limits hold exactly, not to solver tolerance
+                # Box limits hold exactly, not to the solver's tolerance.
+                np.maximum(d, lb, out=d)
+                np.minimum(d, ub, out=d)
             statuses.append(status)
             sigmas.append(sigma)
             dampings.append(lam2)
             iterations.append(its)
-            at_solve.append(_norm(A @ d - b))
+            solved_levels.append((A, b, d))
             if z is None and k == 0:
                 break
             # Lock this level's rows for the levels below.
             tol = self.rank_tolerance * max(1.0, float(s[0]) if s.size else 1.0)
-            r = int(np.sum(s > tol))
+            r = int(np.count_nonzero(s > tol))
             if r:
                 V = Vt[:r].T
                 P = (eye if first else P) - V @ V.T
                 locked_rank += r
-        residuals = [_norm(A @ d - b) for A, b in residual_parts]
-        residuals += [float("nan")] * (len(self.levels) - len(residuals))
         return StepResult(
             velocity=d / dt,
             displacement=d,
-            residuals=residuals,
             sigma_min=sigmas,
             damping=dampings,
             _name_active_limits=lambda: self._active_limits(
@@ -508,7 +522,7 @@ class IKSolver:
             status=statuses + ["not_reached"] * (len(self.levels) - len(statuses)),
             iterations=iterations,
             solve_time=time.perf_counter() - start,
-            level_residuals_at_solve=at_solve,
+            _levels=solved_levels,
         )
 
     def _solve_level(self, k, H, c, M, lower, upper, m_general):
