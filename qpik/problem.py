@@ -57,7 +57,7 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     max_step = [0.2, 0.5]              # trust region [m, rad], or false (solve mode)
     singular_threshold = 0.05          # adaptive damping (DampingLaw), both modes
     max_damping = 0.05                 #   (adaptive_damping = false switches it off)
-    damping = 1e-6                     # constant Tikhonov term (track mode only)
+    damping = 1e-6                     # constant Tikhonov term, both modes
 
     [track]                            # mode = "track" only
     dt = 0.01                          # [s] per step
@@ -528,6 +528,7 @@ class Problem:
                 "alpha",
                 "beta",
                 "stall_window",
+                "damping",
             )
             if k in o
         }
@@ -1332,12 +1333,6 @@ def _read_solver(reader: _Reader, data: dict, mode: str) -> dict[str, Any]:
         raise reader.fail("solver.restarts", f"expected an integer >= 0, got {options['restarts']}")
     if "alpha" in options and not 0 < options["alpha"] <= 1:
         raise reader.fail("solver.alpha", f"expected a number in (0, 1], got {options['alpha']}")
-    if mode == "solve" and "damping" in options:
-        raise reader.fail(
-            "solver.damping",
-            'only with mode = "track" (qpik.solve has no constant damping term; use '
-            "singular_threshold / max_damping, or a damping task)",
-        )
     if mode == "track":
         for key in ("max_iters", "restarts", "time_budget", "alpha", "beta", "max_step", "seed"):
             if key in options:

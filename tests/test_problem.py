@@ -238,3 +238,14 @@ velocity = { joint1 = 2, joint2 = 2, joint3 = 2, joint4 = 2, joint5 = 2, joint6 
     assert [type(t) for t in stack[0]] == [qpik.tasks.FrameTask]
     result = problem.solve()
     assert result.converged, result.reason
+
+
+def test_solve_mode_takes_a_constant_damping(tmp_path):
+    path = tmp_path / "damped.toml"
+    path.write_text(
+        'robot = "planar_2r"\nq0 = [0.3, 0.5]\n\n[[levels]]\n[[levels.tasks]]\n'
+        'type = "position"\nframe = "ee"\n\n[target]\nposition = [1.2, 0.8, 0.0]\n\n'
+        "[solver]\ndamping = 1e-4\n"
+    )
+    result = qpik.load_problem(path).solve()
+    assert result.converged, result.reason
