@@ -46,7 +46,7 @@ import numpy.typing as npt
 
 from .configuration import Configuration, FrameType, as_configuration, frame_names
 from .errors import InvalidInput, InvalidTarget, UnknownFrame
-from .hierarchy import DampingLaw, IKSolver, normalize_stack
+from .hierarchy import DampingLaw, IKSolver, Stack, normalize_stack
 from .limits import ConfigurationLimit
 from .qp import OSQPSettings
 from .robots import load_robot, robots_dir
@@ -61,6 +61,9 @@ from .tasks.frame import checked_position, checked_rotation
 
 __all__ = [
     "REASONS",
+    "FrameKey",
+    "RobotLike",
+    "TargetLike",
     "IKResult",
     "Target",
     "parse_target",
@@ -93,7 +96,16 @@ class Target:
     rotation: np.ndarray | None = None
 
 
-def parse_target(value) -> Target:
+#: What :func:`solve` accepts as a robot: anything :func:`qpik.load_robot` takes, or a
+#: :class:`qpik.Configuration`.
+RobotLike = str | os.PathLike | mujoco.MjModel | Configuration
+#: A target frame: a name (site, then body, then geom) or ``(name, frame_type)``.
+FrameKey = str | tuple[str, FrameType | str]
+#: A target: a position (3,), ``(position, rotation)``, a 4x4 matrix, an SE3 or a Target.
+TargetLike = Target | mink.SE3 | npt.ArrayLike | tuple[npt.ArrayLike, npt.ArrayLike]
+
+
+def parse_target(value: TargetLike) -> Target:
     """A :class:`Target` from a position ``(3,)``, a ``(position, rotation)`` pair, a 4x4
     homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
     :class:`qpik.InvalidTarget`."""
@@ -259,7 +271,7 @@ class _Problem:
         self.base_gains = [alpha] * len(self.primary)
         self.frames = frames
 
-    def set_targets(self, frames) -> None:
+    def set_targets(self, frames: list[tuple[str, FrameType, Target]]) -> None:
         """Set the targets of this solve on the stack's tasks."""
         self.frames = frames
         if self.custom_stack:
@@ -273,7 +285,12 @@ class _Problem:
                 task.set_target(target.position)
             task.gain = self.alpha
 
-    def clamp_gains(self, errors, max_position_step: float, max_orientation_step: float) -> None:
+    def clamp_gains(
+        self,
+        errors: Mapping[str, tuple[float, float]],
+        max_position_step: float,
+        max_orientation_step: float,
+    ) -> None:
         """Trust region: scale the target tasks' gains so that no iteration asks for more
         than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
         for task, base_gain in zip(self.primary, self.base_gains):
@@ -401,12 +418,12 @@ def _set_stack_targets(levels, frames) -> None:
 
 
 def solve(
-    robot,
-    targets: Mapping,
+    robot: RobotLike,
+    targets: Mapping[FrameKey, TargetLike],
     *,
     q0: npt.ArrayLike | None = None,
-    stack=None,
-    limits="joint",
+    stack: Stack | None = None,
+    limits: str | Sequence[mink.Limit] | None = "joint",
     tol_position: float = 1e-4,
     tol_orientation: float = 1e-3,
     max_iters: int = 100,
@@ -614,8 +631,8 @@ def _solve_one(args) -> IKResult:
 
 
 def solve_many(
-    robot,
-    targets_list: Sequence[Mapping],
+    robot: RobotLike,
+    targets_list: Sequence[Mapping[FrameKey, TargetLike]],
     *,
     seed: int | None = 0,
     workers: int | None = None,

@@ -17,12 +17,20 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .analysis import manipulability, singular_values
 from .configuration import Configuration, joint_names
 from .errors import MissingExtra
+
+if TYPE_CHECKING:  # matplotlib is optional and imported lazily
+    import mujoco
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .problem import ProblemResult
 
 __all__ = [
     "is_planar",
@@ -55,7 +63,7 @@ def _axes(ax):
     return _pyplot().subplots()[1]
 
 
-def is_planar(model) -> bool:
+def is_planar(model: mujoco.MjModel) -> bool:
     """Whether every joint is a hinge about the world z axis at ``qpos0`` (the bundled
     planar arms)."""
     import mujoco
@@ -70,10 +78,10 @@ def is_planar(model) -> bool:
 
 def plot_level_errors(
     residual_history: Sequence[Sequence[float]],
-    ax=None,
+    ax: Axes | None = None,
     xlabel: str = "iteration",
     goal_error: np.ndarray | None = None,
-):
+) -> Axes:
     """Each priority level's weighted QP residual ``|A_k dq - b_k|`` per iteration (log
     scale), and the goal frame's position error [m] when given (``goal_error[i]`` after
     iteration ``i``, ``goal_error[0]`` at the start)."""
@@ -102,7 +110,12 @@ def plot_level_errors(
     return ax
 
 
-def plot_joints(model, path: np.ndarray, ax=None, time: np.ndarray | None = None):
+def plot_joints(
+    model: mujoco.MjModel,
+    path: np.ndarray,
+    ax: Axes | None = None,
+    time: np.ndarray | None = None,
+) -> Axes:
     """Joint trajectories ``path (k, nq)`` with each joint's limits as a shaded band."""
     ax = _axes(ax)
     path = np.atleast_2d(path)
@@ -138,8 +151,14 @@ def _frame_jacobian_rows(model, frame, frame_type, rows: str):
 
 
 def plot_singular_values(
-    model, path: np.ndarray, frame: str, frame_type="site", rows: str = "pose", ax=None, time=None
-):
+    model: mujoco.MjModel,
+    path: np.ndarray,
+    frame: str,
+    frame_type: str = "site",
+    rows: str = "pose",
+    ax: Axes | None = None,
+    time: np.ndarray | None = None,
+) -> Axes:
     """Singular values of the frame's Jacobian (``rows``: ``"pose"``, ``"position"`` or
     ``"planar"`` for vx, vy) and the manipulability ``sqrt(det J J^T)`` along ``path``."""
     ax = _axes(ax)
@@ -165,14 +184,14 @@ def plot_singular_values(
 
 
 def plot_planar_arm(
-    model,
+    model: mujoco.MjModel,
     path: np.ndarray,
     targets: Sequence[np.ndarray] = (),
     frame: str = "ee",
-    frame_type="site",
-    ax=None,
+    frame_type: str = "site",
+    ax: Axes | None = None,
     intermediate: int = 3,
-):
+) -> Axes:
     """A planar arm drawn at the start (light), ``intermediate`` configurations along
     ``path`` and the final one (dark), with the tip's trace and the targets (crosses)."""
     ax = _axes(ax)
@@ -220,7 +239,9 @@ def plot_planar_arm(
     return ax
 
 
-def plot_result(result, path: str | os.PathLike | None = None, dpi: int = 80):
+def plot_result(
+    result: ProblemResult, path: str | os.PathLike | None = None, dpi: int = 80
+) -> Figure:
     """A figure of a :class:`qpik.problem.ProblemResult`: level errors, joints, singular
     values and (planar robots) the arm. Saved to ``path`` when given (drawn on a bare
     :class:`matplotlib.figure.Figure`, Agg canvas: no GUI, pyplot's state untouched);

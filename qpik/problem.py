@@ -117,6 +117,7 @@ from .hierarchy import DampingLaw, IKSolver
 from .limits import ConfigurationLimit, VelocityLimit
 from .robots import list_robots, load_robot
 from .tasks import (
+    BaseTask,
     ComTask,
     DampingTask,
     FrameTask,
@@ -330,7 +331,7 @@ class TaskSpec:
     rotation: np.ndarray | None = None
     posture: np.ndarray | None = None
 
-    def build(self, model: mujoco.MjModel, start: Configuration):
+    def build(self, model: mujoco.MjModel, start: Configuration) -> BaseTask:
         """A new task object with its target set (start values where none was given)."""
         kind = self.type
         o = self.options

@@ -122,7 +122,9 @@ class OSQPWorkspace:
         self._solver.setup(P, c, A, lower, upper, **self.settings.as_dict())
         self.setups += 1
 
-    def solve(self, H, c, M, lower, upper) -> QPSolution:
+    def solve(
+        self, H: np.ndarray, c: np.ndarray, M: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> QPSolution:
         lower = np.maximum(lower, -_INF)
         upper = np.minimum(upper, _INF)
         start = time.perf_counter()
@@ -233,7 +235,9 @@ class QPSolversWorkspace:
         self.n, self.m = n, m
         self.setups = 0
 
-    def solve(self, H, c, M, lower, upper) -> QPSolution:
+    def solve(
+        self, H: np.ndarray, c: np.ndarray, M: np.ndarray, lower: np.ndarray, upper: np.ndarray
+    ) -> QPSolution:
         start = time.perf_counter()
         upper_rows = np.isfinite(upper) & (upper < _INF)
         lower_rows = np.isfinite(lower) & (lower > -_INF)
