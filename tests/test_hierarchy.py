@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import mink
+import mujoco
 import numpy as np
 import pytest
 from conftest import configuration_of
@@ -353,3 +354,67 @@ def test_general_rows_hold_at_every_level():
         assert dq[0] + dq[1] <= 0.001 + 1e-9
         if stack == [posture]:  # alone, the posture pushes against the row
             assert "SumLimit row 0" in result.active_limits
+
+
+OBSTACLE_2R = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <geom name="obstacle" type="sphere" size="0.25" pos="1.2 0.9 0"/>
+    <body name="link1">
+      <joint name="q1" type="hinge" axis="0 0 1" range="-3.1 3.1"/>
+      <geom name="link1" type="capsule" size="0.04" fromto="0 0 0 1 0 0"/>
+      <body name="link2" pos="1 0 0">
+        <joint name="q2" type="hinge" axis="0 0 1" range="-3.1 3.1"/>
+        <geom name="link2" type="capsule" size="0.04" fromto="0 0 0 1 0 0"/>
+        <site name="ee" pos="1 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _closest_approach(model, limits, steps=300):
+    """Track a tip target behind an obstacle (posture below it); the closest approach of
+    the links to the obstacle [m] and how many steps a collision row was active."""
+    configuration = qpik.Configuration(model, [0.0, 0.3])
+    tip = PositionTask("ee", gain=0.05)
+    tip.set_target([0.6, 1.7, 0.0])  # behind the obstacle: the straight way goes through it
+    posture = PostureTask(model, cost=0.1)
+    posture.set_target([0.0, 0.3])
+    solver = IKSolver(model, [[tip], [posture]], limits)
+    fromto = np.zeros(6)
+    closest, active = np.inf, 0
+    for _ in range(steps):
+        result = solver.step(configuration, DT)
+        assert result.ok
+        active += any(n.startswith("CollisionAvoidanceLimit") for n in result.active_limits)
+        configuration.integrate_inplace(result.velocity, DT)
+        for link in ("link1", "link2"):
+            closest = min(
+                closest,
+                mujoco.mj_geomDistance(
+                    model,
+                    configuration.data,
+                    model.geom(link).id,
+                    model.geom("obstacle").id,
+                    1.0,
+                    fromto,
+                ),
+            )
+    return closest, active
+
+
+def test_collision_avoidance_rows_hold_at_every_level():
+    model = mujoco.MjModel.from_xml_string(OBSTACLE_2R)
+    avoid = mink.CollisionAvoidanceLimit(
+        model,
+        [(["link1", "link2"], ["obstacle"])],
+        minimum_distance_from_collisions=0.02,
+        collision_detection_distance=0.2,
+    )
+    free, _ = _closest_approach(model, [mink.ConfigurationLimit(model)])
+    guarded, active = _closest_approach(model, [avoid, mink.ConfigurationLimit(model)])
+    assert free < -0.1  # without the limit, link 2 passes through the obstacle
+    assert active > 0 and guarded > 0.0  # with it, the row binds and nothing penetrates
