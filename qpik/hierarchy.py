@@ -34,6 +34,7 @@ growing smoothly to ``max_damping^2``, which bounds the step by ``|b| / (2 max_d
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -44,7 +45,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from .configuration import Configuration, joint_names
-from .errors import InfeasibleLimits, InvalidInput, NoSolutionFound
+from .errors import InfeasibleLimits, InvalidInput, InvalidTarget, NoSolutionFound
 from .qp import OSQPSettings, make_workspace, solve_linear
 from .tasks import BaseTask
 
@@ -456,6 +457,11 @@ class IKSolver:
         eye = self._eye
         for k, tasks in enumerate(self.levels):
             A, b, mu = _level_residual(tasks, configuration, nv)
+            if not math.isfinite(float(b @ b)):
+                raise InvalidTarget(
+                    f"priority level {k}: a task error is not finite (a NaN or inf target?) "
+                    f"in {', '.join(type(t).__name__ for t in tasks)}"
+                )
             if A.shape[0] == 0 or locked_rank >= nv:
                 statuses.append("solved")
                 sigmas.append(np.inf)

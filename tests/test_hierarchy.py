@@ -418,3 +418,13 @@ def test_collision_avoidance_rows_hold_at_every_level():
     guarded, active = _closest_approach(model, [avoid, mink.ConfigurationLimit(model)])
     assert free < -0.1  # without the limit, link 2 passes through the obstacle
     assert active > 0 and guarded > 0.0  # with it, the row binds and nothing penetrates
+
+
+def test_nan_target_of_a_mink_task_names_the_level():
+    configuration = panda()
+    frame = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target(mink.SE3.from_translation(np.array([0.3, np.nan, 0.5])))
+    posture = PostureTask(configuration.model, cost=1.0)
+    posture.set_target(configuration.q)
+    with pytest.raises(qpik.InvalidTarget, match="priority level 1.*FrameTask"):
+        IKSolver(configuration.model, [[posture], [frame]]).step(configuration, DT)
