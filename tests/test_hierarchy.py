@@ -428,3 +428,26 @@ def test_nan_target_of_a_mink_task_names_the_level():
     posture.set_target(configuration.q)
     with pytest.raises(qpik.InvalidTarget, match="priority level 1.*FrameTask"):
         IKSolver(configuration.model, [[posture], [frame]]).step(configuration, DT)
+
+
+class GenericConfigurationLimit(mink.ConfigurationLimit):
+    """Same rows; a subclass, so the solver takes the generic compute_qp_inequalities path."""
+
+
+class GenericVelocityLimit(mink.VelocityLimit):
+    """Same rows; a subclass, so the solver takes the generic path."""
+
+
+def test_direct_box_limits_equal_the_generic_path(rng):
+    configuration = panda()
+    model = configuration.model
+    velocities = {f"joint{i + 1}": 0.5 for i in range(7)}
+    direct = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, velocities)]
+    generic = [GenericConfigurationLimit(model), GenericVelocityLimit(model, velocities)]
+    for _ in range(10):
+        configuration.update(configuration.random_q(rng))
+        frame = pose_task(configuration, rng)
+        a = IKSolver(model, [frame], direct).step(configuration, DT)
+        b = IKSolver(model, [frame], generic).step(configuration, DT)
+        np.testing.assert_allclose(a.velocity, b.velocity, atol=1e-9)
+        assert sorted(a.active_limits) == sorted(n.replace("Generic", "") for n in b.active_limits)
