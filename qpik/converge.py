@@ -64,6 +64,7 @@ __all__ = [
     "FrameKey",
     "RobotLike",
     "TargetLike",
+    "clear_pool",
     "IKResult",
     "Target",
     "parse_target",
@@ -359,6 +360,13 @@ def _release(problem: _Problem) -> None:
         free.append(problem)
 
 
+def clear_pool() -> None:
+    """Forget the scratch problems :func:`solve` keeps per model (and the robots it loaded
+    by name): needed only after editing a model in place (its joint ranges, say)."""
+    _POOL.clear()
+    _load_cached.cache_clear()
+
+
 @functools.lru_cache(maxsize=16)
 def _load_cached(source: str, mtime: float) -> mujoco.MjModel:
     return load_robot(source)
@@ -469,6 +477,10 @@ def solve(
         secondary: with the default stack on a redundant arm, add distance from the joint
             limits as a level-1 objective in the null space of the targets (about 1.5x the
             time per iteration).
+
+    Scratch data, tasks and QP workspaces are reused between calls on the same model, and
+    robots given by name are loaded once: after editing a model in place, call
+    :func:`clear_pool`.
     """
     start_time = time.perf_counter()
     if not beta > 0 or not math.isfinite(beta):

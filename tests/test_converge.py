@@ -166,3 +166,13 @@ def test_custom_stack_keeps_the_users_gains(rng):
     frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0, gain=0.7)
     qpik.solve(model, {"ee": (position, rotation)}, stack=[frame], seed=1)
     assert frame.gain == 0.7
+
+
+def test_clear_pool_after_editing_a_model(rng):
+    model = qpik.load_robot("planar_2r")
+    target = {"ee": [1.2, 0.8, 0.0]}
+    assert qpik.solve(model, target, q0=[0.3, 0.5]).converged
+    model.jnt_range[1] = [0.0, 0.2]  # narrow q2: the target is now out of reach
+    qpik.converge.clear_pool()
+    result = qpik.solve(model, target, q0=[0.3, 0.1], restarts=3)
+    assert not result.converged and 0.0 <= result.q[1] <= 0.2 + 1e-12
