@@ -1,5 +1,6 @@
 """IK success rate on reachable pose targets: qpik, the lecture's pseudoinverse IGM, damped
-least squares and mink, side by side (protocol of issue 6; the logic is :mod:`qpik.bench`).
+least squares, mink and pink, side by side (protocol of issue 6; the logic is
+:mod:`qpik.bench`).
 
 Per robot, N reachable targets (FK of uniform random q within the limits, fixed seed) for
 the robot's tool frame; every solve starts at mid-range. Success = position error <= 1e-4 m,
@@ -12,12 +13,16 @@ Tool frames (qpik.bench.ROBOT_FRAMES): bundled ur5e and panda: site ``ee``; erd:
 step leaves them where they start); erd:ur3/ur5/ur10: ``tool0``; erd:xarm7: ``link_eef``;
 erd:kinova: ``j2s6s200_end_effector``; erd:z1: ``gripperStator``.
 
+pink (``pip install 'qpik[compare]'``: pin-pink and pin) runs where installed, on the same
+robot files loaded by pinocchio, joints mapped by name; a robot pinocchio cannot load (or
+whose frame it places differently) is skipped for pink, with the reason under the table.
+
 Defaults: N = 1000; robots ur5e, panda, and erd:panda, erd:ur5, erd:ur10, erd:xarm7 when
 example-robot-data is installed; every available method. About 95 s on a 2-core
 machine (the baselines' failures each burn the full 50 ms; they are rare with restarts).
 
     python benchmarks/ik_success.py [--robots ur5e erd:ur5] [--n 1000]
-        [--methods qpik pinv dls mink] [--budget 0.05] [--json OUT]
+        [--methods qpik pinv dls mink pink] [--budget 0.05] [--json OUT]
 """
 
 from __future__ import annotations

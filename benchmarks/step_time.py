@@ -9,8 +9,15 @@ charges each method for the cache misses the others leave behind).
 
 Methods: qpik + OSQP (two strict levels, with and without the exact unconstrained fast
 path; and the same tasks as one weighted level, mink's problem), mink + osqp and
-mink + daqp (the same tasks as one weighted level, as mink has no priorities), and the
+mink + daqp (the same tasks as one weighted level, as mink has no priorities), pink + daqp
+(the same weighted level on the same MJCF file loaded by pinocchio; only when pink and
+pinocchio import, ``pip install 'qpik[compare]'``, and with the posture secondary), and the
 lecture's pseudoinverse step (no limits, no second task).
+
+Every method's timed step starts from kinematics already computed at the current
+configuration: mink's and qpik's configurations update after integration, and pink's
+pinocchio configuration is brought to the new joint positions (joint orders mapped by name,
+:func:`qpik.bench.pinocchio_robot`) after integration too, outside the timing.
 
     python benchmarks/step_time.py [--steps 2000] [--secondary posture|limit-distance]
 """
@@ -19,12 +26,14 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
 
 import mink
 import numpy as np
 
 import qpik
 from qpik.baselines import pseudoinverse_step
+from qpik.bench import MethodUnavailable, pinocchio_robot
 from qpik.limits import joint_limits
 from qpik.tasks import FrameTask, JointLimitDistanceTask, PostureTask
 
@@ -60,6 +69,8 @@ def main(argv=None) -> dict:
         return frame, secondary
 
     methods = {}
+    syncs = {}  # name -> callable(configuration), run after integration, outside the timing
+    notes = []
 
     def add_qpik(name, fast_path, levels=2):
         frame, secondary = make_tasks()
@@ -74,6 +85,53 @@ def main(argv=None) -> dict:
             frame,
             lambda c: mink.solve_ik(c, tasks, dt, backend, damping=1e-6, limits=limits),
         )
+
+    def add_pink(name, backend):
+        """pink's FrameTask + PostureTask as one weighted level, mink's costs and damping,
+        under pink's ConfigurationLimit (mink's gain 0.95) and VelocityLimit (the model's
+        velocity_limit), on the robot file loaded by pinocchio."""
+        try:
+            import pink
+            import pinocchio as pin
+            from pink.limits import ConfigurationLimit, VelocityLimit
+        except ImportError as exc:
+            notes.append(f"{name}: skipped, {exc.name} is not installed (qpik[compare])")
+            return
+        if args.secondary != "posture":
+            notes.append(f"{name}: skipped, pink has no joint-limit distance task")
+            return
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                robot = pinocchio_robot(args.robot, model, "ee", "site")
+        except MethodUnavailable as exc:
+            notes.append(f"{name}: skipped, {exc.reason}")
+            return
+        notes.extend(f"{name}: {w.message}" for w in caught)
+        pink_configuration = pink.Configuration(
+            robot.model, robot.model.createData(), robot.q_to_pinocchio(start.q)
+        )
+        frame = pink.FrameTask("ee", position_cost=1.0, orientation_cost=1.0)
+        posture = pink.PostureTask(cost=0.1)
+        posture.set_target(robot.q_to_pinocchio(start.q))
+        tasks = [frame, posture]
+        pink_limits = [ConfigurationLimit(robot.model, config_limit_gain=0.95)]
+        velocity = start.velocity_limits()
+        if velocity is not None:
+            pink_limits.append(VelocityLimit(robot.model, robot.v_to_pinocchio(velocity)))
+
+        class Target:
+            def set_target(self, pose):
+                frame.set_target(pin.SE3(pose.rotation().as_matrix(), pose.translation()))
+
+        def step(_c):
+            v = pink.solve_ik(
+                pink_configuration, tasks, dt, backend, damping=1e-6, limits=pink_limits
+            )
+            return robot.v_to_mujoco(v)
+
+        methods[name] = (Target(), step)
+        syncs[name] = lambda c: pink_configuration.update(robot.q_to_pinocchio(c.q))
 
     def add_pinv():
         frame, _ = make_tasks()
@@ -95,6 +153,7 @@ def main(argv=None) -> dict:
     add_qpik("qpik osqp, 1 level (as mink)", fast_path=True, levels=1)
     add_mink("mink + osqp, 1 level", "osqp")
     add_mink("mink + daqp, 1 level", "daqp")
+    add_pink("pink + daqp, 1 level", "daqp")
     add_pinv()
 
     configurations = {name: start.copy() for name in methods}
@@ -119,6 +178,8 @@ def main(argv=None) -> dict:
                 velocity = step(configuration)
                 times[name].append(time.perf_counter() - t0)
                 configuration.integrate_inplace(velocity, dt)
+                if name in syncs:
+                    syncs[name](configuration)
                 if not configuration.within_limits(tol=1e-9):
                     violations[name] += 1
                 errors[name].append(np.linalg.norm(configuration.frame_pose("ee")[0] - target))
@@ -142,6 +203,8 @@ def main(argv=None) -> dict:
             f"{median / (reference * 1e6):7.2f} {1e3 * np.median(errors[name]):13.3f} "
             f"{violations[name]:11d}"
         )
+    for note in notes:
+        print(f"note, {note}")
     return summary
 
 

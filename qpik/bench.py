@@ -26,6 +26,16 @@ isolates the step rule.
 * ``mink``: ``mink.solve_ik`` (a ``FrameTask``, ``ConfigurationLimit``, solver daqp when
   installed else osqp, ``dt = 1``, ``damping = 1e-3`` as in mink's examples), integrated by
   mink, in the same restart loop (:func:`qpik.baselines.igm`); only when mink imports.
+* ``pink``: ``pink.solve_ik`` on the same robot loaded by pinocchio (the same URDF file for
+  ``erd:`` robots, the MJCF file for bundled ones), with the same ``FrameTask``, a
+  ``ConfigurationLimit`` (gain 0.95, mink's default), solver, ``dt`` and damping as ``mink``,
+  in the same restart loop; joints are mapped between pinocchio's and MuJoCo's orders by name,
+  and the limits and the frame's forward kinematics are checked to agree
+  (:func:`pinocchio_robot`). Only when pink and pinocchio import (``pip install
+  'qpik[compare]'``); on a robot pinocchio cannot load (or where a check fails), it is
+  skipped with the reason (``skipped`` in the results, a line under the table). pinocchio
+  4.1's MJCF parser misplaces the bundled panda's site ``ee`` (nested fixed bodies): its
+  frame is rebuilt from its body's frame, with a note (``notes``).
 
 Finger joints: ``erd:panda`` has 9 DoF, 7 arm joints and 2 finger joints. The tool frame
 ``panda_hand_tcp`` is fixed to the hand, upstream of the fingers, so the finger columns of
@@ -43,8 +53,9 @@ import sys
 import time
 import warnings
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
 import mujoco
@@ -54,7 +65,7 @@ from .baselines import damped_least_squares_igm, igm, pseudoinverse_igm
 from .configuration import Configuration, FrameType
 from .converge import solve
 from .errors import QpikError
-from .robots import load_robot
+from .robots import ERD_ROBOTS, erd_robots_folder, load_robot, robot_path
 
 __all__ = [
     "DEFAULT_BUDGET",
@@ -62,10 +73,13 @@ __all__ = [
     "LIMIT_TOL",
     "METHODS",
     "ROBOT_FRAMES",
+    "MethodUnavailable",
     "Outcome",
+    "PinocchioRobot",
     "available_methods",
     "default_robots",
     "format_table",
+    "pinocchio_robot",
     "print_table",
     "robot_frame",
     "run_ik_success",
@@ -127,11 +141,31 @@ class Method(Protocol):
     ) -> Outcome: ...
 
 
-#: ``make(model, frame, frame_type) -> Method``.
-MethodFactory = Callable[[mujoco.MjModel, str, FrameType], Method]
+class MethodFactory(Protocol):
+    """``make(model, frame, frame_type, robot=name) -> Method``: binds a method to a robot;
+    ``robot`` is the name the model was loaded from (methods that load the robot with
+    another library need it). Raises :class:`MethodUnavailable` when the method cannot run
+    on this robot here."""
+
+    def __call__(
+        self, model: mujoco.MjModel, frame: str, frame_type: FrameType, *, robot: str | None
+    ) -> Method: ...
 
 
-def _qpik(model: mujoco.MjModel, frame: str, frame_type: FrameType) -> Method:
+class MethodUnavailable(QpikError):
+    """A method cannot run on a robot here (a package is missing, or its library cannot load
+    the robot); the benchmark skips it on that robot and reports ``reason``."""
+
+    def __init__(self, method: str, robot: str | None, reason: str):
+        self.method = method
+        self.robot = robot
+        self.reason = reason
+        super().__init__(f"{method} skipped on {robot}: {reason}")
+
+
+def _qpik(
+    model: mujoco.MjModel, frame: str, frame_type: FrameType, *, robot: str | None = None
+) -> Method:
     def run(position, rotation, q0, rng, budget):
         result = solve(
             model,
@@ -148,7 +182,9 @@ def _qpik(model: mujoco.MjModel, frame: str, frame_type: FrameType) -> Method:
 
 
 def _igm_method(igm_function) -> MethodFactory:
-    def make(model: mujoco.MjModel, frame: str, frame_type: FrameType) -> Method:
+    def make(
+        model: mujoco.MjModel, frame: str, frame_type: FrameType, *, robot: str | None = None
+    ) -> Method:
         configuration = Configuration(model)
 
         def run(position, rotation, q0, rng, budget):
@@ -170,7 +206,9 @@ def _igm_method(igm_function) -> MethodFactory:
     return make
 
 
-def _mink(model: mujoco.MjModel, frame: str, frame_type: FrameType) -> Method:
+def _mink(
+    model: mujoco.MjModel, frame: str, frame_type: FrameType, *, robot: str | None = None
+) -> Method:
     import mink
     import qpsolvers
 
@@ -205,24 +243,264 @@ def _mink(model: mujoco.MjModel, frame: str, frame_type: FrameType) -> Method:
     return run
 
 
+@dataclass
+class PinocchioRobot:
+    """A robot loaded by pinocchio next to qpik's MuJoCo model of it, with the maps between
+    the two joint orders (matched by joint name; pinocchio orders joints depth-first as it
+    parses, MuJoCo as the file lists them).
+
+    Attributes:
+        model: the pinocchio model (kinematics only: no geometry).
+        source: the file pinocchio loaded.
+        frame: the pinocchio frame id of the benchmarked frame (same name as qpik's).
+    """
+
+    model: object  # pinocchio.Model (pinocchio is optional)
+    source: str
+    frame: int
+    _mj_qpos: np.ndarray
+    _pin_q: np.ndarray
+    _circle: np.ndarray
+    _mj_dof: np.ndarray
+    _pin_v: np.ndarray
+
+    def q_to_pinocchio(self, q: np.ndarray) -> np.ndarray:
+        """A MuJoCo ``qpos`` ``(nq,)`` as a pinocchio configuration; a continuous joint
+        (pinocchio's unbounded revolute, stored as ``(cos, sin)``) from its angle [rad]."""
+        q_pin = np.zeros(self.model.nq)
+        angle = q[self._mj_qpos]
+        line = ~self._circle
+        q_pin[self._pin_q[line]] = angle[line]
+        q_pin[self._pin_q[self._circle]] = np.cos(angle[self._circle])
+        q_pin[self._pin_q[self._circle] + 1] = np.sin(angle[self._circle])
+        return q_pin
+
+    def v_to_mujoco(self, v: np.ndarray) -> np.ndarray:
+        """A pinocchio velocity ``(nv,)`` in MuJoCo's dof order."""
+        v_mj = np.empty(self.model.nv)
+        v_mj[self._mj_dof] = v[self._pin_v]
+        return v_mj
+
+    def v_to_pinocchio(self, v: np.ndarray) -> np.ndarray:
+        """A MuJoCo velocity ``(nv,)`` in pinocchio's order."""
+        v_pin = np.empty(self.model.nv)
+        v_pin[self._pin_v] = v[self._mj_dof]
+        return v_pin
+
+
+def _pinocchio_source(robot: str) -> Path:
+    """The file pinocchio should load for qpik robot name ``robot``."""
+    if robot.startswith("erd:"):
+        if robot[4:] not in ERD_ROBOTS:
+            raise ValueError(f"unknown example-robot-data robot {robot!r}")
+        return erd_robots_folder() / ERD_ROBOTS[robot[4:]]
+    path = Path(robot)
+    if path.suffix.lower() in (".xml", ".urdf"):
+        return path
+    return robot_path(robot)
+
+
+def pinocchio_robot(
+    robot: str, model: mujoco.MjModel, frame: str, frame_type: FrameType | str = FrameType.SITE
+) -> PinocchioRobot:
+    """Load ``robot`` (a name :func:`qpik.load_robot` accepts, loaded as ``model``) with
+    pinocchio: the same URDF file for ``erd:`` robots and ``.urdf`` paths
+    (``buildModelFromUrdf``), the MJCF file for bundled robots and ``.xml`` paths
+    (``buildModelFromMJCF``). Checks that both have the same 1-DoF joints (by name), the
+    same position limits, and the same pose of ``frame`` at the mid-range and three random
+    configurations (1e-9 m or rad); raises :class:`MethodUnavailable` saying which check
+    failed, or why pinocchio could not load the file."""
+    import pinocchio as pin
+
+    def unavailable(reason: str) -> MethodUnavailable:
+        return MethodUnavailable("pink", robot, reason)
+
+    try:
+        source = _pinocchio_source(robot)
+    except (QpikError, ValueError) as exc:
+        raise unavailable(str(exc)) from exc
+    try:
+        if source.suffix.lower() == ".urdf":
+            pin_model = pin.buildModelFromUrdf(str(source))
+        else:
+            pin_model = pin.buildModelFromMJCF(str(source))
+    except Exception as exc:  # pinocchio's parsers raise bare RuntimeError/ValueError
+        raise unavailable(f"pinocchio cannot parse {source.name}: {exc}") from exc
+    count = sum(f.name == frame for f in pin_model.frames)
+    if count != 1:
+        raise unavailable(
+            f"pink addresses frames by name, and pinocchio's model of {source.name} has "
+            f"{count} frames named {frame!r}"
+        )
+    if FrameType.parse(frame_type) is FrameType.SITE:
+        _place_site(pin, pin_model, model, frame, source.name)
+    names = [pin_model.names[i] for i in range(1, pin_model.njoints)]
+    mj_names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in range(model.njnt)
+    ]
+    if sorted(names) != sorted(mj_names) or pin_model.nv != model.nv:
+        raise unavailable(
+            f"joints differ: pinocchio {names} (nv {pin_model.nv}), MuJoCo {mj_names} "
+            f"(nv {model.nv})"
+        )
+    mj_qpos, pin_q, circle, mj_dof, pin_v = [], [], [], [], []
+    for j, name in enumerate(mj_names):
+        joint = pin_model.joints[pin_model.getJointId(name)]
+        if model.jnt_type[j] not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
+            raise unavailable(f"joint {name!r} is not a hinge or slide joint")
+        if joint.nv != 1 or joint.nq not in (1, 2):
+            raise unavailable(f"pinocchio joint {name!r} is {joint.shortname()}, not 1-DoF")
+        mj_qpos.append(model.jnt_qposadr[j])
+        pin_q.append(joint.idx_q)
+        circle.append(joint.nq == 2)
+        mj_dof.append(model.jnt_dofadr[j])
+        pin_v.append(joint.idx_v)
+    result = PinocchioRobot(
+        pin_model,
+        str(source),
+        pin_model.getFrameId(frame),
+        *(np.array(a) for a in (mj_qpos, pin_q, circle, mj_dof, pin_v)),
+    )
+    configuration = Configuration(model)
+    lower, upper = configuration.lower, configuration.upper
+    line = ~result._circle
+    for bound, pin_bound, what in (
+        (lower, pin_model.lowerPositionLimit, "lower"),
+        (upper, pin_model.upperPositionLimit, "upper"),
+    ):
+        mine, theirs = bound[result._mj_qpos[line]], pin_bound[result._pin_q[line]]
+        if not np.allclose(mine, theirs, rtol=0.0, atol=1e-9):
+            raise unavailable(f"{what} position limits differ: MuJoCo {mine}, pinocchio {theirs}")
+    data = pin_model.createData()
+    rng = np.random.default_rng(0)
+    for q in [configuration.mid_q()] + [configuration.random_q(rng) for _ in range(3)]:
+        configuration.update(q)
+        position, rotation = configuration.frame_pose(frame, frame_type)
+        pin.framesForwardKinematics(pin_model, data, result.q_to_pinocchio(q))
+        placement = data.oMf[result.frame]
+        if not (
+            np.allclose(placement.translation, position, rtol=0.0, atol=1e-9)
+            and np.allclose(placement.rotation, rotation, rtol=0.0, atol=1e-9)
+        ):
+            raise unavailable(
+                f"the pose of {frame!r} differs between pinocchio and MuJoCo at q = {q}"
+            )
+    return result
+
+
+def _place_site(pin, pin_model, model: mujoco.MjModel, site: str, file: str) -> None:
+    """Place the pinocchio frame of MJCF site ``site`` from its parent body's frame and the
+    site's pose in that body (MuJoCo's ``site_pos``, ``site_quat``). pinocchio 4.1's MJCF
+    parser composes a site with its body's pose relative to the parent body only, not to
+    the joint, so a site on a body nested under another fixed body is misplaced (the
+    bundled panda's ``ee`` loses the flange's 0.107 m); warns when it corrects the frame."""
+    site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.site_bodyid[site_id])
+    bodies = [i for i, f in enumerate(pin_model.frames) if f.name == body and f.type == pin.BODY]
+    frame_id = pin_model.getFrameId(site)
+    frame = pin_model.frames[frame_id]
+    if len(bodies) != 1 or pin_model.frames[bodies[0]].parentJoint != frame.parentJoint:
+        return  # left as parsed; the forward-kinematics check decides
+    rotation = np.empty(9)
+    mujoco.mju_quat2Mat(rotation, model.site_quat[site_id])
+    local = pin.SE3(rotation.reshape(3, 3), model.site_pos[site_id].copy())
+    placement = pin_model.frames[bodies[0]].placement * local
+    if placement.isApprox(frame.placement, 1e-12):
+        return
+    offset = np.linalg.norm(placement.translation - frame.placement.translation)
+    frame.placement = placement
+    pin_model.frames[frame_id] = frame
+    warnings.warn(
+        f"pinocchio {pin.__version__} misplaces MJCF site {site!r} of {file} by "
+        f"{1e3 * offset:.1f} mm (nested fixed body {body!r}); placed it from body {body!r} "
+        "and the site's pose in it",
+        stacklevel=3,
+    )
+
+
+def _pink(
+    model: mujoco.MjModel, frame: str, frame_type: FrameType, *, robot: str | None = None
+) -> Method:
+    try:
+        import pink
+        import pinocchio as pin
+        import qpsolvers
+        from pink.exceptions import NoSolutionFound
+        from pink.limits import ConfigurationLimit
+    except ImportError as exc:
+        raise MethodUnavailable(
+            "pink", robot, f"{exc.name} is not installed: pip install 'qpik[compare]'"
+        ) from exc
+    if robot is None:
+        raise MethodUnavailable("pink", robot, "it loads the robot file, and got no robot name")
+    robot_pin = pinocchio_robot(robot, model, frame, frame_type)
+    backend = "daqp" if "daqp" in qpsolvers.available_solvers else "osqp"
+    configuration = Configuration(model)
+    pink_configuration = pink.Configuration(
+        robot_pin.model, robot_pin.model.createData(), robot_pin.q_to_pinocchio(configuration.q)
+    )
+    task = pink.FrameTask(frame, position_cost=1.0, orientation_cost=1.0, lm_damping=1.0)
+    limits = [ConfigurationLimit(robot_pin.model, config_limit_gain=0.95)]
+    failed = np.full(model.nv, np.nan)  # a QP failure: the attempt ends as "diverged"
+
+    def step(work, _J, _c):
+        pink_configuration.update(robot_pin.q_to_pinocchio(work.q))
+        try:
+            velocity = pink.solve_ik(
+                pink_configuration, [task], 1.0, backend, damping=1e-3, limits=limits
+            )
+        except NoSolutionFound:
+            return failed
+        return robot_pin.v_to_mujoco(velocity)
+
+    def run(position, rotation, q0, rng, budget):
+        task.set_target(pin.SE3(np.asarray(rotation, float), np.asarray(position, float)))
+        result = igm(
+            configuration,
+            frame,
+            position,
+            rotation,
+            step,
+            frame_type=frame_type,
+            q0=q0,
+            time_budget=budget,
+            restarts=RESTARTS,
+            seed=rng,
+        )
+        return Outcome(result.q, result.iterations, result.restarts_used, result.reason)
+
+    return run
+
+
 #: The benchmark's methods, in the table's order.
 METHODS: dict[str, MethodFactory] = {
     "qpik": _qpik,
     "pinv": _igm_method(pseudoinverse_igm),
     "dls": _igm_method(damped_least_squares_igm),
     "mink": _mink,
+    "pink": _pink,
 }
 
 
 def available_methods() -> list[str]:
-    """The methods that can run here (``mink`` needs mink and qpsolvers)."""
+    """The methods that can run here (``mink`` needs mink and qpsolvers, ``pink`` pink and
+    pinocchio: ``pip install 'qpik[compare]'``)."""
     names = ["qpik", "pinv", "dls"]
     try:
         import mink  # noqa: F401
         import qpsolvers  # noqa: F401
     except ImportError:
         return names
-    return names + ["mink"]
+    names.append("mink")
+    try:
+        import pink  # noqa: F401
+        import pinocchio  # noqa: F401
+    except ImportError:
+        return names
+    return names + ["pink"]
 
 
 def default_robots() -> list[str]:
@@ -320,12 +598,18 @@ def run_ik_success(
 ) -> dict:
     """Run the benchmark (see the module docstring) and return its results, JSON-ready:
     ``{"protocol": ..., "platform": ..., "robots": {robot: {"nv", "arm_dof", "frame",
-    "frame_type", "time_s", "methods": {method: summary}}}}``. A summary holds ``n``,
+    "frame_type", "time_s", "methods": {method: summary}, "skipped": {method: reason},
+    "notes": {method: [message]}}}}``.
+    A summary holds ``n``,
     ``successes``, ``success_rate``, ``first_attempt_successes`` (successes without a
     restart: from the mid-range start alone), ``median_ms`` and ``p95_ms`` (wall time of
     every solve, failures included), ``median_success_ms``, ``median_iterations``,
     ``median_restarts``, ``limit_violations`` (returned configurations outside the limits),
     the failures by kind and by the method's reason, and up to five failure examples.
+    ``skipped``: ``{method: reason}`` for the methods that cannot run on that robot here
+    (:class:`MethodUnavailable`; e.g. pink without pinocchio); they have no summary.
+    ``notes``: ``{method: [message]}``, the warnings a method raised while binding to the
+    robot (e.g. a frame of pinocchio's model that had to be corrected).
 
     ``robots``: names :func:`qpik.load_robot` accepts (default :func:`default_robots`);
     ``methods``: keys of :data:`METHODS` (default :func:`available_methods`); ``budget``:
@@ -365,18 +649,28 @@ def run_ik_success(
         frame, frame_type = robot_frame(robot, model)
         configuration = Configuration(model)
         configuration.frame_id(frame, frame_type)  # unknown frame: a clear error, early
-        bound = {name: METHODS[name](model, frame, frame_type) for name in methods}
+        bound, skipped, notes = {}, {}, {}
+        for name in methods:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    bound[name] = METHODS[name](model, frame, frame_type, robot=robot)
+                except MethodUnavailable as exc:
+                    skipped[name] = exc.reason
+            if caught:
+                notes[name] = [str(w.message) for w in caught]
+        running = list(bound)
         target_rng = np.random.default_rng([seed, robot_index])
         targets = []
         for _ in range(n):
             configuration.update(configuration.random_q(target_rng))
             targets.append(configuration.frame_pose(frame, frame_type))
         q0 = configuration.mid_q()
-        records: dict[str, list[dict]] = {name: [] for name in methods}
+        records: dict[str, list[dict]] = {name: [] for name in running}
         start = time.perf_counter()
         for i, (position, rotation) in enumerate(targets):
-            for k in range(len(methods)):
-                name = methods[(i + k) % len(methods)]
+            for k in range(len(running)):
+                name = running[(i + k) % len(running)]
                 rng = np.random.default_rng([seed, robot_index, i, list(METHODS).index(name)])
                 tic = time.perf_counter()
                 outcome = bound[name](position, rotation, q0.copy(), rng, budget)
@@ -414,7 +708,9 @@ def run_ik_success(
             "frame": frame,
             "frame_type": frame_type.value,
             "time_s": elapsed_robot,
-            "methods": {name: _summary(records[name], budget) for name in methods},
+            "methods": {name: _summary(records[name], budget) for name in running},
+            "skipped": skipped,
+            "notes": notes,
         }
     return results
 
@@ -464,6 +760,11 @@ def format_table(results: dict) -> str:
                 f"{first:>7} {s['median_ms']:>9.2f} {s['p95_ms']:>7.2f} "
                 f"{s['median_iterations']:>6.0f} {s['limit_violations']:>10d}"
             )
+    for robot, entry in results["robots"].items():
+        for method, reason in entry.get("skipped", {}).items():
+            lines.append(f"{method} skipped on {robot}: {reason}")
+        for method, messages in entry.get("notes", {}).items():
+            lines.extend(f"note, {method} on {robot}: {message}" for message in messages)
     lines.append(
         "DoF a+b: a joints move the frame, b (fingers) do not. 1st try: success without a "
         "restart (from mid-range alone). Times: wall time of every solve, failures included."

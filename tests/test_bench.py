@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import sys
+import warnings
 
 import mink
 import numpy as np
@@ -18,6 +20,7 @@ from qpik.baselines import (
     pseudoinverse_step,
 )
 from qpik.cli import main
+from qpik.robots import load_robot
 
 
 @pytest.fixture(scope="module")
@@ -164,3 +167,65 @@ def test_cli_bench_writes_table_and_json(tmp_path, capsys):
 def test_cli_bench_unknown_robot_exits_2(capsys):
     assert main(["bench", "--robots", "nope", "--n", "1", "--quiet"]) == 2
     assert "unknown robot 'nope'" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ pink (qpik[compare])
+def _has_erd() -> bool:
+    from importlib import metadata
+
+    try:
+        metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return False
+    return True
+
+
+_PINK_ROBOTS = ["ur5e", "panda"] + (["erd:panda", "erd:ur5", "erd:kinova"] if _has_erd() else [])
+
+
+@pytest.mark.parametrize("robot", _PINK_ROBOTS)
+def test_pinocchio_robot_matches_mujoco(robot, rng):
+    """Joint orders mapped by name (erd:kinova has continuous joints, (cos, sin) in
+    pinocchio): the same frame pose at random configurations, velocities round-trip."""
+    pin = pytest.importorskip("pinocchio")
+    pytest.importorskip("pink")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dropped meshes; pinocchio's misplaced MJCF site
+        model = load_robot(robot)
+        frame, frame_type = bench.robot_frame(robot, model)
+        robot_pin = bench.pinocchio_robot(robot, model, frame, frame_type)
+    configuration = bench.Configuration(model)
+    data = robot_pin.model.createData()
+    for _ in range(5):
+        q = configuration.random_q(rng)
+        configuration.update(q)
+        pin.framesForwardKinematics(robot_pin.model, data, robot_pin.q_to_pinocchio(q))
+        position, rotation = configuration.frame_pose(frame, frame_type)
+        np.testing.assert_allclose(data.oMf[robot_pin.frame].translation, position, atol=1e-9)
+        np.testing.assert_allclose(data.oMf[robot_pin.frame].rotation, rotation, atol=1e-9)
+    v = rng.normal(size=model.nv)
+    np.testing.assert_array_equal(robot_pin.v_to_mujoco(robot_pin.v_to_pinocchio(v)), v)
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "panda"] + (["erd:panda"] if _has_erd() else []))
+def test_pink_method_solves_small_targets(robot):
+    pytest.importorskip("pinocchio")
+    pytest.importorskip("pink")
+    assert "pink" in bench.available_methods()
+    results = bench.run_ik_success([robot], n=3, methods=["pink"], budget=0.5, progress=False)
+    entry = results["robots"][robot]
+    assert entry["skipped"] == {}
+    summary = entry["methods"]["pink"]
+    assert summary["successes"] == 3, summary["failure_examples"]
+    assert summary["limit_violations"] == 0
+    assert "pink" in bench.format_table(results)
+
+
+def test_pink_missing_is_skipped_with_the_extra_named(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pink", None)  # import pink -> ImportError
+    assert "pink" not in bench.available_methods()
+    results = bench.run_ik_success(["planar_2r"], n=1, methods=["qpik", "pink"], progress=False)
+    entry = results["robots"]["planar_2r"]
+    assert list(entry["methods"]) == ["qpik"]
+    assert "qpik[compare]" in entry["skipped"]["pink"]
+    assert "pink skipped on planar_2r" in bench.format_table(results)
