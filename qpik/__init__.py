@@ -2,7 +2,8 @@
 
 from . import analysis, baselines, limits, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
-from .converge import IKResult, solve, solve_many
+from .batch import solve_many
+from .converge import IKResult, solve
 from .errors import (
     InfeasibleLimits,
     InvalidConfiguration,

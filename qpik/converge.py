@@ -34,8 +34,7 @@ import os
 import sys
 import time
 import weakref
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -70,7 +69,6 @@ __all__ = [
     "parse_target",
     "set_frame_target",
     "solve",
-    "solve_many",
 ]
 
 #: Why a solve ended. ``converged`` is the only success.
@@ -635,75 +633,3 @@ def _diagnose(step, singular_threshold: float) -> str:
     if step.sigma_min and step.sigma_min[0] < singular_threshold:
         return "singular"
     return "stalled"
-
-
-def _solve_one(args) -> IKResult:
-    robot, targets, seed, kwargs = args
-    return solve(robot, targets, seed=seed, **kwargs)
-
-
-def solve_many(
-    robot: RobotLike,
-    targets_list: Sequence[Mapping[FrameKey, TargetLike]],
-    *,
-    seed: int | None = 0,
-    workers: int | None = None,
-    progress: bool = True,
-    **kwargs,
-) -> list[IKResult]:
-    """Solve a batch of problems (one ``targets`` mapping each) with the same options.
-
-    Deterministic for a fixed ``seed``: problem ``i`` gets its own stream spawned from it,
-    whatever ``workers`` is. ``workers > 1`` solves in a process pool (pass the robot as a
-    name, a path or an ``MjModel``). ``progress`` prints a progress line to stderr on runs
-    of more than a few seconds.
-    """
-    targets_list = list(targets_list)
-    seeds = np.random.SeedSequence(seed).spawn(len(targets_list))
-    if isinstance(robot, Configuration):
-        robot, kwargs = robot.model, {"q0": robot.q, **kwargs}
-    jobs = [
-        (robot, targets, np.random.default_rng(s), kwargs)
-        for targets, s in zip(targets_list, seeds)
-    ]
-    report = _progress_printer(len(jobs)) if progress else (lambda done: None)
-    results: list[IKResult] = []
-    if workers is not None and workers > 1:
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            for result in pool.map(_solve_one, jobs, chunksize=max(1, len(jobs) // (8 * workers))):
-                results.append(result)
-                report(len(results))
-    else:
-        for job in jobs:
-            results.append(_solve_one(job))
-            report(len(results))
-    report(None)
-    return results
-
-
-def _progress_printer(total: int, stream=sys.stderr) -> Callable[[int | None], None]:
-    """A tiny progress bar: silent for the first 2 s, then updated at most 4 times a second;
-    ``None`` ends the line."""
-    start = time.perf_counter()
-    state = {"last": 0.0, "shown": False}
-    interactive = stream.isatty() or os.environ.get("QPIK_PROGRESS") == "1"
-
-    def report(done: int | None) -> None:
-        now = time.perf_counter()
-        if done is None:
-            if state["shown"]:
-                stream.write("\n")
-            return
-        if now - start < 2.0 or now - state["last"] < 0.25 or not interactive:
-            return
-        state["last"], state["shown"] = now, True
-        width = 30
-        filled = int(width * done / max(total, 1))
-        rate = done / (now - start)
-        eta = (total - done) / rate if rate > 0 else float("inf")
-        stream.write(
-            f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {rate:.0f}/s eta {eta:.0f}s"
-        )
-        stream.flush()
-
-    return report
