@@ -1,0 +1,1809 @@
+"""Fuzz campaign against qpik's public API (issue 13): bad input never crashes, hangs,
+leaks an untyped error or returns NaN.
+
+    python benchmarks/fuzz.py --n 10000              # the campaign (exit 1 on any bad outcome)
+    python benchmarks/fuzz.py --n 300 --categories solve step
+    python benchmarks/fuzz.py --case solve:17        # re-run one case here, with its traceback
+    python benchmarks/fuzz.py --list                 # the categories
+
+Each case is a plain-data *spec* (its ``repr`` is the reproduction), generated from
+``(seed, category, index)`` by a generator that imports nothing from qpik. Cases run in
+subprocess workers (one case at a time each, many cases per worker, so that state left
+behind by earlier cases is exercised too); a worker that dies is a **crash**, a case over
+``--timeout`` seconds is a **hang** (the worker is killed and replaced).
+
+Outcomes of a case:
+
+* ``ok``: a valid result: finite where a finite answer exists, joints within their
+  limits, ``converged`` only when an independent forward kinematics (a fresh
+  ``mujoco.MjData``) agrees within tolerance.
+* ``typed``: a :class:`qpik.QpikError` (the contract for bad input).
+* bad: ``untyped`` (any other exception, or a CLI traceback / unexpected exit code),
+  ``nonfinite``, ``limits`` (a returned configuration outside its joint limits or a
+  velocity over its limit), ``claim`` (converged, but not within tolerance), ``hang``,
+  ``crash``, ``nondet`` (the same case twice, in a process with another history, gives a
+  different answer bit for bit).
+
+Categories: solve, solve_many, step (``IKSolver.step`` and ``solve_ik`` with random
+stacks and limits), problem (``load_problem`` + solve + ``qpik reach`` on mutated problem
+files), robot_file (``load_robot`` on malformed MJCF / URDF and odd names, then FK,
+statics, a solve), statics, analysis, cli (``qpik.cli.main`` in-process) and determinism.
+
+The table has one row per category; the exit status is 1 when any bad outcome occurred.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import hashlib
+import io
+import math
+import multiprocessing as mp
+import os
+import random
+import sys
+import tempfile
+import time
+import traceback
+from collections import Counter, defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+BAD = ("untyped", "nonfinite", "limits", "claim", "hang", "crash", "nondet")
+COLUMNS = ("ok", "typed") + BAD
+CATEGORIES = (
+    "solve",
+    "solve_many",
+    "step",
+    "problem",
+    "robot_file",
+    "statics",
+    "analysis",
+    "cli",
+    "determinism",
+)
+ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
+NAN, INF = float("nan"), float("inf")
+WEIRD_FLOATS = (0.0, -0.0, 1e-300, -1.0, 1e300, NAN, INF, -INF, 1e-12, 1e12, 5e-324)
+WEIRD_ANY = WEIRD_FLOATS + (None, "1", [1.0], True, 2**70, -1, (1.0,), {}, 3)
+
+
+# =============================================================================== specs
+# Generators: plain data only (no qpik import), deterministic in (seed, category, index).
+def _maybe(r: random.Random, normal, weird, p_weird: float = 0.35):
+    return r.choice(weird) if r.random() < p_weird else normal
+
+
+def _solve_options(r: random.Random) -> dict:
+    options: dict = {"restarts": r.choice([0, 1, 2])}
+    table = {
+        "tol_position": ([1e-4, 1e-3], [0.0, -1.0, NAN, INF, 1e-15, 1e3, "1e-4", None]),
+        "tol_orientation": ([1e-3, 1e-2], [0.0, -1.0, NAN, INF, 1e3, None]),
+        "max_iters": ([20, 50, 100], [0, -1, 1, 2.5, "10", True, 5000, None]),
+        "time_budget": ([None, 2.0], [0.0, -1.0, NAN, INF, 1e300, 1e-9, "1", 5e-324]),
+        "restarts": ([0, 1, 2], [-1, 2.5, None, True, "2", 10**30]),
+        "seed": ([0, 1, 7], [-1, 2**70, 1.5, "a", None, "rng", NAN, True]),
+        "alpha": ([1.0, 0.5], [0.0, -1.0, 2.0, NAN, INF, "1"]),
+        "beta": ([1.0, 0.5], [0.0, -1.0, NAN, INF, 1e300]),
+        "solver": (["osqp", "daqp", "quadprog"], ["nope", None, "", 3]),
+        "stall_window": ([5, 3], [0, -1, 1.5, 10**9, None]),
+        "damping_law": (["default"], [None, ("law", 1e300, 1e300), ("law", NAN, 0.1),
+                                      ("law", -1.0, 0.1), ("law", 0.05, INF), ("law", 0.0, 0.0)]),
+        "max_step": (["default", None], [(1.0,), (0.0, 0.0), (-1.0, 1.0), (NAN, 1.0),
+                                          (INF, INF), "x", (1e-300, 1e-300), (1, 2, 3)]),
+        "damping": ([1e-6, 1e-3], [0.0, -1.0, NAN, INF, 1e300, 1e-300]),
+        "secondary": ([False, True], [None, "yes"]),
+        "limits": (["joint"], [None, "bogus", [], ["config_gain", 1.5], ["config_dist", 10.0],
+                               ["velocity", 0.5], ["velocity", 0.0], ["velocity", NAN]]),
+    }
+    for key, (normal, weird) in table.items():
+        if r.random() < 0.45:
+            options[key] = _maybe(r, r.choice(normal), weird)
+    # keep the worst legitimate work bounded: an unbounded time budget with huge restarts
+    # is a long (not a hung) solve; max_iters 5000 only with few restarts
+    if options.get("restarts") == 10**30 and options.get("time_budget") in (None, INF, 1e300):
+        options["time_budget"] = 0.5
+    return options
+
+
+def _target(r: random.Random) -> dict:
+    kind = r.choices(
+        ["reach", "reach_pose", "far", "raw", "se3", "matrix"], [4, 4, 1, 2, 1, 1]
+    )[0]
+    spec = {"kind": kind, "q_seed": r.randrange(10**6)}
+    if kind == "far":
+        spec["scale"] = r.choice([10.0, 1e6, 1e200, 1e300, 1e308])
+    elif kind == "raw":
+        spec["value"] = r.choice(
+            [
+                [1.0, 1.0],
+                [1.0, [1.0, 0.0]],
+                "abc",
+                [NAN, 0.0, 0.0],
+                [INF, 0.0, 0.0],
+                None,
+                ([0.3, 0.0, 0.2], [[1, 0, 0], [0, 1, 0]]),
+                ([0.3, 0.0, 0.2], [[2, 0, 0], [0, 1, 0], [0, 0, 1]]),
+                ([0.3, 0.0, 0.2], [[1, 0, 0], [0, 1, 0], [0, 0, -1]]),
+                ([0.3, 0.0, 0.2], [[NAN, 0, 0], [0, 1, 0], [0, 0, 1]]),
+                [[1, 0, 0, 0.3], [0, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0, 2]],
+                [1e-320, 0.0, 0.0],
+                [0.3, 0.0, 0.2, 0.0],
+                {"x": 1},
+                [True, False, True],
+                ["1", "2", "3"],
+                (None, None),
+            ]
+        )
+    elif kind == "matrix":
+        spec["perturb"] = r.choice([0.0, 1e-9, 1e-3, 0.5])
+    return spec
+
+
+def _frame_key(r: random.Random):
+    return _maybe(
+        r,
+        r.choice(["ee", ("ee", "site")]),
+        [None, 3, "nope", ("ee",), ("ee", "site", "x"), ("ee", "bogus"), ("link2", "body"),
+         ("ee", None), "", "x" * 300, b"ee", 1.5, ("nope", "geom")],
+        0.25,
+    )
+
+
+def _q_choice(r: random.Random):
+    return _maybe(
+        r,
+        r.choice(["mid", "random", None]),
+        ["outside_tiny", "outside", "nan", "short", "at_lower", "at_upper", "strings",
+         "huge", "inside_tiny"],
+        0.3,
+    )
+
+
+def gen_solve(r: random.Random) -> dict:
+    return {
+        "robot": _maybe(r, r.choice(ROBOTS), ["x" * 300, "nope", "", None, 3, "erd:nope"], 0.05),
+        "targets": _maybe(
+            r,
+            {"ee": None},
+            ["empty", "none", "list", "two_frames", "bad_key"],
+            0.1,
+        ),
+        "frame": _frame_key(r),
+        "target": _target(r),
+        "q0": _q_choice(r),
+        "options": _solve_options(r),
+    }
+
+
+def gen_solve_many(r: random.Random) -> dict:
+    spec = gen_solve(r)
+    spec["count"] = r.choice([0, 1, 2, 3])
+    spec["many"] = {
+        "seed": _maybe(r, r.choice([0, 3]), [-1, None, 2**70, "a", 1.5], 0.2),
+        "workers": _maybe(r, r.choice([None, 1]), [0, -1, 2.5, "2"], 0.15),
+        "progress": False,
+    }
+    return spec
+
+
+TASKS = ("frame", "position", "orientation", "posture", "damping", "manipulability",
+         "joint_limit_distance", "com")
+
+
+def _task(r: random.Random) -> dict:
+    kind = r.choice(TASKS)
+    task: dict = {"type": kind}
+    if r.random() < 0.3:
+        task["cost"] = r.choice([1.0, 0.1, 0.0, -1.0, NAN, INF, 1e300, [1.0, 2.0], "x"])
+    if r.random() < 0.2:
+        task["gain"] = r.choice([1.0, 0.5, 0.0, 1.5, -1.0, NAN])
+    if r.random() < 0.2:
+        task["lm_damping"] = r.choice([0.0, 1e-3, -1.0, NAN, INF, 1e300])
+    if kind in ("frame", "position", "orientation", "manipulability"):
+        task["frame"] = _maybe(r, "ee", ["nope", ("link2", "body")], 0.1)
+    if kind == "manipulability":
+        task["rows"] = r.choice(["pose", "position", "orientation", "bogus", "pose"])
+    task["target"] = r.choice(["reach", "start", "far", "none", "nan"])
+    return task
+
+
+def gen_step(r: random.Random) -> dict:
+    levels = [[_task(r) for _ in range(r.choice([1, 1, 2]))] for _ in range(r.choice([1, 2, 3]))]
+    if r.random() < 0.05:
+        levels = r.choice([[], [[]], "x", [None]])
+    limits = []
+    for _ in range(r.choice([0, 1, 1, 2])):
+        limits.append(
+            r.choice(
+                [
+                    ["config", r.choice([0.95, 0.5, 1.0, 0.0, 1.5, NAN])],
+                    ["config_dist", r.choice([0.0, 0.01, 10.0, -1.0])],
+                    ["velocity", r.choice([1.0, 0.1, 1e-9, 0.0, -1.0, NAN, INF, 1e300])],
+                ]
+            )
+        )
+    return {
+        "robot": r.choice(ROBOTS),
+        "levels": levels,
+        "limits": limits,
+        "solver": _maybe(r, r.choice(["osqp", "daqp", "quadprog"]), ["nope", None], 0.05),
+        "damping": _maybe(r, r.choice([1e-6, 1e-3, 0.0]), [-1.0, NAN, INF, 1e300], 0.1),
+        "damping_law": _maybe(r, "default", [None, ("law", 1e300, 1e300), ("law", 0.05, 1e-9),
+                                             ("law", NAN, 0.05)], 0.15),
+        "dt": _maybe(r, r.choice([0.01, 0.002, 0.1]), [0.0, -0.01, NAN, INF, 1e-300, 1e300, "1"], 0.1),
+        "q": _q_choice(r),
+        "steps": r.choice([1, 2, 5]),
+        "entry": r.choice(["step", "step", "solve_ik"]),
+    }
+
+
+# -- problem files
+def _shipped_problems() -> list[Path]:
+    return sorted((ROOT / "tasks").glob("*.toml"))
+
+
+def _leaf_paths(value, path=()):
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _leaf_paths(v, path + (k,))
+    elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+        for i, v in enumerate(value):
+            yield from _leaf_paths(v, path + (i,))
+    else:
+        yield path
+
+
+def gen_problem(r: random.Random) -> dict:
+    files = [p.name for p in _shipped_problems()]
+    spec = {"file": r.choice(files), "mutations": [], "raw": None, "solve": r.random() < 0.7,
+            "cli": r.random() < 0.3}
+    roll = r.random()
+    if roll < 0.06:
+        spec["raw"] = r.choice(
+            [
+                "deep_array",
+                "deep_table",
+                "non_utf8",
+                "truncate",
+                "empty",
+                "bom",
+                "flip_bytes",
+                "huge_line",
+            ]
+        )
+        spec["raw_seed"] = r.randrange(10**6)
+        return spec
+    for _ in range(r.choice([1, 1, 2, 3])):
+        spec["mutations"].append(
+            {
+                "op": r.choices(["set", "delete", "add", "special"], [6, 1, 1, 2])[0],
+                "pick": r.randrange(10**6),
+                "value": r.choice(
+                    WEIRD_ANY
+                    + (1e-9, 0.5, 2, 10**7, -(10**7), "home", "mid", "qpos0", "start", "x" * 300,
+                       [0.0, 0.0, 0.0], [NAN, 0.0, 0.0], [1e300, 0.0, 0.0], [[1.0]], "track",
+                       "solve", 1e-6, 1e-7 + 1.0)
+                ),
+                "special": r.choice(
+                    [
+                        "lm_damping",
+                        "max_damping",
+                        "singular_threshold",
+                        "cost",
+                        "q0_key",
+                        "q0_outside",
+                        "robot",
+                        "steps",
+                        "velocity",
+                        "time_budget",
+                        "seed",
+                        "dt",
+                        "tol",
+                        "statics",
+                        "max_step",
+                        "unnamed_key",
+                    ]
+                ),
+            }
+        )
+    return spec
+
+
+# -- robot files
+def gen_robot_file(r: random.Random) -> dict:
+    kind = r.choices(["mjcf", "urdf", "name"], [4, 4, 1])[0]
+    spec: dict = {"kind": kind, "seed": r.randrange(10**6)}
+    if kind == "name":
+        spec["name"] = r.choice(
+            ["x" * 300, "", "erd:", "erd:nope", "/", ".", "robots", "a\x00b", "nope.xml",
+             "nope.urdf", "erd:" + "y" * 300, "/dev/null", "/proc/self/status", 3, None,
+             b"panda", "PANDA", "panda ", "tasks/panda_pose_reach.toml"]
+        )
+        return spec
+    spec["joints"] = r.choice([0, 1, 2, 3, 4])
+    spec["joint_types"] = [
+        r.choice(
+            ["hinge", "hinge", "slide", "ball", "free", "continuous", "fixed", "floating",
+             "planar", "bogus"]
+        )
+        for _ in range(spec["joints"])
+    ]
+    spec["mutations"] = [
+        {
+            "what": r.choice(
+                ["pos", "axis", "range", "mass", "inertia", "limit", "velocity", "effort",
+                 "damping", "armature", "size", "quat", "name", "mesh", "unknown_tag",
+                 "drop_attr", "gravity", "timestep", "actuator", "ctrlrange", "keyframe"]
+            ),
+            "value": r.choice(
+                ["nan", "inf", "-inf", "1e400", "-1", "0", "", "abc", "1e300", "0 0 0",
+                 "nan 0 0", "1 2", "1e-300", "-1e300 1e300", "1 0 0 0 0", "1 -1"]
+            ),
+            "pick": r.randrange(10**6),
+        }
+        for _ in range(r.choice([0, 1, 1, 2]))
+    ]
+    spec["raw"] = _maybe(r, None, ["non_utf8", "truncate", "deep", "bom", "doctype"], 0.1)
+    return spec
+
+
+def gen_statics(r: random.Random) -> dict:
+    vec = [[0.0, 0.0, -20.0], [1.0, 2.0, 3.0], [NAN, 0, 0], [1e300, 1e300, 1e300], [INF, 0, 0],
+           [1, 2], "x", None, [[1, 2, 3]], [0.0, 0.0, 0.0], [1e-300, 0, 0], [1e200, 0, 1e200]]
+    return {
+        "robot": r.choice(ROBOTS),
+        "q": _q_choice(r),
+        "frame": _maybe(r, "ee", ["nope", 99, -1, "", ("link2",)], 0.1),
+        "frame_type": _maybe(r, "site", ["body", "geom", "bogus", None, 3], 0.1),
+        "force": _maybe(r, r.choice(vec[:2]), vec, 0.3),
+        "torque": _maybe(r, None, vec, 0.3),
+        "direction": _maybe(r, [0.0, 0.0, -1.0], vec, 0.3),
+        "expressed_in": _maybe(r, "world", ["local", "bogus", None], 0.1),
+        "tau": _maybe(r, "random", ["nan", "huge", "short", "zero"], 0.3),
+        "rcond": _maybe(r, 1e-10, [0.0, -1.0, NAN, INF, 1.0, 2.0], 0.2),
+        "rows": _maybe(r, (0, 1, 2), [(), (6,), (0, 0), (-1,), "pose", (0, 1, 2, 3, 4, 5)], 0.2),
+        "torque_limits": _maybe(r, None, ["nan", "reversed", "zero", "short", "huge"], 0.2),
+        "gravity": r.choice([True, False]),
+        "wrenches": _maybe(r, "one", ["none", "bad", "many", "weird_frame"], 0.2),
+    }
+
+
+def gen_analysis(r: random.Random) -> dict:
+    return {
+        "m": r.choice([0, 1, 2, 3, 6]),
+        "n": r.choice([0, 1, 2, 4, 7]),
+        "scale": _maybe(r, 1.0, [1e-300, 1e300, 1e150, 1e-150, 0.0, 1e308, 5e-324], 0.35),
+        "rank_drop": r.choice([0, 0, 1, 2]),
+        "poison": _maybe(r, None, ["nan", "inf", "string", "ragged", "1d", "3d", "none", "bool",
+                                   "complex", "object"], 0.12),
+        "tol": _maybe(r, None, [0.0, -1.0, NAN, INF, 1e300, 1e-300, "x"], 0.2),
+        "damping": _maybe(r, r.choice([1e-3, 1.0]), [0.0, -1.0, NAN, INF, 1e300, 1e-300], 0.3),
+        "xi_scale": _maybe(r, 1.0, [1e300, 1e-300, NAN, 0.0], 0.2),
+        "robot": r.choice(ROBOTS),
+        "q": _q_choice(r),
+        "rows": _maybe(r, r.choice(["pose", "position"]),
+                       ["orientation", ("vx", "vy"), (0, 0), (), "bogus", (7,), (True,)], 0.2),
+        "limits": _maybe(r, "model", ["huge", "tiny", "nan", "reversed", "inf", "mixed"], 0.4),
+        "steps": _maybe(r, 3, [0, -1, 2.5, "3"], 0.15),
+        "step_size": _maybe(r, 0.01, [0.0, NAN, INF, 1e300, -0.01], 0.2),
+        "frame": _maybe(r, "ee", ["nope", 99, -1], 0.1),
+        "seed": r.randrange(10**6),
+    }
+
+
+def gen_cli(r: random.Random) -> dict:
+    command = r.choice(["fk", "analyze", "statics", "robots", "reach", "demo"])
+    robot = _maybe(r, r.choice(ROBOTS), ["x" * 300, "nope", "", "erd:nope", "/", "a.xml",
+                                         "tasks/panda_pose_reach.toml"], 0.3)
+    extra = r.choice(
+        [[], ["--q", "0.1"], ["--q", "nan", "0"], ["--q", "1e300", "0"], ["--frame", "nope"],
+         ["--frame", "x" * 300], ["--frame-type", "body", "--frame", "link2"], ["--q", "inf", "inf"],
+         ["--frame-type", "bogus"], ["--rows", "vx", "vy"], ["--rows", "zz"], ["--position-only"],
+         ["--force", "0", "0", "-20"], ["--force", "nan", "0", "0"], ["--force", "1e308", "1e308", "0"],
+         ["--torque", "1", "2"], ["--local"], ["--seed", "-1"], ["--seed", "x"], ["--robot", "nope"],
+         ["--q", "0", "0", "0", "0", "0", "0", "0"]]
+    )
+    return {"command": command, "robot": robot, "extra": extra,
+            "reach_file": r.choice([p.name for p in _shipped_problems()]),
+            "problem": gen_problem(r) if command == "reach" and r.random() < 0.6 else None}
+
+
+def gen_determinism(r: random.Random) -> dict:
+    base = r.choice(["solve", "step", "solve_many", "problem"])
+    generator = {"solve": gen_solve, "step": gen_step, "solve_many": gen_solve_many,
+                 "problem": gen_problem}[base]
+    spec = generator(r)
+    if base in ("solve", "solve_many"):  # valid most of the time, so there is a q to compare
+        spec["robot"], spec["frame"], spec["targets"] = r.choice(ROBOTS), "ee", {"ee": None}
+        spec["target"] = {"kind": r.choice(["reach", "reach_pose"]), "q_seed": r.randrange(10**6)}
+        spec["options"].pop("time_budget", None)
+        spec["options"].pop("restarts", None)
+        spec["options"]["restarts"] = r.choice([0, 2])
+    pollution = [
+        {"category": c, "spec": GENERATORS[c](random.Random(r.randrange(10**9)))}
+        for c in r.sample(["solve", "step", "problem", "statics", "analysis"], 2)
+    ]
+    return {"base": base, "spec": spec, "pollution": pollution}
+
+
+GENERATORS = {
+    "solve": gen_solve,
+    "solve_many": gen_solve_many,
+    "step": gen_step,
+    "problem": gen_problem,
+    "robot_file": gen_robot_file,
+    "statics": gen_statics,
+    "analysis": gen_analysis,
+    "cli": gen_cli,
+    "determinism": gen_determinism,
+}
+
+
+def make_spec(seed: int, category: str, index: int) -> dict:
+    r = random.Random(f"{seed}:{category}:{index}")
+    return GENERATORS[category](r)
+
+
+# =============================================================================== execution
+# Everything below runs in a worker (imports qpik lazily).
+class Bad(Exception):
+    """An invariant broken by a returned value: ``kind`` is one of BAD."""
+
+    def __init__(self, kind: str, detail: str):
+        super().__init__(f"{kind}: {detail}")
+        self.kind = kind
+        self.detail = detail
+
+
+def _np():
+    import numpy as np
+
+    return np
+
+
+def _finite(value, where: str, allow=()) -> None:
+    """Raise Bad('nonfinite') if any number reachable from ``value`` is NaN / inf."""
+    np = _np()
+    import dataclasses
+    import enum
+
+    if any(where.endswith(a) for a in allow):
+        return
+    if isinstance(value, (bool, str, bytes, type(None), enum.Enum)):
+        return
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        if not math.isfinite(float(value)):
+            raise Bad("nonfinite", f"{where} = {value}")
+        return
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "fc" and not np.all(np.isfinite(value)):
+            raise Bad("nonfinite", f"{where} has non-finite entries: {value.ravel()[:8]}")
+        return
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for f in dataclasses.fields(value):
+            _finite(getattr(value, f.name), f"{where}.{f.name}", allow)
+        return
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _finite(v, f"{where}[{k!r}]", allow)
+        return
+    if isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _finite(v, f"{where}[{i}]", allow)
+
+
+def _digest(*arrays) -> str:
+    np = _np()
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(repr(type(a)).encode())
+        if isinstance(a, np.ndarray):
+            h.update(np.ascontiguousarray(a).tobytes())
+        else:
+            h.update(repr(a).encode())
+    return h.hexdigest()[:16]
+
+
+def _seed_of(spec) -> int:
+    return int(hashlib.sha256(repr(spec).encode()).hexdigest()[:8], 16)
+
+
+def _model(name):
+    import qpik
+
+    return qpik.load_robot(name)
+
+
+def _limits_of(model):
+    """Lower / upper ``(nq,)`` of the limited scalar joints (inf elsewhere), read from the
+    model directly (not from qpik)."""
+    np = _np()
+    import mujoco
+
+    lower = np.full(model.nq, -np.inf)
+    upper = np.full(model.nq, np.inf)
+    for j in range(model.njnt):
+        if model.jnt_limited[j] and model.jnt_type[j] in (
+            mujoco.mjtJoint.mjJNT_HINGE,
+            mujoco.mjtJoint.mjJNT_SLIDE,
+        ):
+            adr = model.jnt_qposadr[j]
+            lower[adr], upper[adr] = model.jnt_range[j]
+    return lower, upper
+
+
+def _check_within(model, q, where: str, tol: float = 1e-9) -> None:
+    np = _np()
+    lower, upper = _limits_of(model)
+    over = np.maximum(lower - q, q - upper)
+    span = np.maximum(1.0, np.abs(np.where(np.isfinite(lower), lower, 0.0)))
+    bad = np.flatnonzero(over > tol * span)
+    if bad.size:
+        i = int(bad[0])
+        raise Bad("limits", f"{where}[{i}] = {q[i]!r} outside [{lower[i]!r}, {upper[i]!r}]")
+
+
+def _fk(model, q, frame: str, frame_type: str = "site"):
+    """World position and rotation of a frame by MuJoCo on a fresh MjData."""
+    np = _np()
+    import mujoco
+
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    obj = {"site": mujoco.mjtObj.mjOBJ_SITE, "body": mujoco.mjtObj.mjOBJ_BODY,
+           "geom": mujoco.mjtObj.mjOBJ_GEOM}[frame_type]
+    i = mujoco.mj_name2id(model, obj, frame)
+    if frame_type == "site":
+        return data.site_xpos[i].copy(), data.site_xmat[i].reshape(3, 3).copy()
+    if frame_type == "geom":
+        return data.geom_xpos[i].copy(), data.geom_xmat[i].reshape(3, 3).copy()
+    return data.xpos[i].copy(), data.xmat[i].reshape(3, 3).copy()
+
+
+def _angle(r1, r2) -> float:
+    np = _np()
+    c = (np.trace(r1 @ r2.T) - 1.0) / 2.0
+    return float(math.acos(min(1.0, max(-1.0, c))))
+
+
+def _q_value(kind, model, rng):
+    np = _np()
+    lower, upper = _limits_of(model)
+    lo = np.where(np.isfinite(lower), lower, -np.pi)
+    hi = np.where(np.isfinite(upper), upper, np.pi)
+    if kind is None:
+        return None
+    if kind == "mid":
+        return 0.5 * (lo + hi)
+    if kind == "random":
+        return rng.uniform(lo, hi)
+    if kind == "outside_tiny":  # within check_limits' 1e-6 tolerance, outside the limit
+        q = 0.5 * (lo + hi)
+        q[0] = hi[0] + 5e-7
+        return q
+    if kind == "inside_tiny":
+        q = 0.5 * (lo + hi)
+        q[0] = hi[0] - 1e-12
+        return q
+    if kind == "outside":
+        q = 0.5 * (lo + hi)
+        q[-1] = hi[-1] + 0.5
+        return q
+    if kind == "at_lower":
+        return lo.copy()
+    if kind == "at_upper":
+        return hi.copy()
+    if kind == "nan":
+        q = 0.5 * (lo + hi)
+        q[0] = np.nan
+        return q
+    if kind == "short":
+        return (0.5 * (lo + hi))[:-1]
+    if kind == "strings":
+        return ["a"] * model.nq
+    if kind == "huge":
+        return np.full(model.nq, 1e300)
+    raise ValueError(kind)
+
+
+def _weird_law(value):
+    import qpik
+
+    if value == "default":
+        return ...
+    if value is None:
+        return None
+    return qpik.DampingLaw(value[1], value[2])
+
+
+def _make_limits(model, value):
+    import qpik
+
+    if value in ("joint", None, "bogus", []):
+        return value
+    kind, x = value
+    if kind == "config_gain":
+        return [qpik.limits.ConfigurationLimit(model, gain=x)]
+    if kind == "config_dist":
+        return [qpik.limits.ConfigurationLimit(model, min_distance_from_limits=x)]
+    names = qpik.joint_names(model)
+    return [qpik.limits.ConfigurationLimit(model),
+            qpik.limits.VelocityLimit(model, {n: x for n in names})]
+
+
+def _solve_target(spec_target: dict, model, rng, frame: str = "ee"):
+    np = _np()
+    kind = spec_target["kind"]
+    local = np.random.default_rng(spec_target["q_seed"])
+    if kind == "raw":
+        return spec_target["value"]
+    q = _q_value("random", model, local)
+    position, rotation = _fk(model, q, frame)
+    if kind == "reach":
+        return position
+    if kind == "reach_pose":
+        return (position, rotation)
+    if kind == "far":
+        return position * spec_target["scale"] + spec_target["scale"]
+    if kind == "se3":
+        import mink
+
+        return mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), position)
+    matrix = np.eye(4)
+    matrix[:3, :3] = rotation + spec_target["perturb"]
+    matrix[:3, 3] = position
+    return matrix
+
+
+def _target_frame_name(frame) -> str | None:
+    if isinstance(frame, str):
+        return frame
+    if isinstance(frame, tuple) and len(frame) == 2 and isinstance(frame[0], str):
+        return frame[0]
+    return None
+
+
+def _solve_kwargs(spec: dict, model, rng) -> dict:
+    o = dict(spec["options"])
+    if "damping_law" in o:
+        law = _weird_law(o["damping_law"])
+        if law is ...:
+            del o["damping_law"]
+        else:
+            o["damping_law"] = law
+    if o.get("max_step") == "default":
+        del o["max_step"]
+    if "limits" in o:
+        o["limits"] = _make_limits(model, o["limits"])
+    if o.get("seed") == "rng":
+        o["seed"] = _np().random.default_rng(5)
+    q0 = _q_value(spec["q0"], model, rng)
+    if q0 is not None:
+        o["q0"] = q0
+    return o
+
+
+def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -> str:
+    """Invariants of an IKResult; returns its digest."""
+    np = _np()
+    import qpik
+    from qpik.converge import parse_target
+
+    if not isinstance(result, qpik.IKResult):
+        raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")
+    q = np.asarray(result.q)
+    if q.shape != (model.nq,):
+        raise Bad("untyped", f"{where}.q has shape {q.shape}")
+    _finite(result, where)
+    limits = kwargs.get("limits", "joint")
+    if limits == "joint" or (isinstance(limits, list) and limits):
+        _check_within(model, q, f"{where}.q")
+    if result.converged:
+        name = _target_frame_name(frame_key)
+        kind = frame_key[1] if isinstance(frame_key, tuple) else None
+        if kind is None:
+            import mujoco
+
+            kind = "site" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0 else (
+                "body" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) >= 0 else "geom"
+            )
+        t = parse_target(target)
+        position, rotation = _fk(model, q, name, str(getattr(kind, "value", kind)))
+        tol_p = kwargs.get("tol_position", 1e-4)
+        tol_o = kwargs.get("tol_orientation", 1e-3)
+        error = float(np.linalg.norm(position - t.position))
+        if not error <= tol_p * (1 + 1e-9) + 1e-15:
+            raise Bad("claim", f"{where} converged with position error {error:.3g} > {tol_p}")
+        if t.rotation is not None:
+            angle = _angle(rotation, t.rotation)
+            if not angle <= tol_o * (1 + 1e-6) + 1e-9:
+                raise Bad("claim", f"{where} converged with orientation error {angle:.3g} > {tol_o}")
+    return _digest(q, result.converged, result.iterations, result.reason)
+
+
+def run_solve(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    rng = np.random.default_rng(_seed_of(spec))
+    try:
+        model = _model(spec["robot"])
+    except qpik.QpikError:
+        raise
+    except TypeError as exc:
+        if spec["robot"] is None or isinstance(spec["robot"], int):
+            raise Typed(str(exc)) from None  # load_robot documents a TypeError for non-names
+        raise
+    target = _solve_target(spec["target"], model, rng)
+    frame = spec["frame"]
+    targets = {
+        "empty": {},
+        "none": None,
+        "list": [target],
+        "two_frames": {frame: target, ("link2", "body"): [0.0, 0.0, 0.0]},
+        "bad_key": {frame: target, frame if isinstance(frame, str) else "ee": target},
+    }.get(spec["targets"] if isinstance(spec["targets"], str) else "", {frame: target})
+    kwargs = _solve_kwargs(spec, model, rng)
+    result = qpik.solve(spec["robot"], targets, **kwargs)
+    if not isinstance(targets, dict) or len(targets) != 1:
+        _finite(result, "result")
+        return _digest(np.asarray(result.q))
+    return _check_ik_result(result, model, frame, target, kwargs)
+
+
+def run_solve_many(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    model = _model(spec["robot"]) if isinstance(spec["robot"], str) else None
+    if model is None:
+        raise Typed("robot is not a name")
+    rng = np.random.default_rng(_seed_of(spec))
+    kwargs = _solve_kwargs(spec, model, rng)
+    kwargs.pop("seed", None)  # solve_many's own seed spawns one per target
+    targets = [
+        _solve_target(dict(spec["target"], q_seed=spec["target"]["q_seed"] + i), model, rng)
+        for i in range(spec["count"])
+    ]
+    batch = [{spec["frame"]: t} for t in targets]
+    solve_many = qpik.solve_many
+    results = solve_many(spec["robot"], batch, **spec["many"], **kwargs)
+    if len(results) != len(batch):
+        raise Bad("untyped", f"{len(results)} results for {len(batch)} targets")
+    digests = [
+        _check_ik_result(res, model, spec["frame"], t, kwargs, f"results[{i}]")
+        for i, (res, t) in enumerate(zip(results, targets))
+    ]
+    return _digest(*digests)
+
+
+class Typed(Exception):
+    """A documented non-qpik error of the harness' own making (counted as typed)."""
+
+
+def _build_task(task: dict, model, configuration, rng):
+    np = _np()
+    import mink
+
+    import qpik
+    from qpik import tasks as T
+
+    kind = task["type"]
+    o = {k: task[k] for k in ("cost", "gain", "lm_damping") if k in task}
+    frame = task.get("frame", "ee")
+    ftype = "site"
+    if isinstance(frame, tuple):
+        frame, ftype = frame
+    target = task["target"]
+    if kind == "frame":
+        o = {("position_cost" if k == "cost" else k): v for k, v in o.items()}
+        t = T.FrameTask(frame, ftype, **{"position_cost": 1.0, "orientation_cost": 1.0, **o})
+    elif kind == "position":
+        t = T.PositionTask(frame, ftype, **o)
+    elif kind == "orientation":
+        t = T.OrientationTask(frame, ftype, **o)
+    elif kind == "posture":
+        t = T.PostureTask(model, **{"cost": 1.0, **o})
+    elif kind == "damping":
+        o.pop("gain", None)
+        o.pop("lm_damping", None)
+        t = T.DampingTask(model, **{"cost": 1.0, **o})
+    elif kind == "manipulability":
+        o.pop("lm_damping", None)
+        t = T.ManipulabilityTask(frame, ftype, rows=task["rows"], **o)
+        return t
+    elif kind == "joint_limit_distance":
+        t = T.JointLimitDistanceTask(**o)
+        return t
+    else:
+        t = T.ComTask(**{"cost": 1.0, **o})
+    if target == "none":
+        return t
+    q = _q_value("random", model, rng)
+    if kind in ("frame", "position", "orientation"):
+        if target == "start":
+            t.set_target_from_configuration(configuration)
+            return t
+        position, rotation = _fk(model, q, frame, ftype) if target == "reach" else (
+            (np.full(3, 1e300), np.eye(3)) if target == "far" else (np.full(3, np.nan), np.eye(3))
+        )
+        if kind == "frame":
+            t.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation),
+                                                                position))
+        elif kind == "position":
+            t.set_target(position)
+        else:
+            t.set_target(rotation)
+    elif kind == "posture":
+        value = {"reach": q, "start": configuration.q, "far": np.full(model.nq, 1e300),
+                 "nan": np.full(model.nq, np.nan)}[target]
+        t.set_target(value)
+    elif kind == "com":
+        value = {"reach": np.array([0.1, 0.0, 0.3]), "start": None,
+                 "far": np.full(3, 1e300), "nan": np.full(3, np.nan)}[target]
+        if value is None:
+            t.set_target_from_configuration(configuration)
+        else:
+            t.set_target(value)
+    del qpik
+    return t
+
+
+def run_step(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    model = _model(spec["robot"])
+    rng = np.random.default_rng(_seed_of(spec))
+    q = _q_value(spec["q"], model, rng)
+    configuration = qpik.Configuration(model, q)
+    levels = spec["levels"]
+    if isinstance(levels, list):
+        levels = [
+            [_build_task(t, model, configuration, rng) for t in level]
+            if isinstance(level, list) else level
+            for level in levels
+        ]
+    limits = []
+    velocity_limit = None
+    for kind, x in spec["limits"]:
+        if kind == "config":
+            limits.append(qpik.limits.ConfigurationLimit(model, gain=x))
+        elif kind == "config_dist":
+            limits.append(qpik.limits.ConfigurationLimit(model, min_distance_from_limits=x))
+        else:
+            limits.append(
+                qpik.limits.VelocityLimit(model, {n: x for n in qpik.joint_names(model)})
+            )
+            velocity_limit = x
+    has_config = any(k in ("config", "config_dist") for k, _ in spec["limits"])
+    start_inside = bool(np.all(np.isfinite(configuration.q))) and configuration.within_limits(0.0)
+    law = _weird_law(spec["damping_law"])
+    options = {"solver": spec["solver"], "damping": spec["damping"]}
+    dt = spec["dt"]
+    digests = []
+    if spec["entry"] == "solve_ik":
+        velocity = qpik.solve_ik(configuration, levels, dt, limits=limits, **options)
+        steps_v = [np.asarray(velocity)]
+        _finite(steps_v[0], "velocity")
+    else:
+        if law is not ...:
+            options["damping_law"] = law
+        solver = qpik.IKSolver(model, levels, limits, **options)
+        steps_v = []
+        for k in range(spec["steps"]):
+            result = solver.step(configuration, dt)
+            _finite(result, f"step[{k}]", allow=(".solve_time",))
+            steps_v.append(np.asarray(result.velocity))
+            if k + 1 < spec["steps"]:
+                configuration.integrate_inplace(result.velocity, dt)
+    for k, v in enumerate(steps_v):
+        if v.shape != (model.nv,):
+            raise Bad("untyped", f"velocity shape {v.shape}")
+        if velocity_limit is not None and math.isfinite(velocity_limit) and velocity_limit > 0:
+            if np.max(np.abs(v)) > velocity_limit * (1 + 1e-6) + 1e-12:
+                raise Bad("limits", f"step {k}: |v| = {np.max(np.abs(v))} > {velocity_limit}")
+        digests.append(v)
+    if has_config and start_inside and spec["entry"] == "step" and spec["steps"] == 1:
+        q_next = configuration.integrate(steps_v[0], dt)
+        _finite(q_next, "q after the step")
+        _check_within(model, q_next, "q after the step", tol=1e-7)
+    return _digest(*digests)
+
+
+# -- problem files
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    if value is None:
+        return '"None"'
+    return _toml_value(repr(value))
+
+
+def _toml_key(key) -> str:
+    key = str(key)
+    return key if key and all(c.isalnum() or c in "_-" for c in key) else _toml_value(key)
+
+
+def to_toml(data: dict) -> str:
+    """A TOML text of ``data`` (inline tables; enough for the fuzzer's mutations)."""
+    return "".join(f"{_toml_key(k)} = {_toml_value(v)}\n" for k, v in data.items())
+
+
+def _set_path(data, path, value) -> None:
+    node = data
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+
+
+def _special(data: dict, name: str, value, r: random.Random) -> None:
+    levels = data.get("levels") or [{"tasks": [{}]}]
+    first = levels[0]["tasks"][0] if isinstance(levels[0], dict) and levels[0].get("tasks") else {}
+    solver = data.setdefault("solver", {}) if isinstance(data.get("solver", {}), dict) else {}
+    if name == "lm_damping":
+        first["lm_damping"] = r.choice([-1.0, NAN, INF, 1e300, 0.0, 1e-3])
+    elif name == "max_damping":
+        solver["max_damping"] = r.choice([NAN, -1.0, INF, 1e300, 0.0])
+    elif name == "singular_threshold":
+        solver["singular_threshold"] = r.choice([NAN, -1.0, INF, 1e300, 0.0])
+    elif name == "cost":
+        first[r.choice(["cost", "position_cost", "orientation_cost"])] = r.choice(
+            [1e300, 1e200, 1e-300, INF, [1e300, 1.0, 1.0]]
+        )
+    elif name == "q0_key":
+        data["q0"] = r.choice(["home", "", "keyframe0", "mid", "qpos0", "start"])
+    elif name == "q0_outside":
+        data["q0"] = r.choice(["outside", "outside_tiny"])
+    elif name == "robot":
+        data["robot"] = r.choice(["x" * 300, "nope", "", "erd:nope", "../robots/panda.xml",
+                                  "/etc/passwd", "a" * 5000 + ".xml", "erd:panda"])
+    elif name == "steps":
+        data.setdefault("track", {})["steps"] = r.choice([10**9, 0, -1, 10**20, 3])
+    elif name == "velocity":
+        data.setdefault("limits", {})["velocity"] = r.choice(
+            [1e-300, 1e300, INF, NAN, -1.0, 0.0, [1e-300] * 7, {"nope": 1.0}, 5e-324]
+        )
+    elif name == "time_budget":
+        solver["time_budget"] = r.choice([INF, NAN, 1e300, 1e-300, 0.0])
+    elif name == "seed":
+        solver["seed"] = r.choice([-1, 2**62, 0])
+    elif name == "dt":
+        data.setdefault("track", {})["dt"] = r.choice([INF, NAN, 1e300, 1e-300, 5e-324])
+    elif name == "tol":
+        solver[r.choice(["tol_position", "tol_orientation"])] = r.choice([1e-300, 1e300, INF, NAN])
+    elif name == "statics":
+        data["statics"] = {r.choice(["force", "torque", "payload_direction"]): r.choice(
+            [[1e300, 1e300, 1e300], [NAN, 0, 0], [1e-300, 0, 0], [1e308, 1e308, 1e308]])}
+    elif name == "max_step":
+        solver["max_step"] = r.choice([[1e300, 1e300], [0.0, 0.0], [-1.0, 1.0], [1e-300, 1.0]])
+    elif name == "unnamed_key":
+        data["q0"] = "home"
+        data["robot"] = "unnamed_key"
+    if isinstance(data.get("solver"), dict) and not data["solver"]:
+        del data["solver"]
+
+
+_UNNAMED_KEY_XML = """<mujoco model="unnamed_key">
+  <worldbody>
+    <body name="l1"><joint name="j1" type="hinge" axis="0 0 1" range="-3 3"/>
+      <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+      <body name="l2" pos="1 0 0"><joint name="j2" type="hinge" axis="0 0 1" range="-3 3"/>
+        <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+        <site name="ee" pos="1 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <keyframe>
+    <key qpos="0.5 0.5"/>
+    <key name="home" qpos="1.0 -1.0"/>
+  </keyframe>
+</mujoco>
+"""
+
+
+def write_problem(spec: dict, folder: Path) -> Path:
+    """The (mutated) problem file of a spec, written into ``folder``."""
+    import tomllib
+
+    source = ROOT / "tasks" / spec["file"]
+    path = folder / f"fuzz_{spec['file']}"
+    r = random.Random(repr(spec))
+    if spec["raw"] is not None:
+        text = source.read_bytes()
+        raw = spec["raw"]
+        if raw == "deep_array":
+            data = b"x = " + b"[" * 3000 + b"]" * 3000 + b"\n"
+        elif raw == "deep_table":
+            data = b"x = " + b"{a = " * 3000 + b"1" + b"}" * 3000 + b"\n"
+        elif raw == "non_utf8":
+            data = text.replace(b"robot", b"rob\xff\xfeot", 1)
+        elif raw == "truncate":
+            data = text[: r.randrange(len(text))]
+        elif raw == "empty":
+            data = b""
+        elif raw == "bom":
+            data = b"\xef\xbb\xbf" + text
+        elif raw == "flip_bytes":
+            data = bytearray(text)
+            for _ in range(3):
+                data[r.randrange(len(data))] = r.randrange(256)
+            data = bytes(data)
+        else:
+            data = b'name = "' + b"a" * 2_000_000 + b'"\n' + text
+        path.write_bytes(data)
+        return path
+    data = tomllib.loads(source.read_text())
+    (folder / "unnamed_key.xml").write_text(_UNNAMED_KEY_XML)
+    for mutation in spec["mutations"]:
+        paths = list(_leaf_paths(data))
+        op = mutation["op"]
+        pick = paths[mutation["pick"] % len(paths)] if paths else None
+        if op == "set" and pick:
+            _set_path(data, pick, mutation["value"])
+        elif op == "delete" and pick:
+            node = data
+            for k in pick[:-1]:
+                node = node[k]
+            del node[pick[-1]]
+        elif op == "add":
+            data[r.choice(["bogus", "solver", "limits", "track"])] = mutation["value"]
+        else:
+            _special(data, mutation["special"], mutation["value"], r)
+    robot = data.get("robot")
+    if robot == "unnamed_key":
+        data["robot"] = "unnamed_key.xml"
+        _fix_for_unnamed(data)
+    elif isinstance(robot, str) and robot.startswith("../"):
+        data["robot"] = str(ROOT / "robots" / Path(robot).name)
+    if data.get("q0") in ("outside", "outside_tiny"):
+        data["q0"] = _outside_q0(data, data["q0"])
+    text = to_toml(data)
+    path.write_text(text)
+    return path
+
+
+def _fix_for_unnamed(data: dict) -> None:
+    data["levels"] = [{"tasks": [{"type": "position", "frame": "ee"}]}]
+    data["target"] = {"position": [1.0, 1.0, 0.0]}
+    data.pop("waypoints", None)
+    data.pop("statics", None)
+    data["mode"] = "solve"
+    data.pop("track", None)
+    data["limits"] = {"position": True}
+    data.pop("solver", None)
+
+
+def _outside_q0(data: dict, how: str):
+    import qpik
+
+    robot = data.get("robot")
+    try:
+        model = qpik.load_robot(robot)
+    except Exception:
+        return "mid"
+    q = _q_value(how, model, None)
+    return [float(x) for x in q]
+
+
+def run_problem(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = write_problem(spec, Path(folder))
+        problem = qpik.load_problem(path)
+        digests = [_digest(problem.q0)]
+        _finite(problem.q0, "problem.q0")
+        if problem.position_limits:
+            _check_within(problem.model, problem.q0, "problem.q0", tol=0.0)
+        o = problem.options
+        work = (
+            problem.steps * len(problem.goals)
+            if problem.mode == "track"
+            else (o.get("restarts", 20) + 1) * o.get("max_iters", 100) * len(problem.goals)
+        )
+        if spec["solve"] and work <= 6000:
+            result = problem.solve()
+            _finite(result.q, "result.q")
+            _finite(result.to_dict(), "result.to_dict()",
+                    allow=("['solve_time']", "['step_time_mean']", "['step_time_max']"))
+            if problem.position_limits:
+                _check_within(problem.model, result.q, "result.q")
+                for i, q in enumerate(result.path):
+                    _check_within(problem.model, q, f"result.path[{i}]")
+            if problem.velocity_limits is not None and result.trace is not None:
+                ratio = result.trace.max_velocity_ratio
+                if ratio > 1 + 1e-6:
+                    raise Bad("limits", f"max |v| / v_max = {ratio}")
+            _check_problem_claim(problem, result)
+            digests.append(_digest(result.q, result.converged))
+        if spec["cli"] and work <= 6000:
+            code, out, err = _cli(["reach", str(path), "--quiet"])
+            _cli_check(code, err, (0, 1, 2))
+    return _digest(*digests)
+
+
+def _check_problem_claim(problem, result) -> None:
+    np = _np()
+    if not result.converged:
+        return
+    tol_p = problem.options.get("tol_position", 1e-4)
+    tol_o = problem.options.get("tol_orientation", 1e-3)
+    if result.trace is not None:
+        checks = [(problem.goals[-1], result.q)]
+    else:
+        checks = list(zip(problem.goals, [r.q for r in result.results]))
+    for goal, q in checks:
+        position, rotation = _fk(problem.model, q, goal.frame, goal.frame_type.value)
+        error = float(np.linalg.norm(position - goal.target.position))
+        if not error <= tol_p * (1 + 1e-9) + 1e-15:
+            raise Bad("claim", f"problem converged with position error {error:.3g} > {tol_p}")
+        if goal.target.rotation is not None:
+            angle = _angle(rotation, goal.target.rotation)
+            if not angle <= tol_o * (1 + 1e-6) + 1e-9:
+                raise Bad("claim", f"problem converged with orientation error {angle:.3g}")
+
+
+# -- CLI
+def _cli(argv: list[str]) -> tuple[int, str, str]:
+    from qpik.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's usage errors
+            code = exc.code if isinstance(exc.code, int) else 2
+    return code, out.getvalue(), err.getvalue()
+
+
+def _cli_check(code, err: str, allowed) -> None:
+    if "Traceback" in err:
+        raise Bad("untyped", f"traceback printed: {err[-300:]!r}")
+    if code not in allowed:
+        raise Bad("untyped", f"exit code {code!r}; stderr {err[-300:]!r}")
+    if "nan" in err.lower().split() or " nan " in err:
+        pass
+
+
+def run_cli(spec: dict) -> str:
+    command = spec["command"]
+    if command == "robots":
+        argv = ["robots"]
+    elif command == "demo":
+        argv = ["demo"] + [a for a in spec["extra"] if a.startswith("--seed") or a == "-1"
+                           or a == "x"][:2]
+        if any(a == "--robot" for a in spec["extra"]):
+            argv += ["--robot", "nope"]
+        argv += ["--robot", spec["robot"]] if spec["robot"] in ROBOTS else []
+    elif command == "reach":
+        if spec["problem"] is not None:
+            with tempfile.TemporaryDirectory() as folder:
+                path = write_problem(spec["problem"], Path(folder))
+                code, out, err = _cli(["reach", str(path), "--quiet"])
+                _cli_check(code, err, (0, 1, 2))
+                return _digest(code)
+        argv = ["reach", str(ROOT / "tasks" / spec["reach_file"]), "--quiet"]
+    else:
+        argv = [command, spec["robot"]] + spec["extra"]
+        if command == "statics" and "--force" not in argv:
+            argv += ["--force", "0", "0", "-10"]
+    code, out, err = _cli(argv)
+    _cli_check(code, err, (0, 1, 2))
+    for token in out.replace("[", " ").replace("]", " ").split():
+        if token.lower() in ("nan", "-nan"):
+            raise Bad("nonfinite", f"qpik {' '.join(argv)[:80]} printed nan")
+    return _digest(code, out if command not in ("reach", "demo") else "")
+
+
+# -- robot files
+def _mjcf(spec: dict, r: random.Random) -> str:
+    types = [{"continuous": "hinge", "fixed": "hinge", "floating": "free", "planar": "slide"}.get(
+        t, t) for t in spec["joint_types"]]
+    attrs = defaultdict(dict)
+    for m in spec["mutations"]:
+        attrs[m["pick"] % max(1, len(types))][m["what"]] = m["value"]
+    bodies = []
+    for i, t in enumerate(types):
+        a = attrs[i]
+        joint = f'<joint name="{a.get("name", f"j{i}")}" type="{t}"'
+        if t in ("hinge", "slide"):
+            joint += f' axis="{a.get("axis", "0 0 1")}"'
+            if r.random() < 0.7:
+                joint += f' range="{a.get("range", "-2 2")}" limited="true"'
+        if "damping" in a:
+            joint += f' damping="{a["damping"]}"'
+        if "armature" in a:
+            joint += f' armature="{a["armature"]}"'
+        joint += "/>"
+        if t == "free" and i > 0:
+            joint = ""
+        geom = f'<geom type="capsule" fromto="0 0 0 0.3 0 0" size="{a.get("size", "0.03")}"'
+        if "mass" in a:
+            geom += f' mass="{a["mass"]}"'
+        geom += "/>"
+        extra = "<bogus/>" if "unknown_tag" in a else ""
+        if "mesh" in a:
+            extra += '<geom type="mesh" mesh="m0"/>'
+        inertial = ""
+        if "inertia" in a:
+            inertial = f'<inertial pos="0 0 0" mass="1" diaginertia="{a["inertia"]}"/>'
+        quat = f' quat="{a["quat"]}"' if "quat" in a else ""
+        bodies.append(
+            (f'<body name="b{i}" pos="{a.get("pos", "0.3 0 0" if i else "0 0 0")}"{quat}>'
+             f"{joint}{geom}{inertial}{extra}")
+        )
+    site = '<site name="ee" pos="0.3 0 0"/>'
+    body_text = "".join(bodies) + site + "</body>" * len(bodies)
+    if not bodies:
+        body_text = '<body name="b0"><geom type="sphere" size="0.1"/>' + site + "</body>"
+    if spec["raw"] == "deep":
+        body_text = "".join(f'<body name="d{k}" pos="0 0 0.01"><joint type="hinge"/>'
+                            '<geom size="0.01"/>' for k in range(400)) + site + "</body>" * 400
+    g = next((m["value"] for m in spec["mutations"] if m["what"] == "gravity"), "0 0 -9.81")
+    ts = next((m["value"] for m in spec["mutations"] if m["what"] == "timestep"), "0.002")
+    asset = '<asset><mesh name="m0" file="nope.stl"/></asset>' if any(
+        m["what"] == "mesh" for m in spec["mutations"]) else ""
+    actuator = ""
+    if any(m["what"] in ("actuator", "ctrlrange", "effort") for m in spec["mutations"]) and types:
+        cr = next((m["value"] for m in spec["mutations"] if m["what"] == "ctrlrange"), "-1 1")
+        actuator = (f'<actuator><motor joint="j0" gear="{r.choice(["1", "nan", "1e300"])}" '
+                    f'ctrlrange="{cr}" ctrllimited="true"/></actuator>')
+    key = ""
+    if any(m["what"] == "keyframe" for m in spec["mutations"]):
+        key = '<keyframe><key qpos="nan"/></keyframe>'
+    return (f'<mujoco model="fuzz"><option gravity="{g}" timestep="{ts}"/>{asset}'
+            f"<worldbody>{body_text}</worldbody>{actuator}{key}</mujoco>")
+
+
+def _urdf(spec: dict, r: random.Random) -> str:
+    types = [{"hinge": "revolute", "slide": "prismatic", "ball": "spherical", "free": "floating"}.get(
+        t, t) for t in spec["joint_types"]]
+    attrs = defaultdict(dict)
+    for m in spec["mutations"]:
+        attrs[m["pick"] % max(1, len(types))][m["what"]] = m["value"]
+    links = ['<link name="base"/>']
+    joints = []
+    for i, t in enumerate(types):
+        a = attrs[i]
+        inertial = (f'<inertial><origin xyz="0 0 0"/><mass value="{a.get("mass", "1")}"/>'
+                    f'<inertia ixx="{a.get("inertia", "0.01")}" iyy="0.01" izz="0.01" ixy="0" '
+                    'ixz="0" iyz="0"/></inertial>')
+        visual = ""
+        if "mesh" in a:
+            visual = '<visual><geometry><mesh filename="package://nope/m.stl"/></geometry></visual>'
+        collision = (f'<collision><geometry><cylinder radius="{a.get("size", "0.03")}" '
+                     'length="0.3"/></geometry></collision>')
+        links.append(f'<link name="{a.get("name", f"l{i}")}">{inertial}{visual}{collision}</link>')
+        parent = "base" if i == 0 else attrs[i - 1].get("name", f"l{i - 1}")
+        limit = ""
+        if t in ("revolute", "prismatic") or "limit" in a:
+            lo, hi = (a.get("limit", "-2 2").split() + ["2", "2"])[:2]
+            limit = (f'<limit lower="{lo}" upper="{hi}" effort="{a.get("effort", "10")}" '
+                     f'velocity="{a.get("velocity", "1")}"/>')
+        extra = "<bogus/>" if "unknown_tag" in a else ""
+        dyn = f'<dynamics damping="{a["damping"]}"/>' if "damping" in a else ""
+        origin = f'<origin xyz="{a.get("pos", "0.3 0 0" if i else "0 0 0")}" rpy="0 0 0"/>'
+        if "drop_attr" in a:
+            origin = "<origin/>"
+        joints.append(
+            f'<joint name="j{i}" type="{t}"><parent link="{parent}"/>'
+            f'<child link="{a.get("name", f"l{i}")}"/>{origin}<axis xyz="{a.get("axis", "0 0 1")}"/>'
+            f"{limit}{dyn}{extra}</joint>"
+        )
+    if spec["raw"] == "deep":
+        for k in range(300):
+            parent = "base" if k == 0 else f"d{k - 1}"
+            links.append(f'<link name="d{k}"><inertial><mass value="0.1"/><inertia ixx="0.001" '
+                         'iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial></link>')
+            joints.append(f'<joint name="dj{k}" type="continuous"><parent link="{parent}"/>'
+                          f'<child link="d{k}"/><origin xyz="0 0 0.01"/><axis xyz="0 0 1"/></joint>')
+    return f'<?xml version="1.0"?><robot name="fuzz">{"".join(links)}{"".join(joints)}</robot>'
+
+
+def run_robot_file(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    if spec["kind"] == "name":
+        name = spec["name"]
+        try:
+            model = qpik.load_robot(name)
+        except TypeError as exc:
+            if not isinstance(name, (str, os.PathLike)):
+                raise Typed(str(exc)) from None
+            raise
+        return _exercise_model(model)
+    r = random.Random(spec["seed"])
+    text = _mjcf(spec, r) if spec["kind"] == "mjcf" else _urdf(spec, r)
+    data = text.encode()
+    if spec["raw"] == "non_utf8":
+        data = data.replace(b'name="', b'name="\xff\xfe', 1)
+    elif spec["raw"] == "truncate":
+        data = data[: r.randrange(1, len(data))]
+    elif spec["raw"] == "bom":
+        data = b"\xef\xbb\xbf" + data
+    elif spec["raw"] == "doctype":
+        data = b'<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "aaaaaaaaaa">]>' + data.split(
+            b"?>", 1)[-1]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / ("robot.xml" if spec["kind"] == "mjcf" else "robot.urdf")
+        path.write_bytes(data)
+        model = qpik.load_robot(path)
+    return _exercise_model(model)
+
+
+def _exercise_model(model) -> str:
+    """FK, statics, a short solve and an IK step on a model that loaded."""
+    np = _np()
+    import mujoco
+
+    import qpik
+
+    configuration = qpik.Configuration(model)
+    q = configuration.q
+    _finite(q, "qpos0")
+    digests = [_digest(model.nq, model.nv)]
+    gravity = qpik.statics.gravity_torques(configuration)
+    _finite(gravity, "gravity_torques")
+    sites = qpik.frame_names(model, "site")
+    frame = sites[0] if sites else None
+    if frame is not None:
+        position, rotation = configuration.frame_pose(frame, "site")
+        _finite((position, rotation), "frame_pose")
+        jac = configuration.frame_jacobian(frame, "site")
+        _finite(jac, "frame_jacobian")
+        tau = qpik.statics.joint_torques(configuration, frame, [0.0, 0.0, -10.0])
+        _finite(tau, "joint_torques")
+        if model.nv:
+            mid = configuration.mid_q()
+            rng = np.random.default_rng(0)
+            target = configuration.frame_pose(frame, "site")[0]
+            result = qpik.solve(model, {frame: target}, q0=mid, restarts=1, max_iters=30,
+                                seed=rng)
+            _check_ik_result(result, model, frame, target, {})
+            step = qpik.IKSolver(
+                model, [[qpik.tasks.PositionTask(frame, "site")]],
+                [qpik.limits.ConfigurationLimit(model)],
+            )
+            step.levels[0][0].set_target(target + 0.05)
+            out = step.step(qpik.Configuration(model, mid), 0.01)
+            _finite(out, "step", allow=(".solve_time",))
+            digests.append(_digest(result.q, np.asarray(out.velocity)))
+    del mujoco
+    return _digest(*digests)
+
+
+# -- statics
+def run_statics(spec: dict) -> str:
+    np = _np()
+    import qpik
+    from qpik import statics as S
+
+    model = _model(spec["robot"])
+    rng = np.random.default_rng(_seed_of(spec))
+    configuration = qpik.Configuration(model, _q_value(spec["q"], model, rng))
+    frame, kind = spec["frame"], spec["frame_type"]
+    out = []
+    allow = (".force", ".interval[0]", ".interval[1]", ".interval")
+    out.append(S.joint_torques(configuration, frame, spec["force"], spec["torque"], kind,
+                               spec["expressed_in"]))
+    out.append(S.gravity_torques(configuration))
+    wrenches = {
+        "one": [((frame, kind), spec["force"], spec["torque"])],
+        "none": [],
+        "bad": [("x",)],
+        "many": [((frame, kind), spec["force"], None)] * 3,
+        "weird_frame": [(("nope", "site"), spec["force"], None)],
+    }[spec["wrenches"]]
+    out.append(S.holding_torques(configuration, wrenches, spec["gravity"]))
+    tau = {"random": rng.normal(size=model.nv), "nan": np.full(model.nv, np.nan),
+           "huge": np.full(model.nv, 1e300), "short": np.zeros(model.nv - 1),
+           "zero": np.zeros(model.nv)}[spec["tau"]]
+    out.append(S.wrench_from_torques(configuration, frame, tau, kind, spec["rcond"]))
+    out.append(S.force_ellipsoid(configuration, frame, kind, spec["rows"], spec["rcond"]))
+    out.append(S.joint_torque_limits(configuration))
+    limits = None
+    if spec["torque_limits"] is not None:
+        base = np.column_stack([-np.ones(model.nv) * 50, np.ones(model.nv) * 50])
+        limits = {"nan": np.full((model.nv, 2), np.nan), "reversed": base[:, ::-1].copy(),
+                  "zero": np.zeros((model.nv, 2)), "short": base[:-1],
+                  "huge": base * 1e300}[spec["torque_limits"]]
+    payload = S.max_payload(configuration, frame, spec["direction"], limits, kind, spec["gravity"])
+    for i, value in enumerate(out):
+        _finite(value, f"out[{i}]", allow=(".semi_axes",) if i == 4 else ())
+    _finite(payload, "payload", allow=allow)
+    if math.isnan(payload.force) and payload.feasible:
+        raise Bad("claim", "payload force nan but feasible")
+    return _digest(*[np.asarray(x) if isinstance(x, np.ndarray) else repr(x) for x in out])
+
+
+# -- analysis
+def _matrix(spec: dict, rng):
+    np = _np()
+    m, n = spec["m"], spec["n"]
+    J = rng.normal(size=(m, n))
+    if spec["rank_drop"] and m and n:
+        U, s, Vt = np.linalg.svd(J, full_matrices=False)
+        s[-min(spec["rank_drop"], s.size):] = 0.0
+        J = (U * s) @ Vt
+    J = J * spec["scale"]
+    poison = spec["poison"]
+    if poison == "nan" and J.size:
+        J[0, 0] = np.nan
+    elif poison == "inf" and J.size:
+        J[-1, -1] = np.inf
+    elif poison == "string":
+        return [["a"] * max(n, 1)] * max(m, 1)
+    elif poison == "ragged":
+        return [[1.0, 2.0], [1.0]]
+    elif poison == "1d":
+        return J.ravel()
+    elif poison == "3d":
+        return J[None]
+    elif poison == "none":
+        return None
+    elif poison == "bool":
+        return J > 0
+    elif poison == "complex":
+        return J + 1j
+    elif poison == "object":
+        return np.array([[object()]])
+    return J
+
+
+def run_analysis(spec: dict) -> str:
+    np = _np()
+    import qpik
+    from qpik import analysis as A
+
+    rng = np.random.default_rng(spec["seed"])
+    J = _matrix(spec, rng)
+    shape = np.shape(J) if spec["poison"] not in ("string", "ragged", "none", "object") else (1, 1)
+    m, n = (shape + (1, 1))[:2] if len(shape) >= 2 else (1, 1)
+    xi = rng.normal(size=m) * spec["xi_scale"]
+    outputs = {}
+    which = rng.integers(0, 13)
+    tol = spec["tol"]
+    call = [
+        lambda: A.singular_values(J),
+        lambda: A.rank(J, tol),
+        lambda: A.null_space(J, tol),
+        lambda: A.degree_of_redundancy(J, tol),
+        lambda: A.pseudoinverse(J, tol),
+        lambda: A.damped_pseudoinverse(J, spec["damping"]),
+        lambda: A.manipulability(J),
+        lambda: A.condition_number(J),
+        lambda: A.solution_set(J, xi, tol),
+        lambda: A.singularity(J, tol if tol is not None else A.SINGULAR_TOL),
+        lambda: A.nullspace_step(J, xi, rng.normal(size=n), tol=tol),
+        None,
+        None,
+    ][int(which)]
+    if call is not None:
+        outputs["matrix"] = call()
+        allow = ("condition_number", ".tol") if which == 7 else ()
+        value = outputs["matrix"]
+        if which == 7:
+            if isinstance(value, float) and math.isnan(value):
+                raise Bad("nonfinite", "condition_number is nan")
+        elif which == 6:
+            if isinstance(value, float) and math.isnan(value):
+                raise Bad("nonfinite", "manipulability is nan")
+        else:
+            _finite(value, "matrix result", allow=allow)
+        return _digest(repr(value)[:2000])
+    model = _model(spec["robot"])
+    configuration = qpik.Configuration(model, _q_value(spec["q"], model, rng))
+    lower, upper = configuration.lower.copy(), configuration.upper.copy()
+    limits = {
+        "model": (lower, upper),
+        "huge": (np.full(model.nq, -1e308), np.full(model.nq, 1e308)),
+        "tiny": (np.full(model.nq, -1e-300), np.full(model.nq, 1e-300)),
+        "nan": (np.full(model.nq, np.nan), upper),
+        "reversed": (upper, lower),
+        "inf": (np.full(model.nq, -np.inf), np.full(model.nq, np.inf)),
+        "mixed": (np.r_[-1e308, lower[1:]], np.r_[1e-300, upper[1:]]),
+    }[spec["limits"]]
+    q = configuration.q if spec["limits"] != "huge" else np.full(model.nq, 1e308)
+    if which == 11:
+        outputs["w"] = A.joint_limit_distance(q, *limits)
+        outputs["grad"] = A.joint_limit_distance_gradient(q, *limits)
+        _finite(outputs, "joint_limit_distance")
+    else:
+        frame = spec["frame"]
+        outputs["report"] = A.analyze(configuration, frame, "site", spec["rows"], tol=tol)
+        outputs["grad"] = A.manipulability_gradient(configuration, frame, "site", spec["rows"])
+        outputs["path"] = A.self_motion(configuration, frame, rng.normal(size=model.nv),
+                                        spec["steps"], spec["step_size"], spec["rows"])
+        _finite(outputs, "analysis", allow=(".condition_number", ".manipulability"))
+    return _digest(repr(outputs)[:5000])
+
+
+# -- determinism
+RUNNERS = {
+    "solve": run_solve,
+    "solve_many": run_solve_many,
+    "step": run_step,
+    "problem": run_problem,
+    "robot_file": run_robot_file,
+    "statics": run_statics,
+    "analysis": run_analysis,
+    "cli": run_cli,
+}
+
+
+def run_determinism(spec: dict) -> str:
+    runner = RUNNERS[spec["base"]]
+    first = _outcome(runner, spec["spec"])
+    for p in spec["pollution"]:
+        _outcome(RUNNERS[p["category"]], p["spec"])
+    second = _outcome(runner, spec["spec"])
+    if first != second:
+        raise Bad("nondet", f"{spec['base']}: {first} then {second}")
+    if first[0] in BAD:
+        raise Bad(first[0], first[1])
+    if first[0] == "typed":
+        raise _TypedMarker(first[1])
+    return first[2]
+
+
+class _TypedMarker(Exception):
+    pass
+
+
+RUNNERS["determinism"] = run_determinism
+
+
+def _outcome(runner, spec) -> tuple[str, str, str]:
+    """(outcome, detail, digest) of one call; typed / untyped by the exception's class."""
+    import warnings
+
+    import qpik
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            digest = runner(spec)
+        return ("ok", "", digest)
+    except Bad as exc:
+        return (exc.kind, exc.detail, "")
+    except (qpik.QpikError, Typed, _TypedMarker) as exc:
+        return ("typed", f"{type(exc).__name__}: {str(exc)[:300]}", _digest(type(exc).__name__))
+    except Exception as exc:  # noqa: BLE001 - the point of the campaign
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = next((f"{Path(f.filename).name}:{f.lineno}" for f in reversed(tb)
+                      if "qpik" in f.filename or "mink" in f.filename), "")
+        return ("untyped", f"{type(exc).__name__} at {where}: {str(exc)[:300]}", "")
+
+
+def _worker(conn, quiet: bool) -> None:
+    """Worker process: receive (category, spec), answer (outcome, detail, digest)."""
+    if quiet:  # OSQP and MuJoCo print on the C side: silence the file descriptors too
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 1)
+        os.dup2(devnull, 2)
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 1000))
+    import faulthandler
+
+    faulthandler.disable()
+    while True:
+        try:
+            job = conn.recv()
+        except EOFError:
+            return
+        if job is None:
+            return
+        category, spec = job
+        conn.send(_outcome(RUNNERS[category], spec))
+
+
+# =============================================================================== parent
+class _Slot:
+    def __init__(self, ctx, quiet: bool):
+        self.ctx = ctx
+        self.quiet = quiet
+        self.start()
+
+    def start(self) -> None:
+        parent, child = self.ctx.Pipe()
+        self.conn = parent
+        self.process = self.ctx.Process(target=_worker, args=(child, self.quiet), daemon=True)
+        self.process.start()
+        child.close()
+        self.job = None
+        self.started = 0.0
+
+    def kill(self) -> None:
+        self.process.kill()
+        self.process.join()
+        self.conn.close()
+
+
+def run_campaign(jobs: list[tuple[str, int, dict]], workers: int, timeout: float,
+                 quiet: bool = True, progress: bool = True) -> list[tuple]:
+    """Run every job; returns (category, index, outcome, detail, digest, seconds)."""
+    ctx = mp.get_context("spawn")
+    slots = [_Slot(ctx, quiet) for _ in range(workers)]
+    pending = list(reversed(jobs))
+    results = []
+    done = 0
+    start = time.monotonic()
+    last_print = start
+    # the first case of a fresh worker includes the import of qpik: allow for it
+    grace = {id(s): True for s in slots}
+    while pending or any(s.job for s in slots):
+        for s in slots:
+            if s.job is None and pending:
+                s.job = pending.pop()
+                s.conn.send((s.job[0], s.job[2]))
+                s.started = time.monotonic()
+        ready = mp.connection.wait([s.conn for s in slots if s.job], timeout=0.2)
+        now = time.monotonic()
+        for s in slots:
+            if s.job is None:
+                continue
+            category, index, spec = s.job
+            if s.conn in ready:
+                try:
+                    outcome, detail, digest = s.conn.recv()
+                except (EOFError, OSError):
+                    s.process.join(1)
+                    code = s.process.exitcode
+                    results.append((category, index, "crash", f"worker died (exit {code})", "",
+                                    now - s.started))
+                    s.kill()
+                    s.start()
+                    grace[id(s)] = True
+                else:
+                    results.append((category, index, outcome, detail, digest, now - s.started))
+                    s.job = None
+                    grace[id(s)] = False
+                    done += 1
+                    continue
+                s.job = None
+                done += 1
+            elif now - s.started > timeout + (30.0 if grace[id(s)] else 0.0):
+                results.append((category, index, "hang", f"no answer in {timeout:.0f} s", "",
+                                now - s.started))
+                s.kill()
+                s.start()
+                grace[id(s)] = True
+                s.job = None
+                done += 1
+        if progress and (now - last_print > 10 or (not pending and not any(s.job for s in slots))):
+            last_print = now
+            bad = sum(1 for r in results if r[2] in BAD)
+            print(f"  {done}/{len(jobs)} cases, {bad} bad, {now - start:.0f} s", file=sys.stderr,
+                  flush=True)
+    for s in slots:
+        try:
+            s.conn.send(None)
+        except OSError:
+            pass
+        s.process.join(5)
+        if s.process.is_alive():
+            s.kill()
+    return results
+
+
+def table(results: list[tuple]) -> str:
+    counts: dict[str, Counter] = defaultdict(Counter)
+    for category, _, outcome, *_ in results:
+        counts[category][outcome] += 1
+    header = f"{'category':<12} {'cases':>6} " + " ".join(f"{c:>9}" for c in COLUMNS)
+    lines = [header, "-" * len(header)]
+    total: Counter = Counter()
+    for category in CATEGORIES:
+        if category not in counts:
+            continue
+        c = counts[category]
+        total.update(c)
+        lines.append(f"{category:<12} {sum(c.values()):>6} " + " ".join(
+            f"{c[k]:>9}" for k in COLUMNS))
+    lines.append("-" * len(header))
+    lines.append(f"{'all':<12} {sum(total.values()):>6} " + " ".join(
+        f"{total[k]:>9}" for k in COLUMNS))
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--n", type=int, default=2000, help="number of cases (2000)")
+    parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
+    parser.add_argument("--timeout", type=float, default=30.0, help="per-case limit [s] (30)")
+    parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
+    parser.add_argument("--case", metavar="CATEGORY:INDEX",
+                        help="run one case in this process and print its spec and traceback")
+    parser.add_argument("--show", type=int, default=40, help="bad cases listed (40)")
+    parser.add_argument("--list", action="store_true", help="list the categories")
+    parser.add_argument("--verbose", action="store_true", help="let workers print (OSQP, ...)")
+    args = parser.parse_args(argv)
+    if args.list:
+        print("\n".join(CATEGORIES))
+        return 0
+    if args.case:
+        category, index = args.case.split(":")
+        spec = make_spec(args.seed, category, int(index))
+        print(f"spec = {spec!r}")
+        import qpik
+
+        try:
+            digest = RUNNERS[category](spec)
+            print(f"ok: digest {digest}")
+        except (qpik.QpikError, Typed) as exc:
+            print(f"typed: {type(exc).__name__}: {exc}")
+        except Exception:
+            traceback.print_exc()
+            return 1
+        return 0
+    weights = {"solve": 3, "solve_many": 1, "step": 3, "problem": 2, "robot_file": 2,
+               "statics": 2, "analysis": 2, "cli": 1, "determinism": 1}
+    chosen = args.categories
+    total_weight = sum(weights[c] for c in chosen)
+    jobs = []
+    for category in chosen:
+        count = max(1, round(args.n * weights[category] / total_weight))
+        for index in range(count):
+            jobs.append((category, index, make_spec(args.seed, category, index)))
+    random.Random(args.seed).shuffle(jobs)
+    # every determinism case runs twice, the second time in another history
+    repeats = [(c, i, s) for c, i, s in jobs if c == "determinism"]
+    jobs = jobs + [("determinism", -1 - i, s) for c, i, s in repeats]
+    print(f"fuzz: {len(jobs)} cases ({len(repeats)} determinism repeats), seed {args.seed}, "
+          f"{args.workers} workers, {args.timeout:.0f} s per case", flush=True)
+    start = time.monotonic()
+    results = run_campaign(jobs, args.workers, args.timeout, quiet=not args.verbose)
+    wall = time.monotonic() - start
+    # cross-process determinism: a determinism case's digest must equal its repeat's
+    by_index = {(c, i): r for r in results for c, i in [(r[0], r[1])]}
+    final = []
+    for r in results:
+        category, index = r[0], r[1]
+        if category == "determinism" and index < 0:
+            original = by_index.get(("determinism", -1 - index))
+            if original and original[2] == r[2] == "ok" and original[4] != r[4]:
+                final.append((category, -1 - index, "nondet",
+                              f"digest {original[4]} in one worker, {r[4]} in another", "", r[5]))
+            elif original and original[2] != r[2] and "hang" not in (original[2], r[2]):
+                final.append((category, -1 - index, "nondet",
+                              f"{original[2]} in one worker, {r[2]} in another", "", r[5]))
+            continue
+        final.append(r)
+    print(table(final))
+    times = sorted(r[5] for r in final)
+    if times:
+        print(f"wall {wall:.0f} s; per case: median {1e3 * times[len(times) // 2]:.0f} ms, "
+              f"max {times[-1]:.1f} s")
+    bad = [r for r in final if r[2] in BAD]
+    for category, index, outcome, detail, *_ in bad[: args.show]:
+        print(f"  {outcome:<9} {category}:{index}  {detail}")
+    if len(bad) > args.show:
+        print(f"  ... and {len(bad) - args.show} more")
+    typed = Counter(r[3].split(":")[0] for r in final if r[2] == "typed")
+    print("typed errors: " + ", ".join(f"{k} {v}" for k, v in typed.most_common()))
+    print(f"bad outcomes: {len(bad)}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
