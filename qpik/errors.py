@@ -9,20 +9,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 
-class QpikError(Exception):
-    """Root of all qpik errors."""
+from .core.errors import InvalidInput, MissingExtra, QpikError  # noqa: F401 (re-exported)
 
 
 class UnknownRobot(QpikError, KeyError):
     """A robot name that is neither bundled nor an ``erd:`` name nor a file."""
 
-    def __init__(self, name: str, available: Sequence[str]):
+    def __init__(self, name: str, available: Sequence[str], erd: bool = False):
         self.name = name
         self.available = list(available)
-        super().__init__(
-            f"unknown robot {name!r}; bundled robots are: {', '.join(self.available)} "
-            "(or pass a path to an .xml/.urdf file, or 'erd:NAME' for example-robot-data)"
-        )
+        if erd:
+            message = (
+                f"unknown robot {name!r}; example-robot-data's robots are: "
+                f"{', '.join(self.available)} (qpik robots --erd lists them)"
+            )
+        else:
+            message = (
+                f"unknown robot {name!r}; bundled robots are: {', '.join(self.available)} "
+                "(or pass a path to an .xml/.urdf file, or 'erd:NAME' for example-robot-data)"
+            )
+        super().__init__(message)
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return str(self.args[0])
@@ -35,18 +41,6 @@ class RobotFileError(QpikError):
         self.path = path
         self.reason = reason
         super().__init__(f"cannot load robot file {path}: {reason}")
-
-
-class MissingExtra(QpikError, ImportError):
-    """An optional dependency is needed: the message names the pip extra."""
-
-    def __init__(self, feature: str, extra: str, package: str):
-        self.feature = feature
-        self.extra = extra
-        self.package = package
-        super().__init__(
-            f"{feature} needs the package {package!r}: install it with pip install 'qpik[{extra}]'"
-        )
 
 
 class UnknownFrame(QpikError, KeyError):
@@ -122,6 +116,10 @@ class ProblemFileError(QpikError, ValueError):
         super().__init__(f"{path}: field {field!r}: {expected}")
 
 
-class InvalidInput(QpikError, ValueError):
-    """An array argument of the wrong shape, or with NaN / inf entries (for example a
-    Jacobian or a task velocity passed to :mod:`qpik.analysis`)."""
+class CollisionPairError(QpikError, ValueError):
+    """A collision-avoidance limit that would check no geom pair: says why (the geoms'
+    ``contype``/``conaffinity``, welded or parent-child bodies) and names the geoms."""
+
+
+class SceneError(QpikError, ValueError):
+    """An obstacle that cannot be added to a model (shape, size, position, name)."""
