@@ -8,6 +8,7 @@ lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and ty
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Sequence
 
 import mink
@@ -166,11 +167,35 @@ class Configuration(mink.Configuration):
             raise JointLimitViolation(
                 self._qpos_joint[i], i, float(q[i]), float(self._lower[i]), float(self._upper[i])
             )
+        for j, adr, angle, limit in self._ball_violations(tol):
+            raise JointLimitViolation(joint_names(self.model)[j], adr, angle, 0.0, limit)
 
     def within_limits(self, tol: float = 1e-6) -> bool:
-        """Whether ``q`` lies within the joint limits (up to ``tol``)."""
+        """Whether ``q`` lies within the joint limits (up to ``tol``); a limited ball joint
+        is within when its rotation angle ``2 acos|w|`` [rad] is at most its range."""
         q = self.data.qpos
-        return bool(np.all((q >= self._lower - tol) & (q <= self._upper + tol)))
+        if not np.all((q >= self._lower - tol) & (q <= self._upper + tol)):
+            return False
+        return not self._ball_violations(tol)
+
+    def ball_angles(self) -> dict[str, float]:
+        """Rotation angle [rad] of every ball joint (``2 atan2(|xyz|, |w|)``, in [0, pi]),
+        by joint name."""
+        names = joint_names(self.model)
+        return {names[j]: _ball_angle(self.data.qpos, adr) for j, adr in _ball_joints(self.model)}
+
+    def _ball_violations(self, tol: float) -> list[tuple[int, int, float, float]]:
+        """``(joint, qpos address, angle, limit)`` of limited ball joints rotated past
+        their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
+        out = []
+        for j, adr in _ball_joints(self.model):
+            if not self.model.jnt_limited[j]:
+                continue
+            limit = float(self.model.jnt_range[j, 1])
+            angle = _ball_angle(self.data.qpos, adr)
+            if angle > limit + tol:
+                out.append((j, int(adr), angle, limit))
+        return out
 
     # ----------------------------------------------------------------- frames
     def frame_id(self, name: str | int, frame_type: FrameType | str = FrameType.SITE) -> int:
@@ -263,12 +288,29 @@ class Configuration(mink.Configuration):
 
     def velocity_limits(self) -> np.ndarray | None:
         """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric
-        ``velocity_limit``, or ``None`` when the model has none."""
+        ``velocity_limit`` (``inf`` where it holds 0 or less: no limit, as for a URDF joint
+        without ``<limit velocity>``, or a free joint), or ``None`` when the model has
+        none."""
         nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
         if nid < 0:
             return None
         adr, size = self.model.numeric_adr[nid], self.model.numeric_size[nid]
-        return np.array(self.model.numeric_data[adr : adr + size])
+        values = np.array(self.model.numeric_data[adr : adr + size], dtype=float)
+        values[~(values > 0)] = np.inf
+        return values
+
+
+def _ball_joints(model: mujoco.MjModel) -> list[tuple[int, int]]:
+    """``(joint id, qpos address)`` of every ball joint."""
+    ball = int(mujoco.mjtJoint.mjJNT_BALL)
+    return [(j, int(model.jnt_qposadr[j])) for j in range(model.njnt) if model.jnt_type[j] == ball]
+
+
+def _ball_angle(qpos: np.ndarray, adr: int) -> float:
+    """Rotation angle [rad] of the (not necessarily unit) quaternion ``qpos[adr:adr+4]``."""
+    w = abs(float(qpos[adr]))
+    xyz = float(np.linalg.norm(qpos[adr + 1 : adr + 4]))
+    return 2.0 * math.atan2(xyz, w)
 
 
 def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
