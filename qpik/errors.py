@@ -2,14 +2,68 @@
 
 Errors keep the fields that explain them (the joint, the value, the bounds, the valid
 names) so that callers can react programmatically, and their message says what to fix.
+
+Each error that has a counterpart in mink also subclasses it (``except
+mink.NotWithinConfigurationLimits`` catches :class:`JointLimitViolation`), and can be
+constructed the way mink constructs its own (``JointLimitViolation(joint_id, value, lower,
+upper, model)``) as well as qpik's way. Errors pickle (they cross process boundaries in
+:func:`qpik.solve_many`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import inspect
+from collections.abc import Callable, Sequence
+from typing import Any
 
+import mink
+import mujoco
 
 from .core.errors import InvalidInput, MissingExtra, QpikError  # noqa: F401 (re-exported)
+
+
+# ---------------------------------------------------------------- constructor helpers
+# The two ways an error can be constructed, as signatures (bodies unused).
+def _qpik_joint_limit_violation(joint, index, value, lower, upper, *, joint_id=None): ...
+def _mink_not_within_limits(joint_id, value, lower, upper, model): ...
+def _qpik_unknown_frame(name, frame_type, available): ...
+def _mink_invalid_frame(frame_name, frame_type, model): ...
+
+
+def _has_model(args: tuple, kwargs: dict) -> bool:
+    """Whether constructor arguments carry a MuJoCo model (mink's way of constructing)."""
+    return any(isinstance(a, mujoco.MjModel) for a in (*args, *kwargs.values()))
+
+
+def _bind(signature_of: Callable, args: tuple, kwargs: dict) -> dict[str, Any]:
+    """Arguments bound by name to ``signature_of``'s signature, defaults applied."""
+    bound = inspect.signature(signature_of).bind(*args, **kwargs)
+    bound.apply_defaults()
+    return dict(bound.arguments)
+
+
+_COUNTS = {"body": "nbody", "site": "nsite", "geom": "ngeom"}
+_OBJECTS = {
+    "body": mujoco.mjtObj.mjOBJ_BODY,
+    "site": mujoco.mjtObj.mjOBJ_SITE,
+    "geom": mujoco.mjtObj.mjOBJ_GEOM,
+}
+
+
+def _names_of(model: mujoco.MjModel, frame_type: str) -> list[str]:
+    """Names of the frames of one type in ``model`` (unnamed ones left out)."""
+    kind = str(getattr(frame_type, "value", frame_type))
+    if kind not in _COUNTS:
+        return []
+    names = (
+        mujoco.mj_id2name(model, _OBJECTS[kind], i) for i in range(getattr(model, _COUNTS[kind]))
+    )
+    return [n for n in names if n]
+
+
+def _rebuild(cls: type, args: tuple, kwargs: dict) -> Exception:
+    """Unpickle an error by calling its constructor (keyword arguments included)."""
+    return cls(*args, **kwargs)
 
 
 class UnknownRobot(QpikError, KeyError):
@@ -28,10 +82,14 @@ class UnknownRobot(QpikError, KeyError):
                 f"unknown robot {name!r}; bundled robots are: {', '.join(self.available)} "
                 "(or pass a path to an .xml/.urdf file, or 'erd:NAME' for example-robot-data)"
             )
+        self._erd = erd
         super().__init__(message)
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
         return str(self.args[0])
+
+    def __reduce__(self):
+        return type(self), (self.name, self.available, self._erd)
 
 
 class RobotFileError(QpikError):
@@ -42,25 +100,69 @@ class RobotFileError(QpikError):
         self.reason = reason
         super().__init__(f"cannot load robot file {path}: {reason}")
 
+    def __reduce__(self):
+        return type(self), (self.path, self.reason)
 
-class UnknownFrame(QpikError, KeyError):
-    """A frame name that the model does not have (for the given frame type)."""
 
-    def __init__(self, name: str | int, frame_type: str, available: Sequence[str]):
+class UnknownFrame(QpikError, mink.InvalidFrame, KeyError):
+    """A frame name (or id) that the model does not have, for the given frame type.
+
+    Also a :class:`mink.InvalidFrame`. Constructed as qpik does,
+    ``UnknownFrame(name, frame_type, available)``, or as mink does,
+    ``UnknownFrame(frame_name, frame_type, model)``. Fields: ``name``, ``frame_type`` and
+    ``available`` (the valid names of that type).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        if _has_model(args, kwargs):
+            bound = _bind(_mink_invalid_frame, args, kwargs)
+            name, frame_type = bound["frame_name"], bound["frame_type"]
+            available = _names_of(bound["model"], frame_type)
+        else:
+            bound = _bind(_qpik_unknown_frame, args, kwargs)
+            name, frame_type, available = bound["name"], bound["frame_type"], bound["available"]
         self.name = name
         self.frame_type = frame_type
         self.available = list(available)
-        super().__init__(
+        Exception.__init__(
+            self,
             f"{frame_type} {name!r} does not exist in the model; available "
-            f"{frame_type}s: {', '.join(self.available) or '(none)'}"
+            f"{frame_type}s: {', '.join(self.available) or '(none)'}",
         )
 
-    def __str__(self) -> str:
+    def __str__(self) -> str:  # KeyError would otherwise quote the message
         return str(self.args[0])
 
+    def __reduce__(self):
+        return type(self), (self.name, self.frame_type, self.available)
 
-class UnknownFrameType(QpikError, ValueError):
-    """A frame type other than body, site or geom."""
+
+class UnknownFrameType(QpikError, mink.UnsupportedFrame, ValueError):
+    """A frame type other than body, site or geom.
+
+    Also a :class:`mink.UnsupportedFrame`. Constructed as qpik does, from a message, or as
+    mink does, ``UnknownFrameType(frame_type, supported_types)``. Fields: ``frame_type``
+    (``None`` when built from a message) and ``supported``.
+    """
+
+    def __init__(self, message_or_frame_type: str, supported_types: Sequence[str] | None = None):
+        if supported_types is None:
+            self.frame_type = None
+            self.supported = list(mink.SUPPORTED_FRAMES)
+            message = message_or_frame_type
+        else:
+            self.frame_type = message_or_frame_type
+            self.supported = list(supported_types)
+            message = (
+                f"unknown frame type {self.frame_type!r}; expected one of: "
+                f"{', '.join(self.supported)}"
+            )
+        Exception.__init__(self, message)
+
+    def __reduce__(self):
+        if self.frame_type is None:
+            return type(self), (str(self),)
+        return type(self), (self.frame_type, self.supported)
 
 
 class InvalidConfiguration(QpikError, ValueError):
@@ -71,22 +173,47 @@ class InvalidConfiguration(QpikError, ValueError):
         super().__init__(message)
 
 
-class InvalidTarget(QpikError, ValueError):
-    """A target that is malformed (wrong shape, NaN, not a rotation)."""
+class InvalidTarget(QpikError, mink.InvalidTarget, ValueError):
+    """A target that is malformed (wrong shape, NaN, not a rotation). Also a
+    :class:`mink.InvalidTarget`."""
 
 
-class JointLimitViolation(QpikError, ValueError):
-    """A configuration outside the joint limits."""
+class JointLimitViolation(QpikError, mink.NotWithinConfigurationLimits, ValueError):
+    """A configuration outside the joint limits.
 
-    def __init__(self, joint: str, index: int, value: float, lower: float, upper: float):
+    Also a :class:`mink.NotWithinConfigurationLimits`. Constructed as qpik does,
+    ``JointLimitViolation(joint, index, value, lower, upper)`` (joint name, qpos index), or
+    as mink does, ``JointLimitViolation(joint_id, value, lower, upper, model)``. Fields:
+    ``joint`` (name), ``index`` (qpos index), ``value``, ``lower``, ``upper`` [rad or m] and
+    ``joint_id`` (``None`` when not given).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        if _has_model(args, kwargs):
+            bound = _bind(_mink_not_within_limits, args, kwargs)
+            model, joint_id = bound["model"], int(bound["joint_id"])
+            joint = model.joint(joint_id).name or f"joint{joint_id}"
+            index = int(model.jnt_qposadr[joint_id])
+        else:
+            bound = _bind(_qpik_joint_limit_violation, args, kwargs)
+            joint, index, joint_id = bound["joint"], bound["index"], bound.get("joint_id")
         self.joint = joint
         self.index = index
-        self.value = value
-        self.lower = lower
-        self.upper = upper
-        super().__init__(
-            f"joint {joint!r} (q[{index}]) = {value:.6g} is outside its limits "
-            f"[{lower:.6g}, {upper:.6g}]"
+        self.joint_id = joint_id
+        self.value = float(bound["value"])
+        self.lower = float(bound["lower"])
+        self.upper = float(bound["upper"])
+        Exception.__init__(
+            self,
+            f"joint {joint!r} (q[{index}]) = {self.value:.6g} is outside its limits "
+            f"[{self.lower:.6g}, {self.upper:.6g}]",
+        )
+
+    def __reduce__(self):
+        return _rebuild, (
+            type(self),
+            (self.joint, self.index, self.value, self.lower, self.upper),
+            {"joint_id": self.joint_id},
         )
 
 
@@ -94,16 +221,27 @@ class InfeasibleLimits(QpikError, ValueError):
     """Limits that no velocity can satisfy (for example lower > upper)."""
 
 
-class NoSolutionFound(QpikError, RuntimeError):
-    """The QP of the highest priority level could not be solved, even after fallbacks."""
+class NoSolutionFound(QpikError, mink.NoSolutionFound, RuntimeError):
+    """The QP of the highest priority level could not be solved, even after fallbacks.
 
-    def __init__(self, solver: str, status: str, level: int = 0):
+    Also a :class:`mink.NoSolutionFound`. Constructed as qpik does,
+    ``NoSolutionFound(solver, status, level)``, or as mink does, ``NoSolutionFound(solver)``
+    (then the message is mink's own, word for word). Fields: ``solver``, ``status`` (the
+    backend's or the level's status, ``None`` if unknown) and ``level``.
+    """
+
+    def __init__(self, solver: str, status: str | None = None, level: int = 0):
         self.solver = solver
-        self.status = status
+        self.status = None if status is None else str(status)
         self.level = level
-        super().__init__(
-            f"solver {solver!r} found no solution for priority level {level}: {status}"
-        )
+        if status is None:
+            message = f"QP solver {solver} failed to find a solution."
+        else:
+            message = f"solver {solver!r} found no solution for priority level {level}: {status}"
+        Exception.__init__(self, message)
+
+    def __reduce__(self):
+        return type(self), (self.solver, self.status, self.level)
 
 
 class ProblemFileError(QpikError, ValueError):
@@ -115,6 +253,9 @@ class ProblemFileError(QpikError, ValueError):
         self.expected = expected
         super().__init__(f"{path}: field {field!r}: {expected}")
 
+    def __reduce__(self):
+        return type(self), (self.path, self.field, self.expected)
+
 
 class CollisionPairError(QpikError, ValueError):
     """A collision-avoidance limit that would check no geom pair: says why (the geoms'
@@ -123,3 +264,112 @@ class CollisionPairError(QpikError, ValueError):
 
 class SceneError(QpikError, ValueError):
     """An obstacle that cannot be added to a model (shape, size, position, name)."""
+
+
+class TargetNotSet(QpikError, mink.TargetNotSet):
+    """A task used before its target was set. Also a :class:`mink.TargetNotSet`;
+    constructed the same way, ``TargetNotSet(cls_name)``. Field: ``task`` (class name)."""
+
+    def __init__(self, cls_name: str):
+        self.task = cls_name
+        Exception.__init__(
+            self,
+            f"No target set for {cls_name}: call set_target(...) or "
+            "set_target_from_configuration(configuration) first",
+        )
+
+    def __reduce__(self):
+        return type(self), (self.task,)
+
+
+class IntegrationTimestepNotSet(QpikError, mink.IntegrationTimestepNotSet):
+    """A task that needs the step ``dt`` (e.g. kinetic-energy regularisation) used before
+    ``set_dt``. Also a :class:`mink.IntegrationTimestepNotSet`; constructed the same way,
+    ``IntegrationTimestepNotSet(cls_name)``. Field: ``task`` (class name)."""
+
+    def __init__(self, cls_name: str):
+        self.task = cls_name
+        Exception.__init__(
+            self, f"No integration timestep set for {cls_name}: call set_dt(dt) first"
+        )
+
+    def __reduce__(self):
+        return type(self), (self.task,)
+
+
+class InvalidGain(QpikError, mink.InvalidGain, ValueError):
+    """A task gain outside [0, 1]. Also a :class:`mink.InvalidGain`."""
+
+
+class InvalidDamping(QpikError, mink.InvalidDamping, ValueError):
+    """A damping that is negative or not finite. Also a :class:`mink.InvalidDamping`."""
+
+
+class InvalidConstraint(QpikError, mink.InvalidConstraint, ValueError):
+    """An equality constraint that is unknown or inactive. Also a
+    :class:`mink.InvalidConstraint`."""
+
+
+class TaskDefinitionError(QpikError, mink.TaskDefinitionError, ValueError):
+    """An ill-formed task (cost of the wrong shape, negative cost, ...). Also a
+    :class:`mink.TaskDefinitionError`."""
+
+
+class LimitDefinitionError(QpikError, mink.LimitDefinitionError, ValueError):
+    """An ill-formed limit (negative gain, unknown joint, ...). Also a
+    :class:`mink.LimitDefinitionError`."""
+
+
+class InvalidKeyframe(QpikError, mink.InvalidKeyframe, KeyError):
+    """A keyframe name the model does not have. Also a :class:`mink.InvalidKeyframe`.
+
+    Constructed as mink does, ``InvalidKeyframe(keyframe_name, model)``, or with the valid
+    names, ``InvalidKeyframe(keyframe_name, available)``. Fields: ``name``, ``available``.
+    """
+
+    def __init__(self, keyframe_name: str, model_or_available: mujoco.MjModel | Sequence[str]):
+        if isinstance(model_or_available, mujoco.MjModel):
+            model = model_or_available
+            available = [model.key(i).name for i in range(model.nkey)]
+        else:
+            available = list(model_or_available)
+        self.name = keyframe_name
+        self.available = available
+        Exception.__init__(
+            self,
+            f"keyframe {keyframe_name!r} does not exist in the model; available keyframes: "
+            f"{', '.join(available) or '(none)'}",
+        )
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+    def __reduce__(self):
+        return type(self), (self.name, self.available)
+
+
+class InvalidMocapBody(QpikError, mink.InvalidMocapBody, ValueError):
+    """A body that is not a mocap body. Also a :class:`mink.InvalidMocapBody`.
+
+    Constructed as mink does, ``InvalidMocapBody(mocap_name, model)``, or with the valid
+    names, ``InvalidMocapBody(mocap_name, available)``. Fields: ``name``, ``available``.
+    """
+
+    def __init__(self, mocap_name: str, model_or_available: mujoco.MjModel | Sequence[str]):
+        if isinstance(model_or_available, mujoco.MjModel):
+            model = model_or_available
+            available = [
+                model.body(i).name for i in range(model.nbody) if model.body_mocapid[i] != -1
+            ]
+        else:
+            available = list(model_or_available)
+        self.name = mocap_name
+        self.available = available
+        Exception.__init__(
+            self,
+            f"body {mocap_name!r} is not a mocap body; mocap bodies: "
+            f"{', '.join(available) or '(none)'}",
+        )
+
+    def __reduce__(self):
+        return type(self), (self.name, self.available)
