@@ -16,7 +16,13 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .errors import InvalidConfiguration, JointLimitViolation, UnknownFrame, UnknownFrameType
+from .errors import (
+    InvalidConfiguration,
+    InvalidInput,
+    JointLimitViolation,
+    UnknownFrame,
+    UnknownFrameType,
+)
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
@@ -94,15 +100,22 @@ class Configuration(mink.Configuration):
     """Model, data and configuration ``q`` of a robot, with forward kinematics up to date.
 
     Args:
-        model: The MuJoCo model (see :func:`qpik.load_robot`).
-        q: Initial configuration ``(nq,)``; defaults to the model's ``qpos0``.
+        model: The MuJoCo model (see :func:`qpik.load_robot`), or a
+            :class:`mink.Configuration`: its model is shared and its whole state (``q``,
+            mocap poses, active equalities, ...) copied, so the two are independent
+            afterwards (``qpik.Configuration(mink_configuration)``).
+        q: Initial configuration ``(nq,)``; defaults to the model's ``qpos0`` (or to the
+            mink configuration's ``q``).
     """
 
-    def __init__(self, model: mujoco.MjModel, q: npt.ArrayLike | None = None):
+    def __init__(self, model: mujoco.MjModel | mink.Configuration, q: npt.ArrayLike | None = None):
+        source = model if isinstance(model, mink.Configuration) else None
+        if source is not None:
+            model = source.model
         if not isinstance(model, mujoco.MjModel):
-            raise TypeError(
-                f"Configuration needs a mujoco.MjModel (see qpik.load_robot), "
-                f"got {type(model).__name__}"
+            raise InvalidInput(
+                "Configuration needs a mujoco.MjModel (see qpik.load_robot) or a "
+                f"mink.Configuration as `model`, got {type(model).__name__}"
             )
         lower = np.full(model.nq, -np.inf)
         upper = np.full(model.nq, np.inf)
@@ -116,7 +129,10 @@ class Configuration(mink.Configuration):
         self._lower.setflags(write=False)
         self._upper.setflags(write=False)
         self._qpos_joint = _qpos_joint_names(model)
-        super().__init__(model, q)  # mink calls self.update(q), which validates q
+        super().__init__(model, None if source is not None else q)  # mink calls update(q)
+        if source is not None:
+            mujoco.mj_copyData(self.data, model, source.data)
+            self.update(self.data.qpos.copy() if q is None else q)  # validated
 
     # ------------------------------------------------------------------ state
     def _validated(self, q: npt.ArrayLike) -> np.ndarray:
