@@ -191,6 +191,39 @@ _SOLVER_KEYS = {
 }
 _ROTATION_KEYS = ("rpy", "quaternion", "matrix")
 
+#: Largest magnitude of a length [m] (target positions, centre of mass, joint values in a
+#: posture or q0 [rad or m]) a file may give: beyond it a squared error overflows.
+MAX_LENGTH = 1e6
+#: Largest magnitude of an angle [rad] in ``rpy``.
+MAX_ANGLE = 100.0
+#: Largest task cost or weight: the QP holds its square next to unit-scale terms.
+MAX_COST = 1e6
+#: Largest force [N] or torque [N m] of a ``[statics]`` table.
+MAX_WRENCH = 1e9
+
+#: Allowed range ``(low, high)`` of every number of ``[solver]``, ``[track]`` and the task
+#: options, inclusive (``low_open``: ``low`` itself excluded).
+RANGES: dict[str, tuple[float, float, bool]] = {
+    "solver.tol_position": (1e-12, 1e3, False),  # [m]
+    "solver.tol_orientation": (1e-12, math.pi, False),  # [rad]
+    "solver.max_iters": (1, 100_000, False),
+    "solver.restarts": (0, 100_000, False),
+    "solver.seed": (0, 2**63 - 1, False),
+    "solver.time_budget": (0.0, 86_400.0, True),  # [s]
+    "solver.alpha": (0.0, 1.0, True),
+    "solver.beta": (0.0, 100.0, True),
+    "solver.max_step": (0.0, MAX_LENGTH, True),  # [m, rad]
+    "solver.singular_threshold": (0.0, 1e3, False),
+    "solver.max_damping": (0.0, 1e6, False),
+    "solver.damping": (0.0, 1e6, False),
+    "solver.stall_window": (1, 100_000, False),
+    "track.dt": (1e-9, 1e3, False),  # [s]
+    "track.steps": (1, 1_000_000, False),
+    "gain": (0.0, 1.0, True),
+    "lm_damping": (0.0, 1e6, False),
+    "velocity": (1e-9, 1e6, False),  # [rad/s or m/s]
+}
+
 
 def problem_files() -> list[Path]:
     """The shipped problem files (the repository's ``tasks/*.toml``, or the installed
@@ -240,6 +273,33 @@ class _Reader:
             raise self.fail(name, f"expected {expected} (finite), got {value!r}")
         return array
 
+    def number(self, value, name: str, rule: str, expected: str | None = None) -> float:
+        """Check a number against :data:`RANGES` ``[rule]``: finite, within the range."""
+        low, high, low_open = RANGES[rule]
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}]"
+        expected = f"{expected or 'a number'} in {interval}"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(name, f"expected {expected}, got {_describe(value)}")
+        finite = isinstance(value, int) or math.isfinite(value)  # ints: no float overflow
+        ok = finite and (value > low if low_open else value >= low) and value <= high
+        if not ok:
+            raise self.fail(name, f"expected {expected}, got {value!r}")
+        return value
+
+    def bounded_vector(
+        self, value, name: str, size: int | None, expected: str, bound: float
+    ) -> np.ndarray:
+        """:meth:`vector` whose entries are at most ``bound`` in magnitude."""
+        array = self.vector(value, name, size, expected)
+        big = np.flatnonzero(np.abs(array) > bound)
+        if big.size:
+            i = int(big[0])
+            raise self.fail(
+                name, f"expected {expected}, each within [-{bound:g}, {bound:g}]; "
+                f"entry {i} is {array[i]!r}"
+            )
+        return array
+
     def unknown_keys(self, table: dict, allowed, where: str) -> None:
         for key in table:
             if key not in allowed:
@@ -272,12 +332,17 @@ def _rotation_from(reader: _Reader, table: dict, where: str) -> np.ndarray | Non
     key = given[0]
     name = f"{where}.{key}"
     if key == "rpy":
-        roll, pitch, yaw = reader.vector(table[key], name, 3, "[roll, pitch, yaw] in radians")
+        roll, pitch, yaw = reader.bounded_vector(
+            table[key], name, 3, "[roll, pitch, yaw] in radians", MAX_ANGLE
+        )
         return _rz(yaw) @ _ry(pitch) @ _rx(roll)
     if key == "quaternion":
         quat = reader.vector(table[key], name, 4, "[w, x, y, z] (nonzero)")
+        scale = float(np.max(np.abs(quat)))
+        if scale > 0.0:  # scaled first: the norm of [1e300, ...] would overflow
+            quat = quat / scale
         norm = float(np.linalg.norm(quat))
-        if norm < 1e-9:
+        if scale == 0.0 or norm * scale < 1e-9:
             raise reader.fail(name, "expected a nonzero quaternion [w, x, y, z]")
         rotation = np.zeros(9)
         mujoco.mju_quat2Mat(rotation, quat / norm)
@@ -952,13 +1017,26 @@ def load_problem(path: str | os.PathLike) -> Problem:
     name = str(path)
     reader = _Reader(name)
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise reader.fail("(file)", f"a readable TOML file ({exc.strerror or exc})") from exc
+        raw = path.read_bytes()
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
+        reason = getattr(exc, "strerror", None) or exc
+        raise reader.fail("(file)", f"a readable TOML file ({reason})") from exc
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise reader.fail(
+            "(file)", f"UTF-8 text (TOML); byte {exc.start} (line {line}) is not valid UTF-8"
+        ) from None
+    text = text.removeprefix("\ufeff")  # a byte-order mark is harmless
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise reader.fail("(file)", f"valid TOML ({exc})") from exc
+    except RecursionError:
+        raise reader.fail(
+            "(file)", "TOML nested at most a few hundred levels deep (arrays or tables)"
+        ) from None
     reader.unknown_keys(data, _TOP_KEYS, "")
 
     model, robot = _load_model(reader, data, path)
@@ -971,6 +1049,11 @@ def load_problem(path: str | os.PathLike) -> Problem:
         start.check_limits()
     except QpikError as exc:
         raise reader.fail("q0", f"a configuration within the joint limits ({exc})") from exc
+    # within check_limits' tolerance but outside a limit: clamp, so that no iterate
+    # starts (and stays) outside
+    clamped = np.clip(start.q, start.lower, start.upper)
+    if not np.array_equal(clamped, start.q):
+        start.update(clamped)
 
     mode = reader.get(data, "mode", "", str, '"solve" or "track"', "solve")
     if mode not in ("solve", "track"):
@@ -988,10 +1071,8 @@ def load_problem(path: str | os.PathLike) -> Problem:
         dt = reader.get(track, "dt", "track", float, "a step in seconds (> 0)")
         steps = reader.get(track, "steps", "track", int, "a number of steps (>= 1)")
         stop_at_goal = reader.get(track, "stop_at_goal", "track", bool, "true or false", False)
-        if not dt > 0:
-            raise reader.fail("track.dt", f"expected a step in seconds (> 0), got {dt}")
-        if steps < 1:
-            raise reader.fail("track.steps", f"expected a number of steps (>= 1), got {steps}")
+        reader.number(dt, "track.dt", "track.dt", "a step in seconds")
+        reader.number(steps, "track.steps", "track.steps", "a number of steps")
     elif "track" in data:
         raise reader.fail("track", 'a [track] table only with mode = "track"')
 
@@ -1028,14 +1109,18 @@ def _load_model(reader: _Reader, data: dict, path: Path) -> tuple[mujoco.MjModel
     if robot in list_robots() or robot.startswith("erd:"):
         source: str | Path = robot
     elif robot.lower().endswith((".xml", ".urdf")) or "/" in robot or os.sep in robot:
-        source = (path.parent / robot).resolve()
-        if not source.is_file():
+        try:
+            source = (path.parent / robot).resolve()
+            found = source.is_file()
+        except (OSError, ValueError) as exc:  # a name too long, a NUL byte
+            raise reader.fail("robot", f"{expected}; cannot read {robot!r} ({exc})") from None
+        if not found:
             raise reader.fail("robot", f"{expected}; no such file: {source}")
     else:
         raise reader.fail("robot", str(UnknownRobot(robot, list_robots())))
     try:
         return load_robot(source), robot
-    except QpikError as exc:
+    except (QpikError, OSError) as exc:
         raise reader.fail("robot", f"{expected} ({exc})") from exc
 
 
@@ -1043,8 +1128,13 @@ def _configuration_value(
     reader: _Reader, value, name: str, model, start, *, allow_start: bool, default
 ) -> np.ndarray:
     """A configuration from a list of nq numbers or a name (mid, qpos0, start, keyframe)."""
-    keys = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) for k in range(model.nkey)]
-    keys = [k for k in keys if k]
+    # keyframes by name, with their own index (unnamed keyframes cannot be chosen)
+    named = {}
+    for k in range(model.nkey):
+        key_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k)
+        if key_name and key_name not in named:
+            named[key_name] = k
+    keys = list(named)
     names = ["mid", "qpos0"] + (["start"] if allow_start else []) + keys
     expected = f"a list of {model.nq} numbers or one of: {', '.join(names)}"
     if isinstance(value, str):
@@ -1054,10 +1144,13 @@ def _configuration_value(
             return model.qpos0.copy()
         if value == "start" and allow_start:
             return start.q
-        if value in keys:
-            return model.key_qpos[keys.index(value)].copy()
+        if value in named:
+            q = model.key_qpos[named[value]].copy()
+            if not np.all(np.isfinite(q)):
+                raise reader.fail(name, f"keyframe {value!r} of the model has non-finite qpos")
+            return q
         raise reader.fail(name, f"expected {expected}, got {value!r}")
-    return reader.vector(value, name, model.nq, expected)
+    return reader.bounded_vector(value, name, model.nq, expected, MAX_LENGTH)
 
 
 def _frame(reader: _Reader, table: dict, where: str, model) -> tuple[str, FrameType]:
@@ -1084,15 +1177,16 @@ def _cost(reader: _Reader, table: dict, key: str, where: str, size: int | None, 
         return default
     value = table[key]
     name = f"{where}.{key}"
-    expected = "a number >= 0" + (f" or a list of {size} numbers >= 0" if size else "")
+    interval = f"in [0, {MAX_COST:g}]"
+    expected = f"a number {interval}" + (f" or a list of {size} numbers {interval}" if size else "")
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         cost = float(value)
-        if not (math.isfinite(cost) and cost >= 0):
+        if not (math.isfinite(cost) and 0 <= cost <= MAX_COST):
             raise reader.fail(name, f"expected {expected}, got {value!r}")
         return cost
     if size is None:
         raise reader.fail(name, f"expected {expected}, got {_describe(value)}")
-    vector = reader.vector(value, name, size, expected)
+    vector = reader.bounded_vector(value, name, size, expected, MAX_COST)
     if np.any(vector < 0):
         raise reader.fail(name, f"expected {expected}, got {value!r}")
     return vector
@@ -1146,12 +1240,11 @@ def _read_task(reader: _Reader, table, where: str, model, start: Configuration) 
         spec.frame, spec.frame_type = _frame(reader, table, where, model)
     o = spec.options
     if "gain" in table:
-        gain = reader.get(table, "gain", where, float, "a gain in (0, 1]")
-        if not 0.0 < gain <= 1.0:
-            raise reader.fail(f"{where}.gain", f"expected a gain in (0, 1], got {gain}")
-        o["gain"] = gain
+        o["gain"] = float(reader.number(table["gain"], f"{where}.gain", "gain", "a gain"))
     if "lm_damping" in table:
-        o["lm_damping"] = reader.get(table, "lm_damping", where, float, "a number >= 0")
+        o["lm_damping"] = float(
+            reader.number(table["lm_damping"], f"{where}.lm_damping", "lm_damping")
+        )
     if kind == "frame":
         o["position_cost"] = _cost(reader, table, "position_cost", where, 3, 1.0)
         o["orientation_cost"] = _cost(reader, table, "orientation_cost", where, 3, 1.0)
@@ -1185,11 +1278,12 @@ def _read_task(reader: _Reader, table, where: str, model, start: Configuration) 
                 keys.add("position")
             reader.unknown_keys(target, keys, twhere)
             if "position" in keys:
-                spec.position = reader.vector(
+                spec.position = reader.bounded_vector(
                     reader.get(target, "position", twhere, list, "[x, y, z] in metres"),
                     f"{twhere}.position",
                     3,
                     "[x, y, z] in metres",
+                    MAX_LENGTH,
                 )
             if kind in ("orientation", "frame"):
                 spec.rotation = _rotation_from(reader, target, twhere)
@@ -1215,11 +1309,12 @@ def _read_goal(reader: _Reader, table, where: str, model, levels) -> Goal:
                 "orientation task to take it from)",
             )
         frame, kind = first.frame, first.frame_type
-    position = reader.vector(
+    position = reader.bounded_vector(
         reader.get(table, "position", where, list, "[x, y, z] in metres"),
         f"{where}.position",
         3,
         "[x, y, z] in metres",
+        MAX_LENGTH,
     )
     rotation = _rotation_from(reader, table, where)
     regulating = [
@@ -1275,11 +1370,18 @@ def _read_limits(reader: _Reader, data: dict, model) -> tuple[bool, np.ndarray |
                 "limits.velocity",
                 "a list or table of velocities: the model declares no velocity_limit to scale",
             )
-        if not value > 0:
-            raise reader.fail("limits.velocity", f"expected {expected}, got {value!r}")
-        return position, float(value) * np.asarray(base, dtype=float)
+        reader.number(value, "limits.velocity", "velocity", "a scale")
+        velocity = float(value) * np.asarray(base, dtype=float)
+        for i in range(model.nv):
+            reader.number(
+                float(velocity[i]), f"limits.velocity (x the velocity_limit of dof {i})",
+                "velocity", "a velocity",
+            )
+        return position, velocity
     if isinstance(value, list):
         velocity = reader.vector(value, "limits.velocity", model.nv, expected)
+        for i, v in enumerate(velocity):
+            reader.number(float(v), f"limits.velocity[{i}]", "velocity", "a velocity")
     elif isinstance(value, dict):
         names = joint_names(model)
         velocity = np.full(model.nv, np.inf)
@@ -1288,8 +1390,7 @@ def _read_limits(reader: _Reader, data: dict, model) -> tuple[bool, np.ndarray |
                 raise reader.fail(
                     f"limits.velocity.{joint}", f"a joint name, one of: {', '.join(names)}"
                 )
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise reader.fail(f"limits.velocity.{joint}", f"a velocity, got {_describe(v)}")
+            reader.number(v, f"limits.velocity.{joint}", "velocity", "a velocity")
             dofs = np.flatnonzero(model.dof_jntid == names.index(joint))
             velocity[dofs] = float(v)
         if np.any(np.isinf(velocity)):
@@ -1315,6 +1416,8 @@ def _read_solver(reader: _Reader, data: dict, mode: str) -> dict[str, Any]:
                 options[key] = False
                 continue
             vector = reader.vector(value, "solver.max_step", 2, "[metres, radians] or false")
+            for i, v in enumerate(vector):
+                reader.number(float(v), f"solver.max_step[{i}]", "solver.max_step")
             options[key] = vector.tolist()
             continue
         expected = {
@@ -1324,16 +1427,8 @@ def _read_solver(reader: _Reader, data: dict, mode: str) -> dict[str, Any]:
             bool: "true or false",
         }[kind]
         options[key] = reader.get(table, key, "solver", kind, expected)
-    for key in ("tol_position", "tol_orientation", "time_budget", "beta"):
-        if key in options and not options[key] > 0:
-            raise reader.fail(f"solver.{key}", f"expected a number > 0, got {options[key]}")
-    for key in ("max_iters", "stall_window"):
-        if key in options and options[key] < 1:
-            raise reader.fail(f"solver.{key}", f"expected an integer >= 1, got {options[key]}")
-    if "restarts" in options and options["restarts"] < 0:
-        raise reader.fail("solver.restarts", f"expected an integer >= 0, got {options['restarts']}")
-    if "alpha" in options and not 0 < options["alpha"] <= 1:
-        raise reader.fail("solver.alpha", f"expected a number in (0, 1], got {options['alpha']}")
+        if f"solver.{key}" in RANGES:
+            reader.number(options[key], f"solver.{key}", f"solver.{key}", expected)
     if mode == "track":
         for key in ("max_iters", "restarts", "time_budget", "alpha", "beta", "max_step", "seed"):
             if key in options:
@@ -1357,7 +1452,12 @@ def _read_statics(reader: _Reader, data: dict, model) -> dict[str, Any]:
         ("payload_direction", "a nonzero direction [x, y, z]"),
     ):
         if key in table:
-            out[key] = reader.vector(table[key], f"statics.{key}", 3, what)
-    if "payload_direction" in out and not np.any(out["payload_direction"]):
-        raise reader.fail("statics.payload_direction", "expected a nonzero direction [x, y, z]")
+            out[key] = reader.bounded_vector(table[key], f"statics.{key}", 3, what, MAX_WRENCH)
+    if "payload_direction" in out:
+        direction = out["payload_direction"]
+        scale = float(np.max(np.abs(direction)))
+        if scale == 0.0:
+            raise reader.fail("statics.payload_direction", "expected a nonzero direction [x, y, z]")
+        direction = direction / scale  # scaled first: no underflow / overflow in the norm
+        out["payload_direction"] = direction / np.linalg.norm(direction)
     return out

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -30,8 +31,21 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit codes: 0 success, 1 a command's negative answer (e.g. ``reach``: not converged),
+#: 2 invalid input (argparse's usage errors too), 3 an internal error (a bug: please
+#: report it; ``QPIK_DEBUG=1`` prints its traceback).
+EXIT_INVALID_INPUT = 2
+EXIT_INTERNAL_ERROR = 3
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``qpik`` console script. Returns the exit code."""
+    """Entry point of the ``qpik`` console script. Returns the exit code.
+
+    Errors never print a traceback: a :class:`qpik.QpikError` or an operating-system
+    error (a file that cannot be read or written) prints ``qpik COMMAND: error: ...`` and
+    returns 2; anything else is a bug, reported in one line with exit code 3 (set the
+    environment variable ``QPIK_DEBUG=1`` to see the traceback).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -39,9 +53,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like: stop quietly
         sys.stderr.close()
         return 0
-    except QpikError as exc:
-        print(f"qpik {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    except (QpikError, OSError) as exc:
+        print(f"qpik {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_INVALID_INPUT
+    except KeyboardInterrupt:
+        print(f"qpik {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the last resort of a command line
+        if os.environ.get("QPIK_DEBUG"):
+            raise
+        print(
+            f"qpik {args.command}: internal error: {type(exc).__name__}: {_one_line(exc)} "
+            "(a bug in qpik: please report it; QPIK_DEBUG=1 shows the traceback)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL_ERROR
+
+
+def _one_line(exc: BaseException, limit: int = 2000) -> str:
+    """The message of an exception on one line, at most ``limit`` characters."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 if __name__ == "__main__":  # pragma: no cover
