@@ -1002,6 +1002,7 @@ def _special(data: dict, name: str, value, r: random.Random) -> None:
 
 
 _UNNAMED_KEY_XML = """<mujoco model="unnamed_key">
+  <compiler angle="radian"/>
   <worldbody>
     <body name="l1"><joint name="j1" type="hinge" axis="0 0 1" range="-3 3"/>
       <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>

@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -249,3 +250,149 @@ def test_solve_mode_takes_a_constant_damping(tmp_path):
     )
     result = qpik.load_problem(path).solve()
     assert result.converged, result.reason
+
+
+# ------------------------------------------------------------------ range checks (issue 13)
+def _with_solver(line: str) -> str:
+    return BASE + f"\n[solver]\n{line}\n"
+
+
+def _with_task_option(line: str) -> str:
+    return BASE.replace('type = "position"', f'type = "position"\n{line}')
+
+
+@pytest.mark.parametrize(
+    "text, field",
+    [
+        (_with_task_option("lm_damping = -1"), "levels[0].tasks[0].lm_damping"),
+        (_with_task_option("lm_damping = nan"), "levels[0].tasks[0].lm_damping"),
+        (_with_task_option("lm_damping = inf"), "levels[0].tasks[0].lm_damping"),
+        (_with_task_option("gain = 1.5"), "levels[0].tasks[0].gain"),
+        (_with_task_option("gain = nan"), "levels[0].tasks[0].gain"),
+        (_with_task_option("cost = 1e300"), "levels[0].tasks[0].cost"),
+        (_with_task_option("cost = [1.0, 1e300, 1.0]"), "levels[0].tasks[0].cost"),
+        (_with_task_option("cost = -inf"), "levels[0].tasks[0].cost"),
+        (_with_solver("max_damping = nan"), "solver.max_damping"),
+        (_with_solver("max_damping = -1"), "solver.max_damping"),
+        (_with_solver("singular_threshold = inf"), "solver.singular_threshold"),
+        (_with_solver("damping = -1e-6"), "solver.damping"),
+        (_with_solver("tol_position = -1"), "solver.tol_position"),
+        (_with_solver("tol_position = nan"), "solver.tol_position"),
+        (_with_solver("tol_orientation = 0"), "solver.tol_orientation"),
+        (_with_solver("time_budget = inf"), "solver.time_budget"),
+        (_with_solver("time_budget = nan"), "solver.time_budget"),
+        (_with_solver("time_budget = 1e300"), "solver.time_budget"),
+        (_with_solver("seed = -1"), "solver.seed"),
+        (_with_solver("restarts = 1000000000"), "solver.restarts"),
+        (_with_solver("max_iters = 0"), "solver.max_iters"),
+        (_with_solver("alpha = 0"), "solver.alpha"),
+        (_with_solver("beta = inf"), "solver.beta"),
+        (_with_solver("stall_window = 0"), "solver.stall_window"),
+        (_with_solver("max_step = [1e300, 0.5]"), "solver.max_step[0]"),
+        (_with_solver("max_step = [0.2, 0]"), "solver.max_step[1]"),
+        (BASE + "\n[limits]\nvelocity = [1.0, inf]\n", "limits.velocity"),
+        (BASE + "\n[limits]\nvelocity = [1.0, 1e-300]\n", "limits.velocity[1]"),
+        (BASE + "\n[limits]\nvelocity = { q1 = 1.0, q2 = inf }\n", "limits.velocity.q2"),
+        (
+            BASE.replace("position = [1.0, 1.0, 0.0]", "position = [1e200, 1.0, 0.0]"),
+            "target.position",
+        ),
+        (
+            BASE.replace("position = [1.0, 1.0, 0.0]", "position = [1, 1, 0]\nrpy = [1e300, 0, 0]"),
+            "target.rpy",
+        ),
+        (BASE.replace("q0 = [0.3, 0.6]", "q0 = [0.3, nan]"), "q0"),
+        (
+            BASE.replace("robot", 'mode = "track"\nrobot', 1) + "\n[track]\ndt = inf\nsteps = 3\n",
+            "track.dt",
+        ),
+        (
+            BASE.replace("robot", 'mode = "track"\nrobot', 1)
+            + "\n[track]\ndt = 0.01\nsteps = 1000000000000\n",
+            "track.steps",
+        ),
+        (BASE + "\n[statics]\nforce = [1e300, 0, 0]\n", "statics.force"),
+        (BASE + "\n[statics]\npayload_direction = [0, 0, 0]\n", "statics.payload_direction"),
+    ],
+)
+def test_every_number_is_range_checked_at_load_time(tmp_path, text, field):
+    path = write(tmp_path, text)
+    with pytest.raises(qpik.ProblemFileError) as info:
+        qpik.load_problem(path)
+    assert info.value.field == field and info.value.path == str(path), str(info.value)
+    assert str(path) in str(info.value) and repr(field) in str(info.value)
+
+
+def test_huge_quaternion_and_payload_direction_are_normalised_without_overflow(tmp_path):
+    text = BASE.replace('type = "position"', 'type = "frame"').replace(
+        "position = [1.0, 1.0, 0.0]", "position = [1.0, 1.0, 0.0]\nquaternion = [1e300, 0, 0, 1e300]"
+    ) + "\n[statics]\npayload_direction = [0, 1e-320, 0]\n"
+    problem = qpik.load_problem(write(tmp_path, text))
+    expected = np.zeros(9)
+    mujoco.mju_quat2Mat(expected, np.array([1.0, 0.0, 0.0, 1.0]) / math.sqrt(2.0))
+    np.testing.assert_allclose(problem.goals[0].target.rotation, expected.reshape(3, 3), atol=1e-15)
+    np.testing.assert_array_equal(problem.statics["payload_direction"], [0.0, 1.0, 0.0])
+
+
+def test_non_utf8_file_names_the_byte(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(BASE.replace('"planar_2r"', '"planar_2r" # caf\xe9').encode("latin-1"))
+    with pytest.raises(qpik.ProblemFileError, match=r"UTF-8.*byte \d+ \(line \d+\)") as info:
+        qpik.load_problem(path)
+    assert info.value.field == "(file)"
+
+
+def test_byte_order_mark_is_accepted(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + BASE.encode())
+    assert qpik.load_problem(path).model.nv == 2
+
+
+@pytest.mark.parametrize("nesting", ["[" * 3000 + "]" * 3000, "{a = " * 3000 + "1" + "}" * 3000])
+def test_deeply_nested_file_is_a_problem_file_error(tmp_path, nesting):
+    path = write(tmp_path, f"x = {nesting}\n")
+    with pytest.raises(qpik.ProblemFileError, match="nested") as info:
+        qpik.load_problem(path)
+    assert info.value.field == "(file)"
+
+
+def test_robot_name_too_long_is_a_problem_file_error(tmp_path):
+    path = write(tmp_path, BASE.replace('"planar_2r"', '"' + "x" * 5000 + '.xml"'))
+    with pytest.raises(qpik.ProblemFileError) as info:
+        qpik.load_problem(path)
+    assert info.value.field == "robot"
+
+
+UNNAMED_FIRST_KEY = """<mujoco model="keys">
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="l1"><joint name="j1" axis="0 0 1" range="-3 3"/>
+      <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+      <body name="l2" pos="1 0 0"><joint name="j2" axis="0 0 1" range="-3 3"/>
+        <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/><site name="ee" pos="1 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <keyframe><key qpos="0.5 0.5"/><key name="home" qpos="1.0 -1.0"/></keyframe>
+</mujoco>
+"""
+
+
+def test_q0_keyframe_by_name_when_an_unnamed_keyframe_comes_first(tmp_path):
+    (tmp_path / "keys.xml").write_text(UNNAMED_FIRST_KEY)
+    text = BASE.replace('"planar_2r"', '"keys.xml"').replace("q0 = [0.3, 0.6]", 'q0 = "home"')
+    problem = qpik.load_problem(write(tmp_path, text))
+    assert problem.q0.tolist() == [1.0, -1.0]
+
+
+def test_q0_within_tolerance_outside_a_limit_is_clamped_and_iterates_stay_inside(tmp_path):
+    upper = qpik.Configuration(qpik.load_robot("planar_2r")).upper
+    q0 = f"q0 = [0.3, {float(upper[1]) + 5e-7!r}]"
+    text = BASE.replace("q0 = [0.3, 0.6]", q0).replace(
+        "position = [1.0, 1.0, 0.0]", "position = [0.5, 1.5, 0.0]"
+    )
+    problem = qpik.load_problem(write(tmp_path, text))
+    assert problem.q0[1] == upper[1]
+    result = problem.solve()
+    for q in result.path:
+        assert np.all(q <= upper) and np.all(q >= -upper)
