@@ -1,0 +1,102 @@
+"""``qpik batch``: solve a file of targets on every core (or on Ray), chunk by chunk."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..batch import solve_file
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "batch",
+        help="solve a file of IK targets on every core or a Ray cluster; resumable",
+        description="Solve one IK problem per row of TARGETS (qpik.solve for one frame, "
+        "seeded per row) in a process pool or on Ray, and write RESULTS (npz: q, converged, "
+        "reason, position_error [m], orientation_error [rad], iterations, restarts_used, "
+        "time [s], done) chunk by chunk. TARGETS is an .npz with positions (N, 3) [m] and "
+        "optionally quaternions (N, 4, w x y z), world frame, or a .csv with columns x,y,z "
+        "and optionally qw,qx,qy,qz. Finished chunks are kept in RESULTS.chunks/ until the "
+        "end: rerunning the same command resumes without redoing them. Exit status: 0 every "
+        "target solved (converged or not), 2 invalid input, 3 stopped early (--max-chunks), "
+        "130 interrupted; rerun to resume.",
+        epilog="examples: qpik batch targets.npz --robot ur5e --frame ee --out results.npz; "
+        "qpik batch targets.csv --robot erd:panda --frame panda_hand --out r.npz --workers 2; "
+        "qpik batch targets.npz --robot ur5e --frame ee --out r.npz --ray auto",
+    )
+    parser.add_argument("targets", metavar="TARGETS", help="targets file (.npz or .csv)")
+    parser.add_argument(
+        "--robot", required=True, help="bundled name (qpik robots), .xml/.urdf path or erd:NAME"
+    )
+    parser.add_argument("--frame", required=True, help="target frame (site, body or geom name)")
+    parser.add_argument("--out", required=True, metavar="RESULTS", help="results file (.npz)")
+    parser.add_argument(
+        "--chunk-size", type=int, default=128, metavar="N", help="targets per chunk (128)"
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes (default: every core; with --ray, every CPU of the cluster)",
+    )
+    parser.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run on Ray: 'auto' (the running cluster), 'ray://HOST:PORT', or 'local' to "
+        "start one here (needs pip install 'qpik[cluster]')",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="batch seed (0)")
+    parser.add_argument("--tol-position", type=float, help="[m] (qpik.solve's default)")
+    parser.add_argument("--tol-orientation", type=float, help="[rad] (qpik.solve's default)")
+    parser.add_argument("--max-iters", type=int, help="iterations per attempt")
+    parser.add_argument("--restarts", type=int, help="random restarts per target")
+    parser.add_argument("--time-budget", type=float, help="[s] per target")
+    parser.add_argument(
+        "--max-chunks", type=int, metavar="K", help="solve at most K chunks now; rerun to resume"
+    )
+    parser.add_argument(
+        "--overwrite", action="store_true", help="discard an earlier run over --out"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    options = {
+        name: value
+        for name, value in (
+            ("tol_position", args.tol_position),
+            ("tol_orientation", args.tol_orientation),
+            ("max_iters", args.max_iters),
+            ("restarts", args.restarts),
+            ("time_budget", args.time_budget),
+        )
+        if value is not None
+    }
+    try:
+        run_ = solve_file(
+            args.robot,
+            args.frame,
+            args.targets,
+            args.out,
+            chunk_size=args.chunk_size,
+            seed=args.seed,
+            workers=args.workers,
+            backend="ray" if args.ray else "process",
+            address=None if args.ray in (None, "local") else args.ray,
+            max_chunks=args.max_chunks,
+            overwrite=args.overwrite,
+            progress=not args.quiet,
+            **options,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"qpik batch: interrupted; finished chunks are kept in {args.out}.chunks/: "
+            "run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
+    if not args.quiet:
+        print(run_.summary())
+    return 0 if run_.complete else 3
