@@ -34,9 +34,9 @@ as ``srdf=``) has its ``<group_state>`` entries loaded as MuJoCo keyframes
 a state does not name keep ``qpos0``; ``root_joint`` values (Pinocchio's ``x y z qx qy qz
 qw``) set the free joint's pose when the base floats.
 
-Every model ``load_robot`` builds also carries its own MJCF source (a custom text element
-named :data:`SOURCE_TEXT`), so that :func:`qpik.scene.add_obstacle` can rebuild it with
-more geoms.
+Every model ``load_robot`` builds also carries how it was built (a custom text element
+named :data:`SOURCE_TEXT`: the file, ``floating_base``, ``srdf``, as JSON), so that
+:func:`qpik.scene.add_obstacle` can rebuild it, bit for bit, with more geoms.
 
 Tool frame. :func:`tool_frame` names the frame a command uses when none is given: the site
 ``ee`` if the model has one; else the first known tool link (:data:`TOOL_LINKS`) found; else
@@ -46,6 +46,7 @@ deepest body, then the lowest id).
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import warnings
@@ -71,6 +72,7 @@ __all__ = [
     "list_robots",
     "load_robot",
     "robot_path",
+    "robot_spec",
     "robots_dir",
     "tool_frame",
 ]
@@ -81,7 +83,7 @@ _READABLE_MESHES = {".stl", ".obj", ".msh"}
 #: Name of the free joint ``floating_base=True`` adds (Pinocchio's and the SRDFs' name).
 ROOT_JOINT = "root_joint"
 
-#: Name of the custom text element holding a model's MJCF source.
+#: Name of the custom text element holding how a model was built (JSON).
 SOURCE_TEXT = "qpik_source"
 
 #: ``erd:`` names that are not simply the URDF's file stem (the names example-robot-data's
@@ -238,6 +240,29 @@ def erd_path(name: str) -> Path:
 
 # ------------------------------------------------------------------------- files
 def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
+    spec = robot_spec(path, floating_base=floating_base, srdf=srdf)
+    recipe = {
+        "path": str(path.resolve()),
+        "floating_base": bool(floating_base),
+        "srdf": srdf if srdf in (None, False, True) else str(Path(os.fspath(srdf)).resolve()),
+        "obstacles": [],
+    }
+    spec.add_text(name=SOURCE_TEXT, data=json.dumps(recipe))
+    try:
+        return spec.compile()
+    except ValueError as exc:  # pragma: no cover - the model compiled a moment ago
+        raise RobotFileError(str(path), str(exc).strip()) from exc
+
+
+def robot_spec(
+    path: str | os.PathLike,
+    *,
+    floating_base: bool = False,
+    srdf: str | os.PathLike | bool | None = None,
+) -> mujoco.MjSpec:
+    """The ``mujoco.MjSpec`` :func:`load_robot` compiles for a file (same arguments): edit
+    it (add bodies, geoms, sites) and ``compile()`` it for a model of your own."""
+    path = Path(os.fspath(path))
     if not path.is_file():
         raise RobotFileError(str(path), "no such file")
     try:
@@ -265,10 +290,8 @@ def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
         model = spec.compile()
     except ValueError as exc:  # MuJoCo's parse and compile errors
         raise RobotFileError(str(path), str(exc).strip()) from exc
-    changed = False
     if velocities:
         _add_velocity_numeric(spec, model, velocities)
-        changed = True
     srdf_path = None
     if srdf is None and root.tag == "robot":
         srdf_path = find_srdf(path)
@@ -277,13 +300,8 @@ def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
         if not srdf_path.is_file():
             raise RobotFileError(str(srdf_path), "no such SRDF file")
     if srdf_path is not None:
-        changed |= _add_srdf_keyframes(spec, model, srdf_path)
-    _absolute_meshes(spec, path)
-    spec.add_text(name=SOURCE_TEXT, data=spec.to_xml())
-    try:
-        return spec.compile()
-    except ValueError as exc:  # pragma: no cover - the model compiled a moment ago
-        raise RobotFileError(str(path), str(exc).strip()) from exc
+        _add_srdf_keyframes(spec, model, srdf_path)
+    return spec
 
 
 def _resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
@@ -520,16 +538,6 @@ def _add_srdf_keyframes(spec: mujoco.MjSpec, model: mujoco.MjModel, path: Path) 
         existing.add(name)
         added = True
     return added
-
-
-def _absolute_meshes(spec: mujoco.MjSpec, path: Path) -> None:
-    """Make mesh file names absolute, so the spec's XML compiles from anywhere."""
-    base = path.resolve().parent
-    meshdir = spec.meshdir or ""
-    for mesh in spec.meshes:
-        if mesh.file and not os.path.isabs(mesh.file):
-            mesh.file = str((base / meshdir / mesh.file).resolve())
-    spec.meshdir = ""
 
 
 # --------------------------------------------------------------------- tool frame

@@ -8,7 +8,6 @@ that contract works at any priority level of :class:`qpik.IKSolver`.
 
 from mink import (
     AxisAlignTask,
-    ComTask,
     DampingTask,
     DofFreezingTask,
     EqualityConstraintTask,
@@ -22,6 +21,7 @@ from mink import (
 )
 from mink.tasks.task import BaseTask
 
+from .com import ComTask
 from .frame import OrientationTask, PoseTask, PositionTask
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 

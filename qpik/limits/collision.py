@@ -1,0 +1,261 @@
+r"""Collision avoidance between geom pairs, in the units of qpik's variable ``dq = v dt``.
+
+For a pair of geoms at distance ``d`` (MuJoCo's ``mj_geomDistance``: negative when they
+penetrate) with nearest points ``p1``, ``p2`` and unit normal ``n = (p2 - p1) / |p2 - p1|``,
+the distance changes to first order by ``n^T (J_2(p2) - J_1(p1)) dq`` [m] over a step
+(``J_i`` the world-aligned translational Jacobians of the points, MuJoCo's ``mj_jac``). The
+limit keeps it from closing faster than a fraction ``gain`` of the margin left above
+``d_min`` (``minimum_distance_from_collisions``) in one step:
+
+.. math::
+
+    -n^T (J_2 - J_1)\, dq \le \text{gain}\,(d - d_\min) + \text{bound\_relaxation}
+
+one general row per pair closer than ``collision_detection_distance``. Both sides are
+displacements [m]: mink's :class:`mink.CollisionAvoidanceLimit` writes the right side as
+``gain (d - d_min) / dt``, a velocity bound, which lets an IK whose variable is a
+displacement close ``1 / dt`` times faster (100 times at 100 Hz). Inside ``d_min`` the
+right side is negative: the row pushes the geoms apart (by ``gain`` of the intrusion per
+step) instead of only stopping them, so the clearance recovers after the linearisation
+error of a fast step (mink's row is 0 there, which keeps the intrusion).
+
+Pairs follow mink's rules (no pair within one body or welded bodies, none between a parent
+and a child body, and ``contype``/``conaffinity`` must allow contact unless
+``respect_contype=False``). A limit that would check no pair raises
+:class:`qpik.CollisionPairError` saying which rule removed the pairs and naming the geoms.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+from mink.limits.collision_avoidance_limit import (
+    _are_geom_bodies_parent_child,
+    _is_pass_contype_conaffinity_check,
+    _is_welded_together,
+    compute_contact_normal_jacobian,
+)
+
+from ..configuration import Configuration, frame_names
+from ..errors import CollisionPairError, InvalidInput, UnknownFrame
+
+__all__ = ["CollisionAvoidanceLimit", "geom_distance"]
+
+Geom = int | str
+CollisionPairs = Sequence[tuple[Sequence[Geom], Sequence[Geom]]]
+
+
+def _geom_label(model: mujoco.MjModel, geom: int) -> str:
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if name:
+        return repr(name)
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
+    return f"geom {geom} (body {body!r})"
+
+
+class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
+    """Keep geom pairs at least ``minimum_distance_from_collisions`` apart [m].
+
+    Args (mink's, same names and defaults):
+        model: the MuJoCo model.
+        geom_pairs: pairs of geom groups ``[(["hand", "link7"], ["obstacle"]), ...]``,
+            geoms by name or id; every geom of the first group is checked against every
+            geom of the second.
+        gain: fraction in (0, 1] of the margin above ``d_min`` the pair may close per step.
+        minimum_distance_from_collisions: ``d_min`` [m].
+        collision_detection_distance: pairs farther apart than this [m] get no row.
+        bound_relaxation: added to every row's right side [m].
+        broadphase: skip pairs whose bounding spheres are out of range (exact; mink's).
+        respect_contype: apply MuJoCo's ``contype``/``conaffinity`` filter to the pairs
+            (mink does). ``False`` checks the pairs you list whatever their contact bits
+            (geoms that only exist for the IK, or a model whose geoms are visual only).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        geom_pairs: CollisionPairs,
+        gain: float = 0.85,
+        minimum_distance_from_collisions: float = 0.005,
+        collision_detection_distance: float = 0.01,
+        bound_relaxation: float = 0.0,
+        broadphase: bool = True,
+        *,
+        respect_contype: bool = True,
+    ):
+        if not 0.0 < gain <= 1.0:
+            raise InvalidInput(f"gain must be in (0, 1], got {gain}")
+        if not np.isfinite(minimum_distance_from_collisions):
+            raise InvalidInput(
+                "minimum_distance_from_collisions must be finite, got "
+                f"{minimum_distance_from_collisions}"
+            )
+        if not collision_detection_distance > minimum_distance_from_collisions:
+            raise InvalidInput(
+                f"collision_detection_distance ({collision_detection_distance}) must exceed "
+                f"minimum_distance_from_collisions ({minimum_distance_from_collisions})"
+            )
+        self.respect_contype = respect_contype
+        self._model_for_pairs = model
+        groups = self._resolve_pairs(model, geom_pairs)
+        self._groups = groups
+        super().__init__(
+            model,
+            geom_pairs,
+            gain=gain,
+            minimum_distance_from_collisions=minimum_distance_from_collisions,
+            collision_detection_distance=collision_detection_distance,
+            bound_relaxation=bound_relaxation,
+            broadphase=broadphase,
+        )
+        if not self.geom_id_pairs:
+            raise CollisionPairError(self._why_no_pairs(model))
+        self._rows = np.zeros((self.max_num_contacts, model.nv))
+        self._h = np.zeros(self.max_num_contacts)
+        self._distances = np.full(self.max_num_contacts, np.inf)
+
+    # ----------------------------------------------------------------- pairs
+    @staticmethod
+    def _resolve_pairs(model: mujoco.MjModel, geom_pairs) -> list[tuple[list[int], list[int]]]:
+        """Geom ids of each pair of groups; :class:`UnknownFrame` lists the geoms."""
+        try:
+            pairs = list(geom_pairs)
+        except TypeError:
+            raise InvalidInput(
+                f"geom_pairs must be a list of (group, group) pairs, got {geom_pairs!r}"
+            ) from None
+        if not pairs:
+            raise CollisionPairError("geom_pairs is empty: give at least one (group, group) pair")
+        resolved = []
+        for k, pair in enumerate(pairs):
+            if not isinstance(pair, (tuple, list)) or len(pair) != 2:
+                raise InvalidInput(f"geom_pairs[{k}] must be a (group, group) pair, got {pair!r}")
+            ids = []
+            for group in pair:
+                group = [group] if isinstance(group, (str, int)) else list(group)
+                group_ids = []
+                for geom in group:
+                    if isinstance(geom, str):
+                        gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+                    else:
+                        gid = int(geom) if 0 <= int(geom) < model.ngeom else -1
+                    if gid < 0:
+                        raise UnknownFrame(geom, "geom", frame_names(model, "geom"))
+                    group_ids.append(gid)
+                ids.append(sorted(set(group_ids)))
+            resolved.append((ids[0], ids[1]))
+        return resolved
+
+    def _construct_geom_id_pairs(self, geom_pairs) -> list[tuple[int, int]]:
+        """mink's rules, with the contype filter optional; sorted (deterministic rows)."""
+        model = self._model_for_pairs
+        pairs = set()
+        for group_a, group_b in self._resolve_pairs(model, geom_pairs):
+            for a, b in itertools.product(group_a, group_b):
+                if self._reject(model, a, b) is None:
+                    pairs.add((min(a, b), max(a, b)))
+        return sorted(pairs)
+
+    def _reject(self, model: mujoco.MjModel, a: int, b: int) -> str | None:
+        """Why mink's rules drop the pair ``(a, b)``, or None if it is kept."""
+        if a == b or _is_welded_together(model, a, b):
+            return "same body (or bodies welded together)"
+        if _are_geom_bodies_parent_child(model, a, b):
+            return "parent and child bodies"
+        if self.respect_contype and not _is_pass_contype_conaffinity_check(model, a, b):
+            return "contype/conaffinity exclude contact"
+        return None
+
+    def _why_no_pairs(self, model: mujoco.MjModel) -> str:
+        reasons: dict[str, list[str]] = {}
+        for group_a, group_b in self._groups:
+            for a, b in itertools.product(group_a, group_b):
+                reason = self._reject(model, a, b) or "?"
+                reasons.setdefault(reason, []).append(
+                    f"{_geom_label(model, a)}-{_geom_label(model, b)}"
+                )
+        parts = []
+        for reason, pairs in reasons.items():
+            shown = ", ".join(pairs[:4]) + (" ..." if len(pairs) > 4 else "")
+            parts.append(f"{len(pairs)} pair(s) dropped: {reason} ({shown})")
+        message = "CollisionAvoidanceLimit found no geom pair to check: " + "; ".join(parts)
+        if "contype/conaffinity exclude contact" in reasons:
+            geoms = sorted({g for pair in self._groups for group in pair for g in group})
+            bits = ", ".join(
+                f"{_geom_label(model, g)}: contype={int(model.geom_contype[g])} "
+                f"conaffinity={int(model.geom_conaffinity[g])}"
+                for g in geoms[:6]
+            )
+            message += (
+                f". Contact needs (contype1 & conaffinity2) or (contype2 & conaffinity1) "
+                f"nonzero; {bits}. Set contype/conaffinity in the model, or pass "
+                "respect_contype=False to check these pairs anyway"
+            )
+        return message
+
+    # ------------------------------------------------------------------ rows
+    def compute_qp_inequalities(self, configuration: Configuration, dt: float) -> mink.Constraint:
+        """``G dq <= h`` [m]: one row per pair within ``collision_detection_distance``
+        (rows of pairs out of range are left out; no row at all: an inactive constraint).
+        ``dt`` is not used: both sides are displacements."""
+        model = self.model
+        data = configuration.data
+        distmax = self.collision_detection_distance
+        if self.broadphase and self.max_num_contacts >= self.broadphase_min_pairs:
+            indices = np.sort(self._broadphase_survivors(data))
+        else:
+            indices = range(self.max_num_contacts)
+        rows, h = self._rows, self._h
+        self._distances.fill(np.inf)
+        active = []
+        for idx in indices:
+            geom1, geom2 = self.geom_id_pairs[idx]
+            distance = mujoco.mj_geomDistance(model, data, geom1, geom2, distmax, self._fromto)
+            if distance >= distmax - 1e-12:
+                continue
+            row = compute_contact_normal_jacobian(
+                model, data, geom1, geom2, self._fromto, self._normal, self._jac1, self._jac2
+            )
+            sign = -1.0 if distance >= 0 else 1.0
+            rows[idx] = sign * row
+            h[idx] = (
+                self.gain * (distance - self.minimum_distance_from_collisions)
+                + self.bound_relaxation
+            )
+            self._distances[idx] = distance
+            active.append(idx)
+        if not active:
+            return mink.Constraint()
+        return mink.Constraint(G=rows[active].copy(), h=h[active].copy())
+
+    def distances(self, configuration: Configuration) -> dict[tuple[str, str], float]:
+        """Distance [m] of every checked pair (``mj_geomDistance``, negative when they
+        penetrate, capped at 1 m), keyed by the two geoms' labels."""
+        out = {}
+        for geom1, geom2 in self.geom_id_pairs:
+            distance = mujoco.mj_geomDistance(
+                self.model, configuration.data, geom1, geom2, 1.0, None
+            )
+            out[(_geom_label(self.model, geom1), _geom_label(self.model, geom2))] = distance
+        return out
+
+
+def geom_distance(configuration: Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0):
+    """Signed distance [m] between two geoms at the configuration (MuJoCo's
+    ``mj_geomDistance``: negative when they penetrate, ``cap`` when farther apart)."""
+    model = configuration.model
+    ids = []
+    for geom in (geom1, geom2):
+        gid = (
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+            if isinstance(geom, str)
+            else int(geom)
+        )
+        if not 0 <= gid < model.ngeom:
+            raise UnknownFrame(geom, "geom", frame_names(model, "geom"))
+        ids.append(gid)
+    return float(mujoco.mj_geomDistance(model, configuration.data, ids[0], ids[1], cap, None))

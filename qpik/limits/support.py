@@ -1,0 +1,158 @@
+r"""Keep the centre of mass above the support polygon (static balance).
+
+The support polygon is the convex hull (``scipy.spatial.ConvexHull``) of the contact
+frames' footprints projected on the ground (the world x-y plane): each contact frame
+carries the ``footprint`` points, given in its own x-y axes [m] (a foot's sole corners),
+placed in the world at the current configuration. The hull's edges are lines
+``a_i^T p + o_i = 0`` with outward unit normals ``a_i`` (SciPy's ``equations``), so a
+ground point ``p`` is inside with margin ``m`` when ``a_i^T p + o_i <= -m`` for every edge.
+
+With ``c`` the CoM of the subtree of ``body`` (body 1 by default: the robot) and ``J_xy``
+the first two rows of its Jacobian (``mj_jacSubtreeCom``), the limit's rows are, one per
+edge, in displacement units [m]:
+
+.. math::
+
+    a_i^T J_{xy}\, dq \;\le\; \text{gain}\, (-m - o_i - a_i^T c_{xy})
+
+so the CoM's ground projection approaches an edge by at most ``gain`` of the distance left
+(it stays inside to first order, and a start outside moves back in). The hull is taken
+as fixed during the step: hold the contact frames with a task of a higher (or the same)
+priority, as a humanoid stack does with its feet.
+
+The rows are general ``G dq <= h`` rows (they couple every joint that moves the CoM); they
+hold at every priority level, like every limit of :class:`qpik.IKSolver`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+from scipy.spatial import ConvexHull, QhullError
+
+from ..configuration import Configuration, FrameType
+from ..errors import InvalidInput, UnknownFrame
+
+__all__ = ["SupportPolygonLimit"]
+
+
+class SupportPolygonLimit(mink.Limit):
+    """The CoM's ground projection stays inside the contacts' support polygon.
+
+    Args:
+        model: the MuJoCo model.
+        contact_frames: the contact frames (feet, sole links): names, each a site, a body
+            or a geom (looked up in that order), or ``(name, frame_type)``.
+        margin: distance [m] kept between the CoM's projection and every hull edge.
+        footprint: points ``(k, 2)`` [m] in each contact frame's own x-y axes (a sole's
+            corners); default: the frame's origin only (point contacts, which need at
+            least three frames that span an area).
+        gain: fraction in (0, 1] of the distance to an edge that may be covered per step.
+        body: subtree whose CoM is kept inside (name or id; default 1, the robot).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        contact_frames: Sequence[str | tuple[str, FrameType | str]],
+        margin: float = 0.0,
+        footprint: npt.ArrayLike | None = None,
+        gain: float = 0.95,
+        body: str | int = 1,
+    ):
+        if isinstance(contact_frames, str) or not len(contact_frames):
+            raise InvalidInput(
+                f"contact_frames must be a non-empty list of frame names, got {contact_frames!r}"
+            )
+        if not np.isfinite(margin) or margin < 0:
+            raise InvalidInput(f"margin must be a finite distance >= 0 [m], got {margin}")
+        if not 0.0 < gain <= 1.0:
+            raise InvalidInput(f"gain must be in (0, 1], got {gain}")
+        self.model = model
+        self.margin = float(margin)
+        self.gain = float(gain)
+        self.frames = [self._resolve(model, frame) for frame in contact_frames]
+        points = np.zeros((1, 2)) if footprint is None else np.asarray(footprint, dtype=float)
+        if points.ndim != 2 or points.shape[1] != 2 or not np.all(np.isfinite(points)):
+            raise InvalidInput(f"footprint must be finite (k, 2) points [m], got {footprint!r}")
+        self.footprint = np.column_stack([points, np.zeros(len(points))])  # z = 0 in the frame
+        if isinstance(body, str):
+            self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+            if self.body < 0:
+                raise UnknownFrame(body, "body", [model.body(i).name for i in range(model.nbody)])
+        else:
+            self.body = int(body)
+        self._jac = np.empty((3, model.nv))
+
+    @staticmethod
+    def _resolve(model: mujoco.MjModel, frame) -> tuple[str, FrameType, int]:
+        if isinstance(frame, tuple):
+            name, kind = frame
+            kinds = [FrameType.parse(kind)]
+        else:
+            name, kinds = frame, [FrameType.SITE, FrameType.BODY, FrameType.GEOM]
+        objects = {
+            FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+            FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+            FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+        }
+        for kind in kinds:
+            fid = mujoco.mj_name2id(model, objects[kind], name)
+            if fid >= 0:
+                return name, kind, fid
+        from ..configuration import frame_names
+
+        available = frame_names(model, FrameType.SITE) + frame_names(model, FrameType.BODY)
+        raise UnknownFrame(name, "/".join(k.value for k in kinds), available)
+
+    def support_points(self, configuration: Configuration) -> np.ndarray:
+        """The footprints' points on the ground ``(n, 2)`` [m], world x-y."""
+        data = configuration.data
+        points = []
+        for _, kind, fid in self.frames:
+            if kind is FrameType.SITE:
+                position, rotation = data.site_xpos[fid], data.site_xmat[fid]
+            elif kind is FrameType.BODY:
+                position, rotation = data.xpos[fid], data.xmat[fid]
+            else:
+                position, rotation = data.geom_xpos[fid], data.geom_xmat[fid]
+            world = position + self.footprint @ rotation.reshape(3, 3).T
+            points.append(world[:, :2])
+        return np.vstack(points)
+
+    def hull(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """Edges of the support polygon: outward unit normals ``(e, 2)`` and offsets
+        ``(e,)`` (inside: ``normals @ p + offsets <= 0``)."""
+        points = self.support_points(configuration)
+        try:
+            hull = ConvexHull(points)
+        except (QhullError, ValueError) as exc:
+            raise InvalidInput(
+                "the contact frames' footprints span no area (collinear or too few points): "
+                "give a footprint, e.g. a sole's corners, or more contact frames"
+            ) from exc
+        return hull.equations[:, :2].copy(), hull.equations[:, 2].copy()
+
+    def com(self, configuration: Configuration) -> np.ndarray:
+        """The CoM ``(3,)`` [m], world frame."""
+        return configuration.data.subtree_com[self.body].copy()
+
+    def com_margin(self, configuration: Configuration) -> float:
+        """Signed distance [m] from the CoM's ground projection to the polygon's boundary:
+        positive inside (the smallest distance to an edge), negative outside."""
+        normals, offsets = self.hull(configuration)
+        return float(-(normals @ self.com(configuration)[:2] + offsets).max())
+
+    def compute_qp_inequalities(self, configuration: Configuration, dt: float) -> mink.Constraint:
+        """``G dq <= h`` [m], one row per edge of the support polygon (``dt`` unused:
+        both sides are displacements)."""
+        normals, offsets = self.hull(configuration)
+        mujoco.mj_jacSubtreeCom(configuration.model, configuration.data, self._jac, self.body)
+        com_xy = configuration.data.subtree_com[self.body, :2]
+        G = normals @ self._jac[:2]
+        h = self.gain * (-self.margin - offsets - normals @ com_xy)
+        return mink.Constraint(G=G, h=h)

@@ -1,0 +1,99 @@
+r"""Centre-of-mass task: move the robot's CoM to a target point (world frame).
+
+The CoM of the subtree rooted at ``body`` (default body 1, the robot's root: the whole
+robot when the world has one child body, as for every model :func:`qpik.load_robot`
+builds) is MuJoCo's ``data.subtree_com[body]`` [m], world frame. Its Jacobian
+``J_c = d c / d q`` ``(3, nv)`` is MuJoCo's ``mj_jacSubtreeCom`` (for a free joint the
+columns follow MuJoCo's velocity convention: linear velocity in the world frame, angular
+velocity in the body frame, the same as ``mj_integratePos``).
+
+Error ``e = c(q) - c*`` ``(3,)`` [m]; the QP asks ``J_c dq = -gain e``. Error and Jacobian
+equal mink's :class:`mink.ComTask` for body 1 (tests check both, and the Jacobian against
+finite differences).
+"""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import Configuration, frame_names
+from ..errors import InvalidTarget, UnknownFrame
+
+__all__ = ["ComTask"]
+
+
+class ComTask(mink.Task):
+    """Drive the centre of mass of a subtree to a world-frame target [m].
+
+    Args:
+        cost: weight of the rows, a number or one per axis ``(3,)`` [1/m] (a zero weight
+            drops that axis: ``cost=[1, 1, 0]`` leaves the height free).
+        gain: fraction in [0, 1] of the error corrected per step.
+        lm_damping: Levenberg-Marquardt damping (mink's).
+        body: root of the subtree, by name or id (default 1: the robot's root body).
+    """
+
+    k: int = 3
+
+    def __init__(
+        self,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        body: str | int = 1,
+    ):
+        super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
+        self.body = body
+        self.target_com: np.ndarray | None = None
+        self.set_cost(cost)
+
+    def set_cost(self, cost: npt.ArrayLike) -> None:
+        """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
+        cost = np.atleast_1d(np.asarray(cost, dtype=float))
+        if cost.ndim != 1 or cost.shape[0] not in (1, self.k) or not np.all(cost >= 0):
+            raise mink.TaskDefinitionError(
+                f"ComTask cost must be one number or 3 numbers, all >= 0; got {cost.tolist()}"
+            )
+        self.cost[:] = cost
+
+    def set_target(self, target_com: npt.ArrayLike) -> None:
+        """Set the target CoM ``(3,)`` [m], world frame."""
+        target = np.asarray(target_com, dtype=float)
+        if target.shape != (self.k,) or not np.all(np.isfinite(target)):
+            raise InvalidTarget(f"CoM target must be 3 finite numbers [m], got {target_com!r}")
+        self.target_com = target.copy()
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target the CoM the configuration has now."""
+        self.set_target(self.com(configuration))
+
+    def _body_id(self, configuration: Configuration) -> int:
+        model = configuration.model
+        if isinstance(self.body, str):
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.body)
+        else:
+            body = int(self.body) if 0 <= int(self.body) < model.nbody else -1
+        if body < 0:
+            raise UnknownFrame(self.body, "body", frame_names(model, "body"))
+        return body
+
+    def com(self, configuration: Configuration) -> np.ndarray:
+        """The subtree's CoM ``(3,)`` [m], world frame."""
+        return configuration.data.subtree_com[self._body_id(configuration)].copy()
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        """``e = c(q) - c*`` ``(3,)`` [m], world frame."""
+        if self.target_com is None:
+            raise mink.TargetNotSet(self.__class__.__name__)
+        return self.com(configuration) - self.target_com
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        """``J_c = d c / d q`` ``(3, nv)`` [m per unit of dq], from ``mj_jacSubtreeCom``."""
+        jacobian = np.empty((self.k, configuration.model.nv))
+        mujoco.mj_jacSubtreeCom(
+            configuration.model, configuration.data, jacobian, self._body_id(configuration)
+        )
+        return jacobian
