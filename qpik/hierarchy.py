@@ -1,8 +1,9 @@
-r"""Strict task priorities as a cascade of QPs, one persistent workspace per level.
+r"""The IK layer: a task stack and limits at a configuration become a hierarchy of QPs,
+solved by :mod:`qpik.core`.
 
 The variable of every level is the displacement ``dq = v dt`` (``nv``). Level ``k`` has the
-weighted residual ``A_k dq - b_k`` of its tasks (``A = diag(cost) J``, ``b = -gain cost e``)
-and solves
+weighted residual ``A_k dq - b_k`` of its tasks (``A = diag(cost) J``, ``b = -gain cost e``,
+mink's convention) and the core solves
 
 .. math::
 
@@ -10,26 +11,19 @@ and solves
     \quad \text{s.t.} \quad dq \in d_{k-1} + \mathcal{N}_{k-1}, \;
     lb \le dq \le ub, \; G dq \le h
 
-where :math:`d_{k-1}` is the solution of the level above and :math:`\mathcal{N}_{k-1}` the
-null space of the rows of every level above (``N_{-1}`` is everything). Writing
-``dq = d + P z`` with ``P`` the orthogonal projector onto that null space, each level is a
-QP in ``z`` whose only constraints are the limits: it is always feasible (``z = 0`` is the
-level above's solution) and a lower level cannot change any higher level's ``A_j dq``
-(up to the rank tolerance), whatever the solver's tolerance.
+where :math:`d_{k-1}` is the solution of the levels above and :math:`\mathcal{N}_{k-1}` the
+null space of their rows: a lower level never changes a higher level's ``A_j dq``.
+``delta`` (``damping``) is a constant Tikhonov term on every level, as in mink; ``mu_k`` the
+tasks' own Levenberg-Marquardt terms; ``lambda_k`` the adaptive singularity damping of
+:class:`~qpik.core.DampingLaw`, decided from the singular values of the level's unweighted
+Jacobian in the null space above (see :mod:`qpik.core.hierarchy`).
 
-Damping (singularity robustness), per level, from that level's smallest singular value
-*after projection* into the null space of the levels above (so algorithmic singularities,
-where two levels conflict, count as well as kinematic ones)::
+Limits (mink's or qpik's) give box bounds on ``dq`` (joint position and velocity limits,
+computed directly for mink's ConfigurationLimit/VelocityLimit) and general rows
+``G dq <= h`` (collision avoidance, custom limits); they hold at every level.
 
-    sigma  = the r-th singular value of A_k P, r = min(rows_k, nv - rank of the levels above)
-    lambda^2 = max_damping^2 * (1 - (sigma / singular_threshold)^2)   if sigma < singular_threshold
-             = 0                                                        otherwise
-
-(Nakamura & Hanafusa 1986; Chiaverini 1997). Far from singularities the step is the exact
-(prioritised) least-squares step; near them it is damped least squares with the damping
-growing smoothly to ``max_damping^2``, which bounds the step by ``|b| / (2 max_damping)``.
-``delta`` (``damping``) is a small constant Tikhonov term on every level, as in mink, and
-``mu_k`` the tasks' own Levenberg-Marquardt terms.
+:meth:`IKSolver.build` returns that hierarchy (:class:`qpik.core.HierarchyProblem`) for
+inspection; :meth:`IKSolver.step` is ``build`` plus the core solve.
 """
 
 from __future__ import annotations
@@ -42,48 +36,28 @@ from dataclasses import dataclass, field
 import mink
 import mujoco
 import numpy as np
-from scipy.linalg import lapack
 
 from .configuration import Configuration, joint_names
+from .core import (
+    DEFAULT_DAMPING,
+    DampingLaw,
+    HierarchyProblem,
+    HierarchySolver,
+    Level,
+    LevelStatus,
+)
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget, NoSolutionFound
-from .qp import OSQPSettings, make_workspace, solve_linear
 from .tasks import BaseTask
 
-__all__ = ["DampingLaw", "IKSolver", "Stack", "StepResult", "normalize_stack", "solve_ik"]
-
-
-@dataclass(frozen=True)
-class DampingLaw:
-    """Adaptive damping from the smallest (projected) singular value of a level.
-
-    Attributes:
-        singular_threshold: ``sigma`` below which damping starts (units of the level's
-            weighted Jacobian, e.g. [m/rad] for a position task of cost 1).
-        max_damping: ``lambda`` reached at ``sigma = 0``.
-        error_scale: if set, damping also fades with the level's error (see ``__call__``);
-            :func:`qpik.solve` uses this, velocity control does not.
-    """
-
-    singular_threshold: float = 0.05
-    max_damping: float = 0.05
-    error_scale: float | None = None
-
-    def __call__(self, sigma: float, error_norm: float | None = None) -> float:
-        """``lambda^2`` for smallest singular value ``sigma``.
-
-        With ``error_scale`` set, ``lambda^2`` is further scaled by
-        ``min(1, |b| / error_scale)`` (``|b|`` the level's weighted error): damping fades as
-        the error vanishes, in the spirit of Levenberg-Marquardt (Sugihara 2011), so that an
-        iterative solve converges quickly to targets at or near singular configurations;
-        the step stays bounded by ``sqrt(|b| error_scale) / (2 max_damping)``.
-        """
-        if not sigma < self.singular_threshold:
-            return 0.0
-        ratio = sigma / self.singular_threshold
-        lam2 = self.max_damping**2 * (1.0 - ratio * ratio)
-        if self.error_scale is not None and error_norm is not None:
-            lam2 *= min(1.0, error_norm / self.error_scale)
-        return lam2
+__all__ = [
+    "DampingLaw",
+    "IKSolver",
+    "LevelStatus",
+    "Stack",
+    "StepResult",
+    "normalize_stack",
+    "solve_ik",
+]
 
 
 @dataclass
@@ -94,46 +68,32 @@ class StepResult:
         velocity: joint velocity ``(nv,)`` [rad/s or m/s] (``displacement / dt``).
         displacement: ``dq = velocity * dt`` ``(nv,)``.
         residuals: per level, the norm of its weighted residual ``|A_k dq - b_k|`` at the
-            final ``dq``.
-        sigma_min: per level, the smallest singular value that drove its damping.
+            final ``dq``, over all its rows (zero Jacobian rows included).
+        sigma_min: per level, the smallest singular value that drove its damping (inf
+            when the level has none).
         damping: per level, ``lambda^2`` applied.
-        active_limits: the limits that bind at the final ``dq``, e.g.
-            ``"joint4 upper (ConfigurationLimit)"``.
-        status: per level: ``"solved"``, ``"solved_after_retry"``, ``"relaxed"`` (level solved
-            without its general inequality rows, which could not be met), ``"kept_previous"``
-            (the level failed; the level above's ``dq`` is kept) or ``"failed"``.
-        iterations: per level, solver iterations (0 where the backend does not report them).
+        status: per level, a :class:`~qpik.core.LevelStatus` (``"solved"``,
+            ``"infeasible"``: level 0's limits admit no displacement, ``"kept_previous"``,
+            ``"max_iter"``, ``"not_reached"``, ...).
+        iterations: per level, active-set changes (or the forced backend's iterations).
         solve_time: wall time of the whole step [s].
     """
 
     velocity: np.ndarray
     displacement: np.ndarray
+    residuals: list[float]
     sigma_min: list[float]
     damping: list[float]
-    status: list[str]
+    status: list[LevelStatus]
     iterations: list[int]
     solve_time: float
-    _levels: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(
-        default_factory=list, repr=False
-    )  # per level: (A, b, dq right after that level was solved)
     _name_active_limits: Callable[[], list[str]] | None = field(default=None, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
 
     @property
-    def residuals(self) -> list[float]:
-        """Per level, ``|A_k dq - b_k|`` at the final ``dq`` (NaN for levels not reached)."""
-        values = [_norm(A @ self.displacement - b) for A, b, _ in self._levels]
-        return values + [float("nan")] * (len(self.status) - len(values))
-
-    @property
-    def level_residuals_at_solve(self) -> list[float]:
-        """Per level, ``|A_k dq - b_k|`` right after level ``k`` was solved (lower levels
-        must leave it unchanged: the tests of strict priority compare the two)."""
-        return [_norm(A @ d - b) for A, b, d in self._levels]
-
-    @property
     def active_limits(self) -> list[str]:
-        """The limits that bind at the final ``dq`` (named on first access)."""
+        """The limits that bind at the final ``dq``, e.g.
+        ``"joint4 upper (ConfigurationLimit)"`` (named on first access)."""
         if self._active_limits is None:
             names = self._name_active_limits() if self._name_active_limits else []
             self._active_limits = names
@@ -141,8 +101,8 @@ class StepResult:
 
     @property
     def ok(self) -> bool:
-        """True when every level was solved (possibly after a retry)."""
-        return all(s in ("solved", "solved_after_retry") for s in self.status)
+        """True when every level was solved."""
+        return all(s == LevelStatus.SOLVED for s in self.status)
 
 
 #: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
@@ -160,6 +120,8 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
     """
     if isinstance(stack, BaseTask):
         return [[stack]]
+    if isinstance(stack, (str, bytes)) or not isinstance(stack, Sequence):
+        raise InvalidInput(f"the task stack must be a task or a list, got {type(stack).__name__}")
     items = list(stack)
     if not items:
         raise InvalidInput("the task stack is empty")
@@ -167,7 +129,12 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
         return [items]
     levels = []
     for index, item in enumerate(items):
-        level = [item] if isinstance(item, BaseTask) else list(item)
+        if isinstance(item, BaseTask):
+            level = [item]
+        elif isinstance(item, Sequence) and not isinstance(item, (str, bytes)):
+            level = list(item)
+        else:
+            level = None
         if not level or not all(isinstance(t, BaseTask) for t in level):
             raise InvalidInput(
                 f"level {index} of the stack must be a task or a non-empty list of tasks, "
@@ -177,25 +144,27 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
     return levels
 
 
-def _level_residual(
-    tasks: Sequence[BaseTask], configuration: Configuration, nv: int
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Stacked weighted residual ``(A, b, mu)`` of a level: objective ``1/2 |A dq - b|^2``.
+def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
+    """The rows' costs of a task (its ``cost`` broadcast), 1 where it has none."""
+    cost = getattr(task, "cost", None)
+    if cost is None:
+        return np.ones(rows)
+    try:
+        return np.abs(np.broadcast_to(np.asarray(cost, dtype=float), (rows,)))
+    except ValueError:
+        return np.ones(rows)
 
-    Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c``.
-    Rows with zero weight are dropped (they would count as lost rank).
+
+def level_rows(
+    tasks: Sequence[BaseTask], configuration: Configuration, nv: int
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Stacked weighted residual of a level ``(A, b, mu, weights)``: the objective is
+    ``1/2 |A dq - b|^2 + 1/2 mu |dq|^2``; ``weights`` are the rows' costs.
+
+    Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c`` (unit
+    weights). Every row is kept, zero rows included.
     """
-    if len(tasks) == 1:
-        residual = tasks[0].compute_qp_residual(configuration)
-        if residual is not None:
-            A, b, mu = residual
-            if A.ndim != 2:
-                A, b = np.atleast_2d(A), np.atleast_1d(b)
-            nonzero = A.any(axis=1)
-            if not nonzero.all():
-                A, b = A[nonzero], b[nonzero]
-            return A, b, float(mu)
-    A_parts, b_parts = [], []
+    A_parts, b_parts, w_parts = [], [], []
     mu = 0.0
     for task in tasks:
         residual = task.compute_qp_residual(configuration)
@@ -206,17 +175,20 @@ def _level_residual(
             root = np.sqrt(values[keep])
             A_parts.append(root[:, None] * vectors[:, keep].T)
             b_parts.append(-(vectors[:, keep].T @ c) / root)
+            w_parts.append(np.ones(int(keep.sum())))
         else:
-            weighted_jacobian, weighted_error, task_mu = residual
-            A_parts.append(np.atleast_2d(weighted_jacobian))
-            b_parts.append(np.atleast_1d(weighted_error))
+            jacobian, error, task_mu = residual
+            jacobian = np.atleast_2d(jacobian)
+            A_parts.append(jacobian)
+            b_parts.append(np.atleast_1d(error))
+            w_parts.append(_row_weights(task, jacobian.shape[0]))
             mu += float(task_mu)
+    if len(A_parts) == 1:
+        return A_parts[0], b_parts[0], mu, w_parts[0]
     A = np.vstack(A_parts) if A_parts else np.zeros((0, nv))
     b = np.concatenate(b_parts) if b_parts else np.zeros(0)
-    nonzero = np.any(A != 0.0, axis=1)
-    if not nonzero.all():
-        A, b = A[nonzero], b[nonzero]
-    return A, b, mu
+    w = np.concatenate(w_parts) if w_parts else np.zeros(0)
+    return A, b, mu, w
 
 
 @dataclass(frozen=True)
@@ -255,41 +227,28 @@ def _velocity_box(limit: mink.VelocityLimit, configuration: Configuration, dt: f
 _BOX_LIMITS = {mink.ConfigurationLimit: _configuration_box, mink.VelocityLimit: _velocity_box}
 
 
-def _norm(vector: np.ndarray) -> float:
-    """Euclidean norm of a small vector (0 for an empty one)."""
-    return float(np.sqrt(vector @ vector))
-
-
-def _svd(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Singular values and right singular vectors (rows of ``Vt``) of a small matrix."""
-    if matrix.shape[0] == 0:
-        return np.zeros(0), np.zeros((0, matrix.shape[1]))
-    _, s, vt, info = lapack.dgesdd(matrix, full_matrices=0)
-    if info != 0:  # pragma: no cover - LAPACK failure, fall back to numpy's driver
-        _, s, vt = np.linalg.svd(matrix, full_matrices=False)
-    return s, vt
-
-
 class IKSolver:
-    """Differential IK with strict priorities, keeping one QP workspace per level.
+    """Differential IK with strict priorities.
 
     Args:
         model: the MuJoCo model (its ``nv`` fixes the QP size).
         stack: the task stack (see :func:`normalize_stack`); tasks are kept by reference,
             so ``task.set_target(...)`` between steps is how targets move.
         limits: mink or qpik limits, enforced at every level.
-        solver: ``"osqp"`` (default; persistent workspaces, warm starts) or a qpsolvers
-            backend (``"daqp"``, ``"quadprog"``, ``"proxqp"``) with the same semantics.
-        damping: constant Tikhonov term ``delta`` on every level.
+        solver: ``"auto"`` (default: qpik's exact compiled active-set solver, OSQP as its
+            fallback) or a backend forced on every level where a limit binds: ``"osqp"``
+            (a persistent workspace per level), ``"daqp"``, ``"quadprog"``, ``"proxqp"``,
+            ``"clarabel"``; their answers are polished on the active set they find.
+        damping: constant Tikhonov term ``delta`` on every level [unitless, as mink's].
         damping_law: the adaptive (singularity) damping, see :class:`DampingLaw`.
         rank_tolerance: singular values below ``rank_tolerance * max(1, sigma_max)`` of a
-            level's projected rows are treated as zero when locking that level.
-        fast_path: first solve each level's QP without its inequalities (one linear solve);
-            if that minimiser satisfies every limit it *is* the QP's solution (the QP is
-            strictly convex), and the QP solver is called only when a limit binds. Exact;
-            ``False`` sends every level to the QP solver.
-        osqp_settings: OSQP settings (default :class:`qpik.qp.OSQPSettings`: tolerances
-            1e-7, then an exact active-set refinement).
+            level's unweighted projected rows are structural zeros.
+        warm_start: try the previous step's active sets first (speed only: the answer is
+            the same bitwise).
+        backend_options: settings of the forced backend (OSQP settings, or qpsolvers
+            keyword arguments).
+        osqp_settings: former name of ``backend_options`` for OSQP (an object with
+            ``as_dict()``).
     """
 
     def __init__(
@@ -298,28 +257,44 @@ class IKSolver:
         stack: Stack,
         limits: Sequence[mink.Limit] = (),
         *,
-        solver: str = "osqp",
+        solver: str = "auto",
         damping: float = 1e-6,
-        damping_law: DampingLaw | None = DampingLaw(),
+        damping_law: DampingLaw | None = DEFAULT_DAMPING,
         rank_tolerance: float = 1e-9,
-        fast_path: bool = True,
-        osqp_settings: OSQPSettings | None = None,
+        warm_start: bool = True,
+        backend_options: dict | None = None,
+        osqp_settings=None,
     ):
-        if damping < 0 or not np.isfinite(damping):
-            raise InvalidInput(f"damping must be finite and >= 0, got {damping}")
+        if not isinstance(model, mujoco.MjModel):
+            raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
+        if not (isinstance(damping, (int, float)) and math.isfinite(damping) and damping >= 0):
+            raise InvalidInput(f"damping must be finite and >= 0, got {damping!r}")
+        if damping > 1e12:
+            raise InvalidInput(f"damping must be at most 1e12, got {damping!r}")
+        if osqp_settings is not None and backend_options is None:
+            backend_options = osqp_settings.as_dict()
+        if not isinstance(solver, str):
+            raise InvalidInput(f"solver must be a backend name, got {solver!r}")
         self.model = model
         self.levels = normalize_stack(stack)
         self.limits = list(limits)
+        for limit in self.limits:
+            if not hasattr(limit, "compute_qp_inequalities"):
+                raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
         self.solver = solver
         self.damping = float(damping)
         self.damping_law = damping_law
         self.rank_tolerance = rank_tolerance
+        self._core = HierarchySolver(
+            solver,
+            damping_law=damping_law,
+            rank_tolerance=rank_tolerance,
+            warm_start=warm_start,
+            backend_options=backend_options,
+        )
         self._nv = model.nv
-        make_workspace(solver, 1, 1)  # fail early, naming the extra, if the backend is missing
-        self._workspaces: list = [None] * len(self.levels)
         names = joint_names(model)
         self._dof_names = [names[model.dof_jntid[i]] for i in range(model.nv)]
-        self._eye = np.eye(self._nv)
         self._structure_cache: dict[int, tuple] = {}
         self._no_rows = np.zeros((0, self._nv))
         self._bounds = tuple(np.empty(self._nv) for _ in range(4))  # scratch for _limit_rows
@@ -328,15 +303,30 @@ class IKSolver:
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
             )
         )
-        self.fast_path = fast_path
-        self.osqp_settings = osqp_settings
+
+    @property
+    def damping_law(self) -> DampingLaw | None:
+        """The adaptive damping law (settable)."""
+        return self._damping_law
+
+    @damping_law.setter
+    def damping_law(self, law: DampingLaw | None) -> None:
+        if law is not None and not isinstance(law, DampingLaw):
+            raise InvalidInput(f"damping_law must be a DampingLaw or None, got {law!r}")
+        self._damping_law = law
+        if hasattr(self, "_core"):
+            self._core.damping_law = law
 
     @property
     def workspace_setups(self) -> int:
-        """How many QP workspaces were built so far (OSQP: one per level, once)."""
-        return sum(getattr(ws, "setups", 0) for ws in self._workspaces if ws is not None)
+        """How many backend workspaces were built so far (OSQP: at most one per level and
+        reduced size; 0 with the default exact solver)."""
+        return sum(getattr(ws, "setups", 0) for ws in self._core._workspaces.values())
 
-    # ----------------------------------------------------------------- limits
+    def reset(self) -> None:
+        """Forget warm starts and backend workspaces (they only ever change speed)."""
+        self._core.reset()
+
     def _row_structure(self, limit, G: np.ndarray) -> _RowStructure:
         """How a limit's rows split into single-dof bounds and general rows. Cached while
         ``G`` is unchanged (mink's position and velocity limits return the same ``G``)."""
@@ -440,130 +430,57 @@ class IKSolver:
         h = np.concatenate(general_h) if general_h else np.zeros(0)
         return lb, ub, G, h, contributions, general_names
 
+    # ------------------------------------------------------------------- build
+    def build(self, configuration: Configuration, dt: float) -> HierarchyProblem:
+        """The hierarchy of QPs at ``configuration`` for a step of ``dt`` [s]: per level
+        ``A, b`` (weighted rows, in the displacement ``dq``), ``regularization``
+        (``damping`` plus the tasks' LM terms) and row ``weights`` (costs), and the limits
+        as box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h``. The adaptive
+        damping is decided by the core when it solves."""
+        return self._build(configuration, dt)[0]
+
+    def _build(self, configuration: Configuration, dt: float):
+        if not (isinstance(dt, (int, float)) and dt > 0 and math.isfinite(dt)):
+            raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}")
+        if configuration.model is not self.model and configuration.model.nv != self._nv:
+            raise InvalidInput(
+                f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
+            )
+        lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
+        levels = []
+        nv = self._nv
+        for k, tasks in enumerate(self.levels):
+            A, b, mu, w = level_rows(tasks, configuration, nv)
+            finite = math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))
+            if not (finite and math.isfinite(mu)):
+                raise InvalidTarget(
+                    f"priority level {k}: a task error or Jacobian is not finite (a NaN or "
+                    f"inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
+                )
+            levels.append(Level(A, b, self.damping + mu, w, f"level {k}"))
+        problem = HierarchyProblem(levels, lb, ub, G, h, general_names)
+        return problem, contributions
+
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
-        if not dt > 0 or not np.isfinite(dt):
-            raise InvalidInput(f"dt must be a positive number of seconds, got {dt}")
         start = time.perf_counter()
-        nv = self._nv
-        lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
-        m_general = G.shape[0]
-        d = np.zeros(nv)
-        P = self._eye
-        locked_rank = 0
-        statuses, sigmas, dampings, iterations = [], [], [], []
-        solved_levels = []
-        eye = self._eye
-        for k, tasks in enumerate(self.levels):
-            A, b, mu = _level_residual(tasks, configuration, nv)
-            if not math.isfinite(float(b @ b)):
-                raise InvalidTarget(
-                    f"priority level {k}: a task error is not finite (a NaN or inf target?) "
-                    f"in {', '.join(type(t).__name__ for t in tasks)}"
-                )
-            if A.shape[0] == 0 or locked_rank >= nv:
-                statuses.append("solved")
-                sigmas.append(np.inf)
-                dampings.append(0.0)
-                iterations.append(0)
-                solved_levels.append((A, b, d))
-                continue
-            first = locked_rank == 0  # nothing locked yet: P = I, d = 0
-            AP = A if first else A @ P
-            s, Vt = _svd(AP)
-            expected = min(A.shape[0], nv - locked_rank)
-            sigma = float(s[expected - 1]) if expected > 0 and expected <= s.size else 0.0
-            if self.damping_law is None:
-                lam2 = 0.0
-            elif self.damping_law.error_scale is None:
-                lam2 = self.damping_law(sigma)
-            else:
-                lam2 = self.damping_law(sigma, _norm(b - A @ d))
-            reg = self.damping + mu + lam2
-            if first:
-                H = AP.T @ AP
-                H.flat[:: nv + 1] += reg
-                c = -(AP.T @ b) if not d.any() else AP.T @ (A @ d - b) + reg * d
-                M = np.vstack([eye, G]) if m_general else eye
-            else:
-                # P (A^T A + reg I) P on N, identity on its complement (pins z there).
-                H = AP.T @ AP + (reg - 1.0) * P
-                H.flat[:: nv + 1] += 1.0
-                c = AP.T @ (A @ d - b) + reg * (P @ d)
-                M = np.vstack([P, G @ P]) if m_general else P
-            if m_general:
-                lower = np.concatenate([lb - d, np.full(m_general, -np.inf)])
-                upper = np.concatenate([ub - d, h - G @ d])
-            else:
-                lower, upper = lb - d, ub - d
-            z, status, its = self._solve_level(k, H, c, M, lower, upper, m_general)
-            if z is not None:
-                d = d + (z if first else P @ z)
-                # Box limits hold exactly, not to the solver's tolerance.
-                np.maximum(d, lb, out=d)
-                np.minimum(d, ub, out=d)
-            statuses.append(status)
-            sigmas.append(sigma)
-            dampings.append(lam2)
-            iterations.append(its)
-            solved_levels.append((A, b, d))
-            if z is None and k == 0:
-                break
-            # Lock this level's rows for the levels below.
-            tol = self.rank_tolerance * max(1.0, float(s[0]) if s.size else 1.0)
-            r = int(np.count_nonzero(s > tol))
-            if r:
-                V = Vt[:r].T
-                P = (eye if first else P) - V @ V.T
-                locked_rank += r
+        problem, contributions = self._build(configuration, dt)
+        result = self._core.solve(problem, validate=False)
+        d = result.x
+        lb, ub, G, h = problem.lb, problem.ub, problem.G, problem.h
+        names = problem.row_names
         return StepResult(
             velocity=d / dt,
             displacement=d,
-            sigma_min=sigmas,
-            damping=dampings,
-            _name_active_limits=lambda: self._active_limits(
-                d, lb, ub, G, h, contributions, general_names
-            ),
-            status=statuses + ["not_reached"] * (len(self.levels) - len(statuses)),
-            iterations=iterations,
+            residuals=result.residuals,
+            sigma_min=result.sigma,
+            damping=result.damping,
+            status=result.status,
+            iterations=result.iterations,
             solve_time=time.perf_counter() - start,
-            _levels=solved_levels,
+            _name_active_limits=lambda: self._active_limits(d, lb, ub, G, h, contributions, names),
         )
-
-    def _solve_level(self, k, H, c, M, lower, upper, m_general):
-        """Solve level ``k``; on failure retry cold with more iterations, then without the
-        general inequality rows. Returns ``(z or None, status, iterations)``."""
-        if self.fast_path:
-            x = solve_linear(H, -c)
-            if x is not None:
-                Mx = M @ x
-                if (Mx <= upper).all() and (Mx >= lower).all():
-                    return x, "solved", 0
-        rows = M.shape[0]
-        workspace = self._workspaces[k]
-        if workspace is None or workspace.m != rows:
-            workspace = self._workspaces[k] = make_workspace(
-                self.solver, self._nv, rows, self.osqp_settings
-            )
-        solution = workspace.solve(H, c, M, lower, upper)
-        if solution.found:
-            return solution.x, "solved", solution.iterations
-        workspace.reset(cold=True, scale_iterations=10)
-        retry = workspace.solve(H, c, M, lower, upper)
-        workspace.reset(scale_iterations=1)
-        if retry.found:
-            return retry.x, "solved_after_retry", solution.iterations + retry.iterations
-        if m_general:
-            relaxed_lower = lower.copy()
-            relaxed_upper = upper.copy()
-            relaxed_lower[self._nv :] = -np.inf
-            relaxed_upper[self._nv :] = np.inf
-            workspace.reset(cold=True)
-            relaxed = workspace.solve(H, c, M, relaxed_lower, relaxed_upper)
-            if relaxed.found:
-                return relaxed.x, "relaxed", relaxed.iterations
-        return None, ("failed" if k == 0 else "kept_previous"), retry.iterations
 
     def _active_limits(self, d, lb, ub, G, h, contributions, general_names) -> list[str]:
         tol = 1e-9
@@ -594,17 +511,16 @@ def solve_ik(
     dt: float,
     *,
     limits: Sequence[mink.Limit] = (),
-    solver: str = "osqp",
+    solver: str = "auto",
     damping: float = 1e-6,
 ) -> np.ndarray:
     """One differential IK step: the joint velocity ``(nv,)`` [rad/s] for a step of ``dt`` [s].
 
-    A one-shot convenience around :class:`IKSolver` (which keeps workspaces between steps
-    and should be preferred in loops). Raises :class:`qpik.NoSolutionFound` only when the
-    highest priority level cannot be solved even after the fallbacks.
+    A one-shot convenience around :class:`IKSolver`. Raises :class:`qpik.NoSolutionFound`
+    when the highest priority level cannot be solved.
     """
     solver_ = IKSolver(configuration.model, stack, limits, solver=solver, damping=damping)
     result = solver_.step(configuration, dt)
-    if result.status[0] == "failed":
-        raise NoSolutionFound(solver, result.status[0], level=0)
+    if result.status[0] != LevelStatus.SOLVED:
+        raise NoSolutionFound(solver, str(result.status[0]), level=0)
     return result.velocity

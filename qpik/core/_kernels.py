@@ -1,0 +1,565 @@
+r"""Compiled kernels of the core: an exact dense QP solver and the prioritised cascade.
+
+Everything here takes and returns plain arrays (numba ``@njit(cache=True)``), so the
+kernels compile once per machine and load from numba's cache afterwards.
+
+QP (:func:`solve_qp`)
+    ``min 1/2 x^T H x + c^T x  s.t.  lo <= C x <= hi`` with ``H`` symmetric positive
+    definite, by the dual active-set method of Goldfarb and Idnani (1983), the method of
+    quadprog and eiquadprog. It starts from the unconstrained minimiser and adds violated
+    constraints one at a time; it needs no feasible starting point, detects infeasibility,
+    and ends in a finite number of steps (an iteration cap guards against round-off
+    cycling). The factorisations of the working set are recomputed at each step rather
+    than updated, which costs ``O(n^2 q)`` per step: negligible at IK sizes (n <= 100).
+
+    The answer is then *polished*: the KKT system of the final active set (constraints
+    with a positive multiplier, in a canonical order) is solved once more from scratch.
+    So the returned ``x`` depends only on ``(H, c, C, lo, hi)`` and on which active set is
+    optimal, never on the path that found it; a warm start (the previous step's active
+    set, tried first) changes the speed, not the answer.
+
+Cascade (:func:`solve_cascade`)
+    Levels ``(A_k, b_k)`` with regularisation, solved in the null space of the levels above
+    through an orthonormal basis ``Z`` that shrinks level by level (see
+    :mod:`qpik.core.hierarchy` for the maths).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# Status codes shared with qpik.core.hierarchy.LevelStatus (keep in sync).
+SOLVED = 0
+MAX_ITER = 1
+INFEASIBLE = 2
+KEPT_PREVIOUS = 3
+NUMERICAL = 4
+NOT_REACHED = 5
+
+_BIG = 1e20  # bounds beyond this are treated as absent
+
+
+@njit(cache=True)
+def cholesky(H):
+    """Lower Cholesky factor of a symmetric matrix and success flag (no exception)."""
+    n = H.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        s = H[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return L, False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            t = H[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / d
+    return L, True
+
+
+@njit(cache=True)
+def forward(L, B):
+    """``L^-1 B`` for lower-triangular ``L`` and a matrix ``B``."""
+    n, q = B.shape
+    X = np.empty((n, q))
+    for col in range(q):
+        for i in range(n):
+            s = B[i, col]
+            for k in range(i):
+                s -= L[i, k] * X[k, col]
+            X[i, col] = s / L[i, i]
+    return X
+
+
+@njit(cache=True)
+def forward_vec(L, b):
+    """``L^-1 b`` for lower-triangular ``L``."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n):
+        s = b[i]
+        for k in range(i):
+            s -= L[i, k] * x[k]
+        x[i] = s / L[i, i]
+    return x
+
+
+@njit(cache=True)
+def backward_vec(L, b):
+    """``L^-T b`` for lower-triangular ``L``."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * x[k]
+        x[i] = s / L[i, i]
+    return x
+
+
+@njit(cache=True)
+def _normal(C, row, side):
+    """Normal ``n`` of one-sided constraint ``n^T x >= rhs``: ``C_row`` (lower side, +1)
+    or ``-C_row`` (upper side, -1)."""
+    return C[row] * side
+
+
+@njit(cache=True)
+def _rhs(lo, hi, row, side):
+    return lo[row] if side > 0 else -hi[row]
+
+
+@njit(cache=True)
+def _directions(L, C, act_row, act_side, q, normal):
+    """For the working set (q constraints) and a candidate normal: the primal direction
+    ``z`` (the step of x per unit of the candidate's multiplier) and the dual direction
+    ``r`` (how the working set's multipliers change), as in Goldfarb-Idnani:
+    ``z = H^-1 n - H^-1 N (N^T H^-1 N)^-1 N^T H^-1 n``, ``r = (N^T H^-1 N)^-1 N^T H^-1 n``.
+    Also whether the working set's normals are (numerically) independent."""
+    n = L.shape[0]
+    v = forward_vec(L, normal)  # L^-1 n
+    if q == 0:
+        return backward_vec(L, v), np.zeros(0), True
+    N = np.empty((n, q))
+    for j in range(q):
+        N[:, j] = C[act_row[j]] * act_side[j]
+    B = forward(L, N)  # L^-1 N
+    ok = True
+    Q, R = np.linalg.qr(B)
+    proj = Q.T @ v
+    # r = R^-1 Q^T v (upper-triangular solve)
+    r = np.empty(q)
+    scale = 0.0
+    for i in range(q):
+        scale = max(scale, abs(R[i, i]))
+    for i in range(q - 1, -1, -1):
+        s = proj[i]
+        for k in range(i + 1, q):
+            s -= R[i, k] * r[k]
+        if abs(R[i, i]) <= 1e-13 * max(scale, 1e-300):
+            ok = False
+            r[i] = 0.0
+        else:
+            r[i] = s / R[i, i]
+    w = v - Q @ proj
+    # The candidate normal lies in the span of the working set when nothing of L^-1 n is
+    # left outside it: then there is no primal step (z = 0).
+    if np.sqrt(w @ w) <= 1e-11 * np.sqrt(v @ v):
+        return np.zeros(n), r, False
+    return backward_vec(L, w), r, ok
+
+
+@njit(cache=True)
+def _kkt_solve(L, c, C, lo, hi, act_row, act_side, q):
+    """Minimiser of the QP with the working set held as equalities, and its multipliers
+    (one per working constraint, >= 0 when dual feasible). ``ok`` is False when the
+    working set's normals are dependent."""
+    n = L.shape[0]
+    x0 = backward_vec(L, forward_vec(L, -c))  # unconstrained minimiser
+    if q == 0:
+        return x0, np.zeros(0), True
+    N = np.empty((n, q))
+    rhs = np.empty(q)
+    for j in range(q):
+        N[:, j] = C[act_row[j]] * act_side[j]
+        rhs[j] = _rhs(lo, hi, act_row[j], act_side[j])
+    B = forward(L, N)
+    Q, R = np.linalg.qr(B)
+    scale = 0.0
+    for i in range(q):
+        scale = max(scale, abs(R[i, i]))
+    for i in range(q):
+        if abs(R[i, i]) <= 1e-13 * max(scale, 1e-300):
+            return x0, np.zeros(q), False
+    # Multipliers u solve (N^T H^-1 N) u = rhs - N^T x0, i.e. R^T R u = rhs - N^T x0.
+    g = rhs - N.T @ x0
+    y = np.empty(q)
+    for i in range(q):  # R^T y = g
+        s = g[i]
+        for k in range(i):
+            s -= R[k, i] * y[k]
+        y[i] = s / R[i, i]
+    u = np.empty(q)
+    for i in range(q - 1, -1, -1):  # R u = y
+        s = y[i]
+        for k in range(i + 1, q):
+            s -= R[i, k] * u[k]
+        u[i] = s / R[i, i]
+    # x = x0 + H^-1 N u = x0 + L^-T (B u)
+    x = x0 + backward_vec(L, B @ u)
+    return x, u, True
+
+
+@njit(cache=True)
+def _most_violated(x, C, lo, hi, skip, tol):
+    """The most violated constraint (row, side) at x, by violation / |C_row|; row -1 if
+    every constraint holds within ``tol`` (relative to 1 + |bound|)."""
+    m = C.shape[0]
+    best, best_row, best_side = 0.0, -1, 0
+    for i in range(m):
+        if skip[i]:
+            continue
+        cx = 0.0
+        norm = 0.0
+        for j in range(x.shape[0]):
+            cx += C[i, j] * x[j]
+            norm += C[i, j] * C[i, j]
+        if norm == 0.0:
+            continue
+        norm = np.sqrt(norm)
+        if lo[i] > -_BIG:
+            v = (lo[i] - cx) / norm
+            if v > tol * (1.0 + abs(lo[i])) and v > best:
+                best, best_row, best_side = v, i, 1
+        if hi[i] < _BIG:
+            v = (cx - hi[i]) / norm
+            if v > tol * (1.0 + abs(hi[i])) and v > best:
+                best, best_row, best_side = v, i, -1
+    return best_row, best_side
+
+
+@njit(cache=True)
+def _dual_floor(u, q):
+    """Multipliers at or below this are zero (weakly active constraints)."""
+    big = 0.0
+    for j in range(q):
+        big = max(big, abs(u[j]))
+    return 1e-12 * (1.0 + big)
+
+
+@njit(cache=True)
+def _kkt_ok(x, u, C, lo, hi, q, tol):
+    """Primal feasibility of x and dual feasibility of the multipliers u."""
+    floor = _dual_floor(u, q)
+    for j in range(q):
+        if u[j] < -floor:
+            return False
+    skip = np.zeros(C.shape[0], dtype=np.bool_)
+    row, _ = _most_violated(x, C, lo, hi, skip, tol)
+    return row < 0
+
+
+@njit(cache=True)
+def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
+    """Solve ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` exactly.
+
+    Args:
+        H: (n, n) symmetric positive definite.
+        c: (n,).
+        C: (m, n) constraint rows; ``lo``/``hi`` (m,), with +-1e20 or beyond for none
+            (``lo == hi`` is an equality).
+        warm: (m,) int8, the active set to try first: +1 lower side active, -1 upper
+            side, 0 inactive (all zeros for a cold start).
+        max_iter: cap on active-set changes.
+        tol: feasibility tolerance, relative to ``1 + |bound|`` per unit row norm.
+
+    Returns:
+        ``(x, status, iterations, active)``: ``active`` (m,) int8 in the ``warm`` format,
+        the constraints with a positive multiplier at ``x``. ``status`` is SOLVED,
+        MAX_ITER (x is the last iterate), INFEASIBLE or NUMERICAL (H not positive
+        definite).
+    """
+    n = H.shape[0]
+    m = C.shape[0]
+    active = np.zeros(m, dtype=np.int8)
+    L, ok = cholesky(H)
+    if not ok:
+        return np.zeros(n), NUMERICAL, 0, active
+    act_row = np.empty(n + 1, dtype=np.int64)
+    act_side = np.empty(n + 1, dtype=np.int64)
+    q = 0
+    # Warm start: the previous active set, if it is still optimal, is the answer.
+    nwarm = 0
+    for i in range(m):
+        if warm[i] != 0:
+            nwarm += 1
+    if nwarm > 0 and nwarm <= n:
+        for i in range(m):
+            if warm[i] != 0:
+                act_row[q] = i
+                act_side[q] = warm[i]
+                q += 1
+        x, u, ok = _kkt_solve(L, c, C, lo, hi, act_row, act_side, q)
+        if ok and _kkt_ok(x, u, C, lo, hi, q, tol):
+            return _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
+        q = 0
+    # Cold: Goldfarb-Idnani from the unconstrained minimiser.
+    x = backward_vec(L, forward_vec(L, -c))
+    u = np.zeros(n + 1)
+    in_set = np.zeros(m, dtype=np.bool_)
+    iterations = 0
+    while True:
+        row, side = _most_violated(x, C, lo, hi, in_set, tol)
+        if row < 0:
+            return _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
+        normal = _normal(C, row, side)
+        rhs = _rhs(lo, hi, row, side)
+        u_new = 0.0
+        while True:
+            iterations += 1
+            if iterations > max_iter:
+                for j in range(q):
+                    active[act_row[j]] = act_side[j]
+                return x, MAX_ITER, iterations, active
+            z, r, _ = _directions(L, C, act_row, act_side, q, normal)
+            # Partial (dual) step: the largest t keeping the working multipliers >= 0.
+            t1 = np.inf
+            drop = -1
+            for j in range(q):
+                if r[j] > 0.0:
+                    t = u[j] / r[j]
+                    if t < t1:
+                        t1, drop = t, j
+            # Full (primal) step: make the candidate constraint hold with equality.
+            zn = z @ normal
+            slack = normal @ x - rhs
+            t2 = np.inf
+            if zn > 0.0:
+                t2 = -slack / zn
+                if t2 < 0.0:
+                    t2 = 0.0
+            t = min(t1, t2)
+            if t == np.inf:
+                for j in range(q):
+                    active[act_row[j]] = act_side[j]
+                return x, INFEASIBLE, iterations, active
+            if t2 < np.inf:
+                x = x + t * z
+            for j in range(q):
+                u[j] -= t * r[j]
+            u_new += t
+            if t2 <= t1:
+                # Add the candidate to the working set.
+                act_row[q] = row
+                act_side[q] = side
+                u[q] = u_new
+                in_set[row] = True
+                q += 1
+                break
+            # Drop the blocking constraint and try again.
+            in_set[act_row[drop]] = False
+            for j in range(drop, q - 1):
+                act_row[j] = act_row[j + 1]
+                act_side[j] = act_side[j + 1]
+                u[j] = u[j + 1]
+            q -= 1
+
+
+@njit(cache=True)
+def _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
+    """Re-solve the KKT system on the canonical active set (positive multipliers, sorted
+    by row) so that the answer does not depend on how that set was found."""
+    m = C.shape[0]
+    n = L.shape[0]
+    active = np.zeros(m, dtype=np.int8)
+    floor = _dual_floor(u, q)
+    for j in range(q):
+        if u[j] > floor:
+            active[act_row[j]] = act_side[j]
+    rows = np.empty(n + 1, dtype=np.int64)
+    sides = np.empty(n + 1, dtype=np.int64)
+    k = 0
+    for i in range(m):
+        if active[i] != 0:
+            rows[k] = i
+            sides[k] = active[i]
+            k += 1
+    xp, up, ok = _kkt_solve(L, c, C, lo, hi, rows, sides, k)
+    if ok and _kkt_ok(xp, up, C, lo, hi, k, tol):
+        return xp, SOLVED, iterations, active
+    return x, SOLVED, iterations, active
+
+
+@njit(cache=True)
+def project_level(A, w, Z):
+    """``A Z`` and the singular values / right singular vectors of the *unweighted*
+    projected rows ``diag(1/w) A Z`` (rows with ``w == 0`` dropped): these are in the
+    units of the tasks' Jacobians, whatever their costs, and decide rank and damping."""
+    AZ = A @ Z
+    m = A.shape[0]
+    r = Z.shape[1]
+    keep = 0
+    for i in range(m):
+        if w[i] > 0.0:
+            keep += 1
+    J = np.empty((keep, r))
+    k = 0
+    for i in range(m):
+        if w[i] > 0.0:
+            J[k] = AZ[i] / w[i]
+            k += 1
+    if keep == 0 or r == 0:
+        return AZ, np.zeros(0), np.eye(r)
+    _, s, Vt = np.linalg.svd(J, full_matrices=True)
+    return AZ, s, Vt
+
+
+@njit(cache=True)
+def damping_of(s, rank_tol, threshold, max_damping):
+    """``(sigma, lambda^2)``: the smallest singular value the level has (those below the
+    rank tolerance are structural zeros, not singularities) and the damping it drives
+    (``max_damping^2 (1 - (sigma / threshold)^2)`` below the threshold, else 0)."""
+    if s.shape[0] == 0:
+        return np.inf, 0.0
+    cutoff = rank_tol * max(1.0, s[0])
+    sigma = np.inf
+    for i in range(s.shape[0]):
+        if s[i] > cutoff:
+            sigma = s[i]
+    if not sigma < threshold:
+        return sigma, 0.0
+    ratio = sigma / threshold
+    return sigma, max_damping * max_damping * (1.0 - ratio * ratio)
+
+
+@njit(cache=True)
+def rank_of(s, rank_tol):
+    """Numerical rank: singular values above ``rank_tol * max(1, sigma_max)``."""
+    if s.shape[0] == 0:
+        return 0
+    cutoff = rank_tol * max(1.0, s[0])
+    r = 0
+    for i in range(s.shape[0]):
+        if s[i] > cutoff:
+            r += 1
+    return r
+
+
+@njit(cache=True)
+def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
+    """The level's QP in null-space coordinates ``dq = d + Z z``: ``H = (AZ)^T AZ +
+    reg I``, ``c = (AZ)^T (A d - b) + reg Z^T d``; rows ``lb - d <= Z z <= ub - d`` and
+    ``G Z z <= h - G d``."""
+    n, r = Z.shape
+    p = G.shape[0]
+    H = AZ.T @ AZ
+    big = 0.0
+    for i in range(r):
+        big = max(big, H[i, i])
+    # A floor far below any damping a user sets keeps H positive definite when the level
+    # is rank deficient and reg is 0.
+    reg = max(reg, 1e-14 * (1.0 + big))
+    for i in range(r):
+        H[i, i] += reg
+    c = AZ.T @ (A @ d - b) + reg * (Z.T @ d)
+    C = np.empty((n + p, r))
+    lo = np.empty(n + p)
+    hi = np.empty(n + p)
+    C[:n] = Z
+    for i in range(n):
+        lo[i] = lb[i] - d[i] if lb[i] > -_BIG else -np.inf
+        hi[i] = ub[i] - d[i] if ub[i] < _BIG else np.inf
+    if p:
+        C[n:] = G @ Z
+        Gd = G @ d
+        for j in range(p):
+            lo[n + j] = -np.inf
+            hi[n + j] = h[j] - Gd[j]
+    return H, c, C, lo, hi
+
+
+@njit(cache=True)
+def solve_cascade(
+    A,
+    b,
+    w,
+    starts,
+    reg,
+    lb,
+    ub,
+    G,
+    h,
+    threshold,
+    max_damping,
+    error_scale,
+    rank_tol,
+    max_iter,
+    tol,
+    warm,
+):
+    """All levels of a hierarchy in one compiled call (see the module docstring).
+
+    Args:
+        A, b, w: the levels' rows stacked ``(M, n)``, ``(M,)``, ``(M,)`` (row weights: the
+            tasks' costs, for the damping and rank decisions), level ``k`` in rows
+            ``starts[k]:starts[k+1]``.
+        reg: (L,) each level's constant regularisation (damping + LM terms).
+        lb, ub: (n,) box bounds on dq; G, h: (p, n), (p,) general rows ``G dq <= h``.
+        threshold, max_damping, error_scale: the damping law (``error_scale <= 0``: none;
+            ``max_damping <= 0``: no adaptive damping).
+        rank_tol: singular values below ``rank_tol * max(1, sigma_max)`` are zero.
+        max_iter, tol: the QP's iteration cap and feasibility tolerance.
+        warm: (L, n + p) int8 active sets to try first (zeros: cold).
+
+    Returns:
+        ``(dq, status, sigma, lam2, iterations, active)`` with per-level arrays and
+        ``active`` (L, n + p) the final active sets (in reduced coordinates).
+    """
+    n = lb.shape[0]
+    p = G.shape[0]
+    L = starts.shape[0] - 1
+    status = np.full(L, NOT_REACHED, dtype=np.int64)
+    sigma = np.full(L, np.inf)
+    lam2 = np.zeros(L)
+    iterations = np.zeros(L, dtype=np.int64)
+    active = np.zeros((L, n + p), dtype=np.int8)
+    d = np.zeros(n)
+    # Start from the box-feasible point nearest to 0 (a start outside the limits).
+    for i in range(n):
+        if d[i] < lb[i]:
+            d[i] = lb[i]
+        if d[i] > ub[i]:
+            d[i] = ub[i]
+    Z = np.eye(n)
+    for k in range(L):
+        s0, s1 = starts[k], starts[k + 1]
+        r = Z.shape[1]
+        if s1 == s0 or r == 0:
+            status[k] = SOLVED
+            continue
+        Ak = A[s0:s1]
+        bk = b[s0:s1]
+        AZ, s, Vt = project_level(Ak, w[s0:s1], Z)
+        lam = 0.0
+        sig = np.inf
+        if max_damping > 0.0:
+            sig, lam = damping_of(s, rank_tol, threshold, max_damping)
+            if lam > 0.0:
+                wmax = 0.0
+                for i in range(s1 - s0):
+                    wmax = max(wmax, w[s0 + i])
+                lam *= wmax * wmax
+                if error_scale > 0.0:
+                    e = Ak @ d - bk
+                    lam *= min(1.0, np.sqrt(e @ e) / error_scale)
+        else:
+            sig, _ = damping_of(s, rank_tol, 1.0, 0.0)
+        sigma[k] = sig
+        lam2[k] = lam
+        H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)
+        z, st, its, act = solve_qp(H, c, C, lo, hi, warm[k], max_iter, tol)
+        iterations[k] = its
+        active[k] = act
+        if st == SOLVED:
+            d = d + Z @ z
+            for i in range(n):
+                if d[i] < lb[i]:
+                    d[i] = lb[i]
+                if d[i] > ub[i]:
+                    d[i] = ub[i]
+            status[k] = SOLVED
+        else:
+            status[k] = st if k == 0 or st == MAX_ITER else KEPT_PREVIOUS
+            if st == MAX_ITER or st == NUMERICAL:
+                return d, status, sigma, lam2, iterations, active
+            if k == 0:
+                return d, status, sigma, lam2, iterations, active
+            continue
+        rank = rank_of(s, rank_tol)
+        if rank > 0:
+            Z = Z @ Vt[rank:].T.copy()
+    return d, status, sigma, lam2, iterations, active

@@ -1,0 +1,190 @@
+"""QP backends for one level's reduced QP, used when a backend is forced (``solver=...``)
+or as the fallback of the exact active-set kernel.
+
+Each solves ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` (``x`` of fixed size ``n``,
+``C`` with a fixed number of rows). The OSQP backend keeps one workspace per level and size:
+it is set up once with a dense pattern (explicit zeros kept); later solves update the
+values and warm-start. The others go through :mod:`qpsolvers`. Answers are polished by the
+caller on the active set they identify, so a backend's tolerance and warm start change
+speed, not the answer.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InvalidInput, MissingExtra
+
+__all__ = [
+    "BACKENDS",
+    "OSQP_DEFAULTS",
+    "OSQPWorkspace",
+    "QPSolution",
+    "QPWorkspace",
+    "make_workspace",
+]
+
+_INF = 1e20  # what OSQP treats as infinity
+
+#: OSQP settings qpik uses (tight tolerances; polishing is done by qpik's active-set
+#: kernel instead of OSQP's, which prints on every polish that finds no active row).
+OSQP_DEFAULTS = {
+    "eps_abs": 1e-7,
+    "eps_rel": 1e-7,
+    "max_iter": 4000,
+    "polishing": False,
+    "warm_starting": True,
+    "verbose": False,
+    "check_termination": 5,
+    "adaptive_rho": True,
+    "scaling": 10,
+}
+
+
+@dataclass
+class QPSolution:
+    """Outcome of one backend solve: ``x`` (None when not found), the backend's status
+    ("solved", "max_iter", "primal_infeasible", ...), iterations, time [s]."""
+
+    x: np.ndarray | None
+    status: str
+    iterations: int
+    solve_time: float
+
+    @property
+    def found(self) -> bool:
+        """Only a converged solve counts: an iteration-capped one is never "found"."""
+        return self.x is not None and self.status == "solved"
+
+
+class QPWorkspace(Protocol):
+    """What a backend provides: ``solve`` a QP of fixed size, reusing what it can."""
+
+    name: str
+
+    def solve(
+        self, H: np.ndarray, c: np.ndarray, C: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    ) -> QPSolution: ...
+
+
+class OSQPWorkspace:
+    """A persistent OSQP workspace for dense QPs of size ``n`` with ``m`` rows."""
+
+    name = "osqp"
+
+    def __init__(self, n: int, m: int, options: dict | None = None):
+        import osqp
+
+        self._osqp = osqp
+        self.n, self.m = n, m
+        unknown = set(options or {}) - set(OSQP_DEFAULTS) - {
+            "rho", "sigma", "alpha", "time_limit", "delta", "adaptive_rho_interval",
+            "adaptive_rho_tolerance", "scaled_termination", "eps_prim_inf", "eps_dual_inf",
+        }  # fmt: skip
+        if unknown:
+            raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
+        self.settings = {**OSQP_DEFAULTS, **(options or {})}
+        rows, cols = np.triu_indices(n)
+        order = np.lexsort((rows, cols))
+        self._h_rows, self._h_cols = rows[order], cols[order]
+        self._solver = None
+        self._status_names = {
+            int(v): k.removeprefix("OSQP_").lower()
+            for k, v in osqp.SolverStatus.__members__.items()
+        }
+        self.setups = 0
+
+    def _setup(self, H, c, C, lo, hi) -> None:
+        n, m = self.n, self.m
+        h_indptr = np.concatenate([[0], np.cumsum(np.arange(1, n + 1))])
+        P = sp.csc_matrix((H[self._h_rows, self._h_cols], self._h_rows, h_indptr), shape=(n, n))
+        A = sp.csc_matrix(
+            (C.ravel(order="F"), np.tile(np.arange(m), n), np.arange(0, m * n + 1, m)),
+            shape=(m, n),
+        )
+        solver = self._osqp.OSQP()
+        solver.setup(P, c, A, lo, hi, **self.settings)
+        self._solver = solver
+        self.setups += 1
+
+    def solve(self, H, c, C, lo, hi) -> QPSolution:
+        """Update the workspace's values and solve (set up on the first call)."""
+        lo = np.maximum(lo, -_INF)
+        hi = np.minimum(hi, _INF)
+        start = time.perf_counter()
+        if self._solver is None:
+            self._setup(H, c, C, lo, hi)
+        else:
+            self._solver.update(
+                Px=H[self._h_rows, self._h_cols], Ax=C.ravel(order="F"), q=c, l=lo, u=hi
+            )
+        result = self._solver.solve(raise_error=False)
+        status = self._status_names.get(int(result.info.status_val), "unknown")
+        if status == "max_iter_reached":
+            status = "max_iter"
+        x = None
+        if status == "solved" and result.x is not None and np.all(np.isfinite(result.x)):
+            x = np.array(result.x)
+        return QPSolution(x, status, int(result.info.iter), time.perf_counter() - start)
+
+
+class QPSolversWorkspace:
+    """A backend through :mod:`qpsolvers` (daqp, quadprog, proxqp, clarabel). Nothing is
+    kept between solves; ``options`` are passed to the solver."""
+
+    def __init__(self, name: str, n: int, m: int, options: dict | None = None):
+        import qpsolvers
+
+        if name not in qpsolvers.available_solvers:
+            raise MissingExtra(f"QP backend {name!r}", "solvers", _PACKAGES.get(name, name))
+        self._qpsolvers = qpsolvers
+        self.name = name
+        self.n, self.m = n, m
+        self.options = dict(options or {})
+        self.setups = 0
+
+    def solve(self, H, c, C, lo, hi) -> QPSolution:
+        """Solve with the backend (one-sided rows ``G x <= h`` built from the finite
+        bounds)."""
+        start = time.perf_counter()
+        upper = np.isfinite(hi) & (hi < _INF)
+        lower = np.isfinite(lo) & (lo > -_INF)
+        G = np.vstack([C[upper], -C[lower]])
+        h = np.concatenate([hi[upper], -lo[lower]])
+        problem = self._qpsolvers.Problem(
+            0.5 * (H + H.T), c, G if len(h) else None, h if len(h) else None
+        )
+        try:
+            solution = self._qpsolvers.solve_problem(problem, solver=self.name, **self.options)
+        except Exception as exc:  # noqa: BLE001 - backends raise many kinds
+            return QPSolution(None, f"error: {exc}", 0, time.perf_counter() - start)
+        x = solution.x if solution.found else None
+        if x is not None and not np.all(np.isfinite(x)):
+            x = None
+        status = "solved" if x is not None else "infeasible_or_failed"
+        return QPSolution(
+            None if x is None else np.asarray(x), status, 0, time.perf_counter() - start
+        )
+
+
+#: Packages behind the qpsolvers backends, for error messages.
+_PACKAGES = {"daqp": "daqp", "quadprog": "quadprog", "proxqp": "proxsuite", "clarabel": "clarabel"}
+
+#: Backend names: "osqp" keeps a workspace; the others go through qpsolvers.
+BACKENDS = ("osqp", "daqp", "quadprog", "proxqp", "clarabel")
+
+
+def make_workspace(
+    solver: str, n: int, m: int, options: dict | None = None
+) -> OSQPWorkspace | QPSolversWorkspace:
+    """A workspace of the named backend for QPs with ``n`` variables and ``m`` rows."""
+    if solver == "osqp":
+        return OSQPWorkspace(n, m, options)
+    if solver not in BACKENDS:
+        raise InvalidInput(f"unknown QP solver {solver!r}; known solvers: {', '.join(BACKENDS)}")
+    return QPSolversWorkspace(solver, n, m, options)

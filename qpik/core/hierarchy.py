@@ -1,0 +1,501 @@
+r"""Strict priorities as a cascade of QPs in null-space coordinates (no robot here).
+
+A problem has levels ``(A_k, b_k, reg_k)`` over one variable ``x`` (in qpik, the joint
+displacement ``dq``, ``n = nv``), box bounds ``lb <= x <= ub`` and general rows
+``G x <= h``, which hold at every level. Level ``k`` solves
+
+.. math::
+
+    \min_z \tfrac12 \|A_k (d + Z z) - b_k\|^2 + \tfrac12 (\rho_k + \lambda_k^2)\|d + Z z\|^2
+    \quad\text{s.t.}\quad lb \le d + Z z \le ub,\; G (d + Z z) \le h
+
+where ``d`` is the solution of the levels above and ``Z`` an orthonormal basis of the null
+space of their rows (``Z = I`` at level 0). After the level, ``d <- d + Z z`` and ``Z``
+shrinks to the null space of ``A_k Z`` (right singular vectors). A lower level moves only
+in that null space, so it cannot change any ``A_j x`` of a level above: strict priority
+holds exactly (up to round-off), whatever the QP solver's tolerance.
+
+Each level's QP is solved exactly by the compiled dual active-set method of
+:func:`qpik.core._kernels.solve_qp` (``solver="auto"``), which handles box bounds and general
+rows alike; other backends (``"osqp"`` with a persistent workspace per level and reduced
+size, or qpsolvers' ``"daqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``) can be forced,
+and their answers are polished on the active set they identify.
+
+**Damping** (singularity robustness) is decided from the singular values of the level's
+*unweighted* projected rows ``diag(1/w) A_k Z`` (``w`` the rows' costs), so it does not fire
+because a task has a small cost. Singular values below ``rank_tol * max(1, sigma_max)`` are
+structural zeros (a LookAt task's third row, a level that repeats one above) and are not
+singularities. With ``sigma`` the smallest remaining one::
+
+    lambda^2 = w_max^2 max_damping^2 (1 - (sigma / threshold)^2)   if sigma < threshold
+             = 0                                                   otherwise
+
+(Nakamura & Hanafusa 1986; Chiaverini 1997), ``w_max`` the level's largest row cost. Far
+from singularities the step is the exact prioritised least-squares step.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _kernels as K
+from .errors import InvalidInput
+
+__all__ = [
+    "DEFAULT_DAMPING",
+    "DampingLaw",
+    "HierarchyProblem",
+    "HierarchyResult",
+    "HierarchySolver",
+    "Level",
+    "LevelStatus",
+    "SOLVERS",
+]
+
+
+class LevelStatus(str, enum.Enum):
+    """How a level ended (string-valued: ``status == "solved"`` works)."""
+
+    SOLVED = "solved"  #: the level's QP was solved exactly
+    MAX_ITER = "max_iter"  #: the solver's iteration cap was hit and no fallback succeeded
+    INFEASIBLE = "infeasible"  #: the limits admit no solution (level 0 only)
+    KEPT_PREVIOUS = "kept_previous"  #: the level failed; the level above's answer is kept
+    NUMERICAL = "numerical_failure"  #: the solver failed numerically
+    NOT_REACHED = "not_reached"  #: a level above failed, this one was not solved
+
+    def __str__(self) -> str:  # noqa: D105
+        return self.value
+
+
+_STATUS = {
+    K.SOLVED: LevelStatus.SOLVED,
+    K.MAX_ITER: LevelStatus.MAX_ITER,
+    K.INFEASIBLE: LevelStatus.INFEASIBLE,
+    K.KEPT_PREVIOUS: LevelStatus.KEPT_PREVIOUS,
+    K.NUMERICAL: LevelStatus.NUMERICAL,
+    K.NOT_REACHED: LevelStatus.NOT_REACHED,
+}
+
+#: Backends of :class:`HierarchySolver`: "auto" is qpik's exact compiled active set.
+SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
+
+
+@dataclass(frozen=True)
+class DampingLaw:
+    """Adaptive damping from the smallest singular value of a level (see module doc).
+
+    Attributes:
+        singular_threshold: ``sigma`` below which damping starts, in the units of the
+            level's unweighted Jacobian (e.g. [m/rad] for a position task).
+        max_damping: ``lambda`` reached at ``sigma = 0`` (same units), scaled by the
+            level's largest cost.
+        error_scale: if set, ``lambda^2`` is further scaled by ``min(1, |b - A d| /
+            error_scale)``: damping fades as the level's error vanishes (Sugihara 2011);
+            :func:`qpik.solve` uses this, velocity control does not.
+    """
+
+    singular_threshold: float = 0.05
+    max_damping: float = 0.05
+    error_scale: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("singular_threshold", "max_damping"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InvalidInput(f"DampingLaw.{name} must be finite and >= 0, got {value!r}")
+        if self.singular_threshold > 1e6 or self.max_damping > 1e6:
+            raise InvalidInput("DampingLaw values above 1e6 are not meaningful")
+        if self.error_scale is not None and not (
+            isinstance(self.error_scale, (int, float))
+            and math.isfinite(self.error_scale)
+            and 0 < self.error_scale <= 1e6
+        ):
+            raise InvalidInput(
+                f"DampingLaw.error_scale must be None or in (0, 1e6], got {self.error_scale!r}"
+            )
+
+    def __call__(self, sigma: float, error_norm: float | None = None) -> float:
+        """``lambda^2`` (for a level of unit cost) at smallest singular value ``sigma``."""
+        if not sigma < self.singular_threshold:
+            return 0.0
+        ratio = sigma / self.singular_threshold
+        lam2 = self.max_damping**2 * (1.0 - ratio * ratio)
+        if self.error_scale is not None and error_norm is not None:
+            lam2 *= min(1.0, error_norm / self.error_scale)
+        return lam2
+
+
+#: The default damping law of every entry point.
+DEFAULT_DAMPING = DampingLaw()
+
+
+@dataclass
+class Level:
+    """One priority level: minimise ``1/2 |A x - b|^2 + 1/2 regularization |x|^2``.
+
+    Attributes:
+        A: (m, n) weighted rows (``diag(cost) J`` for tasks).
+        b: (m,) weighted targets (``-gain diag(cost) e``).
+        regularization: constant Tikhonov term (damping plus the tasks' LM terms) >= 0.
+        weights: (m,) the rows' costs, used to judge rank and singularity in the units of
+            the unweighted rows; ``None`` means 1 for every non-zero row.
+        name: a label for messages (e.g. the task names).
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    regularization: float = 0.0
+    weights: np.ndarray | None = None
+    name: str = ""
+
+
+@dataclass
+class HierarchyProblem:
+    """Levels (highest priority first) under limits that hold at every level.
+
+    Attributes:
+        levels: the levels.
+        lb, ub: (n,) box bounds on ``x`` (``-inf``/``inf`` for none).
+        G, h: (p, n), (p,) general rows ``G x <= h``.
+        row_names: optional names of the general rows, for reports.
+    """
+
+    levels: list[Level]
+    lb: np.ndarray
+    ub: np.ndarray
+    G: np.ndarray
+    h: np.ndarray
+    row_names: list[str] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        """Size of the variable."""
+        return int(self.lb.shape[0])
+
+    def stacked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(A, b, w, starts, reg)``: the levels' rows stacked as the kernel takes them."""
+        n = self.n
+        As = [np.asarray(level.A, dtype=float).reshape(-1, n) for level in self.levels]
+        sizes = [a.shape[0] for a in As]
+        starts = np.zeros(len(As) + 1, dtype=np.int64)
+        np.cumsum(sizes, out=starts[1:])
+        A = np.concatenate(As) if As else np.zeros((0, n))
+        bs = [np.asarray(level.b, dtype=float).reshape(-1) for level in self.levels]
+        b = np.concatenate(bs) if bs else np.zeros(0)
+        weights = []
+        for level, a in zip(self.levels, As):
+            if level.weights is None:
+                weights.append((np.abs(a).sum(axis=1) > 0).astype(float))
+            else:
+                weights.append(np.asarray(level.weights, dtype=float).reshape(-1))
+        w = np.concatenate(weights) if weights else np.zeros(0)
+        reg = np.array([float(level.regularization) for level in self.levels])
+        return A, b, w, starts, reg
+
+    def validate(self) -> None:
+        """Shapes and finiteness; raises :class:`qpik.InvalidInput` naming the field."""
+        n = self.n
+        if self.ub.shape != (n,):
+            raise InvalidInput(f"ub must have shape ({n},), got {self.ub.shape}")
+        if self.G.ndim != 2 or self.G.shape[1] != n or self.h.shape != (self.G.shape[0],):
+            raise InvalidInput(f"G must be (p, {n}) and h (p,), got {self.G.shape}, {self.h.shape}")
+        if np.isnan(self.lb).any() or np.isnan(self.ub).any() or not np.isfinite(self.G).all():
+            raise InvalidInput("limits contain NaN")
+        if np.isnan(self.h).any():
+            raise InvalidInput("h contains NaN")
+        for k, level in enumerate(self.levels):
+            A = np.asarray(level.A)
+            if A.ndim != 2 or A.shape[1] != n or np.shape(level.b) != (A.shape[0],):
+                raise InvalidInput(
+                    f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got "
+                    f"{A.shape} and {np.shape(level.b)}"
+                )
+            if not (np.isfinite(A).all() and np.isfinite(level.b).all()):
+                raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
+            if not (math.isfinite(level.regularization) and level.regularization >= 0):
+                raise InvalidInput(
+                    f"level {k} ({level.name}): regularization must be finite and >= 0, "
+                    f"got {level.regularization}"
+                )
+            if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
+                raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
+
+
+@dataclass
+class HierarchyResult:
+    """What :meth:`HierarchySolver.solve` computed.
+
+    Attributes:
+        x: the solution (n,) (``dq`` in qpik).
+        status: per level, a :class:`LevelStatus`.
+        residuals: per level, ``|A_k x - b_k|`` at the final ``x``, over all its rows.
+        sigma: per level, the smallest singular value that drove its damping (inf when
+            none).
+        damping: per level, ``lambda^2`` applied.
+        iterations: per level, active-set changes (or the backend's iterations).
+        active: per level, the active set of its QP: (n + p,) int8, +1 at a lower bound,
+            -1 at an upper bound (box rows first, then the general rows).
+        backend: per level, which backend produced the answer.
+    """
+
+    x: np.ndarray
+    status: list[LevelStatus]
+    residuals: list[float]
+    sigma: list[float]
+    damping: list[float]
+    iterations: list[int]
+    active: np.ndarray
+    backend: list[str]
+
+    @property
+    def ok(self) -> bool:
+        """True when every level was solved."""
+        return all(s is LevelStatus.SOLVED for s in self.status)
+
+
+def _residuals(A, b, starts, x) -> list[float]:
+    r = A @ x - b
+    return [float(np.sqrt(r[s0:s1] @ r[s0:s1])) for s0, s1 in zip(starts[:-1], starts[1:])]
+
+
+class HierarchySolver:
+    """Solves :class:`HierarchyProblem` s, keeping what only speeds it up (the previous
+    active sets, backend workspaces). Answers never depend on that state: the same
+    problem gives bitwise the same result whatever was solved before.
+
+    Args:
+        solver: ``"auto"`` (exact compiled active set, OSQP as fallback if it does not
+            settle) or a backend forced on every level with binding limits (``"osqp"``,
+            ``"daqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``).
+        damping_law: adaptive damping, or ``None``.
+        rank_tolerance: relative singular value below which a direction is not a rank.
+        max_iter: iteration cap of the active-set solver per level (0: ``10 (n + p) + 50``).
+        tolerance: feasibility tolerance of the limits (relative, per unit row norm).
+        warm_start: try the previous call's active sets first (speed only).
+        backend_options: passed to the forced backend (OSQP settings or qpsolvers kwargs).
+    """
+
+    def __init__(
+        self,
+        solver: str = "auto",
+        *,
+        damping_law: DampingLaw | None = DEFAULT_DAMPING,
+        rank_tolerance: float = 1e-9,
+        max_iter: int = 0,
+        tolerance: float = 1e-12,
+        warm_start: bool = True,
+        backend_options: dict | None = None,
+    ):
+        if solver not in SOLVERS:
+            raise InvalidInput(f"unknown QP solver {solver!r}; known solvers: {', '.join(SOLVERS)}")
+        if not (isinstance(rank_tolerance, (int, float)) and 0 < rank_tolerance < 1):
+            raise InvalidInput(f"rank_tolerance must be in (0, 1), got {rank_tolerance!r}")
+        if damping_law is not None and not isinstance(damping_law, DampingLaw):
+            raise InvalidInput(f"damping_law must be a DampingLaw or None, got {damping_law!r}")
+        self.solver = solver
+        self.damping_law = damping_law
+        self.rank_tolerance = float(rank_tolerance)
+        self.max_iter = int(max_iter)
+        self.tolerance = float(tolerance)
+        self.warm_start = warm_start
+        self.backend_options = dict(backend_options or {})
+        self._warm: np.ndarray | None = None
+        self._workspaces: dict = {}
+        if solver != "auto":
+            from .backends import make_workspace
+
+            make_workspace(solver, 1, 1, self.backend_options)  # fail early, naming the extra
+
+    def reset(self) -> None:
+        """Forget the warm start and backend workspaces."""
+        self._warm = None
+        self._workspaces.clear()
+
+    def _law(self) -> tuple[float, float, float]:
+        law = self.damping_law
+        if law is None:
+            return 1.0, 0.0, 0.0
+        return (
+            float(law.singular_threshold),
+            float(law.max_damping),
+            float(law.error_scale) if law.error_scale is not None else 0.0,
+        )
+
+    def _warm_for(self, levels: int, rows: int) -> np.ndarray:
+        warm = self._warm
+        if not self.warm_start or warm is None or warm.shape != (levels, rows):
+            return np.zeros((levels, rows), dtype=np.int8)
+        return warm
+
+    def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
+        """Solve the cascade. ``validate=False`` skips the shape/finiteness checks (the
+        IK layer builds problems that are valid by construction)."""
+        if validate:
+            problem.validate()
+        A, b, w, starts, reg = problem.stacked()
+        n, p = problem.n, problem.G.shape[0]
+        L = len(problem.levels)
+        if L == 0:
+            x = np.clip(np.zeros(n), problem.lb, problem.ub)
+            return HierarchyResult(x, [], [], [], [], [], np.zeros((0, n + p), np.int8), [])
+        max_iter = self.max_iter or 10 * (n + p) + 50
+        threshold, max_damping, error_scale = self._law()
+        warm = self._warm_for(L, n + p)
+        if self.solver == "auto":
+            x, status, sigma, lam2, its, active = K.solve_cascade(
+                A, b, w, starts, reg,
+                np.ascontiguousarray(problem.lb, dtype=float),
+                np.ascontiguousarray(problem.ub, dtype=float),
+                np.ascontiguousarray(problem.G, dtype=float),
+                np.ascontiguousarray(problem.h, dtype=float),
+                threshold, max_damping, error_scale, self.rank_tolerance, max_iter,
+                self.tolerance, warm,
+            )  # fmt: skip
+            backend = ["auto"] * L
+            if (status == K.MAX_ITER).any() or (status == K.NUMERICAL).any():
+                # Rare: round-off cycling. Redo the cascade level by level with OSQP as
+                # the fallback where the active set did not settle.
+                return self._solve_levels(problem, A, b, w, starts, reg, warm, fallback=True)
+            if self.warm_start:
+                self._warm = active
+            statuses = [_STATUS[int(s)] for s in status]
+            return HierarchyResult(
+                x, statuses, _residuals(A, b, starts, x), sigma.tolist(), lam2.tolist(),
+                its.tolist(), active, backend,
+            )  # fmt: skip
+        return self._solve_levels(problem, A, b, w, starts, reg, warm, fallback=False)
+
+    # ------------------------------------------------------------------ level by level
+    def _solve_levels(self, problem, A, b, w, starts, reg, warm, *, fallback: bool):
+        """The cascade in Python, one level at a time, with a backend per level: the
+        forced backend, or (``fallback``) the exact kernel then OSQP where it fails."""
+        n, p = problem.n, problem.G.shape[0]
+        lb = np.ascontiguousarray(problem.lb, dtype=float)
+        ub = np.ascontiguousarray(problem.ub, dtype=float)
+        G = np.ascontiguousarray(problem.G, dtype=float)
+        h = np.ascontiguousarray(problem.h, dtype=float)
+        L = len(problem.levels)
+        threshold, max_damping, error_scale = self._law()
+        max_iter = self.max_iter or 10 * (n + p) + 50
+        status = [LevelStatus.NOT_REACHED] * L
+        sigma = [math.inf] * L
+        lam2s = [0.0] * L
+        its = [0] * L
+        backend = [""] * L
+        active = np.zeros((L, n + p), dtype=np.int8)
+        d = np.clip(np.zeros(n), lb, ub)
+        Z = np.eye(n)
+        for k in range(L):
+            s0, s1 = int(starts[k]), int(starts[k + 1])
+            if s1 == s0 or Z.shape[1] == 0:
+                status[k] = LevelStatus.SOLVED
+                continue
+            Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
+            AZ, s, Vt = K.project_level(Ak, wk, Z)
+            if max_damping > 0:
+                sig, lam = K.damping_of(s, self.rank_tolerance, threshold, max_damping)
+                if lam > 0:
+                    lam *= float(wk.max()) ** 2
+                    if error_scale > 0:
+                        e = Ak @ d - bk
+                        lam *= min(1.0, float(np.sqrt(e @ e)) / error_scale)
+            else:
+                sig, lam = K.damping_of(s, self.rank_tolerance, 1.0, 0.0)
+            sigma[k], lam2s[k] = float(sig), float(lam)
+            H, c, C, lo, hi = K.reduced_qp(Ak, bk, AZ, Z, d, float(reg[k]) + lam, lb, ub, G, h)
+            z, st, it, act, used = self._solve_qp(k, H, c, C, lo, hi, warm[k], max_iter, fallback)
+            its[k], backend[k] = it, used
+            if act is not None:
+                active[k] = act
+            if st == K.SOLVED:
+                d = np.clip(d + Z @ z, lb, ub)
+                status[k] = LevelStatus.SOLVED
+            else:
+                status[k] = _STATUS[st] if k == 0 or st == K.MAX_ITER else LevelStatus.KEPT_PREVIOUS
+                if k == 0:
+                    break
+                continue
+            rank = K.rank_of(s, self.rank_tolerance)
+            if rank:
+                Z = Z @ Vt[rank:].T
+        if self.warm_start:
+            self._warm = active
+        return HierarchyResult(
+            d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend
+        )
+
+    def _solve_qp(self, k, H, c, C, lo, hi, warm, max_iter, fallback):
+        """One level's reduced QP: ``(z, status code, iterations, active, backend)``."""
+        if fallback:
+            z, st, it, act = K.solve_qp(H, c, C, lo, hi, warm, max_iter, self.tolerance)
+            if st in (K.SOLVED, K.INFEASIBLE):
+                return z, st, it, act, "auto"
+            name = "osqp"
+        else:
+            # A backend is forced: skip it when no limit binds (the unconstrained
+            # minimiser is then the answer, exactly).
+            z, st, it, act = K.solve_qp(H, c, C, lo, hi, warm, 0, self.tolerance)
+            if st == K.SOLVED and it == 0 and not act.any():
+                return z, st, 0, act, self.solver
+            name = self.solver
+        from .backends import make_workspace
+
+        key = (k, name, H.shape[0], C.shape[0])
+        workspace = self._workspaces.get(key)
+        if workspace is None:
+            workspace = make_workspace(name, H.shape[0], C.shape[0], self.backend_options)
+        try:
+            solution = workspace.solve(H, c, C, lo, hi)
+        except Exception:  # noqa: BLE001 - a backend failure must not poison the solver
+            self._workspaces.pop(key, None)
+            return None, K.NUMERICAL, 0, None, name
+        self._workspaces[key] = workspace
+        if not solution.found:
+            code = (
+                K.INFEASIBLE
+                if "infeasible" in solution.status
+                else (K.MAX_ITER if "max_iter" in solution.status else K.NUMERICAL)
+            )
+            return None, code, solution.iterations, None, name
+        # Polish on the active set the backend identified: exact, and independent of
+        # the backend's warm start.
+        guess = _active_guess(solution.x, C, lo, hi)
+        z, st, it, act = K.solve_qp(H, c, C, lo, hi, guess, max_iter, self.tolerance)
+        if st == K.SOLVED:
+            return z, st, solution.iterations, act, name
+        return solution.x, K.SOLVED, solution.iterations, guess, name
+
+
+def _active_guess(x: np.ndarray, C: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Rows at a bound at an approximate solution: +1 lower, -1 upper."""
+    Cx = C @ x
+    scale = 1e-6 * (1.0 + np.abs(Cx))
+    guess = np.zeros(C.shape[0], dtype=np.int8)
+    guess[np.isfinite(lo) & (Cx <= lo + scale)] = 1
+    guess[np.isfinite(hi) & (Cx >= hi - scale)] = -1
+    return guess
+
+
+def solve_hierarchy(
+    levels: Sequence[Level],
+    lb: np.ndarray,
+    ub: np.ndarray,
+    G: np.ndarray | None = None,
+    h: np.ndarray | None = None,
+    **options,
+) -> HierarchyResult:
+    """One-shot :class:`HierarchySolver` (``options`` are its arguments)."""
+    n = int(np.shape(lb)[0])
+    problem = HierarchyProblem(
+        list(levels),
+        np.asarray(lb, dtype=float),
+        np.asarray(ub, dtype=float),
+        np.zeros((0, n)) if G is None else np.asarray(G, dtype=float),
+        np.zeros(0) if h is None else np.asarray(h, dtype=float),
+    )
+    return HierarchySolver(**options).solve(problem)
