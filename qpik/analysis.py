@@ -28,6 +28,7 @@ Task rows: wherever ``rows`` is accepted it is ``"pose"`` (all six rows), ``"pos
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -38,7 +39,7 @@ import scipy.linalg
 from scipy.spatial.transform import Rotation
 
 from .configuration import Configuration, FrameType
-from .errors import InfeasibleLimits, InvalidInput
+from .errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 
 __all__ = [
     "ROW_NAMES",
@@ -116,10 +117,41 @@ def _as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int]) -> float:
     if tol is None:  # floored at the smallest normal float: 1 / s must not overflow
         s_max = float(s[0]) if s.size else 0.0
         return max(max(shape) * np.finfo(float).eps * s_max, np.finfo(float).tiny)
-    tol = float(tol)
+    if isinstance(tol, (bool, str, bytes)):
+        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0")
+    try:
+        tol = float(tol)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0") from None
     if not np.isfinite(tol) or tol < 0:
         raise InvalidInput(f"tol is {tol}; it must be a finite number >= 0")
     return tol
+
+
+def _scale(J: np.ndarray) -> float:
+    """The largest ``|J_ij|`` (1 for a zero matrix): SVDs run on ``J / scale``, whose
+    entries are at most 1, so that neither huge (1e300) nor tiny (1e-300) entries
+    overflow or underflow inside LAPACK."""
+    scale = float(np.max(np.abs(J))) if J.size else 0.0
+    return scale if scale > 0.0 else 1.0
+
+
+def _svdvals(J: np.ndarray) -> np.ndarray:
+    """Singular values of ``J``, decreasing, computed on the scaled matrix (they are
+    ``inf`` only where the true value exceeds the largest float)."""
+    scale = _scale(J)
+    with np.errstate(over="ignore"):
+        return scipy.linalg.svdvals(J / scale) * scale
+
+
+def _finite_result(value: np.ndarray, what: str) -> np.ndarray:
+    """``value`` if finite; else the exact result exceeds the float range: InvalidInput."""
+    if not np.all(np.isfinite(value)):
+        raise InvalidInput(
+            f"{what} overflows the float range (its exact value exceeds 1.8e308): rescale "
+            "the inputs (e.g. use other units)"
+        )
+    return value
 
 
 def _row_indices(rows: Rows) -> tuple[int, ...]:
@@ -149,13 +181,13 @@ def _row_indices(rows: Rows) -> tuple[int, ...]:
 # ------------------------------------------------------------ functions of a matrix
 def singular_values(J: npt.ArrayLike) -> np.ndarray:
     """The ``min(m, n)`` singular values of ``J``, in decreasing order."""
-    return scipy.linalg.svdvals(_as_matrix(J))
+    return _finite_result(_svdvals(_as_matrix(J)), "a singular value of J")
 
 
 def rank(J: npt.ArrayLike, tol: float | None = None) -> int:
     """Numerical rank of ``J``: the number of singular values ``> tol``."""
     J = _as_matrix(J)
-    s = scipy.linalg.svdvals(J)
+    s = _svdvals(J)
     return int(np.count_nonzero(s > _as_tol(tol, s, J.shape)))
 
 
@@ -164,11 +196,12 @@ def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     produce no task velocity. Its columns are the right singular vectors of the singular
     values ``<= tol`` (and of the ``n - m`` missing ones when ``m < n``)."""
     J = _as_matrix(J)
-    s = scipy.linalg.svdvals(J)
+    s = _svdvals(J)
     tol = _as_tol(tol, s, J.shape)
     if s[0] <= tol:  # every direction is lost (J = 0 up to tol)
         return np.eye(J.shape[1])
-    return scipy.linalg.null_space(J, rcond=tol / s[0])
+    scale = _scale(J)  # the basis is that of J / scale; rcond is relative to s[0]
+    return scipy.linalg.null_space(J / scale, rcond=min(1.0, tol / s[0]))
 
 
 def degree_of_redundancy(J: npt.ArrayLike, tol: float | None = None) -> int:
@@ -182,8 +215,11 @@ def pseudoinverse(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     treated as zero. ``J^+ xi`` is the least-norm (least-squares) solution of
     ``J qdot = xi``."""
     J = _as_matrix(J)
-    tol = _as_tol(tol, scipy.linalg.svdvals(J), J.shape)
-    return scipy.linalg.pinv(J, atol=tol, rtol=0.0)
+    tol = _as_tol(tol, _svdvals(J), J.shape)
+    scale = _scale(J)  # (J / scale)^+ = scale J^+
+    with np.errstate(over="ignore"):
+        pinv = scipy.linalg.pinv(J / scale, atol=tol / scale, rtol=0.0) / scale
+    return _finite_result(pinv, "the pseudoinverse")
 
 
 def damped_pseudoinverse(J: npt.ArrayLike, damping: float) -> np.ndarray:
@@ -195,13 +231,25 @@ def damped_pseudoinverse(J: npt.ArrayLike, damping: float) -> np.ndarray:
     near singularities: ``||J_damped^+||_2 <= 1 / (2 sqrt(damping))`` for every ``J``.
     """
     J = _as_matrix(J)
-    damping = float(damping)
+    try:
+        damping = float(damping)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"damping is {damping!r}; it must be a number > 0") from None
     if not np.isfinite(damping) or damping <= 0:
         raise InvalidInput(
             f"damping is {damping}; it must be > 0 (use pseudoinverse() for no damping)"
         )
-    gram = J @ J.T + damping * np.eye(J.shape[0])
-    return scipy.linalg.solve(gram, J, assume_a="pos").T
+    # V diag(s / (s^2 + damping)) U^T from the SVD of the scaled J: the same matrix as
+    # J^T (J J^T + damping I)^-1, without forming J J^T (which overflows for |J| ~ 1e160
+    # and loses the small singular values to rounding)
+    scale = _scale(J)
+    U, s, Vt = scipy.linalg.svd(J / scale, full_matrices=False)
+    with np.errstate(over="ignore", divide="ignore"):
+        s = s * scale
+        gain = np.zeros_like(s)
+        positive = s > 0
+        gain[positive] = 1.0 / (s[positive] + damping / s[positive])
+    return _finite_result((Vt.T * gain) @ U.T, "the damped pseudoinverse")
 
 
 def manipulability(J: npt.ArrayLike) -> float:
@@ -210,14 +258,20 @@ def manipulability(J: npt.ArrayLike) -> float:
     J = _as_matrix(J)
     if J.shape[0] > J.shape[1]:
         return 0.0
-    return float(np.prod(scipy.linalg.svdvals(J)))
+    s = _svdvals(J)
+    if np.any(s == 0.0):
+        return 0.0
+    log = float(np.sum(np.log(s)))  # in logs: the product of 1e200s would overflow early
+    return math.exp(log) if log < 709.78 else float("inf")
 
 
 def condition_number(J: npt.ArrayLike) -> float:
     """``sigma_max / sigma_min`` over the ``min(m, n)`` singular values; ``inf`` when
-    ``sigma_min`` is 0. Large near a singularity."""
-    s = singular_values(J)
-    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+    ``sigma_min`` is 0 (or the ratio exceeds the float range). Large near a singularity."""
+    J = _as_matrix(J)
+    s = scipy.linalg.svdvals(J / _scale(J))  # the ratio does not depend on the scale
+    with np.errstate(over="ignore"):
+        return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
 # --------------------------------------------------------------- J qdot = xi, cases
@@ -256,10 +310,13 @@ def solution_set(J: npt.ArrayLike, xi: npt.ArrayLike, tol: float | None = None) 
     """
     J = _as_matrix(J)
     xi = _as_vector(xi, J.shape[0], "xi")
-    particular = pseudoinverse(J, tol) @ xi
-    residual = float(np.linalg.norm(J @ particular - xi))
+    with np.errstate(over="ignore", invalid="ignore"):
+        particular = _finite_result(pseudoinverse(J, tol) @ xi, "the solution J^+ xi")
+        mismatch = _finite_result(J @ particular - xi, "the residual J J^+ xi - xi")
+    residual = float(scipy.linalg.norm(mismatch))  # BLAS nrm2: no overflow in the squares
     basis = null_space(J, tol)
-    scale = np.linalg.norm(xi) + singular_values(J)[0] * np.linalg.norm(particular)
+    with np.errstate(over="ignore"):
+        scale = scipy.linalg.norm(xi) + singular_values(J)[0] * scipy.linalg.norm(particular)
     if residual > _RESIDUAL_RTOL * scale:
         kind = "none"
     else:
@@ -279,7 +336,9 @@ def nullspace_step(
     xi = _as_vector(xi, J.shape[0], "xi")
     zeta = _as_vector(zeta, J.shape[1], "zeta")
     pinv = pseudoinverse(J, tol)
-    return pinv @ xi + zeta - pinv @ (J @ zeta)
+    with np.errstate(over="ignore", invalid="ignore"):
+        step = pinv @ xi + zeta - pinv @ (J @ zeta)
+    return _finite_result(step, "the null-space step")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -310,7 +369,10 @@ def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityRepor
     J = _as_matrix(J)
     tol = _as_tol(tol, np.zeros(0), J.shape)
     m = J.shape[0]
-    U, s, _ = scipy.linalg.svd(J)
+    scale = _scale(J)
+    U, s, _ = scipy.linalg.svd(J / scale)
+    with np.errstate(over="ignore"):
+        s = _finite_result(s * scale, "a singular value of J")
     task_s = np.zeros(m)
     task_s[: s.size] = s  # m > n: the m - n missing singular values are 0
     lost = U[:, task_s <= tol]
@@ -347,7 +409,17 @@ def _limits(
     limited = np.isfinite(lower) & np.isfinite(upper) & (upper > lower)
     lo = np.where(limited, lower, 0.0)
     hi = np.where(limited, upper, 0.0)
-    return q, 0.5 * (lo + hi), hi - lo
+    # halves first: (hi - lo) and (lo + hi) overflow for limits near +-1.8e308
+    return q, 0.5 * lo + 0.5 * hi, 0.5 * hi - 0.5 * lo
+
+
+def _ratio(q: np.ndarray, mid: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """``(q - mid) / (2 half)`` (0 for unlimited joints), without intermediate overflow."""
+    ratio = np.zeros_like(q)
+    limited = half > 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio[limited] = 0.5 * (q[limited] / half[limited] - mid[limited] / half[limited])
+    return _finite_result(ratio, "(q - mid-range) / range")
 
 
 def joint_limit_distance(q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike) -> float:
@@ -362,11 +434,13 @@ def joint_limit_distance(q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.Arra
     Joints without two finite, distinct limits contribute 0. ``q``, ``lower``, ``upper``
     are ``(n,)`` [rad or m]; ``w`` is dimensionless.
     """
-    q, mid, span = _limits(q, lower, upper)
+    q, mid, half = _limits(q, lower, upper)
     if q.size == 0:
         return 0.0
-    ratio = np.divide(q - mid, span, out=np.zeros_like(q), where=span > 0)
-    return float(np.sum(ratio**2) / (2 * q.size))
+    ratio = _ratio(q, mid, half)
+    with np.errstate(over="ignore"):
+        w = np.sum(ratio**2) / (2 * q.size)
+    return float(_finite_result(np.asarray(w), "the joint-limit distance"))
 
 
 def joint_limit_distance_gradient(
@@ -374,9 +448,13 @@ def joint_limit_distance_gradient(
 ) -> np.ndarray:
     """Gradient ``(n,)`` [1/rad or 1/m] of :func:`joint_limit_distance` w.r.t. ``q``:
     ``(q_i - qbar_i) / (n (q_max_i - q_min_i)^2)``, 0 for unlimited joints."""
-    q, mid, span = _limits(q, lower, upper)
-    denominator = q.size * span**2
-    return np.divide(q - mid, denominator, out=np.zeros_like(q), where=span > 0)
+    q, mid, half = _limits(q, lower, upper)
+    ratio = _ratio(q, mid, half)
+    gradient = np.zeros_like(q)
+    limited = half > 0
+    with np.errstate(over="ignore"):  # ratio / (n span) = ratio / (2 n half)
+        gradient[limited] = ratio[limited] / (2 * q.size) / half[limited]
+    return _finite_result(gradient, "the joint-limit distance gradient")
 
 
 # ------------------------------------------------------- functions of a configuration
@@ -395,9 +473,10 @@ def _frame_point(
 
 def _check_configuration(configuration: Configuration) -> None:
     if not isinstance(configuration, Configuration):
-        raise TypeError(
-            f"expected a qpik.Configuration, got {type(configuration).__name__} "
-            "(build one with qpik.Configuration(qpik.load_robot(name), q))"
+        raise InvalidArgumentType(
+            "configuration",
+            "a qpik.Configuration (build one with qpik.Configuration(qpik.load_robot(name), q))",
+            type(configuration).__name__,
         )
 
 

@@ -397,3 +397,95 @@ def test_bad_rows_and_frames():
         an.self_motion(configuration, "ee", np.ones(3))
     with pytest.raises(TypeError, match="qpik.Configuration"):
         an.analyze(np.zeros(4), "ee")
+
+
+# ------------------------------------------------------- extreme scales (issue 13)
+@pytest.mark.parametrize("scale", [1e-300, 1e-150, 1e150, 1e300])
+def test_matrix_functions_are_exact_at_extreme_scales(scale):
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(3, 5))
+    s = an.singular_values(J)
+    np.testing.assert_allclose(an.singular_values(J * scale), s * scale, rtol=1e-13)
+    np.testing.assert_allclose(an.pseudoinverse(J * scale) * scale, an.pseudoinverse(J), rtol=1e-12)
+    np.testing.assert_allclose(
+        an.null_space(J * scale) @ an.null_space(J * scale).T,
+        an.null_space(J) @ an.null_space(J).T,
+        atol=1e-13,
+    )
+    assert an.rank(J * scale) == 3 and an.degree_of_redundancy(J * scale) == 2
+    np.testing.assert_allclose(an.condition_number(J * scale), s[0] / s[-1], rtol=1e-12)
+    if abs(np.log10(scale)) <= 150:  # D(c J, c^2 d) = D(J, d) / c
+        np.testing.assert_allclose(
+            an.damped_pseudoinverse(J * scale, 0.1 * scale**2) * scale,
+            an.damped_pseudoinverse(J, 0.1),
+            rtol=1e-12,
+        )
+    report = an.singularity(J * scale, tol=1e-3 * scale)
+    assert np.isfinite(report.sigma_min) and not report.singular
+
+
+def test_damped_pseudoinverse_of_huge_and_tiny_matrices_is_finite_and_bounded():
+    rng = np.random.default_rng(4)
+    J = rng.normal(size=(6, 7))
+    for scale, damping in [(1e200, 1e-3), (1e-200, 1e-3), (1e300, 1e300), (1.0, 1e300)]:
+        D = an.damped_pseudoinverse(J * scale, damping)
+        assert np.all(np.isfinite(D))
+        assert np.linalg.norm(D, 2) <= 1 / (2 * np.sqrt(damping)) * (1 + 1e-12)
+    # s / (s^2 + d) ~ 1 / s for huge singular values: D ~ pinv
+    np.testing.assert_allclose(
+        an.damped_pseudoinverse(J * 1e200, 1e-3) * 1e200, an.pseudoinverse(J), rtol=1e-10
+    )
+
+
+def test_manipulability_in_logs_does_not_overflow_early():
+    J = np.diag([1e200, 1e-100, 1e-90])
+    assert an.manipulability(J) == pytest.approx(1e10, rel=1e-12)
+    assert an.manipulability(np.diag([1e200, 1e200])) == np.inf  # exceeds the float range
+    assert an.manipulability(np.diag([1e-200, 1e-200])) == 0.0  # underflows, as it should
+
+
+def test_joint_limit_distance_with_limits_near_the_float_range():
+    q = np.array([1e307, -1e307, 0.5])
+    lower = np.array([-1e308, -1e308, 0.0])
+    upper = np.array([1e308, 1e308, 1.0])
+    w = an.joint_limit_distance(q, lower, upper)
+    gradient = an.joint_limit_distance_gradient(q, lower, upper)
+    assert w == pytest.approx((0.05**2 + 0.05**2) / 6, rel=1e-12)
+    # (q - mid) / (n span^2) = ratio / (n span), span = 2e308 (itself beyond the range)
+    expected = [0.05 / 3 / 1e308 / 2, -0.05 / 3 / 1e308 / 2, 0.0]
+    np.testing.assert_allclose(gradient, expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: an.solution_set(np.eye(2) * 1e-300, [1e300, 0.0]),
+        lambda: an.pseudoinverse(np.eye(2) * 1e-310, tol=0.0),
+        lambda: an.joint_limit_distance([1e300], [0.0], [1e-300]),
+        lambda: an.joint_limit_distance_gradient([1.0], [0.0], [1e-300]),
+        lambda: an.singular_values(np.full((2, 2), 1.7e308)),
+    ],
+)
+def test_results_beyond_the_float_range_raise_invalid_input(call):
+    with pytest.raises(InvalidInput, match="overflows the float range"):
+        call()
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: an.rank(A, tol="x"),
+        lambda: an.null_space(A, tol=[1.0]),
+        lambda: an.damped_pseudoinverse(A, "x"),
+        lambda: an.damped_pseudoinverse(A, None),
+    ],
+)
+def test_non_numeric_tol_and_damping_raise_invalid_input(call):
+    with pytest.raises(InvalidInput):
+        call()
+
+
+def test_wrong_configuration_type_is_a_typed_type_error():
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="configuration must be") as info:
+        an.manipulability_gradient(np.zeros(4), "ee")
+    assert isinstance(info.value, TypeError) and isinstance(info.value, qpik.QpikError)
