@@ -373,3 +373,18 @@ class InvalidMocapBody(QpikError, mink.InvalidMocapBody, ValueError):
 
     def __reduce__(self):
         return type(self), (self.name, self.available)
+
+
+class InvalidArgumentType(QpikError, TypeError):
+    """An argument of the wrong type (an array where a :class:`qpik.Configuration` is
+    expected, a string where a number is): names the argument and the type expected.
+    Also a ``TypeError``. Fields: ``argument``, ``expected``, ``got`` (the type's name)."""
+
+    def __init__(self, argument: str, expected: str, got: str):
+        self.argument = argument
+        self.expected = expected
+        self.got = got
+        super().__init__(f"{argument} must be {expected}, got {got}")
+
+    def __reduce__(self):
+        return type(self), (self.argument, self.expected, self.got)
