@@ -102,6 +102,77 @@ def backward_vec(L, b):
 
 
 @njit(cache=True)
+def householder_qr(M, pivot):
+    """QR of ``M`` (r, m) by Householder reflections, optionally with column pivoting
+    (rank revealing): ``M[:, perm] = Q R`` with ``Q`` (r, r) orthogonal and ``R`` (r, m)
+    upper trapezoidal, ``|R_00| >= |R_11| >= ...`` when pivoting. Small matrices only: no
+    LAPACK call overhead."""
+    r, m = M.shape
+    R = M.copy()
+    Q = np.eye(r)
+    perm = np.arange(m)
+    norms = np.zeros(m)
+    if pivot:
+        for j in range(m):
+            for t in range(r):
+                norms[j] += R[t, j] * R[t, j]
+    x = np.empty(r)
+    for i in range(min(r, m)):
+        if pivot:
+            best = i
+            for j in range(i + 1, m):
+                if norms[j] > norms[best]:
+                    best = j
+            if best != i:
+                for t in range(r):
+                    tmp = R[t, i]
+                    R[t, i] = R[t, best]
+                    R[t, best] = tmp
+                tmp = norms[i]
+                norms[i] = norms[best]
+                norms[best] = tmp
+                k = perm[i]
+                perm[i] = perm[best]
+                perm[best] = k
+        size = r - i
+        alpha = 0.0
+        for t in range(size):
+            x[t] = R[i + t, i]
+            alpha += x[t] * x[t]
+        alpha = np.sqrt(alpha)
+        if alpha == 0.0:
+            continue
+        if x[0] > 0.0:
+            alpha = -alpha
+        x[0] -= alpha
+        vn = 0.0
+        for t in range(size):
+            vn += x[t] * x[t]
+        if vn == 0.0:
+            continue
+        for j in range(i, m):
+            s = 0.0
+            for t in range(size):
+                s += x[t] * R[i + t, j]
+            s = 2.0 * s / vn
+            for t in range(size):
+                R[i + t, j] -= s * x[t]
+        for row in range(r):
+            s = 0.0
+            for t in range(size):
+                s += Q[row, i + t] * x[t]
+            s = 2.0 * s / vn
+            for t in range(size):
+                Q[row, i + t] -= s * x[t]
+        if pivot:
+            for j in range(i + 1, m):
+                norms[j] = 0.0
+                for t in range(i + 1, r):
+                    norms[j] += R[t, j] * R[t, j]
+    return Q, R, perm
+
+
+@njit(cache=True)
 def _normal(C, row, side):
     """Normal ``n`` of one-sided constraint ``n^T x >= rhs``: ``C_row`` (lower side, +1)
     or ``-C_row`` (upper side, -1)."""
@@ -129,8 +200,8 @@ def _directions(L, C, act_row, act_side, q, normal):
         N[:, j] = C[act_row[j]] * act_side[j]
     B = forward(L, N)  # L^-1 N
     ok = True
-    Q, R = np.linalg.qr(B)
-    proj = Q.T @ v
+    Q, R, _ = householder_qr(B, False)
+    proj = Q[:, :q].T @ v
     # r = R^-1 Q^T v (upper-triangular solve)
     r = np.empty(q)
     scale = 0.0
@@ -145,7 +216,7 @@ def _directions(L, C, act_row, act_side, q, normal):
             r[i] = 0.0
         else:
             r[i] = s / R[i, i]
-    w = v - Q @ proj
+    w = v - Q[:, :q] @ proj
     # The candidate normal lies in the span of the working set when nothing of L^-1 n is
     # left outside it: then there is no primal step (z = 0).
     if np.sqrt(w @ w) <= 1e-11 * np.sqrt(v @ v):
@@ -168,7 +239,7 @@ def _kkt_solve(L, c, C, lo, hi, act_row, act_side, q):
         N[:, j] = C[act_row[j]] * act_side[j]
         rhs[j] = _rhs(lo, hi, act_row[j], act_side[j])
     B = forward(L, N)
-    Q, R = np.linalg.qr(B)
+    Q, R, _ = householder_qr(B, False)
     scale = 0.0
     for i in range(q):
         scale = max(scale, abs(R[i, i]))
@@ -375,10 +446,15 @@ def _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
 
 
 @njit(cache=True)
-def project_level(A, w, Z):
-    """``A Z`` and the singular values / right singular vectors of the *unweighted*
-    projected rows ``diag(1/w) A Z`` (rows with ``w == 0`` dropped): these are in the
-    units of the tasks' Jacobians, whatever their costs, and decide rank and damping."""
+def project_level(A, w, Z, rank_tol):
+    """Project a level into the null space ``Z`` of the levels above.
+
+    Returns ``(AZ, sigma, rank, Zn)``: ``A Z``; the smallest singular value of the
+    *unweighted* projected rows ``diag(1/w) A Z`` (rows with ``w == 0`` dropped: these are
+    in the units of the tasks' Jacobians, whatever their costs) that is not a structural
+    zero (``inf`` when there is none); that matrix's numerical rank (pivots above
+    ``rank_tol * max(1, |R_00|)`` of a rank-revealing QR); and ``Zn``, an orthonormal basis
+    of its null space within ``Z`` (the next level's ``Z``)."""
     AZ = A @ Z
     m = A.shape[0]
     r = Z.shape[1]
@@ -386,47 +462,43 @@ def project_level(A, w, Z):
     for i in range(m):
         if w[i] > 0.0:
             keep += 1
-    J = np.empty((keep, r))
+    if keep == 0 or r == 0:
+        return AZ, np.inf, 0, Z
+    Mt = np.empty((r, keep))  # (diag(1/w) A Z)^T
     k = 0
     for i in range(m):
         if w[i] > 0.0:
-            J[k] = AZ[i] / w[i]
+            for j in range(r):
+                Mt[j, k] = AZ[i, j] / w[i]
             k += 1
-    if keep == 0 or r == 0:
-        return AZ, np.zeros(0), np.eye(r)
-    _, s, Vt = np.linalg.svd(J, full_matrices=True)
-    return AZ, s, Vt
-
-
-@njit(cache=True)
-def damping_of(s, rank_tol, threshold, max_damping):
-    """``(sigma, lambda^2)``: the smallest singular value the level has (those below the
-    rank tolerance are structural zeros, not singularities) and the damping it drives
-    (``max_damping^2 (1 - (sigma / threshold)^2)`` below the threshold, else 0)."""
-    if s.shape[0] == 0:
-        return np.inf, 0.0
-    cutoff = rank_tol * max(1.0, s[0])
+    Q, R, _ = householder_qr(Mt, True)
+    top = abs(R[0, 0])
+    cutoff = rank_tol * max(1.0, top)
+    rank = 0
+    for i in range(min(r, keep)):
+        if abs(R[i, i]) > cutoff:
+            rank += 1
     sigma = np.inf
-    for i in range(s.shape[0]):
-        if s[i] > cutoff:
-            sigma = s[i]
-    if not sigma < threshold:
-        return sigma, 0.0
-    ratio = sigma / threshold
-    return sigma, max_damping * max_damping * (1.0 - ratio * ratio)
+    if rank > 0:
+        # Singular values of the rank-p block: square roots of the eigenvalues of R_p R_p^T.
+        Rp = R[:rank, :].copy()
+        values = np.linalg.eigvalsh(Rp @ Rp.T)
+        smallest = values[0]
+        sigma = np.sqrt(smallest) if smallest > 0.0 else 0.0
+        if sigma <= cutoff:  # round-off below the rank decision: the last pivot bounds it
+            sigma = abs(R[rank - 1, rank - 1])
+    Zn = Z @ Q[:, rank:].copy()
+    return AZ, sigma, rank, Zn
 
 
 @njit(cache=True)
-def rank_of(s, rank_tol):
-    """Numerical rank: singular values above ``rank_tol * max(1, sigma_max)``."""
-    if s.shape[0] == 0:
-        return 0
-    cutoff = rank_tol * max(1.0, s[0])
-    r = 0
-    for i in range(s.shape[0]):
-        if s[i] > cutoff:
-            r += 1
-    return r
+def damping_of(sigma, threshold, max_damping):
+    """``lambda^2`` driven by ``sigma``: ``max_damping^2 (1 - (sigma / threshold)^2)``
+    below the threshold, else 0."""
+    if not sigma < threshold:
+        return 0.0
+    ratio = sigma / threshold
+    return max_damping * max_damping * (1.0 - ratio * ratio)
 
 
 @njit(cache=True)
@@ -523,21 +595,16 @@ def solve_cascade(
             continue
         Ak = A[s0:s1]
         bk = b[s0:s1]
-        AZ, s, Vt = project_level(Ak, w[s0:s1], Z)
-        lam = 0.0
-        sig = np.inf
-        if max_damping > 0.0:
-            sig, lam = damping_of(s, rank_tol, threshold, max_damping)
-            if lam > 0.0:
-                wmax = 0.0
-                for i in range(s1 - s0):
-                    wmax = max(wmax, w[s0 + i])
-                lam *= wmax * wmax
-                if error_scale > 0.0:
-                    e = Ak @ d - bk
-                    lam *= min(1.0, np.sqrt(e @ e) / error_scale)
-        else:
-            sig, _ = damping_of(s, rank_tol, 1.0, 0.0)
+        AZ, sig, rank, Zn = project_level(Ak, w[s0:s1], Z, rank_tol)
+        lam = damping_of(sig, threshold, max_damping) if max_damping > 0.0 else 0.0
+        if lam > 0.0:
+            wmax = 0.0
+            for i in range(s1 - s0):
+                wmax = max(wmax, w[s0 + i])
+            lam *= wmax * wmax
+            if error_scale > 0.0:
+                e = Ak @ d - bk
+                lam *= min(1.0, np.sqrt(e @ e) / error_scale)
         sigma[k] = sig
         lam2[k] = lam
         H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)
@@ -559,7 +626,5 @@ def solve_cascade(
             if k == 0:
                 return d, status, sigma, lam2, iterations, active
             continue
-        rank = rank_of(s, rank_tol)
-        if rank > 0:
-            Z = Z @ Vt[rank:].T.copy()
+        Z = Zn
     return d, status, sigma, lam2, iterations, active

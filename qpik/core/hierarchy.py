@@ -396,16 +396,13 @@ class HierarchySolver:
                 status[k] = LevelStatus.SOLVED
                 continue
             Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
-            AZ, s, Vt = K.project_level(Ak, wk, Z)
-            if max_damping > 0:
-                sig, lam = K.damping_of(s, self.rank_tolerance, threshold, max_damping)
-                if lam > 0:
-                    lam *= float(wk.max()) ** 2
-                    if error_scale > 0:
-                        e = Ak @ d - bk
-                        lam *= min(1.0, float(np.sqrt(e @ e)) / error_scale)
-            else:
-                sig, lam = K.damping_of(s, self.rank_tolerance, 1.0, 0.0)
+            AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)
+            lam = K.damping_of(sig, threshold, max_damping) if max_damping > 0 else 0.0
+            if lam > 0:
+                lam *= float(wk.max()) ** 2
+                if error_scale > 0:
+                    e = Ak @ d - bk
+                    lam *= min(1.0, float(np.sqrt(e @ e)) / error_scale)
             sigma[k], lam2s[k] = float(sig), float(lam)
             H, c, C, lo, hi = K.reduced_qp(Ak, bk, AZ, Z, d, float(reg[k]) + lam, lb, ub, G, h)
             z, st, it, act, used = self._solve_qp(k, H, c, C, lo, hi, warm[k], max_iter, fallback)
@@ -420,9 +417,7 @@ class HierarchySolver:
                 if k == 0:
                     break
                 continue
-            rank = K.rank_of(s, self.rank_tolerance)
-            if rank:
-                Z = Z @ Vt[rank:].T
+            Z = Zn
         if self.warm_start:
             self._warm = active
         return HierarchyResult(
