@@ -6,20 +6,30 @@ from .batch import solve_many
 from .converge import IKResult, solve
 from .errors import (
     InfeasibleLimits,
+    IntegrationTimestepNotSet,
     InvalidConfiguration,
+    InvalidConstraint,
+    InvalidDamping,
+    InvalidGain,
     InvalidInput,
+    InvalidKeyframe,
+    InvalidMocapBody,
     InvalidTarget,
     JointLimitViolation,
+    LimitDefinitionError,
     MissingExtra,
     NoSolutionFound,
     ProblemFileError,
     QpikError,
     RobotFileError,
+    TargetNotSet,
+    TaskDefinitionError,
     UnknownFrame,
     UnknownFrameType,
     UnknownRobot,
 )
-from .hierarchy import DampingLaw, IKSolver, StepResult, solve_ik
+from .hierarchy import DampingLaw, IKSolver, StepResult
+from .mink_api import build_ik, solve_ik
 from .problem import load_problem
 from .robots import list_robots, load_robot
 
@@ -33,12 +43,22 @@ __all__ = [
     "baselines",
     "limits",
     "solve",
+    "build_ik",
     "solve_ik",
     "solve_many",
     "tasks",
     "Configuration",
     "FrameType",
     "InfeasibleLimits",
+    "IntegrationTimestepNotSet",
+    "InvalidConstraint",
+    "InvalidDamping",
+    "InvalidGain",
+    "InvalidKeyframe",
+    "InvalidMocapBody",
+    "LimitDefinitionError",
+    "TargetNotSet",
+    "TaskDefinitionError",
     "InvalidConfiguration",
     "InvalidInput",
     "InvalidTarget",

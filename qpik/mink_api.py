@@ -1,0 +1,278 @@
+r"""mink's entry points, with qpik underneath: switch by changing one import.
+
+:func:`solve_ik` and :func:`build_ik` take mink's arguments, in mink's order, with mink's
+defaults (``damping=1e-12``; ``limits=None`` means a :class:`mink.ConfigurationLimit`), and
+accept a :class:`mink.Configuration` as well as a :class:`qpik.Configuration`::
+
+    import qpik as mink_like                      # or: from qpik import solve_ik
+    v = qpik.solve_ik(configuration, tasks, dt, "daqp", limits=limits)
+
+What qpik adds, without changing a flat list's answer away from singularities:
+
+* ``tasks`` may be a list of levels (a list of lists): strict priorities, each level solved
+  in the null space of the ones above (a flat list is one weighted level, as in mink);
+* ``constraints`` (mink's equality tasks, ``J dq = -gain e``) are held exactly: they form a
+  level above every task level, with no Tikhonov term (rows a QP must satisfy exactly,
+  whenever the limits allow it);
+* near a singularity the adaptive damping of :class:`qpik.DampingLaw` bounds the step;
+* a start outside the position limits moves back toward them instead of making the QP
+  infeasible (``safety_break=True`` raises :class:`qpik.JointLimitViolation`, which is a
+  :class:`mink.NotWithinConfigurationLimits`, as mink does).
+
+The variable is the displacement ``dq = v dt`` [rad or m per step] in the tangent space
+(``nv``); the velocity returned is ``dq / dt`` [rad/s or m/s]. Frames are mink's (tasks
+define theirs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import mink
+import numpy as np
+import qpsolvers
+
+from .configuration import Configuration
+from .core import HierarchySolver, Level, LevelStatus
+from .errors import InvalidDamping, InvalidInput, NoSolutionFound
+from .hierarchy import IKSolver
+from .tasks import BaseTask
+
+__all__ = ["build_ik", "solve_ik"]
+
+#: A flat list of tasks (one weighted level, as in mink) or a list of levels.
+Tasks = Sequence[BaseTask] | Sequence[BaseTask | Sequence[BaseTask]]
+
+
+class _MinimumNorm(BaseTask):
+    """``dq = 0`` as a least-squares task: the smallest displacement the limits allow
+    (what an empty task list asks for)."""
+
+    def compute_qp_residual(self, configuration: mink.Configuration):
+        nv = configuration.model.nv
+        return np.eye(nv), np.zeros(nv), 0.0
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
+        nv = configuration.model.nv
+        return mink.Objective(np.eye(nv), np.zeros(nv))
+
+
+def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
+    """``configuration`` as a :class:`qpik.Configuration` (a mink one is copied, with its
+    whole state); :class:`qpik.InvalidInput` naming the argument otherwise."""
+    if isinstance(configuration, Configuration):
+        return configuration
+    if isinstance(configuration, mink.Configuration):
+        return Configuration(configuration)
+    raise InvalidInput(
+        f"{name} must be a qpik.Configuration or a mink.Configuration, "
+        f"got {type(configuration).__name__}"
+    )
+
+
+def _levels(tasks: Any) -> list[list[BaseTask]]:
+    """Levels from mink's ``tasks``: ``[]`` none; a flat list, one level; a list whose
+    items include lists, one level per item (item 0 the highest priority)."""
+    if isinstance(tasks, BaseTask):
+        return [[tasks]]
+    if isinstance(tasks, (str, bytes)) or not isinstance(tasks, Sequence):
+        raise InvalidInput(
+            f"tasks must be a list of tasks or a list of levels, got {type(tasks).__name__}"
+        )
+    items = list(tasks)
+    if all(isinstance(item, BaseTask) for item in items):
+        return [items] if items else []
+    levels = []
+    for index, item in enumerate(items):
+        level = [item] if isinstance(item, BaseTask) else item
+        if isinstance(level, (str, bytes)) or not isinstance(level, Sequence) or not level:
+            raise InvalidInput(
+                f"tasks[{index}] must be a task or a non-empty list of tasks, got {item!r}"
+            )
+        for j, task in enumerate(level):
+            if not isinstance(task, BaseTask):
+                raise InvalidInput(f"tasks[{index}][{j}] is not a task: {task!r}")
+        levels.append(list(level))
+    return levels
+
+
+def _limits(configuration: Configuration, limits: Any) -> list[mink.Limit]:
+    """mink's default (``None``: the model's position limits) or the given limits."""
+    if limits is None:
+        return [mink.ConfigurationLimit(configuration.model)]
+    if isinstance(limits, (str, bytes)) or not isinstance(limits, Sequence):
+        raise InvalidInput(f"limits must be None or a list of limits, got {limits!r}")
+    for index, limit in enumerate(limits):
+        if not hasattr(limit, "compute_qp_inequalities"):
+            raise InvalidInput(f"limits[{index}] is not a mink/qpik limit: {limit!r}")
+    return list(limits)
+
+
+def _constraints(constraints: Any) -> list[mink.Task]:
+    if constraints is None:
+        return []
+    if isinstance(constraints, (str, bytes)) or not isinstance(constraints, Sequence):
+        raise InvalidInput(f"constraints must be None or a list of tasks, got {constraints!r}")
+    for index, task in enumerate(constraints):
+        if not (hasattr(task, "compute_jacobian") and hasattr(task, "compute_error")):
+            raise InvalidInput(
+                f"constraints[{index}] must be a task with compute_jacobian and "
+                f"compute_error (a mink.Task), got {task!r}"
+            )
+    return list(constraints)
+
+
+def _equality_rows(
+    configuration: Configuration, constraints: Sequence[mink.Task], nv: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """mink's equality rows ``J dq = -gain e`` of the constraint tasks (costs not applied)."""
+    A = [np.atleast_2d(task.compute_jacobian(configuration)) for task in constraints]
+    b = [-task.gain * np.atleast_1d(task.compute_error(configuration)) for task in constraints]
+    A_eq = np.vstack(A) if A else np.zeros((0, nv))
+    b_eq = np.concatenate(b) if b else np.zeros(0)
+    if not (np.isfinite(A_eq).all() and np.isfinite(b_eq).all()):
+        raise InvalidInput("constraints: a constraint's Jacobian or error is not finite")
+    return A_eq, b_eq
+
+
+def _check_step(dt: Any, damping: Any) -> None:
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+        raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}")
+    if not (isinstance(damping, (int, float)) and math.isfinite(damping) and damping >= 0):
+        raise InvalidDamping(f"damping must be finite and >= 0, got {damping!r}")
+
+
+def solve_ik(
+    configuration: mink.Configuration,
+    tasks: Tasks,
+    dt: float,
+    solver: str | None = None,
+    damping: float = 1e-12,
+    safety_break: bool = False,
+    limits: Sequence[mink.Limit] | None = None,
+    constraints: Sequence[mink.Task] | None = None,
+    **kwargs: Any,
+) -> np.ndarray:
+    """One differential IK step, with :func:`mink.solve_ik`'s signature.
+
+    Args:
+        configuration: the robot's configuration (qpik's or mink's; not modified).
+        tasks: a list of tasks (one weighted level, as in mink), or a list of levels
+            (lists of tasks; level 0 the highest priority). ``[]`` asks for the smallest
+            velocity the limits allow: zero when the start is within them.
+        dt: integration timestep [s].
+        solver: QP backend. ``None``: qpik's exact compiled active-set solver. A name
+            (``"daqp"``, ``"osqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``; mink
+            passes it fourth, positionally) forces that backend wherever a limit binds;
+            its answer is polished on the active set it finds.
+        damping: Tikhonov (Levenberg-Marquardt) term on every task level [unitless], as
+            mink's; the constraints get none.
+        safety_break: raise :class:`qpik.JointLimitViolation` (a
+            :class:`mink.NotWithinConfigurationLimits`) if the configuration is outside its
+            position limits; without it qpik steers back toward them.
+        limits: limits enforced at every level; ``None`` (mink's default) means the model's
+            position limits (:class:`mink.ConfigurationLimit`), ``[]`` none.
+        constraints: equality tasks held exactly, above every task level.
+        kwargs: settings of the forced backend (OSQP settings, or qpsolvers keyword
+            arguments of that solver).
+
+    Returns:
+        The velocity ``v = dq / dt`` ``(nv,)`` [rad/s or m/s], in the tangent space.
+
+    Raises:
+        qpik.NoSolutionFound: (a :class:`mink.NoSolutionFound`, with mink's message) when
+            the highest level cannot be solved; ``status`` and ``level`` say why.
+        qpik.InvalidInput: a malformed argument, named.
+    """
+    configuration = as_configuration(configuration)
+    _check_step(dt, damping)
+    configuration.check_limits(safety_break=safety_break)
+    ik, constraint_rows = _solver(
+        configuration, tasks, solver, damping, limits, constraints, kwargs
+    )
+    problem = ik.build(configuration, dt)
+    if constraint_rows is not None:
+        problem.levels.insert(0, Level(*constraint_rows, 0.0, None, "constraints"))
+    core = HierarchySolver(
+        ik.solver, damping_law=ik.damping_law, rank_tolerance=ik.rank_tolerance,
+        warm_start=False, backend_options=kwargs,
+    )  # fmt: skip
+    result = core.solve(problem, validate=False)
+    if result.status and result.status[0] is not LevelStatus.SOLVED:
+        error = NoSolutionFound(ik.solver)  # mink's message, word for word
+        error.status, error.level = str(result.status[0]), 0
+        raise error
+    return result.x / dt
+
+
+def _solver(
+    configuration: Configuration,
+    tasks: Any,
+    solver: str | None,
+    damping: float,
+    limits: Any,
+    constraints: Any,
+    backend_options: dict,
+) -> tuple[IKSolver, tuple[np.ndarray, np.ndarray] | None]:
+    """The :class:`IKSolver` of the task levels, and the constraints' equality rows."""
+    levels = _levels(tasks)
+    limit_list = _limits(configuration, limits)
+    constraint_tasks = _constraints(constraints)
+    if not levels:
+        levels = [[_MinimumNorm()]]
+    options: dict[str, Any] = {"damping": damping}
+    if solver is not None:
+        options["solver"] = solver
+    if backend_options:
+        if solver in (None, "auto"):
+            raise InvalidInput(
+                f"solver keyword arguments {sorted(backend_options)} are settings of a "
+                "named backend: pass solver='osqp', 'daqp', ... with them"
+            )
+        options["backend_options"] = backend_options
+    ik = IKSolver(configuration.model, levels, limit_list, **options)
+    rows = None
+    if constraint_tasks:
+        rows = _equality_rows(configuration, constraint_tasks, configuration.model.nv)
+    return ik, rows
+
+
+def build_ik(
+    configuration: mink.Configuration,
+    tasks: Tasks,
+    dt: float,
+    damping: float = 1e-12,
+    limits: Sequence[mink.Limit] | None = None,
+    constraints: Sequence[mink.Task] | None = None,
+) -> qpsolvers.Problem | list[qpsolvers.Problem]:
+    r"""The QP of each level, with :func:`mink.build_ik`'s signature and shape.
+
+    Each level's problem is :math:`\min \tfrac12 dq^T P dq + q^T dq` subject to
+    :math:`G dq \le h` (the limits; ``None`` when there are none) and :math:`A dq = b` (the
+    constraints; ``None`` when there are none), with ``P = sum_i W_i^T W_i + (damping +
+    sum_i mu_i) I`` and ``q = -sum_i W_i^T e_i`` over the level's tasks, exactly as mink
+    builds it (``W`` cost-weighted Jacobians, ``e`` weighted errors ``-gain cost e``).
+
+    For a flat list of tasks this is one :class:`qpsolvers.Problem` (mink's shape), and its
+    solution is :func:`solve_ik`'s ``dq`` whenever qpik's adaptive damping is zero (away
+    from singularities) and the start is within the position limits. For a list of levels
+    it is a list with one problem per level; :func:`solve_ik` solves them in cascade, each
+    level restricted to the optimal set of the levels above.
+
+    Args: as :func:`solve_ik` (``dt`` in [s]).
+    """
+    configuration = as_configuration(configuration)
+    _check_step(dt, damping)
+    levels = _levels(tasks)
+    limit_list = _limits(configuration, limits)
+    constraint_tasks = _constraints(constraints) or None
+    problems = [
+        mink.build_ik(configuration, level, dt, damping, limit_list, constraint_tasks)
+        for level in (levels or [[]])
+    ]
+    flat = len(problems) == 1 and not (
+        levels and isinstance(tasks, Sequence) and any(not isinstance(t, BaseTask) for t in tasks)
+    )
+    return problems[0] if flat else problems

@@ -1,0 +1,474 @@
+"""A mink user switches by changing one import (issue 14).
+
+``qpik.solve_ik`` / ``qpik.build_ik`` take mink's arguments and defaults; their answers are
+checked against mink itself (an independent QP: mink solves one weighted QP with DAQP),
+against qpsolvers on the QP that ``build_ik`` returns, and against closed forms (the
+classical null-space formula for priorities). These are qpik's own tests of the same
+behaviours mink's suite checks; ``benchmarks/mink_suite.py`` runs mink's suite itself.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import mink
+import mujoco
+import numpy as np
+import pytest
+import qpsolvers
+from conftest import configuration_of
+
+import qpik
+
+DT = 0.01
+BACKENDS = [None, "daqp", "quadprog", "osqp"]
+
+
+def _home(name: str = "ur5e") -> mink.Configuration:
+    """A plain mink configuration of a bundled robot at its home keyframe."""
+    configuration = mink.Configuration(qpik.load_robot(name))
+    configuration.update_from_keyframe("home")
+    return configuration
+
+
+def _frame_task(configuration, offset=(0.02, -0.03, 0.04), cost=(1.0, 1.0)) -> mink.FrameTask:
+    task = mink.FrameTask("ee", "site", position_cost=cost[0], orientation_cost=cost[1])
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    task.set_target(mink.SE3.from_translation(np.asarray(offset, dtype=float)) @ start)
+    return task
+
+
+def _mink_answer(configuration, tasks, limits=None, constraints=None) -> np.ndarray:
+    """mink's velocity: mink's own QP (``mink.build_ik``) solved exactly by quadprog
+    (mink's DAQP default stops at a 1e-7 feasibility tolerance), checked against
+    ``mink.solve_ik`` to that tolerance."""
+    problem = mink.build_ik(configuration, tasks, DT, limits=limits, constraints=constraints)
+    solution = qpsolvers.solve_problem(problem, solver="quadprog")
+    assert solution.found
+    velocity = solution.x / DT
+    minks = mink.solve_ik(configuration, tasks, DT, "daqp", limits=limits, constraints=constraints)
+    np.testing.assert_allclose(velocity, minks, atol=1e-5)
+    return velocity
+
+
+def _posture(configuration, cost=1e-2) -> mink.PostureTask:
+    task = mink.PostureTask(configuration.model, cost=cost)
+    task.set_target(configuration.model.qpos0)
+    return task
+
+
+# ----------------------------------------------------------------------------- signature
+@pytest.mark.parametrize("name", ["solve_ik", "build_ik"])
+def test_signature_is_minks(name):
+    ours = inspect.signature(getattr(qpik, name)).parameters
+    theirs = inspect.signature(getattr(mink, name)).parameters
+    assert list(ours) == list(theirs)
+    for parameter, mink_parameter in zip(ours.values(), theirs.values()):
+        assert parameter.kind == mink_parameter.kind
+        if mink_parameter.default is not inspect.Parameter.empty:
+            assert parameter.default == mink_parameter.default, parameter.name
+    assert qpik.solve_ik.__module__ == "qpik.mink_api"
+
+
+def test_solver_is_the_fourth_positional_argument():
+    configuration = _home()
+    task = _frame_task(configuration)
+    by_position = qpik.solve_ik(configuration, [task], DT, "daqp", 1e-12)
+    by_name = qpik.solve_ik(configuration, [task], dt=DT, solver="daqp", damping=1e-12)
+    np.testing.assert_array_equal(by_position, by_name)
+
+
+# ------------------------------------------------------------ the same answers as mink
+def _random_configurations(model, rng, count):
+    """Configurations well inside the limits (joints within 60% of their range)."""
+    low, high = model.jnt_range[:, 0], model.jnt_range[:, 1]
+    middle, half = 0.5 * (low + high), 0.5 * (high - low)
+    home = model.key("home").qpos
+    return [
+        np.clip(home + rng.uniform(-0.3, 0.3, model.nq), middle - 0.6 * half, middle + 0.6 * half)
+        for _ in range(count)
+    ]
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "panda"])
+@pytest.mark.parametrize("solver", BACKENDS)
+def test_flat_list_matches_mink(robot, solver, rng):
+    """Away from singularities a flat list is mink's weighted QP: same answer to 1e-9,
+    with and without binding velocity limits."""
+    model = qpik.load_robot(robot)
+    tight = {model.joint(j).name: 0.3 for j in range(model.njnt)}
+    checked = 0
+    for q in _random_configurations(model, rng, 4):
+        configuration = mink.Configuration(model, q)
+        jacobian = qpik.Configuration(model, q).frame_jacobian("ee")
+        assert np.linalg.svd(jacobian[:3], compute_uv=False).min() > 0.1  # not singular
+        tasks = [
+            _frame_task(configuration, offset=rng.uniform(-0.1, 0.1, 3)),
+            _posture(configuration),
+        ]
+        for limits in (None, [mink.ConfigurationLimit(model), mink.VelocityLimit(model, tight)]):
+            expected = _mink_answer(configuration, tasks, limits)
+            if solver is None:
+                ours = qpik.solve_ik(configuration, tasks, DT, limits=limits)
+            else:
+                ours = qpik.solve_ik(configuration, tasks, DT, solver, limits=limits)
+            np.testing.assert_allclose(ours, expected, rtol=0, atol=1e-9)
+            checked += 1
+    assert checked == 8
+
+
+def test_velocity_limits_bind_in_that_comparison(rng):
+    """The comparison above is not vacuous: the tight velocity limits bind."""
+    model = qpik.load_robot("ur5e")
+    configuration = mink.Configuration(model, _random_configurations(model, rng, 1)[0])
+    tight = {model.joint(j).name: 0.3 for j in range(model.njnt)}
+    tasks = [_frame_task(configuration, offset=(0.08, -0.08, 0.08)), _posture(configuration)]
+    free = qpik.solve_ik(configuration, tasks, DT, "daqp", limits=[])
+    capped = qpik.solve_ik(
+        configuration, tasks, DT, "daqp", limits=[mink.VelocityLimit(model, tight)]
+    )
+    assert np.abs(free).max() > 0.3
+    assert np.abs(capped).max() == pytest.approx(0.3, abs=1e-12)
+
+
+def test_answer_is_bitwise_repeatable():
+    configuration = _home()
+    tasks = [_frame_task(configuration), _posture(configuration)]
+    first = qpik.solve_ik(configuration, tasks, DT, "daqp")
+    other = _home("panda")  # something else solved in between
+    qpik.solve_ik(other, [_frame_task(other, offset=(0.3, 0.3, 0.3))], DT, "osqp")
+    assert first.tobytes() == qpik.solve_ik(configuration, tasks, DT, "daqp").tobytes()
+
+
+# ---------------------------------------------------------------------------- limits
+def test_default_limits_are_the_position_limits():
+    """``limits=None`` enforces the joint limits, as mink does; ``[]`` enforces none."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    q = configuration.q
+    q[2] = model.jnt_range[2, 1] - 0.01  # elbow 0.01 rad below its upper limit
+    configuration.update(q)
+    posture = mink.PostureTask(model, cost=1.0)
+    target = q.copy()
+    target[2] = model.jnt_range[2, 1] + 1.0  # asks for 1 rad beyond the limit
+    posture.set_target(target)
+    v_default = qpik.solve_ik(configuration, [posture], DT, "daqp")
+    v_explicit = qpik.solve_ik(
+        configuration, [posture], DT, "daqp", limits=[mink.ConfigurationLimit(model)]
+    )
+    v_none = qpik.solve_ik(configuration, [posture], DT, "daqp", limits=[])
+    np.testing.assert_array_equal(v_default, v_explicit)
+    gain = mink.ConfigurationLimit(model).gain
+    assert v_default[2] * DT == pytest.approx(gain * 0.01, abs=1e-12)
+    assert v_none[2] * DT == pytest.approx(1.01, abs=1e-9)
+    np.testing.assert_allclose(v_default, _mink_answer(configuration, [posture]), atol=1e-9)
+
+
+def test_limits_hold_over_a_closed_loop():
+    """Integrating the velocities never leaves the limits (mink's examples crossed them
+    by several radians when the default limit was missing)."""
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model, model.key("home").qpos)
+    posture = mink.PostureTask(model, cost=1.0)
+    target = model.key("home").qpos.copy()
+    target[2] = 20.0  # far beyond the elbow's pi limit
+    posture.set_target(target)
+    for _ in range(300):
+        v = qpik.solve_ik(configuration, [posture], DT, "daqp")
+        configuration.integrate_inplace(v, DT)
+        assert configuration.within_limits(tol=1e-9)
+    assert configuration.q[2] == pytest.approx(model.jnt_range[2, 1], abs=1e-3)
+
+
+def test_safety_break_raises_minks_exception():
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    q = configuration.q
+    q[0] = model.jnt_range[0, 1] + 0.1
+    configuration.update(q)
+    with pytest.raises(mink.NotWithinConfigurationLimits) as info:
+        qpik.solve_ik(configuration, [], DT, "daqp", safety_break=True)
+    error = info.value
+    assert isinstance(error, qpik.JointLimitViolation)
+    assert error.joint == "shoulder_pan_joint" and error.index == 0
+    assert error.value == pytest.approx(q[0]) and error.upper == pytest.approx(
+        model.jnt_range[0, 1]
+    )
+
+
+def test_without_safety_break_a_start_outside_the_limits_moves_back():
+    """Without ``safety_break`` there is no exception; the smallest velocity the limits
+    allow is the one that heads back inside (mink's QP gives the same)."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    q = configuration.q
+    q[0] = model.jnt_range[0, 1] + 0.1
+    configuration.update(q)
+    v = qpik.solve_ik(configuration, [], DT, "daqp")
+    assert v[0] < 0 and np.all(v[1:] == 0)
+    np.testing.assert_allclose(v, _mink_answer(configuration, []), atol=1e-9)
+
+
+def test_empty_task_list_gives_zero_velocity():
+    configuration = _home("panda")
+    for limits in (None, []):
+        v = qpik.solve_ik(configuration, [], DT, "daqp", limits=limits)
+        assert v.shape == (configuration.model.nv,)
+        assert np.all(v == 0)
+
+
+# ------------------------------------------------------------------------ priorities
+def test_list_of_levels_keeps_strict_priorities():
+    """Two conflicting levels: the closed-form null-space solution
+    ``dq = J1^+ b1 + (J2 N1)^+ (b2 - J2 J1^+ b1)`` (no limits, no damping)."""
+    configuration = _home("panda")
+    position = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    position.set_target(mink.SE3.from_translation(np.array([0.05, 0.0, -0.05])) @ start)
+    posture = mink.PostureTask(configuration.model, cost=1.0)
+    posture.set_target(configuration.model.qpos0)
+    v = qpik.solve_ik(configuration, [[position], [posture]], DT, "daqp", damping=0.0, limits=[])
+    A1, b1, _ = position.compute_qp_residual(configuration)
+    A2, b2, _ = posture.compute_qp_residual(configuration)
+    A1, b1 = A1[:3], b1[:3]  # the orientation rows have zero cost
+    pinv1 = np.linalg.pinv(A1)
+    N1 = np.eye(configuration.model.nv) - pinv1 @ A1
+    expected = pinv1 @ b1 + np.linalg.pinv(A2 @ N1, rcond=1e-9) @ (b2 - A2 @ pinv1 @ b1)
+    np.testing.assert_allclose(v * DT, expected, atol=1e-9)
+    # The top level is met exactly; as one weighted level it would not be.
+    np.testing.assert_allclose(A1 @ (v * DT), b1, atol=1e-10)
+    flat = qpik.solve_ik(configuration, [position, posture], DT, "daqp", damping=0.0, limits=[])
+    assert np.linalg.norm(A1 @ (flat * DT) - b1) > 1e-4
+
+
+# ----------------------------------------------------------------------- constraints
+def test_constraints_are_held_exactly_and_match_mink():
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model, model.key("home").qpos)
+    start = configuration.q
+    task = _frame_task(configuration, offset=(0.0, 0.0, 0.05))
+    freeze = mink.DofFreezingTask(model, dof_indices=[0, 1])
+    v = qpik.solve_ik(configuration, [task], DT, "daqp", constraints=[freeze])
+    np.testing.assert_allclose(v, _mink_answer(configuration, [task], None, [freeze]), atol=1e-9)
+    for _ in range(20):
+        v = qpik.solve_ik(configuration, [task], DT, "daqp", constraints=[freeze])
+        configuration.integrate_inplace(v, DT)
+    assert np.all(configuration.q[:2] == start[:2])
+    assert np.abs(configuration.q[2:] - start[2:]).max() > 1e-3
+
+
+def test_constraints_sit_above_every_level():
+    """With a list of levels, and with no task at all, the constraint rows still hold."""
+    model = qpik.load_robot("panda")
+    configuration = _home("panda")
+    freeze = mink.DofFreezingTask(model, dof_indices=[3])
+    levels = [[_frame_task(configuration, offset=(0.1, 0.1, 0.0))], [_posture(configuration, 1.0)]]
+    v = qpik.solve_ik(configuration, levels, DT, "daqp", constraints=[freeze])
+    assert v[3] == 0.0 and np.abs(v).max() > 0.1
+    assert np.all(qpik.solve_ik(configuration, [], DT, "daqp", constraints=[freeze]) == 0)
+
+
+# ---------------------------------------------------------------------------- kwargs
+def test_kwargs_reach_the_qpsolvers_backend(monkeypatch):
+    seen = []
+    original = qpsolvers.solve_problem
+
+    def spy(problem, solver, **kwargs):
+        seen.append((solver, kwargs))
+        return original(problem, solver, **kwargs)
+
+    monkeypatch.setattr(qpsolvers, "solve_problem", spy)
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    tight = mink.VelocityLimit(model, {model.joint(j).name: 0.1 for j in range(model.njnt)})
+    tasks = [_frame_task(configuration, offset=(0.1, 0.1, 0.1))]
+    qpik.solve_ik(configuration, tasks, DT, "daqp", limits=[tight], primal_tol=1e-9)
+    assert seen and all(kw.get("primal_tol") == 1e-9 for solver, kw in seen if solver == "daqp")
+
+
+def test_osqp_kwargs_are_osqp_settings():
+    configuration = _home()
+    model = configuration.model
+    tight = mink.VelocityLimit(model, {model.joint(j).name: 0.1 for j in range(model.njnt)})
+    tasks = [_frame_task(configuration, offset=(0.1, 0.1, 0.1))]
+    v = qpik.solve_ik(configuration, tasks, DT, "osqp", limits=[tight], eps_abs=1e-9, max_iter=8000)
+    np.testing.assert_allclose(v, _mink_answer(configuration, tasks, [tight]), atol=1e-9)
+    with pytest.raises(qpik.QpikError, match="not_a_setting"):
+        qpik.solve_ik(configuration, tasks, DT, "osqp", limits=[tight], not_a_setting=1)
+
+
+def test_kwargs_need_a_named_backend():
+    configuration = _home()
+    with pytest.raises(qpik.InvalidInput, match="primal_tol"):
+        qpik.solve_ik(configuration, [_frame_task(configuration)], DT, primal_tol=1e-9)
+
+
+# -------------------------------------------------------------------- bad input, errors
+_BAD_ARGUMENTS = [
+    ({"dt": 0.0}, qpik.InvalidInput, "dt"),
+    ({"dt": float("nan")}, qpik.InvalidInput, "dt"),
+    ({"damping": -1.0}, mink.InvalidDamping, "damping"),
+    ({"damping": float("inf")}, qpik.InvalidDamping, "damping"),
+    ({"tasks": "FrameTask"}, qpik.InvalidInput, "tasks"),
+    ({"tasks": [[]]}, qpik.InvalidInput, r"tasks\[0\]"),
+    ({"tasks": [[1.0]]}, qpik.InvalidInput, r"tasks\[0\]"),
+    ({"limits": [object()]}, qpik.InvalidInput, r"limits\[0\]"),
+    ({"limits": "ConfigurationLimit"}, qpik.InvalidInput, "limits"),
+    ({"constraints": [object()]}, qpik.InvalidInput, r"constraints\[0\]"),
+    ({"configuration": "ur5e"}, qpik.InvalidInput, "configuration"),
+    ({"solver": "no_such_solver"}, qpik.InvalidInput, "no_such_solver"),
+]
+_BAD_CALLS = [("solve_ik", *bad) for bad in _BAD_ARGUMENTS] + [
+    ("build_ik", *bad) for bad in _BAD_ARGUMENTS if "solver" not in bad[0]
+]
+
+
+@pytest.mark.parametrize("entry, arguments, error, fragment", _BAD_CALLS)
+def test_bad_arguments_raise_typed_errors(entry, arguments, error, fragment):
+    configuration = _home()
+    call = {"configuration": configuration, "tasks": [_frame_task(configuration)], "dt": DT}
+    if entry == "solve_ik":
+        call["solver"] = "daqp"
+    call.update(arguments)
+    with pytest.raises(error, match=fragment):
+        getattr(qpik, entry)(**call)
+
+
+def test_infeasible_limits_raise_minks_no_solution_found():
+    class Contradiction(mink.Limit):
+        """dq_0 <= -1 and -dq_0 <= -1 together, over two joints (general rows)."""
+
+        def compute_qp_inequalities(self, configuration, dt):
+            G = np.zeros((2, configuration.model.nv))
+            G[0, :2] = 1.0
+            G[1, :2] = -1.0
+            return mink.Constraint(G=G, h=np.array([-1.0, -1.0]))
+
+    configuration = _home()
+    with pytest.raises(mink.NoSolutionFound) as info:
+        qpik.solve_ik(
+            configuration, [_frame_task(configuration)], DT, "daqp", limits=[Contradiction()]
+        )
+    assert str(info.value) == "QP solver daqp failed to find a solution."
+    assert isinstance(info.value, qpik.NoSolutionFound) and info.value.status == "infeasible"
+
+
+def test_unknown_frames_are_minks_exceptions_too():
+    configuration = configuration_of("ur5e")
+    task = mink.FrameTask("gripper", "site", position_cost=1.0, orientation_cost=1.0)
+    with pytest.raises(mink.InvalidFrame) as info:
+        task.set_target_from_configuration(configuration)
+    assert isinstance(info.value, qpik.UnknownFrame) and info.value.available == ["ee"]
+    with pytest.raises(mink.UnsupportedFrame):
+        configuration.get_transform_frame_to_world("ee", "joint")
+
+
+# ------------------------------------------------------------------- configurations
+def test_configuration_from_a_mink_configuration_copies_its_state():
+    xml = """
+    <mujoco>
+      <worldbody>
+        <body name="arm"><joint name="hinge" range="-1 1"/><geom size=".1"/>
+          <site name="tip" pos="0.5 0 0"/></body>
+        <body name="marker" mocap="true"><geom size=".05" contype="0" conaffinity="0"/></body>
+      </worldbody>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    source = mink.Configuration(model, np.array([0.4]))
+    source.data.mocap_pos[0] = [1.0, 2.0, 3.0]
+    source.update()
+    ours = qpik.Configuration(source)
+    assert ours.model is model and ours.data is not source.data
+    np.testing.assert_array_equal(ours.q, [0.4])
+    np.testing.assert_array_equal(ours.data.mocap_pos[0], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(ours.frame_pose("marker", "body")[0], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(ours.frame_pose("tip")[0], source.data.site("tip").xpos)
+    ours.update(np.array([-0.2]))
+    np.testing.assert_array_equal(source.q, [0.4])  # independent afterwards
+    np.testing.assert_array_equal(qpik.Configuration(source, np.array([0.1])).q, [0.1])
+    with pytest.raises(qpik.InvalidConfiguration):
+        qpik.Configuration(source, np.array([np.nan]))
+
+
+def test_qpik_tasks_accept_a_mink_configuration():
+    """qpik's own tasks (world-frame position task) through solve_ik with mink's state."""
+    source = _home()
+    task = qpik.tasks.PositionTask("ee")
+    task.set_target(source.get_transform_frame_to_world("ee", "site").translation() + 0.02)
+    from_mink = qpik.solve_ik(source, [task], DT, "daqp")
+    from_qpik = qpik.solve_ik(qpik.Configuration(source), [task], DT, "daqp")
+    np.testing.assert_array_equal(from_mink, from_qpik)
+    assert np.abs(from_mink).max() > 0
+
+
+# ---------------------------------------------------------------------------- build_ik
+def test_build_ik_is_minks_problem_for_a_flat_list():
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    tasks = [_frame_task(configuration), _posture(configuration)]
+    freeze = mink.DofFreezingTask(model, dof_indices=[0, 1])
+    ours = qpik.build_ik(configuration, tasks, DT, constraints=[freeze])
+    theirs = mink.build_ik(configuration, tasks, DT, constraints=[freeze])
+    assert isinstance(ours, qpsolvers.Problem)
+    for field in ("P", "q", "G", "h", "A", "b"):
+        np.testing.assert_array_equal(getattr(ours, field), getattr(theirs, field))
+    assert ours.A.shape == (2, model.nv)
+    no_limits = qpik.build_ik(configuration, tasks, DT, limits=[])
+    assert no_limits.G is None and no_limits.h is None and no_limits.A is None
+
+
+def test_build_ik_problem_solved_independently_gives_solve_iks_answer():
+    """quadprog on build_ik's QP gives solve_ik's dq (a flat list away from singularities)."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    tight = mink.VelocityLimit(model, {model.joint(j).name: 0.3 for j in range(model.njnt)})
+    limits = [mink.ConfigurationLimit(model), tight]
+    tasks = [_frame_task(configuration, offset=(0.1, -0.1, 0.1)), _posture(configuration)]
+    problem = qpik.build_ik(configuration, tasks, DT, limits=limits)
+    solution = qpsolvers.solve_problem(problem, solver="quadprog")
+    assert solution.found
+    np.testing.assert_allclose(
+        qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits) * DT, solution.x, atol=1e-9
+    )
+
+
+def test_build_ik_gives_one_problem_per_level():
+    configuration = _home()
+    frame, posture = _frame_task(configuration), _posture(configuration)
+    problems = qpik.build_ik(configuration, [[frame], [posture]], DT)
+    assert isinstance(problems, list) and len(problems) == 2
+    np.testing.assert_array_equal(problems[0].P, mink.build_ik(configuration, [frame], DT).P)
+    np.testing.assert_array_equal(problems[1].q, mink.build_ik(configuration, [posture], DT).q)
+    assert isinstance(qpik.build_ik(configuration, [], DT), qpsolvers.Problem)
+
+
+# ------------------------------------------------------------------- one-import switch
+def test_mink_loop_converges_with_qpik_patched_in(monkeypatch):
+    """mink's own convergence pattern (a frame task reached in under 20 steps, error
+    strictly decreasing) with ``mink.solve_ik`` and ``mink.Configuration`` replaced."""
+    monkeypatch.setattr(mink, "solve_ik", qpik.solve_ik)
+    monkeypatch.setattr(mink, "Configuration", qpik.Configuration)
+    model = qpik.load_robot("ur5e")
+    configuration = mink.Configuration(model)
+    configuration.update_from_keyframe("home")
+    assert isinstance(configuration, qpik.Configuration)
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    task.set_target(start @ mink.SE3.from_translation(np.array([0.0, 0.0, 0.1])))  # local z
+    limits = [
+        mink.ConfigurationLimit(model),
+        mink.VelocityLimit(model, {model.joint(j).name: np.pi for j in range(6)}),
+    ]
+    dt, last, steps = 5e-3, np.inf, 0
+    velocity = mink.solve_ik(configuration, [task], dt, "daqp", limits=limits)
+    while steps < 50:
+        error = np.linalg.norm(task.compute_error(configuration))
+        if error < 1e-6 and np.allclose(velocity, 0.0, atol=1e-4):
+            break
+        assert error < last
+        last = error
+        configuration.integrate_inplace(velocity, dt)
+        velocity = mink.solve_ik(configuration, [task], dt, "daqp", limits=limits)
+        steps += 1
+    assert steps < 20
+    assert np.linalg.norm(task.compute_error(configuration)) < 1e-6
