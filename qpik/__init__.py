@@ -31,6 +31,7 @@ from .errors import (
 from .hierarchy import DampingLaw, IKSolver, StepResult
 from .mink_api import build_ik, solve_ik
 from .problem import load_problem
+from .reachability import ReachabilityMap, reachability
 from .robots import list_robots, load_robot
 
 __version__ = "0.1.0"
@@ -46,6 +47,8 @@ __all__ = [
     "build_ik",
     "solve_ik",
     "solve_many",
+    "reachability",
+    "ReachabilityMap",
     "tasks",
     "Configuration",
     "FrameType",

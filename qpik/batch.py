@@ -29,7 +29,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -276,6 +276,20 @@ def iter_solve(
     options = dict(solve_options)
     if q0 is not None:
         options.setdefault("q0", q0)
+    yield from _iter_prepared(spec, model, chunks, entropy, workers, backend, address, options)
+
+
+def _iter_prepared(
+    spec: Any,
+    model: mujoco.MjModel,
+    chunks: Iterable[Chunk],
+    entropy: int,
+    workers: int | None,
+    backend: str,
+    address: str | None,
+    options: dict[str, Any],
+) -> Iterator[tuple[int, list[IKResult]]]:
+    """:func:`iter_solve` once its arguments are checked and the robot loaded."""
     if backend == "ray":
         yield from _iter_ray(spec, chunks, entropy, workers, address, options)
         return
@@ -399,46 +413,90 @@ def solve_many(
     targets_list = list(targets_list)
     entropy = _check_seed(seed)
     workers = check_workers(workers, backend)
+    _check_chunk_size(chunk_size, optional=True)
     spec, model, q0 = prepare_robot(robot)
     _check_targets(model, targets_list)
-    n = len(targets_list)
-    results: list[IKResult | None] = [None] * n
-    if n == 0:
-        return []
-    if chunk_size is not None and (
-        isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1
-    ):
-        raise InvalidInput(f"chunk_size must be a positive integer, got {chunk_size!r}")
     options = dict(solve_options)
     if q0 is not None:
         options.setdefault("q0", q0)
+    results: list[IKResult] = []
+    for _start, chunk_results in _stream(
+        spec,
+        model,
+        len(targets_list),
+        lambda start, stop: targets_list[start:stop],
+        entropy=entropy,
+        workers=workers,
+        backend=backend,
+        address=address,
+        progress=progress,
+        chunk_size=chunk_size,
+        pool_threshold=pool_threshold,
+        options=options,
+        ordered=True,
+    ):
+        results.extend(chunk_results)
+    return results
+
+
+def _check_chunk_size(chunk_size: int | None, optional: bool = False) -> None:
+    if chunk_size is None and optional:
+        return
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+        raise InvalidInput(f"chunk_size must be a positive integer, got {chunk_size!r}")
+
+
+def _stream(
+    spec: Any,
+    model: mujoco.MjModel,
+    n: int,
+    targets_at: Callable[[int, int], Sequence[Mapping]],
+    *,
+    entropy: int,
+    workers: int | None,
+    backend: str,
+    address: str | None,
+    progress: bool,
+    chunk_size: int | None,
+    pool_threshold: float,
+    options: dict[str, Any],
+    ordered: bool = False,
+) -> Iterator[tuple[int, list[IKResult]]]:
+    """Solve targets ``0..n-1`` (``targets_at(start, stop)`` builds a slice on demand) and
+    yield ``(start, results)`` per chunk, in index order if ``ordered``.
+
+    Target 0 is solved first, in this process: bad options raise here, typed, and its time
+    tells whether starting workers is worth it (see ``pool_threshold``)."""
+    if n == 0:
+        return
     bar = progress_bar(n, progress)
     try:
-        # The first target in this process: bad options raise here, typed, and its time
-        # tells whether workers are worth starting.
         start_time = time.perf_counter()
-        results[0] = solve(model, targets_list[0], seed=target_seed(entropy, 0), **options)
+        first = solve(model, targets_at(0, 1)[0], seed=target_seed(entropy, 0), **options)
         estimate = (time.perf_counter() - start_time) * (n - 1)
         bar.update(1)
+        yield 0, [first]
         serial = backend == "process" and (workers == 1 or estimate < pool_threshold)
-        parallel_workers = 1 if serial else workers
-        capacity = parallel_workers or 1
+        workers = 1 if serial else workers
+        capacity = workers or os.cpu_count() or 1
         size = chunk_size or max(1, min(64, math.ceil((n - 1) / (4 * capacity))))
-        chunks = (Chunk(start, targets_list[start : start + size]) for start in range(1, n, size))
-        for start, chunk_results in iter_solve(
-            spec if not isinstance(robot, Configuration) else model,
-            chunks,
-            seed=entropy,
-            workers=parallel_workers,
-            backend=backend,
-            address=address,
-            **options,
+        chunks = (Chunk(s, targets_at(s, min(s + size, n))) for s in range(1, n, size))
+        waiting: dict[int, list[IKResult]] = {}
+        following = 1
+        for start, results in _iter_prepared(
+            spec, model, chunks, entropy, workers, backend, address, options
         ):
-            results[start : start + len(chunk_results)] = chunk_results
-            bar.update(len(chunk_results))
+            bar.update(len(results))
+            if not ordered:
+                yield start, results
+                continue
+            waiting[start] = results
+            while following in waiting:
+                ready = waiting.pop(following)
+                yield following, ready
+                following += len(ready)
     finally:
         bar.close()
-    return results  # type: ignore[return-value]
 
 
 def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str = "IK"):
@@ -679,8 +737,7 @@ def solve_file(
     arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
     entropy = _check_seed(seed)
     workers = check_workers(workers, backend)
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-        raise InvalidInput(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    _check_chunk_size(chunk_size)
     spec, model, q0 = prepare_robot(robot)
     _check_frame(model, frame)
     if q0 is not None:
@@ -728,14 +785,15 @@ def solve_file(
     bar = progress_bar(n, progress, initial=int(table["done"].sum()))
     try:
         chunks = (arrays.chunk(frame, s, min(s + chunk_size, n)) for s in todo)
-        for start, results in iter_solve(
+        for start, results in _iter_prepared(
             spec,
+            model,
             chunks,
-            seed=entropy,
-            workers=workers if len(todo) > 1 else 1,
-            backend=backend,
-            address=address,
-            **solve_options,
+            entropy,
+            workers if len(todo) > 1 else 1,
+            backend,
+            address,
+            solve_options,
         ):
             rows = _rows(results, model.nq)
             _atomic_savez(os.path.join(folder, f"chunk_{start:010d}.npz"), **rows)

@@ -1,0 +1,485 @@
+r"""Reachability maps: per voxel of a box, the fraction of a set of orientations that IK
+reaches, as robot base-placement and capability-map tools compute them (reuleaux, ...).
+
+For a grid of voxel centres :math:`c_v` (world frame, [m]) and rotations :math:`R_k`, each
+pose :math:`(c_v, R_k)` is a :func:`qpik.solve` target for one frame; the map stores which
+converged and, per voxel, the fraction :math:`\frac{1}{K}\sum_k \text{reached}(v, k)`
+(reuleaux's reachability index divided by 100). The solves run through
+:func:`qpik.solve_many`'s machinery: a process pool on every core or a Ray cluster, seeded
+per pose (the map does not depend on workers or backend).
+
+Voxels that no configuration can reach are skipped without IK: every joint of the chain
+from the world to the frame is a hinge, a ball or a bounded slide, so the frame stays
+within :func:`reach_bound` of the chain's first joint anchor (the sum of the fixed
+distances between consecutive joint anchors, plus the slides' travel); a voxel centre
+farther than that is out of reach for every orientation.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from .batch import (
+    _check_frame,
+    _check_seed,
+    _stream,
+    check_workers,
+    prepare_robot,
+)
+from .configuration import FrameType
+from .converge import FrameKey, RobotLike
+from .errors import InvalidInput
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "ReachabilityMap",
+    "plot_reachability",
+    "reach_bound",
+    "reachability",
+    "so3_grid",
+]
+
+_OBJ = {
+    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+}
+
+
+def so3_grid(count: int) -> np.ndarray:
+    """``count`` rotation matrices ``(count, 3, 3)`` spread evenly over SO(3): the
+    Super-Fibonacci spiral (Alexa, CVPR 2022), deterministic, with low discrepancy for
+    every ``count`` (not only the sizes of a regular grid)."""
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise InvalidInput(f"orientations must be a positive count or (K, 3, 3), got {count!r}")
+    from scipy.spatial.transform import Rotation
+
+    phi = math.sqrt(2.0)
+    psi = 1.533751168755204288118041
+    s = np.arange(count) + 0.5
+    r = np.sqrt(s / count)
+    big_r = np.sqrt(1.0 - s / count)
+    alpha = 2.0 * np.pi * s / phi
+    beta = 2.0 * np.pi * s / psi
+    quaternions = np.stack(
+        [r * np.sin(alpha), r * np.cos(alpha), big_r * np.sin(beta), big_r * np.cos(beta)],
+        axis=1,
+    )
+    return Rotation.from_quat(quaternions).as_matrix()
+
+
+def _frame_of(model: mujoco.MjModel, frame: FrameKey) -> tuple[FrameType, int, int]:
+    """``(kind, frame id, body id)`` of a frame key (a name: site, body then geom)."""
+    _check_frame(model, frame)
+    if isinstance(frame, tuple):
+        kind = FrameType.parse(frame[1])
+        ids = {kind: mujoco.mj_name2id(model, _OBJ[kind], frame[0])}
+    else:
+        ids = {k: mujoco.mj_name2id(model, obj, frame) for k, obj in _OBJ.items()}
+        kind = next(k for k, i in ids.items() if i >= 0)
+    index = ids[kind]
+    body = {
+        FrameType.SITE: lambda: model.site_bodyid[index],
+        FrameType.BODY: lambda: index,
+        FrameType.GEOM: lambda: model.geom_bodyid[index],
+    }[kind]()
+    return kind, index, int(body)
+
+
+def reach_bound(robot: RobotLike, frame: FrameKey) -> tuple[np.ndarray, float]:
+    """``(center, radius)``: for every configuration, the frame's origin lies within
+    ``radius`` [m] of ``center`` (world frame).
+
+    ``center`` is the anchor of the first joint on the chain from the world to the frame
+    (fixed, as no joint moves it); ``radius`` sums the distances between consecutive joint
+    anchors and from the last one to the frame, which hinge and ball joints leave
+    unchanged, plus each slide joint's largest travel from ``qpos0``. A chain with a free
+    joint or an unbounded slide has no bound (``inf``). Computed at ``qpos0``.
+    """
+    _spec, model, _q0 = prepare_robot(robot)
+    kind, index, body = _frame_of(model, frame)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    point = {
+        FrameType.SITE: data.site_xpos,
+        FrameType.BODY: data.xpos,
+        FrameType.GEOM: data.geom_xpos,
+    }[kind][index].copy()
+    chain = []
+    while body > 0:
+        start, count = model.body_jntadr[body], model.body_jntnum[body]
+        chain[:0] = range(start, start + count)
+        body = model.body_parentid[body]
+    if not chain:
+        return point, 0.0
+    radius = 0.0
+    for joint in chain:
+        kind_j = model.jnt_type[joint]
+        if kind_j == mujoco.mjtJoint.mjJNT_FREE:
+            return data.xanchor[chain[0]].copy(), math.inf
+        if kind_j == mujoco.mjtJoint.mjJNT_SLIDE:
+            if not model.jnt_limited[joint]:
+                return data.xanchor[chain[0]].copy(), math.inf
+            lower, upper = model.jnt_range[joint]
+            q0 = model.qpos0[model.jnt_qposadr[joint]]
+            radius += max(abs(upper - q0), abs(q0 - lower))
+    points = np.vstack([data.xanchor[chain], point])
+    radius += float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+    return data.xanchor[chain[0]].copy(), radius
+
+
+def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[int, int, int]]:
+    """Voxel centres ``(V, 3)`` (C order over the (x, y, z) indices) and the grid shape:
+    voxels of edge ``resolution`` [m], as many as fit in the region along each axis (at
+    least one), the grid centred in the region."""
+    region = np.asarray(region, dtype=float)
+    if region.shape != (2, 3) or not np.isfinite(region).all():
+        raise InvalidInput(
+            f"region must be a finite (2, 3) array of opposite corners [m], got shape "
+            f"{region.shape}"
+        )
+    if (
+        isinstance(resolution, bool)
+        or not isinstance(resolution, (int, float, np.floating, np.integer))
+        or not math.isfinite(resolution)
+        or resolution <= 0
+    ):
+        raise InvalidInput(f"resolution must be a positive voxel size [m], got {resolution!r}")
+    lower, upper = region.min(axis=0), region.max(axis=0)
+    extent = upper - lower
+    counts = np.maximum(1, np.floor(extent / resolution + 1e-9).astype(int))
+    if int(np.prod(counts)) > 10_000_000:
+        raise InvalidInput(
+            f"region / resolution gives {int(np.prod(counts))} voxels (more than 10 million): "
+            "use a coarser resolution"
+        )
+    middle = (lower + upper) / 2.0
+    axes = [
+        middle[i] + (np.arange(counts[i]) - (counts[i] - 1) / 2.0) * resolution for i in range(3)
+    ]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return grid, (int(counts[0]), int(counts[1]), int(counts[2]))
+
+
+@dataclass
+class ReachabilityMap:
+    """A reachability map (see :func:`reachability`).
+
+    Attributes:
+        centers: voxel centres ``(V, 3)`` [m], world frame, in C order over the grid's
+            ``(x, y, z)`` indices (``fraction.reshape(shape)`` is the grid).
+        fraction: per voxel, the fraction of the orientations reached, in [0, 1].
+        reached: ``(V, K)``: whether IK reached voxel ``v`` with orientation ``k``
+            (``(V, 1)`` for a position-only map).
+        skipped: ``(V,)``: voxels beyond :func:`reach_bound`, given 0 without IK.
+        orientations: the rotations ``(K, 3, 3)`` (world frame; none for a position-only
+            map).
+        shape: the grid's ``(nx, ny, nz)``.
+        resolution: voxel edge [m].
+        region: the box asked for, ``(2, 3)`` [m].
+        frame: the frame; robot: what the robot was given as (name or path).
+        base, reach: the :func:`reach_bound` sphere (centre [m], radius [m]).
+        seed: the batch seed; elapsed: wall time [s]; solve_options: the IK options.
+    """
+
+    centers: np.ndarray
+    fraction: np.ndarray
+    reached: np.ndarray
+    skipped: np.ndarray
+    orientations: np.ndarray
+    shape: tuple[int, int, int]
+    resolution: float
+    region: np.ndarray
+    frame: str
+    robot: str
+    base: np.ndarray
+    reach: float
+    seed: int = 0
+    elapsed: float = 0.0
+    solve_options: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def grid(self) -> np.ndarray:
+        """``fraction`` as an ``(nx, ny, nz)`` array."""
+        return self.fraction.reshape(self.shape)
+
+    @property
+    def solves(self) -> int:
+        """IK solves run (voxels not skipped times orientations)."""
+        return int((~self.skipped).sum()) * self.reached.shape[1]
+
+    def summary(self) -> str:
+        """A few lines: grid, reached voxels, time."""
+        reachable = int((self.fraction > 0).sum())
+        return (
+            f"reachability of {self.frame!r} on {self.robot}: {len(self.fraction)} voxels "
+            f"{self.shape} of {self.resolution:g} m, {_orientation_text(self)}\n"
+            f"{reachable} voxels reached with at least one orientation, "
+            f"{int((self.fraction == 1).sum())} with all; mean fraction "
+            f"{self.fraction.mean():.3f}\n"
+            f"{int(self.skipped.sum())} voxels beyond the reach bound "
+            f"({self.reach:.3f} m from {np.round(self.base, 3).tolist()}) skipped; "
+            f"{self.solves} IK solves in {self.elapsed:.1f} s"
+        )
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Save as ``.npz`` (arrays, plus a JSON ``meta`` entry for the rest)."""
+        meta = {
+            "shape": list(self.shape),
+            "resolution": self.resolution,
+            "frame": self.frame,
+            "robot": self.robot,
+            "reach": self.reach,
+            "seed": self.seed,
+            "elapsed": self.elapsed,
+            "solve_options": {k: repr(v) for k, v in self.solve_options.items()},
+        }
+        np.savez(
+            path,
+            centers=self.centers,
+            fraction=self.fraction,
+            reached=self.reached,
+            skipped=self.skipped,
+            orientations=self.orientations,
+            region=self.region,
+            base=self.base,
+            meta=np.array(json.dumps(meta)),
+        )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ReachabilityMap:
+        """Read a map written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            return cls(
+                centers=data["centers"],
+                fraction=data["fraction"],
+                reached=data["reached"],
+                skipped=data["skipped"],
+                orientations=data["orientations"],
+                shape=tuple(meta["shape"]),
+                resolution=float(meta["resolution"]),
+                region=data["region"],
+                frame=meta["frame"],
+                robot=meta["robot"],
+                base=data["base"],
+                reach=float(meta["reach"]),
+                seed=int(meta["seed"]),
+                elapsed=float(meta["elapsed"]),
+                solve_options=dict(meta["solve_options"]),
+            )
+
+    def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
+        """See :func:`plot_reachability`."""
+        return plot_reachability(self, path, slices=slices)
+
+
+def _orientation_text(rmap: ReachabilityMap) -> str:
+    count = len(rmap.orientations)
+    return f"{count} orientations" if count else "positions only"
+
+
+def reachability(
+    robot: RobotLike,
+    frame: FrameKey,
+    *,
+    region: npt.ArrayLike,
+    resolution: float,
+    orientations: int | npt.ArrayLike,
+    workers: int | None = None,
+    backend: str = "process",
+    address: str | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    **solve_options: Any,
+) -> ReachabilityMap:
+    """Compute a reachability map of ``frame``.
+
+    Args:
+        robot: a name, a path, an ``MjModel`` or a :class:`qpik.Configuration` (its ``q``
+            is the IK start).
+        frame: a site, body or geom name (or ``(name, frame_type)``).
+        region: ``(2, 3)`` opposite corners of the box to map [m], world frame.
+        resolution: voxel edge [m]; the grid is centred in the region.
+        orientations: a count ``K`` (spread evenly over SO(3), :func:`so3_grid`) or
+            ``(K, 3, 3)`` rotation matrices (world frame); ``0``: positions only (one
+            target per voxel, no orientation: ``fraction`` is 0 or 1).
+        workers, backend, address, seed, progress: as for :func:`qpik.solve_many`.
+        **solve_options: passed to every :func:`qpik.solve` (tolerances, ``restarts``,
+            ``time_budget``, ...: they trade the map's accuracy for its time).
+
+    Returns:
+        a :class:`ReachabilityMap`; ``.fraction`` has one value per voxel, ``.centers``
+        the voxel centres.
+    """
+    from .converge import parse_target
+
+    start_time = time.perf_counter()
+    entropy = _check_seed(seed)
+    workers = check_workers(workers, backend)
+    spec, model, q0 = prepare_robot(robot)
+    centers, shape = _grid(region, resolution)
+    if isinstance(orientations, (int, np.integer)) and orientations == 0:
+        rotations = np.zeros((0, 3, 3))  # position only
+    elif isinstance(orientations, (int, np.integer)) and not isinstance(orientations, bool):
+        rotations = so3_grid(int(orientations))
+    else:
+        rotations = np.asarray(orientations, dtype=float)
+        if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or len(rotations) == 0:
+            raise InvalidInput(
+                f"orientations must be a count or a (K, 3, 3) array, got shape {rotations.shape}"
+            )
+        for k, rotation in enumerate(rotations):
+            try:
+                parse_target((np.zeros(3), rotation))
+            except Exception as exc:
+                raise InvalidInput(f"orientations[{k}]: {exc}") from None
+    base, reach = reach_bound(model, frame)
+    margin = float(solve_options.get("tol_position", 1e-3))
+    distance = np.linalg.norm(centers - base, axis=1)
+    skipped = distance > reach + margin
+    candidates = np.flatnonzero(~skipped)
+    k = max(1, len(rotations))
+    options = dict(solve_options)
+    if q0 is not None:
+        options.setdefault("q0", q0)
+
+    def targets_at(start: int, stop: int) -> list[dict]:
+        if len(rotations) == 0:
+            return [{frame: centers[candidates[i]]} for i in range(start, stop)]
+        return [
+            {frame: (centers[candidates[i // k]], rotations[i % k])} for i in range(start, stop)
+        ]
+
+    flags = np.zeros(len(candidates) * k, dtype=bool)
+    for start, results in _stream(
+        spec,
+        model,
+        len(flags),
+        targets_at,
+        entropy=entropy,
+        workers=workers,
+        backend=backend,
+        address=address,
+        progress=progress,
+        chunk_size=None,
+        pool_threshold=1.0,
+        options=options,
+    ):
+        flags[start : start + len(results)] = [r.converged for r in results]
+    reached = np.zeros((len(centers), k), dtype=bool)
+    reached[candidates] = flags.reshape(len(candidates), k)
+    return ReachabilityMap(
+        centers=centers,
+        fraction=reached.mean(axis=1),
+        reached=reached,
+        skipped=skipped,
+        orientations=rotations,
+        shape=shape,
+        resolution=float(resolution),
+        region=np.asarray(region, dtype=float),
+        frame=frame if isinstance(frame, str) else str(frame[0]),
+        robot=spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
+        base=base,
+        reach=reach,
+        seed=entropy,
+        elapsed=time.perf_counter() - start_time,
+        solve_options=dict(solve_options),
+    )
+
+
+def plot_reachability(
+    rmap: ReachabilityMap, path: str | os.PathLike | None = None, *, slices: int = 4, dpi: int = 90
+) -> Figure:
+    """A figure of a map: ``slices`` horizontal slices (constant z, x right, y up, colour
+    = fraction reached) and a 3D scatter of the voxels reached at least once, coloured
+    the same way, with the reach-bound centre. Saved to ``path`` when given (bare
+    ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib (``qpik[plots]``)."""
+    from .plots import _matplotlib, _pyplot
+
+    _matplotlib()
+    grid = rmap.grid
+    nx, ny, nz = rmap.shape
+    levels = np.unique(np.linspace(0, nz - 1, min(slices, nz)).round().astype(int))
+    panels = len(levels)
+    figsize = (3.2 * panels + 5.0, 4.4)
+    if path is not None:
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=figsize)
+    else:
+        fig = _pyplot().figure(figsize=figsize)
+    spec = fig.add_gridspec(1, panels + 2, width_ratios=[1.0] * panels + [0.08, 1.9])
+    centers = rmap.centers.reshape(nx, ny, nz, 3)
+    half = rmap.resolution / 2.0
+    extent = (
+        centers[0, 0, 0, 0] - half,
+        centers[-1, 0, 0, 0] + half,
+        centers[0, 0, 0, 1] - half,
+        centers[0, -1, 0, 1] + half,
+    )
+    image = None
+    for column, level in enumerate(levels):
+        ax = fig.add_subplot(spec[0, column])
+        image = ax.imshow(
+            grid[:, :, level].T,
+            origin="lower",
+            extent=extent,
+            vmin=0.0,
+            vmax=1.0,
+            cmap="viridis",
+            interpolation="nearest",
+        )
+        ax.plot(rmap.base[0], rmap.base[1], "r+", markersize=8)
+        ax.set_title(f"z = {centers[0, 0, level, 2]:.3f} m", fontsize="small")
+        ax.set_xlabel("x [m]")
+        if column == 0:
+            ax.set_ylabel("y [m]")
+        ax.set_aspect("equal")
+    colorbar_ax = fig.add_subplot(spec[0, panels])
+    fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")
+    ax3 = fig.add_subplot(spec[0, panels + 1], projection="3d")
+    shown = rmap.fraction > 0
+    points = rmap.centers[shown]
+    ax3.scatter(
+        points[:, 0],
+        points[:, 1],
+        points[:, 2],
+        c=rmap.fraction[shown],
+        cmap="viridis",
+        vmin=0.0,
+        vmax=1.0,
+        s=float(np.clip(4000.0 / max(1, len(rmap.fraction)) ** (2.0 / 3.0), 2.0, 40.0)),
+        alpha=0.85,
+        depthshade=False,
+    )
+    ax3.scatter(*rmap.base, color="red", marker="+", s=60)
+    lower, upper = rmap.region.min(axis=0), rmap.region.max(axis=0)
+    ax3.set_xlim(lower[0], upper[0])
+    ax3.set_ylim(lower[1], upper[1])
+    ax3.set_zlim(lower[2], upper[2])
+    ax3.set_box_aspect(np.maximum(upper - lower, 0.2 * (upper - lower).max()))
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax3.set_title(f"voxels reached ({int(shown.sum())}/{len(shown)})", fontsize="small")
+    fig.suptitle(
+        f"reachability of {rmap.frame!r} on {rmap.robot}: {_orientation_text(rmap)}, "
+        f"{rmap.resolution:g} m voxels (+: reach-bound centre)",
+        fontsize="medium",
+    )
+    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.12, top=0.86, wspace=0.35)
+    if path is not None:
+        fig.savefig(path, dpi=dpi)
+    return fig
