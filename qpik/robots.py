@@ -397,8 +397,9 @@ def _drop_bad_meshes(spec: mujoco.MjSpec, path: Path) -> None:
 
 
 def _positive_inertias(root: ET.Element, path: Path) -> None:
-    """Replace inertia matrices that are not positive definite (rounded CAD exports) by
-    the nearest one with eigenvalues >= 1e-9 [kg m^2]; the kinematics is unchanged."""
+    """Replace inertia matrices MuJoCo rejects (a full inertia that is not positive
+    definite: rounded CAD exports) by the nearest one with eigenvalues >= 1e-9 [kg m^2];
+    the kinematics is unchanged."""
     fixed = []
     keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     for link in root.iter("link"):
@@ -410,9 +411,12 @@ def _positive_inertias(root: ET.Element, path: Path) -> None:
         except ValueError:
             continue
         matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        values, vectors = np.linalg.eigh(matrix)
-        if values.min() > 0 and np.all(np.isfinite(values)):
+        if not np.all(np.isfinite(matrix)):
             continue
+        values, vectors = np.linalg.eigh(matrix)
+        coupled = bool(xy or xz or yz)  # MuJoCo checks a full inertia's eigenvalues
+        if values.min() >= 0 and not (coupled and values.min() <= 1e-12 * abs(values).max()):
+            continue  # diagonal zeros are MuJoCo's boundinertia's to fix
         matrix = vectors @ np.diag(np.maximum(values, 1e-9)) @ vectors.T
         for key, value in zip(keys, matrix[np.triu_indices(3)]):
             inertia.set(key, repr(float(value)))

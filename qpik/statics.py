@@ -375,17 +375,22 @@ def force_ellipsoid(
 
 # ------------------------------------------------------------------------ max payload
 def joint_torque_limits(configuration: Configuration) -> np.ndarray:
-    """Joint torque limits ``(nv, 2)`` [N m or N], lower and upper, from the actuators.
+    """Joint torque limits ``(nv, 2)`` [N m or N], lower and upper, from the actuators and
+    the joints' effort ranges.
 
     Each joint-driven actuator contributes ``gear * forcerange`` when it is force-limited,
-    else ``gear * gain * ctrlrange`` for a motor (fixed gain, no bias). Several actuators
-    on one dof add up; a dof that no actuator drives gets ``[0, 0]``. Raises
+    else ``gear * gain * ctrlrange`` for a motor (fixed gain, no bias); several actuators
+    on one dof add up. A joint's own ``actuatorfrcrange`` (MuJoCo clamps the total actuator
+    force on the joint to it; a URDF's ``<limit effort>`` becomes it) caps that sum, and is
+    the limit of a hinge or slide joint that no actuator drives (URDF models have no
+    actuators). A dof with neither (a free base, a passive joint) gets ``[0, 0]``. Raises
     :class:`InvalidInput` for an actuator whose range cannot be read this way (pass
     ``torque_limits`` explicitly then).
     """
     _check_configuration(configuration)
     model = configuration.model
     limits = np.zeros((model.nv, 2))
+    driven = np.zeros(model.nv, dtype=bool)
     names = joint_names(model)
     for a in range(model.nu):
         label = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"actuator{a}"
@@ -414,6 +419,16 @@ def joint_torque_limits(configuration: Configuration) -> np.ndarray:
         generalized = model.actuator_gear[a, 0] * force
         dof = model.jnt_dofadr[joint]
         limits[dof] += (generalized.min(), generalized.max())
+        driven[dof] = True
+    for j in range(model.njnt):
+        if not model.jnt_actfrclimited[j] or int(model.jnt_type[j]) not in _SCALAR_JOINTS:
+            continue
+        dof = model.jnt_dofadr[j]
+        low, high = model.jnt_actfrcrange[j]
+        if driven[dof]:
+            limits[dof] = np.clip(limits[dof], low, high)
+        else:
+            limits[dof] = (low, high)
     return limits
 
 
@@ -489,7 +504,7 @@ def max_payload(
         direction: Direction ``(3,)`` of the force on the robot, world axes, nonzero.
         torque_limits: ``(nv,)`` symmetric limits ``|tau_i| <= l_i`` or ``(nv, 2)``
             lower/upper [N m]; default :func:`joint_torque_limits` (the actuators'
-            ctrlrange * gear, or forcerange).
+            ctrlrange * gear, or forcerange, and the joints' effort ranges).
         frame_type: ``"site"`` (default), ``"body"`` or ``"geom"``.
         gravity: Whether the motors also hold the robot against gravity.
     """

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import argparse
 
+import mujoco
 import numpy as np
 
-from ..configuration import Configuration
-from ..robots import load_robot
+from ..configuration import Configuration, frame_names
+from ..errors import InvalidInput
+from ..robots import load_robot, tool_frame
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, *, frame: bool = True) -> None:
@@ -22,19 +24,68 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, frame: bool = True) 
         metavar="Q",
         help="joint configuration [rad or m], nq values (default: the model's qpos0)",
     )
+    parser.add_argument(
+        "--floating-base",
+        action="store_true",
+        help="add a free joint at the root (q starts with x y z qw qx qy qz)",
+    )
+    parser.add_argument(
+        "--key",
+        metavar="NAME",
+        help="start from the model's keyframe NAME (an SRDF state such as half_sitting)",
+    )
     if frame:
-        parser.add_argument("--frame", default="ee", help="frame name (default: ee)")
+        parser.add_argument(
+            "--frame",
+            default=None,
+            help="frame name (default: the robot's tool frame: site ee, else a known tool "
+            "link, else the last link of the longest chain)",
+        )
         parser.add_argument(
             "--frame-type",
-            default="site",
+            default=None,
             choices=["site", "body", "geom"],
-            help="frame type (default: site)",
+            help="frame type (default: the type of the frame that has that name, site first)",
         )
 
 
 def configuration_from_args(args: argparse.Namespace) -> Configuration:
-    """Load ``args.robot`` and set ``args.q``."""
-    return Configuration(load_robot(args.robot), args.q)
+    """Load ``args.robot`` and set ``args.q`` (or the keyframe ``args.key``); pick the
+    frame (``args.frame``, ``args.frame_type``) when the command has one."""
+    model = load_robot(args.robot, floating_base=getattr(args, "floating_base", False))
+    q = args.q
+    key = getattr(args, "key", None)
+    if key is not None:
+        kid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, key)
+        if kid < 0:
+            keys = [model.key(k).name for k in range(model.nkey)]
+            raise InvalidInput(f"--key {key!r}: keyframes are: {', '.join(keys) or '(none)'}")
+        if q is not None:
+            raise InvalidInput("give --q or --key, not both")
+        q = model.key_qpos[kid]
+    configuration = Configuration(model, q)
+    if hasattr(args, "frame"):
+        _pick_frame(args, model)
+    return configuration
+
+
+def _pick_frame(args: argparse.Namespace, model: mujoco.MjModel) -> None:
+    """Fill ``args.frame``/``args.frame_type``: the tool frame when no frame is given
+    (printed, with the rule that chose it); the type of the named frame otherwise."""
+    if args.frame is None:
+        tool = tool_frame(model)
+        args.frame, chosen = tool.name, tool.frame_type
+        if args.frame_type is not None and args.frame_type != chosen:
+            raise InvalidInput(f"--frame-type {args.frame_type} needs --frame NAME")
+        args.frame_type = chosen
+        print(f"frame: {tool.frame_type} {tool.name!r} ({tool.reason}; --frame to choose)")
+        return
+    if args.frame_type is None:
+        for kind in ("site", "body", "geom"):
+            if args.frame in frame_names(model, kind):
+                args.frame_type = kind
+                return
+        args.frame_type = "site"  # the typed error lists the sites
 
 
 def format_matrix(matrix: np.ndarray, indent: str = "  ", digits: int = 4) -> str:
