@@ -636,7 +636,11 @@ def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
 
     with open(path) as stream:
         first = stream.readline()
-    header = any(c.isalpha() for c in first)
+    try:
+        [float(cell) for cell in first.split(",")]
+        header = False
+    except ValueError:
+        header = True
     try:
         table = np.loadtxt(path, delimiter=",", skiprows=1 if header else 0, ndmin=2)
     except ValueError as exc:

@@ -1,0 +1,316 @@
+"""Batch IK (qpik.batch, qpik batch): same answers serial, pooled, chunked or on Ray; typed
+errors; results written chunk by chunk and resumed."""
+
+from __future__ import annotations
+
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+import qpik
+import qpik.batch as batch
+from qpik.batch import Chunk, iter_solve, load_targets, solve_file, target_seed
+from qpik.cli import main
+
+
+def pose_targets(robot: str, count: int, seed: int = 0, frame: str = "ee") -> list[dict]:
+    """Reachable pose targets (FK of random configurations within the limits)."""
+    configuration = qpik.Configuration(qpik.load_robot(robot))
+    rng = np.random.default_rng(seed)
+    targets = []
+    for _ in range(count):
+        configuration.update(configuration.random_q(rng))
+        position, rotation = configuration.frame_pose(frame)
+        targets.append({frame: (position.copy(), rotation.copy())})
+    return targets
+
+
+#: 8 reachable ur5e poses and 2 far out of reach (those take the restart path).
+TARGETS = pose_targets("ur5e", 8) + [{"ee": [2.0, 0.0, 0.3]}, {"ee": [0.0, -1.9, 0.8]}]
+
+
+def assert_same(a: list[qpik.IKResult], b: list[qpik.IKResult]) -> None:
+    assert len(a) == len(b)
+    for i, (x, y) in enumerate(zip(a, b, strict=True)):
+        np.testing.assert_array_equal(x.q, y.q, err_msg=f"target {i}")
+        assert (x.converged, x.reason, x.iterations) == (y.converged, y.reason, y.iterations), i
+
+
+def test_target_seed_depends_on_seed_and_index_only():
+    seeds = [target_seed(7, i) for i in range(100)]
+    assert len(set(seeds)) == 100
+    assert seeds == [target_seed(7, i) for i in range(100)]
+    assert target_seed(8, 0) != target_seed(7, 0)
+    assert all(isinstance(s, int) and s >= 0 for s in seeds)
+
+
+def test_each_entry_is_reproduced_by_solve_with_its_seed():
+    results = qpik.solve_many("ur5e", TARGETS, seed=11, workers=1, progress=False)
+    for i in (0, 3, 9):
+        alone = qpik.solve("ur5e", TARGETS[i], seed=target_seed(11, i))
+        np.testing.assert_array_equal(alone.q, results[i].q)
+    assert all(r.converged for r in results[:8])
+    assert not any(r.converged for r in results[8:])
+
+
+def test_serial_equals_process_pool_whatever_the_chunking():
+    serial = qpik.solve_many("ur5e", TARGETS, seed=5, workers=1, progress=False)
+    for chunk_size in (1, 3, None):
+        pooled = qpik.solve_many(
+            "ur5e",
+            TARGETS,
+            seed=5,
+            workers=2,
+            chunk_size=chunk_size,
+            pool_threshold=0.0,
+            progress=False,
+        )
+        assert_same(serial, pooled)
+    # The whole batch again, reversed and in one process: no state carried between solves.
+    backwards = qpik.solve_many("ur5e", TARGETS[::-1], seed=5, workers=1, progress=False)
+    for i, result in enumerate(backwards[::-1]):
+        alone = qpik.solve("ur5e", TARGETS[i], seed=target_seed(5, len(TARGETS) - 1 - i))
+        np.testing.assert_array_equal(alone.q, result.q)
+
+
+def test_pool_is_used_and_tiny_batches_stay_in_process(monkeypatch):
+    started = []
+
+    class Recorder(batch.ProcessPoolExecutor):
+        def __init__(self, *args, **kwargs):
+            started.append(kwargs.get("max_workers"))
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(batch, "ProcessPoolExecutor", Recorder)
+    qpik.solve_many("ur5e", TARGETS[:3], seed=0, workers=2, progress=False)
+    assert started == []  # three fast targets: a pool costs more than it saves
+    qpik.solve_many("ur5e", TARGETS[:4], seed=0, workers=2, pool_threshold=0.0, progress=False)
+    assert started == [2]
+    monkeypatch.setattr(batch.os, "cpu_count", lambda: 3)
+    qpik.solve_many("ur5e", TARGETS[:4], seed=0, pool_threshold=0.0, progress=False)
+    assert started == [2, 3]  # workers=None: every core
+
+
+def test_iter_solve_streams_chunks_and_a_configuration_gives_q0():
+    model = qpik.load_robot("panda")
+    q0 = model.key_qpos[0]
+    targets = pose_targets("panda", 5, seed=2)
+    chunks = [Chunk(0, targets[:2]), Chunk(2, targets[2:])]
+    got = dict(iter_solve(qpik.Configuration(model, q0), chunks, seed=4, workers=1))
+    assert sorted(got) == [0, 2] and len(got[0]) == 2 and len(got[2]) == 3
+    for i, result in enumerate(got[0] + got[2]):
+        alone = qpik.solve(model, targets[i], q0=q0, seed=target_seed(4, i))
+        np.testing.assert_array_equal(alone.q, result.q)
+
+
+def test_bad_inputs_raise_typed_errors_naming_the_argument():
+    with pytest.raises(qpik.UnknownFrame, match="gripper"):
+        qpik.solve_many("ur5e", [{"ee": [0.3, 0, 0.3]}, {"gripper": [0.3, 0, 0.3]}])
+    with pytest.raises(qpik.InvalidTarget, match=r"targets_list\[1\]"):
+        qpik.solve_many("ur5e", [{"ee": [0.3, 0, 0.3]}, {"ee": [np.nan, 0, 0.3]}])
+    with pytest.raises(qpik.InvalidTarget, match=r"targets_list\[0\]"):
+        qpik.solve_many("ur5e", [[0.3, 0, 0.3]])
+    with pytest.raises(qpik.InvalidInput, match="workers"):
+        qpik.solve_many("ur5e", TARGETS, workers=0)
+    with pytest.raises(qpik.InvalidInput, match="backend"):
+        qpik.solve_many("ur5e", TARGETS, backend="dask")
+    with pytest.raises(qpik.InvalidInput, match="seed"):
+        qpik.solve_many("ur5e", TARGETS, seed=-1)
+    with pytest.raises(qpik.InvalidInput, match="chunk_size"):
+        qpik.solve_many("ur5e", TARGETS, chunk_size=0)
+    with pytest.raises(qpik.InvalidInput, match="robot"):
+        qpik.solve_many(3.0, TARGETS)
+    with pytest.raises(qpik.InvalidInput, match="alpha"):  # an option, checked in-process
+        qpik.solve_many("ur5e", TARGETS, alpha=5.0, workers=2, progress=False)
+    with pytest.raises(qpik.InvalidInput, match="backend='ray'"):
+        qpik.solve_many("ur5e", TARGETS, address="auto", workers=2, pool_threshold=0.0)
+    assert qpik.solve_many("ur5e", [], progress=False) == []
+
+
+def test_an_error_in_a_worker_is_raised_with_its_type(monkeypatch):
+    real_solve = batch.solve
+
+    def failing(model, targets, **options):
+        if np.allclose(targets["ee"][0], TARGETS[6]["ee"][0]):
+            raise qpik.InvalidTarget("target 6 is cursed")
+        return real_solve(model, targets, **options)
+
+    monkeypatch.setattr(batch, "solve", failing)  # workers fork with the patch
+    with pytest.raises(qpik.InvalidTarget, match="cursed"):
+        qpik.solve_many("ur5e", TARGETS, workers=2, pool_threshold=0.0, progress=False)
+
+
+def test_progress_bar_shows_rate_and_eta(capsys):
+    qpik.solve_many("ur5e", TARGETS[:3], workers=1, progress=False)
+    assert capsys.readouterr().err == ""
+    bar = batch.progress_bar(10, True, initial=4)
+    bar.update(1)
+    text = str(bar)
+    bar.close()
+    assert "5/10" in text and "<" in text  # elapsed<remaining
+
+
+# --- Ray ----------------------------------------------------------------------------------
+
+
+def test_missing_ray_names_the_cluster_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(qpik.MissingExtra, match=r"qpik\[cluster\]"):
+        qpik.solve_many("ur5e", TARGETS, backend="ray", progress=False)
+
+
+def test_ray_results_equal_serial():
+    ray = pytest.importorskip("ray")
+    serial = qpik.solve_many("ur5e", TARGETS, seed=5, workers=1, progress=False)
+    started_here = not ray.is_initialized()
+    if started_here:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    try:
+        on_ray = qpik.solve_many(
+            "ur5e", TARGETS, seed=5, backend="ray", chunk_size=3, progress=False
+        )
+        assert_same(serial, on_ray)
+        model = qpik.load_robot("ur5e")  # an MjModel travels through the object store
+        again = qpik.solve_many(model, TARGETS[:3], seed=5, backend="ray", progress=False)
+        assert_same(serial[:3], again)
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+# --- qpik batch: files, chunks, resume ----------------------------------------------------
+
+
+def write_targets(path, targets=TARGETS[:8]):
+    positions = np.array([t["ee"][0] for t in targets])
+    quaternions = np.zeros((len(targets), 4))
+    for q, t in zip(quaternions, targets):
+        mujoco.mju_mat2Quat(q, t["ee"][1].ravel())
+    np.savez(path, positions=positions, quaternions=quaternions)
+    return positions, quaternions
+
+
+def test_load_targets_npz_and_csv(tmp_path):
+    positions, quaternions = write_targets(tmp_path / "t.npz")
+    arrays = load_targets(tmp_path / "t.npz")
+    np.testing.assert_allclose(arrays.positions, positions)
+    for rotation, target in zip(arrays.rotations, TARGETS[:8]):
+        np.testing.assert_allclose(rotation, target["ee"][1], atol=1e-12)
+    table = np.hstack([positions, quaternions])
+    np.savetxt(tmp_path / "t.csv", table, delimiter=",", header="x,y,z,qw,qx,qy,qz", comments="")
+    from_csv = load_targets(tmp_path / "t.csv")
+    np.testing.assert_allclose(from_csv.rotations, arrays.rotations, atol=1e-12)
+    np.savetxt(tmp_path / "p.csv", positions, delimiter=",")
+    assert load_targets(tmp_path / "p.csv").rotations is None
+
+
+def test_malformed_targets_files_name_the_field(tmp_path):
+    np.savez(tmp_path / "a.npz", points=np.zeros((3, 3)))
+    with pytest.raises(qpik.ProblemFileError, match="positions"):
+        load_targets(tmp_path / "a.npz")
+    np.savez(tmp_path / "b.npz", positions=np.zeros((3, 2)))
+    with pytest.raises(qpik.ProblemFileError, match=r"positions.*\(N, 3\)"):
+        load_targets(tmp_path / "b.npz")
+    np.savez(tmp_path / "c.npz", positions=np.zeros((2, 3)), quaternions=[[0, 0, 0, 2.0]] * 2)
+    with pytest.raises(qpik.ProblemFileError, match="unit quaternion"):
+        load_targets(tmp_path / "c.npz")
+    np.savez(tmp_path / "d.npz", positions=[[0, np.inf, 0]])
+    with pytest.raises(qpik.ProblemFileError, match="row 0"):
+        load_targets(tmp_path / "d.npz")
+    (tmp_path / "e.csv").write_text("a,b,c\n1,2,3\n")
+    with pytest.raises(qpik.ProblemFileError, match="x, y, z"):
+        load_targets(tmp_path / "e.csv")
+    with pytest.raises(qpik.ProblemFileError, match="no such file"):
+        load_targets(tmp_path / "missing.npz")
+
+
+def test_batch_file_resumes_without_redoing_chunks(tmp_path, monkeypatch):
+    write_targets(tmp_path / "t.npz")
+    out = tmp_path / "r.npz"
+    solved: list[int] = []
+    real_solve = batch.solve
+
+    def counting(model, targets, **options):
+        solved.append(1)
+        return real_solve(model, targets, **options)
+
+    monkeypatch.setattr(batch, "solve", counting)
+    first = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1, max_chunks=2)
+    assert (first.chunks, first.chunks_solved, first.complete) == (3, 2, False)
+    assert len(solved) == 6
+    partial = np.load(out)
+    assert partial["done"].tolist() == [True] * 6 + [False] * 2
+    assert partial["reason"][7] == "pending" and np.isnan(partial["q"][7]).all()
+    assert sorted(p.name for p in (tmp_path / "r.npz.chunks").iterdir()) == [
+        "chunk_0000000000.npz",
+        "chunk_0000000003.npz",
+        "meta.json",
+    ]
+    second = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1)
+    assert (second.chunks_before, second.chunks_solved, second.complete) == (2, 1, True)
+    assert len(solved) == 8  # only the last chunk's two targets
+    assert not (tmp_path / "r.npz.chunks").exists()
+    third = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1)
+    assert third.chunks_solved == 0 and len(solved) == 8
+    data = np.load(out)
+    arrays = load_targets(tmp_path / "t.npz")  # the file's rotations (from quaternions)
+    as_read = [{"ee": (p, r)} for p, r in zip(arrays.positions, arrays.rotations)]
+    expected = qpik.solve_many("ur5e", as_read, seed=0, workers=1, progress=False)
+    np.testing.assert_array_equal(data["q"], np.array([r.q for r in expected]))
+    assert data["converged"].all() and data["done"].all()
+    assert data["reason"].tolist() == [r.reason for r in expected]
+    np.testing.assert_array_equal(data["position_error"], [r.position_error for r in expected])
+    assert (data["time"] > 0).all()
+
+
+def test_batch_cli_interrupted_then_resumed_with_workers(tmp_path, monkeypatch, capsys):
+    write_targets(tmp_path / "t.npz")
+    out = tmp_path / "r.npz"
+    argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
+    argv += ["--out", str(out), "--chunk-size", "2", "--quiet"]
+    real_solve = batch.solve
+
+    def interrupted(model, targets, **options):
+        if np.allclose(targets["ee"][0], TARGETS[5]["ee"][0]):
+            raise KeyboardInterrupt
+        return real_solve(model, targets, **options)
+
+    monkeypatch.setattr(batch, "solve", interrupted)
+    assert main(argv + ["--workers", "1"]) == 130
+    assert "resume" in capsys.readouterr().err
+    assert np.load(out)["done"].sum() == 4  # chunks [0, 1] and [2, 3]
+    monkeypatch.setattr(batch, "solve", real_solve)
+    assert main(argv + ["--workers", "2"]) == 0
+    data = np.load(out)
+    assert data["done"].all() and data["converged"].all()
+    # A rerun with other options would mix two runs: refused, exit 2.
+    assert main(argv + ["--seed", "3"]) == 2
+    assert "different seed" in capsys.readouterr().err
+    assert main(argv + ["--seed", "3", "--overwrite", "--max-chunks", "1"]) == 3
+
+
+def test_batch_cli_errors_exit_2(tmp_path, capsys):
+    write_targets(tmp_path / "t.npz")
+    base = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--out", str(tmp_path / "r.npz")]
+    assert main(base + ["--frame", "gripper"]) == 2
+    assert "gripper" in capsys.readouterr().err
+    assert (
+        main(
+            [
+                "batch",
+                str(tmp_path / "none.npz"),
+                "--robot",
+                "ur5e",
+                "--frame",
+                "ee",
+                "--out",
+                str(tmp_path / "r.npz"),
+            ]
+        )
+        == 2
+    )
+    assert "no such file" in capsys.readouterr().err
+    assert main(base[:-1] + [str(tmp_path / "r.txt"), "--frame", "ee"]) == 2
+    assert ".npz" in capsys.readouterr().err
