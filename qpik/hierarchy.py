@@ -147,6 +147,8 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
 def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
     """The rows' costs of a task (its ``cost`` broadcast), 1 where it has none."""
     cost = getattr(task, "cost", None)
+    if type(cost) is np.ndarray and cost.shape == (rows,):
+        return cost
     if cost is None:
         return np.ones(rows)
     try:
@@ -440,6 +442,16 @@ class IKSolver:
         return self._build(configuration, dt)[0]
 
     def _build(self, configuration: Configuration, dt: float):
+        """``(problem, contributions)``; see :meth:`build`."""
+        A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
+        levels = [
+            Level(A[s0:s1], b[s0:s1], float(reg[k]), w[s0:s1], f"level {k}")
+            for k, (s0, s1) in enumerate(zip(starts[:-1].tolist(), starts[1:].tolist()))
+        ]
+        return HierarchyProblem(levels, lb, ub, G, h, names), contributions
+
+    def _rows(self, configuration: Configuration, dt: float):
+        """Every level's rows stacked as the core takes them, and the limits."""
         if not (isinstance(dt, (int, float)) and dt > 0 and math.isfinite(dt)):
             raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}")
         if configuration.model is not self.model and configuration.model.nv != self._nv:
@@ -447,29 +459,41 @@ class IKSolver:
                 f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
             )
         lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
-        levels = []
-        nv = self._nv
+        A_parts, b_parts, w_parts = [], [], []
+        L = len(self.levels)
+        starts = np.zeros(L + 1, dtype=np.int64)
+        reg = np.empty(L)
         for k, tasks in enumerate(self.levels):
-            A, b, mu, w = level_rows(tasks, configuration, nv)
-            finite = math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))
-            if not (finite and math.isfinite(mu)):
-                raise InvalidTarget(
-                    f"priority level {k}: a task error or Jacobian is not finite (a NaN or "
-                    f"inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
-                )
-            levels.append(Level(A, b, self.damping + mu, w, f"level {k}"))
-        problem = HierarchyProblem(levels, lb, ub, G, h, general_names)
-        return problem, contributions
+            A, b, mu, w = level_rows(tasks, configuration, self._nv)
+            A_parts.append(A)
+            b_parts.append(b)
+            w_parts.append(w)
+            starts[k + 1] = starts[k] + b.shape[0]
+            reg[k] = self.damping + mu
+        A = np.concatenate(A_parts) if L > 1 else np.ascontiguousarray(A_parts[0], dtype=float)
+        b = np.concatenate(b_parts) if L > 1 else np.ascontiguousarray(b_parts[0], dtype=float)
+        w = np.concatenate(w_parts) if L > 1 else np.ascontiguousarray(w_parts[0], dtype=float)
+        if not (math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))) or not (
+            math.isfinite(float(reg.sum()))
+        ):
+            for k, tasks in enumerate(self.levels):
+                s0, s1 = starts[k], starts[k + 1]
+                if not (np.isfinite(A[s0:s1]).all() and np.isfinite(b[s0:s1]).all()) or not (
+                    math.isfinite(reg[k])
+                ):
+                    raise InvalidTarget(
+                        f"priority level {k}: a task error or Jacobian is not finite (a NaN "
+                        f"or inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
+                    )
+        return A, b, w, starts, reg, lb, ub, G, h, contributions, general_names
 
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
         start = time.perf_counter()
-        problem, contributions = self._build(configuration, dt)
-        result = self._core.solve(problem, validate=False)
+        A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
+        result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
-        lb, ub, G, h = problem.lb, problem.ub, problem.G, problem.h
-        names = problem.row_names
         return StepResult(
             velocity=d / dt,
             displacement=d,

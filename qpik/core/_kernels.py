@@ -535,6 +535,20 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
 
 
 @njit(cache=True)
+def _level_residuals(A, b, starts, x):
+    """Per level, ``|A_k x - b_k|`` over all its rows."""
+    r = A @ x - b
+    L = starts.shape[0] - 1
+    out = np.empty(L)
+    for k in range(L):
+        s = 0.0
+        for i in range(starts[k], starts[k + 1]):
+            s += r[i] * r[i]
+        out[k] = np.sqrt(s)
+    return out
+
+
+@njit(cache=True)
 def solve_cascade(
     A,
     b,
@@ -568,8 +582,9 @@ def solve_cascade(
         warm: (L, n + p) int8 active sets to try first (zeros: cold).
 
     Returns:
-        ``(dq, status, sigma, lam2, iterations, active)`` with per-level arrays and
-        ``active`` (L, n + p) the final active sets (in reduced coordinates).
+        ``(dq, status, sigma, lam2, iterations, active, residuals)`` with per-level
+        arrays, ``active`` (L, n + p) the final active sets and ``residuals`` each
+        level's ``|A_k dq - b_k|``.
     """
     n = lb.shape[0]
     p = G.shape[0]
@@ -621,10 +636,8 @@ def solve_cascade(
             status[k] = SOLVED
         else:
             status[k] = st if k == 0 or st == MAX_ITER else KEPT_PREVIOUS
-            if st == MAX_ITER or st == NUMERICAL:
-                return d, status, sigma, lam2, iterations, active
-            if k == 0:
-                return d, status, sigma, lam2, iterations, active
+            if st == MAX_ITER or st == NUMERICAL or k == 0:
+                return d, status, sigma, lam2, iterations, active, _level_residuals(A, b, starts, d)
             continue
         Z = Zn
-    return d, status, sigma, lam2, iterations, active
+    return d, status, sigma, lam2, iterations, active, _level_residuals(A, b, starts, d)

@@ -333,53 +333,62 @@ class HierarchySolver:
         return warm
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
-        """Solve the cascade. ``validate=False`` skips the shape/finiteness checks (the
-        IK layer builds problems that are valid by construction)."""
+        """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
         if validate:
             problem.validate()
         A, b, w, starts, reg = problem.stacked()
-        n, p = problem.n, problem.G.shape[0]
-        L = len(problem.levels)
+        return self.solve_arrays(
+            A, b, w, starts, reg,
+            np.ascontiguousarray(problem.lb, dtype=float),
+            np.ascontiguousarray(problem.ub, dtype=float),
+            np.ascontiguousarray(problem.G, dtype=float),
+            np.ascontiguousarray(problem.h, dtype=float),
+        )  # fmt: skip
+
+    def solve_arrays(
+        self,
+        A: np.ndarray,
+        b: np.ndarray,
+        w: np.ndarray,
+        starts: np.ndarray,
+        reg: np.ndarray,
+        lb: np.ndarray,
+        ub: np.ndarray,
+        G: np.ndarray,
+        h: np.ndarray,
+    ) -> HierarchyResult:
+        """:meth:`solve` on the stacked form (:meth:`HierarchyProblem.stacked`): float64
+        C-contiguous arrays, no checks. The IK layer's hot path."""
+        n, p = lb.shape[0], G.shape[0]
+        L = starts.shape[0] - 1
         if L == 0:
-            x = np.clip(np.zeros(n), problem.lb, problem.ub)
+            x = np.clip(np.zeros(n), lb, ub)
             return HierarchyResult(x, [], [], [], [], [], np.zeros((0, n + p), np.int8), [])
-        max_iter = self.max_iter or 10 * (n + p) + 50
-        threshold, max_damping, error_scale = self._law()
         warm = self._warm_for(L, n + p)
-        if self.solver == "auto":
-            x, status, sigma, lam2, its, active = K.solve_cascade(
-                A, b, w, starts, reg,
-                np.ascontiguousarray(problem.lb, dtype=float),
-                np.ascontiguousarray(problem.ub, dtype=float),
-                np.ascontiguousarray(problem.G, dtype=float),
-                np.ascontiguousarray(problem.h, dtype=float),
-                threshold, max_damping, error_scale, self.rank_tolerance, max_iter,
-                self.tolerance, warm,
-            )  # fmt: skip
-            backend = ["auto"] * L
-            if (status == K.MAX_ITER).any() or (status == K.NUMERICAL).any():
-                # Rare: round-off cycling. Redo the cascade level by level with OSQP as
-                # the fallback where the active set did not settle.
-                return self._solve_levels(problem, A, b, w, starts, reg, warm, fallback=True)
-            if self.warm_start:
-                self._warm = active
-            statuses = [_STATUS[int(s)] for s in status]
-            return HierarchyResult(
-                x, statuses, _residuals(A, b, starts, x), sigma.tolist(), lam2.tolist(),
-                its.tolist(), active, backend,
-            )  # fmt: skip
-        return self._solve_levels(problem, A, b, w, starts, reg, warm, fallback=False)
+        if self.solver != "auto":
+            return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=False)
+        threshold, max_damping, error_scale = self._law()
+        x, status, sigma, lam2, its, active, residuals = K.solve_cascade(
+            A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
+            self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
+        )  # fmt: skip
+        if (status == K.MAX_ITER).any() or (status == K.NUMERICAL).any():
+            # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
+            # fallback where the active set did not settle.
+            return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
+        if self.warm_start:
+            self._warm = active
+        return HierarchyResult(
+            x, [_STATUS[s] for s in status.tolist()], residuals.tolist(), sigma.tolist(),
+            lam2.tolist(), its.tolist(), active, ["auto"] * L,
+        )  # fmt: skip
 
     # ------------------------------------------------------------------ level by level
-    def _solve_levels(self, problem, A, b, w, starts, reg, warm, *, fallback: bool):
+    def _solve_levels(self, A, b, w, starts, reg, lb, ub, G, h, warm, *, fallback: bool):
         """The cascade in Python, one level at a time, with a backend per level: the
         forced backend, or (``fallback``) the exact kernel then OSQP where it fails."""
-        n, p = problem.n, problem.G.shape[0]
-        lb = np.ascontiguousarray(problem.lb, dtype=float)
-        ub = np.ascontiguousarray(problem.ub, dtype=float)
-        G = np.ascontiguousarray(problem.G, dtype=float)
-        h = np.ascontiguousarray(problem.h, dtype=float)
-        L = len(problem.levels)
+        n, p = lb.shape[0], G.shape[0]
+        L = starts.shape[0] - 1
         threshold, max_damping, error_scale = self._law()
         max_iter = self.max_iter or 10 * (n + p) + 50
         status = [LevelStatus.NOT_REACHED] * L

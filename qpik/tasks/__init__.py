@@ -11,17 +11,16 @@ from mink import (
     DampingTask,
     DofFreezingTask,
     EqualityConstraintTask,
-    FrameTask,
     KineticEnergyRegularizationTask,
     LookAtTask,
     Objective,
-    PostureTask,
     RelativeFrameTask,
     Task,
 )
 from mink.tasks.task import BaseTask
 
 from .com import ComTask
+from .fast import FrameTask, PostureTask
 from .frame import OrientationTask, PoseTask, PositionTask
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 
