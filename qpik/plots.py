@@ -34,6 +34,7 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
 
 __all__ = [
     "is_planar",
+    "joint_curves",
     "plot_joints",
     "plot_level_errors",
     "plot_planar_arm",
@@ -110,31 +111,64 @@ def plot_level_errors(
     return ax
 
 
+def joint_curves(model: mujoco.MjModel, path: np.ndarray) -> list[tuple[str, np.ndarray, tuple]]:
+    """What :func:`plot_joints` draws: per curve ``(label, values (k,), (lower, upper))``.
+
+    A hinge or slide joint is its ``q`` [rad or m] with its range; a ball joint its
+    rotation angle ``2 atan2(|xyz|, |w|)`` [rad] with ``[0, range]`` when limited; a free
+    joint its position x, y, z [m] and rotation angle [rad] (no limits)."""
+    import mujoco
+
+    path = np.atleast_2d(path)
+    names = joint_names(model)
+    configuration = Configuration(model)
+    curves = []
+
+    def angle(quat: np.ndarray) -> np.ndarray:
+        return 2.0 * np.arctan2(np.linalg.norm(quat[:, 1:], axis=1), np.abs(quat[:, 0]))
+
+    unlimited = (-np.inf, np.inf)
+    for j, name in enumerate(names):
+        adr = model.jnt_qposadr[j]
+        kind = int(model.jnt_type[j])
+        if kind == int(mujoco.mjtJoint.mjJNT_FREE):
+            for k, axis in enumerate("xyz"):
+                curves.append((f"{name} {axis} [m]", path[:, adr + k], unlimited))
+            curves.append((f"{name} angle", angle(path[:, adr + 3 : adr + 7]), unlimited))
+        elif kind == int(mujoco.mjtJoint.mjJNT_BALL):
+            bounds = (0.0, float(model.jnt_range[j, 1])) if model.jnt_limited[j] else unlimited
+            curves.append((f"{name} angle", angle(path[:, adr : adr + 4]), bounds))
+        else:
+            bounds = (float(configuration.lower[adr]), float(configuration.upper[adr]))
+            curves.append((name, path[:, adr], bounds))
+    return curves
+
+
 def plot_joints(
     model: mujoco.MjModel,
     path: np.ndarray,
     ax: Axes | None = None,
     time: np.ndarray | None = None,
 ) -> Axes:
-    """Joint trajectories ``path (k, nq)`` with each joint's limits as a shaded band."""
+    """Joint trajectories ``path (k, nq)`` with each joint's limits as a shaded band
+    (ball joints: their rotation angle; free joints: position and rotation angle; see
+    :func:`joint_curves`)."""
     ax = _axes(ax)
     path = np.atleast_2d(path)
     x = np.arange(len(path)) if time is None else time
-    configuration = Configuration(model)
-    names = joint_names(model)
     colors = _matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
-    for i in range(path.shape[1]):
+    curves = joint_curves(model, path)
+    for i, (label, values, (lower, upper)) in enumerate(curves):
         color = colors[i % len(colors)]
-        ax.plot(x, path[:, i], color=color, marker="o" if len(path) < 8 else None, label=names[i])
-        lower, upper = configuration.lower[i], configuration.upper[i]
+        ax.plot(x, values, color=color, marker="o" if len(path) < 8 else None, label=label)
         if np.isfinite(lower) and np.isfinite(upper):
             ax.axhspan(lower, upper, color=color, alpha=0.05)
             for bound in (lower, upper):
                 ax.axhline(bound, color=color, lw=0.6, ls=":")
     ax.set_xlabel("time [s]" if time is not None else "configuration")
-    ax.set_ylabel("q [rad]")
+    ax.set_ylabel("q [rad or m]")
     ax.set_title("joints (limits dotted)")
-    ax.legend(fontsize="x-small", ncol=2)
+    ax.legend(fontsize="x-small", ncol=2 if len(curves) <= 16 else 3)
     return ax
 
 
