@@ -192,19 +192,23 @@ def solve_ik(
     ik, constraint_rows = _solver(
         configuration, tasks, solver, damping, limits, constraints, kwargs
     )
-    problem = ik.build(configuration, dt)
-    if constraint_rows is not None:
+    if constraint_rows is None:
+        result = ik.step(configuration, dt)
+        status, displacement = result.status, result.displacement
+    else:
+        problem = ik.build(configuration, dt)
         problem.levels.insert(0, Level(*constraint_rows, 0.0, None, "constraints"))
-    core = HierarchySolver(
-        ik.solver, damping_law=ik.damping_law, rank_tolerance=ik.rank_tolerance,
-        warm_start=False, backend_options=kwargs,
-    )  # fmt: skip
-    result = core.solve(problem, validate=False)
-    if result.status and result.status[0] is not LevelStatus.SOLVED:
+        core = HierarchySolver(
+            ik.solver, damping_law=ik.damping_law, rank_tolerance=ik.rank_tolerance,
+            warm_start=False, backend_options=kwargs,
+        )  # fmt: skip
+        solved = core.solve(problem, validate=False)
+        status, displacement = solved.status, solved.x
+    if status and status[0] != LevelStatus.SOLVED:
         error = NoSolutionFound(ik.solver)  # mink's message, word for word
-        error.status, error.level = str(result.status[0]), 0
+        error.status, error.level = str(status[0]), 0
         raise error
-    return result.x / dt
+    return displacement / dt
 
 
 def _solver(
