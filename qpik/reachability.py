@@ -465,7 +465,9 @@ def plot_reachability(
         depthshade=False,
     )
     ax3.scatter(*rmap.base, color="red", marker="+", s=60)
-    lower, upper = rmap.region.min(axis=0), rmap.region.max(axis=0)
+    half_voxel = rmap.resolution / 2.0
+    lower = np.minimum(rmap.region.min(axis=0), rmap.centers.min(axis=0) - half_voxel)
+    upper = np.maximum(rmap.region.max(axis=0), rmap.centers.max(axis=0) + half_voxel)
     ax3.set_xlim(lower[0], upper[0])
     ax3.set_ylim(lower[1], upper[1])
     ax3.set_zlim(lower[2], upper[2])
