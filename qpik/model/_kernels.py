@@ -1,0 +1,829 @@
+r"""Compiled kernels (numba, cached) of the kinematic chain and of the IGM solve.
+
+Every kernel takes plain arrays: no MuJoCo call happens inside (a ctypes call cannot be
+cached by numba), so they compile once per machine and load from numba's cache afterwards.
+All the kernels live in this one module on purpose: numba's cache of a kernel does not
+notice edits to the kernels it calls in *other* modules. After editing a kernel called
+from elsewhere, clear the cache: ``find qpik -name '*.nbi' -delete`` (or set
+``NUMBA_CACHE_DIR`` to a fresh folder, or ``NUMBA_DISABLE_JIT=1`` while debugging).
+
+Kinematics follow MuJoCo's ``mj_kinematics`` (``engine_core_smooth.c``): per body on the
+chain, ``p <- p + R body_pos``, ``R <- R body_rot``; then per joint of the body, the axis
+``R axis`` and anchor ``p + R jnt_pos`` in the world frame; a hinge rotates ``R`` about its
+local axis by ``q - qpos0`` and keeps the anchor fixed, a slide moves ``p`` along the axis
+by ``q - qpos0``. The frame Jacobian (``mj_jac``) has, per dof, ``[u x (p_f - a); u]`` for a
+hinge and ``[u; 0]`` for a slide (world-aligned, ``[v; omega]``).
+
+The IGM (:func:`igm_solve`): per iteration, the damped least-squares step of the pose error
+under box bounds (joint limits), solved exactly by an active-set method
+(:func:`box_qp`), with the trust region, the damping law fading with the error, stall
+detection and restarts from a deterministic random stream (SplitMix64).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numba
+import numpy as np
+from numba import njit
+
+HINGE = 0
+SLIDE = 1
+
+# Reasons (codes) returned by igm_solve; names in qpik.converge.REASONS.
+CONVERGED = 0
+MAX_ITERS = 1
+TIME_BUDGET = 2
+STALLED = 3
+AT_LIMIT = 4
+SINGULAR = 5
+UNREACHABLE = 6
+REASON_NAMES = (
+    "converged", "max_iters", "time_budget", "stalled", "at_limit", "singular", "unreachable"
+)
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+
+
+# ------------------------------------------------------------------ kinematics
+@njit(cache=True)
+def _axis_rotation(axis, angle, out):
+    """Rotation matrix of ``angle`` [rad] about unit ``axis`` (Rodrigues), into ``out``."""
+    x, y, z = axis[0], axis[1], axis[2]
+    c = np.cos(angle)
+    s = np.sin(angle)
+    t = 1.0 - c
+    out[0, 0] = t * x * x + c
+    out[0, 1] = t * x * y - s * z
+    out[0, 2] = t * x * z + s * y
+    out[1, 0] = t * x * y + s * z
+    out[1, 1] = t * y * y + c
+    out[1, 2] = t * y * z - s * x
+    out[2, 0] = t * x * z - s * y
+    out[2, 1] = t * y * z + s * x
+    out[2, 2] = t * z * z + c
+
+
+@njit(cache=True)
+def quat2mat(quat):
+    """Rotation matrices (k, 3, 3) of unit quaternions (k, 4) ``(w, x, y, z)``."""
+    out = np.empty((quat.shape[0], 3, 3))
+    for k in range(quat.shape[0]):
+        w, x, y, z = quat[k, 0], quat[k, 1], quat[k, 2], quat[k, 3]
+        out[k, 0, 0] = w * w + x * x - y * y - z * z
+        out[k, 1, 1] = w * w - x * x + y * y - z * z
+        out[k, 2, 2] = w * w - x * x - y * y + z * z
+        out[k, 0, 1] = 2 * (x * y - w * z)
+        out[k, 0, 2] = 2 * (x * z + w * y)
+        out[k, 1, 0] = 2 * (x * y + w * z)
+        out[k, 1, 2] = 2 * (y * z - w * x)
+        out[k, 2, 0] = 2 * (x * z - w * y)
+        out[k, 2, 1] = 2 * (y * z + w * x)
+    return out
+
+
+@njit(cache=True)
+def _matmul3(A, B, out):
+    for i in range(3):
+        a0, a1, a2 = A[i, 0], A[i, 1], A[i, 2]
+        for j in range(3):
+            out[i, j] = a0 * B[0, j] + a1 * B[1, j] + a2 * B[2, j]
+
+
+@njit(cache=True)
+def _copy3(src, dst):
+    for i in range(3):
+        for j in range(3):
+            dst[i, j] = src[i, j]
+
+
+@njit(cache=True)
+def _walk(
+    body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
+    frame_pos, frame_rot, q, axes, anchors, position, rotation,
+):
+    """Walk the chain at ``q``: world axes and anchors of its joints (nj, 3) and the
+    frame's pose (``position`` (3,) [m], ``rotation`` (3, 3))."""
+    p = np.zeros(3)
+    R = np.eye(3)
+    tmp = np.empty((3, 3))
+    rot = np.empty((3, 3))
+    for b in range(body_pos.shape[0]):
+        for i in range(3):
+            p[i] += R[i, 0] * body_pos[b, 0] + R[i, 1] * body_pos[b, 1] + R[i, 2] * body_pos[b, 2]
+        _matmul3(R, body_rot[b], tmp)
+        _copy3(tmp, R)
+        for j in range(jnt_start[b], jnt_start[b + 1]):
+            for i in range(3):
+                axes[j, i] = R[i, 0] * jnt_axis[j, 0] + R[i, 1] * jnt_axis[j, 1] + R[i, 2] * jnt_axis[j, 2]
+                anchors[j, i] = p[i] + R[i, 0] * jnt_pos[j, 0] + R[i, 1] * jnt_pos[j, 1] + R[i, 2] * jnt_pos[j, 2]
+            value = q[jnt_qadr[j]] - jnt_qpos0[j]
+            if jnt_type[j] == HINGE:
+                _axis_rotation(jnt_axis[j], value, rot)
+                _matmul3(R, rot, tmp)
+                _copy3(tmp, R)
+                for i in range(3):
+                    p[i] = anchors[j, i] - (
+                        R[i, 0] * jnt_pos[j, 0] + R[i, 1] * jnt_pos[j, 1] + R[i, 2] * jnt_pos[j, 2]
+                    )
+            else:
+                for i in range(3):
+                    p[i] += axes[j, i] * value
+    for i in range(3):
+        position[i] = p[i] + R[i, 0] * frame_pos[0] + R[i, 1] * frame_pos[1] + R[i, 2] * frame_pos[2]
+    _matmul3(R, frame_rot, rotation)
+
+
+@njit(cache=True)
+def fk_jac(
+    body_pos,
+    body_rot,
+    jnt_start,
+    jnt_type,
+    jnt_axis,
+    jnt_pos,
+    jnt_qadr,
+    jnt_dadr,
+    jnt_qpos0,
+    frame_pos,
+    frame_rot,
+    q,
+    position,
+    rotation,
+    jac,
+    want_jac,
+):
+    """Pose of the chain's frame at ``q`` (world frame: ``position`` (3,) [m], ``rotation``
+    (3, 3)) and, if ``want_jac``, its world-aligned Jacobian ``jac`` (6, nv) ``[v; omega]``
+    (columns of dofs off the chain are zero)."""
+    nj = jnt_type.shape[0]
+    axes = np.empty((nj, 3))
+    anchors = np.empty((nj, 3))
+    _walk(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
+          frame_pos, frame_rot, q, axes, anchors, position, rotation)
+    if want_jac:
+        for i in range(6):
+            for j in range(jac.shape[1]):
+                jac[i, j] = 0.0
+        for j in range(nj):
+            d = jnt_dadr[j]
+            u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
+            if jnt_type[j] == HINGE:
+                r0 = position[0] - anchors[j, 0]
+                r1 = position[1] - anchors[j, 1]
+                r2 = position[2] - anchors[j, 2]
+                jac[0, d] += u1 * r2 - u2 * r1
+                jac[1, d] += u2 * r0 - u0 * r2
+                jac[2, d] += u0 * r1 - u1 * r0
+                jac[3, d] += u0
+                jac[4, d] += u1
+                jac[5, d] += u2
+            else:
+                jac[0, d] += u0
+                jac[1, d] += u1
+                jac[2, d] += u2
+
+
+@njit(cache=True)
+def _dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True)
+def _dist3(a, b):
+    return np.sqrt((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 + (a[2] - b[2]) ** 2)
+
+
+@njit(cache=True)
+def _feet(a1, u1, a2, u2, s, r):
+    """Closest points ``s`` on ``a1 + t u1`` and ``r`` on ``a2 + t u2`` (unit directions);
+    for parallel lines, ``a1`` and its projection on the second line."""
+    w = np.empty(3)
+    for i in range(3):
+        w[i] = a1[i] - a2[i]
+    b = _dot3(u1, u2)
+    d = _dot3(u1, w)
+    e = _dot3(u2, w)
+    den = 1.0 - b * b
+    if den < 1e-12:
+        t1, t2 = 0.0, e
+    else:
+        t1, t2 = (b * e - d) / den, (e - b * d) / den
+    for i in range(3):
+        s[i] = a1[i] + t1 * u1[i]
+        r[i] = a2[i] + t2 * u2[i]
+
+
+@njit(cache=True)
+def reach_radius(
+    body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
+    frame_pos, frame_rot, q, center,
+):
+    """Length of the path ``s_1 -> r_2 -> s_2 -> ... -> s_m -> frame`` through the feet of
+    the common perpendiculars of consecutive hinge axes at ``q`` (each segment is fixed in
+    one body, so the length holds at every ``q``); ``center`` receives ``s_1``. Without a
+    hinge, the frame position at ``q`` and 0."""
+    nj = jnt_type.shape[0]
+    axes = np.empty((nj, 3))
+    anchors = np.empty((nj, 3))
+    p = np.empty(3)
+    _walk(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
+          frame_pos, frame_rot, q, axes, anchors, p, np.empty((3, 3)))
+    s = np.empty(3)
+    r = np.empty(3)
+    previous = np.empty(3)
+    first = True
+    length = 0.0
+    for i in range(3):
+        center[i] = p[i]
+    for j in range(nj):
+        if jnt_type[j] != HINGE:
+            continue
+        nxt = -1
+        for k in range(j + 1, nj):
+            if jnt_type[k] == HINGE:
+                nxt = k
+                break
+        if nxt >= 0:
+            _feet(anchors[j], axes[j], anchors[nxt], axes[nxt], s, r)
+        else:
+            w = np.empty(3)
+            for i in range(3):
+                w[i] = p[i] - anchors[j, i]
+            t = _dot3(axes[j], w)
+            for i in range(3):
+                s[i] = anchors[j, i] + axes[j, i] * t
+        if first:
+            for i in range(3):
+                center[i] = s[i]
+            first = False
+        else:
+            length += _dist3(s, previous)
+        if nxt >= 0:
+            length += _dist3(r, s)
+            for i in range(3):
+                previous[i] = r[i]
+        else:
+            length += _dist3(p, s)
+    return length
+
+
+# ------------------------------------------------------------------- rotations
+@njit(cache=True)
+def rotation_log(R, out):
+    """Rotation vector (axis * angle [rad]) of rotation matrix ``R`` into ``out``; returns
+    the angle. Accurate near 0 (``atan2`` of the skew part) and near pi (axis from the
+    symmetric part)."""
+    v0 = 0.5 * (R[2, 1] - R[1, 2])
+    v1 = 0.5 * (R[0, 2] - R[2, 0])
+    v2 = 0.5 * (R[1, 0] - R[0, 1])
+    s = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
+    theta = np.arctan2(s, c)
+    if c > -0.9:
+        if s < 1e-300:
+            out[0] = 0.0
+            out[1] = 0.0
+            out[2] = 0.0
+            return 0.0
+        k = theta / s
+        out[0] = k * v0
+        out[1] = k * v1
+        out[2] = k * v2
+        return theta
+    # Near pi: R + R^T = 2 c I + 2 (1 - c) u u^T.
+    best = 0
+    for i in range(1, 3):
+        if R[i, i] > R[best, best]:
+            best = i
+    u = np.empty(3)
+    for i in range(3):
+        u[i] = 0.5 * (R[i, best] + R[best, i])
+    u[best] -= c
+    norm = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    for i in range(3):
+        u[i] /= norm
+    if u[0] * v0 + u[1] * v1 + u[2] * v2 < 0.0:
+        for i in range(3):
+            u[i] = -u[i]
+    for i in range(3):
+        out[i] = theta * u[i]
+    return theta
+
+
+@njit(cache=True)
+def rotation_defect(R):
+    """``max |R R^T - I|`` of a 3x3 matrix, or inf when an entry is not finite or
+    ``det R <= 0`` (one cheap check of a rotation target)."""
+    for i in range(3):
+        for j in range(3):
+            if not np.isfinite(R[i, j]):
+                return np.inf
+    det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+           - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+           + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
+    if not det > 0.0:
+        return np.inf
+    worst = 0.0
+    for i in range(3):
+        for j in range(3):
+            s = R[i, 0] * R[j, 0] + R[i, 1] * R[j, 1] + R[i, 2] * R[j, 2]
+            if i == j:
+                s -= 1.0
+            worst = max(worst, abs(s))
+    return worst
+
+
+@njit(cache=True)
+def target_defect(position, rotation, has_rot):
+    """0 for a valid target; 1: the position is not finite; 2: the rotation is not finite;
+    3: the rotation is not a rotation (``|R R^T - I| > 1e-6`` or ``det R <= 0``)."""
+    for i in range(3):
+        if not np.isfinite(position[i]):
+            return 1
+    if has_rot:
+        defect = rotation_defect(rotation)
+        if not defect <= 1e-6:
+            for i in range(3):
+                for j in range(3):
+                    if not np.isfinite(rotation[i, j]):
+                        return 2
+            return 3
+    return 0
+
+
+@njit(cache=True)
+def left_jacobian_inverse(phi, out):
+    """Inverse left Jacobian of SO(3) at rotation vector ``phi``: ``d log(R) = Jl^-1 omega``
+    for a world perturbation ``dR = [omega] R``."""
+    theta = np.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    S = np.zeros((3, 3))
+    S[0, 1] = -phi[2]
+    S[0, 2] = phi[1]
+    S[1, 0] = phi[2]
+    S[1, 2] = -phi[0]
+    S[2, 0] = -phi[1]
+    S[2, 1] = phi[0]
+    if theta < 1e-6:
+        k = 1.0 / 12.0
+    else:
+        k = 1.0 / (theta * theta) - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
+    for i in range(3):
+        for j in range(3):
+            s2 = S[i, 0] * S[0, j] + S[i, 1] * S[1, j] + S[i, 2] * S[2, j]
+            out[i, j] = -0.5 * S[i, j] + k * s2
+        out[i, i] += 1.0
+
+
+# --------------------------------------------------------------------- box QP
+@njit(cache=True)
+def _cholesky_solve_subset(H, rhs, free, nfree, L, x):
+    """Solve ``H[F, F] x_F = rhs_F`` by Cholesky (F: the first ``nfree`` of ``free``);
+    returns False if ``H[F, F]`` is not positive definite."""
+    for a in range(nfree):
+        i = free[a]
+        for b in range(a + 1):
+            j = free[b]
+            s = H[i, j]
+            for k in range(b):
+                s -= L[a, k] * L[b, k]
+            if a == b:
+                if not s > 0.0:
+                    return False
+                L[a, a] = np.sqrt(s)
+            else:
+                L[a, b] = s / L[b, b]
+    y = np.empty(nfree)
+    for a in range(nfree):
+        s = rhs[free[a]]
+        for k in range(a):
+            s -= L[a, k] * y[k]
+        y[a] = s / L[a, a]
+    for a in range(nfree - 1, -1, -1):
+        s = y[a]
+        for k in range(a + 1, nfree):
+            s -= L[k, a] * x[free[k]]
+        x[free[a]] = s / L[a, a]
+    return True
+
+
+@njit(cache=True)
+def box_qp(H, g, lb, ub, x, max_iter):
+    """``min 1/2 x^T H x + g^T x  s.t.  lb <= x <= ub`` (H positive definite), exactly, by
+    a primal active-set method from the feasible point ``clip(0, lb, ub)``.
+
+    The working set grows by the blocking bound of each ratio test and shrinks by the bound
+    with the most negative multiplier (lowest index on ties: Bland's rule against cycling),
+    up to ``max_iter`` changes. Writes the minimiser into ``x``; returns ``(status,
+    iterations)``: status 0 solved, 1 iteration cap (``x`` feasible, not optimal), 2 ``H``
+    not positive definite. One function, so that another exact QP kernel can replace it.
+    """
+    n = H.shape[0]
+    state = np.zeros(n, dtype=np.int8)  # 0 free, -1 at lower, +1 at upper
+    for i in range(n):
+        x[i] = min(max(0.0, lb[i]), ub[i])
+    free = np.empty(n, dtype=np.int64)
+    L = np.empty((n, n))
+    target = np.empty(n)
+    rhs = np.empty(n)
+    for iteration in range(max_iter):
+        nfree = 0
+        for i in range(n):
+            if state[i] == 0:
+                free[nfree] = i
+                nfree += 1
+        # Minimiser over the free variables, the others held at their bounds.
+        for i in range(n):
+            if state[i] != 0:
+                target[i] = x[i]
+        for a in range(nfree):
+            i = free[a]
+            s = -g[i]
+            for j in range(n):
+                if state[j] != 0:
+                    s -= H[i, j] * x[j]
+            rhs[i] = s
+        if nfree > 0 and not _cholesky_solve_subset(H, rhs, free, nfree, L, target):
+            return 2, iteration
+        # Ratio test along x -> target.
+        step = 1.0
+        block = -1
+        block_side = 0
+        for a in range(nfree):
+            i = free[a]
+            d = target[i] - x[i]
+            if d < 0.0 and target[i] < lb[i]:
+                t = (lb[i] - x[i]) / d
+                if t < step:
+                    step, block, block_side = t, i, -1
+            elif d > 0.0 and target[i] > ub[i]:
+                t = (ub[i] - x[i]) / d
+                if t < step:
+                    step, block, block_side = t, i, 1
+        if step < 0.0:
+            step = 0.0
+        for a in range(nfree):
+            i = free[a]
+            x[i] += step * (target[i] - x[i])
+        if block >= 0:
+            x[block] = lb[block] if block_side < 0 else ub[block]
+            state[block] = block_side
+            continue
+        # Optimal on this working set: check the multipliers of the bounds held.
+        worst = 0.0
+        release = -1
+        for i in range(n):
+            if state[i] == 0:
+                continue
+            grad = g[i]
+            for j in range(n):
+                grad += H[i, j] * x[j]
+            multiplier = grad if state[i] < 0 else -grad  # >= 0 at the optimum
+            if multiplier < worst - 1e-14 * (1.0 + abs(grad)):
+                worst = multiplier
+                release = i
+        if release < 0:
+            return 0, iteration + 1
+        state[release] = 0
+    return 1, max_iter
+
+
+# ----------------------------------------------------------------------- RNG
+@njit(cache=True)
+def uniform(state):
+    """A uniform draw in [0, 1) from the SplitMix64 stream ``state`` (uint64 (1,),
+    advanced in place)."""
+    state[0] += _GOLDEN
+    z = state[0]
+    z = (z ^ (z >> np.uint64(30))) * _MIX1
+    z = (z ^ (z >> np.uint64(27))) * _MIX2
+    z = z ^ (z >> np.uint64(31))
+    return float(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def _now():
+    with numba.objmode(t="float64"):
+        t = time.perf_counter()
+    return t
+
+
+# ------------------------------------------------------------------------ IGM
+@njit(cache=True)
+def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err):
+    """Error ``[p - p_t; log(R R_t^T)]`` into ``error``; returns (position error [m],
+    orientation error [rad])."""
+    for i in range(3):
+        error[i] = position[i] - target_p[i]
+    ep = np.sqrt(error[0] ** 2 + error[1] ** 2 + error[2] ** 2)
+    if not has_rot:
+        return ep, 0.0
+    M = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = rotation[i, 0] * target_R[j, 0] + rotation[i, 1] * target_R[j, 1] + rotation[i, 2] * target_R[j, 2]
+    eo = rotation_log(M, rot_err)
+    for i in range(3):
+        error[3 + i] = rot_err[i]
+    return ep, eo
+
+
+@njit(cache=True)
+def _smallest_eigenvalue(G, n):
+    """Smallest eigenvalue of the symmetric ``G[:n, :n]`` (cyclic Jacobi; ``G`` is
+    overwritten)."""
+    for sweep in range(50):
+        off = 0.0
+        diag = 0.0
+        for i in range(n):
+            diag += G[i, i] * G[i, i]
+            for j in range(i + 1, n):
+                off += G[i, j] * G[i, j]
+        if off <= 1e-30 * diag or off == 0.0:
+            break
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                if G[p, q] == 0.0:
+                    continue
+                theta = (G[q, q] - G[p, p]) / (2.0 * G[p, q])
+                t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                c = 1.0 / np.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):
+                    gkp = G[k, p]
+                    gkq = G[k, q]
+                    G[k, p] = c * gkp - s * gkq
+                    G[k, q] = s * gkp + c * gkq
+                for k in range(n):
+                    gpk = G[p, k]
+                    gqk = G[q, k]
+                    G[p, k] = c * gpk - s * gqk
+                    G[q, k] = s * gpk + c * gqk
+    smallest = G[0, 0]
+    for i in range(1, n):
+        if G[i, i] < smallest:
+            smallest = G[i, i]
+    return smallest
+
+
+@njit(cache=True)
+def _smallest_singular_value(A, m, nv, G):
+    """The ``min(m, nv)``-th singular value of ``A[:m]`` (from the smaller Gram matrix,
+    built in the scratch ``G``)."""
+    if m <= nv:
+        n = m
+        for i in range(m):
+            for j in range(i, m):
+                s = 0.0
+                for k in range(nv):
+                    s += A[i, k] * A[j, k]
+                G[i, j] = s
+                G[j, i] = s
+    else:
+        n = nv
+        for i in range(nv):
+            for j in range(i, nv):
+                s = 0.0
+                for k in range(m):
+                    s += A[k, i] * A[k, j]
+                G[i, j] = s
+                G[j, i] = s
+    return np.sqrt(max(_smallest_eigenvalue(G, n), 0.0))
+
+
+@njit(cache=True)
+def igm_solve(
+    chain, target_p, target_R, has_rot, q0, bounds, reach, options, int_options, rng_state,
+    deadline, path, hist, info,
+):
+    """The whole IGM solve of one frame target (see :func:`qpik.solve` for the rule).
+
+    Args:
+        chain: the tuple of chain arrays (:class:`qpik.model.KinematicChain`).
+        target_p (3,), target_R (3, 3): the target in the world frame; ``has_rot``: False
+            for a position-only target.
+        q0 (nq,): start, within the limits.
+        bounds (4, nq): lower and upper joint limits (+-inf where none), then the box that
+            random restarts draw from.
+        reach (4,): center (3,) [m] and radius [m] of the frame's reach bound; a target
+            farther than ``radius + tol_position`` from the center ends the solve at once
+            (UNREACHABLE).
+        options (float64): tol_position, tol_orientation, alpha, beta, max_step_position,
+            max_step_orientation (inf: none), singular_threshold, max_damping,
+            error_scale (<= 0: none), damping, limit_gain.
+        int_options (int64): max_iters, restarts, stall_window, check_time (0/1).
+        rng_state: uint64 (1,) SplitMix64 state, advanced in place.
+        deadline: ``time.perf_counter()`` value at which the budget ends (if checked).
+        path (2, max_iters + 1, nq), hist (2, max_iters + 1, 3): per attempt slot, the
+            iterates and, per iterate, (position error [m], orientation error [rad], QP
+            residual of the step that left it).
+        info (int64, 6): reason code, total iterations, restarts used, slot of the returned
+            attempt (its last iterate is the answer), its number of iterates, QP solves that
+            hit the iteration cap.
+    """
+    (body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
+     jnt_qpos0, frame_pos, frame_rot) = chain
+    tol_p, tol_o, alpha, beta = options[0], options[1], options[2], options[3]
+    max_step_p, max_step_o = options[4], options[5]
+    threshold, max_damping, error_scale, damping = options[6], options[7], options[8], options[9]
+    limit_gain = options[10]
+    max_iters, restarts, stall_window, check_time = int_options[0], int_options[1], int_options[2], int_options[3]
+    lower = bounds[0]
+    upper = bounds[1]
+    sample_lo = bounds[2]
+    sample_hi = bounds[3]
+    nq = q0.shape[0]
+    nv = nq
+    m = 6 if has_rot else 3
+    position = np.empty(3)
+    rotation = np.empty((3, 3))
+    jac = np.empty((6, nv))
+    A = np.empty((6, nv))
+    error = np.zeros(6)
+    rot_err = np.zeros(3)
+    Jinv = np.empty((3, 3))
+    b = np.empty(6)
+    H = np.empty((nv, nv))
+    g = np.empty(nv)
+    lb = np.empty(nv)
+    ub = np.empty(nv)
+    dq = np.empty(nv)
+    gram = np.empty((max(6, nv), max(6, nv)))
+    q = q0.copy()
+    best_score = np.inf
+    best_slot = 0
+    best_len = 1
+    best_reason = MAX_ITERS
+    total = 0
+    attempt = 0
+    caps = 0
+    reason = MAX_ITERS
+    slot = 0
+    out_of_time = False
+    d0 = target_p[0] - reach[0]
+    d1 = target_p[1] - reach[1]
+    d2 = target_p[2] - reach[2]
+    if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3]):
+        fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
+               jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, False)
+        ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+        path[0, 0] = q
+        hist[0, 0, 0] = ep
+        hist[0, 0, 1] = eo
+        hist[0, 0, 2] = 0.0
+        info[0] = UNREACHABLE
+        info[1] = 0
+        info[2] = 0
+        info[3] = 0
+        info[4] = 1
+        info[5] = 0
+        return
+    while True:
+        fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
+               jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, True)
+        ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+        path[slot, 0] = q
+        hist[slot, 0, 0] = ep
+        hist[slot, 0, 1] = eo
+        hist[slot, 0, 2] = 0.0
+        length = 1
+        current = ep / tol_p + eo / tol_o
+        window_start = current
+        since_progress = 0
+        reason = MAX_ITERS
+        for it in range(max_iters):
+            if ep <= tol_p and eo <= tol_o:
+                reason = CONVERGED
+                break
+            if check_time != 0 and (it % 4 == 0) and _now() > deadline:
+                reason = TIME_BUDGET
+                out_of_time = True
+                break
+            # Trust region: the gain of the target task.
+            gain = alpha
+            if ep > 0.0 and max_step_p / ep < gain:
+                gain = max_step_p / ep
+            if has_rot and eo > 0.0 and max_step_o / eo < gain:
+                gain = max_step_o / eo
+            # Level: A = [J_v; Jl^-1 J_w], b = -gain e.
+            for i in range(3):
+                for j in range(nv):
+                    A[i, j] = jac[i, j]
+                b[i] = -gain * error[i]
+            if has_rot:
+                left_jacobian_inverse(rot_err, Jinv)
+                for i in range(3):
+                    for j in range(nv):
+                        A[3 + i, j] = Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
+                    b[3 + i] = -gain * error[3 + i]
+            reg = damping
+            if threshold > 0.0:
+                sigma = _smallest_singular_value(A, m, nv, gram)
+                if sigma < threshold:
+                    ratio = sigma / threshold
+                    lam2 = max_damping * max_damping * (1.0 - ratio * ratio)
+                    if error_scale > 0.0:
+                        bnorm = 0.0
+                        for i in range(m):
+                            bnorm += b[i] * b[i]
+                        bnorm = np.sqrt(bnorm)
+                        lam2 *= min(1.0, bnorm / error_scale)
+                    reg += lam2
+            else:
+                sigma = np.inf
+            for i in range(nv):
+                s = 0.0
+                for k in range(m):
+                    s += A[k, i] * b[k]
+                g[i] = -s
+                for j in range(i, nv):
+                    s = 0.0
+                    for k in range(m):
+                        s += A[k, i] * A[k, j]
+                    H[i, j] = s
+                    H[j, i] = s
+                H[i, i] += reg
+                lb[i] = limit_gain * (lower[i] - q[i])
+                ub[i] = limit_gain * (upper[i] - q[i])
+                if lb[i] > 0.0:
+                    lb[i] = 0.0
+                if ub[i] < 0.0:
+                    ub[i] = 0.0
+            status, _ = box_qp(H, g, lb, ub, dq, 4 * nv + 20)
+            if status != 0:
+                caps += 1
+            total += 1
+            residual = 0.0
+            for k in range(m):
+                s = -b[k]
+                for j in range(nv):
+                    s += A[k, j] * dq[j]
+                residual += s * s
+            hist[slot, it + 1, 2] = np.sqrt(residual)
+            step_norm = 0.0
+            active = False
+            for j in range(nv):
+                step_norm += dq[j] * dq[j]
+                if (dq[j] <= lb[j] and lower[j] > -np.inf) or (dq[j] >= ub[j] and upper[j] < np.inf):
+                    active = True
+                q[j] += beta * dq[j]
+                if q[j] < lower[j]:
+                    q[j] = lower[j]
+                if q[j] > upper[j]:
+                    q[j] = upper[j]
+            fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr,
+                   jnt_dadr, jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, True)
+            ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+            path[slot, length] = q
+            hist[slot, length, 0] = ep
+            hist[slot, length, 1] = eo
+            length += 1
+            current = ep / tol_p + eo / tol_o
+            if np.sqrt(step_norm) < 1e-9:
+                reason = AT_LIMIT if active else (SINGULAR if sigma < threshold else STALLED)
+                break
+            if current < 0.99 * window_start:
+                window_start = current
+                since_progress = 0
+            else:
+                since_progress += 1
+                if since_progress >= stall_window:
+                    reason = AT_LIMIT if active else (SINGULAR if sigma < threshold else STALLED)
+                    break
+        else:
+            if ep <= tol_p and eo <= tol_o:
+                reason = CONVERGED
+        if reason == MAX_ITERS and ep <= tol_p and eo <= tol_o:
+            reason = CONVERGED
+        done = reason == CONVERGED
+        best_done = best_reason == CONVERGED
+        if attempt == 0 or (done and not best_done) or (done == best_done and current < best_score):
+            best_score = current
+            best_slot = slot
+            best_len = length
+            best_reason = reason
+            slot = 1 - slot
+        if reason == CONVERGED:
+            break
+        if attempt >= restarts:
+            break
+        if check_time != 0 and (out_of_time or _now() > deadline):
+            out_of_time = True
+            break
+        attempt += 1
+        for j in range(nq):
+            q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * uniform(rng_state)
+    final = reason
+    if best_reason == CONVERGED:
+        final = CONVERGED
+    elif out_of_time:
+        final = TIME_BUDGET
+    info[0] = final
+    info[1] = total
+    info[2] = attempt
+    info[3] = best_slot
+    info[4] = best_len
+    info[5] = caps

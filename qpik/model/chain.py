@@ -1,0 +1,236 @@
+"""The kinematic chain of one frame, read from a MuJoCo model into arrays once.
+
+:class:`KinematicChain` holds what the compiled kernels (:mod:`qpik.model._kernels`) need
+to compute the frame's pose and Jacobian without calling MuJoCo: per body from the world to
+the frame's body, its pose in its parent (``body_pos``, ``body_quat``); per joint on those
+bodies, its type, axis and anchor in the body (``jnt_axis``, ``jnt_pos``), its reference
+``qpos0`` and its qpos/dof addresses; and the frame's pose in its body (a site's or geom's
+``pos``/``quat``, identity for a body). It covers hinge and slide joints: models with ball
+or free joints, or a mocap body on the chain, are left to the general path
+(:func:`chain_support` says why).
+
+Units: positions [m], angles [rad]; poses and Jacobians are in the world frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import FrameType
+from ..errors import InvalidConfiguration, UnknownFrame
+from . import _kernels
+
+__all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
+
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+_SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
+_OBJ = {
+    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+}
+
+
+def chain_support(model: mujoco.MjModel) -> str | None:
+    """Why the compiled kernels cannot handle ``model`` (a ball or free joint), or
+    ``None`` when every joint is a hinge or a slide."""
+    types = model.jnt_type
+    for j in np.flatnonzero((types != _HINGE) & (types != _SLIDE)):
+        kind = int(types[j])
+        if True:
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
+            what = mujoco.mjtJoint(kind).name[6:].lower()
+            return f"joint {name!r} is a {what} joint (the compiled kernels take hinge and slide)"
+    return None
+
+
+def joint_limits(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper position limits ``(nq,)`` [rad or m] of a hinge/slide model;
+    -/+inf for unlimited joints."""
+    lower = np.full(model.nq, -np.inf)
+    upper = np.full(model.nq, np.inf)
+    for j in range(model.njnt):
+        if model.jnt_limited[j]:
+            adr = model.jnt_qposadr[j]
+            lower[adr], upper[adr] = model.jnt_range[j]
+    return lower, upper
+
+
+@dataclass(frozen=True)
+class ReachBound:
+    """A ball that holds every position the frame can reach: ``|p(q) - center| <= radius``
+    for every ``q`` within the limits (``radius = inf`` when a slide joint is unlimited).
+
+    ``center`` [m] is a world point that no joint moves (a point on the first hinge axis);
+    ``radius`` [m] the length of a path through one or two points of each hinge axis to the
+    frame, every segment of which no joint changes, plus the travel of the slides."""
+
+    center: np.ndarray
+    radius: float
+
+    @property
+    def array(self) -> np.ndarray:
+        """``(cx, cy, cz, radius)`` as the compiled IGM takes it."""
+        cached = self.__dict__.get("_array")
+        if cached is None:
+            cached = np.array([*self.center, self.radius], dtype=float)
+            object.__setattr__(self, "_array", cached)
+        return cached
+
+    def excludes(self, position: np.ndarray, tolerance: float) -> bool:
+        """Whether no configuration brings the frame within ``tolerance`` [m] of
+        ``position`` (world frame [m])."""
+        d = position - self.center
+        distance = float(np.sqrt(d @ d))
+        return distance > self.radius + tolerance + 1e-9 * (1.0 + self.radius)
+
+
+@dataclass(frozen=True, eq=False)
+class KinematicChain:
+    """Arrays describing the chain from the world to one frame (see the module docstring).
+
+    Build with :meth:`from_model`. ``arrays`` is the tuple the kernels take.
+    """
+
+    frame: str
+    frame_type: FrameType
+    nq: int
+    nv: int
+    arrays: tuple = field(repr=False)
+    #: dof addresses of the joints on the chain (the others never move the frame).
+    dofs: np.ndarray = field(repr=False)
+
+    @classmethod
+    def from_model(
+        cls, model: mujoco.MjModel, frame: str | int, frame_type: FrameType | str = FrameType.SITE
+    ) -> KinematicChain:
+        """The chain of ``frame`` (a name or id of the given type). Raises
+        :class:`qpik.UnknownFrame` for a missing frame and :class:`ValueError` when
+        :func:`chain_support` rejects the model or a mocap body is on the chain."""
+        kind = FrameType.parse(frame_type)
+        if isinstance(frame, str):
+            fid = mujoco.mj_name2id(model, _OBJ[kind], frame)
+        else:
+            fid = int(frame)
+            count = {FrameType.BODY: model.nbody, FrameType.SITE: model.nsite}.get(
+                kind, model.ngeom
+            )
+            if not 0 <= fid < count:
+                fid = -1
+        if fid < 0:
+            from ..configuration import frame_names
+
+            raise UnknownFrame(frame, kind.value, frame_names(model, kind))
+        reason = chain_support(model)
+        if reason is not None:
+            raise ValueError(reason)
+        if kind is FrameType.BODY:
+            body = fid
+            frame_pos, frame_quat = np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
+        elif kind is FrameType.SITE:
+            body = int(model.site_bodyid[fid])
+            frame_pos, frame_quat = model.site_pos[fid], model.site_quat[fid]
+        else:
+            body = int(model.geom_bodyid[fid])
+            frame_pos, frame_quat = model.geom_pos[fid], model.geom_quat[fid]
+        parent, mocap = model.body_parentid, model.body_mocapid
+        bodies = []
+        while body > 0:
+            if mocap[body] >= 0:
+                raise ValueError(f"mocap body #{body} is on the chain of {frame!r}")
+            bodies.append(body)
+            body = int(parent[body])
+        bodies = np.array(bodies[::-1], dtype=np.int64)
+        jntadr, jntnum = model.body_jntadr[bodies], model.body_jntnum[bodies]
+        jnt_start = np.zeros(len(bodies) + 1, dtype=np.int64)
+        np.cumsum(jntnum, out=jnt_start[1:])
+        joints = np.concatenate(
+            [np.arange(a, a + n, dtype=np.int64) for a, n in zip(jntadr, jntnum)]
+            or [np.zeros(0, dtype=np.int64)]
+        )
+        jnt_type = np.where(model.jnt_type[joints] == _HINGE, _kernels.HINGE, _kernels.SLIDE)
+        qadr = model.jnt_qposadr[joints].astype(np.int64)
+        arrays = (
+            np.ascontiguousarray(model.body_pos[bodies], dtype=float).reshape(-1, 3),
+            _quat2mat(model.body_quat[bodies].reshape(-1, 4)),
+            jnt_start,
+            jnt_type.astype(np.int64),
+            np.ascontiguousarray(model.jnt_axis[joints], dtype=float).reshape(-1, 3),
+            np.ascontiguousarray(model.jnt_pos[joints], dtype=float).reshape(-1, 3),
+            qadr,
+            model.jnt_dofadr[joints].astype(np.int64),
+            np.ascontiguousarray(model.qpos0[qadr], dtype=float),
+            np.array(frame_pos, dtype=float),
+            _quat2mat(np.asarray(frame_quat, dtype=float).reshape(1, 4))[0],
+        )
+        name = frame if isinstance(frame, str) else _name(model, kind, fid)
+        return cls(name, kind, model.nq, model.nv, arrays, arrays[7].copy())
+
+    # ------------------------------------------------------------------ kinematics
+    def _q(self, q: npt.ArrayLike) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.nq,) or not np.all(np.isfinite(q)):
+            raise InvalidConfiguration(f"q must be {self.nq} finite numbers, got shape {q.shape}")
+        return q
+
+    def pose(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Pose of the frame at ``q`` in the world frame: position (3,) [m], rotation (3, 3)."""
+        position, rotation = np.empty(3), np.empty((3, 3))
+        _kernels.fk_jac(
+            *self.arrays, self._q(q), position, rotation, np.empty((6, self.nv)), False
+        )
+        return position, rotation
+
+    def jacobian(self, q: npt.ArrayLike) -> np.ndarray:
+        """World-aligned Jacobian ``(6, nv)`` ``[v; omega]`` of the frame at ``q`` (as
+        :meth:`qpik.Configuration.frame_jacobian`: ``v`` [m/s] of the frame origin and
+        ``omega`` [rad/s], both in the world frame)."""
+        jac = np.empty((6, self.nv))
+        _kernels.fk_jac(*self.arrays, self._q(q), np.empty(3), np.empty((3, 3)), jac, True)
+        return jac
+
+    # ----------------------------------------------------------------------- reach
+    def reach_bound(self, lower: np.ndarray, upper: np.ndarray) -> ReachBound:
+        """A :class:`ReachBound` of the frame for joints within ``[lower, upper]`` (nq,).
+
+        Each hinge axis is a line fixed in the two bodies it joins, so the distance between
+        a point of axis ``k`` and a point of axis ``k + 1`` never changes, nor does the
+        distance of the frame to a point of the last axis. The path ``s_1 -> r_2 -> s_2 ->
+        ... -> s_m -> frame`` through the feet of the common perpendiculars of consecutive
+        axes (``r_k``, ``s_k`` on axis ``k``) therefore bounds ``|p(q) - s_1|``: its length is
+        the sum of the DH lengths ``|a_k|`` and offsets ``|d_k|`` plus the tool offset. A
+        slide adds its largest travel from the reference configuration.
+        """
+        (body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, qadr, _dadr, qpos0,
+         frame_pos, frame_rot) = self.arrays
+        nj = jnt_type.shape[0]
+        limited = np.isfinite(lower) & np.isfinite(upper)
+        q_ref = np.zeros(self.nq)
+        q_ref[limited] = 0.5 * (lower[limited] + upper[limited])
+        travel = 0.0
+        for j in range(nj):
+            if jnt_type[j] == _kernels.SLIDE:
+                lo, hi = lower[qadr[j]], upper[qadr[j]]
+                if not (np.isfinite(lo) and np.isfinite(hi)):
+                    return ReachBound(np.zeros(3), float("inf"))
+                travel += 0.5 * (hi - lo)
+        center = np.empty(3)
+        radius = _kernels.reach_radius(
+            body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, qadr, qpos0,
+            frame_pos, frame_rot, q_ref, center,
+        )
+        return ReachBound(center, float(radius + travel))
+
+
+def _quat2mat(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices (k, 3, 3) of unit quaternions (k, 4) ``(w, x, y, z)``, as MuJoCo's
+    ``mju_quat2Mat``."""
+    return _kernels.quat2mat(np.ascontiguousarray(quat, dtype=float))
+
+
+def _name(model: mujoco.MjModel, kind: FrameType, fid: int) -> str:
+    return mujoco.mj_id2name(model, _OBJ[kind], fid) or f"{kind.value} #{fid}"
