@@ -1,10 +1,11 @@
 """qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
 
-from . import analysis, baselines, limits, statics, tasks
+from . import analysis, baselines, limits, scene, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
 from .batch import solve_many
 from .converge import IKResult, solve
 from .errors import (
+    CollisionPairError,
     InfeasibleLimits,
     IntegrationTimestepNotSet,
     InvalidConfiguration,
@@ -22,6 +23,7 @@ from .errors import (
     ProblemFileError,
     QpikError,
     RobotFileError,
+    SceneError,
     TargetNotSet,
     TaskDefinitionError,
     UnknownFrame,
@@ -52,6 +54,7 @@ __all__ = [
     "tasks",
     "Configuration",
     "FrameType",
+    "CollisionPairError",
     "InfeasibleLimits",
     "IntegrationTimestepNotSet",
     "InvalidConstraint",
@@ -71,6 +74,7 @@ __all__ = [
     "ProblemFileError",
     "QpikError",
     "RobotFileError",
+    "SceneError",
     "UnknownFrame",
     "UnknownFrameType",
     "UnknownRobot",
@@ -81,5 +85,6 @@ __all__ = [
     "list_robots",
     "load_problem",
     "load_robot",
+    "scene",
     "statics",
 ]
