@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration, frame_names
-from ..errors import InvalidTarget, UnknownFrame
+from ..errors import InvalidTarget, TargetNotSet, TaskDefinitionError, UnknownFrame
 
 __all__ = ["ComTask"]
 
@@ -54,7 +54,7 @@ class ComTask(mink.Task):
         """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
         cost = np.atleast_1d(np.asarray(cost, dtype=float))
         if cost.ndim != 1 or cost.shape[0] not in (1, self.k) or not np.all(cost >= 0):
-            raise mink.TaskDefinitionError(
+            raise TaskDefinitionError(
                 f"ComTask cost must be one number or 3 numbers, all >= 0; got {cost.tolist()}"
             )
         self.cost[:] = cost
@@ -87,7 +87,7 @@ class ComTask(mink.Task):
     def compute_error(self, configuration: Configuration) -> np.ndarray:
         """``e = c(q) - c*`` ``(3,)`` [m], world frame."""
         if self.target_com is None:
-            raise mink.TargetNotSet(self.__class__.__name__)
+            raise TargetNotSet(self.__class__.__name__)
         return self.com(configuration) - self.target_com
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:

@@ -1,0 +1,178 @@
+"""qpik's CollisionAvoidanceLimit: rows in displacement units (mink's times dt), checked
+against finite differences of MuJoCo's distance, pushing back inside d_min, typed errors
+when no pair is left, and the Panda kept >= 9 mm from a sphere on its straight path."""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+import pytest
+
+import qpik
+from qpik.limits import CollisionAvoidanceLimit, geom_distance, joint_limits
+from qpik.scene import add_obstacle
+from qpik.tasks import PositionTask, PostureTask
+
+ARM = ["link4", "link5", "link6", "link7", "hand"]
+DT = 0.01
+
+TWO_LINK = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <geom name="ball" type="sphere" size="0.2" pos="1.2 0.8 0"/>
+    <body name="link1">
+      <joint name="q1" axis="0 0 1" range="-3 3"/>
+      <geom name="link1" type="capsule" size="0.04" fromto="0 0 0 1 0 0"/>
+      <body name="link2" pos="1 0 0">
+        <joint name="q2" axis="0 0 1" range="-3 3"/>
+        <geom name="link2" type="capsule" size="0.04" fromto="0 0 0 1 0 0"/>
+        <site name="ee" pos="1 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _two_link():
+    return mujoco.MjModel.from_xml_string(TWO_LINK)
+
+
+def test_rows_are_minks_times_dt_and_push_back_inside_d_min():
+    model = _two_link()
+    configuration = qpik.Configuration(model, [0.3, 0.2])
+    kwargs = dict(minimum_distance_from_collisions=0.05, collision_detection_distance=0.5)
+    ours = CollisionAvoidanceLimit(model, [(["link1", "link2"], ["ball"])], **kwargs)
+    theirs = mink.CollisionAvoidanceLimit(model, [(["link1", "link2"], ["ball"])], **kwargs)
+    for dt in (0.01, 0.002):
+        a = ours.compute_qp_inequalities(configuration, dt)
+        b = theirs.compute_qp_inequalities(configuration, dt)
+        finite = np.isfinite(b.h)
+        assert a.G.shape[0] == finite.sum() >= 1
+        np.testing.assert_array_equal(a.G, b.G[finite])
+        np.testing.assert_allclose(a.h, b.h[finite] * dt, rtol=1e-14)
+    # Inside d_min the row asks the distance to grow by gain * (d_min - d) [m].
+    configuration.update([0.34, 0.2])
+    distance = geom_distance(configuration, "link2", "ball")
+    assert 0 < distance < 0.05
+    rows = ours.compute_qp_inequalities(configuration, DT)
+    assert rows.h.min() == pytest.approx(0.85 * (distance - 0.05), abs=1e-12)
+    assert theirs.compute_qp_inequalities(configuration, DT).h[
+        np.isfinite(theirs.compute_qp_inequalities(configuration, DT).h)
+    ].min() == pytest.approx(0.0)
+
+
+def test_rows_are_the_distance_derivative(rng):
+    model = _two_link()
+    configuration = qpik.Configuration(model)
+    limit = CollisionAvoidanceLimit(
+        model,
+        [(["link1", "link2"], ["ball"])],
+        minimum_distance_from_collisions=0.0,
+        collision_detection_distance=2.0,
+    )
+    for q in ([0.3, 0.2], [0.55, 0.1], [0.6, 0.3]):
+        configuration.update(q)
+        rows = limit.compute_qp_inequalities(configuration, DT)
+        for row, (g1, g2) in zip(rows.G, limit.geom_id_pairs):
+            h = 1e-6
+            numeric = np.zeros(2)
+            for i in range(2):
+                values = []
+                for sign in (1, -1):
+                    shifted = np.array(q, dtype=float)
+                    shifted[i] += sign * h
+                    configuration.update(shifted)
+                    values.append(geom_distance(configuration, g1, g2, cap=2.0))
+                numeric[i] = (values[0] - values[1]) / (2 * h)
+            configuration.update(q)
+            np.testing.assert_allclose(-row, numeric, atol=1e-6)  # G dq = -(change of d)
+
+
+def test_no_pair_raises_saying_why():
+    model = qpik.load_robot("panda")  # visual-only geoms: contype = conaffinity = 0
+    scene = add_obstacle(model, "sphere", 0.05, [0.5, 0.0, 0.5], name="ball")
+    with pytest.raises(qpik.CollisionPairError, match="contype") as info:
+        CollisionAvoidanceLimit(scene, [(ARM, ["ball"])])
+    assert "'hand'" in str(info.value) and "respect_contype=False" in str(info.value)
+    # The obstacle's own bits allow contact: mink's rule needs both sides.
+    assert scene.geom("ball").contype == 1
+    limit = CollisionAvoidanceLimit(scene, [(ARM, ["ball"])], respect_contype=False)
+    assert len(limit.geom_id_pairs) == len(ARM)
+    with pytest.raises(qpik.CollisionPairError, match="parent and child"):
+        CollisionAvoidanceLimit(scene, [(["link6"], ["link7"])], respect_contype=False)
+    with pytest.raises(qpik.CollisionPairError, match="same body"):
+        CollisionAvoidanceLimit(scene, [(["link0"], ["ball"])], respect_contype=False)
+    with pytest.raises(qpik.UnknownFrame, match="available geoms"):
+        CollisionAvoidanceLimit(scene, [(["wrist"], ["ball"])])
+    with pytest.raises(qpik.CollisionPairError, match="empty"):
+        CollisionAvoidanceLimit(scene, [])
+    with pytest.raises(qpik.InvalidInput, match="collision_detection_distance"):
+        CollisionAvoidanceLimit(
+            scene,
+            [(ARM, ["ball"])],
+            minimum_distance_from_collisions=0.02,
+            collision_detection_distance=0.01,
+            respect_contype=False,
+        )
+
+
+def _reach_through_sphere(limit_factory, steps=400):
+    """The Panda's site ee from home to a goal 0.45 m to the side, a sphere of radius 6 cm
+    centred on the straight segment; a position task above a posture. Returns the closest
+    distance of the arm to the sphere over the steps, the final goal error, the final ee
+    and the sphere centre."""
+    base = qpik.load_robot("panda")
+    start = qpik.Configuration(base, base.key_qpos[0]).frame_pose("ee")[0]
+    goal = start + np.array([0.0, 0.45, 0.0])
+    centre = 0.5 * (start + goal)
+    model = add_obstacle(base, "sphere", 0.06, centre, name="ball")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    tip = PositionTask("ee", gain=0.1)
+    tip.set_target(goal)
+    posture = PostureTask(model, cost=0.05)
+    posture.set_target(model.key_qpos[0])
+    solver = qpik.IKSolver(model, [[tip], [posture]], [limit_factory(model), *joint_limits(model)])
+    closest = np.inf
+    for _ in range(steps):
+        result = solver.step(configuration, DT)
+        assert result.status[0] == "solved"
+        configuration.integrate_inplace(result.velocity, DT)
+        assert configuration.within_limits()
+        closest = min(closest, *(geom_distance(configuration, g, "ball") for g in ARM))
+    ee = configuration.frame_pose("ee")[0]
+    return closest, float(np.linalg.norm(ee - goal)), ee, centre
+
+
+def test_panda_goes_around_a_sphere_on_its_straight_path():
+    closest, error, ee, centre = _reach_through_sphere(
+        lambda model: CollisionAvoidanceLimit(
+            model,
+            [(ARM, ["ball"])],
+            minimum_distance_from_collisions=0.01,
+            collision_detection_distance=0.1,
+            respect_contype=False,
+        )
+    )
+    assert closest >= 0.009  # d_min = 10 mm, kept to 1 mm at every step
+    assert error <= 0.02
+    assert ee[1] > centre[1] + 0.06  # past the sphere
+
+
+def test_mink_rows_in_velocity_units_let_the_panda_into_the_sphere():
+    """What qpik's limit fixes: mink's bound gain (d - d_min) / dt on a displacement."""
+
+    def mink_limit(model):
+        model.geom_contype[:] = 1
+        model.geom_conaffinity[:] = 1
+        return mink.CollisionAvoidanceLimit(
+            model,
+            [(ARM, ["ball"])],
+            minimum_distance_from_collisions=0.01,
+            collision_detection_distance=0.1,
+        )
+
+    closest, *_ = _reach_through_sphere(mink_limit, steps=200)
+    assert closest < 0.0
