@@ -197,7 +197,14 @@ def solve_ik(
         status, displacement = result.status, result.displacement
     else:
         problem = ik.build(configuration, dt)
-        problem.levels.insert(0, Level(*constraint_rows, 0.0, None, "constraints"))
+        A_eq, b_eq = constraint_rows
+        # Unit rows (the same equalities): a row's scale (units) then neither triggers the
+        # adaptive damping nor meets the core's round-off floor; only nearly dependent rows
+        # are damped, as at any level.
+        norms = np.sqrt(np.einsum("ij,ij->i", A_eq, A_eq))
+        scale = np.divide(1.0, norms, out=np.ones_like(norms), where=norms > 0)
+        level = Level(A_eq * scale[:, None], b_eq * scale, 0.0, None, "constraints")
+        problem.levels.insert(0, level)
         core = HierarchySolver(
             ik.solver, damping_law=ik.damping_law, rank_tolerance=ik.rank_tolerance,
             warm_start=False, backend_options=kwargs,

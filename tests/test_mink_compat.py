@@ -257,6 +257,41 @@ def test_constraints_are_held_exactly_and_match_mink():
     assert np.abs(configuration.q[2:] - start[2:]).max() > 1e-3
 
 
+class _ScaledRow(mink.Task):
+    """One equality row ``scale * dq_2 = -gain * 1e-3``: its units should not matter."""
+
+    def __init__(self, scale: float):
+        super().__init__(cost=np.ones(1), gain=1.0)
+        self.scale = scale
+
+    def compute_error(self, configuration):
+        return np.array([1e-3])
+
+    def compute_jacobian(self, configuration):
+        jacobian = np.zeros((1, configuration.model.nv))
+        jacobian[0, 2] = self.scale
+        return jacobian
+
+
+@pytest.mark.parametrize("scale", [1e-4, 1e-2, 1.0, 1e2])
+def test_constraint_rows_of_any_scale_are_exact(scale):
+    """A small row (below the damping law's singular threshold) is not damped away."""
+    configuration = _home()
+    task = _frame_task(configuration)
+    v = qpik.solve_ik(configuration, [task], DT, "daqp", limits=[], constraints=[_ScaledRow(scale)])
+    assert scale * v[2] * DT == pytest.approx(-1e-3, rel=1e-12)
+
+
+def test_constraints_beyond_the_limits_are_met_as_closely_as_they_allow():
+    configuration = _home()
+    model = configuration.model
+    row = _ScaledRow(1e-4)  # asks for dq_2 = -10 rad
+    v = qpik.solve_ik(configuration, [], DT, "daqp", constraints=[row])
+    gain = mink.ConfigurationLimit(model).gain
+    lowest = -gain * (configuration.q[2] - model.jnt_range[2, 0])
+    assert v[2] * DT == pytest.approx(lowest, abs=1e-12)
+
+
 def test_constraints_sit_above_every_level():
     """With a list of levels, and with no task at all, the constraint rows still hold."""
     model = qpik.load_robot("panda")
