@@ -90,3 +90,104 @@ def test_erd_without_the_extra_names_it(monkeypatch):
     monkeypatch.setattr(metadata, "distribution", missing)
     with pytest.raises(qpik.MissingExtra, match=r"qpik\[robots\]"):
         qpik.load_robot("erd:panda")
+
+
+# ------------------------------------------------------------ mink's exceptions (issue 14)
+MINK_COUNTERPARTS = [
+    ("JointLimitViolation", "NotWithinConfigurationLimits"),
+    ("UnknownFrame", "InvalidFrame"),
+    ("UnknownFrameType", "UnsupportedFrame"),
+    ("NoSolutionFound", "NoSolutionFound"),
+    ("InvalidTarget", "InvalidTarget"),
+    ("TargetNotSet", "TargetNotSet"),
+    ("IntegrationTimestepNotSet", "IntegrationTimestepNotSet"),
+    ("InvalidGain", "InvalidGain"),
+    ("InvalidDamping", "InvalidDamping"),
+    ("InvalidConstraint", "InvalidConstraint"),
+    ("TaskDefinitionError", "TaskDefinitionError"),
+    ("LimitDefinitionError", "LimitDefinitionError"),
+    ("InvalidKeyframe", "InvalidKeyframe"),
+    ("InvalidMocapBody", "InvalidMocapBody"),
+]
+
+
+def _mink_args(mink_name: str, model):
+    """Arguments as mink's own code constructs its exception."""
+    return {
+        "NotWithinConfigurationLimits": dict(
+            joint_id=2, value=4.0, lower=-3.0, upper=3.0, model=model
+        ),
+        "InvalidFrame": ("gripper", "site", model),
+        "UnsupportedFrame": ("joint", ["body", "geom", "site"]),
+        "NoSolutionFound": ("daqp",),
+        "TargetNotSet": ("FrameTask",),
+        "IntegrationTimestepNotSet": ("KineticEnergyRegularizationTask",),
+        "InvalidKeyframe": ("crouch", model),
+        "InvalidMocapBody": ("base_link", model),
+    }.get(mink_name, ("a message",))
+
+
+@pytest.mark.parametrize("ours, theirs", MINK_COUNTERPARTS)
+def test_each_error_is_its_mink_counterpart_built_minks_way(ours, theirs):
+    import mink
+
+    model = qpik.load_robot("ur5e")
+    cls, mink_cls = getattr(qpik, ours), getattr(mink, theirs)
+    assert issubclass(cls, mink_cls) and issubclass(cls, qpik.QpikError)
+    assert ours in qpik.__all__
+    args = _mink_args(theirs, model)
+    error = cls(**args) if isinstance(args, dict) else cls(*args)
+    with pytest.raises(mink_cls):
+        raise error
+    assert str(error)  # a message, never an empty one
+    # Round trip through pickle (errors cross process boundaries in solve_many).
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(error))
+    assert type(copy) is cls and str(copy) == str(error)
+    assert {k: v for k, v in vars(copy).items()} == {k: v for k, v in vars(error).items()}
+
+
+def test_joint_limit_violation_both_ways_keeps_fields():
+    model = qpik.load_robot("ur5e")
+    theirs = qpik.JointLimitViolation(2, 4.0, -3.0, 3.0, model)  # mink's positional form
+    assert (theirs.joint, theirs.index, theirs.joint_id) == ("elbow_joint", 2, 2)
+    assert (theirs.value, theirs.lower, theirs.upper) == (4.0, -3.0, 3.0)
+    ours = qpik.JointLimitViolation("elbow_joint", 2, 4.0, -3.0, 3.0)
+    assert str(ours) == str(theirs) and ours.joint_id is None
+    with pytest.raises(TypeError):
+        qpik.JointLimitViolation("elbow_joint", 2)  # neither signature
+
+
+def test_unknown_frame_built_minks_way_lists_the_names():
+    model = qpik.load_robot("ur5e")
+    error = qpik.UnknownFrame("gripper", "site", model)
+    assert error.available == ["ee"] and "available sites: ee" in str(error)
+    assert "tool0" in qpik.UnknownFrame(99, "body", model).available
+
+
+def test_mink_messages_where_tests_compare_them():
+    import mink
+
+    assert str(qpik.NoSolutionFound("daqp")) == str(mink.NoSolutionFound("daqp"))
+    assert str(qpik.NoSolutionFound("osqp", "max_iter", 1)).endswith("priority level 1: max_iter")
+    assert str(qpik.TargetNotSet("FrameTask")).startswith(str(mink.TargetNotSet("FrameTask")))
+    unsupported = qpik.UnknownFrameType("joint", ["body", "geom", "site"])
+    assert unsupported.frame_type == "joint" and unsupported.supported == ["body", "geom", "site"]
+
+
+@pytest.mark.parametrize(
+    "error",
+    [
+        qpik.UnknownRobot("x", ["panda"]),
+        qpik.RobotFileError("robot.xml", "broken"),
+        qpik.ProblemFileError("p.toml", "targets", "a table"),
+        qpik.InvalidConfiguration("bad", index=3),
+        qpik.UnknownFrameType("unknown frame type 'joint'"),
+    ],
+)
+def test_qpik_errors_pickle(error):
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(error))
+    assert type(copy) is type(error) and str(copy) == str(error) and vars(copy) == vars(error)
