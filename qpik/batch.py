@@ -27,7 +27,6 @@ import math
 import multiprocessing
 import os
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -220,12 +219,13 @@ def _ray_solve_chunk(
 
 
 def _mp_context() -> multiprocessing.context.BaseContext:
-    """``fork`` where it is safe (POSIX, one thread): workers start in milliseconds;
-    else ``forkserver``/``spawn`` (scripts then need ``if __name__ == "__main__":``)."""
-    methods = multiprocessing.get_all_start_methods()
-    if "fork" in methods and threading.active_count() == 1 and sys.platform != "darwin":
+    """``fork`` on Linux: workers start in milliseconds and inherit the compiled kernels
+    and the loaded modules (a fresh interpreter, ``forkserver`` or ``spawn``, takes seconds
+    to import qpik). Elsewhere ``spawn``, the platform's default: scripts then need an
+    ``if __name__ == "__main__":`` guard."""
+    if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("fork")
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    return multiprocessing.get_context("spawn")
 
 
 def _ray():

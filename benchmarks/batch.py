@@ -1,0 +1,197 @@
+"""Batch IK throughput (issue 16): IK/s against the number of workers, the process pool
+against Ray on one machine, a small reachability map, and a cluster's throughput projected
+on paper.
+
+Targets (the issue's batch): N reachable pose targets (FK of uniform random q within the
+limits, fixed seed) plus N/50 positions far out of reach, for the robot's tool frame, solved
+by ``qpik.solve_many`` with its defaults (1e-4 m, 1e-3 rad, restarts). Every method solves
+the same batch with the same seed and must return bitwise the same configurations (checked
+and printed). Timings are wall times of whole ``solve_many`` calls (pool start included),
+repeated in interleaved rounds; medians are printed. Ray runs on a local Ray started here
+with as many CPUs as the largest worker count; its start and its first call (worker
+processes importing qpik) are printed apart, then warm calls are timed.
+
+Goals (issue 16): >= 1.8x from 1 to 2 workers at light load; Ray within 15 % of the pool.
+The machine's load average is printed: on a shared machine the ratio says more about the
+other jobs than about qpik.
+
+    python benchmarks/batch.py [--robot ur5e] [--frame ee] [--n 1000] [--rounds 3]
+        [--workers 1 2] [--no-ray] [--map-resolution 0.2] [--map-orientations 8]
+
+About 40 s with the defaults on a 2-core machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import time
+
+import numpy as np
+
+import qpik
+
+#: Published GPU batch-IK throughputs (IK/s), at a loose 5 mm / 0.05 rad.
+GPU_REFERENCES = {"cuRobo": 42_600, "PyRoki": 67_000}
+#: reuleaux: 3.79 M poses in about 14 h on 20 cores.
+REULEAUX_POSES = 3_790_000
+
+
+def make_targets(robot: str, frame: str, n: int, seed: int = 0) -> list[dict]:
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(seed)
+    targets = []
+    for _ in range(n):
+        configuration.update(configuration.random_q(rng))
+        position, rotation = configuration.frame_pose(frame)
+        targets.append({frame: (position.copy(), rotation.copy())})
+    for k in range(max(1, n // 50)):  # far out of reach: the restart / early-exit path
+        angle = 2 * np.pi * k / max(1, n // 50)
+        targets.append({frame: [3.0 * np.cos(angle), 3.0 * np.sin(angle), 0.4]})
+    return targets
+
+
+def timed(function):
+    start = time.perf_counter()
+    value = function()
+    return time.perf_counter() - start, value
+
+
+def load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robot", default="ur5e")
+    parser.add_argument("--frame", default="ee")
+    parser.add_argument("--n", type=int, default=1000, help="reachable targets (1000)")
+    parser.add_argument("--rounds", type=int, default=3, help="timed rounds (3)")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--no-ray", action="store_true", help="skip the Ray comparison")
+    parser.add_argument("--map-resolution", type=float, default=0.2, help="[m] (0.2)")
+    parser.add_argument("--map-orientations", type=int, default=8, help="K (8)")
+    args = parser.parse_args(argv)
+
+    targets = make_targets(args.robot, args.frame, args.n)
+    total = len(targets)
+    print(
+        f"batch: {args.robot} {args.frame!r}, {args.n} reachable + {total - args.n} "
+        f"unreachable targets; {load()}"
+    )
+    # Warm-up in this process (compiled kernels, robot cache): forked workers inherit it.
+    qpik.solve_many(args.robot, targets[:20], workers=1, progress=False)
+
+    methods = {f"pool x{w}": dict(workers=w) for w in args.workers}
+    ray = None
+    report: dict = {"load_before": os.getloadavg()[0]}
+    if not args.no_ray:
+        try:
+            import ray
+        except ImportError:
+            print("ray: not installed (pip install 'qpik[cluster]'): skipped")
+        if ray is not None:
+            cpus = max(args.workers)
+            start, _ = timed(
+                lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+            )
+            first, _ = timed(
+                lambda: qpik.solve_many(
+                    args.robot, targets, backend="ray", workers=cpus, progress=False
+                )
+            )
+            print(f"ray: local start {start:.1f} s; first call {first:.1f} s (workers import qpik)")
+            report.update(ray_start=start, ray_first=first)
+            methods[f"ray x{cpus}"] = dict(backend="ray", workers=cpus)
+
+    times: dict[str, list[float]] = {name: [] for name in methods}
+    reference = None
+    identical = True
+    for _ in range(args.rounds):
+        for name, options in methods.items():
+            elapsed, results = timed(
+                lambda options=options: qpik.solve_many(
+                    args.robot, targets, seed=0, pool_threshold=0.0, progress=False, **options
+                )
+            )
+            times[name].append(elapsed)
+            q = np.array([r.q for r in results])
+            if reference is None:
+                reference = q
+            identical &= bool(np.array_equal(q, reference))
+    converged = sum(r.converged for r in results)
+    print(
+        f"converged {converged}/{total}; identical results across methods and rounds: "
+        f"{'yes' if identical else 'NO'}"
+    )
+    print(f"\n{'method':<10} {'median [s]':>10} {'IK/s':>9} {'min [s]':>8} {'max [s]':>8}")
+    rates = {}
+    for name, values in times.items():
+        median = statistics.median(values)
+        rates[name] = total / median
+        print(
+            f"{name:<10} {median:>10.3f} {rates[name]:>9.0f} {min(values):>8.3f} "
+            f"{max(values):>8.3f}"
+        )
+    one = rates.get("pool x1")
+    if one and "pool x2" in rates:
+        print(
+            f"\nscaling 1 -> 2 workers: {rates['pool x2'] / one:.2f}x (goal >= 1.8x at light load)"
+        )
+    ray_name = next((n for n in rates if n.startswith("ray")), None)
+    pool_name = f"pool x{max(args.workers)}"
+    if ray_name and pool_name in rates:
+        gap = rates[ray_name] / rates[pool_name]
+        print(f"ray / pool on this machine: {gap:.2f} (goal >= 0.85)")
+    report.update(times=times, rates=rates, identical=identical)
+
+    # A small reachability map.
+    region = np.array([[-0.8, -0.8, -0.2], [0.8, 0.8, 1.0]])
+    elapsed, rmap = timed(
+        lambda: qpik.reachability(
+            args.robot,
+            args.frame,
+            region=region,
+            resolution=args.map_resolution,
+            orientations=args.map_orientations,
+            workers=max(args.workers),
+            progress=False,
+        )
+    )
+    print(
+        f"\nreachability map: {len(rmap.fraction)} voxels {rmap.shape} of "
+        f"{args.map_resolution} m x {args.map_orientations} orientations, "
+        f"{int(rmap.skipped.sum())} skipped by the reach bound, {rmap.solves} IK in "
+        f"{elapsed:.2f} s ({rmap.solves / elapsed:.0f} IK/s); mean fraction "
+        f"{rmap.fraction.mean():.3f}"
+    )
+    report.update(map_time=elapsed, map_solves=rmap.solves)
+
+    # On paper: a cluster of C cores at the measured per-core rate (linear scaling assumed:
+    # targets are independent; measured here only up to the workers above).
+    if one:
+        print(
+            f"\nprojected cluster throughput at {one:.0f} IK/s per core (1-worker rate "
+            "measured here, linear scaling assumed):"
+        )
+        print(f"{'cores':>6} {'IK/s':>10} {'3.79 M poses (reuleaux)':>24}")
+        for cores in (20, 64, 256, 1024):
+            rate = one * cores
+            print(f"{cores:>6} {rate:>10.0f} {REULEAUX_POSES / rate / 60:>20.1f} min")
+        for name, rate in GPU_REFERENCES.items():
+            print(
+                f"  {name} publishes {rate} IK/s on one GPU at 5 mm / 0.05 rad: "
+                f"{rate / one:.0f} cores of this machine at qpik's 1e-4 m / 1e-3 rad"
+            )
+        print("  reuleaux: 3.79 M poses in about 14 h on 20 cores (75 IK/s)")
+    print(f"\n{load()}")
+    if ray is not None:
+        ray.shutdown()
+    return report
+
+
+if __name__ == "__main__":
+    main()
