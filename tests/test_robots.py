@@ -121,3 +121,201 @@ def test_erd_unknown_name_lists_known(monkeypatch):
     with pytest.raises(qpik.UnknownRobot, match="erd:panda"):
         qpik.load_robot("erd:nonexistent")
     assert "ur5" in ERD_ROBOTS
+
+
+# ------------------------------------------------------------ example-robot-data
+requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+
+
+def _quiet_load(source, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return qpik.load_robot(source, **kwargs)
+
+
+def _erd_names() -> list[str]:
+    return list(qpik.robots.erd_robots()) if _has_erd() else []
+
+
+def _check_erd_robot(name):
+    model = _quiet_load(f"erd:{name}")
+    assert model.nbody >= 2
+    tool = qpik.robots.tool_frame(model)
+    assert tool.name in qpik.frame_names(model, tool.frame_type)
+    floating = _quiet_load(f"erd:{name}", floating_base=True)
+    assert floating.nv == model.nv + 6
+
+
+#: One robot per quirk: a mesh MuJoCo rejects (alex), non-positive-definite inertias (tiago),
+#: an SRDF with a root pose (talos), quadrupeds, arms.
+QUIRKS = ["alex_nub_hands", "tiago_no_hand", "talos", "go2", "ur10", "xarm7", "kinova"]
+
+
+@requires_erd
+@pytest.mark.parametrize("name", QUIRKS)
+def test_erd_robots_with_quirks_load(name):
+    _check_erd_robot(name)
+
+
+@pytest.mark.slow
+@requires_erd
+@pytest.mark.parametrize("name", _erd_names())
+def test_every_erd_robot_loads(name):
+    """Every robot example-robot-data ships (about 40 s: ``pytest -m slow``)."""
+    _check_erd_robot(name)
+
+
+@requires_erd
+@pytest.mark.parametrize("name", ["talos", "go1", "solo12", "panda"])
+def test_floating_base_adds_a_free_root_joint(name):
+    fixed = _quiet_load(f"erd:{name}")
+    floating = _quiet_load(f"erd:{name}", floating_base=True)
+    assert floating.nq == fixed.nq + 7 and floating.nv == fixed.nv + 6
+    assert floating.joint("root_joint").type == mujoco.mjtJoint.mjJNT_FREE
+    # With the base at the root body's rest pose, every body is where the fixed model has it.
+    rng = np.random.default_rng(1)
+    q = qpik.Configuration(fixed).random_q(rng)
+    base = floating.qpos0[:7]
+    a = qpik.Configuration(fixed, q)
+    b = qpik.Configuration(floating, np.concatenate([base, q]))
+    np.testing.assert_allclose(b.data.xpos, a.data.xpos, atol=1e-12)
+
+
+@requires_erd
+def test_talos_half_sitting_comes_from_the_srdf():
+    import xml.etree.ElementTree as ET
+
+    model = _quiet_load("erd:talos", floating_base=True)
+    key = model.key("half_sitting").qpos
+    srdf = qpik.robots.erd_robots_folder() / "talos_data/srdf/talos.srdf"
+    state = next(
+        s for s in ET.parse(srdf).getroot().iter("group_state") if s.get("name") == "half_sitting"
+    )
+    for joint in state.iter("joint"):
+        values = [float(v) for v in joint.get("value").split()]
+        adr = model.joint(joint.get("name")).qposadr[0]
+        if joint.get("name") == "root_joint":  # Pinocchio's x y z qx qy qz qw
+            np.testing.assert_array_equal(
+                key[adr : adr + 7], values[:3] + [values[6], *values[3:6]]
+            )
+        else:
+            assert key[adr] == values[0]
+    # Half sitting puts the soles on the ground.
+    configuration = qpik.Configuration(model, key)
+    for sole in ("left_sole_link", "right_sole_link"):
+        assert abs(configuration.frame_pose(sole, "body")[0][2]) < 1e-4
+    # Without a floating base the state's joints still load (the root pose is skipped).
+    fixed = _quiet_load("erd:talos")
+    np.testing.assert_array_equal(fixed.key("half_sitting").qpos, key[7:])
+    assert _quiet_load("erd:talos", srdf=False).nkey == 0
+
+
+def test_srdf_given_or_found_beside_the_urdf(tmp_path):
+    (tmp_path / "urdf").mkdir()
+    urdf = tmp_path / "urdf" / "tool_arm.urdf"
+    urdf.write_text(URDF)
+    srdf = """<robot name="tool_arm">
+      <group_state name="ready" group="arm">
+        <joint name="shoulder" value="0.5"/><joint name="elbow" value="-1.25"/>
+        <joint name="no_such_joint" value="3"/>
+      </group_state>
+    </robot>"""
+    (tmp_path / "srdf").mkdir()
+    (tmp_path / "srdf" / "tool_arm.srdf").write_text(srdf)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        found = qpik.load_robot(urdf)
+        other = tmp_path / "poses.srdf"
+        other.write_text(srdf.replace("ready", "folded"))
+        given = qpik.load_robot(urdf, srdf=other)
+        with pytest.raises(qpik.RobotFileError, match="no such SRDF"):
+            qpik.load_robot(urdf, srdf=tmp_path / "missing.srdf")
+    np.testing.assert_array_equal(found.key("ready").qpos, [0.5, -1.25])
+    np.testing.assert_array_equal(given.key("folded").qpos, [0.5, -1.25])
+
+
+def test_urdf_velocity_and_effort_limits_are_imported(tmp_path):
+    path = tmp_path / "tool_arm.urdf"
+    path.write_text(URDF)
+    model = _quiet_load(path)
+    configuration = qpik.Configuration(model)
+    # shoulder: velocity 1 rad/s, effort 10 N m; elbow (continuous, no <limit>): none.
+    np.testing.assert_array_equal(configuration.velocity_limits(), [1.0, np.inf])
+    limits = qpik.limits.joint_limits(model)
+    velocity = [lim for lim in limits if isinstance(lim, qpik.limits.VelocityLimit)]
+    assert len(velocity) == 1 and velocity[0].limit.tolist() == [1.0]
+    assert model.jnt_actfrcrange[model.joint("shoulder").id].tolist() == [-10.0, 10.0]
+
+
+@requires_erd
+@pytest.mark.parametrize("name", ["panda", "ur5", "talos"])
+def test_erd_velocity_limits_are_the_urdfs(name):
+    import xml.etree.ElementTree as ET
+
+    model = _quiet_load(f"erd:{name}")
+    path = qpik.robots.erd_path(name)
+    vmax = qpik.Configuration(model).velocity_limits()
+    for joint in ET.parse(path).getroot().iter("joint"):
+        limit = joint.find("limit")
+        if joint.get("type") in ("fixed", None) or limit is None or limit.get("velocity") is None:
+            continue
+        assert vmax[model.joint(joint.get("name")).dofadr[0]] == float(limit.get("velocity"))
+    assert any(
+        isinstance(lim, qpik.limits.VelocityLimit) for lim in qpik.limits.joint_limits(model)
+    )
+
+
+@requires_erd
+def test_readme_recipe_bounds_joint_velocities_on_erd_panda():
+    from qpik.tasks import FrameTask, JointLimitDistanceTask
+
+    model = _quiet_load("erd:panda")
+    configuration = qpik.Configuration(model)
+    stretched = configuration.mid_q()
+    stretched[3] = -0.1  # elbow almost straight: a near-singular pose
+    configuration.update(stretched)
+    task = FrameTask("panda_hand_tcp", "body", position_cost=1.0, orientation_cost=1.0)
+    position, rotation = configuration.frame_pose("panda_hand_tcp", "body")
+    import mink
+
+    task.set_target(
+        mink.SE3.from_rotation_and_translation(
+            mink.SO3.from_matrix(rotation), position + [0.3, 0.2, 0.1]
+        )
+    )
+    solver = qpik.IKSolver(
+        model, [[task], [JointLimitDistanceTask()]], qpik.limits.joint_limits(model)
+    )
+    vmax = configuration.velocity_limits()
+    for _ in range(30):
+        step = solver.step(configuration, 0.01)
+        assert np.all(np.abs(step.velocity) <= vmax + 1e-9)
+        configuration.integrate_inplace(step.velocity, 0.01)
+
+
+@requires_erd
+def test_unknown_erd_name_lists_example_robot_datas_robots():
+    with pytest.raises(qpik.UnknownRobot) as info:
+        qpik.load_robot("erd:nonexistent")
+    message = str(info.value)
+    assert "example-robot-data" in message and "bundled" not in message
+    assert "erd:talos" in message and "erd:go1" in message
+
+
+def test_tool_frame_rules(tmp_path):
+    assert qpik.robots.tool_frame(qpik.load_robot("panda")).name == "ee"  # the site ee
+    path = tmp_path / "tool_arm.urdf"
+    path.write_text(URDF)
+    tool = qpik.robots.tool_frame(_quiet_load(path))
+    assert (tool.name, tool.frame_type) == ("tool0", "body") and "known tool link" in tool.reason
+    # No known name: the last link of the longest chain (fixed links count for depth).
+    path.write_text(URDF.replace("tool0", "flange"))
+    tool = qpik.robots.tool_frame(_quiet_load(path))
+    assert tool.name == "flange" and "longest chain" in tool.reason
+
+
+def test_floating_base_errors(tmp_path):
+    with pytest.raises(qpik.RobotFileError, match="already has a joint"):
+        qpik.load_robot(qpik.robots.robot_path("planar_2r"), floating_base=True)
+    with pytest.raises(qpik.RobotFileError, match="not to a model"):
+        qpik.load_robot(qpik.load_robot("panda"), floating_base=True)
