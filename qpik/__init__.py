@@ -3,7 +3,7 @@
 from . import analysis, baselines, limits, scene, statics, tasks
 from .configuration import Configuration, FrameType, frame_names, joint_names
 from .batch import solve_many
-from .converge import IKResult, solve
+from .converge import IKResult, IKSession, solve
 from .errors import (
     CollisionPairError,
     InfeasibleLimits,
@@ -41,6 +41,7 @@ __version__ = "0.1.0"
 __all__ = [
     "DampingLaw",
     "IKResult",
+    "IKSession",
     "IKSolver",
     "StepResult",
     "baselines",

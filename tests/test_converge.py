@@ -71,8 +71,8 @@ def test_several_frames_at_once(rng):
 def test_out_of_reach_reports_reason_and_stays_in_limits():
     result = qpik.solve("panda", {"ee": [3.0, 0.0, 0.5]}, restarts=2, seed=0)
     assert not result.converged
-    assert result.reason in REASONS and result.reason != "converged"
-    assert result.position_error > 1.0
+    assert result.reason == "unreachable" and result.reason in REASONS
+    assert result.iterations == 0 and result.position_error > 1.0
     configuration = qpik.Configuration(qpik.load_robot("panda"), result.q)
     assert configuration.within_limits(tol=0.0)
 
@@ -90,9 +90,11 @@ def test_same_seed_same_result(rng):
     assert first.iterations == second.iterations
 
 
-def test_time_budget_and_max_iters_are_reasons():
-    out_of_reach = {"ee": [3.0, 0.0, 0.5]}
-    assert qpik.solve("panda", out_of_reach, time_budget=0.0).reason == "time_budget"
+def test_time_budget_and_max_iters_are_reasons(rng):
+    position, rotation = reachable_pose("panda", rng)
+    for engine in ("compiled", "qp"):
+        result = qpik.solve("panda", {"ee": (position, rotation)}, time_budget=0.0, engine=engine)
+        assert result.reason == "time_budget" and not result.converged
     result = qpik.solve("panda", {"ee": [0.5, 0.3, 0.2]}, max_iters=1, restarts=0)
     assert result.reason in ("max_iters", "converged")
     assert result.iterations <= 1
@@ -139,17 +141,6 @@ def test_bad_inputs():
         qpik.solve("panda", {})
 
 
-def test_solve_many_is_deterministic_and_parallel(rng):
-    targets = [{"ee": reachable_pose("ur5e", rng)} for _ in range(6)]
-    serial = qpik.solve_many("ur5e", targets, seed=5, progress=False)
-    again = qpik.solve_many("ur5e", targets, seed=5, progress=False)
-    parallel = qpik.solve_many("ur5e", targets, seed=5, progress=False, workers=2)
-    for a, b, c in zip(serial, again, parallel, strict=True):
-        np.testing.assert_array_equal(a.q, b.q)
-        np.testing.assert_array_equal(a.q, c.q)
-    assert all(r.converged for r in serial)
-
-
 def test_history_and_path_of_the_returned_attempt(rng):
     position, rotation = reachable_pose("ur5e", rng)
     result = qpik.solve("ur5e", {"ee": (position, rotation)}, seed=2)
@@ -168,11 +159,299 @@ def test_custom_stack_keeps_the_users_gains(rng):
     assert frame.gain == 0.7
 
 
-def test_clear_pool_after_editing_a_model(rng):
+def test_editing_a_model_in_place_is_seen_by_the_next_solve():
     model = qpik.load_robot("planar_2r")
     target = {"ee": [1.2, 0.8, 0.0]}
     assert qpik.solve(model, target, q0=[0.3, 0.5]).converged
     model.jnt_range[1] = [0.0, 0.2]  # narrow q2: the target is now out of reach
-    qpik.converge.clear_pool()
     result = qpik.solve(model, target, q0=[0.3, 0.1], restarts=3)
     assert not result.converged and 0.0 <= result.q[1] <= 0.2 + 1e-12
+
+
+# ------------------------------------------------------------- engines agree
+@pytest.mark.parametrize("robot", ["panda", "ur5e", "planar_4r"])
+def test_compiled_engine_takes_the_exact_qp_step(robot, rng):
+    """Without singularity damping, one iteration of the compiled engine equals IKSolver's
+    step with its exact QP (same level, trust region and limit box), from starts where
+    limits bind and where not."""
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model)
+    for i in range(8):
+        position, rotation = reachable_pose(robot, rng)
+        target = {"ee": (position, rotation) if robot != "planar_4r" else position}
+        q0 = configuration.random_q(rng)
+        if i % 2:  # start at a limit
+            q0[0] = configuration.lower[0]
+        kwargs = dict(q0=q0, max_iters=1, restarts=0, seed=0, damping_law=None)
+        compiled = qpik.solve(model, target, engine="compiled", **kwargs)
+        reference = qpik.solve(model, target, engine="qp", solver="auto", **kwargs)
+        assert compiled.engine == "compiled" and reference.engine == "qp"
+        np.testing.assert_allclose(compiled.path[1], reference.path[1], atol=1e-9, rtol=0)
+
+
+def _reference_step(model, frame, target, q, law, damping=1e-6, max_step=(0.2, 0.5)):
+    """One IGM step from its definition, with numpy's SVD and scipy's bounded least squares
+    (BVLS): the damped pose level under the 0.95 joint-limit box."""
+    from scipy.optimize import lsq_linear
+    from scipy.spatial.transform import Rotation
+
+    from qpik.tasks.frame import so3_left_jacobian_inverse
+
+    configuration = qpik.Configuration(model, q)
+    position, rotation = configuration.frame_pose(frame)
+    jacobian = configuration.frame_jacobian(frame)
+    rotation_error = Rotation.from_matrix(rotation @ target[1].T).as_rotvec()
+    error = np.concatenate([position - target[0], rotation_error])
+    ep, eo = np.linalg.norm(error[:3]), np.linalg.norm(error[3:])
+    gain = min(1.0, max_step[0] / ep, max_step[1] / eo)
+    A = np.vstack([jacobian[:3], so3_left_jacobian_inverse(rotation_error) @ jacobian[3:]])
+    b = -gain * error
+    sigma = np.linalg.svd(A, compute_uv=False)[min(A.shape) - 1]
+    lam2 = 0.0
+    if sigma < law.singular_threshold:
+        lam2 = law.max_damping**2 * (1 - (sigma / law.singular_threshold) ** 2)
+        lam2 *= min(1.0, np.linalg.norm(b) / law.error_scale)
+    reg = damping + lam2
+    nv = model.nv
+    lower, upper = configuration.lower, configuration.upper
+    solution = lsq_linear(
+        np.vstack([A, np.sqrt(reg) * np.eye(nv)]),
+        np.concatenate([b, np.zeros(nv)]),
+        bounds=(np.minimum(0.95 * (lower - q), 0), np.maximum(0.95 * (upper - q), 0)),
+        method="bvls",
+        tol=1e-15,
+    )
+    return q + solution.x, sigma
+
+
+@pytest.mark.parametrize("robot", ["panda", "ur5e"])
+def test_compiled_step_with_damping_equals_its_definition(robot, rng):
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model)
+    damped = 0
+    for i in range(12):
+        target = reachable_pose(robot, rng)
+        q0 = configuration.random_q(rng)
+        if i % 3 == 0:  # near a wrist singularity: joint 5 (UR) / 6 (panda) almost straight
+            q0[4 if robot == "ur5e" else 5] = 0.02 if robot == "ur5e" else 0.02 + 0.0
+            q0 = np.clip(q0, configuration.lower, configuration.upper)
+        result = qpik.solve(model, {"ee": target}, q0=q0, max_iters=1, restarts=0, seed=0)
+        expected, sigma = _reference_step(model, "ee", target, q0, qpik.converge.IGM_DAMPING)
+        damped += sigma < qpik.converge.IGM_DAMPING.singular_threshold
+        np.testing.assert_allclose(result.path[1], expected, atol=1e-8, rtol=0)
+    assert damped > 0  # the damped branch was exercised
+
+
+def test_engine_choice_is_checked():
+    with pytest.raises(qpik.InvalidInput, match="engine"):
+        qpik.solve("panda", {"ee": [0.4, 0.0, 0.5]}, engine="fast")
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.InvalidInput, match="engine='compiled' needs"):
+        qpik.solve(model, {"ee": [0.4, 0, 0.5], "link4": [0.2, 0, 0.5]}, engine="compiled")
+    assert qpik.solve("panda", {"ee": [0.4, 0.0, 0.5]}).engine == "compiled"
+
+
+# -------------------------------------------------------------- determinism
+def _digest(result) -> bytes:
+    return result.q.tobytes() + bytes([result.converged]) + str(result.iterations).encode()
+
+
+def _targets(robot, n, seed):
+    rng = np.random.default_rng(seed)
+    return [reachable_pose(robot, rng) for _ in range(n)]
+
+
+HARD = dict(tol_position=1e-6, tol_orientation=1e-6, max_iters=8, restarts=6)
+
+
+def test_same_answer_after_other_solves_and_in_another_session():
+    targets = _targets("ur5e", 6, 11)
+    first = [qpik.solve("ur5e", {"ee": t}, seed=3, **HARD) for t in targets]
+    session = qpik.IKSession("ur5e")
+    for t in _targets("ur5e", 20, 12):  # unrelated solves in between, some with restarts
+        session.solve({"ee": t}, seed=9, **HARD)
+    again = [session.solve({"ee": t}, seed=3, **HARD) for t in targets]
+    other = qpik.IKSession(qpik.load_robot("ur5e"))
+    third = [other.solve({"ee": t}, seed=3, **HARD) for t in targets]
+    general = [
+        qpik.solve("ur5e", {"ee": t}, seed=3, engine="qp", **HARD) for t in targets[:2]
+    ]
+    general_again = [
+        qpik.solve("ur5e", {"ee": t}, seed=3, engine="qp", **HARD) for t in targets[:2]
+    ]
+    assert any(r.restarts_used > 0 for r in first)  # the restarts' stream matters
+    assert [_digest(r) for r in first] == [_digest(r) for r in again] == [
+        _digest(r) for r in third
+    ]
+    assert [_digest(r) for r in general] == [_digest(r) for r in general_again]
+
+
+def test_same_answer_first_in_a_fresh_process():
+    import subprocess
+    import sys
+
+    targets = _targets("panda", 3, 21)
+    here = [qpik.solve("panda", {"ee": t}, seed=5, **HARD).q for t in targets]
+    code = (
+        "import numpy as np, qpik, sys\n"
+        "data = np.load(sys.argv[1])\n"
+        "out = [qpik.solve('panda', {'ee': (p, r)}, seed=5, tol_position=1e-6, "
+        "tol_orientation=1e-6, max_iters=8, restarts=6).q for p, r in zip(data['p'], data['r'])]\n"
+        "sys.stdout.write(np.array(out).tobytes().hex())\n"
+    )
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = f"{folder}/targets.npz"
+        np.savez(path, p=np.array([t[0] for t in targets]), r=np.array([t[1] for t in targets]))
+        output = subprocess.run(
+            [sys.executable, "-c", code, path], capture_output=True, text=True, check=True
+        ).stdout
+    fresh = np.frombuffer(bytes.fromhex(output), dtype=float).reshape(3, -1)
+    assert fresh.tobytes() == np.array(here).tobytes()
+
+
+def test_seed_forms():
+    target = {"ee": _targets("ur5e", 1, 4)[0]}
+    a = qpik.solve("ur5e", target, seed=np.random.default_rng(8), **HARD)
+    b = qpik.solve("ur5e", target, seed=np.random.default_rng(8), **HARD)
+    c = qpik.solve("ur5e", target, seed=np.random.SeedSequence(8), **HARD)
+    d = qpik.solve("ur5e", target, seed=np.random.SeedSequence(8), **HARD)
+    e = qpik.solve("ur5e", target, seed=2**70, **HARD)
+    assert _digest(a) == _digest(b) and _digest(c) == _digest(d)
+    assert e.q.shape == (6,)
+
+
+# ---------------------------------------------------------------- unreachable
+def test_unreachable_is_answered_at_once_on_both_engines():
+    far = [0.0, 0.0, 3.0]
+    compiled = qpik.solve("ur5e", {"ee": far})
+    assert compiled.reason == "unreachable" and compiled.iterations == 0
+    assert compiled.restarts_used == 0 and compiled.engine == "compiled"
+    model = qpik.load_robot("panda")
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
+    general = qpik.solve(model, {"ee": (far, np.eye(3))}, stack=[frame])
+    assert general.reason == "unreachable" and general.iterations == 0
+    # Just inside the bound: iterated, not ruled out.
+    bound = qpik.IKSession(model).reach_bound("ee")
+    inside = bound.center + [bound.radius - 1e-3, 0, 0]
+    assert qpik.solve(model, {"ee": inside}, restarts=0).reason != "unreachable"
+
+
+def test_every_reachable_target_is_iterated(rng):
+    for robot in ("planar_2r", "planar_4r", "ur5e", "panda"):
+        session = qpik.IKSession(robot)
+        for _ in range(100):
+            position, _ = reachable_pose(robot, rng)
+            assert not session.reach_bound("ee").excludes(position, 0.0)
+
+
+# ------------------------------------------------------------------ validation
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        (dict(tol_position=0), "tol_position"),
+        (dict(tol_position=-1), "tol_position"),
+        (dict(tol_position=float("nan")), "tol_position"),
+        (dict(tol_orientation=float("inf")), "tol_orientation"),
+        (dict(tol_orientation="1e-3"), "tol_orientation"),
+        (dict(time_budget=float("inf")), "time_budget"),
+        (dict(time_budget=float("nan")), "time_budget"),
+        (dict(time_budget=-1.0), "time_budget"),
+        (dict(restarts=-1), "restarts"),
+        (dict(restarts=1.5), "restarts"),
+        (dict(restarts=True), "restarts"),
+        (dict(max_iters=-1), "max_iters"),
+        (dict(max_iters=10**9), "max_iters"),
+        (dict(stall_window=0), "stall_window"),
+        (dict(seed=-1), "seed"),
+        (dict(seed="abc"), "seed"),
+        (dict(seed=1.5), "seed"),
+        (dict(alpha=2.0), "alpha"),
+        (dict(beta=0.0), "beta"),
+        (dict(max_step=(0.1,)), "max_step"),
+        (dict(max_step=(0.1, -1.0)), "max_step"),
+        (dict(damping=-1.0), "damping"),
+        (dict(damping_law="strong"), "damping_law"),
+        (dict(limits="all"), "limits"),
+    ],
+)
+def test_bad_options_name_the_argument(kwargs, name):
+    with pytest.raises(qpik.InvalidInput, match=name):
+        qpik.solve("planar_2r", {"ee": [1.0, 1.0, 0.0]}, **kwargs)
+
+
+@pytest.mark.parametrize("key", [None, 3, ("ee",), (1, "site"), ("ee", "site", 0), b"ee"])
+def test_bad_frame_keys_are_typed_errors(key):
+    with pytest.raises(qpik.InvalidInput, match="frame key"):
+        qpik.solve("planar_2r", {key: [1.0, 1.0, 0.0]})
+
+
+def test_bad_frame_type_and_targets():
+    with pytest.raises(qpik.UnknownFrameType):
+        qpik.solve("planar_2r", {("ee", "joint"): [1.0, 1.0, 0.0]})
+    with pytest.raises(qpik.InvalidTarget, match="not a rotation"):
+        qpik.solve("panda", {"ee": ([0.4, 0, 0.5], 2 * np.eye(3))})
+    with pytest.raises(qpik.InvalidTarget, match="finite"):
+        qpik.solve("panda", {"ee": ([0.4, 0, 0.5], np.full((3, 3), np.nan))})
+    with pytest.raises(qpik.InvalidTarget):
+        qpik.solve("panda", {"ee": "here"})
+    with pytest.raises(qpik.InvalidInput, match="mapping"):
+        qpik.solve("panda", [("ee", [0.4, 0.0, 0.5])])
+
+
+def test_huge_budget_returns():
+    # A pose a planar arm cannot take (tilted out of its plane): every attempt stalls, and
+    # restarts=None with a budget stops after MAX_AUTO_RESTARTS.
+    from scipy.spatial.transform import Rotation
+
+    tilted = Rotation.from_rotvec([0.5, 0.0, 0.0]).as_matrix()
+    result = qpik.solve("planar_2r", {"ee": ([1.0, 1.0, 0.0], tilted)}, time_budget=1e300)
+    assert not result.converged
+    assert result.restarts_used == qpik.converge.MAX_AUTO_RESTARTS
+
+
+# ------------------------------------------------------------ level-0 tasks
+def test_convergence_covers_every_level0_task(rng):
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    q0 = configuration.mid_q()
+    configuration.update(q0)
+    hold = qpik.tasks.FrameTask("link4", "body", position_cost=1.0, orientation_cost=1.0)
+    hold.set_target(configuration.get_transform_frame_to_world("link4", "body"))
+    # A target reachable with link4 held: move the last three joints only.
+    q_goal = q0.copy()
+    q_goal[4:] += rng.uniform(-0.4, 0.4, 3)
+    configuration.update(q_goal)
+    goal = configuration.frame_pose("ee")
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    result = qpik.solve(model, {"ee": goal}, q0=q0, stack=[[hold], [frame]], seed=0)
+    assert result.converged, result
+    configuration.update(result.q)
+    held = np.linalg.norm(configuration.frame_pose("link4", "body")[0] - configuration.frame_pose("link4", "body")[0])
+    assert held == 0.0
+    # Level 0 that cannot be met (a posture far from the start, cost 1, one joint frozen
+    # by the limits) is never reported converged, even when the frame target is met.
+    posture = qpik.tasks.PostureTask(model, cost=1.0)
+    far = q0.copy()
+    far[0] = configuration.upper[0] + 1.0  # outside the limits: unreachable posture
+    posture.set_target(far)
+    result = qpik.solve(model, {"ee": goal}, q0=q0, stack=[[posture], [frame]], restarts=1)
+    assert not result.converged and result.reason != "converged"
+
+
+def test_task_errors_rule():
+    from qpik.converge import _task_errors
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.mid_q())
+    position, rotation = configuration.frame_pose("ee")
+    task = qpik.tasks.PositionTask("ee", "site")
+    task.set_target(position + [0.003, 0.0, 0.004])
+    assert _task_errors(task, configuration) == pytest.approx((0.005, 0.0))
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
+    assert _task_errors(frame, configuration) is None  # no target yet
+    frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.exp(np.array([0.0, 0.0, 0.2])) @ mink.SO3.from_matrix(rotation), position))
+    p, o = _task_errors(frame, configuration)
+    assert p == pytest.approx(0.0, abs=1e-12) and o == 0.0  # orientation not regulated
