@@ -215,7 +215,11 @@ def solve_ik(
         error = NoSolutionFound(ik.solver)  # mink's message, word for word
         error.status, error.level = str(status[0]), 0
         raise error
-    return displacement / dt
+    with np.errstate(over="ignore"):
+        velocity = displacement / dt
+    if not np.isfinite(velocity).all():
+        raise InvalidInput(f"dt = {dt!r} s is too small: the velocity dq / dt overflows")
+    return velocity
 
 
 def _solver(

@@ -507,3 +507,11 @@ def test_mink_loop_converges_with_qpik_patched_in(monkeypatch):
         steps += 1
     assert steps < 20
     assert np.linalg.norm(task.compute_error(configuration)) < 1e-6
+
+
+def test_a_dt_so_small_that_the_velocity_overflows_is_named():
+    configuration = _home()
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    task.set_target(mink.SE3.from_translation(np.array([0.3, 0.1, 0.2])))
+    with pytest.raises(qpik.InvalidInput, match="dt"):
+        qpik.solve_ik(configuration, [task], 5e-324, "daqp", limits=[])
