@@ -171,3 +171,71 @@ def test_mink_tasks_accept_a_qpik_configuration():
     task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
     task.set_target_from_configuration(configuration)
     np.testing.assert_allclose(task.compute_error(configuration), 0.0, atol=1e-12)
+
+
+BALL = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="base" pos="0 0 1">
+      <freejoint name="root"/>
+      <geom type="sphere" size="0.1"/>
+      <body name="arm">
+        <joint name="shoulder" type="ball" range="0 0.5"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+        <body name="fore" pos="0.3 0 0">
+          <joint name="wrist" type="ball"/>
+          <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _ball_q(model, shoulder_angle: float, wrist_angle: float = 2.5) -> np.ndarray:
+    q = model.qpos0.copy()
+    axis = np.array([0.0, 0.6, 0.8])
+    for name, angle in (("shoulder", shoulder_angle), ("wrist", wrist_angle)):
+        adr = model.joint(name).qposadr[0]
+        q[adr : adr + 4] = np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
+    return q
+
+
+def test_ball_joint_limits_are_checked():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(BALL)
+    configuration = qpik.Configuration(model, _ball_q(model, 0.4))
+    assert configuration.within_limits()
+    configuration.check_limits()
+    angles = configuration.ball_angles()
+    assert angles["shoulder"] == pytest.approx(0.4) and angles["wrist"] == pytest.approx(2.5)
+    configuration.update(_ball_q(model, 1.0))  # a rotation of 1 rad against a 0.5 rad range
+    assert not configuration.within_limits()
+    with pytest.raises(qpik.JointLimitViolation) as info:
+        configuration.check_limits()
+    error = info.value
+    assert error.joint == "shoulder" and error.value == pytest.approx(1.0) and error.upper == 0.5
+    configuration.check_limits(safety_break=False)  # mink's signature: nothing raised
+    # The angle of q and -q (the same rotation) is the same; the unlimited wrist never fails.
+    q = _ball_q(model, 0.45, wrist_angle=3.1)
+    adr = model.joint("shoulder").qposadr[0]
+    q[adr : adr + 4] *= -1
+    configuration.update(q)
+    assert configuration.within_limits()
+
+
+def test_velocity_limit_zero_means_none():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(
+        BALL.replace(
+            "</worldbody>",
+            '</worldbody><custom><numeric name="velocity_limit" '
+            'data="0 0 0 0 0 0 2 2 2 0 0 0"/></custom>',
+        )
+    )
+    limits = qpik.Configuration(model).velocity_limits()
+    np.testing.assert_array_equal(limits, [np.inf] * 6 + [2.0] * 3 + [np.inf] * 3)

@@ -412,3 +412,67 @@ def test_public_api():
         assert hasattr(statics, name)
     with pytest.raises(TypeError, match="qpik.Configuration"):
         statics.gravity_torques(qpik.load_robot("planar_2r"))
+
+
+# ------------------------------------------------------------- effort ranges (URDF)
+def _has_erd() -> bool:
+    from importlib import metadata
+
+    try:
+        metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return False
+    return True
+
+
+JOINT_EFFORTS = """
+<mujoco>
+  <compiler angle="radian"/>
+  <worldbody>
+    <body name="l1">
+      <joint name="a" axis="0 0 1" actuatorfrcrange="-30 40"/>
+      <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.02" mass="1"/>
+      <body name="l2" pos="0.5 0 0">
+        <joint name="b" axis="0 1 0" actuatorfrcrange="-5 5"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.02" mass="1"/>
+        <body name="l3" pos="0.5 0 0">
+          <joint name="c" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/>
+          <site name="ee" pos="0.3 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="b" gear="10" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def test_joint_effort_ranges_are_torque_limits_where_no_actuator_drives():
+    model = mujoco.MjModel.from_xml_string(JOINT_EFFORTS)
+    limits = statics.joint_torque_limits(qpik.Configuration(model))
+    np.testing.assert_array_equal(limits[0], [-30, 40])  # no actuator: the joint's range
+    np.testing.assert_array_equal(limits[1], [-5, 5])  # motor gives 10, the joint caps at 5
+    np.testing.assert_array_equal(limits[2], [0, 0])  # neither: passive
+
+
+@pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+def test_erd_ur5_statics_uses_the_urdf_efforts():
+    import warnings
+    import xml.etree.ElementTree as ET
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = qpik.load_robot("erd:ur5")
+    configuration = qpik.Configuration(model, [0, -1.57, 1.57, 0, 0, 0])
+    limits = statics.joint_torque_limits(configuration)
+    root = ET.parse(qpik.robots.erd_path("ur5")).getroot()
+    for joint in root.iter("joint"):
+        if joint.get("type") == "revolute":
+            effort = float(joint.find("limit").get("effort"))
+            dof = model.joint(joint.get("name")).dofadr[0]
+            np.testing.assert_array_equal(limits[dof], [-effort, effort])
+    payload = statics.max_payload(configuration, "tool0", [0, 0, -1], frame_type="body")
+    assert payload.feasible and 0 < payload.force < np.inf and payload.holds_gravity
