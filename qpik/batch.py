@@ -701,6 +701,54 @@ def _atomic_savez(path: str, **arrays) -> None:
     os.replace(tmp, path)
 
 
+def _pyarrow():
+    try:
+        import pyarrow
+        import pyarrow.parquet
+    except ImportError as exc:
+        raise MissingExtra("Parquet results", "cluster", "pyarrow") from exc
+    return pyarrow
+
+
+def _write_results(path: str, table: Mapping[str, np.ndarray], meta: Mapping[str, Any]) -> None:
+    """Write the results table to ``path`` (npz, or Parquet with one row per target and
+    ``q`` a fixed-size list column), atomically; ``meta`` goes along as JSON."""
+    import json
+
+    if not path.endswith(".parquet"):
+        _atomic_savez(path, **table, **_meta_arrays(meta))
+        return
+    pa = _pyarrow()
+    q = np.asarray(table["q"], dtype=float)
+    columns = {"index": pa.array(np.arange(len(q)))}
+    columns["q"] = pa.FixedSizeListArray.from_arrays(pa.array(q.ravel()), q.shape[1])
+    for name in (*RESULT_FIELDS, "done"):
+        columns[name] = pa.array(table[name])
+    arrow = pa.table(columns).replace_schema_metadata({"qpik": json.dumps(meta)})
+    tmp = f"{path}.tmp{os.getpid()}.parquet"
+    pa.parquet.write_table(arrow, tmp)
+    os.replace(tmp, path)
+
+
+def _read_results(path: str) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """``(meta, table)`` of a results file written by :func:`_write_results`."""
+    import json
+
+    if not path.endswith(".parquet"):
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            return meta, {name: data[name] for name in ("q", *RESULT_FIELDS, "done")}
+    pa = _pyarrow()
+    arrow = pa.parquet.read_table(path)
+    meta = json.loads(arrow.schema.metadata[b"qpik"])
+    q = arrow.column("q").combine_chunks()
+    table = {"q": q.flatten().to_numpy().reshape(len(q), q.type.list_size)}
+    for name in (*RESULT_FIELDS, "done"):
+        values = arrow.column(name).to_numpy(zero_copy_only=False)
+        table[name] = values.astype(RESULT_FIELDS.get(name, bool))
+    return meta, table
+
+
 def solve_file(
     robot: RobotLike,
     frame: FrameKey,
@@ -718,7 +766,8 @@ def solve_file(
     **solve_options: Any,
 ) -> BatchRun:
     """Solve a targets file (see :func:`load_targets`) for ``frame`` and write the results
-    to ``out`` (``.npz``) chunk by chunk; a rerun with the same ``out`` resumes.
+    to ``out`` (``.npz``, or ``.parquet`` with pyarrow: ``pip install 'qpik[cluster]'``)
+    chunk by chunk; a rerun with the same ``out`` resumes.
 
     Each finished chunk is saved at once, atomically, in the folder ``out + ".chunks"``;
     ``out`` itself is rewritten every few seconds and at the end, with every row: ``q``
@@ -736,8 +785,10 @@ def solve_file(
 
     start_time = time.perf_counter()
     out = os.fspath(out)
-    if not out.endswith(".npz"):
-        raise InvalidInput(f"out must be an .npz file, got {out!r}")
+    if not out.endswith((".npz", ".parquet")):
+        raise InvalidInput(f"out must be an .npz or .parquet file, got {out!r}")
+    if out.endswith(".parquet"):
+        _pyarrow()  # before solving, naming the extra
     arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
     entropy = _check_seed(seed)
     workers = check_workers(workers, backend)
@@ -807,12 +858,12 @@ def solve_file(
             bar.update(len(results))
             now = time.perf_counter()
             if now - last_write > max(5.0, 20.0 * write_cost):
-                _atomic_savez(out, **table, **_meta_arrays(meta))
+                _write_results(out, table, meta)
                 write_cost, last_write = time.perf_counter() - now, time.perf_counter()
     finally:
         bar.close()
         if solved or previous is None:
-            _atomic_savez(out, **table, **_meta_arrays(meta))
+            _write_results(out, table, meta)
     complete = len(done_starts) == len(starts)
     if complete:
         shutil.rmtree(folder, ignore_errors=True)
@@ -881,9 +932,9 @@ def _previous_run(out: str, folder: str, meta_path: str, table: dict[str, np.nda
     n = len(table["done"])
     if os.path.exists(out):
         try:
-            with np.load(out, allow_pickle=False) as data:
-                meta = json.loads(str(data["meta"]))
-                saved = {name: data[name] for name in table}
+            meta, saved = _read_results(out)
+        except MissingExtra:
+            raise
         except Exception as exc:
             raise InvalidInput(
                 f"{out} exists and is not a qpik batch results file ({exc}): pass another "

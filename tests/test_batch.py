@@ -314,3 +314,30 @@ def test_batch_cli_errors_exit_2(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     assert main(base[:-1] + [str(tmp_path / "r.txt"), "--frame", "ee"]) == 2
     assert ".npz" in capsys.readouterr().err
+
+
+def test_parquet_results_resume_and_match_npz(tmp_path, monkeypatch):
+    pytest.importorskip("pyarrow")
+    import pyarrow.parquet as pq
+
+    write_targets(tmp_path / "t.npz")
+    npz = solve_file("ur5e", "ee", tmp_path / "t.npz", tmp_path / "r.npz", chunk_size=3, workers=1)
+    out = tmp_path / "r.parquet"
+    first = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1, max_chunks=1)
+    assert not first.complete and pq.read_table(out).column("done").to_pylist().count(True) == 3
+    second = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1)
+    assert (second.chunks_before, second.chunks_solved, second.complete) == (1, 2, True)
+    assert npz.complete
+    table = pq.read_table(out)
+    data = np.load(tmp_path / "r.npz")
+    q = np.array(table.column("q").to_pylist())
+    np.testing.assert_array_equal(q, data["q"])
+    assert table.column("reason").to_pylist() == data["reason"].tolist()
+    assert table.column("index").to_pylist() == list(range(8))
+
+
+def test_parquet_without_pyarrow_names_the_extra(tmp_path, monkeypatch):
+    write_targets(tmp_path / "t.npz")
+    monkeypatch.setitem(sys.modules, "pyarrow", None)
+    with pytest.raises(qpik.MissingExtra, match=r"qpik\[cluster\]"):
+        solve_file("ur5e", "ee", tmp_path / "t.npz", tmp_path / "r.parquet", workers=1)

@@ -15,7 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Solve one IK problem per row of TARGETS (qpik.solve for one frame, "
         "seeded per row) in a process pool or on Ray, and write RESULTS (npz: q, converged, "
         "reason, position_error [m], orientation_error [rad], iterations, restarts_used, "
-        "time [s], done) chunk by chunk. TARGETS is an .npz with positions (N, 3) [m] and "
+        "time [s], done; or the same columns in Parquet) chunk by chunk. TARGETS is an "
+        ".npz with positions (N, 3) [m] and "
         "optionally quaternions (N, 4, w x y z), world frame, or a .csv with columns x,y,z "
         "and optionally qw,qx,qy,qz. Finished chunks are kept in RESULTS.chunks/ until the "
         "end: rerunning the same command resumes without redoing them. Exit status: 0 every "
@@ -30,7 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--robot", required=True, help="bundled name (qpik robots), .xml/.urdf path or erd:NAME"
     )
     parser.add_argument("--frame", required=True, help="target frame (site, body or geom name)")
-    parser.add_argument("--out", required=True, metavar="RESULTS", help="results file (.npz)")
+    parser.add_argument(
+        "--out",
+        required=True,
+        metavar="RESULTS",
+        help="results file: .npz, or .parquet (one row per target; needs pyarrow)",
+    )
     parser.add_argument(
         "--chunk-size", type=int, default=128, metavar="N", help="targets per chunk (128)"
     )
