@@ -175,6 +175,11 @@ def test_ray_results_equal_serial():
         model = qpik.load_robot("ur5e")  # an MjModel travels through the object store
         again = qpik.solve_many(model, TARGETS[:3], seed=5, backend="ray", progress=False)
         assert_same(serial[:3], again)
+        region = [[0.3, -0.1, 0.3], [0.5, 0.1, 0.3]]  # a reachability map runs there too
+        options = dict(region=region, resolution=0.2, orientations=2, progress=False)
+        on_ray_map = qpik.reachability("ur5e", "ee", backend="ray", **options)
+        local_map = qpik.reachability("ur5e", "ee", workers=1, **options)
+        np.testing.assert_array_equal(on_ray_map.reached, local_map.reached)
     finally:
         if started_here:
             ray.shutdown()
