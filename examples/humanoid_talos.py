@@ -137,7 +137,19 @@ def run(steps: int = 200, dt: float = 0.01, verbose: bool = True) -> dict:
     return figures
 
 
-if __name__ == "__main__":
+def main(argv: list[str] | None = None) -> int:
+    """Command line: ``--steps N`` (default 200, 2 s). Exit 0 when the feet stayed within
+    1e-5 m and no joint position or velocity limit was crossed, else 1."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200, help="steps of 10 ms (default 200)")
-    run(parser.parse_args().steps)
+    figures = run(parser.parse_args(argv).steps)
+    ok = (
+        figures["feet_error"] <= 1e-5
+        and figures["position_violation"] <= 1e-9
+        and figures["velocity_violation"] <= 1e-9
+    )
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -15,6 +15,7 @@ SMALL = {
     "reach_7dof_priorities.py": ["--max-iters", "20"],
     "payload.py": ["--n", "2"],
     "track_100hz.py": ["--steps", "20", "--every", "10"],
+    "humanoid_talos.py": ["--steps", "3"],
 }
 
 

@@ -1,0 +1,35 @@
+"""The floating-Talos whole-body example, a few steps: feet held to 1e-5 m, the CoM inside
+its support polygon, no joint position or velocity limit crossed."""
+
+from __future__ import annotations
+
+import runpy
+from importlib import metadata
+from pathlib import Path
+
+import pytest
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "humanoid_talos.py"
+
+
+def _has_erd() -> bool:
+    try:
+        metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+def test_humanoid_stack_holds_the_feet_and_the_limits(capsys):
+    run = runpy.run_path(str(EXAMPLE), run_name="example")["run"]
+    figures = run(steps=8)
+    assert figures["nv"] == 38  # 32 joints and a free base
+    assert figures["feet_error"] <= 1e-5 and figures["feet_rotation_error"] <= 1e-5
+    assert figures["position_violation"] == 0.0 and figures["velocity_violation"] == 0.0
+    assert figures["com_margin"] >= 0.02 - 1e-3  # 20 mm asked, to first order
+    left, right = figures["hand_errors"]
+    assert right > 0.5  # out of reach: 1.5 m to the side
+    out = capsys.readouterr().out
+    for line in ("feet error", "hand errors", "CoM margin", "step time", "velocity violation"):
+        assert line in out
