@@ -262,32 +262,64 @@ def build_ik(
     limits: Sequence[mink.Limit] | None = None,
     constraints: Sequence[mink.Task] | None = None,
 ) -> qpsolvers.Problem | list[qpsolvers.Problem]:
-    r"""The QP of each level, with :func:`mink.build_ik`'s signature and shape.
+    r"""The QP of each level as :func:`solve_ik` poses it, in :func:`mink.build_ik`'s shape.
 
-    Each level's problem is :math:`\min \tfrac12 dq^T P dq + q^T dq` subject to
-    :math:`G dq \le h` (the limits; ``None`` when there are none) and :math:`A dq = b` (the
-    constraints; ``None`` when there are none), with ``P = sum_i W_i^T W_i + (damping +
-    sum_i mu_i) I`` and ``q = -sum_i W_i^T e_i`` over the level's tasks, exactly as mink
-    builds it (``W`` cost-weighted Jacobians, ``e`` weighted errors ``-gain cost e``).
+    Built from :meth:`qpik.IKSolver.build`. Each level's problem is
+    :math:`\min \tfrac12 dq^T P dq + q^T dq` subject to :math:`G dq \le h` and
+    :math:`A dq = b`, over the displacement ``dq = v dt``:
 
-    For a flat list of tasks this is one :class:`qpsolvers.Problem` (mink's shape), and its
-    solution is :func:`solve_ik`'s ``dq`` whenever qpik's adaptive damping is zero (away
-    from singularities) and the start is within the position limits. For a list of levels
-    it is a list with one problem per level; :func:`solve_ik` solves them in cascade, each
-    level restricted to the optimal set of the levels above.
+    * ``P = A_k^T A_k + (damping + sum_i mu_i) I`` and ``q = -A_k^T b_k`` from the level's
+      weighted rows (``A_k = diag(cost) J``, ``b_k = -gain cost e``): mink's objective;
+    * ``G, h``: the limits as qpik enforces them, box bounds first (a row ``dq_i <= ub_i``
+      for each finite upper bound, then ``-dq_i <= -lb_i`` for each finite lower bound:
+      position limits already steer a start outside them back, velocity limits folded in)
+      then the general rows (collision avoidance, ...); ``None`` when there are none;
+    * ``A, b``: the constraints' rows ``J dq = -gain e`` (mink's), ``None`` without any.
+
+    A flat list of tasks gives one :class:`qpsolvers.Problem` (mink's shape; ``[]`` gives
+    mink's ``P = damping I``); its solution is :func:`solve_ik`'s ``dq`` whenever qpik's
+    adaptive damping is zero (away from singularities). A list of levels gives one problem
+    per level; :func:`solve_ik` solves them in cascade, each level restricted to the optimal
+    set of the levels above, which is why they are returned separately.
 
     Args: as :func:`solve_ik` (``dt`` in [s]).
     """
     configuration = as_configuration(configuration)
     _check_step(dt, damping)
+    ik, _ = _solver(configuration, tasks, None, damping, limits, constraints, {})
+    hierarchy = ik.build(configuration, dt)
+    nv = configuration.model.nv
+    G, h = _inequality_rows(hierarchy.lb, hierarchy.ub, hierarchy.G, hierarchy.h)
+    constraint_tasks = _constraints(constraints)
+    A_eq = b_eq = None
+    if constraint_tasks:
+        A_eq, b_eq = _equality_rows(configuration, constraint_tasks, nv)
     levels = _levels(tasks)
-    limit_list = _limits(configuration, limits)
-    constraint_tasks = _constraints(constraints) or None
-    problems = [
-        mink.build_ik(configuration, level, dt, damping, limit_list, constraint_tasks)
-        for level in (levels or [[]])
-    ]
-    flat = len(problems) == 1 and not (
-        levels and isinstance(tasks, Sequence) and any(not isinstance(t, BaseTask) for t in tasks)
-    )
+    problems = []
+    for level in hierarchy.levels if levels else []:
+        P = level.A.T @ level.A
+        P.flat[:: nv + 1] += level.regularization
+        problems.append(qpsolvers.Problem(P, -(level.A.T @ level.b), G, h, A_eq, b_eq))
+    if not levels:  # mink's problem for no task: the smallest displacement
+        problems.append(qpsolvers.Problem(damping * np.eye(nv), np.zeros(nv), G, h, A_eq, b_eq))
+    flat = not levels or all(isinstance(task, BaseTask) for task in _as_list(tasks))
     return problems[0] if flat else problems
+
+
+def _as_list(tasks: Any) -> list:
+    return [tasks] if isinstance(tasks, BaseTask) else list(tasks)
+
+
+def _inequality_rows(
+    lb: np.ndarray, ub: np.ndarray, G: np.ndarray, h: np.ndarray
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Box bounds and general rows as ``G dq <= h`` (``None, None`` when there are none)."""
+    nv = lb.shape[0]
+    upper = np.flatnonzero(np.isfinite(ub))
+    lower = np.flatnonzero(np.isfinite(lb))
+    eye = np.eye(nv)
+    rows = np.vstack([eye[upper], -eye[lower], G]) if nv else np.zeros((0, nv))
+    bounds = np.concatenate([ub[upper], -lb[lower], h])
+    if bounds.size == 0:
+        return None, None
+    return rows, bounds

@@ -515,3 +515,27 @@ def test_a_dt_so_small_that_the_velocity_overflows_is_named():
     task.set_target(mink.SE3.from_translation(np.array([0.3, 0.1, 0.2])))
     with pytest.raises(qpik.InvalidInput, match="dt"):
         qpik.solve_ik(configuration, [task], 5e-324, "daqp", limits=[])
+
+
+def test_build_ik_states_the_limits_qpik_enforces_outside_the_limits():
+    """Started 0.1 rad beyond a limit with a velocity cap too slow to get back in one step,
+    mink's QP is infeasible; build_ik's rows are the recovered ones, and solving them with
+    quadprog gives solve_ik's step (back toward the limit at the cap)."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    q = configuration.q
+    q[0] = model.jnt_range[0, 1] + 0.1
+    configuration.update(q)
+    cap = mink.VelocityLimit(model, {model.joint(j).name: 1.0 for j in range(model.njnt)})
+    limits = [mink.ConfigurationLimit(model), cap]
+    tasks = [_frame_task(configuration), _posture(configuration)]
+    theirs = qpsolvers.solve_problem(
+        mink.build_ik(configuration, tasks, DT, limits=limits), "quadprog"
+    )
+    assert not theirs.found
+    problem = qpik.build_ik(configuration, tasks, DT, limits=limits)
+    solution = qpsolvers.solve_problem(problem, solver="quadprog")
+    assert solution.found
+    v = qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits)
+    np.testing.assert_allclose(v * DT, solution.x, atol=1e-9)
+    assert v[0] == pytest.approx(-1.0, abs=1e-12)
