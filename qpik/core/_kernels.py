@@ -15,8 +15,10 @@ QP (:func:`solve_qp`)
     The answer is then *polished*: the KKT system of the final active set (constraints
     with a positive multiplier, in a canonical order) is solved once more from scratch.
     So the returned ``x`` depends only on ``(H, c, C, lo, hi)`` and on which active set is
-    optimal, never on the path that found it; a warm start (the previous step's active
-    set, tried first) changes the speed, not the answer.
+    optimal, never on the path that found it. A warm start (the previous step's active
+    set, tried first) is accepted only when that set is the unique optimal one (strict
+    complementarity), which a cold start would find too: it changes the speed, never the
+    answer, bit for bit.
 
 Cascade (:func:`solve_cascade`)
     Levels ``(A_k, b_k)`` with regularisation, solved in the null space of the levels above
@@ -38,6 +40,8 @@ NUMERICAL = 4
 NOT_REACHED = 5
 
 _BIG = 1e20  # bounds beyond this are treated as absent
+_DEGENERATE = 1e-9  # multipliers / slacks this small make an active set degenerate
+_ROUNDOFF = 1e-11  # violations this small at a degenerate vertex are round-off
 
 
 @njit(cache=True)
@@ -225,43 +229,50 @@ def _directions(L, C, act_row, act_side, q, normal):
 
 
 @njit(cache=True)
-def _kkt_solve(L, c, C, lo, hi, act_row, act_side, q):
+def _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q):
     """Minimiser of the QP with the working set held as equalities, and its multipliers
-    (one per working constraint, >= 0 when dual feasible). ``ok`` is False when the
-    working set's normals are dependent."""
+    (one per working constraint, >= 0 when dual feasible), by the null-space method:
+    ``N = [Y W] [R1; 0]``, ``x = Y R1^-T rhs + W y`` with ``(W^T H W) y = -W^T (H x_p +
+    c)``, ``R1 u = Y^T (H x + c)``. Stable however ill-conditioned ``H`` is (a vertex is
+    found from the constraints alone). ``ok`` is False when the normals are dependent."""
     n = L.shape[0]
-    x0 = backward_vec(L, forward_vec(L, -c))  # unconstrained minimiser
     if q == 0:
-        return x0, np.zeros(0), True
+        return backward_vec(L, forward_vec(L, -c)), np.zeros(0), True
     N = np.empty((n, q))
     rhs = np.empty(q)
     for j in range(q):
         N[:, j] = C[act_row[j]] * act_side[j]
         rhs[j] = _rhs(lo, hi, act_row[j], act_side[j])
-    B = forward(L, N)
-    Q, R, _ = householder_qr(B, False)
+    Q, R, _ = householder_qr(N, False)
     scale = 0.0
     for i in range(q):
         scale = max(scale, abs(R[i, i]))
     for i in range(q):
         if abs(R[i, i]) <= 1e-13 * max(scale, 1e-300):
-            return x0, np.zeros(q), False
-    # Multipliers u solve (N^T H^-1 N) u = rhs - N^T x0, i.e. R^T R u = rhs - N^T x0.
-    g = rhs - N.T @ x0
-    y = np.empty(q)
-    for i in range(q):  # R^T y = g
-        s = g[i]
+            return np.zeros(n), np.zeros(q), False
+    t = np.empty(q)
+    for i in range(q):  # R1^T t = rhs
+        acc = rhs[i]
         for k in range(i):
-            s -= R[k, i] * y[k]
-        y[i] = s / R[i, i]
+            acc -= R[k, i] * t[k]
+        t[i] = acc / R[i, i]
+    x = Q[:, :q] @ t
+    if q < n:
+        W = Q[:, q:].copy()
+        Hr = W.T @ H @ W
+        Lr, ok = cholesky(Hr)
+        if not ok:
+            return x, np.zeros(q), False
+        g = W.T @ (H @ x + c)
+        y = backward_vec(Lr, forward_vec(Lr, -g))
+        x = x + W @ y
+    grad = Q[:, :q].T @ (H @ x + c)
     u = np.empty(q)
-    for i in range(q - 1, -1, -1):  # R u = y
-        s = y[i]
+    for i in range(q - 1, -1, -1):  # R1 u = Y^T (H x + c)
+        acc = grad[i]
         for k in range(i + 1, q):
-            s -= R[i, k] * u[k]
-        u[i] = s / R[i, i]
-    # x = x0 + H^-1 N u = x0 + L^-T (B u)
-    x = x0 + backward_vec(L, B @ u)
+            acc -= R[i, k] * u[k]
+        u[i] = acc / R[i, i]
     return x, u, True
 
 
@@ -315,6 +326,40 @@ def _kkt_ok(x, u, C, lo, hi, q, tol):
 
 
 @njit(cache=True)
+def _strictly_optimal(x, u, C, lo, hi, act_row, q):
+    """Whether a working set is the QP's *unique* optimal active set: every multiplier
+    clearly positive and every other constraint clearly inactive (strict complementarity;
+    the working set's normals are independent by construction). Only then is a warm
+    start accepted, so that it finds exactly the set a cold start finds."""
+    big = 0.0
+    for j in range(q):
+        big = max(big, abs(u[j]))
+    for j in range(q):
+        if u[j] <= _DEGENERATE * (1.0 + big):
+            return False
+    m = C.shape[0]
+    working = np.zeros(m, dtype=np.bool_)
+    for j in range(q):
+        working[act_row[j]] = True
+    for i in range(m):
+        if working[i]:
+            continue
+        cx = 0.0
+        norm = 0.0
+        for j in range(x.shape[0]):
+            cx += C[i, j] * x[j]
+            norm += C[i, j] * C[i, j]
+        if norm == 0.0:
+            continue
+        margin = _DEGENERATE * np.sqrt(norm)
+        if lo[i] > -_BIG and cx - lo[i] <= margin * (1.0 + abs(lo[i])):
+            return False
+        if hi[i] < _BIG and hi[i] - cx <= margin * (1.0 + abs(hi[i])):
+            return False
+    return True
+
+
+@njit(cache=True)
 def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
     """Solve ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` exactly.
 
@@ -354,19 +399,20 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                 act_row[q] = i
                 act_side[q] = warm[i]
                 q += 1
-        x, u, ok = _kkt_solve(L, c, C, lo, hi, act_row, act_side, q)
-        if ok and _kkt_ok(x, u, C, lo, hi, q, tol):
-            return _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
+        x, u, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
+        if ok and _strictly_optimal(x, u, C, lo, hi, act_row, q):
+            return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
         q = 0
     # Cold: Goldfarb-Idnani from the unconstrained minimiser.
     x = backward_vec(L, forward_vec(L, -c))
     u = np.zeros(n + 1)
     in_set = np.zeros(m, dtype=np.bool_)
     iterations = 0
+    ignored = 0
     while True:
         row, side = _most_violated(x, C, lo, hi, in_set, tol)
         if row < 0:
-            return _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
+            return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
         normal = _normal(C, row, side)
         rhs = _rhs(lo, hi, row, side)
         u_new = 0.0
@@ -395,6 +441,14 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                     t2 = 0.0
             t = min(t1, t2)
             if t == np.inf:
+                # The candidate depends on the working set and no multiplier can give way.
+                # At a degenerate vertex round-off leaves a violation of a few ulps of the
+                # steps taken: that is not infeasibility, so the row is taken as met.
+                nn = np.sqrt(normal @ normal)
+                if -slack <= _ROUNDOFF * (nn * (1.0 + np.abs(x).max()) + abs(rhs)):
+                    in_set[row] = True
+                    ignored += 1
+                    break
                 for j in range(q):
                     active[act_row[j]] = act_side[j]
                 return x, INFEASIBLE, iterations, active
@@ -410,6 +464,14 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                 u[q] = u_new
                 in_set[row] = True
                 q += 1
+                # x is now the minimiser with the working set held as equalities:
+                # recompute it (and the multipliers) from scratch rather than carry the
+                # round-off of the steps (it matters at degenerate vertices).
+                xk, uk, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
+                if ok:
+                    x = xk
+                    for j in range(q):
+                        u[j] = max(uk[j], 0.0)
                 break
             # Drop the blocking constraint and try again.
             in_set[act_row[drop]] = False
@@ -421,7 +483,7 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
 
 
 @njit(cache=True)
-def _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
+def _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
     """Re-solve the KKT system on the canonical active set (positive multipliers, sorted
     by row) so that the answer does not depend on how that set was found."""
     m = C.shape[0]
@@ -439,8 +501,10 @@ def _polish(L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
             rows[k] = i
             sides[k] = active[i]
             k += 1
-    xp, up, ok = _kkt_solve(L, c, C, lo, hi, rows, sides, k)
-    if ok and _kkt_ok(xp, up, C, lo, hi, k, tol):
+    xp, up, ok = _kkt_solve(H, L, c, C, lo, hi, rows, sides, k)
+    # Accept the canonical solution unless it is clearly worse than the iterate (GI's own
+    # answer is no more accurate): so both a warm and a cold start end here.
+    if ok and _kkt_ok(xp, up, C, lo, hi, k, max(tol, 1e-9)):
         return xp, SOLVED, iterations, active
     return x, SOLVED, iterations, active
 

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _kernels as K
-from .errors import InvalidInput
+from .errors import InvalidInput, QpikError
 
 __all__ = [
     "DEFAULT_DAMPING",
@@ -372,14 +372,15 @@ class HierarchySolver:
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
         )  # fmt: skip
-        if (status == K.MAX_ITER).any() or (status == K.NUMERICAL).any():
+        codes = status.tolist()
+        if K.MAX_ITER in codes or K.NUMERICAL in codes:
             # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
             # fallback where the active set did not settle.
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
         if self.warm_start:
             self._warm = active
         return HierarchyResult(
-            x, [_STATUS[s] for s in status.tolist()], residuals.tolist(), sigma.tolist(),
+            x, [_STATUS[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L,
         )  # fmt: skip
 
@@ -434,45 +435,59 @@ class HierarchySolver:
         )
 
     def _solve_qp(self, k, H, c, C, lo, hi, warm, max_iter, fallback):
-        """One level's reduced QP: ``(z, status code, iterations, active, backend)``."""
+        """One level's reduced QP: ``(z, status code, iterations, active, backend)``.
+
+        Forced backend: the unconstrained minimiser when no limit binds, else the backend,
+        polished exactly on the active set it identifies; if the backend fails (iteration
+        cap, error), the exact kernel answers instead. Fallback mode (the kernel did not
+        settle): the kernel, then OSQP. Either way the answer is exact and does not depend
+        on a backend's warm start; a result is labelled solved only when one solver
+        converged."""
+        exact = K.solve_qp
         if fallback:
-            z, st, it, act = K.solve_qp(H, c, C, lo, hi, warm, max_iter, self.tolerance)
+            z, st, it, act = exact(H, c, C, lo, hi, warm, max_iter, self.tolerance)
             if st in (K.SOLVED, K.INFEASIBLE):
                 return z, st, it, act, "auto"
             name = "osqp"
         else:
-            # A backend is forced: skip it when no limit binds (the unconstrained
-            # minimiser is then the answer, exactly).
-            z, st, it, act = K.solve_qp(H, c, C, lo, hi, warm, 0, self.tolerance)
+            z, st, it, act = exact(H, c, C, lo, hi, warm, 0, self.tolerance)
             if st == K.SOLVED and it == 0 and not act.any():
                 return z, st, 0, act, self.solver
             name = self.solver
+        solution = self._backend_solve(k, name, H, c, C, lo, hi)
+        if solution is not None and solution.found:
+            # Polish on the active set the backend identified (accepted only when it is
+            # the unique optimal set; otherwise the exact kernel starts cold).
+            guess = _active_guess(solution.x, C, lo, hi)
+            z, st, it, act = exact(H, c, C, lo, hi, guess, max_iter, self.tolerance)
+            return z, st, solution.iterations, act, name
+        if fallback:
+            code = K.MAX_ITER if solution is None or "max_iter" in solution.status else (
+                K.INFEASIBLE if "infeasible" in solution.status else K.NUMERICAL
+            )  # fmt: skip
+            return None, code, 0 if solution is None else solution.iterations, None, name
+        zeros = np.zeros(C.shape[0], dtype=np.int8)
+        z, st, it, act = exact(H, c, C, lo, hi, zeros, max_iter, self.tolerance)
+        return z, st, it, act, f"{name} failed: auto"
+
+    def _backend_solve(self, k, name, H, c, C, lo, hi):
+        """The backend's solution, or None if it raised (its workspace is then dropped, so
+        the next call starts a fresh one)."""
         from .backends import make_workspace
 
         key = (k, name, H.shape[0], C.shape[0])
         workspace = self._workspaces.get(key)
-        if workspace is None:
-            workspace = make_workspace(name, H.shape[0], C.shape[0], self.backend_options)
         try:
+            if workspace is None:
+                workspace = make_workspace(name, H.shape[0], C.shape[0], self.backend_options)
             solution = workspace.solve(H, c, C, lo, hi)
+        except QpikError:
+            raise
         except Exception:  # noqa: BLE001 - a backend failure must not poison the solver
             self._workspaces.pop(key, None)
-            return None, K.NUMERICAL, 0, None, name
+            return None
         self._workspaces[key] = workspace
-        if not solution.found:
-            code = (
-                K.INFEASIBLE
-                if "infeasible" in solution.status
-                else (K.MAX_ITER if "max_iter" in solution.status else K.NUMERICAL)
-            )
-            return None, code, solution.iterations, None, name
-        # Polish on the active set the backend identified: exact, and independent of
-        # the backend's warm start.
-        guess = _active_guess(solution.x, C, lo, hi)
-        z, st, it, act = K.solve_qp(H, c, C, lo, hi, guess, max_iter, self.tolerance)
-        if st == K.SOLVED:
-            return z, st, solution.iterations, act, name
-        return solution.x, K.SOLVED, solution.iterations, guess, name
+        return solution
 
 
 def _active_guess(x: np.ndarray, C: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
