@@ -11,14 +11,23 @@ batch is run:
 * each worker loads the robot once (a name, a path or an ``MjModel``; a
   :class:`qpik.Configuration` sends its model and uses its ``q`` as ``q0``) and then
   solves chunks of consecutive targets;
-* a batch whose serial time, estimated from its first solve, is below ``pool_threshold``
-  seconds is solved in-process: starting workers costs about that much.
+* on Linux workers are forked: they start in milliseconds with the compiled kernels of
+  the parent; a batch whose serial time, estimated from its first solve, is below
+  ``pool_threshold`` seconds is solved in-process all the same.
 
 Errors are raised in the calling process with their type: the targets are checked (frames,
-shapes, NaN) and the first target is solved in-process (options) before any worker starts.
+shapes, NaN) and the first target is solved in-process (options) before any worker starts;
+a target that fails in a worker is solved again here to raise its error.
 
-Ray comes with the ``cluster`` extra (``pip install 'qpik[cluster]'``); the workers of a
-remote cluster need qpik (and the robot files given by path) installed on every node.
+Layers: :func:`solve_many` (a list in, a list of :class:`qpik.IKResult` out);
+:func:`iter_solve` (chunks in, ``(start, results)`` out as they finish, for batches that do
+not fit in memory); :func:`solve_file` (a targets file in, a results file written chunk by
+chunk and resumed, behind ``qpik batch``). :func:`qpik.reachability` runs on the same
+machinery.
+
+Ray comes with the ``cluster`` extra (``pip install 'qpik[cluster]'``, with pyarrow for
+Parquet results); the workers of a remote cluster need qpik (and the robot files given by
+path) installed on every node.
 """
 
 from __future__ import annotations
@@ -44,11 +53,19 @@ from .robots import load_robot
 
 __all__ = [
     "BACKENDS",
+    "RESULT_FIELDS",
+    "BatchRun",
     "Chunk",
+    "TargetArrays",
+    "WorkerError",
+    "check_workers",
     "iter_solve",
+    "load_targets",
     "prepare_robot",
     "progress_bar",
-    "WorkerError",
+    "ray_init",
+    "rotations_from_quaternions",
+    "solve_file",
     "solve_many",
     "target_seed",
 ]
@@ -88,7 +105,7 @@ def check_workers(workers: int | None, backend: str = "process") -> int | None:
     if backend not in BACKENDS:
         raise InvalidInput(f"unknown backend {backend!r}; expected one of: {', '.join(BACKENDS)}")
     if workers is None:
-        return os.cpu_count() or 1 if backend == "process" else None
+        return (os.cpu_count() or 1) if backend == "process" else None
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InvalidInput(f"workers must be a positive integer or None, got {workers!r}")
     return int(workers)
@@ -236,7 +253,7 @@ def _ray():
     return ray
 
 
-def ray_init(address: str | None = None, workers: int | None = None):
+def ray_init(address: str | None = None, workers: int | None = None) -> Any:
     """Connect to Ray: the running session if there is one, else ``address`` (``"auto"``,
     ``"ray://host:10001"``, ...), else a local Ray with ``workers`` CPUs. Returns the
     ``ray`` module. A local Ray started here stays up for later batches (``ray.shutdown()``
@@ -499,7 +516,7 @@ def _stream(
         bar.close()
 
 
-def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str = "IK"):
+def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str = "IK") -> Any:
     """A tqdm bar (rate, ETA) on stderr, shown once a run has lasted 2 s. It starts no
     monitor thread, so that worker processes can still be forked safely."""
     from tqdm.auto import tqdm

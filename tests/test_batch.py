@@ -346,3 +346,23 @@ def test_parquet_without_pyarrow_names_the_extra(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(qpik.MissingExtra, match=r"qpik\[cluster\]"):
         solve_file("ur5e", "ee", tmp_path / "t.npz", tmp_path / "r.parquet", workers=1)
+
+
+def test_public_names_exist_and_are_documented():
+    import inspect
+
+    import qpik.reachability  # noqa: F401  (the module; qpik.reachability is the function)
+
+    reach_module = sys.modules["qpik.reachability"]
+    for module in (batch, reach_module):
+        for name in module.__all__:
+            obj = getattr(module, name)
+            if inspect.isfunction(obj) or inspect.isclass(obj):
+                assert obj.__doc__, f"{module.__name__}.{name} has no docstring"
+            if inspect.isfunction(obj):
+                hints = inspect.signature(obj)
+                assert hints.return_annotation is not inspect.Signature.empty, name
+    assert qpik.solve_many is batch.solve_many
+    assert qpik.reachability is reach_module.reachability
+    assert qpik.ReachabilityMap is reach_module.ReachabilityMap
+    assert {"solve_many", "reachability", "ReachabilityMap"} <= set(qpik.__all__)
