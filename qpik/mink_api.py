@@ -4,8 +4,8 @@ r"""mink's entry points, with qpik underneath: switch by changing one import.
 defaults (``damping=1e-12``; ``limits=None`` means a :class:`mink.ConfigurationLimit`), and
 accept a :class:`mink.Configuration` as well as a :class:`qpik.Configuration`::
 
-    import qpik as mink_like                      # or: from qpik import solve_ik
-    v = qpik.solve_ik(configuration, tasks, dt, "daqp", limits=limits)
+    from qpik import solve_ik                     # was: from mink import solve_ik
+    v = solve_ik(configuration, tasks, dt, "daqp", limits=limits)
 
 What qpik adds, without changing a flat list's answer away from singularities:
 
@@ -286,14 +286,11 @@ def build_ik(
     """
     configuration = as_configuration(configuration)
     _check_step(dt, damping)
-    ik, _ = _solver(configuration, tasks, None, damping, limits, constraints, {})
+    ik, constraint_rows = _solver(configuration, tasks, None, damping, limits, constraints, {})
     hierarchy = ik.build(configuration, dt)
     nv = configuration.model.nv
     G, h = _inequality_rows(hierarchy.lb, hierarchy.ub, hierarchy.G, hierarchy.h)
-    constraint_tasks = _constraints(constraints)
-    A_eq = b_eq = None
-    if constraint_tasks:
-        A_eq, b_eq = _equality_rows(configuration, constraint_tasks, nv)
+    A_eq, b_eq = constraint_rows if constraint_rows is not None else (None, None)
     levels = _levels(tasks)
     problems = []
     for level in hierarchy.levels if levels else []:
