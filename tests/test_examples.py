@@ -16,6 +16,7 @@ SMALL = {
     "payload.py": ["--n", "2"],
     "track_100hz.py": ["--steps", "20", "--every", "10"],
     "humanoid_talos.py": ["--steps", "3"],
+    "collision_panda.py": ["--steps", "30"],
 }
 
 
