@@ -425,6 +425,63 @@ def test_configuration_from_a_mink_configuration_copies_its_state():
         qpik.Configuration(source, np.array([np.nan]))
 
 
+def _qpik_task(name: str, configuration):
+    """One of qpik's own tasks, with a target 2 cm / 0.05 rad away where it has one."""
+    T = qpik.tasks
+    pose = configuration.get_transform_frame_to_world("ee", "site")
+    shifted = mink.SE3.from_translation(np.array([0.02, 0.0, 0.02])) @ pose
+    turned = pose @ mink.SE3.from_rotation(mink.SO3.exp(np.array([0.05, 0.0, 0.0])))
+    if name == "PositionTask":
+        task = T.PositionTask("ee")
+        task.set_target(shifted.translation())
+    elif name == "OrientationTask":
+        task = T.OrientationTask("ee")
+        task.set_target(turned.rotation().as_matrix())
+    elif name == "PoseTask":
+        task = T.PoseTask("ee")
+        task.set_target(shifted.translation(), turned.rotation().as_matrix())
+    elif name == "FrameTask":
+        task = T.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+        task.set_target(shifted)
+    elif name == "PostureTask":
+        task = T.PostureTask(configuration.model, cost=1.0)
+        task.set_target(configuration.model.qpos0)
+    elif name == "ComTask":
+        task = T.ComTask(cost=1.0)
+        task.set_target(np.array([0.05, 0.05, 0.3]))
+    elif name == "JointLimitDistanceTask":
+        task = T.JointLimitDistanceTask()
+    else:
+        task = T.ManipulabilityTask("ee")
+    return task
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "PositionTask",
+        "OrientationTask",
+        "PoseTask",
+        "FrameTask",
+        "PostureTask",
+        "ComTask",
+        "JointLimitDistanceTask",
+        "ManipulabilityTask",
+    ],
+)
+def test_every_qpik_task_takes_a_mink_configuration(name):
+    """Through solve_ik and build_ik, each of qpik's tasks takes mink's configuration and
+    gives bitwise what it gives with qpik's."""
+    source = _home()
+    task = _qpik_task(name, qpik.Configuration(source))
+    from_mink = qpik.solve_ik(source, [task], DT, "daqp")
+    from_qpik = qpik.solve_ik(qpik.Configuration(source), [task], DT, "daqp")
+    assert from_mink.tobytes() == from_qpik.tobytes()
+    assert np.isfinite(from_mink).all() and np.abs(from_mink).max() > 0
+    built = qpik.build_ik(source, [task], DT)
+    np.testing.assert_array_equal(built.P, qpik.build_ik(qpik.Configuration(source), [task], DT).P)
+
+
 def test_qpik_tasks_accept_a_mink_configuration():
     """qpik's own tasks (world-frame position task) through solve_ik with mink's state."""
     source = _home()
