@@ -319,3 +319,17 @@ def test_floating_base_errors(tmp_path):
         qpik.load_robot(qpik.robots.robot_path("planar_2r"), floating_base=True)
     with pytest.raises(qpik.RobotFileError, match="not to a model"):
         qpik.load_robot(qpik.load_robot("panda"), floating_base=True)
+
+
+@requires_erd
+def test_problem_file_starts_from_an_srdf_state(tmp_path):
+    problem = tmp_path / "talos.toml"
+    problem.write_text(
+        'robot = "erd:talos"\nq0 = "half_sitting"\n'
+        '[[levels]]\n[[levels.tasks]]\ntype = "position"\nframe = "gripper_left_base_link"\n'
+        'frame_type = "body"\n[target]\nposition = [0.3, 0.4, 1.0]\n'
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        loaded = qpik.load_problem(problem)
+    np.testing.assert_array_equal(loaded.q0, loaded.model.key("half_sitting").qpos)
