@@ -66,11 +66,16 @@ import numpy as np
 import numpy.typing as npt
 
 from .configuration import Configuration, FrameType, as_configuration, frame_names
-from .errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation, UnknownFrame
+from .errors import (
+    InvalidConfiguration,
+    InvalidInput,
+    InvalidTarget,
+    JointLimitViolation,
+    UnknownFrame,
+)
 from .hierarchy import DampingLaw, IKSolver, Stack, normalize_stack
 from .limits import ConfigurationLimit
-from .model import KinematicChain, ReachBound, chain_support, joint_limits
-from .model import _kernels
+from .model import KinematicChain, ReachBound, _kernels, chain_support, joint_limits
 from .robots import load_robot, robots_dir
 from .tasks import (
     FrameTask,
@@ -147,11 +152,12 @@ def _array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise InvalidTarget(f"{what} must be finite numbers of shape {shape}, got {value!r}") from exc
+        raise InvalidTarget(
+            f"{what} must be finite numbers of shape {shape}, got {value!r}"
+        ) from exc
     if array.shape != shape:
         raise InvalidTarget(
-            f"{what} must be finite numbers of shape {shape}, got an array of shape "
-            f"{array.shape}"
+            f"{what} must be finite numbers of shape {shape}, got an array of shape {array.shape}"
         )
     return array
 
@@ -198,7 +204,8 @@ def parse_target(value: TargetLike) -> Target:
     rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
     defect = _kernels.target_defect(position, rotation, has_rot)
     if defect:
-        raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {position if defect == 1 else rotation!r}")
+        shown = position if defect == 1 else rotation
+        raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")
     return Target(position, rotation if has_rot else None)
 
 
@@ -319,8 +326,17 @@ def _integer(name: str, value, minimum: int, maximum: int | None = None) -> int:
 
 
 def _settings(
-    tol_position, tol_orientation, max_iters, time_budget, restarts, alpha, beta,
-    stall_window, damping_law, max_step, damping,
+    tol_position,
+    tol_orientation,
+    max_iters,
+    time_budget,
+    restarts,
+    alpha,
+    beta,
+    stall_window,
+    damping_law,
+    max_step,
+    damping,
 ) -> _Settings:
     tol_position = _number("tol_position", tol_position)
     tol_orientation = _number("tol_orientation", tol_orientation)
@@ -347,8 +363,17 @@ def _settings(
         )
     damping = _number("damping", damping, allow_zero=True)
     return _Settings(
-        tol_position, tol_orientation, max_iters, time_budget, restarts, alpha, beta,
-        stall_window, damping_law, max_step, damping,
+        tol_position,
+        tol_orientation,
+        max_iters,
+        time_budget,
+        restarts,
+        alpha,
+        beta,
+        stall_window,
+        damping_law,
+        max_step,
+        damping,
     )
 
 
@@ -459,8 +484,17 @@ class IKSession:
         """Solve inverse kinematics; the arguments are :func:`solve`'s."""
         start_time = time.perf_counter()
         key = (
-            tol_position, tol_orientation, max_iters, time_budget, restarts, alpha, beta,
-            stall_window, damping_law, max_step, damping,
+            tol_position,
+            tol_orientation,
+            max_iters,
+            time_budget,
+            restarts,
+            alpha,
+            beta,
+            stall_window,
+            damping_law,
+            max_step,
+            damping,
         )
         memo = self._memo
         if memo is not None and memo[0] == key:
@@ -507,13 +541,20 @@ class IKSession:
             return self._solve_compiled(
                 frames[0], q_start, joint, settings, options, int_options, rng_state, start_time
             )
-        for name, _kind, target, _chain, reach in frames:
+        for _name, _kind, target, _chain, reach in frames:
             if reach is not None and reach.excludes(target.position, settings.tol_position):
                 return self._answer_unreachable(frames, q_start, start_time)
         plain = [(name, kind, target) for name, kind, target, _, _ in frames]
         problem = _Problem(
-            self.model, plain, stack, limits, settings.alpha, solver, settings.damping_law,
-            secondary, settings.damping,
+            self.model,
+            plain,
+            stack,
+            limits,
+            settings.alpha,
+            solver,
+            settings.damping_law,
+            secondary,
+            settings.damping,
         )
         return _iterate(problem, q_start, start_time, rng_state, settings)
 
@@ -540,7 +581,10 @@ class IKSession:
             if outside.size:
                 i = int(outside[0])
                 raise JointLimitViolation(
-                    _qpos_name(self.model, i), i, float(q[i]), float(self._lower[i]),
+                    _qpos_name(self.model, i),
+                    i,
+                    float(q[i]),
+                    float(self._lower[i]),
                     float(self._upper[i]),
                 )
             np.clip(q, self._lower, self._upper, out=q)
@@ -558,10 +602,18 @@ class IKSession:
             errors[name] = _pose_errors(position, rotation, target)
         worst = _worst(errors)
         return IKResult(
-            q=q, converged=False, reason="unreachable", iterations=0, restarts_used=0,
-            position_error=worst[0], orientation_error=worst[1], frame_errors=errors,
-            error_history=[worst], path=q[None, :].copy(),
-            solve_time=time.perf_counter() - start_time, engine="qp",
+            q=q,
+            converged=False,
+            reason="unreachable",
+            iterations=0,
+            restarts_used=0,
+            position_error=worst[0],
+            orientation_error=worst[1],
+            frame_errors=errors,
+            error_history=[worst],
+            path=q[None, :].copy(),
+            solve_time=time.perf_counter() - start_time,
+            engine="qp",
         )
 
     def _solve_compiled(
@@ -575,9 +627,20 @@ class IKSession:
         info = np.empty(6, dtype=np.int64)
         rotation = target.rotation
         _kernels.igm_solve(
-            chain.arrays, target.position, _EYE if rotation is None else rotation,
-            rotation is not None, q_start, self._bounds_joint if joint else self._bounds_free,
-            reach.array, options, int_options, rng_state, deadline, path, hist, info,
+            chain.arrays,
+            target.position,
+            _EYE if rotation is None else rotation,
+            rotation is not None,
+            q_start,
+            self._bounds_joint if joint else self._bounds_free,
+            reach.array,
+            options,
+            int_options,
+            rng_state,
+            deadline,
+            path,
+            hist,
+            info,
         )
         code, iterations, restarts_used, slot, length, _ = info.tolist()
         history = hist[slot, :length]
@@ -631,11 +694,17 @@ def _kernel_options(s: _Settings) -> tuple[np.ndarray, np.ndarray]:
     max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
     options = np.array(
         [
-            s.tol_position, s.tol_orientation, s.alpha, s.beta, max_step[0], max_step[1],
+            s.tol_position,
+            s.tol_orientation,
+            s.alpha,
+            s.beta,
+            max_step[0],
+            max_step[1],
             law.singular_threshold if law is not None else 0.0,
             law.max_damping if law is not None else 0.0,
             law.error_scale if law is not None and law.error_scale is not None else 0.0,
-            s.damping, LIMIT_GAIN,
+            s.damping,
+            LIMIT_GAIN,
         ]
     )
     int_options = np.array(
@@ -647,8 +716,11 @@ def _kernel_options(s: _Settings) -> tuple[np.ndarray, np.ndarray]:
 
 def _qpos_name(model: mujoco.MjModel, index: int) -> str:
     for j in range(model.njnt):
-        if model.jnt_qposadr[j] <= index < model.jnt_qposadr[j] + (
-            7 if model.jnt_type[j] == 0 else 4 if model.jnt_type[j] == 1 else 1
+        if (
+            model.jnt_qposadr[j]
+            <= index
+            < model.jnt_qposadr[j]
+            + (7 if model.jnt_type[j] == 0 else 4 if model.jnt_type[j] == 1 else 1)
         ):
             return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint #{j}"
     return f"q[{index}]"
@@ -735,11 +807,25 @@ def solve(
     hold an :class:`IKSession`.
     """
     return IKSession(robot).solve(
-        targets, q0=q0, stack=stack, limits=limits, tol_position=tol_position,
-        tol_orientation=tol_orientation, max_iters=max_iters, time_budget=time_budget,
-        restarts=restarts, seed=seed, alpha=alpha, beta=beta, solver=solver,
-        stall_window=stall_window, damping_law=damping_law, max_step=max_step,
-        secondary=secondary, damping=damping, engine=engine,
+        targets,
+        q0=q0,
+        stack=stack,
+        limits=limits,
+        tol_position=tol_position,
+        tol_orientation=tol_orientation,
+        max_iters=max_iters,
+        time_budget=time_budget,
+        restarts=restarts,
+        seed=seed,
+        alpha=alpha,
+        beta=beta,
+        solver=solver,
+        stall_window=stall_window,
+        damping_law=damping_law,
+        max_step=max_step,
+        secondary=secondary,
+        damping=damping,
+        engine=engine,
     )
 
 
@@ -835,9 +921,7 @@ def _task_errors(task, configuration: Configuration) -> tuple[float, float] | No
             if target is None:
                 return None
             pose = configuration.frame_pose(task.frame_name, task.frame_type)
-            p, o = _pose_errors(
-                *pose, Target(target.translation(), target.rotation().as_matrix())
-            )
+            p, o = _pose_errors(*pose, Target(target.translation(), target.rotation().as_matrix()))
             return (p if np.any(task.cost[:3] > 0) else 0.0), (
                 o if np.any(task.cost[3:] > 0) else 0.0
             )
@@ -910,9 +994,7 @@ class _Problem:
         self.base_gains = [task.gain for task in self.primary]  # the user's gains
         target_frames = {name for name, _, _ in frames}
         # Level-0 tasks checked for convergence besides the target frames.
-        self.level0 = [
-            t for t in levels[0] if getattr(t, "frame_name", None) not in target_frames
-        ]
+        self.level0 = [t for t in levels[0] if getattr(t, "frame_name", None) not in target_frames]
 
     def clamp_gains(
         self,

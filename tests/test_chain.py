@@ -55,9 +55,7 @@ def _mujoco_pose_jacobian(model, data, frame, kind):
     return pos[frame].copy(), mat[frame].reshape(3, 3).copy(), jac
 
 
-@pytest.mark.parametrize(
-    "robot", qpik.list_robots() + [name for name, _ in ERD_ARMS]
-)
+@pytest.mark.parametrize("robot", qpik.list_robots() + [name for name, _ in ERD_ARMS])
 def test_pose_and_jacobian_equal_mujoco(robot):
     model = _load(robot)
     if chain_support(model) is not None:

@@ -40,7 +40,13 @@ AT_LIMIT = 4
 SINGULAR = 5
 UNREACHABLE = 6
 REASON_NAMES = (
-    "converged", "max_iters", "time_budget", "stalled", "at_limit", "singular", "unreachable"
+    "converged",
+    "max_iters",
+    "time_budget",
+    "stalled",
+    "at_limit",
+    "singular",
+    "unreachable",
 )
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -102,8 +108,21 @@ def _copy3(src, dst):
 
 @njit(cache=True)
 def _walk(
-    body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
-    frame_pos, frame_rot, q, axes, anchors, position, rotation,
+    body_pos,
+    body_rot,
+    jnt_start,
+    jnt_type,
+    jnt_axis,
+    jnt_pos,
+    jnt_qadr,
+    jnt_qpos0,
+    frame_pos,
+    frame_rot,
+    q,
+    axes,
+    anchors,
+    position,
+    rotation,
 ):
     """Walk the chain at ``q``: world axes and anchors of its joints (nj, 3) and the
     frame's pose (``position`` (3,) [m], ``rotation`` (3, 3))."""
@@ -118,8 +137,15 @@ def _walk(
         _copy3(tmp, R)
         for j in range(jnt_start[b], jnt_start[b + 1]):
             for i in range(3):
-                axes[j, i] = R[i, 0] * jnt_axis[j, 0] + R[i, 1] * jnt_axis[j, 1] + R[i, 2] * jnt_axis[j, 2]
-                anchors[j, i] = p[i] + R[i, 0] * jnt_pos[j, 0] + R[i, 1] * jnt_pos[j, 1] + R[i, 2] * jnt_pos[j, 2]
+                axes[j, i] = (
+                    R[i, 0] * jnt_axis[j, 0] + R[i, 1] * jnt_axis[j, 1] + R[i, 2] * jnt_axis[j, 2]
+                )
+                anchors[j, i] = (
+                    p[i]
+                    + R[i, 0] * jnt_pos[j, 0]
+                    + R[i, 1] * jnt_pos[j, 1]
+                    + R[i, 2] * jnt_pos[j, 2]
+                )
             value = q[jnt_qadr[j]] - jnt_qpos0[j]
             if jnt_type[j] == HINGE:
                 _axis_rotation(jnt_axis[j], value, rot)
@@ -133,7 +159,9 @@ def _walk(
                 for i in range(3):
                     p[i] += axes[j, i] * value
     for i in range(3):
-        position[i] = p[i] + R[i, 0] * frame_pos[0] + R[i, 1] * frame_pos[1] + R[i, 2] * frame_pos[2]
+        position[i] = (
+            p[i] + R[i, 0] * frame_pos[0] + R[i, 1] * frame_pos[1] + R[i, 2] * frame_pos[2]
+        )
     _matmul3(R, frame_rot, rotation)
 
 
@@ -162,8 +190,23 @@ def fk_jac(
     nj = jnt_type.shape[0]
     axes = np.empty((nj, 3))
     anchors = np.empty((nj, 3))
-    _walk(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
-          frame_pos, frame_rot, q, axes, anchors, position, rotation)
+    _walk(
+        body_pos,
+        body_rot,
+        jnt_start,
+        jnt_type,
+        jnt_axis,
+        jnt_pos,
+        jnt_qadr,
+        jnt_qpos0,
+        frame_pos,
+        frame_rot,
+        q,
+        axes,
+        anchors,
+        position,
+        rotation,
+    )
     if want_jac:
         for i in range(6):
             for j in range(jac.shape[1]):
@@ -219,8 +262,18 @@ def _feet(a1, u1, a2, u2, s, r):
 
 @njit(cache=True)
 def reach_radius(
-    body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
-    frame_pos, frame_rot, q, center,
+    body_pos,
+    body_rot,
+    jnt_start,
+    jnt_type,
+    jnt_axis,
+    jnt_pos,
+    jnt_qadr,
+    jnt_qpos0,
+    frame_pos,
+    frame_rot,
+    q,
+    center,
 ):
     """Length of the path ``s_1 -> r_2 -> s_2 -> ... -> s_m -> frame`` through the feet of
     the common perpendiculars of consecutive hinge axes at ``q`` (each segment is fixed in
@@ -230,8 +283,23 @@ def reach_radius(
     axes = np.empty((nj, 3))
     anchors = np.empty((nj, 3))
     p = np.empty(3)
-    _walk(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_qpos0,
-          frame_pos, frame_rot, q, axes, anchors, p, np.empty((3, 3)))
+    _walk(
+        body_pos,
+        body_rot,
+        jnt_start,
+        jnt_type,
+        jnt_axis,
+        jnt_pos,
+        jnt_qadr,
+        jnt_qpos0,
+        frame_pos,
+        frame_rot,
+        q,
+        axes,
+        anchors,
+        p,
+        np.empty((3, 3)),
+    )
     s = np.empty(3)
     r = np.empty(3)
     previous = np.empty(3)
@@ -322,9 +390,11 @@ def rotation_defect(R):
         for j in range(3):
             if not np.isfinite(R[i, j]):
                 return np.inf
-    det = (R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
-           - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
-           + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0]))
+    det = (
+        R[0, 0] * (R[1, 1] * R[2, 2] - R[1, 2] * R[2, 1])
+        - R[0, 1] * (R[1, 0] * R[2, 2] - R[1, 2] * R[2, 0])
+        + R[0, 2] * (R[1, 0] * R[2, 1] - R[1, 1] * R[2, 0])
+    )
     if not det > 0.0:
         return np.inf
     worst = 0.0
@@ -524,7 +594,11 @@ def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
     M = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
-            M[i, j] = rotation[i, 0] * target_R[j, 0] + rotation[i, 1] * target_R[j, 1] + rotation[i, 2] * target_R[j, 2]
+            M[i, j] = (
+                rotation[i, 0] * target_R[j, 0]
+                + rotation[i, 1] * target_R[j, 1]
+                + rotation[i, 2] * target_R[j, 2]
+            )
     eo = rotation_log(M, rot_err)
     for i in range(3):
         error[3 + i] = rot_err[i]
@@ -535,7 +609,7 @@ def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
 def _smallest_eigenvalue(G, n):
     """Smallest eigenvalue of the symmetric ``G[:n, :n]`` (cyclic Jacobi; ``G`` is
     overwritten)."""
-    for sweep in range(50):
+    for _sweep in range(50):
         off = 0.0
         diag = 0.0
         for i in range(n):
@@ -571,24 +645,35 @@ def _smallest_eigenvalue(G, n):
 
 @njit(cache=True)
 def _smallest_singular_value(A, m, nv, G):
-    """The ``min(m, nv)``-th singular value of ``A[:m]`` (from the smaller Gram matrix,
-    built in the scratch ``G``)."""
-    if m <= nv:
-        n = m
-        for i in range(m):
-            for j in range(i, m):
+    """The ``min(r, nv)``-th singular value of ``A[:m]``, ``r`` its rows that are not
+    identically zero (a planar arm's out-of-plane row is a structural zero, not a
+    singularity), from the smaller Gram matrix built in the scratch ``G``."""
+    rows = np.empty(m, dtype=np.int64)
+    r = 0
+    for i in range(m):
+        for k in range(nv):
+            if A[i, k] != 0.0:
+                rows[r] = i
+                r += 1
+                break
+    if r == 0:
+        return np.inf
+    if r <= nv:
+        n = r
+        for a in range(r):
+            for c in range(a, r):
                 s = 0.0
                 for k in range(nv):
-                    s += A[i, k] * A[j, k]
-                G[i, j] = s
-                G[j, i] = s
+                    s += A[rows[a], k] * A[rows[c], k]
+                G[a, c] = s
+                G[c, a] = s
     else:
         n = nv
         for i in range(nv):
             for j in range(i, nv):
                 s = 0.0
-                for k in range(m):
-                    s += A[k, i] * A[k, j]
+                for a in range(r):
+                    s += A[rows[a], i] * A[rows[a], j]
                 G[i, j] = s
                 G[j, i] = s
     return np.sqrt(max(_smallest_eigenvalue(G, n), 0.0))
@@ -596,8 +681,20 @@ def _smallest_singular_value(A, m, nv, G):
 
 @njit(cache=True)
 def igm_solve(
-    chain, target_p, target_R, has_rot, q0, bounds, reach, options, int_options, rng_state,
-    deadline, path, hist, info,
+    chain,
+    target_p,
+    target_R,
+    has_rot,
+    q0,
+    bounds,
+    reach,
+    options,
+    int_options,
+    rng_state,
+    deadline,
+    path,
+    hist,
+    info,
 ):
     """The whole IGM solve of one frame target (see :func:`qpik.solve` for the rule).
 
@@ -624,13 +721,25 @@ def igm_solve(
             attempt (its last iterate is the answer), its number of iterates, QP solves that
             hit the iteration cap.
     """
-    (body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
-     jnt_qpos0, frame_pos, frame_rot) = chain
+    (
+        body_pos,
+        body_rot,
+        jnt_start,
+        jnt_type,
+        jnt_axis,
+        jnt_pos,
+        jnt_qadr,
+        jnt_dadr,
+        jnt_qpos0,
+        frame_pos,
+        frame_rot,
+    ) = chain
     tol_p, tol_o, alpha, beta = options[0], options[1], options[2], options[3]
     max_step_p, max_step_o = options[4], options[5]
     threshold, max_damping, error_scale, damping = options[6], options[7], options[8], options[9]
     limit_gain = options[10]
-    max_iters, restarts, stall_window, check_time = int_options[0], int_options[1], int_options[2], int_options[3]
+    max_iters, restarts = int_options[0], int_options[1]
+    stall_window, check_time = int_options[2], int_options[3]
     lower = bounds[0]
     upper = bounds[1]
     sample_lo = bounds[2]
@@ -667,8 +776,24 @@ def igm_solve(
     d1 = target_p[1] - reach[1]
     d2 = target_p[2] - reach[2]
     if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3]):
-        fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
-               jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, False)
+        fk_jac(
+            body_pos,
+            body_rot,
+            jnt_start,
+            jnt_type,
+            jnt_axis,
+            jnt_pos,
+            jnt_qadr,
+            jnt_dadr,
+            jnt_qpos0,
+            frame_pos,
+            frame_rot,
+            q,
+            position,
+            rotation,
+            jac,
+            False,
+        )
         ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
         path[0, 0] = q
         hist[0, 0, 0] = ep
@@ -682,8 +807,24 @@ def igm_solve(
         info[5] = 0
         return
     while True:
-        fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr, jnt_dadr,
-               jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, True)
+        fk_jac(
+            body_pos,
+            body_rot,
+            jnt_start,
+            jnt_type,
+            jnt_axis,
+            jnt_pos,
+            jnt_qadr,
+            jnt_dadr,
+            jnt_qpos0,
+            frame_pos,
+            frame_rot,
+            q,
+            position,
+            rotation,
+            jac,
+            True,
+        )
         ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
         path[slot, 0] = q
         hist[slot, 0, 0] = ep
@@ -717,7 +858,9 @@ def igm_solve(
                 left_jacobian_inverse(rot_err, Jinv)
                 for i in range(3):
                     for j in range(nv):
-                        A[3 + i, j] = Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
+                        A[3 + i, j] = (
+                            Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
+                        )
                     b[3 + i] = -gain * error[3 + i]
             reg = damping
             if threshold > 0.0:
@@ -767,15 +910,32 @@ def igm_solve(
             active = False
             for j in range(nv):
                 step_norm += dq[j] * dq[j]
-                if (dq[j] <= lb[j] and lower[j] > -np.inf) or (dq[j] >= ub[j] and upper[j] < np.inf):
+                at_lower = dq[j] <= lb[j] and lower[j] > -np.inf
+                if at_lower or (dq[j] >= ub[j] and upper[j] < np.inf):
                     active = True
                 q[j] += beta * dq[j]
                 if q[j] < lower[j]:
                     q[j] = lower[j]
                 if q[j] > upper[j]:
                     q[j] = upper[j]
-            fk_jac(body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos, jnt_qadr,
-                   jnt_dadr, jnt_qpos0, frame_pos, frame_rot, q, position, rotation, jac, True)
+            fk_jac(
+                body_pos,
+                body_rot,
+                jnt_start,
+                jnt_type,
+                jnt_axis,
+                jnt_pos,
+                jnt_qadr,
+                jnt_dadr,
+                jnt_qpos0,
+                frame_pos,
+                frame_rot,
+                q,
+                position,
+                rotation,
+                jac,
+                True,
+            )
             ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
             path[slot, length] = q
             hist[slot, length, 0] = ep
