@@ -404,14 +404,18 @@ def plot_reachability(
 ) -> Figure:
     """A figure of a map: ``slices`` horizontal slices (constant z, x right, y up, colour
     = fraction reached) and a 3D scatter of the voxels reached at least once, coloured
-    the same way, with the reach-bound centre. Saved to ``path`` when given (bare
-    ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib (``qpik[plots]``)."""
+    the same way, cut at the reach-bound centre's y to show the inside. Saved to ``path``
+    when given (bare ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib
+    (``qpik[plots]``)."""
     from .plots import _matplotlib, _pyplot
 
     _matplotlib()
     grid = rmap.grid
     nx, ny, nz = rmap.shape
-    levels = np.unique(np.linspace(0, nz - 1, min(slices, nz)).round().astype(int))
+    # Slices spread over the heights where something is reached (else over the whole box).
+    occupied = np.flatnonzero(grid.max(axis=(0, 1)) > 0)
+    low, high = (occupied[0], occupied[-1]) if occupied.size else (0, nz - 1)
+    levels = np.unique(np.linspace(low, high, min(slices, high - low + 1)).round().astype(int))
     panels = len(levels)
     figsize = (3.2 * panels + 5.0, 4.4)
     if path is not None:
@@ -450,7 +454,11 @@ def plot_reachability(
     colorbar_ax = fig.add_subplot(spec[0, panels])
     fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")
     ax3 = fig.add_subplot(spec[0, panels + 1], projection="3d")
-    shown = rmap.fraction > 0
+    # The far half (y >= the base's y) only, so the cut shows the inside of the workspace.
+    cut = rmap.centers[:, 1] >= rmap.base[1] - half
+    if not cut.any():
+        cut[:] = True
+    shown = (rmap.fraction > 0) & cut
     points = rmap.centers[shown]
     ax3.scatter(
         points[:, 0],
@@ -475,7 +483,10 @@ def plot_reachability(
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
-    ax3.set_title(f"voxels reached ({int(shown.sum())}/{len(shown)})", fontsize="small")
+    ax3.set_title(
+        f"voxels reached, y >= {rmap.base[1]:.2f} m ({int(shown.sum())}/{int(cut.sum())})",
+        fontsize="small",
+    )
     fig.suptitle(
         f"reachability of {rmap.frame!r} on {rmap.robot}: {_orientation_text(rmap)}, "
         f"{rmap.resolution:g} m voxels (+: reach-bound centre)",
