@@ -211,6 +211,13 @@ def test_smallest_singular_value_against_svd():
         expected = np.linalg.svd(A[:m], compute_uv=False)[min(m, n) - 1]
         got = K._smallest_singular_value(A, m, n, gram)
         assert abs(got - expected) <= 1e-7 * max(1.0, expected), (m, n, got, expected)
+        # With a threshold: exact below it, inf at or above it.
+        for threshold in (0.5 * expected, 2.0 * expected + 1e-3):
+            got = K._smallest_singular_value(A, m, n, gram, threshold)
+            if expected < threshold:
+                assert abs(got - expected) <= 1e-7 * max(1.0, expected)
+            else:
+                assert got == np.inf
 
 
 def _brute_force_box_qp(H, g, lb, ub):

@@ -644,10 +644,13 @@ def _smallest_eigenvalue(G, n):
 
 
 @njit(cache=True)
-def _smallest_singular_value(A, m, nv, G):
+def _smallest_singular_value(A, m, nv, G, threshold=0.0):
     """The ``min(r, nv)``-th singular value of ``A[:m]``, ``r`` its rows that are not
     identically zero (a planar arm's out-of-plane row is a structural zero, not a
-    singularity), from the smaller Gram matrix built in the scratch ``G``."""
+    singularity), from the smaller Gram matrix built in the scratch ``G``. With
+    ``threshold > 0`` it returns inf when that value is at least ``threshold``: one Cholesky
+    factorisation of ``G - threshold^2 I`` decides, so that away from singularities no
+    eigenvalue is computed."""
     rows = np.empty(m, dtype=np.int64)
     r = 0
     for i in range(m):
@@ -676,7 +679,29 @@ def _smallest_singular_value(A, m, nv, G):
                     s += A[rows[a], i] * A[rows[a], j]
                 G[i, j] = s
                 G[j, i] = s
+    if threshold > 0.0 and _positive_definite_shifted(G, n, threshold * threshold):
+        return np.inf
     return np.sqrt(max(_smallest_eigenvalue(G, n), 0.0))
+
+
+@njit(cache=True)
+def _positive_definite_shifted(G, n, shift):
+    """Whether ``G[:n, :n] - shift I`` is positive definite (Cholesky; ``G`` unchanged)."""
+    L = np.empty((n, n))
+    for j in range(n):
+        s = G[j, j] - shift
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            t = G[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / d
+    return True
 
 
 @njit(cache=True)
@@ -864,7 +889,7 @@ def igm_solve(
                     b[3 + i] = -gain * error[3 + i]
             reg = damping
             if threshold > 0.0:
-                sigma = _smallest_singular_value(A, m, nv, gram)
+                sigma = _smallest_singular_value(A, m, nv, gram, threshold)
                 if sigma < threshold:
                     ratio = sigma / threshold
                     lam2 = max_damping * max_damping * (1.0 - ratio * ratio)
