@@ -189,46 +189,6 @@ def _rhs(lo, hi, row, side):
 
 
 @njit(cache=True)
-def _directions(L, C, act_row, act_side, q, normal):
-    """For the working set (q constraints) and a candidate normal: the primal direction
-    ``z`` (the step of x per unit of the candidate's multiplier) and the dual direction
-    ``r`` (how the working set's multipliers change), as in Goldfarb-Idnani:
-    ``z = H^-1 n - H^-1 N (N^T H^-1 N)^-1 N^T H^-1 n``, ``r = (N^T H^-1 N)^-1 N^T H^-1 n``.
-    Also whether the working set's normals are (numerically) independent."""
-    n = L.shape[0]
-    v = forward_vec(L, normal)  # L^-1 n
-    if q == 0:
-        return backward_vec(L, v), np.zeros(0), True
-    N = np.empty((n, q))
-    for j in range(q):
-        N[:, j] = C[act_row[j]] * act_side[j]
-    B = forward(L, N)  # L^-1 N
-    ok = True
-    Q, R, _ = householder_qr(B, False)
-    proj = Q[:, :q].T @ v
-    # r = R^-1 Q^T v (upper-triangular solve)
-    r = np.empty(q)
-    scale = 0.0
-    for i in range(q):
-        scale = max(scale, abs(R[i, i]))
-    for i in range(q - 1, -1, -1):
-        s = proj[i]
-        for k in range(i + 1, q):
-            s -= R[i, k] * r[k]
-        if abs(R[i, i]) <= 1e-13 * max(scale, 1e-300):
-            ok = False
-            r[i] = 0.0
-        else:
-            r[i] = s / R[i, i]
-    w = v - Q[:, :q] @ proj
-    # The candidate normal lies in the span of the working set when nothing of L^-1 n is
-    # left outside it: then there is no primal step (z = 0).
-    if np.sqrt(w @ w) <= 1e-11 * np.sqrt(v @ v):
-        return np.zeros(n), r, False
-    return backward_vec(L, w), r, ok
-
-
-@njit(cache=True)
 def _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q):
     """Minimiser of the QP with the working set held as equalities, and its multipliers
     (one per working constraint, >= 0 when dual feasible), by the null-space method:
@@ -403,26 +363,52 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
         if ok and _strictly_optimal(x, u, C, lo, hi, act_row, q):
             return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
         q = 0
-    # Cold: Goldfarb-Idnani from the unconstrained minimiser.
+    # Cold: Goldfarb-Idnani from the unconstrained minimiser, with the factorisation
+    # J = L^-T Q and the triangular R of the working set updated by Givens rotations as
+    # constraints enter and leave (as in quadprog / eiquadprog): O(n^2) per change.
     x = backward_vec(L, forward_vec(L, -c))
+    J = np.zeros((n, n))
+    for i in range(n):  # J = L^-T, column by column: J^T = L^-1
+        e = np.zeros(n)
+        e[i] = 1.0
+        J[i, :] = forward_vec(L, e)
+    R = np.zeros((n, n))
+    r_norm = 1.0
     u = np.zeros(n + 1)
+    d = np.empty(n)
+    z = np.empty(n)
+    r = np.empty(n + 1)
     in_set = np.zeros(m, dtype=np.bool_)
     iterations = 0
-    ignored = 0
     while True:
         row, side = _most_violated(x, C, lo, hi, in_set, tol)
         if row < 0:
             return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
         normal = _normal(C, row, side)
         rhs = _rhs(lo, hi, row, side)
-        u_new = 0.0
+        u[q] = 0.0
         while True:
             iterations += 1
             if iterations > max_iter:
                 for j in range(q):
                     active[act_row[j]] = act_side[j]
                 return x, MAX_ITER, iterations, active
-            z, r, _ = _directions(L, C, act_row, act_side, q, normal)
+            # d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction)
+            for i in range(n):
+                acc = 0.0
+                for k in range(n):
+                    acc += J[k, i] * normal[k]
+                d[i] = acc
+            for k in range(n):
+                acc = 0.0
+                for i in range(q, n):
+                    acc += J[k, i] * d[i]
+                z[k] = acc
+            for i in range(q - 1, -1, -1):
+                acc = d[i]
+                for j in range(i + 1, q):
+                    acc -= R[i, j] * r[j]
+                r[i] = acc / R[i, i]
             # Partial (dual) step: the largest t keeping the working multipliers >= 0.
             t1 = np.inf
             drop = -1
@@ -432,54 +418,106 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                     if t < t1:
                         t1, drop = t, j
             # Full (primal) step: make the candidate constraint hold with equality.
+            zz = 0.0
+            for k in range(n):
+                zz += z[k] * z[k]
             zn = z @ normal
             slack = normal @ x - rhs
             t2 = np.inf
-            if zn > 0.0:
-                t2 = -slack / zn
-                if t2 < 0.0:
-                    t2 = 0.0
+            if zz > 1e-30 * (normal @ normal) and zn > 0.0:
+                t2 = max(-slack / zn, 0.0)
             t = min(t1, t2)
             if t == np.inf:
                 # The candidate depends on the working set and no multiplier can give way.
-                # At a degenerate vertex round-off leaves a violation of a few ulps of the
-                # steps taken: that is not infeasibility, so the row is taken as met.
+                # At a degenerate vertex round-off leaves a violation of a few ulps: that
+                # is not infeasibility, so the row is taken as met.
                 nn = np.sqrt(normal @ normal)
                 if -slack <= _ROUNDOFF * (nn * (1.0 + np.abs(x).max()) + abs(rhs)):
                     in_set[row] = True
-                    ignored += 1
                     break
                 for j in range(q):
                     active[act_row[j]] = act_side[j]
                 return x, INFEASIBLE, iterations, active
             if t2 < np.inf:
-                x = x + t * z
+                for k in range(n):
+                    x[k] += t * z[k]
             for j in range(q):
                 u[j] -= t * r[j]
-            u_new += t
+            u[q] += t
             if t2 <= t1:
-                # Add the candidate to the working set.
+                # Add the candidate: rotate d so that only d[:q+1] is non-zero.
+                for j in range(n - 1, q, -1):
+                    cc = d[j - 1]
+                    ss = d[j]
+                    h = np.hypot(cc, ss)
+                    if h == 0.0:
+                        continue
+                    d[j] = 0.0
+                    ss /= h
+                    cc /= h
+                    if cc < 0.0:
+                        cc = -cc
+                        ss = -ss
+                        d[j - 1] = -h
+                    else:
+                        d[j - 1] = h
+                    xny = ss / (1.0 + cc)
+                    for k in range(n):
+                        a = J[k, j - 1]
+                        b2 = J[k, j]
+                        J[k, j - 1] = a * cc + b2 * ss
+                        J[k, j] = xny * (a + J[k, j - 1]) - b2
+                for i in range(q + 1):
+                    R[i, q] = d[i]
+                if abs(d[q]) <= 1e-14 * r_norm:
+                    # Numerically dependent on the working set: treat as met (round-off).
+                    in_set[row] = True
+                    break
+                r_norm = max(r_norm, abs(d[q]))
                 act_row[q] = row
                 act_side[q] = side
-                u[q] = u_new
                 in_set[row] = True
                 q += 1
-                # x is now the minimiser with the working set held as equalities:
-                # recompute it (and the multipliers) from scratch rather than carry the
-                # round-off of the steps (it matters at degenerate vertices).
-                xk, uk, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
-                if ok:
-                    x = xk
-                    for j in range(q):
-                        u[j] = max(uk[j], 0.0)
                 break
-            # Drop the blocking constraint and try again.
+            # Drop the blocking constraint, restore R's triangle, and try again.
             in_set[act_row[drop]] = False
             for j in range(drop, q - 1):
                 act_row[j] = act_row[j + 1]
                 act_side[j] = act_side[j + 1]
                 u[j] = u[j + 1]
+                for i in range(n):
+                    R[i, j] = R[i, j + 1]
+            u[q - 1] = u[q]
+            u[q] = 0.0
+            for i in range(n):
+                R[i, q - 1] = 0.0
             q -= 1
+            for j in range(drop, q):
+                cc = R[j, j]
+                ss = R[j + 1, j]
+                h = np.hypot(cc, ss)
+                if h == 0.0:
+                    continue
+                cc /= h
+                ss /= h
+                R[j + 1, j] = 0.0
+                if cc < 0.0:
+                    R[j, j] = -h
+                    cc = -cc
+                    ss = -ss
+                else:
+                    R[j, j] = h
+                xny = ss / (1.0 + cc)
+                for k in range(j + 1, q):
+                    a = R[j, k]
+                    b2 = R[j + 1, k]
+                    R[j, k] = a * cc + b2 * ss
+                    R[j + 1, k] = xny * (a + R[j, k]) - b2
+                for k in range(n):
+                    a = J[k, j]
+                    b2 = J[k, j + 1]
+                    J[k, j] = a * cc + b2 * ss
+                    J[k, j + 1] = xny * (J[k, j] + a) - b2
 
 
 @njit(cache=True)
@@ -507,6 +545,25 @@ def _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
     if ok and _kkt_ok(xp, up, C, lo, hi, k, max(tol, 1e-9)):
         return xp, SOLVED, iterations, active
     return x, SOLVED, iterations, active
+
+
+@njit(cache=True)
+def solve_lower_level(H, c, C, lo, hi, warm, max_iter, tol):
+    """:func:`solve_qp` for a level below the first, whose QP is feasible by construction
+    (``z = 0``, the level above's answer, meets every row). An ``INFEASIBLE`` there is
+    round-off at a degenerate vertex: the rows are then widened by 1e-10 (relative) and the
+    QP solved again (the box is re-imposed exactly on ``dq`` afterwards)."""
+    z, st, its, act = solve_qp(H, c, C, lo, hi, warm, max_iter, tol)
+    if st != INFEASIBLE:
+        return z, st, its, act
+    m = lo.shape[0]
+    lo2 = np.empty(m)
+    hi2 = np.empty(m)
+    for i in range(m):
+        lo2[i] = lo[i] - 1e-10 * (1.0 + abs(lo[i])) if lo[i] > -_BIG else lo[i]
+        hi2[i] = hi[i] + 1e-10 * (1.0 + abs(hi[i])) if hi[i] < _BIG else hi[i]
+    z, st, more, act = solve_qp(H, c, C, lo2, hi2, np.zeros(m, dtype=np.int8), max_iter, tol)
+    return z, st, its + more, act
 
 
 @njit(cache=True)
@@ -687,7 +744,10 @@ def solve_cascade(
         sigma[k] = sig
         lam2[k] = lam
         H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)
-        z, st, its, act = solve_qp(H, c, C, lo, hi, warm[k], max_iter, tol)
+        if k == 0:
+            z, st, its, act = solve_qp(H, c, C, lo, hi, warm[k], max_iter, tol)
+        else:
+            z, st, its, act = solve_lower_level(H, c, C, lo, hi, warm[k], max_iter, tol)
         iterations[k] = its
         active[k] = act
         if st == SOLVED:

@@ -445,7 +445,8 @@ class HierarchySolver:
         converged."""
         exact = K.solve_qp
         if fallback:
-            z, st, it, act = exact(H, c, C, lo, hi, warm, max_iter, self.tolerance)
+            solve = K.solve_qp if k == 0 else K.solve_lower_level
+            z, st, it, act = solve(H, c, C, lo, hi, warm, max_iter, self.tolerance)
             if st in (K.SOLVED, K.INFEASIBLE):
                 return z, st, it, act, "auto"
             name = "osqp"
@@ -467,7 +468,8 @@ class HierarchySolver:
             )  # fmt: skip
             return None, code, 0 if solution is None else solution.iterations, None, name
         zeros = np.zeros(C.shape[0], dtype=np.int8)
-        z, st, it, act = exact(H, c, C, lo, hi, zeros, max_iter, self.tolerance)
+        solve = K.solve_qp if k == 0 else K.solve_lower_level
+        z, st, it, act = solve(H, c, C, lo, hi, zeros, max_iter, self.tolerance)
         return z, st, it, act, f"{name} failed: auto"
 
     def _backend_solve(self, k, name, H, c, C, lo, hi):
