@@ -84,6 +84,15 @@ Rotations: ``rpy = [roll, pitch, yaw]`` [rad], extrinsic x-y-z, ``R = Rz(yaw) Ry
 Rx(roll)``; or ``quaternion = [w, x, y, z]`` (MuJoCo's order, normalised on load); or
 ``matrix = [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]]`` (rows). At most one.
 
+Numbers are range-checked on load (:data:`RANGES`): every number must be finite;
+positions, centre-of-mass targets and joint values within +-:data:`MAX_LENGTH`, ``rpy``
+angles within +-:data:`MAX_ANGLE` rad, costs in [0, :data:`MAX_COST`], forces and torques
+within +-:data:`MAX_WRENCH`, and each ``[solver]`` / ``[track]`` / task option within its
+interval (e.g. ``gain`` in (0, 1], ``lm_damping`` in [0, 1e6], ``time_budget`` in
+(0, 86400] s, ``seed`` in [0, 2^63 - 1], ``track.steps`` in [1, 1e6]). A ``q0`` outside a
+joint limit by at most 1e-6 (the tolerance of :meth:`qpik.Configuration.check_limits`) is
+clamped onto it. The file must be UTF-8 (a byte-order mark is allowed).
+
 Modes. ``solve``: each goal (the target, or each waypoint in turn, from the previous
 result) is one :func:`qpik.solve` with ``stack`` = the levels; in a solve the gain of the
 level-0 position and orientation tasks on the goal frame is the solver's ``alpha``.
