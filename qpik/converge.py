@@ -643,9 +643,10 @@ class IKSession:
             info,
         )
         code, iterations, restarts_used, slot, length, _ = info.tolist()
-        history = hist[slot, :length]
+        # Copies: the result must not keep the whole scratch buffers alive (batches).
+        history = hist[slot, :length].copy()
         position_error, orientation_error, _ = history[-1].tolist()
-        attempt = path[slot, :length]
+        attempt = path[slot, :length].copy()
         return IKResult(
             q=attempt[-1].copy(),
             converged=code == 0,

@@ -459,3 +459,34 @@ def test_task_errors_rule():
     )
     p, o = _task_errors(frame, configuration)
     assert p == pytest.approx(0.0, abs=1e-12) and o == 0.0  # orientation not regulated
+
+
+def test_session_on_a_configuration_and_on_a_floating_model():
+    configuration = configuration_of("ur5e", [0.1, -1.0, 1.2, -0.5, 0.4, 0.2])
+    session = qpik.IKSession(configuration)
+    position, _ = configuration.frame_pose("ee")
+    result = session.solve({"ee": position + [0.01, 0.0, 0.0]}, restarts=0)
+    np.testing.assert_array_equal(result.path[0], configuration.q)  # its q is the start
+    assert result.converged and result.engine == "compiled"
+    xml = """<mujoco><worldbody><body name="base"><freejoint/><geom size="0.1"/>
+      <body name="link" pos="0 0 0.2"><joint name="hinge" axis="0 1 0" range="-1 1"/>
+      <geom size="0.05"/><site name="tip" pos="0.3 0 0"/></body></body></worldbody></mujoco>"""
+    import mujoco
+
+    floating = qpik.IKSession(mujoco.MjModel.from_xml_string(xml))
+    assert floating.reach_bound("tip") is None
+    result = floating.solve({"tip": [0.5, 0.2, 0.4]}, seed=0)
+    assert result.engine == "qp" and result.converged, result
+
+
+def test_results_keep_only_their_attempt(rng):
+    position, rotation = reachable_pose("panda", rng)
+    result = qpik.solve("panda", {"ee": (position, rotation)}, seed=1)
+    assert result.path.base is None or result.path.base.shape == result.path.shape
+    assert len(result.residual_history) == len(result.path) - 1
+    assert list(result.error_history)[-1] == result.error_history[-1]
+    import pickle
+
+    again = pickle.loads(pickle.dumps(result))
+    np.testing.assert_array_equal(again.q, result.q)
+    assert again.error_history == result.error_history
