@@ -66,6 +66,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .configuration import Configuration, FrameType, as_configuration, frame_names
+from .core import SOLVERS
 from .errors import (
     InvalidConfiguration,
     InvalidInput,
@@ -428,6 +429,7 @@ class IKSession:
         free = np.full(model.nq, np.inf)
         self._bounds_joint = np.array([lower, upper, self._sample_lo, self._sample_hi])
         self._bounds_free = np.array([-free, free, self._sample_lo, self._sample_hi])
+        self._solver_checked = None
         self._memo = None  # the last options, validated (validation only: no results kept)
         self._frames: dict = {}  # frame key -> (name, kind, chain or None, reach or None)
 
@@ -504,6 +506,12 @@ class IKSession:
             options, int_options = _kernel_options(settings)
             self._memo = (key, settings, options, int_options)
         rng_state = _rng_state(seed)
+        if solver is not self._solver_checked:
+            if not isinstance(solver, str) or solver not in SOLVERS:
+                raise InvalidInput(
+                    f"unknown QP solver {solver!r}; known solvers: {', '.join(SOLVERS)}"
+                )
+            self._solver_checked = solver
         if type(targets) is not dict and not isinstance(targets, Mapping):
             raise InvalidInput(
                 f"targets must be a mapping {{frame: target}}, got {type(targets).__name__}"

@@ -490,3 +490,9 @@ def test_results_keep_only_their_attempt(rng):
     again = pickle.loads(pickle.dumps(result))
     np.testing.assert_array_equal(again.q, result.q)
     assert again.error_history == result.error_history
+
+
+def test_unknown_solver_is_named_on_both_engines():
+    for engine in ("compiled", "qp"):
+        with pytest.raises(qpik.InvalidInput, match="unknown QP solver 'nope'"):
+            qpik.solve("panda", {"ee": [0.4, 0.0, 0.5]}, solver="nope", engine=engine)

@@ -17,10 +17,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="solve a reaching problem on a bundled arm and print the result",
         description="Solve inverse kinematics for the pose of site `ee` reached by a "
         "random configuration (seeded), starting from mid-range, under joint limits.",
-        epilog="example: qpik demo --robot panda --seed 3",
+        epilog="example: qpik demo --robot panda --seed 3 --tol 1e-5",
     )
     parser.add_argument("--robot", default="panda", help="bundled robot (default: panda)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the target (default: 0)")
+    parser.add_argument(
+        "--tol",
+        type=float,
+        default=1e-4,
+        help="position tolerance [m]; the orientation's is 10x in rad (default: 1e-4)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -33,6 +39,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"robot {args.robot} ({model.nv} DoF): reach site 'ee' to")
     print(f"  position [m] = {np.array2string(position, precision=4)}")
     print(f"  rotation = {np.array2string(rotation, precision=3).replace(chr(10), '')}")
-    result = solve(model, {"ee": (position, rotation)}, seed=args.seed)
+    result = solve(
+        model,
+        {"ee": (position, rotation)},
+        seed=args.seed,
+        tol_position=args.tol,
+        tol_orientation=10 * args.tol,
+    )
     print(result)
+    print(f"engine: {result.engine} (see qpik.solve)")
     return 0 if result.converged else 1
