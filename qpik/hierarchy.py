@@ -46,6 +46,7 @@ from .core import (
     Level,
     LevelStatus,
 )
+from .core._kernels import merge_boxes, tighten
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget, NoSolutionFound
 from .tasks import BaseTask
 
@@ -180,9 +181,10 @@ def level_rows(
             w_parts.append(np.ones(int(keep.sum())))
         else:
             jacobian, error, task_mu = residual
-            jacobian = np.atleast_2d(jacobian)
+            if jacobian.ndim != 2:
+                jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
             A_parts.append(jacobian)
-            b_parts.append(np.atleast_1d(error))
+            b_parts.append(error)
             w_parts.append(_row_weights(task, jacobian.shape[0]))
             mu += float(task_mu)
     if len(A_parts) == 1:
@@ -374,11 +376,9 @@ class IKSolver:
                 dofs, lower, upper = box(limit, configuration, dt)
                 if len(dofs):
                     if isinstance(limit, mink.ConfigurationLimit):
-                        lb, ub = pos_lb, pos_ub
+                        tighten(pos_lb, pos_ub, dofs, lower, upper)
                     else:
-                        lb, ub = hard_lb, hard_ub
-                    ub[dofs] = np.minimum(ub[dofs], upper)
-                    lb[dofs] = np.maximum(lb[dofs], lower)
+                        tighten(hard_lb, hard_ub, dofs, lower, upper)
                     name = type(limit).__name__
                     contributions.append((name, dofs, upper))
                     contributions.append((name, dofs, lower))
@@ -411,23 +411,12 @@ class IKSolver:
                 general_G.append(G[structure.general])
                 general_h.append(h[structure.general])
                 general_names.extend(f"{name} row {int(r)}" for r in structure.general)
-        if (hard_lb > hard_ub).any():
-            i = int(np.flatnonzero(hard_lb > hard_ub)[0])
+        lb, ub, i = merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
+        if i >= 0:
             raise InfeasibleLimits(
                 f"limits on {self._dof_names[i]} need {hard_lb[i]:.6g} <= dq <= "
                 f"{hard_ub[i]:.6g}: no displacement satisfies them"
             )
-        # Position limits are recoverable: where they conflict with the hard limits (a start
-        # outside the limits that cannot be left in one step), move toward them at the
-        # hard limit's pace.
-        lb = np.maximum(hard_lb, pos_lb)
-        ub = np.minimum(hard_ub, pos_ub)
-        conflict = lb > ub
-        if conflict.any():
-            too_high = conflict & (pos_ub < hard_lb)
-            too_low = conflict & (pos_lb > hard_ub)
-            lb[too_high] = ub[too_high] = hard_lb[too_high]
-            lb[too_low] = ub[too_low] = hard_ub[too_low]
         G = np.vstack(general_G) if general_G else self._no_rows
         h = np.concatenate(general_h) if general_h else np.zeros(0)
         return lb, ub, G, h, contributions, general_names

@@ -656,6 +656,43 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
 
 
 @njit(cache=True)
+def tighten(lb, ub, dofs, lower, upper):
+    """``lb[dofs] = max(lb[dofs], lower)``, ``ub[dofs] = min(ub[dofs], upper)`` in place
+    (a dof may repeat)."""
+    for k in range(dofs.shape[0]):
+        i = dofs[k]
+        if lower[k] > lb[i]:
+            lb[i] = lower[k]
+        if upper[k] < ub[i]:
+            ub[i] = upper[k]
+
+
+@njit(cache=True)
+def merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub):
+    """The box of hard (velocity-like) and recoverable (position-like) bounds: their
+    intersection, except where they conflict (a start outside the position limits that
+    one step cannot leave), where dq moves toward the position limits at the hard limit's
+    pace. Returns ``(lb, ub, i)`` with ``i >= 0`` the first dof whose *hard* bounds
+    conflict (no displacement satisfies them), else -1."""
+    n = hard_lb.shape[0]
+    lb = np.empty(n)
+    ub = np.empty(n)
+    for i in range(n):
+        if hard_lb[i] > hard_ub[i]:
+            return lb, ub, i
+        lo = max(hard_lb[i], pos_lb[i])
+        hi = min(hard_ub[i], pos_ub[i])
+        if lo > hi:
+            if pos_ub[i] < hard_lb[i]:
+                lo = hi = hard_lb[i]
+            elif pos_lb[i] > hard_ub[i]:
+                lo = hi = hard_ub[i]
+        lb[i] = lo
+        ub[i] = hi
+    return lb, ub, -1
+
+
+@njit(cache=True)
 def _level_residuals(A, b, starts, x):
     """Per level, ``|A_k x - b_k|`` over all its rows."""
     r = A @ x - b
