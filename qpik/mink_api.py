@@ -27,7 +27,7 @@ define theirs).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import mink
@@ -72,12 +72,17 @@ def as_configuration(configuration: Any, name: str = "configuration") -> Configu
     )
 
 
+def _is_list_like(value: Any) -> bool:
+    """A list, tuple or other iterable of items (mink iterates; a string is not one)."""
+    return isinstance(value, Iterable) and not isinstance(value, (str, bytes, BaseTask))
+
+
 def _levels(tasks: Any) -> list[list[BaseTask]]:
     """Levels from mink's ``tasks``: ``[]`` none; a flat list, one level; a list whose
     items include lists, one level per item (item 0 the highest priority)."""
     if isinstance(tasks, BaseTask):
         return [[tasks]]
-    if isinstance(tasks, (str, bytes)) or not isinstance(tasks, Sequence):
+    if not _is_list_like(tasks):
         raise InvalidInput(
             f"tasks must be a list of tasks or a list of levels, got {type(tasks).__name__}"
         )
@@ -87,7 +92,8 @@ def _levels(tasks: Any) -> list[list[BaseTask]]:
     levels = []
     for index, item in enumerate(items):
         level = [item] if isinstance(item, BaseTask) else item
-        if isinstance(level, (str, bytes)) or not isinstance(level, Sequence) or not level:
+        level = list(level) if _is_list_like(level) else None
+        if not level:
             raise InvalidInput(
                 f"tasks[{index}] must be a task or a non-empty list of tasks, got {item!r}"
             )
@@ -102,26 +108,28 @@ def _limits(configuration: Configuration, limits: Any) -> list[mink.Limit]:
     """mink's default (``None``: the model's position limits) or the given limits."""
     if limits is None:
         return [mink.ConfigurationLimit(configuration.model)]
-    if isinstance(limits, (str, bytes)) or not isinstance(limits, Sequence):
+    if not _is_list_like(limits):
         raise InvalidInput(f"limits must be None or a list of limits, got {limits!r}")
+    limits = list(limits)
     for index, limit in enumerate(limits):
         if not hasattr(limit, "compute_qp_inequalities"):
             raise InvalidInput(f"limits[{index}] is not a mink/qpik limit: {limit!r}")
-    return list(limits)
+    return limits
 
 
 def _constraints(constraints: Any) -> list[mink.Task]:
     if constraints is None:
         return []
-    if isinstance(constraints, (str, bytes)) or not isinstance(constraints, Sequence):
+    if not _is_list_like(constraints):
         raise InvalidInput(f"constraints must be None or a list of tasks, got {constraints!r}")
+    constraints = list(constraints)
     for index, task in enumerate(constraints):
         if not (hasattr(task, "compute_jacobian") and hasattr(task, "compute_error")):
             raise InvalidInput(
                 f"constraints[{index}] must be a task with compute_jacobian and "
                 f"compute_error (a mink.Task), got {task!r}"
             )
-    return list(constraints)
+    return constraints
 
 
 def _equality_rows(
@@ -286,6 +294,8 @@ def build_ik(
     """
     configuration = as_configuration(configuration)
     _check_step(dt, damping)
+    tasks = list(tasks) if _is_list_like(tasks) else tasks  # iterated more than once here
+    flat = not _is_list_like(tasks) or all(isinstance(task, BaseTask) for task in tasks)
     ik, constraint_rows = _solver(configuration, tasks, None, damping, limits, constraints, {})
     hierarchy = ik.build(configuration, dt)
     nv = configuration.model.nv
@@ -299,12 +309,7 @@ def build_ik(
         problems.append(qpsolvers.Problem(P, -(level.A.T @ level.b), G, h, A_eq, b_eq))
     if not levels:  # mink's problem for no task: the smallest displacement
         problems.append(qpsolvers.Problem(damping * np.eye(nv), np.zeros(nv), G, h, A_eq, b_eq))
-    flat = not levels or all(isinstance(task, BaseTask) for task in _as_list(tasks))
     return problems[0] if flat else problems
-
-
-def _as_list(tasks: Any) -> list:
-    return [tasks] if isinstance(tasks, BaseTask) else list(tasks)
 
 
 def _inequality_rows(

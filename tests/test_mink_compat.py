@@ -596,3 +596,29 @@ def test_build_ik_states_the_limits_qpik_enforces_outside_the_limits():
     v = qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits)
     np.testing.assert_allclose(v * DT, solution.x, atol=1e-9)
     assert v[0] == pytest.approx(-1.0, abs=1e-12)
+
+
+def test_tasks_limits_and_constraints_may_be_any_iterables():
+    """mink iterates over its arguments; tuples and generators give the list's answer."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    task = _frame_task(configuration)
+    freeze = mink.DofFreezingTask(model, dof_indices=[0])
+    as_lists = qpik.solve_ik(
+        configuration,
+        [task],
+        DT,
+        "daqp",
+        limits=[mink.ConfigurationLimit(model)],
+        constraints=[freeze],
+    )
+    as_generators = qpik.solve_ik(
+        configuration,
+        (t for t in [task]),
+        DT,
+        "daqp",
+        limits=(limit for limit in [mink.ConfigurationLimit(model)]),
+        constraints=(c for c in (freeze,)),
+    )
+    assert as_lists.tobytes() == as_generators.tobytes()
+    assert isinstance(qpik.build_ik(configuration, (t for t in [task]), DT), qpsolvers.Problem)
