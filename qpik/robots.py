@@ -143,7 +143,11 @@ def list_robots() -> list[str]:
 def robot_path(name: str) -> Path:
     """Path of the bundled model ``name``; raises :class:`UnknownRobot` if there is none."""
     path = robots_dir() / f"{name}.xml"
-    if not path.is_file():
+    try:
+        found = bool(name) and path.is_file()
+    except (OSError, ValueError):  # a name the OS rejects (too long, ...)
+        found = False
+    if not found:
         raise UnknownRobot(name, list_robots())
     return path
 
@@ -176,13 +180,25 @@ def load_robot(
             f"load_robot expects a name, a path or an MjModel, got {type(source).__name__}"
         )
     text = os.fspath(source)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    if "\0" in text:
+        raise UnknownRobot(repr(text), list_robots())
     if text.startswith("erd:"):
         path = erd_path(text[4:])
     else:
         path = Path(text)
-        if not (path.suffix.lower() in (".xml", ".urdf") or os.sep in text or path.exists()):
+        if not (path.suffix.lower() in (".xml", ".urdf") or os.sep in text or _exists(path)):
             path = robot_path(text)
     return _load_file(path, floating_base=floating_base, srdf=srdf)
+
+
+def _exists(path: Path) -> bool:
+    """``path.exists()``, False for names the OS rejects (too long, ...)."""
+    try:
+        return path.exists()
+    except (OSError, ValueError):
+        return False
 
 
 # ------------------------------------------------------------------ example-robot-data
@@ -263,10 +279,16 @@ def robot_spec(
     """The ``mujoco.MjSpec`` :func:`load_robot` compiles for a file (same arguments): edit
     it (add bodies, geoms, sites) and ``compile()`` it for a model of your own."""
     path = Path(os.fspath(path))
-    if not path.is_file():
+    try:
+        is_file = path.is_file()
+    except (OSError, ValueError) as exc:
+        raise RobotFileError(str(path)[:200], f"not a usable file name ({exc})") from None
+    if not is_file:
         raise RobotFileError(str(path), "no such file")
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RobotFileError(str(path), f"not UTF-8 text ({exc})") from None
     except OSError as exc:
         raise RobotFileError(str(path), str(exc)) from exc
     try:

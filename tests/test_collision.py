@@ -109,7 +109,7 @@ def test_no_pair_raises_saying_why():
         CollisionAvoidanceLimit(scene, [(["wrist"], ["ball"])])
     with pytest.raises(qpik.CollisionPairError, match="empty"):
         CollisionAvoidanceLimit(scene, [])
-    with pytest.raises(qpik.InvalidInput, match="collision_detection_distance"):
+    with pytest.raises(qpik.LimitDefinitionError, match="collision_detection_distance"):
         CollisionAvoidanceLimit(
             scene,
             [(ARM, ["ball"])],
@@ -176,3 +176,21 @@ def test_mink_rows_in_velocity_units_let_the_panda_into_the_sphere():
 
     closest, *_ = _reach_through_sphere(mink_limit, steps=200)
     assert closest < 0.0
+
+
+def test_minks_limits_under_qpiks_names_raise_typed_errors():
+    model = qpik.load_robot("panda")
+    limit = qpik.limits.ConfigurationLimit(model)
+    assert type(limit) is mink.ConfigurationLimit  # mink's object: its box fast path applies
+    assert isinstance(limit, qpik.limits.ConfigurationLimit)
+    assert isinstance(qpik.limits.VelocityLimit(model, {"joint1": 2.0}), qpik.limits.VelocityLimit)
+    for bad, match in [
+        (lambda: qpik.limits.ConfigurationLimit(model, gain=-1), "gain"),
+        (lambda: qpik.limits.ConfigurationLimit(model, gain=np.nan), "gain"),
+        (lambda: qpik.limits.ConfigurationLimit("panda"), "MjModel"),
+        (lambda: qpik.limits.VelocityLimit(model, {"elbow": 1.0}), "joint1, joint2"),
+        (lambda: qpik.limits.VelocityLimit(model, {"joint1": -1.0}), "> 0"),
+        (lambda: qpik.limits.VelocityLimit(model, {"joint1": np.nan}), "> 0"),
+    ]:
+        with pytest.raises(qpik.LimitDefinitionError, match=match):
+            bad()

@@ -195,11 +195,11 @@ def test_support_polygon_errors():
     configuration = qpik.Configuration(model)
     with pytest.raises(qpik.UnknownFrame, match="foot_x"):
         SupportPolygonLimit(model, ["foot_fl", "foot_x"])
-    with pytest.raises(qpik.InvalidInput, match="non-empty"):
+    with pytest.raises(qpik.LimitDefinitionError, match="non-empty"):
         SupportPolygonLimit(model, [])
-    with pytest.raises(qpik.InvalidInput, match="margin"):
+    with pytest.raises(qpik.LimitDefinitionError, match="margin"):
         SupportPolygonLimit(model, FEET, margin=-0.1)
-    with pytest.raises(qpik.InvalidInput, match="footprint"):
+    with pytest.raises(qpik.LimitDefinitionError, match="footprint"):
         SupportPolygonLimit(model, FEET, footprint=[[0.0, 0.0, 0.0]])
     with pytest.raises(qpik.InvalidInput, match="span no area"):
         SupportPolygonLimit(model, ["foot_fl", "foot_fr"]).compute_qp_inequalities(

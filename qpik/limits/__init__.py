@@ -9,6 +9,9 @@
 * :class:`SupportPolygonLimit` (:mod:`qpik.limits.support`): the CoM's ground projection
   inside the contacts' convex hull.
 
+:class:`ConfigurationLimit` and :class:`VelocityLimit` build mink's own objects, after
+checking their arguments (typed :class:`qpik.LimitDefinitionError`).
+
 A limit returns ``Constraint(G, h)``: ``G dq <= h`` on the displacement ``dq = v dt``.
 qpik folds rows that bound a single joint into box bounds, and treats position limits
 (:class:`ConfigurationLimit`) as *recoverable*: a start outside them moves back toward them
@@ -17,16 +20,17 @@ as fast as the other limits allow, instead of making the QP infeasible.
 
 from __future__ import annotations
 
+import abc
+from collections.abc import Mapping
+
+import mink
 import mujoco
 import numpy as np
-from mink import (
-    ConfigurationLimit,
-    Constraint,
-    Limit,
-    VelocityLimit,
-)
+import numpy.typing as npt
+from mink import Constraint, Limit
 
 from ..configuration import Configuration, joint_names
+from ..errors import LimitDefinitionError
 from .collision import CollisionAvoidanceLimit, geom_distance
 from .support import SupportPolygonLimit
 
@@ -41,6 +45,94 @@ __all__ = [
     "joint_limits",
     "velocity_limit_from_model",
 ]
+
+
+class _MinkClass(abc.ABCMeta):
+    """Metaclass of qpik's names for mink's limits: ``isinstance`` and ``issubclass``
+    answer for mink's class, since the constructor returns mink's own object."""
+
+    def __instancecheck__(cls, instance) -> bool:
+        return cls.__mro__[1] in type(instance).__mro__
+
+    def __subclasscheck__(cls, subclass) -> bool:
+        # A plain MRO test: ABCMeta's own check walks mink's subclasses, this one included.
+        return isinstance(subclass, type) and cls.__mro__[1] in subclass.__mro__
+
+
+class ConfigurationLimit(mink.ConfigurationLimit, metaclass=_MinkClass):
+    """mink's :class:`mink.ConfigurationLimit` (joint position limits, rows
+    ``gain * (q_max - q)`` [rad or m] on ``dq``), with qpik's typed errors: a bad ``gain``
+    or ``min_distance_from_limits`` raises :class:`qpik.LimitDefinitionError`.
+
+    The object built *is* mink's (``type(limit) is mink.ConfigurationLimit``), so every
+    code path that knows mink's limit (qpik's box bounds among them) applies to it."""
+
+    def __new__(
+        cls,
+        model: mujoco.MjModel,
+        gain: float = 0.95,
+        min_distance_from_limits: float = 0.0,
+    ) -> mink.ConfigurationLimit:
+        if not isinstance(model, mujoco.MjModel):
+            raise LimitDefinitionError(
+                f"ConfigurationLimit needs a mujoco.MjModel, got {type(model).__name__}"
+            )
+        try:
+            gain = float(gain)
+            distance = float(min_distance_from_limits)
+        except (TypeError, ValueError):
+            raise LimitDefinitionError(
+                f"ConfigurationLimit gain and min_distance_from_limits must be numbers, got "
+                f"{gain!r}, {min_distance_from_limits!r}"
+            ) from None
+        if not np.isfinite(distance):
+            raise LimitDefinitionError(
+                f"ConfigurationLimit min_distance_from_limits must be finite, got {distance}"
+            )
+        try:
+            return mink.ConfigurationLimit(model, gain, distance)
+        except mink.LimitDefinitionError as exc:
+            raise LimitDefinitionError(f"{exc} (got gain={gain})") from None
+
+
+class VelocityLimit(mink.VelocityLimit, metaclass=_MinkClass):
+    """mink's :class:`mink.VelocityLimit` (``|v_i| <= v_max,i`` [rad/s or m/s], rows
+    ``v_max dt`` on ``dq``), with qpik's typed errors: an unknown joint, a free joint or a
+    velocity that is not a positive number raises :class:`qpik.LimitDefinitionError`.
+    The object built is mink's (see :class:`ConfigurationLimit`)."""
+
+    def __new__(
+        cls, model: mujoco.MjModel, velocities: Mapping[str, npt.ArrayLike] | None = None
+    ) -> mink.VelocityLimit:
+        if not isinstance(model, mujoco.MjModel):
+            raise LimitDefinitionError(
+                f"VelocityLimit needs a mujoco.MjModel, got {type(model).__name__}"
+            )
+        velocities = {} if velocities is None else velocities
+        if not isinstance(velocities, Mapping):
+            raise LimitDefinitionError(
+                f"velocities must map joint names to speeds, got {type(velocities).__name__}"
+            )
+        names = joint_names(model)
+        for name, value in velocities.items():
+            if name not in names:
+                raise LimitDefinitionError(
+                    f"VelocityLimit: no joint {name!r}; joints: {', '.join(names)}"
+                )
+            try:
+                speeds = np.atleast_1d(np.asarray(value, dtype=float))
+            except (TypeError, ValueError):
+                raise LimitDefinitionError(
+                    f"VelocityLimit: joint {name!r}: a speed [rad/s or m/s], got {value!r}"
+                ) from None
+            if speeds.ndim != 1 or not np.all(speeds > 0) or np.isnan(speeds).any():
+                raise LimitDefinitionError(
+                    f"VelocityLimit: joint {name!r}: speeds must be > 0, got {value!r}"
+                )
+        try:
+            return mink.VelocityLimit(model, velocities)
+        except mink.LimitDefinitionError as exc:
+            raise LimitDefinitionError(str(exc)) from None
 
 
 def velocity_limit_from_model(model: mujoco.MjModel, scale: float = 1.0) -> VelocityLimit | None:

@@ -41,7 +41,7 @@ from mink.limits.collision_avoidance_limit import (
 )
 
 from ..configuration import Configuration, frame_names
-from ..errors import CollisionPairError, InvalidInput, UnknownFrame
+from ..errors import CollisionPairError, LimitDefinitionError, UnknownFrame
 
 __all__ = ["CollisionAvoidanceLimit", "geom_distance"]
 
@@ -88,14 +88,14 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         respect_contype: bool = True,
     ):
         if not 0.0 < gain <= 1.0:
-            raise InvalidInput(f"gain must be in (0, 1], got {gain}")
+            raise LimitDefinitionError(f"gain must be in (0, 1], got {gain}")
         if not np.isfinite(minimum_distance_from_collisions):
-            raise InvalidInput(
+            raise LimitDefinitionError(
                 "minimum_distance_from_collisions must be finite, got "
                 f"{minimum_distance_from_collisions}"
             )
         if not collision_detection_distance > minimum_distance_from_collisions:
-            raise InvalidInput(
+            raise LimitDefinitionError(
                 f"collision_detection_distance ({collision_detection_distance}) must exceed "
                 f"minimum_distance_from_collisions ({minimum_distance_from_collisions})"
             )
@@ -125,7 +125,7 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         try:
             pairs = list(geom_pairs)
         except TypeError:
-            raise InvalidInput(
+            raise LimitDefinitionError(
                 f"geom_pairs must be a list of (group, group) pairs, got {geom_pairs!r}"
             ) from None
         if not pairs:
@@ -133,7 +133,9 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         resolved = []
         for k, pair in enumerate(pairs):
             if not isinstance(pair, (tuple, list)) or len(pair) != 2:
-                raise InvalidInput(f"geom_pairs[{k}] must be a (group, group) pair, got {pair!r}")
+                raise LimitDefinitionError(
+                    f"geom_pairs[{k}] must be a (group, group) pair, got {pair!r}"
+                )
             ids = []
             for group in pair:
                 group = [group] if isinstance(group, (str, int)) else list(group)

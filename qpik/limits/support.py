@@ -35,7 +35,7 @@ import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
 from ..configuration import Configuration, FrameType
-from ..errors import InvalidInput, UnknownFrame
+from ..errors import InvalidInput, LimitDefinitionError, UnknownFrame
 
 __all__ = ["SupportPolygonLimit"]
 
@@ -65,20 +65,22 @@ class SupportPolygonLimit(mink.Limit):
         body: str | int = 1,
     ):
         if isinstance(contact_frames, str) or not len(contact_frames):
-            raise InvalidInput(
+            raise LimitDefinitionError(
                 f"contact_frames must be a non-empty list of frame names, got {contact_frames!r}"
             )
         if not np.isfinite(margin) or margin < 0:
-            raise InvalidInput(f"margin must be a finite distance >= 0 [m], got {margin}")
+            raise LimitDefinitionError(f"margin must be a finite distance >= 0 [m], got {margin}")
         if not 0.0 < gain <= 1.0:
-            raise InvalidInput(f"gain must be in (0, 1], got {gain}")
+            raise LimitDefinitionError(f"gain must be in (0, 1], got {gain}")
         self.model = model
         self.margin = float(margin)
         self.gain = float(gain)
         self.frames = [self._resolve(model, frame) for frame in contact_frames]
         points = np.zeros((1, 2)) if footprint is None else np.asarray(footprint, dtype=float)
         if points.ndim != 2 or points.shape[1] != 2 or not np.all(np.isfinite(points)):
-            raise InvalidInput(f"footprint must be finite (k, 2) points [m], got {footprint!r}")
+            raise LimitDefinitionError(
+                f"footprint must be finite (k, 2) points [m], got {footprint!r}"
+            )
         self.footprint = np.column_stack([points, np.zeros(len(points))])  # z = 0 in the frame
         if isinstance(body, str):
             self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
