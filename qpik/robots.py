@@ -248,6 +248,10 @@ def erd_robots() -> dict[str, Path]:
 
 def erd_path(name: str) -> Path:
     """The URDF of ``erd:NAME``; :class:`UnknownRobot` lists every name otherwise."""
+    if name in ERD_ROBOTS:  # the common names, without listing the package
+        path = erd_robots_folder() / ERD_ROBOTS[name]
+        if path.is_file():
+            return path
     robots = erd_robots()
     if name not in robots:
         raise UnknownRobot(f"erd:{name}", [f"erd:{n}" for n in robots], erd=True)
