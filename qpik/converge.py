@@ -12,9 +12,11 @@ runs here with ``dt = 1``: ``alpha`` is the gain of the target tasks (the QP ask
 returns before it is applied. The QP adds what the lecture's pseudoinverse lacks: joint
 limits hold at every iterate (``beta <= 1`` keeps them by convexity; a ``beta > 1`` iterate
 is clipped into the limits), steps stay bounded near singularities (adaptive damping that
-fades with the error), no iteration asks for more than a trust region (``max_step``), and
-lower levels (by default none; distance from the joint limits with ``secondary=True``) act
-only in the null space of the targets.
+fades with the error), no iteration asks for more than a trust region (``max_step``), a
+step that increases the error ``sum |e_p|^2 + |e_o|^2`` is halved (up to three times: near
+singularities the damped step can otherwise overshoot into a limit cycle), and lower
+levels (by default none; distance from the joint limits with ``secondary=True``) act only
+in the null space of the targets.
 
 Two engines run this rule (:attr:`IKResult.engine`):
 
@@ -129,6 +131,8 @@ MAX_ITERS_LIMIT = 100_000
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.
 LIMIT_GAIN = 0.95
+#: Halvings of a step that increases the error ``sum |e_p|^2 + |e_o|^2`` [m^2, rad^2].
+BACKTRACKS = _kernels.BACKTRACKS
 
 
 @dataclass(frozen=True)
@@ -1063,23 +1067,24 @@ def _loop(problem: _Problem, q0, start_time: float, rng_state, settings: _Settin
     beta, stall_window, max_step = settings.beta, settings.stall_window, settings.max_step
     damping_law = settings.damping_law
     configuration = problem.configuration
+    model = configuration.model
     configuration.update(q0)
     rng = np.random.default_rng(int(rng_state[0]))
     lower, upper = configuration.lower, configuration.upper
     threshold = damping_law.singular_threshold if damping_law is not None else 0.0
 
-    def measure() -> tuple[dict[str, tuple[float, float]], float, bool]:
+    def measure() -> tuple[dict[str, tuple[float, float]], float, bool, float]:
         errors = problem.errors(configuration)
         items = list(errors.values()) + problem.level0_errors(configuration)
         score = max(p / tol_position + o / tol_orientation for p, o in items)
         done = all(p <= tol_position and o <= tol_orientation for p, o in items)
-        return errors, score, done
+        return errors, score, done, sum(p * p + o * o for p, o in items)
 
     def out_of_time() -> bool:
         return time_budget is not None and time.perf_counter() - start_time > time_budget
 
     best_q = configuration.q
-    best_errors, best_score, best_done = measure()
+    best_errors, best_score, best_done, _ = measure()
     best_history: list[list[float]] = []
     best_error_history = [_worst(best_errors)]
     best_path = [best_q]
@@ -1089,7 +1094,7 @@ def _loop(problem: _Problem, q0, start_time: float, rng_state, settings: _Settin
     first = True
     while True:
         history: list[list[float]] = []
-        errors, current, done = measure()
+        errors, current, done, energy = measure()
         error_history = [_worst(errors)]
         path = [configuration.q]
         window_start = current
@@ -1108,11 +1113,20 @@ def _loop(problem: _Problem, q0, start_time: float, rng_state, settings: _Settin
             last_step = problem.solver.step(configuration, 1.0)
             total_iterations += 1
             history.append(list(last_step.residuals))
-            q = configuration.integrate(beta * last_step.displacement, 1.0)
-            if beta > 1.0:
-                q = np.clip(q, lower, upper)
-            configuration.update(q)
-            errors, current, done = measure()
+            # Backtracking, as the compiled engine: halve a step that increases the error.
+            q_base = configuration.q
+            scale = beta
+            for halving in range(BACKTRACKS + 1):
+                q = q_base.copy()
+                mujoco.mj_integratePos(model, q, scale * last_step.displacement, 1.0)
+                if beta > 1.0:
+                    q = np.clip(q, lower, upper)
+                configuration.update(q)
+                errors, current, done, new_energy = measure()
+                if new_energy < energy or halving == BACKTRACKS:
+                    break
+                scale *= 0.5
+            energy = new_energy
             error_history.append(_worst(errors))
             path.append(q)
             if _norm(last_step.displacement) < 1e-9:

@@ -221,7 +221,16 @@ def _reference_step(model, frame, target, q, law, damping=1e-6, max_step=(0.2, 0
         method="bvls",
         tol=1e-15,
     )
-    return q + solution.x, sigma
+    # Backtracking: halve a step that increases |e_p|^2 + |e_o|^2, at most three times.
+    energy = ep**2 + eo**2
+    for halving in range(4):
+        step = q + 0.5**halving * solution.x
+        configuration.update(step)
+        p, r = configuration.frame_pose(frame)
+        new = np.sum((p - target[0]) ** 2) + Rotation.from_matrix(r @ target[1].T).magnitude() ** 2
+        if new < energy:
+            break
+    return step, sigma
 
 
 @pytest.mark.parametrize("robot", ["panda", "ur5e"])

@@ -16,8 +16,9 @@ hinge and ``[u; 0]`` for a slide (world-aligned, ``[v; omega]``).
 
 The IGM (:func:`igm_solve`): per iteration, the damped least-squares step of the pose error
 under box bounds (joint limits), solved exactly by an active-set method
-(:func:`box_qp`), with the trust region, the damping law fading with the error, stall
-detection and restarts from a deterministic random stream (SplitMix64).
+(:func:`box_qp`), with the trust region, the damping law fading with the error, backtracking
+(a step that increases the error is halved, up to ``BACKTRACKS`` times), stall detection and
+restarts from a deterministic random stream (SplitMix64).
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ STALLED = 3
 AT_LIMIT = 4
 SINGULAR = 5
 UNREACHABLE = 6
+#: Halvings of a step that increases the error (see igm_solve).
+BACKTRACKS = 3
 REASON_NAMES = (
     "converged",
     "max_iters",
@@ -785,6 +788,7 @@ def igm_solve(
     lb = np.empty(nv)
     ub = np.empty(nv)
     dq = np.empty(nv)
+    q_base = np.empty(nv)
     gram = np.empty((max(6, nv), max(6, nv)))
     q = q0.copy()
     best_score = np.inf
@@ -938,30 +942,43 @@ def igm_solve(
                 at_lower = dq[j] <= lb[j] and lower[j] > -np.inf
                 if at_lower or (dq[j] >= ub[j] and upper[j] < np.inf):
                     active = True
-                q[j] += beta * dq[j]
-                if q[j] < lower[j]:
-                    q[j] = lower[j]
-                if q[j] > upper[j]:
-                    q[j] = upper[j]
-            fk_jac(
-                body_pos,
-                body_rot,
-                jnt_start,
-                jnt_type,
-                jnt_axis,
-                jnt_pos,
-                jnt_qadr,
-                jnt_dadr,
-                jnt_qpos0,
-                frame_pos,
-                frame_rot,
-                q,
-                position,
-                rotation,
-                jac,
-                True,
-            )
-            ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+                q_base[j] = q[j]
+            # Backtracking: a step that increases |e|^2 (the level's own error, [m], [rad])
+            # is halved, up to BACKTRACKS times (near singularities the damped step can
+            # overshoot into a limit cycle).
+            previous = ep * ep + eo * eo
+            t = beta
+            for attempt_step in range(BACKTRACKS + 1):
+                for j in range(nv):
+                    q[j] = q_base[j] + t * dq[j]
+                    if q[j] < lower[j]:
+                        q[j] = lower[j]
+                    if q[j] > upper[j]:
+                        q[j] = upper[j]
+                fk_jac(
+                    body_pos,
+                    body_rot,
+                    jnt_start,
+                    jnt_type,
+                    jnt_axis,
+                    jnt_pos,
+                    jnt_qadr,
+                    jnt_dadr,
+                    jnt_qpos0,
+                    frame_pos,
+                    frame_rot,
+                    q,
+                    position,
+                    rotation,
+                    jac,
+                    True,
+                )
+                ep, eo = _pose_error(
+                    position, rotation, target_p, target_R, has_rot, error, rot_err
+                )
+                if ep * ep + eo * eo < previous or attempt_step == BACKTRACKS:
+                    break
+                t *= 0.5
             path[slot, length] = q
             hist[slot, length, 0] = ep
             hist[slot, length, 1] = eo
