@@ -622,3 +622,75 @@ def test_tasks_limits_and_constraints_may_be_any_iterables():
     )
     assert as_lists.tobytes() == as_generators.tobytes()
     assert isinstance(qpik.build_ik(configuration, (t for t in [task]), DT), qpsolvers.Problem)
+
+
+# ------------------------------------------------------------ benchmarks/mink_suite.py
+def _mink_suite_module():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "mink_suite.py"
+    spec = importlib.util.spec_from_file_location("mink_suite", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module, path
+
+
+def test_mink_suite_reads_junit_outcomes(tmp_path):
+    module, _ = _mink_suite_module()
+    report = tmp_path / "report.xml"
+    report.write_text(
+        '<testsuites><testsuite name="pytest">'
+        '<testcase classname="test_a.TestA" name="test_ok"/>'
+        '<testcase classname="test_a.TestA" name="test_bad"><failure message="AssertionError: 1 != 2">'
+        "trace</failure></testcase>"
+        '<testcase classname="test_a.TestA" name="test_model"><skipped message="needs a downloaded '
+        'model: ur5e_mj_description"/></testcase>'
+        "</testsuite></testsuites>"
+    )
+    assert module._outcomes(report) == {
+        "test_a.TestA::test_ok": ("passed", ""),
+        "test_a.TestA::test_bad": ("failed", "AssertionError: 1 != 2"),
+        "test_a.TestA::test_model": ("skipped", "needs a downloaded model: ur5e_mj_description"),
+    }
+
+
+@pytest.mark.slow
+def test_mink_suite_runs_a_suite_stock_and_patched(tmp_path):
+    """End to end on a three-test suite in mink's style: one test passes only with qpik
+    patched in, one needs a downloaded model, one passes in both runs."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("absl")
+    _, script = _mink_suite_module()
+    (tmp_path / "test_style.py").write_text(
+        "import unittest\n"
+        "import mujoco\n"
+        "import numpy as np\n"
+        "import mink\n"
+        "from robot_descriptions.loaders.mujoco import load_robot_description\n\n\n"
+        "class TestStyle(unittest.TestCase):\n"
+        "    def test_patched(self):\n"
+        "        self.assertEqual(mink.solve_ik.__module__, 'qpik.mink_api')\n\n"
+        "    def test_model(self):\n"
+        "        load_robot_description('ur5e_mj_description')\n\n"
+        "    def test_both(self):\n"
+        "        model = mujoco.MjModel.from_xml_string(\n"
+        '            \'<mujoco><worldbody><body><joint range="-1 1"/><geom size=".1"/>\'\n'
+        "            '</body></worldbody></mujoco>')\n"
+        "        v = mink.solve_ik(mink.Configuration(model), [], 0.01, 'daqp')\n"
+        "        np.testing.assert_array_equal(v, [0.0])\n"
+    )
+    run = subprocess.run(
+        [sys.executable, str(script), "--tests", str(tmp_path)], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stdout + run.stderr
+    lines = run.stdout.splitlines()
+    assert any(line.split()[:3] == ["stock", "mink", "1"] for line in lines), run.stdout
+    assert any(line.split()[:4] == ["mink", "+", "qpik", "2"] for line in lines), run.stdout
+    assert "needs a downloaded model (skipped in both runs): 1 tests" in run.stdout
+    assert (
+        "pass with qpik only: 1" in run.stdout
+        and "test_style.TestStyle::test_patched" in run.stdout
+    )
