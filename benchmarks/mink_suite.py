@@ -110,7 +110,8 @@ def _run_suite(tests: Path, patched: bool, models: str | None, extra: list[str],
         env["QPIK_MINK_MODELS"] = models
     command = [
         sys.executable, "-m", "pytest", str(tests), "-q", "-p", "qpik_mink_plugin",
-        "-p", "no:cacheprovider", "--continue-on-collection-errors", f"--junitxml={junit}", "--rootdir", str(tests), *extra,
+        "-p", "no:cacheprovider", "--continue-on-collection-errors", f"--junitxml={junit}",
+        "--rootdir", str(tests), *extra,
     ]  # fmt: skip
     start = time.perf_counter()
     process = subprocess.run(command, env=env, capture_output=True, text=True, cwd=work)
