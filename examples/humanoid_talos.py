@@ -109,8 +109,9 @@ def run(steps: int = 200, dt: float = 0.01, verbose: bool = True) -> dict:
         "feet_rotation_error": feet_rotation,
         "hand_errors": hand_errors,
         "com_margin": float(com_margin),
-        "step_time_median": float(np.median(times)),
-        "step_time_max": float(np.max(times)),
+        "step_time_median": float(np.median(times[1:] if len(times) > 1 else times)),
+        "step_time_max": float(np.max(times[1:] if len(times) > 1 else times)),
+        "first_step_time": float(times[0]),
         "position_violation": max(position_violation, 0.0),
         "velocity_violation": max(velocity_violation, 0.0),
         "statuses": sorted(statuses),
@@ -126,10 +127,14 @@ def run(steps: int = 200, dt: float = 0.01, verbose: bool = True) -> dict:
             f"  hand errors at the end [m]        left {hand_errors[0]:.4f}  "
             f"right {hand_errors[1]:.4f} (out of reach)"
         )
-        print(f"  CoM margin in the support polygon {com_margin * 1e3:.1f} mm (kept >= 20 mm)")
         print(
-            f"  step time                         median {np.median(times) * 1e3:.2f} ms, "
-            f"max {np.max(times) * 1e3:.2f} ms"
+            f"  CoM margin in the support polygon {com_margin * 1e3:.1f} mm "
+            "(smallest; the limit asks 20 mm, to first order)"
+        )
+        later = times[1:] if len(times) > 1 else times
+        print(
+            f"  cycle time (step + correction)    median {np.median(later) * 1e3:.2f} ms, "
+            f"max {np.max(later) * 1e3:.2f} ms; first {times[0] * 1e3:.0f} ms (warm-up)"
         )
         print(f"  joint position violation          {figures['position_violation']:.2e} rad")
         print(f"  joint velocity violation          {figures['velocity_violation']:.2e} rad/s")

@@ -31,5 +31,5 @@ def test_humanoid_stack_holds_the_feet_and_the_limits(capsys):
     left, right = figures["hand_errors"]
     assert right > 0.5  # out of reach: 1.5 m to the side
     out = capsys.readouterr().out
-    for line in ("feet error", "hand errors", "CoM margin", "step time", "velocity violation"):
+    for line in ("feet error", "hand errors", "CoM margin", "cycle time", "velocity violation"):
         assert line in out
