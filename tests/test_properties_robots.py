@@ -5,7 +5,6 @@ are finite, and finite torques / wrenches."""
 from __future__ import annotations
 
 import numpy as np
-import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from properties_common import (
@@ -157,11 +156,6 @@ def exercise(model) -> None:
                 assert_finite(result, "solve")
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="a non-UTF-8 robot file raises UnicodeDecodeError from qpik/robots.py "
-    "(path.read_text), pending a fix there",
-)
 @props(40)
 @given(
     text=st.one_of(urdf_text(), mjcf_text()),
@@ -187,11 +181,6 @@ def test_malformed_robot_files_raise_robot_file_error_or_load_finite(
     exercise(model)
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="load_robot('x' * 300) raises OSError (File name too long) from qpik/robots.py, "
-    "pending the robots fix",
-)
 @props(20)
 @given(
     name=st.one_of(
