@@ -315,13 +315,24 @@ def test_joint_torque_limits_from_actuators():
 
 
 def _brute_force_payload(configuration, direction, limits, gravity, top, steps=1501):
-    """Largest s on a grid over [0, top] whose holding torques are within the limits."""
-    best = np.nan
-    for s in np.linspace(0.0, top, steps):
+    """Largest s on a grid of ``steps`` points over [0, top] whose holding torques (MuJoCo,
+    per s) are within the limits. The feasible magnitudes form an interval, so the grid is
+    scanned in two passes of about sqrt(steps) points: a coarse one, then the cell after its
+    last feasible point; returns that s and the grid step."""
+
+    def holds(s):
         tau = statics.holding_torques(configuration, [("ee", s * direction)], gravity=gravity)
-        if np.all((limits[:, 0] - 1e-9 <= tau) & (tau <= limits[:, 1] + 1e-9)):
-            best = s
-    return best, top / (steps - 1)
+        return np.all((limits[:, 0] - 1e-9 <= tau) & (tau <= limits[:, 1] + 1e-9))
+
+    grid = np.linspace(0.0, top, steps)
+    stride = max(1, int(np.sqrt(steps)))
+    coarse = [i for i in range(0, steps, stride) if holds(grid[i])]
+    if not coarse:  # the interval may start inside a coarse cell: scan the whole grid
+        fine = [i for i in range(steps) if holds(grid[i])]
+        return (grid[fine[-1]] if fine else np.nan), top / (steps - 1)
+    last = coarse[-1]
+    fine = [i for i in range(last, min(last + stride, steps)) if holds(grid[i])]
+    return grid[fine[-1]], top / (steps - 1)
 
 
 @pytest.mark.parametrize("robot", ARMS)
