@@ -423,6 +423,8 @@ def test_configuration_from_a_mink_configuration_copies_its_state():
     np.testing.assert_array_equal(qpik.Configuration(source, np.array([0.1])).q, [0.1])
     with pytest.raises(qpik.InvalidConfiguration):
         qpik.Configuration(source, np.array([np.nan]))
+    again = qpik.Configuration(ours)  # a qpik configuration is a mink one: copied the same way
+    assert again.data is not ours.data and again.q.tobytes() == ours.q.tobytes()
 
 
 def _qpik_task(name: str, configuration):
