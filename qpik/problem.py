@@ -540,7 +540,9 @@ class Problem:
         if self.velocity_limits is not None:
             names = joint_names(self.model)
             velocities = {
-                names[self.model.dof_jntid[i]]: float(v) for i, v in enumerate(self.velocity_limits)
+                names[self.model.dof_jntid[i]]: float(v)
+                for i, v in enumerate(self.velocity_limits)
+                if np.isfinite(v)
             }
             limits.append(VelocityLimit(self.model, velocities))
         return limits
@@ -1382,6 +1384,8 @@ def _read_limits(reader: _Reader, data: dict, model) -> tuple[bool, np.ndarray |
         reader.number(value, "limits.velocity", "velocity", "a scale")
         velocity = float(value) * np.asarray(base, dtype=float)
         for i in range(model.nv):
+            if not np.isfinite(base[i]):
+                continue  # a dof the model leaves unlimited (0 in its velocity_limit)
             reader.number(
                 float(velocity[i]), f"limits.velocity (x the velocity_limit of dof {i})",
                 "velocity", "a velocity",
