@@ -333,3 +333,21 @@ def test_problem_file_starts_from_an_srdf_state(tmp_path):
         warnings.simplefilter("ignore")
         loaded = qpik.load_problem(problem)
     np.testing.assert_array_equal(loaded.q0, loaded.model.key("half_sitting").qpos)
+
+
+def test_problem_velocity_scale_leaves_unlimited_dofs_free(tmp_path):
+    (tmp_path / "arm.urdf").write_text(URDF)
+    (tmp_path / "p.toml").write_text(
+        'robot = "arm.urdf"\nmode = "track"\n[[levels]]\n[[levels.tasks]]\ntype = "position"\n'
+        'frame = "tool0"\nframe_type = "body"\n[target]\nposition = [0.5, 0.2, 0.4]\n'
+        "[limits]\nvelocity = 0.5\n[track]\ndt = 0.01\nsteps = 5\n"
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        problem = qpik.load_problem(tmp_path / "p.toml")
+    # shoulder: 0.5 x the URDF's 1 rad/s; the continuous elbow declares none.
+    np.testing.assert_array_equal(problem.velocity_limits, [0.5, np.inf])
+    (velocity,) = [
+        lim for lim in problem.build_limits() if isinstance(lim, qpik.limits.VelocityLimit)
+    ]
+    assert velocity.limit.tolist() == [0.5]
