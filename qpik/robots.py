@@ -58,7 +58,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from .errors import MissingExtra, RobotFileError, UnknownRobot
+from .errors import InvalidInput, MissingExtra, RobotFileError, UnknownRobot
 
 __all__ = [
     "ERD_ROBOTS",
@@ -166,8 +166,8 @@ def load_robot(
             left at their defaults).
         floating_base: add a free joint ``root_joint`` at the root body (a humanoid or a
             legged robot whose base moves in the world).
-        srdf: an SRDF file whose named states become keyframes; ``None`` (default): look
-            for one beside a URDF; ``False``: none.
+        srdf: an SRDF file whose named states become keyframes; ``None`` (default) or
+            ``True``: look for one beside a URDF; ``False``: none.
     """
     if isinstance(source, mujoco.MjModel):
         if floating_base or srdf not in (None, False):
@@ -176,7 +176,7 @@ def load_robot(
             )
         return source
     if not isinstance(source, (str, os.PathLike)):
-        raise TypeError(
+        raise InvalidInput(
             f"load_robot expects a name, a path or an MjModel, got {type(source).__name__}"
         )
     text = os.fspath(source)
@@ -319,7 +319,7 @@ def robot_spec(
     if velocities:
         _add_velocity_numeric(spec, model, velocities)
     srdf_path = None
-    if srdf is None and root.tag == "robot":
+    if srdf in (None, True) and root.tag == "robot":
         srdf_path = find_srdf(path)
     elif srdf not in (None, False, True):
         srdf_path = Path(os.fspath(srdf))
