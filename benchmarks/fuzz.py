@@ -566,7 +566,7 @@ def gen_analysis(r: random.Random) -> dict:
 
 
 def gen_cli(r: random.Random) -> dict:
-    command = r.choice(["fk", "analyze", "statics", "robots", "reach", "demo"])
+    command = r.choice(["fk", "analyze", "statics", "robots", "reach", "demo", "batch", "reachmap"])
     robot = _maybe(
         r,
         r.choice(ROBOTS),
@@ -604,6 +604,35 @@ def gen_cli(r: random.Random) -> dict:
         "extra": extra,
         "reach_file": r.choice([p.name for p in _shipped_problems()]),
         "problem": gen_problem(r) if command == "reach" and r.random() < 0.6 else None,
+        "targets": r.choice(
+            ["good", "nan", "huge", "empty", "ragged_csv", "quat_zero", "not_npz", "missing"]
+        ),
+        "batch_args": r.choice(
+            [
+                [],
+                ["--chunk-size", "0"],
+                ["--chunk-size", "-1"],
+                ["--tol-position", "nan"],
+                ["--max-iters", "-1"],
+                ["--restarts", "-1"],
+                ["--time-budget", "inf"],
+                ["--seed", "-1"],
+                ["--workers", "0"],
+                ["--max-chunks", "1"],
+                ["--frame", "nope"],
+            ]
+        ),
+        "region": r.choice(
+            [
+                ["0", "0", "0", "0.4", "0.4", "0.4"],
+                ["0", "0", "0", "nan", "1", "1"],
+                ["1", "1", "1", "0", "0", "0"],
+                ["0", "0", "0", "1e300", "1e300", "1e300"],
+                ["0", "0", "0", "0", "0", "0"],
+            ]
+        ),
+        "resolution": r.choice(["0.2", "0.4", "0", "-1", "nan", "inf", "1e-9", "1e300"]),
+        "orientations": r.choice(["0", "1", "2", "-1", "1000000000"]),
     }
 
 
@@ -1463,6 +1492,8 @@ def run_cli(spec: dict) -> str:
         if any(a == "--robot" for a in spec["extra"]):
             argv += ["--robot", "nope"]
         argv += ["--robot", spec["robot"]] if spec["robot"] in ROBOTS else []
+    elif command in ("batch", "reachmap"):
+        return _run_cli_batch(spec)
     elif command == "reach":
         if spec["problem"] is not None:
             with tempfile.TemporaryDirectory() as folder:
@@ -1481,6 +1512,82 @@ def run_cli(spec: dict) -> str:
         if token.lower() in ("nan", "-nan"):
             raise Bad("nonfinite", f"qpik {' '.join(argv)[:80]} printed nan")
     return _digest(code, out if command not in ("reach", "demo") else "")
+
+
+def _targets_file(kind: str, folder: Path) -> Path:
+    np = _np()
+    if kind == "missing":
+        return folder / "missing.npz"
+    if kind == "not_npz":
+        path = folder / "t.npz"
+        path.write_bytes(b"not a zip file")
+        return path
+    if kind == "ragged_csv":
+        path = folder / "t.csv"
+        path.write_text("x,y,z\n0.3,0.1\n0.3,0.1,0.4,9\nnan,a,1\n")
+        return path
+    positions = {
+        "good": np.array([[0.3, 0.1, 0.4], [0.4, -0.1, 0.3]]),
+        "nan": np.array([[np.nan, 0.1, 0.4]]),
+        "huge": np.array([[1e300, 0.0, 0.0]]),
+        "empty": np.zeros((0, 3)),
+        "quat_zero": np.array([[0.3, 0.1, 0.4]]),
+    }[kind]
+    path = folder / "t.npz"
+    if kind == "quat_zero":
+        np.savez(path, positions=positions, quaternions=np.zeros((1, 4)))
+    else:
+        np.savez(path, positions=positions)
+    return path
+
+
+def _run_cli_batch(spec: dict) -> str:
+    """``qpik batch`` / ``qpik reachmap`` on small (or malformed) inputs, one worker."""
+    robot = spec["robot"] if spec["robot"] in ROBOTS else "planar_2r"
+    with tempfile.TemporaryDirectory() as folder:
+        folder = Path(folder)
+        if spec["command"] == "batch":
+            argv = [
+                "batch",
+                str(_targets_file(spec["targets"], folder)),
+                "--robot",
+                robot,
+                "--frame",
+                "ee",
+                "--out",
+                str(folder / "out.npz"),
+                "--workers",
+                "1",
+                "--quiet",
+                "--restarts",
+                "1",
+                *spec["batch_args"],
+            ]
+            allowed = (0, 1, 2, 3)
+        else:
+            argv = [
+                "reachmap",
+                robot,
+                "--frame",
+                "ee",
+                "--region",
+                *spec["region"],
+                "--resolution",
+                spec["resolution"],
+                "--orientations",
+                spec["orientations"],
+                "--out",
+                str(folder / "map.npz"),
+                "--workers",
+                "1",
+                "--quiet",
+                "--restarts",
+                "0",
+            ]
+            allowed = (0, 1, 2)
+        code, out, err = _cli(argv)
+        _cli_check(code, err, allowed)
+        return _digest(code)
 
 
 # -- robot files

@@ -201,7 +201,7 @@ def test_cli_reach_on_every_shipped_file_exits_0_or_1(name):
     assert code in (0, 1) and "Traceback" not in err, err
 
 
-def test_cli_internal_error_is_one_line_with_exit_3(monkeypatch):
+def test_cli_internal_error_is_one_line_with_exit_70(monkeypatch):
     from qpik.cli import robots
 
     def broken(args):
@@ -210,7 +210,7 @@ def test_cli_internal_error_is_one_line_with_exit_3(monkeypatch):
     monkeypatch.setattr(robots, "run", broken)
     monkeypatch.delenv("QPIK_DEBUG", raising=False)
     code, _, err = run_cli(["robots"])
-    assert code == 3 and "Traceback" not in err
+    assert code == 70 and "Traceback" not in err
     assert (
         err.startswith("qpik robots: internal error: ZeroDivisionError: boom")
         and err.count("\n") == 1

@@ -32,10 +32,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Exit codes: 0 success, 1 a command's negative answer (e.g. ``reach``: not converged),
-#: 2 invalid input (argparse's usage errors too), 3 an internal error (a bug: please
-#: report it; ``QPIK_DEBUG=1`` prints its traceback).
+#: 2 invalid input (argparse's usage errors too), 70 an internal error (``EX_SOFTWARE``: a
+#: bug; please report it; ``QPIK_DEBUG=1`` prints its traceback). Commands may add their
+#: own (``batch``: 3 stopped early).
 EXIT_INVALID_INPUT = 2
-EXIT_INTERNAL_ERROR = 3
+EXIT_INTERNAL_ERROR = 70
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -43,7 +44,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     Errors never print a traceback: a :class:`qpik.QpikError` or an operating-system
     error (a file that cannot be read or written) prints ``qpik COMMAND: error: ...`` and
-    returns 2; anything else is a bug, reported in one line with exit code 3 (set the
+    returns 2; anything else is a bug, reported in one line with exit code 70 (set the
     environment variable ``QPIK_DEBUG=1`` to see the traceback).
     """
     parser = build_parser()
