@@ -217,7 +217,28 @@ _WORKER: dict[str, _ChunkSolver] = {}  # per worker process, set by its initiali
 
 
 def _init_worker(spec: Any, entropy: int, options: Mapping[str, Any]) -> None:
+    _die_with_parent()
     _WORKER["solver"] = _ChunkSolver(spec, entropy, options)
+
+
+def _die_with_parent() -> None:
+    """A pool worker must not outlive its parent (killed, say, by SIGKILL or an
+    uncaught SIGTERM): on Linux the kernel sends it SIGTERM when the parent dies."""
+    import signal
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not a handler forked from the parent
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl: workers then rely on a clean shutdown
+        return
+    if os.getppid() == 1:  # the parent died before prctl took effect
+        os._exit(1)
 
 
 def _solve_chunk_in_worker(chunk: Chunk) -> tuple[int, list[IKResult | _Failure]]:

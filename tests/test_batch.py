@@ -366,3 +366,29 @@ def test_public_names_exist_and_are_documented():
     assert qpik.reachability is reach_module.reachability
     assert qpik.ReachabilityMap is reach_module.ReachabilityMap
     assert {"solve_many", "reachability", "ReachabilityMap"} <= set(qpik.__all__)
+
+
+def test_batch_cli_sigterm_ends_like_ctrl_c(tmp_path, monkeypatch, capsys):
+    import os
+    import signal
+
+    write_targets(tmp_path / "t.npz")
+    out = tmp_path / "r.npz"
+    argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
+    argv += ["--out", str(out), "--chunk-size", "2", "--workers", "1", "--quiet"]
+    real_solve = batch.solve
+
+    def terminated(model, targets, **options):
+        if np.allclose(targets["ee"][0], TARGETS[4]["ee"][0]):
+            os.kill(os.getpid(), signal.SIGTERM)  # a scheduler preempting the job
+        return real_solve(model, targets, **options)
+
+    before = signal.getsignal(signal.SIGTERM)
+    monkeypatch.setattr(batch, "solve", terminated)
+    assert main(argv) == 130
+    assert signal.getsignal(signal.SIGTERM) is before  # the CLI's handler is removed
+    assert np.load(out)["done"].sum() == 4
+    assert sorted(p.name for p in (tmp_path / "r.npz.chunks").glob("chunk_*")) == [
+        "chunk_0000000000.npz",
+        "chunk_0000000002.npz",
+    ]

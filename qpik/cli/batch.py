@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from ..batch import solve_file
@@ -80,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
         )
         if value is not None
     }
+    previous = _terminate_like_interrupt()
     try:
         run_ = solve_file(
             args.robot,
@@ -103,6 +105,23 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     if not args.quiet:
         print(run_.summary())
     return 0 if run_.complete else 3
+
+
+def _raise_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _terminate_like_interrupt():
+    """SIGTERM (a scheduler's preemption, ``kill``) ends the run like Ctrl-C: finished
+    chunks are kept, the workers are stopped. Returns the previous handler (``None`` off
+    the main thread, where handlers cannot be set)."""
+    try:
+        return signal.signal(signal.SIGTERM, _raise_interrupt)
+    except ValueError:
+        return None
