@@ -194,3 +194,22 @@ def test_minks_limits_under_qpiks_names_raise_typed_errors():
     ]:
         with pytest.raises(qpik.LimitDefinitionError, match=match):
             bad()
+
+
+def test_collision_and_support_rows_appear_in_the_built_qp():
+    model = _two_link()
+    configuration = qpik.Configuration(model, [0.3, 0.2])
+    limit = CollisionAvoidanceLimit(
+        model,
+        [(["link1", "link2"], ["ball"])],
+        minimum_distance_from_collisions=0.05,
+        collision_detection_distance=0.5,
+    )
+    posture = PostureTask(model, cost=1.0)
+    posture.set_target([1.0, 0.0])
+    problem = qpik.IKSolver(model, [[posture]], [limit]).build(configuration, DT)
+    rows = limit.compute_qp_inequalities(configuration, DT)
+    np.testing.assert_array_equal(problem.G, rows.G)
+    np.testing.assert_array_equal(problem.h, rows.h)
+    far = qpik.Configuration(model, [-1.0, 0.0])  # out of detection range: no row at all
+    assert qpik.IKSolver(model, [[posture]], [limit]).build(far, DT).G.shape[0] == 0
