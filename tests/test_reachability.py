@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 import qpik
 from qpik.cli import main
-from qpik.reachability import ReachabilityMap, reach_bound, so3_grid
+from qpik.reachability import ReachabilityMap, _reach_bounds, reach_bound, so3_grid
 
 
 def geodesic(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -47,16 +47,21 @@ def test_so3_grid_is_rotations_spread_more_evenly_than_random():
 
 
 @pytest.mark.parametrize("robot", ["ur5e", "panda", "planar_2r"])
-def test_reach_bound_holds_for_sampled_configurations(robot):
-    center, radius = reach_bound(robot, "ee")
-    configuration = qpik.Configuration(qpik.load_robot(robot))
+def test_reach_bounds_hold_for_sampled_configurations(robot):
+    model = qpik.load_robot(robot)
+    bounds = _reach_bounds(model, "ee")  # ours (first) and the IK engine's
+    assert len(bounds) == 2
+    np.testing.assert_array_equal(bounds[0][0], reach_bound(robot, "ee")[0])
+    configuration = qpik.Configuration(model)
     rng = np.random.default_rng(0)
-    distances = []
+    points = []
     for _ in range(2000):
         configuration.update(configuration.random_q(rng))
-        distances.append(np.linalg.norm(configuration.frame_pose("ee")[0] - center))
-    assert max(distances) <= radius + 1e-9
-    assert max(distances) > 0.8 * radius  # and it is not vacuous
+        points.append(configuration.frame_pose("ee")[0])
+    for center, radius in bounds:
+        distances = np.linalg.norm(np.array(points) - center, axis=1)
+        assert distances.max() <= radius + 1e-9
+        assert distances.max() > 0.8 * radius  # and it is not vacuous
 
 
 def test_reach_bound_closed_forms():
