@@ -42,6 +42,8 @@ NOT_REACHED = 5
 _BIG = 1e20  # bounds beyond this are treated as absent
 _DEGENERATE = 1e-9  # multipliers / slacks this small make an active set degenerate
 _ROUNDOFF = 1e-11  # violations this small at a degenerate vertex are round-off
+_DEPENDENT = 1e-10  # a normal this close to the working set's span depends on it
+_VERIFY = 1e-8  # a final violation above this (relative) is a numerical failure
 
 
 @njit(cache=True)
@@ -417,14 +419,19 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                     t = u[j] / r[j]
                     if t < t1:
                         t1, drop = t, j
-            # Full (primal) step: make the candidate constraint hold with equality.
-            zz = 0.0
-            for k in range(n):
-                zz += z[k] * z[k]
+            # Full (primal) step: make the candidate constraint hold with equality. None
+            # when the candidate's normal lies (numerically) in the span of the working
+            # set's: then d2 = d[q:] is round-off and z = J2 d2 would be garbage.
+            outside = 0.0
+            total = 0.0
+            for i in range(n):
+                total += d[i] * d[i]
+                if i >= q:
+                    outside += d[i] * d[i]
             zn = z @ normal
             slack = normal @ x - rhs
             t2 = np.inf
-            if zz > 1e-30 * (normal @ normal) and zn > 0.0:
+            if outside > _DEPENDENT * _DEPENDENT * total and zn > 0.0:
                 t2 = max(-slack / zn, 0.0)
             t = min(t1, t2)
             if t == np.inf:
@@ -438,13 +445,17 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                 for j in range(q):
                     active[act_row[j]] = act_side[j]
                 return x, INFEASIBLE, iterations, active
+            full = t2 <= t1
+            if full:
+                x_old = x.copy()
+                u_old = u.copy()
             if t2 < np.inf:
                 for k in range(n):
                     x[k] += t * z[k]
             for j in range(q):
                 u[j] -= t * r[j]
             u[q] += t
-            if t2 <= t1:
+            if full:
                 # Add the candidate: rotate d so that only d[:q+1] is non-zero.
                 for j in range(n - 1, q, -1):
                     cc = d[j - 1]
@@ -470,7 +481,12 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                 for i in range(q + 1):
                     R[i, q] = d[i]
                 if abs(d[q]) <= 1e-14 * r_norm:
-                    # Numerically dependent on the working set: treat as met (round-off).
+                    # Numerically dependent on the working set after all: undo the step
+                    # (J is unchanged where it matters) and leave the row out; the final
+                    # verification catches it if it stays violated.
+                    x = x_old
+                    u = u_old
+                    u[q] = 0.0
                     in_set[row] = True
                     break
                 r_norm = max(r_norm, abs(d[q]))
@@ -544,26 +560,43 @@ def _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
     # answer is no more accurate): so both a warm and a cold start end here.
     if ok and _kkt_ok(xp, up, C, lo, hi, k, max(tol, 1e-9)):
         return xp, SOLVED, iterations, active
-    return x, SOLVED, iterations, active
+    # The KKT conditions could not be verified on the final active set (degeneracy and
+    # round-off): never call that solved; the caller retries with widened rows.
+    return x, NUMERICAL, iterations, active
 
 
 @njit(cache=True)
-def solve_lower_level(H, c, C, lo, hi, warm, max_iter, tol):
-    """:func:`solve_qp` for a level below the first, whose QP is feasible by construction
-    (``z = 0``, the level above's answer, meets every row). An ``INFEASIBLE`` there is
-    round-off at a degenerate vertex: the rows are then widened by 1e-10 (relative) and the
-    QP solved again (the box is re-imposed exactly on ``dq`` afterwards)."""
-    z, st, its, act = solve_qp(H, c, C, lo, hi, warm, max_iter, tol)
-    if st != INFEASIBLE:
-        return z, st, its, act
+def _widened(lo, hi, scale):
+    """Bounds widened by ``scale (1 + |bound|) (1 + i / m)``: distinct per row, so that a
+    degenerate vertex (more rows active than dimensions) becomes a regular one."""
     m = lo.shape[0]
     lo2 = np.empty(m)
     hi2 = np.empty(m)
     for i in range(m):
-        lo2[i] = lo[i] - 1e-10 * (1.0 + abs(lo[i])) if lo[i] > -_BIG else lo[i]
-        hi2[i] = hi[i] + 1e-10 * (1.0 + abs(hi[i])) if hi[i] < _BIG else hi[i]
-    z, st, more, act = solve_qp(H, c, C, lo2, hi2, np.zeros(m, dtype=np.int8), max_iter, tol)
-    return z, st, its + more, act
+        eps = scale * (1.0 + i / max(m, 1))
+        lo2[i] = lo[i] - eps * (1.0 + abs(lo[i])) if lo[i] > -_BIG else lo[i]
+        hi2[i] = hi[i] + eps * (1.0 + abs(hi[i])) if hi[i] < _BIG else hi[i]
+    return lo2, hi2
+
+
+@njit(cache=True)
+def solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower):
+    """:func:`solve_qp` for one level, robust to degenerate vertices: when the exact solve
+    fails numerically (or, below the first level, whose QP is feasible by construction
+    since ``z = 0`` meets every row, reports infeasibility), the rows are widened by
+    1e-11, then 1e-9 (relative, distinct per row) and the QP solved again. The box is
+    re-imposed exactly on ``dq`` afterwards."""
+    z, st, its, act = solve_qp(H, c, C, lo, hi, warm, max_iter, tol)
+    if st == SOLVED or st == MAX_ITER or (st == INFEASIBLE and not lower):
+        return z, st, its, act
+    m = lo.shape[0]
+    for scale in (1e-11, 1e-9):
+        lo2, hi2 = _widened(lo, hi, scale)
+        z, st, more, act = solve_qp(H, c, C, lo2, hi2, np.zeros(m, dtype=np.int8), max_iter, tol)
+        its += more
+        if st == SOLVED:
+            return z, st, its, act
+    return z, st, its, act
 
 
 @njit(cache=True)
@@ -781,10 +814,7 @@ def solve_cascade(
         sigma[k] = sig
         lam2[k] = lam
         H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)
-        if k == 0:
-            z, st, its, act = solve_qp(H, c, C, lo, hi, warm[k], max_iter, tol)
-        else:
-            z, st, its, act = solve_lower_level(H, c, C, lo, hi, warm[k], max_iter, tol)
+        z, st, its, act = solve_level(H, c, C, lo, hi, warm[k], max_iter, tol, k > 0)
         iterations[k] = its
         active[k] = act
         if st == SOLVED:

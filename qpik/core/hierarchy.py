@@ -445,8 +445,7 @@ class HierarchySolver:
         converged."""
         exact = K.solve_qp
         if fallback:
-            solve = K.solve_qp if k == 0 else K.solve_lower_level
-            z, st, it, act = solve(H, c, C, lo, hi, warm, max_iter, self.tolerance)
+            z, st, it, act = K.solve_level(H, c, C, lo, hi, warm, max_iter, self.tolerance, k > 0)
             if st in (K.SOLVED, K.INFEASIBLE):
                 return z, st, it, act, "auto"
             name = "osqp"
@@ -468,8 +467,7 @@ class HierarchySolver:
             )  # fmt: skip
             return None, code, 0 if solution is None else solution.iterations, None, name
         zeros = np.zeros(C.shape[0], dtype=np.int8)
-        solve = K.solve_qp if k == 0 else K.solve_lower_level
-        z, st, it, act = solve(H, c, C, lo, hi, zeros, max_iter, self.tolerance)
+        z, st, it, act = K.solve_level(H, c, C, lo, hi, zeros, max_iter, self.tolerance, k > 0)
         return z, st, it, act, f"{name} failed: auto"
 
     def _backend_solve(self, k, name, H, c, C, lo, hi):
