@@ -32,6 +32,7 @@ path) installed on every node.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing
 import os
@@ -191,6 +192,23 @@ class _Failure:
     error: str
 
 
+#: The options key that carries ``histories`` to the workers (never passed to solve).
+_HISTORIES = "_qpik_batch_histories"
+#: Per-iteration fields of an IKResult that a batch drops unless ``histories=True``.
+_HISTORY_FIELDS = ("residual_history", "error_history", "path")
+
+
+def _without_histories(result: IKResult) -> IKResult:
+    """``result`` with its per-iteration diagonstics emptied (their defaults): a batch
+    sends about 5x less data back from its workers."""
+    empty = {
+        f.name: f.default_factory()  # type: ignore[misc]
+        for f in dataclasses.fields(result)
+        if f.name in _HISTORY_FIELDS and f.default_factory is not dataclasses.MISSING
+    }
+    return dataclasses.replace(result, **empty) if empty else result
+
+
 class _ChunkSolver:
     """One worker's state: the robot, loaded once, and the batch options."""
 
@@ -198,9 +216,11 @@ class _ChunkSolver:
         self.model = load_robot(spec)
         self.entropy = entropy
         self.options = dict(options)
+        self.histories = bool(self.options.pop(_HISTORIES, False))
 
     def solve(self, index: int, targets: Mapping) -> IKResult:
-        return solve(self.model, targets, seed=target_seed(self.entropy, index), **self.options)
+        result = solve(self.model, targets, seed=target_seed(self.entropy, index), **self.options)
+        return result if self.histories else _without_histories(result)
 
     def solve_chunk(self, chunk: Chunk) -> tuple[int, list[IKResult | _Failure]]:
         results: list[IKResult | _Failure] = []
@@ -301,19 +321,21 @@ def iter_solve(
     workers: int | None = None,
     backend: str = "process",
     address: str | None = None,
+    histories: bool = False,
     **solve_options: Any,
 ) -> Iterator[tuple[int, list[IKResult]]]:
     """Solve chunks of a batch and yield ``(start, results)`` as each chunk finishes (in
     completion order, not index order). ``workers=1`` solves in this process, in order.
     The workers stop when the iterator is exhausted or closed. Chunks are read lazily, a
     few per worker ahead, so ``chunks`` may be a generator over a huge batch. The targets
-    are not checked here (see :func:`solve_many`)."""
+    are not checked here (see :func:`solve_many`, also for ``histories``)."""
     entropy = _check_seed(seed)
     workers = check_workers(workers, backend)
     spec, model, q0 = prepare_robot(robot)
     options = dict(solve_options)
     if q0 is not None:
         options.setdefault("q0", q0)
+    options[_HISTORIES] = histories
     yield from _iter_prepared(spec, model, chunks, entropy, workers, backend, address, options)
 
 
@@ -423,6 +445,7 @@ def solve_many(
     progress: bool = True,
     chunk_size: int | None = None,
     pool_threshold: float = 1.0,
+    histories: bool = False,
     **solve_options: Any,
 ) -> list[IKResult]:
     """Solve a batch of IK problems (one ``{frame: target}`` mapping each, world frame,
@@ -446,6 +469,9 @@ def solve_many(
         chunk_size: targets per task (default: about four chunks per worker, at most 64).
         pool_threshold: [s] a batch whose serial time, estimated from its first solve,
             is below this is solved in this process (no workers start).
+        histories: keep each result's per-iteration ``residual_history``,
+            ``error_history`` and ``path``; by default they are left empty (a batch then
+            moves about 5x less data between processes).
         **solve_options: passed to every :func:`qpik.solve` call.
     """
     targets_list = list(targets_list)
@@ -457,6 +483,7 @@ def solve_many(
     options = dict(solve_options)
     if q0 is not None:
         options.setdefault("q0", q0)
+    options[_HISTORIES] = histories
     results: list[IKResult] = []
     for _start, chunk_results in _stream(
         spec,
@@ -510,7 +537,7 @@ def _stream(
     bar = progress_bar(n, progress)
     try:
         start_time = time.perf_counter()
-        first = solve(model, targets_at(0, 1)[0], seed=target_seed(entropy, 0), **options)
+        first = _ChunkSolver(model, entropy, options).solve(0, targets_at(0, 1)[0])
         estimate = (time.perf_counter() - start_time) * (n - 1)
         bar.update(1)
         yield 0, [first]

@@ -392,3 +392,19 @@ def test_batch_cli_sigterm_ends_like_ctrl_c(tmp_path, monkeypatch, capsys):
         "chunk_0000000000.npz",
         "chunk_0000000002.npz",
     ]
+
+
+def test_histories_are_dropped_unless_asked_for():
+    lean = qpik.solve_many("ur5e", TARGETS[:3], seed=2, workers=1, progress=False)
+    full = qpik.solve_many("ur5e", TARGETS[:3], seed=2, workers=1, progress=False, histories=True)
+    alone = qpik.solve("ur5e", TARGETS[2], seed=target_seed(2, 2))
+    assert len(lean[2].path) == 0 and len(lean[2].residual_history) == 0
+    np.testing.assert_array_equal(full[2].path, alone.path)
+    assert list(full[2].error_history) == list(alone.error_history)
+    for a, b in zip(lean, full, strict=True):
+        np.testing.assert_array_equal(a.q, b.q)
+        assert (a.reason, a.iterations, a.position_error) == (
+            b.reason,
+            b.iterations,
+            b.position_error,
+        )
