@@ -20,7 +20,9 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     [[levels.tasks]]
     type = "frame"                     # one of TASK_TYPES (below)
     frame = "ee"                       # frame name (frame, position, orientation,
-    frame_type = "site"                #   manipulability); site (default), body or geom
+    frame_type = "site"                #   manipulability); site (default), body or geom;
+                                       #   both left out: the robot's tool frame
+                                       #   (qpik.robots.tool_frame)
     position_cost = 1.0                # frame tasks: position_cost, orientation_cost;
     orientation_cost = 1.0             #   other tasks: cost (a number or a list)
     gain = 1.0                         # in (0, 1]; optional
@@ -124,7 +126,7 @@ from .converge import IGM_DAMPING, IKResult, Target, set_frame_target, solve
 from .errors import ProblemFileError, QpikError, UnknownFrame, UnknownRobot
 from .hierarchy import DampingLaw, IKSolver
 from .limits import ConfigurationLimit, VelocityLimit
-from .robots import list_robots, load_robot
+from .robots import list_robots, load_robot, tool_frame
 from .tasks import (
     BaseTask,
     ComTask,
@@ -1165,6 +1167,9 @@ def _configuration_value(
 
 
 def _frame(reader: _Reader, table: dict, where: str, model) -> tuple[str, FrameType]:
+    if "frame" not in table and "frame_type" not in table:  # the robot's tool frame
+        tool = tool_frame(model)
+        return tool.name, FrameType(tool.frame_type)
     frame = reader.get(table, "frame", where, str, "a frame name (e.g. 'ee')")
     kind_text = reader.get(table, "frame_type", where, str, "site, body or geom", "site")
     try:

@@ -133,3 +133,15 @@ def test_joint_curves_cover_free_and_ball_joints():
     _, ball, bounds = joint_curves(model, q)[4]
     np.testing.assert_allclose(ball, [0.0, 0.6, 0.0])
     assert bounds == (0.0, 0.8)
+
+
+@requires_erd
+def test_reach_uses_the_tool_frame_when_a_file_names_none(tmp_path, capsys):
+    (tmp_path / "p.toml").write_text(
+        'robot = "erd:ur5"\nq0 = [0, -1.2, 1.2, 0, 0, 0]\n'
+        '[[levels]]\n[[levels.tasks]]\ntype = "position"\n'
+        "[target]\nposition = [0.4, 0.2, 0.3]\n"
+    )
+    assert main(["reach", str(tmp_path / "p.toml")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("goal frame: body 'tool0' (the robot's tool frame: a known tool link")

@@ -6,7 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..configuration import FrameType
 from ..problem import load_problem
+from ..robots import tool_frame
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +42,10 @@ def run(args: argparse.Namespace) -> int:
         _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     result = problem.solve()
     if not args.quiet:
+        goal = problem.goals[0]
+        tool = tool_frame(problem.model)
+        note = f" (the robot's tool frame: {tool.reason})" if goal.frame == tool.name else ""
+        print(f"goal frame: {FrameType(goal.frame_type).value} {goal.frame!r}{note}")
         print(result.summary())
     if args.json is not None:
         Path(args.json).write_text(result.to_json() + "\n")
