@@ -732,7 +732,8 @@ def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
 @dataclass
 class BatchRun:
     """What :func:`solve_file` did: targets in the file, chunks solved before this run
-    and in it, whether every chunk is now done, and the wall time of this run [s]."""
+    and in it (and targets in it), whether every chunk is now done, the wall time of this
+    run [s], and over every target done, how many converged and why the others did not."""
 
     out: str
     total: int
@@ -742,15 +743,19 @@ class BatchRun:
     complete: bool
     elapsed: float
     converged: int = 0
+    targets_solved: int = 0
     reasons: dict[str, int] | None = None
 
     def summary(self) -> str:
         solved = self.chunks_solved
         lines = [
             f"{self.out}: {self.chunks_before + solved}/{self.chunks} chunks of {self.total} "
-            f"targets done ({self.chunks_before} before this run, {solved} now, "
-            f"{self.elapsed:.1f} s)"
+            f"targets done ({self.chunks_before} before this run, {solved} now)"
         ]
+        rate = self.targets_solved / self.elapsed if self.elapsed > 0 else 0.0
+        lines.append(
+            f"this run: {self.targets_solved} targets in {self.elapsed:.1f} s ({rate:.0f} IK/s)"
+        )
         if self.complete and self.reasons is not None:
             reasons = ", ".join(f"{k} {v}" for k, v in sorted(self.reasons.items()))
             lines.append(f"converged {self.converged}/{self.total}; reasons: {reasons}")
@@ -900,7 +905,7 @@ def solve_file(
         if not os.path.exists(meta_path):
             with open(meta_path, "w") as stream:
                 json.dump(meta, stream, indent=1)
-    solved = 0
+    solved = targets_solved = 0
     last_write, write_cost = time.perf_counter(), 0.0
     bar = progress_bar(n, progress, initial=int(table["done"].sum()))
     try:
@@ -920,6 +925,7 @@ def solve_file(
             _fill(table, start, rows)
             done_starts.add(start)
             solved += 1
+            targets_solved += len(results)
             bar.update(len(results))
             now = time.perf_counter()
             if now - last_write > max(5.0, 20.0 * write_cost):
@@ -941,6 +947,7 @@ def solve_file(
         chunks=len(starts),
         chunks_before=before,
         chunks_solved=solved,
+        targets_solved=targets_solved,
         complete=complete,
         elapsed=time.perf_counter() - start_time,
         converged=int(table["converged"].sum()),
