@@ -77,6 +77,9 @@ def _maybe(r: random.Random, normal, weird, p_weird: float = 0.35):
 
 def _solve_options(r: random.Random) -> dict:
     options: dict = {"restarts": r.choice([0, 1, 2])}
+    # half the cases have valid options only (the valid paths need coverage too), the
+    # other half one weird value per option in three on average
+    p_weird = 0.0 if r.random() < 0.5 else 0.3
     table = {
         "tol_position": ([1e-4, 1e-3], [0.0, -1.0, NAN, INF, 1e-15, 1e3, "1e-4", None]),
         "tol_orientation": ([1e-3, 1e-2], [0.0, -1.0, NAN, INF, 1e3, None]),
@@ -130,7 +133,7 @@ def _solve_options(r: random.Random) -> dict:
     }
     for key, (normal, weird) in table.items():
         if r.random() < 0.45:
-            options[key] = _maybe(r, r.choice(normal), weird)
+            options[key] = _maybe(r, r.choice(normal), weird, p_weird)
     # keep the worst legitimate work bounded: an unbounded time budget with huge restarts
     # is a long (not a hung) solve; max_iters 5000 only with few restarts
     if options.get("restarts") == 10**30 and options.get("time_budget") in (None, INF, 1e300):
