@@ -136,7 +136,12 @@ class Configuration(mink.Configuration):
 
     # ------------------------------------------------------------------ state
     def _validated(self, q: npt.ArrayLike) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
+        try:
+            q = np.asarray(q, dtype=float)
+        except (TypeError, ValueError) as exc:  # strings, ragged lists, objects
+            raise InvalidConfiguration(
+                f"configuration is not a vector of {self.model.nq} numbers: {exc}"
+            ) from None
         if q.ndim != 1 or q.shape[0] != self.model.nq:
             raise InvalidConfiguration(
                 f"configuration has shape {q.shape}, expected ({self.model.nq},) "
