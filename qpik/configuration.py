@@ -228,10 +228,12 @@ class Configuration(mink.Configuration):
             return cached
         if isinstance(name, str):
             fid = mujoco.mj_name2id(self.model, _OBJ[kind], name)
-        else:
+        elif isinstance(name, (int, np.integer)) and not isinstance(name, bool):
             fid = int(name)
             if not 0 <= fid < getattr(self.model, _COUNT[kind]):
                 fid = -1
+        else:  # a tuple, a float, None: not a frame name or id
+            fid = -1
         if fid < 0:
             raise UnknownFrame(name, kind.value, frame_names(self.model, kind))
         self._frame_id_cache[key] = fid
