@@ -33,6 +33,8 @@ path) installed on every node.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import math
 import multiprocessing
 import os
@@ -48,9 +50,19 @@ import mujoco
 import numpy as np
 
 from .configuration import Configuration, FrameType, frame_names
-from .converge import FrameKey, IKResult, RobotLike, TargetLike, parse_target, solve
+from .converge import (
+    FrameKey,
+    IKResult,
+    IKSession,
+    RobotLike,
+    TargetLike,
+    parse_target,
+    solve,
+)
 from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError, UnknownFrame
 from .robots import load_robot
+
+_SOLVE = solve  # qpik.solve; tests replace qpik.batch.solve to inject failures
 
 __all__ = [
     "BACKENDS",
@@ -86,10 +98,10 @@ _AHEAD = 3
 def target_seed(seed: int, index: int) -> int:
     """The seed :func:`solve_many` gives target ``index`` of a batch run with ``seed``:
     ``qpik.solve(robot, targets[i], seed=target_seed(seed, i), **options)`` reproduces
-    entry ``i`` of the batch. Derived by :class:`numpy.random.SeedSequence` from
-    ``(seed, index)`` only, so it does not depend on chunking, workers or backend."""
-    sequence = np.random.SeedSequence(seed, spawn_key=(int(index),))
-    return int(sequence.generate_state(1, dtype=np.uint64)[0])
+    entry ``i`` of the batch. A 64-bit BLAKE2b hash of ``(seed, index)`` only, so it does
+    not depend on chunking, workers or backend, and costs a microsecond."""
+    digest = hashlib.blake2b(f"qpik-batch:{int(seed)}:{int(index)}".encode(), digest_size=8)
+    return int.from_bytes(digest.digest(), "little")
 
 
 def _check_seed(seed: int | None) -> int:
@@ -199,14 +211,20 @@ _HISTORY_FIELDS = ("residual_history", "error_history", "path")
 
 
 def _without_histories(result: IKResult) -> IKResult:
-    """``result`` with its per-iteration diagonstics emptied (their defaults): a batch
-    sends about 5x less data back from its workers."""
-    empty = {
-        f.name: f.default_factory()  # type: ignore[misc]
-        for f in dataclasses.fields(result)
+    """``result`` (fresh from a solve: changed in place) with its per-iteration
+    diagnostics emptied (their defaults): a batch sends about 5x less data back."""
+    for name, factory in _history_defaults(type(result)):
+        setattr(result, name, factory())
+    return result
+
+
+@functools.lru_cache(maxsize=4)
+def _history_defaults(cls: type) -> tuple[tuple[str, Any], ...]:
+    return tuple(
+        (f.name, f.default_factory)
+        for f in dataclasses.fields(cls)
         if f.name in _HISTORY_FIELDS and f.default_factory is not dataclasses.MISSING
-    }
-    return dataclasses.replace(result, **empty) if empty else result
+    )
 
 
 class _ChunkSolver:
@@ -217,9 +235,16 @@ class _ChunkSolver:
         self.entropy = entropy
         self.options = dict(options)
         self.histories = bool(self.options.pop(_HISTORIES, False))
+        # A session reads the model once; it keeps no state between solves, so its
+        # results are those of qpik.solve, bitwise.
+        self.session = IKSession(self.model)
 
     def solve(self, index: int, targets: Mapping) -> IKResult:
-        result = solve(self.model, targets, seed=target_seed(self.entropy, index), **self.options)
+        seed = target_seed(self.entropy, index)
+        if solve is _SOLVE:
+            result = self.session.solve(targets, seed=seed, **self.options)
+        else:  # qpik.batch.solve replaced (tests)
+            result = solve(self.model, targets, seed=seed, **self.options)
         return result if self.histories else _without_histories(result)
 
     def solve_chunk(self, chunk: Chunk) -> tuple[int, list[IKResult | _Failure]]:
