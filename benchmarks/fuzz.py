@@ -654,6 +654,10 @@ def gen_determinism(r: random.Random) -> dict:
         spec["options"].pop("time_budget", None)
         spec["options"].pop("restarts", None)
         spec["options"]["restarts"] = r.choice([0, 2])
+        # same seed, same answer: seed=None is documented as fresh entropy
+        spec["options"]["seed"] = r.randrange(2**32)
+        if "many" in spec:
+            spec["many"]["seed"] = r.randrange(2**32)
     pollution = [
         {"category": c, "spec": GENERATORS[c](random.Random(r.randrange(10**9)))}
         for c in r.sample(["solve", "step", "problem", "statics", "analysis"], 2)
