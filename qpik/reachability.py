@@ -178,12 +178,14 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
         raise InvalidInput(f"resolution must be a positive voxel size [m], got {resolution!r}")
     lower, upper = region.min(axis=0), region.max(axis=0)
     extent = upper - lower
-    counts = np.maximum(1, np.floor(extent / resolution + 1e-9).astype(int))
-    if int(np.prod(counts)) > 10_000_000:
+    per_axis = np.maximum(1.0, np.floor(extent / resolution + 1e-9))
+    voxels = float(np.prod(per_axis))  # in floats: an int product overflows for tiny voxels
+    if not voxels <= 10_000_000:
         raise InvalidInput(
-            f"region / resolution gives {int(np.prod(counts))} voxels (more than 10 million): "
+            f"region / resolution gives {voxels:.3g} voxels (more than 10 million): "
             "use a coarser resolution"
         )
+    counts = per_axis.astype(int)
     middle = (lower + upper) / 2.0
     axes = [
         middle[i] + (np.arange(counts[i]) - (counts[i] - 1) / 2.0) * resolution for i in range(3)
