@@ -49,6 +49,17 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, frame: bool = True) 
         )
 
 
+def non_negative_int(text: str) -> int:
+    """An argparse type: an integer >= 0 (seeds, counts); bad input is a usage error."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
 def configuration_from_args(args: argparse.Namespace) -> Configuration:
     """Load ``args.robot`` and set ``args.q`` (or the keyframe ``args.key``); pick the
     frame (``args.frame``, ``args.frame_type``) when the command has one."""

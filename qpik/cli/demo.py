@@ -9,6 +9,7 @@ import numpy as np
 from ..configuration import Configuration
 from ..converge import solve
 from ..robots import load_robot
+from ._common import non_negative_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -20,7 +21,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example: qpik demo --robot panda --seed 3 --tol 1e-5",
     )
     parser.add_argument("--robot", default="panda", help="bundled robot (default: panda)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the target (default: 0)")
+    parser.add_argument(
+        "--seed", type=non_negative_int, default=0, help="seed of the target (default: 0)"
+    )
     parser.add_argument(
         "--tol",
         type=float,
