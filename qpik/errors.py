@@ -388,3 +388,38 @@ class InvalidArgumentType(QpikError, TypeError):
 
     def __reduce__(self):
         return type(self), (self.argument, self.expected, self.got)
+
+
+# mink's definition errors and their qpik counterparts (same message)
+_MINK_TO_QPIK: dict[type, type] = {
+    mink.InvalidGain: InvalidGain,
+    mink.InvalidDamping: InvalidDamping,
+    mink.TaskDefinitionError: TaskDefinitionError,
+    mink.LimitDefinitionError: LimitDefinitionError,
+}
+
+
+class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like contextlib's
+    """Context manager for constructors of tasks built on mink's: a mink definition error
+    (``InvalidGain``, ``InvalidDamping``, ``TaskDefinitionError``,
+    ``LimitDefinitionError``) is re-raised as its qpik counterpart (which also subclasses
+    it), and a value that is not a number (``cost="x"``) as a ``TaskDefinitionError``
+    naming ``what``."""
+
+    def __init__(self, what: str):
+        self.what = what
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, kind, error, tb) -> bool:
+        if error is None or isinstance(error, QpikError):
+            return False
+        for mink_class, qpik_class in _MINK_TO_QPIK.items():
+            if isinstance(error, mink_class):
+                raise qpik_class(f"{self.what}: {error}") from None
+        if isinstance(error, (TypeError, ValueError)):
+            raise TaskDefinitionError(
+                f"{self.what}: costs, gain and lm_damping must be numbers ({error})"
+            ) from None
+        return False

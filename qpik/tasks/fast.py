@@ -15,6 +15,8 @@ import mujoco
 import numpy as np
 from numba import njit
 
+from ..errors import mink_errors_as_qpik
+
 try:  # mink >= 1.3 ships compiled SE3 routines; older versions use the generic path
     from mink.lie import _lie_ops_c as _native
 except ImportError:  # pragma: no cover - depends on the installed mink
@@ -66,6 +68,10 @@ class FrameTask(mink.FrameTask):
     """mink's :class:`~mink.FrameTask` (error: the body twist ``log(T_bt)`` of the frame to
     its target, expressed in the frame's local axes [m, rad]; Jacobian ``-jlog(T_tb)
     {}_B J``), computed from MuJoCo directly."""
+
+    def __init__(self, *args, **kwargs):
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(*args, **kwargs)
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
         if self.transform_target_to_world is None:
@@ -120,7 +126,8 @@ class PostureTask(mink.PostureTask):
     identity."""
 
     def __init__(self, model: mujoco.MjModel, cost, gain: float = 1.0, lm_damping: float = 0.0):
-        super().__init__(model, cost, gain, lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(model, cost, gain, lm_damping)
         self._scalar = model.nq == model.nv and self._v_ids is None
         self._jacobian = np.eye(model.nv)
         if self._v_ids is not None:

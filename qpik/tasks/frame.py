@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration, FrameType
-from ..errors import InvalidTarget
+from ..errors import InvalidTarget, mink_errors_as_qpik
 
 
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
@@ -55,7 +55,8 @@ class _FrameRowsTask(mink.Task):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ):
-        super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
         self.frame_name = frame_name
         self.frame_type = FrameType.parse(frame_type)
         self.target: np.ndarray | None = None
@@ -157,13 +158,14 @@ class PoseTask(mink.Task):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ):
-        cost = np.concatenate(
-            [
-                _cost_vector(position_cost, "position cost"),
-                _cost_vector(orientation_cost, "orientation cost"),
-            ]
-        )
-        super().__init__(cost, gain, lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            cost = np.concatenate(
+                [
+                    _cost_vector(position_cost, "position cost"),
+                    _cost_vector(orientation_cost, "orientation cost"),
+                ]
+            )
+            super().__init__(cost, gain, lm_damping)
         self.frame_name = frame_name
         self.frame_type = FrameType.parse(frame_type)
         self.target_position: np.ndarray | None = None

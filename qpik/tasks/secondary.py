@@ -12,6 +12,7 @@ import mink
 import numpy as np
 
 from ..configuration import Configuration, FrameType
+from ..errors import mink_errors_as_qpik
 
 
 class JointLimitDistanceTask(mink.Task):
@@ -25,7 +26,8 @@ class JointLimitDistanceTask(mink.Task):
     k = 1
 
     def __init__(self, cost: float = 1.0, gain: float = 0.5, lm_damping: float = 0.0):
-        super().__init__(np.array([float(cost)]), gain, lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(np.array([float(cost)]), gain, lm_damping)
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:
         from ..analysis import joint_limit_distance
@@ -61,7 +63,8 @@ class ManipulabilityTask(mink.Task):
         gain: float = 0.1,
         lm_damping: float = 0.0,
     ):
-        super().__init__(np.array([float(cost)]), gain, lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(np.array([float(cost)]), gain, lm_damping)
         self.frame_name = frame_name
         self.frame_type = FrameType.parse(frame_type)
         self.rows = rows
