@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from numba import njit
 
-from ..errors import mink_errors_as_qpik
+from ..errors import TargetNotSet, mink_errors_as_qpik
 
 try:  # mink >= 1.3 ships compiled SE3 routines; older versions use the generic path
     from mink.lie import _lie_ops_c as _native
@@ -75,7 +75,7 @@ class FrameTask(mink.FrameTask):
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
         if self.transform_target_to_world is None:
-            raise mink.TargetNotSet(self.__class__.__name__)
+            raise TargetNotSet(self.__class__.__name__)
         kind = _frame_type_name(self.frame_type)
         spec = _FRAME.get(kind)
         if _native is None or spec is None:
@@ -100,7 +100,7 @@ class FrameTask(mink.FrameTask):
     def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
         """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call after MuJoCo's."""
         if self.transform_target_to_world is None:
-            raise mink.TargetNotSet(self.__class__.__name__)
+            raise TargetNotSet(self.__class__.__name__)
         kind = _frame_type_name(self.frame_type)
         spec = _FRAME.get(kind)
         if _native is None or spec is None:
@@ -136,7 +136,7 @@ class PostureTask(mink.PostureTask):
 
     def compute_error(self, configuration) -> np.ndarray:
         if self.target_q is None:
-            raise mink.TargetNotSet(self.__class__.__name__)
+            raise TargetNotSet(self.__class__.__name__)
         if self._scalar:
             return configuration.data.qpos - self.target_q
         return super().compute_error(configuration)

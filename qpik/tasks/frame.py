@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration, FrameType
-from ..errors import InvalidTarget, mink_errors_as_qpik
+from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
 
 
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
@@ -82,7 +82,7 @@ class PositionTask(_FrameRowsTask):
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:
         if self.target is None:
-            raise mink.TargetNotSet(type(self).__name__)
+            raise TargetNotSet(type(self).__name__)
         return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
@@ -125,7 +125,7 @@ class OrientationTask(_FrameRowsTask):
 
     def _error(self, configuration: Configuration) -> np.ndarray:
         if self.target is None:
-            raise mink.TargetNotSet(type(self).__name__)
+            raise TargetNotSet(type(self).__name__)
         rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
         return so3_log(rotation @ self.target.T)
 
@@ -182,7 +182,7 @@ class PoseTask(mink.Task):
 
     def _error_and_jacobian(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
         if self.target_position is None or self.target_rotation is None:
-            raise mink.TargetNotSet(type(self).__name__)
+            raise TargetNotSet(type(self).__name__)
         position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
         rotation_error = so3_log(rotation @ self.target_rotation.T)
