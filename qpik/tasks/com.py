@@ -20,7 +20,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration, frame_names
-from ..errors import InvalidTarget, TargetNotSet, TaskDefinitionError, UnknownFrame
+from ..errors import (
+    InvalidTarget,
+    TargetNotSet,
+    TaskDefinitionError,
+    UnknownFrame,
+    mink_errors_as_qpik,
+)
 
 __all__ = ["ComTask"]
 
@@ -45,14 +51,16 @@ class ComTask(mink.Task):
         lm_damping: float = 0.0,
         body: str | int = 1,
     ):
-        super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
         self.body = body
         self.target_com: np.ndarray | None = None
         self.set_cost(cost)
 
     def set_cost(self, cost: npt.ArrayLike) -> None:
         """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
-        cost = np.atleast_1d(np.asarray(cost, dtype=float))
+        with mink_errors_as_qpik("ComTask cost"):
+            cost = np.atleast_1d(np.asarray(cost, dtype=float))
         if cost.ndim != 1 or cost.shape[0] not in (1, self.k) or not np.all(cost >= 0):
             raise TaskDefinitionError(
                 f"ComTask cost must be one number or 3 numbers, all >= 0; got {cost.tolist()}"
