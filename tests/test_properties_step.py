@@ -9,7 +9,6 @@ import math
 
 import mink
 import numpy as np
-import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from properties_common import (
@@ -123,12 +122,6 @@ def build_limits(model, specs):
     return limits, velocity
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik.tasks.DampingTask is mink's, re-exported: DampingTask(cost=-1) raises "
-    "mink.TaskDefinitionError (not a QpikError); a DampingTask cost of 1e300 gives a NaN "
-    "velocity in the core (its square overflows) (qpik/tasks and qpik/core, pending)",
-)
 @props(40)
 @given(
     robot=st.sampled_from(ROBOTS),

@@ -8,7 +8,6 @@ that contract works at any priority level of :class:`qpik.IKSolver`.
 
 from mink import (
     AxisAlignTask,
-    DampingTask,
     DofFreezingTask,
     EqualityConstraintTask,
     KineticEnergyRegularizationTask,
@@ -20,7 +19,7 @@ from mink import (
 from mink.tasks.task import BaseTask
 
 from .com import ComTask
-from .fast import FrameTask, PostureTask
+from .fast import DampingTask, FrameTask, PostureTask
 from .frame import OrientationTask, PoseTask, PositionTask
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 

@@ -22,7 +22,7 @@ try:  # mink >= 1.3 ships compiled SE3 routines; older versions use the generic 
 except ImportError:  # pragma: no cover - depends on the installed mink
     _native = None
 
-__all__ = ["FrameTask", "PostureTask"]
+__all__ = ["DampingTask", "FrameTask", "PostureTask"]
 
 _FRAME = {
     "site": ("site_xpos", "site_xmat", mujoco.mj_jacSite),
@@ -149,3 +149,13 @@ class PostureTask(mink.PostureTask):
         weighted_error = self.cost * (-self.gain * error)
         mu = self.lm_damping * float(weighted_error @ weighted_error)
         return self.cost[:, None] * self._jacobian, weighted_error, mu
+
+
+class DampingTask(mink.DampingTask):
+    """mink's :class:`~mink.DampingTask` (a posture task toward the current
+    configuration: it penalises the displacement), whose definition errors are qpik's
+    typed errors (each also mink's)."""
+
+    def __init__(self, model: mujoco.MjModel, cost):
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(model, cost)
