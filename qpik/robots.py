@@ -316,6 +316,7 @@ def robot_spec(
         model = spec.compile()
     except ValueError as exc:  # MuJoCo's parse and compile errors
         raise RobotFileError(str(path), str(exc).strip()) from exc
+    _check_finite(model, path)
     if velocities:
         _add_velocity_numeric(spec, model, velocities)
     srdf_path = None
@@ -328,6 +329,35 @@ def robot_spec(
     if srdf_path is not None:
         _add_srdf_keyframes(spec, model, srdf_path)
     return spec
+
+
+#: Model arrays that must be finite (MuJoCo compiles NaN / inf numbers in a file as is).
+_FINITE_FIELDS = (
+    "body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "body_inertia",
+    "jnt_pos", "jnt_axis", "jnt_range", "dof_damping", "dof_armature", "dof_frictionloss",
+    "geom_pos", "geom_quat", "geom_size", "site_pos", "site_quat", "actuator_gear",
+    "actuator_ctrlrange", "actuator_forcerange", "qpos0",
+)
+
+
+def _check_finite(model: mujoco.MjModel, path: Path) -> None:
+    """Raise :class:`RobotFileError` naming the first non-finite number of the model."""
+    if not np.all(np.isfinite(model.opt.gravity)):
+        raise RobotFileError(str(path), f"gravity is not finite: {model.opt.gravity}")
+    for name in _FINITE_FIELDS:
+        values = np.asarray(getattr(model, name))
+        bad = np.argwhere(~np.isfinite(values))
+        if bad.size:
+            row = int(bad[0][0])
+            what = name.split("_", 1)[0]
+            obj = {"body": mujoco.mjtObj.mjOBJ_BODY, "jnt": mujoco.mjtObj.mjOBJ_JOINT,
+                   "dof": mujoco.mjtObj.mjOBJ_DOF, "geom": mujoco.mjtObj.mjOBJ_GEOM,
+                   "site": mujoco.mjtObj.mjOBJ_SITE,
+                   "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR}.get(what)
+            label = (mujoco.mj_id2name(model, obj, row) if obj is not None else None) or row
+            raise RobotFileError(
+                str(path), f"{name} of {what} {label!r} is not finite: {values[row]}"
+            )
 
 
 def _resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
