@@ -59,7 +59,7 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> float:
             A[s0:s1], b[s0:s1], AZ, Z, d, reg[k] + result.damping[k], lb, ub, G, h
         )
         zeros = np.zeros(C.shape[0], dtype=np.int8)
-        z, status, _, _ = K.solve_level(H, c, C, lo, hi, zeros, 10_000, 1e-12, k > 0)
+        z, status, _, _ = K.solve_level(H, c, C, lo, hi, zeros, 10_000, 1e-12, k > 0, False)
         upper, lower = np.isfinite(hi), np.isfinite(lo)
         Gq = np.vstack([C[upper], -C[lower]])
         hq = np.concatenate([hi[upper], -lo[lower]])

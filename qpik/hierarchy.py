@@ -247,8 +247,8 @@ class IKSolver:
         damping_law: the adaptive (singularity) damping, see :class:`DampingLaw`.
         rank_tolerance: singular values below ``rank_tolerance * max(1, sigma_max)`` of a
             level's unweighted projected rows are structural zeros.
-        warm_start: try the previous step's active sets first (speed only: the answer is
-            the same bitwise).
+        warm_start: try the previous step's active sets first (the answer is the same,
+            bit for bit; see :class:`qpik.core.HierarchySolver`; off by default).
         backend_options: settings of the forced backend (OSQP settings, or qpsolvers
             keyword arguments).
         osqp_settings: former name of ``backend_options`` for OSQP (an object with
@@ -265,7 +265,7 @@ class IKSolver:
         damping: float = 1e-6,
         damping_law: DampingLaw | None = DEFAULT_DAMPING,
         rank_tolerance: float = 1e-9,
-        warm_start: bool = True,
+        warm_start: bool = False,
         backend_options: dict | None = None,
         osqp_settings=None,
     ):

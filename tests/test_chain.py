@@ -259,7 +259,7 @@ def test_box_qp_against_brute_force_and_the_core_qp():
         reference = _brute_force_box_qp(H, g, np.where(np.isfinite(lb), lb, -1e300), ub)
         np.testing.assert_allclose(x, reference, atol=1e-10)
         y, core_status, _, _ = core.solve_qp(
-            H, g, np.eye(n), np.maximum(lb, -1e20), ub, np.zeros(n, np.int8), 100, 1e-12
+            H, g, np.eye(n), np.maximum(lb, -1e20), ub, np.zeros(n, np.int8), 100, 1e-12, False
         )
         assert int(core_status) == 0
         np.testing.assert_allclose(x, y, atol=1e-10)

@@ -161,13 +161,16 @@ def test_answers_never_depend_on_history(rng):
         n = int(rng.integers(3, 9))
         levels, lb, ub, G, h = random_problem(rng, n, levels=2, general=2)
         problems.append(HierarchyProblem(levels, lb, ub, G, h))
-    for solver_name in ("auto", "osqp"):
-        fresh = [HierarchySolver(solver_name).solve(p).x for p in problems]
-        shared = HierarchySolver(solver_name)
+    for solver_name, warm in (("auto", False), ("auto", True), ("osqp", False), ("osqp", True)):
+        fresh = [HierarchySolver(solver_name, warm_start=warm).solve(p).x for p in problems]
+        shared = HierarchySolver(solver_name, warm_start=warm)
         for _round in range(2):
             for p, x in zip(problems, fresh):
                 shared.solve(p)  # warm starts from the previous problem's active sets
-                np.testing.assert_array_equal(shared.solve(p).x, x)
+                if warm:  # the opt-in warm start: equal to round-off at degenerate vertices
+                    np.testing.assert_allclose(shared.solve(p).x, x, rtol=0, atol=1e-12)
+                else:  # the default: bitwise
+                    np.testing.assert_array_equal(shared.solve(p).x, x)
         # Same answer from the exact kernel and the OSQP backend polished on its set.
     for p in problems:
         np.testing.assert_allclose(
@@ -185,13 +188,13 @@ def test_warm_start_changes_speed_not_answer(rng):
         C = rng.standard_normal((m, n))
         x0 = rng.standard_normal(n) * 0.3
         lo, hi = C @ x0 - rng.uniform(0, 1, m), C @ x0 + rng.uniform(0, 1, m)
-        cold = K.solve_qp(H, c, C, lo, hi, np.zeros(m, np.int8), 500, 1e-12)
-        warm = K.solve_qp(H, c, C, lo, hi, cold[3], 500, 1e-12)
+        cold = K.solve_qp(H, c, C, lo, hi, np.zeros(m, np.int8), 500, 1e-12, True)
+        warm = K.solve_qp(H, c, C, lo, hi, cold[3], 500, 1e-12, True)
         assert cold[1] == warm[1] == K.SOLVED
         np.testing.assert_array_equal(cold[0], warm[0])
         assert warm[2] == 0 or not cold[3].any() or True  # accepted when strictly optimal
         wrong = rng.integers(-1, 2, m).astype(np.int8)  # an arbitrary warm start
-        guess = K.solve_qp(H, c, C, lo, hi, wrong, 500, 1e-12)
+        guess = K.solve_qp(H, c, C, lo, hi, wrong, 500, 1e-12, True)
         np.testing.assert_array_equal(guess[0], cold[0])
 
 
@@ -379,8 +382,10 @@ def test_ik_solver_answers_never_depend_on_history():
         other = configuration.copy()
         other.update(other.random_q(rng))
         states.append((configuration.q.copy(), other.get_transform_frame_to_world("ee", "site")))
-    for solver_name in ("auto", "osqp"):
-        shared = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
+    for solver_name, warm in (("auto", False), ("auto", True), ("osqp", False)):
+        shared = qpik.IKSolver(
+            model, [[frame], [posture]], limits, solver=solver_name, warm_start=warm
+        )
         answers = []
         for q, target in states:
             configuration.update(q)
@@ -391,9 +396,16 @@ def test_ik_solver_answers_never_depend_on_history():
             configuration.update(q)
             frame.set_target(target)
             posture.set_target(q)
-            fresh = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
-            np.testing.assert_array_equal(fresh.step(configuration, 0.01).velocity, answer)
-            np.testing.assert_array_equal(shared.step(configuration, 0.01).velocity, answer)
+            fresh = qpik.IKSolver(
+                model, [[frame], [posture]], limits, solver=solver_name, warm_start=warm
+            )
+            check = (
+                np.testing.assert_array_equal
+                if not warm
+                else lambda a, b: np.testing.assert_allclose(a, b, rtol=0, atol=1e-10)
+            )
+            check(fresh.step(configuration, 0.01).velocity, answer)
+            check(shared.step(configuration, 0.01).velocity, answer)
 
 
 def test_build_returns_the_levels_qps():

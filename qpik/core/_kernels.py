@@ -322,7 +322,7 @@ def _strictly_optimal(x, u, C, lo, hi, act_row, q):
 
 
 @njit(cache=True)
-def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
+def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     """Solve ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` exactly.
 
     Args:
@@ -334,6 +334,9 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
             side, 0 inactive (all zeros for a cold start).
         max_iter: cap on active-set changes.
         tol: feasibility tolerance, relative to ``1 + |bound|`` per unit row norm.
+        canonical: end with the canonical KKT re-solve (needed when warm starts are used,
+            so that both paths give the same bits); otherwise the cold answer is checked
+            for stationarity and dual feasibility, which costs O(n q) instead of O(n^3).
 
     Returns:
         ``(x, status, iterations, active)``: ``active`` (m,) int8 in the ``warm`` format,
@@ -363,7 +366,9 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
                 q += 1
         x, u, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
         if ok and _strictly_optimal(x, u, C, lo, hi, act_row, q):
-            return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
+            polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
+            if polished[1] == SOLVED:
+                return polished
         q = 0
     # Cold: Goldfarb-Idnani from the unconstrained minimiser, with the factorisation
     # J = L^-T Q and the triangular R of the working set updated by Givens rotations as
@@ -385,7 +390,11 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
     while True:
         row, side = _most_violated(x, C, lo, hi, in_set, tol)
         if row < 0:
-            return _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
+            if canonical:
+                polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
+                if polished[1] == SOLVED:
+                    return polished
+            return _verified(H, c, C, x, u, act_row, act_side, q, iterations)
         normal = _normal(C, row, side)
         rhs = _rhs(lo, hi, row, side)
         u[q] = 0.0
@@ -537,6 +546,31 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol):
 
 
 @njit(cache=True)
+def _verified(H, c, C, x, u, act_row, act_side, q, iterations):
+    """The cold answer with its KKT conditions checked: stationarity ``H x + c = N u`` and
+    ``u >= 0`` (primal feasibility holds when the method ends). NUMERICAL otherwise."""
+    m = C.shape[0]
+    n = x.shape[0]
+    active = np.zeros(m, dtype=np.int8)
+    floor = _dual_floor(u, q)
+    g = H @ x + c
+    scale = 1.0
+    for i in range(n):
+        scale = max(scale, abs(g[i]), abs(c[i]))
+    for j in range(q):
+        if u[j] < -floor:
+            return x, NUMERICAL, iterations, active
+        if u[j] > floor:
+            active[act_row[j]] = act_side[j]
+        for i in range(n):
+            g[i] -= u[j] * act_side[j] * C[act_row[j], i]
+    for i in range(n):
+        if abs(g[i]) > _VERIFY * scale:
+            return x, NUMERICAL, iterations, active
+    return x, SOLVED, iterations, active
+
+
+@njit(cache=True)
 def _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol):
     """Re-solve the KKT system on the canonical active set (positive multipliers, sorted
     by row) so that the answer does not depend on how that set was found."""
@@ -580,19 +614,20 @@ def _widened(lo, hi, scale):
 
 
 @njit(cache=True)
-def solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower):
+def solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower, canonical):
     """:func:`solve_qp` for one level, robust to degenerate vertices: when the exact solve
     fails numerically (or, below the first level, whose QP is feasible by construction
     since ``z = 0`` meets every row, reports infeasibility), the rows are widened by
     1e-11, then 1e-9 (relative, distinct per row) and the QP solved again. The box is
     re-imposed exactly on ``dq`` afterwards."""
-    z, st, its, act = solve_qp(H, c, C, lo, hi, warm, max_iter, tol)
+    z, st, its, act = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical)
     if st == SOLVED or st == MAX_ITER or (st == INFEASIBLE and not lower):
         return z, st, its, act
     m = lo.shape[0]
     for scale in (1e-11, 1e-9):
         lo2, hi2 = _widened(lo, hi, scale)
-        z, st, more, act = solve_qp(H, c, C, lo2, hi2, np.zeros(m, dtype=np.int8), max_iter, tol)
+        cold = np.zeros(m, dtype=np.int8)
+        z, st, more, act = solve_qp(H, c, C, lo2, hi2, cold, max_iter, tol, canonical)
         its += more
         if st == SOLVED:
             return z, st, its, act
@@ -757,6 +792,7 @@ def solve_cascade(
     max_iter,
     tol,
     warm,
+    canonical,
 ):
     """All levels of a hierarchy in one compiled call (see the module docstring).
 
@@ -771,6 +807,7 @@ def solve_cascade(
         rank_tol: singular values below ``rank_tol * max(1, sigma_max)`` are zero.
         max_iter, tol: the QP's iteration cap and feasibility tolerance.
         warm: (L, n + p) int8 active sets to try first (zeros: cold).
+        canonical: see :func:`solve_qp` (True when warm starts are used).
 
     Returns:
         ``(dq, status, sigma, lam2, iterations, active, residuals)`` with per-level
@@ -814,7 +851,7 @@ def solve_cascade(
         sigma[k] = sig
         lam2[k] = lam
         H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)
-        z, st, its, act = solve_level(H, c, C, lo, hi, warm[k], max_iter, tol, k > 0)
+        z, st, its, act = solve_level(H, c, C, lo, hi, warm[k], max_iter, tol, k > 0, canonical)
         iterations[k] = its
         active[k] = act
         if st == SOLVED:

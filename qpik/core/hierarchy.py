@@ -264,9 +264,9 @@ def _residuals(A, b, starts, x) -> list[float]:
 
 
 class HierarchySolver:
-    """Solves :class:`HierarchyProblem` s, keeping what only speeds it up (the previous
-    active sets, backend workspaces). Answers never depend on that state: the same
-    problem gives bitwise the same result whatever was solved before.
+    """Solves :class:`HierarchyProblem` s. By default every level starts cold, so the same
+    problem gives bitwise the same result whatever was solved before; backend workspaces
+    (OSQP) are kept, and their answers are re-solved exactly on the active set they find.
 
     Args:
         solver: ``"auto"`` (exact compiled active set, OSQP as fallback if it does not
@@ -276,7 +276,11 @@ class HierarchySolver:
         rank_tolerance: relative singular value below which a direction is not a rank.
         max_iter: iteration cap of the active-set solver per level (0: ``10 (n + p) + 50``).
         tolerance: feasibility tolerance of the limits (relative, per unit row norm).
-        warm_start: try the previous call's active sets first (speed only).
+        warm_start: try the previous call's active sets first (opt-in). Every answer is
+            then re-solved on its canonical active set (O(n^3) per level), so warm and cold
+            starts agree bit for bit on non-degenerate QPs and to round-off (1e-12) at
+            degenerate vertices. Off by default: cold starts are bitwise reproducible
+            always, and at IK sizes usually cheaper than that re-solve.
         backend_options: passed to the forced backend (OSQP settings or qpsolvers kwargs).
     """
 
@@ -288,7 +292,7 @@ class HierarchySolver:
         rank_tolerance: float = 1e-9,
         max_iter: int = 0,
         tolerance: float = 1e-12,
-        warm_start: bool = True,
+        warm_start: bool = False,
         backend_options: dict | None = None,
     ):
         if solver not in SOLVERS:
@@ -371,14 +375,14 @@ class HierarchySolver:
         x, status, sigma, lam2, its, active, residuals = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
+            self.warm_start,
         )  # fmt: skip
         codes = status.tolist()
         if K.MAX_ITER in codes or K.NUMERICAL in codes:
             # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
             # fallback where the active set did not settle.
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
-        if self.warm_start:
-            self._warm = active
+        self._warm = active  # used as the next warm start only when warm_start is on
         return HierarchyResult(
             x, [_STATUS[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L,
@@ -428,8 +432,7 @@ class HierarchySolver:
                     break
                 continue
             Z = Zn
-        if self.warm_start:
-            self._warm = active
+        self._warm = active  # used as the next warm start only when warm_start is on
         return HierarchyResult(
             d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend
         )
@@ -445,21 +448,34 @@ class HierarchySolver:
         converged."""
         exact = K.solve_qp
         if fallback:
-            z, st, it, act = K.solve_level(H, c, C, lo, hi, warm, max_iter, self.tolerance, k > 0)
+            z, st, it, act = K.solve_level(
+                H, c, C, lo, hi, warm, max_iter, self.tolerance, k > 0, self.warm_start
+            )
             if st in (K.SOLVED, K.INFEASIBLE):
                 return z, st, it, act, "auto"
             name = "osqp"
         else:
-            z, st, it, act = exact(H, c, C, lo, hi, warm, 0, self.tolerance)
+            z, st, it, act = exact(H, c, C, lo, hi, warm, 0, self.tolerance, True)
             if st == K.SOLVED and it == 0 and not act.any():
                 return z, st, 0, act, self.solver
             name = self.solver
         solution = self._backend_solve(k, name, H, c, C, lo, hi)
         if solution is not None and solution.found:
-            # Polish on the active set the backend identified (accepted only when it is
-            # the unique optimal set; otherwise the exact kernel starts cold).
+            # The backend's answer is made exact by the kernel, started from the active
+            # set the backend identified when that set is the unique optimal one; the
+            # answer is the canonical re-solve either way, so it never depends on the
+            # backend's warm start.
             guess = _active_guess(solution.x, C, lo, hi)
-            z, st, it, act = exact(H, c, C, lo, hi, guess, max_iter, self.tolerance)
+            z, st, it, act = K.solve_level(
+                H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True
+            )
+            if st == K.SOLVED:
+                cold = np.zeros(C.shape[0], dtype=np.int8)
+                z2, st2, _, act2 = K.solve_level(
+                    H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True
+                )
+                if st2 == K.SOLVED:
+                    z, act = z2, act2
             return z, st, solution.iterations, act, name
         if fallback:
             code = K.MAX_ITER if solution is None or "max_iter" in solution.status else (
@@ -467,7 +483,9 @@ class HierarchySolver:
             )  # fmt: skip
             return None, code, 0 if solution is None else solution.iterations, None, name
         zeros = np.zeros(C.shape[0], dtype=np.int8)
-        z, st, it, act = K.solve_level(H, c, C, lo, hi, zeros, max_iter, self.tolerance, k > 0)
+        z, st, it, act = K.solve_level(
+            H, c, C, lo, hi, zeros, max_iter, self.tolerance, k > 0, True
+        )
         return z, st, it, act, f"{name} failed: auto"
 
     def _backend_solve(self, k, name, H, c, C, lo, hi):
