@@ -213,6 +213,8 @@ class _RowStructure:
 
 def _configuration_box(limit: mink.ConfigurationLimit, configuration: Configuration, dt: float):
     """mink's ConfigurationLimit as box bounds on ``dq`` (hinge/slide joints: dof = qpos)."""
+    if len(limit.indices) == 0:  # no limited joint (mink keeps an empty float array)
+        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
     q = configuration.data.qpos[limit.indices]
     upper = limit.gain * (limit.upper[limit.indices] - q)
     lower = -limit.gain * (q - limit.lower[limit.indices])
