@@ -73,13 +73,16 @@ class FrameTask(mink.FrameTask):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(*args, **kwargs)
 
-    def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
+    def _frame_terms(self, configuration):
+        """``(jac, xmat, jlog, error)`` from MuJoCo and mink's compiled SE3 routines: the
+        world-aligned Jacobian (6, nv), the frame's rotation (row-major 9), ``jlog(T_tb)``
+        and the body-twist error; ``None`` where only mink's generic path applies."""
         if self.transform_target_to_world is None:
             raise TargetNotSet(self.__class__.__name__)
         kind = _frame_type_name(self.frame_type)
         spec = _FRAME.get(kind)
         if _native is None or spec is None:
-            return super()._error_and_jacobian(configuration)
+            return None
         model, data = configuration.model, configuration.data
         fid = configuration._resolve_frame_id(self.frame_name, kind)
         xpos = getattr(data, spec[0])[fid]
@@ -90,31 +93,26 @@ class FrameTask(mink.FrameTask):
         target = self.transform_target_to_world.wxyz_xyz
         error = _native.se3_rminus(target, frame)
         jlog = _native.se3_jlog(_native.se3_inverse_multiply(target, frame))
+        return jac, xmat, jlog, error
+
+    def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
+        terms = self._frame_terms(configuration)
+        if terms is None:
+            return super()._error_and_jacobian(configuration)
+        jac, xmat, jlog, error = terms
         # Local (body) Jacobian: MuJoCo's rows are world-aligned, rotate them by R^T.
         rotation_t = xmat.reshape(3, 3).T
-        local = np.empty((6, model.nv))
+        local = np.empty_like(jac)
         np.matmul(rotation_t, jac[:3], out=local[:3])
         np.matmul(rotation_t, jac[3:], out=local[3:])
         return error, -(jlog @ local)
 
     def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
         """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call after MuJoCo's."""
-        if self.transform_target_to_world is None:
-            raise TargetNotSet(self.__class__.__name__)
-        kind = _frame_type_name(self.frame_type)
-        spec = _FRAME.get(kind)
-        if _native is None or spec is None:
+        terms = self._frame_terms(configuration)
+        if terms is None:
             return super().compute_qp_residual(configuration)
-        model, data = configuration.model, configuration.data
-        fid = configuration._resolve_frame_id(self.frame_name, kind)
-        xpos = getattr(data, spec[0])[fid]
-        xmat = getattr(data, spec[1])[fid]
-        jac = np.empty((6, model.nv))
-        spec[2](model, data, jac[:3], jac[3:], fid)
-        frame = _native.xmat_xpos_to_wxyz_xyz(xmat, xpos)
-        target = self.transform_target_to_world.wxyz_xyz
-        error = _native.se3_rminus(target, frame)
-        jlog = _native.se3_jlog(_native.se3_inverse_multiply(target, frame))
+        jac, xmat, jlog, error = terms
         return _frame_rows(
             jac, xmat, jlog, error, self.cost, float(self.gain), float(self.lm_damping)
         )
