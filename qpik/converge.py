@@ -205,6 +205,11 @@ def parse_target(value: TargetLike) -> Target:
                 f"got an array of shape {array.shape}"
             )
     position = _array(position, (3,), "position target")
+    if not float(np.abs(position).max()) <= MAX_TARGET_DISTANCE:
+        raise InvalidTarget(
+            f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
+            "world origin (its error would not be representable)"
+        )
     has_rot = rotation is not None
     rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
     defect = _kernels.target_defect(position, rotation, has_rot)
@@ -215,6 +220,10 @@ def parse_target(value: TargetLike) -> Target:
 
 
 _EYE = np.eye(3)
+
+#: Targets beyond this distance from the origin [m] are rejected: no robot reaches them,
+#: and their squared errors would overflow.
+MAX_TARGET_DISTANCE = 1e9
 
 
 _OBJ = {

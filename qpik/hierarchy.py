@@ -485,6 +485,11 @@ class IKSolver:
         A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
         result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
+        if not math.isfinite(float(d @ d)):
+            raise InvalidTarget(
+                "the step is not finite: a level's rows are too large to square in floating "
+                "point (a cost or target near 1e150 or beyond?)"
+            )
         return StepResult(
             velocity=d / dt,
             displacement=d,
