@@ -205,17 +205,17 @@ def parse_target(value: TargetLike) -> Target:
                 f"got an array of shape {array.shape}"
             )
     position = _array(position, (3,), "position target")
-    if not float(np.abs(position).max()) <= MAX_TARGET_DISTANCE:
-        raise InvalidTarget(
-            f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
-            "world origin (its error would not be representable)"
-        )
     has_rot = rotation is not None
     rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
     defect = _kernels.target_defect(position, rotation, has_rot)
     if defect:
         shown = position if defect == 1 else rotation
         raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")
+    if not float(np.abs(position).max()) <= MAX_TARGET_DISTANCE:
+        raise InvalidTarget(
+            f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
+            "world origin (its error would not be representable)"
+        )
     return Target(position, rotation if has_rot else None)
 
 
