@@ -21,8 +21,6 @@ def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.
     position = np.array(value, dtype=float)
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise InvalidTarget(f"{what} must be 3 finite numbers, got {position!r}")
-    if np.abs(position).max() > 1e9:
-        raise InvalidTarget(f"{what} is farther than 1e9 m from the origin: {position!r}")
     return position
 
 
