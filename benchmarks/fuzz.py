@@ -71,6 +71,14 @@ WEIRD_ANY = WEIRD_FLOATS + (None, "1", [1.0], True, 2**70, -1, (1.0,), {}, 3)
 
 # =============================================================================== specs
 # Generators: plain data only (no qpik import), deterministic in (seed, category, index).
+
+def _table(data: dict, key: str) -> dict:
+    """``data[key]`` as a table to edit; a scratch dict when an earlier edit made it a
+    scalar (the file keeps that scalar, which is the error under test)."""
+    value = data.setdefault(key, {})
+    return value if isinstance(value, dict) else {}
+
+
 def _maybe(r: random.Random, normal, weird, p_weird: float = 0.35):
     return r.choice(weird) if r.random() < p_weird else normal
 
@@ -1255,9 +1263,11 @@ def _special(data: dict, name: str, value, r: random.Random) -> None:
             ]
         )
     elif name == "steps":
-        data.setdefault("track", {})["steps"] = r.choice([10**9, 0, -1, 10**20, 3])
+        track = data.setdefault("track", {})
+        if isinstance(track, dict):  # an earlier edit may have made it a scalar
+            track["steps"] = r.choice([10**9, 0, -1, 10**20, 3])
     elif name == "velocity":
-        data.setdefault("limits", {})["velocity"] = r.choice(
+        _table(data, "limits")["velocity"] = r.choice(
             [1e-300, 1e300, INF, NAN, -1.0, 0.0, [1e-300] * 7, {"nope": 1.0}, 5e-324]
         )
     elif name == "time_budget":
@@ -1265,7 +1275,7 @@ def _special(data: dict, name: str, value, r: random.Random) -> None:
     elif name == "seed":
         solver["seed"] = r.choice([-1, 2**62, 0])
     elif name == "dt":
-        data.setdefault("track", {})["dt"] = r.choice([INF, NAN, 1e300, 1e-300, 5e-324])
+        _table(data, "track")["dt"] = r.choice([INF, NAN, 1e300, 1e-300, 5e-324])
     elif name == "tol":
         solver[r.choice(["tol_position", "tol_orientation"])] = r.choice([1e-300, 1e300, INF, NAN])
     elif name == "statics":

@@ -327,14 +327,16 @@ def _number(name: str, value, *, positive: bool = True, allow_zero: bool = False
 
 
 def _integer(name: str, value, minimum: int, maximum: int | None = None) -> int:
+    """``value`` as an int in ``[minimum, maximum]`` (at most 2**62: the kernels' ints)."""
+    maximum = 2**62 if maximum is None else min(maximum, 2**62)
     if isinstance(value, bool):
         raise InvalidInput(f"{name} must be an int >= {minimum}, got {value!r}")
     try:
         number = operator.index(value)
     except TypeError:
         raise InvalidInput(f"{name} must be an int >= {minimum}, got {value!r}") from None
-    if number < minimum or (maximum is not None and number > maximum):
-        bound = f">= {minimum}" if maximum is None else f"in [{minimum}, {maximum}]"
+    if number < minimum or number > maximum:
+        bound = f"in [{minimum}, {maximum}]"
         raise InvalidInput(f"{name} must be an int {bound}, got {number}")
     return number
 

@@ -57,12 +57,21 @@ _OBJ = {
 }
 
 
+#: The most orientations per voxel a map takes (a count beyond is a typo, and its memory
+#: would run out).
+MAX_ORIENTATIONS = 100_000
+
+
 def so3_grid(count: int) -> np.ndarray:
     """``count`` rotation matrices ``(count, 3, 3)`` spread evenly over SO(3): the
     Super-Fibonacci spiral (Alexa, CVPR 2022), deterministic, with low discrepancy for
     every ``count`` (not only the sizes of a regular grid)."""
     if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 1:
         raise InvalidInput(f"orientations must be a positive count or (K, 3, 3), got {count!r}")
+    if count > MAX_ORIENTATIONS:
+        raise InvalidInput(
+            f"orientations must be at most {MAX_ORIENTATIONS} per voxel, got {count}"
+        )
     from scipy.spatial.transform import Rotation
 
     phi = math.sqrt(2.0)

@@ -413,7 +413,8 @@ class HierarchySolver:
             AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)
             lam = K.damping_of(sig, threshold, max_damping) if max_damping > 0 else 0.0
             if lam > 0:
-                lam *= float(wk.max()) ** 2
+                wmax = float(wk.max())
+                lam *= wmax * wmax  # inf for absurd costs, as in the compiled cascade
                 if error_scale > 0:
                     e = Ak @ d - bk
                     lam *= min(1.0, float(np.sqrt(e @ e)) / error_scale)
