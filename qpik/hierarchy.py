@@ -485,10 +485,10 @@ class IKSolver:
         A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
         result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
-        if not math.isfinite(float(d @ d)):
+        if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
             raise InvalidTarget(
-                "the step is not finite: a level's rows are too large to square in floating "
-                "point (a cost or target near 1e150 or beyond?)"
+                "the step or a level's residual is not finite: a level's rows are too large "
+                "to square in floating point (a cost or target near 1e150 or beyond?)"
             )
         return StepResult(
             velocity=d / dt,
