@@ -239,6 +239,26 @@ def _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q):
 
 
 @njit(cache=True)
+def _row_value(C, i, x):
+    """``(C_i x, |C_i|)``."""
+    cx = 0.0
+    norm = 0.0
+    for j in range(x.shape[0]):
+        cx += C[i, j] * x[j]
+        norm += C[i, j] * C[i, j]
+    return cx, np.sqrt(norm)
+
+
+@njit(cache=True)
+def _max_abs(u, q):
+    """``max |u[:q]|`` (0 when q is 0)."""
+    big = 0.0
+    for j in range(q):
+        big = max(big, abs(u[j]))
+    return big
+
+
+@njit(cache=True)
 def _most_violated(x, C, lo, hi, skip, tol):
     """The most violated constraint (row, side) at x, by violation / |C_row|; row -1 if
     every constraint holds within ``tol`` (relative to 1 + |bound|)."""
@@ -247,14 +267,9 @@ def _most_violated(x, C, lo, hi, skip, tol):
     for i in range(m):
         if skip[i]:
             continue
-        cx = 0.0
-        norm = 0.0
-        for j in range(x.shape[0]):
-            cx += C[i, j] * x[j]
-            norm += C[i, j] * C[i, j]
+        cx, norm = _row_value(C, i, x)
         if norm == 0.0:
             continue
-        norm = np.sqrt(norm)
         if lo[i] > -_BIG:
             v = (lo[i] - cx) / norm
             if v > tol * (1.0 + abs(lo[i])) and v > best:
@@ -269,10 +284,7 @@ def _most_violated(x, C, lo, hi, skip, tol):
 @njit(cache=True)
 def _dual_floor(u, q):
     """Multipliers at or below this are zero (weakly active constraints)."""
-    big = 0.0
-    for j in range(q):
-        big = max(big, abs(u[j]))
-    return 1e-12 * (1.0 + big)
+    return 1e-12 * (1.0 + _max_abs(u, q))
 
 
 @njit(cache=True)
@@ -293,9 +305,7 @@ def _strictly_optimal(x, u, C, lo, hi, act_row, q):
     clearly positive and every other constraint clearly inactive (strict complementarity;
     the working set's normals are independent by construction). Only then is a warm
     start accepted, so that it finds exactly the set a cold start finds."""
-    big = 0.0
-    for j in range(q):
-        big = max(big, abs(u[j]))
+    big = _max_abs(u, q)
     for j in range(q):
         if u[j] <= _DEGENERATE * (1.0 + big):
             return False
@@ -306,14 +316,10 @@ def _strictly_optimal(x, u, C, lo, hi, act_row, q):
     for i in range(m):
         if working[i]:
             continue
-        cx = 0.0
-        norm = 0.0
-        for j in range(x.shape[0]):
-            cx += C[i, j] * x[j]
-            norm += C[i, j] * C[i, j]
+        cx, norm = _row_value(C, i, x)
         if norm == 0.0:
             continue
-        margin = _DEGENERATE * np.sqrt(norm)
+        margin = _DEGENERATE * norm
         if lo[i] > -_BIG and cx - lo[i] <= margin * (1.0 + abs(lo[i])):
             return False
         if hi[i] < _BIG and hi[i] - cx <= margin * (1.0 + abs(hi[i])):
@@ -681,6 +687,25 @@ def project_level(A, w, Z, rank_tol):
 
 
 @njit(cache=True)
+def level_damping(A, b, w, d, sigma, threshold, max_damping, error_scale):
+    """The ``lambda^2`` a level gets: :func:`damping_of` its ``sigma``, scaled by its
+    largest row cost squared and, with ``error_scale > 0``, by ``min(1, |A d - b| /
+    error_scale)``. 0 when ``max_damping <= 0`` (no adaptive damping)."""
+    if not max_damping > 0.0:
+        return 0.0
+    lam = damping_of(sigma, threshold, max_damping)
+    if lam > 0.0:
+        wmax = 0.0
+        for i in range(w.shape[0]):
+            wmax = max(wmax, w[i])
+        lam *= wmax * wmax
+        if error_scale > 0.0:
+            e = A @ d - b
+            lam *= min(1.0, np.sqrt(e @ e) / error_scale)
+    return lam
+
+
+@njit(cache=True)
 def damping_of(sigma, threshold, max_damping):
     """``lambda^2`` driven by ``sigma``: ``max_damping^2 (1 - (sigma / threshold)^2)``
     below the threshold, else 0."""
@@ -839,15 +864,7 @@ def solve_cascade(
         Ak = A[s0:s1]
         bk = b[s0:s1]
         AZ, sig, rank, Zn = project_level(Ak, w[s0:s1], Z, rank_tol)
-        lam = damping_of(sig, threshold, max_damping) if max_damping > 0.0 else 0.0
-        if lam > 0.0:
-            wmax = 0.0
-            for i in range(s1 - s0):
-                wmax = max(wmax, w[s0 + i])
-            lam *= wmax * wmax
-            if error_scale > 0.0:
-                e = Ak @ d - bk
-                lam *= min(1.0, np.sqrt(e @ e) / error_scale)
+        lam = level_damping(Ak, bk, w[s0:s1], d, sig, threshold, max_damping, error_scale)
         sigma[k] = sig
         lam2[k] = lam
         H, c, C, lo, hi = reduced_qp(Ak, bk, AZ, Z, d, reg[k] + lam, lb, ub, G, h)

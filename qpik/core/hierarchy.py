@@ -411,13 +411,7 @@ class HierarchySolver:
                 continue
             Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
             AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)
-            lam = K.damping_of(sig, threshold, max_damping) if max_damping > 0 else 0.0
-            if lam > 0:
-                wmax = float(wk.max())
-                lam *= wmax * wmax  # inf for absurd costs, as in the compiled cascade
-                if error_scale > 0:
-                    e = Ak @ d - bk
-                    lam *= min(1.0, float(np.sqrt(e @ e)) / error_scale)
+            lam = K.level_damping(Ak, bk, wk, d, sig, threshold, max_damping, error_scale)
             sigma[k], lam2s[k] = float(sig), float(lam)
             H, c, C, lo, hi = K.reduced_qp(Ak, bk, AZ, Z, d, float(reg[k]) + lam, lb, ub, G, h)
             z, st, it, act, used = self._solve_qp(k, H, c, C, lo, hi, warm[k], max_iter, fallback)
