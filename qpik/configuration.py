@@ -7,7 +7,6 @@ lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and ty
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Sequence
 
@@ -16,44 +15,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .errors import (
-    InvalidConfiguration,
-    InvalidInput,
-    JointLimitViolation,
-    UnknownFrame,
-    UnknownFrameType,
-)
+from .errors import InvalidConfiguration, InvalidInput, JointLimitViolation
+from .model.frames import FrameType, frame_id, frame_names
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
 
-class FrameType(str, enum.Enum):
-    """Kinds of frames a MuJoCo model has. The strings ``"body"``, ``"site"``, ``"geom"``
-    are accepted wherever a ``FrameType`` is."""
-
-    BODY = "body"
-    SITE = "site"
-    GEOM = "geom"
-
-    @classmethod
-    def parse(cls, value: FrameType | str) -> FrameType:
-        """Convert a string or FrameType to a FrameType, with a clear error otherwise."""
-        if isinstance(value, FrameType):
-            return value
-        try:
-            return cls(str(value).lower())
-        except ValueError:
-            raise UnknownFrameType(
-                f"unknown frame type {value!r}; expected one of: body, site, geom"
-            ) from None
-
-
-_OBJ = {
-    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
-    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
-    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
-}
-_COUNT = {FrameType.BODY: "nbody", FrameType.SITE: "nsite", FrameType.GEOM: "ngeom"}
 _JAC = {
     FrameType.BODY: mujoco.mj_jacBody,
     FrameType.SITE: mujoco.mj_jacSite,
@@ -63,13 +30,6 @@ _POS = {FrameType.BODY: "xpos", FrameType.SITE: "site_xpos", FrameType.GEOM: "ge
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 _MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "geom_xmat"}
-
-
-def frame_names(model: mujoco.MjModel, frame_type: FrameType | str) -> list[str]:
-    """Names of all frames of one type in ``model`` (unnamed frames are left out)."""
-    kind = FrameType.parse(frame_type)
-    names = (mujoco.mj_id2name(model, _OBJ[kind], i) for i in range(getattr(model, _COUNT[kind])))
-    return [n for n in names if n]
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -226,16 +186,7 @@ class Configuration(mink.Configuration):
         cached = self._frame_id_cache.get(key)
         if cached is not None:
             return cached
-        if isinstance(name, str):
-            fid = mujoco.mj_name2id(self.model, _OBJ[kind], name)
-        elif isinstance(name, (int, np.integer)) and not isinstance(name, bool):
-            fid = int(name)
-            if not 0 <= fid < getattr(self.model, _COUNT[kind]):
-                fid = -1
-        else:  # a tuple, a float, None: not a frame name or id
-            fid = -1
-        if fid < 0:
-            raise UnknownFrame(name, kind.value, frame_names(self.model, kind))
+        fid = frame_id(self.model, name, kind)
         self._frame_id_cache[key] = fid
         return fid
 

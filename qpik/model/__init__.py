@@ -1,6 +1,25 @@
-"""The model layer: a frame's kinematic chain read from a MuJoCo model into arrays, with
-compiled (numba) forward kinematics and Jacobians (:mod:`qpik.model.chain`)."""
+"""The model layer: what qpik reads from a MuJoCo model, one module each.
 
-from .chain import KinematicChain, ReachBound, chain_support, joint_limits
+- :mod:`qpik.model.frames`: frame types, the FrameType → ``mjtObj`` map and the resolver
+  of frame keys (``resolve_frame``);
+- :mod:`qpik.model.rotations`: the orientation error and rotation helpers;
+- :mod:`qpik.model.chain`: a frame's kinematic chain read into arrays, with compiled
+  (numba) forward kinematics and Jacobians (kernels in :mod:`qpik.model._kernels`).
+
+The chain names are imported lazily, so that ``import qpik.model.frames`` does not load
+the compiled kernels.
+"""
+
+from __future__ import annotations
+
+from typing import Any
 
 __all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from . import chain
+
+        return getattr(chain, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -20,19 +20,14 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..configuration import FrameType
-from ..errors import InvalidConfiguration, UnknownFrame
+from ..errors import InvalidConfiguration
 from . import _kernels
+from .frames import FrameType, frame_id, frame_name
 
 __all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
-_OBJ = {
-    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
-    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
-    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
-}
 
 
 def chain_support(model: mujoco.MjModel) -> str | None:
@@ -112,19 +107,7 @@ class KinematicChain:
         :class:`qpik.UnknownFrame` for a missing frame and :class:`ValueError` when
         :func:`chain_support` rejects the model or a mocap body is on the chain."""
         kind = FrameType.parse(frame_type)
-        if isinstance(frame, str):
-            fid = mujoco.mj_name2id(model, _OBJ[kind], frame)
-        else:
-            fid = int(frame)
-            count = {FrameType.BODY: model.nbody, FrameType.SITE: model.nsite}.get(
-                kind, model.ngeom
-            )
-            if not 0 <= fid < count:
-                fid = -1
-        if fid < 0:
-            from ..configuration import frame_names
-
-            raise UnknownFrame(frame, kind.value, frame_names(model, kind))
+        fid = frame_id(model, frame, kind)
         reason = chain_support(model)
         if reason is not None:
             raise ValueError(reason)
@@ -167,7 +150,7 @@ class KinematicChain:
             np.array(frame_pos, dtype=float),
             _quat2mat(np.asarray(frame_quat, dtype=float).reshape(1, 4))[0],
         )
-        name = frame if isinstance(frame, str) else _name(model, kind, fid)
+        name = frame if isinstance(frame, str) else frame_name(model, kind, fid)
         return cls(name, kind, model.nq, model.nv, arrays, arrays[7].copy())
 
     # ------------------------------------------------------------------ kinematics
@@ -249,7 +232,3 @@ def _quat2mat(quat: np.ndarray) -> np.ndarray:
     """Rotation matrices (k, 3, 3) of unit quaternions (k, 4) ``(w, x, y, z)``, as MuJoCo's
     ``mju_quat2Mat``."""
     return _kernels.quat2mat(np.ascontiguousarray(quat, dtype=float))
-
-
-def _name(model: mujoco.MjModel, kind: FrameType, fid: int) -> str:
-    return mujoco.mj_id2name(model, _OBJ[kind], fid) or f"{kind.value} #{fid}"
