@@ -15,6 +15,7 @@ from .errors import (
     InvalidInput,
     InvalidKeyframe,
     InvalidMocapBody,
+    InvalidOption,
     InvalidTarget,
     JointLimitViolation,
     LimitDefinitionError,
@@ -32,6 +33,7 @@ from .errors import (
 )
 from .hierarchy import DampingLaw, IKSolver, StepResult
 from .mink_api import build_ik, solve_ik
+from .options import PRESETS, SolveOptions, StepOptions
 from .problem import load_problem
 from .reachability import ReachabilityMap, reachability
 from .robots import list_robots, load_robot
@@ -43,6 +45,9 @@ __all__ = [
     "IKResult",
     "IKSession",
     "IKSolver",
+    "PRESETS",
+    "SolveOptions",
+    "StepOptions",
     "StepResult",
     "baselines",
     "limits",
@@ -68,6 +73,7 @@ __all__ = [
     "TaskDefinitionError",
     "InvalidConfiguration",
     "InvalidInput",
+    "InvalidOption",
     "InvalidTarget",
     "JointLimitViolation",
     "MissingExtra",

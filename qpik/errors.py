@@ -244,6 +244,21 @@ class NoSolutionFound(QpikError, mink.NoSolutionFound, RuntimeError):
         return type(self), (self.solver, self.status, self.level)
 
 
+class InvalidOption(InvalidInput):
+    """An option of :mod:`qpik.options` (or the entry-point keyword of the same name) with
+    the wrong type or range, or an unknown option name. Fields: ``field`` (the option's
+    name), ``value`` and ``expected`` (what it must be)."""
+
+    def __init__(self, field: str, value: Any, expected: str, message: str | None = None):
+        self.field = field
+        self.value = value
+        self.expected = expected
+        super().__init__(message or f"{field} must be {expected}, got {value!r}")
+
+    def __reduce__(self):
+        return type(self), (self.field, self.value, self.expected, str(self))
+
+
 class ProblemFileError(QpikError, ValueError):
     """A malformed IK problem file: names the file, the field and what was expected."""
 

@@ -1,0 +1,432 @@
+"""The options of qpik's entry points, in one place, with their defaults documented once.
+
+* :class:`StepOptions`: one differential-IK step, what :class:`qpik.IKSolver` reads (the QP
+  backend, constant and adaptive damping, rank tolerance, warm starts).
+* :class:`SolveOptions`: the full-IK loop of :func:`qpik.solve`,
+  :meth:`qpik.IKSession.solve`, :func:`qpik.solve_many` and the problem files' solve mode
+  (tolerances, iterations, restarts, gains, trust region, limits, engine), with the
+  :class:`StepOptions` of its steps.
+* :data:`PRESETS`: named :class:`SolveOptions` (``"default"``, ``"precise"``, ``"fast"``,
+  ``"tracking"``); ``SolveOptions.preset("fast", max_iters=50)``.
+
+Both are frozen dataclasses, validated on construction: a bad value raises
+:class:`qpik.InvalidOption` (an :class:`qpik.InvalidInput`) naming the field, the value and
+what was expected. Every entry point reads its defaults from here; no literal default is
+re-typed elsewhere. Options are hashable (an entry point can remember the work it derived
+from them) and compare by value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import operator
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Final
+
+from .core.hierarchy import DEFAULT_DAMPING, SOLVERS, DampingLaw
+from .errors import InvalidOption
+
+__all__ = [
+    "DEFAULT_RESTARTS",
+    "IGM_BACKEND_OPTIONS",
+    "IGM_DAMPING",
+    "MAX_AUTO_RESTARTS",
+    "MAX_ITERS_LIMIT",
+    "PRESETS",
+    "UNSET",
+    "SolveOptions",
+    "StepOptions",
+    "check_integer",
+    "check_number",
+]
+
+#: The damping law of a full-IK solve: the velocity-control law (:data:`DEFAULT_DAMPING`,
+#: ``sigma < 0.05``, ``lambda <= 0.05``) fading with the error (``error_scale = 0.3``).
+IGM_DAMPING: Final = DampingLaw(error_scale=0.3)
+
+#: Restarts when ``SolveOptions.restarts`` is ``None``: without a time budget, and the
+#: most with one.
+DEFAULT_RESTARTS: Final = 20
+MAX_AUTO_RESTARTS: Final = 1000
+#: The largest ``max_iters`` (the returned attempt's path is kept in memory).
+MAX_ITERS_LIMIT: Final = 100_000
+#: The largest constant damping: beyond it the QP's regularisation swamps every task.
+MAX_DAMPING: Final = 1e12
+#: Backend options a full-IK solve uses when ``StepOptions.backend_options`` is ``None``,
+#: per backend: the iterates need no more accuracy than it takes to find the active set
+#: (the kernel's refinement then makes each step exact).
+IGM_BACKEND_OPTIONS: Final = MappingProxyType(
+    {"osqp": MappingProxyType({"eps_abs": 1e-5, "eps_rel": 1e-5})}
+)
+_ENGINES = ("auto", "compiled", "qp")
+
+
+class _Unset:
+    """The default of an entry point's keyword: "not given, read it from the options"."""
+
+    _instance = None
+
+    def __new__(cls):
+        if cls._instance is None:
+            cls._instance = super().__new__(cls)
+        return cls._instance
+
+    def __repr__(self) -> str:
+        return "<from options>"
+
+    def __reduce__(self):
+        return _Unset, ()
+
+
+#: The default of every option keyword of :func:`qpik.solve` and friends: the value then
+#: comes from the ``options`` argument (or :data:`PRESETS` ``["default"]``).
+UNSET: Final = _Unset()
+
+
+# ------------------------------------------------------------------------- checks
+def _set(options: Any, name: str, value: Any) -> None:
+    """Store a normalised value on a frozen options object (in ``__post_init__`` only)."""
+    object.__setattr__(options, name, value)
+
+
+def check_number(
+    name: str,
+    value: Any,
+    *,
+    allow_zero: bool = False,
+    maximum: float | None = None,
+    negative: bool = False,
+) -> float:
+    """``value`` as a finite float, ``> 0`` (``>= 0`` with ``allow_zero``; any sign with
+    ``negative``) and at most ``maximum``; else :class:`qpik.InvalidOption` naming ``name``."""
+    need = "" if negative else (" >= 0" if allow_zero else " > 0")
+    if maximum is not None:
+        need += f" and <= {maximum:g}"
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        and not _is_numpy_number(value)
+    ):
+        raise InvalidOption(name, value, f"a finite number{need}")
+    number = float(value)
+    if (
+        not math.isfinite(number)
+        or (not negative and (number < 0 or (number == 0 and not allow_zero)))
+        or (maximum is not None and number > maximum)
+    ):
+        raise InvalidOption(name, value, f"a finite number{need}")
+    return number
+
+
+def _is_numpy_number(value: Any) -> bool:
+    kind = type(value)
+    return kind.__module__ == "numpy" and hasattr(value, "dtype") and value.dtype.kind in "iuf"
+
+
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
+    """``value`` as an int in ``[minimum, maximum]`` (at most 2**62: the kernels' ints);
+    else :class:`qpik.InvalidOption` naming ``name``."""
+    maximum = 2**62 if maximum is None else min(maximum, 2**62)
+    expected = f"an int in [{minimum}, {maximum}]"
+    if isinstance(value, bool):
+        raise InvalidOption(name, value, expected)
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise InvalidOption(name, value, expected) from None
+    if number < minimum or number > maximum:
+        raise InvalidOption(name, value, expected)
+    return number
+
+
+def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
+    if not isinstance(value, str) or value not in choices:
+        expected = f"one of {', '.join(map(repr, choices))}"
+        message = None
+        if name == "solver":  # the message IKSolver has always given
+            message = f"unknown QP solver {value!r}; known solvers: {', '.join(choices)}"
+        raise InvalidOption(name, value, expected, message)
+    return value
+
+
+# -------------------------------------------------------------------------- step
+@dataclass(frozen=True)
+class StepOptions:
+    """How one differential-IK step is solved (:class:`qpik.IKSolver`).
+
+    Attributes:
+        solver: the QP backend: ``"auto"`` (default: qpik's exact compiled active set),
+            or one of :data:`qpik.core.SOLVERS` (``"osqp"``, ``"daqp"``, ``"quadprog"``,
+            ``"proxqp"``, ``"clarabel"``; each needs its pip extra). A forced backend's
+            answer is made exact by the kernel's canonical re-solve.
+        damping: constant Tikhonov damping ``mu`` added to every level,
+            ``1/2 mu |dq|^2`` in the units of the level's squared rows; finite, in
+            ``[0, 1e12]``. Default ``1e-6``.
+        damping_law: the adaptive singularity damping (:class:`qpik.DampingLaw`), or
+            ``None`` for none. Default :data:`qpik.core.hierarchy.DEFAULT_DAMPING`
+            (``sigma < 0.05``: ``lambda`` up to 0.05, units of the level's Jacobian).
+        rank_tolerance: relative singular value below which a direction of a level is not
+            a rank (its null space is kept for lower levels); in ``(0, 1)``. Default
+            ``1e-9``.
+        warm_start: start each step's active set from the previous step's (faster on
+            smooth trajectories; then re-solved canonically so answers stay exact).
+            Default ``False``: cold starts, bitwise reproducible whatever came before.
+        backend_options: keyword options of the backend (e.g. OSQP's ``eps_abs``), or
+            ``None`` (the backend's defaults). Kept as a read-only mapping; not part of
+            the hash.
+    """
+
+    solver: str = "auto"
+    damping: float = 1e-6
+    damping_law: DampingLaw | None = DEFAULT_DAMPING
+    rank_tolerance: float = 1e-9
+    warm_start: bool = False
+    backend_options: Mapping[str, Any] | None = field(default=None, hash=False)
+
+    def __post_init__(self) -> None:
+        _check_choice("solver", self.solver, SOLVERS)
+        _set(
+            self,
+            "damping",
+            check_number("damping", self.damping, allow_zero=True, maximum=MAX_DAMPING),
+        )
+        if self.damping_law is not None and not isinstance(self.damping_law, DampingLaw):
+            raise InvalidOption("damping_law", self.damping_law, "a qpik.DampingLaw or None")
+        tolerance = check_number("rank_tolerance", self.rank_tolerance)
+        if not tolerance < 1.0:
+            raise InvalidOption("rank_tolerance", self.rank_tolerance, "a number in (0, 1)")
+        _set(self, "rank_tolerance", tolerance)
+        if not isinstance(self.warm_start, bool):
+            raise InvalidOption("warm_start", self.warm_start, "True or False")
+        if self.backend_options is not None:
+            if not isinstance(self.backend_options, Mapping) or not all(
+                isinstance(k, str) for k in self.backend_options
+            ):
+                raise InvalidOption(
+                    "backend_options", self.backend_options, "a mapping {name: value} or None"
+                )
+            _set(self, "backend_options", MappingProxyType(dict(self.backend_options)))
+
+    def replace(self, **overrides: Any) -> StepOptions:
+        """A copy with ``overrides`` (field names), validated."""
+        _check_fields(StepOptions, overrides)
+        return dataclasses.replace(self, **overrides)
+
+
+# ------------------------------------------------------------------------- solve
+#: The fields of :class:`StepOptions`: in :meth:`SolveOptions.replace` and the entry
+#: points' keywords they set the options of the solve's steps.
+STEP_FIELDS: Final = (
+    "solver",
+    "damping",
+    "damping_law",
+    "rank_tolerance",
+    "warm_start",
+    "backend_options",
+)
+
+#: The steps of a full-IK solve: :class:`StepOptions` with the error-faded damping law.
+SOLVE_STEP: Final = StepOptions(damping_law=IGM_DAMPING)
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    r"""How a full-IK solve iterates (:func:`qpik.solve`; see :mod:`qpik.converge` for the
+    loop ``q_{i+1} = q_i + beta dq``, ``J dq = -alpha e``).
+
+    Attributes:
+        tol_position: a frame (and every position-like level-0 task) has converged within
+            this distance of its target [m]; finite, > 0. Default ``1e-4``.
+        tol_orientation: likewise for angles [rad]; finite, > 0. Default ``1e-3``.
+        max_iters: iterations per attempt, an int in ``[0, 100000]``. Default ``100``.
+        time_budget: wall time for the whole solve, restarts included [s]: ``None``
+            (default, no limit) or finite and >= 0. A budget makes the result depend on
+            the machine's speed.
+        restarts: random restarts allowed after the first attempt (int >= 0); ``None``
+            (default): 20 without a time budget, and as many as ``time_budget`` allows (at
+            most 1000) with one (:attr:`effective_restarts`).
+        seed: seed of the restarts' random configurations, an int >= 0, or ``None``
+            (default: fresh entropy, not reproducible). Same seed, bitwise the same result.
+            (:func:`qpik.solve` also takes a numpy ``Generator`` or ``SeedSequence`` as its
+            ``seed`` keyword; a batch's seed is :func:`qpik.solve_many`'s own argument.)
+        alpha: gain of the target tasks, in ``(0, 1]`` (dimensionless: the fraction of the
+            error a step asks for). Default ``1``.
+        beta: scale of the step the QP returns, > 0 (``beta > 1`` iterates are clipped
+            into the joint limits). Default ``1``.
+        stall_window: iterations without a 1 % improvement that count as no progress (int
+            >= 1). Default ``5``.
+        max_step: trust region ``(metres, radians)``: no iteration asks a target task for
+            more than this; ``None`` for full steps (the lecture's recursion). Default
+            ``(0.2, 0.5)``.
+        secondary: with the default stack on a redundant arm, add distance from the joint
+            limits as a level-1 objective in the null space of the targets (``"qp"``
+            engine). Default ``False``.
+        limits: ``"joint"`` (default: the model's joint position limits), ``None`` (none)
+            or a sequence of limits (kept as a tuple).
+        engine: ``"auto"`` (default: the compiled engine when it applies), ``"compiled"``
+            (raise :class:`qpik.InvalidInput` when it does not apply) or ``"qp"``.
+        step: the :class:`StepOptions` of each step; default :data:`SOLVE_STEP` (the
+            backend ``"auto"``, damping ``1e-6``, and the error-faded damping law
+            :data:`IGM_DAMPING`). Its fields can be given flat to :meth:`replace`,
+            :meth:`preset` and the entry points (``solver=``, ``damping=``,
+            ``damping_law=``...); read them as :attr:`solver`, :attr:`damping`,
+            :attr:`damping_law`.
+    """
+
+    tol_position: float = 1e-4
+    tol_orientation: float = 1e-3
+    max_iters: int = 100
+    time_budget: float | None = None
+    restarts: int | None = None
+    seed: int | None = None
+    alpha: float = 1.0
+    beta: float = 1.0
+    stall_window: int = 5
+    max_step: tuple[float, float] | None = (0.2, 0.5)
+    secondary: bool = False
+    limits: str | tuple | None = "joint"
+    engine: str = "auto"
+    step: StepOptions = SOLVE_STEP
+
+    def __post_init__(self) -> None:
+        _set(self, "tol_position", check_number("tol_position", self.tol_position))
+        _set(self, "tol_orientation", check_number("tol_orientation", self.tol_orientation))
+        _set(self, "max_iters", check_integer("max_iters", self.max_iters, 0, MAX_ITERS_LIMIT))
+        if self.time_budget is not None:
+            _set(
+                self, "time_budget", check_number("time_budget", self.time_budget, allow_zero=True)
+            )
+        if self.restarts is not None:
+            _set(self, "restarts", check_integer("restarts", self.restarts, 0))
+        if self.seed is not None:
+            if isinstance(self.seed, bool) or not hasattr(self.seed, "__index__"):
+                raise InvalidOption("seed", self.seed, "an int >= 0 or None")
+            if operator.index(self.seed) < 0:
+                raise InvalidOption("seed", self.seed, "an int >= 0 or None")
+            _set(self, "seed", operator.index(self.seed))
+        _set(self, "alpha", check_number("alpha", self.alpha, maximum=1.0))
+        _set(self, "beta", check_number("beta", self.beta))
+        _set(self, "stall_window", check_integer("stall_window", self.stall_window, 1))
+        if self.max_step is not None:
+            if not (isinstance(self.max_step, (tuple, list)) and len(self.max_step) == 2):
+                raise InvalidOption("max_step", self.max_step, "(metres, radians) or None")
+            _set(
+                self,
+                "max_step",
+                (
+                    check_number("max_step[0] (metres)", self.max_step[0]),
+                    check_number("max_step[1] (radians)", self.max_step[1]),
+                ),
+            )
+        if not isinstance(self.secondary, bool):
+            raise InvalidOption("secondary", self.secondary, "True or False")
+        _set(self, "limits", _check_limits(self.limits))
+        _check_choice("engine", self.engine, _ENGINES)
+        if not isinstance(self.step, StepOptions):
+            raise InvalidOption("step", self.step, "a qpik.StepOptions")
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def solver(self) -> str:
+        """The QP backend of the steps (``step.solver``)."""
+        return self.step.solver
+
+    @property
+    def damping(self) -> float:
+        """The constant damping of the steps (``step.damping``)."""
+        return self.step.damping
+
+    @property
+    def damping_law(self) -> DampingLaw | None:
+        """The adaptive damping law of the steps (``step.damping_law``)."""
+        return self.step.damping_law
+
+    @property
+    def effective_restarts(self) -> int:
+        """``restarts``, or for ``None`` 20 without a time budget and 1000 with one."""
+        if self.restarts is not None:
+            return self.restarts
+        return DEFAULT_RESTARTS if self.time_budget is None else MAX_AUTO_RESTARTS
+
+    # ------------------------------------------------------------------ builders
+    def replace(self, **overrides: Any) -> SolveOptions:
+        """A copy with ``overrides``: field names, or :class:`StepOptions` field names
+        (``solver``, ``damping``, ``damping_law``...), which replace those of ``step``.
+        Validated; an unknown name raises :class:`qpik.InvalidOption`."""
+        if not overrides:
+            return self
+        step = {k: overrides.pop(k) for k in STEP_FIELDS if k in overrides}
+        _check_fields(SolveOptions, overrides)
+        if step:
+            overrides["step"] = overrides.get("step", self.step).replace(**step)
+        return dataclasses.replace(self, **overrides)
+
+    @classmethod
+    def preset(cls, name: str, **overrides: Any) -> SolveOptions:
+        """The preset ``name`` of :data:`PRESETS`, with ``overrides`` (see :meth:`replace`)."""
+        return resolve(name).replace(**overrides)
+
+
+def resolve(options: SolveOptions | str | None) -> SolveOptions:
+    """``options`` as :class:`SolveOptions`: a preset name of :data:`PRESETS`, ``None``
+    (``PRESETS["default"]``) or options themselves."""
+    if options is None:
+        return PRESETS["default"]
+    if isinstance(options, SolveOptions):
+        return options
+    if isinstance(options, str) and options in PRESETS:
+        return PRESETS[options]
+    raise InvalidOption(
+        "options", options, f"a qpik.SolveOptions, None or a preset name ({', '.join(PRESETS)})"
+    )
+
+
+def _check_limits(limits: Any) -> str | tuple | None:
+    if limits is None or (isinstance(limits, str) and limits == "joint"):
+        return limits
+    if isinstance(limits, Sequence) and not isinstance(limits, str):
+        for limit in limits:
+            if not hasattr(limit, "compute_qp_inequalities"):
+                raise InvalidOption("limits", limits, "'joint', None or a list of limits")
+        return tuple(limits)
+    raise InvalidOption("limits", limits, "'joint', None or a list of limits")
+
+
+def _check_fields(cls: type, overrides: Mapping[str, Any]) -> None:
+    names = {f.name for f in dataclasses.fields(cls)}
+    extra = set(STEP_FIELDS) if cls is SolveOptions else set()
+    for key in overrides:
+        if key not in names:
+            known = ", ".join(sorted(names | extra))
+            raise InvalidOption(
+                key, overrides[key], f"one of {known}", f"unknown option {key!r}; options: {known}"
+            )
+
+
+#: Named :class:`SolveOptions`:
+#:
+#: * ``"default"``: the defaults of :class:`SolveOptions` (0.1 mm, 1 mrad, 100 iterations,
+#:   20 restarts).
+#: * ``"precise"``: 1 um and 10 urad, 300 iterations per attempt, 50 restarts, and a
+#:   trust region half the default.
+#: * ``"fast"``: 1 mm and 10 mrad, 50 iterations per attempt, 5 restarts.
+#: * ``"tracking"``: following a moving target from the last answer: no restarts (an
+#:   answer never jumps to a random configuration), 20 iterations, the velocity-control
+#:   damping law (:data:`qpik.core.hierarchy.DEFAULT_DAMPING`, no fading).
+PRESETS: Final[Mapping[str, SolveOptions]] = MappingProxyType(
+    {
+        "default": SolveOptions(),
+        "precise": SolveOptions(
+            tol_position=1e-6,
+            tol_orientation=1e-5,
+            max_iters=300,
+            restarts=50,
+            max_step=(0.1, 0.25),
+        ),
+        "fast": SolveOptions(tol_position=1e-3, tol_orientation=1e-2, max_iters=50, restarts=5),
+        "tracking": SolveOptions(restarts=0, max_iters=20, step=StepOptions()),
+    }
+)
