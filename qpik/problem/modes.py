@@ -1,0 +1,170 @@
+"""Run modes of a problem file (``mode = ...``), one function each in :data:`MODES`.
+
+* ``solve``: each goal (the target, or each waypoint in turn, from the previous result)
+  is one :func:`qpik.solve` with ``stack`` = the levels and every frame of the goal as a
+  target; the gain of the level-0 tasks on the goal frames is the solver's ``alpha``.
+* ``track``: :class:`qpik.IKSolver` steps of ``dt`` from ``q0`` toward each goal in turn,
+  ``steps`` steps each, under the limits (a velocity limit bounds each step to
+  ``v_max dt``); the result carries a :class:`~qpik.problem.report.TrackTrace`.
+
+A mode returns ``(results, trace, converged, reason)``. Either way the problem has
+converged when the final configuration of every goal is within ``tol_position`` [m] and
+``tol_orientation`` [rad] of each of its frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..configuration import Configuration
+from ..converge import IKResult, set_frame_target, solve
+from ..hierarchy import IKSolver
+from .report import TrackTrace
+
+if TYPE_CHECKING:
+    from .loader import Problem
+
+#: What a mode returns: per-goal results (solve), the trace (track), converged, reason.
+ModeOutcome = tuple[list[IKResult], TrackTrace | None, bool, str]
+
+#: ``[solver]`` fields passed to :func:`qpik.solve` as they are.
+_SOLVE_KEYS = (
+    "solver",
+    "tol_position",
+    "tol_orientation",
+    "max_iters",
+    "restarts",
+    "seed",
+    "time_budget",
+    "alpha",
+    "beta",
+    "stall_window",
+    "damping",
+)
+
+
+def _failed_goal(problem: Problem, index: int) -> str:
+    return "target" if len(problem.goals) == 1 else f"waypoint {index}"
+
+
+def run_solve(problem: Problem) -> ModeOutcome:
+    """``mode = "solve"``: one :func:`qpik.solve` per goal, each from the previous answer."""
+    o = problem.options
+    kwargs: dict[str, Any] = {k: o[k] for k in _SOLVE_KEYS if k in o}
+    if "max_step" in o:
+        kwargs["max_step"] = None if o["max_step"] is False else tuple(o["max_step"])
+    kwargs["damping_law"] = problem.damping_law()
+    q = problem.q0
+    results = []
+    for goal in problem.goals:
+        start = Configuration(problem.model, q)
+        stack = [[spec.build(problem.model, start) for spec in level] for level in problem.levels]
+        result = solve(
+            problem.model,
+            goal.targets(),
+            q0=q,
+            stack=stack,
+            limits=problem.build_limits(),
+            **kwargs,
+        )
+        results.append(result)
+        q = result.q
+    failed = [i for i, r in enumerate(results) if not r.converged]
+    if not failed:
+        return results, None, True, "converged"
+    return results, None, False, f"{_failed_goal(problem, failed[0])}: {results[failed[0]].reason}"
+
+
+class _Recorder:
+    """The per-step records of a tracking run."""
+
+    def __init__(self, configuration: Configuration, error: tuple[float, float]):
+        self.q = [configuration.q]
+        self.errors = [error]
+        self.velocity: list[np.ndarray] = []
+        self.residuals: list[list[float]] = []
+        self.sigma: list[list[float]] = []
+        self.times: list[float] = []
+        self.goal: list[int] = []
+        self.active: list[int] = []
+
+    def add(self, configuration: Configuration, step, goal: int, error) -> None:
+        self.q.append(configuration.q)
+        self.velocity.append(step.velocity.copy())
+        self.residuals.append(list(step.residuals))
+        self.sigma.append(list(step.sigma_min))
+        self.times.append(step.solve_time)
+        self.goal.append(goal)
+        self.active.append(len(step.active_limits))
+        self.errors.append(error)
+
+
+def run_track(problem: Problem) -> ModeOutcome:
+    """``mode = "track"``: ``steps`` :class:`qpik.IKSolver` steps of ``dt`` per goal."""
+    o = problem.options
+    configuration = problem.start_configuration()
+    levels = problem.build_stack(configuration)
+    solver = IKSolver(
+        problem.model,
+        levels,
+        problem.build_limits(),
+        solver=o.get("solver", "osqp"),
+        damping=o.get("damping", 1e-6),
+        damping_law=problem.damping_law(),
+    )
+    tol_p = o.get("tol_position", 1e-4)
+    tol_o = o.get("tol_orientation", 1e-3)
+
+    def within(error: tuple[float, float]) -> bool:
+        return error[0] <= tol_p and error[1] <= tol_o
+
+    record = _Recorder(configuration, problem.goals[0].worst_error(configuration))
+    reached: list[bool] = []
+    for index, goal in enumerate(problem.goals):
+        for frame in goal.frames:
+            set_frame_target(levels, frame.frame, frame.target)
+        record.errors[-1] = goal.worst_error(configuration)
+        for _ in range(problem.steps):
+            if problem.stop_at_goal and within(record.errors[-1]):
+                break
+            step = solver.step(configuration, problem.dt)
+            configuration.integrate_inplace(step.velocity, problem.dt)
+            record.add(configuration, step, index, goal.worst_error(configuration))
+        reached.append(within(record.errors[-1]))
+    trace = _trace(problem, record, all(reached))
+    if trace.converged:
+        return [], trace, True, "converged"
+    where = _failed_goal(problem, reached.index(False))
+    reason = f"{where}: not within tolerance after {problem.steps} steps of {problem.dt} s"
+    trace.reason = reason
+    return [], trace, False, reason
+
+
+def _trace(problem: Problem, record: _Recorder, converged: bool) -> TrackTrace:
+    velocity = np.array(record.velocity).reshape(-1, problem.model.nv)
+    ratio = float("nan")
+    if problem.velocity_limits is not None and len(velocity):
+        ratio = float(np.max(np.abs(velocity) / problem.velocity_limits))
+    error = np.array(record.errors)
+    return TrackTrace(
+        dt=problem.dt,
+        q=np.array(record.q),
+        velocity=velocity,
+        residuals=record.residuals,
+        sigma_min=record.sigma,
+        step_time=np.array(record.times),
+        goal_index=np.array(record.goal, dtype=int),
+        active_limits=np.array(record.active, dtype=int),
+        position_error=error[:, 0],
+        orientation_error=error[:, 1],
+        max_velocity_ratio=ratio,
+        converged=converged,
+        reason="converged",
+    )
+
+
+#: The run modes, by the name a file gives in ``mode``.
+MODES: dict[str, Callable[[Problem], ModeOutcome]] = {"solve": run_solve, "track": run_track}
