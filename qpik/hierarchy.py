@@ -46,9 +46,12 @@ from .core import (
     Level,
     LevelStatus,
 )
+from .core import _kernels as K
 from .core._kernels import merge_boxes, tighten
+from .core.hierarchy import _STATUS
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget, NoSolutionFound
 from .tasks import BaseTask
+from ._fused import fused_step, make_plan
 
 __all__ = [
     "DampingLaw",
@@ -309,6 +312,8 @@ class IKSolver:
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
             )
         )
+        # One compiled call per step when every task and limit allows it (see qpik._fused).
+        self._plan = make_plan(model, self.levels, self.limits, self._scalar_joints)
 
     @property
     def damping_law(self) -> DampingLaw | None:
@@ -482,6 +487,85 @@ class IKSolver:
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
         start = time.perf_counter()
+        if (
+            self._plan is not None
+            and configuration.model is self.model
+            and self._core.solver == "auto"
+            and type(dt) is float
+            and 0.0 < dt < math.inf
+        ):
+            result = self._fused_step(configuration, dt, start)
+            if result is not None:
+                return result
+        return self._general_step(configuration, dt, start)
+
+    def _fused_step(self, configuration: Configuration, dt: float, start: float):
+        """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
+        path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
+        plan = self._plan
+        qpos, dt = plan.gather(configuration, dt)
+        a = plan.arrays
+        core = self._core
+        n, L = self._nv, len(self.levels)
+        threshold, max_damping, error_scale = core._law()
+        poses = a["poses"]
+        ok, bad, d, status, sigma, lam2, its, active, residuals, _, lb, ub = fused_step(
+            a["A"], a["b"], a["w"], a["starts"], a["task_kind"], a["task_index"],
+            a["task_level"], a["task_row"], a["jac"], a["frame_kind"], a["frame_id"],
+            poses[0], poses[1], poses[2], poses[3], poses[4], poses[5],
+            a["frame_target"], a["frame_cost"], a["frame_scalars"],
+            qpos, a["posture_target"], a["posture_cost"], a["posture_scalars"],
+            a["cfg_dof"], a["cfg_lower"], a["cfg_upper"], a["cfg_gain"], a["vel_dof"],
+            a["vel_limit"], dt, self.damping, threshold, max_damping, error_scale,
+            core.rank_tolerance, core.max_iter or 10 * n + 50, core.tolerance,
+            core._warm_for(L, n), core.warm_start,
+        )  # fmt: skip
+        if not ok or bad >= 0:
+            return None
+        codes = status.tolist()
+        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+            return None
+        residuals = residuals.tolist()
+        if not (math.isfinite(float(d @ d)) and math.isfinite(sum(residuals))):
+            return None
+        core._warm = active
+        q = qpos.copy()
+        return StepResult(
+            velocity=d / dt,
+            displacement=d,
+            residuals=residuals,
+            sigma_min=sigma.tolist(),
+            damping=lam2.tolist(),
+            status=[_STATUS[s] for s in codes],
+            iterations=its.tolist(),
+            solve_time=time.perf_counter() - start,
+            _name_active_limits=lambda: self._active_limits(
+                d, lb, ub, self._no_rows, np.zeros(0), self._box_contributions(q, dt), []
+            ),
+        )
+
+    def _box_contributions(self, qpos: np.ndarray, dt: float) -> list:
+        """The limits' box contributions ``(name, dofs, bounds)`` at ``qpos`` (to name
+        the active limits of a fused step; see :meth:`_limit_rows`)."""
+        contributions = []
+        for limit in self.limits:
+            if isinstance(limit, mink.ConfigurationLimit):
+                dofs = np.asarray(limit.indices, dtype=np.int64)
+                q = qpos[dofs]
+                upper = limit.gain * (limit.upper[dofs] - q)
+                lower = -limit.gain * (q - limit.lower[dofs])
+            else:
+                dofs = np.asarray(limit.indices, dtype=np.int64)
+                upper = limit.limit * dt
+                lower = -upper
+            name = type(limit).__name__
+            contributions.append((name, dofs, upper))
+            contributions.append((name, dofs, lower))
+        return contributions
+
+    def _general_step(self, configuration: Configuration, dt: float, start: float) -> StepResult:
+        """:meth:`step` for any stack: :meth:`_rows` (tasks' and limits' own methods) and
+        the core's solve."""
         A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
         result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x

@@ -107,6 +107,116 @@ def backward_vec(L, b):
     return x
 
 
+# Small dense products as loops: at IK sizes (n <= ~100) they beat a BLAS call's overhead,
+# and their rounding is fixed by the code (no library or alignment dependence).
+@njit(cache=True)
+def mm(A, B):
+    """``A @ B``."""
+    m, k = A.shape
+    n = B.shape[1]
+    C = np.zeros((m, n))
+    for i in range(m):
+        for t in range(k):
+            a = A[i, t]
+            if a != 0.0:
+                for j in range(n):
+                    C[i, j] += a * B[t, j]
+    return C
+
+
+@njit(cache=True)
+def mtm(A):
+    """``A^T @ A`` (symmetric, computed once per pair)."""
+    m, n = A.shape
+    C = np.zeros((n, n))
+    for t in range(m):
+        for i in range(n):
+            a = A[t, i]
+            if a != 0.0:
+                for j in range(i, n):
+                    C[i, j] += a * A[t, j]
+    for i in range(n):
+        for j in range(i):
+            C[i, j] = C[j, i]
+    return C
+
+
+@njit(cache=True)
+def mv(A, x):
+    """``A @ x``."""
+    m, n = A.shape
+    y = np.empty(m)
+    for i in range(m):
+        acc = 0.0
+        for j in range(n):
+            acc += A[i, j] * x[j]
+        y[i] = acc
+    return y
+
+
+@njit(cache=True)
+def mtv(A, x):
+    """``A^T @ x``."""
+    m, n = A.shape
+    y = np.zeros(n)
+    for i in range(m):
+        a = x[i]
+        if a != 0.0:
+            for j in range(n):
+                y[j] += A[i, j] * a
+    return y
+
+
+@njit(cache=True)
+def dot(x, y):
+    """``x @ y`` for vectors."""
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += x[i] * y[i]
+    return acc
+
+
+@njit(cache=True)
+def min_singular(M):
+    """Smallest singular value of ``M`` (p, m), p <= m, by one-sided Jacobi rotations of its
+    rows (Hestenes): accurate to a few ulps relative to the value itself, and cheaper than
+    LAPACK at these sizes."""
+    U = M.copy()
+    p, m = U.shape
+    for _ in range(60):
+        rotated = False
+        for i in range(p - 1):
+            for j in range(i + 1, p):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for k in range(m):
+                    alpha += U[i, k] * U[i, k]
+                    beta += U[j, k] * U[j, k]
+                    gamma += U[i, k] * U[j, k]
+                if gamma == 0.0 or abs(gamma) <= 1e-15 * np.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + np.sqrt(1.0 + zeta * zeta))
+                cs = 1.0 / np.sqrt(1.0 + t * t)
+                sn = cs * t
+                for k in range(m):
+                    ui = U[i, k]
+                    uj = U[j, k]
+                    U[i, k] = cs * ui - sn * uj
+                    U[j, k] = sn * ui + cs * uj
+        if not rotated:
+            break
+    smallest = np.inf
+    for i in range(p):
+        norm = 0.0
+        for k in range(m):
+            norm += U[i, k] * U[i, k]
+        smallest = min(smallest, np.sqrt(norm))
+    return smallest
+
+
 @njit(cache=True)
 def householder_qr(M, pivot):
     """QR of ``M`` (r, m) by Householder reflections, optionally with column pivoting
@@ -218,17 +328,18 @@ def _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q):
         for k in range(i):
             acc -= R[k, i] * t[k]
         t[i] = acc / R[i, i]
-    x = Q[:, :q] @ t
+    Y = Q[:, :q].copy()
+    x = mv(Y, t)
     if q < n:
         W = Q[:, q:].copy()
-        Hr = W.T @ H @ W
+        Hr = mm(W.T.copy(), mm(H, W))
         Lr, ok = cholesky(Hr)
         if not ok:
             return x, np.zeros(q), False
-        g = W.T @ (H @ x + c)
+        g = mtv(W, mv(H, x) + c)
         y = backward_vec(Lr, forward_vec(Lr, -g))
-        x = x + W @ y
-    grad = Q[:, :q].T @ (H @ x + c)
+        x = x + mv(W, y)
+    grad = mtv(Y, mv(H, x) + c)
     u = np.empty(q)
     for i in range(q - 1, -1, -1):  # R1 u = Y^T (H x + c)
         acc = grad[i]
@@ -443,8 +554,8 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 total += d[i] * d[i]
                 if i >= q:
                     outside += d[i] * d[i]
-            zn = z @ normal
-            slack = normal @ x - rhs
+            zn = dot(z, normal)
+            slack = dot(normal, x) - rhs
             t2 = np.inf
             if outside > _DEPENDENT * _DEPENDENT * total and zn > 0.0:
                 t2 = max(-slack / zn, 0.0)
@@ -453,7 +564,7 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 # The candidate depends on the working set and no multiplier can give way.
                 # At a degenerate vertex round-off leaves a violation of a few ulps: that
                 # is not infeasibility, so the row is taken as met.
-                nn = np.sqrt(normal @ normal)
+                nn = np.sqrt(dot(normal, normal))
                 if -slack <= _ROUNDOFF * (nn * (1.0 + np.abs(x).max()) + abs(rhs)):
                     in_set[row] = True
                     break
@@ -559,7 +670,7 @@ def _verified(H, c, C, x, u, act_row, act_side, q, iterations):
     n = x.shape[0]
     active = np.zeros(m, dtype=np.int8)
     floor = _dual_floor(u, q)
-    g = H @ x + c
+    g = mv(H, x) + c
     scale = 1.0
     for i in range(n):
         scale = max(scale, abs(g[i]), abs(c[i]))
@@ -650,7 +761,7 @@ def project_level(A, w, Z, rank_tol):
     zero (``inf`` when there is none); that matrix's numerical rank (pivots above
     ``rank_tol * max(1, |R_00|)`` of a rank-revealing QR); and ``Zn``, an orthonormal basis
     of its null space within ``Z`` (the next level's ``Z``)."""
-    AZ = A @ Z
+    AZ = mm(A, Z)
     m = A.shape[0]
     r = Z.shape[1]
     keep = 0
@@ -675,14 +786,12 @@ def project_level(A, w, Z, rank_tol):
             rank += 1
     sigma = np.inf
     if rank > 0:
-        # Singular values of the rank-p block: square roots of the eigenvalues of R_p R_p^T.
+        # The singular values of the rank-p block R_p are those of the projected rows.
         Rp = R[:rank, :].copy()
-        values = np.linalg.eigvalsh(Rp @ Rp.T)
-        smallest = values[0]
-        sigma = np.sqrt(smallest) if smallest > 0.0 else 0.0
+        sigma = min_singular(Rp)
         if sigma <= cutoff:  # round-off below the rank decision: the last pivot bounds it
             sigma = abs(R[rank - 1, rank - 1])
-    Zn = Z @ Q[:, rank:].copy()
+    Zn = mm(Z, Q[:, rank:].copy())
     return AZ, sigma, rank, Zn
 
 
@@ -700,8 +809,8 @@ def level_damping(A, b, w, d, sigma, threshold, max_damping, error_scale):
             wmax = max(wmax, w[i])
         lam *= wmax * wmax
         if error_scale > 0.0:
-            e = A @ d - b
-            lam *= min(1.0, np.sqrt(e @ e) / error_scale)
+            e = mv(A, d) - b
+            lam *= min(1.0, np.sqrt(dot(e, e)) / error_scale)
     return lam
 
 
@@ -722,7 +831,7 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
     ``G Z z <= h - G d``."""
     n, r = Z.shape
     p = G.shape[0]
-    H = AZ.T @ AZ
+    H = mtm(AZ)
     big = 0.0
     for i in range(r):
         big = max(big, H[i, i])
@@ -731,7 +840,7 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
     reg = max(reg, 1e-14 * (1.0 + big))
     for i in range(r):
         H[i, i] += reg
-    c = AZ.T @ (A @ d - b) + reg * (Z.T @ d)
+    c = mtv(AZ, mv(A, d) - b) + reg * mtv(Z, d)
     C = np.empty((n + p, r))
     lo = np.empty(n + p)
     hi = np.empty(n + p)
@@ -740,8 +849,8 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
         lo[i] = lb[i] - d[i] if lb[i] > -_BIG else -np.inf
         hi[i] = ub[i] - d[i] if ub[i] < _BIG else np.inf
     if p:
-        C[n:] = G @ Z
-        Gd = G @ d
+        C[n:] = mm(G, Z)
+        Gd = mv(G, d)
         for j in range(p):
             lo[n + j] = -np.inf
             hi[n + j] = h[j] - Gd[j]
@@ -788,7 +897,7 @@ def merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub):
 @njit(cache=True)
 def _level_residuals(A, b, starts, x):
     """Per level, ``|A_k x - b_k|`` over all its rows."""
-    r = A @ x - b
+    r = mv(A, x) - b
     L = starts.shape[0] - 1
     out = np.empty(L)
     for k in range(L):
@@ -872,7 +981,7 @@ def solve_cascade(
         iterations[k] = its
         active[k] = act
         if st == SOLVED:
-            d = d + Z @ z
+            d = d + mv(Z, z)
             for i in range(n):
                 if d[i] < lb[i]:
                     d[i] = lb[i]
