@@ -110,25 +110,12 @@ def _copy3(src, dst):
 
 
 @njit(cache=True)
-def _walk(
-    body_pos,
-    body_rot,
-    jnt_start,
-    jnt_type,
-    jnt_axis,
-    jnt_pos,
-    jnt_qadr,
-    jnt_qpos0,
-    frame_pos,
-    frame_rot,
-    q,
-    axes,
-    anchors,
-    position,
-    rotation,
-):
-    """Walk the chain at ``q``: world axes and anchors of its joints (nj, 3) and the
-    frame's pose (``position`` (3,) [m], ``rotation`` (3, 3))."""
+def _walk(chain, q, axes, anchors, position, rotation):
+    """Walk the chain (the tuple of :class:`qpik.model.KinematicChain`) at ``q``: world
+    axes and anchors of its joints (nj, 3) and the frame's pose (``position`` (3,) [m],
+    ``rotation`` (3, 3))."""
+    body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos = chain[:6]
+    jnt_qadr, jnt_qpos0, frame_pos, frame_rot = chain[6], chain[8], chain[9], chain[10]
     p = np.zeros(3)
     R = np.eye(3)
     tmp = np.empty((3, 3))
@@ -168,69 +155,43 @@ def _walk(
     _matmul3(R, frame_rot, rotation)
 
 
+@njit(cache=True, inline="always")
+def _fk_jac(chain, q, axes, anchors, position, rotation, jac, want_jac):
+    """:func:`fk_jac` with the scratch ``axes`` and ``anchors`` (nj, 3) given."""
+    _walk(chain, q, axes, anchors, position, rotation)
+    if not want_jac:
+        return
+    jnt_type, jnt_dadr = chain[3], chain[7]
+    for i in range(6):
+        for j in range(jac.shape[1]):
+            jac[i, j] = 0.0
+    for j in range(jnt_type.shape[0]):
+        d = jnt_dadr[j]
+        u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
+        if jnt_type[j] == HINGE:
+            r0 = position[0] - anchors[j, 0]
+            r1 = position[1] - anchors[j, 1]
+            r2 = position[2] - anchors[j, 2]
+            jac[0, d] += u1 * r2 - u2 * r1
+            jac[1, d] += u2 * r0 - u0 * r2
+            jac[2, d] += u0 * r1 - u1 * r0
+            jac[3, d] += u0
+            jac[4, d] += u1
+            jac[5, d] += u2
+        else:
+            jac[0, d] += u0
+            jac[1, d] += u1
+            jac[2, d] += u2
+
+
 @njit(cache=True)
-def fk_jac(
-    body_pos,
-    body_rot,
-    jnt_start,
-    jnt_type,
-    jnt_axis,
-    jnt_pos,
-    jnt_qadr,
-    jnt_dadr,
-    jnt_qpos0,
-    frame_pos,
-    frame_rot,
-    q,
-    position,
-    rotation,
-    jac,
-    want_jac,
-):
+def fk_jac(chain, q, position, rotation, jac, want_jac):
     """Pose of the chain's frame at ``q`` (world frame: ``position`` (3,) [m], ``rotation``
     (3, 3)) and, if ``want_jac``, its world-aligned Jacobian ``jac`` (6, nv) ``[v; omega]``
-    (columns of dofs off the chain are zero)."""
-    nj = jnt_type.shape[0]
-    axes = np.empty((nj, 3))
-    anchors = np.empty((nj, 3))
-    _walk(
-        body_pos,
-        body_rot,
-        jnt_start,
-        jnt_type,
-        jnt_axis,
-        jnt_pos,
-        jnt_qadr,
-        jnt_qpos0,
-        frame_pos,
-        frame_rot,
-        q,
-        axes,
-        anchors,
-        position,
-        rotation,
-    )
-    if want_jac:
-        for i in range(6):
-            for j in range(jac.shape[1]):
-                jac[i, j] = 0.0
-        for j in range(nj):
-            d = jnt_dadr[j]
-            u0, u1, u2 = axes[j, 0], axes[j, 1], axes[j, 2]
-            if jnt_type[j] == HINGE:
-                r0 = position[0] - anchors[j, 0]
-                r1 = position[1] - anchors[j, 1]
-                r2 = position[2] - anchors[j, 2]
-                jac[0, d] += u1 * r2 - u2 * r1
-                jac[1, d] += u2 * r0 - u0 * r2
-                jac[2, d] += u0 * r1 - u1 * r0
-                jac[3, d] += u0
-                jac[4, d] += u1
-                jac[5, d] += u2
-            else:
-                jac[0, d] += u0
-                jac[1, d] += u1
-                jac[2, d] += u2
+    (columns of dofs off the chain are zero). ``chain``: the tuple of
+    :class:`qpik.model.KinematicChain`."""
+    nj = chain[3].shape[0]
+    _fk_jac(chain, q, np.empty((nj, 3)), np.empty((nj, 3)), position, rotation, jac, want_jac)
 
 
 @njit(cache=True)
@@ -264,45 +225,17 @@ def _feet(a1, u1, a2, u2, s, r):
 
 
 @njit(cache=True)
-def reach_radius(
-    body_pos,
-    body_rot,
-    jnt_start,
-    jnt_type,
-    jnt_axis,
-    jnt_pos,
-    jnt_qadr,
-    jnt_qpos0,
-    frame_pos,
-    frame_rot,
-    q,
-    center,
-):
+def reach_radius(chain, q, center):
     """Length of the path ``s_1 -> r_2 -> s_2 -> ... -> s_m -> frame`` through the feet of
     the common perpendiculars of consecutive hinge axes at ``q`` (each segment is fixed in
     one body, so the length holds at every ``q``); ``center`` receives ``s_1``. Without a
     hinge, the frame position at ``q`` and 0."""
+    jnt_type = chain[3]
     nj = jnt_type.shape[0]
     axes = np.empty((nj, 3))
     anchors = np.empty((nj, 3))
     p = np.empty(3)
-    _walk(
-        body_pos,
-        body_rot,
-        jnt_start,
-        jnt_type,
-        jnt_axis,
-        jnt_pos,
-        jnt_qadr,
-        jnt_qpos0,
-        frame_pos,
-        frame_rot,
-        q,
-        axes,
-        anchors,
-        p,
-        np.empty((3, 3)),
-    )
+    _walk(chain, q, axes, anchors, p, np.empty((3, 3)))
     s = np.empty(3)
     r = np.empty(3)
     previous = np.empty(3)
@@ -585,7 +518,7 @@ def _now():
 
 
 # ------------------------------------------------------------------------ IGM
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err):
     """Error ``[p - p_t; log(R R_t^T)]`` into ``error``; returns (position error [m],
     orientation error [rad])."""
@@ -707,6 +640,253 @@ def _positive_definite_shifted(G, n, shift):
     return True
 
 
+@njit(cache=True, inline="always")
+def _evaluate(chain, q, target_p, target_R, has_rot, work):
+    """Forward kinematics, Jacobian and pose error at ``q`` into ``work`` (axes, anchors,
+    position, rotation, jac, error, rot_err, M); returns (position error [m], orientation
+    error [rad])."""
+    axes, anchors, position, rotation, jac, error, rot_err = work
+    _fk_jac(chain, q, axes, anchors, position, rotation, jac, True)
+    return _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+
+
+@njit(cache=True, inline="always")
+def _record(path, hist, slot, index, q, ep, eo):
+    """Iterate ``index`` of attempt slot ``slot``: ``q`` and its errors."""
+    path[slot, index] = q
+    hist[slot, index, 0] = ep
+    hist[slot, index, 1] = eo
+
+
+@njit(cache=True, inline="always")
+def _stall_reason(active, sigma, threshold):
+    """Why an attempt stopped progressing: a binding joint limit, else a singularity
+    (the level's smallest singular value below the damping threshold), else stalled."""
+    if active:
+        return AT_LIMIT
+    return SINGULAR if sigma < threshold else STALLED
+
+
+@njit(cache=True, inline="always")
+def _target_level(jac, error, rot_err, has_rot, gain, A, b, Jinv):
+    """The target level ``A dq = b``: ``A = [J_v; Jl^-1 J_w]``, ``b = -gain e``."""
+    nv = jac.shape[1]
+    for i in range(3):
+        for j in range(nv):
+            A[i, j] = jac[i, j]
+        b[i] = -gain * error[i]
+    if has_rot:
+        left_jacobian_inverse(rot_err, Jinv)
+        for i in range(3):
+            for j in range(nv):
+                A[3 + i, j] = (
+                    Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
+                )
+            b[3 + i] = -gain * error[3 + i]
+
+
+@njit(cache=True, inline="always")
+def _regularisation(A, b, m, gram, options):
+    """``(damping + lambda^2, sigma)``: the adaptive damping of the level (the damping law:
+    ``lambda^2 = max_damping^2 (1 - (sigma / threshold)^2)`` below the threshold, faded by
+    ``|b| / error_scale``) and its smallest singular value (inf when not computed)."""
+    threshold, max_damping, error_scale, reg = options[6], options[7], options[8], options[9]
+    if not threshold > 0.0:
+        return reg, np.inf
+    sigma = _smallest_singular_value(A, m, A.shape[1], gram, threshold)
+    if sigma < threshold:
+        ratio = sigma / threshold
+        lam2 = max_damping * max_damping * (1.0 - ratio * ratio)
+        if error_scale > 0.0:
+            bnorm = 0.0
+            for i in range(m):
+                bnorm += b[i] * b[i]
+            bnorm = np.sqrt(bnorm)
+            lam2 *= min(1.0, bnorm / error_scale)
+        reg += lam2
+    return reg, sigma
+
+
+@njit(cache=True, inline="always")
+def _box_problem(A, b, m, reg, q, lower, upper, limit_gain, H, g, lb, ub):
+    """The damped least-squares QP of the level, ``H = A^T A + reg I``, ``g = -A^T b``,
+    under the box ``limit_gain (limits - q)`` (which always holds 0)."""
+    nv = A.shape[1]
+    for i in range(nv):
+        s = 0.0
+        for k in range(m):
+            s += A[k, i] * b[k]
+        g[i] = -s
+        for j in range(i, nv):
+            s = 0.0
+            for k in range(m):
+                s += A[k, i] * A[k, j]
+            H[i, j] = s
+            H[j, i] = s
+        H[i, i] += reg
+        lb[i] = limit_gain * (lower[i] - q[i])
+        ub[i] = limit_gain * (upper[i] - q[i])
+        if lb[i] > 0.0:
+            lb[i] = 0.0
+        if ub[i] < 0.0:
+            ub[i] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _step_facts(A, b, m, dq, lb, ub, lower, upper):
+    """``(|A dq - b|, |dq|, whether a limited joint's bound is active)`` of a step."""
+    nv = dq.shape[0]
+    residual = 0.0
+    for k in range(m):
+        s = -b[k]
+        for j in range(nv):
+            s += A[k, j] * dq[j]
+        residual += s * s
+    step_norm = 0.0
+    active = False
+    for j in range(nv):
+        step_norm += dq[j] * dq[j]
+        at_lower = dq[j] <= lb[j] and lower[j] > -np.inf
+        if at_lower or (dq[j] >= ub[j] and upper[j] < np.inf):
+            active = True
+    return np.sqrt(residual), np.sqrt(step_norm), active
+
+
+@njit(cache=True, inline="always")
+def _line_search(chain, target_p, target_R, has_rot, q, q_base, dq, t, lower, upper, ep, eo, work):
+    """``q = clip(q_base + t dq)``, halving ``t`` while the error ``|e_p|^2 + |e_o|^2``
+    ([m^2], [rad^2]) does not decrease, up to ``BACKTRACKS`` times (near singularities the
+    damped step can overshoot into a limit cycle); returns the errors at ``q``."""
+    previous = ep * ep + eo * eo
+    for attempt_step in range(BACKTRACKS + 1):
+        for j in range(q.shape[0]):
+            q[j] = q_base[j] + t * dq[j]
+            if q[j] < lower[j]:
+                q[j] = lower[j]
+            if q[j] > upper[j]:
+                q[j] = upper[j]
+        ep, eo = _evaluate(chain, q, target_p, target_R, has_rot, work)
+        if ep * ep + eo * eo < previous or attempt_step == BACKTRACKS:
+            break
+        t *= 0.5
+    return ep, eo
+
+
+@njit(cache=True)
+def _attempt(
+    chain,
+    target_p,
+    target_R,
+    has_rot,
+    q,
+    bounds,
+    options,
+    int_options,
+    deadline,
+    path,
+    hist,
+    slot,
+    work,
+    qp_work,
+    counts,
+):
+    """One attempt of the IGM from ``q`` (advanced in place), its iterates into attempt slot
+    ``slot`` of ``path``/``hist``. ``counts`` (int64 (2,)): QP solves and capped QP solves,
+    added to. Returns (reason, iterates, score ``e_p / tol_p + e_o / tol_o``, out of time)."""
+    A, b, Jinv, H, g, lb, ub, dq, q_base, gram = qp_work
+    error, rot_err = work[5], work[6]
+    lower, upper = bounds[0], bounds[1]
+    tol_p, tol_o, alpha, beta = options[0], options[1], options[2], options[3]
+    max_step_p, max_step_o, threshold, limit_gain = options[4], options[5], options[6], options[10]
+    max_iters, stall_window, check_time = int_options[0], int_options[2], int_options[3]
+    m = 6 if has_rot else 3
+    ep, eo = _evaluate(chain, q, target_p, target_R, has_rot, work)
+    _record(path, hist, slot, 0, q, ep, eo)
+    hist[slot, 0, 2] = 0.0
+    length = 1
+    current = ep / tol_p + eo / tol_o
+    window_start = current
+    since_progress = 0
+    for it in range(max_iters):
+        if ep <= tol_p and eo <= tol_o:
+            return CONVERGED, length, current, False
+        if check_time != 0 and (it % 4 == 0) and _now() > deadline:
+            return TIME_BUDGET, length, current, True
+        # Trust region: the gain of the target task.
+        gain = alpha
+        if ep > 0.0 and max_step_p / ep < gain:
+            gain = max_step_p / ep
+        if has_rot and eo > 0.0 and max_step_o / eo < gain:
+            gain = max_step_o / eo
+        _target_level(work[4], error, rot_err, has_rot, gain, A, b, Jinv)
+        reg, sigma = _regularisation(A, b, m, gram, options)
+        _box_problem(A, b, m, reg, q, lower, upper, limit_gain, H, g, lb, ub)
+        status, _ = box_qp(H, g, lb, ub, dq, 4 * dq.shape[0] + 20)
+        counts[0] += 1
+        if status != 0:
+            counts[1] += 1
+        residual, step_norm, active = _step_facts(A, b, m, dq, lb, ub, lower, upper)
+        hist[slot, it + 1, 2] = residual
+        q_base[:] = q
+        ep, eo = _line_search(
+            chain, target_p, target_R, has_rot, q, q_base, dq, beta, lower, upper, ep, eo, work
+        )
+        _record(path, hist, slot, length, q, ep, eo)
+        length += 1
+        current = ep / tol_p + eo / tol_o
+        if step_norm < 1e-9:
+            return _stall_reason(active, sigma, threshold), length, current, False
+        if current < 0.99 * window_start:
+            window_start = current
+            since_progress = 0
+        else:
+            since_progress += 1
+            if since_progress >= stall_window:
+                return _stall_reason(active, sigma, threshold), length, current, False
+    if ep <= tol_p and eo <= tol_o:
+        return CONVERGED, length, current, False
+    return MAX_ITERS, length, current, False
+
+
+@njit(cache=True)
+def _workspaces(nj, nv):
+    """Scratch arrays of the IGM: the kinematics' (axes, anchors, position, rotation, jac,
+    error, rot_err) and the step's (A, b, Jinv, H, g, lb, ub, dq, q_base, gram)."""
+    work = (
+        np.empty((nj, 3)),
+        np.empty((nj, 3)),
+        np.empty(3),
+        np.empty((3, 3)),
+        np.empty((6, nv)),
+        np.zeros(6),
+        np.zeros(3),
+    )
+    size = max(6, nv)
+    qp_work = (
+        np.empty((6, nv)),
+        np.empty(6),
+        np.empty((3, 3)),
+        np.empty((nv, nv)),
+        np.empty(nv),
+        np.empty(nv),
+        np.empty(nv),
+        np.empty(nv),
+        np.empty(nv),
+        np.empty((size, size)),
+    )
+    return work, qp_work
+
+
+@njit(cache=True)
+def _beyond_reach(target_p, reach, tol_p):
+    """Whether ``target_p`` is farther from the reach ball's center than its radius plus
+    ``tol_p`` (with a relative margin for round-off)."""
+    d0 = target_p[0] - reach[0]
+    d1 = target_p[1] - reach[1]
+    d2 = target_p[2] - reach[2]
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3])
+
+
 @njit(cache=True)
 def igm_solve(
     chain,
@@ -749,257 +929,46 @@ def igm_solve(
             attempt (its last iterate is the answer), its number of iterates, QP solves that
             hit the iteration cap.
     """
-    (
-        body_pos,
-        body_rot,
-        jnt_start,
-        jnt_type,
-        jnt_axis,
-        jnt_pos,
-        jnt_qadr,
-        jnt_dadr,
-        jnt_qpos0,
-        frame_pos,
-        frame_rot,
-    ) = chain
-    tol_p, tol_o, alpha, beta = options[0], options[1], options[2], options[3]
-    max_step_p, max_step_o = options[4], options[5]
-    threshold, max_damping, error_scale, damping = options[6], options[7], options[8], options[9]
-    limit_gain = options[10]
-    max_iters, restarts = int_options[0], int_options[1]
-    stall_window, check_time = int_options[2], int_options[3]
-    lower = bounds[0]
-    upper = bounds[1]
-    sample_lo = bounds[2]
-    sample_hi = bounds[3]
+    restarts, check_time = int_options[1], int_options[3]
+    sample_lo, sample_hi = bounds[2], bounds[3]
     nq = q0.shape[0]
-    nv = nq
-    m = 6 if has_rot else 3
-    position = np.empty(3)
-    rotation = np.empty((3, 3))
-    jac = np.empty((6, nv))
-    A = np.empty((6, nv))
-    error = np.zeros(6)
-    rot_err = np.zeros(3)
-    Jinv = np.empty((3, 3))
-    b = np.empty(6)
-    H = np.empty((nv, nv))
-    g = np.empty(nv)
-    lb = np.empty(nv)
-    ub = np.empty(nv)
-    dq = np.empty(nv)
-    q_base = np.empty(nv)
-    gram = np.empty((max(6, nv), max(6, nv)))
+    work, qp_work = _workspaces(chain[3].shape[0], nq)
     q = q0.copy()
+    counts = np.zeros(2, dtype=np.int64)
+    if _beyond_reach(target_p, reach, options[0]):
+        ep, eo = _evaluate(chain, q, target_p, target_R, has_rot, work)
+        _record(path, hist, 0, 0, q, ep, eo)
+        hist[0, 0, 2] = 0.0
+        info[:] = 0
+        info[0] = UNREACHABLE
+        info[4] = 1
+        return
     best_score = np.inf
     best_slot = 0
     best_len = 1
     best_reason = MAX_ITERS
-    total = 0
-    attempt = 0
-    caps = 0
     reason = MAX_ITERS
     slot = 0
+    attempt = 0
     out_of_time = False
-    d0 = target_p[0] - reach[0]
-    d1 = target_p[1] - reach[1]
-    d2 = target_p[2] - reach[2]
-    if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3]):
-        fk_jac(
-            body_pos,
-            body_rot,
-            jnt_start,
-            jnt_type,
-            jnt_axis,
-            jnt_pos,
-            jnt_qadr,
-            jnt_dadr,
-            jnt_qpos0,
-            frame_pos,
-            frame_rot,
-            q,
-            position,
-            rotation,
-            jac,
-            False,
-        )
-        ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
-        path[0, 0] = q
-        hist[0, 0, 0] = ep
-        hist[0, 0, 1] = eo
-        hist[0, 0, 2] = 0.0
-        info[0] = UNREACHABLE
-        info[1] = 0
-        info[2] = 0
-        info[3] = 0
-        info[4] = 1
-        info[5] = 0
-        return
     while True:
-        fk_jac(
-            body_pos,
-            body_rot,
-            jnt_start,
-            jnt_type,
-            jnt_axis,
-            jnt_pos,
-            jnt_qadr,
-            jnt_dadr,
-            jnt_qpos0,
-            frame_pos,
-            frame_rot,
+        reason, length, current, out_of_time = _attempt(
+            chain,
+            target_p,
+            target_R,
+            has_rot,
             q,
-            position,
-            rotation,
-            jac,
-            True,
+            bounds,
+            options,
+            int_options,
+            deadline,
+            path,
+            hist,
+            slot,
+            work,
+            qp_work,
+            counts,
         )
-        ep, eo = _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
-        path[slot, 0] = q
-        hist[slot, 0, 0] = ep
-        hist[slot, 0, 1] = eo
-        hist[slot, 0, 2] = 0.0
-        length = 1
-        current = ep / tol_p + eo / tol_o
-        window_start = current
-        since_progress = 0
-        reason = MAX_ITERS
-        for it in range(max_iters):
-            if ep <= tol_p and eo <= tol_o:
-                reason = CONVERGED
-                break
-            if check_time != 0 and (it % 4 == 0) and _now() > deadline:
-                reason = TIME_BUDGET
-                out_of_time = True
-                break
-            # Trust region: the gain of the target task.
-            gain = alpha
-            if ep > 0.0 and max_step_p / ep < gain:
-                gain = max_step_p / ep
-            if has_rot and eo > 0.0 and max_step_o / eo < gain:
-                gain = max_step_o / eo
-            # Level: A = [J_v; Jl^-1 J_w], b = -gain e.
-            for i in range(3):
-                for j in range(nv):
-                    A[i, j] = jac[i, j]
-                b[i] = -gain * error[i]
-            if has_rot:
-                left_jacobian_inverse(rot_err, Jinv)
-                for i in range(3):
-                    for j in range(nv):
-                        A[3 + i, j] = (
-                            Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
-                        )
-                    b[3 + i] = -gain * error[3 + i]
-            reg = damping
-            if threshold > 0.0:
-                sigma = _smallest_singular_value(A, m, nv, gram, threshold)
-                if sigma < threshold:
-                    ratio = sigma / threshold
-                    lam2 = max_damping * max_damping * (1.0 - ratio * ratio)
-                    if error_scale > 0.0:
-                        bnorm = 0.0
-                        for i in range(m):
-                            bnorm += b[i] * b[i]
-                        bnorm = np.sqrt(bnorm)
-                        lam2 *= min(1.0, bnorm / error_scale)
-                    reg += lam2
-            else:
-                sigma = np.inf
-            for i in range(nv):
-                s = 0.0
-                for k in range(m):
-                    s += A[k, i] * b[k]
-                g[i] = -s
-                for j in range(i, nv):
-                    s = 0.0
-                    for k in range(m):
-                        s += A[k, i] * A[k, j]
-                    H[i, j] = s
-                    H[j, i] = s
-                H[i, i] += reg
-                lb[i] = limit_gain * (lower[i] - q[i])
-                ub[i] = limit_gain * (upper[i] - q[i])
-                if lb[i] > 0.0:
-                    lb[i] = 0.0
-                if ub[i] < 0.0:
-                    ub[i] = 0.0
-            status, _ = box_qp(H, g, lb, ub, dq, 4 * nv + 20)
-            if status != 0:
-                caps += 1
-            total += 1
-            residual = 0.0
-            for k in range(m):
-                s = -b[k]
-                for j in range(nv):
-                    s += A[k, j] * dq[j]
-                residual += s * s
-            hist[slot, it + 1, 2] = np.sqrt(residual)
-            step_norm = 0.0
-            active = False
-            for j in range(nv):
-                step_norm += dq[j] * dq[j]
-                at_lower = dq[j] <= lb[j] and lower[j] > -np.inf
-                if at_lower or (dq[j] >= ub[j] and upper[j] < np.inf):
-                    active = True
-                q_base[j] = q[j]
-            # Backtracking: a step that increases |e|^2 (the level's own error, [m], [rad])
-            # is halved, up to BACKTRACKS times (near singularities the damped step can
-            # overshoot into a limit cycle).
-            previous = ep * ep + eo * eo
-            t = beta
-            for attempt_step in range(BACKTRACKS + 1):
-                for j in range(nv):
-                    q[j] = q_base[j] + t * dq[j]
-                    if q[j] < lower[j]:
-                        q[j] = lower[j]
-                    if q[j] > upper[j]:
-                        q[j] = upper[j]
-                fk_jac(
-                    body_pos,
-                    body_rot,
-                    jnt_start,
-                    jnt_type,
-                    jnt_axis,
-                    jnt_pos,
-                    jnt_qadr,
-                    jnt_dadr,
-                    jnt_qpos0,
-                    frame_pos,
-                    frame_rot,
-                    q,
-                    position,
-                    rotation,
-                    jac,
-                    True,
-                )
-                ep, eo = _pose_error(
-                    position, rotation, target_p, target_R, has_rot, error, rot_err
-                )
-                if ep * ep + eo * eo < previous or attempt_step == BACKTRACKS:
-                    break
-                t *= 0.5
-            path[slot, length] = q
-            hist[slot, length, 0] = ep
-            hist[slot, length, 1] = eo
-            length += 1
-            current = ep / tol_p + eo / tol_o
-            if np.sqrt(step_norm) < 1e-9:
-                reason = AT_LIMIT if active else (SINGULAR if sigma < threshold else STALLED)
-                break
-            if current < 0.99 * window_start:
-                window_start = current
-                since_progress = 0
-            else:
-                since_progress += 1
-                if since_progress >= stall_window:
-                    reason = AT_LIMIT if active else (SINGULAR if sigma < threshold else STALLED)
-                    break
-        else:
-            if ep <= tol_p and eo <= tol_o:
-                reason = CONVERGED
-        if reason == MAX_ITERS and ep <= tol_p and eo <= tol_o:
-            reason = CONVERGED
         done = reason == CONVERGED
         best_done = best_reason == CONVERGED
         if attempt == 0 or (done and not best_done) or (done == best_done and current < best_score):
@@ -1008,9 +977,7 @@ def igm_solve(
             best_len = length
             best_reason = reason
             slot = 1 - slot
-        if reason == CONVERGED:
-            break
-        if attempt >= restarts:
+        if done or attempt >= restarts:
             break
         if check_time != 0 and (out_of_time or _now() > deadline):
             out_of_time = True
@@ -1024,8 +991,8 @@ def igm_solve(
     elif out_of_time:
         final = TIME_BUDGET
     info[0] = final
-    info[1] = total
+    info[1] = counts[0]
     info[2] = attempt
     info[3] = best_slot
     info[4] = best_len
-    info[5] = caps
+    info[5] = counts[1]

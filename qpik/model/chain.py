@@ -163,7 +163,7 @@ class KinematicChain:
     def pose(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pose of the frame at ``q`` in the world frame: position (3,) [m], rotation (3, 3)."""
         position, rotation = np.empty(3), np.empty((3, 3))
-        _kernels.fk_jac(*self.arrays, self._q(q), position, rotation, np.empty((6, self.nv)), False)
+        _kernels.fk_jac(self.arrays, self._q(q), position, rotation, np.empty((6, self.nv)), False)
         return position, rotation
 
     def jacobian(self, q: npt.ArrayLike) -> np.ndarray:
@@ -171,7 +171,7 @@ class KinematicChain:
         :meth:`qpik.Configuration.frame_jacobian`: ``v`` [m/s] of the frame origin and
         ``omega`` [rad/s], both in the world frame)."""
         jac = np.empty((6, self.nv))
-        _kernels.fk_jac(*self.arrays, self._q(q), np.empty(3), np.empty((3, 3)), jac, True)
+        _kernels.fk_jac(self.arrays, self._q(q), np.empty(3), np.empty((3, 3)), jac, True)
         return jac
 
     # ----------------------------------------------------------------------- reach
@@ -186,19 +186,7 @@ class KinematicChain:
         the sum of the DH lengths ``|a_k|`` and offsets ``|d_k|`` plus the tool offset. A
         slide adds its largest travel from the reference configuration.
         """
-        (
-            body_pos,
-            body_rot,
-            jnt_start,
-            jnt_type,
-            jnt_axis,
-            jnt_pos,
-            qadr,
-            _dadr,
-            qpos0,
-            frame_pos,
-            frame_rot,
-        ) = self.arrays
+        jnt_type, qadr = self.arrays[3], self.arrays[6]
         nj = jnt_type.shape[0]
         limited = np.isfinite(lower) & np.isfinite(upper)
         q_ref = np.zeros(self.nq)
@@ -211,20 +199,7 @@ class KinematicChain:
                     return ReachBound(np.zeros(3), float("inf"))
                 travel += 0.5 * (hi - lo)
         center = np.empty(3)
-        radius = _kernels.reach_radius(
-            body_pos,
-            body_rot,
-            jnt_start,
-            jnt_type,
-            jnt_axis,
-            jnt_pos,
-            qadr,
-            qpos0,
-            frame_pos,
-            frame_rot,
-            q_ref,
-            center,
-        )
+        radius = _kernels.reach_radius(self.arrays, q_ref, center)
         return ReachBound(center, float(radius + travel))
 
 
