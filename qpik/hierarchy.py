@@ -37,9 +37,9 @@ import mink
 import mujoco
 import numpy as np
 
+from ._fused import fused_step, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
-    DEFAULT_DAMPING,
     DampingLaw,
     HierarchyProblem,
     HierarchySolver,
@@ -49,9 +49,9 @@ from .core import (
 from .core import _kernels as K
 from .core._kernels import merge_boxes, tighten
 from .core.hierarchy import _STATUS
-from .errors import InfeasibleLimits, InvalidInput, InvalidTarget, NoSolutionFound
+from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
+from .options import UNSET, StepOptions
 from .tasks import BaseTask
-from ._fused import fused_step, make_plan
 
 __all__ = [
     "DampingLaw",
@@ -60,7 +60,6 @@ __all__ = [
     "Stack",
     "StepResult",
     "normalize_stack",
-    "solve_ik",
 ]
 
 
@@ -244,18 +243,11 @@ class IKSolver:
         stack: the task stack (see :func:`normalize_stack`); tasks are kept by reference,
             so ``task.set_target(...)`` between steps is how targets move.
         limits: mink or qpik limits, enforced at every level.
-        solver: ``"auto"`` (default: qpik's exact compiled active-set solver, OSQP as its
-            fallback) or a backend forced on every level where a limit binds: ``"osqp"``
-            (a persistent workspace per level), ``"daqp"``, ``"quadprog"``, ``"proxqp"``,
-            ``"clarabel"``; their answers are polished on the active set they find.
-        damping: constant Tikhonov term ``delta`` on every level [unitless, as mink's].
-        damping_law: the adaptive (singularity) damping, see :class:`DampingLaw`.
-        rank_tolerance: singular values below ``rank_tolerance * max(1, sigma_max)`` of a
-            level's unweighted projected rows are structural zeros.
-        warm_start: try the previous step's active sets first (the answer is the same,
-            bit for bit; see :class:`qpik.core.HierarchySolver`; off by default).
-        backend_options: settings of the forced backend (OSQP settings, or qpsolvers
-            keyword arguments).
+        options: how each step is solved (:class:`qpik.StepOptions`: backend, constant
+            and adaptive damping, rank tolerance, warm starts; its docstring holds the
+            defaults). The keywords below override single fields of it.
+        solver, damping, damping_law, rank_tolerance, warm_start, backend_options: the
+            :class:`qpik.StepOptions` fields of the same names.
         osqp_settings: former name of ``backend_options`` for OSQP (an object with
             ``as_dict()``).
     """
@@ -266,24 +258,38 @@ class IKSolver:
         stack: Stack,
         limits: Sequence[mink.Limit] = (),
         *,
-        solver: str = "auto",
-        damping: float = 1e-6,
-        damping_law: DampingLaw | None = DEFAULT_DAMPING,
-        rank_tolerance: float = 1e-9,
-        warm_start: bool = False,
-        backend_options: dict | None = None,
+        options: StepOptions | None = None,
+        solver: str = UNSET,
+        damping: float = UNSET,
+        damping_law: DampingLaw | None = UNSET,
+        rank_tolerance: float = UNSET,
+        warm_start: bool = UNSET,
+        backend_options: dict | None = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
-        if not (isinstance(damping, (int, float)) and math.isfinite(damping) and damping >= 0):
-            raise InvalidInput(f"damping must be finite and >= 0, got {damping!r}")
-        if damping > 1e12:
-            raise InvalidInput(f"damping must be at most 1e12, got {damping!r}")
-        if osqp_settings is not None and backend_options is None:
-            backend_options = osqp_settings.as_dict()
-        if not isinstance(solver, str):
-            raise InvalidInput(f"solver must be a backend name, got {solver!r}")
+        if options is not None and not isinstance(options, StepOptions):
+            raise InvalidInput(f"options must be a qpik.StepOptions, got {options!r}")
+        given = {
+            "solver": solver,
+            "damping": damping,
+            "damping_law": damping_law,
+            "rank_tolerance": rank_tolerance,
+            "warm_start": warm_start,
+            "backend_options": backend_options,
+        }
+        overrides = {name: value for name, value in given.items() if value is not UNSET}
+        if osqp_settings is not None and "backend_options" not in overrides:
+            overrides["backend_options"] = osqp_settings.as_dict()
+        options = options if options is not None else StepOptions()
+        self.options = options.replace(**overrides) if overrides else options
+        solver, damping = self.options.solver, self.options.damping
+        damping_law, rank_tolerance = self.options.damping_law, self.options.rank_tolerance
+        warm_start = self.options.warm_start
+        backend_options = self.options.backend_options
+        if backend_options is not None:
+            backend_options = dict(backend_options)
         self.model = model
         self.levels = normalize_stack(stack)
         self.limits = list(limits)
@@ -607,24 +613,3 @@ class IKSolver:
             for j in np.flatnonzero(G @ d >= h - 1e-7):
                 active.append(general_names[j])
         return active
-
-
-def solve_ik(
-    configuration: Configuration,
-    stack: Stack,
-    dt: float,
-    *,
-    limits: Sequence[mink.Limit] = (),
-    solver: str = "auto",
-    damping: float = 1e-6,
-) -> np.ndarray:
-    """One differential IK step: the joint velocity ``(nv,)`` [rad/s] for a step of ``dt`` [s].
-
-    A one-shot convenience around :class:`IKSolver`. Raises :class:`qpik.NoSolutionFound`
-    when the highest priority level cannot be solved.
-    """
-    solver_ = IKSolver(configuration.model, stack, limits, solver=solver, damping=damping)
-    result = solver_.step(configuration, dt)
-    if result.status[0] != LevelStatus.SOLVED:
-        raise NoSolutionFound(solver, str(result.status[0]), level=0)
-    return result.velocity
