@@ -54,6 +54,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -71,6 +72,8 @@ __all__ = [
     "find_srdf",
     "list_robots",
     "load_robot",
+    "locate_robot",
+    "resolve_robot",
     "robot_path",
     "robot_spec",
     "robots_dir",
@@ -179,18 +182,70 @@ def load_robot(
         raise InvalidInput(
             f"load_robot expects a name, a path or an MjModel, got {type(source).__name__}"
         )
+    path = locate_robot(source)
+    return _load_file(path, floating_base=floating_base, srdf=srdf)
+
+
+def locate_robot(
+    source: str | os.PathLike, *, relative_to: str | os.PathLike | None = None
+) -> Path:
+    """The file of a robot source: a bundled name, ``"erd:NAME"``, or a path (``.xml`` /
+    ``.urdf``, or any name with a path separator or naming an existing file), relative to
+    the folder ``relative_to`` when given (a problem file's folder), else to the working
+    directory.
+
+    Raises :class:`UnknownRobot` (listing the bundled names) for an unknown name; a path is
+    returned whether or not it exists (:func:`load_robot` then raises
+    :class:`RobotFileError` naming it)."""
     text = os.fspath(source)
     if isinstance(text, bytes):
         text = os.fsdecode(text)
     if "\0" in text:
         raise UnknownRobot(repr(text), list_robots())
     if text.startswith("erd:"):
-        path = erd_path(text[4:])
-    else:
-        path = Path(text)
-        if not (path.suffix.lower() in (".xml", ".urdf") or os.sep in text or _exists(path)):
-            path = robot_path(text)
-    return _load_file(path, floating_base=floating_base, srdf=srdf)
+        return erd_path(text[4:])
+    path = Path(text)
+    if relative_to is not None and not path.is_absolute():
+        path = Path(os.fspath(relative_to)) / path
+    looks_like_path = path.suffix.lower() in (".xml", ".urdf") or os.sep in text or "/" in text
+    if looks_like_path or _exists(path):
+        return path
+    return robot_path(text)
+
+
+def resolve_robot(
+    robot: Any,
+    *,
+    relative_to: str | os.PathLike | None = None,
+    floating_base: bool = False,
+) -> tuple[mujoco.MjModel, np.ndarray | None]:
+    """The one resolver of what qpik's entry points accept as a robot: ``(model, q)``.
+
+    Args:
+        robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
+            caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
+            :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
+            with :func:`load_robot` (``q`` ``None``).
+        relative_to: the folder a relative path is read from (default: the working
+            directory).
+        floating_base: passed to :func:`load_robot` for a file.
+
+    Raises :class:`qpik.InvalidInput` naming ``robot`` for anything else, and
+    :func:`load_robot`'s errors.
+    """
+    from .configuration import Configuration  # robots is imported by configuration's users
+
+    if isinstance(robot, Configuration):
+        return robot.model, robot.q
+    if isinstance(robot, mujoco.MjModel):
+        return robot, None
+    if isinstance(robot, (str, os.PathLike)):
+        path = locate_robot(robot, relative_to=relative_to)
+        return load_robot(path, floating_base=floating_base), None
+    raise InvalidInput(
+        "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
+        f"qpik.Configuration, got {type(robot).__name__}"
+    )
 
 
 def _exists(path: Path) -> bool:
@@ -333,10 +388,27 @@ def robot_spec(
 
 #: Model arrays that must be finite (MuJoCo compiles NaN / inf numbers in a file as is).
 _FINITE_FIELDS = (
-    "body_pos", "body_quat", "body_ipos", "body_iquat", "body_mass", "body_inertia",
-    "jnt_pos", "jnt_axis", "jnt_range", "dof_damping", "dof_armature", "dof_frictionloss",
-    "geom_pos", "geom_quat", "geom_size", "site_pos", "site_quat", "actuator_gear",
-    "actuator_ctrlrange", "actuator_forcerange", "qpos0",
+    "body_pos",
+    "body_quat",
+    "body_ipos",
+    "body_iquat",
+    "body_mass",
+    "body_inertia",
+    "jnt_pos",
+    "jnt_axis",
+    "jnt_range",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "geom_pos",
+    "geom_quat",
+    "geom_size",
+    "site_pos",
+    "site_quat",
+    "actuator_gear",
+    "actuator_ctrlrange",
+    "actuator_forcerange",
+    "qpos0",
 )
 
 
@@ -350,10 +422,14 @@ def _check_finite(model: mujoco.MjModel, path: Path) -> None:
         if bad.size:
             row = int(bad[0][0])
             what = name.split("_", 1)[0]
-            obj = {"body": mujoco.mjtObj.mjOBJ_BODY, "jnt": mujoco.mjtObj.mjOBJ_JOINT,
-                   "dof": mujoco.mjtObj.mjOBJ_DOF, "geom": mujoco.mjtObj.mjOBJ_GEOM,
-                   "site": mujoco.mjtObj.mjOBJ_SITE,
-                   "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR}.get(what)
+            obj = {
+                "body": mujoco.mjtObj.mjOBJ_BODY,
+                "jnt": mujoco.mjtObj.mjOBJ_JOINT,
+                "dof": mujoco.mjtObj.mjOBJ_DOF,
+                "geom": mujoco.mjtObj.mjOBJ_GEOM,
+                "site": mujoco.mjtObj.mjOBJ_SITE,
+                "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+            }.get(what)
             label = (mujoco.mj_id2name(model, obj, row) if obj is not None else None) or row
             raise RobotFileError(
                 str(path), f"{name} of {what} {label!r} is not finite: {values[row]}"

@@ -450,7 +450,7 @@ def test_convergence_covers_every_level0_task(rng):
 
 
 def test_task_errors_rule():
-    from qpik.converge import _task_errors
+    from qpik.qp_engine import task_errors as _task_errors
 
     model = qpik.load_robot("panda")
     configuration = qpik.Configuration(model)

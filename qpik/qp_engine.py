@@ -1,0 +1,378 @@
+"""The ``"qp"`` engine of :func:`qpik.solve`: the IGM loop on :class:`qpik.IKSolver` steps,
+for whatever the compiled engine does not take (several frames, custom stacks, other
+limits, ball or free joints, a level-1 objective). See :mod:`qpik.converge` for the rule.
+
+A solve borrows the tasks of a caller's stack: it sets their targets and scales their
+gains (the trust region) while it runs, and gives every task back as it found it
+(:func:`borrowed_tasks`), even when the solve raises.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Mapping, Sequence
+from typing import Any
+
+import mink
+import mujoco
+import numpy as np
+
+from .configuration import Configuration, FrameType
+from .errors import InvalidTarget
+from .hierarchy import IKSolver, normalize_stack
+from .limits import ConfigurationLimit
+from .model._kernels import BACKTRACKS
+from .options import IGM_BACKEND_OPTIONS, SolveOptions
+from .restarts import Attempt, Clock, StallWindow, run_attempts
+from .result import IKResult, Reason
+from .targets import Target, pose_errors, worst_errors
+from .tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
+
+__all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
+
+#: A frame target as the engine holds it: ``(name, frame type, target)``.
+FrameTarget = tuple[str, FrameType, Target]
+#: The attributes a solve may change on a caller's task (targets, and the gain that the
+#: trust region scales).
+_BORROWED = ("target", "target_position", "target_rotation", "transform_target_to_world", "gain")
+_FRAME_TASKS = (PositionTask, OrientationTask, PoseTask, FrameTask)
+
+
+def set_frame_target(levels: Sequence[Sequence], frame: str, target: Target) -> bool:
+    """Set ``target`` on every task of ``levels`` that regulates ``frame`` (position,
+    orientation, pose and mink frame tasks); returns whether any task does."""
+    matched = False
+    for task in (t for level in levels for t in level):
+        if getattr(task, "frame_name", None) == frame:
+            matched = True
+            _set_task_target(task, frame, target)
+    return matched
+
+
+def _set_task_target(task: Any, frame: str, target: Target) -> None:
+    if isinstance(task, PositionTask):
+        task.set_target(target.position)
+    elif isinstance(task, OrientationTask):
+        if target.rotation is not None:
+            task.set_target(target.rotation)
+    elif isinstance(task, (PoseTask, FrameTask)):
+        if target.rotation is None:
+            raise InvalidTarget(
+                f"frame {frame!r} has a pose task in the stack but a position-only target"
+            )
+        if isinstance(task, PoseTask):
+            task.set_target(target.position, target.rotation)
+        else:
+            task.set_target(
+                mink.SE3.from_rotation_and_translation(
+                    mink.SO3.from_matrix(target.rotation), target.position
+                )
+            )
+
+
+@contextlib.contextmanager
+def borrowed_tasks(levels: Sequence[Sequence]) -> Iterator[None]:
+    """Within the block, the tasks of ``levels`` may have their targets and gains changed;
+    on leaving it (normally or by an exception) each gets back the values it had."""
+    saved = []
+    for level in levels:
+        for task in level:
+            attributes = getattr(task, "__dict__", {})
+            saved.append((task, {k: attributes[k] for k in _BORROWED if k in attributes}))
+    try:
+        yield
+    finally:
+        for task, values in saved:
+            for name, value in values.items():
+                setattr(task, name, value)
+
+
+def task_errors(task: Any, configuration: Configuration) -> tuple[float, float] | None:
+    """(position-like error, orientation error) of a level-0 task at ``configuration``, or
+    ``None`` for a task without a target (see :mod:`qpik.converge` for the rule)."""
+    try:
+        target = _task_target(task)
+        if target is None:
+            return None
+        if target is _NOT_A_FRAME_TASK:
+            error = np.asarray(task.compute_error(configuration), dtype=float)
+            return float(np.linalg.norm(error)), 0.0
+        position, orientation = pose_errors(
+            *configuration.frame_pose(task.frame_name, task.frame_type), target
+        )
+    except mink.TargetNotSet:
+        return None
+    if isinstance(task, PositionTask):
+        return position, 0.0
+    if isinstance(task, OrientationTask):
+        return 0.0, orientation
+    # a pose: the parts with a nonzero cost
+    return (
+        position if np.any(task.cost[:3] > 0) else 0.0,
+        orientation if np.any(task.cost[3:] > 0) else 0.0,
+    )
+
+
+_NOT_A_FRAME_TASK = Target(np.zeros(3))
+_ORIGIN = np.zeros(3)
+
+
+def _task_target(task: Any) -> Target | None:
+    """The frame target of a frame task (``None`` when unset), or ``_NOT_A_FRAME_TASK``."""
+    if isinstance(task, PositionTask):
+        return None if task.target is None else Target(task.target)
+    if isinstance(task, OrientationTask):
+        # only the angle is read
+        return None if task.target is None else Target(_ORIGIN, task.target)
+    if isinstance(task, PoseTask):
+        if task.target_position is None:
+            return None
+        return Target(task.target_position, task.target_rotation)
+    if isinstance(task, mink.FrameTask):
+        world = task.transform_target_to_world
+        if world is None:
+            return None
+        return Target(world.translation(), world.rotation().as_matrix())
+    return _NOT_A_FRAME_TASK
+
+
+class QPProblem:
+    """What a ``"qp"``-engine solve iterates: a scratch configuration, the stack and its
+    :class:`qpik.IKSolver`, built afresh for every solve (nothing carries over)."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        frames: Sequence[FrameTarget],
+        stack: Any,
+        options: SolveOptions,
+    ):
+        self.configuration = Configuration(model)
+        self.frames = list(frames)
+        self.custom_stack = stack is not None
+        if stack is None:
+            levels = self._default_levels(model, options)
+        else:
+            levels = normalize_stack(stack)
+        self.levels = levels
+        self.limits = (
+            [ConfigurationLimit(model)] if options.limits == "joint" else list(options.limits or ())
+        )
+        step = options.step
+        backend_options = step.backend_options
+        if backend_options is None:
+            backend_options = IGM_BACKEND_OPTIONS.get(step.solver)
+        self.solver = IKSolver(
+            model,
+            levels,
+            self.limits,
+            solver=step.solver,
+            damping=step.damping,
+            damping_law=step.damping_law,
+            rank_tolerance=step.rank_tolerance,
+            warm_start=step.warm_start,
+            backend_options=None if backend_options is None else dict(backend_options),
+        )
+        self.primary = [t for t in levels[0] if isinstance(t, _FRAME_TASKS)]
+        target_frames = {name for name, _, _ in self.frames}
+        # Level-0 tasks checked for convergence besides the target frames.
+        self.level0 = [t for t in levels[0] if getattr(t, "frame_name", None) not in target_frames]
+        self.base_gains: list[float] = []
+
+    def _default_levels(self, model: mujoco.MjModel, options: SolveOptions) -> list[list]:
+        """Level 0: a position or pose task per frame (gain ``alpha``); level 1, with
+        ``secondary`` on a redundant arm: distance from the joint limits."""
+        primary = [
+            PositionTask(name, kind, gain=options.alpha)
+            if target.rotation is None
+            else PoseTask(name, kind, gain=options.alpha)
+            for name, kind, target in self.frames
+        ]
+        rows = sum(3 if target.rotation is None else 6 for _, _, target in self.frames)
+        levels = [primary]
+        if model.nv > rows and options.secondary:
+            levels.append([JointLimitDistanceTask(cost=1.0, gain=0.5)])
+        return levels
+
+    def set_targets(self) -> None:
+        """Set each frame's target on the stack's tasks; every frame must have a task.
+        Called inside :func:`borrowed_tasks`; remembers the gains the trust region scales."""
+        if not self.custom_stack:  # one task per frame
+            for task, (name, _kind, target) in zip(self.primary, self.frames):
+                _set_task_target(task, name, target)
+        for name, _kind, target in self.frames if self.custom_stack else ():
+            if not set_frame_target(self.levels, name, target):
+                raise InvalidTarget(f"no task in the given stack regulates frame {name!r}")
+        self.base_gains = [task.gain for task in self.primary]
+
+    def clamp_gains(
+        self,
+        errors: Mapping[str, tuple[float, float]],
+        max_position_step: float,
+        max_orientation_step: float,
+    ) -> None:
+        """Trust region: scale the target tasks' gains so that no iteration asks for more
+        than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
+        for task, base_gain in zip(self.primary, self.base_gains):
+            if task.frame_name not in errors:
+                continue
+            position_error, orientation_error = errors[task.frame_name]
+            position_limit = max_position_step / max(position_error, 1e-12)
+            orientation_limit = max_orientation_step / max(orientation_error, 1e-12)
+            if isinstance(task, PositionTask):
+                limit = position_limit
+            elif isinstance(task, OrientationTask):
+                limit = orientation_limit
+            else:  # a pose: one gain for both parts, the tighter one
+                limit = min(position_limit, orientation_limit)
+            task.gain = min(base_gain, limit)
+
+    def errors(self, configuration: Configuration) -> dict[str, tuple[float, float]]:
+        """Per frame, (position error [m], orientation error [rad]) at ``configuration``."""
+        return {
+            name: pose_errors(*configuration.frame_pose(name, kind), target)
+            for name, kind, target in self.frames
+        }
+
+    def level0_errors(self, configuration: Configuration) -> list[tuple[float, float]]:
+        """(position-like, orientation) errors of level 0's other tasks."""
+        out = []
+        for task in self.level0:
+            errors = task_errors(task, configuration)
+            if errors is not None:
+                out.append(errors)
+        return out
+
+
+class _Measure:
+    """The errors of the current iterate: per frame, the score ``max(p / tol_p + o /
+    tol_o)`` over frames and level-0 tasks, whether all are within tolerance, and the
+    energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases."""
+
+    __slots__ = ("done", "energy", "errors", "score")
+
+    def __init__(self, problem: QPProblem, options: SolveOptions):
+        configuration = problem.configuration
+        tol_p, tol_o = options.tol_position, options.tol_orientation
+        self.errors = problem.errors(configuration)
+        items = list(self.errors.values()) + problem.level0_errors(configuration)
+        self.score = max(p / tol_p + o / tol_o for p, o in items)
+        self.done = all(p <= tol_p and o <= tol_o for p, o in items)
+        self.energy = sum(p * p + o * o for p, o in items)
+
+
+class _Path:
+    """The iterates of one attempt: residuals, worst errors and configurations."""
+
+    def __init__(self, measure: _Measure, q: np.ndarray):
+        self.residuals: list[list[float]] = []
+        self.errors = [worst_errors(measure.errors)]
+        self.q = [q]
+        self.last = measure
+
+
+def _diagnose(step: Any, singular_threshold: float) -> Reason:
+    """Why an attempt stopped making progress."""
+    if step is None:
+        return Reason.STALLED
+    if step.active_limits:
+        return Reason.AT_LIMIT
+    if step.sigma_min and step.sigma_min[0] < singular_threshold:
+        return Reason.SINGULAR
+    return Reason.STALLED
+
+
+class _Engine:
+    """One solve's attempts on a prepared problem."""
+
+    def __init__(self, problem: QPProblem, options: SolveOptions, clock: Clock):
+        self.problem = problem
+        self.options = options
+        self.clock = clock
+        self.iterations = 0
+        configuration = problem.configuration
+        self.bounds = (configuration.lower, configuration.upper)
+        law = options.damping_law
+        self.threshold = law.singular_threshold if law is not None else 0.0
+
+    def _backtrack(self, step: Any, path: _Path) -> _Measure:
+        """Apply ``beta`` times the step, halved (up to ``BACKTRACKS`` times) while it
+        increases the energy, as the compiled engine does."""
+        configuration = self.problem.configuration
+        q_base = configuration.q
+        scale = self.options.beta
+        for halving in range(BACKTRACKS + 1):
+            q = q_base.copy()
+            mujoco.mj_integratePos(configuration.model, q, scale * step.displacement, 1.0)
+            if self.options.beta > 1.0:
+                q = np.clip(q, *self.bounds)
+            configuration.update(q)
+            measure = _Measure(self.problem, self.options)
+            if measure.energy < path.last.energy or halving == BACKTRACKS:
+                break
+            scale *= 0.5
+        path.errors.append(worst_errors(measure.errors))
+        path.q.append(q)
+        path.last = measure
+        return measure
+
+    def attempt(self) -> Attempt[_Path]:
+        """Iterate from the configuration's current ``q``."""
+        options, problem = self.options, self.problem
+        measure = _Measure(problem, options)
+        path = _Path(measure, problem.configuration.q)
+        stall = StallWindow(measure.score, options.stall_window)
+        reason = Reason.MAX_ITERS
+        for _ in range(options.max_iters):
+            if measure.done or self.clock.out_of_time():
+                reason = Reason.TIME_BUDGET if not measure.done else reason
+                break
+            if options.max_step is not None:
+                problem.clamp_gains(measure.errors, *options.max_step)
+            step = problem.solver.step(problem.configuration, 1.0)
+            self.iterations += 1
+            path.residuals.append(list(step.residuals))
+            measure = self._backtrack(step, path)
+            # A vanishing step that leaves the error: nothing more comes of this start.
+            vanished = float(np.sqrt(step.displacement @ step.displacement)) < 1e-9
+            if stall.update(measure.score) or vanished:
+                reason = _diagnose(step, self.threshold)
+                break
+        if measure.done:
+            reason = Reason.CONVERGED
+        return Attempt(measure.done, measure.score, reason, path)
+
+
+def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options: SolveOptions):
+    """The IGM loop of :func:`qpik.solve` on a prepared problem (the ``"qp"`` engine), from
+    ``q0``; restarts draw from ``numpy.random.default_rng(seed)``. The caller's tasks are
+    given back unchanged."""
+    configuration = problem.configuration
+    rng = np.random.default_rng(seed)
+    engine = _Engine(problem, options, clock)
+    with borrowed_tasks(problem.levels):
+        problem.set_targets()
+        configuration.update(q0)
+        best, reason, used = run_attempts(
+            engine.attempt,
+            lambda: configuration.update(configuration.random_q(rng)),
+            options.effective_restarts,
+            clock,
+        )
+    path = best.payload
+    worst = worst_errors(path.last.errors)
+    return IKResult(
+        q=path.q[-1],
+        converged=best.converged,
+        reason=reason,
+        iterations=engine.iterations,
+        restarts_used=used,
+        position_error=worst[0],
+        orientation_error=worst[1],
+        frame_errors=path.last.errors,
+        residual_history=path.residuals,
+        error_history=path.errors,
+        path=np.array(path.q),
+        solve_time=clock.elapsed(),
+        engine="qp",
+    )

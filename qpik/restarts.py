@@ -1,0 +1,127 @@
+"""The restart loop of the IGM, shared by :func:`qpik.solve`'s ``"qp"`` engine and the
+baselines (:func:`qpik.baselines.igm`); the compiled engine runs the same rules in
+:func:`qpik.model._kernels.igm_solve`.
+
+The rules:
+
+* an *attempt* iterates from a start until it converges, reaches ``max_iters``, runs out
+  of time, or stops making progress: ``stall_window`` iterations without a 1 % decrease
+  of its score (:class:`StallWindow`);
+* while it has not converged, restarts (``restarts`` of them at most) and time remain, the
+  loop starts a new attempt from a random configuration;
+* the best attempt is returned: a converged one over one that did not, then the lowest
+  score (the first attempt among equals).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from .result import Reason
+
+__all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]
+
+#: The relative decrease of the score that counts as progress.
+PROGRESS = 0.99
+
+P = TypeVar("P")
+
+
+class StallWindow:
+    """Counts iterations without progress: ``update(score)`` is True once
+    ``stall_window`` consecutive scores have not gone below 99 % of the score at the
+    window's start."""
+
+    __slots__ = ("_best", "_since", "_window")
+
+    def __init__(self, score: float, window: int):
+        self._best = score
+        self._since = 0
+        self._window = window
+
+    def update(self, score: float) -> bool:
+        """Record one iteration's score; whether the attempt has stalled."""
+        if score < PROGRESS * self._best:
+            self._best, self._since = score, 0
+            return False
+        self._since += 1
+        return self._since >= self._window
+
+
+class Clock:
+    """The time budget [s] of a solve, from ``start`` (``time.perf_counter()``)."""
+
+    __slots__ = ("budget", "start")
+
+    def __init__(self, start: float, budget: float | None):
+        self.start = start
+        self.budget = budget
+
+    def out_of_time(self) -> bool:
+        """Whether the budget (if any) is spent."""
+        return self.budget is not None and time.perf_counter() - self.start > self.budget
+
+    def elapsed(self) -> float:
+        """Seconds since the start."""
+        return time.perf_counter() - self.start
+
+
+@dataclass
+class Attempt(Generic[P]):
+    """The outcome of one attempt: whether it converged, its final score (lower is
+    better), why it ended, and whatever the caller keeps of it (``payload``)."""
+
+    converged: bool
+    score: float
+    reason: Reason
+    payload: P
+
+    def beats(self, other: Attempt | None) -> bool:
+        """Converged over not converged, then a strictly lower score."""
+        if other is None:
+            return True
+        if self.converged != other.converged:
+            return self.converged
+        return self.score < other.score
+
+
+def run_attempts(
+    attempt: Callable[[], Attempt[P]],
+    restart: Callable[[], None],
+    restarts: int,
+    clock: Clock,
+    best: Attempt[P] | None = None,
+) -> tuple[Attempt[P], Reason, int]:
+    """Run ``attempt`` from the current start, then after each ``restart()`` (which draws a
+    new start), until one converges, ``restarts`` restarts are spent or the clock runs out.
+
+    Args:
+        attempt: runs one attempt from the current start.
+        restart: moves to a new random start.
+        restarts: restarts allowed after the first attempt.
+        clock: the solve's time budget.
+        best: an outcome to beat (e.g. the start itself); ``None``: the first attempt is
+            kept whatever its score.
+
+    Returns:
+        ``(best attempt, reason, restarts used)``: ``reason`` is ``CONVERGED`` when the
+        best attempt converged, else why the last attempt ended (``TIME_BUDGET`` when the
+        clock ran out).
+    """
+    used = 0
+    while True:
+        outcome = attempt()
+        if outcome.beats(best):
+            best = outcome
+        reason = outcome.reason
+        timed_out = clock.out_of_time()
+        if reason is Reason.CONVERGED or used >= restarts or timed_out:
+            if timed_out and reason is not Reason.CONVERGED:
+                reason = Reason.TIME_BUDGET
+            break
+        used += 1
+        restart()
+    return best, (Reason.CONVERGED if best.converged else reason), used

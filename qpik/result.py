@@ -1,0 +1,140 @@
+"""What a full-IK solve returns: :class:`IKResult`, and why it ended, :class:`Reason`.
+
+Reasons are a string-valued :class:`enum.Enum`: ``result.reason == "converged"`` holds, and
+JSON, CSV and the CLI print the plain string.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+__all__ = ["IGM_REASONS", "REASONS", "IKResult", "LazyRows", "Reason"]
+
+
+class Reason(str, enum.Enum):
+    """Why a solve (or a baseline IGM loop) ended; :attr:`CONVERGED` is the only success.
+    Compares equal to its string value; ``str()`` and ``format()`` give the value."""
+
+    CONVERGED = "converged"
+    MAX_ITERS = "max_iters"
+    TIME_BUDGET = "time_budget"
+    STALLED = "stalled"
+    AT_LIMIT = "at_limit"
+    SINGULAR = "singular"
+    UNREACHABLE = "unreachable"
+    DIVERGED = "diverged"
+
+    def __str__(self) -> str:
+        return self.value
+
+    __format__ = str.__format__
+
+    @property
+    def description(self) -> str:
+        """What the reason means, in a sentence."""
+        return _DESCRIPTIONS[self]
+
+
+_DESCRIPTIONS = {
+    Reason.CONVERGED: "every frame and every level-0 task is within tolerance",
+    Reason.MAX_ITERS: "the iteration limit of the last attempt was reached",
+    Reason.TIME_BUDGET: "the time budget ran out",
+    Reason.STALLED: "no progress, for no diagnosed reason (the target may be out of reach)",
+    Reason.AT_LIMIT: "no progress while a joint limit binds",
+    Reason.SINGULAR: "no progress at a singular configuration",
+    Reason.UNREACHABLE: "a target position is farther from the base than the arm reaches "
+    "(provably: the chain's reach bound); answered without iterating",
+    Reason.DIVERGED: "the step was not finite",
+}
+
+#: The reasons :func:`qpik.solve` gives, with their meaning (read-only).
+REASONS: Mapping[str, str] = MappingProxyType(
+    {r.value: r.description for r in Reason if r is not Reason.DIVERGED}
+)
+#: The reasons of the baseline loops (:func:`qpik.baselines.igm`), with their meaning.
+IGM_REASONS: Mapping[str, str] = MappingProxyType(
+    {
+        Reason.CONVERGED.value: "the frame is within tolerance of its target",
+        Reason.MAX_ITERS.value: Reason.MAX_ITERS.description,
+        Reason.TIME_BUDGET.value: Reason.TIME_BUDGET.description,
+        Reason.STALLED.value: "no progress (1 % of the error) for stall_window steps",
+        Reason.DIVERGED.value: Reason.DIVERGED.description,
+    }
+)
+
+
+@dataclass
+class IKResult:
+    """The outcome of :func:`qpik.solve`.
+
+    Attributes:
+        q: the best configuration found ``(nq,)``, always within the joint limits.
+        converged: whether every frame and every level-0 task is within tolerance at ``q``.
+        reason: a :class:`Reason` (a string, one of :data:`REASONS`).
+        iterations: IK steps taken, all attempts together.
+        restarts_used: random restarts made after the first attempt.
+        position_error: largest frame position error at ``q`` [m].
+        orientation_error: largest frame orientation error at ``q`` [rad] (0 without
+            orientation targets).
+        frame_errors: per frame, ``(position_error [m], orientation_error [rad])``.
+        residual_history: per iteration of the returned attempt, each level's QP residual
+            ``|A_k dq - b_k|`` (what the solver minimised at that step).
+        error_history: per iteration of the returned attempt (its start first), the largest
+            frame ``(position_error [m], orientation_error [rad])``.
+        path: the configurations of the returned attempt, its start first ``(k, nq)``.
+        solve_time: wall time [s].
+        engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.converge`).
+    """
+
+    q: np.ndarray
+    converged: bool
+    reason: Reason
+    iterations: int
+    restarts_used: int
+    position_error: float
+    orientation_error: float
+    frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    residual_history: Sequence[list[float]] = field(default_factory=list, repr=False)
+    error_history: Sequence[tuple[float, float]] = field(default_factory=list, repr=False)
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    solve_time: float = 0.0
+    engine: str = "qp"
+
+    def __str__(self) -> str:
+        state = "converged" if self.converged else f"not converged ({self.reason})"
+        return (
+            f"IK {state} in {self.iterations} iterations, {self.restarts_used} restarts, "
+            f"{1e3 * self.solve_time:.2f} ms: position error {self.position_error:.3g} m, "
+            f"orientation error {self.orientation_error:.3g} rad\n"
+            f"q = {np.array2string(self.q, precision=4)}"
+        )
+
+
+class LazyRows(Sequence):
+    """A read-only sequence of the rows of a 2-D array, each converted on access (to a
+    list, or a tuple): the compiled engine's histories, built only when read."""
+
+    __slots__ = ("_array", "_kind")
+
+    def __init__(self, array: np.ndarray, kind: type = list):
+        self._array = array
+        self._kind = kind
+
+    def __len__(self) -> int:
+        return self._array.shape[0]
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self._kind(row) for row in self._array[index].tolist()]
+        return self._kind(self._array[index].tolist())
+
+    def __eq__(self, other) -> bool:
+        return list(self) == list(other)
+
+    def __repr__(self) -> str:
+        return repr(list(self))

@@ -1,0 +1,140 @@
+"""Frame targets of a full-IK solve: what a target may be, its parsing and its errors.
+
+A target is a position [m] in the world frame and, optionally, a rotation matrix (frame to
+world). :func:`parse_target` accepts a position ``(3,)``, a ``(position, rotation)`` pair,
+a 4x4 homogeneous matrix, a ``mink.SE3`` or a :class:`Target`, and raises
+:class:`qpik.InvalidTarget` for anything else. :func:`pose_errors` measures a frame pose
+against a target: the distance of the origins [m] and the angle of ``R_target R^T`` [rad]
+(:func:`qpik.model.rotations.orientation_angle`, the formula the compiled engine uses).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from .configuration import Configuration, FrameType
+from .errors import InvalidTarget
+from .model import _kernels
+from .model.rotations import orientation_angle
+
+__all__ = [
+    "MAX_TARGET_DISTANCE",
+    "FrameKey",
+    "RobotLike",
+    "Target",
+    "TargetLike",
+    "parse_target",
+    "pose_errors",
+    "worst_errors",
+]
+
+#: Targets beyond this distance from the origin [m] are rejected: no robot reaches them,
+#: and their squared errors would overflow.
+MAX_TARGET_DISTANCE = 1e9
+
+
+@dataclass(frozen=True)
+class Target:
+    """A target for one frame: a position [m] in the world frame and, optionally, a
+    rotation matrix (frame to world)."""
+
+    position: np.ndarray
+    rotation: np.ndarray | None = None
+
+
+#: What :func:`qpik.solve` accepts as a robot: anything :func:`qpik.load_robot` takes, or a
+#: :class:`qpik.Configuration`.
+RobotLike = str | os.PathLike | mujoco.MjModel | Configuration
+#: A target frame: a name (site, then body, then geom) or ``(name, frame_type)``.
+FrameKey = str | tuple[str, FrameType | str]
+#: A target: a position (3,), ``(position, rotation)``, a 4x4 matrix, an SE3 or a Target.
+TargetLike = Target | mink.SE3 | npt.ArrayLike | tuple[npt.ArrayLike, npt.ArrayLike]
+
+_EYE = np.eye(3)
+
+_TARGET_DEFECTS = {
+    1: "position target must be 3 finite numbers",
+    2: "rotation target must be a finite 3x3 matrix",
+    3: "rotation target is not a rotation matrix (R R^T != I or det <= 0)",
+}
+_FORMS = "a target is a position (3,), (position, rotation), a 4x4 matrix or an SE3"
+
+
+def _array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTarget(
+            f"{what} must be finite numbers of shape {shape}, got {value!r}"
+        ) from exc
+    if array.shape != shape:
+        raise InvalidTarget(
+            f"{what} must be finite numbers of shape {shape}, got an array of shape {array.shape}"
+        )
+    return array
+
+
+def _parts(value: TargetLike) -> tuple:
+    """``(position, rotation or None)`` of any accepted form, unchecked."""
+    if isinstance(value, tuple) and len(value) == 2:
+        return value
+    if isinstance(value, Target):
+        return value.position, value.rotation
+    if isinstance(value, mink.SE3):
+        return value.translation(), value.rotation().as_matrix()
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidTarget(f"{_FORMS}; got {value!r}") from exc
+    if array.shape == (4, 4):
+        if not np.allclose(array[3], [0, 0, 0, 1]):
+            raise InvalidTarget("a 4x4 target's last row must be (0, 0, 0, 1)")
+        return array[:3, 3], array[:3, :3]
+    if array.shape == (3,):
+        return array, None
+    raise InvalidTarget(f"{_FORMS}; got an array of shape {array.shape}")
+
+
+def parse_target(value: TargetLike) -> Target:
+    """A :class:`Target` from a position ``(3,)``, a ``(position, rotation)`` pair, a 4x4
+    homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
+    :class:`qpik.InvalidTarget`. The rotation is checked once, in one compiled call
+    (``|R R^T - I| <= 1e-6``, ``det R > 0``); positions farther than
+    :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
+    position, rotation = _parts(value)
+    position = _array(position, (3,), "position target")
+    has_rot = rotation is not None
+    rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
+    defect = _kernels.target_defect(position, rotation, has_rot)
+    if defect:
+        shown = position if defect == 1 else rotation
+        raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")
+    if not float(np.abs(position).max()) <= MAX_TARGET_DISTANCE:
+        raise InvalidTarget(
+            f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
+            "world origin (its error would not be representable)"
+        )
+    return Target(position, rotation if has_rot else None)
+
+
+def pose_errors(position: np.ndarray, rotation: np.ndarray, target: Target) -> tuple[float, float]:
+    """``(|p - p_target| [m], angle of R_target R^T [rad])`` of a frame pose (world frame)
+    against ``target``; the angle is 0 for a position-only target."""
+    d = position - target.position
+    position_error = float(math.sqrt(d @ d))
+    if target.rotation is None:
+        return position_error, 0.0
+    return position_error, orientation_angle(rotation, target.rotation)
+
+
+def worst_errors(errors: Mapping[str, tuple[float, float]]) -> tuple[float, float]:
+    """The largest position error [m] and the largest orientation error [rad] over frames."""
+    return max(p for p, _ in errors.values()), max(o for _, o in errors.values())
