@@ -505,3 +505,63 @@ def test_unknown_solver_is_named_on_both_engines():
     for engine in ("compiled", "qp"):
         with pytest.raises(qpik.InvalidInput, match="unknown QP solver 'nope'"):
             qpik.solve("panda", {"ee": [0.4, 0.0, 0.5]}, solver="nope", engine=engine)
+
+
+def test_options_object_presets_and_keywords_agree_bitwise():
+    target = {"ee": [0.4, 0.1, 0.5]}
+    by_keywords = qpik.solve("panda", target, seed=3, tol_position=1e-3, max_iters=50)
+    options = qpik.SolveOptions(seed=3, tol_position=1e-3, max_iters=50)
+    by_options = qpik.solve("panda", target, options=options)
+    np.testing.assert_array_equal(by_keywords.q, by_options.q)
+    # a keyword overrides the options; a preset name is options
+    override = qpik.solve("panda", target, options=options, max_iters=0)
+    assert override.iterations == 0
+    fast = qpik.solve("panda", target, options="fast", seed=3)
+    same = qpik.solve("panda", target, seed=3, **_fields(qpik.PRESETS["fast"]))
+    np.testing.assert_array_equal(fast.q, same.q)
+    session = qpik.IKSession("panda", options="fast")
+    np.testing.assert_array_equal(session.solve(target, seed=3).q, fast.q)
+    with pytest.raises(qpik.InvalidOption, match="preset"):
+        qpik.solve("panda", target, options="quickest")
+    with pytest.raises(qpik.InvalidOption) as info:
+        qpik.solve("panda", target, stall_window=0)
+    assert info.value.field == "stall_window"
+
+
+def _fields(options):
+    return {
+        "tol_position": options.tol_position,
+        "tol_orientation": options.tol_orientation,
+        "max_iters": options.max_iters,
+        "restarts": options.restarts,
+    }
+
+
+def test_solve_gives_the_callers_stack_back_unchanged():
+    model = qpik.load_robot("panda")
+    start = qpik.Configuration(model, qpik.IKSession(model).mid_q())
+    position, rotation = start.frame_pose("ee")
+    pose = qpik.tasks.PoseTask("ee", "site", gain=0.7)
+    position_task = qpik.tasks.PositionTask("ee", "site", gain=0.9)
+    position_task.set_target(position)
+    target = (position + [0.05, 0.0, -0.05], rotation)
+    result = qpik.solve(model, {"ee": target}, stack=[[pose], [position_task]], seed=0)
+    assert result.converged, result
+    assert pose.target_position is None and pose.target_rotation is None and pose.gain == 0.7
+    np.testing.assert_array_equal(position_task.target, position)
+    assert position_task.gain == 0.9
+    with pytest.raises(qpik.InvalidTarget):  # raised mid-solve: still given back
+        qpik.solve(model, {"ee": target[0]}, stack=[[pose]])
+    assert pose.target_position is None
+
+
+def test_reasons_are_string_enums():
+    import json
+
+    from qpik.result import Reason
+
+    result = qpik.solve("planar_2r", {"ee": [5.0, 0.0, 0.0]})
+    assert result.reason is Reason.UNREACHABLE and result.reason == "unreachable"
+    assert json.dumps({"reason": result.reason}) == '{"reason": "unreachable"}'
+    assert f"{result.reason}" == str(result.reason) == "unreachable"
+    assert set(REASONS) == {r.value for r in Reason} - {"diverged"}
