@@ -1,17 +1,37 @@
 """Reference methods: the lecture's pseudoinverse, damped least squares, and the classical
-two-level null-space projection. Used as references in tests and as baselines in
-benchmarks; they know nothing of joint limits.
+two-level null-space projection, as steps, and the lecture's inverse geometric model (IGM)
+as a loop with any of these steps. Used as references in tests and as baselines in
+benchmarks; they know nothing of joint limits (the loop clips into them).
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
+from .configuration import Configuration, FrameType
+from .model.rotations import orientation_error
+from .options import PRESETS
+from .restarts import Attempt, Clock, StallWindow, run_attempts
+from .result import IGM_REASONS, Reason
+
 __all__ = [
+    "IGM_REASONS",
+    "IGMResult",
+    "damped_least_squares_igm",
     "damped_least_squares_step",
+    "igm",
     "nullspace_projection_step",
+    "pose_error",
+    "pseudoinverse_igm",
     "pseudoinverse_step",
 ]
+
+#: The loop options shared with :func:`qpik.solve` (tolerances, iterations, gains).
+_DEFAULTS = PRESETS["default"]
 
 
 def pseudoinverse_step(J: np.ndarray, xi: np.ndarray, rcond: float = 1e-15) -> np.ndarray:
@@ -41,37 +61,7 @@ def nullspace_projection_step(
     return first + np.linalg.pinv(J2 @ N1, rcond=rcond) @ (xi2 - J2 @ first)
 
 
-# --------------------------------------------------------------------------------------------
-# The lecture's inverse geometric model (IGM) as a loop, with the pseudoinverse or damped
-# least squares step: references for qpik.solve and baselines of benchmarks/ik_success.py.
-# (Appended below the step functions; hence the late imports.)
-
-import math  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from dataclasses import dataclass  # noqa: E402
-
-from .configuration import Configuration, FrameType  # noqa: E402
-
-__all__ += [
-    "IGM_REASONS",
-    "IGMResult",
-    "damped_least_squares_igm",
-    "igm",
-    "pose_error",
-    "pseudoinverse_igm",
-]
-
-#: Why an IGM loop ended; ``converged`` is the only success.
-IGM_REASONS = {
-    "converged": "the frame is within tolerance of its target",
-    "max_iters": "the iteration limit of the last attempt was reached",
-    "time_budget": "the time budget ran out",
-    "stalled": "no progress (1 % of the error) for stall_window steps",
-    "diverged": "the step was not finite",
-}
-
-
+# ------------------------------------------------------------------------ the IGM loop
 @dataclass
 class IGMResult:
     """The outcome of an IGM loop (:func:`igm`).
@@ -79,7 +69,7 @@ class IGMResult:
     Attributes:
         q: the best configuration found ``(nq,)``; within the limits when ``clip`` is on.
         converged: whether the frame is within tolerance at ``q``.
-        reason: one of :data:`IGM_REASONS`.
+        reason: a :class:`qpik.result.Reason`, one of :data:`IGM_REASONS`.
         iterations: steps taken, all attempts together.
         restarts_used: random restarts made after the first attempt.
         position_error: distance of the frame origin to its target at ``q`` [m].
@@ -89,37 +79,12 @@ class IGMResult:
 
     q: np.ndarray
     converged: bool
-    reason: str
+    reason: Reason
     iterations: int
     restarts_used: int
     position_error: float
     orientation_error: float
     solve_time: float
-
-
-def _rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """``log(R)`` as a rotation vector (axis * angle) [rad]."""
-    cosine = min(1.0, max(-1.0, (np.trace(rotation) - 1.0) / 2.0))
-    angle = math.acos(cosine)
-    skew = np.array(
-        [
-            rotation[2, 1] - rotation[1, 2],
-            rotation[0, 2] - rotation[2, 0],
-            rotation[1, 0] - rotation[0, 1],
-        ]
-    )
-    if angle < 1e-8:
-        return 0.5 * skew
-    if angle > math.pi - 1e-4:
-        # sin(angle) -> 0: take the axis from the symmetric part,
-        # (R + R^T) / 2 - cos I = (1 - cos) a a^T, and its sign from the skew part.
-        symmetric = 0.5 * (rotation + rotation.T) - cosine * np.eye(3)
-        column = int(np.argmax(np.diag(symmetric)))
-        axis = symmetric[:, column] / math.sqrt(max(symmetric[column, column], 1e-300))
-        if axis @ skew < 0:
-            axis = -axis
-        return angle * axis / np.linalg.norm(axis)
-    return angle / (2.0 * math.sin(angle)) * skew
 
 
 def pose_error(
@@ -137,12 +102,69 @@ def pose_error(
     c_position = np.asarray(target_position, dtype=float) - position
     if target_rotation is None:
         return c_position
-    return np.concatenate([c_position, _rotation_vector(target_rotation @ rotation.T)])
+    return np.concatenate([c_position, orientation_error(rotation, target_rotation)])
 
 
 #: A step rule: ``(configuration, J, c) -> dq`` with ``J (m, nv)`` the frame's world-aligned
 #: Jacobian rows and ``c (m,)`` the task error (:func:`pose_error`) at ``configuration``.
 StepRule = Callable[[Configuration, np.ndarray, np.ndarray], np.ndarray]
+
+
+class _Loop:
+    """One IGM run: the work configuration, the frame, its target, and the step rule."""
+
+    def __init__(self, work, frame, kind, target_position, target_rotation, step, options):
+        self.work, self.frame, self.kind = work, frame, kind
+        self.target = (target_position, target_rotation)
+        self.rows = slice(0, 3) if target_rotation is None else slice(0, 6)
+        self.step = step
+        self.options = options  # tol_position, tol_orientation, max_iters, alpha, beta, ...
+        self.iterations = 0
+        self.c = self.error()
+
+    def error(self) -> np.ndarray:
+        return pose_error(self.work, self.frame, *self.target, self.kind)
+
+    def errors(self) -> tuple[float, float]:
+        c = self.c
+        return float(np.linalg.norm(c[:3])), float(np.linalg.norm(c[3:])) if c.size > 3 else 0.0
+
+    def score(self) -> float:
+        """``|p| / tol_position + |theta| / tol_orientation``: converged at <= 1."""
+        position, orientation = self.errors()
+        return (
+            position / self.options["tol_position"] + orientation / self.options["tol_orientation"]
+        )
+
+    def outcome(self, reason: Reason) -> Attempt:
+        score = self.score()
+        return Attempt(score <= 1.0, score, reason, (self.work.q, self.errors()))
+
+    def attempt(self, clock: Clock) -> Attempt:
+        """Iterate from the work configuration's current ``q``."""
+        o = self.options
+        lower, upper = self.work.lower, self.work.upper
+        current = self.score()
+        stall = StallWindow(current, o["stall_window"])
+        for _ in range(o["max_iters"]):
+            if current <= 1.0:
+                break
+            if clock.out_of_time():
+                return self.outcome(Reason.TIME_BUDGET)
+            J = self.work.frame_jacobian(self.frame, self.kind)[self.rows]
+            dq = self.step(self.work, J, o["alpha"] * self.c)
+            self.iterations += 1
+            if not np.all(np.isfinite(dq)):
+                return self.outcome(Reason.DIVERGED)
+            q = self.work.integrate(o["beta"] * dq, 1.0)
+            if o["clip"]:
+                q = np.clip(q, lower, upper)
+            self.work.update(q)
+            self.c = self.error()
+            current = self.score()
+            if stall.update(current):
+                return self.outcome(Reason.STALLED)
+        return self.outcome(Reason.CONVERGED if current <= 1.0 else Reason.MAX_ITERS)
 
 
 def igm(
@@ -154,15 +176,15 @@ def igm(
     *,
     frame_type: FrameType | str = FrameType.SITE,
     q0: np.ndarray | None = None,
-    tol_position: float = 1e-4,
-    tol_orientation: float = 1e-3,
-    max_iters: int = 100,
-    time_budget: float | None = None,
-    restarts: int = 20,
+    tol_position: float = _DEFAULTS.tol_position,
+    tol_orientation: float = _DEFAULTS.tol_orientation,
+    max_iters: int = _DEFAULTS.max_iters,
+    time_budget: float | None = _DEFAULTS.time_budget,
+    restarts: int = _DEFAULTS.effective_restarts,
     seed: int | np.random.Generator | None = None,
-    alpha: float = 1.0,
-    beta: float = 1.0,
-    stall_window: int = 5,
+    alpha: float = _DEFAULTS.alpha,
+    beta: float = _DEFAULTS.beta,
+    stall_window: int = _DEFAULTS.stall_window,
     clip: bool = True,
 ) -> IGMResult:
     r"""The lecture's inverse geometric model with any step rule:
@@ -173,83 +195,46 @@ def igm(
     until the frame is within ``tol_position`` [m] and ``tol_orientation`` [rad]. With
     ``clip`` the joint positions are clipped into the limits after each step (the step rule
     itself knows nothing of them). The stopping and restart rules are those of
-    :func:`qpik.solve`: an attempt ends after ``max_iters`` steps, or after
-    ``stall_window`` steps without a 1 % decrease of ``max(|p| / tol_position + |theta| /
-    tol_orientation)``; then the loop restarts from a random configuration within the limits
-    while ``restarts`` and ``time_budget`` [s] remain. The best iterate over all attempts is
-    returned. ``configuration`` is left unchanged; ``q0`` defaults to its ``q``.
+    :func:`qpik.solve` (:mod:`qpik.restarts`: the same loop): an attempt ends after
+    ``max_iters`` steps, or after ``stall_window`` steps without a 1 % decrease of
+    ``|p| / tol_position + |theta| / tol_orientation``; then the loop restarts from a random
+    configuration within the limits while ``restarts`` and ``time_budget`` [s] remain. The
+    best iterate over all attempts (and the start) is returned; the defaults are those of
+    :class:`qpik.SolveOptions`. ``configuration`` is left unchanged; ``q0`` defaults to its
+    ``q``.
     """
-    start_time = time.perf_counter()
+    clock = Clock(time.perf_counter(), time_budget)
     work = Configuration(configuration.model, configuration.q if q0 is None else q0)
-    kind = FrameType.parse(frame_type)
-    rows = slice(0, 3) if target_rotation is None else slice(0, 6)
-    lower, upper = work.lower, work.upper
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    options = {
+        "tol_position": tol_position,
+        "tol_orientation": tol_orientation,
+        "max_iters": max_iters,
+        "alpha": alpha,
+        "beta": beta,
+        "stall_window": stall_window,
+        "clip": clip,
+    }
+    loop = _Loop(
+        work, frame, FrameType.parse(frame_type), target_position, target_rotation, step, options
+    )
 
-    def errors(c: np.ndarray) -> tuple[float, float]:
-        return float(np.linalg.norm(c[:3])), float(np.linalg.norm(c[3:])) if c.size > 3 else 0.0
-
-    def score(position_error: float, orientation_error: float) -> float:
-        return position_error / tol_position + orientation_error / tol_orientation
-
-    c = pose_error(work, frame, target_position, target_rotation, kind)
-    best_q, best_errors = work.q, errors(c)
-    best_score = score(*best_errors)
-    iterations = attempt = 0
-    reason = "max_iters"
-    while True:
-        current = score(*errors(c))
-        window_start, since_progress, attempt_reason = current, 0, "max_iters"
-        for _ in range(max_iters):
-            if current <= 1.0:
-                attempt_reason = "converged"
-                break
-            if time_budget is not None and time.perf_counter() - start_time > time_budget:
-                attempt_reason = "time_budget"
-                break
-            J = work.frame_jacobian(frame, kind)[rows]
-            dq = step(work, J, alpha * c)
-            iterations += 1
-            if not np.all(np.isfinite(dq)):
-                attempt_reason = "diverged"
-                break
-            q = work.integrate(beta * dq, 1.0)
-            if clip:
-                q = np.clip(q, lower, upper)
-            work.update(q)
-            c = pose_error(work, frame, target_position, target_rotation, kind)
-            current = score(*errors(c))
-            if current < 0.99 * window_start:
-                window_start, since_progress = current, 0
-            else:
-                since_progress += 1
-                if since_progress >= stall_window:
-                    attempt_reason = "stalled"
-                    break
-        else:
-            if current <= 1.0:
-                attempt_reason = "converged"
-        if current < best_score:
-            best_q, best_errors, best_score = work.q, errors(c), current
-        reason = attempt_reason
-        out_of_time = time_budget is not None and time.perf_counter() - start_time > time_budget
-        if attempt_reason == "converged" or attempt >= restarts or out_of_time:
-            if out_of_time and attempt_reason != "converged":
-                reason = "time_budget"
-            break
-        attempt += 1
+    def restart() -> None:
         work.update(work.random_q(rng))
-        c = pose_error(work, frame, target_position, target_rotation, kind)
-    converged = best_score <= 1.0
+        loop.c = loop.error()
+
+    start = loop.outcome(Reason.MAX_ITERS)
+    best, reason, used = run_attempts(lambda: loop.attempt(clock), restart, restarts, clock, start)
+    q, (position_error, orientation_error) = best.payload
     return IGMResult(
-        q=best_q,
-        converged=converged,
-        reason="converged" if converged else reason,
-        iterations=iterations,
-        restarts_used=attempt,
-        position_error=best_errors[0],
-        orientation_error=best_errors[1],
-        solve_time=time.perf_counter() - start_time,
+        q=q,
+        converged=best.converged,
+        reason=reason,
+        iterations=loop.iterations,
+        restarts_used=used,
+        position_error=position_error,
+        orientation_error=orientation_error,
+        solve_time=clock.elapsed(),
     )
 
 
