@@ -72,29 +72,43 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> float:
     return worst
 
 
+CPU_TIMES: dict = {}  # method -> CPU times [us] of the last time_methods call
+
+
 def time_methods(methods: dict, states: list, set_state, block: int = 50) -> dict:
-    """Median/p95/p99 step time of each method over the same states."""
+    """Wall times [us] of each method over the same states (and, in :data:`CPU_TIMES`,
+    this process's CPU times: on a shared machine they are the steadier figure)."""
     times = {name: [] for name in methods}
+    cpu = {name: [] for name in methods}
     for start in range(0, len(states), block):
         chunk = states[start : start + block]
         for name, step in methods.items():
             for state in chunk:
                 configuration = set_state(state)
+                c0 = time.process_time()
                 t0 = time.perf_counter()
                 step(configuration)
                 times[name].append(time.perf_counter() - t0)
+                cpu[name].append(time.process_time() - c0)
+    CPU_TIMES.clear()
+    CPU_TIMES.update({name: np.array(t) * 1e6 for name, t in cpu.items()})
     return {name: np.array(t) * 1e6 for name, t in times.items()}
 
 
 def report(title: str, times: dict, reference: str, extra: dict | None = None) -> None:
-    print(f"\n{title} (ratio: median / {reference}'s)")
-    print(f"  {'method':34s} {'median us':>10s} {'p95 us':>9s} {'p99 us':>9s} {'ratio':>7s}")
+    print(f"\n{title} (ratio: median / {reference}'s; wall and CPU time)")
+    print(
+        f"  {'method':34s} {'median us':>10s} {'p95 us':>9s} {'p99 us':>9s} {'ratio':>7s}"
+        f" {'CPU med':>8s} {'CPU ratio':>9s}"
+    )
     ref = float(np.median(times[reference]))
+    cpu_ref = float(np.median(CPU_TIMES[reference])) if reference in CPU_TIMES else np.nan
     for name, t in times.items():
         median = float(np.median(t))
+        cpu = float(np.median(CPU_TIMES[name])) if name in CPU_TIMES else np.nan
         line = (
             f"  {name:34s} {median:10.1f} {np.percentile(t, 95):9.1f} "
-            f"{np.percentile(t, 99):9.1f} {median / ref:7.2f}"
+            f"{np.percentile(t, 99):9.1f} {median / ref:7.2f} {cpu:8.1f} {cpu / cpu_ref:9.2f}"
         )
         if extra and name in extra:
             line += f"   {extra[name]}"

@@ -24,10 +24,16 @@ import mujoco
 import numpy as np
 from numba import njit
 
+from .core import _kernels
+from .core._cache import drop_stale_cache
 from .core._kernels import merge_boxes, solve_cascade
 from .errors import TargetNotSet
 from .tasks import _lie
 from .tasks.fast import FrameTask, PostureTask
+
+# The kernels below call the core's and the Lie routines: numba's cache would not notice
+# an edit there.
+drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__])
 
 __all__ = ["FusedPlan", "fused_step", "make_plan"]
 
