@@ -28,16 +28,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .batch import (
-    _check_frame,
-    _check_seed,
-    _stream,
-    check_workers,
-    prepare_robot,
-)
+from .batch import _stream, check_seed, check_workers, prepare_robot, solve_call
 from .configuration import FrameType
-from .converge import FrameKey, RobotLike
 from .errors import InvalidInput
+from .model.frames import resolve_frame
+from .options import SolveOptions
+from .targets import FrameKey, RobotLike, parse_target
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -49,13 +45,6 @@ __all__ = [
     "reachability",
     "so3_grid",
 ]
-
-_OBJ = {
-    FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
-    FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
-    FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
-}
-
 
 #: The most orientations per voxel a map takes (a count beyond is a typo, and its memory
 #: would run out).
@@ -90,14 +79,7 @@ def so3_grid(count: int) -> np.ndarray:
 
 def _frame_of(model: mujoco.MjModel, frame: FrameKey) -> tuple[FrameType, int, int]:
     """``(kind, frame id, body id)`` of a frame key (a name: site, body then geom)."""
-    _check_frame(model, frame)
-    if isinstance(frame, tuple):
-        kind = FrameType.parse(frame[1])
-        ids = {kind: mujoco.mj_name2id(model, _OBJ[kind], frame[0])}
-    else:
-        ids = {k: mujoco.mj_name2id(model, obj, frame) for k, obj in _OBJ.items()}
-        kind = next(k for k, i in ids.items() if i >= 0)
-    index = ids[kind]
+    _name, kind, index = resolve_frame(model, frame, argument="frame")
     body = {
         FrameType.SITE: lambda: model.site_bodyid[index],
         FrameType.BODY: lambda: index,
@@ -333,6 +315,7 @@ def reachability(
     address: str | None = None,
     seed: int = 0,
     progress: bool = True,
+    options: SolveOptions | str | None = None,
     **solve_options: Any,
 ) -> ReachabilityMap:
     """Compute a reachability map of ``frame``.
@@ -346,7 +329,8 @@ def reachability(
         orientations: a count ``K`` (spread evenly over SO(3), :func:`so3_grid`) or
             ``(K, 3, 3)`` rotation matrices (world frame); ``0``: positions only (one
             target per voxel, no orientation: ``fraction`` is 0 or 1).
-        workers, backend, address, seed, progress: as for :func:`qpik.solve_many`.
+        workers, backend, address, seed, progress, options: as for
+            :func:`qpik.solve_many`.
         **solve_options: passed to every :func:`qpik.solve` (tolerances, ``restarts``,
             ``time_budget``, ...: they trade the map's accuracy for its time).
 
@@ -354,12 +338,11 @@ def reachability(
         a :class:`ReachabilityMap`; ``.fraction`` has one value per voxel, ``.centers``
         the voxel centres.
     """
-    from .converge import parse_target
-
     start_time = time.perf_counter()
-    entropy = _check_seed(seed)
+    entropy = check_seed(seed)
     workers = check_workers(workers, backend)
     spec, model, q0 = prepare_robot(robot)
+    call = solve_call(options, solve_options, q0)
     centers, shape = _grid(region, resolution)
     if isinstance(orientations, (int, np.integer)) and orientations == 0:
         rotations = np.zeros((0, 3, 3))  # position only
@@ -376,7 +359,7 @@ def reachability(
                 parse_target((np.zeros(3), rotation))
             except Exception as exc:
                 raise InvalidInput(f"orientations[{k}]: {exc}") from None
-    margin = float(solve_options.get("tol_position", 1e-3))
+    margin = call["options"].tol_position  # [m]: a voxel this close to the bound may converge
     skipped = np.zeros(len(centers), dtype=bool)
     bounds = _reach_bounds(model, frame)
     for center, radius in bounds:
@@ -384,9 +367,6 @@ def reachability(
     base, reach = min(bounds, key=lambda bound: bound[1])
     candidates = np.flatnonzero(~skipped)
     k = max(1, len(rotations))
-    options = dict(solve_options)
-    if q0 is not None:
-        options.setdefault("q0", q0)
 
     def targets_at(start: int, stop: int) -> list[dict]:
         if len(rotations) == 0:
@@ -408,7 +388,7 @@ def reachability(
         progress=progress,
         chunk_size=None,
         pool_threshold=1.0,
-        options=options,
+        options=call,
     ):
         flags[start : start + len(results)] = [r.converged for r in results]
     reached = np.zeros((len(centers), k), dtype=bool)

@@ -413,3 +413,15 @@ def test_histories_are_dropped_unless_asked_for():
             b.iterations,
             b.position_error,
         )
+
+
+def test_options_object_in_a_batch_matches_keywords_and_is_checked_here():
+    by_keywords = qpik.solve_many("ur5e", TARGETS[:3], workers=1, progress=False, max_iters=30)
+    options = qpik.SolveOptions(max_iters=30, seed=99)  # a batch's seed is its own argument
+    by_options = qpik.solve_many("ur5e", TARGETS[:3], workers=1, progress=False, options=options)
+    for a, b in zip(by_keywords, by_options):
+        np.testing.assert_array_equal(a.q, b.q)
+    fast = qpik.solve_many("ur5e", TARGETS[:2], workers=1, progress=False, options="fast")
+    assert all(r.iterations <= 6 * 50 for r in fast)
+    with pytest.raises(qpik.InvalidOption, match="max_iters"):
+        qpik.solve_many("ur5e", TARGETS[:2], workers=2, progress=False, max_iters=-1)

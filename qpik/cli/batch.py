@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from ..batch import solve_file
+from ..batch_files import solve_file
 
 
 def register(sub: argparse._SubParsersAction) -> None:
