@@ -110,16 +110,17 @@ def _copy3(src, dst):
 
 
 @njit(cache=True)
-def _walk(chain, q, axes, anchors, position, rotation):
+def _walk(chain, q, axes, anchors, position, rotation, scratch):
     """Walk the chain (the tuple of :class:`qpik.model.KinematicChain`) at ``q``: world
     axes and anchors of its joints (nj, 3) and the frame's pose (``position`` (3,) [m],
-    ``rotation`` (3, 3))."""
+    ``rotation`` (3, 3)). ``scratch``: (4, 3, 3), overwritten."""
     body_pos, body_rot, jnt_start, jnt_type, jnt_axis, jnt_pos = chain[:6]
     jnt_qadr, jnt_qpos0, frame_pos, frame_rot = chain[6], chain[8], chain[9], chain[10]
-    p = np.zeros(3)
-    R = np.eye(3)
-    tmp = np.empty((3, 3))
-    rot = np.empty((3, 3))
+    R, tmp, rot, p = scratch[0], scratch[1], scratch[2], scratch[3, 0]
+    for i in range(3):
+        p[i] = 0.0
+        for j in range(3):
+            R[i, j] = 1.0 if i == j else 0.0
     for b in range(body_pos.shape[0]):
         for i in range(3):
             p[i] += R[i, 0] * body_pos[b, 0] + R[i, 1] * body_pos[b, 1] + R[i, 2] * body_pos[b, 2]
@@ -156,9 +157,10 @@ def _walk(chain, q, axes, anchors, position, rotation):
 
 
 @njit(cache=True, inline="always")
-def _fk_jac(chain, q, axes, anchors, position, rotation, jac, want_jac):
-    """:func:`fk_jac` with the scratch ``axes`` and ``anchors`` (nj, 3) given."""
-    _walk(chain, q, axes, anchors, position, rotation)
+def _fk_jac(chain, q, axes, anchors, position, rotation, jac, want_jac, scratch):
+    """:func:`fk_jac` with the scratch ``axes``, ``anchors`` (nj, 3) and ``scratch``
+    (4, 3, 3) given."""
+    _walk(chain, q, axes, anchors, position, rotation, scratch)
     if not want_jac:
         return
     jnt_type, jnt_dadr = chain[3], chain[7]
@@ -191,7 +193,8 @@ def fk_jac(chain, q, position, rotation, jac, want_jac):
     (columns of dofs off the chain are zero). ``chain``: the tuple of
     :class:`qpik.model.KinematicChain`."""
     nj = chain[3].shape[0]
-    _fk_jac(chain, q, np.empty((nj, 3)), np.empty((nj, 3)), position, rotation, jac, want_jac)
+    axes, anchors, scratch = np.empty((nj, 3)), np.empty((nj, 3)), np.empty((4, 3, 3))
+    _fk_jac(chain, q, axes, anchors, position, rotation, jac, want_jac, scratch)
 
 
 @njit(cache=True)
@@ -235,7 +238,7 @@ def reach_radius(chain, q, center):
     axes = np.empty((nj, 3))
     anchors = np.empty((nj, 3))
     p = np.empty(3)
-    _walk(chain, q, axes, anchors, p, np.empty((3, 3)))
+    _walk(chain, q, axes, anchors, p, np.empty((3, 3)), np.empty((4, 3, 3)))
     s = np.empty(3)
     r = np.empty(3)
     previous = np.empty(3)
@@ -386,9 +389,10 @@ def left_jacobian_inverse(phi, out):
 
 # --------------------------------------------------------------------- box QP
 @njit(cache=True)
-def _cholesky_solve_subset(H, rhs, free, nfree, L, x):
-    """Solve ``H[F, F] x_F = rhs_F`` by Cholesky (F: the first ``nfree`` of ``free``);
-    returns False if ``H[F, F]`` is not positive definite."""
+def _cholesky_solve_subset(H, rhs, free, nfree, L, x, y):
+    """Solve ``H[F, F] x_F = rhs_F`` by Cholesky (F: the first ``nfree`` of ``free``;
+    scratch ``L`` (n, n), ``y`` (n,)); returns False if ``H[F, F]`` is not positive
+    definite."""
     for a in range(nfree):
         i = free[a]
         for b in range(a + 1):
@@ -402,7 +406,6 @@ def _cholesky_solve_subset(H, rhs, free, nfree, L, x):
                 L[a, a] = np.sqrt(s)
             else:
                 L[a, b] = s / L[b, b]
-    y = np.empty(nfree)
     for a in range(nfree):
         s = rhs[free[a]]
         for k in range(a):
@@ -428,13 +431,31 @@ def box_qp(H, g, lb, ub, x, max_iter):
     not positive definite. One function, so that another exact QP kernel can replace it.
     """
     n = H.shape[0]
-    state = np.zeros(n, dtype=np.int8)  # 0 free, -1 at lower, +1 at upper
+    return _box_qp(H, g, lb, ub, x, max_iter, _box_qp_workspace(n))
+
+
+@njit(cache=True)
+def _box_qp_workspace(n):
+    """Scratch of :func:`_box_qp` for ``n`` variables."""
+    return (
+        np.empty(n, dtype=np.int8),
+        np.empty(n, dtype=np.int64),
+        np.empty((n, n)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+    )
+
+
+@njit(cache=True)
+def _box_qp(H, g, lb, ub, x, max_iter, workspace):
+    """:func:`box_qp` with its scratch (:func:`_box_qp_workspace`) given."""
+    n = H.shape[0]
+    state, free, L, target, rhs, y = workspace
+    for i in range(n):
+        state[i] = 0  # 0 free, -1 at lower, +1 at upper
     for i in range(n):
         x[i] = min(max(0.0, lb[i]), ub[i])
-    free = np.empty(n, dtype=np.int64)
-    L = np.empty((n, n))
-    target = np.empty(n)
-    rhs = np.empty(n)
     for iteration in range(max_iter):
         nfree = 0
         for i in range(n):
@@ -452,7 +473,7 @@ def box_qp(H, g, lb, ub, x, max_iter):
                 if state[j] != 0:
                     s -= H[i, j] * x[j]
             rhs[i] = s
-        if nfree > 0 and not _cholesky_solve_subset(H, rhs, free, nfree, L, target):
+        if nfree > 0 and not _cholesky_solve_subset(H, rhs, free, nfree, L, target, y):
             return 2, iteration
         # Ratio test along x -> target.
         step = 1.0
@@ -519,15 +540,14 @@ def _now():
 
 # ------------------------------------------------------------------------ IGM
 @njit(cache=True, inline="always")
-def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err):
-    """Error ``[p - p_t; log(R R_t^T)]`` into ``error``; returns (position error [m],
-    orientation error [rad])."""
+def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err, M):
+    """Error ``[p - p_t; log(R R_t^T)]`` into ``error`` (``M`` (3, 3): scratch); returns
+    (position error [m], orientation error [rad])."""
     for i in range(3):
         error[i] = position[i] - target_p[i]
     ep = np.sqrt(error[0] ** 2 + error[1] ** 2 + error[2] ** 2)
     if not has_rot:
         return ep, 0.0
-    M = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
             M[i, j] = (
@@ -581,13 +601,21 @@ def _smallest_eigenvalue(G, n):
 
 @njit(cache=True)
 def _smallest_singular_value(A, m, nv, G, threshold=0.0):
+    """:func:`_smallest_singular_value_in` with its scratch allocated."""
+    n = max(6, nv)
+    return _smallest_singular_value_in(
+        A, m, nv, G, threshold, np.empty(m, dtype=np.int64), np.empty((n, n))
+    )
+
+
+@njit(cache=True)
+def _smallest_singular_value_in(A, m, nv, G, threshold, rows, L):
     """The ``min(r, nv)``-th singular value of ``A[:m]``, ``r`` its rows that are not
     identically zero (a planar arm's out-of-plane row is a structural zero, not a
     singularity), from the smaller Gram matrix built in the scratch ``G``. With
     ``threshold > 0`` it returns inf when that value is at least ``threshold``: one Cholesky
     factorisation of ``G - threshold^2 I`` decides, so that away from singularities no
-    eigenvalue is computed."""
-    rows = np.empty(m, dtype=np.int64)
+    eigenvalue is computed. Scratch: ``rows`` (m,) int64, ``L`` like ``G``."""
     r = 0
     for i in range(m):
         for k in range(nv):
@@ -615,15 +643,15 @@ def _smallest_singular_value(A, m, nv, G, threshold=0.0):
                     s += A[rows[a], i] * A[rows[a], j]
                 G[i, j] = s
                 G[j, i] = s
-    if threshold > 0.0 and _positive_definite_shifted(G, n, threshold * threshold):
+    if threshold > 0.0 and _positive_definite_shifted(G, n, threshold * threshold, L):
         return np.inf
     return np.sqrt(max(_smallest_eigenvalue(G, n), 0.0))
 
 
 @njit(cache=True)
-def _positive_definite_shifted(G, n, shift):
-    """Whether ``G[:n, :n] - shift I`` is positive definite (Cholesky; ``G`` unchanged)."""
-    L = np.empty((n, n))
+def _positive_definite_shifted(G, n, shift, L):
+    """Whether ``G[:n, :n] - shift I`` is positive definite (Cholesky into the scratch
+    ``L``; ``G`` unchanged)."""
     for j in range(n):
         s = G[j, j] - shift
         for k in range(j):
@@ -642,12 +670,11 @@ def _positive_definite_shifted(G, n, shift):
 
 @njit(cache=True, inline="always")
 def _evaluate(chain, q, target_p, target_R, has_rot, work):
-    """Forward kinematics, Jacobian and pose error at ``q`` into ``work`` (axes, anchors,
-    position, rotation, jac, error, rot_err, M); returns (position error [m], orientation
-    error [rad])."""
-    axes, anchors, position, rotation, jac, error, rot_err = work
-    _fk_jac(chain, q, axes, anchors, position, rotation, jac, True)
-    return _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err)
+    """Forward kinematics, Jacobian and pose error at ``q`` into ``work``
+    (:func:`_workspaces`); returns (position error [m], orientation error [rad])."""
+    axes, anchors, position, rotation, jac, error, rot_err, M, scratch = work
+    _fk_jac(chain, q, axes, anchors, position, rotation, jac, True, scratch)
+    return _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err, M)
 
 
 @njit(cache=True, inline="always")
@@ -668,32 +695,34 @@ def _stall_reason(active, sigma, threshold):
 
 
 @njit(cache=True, inline="always")
-def _target_level(jac, error, rot_err, has_rot, gain, A, b, Jinv):
-    """The target level ``A dq = b``: ``A = [J_v; Jl^-1 J_w]``, ``b = -gain e``."""
-    nv = jac.shape[1]
+def _target_level(jac, cols, error, rot_err, has_rot, gain, A, b, Jinv):
+    """The target level ``A dx = b`` over the chain's dofs ``cols``: ``A = [J_v; Jl^-1
+    J_w]`` (columns ``cols`` of the Jacobian), ``b = -gain e``."""
+    nc = cols.shape[0]
     for i in range(3):
-        for j in range(nv):
-            A[i, j] = jac[i, j]
+        for c in range(nc):
+            A[i, c] = jac[i, cols[c]]
         b[i] = -gain * error[i]
     if has_rot:
         left_jacobian_inverse(rot_err, Jinv)
         for i in range(3):
-            for j in range(nv):
-                A[3 + i, j] = (
+            for c in range(nc):
+                j = cols[c]
+                A[3 + i, c] = (
                     Jinv[i, 0] * jac[3, j] + Jinv[i, 1] * jac[4, j] + Jinv[i, 2] * jac[5, j]
                 )
             b[3 + i] = -gain * error[3 + i]
 
 
 @njit(cache=True, inline="always")
-def _regularisation(A, b, m, gram, options):
+def _regularisation(A, b, m, gram, options, rows, L):
     """``(damping + lambda^2, sigma)``: the adaptive damping of the level (the damping law:
     ``lambda^2 = max_damping^2 (1 - (sigma / threshold)^2)`` below the threshold, faded by
     ``|b| / error_scale``) and its smallest singular value (inf when not computed)."""
     threshold, max_damping, error_scale, reg = options[6], options[7], options[8], options[9]
     if not threshold > 0.0:
         return reg, np.inf
-    sigma = _smallest_singular_value(A, m, A.shape[1], gram, threshold)
+    sigma = _smallest_singular_value_in(A, m, A.shape[1], gram, threshold, rows, L)
     if sigma < threshold:
         ratio = sigma / threshold
         lam2 = max_damping * max_damping * (1.0 - ratio * ratio)
@@ -708,24 +737,25 @@ def _regularisation(A, b, m, gram, options):
 
 
 @njit(cache=True, inline="always")
-def _box_problem(A, b, m, reg, q, lower, upper, limit_gain, H, g, lb, ub):
+def _box_problem(A, b, m, reg, q, cols, lower, upper, limit_gain, H, g, lb, ub):
     """The damped least-squares QP of the level, ``H = A^T A + reg I``, ``g = -A^T b``,
-    under the box ``limit_gain (limits - q)`` (which always holds 0)."""
-    nv = A.shape[1]
-    for i in range(nv):
+    under the box ``limit_gain (limits - q)`` of the dofs ``cols`` (it always holds 0)."""
+    nc = A.shape[1]
+    for i in range(nc):
         s = 0.0
         for k in range(m):
             s += A[k, i] * b[k]
         g[i] = -s
-        for j in range(i, nv):
+        for j in range(i, nc):
             s = 0.0
             for k in range(m):
                 s += A[k, i] * A[k, j]
             H[i, j] = s
             H[j, i] = s
         H[i, i] += reg
-        lb[i] = limit_gain * (lower[i] - q[i])
-        ub[i] = limit_gain * (upper[i] - q[i])
+        d = cols[i]
+        lb[i] = limit_gain * (lower[d] - q[d])
+        ub[i] = limit_gain * (upper[d] - q[d])
         if lb[i] > 0.0:
             lb[i] = 0.0
         if ub[i] < 0.0:
@@ -733,34 +763,38 @@ def _box_problem(A, b, m, reg, q, lower, upper, limit_gain, H, g, lb, ub):
 
 
 @njit(cache=True, inline="always")
-def _step_facts(A, b, m, dq, lb, ub, lower, upper):
-    """``(|A dq - b|, |dq|, whether a limited joint's bound is active)`` of a step."""
-    nv = dq.shape[0]
+def _step_facts(A, b, m, dx, cols, lb, ub, lower, upper):
+    """``(|A dx - b|, |dx|, whether a limited joint's bound is active)`` of a step."""
+    nc = dx.shape[0]
     residual = 0.0
     for k in range(m):
         s = -b[k]
-        for j in range(nv):
-            s += A[k, j] * dq[j]
+        for j in range(nc):
+            s += A[k, j] * dx[j]
         residual += s * s
     step_norm = 0.0
     active = False
-    for j in range(nv):
-        step_norm += dq[j] * dq[j]
-        at_lower = dq[j] <= lb[j] and lower[j] > -np.inf
-        if at_lower or (dq[j] >= ub[j] and upper[j] < np.inf):
+    for j in range(nc):
+        step_norm += dx[j] * dx[j]
+        d = cols[j]
+        at_lower = dx[j] <= lb[j] and lower[d] > -np.inf
+        if at_lower or (dx[j] >= ub[j] and upper[d] < np.inf):
             active = True
     return np.sqrt(residual), np.sqrt(step_norm), active
 
 
 @njit(cache=True, inline="always")
-def _line_search(chain, target_p, target_R, has_rot, q, q_base, dq, t, lower, upper, ep, eo, work):
-    """``q = clip(q_base + t dq)``, halving ``t`` while the error ``|e_p|^2 + |e_o|^2``
-    ([m^2], [rad^2]) does not decrease, up to ``BACKTRACKS`` times (near singularities the
-    damped step can overshoot into a limit cycle); returns the errors at ``q``."""
+def _line_search(chain, target, q, q_base, dx, cols, t, lower, upper, ep, eo, work):
+    """``q = clip(q_base + t dx)`` on the dofs ``cols``, halving ``t`` while the error
+    ``|e_p|^2 + |e_o|^2`` ([m^2], [rad^2]) does not decrease, up to ``BACKTRACKS`` times
+    (near singularities the damped step can overshoot into a limit cycle); returns the
+    errors at ``q``."""
+    target_p, target_R, has_rot = target
     previous = ep * ep + eo * eo
     for attempt_step in range(BACKTRACKS + 1):
-        for j in range(q.shape[0]):
-            q[j] = q_base[j] + t * dq[j]
+        for c in range(cols.shape[0]):
+            j = cols[c]
+            q[j] = q_base[j] + t * dx[c]
             if q[j] < lower[j]:
                 q[j] = lower[j]
             if q[j] > upper[j]:
@@ -773,28 +807,18 @@ def _line_search(chain, target_p, target_R, has_rot, q, q_base, dq, t, lower, up
 
 
 @njit(cache=True)
-def _attempt(
-    chain,
-    target_p,
-    target_R,
-    has_rot,
-    q,
-    bounds,
-    options,
-    int_options,
-    deadline,
-    path,
-    hist,
-    slot,
-    work,
-    qp_work,
-    counts,
-):
-    """One attempt of the IGM from ``q`` (advanced in place), its iterates into attempt slot
-    ``slot`` of ``path``/``hist``. ``counts`` (int64 (2,)): QP solves and capped QP solves,
-    added to. Returns (reason, iterates, score ``e_p / tol_p + e_o / tol_o``, out of time)."""
-    A, b, Jinv, H, g, lb, ub, dq, q_base, gram = qp_work
-    error, rot_err = work[5], work[6]
+def _attempt(chain, target, q, settings, record, work, qp_work, counts):
+    """One attempt of the IGM from ``q`` (advanced in place). ``target``: (position,
+    rotation, has_rot); ``settings``: (bounds, options, int_options, deadline); ``record``:
+    (path, hist, slot), the attempt slot its iterates go to. ``counts`` (int64 (2,)): QP
+    solves and capped QP solves, added to. Returns (reason, iterates, score ``e_p / tol_p
+    + e_o / tol_o``, out of time)."""
+    target_p, target_R, has_rot = target
+    bounds, options, int_options, deadline = settings
+    path, hist, slot = record
+    A, b, Jinv, H, g, lb, ub, dx, q_base, gram, rows, L_sigma, box_work = qp_work
+    jac, error, rot_err = work[4], work[5], work[6]
+    cols = chain[7]
     lower, upper = bounds[0], bounds[1]
     tol_p, tol_o, alpha, beta = options[0], options[1], options[2], options[3]
     max_step_p, max_step_o, threshold, limit_gain = options[4], options[5], options[6], options[10]
@@ -818,19 +842,17 @@ def _attempt(
             gain = max_step_p / ep
         if has_rot and eo > 0.0 and max_step_o / eo < gain:
             gain = max_step_o / eo
-        _target_level(work[4], error, rot_err, has_rot, gain, A, b, Jinv)
-        reg, sigma = _regularisation(A, b, m, gram, options)
-        _box_problem(A, b, m, reg, q, lower, upper, limit_gain, H, g, lb, ub)
-        status, _ = box_qp(H, g, lb, ub, dq, 4 * dq.shape[0] + 20)
+        _target_level(jac, cols, error, rot_err, has_rot, gain, A, b, Jinv)
+        reg, sigma = _regularisation(A, b, m, gram, options, rows, L_sigma)
+        _box_problem(A, b, m, reg, q, cols, lower, upper, limit_gain, H, g, lb, ub)
+        status, _ = _box_qp(H, g, lb, ub, dx, 4 * dx.shape[0] + 20, box_work)
         counts[0] += 1
         if status != 0:
             counts[1] += 1
-        residual, step_norm, active = _step_facts(A, b, m, dq, lb, ub, lower, upper)
+        residual, step_norm, active = _step_facts(A, b, m, dx, cols, lb, ub, lower, upper)
         hist[slot, it + 1, 2] = residual
         q_base[:] = q
-        ep, eo = _line_search(
-            chain, target_p, target_R, has_rot, q, q_base, dq, beta, lower, upper, ep, eo, work
-        )
+        ep, eo = _line_search(chain, target, q, q_base, dx, cols, beta, lower, upper, ep, eo, work)
         _record(path, hist, slot, length, q, ep, eo)
         length += 1
         current = ep / tol_p + eo / tol_o
@@ -849,30 +871,37 @@ def _attempt(
 
 
 @njit(cache=True)
-def _workspaces(nj, nv):
-    """Scratch arrays of the IGM: the kinematics' (axes, anchors, position, rotation, jac,
-    error, rot_err) and the step's (A, b, Jinv, H, g, lb, ub, dq, q_base, gram)."""
+def _workspaces(nj, nc, nq):
+    """Scratch arrays of the IGM for ``nj`` joints on the chain, ``nc`` chain dofs and
+    ``nq`` coordinates: the kinematics' (axes, anchors, position, rotation, jac, error,
+    rot_err, M, scratch) and the step's (A, b, Jinv, H, g, lb, ub, dx, q_base, gram, rows,
+    L, box QP workspace)."""
     work = (
         np.empty((nj, 3)),
         np.empty((nj, 3)),
         np.empty(3),
         np.empty((3, 3)),
-        np.empty((6, nv)),
+        np.empty((6, nq)),
         np.zeros(6),
         np.zeros(3),
+        np.empty((3, 3)),
+        np.empty((4, 3, 3)),
     )
-    size = max(6, nv)
+    size = max(6, nc)
     qp_work = (
-        np.empty((6, nv)),
+        np.empty((6, nc)),
         np.empty(6),
         np.empty((3, 3)),
-        np.empty((nv, nv)),
-        np.empty(nv),
-        np.empty(nv),
-        np.empty(nv),
-        np.empty(nv),
-        np.empty(nv),
+        np.empty((nc, nc)),
+        np.empty(nc),
+        np.empty(nc),
+        np.empty(nc),
+        np.empty(nc),
+        np.empty(nq),
         np.empty((size, size)),
+        np.empty(6, dtype=np.int64),
+        np.empty((size, size)),
+        _box_qp_workspace(nc),
     )
     return work, qp_work
 
@@ -932,7 +961,9 @@ def igm_solve(
     restarts, check_time = int_options[1], int_options[3]
     sample_lo, sample_hi = bounds[2], bounds[3]
     nq = q0.shape[0]
-    work, qp_work = _workspaces(chain[3].shape[0], nq)
+    work, qp_work = _workspaces(chain[3].shape[0], chain[7].shape[0], nq)
+    target = (target_p, target_R, has_rot)
+    settings = (bounds, options, int_options, deadline)
     q = q0.copy()
     counts = np.zeros(2, dtype=np.int64)
     if _beyond_reach(target_p, reach, options[0]):
@@ -953,21 +984,7 @@ def igm_solve(
     out_of_time = False
     while True:
         reason, length, current, out_of_time = _attempt(
-            chain,
-            target_p,
-            target_R,
-            has_rot,
-            q,
-            bounds,
-            options,
-            int_options,
-            deadline,
-            path,
-            hist,
-            slot,
-            work,
-            qp_work,
-            counts,
+            chain, target, q, settings, (path, hist, slot), work, qp_work, counts
         )
         done = reason == CONVERGED
         best_done = best_reason == CONVERGED
