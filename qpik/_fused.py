@@ -17,7 +17,7 @@ or recovers it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mink
 import mujoco
@@ -26,7 +26,7 @@ from numba import njit
 
 from .core import _kernels
 from .core._cache import drop_stale_cache
-from .core._kernels import merge_boxes, solve_cascade
+from .core._kernels import MAX_ITER, NUMERICAL, merge_boxes, solve_cascade
 from .errors import TargetNotSet
 from .tasks import _lie
 from .tasks.fast import FrameTask, PostureTask
@@ -35,11 +35,11 @@ from .tasks.fast import FrameTask, PostureTask
 # an edit there.
 drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__])
 
-__all__ = ["FusedPlan", "fused_step", "make_plan"]
+__all__ = ["FusedPlan", "box_of", "fused_step", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
+_OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
 _JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
-_POSE_FIELDS = (("site_xpos", "site_xmat"), ("xpos", "xmat"), ("geom_xpos", "geom_xmat"))
 _FRAME, _POSTURE = 0, 1
 
 
@@ -120,82 +120,112 @@ def _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit
     return merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
 
 
+# Result codes of fused_step: anything but OK sends the step to the general path.
+OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
+#: ``settings`` entries of :func:`fused_step`.
+DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
+
+
 @njit(cache=True)
 def fused_step(
-    A, b, w, starts, task_kind, task_index, task_level, task_row,
-    jac, frame_kind, frame_id, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
-    frame_target, frame_cost, frame_scalars,
-    qpos, posture_target, posture_cost, posture_scalars,
-    cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit,
-    dt, damping, threshold, max_damping, error_scale, rank_tol, max_iter, tol, warm, canonical,
+    A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
+    geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
+    settings, max_iter, warm, canonical,
 ):  # fmt: skip
     """Rows of every task, the limits' box and the cascade, in one call.
 
     ``A, b, w`` (M, nv), (M,), (M,) are filled (level ``k`` in rows
-    ``starts[k]:starts[k+1]``); tasks are listed in stack order (``task_kind`` 0 frame,
-    1 posture; ``task_index`` into the frame or posture arrays; ``task_level``,
-    ``task_row`` their first row). Frame ``f``: ``jac[f]`` its world-aligned Jacobian
-    (6, nv), ``frame_kind`` 0/1/2 site/body/geom and ``frame_id`` which pose row,
-    ``frame_target[f]`` (7) ``wxyz_xyz``, ``frame_cost[f]`` (6), ``frame_scalars[f]``
-    (gain, lm_damping). Posture ``p`` likewise on ``qpos``.
+    ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) lists the tasks in stack order: kind (0
+    frame, 1 posture), index into the frame or posture arrays, level, first row. Frame
+    ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind 0/1/2
+    site/body/geom, id) picks its pose; ``frame_data[f]`` = target ``wxyz_xyz`` (7), cost
+    (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` = target (nq), cost (nv),
+    gain, lm_damping. Position limits: ``cfg_dof`` and ``cfg_data`` rows (lower, upper,
+    gain); velocity limits ``vel_dof``, ``vel_limit`` [per s]. ``settings``: see
+    ``DT, DAMPING, ...``.
 
-    Returns ``(ok, bad_dof, dq, status, sigma, lam2, iterations, active, residuals, reg,
-    lb, ub)``: ``ok`` False when a row or regularisation is not finite, ``bad_dof >= 0``
-    when the velocity-like limits of that dof conflict (both: nothing solved).
+    Returns ``(code, dq, v, info, active)``: ``code`` OK or why the general path must
+    answer; ``info`` (5, L) rows: residual, sigma, lambda^2, status, iterations.
     """
     n = qpos.shape[0]
     L = starts.shape[0] - 1
     reg = np.zeros(L)
-    for t in range(task_kind.shape[0]):
-        i = task_index[t]
-        row = task_row[t]
-        if task_kind[t] == 0:
-            kind = frame_kind[i]
-            fid = frame_id[i]
+    for t in range(tasks.shape[0]):
+        i = tasks[t, 1]
+        row = tasks[t, 3]
+        if tasks[t, 0] == 0:
+            kind = frames[i, 0]
+            fid = frames[i, 1]
             if kind == 0:
                 pos, mat = site_xpos[fid], site_xmat[fid]
             elif kind == 1:
                 pos, mat = xpos[fid], xmat[fid]
             else:
                 pos, mat = geom_xpos[fid], geom_xmat[fid]
-            cost = frame_cost[i]
-            mu = _frame_rows(
-                A, b, row, jac[i], pos, mat, frame_target[i], cost,
-                frame_scalars[i, 0], frame_scalars[i, 1],
-            )  # fmt: skip
+            data = frame_data[i]
+            cost = data[7:13]
+            mu = _frame_rows(A, b, row, jac[i], pos, mat, data[0:7], cost, data[13], data[14])
             for r in range(6):
                 w[row + r] = cost[r]
         else:
-            cost = posture_cost[i]
-            mu = _posture_rows(
-                A, b, row, qpos, posture_target[i], cost,
-                posture_scalars[i, 0], posture_scalars[i, 1],
-            )  # fmt: skip
+            data = posture_data[i]
+            nq = data.shape[0] - n - 2
+            cost = data[nq : nq + n]
+            mu = _posture_rows(A, b, row, qpos, data[0:nq], cost, data[nq + n], data[nq + n + 1])
             for r in range(n):
                 w[row + r] = cost[r]
-        reg[task_level[t]] += mu
+        reg[tasks[t, 2]] += mu
     for k in range(L):
-        reg[k] = damping + reg[k]
-    lb, ub, bad = _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n)
-    total = 0.0
+        reg[k] = settings[DAMPING] + reg[k]
+    dt = settings[DT]
+    lb, ub, bad = _boxes(
+        qpos, dt, cfg_dof, cfg_data[:, 0], cfg_data[:, 1], cfg_data[:, 2], vel_dof, vel_limit, n
+    )
+    info = np.zeros((5, L))
+    d = np.zeros(n)
+    active = np.zeros((L, n), dtype=np.int8)
     square = 0.0
+    total = 0.0
     for r in range(b.shape[0]):
         square += b[r] * b[r]
         for j in range(n):
             total += A[r, j]
-    ok = np.isfinite(square) and np.isfinite(total) and np.isfinite(reg.sum())
-    empty_G = np.zeros((0, n))
-    empty_h = np.zeros(0)
-    if not ok or bad >= 0:
-        d = np.zeros(n)
-        status = np.zeros(L, dtype=np.int64)
-        return (ok, bad, d, status, np.zeros(L), np.zeros(L), np.zeros(L, dtype=np.int64),
-                np.zeros((L, n), dtype=np.int8), np.zeros(L), reg, lb, ub)  # fmt: skip
+    if not (np.isfinite(square) and np.isfinite(total) and np.isfinite(reg.sum())):
+        return NOT_FINITE, d, d, info, active
+    if bad >= 0:
+        return CONFLICT, d, d, info, active
     d, status, sigma, lam2, its, active, residuals = solve_cascade(
-        A, b, w, starts, reg, lb, ub, empty_G, empty_h, threshold, max_damping, error_scale,
-        rank_tol, max_iter, tol, warm, canonical,
+        A, b, w, starts, reg, lb, ub, np.zeros((0, n)), np.zeros(0), settings[THRESHOLD],
+        settings[MAX_DAMPING], settings[ERROR_SCALE], settings[RANK_TOL], max_iter,
+        settings[TOL], warm, canonical,
     )  # fmt: skip
-    return ok, bad, d, status, sigma, lam2, its, active, residuals, reg, lb, ub
+    finite = np.isfinite(residuals.sum())
+    for k in range(L):
+        if status[k] == MAX_ITER or status[k] == NUMERICAL:
+            return UNSETTLED, d, d, info, active
+        info[0, k] = residuals[k]
+        info[1, k] = sigma[k]
+        info[2, k] = lam2[k]
+        info[3, k] = status[k]
+        info[4, k] = its[k]
+    v = np.empty(n)
+    for i in range(n):
+        v[i] = d[i] / dt
+        finite = finite and np.isfinite(d[i] * d[i]) and np.isfinite(v[i])
+    if not finite:
+        return NOT_FINITE, d, d, info, active
+    return OK, d, v, info, active
+
+
+def box_of(plan: FusedPlan, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The limits' merged box ``(lb, ub)`` of a plan at ``qpos`` for a step of ``dt``."""
+    a = plan.arrays
+    cfg = a["cfg_data"]
+    lb, ub, _ = _boxes(
+        qpos, dt, a["cfg_dof"], cfg[:, 0], cfg[:, 1], cfg[:, 2], a["vel_dof"], a["vel_limit"],
+        qpos.shape[0],
+    )  # fmt: skip
+    return lb, ub
 
 
 @dataclass
@@ -204,57 +234,68 @@ class FusedPlan:
     stack (built once per :class:`qpik.IKSolver`)."""
 
     model: mujoco.MjModel
-    frames: list  # (task, jacobian function, frame id, position rows view, rotation rows view)
-    postures: list
+    frames: list  # (task, jacobian function, id, position rows, rotation rows, data row)
+    postures: list  # (task, data row)
     config_limits: list  # (limit, first entry, last entry)
     arrays: dict
+    kinds_used: tuple
+    cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
+    law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
 
-    def gather(self, configuration, dt: float) -> tuple:
+    def gather(self, configuration) -> tuple:
         """Copy the tasks' current targets, costs and gains and the frames' Jacobians
-        (MuJoCo) into the plan's arrays; the arguments of :func:`fused_step`."""
-        a = self.arrays
+        (MuJoCo) into the plan's arrays; returns ``(qpos, poses)`` for
+        :func:`fused_step`."""
         model, data = self.model, configuration.data
-        target, cost, scalars = a["frame_target"], a["frame_cost"], a["frame_scalars"]
-        for f, (task, jacobian, fid, jp, jr) in enumerate(self.frames):
+        for task, jacobian, fid, jp, jr, row in self.frames:
             pose = task.transform_target_to_world
             if pose is None:
                 raise TargetNotSet(type(task).__name__)
-            target[f] = pose.wxyz_xyz
-            cost[f] = task.cost
-            scalars[f, 0] = task.gain
-            scalars[f, 1] = task.lm_damping
+            row[0:7] = pose.wxyz_xyz
+            row[7:13] = task.cost
+            row[13] = task.gain
+            row[14] = task.lm_damping
             jacobian(model, data, jp, jr, fid)
-        target, cost, scalars = a["posture_target"], a["posture_cost"], a["posture_scalars"]
-        for p, task in enumerate(self.postures):
+        nq, nv = model.nq, model.nv
+        for task, row in self.postures:
             if task.target_q is None:
                 raise TargetNotSet(type(task).__name__)
-            target[p] = task.target_q
-            cost[p] = task.cost
-            scalars[p, 0] = task.gain
-            scalars[p, 1] = task.lm_damping
-        gains = a["cfg_gain"]
-        for limit, e0, e1 in self.config_limits:
-            gains[e0:e1] = limit.gain
-        poses = a["poses"]
-        for kind, (position, rotation) in enumerate(_POSE_FIELDS):
-            if a["kinds_used"][kind]:
-                poses[2 * kind] = getattr(data, position)
-                poses[2 * kind + 1] = getattr(data, rotation)
-        return data.qpos, float(dt)
+            row[0:nq] = task.target_q
+            row[nq : nq + nv] = task.cost
+            row[nq + nv] = task.gain
+            row[nq + nv + 1] = task.lm_damping
+        if self.config_limits:
+            cfg = self.arrays["cfg_data"]
+            for limit, e0, e1 in self.config_limits:
+                cfg[e0:e1, 2] = limit.gain
+        empty3, empty9 = self.arrays["empty3"], self.arrays["empty9"]
+        site, body, geom = self.kinds_used
+        poses = (
+            data.site_xpos if site else empty3,
+            data.site_xmat if site else empty9,
+            data.xpos if body else empty3,
+            data.xmat if body else empty9,
+            data.geom_xpos if geom else empty3,
+            data.geom_xmat if geom else empty9,
+        )
+        return data.qpos, poses
 
 
 def make_plan(
-    model: mujoco.MjModel, levels: Sequence[Sequence], limits: Sequence, scalar_joints: bool
+    model: mujoco.MjModel,
+    levels: Sequence[Sequence],
+    limits: Sequence,
+    scalar_joints: bool,
+    rank_tolerance: float,
+    tolerance: float,
 ) -> FusedPlan | None:
     """The :class:`FusedPlan` of a stack, or None when a task or limit is not one that
     :func:`fused_step` computes (the general path then serves every step)."""
     if not scalar_joints:
         return None
     nv = model.nv
-    frames, postures = [], []
-    kinds, index, level_of, rows = [], [], [], []
+    frames, postures, tasks, frame_rows = [], [], [], []
     starts = [0]
-    frame_kind, frame_id = [], []
     for k, level in enumerate(levels):
         row = starts[-1]
         for task in level:
@@ -262,36 +303,28 @@ def make_plan(
                 kind = _KINDS.get(getattr(task.frame_type, "value", task.frame_type))
                 if kind is None:
                     return None
-                obj = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
-                fid = mujoco.mj_name2id(model, obj[kind], task.frame_name)
+                fid = mujoco.mj_name2id(model, _OBJECTS[kind], task.frame_name)
                 if fid < 0:
                     return None  # the general path reports the unknown frame
-                kinds.append(_FRAME)
-                index.append(len(frames))
+                tasks.append((_FRAME, len(frames), k, row))
                 frames.append((task, _JACOBIAN[kind], fid))
-                frame_kind.append(kind)
-                frame_id.append(fid)
-                size = 6
+                frame_rows.append((kind, fid))
+                row += 6
             elif type(task) is PostureTask and task._scalar:
-                kinds.append(_POSTURE)
-                index.append(len(postures))
+                tasks.append((_POSTURE, len(postures), k, row))
                 postures.append(task)
-                size = nv
+                row += nv
             else:
                 return None
-            level_of.append(k)
-            rows.append(row)
-            row += size
         starts.append(row)
-    cfg_dof, cfg_lower, cfg_upper, config_limits = [], [], [], []
-    vel_dof, vel_limit = [], []
+    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
             indices = np.asarray(limit.indices, dtype=np.int64)
             e0 = len(cfg_dof)
             cfg_dof.extend(indices.tolist())
-            cfg_lower.extend(np.asarray(limit.lower)[indices].tolist())
-            cfg_upper.extend(np.asarray(limit.upper)[indices].tolist())
+            lower, upper = np.asarray(limit.lower)[indices], np.asarray(limit.upper)[indices]
+            cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
             config_limits.append((limit, e0, len(cfg_dof)))
         elif type(limit) is mink.VelocityLimit:
             vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
@@ -300,34 +333,33 @@ def make_plan(
             return None
     F, P, M = len(frames), len(postures), starts[-1]
     jac = np.zeros((F, 6, nv))
-    frames = [(task, fn, fid, jac[f, :3], jac[f, 3:]) for f, (task, fn, fid) in enumerate(frames)]
-    used = [kind in frame_kind for kind in range(3)]
-    empty3, empty9 = np.zeros((0, 3)), np.zeros((0, 9))
+    frame_data = np.zeros((F, 15))
+    posture_data = np.zeros((P, model.nq + nv + 2))
     arrays = {
         "A": np.zeros((M, nv)),
         "b": np.zeros(M),
         "w": np.zeros(M),
         "starts": np.asarray(starts, dtype=np.int64),
-        "task_kind": np.asarray(kinds, dtype=np.int64),
-        "task_index": np.asarray(index, dtype=np.int64),
-        "task_level": np.asarray(level_of, dtype=np.int64),
-        "task_row": np.asarray(rows, dtype=np.int64),
+        "tasks": np.asarray(tasks, dtype=np.int64).reshape(-1, 4),
         "jac": jac,
-        "frame_kind": np.asarray(frame_kind, dtype=np.int64),
-        "frame_id": np.asarray(frame_id, dtype=np.int64),
-        "poses": [empty3, empty9, empty3, empty9, empty3, empty9],
-        "kinds_used": used,
-        "frame_target": np.zeros((F, 7)),
-        "frame_cost": np.zeros((F, 6)),
-        "frame_scalars": np.zeros((F, 2)),
-        "posture_target": np.zeros((P, model.nq)),
-        "posture_cost": np.zeros((P, nv)),
-        "posture_scalars": np.zeros((P, 2)),
+        "frames": np.asarray(frame_rows, dtype=np.int64).reshape(-1, 2),
+        "frame_data": frame_data,
+        "posture_data": posture_data,
         "cfg_dof": np.asarray(cfg_dof, dtype=np.int64),
-        "cfg_lower": np.asarray(cfg_lower, dtype=float),
-        "cfg_upper": np.asarray(cfg_upper, dtype=float),
-        "cfg_gain": np.zeros(len(cfg_dof)),
+        "cfg_data": np.asarray(cfg_data, dtype=float).reshape(-1, 3),
         "vel_dof": np.asarray(vel_dof, dtype=np.int64),
         "vel_limit": np.asarray(vel_limit, dtype=float),
+        "settings": np.zeros(7),
+        "empty3": np.zeros((0, 3)),
+        "empty9": np.zeros((0, 9)),
     }
-    return FusedPlan(model, frames, postures, config_limits, arrays)
+    frames = [
+        (task, fn, fid, jac[f, :3], jac[f, 3:], frame_data[f])
+        for f, (task, fn, fid) in enumerate(frames)
+    ]
+    postures = [(task, posture_data[p]) for p, task in enumerate(postures)]
+    used = tuple(any(kind == k for kind, _ in frame_rows) for k in range(3))
+    settings = arrays["settings"]
+    settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
+    cold = np.zeros((len(levels), nv), dtype=np.int8)
+    return FusedPlan(model, frames, postures, config_limits, arrays, used, cold)

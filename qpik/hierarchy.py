@@ -37,7 +37,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ._fused import fused_step, make_plan
+from ._fused import box_of, fused_step, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
     DampingLaw,
@@ -46,12 +46,14 @@ from .core import (
     Level,
     LevelStatus,
 )
-from .core import _kernels as K
 from .core._kernels import merge_boxes, tighten
 from .core.hierarchy import _STATUS
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
 from .options import UNSET, StepOptions
 from .tasks import BaseTask
+
+#: Level statuses by the kernels' codes.
+_LEVEL_STATUS = [_STATUS[code] for code in range(len(_STATUS))]
 
 __all__ = [
     "DampingLaw",
@@ -319,7 +321,14 @@ class IKSolver:
             )
         )
         # One compiled call per step when every task and limit allows it (see qpik._fused).
-        self._plan = make_plan(model, self.levels, self.limits, self._scalar_joints)
+        self._plan = make_plan(
+            model,
+            self.levels,
+            self.limits,
+            self._scalar_joints,
+            self._core.rank_tolerance,
+            self._core.tolerance,
+        )
 
     @property
     def damping_law(self) -> DampingLaw | None:
@@ -509,45 +518,46 @@ class IKSolver:
         """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
         path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
         plan = self._plan
-        qpos, dt = plan.gather(configuration, dt)
+        qpos, poses = plan.gather(configuration)
         a = plan.arrays
         core = self._core
-        n, L = self._nv, len(self.levels)
-        threshold, max_damping, error_scale = core._law()
-        poses = a["poses"]
-        ok, bad, d, status, sigma, lam2, its, active, residuals, _, lb, ub = fused_step(
-            a["A"], a["b"], a["w"], a["starts"], a["task_kind"], a["task_index"],
-            a["task_level"], a["task_row"], a["jac"], a["frame_kind"], a["frame_id"],
-            poses[0], poses[1], poses[2], poses[3], poses[4], poses[5],
-            a["frame_target"], a["frame_cost"], a["frame_scalars"],
-            qpos, a["posture_target"], a["posture_cost"], a["posture_scalars"],
-            a["cfg_dof"], a["cfg_lower"], a["cfg_upper"], a["cfg_gain"], a["vel_dof"],
-            a["vel_limit"], dt, self.damping, threshold, max_damping, error_scale,
-            core.rank_tolerance, core.max_iter or 10 * n + 50, core.tolerance,
-            core._warm_for(L, n), core.warm_start,
+        settings = a["settings"]
+        settings[0] = dt
+        settings[1] = self.damping
+        law = core.damping_law
+        if law is not plan.law:  # the law is settable: refresh its entries
+            settings[2:5] = core._law()
+            plan.law = law
+        n = self._nv
+        warm = core._warm if core.warm_start and core._warm is not None else plan.cold
+        code, d, v, info, active = fused_step(
+            a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], *poses,
+            a["frame_data"], qpos, a["posture_data"], a["cfg_dof"], a["cfg_data"],
+            a["vel_dof"], a["vel_limit"], settings, core.max_iter or 10 * n + 50,
+            warm, core.warm_start,
         )  # fmt: skip
-        if not ok or bad >= 0:
-            return None
-        codes = status.tolist()
-        if K.MAX_ITER in codes or K.NUMERICAL in codes:
-            return None
-        residuals = residuals.tolist()
-        if not (math.isfinite(float(d @ d)) and math.isfinite(sum(residuals))):
+        if code:
             return None
         core._warm = active
+        residuals, sigma, lam2, status, iterations = info.tolist()
         q = qpos.copy()
         return StepResult(
-            velocity=d / dt,
+            velocity=v,
             displacement=d,
             residuals=residuals,
-            sigma_min=sigma.tolist(),
-            damping=lam2.tolist(),
-            status=[_STATUS[s] for s in codes],
-            iterations=its.tolist(),
+            sigma_min=sigma,
+            damping=lam2,
+            status=[_LEVEL_STATUS[int(s)] for s in status],
+            iterations=[int(i) for i in iterations],
             solve_time=time.perf_counter() - start,
             _name_active_limits=lambda: self._active_limits(
-                d, lb, ub, self._no_rows, np.zeros(0), self._box_contributions(q, dt), []
-            ),
+                d,
+                *box_of(plan, q, dt),
+                self._no_rows,
+                np.zeros(0),
+                self._box_contributions(q, dt),
+                [],
+            ),  # fmt: skip
         )
 
     def _box_contributions(self, qpos: np.ndarray, dt: float) -> list:
@@ -555,13 +565,12 @@ class IKSolver:
         the active limits of a fused step; see :meth:`_limit_rows`)."""
         contributions = []
         for limit in self.limits:
+            dofs = np.asarray(limit.indices, dtype=np.int64)
             if isinstance(limit, mink.ConfigurationLimit):
-                dofs = np.asarray(limit.indices, dtype=np.int64)
                 q = qpos[dofs]
                 upper = limit.gain * (limit.upper[dofs] - q)
                 lower = -limit.gain * (q - limit.lower[dofs])
             else:
-                dofs = np.asarray(limit.indices, dtype=np.int64)
                 upper = limit.limit * dt
                 lower = -upper
             name = type(limit).__name__
