@@ -1,5 +1,5 @@
 """IK success rate and time on reachable pose targets: TRAC-IK's protocol as the headline,
-qpik's coarser protocol second (issue 11; the logic is :mod:`qpik.bench`).
+qpik's coarser protocol second (issue 11; the logic is benchmarks/ik_bench.py).
 
 Headline, TRAC-IK's protocol (Beeson & Ames 2015): per robot, N random configurations
 within the limits mapped by forward kinematics to targets for its tool frame (fixed seed);
@@ -41,9 +41,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import ik_bench as bench  # benchmarks/ik_bench.py (this folder is on sys.path)
 import numpy as np
-
-from qpik import bench
 
 ROOT = Path(__file__).resolve().parent.parent
 

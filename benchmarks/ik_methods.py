@@ -1,0 +1,463 @@
+"""The methods of the IK success benchmark (:mod:`ik_bench`), each bound to a robot and a
+frame: qpik (:func:`qpik.IKSession.solve`), the lecture's IGM with the pseudoinverse or damped
+least squares (:mod:`qpik.baselines`), mink and pink. mink and pink run their
+``solve_ik`` as the step rule of the same restart loop (:func:`qpik.baselines.igm`), so the
+comparison isolates the step rule; pink runs on the robot as pinocchio loads it
+(:class:`PinocchioRobot` maps the joint orders and checks the two models agree).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from qpik import IKSession
+from qpik.baselines import damped_least_squares_igm, igm, pseudoinverse_igm
+from qpik.configuration import Configuration, FrameType
+from qpik.errors import QpikError
+from qpik.robots import locate_robot
+
+#: Restarts allowed to every method: more than fit in the budget, so the budget binds.
+RESTARTS = 100_000
+
+
+@dataclass
+class Outcome:
+    """What a method returned for one target: its configuration, iterations (all attempts),
+    restarts and its own reason for stopping."""
+
+    q: np.ndarray
+    iterations: int
+    restarts: int
+    reason: str
+
+
+class Method(Protocol):
+    """A method bound to a robot and frame: ``(position, rotation, q0, rng, budget) ->
+    Outcome``."""
+
+    def __call__(
+        self,
+        position: np.ndarray,
+        rotation: np.ndarray,
+        q0: np.ndarray,
+        rng: np.random.Generator,
+        budget: float,
+    ) -> Outcome: ...
+
+
+class MethodFactory(Protocol):
+    """``make(model, frame, frame_type, robot=name, tol_position=.., tol_orientation=..) ->
+    Method``: binds a method to a robot and the protocol's tolerances (what the method
+    iterates to, [m] and [rad]); ``robot`` is the name the model was loaded from (methods
+    that load the robot with another library need it). Raises :class:`MethodUnavailable`
+    when the method cannot run
+    on this robot here."""
+
+    def __call__(
+        self,
+        model: mujoco.MjModel,
+        frame: str,
+        frame_type: FrameType,
+        *,
+        robot: str | None,
+        tol_position: float = 1e-4,
+        tol_orientation: float = 1e-3,
+    ) -> Method: ...
+
+
+class MethodUnavailable(QpikError):
+    """A method cannot run on a robot here (a package is missing, or its library cannot load
+    the robot); the benchmark skips it on that robot and reports ``reason``."""
+
+    def __init__(self, method: str, robot: str | None, reason: str):
+        self.method = method
+        self.robot = robot
+        self.reason = reason
+        super().__init__(f"{method} skipped on {robot}: {reason}")
+
+
+def _qpik(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    *,
+    robot: str | None = None,
+    tol_position: float = 1e-4,
+    tol_orientation: float = 1e-3,
+) -> Method:
+    session = IKSession(model)  # the robot read once, as a user holding a session would
+    key = (frame, frame_type)
+
+    def run(position, rotation, q0, rng, budget):
+        result = session.solve(
+            {key: (position, rotation)},
+            q0=q0,
+            time_budget=budget,
+            restarts=RESTARTS,
+            seed=rng,
+            tol_position=tol_position,
+            tol_orientation=tol_orientation,
+        )
+        return Outcome(result.q, result.iterations, result.restarts_used, result.reason)
+
+    return run
+
+
+def _in_restart_loop(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    step: Callable | None,
+    *,
+    set_target: Callable[[np.ndarray, np.ndarray], None] | None = None,
+    igm_function: Callable = igm,
+    tol_position: float,
+    tol_orientation: float,
+) -> Method:
+    """A method that runs ``step`` (a :data:`qpik.baselines.StepRule`; ``None`` for an
+    ``igm_function`` that has its own) in qpik's restart loop (:func:`qpik.baselines.igm`),
+    after ``set_target(position, rotation)`` (for steps that hold a task of their own)."""
+    configuration = Configuration(model)
+    rule = () if step is None else (step,)
+
+    def run(position, rotation, q0, rng, budget):
+        if set_target is not None:
+            set_target(position, rotation)
+        result = igm_function(
+            configuration,
+            frame,
+            position,
+            rotation,
+            *rule,
+            frame_type=frame_type,
+            q0=q0,
+            time_budget=budget,
+            restarts=RESTARTS,
+            seed=rng,
+            tol_position=tol_position,
+            tol_orientation=tol_orientation,
+        )
+        return Outcome(result.q, result.iterations, result.restarts_used, result.reason)
+
+    return run
+
+
+def _igm_method(igm_function) -> MethodFactory:
+    def make(
+        model: mujoco.MjModel,
+        frame: str,
+        frame_type: FrameType,
+        *,
+        robot: str | None = None,
+        tol_position: float = 1e-4,
+        tol_orientation: float = 1e-3,
+    ) -> Method:
+        return _in_restart_loop(
+            model,
+            frame,
+            frame_type,
+            None,
+            igm_function=igm_function,
+            tol_position=tol_position,
+            tol_orientation=tol_orientation,
+        )
+
+    return make
+
+
+def _mink(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    *,
+    robot: str | None = None,
+    tol_position: float = 1e-4,
+    tol_orientation: float = 1e-3,
+) -> Method:
+    import mink
+    import qpsolvers
+
+    backend = "daqp" if "daqp" in qpsolvers.available_solvers else "osqp"
+    task = mink.FrameTask(
+        frame, frame_type.value, position_cost=1.0, orientation_cost=1.0, lm_damping=1.0
+    )
+    limits = [mink.ConfigurationLimit(model)]
+
+    def step(work, _J, _c):
+        return mink.solve_ik(work, [task], 1.0, backend, damping=1e-3, limits=limits)
+
+    def set_target(position, rotation):
+        task.set_target(
+            mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), position)
+        )
+
+    return _in_restart_loop(
+        model,
+        frame,
+        frame_type,
+        step,
+        set_target=set_target,
+        tol_position=tol_position,
+        tol_orientation=tol_orientation,
+    )
+
+
+@dataclass
+class PinocchioRobot:
+    """A robot loaded by pinocchio next to qpik's MuJoCo model of it, with the maps between
+    the two joint orders (matched by joint name; pinocchio orders joints depth-first as it
+    parses, MuJoCo as the file lists them).
+
+    Attributes:
+        model: the pinocchio model (kinematics only: no geometry).
+        source: the file pinocchio loaded.
+        frame: the pinocchio frame id of the benchmarked frame (same name as qpik's).
+    """
+
+    model: object  # pinocchio.Model (pinocchio is optional)
+    source: str
+    frame: int
+    _mj_qpos: np.ndarray
+    _pin_q: np.ndarray
+    _circle: np.ndarray
+    _mj_dof: np.ndarray
+    _pin_v: np.ndarray
+
+    def q_to_pinocchio(self, q: np.ndarray) -> np.ndarray:
+        """A MuJoCo ``qpos`` ``(nq,)`` as a pinocchio configuration; a continuous joint
+        (pinocchio's unbounded revolute, stored as ``(cos, sin)``) from its angle [rad]."""
+        q_pin = np.zeros(self.model.nq)
+        angle = q[self._mj_qpos]
+        line = ~self._circle
+        q_pin[self._pin_q[line]] = angle[line]
+        q_pin[self._pin_q[self._circle]] = np.cos(angle[self._circle])
+        q_pin[self._pin_q[self._circle] + 1] = np.sin(angle[self._circle])
+        return q_pin
+
+    def v_to_mujoco(self, v: np.ndarray) -> np.ndarray:
+        """A pinocchio velocity ``(nv,)`` in MuJoCo's dof order."""
+        v_mj = np.empty(self.model.nv)
+        v_mj[self._mj_dof] = v[self._pin_v]
+        return v_mj
+
+    def v_to_pinocchio(self, v: np.ndarray) -> np.ndarray:
+        """A MuJoCo velocity ``(nv,)`` in pinocchio's order."""
+        v_pin = np.empty(self.model.nv)
+        v_pin[self._pin_v] = v[self._mj_dof]
+        return v_pin
+
+
+def _pinocchio_source(robot: str) -> Path:
+    """The file pinocchio should load for qpik robot name ``robot`` (qpik's resolver)."""
+    return locate_robot(robot)
+
+
+def pinocchio_robot(
+    robot: str, model: mujoco.MjModel, frame: str, frame_type: FrameType | str = FrameType.SITE
+) -> PinocchioRobot:
+    """Load ``robot`` (a name :func:`qpik.load_robot` accepts, loaded as ``model``) with
+    pinocchio: the same URDF file for ``erd:`` robots and ``.urdf`` paths
+    (``buildModelFromUrdf``), the MJCF file for bundled robots and ``.xml`` paths
+    (``buildModelFromMJCF``). Checks that both have the same 1-DoF joints (by name), the
+    same position limits, and the same pose of ``frame`` at the mid-range and three random
+    configurations (1e-9 m or rad); raises :class:`MethodUnavailable` saying which check
+    failed, or why pinocchio could not load the file."""
+    import pinocchio as pin
+
+    def unavailable(reason: str) -> MethodUnavailable:
+        return MethodUnavailable("pink", robot, reason)
+
+    try:
+        source = _pinocchio_source(robot)
+    except (QpikError, ValueError) as exc:
+        raise unavailable(str(exc)) from exc
+    try:
+        if source.suffix.lower() == ".urdf":
+            pin_model = pin.buildModelFromUrdf(str(source))
+        else:
+            pin_model = pin.buildModelFromMJCF(str(source))
+    except Exception as exc:  # pinocchio's parsers raise bare RuntimeError/ValueError
+        raise unavailable(f"pinocchio cannot parse {source.name}: {exc}") from exc
+    count = sum(f.name == frame for f in pin_model.frames)
+    if count != 1:
+        raise unavailable(
+            f"pink addresses frames by name, and pinocchio's model of {source.name} has "
+            f"{count} frames named {frame!r}"
+        )
+    if FrameType.parse(frame_type) is FrameType.SITE:
+        _place_site(pin, pin_model, model, frame, source.name)
+    names = [pin_model.names[i] for i in range(1, pin_model.njoints)]
+    mj_names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in range(model.njnt)
+    ]
+    if sorted(names) != sorted(mj_names) or pin_model.nv != model.nv:
+        raise unavailable(
+            f"joints differ: pinocchio {names} (nv {pin_model.nv}), MuJoCo {mj_names} "
+            f"(nv {model.nv})"
+        )
+    mj_qpos, pin_q, circle, mj_dof, pin_v = [], [], [], [], []
+    for j, name in enumerate(mj_names):
+        joint = pin_model.joints[pin_model.getJointId(name)]
+        if model.jnt_type[j] not in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
+            raise unavailable(f"joint {name!r} is not a hinge or slide joint")
+        if joint.nv != 1 or joint.nq not in (1, 2):
+            raise unavailable(f"pinocchio joint {name!r} is {joint.shortname()}, not 1-DoF")
+        mj_qpos.append(model.jnt_qposadr[j])
+        pin_q.append(joint.idx_q)
+        circle.append(joint.nq == 2)
+        mj_dof.append(model.jnt_dofadr[j])
+        pin_v.append(joint.idx_v)
+    result = PinocchioRobot(
+        pin_model,
+        str(source),
+        pin_model.getFrameId(frame),
+        *(np.array(a) for a in (mj_qpos, pin_q, circle, mj_dof, pin_v)),
+    )
+    configuration = Configuration(model)
+    lower, upper = configuration.lower, configuration.upper
+    line = ~result._circle
+    for bound, pin_bound, what in (
+        (lower, pin_model.lowerPositionLimit, "lower"),
+        (upper, pin_model.upperPositionLimit, "upper"),
+    ):
+        mine, theirs = bound[result._mj_qpos[line]], pin_bound[result._pin_q[line]]
+        if not np.allclose(mine, theirs, rtol=0.0, atol=1e-9):
+            raise unavailable(f"{what} position limits differ: MuJoCo {mine}, pinocchio {theirs}")
+    data = pin_model.createData()
+    rng = np.random.default_rng(0)
+    for q in [configuration.mid_q()] + [configuration.random_q(rng) for _ in range(3)]:
+        configuration.update(q)
+        position, rotation = configuration.frame_pose(frame, frame_type)
+        pin.framesForwardKinematics(pin_model, data, result.q_to_pinocchio(q))
+        placement = data.oMf[result.frame]
+        if not (
+            np.allclose(placement.translation, position, rtol=0.0, atol=1e-9)
+            and np.allclose(placement.rotation, rotation, rtol=0.0, atol=1e-9)
+        ):
+            raise unavailable(
+                f"the pose of {frame!r} differs between pinocchio and MuJoCo at q = {q}"
+            )
+    return result
+
+
+def _place_site(pin, pin_model, model: mujoco.MjModel, site: str, file: str) -> None:
+    """Place the pinocchio frame of MJCF site ``site`` from its parent body's frame and the
+    site's pose in that body (MuJoCo's ``site_pos``, ``site_quat``). pinocchio 4.1's MJCF
+    parser composes a site with its body's pose relative to the parent body only, not to
+    the joint, so a site on a body nested under another fixed body is misplaced (the
+    bundled panda's ``ee`` loses the flange's 0.107 m); warns when it corrects the frame."""
+    site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.site_bodyid[site_id])
+    bodies = [i for i, f in enumerate(pin_model.frames) if f.name == body and f.type == pin.BODY]
+    frame_id = pin_model.getFrameId(site)
+    frame = pin_model.frames[frame_id]
+    if len(bodies) != 1 or pin_model.frames[bodies[0]].parentJoint != frame.parentJoint:
+        return  # left as parsed; the forward-kinematics check decides
+    rotation = np.empty(9)
+    mujoco.mju_quat2Mat(rotation, model.site_quat[site_id])
+    local = pin.SE3(rotation.reshape(3, 3), model.site_pos[site_id].copy())
+    placement = pin_model.frames[bodies[0]].placement * local
+    if placement.isApprox(frame.placement, 1e-12):
+        return
+    offset = np.linalg.norm(placement.translation - frame.placement.translation)
+    frame.placement = placement
+    pin_model.frames[frame_id] = frame
+    warnings.warn(
+        f"pinocchio {pin.__version__} misplaces MJCF site {site!r} of {file} by "
+        f"{1e3 * offset:.1f} mm (nested fixed body {body!r}); placed it from body {body!r} "
+        "and the site's pose in it",
+        stacklevel=3,
+    )
+
+
+def _pink(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    *,
+    robot: str | None = None,
+    tol_position: float = 1e-4,
+    tol_orientation: float = 1e-3,
+) -> Method:
+    try:
+        import pink
+        import pinocchio as pin
+        import qpsolvers
+        from pink.exceptions import NoSolutionFound
+        from pink.limits import ConfigurationLimit
+    except ImportError as exc:
+        raise MethodUnavailable(
+            "pink", robot, f"{exc.name} is not installed: pip install 'qpik[compare]'"
+        ) from exc
+    if robot is None:
+        raise MethodUnavailable("pink", robot, "it loads the robot file, and got no robot name")
+    robot_pin = pinocchio_robot(robot, model, frame, frame_type)
+    backend = "daqp" if "daqp" in qpsolvers.available_solvers else "osqp"
+    configuration = Configuration(model)
+    pink_configuration = pink.Configuration(
+        robot_pin.model, robot_pin.model.createData(), robot_pin.q_to_pinocchio(configuration.q)
+    )
+    task = pink.FrameTask(frame, position_cost=1.0, orientation_cost=1.0, lm_damping=1.0)
+    limits = [ConfigurationLimit(robot_pin.model, config_limit_gain=0.95)]
+    failed = np.full(model.nv, np.nan)  # a QP failure: the attempt ends as "diverged"
+
+    def step(work, _J, _c):
+        pink_configuration.update(robot_pin.q_to_pinocchio(work.q))
+        try:
+            velocity = pink.solve_ik(
+                pink_configuration, [task], 1.0, backend, damping=1e-3, limits=limits
+            )
+        except NoSolutionFound:
+            return failed
+        return robot_pin.v_to_mujoco(velocity)
+
+    def set_target(position, rotation):
+        task.set_target(pin.SE3(np.asarray(rotation, float), np.asarray(position, float)))
+
+    return _in_restart_loop(
+        model,
+        frame,
+        frame_type,
+        step,
+        set_target=set_target,
+        tol_position=tol_position,
+        tol_orientation=tol_orientation,
+    )
+
+
+#: The benchmark's methods, in the table's order.
+METHODS: dict[str, MethodFactory] = {
+    "qpik": _qpik,
+    "pinv": _igm_method(pseudoinverse_igm),
+    "dls": _igm_method(damped_least_squares_igm),
+    "mink": _mink,
+    "pink": _pink,
+}
+
+
+def available_methods() -> list[str]:
+    """The methods that can run here (``mink`` needs mink and qpsolvers, ``pink`` pink and
+    pinocchio: ``pip install 'qpik[compare]'``)."""
+    names = ["qpik", "pinv", "dls"]
+    try:
+        import mink  # noqa: F401
+        import qpsolvers  # noqa: F401
+    except ImportError:
+        return names
+    names.append("mink")
+    try:
+        import pink  # noqa: F401
+        import pinocchio  # noqa: F401
+    except ImportError:
+        return names
+    return names + ["pink"]
