@@ -492,10 +492,13 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     # constraints enter and leave (as in quadprog / eiquadprog): O(n^2) per change.
     x = backward_vec(L, forward_vec(L, -c))
     J = np.zeros((n, n))
-    for i in range(n):  # J = L^-T, column by column: J^T = L^-1
-        e = np.zeros(n)
-        e[i] = 1.0
-        J[i, :] = forward_vec(L, e)
+    for i in range(n):  # J = L^-T: row i of J is L^-1 e_i (forward substitution in place)
+        J[i, i] = 1.0 / L[i, i]
+        for k in range(i + 1, n):
+            acc = 0.0
+            for j in range(i, k):
+                acc -= L[k, j] * J[i, j]
+            J[i, k] = acc / L[k, k]
     R = np.zeros((n, n))
     r_norm = 1.0
     u = np.zeros(n + 1)
