@@ -136,6 +136,12 @@ def _task_target(task: Any) -> Target | None:
     return _NOT_A_FRAME_TASK
 
 
+def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
+    if options.limits == "joint":
+        return [ConfigurationLimit(model)]
+    return list(options.limits or ())
+
+
 class QPProblem:
     """What a ``"qp"``-engine solve iterates: a scratch configuration, the stack and its
     :class:`qpik.IKSolver`, built afresh for every solve (nothing carries over)."""
@@ -150,29 +156,13 @@ class QPProblem:
         self.configuration = Configuration(model)
         self.frames = list(frames)
         self.custom_stack = stack is not None
-        if stack is None:
-            levels = self._default_levels(model, options)
-        else:
-            levels = normalize_stack(stack)
+        levels = self._default_levels(model, options) if stack is None else normalize_stack(stack)
         self.levels = levels
-        self.limits = (
-            [ConfigurationLimit(model)] if options.limits == "joint" else list(options.limits or ())
-        )
+        self.limits = _limits(model, options)
         step = options.step
-        backend_options = step.backend_options
-        if backend_options is None:
-            backend_options = IGM_BACKEND_OPTIONS.get(step.solver)
-        self.solver = IKSolver(
-            model,
-            levels,
-            self.limits,
-            solver=step.solver,
-            damping=step.damping,
-            damping_law=step.damping_law,
-            rank_tolerance=step.rank_tolerance,
-            warm_start=step.warm_start,
-            backend_options=None if backend_options is None else dict(backend_options),
-        )
+        if step.backend_options is None and step.solver in IGM_BACKEND_OPTIONS:
+            step = step.replace(backend_options=IGM_BACKEND_OPTIONS[step.solver])
+        self.solver = IKSolver(model, levels, self.limits, options=step)
         self.primary = [t for t in levels[0] if isinstance(t, _FRAME_TASKS)]
         target_frames = {name for name, _, _ in self.frames}
         # Level-0 tasks checked for convergence besides the target frames.
