@@ -11,6 +11,7 @@ import json
 import os
 import shutil
 import time
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -114,23 +115,10 @@ def load_targets(path: str | os.PathLike) -> TargetArrays:
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise ProblemFileError(path, "TARGETS", "no such file")
-    quaternions = None
     if path.lower().endswith(".csv"):
         positions, quaternions = _read_csv(path)
     else:
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                if "positions" not in data:
-                    raise ProblemFileError(
-                        path, "positions", f"an (N, 3) array [m]; the file has {sorted(data)}"
-                    )
-                positions = np.asarray(data["positions"], dtype=float)
-                if "quaternions" in data:
-                    quaternions = np.asarray(data["quaternions"], dtype=float)
-        except ProblemFileError:
-            raise
-        except Exception as exc:  # not a zip, pickled objects, ...
-            raise ProblemFileError(path, "TARGETS", f"an .npz or .csv file ({exc})") from None
+        positions, quaternions = _read_npz(path)
     if positions.ndim != 2 or positions.shape[1] != 3:
         raise ProblemFileError(path, "positions", f"shape (N, 3) [m], got {positions.shape}")
     bad = np.flatnonzero(~np.isfinite(positions).all(axis=1))
@@ -151,8 +139,27 @@ def load_targets(path: str | os.PathLike) -> TargetArrays:
     return TargetArrays(positions, rotations)
 
 
-def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
+def _read_npz(path: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of an npz targets file."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if "positions" not in data:
+                raise ProblemFileError(
+                    path, "positions", f"an (N, 3) array [m]; the file has {sorted(data)}"
+                )
+            positions = np.asarray(data["positions"], dtype=float)
+            quaternions = None
+            if "quaternions" in data:
+                quaternions = np.asarray(data["quaternions"], dtype=float)
+    except ProblemFileError:
+        raise
+    except Exception as exc:  # not a zip, pickled objects, ...
+        raise ProblemFileError(path, "TARGETS", f"an .npz or .csv file ({exc})") from None
+    return positions, quaternions
 
+
+def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of a CSV targets file."""
     with open(path) as stream:
         first = stream.readline()
     try:
@@ -164,13 +171,19 @@ def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
         table = np.loadtxt(path, delimiter=",", skiprows=1 if header else 0, ndmin=2)
     except ValueError as exc:
         raise ProblemFileError(path, "CSV", f"numbers separated by commas ({exc})") from None
-    columns = [c.strip().lower() for c in first.split(",")] if header else None
-    if columns is None:
-        if table.shape[1] not in (3, 7):
-            raise ProblemFileError(
-                path, "CSV", f"3 (x y z) or 7 (x y z qw qx qy qz) columns, got {table.shape[1]}"
-            )
-        return table[:, :3], (table[:, 3:] if table.shape[1] == 7 else None)
+    if header:
+        return _named_columns(path, table, [c.strip().lower() for c in first.split(",")])
+    if table.shape[1] not in (3, 7):
+        raise ProblemFileError(
+            path, "CSV", f"3 (x y z) or 7 (x y z qw qx qy qz) columns, got {table.shape[1]}"
+        )
+    return table[:, :3], (table[:, 3:] if table.shape[1] == 7 else None)
+
+
+def _named_columns(
+    path: str, table: np.ndarray, columns: list[str]
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The columns ``x, y, z`` and, when all are present, ``qw, qx, qy, qz``."""
     missing = [c for c in ("x", "y", "z") if c not in columns]
     if missing:
         raise ProblemFileError(path, "CSV header", f"columns x, y, z; missing {missing}")
@@ -301,15 +314,11 @@ def solve_file(
     targets, robot, frame, seed, chunk size or options differ, unless ``overwrite``.
     ``max_chunks`` stops after that many new chunks (resume later). Target ``i`` is solved
     with :func:`target_seed(seed, i) <target_seed>`: the file's rows are the same as
-    :func:`solve_many`'s, however the run was split.
+    :func:`solve_many`'s, however the run was split. ``options`` and ``solve_options``:
+    as for :func:`qpik.solve_many`.
     """
-
     start_time = time.perf_counter()
-    out = os.fspath(out)
-    if not out.endswith((".npz", ".parquet")):
-        raise InvalidInput(f"out must be an .npz or .parquet file, got {out!r}")
-    if out.endswith(".parquet"):
-        _pyarrow()  # before solving, naming the extra
+    out = _check_out(out)
     arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
     entropy = check_seed(seed)
     workers = check_workers(workers, backend)
@@ -317,11 +326,7 @@ def solve_file(
     spec, model, q0 = prepare_robot(robot)
     resolve_frame(model, frame, argument="frame")
     call = solve_call(options, solve_options, q0)
-    described = {k: repr(v) for k, v in sorted(solve_options.items())}
-    if options is not None:
-        described["options"] = repr(options)
     n = len(arrays)
-    starts = list(range(0, n, chunk_size))
     meta = {
         "robot": spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
         "frame": list(frame) if isinstance(frame, tuple) else frame,
@@ -330,82 +335,121 @@ def solve_file(
         "nq": int(model.nq),
         "seed": entropy,
         "chunk_size": chunk_size,
-        "options": described,
+        "options": _described(options, solve_options),
     }
-    folder = out + ".chunks"
-    meta_path = os.path.join(folder, "meta.json")
-    if overwrite:
-        shutil.rmtree(folder, ignore_errors=True)
-        if os.path.exists(out):
-            os.remove(out)
-    done_starts: set[int] = set()
-    table = _empty_table(n, model.nq)
-    previous = _previous_run(out, folder, meta_path, table)
-    if previous is not None:
-        old_meta, done_starts = previous
-        different = [k for k in meta if old_meta.get(k) != meta[k]]
-        if different:
-            raise InvalidInput(
-                f"{out} holds a run with different {', '.join(different)}: pass another "
-                "--out, or --overwrite to start again"
-            )
-    before = len(done_starts)
-    todo = [s for s in starts if s not in done_starts]
+    results = _ResultsFile(out, meta, overwrite)
+    before = len(results.done)
+    todo = [s for s in range(0, n, chunk_size) if s not in results.done]
     if max_chunks is not None:
         todo = todo[: max(0, int(max_chunks))]
-    if todo:
-        os.makedirs(folder, exist_ok=True)
-        if not os.path.exists(meta_path):
-            with open(meta_path, "w") as stream:
-                json.dump(meta, stream, indent=1)
+    results.begin(todo)
     solved = targets_solved = 0
-    last_write, write_cost = time.perf_counter(), 0.0
-    bar = progress_bar(n, progress, initial=int(table["done"].sum()))
+    bar = progress_bar(n, progress, initial=int(results.table["done"].sum()))
     try:
         chunks = (arrays.chunk(frame, s, min(s + chunk_size, n)) for s in todo)
-        for start, results in _iter_prepared(
-            spec,
-            model,
-            chunks,
-            entropy,
-            workers if len(todo) > 1 else 1,
-            backend,
-            address,
-            call,
+        workers = workers if len(todo) > 1 else 1
+        for start, chunk in _iter_prepared(
+            spec, model, chunks, entropy, workers, backend, address, call
         ):
-            rows = _rows(results, model.nq)
-            _atomic_savez(os.path.join(folder, f"chunk_{start:010d}.npz"), **rows)
-            _fill(table, start, rows)
-            done_starts.add(start)
+            results.add(start, chunk)
             solved += 1
-            targets_solved += len(results)
-            bar.update(len(results))
-            now = time.perf_counter()
-            if now - last_write > max(5.0, 20.0 * write_cost):
-                _write_results(out, table, meta)
-                write_cost, last_write = time.perf_counter() - now, time.perf_counter()
+            targets_solved += len(chunk)
+            bar.update(len(chunk))
     finally:
         bar.close()
-        if solved or previous is None:
-            _write_results(out, table, meta)
-    complete = len(done_starts) == len(starts)
-    if complete:
-        shutil.rmtree(folder, ignore_errors=True)
-    reasons: dict[str, int] = {}
-    for reason in table["reason"]:
-        reasons[str(reason)] = reasons.get(str(reason), 0) + 1
+        results.end(solved)
     return BatchRun(
         out=out,
         total=n,
-        chunks=len(starts),
+        chunks=results.chunks,
         chunks_before=before,
         chunks_solved=solved,
         targets_solved=targets_solved,
-        complete=complete,
+        complete=results.complete,
         elapsed=time.perf_counter() - start_time,
-        converged=int(table["converged"].sum()),
-        reasons=reasons,
+        converged=int(results.table["converged"].sum()),
+        reasons=dict(Counter(str(reason) for reason in results.table["reason"])),
     )
+
+
+def _check_out(out: str | os.PathLike) -> str:
+    """``out`` as a str ending in ``.npz`` or ``.parquet`` (pyarrow then importable)."""
+    out = os.fspath(out)
+    if not out.endswith((".npz", ".parquet")):
+        raise InvalidInput(f"out must be an .npz or .parquet file, got {out!r}")
+    if out.endswith(".parquet"):
+        _pyarrow()  # before solving, naming the extra
+    return out
+
+
+def _described(options: SolveOptions | str | None, solve_options: Mapping[str, Any]) -> dict:
+    """The options of a run as the results file records them (a rerun must match)."""
+    described = {k: repr(v) for k, v in sorted(solve_options.items())}
+    if options is not None:
+        described["options"] = repr(options)
+    return described
+
+
+class _ResultsFile:
+    """The results file ``out`` of a run, its table and its folder of finished chunks
+    (``out + ".chunks"``, with ``meta.json``): resumed from an earlier run with the same
+    ``meta``, refused (``InvalidInput``) when the earlier run's differs."""
+
+    def __init__(self, out: str, meta: dict[str, Any], overwrite: bool):
+        self.out, self.meta = out, meta
+        self.folder = out + ".chunks"
+        self.meta_path = os.path.join(self.folder, "meta.json")
+        if overwrite:
+            shutil.rmtree(self.folder, ignore_errors=True)
+            if os.path.exists(out):
+                os.remove(out)
+        n, size = meta["n"], meta["chunk_size"]
+        self.chunks = len(range(0, n, size))
+        self.table = _empty_table(n, meta["nq"])
+        previous = _previous_run(out, self.folder, self.meta_path, self.table)
+        self.resumed = previous is not None
+        self.done: set[int] = set()
+        if previous is not None:
+            old_meta, self.done = previous
+            different = [k for k in meta if old_meta.get(k) != meta[k]]
+            if different:
+                raise InvalidInput(
+                    f"{out} holds a run with different {', '.join(different)}: pass another "
+                    "--out, or --overwrite to start again"
+                )
+        self.last_write, self.write_cost = time.perf_counter(), 0.0
+
+    @property
+    def complete(self) -> bool:
+        """Whether every chunk is done."""
+        return len(self.done) == self.chunks
+
+    def begin(self, todo: Sequence[int]) -> None:
+        """Create the chunk folder and its ``meta.json`` when chunks remain to solve."""
+        if todo:
+            os.makedirs(self.folder, exist_ok=True)
+            if not os.path.exists(self.meta_path):
+                with open(self.meta_path, "w") as stream:
+                    json.dump(self.meta, stream, indent=1)
+
+    def add(self, start: int, results: Sequence[IKResult]) -> None:
+        """Save a finished chunk at once; rewrite ``out`` every few seconds (at least 20
+        times as long as a write takes)."""
+        rows = _rows(results, self.table["q"].shape[1])
+        _atomic_savez(os.path.join(self.folder, f"chunk_{start:010d}.npz"), **rows)
+        _fill(self.table, start, rows)
+        self.done.add(start)
+        now = time.perf_counter()
+        if now - self.last_write > max(5.0, 20.0 * self.write_cost):
+            _write_results(self.out, self.table, self.meta)
+            self.write_cost, self.last_write = time.perf_counter() - now, time.perf_counter()
+
+    def end(self, solved: int) -> None:
+        """Write ``out`` (when anything changed), and drop the folder once complete."""
+        if solved or not self.resumed:
+            _write_results(self.out, self.table, self.meta)
+        if self.complete:
+            shutil.rmtree(self.folder, ignore_errors=True)
 
 
 def _empty_table(n: int, nq: int) -> dict[str, np.ndarray]:
@@ -449,39 +493,49 @@ def _meta_arrays(meta: Mapping[str, Any]) -> dict[str, np.ndarray]:
 def _previous_run(out: str, folder: str, meta_path: str, table: dict[str, np.ndarray]):
     """``(meta, finished chunk starts)`` of an earlier run over ``out`` (``None`` if there
     was none); the finished rows are copied into ``table`` (when its shape matches)."""
-
-    done: set[int] = set()
-    meta = None
-    n = len(table["done"])
-    if os.path.exists(out):
-        try:
-            meta, saved = _read_results(out)
-        except MissingExtra:
-            raise
-        except Exception as exc:
-            raise InvalidInput(
-                f"{out} exists and is not a qpik batch results file ({exc}): pass another "
-                "--out, or --overwrite"
-            ) from None
-        if saved["q"].shape == table["q"].shape:
-            size = int(meta.get("chunk_size", 1))
-            for start in range(0, n, size):
-                if saved["done"][start : start + size].all():
-                    done.add(start)
-                    for name in table:
-                        table[name][start : start + size] = saved[name][start : start + size]
+    meta, done = _saved_file(out, table)
     if os.path.exists(meta_path):
         with open(meta_path) as stream:
             meta = json.load(stream)
-        for name in sorted(os.listdir(folder)):
-            if not (name.startswith("chunk_") and name.endswith(".npz")):
-                continue
-            start = int(name[6:-4])
-            if start in done or start >= n:
-                continue
-            with np.load(os.path.join(folder, name), allow_pickle=False) as data:
-                rows = {key: data[key] for key in ("q", *RESULT_FIELDS)}
-            if rows["q"].shape[1:] == table["q"].shape[1:]:
-                _fill(table, start, rows)
-                done.add(start)
+        _saved_chunks(folder, table, done)
     return None if meta is None else (meta, done)
+
+
+def _saved_file(out: str, table: dict[str, np.ndarray]) -> tuple[dict | None, set[int]]:
+    """The meta and the finished chunks of the results file ``out``, rows into ``table``."""
+    done: set[int] = set()
+    if not os.path.exists(out):
+        return None, done
+    try:
+        meta, saved = _read_results(out)
+    except MissingExtra:
+        raise
+    except Exception as exc:
+        raise InvalidInput(
+            f"{out} exists and is not a qpik batch results file ({exc}): pass another "
+            "--out, or --overwrite"
+        ) from None
+    if saved["q"].shape == table["q"].shape:
+        size = int(meta.get("chunk_size", 1))
+        for start in range(0, len(table["done"]), size):
+            if saved["done"][start : start + size].all():
+                done.add(start)
+                for name in table:
+                    table[name][start : start + size] = saved[name][start : start + size]
+    return meta, done
+
+
+def _saved_chunks(folder: str, table: dict[str, np.ndarray], done: set[int]) -> None:
+    """Add the chunk files of ``folder`` not in ``done`` to ``table`` and ``done``."""
+    n = len(table["done"])
+    for name in sorted(os.listdir(folder)):
+        if not (name.startswith("chunk_") and name.endswith(".npz")):
+            continue
+        start = int(name[6:-4])
+        if start in done or start >= n:
+            continue
+        with np.load(os.path.join(folder, name), allow_pickle=False) as data:
+            rows = {key: data[key] for key in ("q", *RESULT_FIELDS)}
+        if rows["q"].shape[1:] == table["q"].shape[1:]:
+            _fill(table, start, rows)
+            done.add(start)
