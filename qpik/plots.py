@@ -3,14 +3,25 @@
 matplotlib is imported when a function here is first called, never by ``import qpik``;
 without it, :class:`qpik.MissingExtra` names the ``plots`` extra. Functions draw on axes
 you pass (or new ones) and return them; :func:`plot_result` lays out a whole figure and
-can save it to a file (with the non-interactive Agg backend):
+can save it to a file (with the non-interactive Agg backend, no display needed).
 
-* :func:`plot_level_errors`: each level's residual against iteration (log scale);
+Every panel of a path is drawn along the whole path: in track mode every step (x: time
+[s]), in solve mode every iterate of each goal's solve (x: iteration), with dotted
+vertical lines where the next goal (waypoint) begins.
+
+* :func:`plot_task_errors`: each task's error ``|e(q)|`` per priority level (what each
+  level asks, log scale: position parts [m], rotation parts [rad]);
+* :func:`plot_frame_errors`: each goal frame's position [m] and rotation [rad] error;
+* :func:`plot_level_errors`: each level's QP residual ``|A_k dq - b_k|`` per step (what
+  the solver could not do in that step: near zero once a level is feasible);
 * :func:`plot_joints`: joint trajectories inside their limit bands;
-* :func:`plot_singular_values`: the goal frame's singular values and manipulability
-  along the path;
-* :func:`plot_planar_arm`: a planar arm at its start, intermediate and final
-  configurations, with the targets.
+* :func:`plot_singular_values`: the goal frames' singular values and manipulability;
+* :func:`plot_robot`: the robot in 3D (segments from each body to its children, from
+  MuJoCo's body positions) at its start, intermediate and final configurations, with the
+  targets; :func:`plot_planar_arm`: the same seen from above for planar arms.
+
+Legends sit outside the axes (below them), never on the data; with many joints only the
+ones that move most are named.
 """
 
 from __future__ import annotations
@@ -22,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .analysis import manipulability, singular_values
-from .configuration import Configuration, joint_names
+from .configuration import Configuration, FrameType, joint_names
 from .errors import MissingExtra
 
 if TYPE_CHECKING:  # matplotlib is optional and imported lazily
@@ -30,17 +41,26 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-    from .problem import ProblemResult
+    from .problem import ErrorCurve, ProblemResult
 
 __all__ = [
     "is_planar",
     "joint_curves",
+    "plot_frame_errors",
     "plot_joints",
     "plot_level_errors",
     "plot_planar_arm",
     "plot_result",
+    "plot_robot",
     "plot_singular_values",
+    "plot_task_errors",
+    "robot_segments",
 ]
+
+#: Errors below this are drawn at it (log scales cannot show 0).
+FLOOR = 1e-12
+#: At most this many curves are named in a legend; the rest are drawn thin and grey.
+MAX_NAMED = 10
 
 
 def _matplotlib():
@@ -58,10 +78,55 @@ def _pyplot():
     return plt
 
 
-def _axes(ax):
+def _axes(ax, projection: str | None = None):
     if ax is not None:
         return ax
-    return _pyplot().subplots()[1]
+    if projection is None:
+        return _pyplot().subplots()[1]
+    return _pyplot().figure().add_subplot(projection=projection)
+
+
+def _colors() -> list[str]:
+    return _matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
+
+
+def _legend_below(ax: Axes, ncol: int = 2) -> None:
+    """The legend under the axes (off the data), if anything is labelled."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    ax.legend(
+        handles,
+        labels,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.16),
+        fontsize="x-small",
+        ncol=ncol,
+        frameon=False,
+    )
+
+
+def _goal_starts(ax: Axes, x: np.ndarray, goal_index: np.ndarray | None) -> None:
+    """Dotted vertical lines where a new goal (waypoint) begins, named at the top; and
+    whole-number ticks when ``x`` counts iterations."""
+    if np.issubdtype(np.asarray(x).dtype, np.integer):
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if goal_index is None:
+        return
+    transform = ax.get_xaxis_transform()  # x in data, y in axes fraction
+    for k in np.flatnonzero(np.diff(goal_index)) + 1:
+        ax.axvline(x[k], color="0.5", lw=0.8, ls=":")
+        ax.text(
+            x[k],
+            0.99,
+            f" goal {goal_index[k]}",
+            transform=transform,
+            fontsize="x-small",
+            color="0.4",
+            va="top",
+        )
 
 
 def is_planar(model: mujoco.MjModel) -> bool:
@@ -77,20 +142,110 @@ def is_planar(model: mujoco.MjModel) -> bool:
     )
 
 
+# ----------------------------------------------------------------------------- errors
+def plot_error_curves(
+    curves: Sequence[ErrorCurve],
+    ax: Axes | None = None,
+    x: np.ndarray | None = None,
+    goal_index: np.ndarray | None = None,
+    tolerances: dict[str, float] | None = None,
+    title: str = "",
+) -> Axes:
+    """:class:`qpik.problem.ErrorCurve` s on a log scale, one colour per task or frame
+    (``group``): position-like parts [m] solid, rotation parts [rad] dashed, unitless
+    errors dash-dotted; ``tolerances`` ``{unit: value}`` as grey lines of the same styles
+    (for the units present)."""
+    ax = _axes(ax)
+    colors = _colors()
+    groups = list(dict.fromkeys(curve.group or curve.label for curve in curves))
+    for curve in curves:
+        xs = np.arange(len(curve.values)) if x is None else x
+        color = colors[groups.index(curve.group or curve.label) % len(colors)]
+        unit = f" [{curve.unit}]" if curve.unit else ""
+        ax.semilogy(
+            xs,
+            np.maximum(curve.values, FLOOR),
+            _STYLE[curve.unit],
+            color=color,
+            lw=1.3,
+            label=curve.label + unit,
+        )
+    units = {curve.unit for curve in curves}
+    for unit, value in (tolerances or {}).items():
+        if unit in units:
+            ax.axhline(value, color="0.45", lw=0.9, ls=_STYLE[unit], label=f"tolerance [{unit}]")
+    if curves:
+        _goal_starts(ax, np.arange(len(curves[0].values)) if x is None else x, goal_index)
+    ax.set_ylabel("error: [m] solid, [rad] dashed")
+    ax.set_title(title)
+    ax.grid(True, which="major", alpha=0.3)
+    _legend_below(ax, ncol=1 if len(curves) > 6 else 2)
+    return ax
+
+
+_STYLE = {"m": "-", "rad": "--", "": "-."}
+
+
+def plot_task_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
+    """Each task's error along the path, coloured by priority level (see
+    :meth:`qpik.problem.ProblemResult.task_errors`), with the tolerances."""
+    x, xlabel = _path_axis(result)
+    ax = plot_error_curves(
+        result.task_errors(),
+        ax,
+        x,
+        result.goal_index,
+        _tolerances(result),
+        "task error per priority level",
+    )
+    ax.set_xlabel(xlabel)
+    return ax
+
+
+def plot_frame_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
+    """Each goal frame's position [m] and rotation [rad] error along the path (blank
+    while the goal being reached does not name the frame), with the tolerances."""
+    x, xlabel = _path_axis(result)
+    ax = plot_error_curves(
+        result.frame_errors(),
+        ax,
+        x,
+        result.goal_index,
+        _tolerances(result),
+        "error per goal frame",
+    )
+    ax.set_xlabel(xlabel)
+    return ax
+
+
+def _tolerances(result: ProblemResult) -> dict[str, float]:
+    o = result.problem.options
+    return {"m": o.get("tol_position", 1e-4), "rad": o.get("tol_orientation", 1e-3)}
+
+
+def _path_axis(result: ProblemResult) -> tuple[np.ndarray, str]:
+    """x values of :attr:`ProblemResult.path` and their label."""
+    n = len(result.path)
+    if result.trace is not None:
+        return np.arange(n) * result.trace.dt, "time [s]"
+    return np.arange(n), "iteration (all goals)"
+
+
 def plot_level_errors(
     residual_history: Sequence[Sequence[float]],
     ax: Axes | None = None,
     xlabel: str = "iteration",
     goal_error: np.ndarray | None = None,
 ) -> Axes:
-    """Each priority level's weighted QP residual ``|A_k dq - b_k|`` per iteration (log
-    scale), and the goal frame's position error [m] when given (``goal_error[i]`` after
-    iteration ``i``, ``goal_error[0]`` at the start)."""
+    """Each priority level's weighted QP residual ``|A_k dq - b_k|`` per step (log scale):
+    what a step could not achieve (near zero once a level is feasible; it is not the task
+    error, see :func:`plot_task_errors`); and the goal frames' largest position error [m]
+    when given (``goal_error[i]`` after step ``i``, ``goal_error[0]`` at the start)."""
     ax = _axes(ax)
     if goal_error is not None:
         ax.semilogy(
             np.arange(len(goal_error)),
-            np.maximum(goal_error, 1e-16),
+            np.maximum(goal_error, FLOOR),
             "k:",
             lw=1.5,
             label="goal position error [m]",
@@ -100,17 +255,18 @@ def plot_level_errors(
     for level in range(levels):
         values = np.array([row[level] if level < len(row) else np.nan for row in history])
         ax.semilogy(
-            np.arange(1, len(values) + 1), np.maximum(values, 1e-16), label=f"level {level}"
+            np.arange(1, len(values) + 1), np.maximum(values, FLOOR), label=f"level {level}"
         )
     ax.set_xlabel(xlabel)
-    ax.set_ylabel("residual")
-    ax.set_title("error per priority level")
-    if levels or goal_error is not None:
-        ax.legend(fontsize="small")
-    ax.grid(True, which="both", alpha=0.3)
+    _goal_starts(ax, np.arange(1, len(history) + 1), None)
+    ax.set_ylabel("|A_k dq - b_k|")
+    ax.set_title("QP residual per level, per step")
+    ax.grid(True, which="major", alpha=0.3)
+    _legend_below(ax, ncol=3)
     return ax
 
 
+# ----------------------------------------------------------------------------- joints
 def joint_curves(model: mujoco.MjModel, path: np.ndarray) -> list[tuple[str, np.ndarray, tuple]]:
     """What :func:`plot_joints` draws: per curve ``(label, values (k,), (lower, upper))``.
 
@@ -149,37 +305,62 @@ def plot_joints(
     path: np.ndarray,
     ax: Axes | None = None,
     time: np.ndarray | None = None,
+    goal_index: np.ndarray | None = None,
+    xlabel: str | None = None,
 ) -> Axes:
-    """Joint trajectories ``path (k, nq)`` with each joint's limits as a shaded band
-    (ball joints: their rotation angle; free joints: position and rotation angle; see
-    :func:`joint_curves`)."""
+    """Joint trajectories ``path (k, nq)`` along the path, each joint's limits dotted when
+    they lie near the curves (the axis spans the motion, not the whole limit range; ball
+    joints: their rotation angle; free joints: position and rotation angle; see
+    :func:`joint_curves`). With more than :data:`MAX_NAMED` curves, the ones that move
+    most are coloured and named, the others thin and grey (their limits not drawn)."""
     ax = _axes(ax)
     path = np.atleast_2d(path)
     x = np.arange(len(path)) if time is None else time
-    colors = _matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
+    colors = _colors()
     curves = joint_curves(model, path)
+    motion = [float(np.ptp(values)) for _, values, _ in curves]
+    named = set(np.argsort(motion)[::-1][:MAX_NAMED]) if len(curves) > MAX_NAMED else None
+    marker = "o" if len(path) < 8 else None
+    low, high = _near_range([values for _, values, _ in curves])
     for i, (label, values, (lower, upper)) in enumerate(curves):
+        if named is not None and i not in named:
+            ax.plot(x, values, color="0.75", lw=0.6, zorder=1)
+            continue
         color = colors[i % len(colors)]
-        ax.plot(x, values, color=color, marker="o" if len(path) < 8 else None, label=label)
-        if np.isfinite(lower) and np.isfinite(upper):
-            ax.axhspan(lower, upper, color=color, alpha=0.05)
-            for bound in (lower, upper):
-                ax.axhline(bound, color=color, lw=0.6, ls=":")
-    ax.set_xlabel("time [s]" if time is not None else "configuration")
+        ax.plot(x, values, color=color, marker=marker, ms=3, lw=1.3, label=label, zorder=2)
+        for bound in (lower, upper):
+            if low <= bound <= high:
+                ax.axhline(bound, color=color, lw=0.8, ls=":")
+    ax.set_ylim(low, high)
+    if named is not None:
+        ax.plot([], [], color="0.75", lw=0.6, label=f"{len(curves) - len(named)} others")
+    _goal_starts(ax, x, goal_index)
+    ax.set_xlabel(xlabel or ("time [s]" if time is not None else "configuration"))
     ax.set_ylabel("q [rad or m]")
-    ax.set_title("joints (limits dotted)")
-    ax.legend(fontsize="x-small", ncol=2 if len(curves) <= 16 else 3)
+    ax.set_title("joints along the path (limits in view dotted)")
+    ax.grid(True, alpha=0.3)
+    _legend_below(ax, ncol=3)
     return ax
 
 
-def _frame_jacobian_rows(model, frame, frame_type, rows: str):
+def _near_range(curves: Sequence[np.ndarray]) -> tuple[float, float]:
+    """The y range of the curves, padded by 30 % of their span (at least 0.2): limits
+    inside it are close enough to the motion to draw."""
+    values = np.concatenate([np.ravel(c) for c in curves])
+    values = values[np.isfinite(values)]
+    low, high = (float(values.min()), float(values.max())) if values.size else (-1.0, 1.0)
+    pad = max(0.3 * (high - low), 0.2)
+    return low - pad, high + pad
+
+
+# ----------------------------------------------------------------------------- sigma
+def _goal_jacobian(frames: Sequence[tuple[str, str | FrameType]], rows: str):
+    """``configuration -> J``: the frames' Jacobians stacked, ``rows`` of each:
+    ``"pose"`` (6), ``"position"`` (3) or ``"planar"`` (vx, vy)."""
+    take = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[rows]
+
     def jacobian(configuration: Configuration) -> np.ndarray:
-        J = configuration.frame_jacobian(frame, frame_type)
-        if rows == "planar":
-            return J[:2]
-        if rows == "position":
-            return J[:3]
-        return J
+        return np.vstack([configuration.frame_jacobian(f, t)[take] for f, t in frames])
 
     return jacobian
 
@@ -187,17 +368,21 @@ def _frame_jacobian_rows(model, frame, frame_type, rows: str):
 def plot_singular_values(
     model: mujoco.MjModel,
     path: np.ndarray,
-    frame: str,
-    frame_type: str = "site",
+    frame: str | Sequence[tuple[str, str | FrameType]],
+    frame_type: str | FrameType = "site",
     rows: str = "pose",
     ax: Axes | None = None,
     time: np.ndarray | None = None,
+    goal_index: np.ndarray | None = None,
+    xlabel: str | None = None,
 ) -> Axes:
     """Singular values of the frame's Jacobian (``rows``: ``"pose"``, ``"position"`` or
-    ``"planar"`` for vx, vy) and the manipulability ``sqrt(det J J^T)`` along ``path``."""
+    ``"planar"`` for vx, vy; ``frame`` may be a list of ``(name, frame_type)``, whose
+    Jacobians are stacked) and the manipulability ``sqrt(det J J^T)``, along ``path``."""
     ax = _axes(ax)
+    frames = [(frame, frame_type)] if isinstance(frame, str) else list(frame)
     configuration = Configuration(model)
-    jacobian = _frame_jacobian_rows(model, frame, frame_type, rows)
+    jacobian = _goal_jacobian(frames, rows)
     sigmas, measure = [], []
     for q in np.atleast_2d(path):
         configuration.update(q)
@@ -208,13 +393,132 @@ def plot_singular_values(
     x = np.arange(len(sigmas)) if time is None else time
     marker = "o" if len(sigmas) < 8 else None
     for i in range(sigmas.shape[1]):
-        ax.plot(x, sigmas[:, i], lw=1, marker=marker, label=f"sigma_{i + 1}")
-    ax.plot(x, measure, "k--", lw=1.5, marker=marker, label="manipulability")
-    ax.set_xlabel("time [s]" if time is not None else "configuration")
-    ax.set_title(f"singular values of J ({frame}, {rows} rows)")
-    ax.legend(fontsize="x-small", ncol=2)
+        ax.plot(x, sigmas[:, i], lw=1.2, marker=marker, ms=3, label=f"σ{i + 1}")
+    ax.plot(x, measure, "k--", lw=1.5, marker=marker, ms=3, label="manipulability")
+    _goal_starts(ax, x, goal_index)
+    names = ", ".join(name for name, _ in frames)
+    ax.set_xlabel(xlabel or ("time [s]" if time is not None else "configuration"))
+    ax.set_title(f"singular values of J ({rows} rows)\n{names}", fontsize="medium")
     ax.grid(True, alpha=0.3)
+    _legend_below(ax, ncol=4)
     return ax
+
+
+# ----------------------------------------------------------------------------- robot
+def robot_segments(
+    model: mujoco.MjModel,
+    configuration: Configuration,
+    frames: Sequence[tuple[str, str | FrameType]] = (),
+) -> np.ndarray:
+    """Segments ``(n, 2, 3)`` [m, world] from each body's origin to its children's (a
+    body on a free joint is not tied to the world), then from the body of each of
+    ``frames`` (a site or geom) to the frame, at the configuration."""
+    import mujoco
+
+    free = int(mujoco.mjtJoint.mjJNT_FREE)
+    xpos = configuration.data.xpos
+    segments = []
+    for body in range(1, model.nbody):
+        parent = int(model.body_parentid[body])
+        first, count = model.body_jntadr[body], model.body_jntnum[body]
+        if parent == 0 and any(int(model.jnt_type[j]) == free for j in range(first, first + count)):
+            continue
+        segments.append((xpos[parent], xpos[body]))
+    owner = {FrameType.SITE: model.site_bodyid, FrameType.GEOM: model.geom_bodyid}
+    for name, kind in frames:
+        kind = FrameType.parse(kind)
+        if kind in owner:
+            body = owner[kind][configuration.frame_id(name, kind)]
+            segments.append((xpos[body], configuration.frame_pose(name, kind)[0]))
+    return np.array(segments).reshape(-1, 2, 3)
+
+
+def _picks(n: int, intermediate: int) -> np.ndarray:
+    return np.unique(np.linspace(0, n - 1, intermediate + 2).round().astype(int))
+
+
+def _frame_trace(configuration, path, frames) -> list[np.ndarray]:
+    traces = [[] for _ in frames]
+    for q in path:
+        configuration.update(q)
+        for trace, (name, kind) in zip(traces, frames):
+            trace.append(configuration.frame_pose(name, kind)[0])
+    return [np.array(t) for t in traces]
+
+
+def plot_robot(
+    model: mujoco.MjModel,
+    path: np.ndarray,
+    targets: Sequence[np.ndarray] = (),
+    frames: Sequence[tuple[str, str | FrameType]] = (),
+    ax: Axes | None = None,
+    intermediate: int = 2,
+    view: tuple[float, float] = (12.0, -70.0),
+) -> Axes:
+    """The robot in 3D (matplotlib, from MuJoCo's body positions: a segment from each body
+    to each child) at the start (grey), ``intermediate`` configurations along ``path``
+    (light blue) and the final one (dark blue), with the traces of ``frames`` (orange)
+    and the ``targets`` [m, world] (red crosses). ``view``: (elevation, azimuth) [deg].
+    Needs no GL (no offscreen rendering): it works on machines without a display."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    ax = _axes(ax, projection="3d")
+    path = np.atleast_2d(path)
+    configuration = Configuration(model)
+    picks = _picks(len(path), intermediate)
+    points = [np.zeros((0, 3))]
+    for rank, index in enumerate(picks):
+        configuration.update(path[index])
+        segments = robot_segments(model, configuration, frames)
+        last = rank == len(picks) - 1
+        if rank == 0:
+            color, width, label = (0.55, 0.55, 0.55, 0.9), 1.8, "start"
+        elif last:
+            color, width, label = (0.05, 0.2, 0.6, 1.0), 2.4, "final"
+        else:
+            color, width, label = (0.35, 0.6, 0.95, 0.6), 1.4, "intermediate" if rank == 1 else None
+        lines = Line3DCollection(segments, colors=[color], lw=width, label=label)
+        ax.add_collection3d(lines)
+        points.append(segments.reshape(-1, 3))
+    for k, trace in enumerate(_frame_trace(configuration, path, frames)):
+        ax.plot(*trace.T, color="tab:orange", lw=1, label="frame path" if k == 0 else None)
+        points.append(trace)
+    for k, target in enumerate(targets):
+        ax.plot(
+            *np.reshape(target, (3, 1)),
+            "x",
+            color="tab:red",
+            ms=8,
+            mew=2,
+            label="target" if k == 0 else None,
+        )
+        points.append(np.reshape(target, (1, 3)))
+    _equal_3d(ax, np.vstack(points))
+    ax.view_init(*view)
+    ax.set_xlabel("x [m]", fontsize="small")
+    ax.set_ylabel("y [m]", fontsize="small")
+    ax.set_zlabel("z [m]", fontsize="small")
+    ax.tick_params(labelsize="x-small")
+    from matplotlib.ticker import MaxNLocator
+
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_major_locator(MaxNLocator(4))
+    ax.set_title("robot: start, intermediate, final")
+    _legend_below(ax, ncol=2)
+    return ax
+
+
+def _equal_3d(ax, points: np.ndarray) -> None:
+    """One scale on the three axes [m], each axis spanning its own range of ``points``
+    (padded, and at least 40 % of the largest: a tall robot makes a tall box, a flat
+    motion no sliver)."""
+    low, high = points.min(axis=0), points.max(axis=0)
+    largest = max(float(np.max(high - low)), 0.2)
+    half = np.maximum((high - low) / 2, 0.2 * largest) + 0.05 * largest
+    centre = (low + high) / 2
+    for setter, c, h in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre, half):
+        setter(c - h, c + h)
+    ax.set_box_aspect(tuple(2 * half), zoom=0.95)
 
 
 def plot_planar_arm(
@@ -222,37 +526,27 @@ def plot_planar_arm(
     path: np.ndarray,
     targets: Sequence[np.ndarray] = (),
     frame: str = "ee",
-    frame_type: str = "site",
+    frame_type: str | FrameType = "site",
     ax: Axes | None = None,
     intermediate: int = 3,
 ) -> Axes:
-    """A planar arm drawn at the start (light), ``intermediate`` configurations along
-    ``path`` and the final one (dark), with the tip's trace and the targets (crosses)."""
+    """A planar arm seen from above at the start (light), ``intermediate`` configurations
+    along ``path`` and the final one (dark), with the tip's trace and the targets."""
     ax = _axes(ax)
     path = np.atleast_2d(path)
     configuration = Configuration(model)
-    picks = np.unique(np.linspace(0, len(path) - 1, intermediate + 2).round().astype(int))
-    tip = []
-    for q in path:
-        configuration.update(q)
-        tip.append(configuration.frame_pose(frame, frame_type)[0])
-    tip = np.array(tip)
+    (tip,) = _frame_trace(configuration, path, [(frame, frame_type)])
     ax.plot(tip[:, 0], tip[:, 1], color="tab:orange", lw=1, label="tip path")
+    picks = _picks(len(path), intermediate)
     for rank, index in enumerate(picks):
         configuration.update(path[index])
         points = [np.zeros(3)] + [configuration.data.xpos[b].copy() for b in range(1, model.nbody)]
         points.append(configuration.frame_pose(frame, frame_type)[0])
         points = np.array(points)
-        shade = 0.25 + 0.75 * rank / max(len(picks) - 1, 1)
+        shade = min(1.0, 0.25 + 0.75 * rank / max(len(picks) - 1, 1))
         label = "start" if index == 0 else ("final" if index == len(path) - 1 else None)
         ax.plot(
-            points[:, 0],
-            points[:, 1],
-            "-o",
-            color=(0.1, 0.3, 0.7, shade),
-            lw=3,
-            ms=4,
-            label=label,
+            points[:, 0], points[:, 1], "-o", color=(0.1, 0.3, 0.7, shade), lw=3, ms=4, label=label
         )
     for k, target in enumerate(targets):
         ax.plot(
@@ -264,61 +558,65 @@ def plot_planar_arm(
             mew=2,
             label="target" if k == 0 else None,
         )
-    ax.set_aspect("equal")
+    ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title("arm: start, intermediate, final")
-    ax.legend(fontsize="x-small")
+    ax.set_title("arm (top view): start, intermediate, final")
     ax.grid(True, alpha=0.3)
+    _legend_below(ax, ncol=4)
     return ax
 
 
+# ----------------------------------------------------------------------------- figure
 def plot_result(
     result: ProblemResult, path: str | os.PathLike | None = None, dpi: int = 80
 ) -> Figure:
-    """A figure of a :class:`qpik.problem.ProblemResult`: level errors, joints, singular
-    values and (planar robots) the arm. Saved to ``path`` when given (drawn on a bare
-    :class:`matplotlib.figure.Figure`, Agg canvas: no GUI, pyplot's state untouched);
-    returns the figure."""
+    """A figure of a :class:`qpik.problem.ProblemResult`: task error per level and error
+    per goal frame (top), joints and singular values of the goal frames' Jacobian
+    (bottom), all along the path, and the robot on the right (3D, or from above for
+    planar arms). The QP residual per step is :func:`plot_level_errors`'s. Saved to
+    ``path`` when given (drawn on a bare :class:`matplotlib.figure.Figure`, Agg canvas: no
+    GUI, pyplot's state untouched); returns the figure."""
     _matplotlib()
     problem = result.problem
     model = problem.model
     planar = is_planar(model)
-    panels = 4 if planar else 3
-    figsize = (4.2 * panels, 3.8)
+    figsize = (16.5, 10.5)
     if path is not None:
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=figsize)
-        axes = fig.subplots(1, panels)
+        fig = Figure(figsize=figsize, layout="constrained")
     else:
-        fig, axes = _pyplot().subplots(1, panels, figsize=figsize)
-    trace = result.trace
-    time = None if trace is None else np.arange(len(trace.q)) * trace.dt
-    plot_level_errors(
-        result.residual_history,
-        axes[0],
-        xlabel="step" if trace is not None else "iteration",
-        goal_error=None if trace is None else trace.position_error,
-    )
-    plot_joints(model, result.path, axes[1], time=time)
-    goal = problem.goals[0]
-    rows = "planar" if planar else ("pose" if goal.target.rotation is not None else "position")
-    plot_singular_values(
-        model, result.path, goal.frame, goal.frame_type, rows=rows, ax=axes[2], time=time
-    )
+        fig = _pyplot().figure(figsize=figsize, layout="constrained")
+    grid = fig.add_gridspec(2, 3, width_ratios=(1.0, 1.0, 1.1))
+    x, xlabel = _path_axis(result)
+    time = x if result.trace is not None else None
+    plot_task_errors(result, fig.add_subplot(grid[0, 0]))
+    plot_frame_errors(result, fig.add_subplot(grid[0, 1]))
+    frames = list(dict.fromkeys((f.frame, f.frame_type) for g in problem.goals for f in g.frames))
+    targets = [f.target.position for g in problem.goals for f in g.frames]
     if planar:
-        plot_planar_arm(
-            model,
-            result.path,
-            [g.target.position for g in problem.goals],
-            goal.frame,
-            goal.frame_type,
-            axes[3],
+        plot_planar_arm(model, result.path, targets, *frames[0], fig.add_subplot(grid[:, 2]))
+    else:
+        plot_robot(
+            model, result.path, targets, frames, fig.add_subplot(grid[:, 2], projection="3d")
         )
+    index = result.goal_index
+    plot_joints(model, result.path, fig.add_subplot(grid[1, 0]), time, index, xlabel)
+    with_rotation = all(f.target.rotation is not None for g in problem.goals for f in g.frames)
+    rows = "planar" if planar else ("pose" if with_rotation else "position")
+    plot_singular_values(
+        model,
+        result.path,
+        frames,
+        rows=rows,
+        ax=fig.add_subplot(grid[1, 1]),
+        time=time,
+        goal_index=index,
+        xlabel=xlabel,
+    )
     state = "converged" if result.converged else f"not converged: {result.reason}"
-    fig.suptitle(f"{problem.name} ({state})", fontsize="medium")
-    fig.tight_layout()
+    fig.suptitle(f"{problem.name} ({state})", fontsize="large")
     if path is not None:
         fig.savefig(path, dpi=dpi)
     return fig
