@@ -367,6 +367,18 @@ def _iter_prepared(
         for chunk in chunks:
             yield _raise_failures(local, local.solve_chunk(chunk))
         return
+    yield from _iter_pool(spec, model, chunks, entropy, workers, options)
+
+
+def _iter_pool(
+    spec: Any,
+    model: mujoco.MjModel,
+    chunks: Iterable[Chunk],
+    entropy: int,
+    workers: int | None,
+    options: dict[str, Any],
+) -> Iterator[tuple[int, list[IKResult]]]:
+    """Chunks solved by a process pool, a few per worker submitted ahead."""
     local = _ChunkSolver(model, entropy, options)
     executor = ProcessPoolExecutor(
         max_workers=workers,
@@ -377,14 +389,8 @@ def _iter_prepared(
     try:
         pending: set[Future] = set()
         source = iter(chunks)
-        exhausted = False
         while True:
-            while not exhausted and len(pending) < _AHEAD * workers:
-                chunk = next(source, None)
-                if chunk is None:
-                    exhausted = True
-                else:
-                    pending.add(executor.submit(_solve_chunk_in_worker, chunk))
+            _submit_ahead(source, pending, _AHEAD * (workers or 1), executor)
             if not pending:
                 return
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -399,6 +405,17 @@ def _iter_prepared(
                 yield _raise_failures(local, item)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
+
+
+def _submit_ahead(
+    source: Iterator[Chunk], pending: set[Future], ahead: int, executor: ProcessPoolExecutor
+) -> None:
+    """Submit chunks from ``source`` until ``ahead`` are pending (or none remain)."""
+    while len(pending) < ahead:
+        chunk = next(source, None)
+        if chunk is None:
+            return
+        pending.add(executor.submit(_solve_chunk_in_worker, chunk))
 
 
 def _iter_ray(spec, chunks, entropy, workers, address, options):
@@ -557,22 +574,34 @@ def _stream(
         capacity = workers or os.cpu_count() or 1
         size = chunk_size or max(1, min(64, math.ceil((n - 1) / (4 * capacity))))
         chunks = (Chunk(s, targets_at(s, min(s + size, n))) for s in range(1, n, size))
-        waiting: dict[int, list[IKResult]] = {}
-        following = 1
-        for start, results in _iter_prepared(
-            spec, model, chunks, entropy, workers, backend, address, options
-        ):
-            bar.update(len(results))
-            if not ordered:
-                yield start, results
-                continue
-            waiting[start] = results
-            while following in waiting:
-                ready = waiting.pop(following)
-                yield following, ready
-                following += len(ready)
+        solved = _iter_prepared(spec, model, chunks, entropy, workers, backend, address, options)
+        counted = _counted(solved, bar)
+        yield from (_in_order(counted, 1) if ordered else counted)
     finally:
         bar.close()
+
+
+def _counted(
+    items: Iterable[tuple[int, list[IKResult]]], bar: Any
+) -> Iterator[tuple[int, list[IKResult]]]:
+    """``items``, each counted on the progress bar as it passes."""
+    for start, results in items:
+        bar.update(len(results))
+        yield start, results
+
+
+def _in_order(
+    items: Iterable[tuple[int, list[IKResult]]], following: int
+) -> Iterator[tuple[int, list[IKResult]]]:
+    """Chunks ``(start, results)`` arriving in any order, yielded in index order from
+    ``following`` (each held until those before it have arrived)."""
+    waiting: dict[int, list[IKResult]] = {}
+    for start, results in items:
+        waiting[start] = results
+        while following in waiting:
+            ready = waiting.pop(following)
+            yield following, ready
+            following += len(ready)
 
 
 def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str = "IK") -> Any:
