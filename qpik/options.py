@@ -105,20 +105,20 @@ def check_number(
     need = "" if negative else (" >= 0" if allow_zero else " > 0")
     if maximum is not None:
         need += f" and <= {maximum:g}"
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, (int, float))
-        and not _is_numpy_number(value)
-    ):
-        raise InvalidOption(name, value, f"a finite number{need}")
-    number = float(value)
-    if (
-        not math.isfinite(number)
-        or (not negative and (number < 0 or (number == 0 and not allow_zero)))
-        or (maximum is not None and number > maximum)
-    ):
+    number = float(value) if _is_real(value) else math.nan
+    low = -math.inf if negative else 0.0
+    above_low = number > low or (allow_zero and number == low)
+    below_high = maximum is None or number <= maximum
+    if not (math.isfinite(number) and above_low and below_high):
         raise InvalidOption(name, value, f"a finite number{need}")
     return number
+
+
+def _is_real(value: Any) -> bool:
+    """A Python or NumPy int or float (not a bool)."""
+    if isinstance(value, bool):
+        return False
+    return isinstance(value, (int, float)) or _is_numpy_number(value)
 
 
 def _is_numpy_number(value: Any) -> bool:
@@ -292,6 +292,11 @@ class SolveOptions:
     step: StepOptions = SOLVE_STEP
 
     def __post_init__(self) -> None:
+        self._check_numbers()
+        self._check_structure()
+
+    def _check_numbers(self) -> None:
+        """Tolerances, counts, gains and the time budget."""
         _set(self, "tol_position", check_number("tol_position", self.tol_position))
         _set(self, "tol_orientation", check_number("tol_orientation", self.tol_orientation))
         _set(self, "max_iters", check_integer("max_iters", self.max_iters, 0, MAX_ITERS_LIMIT))
@@ -302,25 +307,19 @@ class SolveOptions:
         if self.restarts is not None:
             _set(self, "restarts", check_integer("restarts", self.restarts, 0))
         if self.seed is not None:
-            if isinstance(self.seed, bool) or not hasattr(self.seed, "__index__"):
-                raise InvalidOption("seed", self.seed, "an int >= 0 or None")
-            if operator.index(self.seed) < 0:
-                raise InvalidOption("seed", self.seed, "an int >= 0 or None")
-            _set(self, "seed", operator.index(self.seed))
+            _set(self, "seed", _check_seed(self.seed))
         _set(self, "alpha", check_number("alpha", self.alpha, maximum=1.0))
         _set(self, "beta", check_number("beta", self.beta))
         _set(self, "stall_window", check_integer("stall_window", self.stall_window, 1))
+
+    def _check_structure(self) -> None:
+        """The trust region, the flags, the limits, the engine and the step options."""
         if self.max_step is not None:
             if not (isinstance(self.max_step, (tuple, list)) and len(self.max_step) == 2):
                 raise InvalidOption("max_step", self.max_step, "(metres, radians) or None")
-            _set(
-                self,
-                "max_step",
-                (
-                    check_number("max_step[0] (metres)", self.max_step[0]),
-                    check_number("max_step[1] (radians)", self.max_step[1]),
-                ),
-            )
+            metres = check_number("max_step[0] (metres)", self.max_step[0])
+            radians = check_number("max_step[1] (radians)", self.max_step[1])
+            _set(self, "max_step", (metres, radians))
         if not isinstance(self.secondary, bool):
             raise InvalidOption("secondary", self.secondary, "True or False")
         _set(self, "limits", _check_limits(self.limits))
@@ -382,6 +381,12 @@ def resolve(options: SolveOptions | str | None) -> SolveOptions:
     raise InvalidOption(
         "options", options, f"a qpik.SolveOptions, None or a preset name ({', '.join(PRESETS)})"
     )
+
+
+def _check_seed(seed: Any) -> int:
+    if isinstance(seed, bool) or not hasattr(seed, "__index__") or operator.index(seed) < 0:
+        raise InvalidOption("seed", seed, "an int >= 0 or None")
+    return operator.index(seed)
 
 
 def _check_limits(limits: Any) -> str | tuple | None:

@@ -303,6 +303,26 @@ def _orientation_text(rmap: ReachabilityMap) -> str:
     return f"{count} orientations" if count else "positions only"
 
 
+def _rotations(orientations: int | npt.ArrayLike) -> np.ndarray:
+    """The map's target rotations ``(K, 3, 3)``: none for ``0``, :func:`so3_grid` for a
+    count, or the given matrices, checked."""
+    if isinstance(orientations, (int, np.integer)) and orientations == 0:
+        return np.zeros((0, 3, 3))  # position only
+    if isinstance(orientations, (int, np.integer)) and not isinstance(orientations, bool):
+        return so3_grid(int(orientations))
+    rotations = np.asarray(orientations, dtype=float)
+    if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or len(rotations) == 0:
+        raise InvalidInput(
+            f"orientations must be a count or a (K, 3, 3) array, got shape {rotations.shape}"
+        )
+    for k, rotation in enumerate(rotations):
+        try:
+            parse_target((np.zeros(3), rotation))
+        except Exception as exc:
+            raise InvalidInput(f"orientations[{k}]: {exc}") from None
+    return rotations
+
+
 def reachability(
     robot: RobotLike,
     frame: FrameKey,
@@ -344,21 +364,7 @@ def reachability(
     spec, model, q0 = prepare_robot(robot)
     call = solve_call(options, solve_options, q0)
     centers, shape = _grid(region, resolution)
-    if isinstance(orientations, (int, np.integer)) and orientations == 0:
-        rotations = np.zeros((0, 3, 3))  # position only
-    elif isinstance(orientations, (int, np.integer)) and not isinstance(orientations, bool):
-        rotations = so3_grid(int(orientations))
-    else:
-        rotations = np.asarray(orientations, dtype=float)
-        if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or len(rotations) == 0:
-            raise InvalidInput(
-                f"orientations must be a count or a (K, 3, 3) array, got shape {rotations.shape}"
-            )
-        for k, rotation in enumerate(rotations):
-            try:
-                parse_target((np.zeros(3), rotation))
-            except Exception as exc:
-                raise InvalidInput(f"orientations[{k}]: {exc}") from None
+    rotations = _rotations(orientations)
     margin = call["options"].tol_position  # [m]: a voxel this close to the bound may converge
     skipped = np.zeros(len(centers), dtype=bool)
     bounds = _reach_bounds(model, frame)
