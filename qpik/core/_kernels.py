@@ -370,17 +370,33 @@ def _max_abs(u, q):
 
 
 @njit(cache=True)
-def _most_violated(x, C, lo, hi, skip, tol):
-    """The most violated constraint (row, side) at x, by violation / |C_row|; row -1 if
-    every constraint holds within ``tol`` (relative to 1 + |bound|)."""
-    m = C.shape[0]
+def _row_norms(C):
+    """``|C_i|`` of every row."""
+    m, n = C.shape
+    norms = np.empty(m)
+    for i in range(m):
+        norm = 0.0
+        for j in range(n):
+            norm += C[i, j] * C[i, j]
+        norms[i] = np.sqrt(norm)
+    return norms
+
+
+@njit(cache=True)
+def _most_violated(x, C, lo, hi, skip, tol, norms):
+    """The most violated constraint (row, side) at x, by violation / |C_row| (``norms``);
+    row -1 if every constraint holds within ``tol`` (relative to 1 + |bound|)."""
+    m, n = C.shape
     best, best_row, best_side = 0.0, -1, 0
     for i in range(m):
         if skip[i]:
             continue
-        cx, norm = _row_value(C, i, x)
+        norm = norms[i]
         if norm == 0.0:
             continue
+        cx = 0.0
+        for j in range(n):
+            cx += C[i, j] * x[j]
         if lo[i] > -_BIG:
             v = (lo[i] - cx) / norm
             if v > tol * (1.0 + abs(lo[i])) and v > best:
@@ -406,7 +422,7 @@ def _kkt_ok(x, u, C, lo, hi, q, tol):
         if u[j] < -floor:
             return False
     skip = np.zeros(C.shape[0], dtype=np.bool_)
-    row, _ = _most_violated(x, C, lo, hi, skip, tol)
+    row, _ = _most_violated(x, C, lo, hi, skip, tol, _row_norms(C))
     return row < 0
 
 
@@ -506,9 +522,12 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     z = np.empty(n)
     r = np.empty(n + 1)
     in_set = np.zeros(m, dtype=np.bool_)
+    norms = _row_norms(C)
+    x_old = np.empty(n)
+    u_old = np.empty(n + 1)
     iterations = 0
     while True:
-        row, side = _most_violated(x, C, lo, hi, in_set, tol)
+        row, side = _most_violated(x, C, lo, hi, in_set, tol, norms)
         if row < 0:
             if canonical:
                 polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
@@ -576,8 +595,8 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 return x, INFEASIBLE, iterations, active
             full = t2 <= t1
             if full:
-                x_old = x.copy()
-                u_old = u.copy()
+                x_old[:] = x
+                u_old[:] = u
             if t2 < np.inf:
                 for k in range(n):
                     x[k] += t * z[k]
@@ -613,8 +632,8 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                     # Numerically dependent on the working set after all: undo the step
                     # (J is unchanged where it matters) and leave the row out; the final
                     # verification catches it if it stays violated.
-                    x = x_old
-                    u = u_old
+                    x[:] = x_old
+                    u[:] = u_old
                     u[q] = 0.0
                     in_set[row] = True
                     break
