@@ -93,21 +93,19 @@ def _qpik(
     tol_orientation: float = 1e-3,
 ) -> Method:
     session = IKSession(model)  # the robot read once, as a user holding a session would
-    key = (frame, frame_type)
 
-    def run(position, rotation, q0, rng, budget):
-        result = session.solve(
-            {key: (position, rotation)},
-            q0=q0,
-            time_budget=budget,
-            restarts=RESTARTS,
-            seed=rng,
-            tol_position=tol_position,
-            tol_orientation=tol_orientation,
-        )
-        return Outcome(result.q, result.iterations, result.restarts_used, result.reason)
+    def solve(_configuration, frame, position, rotation, *, frame_type, **options):
+        return session.solve({(frame, frame_type): (position, rotation)}, **options)
 
-    return run
+    return _in_restart_loop(
+        model,
+        frame,
+        frame_type,
+        None,
+        igm_function=solve,
+        tol_position=tol_position,
+        tol_orientation=tol_orientation,
+    )
 
 
 def _in_restart_loop(
@@ -122,8 +120,9 @@ def _in_restart_loop(
     tol_orientation: float,
 ) -> Method:
     """A method that runs ``step`` (a :data:`qpik.baselines.StepRule`; ``None`` for an
-    ``igm_function`` that has its own) in qpik's restart loop (:func:`qpik.baselines.igm`),
-    after ``set_target(position, rotation)`` (for steps that hold a task of their own)."""
+    ``igm_function`` that has its own) in qpik's restart loop (:func:`qpik.baselines.igm`,
+    or an ``igm_function`` with its signature: qpik's own solve), after
+    ``set_target(position, rotation)`` (for steps that hold a task of their own)."""
     configuration = Configuration(model)
     rule = () if step is None else (step,)
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,7 +15,7 @@ from .configuration import Configuration, FrameType
 from .model.rotations import orientation_error
 from .options import PRESETS
 from .restarts import Attempt, Clock, StallWindow, run_attempts
-from .result import IGM_REASONS, Reason
+from .result import IGM_REASONS, Outcome, Reason
 
 __all__ = [
     "IGM_REASONS",
@@ -62,29 +61,10 @@ def nullspace_projection_step(
 
 
 # ------------------------------------------------------------------------ the IGM loop
-@dataclass
-class IGMResult:
-    """The outcome of an IGM loop (:func:`igm`).
-
-    Attributes:
-        q: the best configuration found ``(nq,)``; within the limits when ``clip`` is on.
-        converged: whether the frame is within tolerance at ``q``.
-        reason: a :class:`qpik.result.Reason`, one of :data:`IGM_REASONS`.
-        iterations: steps taken, all attempts together.
-        restarts_used: random restarts made after the first attempt.
-        position_error: distance of the frame origin to its target at ``q`` [m].
-        orientation_error: angle of ``R R_des^T`` at ``q`` [rad].
-        solve_time: wall time [s].
-    """
-
-    q: np.ndarray
-    converged: bool
-    reason: Reason
-    iterations: int
-    restarts_used: int
-    position_error: float
-    orientation_error: float
-    solve_time: float
+class IGMResult(Outcome):
+    """The outcome of an IGM loop (:func:`igm`): the fields of
+    :class:`qpik.result.Outcome`, for its one frame (``q`` within the limits when ``clip``
+    is on; ``reason`` one of :data:`IGM_REASONS`)."""
 
 
 def pose_error(

@@ -13,7 +13,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-__all__ = ["IGM_REASONS", "REASONS", "IKResult", "LazyRows", "Reason"]
+__all__ = ["IGM_REASONS", "REASONS", "IKResult", "LazyRows", "Outcome", "Reason"]
 
 
 class Reason(str, enum.Enum):
@@ -69,26 +69,20 @@ IGM_REASONS: Mapping[str, str] = MappingProxyType(
 
 
 @dataclass
-class IKResult:
-    """The outcome of :func:`qpik.solve`.
+class Outcome:
+    """What every IK loop reports (:class:`IKResult` of :func:`qpik.solve`,
+    :class:`qpik.baselines.IGMResult` of the baselines).
 
     Attributes:
-        q: the best configuration found ``(nq,)``, always within the joint limits.
-        converged: whether every frame and every level-0 task is within tolerance at ``q``.
-        reason: a :class:`Reason` (a string, one of :data:`REASONS`).
+        q: the best configuration found ``(nq,)``.
+        converged: whether the targets are within tolerance at ``q``.
+        reason: a :class:`Reason` (a string).
         iterations: IK steps taken, all attempts together.
         restarts_used: random restarts made after the first attempt.
         position_error: largest frame position error at ``q`` [m].
         orientation_error: largest frame orientation error at ``q`` [rad] (0 without
             orientation targets).
-        frame_errors: per frame, ``(position_error [m], orientation_error [rad])``.
-        residual_history: per iteration of the returned attempt, each level's QP residual
-            ``|A_k dq - b_k|`` (what the solver minimised at that step).
-        error_history: per iteration of the returned attempt (its start first), the largest
-            frame ``(position_error [m], orientation_error [rad])``.
-        path: the configurations of the returned attempt, its start first ``(k, nq)``.
         solve_time: wall time [s].
-        engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.converge`).
     """
 
     q: np.ndarray
@@ -98,11 +92,29 @@ class IKResult:
     restarts_used: int
     position_error: float
     orientation_error: float
+    solve_time: float = 0.0
+
+
+@dataclass
+class IKResult(Outcome):
+    """The outcome of :func:`qpik.solve`: the fields of :class:`Outcome` (``q`` always
+    within the joint limits; ``converged`` when every frame and every level-0 task is
+    within tolerance; ``reason`` one of :data:`REASONS`), and:
+
+    Attributes:
+        frame_errors: per frame, ``(position_error [m], orientation_error [rad])``.
+        residual_history: per iteration of the returned attempt, each level's QP residual
+            ``|A_k dq - b_k|`` (what the solver minimised at that step).
+        error_history: per iteration of the returned attempt (its start first), the largest
+            frame ``(position_error [m], orientation_error [rad])``.
+        path: the configurations of the returned attempt, its start first ``(k, nq)``.
+        engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.converge`).
+    """
+
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
     residual_history: Sequence[list[float]] = field(default_factory=list, repr=False)
     error_history: Sequence[tuple[float, float]] = field(default_factory=list, repr=False)
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
-    solve_time: float = 0.0
     engine: str = "qp"
 
     def __str__(self) -> str:
