@@ -624,20 +624,10 @@ def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str =
     )
 
 
-_FILE_NAMES = (
-    "RESULT_FIELDS",
-    "BatchRun",
-    "TargetArrays",
-    "load_targets",
-    "rotations_from_quaternions",
-    "solve_file",
-)
-
-
 def __getattr__(name: str) -> Any:
     """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here."""
-    if name in _FILE_NAMES:
-        from . import batch_files
+    from . import batch_files
 
+    if name in batch_files.__all__:
         return getattr(batch_files, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
