@@ -194,13 +194,15 @@ class StaticsReport:
 @dataclass
 class ErrorCurve:
     """One curve of errors along a path: ``label``, ``level`` (task level, or -1 for a
-    goal frame), ``unit`` (``"m"``, ``"rad"`` or ``""``) and ``values (k,)`` (NaN where it
-    does not apply, e.g. a frame not in the goal being reached)."""
+    goal frame), ``unit`` (``"m"``, ``"rad"`` or ``""``), ``values (k,)`` (NaN where it
+    does not apply, e.g. a frame not in the goal being reached) and ``group`` (the task
+    or frame it belongs to: its position and rotation parts share it)."""
 
     label: str
     level: int
     unit: str
     values: np.ndarray
+    group: str = ""
 
 
 def _task_error_parts(task, configuration: Configuration) -> list[tuple[str, float]]:
@@ -245,23 +247,34 @@ class ProblemResult:
         """The final configuration ``(nq,)``."""
         return self.trace.q[-1] if self.trace is not None else self.results[-1].q
 
+    def _goal_paths(self) -> list[np.ndarray]:
+        """Per goal (solve mode), the configurations of its returned attempt, without its
+        first one when that is where the previous goal ended (the same configuration)."""
+        previous, parts = self.problem.q0, []
+        for r in self.results:
+            part = r.path if len(r.path) else r.q[None]
+            if np.array_equal(part[0], previous):
+                part = part[1:]
+            parts.append(part)
+            previous = r.q
+        return parts
+
     @property
     def path(self) -> np.ndarray:
         """Configurations along the way ``(k, nq)``: the start, then every step (track
-        mode); or every iterate of each goal's returned attempt, its start first, goal
-        after goal (solve mode)."""
+        mode) or every iterate of each goal's returned attempt, goal after goal (solve
+        mode; an attempt that began from a random restart begins with that restart)."""
         if self.trace is not None:
             return self.trace.q
-        parts = [r.path if len(r.path) else r.q[None] for r in self.results]
-        return np.concatenate([self.problem.q0[None]] + parts)
+        return np.concatenate([self.problem.q0[None], *self._goal_paths()])
 
     @property
     def goal_index(self) -> np.ndarray:
         """Per configuration of :attr:`path`, the goal it works toward ``(k,)``."""
         if self.trace is not None:
             return np.concatenate([[0], self.trace.goal_index]).astype(int)
-        counts = [len(r.path) if len(r.path) else 1 for r in self.results]
-        return np.concatenate([[0]] + [np.full(n, i) for i, n in enumerate(counts)]).astype(int)
+        parts = [np.full(len(p), i) for i, p in enumerate(self._goal_paths())]
+        return np.concatenate([[0], *parts]).astype(int)
 
     @property
     def iterations(self) -> int:
@@ -293,9 +306,9 @@ class ProblemResult:
                     values[frame.frame][k, 1] = np.nan
         curves = []
         for name in names:
-            curves.append(ErrorCurve(f"{name} position", -1, "m", values[name][:, 0]))
+            curves.append(ErrorCurve(f"{name} position", -1, "m", values[name][:, 0], name))
             if not np.all(np.isnan(values[name][:, 1])):
-                curves.append(ErrorCurve(f"{name} rotation", -1, "rad", values[name][:, 1]))
+                curves.append(ErrorCurve(f"{name} rotation", -1, "rad", values[name][:, 1], name))
         return curves
 
     def task_errors(self) -> list[ErrorCurve]:
@@ -306,8 +319,7 @@ class ProblemResult:
         configuration = problem.start_configuration()
         levels = problem.build_stack(configuration)
         path, index = self.path, self.goal_index
-        columns: dict[tuple[int, str], list[float]] = {}
-        labels: dict[tuple[int, str], tuple[int, str, str]] = {}
+        columns: dict[tuple[int, int, str], list[float]] = {}
         current = 0
         for k, q in enumerate(path):
             if index[k] != current:
@@ -315,15 +327,19 @@ class ProblemResult:
                 for frame in problem.goals[current].frames:
                     set_frame_target(levels, frame.frame, frame.target)
             configuration.update(q)
-            for level, (tasks, specs) in enumerate(zip(levels, problem.levels)):
-                for j, (task, spec) in enumerate(zip(tasks, specs)):
+            for level, tasks in enumerate(levels):
+                for j, task in enumerate(tasks):
                     for unit, value in _task_error_parts(task, configuration):
-                        key = (level, f"{j} {unit}")
-                        columns.setdefault(key, []).append(value)
-                        labels[key] = (level, spec.label(), unit)
+                        columns.setdefault((level, j, unit), []).append(value)
         return [
-            ErrorCurve(f"L{level} {label}", level, unit, np.array(columns[key]))
-            for key, (level, label, unit) in labels.items()
+            ErrorCurve(
+                f"L{level} {problem.levels[level][j].label()}",
+                level,
+                unit,
+                np.array(values),
+                f"{level}.{j}",
+            )
+            for (level, j, unit), values in columns.items()
         ]
 
     def summary(self) -> str:

@@ -1,0 +1,158 @@
+"""Figures of problem results (qpik.plots): what each panel draws, legends off the data,
+the 3D robot picture from body positions (issue 15)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qpik
+
+pytest.importorskip("matplotlib")
+
+from matplotlib.figure import Figure  # noqa: E402
+
+from qpik import plots  # noqa: E402
+
+PLANAR = """
+robot = "planar_2r"
+q0 = [0.3, 0.6]
+[[levels]]
+[[levels.tasks]]
+type = "position"
+frame = "ee"
+[[waypoints]]
+position = [1.0, 1.0, 0.0]
+[[waypoints]]
+position = [0.5, 1.5, 0.0]
+"""
+
+PANDA_TRACK = """
+robot = "panda"
+q0 = "home"
+mode = "track"
+[[levels]]
+[[levels.tasks]]
+type = "frame"
+frame = "ee"
+[[levels]]
+[[levels.tasks]]
+type = "posture"
+cost = 0.01
+[target]
+position = [0.31, 0.096, 0.345]
+rpy = [3.14159265, 0.0, 0.0]
+[track]
+dt = 0.05
+steps = 30
+"""
+
+
+@pytest.fixture(scope="module")
+def planar(tmp_path_factory):
+    path = tmp_path_factory.mktemp("planar") / "planar.toml"
+    path.write_text(PLANAR)
+    return qpik.load_problem(path).solve()
+
+
+@pytest.fixture(scope="module")
+def panda(tmp_path_factory):
+    path = tmp_path_factory.mktemp("panda") / "panda.toml"
+    path.write_text(PANDA_TRACK)
+    return qpik.load_problem(path).solve()
+
+
+def _legends_below_their_axes(fig: Figure) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is None:
+            continue
+        box, area = legend.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert box.y1 <= area.y0 + 1, ax.get_title()  # below the data area
+
+
+@pytest.mark.parametrize("name", ["planar", "panda"])
+def test_plot_result_panels_and_legends_off_the_data(request, tmp_path, name):
+    result = request.getfixturevalue(name)
+    out = tmp_path / f"{name}.png"
+    fig = plots.plot_result(result, out)
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    titles = [ax.get_title() for ax in fig.axes]
+    assert titles[:2] == ["task error per priority level", "error per goal frame"]
+    assert any(t.startswith("joints along the path") for t in titles)
+    assert any(t.startswith("singular values") for t in titles)
+    robot = [ax for ax in fig.axes if "start, intermediate, final" in ax.get_title()]
+    assert len(robot) == 1
+    assert (robot[0].name == "3d") is (name == "panda")  # planar arms: seen from above
+    _legends_below_their_axes(fig)
+
+
+def test_task_error_panel_draws_task_errors_not_qp_residuals(planar):
+    ax = Figure().add_subplot()
+    plots.plot_task_errors(planar, ax)
+    curves = planar.task_errors()
+    lines = [line for line in ax.get_lines() if line.get_label().startswith("L0")]
+    assert len(lines) == len(curves) == 1
+    y = lines[0].get_ydata()
+    assert len(y) == len(planar.path)  # along the path, every iterate
+    assert y[0] > 0.1 and y[-1] < 1e-4  # the task error, from the start to the goal
+    # a goal start is marked where the second waypoint begins
+    assert any("goal 1" in text.get_text() for text in ax.texts)
+
+
+def test_joints_and_sigma_are_drawn_along_the_path(panda):
+    fig = Figure()
+    ax_q, ax_s = fig.subplots(1, 2)
+    time = np.arange(len(panda.path)) * panda.trace.dt
+    plots.plot_joints(panda.problem.model, panda.path, ax_q, time)
+    plots.plot_singular_values(panda.problem.model, panda.path, "ee", ax=ax_s, time=time)
+    assert len(panda.path) == 31
+    for ax in (ax_q, ax_s):
+        data = [line for line in ax.get_lines() if len(line.get_xdata()) > 2]
+        assert data and all(len(line.get_xdata()) == len(panda.path) for line in data)
+
+
+def test_many_joints_name_only_those_that_move_most():
+    model = qpik.load_robot("panda")
+    path = np.tile(model.key("home").qpos, (5, 1))
+    path[:, 3] += np.linspace(0, 0.5, 5)  # joint4 moves most
+    ax = Figure().add_subplot()
+    old = plots.MAX_NAMED
+    try:
+        plots.MAX_NAMED = 3
+        plots.plot_joints(model, path, ax)
+    finally:
+        plots.MAX_NAMED = old
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "joint4" in labels and len(labels) == 4 and labels[-1] == f"{model.njnt - 3} others"
+
+
+def test_robot_segments_follow_body_positions():
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key("home").qpos)
+    segments = plots.robot_segments(model, configuration, [("ee", "site")])
+    assert segments.shape == (model.nbody - 1 + 1, 2, 3)
+    np.testing.assert_allclose(segments[0, 1], configuration.data.xpos[1])
+    np.testing.assert_allclose(segments[-1, 1], configuration.frame_pose("ee")[0])
+
+
+def test_robot_picture_of_a_floating_base_leaves_the_world_out():
+    xml = """<mujoco><worldbody>
+      <body name="base" pos="0 0 1"><freejoint/><geom size="0.1"/>
+        <body name="arm" pos="0.5 0 0"><joint axis="0 0 1"/><geom size="0.1"/></body>
+      </body></worldbody></mujoco>"""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model)
+    segments = plots.robot_segments(model, configuration)
+    assert segments.shape == (1, 2, 3)  # base -> arm only, no world -> base
+    fig = Figure()
+    ax = fig.add_subplot(projection="3d")
+    plots.plot_robot(model, np.tile(configuration.q, (3, 1)), targets=[np.ones(3)], ax=ax)
+    assert [t.get_text() for t in ax.get_legend().get_texts()][:2] == ["start", "intermediate"]
