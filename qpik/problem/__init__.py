@@ -58,13 +58,15 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     footprint = [[0.1, 0.05], [0.1, -0.05], [-0.1, 0.05], [-0.1, -0.05]]  # [m], each
                                        #   frame's x-y axes (default: its origin)
 
-    [solver]                           # all optional; defaults are qpik.solve's
+    [solver]                           # all optional: a qpik.SolveOptions preset and
+    preset = "default"                 #   overrides of its fields (problem.solve_options);
+                                       #   default "default" (solve), "tracking" (track)
     solver = "osqp"                    # QP backend
     tol_position = 1e-4                # [m]
     tol_orientation = 1e-3             # [rad]
     max_iters = 100                    # per attempt (solve mode)
     restarts = 20                      # random restarts (solve mode)
-    seed = 0
+    seed = 0                           # default 0: the same restarts every run
     time_budget = 1.0                  # [s] per goal (solve mode)
     alpha = 1.0                        # gain of the goal tasks (solve mode)
     beta = 1.0                         # step scale (solve mode)

@@ -32,7 +32,8 @@ import mujoco
 import numpy as np
 
 from ..configuration import Configuration, FrameType
-from ..converge import Target
+from ..model.rotations import orientation_angle
+from ..targets import Target
 from .reader import ROTATION_KEYS, Reader, describe, dotted
 from .specs import TaskSpec
 
@@ -56,7 +57,7 @@ class FrameGoal:
         position_error = float(np.linalg.norm(position - self.target.position))
         if self.target.rotation is None:
             return position_error, 0.0
-        return position_error, _angle(rotation, self.target.rotation)
+        return position_error, orientation_angle(rotation, self.target.rotation)
 
     def to_dict(self) -> dict:
         """Plain data (the rotation as a matrix)."""
@@ -68,13 +69,6 @@ class FrameGoal:
         if self.target.rotation is not None:
             out["matrix"] = self.target.rotation.tolist()
         return out
-
-
-def _angle(rotation: np.ndarray, target: np.ndarray) -> float:
-    """The angle of ``rotation target^T`` [rad]."""
-    # TODO(issue 15): qpik.model.rotations.orientation_angle once it is committed
-    cosine = (np.trace(rotation @ target.T) - 1.0) / 2.0
-    return float(np.arccos(min(1.0, max(-1.0, cosine))))
 
 
 @dataclass(frozen=True)

@@ -19,11 +19,12 @@ import mujoco
 import numpy as np
 
 from ..configuration import Configuration, FrameType, joint_names
-from ..converge import IGM_DAMPING, set_frame_target
-from ..errors import QpikError, UnknownRobot
-from ..hierarchy import DampingLaw
+from ..core.hierarchy import DampingLaw
+from ..errors import InvalidOption, QpikError
 from ..limits import ConfigurationLimit, SupportPolygonLimit, VelocityLimit
-from ..robots import list_robots, load_robot
+from ..options import PRESETS, SolveOptions
+from ..qp_engine import set_frame_target
+from ..robots import list_robots, resolve_robot
 from .goals import Goal, read_goals
 from .modes import MODES
 from .reader import MAX_LENGTH, MAX_WRENCH, RANGES, Reader, describe, read_toml
@@ -45,8 +46,10 @@ _TOP_KEYS = {
     "track",
     "statics",
 }
-#: The ``[solver]`` fields and their TOML types (ranges: :data:`.reader.RANGES`).
+#: The ``[solver]`` fields and their TOML types (ranges: :data:`.reader.RANGES`): a
+#: preset of :data:`qpik.options.PRESETS` and overrides of its :class:`qpik.SolveOptions`.
 _SOLVER_KEYS: dict[str, type] = {
+    "preset": str,
     "solver": str,
     "tol_position": float,
     "tol_orientation": float,
@@ -64,7 +67,34 @@ _SOLVER_KEYS: dict[str, type] = {
     "stall_window": int,
 }
 #: ``[solver]`` fields of the solve mode only.
-_SOLVE_ONLY = ("max_iters", "restarts", "time_budget", "alpha", "beta", "max_step", "seed")
+_SOLVE_ONLY = (
+    "max_iters",
+    "restarts",
+    "time_budget",
+    "alpha",
+    "beta",
+    "max_step",
+    "seed",
+    "stall_window",
+)
+#: ``[solver]`` fields passed to :class:`qpik.SolveOptions` as they are.
+_OPTION_FIELDS = (
+    "solver",
+    "tol_position",
+    "tol_orientation",
+    "max_iters",
+    "restarts",
+    "seed",
+    "time_budget",
+    "alpha",
+    "beta",
+    "stall_window",
+    "damping",
+)
+#: The preset of each mode when ``[solver]`` names none.
+DEFAULT_PRESETS = {"solve": "default", "track": "tracking"}
+#: The seed of a problem file's restarts when ``[solver]`` gives none (reproducible runs).
+DEFAULT_SEED = 0
 _SUPPORT_KEYS = {"frames", "frame_type", "margin", "footprint"}
 
 
@@ -80,13 +110,16 @@ class Problem:
         levels: task specs, level 0 first.
         position_limits: whether joint position limits hold.
         velocity_limits: per-dof velocity limits ``(nv,)`` [rad/s or m/s], or None.
-        options: the ``[solver]`` table, validated.
+        options: the ``[solver]`` table as written, validated.
         mode: a key of :data:`qpik.problem.modes.MODES` (``"solve"`` or ``"track"``).
         goals: the target, or the waypoints in order.
         dt, steps, stop_at_goal: tracking settings (track mode).
         statics: the ``[statics]`` table, validated, or None.
         support: the ``[limits.support]`` table, validated (frames, margin [m],
             footprint), or None.
+        solve_options: the :class:`qpik.SolveOptions` of the run: the ``[solver]`` preset
+            (default ``"default"`` in solve mode, ``"tracking"`` in track mode) with the
+            table's fields; track mode reads its tolerances and ``step`` options.
     """
 
     path: str
@@ -106,6 +139,7 @@ class Problem:
     stop_at_goal: bool = False
     statics: dict[str, Any] | None = None
     support: dict[str, Any] | None = None
+    solve_options: SolveOptions = field(default_factory=SolveOptions)
 
     # ------------------------------------------------------------------ building
     def start_configuration(self) -> Configuration:
@@ -141,16 +175,8 @@ class Problem:
         return limits
 
     def damping_law(self) -> DampingLaw | None:
-        """The adaptive damping of the file (the IGM's error-faded law in solve mode)."""
-        o = self.options
-        if not o.get("adaptive_damping", True):
-            return None
-        base = IGM_DAMPING if self.mode == "solve" else DampingLaw()
-        return DampingLaw(
-            singular_threshold=o.get("singular_threshold", base.singular_threshold),
-            max_damping=o.get("max_damping", base.max_damping),
-            error_scale=base.error_scale,
-        )
+        """The adaptive damping of the run (``solve_options.damping_law``)."""
+        return self.solve_options.damping_law
 
     # ------------------------------------------------------------------ solving
     def solve(self) -> ProblemResult:
@@ -199,6 +225,7 @@ class Problem:
                 "support": jsonable(self.support),
             },
             "solver": jsonable(self.options),
+            "solve_options": _options_dict(self.solve_options),
             "goals": [goal.to_dict() for goal in self.goals],
         }
         if self.mode == "track":
@@ -233,6 +260,7 @@ def load_problem(path: str | os.PathLike) -> Problem:
     levels = read_levels(reader, data, model, start)
     position_limits, velocity_limits = _read_limits(reader, data, model)
     dt, steps, stop_at_goal = _read_track(reader, data, mode)
+    options, solve_options = _read_solver(reader, data, mode)
     return Problem(
         path=str(path),
         name=reader.get(data, "name", "", str, "a string", path.stem),
@@ -243,7 +271,7 @@ def load_problem(path: str | os.PathLike) -> Problem:
         levels=levels,
         position_limits=position_limits,
         velocity_limits=velocity_limits,
-        options=_read_solver(reader, data, mode),
+        options=options,
         mode=mode,
         goals=read_goals(reader, data, model, levels),
         dt=dt,
@@ -251,34 +279,23 @@ def load_problem(path: str | os.PathLike) -> Problem:
         stop_at_goal=stop_at_goal,
         statics=_read_statics(reader, data, model) if "statics" in data else None,
         support=_read_support(reader, data, model),
+        solve_options=solve_options,
     )
 
 
 def _read_model(reader: Reader, data: dict, path: Path) -> tuple[mujoco.MjModel, str]:
     """The model of ``robot`` (and ``floating_base``); a path is relative to the file."""
-    # TODO(issue 15): qpik.robots' single resolver once it is committed
     expected = (
         f"a bundled robot ({', '.join(list_robots())}), 'erd:NAME', or a path to an "
         ".xml/.urdf file relative to the problem file"
     )
     robot = reader.get(data, "robot", "", str, expected)
     floating = reader.get(data, "floating_base", "", bool, "true or false", False)
-    if robot in list_robots() or robot.startswith("erd:"):
-        source: str | Path = robot
-    elif robot.lower().endswith((".xml", ".urdf")) or "/" in robot or os.sep in robot:
-        try:
-            source = (path.parent / robot).resolve()
-            found = source.is_file()
-        except (OSError, ValueError) as exc:  # a name too long, a NUL byte
-            raise reader.fail("robot", f"{expected}; cannot read {robot!r} ({exc})") from None
-        if not found:
-            raise reader.fail("robot", f"{expected}; no such file: {source}")
-    else:
-        raise reader.fail("robot", str(UnknownRobot(robot, list_robots())))
     try:
-        return load_robot(source, floating_base=floating), robot
-    except (QpikError, OSError) as exc:
+        model, _ = resolve_robot(robot, relative_to=path.parent, floating_base=floating)
+    except (QpikError, OSError, ValueError) as exc:  # ValueError: a name the OS rejects
         raise reader.fail("robot", f"{expected} ({exc})") from exc
+    return model, robot
 
 
 def _read_start(reader: Reader, data: dict, model: mujoco.MjModel) -> Configuration:
@@ -421,9 +438,9 @@ def _read_support(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str
     return out
 
 
-def _read_solver(reader: Reader, data: dict, mode: str) -> dict[str, Any]:
-    """``[solver]``: each field typed and range-checked; solve-only fields in track mode
-    are errors."""
+def _read_solver(reader: Reader, data: dict, mode: str) -> tuple[dict[str, Any], SolveOptions]:
+    """``[solver]``: each field typed and range-checked (solve-only fields in track mode
+    are errors), and the :class:`qpik.SolveOptions` they make."""
     table = reader.table(data, "solver", "", _SOLVER_KEYS, "a [solver] table", {})
     options: dict[str, Any] = {}
     for key, kind in _SOLVER_KEYS.items():
@@ -438,7 +455,55 @@ def _read_solver(reader: Reader, data: dict, mode: str) -> dict[str, Any]:
         options[key] = reader.get(table, key, "solver", kind)
         if name in RANGES:
             reader.number(options[key], name, name, reader._EXPECTED[kind])
-    return options
+    return options, _solve_options(reader, options, mode)
+
+
+def _solve_options(reader: Reader, options: dict[str, Any], mode: str) -> SolveOptions:
+    """The preset of ``options`` (default: the mode's) with the other fields over it."""
+    preset = options.get("preset", DEFAULT_PRESETS[mode])
+    if preset not in PRESETS:
+        raise reader.fail(
+            "solver.preset", f"one of {', '.join(map(repr, PRESETS))}, got {preset!r}"
+        )
+    base = PRESETS[preset]
+    overrides: dict[str, Any] = {k: options[k] for k in _OPTION_FIELDS if k in options}
+    overrides.setdefault("seed", DEFAULT_SEED)
+    if "max_step" in options:
+        step = options["max_step"]
+        overrides["max_step"] = None if step is False else tuple(step)
+    law = base.damping_law or DampingLaw()
+    if not options.get("adaptive_damping", True):
+        overrides["damping_law"] = None
+    elif "singular_threshold" in options or "max_damping" in options:
+        overrides["damping_law"] = DampingLaw(
+            singular_threshold=options.get("singular_threshold", law.singular_threshold),
+            max_damping=options.get("max_damping", law.max_damping),
+            error_scale=law.error_scale,
+        )
+    try:
+        return base.replace(**overrides)
+    except InvalidOption as exc:  # the reader's ranges are tighter; kept as a safety net
+        raise reader.fail(f"solver.{exc.field}", exc.expected) from exc
+
+
+def _options_dict(options: SolveOptions) -> dict[str, Any]:
+    """The run's options as plain data (the damping law as its fields)."""
+    law = options.damping_law
+    return {
+        "tol_position": options.tol_position,
+        "tol_orientation": options.tol_orientation,
+        "max_iters": options.max_iters,
+        "restarts": options.restarts,
+        "seed": options.seed,
+        "time_budget": options.time_budget,
+        "alpha": options.alpha,
+        "beta": options.beta,
+        "max_step": jsonable(options.max_step),
+        "stall_window": options.stall_window,
+        "solver": options.solver,
+        "damping": options.damping,
+        "damping_law": None if law is None else jsonable(vars(law)),
+    }
 
 
 def _read_max_step(reader: Reader, value) -> list[float] | bool:

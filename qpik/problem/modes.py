@@ -15,13 +15,15 @@ converged when the final configuration of every goal is within ``tol_position`` 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..configuration import Configuration
-from ..converge import IKResult, set_frame_target, solve
+from ..converge import solve
 from ..hierarchy import IKSolver
+from ..qp_engine import set_frame_target
+from ..result import IKResult
 from .report import TrackTrace
 
 if TYPE_CHECKING:
@@ -30,21 +32,6 @@ if TYPE_CHECKING:
 #: What a mode returns: per-goal results (solve), the trace (track), converged, reason.
 ModeOutcome = tuple[list[IKResult], TrackTrace | None, bool, str]
 
-#: ``[solver]`` fields passed to :func:`qpik.solve` as they are.
-_SOLVE_KEYS = (
-    "solver",
-    "tol_position",
-    "tol_orientation",
-    "max_iters",
-    "restarts",
-    "seed",
-    "time_budget",
-    "alpha",
-    "beta",
-    "stall_window",
-    "damping",
-)
-
 
 def _failed_goal(problem: Problem, index: int) -> str:
     return "target" if len(problem.goals) == 1 else f"waypoint {index}"
@@ -52,11 +39,6 @@ def _failed_goal(problem: Problem, index: int) -> str:
 
 def run_solve(problem: Problem) -> ModeOutcome:
     """``mode = "solve"``: one :func:`qpik.solve` per goal, each from the previous answer."""
-    o = problem.options
-    kwargs: dict[str, Any] = {k: o[k] for k in _SOLVE_KEYS if k in o}
-    if "max_step" in o:
-        kwargs["max_step"] = None if o["max_step"] is False else tuple(o["max_step"])
-    kwargs["damping_law"] = problem.damping_law()
     q = problem.q0
     results = []
     for goal in problem.goals:
@@ -67,8 +49,8 @@ def run_solve(problem: Problem) -> ModeOutcome:
             goal.targets(),
             q0=q,
             stack=stack,
+            options=problem.solve_options,
             limits=problem.build_limits(),
-            **kwargs,
         )
         results.append(result)
         q = result.q
@@ -104,19 +86,11 @@ class _Recorder:
 
 def run_track(problem: Problem) -> ModeOutcome:
     """``mode = "track"``: ``steps`` :class:`qpik.IKSolver` steps of ``dt`` per goal."""
-    o = problem.options
+    options = problem.solve_options
     configuration = problem.start_configuration()
     levels = problem.build_stack(configuration)
-    solver = IKSolver(
-        problem.model,
-        levels,
-        problem.build_limits(),
-        solver=o.get("solver", "osqp"),
-        damping=o.get("damping", 1e-6),
-        damping_law=problem.damping_law(),
-    )
-    tol_p = o.get("tol_position", 1e-4)
-    tol_o = o.get("tol_orientation", 1e-3)
+    solver = IKSolver(problem.model, levels, problem.build_limits(), options=options.step)
+    tol_p, tol_o = options.tol_position, options.tol_orientation
 
     def within(error: tuple[float, float]) -> bool:
         return error[0] <= tol_p and error[1] <= tol_o

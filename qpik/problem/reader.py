@@ -16,12 +16,13 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-import mink
 import mujoco
 import numpy as np
 
 from ..configuration import Configuration, FrameType
 from ..errors import ProblemFileError, QpikError
+from ..model.frames import frame_id
+from ..model.rotations import quaternion_to_matrix, rotation_defect, rpy_to_matrix
 from ..robots import tool_frame
 
 if sys.version_info >= (3, 11):
@@ -243,7 +244,7 @@ class Reader:
             roll, pitch, yaw = self.bounded_vector(
                 table[key], name, 3, "[roll, pitch, yaw] in radians", MAX_ANGLE
             )
-            return mink.SO3.from_rpy_radians(roll, pitch, yaw).as_matrix()
+            return rpy_to_matrix(roll, pitch, yaw)
         if key == "quaternion":
             return self._quaternion(table[key], name)
         return self._matrix(table[key], name)
@@ -253,12 +254,9 @@ class Reader:
         scale = float(np.max(np.abs(quat)))
         if scale > 0.0:  # scaled first: the norm of [1e300, ...] would overflow
             quat = quat / scale
-        norm = float(np.linalg.norm(quat))
-        if scale == 0.0 or norm * scale < 1e-9:
+        if scale == 0.0 or float(np.linalg.norm(quat)) * scale < 1e-9:
             raise self.fail(name, "expected a nonzero quaternion [w, x, y, z]")
-        rotation = np.zeros(9)
-        mujoco.mju_quat2Mat(rotation, quat / norm)
-        return rotation.reshape(3, 3)
+        return quaternion_to_matrix(quat)
 
     def _matrix(self, rows, name: str) -> np.ndarray:
         if not isinstance(rows, list) or len(rows) != 3:
@@ -266,7 +264,7 @@ class Reader:
         matrix = np.array(
             [self.vector(r, f"{name}[{i}]", 3, "3 numbers") for i, r in enumerate(rows)]
         )
-        if not np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-6) or np.linalg.det(matrix) < 0:
+        if not rotation_defect(matrix) <= 1e-6:
             raise self.fail(name, "expected a rotation matrix (R R^T = I, det R = +1)")
         return matrix
 
@@ -317,7 +315,7 @@ class Reader:
         except QpikError as exc:
             raise self.fail(f"{where}.frame_type", str(exc)) from exc
         try:
-            Configuration(model).frame_id(frame, kind)
+            frame_id(model, frame, kind)
         except QpikError as exc:  # UnknownFrame: lists the valid names
             raise self.fail(f"{where}.frame", str(exc)) from exc
         return frame, kind

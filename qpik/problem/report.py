@@ -16,8 +16,9 @@ import numpy as np
 
 from .. import statics as _statics
 from ..configuration import Configuration, FrameType
-from ..converge import IKResult, set_frame_target
 from ..errors import QpikError
+from ..qp_engine import set_frame_target
+from ..result import IKResult
 
 if TYPE_CHECKING:
     from .loader import Problem
