@@ -36,10 +36,10 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 import scipy.linalg
-from scipy.spatial.transform import Rotation
 
 from .configuration import Configuration, FrameType
 from .errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from .model.rotations import orientation_error
 
 __all__ = [
     "ROW_NAMES",
@@ -534,7 +534,7 @@ def _frame_error(
 ) -> np.ndarray:
     """Twist-like error ``[p* - p; log(R* R^T)]`` (world-aligned) on the chosen rows."""
     position, rotation = configuration.frame_pose(frame, kind)
-    rotvec = Rotation.from_matrix(target[1] @ rotation.T).as_rotvec()
+    rotvec = orientation_error(rotation, target[1])
     return np.concatenate([target[0] - position, rotvec])[idx]
 
 

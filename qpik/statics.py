@@ -113,16 +113,6 @@ def _frame(frame: FrameSpec, frame_type: FrameType | str = FrameType.SITE):
     return frame, FrameType.parse(frame_type)
 
 
-def _frame_body(configuration: Configuration, name: str | int, kind: FrameType) -> int:
-    """Id of the body a frame is attached to."""
-    fid = configuration.frame_id(name, kind)
-    if kind is FrameType.BODY:
-        return fid
-    if kind is FrameType.SITE:
-        return int(configuration.model.site_bodyid[fid])
-    return int(configuration.model.geom_bodyid[fid])
-
-
 # ---------------------------------------------------------------------- joint torques
 def joint_torques(
     configuration: Configuration,
