@@ -464,3 +464,29 @@ def test_fast_tasks_equal_minks(rng):
                 ):
                     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
                 assert isinstance(ours, mink.FrameTask) and isinstance(posture, mink.PostureTask)
+
+
+def test_bounds_of_dofs_fixed_by_a_level_above_do_not_wreck_the_level_below(rng):
+    """Level 0 fixes dq0 and dq1 through rows that are not axis-aligned, so the null-space
+    basis below has round-off (1e-17) in their rows; dq0 sits at its bound. The level below
+    must still find its exact optimum in the free dofs (once a 1e-17 row entered the
+    working set with a multiplier of 1e16, and a feasible but wrong point was 'solved')."""
+    for trial in range(100):
+        rotation = np.linalg.qr(rng.normal(size=(2, 2)))[0]
+        Q = np.linalg.qr(rng.normal(size=(5, 5)))[0]
+        A0 = rotation @ (Q.T @ Q)[:2]  # rows of dq0, dq1 with round-off in the others
+        b0 = rotation @ np.array([0.4, 0.1])  # asks for dq0 = 0.4, beyond its bound 0.15
+        A1 = rng.normal(size=(1, 5))  # rank 1 in 3 free dofs: H has eigenvalues 1e-6
+        b1 = rng.normal(size=1)
+        lb = np.array([-0.15, -0.15, -0.1, -0.1, -0.1])
+        ub = -lb
+        levels = [Level(A0, b0, 1e-9), Level(A1, b1, 1e-6)]
+        result = solve_hierarchy(levels, lb, ub, np.zeros((0, 5)), np.zeros(0), damping_law=None)
+        assert result.ok, trial
+        # Reference: level 1 over the free dofs dq2..dq4 only (exact basis), by quadprog.
+        fixed = result.x[:2]
+        A, b = A1[:, 2:], b1 - A1[:, :2] @ fixed
+        H = A.T @ A + 1e-6 * np.eye(3)
+        c = -A.T @ b
+        y = qpsolvers.solve_qp(H, c, lb=lb[2:], ub=ub[2:], solver="quadprog")
+        np.testing.assert_allclose(result.x[2:], y, atol=1e-9, err_msg=f"trial {trial}")

@@ -876,6 +876,22 @@ def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
         for j in range(p):
             lo[n + j] = -np.inf
             hi[n + j] = h[j] - Gd[j]
+    # A row that the levels above have fixed (its projection into the null space is
+    # round-off, |C_i| <= 1e-10 |row|) constrains nothing that z can move: dropped. Kept,
+    # its round-off direction would enter the working set with a multiplier ~ 1/|C_i|
+    # and wreck the active set. (The box is re-imposed exactly on dq after the level.)
+    for i in range(n + p):
+        size = 1.0
+        if i >= n:
+            size = 0.0
+            for t in range(n):
+                size += G[i - n, t] * G[i - n, t]
+        norm = 0.0
+        for t in range(r):
+            norm += C[i, t] * C[i, t]
+        if norm <= 1e-20 * size:
+            lo[i] = -np.inf
+            hi[i] = np.inf
     return H, c, C, lo, hi
 
 
