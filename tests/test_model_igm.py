@@ -1,0 +1,148 @@
+"""The compiled IGM's own rules (qpik.model._kernels): scratch reuse leaves no trace, the
+step moves only the chain's dofs, the restart draws follow the documented spread, and
+igm_solve is a pure function of its inputs (bitwise)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import qpik
+from qpik.model import KinematicChain
+from qpik.model import _kernels as K
+
+_GAMMA = 0x9E3779B97F4A7C15
+
+
+def _advanced(seed: int, draws: int) -> int:
+    """SplitMix64's state after ``draws`` draws: it advances by the golden gamma each."""
+    return (seed + draws * _GAMMA) % 2**64
+
+
+def _igm_inputs(model, frame, frame_type, target_q, restarts=5, max_iters=100):
+    chain = KinematicChain.from_model(model, frame, frame_type)
+    lower, upper = qpik.model.joint_limits(model)
+    position, rotation = chain.pose(target_q)
+    bounds = np.array([lower, upper, lower, upper])
+    reach = chain.reach_bound(lower, upper).array
+    options = np.array([1e-6, 1e-6, 1.0, 1.0, 0.2, 0.5, 0.05, 0.1, 0.3, 1e-6, 0.95])
+    int_options = np.array([max_iters, restarts, 5, 0], dtype=np.int64)
+    return chain, position, rotation, bounds, reach, options, int_options
+
+
+def _run(chain, position, rotation, q0, bounds, reach, options, int_options, seed):
+    n = int_options[0] + 1
+    path = np.empty((2, n, q0.shape[0]))
+    hist = np.empty((2, n, 3))
+    info = np.empty(6, dtype=np.int64)
+    state = np.array([seed], dtype=np.uint64)
+    K.igm_solve(
+        chain.arrays, position, rotation, True, q0.copy(), bounds, reach, options,
+        int_options, state, np.inf, path, hist, info,
+    )  # fmt: skip
+    slot, length = info[3], info[4]
+    return path[slot, length - 1].copy(), info.copy(), state[0]
+
+
+def test_box_qp_scratch_reuse_leaves_no_trace():
+    rng = np.random.default_rng(3)
+    for trial in range(100):
+        n = 1 + trial % 7
+        M = rng.normal(size=(n + 1, n))
+        H = M.T @ M + 1e-3 * np.eye(n)
+        g = rng.normal(size=n) * 3
+        lb, ub = -rng.uniform(0, 1, n), rng.uniform(0, 1, n)
+        fresh = np.empty(n)
+        K.box_qp(H, g, lb, ub, fresh, 4 * n + 20)
+        dirty = K._box_qp_workspace(n)
+        for array in dirty:
+            array[...] = 7 if array.dtype.kind in "iu" else np.nan
+        reused = np.empty(n)
+        K._box_qp(H, g, lb, ub, reused, 4 * n + 20, dirty)
+        assert reused.tobytes() == fresh.tobytes()
+
+
+def test_igm_moves_only_the_chains_dofs():
+    """Panda of example-robot-data: the fingers (two slides off the hand's chain) keep their
+    start values in an attempt without restarts, and the answer meets the target."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dropped collision meshes
+        try:
+            model = qpik.load_robot("erd:panda")
+        except qpik.QpikError as exc:
+            pytest.skip(f"erd:panda does not load here: {exc}")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(0)
+    target_q = configuration.random_q(rng)
+    inputs = _igm_inputs(model, "panda_hand_tcp", "body", target_q, restarts=0)
+    chain, position, rotation, bounds, reach, options, int_options = inputs
+    assert chain.dofs.shape[0] == 7 < model.nv
+    q0 = configuration.mid_q()
+    q, info, _ = _run(chain, position, rotation, q0, bounds, reach, options, int_options, 1)
+    off_chain = np.setdiff1d(np.arange(model.nv), chain.dofs)
+    assert q[off_chain].tobytes() == q0[off_chain].tobytes()
+    if info[0] == K.CONVERGED:
+        p, _ = chain.pose(q)
+        assert np.linalg.norm(p - position) <= 1e-6
+
+
+def test_igm_is_a_pure_function_of_its_inputs():
+    """Bitwise the same q, info and final RNG state whatever ran before (other targets,
+    other seeds), and the rng state advanced by nq draws per restart."""
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(11)
+    targets = [configuration.random_q(rng) for _ in range(4)]
+    q0 = configuration.mid_q()
+    first = []
+    for seed, target_q in enumerate(targets):
+        inputs = _igm_inputs(model, "ee", "site", target_q)
+        chain, position, rotation, bounds, reach, options, int_options = inputs
+        first.append(_run(chain, position, rotation, q0, bounds, reach, options, int_options, seed))
+    for seed, target_q in reversed(list(enumerate(targets))):
+        inputs = _igm_inputs(model, "ee", "site", target_q)
+        chain, position, rotation, bounds, reach, options, int_options = inputs
+        q, info, state = _run(
+            chain, position, rotation, q0, bounds, reach, options, int_options, seed
+        )
+        q_first, info_first, state_first = first[seed]
+        assert q.tobytes() == q_first.tobytes()
+        assert (info == info_first).all()
+        assert state == state_first
+        assert int(state) == _advanced(seed, int(info[2]) * model.nq)
+
+
+def test_restart_draws_alternate_between_the_central_box_and_all_of_it():
+    """Odd restarts start in the central RESTART_SPREAD of the restart box, even ones
+    anywhere in it. A 2R arm of unit links reaches its base only at q2 = +-pi, outside
+    limits of +-1 rad: every attempt stalls, and the returned attempt starts at q0 or at one
+    of the draws of that rule."""
+    model = qpik.load_robot("planar_2r")
+    chain = KinematicChain.from_model(model, "ee", "site")
+    lower, upper = np.array([-1.0, -1.0]), np.array([1.0, 1.0])
+    bounds = np.array([lower, upper, lower, upper])
+    options = np.array([1e-9, 1e-9, 1.0, 1.0, 0.2, 0.5, 0.05, 0.1, 0.3, 1e-6, 0.95])
+    restarts, seed = 6, 123
+    state = np.array([seed], dtype=np.uint64)
+    starts = [np.zeros(2)]
+    for restart in range(1, restarts + 1):
+        u = np.array([K.uniform(state) for _ in range(model.nq)])
+        spread = 1.0 if restart % 2 == 0 else K.RESTART_SPREAD
+        starts.append(lower + (upper - lower) * (0.5 + spread * (u - 0.5)))
+        assert np.all(np.abs(starts[-1]) <= spread)
+    int_options = np.array([3, restarts, 5, 0], dtype=np.int64)
+    n = 4
+    path, hist, info = np.empty((2, n, 2)), np.empty((2, n, 3)), np.empty(6, dtype=np.int64)
+    rng_state = np.array([seed], dtype=np.uint64)
+    K.igm_solve(
+        chain.arrays, np.zeros(3), np.eye(3), False, np.zeros(2), bounds,
+        np.array([0.0, 0.0, 0.0, 10.0]), options, int_options, rng_state, np.inf, path,
+        hist, info,
+    )  # fmt: skip
+    assert info[0] != K.CONVERGED
+    assert info[2] == restarts
+    assert int(rng_state[0]) == _advanced(seed, restarts * model.nq)
+    start = path[info[3], 0]
+    assert any(start.tobytes() == s.tobytes() for s in starts)
