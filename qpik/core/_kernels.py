@@ -218,6 +218,72 @@ def min_singular(M):
 
 
 @njit(cache=True)
+def _swap_pivot(R, norms, perm, i):
+    """Column pivoting step: bring the column of largest remaining norm to position i."""
+    best = i
+    for j in range(i + 1, R.shape[1]):
+        if norms[j] > norms[best]:
+            best = j
+    if best != i:
+        for t in range(R.shape[0]):
+            tmp = R[t, i]
+            R[t, i] = R[t, best]
+            R[t, best] = tmp
+        tmp = norms[i]
+        norms[i] = norms[best]
+        norms[best] = tmp
+        k = perm[i]
+        perm[i] = perm[best]
+        perm[best] = k
+
+
+@njit(cache=True)
+def _reflect(R, Q, x, i):
+    """Apply the Householder reflection zeroing ``R[i+1:, i]`` to ``R`` (from the left)
+    and accumulate it into ``Q`` (from the right); ``x`` is scratch (r,)."""
+    r, m = R.shape
+    size = r - i
+    alpha = 0.0
+    for t in range(size):
+        x[t] = R[i + t, i]
+        alpha += x[t] * x[t]
+    alpha = np.sqrt(alpha)
+    if alpha == 0.0:
+        return
+    if x[0] > 0.0:
+        alpha = -alpha
+    x[0] -= alpha
+    vn = 0.0
+    for t in range(size):
+        vn += x[t] * x[t]
+    if vn == 0.0:
+        return
+    for j in range(i, m):
+        s = 0.0
+        for t in range(size):
+            s += x[t] * R[i + t, j]
+        s = 2.0 * s / vn
+        for t in range(size):
+            R[i + t, j] -= s * x[t]
+    for row in range(r):
+        s = 0.0
+        for t in range(size):
+            s += Q[row, i + t] * x[t]
+        s = 2.0 * s / vn
+        for t in range(size):
+            Q[row, i + t] -= s * x[t]
+
+
+@njit(cache=True)
+def _column_norms(R, start, norms):
+    """``norms[j] = |R[start:, j]|^2`` for the columns after ``start - 1``."""
+    for j in range(max(start, 0), R.shape[1]):
+        norms[j] = 0.0
+        for t in range(start, R.shape[0]):
+            norms[j] += R[t, j] * R[t, j]
+
+
+@njit(cache=True)
 def householder_qr(M, pivot):
     """QR of ``M`` (r, m) by Householder reflections, optionally with column pivoting
     (rank revealing): ``M[:, perm] = Q R`` with ``Q`` (r, r) orthogonal and ``R`` (r, m)
@@ -229,62 +295,14 @@ def householder_qr(M, pivot):
     perm = np.arange(m)
     norms = np.zeros(m)
     if pivot:
-        for j in range(m):
-            for t in range(r):
-                norms[j] += R[t, j] * R[t, j]
+        _column_norms(R, 0, norms)
     x = np.empty(r)
     for i in range(min(r, m)):
         if pivot:
-            best = i
-            for j in range(i + 1, m):
-                if norms[j] > norms[best]:
-                    best = j
-            if best != i:
-                for t in range(r):
-                    tmp = R[t, i]
-                    R[t, i] = R[t, best]
-                    R[t, best] = tmp
-                tmp = norms[i]
-                norms[i] = norms[best]
-                norms[best] = tmp
-                k = perm[i]
-                perm[i] = perm[best]
-                perm[best] = k
-        size = r - i
-        alpha = 0.0
-        for t in range(size):
-            x[t] = R[i + t, i]
-            alpha += x[t] * x[t]
-        alpha = np.sqrt(alpha)
-        if alpha == 0.0:
-            continue
-        if x[0] > 0.0:
-            alpha = -alpha
-        x[0] -= alpha
-        vn = 0.0
-        for t in range(size):
-            vn += x[t] * x[t]
-        if vn == 0.0:
-            continue
-        for j in range(i, m):
-            s = 0.0
-            for t in range(size):
-                s += x[t] * R[i + t, j]
-            s = 2.0 * s / vn
-            for t in range(size):
-                R[i + t, j] -= s * x[t]
-        for row in range(r):
-            s = 0.0
-            for t in range(size):
-                s += Q[row, i + t] * x[t]
-            s = 2.0 * s / vn
-            for t in range(size):
-                Q[row, i + t] -= s * x[t]
+            _swap_pivot(R, norms, perm, i)
+        _reflect(R, Q, x, i)
         if pivot:
-            for j in range(i + 1, m):
-                norms[j] = 0.0
-                for t in range(i + 1, r):
-                    norms[j] += R[t, j] * R[t, j]
+            _column_norms(R, i + 1, norms)
     return Q, R, perm
 
 
@@ -455,6 +473,181 @@ def _strictly_optimal(x, u, C, lo, hi, act_row, q):
 
 
 @njit(cache=True)
+def _inverse_transpose(L):
+    """``L^-T`` of a lower-triangular ``L``: row i is ``L^-1 e_i`` (forward substitution)."""
+    n = L.shape[0]
+    J = np.zeros((n, n))
+    for i in range(n):
+        J[i, i] = 1.0 / L[i, i]
+        for k in range(i + 1, n):
+            acc = 0.0
+            for j in range(i, k):
+                acc -= L[k, j] * J[i, j]
+            J[i, k] = acc / L[k, k]
+    return J
+
+
+# Steps of solve_qp's dual active-set iteration (Goldfarb-Idnani; J, R, u and the working
+# set are updated in place).
+@njit(cache=True)
+def _directions(J, R, normal, q, d, z, r):
+    """``d = J^T n``; ``z = J2 d2`` (primal direction); ``r = R^-1 d1`` (dual direction)."""
+    n = J.shape[0]
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += J[k, i] * normal[k]
+        d[i] = acc
+    for k in range(n):
+        acc = 0.0
+        for i in range(q, n):
+            acc += J[k, i] * d[i]
+        z[k] = acc
+    for i in range(q - 1, -1, -1):
+        acc = d[i]
+        for j in range(i + 1, q):
+            acc -= R[i, j] * r[j]
+        r[i] = acc / R[i, i]
+
+
+@njit(cache=True)
+def _dual_step(u, r, q):
+    """Partial (dual) step: the largest ``t`` keeping the working multipliers >= 0, and the
+    working constraint that blocks it (-1: none)."""
+    t1 = np.inf
+    drop = -1
+    for j in range(q):
+        if r[j] > 0.0:
+            t = u[j] / r[j]
+            if t < t1:
+                t1, drop = t, j
+    return t1, drop
+
+
+@njit(cache=True)
+def _primal_step(d, z, normal, slack, q):
+    """Full (primal) step: the ``t`` that makes the candidate hold with equality; inf when
+    the candidate's normal lies (numerically) in the span of the working set's (then
+    ``d2 = d[q:]`` is round-off and ``z = J2 d2`` garbage)."""
+    outside = 0.0
+    total = 0.0
+    for i in range(d.shape[0]):
+        total += d[i] * d[i]
+        if i >= q:
+            outside += d[i] * d[i]
+    zn = dot(z, normal)
+    if outside > _DEPENDENT * _DEPENDENT * total and zn > 0.0:
+        return max(-slack / zn, 0.0)
+    return np.inf
+
+
+@njit(cache=True)
+def _rotate_in(J, d, q):
+    """Add a constraint: Givens rotations of ``J``'s columns so that only ``d[:q+1]`` is
+    non-zero (``d[q]`` becomes the new diagonal entry of ``R``)."""
+    n = J.shape[0]
+    for j in range(n - 1, q, -1):
+        cc = d[j - 1]
+        ss = d[j]
+        h = np.hypot(cc, ss)
+        if h == 0.0:
+            continue
+        d[j] = 0.0
+        ss /= h
+        cc /= h
+        if cc < 0.0:
+            cc = -cc
+            ss = -ss
+            d[j - 1] = -h
+        else:
+            d[j - 1] = h
+        xny = ss / (1.0 + cc)
+        for k in range(n):
+            a = J[k, j - 1]
+            b2 = J[k, j]
+            J[k, j - 1] = a * cc + b2 * ss
+            J[k, j] = xny * (a + J[k, j - 1]) - b2
+
+
+@njit(cache=True)
+def _drop(J, R, u, act_row, act_side, in_set, drop, q):
+    """Remove working constraint ``drop`` of ``q``: shift the set, its multipliers and
+    ``R``'s columns, then restore ``R``'s triangle (and ``J``) by Givens rotations."""
+    n = J.shape[0]
+    in_set[act_row[drop]] = False
+    for j in range(drop, q - 1):
+        act_row[j] = act_row[j + 1]
+        act_side[j] = act_side[j + 1]
+        u[j] = u[j + 1]
+        for i in range(n):
+            R[i, j] = R[i, j + 1]
+    u[q - 1] = u[q]
+    u[q] = 0.0
+    for i in range(n):
+        R[i, q - 1] = 0.0
+    q -= 1
+    for j in range(drop, q):
+        cc = R[j, j]
+        ss = R[j + 1, j]
+        h = np.hypot(cc, ss)
+        if h == 0.0:
+            continue
+        cc /= h
+        ss /= h
+        R[j + 1, j] = 0.0
+        if cc < 0.0:
+            R[j, j] = -h
+            cc = -cc
+            ss = -ss
+        else:
+            R[j, j] = h
+        xny = ss / (1.0 + cc)
+        for k in range(j + 1, q):
+            a = R[j, k]
+            b2 = R[j + 1, k]
+            R[j, k] = a * cc + b2 * ss
+            R[j + 1, k] = xny * (a + R[j, k]) - b2
+        for k in range(n):
+            a = J[k, j]
+            b2 = J[k, j + 1]
+            J[k, j] = a * cc + b2 * ss
+            J[k, j + 1] = xny * (J[k, j] + a) - b2
+
+
+@njit(cache=True)
+def _mark(active, act_row, act_side, q):
+    """Write the working set into ``active`` (the ``warm`` format)."""
+    for j in range(q):
+        active[act_row[j]] = act_side[j]
+
+
+@njit(cache=True)
+def _warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side):
+    """``(True, answer)`` when the warm active set is still the QP's unique optimal one
+    (then it is the answer, polished canonically), else ``(False, _)``."""
+    m = C.shape[0]
+    n = L.shape[0]
+    q = 0
+    for i in range(m):
+        if warm[i] != 0:
+            q += 1
+    if q == 0 or q > n:
+        return False, (np.zeros(n), NUMERICAL, 0, np.zeros(m, dtype=np.int8))
+    q = 0
+    for i in range(m):
+        if warm[i] != 0:
+            act_row[q] = i
+            act_side[q] = warm[i]
+            q += 1
+    x, u, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
+    if ok and _strictly_optimal(x, u, C, lo, hi, act_row, q):
+        polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
+        if polished[1] == SOLVED:
+            return True, polished
+    return False, (np.zeros(n), NUMERICAL, 0, np.zeros(m, dtype=np.int8))
+
+
+@njit(cache=True)
 def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     """Solve ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` exactly.
 
@@ -486,35 +679,14 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     act_row = np.empty(n + 1, dtype=np.int64)
     act_side = np.empty(n + 1, dtype=np.int64)
     q = 0
-    # Warm start: the previous active set, if it is still optimal, is the answer.
-    nwarm = 0
-    for i in range(m):
-        if warm[i] != 0:
-            nwarm += 1
-    if nwarm > 0 and nwarm <= n:
-        for i in range(m):
-            if warm[i] != 0:
-                act_row[q] = i
-                act_side[q] = warm[i]
-                q += 1
-        x, u, ok = _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q)
-        if ok and _strictly_optimal(x, u, C, lo, hi, act_row, q):
-            polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol)
-            if polished[1] == SOLVED:
-                return polished
-        q = 0
+    found, polished = _warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side)
+    if found:
+        return polished
     # Cold: Goldfarb-Idnani from the unconstrained minimiser, with the factorisation
     # J = L^-T Q and the triangular R of the working set updated by Givens rotations as
     # constraints enter and leave (as in quadprog / eiquadprog): O(n^2) per change.
     x = backward_vec(L, forward_vec(L, -c))
-    J = np.zeros((n, n))
-    for i in range(n):  # J = L^-T: row i of J is L^-1 e_i (forward substitution in place)
-        J[i, i] = 1.0 / L[i, i]
-        for k in range(i + 1, n):
-            acc = 0.0
-            for j in range(i, k):
-                acc -= L[k, j] * J[i, j]
-            J[i, k] = acc / L[k, k]
+    J = _inverse_transpose(L)
     R = np.zeros((n, n))
     r_norm = 1.0
     u = np.zeros(n + 1)
@@ -540,47 +712,12 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
         while True:
             iterations += 1
             if iterations > max_iter:
-                for j in range(q):
-                    active[act_row[j]] = act_side[j]
+                _mark(active, act_row, act_side, q)
                 return x, MAX_ITER, iterations, active
-            # d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction)
-            for i in range(n):
-                acc = 0.0
-                for k in range(n):
-                    acc += J[k, i] * normal[k]
-                d[i] = acc
-            for k in range(n):
-                acc = 0.0
-                for i in range(q, n):
-                    acc += J[k, i] * d[i]
-                z[k] = acc
-            for i in range(q - 1, -1, -1):
-                acc = d[i]
-                for j in range(i + 1, q):
-                    acc -= R[i, j] * r[j]
-                r[i] = acc / R[i, i]
-            # Partial (dual) step: the largest t keeping the working multipliers >= 0.
-            t1 = np.inf
-            drop = -1
-            for j in range(q):
-                if r[j] > 0.0:
-                    t = u[j] / r[j]
-                    if t < t1:
-                        t1, drop = t, j
-            # Full (primal) step: make the candidate constraint hold with equality. None
-            # when the candidate's normal lies (numerically) in the span of the working
-            # set's: then d2 = d[q:] is round-off and z = J2 d2 would be garbage.
-            outside = 0.0
-            total = 0.0
-            for i in range(n):
-                total += d[i] * d[i]
-                if i >= q:
-                    outside += d[i] * d[i]
-            zn = dot(z, normal)
+            _directions(J, R, normal, q, d, z, r)
+            t1, drop = _dual_step(u, r, q)
             slack = dot(normal, x) - rhs
-            t2 = np.inf
-            if outside > _DEPENDENT * _DEPENDENT * total and zn > 0.0:
-                t2 = max(-slack / zn, 0.0)
+            t2 = _primal_step(d, z, normal, slack, q)
             t = min(t1, t2)
             if t == np.inf:
                 # The candidate depends on the working set and no multiplier can give way.
@@ -590,8 +727,7 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 if -slack <= _ROUNDOFF * (nn * (1.0 + np.abs(x).max()) + abs(rhs)):
                     in_set[row] = True
                     break
-                for j in range(q):
-                    active[act_row[j]] = act_side[j]
+                _mark(active, act_row, act_side, q)
                 return x, INFEASIBLE, iterations, active
             full = t2 <= t1
             if full:
@@ -604,28 +740,7 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 u[j] -= t * r[j]
             u[q] += t
             if full:
-                # Add the candidate: rotate d so that only d[:q+1] is non-zero.
-                for j in range(n - 1, q, -1):
-                    cc = d[j - 1]
-                    ss = d[j]
-                    h = np.hypot(cc, ss)
-                    if h == 0.0:
-                        continue
-                    d[j] = 0.0
-                    ss /= h
-                    cc /= h
-                    if cc < 0.0:
-                        cc = -cc
-                        ss = -ss
-                        d[j - 1] = -h
-                    else:
-                        d[j - 1] = h
-                    xny = ss / (1.0 + cc)
-                    for k in range(n):
-                        a = J[k, j - 1]
-                        b2 = J[k, j]
-                        J[k, j - 1] = a * cc + b2 * ss
-                        J[k, j] = xny * (a + J[k, j - 1]) - b2
+                _rotate_in(J, d, q)
                 for i in range(q + 1):
                     R[i, q] = d[i]
                 if abs(d[q]) <= 1e-14 * r_norm:
@@ -644,44 +759,8 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
                 q += 1
                 break
             # Drop the blocking constraint, restore R's triangle, and try again.
-            in_set[act_row[drop]] = False
-            for j in range(drop, q - 1):
-                act_row[j] = act_row[j + 1]
-                act_side[j] = act_side[j + 1]
-                u[j] = u[j + 1]
-                for i in range(n):
-                    R[i, j] = R[i, j + 1]
-            u[q - 1] = u[q]
-            u[q] = 0.0
-            for i in range(n):
-                R[i, q - 1] = 0.0
+            _drop(J, R, u, act_row, act_side, in_set, drop, q)
             q -= 1
-            for j in range(drop, q):
-                cc = R[j, j]
-                ss = R[j + 1, j]
-                h = np.hypot(cc, ss)
-                if h == 0.0:
-                    continue
-                cc /= h
-                ss /= h
-                R[j + 1, j] = 0.0
-                if cc < 0.0:
-                    R[j, j] = -h
-                    cc = -cc
-                    ss = -ss
-                else:
-                    R[j, j] = h
-                xny = ss / (1.0 + cc)
-                for k in range(j + 1, q):
-                    a = R[j, k]
-                    b2 = R[j + 1, k]
-                    R[j, k] = a * cc + b2 * ss
-                    R[j + 1, k] = xny * (a + R[j, k]) - b2
-                for k in range(n):
-                    a = J[k, j]
-                    b2 = J[k, j + 1]
-                    J[k, j] = a * cc + b2 * ss
-                    J[k, j + 1] = xny * (J[k, j] + a) - b2
 
 
 @njit(cache=True)
