@@ -636,24 +636,19 @@ def _smallest_singular_value_in(A, m, nv, G, threshold, rows, L):
                 break
     if r == 0:
         return np.inf
-    if r <= nv:
-        n = r
-        for a in range(r):
-            for c in range(a, r):
-                s = 0.0
-                for k in range(nv):
+    # The smaller Gram matrix: B B^T (r x r) or B^T B (nv x nv), B = A[rows].
+    by_rows = r <= nv
+    n, inner = (r, nv) if by_rows else (nv, r)
+    for a in range(n):
+        for c in range(a, n):
+            s = 0.0
+            for k in range(inner):
+                if by_rows:
                     s += A[rows[a], k] * A[rows[c], k]
-                G[a, c] = s
-                G[c, a] = s
-    else:
-        n = nv
-        for i in range(nv):
-            for j in range(i, nv):
-                s = 0.0
-                for a in range(r):
-                    s += A[rows[a], i] * A[rows[a], j]
-                G[i, j] = s
-                G[j, i] = s
+                else:
+                    s += A[rows[k], a] * A[rows[k], c]
+            G[a, c] = s
+            G[c, a] = s
     if threshold > 0.0 and _positive_definite_shifted(G, n, threshold * threshold, L):
         return np.inf
     return np.sqrt(max(_smallest_eigenvalue(G, n), 0.0))
