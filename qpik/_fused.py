@@ -120,6 +120,49 @@ def _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit
     return merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
 
 
+@njit(cache=True)
+def _frame_pose(kind, fid, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat):
+    """Position (3) and row-major rotation (9) of a site (0), body (1) or geom (2)."""
+    if kind == 0:
+        return site_xpos[fid], site_xmat[fid]
+    if kind == 1:
+        return xpos[fid], xmat[fid]
+    return geom_xpos[fid], geom_xmat[fid]
+
+
+@njit(cache=True)
+def _assemble_rows(
+    A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
+    frame_data, qpos, posture_data,
+):  # fmt: skip
+    """Fill every task's rows of ``A, b, w`` (see :func:`fused_step`); returns each
+    level's LM term ``sum lm_damping |b_task|^2`` (L,)."""
+    n = qpos.shape[0]
+    reg = np.zeros(L)
+    for t in range(tasks.shape[0]):
+        i = tasks[t, 1]
+        row = tasks[t, 3]
+        if tasks[t, 0] == 0:
+            pos, mat = _frame_pose(
+                frames[i, 0], frames[i, 1], site_xpos, site_xmat, xpos, xmat, geom_xpos,
+                geom_xmat,
+            )  # fmt: skip
+            data = frame_data[i]
+            cost = data[7:13]
+            mu = _frame_rows(A, b, row, jac[i], pos, mat, data[0:7], cost, data[13], data[14])
+            size = 6
+        else:
+            data = posture_data[i]
+            nq = data.shape[0] - n - 2
+            cost = data[nq : nq + n]
+            mu = _posture_rows(A, b, row, qpos, data[0:nq], cost, data[nq + n], data[nq + n + 1])
+            size = n
+        for r in range(size):
+            w[row + r] = cost[r]
+        reg[tasks[t, 2]] += mu
+    return reg
+
+
 # Result codes of fused_step: anything but OK sends the step to the general path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
 #: ``settings`` entries of :func:`fused_step`.
@@ -132,7 +175,8 @@ def fused_step(
     geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
     settings, max_iter, warm, canonical,
 ):  # fmt: skip
-    """Rows of every task, the limits' box and the cascade, in one call.
+    """Rows of every task, the limits' box and the cascade, in one call (one function on
+    purpose: each check that sends the step to the general path sits where its data is).
 
     ``A, b, w`` (M, nv), (M,), (M,) are filled (level ``k`` in rows
     ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) lists the tasks in stack order: kind (0
@@ -149,32 +193,10 @@ def fused_step(
     """
     n = qpos.shape[0]
     L = starts.shape[0] - 1
-    reg = np.zeros(L)
-    for t in range(tasks.shape[0]):
-        i = tasks[t, 1]
-        row = tasks[t, 3]
-        if tasks[t, 0] == 0:
-            kind = frames[i, 0]
-            fid = frames[i, 1]
-            if kind == 0:
-                pos, mat = site_xpos[fid], site_xmat[fid]
-            elif kind == 1:
-                pos, mat = xpos[fid], xmat[fid]
-            else:
-                pos, mat = geom_xpos[fid], geom_xmat[fid]
-            data = frame_data[i]
-            cost = data[7:13]
-            mu = _frame_rows(A, b, row, jac[i], pos, mat, data[0:7], cost, data[13], data[14])
-            for r in range(6):
-                w[row + r] = cost[r]
-        else:
-            data = posture_data[i]
-            nq = data.shape[0] - n - 2
-            cost = data[nq : nq + n]
-            mu = _posture_rows(A, b, row, qpos, data[0:nq], cost, data[nq + n], data[nq + n + 1])
-            for r in range(n):
-                w[row + r] = cost[r]
-        reg[tasks[t, 2]] += mu
+    reg = _assemble_rows(
+        A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
+        frame_data, qpos, posture_data,
+    )  # fmt: skip
     for k in range(L):
         reg[k] = settings[DAMPING] + reg[k]
     dt = settings[DT]
@@ -242,11 +264,9 @@ class FusedPlan:
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
 
-    def gather(self, configuration) -> tuple:
-        """Copy the tasks' current targets, costs and gains and the frames' Jacobians
-        (MuJoCo) into the plan's arrays; returns ``(qpos, poses)`` for
-        :func:`fused_step`."""
-        model, data = self.model, configuration.data
+    def _gather_frames(self, data: mujoco.MjData) -> None:
+        """Frame tasks' targets, costs, gains and MuJoCo Jacobians into the plan."""
+        model = self.model
         for task, jacobian, fid, jp, jr, row in self.frames:
             pose = task.transform_target_to_world
             if pose is None:
@@ -256,6 +276,13 @@ class FusedPlan:
             row[13] = task.gain
             row[14] = task.lm_damping
             jacobian(model, data, jp, jr, fid)
+
+    def gather(self, configuration) -> tuple:
+        """Copy the tasks' current targets, costs and gains and the frames' Jacobians
+        (MuJoCo) into the plan's arrays; returns ``(qpos, poses)`` for
+        :func:`fused_step`."""
+        model, data = self.model, configuration.data
+        self._gather_frames(data)
         nq, nv = model.nq, model.nv
         for task, row in self.postures:
             if task.target_q is None:
@@ -293,44 +320,13 @@ def make_plan(
     :func:`fused_step` computes (the general path then serves every step)."""
     if not scalar_joints:
         return None
+    layout = _task_layout(model, levels)
+    boxes = _limit_boxes(limits)
+    if layout is None or boxes is None:
+        return None
     nv = model.nv
-    frames, postures, tasks, frame_rows = [], [], [], []
-    starts = [0]
-    for k, level in enumerate(levels):
-        row = starts[-1]
-        for task in level:
-            if type(task) is FrameTask:
-                kind = _KINDS.get(getattr(task.frame_type, "value", task.frame_type))
-                if kind is None:
-                    return None
-                fid = mujoco.mj_name2id(model, _OBJECTS[kind], task.frame_name)
-                if fid < 0:
-                    return None  # the general path reports the unknown frame
-                tasks.append((_FRAME, len(frames), k, row))
-                frames.append((task, _JACOBIAN[kind], fid))
-                frame_rows.append((kind, fid))
-                row += 6
-            elif type(task) is PostureTask and task._scalar:
-                tasks.append((_POSTURE, len(postures), k, row))
-                postures.append(task)
-                row += nv
-            else:
-                return None
-        starts.append(row)
-    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], []
-    for limit in limits:
-        if type(limit) is mink.ConfigurationLimit:
-            indices = np.asarray(limit.indices, dtype=np.int64)
-            e0 = len(cfg_dof)
-            cfg_dof.extend(indices.tolist())
-            lower, upper = np.asarray(limit.lower)[indices], np.asarray(limit.upper)[indices]
-            cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
-            config_limits.append((limit, e0, len(cfg_dof)))
-        elif type(limit) is mink.VelocityLimit:
-            vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
-            vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
-        else:
-            return None
+    frames, postures, tasks, frame_rows, starts = layout
+    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = boxes
     F, P, M = len(frames), len(postures), starts[-1]
     jac = np.zeros((F, 6, nv))
     frame_data = np.zeros((F, 15))
@@ -363,3 +359,60 @@ def make_plan(
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
     cold = np.zeros((len(levels), nv), dtype=np.int8)
     return FusedPlan(model, frames, postures, config_limits, arrays, used, cold)
+
+
+def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:
+    """``(kind, id)`` of a FrameTask's frame, None when the general path must serve it
+    (an unknown frame type or name: it reports them)."""
+    kind = _KINDS.get(getattr(task.frame_type, "value", task.frame_type))
+    if kind is None:
+        return None
+    fid = mujoco.mj_name2id(model, _OBJECTS[kind], task.frame_name)
+    return None if fid < 0 else (kind, fid)
+
+
+def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
+    """``(frames, postures, tasks, frame_rows, starts)`` of a stack whose tasks are all
+    qpik's FrameTask / scalar PostureTask (None otherwise): rows are laid out level by
+    level, task by task."""
+    frames, postures, tasks, frame_rows = [], [], [], []
+    starts = [0]
+    for k, level in enumerate(levels):
+        row = starts[-1]
+        for task in level:
+            if type(task) is FrameTask:
+                entry = _frame_entry(model, task)
+                if entry is None:
+                    return None
+                tasks.append((_FRAME, len(frames), k, row))
+                frames.append((task, _JACOBIAN[entry[0]], entry[1]))
+                frame_rows.append(entry)
+                row += 6
+            elif type(task) is PostureTask and task._scalar:
+                tasks.append((_POSTURE, len(postures), k, row))
+                postures.append(task)
+                row += model.nv
+            else:
+                return None
+        starts.append(row)
+    return frames, postures, tasks, frame_rows, starts
+
+
+def _limit_boxes(limits: Sequence):
+    """``(cfg_dof, cfg_data, config_limits, vel_dof, vel_limit)`` of mink's position and
+    velocity limits (None when another limit is present)."""
+    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], []
+    for limit in limits:
+        if type(limit) is mink.ConfigurationLimit:
+            indices = np.asarray(limit.indices, dtype=np.int64)
+            e0 = len(cfg_dof)
+            cfg_dof.extend(indices.tolist())
+            lower, upper = np.asarray(limit.lower)[indices], np.asarray(limit.upper)[indices]
+            cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
+            config_limits.append((limit, e0, len(cfg_dof)))
+        elif type(limit) is mink.VelocityLimit:
+            vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
+            vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
+        else:
+            return None
+    return cfg_dof, cfg_data, config_limits, vel_dof, vel_limit

@@ -132,21 +132,21 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
         raise InvalidInput("the task stack is empty")
     if all(isinstance(item, BaseTask) for item in items):
         return [items]
-    levels = []
-    for index, item in enumerate(items):
-        if isinstance(item, BaseTask):
-            level = [item]
-        elif isinstance(item, Sequence) and not isinstance(item, (str, bytes)):
-            level = list(item)
-        else:
-            level = None
-        if not level or not all(isinstance(t, BaseTask) for t in level):
-            raise InvalidInput(
-                f"level {index} of the stack must be a task or a non-empty list of tasks, "
-                f"got {item!r}"
-            )
-        levels.append(level)
-    return levels
+    return [_level_of(index, item) for index, item in enumerate(items)]
+
+
+def _level_of(index: int, item) -> list[BaseTask]:
+    """Level ``index`` of a stack: a task or a non-empty sequence of tasks."""
+    if isinstance(item, BaseTask):
+        return [item]
+    level = None
+    if isinstance(item, Sequence) and not isinstance(item, (str, bytes)):
+        level = list(item)
+    if not level or not all(isinstance(t, BaseTask) for t in level):
+        raise InvalidInput(
+            f"level {index} of the stack must be a task or a non-empty list of tasks, got {item!r}"
+        )
+    return level
 
 
 def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
@@ -237,6 +237,17 @@ def _velocity_box(limit: mink.VelocityLimit, configuration: Configuration, dt: f
 _BOX_LIMITS = {mink.ConfigurationLimit: _configuration_box, mink.VelocityLimit: _velocity_box}
 
 
+def _step_options(options: StepOptions | None, osqp_settings, **given) -> StepOptions:
+    """``options`` (default :class:`StepOptions`) with the keywords that were given."""
+    if options is not None and not isinstance(options, StepOptions):
+        raise InvalidInput(f"options must be a qpik.StepOptions, got {options!r}")
+    overrides = {name: value for name, value in given.items() if value is not UNSET}
+    if osqp_settings is not None and "backend_options" not in overrides:
+        overrides["backend_options"] = osqp_settings.as_dict()
+    options = options if options is not None else StepOptions()
+    return options.replace(**overrides) if overrides else options
+
+
 class IKSolver:
     """Differential IK with strict priorities.
 
@@ -271,27 +282,19 @@ class IKSolver:
     ):
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
-        if options is not None and not isinstance(options, StepOptions):
-            raise InvalidInput(f"options must be a qpik.StepOptions, got {options!r}")
-        given = {
-            "solver": solver,
-            "damping": damping,
-            "damping_law": damping_law,
-            "rank_tolerance": rank_tolerance,
-            "warm_start": warm_start,
-            "backend_options": backend_options,
-        }
-        overrides = {name: value for name, value in given.items() if value is not UNSET}
-        if osqp_settings is not None and "backend_options" not in overrides:
-            overrides["backend_options"] = osqp_settings.as_dict()
-        options = options if options is not None else StepOptions()
-        self.options = options.replace(**overrides) if overrides else options
+        self.options = _step_options(
+            options,
+            osqp_settings,
+            solver=solver,
+            damping=damping,
+            damping_law=damping_law,
+            rank_tolerance=rank_tolerance,
+            warm_start=warm_start,
+            backend_options=backend_options,
+        )
         solver, damping = self.options.solver, self.options.damping
         damping_law, rank_tolerance = self.options.damping_law, self.options.rank_tolerance
-        warm_start = self.options.warm_start
         backend_options = self.options.backend_options
-        if backend_options is not None:
-            backend_options = dict(backend_options)
         self.model = model
         self.levels = normalize_stack(stack)
         self.limits = list(limits)
@@ -306,8 +309,8 @@ class IKSolver:
             solver,
             damping_law=damping_law,
             rank_tolerance=rank_tolerance,
-            warm_start=warm_start,
-            backend_options=backend_options,
+            warm_start=self.options.warm_start,
+            backend_options=None if backend_options is None else dict(backend_options),
         )
         self._nv = model.nv
         names = joint_names(model)
@@ -386,62 +389,63 @@ class IKSolver:
         """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits, and
         the per-limit box contributions (to name the active limits afterwards)."""
         hard_lb, hard_ub, pos_lb, pos_ub = self._bounds
-        hard_lb.fill(-np.inf)
-        hard_ub.fill(np.inf)
-        pos_lb.fill(-np.inf)
+        for bound, value in ((hard_lb, -np.inf), (hard_ub, np.inf), (pos_lb, -np.inf)):
+            bound.fill(value)
         pos_ub.fill(np.inf)
         contributions = []  # (name, dofs, bounds) for each side of each limit
-        general_G, general_h, general_names = [], [], []
+        general = ([], [], [])  # G blocks, h blocks, row names
         for limit in self.limits:
+            recoverable = isinstance(limit, mink.ConfigurationLimit) or getattr(
+                limit, "recoverable", False
+            )
+            lb, ub = (pos_lb, pos_ub) if recoverable else (hard_lb, hard_ub)
             box = _BOX_LIMITS.get(type(limit)) if self._scalar_joints else None
             if box is not None:
                 dofs, lower, upper = box(limit, configuration, dt)
                 if len(dofs):
-                    if isinstance(limit, mink.ConfigurationLimit):
-                        tighten(pos_lb, pos_ub, dofs, lower, upper)
-                    else:
-                        tighten(hard_lb, hard_ub, dofs, lower, upper)
+                    tighten(lb, ub, dofs, lower, upper)
                     name = type(limit).__name__
                     contributions.append((name, dofs, upper))
                     contributions.append((name, dofs, lower))
-                continue
-            constraint = limit.compute_qp_inequalities(configuration, dt)
-            if constraint.inactive:
-                continue
-            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-            h = np.atleast_1d(constraint.h)
-            name = type(limit).__name__
-            recoverable = isinstance(limit, mink.ConfigurationLimit) or getattr(
-                limit, "recoverable", False
-            )
-            structure = self._row_structure(limit, G)
-            if structure.empty is not None and np.any(h[structure.empty] < 0):
-                raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[structure.empty].min():.3g}")
-            lb, ub = (pos_lb, pos_ub) if recoverable else (hard_lb, hard_ub)
-            for rows, dofs, scale, side, pick in (
-                (structure.upper_rows, structure.upper_dofs, structure.upper_scale, ub, np.minimum),
-                (structure.lower_rows, structure.lower_dofs, structure.lower_scale, lb, np.maximum),
-            ):
-                if rows.size:
-                    bounds = h[rows] * scale
-                    if structure.unique:
-                        side[dofs] = pick(side[dofs], bounds)
-                    else:
-                        pick.at(side, dofs, bounds)
-                    contributions.append((name, dofs, bounds))
-            if structure.general.size:
-                general_G.append(G[structure.general])
-                general_h.append(h[structure.general])
-                general_names.extend(f"{name} row {int(r)}" for r in structure.general)
+            else:
+                self._limit_inequalities(limit, configuration, dt, lb, ub, contributions, general)
         lb, ub, i = merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
         if i >= 0:
             raise InfeasibleLimits(
                 f"limits on {self._dof_names[i]} need {hard_lb[i]:.6g} <= dq <= "
                 f"{hard_ub[i]:.6g}: no displacement satisfies them"
             )
-        G = np.vstack(general_G) if general_G else self._no_rows
-        h = np.concatenate(general_h) if general_h else np.zeros(0)
-        return lb, ub, G, h, contributions, general_names
+        G = np.vstack(general[0]) if general[0] else self._no_rows
+        h = np.concatenate(general[1]) if general[1] else np.zeros(0)
+        return lb, ub, G, h, contributions, general[2]
+
+    def _limit_inequalities(self, limit, configuration, dt, lb, ub, contributions, general):
+        """A limit's ``compute_qp_inequalities`` split into single-dof bounds (tightening
+        ``lb``/``ub`` in place) and general rows (appended to ``general``)."""
+        constraint = limit.compute_qp_inequalities(configuration, dt)
+        if constraint.inactive:
+            return
+        G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+        h = np.atleast_1d(constraint.h)
+        name = type(limit).__name__
+        structure = self._row_structure(limit, G)
+        if structure.empty is not None and np.any(h[structure.empty] < 0):
+            raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[structure.empty].min():.3g}")
+        for rows, dofs, scale, side, pick in (
+            (structure.upper_rows, structure.upper_dofs, structure.upper_scale, ub, np.minimum),
+            (structure.lower_rows, structure.lower_dofs, structure.lower_scale, lb, np.maximum),
+        ):
+            if rows.size:
+                bounds = h[rows] * scale
+                if structure.unique:
+                    side[dofs] = pick(side[dofs], bounds)
+                else:
+                    pick.at(side, dofs, bounds)
+                contributions.append((name, dofs, bounds))
+        if structure.general.size:
+            general[0].append(G[structure.general])
+            general[1].append(h[structure.general])
+            general[2].extend(f"{name} row {int(r)}" for r in structure.general)
 
     # ------------------------------------------------------------------- build
     def build(self, configuration: Configuration, dt: float) -> HierarchyProblem:
@@ -487,16 +491,19 @@ class IKSolver:
         if not (math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))) or not (
             math.isfinite(float(reg.sum()))
         ):
-            for k, tasks in enumerate(self.levels):
-                s0, s1 = starts[k], starts[k + 1]
-                if not (np.isfinite(A[s0:s1]).all() and np.isfinite(b[s0:s1]).all()) or not (
-                    math.isfinite(reg[k])
-                ):
-                    raise InvalidTarget(
-                        f"priority level {k}: a task error or Jacobian is not finite (a NaN "
-                        f"or inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
-                    )
+            self._raise_not_finite(A, b, starts, reg)
         return A, b, w, starts, reg, lb, ub, G, h, contributions, general_names
+
+    def _raise_not_finite(self, A, b, starts, reg) -> None:
+        """Name the first level whose rows or regularisation are not finite."""
+        for k, tasks in enumerate(self.levels):
+            s0, s1 = starts[k], starts[k + 1]
+            finite = np.isfinite(A[s0:s1]).all() and np.isfinite(b[s0:s1]).all()
+            if not (finite and math.isfinite(reg[k])):
+                raise InvalidTarget(
+                    f"priority level {k}: a task error or Jacobian is not finite (a NaN "
+                    f"or inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
+                )
 
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
