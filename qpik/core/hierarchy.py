@@ -209,21 +209,26 @@ class HierarchyProblem:
         if np.isnan(self.h).any():
             raise InvalidInput("h contains NaN")
         for k, level in enumerate(self.levels):
-            A = np.asarray(level.A)
-            if A.ndim != 2 or A.shape[1] != n or np.shape(level.b) != (A.shape[0],):
-                raise InvalidInput(
-                    f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got "
-                    f"{A.shape} and {np.shape(level.b)}"
-                )
-            if not (np.isfinite(A).all() and np.isfinite(level.b).all()):
-                raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
-            if not (math.isfinite(level.regularization) and level.regularization >= 0):
-                raise InvalidInput(
-                    f"level {k} ({level.name}): regularization must be finite and >= 0, "
-                    f"got {level.regularization}"
-                )
-            if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
-                raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
+            _validate_level(k, level, n)
+
+
+def _validate_level(k: int, level: Level, n: int) -> None:
+    """Shapes and finiteness of level ``k``; raises :class:`qpik.InvalidInput`."""
+    A = np.asarray(level.A)
+    if A.ndim != 2 or A.shape[1] != n or np.shape(level.b) != (A.shape[0],):
+        raise InvalidInput(
+            f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got "
+            f"{A.shape} and {np.shape(level.b)}"
+        )
+    if not (np.isfinite(A).all() and np.isfinite(level.b).all()):
+        raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
+    if not (math.isfinite(level.regularization) and level.regularization >= 0):
+        raise InvalidInput(
+            f"level {k} ({level.name}): regularization must be finite and >= 0, "
+            f"got {level.regularization}"
+        )
+    if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
+        raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
 
 
 @dataclass
@@ -456,21 +461,7 @@ class HierarchySolver:
             name = self.solver
         solution = self._backend_solve(k, name, H, c, C, lo, hi)
         if solution is not None and solution.found:
-            # The backend's answer is made exact by the kernel, started from the active
-            # set the backend identified when that set is the unique optimal one; the
-            # answer is the canonical re-solve either way, so it never depends on the
-            # backend's warm start.
-            guess = _active_guess(solution.x, C, lo, hi)
-            z, st, it, act = K.solve_level(
-                H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True
-            )
-            if st == K.SOLVED:
-                cold = np.zeros(C.shape[0], dtype=np.int8)
-                z2, st2, _, act2 = K.solve_level(
-                    H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True
-                )
-                if st2 == K.SOLVED:
-                    z, act = z2, act2
+            z, st, act = self._made_exact(k, solution.x, H, c, C, lo, hi, max_iter)
             return z, st, solution.iterations, act, name
         if fallback:
             code = K.MAX_ITER if solution is None or "max_iter" in solution.status else (
@@ -482,6 +473,22 @@ class HierarchySolver:
             H, c, C, lo, hi, zeros, max_iter, self.tolerance, k > 0, True
         )
         return z, st, it, act, f"{name} failed: auto"
+
+    def _made_exact(self, k, x, H, c, C, lo, hi, max_iter):
+        """A backend's answer ``x`` made exact by the kernel, started from the active set
+        the backend identified when that set is the unique optimal one; the answer is the
+        canonical re-solve either way, so it never depends on the backend's warm start.
+        Returns ``(z, status code, active)``."""
+        guess = _active_guess(x, C, lo, hi)
+        z, st, _, act = K.solve_level(H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True)
+        if st == K.SOLVED:
+            cold = np.zeros(C.shape[0], dtype=np.int8)
+            z2, st2, _, act2 = K.solve_level(
+                H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True
+            )
+            if st2 == K.SOLVED:
+                z, act = z2, act2
+        return z, st, act
 
     def _backend_solve(self, k, name, H, c, C, lo, hi):
         """The backend's solution, or None if it raised (its workspace is then dropped, so
