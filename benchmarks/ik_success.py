@@ -21,8 +21,10 @@ the fixed cost of a call (a target already met at the start: validation, one for
 kinematics and the result), the time of ``qpik reach tasks/panda_pose_reach.toml``, and with
 ``--compile`` the first-call compile time of the kernels in a fresh numba cache.
 
-Wall times include whatever else the machine runs; the ``cpu`` columns (thread CPU time)
-show the solver's own time on a shared machine.
+Wall times include whatever else the machine runs; the CPU figures beside them (thread CPU
+time per solve, process CPU time of each run, of the fixed-cost calls and of the fresh
+processes) show the solver's own time on a shared machine, and each run's CPU / wall ratio
+how much of a core it was given.
 
     python benchmarks/ik_success.py                  # N = 1000 per robot, about 1 min
     python benchmarks/ik_success.py --n 10000        # the full run
@@ -35,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -60,13 +63,19 @@ def _fresh_process(code: str, env: dict | None = None) -> str:
 
 _STARTUP = """
 import time
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 import qpik
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), time.process_time()
 result = qpik.solve("panda", {"ee": [0.4, 0.1, 0.5]})
-t2 = time.perf_counter()
-print(t1 - t0, t2 - t1, result.converged)
+t2, c2 = time.perf_counter(), time.process_time()
+print(t1 - t0, t2 - t1, c1 - c0, c2 - c1, result.converged)
 """
+
+
+def _children_cpu() -> float:
+    """CPU time [s] (user + system) of the finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def startup_figures(compile_too: bool) -> dict:
@@ -78,8 +87,11 @@ def startup_figures(compile_too: bool) -> dict:
     runs = [_fresh_process(_STARTUP).split() for _ in range(3)]
     out["import_s"] = float(np.median([float(r[0]) for r in runs]))
     out["first_solve_s"] = float(np.median([float(r[1]) for r in runs]))
-    reach = []
+    out["import_cpu_s"] = float(np.median([float(r[2]) for r in runs]))
+    out["first_solve_cpu_s"] = float(np.median([float(r[3]) for r in runs]))
+    reach, reach_cpu = [], []
     for _ in range(3):
+        cpu = _children_cpu()
         tic = time.perf_counter()
         subprocess.run(
             [str(Path(sys.executable).parent / "qpik"), "reach", "tasks/panda_pose_reach.toml"],
@@ -88,7 +100,9 @@ def startup_figures(compile_too: bool) -> dict:
             cwd=ROOT,
         )
         reach.append(time.perf_counter() - tic)
+        reach_cpu.append(_children_cpu() - cpu)
     out["qpik_reach_s"] = float(np.median(reach))
+    out["qpik_reach_cpu_s"] = float(np.median(reach_cpu))
     if compile_too:
         with tempfile.TemporaryDirectory() as cache:
             run = _fresh_process(_STARTUP, {"NUMBA_CACHE_DIR": cache}).split()
@@ -97,8 +111,8 @@ def startup_figures(compile_too: bool) -> dict:
 
 
 def fixed_cost(robot: str = "panda", repeats: int = 2000) -> dict:
-    """Median time [us] of a call whose target is met at the start (0 iterations), through
-    an IKSession and through qpik.solve."""
+    """Median wall and CPU (process) time [us] of a call whose target is met at the start
+    (0 iterations), through an IKSession and through qpik.solve."""
     import qpik
 
     session = qpik.IKSession(robot)
@@ -111,12 +125,15 @@ def fixed_cost(robot: str = "panda", repeats: int = 2000) -> dict:
         ("session_us", lambda: session.solve(target, seed=1)),
         ("solve_us", lambda: qpik.solve(session.model, target, seed=1)),
     ):
-        times = []
+        times, cpu_times = [], []
         for _ in range(repeats):
+            cpu = time.process_time()
             tic = time.perf_counter()
             call()
             times.append(time.perf_counter() - tic)
+            cpu_times.append(time.process_time() - cpu)
         out[name] = 1e6 * float(np.median(times))
+        out[name.replace("_us", "_cpu_us")] = 1e6 * float(np.median(cpu_times))
     return out
 
 
@@ -142,17 +159,13 @@ def main(argv=None) -> dict:
     with os.popen("uptime") as stream:
         load = stream.read().strip()
     print(f"machine: {os.cpu_count()} cores; {load}")
-    headline = bench.run_ik_success(
-        robots, n=args.n, methods=args.methods, seed=args.seed, protocol=bench.TRACIK
-    )
+    headline = _timed_run(robots, args, bench.TRACIK)
     bench.print_table(headline)
     _print_cpu(headline)
     second = None
     if not args.skip_second:
-        second = bench.run_ik_success(
-            robots, n=args.n, methods=args.methods, seed=args.seed, protocol=bench.COARSE
-        )
         print()
+        second = _timed_run(robots, args, bench.COARSE)
         bench.print_table(second)
         _print_cpu(second)
     if "qpik" in args.methods:
@@ -162,12 +175,14 @@ def main(argv=None) -> dict:
     f, st = extra["fixed_cost"], extra["startup"]
     print(
         f"\nfixed cost of a call (target met at the start, median of 2000): "
-        f"IKSession.solve {f['session_us']:.1f} us, qpik.solve {f['solve_us']:.1f} us"
+        f"IKSession.solve {f['session_us']:.1f} us wall / {f['session_cpu_us']:.1f} us CPU, "
+        f"qpik.solve {f['solve_us']:.1f} us wall / {f['solve_cpu_us']:.1f} us CPU"
     )
     print(
-        f"fresh process, warm numba cache: import qpik {st['import_s']:.2f} s, first solve "
-        f"{st['first_solve_s']:.2f} s; qpik reach tasks/panda_pose_reach.toml "
-        f"{st['qpik_reach_s']:.2f} s wall"
+        f"fresh process, warm numba cache (wall / CPU): import qpik {st['import_s']:.2f} / "
+        f"{st['import_cpu_s']:.2f} s, first solve {st['first_solve_s']:.2f} / "
+        f"{st['first_solve_cpu_s']:.2f} s; qpik reach tasks/panda_pose_reach.toml "
+        f"{st['qpik_reach_s']:.2f} / {st['qpik_reach_cpu_s']:.2f} s"
     )
     if "first_solve_cold_cache_s" in st:
         cold = st["first_solve_cold_cache_s"]
@@ -176,6 +191,23 @@ def main(argv=None) -> dict:
     if args.json:
         with open(args.json, "w") as stream:
             json.dump(results, stream, indent=2)
+    return results
+
+
+def _timed_run(robots: list[str], args: argparse.Namespace, protocol) -> dict:
+    """One protocol's run, with its wall and process CPU time: CPU / wall below 1 is the
+    share of a core the machine left the benchmark (the rest went to other processes)."""
+    cpu = time.process_time()
+    tic = time.perf_counter()
+    results = bench.run_ik_success(
+        robots, n=args.n, methods=args.methods, seed=args.seed, protocol=protocol
+    )
+    wall, cpu = time.perf_counter() - tic, time.process_time() - cpu
+    results["run"] = {"wall_s": wall, "process_cpu_s": cpu}
+    print(
+        f"{protocol.name} run: {wall:.1f} s wall, {cpu:.1f} s process CPU "
+        f"(CPU / wall {cpu / wall:.2f})"
+    )
     return results
 
 
