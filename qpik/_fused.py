@@ -35,7 +35,7 @@ from .tasks.fast import FrameTask, PostureTask
 # an edit there.
 drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__])
 
-__all__ = ["FusedPlan", "box_of", "fused_step", "make_plan"]
+__all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
 _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
@@ -170,6 +170,39 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 
 
 @njit(cache=True)
+def fused_rows(
+    A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
+    geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit, settings,
+):  # fmt: skip
+    """The hierarchy's rows and limits without solving it (see :func:`fused_step` for the
+    arguments): fills ``A, b, w`` and returns ``(code, reg, lb, ub)``, ``code`` OK,
+    NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof)."""
+    n = qpos.shape[0]
+    L = starts.shape[0] - 1
+    reg = _assemble_rows(
+        A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
+        frame_data, qpos, posture_data,
+    )  # fmt: skip
+    for k in range(L):
+        reg[k] = settings[DAMPING] + reg[k]
+    lb, ub, bad = _boxes(
+        qpos, settings[DT], cfg_dof, cfg_data[:, 0], cfg_data[:, 1], cfg_data[:, 2], vel_dof,
+        vel_limit, n,
+    )  # fmt: skip
+    square = 0.0
+    total = 0.0
+    for r in range(b.shape[0]):
+        square += b[r] * b[r]
+        for j in range(n):
+            total += A[r, j]
+    if not (np.isfinite(square) and np.isfinite(total) and np.isfinite(reg.sum())):
+        return NOT_FINITE, reg, lb, ub
+    if bad >= 0:
+        return CONFLICT, reg, lb, ub
+    return OK, reg, lb, ub
+
+
+@njit(cache=True)
 def fused_step(
     A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
     geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
@@ -193,29 +226,17 @@ def fused_step(
     """
     n = qpos.shape[0]
     L = starts.shape[0] - 1
-    reg = _assemble_rows(
-        A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
-        frame_data, qpos, posture_data,
+    code, reg, lb, ub = fused_rows(
+        A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
+        geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
+        settings,
     )  # fmt: skip
-    for k in range(L):
-        reg[k] = settings[DAMPING] + reg[k]
-    dt = settings[DT]
-    lb, ub, bad = _boxes(
-        qpos, dt, cfg_dof, cfg_data[:, 0], cfg_data[:, 1], cfg_data[:, 2], vel_dof, vel_limit, n
-    )
     info = np.zeros((5, L))
     d = np.zeros(n)
     active = np.zeros((L, n), dtype=np.int8)
-    square = 0.0
-    total = 0.0
-    for r in range(b.shape[0]):
-        square += b[r] * b[r]
-        for j in range(n):
-            total += A[r, j]
-    if not (np.isfinite(square) and np.isfinite(total) and np.isfinite(reg.sum())):
-        return NOT_FINITE, d, d, info, active
-    if bad >= 0:
-        return CONFLICT, d, d, info, active
+    if code != OK:
+        return code, d, d, info, active
+    dt = settings[DT]
     d, status, sigma, lam2, its, active, residuals = solve_cascade(
         A, b, w, starts, reg, lb, ub, np.zeros((0, n)), np.zeros(0), settings[THRESHOLD],
         settings[MAX_DAMPING], settings[ERROR_SCALE], settings[RANK_TOL], max_iter,

@@ -37,7 +37,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ._fused import box_of, fused_step, make_plan
+from ._fused import box_of, fused_rows, fused_step, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
     DampingLaw,
@@ -512,14 +512,49 @@ class IKSolver:
         if (
             self._plan is not None
             and configuration.model is self.model
-            and self._core.solver == "auto"
             and type(dt) is float
             and 0.0 < dt < math.inf
         ):
-            result = self._fused_step(configuration, dt, start)
+            if self._core.solver == "auto":
+                result = self._fused_step(configuration, dt, start)
+            else:
+                result = self._fused_rows_step(configuration, dt, start)
             if result is not None:
                 return result
         return self._general_step(configuration, dt, start)
+
+    def _settings(self, dt: float) -> np.ndarray:
+        """The one-call plan's ``settings`` array for a step of ``dt`` [s]."""
+        plan, core = self._plan, self._core
+        settings = plan.arrays["settings"]
+        settings[0] = dt
+        settings[1] = self.damping
+        law = core.damping_law
+        if law is not plan.law:  # the law is settable: refresh its entries
+            settings[2:5] = core._law()
+            plan.law = law
+        return settings
+
+    def _fused_rows_step(self, configuration: Configuration, dt: float, start: float):
+        """:meth:`step` for a forced backend: the rows and limits in one compiled call
+        (:func:`qpik._fused.fused_rows`), then the core's level-by-level solve. None where
+        the general path must answer."""
+        plan = self._plan
+        qpos, poses = plan.gather(configuration)
+        a = plan.arrays
+        code, reg, lb, ub = fused_rows(
+            a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], *poses,
+            a["frame_data"], qpos, a["posture_data"], a["cfg_dof"], a["cfg_data"],
+            a["vel_dof"], a["vel_limit"], self._settings(dt),
+        )  # fmt: skip
+        if code:
+            return None
+        q = qpos.copy()
+        G, h = self._no_rows, np.zeros(0)
+        return self._finish(
+            a["A"], a["b"], a["w"], a["starts"], reg, lb, ub, G, h, dt, start,
+            lambda: self._box_contributions(q, dt), [],
+        )  # fmt: skip
 
     def _fused_step(self, configuration: Configuration, dt: float, start: float):
         """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
@@ -528,13 +563,7 @@ class IKSolver:
         qpos, poses = plan.gather(configuration)
         a = plan.arrays
         core = self._core
-        settings = a["settings"]
-        settings[0] = dt
-        settings[1] = self.damping
-        law = core.damping_law
-        if law is not plan.law:  # the law is settable: refresh its entries
-            settings[2:5] = core._law()
-            plan.law = law
+        settings = self._settings(dt)
         n = self._nv
         warm = core._warm if core.warm_start and core._warm is not None else plan.cold
         code, d, v, info, active = fused_step(
@@ -589,6 +618,14 @@ class IKSolver:
         """:meth:`step` for any stack: :meth:`_rows` (tasks' and limits' own methods) and
         the core's solve."""
         A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
+        return self._finish(
+            A, b, w, starts, reg, lb, ub, G, h, dt, start, lambda: contributions, names
+        )
+
+    def _finish(self, A, b, w, starts, reg, lb, ub, G, h, dt, start, contributions, names):
+        """The core's solve of the stacked rows and its :class:`StepResult`;
+        ``contributions()`` gives the limits' box contributions (for naming active
+        limits, on first access)."""
         result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
         if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
@@ -605,7 +642,9 @@ class IKSolver:
             status=result.status,
             iterations=result.iterations,
             solve_time=time.perf_counter() - start,
-            _name_active_limits=lambda: self._active_limits(d, lb, ub, G, h, contributions, names),
+            _name_active_limits=lambda: self._active_limits(
+                d, lb, ub, G, h, contributions(), names
+            ),
         )
 
     def _active_limits(self, d, lb, ub, G, h, contributions, general_names) -> list[str]:
