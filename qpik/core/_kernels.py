@@ -832,6 +832,24 @@ def _widened(lo, hi, scale):
 
 
 @njit(cache=True)
+def active_guess(x, C, lo, hi):
+    """Rows at a bound at an approximate solution ``x`` (a backend's): +1 lower, -1 upper
+    (within ``1e-6 (1 + |C_i x|)``), in the ``warm`` format of :func:`solve_qp`."""
+    m, n = C.shape
+    guess = np.zeros(m, dtype=np.int8)
+    for i in range(m):
+        cx = 0.0
+        for j in range(n):
+            cx += C[i, j] * x[j]
+        scale = 1e-6 * (1.0 + abs(cx))
+        if np.isfinite(lo[i]) and cx <= lo[i] + scale:
+            guess[i] = 1
+        if np.isfinite(hi[i]) and cx >= hi[i] - scale:
+            guess[i] = -1
+    return guess
+
+
+@njit(cache=True)
 def solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower, canonical):
     """:func:`solve_qp` for one level, robust to degenerate vertices: when the exact solve
     fails numerically (or, below the first level, whose QP is feasible by construction

@@ -479,7 +479,7 @@ class HierarchySolver:
         the backend identified when that set is the unique optimal one; the answer is the
         canonical re-solve either way, so it never depends on the backend's warm start.
         Returns ``(z, status code, active)``."""
-        guess = _active_guess(x, C, lo, hi)
+        guess = K.active_guess(x, C, lo, hi)
         z, st, _, act = K.solve_level(H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True)
         if st == K.SOLVED:
             cold = np.zeros(C.shape[0], dtype=np.int8)
@@ -508,16 +508,6 @@ class HierarchySolver:
             return None
         self._workspaces[key] = workspace
         return solution
-
-
-def _active_guess(x: np.ndarray, C: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Rows at a bound at an approximate solution: +1 lower, -1 upper."""
-    Cx = C @ x
-    scale = 1e-6 * (1.0 + np.abs(Cx))
-    guess = np.zeros(C.shape[0], dtype=np.int8)
-    guess[np.isfinite(lo) & (Cx <= lo + scale)] = 1
-    guess[np.isfinite(hi) & (Cx >= hi - scale)] = -1
-    return guess
 
 
 def solve_hierarchy(
