@@ -686,7 +686,7 @@ def _evaluate(chain, q, target_p, target_R, has_rot, work):
     return _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err, M)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _record(path, hist, slot, index, q, ep, eo):
     """Iterate ``index`` of attempt slot ``slot``: ``q`` and its errors."""
     path[slot, index] = q
@@ -694,7 +694,7 @@ def _record(path, hist, slot, index, q, ep, eo):
     hist[slot, index, 1] = eo
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _stall_reason(active, sigma, threshold):
     """Why an attempt stopped progressing: a binding joint limit, else a singularity
     (the level's smallest singular value below the damping threshold), else stalled."""
@@ -703,7 +703,7 @@ def _stall_reason(active, sigma, threshold):
     return SINGULAR if sigma < threshold else STALLED
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _target_level(jac, cols, error, rot_err, has_rot, gain, A, b, Jinv):
     """The target level ``A dx = b`` over the chain's dofs ``cols``: ``A = [J_v; Jl^-1
     J_w]`` (columns ``cols`` of the Jacobian), ``b = -gain e``."""
@@ -723,7 +723,7 @@ def _target_level(jac, cols, error, rot_err, has_rot, gain, A, b, Jinv):
             b[3 + i] = -gain * error[3 + i]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _regularisation(A, b, m, gram, options, rows, L):
     """``(damping + lambda^2, sigma)``: the adaptive damping of the level (the damping law:
     ``lambda^2 = max_damping^2 (1 - (sigma / threshold)^2)`` below the threshold, faded by
@@ -745,7 +745,7 @@ def _regularisation(A, b, m, gram, options, rows, L):
     return reg, sigma
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _box_problem(A, b, m, reg, q, cols, lower, upper, limit_gain, H, g, lb, ub):
     """The damped least-squares QP of the level, ``H = A^T A + reg I``, ``g = -A^T b``,
     under the box ``limit_gain (limits - q)`` of the dofs ``cols`` (it always holds 0)."""
@@ -771,7 +771,7 @@ def _box_problem(A, b, m, reg, q, cols, lower, upper, limit_gain, H, g, lb, ub):
             ub[i] = 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _step_facts(A, b, m, dx, cols, lb, ub, lower, upper):
     """``(|A dx - b|, |dx|, whether a limited joint's bound is active)`` of a step."""
     nc = dx.shape[0]
@@ -834,9 +834,10 @@ def _attempt(chain, target, q, settings, record, work, qp_work, counts):
     max_iters, stall_window, check_time = int_options[0], int_options[2], int_options[3]
     m = 6 if has_rot else 3
     ep, eo = _evaluate(chain, q, target_p, target_R, has_rot, work)
-    _record(path, hist, slot, 0, q, ep, eo)
+    length = np.int64(0)  # not a literal: one compiled _record serves every call
+    _record(path, hist, slot, length, q, ep, eo)
     hist[slot, 0, 2] = 0.0
-    length = 1
+    length += 1
     current = ep / tol_p + eo / tol_o
     window_start = current
     since_progress = 0
@@ -977,7 +978,8 @@ def igm_solve(
     counts = np.zeros(2, dtype=np.int64)
     if _beyond_reach(target_p, reach, options[0]):
         ep, eo = _evaluate(chain, q, target_p, target_R, has_rot, work)
-        _record(path, hist, 0, 0, q, ep, eo)
+        first = np.int64(0)
+        _record(path, hist, first, first, q, ep, eo)
         hist[0, 0, 2] = 0.0
         info[:] = 0
         info[0] = UNREACHABLE
@@ -988,7 +990,7 @@ def igm_solve(
     best_len = 1
     best_reason = MAX_ITERS
     reason = MAX_ITERS
-    slot = 0
+    slot = np.int64(0)
     attempt = 0
     out_of_time = False
     while True:
