@@ -401,7 +401,27 @@ def _row_norms(C):
 
 
 @njit(cache=True)
-def _most_violated(x, C, lo, hi, skip, tol, norms):
+def _unit_columns(C):
+    """Per row, the column of its single entry when the row is +-e_j (a bound on one
+    variable: level 0's box), else -1. Products with such a row skip the zeros (same
+    bits: adding zeros does not change a sum)."""
+    m, n = C.shape
+    unit = np.full(m, -1, dtype=np.int64)
+    for i in range(m):
+        col = -1
+        for j in range(n):
+            if C[i, j] != 0.0:
+                if col >= 0 or abs(C[i, j]) != 1.0:
+                    col = -2
+                    break
+                col = j
+        if col >= 0:
+            unit[i] = col
+    return unit
+
+
+@njit(cache=True)
+def _most_violated(x, C, lo, hi, skip, tol, norms, unit):
     """The most violated constraint (row, side) at x, by violation / |C_row| (``norms``);
     row -1 if every constraint holds within ``tol`` (relative to 1 + |bound|)."""
     m, n = C.shape
@@ -412,9 +432,12 @@ def _most_violated(x, C, lo, hi, skip, tol, norms):
         norm = norms[i]
         if norm == 0.0:
             continue
-        cx = 0.0
-        for j in range(n):
-            cx += C[i, j] * x[j]
+        if unit[i] >= 0:
+            cx = 0.0 + C[i, unit[i]] * x[unit[i]]
+        else:
+            cx = 0.0
+            for j in range(n):
+                cx += C[i, j] * x[j]
         if lo[i] > -_BIG:
             v = (lo[i] - cx) / norm
             if v > tol * (1.0 + abs(lo[i])) and v > best:
@@ -440,7 +463,7 @@ def _kkt_ok(x, u, C, lo, hi, q, tol):
         if u[j] < -floor:
             return False
     skip = np.zeros(C.shape[0], dtype=np.bool_)
-    row, _ = _most_violated(x, C, lo, hi, skip, tol, _row_norms(C))
+    row, _ = _most_violated(x, C, lo, hi, skip, tol, _row_norms(C), _unit_columns(C))
     return row < 0
 
 
@@ -490,14 +513,19 @@ def _inverse_transpose(L):
 # Steps of solve_qp's dual active-set iteration (Goldfarb-Idnani; J, R, u and the working
 # set are updated in place).
 @njit(cache=True)
-def _directions(J, R, normal, q, d, z, r):
-    """``d = J^T n``; ``z = J2 d2`` (primal direction); ``r = R^-1 d1`` (dual direction)."""
+def _directions(J, R, normal, unit, q, d, z, r):
+    """``d = J^T n``; ``z = J2 d2`` (primal direction); ``r = R^-1 d1`` (dual direction).
+    ``unit >= 0``: ``n`` is +-e_unit."""
     n = J.shape[0]
-    for i in range(n):
-        acc = 0.0
-        for k in range(n):
-            acc += J[k, i] * normal[k]
-        d[i] = acc
+    if unit >= 0:
+        for i in range(n):
+            d[i] = 0.0 + J[unit, i] * normal[unit]
+    else:
+        for i in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += J[k, i] * normal[k]
+            d[i] = acc
     for k in range(n):
         acc = 0.0
         for i in range(q, n):
@@ -695,11 +723,12 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     r = np.empty(n + 1)
     in_set = np.zeros(m, dtype=np.bool_)
     norms = _row_norms(C)
+    unit = _unit_columns(C)
     x_old = np.empty(n)
     u_old = np.empty(n + 1)
     iterations = 0
     while True:
-        row, side = _most_violated(x, C, lo, hi, in_set, tol, norms)
+        row, side = _most_violated(x, C, lo, hi, in_set, tol, norms, unit)
         if row < 0:
             if canonical:
                 polished = _polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol)
@@ -714,7 +743,7 @@ def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
             if iterations > max_iter:
                 _mark(active, act_row, act_side, q)
                 return x, MAX_ITER, iterations, active
-            _directions(J, R, normal, q, d, z, r)
+            _directions(J, R, normal, unit[row], q, d, z, r)
             t1, drop = _dual_step(u, r, q)
             slack = dot(normal, x) - rhs
             t2 = _primal_step(d, z, normal, slack, q)
