@@ -28,12 +28,12 @@ from .core import _kernels
 from .core._cache import drop_stale_cache
 from .core._kernels import MAX_ITER, NUMERICAL, merge_boxes, solve_cascade
 from .errors import TargetNotSet
-from .tasks import _lie
-from .tasks.fast import FrameTask, PostureTask
+from .tasks import _lie, fast
+from .tasks.fast import FrameTask, PostureTask, frame_rows_into
 
 # The kernels below call the core's and the Lie routines: numba's cache would not notice
 # an edit there.
-drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__])
+drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__, fast.__file__])
 
 __all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
 
@@ -45,9 +45,9 @@ _FRAME, _POSTURE = 0, 1
 
 @njit(cache=True)
 def _frame_rows(A, b, row, jac, xpos, xmat, target, cost, gain, lm_damping):
-    """Rows ``row:row+6`` of a frame task (see :func:`qpik.tasks.fast._frame_rows`);
-    returns its LM term ``lm_damping |b|^2``."""
-    nv = jac.shape[1]
+    """Rows ``row:row+6`` of a frame task at pose ``(xpos, xmat)`` with target ``target``
+    (``wxyz_xyz``): mink's error and ``jlog`` (:mod:`qpik.tasks._lie`), then
+    :func:`qpik.tasks.fast.frame_rows_into`; returns its LM term."""
     frame = np.empty(7)
     _lie.xmat_xpos_to_wxyz_xyz(frame, xmat, xpos)
     error = np.empty(6)
@@ -56,26 +56,7 @@ def _frame_rows(A, b, row, jac, xpos, xmat, target, cost, gain, lm_damping):
     _lie.se3_inverse_multiply(relative, target, frame)
     jlog = np.empty((6, 6))
     _lie.se3_jlog(jlog, relative)
-    local = np.empty((6, nv))
-    for i in range(3):
-        for j in range(nv):
-            a = 0.0
-            r = 0.0
-            for k in range(3):
-                a += xmat[3 * k + i] * jac[k, j]
-                r += xmat[3 * k + i] * jac[3 + k, j]
-            local[i, j] = a
-            local[3 + i, j] = r
-    mu = 0.0
-    for i in range(6):
-        for j in range(nv):
-            acc = 0.0
-            for k in range(6):
-                acc += jlog[i, k] * local[k, j]
-            A[row + i, j] = -cost[i] * acc
-        b[row + i] = cost[i] * (-gain * error[i])
-        mu += b[row + i] * b[row + i]
-    return lm_damping * mu
+    return frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping)
 
 
 @njit(cache=True)

@@ -36,9 +36,11 @@ def _frame_type_name(frame_type) -> str:
 
 
 @njit(cache=True)
-def _frame_rows(jac, xmat, jlog, error, cost, gain, lm_damping):
-    """Weighted rows of a frame task: ``A = diag(cost) (-jlog) [R^T Jp; R^T Jr]``,
-    ``b = -gain cost e``, ``mu = lm_damping |b|^2`` (mink's ``_weighted_residual``)."""
+def frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping):
+    """Rows ``row:row+6`` of a frame task, written into ``A``/``b``: ``A = diag(cost)
+    (-jlog) [R^T Jp; R^T Jr]``, ``b = -gain cost e`` (mink's ``_weighted_residual``);
+    returns the LM term ``lm_damping |b|^2``. ``jac`` is MuJoCo's world-aligned Jacobian
+    (6, nv), ``xmat`` the frame's rotation (row-major 9)."""
     nv = jac.shape[1]
     local = np.empty((6, nv))
     for i in range(3):
@@ -50,18 +52,16 @@ def _frame_rows(jac, xmat, jlog, error, cost, gain, lm_damping):
                 r += xmat[3 * k + i] * jac[3 + k, j]
             local[i, j] = a
             local[3 + i, j] = r
-    A = np.empty((6, nv))
-    b = np.empty(6)
     mu = 0.0
     for i in range(6):
         for j in range(nv):
             acc = 0.0
             for k in range(6):
                 acc += jlog[i, k] * local[k, j]
-            A[i, j] = -cost[i] * acc
-        b[i] = cost[i] * (-gain * error[i])
-        mu += b[i] * b[i]
-    return A, b, lm_damping * mu
+            A[row + i, j] = -cost[i] * acc
+        b[row + i] = cost[i] * (-gain * error[i])
+        mu += b[row + i] * b[row + i]
+    return lm_damping * mu
 
 
 class FrameTask(mink.FrameTask):
@@ -113,9 +113,12 @@ class FrameTask(mink.FrameTask):
         if terms is None:
             return super().compute_qp_residual(configuration)
         jac, xmat, jlog, error = terms
-        return _frame_rows(
-            jac, xmat, jlog, error, self.cost, float(self.gain), float(self.lm_damping)
+        A = np.empty((6, jac.shape[1]))
+        b = np.empty(6)
+        mu = frame_rows_into(
+            A, b, 0, jac, xmat, jlog, error, self.cost, float(self.gain), float(self.lm_damping)
         )
+        return A, b, mu
 
 
 class PostureTask(mink.PostureTask):
