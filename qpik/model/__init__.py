@@ -1,5 +1,7 @@
 """The model layer: what qpik reads from a MuJoCo model, one module each.
 
+- :mod:`qpik.model.configuration`: :class:`qpik.Configuration`, the state object (model,
+  data, ``q``, limits, frame poses and Jacobians through MuJoCo);
 - :mod:`qpik.model.frames`: frame types, the FrameType → ``mjtObj`` map and the resolver
   of frame keys (``resolve_frame``);
 - :mod:`qpik.model.rotations`: the orientation error and rotation helpers;

@@ -1,0 +1,311 @@
+"""The one state object: a robot model, its data, and the configuration ``q``
+(``qpik.Configuration``; also importable from :mod:`qpik.configuration`).
+
+:class:`Configuration` subclasses :class:`mink.Configuration`, so every mink task and
+limit accepts it. It adds validated updates, world-aligned frame Jacobians in the
+lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and typed errors.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import mink
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InvalidConfiguration, InvalidInput, JointLimitViolation
+from .frames import FrameType, frame_id, frame_names
+
+__all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
+
+
+_JAC = {
+    FrameType.BODY: mujoco.mj_jacBody,
+    FrameType.SITE: mujoco.mj_jacSite,
+    FrameType.GEOM: mujoco.mj_jacGeom,
+}
+_POS = {FrameType.BODY: "xpos", FrameType.SITE: "site_xpos", FrameType.GEOM: "geom_xpos"}
+#: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "geom_xmat"}
+
+
+def joint_names(model: mujoco.MjModel) -> list[str]:
+    """Joint names, with ``joint<i>`` standing in for unnamed joints."""
+    return [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+        for j in range(model.njnt)
+    ]
+
+
+def _qpos_joint_names(model: mujoco.MjModel) -> list[str]:
+    """For every qpos index, the name of the joint it belongs to."""
+    names = [""] * model.nq
+    widths = {
+        mujoco.mjtJoint.mjJNT_FREE: 7,
+        mujoco.mjtJoint.mjJNT_BALL: 4,
+        mujoco.mjtJoint.mjJNT_SLIDE: 1,
+        mujoco.mjtJoint.mjJNT_HINGE: 1,
+    }
+    for j, name in enumerate(joint_names(model)):
+        adr = model.jnt_qposadr[j]
+        for k in range(widths[mujoco.mjtJoint(model.jnt_type[j])]):
+            names[adr + k] = name
+    return names
+
+
+class Configuration(mink.Configuration):
+    """Model, data and configuration ``q`` of a robot, with forward kinematics up to date.
+
+    Args:
+        model: The MuJoCo model (see :func:`qpik.load_robot`), or a
+            :class:`mink.Configuration`: its model is shared and its whole state (``q``,
+            mocap poses, active equalities, ...) copied, so the two are independent
+            afterwards (``qpik.Configuration(mink_configuration)``).
+        q: Initial configuration ``(nq,)``; defaults to the model's ``qpos0`` (or to the
+            mink configuration's ``q``).
+    """
+
+    def __init__(self, model: mujoco.MjModel | mink.Configuration, q: npt.ArrayLike | None = None):
+        source = model if isinstance(model, mink.Configuration) else None
+        if source is not None:
+            model = source.model
+        if not isinstance(model, mujoco.MjModel):
+            raise InvalidInput(
+                "Configuration needs a mujoco.MjModel (see qpik.load_robot) or a "
+                f"mink.Configuration as `model`, got {type(model).__name__}"
+            )
+        lower = np.full(model.nq, -np.inf)
+        upper = np.full(model.nq, np.inf)
+        for j in range(model.njnt):
+            kind = model.jnt_type[j]
+            if model.jnt_limited[j] and kind in _SCALAR_JOINTS:
+                adr = model.jnt_qposadr[j]
+                lower[adr], upper[adr] = model.jnt_range[j]
+        self._lower = lower
+        self._upper = upper
+        self._lower.setflags(write=False)
+        self._upper.setflags(write=False)
+        self._qpos_joint = _qpos_joint_names(model)
+        super().__init__(model, None if source is not None else q)  # mink calls update(q)
+        if source is not None:
+            mujoco.mj_copyData(self.data, model, source.data)
+            self.update(self.data.qpos.copy() if q is None else q)  # validated
+
+    # ------------------------------------------------------------------ state
+    def _validated(self, q: npt.ArrayLike) -> np.ndarray:
+        try:
+            q = np.asarray(q, dtype=float)
+        except (TypeError, ValueError) as exc:  # strings, ragged lists, objects
+            raise InvalidConfiguration(
+                f"configuration is not a vector of {self.model.nq} numbers: {exc}"
+            ) from None
+        if q.ndim != 1 or q.shape[0] != self.model.nq:
+            raise InvalidConfiguration(
+                f"configuration has shape {q.shape}, expected ({self.model.nq},) "
+                f"for this model (joints: {', '.join(joint_names(self.model))})"
+            )
+        bad = np.flatnonzero(~np.isfinite(q))
+        if bad.size:
+            i = int(bad[0])
+            raise InvalidConfiguration(
+                f"configuration entry q[{i}] (joint {self._qpos_joint[i]!r}) is {q[i]}; "
+                "every entry must be finite",
+                index=i,
+            )
+        return q
+
+    def update(self, q: npt.ArrayLike | None = None) -> None:
+        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics."""
+        if q is not None:
+            q = self._validated(q)
+        super().update(q)
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits ``(nq,)`` [rad or m]; ``-inf`` where a joint is unlimited."""
+        return self._lower
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits ``(nq,)`` [rad or m]; ``+inf`` where a joint is unlimited."""
+        return self._upper
+
+    def check_limits(self, tol: float = 1e-6, safety_break: bool = True) -> None:
+        """Raise :class:`JointLimitViolation` if ``q`` is outside the limits by > ``tol``.
+
+        With ``safety_break=False`` nothing is raised (mink's signature, kept for mink's
+        ``solve_ik``).
+        """
+        if not safety_break:
+            return
+        q = self.data.qpos
+        outside = np.flatnonzero((q < self._lower - tol) | (q > self._upper + tol))
+        if outside.size:
+            i = int(outside[0])
+            raise JointLimitViolation(
+                self._qpos_joint[i], i, float(q[i]), float(self._lower[i]), float(self._upper[i])
+            )
+        for j, adr, angle, limit in self._ball_violations(tol):
+            raise JointLimitViolation(joint_names(self.model)[j], adr, angle, 0.0, limit)
+
+    def within_limits(self, tol: float = 1e-6) -> bool:
+        """Whether ``q`` lies within the joint limits (up to ``tol``); a limited ball joint
+        is within when its rotation angle ``2 acos|w|`` [rad] is at most its range."""
+        q = self.data.qpos
+        if not np.all((q >= self._lower - tol) & (q <= self._upper + tol)):
+            return False
+        return not self._ball_violations(tol)
+
+    def ball_angles(self) -> dict[str, float]:
+        """Rotation angle [rad] of every ball joint (``2 atan2(|xyz|, |w|)``, in [0, pi]),
+        by joint name."""
+        names = joint_names(self.model)
+        return {names[j]: _ball_angle(self.data.qpos, adr) for j, adr in _ball_joints(self.model)}
+
+    def _ball_violations(self, tol: float) -> list[tuple[int, int, float, float]]:
+        """``(joint, qpos address, angle, limit)`` of limited ball joints rotated past
+        their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
+        out = []
+        for j, adr in _ball_joints(self.model):
+            if not self.model.jnt_limited[j]:
+                continue
+            limit = float(self.model.jnt_range[j, 1])
+            angle = _ball_angle(self.data.qpos, adr)
+            if angle > limit + tol:
+                out.append((j, int(adr), angle, limit))
+        return out
+
+    # ----------------------------------------------------------------- frames
+    def frame_id(self, name: str | int, frame_type: FrameType | str = FrameType.SITE) -> int:
+        """Id of a frame; raises :class:`UnknownFrame` listing the valid names."""
+        kind = FrameType.parse(frame_type)
+        key = (name, kind.value)
+        cached = self._frame_id_cache.get(key)
+        if cached is not None:
+            return cached
+        fid = frame_id(self.model, name, kind)
+        self._frame_id_cache[key] = fid
+        return fid
+
+    # mink resolves frames through this hook: route it to the typed error above.
+    def _resolve_frame_id(self, frame_name: str | int, frame_type: str) -> int:
+        return self.frame_id(frame_name, frame_type)
+
+    def frame_pose(
+        self, name: str | int, frame_type: FrameType | str = FrameType.SITE
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Pose of a frame in the world frame: position ``(3,)`` [m], rotation ``(3, 3)``."""
+        kind = FrameType.parse(frame_type)
+        fid = self.frame_id(name, kind)
+        position = getattr(self.data, _POS[kind])[fid].copy()
+        rotation = getattr(self.data, _MAT[kind])[fid].reshape(3, 3).copy()
+        return position, rotation
+
+    def frame_jacobian(
+        self, name: str | int, frame_type: FrameType | str = FrameType.SITE
+    ) -> np.ndarray:
+        """Jacobian ``(6, nv)`` of the frame's twist ``[v; omega]``, world-aligned.
+
+        ``v`` [m/s] is the velocity of the frame origin and ``omega`` [rad/s] the angular
+        velocity, both expressed in the world frame: the lecture's ``xi = J(q) qdot``.
+        (mink's ``get_frame_jacobian`` returns the same twist expressed in the local frame.)
+        """
+        kind = FrameType.parse(frame_type)
+        fid = self.frame_id(name, kind)
+        jac = np.empty((6, self.model.nv))
+        _JAC[kind](self.model, self.data, jac[:3], jac[3:], fid)
+        return jac
+
+    def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:
+        """Configuration reached from ``q`` moving at ``velocity`` ``(nv,)`` for ``dt`` [s]."""
+        return super().integrate(self._validated_velocity(velocity), dt)
+
+    def integrate_inplace(self, velocity: npt.ArrayLike, dt: float) -> None:
+        """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics."""
+        super().integrate_inplace(self._validated_velocity(velocity), dt)
+
+    def _validated_velocity(self, velocity: npt.ArrayLike) -> np.ndarray:
+        v = np.asarray(velocity, dtype=float)
+        if v.shape != (self.model.nv,):
+            raise InvalidConfiguration(f"velocity has shape {v.shape}, expected ({self.model.nv},)")
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise InvalidConfiguration(
+                f"velocity entry v[{int(bad[0])}] is {v[bad[0]]}; every entry must be finite",
+                index=int(bad[0]),
+            )
+        return v
+
+    def copy(self) -> Configuration:
+        """An independent configuration on the same model, at the same ``q``."""
+        return Configuration(self.model, self.q)
+
+    def random_q(self, rng: np.random.Generator | None = None) -> np.ndarray:
+        """A configuration drawn uniformly within the limits (unlimited joints: [-pi, pi])."""
+        rng = rng or np.random.default_rng()
+        lo = np.where(np.isfinite(self._lower), self._lower, -np.pi)
+        hi = np.where(np.isfinite(self._upper), self._upper, np.pi)
+        q = self.model.qpos0.copy()
+        scalar = _scalar_qpos_mask(self.model)
+        q[scalar] = rng.uniform(lo[scalar], hi[scalar])
+        return q
+
+    def mid_q(self) -> np.ndarray:
+        """The mid-range configuration (``qpos0`` for unlimited joints)."""
+        q = self.model.qpos0.copy()
+        limited = np.isfinite(self._lower) & np.isfinite(self._upper)
+        q[limited] = 0.5 * (self._lower[limited] + self._upper[limited])
+        return q
+
+    def velocity_limits(self) -> np.ndarray | None:
+        """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric
+        ``velocity_limit`` (``inf`` where it holds 0 or less: no limit, as for a URDF joint
+        without ``<limit velocity>``, or a free joint), or ``None`` when the model has
+        none."""
+        nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
+        if nid < 0:
+            return None
+        adr, size = self.model.numeric_adr[nid], self.model.numeric_size[nid]
+        values = np.array(self.model.numeric_data[adr : adr + size], dtype=float)
+        values[~(values > 0)] = np.inf
+        return values
+
+
+def _ball_joints(model: mujoco.MjModel) -> list[tuple[int, int]]:
+    """``(joint id, qpos address)`` of every ball joint."""
+    ball = int(mujoco.mjtJoint.mjJNT_BALL)
+    return [(j, int(model.jnt_qposadr[j])) for j in range(model.njnt) if model.jnt_type[j] == ball]
+
+
+def _ball_angle(qpos: np.ndarray, adr: int) -> float:
+    """Rotation angle [rad] of the (not necessarily unit) quaternion ``qpos[adr:adr+4]``."""
+    w = abs(float(qpos[adr]))
+    xyz = float(np.linalg.norm(qpos[adr + 1 : adr + 4]))
+    return 2.0 * math.atan2(xyz, w)
+
+
+def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
+    """Mask of qpos entries that belong to hinge or slide joints."""
+    mask = np.zeros(model.nq, dtype=bool)
+    for j in range(model.njnt):
+        if model.jnt_type[j] in _SCALAR_JOINTS:
+            mask[model.jnt_qposadr[j]] = True
+    return mask
+
+
+def as_configuration(
+    robot: Configuration | mujoco.MjModel | str, q: Sequence[float] | None = None
+) -> Configuration:
+    """A :class:`Configuration` from a Configuration, an MjModel or anything
+    :func:`qpik.load_robot` accepts."""
+    from ..robots import load_robot
+
+    if isinstance(robot, Configuration):
+        if q is not None:
+            robot.update(q)
+        return robot
+    return Configuration(load_robot(robot), q)
