@@ -900,6 +900,21 @@ def solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower, canonical):
 
 
 @njit(cache=True)
+def _unit_rows(A, w):
+    """Whether ``diag(1/w) A`` is the identity (square, every weight positive)."""
+    m, n = A.shape
+    if m != n:
+        return False
+    for i in range(m):
+        if not w[i] > 0.0:
+            return False
+        for j in range(n):
+            if A[i, j] != (w[i] if i == j else 0.0):
+                return False
+    return True
+
+
+@njit(cache=True)
 def project_level(A, w, Z, rank_tol):
     """Project a level into the null space ``Z`` of the levels above.
 
@@ -918,6 +933,10 @@ def project_level(A, w, Z, rank_tol):
             keep += 1
     if keep == 0 or r == 0:
         return AZ, np.inf, 0, Z
+    if _unit_rows(A, w):
+        # diag(1/w) A is the identity (a posture-like level over every dof): its rows in
+        # the null space are Z itself, whose singular values are all 1; nothing remains.
+        return AZ, 1.0, r, np.zeros((Z.shape[0], 0))
     Mt = np.empty((r, keep))  # (diag(1/w) A Z)^T
     k = 0
     for i in range(m):
