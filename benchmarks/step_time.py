@@ -15,9 +15,10 @@ identical, and methods alternate in blocks so that machine noise hits all alike)
 Methods: ``qpik auto`` (the exact compiled active set, default), ``qpik osqp`` (OSQP forced
 on every level where a limit binds, polished), ``mink + daqp`` and ``mink + osqp`` (the same
 tasks as one weighted level: mink has no priorities). Exactness: the largest difference, in
-dq, between the core's answer to each level's reduced QP and daqp's answer to the same
-reduced QP (the core's null-space basis, damping and level-above answer), on a sample of
-states; also the per-level statuses over every state.
+dq, between the core's answer to each level's reduced QP and the answers of daqp and
+quadprog (two independent exact QP solvers) to the same reduced QP (the core's null-space
+basis, damping and level-above answer), on a sample of states; also the per-level
+statuses over every state.
 
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
 """
@@ -39,17 +40,22 @@ from qpik.tasks import FrameTask, PostureTask
 DT = 0.01
 
 
-def exact_reference(solver: qpik.IKSolver, configuration, result) -> float:
+REFERENCES = ("daqp", "quadprog")  # independent exact QP solvers (qpsolvers backends)
+
+
+def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
     """Largest difference, in dq, between the core's answer to each level's reduced QP and
-    daqp's answer to the same reduced QP (built along the core's own cascade: the same
-    null-space basis, the same damping, the level above's answer). NaN if daqp fails."""
+    each reference solver's answer to the same reduced QP (built along the core's own
+    cascade: the same null-space basis, the same damping, the level above's answer), per
+    reference; NaN where a reference fails."""
     problem = solver.build(configuration, DT)
     n = problem.n
     A, b, w, starts, reg = problem.stacked()
     lb, ub, G, h = problem.lb, problem.ub, problem.G, problem.h
     d = np.clip(np.zeros(n), lb, ub)
     Z = np.eye(n)
-    worst = 0.0
+    worst = dict.fromkeys(REFERENCES, 0.0)
+    available = [name for name in REFERENCES if name in qpsolvers.available_solvers]
     for k in range(len(problem.levels)):
         s0, s1 = starts[k], starts[k + 1]
         if s1 == s0 or Z.shape[1] == 0:
@@ -63,13 +69,15 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> float:
         upper, lower = np.isfinite(hi), np.isfinite(lo)
         Gq = np.vstack([C[upper], -C[lower]])
         hq = np.concatenate([hi[upper], -lo[lower]])
-        y = qpsolvers.solve_qp(H, c, Gq, hq, solver="daqp")
-        if y is None or status != K.SOLVED:
-            return float("nan")
-        worst = max(worst, float(np.abs(Z @ (z - y)).max()))
+        for name in available:
+            y = qpsolvers.solve_qp(H, c, Gq, hq, solver=name)
+            if y is None or status != K.SOLVED:
+                worst[name] = float("nan")
+            elif not np.isnan(worst[name]):
+                worst[name] = max(worst[name], float(np.abs(Z @ (z - y)).max()))
         d = np.clip(d + Z @ z, lb, ub)
         Z = Zn
-    return worst
+    return {name: worst[name] for name in available}
 
 
 CPU_TIMES: dict = {}  # method -> CPU times [us] of the last time_methods call
@@ -123,7 +131,7 @@ def compare(title, states, set_state, methods, solvers, reference="mink + daqp, 
     stride = max(1, len(states) // 100)
     binding = None
     for name, solver in solvers.items():
-        worst, bad, failed, statuses = 0.0, 0, 0, set()
+        worst, bad, failed, statuses = {}, 0, 0, set()
         counts = np.zeros(len(solver.levels), dtype=int)
         for i, state in enumerate(states):
             c = set_state(state)
@@ -134,14 +142,15 @@ def compare(title, states, set_state, methods, solvers, reference="mink + daqp, 
             if active is not None:
                 counts += active.any(axis=1)
             if i % stride == 0:
-                difference = exact_reference(solver, c, result)
-                if np.isnan(difference):
-                    failed += 1
-                else:
-                    worst = max(worst, difference)
+                for ref, difference in exact_reference(solver, c, result).items():
+                    if np.isnan(difference):
+                        failed += 1
+                    else:
+                        worst[ref] = max(worst.get(ref, 0.0), difference)
         binding = counts if binding is None else binding
         extra[name] = (
-            f"max |dq - daqp| per level = {worst:.1e}"
+            "max |dq - ref| per level: "
+            + ", ".join(f"{ref} {value:.1e}" for ref, value in worst.items())
             + (f" ({failed} references failed)" if failed else "")
             + f", kept_previous/max_iter steps {bad}, "
             f"statuses {sorted(statuses)}"
