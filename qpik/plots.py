@@ -187,40 +187,29 @@ _STYLE = {"m": "-", "rad": "--", "": "-."}
 
 
 def plot_task_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
-    """Each task's error along the path, coloured by priority level (see
+    """Each task's error along the path, one colour per task, level in the label (see
     :meth:`qpik.problem.ProblemResult.task_errors`), with the tolerances."""
-    x, xlabel = _path_axis(result)
-    ax = plot_error_curves(
-        result.task_errors(),
-        ax,
-        x,
-        result.goal_index,
-        _tolerances(result),
-        "task error per priority level",
-    )
-    ax.set_xlabel(xlabel)
-    return ax
+    return _plot_path_errors(result, result.task_errors(), ax, "task error per priority level")
 
 
 def plot_frame_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
     """Each goal frame's position [m] and rotation [rad] error along the path (blank
     while the goal being reached does not name the frame), with the tolerances."""
+    return _plot_path_errors(result, result.frame_errors(), ax, "error per goal frame")
+
+
+def _plot_path_errors(
+    result: ProblemResult, curves: Sequence[ErrorCurve], ax: Axes | None, title: str
+) -> Axes:
     x, xlabel = _path_axis(result)
-    ax = plot_error_curves(
-        result.frame_errors(),
-        ax,
-        x,
-        result.goal_index,
-        _tolerances(result),
-        "error per goal frame",
-    )
+    ax = plot_error_curves(curves, ax, x, result.goal_index, _tolerances(result), title)
     ax.set_xlabel(xlabel)
     return ax
 
 
 def _tolerances(result: ProblemResult) -> dict[str, float]:
-    o = result.problem.options
-    return {"m": o.get("tol_position", 1e-4), "rad": o.get("tol_orientation", 1e-3)}
+    options = result.problem.solve_options
+    return {"m": options.tol_position, "rad": options.tol_orientation}
 
 
 def _path_axis(result: ProblemResult) -> tuple[np.ndarray, str]:

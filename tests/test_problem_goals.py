@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_problem import _has_erd
 
 import qpik
 from qpik.problem import TASK_KINDS, TaskKind, problem_files
@@ -139,7 +140,11 @@ SUPPORT_ERRORS = [
     ("frames = []", "limits.support.frames", "frame names"),
     ("frames = ['nope']\nframe_type = 'body'", "limits.support.frames[0].frame", "nope"),
     ("frames = ['link7']\nframe_type = 'body'\nmargin = -1", "limits.support.margin", "[0, 1]"),
-    ("frames = ['link7']\nframe_type = 'body'\nfootprint = [[0.1]]", "limits.support.footprint[0]", "[x, y]"),
+    (
+        "frames = ['link7']\nframe_type = 'body'\nfootprint = [[0.1]]",
+        "limits.support.footprint[0]",
+        "[x, y]",
+    ),
     ("frames = ['link7']\nframe_type = 'body'\nfeet = 2", "limits.support.feet", "unknown field"),
     ("margin = 0.1", "limits.support.frames", "missing"),
 ]
@@ -177,7 +182,9 @@ def test_a_new_task_type_is_one_registry_entry(tmp_path, monkeypatch):
 
     kind = TaskKind(PostureTask, build, costs=(("cost", "nv", 0.5),), target=("q",))
     monkeypatch.setitem(TASK_KINDS, "hold_posture", kind)
-    text = TWO_FRAMES.format(mode="solve", extra="").replace('type = "posture"', 'type = "hold_posture"')
+    text = TWO_FRAMES.format(mode="solve", extra="").replace(
+        'type = "posture"', 'type = "hold_posture"'
+    )
     problem = qpik.load_problem(write(tmp_path, text))
     spec = problem.levels[1][0]
     assert spec.type == "hold_posture" and spec.kind is kind
@@ -201,7 +208,9 @@ def test_registry_fields_match_the_task_constructors():
 
 
 # ------------------------------------------------------------------ errors along the path
-@pytest.mark.parametrize("mode, extra", [("solve", ""), ("track", "[track]\ndt = 0.05\nsteps = 40\n")])
+@pytest.mark.parametrize(
+    "mode, extra", [("solve", ""), ("track", "[track]\ndt = 0.05\nsteps = 40\n")]
+)
 def test_task_and_frame_errors_follow_the_path(tmp_path, mode, extra):
     result = qpik.load_problem(write(tmp_path, TWO_FRAMES.format(mode=mode, extra=extra))).solve()
     path = result.path
@@ -225,14 +234,6 @@ def test_task_and_frame_errors_follow_the_path(tmp_path, mode, extra):
 
 
 # ------------------------------------------------------------------ the humanoid file
-def _has_erd() -> bool:
-    try:
-        qpik.robots.erd_robots_folder()
-    except qpik.QpikError:
-        return False
-    return True
-
-
 @pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots] (example-robot-data)")
 def test_humanoid_file_reaches_with_both_hands_and_keeps_its_feet():
     path = next(p for p in problem_files() if p.stem == "talos_both_hands")
