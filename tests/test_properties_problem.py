@@ -104,11 +104,11 @@ def test_mutated_problem_files_load_or_name_the_field(tmp_path_factory, name, pi
         return
     assert_finite(problem.q0, "problem.q0")
     assert_within_limits(problem.model, problem.q0, "problem.q0", tol=0.0)
-    o = problem.options
+    options = problem.solve_options
     work = (
         problem.steps * len(problem.goals)
         if problem.mode == "track"
-        else (o.get("restarts", 20) + 1) * o.get("max_iters", 100) * len(problem.goals)
+        else (options.effective_restarts + 1) * options.max_iters * len(problem.goals)
     )
     if work > 3000:
         return
@@ -120,18 +120,18 @@ def test_mutated_problem_files_load_or_name_the_field(tmp_path_factory, name, pi
         for i, q in enumerate(result.path):
             assert_within_limits(problem.model, q, f"path[{i}]")
     if result.converged:
-        tol_p = o.get("tol_position", 1e-4)
-        tol_o = o.get("tol_orientation", 1e-3)
+        tol_p, tol_o = options.tol_position, options.tol_orientation
         pairs = (
             [(problem.goals[-1], result.q)]
             if result.trace is not None
             else list(zip(problem.goals, [r.q for r in result.results]))
         )
         for goal, q in pairs:
-            position, rotation = fk(problem.model, q, goal.frame, goal.frame_type.value)
-            assert np.linalg.norm(position - goal.target.position) <= tol_p * (1 + 1e-9)
-            if goal.target.rotation is not None:
-                assert angle_between(rotation, goal.target.rotation) <= tol_o * (1 + 1e-6)
+            for frame in goal.frames:
+                position, rotation = fk(problem.model, q, frame.frame, frame.frame_type.value)
+                assert np.linalg.norm(position - frame.target.position) <= tol_p * (1 + 1e-9)
+                if frame.target.rotation is not None:
+                    assert angle_between(rotation, frame.target.rotation) <= tol_o * (1 + 1e-6)
 
 
 @props(25)
