@@ -71,6 +71,8 @@ def test_two_frames_in_one_goal_are_reached_together(tmp_path, mode, extra):
     tol = 1e-4 if mode == "solve" else 1e-4 * (1 + 1e-9)
     for position_error, _ in goal.errors(configuration):
         assert position_error <= tol
+    if mode == "solve":  # each frame's errors in the summary
+        assert "    ee: " in result.summary() and "    link4: " in result.summary()
     data = json.loads(problem.to_json())
     assert [f["frame"] for f in data["goals"][0]["frames"]] == ["ee", "link4"]
     assert data["goals"][0]["frame"] == "ee"

@@ -362,6 +362,11 @@ class ProblemResult:
                 f"position error {r.position_error:.3g} m, orientation error "
                 f"{r.orientation_error:.3g} rad"
             )
+            if len(r.frame_errors) > 1:  # a goal of several frames: each one's errors
+                lines += [
+                    f"    {frame}: {p:.3g} m, {o:.3g} rad"
+                    for frame, (p, o) in r.frame_errors.items()
+                ]
         lines.append(f"  q = {np.array2string(self.q, precision=4)}")
         if self.statics is not None:
             lines += self.statics.summary_lines()
