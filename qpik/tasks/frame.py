@@ -14,6 +14,7 @@ import numpy.typing as npt
 
 from ..configuration import Configuration, FrameType
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
+from ..model.rotations import left_jacobian_inverse, rotation_vector
 
 
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
@@ -89,20 +90,9 @@ class PositionTask(_FrameRowsTask):
         return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
 
 
-def so3_log(rotation: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis * angle, [rad]) of a rotation matrix."""
-    return mink.SO3.from_matrix(rotation).log()
-
-
-def so3_left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
-    """Inverse left Jacobian of SO(3) at rotation vector ``phi``: ``d log(R) = Jl^-1 omega``
-    for a world (left) perturbation ``dR = [omega] R``."""
-    theta = float(np.linalg.norm(phi))
-    skew = np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])
-    if theta < 1e-6:
-        return np.eye(3) - 0.5 * skew + skew @ skew / 12.0
-    coefficient = 1.0 / theta**2 - (1.0 + np.cos(theta)) / (2.0 * theta * np.sin(theta))
-    return np.eye(3) - 0.5 * skew + coefficient * skew @ skew
+#: The SO(3) helpers of :mod:`qpik.model.rotations` (one implementation in the package).
+so3_log = rotation_vector
+so3_left_jacobian_inverse = left_jacobian_inverse
 
 
 class OrientationTask(_FrameRowsTask):
