@@ -1,0 +1,412 @@
+"""Robot files into ``mujoco.MjSpec``: MJCF as MuJoCo reads it, and URDF with the
+workarounds real files need; a floating base, SRDF keyframes, and a check that every
+number of the model is finite (:func:`robot_spec`, behind :func:`qpik.load_robot`).
+
+URDF import keeps what inverse kinematics needs and works around what real files contain:
+
+* links attached by fixed joints (tool frames such as ``panda_hand`` or ``tool0``) are kept
+  as bodies, not fused into their parent, so they can be used as frames;
+* ``continuous`` joints become hinge joints *without* limits (``lower``/``upper`` = -/+inf);
+* ``<limit velocity=...>`` [rad/s or m/s] becomes the model's custom numeric
+  ``velocity_limit`` (one value per dof, 0 where a dof has none), which
+  :func:`qpik.limits.joint_limits` turns into a velocity limit; ``<limit effort=...>``
+  [N m or N] is MuJoCo's joint ``actuatorfrcrange``, which :mod:`qpik.statics` reads where
+  no actuator drives the joint;
+* visual geometry is discarded, and collision meshes that MuJoCo cannot read (``.dae``)
+  or cannot find are dropped, with one warning naming them; the kinematics is unchanged.
+
+Floating base. URDF files (and most MJCF files) attach the root link to the world rigidly.
+``floating_base=True`` adds a free joint named ``root_joint`` (Pinocchio's name for it) to
+the root body: ``q = [x, y, z, qw, qx, qy, qz, joints...]`` (MuJoCo's quaternion order,
+world frame), ``v = [linear velocity (world), angular velocity (local), joints...]``.
+
+Named configurations. An SRDF beside the URDF (same stem, or the longest SRDF stem that
+prefixes the URDF's, in the URDF's folder or a sibling ``srdf/`` folder; or the file given
+as ``srdf=``) has its ``<group_state>`` entries loaded as MuJoCo keyframes
+(``model.key("half_sitting")``), usable as ``q0 = "half_sitting"`` in problem files. Joints
+a state does not name keep ``qpos0``; ``root_joint`` values (Pinocchio's ``x y z qx qy qz
+qw``) set the free joint's pose when the base floats.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from .errors import RobotFileError
+
+__all__ = ["ROOT_JOINT", "find_srdf", "robot_spec"]
+
+#: Mesh formats MuJoCo reads.
+_READABLE_MESHES = {".stl", ".obj", ".msh"}
+
+#: Name of the free joint ``floating_base=True`` adds (Pinocchio's and the SRDFs' name).
+ROOT_JOINT = "root_joint"
+
+
+def robot_spec(
+    path: str | os.PathLike,
+    *,
+    floating_base: bool = False,
+    srdf: str | os.PathLike | bool | None = None,
+) -> mujoco.MjSpec:
+    """The ``mujoco.MjSpec`` :func:`qpik.load_robot` compiles for a file (same arguments):
+    edit it (add bodies, geoms, sites) and ``compile()`` it for a model of your own.
+    Raises :class:`qpik.RobotFileError` naming the file and what is wrong with it."""
+    path = Path(os.fspath(path))
+    root = _read_xml(path)
+    velocities = _urdf_velocities(root) if root.tag == "robot" else {}
+    try:
+        spec = _parse(root, path)
+        if floating_base:
+            _add_free_joint(spec, path)
+        model = spec.compile()
+    except ValueError as exc:  # MuJoCo's parse and compile errors
+        raise RobotFileError(str(path), str(exc).strip()) from exc
+    _check_finite(model, path)
+    if velocities:
+        _add_velocity_numeric(spec, model, velocities)
+    srdf_path = _srdf_path(srdf, root, path)
+    if srdf_path is not None:
+        _add_srdf_keyframes(spec, model, srdf_path)
+    return spec
+
+
+def _read_xml(path: Path) -> ET.Element:
+    """The root element of an XML file (UTF-8, a BOM allowed)."""
+    try:
+        is_file = path.is_file()
+    except (OSError, ValueError) as exc:
+        raise RobotFileError(str(path)[:200], f"not a usable file name ({exc})") from None
+    if not is_file:
+        raise RobotFileError(str(path), "no such file")
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise RobotFileError(str(path), f"not UTF-8 text ({exc})") from None
+    except OSError as exc:
+        raise RobotFileError(str(path), str(exc)) from exc
+    try:
+        return ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise RobotFileError(str(path), f"not well-formed XML ({exc})") from exc
+
+
+def _parse(root: ET.Element, path: Path) -> mujoco.MjSpec:
+    """The spec of a URDF (prepared, unreadable meshes dropped) or MJCF file."""
+    if root.tag == "robot":
+        spec = mujoco.MjSpec.from_string(_prepare_urdf(root, path))
+        _drop_bad_meshes(spec, path)
+        return spec
+    if root.tag == "mujoco":
+        return mujoco.MjSpec.from_file(str(path))
+    raise RobotFileError(str(path), f"root element is <{root.tag}>, expected <mujoco> or <robot>")
+
+
+def _srdf_path(srdf: str | os.PathLike | bool | None, root: ET.Element, path: Path) -> Path | None:
+    """The SRDF to read: the one given, or for a URDF with ``srdf`` None/True the one found
+    beside it (:func:`find_srdf`)."""
+    if srdf in (None, True):
+        return find_srdf(path) if root.tag == "robot" else None
+    if srdf is False:
+        return None
+    srdf_path = Path(os.fspath(srdf))
+    if not srdf_path.is_file():
+        raise RobotFileError(str(srdf_path), "no such SRDF file")
+    return srdf_path
+
+
+#: Model arrays that must be finite (MuJoCo compiles NaN / inf numbers in a file as is).
+_FINITE_FIELDS = (
+    "body_pos",
+    "body_quat",
+    "body_ipos",
+    "body_iquat",
+    "body_mass",
+    "body_inertia",
+    "jnt_pos",
+    "jnt_axis",
+    "jnt_range",
+    "dof_damping",
+    "dof_armature",
+    "dof_frictionloss",
+    "geom_pos",
+    "geom_quat",
+    "geom_size",
+    "site_pos",
+    "site_quat",
+    "actuator_gear",
+    "actuator_ctrlrange",
+    "actuator_forcerange",
+    "qpos0",
+)
+
+
+def _check_finite(model: mujoco.MjModel, path: Path) -> None:
+    """Raise :class:`RobotFileError` naming the first non-finite number of the model."""
+    if not np.all(np.isfinite(model.opt.gravity)):
+        raise RobotFileError(str(path), f"gravity is not finite: {model.opt.gravity}")
+    for name in _FINITE_FIELDS:
+        values = np.asarray(getattr(model, name))
+        bad = np.argwhere(~np.isfinite(values))
+        if bad.size:
+            row = int(bad[0][0])
+            what = name.split("_", 1)[0]
+            obj = {
+                "body": mujoco.mjtObj.mjOBJ_BODY,
+                "jnt": mujoco.mjtObj.mjOBJ_JOINT,
+                "dof": mujoco.mjtObj.mjOBJ_DOF,
+                "geom": mujoco.mjtObj.mjOBJ_GEOM,
+                "site": mujoco.mjtObj.mjOBJ_SITE,
+                "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+            }.get(what)
+            label = (mujoco.mj_id2name(model, obj, row) if obj is not None else None) or row
+            raise RobotFileError(
+                str(path), f"{name} of {what} {label!r} is not finite: {values[row]}"
+            )
+
+
+def _resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
+    """Resolve a URDF mesh reference (relative, absolute, ``package://`` or ``file://``)."""
+    if filename.startswith("file://"):
+        candidate = Path(filename[7:])
+        return candidate if candidate.is_file() else None
+    if filename.startswith("package://"):
+        package, _, rest = filename[len("package://") :].partition("/")
+        # Look for a folder named like the package above the URDF file.
+        for parent in urdf_path.resolve().parents:
+            for base in (parent / package, parent / "robots" / package):
+                if (base / rest).is_file():
+                    return base / rest
+            if parent.name == package and (parent / rest).is_file():
+                return parent / rest
+        return None
+    candidate = Path(filename)
+    if not candidate.is_absolute():
+        candidate = urdf_path.resolve().parent / candidate
+    return candidate if candidate.is_file() else None
+
+
+def _prepare_urdf(root: ET.Element, path: Path) -> str:
+    """Rewrite a URDF so that MuJoCo keeps fixed links and drops unusable meshes."""
+    dropped: list[str] = []
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+        for collision in link.findall("collision"):
+            mesh = collision.find("geometry/mesh")
+            if mesh is None:
+                continue
+            filename = mesh.get("filename", "")
+            resolved = _resolve_mesh(filename, path)
+            if resolved is None or resolved.suffix.lower() not in _READABLE_MESHES:
+                dropped.append(filename)
+                link.remove(collision)
+            else:
+                mesh.set("filename", str(resolved))
+    if dropped:
+        warnings.warn(
+            f"{path}: dropped {len(dropped)} collision mesh(es) MuJoCo cannot read or find "
+            f"(kinematics kept): {', '.join(sorted(set(dropped))[:5])}"
+            + (" ..." if len(set(dropped)) > 5 else ""),
+            stacklevel=5,
+        )
+    _positive_inertias(root, path)
+    for old in root.findall("mujoco"):
+        root.remove(old)
+    extension = ET.SubElement(root, "mujoco")
+    ET.SubElement(
+        extension,
+        "compiler",
+        fusestatic="false",
+        discardvisual="true",
+        strippath="false",
+        balanceinertia="true",
+        boundmass="1e-6",
+        boundinertia="1e-9",
+        angle="radian",
+    )
+    return ET.tostring(root, encoding="unicode")
+
+
+def _drop_bad_meshes(spec: mujoco.MjSpec, path: Path) -> None:
+    """Compile, and drop each collision mesh MuJoCo rejects (an ASCII STL, a mesh of no
+    volume) with the geoms that use it, until the model compiles; one warning names them."""
+    dropped = []
+    for _ in range(len(spec.meshes) + 1):
+        try:
+            spec.compile()
+            break
+        except ValueError as exc:
+            message = str(exc)
+            match = re.search(r"Element name '([^']*)'", message)
+            mesh = None
+            if match and ("mesh" in message.lower() or "stl" in message.lower()):
+                mesh = next((m for m in spec.meshes if m.name == match.group(1)), None)
+            if mesh is None:
+                break  # not a mesh error: the caller compiles again and reports it
+            for geom in list(spec.geoms):
+                if geom.meshname == mesh.name:
+                    spec.delete(geom)
+            dropped.append(Path(mesh.file).name)
+            spec.delete(mesh)
+    if dropped:
+        warnings.warn(
+            f"{path}: dropped {len(dropped)} collision mesh(es) MuJoCo rejects "
+            f"(kinematics kept): {', '.join(sorted(set(dropped))[:5])}",
+            stacklevel=5,
+        )
+
+
+def _positive_inertias(root: ET.Element, path: Path) -> None:
+    """Replace inertia matrices MuJoCo rejects (a full inertia that is not positive
+    definite: rounded CAD exports) by the nearest one with eigenvalues >= 1e-9 [kg m^2];
+    the kinematics is unchanged."""
+    fixed = []
+    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    for link in root.iter("link"):
+        inertia = link.find("inertial/inertia")
+        if inertia is None:
+            continue
+        try:
+            xx, xy, xz, yy, yz, zz = (float(inertia.get(k, "0")) for k in keys)
+        except ValueError:
+            continue
+        matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        if not np.all(np.isfinite(matrix)):
+            continue
+        values, vectors = np.linalg.eigh(matrix)
+        coupled = bool(xy or xz or yz)  # MuJoCo checks a full inertia's eigenvalues
+        if values.min() >= 0 and not (coupled and values.min() <= 1e-12 * abs(values).max()):
+            continue  # diagonal zeros are MuJoCo's boundinertia's to fix
+        matrix = vectors @ np.diag(np.maximum(values, 1e-9)) @ vectors.T
+        for key, value in zip(keys, matrix[np.triu_indices(3)]):
+            inertia.set(key, repr(float(value)))
+        fixed.append(link.get("name", "?"))
+    if fixed:
+        warnings.warn(
+            f"{path}: {len(fixed)} link inertia(s) not positive definite, made positive "
+            f"(kinematics kept): {', '.join(fixed[:5])}" + (" ..." if len(fixed) > 5 else ""),
+            stacklevel=6,
+        )
+
+
+def _urdf_velocities(root: ET.Element) -> dict[str, float]:
+    """Joint name -> ``<limit velocity>`` [rad/s or m/s] for joints that declare one > 0."""
+    velocities = {}
+    for joint in root.iter("joint"):
+        if joint.get("type") in ("fixed", "floating", "planar"):
+            continue
+        limit = joint.find("limit")
+        if limit is None or limit.get("velocity") is None:
+            continue
+        try:
+            value = float(limit.get("velocity"))
+        except ValueError:
+            continue
+        if value > 0 and np.isfinite(value):
+            velocities[joint.get("name", "")] = value
+    return velocities
+
+
+def _add_velocity_numeric(
+    spec: mujoco.MjSpec, model: mujoco.MjModel, velocities: dict[str, float]
+) -> None:
+    """The custom numeric ``velocity_limit`` ``(nv,)``: the URDF's values, 0 = none."""
+    data = np.zeros(model.nv)
+    for name, value in velocities.items():
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j >= 0 and int(model.jnt_type[j]) in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
+            data[model.jnt_dofadr[j]] = value
+    for numeric in spec.numerics:
+        if numeric.name == "velocity_limit":
+            spec.delete(numeric)
+    spec.add_numeric(name="velocity_limit", data=data.tolist())
+
+
+def _add_free_joint(spec: mujoco.MjSpec, path: Path) -> None:
+    roots = []
+    body = spec.worldbody.first_body()
+    while body is not None:
+        roots.append(body)
+        body = spec.worldbody.next_body(body)
+    if len(roots) != 1:
+        raise RobotFileError(
+            str(path),
+            f"floating_base needs one root body under the world, found {len(roots)}: "
+            f"{', '.join(b.name for b in roots) or '(none)'}",
+        )
+    root = roots[0]
+    if root.first_joint() is not None:
+        raise RobotFileError(
+            str(path),
+            f"floating_base: the root body {root.name!r} already has a joint "
+            f"({root.first_joint().name!r})",
+        )
+    joint = root.add_freejoint()
+    joint.name = ROOT_JOINT
+
+
+def find_srdf(urdf: str | os.PathLike) -> Path | None:
+    """The SRDF that goes with a URDF, or ``None`` (rule in the module docstring)."""
+    urdf = Path(urdf)
+    folders = [urdf.parent, urdf.parent.parent / "srdf"]
+    candidates = [p for folder in folders if folder.is_dir() for p in folder.glob("*.srdf")]
+    exact = [p for p in candidates if p.stem == urdf.stem]
+    if exact:
+        return exact[0]
+    prefixes = [p for p in candidates if urdf.stem.startswith(p.stem)]
+    if prefixes:
+        return max(prefixes, key=lambda p: (len(p.stem), str(p)))
+    return None
+
+
+def _add_srdf_keyframes(spec: mujoco.MjSpec, model: mujoco.MjModel, path: Path) -> bool:
+    """The SRDF's ``<group_state>`` entries as keyframes; True if any was added."""
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise RobotFileError(str(path), f"cannot read SRDF ({exc})") from exc
+    existing = {key.name for key in spec.keys}
+    added = False
+    for state in root.iter("group_state"):
+        name = state.get("name")
+        if not name or name in existing:
+            continue
+        qpos = model.qpos0.copy()
+        for joint in state.iter("joint"):
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.get("name", ""))
+            if j < 0:
+                continue
+            try:
+                values = [float(x) for x in joint.get("value", "").split()]
+            except ValueError as exc:
+                raise RobotFileError(
+                    str(path), f"group_state {name!r}: joint {joint.get('name')!r}: {exc}"
+                ) from exc
+            adr = model.jnt_qposadr[j]
+            kind = int(model.jnt_type[j])
+            if kind == int(mujoco.mjtJoint.mjJNT_FREE) and len(values) == 7:
+                x, y, z, qx, qy, qz, qw = values
+                qpos[adr : adr + 7] = [x, y, z, qw, qx, qy, qz]
+            elif kind == int(mujoco.mjtJoint.mjJNT_BALL) and len(values) == 4:
+                qx, qy, qz, qw = values
+                qpos[adr : adr + 4] = [qw, qx, qy, qz]
+            elif len(values) == 1 and kind in (
+                int(mujoco.mjtJoint.mjJNT_HINGE),
+                int(mujoco.mjtJoint.mjJNT_SLIDE),
+            ):
+                qpos[adr] = values[0]
+        spec.add_key(name=name, qpos=qpos.tolist())
+        existing.add(name)
+        added = True
+    return added
