@@ -35,7 +35,8 @@ import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
 from ..configuration import Configuration, FrameType
-from ..errors import InvalidInput, LimitDefinitionError, UnknownFrame
+from ..errors import InvalidInput, LimitDefinitionError
+from ..model.frames import resolve_frame
 
 __all__ = ["SupportPolygonLimit"]
 
@@ -75,7 +76,10 @@ class SupportPolygonLimit(mink.Limit):
         self.model = model
         self.margin = float(margin)
         self.gain = float(gain)
-        self.frames = [self._resolve(model, frame) for frame in contact_frames]
+        self.frames = [
+            tuple(resolve_frame(model, frame, argument="contact_frames"))
+            for frame in contact_frames
+        ]
         points = np.zeros((1, 2)) if footprint is None else np.asarray(footprint, dtype=float)
         if points.ndim != 2 or points.shape[1] != 2 or not np.all(np.isfinite(points)):
             raise LimitDefinitionError(
@@ -83,33 +87,10 @@ class SupportPolygonLimit(mink.Limit):
             )
         self.footprint = np.column_stack([points, np.zeros(len(points))])  # z = 0 in the frame
         if isinstance(body, str):
-            self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
-            if self.body < 0:
-                raise UnknownFrame(body, "body", [model.body(i).name for i in range(model.nbody)])
+            self.body = resolve_frame(model, body, FrameType.BODY, argument="body").id
         else:
             self.body = int(body)
         self._jac = np.empty((3, model.nv))
-
-    @staticmethod
-    def _resolve(model: mujoco.MjModel, frame) -> tuple[str, FrameType, int]:
-        if isinstance(frame, tuple):
-            name, kind = frame
-            kinds = [FrameType.parse(kind)]
-        else:
-            name, kinds = frame, [FrameType.SITE, FrameType.BODY, FrameType.GEOM]
-        objects = {
-            FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
-            FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
-            FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
-        }
-        for kind in kinds:
-            fid = mujoco.mj_name2id(model, objects[kind], name)
-            if fid >= 0:
-                return name, kind, fid
-        from ..configuration import frame_names
-
-        available = frame_names(model, FrameType.SITE) + frame_names(model, FrameType.BODY)
-        raise UnknownFrame(name, "/".join(k.value for k in kinds), available)
 
     def support_points(self, configuration: Configuration) -> np.ndarray:
         """The footprints' points on the ground ``(n, 2)`` [m], world x-y."""
