@@ -269,32 +269,38 @@ def _positive_inertias(root: ET.Element, path: Path) -> None:
     definite: rounded CAD exports) by the nearest one with eigenvalues >= 1e-9 [kg m^2];
     the kinematics is unchanged."""
     fixed = []
-    keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     for link in root.iter("link"):
         inertia = link.find("inertial/inertia")
-        if inertia is None:
-            continue
-        try:
-            xx, xy, xz, yy, yz, zz = (float(inertia.get(k, "0")) for k in keys)
-        except ValueError:
-            continue
-        matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        if not np.all(np.isfinite(matrix)):
-            continue
-        values, vectors = np.linalg.eigh(matrix)
-        coupled = bool(xy or xz or yz)  # MuJoCo checks a full inertia's eigenvalues
-        if values.min() >= 0 and not (coupled and values.min() <= 1e-12 * abs(values).max()):
-            continue  # diagonal zeros are MuJoCo's boundinertia's to fix
-        matrix = vectors @ np.diag(np.maximum(values, 1e-9)) @ vectors.T
-        for key, value in zip(keys, matrix[np.triu_indices(3)]):
-            inertia.set(key, repr(float(value)))
-        fixed.append(link.get("name", "?"))
+        if inertia is not None and _fix_inertia(inertia):
+            fixed.append(link.get("name", "?"))
     if fixed:
         warnings.warn(
             f"{path}: {len(fixed)} link inertia(s) not positive definite, made positive "
             f"(kinematics kept): {', '.join(fixed[:5])}" + (" ..." if len(fixed) > 5 else ""),
             stacklevel=6,
         )
+
+
+_INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def _fix_inertia(inertia: ET.Element) -> bool:
+    """Make one ``<inertia>`` positive definite in place; whether it had to be."""
+    try:
+        xx, xy, xz, yy, yz, zz = (float(inertia.get(k, "0")) for k in _INERTIA_KEYS)
+    except ValueError:
+        return False
+    matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+    if not np.all(np.isfinite(matrix)):
+        return False
+    values, vectors = np.linalg.eigh(matrix)
+    coupled = bool(xy or xz or yz)  # MuJoCo checks a full inertia's eigenvalues
+    if values.min() >= 0 and not (coupled and values.min() <= 1e-12 * abs(values).max()):
+        return False  # diagonal zeros are MuJoCo's boundinertia's to fix
+    matrix = vectors @ np.diag(np.maximum(values, 1e-9)) @ vectors.T
+    for key, value in zip(_INERTIA_KEYS, matrix[np.triu_indices(3)]):
+        inertia.set(key, repr(float(value)))
+    return True
 
 
 def _urdf_velocities(root: ET.Element) -> dict[str, float]:
@@ -385,28 +391,39 @@ def _add_srdf_keyframes(spec: mujoco.MjSpec, model: mujoco.MjModel, path: Path) 
         qpos = model.qpos0.copy()
         for joint in state.iter("joint"):
             j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.get("name", ""))
-            if j < 0:
-                continue
-            try:
-                values = [float(x) for x in joint.get("value", "").split()]
-            except ValueError as exc:
-                raise RobotFileError(
-                    str(path), f"group_state {name!r}: joint {joint.get('name')!r}: {exc}"
-                ) from exc
-            adr = model.jnt_qposadr[j]
-            kind = int(model.jnt_type[j])
-            if kind == int(mujoco.mjtJoint.mjJNT_FREE) and len(values) == 7:
-                x, y, z, qx, qy, qz, qw = values
-                qpos[adr : adr + 7] = [x, y, z, qw, qx, qy, qz]
-            elif kind == int(mujoco.mjtJoint.mjJNT_BALL) and len(values) == 4:
-                qx, qy, qz, qw = values
-                qpos[adr : adr + 4] = [qw, qx, qy, qz]
-            elif len(values) == 1 and kind in (
-                int(mujoco.mjtJoint.mjJNT_HINGE),
-                int(mujoco.mjtJoint.mjJNT_SLIDE),
-            ):
-                qpos[adr] = values[0]
+            if j >= 0:
+                _set_joint_value(model, qpos, j, _srdf_values(joint, name, path))
         spec.add_key(name=name, qpos=qpos.tolist())
         existing.add(name)
         added = True
     return added
+
+
+def _srdf_values(joint: ET.Element, state: str, path: Path) -> list[float]:
+    """The numbers of an SRDF ``<joint value="...">``."""
+    try:
+        return [float(x) for x in joint.get("value", "").split()]
+    except ValueError as exc:
+        raise RobotFileError(
+            str(path), f"group_state {state!r}: joint {joint.get('name')!r}: {exc}"
+        ) from exc
+
+
+_FREE, _BALL = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+_SCALAR = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def _set_joint_value(model: mujoco.MjModel, qpos: np.ndarray, j: int, values: list[float]) -> None:
+    """Write joint ``j``'s SRDF values into ``qpos`` (a free joint's ``x y z qx qy qz qw``
+    and a ball's ``qx qy qz qw`` reordered to MuJoCo's ``w`` first); values of the wrong
+    count are skipped."""
+    adr = model.jnt_qposadr[j]
+    kind = int(model.jnt_type[j])
+    if kind == _FREE and len(values) == 7:
+        x, y, z, qx, qy, qz, qw = values
+        qpos[adr : adr + 7] = [x, y, z, qw, qx, qy, qz]
+    elif kind == _BALL and len(values) == 4:
+        qx, qy, qz, qw = values
+        qpos[adr : adr + 4] = [qw, qx, qy, qz]
+    elif kind in _SCALAR and len(values) == 1:
+        qpos[adr] = values[0]
