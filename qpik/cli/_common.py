@@ -7,8 +7,9 @@ import argparse
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration, frame_names
-from ..errors import InvalidInput
+from ..configuration import Configuration
+from ..errors import InvalidInput, UnknownFrame
+from ..model.frames import resolve_frame
 from ..robots import load_robot, tool_frame
 
 
@@ -92,11 +93,10 @@ def _pick_frame(args: argparse.Namespace, model: mujoco.MjModel) -> None:
         print(f"frame: {tool.frame_type} {tool.name!r} ({tool.reason}; --frame to choose)")
         return
     if args.frame_type is None:
-        for kind in ("site", "body", "geom"):
-            if args.frame in frame_names(model, kind):
-                args.frame_type = kind
-                return
-        args.frame_type = "site"  # the typed error lists the sites
+        try:
+            args.frame_type = resolve_frame(model, args.frame).type.value
+        except UnknownFrame:
+            args.frame_type = "site"  # the command's typed error then lists the sites
 
 
 def format_matrix(matrix: np.ndarray, indent: str = "  ", digits: int = 4) -> str:

@@ -59,8 +59,6 @@ def run(args: argparse.Namespace) -> int:
     except InvalidInput:
         limits = None
     tau, gravity, holding = (np.where(np.abs(x) < 5e-9, 0.0, x) for x in (tau, gravity, holding))
-    dofs = [joint_names(configuration.model)[j] for j in configuration.model.dof_jntid]
-    width = max(len(n) for n in dofs + ["joint"])
     print(f"q = {np.array2string(configuration.q, precision=4)}")
     print(
         f"wrench at {args.frame_type} {args.frame!r} ({expressed_in} axes): "
@@ -68,6 +66,15 @@ def run(args: argparse.Namespace) -> int:
     )
     print("joint torques [N m]: tau = J^T [f; t] (produced by the wrench), gravity (produced")
     print("by gravity), holding = -(gravity + tau) (what the motors apply to stay still)")
+    dofs = [joint_names(configuration.model)[j] for j in configuration.model.dof_jntid]
+    _print_table(dofs, tau, gravity, holding, limits)
+    return 0
+
+
+def _print_table(dofs, tau, gravity, holding, limits) -> None:
+    """One row per dof: tau, gravity and holding torques [N m], and the actuator limits
+    (marked where the holding torque exceeds them) when the model has them."""
+    width = max(len(n) for n in dofs + ["joint"])
     header = f"  {'joint':<{width}} {'tau':>10} {'gravity':>10} {'holding':>10}"
     print(header + ("     limits" if limits is not None else ""))
     for i, name in enumerate(dofs):
@@ -80,7 +87,6 @@ def run(args: argparse.Namespace) -> int:
     if limits is not None:
         inside = bool(np.all((limits[:, 0] <= holding) & (holding <= limits[:, 1])))
         print(f"holding torques within the actuator limits: {'yes' if inside else 'no'}")
-    return 0
 
 
 def _fmt(values) -> str:
