@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .analysis import manipulability, singular_values
+from .analysis import _row_indices, manipulability, singular_values
 from .configuration import Configuration, FrameType, joint_names
 from .errors import MissingExtra
 
@@ -343,10 +343,11 @@ def _near_range(curves: Sequence[np.ndarray]) -> tuple[float, float]:
 
 
 # ----------------------------------------------------------------------------- sigma
-def _goal_jacobian(frames: Sequence[tuple[str, str | FrameType]], rows: str):
-    """``configuration -> J``: the frames' Jacobians stacked, ``rows`` of each:
-    ``"pose"`` (6), ``"position"`` (3) or ``"planar"`` (vx, vy)."""
-    take = {"pose": slice(0, 6), "position": slice(0, 3), "planar": slice(0, 2)}[rows]
+def _goal_jacobian(frames: Sequence[tuple[str, str | FrameType]], rows):
+    """``configuration -> J``: the frames' Jacobians stacked, ``rows`` of each (what
+    :func:`qpik.analysis.analyze` takes: ``"pose"``, ``"position"``, row names...; and
+    ``"planar"`` for vx, vy)."""
+    take = list(_row_indices(("vx", "vy") if rows == "planar" else rows))
 
     def jacobian(configuration: Configuration) -> np.ndarray:
         return np.vstack([configuration.frame_jacobian(f, t)[take] for f, t in frames])
