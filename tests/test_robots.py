@@ -351,3 +351,27 @@ def test_problem_velocity_scale_leaves_unlimited_dofs_free(tmp_path):
         lim for lim in problem.build_limits() if isinstance(lim, qpik.limits.VelocityLimit)
     ]
     assert velocity.limit.tolist() == [0.5]
+
+
+def test_resolve_robot_is_the_one_resolver(tmp_path):
+    import shutil
+
+    from qpik.robots import locate_robot, resolve_robot, robot_path
+
+    model, q = resolve_robot("planar_2r")
+    assert model.nq == 2 and q is None
+    assert resolve_robot(model) == (model, None)
+    configuration = qpik.Configuration(model, [0.3, -0.2])
+    same, q = resolve_robot(configuration)
+    assert same is model and q.tolist() == [0.3, -0.2]
+    q[0] = 9.0  # a copy: the caller's configuration is untouched
+    assert configuration.q[0] == 0.3
+    with pytest.raises(qpik.InvalidInput, match="robot must be"):
+        resolve_robot(3.0)
+    with pytest.raises(qpik.UnknownRobot):
+        resolve_robot("no_such_robot")
+    # a relative path is read from relative_to (a problem file's folder)
+    shutil.copy(robot_path("planar_2r"), tmp_path / "arm.xml")
+    assert locate_robot("arm.xml", relative_to=tmp_path) == tmp_path / "arm.xml"
+    assert resolve_robot("arm.xml", relative_to=tmp_path)[0].nq == 2
+    assert locate_robot("planar_2r", relative_to=tmp_path) == robot_path("planar_2r")

@@ -1,0 +1,68 @@
+"""qpik.restarts: the restart loop shared by qpik.solve's qp engine and the baselines,
+tested on scripted attempts (no robot, no wall clock)."""
+
+from __future__ import annotations
+
+from qpik.restarts import Attempt, Clock, StallWindow, run_attempts
+from qpik.result import Reason
+
+
+class _Clock(Clock):
+    """A clock that runs out after ``ticks`` checks."""
+
+    def __init__(self, ticks: int | None = None):
+        super().__init__(0.0, None)
+        self.ticks = ticks
+
+    def out_of_time(self) -> bool:
+        if self.ticks is None:
+            return False
+        self.ticks -= 1
+        return self.ticks < 0
+
+
+def _script(*outcomes):
+    queue = list(outcomes)
+    starts = []
+    return (lambda: queue.pop(0)), (lambda: starts.append(1)), starts
+
+
+def test_stops_at_the_first_converged_attempt_and_keeps_it():
+    attempt, restart, starts = _script(
+        Attempt(False, 5.0, Reason.STALLED, "a"),
+        Attempt(True, 0.5, Reason.CONVERGED, "b"),
+        Attempt(True, 0.1, Reason.CONVERGED, "c"),
+    )
+    best, reason, used = run_attempts(attempt, restart, 10, _Clock())
+    assert (best.payload, reason, used, len(starts)) == ("b", Reason.CONVERGED, 1, 1)
+
+
+def test_best_of_failed_attempts_and_the_last_reason():
+    attempt, restart, _ = _script(
+        Attempt(False, 5.0, Reason.STALLED, "a"),
+        Attempt(False, 2.0, Reason.AT_LIMIT, "b"),
+        Attempt(False, 3.0, Reason.SINGULAR, "c"),
+    )
+    best, reason, used = run_attempts(attempt, restart, 2, _Clock())
+    assert (best.payload, reason, used) == ("b", Reason.SINGULAR, 2)
+
+
+def test_a_start_to_beat_and_ties_keep_the_first():
+    start = Attempt(False, 1.0, Reason.MAX_ITERS, "start")
+    attempt, restart, _ = _script(Attempt(False, 1.0, Reason.STALLED, "a"))
+    best, reason, used = run_attempts(attempt, restart, 0, _Clock(), start)
+    assert (best.payload, reason, used) == ("start", Reason.STALLED, 0)
+
+
+def test_time_budget_ends_the_loop_with_its_reason():
+    attempt, restart, _ = _script(*(Attempt(False, 1.0, Reason.STALLED, i) for i in range(9)))
+    best, reason, used = run_attempts(attempt, restart, 100, _Clock(ticks=2))
+    assert (reason, used) == (Reason.TIME_BUDGET, 2)
+
+
+def test_stall_window_counts_iterations_without_one_percent_progress():
+    stall = StallWindow(100.0, 2)
+    assert stall.update(99.5) is False  # 0.5 %: no progress (1 of 2)
+    assert stall.update(98.9) is False  # 1.1 %: progress, the window restarts at 98.9
+    assert stall.update(98.5) is False  # within 1 % of 98.9 (1 of 2)
+    assert stall.update(98.2) is True  # two in a row within 1 % of 98.9
