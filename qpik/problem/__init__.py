@@ -123,8 +123,10 @@ when the final configuration of every goal is within ``tol_position`` and
 ``tol_orientation`` of each of its frames.
 
 Layout: :mod:`.reader` (TOML and typed values), :mod:`.specs` (task specs and the task
-registry), :mod:`.goals` (goals, one or several frames), :mod:`.loader` (:class:`Problem`,
-:func:`load_problem`), :mod:`.modes` (run modes), :mod:`.report` (results, statics, JSON).
+registry), :mod:`.goals` (goals, one or several frames), :mod:`.limits` (``[limits]``),
+:mod:`.solver` (``[solver]``: a :class:`qpik.SolveOptions`), :mod:`.loader`
+(:class:`Problem`, :func:`load_problem`), :mod:`.modes` (run modes), :mod:`.report`
+(results, statics, JSON).
 """
 
 from __future__ import annotations

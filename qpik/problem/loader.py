@@ -1,9 +1,10 @@
 """The :class:`Problem` of a file and :func:`load_problem`, which reads and validates it.
 
-The top-level fields (``robot``, ``q0``, ``mode``, ``[limits]``, ``[solver]``,
-``[track]``, ``[statics]``) are read here; levels and tasks by :mod:`.specs`, goals by
-:mod:`.goals`; the values themselves by :class:`.reader.Reader`. The schema is documented
-in :mod:`qpik.problem` and the repository's ``tasks/README.md``.
+The top-level fields (``robot``, ``floating_base``, ``q0``, ``mode``, ``[track]``,
+``[statics]``) are read here; levels and tasks by :mod:`.specs`, goals by :mod:`.goals`,
+``[limits]`` by :mod:`.limits`, ``[solver]`` by :mod:`.solver`; the values themselves by
+:class:`.reader.Reader`. The schema is documented in :mod:`qpik.problem` and the
+repository's ``tasks/README.md``.
 """
 
 from __future__ import annotations
@@ -20,15 +21,17 @@ import numpy as np
 
 from ..configuration import Configuration, FrameType, joint_names
 from ..core.hierarchy import DampingLaw
-from ..errors import InvalidOption, QpikError
+from ..errors import QpikError
 from ..limits import ConfigurationLimit, SupportPolygonLimit, VelocityLimit
-from ..options import PRESETS, SolveOptions
+from ..options import SolveOptions
 from ..qp_engine import set_frame_target
 from ..robots import list_robots, resolve_robot
 from .goals import Goal, read_goals
+from .limits import read_limits, read_support
 from .modes import MODES
-from .reader import MAX_LENGTH, MAX_WRENCH, RANGES, Reader, describe, read_toml
+from .reader import MAX_WRENCH, Reader, read_toml
 from .report import ProblemResult, StaticsReport, jsonable
+from .solver import options_dict, read_solver
 from .specs import TaskSpec, read_levels
 
 _TOP_KEYS = {
@@ -46,56 +49,6 @@ _TOP_KEYS = {
     "track",
     "statics",
 }
-#: The ``[solver]`` fields and their TOML types (ranges: :data:`.reader.RANGES`): a
-#: preset of :data:`qpik.options.PRESETS` and overrides of its :class:`qpik.SolveOptions`.
-_SOLVER_KEYS: dict[str, type] = {
-    "preset": str,
-    "solver": str,
-    "tol_position": float,
-    "tol_orientation": float,
-    "max_iters": int,
-    "restarts": int,
-    "seed": int,
-    "time_budget": float,
-    "alpha": float,
-    "beta": float,
-    "max_step": list,
-    "singular_threshold": float,
-    "max_damping": float,
-    "adaptive_damping": bool,
-    "damping": float,
-    "stall_window": int,
-}
-#: ``[solver]`` fields of the solve mode only.
-_SOLVE_ONLY = (
-    "max_iters",
-    "restarts",
-    "time_budget",
-    "alpha",
-    "beta",
-    "max_step",
-    "seed",
-    "stall_window",
-)
-#: ``[solver]`` fields passed to :class:`qpik.SolveOptions` as they are.
-_OPTION_FIELDS = (
-    "solver",
-    "tol_position",
-    "tol_orientation",
-    "max_iters",
-    "restarts",
-    "seed",
-    "time_budget",
-    "alpha",
-    "beta",
-    "stall_window",
-    "damping",
-)
-#: The preset of each mode when ``[solver]`` names none.
-DEFAULT_PRESETS = {"solve": "default", "track": "tracking"}
-#: The seed of a problem file's restarts when ``[solver]`` gives none (reproducible runs).
-DEFAULT_SEED = 0
-_SUPPORT_KEYS = {"frames", "frame_type", "margin", "footprint"}
 
 
 @dataclass
@@ -225,7 +178,7 @@ class Problem:
                 "support": jsonable(self.support),
             },
             "solver": jsonable(self.options),
-            "solve_options": _options_dict(self.solve_options),
+            "solve_options": options_dict(self.solve_options),
             "goals": [goal.to_dict() for goal in self.goals],
         }
         if self.mode == "track":
@@ -258,9 +211,9 @@ def load_problem(path: str | os.PathLike) -> Problem:
     if mode not in MODES:
         raise reader.fail("mode", f"expected {modes}, got {mode!r}")
     levels = read_levels(reader, data, model, start)
-    position_limits, velocity_limits = _read_limits(reader, data, model)
+    position_limits, velocity_limits = read_limits(reader, data, model)
     dt, steps, stop_at_goal = _read_track(reader, data, mode)
-    options, solve_options = _read_solver(reader, data, mode)
+    options, solve_options = read_solver(reader, data, mode)
     return Problem(
         path=str(path),
         name=reader.get(data, "name", "", str, "a string", path.stem),
@@ -278,7 +231,7 @@ def load_problem(path: str | os.PathLike) -> Problem:
         steps=steps,
         stop_at_goal=stop_at_goal,
         statics=_read_statics(reader, data, model) if "statics" in data else None,
-        support=_read_support(reader, data, model),
+        support=read_support(reader, data, model),
         solve_options=solve_options,
     )
 
@@ -330,190 +283,6 @@ def _read_track(reader: Reader, data: dict, mode: str) -> tuple[float, int, bool
     reader.number(dt, "track.dt", "track.dt", "a step in seconds")
     reader.number(steps, "track.steps", "track.steps", "a number of steps")
     return dt, steps, stop_at_goal
-
-
-def _read_limits(reader: Reader, data: dict, model) -> tuple[bool, np.ndarray | None]:
-    """``[limits]``: joint position limits on or off, and the velocity limits (nv,)."""
-    table = reader.table(
-        data, "limits", "", {"position", "velocity", "support"}, "a [limits] table", {}
-    )
-    position = reader.get(table, "position", "limits", bool, "true or false", True)
-    value = table.get("velocity", False)
-    if value is False:
-        return position, None
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        velocity = _velocity_scale(reader, value, model)
-    elif isinstance(value, list):
-        velocity = reader.vector(value, "limits.velocity", model.nv, _velocity_expected(model))
-        for i, v in enumerate(velocity):
-            reader.number(float(v), f"limits.velocity[{i}]", "velocity", "a velocity")
-    elif isinstance(value, dict):
-        velocity = _velocity_table(reader, value, model)
-    else:
-        raise reader.fail(
-            "limits.velocity", f"expected {_velocity_expected(model)}, got {describe(value)}"
-        )
-    if np.any(velocity <= 0):
-        raise reader.fail("limits.velocity", f"expected {_velocity_expected(model)} (all > 0)")
-    return position, velocity
-
-
-def _velocity_expected(model: mujoco.MjModel) -> str:
-    return (
-        "false, a scale of the model's velocity_limit (> 0), a list of "
-        f"{model.nv} velocities [rad/s] or a table {{joint = velocity}}"
-    )
-
-
-def _velocity_scale(reader: Reader, value: float, model: mujoco.MjModel) -> np.ndarray:
-    """``value`` times the model's velocity_limit (dofs it leaves unlimited stay inf)."""
-    base = Configuration(model).velocity_limits()
-    if base is None:
-        raise reader.fail(
-            "limits.velocity",
-            "a list or table of velocities: the model declares no velocity_limit to scale",
-        )
-    reader.number(value, "limits.velocity", "velocity", "a scale")
-    velocity = float(value) * np.asarray(base, dtype=float)
-    for i in np.flatnonzero(np.isfinite(base)):
-        reader.number(
-            float(velocity[i]),
-            f"limits.velocity (x the velocity_limit of dof {i})",
-            "velocity",
-            "a velocity",
-        )
-    return velocity
-
-
-def _velocity_table(reader: Reader, value: dict, model: mujoco.MjModel) -> np.ndarray:
-    """A velocity [rad/s or m/s] per joint name; every joint needs one."""
-    names = joint_names(model)
-    velocity = np.full(model.nv, np.inf)
-    for joint, v in value.items():
-        if joint not in names:
-            raise reader.fail(
-                f"limits.velocity.{joint}", f"a joint name, one of: {', '.join(names)}"
-            )
-        reader.number(v, f"limits.velocity.{joint}", "velocity", "a velocity")
-        velocity[np.flatnonzero(model.dof_jntid == names.index(joint))] = float(v)
-    if np.any(np.isinf(velocity)):
-        missing = [names[model.dof_jntid[i]] for i in np.flatnonzero(np.isinf(velocity))]
-        raise reader.fail("limits.velocity", f"a velocity for every joint; missing: {missing}")
-    return velocity
-
-
-def _read_support(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str, Any] | None:
-    """``[limits.support]``: the centre of mass's ground projection stays within the
-    support polygon of ``frames`` (their ``footprint`` corners [m] in each frame's x-y
-    axes, default its origin), ``margin`` [m] inside."""
-    limits = data.get("limits", {})
-    if "support" not in limits:
-        return None
-    table = reader.table(limits, "support", "limits", _SUPPORT_KEYS, "a [limits.support] table")
-    where = "limits.support"
-    frames = reader.get(table, "frames", where, list, "a list of contact frame names")
-    if not frames or not all(isinstance(f, str) for f in frames):
-        raise reader.fail(f"{where}.frames", f"expected frame names, got {describe(frames)}")
-    frame_type = table.get("frame_type", "site")
-    kinds = [
-        reader.frame({"frame": name, "frame_type": frame_type}, f"{where}.frames[{i}]", model)[1]
-        for i, name in enumerate(frames)
-    ]
-    kind = kinds[0]
-    out: dict[str, Any] = {"frames": list(frames), "frame_type": kind.value, "margin": 0.0}
-    if "margin" in table:
-        out["margin"] = float(reader.number(table["margin"], f"{where}.margin", "margin"))
-    if "footprint" in table:
-        points = reader.get(table, "footprint", where, list, "a list of [x, y] points [m]")
-        if not points:
-            raise reader.fail(f"{where}.footprint", "expected at least one [x, y] point")
-        out["footprint"] = np.array(
-            [
-                reader.bounded_vector(
-                    p, f"{where}.footprint[{i}]", 2, "[x, y] in metres", MAX_LENGTH
-                )
-                for i, p in enumerate(points)
-            ]
-        )
-    return out
-
-
-def _read_solver(reader: Reader, data: dict, mode: str) -> tuple[dict[str, Any], SolveOptions]:
-    """``[solver]``: each field typed and range-checked (solve-only fields in track mode
-    are errors), and the :class:`qpik.SolveOptions` they make."""
-    table = reader.table(data, "solver", "", _SOLVER_KEYS, "a [solver] table", {})
-    options: dict[str, Any] = {}
-    for key, kind in _SOLVER_KEYS.items():
-        if key not in table:
-            continue
-        name = f"solver.{key}"
-        if mode != "solve" and key in _SOLVE_ONLY:
-            raise reader.fail(name, 'only with mode = "solve" (not used in tracking)')
-        if key == "max_step":
-            options[key] = _read_max_step(reader, table[key])
-            continue
-        options[key] = reader.get(table, key, "solver", kind)
-        if name in RANGES:
-            reader.number(options[key], name, name, reader._EXPECTED[kind])
-    return options, _solve_options(reader, options, mode)
-
-
-def _solve_options(reader: Reader, options: dict[str, Any], mode: str) -> SolveOptions:
-    """The preset of ``options`` (default: the mode's) with the other fields over it."""
-    preset = options.get("preset", DEFAULT_PRESETS[mode])
-    if preset not in PRESETS:
-        raise reader.fail(
-            "solver.preset", f"one of {', '.join(map(repr, PRESETS))}, got {preset!r}"
-        )
-    base = PRESETS[preset]
-    overrides: dict[str, Any] = {k: options[k] for k in _OPTION_FIELDS if k in options}
-    overrides.setdefault("seed", DEFAULT_SEED)
-    if "max_step" in options:
-        step = options["max_step"]
-        overrides["max_step"] = None if step is False else tuple(step)
-    law = base.damping_law or DampingLaw()
-    if not options.get("adaptive_damping", True):
-        overrides["damping_law"] = None
-    elif "singular_threshold" in options or "max_damping" in options:
-        overrides["damping_law"] = DampingLaw(
-            singular_threshold=options.get("singular_threshold", law.singular_threshold),
-            max_damping=options.get("max_damping", law.max_damping),
-            error_scale=law.error_scale,
-        )
-    try:
-        return base.replace(**overrides)
-    except InvalidOption as exc:  # the reader's ranges are tighter; kept as a safety net
-        raise reader.fail(f"solver.{exc.field}", exc.expected) from exc
-
-
-def _options_dict(options: SolveOptions) -> dict[str, Any]:
-    """The run's options as plain data (the damping law as its fields)."""
-    law = options.damping_law
-    return {
-        "tol_position": options.tol_position,
-        "tol_orientation": options.tol_orientation,
-        "max_iters": options.max_iters,
-        "restarts": options.restarts,
-        "seed": options.seed,
-        "time_budget": options.time_budget,
-        "alpha": options.alpha,
-        "beta": options.beta,
-        "max_step": jsonable(options.max_step),
-        "stall_window": options.stall_window,
-        "solver": options.solver,
-        "damping": options.damping,
-        "damping_law": None if law is None else jsonable(vars(law)),
-    }
-
-
-def _read_max_step(reader: Reader, value) -> list[float] | bool:
-    """``max_step = [metres, radians]`` or ``false``."""
-    if value is False:
-        return False
-    vector = reader.vector(value, "solver.max_step", 2, "[metres, radians] or false")
-    for i, v in enumerate(vector):
-        reader.number(float(v), f"solver.max_step[{i}]", "solver.max_step")
-    return vector.tolist()
 
 
 def _read_statics(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str, Any]:
