@@ -46,6 +46,7 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
 __all__ = [
     "is_planar",
     "joint_curves",
+    "plot_error_curves",
     "plot_frame_errors",
     "plot_joints",
     "plot_level_errors",
