@@ -66,7 +66,7 @@ def load() -> str:
     return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
 
 
-def main(argv=None) -> dict:
+def parse(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="ur5e")
     parser.add_argument("--frame", default="ee")
@@ -76,39 +76,61 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray comparison")
     parser.add_argument("--map-resolution", type=float, default=0.2, help="[m] (0.2)")
     parser.add_argument("--map-orientations", type=int, default=8, help="K (8)")
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
 
+
+def main(argv=None) -> dict:
+    args = parse(argv)
     targets = make_targets(args.robot, args.frame, args.n)
     total = len(targets)
     print(
         f"batch: {args.robot} {args.frame!r}, {args.n} reachable + {total - args.n} "
         f"unreachable targets; {load()}"
     )
-    # Warm-up in this process (compiled kernels, robot cache): forked workers inherit it.
+    # Warm-up in this process (compiled kernels): forked workers inherit it.
     qpik.solve_many(args.robot, targets[:20], workers=1, progress=False)
-
     methods = {f"pool x{w}": dict(workers=w) for w in args.workers}
-    ray = None
     report: dict = {"load_before": os.getloadavg()[0]}
-    if not args.no_ray:
-        try:
-            import ray
-        except ImportError:
-            print("ray: not installed (pip install 'qpik[cluster]'): skipped")
-        if ray is not None:
-            cpus = max(args.workers)
-            start, _ = timed(
-                lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
-            )
-            first, _ = timed(
-                lambda: qpik.solve_many(
-                    args.robot, targets, backend="ray", workers=cpus, progress=False
-                )
-            )
-            print(f"ray: local start {start:.1f} s; first call {first:.1f} s (workers import qpik)")
-            report.update(ray_start=start, ray_first=first)
-            methods[f"ray x{cpus}"] = dict(backend="ray", workers=cpus)
+    ray = None if args.no_ray else start_ray(args, targets, methods, report)
+    times, cpu = time_methods(args, targets, methods)
+    rates = print_rates(times, total)
+    projected = print_cpu(methods, cpu, total, report)
+    ray_name = next((n for n in rates if n.startswith("ray")), None)
+    pool_name = f"pool x{max(args.workers)}"
+    if ray_name and pool_name in rates:
+        gap = rates[ray_name] / rates[pool_name]
+        print(f"ray / pool on this machine: {gap:.2f} (goal >= 0.85)")
+    report.update(times=times, rates=rates)
+    report.update(small_map(args))
+    report.update(per_core=print_projection(rates.get("pool x1"), projected, total))
+    print(f"\n{load()}")
+    if ray is not None:
+        ray.shutdown()
+    return report
 
+
+def start_ray(args, targets, methods: dict, report: dict):
+    """A local Ray with as many CPUs as the largest worker count, its start and first call
+    timed; adds its method. ``None`` when Ray is not installed."""
+    try:
+        import ray
+    except ImportError:
+        print("ray: not installed (pip install 'qpik[cluster]'): skipped")
+        return None
+    cpus = max(args.workers)
+    start, _ = timed(lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False))
+    first, _ = timed(
+        lambda: qpik.solve_many(args.robot, targets, backend="ray", workers=cpus, progress=False)
+    )
+    print(f"ray: local start {start:.1f} s; first call {first:.1f} s (workers import qpik)")
+    report.update(ray_start=start, ray_first=first)
+    methods[f"ray x{cpus}"] = dict(backend="ray", workers=cpus)
+    return ray
+
+
+def time_methods(args, targets, methods: dict) -> tuple[dict, dict]:
+    """Wall times and ``(parent, children)`` CPU times per method over interleaved rounds;
+    checks that every run returns bitwise the same configurations."""
     times: dict[str, list[float]] = {name: [] for name in methods}
     cpu: dict[str, list[tuple[float, float]]] = {name: [] for name in methods}
     reference = None
@@ -123,23 +145,28 @@ def main(argv=None) -> dict:
             )
             after = os.times()
             times[name].append(elapsed)
-            parent = after.user + after.system - before.user - before.system
-            children = (
-                after.children_user
-                + after.children_system
-                - before.children_user
-                - before.children_system
-            )
-            cpu[name].append((parent, children))
+            cpu[name].append(cpu_times(before, after))
             q = np.array([r.q for r in results])
-            if reference is None:
-                reference = q
+            reference = q if reference is None else reference
             identical &= bool(np.array_equal(q, reference))
     converged = sum(r.converged for r in results)
     print(
-        f"converged {converged}/{total}; identical results across methods and rounds: "
+        f"converged {converged}/{len(targets)}; identical results across methods and rounds: "
         f"{'yes' if identical else 'NO'}"
     )
+    return times, cpu
+
+
+def cpu_times(before, after) -> tuple[float, float]:
+    """CPU time [s] of this process and of its finished children between two os.times()."""
+    parent = after.user + after.system - before.user - before.system
+    children = (
+        after.children_user + after.children_system - before.children_user - before.children_system
+    )
+    return parent, children
+
+
+def print_rates(times: dict, total: int) -> dict:
     print(f"\n{'method':<10} {'median [s]':>10} {'IK/s':>9} {'min [s]':>8} {'max [s]':>8}")
     rates = {}
     for name, values in times.items():
@@ -149,15 +176,19 @@ def main(argv=None) -> dict:
             f"{name:<10} {median:>10.3f} {rates[name]:>9.0f} {min(values):>8.3f} "
             f"{max(values):>8.3f}"
         )
-    one = rates.get("pool x1")
-    if one and "pool x2" in rates:
-        print(
-            f"\nscaling 1 -> 2 workers: {rates['pool x2'] / one:.2f}x (goal >= 1.8x at light load)"
-        )
-    # CPU time does not depend on how busy the machine is (wall time does: with the
-    # kernel's autogroup scheduling, a session's processes share one slice when other
-    # sessions saturate the cores). On idle cores a pool of w workers takes about
-    # max(workers' CPU / w, parent's CPU): the speedup that CPU time projects.
+    if "pool x1" in rates and "pool x2" in rates:
+        scaling = rates["pool x2"] / rates["pool x1"]
+        print(f"\nscaling 1 -> 2 workers: {scaling:.2f}x (goal >= 1.8x at light load)")
+    return rates
+
+
+def print_cpu(methods: dict, cpu: dict, total: int, report: dict) -> dict:
+    """CPU time per pool, and the 1 -> 2 speedup it projects on idle cores.
+
+    CPU time does not depend on how busy the machine is (wall time does: with the kernel's
+    autogroup scheduling, a session's processes share one slice when other sessions
+    saturate the cores). On idle cores a pool of w workers takes about max(workers' CPU /
+    w, parent's CPU): the speedup that CPU time projects."""
     print(f"\n{'method':<10} {'parent CPU':>10} {'workers CPU':>11} {'CPU/IK [ms]':>11}")
     projected = {}
     for name in methods:
@@ -165,10 +196,9 @@ def main(argv=None) -> dict:
             continue  # Ray's workers are not children of this process
         parent = statistics.median(c[0] for c in cpu[name])
         children = max(0.0, statistics.median(c[1] for c in cpu[name]))
-        workers = methods[name]["workers"]
         per_ik = 1e3 * (parent + children) / total
         print(f"{name:<10} {parent:>10.3f} {children:>11.3f} {per_ik:>11.3f}")
-        projected[name] = (parent, children, workers)
+        projected[name] = (parent, children, methods[name]["workers"])
     if "pool x1" in projected and "pool x2" in projected:
         serial = sum(projected["pool x1"][:2])
         parent, children, workers = projected["pool x2"]
@@ -177,14 +207,11 @@ def main(argv=None) -> dict:
             f"projected 1 -> 2 workers on idle cores (from CPU time): {speedup:.2f}x (goal >= 1.8x)"
         )
         report.update(projected_speedup=speedup)
-    ray_name = next((n for n in rates if n.startswith("ray")), None)
-    pool_name = f"pool x{max(args.workers)}"
-    if ray_name and pool_name in rates:
-        gap = rates[ray_name] / rates[pool_name]
-        print(f"ray / pool on this machine: {gap:.2f} (goal >= 0.85)")
-    report.update(times=times, rates=rates, identical=identical)
+    return projected
 
-    # A small reachability map.
+
+def small_map(args) -> dict:
+    """A small reachability map, timed."""
     region = np.array([[-0.8, -0.8, -0.2], [0.8, 0.8, 1.0]])
     elapsed, rmap = timed(
         lambda: qpik.reachability(
@@ -204,12 +231,15 @@ def main(argv=None) -> dict:
         f"{elapsed:.2f} s ({rmap.solves / elapsed:.0f} IK/s); mean fraction "
         f"{rmap.fraction.mean():.3f}"
     )
-    report.update(map_time=elapsed, map_solves=rmap.solves)
+    return {"map_time": elapsed, "map_solves": rmap.solves}
 
-    # On paper: a cluster of C cores at the per-core rate (linear scaling assumed: targets
-    # are independent; measured here only up to the workers above). Two per-core rates:
-    # the 1-worker wall-time rate (depressed by other jobs on a shared machine) and the
-    # CPU-time rate of the 2-worker pool (its parent's and workers' CPU per IK).
+
+def print_projection(one: float | None, projected: dict, total: int) -> dict:
+    """On paper: a cluster of C cores at the per-core rate (linear scaling assumed: targets
+    are independent; measured here only up to the workers above). Two per-core rates: the
+    1-worker wall-time rate (depressed by other jobs on a shared machine) and the CPU-time
+    rate of the 2-worker pool (its parent's and workers' CPU per IK)."""
+    default = qpik.PRESETS["default"]
     per_core = {}
     if one:
         per_core["wall, 1 worker"] = one
@@ -228,14 +258,11 @@ def main(argv=None) -> dict:
         for name, rate in GPU_REFERENCES.items():
             print(
                 f"  {name} publishes {rate} IK/s on one GPU at 5 mm / 0.05 rad: "
-                f"{rate / rate_per_core:.0f} such cores at qpik's 1e-4 m / 1e-3 rad"
+                f"{rate / rate_per_core:.0f} such cores at qpik's {default.tol_position:.0e} m / "
+                f"{default.tol_orientation:.0e} rad"
             )
     print("  reuleaux: 3.79 M poses in about 14 h on 20 cores (75 IK/s)")
-    report.update(per_core=per_core)
-    print(f"\n{load()}")
-    if ray is not None:
-        ray.shutdown()
-    return report
+    return per_core
 
 
 if __name__ == "__main__":
