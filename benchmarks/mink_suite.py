@@ -135,6 +135,25 @@ def run_suite(tests: Path, models: str | None, extra: list[str]) -> int:
         stock, stock_time = _run_suite(tests, False, models, extra, work)
         ours, our_time = _run_suite(tests, True, models, extra, work)
     print(f"mink {version}'s suite from {tests}: {len(stock)} tests")
+    _print_counts(stock, stock_time, ours, our_time)
+    regressions, fixed, other = _compare(stock, ours)
+    for title, rows in (("regressions (pass on stock mink, not with qpik)", regressions),
+                        ("pass with qpik only", fixed)):  # fmt: skip
+        print(f"{title}: {len(rows)}")
+        for test, (outcome, message) in rows:
+            print(f"  {test}: {outcome}: {message[:150]}")
+    for test, before, after in other:
+        print(f"  {test}: {before[0]} -> {after[0]}: {after[1][:150]}")
+    not_passing = sorted(t for t, (o, _) in stock.items() if o in ("failed", "error"))
+    if not_passing:
+        print(f"fail on stock mink too (environment or version): {len(not_passing)}")
+        for test in not_passing:
+            print(f"  {test}: {stock[test][1][:150]}")
+    return len(regressions)
+
+
+def _print_counts(stock: dict, stock_time: float, ours: dict, our_time: float) -> None:
+    """The outcome counts of both runs, and the tests skipped for want of a model."""
     print(f"{'run':<14}{'passed':>8}{'failed':>8}{'errors':>8}{'skipped':>9}{'time [s]':>10}")
     for label, outcomes, elapsed in (
         ("stock mink", stock, stock_time),
@@ -152,6 +171,11 @@ def run_suite(tests: Path, models: str | None, extra: list[str]) -> int:
     missing = sorted(t for t, (o, m) in ours.items() if o == "skipped" and "downloaded model" in m)
     if missing:
         print(f"needs a downloaded model (skipped in both runs): {len(missing)} tests")
+
+
+def _compare(stock: dict, ours: dict) -> tuple[list, list, list]:
+    """Tests whose outcome differs: regressions (passed on stock mink only), fixed (pass
+    with qpik only), other changes."""
     regressions, fixed, other = [], [], []
     for test in sorted(set(stock) | set(ours)):
         before = stock.get(test, ("absent", ""))
@@ -164,19 +188,7 @@ def run_suite(tests: Path, models: str | None, extra: list[str]) -> int:
             fixed.append((test, before))
         else:
             other.append((test, before, after))
-    for title, rows in (("regressions (pass on stock mink, not with qpik)", regressions),
-                        ("pass with qpik only", fixed)):  # fmt: skip
-        print(f"{title}: {len(rows)}")
-        for test, (outcome, message) in rows:
-            print(f"  {test}: {outcome}: {message[:150]}")
-    for test, before, after in other:
-        print(f"  {test}: {before[0]} -> {after[0]}: {after[1][:150]}")
-    not_passing = sorted(t for t, (o, _) in stock.items() if o in ("failed", "error"))
-    if not_passing:
-        print(f"fail on stock mink too (environment or version): {len(not_passing)}")
-        for test in not_passing:
-            print(f"  {test}: {stock[test][1][:150]}")
-    return len(regressions)
+    return regressions, fixed, other
 
 
 def run_timing(calls: int) -> None:
