@@ -12,7 +12,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -273,6 +273,21 @@ def pinocchio_robot(
     def unavailable(reason: str) -> MethodUnavailable:
         return MethodUnavailable("pink", robot, reason)
 
+    source, pin_model = _load_pinocchio(pin, robot, frame, unavailable)
+    if FrameType.parse(frame_type) is FrameType.SITE:
+        _place_site(pin, pin_model, model, frame, source.name)
+    result = PinocchioRobot(
+        pin_model,
+        str(source),
+        pin_model.getFrameId(frame),
+        *_joint_maps(pin_model, model, unavailable),
+    )
+    _check_agreement(pin, result, model, frame, frame_type, unavailable)
+    return result
+
+
+def _load_pinocchio(pin, robot: str, frame: str, unavailable) -> tuple[Path, Any]:
+    """The file pinocchio loads for ``robot`` and its model, with one frame ``frame``."""
     try:
         source = _pinocchio_source(robot)
     except (QpikError, ValueError) as exc:
@@ -290,8 +305,12 @@ def pinocchio_robot(
             f"pink addresses frames by name, and pinocchio's model of {source.name} has "
             f"{count} frames named {frame!r}"
         )
-    if FrameType.parse(frame_type) is FrameType.SITE:
-        _place_site(pin, pin_model, model, frame, source.name)
+    return source, pin_model
+
+
+def _joint_maps(pin_model, model: mujoco.MjModel, unavailable) -> tuple[np.ndarray, ...]:
+    """Per MuJoCo joint (matched by name): its qpos address, pinocchio's q index, whether
+    pinocchio stores it as (cos, sin), its dof address and pinocchio's v index."""
     names = [pin_model.names[i] for i in range(1, pin_model.njoints)]
     mj_names = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in range(model.njnt)
@@ -301,13 +320,11 @@ def pinocchio_robot(
             f"joints differ: pinocchio {names} (nv {pin_model.nv}), MuJoCo {mj_names} "
             f"(nv {model.nv})"
         )
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
     mj_qpos, pin_q, circle, mj_dof, pin_v = [], [], [], [], []
     for j, name in enumerate(mj_names):
         joint = pin_model.joints[pin_model.getJointId(name)]
-        if model.jnt_type[j] not in (
-            int(mujoco.mjtJoint.mjJNT_HINGE),
-            int(mujoco.mjtJoint.mjJNT_SLIDE),
-        ):
+        if model.jnt_type[j] not in scalar:
             raise unavailable(f"joint {name!r} is not a hinge or slide joint")
         if joint.nv != 1 or joint.nq not in (1, 2):
             raise unavailable(f"pinocchio joint {name!r} is {joint.shortname()}, not 1-DoF")
@@ -316,12 +333,13 @@ def pinocchio_robot(
         circle.append(joint.nq == 2)
         mj_dof.append(model.jnt_dofadr[j])
         pin_v.append(joint.idx_v)
-    result = PinocchioRobot(
-        pin_model,
-        str(source),
-        pin_model.getFrameId(frame),
-        *(np.array(a) for a in (mj_qpos, pin_q, circle, mj_dof, pin_v)),
-    )
+    return tuple(np.array(a) for a in (mj_qpos, pin_q, circle, mj_dof, pin_v))
+
+
+def _check_agreement(pin, result: PinocchioRobot, model, frame, frame_type, unavailable) -> None:
+    """The same position limits, and the same pose of ``frame`` at the mid-range and three
+    random configurations (1e-9 m or rad)."""
+    pin_model = result.model
     configuration = Configuration(model)
     lower, upper = configuration.lower, configuration.upper
     line = ~result._circle
@@ -346,7 +364,6 @@ def pinocchio_robot(
             raise unavailable(
                 f"the pose of {frame!r} differs between pinocchio and MuJoCo at q = {q}"
             )
-    return result
 
 
 def _place_site(pin, pin_model, model: mujoco.MjModel, site: str, file: str) -> None:
