@@ -72,6 +72,7 @@ WEIRD_ANY = WEIRD_FLOATS + (None, "1", [1.0], True, 2**70, -1, (1.0,), {}, 3)
 # =============================================================================== specs
 # Generators: plain data only (no qpik import), deterministic in (seed, category, index).
 
+
 def _table(data: dict, key: str) -> dict:
     """``data[key]`` as a table to edit; a scratch dict when an earlier edit made it a
     scalar (the file keeps that scalar, which is the error under test)."""
@@ -708,6 +709,7 @@ def _np():
     return np
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _finite(value, where: str, allow=()) -> None:
     """Raise Bad('nonfinite') if any number reachable from ``value`` is NaN / inf."""
     np = _np()
@@ -822,6 +824,7 @@ def _angle(r1, r2) -> float:
     return float(math.acos(min(1.0, max(-1.0, c))))
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _q_value(kind, model, rng):
     np = _np()
     lower, upper = _limits_of(model)
@@ -941,6 +944,7 @@ def _solve_kwargs(spec: dict, model, rng) -> dict:
     return o
 
 
+# Complexity above 10: one branch per variant of the case it runs and checks.
 def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -> str:
     """Invariants of an IKResult; returns its digest."""
     np = _np()
@@ -1047,6 +1051,7 @@ class Typed(Exception):
     """A documented non-qpik error of the harness' own making (counted as typed)."""
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _build_task(task: dict, model, configuration, rng):
     np = _np()
     import mink
@@ -1130,6 +1135,7 @@ def _build_task(task: dict, model, configuration, rng):
     return t
 
 
+# Complexity above 10: one branch per variant of the case it runs and checks.
 def run_step(spec: dict) -> str:
     np = _np()
     import qpik
@@ -1192,6 +1198,7 @@ def run_step(spec: dict) -> str:
 
 
 # -- problem files
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _toml_value(value) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
@@ -1231,6 +1238,7 @@ def _set_path(data, path, value) -> None:
     node[path[-1]] = value
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _special(data: dict, name: str, value, r: random.Random) -> None:
     levels = data.get("levels") or [{"tasks": [{}]}]
     first = levels[0]["tasks"][0] if isinstance(levels[0], dict) and levels[0].get("tasks") else {}
@@ -1312,6 +1320,7 @@ _UNNAMED_KEY_XML = """<mujoco model="unnamed_key">
 """
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def write_problem(spec: dict, folder: Path) -> Path:
     """The (mutated) problem file of a spec, written into ``folder``."""
     import tomllib
@@ -1414,6 +1423,7 @@ def _outside_q0(data: dict, how: str):
     return [float(x) for x in q]
 
 
+# Complexity above 10: one branch per variant of the case it runs and checks.
 def run_problem(spec: dict) -> str:
     _np()
     import qpik
@@ -1498,6 +1508,7 @@ def _cli_check(code, err: str, allowed) -> None:
         pass
 
 
+# Complexity above 10: one branch per variant of the case it runs and checks.
 def run_cli(spec: dict) -> str:
     command = spec["command"]
     if command == "robots":
@@ -1608,6 +1619,7 @@ def _run_cli_batch(spec: dict) -> str:
 
 
 # -- robot files
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _mjcf(spec: dict, r: random.Random) -> str:
     types = [
         {"continuous": "hinge", "fixed": "hinge", "floating": "free", "planar": "slide"}.get(t, t)
@@ -1682,6 +1694,7 @@ def _mjcf(spec: dict, r: random.Random) -> str:
     )
 
 
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _urdf(spec: dict, r: random.Random) -> str:
     types = [
         {"hinge": "revolute", "slide": "prismatic", "ball": "spherical", "free": "floating"}.get(
@@ -1873,6 +1886,7 @@ def run_statics(spec: dict) -> str:
 
 
 # -- analysis
+# Complexity above 10: one branch per kind of (malformed) input this generator draws.
 def _matrix(spec: dict, rng):
     np = _np()
     m, n = spec["m"], spec["n"]
@@ -1906,6 +1920,7 @@ def _matrix(spec: dict, rng):
     return J
 
 
+# Complexity above 10: one branch per variant of the case it runs and checks.
 def run_analysis(spec: dict) -> str:
     np = _np()
     import qpik
@@ -2139,62 +2154,65 @@ def run_campaign(
     slots = [_Slot(ctx, quiet) for _ in range(workers)]
     pending = list(reversed(jobs))
     results = []
-    done = 0
     start = time.monotonic()
     last_print = start
     while pending or any(s.job for s in slots):
-        for s in slots:
-            if s.job is None and pending and s.poll_ready():
-                s.job = pending.pop()
-                s.conn.send((s.job[0], s.job[2]))
-                s.started = time.monotonic()
+        _dispatch(slots, pending)
         ready = mp.connection.wait([s.conn for s in slots], timeout=0.2)
         now = time.monotonic()
         for s in slots:
-            if s.job is None:
-                continue
-            category, index, spec = s.job
-            if s.conn in ready:
-                try:
-                    outcome, detail, digest = s.conn.recv()
-                except (EOFError, OSError):
-                    s.process.join(1)
-                    code = s.process.exitcode
-                    results.append(
-                        (
-                            category,
-                            index,
-                            "crash",
-                            f"worker died (exit {code})",
-                            "",
-                            now - s.started,
-                        )
-                    )
-                    s.kill()
-                    s.start()
-                else:
-                    results.append((category, index, outcome, detail, digest, now - s.started))
-                    s.job = None
-                    done += 1
-                    continue
-                s.job = None
-                done += 1
-            elif now - s.started > timeout:
-                results.append(
-                    (category, index, "hang", f"no answer in {timeout:.0f} s", "", now - s.started)
-                )
-                s.kill()
-                s.start()
-                s.job = None
-                done += 1
-        if progress and (now - last_print > 10 or (not pending and not any(s.job for s in slots))):
+            if s.job is not None:
+                result = _collect(s, s.conn in ready, now, timeout)
+                if result is not None:
+                    results.append(result)
+        finished = not pending and not any(s.job for s in slots)
+        if progress and (now - last_print > 10 or finished):
             last_print = now
             bad = sum(1 for r in results if r[2] in BAD)
             print(
-                f"  {done}/{len(jobs)} cases, {bad} bad, {now - start:.0f} s",
+                f"  {len(results)}/{len(jobs)} cases, {bad} bad, {now - start:.0f} s",
                 file=sys.stderr,
                 flush=True,
             )
+    _shutdown(slots)
+    return results
+
+
+def _dispatch(slots: list, pending: list) -> None:
+    """Give each idle, ready worker the next job."""
+    for s in slots:
+        if s.job is None and pending and s.poll_ready():
+            s.job = pending.pop()
+            s.conn.send((s.job[0], s.job[2]))
+            s.started = time.monotonic()
+
+
+def _collect(s, answered: bool, now: float, timeout: float) -> tuple | None:
+    """The result of a worker's job once it answered, died or ran past ``timeout`` (the
+    worker is then restarted); ``None`` while it is still running."""
+    category, index, _spec = s.job
+    elapsed = now - s.started
+    if answered:
+        try:
+            outcome, detail, digest = s.conn.recv()
+        except (EOFError, OSError):
+            s.process.join(1)
+            result = (category, index, "crash", f"worker died (exit {s.process.exitcode})", "")
+            s.kill()
+            s.start()
+        else:
+            result = (category, index, outcome, detail, digest)
+    elif elapsed > timeout:
+        result = (category, index, "hang", f"no answer in {timeout:.0f} s", "")
+        s.kill()
+        s.start()
+    else:
+        return None
+    s.job = None
+    return (*result, elapsed)
+
+
+def _shutdown(slots: list) -> None:
     for s in slots:
         try:
             s.conn.send(None)
@@ -2203,7 +2221,6 @@ def run_campaign(
         s.process.join(5)
         if s.process.is_alive():
             s.kill()
-    return results
 
 
 def table(results: list[tuple]) -> str:
@@ -2228,7 +2245,21 @@ def table(results: list[tuple]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
+#: Relative share of the cases per category.
+WEIGHTS = {
+    "solve": 3,
+    "solve_many": 1,
+    "step": 3,
+    "problem": 2,
+    "robot_file": 2,
+    "statics": 2,
+    "analysis": 2,
+    "cli": 1,
+    "determinism": 1,
+}
+
+
+def parse(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--n", type=int, default=2000, help="number of cases (2000)")
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
@@ -2243,86 +2274,26 @@ def main(argv=None) -> int:
     parser.add_argument("--show", type=int, default=40, help="bad cases listed (40)")
     parser.add_argument("--list", action="store_true", help="list the categories")
     parser.add_argument("--verbose", action="store_true", help="let workers print (OSQP, ...)")
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = parse(argv)
     if args.list:
         print("\n".join(CATEGORIES))
         return 0
     if args.case:
-        category, index = args.case.split(":")
-        spec = make_spec(args.seed, category, int(index))
-        print(f"spec = {spec!r}")
-        import qpik
-
-        try:
-            digest = RUNNERS[category](spec)
-            print(f"ok: digest {digest}")
-        except (qpik.QpikError, Typed) as exc:
-            print(f"typed: {type(exc).__name__}: {exc}")
-        except Exception:
-            traceback.print_exc()
-            return 1
-        return 0
-    weights = {
-        "solve": 3,
-        "solve_many": 1,
-        "step": 3,
-        "problem": 2,
-        "robot_file": 2,
-        "statics": 2,
-        "analysis": 2,
-        "cli": 1,
-        "determinism": 1,
-    }
-    chosen = args.categories
-    total_weight = sum(weights[c] for c in chosen)
-    jobs = []
-    for category in chosen:
-        count = max(1, round(args.n * weights[category] / total_weight))
-        for index in range(count):
-            jobs.append((category, index, make_spec(args.seed, category, index)))
-    random.Random(args.seed).shuffle(jobs)
-    # every determinism case runs twice, the second time in another history
-    repeats = [(c, i, s) for c, i, s in jobs if c == "determinism"]
-    jobs = jobs + [("determinism", -1 - i, s) for c, i, s in repeats]
+        return run_one(args.seed, args.case)
+    jobs, repeats = make_jobs(args.n, args.seed, args.categories)
     print(
-        f"fuzz: {len(jobs)} cases ({len(repeats)} determinism repeats), seed {args.seed}, "
+        f"fuzz: {len(jobs)} cases ({repeats} determinism repeats), seed {args.seed}, "
         f"{args.workers} workers, {args.timeout:.0f} s per case",
         flush=True,
     )
     start = time.monotonic()
     results = run_campaign(jobs, args.workers, args.timeout, quiet=not args.verbose)
     wall = time.monotonic() - start
-    # cross-process determinism: a determinism case's digest must equal its repeat's
-    by_index = {(c, i): r for r in results for c, i in [(r[0], r[1])]}
-    final = []
-    for r in results:
-        category, index = r[0], r[1]
-        if category == "determinism" and index < 0:
-            original = by_index.get(("determinism", -1 - index))
-            if original and original[2] == r[2] == "ok" and original[4] != r[4]:
-                final.append(
-                    (
-                        category,
-                        -1 - index,
-                        "nondet",
-                        f"digest {original[4]} in one worker, {r[4]} in another",
-                        "",
-                        r[5],
-                    )
-                )
-            elif original and original[2] != r[2] and "hang" not in (original[2], r[2]):
-                final.append(
-                    (
-                        category,
-                        -1 - index,
-                        "nondet",
-                        f"{original[2]} in one worker, {r[2]} in another",
-                        "",
-                        r[5],
-                    )
-                )
-            continue
-        final.append(r)
+    final = cross_process(results)
     print(table(final))
     times = sorted(r[5] for r in final)
     if times:
@@ -2339,6 +2310,61 @@ def main(argv=None) -> int:
     print("typed errors: " + ", ".join(f"{k} {v}" for k, v in typed.most_common()))
     print(f"bad outcomes: {len(bad)}")
     return 1 if bad else 0
+
+
+def run_one(seed: int, case: str) -> int:
+    """``--case CATEGORY:INDEX``: one case in this process, its spec and traceback."""
+    import qpik
+
+    category, index = case.split(":")
+    spec = make_spec(seed, category, int(index))
+    print(f"spec = {spec!r}")
+    try:
+        digest = RUNNERS[category](spec)
+        print(f"ok: digest {digest}")
+    except (qpik.QpikError, Typed) as exc:
+        print(f"typed: {type(exc).__name__}: {exc}")
+    except Exception:
+        traceback.print_exc()
+        return 1
+    return 0
+
+
+def make_jobs(n: int, seed: int, chosen: list[str]) -> tuple[list[tuple], int]:
+    """The campaign's jobs, shuffled, each determinism case then repeated (in another
+    history); and the number of repeats."""
+    total_weight = sum(WEIGHTS[c] for c in chosen)
+    jobs = []
+    for category in chosen:
+        count = max(1, round(n * WEIGHTS[category] / total_weight))
+        for index in range(count):
+            jobs.append((category, index, make_spec(seed, category, index)))
+    random.Random(seed).shuffle(jobs)
+    repeats = [(c, i, s) for c, i, s in jobs if c == "determinism"]
+    return jobs + [("determinism", -1 - i, s) for c, i, s in repeats], len(repeats)
+
+
+def cross_process(results: list[tuple]) -> list[tuple]:
+    """The results with each determinism repeat compared with its original: a different
+    digest, or a different outcome (hangs aside), is ``nondet``; repeats are dropped."""
+    by_index = {(r[0], r[1]): r for r in results}
+    final = []
+    for r in results:
+        category, index = r[0], r[1]
+        if not (category == "determinism" and index < 0):
+            final.append(r)
+            continue
+        original = by_index.get(("determinism", -1 - index))
+        if original is None:
+            continue
+        detail = None
+        if original[2] == r[2] == "ok" and original[4] != r[4]:
+            detail = f"digest {original[4]} in one worker, {r[4]} in another"
+        elif original[2] != r[2] and "hang" not in (original[2], r[2]):
+            detail = f"{original[2]} in one worker, {r[2]} in another"
+        if detail is not None:
+            final.append((category, -1 - index, "nondet", detail, "", r[5]))
+    return final
 
 
 if __name__ == "__main__":
