@@ -36,6 +36,7 @@ from .mink_api import build_ik, solve_ik
 from .options import PRESETS, SolveOptions, StepOptions
 from .problem import load_problem
 from .reachability import ReachabilityMap, reachability
+from .result import Reason
 from .robots import list_robots, load_robot
 
 __version__ = "0.1.0"
@@ -46,6 +47,7 @@ __all__ = [
     "IKSession",
     "IKSolver",
     "PRESETS",
+    "Reason",
     "SolveOptions",
     "StepOptions",
     "StepResult",

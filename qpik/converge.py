@@ -78,7 +78,7 @@ from .errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimi
 from .hierarchy import DampingLaw, Stack
 from .model import KinematicChain, ReachBound, _kernels, chain_support, joint_limits
 from .model.frames import resolve_frame
-from .options import (
+from .options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
     IGM_DAMPING,
     MAX_AUTO_RESTARTS,
@@ -91,7 +91,7 @@ from .qp_engine import QPProblem, iterate, set_frame_target
 from .restarts import Clock
 from .result import IGM_REASONS, REASONS, IKResult, LazyRows, Reason
 from .robots import resolve_robot
-from .targets import (
+from .targets import (  # noqa: F401 (MAX_TARGET_DISTANCE re-exported)
     MAX_TARGET_DISTANCE,
     FrameKey,
     RobotLike,
@@ -119,9 +119,6 @@ __all__ = [
     "set_frame_target",
     "solve",
 ]
-
-# Re-exported for callers of the former single module.
-_REEXPORTED = (DEFAULT_RESTARTS, MAX_AUTO_RESTARTS, MAX_ITERS_LIMIT, MAX_TARGET_DISTANCE)
 
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.

@@ -91,3 +91,13 @@ def test_options_are_hashable_values():
     with pytest.raises(TypeError):
         step.backend_options["eps_abs"] = 1.0  # read-only
     hash(step)
+
+
+def test_public_names_resolve():
+    assert [name for name in qpik.__all__ if not hasattr(qpik, name)] == []
+    for name in ("SolveOptions", "StepOptions", "PRESETS", "InvalidOption", "Reason"):
+        assert name in qpik.__all__
+    import qpik.converge as converge  # the names of the former single module stay
+
+    for name in converge.__all__ + ["MAX_AUTO_RESTARTS", "DEFAULT_RESTARTS", "IGM_DAMPING"]:
+        assert hasattr(converge, name), name
