@@ -57,8 +57,7 @@ class MethodFactory(Protocol):
     Method``: binds a method to a robot and the protocol's tolerances (what the method
     iterates to, [m] and [rad]); ``robot`` is the name the model was loaded from (methods
     that load the robot with another library need it). Raises :class:`MethodUnavailable`
-    when the method cannot run
-    on this robot here."""
+    when the method cannot run on this robot here. Built by :func:`_method`."""
 
     def __call__(
         self,
@@ -67,8 +66,8 @@ class MethodFactory(Protocol):
         frame_type: FrameType,
         *,
         robot: str | None,
-        tol_position: float = 1e-4,
-        tol_orientation: float = 1e-3,
+        tol_position: float,
+        tol_orientation: float,
     ) -> Method: ...
 
 
@@ -83,37 +82,22 @@ class MethodUnavailable(QpikError):
         super().__init__(f"{method} skipped on {robot}: {reason}")
 
 
-def _qpik(
-    model: mujoco.MjModel,
-    frame: str,
-    frame_type: FrameType,
-    *,
-    robot: str | None = None,
-    tol_position: float = 1e-4,
-    tol_orientation: float = 1e-3,
-) -> Method:
-    session = IKSession(model)  # the robot read once, as a user holding a session would
+def _qpik(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str | None) -> dict:
+    """qpik's own solve, on a session that reads the robot once (as a user would)."""
+    session = IKSession(model)
 
     def solve(_configuration, frame, position, rotation, *, frame_type, **options):
         return session.solve({(frame, frame_type): (position, rotation)}, **options)
 
-    return _in_restart_loop(
-        model,
-        frame,
-        frame_type,
-        None,
-        igm_function=solve,
-        tol_position=tol_position,
-        tol_orientation=tol_orientation,
-    )
+    return {"igm_function": solve}
 
 
 def _in_restart_loop(
     model: mujoco.MjModel,
     frame: str,
     frame_type: FrameType,
-    step: Callable | None,
     *,
+    step: Callable | None = None,
     set_target: Callable[[np.ndarray, np.ndarray], None] | None = None,
     igm_function: Callable = igm,
     tol_position: float,
@@ -148,38 +132,38 @@ def _in_restart_loop(
     return run
 
 
-def _igm_method(igm_function) -> MethodFactory:
+def _method(parts: Callable[..., dict]) -> MethodFactory:
+    """A :class:`MethodFactory` from ``parts(model, frame, frame_type, robot)``, which
+    returns the keywords of :func:`_in_restart_loop` (``step``, ``set_target``,
+    ``igm_function``): every method runs in the same restart loop."""
+
     def make(
         model: mujoco.MjModel,
         frame: str,
         frame_type: FrameType,
         *,
         robot: str | None = None,
-        tol_position: float = 1e-4,
-        tol_orientation: float = 1e-3,
+        tol_position: float,
+        tol_orientation: float,
     ) -> Method:
         return _in_restart_loop(
             model,
             frame,
             frame_type,
-            None,
-            igm_function=igm_function,
             tol_position=tol_position,
             tol_orientation=tol_orientation,
+            **parts(model, frame, frame_type, robot),
         )
 
     return make
 
 
-def _mink(
-    model: mujoco.MjModel,
-    frame: str,
-    frame_type: FrameType,
-    *,
-    robot: str | None = None,
-    tol_position: float = 1e-4,
-    tol_orientation: float = 1e-3,
-) -> Method:
+def _igm(igm_function: Callable) -> Callable[..., dict]:
+    """The parts of a baseline loop of :mod:`qpik.baselines` (its step is its own)."""
+    return lambda model, frame, frame_type, robot: {"igm_function": igm_function}
+
+
+def _mink(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str | None) -> dict:
     import mink
     import qpsolvers
 
@@ -197,15 +181,7 @@ def _mink(
             mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), position)
         )
 
-    return _in_restart_loop(
-        model,
-        frame,
-        frame_type,
-        step,
-        set_target=set_target,
-        tol_position=tol_position,
-        tol_orientation=tol_orientation,
-    )
+    return {"step": step, "set_target": set_target}
 
 
 @dataclass
@@ -396,15 +372,7 @@ def _place_site(pin, pin_model, model: mujoco.MjModel, site: str, file: str) -> 
     )
 
 
-def _pink(
-    model: mujoco.MjModel,
-    frame: str,
-    frame_type: FrameType,
-    *,
-    robot: str | None = None,
-    tol_position: float = 1e-4,
-    tol_orientation: float = 1e-3,
-) -> Method:
+def _pink(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str | None) -> dict:
     try:
         import pink
         import pinocchio as pin
@@ -440,24 +408,16 @@ def _pink(
     def set_target(position, rotation):
         task.set_target(pin.SE3(np.asarray(rotation, float), np.asarray(position, float)))
 
-    return _in_restart_loop(
-        model,
-        frame,
-        frame_type,
-        step,
-        set_target=set_target,
-        tol_position=tol_position,
-        tol_orientation=tol_orientation,
-    )
+    return {"step": step, "set_target": set_target}
 
 
 #: The benchmark's methods, in the table's order.
 METHODS: dict[str, MethodFactory] = {
-    "qpik": _qpik,
-    "pinv": _igm_method(pseudoinverse_igm),
-    "dls": _igm_method(damped_least_squares_igm),
-    "mink": _mink,
-    "pink": _pink,
+    "qpik": _method(_qpik),
+    "pinv": _method(_igm(pseudoinverse_igm)),
+    "dls": _method(_igm(damped_least_squares_igm)),
+    "mink": _method(_mink),
+    "pink": _method(_pink),
 }
 
 
