@@ -31,3 +31,15 @@ def test_fk_errors(argv, fragment, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert fragment in err and err.count("\n") == 1
+
+
+def test_batch_commands_take_a_preset_and_overrides():
+    import argparse
+
+    from qpik.cli._common import add_solve_arguments, solve_options_from_args
+
+    parser = argparse.ArgumentParser()
+    add_solve_arguments(parser, "target")
+    args = parser.parse_args(["--preset", "fast", "--max-iters", "7"])
+    assert solve_options_from_args(args) == {"options": "fast", "max_iters": 7}
+    assert solve_options_from_args(parser.parse_args([])) == {"options": None}

@@ -10,6 +10,7 @@ import numpy as np
 from ..configuration import Configuration
 from ..errors import InvalidInput, UnknownFrame
 from ..model.frames import resolve_frame
+from ..options import PRESETS
 from ..robots import load_robot, tool_frame
 
 
@@ -106,3 +107,33 @@ def format_matrix(matrix: np.ndarray, indent: str = "  ", digits: int = 4) -> st
         indent + " ".join(f"{x:{width}.{digits}f}" for x in np.atleast_1d(row))
         for row in np.atleast_2d(matrix)
     )
+
+
+#: The solve options the batch commands take as flags (``--tol-position`` ...).
+_SOLVE_FLAGS = ("tol_position", "tol_orientation", "max_iters", "restarts", "time_budget")
+
+
+def add_solve_arguments(parser: argparse.ArgumentParser, per: str, iterations: bool = True) -> None:
+    """``--preset`` and the solve options a batch command overrides (``per``: what one
+    solve is, "target" or "pose"); defaults are :data:`qpik.PRESETS`'s."""
+    parser.add_argument(
+        "--preset",
+        choices=list(PRESETS),
+        help="named solve options (qpik.PRESETS; default: default)",
+    )
+    parser.add_argument("--tol-position", type=float, help="[m] (the preset's)")
+    parser.add_argument("--tol-orientation", type=float, help="[rad] (the preset's)")
+    if iterations:
+        parser.add_argument("--max-iters", type=int, help="iterations per attempt")
+    parser.add_argument("--restarts", type=int, help=f"random restarts per {per}")
+    parser.add_argument("--time-budget", type=float, help=f"[s] per {per}")
+
+
+def solve_options_from_args(args: argparse.Namespace) -> dict:
+    """The keywords of the solves: ``options`` (the preset) and the flags given."""
+    options: dict = {"options": args.preset}
+    for name in _SOLVE_FLAGS:
+        value = getattr(args, name, None)
+        if value is not None:
+            options[name] = value
+    return options

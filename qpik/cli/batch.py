@@ -7,6 +7,7 @@ import signal
 import sys
 
 from ..batch_files import solve_file
+from ._common import add_solve_arguments, solve_options_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -54,11 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "start one here (needs pip install 'qpik[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="batch seed (0)")
-    parser.add_argument("--tol-position", type=float, help="[m] (qpik.solve's default)")
-    parser.add_argument("--tol-orientation", type=float, help="[rad] (qpik.solve's default)")
-    parser.add_argument("--max-iters", type=int, help="iterations per attempt")
-    parser.add_argument("--restarts", type=int, help="random restarts per target")
-    parser.add_argument("--time-budget", type=float, help="[s] per target")
+    add_solve_arguments(parser, "target")
     parser.add_argument(
         "--max-chunks", type=int, metavar="K", help="solve at most K chunks now; rerun to resume"
     )
@@ -70,17 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options = {
-        name: value
-        for name, value in (
-            ("tol_position", args.tol_position),
-            ("tol_orientation", args.tol_orientation),
-            ("max_iters", args.max_iters),
-            ("restarts", args.restarts),
-            ("time_budget", args.time_budget),
-        )
-        if value is not None
-    }
+    options = solve_options_from_args(args)
     previous = _terminate_like_interrupt()
     try:
         run_ = solve_file(

@@ -8,8 +8,12 @@ import numpy as np
 
 from ..configuration import Configuration
 from ..converge import solve
+from ..options import PRESETS
 from ..robots import load_robot
 from ._common import non_negative_int
+
+#: The default preset's orientation tolerance per unit of position tolerance [rad/m].
+_ORIENTATION_PER_METRE = PRESETS["default"].tol_orientation / PRESETS["default"].tol_position
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,8 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--tol",
         type=float,
-        default=1e-4,
-        help="position tolerance [m]; the orientation's is 10x in rad (default: 1e-4)",
+        default=PRESETS["default"].tol_position,
+        help="position tolerance [m]; the orientation's scales with it as in qpik.PRESETS "
+        f"(default: {PRESETS['default'].tol_position:g})",
     )
     parser.set_defaults(func=run)
 
@@ -47,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         {"ee": (position, rotation)},
         seed=args.seed,
         tol_position=args.tol,
-        tol_orientation=10 * args.tol,
+        tol_orientation=args.tol * _ORIENTATION_PER_METRE,
     )
     print(result)
     print(f"engine: {result.engine} (see qpik.solve)")

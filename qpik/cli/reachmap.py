@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from ..reachability import reachability
+from ._common import add_solve_arguments, solve_options_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,10 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run on Ray: 'auto', 'ray://HOST:PORT' or 'local' (pip install 'qpik[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the IK restarts (0)")
-    parser.add_argument("--tol-position", type=float, help="[m] (qpik.solve's default)")
-    parser.add_argument("--tol-orientation", type=float, help="[rad] (qpik.solve's default)")
-    parser.add_argument("--restarts", type=int, help="random restarts per pose")
-    parser.add_argument("--time-budget", type=float, help="[s] per pose")
+    add_solve_arguments(parser, "pose", iterations=False)
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
@@ -64,16 +62,7 @@ def run(args: argparse.Namespace) -> int:
         from ..plots import _matplotlib
 
         _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
-    options = {
-        name: value
-        for name, value in (
-            ("tol_position", args.tol_position),
-            ("tol_orientation", args.tol_orientation),
-            ("restarts", args.restarts),
-            ("time_budget", args.time_budget),
-        )
-        if value is not None
-    }
+    options = solve_options_from_args(args)
     rmap = reachability(
         args.robot,
         args.frame,
