@@ -163,8 +163,17 @@ class QPProblem:
         if step.backend_options is None and step.solver in IGM_BACKEND_OPTIONS:
             step = step.replace(backend_options=IGM_BACKEND_OPTIONS[step.solver])
         self.solver = IKSolver(model, levels, self.limits, options=step)
-        self.primary = [t for t in levels[0] if isinstance(t, _FRAME_TASKS)]
         target_frames = {name for name, _, _ in self.frames}
+        # The tasks that move toward the targets, at whatever level (the trust region
+        # scales their gains): the default stack's level 0, one per frame in frame order;
+        # in a given stack, every frame task on a target frame.
+        self.primary = [
+            t
+            for level in (levels[:1] if stack is None else levels)
+            for t in level
+            if isinstance(t, _FRAME_TASKS)
+            and (stack is None or getattr(t, "frame_name", None) in target_frames)
+        ]
         # Level-0 tasks checked for convergence besides the target frames.
         self.level0 = [t for t in levels[0] if getattr(t, "frame_name", None) not in target_frames]
         self.base_gains: list[float] = []

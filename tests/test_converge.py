@@ -565,3 +565,26 @@ def test_reasons_are_string_enums():
     assert json.dumps({"reason": result.reason}) == '{"reason": "unreachable"}'
     assert f"{result.reason}" == str(result.reason) == "unreachable"
     assert set(REASONS) == {r.value for r in Reason} - {"diverged"}
+
+
+def test_the_trust_region_bounds_target_tasks_below_level_0():
+    """max_step scales the gains of the tasks on target frames whatever their level (a
+    held frame in level 0, the goal in level 1): the first iterate moves the frame by
+    about max_step, not by the whole error."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    q0 = configuration.mid_q()
+    configuration.update(q0)
+    hold = qpik.tasks.PositionTask("link2", "body")
+    hold.set_target(configuration.frame_pose("link2", "body")[0])
+    start = configuration.frame_pose("ee")[0]
+    goal = start + np.array([0.0, 0.25, -0.1])
+    frame = qpik.tasks.PositionTask("ee")
+    result = qpik.solve(
+        model, {"ee": goal}, q0=q0, stack=[[hold], [frame]], seed=0, max_step=(0.02, 0.5)
+    )
+    assert result.converged, result
+    configuration.update(result.path[1])
+    first = np.linalg.norm(configuration.frame_pose("ee")[0] - start)
+    assert 0.01 < first < 0.03, first  # the whole error is 0.27 m
+    assert len(result.path) > 10
