@@ -20,20 +20,21 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
+from .model._kernels import PROGRESS
 from .result import Reason
 
 __all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]
 
-#: The relative decrease of the score that counts as progress.
-PROGRESS = 0.99
+# PROGRESS: a score below PROGRESS times the window's first counts as progress (one
+# rule for every engine: the compiled IGM's).
 
 P = TypeVar("P")
 
 
 class StallWindow:
     """Counts iterations without progress: ``update(score)`` is True once
-    ``stall_window`` consecutive scores have not gone below 99 % of the score at the
-    window's start."""
+    ``stall_window`` consecutive scores have not gone below ``PROGRESS`` (95 %) of the
+    score at the window's start."""
 
     __slots__ = ("_best", "_since", "_window")
 

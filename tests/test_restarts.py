@@ -60,9 +60,13 @@ def test_time_budget_ends_the_loop_with_its_reason():
     assert (reason, used) == (Reason.TIME_BUDGET, 2)
 
 
-def test_stall_window_counts_iterations_without_one_percent_progress():
+def test_stall_window_counts_iterations_without_five_percent_progress():
+    """The qp engine's stall rule is the compiled engine's (qpik.model._kernels.PROGRESS)."""
+    from qpik.model._kernels import PROGRESS
+
+    assert PROGRESS == 0.95
     stall = StallWindow(100.0, 2)
-    assert stall.update(99.5) is False  # 0.5 %: no progress (1 of 2)
-    assert stall.update(98.9) is False  # 1.1 %: progress, the window restarts at 98.9
-    assert stall.update(98.5) is False  # within 1 % of 98.9 (1 of 2)
-    assert stall.update(98.2) is True  # two in a row within 1 % of 98.9
+    assert stall.update(97.0) is False  # 3 %: no progress (1 of 2)
+    assert stall.update(94.0) is False  # 6 %: progress, the window restarts at 94
+    assert stall.update(90.0) is False  # within 5 % of 94 (1 of 2)
+    assert stall.update(89.5) is True  # two in a row within 5 % of 94
