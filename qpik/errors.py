@@ -104,6 +104,13 @@ class RobotFileError(QpikError):
         return type(self), (self.path, self.reason)
 
 
+def _plural(kinds: str) -> str:
+    """``"body"`` -> ``"bodies"``, ``"site, body or geom"`` -> ``"sites, bodies or geoms"``."""
+    words = kinds.replace(",", " ,").split()
+    plural = {"body": "bodies", "site": "sites", "geom": "geoms", "frame": "frames"}
+    return " ".join(plural.get(word, word) for word in words).replace(" ,", ",")
+
+
 class UnknownFrame(QpikError, mink.InvalidFrame, KeyError):
     """A frame name (or id) that the model does not have, for the given frame type.
 
@@ -127,7 +134,7 @@ class UnknownFrame(QpikError, mink.InvalidFrame, KeyError):
         Exception.__init__(
             self,
             f"{frame_type} {name!r} does not exist in the model; available "
-            f"{frame_type}s: {', '.join(self.available) or '(none)'}",
+            f"{_plural(str(frame_type))}: {', '.join(self.available) or '(none)'}",
         )
 
     def __str__(self) -> str:  # KeyError would otherwise quote the message
