@@ -42,10 +42,13 @@ def run(args: argparse.Namespace) -> int:
         _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     result = problem.solve()
     if not args.quiet:
-        goal = problem.goals[0]
         tool = tool_frame(problem.model)
-        note = f" (the robot's tool frame: {tool.reason})" if goal.frame == tool.name else ""
-        print(f"goal frame: {FrameType(goal.frame_type).value} {goal.frame!r}{note}")
+        frames = [f for goal in problem.goals[:1] for f in goal.frames]
+        names = []
+        for frame in frames:
+            note = f" (the robot's tool frame: {tool.reason})" if frame.frame == tool.name else ""
+            names.append(f"{FrameType(frame.frame_type).value} {frame.frame!r}{note}")
+        print(f"goal frame{'s' if len(names) > 1 else ''}: {', '.join(names)}")
         print(result.summary())
     if args.json is not None:
         Path(args.json).write_text(result.to_json() + "\n")
