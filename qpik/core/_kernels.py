@@ -47,24 +47,32 @@ _VERIFY = 1e-8  # a final violation above this (relative) is a numerical failure
 
 
 @njit(cache=True)
+def cholesky_into(G, n, shift, L):
+    """Cholesky factor of ``G[:n, :n] - shift I`` written into the lower triangle of
+    ``L[:n, :n]`` (``G`` unchanged); False as soon as a pivot is not positive (the matrix
+    is not positive definite; ``L`` then holds a partial factor)."""
+    for j in range(n):
+        s = G[j, j] - shift
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        d = np.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            t = G[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / d
+    return True
+
+
+@njit(cache=True)
 def cholesky(H):
     """Lower Cholesky factor of a symmetric matrix and success flag (no exception)."""
     n = H.shape[0]
     L = np.zeros((n, n))
-    for j in range(n):
-        s = H[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return L, False
-        d = np.sqrt(s)
-        L[j, j] = d
-        for i in range(j + 1, n):
-            t = H[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / d
-    return L, True
+    return L, cholesky_into(H, n, 0.0, L)
 
 
 @njit(cache=True)

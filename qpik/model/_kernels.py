@@ -2,10 +2,10 @@ r"""Compiled kernels (numba, cached) of the kinematic chain and of the IGM solve
 
 Every kernel takes plain arrays: no MuJoCo call happens inside (a ctypes call cannot be
 cached by numba), so they compile once per machine and load from numba's cache afterwards.
-All the kernels live in this one module on purpose: numba's cache of a kernel does not
-notice edits to the kernels it calls in *other* modules. After editing a kernel called
-from elsewhere, clear the cache: ``find qpik -name '*.nbi' -delete`` (or set
-``NUMBA_CACHE_DIR`` to a fresh folder, or ``NUMBA_DISABLE_JIT=1`` while debugging).
+numba's cache of a kernel does not notice edits to the kernels it calls in *other*
+modules: this module calls the core's Cholesky, and drops its cached code when
+``qpik/core/_kernels.py`` changes (:func:`qpik.core._cache.drop_stale_cache`).
+``NUMBA_DISABLE_JIT=1`` runs everything as Python while debugging.
 
 Kinematics follow MuJoCo's ``mj_kinematics`` (``engine_core_smooth.c``): per body on the
 chain, ``p <- p + R body_pos``, ``R <- R body_rot``; then per joint of the body, the axis
@@ -34,6 +34,12 @@ import time
 import numba
 import numpy as np
 from numba import njit
+
+from ..core import _kernels as _core_kernels
+from ..core._cache import drop_stale_cache
+from ..core._kernels import cholesky_into
+
+drop_stale_cache(__file__, [_core_kernels.__file__])
 
 HINGE = 0
 SLIDE = 1
@@ -661,20 +667,7 @@ def _smallest_singular_value_in(A, m, nv, G, threshold, rows, L):
 def _positive_definite_shifted(G, n, shift, L):
     """Whether ``G[:n, :n] - shift I`` is positive definite (Cholesky into the scratch
     ``L``; ``G`` unchanged)."""
-    for j in range(n):
-        s = G[j, j] - shift
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return False
-        d = np.sqrt(s)
-        L[j, j] = d
-        for i in range(j + 1, n):
-            t = G[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / d
-    return True
+    return cholesky_into(G, n, shift, L)
 
 
 @njit(cache=True, inline="always")
