@@ -264,7 +264,17 @@ class FusedPlan:
     arrays: dict
     kinds_used: tuple
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
+    max_iter: int  # the core's cap on active-set changes per level
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
+
+    def __post_init__(self) -> None:
+        a = self.arrays
+        #: fused_step's / fused_rows' arguments before the poses and after ``qpos``.
+        self.head = (a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"])
+        self.frame_data = a["frame_data"]
+        self.tail = (
+            a["posture_data"], a["cfg_dof"], a["cfg_data"], a["vel_dof"], a["vel_limit"]
+        )  # fmt: skip
 
     def _gather_frames(self, data: mujoco.MjData) -> None:
         """Frame tasks' targets, costs, gains and MuJoCo Jacobians into the plan."""
@@ -317,6 +327,7 @@ def make_plan(
     scalar_joints: bool,
     rank_tolerance: float,
     tolerance: float,
+    max_iter: int,
 ) -> FusedPlan | None:
     """The :class:`FusedPlan` of a stack, or None when a task or limit is not one that
     :func:`fused_step` computes (the general path then serves every step)."""
@@ -360,7 +371,7 @@ def make_plan(
     settings = arrays["settings"]
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
     cold = np.zeros((len(levels), nv), dtype=np.int8)
-    return FusedPlan(model, frames, postures, config_limits, arrays, used, cold)
+    return FusedPlan(model, frames, postures, config_limits, arrays, used, cold, max_iter)
 
 
 def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:

@@ -52,8 +52,8 @@ from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
 from .options import UNSET, StepOptions
 from .tasks import BaseTask
 
-#: Level statuses by the kernels' codes.
-_LEVEL_STATUS = [_STATUS[code] for code in range(len(_STATUS))]
+#: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
+_STATUS_OF_CODE = {float(code): status for code, status in _STATUS.items()}
 
 __all__ = [
     "DampingLaw",
@@ -331,6 +331,7 @@ class IKSolver:
             self._scalar_joints,
             self._core.rank_tolerance,
             self._core.tolerance,
+            self._core.max_iter or 10 * model.nv + 50,
         )
 
     @property
@@ -543,10 +544,8 @@ class IKSolver:
         qpos, poses = plan.gather(configuration)
         a = plan.arrays
         code, reg, lb, ub = fused_rows(
-            a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], *poses,
-            a["frame_data"], qpos, a["posture_data"], a["cfg_dof"], a["cfg_data"],
-            a["vel_dof"], a["vel_limit"], self._settings(dt),
-        )  # fmt: skip
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(dt)
+        )
         if code:
             return None
         q = qpos.copy()
@@ -561,16 +560,11 @@ class IKSolver:
         path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
         plan = self._plan
         qpos, poses = plan.gather(configuration)
-        a = plan.arrays
         core = self._core
-        settings = self._settings(dt)
-        n = self._nv
         warm = core._warm if core.warm_start and core._warm is not None else plan.cold
         code, d, v, info, active = fused_step(
-            a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], *poses,
-            a["frame_data"], qpos, a["posture_data"], a["cfg_dof"], a["cfg_data"],
-            a["vel_dof"], a["vel_limit"], settings, core.max_iter or 10 * n + 50,
-            warm, core.warm_start,
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(dt),
+            plan.max_iter, warm, core.warm_start,
         )  # fmt: skip
         if code:
             return None
@@ -583,8 +577,8 @@ class IKSolver:
             residuals=residuals,
             sigma_min=sigma,
             damping=lam2,
-            status=[_LEVEL_STATUS[int(s)] for s in status],
-            iterations=[int(i) for i in iterations],
+            status=[_STATUS_OF_CODE[s] for s in status],
+            iterations=list(map(int, iterations)),
             solve_time=time.perf_counter() - start,
             _name_active_limits=lambda: self._active_limits(
                 d,
