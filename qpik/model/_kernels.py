@@ -468,70 +468,93 @@ def _box_qp_workspace(n):
 
 
 @njit(cache=True)
+def _free_rhs(H, g, x, state, free, target, rhs):
+    """The free variables (indices into ``free``, their count returned) and the right-hand
+    side ``-g - H_fb x_b`` of their minimiser with the others held at their bounds (whose
+    ``target`` is their current value)."""
+    n = H.shape[0]
+    nfree = 0
+    for i in range(n):
+        if state[i] == 0:
+            free[nfree] = i
+            nfree += 1
+        else:
+            target[i] = x[i]
+    for a in range(nfree):
+        i = free[a]
+        s = -g[i]
+        for j in range(n):
+            if state[j] != 0:
+                s -= H[i, j] * x[j]
+        rhs[i] = s
+    return nfree
+
+
+@njit(cache=True)
+def _ratio_test(x, target, lb, ub, free, nfree):
+    """The longest step in ``[0, 1]`` from ``x`` toward ``target`` that keeps the free
+    variables in their bounds, and the variable that blocks it (``-1``: none) with its
+    side (-1 lower, +1 upper)."""
+    step = 1.0
+    block = -1
+    block_side = 0
+    for a in range(nfree):
+        i = free[a]
+        d = target[i] - x[i]
+        if d < 0.0 and target[i] < lb[i]:
+            t = (lb[i] - x[i]) / d
+            if t < step:
+                step, block, block_side = t, i, -1
+        elif d > 0.0 and target[i] > ub[i]:
+            t = (ub[i] - x[i]) / d
+            if t < step:
+                step, block, block_side = t, i, 1
+    return max(step, 0.0), block, block_side
+
+
+@njit(cache=True)
+def _most_negative_multiplier(H, g, x, state):
+    """The held bound whose multiplier is the most negative (it should be released), or
+    -1 when every multiplier is >= 0 (the working set is optimal)."""
+    n = H.shape[0]
+    worst = 0.0
+    release = -1
+    for i in range(n):
+        if state[i] == 0:
+            continue
+        grad = g[i]
+        for j in range(n):
+            grad += H[i, j] * x[j]
+        multiplier = grad if state[i] < 0 else -grad  # >= 0 at the optimum
+        if multiplier < worst - 1e-14 * (1.0 + abs(grad)):
+            worst = multiplier
+            release = i
+    return release
+
+
+@njit(cache=True)
 def _box_qp(H, g, lb, ub, x, max_iter, workspace):
-    """:func:`box_qp` with its scratch (:func:`_box_qp_workspace`) given."""
+    """:func:`box_qp` with its scratch (:func:`_box_qp_workspace`) given: a primal
+    active-set method over the bounds. Returns ``(code, iterations)``: 0 solved, 1 the
+    cap, 2 a singular free block."""
     n = H.shape[0]
     state, free, L, target, rhs, y = workspace
     for i in range(n):
         state[i] = 0  # 0 free, -1 at lower, +1 at upper
-    for i in range(n):
         x[i] = min(max(0.0, lb[i]), ub[i])
     for iteration in range(max_iter):
-        nfree = 0
-        for i in range(n):
-            if state[i] == 0:
-                free[nfree] = i
-                nfree += 1
-        # Minimiser over the free variables, the others held at their bounds.
-        for i in range(n):
-            if state[i] != 0:
-                target[i] = x[i]
-        for a in range(nfree):
-            i = free[a]
-            s = -g[i]
-            for j in range(n):
-                if state[j] != 0:
-                    s -= H[i, j] * x[j]
-            rhs[i] = s
+        nfree = _free_rhs(H, g, x, state, free, target, rhs)
         if nfree > 0 and not _cholesky_solve_subset(H, rhs, free, nfree, L, target, y):
             return 2, iteration
-        # Ratio test along x -> target.
-        step = 1.0
-        block = -1
-        block_side = 0
-        for a in range(nfree):
-            i = free[a]
-            d = target[i] - x[i]
-            if d < 0.0 and target[i] < lb[i]:
-                t = (lb[i] - x[i]) / d
-                if t < step:
-                    step, block, block_side = t, i, -1
-            elif d > 0.0 and target[i] > ub[i]:
-                t = (ub[i] - x[i]) / d
-                if t < step:
-                    step, block, block_side = t, i, 1
-        if step < 0.0:
-            step = 0.0
+        step, block, block_side = _ratio_test(x, target, lb, ub, free, nfree)
         for a in range(nfree):
             i = free[a]
             x[i] += step * (target[i] - x[i])
-        if block >= 0:
+        if block >= 0:  # a bound blocks the step: hold it and solve again
             x[block] = lb[block] if block_side < 0 else ub[block]
             state[block] = block_side
             continue
-        # Optimal on this working set: check the multipliers of the bounds held.
-        worst = 0.0
-        release = -1
-        for i in range(n):
-            if state[i] == 0:
-                continue
-            grad = g[i]
-            for j in range(n):
-                grad += H[i, j] * x[j]
-            multiplier = grad if state[i] < 0 else -grad  # >= 0 at the optimum
-            if multiplier < worst - 1e-14 * (1.0 + abs(grad)):
-                worst = multiplier
-                release = i
+        release = _most_negative_multiplier(H, g, x, state)
         if release < 0:
             return 0, iteration + 1
         state[release] = 0
