@@ -831,6 +831,27 @@ def _line_search(chain, target, q, q_base, dx, cols, t, lower, upper, ep, eo, wo
     return ep, eo
 
 
+@njit(cache=True, inline="always")
+def _trust_gain(alpha, ep, eo, has_rot, max_step_p, max_step_o):
+    """The target task's gain under the trust region: at most ``alpha``, and small enough
+    that one step asks for at most ``max_step_p`` [m] and ``max_step_o`` [rad]."""
+    gain = alpha
+    if ep > 0.0 and max_step_p / ep < gain:
+        gain = max_step_p / ep
+    if has_rot and eo > 0.0 and max_step_o / eo < gain:
+        gain = max_step_o / eo
+    return gain
+
+
+@njit(cache=True, inline="always")
+def _progress(current, window_start, since_progress):
+    """The stall window after a score: it restarts on a decrease below ``PROGRESS`` times
+    its first score, else counts one more iteration without progress."""
+    if current < PROGRESS * window_start:
+        return current, 0
+    return window_start, since_progress + 1
+
+
 @njit(cache=True)
 def _attempt(chain, target, q, settings, record, work, qp_work, counts):
     """One attempt of the IGM from ``q`` (advanced in place). ``target``: (position,
@@ -862,12 +883,7 @@ def _attempt(chain, target, q, settings, record, work, qp_work, counts):
             return CONVERGED, length, current, False
         if check_time != 0 and (it % CLOCK_EVERY == 0) and _now() > deadline:
             return TIME_BUDGET, length, current, True
-        # Trust region: the gain of the target task.
-        gain = alpha
-        if ep > 0.0 and max_step_p / ep < gain:
-            gain = max_step_p / ep
-        if has_rot and eo > 0.0 and max_step_o / eo < gain:
-            gain = max_step_o / eo
+        gain = _trust_gain(alpha, ep, eo, has_rot, max_step_p, max_step_o)
         _target_level(jac, cols, error, rot_err, has_rot, gain, A, b, Jinv)
         reg, sigma = _regularisation(A, b, m, gram, options, rows, L_sigma)
         _box_problem(A, b, m, reg, q, cols, lower, upper, limit_gain, H, g, lb, ub)
@@ -884,13 +900,9 @@ def _attempt(chain, target, q, settings, record, work, qp_work, counts):
         current = ep / tol_p + eo / tol_o
         if step_norm < 1e-9:
             return _stall_reason(active, sigma, threshold), length, current, False
-        if current < PROGRESS * window_start:
-            window_start = current
-            since_progress = 0
-        else:
-            since_progress += 1
-            if since_progress >= stall_window:
-                return _stall_reason(active, sigma, threshold), length, current, False
+        window_start, since_progress = _progress(current, window_start, since_progress)
+        if since_progress >= stall_window:
+            return _stall_reason(active, sigma, threshold), length, current, False
     if ep <= tol_p and eo <= tol_o:
         return CONVERGED, length, current, False
     return MAX_ITERS, length, current, False
