@@ -954,6 +954,22 @@ def _beyond_reach(target_p, reach, tol_p):
     return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3])
 
 
+@njit(cache=True, inline="always")
+def _better(done, score, best_done, best_score):
+    """Whether an attempt beats the best so far: converged beats not, then the score."""
+    return (done and not best_done) or (done == best_done and score < best_score)
+
+
+@njit(cache=True, inline="always")
+def _restart_start(q, sample_lo, sample_hi, attempt, rng_state):
+    """The start of restart ``attempt`` (1, 2, ...), drawn into ``q``: odd restarts from
+    the central ``RESTART_SPREAD`` of the restart box, even ones from all of it."""
+    spread = 1.0 if attempt % 2 == 0 else RESTART_SPREAD
+    for j in range(q.shape[0]):
+        u = 0.5 + spread * (uniform(rng_state) - 0.5)
+        q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * u
+
+
 @njit(cache=True)
 def igm_solve(
     chain,
@@ -1026,8 +1042,7 @@ def igm_solve(
             chain, target, q, settings, (path, hist, slot), work, qp_work, counts
         )
         done = reason == CONVERGED
-        best_done = best_reason == CONVERGED
-        if attempt == 0 or (done and not best_done) or (done == best_done and current < best_score):
+        if attempt == 0 or _better(done, current, best_reason == CONVERGED, best_score):
             best_score = current
             best_slot = slot
             best_len = length
@@ -1039,10 +1054,7 @@ def igm_solve(
             out_of_time = True
             break
         attempt += 1
-        spread = 1.0 if attempt % 2 == 0 else RESTART_SPREAD
-        for j in range(nq):
-            u = 0.5 + spread * (uniform(rng_state) - 0.5)
-            q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * u
+        _restart_start(q, sample_lo, sample_hi, attempt, rng_state)
     final = reason
     if best_reason == CONVERGED:
         final = CONVERGED
