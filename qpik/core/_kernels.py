@@ -245,6 +245,8 @@ def _swap_pivot(R, norms, perm, i):
         perm[best] = k
 
 
+# Complexity 12: one Householder reflection, applied to R and accumulated into Q (two
+# short loops over the same vector; split, the pair would pass the vector twice).
 @njit(cache=True)
 def _reflect(R, Q, x, i):
     """Apply the Householder reflection zeroing ``R[i+1:, i]`` to ``R`` (from the left)
@@ -326,6 +328,8 @@ def _rhs(lo, hi, row, side):
     return lo[row] if side > 0 else -hi[row]
 
 
+# Complexity 12: the null-space method's steps (QR of the normals, particular solution,
+# reduced Hessian, multipliers) share their factors; each check returns early.
 @njit(cache=True)
 def _kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q):
     """Minimiser of the QP with the working set held as equalities, and its multipliers
@@ -683,6 +687,9 @@ def _warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side):
     return False, (np.zeros(n), NUMERICAL, 0, np.zeros(m, dtype=np.int8))
 
 
+# Complexity 18: the Goldfarb-Idnani iteration (add a violated row, step, drop a blocking
+# one) updates J, R, u and the working set in place; its steps are helpers above, and
+# what remains are the method's exits (solved, cap, infeasible, dependent row).
 @njit(cache=True)
 def solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical):
     """Solve ``min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi`` exactly.
@@ -922,6 +929,8 @@ def _unit_rows(A, w):
     return True
 
 
+# Complexity 12: the projection, the rank decision and the singular value share one QR;
+# the posture-like and empty levels return early.
 @njit(cache=True)
 def project_level(A, w, Z, rank_tol):
     """Project a level into the null space ``Z`` of the levels above.
@@ -999,6 +1008,8 @@ def damping_of(sigma, threshold, max_damping):
     return max_damping * max_damping * (1.0 - ratio * ratio)
 
 
+# Complexity 11: the box rows and the general rows each need their bounds shifted and
+# their fixed rows dropped.
 @njit(cache=True)
 def reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h):
     """The level's QP in null-space coordinates ``dq = d + Z z``: ``H = (AZ)^T AZ +
@@ -1099,6 +1110,8 @@ def _level_residuals(A, b, starts, x):
     return out
 
 
+# Complexity 11: the cascade's loop over levels with its early exits (an empty level, a
+# failed level 0, an unsettled active set).
 @njit(cache=True)
 def solve_cascade(
     A,

@@ -129,6 +129,8 @@ def _copy3(src, dst):
             dst[i, j] = src[i, j]
 
 
+# Complexity 11: MuJoCo's kinematics per body and per joint type (hinge, slide), as in
+# mj_kinematics; splitting it would pass the running pose around by value.
 @njit(cache=True)
 def _walk(chain, q, axes, anchors, position, rotation, scratch):
     """Walk the chain (the tuple of :class:`qpik.model.KinematicChain`) at ``q``: world
@@ -247,6 +249,8 @@ def _feet(a1, u1, a2, u2, s, r):
         r[i] = a2[i] + t2 * u2[i]
 
 
+# Complexity 13: one pass over the hinges, each either paired with the next hinge (the
+# common perpendicular's feet) or, the last one, with the frame; the first sets the centre.
 @njit(cache=True)
 def reach_radius(chain, q, center):
     """Length of the path ``s_1 -> r_2 -> s_2 -> ... -> s_m -> frame`` through the feet of
@@ -604,6 +608,8 @@ def _pose_error(position, rotation, target_p, target_R, has_rot, error, rot_err,
     return ep, eo
 
 
+# Complexity 12: cyclic Jacobi sweeps with their convergence test, on a small symmetric
+# matrix (no LAPACK call from compiled code).
 @njit(cache=True)
 def _smallest_eigenvalue(G, n):
     """Smallest eigenvalue of the symmetric ``G[:n, :n]`` (cyclic Jacobi; ``G`` is
