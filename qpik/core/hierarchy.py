@@ -475,19 +475,19 @@ class HierarchySolver:
         return z, st, it, act, f"{name} failed: auto"
 
     def _made_exact(self, k, x, H, c, C, lo, hi, max_iter):
-        """A backend's answer ``x`` made exact by the kernel, started from the active set
-        the backend identified when that set is the unique optimal one; the answer is the
-        canonical re-solve either way, so it never depends on the backend's warm start.
-        Returns ``(z, status code, active)``."""
-        guess = K.active_guess(x, C, lo, hi)
-        z, st, _, act = K.solve_level(H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True)
-        if st == K.SOLVED:
-            cold = np.zeros(C.shape[0], dtype=np.int8)
+        """A backend's answer ``x`` made exact: the kernel's canonical cold solve of the
+        same QP, so the answer never depends on the backend (or its warm start); where
+        that fails numerically, the kernel started from the active set the backend
+        identified. Returns ``(z, status code, active)``."""
+        cold = np.zeros(C.shape[0], dtype=np.int8)
+        z, st, _, act = K.solve_level(H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True)
+        if st != K.SOLVED:
+            guess = K.active_guess(x, C, lo, hi)
             z2, st2, _, act2 = K.solve_level(
-                H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True
+                H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True
             )
             if st2 == K.SOLVED:
-                z, act = z2, act2
+                z, st, act = z2, st2, act2
         return z, st, act
 
     def _backend_solve(self, k, name, H, c, C, lo, hi):
