@@ -120,17 +120,37 @@ class OSQPWorkspace:
         if self._solver is None:
             self._setup(H, c, C, lo, hi)
         else:
-            self._solver.update(
-                Px=H[self._h_rows, self._h_cols], Ax=C.ravel(order="F"), q=c, l=lo, u=hi
-            )
-        result = self._solver.solve(raise_error=False)
-        status = self._status_names.get(int(result.info.status_val), "unknown")
+            self._update(H[self._h_rows, self._h_cols], C.ravel(order="F"), c, lo, hi)
+        x, status_val, iterations = self._solve()
+        status = self._status_names.get(status_val, "unknown")
         if status == "max_iter_reached":
             status = "max_iter"
-        x = None
-        if status == "solved" and result.x is not None and np.all(np.isfinite(result.x)):
-            x = np.array(result.x)
-        return QPSolution(x, status, int(result.info.iter), time.perf_counter() - start)
+        if status != "solved" or x is None or not np.all(np.isfinite(x)):
+            x = None
+        return QPSolution(x, status, iterations, time.perf_counter() - start)
+
+    def _update(self, Px, Ax, q, lo, hi) -> None:
+        """New values, same sparsity. Through OSQP's compiled solver object directly when
+        it is there (osqp >= 1.0): the Python wrapper's update and solve spend more time
+        on bookkeeping (derivative caches, an info namespace) than OSQP on these QPs."""
+        native = getattr(self._solver, "_solver", None)
+        if native is None or not hasattr(native, "update_data_mat"):  # pragma: no cover
+            self._solver.update(Px=Px, Ax=Ax, q=q, l=lo, u=hi)  # another osqp layout
+            return
+        native.update_data_vec(q=q, l=lo, u=hi)
+        native.update_data_mat(P_x=Px, P_i=None, A_x=Ax, A_i=None)
+
+    def _solve(self) -> tuple[np.ndarray | None, int, int]:
+        """``(x or None, status value, iterations)`` of one OSQP solve."""
+        native = getattr(self._solver, "_solver", None)
+        if native is None or not hasattr(native, "solution"):  # pragma: no cover
+            result = self._solver.solve(raise_error=False)  # another osqp layout
+            x = None if result.x is None else np.array(result.x)
+            return x, int(result.info.status_val), int(result.info.iter)
+        native.solve()
+        info = native.info
+        x = native.solution.x
+        return (None if x is None else np.array(x)), int(info.status_val), int(info.iter)
 
 
 class QPSolversWorkspace:
