@@ -490,3 +490,28 @@ def test_bounds_of_dofs_fixed_by_a_level_above_do_not_wreck_the_level_below(rng)
         c = -A.T @ b
         y = qpsolvers.solve_qp(H, c, lb=lb[2:], ub=ub[2:], solver="quadprog")
         np.testing.assert_allclose(result.x[2:], y, atol=1e-9, err_msg=f"trial {trial}")
+
+
+@pytest.mark.parametrize("distance", [1e3, 1e4, 1e5])
+def test_far_frame_targets_are_solved_at_the_velocity_limits(distance):
+    """A frame target far out of reach makes mink's SE(3) rows ~distance, so H ~ 1e10 and
+    more while the box keeps dq ~ 0.02: the products cancel far above 1e-8 of |H x + c|.
+    The level must still be solved (its stationarity judged against the size of the terms,
+    the KKT system re-solved where the iteration's multipliers drift), and equal an
+    independent solver's answer to the same QP."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    limits = [mink.ConfigurationLimit(model), qpik.limits.velocity_limit_from_model(model)]
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target(mink.SE3.from_translation(np.array([distance, 0.0, 0.0])))
+    solver = qpik.IKSolver(model, [[frame]], limits)
+    result = solver.step(configuration, 0.01)
+    assert result.status == [LevelStatus.SOLVED]
+    problem = solver.build(configuration, 0.01)
+    (level,) = problem.levels
+    H = level.A.T @ level.A + level.regularization * np.eye(model.nv)
+    reference = qpsolvers.solve_qp(
+        H, -level.A.T @ level.b, lb=problem.lb, ub=problem.ub, solver="quadprog"
+    )
+    np.testing.assert_allclose(result.displacement, reference, atol=1e-4)
+    assert np.abs(result.displacement).max() == pytest.approx(np.abs(problem.ub).max())
