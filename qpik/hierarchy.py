@@ -215,17 +215,18 @@ class _RowStructure:
     unique: bool
 
 
-def _configuration_box(limit: mink.ConfigurationLimit, configuration: Configuration, dt: float):
-    """mink's ConfigurationLimit as box bounds on ``dq`` (hinge/slide joints: dof = qpos)."""
+def _configuration_box(limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float):
+    """mink's ConfigurationLimit as box bounds on ``dq`` at ``qpos`` (hinge/slide joints:
+    dof = qpos index)."""
     if len(limit.indices) == 0:  # no limited joint (mink keeps an empty float array)
         return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-    q = configuration.data.qpos[limit.indices]
+    q = qpos[limit.indices]
     upper = limit.gain * (limit.upper[limit.indices] - q)
     lower = -limit.gain * (q - limit.lower[limit.indices])
     return limit.indices, lower, upper
 
 
-def _velocity_box(limit: mink.VelocityLimit, configuration: Configuration, dt: float):
+def _velocity_box(limit: mink.VelocityLimit, qpos: np.ndarray, dt: float):
     """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt``."""
     bound = limit.limit * dt
     return limit.indices, -bound, bound
@@ -390,8 +391,9 @@ class IKSolver:
         """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits, and
         the per-limit box contributions (to name the active limits afterwards)."""
         hard_lb, hard_ub, pos_lb, pos_ub = self._bounds
-        for bound, value in ((hard_lb, -np.inf), (hard_ub, np.inf), (pos_lb, -np.inf)):
-            bound.fill(value)
+        hard_lb.fill(-np.inf)
+        hard_ub.fill(np.inf)
+        pos_lb.fill(-np.inf)
         pos_ub.fill(np.inf)
         contributions = []  # (name, dofs, bounds) for each side of each limit
         general = ([], [], [])  # G blocks, h blocks, row names
@@ -402,7 +404,7 @@ class IKSolver:
             lb, ub = (pos_lb, pos_ub) if recoverable else (hard_lb, hard_ub)
             box = _BOX_LIMITS.get(type(limit)) if self._scalar_joints else None
             if box is not None:
-                dofs, lower, upper = box(limit, configuration, dt)
+                dofs, lower, upper = box(limit, configuration.data.qpos, dt)
                 if len(dofs):
                     tighten(lb, ub, dofs, lower, upper)
                     name = type(limit).__name__
@@ -592,17 +594,11 @@ class IKSolver:
 
     def _box_contributions(self, qpos: np.ndarray, dt: float) -> list:
         """The limits' box contributions ``(name, dofs, bounds)`` at ``qpos`` (to name
-        the active limits of a fused step; see :meth:`_limit_rows`)."""
+        the active limits of a fused step, whose limits are all box limits; see
+        :meth:`_limit_rows`)."""
         contributions = []
         for limit in self.limits:
-            dofs = np.asarray(limit.indices, dtype=np.int64)
-            if isinstance(limit, mink.ConfigurationLimit):
-                q = qpos[dofs]
-                upper = limit.gain * (limit.upper[dofs] - q)
-                lower = -limit.gain * (q - limit.lower[dofs])
-            else:
-                upper = limit.limit * dt
-                lower = -upper
+            dofs, lower, upper = _BOX_LIMITS[type(limit)](limit, qpos, dt)
             name = type(limit).__name__
             contributions.append((name, dofs, upper))
             contributions.append((name, dofs, lower))
