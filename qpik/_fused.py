@@ -29,7 +29,7 @@ from .core._cache import drop_stale_cache
 from .core._kernels import MAX_ITER, NUMERICAL, merge_boxes, solve_cascade
 from .errors import TargetNotSet
 from .tasks import _lie, fast
-from .tasks.fast import FrameTask, PostureTask, frame_rows_into
+from .tasks.fast import FrameTask, PostureTask, frame_error_jlog, frame_rows_into
 
 # The kernels below call the core's and the Lie routines: numba's cache would not notice
 # an edit there.
@@ -46,16 +46,9 @@ _FRAME, _POSTURE = 0, 1
 @njit(cache=True)
 def _frame_rows(A, b, row, jac, xpos, xmat, target, cost, gain, lm_damping):
     """Rows ``row:row+6`` of a frame task at pose ``(xpos, xmat)`` with target ``target``
-    (``wxyz_xyz``): mink's error and ``jlog`` (:mod:`qpik.tasks._lie`), then
+    (``wxyz_xyz``): :func:`qpik.tasks.fast.frame_error_jlog`, then
     :func:`qpik.tasks.fast.frame_rows_into`; returns its LM term."""
-    frame = np.empty(7)
-    _lie.xmat_xpos_to_wxyz_xyz(frame, xmat, xpos)
-    error = np.empty(6)
-    _lie.se3_rminus(error, target, frame)
-    relative = np.empty(7)
-    _lie.se3_inverse_multiply(relative, target, frame)
-    jlog = np.empty((6, 6))
-    _lie.se3_jlog(jlog, relative)
+    error, jlog = frame_error_jlog(xmat, xpos, target)
     return frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping)
 
 

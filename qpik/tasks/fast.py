@@ -4,7 +4,8 @@ They are mink's classes (``isinstance(task, mink.FrameTask)`` holds, targets are
 same way) whose error and Jacobian are computed without building SE3 objects or
 re-allocating per step: the frame pose and world-aligned Jacobian come from MuJoCo
 (``data.site_xpos``/``site_xmat``, ``mj_jacSite``, and the body/geom equivalents), the SE3
-log, its Jacobian and the local-frame rotation from mink's compiled Lie-group routines.
+log, its Jacobian and the local-frame rotation from mink's Lie-group arithmetic (its C
+routines, ported to numba in :mod:`qpik.tasks._lie`).
 They equal mink's own to round-off (tests check 1e-12).
 """
 
@@ -15,12 +16,13 @@ import mujoco
 import numpy as np
 from numba import njit
 
+from ..core._cache import drop_stale_cache
 from ..errors import TargetNotSet, mink_errors_as_qpik
+from . import _lie
 
-try:  # mink >= 1.3 ships compiled SE3 routines; older versions use the generic path
-    from mink.lie import _lie_ops_c as _native
-except ImportError:  # pragma: no cover - depends on the installed mink
-    _native = None
+# frame_error_jlog calls the Lie kernels of another module: numba's cache would not notice
+# an edit there.
+drop_stale_cache(__file__, [_lie.__file__])
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
 
@@ -33,6 +35,22 @@ _FRAME = {
 
 def _frame_type_name(frame_type) -> str:
     return getattr(frame_type, "value", frame_type)
+
+
+@njit(cache=True)
+def frame_error_jlog(xmat, xpos, target):
+    """mink's frame-task error ``log(T_fw^-1 T_tw)`` (the body twist from the frame at
+    ``(xpos, xmat)`` to ``target``, ``wxyz_xyz``) and ``jlog(T_tw^-1 T_fw)`` (6, 6), by
+    mink's own SE(3) arithmetic (:mod:`qpik.tasks._lie`)."""
+    frame = np.empty(7)
+    _lie.xmat_xpos_to_wxyz_xyz(frame, xmat, xpos)
+    error = np.empty(6)
+    _lie.se3_rminus(error, target, frame)
+    relative = np.empty(7)
+    _lie.se3_inverse_multiply(relative, target, frame)
+    jlog = np.empty((6, 6))
+    _lie.se3_jlog(jlog, relative)
+    return error, jlog
 
 
 @njit(cache=True)
@@ -74,14 +92,15 @@ class FrameTask(mink.FrameTask):
             super().__init__(*args, **kwargs)
 
     def _frame_terms(self, configuration):
-        """``(jac, xmat, jlog, error)`` from MuJoCo and mink's compiled SE3 routines: the
-        world-aligned Jacobian (6, nv), the frame's rotation (row-major 9), ``jlog(T_tb)``
-        and the body-twist error; ``None`` where only mink's generic path applies."""
+        """``(jac, xmat, jlog, error)`` from MuJoCo and mink's SE3 arithmetic
+        (:func:`frame_error_jlog`): the world-aligned Jacobian (6, nv), the frame's rotation
+        (row-major 9), ``jlog(T_tb)`` and the body-twist error; ``None`` for a frame type
+        only mink's generic path knows."""
         if self.transform_target_to_world is None:
             raise TargetNotSet(self.__class__.__name__)
         kind = _frame_type_name(self.frame_type)
         spec = _FRAME.get(kind)
-        if _native is None or spec is None:
+        if spec is None:
             return None
         model, data = configuration.model, configuration.data
         fid = configuration._resolve_frame_id(self.frame_name, kind)
@@ -89,10 +108,7 @@ class FrameTask(mink.FrameTask):
         xmat = getattr(data, spec[1])[fid]
         jac = np.empty((6, model.nv))
         spec[2](model, data, jac[:3], jac[3:], fid)
-        frame = _native.xmat_xpos_to_wxyz_xyz(xmat, xpos)
-        target = self.transform_target_to_world.wxyz_xyz
-        error = _native.se3_rminus(target, frame)
-        jlog = _native.se3_jlog(_native.se3_inverse_multiply(target, frame))
+        error, jlog = frame_error_jlog(xmat, xpos, self.transform_target_to_world.wxyz_xyz)
         return jac, xmat, jlog, error
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
