@@ -1,0 +1,99 @@
+// Small dense types shared by every layer of the compiled engine.
+//
+// Row-major, like NumPy's C order, so a view can sit on a NumPy array without a copy.
+// No expression templates and no BLAS: the kernels are plain loops over small matrices
+// (IK sizes, n <= ~100), written in the same order as the Python reference so that the
+// same inputs give the same bits (the build uses -ffp-contract=off and no -ffast-math).
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace qpik {
+
+using i64 = std::int64_t;
+using i8 = std::int8_t;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A row-major view on doubles owned elsewhere (a NumPy array or a Mat).
+template <class T>
+struct MatRefT {
+    T* p = nullptr;
+    i64 rows = 0;
+    i64 cols = 0;
+    i64 stride = 0;  // elements between two rows
+
+    MatRefT() = default;
+    MatRefT(T* data, i64 r, i64 c) : p(data), rows(r), cols(c), stride(c) {}
+    MatRefT(T* data, i64 r, i64 c, i64 s) : p(data), rows(r), cols(c), stride(s) {}
+    template <class U>
+    MatRefT(const MatRefT<U>& o) : p(o.p), rows(o.rows), cols(o.cols), stride(o.stride) {}
+
+    T& operator()(i64 i, i64 j) const { return p[i * stride + j]; }
+    T* row(i64 i) const { return p + i * stride; }
+    // Rows r0:r1 (a view).
+    MatRefT rows_slice(i64 r0, i64 r1) const { return MatRefT(p + r0 * stride, r1 - r0, cols, stride); }
+};
+using MatRef = MatRefT<double>;
+using CMatRef = MatRefT<const double>;
+
+// A view on a contiguous vector.
+template <class T>
+struct VecRefT {
+    T* p = nullptr;
+    i64 n = 0;
+    VecRefT() = default;
+    VecRefT(T* data, i64 size) : p(data), n(size) {}
+    template <class U>
+    VecRefT(const VecRefT<U>& o) : p(o.p), n(o.n) {}
+    template <class U>
+    VecRefT(std::vector<U>& v) : p(v.data()), n(static_cast<i64>(v.size())) {}
+    template <class U>
+    VecRefT(const std::vector<U>& v) : p(v.data()), n(static_cast<i64>(v.size())) {}
+    T& operator[](i64 i) const { return p[i]; }
+    i64 size() const { return n; }
+    T* begin() const { return p; }
+    T* end() const { return p + n; }
+    VecRefT slice(i64 a, i64 b) const { return VecRefT(p + a, b - a); }
+};
+using VecRef = VecRefT<double>;
+using CVecRef = VecRefT<const double>;
+
+// An owning row-major matrix.
+struct Mat {
+    i64 rows = 0;
+    i64 cols = 0;
+    std::vector<double> a;
+
+    Mat() = default;
+    Mat(i64 r, i64 c, double fill = 0.0) : rows(r), cols(c), a(static_cast<size_t>(r * c), fill) {}
+    static Mat eye(i64 n) {
+        Mat m(n, n);
+        for (i64 i = 0; i < n; ++i) m(i, i) = 1.0;
+        return m;
+    }
+    double& operator()(i64 i, i64 j) { return a[static_cast<size_t>(i * cols + j)]; }
+    double operator()(i64 i, i64 j) const { return a[static_cast<size_t>(i * cols + j)]; }
+    double* row(i64 i) { return a.data() + i * cols; }
+    const double* row(i64 i) const { return a.data() + i * cols; }
+    MatRef ref() { return MatRef(a.data(), rows, cols); }
+    CMatRef ref() const { return CMatRef(a.data(), rows, cols); }
+    CMatRef cref() const { return CMatRef(a.data(), rows, cols); }
+};
+
+using Vec = std::vector<double>;
+using IVec = std::vector<i64>;
+using BVec = std::vector<i8>;
+
+// Thrown for arguments the Python layer should have rejected; arrives as ValueError.
+struct BadArgument : std::invalid_argument {
+    using std::invalid_argument::invalid_argument;
+};
+
+}  // namespace qpik
