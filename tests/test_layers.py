@@ -14,6 +14,7 @@ ROOT = Path(qpik.__file__).parent
 #: Layer of each module, lowest first (a module not listed is an application, layer 5).
 CORE, BASE, MODEL, TASKS, IK, APPLICATIONS = range(6)
 LAYERS = {
+    "qpik._engine": CORE,  # the compiled engine (C++; its submodules mirror the layers)
     "qpik.core": CORE,  # matrices only: the hierarchical QP, backends, damping
     "qpik.errors": BASE,  # typed errors (subclassing mink's) and the options object
     "qpik.options": BASE,
