@@ -32,6 +32,7 @@ from .errors import (
     UnknownRobot,
 )
 from .hierarchy import DampingLaw, IKSolver, StepResult
+from .mink_api import SOLVERS as _SOLVERS
 from .mink_api import build_ik, solve_ik
 from .options import PRESETS, SolveOptions, StepOptions
 from .problem import load_problem
@@ -40,6 +41,15 @@ from .result import Reason
 from .robots import list_robots, load_robot
 
 __version__ = "0.1.0"
+
+
+def clear_caches() -> None:
+    """Forget what qpik keeps between calls: the :class:`IKSolver` objects that
+    :func:`solve_ik` and :func:`build_ik` keep per model, task and limit objects
+    (:class:`qpik.mink_api.SolverCache`). Answers never depend on it; only the time of
+    the next call does."""
+    _SOLVERS.clear()
+
 
 __all__ = [
     "DampingLaw",
@@ -55,6 +65,7 @@ __all__ = [
     "limits",
     "solve",
     "build_ik",
+    "clear_caches",
     "solve_ik",
     "solve_many",
     "reachability",

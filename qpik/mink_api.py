@@ -40,7 +40,7 @@ from .errors import InvalidDamping, InvalidInput, NoSolutionFound
 from .hierarchy import IKSolver
 from .tasks import BaseTask
 
-__all__ = ["build_ik", "solve_ik"]
+__all__ = ["SOLVERS", "SolverCache", "build_ik", "solve_ik"]
 
 #: A flat list of tasks (one weighted level, as in mink) or a list of levels.
 Tasks = Sequence[BaseTask] | Sequence[BaseTask | Sequence[BaseTask]]
@@ -60,12 +60,13 @@ class _MinimumNorm(BaseTask):
 
 
 def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
-    """``configuration`` as a :class:`qpik.Configuration` (a mink one is copied, with its
-    whole state); :class:`qpik.InvalidInput` naming the argument otherwise."""
+    """``configuration`` as a :class:`qpik.Configuration`: a mink one is read in place,
+    through a view that shares its model and data (:meth:`qpik.Configuration.sharing`);
+    :class:`qpik.InvalidInput` naming the argument otherwise."""
     if isinstance(configuration, Configuration):
         return configuration
     if isinstance(configuration, mink.Configuration):
-        return Configuration(configuration)
+        return Configuration.sharing(configuration)
     raise InvalidInput(
         f"{name} must be a qpik.Configuration or a mink.Configuration, "
         f"got {type(configuration).__name__}"
@@ -230,6 +231,71 @@ def solve_ik(
     return velocity
 
 
+class SolverCache:
+    """The :class:`IKSolver` objects that :func:`solve_ik` and :func:`build_ik` keep
+    between calls, so that a control loop calling ``solve_ik`` with the same model, task
+    and limit objects builds its solver once (as it would hold an :class:`IKSolver`).
+
+    An entry is found by the identity of the model, of every task (level by level) and of
+    every limit, and by the solver name, damping and backend settings; any change in their
+    number, order or identity builds a new solver. With ``limits=None`` (mink's default
+    :class:`mink.ConfigurationLimit`) the entry also records the model's joint ranges, so
+    a model whose limits were changed in place gets a new one. Entries hold their objects,
+    so an identity is never reused while its entry lives. The answers are bitwise those
+    of a fresh solver (warm starts are off in these solvers: nothing carries over from
+    one call to the next). ``qpik.clear_caches()`` empties it.
+    """
+
+    #: Entries kept (the least recently used goes first).
+    size = 8
+
+    def __init__(self) -> None:
+        self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
+
+    def clear(self) -> None:
+        """Forget every kept solver."""
+        self._entries.clear()
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def get(
+        self,
+        configuration: Configuration,
+        levels: list[list[BaseTask]],
+        limits: Any,
+        solver: str | None,
+        damping: float,
+        backend_options: dict,
+    ) -> IKSolver:
+        """The kept solver for these arguments, or a new one (then kept)."""
+        model = configuration.model
+        if limits is None:
+            limit_key: tuple = (None, model.jnt_range.tobytes(), model.jnt_limited.tobytes())
+        else:
+            limit_key = tuple(map(id, limits))
+        key = (
+            id(model),
+            tuple(tuple(map(id, level)) for level in levels),
+            limit_key,
+            solver,
+            float(damping),
+            repr(sorted(backend_options.items())) if backend_options else "",
+        )
+        entry = self._entries.pop(key, None)
+        if entry is None:
+            ik = _new_solver(configuration, levels, solver, damping, limits, backend_options)
+            entry = ((model, levels, limits), ik)  # held: their ids stay theirs
+            if len(self._entries) >= self.size:
+                self._entries.pop(next(iter(self._entries)))
+        self._entries[key] = entry  # most recently used last
+        return entry[1]
+
+
+#: The one cache of mink-style calls (see :class:`SolverCache`).
+SOLVERS = SolverCache()
+
+
 def _solver(
     configuration: Configuration,
     tasks: Any,
@@ -239,27 +305,43 @@ def _solver(
     constraints: Any,
     backend_options: dict,
 ) -> tuple[IKSolver, tuple[np.ndarray, np.ndarray] | None]:
-    """The :class:`IKSolver` of the task levels, and the constraints' equality rows."""
+    """The :class:`IKSolver` of the task levels (kept between calls, see
+    :class:`SolverCache`), and the constraints' equality rows."""
     levels = _levels(tasks)
-    limit_list = _limits(configuration, limits)
+    if limits is not None:
+        limits = _limits(configuration, limits)
     constraint_tasks = _constraints(constraints)
+    if backend_options and solver in (None, "auto"):
+        raise InvalidInput(
+            f"solver keyword arguments {sorted(backend_options)} are settings of a "
+            "named backend: pass solver='osqp', 'daqp', ... with them"
+        )
+    ik = SOLVERS.get(configuration, levels, limits, solver, damping, backend_options)
+    rows = None
+    if constraint_tasks:
+        rows = _equality_rows(configuration, constraint_tasks, configuration.model.nv)
+    return ik, rows
+
+
+def _new_solver(
+    configuration: Configuration,
+    levels: list[list[BaseTask]],
+    solver: str | None,
+    damping: float,
+    limits: Any,
+    backend_options: dict,
+) -> IKSolver:
+    """A new :class:`IKSolver` of ``levels`` (``[]``: the minimum-norm task) under
+    ``limits`` (``None``: the model's position limits, as mink's default)."""
+    limit_list = _limits(configuration, limits)
     if not levels:
         levels = [[_MinimumNorm()]]
     options: dict[str, Any] = {"damping": damping}
     if solver is not None:
         options["solver"] = solver
     if backend_options:
-        if solver in (None, "auto"):
-            raise InvalidInput(
-                f"solver keyword arguments {sorted(backend_options)} are settings of a "
-                "named backend: pass solver='osqp', 'daqp', ... with them"
-            )
         options["backend_options"] = backend_options
-    ik = IKSolver(configuration.model, levels, limit_list, **options)
-    rows = None
-    if constraint_tasks:
-        rows = _equality_rows(configuration, constraint_tasks, configuration.model.nv)
-    return ik, rows
+    return IKSolver(configuration.model, levels, limit_list, **options)
 
 
 def build_ik(

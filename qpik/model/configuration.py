@@ -57,6 +57,40 @@ def _qpos_joint_names(model: mujoco.MjModel) -> list[str]:
     return names
 
 
+def _limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Lower and upper joint limits ``(nq,)`` (read-only; +-inf where a scalar joint is
+    unlimited, and on ball and free joints) and each qpos entry's joint name."""
+    lower = np.full(model.nq, -np.inf)
+    upper = np.full(model.nq, np.inf)
+    for j in range(model.njnt):
+        kind = model.jnt_type[j]
+        if model.jnt_limited[j] and kind in _SCALAR_JOINTS:
+            adr = model.jnt_qposadr[j]
+            lower[adr], upper[adr] = model.jnt_range[j]
+    lower.setflags(write=False)
+    upper.setflags(write=False)
+    return lower, upper, _qpos_joint_names(model)
+
+
+#: _limit_vectors of the last few models seen by Configuration.sharing, by id(model):
+#: (model, fingerprint of its limits, vectors); the model is held so that its id stays its.
+_SHARED_LIMITS: dict[int, tuple[mujoco.MjModel, bytes, tuple]] = {}
+
+
+def _shared_limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """:func:`_limit_vectors`, kept per model (recomputed when the model's limits changed
+    in place)."""
+    stamp = model.jnt_range.tobytes() + model.jnt_limited.tobytes()
+    entry = _SHARED_LIMITS.get(id(model))
+    if entry is not None and entry[0] is model and entry[1] == stamp:
+        return entry[2]
+    if len(_SHARED_LIMITS) >= 8:
+        _SHARED_LIMITS.pop(next(iter(_SHARED_LIMITS)))
+    vectors = _limit_vectors(model)
+    _SHARED_LIMITS[id(model)] = (model, stamp, vectors)
+    return vectors
+
+
 class Configuration(mink.Configuration):
     """Model, data and configuration ``q`` of a robot, with forward kinematics up to date.
 
@@ -78,22 +112,23 @@ class Configuration(mink.Configuration):
                 "Configuration needs a mujoco.MjModel (see qpik.load_robot) or a "
                 f"mink.Configuration as `model`, got {type(model).__name__}"
             )
-        lower = np.full(model.nq, -np.inf)
-        upper = np.full(model.nq, np.inf)
-        for j in range(model.njnt):
-            kind = model.jnt_type[j]
-            if model.jnt_limited[j] and kind in _SCALAR_JOINTS:
-                adr = model.jnt_qposadr[j]
-                lower[adr], upper[adr] = model.jnt_range[j]
-        self._lower = lower
-        self._upper = upper
-        self._lower.setflags(write=False)
-        self._upper.setflags(write=False)
-        self._qpos_joint = _qpos_joint_names(model)
+        self._lower, self._upper, self._qpos_joint = _limit_vectors(model)
         super().__init__(model, None if source is not None else q)  # mink calls update(q)
         if source is not None:
             mujoco.mj_copyData(self.data, model, source.data)
             self.update(self.data.qpos.copy() if q is None else q)  # validated
+
+    @classmethod
+    def sharing(cls, source: mink.Configuration) -> Configuration:
+        """A :class:`Configuration` that reads and writes ``source``'s model and data in
+        place (no copy, no forward kinematics: ``source`` is taken as up to date, as
+        :func:`mink.solve_ik` takes it). ``source`` itself when it is already one."""
+        if isinstance(source, Configuration):
+            return source
+        view = cls.__new__(cls)
+        view.__dict__.update(source.__dict__)  # model, data and mink's cached vectors
+        view._lower, view._upper, view._qpos_joint = _shared_limit_vectors(source.model)
+        return view
 
     # ------------------------------------------------------------------ state
     def _validated(self, q: npt.ArrayLike) -> np.ndarray:

@@ -1,0 +1,101 @@
+"""qpik.solve_ik keeps its IKSolver between calls (qpik.mink_api.SolverCache) and reads a
+mink.Configuration in place: same answers, bit for bit, as a fresh solver's."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+
+import qpik
+from qpik.mink_api import SOLVERS
+
+
+def _setup(robot: str = "ur5e"):
+    model = qpik.load_robot(robot)
+    configuration = mink.Configuration(model)
+    configuration.update(model.qpos0 + 0.1)
+    site = "ee" if robot == "ur5e" else qpik.robots.tool_frame(model)[0]
+    task = mink.FrameTask(site, "site", position_cost=1.0, orientation_cost=1.0)
+    task.set_target(
+        configuration.get_transform_frame_to_world(site, "site")
+        @ mink.SE3.from_translation(np.array([0.05, -0.02, 0.08]))
+    )
+    posture = mink.PostureTask(model, cost=1e-2)
+    posture.set_target_from_configuration(configuration)
+    return model, configuration, task, posture
+
+
+@pytest.mark.parametrize("solver", [None, "daqp", "osqp"])
+@pytest.mark.parametrize("levels", [False, True])
+def test_kept_solver_answers_bitwise_as_a_fresh_one(solver, levels):
+    model, configuration, task, posture = _setup()
+    tasks = [[task], [posture]] if levels else [task, posture]
+    limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, {"shoulder_pan_joint": 0.5})]
+    kept, fresh = [], []
+    q = configuration.q.copy()
+    for loop, out in ((True, kept), (False, fresh)):
+        configuration.update(q)
+        qpik.clear_caches()
+        for _ in range(15):
+            if not loop:
+                qpik.clear_caches()
+            v = qpik.solve_ik(configuration, tasks, 0.01, solver, limits=limits)
+            out.append(v)
+            configuration.integrate_inplace(v, 0.01)
+    for a, b in zip(kept, fresh):
+        assert np.array_equal(a, b)
+
+
+def test_solver_is_kept_per_identity_and_rebuilt_when_it_changes():
+    model, configuration, task, posture = _setup()
+    qpik.clear_caches()
+    qpik.solve_ik(configuration, [task, posture], 0.01)
+    qpik.solve_ik(configuration, [task, posture], 0.01)
+    assert len(SOLVERS) == 1
+    other = mink.PostureTask(model, cost=1e-2)
+    other.set_target_from_configuration(configuration)
+    qpik.solve_ik(configuration, [task, other], 0.01)
+    qpik.solve_ik(configuration, [[task], [posture]], 0.01)
+    qpik.solve_ik(configuration, [task, posture], 0.01, damping=1e-6)
+    assert len(SOLVERS) == 4
+    qpik.clear_caches()
+    assert len(SOLVERS) == 0
+
+
+def test_default_limits_follow_a_model_changed_in_place():
+    model, configuration, task, posture = _setup()
+    qpik.clear_caches()
+    before = qpik.solve_ik(configuration, [task, posture], 0.01)
+    saved = model.jnt_range.copy()
+    try:
+        model.jnt_range[:, 0] = configuration.q[: model.njnt] - 1e-4  # nearly pinned
+        model.jnt_range[:, 1] = configuration.q[: model.njnt] + 1e-4
+        pinned = qpik.solve_ik(configuration, [task, posture], 0.01)
+        assert np.abs(pinned).max() <= 1e-4 / 0.01 + 1e-9
+        assert not np.array_equal(pinned, before)
+    finally:
+        model.jnt_range[:] = saved
+
+
+def test_mink_configuration_is_read_in_place_not_copied():
+    """A state set on the mink configuration (q, mocap, data) is what the step sees, and
+    the configuration itself is not modified."""
+    model, configuration, task, posture = _setup()
+    v1 = qpik.solve_ik(configuration, [task, posture], 0.01)
+    configuration.update(configuration.q + 0.05)
+    q = configuration.q.copy()
+    v2 = qpik.solve_ik(configuration, [task, posture], 0.01)
+    assert not np.array_equal(v1, v2)
+    assert np.array_equal(configuration.q, q)
+    fresh = qpik.Configuration(model, q)
+    assert np.array_equal(v2, qpik.solve_ik(fresh, [task, posture], 0.01))
+
+
+def test_sharing_view_shares_model_and_data():
+    model, configuration, _, _ = _setup()
+    view = qpik.Configuration.sharing(configuration)
+    assert view.model is configuration.model and view.data is configuration.data
+    assert isinstance(view, qpik.Configuration)
+    assert qpik.Configuration.sharing(view) is view
+    assert np.array_equal(view.lower, qpik.Configuration(model).lower)
