@@ -16,10 +16,13 @@ loads (erd:panda, ur3, ur5, ur10, xarm7, talos_left_arm, kinova = Jaco2, z1; iiw
 example-robot-data). Goals, checked here and printed (never by tests): >= 99.9 % on every
 arm, mean <= 0.3 ms, median <= 0.25 ms under the headline; 100.0 % under the second.
 
-Also printed: ``import qpik`` and the first solve in a fresh process (numba's cache warm),
-the fixed cost of a call (a target already met at the start: validation, one forward
-kinematics and the result), the time of ``qpik reach tasks/panda_pose_reach.toml``, and with
-``--compile`` the first-call compile time of the kernels in a fresh numba cache.
+Also printed: ``import qpik`` against ``import mujoco, mink``, the first ``IKSession.solve``
+and the first ``IKSolver.step`` in a fresh process (building the session or solver not
+counted), a 5 ms budget on the first call, the fixed cost of a call (a target already met at
+the start: validation, one forward kinematics and the result) and the time of ``qpik reach
+tasks/panda_pose_reach.toml``. ``--first-use`` measures the same in a fresh virtual
+environment made from a fresh clone of this checkout's HEAD, after timing its install (the
+C++ engine's compile included, and alone), which is what a new user meets.
 
 Wall times include whatever else the machine runs; the CPU figures beside them (thread CPU
 time per solve, process CPU time of each run, of the fixed-cost calls and of the fresh
@@ -29,7 +32,8 @@ how much of a core it was given.
     python benchmarks/ik_success.py                  # N = 1000 per robot, about 1 min
     python benchmarks/ik_success.py --n 10000        # the full run
     python benchmarks/ik_success.py --robots erd:ur5 panda --n 200 --methods qpik dls
-        [--skip-second] [--compile] [--json OUT]
+        [--skip-second] [--first-use] [--json OUT]
+    python benchmarks/ik_success.py --first-use --startup-only   # only the first-use figures
 """
 
 from __future__ import annotations
@@ -50,14 +54,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _fresh_process(code: str, env: dict | None = None) -> str:
+def _fresh_process(code: str, python: str = sys.executable, cwd: Path = ROOT) -> str:
     return subprocess.run(
-        [sys.executable, "-c", code],
-        capture_output=True,
-        text=True,
-        check=True,
-        env={**os.environ, **(env or {})},
-        cwd=ROOT,
+        [python, "-c", code], capture_output=True, text=True, check=True, cwd=cwd
     ).stdout
 
 
@@ -66,9 +65,29 @@ import time
 t0, c0 = time.perf_counter(), time.process_time()
 import qpik
 t1, c1 = time.perf_counter(), time.process_time()
-result = qpik.solve("panda", {"ee": [0.4, 0.1, 0.5]})
-t2, c2 = time.perf_counter(), time.process_time()
-print(t1 - t0, t2 - t1, c1 - c0, c2 - c1, result.converged)
+session = qpik.IKSession("panda")
+t2 = time.perf_counter()
+result = session.solve({"ee": [0.4, 0.1, 0.5]})
+t3 = time.perf_counter()
+import mink
+model = qpik.load_robot("ur5e")
+configuration = qpik.Configuration(model)
+task = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+task.set_target(configuration.get_transform_frame_to_world("ee", "site"))
+solver = qpik.IKSolver(model, [[task]], [mink.ConfigurationLimit(model)])
+t4 = time.perf_counter()
+solver.step(configuration, 0.01)
+t5 = time.perf_counter()
+budget = qpik.solve(
+    "ur5e", {"ee": [0.3, 0.2, 0.4]}, options=qpik.SolveOptions(time_budget=0.005)
+)
+print(t1 - t0, c1 - c0, t3 - t2, t5 - t4, budget.reason, budget.solve_time, result.converged)
+"""
+_PEERS_IMPORT = """
+import time
+t0 = time.perf_counter()
+import mujoco, mink
+print(time.perf_counter() - t0)
 """
 
 
@@ -78,36 +97,100 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def startup_figures(compile_too: bool) -> dict:
-    """``import qpik``, the first solve in a fresh process, ``qpik reach`` on the shipped
-    panda problem (warm numba cache), and with ``compile_too`` the same first solve with an
-    empty numba cache (the compile time)."""
-    _fresh_process(_STARTUP)  # make sure the cache is warm
-    out = {}
-    runs = [_fresh_process(_STARTUP).split() for _ in range(3)]
-    out["import_s"] = float(np.median([float(r[0]) for r in runs]))
-    out["first_solve_s"] = float(np.median([float(r[1]) for r in runs]))
-    out["import_cpu_s"] = float(np.median([float(r[2]) for r in runs]))
-    out["first_solve_cpu_s"] = float(np.median([float(r[3]) for r in runs]))
-    reach, reach_cpu = [], []
-    for _ in range(3):
-        cpu = _children_cpu()
-        tic = time.perf_counter()
-        subprocess.run(
-            [str(Path(sys.executable).parent / "qpik"), "reach", "tasks/panda_pose_reach.toml"],
-            capture_output=True,
-            check=False,
-            cwd=ROOT,
-        )
-        reach.append(time.perf_counter() - tic)
-        reach_cpu.append(_children_cpu() - cpu)
-    out["qpik_reach_s"] = float(np.median(reach))
-    out["qpik_reach_cpu_s"] = float(np.median(reach_cpu))
-    if compile_too:
-        with tempfile.TemporaryDirectory() as cache:
-            run = _fresh_process(_STARTUP, {"NUMBA_CACHE_DIR": cache}).split()
-        out["first_solve_cold_cache_s"] = float(run[1])
+def _timed_command(command: list[str], cwd: Path) -> tuple[float, float]:
+    """Wall and CPU time [s] of one run of ``command``."""
+    cpu = _children_cpu()
+    tic = time.perf_counter()
+    subprocess.run(command, capture_output=True, check=False, cwd=cwd)
+    return time.perf_counter() - tic, _children_cpu() - cpu
+
+
+def startup_figures(python: str = sys.executable, root: Path = ROOT, runs: int = 5) -> dict:
+    """Fresh-process figures with the interpreter ``python`` (median of ``runs``): ``import
+    qpik`` against ``import mujoco, mink``, the first ``IKSession.solve`` and
+    ``IKSolver.step``, a 5 ms budget on the first call, and ``qpik reach`` on the shipped
+    panda problem against ``python -c "import mujoco, mink"`` (both as whole commands)."""
+    rows = [_fresh_process(_STARTUP, python=python, cwd=root).split() for _ in range(runs)]
+    peers = [float(_fresh_process(_PEERS_IMPORT, python=python, cwd=root)) for _ in range(runs)]
+    out: dict = {
+        "import_s": float(np.median([float(r[0]) for r in rows])),
+        "import_cpu_s": float(np.median([float(r[1]) for r in rows])),
+        "import_mujoco_mink_s": float(np.median(peers)),
+        "first_session_solve_s": float(np.median([float(r[2]) for r in rows])),
+        "first_step_s": float(np.median([float(r[3]) for r in rows])),
+        "budget_reasons": sorted({r[4] for r in rows}),
+        "budget_first_call_s": float(max(float(r[5]) for r in rows)),
+    }
+    script = str(Path(python).parent / "qpik")
+    reach = [
+        _timed_command([script, "reach", "tasks/panda_pose_reach.toml"], root) for _ in range(runs)
+    ]
+    bare = [_timed_command([python, "-c", "import mujoco, mink"], root) for _ in range(runs)]
+    out["qpik_reach_s"] = float(np.median([r[0] for r in reach]))
+    out["qpik_reach_first_s"] = reach[0][0]
+    out["qpik_reach_cpu_s"] = float(np.median([r[1] for r in reach]))
+    out["python_import_mujoco_mink_s"] = float(np.median([r[0] for r in bare]))
     return out
+
+
+def first_use(workdir: Path) -> dict:
+    """Clone this checkout's HEAD into ``workdir``, make a fresh virtual environment there
+    and install it as the README says (``pip install -e ".[dev,robots]"``, timed: packages
+    come from pip's cache where it has them), then time a from-scratch build of the C++
+    engine alone, and the fresh-process figures of :func:`startup_figures` in that
+    environment. The first ``qpik reach`` after the install is the first use."""
+    clone = workdir / "qpik"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    subprocess.run([sys.executable, "-m", "venv", str(clone / ".venv")], check=True)
+    python = str(clone / ".venv" / "bin" / "python")
+    subprocess.run([python, "-m", "pip", "install", "-q", "--upgrade", "pip"], check=True)
+    tic = time.perf_counter()
+    subprocess.run(
+        [python, "-m", "pip", "install", "-q", "-e", ".[dev,robots]"],
+        check=True, cwd=clone, capture_output=True,
+    )  # fmt: skip
+    install = time.perf_counter() - tic
+    cmake = [
+        "cmake", "-S", ".", "-B", "build/first-use", "-G", "Ninja",
+        f"-DPython_EXECUTABLE={python}",
+    ]  # fmt: skip
+    subprocess.run(cmake, check=True, cwd=clone, capture_output=True)
+    compile_wall, compile_cpu = _timed_command(["cmake", "--build", "build/first-use"], clone)
+    out = {"install_s": install, "compile_s": compile_wall, "compile_cpu_s": compile_cpu}
+    first_reach = _timed_command(
+        [str(clone / ".venv" / "bin" / "qpik"), "reach", "tasks/panda_pose_reach.toml"], clone
+    )
+    out["qpik_reach_very_first_s"] = first_reach[0]
+    out.update(startup_figures(python, clone))
+    return out
+
+
+def print_startup(st: dict) -> None:
+    """The fresh-process figures, with the issue-20 goals beside them."""
+    if "install_s" in st:
+        print(
+            f"install (fresh clone, fresh venv, pip install -e '.[dev,robots]'): "
+            f"{st['install_s']:.1f} s; the C++ engine's compile alone: "
+            f"{st['compile_s']:.1f} s wall / {st['compile_cpu_s']:.1f} s CPU (goal <= 90 s); "
+            f"the very first qpik reach: {st['qpik_reach_very_first_s']:.2f} s"
+        )
+    over = st["import_s"] - st["import_mujoco_mink_s"]
+    ratio = st["qpik_reach_s"] / st["python_import_mujoco_mink_s"]
+    print(
+        f"fresh process (median): import qpik {st['import_s']:.3f} s against import mujoco, "
+        f"mink {st['import_mujoco_mink_s']:.3f} s: +{over:.3f} s (goal <= 0.2 s)"
+    )
+    print(
+        f"qpik reach tasks/panda_pose_reach.toml {st['qpik_reach_s']:.2f} s (first "
+        f"{st['qpik_reach_first_s']:.2f} s) against python -c 'import mujoco, mink' "
+        f"{st['python_import_mujoco_mink_s']:.2f} s: {ratio:.2f}x (goal <= 1.5x)"
+    )
+    print(
+        f"first IKSession.solve {1e3 * st['first_session_solve_s']:.2f} ms (goal <= 2 ms), "
+        f"first IKSolver.step {1e3 * st['first_step_s']:.2f} ms (goal <= 1 ms), "
+        f"5 ms budget on the first call: reasons {st['budget_reasons']}, slowest "
+        f"{1e3 * st['budget_first_call_s']:.2f} ms"
+    )
 
 
 def fixed_cost(robot: str = "panda", repeats: int = 2000) -> dict:
@@ -151,7 +234,12 @@ def main(argv=None) -> dict:
     parser.add_argument("--seed", type=int, default=0, help="seed of the targets")
     parser.add_argument("--skip-second", action="store_true", help="only the headline")
     parser.add_argument(
-        "--compile", action="store_true", help="also time the first call with an empty cache"
+        "--first-use",
+        action="store_true",
+        help="fresh clone + fresh venv: install and compile time, then the startup figures",
+    )
+    parser.add_argument(
+        "--startup-only", action="store_true", help="only the startup (or first-use) figures"
     )
     parser.add_argument("--json", metavar="OUT", help="write the results as JSON to OUT")
     args = parser.parse_args(argv)
@@ -159,6 +247,14 @@ def main(argv=None) -> dict:
     with os.popen("uptime") as stream:
         load = stream.read().strip()
     print(f"machine: {os.cpu_count()} cores; {load}")
+    if args.first_use:
+        with tempfile.TemporaryDirectory() as workdir:
+            startup = first_use(Path(workdir))
+    else:
+        startup = startup_figures()
+    if args.startup_only:
+        print_startup(startup)
+        return {"startup": startup}
     headline = _timed_run(robots, args, bench.TRACIK)
     bench.print_table(headline)
     _print_cpu(headline)
@@ -171,22 +267,14 @@ def main(argv=None) -> dict:
     if "qpik" in args.methods:
         print("\nGoals (issue 11), qpik:")
         print("\n".join("  " + line for line in bench.check_goals(headline, second)))
-    extra = {"fixed_cost": fixed_cost(), "startup": startup_figures(args.compile)}
-    f, st = extra["fixed_cost"], extra["startup"]
+    extra = {"fixed_cost": fixed_cost(), "startup": startup}
+    f = extra["fixed_cost"]
     print(
         f"\nfixed cost of a call (target met at the start, median of 2000): "
         f"IKSession.solve {f['session_us']:.1f} us wall / {f['session_cpu_us']:.1f} us CPU, "
         f"qpik.solve {f['solve_us']:.1f} us wall / {f['solve_cpu_us']:.1f} us CPU"
     )
-    print(
-        f"fresh process, warm numba cache (wall / CPU): import qpik {st['import_s']:.2f} / "
-        f"{st['import_cpu_s']:.2f} s, first solve {st['first_solve_s']:.2f} / "
-        f"{st['first_solve_cpu_s']:.2f} s; qpik reach tasks/panda_pose_reach.toml "
-        f"{st['qpik_reach_s']:.2f} / {st['qpik_reach_cpu_s']:.2f} s"
-    )
-    if "first_solve_cold_cache_s" in st:
-        cold = st["first_solve_cold_cache_s"]
-        print(f"first solve with an empty numba cache (compile): {cold:.1f} s")
+    print_startup(startup)
     results = {"headline": headline, "second": second, **extra}
     if args.json:
         with open(args.json, "w") as stream:
