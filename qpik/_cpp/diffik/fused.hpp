@@ -77,38 +77,9 @@ struct Box {
     i64 bad = -1;  // the first dof whose hard bounds conflict, else -1
 };
 
-// The box of hard (velocity-like) and recoverable (position-like) bounds (the core's
-// merge_boxes, qpik/core/_kernels.py): their intersection, except where they conflict,
-// where dq moves toward the position limits at the hard limit's pace. lb, ub are left as
-// they are from the first dof whose hard bounds conflict.
-inline void merge_boxes(const Vec& hard_lb, const Vec& hard_ub, const Vec& pos_lb,
-                        const Vec& pos_ub, Box& box) {
-    const i64 n = static_cast<i64>(hard_lb.size());
-    box.lb.assign(static_cast<size_t>(n), 0.0);
-    box.ub.assign(static_cast<size_t>(n), 0.0);
-    box.bad = -1;
-    for (i64 i = 0; i < n; ++i) {
-        if (hard_lb[i] > hard_ub[i]) {
-            box.bad = i;
-            return;
-        }
-        // Python's max/min: the second argument only if strictly greater/smaller.
-        double lo = pos_lb[i] > hard_lb[i] ? pos_lb[i] : hard_lb[i];
-        double hi = pos_ub[i] < hard_ub[i] ? pos_ub[i] : hard_ub[i];
-        if (lo > hi) {
-            if (pos_ub[i] < hard_lb[i]) {
-                lo = hi = hard_lb[i];
-            } else if (pos_lb[i] > hard_ub[i]) {
-                lo = hi = hard_ub[i];
-            }
-        }
-        box.lb[i] = lo;
-        box.ub[i] = hi;
-    }
-}
-
 // The limits' box, as qpik.IKSolver._limit_rows builds it: position bounds gain (upper -
-// q), -gain (q - lower) (recoverable), velocity bounds |dq| <= v_max dt (hard), merged.
+// q), -gain (q - lower) (recoverable), velocity bounds |dq| <= v_max dt (hard), merged by
+// core::merge_boxes.
 // Position limit e: lower[e * stride], upper[e * stride], gain[e * stride]. Every dof index
 // is in [0, min(n, qpos.n)).
 inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const double* cfg_lower,
@@ -132,7 +103,8 @@ inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const doub
         if (bound < hard_ub[i]) hard_ub[i] = bound;
     }
     Box box;
-    merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub, box);
+    box.bad = core::merge_boxes(CVecRef(hard_lb), CVecRef(hard_ub), CVecRef(pos_lb),
+                                CVecRef(pos_ub), box.lb, box.ub);
     return box;
 }
 
