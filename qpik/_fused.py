@@ -6,7 +6,8 @@ When every task of a stack is one of qpik's built-in :class:`~qpik.tasks.FrameTa
 Python only what needs MuJoCo (one ``mj_jac*`` call per frame task) and copies the tasks'
 targets and costs into preallocated arrays; :func:`fused_step` then computes every task's
 rows (frame errors by the SE(3) routines of :mod:`qpik.tasks._lie`, mink's own arithmetic),
-the box limits, and the whole cascade (:func:`qpik.core._kernels.solve_cascade`).
+the box limits, and the whole cascade (:func:`qpik.core._kernels.solve_cascade`), in C++
+(``qpik/_cpp/diffik/fused.hpp``).
 
 It computes exactly what the general path computes (same arithmetic in the same order:
 tests compare the two bitwise); anything unusual (a non-finite row, conflicting limits, a
@@ -22,18 +23,10 @@ from dataclasses import dataclass, field
 import mink
 import mujoco
 import numpy as np
-from numba import njit
 
-from .core import _kernels
-from .core._cache import drop_stale_cache
-from .core._kernels import MAX_ITER, NUMERICAL, merge_boxes, solve_cascade
+from ._engine import diffik as _engine
 from .errors import TargetNotSet
-from .tasks import _lie, fast
-from .tasks.fast import FrameTask, PostureTask, frame_error_jlog, frame_rows_into
-
-# The kernels below call the core's and the Lie routines: numba's cache would not notice
-# an edit there.
-drop_stale_cache(__file__, [_kernels.__file__, _lie.__file__, fast.__file__])
+from .tasks.fast import FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
 
@@ -42,196 +35,46 @@ _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mj
 _JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
 _FRAME, _POSTURE = 0, 1
 
-
-@njit(cache=True)
-def _frame_rows(A, b, row, jac, xpos, xmat, target, cost, gain, lm_damping):
-    """Rows ``row:row+6`` of a frame task at pose ``(xpos, xmat)`` with target ``target``
-    (``wxyz_xyz``): :func:`qpik.tasks.fast.frame_error_jlog`, then
-    :func:`qpik.tasks.fast.frame_rows_into`; returns its LM term."""
-    error, jlog = frame_error_jlog(xmat, xpos, target)
-    return frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping)
-
-
-@njit(cache=True)
-def _posture_rows(A, b, row, qpos, target, cost, gain, lm_damping):
-    """Rows ``row:row+nv`` of a posture task on hinge/slide joints: ``A = diag(cost)``,
-    ``b = cost (-gain (q - q*))``; returns ``lm_damping |b|^2``."""
-    nv = qpos.shape[0]
-    mu = 0.0
-    for i in range(nv):
-        for j in range(nv):
-            A[row + i, j] = cost[i] * (1.0 if i == j else 0.0)
-        b[row + i] = cost[i] * (-gain * (qpos[i] - target[i]))
-        mu += b[row + i] * b[row + i]
-    return lm_damping * mu
-
-
-@njit(cache=True)
-def _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n):
-    """The limits' box, as :meth:`qpik.IKSolver._limit_rows` builds it: position bounds
-    ``gain (upper - q)``, ``-gain (q - lower)`` (recoverable), velocity bounds
-    ``|dq| <= v_max dt`` (hard), merged by :func:`merge_boxes`."""
-    hard_lb = np.full(n, -np.inf)
-    hard_ub = np.full(n, np.inf)
-    pos_lb = np.full(n, -np.inf)
-    pos_ub = np.full(n, np.inf)
-    for e in range(cfg_dof.shape[0]):
-        i = cfg_dof[e]
-        q = qpos[i]
-        upper = cfg_gain[e] * (cfg_upper[e] - q)
-        lower = -cfg_gain[e] * (q - cfg_lower[e])
-        if lower > pos_lb[i]:
-            pos_lb[i] = lower
-        if upper < pos_ub[i]:
-            pos_ub[i] = upper
-    for e in range(vel_dof.shape[0]):
-        i = vel_dof[e]
-        bound = vel_limit[e] * dt
-        if -bound > hard_lb[i]:
-            hard_lb[i] = -bound
-        if bound < hard_ub[i]:
-            hard_ub[i] = bound
-    return merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
-
-
-@njit(cache=True)
-def _frame_pose(kind, fid, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat):
-    """Position (3) and row-major rotation (9) of a site (0), body (1) or geom (2)."""
-    if kind == 0:
-        return site_xpos[fid], site_xmat[fid]
-    if kind == 1:
-        return xpos[fid], xmat[fid]
-    return geom_xpos[fid], geom_xmat[fid]
-
-
-@njit(cache=True)
-def _assemble_rows(
-    A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
-    frame_data, qpos, posture_data,
-):  # fmt: skip
-    """Fill every task's rows of ``A, b, w`` (see :func:`fused_step`); returns each
-    level's LM term ``sum lm_damping |b_task|^2`` (L,)."""
-    n = qpos.shape[0]
-    reg = np.zeros(L)
-    for t in range(tasks.shape[0]):
-        i = tasks[t, 1]
-        row = tasks[t, 3]
-        if tasks[t, 0] == 0:
-            pos, mat = _frame_pose(
-                frames[i, 0], frames[i, 1], site_xpos, site_xmat, xpos, xmat, geom_xpos,
-                geom_xmat,
-            )  # fmt: skip
-            data = frame_data[i]
-            cost = data[7:13]
-            mu = _frame_rows(A, b, row, jac[i], pos, mat, data[0:7], cost, data[13], data[14])
-            size = 6
-        else:
-            data = posture_data[i]
-            nq = data.shape[0] - n - 2
-            cost = data[nq : nq + n]
-            mu = _posture_rows(A, b, row, qpos, data[0:nq], cost, data[nq + n], data[nq + n + 1])
-            size = n
-        for r in range(size):
-            w[row + r] = cost[r]
-        reg[tasks[t, 2]] += mu
-    return reg
-
-
 # Result codes of fused_step: anything but OK sends the step to the general path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
+assert (OK, NOT_FINITE, CONFLICT, UNSETTLED) == (
+    _engine.OK, _engine.NOT_FINITE, _engine.CONFLICT, _engine.UNSETTLED
+)  # fmt: skip
 #: ``settings`` entries of :func:`fused_step`.
 DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 
-
-@njit(cache=True)
-def fused_rows(
-    A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
-    geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit, settings,
-):  # fmt: skip
-    """The hierarchy's rows and limits without solving it (see :func:`fused_step` for the
-    arguments): fills ``A, b, w`` and returns ``(code, reg, lb, ub)``, ``code`` OK,
-    NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof)."""
-    n = qpos.shape[0]
-    L = starts.shape[0] - 1
-    reg = _assemble_rows(
-        A, b, w, L, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat,
-        frame_data, qpos, posture_data,
-    )  # fmt: skip
-    for k in range(L):
-        reg[k] = settings[DAMPING] + reg[k]
-    lb, ub, bad = _boxes(
-        qpos, settings[DT], cfg_dof, cfg_data[:, 0], cfg_data[:, 1], cfg_data[:, 2], vel_dof,
-        vel_limit, n,
-    )  # fmt: skip
-    square = 0.0
-    total = 0.0
-    for r in range(b.shape[0]):
-        square += b[r] * b[r]
-        for j in range(n):
-            total += A[r, j]
-    if not (np.isfinite(square) and np.isfinite(total) and np.isfinite(reg.sum())):
-        return NOT_FINITE, reg, lb, ub
-    if bad >= 0:
-        return CONFLICT, reg, lb, ub
-    return OK, reg, lb, ub
-
-
-@njit(cache=True)
-def fused_step(
-    A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
-    geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
-    settings, max_iter, warm, canonical,
-):  # fmt: skip
-    """Rows of every task, the limits' box and the cascade, in one call (one function on
-    purpose: each check that sends the step to the general path sits where its data is).
-
-    ``A, b, w`` (M, nv), (M,), (M,) are filled (level ``k`` in rows
-    ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) lists the tasks in stack order: kind (0
-    frame, 1 posture), index into the frame or posture arrays, level, first row. Frame
-    ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind 0/1/2
-    site/body/geom, id) picks its pose; ``frame_data[f]`` = target ``wxyz_xyz`` (7), cost
-    (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` = target (nq), cost (nv),
-    gain, lm_damping. Position limits: ``cfg_dof`` and ``cfg_data`` rows (lower, upper,
-    gain); velocity limits ``vel_dof``, ``vel_limit`` [per s]. ``settings``: see
-    ``DT, DAMPING, ...``.
-
-    Returns ``(code, dq, v, info, active)``: ``code`` OK or why the general path must
-    answer; ``info`` (5, L) rows: residual, sigma, lambda^2, status, iterations.
-    """
-    n = qpos.shape[0]
-    L = starts.shape[0] - 1
-    code, reg, lb, ub = fused_rows(
-        A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat, geom_xpos,
-        geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data, vel_dof, vel_limit,
-        settings,
-    )  # fmt: skip
-    info = np.zeros((5, L))
-    d = np.zeros(n)
-    active = np.zeros((L, n), dtype=np.int8)
-    if code != OK:
-        return code, d, d, info, active
-    dt = settings[DT]
-    d, status, sigma, lam2, its, active, residuals = solve_cascade(
-        A, b, w, starts, reg, lb, ub, np.zeros((0, n)), np.zeros(0), settings[THRESHOLD],
-        settings[MAX_DAMPING], settings[ERROR_SCALE], settings[RANK_TOL], max_iter,
-        settings[TOL], warm, canonical,
-    )  # fmt: skip
-    finite = np.isfinite(residuals.sum())
-    for k in range(L):
-        if status[k] == MAX_ITER or status[k] == NUMERICAL:
-            return UNSETTLED, d, d, info, active
-        info[0, k] = residuals[k]
-        info[1, k] = sigma[k]
-        info[2, k] = lam2[k]
-        info[3, k] = status[k]
-        info[4, k] = its[k]
-    v = np.empty(n)
-    for i in range(n):
-        v[i] = d[i] / dt
-        finite = finite and np.isfinite(d[i] * d[i]) and np.isfinite(v[i])
-    if not finite:
-        return NOT_FINITE, d, d, info, active
-    return OK, d, v, info, active
+# The compiled kernels (qpik/_cpp/diffik/fused.hpp, bound in qpik._engine.diffik). Arrays
+# written into (A, b, w) must be float64 C-contiguous of the plan's shapes (never copied);
+# the other arrays are used in place when they are float64 / int64 / int8 C-contiguous.
+#
+# fused_step(A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat,
+#            geom_xpos, geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data,
+#            vel_dof, vel_limit, settings, max_iter, warm, canonical)
+#       -> (code, dq, v, info, active)
+#   Rows of every task, the limits' box and the cascade, in one call (one function on
+#   purpose: each check that sends the step to the general path sits where its data is).
+#   ``A, b, w`` (M, nv), (M,), (M,) are filled (level ``k`` in rows ``starts[k]:starts[k+1]``).
+#   ``tasks`` (T, 4) lists the tasks in stack order: kind (0 frame, 1 posture), index into
+#   the frame or posture arrays, level, first row. Frame ``f``: ``jac[f]`` its world-aligned
+#   Jacobian (6, nv); ``frames[f]`` (kind 0/1/2 site/body/geom, id) picks its pose;
+#   ``frame_data[f]`` = target ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``:
+#   ``posture_data[p]`` = target (nq), cost (nv), gain, lm_damping. Position limits:
+#   ``cfg_dof`` and ``cfg_data`` rows (lower, upper, gain); velocity limits ``vel_dof``,
+#   ``vel_limit`` [per s]. ``settings``: see ``DT, DAMPING, ...``. ``warm`` (L, nv) int8:
+#   the previous active sets; ``canonical``: warm starting on.
+#   ``code`` OK or why the general path must answer; ``info`` (5, L) rows: residual,
+#   sigma, lambda^2, status, iterations; ``active`` (L, nv) int8.
+# fused_rows(<fused_step's first 21 arguments>) -> (code, reg, lb, ub)
+#   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
+#   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
+# _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n)
+#       -> (lb, ub, i)
+#   The limits' box, as :meth:`qpik.IKSolver._limit_rows` builds it: position bounds
+#   ``gain (upper - q)``, ``-gain (q - lower)`` (recoverable), velocity bounds
+#   ``|dq| <= v_max dt`` (hard), merged by :func:`qpik.core._kernels.merge_boxes`.
+fused_step = _engine.fused_step
+fused_rows = _engine.fused_rows
+_boxes = _engine.boxes
 
 
 def box_of(plan: FusedPlan, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,206 @@
-// Bindings of the core layer (qpik._engine.core).
+// Bindings of the core layer (qpik._engine.core): the kernels of qpik/core/_kernels.py,
+// with the same names, arguments and return types as the numba reference had (tuples
+// of NumPy arrays: float64, int64 status arrays, int8 active sets; Python scalars).
+// Every shape is checked here, so a bad argument raises ValueError instead of reading
+// out of bounds.
+#include <string>
+
 #include "bind.hpp"
+#include "core/cascade.hpp"
+#include "core/linalg.hpp"
+#include "core/qp.hpp"
 
 namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace {
+
+using namespace qpik;
+using namespace qpik::bind;
+namespace core = qpik::core;
+
+using InI8_1 = In<i8, 1>;
+using InI8_2 = In<i8, 2>;
+using InI64_1 = In<i64, 1>;
+using Arr = nb::ndarray<nb::numpy, double>;
+
+inline i64 rows(const In2& a) { return static_cast<i64>(a.shape(0)); }
+inline i64 cols(const In2& a) { return static_cast<i64>(a.shape(1)); }
+template <class A>
+inline i64 len(const A& a) { return static_cast<i64>(a.shape(0)); }
+
+inline void need(bool ok, const std::string& what) {
+    if (!ok) throw BadArgument(what);
+}
+
+// The QP's arguments: H (n, n), c (n,), C (m, n), lo, hi, warm (m,).
+void check_qp(const char* fn, const In2& H, const In1& c, const In2& C, const In1& lo, const In1& hi,
+              const InI8_1& warm) {
+    std::string f(fn);
+    i64 n = rows(H);
+    need(cols(H) == n, f + ": H must be square (n, n)");
+    need(len(c) == n, f + ": c must have shape (n,)");
+    need(cols(C) == n, f + ": C must have shape (m, n)");
+    i64 m = rows(C);
+    need(len(lo) == m && len(hi) == m, f + ": lo and hi must have shape (m,)");
+    need(len(warm) == m, f + ": warm must have shape (m,)");
+}
+
+nb::tuple qp_tuple(core::QPResult&& r) {
+    return nb::make_tuple(to_numpy(std::move(r.x)), r.status, r.iterations, to_numpy(std::move(r.active)));
+}
+
+}  // namespace
 
 void bind_core(nb::module_& m) {
-    (void)m;
+    m.attr("SOLVED") = static_cast<i64>(core::SOLVED);
+    m.attr("MAX_ITER") = static_cast<i64>(core::MAX_ITER);
+    m.attr("INFEASIBLE") = static_cast<i64>(core::INFEASIBLE);
+    m.attr("KEPT_PREVIOUS") = static_cast<i64>(core::KEPT_PREVIOUS);
+    m.attr("NUMERICAL") = static_cast<i64>(core::NUMERICAL);
+    m.attr("NOT_REACHED") = static_cast<i64>(core::NOT_REACHED);
+
+    m.def(
+        "cholesky_into",
+        [](In2 G, i64 n, double shift, Out2 L) {
+            need(n >= 0, "cholesky_into: n must be >= 0");
+            need(rows(G) >= n && cols(G) >= n, "cholesky_into: G must be at least (n, n)");
+            need(static_cast<i64>(L.shape(0)) >= n && static_cast<i64>(L.shape(1)) >= n,
+                 "cholesky_into: L must be at least (n, n)");
+            return core::cholesky_into(cmat(G), n, shift, mat(L));
+        },
+        "G"_a, "n"_a, "shift"_a, "L"_a.noconvert(),
+        "Cholesky factor of G[:n, :n] - shift I written into the lower triangle of L[:n, :n]; "
+        "False as soon as a pivot is not positive.");
+
+    m.def(
+        "solve_qp",
+        [](In2 H, In1 c, In2 C, In1 lo, In1 hi, InI8_1 warm, i64 max_iter, double tol, bool canonical) {
+            check_qp("solve_qp", H, c, C, lo, hi, warm);
+            return qp_tuple(core::solve_qp(cmat(H), cvec(c), cmat(C), cvec(lo), cvec(hi),
+                                           VecRefT<const i8>(warm.data(), len(warm)), max_iter, tol, canonical));
+        },
+        "H"_a, "c"_a, "C"_a, "lo"_a, "hi"_a, "warm"_a, "max_iter"_a, "tol"_a, "canonical"_a,
+        "min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi: (x, status, iterations, active).");
+
+    m.def(
+        "solve_level",
+        [](In2 H, In1 c, In2 C, In1 lo, In1 hi, InI8_1 warm, i64 max_iter, double tol, bool lower,
+           bool canonical) {
+            check_qp("solve_level", H, c, C, lo, hi, warm);
+            return qp_tuple(core::solve_level(cmat(H), cvec(c), cmat(C), cvec(lo), cvec(hi),
+                                              VecRefT<const i8>(warm.data(), len(warm)), max_iter, tol, lower,
+                                              canonical));
+        },
+        "H"_a, "c"_a, "C"_a, "lo"_a, "hi"_a, "warm"_a, "max_iter"_a, "tol"_a, "lower"_a, "canonical"_a,
+        "solve_qp for one level, retried with widened rows on a numerical failure.");
+
+    m.def(
+        "active_guess",
+        [](In1 x, In2 C, In1 lo, In1 hi) {
+            need(cols(C) == len(x), "active_guess: C must have shape (m, n) with x (n,)");
+            need(len(lo) == rows(C) && len(hi) == rows(C), "active_guess: lo and hi must have shape (m,)");
+            return to_numpy(core::active_guess(cvec(x), cmat(C), cvec(lo), cvec(hi)));
+        },
+        "x"_a, "C"_a, "lo"_a, "hi"_a, "Rows at a bound at x: +1 lower, -1 upper (int8).");
+
+    m.def(
+        "project_level",
+        [](In2 A, In1 w, In2 Z, double rank_tol) {
+            need(len(w) == rows(A), "project_level: w must have shape (m,)");
+            need(rows(Z) == cols(A), "project_level: Z must have shape (n, r)");
+            core::Projection p = core::project_level(cmat(A), cvec(w), cmat(Z), rank_tol);
+            return nb::make_tuple(to_numpy(std::move(p.AZ)), p.sigma, p.rank, to_numpy(std::move(p.Zn)));
+        },
+        "A"_a, "w"_a, "Z"_a, "rank_tol"_a, "(A Z, sigma, rank, Zn) of a level projected into Z.");
+
+    m.def(
+        "level_damping",
+        [](In2 A, In1 b, In1 w, In1 d, double sigma, double threshold, double max_damping, double error_scale) {
+            need(len(b) == rows(A) && len(w) == rows(A), "level_damping: b and w must have shape (m,)");
+            need(len(d) == cols(A), "level_damping: d must have shape (n,)");
+            return core::level_damping(cmat(A), cvec(b), cvec(w), d.data(), sigma, threshold, max_damping,
+                                       error_scale);
+        },
+        "A"_a, "b"_a, "w"_a, "d"_a, "sigma"_a, "threshold"_a, "max_damping"_a, "error_scale"_a,
+        "The lambda^2 a level gets.");
+
+    m.def("damping_of", &core::damping_of, "sigma"_a, "threshold"_a, "max_damping"_a,
+          "lambda^2 driven by sigma: max_damping^2 (1 - (sigma / threshold)^2) below the threshold.");
+
+    m.def(
+        "reduced_qp",
+        [](In2 A, In1 b, In2 AZ, In2 Z, In1 d, double reg, In1 lb, In1 ub, In2 G, In1 h) {
+            i64 mm_ = rows(A), n = cols(A), r = cols(Z), p = rows(G);
+            need(len(b) == mm_, "reduced_qp: b must have shape (m,)");
+            need(rows(Z) == n, "reduced_qp: Z must have shape (n, r)");
+            need(rows(AZ) == mm_ && cols(AZ) == r, "reduced_qp: AZ must have shape (m, r)");
+            need(len(d) == n && len(lb) == n && len(ub) == n, "reduced_qp: d, lb, ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "reduced_qp: G must have shape (p, n)");
+            need(len(h) == p, "reduced_qp: h must have shape (p,)");
+            core::ReducedQP q = core::reduced_qp(cmat(A), cvec(b), cmat(AZ), cmat(Z), d.data(), reg, cvec(lb),
+                                                 cvec(ub), cmat(G), cvec(h));
+            return nb::make_tuple(to_numpy(std::move(q.H)), to_numpy(std::move(q.c)), to_numpy(std::move(q.C)),
+                                  to_numpy(std::move(q.lo)), to_numpy(std::move(q.hi)));
+        },
+        "A"_a, "b"_a, "AZ"_a, "Z"_a, "d"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a,
+        "(H, c, C, lo, hi): the level's QP in null-space coordinates dq = d + Z z.");
+
+    m.def(
+        "tighten",
+        [](Out1 lb, Out1 ub, InI64_1 dofs, In1 lower, In1 upper) {
+            i64 n = len(lb), k = len(dofs);
+            need(len(ub) == n, "tighten: lb and ub must have the same shape");
+            need(len(lower) == k && len(upper) == k, "tighten: lower and upper must have the shape of dofs");
+            for (i64 j = 0; j < k; ++j) need(dofs.data()[j] >= 0 && dofs.data()[j] < n, "tighten: dof out of range");
+            core::tighten(vec(lb), vec(ub), VecRefT<const i64>(dofs.data(), k), cvec(lower), cvec(upper));
+        },
+        "lb"_a.noconvert(), "ub"_a.noconvert(), "dofs"_a, "lower"_a, "upper"_a,
+        "lb[dofs] = max(lb[dofs], lower), ub[dofs] = min(ub[dofs], upper) in place.");
+
+    m.def(
+        "merge_boxes",
+        [](In1 hard_lb, In1 hard_ub, In1 pos_lb, In1 pos_ub) {
+            i64 n = len(hard_lb);
+            need(len(hard_ub) == n && len(pos_lb) == n && len(pos_ub) == n,
+                 "merge_boxes: the four bounds must have the same shape (n,)");
+            Vec lb, ub;
+            i64 i = core::merge_boxes(cvec(hard_lb), cvec(hard_ub), cvec(pos_lb), cvec(pos_ub), lb, ub);
+            return nb::make_tuple(to_numpy(std::move(lb)), to_numpy(std::move(ub)), i);
+        },
+        "hard_lb"_a, "hard_ub"_a, "pos_lb"_a, "pos_ub"_a,
+        "(lb, ub, i): the merged box and the first dof whose hard bounds conflict (-1: none).");
+
+    m.def(
+        "solve_cascade",
+        [](In2 A, In1 b, In1 w, InI64_1 starts, In1 reg, In1 lb, In1 ub, In2 G, In1 h, double threshold,
+           double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, InI8_2 warm,
+           bool canonical) {
+            i64 M = rows(A), n = len(lb), p = rows(G);
+            need(cols(A) == n, "solve_cascade: A must have shape (M, n) with lb (n,)");
+            need(len(b) == M && len(w) == M, "solve_cascade: b and w must have shape (M,)");
+            need(len(starts) >= 1, "solve_cascade: starts must have shape (L + 1,)");
+            i64 L = len(starts) - 1;
+            const i64* s = starts.data();
+            need(s[0] >= 0 && s[L] <= M, "solve_cascade: starts out of range");
+            for (i64 k = 0; k < L; ++k) need(s[k] <= s[k + 1], "solve_cascade: starts must be non-decreasing");
+            need(len(reg) == L, "solve_cascade: reg must have shape (L,)");
+            need(len(ub) == n, "solve_cascade: ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "solve_cascade: G must have shape (p, n)");
+            need(len(h) == p, "solve_cascade: h must have shape (p,)");
+            need(static_cast<i64>(warm.shape(0)) == L && static_cast<i64>(warm.shape(1)) == n + p,
+                 "solve_cascade: warm must have shape (L, n + p)");
+            core::CascadeResult r = core::solve_cascade(
+                cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb), cvec(ub), cmat(G),
+                cvec(h), threshold, max_damping, error_scale, rank_tol, max_iter, tol,
+                MatRefT<const i8>(warm.data(), L, n + p), canonical);
+            size_t Ls = static_cast<size_t>(L), w2 = static_cast<size_t>(n + p);
+            return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
+                                  to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
+                                  to_numpy(std::move(r.iterations)), to_numpy(std::move(r.active), {Ls, w2}),
+                                  to_numpy(std::move(r.residuals)));
+        },
+        "A"_a, "b"_a, "w"_a, "starts"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
+        "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a, "canonical"_a,
+        "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals).");
 }

@@ -1,8 +1,124 @@
-// Bindings of the tasks layer (qpik._engine.tasks).
+// Bindings of the tasks layer (qpik._engine.tasks): mink's SE(3) routines
+// (model/se3.hpp, re-exported by qpik.tasks._lie) and the frame task's kernels
+// (tasks/frame.hpp, re-exported by qpik.tasks.fast). Same names and Python signatures as
+// the numba kernels they replace: the Lie routines write into their first argument.
 #include "bind.hpp"
+#include "model/se3.hpp"
+#include "tasks/frame.hpp"
 
 namespace nb = nanobind;
+using namespace qpik;
+using namespace qpik::bind;
+
+namespace {
+
+const double* at_least(const In1& x, size_t n, const char* what) {
+    require(x.shape(0) >= n, what);
+    return x.data();
+}
+
+double* exactly(Out1& x, size_t n, const char* what) {
+    require(x.shape(0) == n, what);
+    return x.data();
+}
+
+}  // namespace
 
 void bind_tasks(nb::module_& m) {
-    (void)m;
+    m.attr("EPS") = model::kLieEps;
+
+    m.def(
+        "so3_log",
+        [](Out1 omega, In1 wxyz) {
+            model::so3_log(exactly(omega, 3, "so3_log: omega must have shape (3,)"),
+                           at_least(wxyz, 4, "so3_log: wxyz must have at least 4 entries"));
+        },
+        nb::arg("omega").noconvert(), nb::arg("wxyz"),
+        "Rotation vector [rad] of a unit quaternion (w, x, y, z), written into omega (3,).");
+    m.def(
+        "so3_ljacinv",
+        [](Out1 out, In1 omega) {
+            model::so3_ljacinv(exactly(out, 9, "so3_ljacinv: out must have shape (9,)"),
+                               at_least(omega, 3, "so3_ljacinv: omega must have 3 entries"));
+        },
+        nb::arg("out").noconvert(), nb::arg("omega"),
+        "SO(3) left Jacobian inverse at omega, row-major 3x3 into out (9,).");
+    m.def(
+        "xmat_xpos_to_wxyz_xyz",
+        [](Out1 out, In1 xmat, In1 xpos) {
+            model::xmat_xpos_to_wxyz_xyz(
+                exactly(out, 7, "xmat_xpos_to_wxyz_xyz: out must have shape (7,)"),
+                at_least(xmat, 9, "xmat_xpos_to_wxyz_xyz: xmat must have 9 entries"),
+                at_least(xpos, 3, "xmat_xpos_to_wxyz_xyz: xpos must have 3 entries"));
+        },
+        nb::arg("out").noconvert(), nb::arg("xmat"), nb::arg("xpos"),
+        "A MuJoCo frame (xmat row-major (9,), xpos (3,)) as wxyz_xyz, into out (7,).");
+    m.def(
+        "se3_log",
+        [](Out1 tangent, In1 T) {
+            model::se3_log(exactly(tangent, 6, "se3_log: tangent must have shape (6,)"),
+                           at_least(T, 7, "se3_log: T must have 7 entries"));
+        },
+        nb::arg("tangent").noconvert(), nb::arg("T"), "log(T) as [v; omega], into tangent (6,).");
+    m.def(
+        "se3_inverse_multiply",
+        [](Out1 out, In1 a, In1 b) {
+            model::se3_inverse_multiply(
+                exactly(out, 7, "se3_inverse_multiply: out must have shape (7,)"),
+                at_least(a, 7, "se3_inverse_multiply: a must have 7 entries"),
+                at_least(b, 7, "se3_inverse_multiply: b must have 7 entries"));
+        },
+        nb::arg("out").noconvert(), nb::arg("a"), nb::arg("b"), "out = a^-1 b (wxyz_xyz).");
+    m.def(
+        "se3_rminus",
+        [](Out1 tangent, In1 a, In1 b) {
+            model::se3_rminus(exactly(tangent, 6, "se3_rminus: tangent must have shape (6,)"),
+                              at_least(a, 7, "se3_rminus: a must have 7 entries"),
+                              at_least(b, 7, "se3_rminus: b must have 7 entries"));
+        },
+        nb::arg("tangent").noconvert(), nb::arg("a"), nb::arg("b"),
+        "a (-) b = log(b^-1 a), into tangent (6,).");
+    m.def(
+        "se3_jlog",
+        [](Out2 jlog, In1 T) {
+            require(jlog.shape(0) == 6 && jlog.shape(1) == 6, "se3_jlog: jlog must have shape (6, 6)");
+            model::se3_jlog(jlog.data(), at_least(T, 7, "se3_jlog: T must have 7 entries"));
+        },
+        nb::arg("jlog").noconvert(), nb::arg("T"),
+        "jlog(T): the right Jacobian inverse at log(T), into jlog (6, 6).");
+
+    m.def(
+        "frame_error_jlog",
+        [](In1 xmat, In1 xpos, In1 target) {
+            const double* R = at_least(xmat, 9, "frame_error_jlog: xmat must have 9 entries");
+            const double* p = at_least(xpos, 3, "frame_error_jlog: xpos must have 3 entries");
+            const double* t = at_least(target, 7, "frame_error_jlog: target must have 7 entries");
+            Vec error(6), jlog(36);
+            tasks::frame_error_jlog(R, p, t, error.data(), jlog.data());
+            return std::make_tuple(to_numpy(std::move(error)), to_numpy(std::move(jlog), {6, 6}));
+        },
+        nb::arg("xmat"), nb::arg("xpos"), nb::arg("target"),
+        "mink's frame-task error log(T_fw^-1 T_tw) (6,) and jlog(T_tw^-1 T_fw) (6, 6) of the "
+        "frame at (xpos, xmat) and its target (wxyz_xyz).");
+    m.def(
+        "frame_rows_into",
+        [](Out2 A, Out1 b, i64 row, In2 jac, In1 xmat, In2 jlog, In1 error, In1 cost, double gain,
+           double lm_damping) {
+            const i64 nv = static_cast<i64>(jac.shape(1));
+            require(jac.shape(0) == 6, "frame_rows_into: jac must have shape (6, nv)");
+            require(static_cast<i64>(A.shape(1)) == nv, "frame_rows_into: A must have nv columns");
+            require(row >= 0 && row + 6 <= static_cast<i64>(A.shape(0)) &&
+                        row + 6 <= static_cast<i64>(b.shape(0)),
+                    "frame_rows_into: rows row:row+6 must lie in A and b");
+            require(jlog.shape(0) == 6 && jlog.shape(1) == 6, "frame_rows_into: jlog must have shape (6, 6)");
+            require(xmat.shape(0) >= 9 && error.shape(0) >= 6 && cost.shape(0) >= 6,
+                    "frame_rows_into: xmat (9,), error (6,) and cost (6,) expected");
+            return tasks::frame_rows_into(mat(A), b.data(), row, cmat(jac), xmat.data(), jlog.data(),
+                                          error.data(), cost.data(), gain, lm_damping);
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("row"), nb::arg("jac"),
+        nb::arg("xmat"), nb::arg("jlog"), nb::arg("error"), nb::arg("cost"), nb::arg("gain"),
+        nb::arg("lm_damping"),
+        "Rows row:row+6 of a frame task into A, b: A = diag(cost) (-jlog) [R^T Jp; R^T Jr], "
+        "b = -gain cost e; returns lm_damping |b|^2.");
 }

@@ -5,7 +5,7 @@ same way) whose error and Jacobian are computed without building SE3 objects or
 re-allocating per step: the frame pose and world-aligned Jacobian come from MuJoCo
 (``data.site_xpos``/``site_xmat``, ``mj_jacSite``, and the body/geom equivalents), the SE3
 log, its Jacobian and the local-frame rotation from mink's Lie-group arithmetic (its C
-routines, ported to numba in :mod:`qpik.tasks._lie`).
+routines, ported to C++: :mod:`qpik.tasks._lie`).
 They equal mink's own to round-off (tests check 1e-12).
 """
 
@@ -14,15 +14,9 @@ from __future__ import annotations
 import mink
 import mujoco
 import numpy as np
-from numba import njit
 
-from ..core._cache import drop_stale_cache
+from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..errors import TargetNotSet, mink_errors_as_qpik
-from . import _lie
-
-# frame_error_jlog calls the Lie kernels of another module: numba's cache would not notice
-# an edit there.
-drop_stale_cache(__file__, [_lie.__file__])
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
 
@@ -37,49 +31,16 @@ def _frame_type_name(frame_type) -> str:
     return getattr(frame_type, "value", frame_type)
 
 
-@njit(cache=True)
-def frame_error_jlog(xmat, xpos, target):
-    """mink's frame-task error ``log(T_fw^-1 T_tw)`` (the body twist from the frame at
-    ``(xpos, xmat)`` to ``target``, ``wxyz_xyz``) and ``jlog(T_tw^-1 T_fw)`` (6, 6), by
-    mink's own SE(3) arithmetic (:mod:`qpik.tasks._lie`)."""
-    frame = np.empty(7)
-    _lie.xmat_xpos_to_wxyz_xyz(frame, xmat, xpos)
-    error = np.empty(6)
-    _lie.se3_rminus(error, target, frame)
-    relative = np.empty(7)
-    _lie.se3_inverse_multiply(relative, target, frame)
-    jlog = np.empty((6, 6))
-    _lie.se3_jlog(jlog, relative)
-    return error, jlog
-
-
-@njit(cache=True)
-def frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping):
-    """Rows ``row:row+6`` of a frame task, written into ``A``/``b``: ``A = diag(cost)
-    (-jlog) [R^T Jp; R^T Jr]``, ``b = -gain cost e`` (mink's ``_weighted_residual``);
-    returns the LM term ``lm_damping |b|^2``. ``jac`` is MuJoCo's world-aligned Jacobian
-    (6, nv), ``xmat`` the frame's rotation (row-major 9)."""
-    nv = jac.shape[1]
-    local = np.empty((6, nv))
-    for i in range(3):
-        for j in range(nv):
-            a = 0.0
-            r = 0.0
-            for k in range(3):
-                a += xmat[3 * k + i] * jac[k, j]
-                r += xmat[3 * k + i] * jac[3 + k, j]
-            local[i, j] = a
-            local[3 + i, j] = r
-    mu = 0.0
-    for i in range(6):
-        for j in range(nv):
-            acc = 0.0
-            for k in range(6):
-                acc += jlog[i, k] * local[k, j]
-            A[row + i, j] = -cost[i] * acc
-        b[row + i] = cost[i] * (-gain * error[i])
-        mu += b[row + i] * b[row + i]
-    return lm_damping * mu
+# The compiled kernels (qpik/_cpp/tasks/frame.hpp, bound in qpik._engine.tasks):
+#
+# frame_error_jlog(xmat, xpos, target) -> (error (6,), jlog (6, 6)): mink's frame-task error
+#     log(T_fw^-1 T_tw) (the body twist from the frame at (xpos, xmat) to target,
+#     wxyz_xyz) and jlog(T_tw^-1 T_fw), by mink's own SE(3) arithmetic (qpik.tasks._lie).
+# frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping) -> float:
+#     rows row:row+6 of a frame task written into A/b (float64 C-contiguous, in place):
+#     A = diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e (mink's
+#     _weighted_residual); returns the LM term lm_damping |b|^2. jac is MuJoCo's
+#     world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9).
 
 
 class FrameTask(mink.FrameTask):

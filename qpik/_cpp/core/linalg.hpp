@@ -1,10 +1,21 @@
 // Dense linear algebra of the core: Cholesky, triangular solves, small products, QR and
-// the smallest singular value (ported from qpik/core/_kernels.py).
+// the smallest singular value (ported from qpik/core/_kernels.py, the numba reference).
+//
+// Every loop keeps the reference's order of floating-point operations, so that the same
+// inputs give the same bits (the build uses -ffp-contract=off and no -ffast-math).
 #pragma once
+
+#include <algorithm>
+#include <cmath>
 
 #include "../common.hpp"
 
 namespace qpik::core {
+
+// Python's min(a, b) / max(a, b) as numba compiles them: the second argument wins only
+// when strictly smaller / larger (so a NaN second argument never wins).
+inline double pymin(double a, double b) { return b < a ? b : a; }
+inline double pymax(double a, double b) { return b > a ? b : a; }
 
 // Cholesky factor of G[:n, :n] - shift I written into the lower triangle of L[:n, :n]
 // (G unchanged); false as soon as a pivot is not positive (L then holds a partial factor).
@@ -22,6 +33,240 @@ inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
         }
     }
     return true;
+}
+
+// Lower Cholesky factor of a symmetric matrix (zeros above the diagonal) and success.
+inline bool cholesky(CMatRef H, Mat& L) {
+    L = Mat(H.rows, H.rows);
+    return cholesky_into(H, H.rows, 0.0, L.ref());
+}
+
+// L^-1 b for lower-triangular L.
+inline Vec forward_vec(CMatRef L, const Vec& b) {
+    i64 n = static_cast<i64>(b.size());
+    Vec x(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) {
+        double s = b[i];
+        for (i64 k = 0; k < i; ++k) s -= L(i, k) * x[k];
+        x[i] = s / L(i, i);
+    }
+    return x;
+}
+
+// L^-T b for lower-triangular L.
+inline Vec backward_vec(CMatRef L, const Vec& b) {
+    i64 n = static_cast<i64>(b.size());
+    Vec x(static_cast<size_t>(n));
+    for (i64 i = n - 1; i >= 0; --i) {
+        double s = b[i];
+        for (i64 k = i + 1; k < n; ++k) s -= L(k, i) * x[k];
+        x[i] = s / L(i, i);
+    }
+    return x;
+}
+
+// A @ B (skipping zero entries of A, as the reference does).
+inline Mat mm(CMatRef A, CMatRef B) {
+    i64 m = A.rows, k = A.cols, n = B.cols;
+    Mat C(m, n);
+    for (i64 i = 0; i < m; ++i) {
+        double* ci = C.row(i);
+        for (i64 t = 0; t < k; ++t) {
+            double a = A(i, t);
+            if (a != 0.0) {
+                const double* bt = B.row(t);
+                for (i64 j = 0; j < n; ++j) ci[j] += a * bt[j];
+            }
+        }
+    }
+    return C;
+}
+
+// A^T @ A (symmetric, computed once per pair).
+inline Mat mtm(CMatRef A) {
+    i64 m = A.rows, n = A.cols;
+    Mat C(n, n);
+    for (i64 t = 0; t < m; ++t) {
+        const double* at = A.row(t);
+        for (i64 i = 0; i < n; ++i) {
+            double a = at[i];
+            if (a != 0.0) {
+                double* ci = C.row(i);
+                for (i64 j = i; j < n; ++j) ci[j] += a * at[j];
+            }
+        }
+    }
+    for (i64 i = 0; i < n; ++i)
+        for (i64 j = 0; j < i; ++j) C(i, j) = C(j, i);
+    return C;
+}
+
+// A @ x.
+inline Vec mv(CMatRef A, const double* x) {
+    i64 m = A.rows, n = A.cols;
+    Vec y(static_cast<size_t>(m));
+    for (i64 i = 0; i < m; ++i) {
+        const double* ai = A.row(i);
+        double acc = 0.0;
+        for (i64 j = 0; j < n; ++j) acc += ai[j] * x[j];
+        y[i] = acc;
+    }
+    return y;
+}
+
+// A^T @ x.
+inline Vec mtv(CMatRef A, const double* x) {
+    i64 m = A.rows, n = A.cols;
+    Vec y(static_cast<size_t>(n), 0.0);
+    for (i64 i = 0; i < m; ++i) {
+        double a = x[i];
+        if (a != 0.0) {
+            const double* ai = A.row(i);
+            for (i64 j = 0; j < n; ++j) y[j] += ai[j] * a;
+        }
+    }
+    return y;
+}
+
+// x @ y for vectors of length n.
+inline double dot(const double* x, const double* y, i64 n) {
+    double acc = 0.0;
+    for (i64 i = 0; i < n; ++i) acc += x[i] * y[i];
+    return acc;
+}
+
+// Columns c0:c1 of M, copied.
+inline Mat columns(CMatRef M, i64 c0, i64 c1) {
+    Mat out(M.rows, c1 - c0);
+    for (i64 i = 0; i < M.rows; ++i)
+        for (i64 j = c0; j < c1; ++j) out(i, j - c0) = M(i, j);
+    return out;
+}
+
+inline Mat transposed(CMatRef M) {
+    Mat out(M.cols, M.rows);
+    for (i64 i = 0; i < M.rows; ++i)
+        for (i64 j = 0; j < M.cols; ++j) out(j, i) = M(i, j);
+    return out;
+}
+
+// Smallest singular value of M (p, m), p <= m, by one-sided Jacobi rotations of its rows
+// (Hestenes).
+inline double min_singular(CMatRef M) {
+    i64 p = M.rows, m = M.cols;
+    Mat U(p, m);
+    for (i64 i = 0; i < p; ++i)
+        for (i64 k = 0; k < m; ++k) U(i, k) = M(i, k);
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+        for (i64 i = 0; i < p - 1; ++i) {
+            for (i64 j = i + 1; j < p; ++j) {
+                double* ui_ = U.row(i);
+                double* uj_ = U.row(j);
+                double alpha = 0.0, beta = 0.0, gamma = 0.0;
+                for (i64 k = 0; k < m; ++k) {
+                    alpha += ui_[k] * ui_[k];
+                    beta += uj_[k] * uj_[k];
+                    gamma += ui_[k] * uj_[k];
+                }
+                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
+                rotated = true;
+                double zeta = (beta - alpha) / (2.0 * gamma);
+                double t = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+                double cs = 1.0 / std::sqrt(1.0 + t * t);
+                double sn = cs * t;
+                for (i64 k = 0; k < m; ++k) {
+                    double ui = ui_[k];
+                    double uj = uj_[k];
+                    ui_[k] = cs * ui - sn * uj;
+                    uj_[k] = sn * ui + cs * uj;
+                }
+            }
+        }
+        if (!rotated) break;
+    }
+    double smallest = kInf;
+    for (i64 i = 0; i < p; ++i) {
+        double norm = 0.0;
+        for (i64 k = 0; k < m; ++k) norm += U(i, k) * U(i, k);
+        smallest = pymin(smallest, std::sqrt(norm));
+    }
+    return smallest;
+}
+
+namespace detail {
+
+// Column pivoting step: bring the column of largest remaining norm to position i.
+inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
+    i64 best = i;
+    for (i64 j = i + 1; j < R.cols; ++j)
+        if (norms[j] > norms[best]) best = j;
+    if (best != i) {
+        for (i64 t = 0; t < R.rows; ++t) std::swap(R(t, i), R(t, best));
+        std::swap(norms[i], norms[best]);
+        std::swap(perm[i], perm[best]);
+    }
+}
+
+// The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right).
+inline void reflect(Mat& R, Mat& Q, Vec& x, i64 i) {
+    i64 r = R.rows, m = R.cols;
+    i64 size = r - i;
+    double alpha = 0.0;
+    for (i64 t = 0; t < size; ++t) {
+        x[t] = R(i + t, i);
+        alpha += x[t] * x[t];
+    }
+    alpha = std::sqrt(alpha);
+    if (alpha == 0.0) return;
+    if (x[0] > 0.0) alpha = -alpha;
+    x[0] -= alpha;
+    double vn = 0.0;
+    for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+    if (vn == 0.0) return;
+    for (i64 j = i; j < m; ++j) {
+        double s = 0.0;
+        for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
+        s = 2.0 * s / vn;
+        for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
+    }
+    for (i64 row = 0; row < r; ++row) {
+        double* qr = Q.row(row);
+        double s = 0.0;
+        for (i64 t = 0; t < size; ++t) s += qr[i + t] * x[t];
+        s = 2.0 * s / vn;
+        for (i64 t = 0; t < size; ++t) qr[i + t] -= s * x[t];
+    }
+}
+
+// norms[j] = |R[start:, j]|^2 for the columns from start on.
+inline void column_norms(const Mat& R, i64 start, Vec& norms) {
+    for (i64 j = std::max<i64>(start, 0); j < R.cols; ++j) {
+        norms[j] = 0.0;
+        for (i64 t = start; t < R.rows; ++t) norms[j] += R(t, j) * R(t, j);
+    }
+}
+
+}  // namespace detail
+
+// QR of M (r, m) by Householder reflections, optionally with column pivoting:
+// M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal.
+inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm) {
+    i64 r = M.rows, m = M.cols;
+    R = Mat(r, m);
+    for (i64 i = 0; i < r; ++i)
+        for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
+    Q = Mat::eye(r);
+    perm.assign(static_cast<size_t>(m), 0);
+    for (i64 j = 0; j < m; ++j) perm[j] = j;
+    Vec norms(static_cast<size_t>(m), 0.0);
+    if (pivot) detail::column_norms(R, 0, norms);
+    Vec x(static_cast<size_t>(r));
+    for (i64 i = 0; i < std::min(r, m); ++i) {
+        if (pivot) detail::swap_pivot(R, norms, perm, i);
+        detail::reflect(R, Q, x, i);
+        if (pivot) detail::column_norms(R, i + 1, norms);
+    }
 }
 
 }  // namespace qpik::core

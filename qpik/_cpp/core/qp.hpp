@@ -1,0 +1,612 @@
+// The exact dense QP of the core (ported from qpik/core/_kernels.py): the dual active-set
+// method of Goldfarb and Idnani with a canonical KKT re-solve (solve_qp), its robust
+// per-level wrapper (solve_level) and the active-set guess from an approximate answer.
+// Same algorithm and the same order of floating-point operations as the numba reference.
+#pragma once
+
+#include <cmath>
+
+#include "linalg.hpp"
+
+namespace qpik::core {
+
+// Status codes shared with qpik.core.hierarchy.LevelStatus (keep in sync).
+enum Status : i64 { SOLVED = 0, MAX_ITER = 1, INFEASIBLE = 2, KEPT_PREVIOUS = 3, NUMERICAL = 4, NOT_REACHED = 5 };
+
+constexpr double kBig = 1e20;          // bounds beyond this are treated as absent
+constexpr double kDegenerate = 1e-9;   // multipliers / slacks this small make a set degenerate
+constexpr double kRoundoff = 1e-11;    // violations this small at a degenerate vertex are round-off
+constexpr double kDependent = 1e-10;   // a normal this close to the working set's span depends on it
+constexpr double kVerify = 1e-8;       // a final violation above this (relative) is a failure
+
+// (x, status, iterations, active) of solve_qp / solve_level.
+struct QPResult {
+    Vec x;
+    i64 status = SOLVED;
+    i64 iterations = 0;
+    BVec active;
+};
+
+namespace detail {
+
+inline double rhs_of(CVecRef lo, CVecRef hi, i64 row, i64 side) { return side > 0 ? lo[row] : -hi[row]; }
+
+// Minimiser with the working set held as equalities and its multipliers, by the
+// null-space method; ok false when the normals are dependent (or W^T H W is not PD).
+inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi,
+                      const IVec& act_row, const IVec& act_side, i64 q, Vec& x, Vec& u) {
+    i64 n = L.rows;
+    if (q == 0) {
+        Vec mc(static_cast<size_t>(n));
+        for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
+        x = backward_vec(L, forward_vec(L, mc));
+        u.assign(0, 0.0);
+        return true;
+    }
+    Mat N(n, q);
+    Vec rhs(static_cast<size_t>(q));
+    for (i64 j = 0; j < q; ++j) {
+        double side = static_cast<double>(act_side[j]);
+        for (i64 i = 0; i < n; ++i) N(i, j) = C(act_row[j], i) * side;
+        rhs[j] = rhs_of(lo, hi, act_row[j], act_side[j]);
+    }
+    Mat Q, R;
+    IVec perm;
+    householder_qr(N.cref(), false, Q, R, perm);
+    double scale = 0.0;
+    for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
+    for (i64 i = 0; i < q; ++i) {
+        if (std::fabs(R(i, i)) <= 1e-13 * pymax(scale, 1e-300)) {
+            x.assign(static_cast<size_t>(n), 0.0);
+            u.assign(static_cast<size_t>(q), 0.0);
+            return false;
+        }
+    }
+    Vec t(static_cast<size_t>(q));
+    for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
+        double acc = rhs[i];
+        for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
+        t[i] = acc / R(i, i);
+    }
+    Mat Y = columns(Q.cref(), 0, q);
+    x = mv(Y.cref(), t.data());
+    if (q < n) {
+        Mat W = columns(Q.cref(), q, n);
+        Mat Wt = transposed(W.cref());
+        Mat Hr = mm(Wt.cref(), mm(H, W.cref()).cref());
+        Mat Lr;
+        if (!cholesky(Hr.cref(), Lr)) {
+            u.assign(static_cast<size_t>(q), 0.0);
+            return false;
+        }
+        Vec hx = mv(H, x.data());
+        for (i64 i = 0; i < n; ++i) hx[i] = hx[i] + c[i];
+        Vec g = mtv(W.cref(), hx.data());
+        for (auto& v : g) v = -v;
+        Vec y = backward_vec(Lr.cref(), forward_vec(Lr.cref(), g));
+        Vec wy = mv(W.cref(), y.data());
+        for (i64 i = 0; i < n; ++i) x[i] = x[i] + wy[i];
+    }
+    Vec hx = mv(H, x.data());
+    for (i64 i = 0; i < n; ++i) hx[i] = hx[i] + c[i];
+    Vec grad = mtv(Y.cref(), hx.data());
+    u.assign(static_cast<size_t>(q), 0.0);
+    for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T (H x + c)
+        double acc = grad[i];
+        for (i64 k = i + 1; k < q; ++k) acc -= R(i, k) * u[k];
+        u[i] = acc / R(i, i);
+    }
+    return true;
+}
+
+inline double max_abs(const Vec& u, i64 q) {
+    double big = 0.0;
+    for (i64 j = 0; j < q; ++j) big = pymax(big, std::fabs(u[j]));
+    return big;
+}
+
+inline Vec row_norms(CMatRef C) {
+    Vec norms(static_cast<size_t>(C.rows));
+    for (i64 i = 0; i < C.rows; ++i) {
+        double norm = 0.0;
+        for (i64 j = 0; j < C.cols; ++j) norm += C(i, j) * C(i, j);
+        norms[i] = std::sqrt(norm);
+    }
+    return norms;
+}
+
+// Per row, the column of its single entry when the row is +-e_j, else -1.
+inline IVec unit_columns(CMatRef C) {
+    IVec unit(static_cast<size_t>(C.rows), -1);
+    for (i64 i = 0; i < C.rows; ++i) {
+        i64 col = -1;
+        for (i64 j = 0; j < C.cols; ++j) {
+            if (C(i, j) != 0.0) {
+                if (col >= 0 || std::fabs(C(i, j)) != 1.0) {
+                    col = -2;
+                    break;
+                }
+                col = j;
+            }
+        }
+        if (col >= 0) unit[i] = col;
+    }
+    return unit;
+}
+
+// The most violated constraint (row, side) at x; row -1 when every one holds within tol.
+inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
+                          double tol, const Vec& norms, const IVec& unit, i64& best_row, i64& best_side) {
+    i64 m = C.rows, n = C.cols;
+    double best = 0.0;
+    best_row = -1;
+    best_side = 0;
+    for (i64 i = 0; i < m; ++i) {
+        if (skip[i]) continue;
+        double norm = norms[i];
+        if (norm == 0.0) continue;
+        double cx;
+        if (unit[i] >= 0) {
+            cx = 0.0 + C(i, unit[i]) * x[unit[i]];
+        } else {
+            cx = 0.0;
+            for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
+        }
+        if (lo[i] > -kBig) {
+            double v = (lo[i] - cx) / norm;
+            if (v > tol * (1.0 + std::fabs(lo[i])) && v > best) {
+                best = v;
+                best_row = i;
+                best_side = 1;
+            }
+        }
+        if (hi[i] < kBig) {
+            double v = (cx - hi[i]) / norm;
+            if (v > tol * (1.0 + std::fabs(hi[i])) && v > best) {
+                best = v;
+                best_row = i;
+                best_side = -1;
+            }
+        }
+    }
+}
+
+inline double dual_floor(const Vec& u, i64 q) { return 1e-12 * (1.0 + max_abs(u, q)); }
+
+// Primal feasibility of x and dual feasibility of the multipliers u.
+inline bool kkt_ok(const Vec& x, const Vec& u, CMatRef C, CVecRef lo, CVecRef hi, i64 q, double tol) {
+    double floor = dual_floor(u, q);
+    for (i64 j = 0; j < q; ++j)
+        if (u[j] < -floor) return false;
+    BVec skip(static_cast<size_t>(C.rows), 0);
+    i64 row, side;
+    most_violated(x.data(), C, lo, hi, skip, tol, row_norms(C), unit_columns(C), row, side);
+    return row < 0;
+}
+
+// Whether a working set is the QP's unique optimal active set (strict complementarity).
+inline bool strictly_optimal(const Vec& x, const Vec& u, CMatRef C, CVecRef lo, CVecRef hi,
+                             const IVec& act_row, i64 q) {
+    double big = max_abs(u, q);
+    for (i64 j = 0; j < q; ++j)
+        if (u[j] <= kDegenerate * (1.0 + big)) return false;
+    i64 m = C.rows, n = C.cols;
+    BVec working(static_cast<size_t>(m), 0);
+    for (i64 j = 0; j < q; ++j) working[act_row[j]] = 1;
+    for (i64 i = 0; i < m; ++i) {
+        if (working[i]) continue;
+        double cx = 0.0, norm = 0.0;
+        for (i64 j = 0; j < n; ++j) {
+            cx += C(i, j) * x[j];
+            norm += C(i, j) * C(i, j);
+        }
+        norm = std::sqrt(norm);
+        if (norm == 0.0) continue;
+        double margin = kDegenerate * norm;
+        if (lo[i] > -kBig && cx - lo[i] <= margin * (1.0 + std::fabs(lo[i]))) return false;
+        if (hi[i] < kBig && hi[i] - cx <= margin * (1.0 + std::fabs(hi[i]))) return false;
+    }
+    return true;
+}
+
+// L^-T of a lower-triangular L.
+inline Mat inverse_transpose(const Mat& L) {
+    i64 n = L.rows;
+    Mat J(n, n);
+    for (i64 i = 0; i < n; ++i) {
+        J(i, i) = 1.0 / L(i, i);
+        for (i64 k = i + 1; k < n; ++k) {
+            double acc = 0.0;
+            for (i64 j = i; j < k; ++j) acc -= L(k, j) * J(i, j);
+            J(i, k) = acc / L(k, k);
+        }
+    }
+    return J;
+}
+
+// d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction).
+inline void directions(const Mat& J, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
+    i64 n = J.rows;
+    if (unit >= 0) {
+        for (i64 i = 0; i < n; ++i) d[i] = 0.0 + J(unit, i) * normal[unit];
+    } else {
+        for (i64 i = 0; i < n; ++i) {
+            double acc = 0.0;
+            for (i64 k = 0; k < n; ++k) acc += J(k, i) * normal[k];
+            d[i] = acc;
+        }
+    }
+    for (i64 k = 0; k < n; ++k) {
+        double acc = 0.0;
+        for (i64 i = q; i < n; ++i) acc += J(k, i) * d[i];
+        z[k] = acc;
+    }
+    for (i64 i = q - 1; i >= 0; --i) {
+        double acc = d[i];
+        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
+        r[i] = acc / R(i, i);
+    }
+}
+
+// Partial (dual) step and the blocking working constraint (-1: none).
+inline double dual_step(const Vec& u, const Vec& r, i64 q, i64& drop) {
+    double t1 = kInf;
+    drop = -1;
+    for (i64 j = 0; j < q; ++j) {
+        if (r[j] > 0.0) {
+            double t = u[j] / r[j];
+            if (t < t1) {
+                t1 = t;
+                drop = j;
+            }
+        }
+    }
+    return t1;
+}
+
+// Full (primal) step; inf when the candidate's normal depends on the working set's.
+inline double primal_step(const Vec& d, const Vec& z, const Vec& normal, double slack, i64 q) {
+    double outside = 0.0, total = 0.0;
+    i64 n = static_cast<i64>(d.size());
+    for (i64 i = 0; i < n; ++i) {
+        total += d[i] * d[i];
+        if (i >= q) outside += d[i] * d[i];
+    }
+    double zn = dot(z.data(), normal.data(), static_cast<i64>(z.size()));
+    if (outside > kDependent * kDependent * total && zn > 0.0) return pymax(-slack / zn, 0.0);
+    return kInf;
+}
+
+// Add a constraint: Givens rotations of J's columns so that only d[:q+1] is non-zero.
+inline void rotate_in(Mat& J, Vec& d, i64 q) {
+    i64 n = J.rows;
+    for (i64 j = n - 1; j > q; --j) {
+        double cc = d[j - 1];
+        double ss = d[j];
+        double h = std::hypot(cc, ss);
+        if (h == 0.0) continue;
+        d[j] = 0.0;
+        ss /= h;
+        cc /= h;
+        if (cc < 0.0) {
+            cc = -cc;
+            ss = -ss;
+            d[j - 1] = -h;
+        } else {
+            d[j - 1] = h;
+        }
+        double xny = ss / (1.0 + cc);
+        for (i64 k = 0; k < n; ++k) {
+            double a = J(k, j - 1);
+            double b2 = J(k, j);
+            J(k, j - 1) = a * cc + b2 * ss;
+            J(k, j) = xny * (a + J(k, j - 1)) - b2;
+        }
+    }
+}
+
+// Remove working constraint `drop` of q and restore R's triangle (and J).
+inline void drop_constraint(Mat& J, Mat& R, Vec& u, IVec& act_row, IVec& act_side, BVec& in_set, i64 drop, i64 q) {
+    i64 n = J.rows;
+    in_set[act_row[drop]] = 0;
+    for (i64 j = drop; j < q - 1; ++j) {
+        act_row[j] = act_row[j + 1];
+        act_side[j] = act_side[j + 1];
+        u[j] = u[j + 1];
+        for (i64 i = 0; i < n; ++i) R(i, j) = R(i, j + 1);
+    }
+    u[q - 1] = u[q];
+    u[q] = 0.0;
+    for (i64 i = 0; i < n; ++i) R(i, q - 1) = 0.0;
+    q -= 1;
+    for (i64 j = drop; j < q; ++j) {
+        double cc = R(j, j);
+        double ss = R(j + 1, j);
+        double h = std::hypot(cc, ss);
+        if (h == 0.0) continue;
+        cc /= h;
+        ss /= h;
+        R(j + 1, j) = 0.0;
+        if (cc < 0.0) {
+            R(j, j) = -h;
+            cc = -cc;
+            ss = -ss;
+        } else {
+            R(j, j) = h;
+        }
+        double xny = ss / (1.0 + cc);
+        for (i64 k = j + 1; k < q; ++k) {
+            double a = R(j, k);
+            double b2 = R(j + 1, k);
+            R(j, k) = a * cc + b2 * ss;
+            R(j + 1, k) = xny * (a + R(j, k)) - b2;
+        }
+        for (i64 k = 0; k < n; ++k) {
+            double a = J(k, j);
+            double b2 = J(k, j + 1);
+            J(k, j) = a * cc + b2 * ss;
+            J(k, j + 1) = xny * (J(k, j) + a) - b2;
+        }
+    }
+}
+
+inline void mark(BVec& active, const IVec& act_row, const IVec& act_side, i64 q) {
+    for (i64 j = 0; j < q; ++j) active[act_row[j]] = static_cast<i8>(act_side[j]);
+}
+
+// The cold answer with its KKT conditions checked (stationarity as a backward error, u >= 0).
+inline QPResult verified(CMatRef H, CVecRef c, CMatRef C, const Vec& x, const Vec& u, const IVec& act_row,
+                         const IVec& act_side, i64 q, i64 iterations) {
+    i64 m = C.rows;
+    i64 n = static_cast<i64>(x.size());
+    QPResult res{x, SOLVED, iterations, BVec(static_cast<size_t>(m), 0)};
+    double floor = dual_floor(u, q);
+    Vec g = mv(H, x.data());
+    for (i64 i = 0; i < n; ++i) g[i] = g[i] + c[i];
+    Vec size(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) size[i] = std::fabs(c[i]);
+    for (i64 i = 0; i < n; ++i)
+        for (i64 j = 0; j < n; ++j) size[i] += std::fabs(H(i, j) * x[j]);
+    for (i64 j = 0; j < q; ++j) {
+        if (u[j] < -floor) {
+            res.status = NUMERICAL;
+            return res;
+        }
+        if (u[j] > floor) res.active[act_row[j]] = static_cast<i8>(act_side[j]);
+        double us = u[j] * static_cast<double>(act_side[j]);
+        for (i64 i = 0; i < n; ++i) {
+            double term = us * C(act_row[j], i);
+            g[i] -= term;
+            size[i] += std::fabs(term);
+        }
+    }
+    double scale = 1.0;
+    for (i64 i = 0; i < n; ++i) scale = pymax(scale, size[i]);
+    for (i64 i = 0; i < n; ++i) {
+        if (std::fabs(g[i]) > kVerify * scale) {
+            res.status = NUMERICAL;
+            return res;
+        }
+    }
+    return res;
+}
+
+// Re-solve the KKT system on the canonical active set (positive multipliers, by row).
+inline QPResult polish(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, const Vec& x,
+                       const Vec& u, const IVec& act_row, const IVec& act_side, i64 q, i64 iterations,
+                       double tol) {
+    i64 m = C.rows;
+    i64 n = L.rows;
+    BVec active(static_cast<size_t>(m), 0);
+    double floor = dual_floor(u, q);
+    for (i64 j = 0; j < q; ++j)
+        if (u[j] > floor) active[act_row[j]] = static_cast<i8>(act_side[j]);
+    IVec rows(static_cast<size_t>(n + 1)), sides(static_cast<size_t>(n + 1));
+    i64 k = 0;
+    for (i64 i = 0; i < m; ++i) {
+        if (active[i] != 0) {
+            rows[k] = i;
+            sides[k] = active[i];
+            k += 1;
+        }
+    }
+    Vec xp, up;
+    bool ok = kkt_solve(H, L, c, C, lo, hi, rows, sides, k, xp, up);
+    if (ok && kkt_ok(xp, up, C, lo, hi, k, pymax(tol, 1e-9)))
+        return QPResult{std::move(xp), SOLVED, iterations, std::move(active)};
+    return QPResult{x, NUMERICAL, iterations, std::move(active)};
+}
+
+// Bounds widened by scale (1 + |bound|) (1 + i / m), distinct per row.
+inline void widened(CVecRef lo, CVecRef hi, double scale, Vec& lo2, Vec& hi2) {
+    i64 m = lo.size();
+    lo2.assign(static_cast<size_t>(m), 0.0);
+    hi2.assign(static_cast<size_t>(m), 0.0);
+    double denom = static_cast<double>(std::max<i64>(m, 1));
+    for (i64 i = 0; i < m; ++i) {
+        double eps = scale * (1.0 + static_cast<double>(i) / denom);
+        lo2[i] = lo[i] > -kBig ? lo[i] - eps * (1.0 + std::fabs(lo[i])) : lo[i];
+        hi2[i] = hi[i] < kBig ? hi[i] + eps * (1.0 + std::fabs(hi[i])) : hi[i];
+    }
+}
+
+// (true, answer) when the warm active set is still the QP's unique optimal one.
+inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi,
+                        VecRefT<const i8> warm, double tol, IVec& act_row, IVec& act_side, QPResult& out) {
+    i64 m = C.rows;
+    i64 n = L.rows;
+    i64 q = 0;
+    for (i64 i = 0; i < m; ++i)
+        if (warm[i] != 0) q += 1;
+    if (q == 0 || q > n) return false;
+    q = 0;
+    for (i64 i = 0; i < m; ++i) {
+        if (warm[i] != 0) {
+            act_row[q] = i;
+            act_side[q] = warm[i];
+            q += 1;
+        }
+    }
+    Vec x, u;
+    bool ok = kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q, x, u);
+    if (ok && strictly_optimal(x, u, C, lo, hi, act_row, q)) {
+        QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol);
+        if (polished.status == SOLVED) {
+            out = std::move(polished);
+            return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace detail
+
+// Solve min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi exactly (see solve_qp in
+// qpik/core/_kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
+inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
+                         i64 max_iter, double tol, bool canonical) {
+    using namespace detail;
+    i64 n = H.rows;
+    i64 m = C.rows;
+    BVec active(static_cast<size_t>(m), 0);
+    Mat Lm;
+    if (!cholesky(H, Lm)) return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active)};
+    CMatRef L = Lm.cref();
+    IVec act_row(static_cast<size_t>(n + 1), 0), act_side(static_cast<size_t>(n + 1), 0);
+    i64 q = 0;
+    {
+        QPResult polished;
+        if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) return polished;
+    }
+    Vec mc(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
+    Vec x = backward_vec(L, forward_vec(L, mc));
+    Mat J = inverse_transpose(Lm);
+    Mat R(n, n);
+    double r_norm = 1.0;
+    Vec u(static_cast<size_t>(n + 1), 0.0);
+    Vec d(static_cast<size_t>(n)), z(static_cast<size_t>(n)), r(static_cast<size_t>(n + 1));
+    BVec in_set(static_cast<size_t>(m), 0);
+    Vec norms = row_norms(C);
+    IVec unit = unit_columns(C);
+    Vec x_old(static_cast<size_t>(n)), u_old(static_cast<size_t>(n + 1));
+    Vec normal(static_cast<size_t>(n));
+    i64 iterations = 0;
+    while (true) {
+        i64 row, side;
+        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side);
+        if (row < 0) {
+            if (canonical) {
+                QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
+                if (polished.status == SOLVED) return polished;
+            }
+            QPResult ver = verified(H, c, C, x, u, act_row, act_side, q, iterations);
+            if (ver.status == SOLVED || canonical) return ver;
+            QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
+            return polished.status == SOLVED ? polished : ver;
+        }
+        double sd = static_cast<double>(side);
+        for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
+        double rhs = rhs_of(lo, hi, row, side);
+        u[q] = 0.0;
+        while (true) {
+            iterations += 1;
+            if (iterations > max_iter) {
+                mark(active, act_row, act_side, q);
+                return QPResult{x, MAX_ITER, iterations, std::move(active)};
+            }
+            directions(J, R, normal, unit[row], q, d, z, r);
+            i64 drop;
+            double t1 = dual_step(u, r, q, drop);
+            double slack = dot(normal.data(), x.data(), n) - rhs;
+            double t2 = primal_step(d, z, normal, slack, q);
+            double t = pymin(t1, t2);
+            if (t == kInf) {
+                double nn = std::sqrt(dot(normal.data(), normal.data(), n));
+                if (n == 0) throw BadArgument("solve_qp: zero-size array to reduction operation maximum");
+                // np.abs(x).max(): the first NaN, else the largest.
+                double xmax = std::fabs(x[0]);
+                if (!std::isnan(xmax)) {
+                    for (i64 k = 1; k < n; ++k) {
+                        double v = std::fabs(x[k]);
+                        if (std::isnan(v)) {
+                            xmax = v;
+                            break;
+                        }
+                        if (v > xmax) xmax = v;
+                    }
+                }
+                if (-slack <= kRoundoff * (nn * (1.0 + xmax) + std::fabs(rhs))) {
+                    in_set[row] = 1;
+                    break;
+                }
+                mark(active, act_row, act_side, q);
+                return QPResult{x, INFEASIBLE, iterations, std::move(active)};
+            }
+            bool full = t2 <= t1;
+            if (full) {
+                x_old = x;
+                u_old = u;
+            }
+            if (t2 < kInf)
+                for (i64 k = 0; k < n; ++k) x[k] += t * z[k];
+            for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
+            u[q] += t;
+            if (full) {
+                rotate_in(J, d, q);
+                for (i64 i = 0; i < q + 1; ++i) R(i, q) = d[i];
+                if (std::fabs(d[q]) <= 1e-14 * r_norm) {
+                    x = x_old;
+                    u = u_old;
+                    u[q] = 0.0;
+                    in_set[row] = 1;
+                    break;
+                }
+                r_norm = pymax(r_norm, std::fabs(d[q]));
+                act_row[q] = row;
+                act_side[q] = side;
+                in_set[row] = 1;
+                q += 1;
+                break;
+            }
+            drop_constraint(J, R, u, act_row, act_side, in_set, drop, q);
+            q -= 1;
+        }
+    }
+}
+
+// Rows at a bound at an approximate solution x: +1 lower, -1 upper.
+inline BVec active_guess(CVecRef x, CMatRef C, CVecRef lo, CVecRef hi) {
+    i64 m = C.rows, n = C.cols;
+    BVec guess(static_cast<size_t>(m), 0);
+    for (i64 i = 0; i < m; ++i) {
+        double cx = 0.0;
+        for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
+        double scale = 1e-6 * (1.0 + std::fabs(cx));
+        if (std::isfinite(lo[i]) && cx <= lo[i] + scale) guess[i] = 1;
+        if (std::isfinite(hi[i]) && cx >= hi[i] - scale) guess[i] = -1;
+    }
+    return guess;
+}
+
+// solve_qp for one level, robust to degenerate vertices (rows widened by 1e-11, 1e-9).
+inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
+                            i64 max_iter, double tol, bool lower, bool canonical) {
+    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical);
+    i64 st = res.status;
+    if (st == SOLVED || st == MAX_ITER || (st == INFEASIBLE && !lower)) return res;
+    i64 its = res.iterations;
+    i64 m = lo.size();
+    BVec cold(static_cast<size_t>(m), 0);
+    for (double scale : {1e-11, 1e-9}) {
+        Vec lo2, hi2;
+        detail::widened(lo, hi, scale, lo2, hi2);
+        res = solve_qp(H, c, C, CVecRef(lo2), CVecRef(hi2), VecRefT<const i8>(cold), max_iter, tol, canonical);
+        its += res.iterations;
+        res.iterations = its;
+        if (res.status == SOLVED) return res;
+    }
+    return res;
+}
+
+}  // namespace qpik::core

@@ -1,0 +1,278 @@
+// SE(3) and SO(3) routines of mink's compiled Lie-group module (mink/lie/_lie_ops_c.c),
+// ported from qpik/tasks/_lie.py (itself a port of mink's C) operation for operation: the
+// same floating-point operations in the same order, so the answers are bitwise equal.
+//
+// Poses are wxyz_xyz (7): a unit quaternion (w, x, y, z) then a translation [m]. Tangents
+// are [v; omega] (6) [m, rad]. 3x3 matrices are row-major (9), as MuJoCo's xmat; the 6x6
+// jlog is row-major (36). Every function writes into `out`; nothing is allocated. The
+// caller guarantees the sizes (the bindings check them).
+#pragma once
+
+#include <cmath>
+
+#include "../common.hpp"
+
+namespace qpik::model {
+
+constexpr double kLieEps = 1e-10;
+
+namespace se3_detail {
+
+inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+inline void quat_mul(double* out, const double* a, const double* b) {
+    out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    out[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    out[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    out[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+
+// out = q v q^-1 (v (3), q (w, x, y, z)).
+inline void quat_rotate(double* out, const double* v, const double* q) {
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    const double tx = 2.0 * (y * v[2] - z * v[1]);
+    const double ty = 2.0 * (z * v[0] - x * v[2]);
+    const double tz = 2.0 * (x * v[1] - y * v[0]);
+    out[0] = v[0] + w * tx + (y * tz - z * ty);
+    out[1] = v[1] + w * ty + (z * tx - x * tz);
+    out[2] = v[2] + w * tz + (x * ty - y * tx);
+}
+
+inline void skew(double* out, const double* v) {
+    out[0] = 0.0;
+    out[1] = -v[2];
+    out[2] = v[1];
+    out[3] = v[2];
+    out[4] = 0.0;
+    out[5] = -v[0];
+    out[6] = -v[1];
+    out[7] = v[0];
+    out[8] = 0.0;
+}
+
+inline void mat33_mul(double* C, const double* A, const double* B) {
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
+}
+
+inline void mat33_transpose(double* out, const double* m) {
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) out[3 * i + j] = m[3 * j + i];
+}
+
+}  // namespace se3_detail
+
+// Rotation vector [rad] of a unit quaternion (the shorter way round); reads wxyz[0:4].
+inline void so3_log(double* omega, const double* wxyz) {
+    double w = wxyz[0], x = wxyz[1], y = wxyz[2], z = wxyz[3];
+    if (w < 0.0) {
+        w = -w;
+        x = -x;
+        y = -y;
+        z = -z;
+    }
+    const double norm = std::sqrt(x * x + y * y + z * z);
+    if (norm > 0.0) {
+        const double inv = 1.0 / norm;
+        x = x * inv;
+        y = y * inv;
+        z = z * inv;
+    }
+    if (norm < kLieEps) {
+        omega[0] = 0.0;
+        omega[1] = 0.0;
+        omega[2] = 0.0;
+        return;
+    }
+    const double angle = 2.0 * std::atan2(norm, w);
+    omega[0] = angle * x;
+    omega[1] = angle * y;
+    omega[2] = angle * z;
+}
+
+// SO(3) left Jacobian inverse at omega (row-major 3x3).
+inline void so3_ljacinv(double* out, const double* omega) {
+    using namespace se3_detail;
+    const double theta = std::sqrt(dot3(omega, omega));
+    const double t2 = theta * theta;
+    double beta;
+    if (theta < kLieEps) {
+        beta = (1.0 / 12.0) * (1.0 + t2 / 60.0 * (1.0 + t2 / 42.0 * (1.0 + t2 / 40.0)));
+    } else {
+        beta = (1.0 / t2) * (1.0 - (theta * std::sin(theta) / (2.0 * (1.0 - std::cos(theta)))));
+    }
+    const double inner = dot3(omega, omega);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            out[3 * i + j] = beta * (omega[i] * omega[j] - (i == j ? inner : 0.0));
+    const double a0 = -0.5 * omega[0], a1 = -0.5 * omega[1], a2 = -0.5 * omega[2];
+    out[1] += -a2;
+    out[2] += a1;
+    out[3] += a2;
+    out[5] += -a0;
+    out[6] += -a1;
+    out[7] += a0;
+    out[0] += 1.0;
+    out[4] += 1.0;
+    out[8] += 1.0;
+}
+
+// A MuJoCo frame (xmat row-major 9, xpos 3) as wxyz_xyz (Shepperd's method).
+inline void xmat_xpos_to_wxyz_xyz(double* out, const double* R, const double* xpos) {
+    const double tr = R[0] + R[4] + R[8];
+    if (tr > 0.0) {
+        const double s = std::sqrt(tr + 1.0) * 2.0;
+        out[0] = 0.25 * s;
+        out[1] = (R[7] - R[5]) / s;
+        out[2] = (R[2] - R[6]) / s;
+        out[3] = (R[3] - R[1]) / s;
+    } else if (R[0] > R[4] && R[0] > R[8]) {
+        const double s = std::sqrt(1.0 + R[0] - R[4] - R[8]) * 2.0;
+        out[0] = (R[7] - R[5]) / s;
+        out[1] = 0.25 * s;
+        out[2] = (R[1] + R[3]) / s;
+        out[3] = (R[2] + R[6]) / s;
+    } else if (R[4] > R[8]) {
+        const double s = std::sqrt(1.0 + R[4] - R[0] - R[8]) * 2.0;
+        out[0] = (R[2] - R[6]) / s;
+        out[1] = (R[1] + R[3]) / s;
+        out[2] = 0.25 * s;
+        out[3] = (R[5] + R[7]) / s;
+    } else {
+        const double s = std::sqrt(1.0 + R[8] - R[0] - R[4]) * 2.0;
+        out[0] = (R[3] - R[1]) / s;
+        out[1] = (R[2] + R[6]) / s;
+        out[2] = (R[5] + R[7]) / s;
+        out[3] = 0.25 * s;
+    }
+    const double n = std::sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2] + out[3] * out[3]);
+    if (n > 0.0) {
+        const double inv = 1.0 / n;
+        for (int i = 0; i < 4; ++i) out[i] *= inv;
+    }
+    out[4] = xpos[0];
+    out[5] = xpos[1];
+    out[6] = xpos[2];
+}
+
+// log(T) as [v; omega].
+inline void se3_log(double* tangent, const double* T) {
+    using namespace se3_detail;
+    double omega[3];
+    so3_log(omega, T);
+    const double theta = std::sqrt(dot3(omega, omega));
+    const double t2 = theta * theta;
+    double skw[9], skw2[9], vinv[9];
+    skew(skw, omega);
+    mat33_mul(skw2, skw, skw);
+    if (t2 < kLieEps) {
+        for (int i = 0; i < 9; ++i) vinv[i] = -0.5 * skw[i] + skw2[i] / 12.0;
+    } else {
+        const double half = 0.5 * theta;
+        const double coeff = (1.0 - 0.5 * theta * std::cos(half) / std::sin(half)) / t2;
+        for (int i = 0; i < 9; ++i) vinv[i] = -0.5 * skw[i] + coeff * skw2[i];
+    }
+    vinv[0] += 1.0;
+    vinv[4] += 1.0;
+    vinv[8] += 1.0;
+    const double t0 = T[4], t1 = T[5], t2_ = T[6];
+    tangent[0] = vinv[0] * t0 + vinv[1] * t1 + vinv[2] * t2_;
+    tangent[1] = vinv[3] * t0 + vinv[4] * t1 + vinv[5] * t2_;
+    tangent[2] = vinv[6] * t0 + vinv[7] * t1 + vinv[8] * t2_;
+    tangent[3] = omega[0];
+    tangent[4] = omega[1];
+    tangent[5] = omega[2];
+}
+
+// out = a^-1 b.
+inline void se3_inverse_multiply(double* out, const double* a, const double* b) {
+    using namespace se3_detail;
+    const double inv_q[4] = {a[0], -a[1], -a[2], -a[3]};
+    const double neg_t[3] = {-a[4], -a[5], -a[6]};
+    double inv_t[3];
+    quat_rotate(inv_t, neg_t, inv_q);
+    // As the reference: the quaternion is written before b's translation is read.
+    quat_mul(out, inv_q, b);
+    double rotated[3];
+    quat_rotate(rotated, b + 4, inv_q);
+    out[4] = rotated[0] + inv_t[0];
+    out[5] = rotated[1] + inv_t[1];
+    out[6] = rotated[2] + inv_t[2];
+}
+
+// a (-) b = log(b^-1 a).
+inline void se3_rminus(double* tangent, const double* a, const double* b) {
+    double temp[7];
+    se3_inverse_multiply(temp, b, a);
+    se3_log(tangent, temp);
+}
+
+namespace se3_detail {
+
+// The Q block of the SE(3) left Jacobian (Sola et al., eq. 180) at c (6).
+inline void get_q(double* Q, const double* c) {
+    const double* v = c;
+    const double* w = c + 3;
+    const double theta = std::sqrt(dot3(w, w));
+    const double t2 = theta * theta;
+    const double A = 0.5;
+    double B, C, D;
+    if (t2 < kLieEps) {
+        B = (1.0 / 6.0) + (1.0 / 120.0) * t2;
+        C = -(1.0 / 24.0) + (1.0 / 720.0) * t2;
+        D = -(1.0 / 60.0);
+    } else {
+        const double t4 = t2 * t2;
+        const double st = std::sin(theta);
+        const double ct = std::cos(theta);
+        B = (theta - st) / (t2 * theta);
+        C = (1.0 - 0.5 * t2 - ct) / t4;
+        D = (2.0 * theta - 3.0 * st + theta * ct) / (2.0 * t4 * theta);
+    }
+    double V[9], W[9], VW[9], WV[9], WVW[9], VWW[9], VWW_T[9], WVWW[9], WWVW[9];
+    skew(V, v);
+    skew(W, w);
+    mat33_mul(VW, V, W);
+    mat33_transpose(WV, VW);
+    mat33_mul(WVW, WV, W);
+    mat33_mul(VWW, VW, W);
+    mat33_transpose(VWW_T, VWW);
+    mat33_mul(WVWW, WVW, W);
+    mat33_mul(WWVW, W, WVW);
+    for (int i = 0; i < 9; ++i) {
+        Q[i] = A * V[i] + B * (WV[i] + VW[i] + WVW[i]) - C * (VWW[i] - VWW_T[i] - 3.0 * WVW[i]) +
+               D * (WVWW[i] + WWVW[i]);
+    }
+}
+
+}  // namespace se3_detail
+
+// jlog(T): the right Jacobian inverse at log(T), row-major 6x6 (36).
+inline void se3_jlog(double* jlog, const double* T) {
+    using namespace se3_detail;
+    double tangent[6];
+    se3_log(tangent, T);
+    double neg[6];
+    for (int i = 0; i < 6; ++i) neg[i] = -tangent[i];
+    for (int i = 0; i < 36; ++i) jlog[i] = 0.0;
+    if (dot3(neg + 3, neg + 3) < kLieEps) {
+        for (int i = 0; i < 6; ++i) jlog[6 * i + i] = 1.0;
+        return;
+    }
+    double Q[9], lji[9];
+    get_q(Q, neg);
+    so3_ljacinv(lji, neg + 3);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            jlog[6 * i + j] = lji[3 * i + j];
+            jlog[6 * (3 + i) + 3 + j] = lji[3 * i + j];
+        }
+    double QJ[9], JQJ[9];
+    mat33_mul(QJ, Q, lji);
+    mat33_mul(JQJ, lji, QJ);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) jlog[6 * i + 3 + j] = -JQJ[3 * i + j];
+}
+
+}  // namespace qpik::model
