@@ -1,8 +1,151 @@
-// Bindings of the igm layer (qpik._engine.igm).
+// Bindings of the igm layer (qpik._engine.igm): the full-IK loop, its box QP, the
+// SplitMix64 stream and the smallest singular value of a level.
+#include <algorithm>
+#include <string>
+
 #include "bind.hpp"
+#include "bind_chain.hpp"
+#include "igm/box_qp.hpp"
+#include "igm/igm.hpp"
 
 namespace nb = nanobind;
+using namespace nb::literals;
+using namespace qpik;
+using namespace qpik::bind;
+
+namespace {
+
+using U64Out1 = Out<std::uint64_t, 1>;
+using I64Out1 = Out<i64, 1>;
+using I8Out1 = Out<i8, 1>;
+
+template <class A>
+A writable(nb::handle h, const char* what) {
+    A out;
+    if (!nb::try_cast(h, out, false))
+        throw BadArgument(std::string(what) + " must be a writable C-contiguous array of the right dtype and dimensions");
+    return out;
+}
+
+void check_box(const In2& H, const In1& g, const In1& lb, const In1& ub, const Out1& x) {
+    size_t n = H.shape(0);
+    require(H.shape(1) == n, "H must be square (n, n)");
+    require(g.shape(0) == n && lb.shape(0) == n && ub.shape(0) == n && x.shape(0) == n,
+            "g, lb, ub and x must be (n,) with H (n, n)");
+}
+
+nb::tuple box_qp_with(const In2& H, const In1& g, const In1& lb, const In1& ub, Out1& x, i64 max_iter,
+                      const igm::BoxQPWork& w) {
+    igm::BoxQPResult r = igm::box_qp(cmat(H), g.data(), lb.data(), ub.data(), x.data(), max_iter, w);
+    return nb::make_tuple(r.status, r.iterations);
+}
+
+}  // namespace
 
 void bind_igm(nb::module_& m) {
-    (void)m;
+    m.attr("CONVERGED") = igm::CONVERGED;
+    m.attr("MAX_ITERS") = igm::MAX_ITERS;
+    m.attr("TIME_BUDGET") = igm::TIME_BUDGET;
+    m.attr("STALLED") = igm::STALLED;
+    m.attr("AT_LIMIT") = igm::AT_LIMIT;
+    m.attr("SINGULAR") = igm::SINGULAR;
+    m.attr("UNREACHABLE") = igm::UNREACHABLE;
+    m.attr("BACKTRACKS") = igm::BACKTRACKS;
+    m.attr("PROGRESS") = igm::PROGRESS;
+    m.attr("CLOCK_EVERY") = igm::CLOCK_EVERY;
+    m.attr("RESTART_SPREAD") = igm::RESTART_SPREAD;
+
+    m.def(
+        "box_qp",
+        [](In2 H, In1 g, In1 lb, In1 ub, Out1 x, i64 max_iter) {
+            check_box(H, g, lb, ub, x);
+            igm::BoxQPScratch scratch(static_cast<i64>(H.shape(0)));
+            return box_qp_with(H, g, lb, ub, x, max_iter, scratch.work());
+        },
+        "H"_a, "g"_a, "lb"_a, "ub"_a, "x"_a.noconvert(), "max_iter"_a,
+        "min 1/2 x^T H x + g^T x s.t. lb <= x <= ub (H positive definite) by a primal active-set "
+        "method; the minimiser into x; returns (status, iterations): 0 solved, 1 the cap, 2 H not "
+        "positive definite.");
+
+    m.def(
+        "_box_qp",
+        [](In2 H, In1 g, In1 lb, In1 ub, Out1 x, i64 max_iter, nb::handle workspace) {
+            check_box(H, g, lb, ub, x);
+            require(nb::isinstance<nb::tuple>(workspace) && nb::len(workspace) == 6,
+                    "workspace must be the tuple of _box_qp_workspace(n)");
+            nb::tuple t = nb::borrow<nb::tuple>(workspace);
+            auto state = writable<I8Out1>(t[0], "workspace[0] (int8 state)");
+            auto free = writable<I64Out1>(t[1], "workspace[1] (int64 free)");
+            auto L = writable<Out2>(t[2], "workspace[2] (float64 L)");
+            auto target = writable<Out1>(t[3], "workspace[3] (float64 target)");
+            auto rhs = writable<Out1>(t[4], "workspace[4] (float64 rhs)");
+            auto y = writable<Out1>(t[5], "workspace[5] (float64 y)");
+            size_t n = H.shape(0);
+            require(state.shape(0) >= n && free.shape(0) >= n && L.shape(0) >= n && L.shape(1) >= n &&
+                        target.shape(0) >= n && rhs.shape(0) >= n && y.shape(0) >= n,
+                    "workspace arrays too small for n variables");
+            igm::BoxQPWork w{state.data(), free.data(), mat(L), target.data(), rhs.data(), y.data()};
+            return box_qp_with(H, g, lb, ub, x, max_iter, w);
+        },
+        "H"_a, "g"_a, "lb"_a, "ub"_a, "x"_a.noconvert(), "max_iter"_a, "workspace"_a,
+        "box_qp with its scratch (_box_qp_workspace(n)) given.");
+
+    m.def(
+        "uniform",
+        [](U64Out1 state) {
+            require(state.shape(0) == 1, "state must be a uint64 array of shape (1,)");
+            return igm::uniform(state.data()[0]);
+        },
+        "state"_a.noconvert(),
+        "A uniform draw in [0, 1) from the SplitMix64 stream state (uint64 (1,), advanced in place).");
+
+    m.def(
+        "_smallest_singular_value",
+        [](In2 A, i64 m, i64 nv, Out2 G, double threshold) {
+            require(m >= 0 && m <= static_cast<i64>(A.shape(0)), "m must be in [0, A.shape[0]]");
+            require(nv >= 0 && nv <= static_cast<i64>(A.shape(1)), "nv must be in [0, A.shape[1]]");
+            i64 need = std::min(m, nv);
+            require(static_cast<i64>(G.shape(0)) >= need && static_cast<i64>(G.shape(1)) >= need,
+                    "G must be at least (min(m, nv), min(m, nv))");
+            i64 n = std::max<i64>(6, nv);
+            IVec rows(static_cast<size_t>(std::max<i64>(m, 1)));
+            Mat L(n, n);
+            return igm::smallest_singular_value_in(cmat(A), m, nv, mat(G), threshold, rows.data(), L.ref());
+        },
+        "A"_a, "m"_a, "nv"_a, "G"_a.noconvert(), "threshold"_a = 0.0,
+        "The min(r, nv)-th singular value of A[:m] (r: its rows not identically zero), from the "
+        "Gram matrix built in G; with threshold > 0, inf when it is at least threshold.");
+
+    m.def(
+        "igm_solve",
+        [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q0, In2 bounds, In1 reach,
+           In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline, Out3 path, Out3 hist,
+           I64Out1 info) {
+            i64 nq = static_cast<i64>(q0.shape(0));
+            require(target_p.shape(0) == 3, "target_p must be (3,)");
+            require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
+            require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
+            require(reach.shape(0) == 4, "reach must be (4,)");
+            require(options.shape(0) >= 11, "options must hold 11 floats");
+            require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
+            require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+            require(info.shape(0) == 6, "info must be int64 (6,)");
+            i64 max_iters = int_options.data()[0];
+            require(max_iters >= 0, "max_iters must be >= 0");
+            require(path.shape(0) == 2 && static_cast<i64>(path.shape(1)) >= max_iters + 1 &&
+                        static_cast<i64>(path.shape(2)) == nq,
+                    "path must be (2, max_iters + 1, nq)");
+            require(hist.shape(0) == 2 && hist.shape(1) == path.shape(1) && hist.shape(2) == 3,
+                    "hist must be (2, max_iters + 1, 3)");
+            ChainArgs a = unpack_chain(chain, nq, nq);
+            igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
+            igm::Record rec{path.data(), hist.data(), static_cast<i64>(path.shape(1)), nq};
+            igm::igm_solve(a.chain, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
+                           int_options.data(), rng_state.data()[0], deadline, rec, info.data());
+        },
+        "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q0"_a, "bounds"_a, "reach"_a, "options"_a,
+        "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a, "path"_a.noconvert(), "hist"_a.noconvert(),
+        "info"_a.noconvert(),
+        "The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve); writes path, "
+        "hist and info and advances rng_state in place.");
 }

@@ -1,8 +1,88 @@
-// Bindings of the model layer (qpik._engine.model).
+// Bindings of the model layer (qpik._engine.model): chain kinematics and rotations.
 #include "bind.hpp"
+#include "bind_chain.hpp"
+#include "model/chain.hpp"
+#include "model/so3.hpp"
 
 namespace nb = nanobind;
+using namespace nb::literals;
+using namespace qpik;
+using namespace qpik::bind;
 
 void bind_model(nb::module_& m) {
-    (void)m;
+    m.attr("HINGE") = model::HINGE;
+    m.attr("SLIDE") = model::SLIDE;
+
+    m.def(
+        "fk_jac",
+        [](nb::handle chain, In1 q, Out1 position, Out2 rotation, Out2 jac, nb::handle want_jac) {
+            bool want = truthy(want_jac);
+            require(position.shape(0) == 3, "position must be (3,)");
+            require(rotation.shape(0) == 3 && rotation.shape(1) == 3, "rotation must be (3, 3)");
+            require(jac.shape(0) == 6, "jac must be (6, nv)");
+            ChainArgs a = unpack_chain(chain, static_cast<i64>(q.shape(0)), want ? static_cast<i64>(jac.shape(1)) : -1);
+            model::fk_jac(a.chain, q.data(), position.data(), rotation.data(), mat(jac), want);
+        },
+        "chain"_a, "q"_a, "position"_a.noconvert(), "rotation"_a.noconvert(), "jac"_a.noconvert(),
+        "want_jac"_a,
+        "Pose of the chain's frame at q (position (3,) [m], rotation (3, 3)) and, if want_jac, its "
+        "world-aligned Jacobian jac (6, nv) [v; omega], written in place.");
+
+    m.def(
+        "reach_radius",
+        [](nb::handle chain, In1 q, Out1 center) {
+            require(center.shape(0) == 3, "center must be (3,)");
+            ChainArgs a = unpack_chain(chain, static_cast<i64>(q.shape(0)), -1);
+            return model::reach_radius(a.chain, q.data(), center.data());
+        },
+        "chain"_a, "q"_a, "center"_a.noconvert(),
+        "Length of the path through the feet of the common perpendiculars of consecutive hinge "
+        "axes at q (to the frame); center receives its start.");
+
+    m.def(
+        "quat2mat",
+        [](In2 quat) {
+            require(quat.shape(1) == 4, "quat must be (k, 4)");
+            size_t k = quat.shape(0);
+            std::vector<double> out(9 * k);
+            model::quat2mat(quat.data(), static_cast<i64>(k), out.data());
+            return to_numpy(std::move(out), {k, 3, 3});
+        },
+        "quat"_a, "Rotation matrices (k, 3, 3) of unit quaternions (k, 4) (w, x, y, z).");
+
+    m.def(
+        "rotation_log",
+        [](In2 R, Out1 out) {
+            require(R.shape(0) == 3 && R.shape(1) == 3, "R must be (3, 3)");
+            require(out.shape(0) == 3, "out must be (3,)");
+            return model::rotation_log(R.data(), out.data());
+        },
+        "R"_a, "out"_a.noconvert(), "Rotation vector of R into out; returns the angle [rad].");
+
+    m.def(
+        "rotation_defect",
+        [](In2 R) {
+            require(R.shape(0) == 3 && R.shape(1) == 3, "R must be (3, 3)");
+            return model::rotation_defect(R.data());
+        },
+        "R"_a, "max |R R^T - I|, or inf when an entry is not finite or det R <= 0.");
+
+    m.def(
+        "target_defect",
+        [](In1 position, In2 rotation, nb::handle has_rot) {
+            require(position.shape(0) == 3, "position must be (3,)");
+            require(rotation.shape(0) == 3 && rotation.shape(1) == 3, "rotation must be (3, 3)");
+            return model::target_defect(position.data(), rotation.data(), truthy(has_rot));
+        },
+        "position"_a, "rotation"_a, "has_rot"_a,
+        "0 for a valid target; 1: position not finite; 2: rotation not finite; 3: not a rotation.");
+
+    m.def(
+        "left_jacobian_inverse",
+        [](In1 phi, Out2 out) {
+            require(phi.shape(0) == 3, "phi must be (3,)");
+            require(out.shape(0) == 3 && out.shape(1) == 3, "out must be (3, 3)");
+            model::left_jacobian_inverse(phi.data(), out.data());
+        },
+        "phi"_a, "out"_a.noconvert(), "Inverse left Jacobian of SO(3) at rotation vector phi, into out.");
 }

@@ -1,0 +1,96 @@
+// The kinematic chain's tuple of NumPy arrays (qpik.model.KinematicChain.arrays) unpacked
+// into a qpik::model::Chain, every array's dtype, shape and index range checked (a bad
+// tuple raises ValueError instead of reading out of bounds).
+#pragma once
+
+#include <string>
+
+#include "bind.hpp"
+#include "model/chain.hpp"
+
+namespace qpik::bind {
+
+using I64In1 = In<i64, 1>;
+
+struct ChainArgs {
+    In2 body_pos;
+    In3 body_rot;
+    I64In1 jnt_start, jnt_type;
+    In2 jnt_axis, jnt_pos;
+    I64In1 jnt_qadr, jnt_dadr;
+    In1 jnt_qpos0, frame_pos;
+    In2 frame_rot;
+    model::Chain chain;
+};
+
+template <class A>
+inline void chain_item(const nb::tuple& t, size_t i, const char* what, A& out) {
+    if (!nb::try_cast(t[i], out, true))
+        throw BadArgument(std::string("chain[") + std::to_string(i) + "] (" + what +
+                          ") must be an array of the chain's dtype (float64 or int64) and dimensions");
+}
+
+// Unpack and check the chain tuple: joint coordinates index arrays of nq entries and
+// joint dofs arrays of nv entries.
+inline ChainArgs unpack_chain(nb::handle obj, i64 nq, i64 nv) {
+    require(nb::isinstance<nb::tuple>(obj), "chain must be a tuple of arrays (KinematicChain.arrays)");
+    nb::tuple t = nb::borrow<nb::tuple>(obj);
+    require(nb::len(t) >= 11, "chain must be a tuple of 11 arrays (KinematicChain.arrays)");
+    ChainArgs a;
+    chain_item(t, 0, "body_pos", a.body_pos);
+    chain_item(t, 1, "body_rot", a.body_rot);
+    chain_item(t, 2, "jnt_start", a.jnt_start);
+    chain_item(t, 3, "jnt_type", a.jnt_type);
+    chain_item(t, 4, "jnt_axis", a.jnt_axis);
+    chain_item(t, 5, "jnt_pos", a.jnt_pos);
+    chain_item(t, 6, "jnt_qadr", a.jnt_qadr);
+    chain_item(t, 7, "jnt_dadr", a.jnt_dadr);
+    chain_item(t, 8, "jnt_qpos0", a.jnt_qpos0);
+    chain_item(t, 9, "frame_pos", a.frame_pos);
+    chain_item(t, 10, "frame_rot", a.frame_rot);
+    i64 nb_ = static_cast<i64>(a.body_pos.shape(0));
+    i64 nj = static_cast<i64>(a.jnt_type.shape(0));
+    require(a.body_pos.shape(1) == 3, "chain body_pos must be (nbody, 3)");
+    require(static_cast<i64>(a.body_rot.shape(0)) == nb_ && a.body_rot.shape(1) == 3 && a.body_rot.shape(2) == 3,
+            "chain body_rot must be (nbody, 3, 3)");
+    require(static_cast<i64>(a.jnt_start.shape(0)) == nb_ + 1, "chain jnt_start must be (nbody + 1,)");
+    const i64* start = a.jnt_start.data();
+    require(start[0] >= 0, "chain jnt_start must start at >= 0");
+    for (i64 b = 0; b < nb_; ++b) require(start[b] <= start[b + 1], "chain jnt_start must be nondecreasing");
+    require(start[nb_] <= nj, "chain jnt_start must end at <= the number of joints");
+    require(static_cast<i64>(a.jnt_axis.shape(0)) == nj && a.jnt_axis.shape(1) == 3, "chain jnt_axis must be (njnt, 3)");
+    require(static_cast<i64>(a.jnt_pos.shape(0)) == nj && a.jnt_pos.shape(1) == 3, "chain jnt_pos must be (njnt, 3)");
+    require(static_cast<i64>(a.jnt_qadr.shape(0)) == nj, "chain jnt_qadr must be (njnt,)");
+    require(static_cast<i64>(a.jnt_dadr.shape(0)) == nj, "chain jnt_dadr must be (njnt,)");
+    require(static_cast<i64>(a.jnt_qpos0.shape(0)) == nj, "chain jnt_qpos0 must be (njnt,)");
+    require(a.frame_pos.shape(0) == 3, "chain frame_pos must be (3,)");
+    require(a.frame_rot.shape(0) == 3 && a.frame_rot.shape(1) == 3, "chain frame_rot must be (3, 3)");
+    for (i64 j = 0; j < nj; ++j) {
+        require(a.jnt_qadr.data()[j] >= 0 && a.jnt_qadr.data()[j] < nq, "chain jnt_qadr out of range of q");
+        if (nv >= 0)
+            require(a.jnt_dadr.data()[j] >= 0 && a.jnt_dadr.data()[j] < nv, "chain jnt_dadr out of range of the dofs");
+    }
+    model::Chain& c = a.chain;
+    c.nbody = nb_;
+    c.njnt = nj;
+    c.body_pos = a.body_pos.data();
+    c.body_rot = a.body_rot.data();
+    c.jnt_start = start;
+    c.jnt_type = a.jnt_type.data();
+    c.jnt_axis = a.jnt_axis.data();
+    c.jnt_pos = a.jnt_pos.data();
+    c.jnt_qadr = a.jnt_qadr.data();
+    c.jnt_dadr = a.jnt_dadr.data();
+    c.jnt_qpos0 = a.jnt_qpos0.data();
+    c.frame_pos = a.frame_pos.data();
+    c.frame_rot = a.frame_rot.data();
+    return a;
+}
+
+inline bool truthy(nb::handle h) {
+    int r = PyObject_IsTrue(h.ptr());
+    if (r < 0) throw nb::python_error();
+    return r != 0;
+}
+
+}  // namespace qpik::bind

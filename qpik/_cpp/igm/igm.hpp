@@ -1,0 +1,497 @@
+// The whole IGM solve of one frame target (ported from qpik/model/_kernels.py, same
+// operation order: same bits): per iteration, the damped least-squares step of the pose
+// error under box bounds (joint limits), solved exactly by box_qp, with the trust region,
+// the damping law fading with the error, backtracking (a step that increases the error is
+// halved, up to BACKTRACKS times), stall detection and restarts from a deterministic
+// random stream (SplitMix64): odd restarts draw from the central RESTART_SPREAD of the
+// restart box, even ones from all of it.
+#pragma once
+
+#include <time.h>
+
+#include "../common.hpp"
+#include "../core/linalg.hpp"
+#include "../model/chain.hpp"
+#include "../model/so3.hpp"
+#include "box_qp.hpp"
+
+namespace qpik::igm {
+
+using model::Chain;
+
+// Reasons (codes) returned by igm_solve; names in qpik.converge.REASONS.
+constexpr i64 CONVERGED = 0;
+constexpr i64 MAX_ITERS = 1;
+constexpr i64 TIME_BUDGET = 2;
+constexpr i64 STALLED = 3;
+constexpr i64 AT_LIMIT = 4;
+constexpr i64 SINGULAR = 5;
+constexpr i64 UNREACHABLE = 6;
+constexpr int BACKTRACKS = 3;
+constexpr double PROGRESS = 0.95;
+constexpr i64 CLOCK_EVERY = 8;
+constexpr double RESTART_SPREAD = 0.6;
+
+// ------------------------------------------------------------------------- RNG, clock
+// A uniform draw in [0, 1) from the SplitMix64 stream state (advanced in place).
+inline double uniform(std::uint64_t& state) {
+    state += 0x9E3779B97F4A7C15ULL;
+    std::uint64_t z = state;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    z = z ^ (z >> 31);
+    return static_cast<double>(z >> 11) * (1.0 / 9007199254740992.0);
+}
+
+// Python's time.perf_counter() on Linux: CLOCK_MONOTONIC, as CPython converts it.
+inline double now() {
+    timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    i64 ns = static_cast<i64>(ts.tv_sec) * 1000000000LL + static_cast<i64>(ts.tv_nsec);
+    return static_cast<double>(ns) / 1e9;
+}
+
+// ------------------------------------------------------- smallest singular value
+// Smallest eigenvalue of the symmetric G[:n, :n] (cyclic Jacobi; G overwritten).
+inline double smallest_eigenvalue(MatRef G, i64 n) {
+    for (int sweep = 0; sweep < 50; ++sweep) {
+        double off = 0.0;
+        double diag = 0.0;
+        for (i64 i = 0; i < n; ++i) {
+            diag += G(i, i) * G(i, i);
+            for (i64 j = i + 1; j < n; ++j) off += G(i, j) * G(i, j);
+        }
+        if (off <= 1e-30 * diag || off == 0.0) break;
+        for (i64 p = 0; p < n - 1; ++p) {
+            for (i64 q = p + 1; q < n; ++q) {
+                if (G(p, q) == 0.0) continue;
+                double theta = (G(q, q) - G(p, p)) / (2.0 * G(p, q));
+                double t = (theta >= 0.0 ? 1.0 : -1.0) / (std::fabs(theta) + std::sqrt(theta * theta + 1.0));
+                double c = 1.0 / std::sqrt(t * t + 1.0);
+                double s = t * c;
+                for (i64 k = 0; k < n; ++k) {
+                    double gkp = G(k, p);
+                    double gkq = G(k, q);
+                    G(k, p) = c * gkp - s * gkq;
+                    G(k, q) = s * gkp + c * gkq;
+                }
+                for (i64 k = 0; k < n; ++k) {
+                    double gpk = G(p, k);
+                    double gqk = G(q, k);
+                    G(p, k) = c * gpk - s * gqk;
+                    G(q, k) = s * gpk + c * gqk;
+                }
+            }
+        }
+    }
+    double smallest = G(0, 0);
+    for (i64 i = 1; i < n; ++i)
+        if (G(i, i) < smallest) smallest = G(i, i);
+    return smallest;
+}
+
+// The min(r, nv)-th singular value of A[:m], r its rows not identically zero, from the
+// smaller Gram matrix built in the scratch G. With threshold > 0, inf when that value is
+// at least threshold (one Cholesky of G - threshold^2 I decides). Scratch: rows (m,), L.
+inline double smallest_singular_value_in(CMatRef A, i64 m, i64 nv, MatRef G, double threshold, i64* rows,
+                                         MatRef L) {
+    i64 r = 0;
+    for (i64 i = 0; i < m; ++i) {
+        for (i64 k = 0; k < nv; ++k) {
+            if (A(i, k) != 0.0) {
+                rows[r] = i;
+                r += 1;
+                break;
+            }
+        }
+    }
+    if (r == 0) return kInf;
+    bool by_rows = r <= nv;
+    i64 n = by_rows ? r : nv;
+    i64 inner = by_rows ? nv : r;
+    for (i64 a = 0; a < n; ++a) {
+        for (i64 c = a; c < n; ++c) {
+            double s = 0.0;
+            for (i64 k = 0; k < inner; ++k) {
+                if (by_rows)
+                    s += A(rows[a], k) * A(rows[c], k);
+                else
+                    s += A(rows[k], a) * A(rows[k], c);
+            }
+            G(a, c) = s;
+            G(c, a) = s;
+        }
+    }
+    if (threshold > 0.0 && core::cholesky_into(G, n, threshold * threshold, L)) return kInf;
+    double e = smallest_eigenvalue(G, n);
+    return std::sqrt(0.0 > e ? 0.0 : e);  // Python's max(e, 0.0)
+}
+
+// ------------------------------------------------------------------------ the IGM
+struct Target {
+    const double* p;  // (3,)
+    const double* R;  // (3, 3)
+    bool has_rot;
+};
+
+struct Settings {
+    CMatRef bounds;  // (4, nq)
+    const double* options;
+    const i64* int_options;
+    double deadline;
+};
+
+struct Record {
+    double* path;  // (2, n, nq)
+    double* hist;  // (2, n, 3)
+    i64 n;         // max_iters + 1
+    i64 nq;
+    double* path_at(i64 slot, i64 index) const { return path + (slot * n + index) * nq; }
+    double* hist_at(i64 slot, i64 index) const { return hist + (slot * n + index) * 3; }
+};
+
+// Scratch of the kinematics and of the step.
+struct Work {
+    Mat axes, anchors;
+    double position[3], rotation[9];
+    Mat jac;
+    double error[6] = {0, 0, 0, 0, 0, 0};
+    double rot_err[3] = {0, 0, 0};
+    double M[9];
+    Work(i64 nj, i64 nq) : axes(nj, 3), anchors(nj, 3), jac(6, nq) {}
+};
+
+struct QPWork {
+    Mat A;
+    Vec b;
+    double Jinv[9];
+    Mat H;
+    Vec g, lb, ub, dx, q_base;
+    Mat gram;
+    IVec rows;
+    Mat L;
+    BoxQPScratch box;
+    QPWork(i64 nc, i64 nq)
+        : A(6, nc), b(6), H(nc, nc), g(static_cast<size_t>(nc)), lb(static_cast<size_t>(nc)),
+          ub(static_cast<size_t>(nc)), dx(static_cast<size_t>(nc)), q_base(static_cast<size_t>(nq)),
+          gram(nc > 6 ? nc : 6, nc > 6 ? nc : 6), rows(6), L(nc > 6 ? nc : 6, nc > 6 ? nc : 6), box(nc) {}
+};
+
+struct Errors {
+    double ep, eo;
+};
+
+// Error [p - p_t; log(R R_t^T)] into error; returns (position error [m], orientation
+// error [rad]).
+inline Errors pose_error(const double* position, const double* rotation, const Target& t, double* error,
+                         double* rot_err, double* M) {
+    for (int i = 0; i < 3; ++i) error[i] = position[i] - t.p[i];
+    double ep = std::sqrt(error[0] * error[0] + error[1] * error[1] + error[2] * error[2]);
+    if (!t.has_rot) return {ep, 0.0};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            M[3 * i + j] = rotation[3 * i] * t.R[3 * j] + rotation[3 * i + 1] * t.R[3 * j + 1] +
+                           rotation[3 * i + 2] * t.R[3 * j + 2];
+    double eo = model::rotation_log(M, rot_err);
+    for (int i = 0; i < 3; ++i) error[3 + i] = rot_err[i];
+    return {ep, eo};
+}
+
+// Forward kinematics, Jacobian and pose error at q into work.
+inline Errors evaluate(const Chain& c, const double* q, const Target& t, Work& w) {
+    model::fk_jac_in(c, q, w.axes.ref(), w.anchors.ref(), w.position, w.rotation, w.jac.ref(), true);
+    return pose_error(w.position, w.rotation, t, w.error, w.rot_err, w.M);
+}
+
+inline void record(const Record& rec, i64 slot, i64 index, const double* q, double ep, double eo) {
+    double* p = rec.path_at(slot, index);
+    for (i64 j = 0; j < rec.nq; ++j) p[j] = q[j];
+    double* h = rec.hist_at(slot, index);
+    h[0] = ep;
+    h[1] = eo;
+}
+
+// Why an attempt stopped progressing: a binding joint limit, else a singularity, else
+// stalled.
+inline i64 stall_reason(bool active, double sigma, double threshold) {
+    if (active) return AT_LIMIT;
+    return sigma < threshold ? SINGULAR : STALLED;
+}
+
+// The target level A dx = b over the chain's dofs cols: A = [J_v; Jl^-1 J_w], b = -gain e.
+inline void target_level(const Mat& jac, const i64* cols, i64 nc, const double* error, const double* rot_err,
+                         bool has_rot, double gain, Mat& A, double* b, double* Jinv) {
+    for (int i = 0; i < 3; ++i) {
+        for (i64 c = 0; c < nc; ++c) A(i, c) = jac(i, cols[c]);
+        b[i] = -gain * error[i];
+    }
+    if (has_rot) {
+        model::left_jacobian_inverse(rot_err, Jinv);
+        for (int i = 0; i < 3; ++i) {
+            for (i64 c = 0; c < nc; ++c) {
+                i64 j = cols[c];
+                A(3 + i, c) = Jinv[3 * i] * jac(3, j) + Jinv[3 * i + 1] * jac(4, j) + Jinv[3 * i + 2] * jac(5, j);
+            }
+            b[3 + i] = -gain * error[3 + i];
+        }
+    }
+}
+
+struct Regularisation {
+    double reg, sigma;
+};
+
+// (damping + lambda^2, sigma): the adaptive damping of the level and its smallest
+// singular value (inf when not computed).
+inline Regularisation regularisation(const Mat& A, const double* b, i64 m, Mat& gram, const double* options,
+                                     i64* rows, Mat& L) {
+    double threshold = options[6], max_damping = options[7], error_scale = options[8], reg = options[9];
+    if (!(threshold > 0.0)) return {reg, kInf};
+    double sigma = smallest_singular_value_in(A.cref(), m, A.cols, gram.ref(), threshold, rows, L.ref());
+    if (sigma < threshold) {
+        double ratio = sigma / threshold;
+        double lam2 = max_damping * max_damping * (1.0 - ratio * ratio);
+        if (error_scale > 0.0) {
+            double bnorm = 0.0;
+            for (i64 i = 0; i < m; ++i) bnorm += b[i] * b[i];
+            bnorm = std::sqrt(bnorm);
+            double f = bnorm / error_scale;
+            lam2 *= f < 1.0 ? f : 1.0;  // Python's min(1.0, f)
+        }
+        reg += lam2;
+    }
+    return {reg, sigma};
+}
+
+// The damped least-squares QP of the level, H = A^T A + reg I, g = -A^T b, under the box
+// limit_gain (limits - q) of the dofs cols (it always holds 0).
+inline void box_problem(const Mat& A, const double* b, i64 m, double reg, const double* q, const i64* cols,
+                        const double* lower, const double* upper, double limit_gain, Mat& H, double* g,
+                        double* lb, double* ub) {
+    i64 nc = A.cols;
+    for (i64 i = 0; i < nc; ++i) {
+        double s = 0.0;
+        for (i64 k = 0; k < m; ++k) s += A(k, i) * b[k];
+        g[i] = -s;
+        for (i64 j = i; j < nc; ++j) {
+            s = 0.0;
+            for (i64 k = 0; k < m; ++k) s += A(k, i) * A(k, j);
+            H(i, j) = s;
+            H(j, i) = s;
+        }
+        H(i, i) += reg;
+        i64 d = cols[i];
+        lb[i] = limit_gain * (lower[d] - q[d]);
+        ub[i] = limit_gain * (upper[d] - q[d]);
+        if (lb[i] > 0.0) lb[i] = 0.0;
+        if (ub[i] < 0.0) ub[i] = 0.0;
+    }
+}
+
+struct StepFacts {
+    double residual, step_norm;
+    bool active;
+};
+
+// (|A dx - b|, |dx|, whether a limited joint's bound is active) of a step.
+inline StepFacts step_facts(const Mat& A, const double* b, i64 m, const double* dx, i64 nc, const i64* cols,
+                            const double* lb, const double* ub, const double* lower, const double* upper) {
+    double residual = 0.0;
+    for (i64 k = 0; k < m; ++k) {
+        double s = -b[k];
+        for (i64 j = 0; j < nc; ++j) s += A(k, j) * dx[j];
+        residual += s * s;
+    }
+    double step_norm = 0.0;
+    bool active = false;
+    for (i64 j = 0; j < nc; ++j) {
+        step_norm += dx[j] * dx[j];
+        i64 d = cols[j];
+        bool at_lower = dx[j] <= lb[j] && lower[d] > -kInf;
+        if (at_lower || (dx[j] >= ub[j] && upper[d] < kInf)) active = true;
+    }
+    return {std::sqrt(residual), std::sqrt(step_norm), active};
+}
+
+// q = clip(q_base + t dx) on the dofs cols, halving t while the error does not decrease,
+// up to BACKTRACKS times; returns the errors at q.
+inline Errors line_search(const Chain& c, const Target& target, double* q, const double* q_base,
+                          const double* dx, const i64* cols, i64 nc, double t, const double* lower,
+                          const double* upper, double ep, double eo, Work& w) {
+    double previous = ep * ep + eo * eo;
+    for (int attempt_step = 0; attempt_step < BACKTRACKS + 1; ++attempt_step) {
+        for (i64 k = 0; k < nc; ++k) {
+            i64 j = cols[k];
+            q[j] = q_base[j] + t * dx[k];
+            if (q[j] < lower[j]) q[j] = lower[j];
+            if (q[j] > upper[j]) q[j] = upper[j];
+        }
+        Errors e = evaluate(c, q, target, w);
+        ep = e.ep;
+        eo = e.eo;
+        if (ep * ep + eo * eo < previous || attempt_step == BACKTRACKS) break;
+        t *= 0.5;
+    }
+    return {ep, eo};
+}
+
+// The target task's gain under the trust region.
+inline double trust_gain(double alpha, double ep, double eo, bool has_rot, double max_step_p, double max_step_o) {
+    double gain = alpha;
+    if (ep > 0.0 && max_step_p / ep < gain) gain = max_step_p / ep;
+    if (has_rot && eo > 0.0 && max_step_o / eo < gain) gain = max_step_o / eo;
+    return gain;
+}
+
+struct AttemptResult {
+    i64 reason, length;
+    double current;
+    bool out_of_time;
+};
+
+// One attempt of the IGM from q (advanced in place); its iterates go to attempt slot
+// slot. counts: QP solves and capped QP solves, added to.
+inline AttemptResult attempt(const Chain& c, const Target& target, double* q, const Settings& settings,
+                             const Record& rec, i64 slot, Work& w, QPWork& qw, i64* counts) {
+    const i64* cols = c.jnt_dadr;
+    i64 nc = c.njnt;
+    const double* lower = settings.bounds.row(0);
+    const double* upper = settings.bounds.row(1);
+    const double* options = settings.options;
+    double tol_p = options[0], tol_o = options[1], alpha = options[2], beta = options[3];
+    double max_step_p = options[4], max_step_o = options[5], threshold = options[6], limit_gain = options[10];
+    i64 max_iters = settings.int_options[0], stall_window = settings.int_options[2];
+    i64 check_time = settings.int_options[3];
+    i64 m = target.has_rot ? 6 : 3;
+    Errors e = evaluate(c, q, target, w);
+    double ep = e.ep, eo = e.eo;
+    i64 length = 0;
+    record(rec, slot, length, q, ep, eo);
+    rec.hist_at(slot, 0)[2] = 0.0;
+    length += 1;
+    double current = ep / tol_p + eo / tol_o;
+    double window_start = current;
+    i64 since_progress = 0;
+    i64 nq = rec.nq;
+    for (i64 it = 0; it < max_iters; ++it) {
+        if (ep <= tol_p && eo <= tol_o) return {CONVERGED, length, current, false};
+        if (check_time != 0 && (it % CLOCK_EVERY == 0) && now() > settings.deadline)
+            return {TIME_BUDGET, length, current, true};
+        double gain = trust_gain(alpha, ep, eo, target.has_rot, max_step_p, max_step_o);
+        target_level(w.jac, cols, nc, w.error, w.rot_err, target.has_rot, gain, qw.A, qw.b.data(), qw.Jinv);
+        Regularisation rg = regularisation(qw.A, qw.b.data(), m, qw.gram, options, qw.rows.data(), qw.L);
+        box_problem(qw.A, qw.b.data(), m, rg.reg, q, cols, lower, upper, limit_gain, qw.H, qw.g.data(),
+                    qw.lb.data(), qw.ub.data());
+        BoxQPResult qp = box_qp(qw.H.cref(), qw.g.data(), qw.lb.data(), qw.ub.data(), qw.dx.data(), 4 * nc + 20,
+                                qw.box.work());
+        counts[0] += 1;
+        if (qp.status != 0) counts[1] += 1;
+        StepFacts f = step_facts(qw.A, qw.b.data(), m, qw.dx.data(), nc, cols, qw.lb.data(), qw.ub.data(), lower,
+                                 upper);
+        rec.hist_at(slot, it + 1)[2] = f.residual;
+        for (i64 j = 0; j < nq; ++j) qw.q_base[j] = q[j];
+        e = line_search(c, target, q, qw.q_base.data(), qw.dx.data(), cols, nc, beta, lower, upper, ep, eo, w);
+        ep = e.ep;
+        eo = e.eo;
+        record(rec, slot, length, q, ep, eo);
+        length += 1;
+        current = ep / tol_p + eo / tol_o;
+        if (f.step_norm < 1e-9) return {stall_reason(f.active, rg.sigma, threshold), length, current, false};
+        if (current < PROGRESS * window_start) {
+            window_start = current;
+            since_progress = 0;
+        } else {
+            since_progress += 1;
+        }
+        if (since_progress >= stall_window)
+            return {stall_reason(f.active, rg.sigma, threshold), length, current, false};
+    }
+    if (ep <= tol_p && eo <= tol_o) return {CONVERGED, length, current, false};
+    return {MAX_ITERS, length, current, false};
+}
+
+// Whether target_p is farther from the reach ball's center than its radius plus tol_p.
+inline bool beyond_reach(const double* target_p, const double* reach, double tol_p) {
+    double d0 = target_p[0] - reach[0];
+    double d1 = target_p[1] - reach[1];
+    double d2 = target_p[2] - reach[2];
+    return std::sqrt(d0 * d0 + d1 * d1 + d2 * d2) > reach[3] + tol_p + 1e-9 * (1.0 + reach[3]);
+}
+
+// Whether an attempt beats the best so far: converged beats not, then the score.
+inline bool better(bool done, double score, bool best_done, double best_score) {
+    return (done && !best_done) || (done == best_done && score < best_score);
+}
+
+// The start of restart attempt (1, 2, ...), drawn into q: odd restarts from the central
+// RESTART_SPREAD of the restart box, even ones from all of it.
+inline void restart_start(double* q, i64 nq, const double* sample_lo, const double* sample_hi, i64 attempt_no,
+                          std::uint64_t& rng_state) {
+    double spread = attempt_no % 2 == 0 ? 1.0 : RESTART_SPREAD;
+    for (i64 j = 0; j < nq; ++j) {
+        double u = 0.5 + spread * (uniform(rng_state) - 0.5);
+        q[j] = sample_lo[j] + (sample_hi[j] - sample_lo[j]) * u;
+    }
+}
+
+// The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve for the
+// arguments). path (2, max_iters + 1, nq), hist (2, max_iters + 1, 3) and info (6,) are
+// written; rng_state advanced.
+inline void igm_solve(const Chain& c, const Target& target, const double* q0, i64 nq, CMatRef bounds,
+                      const double* reach, const double* options, const i64* int_options, std::uint64_t& rng_state,
+                      double deadline, const Record& rec, i64* info) {
+    i64 restarts = int_options[1], check_time = int_options[3];
+    const double* sample_lo = bounds.row(2);
+    const double* sample_hi = bounds.row(3);
+    Work w(c.njnt, nq);
+    QPWork qw(c.njnt, nq);
+    Settings settings{bounds, options, int_options, deadline};
+    Vec q(q0, q0 + nq);
+    i64 counts[2] = {0, 0};
+    if (beyond_reach(target.p, reach, options[0])) {
+        Errors e = evaluate(c, q.data(), target, w);
+        record(rec, 0, 0, q.data(), e.ep, e.eo);
+        rec.hist_at(0, 0)[2] = 0.0;
+        for (int i = 0; i < 6; ++i) info[i] = 0;
+        info[0] = UNREACHABLE;
+        info[4] = 1;
+        return;
+    }
+    double best_score = kInf;
+    i64 best_slot = 0, best_len = 1, best_reason = MAX_ITERS, reason = MAX_ITERS;
+    i64 slot = 0, attempt_no = 0;
+    bool out_of_time = false;
+    while (true) {
+        AttemptResult r = attempt(c, target, q.data(), settings, rec, slot, w, qw, counts);
+        reason = r.reason;
+        out_of_time = r.out_of_time;
+        bool done = reason == CONVERGED;
+        if (attempt_no == 0 || better(done, r.current, best_reason == CONVERGED, best_score)) {
+            best_score = r.current;
+            best_slot = slot;
+            best_len = r.length;
+            best_reason = reason;
+            slot = 1 - slot;
+        }
+        if (done || attempt_no >= restarts) break;
+        if (check_time != 0 && (out_of_time || now() > deadline)) {
+            out_of_time = true;
+            break;
+        }
+        attempt_no += 1;
+        restart_start(q.data(), nq, sample_lo, sample_hi, attempt_no, rng_state);
+    }
+    i64 final_reason = reason;
+    if (best_reason == CONVERGED)
+        final_reason = CONVERGED;
+    else if (out_of_time)
+        final_reason = TIME_BUDGET;
+    info[0] = final_reason;
+    info[1] = counts[0];
+    info[2] = attempt_no;
+    info[3] = best_slot;
+    info[4] = best_len;
+    info[5] = counts[1];
+}
+
+}  // namespace qpik::igm

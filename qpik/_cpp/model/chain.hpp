@@ -1,0 +1,233 @@
+// Kinematics of a serial chain of hinge and slide joints (ported from
+// qpik/model/_kernels.py, same operation order: same bits).
+//
+// Kinematics follow MuJoCo's mj_kinematics: per body on the chain, p <- p + R body_pos,
+// R <- R body_rot; then per joint of the body, the axis R axis and anchor p + R jnt_pos in
+// the world frame; a hinge rotates R about its local axis by q - qpos0 and keeps the
+// anchor fixed, a slide moves p along the axis by q - qpos0. The frame Jacobian (mj_jac)
+// has, per dof, [u x (p_f - a); u] for a hinge and [u; 0] for a slide ([v; omega]).
+#pragma once
+
+#include "../common.hpp"
+
+namespace qpik::model {
+
+constexpr i64 HINGE = 0;
+constexpr i64 SLIDE = 1;
+
+// The arrays of qpik.model.KinematicChain (views, owned by the caller). Matrices of 3x3
+// are row-major blocks of 9 doubles.
+struct Chain {
+    i64 nbody = 0;
+    i64 njnt = 0;
+    const double* body_pos = nullptr;   // (nbody, 3)
+    const double* body_rot = nullptr;   // (nbody, 3, 3)
+    const i64* jnt_start = nullptr;     // (nbody + 1,)
+    const i64* jnt_type = nullptr;      // (njnt,)
+    const double* jnt_axis = nullptr;   // (njnt, 3)
+    const double* jnt_pos = nullptr;    // (njnt, 3)
+    const i64* jnt_qadr = nullptr;      // (njnt,)
+    const i64* jnt_dadr = nullptr;      // (njnt,)
+    const double* jnt_qpos0 = nullptr;  // (njnt,)
+    const double* frame_pos = nullptr;  // (3,)
+    const double* frame_rot = nullptr;  // (3, 3)
+};
+
+// Rotation matrix of `angle` [rad] about unit `axis` (Rodrigues), into out (3x3).
+inline void axis_rotation(const double* axis, double angle, double* out) {
+    double x = axis[0], y = axis[1], z = axis[2];
+    double c = std::cos(angle);
+    double s = std::sin(angle);
+    double t = 1.0 - c;
+    out[0] = t * x * x + c;
+    out[1] = t * x * y - s * z;
+    out[2] = t * x * z + s * y;
+    out[3] = t * x * y + s * z;
+    out[4] = t * y * y + c;
+    out[5] = t * y * z - s * x;
+    out[6] = t * x * z - s * y;
+    out[7] = t * y * z + s * x;
+    out[8] = t * z * z + c;
+}
+
+// Rotation matrices (k, 3, 3) of unit quaternions (k, 4) (w, x, y, z).
+inline void quat2mat(const double* quat, i64 k_count, double* out) {
+    for (i64 k = 0; k < k_count; ++k) {
+        const double* qk = quat + 4 * k;
+        double* o = out + 9 * k;
+        double w = qk[0], x = qk[1], y = qk[2], z = qk[3];
+        o[0] = w * w + x * x - y * y - z * z;
+        o[4] = w * w - x * x + y * y - z * z;
+        o[8] = w * w - x * x - y * y + z * z;
+        o[1] = 2.0 * (x * y - w * z);
+        o[2] = 2.0 * (x * z + w * y);
+        o[3] = 2.0 * (x * y + w * z);
+        o[5] = 2.0 * (y * z - w * x);
+        o[6] = 2.0 * (x * z - w * y);
+        o[7] = 2.0 * (y * z + w * x);
+    }
+}
+
+inline void matmul3(const double* A, const double* B, double* out) {
+    for (int i = 0; i < 3; ++i) {
+        double a0 = A[3 * i], a1 = A[3 * i + 1], a2 = A[3 * i + 2];
+        for (int j = 0; j < 3; ++j) out[3 * i + j] = a0 * B[j] + a1 * B[3 + j] + a2 * B[6 + j];
+    }
+}
+
+inline void copy3(const double* src, double* dst) {
+    for (int i = 0; i < 9; ++i) dst[i] = src[i];
+}
+
+// Walk the chain at q: world axes and anchors of its joints (njnt, 3) and the frame's pose
+// (position (3,) [m], rotation (3, 3)).
+inline void walk(const Chain& c, const double* q, MatRef axes, MatRef anchors, double* position,
+                 double* rotation) {
+    double R[9], tmp[9], rot[9], p[3];
+    for (int i = 0; i < 3; ++i) {
+        p[i] = 0.0;
+        for (int j = 0; j < 3; ++j) R[3 * i + j] = i == j ? 1.0 : 0.0;
+    }
+    for (i64 b = 0; b < c.nbody; ++b) {
+        const double* bp = c.body_pos + 3 * b;
+        for (int i = 0; i < 3; ++i)
+            p[i] += R[3 * i] * bp[0] + R[3 * i + 1] * bp[1] + R[3 * i + 2] * bp[2];
+        matmul3(R, c.body_rot + 9 * b, tmp);
+        copy3(tmp, R);
+        for (i64 j = c.jnt_start[b]; j < c.jnt_start[b + 1]; ++j) {
+            const double* ax = c.jnt_axis + 3 * j;
+            const double* jp = c.jnt_pos + 3 * j;
+            for (int i = 0; i < 3; ++i) {
+                axes(j, i) = R[3 * i] * ax[0] + R[3 * i + 1] * ax[1] + R[3 * i + 2] * ax[2];
+                anchors(j, i) = p[i] + R[3 * i] * jp[0] + R[3 * i + 1] * jp[1] + R[3 * i + 2] * jp[2];
+            }
+            double value = q[c.jnt_qadr[j]] - c.jnt_qpos0[j];
+            if (c.jnt_type[j] == HINGE) {
+                axis_rotation(ax, value, rot);
+                matmul3(R, rot, tmp);
+                copy3(tmp, R);
+                for (int i = 0; i < 3; ++i)
+                    p[i] = anchors(j, i) - (R[3 * i] * jp[0] + R[3 * i + 1] * jp[1] + R[3 * i + 2] * jp[2]);
+            } else {
+                for (int i = 0; i < 3; ++i) p[i] += axes(j, i) * value;
+            }
+        }
+    }
+    const double* fp = c.frame_pos;
+    for (int i = 0; i < 3; ++i)
+        position[i] = p[i] + R[3 * i] * fp[0] + R[3 * i + 1] * fp[1] + R[3 * i + 2] * fp[2];
+    matmul3(R, c.frame_rot, rotation);
+}
+
+// fk_jac with the scratch axes, anchors (njnt, 3) given.
+inline void fk_jac_in(const Chain& c, const double* q, MatRef axes, MatRef anchors, double* position,
+                      double* rotation, MatRef jac, bool want_jac) {
+    walk(c, q, axes, anchors, position, rotation);
+    if (!want_jac) return;
+    for (int i = 0; i < 6; ++i)
+        for (i64 j = 0; j < jac.cols; ++j) jac(i, j) = 0.0;
+    for (i64 j = 0; j < c.njnt; ++j) {
+        i64 d = c.jnt_dadr[j];
+        double u0 = axes(j, 0), u1 = axes(j, 1), u2 = axes(j, 2);
+        if (c.jnt_type[j] == HINGE) {
+            double r0 = position[0] - anchors(j, 0);
+            double r1 = position[1] - anchors(j, 1);
+            double r2 = position[2] - anchors(j, 2);
+            jac(0, d) += u1 * r2 - u2 * r1;
+            jac(1, d) += u2 * r0 - u0 * r2;
+            jac(2, d) += u0 * r1 - u1 * r0;
+            jac(3, d) += u0;
+            jac(4, d) += u1;
+            jac(5, d) += u2;
+        } else {
+            jac(0, d) += u0;
+            jac(1, d) += u1;
+            jac(2, d) += u2;
+        }
+    }
+}
+
+// Pose of the chain's frame at q (position (3,) [m], rotation (3, 3)) and, if want_jac,
+// its world-aligned Jacobian jac (6, nv) [v; omega] (columns of dofs off the chain zero).
+inline void fk_jac(const Chain& c, const double* q, double* position, double* rotation, MatRef jac,
+                   bool want_jac) {
+    Mat axes(c.njnt, 3), anchors(c.njnt, 3);
+    fk_jac_in(c, q, axes.ref(), anchors.ref(), position, rotation, jac, want_jac);
+}
+
+inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+inline double dist3(const double* a, const double* b) {
+    double d0 = a[0] - b[0], d1 = a[1] - b[1], d2 = a[2] - b[2];
+    return std::sqrt(d0 * d0 + d1 * d1 + d2 * d2);
+}
+
+// Closest points s on a1 + t u1 and r on a2 + t u2 (unit directions); for parallel lines,
+// a1 and its projection on the second line.
+inline void feet(const double* a1, const double* u1, const double* a2, const double* u2, double* s,
+                 double* r) {
+    double w[3];
+    for (int i = 0; i < 3; ++i) w[i] = a1[i] - a2[i];
+    double b = dot3(u1, u2);
+    double d = dot3(u1, w);
+    double e = dot3(u2, w);
+    double den = 1.0 - b * b;
+    double t1, t2;
+    if (den < 1e-12) {
+        t1 = 0.0;
+        t2 = e;
+    } else {
+        t1 = (b * e - d) / den;
+        t2 = (e - b * d) / den;
+    }
+    for (int i = 0; i < 3; ++i) {
+        s[i] = a1[i] + t1 * u1[i];
+        r[i] = a2[i] + t2 * u2[i];
+    }
+}
+
+// Length of the path s_1 -> r_2 -> s_2 -> ... -> s_m -> frame through the feet of the
+// common perpendiculars of consecutive hinge axes at q; center receives s_1. Without a
+// hinge, the frame position at q and 0.
+inline double reach_radius(const Chain& c, const double* q, double* center) {
+    i64 nj = c.njnt;
+    Mat axes(nj, 3), anchors(nj, 3);
+    double p[3], rotation[9], s[3], r[3], previous[3] = {0.0, 0.0, 0.0};
+    walk(c, q, axes.ref(), anchors.ref(), p, rotation);
+    bool first = true;
+    double length = 0.0;
+    for (int i = 0; i < 3; ++i) center[i] = p[i];
+    for (i64 j = 0; j < nj; ++j) {
+        if (c.jnt_type[j] != HINGE) continue;
+        i64 nxt = -1;
+        for (i64 k = j + 1; k < nj; ++k) {
+            if (c.jnt_type[k] == HINGE) {
+                nxt = k;
+                break;
+            }
+        }
+        if (nxt >= 0) {
+            feet(anchors.row(j), axes.row(j), anchors.row(nxt), axes.row(nxt), s, r);
+        } else {
+            double w[3];
+            for (int i = 0; i < 3; ++i) w[i] = p[i] - anchors(j, i);
+            double t = dot3(axes.row(j), w);
+            for (int i = 0; i < 3; ++i) s[i] = anchors(j, i) + axes(j, i) * t;
+        }
+        if (first) {
+            for (int i = 0; i < 3; ++i) center[i] = s[i];
+            first = false;
+        } else {
+            length += dist3(s, previous);
+        }
+        if (nxt >= 0) {
+            length += dist3(r, s);
+            for (int i = 0; i < 3; ++i) previous[i] = r[i];
+        } else {
+            length += dist3(p, s);
+        }
+    }
+    return length;
+}
+
+}  // namespace qpik::model
