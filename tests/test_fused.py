@@ -176,32 +176,6 @@ def test_fused_step_reports_unset_and_non_finite_targets(panda):
     assert solver.step(configuration, DT).ok  # still usable
 
 
-def test_numba_cache_of_a_caller_is_dropped_when_a_callee_module_changes(tmp_path, monkeypatch):
-    from qpik.core._cache import drop_stale_cache
-
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    module, callee = tmp_path / "caller.py", tmp_path / "callee.py"
-    module.write_text("# caller")
-    callee.write_text("# v1")
-    cache = tmp_path / "__pycache__"
-    cache.mkdir()
-
-    def cached_files():
-        (cache / "caller.kernel-12.py311.nbi").write_text("index")
-        (cache / "caller.kernel-12.py311.1.nbc").write_text("code")
-        (cache / "other.kernel-3.py311.nbi").write_text("index")
-
-    cached_files()
-    assert drop_stale_cache(str(module), [str(callee)])  # no digest yet: dropped
-    assert sorted(p.name for p in cache.glob("*.nb*")) == ["other.kernel-3.py311.nbi"]
-    cached_files()
-    assert not drop_stale_cache(str(module), [str(callee)])  # unchanged: kept
-    assert len(list(cache.glob("caller.*.nb*"))) == 2
-    callee.write_text("# v2")
-    assert drop_stale_cache(str(module), [str(callee)])  # callee edited: dropped
-    assert not list(cache.glob("caller.*.nb*"))
-
-
 @pytest.mark.parametrize("backend", ["osqp", "daqp", "quadprog"])
 def test_forced_backends_build_rows_in_one_call_with_the_same_answers(panda, backend):
     """With a forced backend the rows and limits come from one compiled call; the answer

@@ -81,15 +81,6 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
     _engine.NUMERICAL, _engine.NOT_REACHED,
 )  # fmt: skip
 
-# TRANSITIONAL: numba kernels not yet ported (qpik.model._kernels, qpik._fused) call some
-# of these from compiled code; numba is told to use the numba reference there.
-try:
-    from . import _kernels_numba
-except ImportError:  # numba absent: nothing to serve
-    pass
-else:
-    _kernels_numba.register_overloads(_engine)
-
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
     "active_guess", "cholesky_into", "damping_of", "level_damping", "merge_boxes",
