@@ -48,7 +48,8 @@ Signatures (as the numba kernels had them):
 
 from __future__ import annotations
 
-from .._engine import core as _engine
+# The compiled core (the extension is one module for every layer; this is its core part).
+from qpik._engine import core as _engine
 
 # Status codes shared with qpik.core.hierarchy.LevelStatus (keep in sync).
 SOLVED = 0
