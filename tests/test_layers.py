@@ -16,7 +16,6 @@ CORE, BASE, MODEL, TASKS, IK, APPLICATIONS = range(6)
 LAYERS = {
     "qpik._engine": CORE,  # the compiled engine (C++; its submodules mirror the layers)
     "qpik.core": CORE,  # matrices only: the hierarchical QP, backends, damping
-    "qpik._engine": CORE,  # the compiled engine (C++): below every layer that calls it
     "qpik.errors": BASE,  # typed errors (subclassing mink's) and the options object
     "qpik.options": BASE,
     "qpik.model": MODEL,  # configuration, robots, frames, rotations, chain kinematics
