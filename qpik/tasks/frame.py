@@ -41,10 +41,10 @@ def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.
 
 
 def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
-    cost = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(cost)) or np.any(cost < 0):
-        raise InvalidTarget(f"{name} must be finite and >= 0, got {cost}")
-    return cost
+    vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(vector)) or np.any(vector < 0):
+        raise InvalidTarget(f"{name} must be finite and >= 0, got {vector}")
+    return vector
 
 
 class _FrameRowsTask(mink.Task):
