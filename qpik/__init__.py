@@ -1,8 +1,8 @@
 """qpik: inverse kinematics of robots as constrained QPs with strict task priorities."""
 
 from . import analysis, baselines, limits, scene, statics, tasks
-from .configuration import Configuration, FrameType, frame_names, joint_names
 from .batch import solve_many
+from .configuration import Configuration, FrameType, frame_names, joint_names
 from .converge import IKResult, IKSession, solve
 from .errors import (
     CollisionPairError,

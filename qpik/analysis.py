@@ -317,6 +317,7 @@ def solution_set(J: npt.ArrayLike, xi: npt.ArrayLike, tol: float | None = None) 
     basis = null_space(J, tol)
     with np.errstate(over="ignore"):
         scale = scipy.linalg.norm(xi) + singular_values(J)[0] * scipy.linalg.norm(particular)
+    kind: Literal["unique", "infinite", "none"]
     if residual > _RESIDUAL_RTOL * scale:
         kind = "none"
     else:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -93,7 +94,16 @@ StepRule = Callable[[Configuration, np.ndarray, np.ndarray], np.ndarray]
 class _Loop:
     """One IGM run: the work configuration, the frame, its target, and the step rule."""
 
-    def __init__(self, work, frame, kind, target_position, target_rotation, step, options):
+    def __init__(
+        self,
+        work: Configuration,
+        frame: str,
+        kind: FrameType,
+        target_position: np.ndarray,
+        target_rotation: np.ndarray | None,
+        step: StepRule,
+        options: dict[str, Any],
+    ) -> None:
         self.work, self.frame, self.kind = work, frame, kind
         self.target = (target_position, target_rotation)
         self.rows = slice(0, 3) if target_rotation is None else slice(0, 6)

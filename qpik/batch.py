@@ -100,7 +100,8 @@ def target_seed(seed: int, index: int) -> int:
 def check_seed(seed: int | None) -> int:
     """The batch's entropy: ``seed`` itself, or fresh entropy for ``None``."""
     if seed is None:
-        return int(np.random.SeedSequence().entropy)
+        # numpy types entropy as any SeedSequence's; a fresh one's is an int
+        return int(np.random.SeedSequence().entropy)  # type: ignore[arg-type]
     if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InvalidInput(f"seed must be a non-negative integer or None, got {seed!r}")
     return int(seed)
@@ -160,7 +161,7 @@ def solve_call(
     before any worker starts). A batch's ``seed`` is its own argument: target ``i`` gets
     :func:`target_seed(seed, i) <target_seed>`, whatever ``options.seed``."""
     keywords = dict(solve_options)
-    call = {k: keywords.pop(k) for k in ("q0", "stack") if k in keywords}
+    call: dict[str, Any] = {k: keywords.pop(k) for k in ("q0", "stack") if k in keywords}
     call["options"] = resolve(options).replace(**keywords)
     if q0 is not None:
         call.setdefault("q0", q0)
@@ -196,7 +197,8 @@ _HISTORY_FIELDS = ("residual_history", "error_history", "path")
 def _without_histories(result: IKResult) -> IKResult:
     """``result`` (fresh from a solve: changed in place) with its per-iteration
     diagnostics emptied (their defaults): a batch sends about 5x less data back."""
-    for name, factory in _history_defaults(type(result)):
+    # a class is hashable; mypy checks type[IKResult] against the instances' __hash__
+    for name, factory in _history_defaults(type(result)):  # type: ignore[arg-type]
         setattr(result, name, factory())
     return result
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .batch import (
     Chunk,
@@ -45,7 +46,7 @@ __all__ = [
 
 
 #: The per-target fields of a results file, with their dtypes.
-RESULT_FIELDS = {
+RESULT_FIELDS: dict[str, npt.DTypeLike] = {
     "converged": bool,
     "reason": "U16",
     "position_error": float,
@@ -453,7 +454,7 @@ class _ResultsFile:
 
 
 def _empty_table(n: int, nq: int) -> dict[str, np.ndarray]:
-    table = {"q": np.full((n, nq), np.nan)}
+    table: dict[str, np.ndarray] = {"q": np.full((n, nq), np.nan)}
     for name, dtype in RESULT_FIELDS.items():
         if dtype is float:
             table[name] = np.full(n, np.nan)

@@ -85,6 +85,7 @@ from .options import (  # noqa: F401 (the limits re-exported for the former sing
     MAX_ITERS_LIMIT,
     UNSET,
     SolveOptions,
+    _Unset,
     resolve,
 )
 from .qp_engine import QPProblem, iterate, set_frame_target
@@ -203,7 +204,13 @@ class _Frame:
 
     __slots__ = ("chain", "kind", "name", "reach")
 
-    def __init__(self, name: str, kind: FrameType, chain, reach):
+    def __init__(
+        self,
+        name: str,
+        kind: FrameType,
+        chain: KinematicChain | None,
+        reach: ReachBound | None,
+    ) -> None:
         self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
 
 
@@ -281,22 +288,22 @@ class IKSession:
         q0: npt.ArrayLike | None = None,
         stack: Stack | None = None,
         options: SolveOptions | str | None = None,
-        seed: Seed = UNSET,
-        limits: str | Sequence[mink.Limit] | None = UNSET,
-        tol_position: float = UNSET,
-        tol_orientation: float = UNSET,
-        max_iters: int = UNSET,
-        time_budget: float | None = UNSET,
-        restarts: int | None = UNSET,
-        alpha: float = UNSET,
-        beta: float = UNSET,
-        solver: str = UNSET,
-        stall_window: int = UNSET,
-        damping_law: DampingLaw | None = UNSET,
-        max_step: tuple[float, float] | None = UNSET,
-        secondary: bool = UNSET,
-        damping: float = UNSET,
-        engine: str = UNSET,
+        seed: Seed | _Unset = UNSET,
+        limits: str | Sequence[mink.Limit] | None | _Unset = UNSET,
+        tol_position: float | _Unset = UNSET,
+        tol_orientation: float | _Unset = UNSET,
+        max_iters: int | _Unset = UNSET,
+        time_budget: float | None | _Unset = UNSET,
+        restarts: int | None | _Unset = UNSET,
+        alpha: float | _Unset = UNSET,
+        beta: float | _Unset = UNSET,
+        solver: str | _Unset = UNSET,
+        stall_window: int | _Unset = UNSET,
+        damping_law: DampingLaw | None | _Unset = UNSET,
+        max_step: tuple[float, float] | None | _Unset = UNSET,
+        secondary: bool | _Unset = UNSET,
+        damping: float | _Unset = UNSET,
+        engine: str | _Unset = UNSET,
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
@@ -304,7 +311,7 @@ class IKSession:
         given = locals()
         overrides = {k: given[k] for k in _OPTION_KEYWORDS if given[k] is not UNSET}
         settings, kernel_options = self._options(options, overrides)
-        rng_state = _rng_state(settings.seed if seed is UNSET else seed)
+        rng_state = _rng_state(settings.seed if isinstance(seed, _Unset) else seed)
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
         joint = settings.limits == "joint"
@@ -354,7 +361,9 @@ class IKSession:
             raise InvalidTarget("no targets given: pass {frame: target, ...}")
         return [(self._frame(key), parse_target(value)) for key, value in targets.items()]
 
-    def _compiled_applies(self, settings: SolveOptions, stack: Stack | None, frames: list) -> bool:
+    def _compiled_applies(
+        self, settings: SolveOptions, stack: Stack | None, frames: list[tuple[_Frame, Target]]
+    ) -> bool:
         """Whether the compiled engine takes this solve; raises when ``engine='compiled'``
         was asked for and it does not."""
         applies = (
@@ -405,10 +414,12 @@ class IKSession:
             Configuration(self.model, q).check_limits()
         return q
 
-    def _answer_unreachable(self, frames, q: np.ndarray, start_time: float) -> IKResult:
+    def _answer_unreachable(
+        self, frames: list[tuple[_Frame, Target]], q: np.ndarray, start_time: float
+    ) -> IKResult:
         errors = {}
         for frame, target in frames:
-            # reach bounds exist only with chains
+            assert frame.chain is not None  # reach bounds exist only with chains
             errors[frame.name] = pose_errors(*frame.chain.pose(q), target)
         worst = worst_errors(errors)
         return IKResult(
@@ -482,22 +493,22 @@ def solve(
     q0: npt.ArrayLike | None = None,
     stack: Stack | None = None,
     options: SolveOptions | str | None = None,
-    limits: str | Sequence[mink.Limit] | None = UNSET,
-    tol_position: float = UNSET,
-    tol_orientation: float = UNSET,
-    max_iters: int = UNSET,
-    time_budget: float | None = UNSET,
-    restarts: int | None = UNSET,
-    seed: Seed = UNSET,
-    alpha: float = UNSET,
-    beta: float = UNSET,
-    solver: str = UNSET,
-    stall_window: int = UNSET,
-    damping_law: DampingLaw | None = UNSET,
-    max_step: tuple[float, float] | None = UNSET,
-    secondary: bool = UNSET,
-    damping: float = UNSET,
-    engine: str = UNSET,
+    limits: str | Sequence[mink.Limit] | None | _Unset = UNSET,
+    tol_position: float | _Unset = UNSET,
+    tol_orientation: float | _Unset = UNSET,
+    max_iters: int | _Unset = UNSET,
+    time_budget: float | None | _Unset = UNSET,
+    restarts: int | None | _Unset = UNSET,
+    seed: Seed | _Unset = UNSET,
+    alpha: float | _Unset = UNSET,
+    beta: float | _Unset = UNSET,
+    solver: str | _Unset = UNSET,
+    stall_window: int | _Unset = UNSET,
+    damping_law: DampingLaw | None | _Unset = UNSET,
+    max_step: tuple[float, float] | None | _Unset = UNSET,
+    secondary: bool | _Unset = UNSET,
+    damping: float | _Unset = UNSET,
+    engine: str | _Unset = UNSET,
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import mink
 import mujoco
@@ -196,6 +196,7 @@ class JointLimitViolation(QpikError, mink.NotWithinConfigurationLimits, ValueErr
     """
 
     def __init__(self, *args: Any, **kwargs: Any):
+        joint_id: int | None
         if _has_model(args, kwargs):
             bound = _bind(_mink_not_within_limits, args, kwargs)
             model, joint_id = bound["model"], int(bound["joint_id"])
@@ -434,7 +435,7 @@ class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like conte
     def __enter__(self) -> None:
         return None
 
-    def __exit__(self, kind, error, tb) -> bool:
+    def __exit__(self, kind, error, tb) -> Literal[False]:
         if error is None or isinstance(error, QpikError):
             return False
         for mink_class, qpik_class in _MINK_TO_QPIK.items():

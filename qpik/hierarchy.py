@@ -30,14 +30,15 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import mink
 import mujoco
 import numpy as np
 
-from ._fused import box_of, fused_rows, fused_step, make_plan
+from ._fused import FusedPlan, box_of, fused_rows, fused_step, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
     DampingLaw,
@@ -49,7 +50,7 @@ from .core import (
 from .core._kernels import merge_boxes, tighten
 from .core.hierarchy import _STATUS
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
-from .options import UNSET, StepOptions
+from .options import UNSET, StepOptions, _Unset
 from .tasks import BaseTask
 
 #: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
@@ -110,6 +111,10 @@ class StepResult:
         return all(s == LevelStatus.SOLVED for s in self.status)
 
 
+#: The frames' poses in MuJoCo's data, as the compiled step takes them: ``site_xpos,
+#: site_xmat, xpos, xmat, geom_xpos, geom_xmat`` (:meth:`qpik._fused.FusedPlan.gather`).
+_Poses = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
 #: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
 #: task or a list of tasks (level 0 first). See :func:`normalize_stack`.
 Stack = BaseTask | Sequence[BaseTask | Sequence[BaseTask]]
@@ -131,7 +136,7 @@ def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
     if not items:
         raise InvalidInput("the task stack is empty")
     if all(isinstance(item, BaseTask) for item in items):
-        return [items]
+        return [cast("list[BaseTask]", items)]  # all tasks: checked just above
     return [_level_of(index, item) for index, item in enumerate(items)]
 
 
@@ -215,7 +220,9 @@ class _RowStructure:
     unique: bool
 
 
-def _configuration_box(limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float):
+def _configuration_box(
+    limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mink's ConfigurationLimit as box bounds on ``dq`` at ``qpos`` (hinge/slide joints:
     dof = qpos index)."""
     if len(limit.indices) == 0:  # no limited joint (mink keeps an empty float array)
@@ -226,7 +233,9 @@ def _configuration_box(limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: flo
     return limit.indices, lower, upper
 
 
-def _velocity_box(limit: mink.VelocityLimit, qpos: np.ndarray, dt: float):
+def _velocity_box(
+    limit: mink.VelocityLimit, qpos: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt``."""
     bound = limit.limit * dt
     return limit.indices, -bound, bound
@@ -235,7 +244,10 @@ def _velocity_box(limit: mink.VelocityLimit, qpos: np.ndarray, dt: float):
 #: Limits whose rows are known to be single-dof bounds, computed directly as boxes (exact
 #: type match: a subclass may change the rows). Used on models whose joints are all
 #: hinges or slides; other limits go through ``compute_qp_inequalities``.
-_BOX_LIMITS = {mink.ConfigurationLimit: _configuration_box, mink.VelocityLimit: _velocity_box}
+_BOX_LIMITS: dict[type, Callable[[Any, np.ndarray, float], tuple[np.ndarray, ...]]] = {
+    mink.ConfigurationLimit: _configuration_box,
+    mink.VelocityLimit: _velocity_box,
+}
 
 
 def _step_options(options: StepOptions | None, osqp_settings, **given) -> StepOptions:
@@ -273,12 +285,12 @@ class IKSolver:
         limits: Sequence[mink.Limit] = (),
         *,
         options: StepOptions | None = None,
-        solver: str = UNSET,
-        damping: float = UNSET,
-        damping_law: DampingLaw | None = UNSET,
-        rank_tolerance: float = UNSET,
-        warm_start: bool = UNSET,
-        backend_options: dict | None = UNSET,
+        solver: str | _Unset = UNSET,
+        damping: float | _Unset = UNSET,
+        damping_law: DampingLaw | None | _Unset = UNSET,
+        rank_tolerance: float | _Unset = UNSET,
+        warm_start: bool | _Unset = UNSET,
+        backend_options: Mapping[str, Any] | None | _Unset = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):
@@ -396,7 +408,7 @@ class IKSolver:
         pos_lb.fill(-np.inf)
         pos_ub.fill(np.inf)
         contributions = []  # (name, dofs, bounds) for each side of each limit
-        general = ([], [], [])  # G blocks, h blocks, row names
+        general: tuple[list[np.ndarray], list[np.ndarray], list[str]] = ([], [], [])  # G, h, names
         for limit in self.limits:
             recoverable = isinstance(limit, mink.ConfigurationLimit) or getattr(
                 limit, "recoverable", False
@@ -512,23 +524,24 @@ class IKSolver:
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
         start = time.perf_counter()
+        plan = self._plan
         if (
-            self._plan is not None
+            plan is not None
             and configuration.model is self.model
             and type(dt) is float
             and 0.0 < dt < math.inf
         ):
             if self._core.solver == "auto":
-                result = self._fused_step(configuration, dt, start)
+                result = self._fused_step(plan, configuration, dt, start)
             else:
-                result = self._fused_rows_step(configuration, dt, start)
+                result = self._fused_rows_step(plan, configuration, dt, start)
             if result is not None:
                 return result
         return self._general_step(configuration, dt, start)
 
-    def _settings(self, dt: float) -> np.ndarray:
+    def _settings(self, plan: FusedPlan, dt: float) -> np.ndarray:
         """The one-call plan's ``settings`` array for a step of ``dt`` [s]."""
-        plan, core = self._plan, self._core
+        core = self._core
         settings = plan.arrays["settings"]
         settings[0] = dt
         settings[1] = self.damping
@@ -538,15 +551,17 @@ class IKSolver:
             plan.law = law
         return settings
 
-    def _fused_rows_step(self, configuration: Configuration, dt: float, start: float):
+    def _fused_rows_step(
+        self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
+    ):
         """:meth:`step` for a forced backend: the rows and limits in one compiled call
         (:func:`qpik._fused.fused_rows`), then the core's level-by-level solve. None where
         the general path must answer."""
-        plan = self._plan
+        poses: _Poses
         qpos, poses = plan.gather(configuration)
         a = plan.arrays
         code, reg, lb, ub = fused_rows(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(dt)
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt)
         )
         if code:
             return None
@@ -557,15 +572,15 @@ class IKSolver:
             lambda: self._box_contributions(q, dt), [],
         )  # fmt: skip
 
-    def _fused_step(self, configuration: Configuration, dt: float, start: float):
+    def _fused_step(self, plan: FusedPlan, configuration: Configuration, dt: float, start: float):
         """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
         path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
-        plan = self._plan
+        poses: _Poses
         qpos, poses = plan.gather(configuration)
         core = self._core
         warm = core._warm if core.warm_start and core._warm is not None else plan.cold
         code, d, v, info, active = fused_step(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(dt),
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt),
             plan.max_iter, warm, core.warm_start,
         )  # fmt: skip
         if code:

@@ -40,6 +40,7 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     import mujoco
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import Axes3D
 
     from .problem import ErrorCurve, ProblemResult
 
@@ -374,13 +375,13 @@ def plot_singular_values(
     frames = [(frame, frame_type)] if isinstance(frame, str) else list(frame)
     configuration = Configuration(model)
     jacobian = _goal_jacobian(frames, rows)
-    sigmas, measure = [], []
+    sigma_rows, measure = [], []
     for q in np.atleast_2d(path):
         configuration.update(q)
         J = jacobian(configuration)
-        sigmas.append(singular_values(J))
+        sigma_rows.append(singular_values(J))
         measure.append(manipulability(J))
-    sigmas = np.array(sigmas)
+    sigmas = np.array(sigma_rows)
     x = np.arange(len(sigmas)) if time is None else time
     marker = "o" if len(sigmas) < 8 else None
     for i in range(sigmas.shape[1]):
@@ -429,7 +430,7 @@ def _picks(n: int, intermediate: int) -> np.ndarray:
 
 
 def _frame_trace(configuration, path, frames) -> list[np.ndarray]:
-    traces = [[] for _ in frames]
+    traces: list[list[np.ndarray]] = [[] for _ in frames]
     for q in path:
         configuration.update(q)
         for trace, (name, kind) in zip(traces, frames):
@@ -453,7 +454,7 @@ def plot_robot(
     Needs no GL (no offscreen rendering): it works on machines without a display."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-    ax = _axes(ax, projection="3d")
+    ax3d: Axes3D = _axes(ax, projection="3d")
     path = np.atleast_2d(path)
     configuration = Configuration(model)
     picks = _picks(len(path), intermediate)
@@ -462,6 +463,7 @@ def plot_robot(
         configuration.update(path[index])
         segments = robot_segments(model, configuration, frames)
         last = rank == len(picks) - 1
+        label: str | None
         if rank == 0:
             color, width, label = (0.55, 0.55, 0.55, 0.9), 1.8, "start"
         elif last:
@@ -469,13 +471,13 @@ def plot_robot(
         else:
             color, width, label = (0.35, 0.6, 0.95, 0.6), 1.4, "intermediate" if rank == 1 else None
         lines = Line3DCollection(segments, colors=[color], lw=width, label=label)
-        ax.add_collection3d(lines)
+        ax3d.add_collection3d(lines)
         points.append(segments.reshape(-1, 3))
     for k, trace in enumerate(_frame_trace(configuration, path, frames)):
-        ax.plot(*trace.T, color="tab:orange", lw=1, label="frame path" if k == 0 else None)
+        ax3d.plot(*trace.T, color="tab:orange", lw=1, label="frame path" if k == 0 else None)
         points.append(trace)
     for k, target in enumerate(targets):
-        ax.plot(
+        ax3d.plot(
             *np.reshape(target, (3, 1)),
             "x",
             color="tab:red",
@@ -484,19 +486,19 @@ def plot_robot(
             label="target" if k == 0 else None,
         )
         points.append(np.reshape(target, (1, 3)))
-    _equal_3d(ax, np.vstack(points))
-    ax.view_init(*view)
-    ax.set_xlabel("x [m]", fontsize="small")
-    ax.set_ylabel("y [m]", fontsize="small")
-    ax.set_zlabel("z [m]", fontsize="small")
-    ax.tick_params(labelsize="x-small")
+    _equal_3d(ax3d, np.vstack(points))
+    ax3d.view_init(*view)
+    ax3d.set_xlabel("x [m]", fontsize="small")
+    ax3d.set_ylabel("y [m]", fontsize="small")
+    ax3d.set_zlabel("z [m]", fontsize="small")
+    ax3d.tick_params(labelsize="x-small")
     from matplotlib.ticker import MaxNLocator
 
-    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+    for axis in (ax3d.xaxis, ax3d.yaxis, ax3d.zaxis):
         axis.set_major_locator(MaxNLocator(4))
-    ax.set_title("robot: start, intermediate, final")
-    _legend_below(ax, ncol=2)
-    return ax
+    ax3d.set_title("robot: start, intermediate, final")
+    _legend_below(ax3d, ncol=2)
+    return ax3d
 
 
 def _equal_3d(ax, points: np.ndarray) -> None:
@@ -531,9 +533,9 @@ def plot_planar_arm(
     picks = _picks(len(path), intermediate)
     for rank, index in enumerate(picks):
         configuration.update(path[index])
-        points = [np.zeros(3)] + [configuration.data.xpos[b].copy() for b in range(1, model.nbody)]
-        points.append(configuration.frame_pose(frame, frame_type)[0])
-        points = np.array(points)
+        joints = [np.zeros(3)] + [configuration.data.xpos[b].copy() for b in range(1, model.nbody)]
+        joints.append(configuration.frame_pose(frame, frame_type)[0])
+        points = np.array(joints)
         shade = min(1.0, 0.25 + 0.75 * rank / max(len(picks) - 1, 1))
         label = "start" if index == 0 else ("final" if index == len(path) - 1 else None)
         ax.plot(

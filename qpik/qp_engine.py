@@ -188,7 +188,7 @@ class QPProblem:
             for name, kind, target in self.frames
         ]
         rows = sum(3 if target.rotation is None else 6 for _, _, target in self.frames)
-        levels = [primary]
+        levels: list[list] = [primary]
         if model.nv > rows and options.secondary:
             levels.append([JointLimitDistanceTask(cost=1.0, gain=0.5)])
         return levels
@@ -213,9 +213,10 @@ class QPProblem:
         """Trust region: scale the target tasks' gains so that no iteration asks for more
         than ``max_position_step`` [m] or ``max_orientation_step`` [rad]."""
         for task, base_gain in zip(self.primary, self.base_gains):
-            if task.frame_name not in errors:
+            name = task.frame_name  # mink's FrameTask allows an id; the errors are by name
+            if not isinstance(name, str) or name not in errors:
                 continue
-            position_error, orientation_error = errors[task.frame_name]
+            position_error, orientation_error = errors[name]
             position_limit = max_position_step / max(position_error, 1e-12)
             orientation_limit = max_orientation_step / max(orientation_error, 1e-12)
             if isinstance(task, PositionTask):

@@ -107,7 +107,7 @@ def reach_bound(robot: RobotLike, frame: FrameKey) -> tuple[np.ndarray, float]:
         FrameType.BODY: data.xpos,
         FrameType.GEOM: data.geom_xpos,
     }[kind][index].copy()
-    chain = []
+    chain: list[int] = []
     while body > 0:
         start, count = model.body_jntadr[body], model.body_jntnum[body]
         chain[:0] = range(start, start + count)
@@ -471,7 +471,8 @@ def plot_reachability(
             ax.set_ylabel("y [m]")
         ax.set_aspect("equal")
     colorbar_ax = fig.add_subplot(spec[0, panels])
-    fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")
+    # image is None only for slices=0 (no panel): matplotlib then draws a plain colorbar
+    fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")  # type: ignore[arg-type]
     ax3 = fig.add_subplot(spec[0, panels + 1], projection="3d")
     # The far half (y >= the base's y) only, so the cut shows the inside of the workspace.
     cut = rmap.centers[:, 1] >= rmap.base[1] - half

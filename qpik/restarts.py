@@ -115,7 +115,7 @@ def run_attempts(
     used = 0
     while True:
         outcome = attempt()
-        if outcome.beats(best):
+        if best is None or outcome.beats(best):
             best = outcome
         reason = outcome.reason
         timed_out = clock.out_of_time()

@@ -35,6 +35,7 @@ import re
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import cast
 
 import mujoco
 import numpy as np
@@ -116,7 +117,7 @@ def _srdf_path(srdf: str | os.PathLike | bool | None, root: ET.Element, path: Pa
         return find_srdf(path) if root.tag == "robot" else None
     if srdf is False:
         return None
-    srdf_path = Path(os.fspath(srdf))
+    srdf_path = Path(os.fspath(cast("str | os.PathLike", srdf)))  # None, True, False handled
     if not srdf_path.is_file():
         raise RobotFileError(str(srdf_path), "no such SRDF file")
     return srdf_path
@@ -310,10 +311,11 @@ def _urdf_velocities(root: ET.Element) -> dict[str, float]:
         if joint.get("type") in ("fixed", "floating", "planar"):
             continue
         limit = joint.find("limit")
-        if limit is None or limit.get("velocity") is None:
+        velocity = None if limit is None else limit.get("velocity")
+        if velocity is None:
             continue
         try:
-            value = float(limit.get("velocity"))
+            value = float(velocity)
         except ValueError:
             continue
         if value > 0 and np.isfinite(value):

@@ -287,7 +287,7 @@ def erd_path(name: str) -> Path:
 # ------------------------------------------------------------------------- files
 def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
     spec = robot_spec(path, floating_base=floating_base, srdf=srdf)
-    recipe = {
+    recipe: dict[str, Any] = {
         "path": str(path.resolve()),
         "floating_base": bool(floating_base),
         "srdf": srdf if srdf in (None, False, True) else str(Path(os.fspath(srdf)).resolve()),

@@ -176,7 +176,9 @@ def gravity_torques(configuration: Configuration) -> np.ndarray:
     return -_zero_velocity_data(configuration).qfrc_bias.copy()
 
 
-def _wrench_items(wrenches: Iterable) -> list[tuple[str | int, FrameType, object, object]]:
+def _wrench_items(
+    wrenches: Iterable,
+) -> list[tuple[str | int, FrameType, npt.ArrayLike, npt.ArrayLike | None]]:
     items = []
     for k, item in enumerate(wrenches):
         if not isinstance(item, (tuple, list)) or len(item) not in (2, 3):

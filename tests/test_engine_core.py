@@ -34,8 +34,18 @@ def _call(kernel, case):
     if kernel in ("solve_qp", "solve_level"):
         extra = (bool(a["lower"]),) if kernel == "solve_level" else ()
         fn = getattr(K, kernel)
-        x, st, its, act = fn(a["H"], a["c"], a["C"], a["lo"], a["hi"], a["warm"], int(a["max_iter"]),
-                             float(a["tol"]), *extra, bool(a["canonical"]))
+        x, st, its, act = fn(
+            a["H"],
+            a["c"],
+            a["C"],
+            a["lo"],
+            a["hi"],
+            a["warm"],
+            int(a["max_iter"]),
+            float(a["tol"]),
+            *extra,
+            bool(a["canonical"]),
+        )
         assert type(st) is int and type(its) is int
         assert x.dtype == np.float64 and act.dtype == np.int8
         return dict(x=x, status=st, its=its, active=act)
@@ -47,11 +57,23 @@ def _call(kernel, case):
         return dict(AZ=AZ, sigma=sig, rank=rank, Zn=Zn)
     if kernel == "level_damping":
         t, m, e = a["law"]
-        return dict(lam=K.level_damping(a["A"], a["b"], a["w"], a["d"], float(a["sigma"]), t, m, e),
-                    damping_of=K.damping_of(float(a["sigma"]), t, m))
+        return dict(
+            lam=K.level_damping(a["A"], a["b"], a["w"], a["d"], float(a["sigma"]), t, m, e),
+            damping_of=K.damping_of(float(a["sigma"]), t, m),
+        )
     if kernel == "reduced_qp":
-        H, c, C, lo, hi = K.reduced_qp(a["A"], a["b"], a["AZ"], a["Z"], a["d"], float(a["reg"]),
-                                       a["lb"], a["ub"], a["G"], a["h"])
+        H, c, C, lo, hi = K.reduced_qp(
+            a["A"],
+            a["b"],
+            a["AZ"],
+            a["Z"],
+            a["d"],
+            float(a["reg"]),
+            a["lb"],
+            a["ub"],
+            a["G"],
+            a["h"],
+        )
         return dict(H=H, c=c, C=C, lo=lo, hi=hi)
     if kernel == "merge_boxes":
         lb, ub, i = K.merge_boxes(a["hard_lb"], a["hard_ub"], a["pos_lb"], a["pos_ub"])
@@ -63,9 +85,25 @@ def _call(kernel, case):
         return dict(lb=lb, ub=ub)
     if kernel == "solve_cascade":
         t, m, e = a["law"]
-        out = K.solve_cascade(a["A"], a["b"], a["w"], a["starts"], a["reg"], a["lb"], a["ub"], a["G"],
-                              a["h"], t, m, e, float(a["rank_tol"]), int(a["max_iter"]), float(a["tol"]),
-                              a["warm"], bool(a["canonical"]))
+        out = K.solve_cascade(
+            a["A"],
+            a["b"],
+            a["w"],
+            a["starts"],
+            a["reg"],
+            a["lb"],
+            a["ub"],
+            a["G"],
+            a["h"],
+            t,
+            m,
+            e,
+            float(a["rank_tol"]),
+            int(a["max_iter"]),
+            float(a["tol"]),
+            a["warm"],
+            bool(a["canonical"]),
+        )
         names = ("dq", "status", "sigma", "lam2", "its", "active", "residuals")
         dtypes = (np.float64, np.int64, np.float64, np.float64, np.int64, np.int8, np.float64)
         for value, dtype in zip(out, dtypes):
@@ -86,15 +124,28 @@ def _compare(want, got):
     assert same_nan.all()
     finite = np.isfinite(want)
     assert np.array_equal(want[~finite & ~np.isnan(want)], got[~finite & ~np.isnan(want)])
-    bitwise = np.array_equal(want.view(np.int64), got.astype(np.float64).view(np.int64)) if want.size else True
+    bitwise = (
+        np.array_equal(want.view(np.int64), got.astype(np.float64).view(np.int64))
+        if want.size
+        else True
+    )
     if not finite.any():
         return bitwise, 0.0
     scale = max(1.0, float(np.abs(want[finite]).max()))
     return bitwise, float(np.abs(want[finite] - got[finite]).max()) / scale
 
 
-KERNELS = ["solve_qp", "solve_level", "active_guess", "project_level", "level_damping", "reduced_qp",
-           "merge_boxes", "tighten", "solve_cascade"]
+KERNELS = [
+    "solve_qp",
+    "solve_level",
+    "active_guess",
+    "project_level",
+    "level_damping",
+    "reduced_qp",
+    "merge_boxes",
+    "tighten",
+    "solve_cascade",
+]
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
@@ -115,7 +166,9 @@ def test_engine_reproduces_the_numba_kernels(recorded, kernel):
             outputs += 1
             equal += bitwise
             worst = max(worst, diff)
-    print(f"{kernel}: {len(cases)} cases, {equal}/{outputs} outputs bitwise equal, max rel diff {worst:.3g}")
+    print(
+        f"{kernel}: {len(cases)} cases, {equal}/{outputs} outputs bitwise equal, max rel diff {worst:.3g}"
+    )
 
 
 def test_status_codes_match_the_engine():
@@ -128,8 +181,14 @@ def test_status_codes_match_the_engine():
 def _qp(n=3, m=4):
     rng = np.random.default_rng(0)
     M = rng.normal(size=(n + 1, n))
-    return (M.T @ M + np.eye(n), rng.normal(size=n), rng.normal(size=(m, n)), -np.ones(m), np.ones(m),
-            np.zeros(m, np.int8))
+    return (
+        M.T @ M + np.eye(n),
+        rng.normal(size=n),
+        rng.normal(size=(m, n)),
+        -np.ones(m),
+        np.ones(m),
+        np.zeros(m, np.int8),
+    )
 
 
 def test_wrong_shapes_raise_value_error():
@@ -150,8 +209,18 @@ def test_wrong_shapes_raise_value_error():
     with pytest.raises(ValueError):
         K.project_level(A, np.ones(2), np.eye(4), 1e-10)
     with pytest.raises(ValueError):
-        K.reduced_qp(A, np.ones(2), np.ones((2, 3)), np.eye(3), np.zeros(2), 0.0, -np.ones(3), np.ones(3),
-                     np.zeros((0, 3)), np.zeros(0))
+        K.reduced_qp(
+            A,
+            np.ones(2),
+            np.ones((2, 3)),
+            np.eye(3),
+            np.zeros(2),
+            0.0,
+            -np.ones(3),
+            np.ones(3),
+            np.zeros((0, 3)),
+            np.zeros(0),
+        )
     with pytest.raises(ValueError):
         K.merge_boxes(-np.ones(3), np.ones(2), -np.ones(3), np.ones(3))
     lb, ub = -np.ones(3), np.ones(3)
@@ -162,15 +231,37 @@ def test_wrong_shapes_raise_value_error():
     with pytest.raises(ValueError):
         K.cholesky_into(np.eye(3), 4, 0.0, np.zeros((4, 4)))
     n = 3
-    args = dict(A=np.ones((4, n)), b=np.zeros(4), w=np.ones(4), starts=np.array([0, 2, 4]),
-                reg=np.zeros(2), lb=-np.ones(n), ub=np.ones(n), G=np.zeros((0, n)), h=np.zeros(0),
-                threshold=0.0, max_damping=0.0, error_scale=0.0, rank_tol=1e-10, max_iter=50, tol=1e-12,
-                warm=np.zeros((2, n), np.int8), canonical=True)
+    args = dict(
+        A=np.ones((4, n)),
+        b=np.zeros(4),
+        w=np.ones(4),
+        starts=np.array([0, 2, 4]),
+        reg=np.zeros(2),
+        lb=-np.ones(n),
+        ub=np.ones(n),
+        G=np.zeros((0, n)),
+        h=np.zeros(0),
+        threshold=0.0,
+        max_damping=0.0,
+        error_scale=0.0,
+        rank_tol=1e-10,
+        max_iter=50,
+        tol=1e-12,
+        warm=np.zeros((2, n), np.int8),
+        canonical=True,
+    )
     K.solve_cascade(**args)  # the valid call
-    for key, bad in [("starts", np.array([0, 2, 9])), ("starts", np.array([0, 3, 2])),
-                     ("starts", np.array([], np.int64)), ("warm", np.zeros((2, n + 1), np.int8)),
-                     ("reg", np.zeros(3)), ("b", np.zeros(3)), ("h", np.zeros(1)),
-                     ("G", np.zeros((1, n + 1))), ("A", np.ones((4, n + 1)))]:
+    for key, bad in [
+        ("starts", np.array([0, 2, 9])),
+        ("starts", np.array([0, 3, 2])),
+        ("starts", np.array([], np.int64)),
+        ("warm", np.zeros((2, n + 1), np.int8)),
+        ("reg", np.zeros(3)),
+        ("b", np.zeros(3)),
+        ("h", np.zeros(1)),
+        ("G", np.zeros((1, n + 1))),
+        ("A", np.ones((4, n + 1))),
+    ]:
         with pytest.raises(ValueError):
             K.solve_cascade(**{**args, key: bad})
 

@@ -36,7 +36,10 @@ class _Tally:
         got = np.asarray(got)
         expected = np.asarray(expected)
         assert got.shape == expected.shape, name
-        assert got.dtype.kind == expected.dtype.kind or {got.dtype.kind, expected.dtype.kind} <= {"i", "u"}, name
+        assert got.dtype.kind == expected.dtype.kind or {got.dtype.kind, expected.dtype.kind} <= {
+            "i",
+            "u",
+        }, name
         self.total += 1
         if got.tobytes() == expected.astype(got.dtype).tobytes():
             self.bitwise += 1
@@ -45,7 +48,9 @@ class _Tally:
             same_nan = np.isnan(got) == np.isnan(expected)
             assert same_nan.all(), name
             finite = np.isfinite(expected)
-            assert (got[~finite] == expected[~finite]).all() or np.isnan(expected[~finite]).all(), name
+            assert (got[~finite] == expected[~finite]).all() or np.isnan(expected[~finite]).all(), (
+                name
+            )
             diff = np.abs(got[finite] - expected[finite])
             scale = np.maximum(1.0, np.abs(expected[finite]))
             worst = float((diff / scale).max()) if diff.size else 0.0
@@ -161,7 +166,9 @@ def test_igm_solve(recorded, tally, arm):
         slot, length = int(info[3]), int(info[4])
         tally.add(f"igm {arm} {k} q", path[slot, length - 1], d[f"igm_{arm}_q"][k])
         tally.add(f"igm {arm} {k} hist", hist[slot, :length], hist_all[start : start + length])
-        tally.add(f"igm {arm} {k} path", path[slot, :length].sum(axis=0), d[f"igm_{arm}_path_sum"][k])
+        tally.add(
+            f"igm {arm} {k} path", path[slot, :length].sum(axis=0), d[f"igm_{arm}_path_sum"][k]
+        )
         start += length
     assert start == hist_all.shape[0]
 
@@ -178,7 +185,10 @@ def test_igm_time_budget_uses_the_perf_counter_clock(recorded):
     iopts = d["igm_ur5e_int_options"][0].copy()
     iopts[3] = 1
     n = int(iopts[0]) + 1
-    for deadline, expect_budget in ((time.perf_counter() - 1.0, True), (time.perf_counter() + 3600, False)):
+    for deadline, expect_budget in (
+        (time.perf_counter() - 1.0, True),
+        (time.perf_counter() + 3600, False),
+    ):
         path, hist, info = np.zeros((2, n, 6)), np.zeros((2, n, 3)), np.zeros(6, dtype=np.int64)
         q = q0.copy()
         q[0] += 0.5  # not converged at the start

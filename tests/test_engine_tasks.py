@@ -53,12 +53,19 @@ class Tally:
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12, err_msg=what)
 
     def report(self, name):
-        print(f"{name}: {self.bitwise}/{self.total} outputs bitwise equal, max diff {self.worst:.3g}")
+        print(
+            f"{name}: {self.bitwise}/{self.total} outputs bitwise equal, max diff {self.worst:.3g}"
+        )
 
 
 def test_lie_routines_equal_the_recorded_answers(fx):
     tally = Tally()
-    targets, xmats, xposs, omegas = fx["lie_target"], fx["lie_xmat"], fx["lie_xpos"], fx["lie_omega"]
+    targets, xmats, xposs, omegas = (
+        fx["lie_target"],
+        fx["lie_xmat"],
+        fx["lie_xpos"],
+        fx["lie_omega"],
+    )
     for k in range(targets.shape[0]):
         frame, so3, lji = np.empty(7), np.empty(3), np.empty(9)
         log, invmul, rminus = np.empty(6), np.empty(7), np.empty(6)

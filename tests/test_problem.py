@@ -343,9 +343,13 @@ def test_every_number_is_range_checked_at_load_time(tmp_path, text, field):
 
 
 def test_huge_quaternion_and_payload_direction_are_normalised_without_overflow(tmp_path):
-    text = BASE.replace('type = "position"', 'type = "frame"').replace(
-        "position = [1.0, 1.0, 0.0]", "position = [1.0, 1.0, 0.0]\nquaternion = [1e300, 0, 0, 1e300]"
-    ) + "\n[statics]\npayload_direction = [0, 1e-320, 0]\n"
+    text = (
+        BASE.replace('type = "position"', 'type = "frame"').replace(
+            "position = [1.0, 1.0, 0.0]",
+            "position = [1.0, 1.0, 0.0]\nquaternion = [1e300, 0, 0, 1e300]",
+        )
+        + "\n[statics]\npayload_direction = [0, 1e-320, 0]\n"
+    )
     problem = qpik.load_problem(write(tmp_path, text))
     expected = np.zeros(9)
     mujoco.mju_quat2Mat(expected, np.array([1.0, 0.0, 0.0, 1.0]) / math.sqrt(2.0))

@@ -31,7 +31,10 @@ def _setup(robot: str = "ur5e"):
 def test_kept_solver_answers_bitwise_as_a_fresh_one(solver, levels):
     model, configuration, task, posture = _setup()
     tasks = [[task], [posture]] if levels else [task, posture]
-    limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, {"shoulder_pan_joint": 0.5})]
+    limits = [
+        mink.ConfigurationLimit(model),
+        mink.VelocityLimit(model, {"shoulder_pan_joint": 0.5}),
+    ]
     kept, fresh = [], []
     q = configuration.q.copy()
     for loop, out in ((True, kept), (False, fresh)):

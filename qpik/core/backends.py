@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -33,7 +33,7 @@ _INF = 1e20  # what OSQP treats as infinity
 
 #: OSQP settings qpik uses (tight tolerances; polishing is done by qpik's active-set
 #: kernel instead of OSQP's, which prints on every polish that finds no active row).
-OSQP_DEFAULTS = {
+OSQP_DEFAULTS: dict[str, Any] = {
     "eps_abs": 1e-7,
     "eps_rel": 1e-7,
     "max_iter": 4000,
@@ -92,7 +92,7 @@ class OSQPWorkspace:
         rows, cols = np.triu_indices(n)
         order = np.lexsort((rows, cols))
         self._h_rows, self._h_cols = rows[order], cols[order]
-        self._solver = None
+        self._solver: Any = None  # an osqp.OSQP once set up (osqp has no type stubs)
         self._status_names = {
             int(v): k.removeprefix("OSQP_").lower()
             for k, v in osqp.SolverStatus.__members__.items()

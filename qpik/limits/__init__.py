@@ -67,7 +67,8 @@ class ConfigurationLimit(mink.ConfigurationLimit, metaclass=_MinkClass):
     The object built *is* mink's (``type(limit) is mink.ConfigurationLimit``), so every
     code path that knows mink's limit (qpik's box bounds among them) applies to it."""
 
-    def __new__(
+    # returns mink's own object, which _MinkClass makes an instance of this class too
+    def __new__(  # type: ignore[misc]
         cls,
         model: mujoco.MjModel,
         gain: float = 0.95,
@@ -101,7 +102,8 @@ class VelocityLimit(mink.VelocityLimit, metaclass=_MinkClass):
     velocity that is not a positive number raises :class:`qpik.LimitDefinitionError`.
     The object built is mink's (see :class:`ConfigurationLimit`)."""
 
-    def __new__(
+    # returns mink's own object (see ConfigurationLimit.__new__)
+    def __new__(  # type: ignore[misc]
         cls, model: mujoco.MjModel, velocities: Mapping[str, npt.ArrayLike] | None = None
     ) -> mink.VelocityLimit:
         if not isinstance(model, mujoco.MjModel):
@@ -135,7 +137,9 @@ class VelocityLimit(mink.VelocityLimit, metaclass=_MinkClass):
             raise LimitDefinitionError(str(exc)) from None
 
 
-def velocity_limit_from_model(model: mujoco.MjModel, scale: float = 1.0) -> VelocityLimit | None:
+def velocity_limit_from_model(
+    model: mujoco.MjModel, scale: float = 1.0
+) -> mink.VelocityLimit | None:
     """A :class:`VelocityLimit` from the model's custom numeric ``velocity_limit``
     (one value per dof, [rad/s] or [m/s]; 0 = none), times ``scale``, on the hinge and
     slide joints that have one; ``None`` if there is none."""

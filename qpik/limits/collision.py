@@ -40,7 +40,7 @@ from mink.limits.collision_avoidance_limit import (
     compute_contact_normal_jacobian,
 )
 
-from ..configuration import Configuration, frame_names
+from ..configuration import frame_names
 from ..errors import CollisionPairError, LimitDefinitionError, UnknownFrame
 
 __all__ = ["CollisionAvoidanceLimit", "geom_distance"]
@@ -200,13 +200,16 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         return message
 
     # ------------------------------------------------------------------ rows
-    def compute_qp_inequalities(self, configuration: Configuration, dt: float) -> mink.Constraint:
+    def compute_qp_inequalities(
+        self, configuration: mink.Configuration, dt: float
+    ) -> mink.Constraint:
         """``G dq <= h`` [m]: one row per pair within ``collision_detection_distance``
         (rows of pairs out of range are left out; no row at all: an inactive constraint).
         ``dt`` is not used: both sides are displacements."""
         model = self.model
         data = configuration.data
         distmax = self.collision_detection_distance
+        indices: np.ndarray | range
         if self.broadphase and self.max_num_contacts >= self.broadphase_min_pairs:
             indices = np.sort(self._broadphase_survivors(data))
         else:
@@ -234,7 +237,7 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
             return mink.Constraint()
         return mink.Constraint(G=rows[active].copy(), h=h[active].copy())
 
-    def distances(self, configuration: Configuration) -> dict[tuple[str, str], float]:
+    def distances(self, configuration: mink.Configuration) -> dict[tuple[str, str], float]:
         """Distance [m] of every checked pair (``mj_geomDistance``, negative when they
         penetrate, capped at 1 m), keyed by the two geoms' labels."""
         out = {}
@@ -246,7 +249,7 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         return out
 
 
-def geom_distance(configuration: Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0):
+def geom_distance(configuration: mink.Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0):
     """Signed distance [m] between two geoms at the configuration (MuJoCo's
     ``mj_geomDistance``: negative when they penetrate, ``cap`` when farther apart)."""
     model = configuration.model

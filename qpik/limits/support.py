@@ -34,7 +34,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
-from ..configuration import Configuration, FrameType
+from ..configuration import FrameType
 from ..errors import InvalidInput, LimitDefinitionError
 from ..model.frames import resolve_frame
 
@@ -92,7 +92,7 @@ class SupportPolygonLimit(mink.Limit):
             self.body = int(body)
         self._jac = np.empty((3, model.nv))
 
-    def support_points(self, configuration: Configuration) -> np.ndarray:
+    def support_points(self, configuration: mink.Configuration) -> np.ndarray:
         """The footprints' points on the ground ``(n, 2)`` [m], world x-y."""
         data = configuration.data
         points = []
@@ -107,7 +107,7 @@ class SupportPolygonLimit(mink.Limit):
             points.append(world[:, :2])
         return np.vstack(points)
 
-    def hull(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+    def hull(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
         """Edges of the support polygon: outward unit normals ``(e, 2)`` and offsets
         ``(e,)`` (inside: ``normals @ p + offsets <= 0``)."""
         points = self.support_points(configuration)
@@ -120,17 +120,19 @@ class SupportPolygonLimit(mink.Limit):
             ) from exc
         return hull.equations[:, :2].copy(), hull.equations[:, 2].copy()
 
-    def com(self, configuration: Configuration) -> np.ndarray:
+    def com(self, configuration: mink.Configuration) -> np.ndarray:
         """The CoM ``(3,)`` [m], world frame."""
         return configuration.data.subtree_com[self.body].copy()
 
-    def com_margin(self, configuration: Configuration) -> float:
+    def com_margin(self, configuration: mink.Configuration) -> float:
         """Signed distance [m] from the CoM's ground projection to the polygon's boundary:
         positive inside (the smallest distance to an edge), negative outside."""
         normals, offsets = self.hull(configuration)
         return float(-(normals @ self.com(configuration)[:2] + offsets).max())
 
-    def compute_qp_inequalities(self, configuration: Configuration, dt: float) -> mink.Constraint:
+    def compute_qp_inequalities(
+        self, configuration: mink.Configuration, dt: float
+    ) -> mink.Constraint:
         """``G dq <= h`` [m], one row per edge of the support polygon (``dt`` unused:
         both sides are displacements)."""
         normals, offsets = self.hull(configuration)

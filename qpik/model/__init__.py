@@ -14,7 +14,10 @@ the compiled kernels.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the type checker sees the names; at run time __getattr__ loads them
+    from .chain import KinematicChain, ReachBound, chain_support, joint_limits
 
 __all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
 

@@ -121,13 +121,13 @@ class KinematicChain:
             body = int(model.geom_bodyid[fid])
             frame_pos, frame_quat = model.geom_pos[fid], model.geom_quat[fid]
         parent, mocap = model.body_parentid, model.body_mocapid
-        bodies = []
+        path = []
         while body > 0:
             if mocap[body] >= 0:
                 raise ValueError(f"mocap body #{body} is on the chain of {frame!r}")
-            bodies.append(body)
+            path.append(body)
             body = int(parent[body])
-        bodies = np.array(bodies[::-1], dtype=np.int64)
+        bodies = np.array(path[::-1], dtype=np.int64)
         jntadr, jntnum = model.body_jntadr[bodies], model.body_jntnum[bodies]
         jnt_start = np.zeros(len(bodies) + 1, dtype=np.int64)
         np.cumsum(jntnum, out=jnt_start[1:])

@@ -113,7 +113,9 @@ class Configuration(mink.Configuration):
                 f"mink.Configuration as `model`, got {type(model).__name__}"
             )
         self._lower, self._upper, self._qpos_joint = _limit_vectors(model)
-        super().__init__(model, None if source is not None else q)  # mink calls update(q)
+        # mink types q as an ndarray, but only hands it to update(q), which validates any
+        # array-like (see below)
+        super().__init__(model, None if source is not None else q)  # type: ignore[arg-type]
         if source is not None:
             mujoco.mj_copyData(self.data, model, source.data)
             self.update(self.data.qpos.copy() if q is None else q)  # validated

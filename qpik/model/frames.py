@@ -98,7 +98,9 @@ def frame_name(model: mujoco.MjModel, frame_type: FrameType | str, fid: int) -> 
     return mujoco.mj_id2name(model, FRAME_OBJECTS[kind], int(fid)) or f"{kind.value} #{fid}"
 
 
-def frame_id(model: mujoco.MjModel, name: str | int, frame_type: FrameType | str) -> int:
+def frame_id(
+    model: mujoco.MjModel, name: str | int | np.integer, frame_type: FrameType | str
+) -> int:
     """Id of the frame ``name`` (a name, or an id checked against the count) of the given
     type. Raises :class:`qpik.UnknownFrame` listing the valid names of that type, and
     :class:`qpik.UnknownFrameType` for a type other than body, site or geom."""

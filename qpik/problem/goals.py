@@ -33,7 +33,7 @@ import numpy as np
 
 from ..configuration import Configuration, FrameType
 from ..model.rotations import orientation_angle
-from ..targets import Target
+from ..targets import FrameKey, Target
 from .reader import ROTATION_KEYS, Reader, describe, dotted
 from .specs import TaskSpec
 
@@ -98,7 +98,7 @@ class Goal:
         """The first frame's target."""
         return self.frames[0].target
 
-    def targets(self) -> dict[tuple[str, str], Target]:
+    def targets(self) -> dict[FrameKey, Target]:
         """``{(frame, frame_type): target}``, what :func:`qpik.solve` takes."""
         return {(f.frame, f.frame_type.value): f.target for f in self.frames}
 
@@ -171,6 +171,7 @@ def _read_frame_goal(
                 "missing; expected a frame name (level 0 has no frame, position or "
                 "orientation task to take it from)",
             )
+        assert first.frame is not None  # a goal kind has a frame
         frame, kind = first.frame, first.frame_type
     position = reader.position(table, "position", where)
     rotation = reader.rotation(table, where)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import mink
 import mujoco
@@ -93,6 +93,7 @@ class TaskSpec:
 
 # ----------------------------------------------------------------------- builders
 def _build_frame(spec: TaskSpec, model: mujoco.MjModel, start: Configuration) -> BaseTask:
+    assert spec.frame is not None  # a kind with a frame: the reader set it
     task = FrameTask(spec.frame, spec.frame_type.value, **spec.options)
     position, rotation = start.frame_pose(spec.frame, spec.frame_type)
     position = position if spec.position is None else spec.position
@@ -104,12 +105,14 @@ def _build_frame(spec: TaskSpec, model: mujoco.MjModel, start: Configuration) ->
 
 
 def _build_position(spec: TaskSpec, model: mujoco.MjModel, start: Configuration) -> BaseTask:
+    assert spec.frame is not None  # a kind with a frame: the reader set it
     task = PositionTask(spec.frame, spec.frame_type, **spec.options)
     _target_or_start(task, spec.position, start)
     return task
 
 
 def _build_orientation(spec: TaskSpec, model: mujoco.MjModel, start: Configuration) -> BaseTask:
+    assert spec.frame is not None  # a kind with a frame: the reader set it
     task = OrientationTask(spec.frame, spec.frame_type, **spec.options)
     _target_or_start(task, spec.rotation, start)
     return task
@@ -136,7 +139,7 @@ def _target_or_start(task, target: np.ndarray | None, start: Configuration) -> N
 
 # ----------------------------------------------------------------------- registry
 #: Size of a cost vector: 3 (x, y, z), ``"nv"`` (one per dof) or None (a number only).
-CostSize = int | str | None
+CostSize = int | Literal["nv"] | None
 
 
 @dataclass(frozen=True)
@@ -286,8 +289,10 @@ def read_task(
     for cost, size, default in kind.costs:
         length = model.nv if size == "nv" else size
         spec.options[cost] = reader.cost(table, cost, where, length, default)
-    for option, (allowed, default) in kind.choices.items():
-        value = reader.get(table, option, where, str, " or ".join(map(repr, allowed)), default)
+    for option, (allowed, choice_default) in kind.choices.items():
+        value = reader.get(
+            table, option, where, str, " or ".join(map(repr, allowed)), choice_default
+        )
         if value not in allowed:
             raise reader.fail(
                 f"{where}.{option}", f"expected {' or '.join(map(repr, allowed))}, got {value!r}"

@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..configuration import Configuration, frame_names
+from ..configuration import frame_names
 from ..errors import (
     InvalidTarget,
     TargetNotSet,
@@ -74,11 +74,11 @@ class ComTask(mink.Task):
             raise InvalidTarget(f"CoM target must be 3 finite numbers [m], got {target_com!r}")
         self.target_com = target.copy()
 
-    def set_target_from_configuration(self, configuration: Configuration) -> None:
+    def set_target_from_configuration(self, configuration: mink.Configuration) -> None:
         """Target the CoM the configuration has now."""
         self.set_target(self.com(configuration))
 
-    def _body_id(self, configuration: Configuration) -> int:
+    def _body_id(self, configuration: mink.Configuration) -> int:
         model = configuration.model
         if isinstance(self.body, str):
             body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, self.body)
@@ -88,17 +88,17 @@ class ComTask(mink.Task):
             raise UnknownFrame(self.body, "body", frame_names(model, "body"))
         return body
 
-    def com(self, configuration: Configuration) -> np.ndarray:
+    def com(self, configuration: mink.Configuration) -> np.ndarray:
         """The subtree's CoM ``(3,)`` [m], world frame."""
         return configuration.data.subtree_com[self._body_id(configuration)].copy()
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         """``e = c(q) - c*`` ``(3,)`` [m], world frame."""
         if self.target_com is None:
             raise TargetNotSet(self.__class__.__name__)
         return self.com(configuration) - self.target_com
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         """``J_c = d c / d q`` ``(3, nv)`` [m per unit of dq], from ``mj_jacSubtreeCom``."""
         jacobian = np.empty((self.k, configuration.model.nv))
         mujoco.mj_jacSubtreeCom(

@@ -16,6 +16,11 @@ from ..configuration import Configuration, FrameType
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
 from ..model.rotations import left_jacobian_inverse, rotation_vector
 
+# These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
+# their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
+# ``type: ignore[override]``); qpik's entry points (qpik.mink_api) turn a mink
+# configuration into a qpik one before any task sees it.
+
 
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
     """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
@@ -36,10 +41,10 @@ def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.
 
 
 def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
-    cost = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(cost)) or np.any(cost < 0):
-        raise InvalidTarget(f"{name} must be finite and >= 0, got {cost}")
-    return cost
+    vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(vector)) or np.any(vector < 0):
+        raise InvalidTarget(f"{name} must be finite and >= 0, got {vector}")
+    return vector
 
 
 class _FrameRowsTask(mink.Task):
@@ -81,12 +86,12 @@ class PositionTask(_FrameRowsTask):
         """Target = the frame's current position."""
         self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[0])
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
         return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
 
 
@@ -119,10 +124,10 @@ class OrientationTask(_FrameRowsTask):
         rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
         return so3_log(rotation @ self.target.T)
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         return self._error(configuration)
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         error = self._error(configuration)
         angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
         return so3_left_jacobian_inverse(error) @ angular
@@ -180,13 +185,13 @@ class PoseTask(mink.Task):
         jacobian[3:] = so3_left_jacobian_inverse(rotation_error) @ jacobian[3:]
         return error, jacobian
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         return self._error_and_jacobian(configuration)[0]
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         return self._error_and_jacobian(configuration)[1]
 
-    def compute_qp_residual(
+    def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
         return self._weighted_residual(*self._error_and_jacobian(configuration))

@@ -14,6 +14,11 @@ import numpy as np
 from ..configuration import Configuration, FrameType
 from ..errors import mink_errors_as_qpik
 
+# These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
+# their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
+# ``type: ignore[override]``); qpik's entry points (qpik.mink_api) turn a mink
+# configuration into a qpik one before any task sees it.
+
 
 class JointLimitDistanceTask(mink.Task):
     """Keep joints away from their limits.
@@ -29,14 +34,14 @@ class JointLimitDistanceTask(mink.Task):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import joint_limit_distance
 
         return np.array(
             [joint_limit_distance(configuration.q, configuration.lower, configuration.upper)]
         )
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import joint_limit_distance_gradient
 
         gradient = joint_limit_distance_gradient(
@@ -69,7 +74,7 @@ class ManipulabilityTask(mink.Task):
         self.frame_type = FrameType.parse(frame_type)
         self.rows = rows
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import manipulability
 
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
@@ -77,7 +82,7 @@ class ManipulabilityTask(mink.Task):
             jacobian = jacobian[:3]
         return np.array([-manipulability(jacobian)])
 
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import manipulability_gradient
 
         gradient = manipulability_gradient(
