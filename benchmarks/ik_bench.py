@@ -59,11 +59,15 @@ import mujoco
 import numpy as np
 from ik_methods import (
     METHODS,
+    PEERS,
     MethodUnavailable,
     Outcome,
     PinocchioRobot,
+    UrdfChain,
     available_methods,
+    peer_methods,
     pinocchio_robot,
+    urdf_chain,
 )
 from scipy.spatial.transform import Rotation
 
@@ -81,6 +85,7 @@ __all__ = [
     "TRACIK_PUBLISHED",
     "IKProtocol",
     "check_goals",
+    "check_peer_goals",
     "DEFAULT_N",
     "LIMIT_TOL",
     "METHODS",
@@ -88,7 +93,11 @@ __all__ = [
     "MethodUnavailable",
     "Outcome",
     "PinocchioRobot",
+    "PEERS",
+    "UrdfChain",
     "available_methods",
+    "peer_methods",
+    "urdf_chain",
     "default_robots",
     "format_table",
     "pinocchio_robot",
@@ -393,15 +402,15 @@ def _bind(model, frame, frame_type, robot, methods, criterion):
     for name in methods:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            keywords = {
+                "robot": robot,
+                "tol_position": criterion.tol_position,
+                "tol_orientation": criterion.tol_orientation,
+            }
+            if getattr(METHODS[name], "per_axis", False):  # TRAC-IK: its epsilon is per axis
+                keywords["per_axis"] = criterion.per_axis
             try:
-                bound[name] = METHODS[name](
-                    model,
-                    frame,
-                    frame_type,
-                    robot=robot,
-                    tol_position=criterion.tol_position,
-                    tol_orientation=criterion.tol_orientation,
-                )
+                bound[name] = METHODS[name](model, frame, frame_type, **keywords)
             except MethodUnavailable as exc:
                 skipped[name] = exc.reason
         if caught:
@@ -531,7 +540,7 @@ def format_table(results: dict) -> str:
     figures beside the robots it published (under its own protocol)."""
     protocol = results["protocol"]
     header = (
-        f"{'robot':<19} {'DoF':>4} {'frame':<22} {'method':<6} {'success':>22} "
+        f"{'robot':<19} {'DoF':>4} {'frame':<22} {'method':<7} {'success':>22} "
         f"{'1st try':>7} {'mean ms':>7} {'median ms':>9} {'p95 ms':>7} {'iters':>6} "
         f"{'limit viol':>10}"
     )
@@ -555,7 +564,7 @@ def format_table(results: dict) -> str:
             success = f"{100 * s['success_rate']:.2f}% ({s['successes']}/{s['n']})"
             first = f"{100 * s['first_attempt_successes'] / s['n']:.1f}%"
             line = (
-                f"{robot:<19} {dof:>4} {entry['frame'][:22]:<22} {method:<6} {success:>22} "
+                f"{robot:<19} {dof:>4} {entry['frame'][:22]:<22} {method:<7} {success:>22} "
                 f"{first:>7} {s['mean_ms']:>7.3f} {s['median_ms']:>9.3f} {s['p95_ms']:>7.3f} "
                 f"{s['mean_iterations']:>6.1f} {s['limit_violations']:>10d}"
             )
@@ -623,6 +632,65 @@ def check_goals(headline: dict, second: dict | None = None, method: str = "qpik"
                     f"{robot}: {100 * s['success_rate']:.2f}% under the second protocol "
                     "(goal 100.0%)",
                 )
+    return lines
+
+
+#: Issue 20's goals under the TRAC-IK protocol: success on these arms, qpik's mean [ms], the
+#: ratio of its mean to ik_LM's, and of the one-shot qpik.solve's mean to the session's.
+PEER_GOAL_ROBOTS = ("erd:panda", "erd:ur5", "erd:xarm7", "erd:kinova")
+PEER_GOAL_SUCCESS = 0.9995
+PEER_GOAL_MEAN_MS = 0.12
+PEER_GOAL_RTB_RATIO = 0.5
+PEER_GOAL_ONESHOT_RATIO = 1.2
+
+
+def check_peer_goals(headline: dict) -> list[str]:
+    """Issue 20's goals, each as ``"met: ..."`` or ``"MISSED: ..."``, on the arms of
+    :data:`PEER_GOAL_ROBOTS` in ``headline`` (the TRAC-IK protocol): qpik (the session)
+    >= 99.95 % success, mean <= 0.12 ms and <= half of ``rtb_lm``'s mean; ``oneshot``
+    (qpik.solve) mean <= 1.2x the session's. Also, beside them, TRAC-IK's figures."""
+    lines = []
+
+    def verdict(ok: bool, text: str) -> None:
+        lines.append(("met: " if ok else "MISSED: ") + text)
+
+    for robot in PEER_GOAL_ROBOTS:
+        entry = headline["robots"].get(robot)
+        if entry is None or "qpik" not in entry["methods"]:
+            continue
+        methods = entry["methods"]
+        s = methods["qpik"]
+        verdict(
+            s["success_rate"] >= PEER_GOAL_SUCCESS,
+            f"{robot}: qpik success {100 * s['success_rate']:.2f}% >= "
+            f"{100 * PEER_GOAL_SUCCESS:.2f}%",
+        )
+        verdict(
+            s["mean_ms"] <= PEER_GOAL_MEAN_MS,
+            f"{robot}: qpik mean {s['mean_ms']:.3f} ms <= {PEER_GOAL_MEAN_MS} ms",
+        )
+        if "rtb_lm" in methods:
+            ratio = s["mean_ms"] / methods["rtb_lm"]["mean_ms"]
+            verdict(
+                ratio <= PEER_GOAL_RTB_RATIO,
+                f"{robot}: qpik mean / ik_LM mean {ratio:.2f} <= {PEER_GOAL_RTB_RATIO} "
+                f"(ik_LM {methods['rtb_lm']['mean_ms']:.3f} ms, "
+                f"{100 * methods['rtb_lm']['success_rate']:.2f}%)",
+            )
+        if "tracik" in methods:
+            t = methods["tracik"]
+            lines.append(
+                f"beside: {robot}: TRAC-IK {100 * t['success_rate']:.2f}% mean "
+                f"{t['mean_ms']:.3f} ms; qpik mean / TRAC-IK mean "
+                f"{s['mean_ms'] / t['mean_ms']:.2f}"
+            )
+        if "oneshot" in methods:
+            ratio = methods["oneshot"]["mean_ms"] / s["mean_ms"]
+            verdict(
+                ratio <= PEER_GOAL_ONESHOT_RATIO,
+                f"{robot}: qpik.solve (one-shot) mean / IKSession mean {ratio:.2f} <= "
+                f"{PEER_GOAL_ONESHOT_RATIO} ({methods['oneshot']['mean_ms']:.3f} ms)",
+            )
     return lines
 
 

@@ -1,14 +1,34 @@
 """The methods of the IK success benchmark (:mod:`ik_bench`), each bound to a robot and a
-frame: qpik (:func:`qpik.IKSession.solve`), the lecture's IGM with the pseudoinverse or damped
+frame: qpik (:func:`qpik.IKSession.solve`, and ``oneshot``: :func:`qpik.solve` called with
+the model each time, no session), the lecture's IGM with the pseudoinverse or damped
 least squares (:mod:`qpik.baselines`), mink and pink. mink and pink run their
 ``solve_ik`` as the step rule of the same restart loop (:func:`qpik.baselines.igm`), so the
 comparison isolates the step rule; pink runs on the robot as pinocchio loads it
 (:class:`PinocchioRobot` maps the joint orders and checks the two models agree).
+
+The whole-IK peers (issue 20), each with its own restarts and stopping rule, built from the
+same URDF file as qpik's ``erd:`` robot (:class:`UrdfChain`: the chain from the URDF's root
+link to the tool frame, its joints mapped to MuJoCo's by name, forward kinematics checked to
+agree with MuJoCo's to 1e-9 at four configurations):
+
+* ``tracik``: TRAC-IK (``pytracik``, C++: KDL's Newton and SQP run concurrently, random
+  restarts), solve type Speed, its timeout the protocol's budget, its epsilon the protocol's
+  tolerance (TRAC-IK's own per-axis check). pytracik 0.0.3 reads every joint limit of the
+  URDF as 0 (its getters return zeros and every solve fails), so the limits are set from
+  the model (the same URDF values; unlimited joints as TRAC-IK's continuous ones).
+* ``rtb_lm``: the Robotics Toolbox's C++ ``ETS.ik_LM`` (Levenberg-Marquardt, method
+  ``chan``, its defaults: 30 iterations a search, 100 searches, joint limits enforced), its
+  residual tolerance ``E = 0.5 |e|^2 <= 0.5 tol^2`` (implies the per-axis and the norm
+  criteria). It has no time budget: the harness judges its wall time.
+
+Both skip (:class:`MethodUnavailable`) a robot that is not a URDF (the bundled MJCF ones),
+or when their package is missing (``pip install 'qpik[compare]'``).
 """
 
 from __future__ import annotations
 
 import warnings
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +38,7 @@ import mujoco
 import numpy as np
 
 from qpik import IKSession
+from qpik import solve as qpik_solve
 from qpik.baselines import damped_least_squares_igm, igm, pseudoinverse_igm
 from qpik.configuration import Configuration, FrameType
 from qpik.errors import QpikError
@@ -411,6 +432,218 @@ def _pink(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str |
     return {"step": step, "set_target": set_target}
 
 
+def _oneshot(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str | None) -> dict:
+    """qpik's one-shot :func:`qpik.solve`, given the model on every call (no session)."""
+
+    def solve(_configuration, frame, position, rotation, *, frame_type, **options):
+        return qpik_solve(model, {(frame, frame_type): (position, rotation)}, **options)
+
+    return {"igm_function": solve}
+
+
+# ------------------------------------------------------------------ whole-IK peers (URDF)
+@dataclass
+class UrdfChain:
+    """The serial chain of a URDF from its root link to ``tip``, beside qpik's model of it.
+
+    Attributes:
+        source: the URDF file (the one qpik's ``erd:`` robot is loaded from).
+        base: the chain's first link (the URDF's root: MuJoCo's world frame).
+        tip: the tool link.
+        joints: the chain's moving joints, base to tip.
+        qpos: their addresses in MuJoCo's ``qpos``.
+        lower, upper: their limits in qpik's model ([-inf, inf] where unlimited).
+    """
+
+    source: Path
+    base: str
+    tip: str
+    joints: list[str]
+    qpos: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def to_mujoco(self, q_chain: np.ndarray, q0: np.ndarray) -> np.ndarray:
+        """``q0`` with the chain's joints set to ``q_chain`` (other joints: fingers, kept)."""
+        q = np.array(q0, dtype=float)
+        q[self.qpos] = q_chain
+        return q
+
+
+def urdf_chain(
+    method: str, robot: str | None, model: mujoco.MjModel, frame: str, frame_type: FrameType
+) -> UrdfChain:
+    """The :class:`UrdfChain` of ``robot`` to ``frame`` (a body: a URDF link), or
+    :class:`MethodUnavailable` saying why there is none."""
+    if robot is None:
+        raise MethodUnavailable(method, robot, "it loads the URDF file, and got no robot name")
+    try:
+        source = locate_robot(robot)
+    except (QpikError, ValueError) as exc:
+        raise MethodUnavailable(method, robot, str(exc)) from exc
+    if source.suffix.lower() != ".urdf":
+        raise MethodUnavailable(method, robot, f"it needs a URDF, and {source.name} is not one")
+    if FrameType.parse(frame_type) is not FrameType.BODY:
+        raise MethodUnavailable(method, robot, f"frame {frame!r} is not a body (URDF link)")
+    parent = {j.find("child").get("link"): j for j in ET.parse(source).getroot().findall("joint")}
+    joints, link = [], frame
+    while link in parent:
+        joint = parent[link]
+        if joint.get("type") not in ("fixed", "floating", "planar"):
+            joints.append(joint.get("name"))
+        link = joint.find("parent").get("link")
+    joints.reverse()
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+    missing = [name for name in joints if name not in names]
+    if missing or not joints:
+        raise MethodUnavailable(method, robot, f"chain joints {missing or joints} not in the model")
+    configuration = Configuration(model)
+    qpos = np.array([model.jnt_qposadr[names.index(name)] for name in joints])
+    return UrdfChain(
+        source, link, frame, joints, qpos, configuration.lower[qpos], configuration.upper[qpos]
+    )
+
+
+def _check_fk(method, robot, model, chain: UrdfChain, frame, frame_type, fk) -> None:
+    """``fk(q_chain) -> (position, rotation)`` agrees with MuJoCo's pose of the frame at the
+    mid-range and three random configurations (1e-9), else :class:`MethodUnavailable`."""
+    configuration = Configuration(model)
+    rng = np.random.default_rng(0)
+    for q in [configuration.mid_q()] + [configuration.random_q(rng) for _ in range(3)]:
+        configuration.update(q)
+        position, rotation = configuration.frame_pose(frame, frame_type)
+        theirs = fk(q[chain.qpos])
+        if not (
+            np.allclose(theirs[0], position, rtol=0.0, atol=1e-9)
+            and np.allclose(theirs[1], rotation, rtol=0.0, atol=1e-9)
+        ):
+            raise MethodUnavailable(
+                method, robot, f"its forward kinematics of {frame!r} differs from MuJoCo's"
+            )
+
+
+def _quaternion_xyzw(rotation: np.ndarray) -> np.ndarray:
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation, dtype=float).ravel())
+    return quat[[1, 2, 3, 0]]  # MuJoCo's (w, x, y, z) -> (x, y, z, w)
+
+
+def _tracik(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    *,
+    robot: str | None = None,
+    tol_position: float,
+    tol_orientation: float,
+    per_axis: bool = True,
+) -> Method:
+    """TRAC-IK (``pytracik``) on the URDF chain to ``frame``; see the module docstring.
+    TRAC-IK's epsilon bounds each axis: under a criterion on norms (``per_axis`` false) it is
+    the tolerance / sqrt(3), so that its answers meet the norms."""
+    try:
+        import pytracik
+    except ImportError as exc:
+        raise MethodUnavailable(
+            "tracik", robot, "pytracik is not installed: pip install 'qpik[compare]'"
+        ) from exc
+    chain = urdf_chain("tracik", robot, model, frame, frame_type)
+    text = chain.source.read_text()
+    epsilon = min(tol_position, tol_orientation) / (1.0 if per_axis else np.sqrt(3.0))
+    big = float(np.finfo(np.float32).max) * 2.0  # unlimited: TRAC-IK's continuous joint
+    lower = [float(x) if np.isfinite(x) else -big for x in chain.lower]
+    upper = [float(x) if np.isfinite(x) else big for x in chain.upper]
+    solvers: dict = {}
+
+    def solver(budget: float | None):
+        timeout = 1.0 if budget is None else float(budget)
+        if timeout not in solvers:
+            instance = pytracik.TRAC_IK(
+                chain.base, chain.tip, text, timeout, epsilon, pytracik.SolveType.Speed
+            )
+            pytracik.set_joint_limits(instance, lower, upper)
+            solvers[timeout] = instance
+        return solvers[timeout]
+
+    def fk(q_chain):
+        pose = pytracik.fk(solver(None), np.asarray(q_chain, dtype=float))
+        return pose[:3, 3], pose[:3, :3]
+
+    _check_fk("tracik", robot, model, chain, frame, frame_type, fk)
+    n = len(chain.joints)
+
+    def run(position, rotation, q0, rng, budget):
+        x, y, z, w = _quaternion_xyzw(rotation)
+        seed = np.ascontiguousarray(q0[chain.qpos], dtype=float)
+        out = pytracik.ik(solver(budget), seed, *map(float, position), x, y, z, w)
+        if out[0] < 0:  # no solution: the start, as a failure
+            return Outcome(np.array(q0, dtype=float), 0, 0, "tracik_failed")
+        return Outcome(chain.to_mujoco(out[1 : 1 + n], q0), 0, 0, "converged")
+
+    return run
+
+
+def _rtb_lm(
+    model: mujoco.MjModel,
+    frame: str,
+    frame_type: FrameType,
+    *,
+    robot: str | None = None,
+    tol_position: float,
+    tol_orientation: float,
+) -> Method:
+    """The Robotics Toolbox's C++ ``ETS.ik_LM`` on the URDF chain to ``frame``."""
+    try:
+        import roboticstoolbox as rtb
+        import xacrodoc.packages
+    except ImportError as exc:
+        raise MethodUnavailable(
+            "rtb_lm", robot, f"{exc.name} is not installed: pip install 'qpik[compare]'"
+        ) from exc
+    chain = urdf_chain("rtb_lm", robot, model, frame, frame_type)
+    # The Toolbox expands the URDF with xacro, which must resolve package:// URIs.
+    for folder in chain.source.parents:
+        if folder.name == "example-robot-data":
+            xacrodoc.packages.update_package_cache({"example-robot-data": str(folder)})
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ets = rtb.Robot.URDF(str(chain.source)).ets(start=chain.base, end=chain.tip)
+    except Exception as exc:  # the Toolbox's parsers raise many kinds
+        raise MethodUnavailable("rtb_lm", robot, f"the Toolbox cannot load it: {exc}") from exc
+    if ets.n != len(chain.joints):
+        raise MethodUnavailable(
+            "rtb_lm", robot, f"its chain has {ets.n} joints, not {len(chain.joints)}"
+        )
+
+    def fk(q_chain):
+        pose = np.asarray(ets.fkine(np.asarray(q_chain, dtype=float)).A)
+        return pose[:3, 3], pose[:3, :3]
+
+    _check_fk("rtb_lm", robot, model, chain, frame, frame_type, fk)
+    tol = 0.5 * min(tol_position, tol_orientation) ** 2
+    target = np.eye(4)
+
+    def run(position, rotation, q0, rng, budget):
+        target[:3, :3] = rotation
+        target[:3, 3] = position
+        solution = ets.ik_LM(target, q0=np.asarray(q0[chain.qpos], dtype=float), tol=tol)
+        if not solution.success:
+            return Outcome(np.array(q0, dtype=float), int(solution.iterations),
+                           int(solution.searches), "rtb_failed")  # fmt: skip
+        return Outcome(
+            chain.to_mujoco(solution.q, q0),
+            int(solution.iterations),
+            max(int(solution.searches) - 1, 0),
+            "converged",
+        )
+
+    return run
+
+
+_tracik.per_axis = True  # type: ignore[attr-defined]  # ik_bench passes the criterion's
+
+
 #: The benchmark's methods, in the table's order.
 METHODS: dict[str, MethodFactory] = {
     "qpik": _method(_qpik),
@@ -418,7 +651,20 @@ METHODS: dict[str, MethodFactory] = {
     "dls": _method(_igm(damped_least_squares_igm)),
     "mink": _method(_mink),
     "pink": _method(_pink),
+    "oneshot": _method(_oneshot),
+    "tracik": _tracik,
+    "rtb_lm": _rtb_lm,
 }
+
+#: The whole-IK peers (issue 20) and the module each needs.
+PEERS: dict[str, str] = {"tracik": "pytracik", "rtb_lm": "roboticstoolbox"}
+
+
+def peer_methods() -> list[str]:
+    """The whole-IK peers installed here (``tracik``, ``rtb_lm``)."""
+    import importlib.util
+
+    return [name for name, module in PEERS.items() if importlib.util.find_spec(module)]
 
 
 def available_methods() -> list[str]:

@@ -34,6 +34,15 @@ how much of a core it was given.
     python benchmarks/ik_success.py --robots erd:ur5 panda --n 200 --methods qpik dls
         [--skip-second] [--first-use] [--json OUT]
     python benchmarks/ik_success.py --first-use --startup-only   # only the first-use figures
+    python benchmarks/ik_success.py --robots erd:panda erd:ur5 erd:xarm7 erd:kinova \
+        --n 1000 --skip-second                       # issue 20: qpik beside TRAC-IK, ik_LM
+
+Methods (default): ``qpik`` (IKSession.solve), ``oneshot`` (qpik.solve, no session) and the
+whole-IK peers installed (``pip install 'qpik[compare]'``): ``tracik`` (TRAC-IK, pytracik)
+and ``rtb_lm`` (the Robotics Toolbox's C++ ik_LM), built from the same URDF file as qpik's
+``erd:`` robot and judged by the same checks (benchmarks/ik_methods.py); they skip the
+bundled MJCF robots. Issue 20's goals are printed after issue 11's. TRAC-IK runs two
+threads at once (KDL's Newton and an SQP): its thread CPU time counts only the calling one.
 """
 
 from __future__ import annotations
@@ -227,9 +236,10 @@ def main(argv=None) -> dict:
     parser.add_argument(
         "--methods",
         nargs="+",
-        default=["qpik"],
+        default=["qpik", "oneshot", *bench.peer_methods()],
         choices=list(bench.METHODS),
-        help="methods (default: qpik; baselines: pinv dls mink pink)",
+        help="methods (default: qpik, oneshot and the peers installed: tracik rtb_lm; "
+        "baselines: pinv dls mink pink)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the targets")
     parser.add_argument("--skip-second", action="store_true", help="only the headline")
@@ -247,6 +257,13 @@ def main(argv=None) -> dict:
     with os.popen("uptime") as stream:
         load = stream.read().strip()
     print(f"machine: {os.cpu_count()} cores; {load}")
+    found = bench.peer_methods()
+    missing = [name for name in bench.PEERS if name not in found]
+    print(
+        f"peers found: {', '.join(found) or 'none'}"
+        + (f"; missing (pip install 'qpik[compare]'): {', '.join(missing)}" if missing else "")
+        + f"; methods run: {', '.join(args.methods)}"
+    )
     if args.first_use:
         with tempfile.TemporaryDirectory() as workdir:
             startup = first_use(Path(workdir))
@@ -267,6 +284,10 @@ def main(argv=None) -> dict:
     if "qpik" in args.methods:
         print("\nGoals (issue 11), qpik:")
         print("\n".join("  " + line for line in bench.check_goals(headline, second)))
+        peer_lines = bench.check_peer_goals(headline)
+        if peer_lines:
+            print("\nGoals (issue 20), qpik beside the peers, TRAC-IK protocol:")
+            print("\n".join("  " + line for line in peer_lines))
     extra = {"fixed_cost": fixed_cost(), "startup": startup}
     f = extra["fixed_cost"]
     print(

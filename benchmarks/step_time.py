@@ -20,7 +20,25 @@ quadprog (two independent exact QP solvers) to the same reduced QP (the core's n
 basis, damping and level-above answer), on a sample of states; also the per-level
 statuses over every state.
 
+* **Issue 20, the peers** (``--peers on|off|only``; each skipped with a line when PlaCo,
+  pink, pinocchio or daqp is missing: ``pip install 'qpik[compare]'``):
+
+  - *Panda beside PlaCo and pink*: example-robot-data's Panda (the same URDF loaded by
+    qpik's MuJoCo model, PlaCo and pink; poses checked equal), a pose task on
+    ``panda_hand_tcp`` over a posture (cost 0.1), position + velocity limits (the URDF's),
+    regimes ``free`` and ``both bind``; the same states for qpik's two strict levels, PlaCo's
+    ``KinematicsSolver`` (frame task hard + posture soft; and both soft with mink's weights,
+    1 and 0.1^2, which is mink's problem), pink + daqp and mink + daqp. Besides the times:
+    each answer's frame and posture errors after the step, its largest difference from
+    qpik's dq and its velocity-limit excess; PlaCo's failures (a hard task it cannot meet
+    raises). Step times exclude each library's kinematics update before the step (printed
+    apart).
+  - *Talos, floating base*: feet held / CoM / both hands / posture, 300 closed-loop steps
+    (:func:`talos_peers`): times and task errors of qpik's four levels, PlaCo (feet hard,
+    the rest soft) and mink + daqp (one weighted level, the same weights).
+
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
+    python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
 """
 
 from __future__ import annotations
@@ -321,12 +339,532 @@ def talos(n_states: int) -> None:
     )  # fmt: skip
 
 
+# ------------------------------------------------------------------ issue 20: PlaCo, pink
+PEER_MODULES = {"placo": "placo", "pink": "pink", "pinocchio": "pinocchio", "daqp": "daqp"}
+
+
+def peers_found() -> dict:
+    """``{name: version or None}`` for PlaCo, pink, pinocchio and daqp."""
+    from importlib import metadata, util
+
+    found = {}
+    for name, module in PEER_MODULES.items():
+        if util.find_spec(module) is None:
+            found[name] = None
+            continue
+        dist = {"pink": "pin-pink", "pinocchio": "pin"}.get(name, name)
+        try:
+            found[name] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            found[name] = "?"
+    return found
+
+
+def _placo_robot(urdf):
+    """PlaCo's RobotWrapper of an example-robot-data URDF (its package:// mesh URIs made
+    absolute: PlaCo loads the meshes), no collision pairs."""
+    import placo
+
+    text = urdf.read_text()
+    for folder in urdf.parents:
+        if folder.name == "example-robot-data":
+            text = text.replace("package://example-robot-data/", f"{folder}/")
+    return placo.RobotWrapper(str(urdf.parent), placo.Flags.ignore_collisions, text)
+
+
+class _PlacoMap:
+    """MuJoCo <-> PlaCo (pinocchio) configurations and velocities, joints matched by name;
+    with ``floating``, MuJoCo's free joint (x, y, z, qw, qx, qy, qz) and pinocchio's
+    free-flyer (x, y, z, qx, qy, qz, qw)."""
+
+    def __init__(self, model, robot, floating: bool):
+        import mujoco
+
+        self.floating = floating
+        self.mj_q, self.pl_q, self.mj_v, self.pl_v, self.names = [], [], [], [], []
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                continue
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+            self.names.append(name)
+            self.mj_q.append(model.jnt_qposadr[j])
+            self.pl_q.append(robot.get_joint_offset(name))
+            self.mj_v.append(model.jnt_dofadr[j])
+            self.pl_v.append(robot.get_joint_v_offset(name))
+        self.mj_q, self.pl_q = np.array(self.mj_q), np.array(self.pl_q)
+        self.mj_v, self.pl_v = np.array(self.mj_v), np.array(self.pl_v)
+        self.nq, self.nv = robot.model.nq, robot.model.nv
+
+    def to_placo(self, q):
+        out = np.zeros(self.nq)
+        out[6] = 1.0  # identity free-flyer (masked when the base is fixed)
+        if self.floating:
+            out[:3] = q[:3]
+            out[3:7] = q[[4, 5, 6, 3]]
+        out[self.pl_q] = q[self.mj_q]
+        return out
+
+    def to_mujoco(self, q_placo, nq):
+        out = np.zeros(nq)
+        if self.floating:
+            out[:3] = q_placo[:3]
+            out[3:7] = q_placo[[6, 3, 4, 5]]
+        out[self.mj_q] = q_placo[self.pl_q]
+        return out
+
+    def dq_to_mujoco(self, dq, nv):
+        out = np.zeros(nv)
+        out[self.mj_v] = dq[self.pl_v]
+        return out
+
+
+def _pose(position, rotation):
+    T = np.eye(4)
+    T[:3, :3] = rotation
+    T[:3, 3] = position
+    return T
+
+
+def _rotvec_error(rotation, target):
+    from scipy.spatial.transform import Rotation
+
+    return float(np.linalg.norm(Rotation.from_matrix(rotation @ target.T).as_rotvec()))
+
+
+def _report_peers(title, times, references, extra=None) -> None:
+    """Medians [us] and the ratios of each method's median to each reference's."""
+    print(f"\n{title}")
+    head = f"  {'method':40s} {'median us':>10s} {'p95 us':>9s}"
+    head += "".join(f" {'/' + short:>11s}" for short in references.values())
+    print(head)
+    for name, t in times.items():
+        median = float(np.median(t))
+        line = f"  {name:40s} {median:10.1f} {np.percentile(t, 95):9.1f}"
+        for ref in references:
+            line += f" {median / float(np.median(times[ref])):11.2f}"
+        if extra and name in extra:
+            line += f"   {extra[name]}"
+        print(line)
+
+
+def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both bind")) -> None:
+    """Panda (example-robot-data's URDF, 9 DoF), a pose task over a posture, position and
+    velocity limits: qpik's two strict levels, PlaCo (frame task hard, posture soft; and
+    both soft with mink's weights), pink + daqp and mink + daqp (one weighted level: pose
+    cost 1, posture cost 0.1), on the same states, interleaved in blocks."""
+    import pink
+    import pinocchio
+    import placo
+    from ik_methods import pinocchio_robot
+    from pink.limits import ConfigurationLimit as PinkConfigurationLimit
+    from pink.limits import VelocityLimit as PinkVelocityLimit
+
+    from qpik.robots import locate_robot
+
+    robot_name, frame = "erd:panda", "panda_hand_tcp"
+    model = qpik.load_robot(robot_name)
+    urdf = locate_robot(robot_name)
+    configuration = qpik.Configuration(model)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    home = configuration.mid_q()
+
+    ours = (
+        FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
+        PostureTask(model, 0.1),
+    )
+    auto = qpik.IKSolver(model, [[ours[0]], [ours[1]]], limits)
+    theirs = (mink.FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
+              mink.PostureTask(model, 0.1))  # fmt: skip
+
+    robot_pin = pinocchio_robot(robot_name, model, frame, "body")
+    pink_configuration = pink.Configuration(
+        robot_pin.model, robot_pin.model.createData(), robot_pin.q_to_pinocchio(home)
+    )
+    pink_tasks = [pink.FrameTask(frame, position_cost=1.0, orientation_cost=1.0),
+                  pink.PostureTask(cost=0.1)]  # fmt: skip
+    pink_limits = [PinkConfigurationLimit(robot_pin.model), PinkVelocityLimit(robot_pin.model)]
+
+    def placo_solver(frame_priority: str):
+        robot = _placo_robot(urdf)
+        solver = placo.KinematicsSolver(robot)
+        solver.mask_fbase(True)
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        solver.dt = DT
+        task = solver.add_frame_task(frame, np.eye(4))
+        task.configure("frame", frame_priority, 1.0, 1.0)
+        posture = solver.add_joints_task()
+        posture.configure("posture", "soft", 0.01)  # mink's cost 0.1, squared
+        return robot, solver, task, posture
+
+    placos = {"hard": placo_solver("hard"), "soft": placo_solver("soft")}
+    mapping = _PlacoMap(model, placos["hard"][0], floating=False)
+    # The same pose of the frame in both models at the start.
+    robot = placos["hard"][0]
+    robot.state.q = mapping.to_placo(home)
+    robot.update_kinematics()
+    configuration.update(home)
+    gap = np.abs(
+        robot.get_T_world_frame(frame)[:3, 3] - configuration.frame_pose(frame, "body")[0]
+    ).max()
+    assert gap < 1e-9, f"PlaCo's and MuJoCo's {frame} differ by {gap} m"
+
+    def random_states(regime):
+        from scipy.spatial.transform import Rotation
+
+        states = []
+        for _ in range(n_states):
+            q = np.clip(
+                home + rng.uniform(-0.6, 0.6, model.nv), configuration.lower, configuration.upper
+            )
+            configuration.update(q)
+            p, R = configuration.frame_pose(frame, "body")
+            far = regime == "both bind"
+            p = p + rng.uniform(-1, 1, 3) * (0.3 if far else 0.001)
+            R = (
+                Rotation.from_rotvec(rng.uniform(-1, 1, 3) * (0.5 if far else 0.001)).as_matrix()
+                @ R
+            )
+            move = rng.uniform(-1.5, 1.5, model.nv) if far else 1e-4
+            posture = np.clip(q + move, configuration.lower, configuration.upper)
+            states.append((q, p, R, posture))
+        return states
+
+    def set_state(state):
+        q, p, R, posture = state
+        configuration.update(q)
+        se3 = mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p)
+        for task, post in (ours, theirs):
+            task.set_target(se3)
+            post.set_target(posture)
+        pink_configuration.update(robot_pin.q_to_pinocchio(q))
+        pink_tasks[0].set_target(pin_se3(R, p))
+        pink_tasks[1].set_target(robot_pin.q_to_pinocchio(posture))
+        joints = {name: float(posture[a]) for name, a in zip(mapping.names, mapping.mj_q)}
+        for robot, _solver, task, post in placos.values():
+            robot.state.q = mapping.to_placo(q)
+            robot.update_kinematics()
+            task.T_world_frame = _pose(p, R)
+            post.set_joints(joints)
+        return configuration
+
+    def pin_se3(R, p):
+        return pinocchio.SE3(np.asarray(R, float), np.asarray(p, float))
+
+    failures = {}
+
+    def placo_step(kind):
+        solver = placos[kind][1]
+
+        def step(_c):
+            try:
+                return solver.solve(True)
+            except Exception:  # infeasible hard task: PlaCo raises (QPError)
+                failures[kind] = failures.get(kind, 0) + 1
+                return None
+
+        return step
+
+    names = {
+        "qpik": "qpik IKSolver.step, 2 strict levels",
+        "hard": "PlaCo solve(True), frame hard/posture soft",
+        "soft": "PlaCo solve(True), both soft (mink's w)",
+        "pink": "pink + daqp, 1 weighted level",
+        "mink": "mink + daqp, 1 weighted level",
+    }
+    methods = {
+        names["qpik"]: lambda c: auto.step(c, DT),
+        names["hard"]: placo_step("hard"),
+        names["soft"]: placo_step("soft"),
+        names["pink"]: lambda c: pink.solve_ik(
+            pink_configuration, pink_tasks, DT, solver="daqp", damping=1e-6, limits=pink_limits
+        ),
+        names["mink"]: lambda c: mink.solve_ik(
+            c, list(theirs), DT, "daqp", damping=1e-6, limits=limits
+        ),
+    }
+
+    def answers(state):
+        """Each method's dq (MuJoCo's order) at the state, untimed; None where it failed."""
+        out = {}
+        c = set_state(state)
+        out[names["qpik"]] = auto.step(c, DT).velocity * DT
+        for kind in ("hard", "soft"):
+            c = set_state(state)
+            try:
+                out[names[kind]] = mapping.dq_to_mujoco(placos[kind][1].solve(False), model.nv)
+            except Exception:
+                out[names[kind]] = None
+        c = set_state(state)
+        v = pink.solve_ik(
+            pink_configuration, pink_tasks, DT, solver="daqp", damping=1e-6, limits=pink_limits
+        )
+        out[names["pink"]] = robot_pin.v_to_mujoco(v) * DT
+        c = set_state(state)
+        out[names["mink"]] = (
+            mink.solve_ik(c, list(theirs), DT, "daqp", damping=1e-6, limits=limits) * DT
+        )
+        return out
+
+    print(
+        f"\nPanda (erd:panda URDF, nv = {model.nv}; PlaCo, pink and qpik's MuJoCo model load the "
+        f"same file), pose task on {frame} + posture (cost 0.1), position + velocity limits, "
+        f"dt = {DT} s; found: " + ", ".join(f"{k} {v}" for k, v in peers_found().items())
+    )
+    for regime in regimes:
+        states = random_states(regime)
+        failures.clear()
+        times = time_methods(methods, states, set_state)
+        # Answers: the frame's error after the step (FK of q + dq), the posture's, and the
+        # largest difference from qpik's dq; the velocity limits' largest excess.
+        vmax = limits[1].limit * DT
+        stats = {name: [] for name in methods}
+        for state in states[:: max(1, len(states) // 100)]:
+            q, p, R, posture = state
+            dqs = answers(state)
+            for name, dq in dqs.items():
+                if dq is None:
+                    continue
+                qn = q + dq  # hinge joints, fixed base
+                configuration.update(np.clip(qn, configuration.lower, configuration.upper))
+                pn, Rn = configuration.frame_pose(frame, "body")
+                stats[name].append((
+                    1e3 * np.linalg.norm(pn - p), 1e3 * _rotvec_error(Rn, R),
+                    float(np.linalg.norm(qn - posture)),
+                    float(np.abs(dq - dqs[names["qpik"]]).max()),
+                    float(max(0.0, (np.abs(dq[limits[1].indices]) - vmax).max())),
+                ))  # fmt: skip
+        extra = {}
+        for name, rows in stats.items():
+            if not rows:
+                extra[name] = "failed on every sampled state"
+                continue
+            a = np.array(rows)
+            extra[name] = (
+                f"after the step: frame {a[:, 0].mean():.3f} mm {a[:, 1].mean():.3f} mrad, "
+                f"posture {a[:, 2].mean():.3f} rad, |dq - qpik's| max {a[:, 3].max():.1e}, "
+                f"velocity excess max {a[:, 4].max():.1e}"
+            )
+        for kind in ("hard", "soft"):
+            if failures.get(kind):
+                extra[names[kind]] += (
+                    f", FAILED (raised) on {failures[kind]} of {len(states)} timed steps"
+                )
+        refs = {names["hard"]: "PlaCo hard", names["soft"]: "PlaCo soft", names["mink"]: "mink"}
+        _report_peers(
+            f"  regime '{regime}', {len(states)} states (per-step wall time; ratio: median / "
+            "the reference's)", times, refs, extra,
+        )  # fmt: skip
+    _print_update_costs(
+        configuration, home, placos["hard"][0], mapping, pink_configuration, robot_pin
+    )
+
+
+def _print_update_costs(configuration, q, robot, mapping, pink_configuration=None, robot_pin=None):
+    """The kinematics updates before a step (not counted in the step times above)."""
+    rows = {"qpik/mink Configuration.update": lambda: configuration.update(q)}
+    q_placo = mapping.to_placo(q)
+
+    def placo_update():
+        robot.state.q = q_placo
+        robot.update_kinematics()
+
+    rows["PlaCo update_kinematics"] = placo_update
+    if pink_configuration is not None:
+        q_pin = robot_pin.q_to_pinocchio(q)
+        rows["pink Configuration.update"] = lambda: pink_configuration.update(q_pin)
+    medians = {}
+    for name, call in rows.items():
+        t = []
+        for _ in range(300):
+            t0 = time.perf_counter()
+            call()
+            t.append(time.perf_counter() - t0)
+        medians[name] = 1e6 * float(np.median(t))
+    print(
+        "  kinematics update before a step (not in the step times): "
+        + ", ".join(f"{name} {value:.1f} us" for name, value in medians.items())
+    )
+
+
+def talos_peers(n_steps: int = 300) -> None:
+    """Talos (example-robot-data, floating base), feet held (6-D) / CoM swaying between the
+    feet / both hands (position; from the middle on the left hand's target is 0.6 m away, out
+    of reach) / posture, position and velocity limits, each method in its own closed loop at
+    100 Hz from half_sitting, stepped in lockstep (the order rotating): qpik's four strict
+    levels; PlaCo with its two (feet hard; CoM, hands and posture soft, weights 100, 1,
+    0.01); mink + daqp's one weighted level (costs 10, 10, 1, 0.1: the same weights). Task
+    errors are measured by MuJoCo's kinematics at each method's configuration after each
+    step."""
+    import placo
+
+    from qpik.robots import locate_robot
+    from qpik.tasks import ComTask
+
+    model = qpik.load_robot("erd:talos", floating_base=True)
+    urdf = locate_robot("erd:talos")
+    home = model.key_qpos[0].copy()
+    feet = ("left_sole_link", "right_sole_link")
+    hands = ("gripper_left_base_link", "gripper_right_base_link")
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    probe = qpik.Configuration(model, home)
+    foot_poses = [probe.frame_pose(f, "body") for f in feet]
+    com0 = probe.data.subtree_com[1].copy()
+    hand_starts = [probe.frame_pose(h, "body")[0] for h in hands]
+    half = 0.5 * abs(foot_poses[0][0][1] - foot_poses[1][0][1])
+
+    def targets_at(k):
+        com = com0 + np.array([0.0, 0.5 * half * np.sin(2 * np.pi * k / n_steps), 0.0])
+        angle = 2 * np.pi * k / 100
+        circle = 0.05 * np.array([0.0, np.cos(angle) - 1.0, np.sin(angle)])
+        away = np.array([0.6, 0.3, 0.2]) if k >= n_steps // 2 else np.zeros(3)
+        return com, [hand_starts[0] + circle + away, hand_starts[1] + circle]
+
+    def stack(kind):
+        F = FrameTask if kind == "qpik" else mink.FrameTask
+        C = ComTask if kind == "qpik" else mink.ComTask
+        P = PostureTask if kind == "qpik" else mink.PostureTask
+        w = 1.0 if kind == "qpik" else 10.0  # qpik: levels, not weights
+        foot = [F(f, "body", position_cost=w, orientation_cost=w) for f in feet]
+        for task, (p, R) in zip(foot, foot_poses):
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p))
+        hand = [F(h, "body", position_cost=1.0, orientation_cost=0.0) for h in hands]
+        posture = P(model, 0.1)
+        posture.set_target(home)
+        return [foot, [C(w)], hand, [posture]]
+
+    def set_targets(levels, k):
+        com, hand_targets = targets_at(k)
+        levels[1][0].set_target(com)
+        for task, target in zip(levels[2], hand_targets):
+            task.set_target(mink.SE3.from_translation(target))
+
+    ours, theirs = stack("qpik"), stack("mink")
+    auto = qpik.IKSolver(model, ours, limits)
+    flat = [t for level in theirs for t in level]
+
+    robot = _placo_robot(urdf)
+    mapping = _PlacoMap(model, robot, floating=True)
+    solver = placo.KinematicsSolver(robot)
+    solver.enable_joint_limits(True)
+    solver.enable_velocity_limits(True)
+    solver.dt = DT
+    placo_feet = []
+    for f, (p, R) in zip(feet, foot_poses):
+        task = solver.add_frame_task(f, _pose(p, R))
+        task.configure(f, "hard", 1.0, 1.0)
+        placo_feet.append(task)
+    placo_com = solver.add_com_task(com0)
+    placo_com.configure("com", "soft", 100.0)
+    placo_hands = []
+    for h, p in zip(hands, hand_starts):
+        task = solver.add_position_task(h, p)
+        task.configure(h, "soft", 1.0)
+        placo_hands.append(task)
+    placo_posture = solver.add_joints_task()
+    placo_posture.set_joints({n: float(home[a]) for n, a in zip(mapping.names, mapping.mj_q)})
+    placo_posture.configure("posture", "soft", 0.01)
+    robot.state.q = mapping.to_placo(home)
+    robot.update_kinematics()
+    gaps = [
+        np.abs(robot.get_T_world_frame(f)[:3, 3] - probe.frame_pose(f, "body")[0]).max()
+        for f in feet + hands
+    ]
+    assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
+
+    configs = {"qpik": qpik.Configuration(model, home), "mink": qpik.Configuration(model, home)}
+    label = {
+        "qpik": "qpik IKSolver.step, 4 strict levels",
+        "placo": "PlaCo solve(True), feet hard + 3 soft",
+        "mink": "mink + daqp, 1 weighted level",
+    }
+    times = {name: [] for name in label.values()}
+    errors = {name: [] for name in label.values()}
+    failed = dict.fromkeys(label.values(), 0)
+    measure = qpik.Configuration(model, home)
+
+    def step(name, k):
+        if name == "placo":
+            com, hand_targets = targets_at(k)
+            placo_com.target_world = com
+            for task, target in zip(placo_hands, hand_targets):
+                task.target_world = target
+            t0 = time.perf_counter()
+            try:
+                solver.solve(True)
+            except Exception:
+                failed[label[name]] += 1
+            elapsed = time.perf_counter() - t0
+            robot.update_kinematics()
+            return elapsed, mapping.to_mujoco(robot.state.q, model.nq)
+        c = configs[name]
+        set_targets(ours if name == "qpik" else theirs, k)
+        t0 = time.perf_counter()
+        if name == "qpik":
+            v = auto.step(c, DT).velocity
+        else:
+            v = mink.solve_ik(c, flat, DT, "daqp", damping=1e-6, limits=limits)
+        elapsed = time.perf_counter() - t0
+        c.update(c.integrate(v, DT))
+        return elapsed, c.q
+
+    order = list(label)
+    for k in range(n_steps):
+        com, hand_targets = targets_at(k)
+        for i in range(len(order)):
+            name = order[(k + i) % len(order)]
+            elapsed, q = step(name, k)
+            times[label[name]].append(elapsed)
+            measure.update(q)
+            foot_err = max(
+                max(1e3 * np.linalg.norm(measure.frame_pose(f, "body")[0] - p),
+                    1e3 * _rotvec_error(measure.frame_pose(f, "body")[1], R))
+                for f, (p, R) in zip(feet, foot_poses)
+            )  # fmt: skip
+            com_err = 1e3 * np.linalg.norm(measure.data.subtree_com[1] - com)
+            hand_err = [
+                1e3 * np.linalg.norm(measure.frame_pose(h, "body")[0] - t)
+                for h, t in zip(hands, hand_targets)
+            ]
+            errors[label[name]].append((foot_err, com_err, *hand_err))
+    extra = {}
+    h = n_steps // 2
+    for name, rows in errors.items():
+        a = np.array(rows)
+        extra[name] = (
+            f"feet {a[:, 0].mean():.3f} (max {a[:, 0].max():.3f}), CoM {a[:, 1].mean():.2f} "
+            f"(max {a[:, 1].max():.2f}), right hand {a[:, 3].mean():.2f}, left hand in reach "
+            f"{a[:h, 2].mean():.2f} / out of reach {a[h:, 2].mean():.1f}"
+            + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
+        )
+    _report_peers(
+        f"\nTalos (erd:talos, floating base, nv = {model.nv}), feet / CoM / hands / posture, "
+        f"position + velocity limits, {n_steps} steps at 100 Hz, each method in its own closed "
+        "loop (per-step wall time; ratio: median / the reference's; task errors after each "
+        "step, mean [mm, feet: max of mm and mrad], by MuJoCo's kinematics; the left hand's "
+        "target is 0.6 m out of reach in the second half)",
+        {name: 1e6 * np.array(t) for name, t in times.items()},
+        {label["placo"]: "PlaCo", label["mink"]: "mink"},
+        extra,
+    )
+    _print_update_costs(configs["qpik"], home, robot, mapping)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", type=int, default=400)
     parser.add_argument("--talos-states", type=int, default=400)
     parser.add_argument("--no-talos", action="store_true")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--peers",
+        choices=["on", "off", "only"],
+        default="on",
+        help="issue 20's sections beside PlaCo and pink (erd:panda, Talos floating): on "
+        "(after qpik's own), off, or only them",
+    )
+    parser.add_argument("--peer-states", type=int, default=400, help="erd:panda states a regime")
+    parser.add_argument("--talos-steps", type=int, default=300, help="closed-loop Talos steps")
     args = parser.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
@@ -337,9 +875,20 @@ def main(argv=None) -> None:
     qpik.IKSolver(model, posture).step(configuration, DT)  # loads (or compiles) the kernels
     first = time.perf_counter() - t0
     print(f"first step (kernels loaded from numba's cache, or compiled): {first:.2f} s")
-    panda(args.states, rng)
+    if args.peers != "only":
+        panda(args.states, rng)
+        if not args.no_talos:
+            talos(args.talos_states)
+    if args.peers == "off":
+        return
+    found = peers_found()
+    missing = [name for name, version in found.items() if version is None]
+    if missing:
+        print(f"\npeers skipped: {', '.join(missing)} not installed (pip install 'qpik[compare]')")
+        return
+    panda_peers(args.peer_states, rng)
     if not args.no_talos:
-        talos(args.talos_states)
+        talos_peers(args.talos_steps)
 
 
 if __name__ == "__main__":

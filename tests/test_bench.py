@@ -219,3 +219,68 @@ def test_cli_bench_outside_a_checkout_says_so(monkeypatch, tmp_path, capsys):
     monkeypatch.setattr(cli_bench, "BENCHMARKS", tmp_path / "benchmarks")
     assert main(["bench", "--robots", "planar_2r", "--n", "1", "--quiet"]) == 2
     assert "source checkout" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ issue 20's peers
+_ERD_ARMS = ["erd:panda", "erd:ur5"] if _has_erd() else []
+
+
+def test_oneshot_method_solves_small_targets():
+    results = bench.run_ik_success(["panda"], n=3, methods=["oneshot"], budget=None, progress=False)
+    summary = results["robots"]["panda"]["methods"]["oneshot"]
+    assert summary["successes"] == 3, summary["failure_examples"]
+
+
+@pytest.mark.parametrize("method, module", [("tracik", "pytracik"), ("rtb_lm", "roboticstoolbox")])
+@pytest.mark.parametrize("robot", _ERD_ARMS)
+def test_peer_method_solves_small_targets(method, module, robot):
+    """TRAC-IK and the Toolbox's ik_LM, on the same URDF as qpik's robot, judged by the
+    harness (MuJoCo's forward kinematics of the q they return, joint limits)."""
+    pytest.importorskip(module)
+    assert method in bench.peer_methods()
+    protocol = dataclasses.replace(bench.TRACIK, budget=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        results = bench.run_ik_success(
+            [robot], n=3, methods=[method], protocol=protocol, progress=False
+        )
+    entry = results["robots"][robot]
+    assert entry["skipped"] == {}
+    summary = entry["methods"][method]
+    assert summary["successes"] >= 2, summary["failure_examples"]  # TRAC-IK: a 1 s timeout
+    assert summary["limit_violations"] == 0
+
+
+@pytest.mark.parametrize("method, module", [("tracik", "pytracik"), ("rtb_lm", "roboticstoolbox")])
+def test_peer_method_skips_a_robot_without_urdf(method, module):
+    pytest.importorskip(module)
+    results = bench.run_ik_success(
+        ["planar_2r"], n=1, methods=["qpik", method], budget=None, progress=False
+    )
+    assert "URDF" in results["robots"]["planar_2r"]["skipped"][method]
+
+
+def test_peer_goals_verdicts():
+    def summary(rate, mean):
+        return {"success_rate": rate, "successes": int(rate * 100), "n": 100, "mean_ms": mean}
+
+    headline = {
+        "robots": {
+            "erd:ur5": {
+                "methods": {
+                    "qpik": summary(1.0, 0.1),
+                    "rtb_lm": summary(1.0, 0.3),
+                    "oneshot": summary(1.0, 0.2),
+                    "tracik": summary(0.99, 0.4),
+                }
+            },
+        }
+    }
+    lines = bench.check_peer_goals(headline)
+    assert "met: erd:ur5: qpik success 100.00% >= 99.95%" in lines
+    assert any(line.startswith("met: erd:ur5: qpik mean / ik_LM mean 0.33") for line in lines)
+    assert any(
+        line.startswith("MISSED: erd:ur5: qpik.solve (one-shot) mean / IKSession mean 2.00")
+        for line in lines
+    )
+    assert any(line.startswith("beside: erd:ur5: TRAC-IK 99.00%") for line in lines)
