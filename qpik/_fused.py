@@ -1,7 +1,8 @@
 """One compiled call per differential IK step, for the stacks that allow it.
 
-When every task of a stack is one of qpik's built-in :class:`~qpik.tasks.FrameTask` /
-:class:`~qpik.tasks.PostureTask` and every limit is mink's ``ConfigurationLimit`` /
+When every task of a stack is a frame, posture or damping task (qpik's
+:class:`~qpik.tasks.FrameTask` / :class:`~qpik.tasks.PostureTask` /
+:class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit is mink's ``ConfigurationLimit`` /
 ``VelocityLimit`` on a model of hinge and slide joints, :class:`qpik.IKSolver` does in
 Python only what needs MuJoCo (one ``mj_jac*`` call per frame task) and copies the tasks'
 targets and costs into preallocated arrays; :func:`fused_step` then computes every task's
@@ -26,7 +27,7 @@ import numpy as np
 
 from ._engine import diffik as _engine
 from .errors import TargetNotSet
-from .tasks.fast import FrameTask, PostureTask
+from .tasks.fast import DampingTask, FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
 
@@ -34,6 +35,13 @@ _KINDS = {"site": 0, "body": 1, "geom": 2}
 _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
 _JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
 _FRAME, _POSTURE = 0, 1
+#: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
+#: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
+_FRAME_TYPES = (FrameTask, mink.FrameTask)
+#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost)``, error ``q - q*`` on
+#: hinge/slide joints) and DampingTask (the same toward the current ``q``: error zero).
+_POSTURE_TYPES = (PostureTask, mink.PostureTask)
+_DAMPING_TYPES = (DampingTask, mink.DampingTask)
 
 # Result codes of fused_step: anything but OK sends the step to the general path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
@@ -95,7 +103,7 @@ class FusedPlan:
 
     model: mujoco.MjModel
     frames: list  # (task, jacobian function, id, position rows, rotation rows, data row)
-    postures: list  # (task, data row)
+    postures: list  # (task, data row, damping: target is the current q)
     config_limits: list  # (limit, first entry, last entry)
     arrays: dict
     kinds_used: tuple
@@ -132,10 +140,13 @@ class FusedPlan:
         model, data = self.model, configuration.data
         self._gather_frames(data)
         nq, nv = model.nq, model.nv
-        for task, row in self.postures:
-            if task.target_q is None:
+        for task, row, damping in self.postures:
+            if damping:
+                row[0:nq] = data.qpos
+            elif task.target_q is None:
                 raise TargetNotSet(type(task).__name__)
-            row[0:nq] = task.target_q
+            else:
+                row[0:nq] = task.target_q
             row[nq : nq + nv] = task.cost
             row[nq + nv] = task.gain
             row[nq + nv + 1] = task.lm_damping
@@ -202,7 +213,9 @@ def make_plan(
         (task, fn, fid, jac[f, :3], jac[f, 3:], frame_data[f])
         for f, (task, fn, fid) in enumerate(frames)
     ]
-    postures = [(task, posture_data[p]) for p, task in enumerate(postures)]
+    postures = [
+        (task, posture_data[p], type(task) in _DAMPING_TYPES) for p, task in enumerate(postures)
+    ]
     used = tuple(any(kind == k for kind, _ in frame_rows) for k in range(3))
     settings = arrays["settings"]
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
@@ -222,14 +235,15 @@ def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:
 
 def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
     """``(frames, postures, tasks, frame_rows, starts)`` of a stack whose tasks are all
-    qpik's FrameTask / scalar PostureTask (None otherwise): rows are laid out level by
-    level, task by task."""
+    FrameTask / PostureTask / DampingTask (qpik's or mink's, exact types; postures on
+    hinge/slide joints only), None otherwise: rows are laid out level by level, task by
+    task."""
     frames, postures, tasks, frame_rows = [], [], [], []
     starts = [0]
     for k, level in enumerate(levels):
         row = starts[-1]
         for task in level:
-            if type(task) is FrameTask:
+            if type(task) in _FRAME_TYPES:
                 entry = _frame_entry(model, task)
                 if entry is None:
                     return None
@@ -237,7 +251,7 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
                 frames.append((task, _JACOBIAN[entry[0]], entry[1]))
                 frame_rows.append(entry)
                 row += 6
-            elif type(task) is PostureTask and task._scalar:
+            elif _scalar_posture(model, task):
                 tasks.append((_POSTURE, len(postures), k, row))
                 postures.append(task)
                 row += model.nv
@@ -245,6 +259,17 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
                 return None
         starts.append(row)
     return frames, postures, tasks, frame_rows, starts
+
+
+def _scalar_posture(model: mujoco.MjModel, task) -> bool:
+    """Whether a task is a posture or damping task (qpik's or mink's, exact type) on a
+    model of hinge/slide joints, whose rows :func:`fused_step` computes."""
+    kind = type(task)
+    if kind not in _POSTURE_TYPES and kind not in _DAMPING_TYPES:
+        return False
+    return model.nq == model.nv and getattr(task, "_v_ids", None) is None and (
+        getattr(task, "cost", None) is not None and np.shape(task.cost) == (model.nv,)
+    )
 
 
 def _limit_boxes(limits: Sequence):

@@ -54,6 +54,7 @@ from .tasks import BaseTask
 
 #: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
 _STATUS_OF_CODE = {float(code): status for code, status in _STATUS.items()}
+_SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
 __all__ = [
     "DampingLaw",
@@ -324,6 +325,12 @@ class IKSolver:
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
             )
         )
+        #: With a forced backend, answer by the one-call step (exact compiled solver) when
+        #: it solves every level: the forced-backend path returns that same answer to
+        #: round-off (the exact cold solve polishes the backend's), at a backend call per
+        #: level where a limit binds. Off by default (``StepResult.iterations`` then count
+        #: the exact solver's iterations, not the backend's); qpik.solve_ik turns it on.
+        self._exact_forced = False
         # One compiled call per step when every task and limit allows it (see qpik._fused).
         self._plan = make_plan(
             model,
@@ -521,7 +528,11 @@ class IKSolver:
             if self._core.solver == "auto":
                 result = self._fused_step(configuration, dt, start)
             else:
-                result = self._fused_rows_step(configuration, dt, start)
+                result = None
+                if self._exact_forced and not self._core.warm_start:
+                    result = self._fused_step(configuration, dt, start, forced=True)
+                if result is None:
+                    result = self._fused_rows_step(configuration, dt, start)
             if result is not None:
                 return result
         return self._general_step(configuration, dt, start)
@@ -557,9 +568,16 @@ class IKSolver:
             lambda: self._box_contributions(q, dt), [],
         )  # fmt: skip
 
-    def _fused_step(self, configuration: Configuration, dt: float, start: float):
+    def _fused_step(
+        self, configuration: Configuration, dt: float, start: float, forced: bool = False
+    ):
         """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
-        path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
+        path must answer (non-finite rows, conflicting limits, an unsettled active set).
+
+        ``forced`` (a forced backend, see ``_exact_forced``): the answer is kept only when
+        every level was solved by the exact cold solve, which is what the forced-backend
+        path returns then (it polishes the backend's answer by that same solve; equal to
+        round-off, tests/test_fastpath.py), and None otherwise; no backend is called."""
         plan = self._plan
         qpos, poses = plan.gather(configuration)
         core = self._core
@@ -570,8 +588,10 @@ class IKSolver:
         )  # fmt: skip
         if code:
             return None
-        core._warm = active
         residuals, sigma, lam2, status, iterations = info.tolist()
+        if forced and any(s != _SOLVED_CODE for s in status):
+            return None
+        core._warm = active
         q = qpos.copy()
         return StepResult(
             velocity=v,
