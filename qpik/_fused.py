@@ -3,7 +3,10 @@
 When every task of a stack is a frame, posture or damping task (qpik's
 :class:`~qpik.tasks.FrameTask` / :class:`~qpik.tasks.PostureTask` /
 :class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit is mink's ``ConfigurationLimit`` /
-``VelocityLimit`` on a model of hinge and slide joints, :class:`qpik.IKSolver` does in
+``VelocityLimit`` (or ``CollisionAvoidanceLimit``, whose general rows are computed by its
+own methods and passed to the cascade: two compiled calls then, see
+``IKSolver._fused_general_step``) on a model of hinge and slide joints,
+:class:`qpik.IKSolver` does in
 Python only what needs MuJoCo (one ``mj_jac*`` call per frame task) and copies the tasks'
 targets and costs into preallocated arrays; :func:`fused_step` then computes every task's
 rows (frame errors by the SE(3) routines of :mod:`qpik.tasks._lie`, mink's own arithmetic),
@@ -105,6 +108,7 @@ class FusedPlan:
     frames: list  # (task, jacobian function, id, position rows, rotation rows, data row)
     postures: list  # (task, data row, damping: target is the current q)
     config_limits: list  # (limit, first entry, last entry)
+    general_limits: list  # limits whose rows G dq <= h are computed by their own methods
     arrays: dict
     kinds_used: tuple
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
@@ -186,7 +190,7 @@ def make_plan(
         return None
     nv = model.nv
     frames, postures, tasks, frame_rows, starts = layout
-    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = boxes
+    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits = boxes
     F, P, M = len(frames), len(postures), starts[-1]
     jac = np.zeros((F, 6, nv))
     frame_data = np.zeros((F, 15))
@@ -220,7 +224,9 @@ def make_plan(
     settings = arrays["settings"]
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
     cold = np.zeros((len(levels), nv), dtype=np.int8)
-    return FusedPlan(model, frames, postures, config_limits, arrays, used, cold, max_iter)
+    return FusedPlan(
+        model, frames, postures, config_limits, general_limits, arrays, used, cold, max_iter
+    )  # fmt: skip
 
 
 def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:
@@ -272,10 +278,17 @@ def _scalar_posture(model: mujoco.MjModel, task) -> bool:
     )
 
 
+#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
+#: methods each step, the cascade in one compiled call; exact types).
+_GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
+
+
 def _limit_boxes(limits: Sequence):
-    """``(cfg_dof, cfg_data, config_limits, vel_dof, vel_limit)`` of mink's position and
-    velocity limits (None when another limit is present)."""
+    """``(cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits)`` of mink's
+    position and velocity limits and its collision avoidance limits (None when another
+    limit is present)."""
     cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], []
+    general_limits = []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
             indices = np.asarray(limit.indices, dtype=np.int64)
@@ -287,6 +300,8 @@ def _limit_boxes(limits: Sequence):
         elif type(limit) is mink.VelocityLimit:
             vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
             vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
+        elif type(limit) in _GENERAL_LIMITS:
+            general_limits.append(limit)
         else:
             return None
-    return cfg_dof, cfg_data, config_limits, vel_dof, vel_limit
+    return cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits

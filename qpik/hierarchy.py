@@ -525,7 +525,9 @@ class IKSolver:
             and type(dt) is float
             and 0.0 < dt < math.inf
         ):
-            if self._core.solver == "auto":
+            if self._plan.general_limits:
+                result = self._fused_general_step(configuration, dt, start)
+            elif self._core.solver == "auto":
                 result = self._fused_step(configuration, dt, start)
             else:
                 result = None
@@ -548,6 +550,78 @@ class IKSolver:
             settings[2:5] = core._law()
             plan.law = law
         return settings
+
+    def _fused_general_step(self, configuration: Configuration, dt: float, start: float):
+        """:meth:`step` for a plan with general-row limits (collision avoidance): the rows
+        and the box in one compiled call (:func:`qpik._fused.fused_rows`), the limits'
+        rows ``G dq <= h`` from their own methods, then the core's solve (the exact one
+        first with a forced backend and ``_exact_forced``, as in :meth:`_fused_step`).
+        None where the general path must answer (a non-finite row, conflicting limits, a
+        limit row on one dof only, which the general path folds into the box)."""
+        plan = self._plan
+        qpos, poses = plan.gather(configuration)
+        a = plan.arrays
+        code, reg, lb, ub = fused_rows(
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(dt)
+        )
+        if code:
+            return None
+        general = self._general_rows(configuration, dt)
+        if general is None:
+            return None
+        G, h, names = general
+        q = qpos.copy()
+        args = (a["A"], a["b"], a["w"], a["starts"], reg, lb, ub, G, h, dt, start,
+                lambda: self._box_contributions(q, dt), names)  # fmt: skip
+        core = self._core
+        if core.solver != "auto" and self._exact_forced and not core.warm_start:
+            exact = self._exact_core()
+            result = self._finish(*args, core=exact)
+            if all(s == LevelStatus.SOLVED for s in result.status):
+                return result
+        return self._finish(*args)
+
+    def _general_rows(self, configuration: Configuration, dt: float):
+        """``(G, h, names)`` of the plan's general-row limits as the general path takes
+        them (rows on two or more dofs; empty rows dropped), None when a row bounds one
+        dof (the general path makes it a box bound) or an empty row is infeasible."""
+        G_parts, h_parts, names = [], [], []
+        for limit in self._plan.general_limits:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            if constraint.inactive:
+                continue
+            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+            h = np.atleast_1d(constraint.h)
+            structure = self._row_structure(limit, G)
+            if structure.upper_rows.size or structure.lower_rows.size:
+                return None
+            if structure.empty is not None and np.any(h[structure.empty] < 0):
+                return None  # the general path names the infeasible row
+            rows = structure.general
+            if not rows.size:
+                continue
+            G_parts.append(G[rows])
+            h_parts.append(h[rows])
+            name = type(limit).__name__
+            names.extend(f"{name} row {int(r)}" for r in rows)
+        if not G_parts:
+            return self._no_rows, np.zeros(0), names
+        G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
+        h = np.ascontiguousarray(np.concatenate(h_parts) if len(h_parts) > 1 else h_parts[0], float)
+        return G, h, names
+
+    def _exact_core(self) -> HierarchySolver:
+        """An exact-solver core with this solver's settings (for ``_exact_forced``)."""
+        core = self._core
+        exact = getattr(self, "_exact", None)
+        if exact is None:
+            exact = HierarchySolver(
+                "auto", damping_law=core.damping_law, rank_tolerance=core.rank_tolerance,
+                max_iter=core.max_iter, tolerance=core.tolerance,
+            )  # fmt: skip
+            self._exact = exact
+        exact.damping_law = core.damping_law
+        return exact
 
     def _fused_rows_step(self, configuration: Configuration, dt: float, start: float):
         """:meth:`step` for a forced backend: the rows and limits in one compiled call
@@ -618,7 +692,10 @@ class IKSolver:
         :meth:`_limit_rows`)."""
         contributions = []
         for limit in self.limits:
-            dofs, lower, upper = _BOX_LIMITS[type(limit)](limit, qpos, dt)
+            box = _BOX_LIMITS.get(type(limit))
+            if box is None:  # a general-row limit (see _fused_general_step)
+                continue
+            dofs, lower, upper = box(limit, qpos, dt)
             name = type(limit).__name__
             contributions.append((name, dofs, upper))
             contributions.append((name, dofs, lower))
@@ -632,11 +709,14 @@ class IKSolver:
             A, b, w, starts, reg, lb, ub, G, h, dt, start, lambda: contributions, names
         )
 
-    def _finish(self, A, b, w, starts, reg, lb, ub, G, h, dt, start, contributions, names):
+    def _finish(
+        self, A, b, w, starts, reg, lb, ub, G, h, dt, start, contributions, names, core=None
+    ):
         """The core's solve of the stacked rows and its :class:`StepResult`;
         ``contributions()`` gives the limits' box contributions (for naming active
-        limits, on first access)."""
-        result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
+        limits, on first access); ``core`` another core than this solver's."""
+        core = self._core if core is None else core
+        result = core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
         if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
             raise InvalidTarget(

@@ -172,3 +172,72 @@ def test_unknown_task_types_still_use_their_own_methods(panda):
         reference = qpik.IKSolver(model, swapped, [mink.ConfigurationLimit(model)])
         # the subclass's own error was used: the step differs from the plain task's
         assert np.abs(result.displacement - reference.step(configuration, DT).displacement).max() > 1e-6
+
+
+@pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
+def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(solver_name):
+    """mink's CollisionAvoidanceLimit in a plan: its rows from its own methods, the tasks'
+    rows and the box compiled; bitwise the general path's answer (qpik's tasks), and equal
+    to round-off with the forced-backend shortcut."""
+    pytest.importorskip("quadprog")
+    import mujoco
+
+    xml = """
+    <mujoco>
+      <worldbody>
+        <geom name="floor" type="plane" size="2 2 0.1"/>
+        <geom name="post" type="capsule" fromto="0.35 0 0 0.35 0 0.6" size="0.05"/>
+        <body name="l1" pos="0 0 0.3">
+          <joint name="j1" type="hinge" axis="0 0 1" range="-3 3"/>
+          <geom name="g1" type="capsule" fromto="0 0 0 0.25 0 0" size="0.04"/>
+          <body name="l2" pos="0.25 0 0">
+            <joint name="j2" type="hinge" axis="0 1 0" range="-2.5 2.5"/>
+            <geom name="g2" type="capsule" fromto="0 0 0 0.25 0 0" size="0.04"/>
+            <body name="l3" pos="0.25 0 0">
+              <joint name="j3" type="hinge" axis="0 1 0" range="-2.5 2.5"/>
+              <geom name="g3" type="capsule" fromto="0 0 0 0.15 0 0" size="0.03"/>
+              <site name="tip" pos="0.15 0 0"/>
+            </body>
+          </body>
+        </body>
+      </worldbody>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    pairs = [(["g2", "g3"], ["floor", "post"])]
+    collision = mink.CollisionAvoidanceLimit(
+        model, pairs, minimum_distance_from_collisions=0.05, collision_detection_distance=0.3
+    )
+    limits = [mink.ConfigurationLimit(model), collision,
+              mink.VelocityLimit(model, {"j1": 2.0, "j2": 2.0, "j3": 2.0})]  # fmt: skip
+    rng = np.random.default_rng(3)
+    for frame_class in (qpik.tasks.FrameTask, mink.FrameTask):
+        frame = frame_class("tip", "site", position_cost=1.0, orientation_cost=0.0)
+        posture = qpik.tasks.PostureTask(model, cost=1e-2)
+        solver = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
+        assert solver._plan is not None and solver._plan.general_limits == [collision]
+        shortcut = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
+        shortcut._exact_forced = True
+        rows_seen = 0
+        for _ in range(40):
+            q = rng.uniform(-1.5, 1.5, model.nq)
+            configuration.update(q)
+            target = configuration.get_transform_frame_to_world("tip", "site")
+            frame.set_target(mink.SE3.from_translation(rng.uniform(-0.3, 0.3, 3)) @ target)
+            posture.set_target(np.zeros(model.nq))
+            try:
+                general = solver._general_step(configuration, DT, 0.0)
+            except qpik.QpikError:
+                continue
+            fused = solver.step(configuration, DT)
+            if frame_class is qpik.tasks.FrameTask:
+                assert np.array_equal(fused.displacement, general.displacement)
+            else:
+                np.testing.assert_allclose(fused.displacement, general.displacement, atol=1e-12)
+            assert fused.status == general.status
+            assert fused.active_limits == general.active_limits
+            other = shortcut.step(configuration, DT)
+            np.testing.assert_allclose(other.displacement, general.displacement, atol=1e-12)
+            rows = solver._general_rows(configuration, DT)  # None: a one-dof row, general path
+            rows_seen += rows is not None and rows[0].shape[0] > 0
+        assert rows_seen > 0
