@@ -245,7 +245,9 @@ def run_timing(calls: int) -> None:
 
 
 # ----------------------------------------------------------------- mink's example scripts
-_TETRAHEDRON_OBJ = "v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 0 0 0.02\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+_TETRAHEDRON_OBJ = (
+    "v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 0 0 0.02\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+)
 
 
 def _tetrahedron_stl() -> bytes:
@@ -301,7 +303,7 @@ def mirror_examples(source: Path, target: Path) -> list[str]:
             folder, prefix = xml.parent, xml.parent.name + "/"
             meshes = {}
             for mesh in spec.meshes:
-                name = mesh.file[len(prefix):] if mesh.file.startswith(prefix) else mesh.file
+                name = mesh.file[len(prefix) :] if mesh.file.startswith(prefix) else mesh.file
                 if name:
                     meshes[mesh.name] = folder / spec.meshdir / name
             missing = [p for p in meshes.values() if not p.exists()]
@@ -480,7 +482,6 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
     """mink's example scripts from ``folder``, headless: per-call times of mink.solve_ik,
     qpik.solve_ik and qpik.IKSolver (strict levels) on the same states, and the final task
     errors of a run integrating mink's answers and one integrating qpik's."""
-    import mink
     import numpy as np
 
     if not folder.is_dir():
@@ -494,45 +495,62 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
         notes = mirror_examples(folder, work)
         (work / "_run_example.py").write_text(_EXAMPLE_CHILD)
         for script in scripts:
-            runs = {d: _run_example(work, work / script.name, d, iterations) for d in ("mink", "qpik")}
+            runs = {
+                d: _run_example(work, work / script.name, d, iterations) for d in ("mink", "qpik")
+            }
             error = runs["mink"]["error"] or runs["qpik"]["error"]
             if error or not runs["mink"]["calls"]:
                 failed.append((script.stem, error or "no solve_ik call"))
                 continue
             rows.append((script.stem, runs))
-    print(f"\nmink {mink.__version__ if hasattr(mink, '__version__') else importlib.metadata.version('mink')}"
-          f"'s example scripts from {folder}, {iterations} loop turns each; per-call medians [us]")
+    version = importlib.metadata.version("mink")
+    print(
+        f"\nmink {version}'s example scripts from {folder}, {iterations} loop turns each; "
+        "per-call medians [us]"
+    )
     if notes:
         print(f"placeholder meshes: {len(notes)} ({'; '.join(notes)})")
-    header = (f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
-              f"{'levels':>9}{'max|dv|':>10}{'|e| mink':>10}{'|e| qpik':>10}{'max|de|':>10}")
+    header = (
+        f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
+        f"{'levels':>9}{'max|dv|':>10}{'|e| mink':>10}{'|e| qpik':>10}{'max|de|':>10}"
+    )
     print(header)
     ratios = []
     for name, runs in rows:
         r = runs["mink"]
-        med = {k: 1e6 * float(np.median(r[k])) if r[k] else float("nan")
-               for k in ("mink", "qpik", "levels")}
+        med = {
+            k: 1e6 * float(np.median(r[k])) if r[k] else float("nan")
+            for k in ("mink", "qpik", "levels")
+        }
         ratio = med["qpik"] / med["mink"]
         ratios.append(ratio)
         e_m = np.concatenate([np.asarray(e, float) for e in runs["mink"]["errors"]])
         e_q = np.concatenate([np.asarray(e, float) for e in runs["qpik"]["errors"]])
         de = float(np.abs(e_m - e_q).max()) if e_m.shape == e_q.shape and e_m.size else float("nan")
         dv = max(runs["mink"]["dv"], runs["qpik"]["dv"])
-        print(f"{name:<22}{str(r['solver']):<10}{r['calls']:>6}{med['mink']:>9.1f}"
-              f"{med['qpik']:>9.1f}{ratio:>7.2f}{med['levels']:>9.1f}{dv:>10.1e}"
-              f"{np.linalg.norm(e_m):>10.2e}{np.linalg.norm(e_q):>10.2e}{de:>10.1e}")
+        print(
+            f"{name:<22}{str(r['solver']):<10}{r['calls']:>6}{med['mink']:>9.1f}"
+            f"{med['qpik']:>9.1f}{ratio:>7.2f}{med['levels']:>9.1f}{dv:>10.1e}"
+            f"{np.linalg.norm(e_m):>10.2e}{np.linalg.norm(e_q):>10.2e}{de:>10.1e}"
+        )
     if ratios:
-        print(f"ratio qpik / mink: median {np.median(ratios):.2f}, max {max(ratios):.2f} "
-              f"(goal: <= 0.5 on every example)")
-    print("columns: levels = qpik.IKSolver, each task a strict level (posture/damping last), "
-          "qpik's own solver; max|dv| = largest velocity difference on the same state; "
-          "|e| = final task errors (run integrating mink's / qpik's answers), max|de| their "
-          "largest difference")
+        print(
+            f"ratio qpik / mink: median {np.median(ratios):.2f}, max {max(ratios):.2f} "
+            f"(goal: <= 0.5 on every example)"
+        )
+    print(
+        "columns: levels = qpik.IKSolver, each task a strict level (posture/damping last), "
+        "qpik's own solver; max|dv| = largest velocity difference on the same state; "
+        "|e| = final task errors (run integrating mink's / qpik's answers), max|de| their "
+        "largest difference"
+    )
     for name, runs in rows:
         r = runs["mink"]
-        print(f"  {name}: tasks {', '.join(r['tasks'])}; limits "
-              f"{'mink default' if r['limits'] is None else ', '.join(r['limits']) or 'none'}"
-              + (f"; levels: {r['levels_error']}" if r["levels_error"] else ""))
+        print(
+            f"  {name}: tasks {', '.join(r['tasks'])}; limits "
+            f"{'mink default' if r['limits'] is None else ', '.join(r['limits']) or 'none'}"
+            + (f"; levels: {r['levels_error']}" if r["levels_error"] else "")
+        )
     for name, why in failed:
         print(f"could not run {name}: {why}")
 

@@ -2,16 +2,16 @@
 
 When every task of a stack is a frame, posture or damping task (qpik's
 :class:`~qpik.tasks.FrameTask` / :class:`~qpik.tasks.PostureTask` /
-:class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit is mink's ``ConfigurationLimit`` /
-``VelocityLimit`` (or ``CollisionAvoidanceLimit``, whose general rows are computed by its
-own methods and passed to the cascade: two compiled calls then, see
-``IKSolver._fused_general_step``) on a model of hinge and slide joints,
-:class:`qpik.IKSolver` does in
-Python only what needs MuJoCo (one ``mj_jac*`` call per frame task) and copies the tasks'
-targets and costs into preallocated arrays; :func:`fused_step` then computes every task's
-rows (frame errors by the SE(3) routines of :mod:`qpik.tasks._lie`, mink's own arithmetic),
-the box limits, and the whole cascade (:func:`qpik.core._kernels.solve_cascade`), in C++
-(``qpik/_cpp/diffik/fused.hpp``).
+:class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit
+is mink's ``ConfigurationLimit`` / ``VelocityLimit`` (or ``CollisionAvoidanceLimit``,
+whose general rows come from its own methods and go to the core's cascade: two compiled
+calls then, see ``IKSolver._fused_general_step``) on a model of hinge and slide joints,
+:class:`qpik.IKSolver` does in Python only what needs MuJoCo (one ``mj_jac*`` call per
+frame task) and copies the tasks' targets and costs into preallocated arrays;
+:func:`fused_step` then computes every task's rows (frame errors by the SE(3) routines of
+:mod:`qpik.tasks._lie`, mink's own arithmetic; mink's own FrameTask gets the same rows as
+qpik's, equal to mink's to round-off), the box limits, and the whole cascade
+(:func:`qpik.core._kernels.solve_cascade`), in C++ (``qpik/_cpp/diffik/fused.hpp``).
 
 It computes exactly what the general path computes (same arithmetic in the same order:
 tests compare the two bitwise); anything unusual (a non-finite row, conflicting limits, a
@@ -273,8 +273,10 @@ def _scalar_posture(model: mujoco.MjModel, task) -> bool:
     kind = type(task)
     if kind not in _POSTURE_TYPES and kind not in _DAMPING_TYPES:
         return False
-    return model.nq == model.nv and getattr(task, "_v_ids", None) is None and (
-        getattr(task, "cost", None) is not None and np.shape(task.cost) == (model.nv,)
+    return (
+        model.nq == model.nv
+        and getattr(task, "_v_ids", None) is None
+        and (getattr(task, "cost", None) is not None and np.shape(task.cost) == (model.nv,))
     )
 
 

@@ -171,7 +171,10 @@ def test_unknown_task_types_still_use_their_own_methods(panda):
         swapped = [[plain if t is frame else t for t in level] for level in levels]
         reference = qpik.IKSolver(model, swapped, [mink.ConfigurationLimit(model)])
         # the subclass's own error was used: the step differs from the plain task's
-        assert np.abs(result.displacement - reference.step(configuration, DT).displacement).max() > 1e-6
+        assert (
+            np.abs(result.displacement - reference.step(configuration, DT).displacement).max()
+            > 1e-6
+        )
 
 
 @pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
