@@ -19,9 +19,25 @@ may download models itself). mink's tests need ``absl-py`` (in qpik's ``dev`` ex
 same tasks: a frame task and a posture task; mink's default limits) on the bundled robots:
 medians over repeated calls, and the ratio qpik / mink.
 
+``--examples DIR`` runs mink's example scripts (``DIR/*.py``, e.g. the ``examples/`` folder
+of a mink checkout with its MuJoCo models) headless, each in its own subprocess, nothing
+downloaded: the folder is mirrored into a temporary one (links), a mesh file the models
+name but the folder lacks (or one MuJoCo refuses) is replaced there by a small
+tetrahedron (kinematics do not use meshes); ``mujoco.viewer.launch_passive`` is a fake
+viewer whose ``is_running()`` holds for ``--iterations`` loop turns and which moves every
+mocap body on a small deterministic trajectory (the scripts' targets); ``loop_rate_limiters``
+is stubbed (no sleeping; installed or not). Every ``mink.solve_ik`` call of a script is
+made by both ``mink.solve_ik`` and ``qpik.solve_ik`` on the same state (alternating which
+goes first) and timed, and ``qpik.IKSolver`` with the same tasks as strict levels (each
+task a level, posture/damping tasks last) is timed there too. A script runs twice, once
+integrating mink's answer and once qpik's; the final task errors of the two runs are
+compared. A script that cannot run (e.g. it needs ``dm_control``) is listed with why.
+
     python benchmarks/mink_suite.py --tests PATH/TO/mink/tests [--models DIR]
         [--robot-descriptions] [--timing] [--calls 2000] [-k EXPRESSION]
     python benchmarks/mink_suite.py --timing
+    python benchmarks/mink_suite.py --examples PATH/TO/mink/examples [--iterations 300]
+        [--only humanoid_g1,arm_aloha]
 """
 
 from __future__ import annotations
@@ -228,6 +244,317 @@ def run_timing(calls: int) -> None:
             print(f"{robot:<8}{solver:<10}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
 
 
+# ----------------------------------------------------------------- mink's example scripts
+_TETRAHEDRON_OBJ = (
+    "v 0 0 0\nv 0.02 0 0\nv 0 0.02 0\nv 0 0 0.02\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+)
+
+
+def _tetrahedron_stl() -> bytes:
+    """A binary STL (MuJoCo reads binary STL only) of the same small tetrahedron."""
+    import struct
+
+    v = [(0, 0, 0), (0.02, 0, 0), (0, 0.02, 0), (0, 0, 0.02)]
+    faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    data = bytearray(b"placeholder".ljust(80, b" ") + struct.pack("<I", len(faces)))
+    for face in faces:
+        data += struct.pack("<3f", 0, 0, 0)
+        for i in face:
+            data += struct.pack("<3f", *v[i])
+        data += struct.pack("<H", 0)
+    return bytes(data)
+
+
+def _write_placeholder(path: Path) -> None:
+    """A small tetrahedron mesh at ``path`` (its extension picks the format)."""
+    if path.is_symlink():
+        path.unlink()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".stl":
+        path.write_bytes(_tetrahedron_stl())
+    else:
+        path.write_text(_TETRAHEDRON_OBJ)
+
+
+def mirror_examples(source: Path, target: Path) -> list[str]:
+    """Mirror mink's examples folder into ``target`` (scripts copied, model files linked)
+    and replace each missing or unloadable mesh by a placeholder; returns notes on what
+    was replaced."""
+    import re
+
+    import mujoco
+
+    notes = []
+    for entry in sorted(source.iterdir()):
+        if entry.is_file():
+            (target / entry.name).write_bytes(entry.read_bytes())
+        elif entry.is_dir():
+            for folder, _, files in os.walk(entry):
+                out = target / Path(folder).relative_to(source)
+                out.mkdir(parents=True, exist_ok=True)
+                for name in files:
+                    os.symlink(os.path.join(folder, name), out / name)
+    for xml in sorted(target.glob("*/*.xml")):
+        for _ in range(50):  # one refused mesh per round
+            try:
+                spec = mujoco.MjSpec.from_file(str(xml))
+            except Exception:
+                break  # not a model on its own (a fragment for <include>)
+            folder, prefix = xml.parent, xml.parent.name + "/"
+            meshes = {}
+            for mesh in spec.meshes:
+                name = mesh.file[len(prefix) :] if mesh.file.startswith(prefix) else mesh.file
+                if name:
+                    meshes[mesh.name] = folder / spec.meshdir / name
+            missing = [p for p in meshes.values() if not p.exists()]
+            for path in missing:
+                _write_placeholder(path)
+                notes.append(f"{xml.parent.name}/{path.name}: missing")
+            try:
+                mujoco.MjModel.from_xml_path(str(xml))
+                break
+            except Exception as exc:  # a mesh MuJoCo refuses (e.g. too thin for inertia)
+                found = re.search(r"mesh volume is too small: (\S+)", str(exc))
+                if found is None or found.group(1) not in meshes:
+                    break
+                path = meshes[found.group(1)]
+                _write_placeholder(path)
+                notes.append(f"{xml.parent.name}/{path.name}: refused by MuJoCo")
+    return sorted(set(notes))
+
+
+_EXAMPLE_CHILD = r'''
+"""Run one of mink's example scripts headless (see benchmarks/mink_suite.py --examples)."""
+import json, math, runpy, sys, time, types
+import numpy as np
+
+script, driver, iterations, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+
+class RateLimiter:
+    def __init__(self, frequency, name="rate limiter", warn=True):
+        self.frequency, self.period, self.dt = frequency, 1.0 / frequency, 1.0 / frequency
+        self.name, self.warn, self.next_tick, self.slack = name, warn, 0.0, 0.0
+    def sleep(self):
+        pass
+
+stub = types.ModuleType("loop_rate_limiters")
+stub.RateLimiter = stub.AsyncRateLimiter = RateLimiter
+sys.modules["loop_rate_limiters"] = stub
+try:
+    import dm_control.viewer.user_input  # noqa: F401
+except Exception:  # only key constants are used from it
+    keys = types.ModuleType("dm_control.viewer.user_input")
+    for i, key in enumerate(("KEY_ENTER", "KEY_SPACE", "KEY_UP", "KEY_DOWN", "KEY_LEFT",
+                             "KEY_RIGHT", "KEY_ESCAPE", "KEY_TAB")):
+        setattr(keys, key, 1000 + i)
+    viewer_pkg = types.ModuleType("dm_control.viewer")
+    viewer_pkg.user_input, viewer_pkg.__path__ = keys, []
+    if "dm_control" not in sys.modules:
+        try:
+            import dm_control  # noqa: F401
+        except Exception:
+            package = types.ModuleType("dm_control")
+            package.__path__ = []
+            sys.modules["dm_control"] = package
+    sys.modules["dm_control"].viewer = viewer_pkg
+    sys.modules["dm_control.viewer"] = viewer_pkg
+    sys.modules["dm_control.viewer.user_input"] = keys
+
+import mujoco, mujoco.viewer
+import mink
+import qpik
+
+class FakeViewer:
+    """launch_passive's handle: runs ``iterations`` loop turns, moving the mocap bodies."""
+    def __init__(self, model, data):
+        self.model, self.data, self.turn, self.base = model, data, 0, None
+        self.cam, self.opt = mujoco.MjvCamera(), mujoco.MjvOption()
+        self.user_scn = mujoco.MjvScene(model, maxgeom=100)
+        self.perturb = mujoco.MjvPerturb()
+    def __enter__(self):
+        return self
+    def __exit__(self, *exc):
+        return False
+    def is_running(self):
+        data = self.data
+        if self.base is None:
+            self.base = data.mocap_pos.copy()
+        elif data.mocap_pos.shape[0]:
+            t = 2 * math.pi * self.turn / 200.0
+            for j in range(data.mocap_pos.shape[0]):
+                data.mocap_pos[j] = self.base[j] + 0.02 * np.array(
+                    [math.sin(t + j), math.cos(t + 2 * j) - 1.0, 0.5 * math.sin(2 * t + j)])
+        self.turn += 1
+        return self.turn <= iterations
+    def sync(self, *args, **kwargs):
+        pass
+    def close(self):
+        pass
+
+mujoco.viewer.launch_passive = lambda model, data, *a, **k: FakeViewer(model, data)
+
+mink_solve_ik, qpik_solve_ik = mink.solve_ik, qpik.solve_ik
+times = {"mink": [], "qpik": [], "levels": []}
+state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None}
+
+def levels_solver(configuration, tasks, solver, damping, limits):
+    """qpik.IKSolver with each task a strict level (posture/damping tasks last)."""
+    key = (tuple(map(id, tasks)), None if limits is None else tuple(map(id, limits)), damping)
+    ik = state["levels"].get(key)
+    if ik is None:
+        model = configuration.model
+        soft = [t for t in tasks if isinstance(t, (mink.PostureTask, mink.DampingTask))]
+        levels = [[t] for t in tasks if t not in soft] + ([soft] if soft else [])
+        limits = [mink.ConfigurationLimit(model)] if limits is None else list(limits)
+        ik = qpik.IKSolver(model, levels, limits, damping=damping)
+        state["levels"][key] = ik
+    return ik
+
+def solve_ik(configuration, tasks, dt, solver=None, damping=1e-12, safety_break=False,
+             limits=None, constraints=None, **kwargs):
+    answers = {}
+    order = ("mink", "qpik") if state["calls"] % 2 == 0 else ("qpik", "mink")
+    for name in order:
+        solve = mink_solve_ik if name == "mink" else qpik_solve_ik
+        t0 = time.perf_counter()
+        answers[name] = solve(configuration, tasks, dt, solver, damping, safety_break,
+                              limits=limits, constraints=constraints, **kwargs)
+        times[name].append(time.perf_counter() - t0)
+    if constraints is None and state["levels_error"] is None:
+        try:
+            ik = levels_solver(configuration, list(tasks), solver, damping, limits)
+            t0 = time.perf_counter()
+            ik.step(configuration, dt)
+            times["levels"].append(time.perf_counter() - t0)
+        except Exception as exc:
+            state["levels_error"] = f"{type(exc).__name__}: {exc}"[:120]
+    state["calls"] += 1
+    state["dv"] = max(state["dv"], float(np.abs(answers["mink"] - answers["qpik"]).max()))
+    state["last"] = (configuration, list(tasks), solver, limits)
+    return answers[driver]
+
+mink.solve_ik = solve_ik
+result = {"error": None}
+try:
+    runpy.run_path(script, run_name="__main__")
+except SystemExit:
+    pass
+except BaseException as exc:
+    result["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0][:160]
+if state["last"] is not None:
+    configuration, tasks, solver, limits = state["last"]
+    errors = []
+    for task in tasks:
+        try:
+            errors.append(np.atleast_1d(task.compute_error(configuration)).tolist())
+        except Exception:
+            errors.append([])
+    result.update(
+        solver=solver,
+        tasks=[type(t).__name__ for t in tasks],
+        limits=None if limits is None else [type(l).__name__ for l in limits],
+        errors=errors,
+    )
+result.update(calls=state["calls"], dv=state["dv"], levels_error=state["levels_error"],
+              **{k: v for k, v in times.items()})
+with open(out, "w") as f:
+    json.dump(result, f)
+'''
+
+
+def _run_example(work: Path, script: Path, driver: str, iterations: int) -> dict:
+    """One headless run of an example script in a subprocess (see ``_EXAMPLE_CHILD``)."""
+    import json
+
+    out = work / f"{script.stem}.{driver}.json"
+    env = dict(os.environ)
+    env.setdefault("MUJOCO_GL", "egl")
+    command = [sys.executable, str(work / "_run_example.py"), str(script), driver,
+               str(iterations), str(out)]  # fmt: skip
+    process = subprocess.run(command, env=env, capture_output=True, text=True, cwd=script.parent)
+    if not out.exists():
+        tail = (process.stderr.strip().splitlines() or ["(no output)"])[-1]
+        return {"error": f"crashed (exit {process.returncode}): {tail[:160]}", "calls": 0}
+    return json.loads(out.read_text())
+
+
+def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
+    """mink's example scripts from ``folder``, headless: per-call times of mink.solve_ik,
+    qpik.solve_ik and qpik.IKSolver (strict levels) on the same states, and the final task
+    errors of a run integrating mink's answers and one integrating qpik's."""
+    import numpy as np
+
+    if not folder.is_dir():
+        raise SystemExit(f"--examples {folder}: not a folder (mink's examples/)")
+    scripts = sorted(p for p in folder.glob("*.py") if not p.name.startswith("_"))
+    if only:
+        scripts = [p for p in scripts if p.stem in only]
+    rows, failed = [], []
+    with tempfile.TemporaryDirectory() as temp:
+        work = Path(temp)
+        notes = mirror_examples(folder, work)
+        (work / "_run_example.py").write_text(_EXAMPLE_CHILD)
+        for script in scripts:
+            runs = {
+                d: _run_example(work, work / script.name, d, iterations) for d in ("mink", "qpik")
+            }
+            error = runs["mink"]["error"] or runs["qpik"]["error"]
+            if error or not runs["mink"]["calls"]:
+                failed.append((script.stem, error or "no solve_ik call"))
+                continue
+            rows.append((script.stem, runs))
+    version = importlib.metadata.version("mink")
+    print(
+        f"\nmink {version}'s example scripts from {folder}, {iterations} loop turns each; "
+        "per-call medians [us]"
+    )
+    if notes:
+        print(f"placeholder meshes: {len(notes)} ({'; '.join(notes)})")
+    header = (
+        f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
+        f"{'levels':>9}{'max|dv|':>10}{'|e| mink':>10}{'|e| qpik':>10}{'max|de|':>10}"
+    )
+    print(header)
+    ratios = []
+    for name, runs in rows:
+        r = runs["mink"]
+        med = {
+            k: 1e6 * float(np.median(r[k])) if r[k] else float("nan")
+            for k in ("mink", "qpik", "levels")
+        }
+        ratio = med["qpik"] / med["mink"]
+        ratios.append(ratio)
+        e_m = np.concatenate([np.asarray(e, float) for e in runs["mink"]["errors"]])
+        e_q = np.concatenate([np.asarray(e, float) for e in runs["qpik"]["errors"]])
+        de = float(np.abs(e_m - e_q).max()) if e_m.shape == e_q.shape and e_m.size else float("nan")
+        dv = max(runs["mink"]["dv"], runs["qpik"]["dv"])
+        print(
+            f"{name:<22}{str(r['solver']):<10}{r['calls']:>6}{med['mink']:>9.1f}"
+            f"{med['qpik']:>9.1f}{ratio:>7.2f}{med['levels']:>9.1f}{dv:>10.1e}"
+            f"{np.linalg.norm(e_m):>10.2e}{np.linalg.norm(e_q):>10.2e}{de:>10.1e}"
+        )
+    if ratios:
+        print(
+            f"ratio qpik / mink: median {np.median(ratios):.2f}, max {max(ratios):.2f} "
+            f"(goal: <= 0.5 on every example)"
+        )
+    print(
+        "columns: levels = qpik.IKSolver, each task a strict level (posture/damping last), "
+        "qpik's own solver; max|dv| = largest velocity difference on the same state; "
+        "|e| = final task errors (run integrating mink's / qpik's answers), max|de| their "
+        "largest difference"
+    )
+    for name, runs in rows:
+        r = runs["mink"]
+        print(
+            f"  {name}: tasks {', '.join(r['tasks'])}; limits "
+            f"{'mink default' if r['limits'] is None else ', '.join(r['limits']) or 'none'}"
+            + (f"; levels: {r['levels_error']}" if r["levels_error"] else "")
+        )
+    for name, why in failed:
+        print(f"could not run {name}: {why}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tests", type=Path, help="mink's tests/ folder (a checkout)")
@@ -240,9 +567,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timing", action="store_true", help="per-call times vs mink")
     parser.add_argument("--calls", type=int, default=2000, help="calls per timing row")
     parser.add_argument("-k", dest="keyword", help="pytest -k expression")
+    parser.add_argument("--examples", type=Path, help="mink's examples/ folder (a checkout)")
+    parser.add_argument("--iterations", type=int, default=300, help="loop turns per script")
+    parser.add_argument("--only", help="comma-separated script names (without .py)")
     args = parser.parse_args(argv)
-    if args.tests is None and not args.timing:
-        parser.error("pass --tests PATH (mink's tests/ folder) and/or --timing")
+    if args.tests is None and not args.timing and args.examples is None:
+        parser.error("pass --tests PATH (mink's tests/ folder), --examples PATH and/or --timing")
     regressions = 0
     if args.tests is not None:
         models = None if args.robot_descriptions else (args.models or "")
@@ -250,6 +580,9 @@ def main(argv: list[str] | None = None) -> int:
         regressions = run_suite(args.tests.resolve(), models, extra)
     if args.timing:
         run_timing(args.calls)
+    if args.examples is not None:
+        only = args.only.split(",") if args.only else None
+        run_examples(args.examples.resolve(), args.iterations, only)
     return 1 if regressions else 0
 
 

@@ -1,13 +1,17 @@
 """One compiled call per differential IK step, for the stacks that allow it.
 
-When every task of a stack is one of qpik's built-in :class:`~qpik.tasks.FrameTask` /
-:class:`~qpik.tasks.PostureTask` and every limit is mink's ``ConfigurationLimit`` /
-``VelocityLimit`` on a model of hinge and slide joints, :class:`qpik.IKSolver` does in
-Python only what needs MuJoCo (one ``mj_jac*`` call per frame task) and copies the tasks'
-targets and costs into preallocated arrays; :func:`fused_step` then computes every task's
-rows (frame errors by the SE(3) routines of :mod:`qpik.tasks._lie`, mink's own arithmetic),
-the box limits, and the whole cascade (:func:`qpik.core._kernels.solve_cascade`), in C++
-(``qpik/_cpp/diffik/fused.hpp``).
+When every task of a stack is a frame, posture or damping task (qpik's
+:class:`~qpik.tasks.FrameTask` / :class:`~qpik.tasks.PostureTask` /
+:class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit
+is mink's ``ConfigurationLimit`` / ``VelocityLimit`` (or ``CollisionAvoidanceLimit``,
+whose general rows come from its own methods and go to the core's cascade: two compiled
+calls then, see ``IKSolver._fused_general_step``) on a model of hinge and slide joints,
+:class:`qpik.IKSolver` does in Python only what needs MuJoCo (one ``mj_jac*`` call per
+frame task) and copies the tasks' targets and costs into preallocated arrays;
+:func:`fused_step` then computes every task's rows (frame errors by the SE(3) routines of
+:mod:`qpik.tasks._lie`, mink's own arithmetic; mink's own FrameTask gets the same rows as
+qpik's, equal to mink's to round-off), the box limits, and the whole cascade
+(:func:`qpik.core._kernels.solve_cascade`), in C++ (``qpik/_cpp/diffik/fused.hpp``).
 
 It computes exactly what the general path computes (same arithmetic in the same order:
 tests compare the two bitwise); anything unusual (a non-finite row, conflicting limits, a
@@ -26,7 +30,7 @@ import numpy as np
 
 from ._engine import diffik as _engine
 from .errors import TargetNotSet
-from .tasks.fast import FrameTask, PostureTask
+from .tasks.fast import DampingTask, FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
 
@@ -34,6 +38,13 @@ _KINDS = {"site": 0, "body": 1, "geom": 2}
 _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
 _JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
 _FRAME, _POSTURE = 0, 1
+#: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
+#: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
+_FRAME_TYPES = (FrameTask, mink.FrameTask)
+#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost)``, error ``q - q*`` on
+#: hinge/slide joints) and DampingTask (the same toward the current ``q``: error zero).
+_POSTURE_TYPES = (PostureTask, mink.PostureTask)
+_DAMPING_TYPES = (DampingTask, mink.DampingTask)
 
 # Result codes of fused_step: anything but OK sends the step to the general path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
@@ -95,8 +106,9 @@ class FusedPlan:
 
     model: mujoco.MjModel
     frames: list  # (task, jacobian function, id, position rows, rotation rows, data row)
-    postures: list  # (task, data row)
+    postures: list  # (task, data row, damping: target is the current q)
     config_limits: list  # (limit, first entry, last entry)
+    general_limits: list  # limits whose rows G dq <= h are computed by their own methods
     arrays: dict
     kinds_used: tuple
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
@@ -132,10 +144,13 @@ class FusedPlan:
         model, data = self.model, configuration.data
         self._gather_frames(data)
         nq, nv = model.nq, model.nv
-        for task, row in self.postures:
-            if task.target_q is None:
+        for task, row, damping in self.postures:
+            if damping:
+                row[0:nq] = data.qpos
+            elif task.target_q is None:
                 raise TargetNotSet(type(task).__name__)
-            row[0:nq] = task.target_q
+            else:
+                row[0:nq] = task.target_q
             row[nq : nq + nv] = task.cost
             row[nq + nv] = task.gain
             row[nq + nv + 1] = task.lm_damping
@@ -175,7 +190,7 @@ def make_plan(
         return None
     nv = model.nv
     frames, postures, tasks, frame_rows, starts = layout
-    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = boxes
+    cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits = boxes
     F, P, M = len(frames), len(postures), starts[-1]
     jac = np.zeros((F, 6, nv))
     frame_data = np.zeros((F, 15))
@@ -202,12 +217,16 @@ def make_plan(
         (task, fn, fid, jac[f, :3], jac[f, 3:], frame_data[f])
         for f, (task, fn, fid) in enumerate(frames)
     ]
-    postures = [(task, posture_data[p]) for p, task in enumerate(postures)]
+    postures = [
+        (task, posture_data[p], type(task) in _DAMPING_TYPES) for p, task in enumerate(postures)
+    ]
     used = tuple(any(kind == k for kind, _ in frame_rows) for k in range(3))
     settings = arrays["settings"]
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
     cold = np.zeros((len(levels), nv), dtype=np.int8)
-    return FusedPlan(model, frames, postures, config_limits, arrays, used, cold, max_iter)
+    return FusedPlan(
+        model, frames, postures, config_limits, general_limits, arrays, used, cold, max_iter
+    )  # fmt: skip
 
 
 def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:
@@ -222,14 +241,15 @@ def _frame_entry(model: mujoco.MjModel, task) -> tuple[int, int] | None:
 
 def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
     """``(frames, postures, tasks, frame_rows, starts)`` of a stack whose tasks are all
-    qpik's FrameTask / scalar PostureTask (None otherwise): rows are laid out level by
-    level, task by task."""
+    FrameTask / PostureTask / DampingTask (qpik's or mink's, exact types; postures on
+    hinge/slide joints only), None otherwise: rows are laid out level by level, task by
+    task."""
     frames, postures, tasks, frame_rows = [], [], [], []
     starts = [0]
     for k, level in enumerate(levels):
         row = starts[-1]
         for task in level:
-            if type(task) is FrameTask:
+            if type(task) in _FRAME_TYPES:
                 entry = _frame_entry(model, task)
                 if entry is None:
                     return None
@@ -237,7 +257,7 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
                 frames.append((task, _JACOBIAN[entry[0]], entry[1]))
                 frame_rows.append(entry)
                 row += 6
-            elif type(task) is PostureTask and task._scalar:
+            elif _scalar_posture(model, task):
                 tasks.append((_POSTURE, len(postures), k, row))
                 postures.append(task)
                 row += model.nv
@@ -247,10 +267,30 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
     return frames, postures, tasks, frame_rows, starts
 
 
+def _scalar_posture(model: mujoco.MjModel, task) -> bool:
+    """Whether a task is a posture or damping task (qpik's or mink's, exact type) on a
+    model of hinge/slide joints, whose rows :func:`fused_step` computes."""
+    kind = type(task)
+    if kind not in _POSTURE_TYPES and kind not in _DAMPING_TYPES:
+        return False
+    return (
+        model.nq == model.nv
+        and getattr(task, "_v_ids", None) is None
+        and (getattr(task, "cost", None) is not None and np.shape(task.cost) == (model.nv,))
+    )
+
+
+#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
+#: methods each step, the cascade in one compiled call; exact types).
+_GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
+
+
 def _limit_boxes(limits: Sequence):
-    """``(cfg_dof, cfg_data, config_limits, vel_dof, vel_limit)`` of mink's position and
-    velocity limits (None when another limit is present)."""
+    """``(cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits)`` of mink's
+    position and velocity limits and its collision avoidance limits (None when another
+    limit is present)."""
     cfg_dof, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], []
+    general_limits = []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
             indices = np.asarray(limit.indices, dtype=np.int64)
@@ -262,6 +302,8 @@ def _limit_boxes(limits: Sequence):
         elif type(limit) is mink.VelocityLimit:
             vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
             vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
+        elif type(limit) in _GENERAL_LIMITS:
+            general_limits.append(limit)
         else:
             return None
-    return cfg_dof, cfg_data, config_limits, vel_dof, vel_limit
+    return cfg_dof, cfg_data, config_limits, vel_dof, vel_limit, general_limits

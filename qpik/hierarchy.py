@@ -55,6 +55,7 @@ from .tasks import BaseTask
 
 #: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
 _STATUS_OF_CODE = {float(code): status for code, status in _STATUS.items()}
+_SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
 __all__ = [
     "DampingLaw",
@@ -336,6 +337,12 @@ class IKSolver:
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
             )
         )
+        #: With a forced backend, answer by the one-call step (exact compiled solver) when
+        #: it solves every level: the forced-backend path returns that same answer to
+        #: round-off (the exact cold solve polishes the backend's), at a backend call per
+        #: level where a limit binds. Off by default (``StepResult.iterations`` then count
+        #: the exact solver's iterations, not the backend's); qpik.solve_ik turns it on.
+        self._exact_forced = False
         # One compiled call per step when every task and limit allows it (see qpik._fused).
         self._plan = make_plan(
             model,
@@ -531,10 +538,16 @@ class IKSolver:
             and type(dt) is float
             and 0.0 < dt < math.inf
         ):
-            if self._core.solver == "auto":
+            if plan.general_limits:
+                result = self._fused_general_step(plan, configuration, dt, start)
+            elif self._core.solver == "auto":
                 result = self._fused_step(plan, configuration, dt, start)
             else:
-                result = self._fused_rows_step(plan, configuration, dt, start)
+                result = None
+                if self._exact_forced and not self._core.warm_start:
+                    result = self._fused_step(plan, configuration, dt, start, forced=True)
+                if result is None:
+                    result = self._fused_rows_step(plan, configuration, dt, start)
             if result is not None:
                 return result
         return self._general_step(configuration, dt, start)
@@ -550,6 +563,82 @@ class IKSolver:
             settings[2:5] = core._law()
             plan.law = law
         return settings
+
+    def _fused_general_step(
+        self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
+    ):
+        """:meth:`step` for a plan with general-row limits (collision avoidance): the rows
+        and the box in one compiled call (:func:`qpik._fused.fused_rows`), the limits'
+        rows ``G dq <= h`` from their own methods, then the core's solve (the exact one
+        first with a forced backend and ``_exact_forced``, as in :meth:`_fused_step`).
+        None where the general path must answer (a non-finite row, conflicting limits, a
+        limit row on one dof only, which the general path folds into the box)."""
+        poses: _Poses
+        qpos, poses = plan.gather(configuration)
+        a = plan.arrays
+        code, reg, lb, ub = fused_rows(
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt)
+        )
+        if code:
+            return None
+        general = self._general_rows(plan, configuration, dt)
+        if general is None:
+            return None
+        G, h, names = general
+        q = qpos.copy()
+        args = (a["A"], a["b"], a["w"], a["starts"], reg, lb, ub, G, h, dt, start,
+                lambda: self._box_contributions(q, dt), names)  # fmt: skip
+        core = self._core
+        if core.solver != "auto" and self._exact_forced and not core.warm_start:
+            exact = self._exact_core()
+            result = self._finish(*args, core=exact)
+            if all(s == LevelStatus.SOLVED for s in result.status):
+                return result
+        return self._finish(*args)
+
+    def _general_rows(self, plan: FusedPlan, configuration: Configuration, dt: float):
+        """``(G, h, names)`` of the plan's general-row limits as the general path takes
+        them (rows on two or more dofs; empty rows dropped), None when a row bounds one
+        dof (the general path makes it a box bound) or an empty row is infeasible."""
+        G_parts: list[np.ndarray] = []
+        h_parts: list[np.ndarray] = []
+        names: list[str] = []
+        for limit in plan.general_limits:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            if constraint.inactive:
+                continue
+            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+            h = np.atleast_1d(constraint.h)
+            structure = self._row_structure(limit, G)
+            if structure.upper_rows.size or structure.lower_rows.size:
+                return None
+            if structure.empty is not None and np.any(h[structure.empty] < 0):
+                return None  # the general path names the infeasible row
+            rows = structure.general
+            if not rows.size:
+                continue
+            G_parts.append(G[rows])
+            h_parts.append(h[rows])
+            name = type(limit).__name__
+            names.extend(f"{name} row {int(r)}" for r in rows)
+        if not G_parts:
+            return self._no_rows, np.zeros(0), names
+        G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
+        h = np.ascontiguousarray(np.concatenate(h_parts) if len(h_parts) > 1 else h_parts[0], float)
+        return G, h, names
+
+    def _exact_core(self) -> HierarchySolver:
+        """An exact-solver core with this solver's settings (for ``_exact_forced``)."""
+        core = self._core
+        exact = getattr(self, "_exact", None)
+        if exact is None:
+            exact = HierarchySolver(
+                "auto", damping_law=core.damping_law, rank_tolerance=core.rank_tolerance,
+                max_iter=core.max_iter, tolerance=core.tolerance,
+            )  # fmt: skip
+            self._exact = exact
+        exact.damping_law = core.damping_law
+        return exact
 
     def _fused_rows_step(
         self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
@@ -572,9 +661,21 @@ class IKSolver:
             lambda: self._box_contributions(q, dt), [],
         )  # fmt: skip
 
-    def _fused_step(self, plan: FusedPlan, configuration: Configuration, dt: float, start: float):
+    def _fused_step(
+        self,
+        plan: FusedPlan,
+        configuration: Configuration,
+        dt: float,
+        start: float,
+        forced: bool = False,
+    ):
         """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
-        path must answer (non-finite rows, conflicting limits, an unsettled active set)."""
+        path must answer (non-finite rows, conflicting limits, an unsettled active set).
+
+        ``forced`` (a forced backend, see ``_exact_forced``): the answer is kept only when
+        every level was solved by the exact cold solve, which is what the forced-backend
+        path returns then (it polishes the backend's answer by that same solve; equal to
+        round-off, tests/test_fastpath.py), and None otherwise; no backend is called."""
         poses: _Poses
         qpos, poses = plan.gather(configuration)
         core = self._core
@@ -585,8 +686,10 @@ class IKSolver:
         )  # fmt: skip
         if code:
             return None
-        core._warm = active
         residuals, sigma, lam2, status, iterations = info.tolist()
+        if forced and any(s != _SOLVED_CODE for s in status):
+            return None
+        core._warm = active
         q = qpos.copy()
         return StepResult(
             velocity=v,
@@ -613,7 +716,10 @@ class IKSolver:
         :meth:`_limit_rows`)."""
         contributions = []
         for limit in self.limits:
-            dofs, lower, upper = _BOX_LIMITS[type(limit)](limit, qpos, dt)
+            box = _BOX_LIMITS.get(type(limit))
+            if box is None:  # a general-row limit (see _fused_general_step)
+                continue
+            dofs, lower, upper = box(limit, qpos, dt)
             name = type(limit).__name__
             contributions.append((name, dofs, upper))
             contributions.append((name, dofs, lower))
@@ -627,11 +733,14 @@ class IKSolver:
             A, b, w, starts, reg, lb, ub, G, h, dt, start, lambda: contributions, names
         )
 
-    def _finish(self, A, b, w, starts, reg, lb, ub, G, h, dt, start, contributions, names):
+    def _finish(
+        self, A, b, w, starts, reg, lb, ub, G, h, dt, start, contributions, names, core=None
+    ):
         """The core's solve of the stacked rows and its :class:`StepResult`;
         ``contributions()`` gives the limits' box contributions (for naming active
-        limits, on first access)."""
-        result = self._core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
+        limits, on first access); ``core`` another core than this solver's."""
+        core = self._core if core is None else core
+        result = core.solve_arrays(A, b, w, starts, reg, lb, ub, G, h)
         d = result.x
         if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
             raise InvalidTarget(

@@ -175,7 +175,10 @@ def solve_ik(
         solver: QP backend. ``None``: qpik's exact compiled active-set solver. A name
             (``"daqp"``, ``"osqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``; mink
             passes it fourth, positionally) forces that backend wherever a limit binds;
-            its answer is polished on the active set it finds.
+            its answer is polished by qpik's exact solve, so where that solve alone
+            settles every level (stacks of the one-call step, :mod:`qpik._fused`) the
+            backend is not called: the same velocity, to round-off. With backend
+            ``kwargs`` the backend is always called.
         damping: Tikhonov (Levenberg-Marquardt) term on every task level [unitless], as
             mink's; the constraints get none.
         safety_break: raise :class:`qpik.JointLimitViolation` (a
@@ -341,7 +344,12 @@ def _new_solver(
         options["solver"] = solver
     if backend_options:
         options["backend_options"] = backend_options
-    return IKSolver(configuration.model, levels, limit_list, **options)
+    ik = IKSolver(configuration.model, levels, limit_list, **options)
+    # Only the velocity is returned: a named backend's answer, polished by the exact solve,
+    # is that solve's (see IKSolver._exact_forced), so it is skipped where the exact
+    # one-call step solves every level; not when the caller gave the backend settings.
+    ik._exact_forced = not backend_options
+    return ik
 
 
 def build_ik(

@@ -1,0 +1,248 @@
+"""mink's own tasks in the one-call step (qpik._fused), and the forced-backend shortcut of
+qpik.solve_ik: rows equal mink's, answers equal the general path's."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+
+import qpik
+from qpik._fused import fused_rows
+from qpik.limits import velocity_limit_from_model
+
+DT = 0.01
+
+
+@pytest.fixture(scope="module")
+def panda():
+    model = qpik.load_robot("panda")
+    return model, qpik.Configuration(model)
+
+
+def _random_state(rng, model, configuration, tasks, reach=0.3):
+    """A random configuration within the limits, and random targets for ``tasks``."""
+    home = model.key_qpos[0]
+    q = np.clip(home + rng.uniform(-0.6, 0.6, model.nv), configuration.lower, configuration.upper)
+    configuration.update(q)
+    for task in tasks:
+        if isinstance(task, mink.FrameTask):
+            pose = configuration.get_transform_frame_to_world(task.frame_name, task.frame_type)
+            offset = mink.SE3.exp(rng.normal(size=6) * reach)
+            task.set_target(pose @ offset)
+        elif isinstance(task, mink.PostureTask) and not isinstance(task, mink.DampingTask):
+            task.set_target(
+                np.clip(q + rng.uniform(-1, 1, model.nv), configuration.lower, configuration.upper)
+            )
+
+
+def _mink_tasks(model):
+    return [
+        mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.3, lm_damping=0.5),
+        mink.FrameTask("link5", "body", position_cost=[1.0, 0.5, 2.0], orientation_cost=0.0),
+        mink.PostureTask(model, cost=np.linspace(0.01, 0.1, model.nv), gain=0.7),
+        mink.DampingTask(model, cost=np.linspace(0.2, 0.5, model.nv)),
+        qpik.tasks.DampingTask(model, cost=0.1),
+    ]
+
+
+def test_minks_tasks_rows_equal_minks_objective(panda):
+    """Each task as its own level: the compiled rows' objective ``A^T A + mu I``,
+    ``-A^T b`` equals mink's compute_qp_objective to 1e-12."""
+    model, configuration = panda
+    rng = np.random.default_rng(5)
+    tasks = _mink_tasks(model)
+    damping = 1e-3
+    solver = qpik.IKSolver(model, [[t] for t in tasks], [mink.ConfigurationLimit(model)],
+                           damping=damping)  # fmt: skip
+    plan = solver._plan
+    assert plan is not None
+    for _ in range(30):
+        _random_state(rng, model, configuration, tasks)
+        qpos, poses = plan.gather(configuration)
+        code, reg, _, _ = fused_rows(
+            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, solver._settings(plan, DT)
+        )
+        assert code == 0
+        a = plan.arrays
+        starts = a["starts"]
+        for k, task in enumerate(tasks):
+            A = a["A"][starts[k] : starts[k + 1]]
+            b = a["b"][starts[k] : starts[k + 1]]
+            mu = reg[k] - damping
+            H = A.T @ A + mu * np.eye(model.nv)
+            c = -A.T @ b
+            objective = task.compute_qp_objective(configuration)
+            scale = max(1.0, np.abs(objective.H).max())
+            np.testing.assert_allclose(H, objective.H, rtol=0, atol=1e-12 * scale)
+            np.testing.assert_allclose(c, objective.c, rtol=0, atol=1e-12 * scale)
+            np.testing.assert_array_equal(a["w"][starts[k] : starts[k + 1]], task.cost)
+
+
+@pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
+def test_minks_tasks_compiled_step_equals_the_general_path(panda, solver_name):
+    pytest.importorskip("quadprog")
+    model, configuration = panda
+    rng = np.random.default_rng(11)
+    tasks = _mink_tasks(model)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    levels = [[tasks[0]], [tasks[1], tasks[3]], [tasks[2], tasks[4]]]
+    solver = qpik.IKSolver(model, levels, limits, solver=solver_name)
+    assert solver._plan is not None
+    for _ in range(30):
+        _random_state(rng, model, configuration, tasks)
+        fused = solver.step(configuration, DT)
+        general = solver._general_step(configuration, DT, 0.0)
+        np.testing.assert_allclose(fused.displacement, general.displacement, rtol=0, atol=1e-12)
+        assert fused.status == general.status
+
+
+@pytest.mark.parametrize("backend", ["quadprog", "daqp", "osqp"])
+def test_forced_backend_shortcut_gives_the_forced_paths_answer(panda, backend):
+    """qpik.solve_ik's solvers answer a forced backend by the exact one-call step when it
+    solves every level: the forced path's displacement (bitwise where no limit binds, to
+    round-off where one does: the same active-set solve, the cascade's sums in C++)."""
+    pytest.importorskip(backend)
+    model, configuration = panda
+    rng = np.random.default_rng(17)
+    tasks = _mink_tasks(model)[:3]
+    slow = mink.VelocityLimit(model, {model.joint(j).name: 0.3 for j in range(7)})
+    for limits in ([mink.ConfigurationLimit(model)], [mink.ConfigurationLimit(model), slow]):
+        for levels in ([tasks], [[tasks[0]], [tasks[1]], [tasks[2]]]):
+            solver = qpik.IKSolver(model, levels, limits, solver=backend, damping=1e-4)
+            shortcut = qpik.IKSolver(model, levels, limits, solver=backend, damping=1e-4)
+            shortcut._exact_forced = True
+            bound = 0
+            for _ in range(25):
+                _random_state(rng, model, configuration, tasks, reach=0.5)
+                a = solver.step(configuration, DT)
+                b = shortcut.step(configuration, DT)
+                np.testing.assert_allclose(a.displacement, b.displacement, rtol=0, atol=1e-12)
+                assert a.status == b.status
+                bound += bool(a.active_limits)
+            if len(limits) > 1:
+                assert bound > 0  # the limits did bind in some steps
+
+
+def test_solve_ik_with_minks_tasks_matches_mink(panda):
+    model, configuration = panda
+    rng = np.random.default_rng(23)
+    tasks = _mink_tasks(model)[:4]
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    for _ in range(20):
+        _random_state(rng, model, configuration, tasks, reach=0.1)
+        ours = qpik.solve_ik(configuration, tasks, DT, "quadprog", 1e-3, limits=limits)
+        theirs = mink.solve_ik(configuration, tasks, DT, "quadprog", 1e-3, limits=limits)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-8)
+
+
+def test_unknown_task_types_still_use_their_own_methods(panda):
+    """A subclass of mink's FrameTask (its own rows) and a custom task work at any level
+    through their methods; the stack then takes the general path."""
+    model, configuration = panda
+    configuration.update(model.key_qpos[0])
+
+    class Shifted(mink.FrameTask):
+        def _error_and_jacobian(self, configuration):
+            error, jacobian = super()._error_and_jacobian(configuration)
+            return error + 0.01, jacobian
+
+    class Zero(mink.Task):
+        def __init__(self):
+            super().__init__(cost=np.ones(2), gain=1.0)
+
+        def compute_error(self, configuration):
+            return configuration.q[:2] - 0.1
+
+        def compute_jacobian(self, configuration):
+            return np.eye(2, model.nv)
+
+    frame = Shifted("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target_from_configuration(configuration)
+    posture = mink.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    plain = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    plain.set_target_from_configuration(configuration)
+    for levels in ([[frame], [posture]], [[Zero()], [frame, posture]]):
+        solver = qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)])
+        assert solver._plan is None
+        result = solver.step(configuration, DT)
+        assert result.ok
+        swapped = [[plain if t is frame else t for t in level] for level in levels]
+        reference = qpik.IKSolver(model, swapped, [mink.ConfigurationLimit(model)])
+        # the subclass's own error was used: the step differs from the plain task's
+        assert (
+            np.abs(result.displacement - reference.step(configuration, DT).displacement).max()
+            > 1e-6
+        )
+
+
+@pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
+def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(solver_name):
+    """mink's CollisionAvoidanceLimit in a plan: its rows from its own methods, the tasks'
+    rows and the box compiled; bitwise the general path's answer (qpik's tasks), and equal
+    to round-off with the forced-backend shortcut."""
+    pytest.importorskip("quadprog")
+    import mujoco
+
+    xml = """
+    <mujoco>
+      <worldbody>
+        <geom name="floor" type="plane" size="2 2 0.1"/>
+        <geom name="post" type="capsule" fromto="0.35 0 0 0.35 0 0.6" size="0.05"/>
+        <body name="l1" pos="0 0 0.3">
+          <joint name="j1" type="hinge" axis="0 0 1" range="-3 3"/>
+          <geom name="g1" type="capsule" fromto="0 0 0 0.25 0 0" size="0.04"/>
+          <body name="l2" pos="0.25 0 0">
+            <joint name="j2" type="hinge" axis="0 1 0" range="-2.5 2.5"/>
+            <geom name="g2" type="capsule" fromto="0 0 0 0.25 0 0" size="0.04"/>
+            <body name="l3" pos="0.25 0 0">
+              <joint name="j3" type="hinge" axis="0 1 0" range="-2.5 2.5"/>
+              <geom name="g3" type="capsule" fromto="0 0 0 0.15 0 0" size="0.03"/>
+              <site name="tip" pos="0.15 0 0"/>
+            </body>
+          </body>
+        </body>
+      </worldbody>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    pairs = [(["g2", "g3"], ["floor", "post"])]
+    collision = mink.CollisionAvoidanceLimit(
+        model, pairs, minimum_distance_from_collisions=0.05, collision_detection_distance=0.3
+    )
+    limits = [mink.ConfigurationLimit(model), collision,
+              mink.VelocityLimit(model, {"j1": 2.0, "j2": 2.0, "j3": 2.0})]  # fmt: skip
+    rng = np.random.default_rng(3)
+    for frame_class in (qpik.tasks.FrameTask, mink.FrameTask):
+        frame = frame_class("tip", "site", position_cost=1.0, orientation_cost=0.0)
+        posture = qpik.tasks.PostureTask(model, cost=1e-2)
+        solver = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
+        assert solver._plan is not None and solver._plan.general_limits == [collision]
+        shortcut = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
+        shortcut._exact_forced = True
+        rows_seen = 0
+        for _ in range(40):
+            q = rng.uniform(-1.5, 1.5, model.nq)
+            configuration.update(q)
+            target = configuration.get_transform_frame_to_world("tip", "site")
+            frame.set_target(mink.SE3.from_translation(rng.uniform(-0.3, 0.3, 3)) @ target)
+            posture.set_target(np.zeros(model.nq))
+            try:
+                general = solver._general_step(configuration, DT, 0.0)
+            except qpik.QpikError:
+                continue
+            fused = solver.step(configuration, DT)
+            if frame_class is qpik.tasks.FrameTask:
+                assert np.array_equal(fused.displacement, general.displacement)
+            else:
+                np.testing.assert_allclose(fused.displacement, general.displacement, atol=1e-12)
+            assert fused.status == general.status
+            assert fused.active_limits == general.active_limits
+            other = shortcut.step(configuration, DT)
+            np.testing.assert_allclose(other.displacement, general.displacement, atol=1e-12)
+            rows = solver._general_rows(
+                solver._plan, configuration, DT
+            )  # None: a one-dof row, general path
+            rows_seen += rows is not None and rows[0].shape[0] > 0
+        assert rows_seen > 0
