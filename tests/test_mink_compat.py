@@ -696,3 +696,29 @@ def test_mink_suite_runs_a_suite_stock_and_patched(tmp_path):
         "pass with qpik only: 1" in run.stdout
         and "test_style.TestStyle::test_patched" in run.stdout
     )
+
+
+def test_free_joint_velocity_limit_composes_with_velocity_limit():
+    """mink's own test_free_joint_velocity_limit scenario (its one failure under qpik
+    before): a hand pulled 17 m away on a floating humanoid, the base twist capped in the
+    base frame and every other joint at pi rad/s, daqp named; each step keeps both caps."""
+    pytest.importorskip("daqp")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = qpik.load_robot("erd:talos", floating_base=True)
+    configuration = mink.Configuration(model)
+    configuration.update(model.key_qpos[0] if model.nkey else model.qpos0)
+    task = mink.FrameTask("gripper_left_base_link", "body", 1.0, 1.0)
+    task.set_target(mink.SE3.from_translation(np.array([10.0, 10.0, 10.0])))
+    base = mink.FreeJointVelocityLimit(model, 1.0, 2.0)
+    names = [model.joint(i).name for i in range(1, model.njnt)]
+    joints = mink.VelocityLimit(model, dict.fromkeys(names, np.pi))
+    for _ in range(8):
+        v = qpik.solve_ik(configuration, [task], 1e-2, "daqp", limits=[base, joints])
+        R = configuration.data.xmat[base.base_body_id].reshape(3, 3)
+        assert np.abs(R.T @ v[:3]).max() <= 1.0 + 1e-6
+        assert np.abs(v[3:6]).max() <= 2.0 + 1e-6
+        assert np.abs(v[joints.indices]).max() <= np.pi + 1e-6
+        configuration.integrate_inplace(v, 1e-2)
