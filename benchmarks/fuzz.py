@@ -2245,7 +2245,11 @@ def run_boundary(spec: dict) -> str:
 
             task = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
             (wxyz_xyz,) = _apply([np.array([1.0, 0, 0, 0, 0.3, 0.1, 0.3])], mutations, odd)
-            task.set_target(mink.SE3(wxyz_xyz))
+            try:  # mink's own constructor (not qpik) checks the length only
+                target = mink.SE3(wxyz_xyz)
+            except Exception as exc:  # noqa: BLE001
+                raise Typed(f"mink.SE3: {type(exc).__name__}") from exc
+            task.set_target(target)
         solver = qpik.IKSolver(model, [[task]], [qpik.limits.ConfigurationLimit(model)], solver=spec["solver"])
         result = solver.step(configuration, 0.01)
         if not odd:
