@@ -27,7 +27,16 @@ Outcomes of a case:
 Categories: solve, solve_many, step (``IKSolver.step`` and ``solve_ik`` with random
 stacks and limits), problem (``load_problem`` + solve + ``qpik reach`` on mutated problem
 files), robot_file (``load_robot`` on malformed MJCF / URDF and odd names, then FK,
-statics, a solve), statics, analysis, cli (``qpik.cli.main`` in-process) and determinism.
+statics, a solve), statics, analysis, cli (``qpik.cli.main`` in-process), determinism, and
+two aimed at the compiled engine (``qpik._engine``, issue 20): boundary (the public entry
+points that end in it: ``qpik.core.solve_hierarchy``, ``KinematicChain`` pose / Jacobian /
+reach bound, ``Configuration``, task targets then ``IKSolver.step``, ``qpik.solve``'s
+``q0`` and target, with odd arrays: float32 / int / object / big-endian, Fortran order,
+strided, zero-stride, read-only, NaN / inf, empty, wrong shapes, 0-d, lists, 100 000 rows)
+and engine (each kernel of ``qpik._engine`` called directly with the arguments recorded
+from valid solves, one to three of them mutated likewise, scalars too, or two arrays
+aliased; the kernels are private, so any Python exception is a clean refusal, counted as
+typed, and only a crash or a hang is bad).
 
 The table has one row per category; the exit status is 1 when any bad outcome occurred.
 """
@@ -708,8 +717,29 @@ ARRAY_MUTATIONS = (
     "huge",
 )
 #: What a scalar argument is turned into.
-SCALAR_MUTATIONS = ("same", "nan", "inf", "neg", "zero", "int_max", "int_overflow", "huge", "none", "str", "float_for_int")
-BOUNDARY_ENTRIES = ("hierarchy", "chain_pose", "chain_jacobian", "chain_reach", "configuration", "task_target", "solve_q0", "solve_target")
+SCALAR_MUTATIONS = (
+    "same",
+    "nan",
+    "inf",
+    "neg",
+    "zero",
+    "int_max",
+    "int_overflow",
+    "huge",
+    "none",
+    "str",
+    "float_for_int",
+)
+BOUNDARY_ENTRIES = (
+    "hierarchy",
+    "chain_pose",
+    "chain_jacobian",
+    "chain_reach",
+    "configuration",
+    "task_target",
+    "solve_q0",
+    "solve_target",
+)
 
 
 def gen_boundary(r: random.Random) -> dict:
@@ -2110,7 +2140,11 @@ def _mutate_array(a, how: str):
     if how == "empty":
         return np.zeros((0,) + a.shape[1:]) if a.ndim else np.zeros(0)
     if how == "extra_row":
-        return np.concatenate([a, a[:1] if len(a) else np.zeros((1,) + a.shape[1:])]) if a.ndim else np.array([a, a])
+        return (
+            np.concatenate([a, a[:1] if len(a) else np.zeros((1,) + a.shape[1:])])
+            if a.ndim
+            else np.array([a, a])
+        )
     if how == "missing_col":
         return a[..., :-1] if a.ndim and a.shape[-1] else a[None][:0]
     if how == "ndim_up":
@@ -2200,7 +2234,14 @@ def run_boundary(spec: dict) -> str:
 
         chain = KinematicChain.from_model(model, "ee")
         if entry == "chain_reach":
-            lo, hi = _apply([np.where(np.isfinite(lower), lower, -1.0), np.where(np.isfinite(upper), upper, 1.0)], mutations, odd)
+            lo, hi = _apply(
+                [
+                    np.where(np.isfinite(lower), lower, -1.0),
+                    np.where(np.isfinite(upper), upper, 1.0),
+                ],
+                mutations,
+                odd,
+            )
             bound = chain.reach_bound(lo, hi)
             return _digest(repr(bound))
         (q,) = _apply([q_mid], mutations, odd)
@@ -2250,7 +2291,9 @@ def run_boundary(spec: dict) -> str:
             except Exception as exc:  # noqa: BLE001
                 raise Typed(f"mink.SE3: {type(exc).__name__}") from exc
             task.set_target(target)
-        solver = qpik.IKSolver(model, [[task]], [qpik.limits.ConfigurationLimit(model)], solver=spec["solver"])
+        solver = qpik.IKSolver(
+            model, [[task]], [qpik.limits.ConfigurationLimit(model)], solver=spec["solver"]
+        )
         result = solver.step(configuration, 0.01)
         if not odd:
             _finite(result, "step", allow=(".solve_time",))
@@ -2316,7 +2359,12 @@ def _record_engine_calls() -> dict:
                 qpik.solve(robot, {"ee": [0.3, 0.1, 0.3]}, restarts=2, max_iters=30, seed=1)
                 qpik.solve(robot, {"ee": [5.0, 5.0, 5.0]}, restarts=2, max_iters=10, seed=1)
         with contextlib.suppress(Exception):
-            qpik.solve("panda", {"ee": {"position": [0.4, 0.1, 0.5], "rotation": np.eye(3).tolist()}}, restarts=1, seed=2)
+            qpik.solve(
+                "panda",
+                {"ee": {"position": [0.4, 0.1, 0.5], "rotation": np.eye(3).tolist()}},
+                restarts=1,
+                seed=2,
+            )
         model = qpik.load_robot("panda")
         for solver in ("osqp", "daqp", "quadprog"):
             with contextlib.suppress(Exception):
@@ -2331,7 +2379,10 @@ def _record_engine_calls() -> dict:
             rng = np.random.default_rng(0)
             solve_hierarchy(
                 [Level(rng.normal(size=(3, 5)), rng.normal(size=3), 1e-6)],
-                -np.ones(5), np.ones(5), rng.normal(size=(2, 5)), np.ones(2),
+                -np.ones(5),
+                np.ones(5),
+                rng.normal(size=(2, 5)),
+                np.ones(2),
             )
         with contextlib.suppress(Exception):
             from qpik.model import KinematicChain
@@ -2409,9 +2460,20 @@ def run_engine(spec: dict) -> str:
         if isinstance(value, np.ndarray) and value.dtype == np.float64:
             values[index] = _mutate_array(value, mutation[1])
         elif isinstance(value, np.ndarray):  # index arrays: keep their dtype, break the shape
-            how = mutation[1] if mutation[1] in ("empty", "ndim_up", "readonly", "strided", "float32", "list", "none") else "empty"
-            values[index] = value.astype(np.float32) if how == "float32" else (
-                _mutate_array(value, how).astype(value.dtype) if how not in ("list", "none") else _mutate_array(value, how)
+            how = (
+                mutation[1]
+                if mutation[1]
+                in ("empty", "ndim_up", "readonly", "strided", "float32", "list", "none")
+                else "empty"
+            )
+            values[index] = (
+                value.astype(np.float32)
+                if how == "float32"
+                else (
+                    _mutate_array(value, how).astype(value.dtype)
+                    if how not in ("list", "none")
+                    else _mutate_array(value, how)
+                )
             )
         elif isinstance(value, (bool, int, float)):
             values[index] = _mutate_scalar(value, mutation[2])
@@ -2419,7 +2481,13 @@ def run_engine(spec: dict) -> str:
             inner = list(value)
             j = mutation[0] % max(1, len(inner))
             if inner and isinstance(inner[j], np.ndarray):
-                inner[j] = _mutate_array(inner[j], mutation[1]).astype(inner[j].dtype) if mutation[1] in ("empty", "ndim_up", "extra_row", "missing_col") else _mutate_array(inner[j], mutation[1]) if inner[j].dtype == np.float64 else inner[j][:0]
+                inner[j] = (
+                    _mutate_array(inner[j], mutation[1]).astype(inner[j].dtype)
+                    if mutation[1] in ("empty", "ndim_up", "extra_row", "missing_col")
+                    else _mutate_array(inner[j], mutation[1])
+                    if inner[j].dtype == np.float64
+                    else inner[j][:0]
+                )
             values[index] = tuple(inner)
     args = values[: len(args)]
     kwargs = dict(zip(kwargs, values[len(args) :], strict=True))
@@ -2429,7 +2497,6 @@ def run_engine(spec: dict) -> str:
     except Exception as exc:  # noqa: BLE001 - a clean refusal
         raise Typed(f"{name}: {type(exc).__name__}") from exc
     return _digest(name, repr(type(out)))
-
 
 
 # -- determinism
@@ -2501,8 +2568,9 @@ def _outcome(runner, spec) -> tuple[str, str, str]:
 
 
 def _warm_up() -> None:
-    """Import qpik and run each path once (numba compiles or loads its cache here), so
-    that no case's time includes it."""
+    """Import qpik (the compiled engine, MuJoCo, the QP solvers) and run each path once,
+    so that no case's time includes loading or first-call setup; record the engine's
+    kernel calls for the engine category."""
     import numpy as np
 
     import qpik
@@ -2521,6 +2589,7 @@ def _warm_up() -> None:
     for path in _shipped_problems()[:2]:
         with contextlib.suppress(Exception):
             qpik.load_problem(path)
+    _ENGINE_CALLS.update(_record_engine_calls())
 
 
 def _worker(conn, quiet: bool) -> None:

@@ -154,7 +154,7 @@ def test_same_bits_in_two_processes():
         for seed in ("1", "2")
     ]
     outputs = [p.communicate(timeout=120) for p in runs]
-    for p, (out, err) in zip(runs, outputs, strict=True):
+    for p, (_out, err) in zip(runs, outputs, strict=True):
         assert p.returncode == 0, err
     assert outputs[0][0] == outputs[1][0]
 
@@ -227,7 +227,11 @@ def test_sdist_wheel_install_and_run(tmp_path):
     assert converged == "True"
     _run([str(venv / "bin" / "qpik"), "reach", problem, "--quiet"], cwd=elsewhere, env=env)
     # the stubs are found by a type checker through the installed package
-    site = Path(_run([str(python), "-c", "import qpik; print(qpik.__file__)"], cwd=elsewhere, env=env).stdout.strip()).parent
+    site = Path(
+        _run(
+            [str(python), "-c", "import qpik; print(qpik.__file__)"], cwd=elsewhere, env=env
+        ).stdout.strip()
+    ).parent
     assert (site / "_engine" / "__init__.pyi").is_file()
     # the same answer as the checkout (the same flags, the same compiler)
     here = _run([sys.executable, "-c", _SOLVE], env=dict(env, PYTHONPATH=str(ROOT)))
