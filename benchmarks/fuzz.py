@@ -2494,6 +2494,8 @@ def run_engine(spec: dict) -> str:
     function = {n: f for n, f in _engine_functions().values()}[name]
     try:
         out = function(*args, **kwargs)
+    except MemoryError as exc:  # the arrays are small: a size argument went unchecked
+        raise Bad("untyped", f"{name}: MemoryError (an unchecked size argument)") from exc
     except Exception as exc:  # noqa: BLE001 - a clean refusal
         raise Typed(f"{name}: {type(exc).__name__}") from exc
     return _digest(name, repr(type(out)))
@@ -2592,13 +2594,18 @@ def _warm_up() -> None:
     _ENGINE_CALLS.update(_record_engine_calls())
 
 
-def _worker(conn, quiet: bool) -> None:
+def _worker(conn, quiet: bool, memory_gib: float = 0.0) -> None:
     """Worker process: receive (category, spec), answer (outcome, detail, digest)."""
     if quiet:  # OSQP and MuJoCo print on the C side: silence the file descriptors too
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, 1)
         os.dup2(devnull, 2)
     sys.setrecursionlimit(max(sys.getrecursionlimit(), 1000))
+    if memory_gib > 0:  # an unchecked size fails as MemoryError, not by swapping the machine
+        import resource
+
+        limit = int(memory_gib * 2**30)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, resource.getrlimit(resource.RLIMIT_AS)[1]))
     import faulthandler
 
     faulthandler.disable()
@@ -2617,15 +2624,18 @@ def _worker(conn, quiet: bool) -> None:
 
 # =============================================================================== parent
 class _Slot:
-    def __init__(self, ctx, quiet: bool):
+    def __init__(self, ctx, quiet: bool, memory_gib: float = 0.0):
         self.ctx = ctx
         self.quiet = quiet
+        self.memory_gib = memory_gib
         self.start()
 
     def start(self) -> None:
         parent, child = self.ctx.Pipe()
         self.conn = parent
-        self.process = self.ctx.Process(target=_worker, args=(child, self.quiet), daemon=True)
+        self.process = self.ctx.Process(
+            target=_worker, args=(child, self.quiet, self.memory_gib), daemon=True
+        )
         self.process.start()
         child.close()
         self.job = None
@@ -2656,10 +2666,11 @@ def run_campaign(
     timeout: float,
     quiet: bool = True,
     progress: bool = True,
+    memory_gib: float = 0.0,
 ) -> list[tuple]:
     """Run every job; returns (category, index, outcome, detail, digest, seconds)."""
     ctx = mp.get_context("spawn")
-    slots = [_Slot(ctx, quiet) for _ in range(workers)]
+    slots = [_Slot(ctx, quiet, memory_gib) for _ in range(workers)]
     pending = list(reversed(jobs))
     results = []
     start = time.monotonic()
@@ -2781,6 +2792,12 @@ def parse(argv=None) -> argparse.Namespace:
         metavar="CATEGORY:INDEX",
         help="run one case in this process and print its spec and traceback",
     )
+    parser.add_argument(
+        "--memory",
+        type=float,
+        default=8.0,
+        help="address-space limit of each worker [GiB] (8; 0: none)",
+    )
     parser.add_argument("--show", type=int, default=40, help="bad cases listed (40)")
     parser.add_argument("--list", action="store_true", help="list the categories")
     parser.add_argument("--verbose", action="store_true", help="let workers print (OSQP, ...)")
@@ -2801,7 +2818,9 @@ def main(argv=None) -> int:
         flush=True,
     )
     start = time.monotonic()
-    results = run_campaign(jobs, args.workers, args.timeout, quiet=not args.verbose)
+    results = run_campaign(
+        jobs, args.workers, args.timeout, quiet=not args.verbose, memory_gib=args.memory
+    )
     wall = time.monotonic() - start
     final = cross_process(results)
     print(table(final))

@@ -72,3 +72,40 @@ def test_hierarchy_object_level_is_typed():
     A = np.ones((2, 3), dtype=object)
     with pytest.raises(qpik.InvalidInput):
         solve_hierarchy([Level(A, np.ones(2), 1e-6)], -np.ones(3), np.ones(3))
+
+
+_BOXES = """
+import resource, numpy as np
+resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, resource.getrlimit(resource.RLIMIT_AS)[1]))
+import qpik._engine as e
+z, i = np.zeros(6), np.arange(6, dtype=np.int64)
+try:
+    e.diffik.boxes(z, 0.01, i, -np.ones(6), np.ones(6), np.ones(6), i, np.ones(6), 2**31 - 1)
+except ValueError:
+    print("ValueError")
+except MemoryError:
+    print("MemoryError")
+"""
+
+
+@pytest.mark.xfail(
+    strict=False,
+    reason="qpik/_cpp/bind_diffik.cpp boxes checks only n >= 0: n is not bounded by "
+    "len(qpos), so the output box is allocated with n entries (n = 2**31 - 1: 34 GB, a "
+    "hang or the OOM killer without an address-space limit; MemoryError with one)",
+)
+def test_engine_boxes_rejects_n_beyond_qpos():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = str(Path(__file__).resolve().parent.parent)
+    out = subprocess.run(
+        [sys.executable, "-c", _BOXES],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=root,
+        env={"PYTHONPATH": root, "PATH": "/usr/bin:/bin"},
+    )
+    assert out.stdout.strip() == "ValueError", out.stdout + out.stderr
