@@ -27,7 +27,16 @@ Outcomes of a case:
 Categories: solve, solve_many, step (``IKSolver.step`` and ``solve_ik`` with random
 stacks and limits), problem (``load_problem`` + solve + ``qpik reach`` on mutated problem
 files), robot_file (``load_robot`` on malformed MJCF / URDF and odd names, then FK,
-statics, a solve), statics, analysis, cli (``qpik.cli.main`` in-process) and determinism.
+statics, a solve), statics, analysis, cli (``qpik.cli.main`` in-process), determinism, and
+two aimed at the compiled engine (``qpik._engine``, issue 20): boundary (the public entry
+points that end in it: ``qpik.core.solve_hierarchy``, ``KinematicChain`` pose / Jacobian /
+reach bound, ``Configuration``, task targets then ``IKSolver.step``, ``qpik.solve``'s
+``q0`` and target, with odd arrays: float32 / int / object / big-endian, Fortran order,
+strided, zero-stride, read-only, NaN / inf, empty, wrong shapes, 0-d, lists, 100 000 rows)
+and engine (each kernel of ``qpik._engine`` called directly with the arguments recorded
+from valid solves, one to three of them mutated likewise, scalars too, or two arrays
+aliased; the kernels are private, so any Python exception is a clean refusal, counted as
+typed, and only a crash or a hang is bad).
 
 The table has one row per category; the exit status is 1 when any bad outcome occurred.
 """
@@ -62,6 +71,8 @@ CATEGORIES = (
     "analysis",
     "cli",
     "determinism",
+    "boundary",
+    "engine",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
 NAN, INF = float("nan"), float("inf")
@@ -674,6 +685,97 @@ def gen_determinism(r: random.Random) -> dict:
     return {"base": base, "spec": spec, "pollution": pollution}
 
 
+# -- the compiled boundary (qpik._engine): odd arrays into the entry points that end there
+#: What an array argument is turned into: dtype, layout, shape, values, read-only, ...
+ARRAY_MUTATIONS = (
+    "same",
+    "float32",
+    "float16",
+    "int64",
+    "bool",
+    "complex",
+    "object",
+    "big_endian",
+    "fortran",
+    "strided",
+    "transposed",
+    "zero_stride",
+    "readonly",
+    "nan",
+    "inf",
+    "neg_inf",
+    "subnormal",
+    "1e308",
+    "empty",
+    "extra_row",
+    "missing_col",
+    "ndim_up",
+    "ndim_down",
+    "scalar",
+    "list",
+    "none",
+    "huge",
+)
+#: What a scalar argument is turned into.
+SCALAR_MUTATIONS = (
+    "same",
+    "nan",
+    "inf",
+    "neg",
+    "zero",
+    "int_max",
+    "int_overflow",
+    "huge",
+    "none",
+    "str",
+    "float_for_int",
+)
+BOUNDARY_ENTRIES = (
+    "hierarchy",
+    "chain_pose",
+    "chain_jacobian",
+    "chain_reach",
+    "configuration",
+    "task_target",
+    "solve_q0",
+    "solve_target",
+)
+
+
+def gen_boundary(r: random.Random) -> dict:
+    """A public entry point that ends in the engine, with one or two odd arrays."""
+    entry = r.choice(BOUNDARY_ENTRIES)
+    spec: dict = {"entry": entry, "robot": r.choice(ROBOTS), "seed": r.randrange(10**6)}
+    spec["mutations"] = [
+        (r.randrange(8), r.choice(ARRAY_MUTATIONS)) for _ in range(r.choice([1, 1, 2]))
+    ]
+    if entry == "hierarchy":
+        spec["n"] = r.choice([1, 2, 3, 7, 12])
+        spec["rows"] = [r.choice([0, 1, 3, 6]) for _ in range(r.choice([1, 2, 3]))]
+        spec["p"] = r.choice([0, 0, 2, 5])
+        spec["solver"] = r.choice([None, "osqp", "daqp", "quadprog", "qpik"])
+        spec["regularization"] = _maybe(r, 1e-6, [0.0, -1.0, NAN, INF, 1e300], 0.2)
+    if entry == "task_target":
+        spec["task"] = r.choice(["position", "orientation", "pose", "posture", "frame", "com"])
+        spec["solver"] = r.choice(["osqp", "daqp", "quadprog"])
+    return spec
+
+
+def gen_engine(r: random.Random) -> dict:
+    """A raw call of a ``qpik._engine`` kernel: arguments recorded from a valid solve, one
+    or two of them mutated (``pick`` / ``arg`` index the sorted recorded calls and their
+    arguments at run time)."""
+    spec: dict = {"pick": r.randrange(10**6), "mutations": []}
+    for _ in range(r.choice([1, 1, 1, 2, 3])):
+        if r.random() < 0.15:
+            spec["mutations"].append((r.randrange(64), "alias"))
+        else:
+            spec["mutations"].append(
+                (r.randrange(64), r.choice(ARRAY_MUTATIONS), r.choice(SCALAR_MUTATIONS))
+            )
+    return spec
+
+
 GENERATORS = {
     "solve": gen_solve,
     "solve_many": gen_solve_many,
@@ -684,6 +786,8 @@ GENERATORS = {
     "analysis": gen_analysis,
     "cli": gen_cli,
     "determinism": gen_determinism,
+    "boundary": gen_boundary,
+    "engine": gen_engine,
 }
 
 
@@ -1995,6 +2099,408 @@ def run_analysis(spec: dict) -> str:
     return _digest(repr(outputs)[:5000])
 
 
+# -- the compiled boundary
+#: Inputs whose answer need not be finite (non-finite or overflowing values went in).
+_NONFINITE_IN = {"nan", "inf", "neg_inf", "1e308", "huge"}
+
+
+def _mutate_array(a, how: str):
+    """``a`` (a float64 ndarray) turned into the odd argument ``how`` names."""
+    np = _np()
+    a = np.array(a, dtype=float)
+    if how == "same":
+        return a
+    if how in ("float32", "float16", "int64", "bool", "complex"):
+        return a.astype(how)
+    if how == "object":
+        return a.astype(object)
+    if how == "big_endian":
+        return a.astype(">f8")
+    if how == "fortran":
+        return np.asfortranarray(a)
+    if how == "strided":  # a view of every other element of a bigger array
+        big = np.zeros(tuple(2 * s for s in a.shape) or (), dtype=float)
+        view = big[tuple(slice(None, None, 2) for _ in a.shape)] if a.ndim else big
+        view[...] = a
+        return view
+    if how == "transposed":
+        return a.T
+    if how == "zero_stride":
+        return np.broadcast_to(a.ravel()[0] if a.size else 0.0, a.shape)
+    if how == "readonly":
+        a.setflags(write=False)
+        return a
+    if how in ("nan", "inf", "neg_inf", "subnormal", "1e308"):
+        value = {"nan": np.nan, "inf": np.inf, "neg_inf": -np.inf, "subnormal": 5e-324}.get(
+            how, 1e308
+        )
+        if a.size:
+            a.flat[a.size // 2] = value
+        return a
+    if how == "empty":
+        return np.zeros((0,) + a.shape[1:]) if a.ndim else np.zeros(0)
+    if how == "extra_row":
+        return (
+            np.concatenate([a, a[:1] if len(a) else np.zeros((1,) + a.shape[1:])])
+            if a.ndim
+            else np.array([a, a])
+        )
+    if how == "missing_col":
+        return a[..., :-1] if a.ndim and a.shape[-1] else a[None][:0]
+    if how == "ndim_up":
+        return a[None]
+    if how == "ndim_down":
+        return a.ravel() if a.ndim > 1 else (a[0] if a.size else np.float64(0.0))
+    if how == "scalar":
+        return np.float64(1.0)
+    if how == "list":
+        return a.tolist()
+    if how == "none":
+        return None
+    if how == "huge":  # many rows (not so many that the copy itself runs out of memory)
+        rows = max(1, 100_000 // max(1, int(np.prod(a.shape[1:]))) if a.ndim > 1 else 100_000)
+        return np.ones((rows,) + a.shape[1:])
+    raise ValueError(how)
+
+
+def _mutate_scalar(x, how: str):
+    integer = isinstance(x, (int,)) and not isinstance(x, bool)
+    return {
+        "same": x,
+        "nan": float("nan"),
+        "inf": float("inf"),
+        "neg": -1 if integer else -1.0,
+        "zero": 0 if integer else 0.0,
+        "int_max": 2**31 - 1,
+        "int_overflow": 2**64,
+        "huge": 10**9 if integer else 1e300,
+        "none": None,
+        "str": "1",
+        "float_for_int": 1.5,
+    }[how]
+
+
+def _apply(values: list, mutations, nonfinite: list):
+    """``values`` (arrays) with the spec's mutations applied in place of some of them."""
+    values = list(values)
+    for index, how in mutations:
+        k = index % len(values)
+        values[k] = _mutate_array(values[k], how)
+        if how in _NONFINITE_IN:
+            nonfinite.append(how)
+    return values
+
+
+def _boundary_levels(spec, rng):
+    np = _np()
+    n = spec["n"]
+    arrays = []
+    for m in spec["rows"]:
+        arrays += [rng.normal(size=(m, n)), rng.normal(size=m), np.ones(m)]
+    return arrays
+
+
+# Complexity above 10: one branch per entry point of the boundary.
+def run_boundary(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    rng = np.random.default_rng(spec["seed"])
+    entry, mutations = spec["entry"], spec["mutations"]
+    odd: list = []
+    if entry == "hierarchy":
+        from qpik.core import Level, solve_hierarchy
+
+        n, p = spec["n"], spec["p"]
+        base = _boundary_levels(spec, rng)
+        base += [-np.ones(n), np.ones(n), rng.normal(size=(p, n)), np.abs(rng.normal(size=p))]
+        values = _apply(base, mutations, odd)
+        levels = [
+            Level(values[3 * k], values[3 * k + 1], spec["regularization"], values[3 * k + 2])
+            for k in range(len(spec["rows"]))
+        ]
+        lb, ub, G, h = values[-4:]
+        options = {} if spec["solver"] is None else {"solver": spec["solver"]}
+        result = solve_hierarchy(levels, lb, ub, G, h, **options)
+        answer = [np.asarray(result.x)]
+        if not odd and math.isfinite(spec["regularization"]):
+            _finite(answer[0], "x")
+        return _digest(*answer)
+    model = _model(spec["robot"])
+    lower, upper = _limits_of(model)
+    q_mid = _q_value("mid", model, rng)
+    if entry.startswith("chain"):
+        from qpik.model import KinematicChain
+
+        chain = KinematicChain.from_model(model, "ee")
+        if entry == "chain_reach":
+            lo, hi = _apply(
+                [
+                    np.where(np.isfinite(lower), lower, -1.0),
+                    np.where(np.isfinite(upper), upper, 1.0),
+                ],
+                mutations,
+                odd,
+            )
+            bound = chain.reach_bound(lo, hi)
+            return _digest(repr(bound))
+        (q,) = _apply([q_mid], mutations, odd)
+        out = chain.pose(q) if entry == "chain_pose" else (chain.jacobian(q),)
+        if not odd:
+            _finite(out, entry)
+        return _digest(*out)
+    if entry == "configuration":
+        (q,) = _apply([q_mid], mutations, odd)
+        configuration = qpik.Configuration(model, q)
+        position = configuration.get_transform_frame_to_world("ee", "site").translation()
+        jac = configuration.get_frame_jacobian("ee", "site")
+        if not odd:
+            _finite([position, jac], entry)
+        return _digest(np.asarray(position), np.asarray(jac))
+    if entry == "task_target":
+        configuration = qpik.Configuration(model, q_mid)
+        kind = spec["task"]
+        rot = np.eye(3)
+        if kind == "position":
+            task = qpik.tasks.PositionTask("ee", "site")
+            (target,) = _apply([np.array([0.3, 0.1, 0.3])], mutations, odd)
+            task.set_target(target)
+        elif kind == "orientation":
+            task = qpik.tasks.OrientationTask("ee", "site")
+            (target,) = _apply([rot], mutations, odd)
+            task.set_target(target)
+        elif kind == "pose":
+            task = qpik.tasks.PoseTask("ee", "site")
+            position, rotation = _apply([np.array([0.3, 0.1, 0.3]), rot], mutations, odd)
+            task.set_target(position, rotation)
+        elif kind == "posture":
+            task = qpik.tasks.PostureTask(model, cost=1.0)
+            (target,) = _apply([q_mid], mutations, odd)
+            task.set_target(target)
+        elif kind == "com":
+            task = qpik.tasks.ComTask(cost=1.0)
+            (target,) = _apply([np.array([0.1, 0.0, 0.3])], mutations, odd)
+            task.set_target(target)
+        else:
+            import mink
+
+            task = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+            (wxyz_xyz,) = _apply([np.array([1.0, 0, 0, 0, 0.3, 0.1, 0.3])], mutations, odd)
+            try:  # mink's own constructor (not qpik) checks the length only
+                target = mink.SE3(wxyz_xyz)
+            except Exception as exc:  # noqa: BLE001
+                raise Typed(f"mink.SE3: {type(exc).__name__}") from exc
+            task.set_target(target)
+        solver = qpik.IKSolver(
+            model, [[task]], [qpik.limits.ConfigurationLimit(model)], solver=spec["solver"]
+        )
+        result = solver.step(configuration, 0.01)
+        if not odd:
+            _finite(result, "step", allow=(".solve_time",))
+        return _digest(np.asarray(result.velocity))
+    if entry == "solve_q0":
+        (q0,) = _apply([q_mid], mutations, odd)
+        result = qpik.solve(model, {"ee": [0.3, 0.1, 0.3]}, q0=q0, restarts=0, max_iters=20, seed=0)
+    else:
+        (target,) = _apply([np.array([0.3, 0.1, 0.3])], mutations, odd)
+        result = qpik.solve(model, {"ee": target}, restarts=0, max_iters=20, seed=0)
+    if not odd:
+        _finite(result.q, "q")
+    return _digest(np.asarray(result.q))
+
+
+#: Recorded calls of the engine's kernels, by name: (args, kwargs) of a valid solve.
+_ENGINE_CALLS: dict = {}
+
+
+def _engine_functions() -> dict:
+    import qpik._engine as engine
+
+    found = {}
+    for sub in ("core", "model", "tasks", "diffik", "igm"):
+        module = getattr(engine, sub, None)
+        for name in dir(module):
+            value = getattr(module, name)
+            if callable(value) and not isinstance(value, type) and not name.startswith("_"):
+                found[id(value)] = (f"{sub}.{name}", value)
+    return found
+
+
+def _record_engine_calls() -> dict:
+    """Run a few valid solves with every engine kernel wrapped, keeping the arguments of
+    the first two calls of each (copies)."""
+    import copy
+
+    np = _np()
+    import qpik
+
+    functions = _engine_functions()
+    calls: dict = {}
+    patched = []
+
+    def wrap(name, function):
+        def recorder(*args, **kwargs):
+            if len(calls.setdefault(name, [])) < 2:
+                calls[name].append((copy.deepcopy(args), copy.deepcopy(kwargs)))
+            return function(*args, **kwargs)
+
+        return recorder
+
+    modules = [m for n, m in list(sys.modules.items()) if n.startswith("qpik") and m is not None]
+    for module in modules:
+        for attr, value in list(vars(module).items()):
+            if id(value) in functions and not module.__name__.startswith("qpik._engine"):
+                name, function = functions[id(value)]
+                patched.append((module, attr, value))
+                setattr(module, attr, wrap(name, function))
+    try:
+        with contextlib.suppress(Exception):
+            for robot in ROBOTS:
+                qpik.solve(robot, {"ee": [0.3, 0.1, 0.3]}, restarts=2, max_iters=30, seed=1)
+                qpik.solve(robot, {"ee": [5.0, 5.0, 5.0]}, restarts=2, max_iters=10, seed=1)
+        with contextlib.suppress(Exception):
+            qpik.solve(
+                "panda",
+                {"ee": {"position": [0.4, 0.1, 0.5], "rotation": np.eye(3).tolist()}},
+                restarts=1,
+                seed=2,
+            )
+        model = qpik.load_robot("panda")
+        for solver in ("osqp", "daqp", "quadprog"):
+            with contextlib.suppress(Exception):
+                task = qpik.tasks.PoseTask("ee", "site")
+                task.set_target(np.array([0.4, 0.1, 0.4]), np.eye(3))
+                qpik.IKSolver(
+                    model, [[task]], [qpik.limits.ConfigurationLimit(model)], solver=solver
+                ).step(qpik.Configuration(model), 0.01)
+        with contextlib.suppress(Exception):
+            from qpik.core import Level, solve_hierarchy
+
+            rng = np.random.default_rng(0)
+            solve_hierarchy(
+                [Level(rng.normal(size=(3, 5)), rng.normal(size=3), 1e-6)],
+                -np.ones(5),
+                np.ones(5),
+                rng.normal(size=(2, 5)),
+                np.ones(2),
+            )
+        with contextlib.suppress(Exception):
+            from qpik.model import KinematicChain
+
+            chain = KinematicChain.from_model(model, "ee")
+            chain.jacobian(np.zeros(model.nq))
+            chain.reach_bound(*_limits_of(model))
+        for path in _shipped_problems():
+            with contextlib.suppress(Exception):
+                qpik.load_problem(path).solve()
+    finally:
+        for module, attr, value in patched:
+            setattr(module, attr, value)
+    for name, call in _engine_recipes(calls).items():
+        calls.setdefault(name, [call])
+    return calls
+
+
+def _engine_recipes(calls: dict) -> dict:
+    """Valid calls of the kernels that the recording solves do not reach."""
+    np = _np()
+    rng = np.random.default_rng(0)
+    M = rng.normal(size=(4, 4))
+    spd = M @ M.T + 4 * np.eye(4)
+    R = np.eye(3)
+    pose = np.array([1.0, 0, 0, 0, 0.1, 0.2, 0.3])
+    recipes = {
+        "core.active_guess": ((np.zeros(4), rng.normal(size=(3, 4)), -np.ones(3), np.ones(3)), {}),
+        "core.cholesky_into": ((spd, 4, 1e-9, np.zeros((4, 4))), {}),
+        "core.damping_of": ((0.1, 0.05, 0.1), {}),
+        "igm.box_qp": ((spd, np.ones(4), -np.ones(4), np.ones(4), np.zeros(4), 50), {}),
+        "igm.uniform": ((np.array([12345], dtype=np.uint64),), {}),
+        "model.left_jacobian_inverse": ((np.array([0.1, 0.2, 0.3]), np.zeros((3, 3))), {}),
+        "model.rotation_defect": ((R,), {}),
+        "model.rotation_log": ((R, np.zeros(3)), {}),
+        "tasks.se3_inverse_multiply": ((np.zeros(7), pose, pose.copy()), {}),
+        "tasks.se3_jlog": ((np.zeros((6, 6)), pose), {}),
+        "tasks.se3_log": ((np.zeros(6), pose), {}),
+        "tasks.se3_rminus": ((np.zeros(6), pose, pose.copy()), {}),
+        "tasks.so3_ljacinv": ((np.zeros(9), np.array([0.1, 0.2, 0.3])), {}),
+        "tasks.so3_log": ((np.zeros(3), np.array([1.0, 0, 0, 0])), {}),
+        "tasks.xmat_xpos_to_wxyz_xyz": ((np.zeros(7), R.ravel(), np.zeros(3)), {}),
+    }
+    if calls.get("diffik.fused_step"):  # fused_rows takes fused_step's first 21 arguments
+        args, _ = calls["diffik.fused_step"][0]
+        recipes["diffik.fused_rows"] = (tuple(args[:21]), {})
+    return recipes
+
+
+def run_engine(spec: dict) -> str:
+    """A raw kernel call: any Python exception is a clean refusal (the kernels are private
+    and document no error class), counted as typed; only crash and hang are bad."""
+    import copy
+
+    np = _np()
+    if not _ENGINE_CALLS:
+        _ENGINE_CALLS.update(_record_engine_calls())
+    names = sorted(_ENGINE_CALLS)
+    flat = [(name, k) for name in names for k in range(len(_ENGINE_CALLS[name]))]
+    name, k = flat[spec["pick"] % len(flat)]
+    args, kwargs = copy.deepcopy(_ENGINE_CALLS[name][k])
+    values = list(args) + list(kwargs.values())
+    for mutation in spec["mutations"]:
+        index = mutation[0] % max(1, len(values))
+        if not values:
+            break
+        if mutation[1] == "alias":  # the same array object for two arguments
+            arrays = [i for i, v in enumerate(values) if isinstance(v, np.ndarray)]
+            if len(arrays) >= 2:
+                a = arrays[index % len(arrays)]
+                b = arrays[(index + 1) % len(arrays)]
+                values[b] = values[a]
+            continue
+        value = values[index]
+        if isinstance(value, np.ndarray) and value.dtype == np.float64:
+            values[index] = _mutate_array(value, mutation[1])
+        elif isinstance(value, np.ndarray):  # index arrays: keep their dtype, break the shape
+            how = (
+                mutation[1]
+                if mutation[1]
+                in ("empty", "ndim_up", "readonly", "strided", "float32", "list", "none")
+                else "empty"
+            )
+            values[index] = (
+                value.astype(np.float32)
+                if how == "float32"
+                else (
+                    _mutate_array(value, how).astype(value.dtype)
+                    if how not in ("list", "none")
+                    else _mutate_array(value, how)
+                )
+            )
+        elif isinstance(value, (bool, int, float)):
+            values[index] = _mutate_scalar(value, mutation[2])
+        elif isinstance(value, tuple):  # a tuple of arrays (the chain's arrays)
+            inner = list(value)
+            j = mutation[0] % max(1, len(inner))
+            if inner and isinstance(inner[j], np.ndarray):
+                inner[j] = (
+                    _mutate_array(inner[j], mutation[1]).astype(inner[j].dtype)
+                    if mutation[1] in ("empty", "ndim_up", "extra_row", "missing_col")
+                    else _mutate_array(inner[j], mutation[1])
+                    if inner[j].dtype == np.float64
+                    else inner[j][:0]
+                )
+            values[index] = tuple(inner)
+    args = values[: len(args)]
+    kwargs = dict(zip(kwargs, values[len(args) :], strict=True))
+    function = {n: f for n, f in _engine_functions().values()}[name]
+    try:
+        out = function(*args, **kwargs)
+    except MemoryError as exc:  # the arrays are small: a size argument went unchecked
+        raise Bad("untyped", f"{name}: MemoryError (an unchecked size argument)") from exc
+    except Exception as exc:  # noqa: BLE001 - a clean refusal
+        raise Typed(f"{name}: {type(exc).__name__}") from exc
+    return _digest(name, repr(type(out)))
+
+
 # -- determinism
 RUNNERS = {
     "solve": run_solve,
@@ -2005,6 +2511,8 @@ RUNNERS = {
     "statics": run_statics,
     "analysis": run_analysis,
     "cli": run_cli,
+    "boundary": run_boundary,
+    "engine": run_engine,
 }
 
 
@@ -2062,8 +2570,9 @@ def _outcome(runner, spec) -> tuple[str, str, str]:
 
 
 def _warm_up() -> None:
-    """Import qpik and run each path once (numba compiles or loads its cache here), so
-    that no case's time includes it."""
+    """Import qpik (the compiled engine, MuJoCo, the QP solvers) and run each path once,
+    so that no case's time includes loading or first-call setup; record the engine's
+    kernel calls for the engine category."""
     import numpy as np
 
     import qpik
@@ -2082,15 +2591,21 @@ def _warm_up() -> None:
     for path in _shipped_problems()[:2]:
         with contextlib.suppress(Exception):
             qpik.load_problem(path)
+    _ENGINE_CALLS.update(_record_engine_calls())
 
 
-def _worker(conn, quiet: bool) -> None:
+def _worker(conn, quiet: bool, memory_gib: float = 0.0) -> None:
     """Worker process: receive (category, spec), answer (outcome, detail, digest)."""
     if quiet:  # OSQP and MuJoCo print on the C side: silence the file descriptors too
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, 1)
         os.dup2(devnull, 2)
     sys.setrecursionlimit(max(sys.getrecursionlimit(), 1000))
+    if memory_gib > 0:  # an unchecked size fails as MemoryError, not by swapping the machine
+        import resource
+
+        limit = int(memory_gib * 2**30)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, resource.getrlimit(resource.RLIMIT_AS)[1]))
     import faulthandler
 
     faulthandler.disable()
@@ -2109,15 +2624,18 @@ def _worker(conn, quiet: bool) -> None:
 
 # =============================================================================== parent
 class _Slot:
-    def __init__(self, ctx, quiet: bool):
+    def __init__(self, ctx, quiet: bool, memory_gib: float = 0.0):
         self.ctx = ctx
         self.quiet = quiet
+        self.memory_gib = memory_gib
         self.start()
 
     def start(self) -> None:
         parent, child = self.ctx.Pipe()
         self.conn = parent
-        self.process = self.ctx.Process(target=_worker, args=(child, self.quiet), daemon=True)
+        self.process = self.ctx.Process(
+            target=_worker, args=(child, self.quiet, self.memory_gib), daemon=True
+        )
         self.process.start()
         child.close()
         self.job = None
@@ -2148,10 +2666,11 @@ def run_campaign(
     timeout: float,
     quiet: bool = True,
     progress: bool = True,
+    memory_gib: float = 0.0,
 ) -> list[tuple]:
     """Run every job; returns (category, index, outcome, detail, digest, seconds)."""
     ctx = mp.get_context("spawn")
-    slots = [_Slot(ctx, quiet) for _ in range(workers)]
+    slots = [_Slot(ctx, quiet, memory_gib) for _ in range(workers)]
     pending = list(reversed(jobs))
     results = []
     start = time.monotonic()
@@ -2256,6 +2775,8 @@ WEIGHTS = {
     "analysis": 2,
     "cli": 1,
     "determinism": 1,
+    "boundary": 3,
+    "engine": 3,
 }
 
 
@@ -2270,6 +2791,12 @@ def parse(argv=None) -> argparse.Namespace:
         "--case",
         metavar="CATEGORY:INDEX",
         help="run one case in this process and print its spec and traceback",
+    )
+    parser.add_argument(
+        "--memory",
+        type=float,
+        default=8.0,
+        help="address-space limit of each worker [GiB] (8; 0: none)",
     )
     parser.add_argument("--show", type=int, default=40, help="bad cases listed (40)")
     parser.add_argument("--list", action="store_true", help="list the categories")
@@ -2291,7 +2818,9 @@ def main(argv=None) -> int:
         flush=True,
     )
     start = time.monotonic()
-    results = run_campaign(jobs, args.workers, args.timeout, quiet=not args.verbose)
+    results = run_campaign(
+        jobs, args.workers, args.timeout, quiet=not args.verbose, memory_gib=args.memory
+    )
     wall = time.monotonic() - start
     final = cross_process(results)
     print(table(final))
