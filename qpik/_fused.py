@@ -1,22 +1,25 @@
 """One compiled call per differential IK step, for the stacks that allow it.
 
-When every task of a stack is a frame, posture or damping task (qpik's
-:class:`~qpik.tasks.FrameTask` / :class:`~qpik.tasks.PostureTask` /
-:class:`~qpik.tasks.DampingTask`, or mink's classes of the same names) and every limit
-is mink's ``ConfigurationLimit`` / ``VelocityLimit`` (or ``CollisionAvoidanceLimit``,
-whose general rows come from its own methods and go to the core's cascade: two compiled
-calls then, see ``IKSolver._fused_general_step``) on a model of hinge and slide joints,
-:class:`qpik.IKSolver` does in Python only what needs MuJoCo (one ``mj_jac*`` call per
-frame task) and copies the tasks' targets and costs into preallocated arrays;
-:func:`fused_step` then computes every task's rows (frame errors by the SE(3) routines of
-:mod:`qpik.tasks._lie`, mink's own arithmetic; mink's own FrameTask gets the same rows as
-qpik's, equal to mink's to round-off), the box limits, and the whole cascade
-(:func:`qpik.core._kernels.solve_cascade`), in C++ (``qpik/_cpp/diffik/fused.hpp``).
+When every task of a stack is one the kernel knows (qpik's or mink's ``FrameTask``,
+``PostureTask``, ``DampingTask``, ``ComTask``, and mink's ``RelativeFrameTask``; exact
+types: a subclass may change the rows) and every limit is mink's ``ConfigurationLimit``
+(without a limited ball joint) / ``VelocityLimit`` / ``CollisionAvoidanceLimit``, on any
+model (hinge, slide, ball and free joints), :class:`qpik.IKSolver` does in Python only
+what needs MuJoCo (one ``mj_jac*`` call per frame, ``mj_jacSubtreeCom`` per CoM task, the
+collision limits' own rows ``G dq <= h``) and copies the tasks' targets and costs into
+preallocated arrays; the plan's compiled :class:`Kernel` then computes every task's rows
+(frame errors by mink's SE(3) arithmetic, ``qpik/_cpp/model/se3.hpp``; posture errors
+``q (-) q*`` on the tangent space as ``mj_differentiatePos``: free joints' rows zero, ball
+joints' rotation vectors), the box limits (each dof's coordinate at its joint's qpos
+address), and the whole cascade with the general rows (the core's ``solve_cascade``), in
+one C++ call (``qpik/_cpp/diffik/fused.hpp``).
 
-It computes exactly what the general path computes (same arithmetic in the same order:
-tests compare the two bitwise); anything unusual (a non-finite row, conflicting limits, a
-level whose active set did not settle) is handed back to the general path, which reports
-or recovers it.
+It computes what the general path computes: the same arithmetic in the same order where
+the general path's is qpik's (tests compare the two bitwise: frame tasks, CoM, postures on
+hinge/slide/free joints, limits, collision rows), mink's own arithmetic to round-off
+elsewhere (mink's FrameTask and RelativeFrameTask, ball joints: 1e-12). Anything unusual
+(a non-finite row, conflicting limits, a level whose active set did not settle) is handed
+back to the general path, which reports or recovers it.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from .errors import TargetNotSet
 from .tasks.com import ComTask
 from .tasks.fast import DampingTask, FrameTask, PostureTask
 
-__all__ = ["FusedPlan", "box_of", "fused_rows", "fused_step", "make_plan"]
+__all__ = ["FusedPlan", "Kernel", "box_of", "fused_rows", "fused_step", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
 _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
@@ -41,8 +44,8 @@ _JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
 #: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
 #: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
 _FRAME_TYPES = (FrameTask, mink.FrameTask)
-#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost)``, error ``q - q*`` on
-#: hinge/slide joints) and DampingTask (the same toward the current ``q``: error zero).
+#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost) J``, J the identity with
+#: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
 _POSTURE_TYPES = (PostureTask, mink.PostureTask)
 _DAMPING_TYPES = (DampingTask, mink.DampingTask)
 
@@ -83,9 +86,30 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #   The limits' box, as :meth:`qpik.IKSolver._limit_rows` builds it: position bounds
 #   ``gain (upper - q)``, ``-gain (q - lower)`` (recoverable), velocity bounds
 #   ``|dq| <= v_max dt`` (hard), merged by :func:`qpik.core._kernels.merge_boxes`.
+#
+# Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
+#        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
+#        com_data, rel_jac, rel_frames, rel_data, nq)
+#   One stack's compiled step (built by make_plan). The index arrays are copied and checked
+#   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
+#   plan writes into them before each call). ``tasks`` (T, 4) rows: kind (0 frame,
+#   1 posture, 2 CoM, 3 relative frame, 4 damping), index into that kind's arrays, level,
+#   first row. ``posture_map`` (nv, 2): per dof, kind (0 hinge/slide, 1 free joint, 2 first
+#   dof of a ball joint, 3 its others) and qpos address; ``cfg_qadr`` the qpos address of
+#   each position-limited dof. CoM ``c``: ``com_jac[c]`` (3, nv) from mj_jacSubtreeCom,
+#   ``com_body[c]`` its subtree's body, ``com_data[c]`` = target [m, world] (3), cost (3),
+#   gain, lm_damping. Relative frame ``r``: ``rel_jac[r]`` (12, nv) the frame's then the
+#   root's world-aligned Jacobians, ``rel_frames[r]`` = frame kind, id, root kind, id,
+#   ``rel_data[r]`` as ``frame_data`` with the target in the root frame.
+# Kernel.step(qpos, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat, subtree_com,
+#             G, h, warm, canonical, max_iter) -> (code, dq, v, info, active)
+#   As fused_step, with MuJoCo's arrays only, general rows ``G dq <= h`` (p, nv) held at
+#   every level, ``warm`` (L, nv + p); ``active`` (L, nv + p).
+# Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub): as fused_rows.
 fused_step = _engine.fused_step
 fused_rows = _engine.fused_rows
 _boxes = _engine.boxes
+Kernel = _engine.Kernel
 
 
 def box_of(plan: FusedPlan, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -143,6 +167,8 @@ class FusedPlan:
         self.no_rows = np.zeros((0, self.model.nv))
         self.no_h = np.zeros(0)
         self.colds[0] = self.cold
+        #: the gains last written into ``cfg_data`` (NaN: not yet)
+        self.gains = [float("nan")] * len(self.config_limits)
 
     def cold_for(self, p: int) -> np.ndarray:
         """Zero active sets ``(L, nv + p)`` int8 (a cold start with ``p`` general rows)."""
@@ -205,9 +231,12 @@ class FusedPlan:
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
         if self.config_limits:
-            cfg = self.arrays["cfg_data"]
-            for limit, e0, e1 in self.config_limits:
-                cfg[e0:e1, 2] = limit.gain
+            gains = self.gains
+            for i, (limit, e0, e1) in enumerate(self.config_limits):
+                gain = limit.gain
+                if gain != gains[i]:  # written when it changes (NaN: every call)
+                    self.arrays["cfg_data"][e0:e1, 2] = gain
+                    gains[i] = gain
         empty3, empty9 = self.arrays["empty3"], self.arrays["empty9"]
         site, body, geom = self.kinds_used
         return (
@@ -234,7 +263,8 @@ def make_plan(
     """The :class:`FusedPlan` of a stack, or None when a task or limit is not one that the
     one-call step computes (the general path then serves every step).
 
-    ``max_iter``: the core's cap (0 for its default ``10 (nv + p) + 50``)."""
+    ``scalar_joints`` (the model has hinge/slide joints only) is no longer needed (kept for
+    callers); ``max_iter``: the core's cap (0 for its default ``10 (nv + p) + 50``)."""
     layout = _task_layout(model, levels)
     boxes = _limit_boxes(model, limits)
     if layout is None or boxes is None:
@@ -272,9 +302,7 @@ def make_plan(
         "com_body": np.asarray([body for _, body, _ in coms], dtype=i64),
         "com_data": com_data,
         "rel_jac": rel_jac,
-        "rel_frames": np.asarray(
-            [(*f, *r) for _, f, r in relatives], dtype=i64
-        ).reshape(-1, 4),
+        "rel_frames": np.asarray([(*f, *r) for _, f, r in relatives], dtype=i64).reshape(-1, 4),
         "rel_data": rel_data,
         "empty3": np.zeros((0, 3)),
         "empty9": np.zeros((0, 9)),
@@ -298,7 +326,7 @@ def make_plan(
     settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
     cold = np.zeros((len(levels), nv), dtype=np.int8)
     a = arrays
-    kernel = _engine.Kernel(
+    kernel = Kernel(
         a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], a["frame_data"],
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],

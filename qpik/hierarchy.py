@@ -567,10 +567,11 @@ class IKSolver:
     def _fused_general_step(
         self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
     ):
-        """:meth:`step` for a plan with general-row limits (collision avoidance): the rows
-        and the box in one compiled call (:func:`qpik._fused.fused_rows`), the limits'
-        rows ``G dq <= h`` from their own methods, then the core's solve (the exact one
-        first with a forced backend and ``_exact_forced``, as in :meth:`_fused_step`).
+        """:meth:`step` for a plan with general-row limits (collision avoidance) under a
+        forced backend: the rows and the box in one compiled call (the plan's
+        ``Kernel.rows``), the limits' rows ``G dq <= h`` from their own methods, then the
+        core's solve (the exact one first with ``_exact_forced``, as in
+        :meth:`_fused_step`; the default solver takes them in :meth:`_fused_step`).
         None where the general path must answer (a non-finite row, conflicting limits, a
         limit row on one dof only, which the general path folds into the box)."""
         args = plan.gather(configuration)
@@ -670,8 +671,10 @@ class IKSolver:
         start: float,
         forced: bool = False,
     ):
-        """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
-        path must answer (non-finite rows, conflicting limits, an unsettled active set).
+        """:meth:`step` in one compiled call (:mod:`qpik._fused`: the plan's ``Kernel.step``,
+        collision limits' rows ``G dq <= h`` from their own methods passed in); None where
+        the general path must answer (non-finite rows, conflicting limits, an unsettled
+        active set, a collision row on one dof, a task changed beyond its plan).
 
         ``forced`` (a forced backend, see ``_exact_forced``): the answer is kept only when
         every level was solved by the exact cold solve, which is what the forced-backend
