@@ -38,7 +38,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ._fused import FusedPlan, box_of, fused_rows, fused_step, make_plan
+from ._fused import FusedPlan, box_of, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
     DampingLaw,
@@ -111,10 +111,6 @@ class StepResult:
         """True when every level was solved."""
         return all(s == LevelStatus.SOLVED for s in self.status)
 
-
-#: The frames' poses in MuJoCo's data, as the compiled step takes them: ``site_xpos,
-#: site_xmat, xpos, xmat, geom_xpos, geom_xmat`` (:meth:`qpik._fused.FusedPlan.gather`).
-_Poses = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 #: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
 #: task or a list of tasks (level 0 first). See :func:`normalize_stack`.
@@ -224,13 +220,17 @@ class _RowStructure:
 def _configuration_box(
     limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """mink's ConfigurationLimit as box bounds on ``dq`` at ``qpos`` (hinge/slide joints:
-    dof = qpos index)."""
+    """mink's ConfigurationLimit as box bounds on ``dq`` at ``qpos`` (nq,): its hinge and
+    slide joints' rows (each dof's coordinate at its joint's qpos address)."""
     if len(limit.indices) == 0:  # no limited joint (mink keeps an empty float array)
         return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-    q = qpos[limit.indices]
-    upper = limit.gain * (limit.upper[limit.indices] - q)
-    lower = -limit.gain * (q - limit.lower[limit.indices])
+    adr = limit.indices
+    if qpos.shape[0] != limit.model.nv:  # free or ball joints: dof index != qpos index
+        model = limit.model
+        adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
+    q = qpos[adr]
+    upper = limit.gain * (limit.upper[adr] - q)
+    lower = -limit.gain * (q - limit.lower[adr])
     return limit.indices, lower, upper
 
 
@@ -351,7 +351,7 @@ class IKSolver:
             self._scalar_joints,
             self._core.rank_tolerance,
             self._core.tolerance,
-            self._core.max_iter or 10 * model.nv + 50,
+            self._core.max_iter or 0,
         )
 
     @property
@@ -538,10 +538,10 @@ class IKSolver:
             and type(dt) is float
             and 0.0 < dt < math.inf
         ):
-            if plan.general_limits:
-                result = self._fused_general_step(plan, configuration, dt, start)
-            elif self._core.solver == "auto":
+            if self._core.solver == "auto":
                 result = self._fused_step(plan, configuration, dt, start)
+            elif plan.general_limits:
+                result = self._fused_general_step(plan, configuration, dt, start)
             else:
                 result = None
                 if self._exact_forced and not self._core.warm_start:
@@ -567,20 +567,22 @@ class IKSolver:
     def _fused_general_step(
         self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
     ):
-        """:meth:`step` for a plan with general-row limits (collision avoidance): the rows
-        and the box in one compiled call (:func:`qpik._fused.fused_rows`), the limits'
-        rows ``G dq <= h`` from their own methods, then the core's solve (the exact one
-        first with a forced backend and ``_exact_forced``, as in :meth:`_fused_step`).
+        """:meth:`step` for a plan with general-row limits (collision avoidance) under a
+        forced backend: the rows and the box in one compiled call (the plan's
+        ``Kernel.rows``), the limits' rows ``G dq <= h`` from their own methods, then the
+        core's solve (the exact one first with ``_exact_forced``, as in
+        :meth:`_fused_step`; the default solver takes them in :meth:`_fused_step`).
         None where the general path must answer (a non-finite row, conflicting limits, a
         limit row on one dof only, which the general path folds into the box)."""
-        poses: _Poses
-        qpos, poses = plan.gather(configuration)
-        a = plan.arrays
-        code, reg, lb, ub = fused_rows(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt)
-        )
+        args = plan.gather(configuration)
+        if args is None:
+            return None
+        self._settings(plan, dt)
+        code, reg, lb, ub = plan.kernel.rows(*args, plan.no_rows, plan.no_h)
         if code:
             return None
+        qpos = args[0]
+        a = plan.arrays
         general = self._general_rows(plan, configuration, dt)
         if general is None:
             return None
@@ -646,15 +648,15 @@ class IKSolver:
         """:meth:`step` for a forced backend: the rows and limits in one compiled call
         (:func:`qpik._fused.fused_rows`), then the core's level-by-level solve. None where
         the general path must answer."""
-        poses: _Poses
-        qpos, poses = plan.gather(configuration)
-        a = plan.arrays
-        code, reg, lb, ub = fused_rows(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt)
-        )
+        args = plan.gather(configuration)
+        if args is None:
+            return None
+        self._settings(plan, dt)
+        code, reg, lb, ub = plan.kernel.rows(*args, plan.no_rows, plan.no_h)
         if code:
             return None
-        q = qpos.copy()
+        a = plan.arrays
+        q = args[0].copy()
         G, h = self._no_rows, np.zeros(0)
         return self._finish(
             a["A"], a["b"], a["w"], a["starts"], reg, lb, ub, G, h, dt, start,
@@ -669,23 +671,37 @@ class IKSolver:
         start: float,
         forced: bool = False,
     ):
-        """:meth:`step` in one compiled call (:mod:`qpik._fused`); None where the general
-        path must answer (non-finite rows, conflicting limits, an unsettled active set).
+        """:meth:`step` in one compiled call (:mod:`qpik._fused`: the plan's ``Kernel.step``,
+        collision limits' rows ``G dq <= h`` from their own methods passed in); None where
+        the general path must answer (non-finite rows, conflicting limits, an unsettled
+        active set, a collision row on one dof, a task changed beyond its plan).
 
         ``forced`` (a forced backend, see ``_exact_forced``): the answer is kept only when
         every level was solved by the exact cold solve, which is what the forced-backend
         path returns then (it polishes the backend's answer by that same solve; equal to
         round-off, tests/test_fastpath.py), and None otherwise; no backend is called."""
-        poses: _Poses
-        qpos, poses = plan.gather(configuration)
+        args = plan.gather(configuration)
+        if args is None:
+            return None
+        if plan.general_limits:  # collision avoidance: G dq <= h from the limits' methods
+            general = self._general_rows(plan, configuration, dt)
+            if general is None:
+                return None
+            G, h, names = general
+        else:
+            G, h, names = plan.no_rows, plan.no_h, []
+        p = G.shape[0]
         core = self._core
-        warm = core._warm if core.warm_start and core._warm is not None else plan.cold
-        code, d, v, info, active = fused_step(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, self._settings(plan, dt),
-            plan.max_iter, warm, core.warm_start,
-        )  # fmt: skip
+        warm = core._warm
+        if not core.warm_start or warm is None or warm.shape[1] != self._nv + p:
+            warm = plan.cold_for(p)
+        self._settings(plan, dt)
+        code, d, v, info, active = plan.kernel.step(
+            *args, G, h, warm, core.warm_start, plan.max_iter or 10 * (self._nv + p) + 50
+        )
         if code:
             return None
+        qpos = args[0]
         residuals, sigma, lam2, status, iterations = info.tolist()
         if forced and any(s != _SOLVED_CODE for s in status):
             return None
@@ -703,10 +719,10 @@ class IKSolver:
             _name_active_limits=lambda: self._active_limits(
                 d,
                 *box_of(plan, q, dt),
-                self._no_rows,
-                np.zeros(0),
+                G,
+                h,
                 self._box_contributions(q, dt),
-                [],
+                names,
             ),  # fmt: skip
         )
 

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik._fused import fused_rows
 from qpik.limits import velocity_limit_from_model
 
 DT = 0.01
@@ -59,10 +58,9 @@ def test_minks_tasks_rows_equal_minks_objective(panda):
     assert plan is not None
     for _ in range(30):
         _random_state(rng, model, configuration, tasks)
-        qpos, poses = plan.gather(configuration)
-        code, reg, _, _ = fused_rows(
-            *plan.head, *poses, plan.frame_data, qpos, *plan.tail, solver._settings(plan, DT)
-        )
+        args = plan.gather(configuration)
+        solver._settings(plan, DT)
+        code, reg, _, _ = plan.kernel.rows(*args, plan.no_rows, plan.no_h)
         assert code == 0
         a = plan.arrays
         starts = a["starts"]

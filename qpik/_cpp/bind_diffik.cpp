@@ -106,9 +106,251 @@ diffik::FusedArgs make_args(Out2& A, Out1& b, Out1& w, const I1& starts, const I
     return a;
 }
 
+// A copy of an index array (the plan's structure, checked once and kept out of reach).
+struct IndexCopy {
+    std::vector<i64> data;
+    i64 rows = 0, cols = 1;
+    template <class X>
+    void assign(const X& x) {
+        rows = dim(x, 0);
+        cols = x.ndim() > 1 ? dim(x, 1) : 1;
+        data.assign(x.data(), x.data() + rows * cols);
+    }
+    VecRefT<const i64> vec() const { return VecRefT<const i64>(data.data(), rows); }
+    MatRefT<const i64> mat() const { return MatRefT<const i64>(data.data(), rows, cols); }
+};
+
+using Held1 = nb::ndarray<const double, nb::numpy, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using Held2 = nb::ndarray<const double, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
+
+// The one-call step of one stack (qpik._fused.FusedPlan builds it once): the plan's
+// structure (index arrays, copied and checked here) and its float arrays (held by
+// reference: the plan writes the tasks' targets, costs and MuJoCo's Jacobians into them
+// before each call). A call passes only MuJoCo's state; its shapes are checked per call.
+class Kernel {
+  public:
+    Kernel(Out2 A, Out1 b, Out1 w, const I1& starts, const I2& tasks, Held3 jac, const I2& frames,
+           Held2 frame_data, Held2 posture_data, const I2& posture_map, const I1& cfg_dof,
+           const I1& cfg_qadr, Held2 cfg_data, const I1& vel_dof, Held1 vel_limit, Held1 settings,
+           Held3 com_jac, const I1& com_body, Held2 com_data, Held3 rel_jac, const I2& rel_frames,
+           Held2 rel_data, i64 nq)
+        : A_(A), b_(b), w_(w), jac_(jac), frame_data_(frame_data), posture_data_(posture_data),
+          cfg_data_(cfg_data), vel_limit_(vel_limit), settings_(settings), com_jac_(com_jac),
+          com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), nq_(nq) {
+        const i64 n = dim(A, 1), M = dim(A, 0);
+        n_ = n;
+        require(nq >= n, "Kernel: nq must be >= nv");
+        require(dim(b, 0) == M && dim(w, 0) == M, "Kernel: b and w must have shape (M,)");
+        starts_.assign(starts);
+        const i64 L = starts_.rows - 1;
+        require(L >= 0, "Kernel: starts must have L + 1 >= 1 entries");
+        const i64* s = starts_.data.data();
+        require(s[0] == 0 && s[L] == M, "Kernel: starts must run from 0 to M");
+        for (i64 k = 0; k < L; ++k) require(s[k] <= s[k + 1], "Kernel: starts must not decrease");
+        L_ = L;
+        frames_.assign(frames);
+        rel_frames_.assign(rel_frames);
+        const i64 F = frames_.rows, R = rel_frames_.rows, C = dim(com_body, 0);
+        const i64 P = dim(posture_data, 0);
+        require(dim(frames, 1) == 2, "Kernel: frames must have shape (F, 2)");
+        require(dim(rel_frames, 1) == 4, "Kernel: rel_frames must have shape (R, 4)");
+        require(dim(jac, 0) == F && dim(jac, 1) == 6 && dim(jac, 2) == n,
+                "Kernel: jac must have shape (F, 6, nv)");
+        require(dim(frame_data, 0) == F && dim(frame_data, 1) == diffik::kFrameData,
+                "Kernel: frame_data must have shape (F, 15)");
+        require(dim(posture_data, 1) == nq + n + 2, "Kernel: posture_data must have shape (P, nq + nv + 2)");
+        require(dim(com_jac, 0) == C && dim(com_jac, 1) == 3 && dim(com_jac, 2) == n,
+                "Kernel: com_jac must have shape (C, 3, nv)");
+        require(dim(com_data, 0) == C && dim(com_data, 1) == diffik::kComData,
+                "Kernel: com_data must have shape (C, 8)");
+        require(dim(rel_jac, 0) == R && dim(rel_jac, 1) == 12 && dim(rel_jac, 2) == n,
+                "Kernel: rel_jac must have shape (R, 12, nv)");
+        require(dim(rel_data, 0) == R && dim(rel_data, 1) == diffik::kFrameData,
+                "Kernel: rel_data must have shape (R, 15)");
+        for (i64 k = 0; k < 3; ++k) max_id_[k] = -1;
+        auto note = [&](i64 kind, i64 fid) {
+            require(kind >= 0 && kind <= 2, "Kernel: a frame kind is not 0 (site), 1 (body) or 2 (geom)");
+            require(fid >= 0, "Kernel: a frame id is negative");
+            max_id_[kind] = std::max(max_id_[kind], fid);
+        };
+        for (i64 f = 0; f < F; ++f) note(frames_.mat()(f, 0), frames_.mat()(f, 1));
+        for (i64 r = 0; r < R; ++r) {
+            note(rel_frames_.mat()(r, 0), rel_frames_.mat()(r, 1));
+            note(rel_frames_.mat()(r, 2), rel_frames_.mat()(r, 3));
+        }
+        com_body_.assign(com_body);
+        max_body_ = -1;
+        for (i64 c = 0; c < C; ++c) {
+            require(com_body_.data[c] >= 0, "Kernel: a CoM body id is negative");
+            max_body_ = std::max(max_body_, com_body_.data[c]);
+        }
+        tasks_.assign(tasks);
+        require(dim(tasks, 1) == 4, "Kernel: tasks must have shape (T, 4)");
+        for (i64 k = 0; k < tasks_.rows; ++k) {
+            const i64 kind = tasks_.mat()(k, 0), index = tasks_.mat()(k, 1);
+            const i64 level = tasks_.mat()(k, 2), row = tasks_.mat()(k, 3);
+            i64 count = 0, size = 0;
+            switch (kind) {
+                case diffik::FRAME: count = F; size = 6; break;
+                case diffik::POSTURE: case diffik::DAMPING_TASK: count = P; size = n; break;
+                case diffik::COM: count = C; size = 3; break;
+                case diffik::RELATIVE: count = R; size = 6; break;
+                default: require(false, "Kernel: a task kind is not 0 to 4");
+            }
+            require(index >= 0 && index < count, "Kernel: a task index is out of range");
+            require(level >= 0 && level < L, "Kernel: a task level is out of range");
+            require(row >= 0 && row + size <= M, "Kernel: a task's rows are out of range of A");
+        }
+        posture_map_.assign(posture_map);
+        require(dim(posture_map, 0) == n && dim(posture_map, 1) == 2,
+                "Kernel: posture_map must have shape (nv, 2)");
+        for (i64 i = 0; i < n; ++i) {
+            const i64 kind = posture_map_.mat()(i, 0), adr = posture_map_.mat()(i, 1);
+            require(kind >= 0 && kind <= 3, "Kernel: a posture_map kind is not 0 to 3");
+            const i64 width = kind == diffik::BALL_FIRST ? 4 : 1;
+            require(adr >= 0 && adr + width <= nq, "Kernel: a posture_map address is out of range");
+            if (kind == diffik::BALL_FIRST)
+                require(i + 2 < n && posture_map_.mat()(i + 1, 0) == diffik::BALL_OTHER &&
+                            posture_map_.mat()(i + 2, 0) == diffik::BALL_OTHER,
+                        "Kernel: a ball joint needs three dofs in posture_map");
+        }
+        cfg_dof_.assign(cfg_dof);
+        cfg_qadr_.assign(cfg_qadr);
+        require(dim(cfg_qadr, 0) == cfg_dof_.rows && dim(cfg_data, 0) == cfg_dof_.rows &&
+                    dim(cfg_data, 1) == 3,
+                "Kernel: cfg_qadr and cfg_data must have len(cfg_dof) rows (cfg_data 3 columns)");
+        check_dofs(cfg_dof_.vec(), n, "Kernel: a cfg_dof entry is out of range");
+        check_dofs(cfg_qadr_.vec(), nq, "Kernel: a cfg_qadr entry is out of range");
+        vel_dof_.assign(vel_dof);
+        require(dim(vel_limit, 0) == vel_dof_.rows, "Kernel: vel_limit must have len(vel_dof) entries");
+        check_dofs(vel_dof_.vec(), n, "Kernel: a vel_dof entry is out of range");
+        require(dim(settings, 0) >= diffik::kSettings, "Kernel: settings must have 7 entries");
+    }
+
+    // The arguments of one call, after checking MuJoCo's arrays against the plan.
+    diffik::FusedArgs args(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
+                           const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
+                           const In1& h) {
+        require(dim(qpos, 0) == nq_, "Kernel: qpos must have shape (nq,)");
+        require(dim(sx, 1) == 3 && dim(x, 1) == 3 && dim(gx, 1) == 3 && dim(subtree_com, 1) == 3,
+                "Kernel: the positions must have shape (*, 3)");
+        require(dim(sm, 1) == 9 && dim(xm, 1) == 9 && dim(gm, 1) == 9,
+                "Kernel: the rotations must have shape (*, 9)");
+        const i64 count[3] = {std::min(dim(sx, 0), dim(sm, 0)), std::min(dim(x, 0), dim(xm, 0)),
+                              std::min(dim(gx, 0), dim(gm, 0))};
+        for (i64 k = 0; k < 3; ++k) require(max_id_[k] < count[k], "Kernel: a frame id is out of range of its poses");
+        require(max_body_ < dim(subtree_com, 0), "Kernel: a CoM body is out of range of subtree_com");
+        require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel: G must have shape (p, nv), h (p,)");
+        diffik::FusedArgs a;
+        a.A = mat(A_);
+        a.b = vec(b_);
+        a.w = vec(w_);
+        a.starts = starts_.vec();
+        a.tasks = tasks_.mat();
+        a.jac = jac_.data();
+        a.frames = frames_.mat();
+        a.site_xpos = cmat(sx);
+        a.site_xmat = cmat(sm);
+        a.xpos = cmat(x);
+        a.xmat = cmat(xm);
+        a.geom_xpos = cmat(gx);
+        a.geom_xmat = cmat(gm);
+        a.frame_data = cmat(frame_data_);
+        a.qpos = cvec(qpos);
+        a.posture_data = cmat(posture_data_);
+        a.cfg_dof = cfg_dof_.vec();
+        a.cfg_data = cmat(cfg_data_);
+        a.vel_dof = vel_dof_.vec();
+        a.vel_limit = cvec(vel_limit_);
+        a.settings = cvec(settings_);
+        a.posture_map = posture_map_.mat();
+        a.cfg_qadr = cfg_qadr_.vec();
+        a.com_jac = com_jac_.data();
+        a.com_body = com_body_.vec();
+        a.subtree_com = cmat(subtree_com);
+        a.com_data = cmat(com_data_);
+        a.rel_jac = rel_jac_.data();
+        a.rel_frames = rel_frames_.mat();
+        a.rel_data = cmat(rel_data_);
+        a.G = CMatRef(G.data(), dim(G, 0), n_);
+        a.h = cvec(h);
+        return a;
+    }
+
+    i64 levels() const { return L_; }
+    i64 nv() const { return n_; }
+
+  private:
+    Out2 A_;
+    Out1 b_, w_;
+    Held3 jac_;
+    Held2 frame_data_, posture_data_, cfg_data_;
+    Held1 vel_limit_, settings_;
+    Held3 com_jac_;
+    Held2 com_data_;
+    Held3 rel_jac_;
+    Held2 rel_data_;
+    i64 nq_ = 0, n_ = 0, L_ = 0;
+    IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
+        vel_dof_;
+    i64 max_id_[3] = {-1, -1, -1};
+    i64 max_body_ = -1;
+};
+
 }  // namespace
 
 void bind_diffik(nb::module_& m) {
+    nb::class_<Kernel>(m, "Kernel",
+                       "The one-call step of one stack: its structure and (held by reference) "
+                       "its float arrays; see qpik._fused.FusedPlan.")
+        .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
+                      const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
+                      const I1&, Held2, Held3, const I2&, Held2, i64>(),
+             nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
+             nb::arg("starts"), nb::arg("tasks"), nb::arg("jac").noconvert(), nb::arg("frames"),
+             nb::arg("frame_data").noconvert(), nb::arg("posture_data").noconvert(),
+             nb::arg("posture_map"), nb::arg("cfg_dof"), nb::arg("cfg_qadr"),
+             nb::arg("cfg_data").noconvert(), nb::arg("vel_dof"), nb::arg("vel_limit").noconvert(),
+             nb::arg("settings").noconvert(), nb::arg("com_jac").noconvert(), nb::arg("com_body"),
+             nb::arg("com_data").noconvert(), nb::arg("rel_jac").noconvert(), nb::arg("rel_frames"),
+             nb::arg("rel_data").noconvert(), nb::arg("nq"))
+        .def(
+            "step",
+            [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
+               In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
+                diffik::FusedArgs a = k.args(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
+                const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
+                require(dim(warm, 0) == L && dim(warm, 1) == n + p,
+                        "Kernel.step: warm must have shape (L, nv + p)");
+                diffik::StepResult r = diffik::fused_step(
+                    a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
+                if (r.v_is_d) r.v = r.d;
+                const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+                return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
+                                       to_numpy(std::move(r.info), {5, L_}),
+                                       to_numpy(std::move(r.active), {L_, cols}));
+            },
+            nb::arg("qpos"), nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"),
+            nb::arg("xmat"), nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),
+            nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
+            "Rows of every task, the limits' box and general rows G dq <= h, and the cascade; "
+            "returns (code, dq, v, info (5, L), active (L, nv + p) int8).")
+        .def(
+            "rows",
+            [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
+               In2 G, In1 h) {
+                diffik::FusedArgs a = k.args(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
+                diffik::RowsResult r = diffik::fused_rows(a);
+                return std::make_tuple(r.code, to_numpy(std::move(r.reg)), to_numpy(std::move(r.box.lb)),
+                                       to_numpy(std::move(r.box.ub)));
+            },
+            nb::arg("qpos"), nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"),
+            nb::arg("xmat"), nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),
+            nb::arg("G"), nb::arg("h"),
+            "The hierarchy's rows and limits without solving it: fills A, b, w; returns (code, "
+            "reg, lb, ub).");
+
     m.attr("OK") = static_cast<i64>(diffik::OK);
     m.attr("NOT_FINITE") = static_cast<i64>(diffik::NOT_FINITE);
     m.attr("CONFLICT") = static_cast<i64>(diffik::CONFLICT);

@@ -21,6 +21,7 @@ enum Code : i64 { OK = 0, NOT_FINITE = 1, CONFLICT = 2, UNSETTLED = 3 };
 // Entries of `settings`.
 enum Setting : i64 { DT = 0, DAMPING = 1, THRESHOLD = 2, MAX_DAMPING = 3, ERROR_SCALE = 4, RANK_TOL = 5, TOL = 6 };
 constexpr i64 kSettings = 7;
+constexpr double kPi = 3.14159265358979323846;  // MuJoCo's mjPI
 constexpr i64 kFrameData = 15;  // target wxyz_xyz (7), cost (6), gain, lm_damping
 
 // The arguments of fused_rows / fused_step (views on the plan's arrays and MuJoCo's).
@@ -46,7 +47,32 @@ struct FusedArgs {
     VecRefT<const i64> vel_dof;
     CVecRef vel_limit;
     CVecRef settings;
+    // The extended plan's arguments (qpik._fused.Kernel); empty in the legacy layout.
+    // posture_map (nv, 2): per dof, kind (0 hinge/slide, 1 free joint: zero row, 2 first
+    // dof of a ball joint, 3 its other dofs) and qpos address; empty: dof i is qpos[i].
+    MatRefT<const i64> posture_map;
+    VecRefT<const i64> cfg_qadr;  // (E,) qpos address of each position-limited dof; empty: cfg_dof
+    // CoM tasks (kind 2): com_jac (C, 3, nv), com_body (C,) rows of subtree_com (nbody, 3),
+    // com_data (C, 8): target (3) [m, world], cost (3), gain, lm_damping.
+    const double* com_jac = nullptr;
+    VecRefT<const i64> com_body;
+    CMatRef subtree_com;
+    CMatRef com_data;
+    // Relative frame tasks (kind 3): rel_jac (R, 12, nv) the frame's then the root's
+    // world-aligned Jacobians; rel_frames (R, 4) frame kind, id, root kind, id; rel_data
+    // (R, 15): target in the root frame wxyz_xyz (7), cost (6), gain, lm_damping.
+    const double* rel_jac = nullptr;
+    MatRefT<const i64> rel_frames;
+    CMatRef rel_data;
+    // General limit rows G dq <= h (p, nv), (p,), held at every level.
+    CMatRef G = CMatRef(nullptr, 0, 0);
+    CVecRef h;
 };
+
+// Task kinds of FusedArgs::tasks.
+enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4 };
+constexpr i64 kComData = 8;  // target (3), cost (3), gain, lm_damping
+enum PostureDof : i64 { SCALAR_DOF = 0, FREE_DOF = 1, BALL_FIRST = 2, BALL_OTHER = 3 };
 
 // Rows row:row+6 of a frame task at pose (xpos, xmat) with target (wxyz_xyz):
 // frame_error_jlog then frame_rows_into; returns its LM term.
@@ -72,6 +98,77 @@ inline double posture_rows(MatRef A, double* b, i64 row, CVecRef qpos, const dou
     return lm_damping * mu;
 }
 
+// MuJoCo's mju_normalize4 / mju_normalize3 (mjMINVAL = 1e-15); return the norm.
+inline double mj_normalize4(double* v) {
+    const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+    if (norm < 1e-15) {
+        v[0] = 1.0;
+        v[1] = v[2] = v[3] = 0.0;
+    } else if (std::fabs(norm - 1.0) > 1e-15) {
+        const double inv = 1.0 / norm;
+        for (int i = 0; i < 4; ++i) v[i] *= inv;
+    }
+    return norm;
+}
+inline double mj_normalize3(double* v) {
+    const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (norm < 1e-15) {
+        v[0] = 1.0;
+        v[1] = v[2] = 0.0;
+    } else {
+        const double inv = 1.0 / norm;
+        for (int i = 0; i < 3; ++i) v[i] *= inv;
+    }
+    return norm;
+}
+
+// A ball joint's part of mj_differentiatePos(qpos1 = qb, qpos2 = qa, dt = 1): the rotation
+// vector [rad] of qb^-1 qa (both normalised first), the shorter way round.
+inline void ball_difference(double* res, const double* qa_raw, const double* qb_raw) {
+    double qa[4] = {qa_raw[0], qa_raw[1], qa_raw[2], qa_raw[3]};
+    double qb[4] = {qb_raw[0], qb_raw[1], qb_raw[2], qb_raw[3]};
+    mj_normalize4(qa);
+    mj_normalize4(qb);
+    const double neg[4] = {qb[0], -qb[1], -qb[2], -qb[3]};
+    double dif[4];
+    model::se3_detail::quat_mul(dif, neg, qa);
+    double axis[3] = {dif[1], dif[2], dif[3]};
+    const double sin_half = mj_normalize3(axis);
+    double speed = 2.0 * std::atan2(sin_half, dif[0]);
+    if (speed > kPi) speed -= 2.0 * kPi;
+    res[0] = axis[0] * speed;
+    res[1] = axis[1] * speed;
+    res[2] = axis[2] * speed;
+}
+
+// Rows row:row+nv of mink's PostureTask / DampingTask on any joints (map: see
+// FusedArgs::posture_map): A = diag(cost) J (J the identity with the free joints' columns
+// zeroed), b = cost (-gain e), e = q (-) q* by mj_differentiatePos (free joints' entries
+// zero; all zero for a damping task). Returns lm_damping |b|^2.
+inline double posture_rows_map(MatRef A, double* b, i64 row, CVecRef qpos,
+                               MatRefT<const i64> map, const double* target, const double* cost,
+                               double gain, double lm_damping, bool zero_error, double* e) {
+    const i64 nv = map.rows;
+    for (i64 i = 0; i < nv; ++i) {
+        const i64 kind = map(i, 0), adr = map(i, 1);
+        if (zero_error || kind == FREE_DOF) {
+            e[i] = 0.0;
+        } else if (kind == SCALAR_DOF) {
+            e[i] = qpos[adr] - target[adr];
+        } else if (kind == BALL_FIRST) {
+            ball_difference(e + i, qpos.p + adr, target + adr);
+        }
+    }
+    double mu = 0.0;
+    for (i64 i = 0; i < nv; ++i) {
+        const double diag = map(i, 0) == FREE_DOF ? 0.0 : 1.0;
+        for (i64 j = 0; j < nv; ++j) A(row + i, j) = cost[i] * (i == j ? diag : 0.0);
+        b[row + i] = cost[i] * (-gain * e[i]);
+        mu += b[row + i] * b[row + i];
+    }
+    return lm_damping * mu;
+}
+
 struct Box {
     Vec lb, ub;
     i64 bad = -1;  // the first dof whose hard bounds conflict, else -1
@@ -82,14 +179,16 @@ struct Box {
 // core::merge_boxes.
 // Position limit e: lower[e * stride], upper[e * stride], gain[e * stride]. Every dof index
 // is in [0, min(n, qpos.n)).
+// cfg_qadr (E,) the qpos address of each entry (empty: the dof index; hinge/slide only).
 inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const double* cfg_lower,
                  const double* cfg_upper, const double* cfg_gain, i64 stride,
-                 VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n) {
+                 VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
+                 VecRefT<const i64> cfg_qadr = VecRefT<const i64>()) {
     Vec hard_lb(static_cast<size_t>(n), -kInf), hard_ub(static_cast<size_t>(n), kInf);
     Vec pos_lb(static_cast<size_t>(n), -kInf), pos_ub(static_cast<size_t>(n), kInf);
     for (i64 e = 0; e < cfg_dof.n; ++e) {
         const i64 i = cfg_dof[e];
-        const double q = qpos[i];
+        const double q = qpos[cfg_qadr.n ? cfg_qadr[e] : i];
         const double g = cfg_gain[e * stride];
         const double upper = g * (cfg_upper[e * stride] - q);
         const double lower = -g * (q - cfg_lower[e * stride]);
@@ -108,43 +207,74 @@ inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const doub
     return box;
 }
 
+// The pose (xpos, xmat) of frame (kind 0 site, 1 body, 2 geom; id).
+inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos,
+                       const double*& mat) {
+    if (kind == 0) {
+        pos = a.site_xpos.row(fid);
+        mat = a.site_xmat.row(fid);
+    } else if (kind == 1) {
+        pos = a.xpos.row(fid);
+        mat = a.xmat.row(fid);
+    } else {
+        pos = a.geom_xpos.row(fid);
+        mat = a.geom_xmat.row(fid);
+    }
+}
+
 // Fill every task's rows of A, b, w; returns each level's LM term sum lm_damping
 // |b_task|^2 (L).
 inline Vec assemble_rows(const FusedArgs& a, i64 L) {
-    const i64 n = a.qpos.n;
+    const i64 n = a.A.cols;
     Vec reg(static_cast<size_t>(L), 0.0);
-    std::vector<double> local(static_cast<size_t>(6 * n));
+    std::vector<double> local(static_cast<size_t>(18 * n + n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
+        const i64 kind = a.tasks(t, 0);
         const i64 i = a.tasks(t, 1);
         const i64 row = a.tasks(t, 3);
         double mu;
         const double* cost;
         i64 size;
-        if (a.tasks(t, 0) == 0) {
-            const i64 kind = a.frames(i, 0), fid = a.frames(i, 1);
+        if (kind == FRAME) {
             const double* pos;
             const double* mat;
-            if (kind == 0) {
-                pos = a.site_xpos.row(fid);
-                mat = a.site_xmat.row(fid);
-            } else if (kind == 1) {
-                pos = a.xpos.row(fid);
-                mat = a.xmat.row(fid);
-            } else {
-                pos = a.geom_xpos.row(fid);
-                mat = a.geom_xmat.row(fid);
-            }
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
             const double* data = a.frame_data.row(i);
             cost = data + 7;
             CMatRef jac(a.jac + i * 6 * n, 6, n);
             mu = frame_rows(a.A, a.b.p, row, jac, pos, mat, data, cost, data[13], data[14],
                             local.data());
             size = 6;
+        } else if (kind == COM) {
+            const double* data = a.com_data.row(i);
+            cost = data + 3;
+            CMatRef jac(a.com_jac + i * 3 * n, 3, n);
+            mu = tasks::com_rows_into(a.A, a.b.p, row, jac, a.subtree_com.row(a.com_body[i]),
+                                      data, cost, data[6], data[7]);
+            size = 3;
+        } else if (kind == RELATIVE) {
+            const double *pf, *mf, *pr, *mr;
+            frame_pose(a, a.rel_frames(i, 0), a.rel_frames(i, 1), pf, mf);
+            frame_pose(a, a.rel_frames(i, 2), a.rel_frames(i, 3), pr, mr);
+            const double* data = a.rel_data.row(i);
+            cost = data + 7;
+            CMatRef jf(a.rel_jac + i * 12 * n, 6, n);
+            CMatRef jr(a.rel_jac + i * 12 * n + 6 * n, 6, n);
+            mu = tasks::relative_frame_rows_into(a.A, a.b.p, row, jf, mf, pf, jr, mr, pr, data,
+                                                 cost, data[13], data[14], local.data());
+            size = 6;
         } else {
             const double* data = a.posture_data.row(i);
             const i64 nq = a.posture_data.cols - n - 2;
             cost = data + nq;
-            mu = posture_rows(a.A, a.b.p, row, a.qpos, data, cost, data[nq + n], data[nq + n + 1]);
+            if (a.posture_map.rows == 0 && kind == POSTURE) {
+                mu = posture_rows(a.A, a.b.p, row, a.qpos, data, cost, data[nq + n],
+                                  data[nq + n + 1]);
+            } else {
+                mu = posture_rows_map(a.A, a.b.p, row, a.qpos, a.posture_map, data, cost,
+                                      data[nq + n], data[nq + n + 1], kind == DAMPING_TASK,
+                                      local.data());
+            }
             size = n;
         }
         for (i64 r = 0; r < size; ++r) a.w[row + r] = cost[r];
@@ -162,14 +292,14 @@ struct RowsResult {
 // The hierarchy's rows and limits without solving it: fills A, b, w; code OK, NOT_FINITE
 // (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
 inline RowsResult fused_rows(const FusedArgs& a) {
-    const i64 n = a.qpos.n;
+    const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     RowsResult res;
     res.reg = assemble_rows(a, L);
     for (i64 k = 0; k < L; ++k) res.reg[k] = a.settings[DAMPING] + res.reg[k];
     const double* cfg = a.cfg_data.p;
     res.box = boxes(a.qpos, a.settings[DT], a.cfg_dof, cfg, cfg + 1, cfg + 2, a.cfg_data.stride,
-                    a.vel_dof, a.vel_limit, n);
+                    a.vel_dof, a.vel_limit, n, a.cfg_qadr);
     double square = 0.0;
     double total = 0.0;
     for (i64 r = 0; r < a.b.n; ++r) {
@@ -178,6 +308,10 @@ inline RowsResult fused_rows(const FusedArgs& a) {
     }
     double reg_sum = 0.0;
     for (i64 k = 0; k < L; ++k) reg_sum += res.reg[k];
+    for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
+        total += a.h[r];
+        for (i64 j = 0; j < n; ++j) total += a.G(r, j);
+    }
     if (!(std::isfinite(square) && std::isfinite(total) && std::isfinite(reg_sum))) {
         res.code = NOT_FINITE;
     } else if (res.box.bad >= 0) {
@@ -200,7 +334,7 @@ struct StepResult {
 // previous active sets); see qpik/_fused.py:fused_step.
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                              bool canonical) {
-    const i64 n = a.qpos.n;
+    const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     RowsResult rows = fused_rows(a);
     StepResult out;
@@ -216,7 +350,7 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
     const double dt = a.settings[DT];
     core::CascadeResult c = core::solve_cascade(
         CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
-        CVecRef(rows.box.lb), CVecRef(rows.box.ub), CMatRef(nullptr, 0, n), CVecRef(nullptr, 0),
+        CVecRef(rows.box.lb), CVecRef(rows.box.ub), a.G.rows ? a.G : CMatRef(nullptr, 0, n), a.h,
         a.settings[THRESHOLD], a.settings[MAX_DAMPING], a.settings[ERROR_SCALE],
         a.settings[RANK_TOL], max_iter, a.settings[TOL], warm, canonical);
     out.d = std::move(c.dq);

@@ -201,6 +201,51 @@ inline void se3_inverse_multiply(double* out, const double* a, const double* b) 
     out[6] = rotated[2] + inv_t[2];
 }
 
+// out = a^-1 (mink's _se3_inverse).
+inline void se3_inverse(double* out, const double* a) {
+    using namespace se3_detail;
+    out[0] = a[0];
+    out[1] = -a[1];
+    out[2] = -a[2];
+    out[3] = -a[3];
+    const double neg_t[3] = {-a[4], -a[5], -a[6]};
+    quat_rotate(out + 4, neg_t, out);
+}
+
+// The rotation matrix (row-major 9) of a unit quaternion wxyz (mink's quat_to_mat33).
+inline void quat_to_mat33(double* R, const double* q) {
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    const double x2 = x * x, y2 = y * y, z2 = z * z;
+    const double xy = x * y, xz = x * z, yz = y * z;
+    const double wx = w * x, wy = w * y, wz = w * z;
+    R[0] = 1.0 - 2.0 * (y2 + z2);
+    R[1] = 2.0 * (xy - wz);
+    R[2] = 2.0 * (xz + wy);
+    R[3] = 2.0 * (xy + wz);
+    R[4] = 1.0 - 2.0 * (x2 + z2);
+    R[5] = 2.0 * (yz - wx);
+    R[6] = 2.0 * (xz - wy);
+    R[7] = 2.0 * (yz + wx);
+    R[8] = 1.0 - 2.0 * (x2 + y2);
+}
+
+// The adjoint of T (row-major 6x6, 36) on [v; omega]: [[R, skew(t) R], [0, R]] (mink's
+// _se3_adjoint).
+inline void se3_adjoint(double* adj, const double* T) {
+    using namespace se3_detail;
+    double R[9], skw[9], skR[9];
+    quat_to_mat33(R, T);
+    skew(skw, T + 4);
+    mat33_mul(skR, skw, R);
+    for (int i = 0; i < 36; ++i) adj[i] = 0.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            adj[6 * i + j] = R[3 * i + j];
+            adj[6 * i + (j + 3)] = skR[3 * i + j];
+            adj[6 * (i + 3) + (j + 3)] = R[3 * i + j];
+        }
+}
+
 // a (-) b = log(b^-1 a).
 inline void se3_rminus(double* tangent, const double* a, const double* b) {
     double temp[7];

@@ -62,4 +62,85 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
     return frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping, local.data());
 }
 
+// The local (body-frame) Jacobian [R^T Jp; R^T Jr] (6, nv) into `local` (row-major) from
+// MuJoCo's world-aligned one; xmat row-major 9.
+inline void local_jacobian(double* local, CMatRef jac, const double* xmat) {
+    const i64 nv = jac.cols;
+    for (i64 i = 0; i < 3; ++i) {
+        for (i64 j = 0; j < nv; ++j) {
+            double a = 0.0;
+            double r = 0.0;
+            for (i64 k = 0; k < 3; ++k) {
+                a += xmat[3 * k + i] * jac(k, j);
+                r += xmat[3 * k + i] * jac(3 + k, j);
+            }
+            local[i * nv + j] = a;
+            local[(3 + i) * nv + j] = r;
+        }
+    }
+}
+
+// Rows row:row+6 of mink's RelativeFrameTask: the pose of frame f in root frame r, T_rf =
+// T_wr^-1 T_wf, to target T_rt (wxyz_xyz): error log(T_rt^-1 T_rf) (the body twist, frame
+// f's axes [m, rad]) and Jacobian jlog(T_rt^-1 T_rf) (fJ_f - Ad(T_rf^-1) rJ_r), with fJ_f,
+// rJ_r the frames' body Jacobians; written as A = diag(cost) J, b = -gain cost e. Returns
+// lm_damping |b|^2. jac_f, jac_r: MuJoCo's world-aligned Jacobians (6, nv); xmat row-major 9.
+// `scratch` holds 18 nv doubles.
+inline double relative_frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac_f,
+                                       const double* xmat_f, const double* xpos_f, CMatRef jac_r,
+                                       const double* xmat_r, const double* xpos_r,
+                                       const double* target, const double* cost, double gain,
+                                       double lm_damping, double* scratch) {
+    const i64 nv = jac_f.cols;
+    double frame[7], root[7], rel[7], error[6], rel_to_target[7], jlog[36], inv[7], adj[36];
+    model::xmat_xpos_to_wxyz_xyz(frame, xmat_f, xpos_f);
+    model::xmat_xpos_to_wxyz_xyz(root, xmat_r, xpos_r);
+    model::se3_inverse_multiply(rel, root, frame);
+    model::se3_rminus(error, rel, target);
+    model::se3_inverse_multiply(rel_to_target, target, rel);
+    model::se3_jlog(jlog, rel_to_target);
+    model::se3_inverse(inv, rel);
+    model::se3_adjoint(adj, inv);
+    double* lf = scratch;
+    double* lr = scratch + 6 * nv;
+    double* diff = scratch + 12 * nv;
+    local_jacobian(lf, jac_f, xmat_f);
+    local_jacobian(lr, jac_r, xmat_r);
+    for (i64 i = 0; i < 6; ++i) {
+        for (i64 j = 0; j < nv; ++j) {
+            double acc = 0.0;
+            for (i64 k = 0; k < 6; ++k) acc += adj[6 * i + k] * lr[k * nv + j];
+            diff[i * nv + j] = lf[i * nv + j] - acc;
+        }
+    }
+    double mu = 0.0;
+    for (i64 i = 0; i < 6; ++i) {
+        for (i64 j = 0; j < nv; ++j) {
+            double acc = 0.0;
+            for (i64 k = 0; k < 6; ++k) acc += jlog[6 * i + k] * diff[k * nv + j];
+            A(row + i, j) = cost[i] * acc;
+        }
+        b[row + i] = cost[i] * (-gain * error[i]);
+        mu += b[row + i] * b[row + i];
+    }
+    return lm_damping * mu;
+}
+
+// Rows row:row+3 of a CoM task (mink's ComTask, qpik's): error c - c* (world frame [m]),
+// Jacobian jac (3, nv) from MuJoCo's mj_jacSubtreeCom; A = diag(cost) J, b = -gain cost e.
+// Returns lm_damping |b|^2.
+inline double com_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const double* com,
+                            const double* target, const double* cost, double gain,
+                            double lm_damping) {
+    const i64 nv = jac.cols;
+    double mu = 0.0;
+    for (i64 i = 0; i < 3; ++i) {
+        for (i64 j = 0; j < nv; ++j) A(row + i, j) = cost[i] * jac(i, j);
+        const double e = com[i] - target[i];
+        b[row + i] = cost[i] * (-gain * e);
+        mu += b[row + i] * b[row + i];
+    }
+    return lm_damping * mu;
+}
+
 }  // namespace qpik::tasks
