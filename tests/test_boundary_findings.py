@@ -88,12 +88,6 @@ except MemoryError:
 """
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik/_cpp/bind_diffik.cpp boxes checks only n >= 0: n is not bounded by "
-    "len(qpos), so the output box is allocated with n entries (n = 2**31 - 1: 34 GB, a "
-    "hang or the OOM killer without an address-space limit; MemoryError with one)",
-)
 def test_engine_boxes_rejects_n_beyond_qpos():
     import subprocess
     import sys

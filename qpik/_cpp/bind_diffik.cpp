@@ -360,7 +360,7 @@ void bind_diffik(nb::module_& m) {
         "boxes",
         [](In1 qpos, double dt, I1 cfg_dof, In1 cfg_lower, In1 cfg_upper, In1 cfg_gain, I1 vel_dof,
            In1 vel_limit, i64 n) {
-            require(n >= 0, "boxes: n must be >= 0");
+            require(n >= 0 && n <= dim(qpos, 0), "boxes: n (the number of dofs) must be in [0, len(qpos)]");
             const i64 E = dim(cfg_dof, 0);
             require(dim(cfg_lower, 0) == E && dim(cfg_upper, 0) == E && dim(cfg_gain, 0) == E,
                     "boxes: cfg_lower, cfg_upper and cfg_gain must have len(cfg_dof) entries");
