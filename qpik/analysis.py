@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Literal
 
 import mujoco
@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg
 
+from . import checks
 from .configuration import Configuration, FrameType
 from .errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 from .model.rotations import orientation_error
@@ -163,6 +164,12 @@ def _row_indices(rows: Rows) -> tuple[int, ...]:
                 f"or a sequence of row names ({' '.join(ROW_NAMES)}) or indices 0-5"
             )
         return _ROW_SETS[rows]
+    if isinstance(rows, bytes) or not isinstance(rows, Iterable):
+        raise InvalidArgumentType(
+            "rows",
+            "'pose', 'position', 'orientation' or a sequence of row names or indices",
+            checks.type_name(rows),
+        )
     indices = []
     for row in rows:
         if isinstance(row, str) and row in ROW_NAMES:
@@ -231,11 +238,8 @@ def damped_pseudoinverse(J: npt.ArrayLike, damping: float) -> np.ndarray:
     near singularities: ``||J_damped^+||_2 <= 1 / (2 sqrt(damping))`` for every ``J``.
     """
     J = _as_matrix(J)
-    try:
-        damping = float(damping)
-    except (TypeError, ValueError):
-        raise InvalidInput(f"damping is {damping!r}; it must be a number > 0") from None
-    if not np.isfinite(damping) or damping <= 0:
+    damping = checks.check_real("damping", damping)
+    if damping <= 0:
         raise InvalidInput(
             f"damping is {damping}; it must be > 0 (use pseudoinverse() for no damping)"
         )
@@ -392,12 +396,9 @@ def _limits(
     q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(q - mid) / range`` terms' ingredients: ``q``, mid-range, range (0 = unlimited)."""
-    q = np.asarray(q, dtype=float)
-    if q.ndim != 1:
-        raise InvalidInput(f"q has shape {q.shape}, expected (n,)")
-    q = _as_vector(q, q.shape[0], "q")
-    lower = np.asarray(lower, dtype=float)
-    upper = np.asarray(upper, dtype=float)
+    q = checks.check_vector("q", q)
+    lower = checks.check_vector("lower", lower, finite=False)
+    upper = checks.check_vector("upper", upper, finite=False)
     for name, bound in (("lower", lower), ("upper", upper)):
         if bound.shape != q.shape:
             raise InvalidInput(f"{name} has shape {bound.shape}, expected {q.shape} like q")
@@ -473,12 +474,13 @@ def _frame_point(
 
 
 def _check_configuration(configuration: Configuration) -> None:
-    if not isinstance(configuration, Configuration):
-        raise InvalidArgumentType(
-            "configuration",
-            "a qpik.Configuration (build one with qpik.Configuration(qpik.load_robot(name), q))",
-            type(configuration).__name__,
-        )
+    """A :class:`qpik.Configuration`, else :class:`InvalidArgumentType` (a TypeError)."""
+    checks.check_instance(
+        "configuration",
+        configuration,
+        Configuration,
+        "a qpik.Configuration (build one with qpik.Configuration(qpik.load_robot(name), q))",
+    )
 
 
 def manipulability_gradient(
@@ -557,7 +559,9 @@ def self_motion(
     Each step moves ``q`` by ``step_size * (I - J^+ J) zeta`` [rad] (``zeta`` ``(nv,)``),
     then corrects the drift with Gauss-Newton steps ``J^+ e`` until the frame error
     ``e`` (position [m], and rotation vector [rad] for the orientation rows, world frame)
-    is ``<= correction_tol`` or ``max_corrections`` steps are taken. Joint limits are not
+    is ``<= correction_tol`` or ``max_corrections`` steps are taken (``steps`` an int in
+    [0, 100000], ``step_size`` finite, ``correction_tol`` >= 0, ``max_corrections`` in
+    [0, 10000]). Joint limits are not
     enforced. The caller's configuration is not changed.
 
     Returns:
@@ -568,12 +572,10 @@ def self_motion(
     idx = list(_row_indices(rows))
     work = configuration.copy()
     zeta = _as_vector(zeta, work.model.nv, "zeta")
-    steps = int(steps)
-    if steps < 0:
-        raise InvalidInput(f"steps is {steps}; it must be >= 0")
-    step_size = float(step_size)
-    if not np.isfinite(step_size):
-        raise InvalidInput(f"step_size is {step_size}; it must be finite")
+    steps = checks.check_integer("steps", steps, 0, 100_000)
+    step_size = checks.check_real("step_size", step_size)
+    correction_tol = checks.check_real("correction_tol", correction_tol, 0.0)
+    max_corrections = checks.check_integer("max_corrections", max_corrections, 0, 10_000)
     target = work.frame_pose(frame, kind)
     path = np.empty((steps + 1, work.model.nq))
     path[0] = work.q

@@ -398,10 +398,12 @@ class InvalidMocapBody(QpikError, mink.InvalidMocapBody, ValueError):
         return type(self), (self.name, self.available)
 
 
-class InvalidArgumentType(QpikError, TypeError):
+class InvalidArgumentType(InvalidInput, TypeError):
     """An argument of the wrong type (an array where a :class:`qpik.Configuration` is
     expected, a string where a number is): names the argument and the type expected.
-    Also a ``TypeError``. Fields: ``argument``, ``expected``, ``got`` (the type's name)."""
+    An :class:`InvalidInput` (so a ``ValueError``) and also a ``TypeError``: ``except
+    TypeError``, ``except ValueError`` and ``except qpik.QpikError`` all catch it. Fields:
+    ``argument``, ``expected``, ``got`` (the type's name)."""
 
     def __init__(self, argument: str, expected: str, got: str):
         self.argument = argument
@@ -411,6 +413,11 @@ class InvalidArgumentType(QpikError, TypeError):
 
     def __reduce__(self):
         return type(self), (self.argument, self.expected, self.got)
+
+
+class MinkFailure(QpikError, mink.MinkError):
+    """Any other mink error raised while qpik ran a mink task or limit (the message is
+    mink's). Also a :class:`mink.MinkError`."""
 
 
 # mink's definition errors and their qpik counterparts (same message)

@@ -35,6 +35,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from . import checks
 from .errors import InvalidInput, MissingExtra, RobotFileError, UnknownRobot
 from .robot_files import ROOT_JOINT, find_srdf, robot_spec  # noqa: F401 (re-exported)
 
@@ -143,18 +144,53 @@ def load_robot(
         srdf: an SRDF file whose named states become keyframes; ``None`` (default) or
             ``True``: look for one beside a URDF; ``False``: none.
     """
+    floating_base = checks.check_bool("floating_base", floating_base)
+    if srdf is not None and not isinstance(srdf, bool):
+        srdf = checks.check_path("srdf", srdf)
     if isinstance(source, mujoco.MjModel):
         if floating_base or srdf not in (None, False):
             raise RobotFileError(
                 "<MjModel>", "floating_base and srdf apply when loading a file, not to a model"
             )
+        check_model(source, "<MjModel>")
         return source
-    if not isinstance(source, (str, os.PathLike)):
-        raise InvalidInput(
-            f"load_robot expects a name, a path or an MjModel, got {type(source).__name__}"
-        )
+    checks.check_instance(
+        "source", source, (str, os.PathLike), "a robot name, 'erd:NAME', a path or an MjModel"
+    )
     path = locate_robot(source)
     return _load_file(path, floating_base=floating_base, srdf=srdf)
+
+
+#: The model arrays of positions [m] that :func:`check_model` bounds.
+_LENGTHS = ("body_pos", "body_ipos", "jnt_pos", "site_pos", "geom_pos")
+
+
+def check_model(model: mujoco.MjModel, where: str) -> None:
+    """Raise :class:`RobotFileError` naming ``where`` for a model qpik cannot compute
+    with: a position (body, joint, site, geom, centre of mass) that is not finite or
+    farther than :data:`qpik.checks.MAX_LENGTH` [m] from its parent (MuJoCo's dynamics
+    overflow: NaN gravity torques), a mass or inertia that is not finite, or a custom
+    numeric ``velocity_limit`` whose length is not ``nv``."""
+    for name in _LENGTHS:
+        values = np.asarray(getattr(model, name))
+        bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
+        if bad.any():
+            row = int(np.argwhere(bad)[0][0])
+            raise RobotFileError(
+                where,
+                f"{name}[{row}] = {values[row].tolist()}: positions must be finite and within "
+                f"{checks.MAX_LENGTH:g} m",
+            )
+    for name in ("body_mass", "body_inertia"):
+        if not np.isfinite(getattr(model, name)).all():
+            raise RobotFileError(where, f"{name} has a NaN or inf entry")
+    nid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
+    if nid >= 0 and int(model.numeric_size[nid]) != model.nv:
+        raise RobotFileError(
+            where,
+            f"the custom numeric velocity_limit has {int(model.numeric_size[nid])} values; "
+            f"it needs one per dof ({model.nv})",
+        )
 
 
 def locate_robot(
@@ -295,9 +331,11 @@ def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
     }
     spec.add_text(name=SOURCE_TEXT, data=json.dumps(recipe))
     try:
-        return spec.compile()
+        model = spec.compile()
     except ValueError as exc:  # pragma: no cover - the model compiled a moment ago
         raise RobotFileError(str(path), str(exc).strip()) from exc
+    check_model(model, str(path))
+    return model
 
 
 # --------------------------------------------------------------------- tool frame

@@ -33,8 +33,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from . import checks
 from .configuration import Configuration, FrameType, joint_names
-from .errors import InvalidInput
+from .errors import InvalidArgumentType, InvalidInput
 
 __all__ = [
     "ForceEllipsoid",
@@ -82,26 +83,26 @@ class ReferenceFrame(str, enum.Enum):
 
 # ------------------------------------------------------------------------- validation
 def _vector(value: npt.ArrayLike, size: int, what: str) -> np.ndarray:
-    """``value`` as a finite float vector of shape ``(size,)``, or :class:`InvalidInput`."""
-    try:
-        array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInput(f"{what} must be {size} numbers, got {value!r}") from None
-    if array.shape != (size,):
-        raise InvalidInput(f"{what} has shape {array.shape}, expected ({size},)")
-    bad = np.flatnonzero(~np.isfinite(array))
-    if bad.size:
-        i = int(bad[0])
-        raise InvalidInput(f"{what}[{i}] is {array[i]}; every entry must be finite")
-    return array
+    """``value`` as a finite float vector of shape ``(size,)``: not numbers raises
+    :class:`qpik.errors.InvalidArgumentType`, a wrong shape or NaN :class:`InvalidInput`."""
+    return checks.check_vector(what, value, size)
+
+
+#: What every function here takes as its first argument.
+_CONFIGURATION = (
+    "a qpik.Configuration (build one with qpik.Configuration(qpik.load_robot(name), q))"
+)
 
 
 def _check_configuration(configuration: Configuration) -> None:
-    if not isinstance(configuration, Configuration):
-        raise TypeError(
-            f"expected a qpik.Configuration, got {type(configuration).__name__} "
-            "(build one with qpik.Configuration(qpik.load_robot(name), q))"
-        )
+    """A :class:`qpik.Configuration`, else :class:`qpik.errors.InvalidArgumentType` (a
+    ``TypeError`` too)."""
+    checks.check_instance("configuration", configuration, Configuration, _CONFIGURATION)
+
+
+def _finite(what: str, tau: np.ndarray) -> np.ndarray:
+    """``tau`` if finite, else :class:`InvalidInput` (the model's sizes overflow)."""
+    return checks.check_finite_output(what, tau)
 
 
 def _frame(frame: FrameSpec, frame_type: FrameType | str = FrameType.SITE):
@@ -148,7 +149,7 @@ def joint_torques(
     if axes is ReferenceFrame.LOCAL:
         _, rotation = configuration.frame_pose(frame, kind)
         f, t = rotation @ f, rotation @ t
-    return jacobian.T @ np.concatenate([f, t])
+    return _finite("the joint torques", jacobian.T @ np.concatenate([f, t]))
 
 
 def _zero_velocity_data(configuration: Configuration) -> mujoco.MjData:
@@ -173,12 +174,16 @@ def gravity_torques(configuration: Configuration) -> np.ndarray:
     the motors apply) is ``-gravity_torques(configuration)``.
     """
     _check_configuration(configuration)
-    return -_zero_velocity_data(configuration).qfrc_bias.copy()
+    return _finite("the gravity torques", -_zero_velocity_data(configuration).qfrc_bias.copy())
 
 
 def _wrench_items(
     wrenches: Iterable,
 ) -> list[tuple[str | int, FrameType, npt.ArrayLike, npt.ArrayLike | None]]:
+    if isinstance(wrenches, (str, bytes, dict)) or not isinstance(wrenches, Iterable):
+        raise InvalidArgumentType(
+            "wrenches", "a sequence of (frame, force[, torque]) tuples", checks.type_name(wrenches)
+        )
     items = []
     for k, item in enumerate(wrenches):
         if not isinstance(item, (tuple, list)) or len(item) not in (2, 3):
@@ -212,6 +217,7 @@ def holding_torques(
         gravity: Whether to hold the robot against gravity as well.
     """
     _check_configuration(configuration)
+    gravity = checks.check_bool("gravity", gravity)
     tau = np.zeros(configuration.model.nv)
     for k, (name, kind, force, torque) in enumerate(_wrench_items(wrenches)):
         try:
@@ -221,7 +227,7 @@ def holding_torques(
     if gravity:
         scratch = _zero_velocity_data(configuration)
         tau += scratch.qfrc_passive - scratch.qfrc_bias
-    return -tau
+    return _finite("the holding torques", -tau)
 
 
 # ------------------------------------------------------------------- wrench estimation
@@ -287,8 +293,7 @@ def wrench_from_torques(
     """
     _check_configuration(configuration)
     tau = _vector(tau, configuration.model.nv, "tau")
-    if not (np.isfinite(rcond) and rcond >= 0):
-        raise InvalidInput(f"rcond must be a finite number >= 0, got {rcond!r}")
+    rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
     jacobian = configuration.frame_jacobian(frame, frame_type)
     u, s, vt = np.linalg.svd(jacobian, full_matrices=True)
     rank = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0 else 0
@@ -348,10 +353,12 @@ def force_ellipsoid(
         rcond: Singular values below ``rcond`` times the largest count as zero.
     """
     _check_configuration(configuration)
-    try:
-        picked = tuple(int(r) for r in rows)
-    except (TypeError, ValueError):
-        raise InvalidInput(f"rows must be Jacobian row indices in 0..5, got {rows!r}") from None
+    rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
+    if isinstance(rows, (str, bytes)) or not isinstance(rows, Iterable):
+        raise InvalidArgumentType(
+            "rows", "a sequence of Jacobian row indices in 0..5", checks.type_name(rows)
+        )
+    picked = tuple(checks.check_index(f"rows[{k}]", r, 6) for k, r in enumerate(rows))
     if not picked or len(set(picked)) != len(picked) or not all(0 <= r < 6 for r in picked):
         raise InvalidInput(f"rows must be distinct Jacobian row indices in 0..5, got {rows!r}")
     jacobian = configuration.frame_jacobian(frame, frame_type)[list(picked)]
@@ -428,7 +435,9 @@ def _torque_limits(configuration: Configuration, torque_limits) -> np.ndarray:
     nv = configuration.model.nv
     if torque_limits is None:
         return joint_torque_limits(configuration)
-    limits = np.asarray(torque_limits, dtype=float)
+    limits = checks.check_array(
+        "torque_limits", torque_limits, f"({nv},) or ({nv}, 2) torque limits [N m]"
+    )
     if limits.shape == (nv,):
         limits = np.stack([-limits, limits], axis=1)
     if limits.shape != (nv, 2):
@@ -501,9 +510,13 @@ def max_payload(
         gravity: Whether the motors also hold the robot against gravity.
     """
     _check_configuration(configuration)
+    gravity = checks.check_bool("gravity", gravity)
     d = _vector(direction, 3, "direction")
+    largest = float(np.abs(d).max())
+    if largest > 0.0:  # scaled first: the norm of a 1e300 vector overflows
+        d = d / largest
     norm = float(np.linalg.norm(d))
-    if norm < 1e-12:
+    if largest * norm < 1e-12:
         raise InvalidInput(f"direction {d.tolist()} is zero; give a nonzero 3-vector")
     d = d / norm
     limits = _torque_limits(configuration, torque_limits)

@@ -14,6 +14,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TypeAlias
 
 import mink
 import mujoco
@@ -52,7 +53,7 @@ class Target:
 
 #: What :func:`qpik.solve` accepts as a robot: anything :func:`qpik.load_robot` takes, or a
 #: :class:`qpik.Configuration`.
-RobotLike = str | os.PathLike | mujoco.MjModel | Configuration
+RobotLike: TypeAlias = str | os.PathLike | mujoco.MjModel | Configuration
 #: A target frame: a name (site, then body, then geom) or ``(name, frame_type)``.
 FrameKey = str | tuple[str, FrameType | str]
 #: A target: a position (3,), ``(position, rotation)``, a 4x4 matrix, an SE3 or a Target.

@@ -18,6 +18,7 @@ LAYERS = {
     "qpik.core": CORE,  # matrices only: the hierarchical QP, backends, damping
     "qpik.errors": BASE,  # typed errors (subclassing mink's) and the options object
     "qpik.options": BASE,
+    "qpik.checks": BASE,  # input checks of every entry point (imports errors and options)
     "qpik.model": MODEL,  # configuration, robots, frames, rotations, chain kinematics
     "qpik.configuration": MODEL,
     "qpik.robots": MODEL,

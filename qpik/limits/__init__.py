@@ -62,7 +62,9 @@ class _MinkClass(abc.ABCMeta):
 class ConfigurationLimit(mink.ConfigurationLimit, metaclass=_MinkClass):
     """mink's :class:`mink.ConfigurationLimit` (joint position limits, rows
     ``gain * (q_max - q)`` [rad or m] on ``dq``), with qpik's typed errors: a bad ``gain``
-    or ``min_distance_from_limits`` raises :class:`qpik.LimitDefinitionError`.
+    or ``min_distance_from_limits`` raises :class:`qpik.LimitDefinitionError`: ``gain`` in
+    (0, 1]; ``min_distance_from_limits`` [rad or m] finite, at most half of every limited
+    joint's range (negative values widen the limits, as in mink).
 
     The object built *is* mink's (``type(limit) is mink.ConfigurationLimit``), so every
     code path that knows mink's limit (qpik's box bounds among them) applies to it."""
@@ -91,9 +93,20 @@ class ConfigurationLimit(mink.ConfigurationLimit, metaclass=_MinkClass):
                 f"ConfigurationLimit min_distance_from_limits must be finite, got {distance}"
             )
         try:
-            return mink.ConfigurationLimit(model, gain, distance)
+            limit = mink.ConfigurationLimit(model, gain, distance)
         except mink.LimitDefinitionError as exc:
             raise LimitDefinitionError(f"{exc} (got gain={gain})") from None
+        indices = np.asarray(limit.indices, dtype=np.int64)
+        empty = indices[limit.lower[indices] > limit.upper[indices]]
+        if empty.size:
+            dof = int(empty[0])
+            joint = joint_names(model)[int(model.dof_jntid[dof])]
+            raise LimitDefinitionError(
+                f"ConfigurationLimit min_distance_from_limits={distance:g} leaves joint "
+                f"{joint!r} no range: its limits {model.jnt_range[model.dof_jntid[dof]].tolist()} "
+                f"are less than 2 * {distance:g} apart"
+            )
+        return limit
 
 
 class VelocityLimit(mink.VelocityLimit, metaclass=_MinkClass):

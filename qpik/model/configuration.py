@@ -16,7 +16,13 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InvalidConfiguration, InvalidInput, JointLimitViolation
+from ..errors import (
+    InvalidArgumentType,
+    InvalidConfiguration,
+    InvalidInput,
+    JointLimitViolation,
+    LimitDefinitionError,
+)
 from .frames import FrameType, frame_id, frame_names
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
@@ -221,7 +227,12 @@ class Configuration(mink.Configuration):
         """Id of a frame; raises :class:`UnknownFrame` listing the valid names."""
         kind = FrameType.parse(frame_type)
         key = (name, kind.value)
-        cached = self._frame_id_cache.get(key)
+        try:
+            cached = self._frame_id_cache.get(key)
+        except TypeError:  # unhashable: a list, an array, a dict
+            raise InvalidArgumentType(
+                "frame name", "a frame name (str) or id (int)", type(name).__name__
+            ) from None
         if cached is not None:
             return cached
         fid = frame_id(self.model, name, kind)
@@ -302,11 +313,17 @@ class Configuration(mink.Configuration):
         """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric
         ``velocity_limit`` (``inf`` where it holds 0 or less: no limit, as for a URDF joint
         without ``<limit velocity>``, or a free joint), or ``None`` when the model has
-        none."""
+        none. Raises :class:`qpik.LimitDefinitionError` when it does not hold ``nv``
+        values."""
         nid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
         if nid < 0:
             return None
         adr, size = self.model.numeric_adr[nid], self.model.numeric_size[nid]
+        if size != self.model.nv:
+            raise LimitDefinitionError(
+                f"the model's custom numeric velocity_limit has {size} values; it needs "
+                f"one per dof ({self.model.nv})"
+            )
         values = np.array(self.model.numeric_data[adr : adr + size], dtype=float)
         values[~(values > 0)] = np.inf
         return values

@@ -19,6 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .. import checks
 from ..configuration import Configuration, FrameType, joint_names
 from ..core.hierarchy import DampingLaw
 from ..errors import QpikError
@@ -198,9 +199,10 @@ def load_problem(path: str | os.PathLike) -> Problem:
 
     Raises :class:`qpik.ProblemFileError` naming the file, the field and what was
     expected, for an unreadable or malformed file, a missing field, a wrong type, an
-    unknown task type, frame or robot.
+    unknown task type, frame or robot; :class:`qpik.errors.InvalidArgumentType` (also a
+    ``TypeError``) when ``path`` is not a ``str`` or ``os.PathLike`` of one (``bytes``).
     """
-    path = Path(path)
+    path = Path(checks.check_path("path", path))
     reader = Reader(str(path))
     data = read_toml(path)
     reader.unknown_keys(data, _TOP_KEYS, "")

@@ -14,6 +14,7 @@ converged when the final configuration of every goal is within ``tol_position`` 
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -23,10 +24,11 @@ from ..configuration import Configuration
 from ..converge import solve
 from ..hierarchy import IKSolver
 from ..qp_engine import set_frame_target
-from ..result import IKResult
+from ..result import IKResult, Reason
 from .report import TrackTrace
 
 if TYPE_CHECKING:
+    from .goals import Goal
     from .loader import Problem
 
 #: What a mode returns: per-goal results (solve), the trace (track), converged, reason.
@@ -52,12 +54,33 @@ def run_solve(problem: Problem) -> ModeOutcome:
             options=problem.solve_options,
             limits=problem.build_limits(),
         )
-        results.append(result)
+        results.append(_measured(problem, goal, result))
         q = result.q
     failed = [i for i, r in enumerate(results) if not r.converged]
     if not failed:
         return results, None, True, "converged"
     return results, None, False, f"{_failed_goal(problem, failed[0])}: {results[failed[0]].reason}"
+
+
+def _measured(problem: Problem, goal: Goal, result: IKResult) -> IKResult:
+    """``result`` with its figures computed from its returned ``q``: each goal frame's
+    errors by forward kinematics (:meth:`Goal.errors`), the largest of them, and a claim of
+    convergence withdrawn (reason ``stalled``) where a frame is outside the tolerance."""
+    configuration = Configuration(problem.model, result.q)
+    errors = {f.frame: f.error(configuration) for f in goal.frames}
+    position = max(p for p, _ in errors.values())
+    orientation = max(o for _, o in errors.values())
+    options = problem.solve_options
+    within = position <= options.tol_position and orientation <= options.tol_orientation
+    converged = bool(result.converged and within)
+    return dataclasses.replace(
+        result,
+        position_error=position,
+        orientation_error=orientation,
+        frame_errors=errors,
+        converged=converged,
+        reason=result.reason if converged or not result.converged else Reason.STALLED,
+    )
 
 
 class _Recorder:
@@ -95,19 +118,23 @@ def run_track(problem: Problem) -> ModeOutcome:
     def within(error: tuple[float, float]) -> bool:
         return error[0] <= tol_p and error[1] <= tol_o
 
+    # Each recorded error is that of the recorded q against the goal it works toward
+    # (the goal of its step; the start's is the first goal's): what forward kinematics of
+    # the returned path gives, entry by entry.
     record = _Recorder(configuration, problem.goals[0].worst_error(configuration))
     reached: list[bool] = []
     for index, goal in enumerate(problem.goals):
         for frame in goal.frames:
             set_frame_target(levels, frame.frame, frame.target)
-        record.errors[-1] = goal.worst_error(configuration)
+        error = goal.worst_error(configuration)
         for _ in range(problem.steps):
-            if problem.stop_at_goal and within(record.errors[-1]):
+            if problem.stop_at_goal and within(error):
                 break
             step = solver.step(configuration, problem.dt)
             configuration.integrate_inplace(step.velocity, problem.dt)
-            record.add(configuration, step, index, goal.worst_error(configuration))
-        reached.append(within(record.errors[-1]))
+            error = goal.worst_error(configuration)
+            record.add(configuration, step, index, error)
+        reached.append(within(error))
     trace = _trace(problem, record, all(reached))
     if trace.converged:
         return [], trace, True, "converged"

@@ -1,4 +1,5 @@
-"""Tasks: mink's, re-exported so one import serves, and the ones qpik adds.
+"""Tasks: mink's, re-exported so one import serves (with qpik's errors:
+:mod:`qpik.tasks.minks`), and the ones qpik adds.
 
 Every task follows mink's contract: ``compute_error(configuration) -> e (k,)``,
 ``compute_jacobian(configuration) -> J (k, nv)`` with ``J = de/dq``, a ``cost`` vector that
@@ -6,21 +7,20 @@ weights the rows and a ``gain`` in [0, 1]; the QP asks ``J dq = -gain * e``. Any
 that contract works at any priority level of :class:`qpik.IKSolver`.
 """
 
-from mink import (
-    AxisAlignTask,
-    DofFreezingTask,
-    EqualityConstraintTask,
-    KineticEnergyRegularizationTask,
-    LookAtTask,
-    Objective,
-    RelativeFrameTask,
-    Task,
-)
+from mink import Objective, Task
 from mink.tasks.task import BaseTask
 
 from .com import ComTask
 from .fast import DampingTask, FrameTask, PostureTask
 from .frame import OrientationTask, PoseTask, PositionTask
+from .minks import (
+    AxisAlignTask,
+    DofFreezingTask,
+    EqualityConstraintTask,
+    KineticEnergyRegularizationTask,
+    LookAtTask,
+    RelativeFrameTask,
+)
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 
 __all__ = [

@@ -22,9 +22,19 @@ from ..model.rotations import left_jacobian_inverse, rotation_vector
 # configuration into a qpik one before any task sees it.
 
 
+def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
+    """A float copy of ``value``; :class:`InvalidTarget` when it is not numbers."""
+    if isinstance(value, (str, bytes)):
+        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}")
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}") from None
+
+
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
     """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
-    position = np.array(value, dtype=float)
+    position = _numbers(value, what)
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise InvalidTarget(f"{what} must be 3 finite numbers, got {position!r}")
     return position
@@ -32,7 +42,7 @@ def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.
 
 def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
     """A copy of ``value`` as a rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
-    rotation = np.array(value, dtype=float)
+    rotation = _numbers(value, what)
     if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
         raise InvalidTarget(f"{what} must be a finite 3x3 matrix, got {rotation!r}")
     if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0:

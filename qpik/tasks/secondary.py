@@ -9,8 +9,10 @@ frame task, the QP restricts that motion to the null space of the frame task: th
 from __future__ import annotations
 
 import mink
+import mujoco
 import numpy as np
 
+from .. import checks
 from ..configuration import Configuration, FrameType
 from ..errors import mink_errors_as_qpik
 
@@ -20,12 +22,25 @@ from ..errors import mink_errors_as_qpik
 # configuration into a qpik one before any task sees it.
 
 
+def _scalar_joints(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """``(qpos indices, dof indices)`` of the hinge and slide joints, in joint order (a
+    ball or free joint has several qpos entries and no scalar limit)."""
+    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+    joints = [j for j in range(model.njnt) if int(model.jnt_type[j]) in scalar]
+    return (
+        np.array([model.jnt_qposadr[j] for j in joints], dtype=np.int64),
+        np.array([model.jnt_dofadr[j] for j in joints], dtype=np.int64),
+    )
+
+
 class JointLimitDistanceTask(mink.Task):
     """Keep joints away from their limits.
 
-    Error ``w(q)``: :func:`qpik.analysis.joint_limit_distance`, the mean squared distance of
-    each joint from its mid-range, normalised by its range (0 at mid-range, 1/8 at the limits
-    for every joint). Unlimited joints do not count.
+    Error ``w(q)``: :func:`qpik.analysis.joint_limit_distance` over the hinge and slide
+    joints (``n`` of them), the mean squared distance of each joint from its mid-range,
+    normalised by its range (0 at mid-range, 1/8 at the limits for every joint). Unlimited
+    joints count in ``n`` and add 0; ball and free joints do not count. The Jacobian
+    ``(1, nv)`` is its gradient, 0 on the dofs of ball and free joints.
     """
 
     k = 1
@@ -33,28 +48,47 @@ class JointLimitDistanceTask(mink.Task):
     def __init__(self, cost: float = 1.0, gain: float = 0.5, lm_damping: float = 0.0):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
+        self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
+
+    def _indices(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """The model's scalar joints (see :func:`_scalar_joints`), kept per model."""
+        model = configuration.model
+        if self._joints is None or self._joints[0] is not model:
+            self._joints = (model, *_scalar_joints(model))
+        return self._joints[1], self._joints[2]
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import joint_limit_distance
 
+        qpos, _ = self._indices(configuration)
         return np.array(
-            [joint_limit_distance(configuration.q, configuration.lower, configuration.upper)]
+            [
+                joint_limit_distance(
+                    configuration.q[qpos], configuration.lower[qpos], configuration.upper[qpos]
+                )
+            ]
         )
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import joint_limit_distance_gradient
 
-        gradient = joint_limit_distance_gradient(
-            configuration.q, configuration.lower, configuration.upper
+        qpos, dofs = self._indices(configuration)
+        jacobian = np.zeros((1, configuration.model.nv))
+        jacobian[0, dofs] = joint_limit_distance_gradient(
+            configuration.q[qpos], configuration.lower[qpos], configuration.upper[qpos]
         )
-        return gradient[None, :]
+        return jacobian
 
 
 class ManipulabilityTask(mink.Task):
     """Raise the manipulability ``m(q) = sqrt(det J J^T)`` of a frame.
 
     Error ``e = -m(q)``; ``J dq = -gain * e`` asks each step for an increase of ``gain * m``
-    along the gradient of ``m``. ``rows`` selects ``"pose"`` (6 rows) or ``"position"`` (3).
+    along the gradient of ``m``. ``rows`` selects the rows of the frame's world-aligned
+    Jacobian ``[v; omega]``: ``"pose"`` (6), ``"position"`` (3), ``"orientation"`` (3) or
+    a sequence of row names / indices (see :mod:`qpik.analysis`); anything else raises
+    :class:`qpik.InvalidInput` here, at construction. The error and its Jacobian use the
+    same rows.
     """
 
     k = 1
@@ -70,17 +104,20 @@ class ManipulabilityTask(mink.Task):
     ):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
-        self.frame_name = frame_name
+        from ..analysis import _row_indices
+
+        self.frame_name: str | int = checks.check_instance(
+            "frame_name", frame_name, (str, int), "a frame name (or id)"
+        )
         self.frame_type = FrameType.parse(frame_type)
+        self._row_index = list(_row_indices(rows))  # raises for an unknown choice
         self.rows = rows
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import manipulability
 
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        if self.rows == "position":
-            jacobian = jacobian[:3]
-        return np.array([-manipulability(jacobian)])
+        return np.array([-manipulability(jacobian[self._row_index])])
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         from ..analysis import manipulability_gradient

@@ -1,0 +1,310 @@
+"""Input checks shared by qpik's public entry points: one place that says what each kind
+of argument may be, and one error for each way it can be wrong.
+
+* A value of the wrong Python *type* (a string where a number is expected, an ``MjModel``
+  or an array where a :class:`qpik.Configuration` is) raises
+  :class:`qpik.errors.InvalidArgumentType`: a :class:`qpik.QpikError` that is also a
+  ``TypeError``.
+* A value of the right type outside its documented *range* (a NaN, a negative time step)
+  raises :class:`qpik.InvalidOption`: a :class:`qpik.InvalidInput`, so also a
+  ``ValueError``, naming the argument, the value and the range.
+* An error that mink raises while qpik runs one of its tasks or limits is re-raised as
+  qpik's counterpart (:func:`as_qpik_error`), which also subclasses mink's: both kinds of
+  ``except`` catch it.
+
+Documented ranges (checked once, where the value enters qpik):
+
+========================  ======================================================
+``dt``                    :data:`DT_MIN` <= dt <= :data:`DT_MAX` [s]
+a cost                    finite, >= 0
+a gain                    in [0, 1]
+a damping                 finite, >= 0
+a length of the model     :data:`MAX_LENGTH` [m] at most (positions of bodies,
+                          joints, sites, geoms and centres of mass)
+========================  ======================================================
+
+This module sits in the base layer: it imports only :mod:`qpik.errors` and
+:mod:`qpik.options` from qpik (and NumPy, and mink for its error classes).
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import os
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any, Final, TypeVar
+
+import mink
+import numpy as np
+
+from .errors import (
+    IntegrationTimestepNotSet,
+    InvalidArgumentType,
+    InvalidConstraint,
+    InvalidDamping,
+    InvalidGain,
+    InvalidInput,
+    InvalidOption,
+    InvalidTarget,
+    LimitDefinitionError,
+    MinkFailure,
+    NoSolutionFound,
+    QpikError,
+    TargetNotSet,
+    TaskDefinitionError,
+    UnknownFrameType,
+)
+
+__all__ = [
+    "DT_MAX",
+    "DT_MIN",
+    "MAX_LENGTH",
+    "as_qpik_error",
+    "check_array",
+    "check_bool",
+    "check_choice",
+    "check_dt",
+    "check_finite_output",
+    "check_index",
+    "check_instance",
+    "check_integer",
+    "check_path",
+    "check_real",
+    "check_vector",
+    "is_real",
+    "qpik_errors",
+    "type_name",
+]
+
+#: The shortest time step [s] an entry point accepts: below it ``dq / dt`` overflows for
+#: displacements that are themselves representable (and no controller runs at a GHz).
+DT_MIN: Final = 1e-9
+#: The longest time step [s] an entry point accepts (a full-IK iteration uses ``dt = 1``).
+DT_MAX: Final = 1e6
+#: The largest coordinate [m] of a robot model (body, joint, site and geom positions,
+#: centres of mass): beyond it products of lengths and masses overflow in MuJoCo's
+#: dynamics (gravity torques, inertia) and the model cannot be a robot.
+MAX_LENGTH: Final = 1e6
+
+_T = TypeVar("_T")
+
+
+def type_name(value: Any) -> str:
+    """The name of ``value``'s type, as error messages give it (``ndarray``, ``str``)."""
+    return type(value).__name__
+
+
+def is_real(value: Any) -> bool:
+    """Whether ``value`` is a real number: a Python or NumPy int or float, or a 0-d
+    NumPy array of one (a ``bool`` is not)."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return True
+    return isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf"
+
+
+def check_instance(name: str, value: Any, cls: type[_T] | tuple[type, ...], expected: str) -> _T:
+    """``value`` if it is an instance of ``cls``; else :class:`InvalidArgumentType` (a
+    ``TypeError``) saying that ``name`` must be ``expected``."""
+    if not isinstance(value, cls):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    return value  # type: ignore[return-value]
+
+
+def check_real(
+    name: str,
+    value: Any,
+    minimum: float = -math.inf,
+    maximum: float = math.inf,
+    *,
+    open_minimum: bool = False,
+    unit: str = "",
+) -> float:
+    """``value`` as a finite float in ``[minimum, maximum]`` (``(minimum, maximum]`` with
+    ``open_minimum``). Not a real number: :class:`InvalidArgumentType`; NaN, inf or out of
+    range: :class:`qpik.InvalidOption`."""
+    span = _span(minimum, maximum, open_minimum) + (f" [{unit}]" if unit else "")
+    if not is_real(value):
+        raise InvalidArgumentType(name, f"a real number{span}", type_name(value))
+    number = float(value)
+    above = number > minimum or (not open_minimum and number == minimum)
+    if not (math.isfinite(number) and above and number <= maximum):
+        raise InvalidOption(name, value, f"a finite number{span}")
+    return number
+
+
+def _span(minimum: float, maximum: float, open_minimum: bool) -> str:
+    """`` > 0``, `` in [0, 1]``, ``""``: the range of :func:`check_real` in words."""
+    low = ">" if open_minimum else ">="
+    if math.isinf(minimum) and math.isinf(maximum):
+        return ""
+    if math.isinf(maximum):
+        return f" {low} {minimum:g}"
+    if math.isinf(minimum):
+        return f" <= {maximum:g}"
+    return f" in {'(' if open_minimum else '['}{minimum:g}, {maximum:g}]"
+
+
+def check_dt(dt: Any, name: str = "dt") -> float:
+    """The time step ``dt`` [s] as a float in [:data:`DT_MIN`, :data:`DT_MAX`]."""
+    return check_real(name, dt, DT_MIN, DT_MAX, unit="s")
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` if it is a ``bool`` (or NumPy bool); else :class:`InvalidArgumentType`."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidArgumentType(name, "True or False", type_name(value))
+    return bool(value)
+
+
+def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
+    """``value`` if it is one of the strings ``choices``: a non-string raises
+    :class:`InvalidArgumentType`, another string :class:`qpik.InvalidOption`."""
+    expected = f"one of {', '.join(map(repr, choices))}"
+    if not isinstance(value, str):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    if value not in choices:
+        raise InvalidOption(name, value, expected)
+    return value
+
+
+def check_vector(
+    name: str, value: Any, size: int | None = None, *, finite: bool = True
+) -> np.ndarray:
+    """``value`` as a 1-D float array (of length ``size`` when given; finite unless
+    ``finite=False``). Not numbers at all (a string, ``None``, objects):
+    :class:`InvalidArgumentType`; wrong shape or NaN / inf: :class:`qpik.InvalidInput`."""
+    expected = f"{size if size is not None else 'a vector of'} numbers"
+    if value is None or isinstance(value, (str, bytes, dict)):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidArgumentType(name, expected, type_name(value)) from None
+    if array.ndim != 1 or (size is not None and array.shape != (size,)):
+        want = f"({size},)" if size is not None else "(n,)"
+        raise InvalidInput(f"{name} has shape {array.shape}, expected {want}")
+    if finite:
+        bad = np.flatnonzero(~np.isfinite(array))
+        if bad.size:
+            i = int(bad[0])
+            raise InvalidInput(f"{name}[{i}] is {array[i]}; every entry must be finite")
+    return array
+
+
+def check_array(name: str, value: Any, expected: str) -> np.ndarray:
+    """``value`` as a float array of any shape (the caller checks it); not numbers at
+    all: :class:`InvalidArgumentType` saying ``name`` must be ``expected``."""
+    if value is None or isinstance(value, (str, bytes, dict)):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidArgumentType(name, expected, type_name(value)) from None
+
+
+def check_path(name: str, value: Any) -> str:
+    """A file path: a ``str`` or an ``os.PathLike`` whose path is a ``str``, returned as
+    a ``str``; anything else (``bytes`` included) raises :class:`InvalidArgumentType`."""
+    expected = "a file path (str or pathlib.Path)"
+    if isinstance(value, str):
+        return value
+    if isinstance(value, os.PathLike):
+        path = os.fspath(value)
+        if isinstance(path, str):
+            return path
+    raise InvalidArgumentType(name, expected, type_name(value))
+
+
+def check_finite_output(what: str, value: Any) -> Any:
+    """``value`` if every entry is finite; else :class:`qpik.InvalidInput` saying that
+    ``what`` overflowed (the inputs, e.g. the model's sizes, are beyond float range)."""
+    array = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise InvalidInput(
+            f"{what} came out non-finite: the model or the arguments are too large to compute "
+            "them in floating point (lengths beyond 1e6 m, masses or forces near 1e150?)"
+        )
+    return value
+
+
+def check_integer(name: str, value: Any, minimum: int, maximum: int) -> int:
+    """``value`` as an int in ``[minimum, maximum]``: not an int (a float, a string, a
+    bool) raises :class:`InvalidArgumentType`, out of range :class:`qpik.InvalidOption`."""
+    expected = f"an int in [{minimum}, {maximum}]"
+    if isinstance(value, (bool, np.bool_)):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    try:
+        number = operator.index(value)
+    except TypeError:
+        raise InvalidArgumentType(name, expected, type_name(value)) from None
+    if not minimum <= number <= maximum:
+        raise InvalidOption(name, value, expected)
+    return number
+
+
+def check_index(name: str, value: Any, size: int) -> int:
+    """``value`` as an int in ``[0, size)``: not an int raises
+    :class:`InvalidArgumentType`, out of range :class:`qpik.InvalidOption`."""
+    if isinstance(value, (bool, np.bool_)):
+        raise InvalidArgumentType(name, f"an int in [0, {size})", type_name(value))
+    try:
+        index = operator.index(value)
+    except TypeError:
+        raise InvalidArgumentType(name, f"an int in [0, {size})", type_name(value)) from None
+    if not 0 <= index < size:
+        raise InvalidOption(name, value, f"an int in [0, {size})")
+    return index
+
+
+# ------------------------------------------------------------------ mink's errors
+def _task_name(error: Exception) -> str:
+    """The class name at the end of mink's ``No target set for X`` messages."""
+    words = str(error).split()
+    return words[-1] if words else "task"
+
+
+#: mink's error classes whose qpik counterpart is built from the message alone.
+_BY_MESSAGE: Final[dict[type, type]] = {
+    mink.InvalidTarget: InvalidTarget,
+    mink.InvalidGain: InvalidGain,
+    mink.InvalidDamping: InvalidDamping,
+    mink.InvalidConstraint: InvalidConstraint,
+    mink.TaskDefinitionError: TaskDefinitionError,
+    mink.LimitDefinitionError: LimitDefinitionError,
+    mink.UnsupportedFrame: UnknownFrameType,
+}
+
+
+def as_qpik_error(error: BaseException) -> BaseException:
+    """qpik's counterpart of a mink error (which also subclasses mink's class), or
+    ``error`` itself when it is already a :class:`qpik.QpikError` or not mink's."""
+    if isinstance(error, QpikError) or not isinstance(error, mink.MinkError):
+        return error
+    if isinstance(error, mink.TargetNotSet):
+        return TargetNotSet(_task_name(error))
+    if isinstance(error, mink.IntegrationTimestepNotSet):
+        return IntegrationTimestepNotSet(_task_name(error))
+    if isinstance(error, mink.NoSolutionFound):
+        words = str(error).split()
+        return NoSolutionFound(words[2] if len(words) > 2 else "unknown")
+    for mink_class, qpik_class in _BY_MESSAGE.items():
+        if isinstance(error, mink_class):
+            return qpik_class(str(error))
+    return MinkFailure(str(error))
+
+
+@contextmanager
+def qpik_errors() -> Iterator[None]:
+    """Context manager: a mink error raised inside is re-raised as :func:`as_qpik_error`
+    gives it (the original chained as its ``__cause__``)."""
+    try:
+        yield
+    except mink.MinkError as error:
+        translated = as_qpik_error(error)
+        if translated is error:
+            raise
+        raise translated from error

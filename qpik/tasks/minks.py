@@ -1,0 +1,149 @@
+"""mink's tasks that qpik re-exports, with qpik's errors.
+
+Each class here subclasses mink's (``isinstance(task, mink.RelativeFrameTask)`` holds,
+and mink's code paths apply) and changes only its errors: an error mink raises while the
+task is built, given a target or evaluated (``TargetNotSet`` before ``set_target``,
+``IntegrationTimestepNotSet`` before ``set_dt``, ...) is raised as qpik's counterpart
+(:func:`qpik.checks.as_qpik_error`), which also subclasses mink's, so ``except
+mink.TargetNotSet`` and ``except qpik.QpikError`` both catch it. Numbers are checked
+where they enter: a cost must be finite and >= 0, ``set_dt`` takes ``dt`` in
+[:data:`qpik.checks.DT_MIN`, :data:`qpik.checks.DT_MAX`] [s].
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import mink
+
+from .. import checks
+from ..errors import InvalidTarget, QpikError, TaskDefinitionError, mink_errors_as_qpik
+
+__all__ = [
+    "AxisAlignTask",
+    "DofFreezingTask",
+    "EqualityConstraintTask",
+    "KineticEnergyRegularizationTask",
+    "LookAtTask",
+    "RelativeFrameTask",
+]
+
+#: The methods whose mink errors become qpik's (those a task class defines).
+_RUN_METHODS = (
+    "set_target",
+    "set_target_from_configuration",
+    "compute_error",
+    "compute_jacobian",
+    "compute_qp_objective",
+    "compute_qp_residual",
+)
+
+_C = TypeVar("_C", bound=type)
+
+
+def _run_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
+    @functools.wraps(method)
+    def wrapped(self, *args: Any, **kwargs: Any) -> Any:
+        with checks.qpik_errors():
+            return method(self, *args, **kwargs)
+
+    return wrapped
+
+
+def _set_target_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
+    """``set_target``: also a target of a wrong type (mink's would raise an
+    ``AttributeError`` or ``TypeError``) raises :class:`qpik.InvalidTarget`."""
+    run = _run_with_qpik_errors(method)
+
+    @functools.wraps(method)
+    def wrapped(self, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return run(self, *args, **kwargs)
+        except (AttributeError, TypeError, ValueError) as error:
+            if isinstance(error, QpikError):
+                raise
+            raise InvalidTarget(f"{type(self).__name__}.set_target: {error}") from error
+
+    return wrapped
+
+
+def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
+    @functools.wraps(method)
+    def wrapped(self, *args: Any, **kwargs: Any) -> None:
+        with mink_errors_as_qpik(type(self).__name__):
+            method(self, *args, **kwargs)
+        cost = getattr(self, "cost", None)
+        if cost is not None:
+            try:
+                finite = all(math.isfinite(float(c)) for c in getattr(cost, "flat", [cost]))
+            except (TypeError, ValueError):
+                finite = False
+            if not finite:
+                raise TaskDefinitionError(
+                    f"{type(self).__name__}: cost must be finite and >= 0, got {cost!r}"
+                )
+
+    return wrapped
+
+
+def _with_qpik_errors(cls: _C) -> _C:
+    """Wrap ``cls``'s constructor and run methods (inherited from mink) as described in
+    the module docstring."""
+    cls.__init__ = _init_with_qpik_errors(cls.__mro__[1].__init__)  # type: ignore[misc]
+    for name in _RUN_METHODS:
+        method = getattr(cls, name, None)
+        if method is not None and not getattr(method, "__isabstractmethod__", False):
+            wrap = _set_target_with_qpik_errors if name == "set_target" else _run_with_qpik_errors
+            setattr(cls, name, wrap(method))
+    return cls
+
+
+@_with_qpik_errors
+class AxisAlignTask(mink.AxisAlignTask):
+    """mink's :class:`mink.AxisAlignTask`, with qpik's errors."""
+
+
+@_with_qpik_errors
+class DofFreezingTask(mink.DofFreezingTask):
+    """mink's :class:`mink.DofFreezingTask`, with qpik's errors."""
+
+
+@_with_qpik_errors
+class EqualityConstraintTask(mink.EqualityConstraintTask):
+    """mink's :class:`mink.EqualityConstraintTask`, with qpik's errors."""
+
+
+@_with_qpik_errors
+class LookAtTask(mink.LookAtTask):
+    """mink's :class:`mink.LookAtTask`, with qpik's errors."""
+
+
+@_with_qpik_errors
+class RelativeFrameTask(mink.RelativeFrameTask):
+    """mink's :class:`mink.RelativeFrameTask`, with qpik's errors (a step before
+    ``set_target`` raises :class:`qpik.TargetNotSet`; a target that is not a
+    :class:`mink.SE3` raises :class:`qpik.InvalidTarget`)."""
+
+    def set_target(self, transform_target_to_root: mink.SE3) -> None:
+        """Target pose of the frame in the root frame, a :class:`mink.SE3`."""
+        if not isinstance(transform_target_to_root, mink.SE3):
+            raise InvalidTarget(
+                f"{type(self).__name__}.set_target takes a mink.SE3, got "
+                f"{type(transform_target_to_root).__name__}"
+            )
+        super().set_target(transform_target_to_root)
+
+
+@_with_qpik_errors
+class KineticEnergyRegularizationTask(mink.KineticEnergyRegularizationTask):
+    """mink's :class:`mink.KineticEnergyRegularizationTask`, with qpik's errors (a step
+    before :meth:`set_dt` raises :class:`qpik.IntegrationTimestepNotSet`), a finite cost
+    >= 0 and a checked ``dt``."""
+
+    def set_dt(self, dt: float) -> None:
+        """Set the integration time step ``dt`` [s], in [:data:`qpik.checks.DT_MIN`,
+        :data:`qpik.checks.DT_MAX`]."""
+        super().set_dt(checks.check_dt(dt))
