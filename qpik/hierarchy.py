@@ -38,6 +38,7 @@ import mink
 import mujoco
 import numpy as np
 
+from . import checks
 from ._fused import FusedPlan, box_of, make_plan
 from .configuration import Configuration, joint_names
 from .core import (
@@ -176,9 +177,13 @@ def level_rows(
     A_parts, b_parts, w_parts = [], [], []
     mu = 0.0
     for task in tasks:
-        residual = task.compute_qp_residual(configuration)
-        if residual is None:
-            H, c = task.compute_qp_objective(configuration)
+        try:
+            residual = task.compute_qp_residual(configuration)
+            objective = task.compute_qp_objective(configuration) if residual is None else None
+        except mink.MinkError as error:  # mink's own task classes: qpik's counterpart
+            raise checks.as_qpik_error(error) from error
+        if objective is not None:
+            H, c = objective
             values, vectors = np.linalg.eigh(0.5 * (H + H.T))
             keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
             root = np.sqrt(values[keep])
@@ -315,6 +320,13 @@ class IKSolver:
         for limit in self.limits:
             if not hasattr(limit, "compute_qp_inequalities"):
                 raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
+            if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
+                empty = limit.indices[limit.lower[limit.indices] > limit.upper[limit.indices]]
+                if len(empty):
+                    raise InfeasibleLimits(
+                        f"{type(limit).__name__}: the limits of dof {int(empty[0])} are "
+                        "empty (min_distance_from_limits exceeds half its range)"
+                    )
         self.solver = solver
         self.damping = float(damping)
         self.damping_law = damping_law
@@ -489,8 +501,7 @@ class IKSolver:
 
     def _rows(self, configuration: Configuration, dt: float):
         """Every level's rows stacked as the core takes them, and the limits."""
-        if not (isinstance(dt, (int, float)) and dt > 0 and math.isfinite(dt)):
-            raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}")
+        dt = checks.check_dt(dt)
         if configuration.model is not self.model and configuration.model.nv != self._nv:
             raise InvalidInput(
                 f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
@@ -536,7 +547,7 @@ class IKSolver:
             plan is not None
             and configuration.model is self.model
             and type(dt) is float
-            and 0.0 < dt < math.inf
+            and checks.DT_MIN <= dt <= checks.DT_MAX
         ):
             if self._core.solver == "auto":
                 result = self._fused_step(plan, configuration, dt, start)

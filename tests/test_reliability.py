@@ -7,8 +7,7 @@ Each test checks the class's property, not only its case: a wrong type raises a
 ``QpikError`` that is also a ``TypeError`` (and a ``ValueError``); a mink error leaves
 qpik as qpik's counterpart (also mink's class); every figure a result reports matches
 MuJoCo's forward kinematics of its returned ``q``; no returned value is NaN or inf; no
-step leaves a limit. Tests marked ``xfail`` have their root in a file another session
-owns (``qpik/hierarchy.py``); the patch is in their reason and in issue 25's report.
+step leaves a limit.
 """
 
 from __future__ import annotations
@@ -38,9 +37,6 @@ def _erd_installed() -> bool:
 
 
 HAS_ERD = _erd_installed()
-
-
-HIERARCHY_FIX = "fix in qpik/hierarchy.py (see issue 25's report: IKSolver._rows / step)"
 
 
 def _typed_type_error(error: BaseException) -> None:
@@ -315,7 +311,6 @@ def test_class11_stacked_configuration_limits_with_other_gains_hold():
     assert np.all(q <= model.jnt_range[:, 1] - 1.0 + 1e-9)
 
 
-@pytest.mark.xfail(strict=False, reason=f"{HIERARCHY_FIX}: an empty mink box must raise")
 def test_class11_a_raw_mink_limit_without_range_is_infeasible_not_silently_left():
     with pytest.raises(qpik.InfeasibleLimits):
         _stacked_limit_step(
@@ -360,7 +355,6 @@ def test_class12_steps_in_range_are_finite():
         assert np.isfinite(step.velocity).all() and np.isfinite(step.displacement).all()
 
 
-@pytest.mark.xfail(strict=False, reason=f"{HIERARCHY_FIX}: dt checked by checks.check_dt")
 @pytest.mark.parametrize("dt", [5e-324, 1e-300, 1e300])
 def test_class12_a_step_outside_the_dt_range_raises(dt):
     with pytest.raises(qpik.InvalidOption, match="dt"):
@@ -424,7 +418,6 @@ def test_classes13_to_16_qpiks_tasks_are_minks():
         assert issubclass(getattr(qpik.tasks, name), getattr(mink, name))
 
 
-@pytest.mark.xfail(strict=False, reason=f"{HIERARCHY_FIX}: level_rows wraps mink's errors")
 def test_classes14_and_16_a_raw_mink_task_without_target_raises_qpiks_error():
     with pytest.raises(qpik.TargetNotSet):
         _relative_frame_step("step", mink.RelativeFrameTask)
