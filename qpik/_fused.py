@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import mink
 import mujoco
@@ -151,7 +152,7 @@ class FusedPlan:
     kinds_used: tuple
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
     max_iter: int  # the core's cap on active-set changes per level (0: 10 (nv + p) + 50)
-    kernel: object = None  # qpik._engine.diffik.Kernel over ``arrays``
+    kernel: Any = None  # qpik._engine.diffik.Kernel over ``arrays``
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 

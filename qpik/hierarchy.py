@@ -180,8 +180,8 @@ def level_rows(
         try:
             residual = task.compute_qp_residual(configuration)
             objective = task.compute_qp_objective(configuration) if residual is None else None
-        except mink.MinkError as error:  # mink's own task classes: qpik's counterpart
-            raise checks.as_qpik_error(error) from error
+        except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
+            raise checks.as_qpik_error(exc) from exc
         if objective is not None:
             H, c = objective
             values, vectors = np.linalg.eigh(0.5 * (H + H.T))
@@ -191,6 +191,7 @@ def level_rows(
             b_parts.append(-(vectors[:, keep].T @ c) / root)
             w_parts.append(np.ones(int(keep.sum())))
         else:
+            assert residual is not None  # objective is None only when a residual was given
             jacobian, error, task_mu = residual
             if jacobian.ndim != 2:
                 jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
