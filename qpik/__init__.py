@@ -3,6 +3,7 @@
 from . import analysis, baselines, limits, scene, statics, tasks
 from .batch import solve_many
 from .configuration import Configuration, FrameType, frame_names, joint_names
+from .converge import PREPARED as _PREPARED
 from .converge import IKResult, IKSession, solve
 from .errors import (
     CollisionPairError,
@@ -46,9 +47,11 @@ __version__ = "0.1.0"
 def clear_caches() -> None:
     """Forget what qpik keeps between calls: the :class:`IKSolver` objects that
     :func:`solve_ik` and :func:`build_ik` keep per model, task and limit objects
-    (:class:`qpik.mink_api.SolverCache`). Answers never depend on it; only the time of
-    the next call does."""
+    (:class:`qpik.mink_api.SolverCache`), and the robots :func:`solve` prepared per model
+    (:data:`qpik.converge.PREPARED`, a :class:`qpik.converge.PreparedRobots`). Answers never
+    depend on them; only the time of the next call does."""
     _SOLVERS.clear()
+    _PREPARED.clear()
 
 
 __all__ = [
