@@ -501,7 +501,7 @@ class IKSession:
         """:meth:`solve` with the option keywords' values in the order of
         ``_OPTION_KEYWORDS`` (``UNSET`` where not given)."""
         settings, kernel_options = self._options(options, values)
-        rng_state = _rng_state(settings.seed if seed is UNSET else seed)
+        rng_state = _rng_state(settings.seed if isinstance(seed, _Unset) else seed)
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
         joint = settings.limits == "joint"

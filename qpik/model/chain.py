@@ -104,7 +104,7 @@ class KinematicChain:
     #: dof addresses of the joints on the chain (the others never move the frame).
     dofs: np.ndarray = field(repr=False)
     #: ``arrays`` as the compiled engine's chain object (built from them when not given).
-    compiled: _kernels.Chain = field(default=None, repr=False)  # type: ignore[assignment]
+    compiled: _kernels.Chain = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if self.compiled is None:
