@@ -53,7 +53,7 @@ from .converge import IKSession, solve
 from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
 from .model.frames import resolve_frame
 from .options import SolveOptions, resolve
-from .result import IKResult
+from .result import IKResult, Reason
 from .robots import resolve_robot
 from .targets import FrameKey, RobotLike, TargetLike, parse_target
 
@@ -271,8 +271,143 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def _solve_chunk_in_worker(chunk: Chunk) -> tuple[int, list[IKResult | _Failure]]:
-    return _WORKER["solver"].solve_chunk(chunk)
+@dataclass(frozen=True)
+class _PackedChunk:
+    """A chunk whose targets are all ``{key: (position (3,), rotation (3, 3))}`` (float64
+    arrays) or ``{key: position (3,)}`` for one frame key: sent as stacked arrays, several
+    times cheaper to pickle than the mappings (the values travel bitwise)."""
+
+    start: int
+    key: Any
+    positions: np.ndarray  # (k, 3)
+    rotations: np.ndarray | None  # (k, 3, 3), or None for position targets
+
+    def unpack(self) -> Chunk:
+        key = self.key
+        if self.rotations is None:
+            return Chunk(self.start, [{key: p} for p in self.positions])
+        return Chunk(self.start, [{key: (p, r)} for p, r in zip(self.positions, self.rotations)])
+
+
+def _is_vector(value: Any, shape: tuple[int, ...]) -> bool:
+    return type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
+
+
+def _pack_chunk(chunk: Chunk) -> Chunk | _PackedChunk:
+    """``chunk`` as a :class:`_PackedChunk` when its targets allow, else as it is."""
+    targets = chunk.targets
+    if not targets or type(targets[0]) is not dict or len(targets[0]) != 1:
+        return chunk
+    (key,) = targets[0]
+    positions, rotations = [], []
+    with_rotation = type(targets[0][key]) is tuple
+    for mapping in targets:
+        if type(mapping) is not dict or len(mapping) != 1 or key not in mapping:
+            return chunk
+        value = mapping[key]
+        if with_rotation:
+            if not (
+                type(value) is tuple
+                and len(value) == 2
+                and _is_vector(value[0], (3,))
+                and _is_vector(value[1], (3, 3))
+            ):
+                return chunk
+            positions.append(value[0])
+            rotations.append(value[1])
+        elif _is_vector(value, (3,)):
+            positions.append(value)
+        else:
+            return chunk
+    return _PackedChunk(
+        chunk.start, key, np.stack(positions), np.stack(rotations) if with_rotation else None
+    )
+
+
+def _solve_chunk_in_worker(chunk: Chunk | _PackedChunk) -> tuple[int, Any]:
+    solver = _WORKER["solver"]
+    if isinstance(chunk, _PackedChunk):
+        chunk = chunk.unpack()
+    start, results = solver.solve_chunk(chunk)
+    return start, (results if solver.histories else _pack(results))
+
+
+#: Reasons by their index in a packed chunk.
+_REASON_LIST = tuple(Reason)
+_REASON_INDEX = {reason: i for i, reason in enumerate(_REASON_LIST)}
+
+
+@dataclass(frozen=True)
+class _PackedResults:
+    """A worker's chunk of results without histories, as a few arrays: several times
+    cheaper to pickle and unpickle than the :class:`IKResult` objects (the parent's share
+    of a pool's CPU, which competes with the workers). Values travel bitwise (float64)."""
+
+    q: np.ndarray  # (k, nq)
+    floats: np.ndarray  # (k, 3): position_error, orientation_error, solve_time
+    ints: np.ndarray  # (k, 4): converged, reason index, iterations, restarts_used
+    frame_errors: list
+    engines: list
+
+
+def _pack(results: list[IKResult | _Failure]) -> list[IKResult | _Failure] | _PackedResults:
+    """``results`` packed (:class:`_PackedResults`) when they are all plain IKResults of one
+    shape, else as they are."""
+    if not results or any(type(r) is not IKResult for r in results):
+        return results
+    plain: list[IKResult] = results  # type: ignore[assignment]
+    try:
+        q = np.stack([r.q for r in plain])
+        floats = np.array(
+            [(r.position_error, r.orientation_error, r.solve_time) for r in plain], dtype=float
+        )
+        ints = np.array(
+            [
+                (bool(r.converged), _REASON_INDEX[r.reason], r.iterations, r.restarts_used)
+                for r in plain
+            ],
+            dtype=np.int64,
+        )
+    except (ValueError, TypeError, KeyError):  # ragged q, odd values: sent as they are
+        return results
+    if q.dtype != np.float64 or floats.shape != (len(plain), 3):
+        return results
+    return _PackedResults(
+        q, floats, ints, [r.frame_errors for r in plain], [r.engine for r in plain]
+    )
+
+
+def _unpack(results: Any) -> list[IKResult | _Failure]:
+    """The results of a chunk as :func:`_pack` sent them."""
+    if not isinstance(results, _PackedResults):
+        return results
+    reasons = _REASON_LIST
+    return [
+        IKResult(
+            q.copy(),
+            bool(converged),
+            reasons[reason],
+            iterations,
+            restarts,
+            position_error,
+            orientation_error,
+            solve_time,
+            frame_errors,
+            engine=engine,
+        )
+        for q, (position_error, orientation_error, solve_time), (
+            converged,
+            reason,
+            iterations,
+            restarts,
+        ), frame_errors, engine in zip(
+            results.q,
+            results.floats.tolist(),
+            results.ints.tolist(),
+            results.frame_errors,
+            results.engines,
+        )
+    ]
 
 
 def _ray_solve_chunk(
@@ -398,6 +533,7 @@ def _iter_pool(
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             try:
                 items = sorted((future.result() for future in done), key=lambda item: item[0])
+                items = [(start, _unpack(results)) for start, results in items]
             except BrokenProcessPool as exc:
                 raise WorkerError(
                     "a worker process died (out of memory, killed, or a script that starts "
@@ -417,7 +553,7 @@ def _submit_ahead(
         chunk = next(source, None)
         if chunk is None:
             return
-        pending.add(executor.submit(_solve_chunk_in_worker, chunk))
+        pending.add(executor.submit(_solve_chunk_in_worker, _pack_chunk(chunk)))
 
 
 def _iter_ray(spec, chunks, entropy, workers, address, options):

@@ -425,3 +425,42 @@ def test_options_object_in_a_batch_matches_keywords_and_is_checked_here():
     assert all(r.iterations <= 6 * 50 for r in fast)
     with pytest.raises(qpik.InvalidOption, match="max_iters"):
         qpik.solve_many("ur5e", TARGETS[:2], workers=2, progress=False, max_iters=-1)
+
+
+def test_worker_transport_packs_bitwise():
+    """Chunks of plain pose targets and their results travel between processes as stacked
+    arrays (cheap to pickle); what arrives is what was sent, bitwise."""
+    import pickle
+
+    from qpik import batch as B
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(3)
+    targets = []
+    for _ in range(10):
+        configuration.update(configuration.random_q(rng))
+        targets.append({"ee": configuration.frame_pose("ee")})
+    packed = B._pack_chunk(B.Chunk(5, targets))
+    assert isinstance(packed, B._PackedChunk)
+    chunk = pickle.loads(pickle.dumps(packed)).unpack()
+    assert chunk.start == 5
+    for sent, got in zip(targets, chunk.targets):
+        assert sent["ee"][0].tobytes() == got["ee"][0].tobytes()
+        assert sent["ee"][1].tobytes() == got["ee"][1].tobytes()
+    positions = [{"ee": t["ee"][0]} for t in targets]
+    assert B._pack_chunk(B.Chunk(0, positions)).rotations is None
+    for odd in ([{"ee": [0.1, 0.2, 0.3]}], [{"ee": targets[0]["ee"]}, {"ee": [0.1, 0.2, 0.3]}],
+                [{"ee": targets[0]["ee"], ("ee", "site"): targets[1]["ee"]}]):  # fmt: skip
+        assert isinstance(B._pack_chunk(B.Chunk(0, odd)), B.Chunk)
+    results = [B._without_histories(qpik.solve(model, t, seed=i)) for i, t in enumerate(targets)]
+    results.append(B._without_histories(qpik.solve(model, {"ee": [3.0, 0.0, 0.4]}, seed=1)))
+    back = B._unpack(pickle.loads(pickle.dumps(B._pack(results))))
+    for a, b in zip(results, back, strict=True):
+        assert a.q.tobytes() == b.q.tobytes() and a.reason is b.reason
+        assert (a.converged, a.iterations, a.restarts_used, a.engine) == (
+            b.converged, b.iterations, b.restarts_used, b.engine)  # fmt: skip
+        assert np.array([a.position_error, a.orientation_error, a.solve_time]).tobytes() == (
+            np.array([b.position_error, b.orientation_error, b.solve_time]).tobytes())  # fmt: skip
+        assert a.frame_errors == b.frame_errors and a.path.shape == b.path.shape == (0, 0)
+    assert B._pack([]) == []
