@@ -517,11 +517,14 @@ def _iter_pool(
 ) -> Iterator[tuple[int, list[IKResult]]]:
     """Chunks solved by a process pool, a few per worker submitted ahead."""
     local = _ChunkSolver(model, entropy, options)
+    context = _mp_context()
+    forked = context.get_start_method() == "fork"
     executor = ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=_mp_context(),
+        mp_context=context,
         initializer=_init_worker,
-        initargs=(spec, entropy, options),
+        # A forked worker has the model already (no file to read again).
+        initargs=(model if forked else spec, entropy, options),
     )
     try:
         pending: set[Future] = set()
