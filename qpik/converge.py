@@ -740,7 +740,6 @@ def solve(
     prepared at each call: to solve many targets on one robot, load it once (or hold an
     :class:`IKSession`).
     """
-    start_time = time.perf_counter()
     values = (
         limits,
         tol_position,
@@ -764,4 +763,5 @@ def solve(
         session = IKSession._from_prepared(robot.model, robot.q, PREPARED.get(robot.model))
     else:
         session = IKSession(robot)
-    return session._solve(targets, q0, stack, options, seed, values, start_time)
+    # The clock (solve_time, time_budget) starts once the robot is loaded, as a session's.
+    return session._solve(targets, q0, stack, options, seed, values, time.perf_counter())
