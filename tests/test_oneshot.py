@@ -103,3 +103,23 @@ def test_the_cache_is_bounded_and_tells_models_apart():
     assert not np.array_equal(prepared[0].lower, prepared[1].lower)
     assert cache.get(models[2]) is prepared[2]
     assert cache.get(models[0]) is not prepared[0]  # evicted first, prepared again
+
+
+def test_chains_and_sessions_copy_and_pickle():
+    """The compiled chain object is rebuilt from the arrays when a chain (or a session
+    holding chains) is pickled or deep-copied."""
+    import copy
+    import pickle
+
+    from qpik.model import KinematicChain
+
+    model = qpik.load_robot("ur5e")
+    chain = KinematicChain.from_model(model, "ee")
+    q = np.linspace(-1.0, 1.0, model.nq)
+    for other in (pickle.loads(pickle.dumps(chain)), copy.deepcopy(chain)):
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(chain.pose(q), other.pose(q)))
+        assert chain.jacobian(q).tobytes() == other.jacobian(q).tobytes()
+    session = qpik.IKSession(model)
+    target = {"ee": [0.3, 0.2, 0.4]}
+    first = session.solve(target, seed=1)
+    _same(copy.deepcopy(session).solve(target, seed=1), first)

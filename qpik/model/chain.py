@@ -110,6 +110,11 @@ class KinematicChain:
         if self.compiled is None:
             object.__setattr__(self, "compiled", _kernels.Chain(self.arrays, self.nq, self.nv))
 
+    def __reduce__(self) -> tuple:
+        # Pickled (and deep-copied) without the compiled object, rebuilt from the arrays.
+        fields = (self.frame, self.frame_type, self.nq, self.nv, self.arrays, self.dofs)
+        return (type(self), fields)
+
     @classmethod
     def from_model(
         cls, model: mujoco.MjModel, frame: str | int, frame_type: FrameType | str = FrameType.SITE
