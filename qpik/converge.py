@@ -155,8 +155,9 @@ Seed = int | np.random.Generator | np.random.SeedSequence | None
 
 
 def clear_pool() -> None:
-    """Kept for compatibility; does nothing. :func:`solve` keeps no pool of robots: each
-    call loads its robot, and an :class:`IKSession` holds one robot for many solves."""
+    """Kept for compatibility; does nothing. :func:`solve` keeps what it prepares per
+    model in :data:`PREPARED` (emptied by :func:`qpik.clear_caches`); an :class:`IKSession`
+    holds one robot for many solves."""
 
 
 def _rng_state(seed: Seed) -> np.ndarray:
