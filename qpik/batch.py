@@ -55,7 +55,7 @@ from .model.frames import resolve_frame
 from .options import SolveOptions, resolve
 from .result import IKResult, Reason
 from .robots import resolve_robot
-from .targets import FrameKey, RobotLike, TargetLike, parse_target
+from .targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
 
 _SOLVE = solve  # qpik.solve; tests replace qpik.batch.solve to inject failures
 
@@ -150,6 +150,80 @@ def check_targets(model: mujoco.MjModel, targets_list: Sequence, offset: int = 0
                 parse_target(value)
             except InvalidTarget as exc:
                 raise InvalidTarget(f"targets_list[{index}][{key!r}]: {exc}") from None
+
+
+class _StackedTargets(Sequence):
+    """Targets ``{key: (positions[i], rotations[i])}`` (or ``{key: positions[i]}``) of one
+    frame key, held as stacked float64 arrays: a slice is a view, and a chunk of them
+    pickles as two arrays (a worker's transport costs a few microseconds per target).
+    The values are those :func:`qpik.targets.parse_target` reads from the originals
+    (``float(x)`` of each number), so the solves are bitwise the same."""
+
+    __slots__ = ("key", "positions", "rotations")
+
+    def __init__(self, key: Any, positions: np.ndarray, rotations: np.ndarray | None):
+        self.key, self.positions, self.rotations = key, positions, rotations
+
+    def __len__(self) -> int:
+        return self.positions.shape[0]
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            rotations = None if self.rotations is None else self.rotations[index]
+            return _StackedTargets(self.key, self.positions[index], rotations)
+        if self.rotations is None:
+            return {self.key: self.positions[index]}
+        return {self.key: (self.positions[index], self.rotations[index])}
+
+    def __reduce__(self) -> tuple:
+        positions = np.ascontiguousarray(self.positions)
+        rotations = None if self.rotations is None else np.ascontiguousarray(self.rotations)
+        return (_StackedTargets, (self.key, positions, rotations))
+
+
+def _stack_targets(model: mujoco.MjModel, targets_list: Sequence) -> _StackedTargets | None:
+    """The batch as :class:`_StackedTargets`, checked at once, when every entry is
+    ``{key: (position, rotation)}`` (or ``{key: position}``) with one and the same frame
+    key and numbers of the right shapes, all plainly valid (finite, rotations within half
+    of :func:`qpik.targets.parse_target`'s tolerance, inside its distance bound); else
+    ``None``, and :func:`check_targets` checks them one by one (and names a bad one)."""
+    if not targets_list:
+        return None
+    first = targets_list[0]
+    if type(first) is not dict or len(first) != 1:
+        return None
+    (key,) = first
+    with_rotation = type(first[key]) is tuple and len(first[key]) == 2
+    positions, rotations = [], []
+    try:
+        for targets in targets_list:
+            if type(targets) is not dict or len(targets) != 1:
+                return None
+            value = targets[key]
+            if with_rotation:
+                if type(value) is not tuple or len(value) != 2:
+                    return None
+                positions.append(value[0])
+                rotations.append(value[1])
+            else:
+                positions.append(value)
+        n = len(positions)
+        P = np.array(positions, dtype=float)
+        R = np.array(rotations, dtype=float) if with_rotation else None
+    except (KeyError, TypeError, ValueError):
+        return None
+    if P.shape != (n, 3) or (R is not None and R.shape != (n, 3, 3)):
+        return None
+    if not (np.isfinite(P).all() and np.abs(P).max() <= MAX_TARGET_DISTANCE):
+        return None
+    if R is not None:
+        if not np.isfinite(R).all():
+            return None
+        defect = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max()
+        if not (defect <= 0.5e-6 and (np.linalg.det(R) > 0.5).all()):
+            return None
+    resolve_frame(model, key, argument="targets_list[0]")  # an unknown frame raises here
+    return _StackedTargets(key, P, R)
 
 
 def solve_call(
@@ -296,6 +370,8 @@ def _is_vector(value: Any, shape: tuple[int, ...]) -> bool:
 def _pack_chunk(chunk: Chunk) -> Chunk | _PackedChunk:
     """``chunk`` as a :class:`_PackedChunk` when its targets allow, else as it is."""
     targets = chunk.targets
+    if isinstance(targets, _StackedTargets):  # already arrays
+        return chunk
     if not targets or type(targets[0]) is not dict or len(targets[0]) != 1:
         return chunk
     (key,) = targets[0]
@@ -648,7 +724,10 @@ def solve_many(
     workers = check_workers(workers, backend)
     check_chunk_size(chunk_size, optional=True)
     spec, model, q0 = prepare_robot(robot)
-    check_targets(model, targets_list)
+    stacked = _stack_targets(model, targets_list)
+    if stacked is None:
+        check_targets(model, targets_list)
+    source: Sequence[Mapping[FrameKey, TargetLike]] = targets_list if stacked is None else stacked
     call = solve_call(options, solve_options, q0)
     call[_HISTORIES] = histories
     results: list[IKResult] = []
@@ -656,7 +735,7 @@ def solve_many(
         spec,
         model,
         len(targets_list),
-        lambda start, stop: targets_list[start:stop],
+        lambda start, stop: source[start:stop],
         entropy=entropy,
         workers=workers,
         backend=backend,

@@ -464,3 +464,40 @@ def test_worker_transport_packs_bitwise():
             np.array([b.position_error, b.orientation_error, b.solve_time]).tobytes())  # fmt: skip
         assert a.frame_errors == b.frame_errors and a.path.shape == b.path.shape == (0, 0)
     assert B._pack([]) == []
+
+
+def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
+    """A batch of one frame's (position, rotation) targets is checked at once and sent as
+    stacked arrays; the results are bitwise those of the same targets one by one, and a bad
+    target still raises the typed error naming its index."""
+    from qpik import batch as B
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(4)
+    targets = []
+    for _ in range(40):
+        configuration.update(configuration.random_q(rng))
+        position, rotation = configuration.frame_pose("ee")
+        targets.append({"ee": (list(position), rotation)})  # lists too: read as parse_target does
+    stacked = B._stack_targets(model, targets)
+    assert stacked is not None and len(stacked) == 40 and len(stacked[5:9]) == 4
+    assert stacked[3]["ee"][0].tolist() == targets[3]["ee"][0]
+    serial = qpik.solve_many(model, targets, workers=1, progress=False)
+    pooled = qpik.solve_many(model, targets, workers=2, pool_threshold=0.0, progress=False)
+    one_by_one = [
+        qpik.solve(model, t, seed=batch.target_seed(0, i), **{}) for i, t in enumerate(targets)
+    ]
+    for a, b, c in zip(serial, pooled, one_by_one, strict=True):
+        assert a.q.tobytes() == b.q.tobytes() == c.q.tobytes()
+    positions = [{"ee": t["ee"][0]} for t in targets]
+    assert B._stack_targets(model, positions).rotations is None
+    bad = list(targets)
+    bad[7] = {"ee": (targets[7]["ee"][0], 2.0 * targets[7]["ee"][1])}
+    assert B._stack_targets(model, bad) is None
+    with pytest.raises(qpik.InvalidTarget, match=r"targets_list\[7\]"):
+        qpik.solve_many(model, bad, workers=1, progress=False)
+    mixed = [{"ee": targets[0]["ee"]}, {("ee", "site"): targets[1]["ee"]}]
+    assert B._stack_targets(model, mixed) is None
+    with pytest.raises(qpik.UnknownFrame):
+        B._stack_targets(model, [{"nope": targets[0]["ee"]}])
