@@ -319,13 +319,14 @@ class PreparedRobots:
       in compiled code (about a microsecond); a model changed in place is prepared anew.
     * Answers are bitwise those of a fresh :class:`IKSession`: the entry holds exactly what
       a session computes, from the same arrays.
-    * At most ``max_models`` models (least recently used first out).
+    * At most ``max_models`` models (the first prepared goes first).
     """
 
     def __init__(self, max_models: int = 32) -> None:
         self.max_models = max_models
         self._entries: dict[int, tuple[weakref.ref, Any, _Prepared]] = {}
-        self._lock = threading.Lock()
+        # Reentrant: a weak reference callback (a collected model) may run inside get().
+        self._lock = threading.RLock()
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -343,10 +344,10 @@ class PreparedRobots:
         if entry is not None and entry[0]() is model and entry[1].unchanged():
             return entry[2]
         views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
-        prepared = _Prepared(model)
         if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
-            return prepared  # not views of the model's memory: nothing can be watched
-        watch = _kernels.ArrayWatch(views)
+            return _Prepared(model)  # not views of the model's memory: nothing to watch
+        watch = _kernels.ArrayWatch(views)  # the bytes first, then what is read from them
+        prepared = _Prepared(model)
 
         def forget(ref: weakref.ref, key: int = key) -> None:
             with self._lock:
@@ -357,7 +358,10 @@ class PreparedRobots:
         with self._lock:
             self._entries.pop(key, None)
             while len(self._entries) >= self.max_models:
-                del self._entries[next(iter(self._entries))]
+                oldest = next(iter(self._entries), None)
+                if oldest is None:
+                    break
+                self._entries.pop(oldest, None)
             self._entries[key] = (weakref.ref(model, forget), watch, prepared)
         return prepared
 
