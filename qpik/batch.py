@@ -36,18 +36,19 @@ import dataclasses
 import functools
 import hashlib
 import math
-import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool starts
+    import multiprocessing.context
+    from concurrent.futures import Future, ProcessPoolExecutor
 
 from .converge import IKSession, solve
 from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
@@ -502,6 +503,8 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     and the loaded modules (a fresh interpreter, ``forkserver`` or ``spawn``, takes seconds
     to import qpik). Elsewhere ``spawn``, the platform's default: scripts then need an
     ``if __name__ == "__main__":`` guard."""
+    import multiprocessing
+
     if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("fork")
     return multiprocessing.get_context("spawn")
@@ -595,7 +598,10 @@ def _iter_pool(
     local = _ChunkSolver(model, entropy, options)
     context = _mp_context()
     forked = context.get_start_method() == "fork"
-    executor = ProcessPoolExecutor(
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pool_class, broken = _pool_classes()
+    executor = pool_class(
         max_workers=workers,
         mp_context=context,
         initializer=_init_worker,
@@ -613,7 +619,7 @@ def _iter_pool(
             try:
                 items = sorted((future.result() for future in done), key=lambda item: item[0])
                 items = [(start, _unpack(results)) for start, results in items]
-            except BrokenProcessPool as exc:
+            except broken as exc:
                 raise WorkerError(
                     "a worker process died (out of memory, killed, or a script that starts "
                     "workers without an `if __name__ == '__main__':` guard)"
@@ -844,8 +850,29 @@ def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str =
     )
 
 
+#: Names of concurrent.futures.process, loaded with multiprocessing when a pool starts.
+_POOL_NAMES = ("ProcessPoolExecutor", "BrokenProcessPool")
+
+
+def _pool_classes() -> tuple[type[ProcessPoolExecutor], type[Exception]]:
+    """``(ProcessPoolExecutor, BrokenProcessPool)``, as this module's globals (where
+    tests replace the executor), imported on first use."""
+    names = globals()
+    if any(name not in names for name in _POOL_NAMES):
+        from concurrent.futures import process
+
+        for name in _POOL_NAMES:
+            names.setdefault(name, getattr(process, name))
+    return names["ProcessPoolExecutor"], names["BrokenProcessPool"]
+
+
 def __getattr__(name: str) -> Any:
-    """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here."""
+    """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here
+    (and the pool's classes, :data:`_POOL_NAMES`, load on first use)."""
+    if name.startswith("__"):  # the import system's probes (__path__, ...): not a reason
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if name in _POOL_NAMES:
+        return _pool_classes()[_POOL_NAMES.index(name)]
     from . import batch_files
 
     if name in batch_files.__all__:
