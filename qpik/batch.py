@@ -36,26 +36,27 @@ import dataclasses
 import functools
 import hashlib
 import math
-import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool starts
+    import multiprocessing.context
+    from concurrent.futures import Future, ProcessPoolExecutor
 
 from .converge import IKSession, solve
 from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
 from .model.frames import resolve_frame
 from .options import SolveOptions, resolve
-from .result import IKResult
+from .result import IKResult, Reason
 from .robots import resolve_robot
-from .targets import FrameKey, RobotLike, TargetLike, parse_target
+from .targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
 
 _SOLVE = solve  # qpik.solve; tests replace qpik.batch.solve to inject failures
 
@@ -150,6 +151,80 @@ def check_targets(model: mujoco.MjModel, targets_list: Sequence, offset: int = 0
                 parse_target(value)
             except InvalidTarget as exc:
                 raise InvalidTarget(f"targets_list[{index}][{key!r}]: {exc}") from None
+
+
+class _StackedTargets(Sequence):
+    """Targets ``{key: (positions[i], rotations[i])}`` (or ``{key: positions[i]}``) of one
+    frame key, held as stacked float64 arrays: a slice is a view, and a chunk of them
+    pickles as two arrays (a worker's transport costs a few microseconds per target).
+    The values are those :func:`qpik.targets.parse_target` reads from the originals
+    (``float(x)`` of each number), so the solves are bitwise the same."""
+
+    __slots__ = ("key", "positions", "rotations")
+
+    def __init__(self, key: Any, positions: np.ndarray, rotations: np.ndarray | None):
+        self.key, self.positions, self.rotations = key, positions, rotations
+
+    def __len__(self) -> int:
+        return self.positions.shape[0]
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            rotations = None if self.rotations is None else self.rotations[index]
+            return _StackedTargets(self.key, self.positions[index], rotations)
+        if self.rotations is None:
+            return {self.key: self.positions[index]}
+        return {self.key: (self.positions[index], self.rotations[index])}
+
+    def __reduce__(self) -> tuple:
+        positions = np.ascontiguousarray(self.positions)
+        rotations = None if self.rotations is None else np.ascontiguousarray(self.rotations)
+        return (_StackedTargets, (self.key, positions, rotations))
+
+
+def _stack_targets(model: mujoco.MjModel, targets_list: Sequence) -> _StackedTargets | None:
+    """The batch as :class:`_StackedTargets`, checked at once, when every entry is
+    ``{key: (position, rotation)}`` (or ``{key: position}``) with one and the same frame
+    key and numbers of the right shapes, all plainly valid (finite, rotations within half
+    of :func:`qpik.targets.parse_target`'s tolerance, inside its distance bound); else
+    ``None``, and :func:`check_targets` checks them one by one (and names a bad one)."""
+    if not targets_list:
+        return None
+    first = targets_list[0]
+    if type(first) is not dict or len(first) != 1:
+        return None
+    (key,) = first
+    with_rotation = type(first[key]) is tuple and len(first[key]) == 2
+    positions, rotations = [], []
+    try:
+        for targets in targets_list:
+            if type(targets) is not dict or len(targets) != 1:
+                return None
+            value = targets[key]
+            if with_rotation:
+                if type(value) is not tuple or len(value) != 2:
+                    return None
+                positions.append(value[0])
+                rotations.append(value[1])
+            else:
+                positions.append(value)
+        n = len(positions)
+        P = np.array(positions, dtype=float)
+        R = np.array(rotations, dtype=float) if with_rotation else None
+    except (KeyError, TypeError, ValueError):
+        return None
+    if P.shape != (n, 3) or (R is not None and R.shape != (n, 3, 3)):
+        return None
+    if not (np.isfinite(P).all() and np.abs(P).max() <= MAX_TARGET_DISTANCE):
+        return None
+    if R is not None:
+        if not np.isfinite(R).all():
+            return None
+        defect = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max()
+        if not (defect <= 0.5e-6 and (np.linalg.det(R) > 0.5).all()):
+            return None
+    resolve_frame(model, key, argument="targets_list[0]")  # an unknown frame raises here
+    return _StackedTargets(key, P, R)
 
 
 def solve_call(
@@ -271,8 +346,145 @@ def _die_with_parent() -> None:
         os._exit(1)
 
 
-def _solve_chunk_in_worker(chunk: Chunk) -> tuple[int, list[IKResult | _Failure]]:
-    return _WORKER["solver"].solve_chunk(chunk)
+@dataclass(frozen=True)
+class _PackedChunk:
+    """A chunk whose targets are all ``{key: (position (3,), rotation (3, 3))}`` (float64
+    arrays) or ``{key: position (3,)}`` for one frame key: sent as stacked arrays, several
+    times cheaper to pickle than the mappings (the values travel bitwise)."""
+
+    start: int
+    key: Any
+    positions: np.ndarray  # (k, 3)
+    rotations: np.ndarray | None  # (k, 3, 3), or None for position targets
+
+    def unpack(self) -> Chunk:
+        key = self.key
+        if self.rotations is None:
+            return Chunk(self.start, [{key: p} for p in self.positions])
+        return Chunk(self.start, [{key: (p, r)} for p, r in zip(self.positions, self.rotations)])
+
+
+def _is_vector(value: Any, shape: tuple[int, ...]) -> bool:
+    return type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
+
+
+def _pack_chunk(chunk: Chunk) -> Chunk | _PackedChunk:
+    """``chunk`` as a :class:`_PackedChunk` when its targets allow, else as it is."""
+    targets = chunk.targets
+    if isinstance(targets, _StackedTargets):  # already arrays
+        return chunk
+    if not targets or type(targets[0]) is not dict or len(targets[0]) != 1:
+        return chunk
+    (key,) = targets[0]
+    positions, rotations = [], []
+    with_rotation = type(targets[0][key]) is tuple
+    for mapping in targets:
+        if type(mapping) is not dict or len(mapping) != 1 or key not in mapping:
+            return chunk
+        value = mapping[key]
+        if with_rotation:
+            if not (
+                type(value) is tuple
+                and len(value) == 2
+                and _is_vector(value[0], (3,))
+                and _is_vector(value[1], (3, 3))
+            ):
+                return chunk
+            positions.append(value[0])
+            rotations.append(value[1])
+        elif _is_vector(value, (3,)):
+            positions.append(value)
+        else:
+            return chunk
+    return _PackedChunk(
+        chunk.start, key, np.stack(positions), np.stack(rotations) if with_rotation else None
+    )
+
+
+def _solve_chunk_in_worker(chunk: Chunk | _PackedChunk) -> tuple[int, Any]:
+    solver = _WORKER["solver"]
+    if isinstance(chunk, _PackedChunk):
+        chunk = chunk.unpack()
+    start, results = solver.solve_chunk(chunk)
+    return start, (results if solver.histories else _pack(results))
+
+
+#: Reasons by their index in a packed chunk.
+_REASON_LIST = tuple(Reason)
+_REASON_INDEX = {reason: i for i, reason in enumerate(_REASON_LIST)}
+
+
+@dataclass(frozen=True)
+class _PackedResults:
+    """A worker's chunk of results without histories, as a few arrays: several times
+    cheaper to pickle and unpickle than the :class:`IKResult` objects (the parent's share
+    of a pool's CPU, which competes with the workers). Values travel bitwise (float64)."""
+
+    q: np.ndarray  # (k, nq)
+    floats: np.ndarray  # (k, 3): position_error, orientation_error, solve_time
+    ints: np.ndarray  # (k, 4): converged, reason index, iterations, restarts_used
+    frame_errors: list
+    engines: list
+
+
+def _pack(results: list[IKResult | _Failure]) -> list[IKResult | _Failure] | _PackedResults:
+    """``results`` packed (:class:`_PackedResults`) when they are all plain IKResults of one
+    shape, else as they are."""
+    if not results or any(type(r) is not IKResult for r in results):
+        return results
+    plain: list[IKResult] = results  # type: ignore[assignment]
+    try:
+        q = np.stack([r.q for r in plain])
+        floats = np.array(
+            [(r.position_error, r.orientation_error, r.solve_time) for r in plain], dtype=float
+        )
+        ints = np.array(
+            [
+                (bool(r.converged), _REASON_INDEX[r.reason], r.iterations, r.restarts_used)
+                for r in plain
+            ],
+            dtype=np.int64,
+        )
+    except (ValueError, TypeError, KeyError):  # ragged q, odd values: sent as they are
+        return results
+    if q.dtype != np.float64 or floats.shape != (len(plain), 3):
+        return results
+    return _PackedResults(
+        q, floats, ints, [r.frame_errors for r in plain], [r.engine for r in plain]
+    )
+
+
+def _unpack(results: Any) -> list[IKResult | _Failure]:
+    """The results of a chunk as :func:`_pack` sent them."""
+    if not isinstance(results, _PackedResults):
+        return results
+    reasons = _REASON_LIST
+    return [
+        IKResult(
+            q.copy(),
+            bool(converged),
+            reasons[reason],
+            iterations,
+            restarts,
+            position_error,
+            orientation_error,
+            solve_time,
+            frame_errors,
+            engine=engine,
+        )
+        for q, (position_error, orientation_error, solve_time), (
+            converged,
+            reason,
+            iterations,
+            restarts,
+        ), frame_errors, engine in zip(
+            results.q,
+            results.floats.tolist(),
+            results.ints.tolist(),
+            results.frame_errors,
+            results.engines,
+        )
+    ]
 
 
 def _ray_solve_chunk(
@@ -291,6 +503,8 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     and the loaded modules (a fresh interpreter, ``forkserver`` or ``spawn``, takes seconds
     to import qpik). Elsewhere ``spawn``, the platform's default: scripts then need an
     ``if __name__ == "__main__":`` guard."""
+    import multiprocessing
+
     if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("fork")
     return multiprocessing.get_context("spawn")
@@ -382,11 +596,17 @@ def _iter_pool(
 ) -> Iterator[tuple[int, list[IKResult]]]:
     """Chunks solved by a process pool, a few per worker submitted ahead."""
     local = _ChunkSolver(model, entropy, options)
-    executor = ProcessPoolExecutor(
+    context = _mp_context()
+    forked = context.get_start_method() == "fork"
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pool_class, broken = _pool_classes()
+    executor = pool_class(
         max_workers=workers,
-        mp_context=_mp_context(),
+        mp_context=context,
         initializer=_init_worker,
-        initargs=(spec, entropy, options),
+        # A forked worker has the model already (no file to read again).
+        initargs=(model if forked else spec, entropy, options),
     )
     try:
         pending: set[Future] = set()
@@ -398,7 +618,8 @@ def _iter_pool(
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             try:
                 items = sorted((future.result() for future in done), key=lambda item: item[0])
-            except BrokenProcessPool as exc:
+                items = [(start, _unpack(results)) for start, results in items]
+            except broken as exc:
                 raise WorkerError(
                     "a worker process died (out of memory, killed, or a script that starts "
                     "workers without an `if __name__ == '__main__':` guard)"
@@ -417,7 +638,7 @@ def _submit_ahead(
         chunk = next(source, None)
         if chunk is None:
             return
-        pending.add(executor.submit(_solve_chunk_in_worker, chunk))
+        pending.add(executor.submit(_solve_chunk_in_worker, _pack_chunk(chunk)))
 
 
 def _iter_ray(spec, chunks, entropy, workers, address, options):
@@ -509,7 +730,10 @@ def solve_many(
     workers = check_workers(workers, backend)
     check_chunk_size(chunk_size, optional=True)
     spec, model, q0 = prepare_robot(robot)
-    check_targets(model, targets_list)
+    stacked = _stack_targets(model, targets_list)
+    if stacked is None:
+        check_targets(model, targets_list)
+    source: Sequence[Mapping[FrameKey, TargetLike]] = targets_list if stacked is None else stacked
     call = solve_call(options, solve_options, q0)
     call[_HISTORIES] = histories
     results: list[IKResult] = []
@@ -517,7 +741,7 @@ def solve_many(
         spec,
         model,
         len(targets_list),
-        lambda start, stop: targets_list[start:stop],
+        lambda start, stop: source[start:stop],
         entropy=entropy,
         workers=workers,
         backend=backend,
@@ -626,8 +850,29 @@ def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str =
     )
 
 
+#: Names of concurrent.futures.process, loaded with multiprocessing when a pool starts.
+_POOL_NAMES = ("ProcessPoolExecutor", "BrokenProcessPool")
+
+
+def _pool_classes() -> tuple[type[ProcessPoolExecutor], type[Exception]]:
+    """``(ProcessPoolExecutor, BrokenProcessPool)``, as this module's globals (where
+    tests replace the executor), imported on first use."""
+    names = globals()
+    if any(name not in names for name in _POOL_NAMES):
+        from concurrent.futures import process
+
+        for name in _POOL_NAMES:
+            names.setdefault(name, getattr(process, name))
+    return names["ProcessPoolExecutor"], names["BrokenProcessPool"]
+
+
 def __getattr__(name: str) -> Any:
-    """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here."""
+    """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here
+    (and the pool's classes, :data:`_POOL_NAMES`, load on first use)."""
+    if name.startswith("__"):  # the import system's probes (__path__, ...): not a reason
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if name in _POOL_NAMES:
+        return _pool_classes()[_POOL_NAMES.index(name)]
     from . import batch_files
 
     if name in batch_files.__all__:

@@ -64,7 +64,9 @@ re-exported here.
 
 from __future__ import annotations
 
+import threading
 import time
+import weakref
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -83,6 +85,7 @@ from .options import (  # noqa: F401 (the limits re-exported for the former sing
     IGM_DAMPING,
     MAX_AUTO_RESTARTS,
     MAX_ITERS_LIMIT,
+    PRESETS,
     UNSET,
     SolveOptions,
     _Unset,
@@ -127,6 +130,8 @@ LIMIT_GAIN = 0.95
 #: Halvings of a step that increases the error ``sum |e_p|^2 + |e_o|^2`` [m^2, rad^2].
 BACKTRACKS = _kernels.BACKTRACKS
 _EYE = np.eye(3)
+#: The reasons of the compiled engine, by code.
+_REASONS_BY_CODE = tuple(Reason(name) for name in _kernels.REASON_NAMES)
 #: The option keywords of :func:`solve` besides ``seed`` (fields of SolveOptions and of its
 #: StepOptions).
 _OPTION_KEYWORDS = (
@@ -150,8 +155,9 @@ Seed = int | np.random.Generator | np.random.SeedSequence | None
 
 
 def clear_pool() -> None:
-    """Kept for compatibility; does nothing. :func:`solve` keeps no pool of robots: each
-    call loads its robot, and an :class:`IKSession` holds one robot for many solves."""
+    """Kept for compatibility; does nothing. :func:`solve` keeps what it prepares per
+    model in :data:`PREPARED` (emptied by :func:`qpik.clear_caches`); an :class:`IKSession`
+    holds one robot for many solves."""
 
 
 def _rng_state(seed: Seed) -> np.ndarray:
@@ -214,6 +220,170 @@ class _Frame:
         self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
 
 
+class _Prepared:
+    """What a session reads from a model once: joint limits, the mid-range start, the
+    bounds the compiled engine takes and, per target frame, its chain and reach bound (on
+    first use). It holds no reference to the model (the one-shot cache keys it by a weak
+    reference to the model, :class:`qpik.converge.PreparedRobots`)."""
+
+    __slots__ = (
+        "bounds_free",
+        "bounds_joint",
+        "frames",
+        "lower",
+        "memo",
+        "mid",
+        "support",
+        "upper",
+    )
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.support = chain_support(model)
+        if self.support is None:
+            lower, upper = joint_limits(model)
+        else:
+            configuration = Configuration(model)
+            lower, upper = configuration.lower.copy(), configuration.upper.copy()
+        self.lower, self.upper = lower, upper
+        sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
+        sample_hi = np.where(np.isfinite(upper), upper, np.pi)
+        self.mid = model.qpos0.copy()
+        limited = np.isfinite(lower) & np.isfinite(upper)
+        self.mid[limited] = 0.5 * (lower[limited] + upper[limited])
+        free = np.full(model.nq, np.inf)
+        self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
+        self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
+        self.frames: dict = {}  # frame key -> _Frame
+        self.memo: list = [None]  # the options memo of the sessions using this preparation
+
+    def frame(self, model: mujoco.MjModel, key: FrameKey) -> _Frame:
+        """The :class:`_Frame` of ``key`` on ``model`` (the model this was read from)."""
+        try:
+            cached = self.frames.get(key)
+        except TypeError:  # unhashable key
+            cached = None
+        if cached is not None:
+            return cached
+        name, kind, _ = resolve_frame(model, key, argument="targets")
+        chain = reach = None
+        if self.support is None:
+            chain = KinematicChain.from_model(model, name, kind)
+            reach = chain.reach_bound(self.lower, self.upper)
+        entry = _Frame(name, kind, chain, reach)
+        try:
+            self.frames[key] = entry
+        except TypeError:
+            pass
+        return entry
+
+
+#: The arrays of an ``MjModel`` that a prepared robot (:class:`_Prepared`) is read from:
+#: what the chains, joint limits, reach bounds and the mid-range start depend on. The
+#: one-shot cache compares their bytes to those it prepared the robot from.
+FINGERPRINT_FIELDS = (
+    "qpos0",
+    "jnt_type",
+    "jnt_limited",
+    "jnt_range",
+    "jnt_axis",
+    "jnt_pos",
+    "jnt_qposadr",
+    "jnt_dofadr",
+    "body_parentid",
+    "body_mocapid",
+    "body_jntadr",
+    "body_jntnum",
+    "body_pos",
+    "body_quat",
+    "site_bodyid",
+    "site_pos",
+    "site_quat",
+    "geom_bodyid",
+    "geom_pos",
+    "geom_quat",
+)
+
+
+class PreparedRobots:
+    """The one-shot cache of :func:`solve`: per ``MjModel``, what an :class:`IKSession`
+    reads from it (joint limits, mid-range start, per frame its kinematic chain and reach
+    bound), so that ``qpik.solve(model, targets)`` costs what a held session's ``solve``
+    does. One instance, :data:`qpik.converge.PREPARED`; :func:`qpik.clear_caches` empties
+    it.
+
+    * Keyed by the model object itself, through a weak reference: it never keeps a model
+      alive (an entry goes with its model) and never serves another model.
+    * Never stale: each lookup compares the model's arrays that the preparation read
+      (:data:`FINGERPRINT_FIELDS`: joint types, axes, anchors, ranges, body and frame
+      poses, ``qpos0``...) with a copy of them taken when it was prepared, one ``memcmp``
+      in compiled code (about a microsecond); a model changed in place is prepared anew.
+    * Answers are bitwise those of a fresh :class:`IKSession`: the entry holds exactly what
+      a session computes, from the same arrays.
+    * At most ``max_models`` models (the first prepared goes first).
+    """
+
+    def __init__(self, max_models: int = 32) -> None:
+        self.max_models = max_models
+        self._entries: dict[int, tuple[weakref.ref, Any, _Prepared]] = {}
+        # Reentrant: a weak reference callback (a collected model) may run inside get().
+        self._lock = threading.RLock()
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def clear(self) -> None:
+        """Forget every prepared model."""
+        with self._lock:
+            self._entries.clear()
+
+    def get(self, model: mujoco.MjModel) -> _Prepared:
+        """The prepared robot of ``model``: the cached one when the model's arrays are
+        unchanged since it was prepared, else a new one (cached)."""
+        key = id(model)
+        entry = self._entries.get(key)
+        if entry is not None and entry[0]() is model and entry[1].unchanged():
+            return entry[2]
+        views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
+        if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
+            return _Prepared(model)  # not views of the model's memory: nothing to watch
+        watch = _kernels.ArrayWatch(views)  # the bytes first, then what is read from them
+        prepared = _Prepared(model)
+
+        def forget(ref: weakref.ref, key: int = key) -> None:
+            with self._lock:
+                current = self._entries.get(key)
+                if current is not None and current[0] is ref:
+                    del self._entries[key]
+
+        with self._lock:
+            self._entries.pop(key, None)
+            while len(self._entries) >= self.max_models:
+                oldest = next(iter(self._entries), None)
+                if oldest is None:
+                    break
+                self._entries.pop(oldest, None)
+            self._entries[key] = (weakref.ref(model, forget), watch, prepared)
+        return prepared
+
+
+def _is_view_of(model: mujoco.MjModel, name: str, view: np.ndarray) -> bool:
+    """Whether ``view`` (``getattr(model, name)``) is a C-contiguous view on memory the model
+    holds: another read of the attribute gives a view on the same address (MuJoCo's arrays
+    are fixed in the ``mjModel`` buffer for the model's life), or it is empty."""
+    if not isinstance(view, np.ndarray) or not view.flags.c_contiguous:
+        return False
+    if view.size == 0:
+        return True  # no entry to change (sizes are fixed)
+    if view.flags.owndata:
+        return False
+    again = getattr(model, name)
+    return bool(again.ctypes.data == view.ctypes.data and again.nbytes == view.nbytes)
+
+
+#: The one-shot cache of :func:`solve` (see :class:`PreparedRobots`).
+PREPARED = PreparedRobots()
+
+
 # ------------------------------------------------------------------------ session
 class IKSession:
     """A robot prepared for repeated solves: hold one per robot and call :meth:`solve`.
@@ -221,7 +391,8 @@ class IKSession:
     It loads the robot once and reads the model once (joint limits, and per target frame
     its kinematic chain and reach bound, on first use). These caches belong to the session:
     after editing the model in place (its joint ranges, say), make a new session. Results
-    never depend on what it solved before. :func:`solve` makes one per call.
+    never depend on what it solved before. :func:`solve` uses the same preparation, kept
+    per model in :data:`PREPARED` (checked against the model's arrays at each call).
 
     Args:
         robot: anything :func:`qpik.robots.resolve_robot` accepts (a name, ``"erd:NAME"``,
@@ -233,43 +404,38 @@ class IKSession:
 
     def __init__(self, robot: RobotLike, options: SolveOptions | str | None = None):
         model, robot_q = resolve_robot(robot)
+        self._setup(model, robot_q, resolve(options), _Prepared(model))
+
+    def _setup(
+        self,
+        model: mujoco.MjModel,
+        robot_q: np.ndarray | None,
+        options: SolveOptions,
+        prepared: _Prepared,
+    ) -> None:
         self.model: mujoco.MjModel = model
-        self.options: SolveOptions = resolve(options)
+        self.options: SolveOptions = options
         self._robot_q = robot_q
-        self._support = chain_support(model)
-        if self._support is None:
-            lower, upper = joint_limits(model)
-        else:
-            configuration = Configuration(model)
-            lower, upper = configuration.lower.copy(), configuration.upper.copy()
-        self._lower, self._upper = lower, upper
-        sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
-        sample_hi = np.where(np.isfinite(upper), upper, np.pi)
-        self._mid = model.qpos0.copy()
-        limited = np.isfinite(lower) & np.isfinite(upper)
-        self._mid[limited] = 0.5 * (lower[limited] + upper[limited])
-        free = np.full(model.nq, np.inf)
-        self._bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
-        self._bounds_free = np.array([-free, free, sample_lo, sample_hi])
-        self._memo: tuple | None = None  # the last (options, overrides) -> derived arrays
-        self._frames: dict = {}  # frame key -> _Frame
+        self._prepared = prepared
+        self._support = prepared.support
+        self._lower, self._upper, self._mid = prepared.lower, prepared.upper, prepared.mid
+        self._bounds_joint, self._bounds_free = prepared.bounds_joint, prepared.bounds_free
+        # [the last (base options, option values, settings, kernel arrays)], shared by the
+        # one-shot sessions of a prepared robot.
+        self._memo: list = prepared.memo
+
+    @classmethod
+    def _from_prepared(
+        cls, model: mujoco.MjModel, robot_q: np.ndarray | None, prepared: _Prepared
+    ) -> IKSession:
+        """A session on ``model`` with the default options over an existing preparation."""
+        session = cls.__new__(cls)
+        session._setup(model, robot_q, PRESETS["default"], prepared)
+        return session
 
     # ------------------------------------------------------------------ frames
     def _frame(self, key: FrameKey) -> _Frame:
-        try:
-            cached = self._frames.get(key)
-        except TypeError:  # unhashable key
-            cached = None
-        if cached is not None:
-            return cached
-        name, kind, _ = resolve_frame(self.model, key, argument="targets")
-        chain = reach = None
-        if self._support is None:
-            chain = KinematicChain.from_model(self.model, name, kind)
-            reach = chain.reach_bound(self._lower, self._upper)
-        entry = _Frame(name, kind, chain, reach)
-        self._frames[key] = entry
-        return entry
+        return self._prepared.frame(self.model, key)
 
     def reach_bound(self, frame: FrameKey) -> ReachBound | None:
         """The :class:`qpik.model.ReachBound` of ``frame`` within the joint limits, or
@@ -308,9 +474,38 @@ class IKSession:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
         start_time = time.perf_counter()
-        given = locals()
-        overrides = {k: given[k] for k in _OPTION_KEYWORDS if given[k] is not UNSET}
-        settings, kernel_options = self._options(options, overrides)
+        values = (
+            limits,
+            tol_position,
+            tol_orientation,
+            max_iters,
+            time_budget,
+            restarts,
+            alpha,
+            beta,
+            solver,
+            stall_window,
+            damping_law,
+            max_step,
+            secondary,
+            damping,
+            engine,
+        )
+        return self._solve(targets, q0, stack, options, seed, values, start_time)
+
+    def _solve(
+        self,
+        targets: Mapping[FrameKey, TargetLike],
+        q0: npt.ArrayLike | None,
+        stack: Stack | None,
+        options: SolveOptions | str | None,
+        seed: Seed | _Unset,
+        values: tuple,
+        start_time: float,
+    ) -> IKResult:
+        """:meth:`solve` with the option keywords' values in the order of
+        ``_OPTION_KEYWORDS`` (``UNSET`` where not given)."""
+        settings, kernel_options = self._options(options, values)
         rng_state = _rng_state(settings.seed if isinstance(seed, _Unset) else seed)
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
@@ -333,23 +528,27 @@ class IKSession:
 
     # ---------------------------------------------------------------- helpers
     def _options(
-        self, options: SolveOptions | str | None, overrides: dict[str, Any]
+        self, options: SolveOptions | str | None, values: tuple
     ) -> tuple[SolveOptions, tuple[np.ndarray, np.ndarray]]:
-        """The options of a solve, validated once for a run of solves with the same ones,
-        with the compiled engine's option arrays."""
-        try:
-            key = (options, tuple(overrides.items()))
-            hash(key)
-        except TypeError:  # a list of limits, say: not remembered
-            key = None
-        memo = self._memo
-        if key is not None and memo is not None and memo[0] == key:
-            return memo[1], memo[2]
+        """The options of a solve (``values``: the option keywords' values in the order of
+        ``_OPTION_KEYWORDS``, ``UNSET`` where not given), validated once for a run of solves
+        with the same ones, with the compiled engine's option arrays."""
         base = self.options if options is None else resolve(options)
+        memo = self._memo[0]
+        if memo is not None and memo[0] is base:
+            try:
+                if memo[1] == values:
+                    return memo[2], memo[3]
+            except (TypeError, ValueError):  # values that do not compare plainly (arrays)
+                pass
+        overrides = {k: v for k, v in zip(_OPTION_KEYWORDS, values) if v is not UNSET}
         settings = base.replace(**overrides)
         derived = (settings, _kernel_options(settings))
-        if key is not None:
-            self._memo = (key, *derived)
+        try:
+            hash(values)
+        except TypeError:  # a list of limits, say: not remembered
+            return derived
+        self._memo[0] = (base, values, *derived)
         return derived
 
     def _targets(self, targets: Mapping[FrameKey, TargetLike]) -> list[tuple[_Frame, Target]]:
@@ -391,17 +590,16 @@ class IKSession:
             q = np.array(q0, dtype=float)
         except (TypeError, ValueError) as exc:
             raise InvalidConfiguration(f"q0 must be {self.model.nq} numbers: {exc}") from exc
-        if q.shape != (self.model.nq,):
+        if q.shape != (self._mid.shape[0],):
             raise InvalidConfiguration(
                 f"q0 has shape {q.shape}, expected ({self.model.nq},) for this model"
             )
-        if not np.isfinite(q).all():
-            i = int(np.flatnonzero(~np.isfinite(q))[0])
-            raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
         if check and self._support is None:
-            outside = np.flatnonzero((q < self._lower - 1e-6) | (q > self._upper + 1e-6))
-            if outside.size:
-                i = int(outside[0])
+            # One compiled pass: finite, within the limits (1e-6), then clipped in place.
+            code, i = _kernels.start_defect(q, self._lower, self._upper, 1e-6)
+            if code == 1:
+                raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
+            if code == 2:
                 raise JointLimitViolation(
                     _qpos_joint_names(self.model)[i],
                     i,
@@ -409,8 +607,11 @@ class IKSession:
                     float(self._lower[i]),
                     float(self._upper[i]),
                 )
-            np.clip(q, self._lower, self._upper, out=q)
-        elif check:
+            return q
+        if not np.isfinite(q).all():
+            i = int(np.flatnonzero(~np.isfinite(q))[0])
+            raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
+        if check:
             Configuration(self.model, q).check_limits()
         return q
 
@@ -443,13 +644,9 @@ class IKSession:
         frame, target = frame_target
         options, int_options = kernel_options
         deadline = start_time + settings.time_budget if int_options[3] else np.inf
-        n = settings.max_iters + 1
-        path = np.empty((2, n, q_start.shape[0]))
-        hist = np.empty((2, n, 3))
-        info = np.empty(6, dtype=np.int64)
         rotation = target.rotation
-        _kernels.igm_solve(
-            frame.chain.arrays,
+        code, iterations, restarts_used, path, history = _kernels.igm_run(
+            frame.chain.compiled,
             target.position,
             _EYE if rotation is None else rotation,
             rotation is not None,
@@ -460,29 +657,22 @@ class IKSession:
             int_options,
             rng_state,
             deadline,
-            path,
-            hist,
-            info,
         )
-        code, iterations, restarts_used, slot, length, _ = info.tolist()
-        # Copies: the result must not keep the whole scratch buffers alive (batches).
-        history = hist[slot, :length].copy()
         position_error, orientation_error, _ = history[-1].tolist()
-        attempt = path[slot, :length].copy()
         return IKResult(
-            q=attempt[-1].copy(),
-            converged=code == 0,
-            reason=Reason(_kernels.REASON_NAMES[code]),
-            iterations=iterations,
-            restarts_used=restarts_used,
-            position_error=position_error,
-            orientation_error=orientation_error,
-            frame_errors={frame.name: (position_error, orientation_error)},
-            residual_history=LazyRows(history[1:, 2:]),
-            error_history=LazyRows(history[:, :2], tuple),
-            path=attempt,
-            solve_time=time.perf_counter() - start_time,
-            engine="compiled",
+            path[-1].copy(),
+            code == 0,
+            _REASONS_BY_CODE[code],
+            iterations,
+            restarts_used,
+            position_error,
+            orientation_error,
+            time.perf_counter() - start_time,
+            {frame.name: (position_error, orientation_error)},
+            LazyRows(history[1:, 2:]),
+            LazyRows(history[:, :2], tuple),
+            path,
+            "compiled",
         )
 
 
@@ -540,12 +730,43 @@ def solve(
             QPs exactly by its own active set.
 
     Bad arguments raise a :class:`qpik.QpikError` subclass naming them
-    (:class:`qpik.InvalidOption` for an option). Each call loads and prepares the robot
-    anew (nothing is kept between calls); to solve many targets on one robot, hold an
-    :class:`IKSession`.
+    (:class:`qpik.InvalidOption` for an option).
+
+    Cost of a one-shot call: given an ``MjModel`` (or a :class:`qpik.Configuration`), the
+    robot's preparation (joint limits, mid-range start, the target frame's kinematic
+    chain and reach bound) is kept per model in one cache, :data:`qpik.converge.PREPARED`
+    (:class:`qpik.converge.PreparedRobots`), so a call costs what a held
+    :class:`IKSession`'s ``solve`` does (reading those from the model takes longer than
+    most solves). The cache holds the model weakly (an entry goes with its model), checks
+    at each call that the model's arrays it was prepared from
+    (:data:`qpik.converge.FINGERPRINT_FIELDS`) are unchanged (a model edited in place is
+    prepared anew), and gives bitwise the answers of a fresh :class:`IKSession`;
+    :func:`qpik.clear_caches` empties it. A robot given by name or path is loaded and
+    prepared at each call: to solve many targets on one robot, load it once (or hold an
+    :class:`IKSession`).
     """
-    given = locals()
-    keywords = {k: given[k] for k in _OPTION_KEYWORDS if given[k] is not UNSET}
-    return IKSession(robot).solve(
-        targets, q0=q0, stack=stack, options=options, seed=seed, **keywords
+    values = (
+        limits,
+        tol_position,
+        tol_orientation,
+        max_iters,
+        time_budget,
+        restarts,
+        alpha,
+        beta,
+        solver,
+        stall_window,
+        damping_law,
+        max_step,
+        secondary,
+        damping,
+        engine,
     )
+    if isinstance(robot, mujoco.MjModel):
+        session = IKSession._from_prepared(robot, None, PREPARED.get(robot))
+    elif isinstance(robot, Configuration):
+        session = IKSession._from_prepared(robot.model, robot.q, PREPARED.get(robot.model))
+    else:
+        session = IKSession(robot)
+    # The clock (solve_time, time_budget) starts once the robot is loaded, as a session's.
+    return session._solve(targets, q0, stack, options, seed, values, time.perf_counter())

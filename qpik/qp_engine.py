@@ -20,7 +20,6 @@ import numpy as np
 from .configuration import Configuration, FrameType
 from .errors import InvalidTarget
 from .hierarchy import IKSolver, normalize_stack
-from .limits import ConfigurationLimit
 from .model._kernels import BACKTRACKS
 from .options import IGM_BACKEND_OPTIONS, SolveOptions
 from .restarts import Attempt, Clock, StallWindow, run_attempts
@@ -138,6 +137,8 @@ def _task_target(task: Any) -> Target | None:
 
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
+        from .limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
+
         return [ConfigurationLimit(model)]
     return list(options.limits or ())
 

@@ -70,6 +70,8 @@ _FORMS = "a target is a position (3,), (position, rotation), a 4x4 matrix or an 
 
 
 def _array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    if type(value) is np.ndarray and value.shape == shape and value.dtype == np.float64:
+        return value.copy()  # the common case, at the cost of a copy
     try:
         array = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -118,7 +120,8 @@ def parse_target(value: TargetLike) -> Target:
     if defect:
         shown = position if defect == 1 else rotation
         raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")
-    if not float(np.abs(position).max()) <= MAX_TARGET_DISTANCE:
+    x, y, z = position.tolist()  # finite (checked above)
+    if not max(abs(x), abs(y), abs(z)) <= MAX_TARGET_DISTANCE:
         raise InvalidTarget(
             f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
             "world origin (its error would not be representable)"

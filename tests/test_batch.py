@@ -425,3 +425,79 @@ def test_options_object_in_a_batch_matches_keywords_and_is_checked_here():
     assert all(r.iterations <= 6 * 50 for r in fast)
     with pytest.raises(qpik.InvalidOption, match="max_iters"):
         qpik.solve_many("ur5e", TARGETS[:2], workers=2, progress=False, max_iters=-1)
+
+
+def test_worker_transport_packs_bitwise():
+    """Chunks of plain pose targets and their results travel between processes as stacked
+    arrays (cheap to pickle); what arrives is what was sent, bitwise."""
+    import pickle
+
+    from qpik import batch as B
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(3)
+    targets = []
+    for _ in range(10):
+        configuration.update(configuration.random_q(rng))
+        targets.append({"ee": configuration.frame_pose("ee")})
+    packed = B._pack_chunk(B.Chunk(5, targets))
+    assert isinstance(packed, B._PackedChunk)
+    chunk = pickle.loads(pickle.dumps(packed)).unpack()
+    assert chunk.start == 5
+    for sent, got in zip(targets, chunk.targets):
+        assert sent["ee"][0].tobytes() == got["ee"][0].tobytes()
+        assert sent["ee"][1].tobytes() == got["ee"][1].tobytes()
+    positions = [{"ee": t["ee"][0]} for t in targets]
+    assert B._pack_chunk(B.Chunk(0, positions)).rotations is None
+    for odd in ([{"ee": [0.1, 0.2, 0.3]}], [{"ee": targets[0]["ee"]}, {"ee": [0.1, 0.2, 0.3]}],
+                [{"ee": targets[0]["ee"], ("ee", "site"): targets[1]["ee"]}]):  # fmt: skip
+        assert isinstance(B._pack_chunk(B.Chunk(0, odd)), B.Chunk)
+    results = [B._without_histories(qpik.solve(model, t, seed=i)) for i, t in enumerate(targets)]
+    results.append(B._without_histories(qpik.solve(model, {"ee": [3.0, 0.0, 0.4]}, seed=1)))
+    back = B._unpack(pickle.loads(pickle.dumps(B._pack(results))))
+    for a, b in zip(results, back, strict=True):
+        assert a.q.tobytes() == b.q.tobytes() and a.reason is b.reason
+        assert (a.converged, a.iterations, a.restarts_used, a.engine) == (
+            b.converged, b.iterations, b.restarts_used, b.engine)  # fmt: skip
+        assert np.array([a.position_error, a.orientation_error, a.solve_time]).tobytes() == (
+            np.array([b.position_error, b.orientation_error, b.solve_time]).tobytes())  # fmt: skip
+        assert a.frame_errors == b.frame_errors and a.path.shape == b.path.shape == (0, 0)
+    assert B._pack([]) == []
+
+
+def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
+    """A batch of one frame's (position, rotation) targets is checked at once and sent as
+    stacked arrays; the results are bitwise those of the same targets one by one, and a bad
+    target still raises the typed error naming its index."""
+    from qpik import batch as B
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(4)
+    targets = []
+    for _ in range(40):
+        configuration.update(configuration.random_q(rng))
+        position, rotation = configuration.frame_pose("ee")
+        targets.append({"ee": (list(position), rotation)})  # lists too: read as parse_target does
+    stacked = B._stack_targets(model, targets)
+    assert stacked is not None and len(stacked) == 40 and len(stacked[5:9]) == 4
+    assert stacked[3]["ee"][0].tolist() == targets[3]["ee"][0]
+    serial = qpik.solve_many(model, targets, workers=1, progress=False)
+    pooled = qpik.solve_many(model, targets, workers=2, pool_threshold=0.0, progress=False)
+    one_by_one = [
+        qpik.solve(model, t, seed=batch.target_seed(0, i), **{}) for i, t in enumerate(targets)
+    ]
+    for a, b, c in zip(serial, pooled, one_by_one, strict=True):
+        assert a.q.tobytes() == b.q.tobytes() == c.q.tobytes()
+    positions = [{"ee": t["ee"][0]} for t in targets]
+    assert B._stack_targets(model, positions).rotations is None
+    bad = list(targets)
+    bad[7] = {"ee": (targets[7]["ee"][0], 2.0 * targets[7]["ee"][1])}
+    assert B._stack_targets(model, bad) is None
+    with pytest.raises(qpik.InvalidTarget, match=r"targets_list\[7\]"):
+        qpik.solve_many(model, bad, workers=1, progress=False)
+    mixed = [{"ee": targets[0]["ee"]}, {("ee", "site"): targets[1]["ee"]}]
+    assert B._stack_targets(model, mixed) is None
+    with pytest.raises(qpik.UnknownFrame):
+        B._stack_targets(model, [{"nope": targets[0]["ee"]}])

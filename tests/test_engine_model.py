@@ -283,3 +283,124 @@ def test_bad_arguments_raise_instead_of_crashing(recorded):
         K._smallest_singular_value(np.ones((6, 3)), 6, 3, np.empty((2, 2)))
     with pytest.raises(ValueError):
         K.uniform(np.zeros(2, dtype=np.uint64))
+
+
+# --- the chain object (qpik._engine.model.Chain) and igm_run -------------------------------
+def _compiled(d, name):
+    chain = _chain(d, name)
+    nq = d[f"fk_{name}_q"].shape[1]
+    nv = d[f"fk_{name}_J"].shape[2]
+    return K.Chain(chain, nq, nv)
+
+
+def test_chain_object_gives_the_recorded_answers(recorded, tally):
+    """The chain checked and copied once (K.Chain) gives the tuple's bits in every kernel."""
+    d = recorded
+    for name in ("panda", "ur5e", "planar_2r", "planar_4r"):
+        compiled = _compiled(d, name)
+        for k, q in enumerate(d[f"fk_{name}_q"]):
+            nv = d[f"fk_{name}_J"].shape[2]
+            p, R, J = np.empty(3), np.empty((3, 3)), np.empty((6, nv))
+            K.fk_jac(compiled, q, p, R, J, True)
+            tally.add(f"fk object {name} {k}", np.concatenate([p, R.ravel(), J.ravel()]),
+                      np.concatenate([d[f"fk_{name}_p"][k], d[f"fk_{name}_R"][k].ravel(),
+                                      d[f"fk_{name}_J"][k].ravel()]))  # fmt: skip
+        for k, q in enumerate(d[f"fk_{name}_q"][:10]):
+            center = np.empty(3)
+            radius = K.reach_radius(compiled, q, center)
+            tally.add(f"reach object {name} {k}", np.append(center, radius),
+                      np.append(d[f"reach_{name}_center"][k], d[f"reach_{name}_radius"][k]))  # fmt: skip
+
+
+@pytest.mark.parametrize("arm", ["panda", "ur5e"])
+def test_igm_run_gives_the_recorded_answers(recorded, tally, arm):
+    """igm_run (scratch allocated inside, the returned attempt's rows out) on the chain
+    object: igm_solve's recorded answers, bitwise."""
+    d = recorded
+    keys = ("p", "R", "has_rot", "q0", "bounds", "options", "int_options", "seed")
+    cases = zip(*(d[f"igm_{arm}_{key}"] for key in keys))
+    compiled = K.Chain(_chain(d, arm), d[f"igm_{arm}_q0"].shape[1], d[f"igm_{arm}_q0"].shape[1])
+    start = 0
+    hist_all = d[f"igm_{arm}_hist"]
+    for k, (p, R, has_rot, q0, bounds, fopts, iopts, seed) in enumerate(cases):
+        state = np.array([seed], dtype=np.uint64)
+        q_start = q0.copy()
+        code, iterations, restarts, path, hist = K.igm_run(
+            compiled, p, R, bool(has_rot), q_start, bounds, d[f"igm_{arm}_reach"], fopts, iopts,
+            state, np.inf,
+        )  # fmt: skip
+        assert q_start.tobytes() == q0.tobytes()
+        info = d[f"igm_{arm}_info"][k]
+        length = int(info[4])
+        assert (code, iterations, restarts) == tuple(int(v) for v in info[:3])
+        assert path.shape == (length, q0.shape[0]) and hist.shape == (length, 3)
+        assert state[0] == d[f"igm_{arm}_state"][k]
+        tally.add(f"igm_run {arm} {k} q", path[-1], d[f"igm_{arm}_q"][k])
+        tally.add(f"igm_run {arm} {k} hist", hist, hist_all[start : start + length])
+        tally.add(f"igm_run {arm} {k} path", path.sum(axis=0), d[f"igm_{arm}_path_sum"][k])
+        start += length
+    assert start == hist_all.shape[0]
+
+
+def test_chain_object_and_igm_run_refuse_bad_arguments(recorded):
+    d = recorded
+    chain = _chain(d, "ur5e")
+    with pytest.raises(ValueError):
+        K.Chain(chain[:10], 6, 6)
+    with pytest.raises(ValueError):
+        K.Chain(chain, 5, 6)  # a joint coordinate beyond nq
+    with pytest.raises(ValueError):
+        K.Chain(chain, 6, -1)
+    broken = list(chain)
+    broken[6] = chain[6] + 100
+    with pytest.raises(ValueError):
+        K.Chain(tuple(broken), 6, 6)
+    compiled = K.Chain(chain, 6, 6)
+    assert (compiled.nbody, compiled.njnt) == (chain[0].shape[0], chain[3].shape[0])
+    with pytest.raises(ValueError):
+        K.fk_jac(compiled, np.zeros(5), np.empty(3), np.empty((3, 3)), np.empty((6, 6)), True)
+    with pytest.raises(ValueError):
+        K.fk_jac(compiled, np.zeros(6), np.empty(3), np.empty((3, 3)), np.empty((6, 5)), True)
+    with pytest.raises(ValueError):
+        K.reach_radius(compiled, np.zeros(4), np.empty(3))
+    good = _igm_args(d)
+    args = dict(good, chain=compiled)
+    for key in ("path", "hist", "info"):
+        args.pop(key)
+    K.igm_run(**args)
+    for key, value in {"q0": np.zeros(5), "bounds": good["bounds"][:3], "reach": np.zeros(3),
+                       "options": good["options"][:5], "int_options": good["int_options"][:2],
+                       "target_p": np.zeros(4), "rng_state": np.zeros(2, np.uint64)}.items():  # fmt: skip
+        with pytest.raises(ValueError):
+            K.igm_run(**{**args, key: value})
+    with pytest.raises(ValueError):
+        K.igm_run(**{**args, "int_options": np.array([-1, 0, 5, 0])})
+    with pytest.raises(ValueError):
+        K.igm_run(**{**args, "chain": "not a chain"})
+
+
+def test_start_defect():
+    lower, upper = np.array([-1.0, -np.inf, 0.0]), np.array([1.0, np.inf, 0.5])
+    q = np.array([1.0 + 5e-7, 7.0, -5e-7])
+    assert K.start_defect(q, lower, upper, 1e-6) == (0, -1)
+    np.testing.assert_array_equal(q, np.clip([1.0 + 5e-7, 7.0, -5e-7], lower, upper))
+    assert K.start_defect(np.array([0.0, np.nan, 9.0]), lower, upper, 1e-6) == (1, 1)
+    assert K.start_defect(np.array([0.0, 0.0, 9.0]), lower, upper, 1e-6) == (2, 2)
+    with pytest.raises(ValueError):
+        K.start_defect(np.zeros(2), lower, upper, 1e-6)
+    with pytest.raises(TypeError):
+        K.start_defect(np.zeros(3, dtype=np.float32), lower, upper, 1e-6)
+
+
+def test_array_watch():
+    a, b = np.arange(5.0), np.zeros((2, 3), dtype=np.int64)
+    watch = K.ArrayWatch([a, b, np.zeros(0)])
+    assert watch.unchanged()
+    b[1, 2] = 4
+    assert not watch.unchanged()
+    b[1, 2] = 0
+    assert watch.unchanged()
+    a[0] = -0.0  # another bit pattern: a change
+    assert not watch.unchanged()
+    with pytest.raises(ValueError):
+        K.ArrayWatch([np.zeros((3, 3))[:, 0]])  # not contiguous

@@ -1,9 +1,13 @@
 // The kinematic chain's tuple of NumPy arrays (qpik.model.KinematicChain.arrays) unpacked
 // into a qpik::model::Chain, every array's dtype, shape and index range checked (a bad
-// tuple raises ValueError instead of reading out of bounds).
+// tuple raises ValueError instead of reading out of bounds); and ChainData, the same arrays
+// copied once into a small owning struct (bound as qpik._engine.model.Chain), which the
+// kernels take without unpacking eleven arrays per call.
 #pragma once
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "bind.hpp"
 #include "model/chain.hpp"
@@ -85,6 +89,77 @@ inline ChainArgs unpack_chain(nb::handle obj, i64 nq, i64 nv) {
     c.frame_pos = a.frame_pos.data();
     c.frame_rot = a.frame_rot.data();
     return a;
+}
+
+// A chain's arrays, checked and copied once (qpik._engine.model.Chain). need_q / need_v:
+// the smallest q / dof count its joint addresses fit in (checked against each call's
+// arrays).
+struct ChainData {
+    i64 nbody = 0, njnt = 0, need_q = 0, need_v = 0;
+    std::vector<double> body_pos, body_rot, jnt_axis, jnt_pos, jnt_qpos0, frame_pos, frame_rot;
+    std::vector<i64> jnt_start, jnt_type, jnt_qadr, jnt_dadr;
+    model::Chain chain;  // views on the vectors above
+
+    template <class T>
+    static std::vector<T> copy(const T* p, size_t n) {
+        return std::vector<T>(p, p + n);
+    }
+
+    ChainData(nb::handle tuple, i64 nq, i64 nv) {
+        require(nq >= 0 && nv >= 0, "nq and nv must be >= 0");
+        ChainArgs a = unpack_chain(tuple, nq, nv);
+        const model::Chain& c = a.chain;
+        nbody = c.nbody;
+        njnt = c.njnt;
+        size_t nb_ = static_cast<size_t>(nbody), nj = static_cast<size_t>(njnt);
+        body_pos = copy(c.body_pos, 3 * nb_);
+        body_rot = copy(c.body_rot, 9 * nb_);
+        jnt_start = copy(c.jnt_start, nb_ + 1);
+        jnt_type = copy(c.jnt_type, nj);
+        jnt_axis = copy(c.jnt_axis, 3 * nj);
+        jnt_pos = copy(c.jnt_pos, 3 * nj);
+        jnt_qadr = copy(c.jnt_qadr, nj);
+        jnt_dadr = copy(c.jnt_dadr, nj);
+        jnt_qpos0 = copy(c.jnt_qpos0, nj);
+        frame_pos = copy(c.frame_pos, 3);
+        frame_rot = copy(c.frame_rot, 9);
+        for (size_t j = 0; j < nj; ++j) {
+            need_q = std::max(need_q, jnt_qadr[j] + 1);
+            need_v = std::max(need_v, jnt_dadr[j] + 1);
+        }
+        model::Chain& v = chain;
+        v.nbody = nbody;
+        v.njnt = njnt;
+        v.body_pos = body_pos.data();
+        v.body_rot = body_rot.data();
+        v.jnt_start = jnt_start.data();
+        v.jnt_type = jnt_type.data();
+        v.jnt_axis = jnt_axis.data();
+        v.jnt_pos = jnt_pos.data();
+        v.jnt_qadr = jnt_qadr.data();
+        v.jnt_dadr = jnt_dadr.data();
+        v.jnt_qpos0 = jnt_qpos0.data();
+        v.frame_pos = frame_pos.data();
+        v.frame_rot = frame_rot.data();
+    }
+    ChainData(const ChainData&) = delete;
+    ChainData& operator=(const ChainData&) = delete;
+
+    // The chain for a call with nq coordinates and nv dofs (nv < 0: no dof array).
+    const model::Chain& fit(i64 nq, i64 nv) const {
+        require(need_q <= nq, "q is too short for the chain's joint coordinates");
+        if (nv >= 0) require(need_v <= nv, "the dof arrays are too short for the chain's dofs");
+        return chain;
+    }
+};
+
+// The chain of a kernel's `chain` argument: a ChainData (no copy, no unpacking) or the
+// tuple of arrays (unpacked and checked into `holder`).
+inline const model::Chain& chain_arg(nb::handle obj, i64 nq, i64 nv, ChainArgs& holder) {
+    ChainData* data = nullptr;
+    if (nb::try_cast<ChainData*>(obj, data, false) && data != nullptr) return data->fit(nq, nv);
+    holder = unpack_chain(obj, nq, nv);
+    return holder.chain;
 }
 
 inline bool truthy(nb::handle h) {

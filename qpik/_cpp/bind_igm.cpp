@@ -1,6 +1,7 @@
 // Bindings of the igm layer (qpik._engine.igm): the full-IK loop, its box QP, the
 // SplitMix64 stream and the smallest singular value of a level.
 #include <algorithm>
+#include <memory>
 #include <string>
 
 #include "bind.hpp"
@@ -137,10 +138,11 @@ void bind_igm(nb::module_& m) {
                     "path must be (2, max_iters + 1, nq)");
             require(hist.shape(0) == 2 && hist.shape(1) == path.shape(1) && hist.shape(2) == 3,
                     "hist must be (2, max_iters + 1, 3)");
-            ChainArgs a = unpack_chain(chain, nq, nq);
+            ChainArgs holder;
+            const model::Chain& c = chain_arg(chain, nq, nq, holder);
             igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
             igm::Record rec{path.data(), hist.data(), static_cast<i64>(path.shape(1)), nq};
-            igm::igm_solve(a.chain, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
+            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
                            int_options.data(), rng_state.data()[0], deadline, rec, info.data());
         },
         "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q0"_a, "bounds"_a, "reach"_a, "options"_a,
@@ -148,4 +150,42 @@ void bind_igm(nb::module_& m) {
         "info"_a.noconvert(),
         "The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve); writes path, "
         "hist and info and advances rng_state in place.");
+
+    m.def(
+        "igm_run",
+        [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q0, In2 bounds, In1 reach,
+           In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline) {
+            i64 nq = static_cast<i64>(q0.shape(0));
+            require(target_p.shape(0) == 3, "target_p must be (3,)");
+            require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
+            require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
+            require(reach.shape(0) == 4, "reach must be (4,)");
+            require(options.shape(0) >= 11, "options must hold 11 floats");
+            require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
+            require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+            i64 max_iters = int_options.data()[0];
+            require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
+            ChainArgs holder;
+            const model::Chain& c = chain_arg(chain, nq, nq, holder);
+            igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
+            i64 n = max_iters + 1;
+            // Scratch left uninitialised, like np.empty (every entry read is written first).
+            std::unique_ptr<double[]> path(new double[static_cast<size_t>(2 * n * nq)]);
+            std::unique_ptr<double[]> hist(new double[static_cast<size_t>(2 * n * 3)]);
+            igm::Record rec{path.get(), hist.get(), n, nq};
+            i64 info[6];
+            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
+                           int_options.data(), rng_state.data()[0], deadline, rec, info);
+            i64 slot = info[3], length = info[4];
+            std::vector<double> out_path(rec.path_at(slot, 0), rec.path_at(slot, 0) + length * nq);
+            std::vector<double> out_hist(rec.hist_at(slot, 0), rec.hist_at(slot, 0) + length * 3);
+            size_t len = static_cast<size_t>(length), nqs = static_cast<size_t>(nq);
+            return nb::make_tuple(info[0], info[1], info[2], to_numpy(std::move(out_path), {len, nqs}),
+                                  to_numpy(std::move(out_hist), {len, size_t(3)}));
+        },
+        "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q0"_a, "bounds"_a, "reach"_a, "options"_a,
+        "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a,
+        "igm_solve with its scratch allocated here: returns (reason code, iterations, restarts used, "
+        "path (k, nq), hist (k, 3)) of the returned attempt (its iterates, start first; per iterate "
+        "position error [m], orientation error [rad] and the residual of the step that left it).");
 }

@@ -4,14 +4,61 @@
 #include "model/chain.hpp"
 #include "model/so3.hpp"
 
+#include <cmath>
+#include <cstring>
+#include <vector>
+
 namespace nb = nanobind;
 using namespace nb::literals;
 using namespace qpik;
 using namespace qpik::bind;
 
+namespace {
+
+// The bytes of some arrays at construction, against which unchanged() compares them.
+struct ArrayWatch {
+    std::vector<const unsigned char*> data;
+    std::vector<std::vector<unsigned char>> copies;
+
+    explicit ArrayWatch(nb::list arrays) {
+        using Any = nb::ndarray<nb::numpy, nb::c_contig, nb::device::cpu>;
+        for (nb::handle h : arrays) {
+            Any a;
+            if (!nb::try_cast(h, a, false)) throw BadArgument("arrays must be C-contiguous NumPy arrays");
+            const auto* p = static_cast<const unsigned char*>(a.data());
+            size_t n = a.nbytes();
+            data.push_back(p);
+            copies.emplace_back(p, p + n);
+        }
+    }
+    bool unchanged() const {
+        for (size_t i = 0; i < data.size(); ++i) {
+            size_t n = copies[i].size();
+            if (n != 0 && std::memcmp(data[i], copies[i].data(), n) != 0) return false;
+        }
+        return true;
+    }
+};
+
+}  // namespace
+
 void bind_model(nb::module_& m) {
     m.attr("HINGE") = model::HINGE;
     m.attr("SLIDE") = model::SLIDE;
+
+    nb::class_<ChainData>(m, "Chain",
+                          "A kinematic chain's arrays (the tuple of qpik.model.KinematicChain.arrays), "
+                          "checked and copied once; every kernel that takes `chain` takes it (or the tuple).")
+        .def(nb::init<nb::handle, i64, i64>(), "arrays"_a, "nq"_a, "nv"_a,
+             "Check and copy the chain tuple for a model of nq coordinates and nv dofs.")
+        .def_ro("nbody", &ChainData::nbody, "Bodies on the chain.")
+        .def_ro("njnt", &ChainData::njnt, "Joints on the chain.");
+
+    nb::class_<ArrayWatch>(m, "ArrayWatch",
+                           "A copy of some arrays' bytes, to tell whether they changed in place. The "
+                           "arrays' memory must outlive every call of unchanged() (it holds no reference).")
+        .def(nb::init<nb::list>(), "arrays"_a, "Remember the bytes of C-contiguous arrays (any dtype).")
+        .def("unchanged", &ArrayWatch::unchanged, "Whether every array still holds the bytes remembered.");
 
     m.def(
         "fk_jac",
@@ -20,8 +67,10 @@ void bind_model(nb::module_& m) {
             require(position.shape(0) == 3, "position must be (3,)");
             require(rotation.shape(0) == 3 && rotation.shape(1) == 3, "rotation must be (3, 3)");
             require(jac.shape(0) == 6, "jac must be (6, nv)");
-            ChainArgs a = unpack_chain(chain, static_cast<i64>(q.shape(0)), want ? static_cast<i64>(jac.shape(1)) : -1);
-            model::fk_jac(a.chain, q.data(), position.data(), rotation.data(), mat(jac), want);
+            ChainArgs holder;
+            const model::Chain& c =
+                chain_arg(chain, static_cast<i64>(q.shape(0)), want ? static_cast<i64>(jac.shape(1)) : -1, holder);
+            model::fk_jac(c, q.data(), position.data(), rotation.data(), mat(jac), want);
         },
         "chain"_a, "q"_a, "position"_a.noconvert(), "rotation"_a.noconvert(), "jac"_a.noconvert(),
         "want_jac"_a,
@@ -29,11 +78,35 @@ void bind_model(nb::module_& m) {
         "world-aligned Jacobian jac (6, nv) [v; omega], written in place.");
 
     m.def(
+        "start_defect",
+        [](Out1 q, In1 lower, In1 upper, double tol) {
+            size_t n = q.shape(0);
+            require(lower.shape(0) == n && upper.shape(0) == n, "lower and upper must be (n,) like q");
+            double* x = q.data();
+            const double* lo = lower.data();
+            const double* hi = upper.data();
+            for (size_t i = 0; i < n; ++i)
+                if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
+            for (size_t i = 0; i < n; ++i)
+                if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
+            for (size_t i = 0; i < n; ++i) {  // np.clip(q, lower, upper): minimum(maximum(q, lo), hi)
+                if (x[i] < lo[i]) x[i] = lo[i];
+                if (x[i] > hi[i]) x[i] = hi[i];
+            }
+            return nb::make_tuple(0, static_cast<i64>(-1));
+        },
+        "q"_a.noconvert(), "lower"_a, "upper"_a, "tol"_a,
+        "Check a start q against the joint limits: (1, i) for the first entry not finite, (2, i) "
+        "for the first outside [lower - tol, upper + tol], else (0, -1) with q clipped into "
+        "[lower, upper] in place.");
+
+    m.def(
         "reach_radius",
         [](nb::handle chain, In1 q, Out1 center) {
             require(center.shape(0) == 3, "center must be (3,)");
-            ChainArgs a = unpack_chain(chain, static_cast<i64>(q.shape(0)), -1);
-            return model::reach_radius(a.chain, q.data(), center.data());
+            ChainArgs holder;
+            const model::Chain& c = chain_arg(chain, static_cast<i64>(q.shape(0)), -1, holder);
+            return model::reach_radius(c, q.data(), center.data());
         },
         "chain"_a, "q"_a, "center"_a.noconvert(),
         "Length of the path through the feet of the common perpendiculars of consecutive hinge "

@@ -68,15 +68,29 @@ REASON_NAMES = (
 )
 
 # ------------------------------------------------------------------ kinematics
+#: ``Chain(arrays, nq, nv)``: the tuple of :class:`qpik.model.KinematicChain` (``arrays``)
+#: checked and copied once into a small compiled struct; every kernel's ``chain`` argument
+#: takes it (no per-call unpacking of eleven arrays) or the tuple itself.
+Chain = _model.Chain
+#: ``ArrayWatch(arrays)``: a copy of the bytes of C-contiguous arrays; ``unchanged()`` tells
+#: whether they still hold them (one ``memcmp`` per array). It keeps no reference: the
+#: arrays' memory must outlive its calls (the one-shot cache of :func:`qpik.solve` holds
+#: views of a live model's arrays).
+ArrayWatch = _model.ArrayWatch
 #: ``fk_jac(chain, q, position, rotation, jac, want_jac)``: pose of the chain's frame at
 #: ``q`` (world frame: ``position`` (3,) [m], ``rotation`` (3, 3)) and, if ``want_jac``, its
 #: world-aligned Jacobian ``jac`` (6, nv) ``[v; omega]`` (columns of dofs off the chain are
-#: zero), written in place. ``chain``: the tuple of :class:`qpik.model.KinematicChain`.
+#: zero), written in place. ``chain``: a :class:`Chain` or the tuple of
+#: :class:`qpik.model.KinematicChain`.
 fk_jac = _model.fk_jac
 #: ``reach_radius(chain, q, center) -> float``: length of the path ``s_1 -> r_2 -> s_2 ->
 #: ... -> s_m -> frame`` through the feet of the common perpendiculars of consecutive hinge
 #: axes at ``q``; ``center`` receives ``s_1``. Without a hinge, the frame position and 0.
 reach_radius = _model.reach_radius
+#: ``start_defect(q, lower, upper, tol) -> (code, i)``: ``(1, i)`` for the first entry of
+#: ``q`` that is not finite, ``(2, i)`` for the first outside ``[lower - tol, upper + tol]``,
+#: else ``(0, -1)`` with ``q`` clipped into ``[lower, upper]`` in place (``np.clip``).
+start_defect = _model.start_defect
 #: ``quat2mat(quat) -> (k, 3, 3)``: rotation matrices of unit quaternions (k, 4) ``(w, x,
 #: y, z)``.
 quat2mat = _model.quat2mat
@@ -135,7 +149,8 @@ uniform = _igm.uniform
 #: rng_state, deadline, path, hist, info)``: the whole IGM solve of one frame target (see
 #: :func:`qpik.solve` for the rule).
 #:
-#: * ``chain``: the tuple of chain arrays (:class:`qpik.model.KinematicChain`).
+#: * ``chain``: a :class:`Chain`, or the tuple of chain arrays
+#:   (:class:`qpik.model.KinematicChain`).
 #: * ``target_p`` (3,), ``target_R`` (3, 3): the target in the world frame; ``has_rot``:
 #:   False for a position-only target.
 #: * ``q0`` (nq,): start, within the limits.
@@ -157,6 +172,11 @@ uniform = _igm.uniform
 #:   returned attempt (its last iterate is the answer), its number of iterates, QP solves
 #:   that hit the iteration cap.
 igm_solve = _igm.igm_solve
+#: ``igm_run(chain, target_p, target_R, has_rot, q0, bounds, reach, options, int_options,
+#: rng_state, deadline) -> (code, iterations, restarts_used, path, hist)``: :func:`igm_solve`
+#: with its scratch allocated inside; ``path`` (k, nq) and ``hist`` (k, 3) are the returned
+#: attempt's rows (new arrays), the other results those of ``info``.
+igm_run = _igm.igm_run
 
 assert (HINGE, SLIDE) == (_model.HINGE, _model.SLIDE)
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (

@@ -27,6 +27,8 @@ from .frames import FrameType, frame_id, frame_name
 __all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
+#: The Jacobian argument of a pose-only fk_jac (never written: want_jac is False).
+_NO_JAC = np.empty((6, 0))
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
 
 
@@ -88,7 +90,10 @@ class ReachBound:
 class KinematicChain:
     """Arrays describing the chain from the world to one frame (see the module docstring).
 
-    Build with :meth:`from_model`. ``arrays`` is the tuple the kernels take.
+    Build with :meth:`from_model`. ``arrays`` is the tuple the kernels take; ``compiled``
+    the same arrays checked and copied once into the compiled engine's chain object
+    (:class:`qpik.model._kernels.Chain`), which the kernels take without unpacking the
+    tuple at each call (what :meth:`pose`, :meth:`jacobian` and the solves pass).
     """
 
     frame: str
@@ -98,6 +103,17 @@ class KinematicChain:
     arrays: tuple = field(repr=False)
     #: dof addresses of the joints on the chain (the others never move the frame).
     dofs: np.ndarray = field(repr=False)
+    #: ``arrays`` as the compiled engine's chain object (built from them when not given).
+    compiled: _kernels.Chain = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.compiled is None:
+            object.__setattr__(self, "compiled", _kernels.Chain(self.arrays, self.nq, self.nv))
+
+    def __reduce__(self) -> tuple:
+        # Pickled (and deep-copied) without the compiled object, rebuilt from the arrays.
+        fields = (self.frame, self.frame_type, self.nq, self.nv, self.arrays, self.dofs)
+        return (type(self), fields)
 
     @classmethod
     def from_model(
@@ -163,7 +179,7 @@ class KinematicChain:
     def pose(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pose of the frame at ``q`` in the world frame: position (3,) [m], rotation (3, 3)."""
         position, rotation = np.empty(3), np.empty((3, 3))
-        _kernels.fk_jac(self.arrays, self._q(q), position, rotation, np.empty((6, self.nv)), False)
+        _kernels.fk_jac(self.compiled, self._q(q), position, rotation, _NO_JAC, False)
         return position, rotation
 
     def jacobian(self, q: npt.ArrayLike) -> np.ndarray:
@@ -171,7 +187,7 @@ class KinematicChain:
         :meth:`qpik.Configuration.frame_jacobian`: ``v`` [m/s] of the frame origin and
         ``omega`` [rad/s], both in the world frame)."""
         jac = np.empty((6, self.nv))
-        _kernels.fk_jac(self.arrays, self._q(q), np.empty(3), np.empty((3, 3)), jac, True)
+        _kernels.fk_jac(self.compiled, self._q(q), np.empty(3), np.empty((3, 3)), jac, True)
         return jac
 
     # ----------------------------------------------------------------------- reach
@@ -199,7 +215,7 @@ class KinematicChain:
                     return ReachBound(np.zeros(3), float("inf"))
                 travel += 0.5 * (hi - lo)
         center = np.empty(3)
-        radius = _kernels.reach_radius(self.arrays, q_ref, center)
+        radius = _kernels.reach_radius(self.compiled, q_ref, center)
         return ReachBound(center, float(radius + travel))
 
 

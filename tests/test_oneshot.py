@@ -1,0 +1,125 @@
+"""qpik.solve(model, ...) keeps the robot's preparation per model (qpik.converge.PREPARED):
+the same bits as a fresh IKSession, never a stale answer for a model edited in place, no
+model kept alive, and qpik.clear_caches() empties it."""
+
+from __future__ import annotations
+
+import gc
+import weakref
+
+import numpy as np
+import pytest
+
+import qpik
+from qpik.converge import PREPARED, PreparedRobots
+
+
+def _targets(model, n, seed=0, frame="ee"):
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        configuration.update(configuration.random_q(rng))
+        out.append({frame: configuration.frame_pose(frame)})
+    return out
+
+
+def _same(a, b):
+    assert a.q.tobytes() == b.q.tobytes()
+    assert (a.reason, a.iterations, a.restarts_used) == (b.reason, b.iterations, b.restarts_used)
+    assert a.path.tobytes() == b.path.tobytes()
+    assert list(a.error_history) == list(b.error_history)
+    assert a.frame_errors == b.frame_errors and a.engine == b.engine
+
+
+@pytest.mark.parametrize("robot", ["ur5e", "panda"])
+def test_one_shot_answers_are_a_fresh_sessions_bitwise(robot):
+    qpik.clear_caches()
+    model = qpik.load_robot(robot)
+    for i, target in enumerate(_targets(model, 12)):
+        kwargs = dict(seed=i, tol_position=1e-5, tol_orientation=1e-5)
+        if i % 3 == 1:
+            kwargs["q0"] = qpik.IKSession(model).mid_q() + 0.01
+        if i % 4 == 2:
+            kwargs["options"] = "precise"
+        first = qpik.solve(model, target, **kwargs)  # prepares (or reuses) the model
+        again = qpik.solve(model, target, **kwargs)  # from the cache
+        fresh = qpik.IKSession(model).solve(target, **kwargs)
+        _same(first, fresh)
+        _same(again, fresh)
+    assert len(PREPARED) >= 1
+    configuration = qpik.Configuration(model, qpik.IKSession(model).mid_q())
+    target = _targets(model, 1, seed=5)[0]
+    _same(
+        qpik.solve(configuration, target, seed=3),
+        qpik.IKSession(configuration).solve(target, seed=3),
+    )
+
+
+def test_a_model_edited_in_place_is_prepared_anew():
+    qpik.clear_caches()
+    model = qpik.load_robot("ur5e")
+    target = _targets(model, 1, seed=2)[0]
+    before = qpik.solve(model, target, seed=1)
+    prepared = PREPARED.get(model)
+    # narrow a joint's range: the limits, the mid-range start and the reach bound change
+    model.jnt_range[1] = [-0.5, 0.3]
+    after = qpik.solve(model, target, seed=1)
+    assert PREPARED.get(model) is not prepared
+    _same(after, qpik.IKSession(model).solve(target, seed=1))
+    assert after.q.tobytes() != before.q.tobytes()
+    # a body moved in place: the chain changes
+    model.body_pos[2, 2] += 0.05
+    moved = qpik.solve(model, target, seed=1)
+    _same(moved, qpik.IKSession(model).solve(target, seed=1))
+    # a site moved in place
+    model.site_pos[0] += 0.01
+    _same(qpik.solve(model, target, seed=1), qpik.IKSession(model).solve(target, seed=1))
+
+
+def test_the_cache_keeps_no_model_alive_and_clears():
+    qpik.clear_caches()
+    model = qpik.load_robot("planar_2r")
+    qpik.solve(model, {"ee": [1.0, 0.5, 0.0]}, seed=0)
+    assert len(PREPARED) == 1
+    ref = weakref.ref(model)
+    del model
+    gc.collect()
+    assert ref() is None and len(PREPARED) == 0
+    model = qpik.load_robot("planar_2r")
+    qpik.solve(model, {"ee": [1.0, 0.5, 0.0]}, seed=0)
+    assert len(PREPARED) == 1
+    qpik.clear_caches()
+    assert len(PREPARED) == 0
+
+
+def test_the_cache_is_bounded_and_tells_models_apart():
+    cache = PreparedRobots(max_models=2)
+    models = [qpik.load_robot("planar_2r") for _ in range(3)]
+    models[1].jnt_range[0] = [-0.1, 0.1]
+    prepared = [cache.get(m) for m in models]
+    assert len(cache) == 2
+    assert prepared[0] is not prepared[1]  # equal names, different arrays: never shared
+    assert not np.array_equal(prepared[0].lower, prepared[1].lower)
+    assert cache.get(models[2]) is prepared[2]
+    assert cache.get(models[0]) is not prepared[0]  # evicted first, prepared again
+
+
+def test_chains_and_sessions_copy_and_pickle():
+    """The compiled chain object is rebuilt from the arrays when a chain (or a session
+    holding chains) is pickled or deep-copied."""
+    import copy
+    import pickle
+
+    from qpik.model import KinematicChain
+
+    model = qpik.load_robot("ur5e")
+    chain = KinematicChain.from_model(model, "ee")
+    q = np.linspace(-1.0, 1.0, model.nq)
+    for other in (pickle.loads(pickle.dumps(chain)), copy.deepcopy(chain)):
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(chain.pose(q), other.pose(q)))
+        assert chain.jacobian(q).tobytes() == other.jacobian(q).tobytes()
+    session = qpik.IKSession(model)
+    target = {"ee": [0.3, 0.2, 0.4]}
+    first = session.solve(target, seed=1)
+    _same(copy.deepcopy(session).solve(target, seed=1), first)
