@@ -150,10 +150,12 @@ TOOL_LINKS: tuple[str, ...] = (
     "panda_hand",
 )
 
-#: Words that mark a gripper's joint (in the joint's or its body's name, any case): the
+#: Words that mark a gripper's joint (:func:`gripper_joints`; any case): the
 #: bodies such a joint moves (fingers) are never a tool frame.
 GRIPPER_WORDS: tuple[str, ...] = (
     "finger",
+    "fngr",
+    "driver",
     "gripper",
     "knuckle",
     "thumb",
@@ -354,7 +356,7 @@ def erd_path(name: str) -> Path:
 def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
     spec = robot_spec(path, floating_base=floating_base, srdf=srdf)
     recipe: dict[str, Any] = {
-        "path": str(path.resolve()),
+        "path": os.path.abspath(path),  # as given: symlinks kept, as MuJoCo read it
         "floating_base": bool(floating_base),
         "srdf": srdf if srdf in (None, False, True) else str(Path(os.fspath(srdf)).resolve()),
         "obstacles": [],
@@ -378,20 +380,25 @@ class ToolFrame:
 
 
 def gripper_joints(model: mujoco.MjModel) -> list[int]:
-    """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name,
-    or whose body's name, holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``,
-    ``gripper_left_joint``, a joint of ``left_outer_knuckle``)."""
+    """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name
+    holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``, ``gripper_left_joint``,
+    ``left_driver_joint``), or whose body's name does when no joint lies below that body (a
+    finger link's unnamed joint; a wrist joint on a ``gripper_link`` with fingers below it
+    is the arm's)."""
+    below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
+    for b in range(model.nbody - 1, 0, -1):  # children come after parents
+        if below[b] or model.body_jntnum[b]:
+            below[model.body_parentid[b]] = True
     found = []
     for j in range(model.njnt):
         if int(model.jnt_type[j]) not in _SCALAR_JOINTS:
             continue
         body = int(model.jnt_bodyid[j])
-        text = (
-            (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "")
-            + " "
-            + (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "")
-        ).lower()
-        if any(word in text for word in GRIPPER_WORDS):
+        name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower()
+        body_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "").lower()
+        if any(word in name for word in GRIPPER_WORDS) or (
+            not below[body] and any(word in body_name for word in GRIPPER_WORDS)
+        ):
             found.append(j)
     return found
 
