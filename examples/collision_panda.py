@@ -35,13 +35,11 @@ def reach(which: str, steps: int = 400, dt: float = 0.01) -> tuple[float, float]
     goal = start + np.array([0.0, 0.45, 0.0])
     model = add_obstacle(base, "sphere", 0.06, 0.5 * (start + goal), name="ball")
     if which == "qpik":
-        # The bundled Panda's geoms are visual only (contype 0): check the pairs anyway.
-        avoid = CollisionAvoidanceLimit(
+        avoid = CollisionAvoidanceLimit(  # the Panda's collision capsules and the ball
             model,
             [(ARM, ["ball"])],
             minimum_distance_from_collisions=D_MIN,
             collision_detection_distance=0.1,
-            respect_contype=False,
         )
     else:
         model.geom_contype[:] = model.geom_conaffinity[:] = 1

@@ -17,10 +17,20 @@ Every model ``load_robot`` builds also carries how it was built (a custom text e
 named :data:`SOURCE_TEXT`: the file, ``floating_base``, ``srdf``, as JSON), so that
 :func:`qpik.scene.add_obstacle` can rebuild it, bit for bit, with more geoms.
 
-Tool frame. :func:`tool_frame` names the frame a command uses when none is given: the site
-``ee`` if the model has one; else the first known tool link (:data:`TOOL_LINKS`) found; else
-the last body of the longest chain (most hinge/slide joints from the world; ties: the
-deepest body, then the lowest id).
+Tool frame. :func:`tool_frame` names the frame a command uses when none is given, trying in
+order: the site ``ee`` (qpik's bundled robots); a site, then a body, named as a tool centre
+point (:data:`TCP_NAMES`: ``pinch_site``, ``tcp_site``, ``link_tcp``, ``end_effector``,
+``*_hand_tcp``, ...); a site, then a body, named as a flange (:data:`FLANGE_NAMES`:
+``attachment_site``, ``tool0``, ``flange``, ...); a site, then a body, named as a hand
+(:data:`HAND_NAMES`: ``left_palm``, ``right_wrist``: a humanoid's); a known tool link
+(:data:`TOOL_LINKS`); else the end of the longest chain. A name matches exactly or as the
+end of a longer name after ``/`` or ``_`` (``left/gripper``, ``panda_hand_tcp``); among
+several matches the one on the longest chain wins (ties: the lowest id). No rule ever
+picks a frame moved by a gripper joint (:func:`gripper_joints`: a finger). The longest
+chain's end is the first body that carries the most arm joints (hinge/slide joints that are
+not a gripper's; ties: the lowest id), followed down through joint-less links while they
+have a single child (a flange, a force sensor, up to a gripper's base where the fingers
+branch).
 """
 
 from __future__ import annotations
@@ -41,13 +51,18 @@ from .robot_files import ROOT_JOINT, find_srdf, robot_spec  # noqa: F401 (re-exp
 
 __all__ = [
     "ERD_ROBOTS",
+    "FLANGE_NAMES",
+    "GRIPPER_WORDS",
+    "HAND_NAMES",
     "SOURCE_TEXT",
+    "TCP_NAMES",
     "TOOL_LINKS",
     "ToolFrame",
     "erd_path",
     "erd_robots",
     "erd_robots_folder",
     "find_srdf",
+    "gripper_joints",
     "list_robots",
     "load_robot",
     "locate_robot",
@@ -83,7 +98,46 @@ ERD_ROBOTS: dict[str, str] = {
     "anymal_c": "anymal_c_simple_description/urdf/anymal.urdf",
 }
 
-#: Link names known to be a robot's tool frame, in the order :func:`tool_frame` tries them.
+#: Names of a tool centre point (a gripper's pinch point, a TCP), as Menagerie (sites) and
+#: URDF conventions (links) spell them, in the order :func:`tool_frame` tries them.
+TCP_NAMES: tuple[str, ...] = (
+    "tcp_site",
+    "pinch_site",
+    "pinch",
+    "grasp_site",
+    "gripper_site",
+    "eef_site",
+    "ee_site",
+    "end_effector_site",
+    "hand_tcp",
+    "link_tcp",
+    "tcp",
+    "tcp_link",
+    "end_effector",
+    "end_effector_link",
+    "eef",
+    "ee",
+    "gripper",
+)
+
+#: Names of a flange (where a tool is mounted), tried after :data:`TCP_NAMES`.
+FLANGE_NAMES: tuple[str, ...] = (
+    "attachment_site",
+    "attachment",
+    "flange",
+    "tool0",
+    "tool_link",
+    "tool_frame",
+    "ee_link",
+    "link_eef",
+)
+
+#: Names of a hand's frame (humanoids: ``left_palm``, ``right_wrist``), tried after
+#: :data:`FLANGE_NAMES`.
+HAND_NAMES: tuple[str, ...] = ("palm", "hand", "wrist")
+
+#: Link names known to be a robot's tool frame (robots of example-robot-data whose names
+#: follow no convention), tried after the TCP and flange names.
 TOOL_LINKS: tuple[str, ...] = (
     "tool0",
     "tcp",
@@ -95,6 +149,20 @@ TOOL_LINKS: tuple[str, ...] = (
     "j2s6s200_end_effector",
     "gripperStator",
     "panda_hand",
+)
+
+#: Words that mark a gripper's joint (:func:`gripper_joints`; any case): the
+#: bodies such a joint moves (fingers) are never a tool frame.
+GRIPPER_WORDS: tuple[str, ...] = (
+    "finger",
+    "fngr",
+    "driver",
+    "gripper",
+    "knuckle",
+    "thumb",
+    "jaw",
+    "claw",
+    "pad",
 )
 
 
@@ -324,7 +392,7 @@ def erd_path(name: str) -> Path:
 def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
     spec = robot_spec(path, floating_base=floating_base, srdf=srdf)
     recipe: dict[str, Any] = {
-        "path": str(path.resolve()),
+        "path": os.path.abspath(path),  # as given: symlinks kept, as MuJoCo read it
         "floating_base": bool(floating_base),
         "srdf": srdf if srdf in (None, False, True) else str(Path(os.fspath(srdf)).resolve()),
         "obstacles": [],
@@ -349,26 +417,103 @@ class ToolFrame:
     reason: str
 
 
-def tool_frame(model: mujoco.MjModel) -> ToolFrame:
-    """The robot's tool frame (rule in the module docstring)."""
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
-        return ToolFrame("ee", "site", "the site named ee")
-    for name in TOOL_LINKS:
-        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) >= 0:
-            return ToolFrame(name, "body", "a known tool link (no site 'ee')")
-    if model.nbody < 2:
-        raise RobotFileError("<model>", "the model has no body to use as a tool frame")
-    scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+def gripper_joints(model: mujoco.MjModel) -> list[int]:
+    """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name
+    holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``, ``gripper_left_joint``,
+    ``left_driver_joint``), or whose body's name does when no joint lies below that body (a
+    finger link's unnamed joint; a wrist joint on a ``gripper_link`` with fingers below it
+    is the arm's)."""
+    below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
+    for b in range(model.nbody - 1, 0, -1):  # children come after parents
+        if below[b] or model.body_jntnum[b]:
+            below[model.body_parentid[b]] = True
+    found = []
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) not in _SCALAR_JOINTS:
+            continue
+        body = int(model.jnt_bodyid[j])
+        name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower()
+        body_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "").lower()
+        if any(word in name for word in GRIPPER_WORDS) or (
+            not below[body] and any(word in body_name for word in GRIPPER_WORDS)
+        ):
+            found.append(j)
+    return found
+
+
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per body: arm joints from the world (hinge/slide, not a gripper's), depth, and
+    whether a gripper joint moves it (on it or on an ancestor)."""
+    grippers = set(gripper_joints(model))
     joints = np.zeros(model.nbody, dtype=int)
     depth = np.zeros(model.nbody, dtype=int)
+    moved = np.zeros(model.nbody, dtype=bool)
     for b in range(1, model.nbody):  # parents come before children
         parent = model.body_parentid[b]
-        own = sum(
-            int(model.jnt_type[j]) in scalar
-            for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+        own = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+        joints[b] = joints[parent] + sum(
+            int(model.jnt_type[j]) in _SCALAR_JOINTS and j not in grippers for j in own
         )
-        joints[b] = joints[parent] + own
         depth[b] = depth[parent] + 1
-    best = max(range(1, model.nbody), key=lambda b: (joints[b], depth[b], -b))
-    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, best) or str(best)
-    return ToolFrame(name, "body", "the last link of the longest chain (no site 'ee')")
+        moved[b] = moved[parent] or any(j in grippers for j in own)
+    return joints, depth, moved
+
+
+def _name_matches(name: str, known: str) -> bool:
+    return name == known or name.endswith("/" + known) or name.endswith("_" + known)
+
+
+def tool_frame(model: mujoco.MjModel) -> ToolFrame:
+    """The robot's tool frame (the rule is in the module docstring): a site or a body, never
+    one a gripper joint moves. Raises :class:`RobotFileError` for a model with no body."""
+    if model.nbody < 2:
+        raise RobotFileError("<model>", "the model has no body to use as a tool frame")
+    joints, depth, moved = _chains(model)
+    site_body = model.site_bodyid
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
+        return ToolFrame("ee", "site", "the site named ee")
+    sites = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "" for s in range(model.nsite)
+    ]
+    bodies = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
+    ]
+
+    def best(names: list[str], owner, known: str) -> int | None:
+        hits = [i for i, n in enumerate(names) if n and _name_matches(n, known)]
+        hits = [i for i in hits if not moved[owner(i)]]
+        if not hits:
+            return None
+        return max(hits, key=lambda i: (joints[owner(i)], -i))
+
+    for names, what in (
+        (TCP_NAMES, "a tool centre point's name"),
+        (FLANGE_NAMES, "a flange's name"),
+        (HAND_NAMES, "a hand's name"),
+    ):
+        for known in names:
+            site = best(sites, lambda s: int(site_body[s]), known)
+            if site is not None:
+                return ToolFrame(sites[site], "site", f"the site with {what} ({known!r})")
+            body = best(bodies, lambda b: b, known)
+            if body is not None and body > 0:
+                return ToolFrame(bodies[body], "body", f"the body with {what} ({known!r})")
+    for name in TOOL_LINKS:
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if b > 0 and not moved[b]:
+            return ToolFrame(name, "body", "a known tool link (no site 'ee')")
+    candidates = [b for b in range(1, model.nbody) if not moved[b]] or list(range(1, model.nbody))
+    end = max(candidates, key=lambda b: (joints[b], -depth[b], -b))
+    while True:  # down through joint-less links with a single child (flange, sensor, ...)
+        children = [
+            c for c in range(end + 1, model.nbody) if model.body_parentid[c] == end and not moved[c]
+        ]
+        every_child = sum(model.body_parentid[c] == end for c in range(end + 1, model.nbody))
+        if every_child != 1 or len(children) != 1 or model.body_jntnum[children[0]]:
+            break
+        end = children[0]
+    name = bodies[end] or str(end)
+    return ToolFrame(name, "body", "the end of the longest chain (no site 'ee', no known name)")

@@ -28,7 +28,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 def test_commands_pick_the_tool_frame_and_say_which(command, capsys):
     assert main([command, "erd:ur5"]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("frame: body 'tool0' (a known tool link")
+    assert out.startswith("frame: body 'tool0' (the body with a flange's name")
     assert "body 'tool0'" in out.splitlines()[2]
 
 
@@ -144,4 +144,6 @@ def test_reach_uses_the_tool_frame_when_a_file_names_none(tmp_path, capsys):
     )
     assert main(["reach", str(tmp_path / "p.toml")]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("goal frame: body 'tool0' (the robot's tool frame: a known tool link")
+    assert out.startswith(
+        "goal frame: body 'tool0' (the robot's tool frame: the body with a flange's name"
+    )

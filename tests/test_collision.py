@@ -92,15 +92,18 @@ def test_rows_are_the_distance_derivative(rng):
 
 
 def test_no_pair_raises_saying_why():
-    model = qpik.load_robot("panda")  # visual-only geoms: contype = conaffinity = 0
+    model = qpik.load_robot("panda")
     scene = add_obstacle(model, "sphere", 0.05, [0.5, 0.0, 0.5], name="ball")
+    visual = [f"{name}_visual" for name in ARM]  # contype = conaffinity = 0
     with pytest.raises(qpik.CollisionPairError, match="contype") as info:
-        CollisionAvoidanceLimit(scene, [(ARM, ["ball"])])
-    assert "'hand'" in str(info.value) and "respect_contype=False" in str(info.value)
+        CollisionAvoidanceLimit(scene, [(visual, ["ball"])])
+    assert "'hand_visual'" in str(info.value) and "respect_contype=False" in str(info.value)
     # The obstacle's own bits allow contact: mink's rule needs both sides.
     assert scene.geom("ball").contype == 1
-    limit = CollisionAvoidanceLimit(scene, [(ARM, ["ball"])], respect_contype=False)
+    limit = CollisionAvoidanceLimit(scene, [(visual, ["ball"])], respect_contype=False)
     assert len(limit.geom_id_pairs) == len(ARM)
+    # The collision geoms (named after the links) collide with the obstacle as they are.
+    assert len(CollisionAvoidanceLimit(scene, [(ARM, ["ball"])]).geom_id_pairs) == len(ARM)
     with pytest.raises(qpik.CollisionPairError, match="parent and child"):
         CollisionAvoidanceLimit(scene, [(["link6"], ["link7"])], respect_contype=False)
     with pytest.raises(qpik.CollisionPairError, match="same body"):
@@ -153,7 +156,6 @@ def test_panda_goes_around_a_sphere_on_its_straight_path():
             [(ARM, ["ball"])],
             minimum_distance_from_collisions=0.01,
             collision_detection_distance=0.1,
-            respect_contype=False,
         )
     )
     assert closest >= 0.009  # d_min = 10 mm, kept to 1 mm at every step

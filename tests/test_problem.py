@@ -19,6 +19,7 @@ TASKS = problem_files()
 #: Expected outcome of each shipped file.
 CONVERGED = {
     "panda_holding_force": True,
+    "panda_obstacle_avoidance": True,
     "panda_pose_reach": True,
     "planar_2r_singularity": True,
     "planar_4r_priorities": True,

@@ -307,11 +307,11 @@ def test_tool_frame_rules(tmp_path):
     path = tmp_path / "tool_arm.urdf"
     path.write_text(URDF)
     tool = qpik.robots.tool_frame(_quiet_load(path))
-    assert (tool.name, tool.frame_type) == ("tool0", "body") and "known tool link" in tool.reason
-    # No known name: the last link of the longest chain (fixed links count for depth).
-    path.write_text(URDF.replace("tool0", "flange"))
+    assert (tool.name, tool.frame_type) == ("tool0", "body") and "flange's name" in tool.reason
+    # No known name: the end of the longest chain (down through fixed links).
+    path.write_text(URDF.replace("tool0", "link_end"))
     tool = qpik.robots.tool_frame(_quiet_load(path))
-    assert tool.name == "flange" and "longest chain" in tool.reason
+    assert tool.name == "link_end" and "longest chain" in tool.reason
 
 
 def test_floating_base_errors(tmp_path):

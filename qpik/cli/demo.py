@@ -9,7 +9,7 @@ import numpy as np
 from ..configuration import Configuration
 from ..converge import solve
 from ..options import PRESETS
-from ..robots import load_robot
+from ..robots import load_robot, tool_frame
 from ._common import non_negative_int
 
 #: The default preset's orientation tolerance per unit of position tolerance [rad/m].
@@ -20,11 +20,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "demo",
         help="solve a reaching problem on a bundled arm and print the result",
-        description="Solve inverse kinematics for the pose of site `ee` reached by a "
-        "random configuration (seeded), starting from mid-range, under joint limits.",
+        description="Solve inverse kinematics for the pose of the robot's tool frame "
+        "(qpik.robots.tool_frame: the site `ee` on the bundled arms) reached by a random "
+        "configuration (seeded), starting from mid-range, under joint limits.",
         epilog="example: qpik demo --robot panda --seed 3 --tol 1e-5",
     )
-    parser.add_argument("--robot", default="panda", help="bundled robot (default: panda)")
+    parser.add_argument(
+        "--robot",
+        default="panda",
+        help="a bundled robot, 'erd:NAME' or a path to an MJCF/URDF file (default: panda)",
+    )
     parser.add_argument(
         "--seed", type=non_negative_int, default=0, help="seed of the target (default: 0)"
     )
@@ -43,13 +48,16 @@ def run(args: argparse.Namespace) -> int:
     configuration = Configuration(model)
     goal_q = configuration.random_q(np.random.default_rng(args.seed))
     configuration.update(goal_q)
-    position, rotation = configuration.frame_pose("ee")
-    print(f"robot {args.robot} ({model.nv} DoF): reach site 'ee' to")
+    tool = tool_frame(model)
+    frame = (tool.name, tool.frame_type)
+    position, rotation = configuration.frame_pose(*frame)
+    print(f"robot {args.robot} ({model.nv} DoF): reach {tool.frame_type} {tool.name!r} to")
+    print(f"  (the tool frame: {tool.reason})")
     print(f"  position [m] = {np.array2string(position, precision=4)}")
     print(f"  rotation = {np.array2string(rotation, precision=3).replace(chr(10), '')}")
     result = solve(
         model,
-        {"ee": (position, rotation)},
+        {frame: (position, rotation)},
         seed=args.seed,
         tol_position=args.tol,
         tol_orientation=args.tol * _ORIENTATION_PER_METRE,

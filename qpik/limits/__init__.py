@@ -7,7 +7,10 @@
   displacement units, pushing back inside the minimum distance, and a typed error when no
   geom pair is left to check;
 * :class:`SupportPolygonLimit` (:mod:`qpik.limits.support`): the CoM's ground projection
-  inside the contacts' convex hull.
+  inside the contacts' convex hull (by default, of the contact bodies' collision geometry);
+* :func:`model_collision_limit`, :func:`collision_pairs`, :func:`collision_geoms`
+  (:mod:`qpik.limits.geometry`): collision avoidance over the pairs the model's own
+  geometry lets collide (robot--scene and self-collision, adjacent bodies excluded).
 
 :class:`ConfigurationLimit` and :class:`VelocityLimit` build mink's own objects, after
 checking their arguments (typed :class:`qpik.LimitDefinitionError`).
@@ -32,6 +35,7 @@ from mink import Constraint, Limit
 from ..configuration import Configuration, joint_names
 from ..errors import LimitDefinitionError
 from .collision import CollisionAvoidanceLimit, geom_distance
+from .geometry import collision_geoms, collision_pairs, model_collision_limit
 from .support import SupportPolygonLimit
 
 __all__ = [
@@ -41,8 +45,11 @@ __all__ = [
     "Limit",
     "SupportPolygonLimit",
     "VelocityLimit",
+    "collision_geoms",
+    "collision_pairs",
     "geom_distance",
     "joint_limits",
+    "model_collision_limit",
     "velocity_limit_from_model",
 ]
 

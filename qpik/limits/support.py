@@ -2,8 +2,12 @@ r"""Keep the centre of mass above the support polygon (static balance).
 
 The support polygon is the convex hull (``scipy.spatial.ConvexHull``) of the contact
 frames' footprints projected on the ground (the world x-y plane): each contact frame
-carries the ``footprint`` points, given in its own x-y axes [m] (a foot's sole corners),
-placed in the world at the current configuration. The hull's edges are lines
+carries footprint points fixed in its own axes, placed in the world at the current
+configuration. By default they are the frame's own collision geometry
+(:func:`qpik.limits.geometry.contact_footprint`: the corners of a foot's box, a mesh's
+vertices, samples of capsules and spheres, on the frame's body and the bodies welded to
+it); an explicit ``footprint``, points in each frame's x-y axes [m] (a sole's corners),
+overrides it. The hull's edges are lines
 ``a_i^T p + o_i = 0`` with outward unit normals ``a_i`` (SciPy's ``equations``), so a
 ground point ``p`` is inside with margin ``m`` when ``a_i^T p + o_i <= -m`` for every edge.
 
@@ -50,8 +54,11 @@ class SupportPolygonLimit(mink.Limit):
             or a geom (looked up in that order), or ``(name, frame_type)``.
         margin: distance [m] kept between the CoM's projection and every hull edge.
         footprint: points ``(k, 2)`` [m] in each contact frame's own x-y axes (a sole's
-            corners); default: the frame's origin only (point contacts, which need at
-            least three frames that span an area).
+            corners), the same for every frame; default (``None``): each frame's collision
+            geometry (:func:`qpik.limits.geometry.contact_footprint`), or the frame's
+            origin alone where its body carries no geometry or carries another contact
+            frame too (point contacts, which need at least three frames that span an
+            area).
         gain: fraction in (0, 1] of the distance to an edge that may be covered per step.
         body: subtree whose CoM is kept inside (name or id; default 1, the robot).
     """
@@ -86,6 +93,12 @@ class SupportPolygonLimit(mink.Limit):
                 f"footprint must be finite (k, 2) points [m], got {footprint!r}"
             )
         self.footprint = np.column_stack([points, np.zeros(len(points))])  # z = 0 in the frame
+        #: Each frame's footprint points ``(k_i, 3)`` [m] in its own axes.
+        self.footprints = (
+            [self.footprint] * len(self.frames)
+            if footprint is not None
+            else _geometry_footprints(model, self.frames)
+        )
         if isinstance(body, str):
             self.body = resolve_frame(model, body, FrameType.BODY, argument="body").id
         else:
@@ -96,14 +109,14 @@ class SupportPolygonLimit(mink.Limit):
         """The footprints' points on the ground ``(n, 2)`` [m], world x-y."""
         data = configuration.data
         points = []
-        for _, kind, fid in self.frames:
+        for (_, kind, fid), footprint in zip(self.frames, self.footprints, strict=True):
             if kind is FrameType.SITE:
                 position, rotation = data.site_xpos[fid], data.site_xmat[fid]
             elif kind is FrameType.BODY:
                 position, rotation = data.xpos[fid], data.xmat[fid]
             else:
                 position, rotation = data.geom_xpos[fid], data.geom_xmat[fid]
-            world = position + self.footprint @ rotation.reshape(3, 3).T
+            world = position + footprint @ rotation.reshape(3, 3).T
             points.append(world[:, :2])
         return np.vstack(points)
 
@@ -141,3 +154,35 @@ class SupportPolygonLimit(mink.Limit):
         G = normals @ self._jac[:2]
         h = self.gain * (-self.margin - offsets - normals @ com_xy)
         return mink.Constraint(G=G, h=h)
+
+
+def _geometry_footprints(model: mujoco.MjModel, frames: list) -> list[np.ndarray]:
+    """Each frame's footprint from its collision geometry, reduced to the vertices of its
+    convex hull; the frame's origin alone where its body has no geometry, or where another
+    contact frame is on the same rigid body (point feet marked by sites on one body)."""
+    from .geometry import contact_footprint  # geometry imports collision, not support
+
+    def weld(kind: FrameType, fid: int) -> int:
+        if kind is FrameType.SITE:
+            return int(model.body_weldid[model.site_bodyid[fid]])
+        if kind is FrameType.GEOM:
+            return int(model.body_weldid[model.geom_bodyid[fid]])
+        return int(model.body_weldid[fid])
+
+    welds = [weld(kind, fid) for _, kind, fid in frames]
+    out = []
+    for (_, kind, fid), body in zip(frames, welds, strict=True):
+        if kind is not FrameType.GEOM and welds.count(body) > 1:
+            out.append(np.zeros((1, 3)))
+            continue
+        try:
+            points = contact_footprint(model, kind, fid)
+        except LimitDefinitionError:
+            points = np.zeros((1, 3))
+        if len(points) > 8:
+            try:
+                points = points[ConvexHull(points).vertices]
+            except (QhullError, ValueError):  # flat: keep every point
+                pass
+        out.append(points)
+    return out

@@ -18,7 +18,7 @@ _SUPPORT_KEYS = {"frames", "frame_type", "margin", "footprint"}
 def read_limits(reader: Reader, data: dict, model) -> tuple[bool, np.ndarray | None]:
     """``[limits]``: joint position limits on or off, and the velocity limits (nv,)."""
     table = reader.table(
-        data, "limits", "", {"position", "velocity", "support"}, "a [limits] table", {}
+        data, "limits", "", {"position", "velocity", "support", "collision"}, "a [limits] table", {}
     )
     position = reader.get(table, "position", "limits", bool, "true or false", True)
     value = table.get("velocity", False)

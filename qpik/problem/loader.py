@@ -32,6 +32,7 @@ from .limits import read_limits, read_support
 from .modes import MODES
 from .reader import MAX_WRENCH, Reader, read_toml
 from .report import ProblemResult, StaticsReport, jsonable
+from .scene import build_collision, read_collision, read_obstacles
 from .solver import options_dict, read_solver
 from .specs import TaskSpec, read_levels
 
@@ -49,6 +50,7 @@ _TOP_KEYS = {
     "solver",
     "track",
     "statics",
+    "obstacles",
 }
 
 
@@ -71,6 +73,8 @@ class Problem:
         statics: the ``[statics]`` table, validated, or None.
         support: the ``[limits.support]`` table, validated (frames, margin [m],
             footprint), or None.
+        collision: the ``[limits.collision]`` table, validated (:mod:`.scene`), or None;
+            the file's ``[[obstacles]]`` are in ``model``.
         solve_options: the :class:`qpik.SolveOptions` of the run: the ``[solver]`` preset
             (default ``"default"`` in solve mode, ``"tracking"`` in track mode) with the
             table's fields; track mode reads its tolerances and ``step`` options.
@@ -93,6 +97,7 @@ class Problem:
     stop_at_goal: bool = False
     statics: dict[str, Any] | None = None
     support: dict[str, Any] | None = None
+    collision: dict[str, Any] | None = None
     solve_options: SolveOptions = field(default_factory=SolveOptions)
 
     # ------------------------------------------------------------------ building
@@ -110,7 +115,8 @@ class Problem:
         return levels
 
     def build_limits(self) -> list:
-        """The limits of the problem: position, velocity, then support-polygon limits."""
+        """The limits of the problem: position, velocity, support-polygon, then collision
+        limits."""
         limits: list = []
         if self.position_limits:
             limits.append(ConfigurationLimit(self.model))
@@ -126,6 +132,8 @@ class Problem:
             s = self.support
             frames = [(name, s["frame_type"]) for name in s["frames"]]
             limits.append(SupportPolygonLimit(self.model, frames, s["margin"], s.get("footprint")))
+        if self.collision is not None:
+            limits.append(build_collision(self.model, self.collision))
         return limits
 
     def damping_law(self) -> DampingLaw | None:
@@ -177,6 +185,7 @@ class Problem:
                 "position": self.position_limits,
                 "velocity": jsonable(self.velocity_limits),
                 "support": jsonable(self.support),
+                "collision": jsonable(self.collision),
             },
             "solver": jsonable(self.options),
             "solve_options": options_dict(self.solve_options),
@@ -234,6 +243,7 @@ def load_problem(path: str | os.PathLike) -> Problem:
         stop_at_goal=stop_at_goal,
         statics=_read_statics(reader, data, model) if "statics" in data else None,
         support=read_support(reader, data, model),
+        collision=read_collision(reader, data, model),
         solve_options=solve_options,
     )
 
@@ -250,7 +260,7 @@ def _read_model(reader: Reader, data: dict, path: Path) -> tuple[mujoco.MjModel,
         model, _ = resolve_robot(robot, relative_to=path.parent, floating_base=floating)
     except (QpikError, OSError, ValueError) as exc:  # ValueError: a name the OS rejects
         raise reader.fail("robot", f"{expected} ({exc})") from exc
-    return model, robot
+    return read_obstacles(reader, data, model), robot
 
 
 def _read_start(reader: Reader, data: dict, model: mujoco.MjModel) -> Configuration:

@@ -1,0 +1,272 @@
+r"""Collision pairs and contact footprints from the model's own geometry.
+
+A model states which of its geoms collide, as MuJoCo Menagerie's models do: *collision*
+geoms have contact bits (``contype``/``conaffinity``; Menagerie puts them in group 3), and
+*visual* geoms have none (``contype = conaffinity = 0``, group 2). This module reads that:
+
+* :func:`collision_geoms`: the geoms that take part in contact;
+* :func:`collision_pairs`: the geom pairs MuJoCo's contact filter would test, split into
+  robot--scene pairs (a robot geom against a geom fixed to the world body itself: the floor,
+  an obstacle of :func:`qpik.scene.add_obstacle`) and self-collision pairs (two geoms of the
+  robot). The filter is MuJoCo's: the contact bits must match
+  (``contype1 & conaffinity2 || contype2 & conaffinity1``), geoms of one body (or of bodies
+  welded together) never pair, adjacent bodies (a parent and its child) never pair, nor
+  bodies named in the model's ``<contact><exclude>``; the model's explicit ``<pair>`` elements
+  are added. Adjacent bodies are excluded also where one is welded to the world (a fixed
+  base and the first link), which MuJoCo leaves to an ``<exclude>``; the geoms of the world
+  body itself (the scene) are adjacent to nothing, so an obstacle pairs with the first
+  link too.
+* :func:`model_collision_limit`: a :class:`qpik.limits.CollisionAvoidanceLimit` over those
+  pairs;
+* :func:`contact_footprint`: the ground footprint of a contact frame's collision geometry,
+  used by :class:`qpik.limits.SupportPolygonLimit` when no footprint is given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from ..configuration import FrameType
+from ..errors import CollisionPairError, LimitDefinitionError
+from .collision import CollisionAvoidanceLimit
+
+__all__ = [
+    "collision_geoms",
+    "collision_pairs",
+    "contact_footprint",
+    "model_collision_limit",
+]
+
+
+def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[int]:
+    """Ids of the geoms that take part in contact (``contype`` or ``conaffinity`` nonzero),
+    sorted; ``robot_only``: leave out the geoms of the world body (floor, obstacles)."""
+    return [
+        g
+        for g in range(model.ngeom)
+        if (model.geom_contype[g] or model.geom_conaffinity[g])
+        and not (robot_only and model.geom_bodyid[g] == 0)
+    ]
+
+
+def _excluded_bodies(model: mujoco.MjModel) -> set[tuple[int, int]]:
+    pairs = set()
+    for signature in model.exclude_signature:
+        a, b = int(signature) >> 16, int(signature) & 0xFFFF
+        pairs.add((min(a, b), max(a, b)))
+    return pairs
+
+
+def _filtered(model: mujoco.MjModel, a: int, b: int, excluded: set[tuple[int, int]]) -> bool:
+    """Whether MuJoCo's contact filter (plus the parent-child rule at the world) drops the
+    geom pair ``(a, b)``."""
+    if not (
+        model.geom_contype[a] & model.geom_conaffinity[b]
+        or model.geom_contype[b] & model.geom_conaffinity[a]
+    ):
+        return True
+    body_a, body_b = int(model.geom_bodyid[a]), int(model.geom_bodyid[b])
+    weld_a, weld_b = int(model.body_weldid[body_a]), int(model.body_weldid[body_b])
+    if weld_a == weld_b:
+        return True
+    adjacent = model.body_parentid[body_a] == body_b or model.body_parentid[body_b] == body_a
+    if adjacent and body_a and body_b:  # the world body's own geoms are never adjacent
+        return True
+    filter_parent = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
+    if filter_parent and weld_a and weld_b:
+        parent_a = int(model.body_weldid[model.body_parentid[weld_a]])
+        parent_b = int(model.body_weldid[model.body_parentid[weld_b]])
+        if weld_a == parent_b or weld_b == parent_a:
+            return True
+    return (min(body_a, body_b), max(body_a, body_b)) in excluded
+
+
+def collision_pairs(
+    model: mujoco.MjModel, *, scene: bool = True, self_collision: bool = True
+) -> list[tuple[int, int]]:
+    """Geom id pairs ``(a, b)``, ``a < b``, sorted, that the model lets collide (the filter
+    is in the module docstring): ``scene``: a robot geom against a geom of the world body;
+    ``self_collision``: two robot geoms (on bodies other than the world body)."""
+    excluded = _excluded_bodies(model)
+    geoms = collision_geoms(model)
+    pairs = set()
+    for i, a in enumerate(geoms):
+        for b in geoms[i + 1 :]:
+            world = (model.geom_bodyid[a] == 0) + (model.geom_bodyid[b] == 0)
+            if world == 2 or (world == 1 and not scene) or (world == 0 and not self_collision):
+                continue
+            if not _filtered(model, a, b, excluded):
+                pairs.add((a, b))
+    for a, b in zip(model.pair_geom1, model.pair_geom2, strict=True):  # explicit <pair>s
+        a, b = int(min(a, b)), int(max(a, b))
+        world = (model.geom_bodyid[a] == 0) + (model.geom_bodyid[b] == 0)
+        if (world == 1 and scene) or (world == 0 and self_collision):
+            pairs.add((a, b))
+    return sorted(pairs)
+
+
+class _ModelCollisionLimit(CollisionAvoidanceLimit):
+    """:class:`CollisionAvoidanceLimit` over pairs already filtered by
+    :func:`collision_pairs`: a geom of the world body itself (an obstacle, the floor) pairs
+    with the robot's first link too, which mink's rule drops as "parent and child"."""
+
+    def _reject(self, model: mujoco.MjModel, a: int, b: int) -> str | None:
+        body_a, body_b = int(model.geom_bodyid[a]), int(model.geom_bodyid[b])
+        moving = model.body_weldid[body_a] != 0 or model.body_weldid[body_b] != 0
+        if (body_a == 0 or body_b == 0) and moving:
+            return None  # the scene against a moving robot geom: never adjacent
+        return super()._reject(model, a, b)
+
+
+def model_collision_limit(
+    model: mujoco.MjModel,
+    *,
+    scene: bool = True,
+    self_collision: bool = True,
+    geoms: Sequence[int | str] | None = None,
+    gain: float = 0.85,
+    minimum_distance_from_collisions: float = 0.005,
+    collision_detection_distance: float = 0.01,
+    bound_relaxation: float = 0.0,
+) -> CollisionAvoidanceLimit:
+    """A :class:`CollisionAvoidanceLimit` over the pairs the model lets collide
+    (:func:`collision_pairs`): robot against scene (``scene``) and robot against itself
+    (``self_collision``).
+
+    Args:
+        model: the robot or scene model (obstacles from :func:`qpik.scene.add_obstacle`).
+        scene: check the robot's collision geoms against the world body's (floor,
+            obstacles).
+        self_collision: check the robot's collision geoms against each other.
+        geoms: only pairs with at least one of these geoms (names or ids; default: all).
+        gain, minimum_distance_from_collisions, collision_detection_distance,
+            bound_relaxation: :class:`CollisionAvoidanceLimit`'s, in [m] where a distance.
+
+    Raises :class:`qpik.CollisionPairError` when the model has no such pair (no collision
+    geom, or every pair excluded), naming what was asked.
+    """
+    pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
+    if geoms is not None:
+        wanted = set()
+        for geom in geoms:
+            gid = (
+                mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+                if isinstance(geom, str)
+                else int(geom)
+            )
+            if not 0 <= gid < model.ngeom:
+                raise LimitDefinitionError(f"unknown geom {geom!r}")
+            wanted.add(gid)
+        pairs = [(a, b) for a, b in pairs if a in wanted or b in wanted]
+    if not pairs:
+        asked = " and ".join(
+            what for what, on in (("robot-scene", scene), ("self-collision", self_collision)) if on
+        )
+        raise CollisionPairError(
+            f"the model has no {asked or 'collision'} pair to check: "
+            f"{len(collision_geoms(model, robot_only=True))} robot geom(s) with contact bits "
+            "(contype/conaffinity), "
+            f"{len(collision_geoms(model)) - len(collision_geoms(model, robot_only=True))} "
+            "in the world (add one with qpik.scene.add_obstacle)"
+        )
+    return _ModelCollisionLimit(
+        model,
+        [([a], [b]) for a, b in pairs],
+        gain=gain,
+        minimum_distance_from_collisions=minimum_distance_from_collisions,
+        collision_detection_distance=collision_detection_distance,
+        bound_relaxation=bound_relaxation,
+    )
+
+
+# ---------------------------------------------------------------------- footprints
+#: Unit directions sampling a sphere's surface (the 6 axes, 12 edge and 8 corner
+#: directions of a cube): a sphere or a capsule's end projects on the ground inside their
+#: hull, whose width is within 8 % of the true one.
+_SPHERE = np.array(
+    [
+        v
+        for v in np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1])).reshape(3, -1).T
+        if np.any(v)
+    ],
+    dtype=float,
+)
+_SPHERE /= np.linalg.norm(_SPHERE, axis=1, keepdims=True)
+_CIRCLE = np.column_stack(
+    [
+        np.cos(np.linspace(0, 2 * np.pi, 16, endpoint=False)),
+        np.sin(np.linspace(0, 2 * np.pi, 16, endpoint=False)),
+    ]
+)
+
+
+def _geom_points(model: mujoco.MjModel, g: int) -> np.ndarray:
+    """Points ``(k, 3)`` [m] in geom ``g``'s frame whose hull is (or bounds closely) the
+    geom: box corners, mesh vertices, samples of spheres, capsules, cylinders, ellipsoids."""
+    size = model.geom_size[g]
+    kind = int(model.geom_type[g])
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+        return signs * size
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return _SPHERE * size[0]
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        ends = np.array([[0, 0, -size[1]], [0, 0, size[1]]])
+        return np.vstack([end + _SPHERE * size[0] for end in ends])
+    if kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        rim = np.column_stack([_CIRCLE * size[0], np.zeros(len(_CIRCLE))])
+        return np.vstack([rim + [0, 0, -size[1]], rim + [0, 0, size[1]]])
+    if kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
+        return _SPHERE * size[:3]
+    if kind == mujoco.mjtGeom.mjGEOM_MESH:
+        mesh = int(model.geom_dataid[g])
+        start, count = model.mesh_vertadr[mesh], model.mesh_vertnum[mesh]
+        return np.asarray(model.mesh_vert[start : start + count], dtype=float)
+    return np.zeros((0, 3))  # planes, height fields: no footprint
+
+
+def contact_footprint(model: mujoco.MjModel, frame_type: FrameType, frame_id: int) -> np.ndarray:
+    """The points ``(k, 3)`` [m], in the contact frame's own axes, whose ground projection
+    is the frame's footprint: the vertices (boxes, meshes) or surface samples (spheres,
+    capsules, cylinders, ellipsoids) of the collision geoms (:func:`collision_geoms`) on the
+    frame's body and on every body welded to it (a sole link fixed under an ankle).
+
+    A geom frame uses that geom alone, whatever its contact bits. A body without collision
+    geoms falls back to its geoms of group 3 (Menagerie's collision group), then to every
+    geom of the welded bodies. Raises :class:`qpik.LimitDefinitionError` when there is no
+    geometry at all."""
+    model_data = mujoco.MjData(model)  # qpos0: the geoms' poses in the frame are fixed
+    mujoco.mj_kinematics(model, model_data)
+    if frame_type is FrameType.GEOM:
+        geoms = [frame_id]
+        body = int(model.geom_bodyid[frame_id])
+        origin, rotation = model_data.geom_xpos[frame_id], model_data.geom_xmat[frame_id]
+    else:
+        body = frame_id if frame_type is FrameType.BODY else int(model.site_bodyid[frame_id])
+        if frame_type is FrameType.BODY:
+            origin, rotation = model_data.xpos[frame_id], model_data.xmat[frame_id]
+        else:
+            origin, rotation = model_data.site_xpos[frame_id], model_data.site_xmat[frame_id]
+        weld = int(model.body_weldid[body])
+        bodies = {b for b in range(model.nbody) if model.body_weldid[b] == weld} if weld else {body}
+        on_bodies = [g for g in range(model.ngeom) if model.geom_bodyid[g] in bodies]
+        colliding = [g for g in on_bodies if model.geom_contype[g] or model.geom_conaffinity[g]]
+        group3 = [g for g in on_bodies if model.geom_group[g] == 3]
+        geoms = colliding or group3 or on_bodies
+    frame_rotation = rotation.reshape(3, 3)
+    points = []
+    for g in geoms:
+        local = _geom_points(model, g)
+        world = model_data.geom_xpos[g] + local @ model_data.geom_xmat[g].reshape(3, 3).T
+        points.append((world - origin) @ frame_rotation)
+    stacked = np.vstack(points) if points else np.zeros((0, 3))
+    if not len(stacked):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        raise LimitDefinitionError(
+            f"contact frame on body {name!r} has no geometry to take a footprint from: give "
+            "footprint=[[x, y], ...] (a sole's corners [m] in the frame's x-y axes)"
+        )
+    return stacked
