@@ -608,6 +608,7 @@ def _live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) -
         tol_position=options.tol_position,
         tol_orientation=options.tol_orientation,
         max_iterations=max_iterations,
+        max_step=options.max_step,
         level_names=names,
     )
 

@@ -9,9 +9,16 @@ damping are the stack's: a lower level never disturbs a higher one, and every li
 holds at every step. Starting from the current ``q`` (not from random restarts, as
 :func:`qpik.solve` may) keeps the robot continuous while a handle is dragged.
 
-A step never moves a joint by more than :attr:`LiveSolve.max_step` [rad or m]: a larger
-step is scaled down as a whole (its direction, hence the priorities, unchanged; inside
-the limits still, as they are convex and contain ``dq = 0``).
+A trust region (:attr:`LiveSolve.max_step`, as :attr:`qpik.SolveOptions.max_step`): no
+step asks a goal frame to move by more than ``(metres, radians)``; a farther target is
+approached along the straight line (position) and the shortest rotation, by that much
+per step. The priorities stay exact (the step itself is never rescaled).
+
+Level 0 held exactly: a step meets its levels to first order, so a large step (a target
+far away, or out of reach) leaves a second-order drift (``|dq|^2``) on what level 0 holds
+(the feet of a humanoid). When level 0 holds no goal frame, each step whose level-0 error
+exceeds ``tol_position`` is followed by Newton steps of level 0 alone (up to :data:`CORRECTIONS`), under the same
+limits (as ``examples/humanoid_talos.py`` does), which removes that drift.
 
 Each level's state after a solve (:class:`LevelReport`): ``"met"``, ``"compromise"``
 (solved, but a residual remains because a higher level or a limit takes the freedom it
@@ -43,6 +50,8 @@ from ..tasks import OrientationTask, PoseTask, PositionTask
 
 __all__ = ["GoalFrame", "LevelReport", "LiveSolve", "SolveReport", "describe_task"]
 
+#: Newton steps of level 0 alone after a step, at most (module docstring).
+CORRECTIONS = 3
 #: Residual [task units] under which a solved level counts as met.
 MET_RESIDUAL = 1e-6
 
@@ -166,7 +175,8 @@ class LiveSolve:
         step_options: :class:`qpik.StepOptions` of the steps.
         tol_position: [m]; ``tol_orientation``: [rad], when a goal frame is reached.
         max_iterations: steps per drag solve at most.
-        max_step: largest joint displacement of one step [rad or m].
+        max_step: trust region ``(metres, radians)``: what one step may ask of a goal
+            frame at most; ``None``: no trust region.
         settle: a step with ``|dq|_inf`` below this [rad or m] has settled.
     """
 
@@ -183,7 +193,7 @@ class LiveSolve:
         tol_position: float = 1e-4,
         tol_orientation: float = 1e-3,
         max_iterations: int = 20,
-        max_step: float = 0.3,
+        max_step: tuple[float, float] | None = (0.2, 0.5),
         settle: float = 1e-4,
         level_names: Sequence[Sequence[str]] | None = None,
     ):
@@ -195,9 +205,10 @@ class LiveSolve:
         self.tol_position = float(tol_position)
         self.tol_orientation = float(tol_orientation)
         self.max_iterations = int(max_iterations)
-        self.max_step = float(max_step)
+        self.max_step = None if max_step is None else (float(max_step[0]), float(max_step[1]))
         self.settle = float(settle)
         self.solver = IKSolver(model, self.levels, self.limits, options=step_options)
+        self._correction: IKSolver | None = None
         self.level_names = (
             [list(names) for names in level_names]
             if level_names is not None
@@ -231,6 +242,10 @@ class LiveSolve:
                 )
             self.goals[name] = GoalFrame(name, kind, in_levels, rotation, target)
             set_frame_target(self.levels, name, target)
+        if self.levels and not any(0 in g.levels for g in self.goals.values()):
+            self._correction = IKSolver(
+                model, [self.levels[0]], self.limits, options=step_options
+            )
         self.last: SolveReport | None = None
 
     # ------------------------------------------------------------------ state
@@ -285,15 +300,58 @@ class LiveSolve:
 
     # ------------------------------------------------------------------ solving
     def step(self) -> StepResult:
-        """One IK step from the current configuration, applied (``dq`` capped by
-        :attr:`max_step`)."""
-        result = self.solver.step(self.configuration, self.dt)
-        velocity = result.velocity
-        largest = float(np.max(np.abs(result.displacement))) if velocity.size else 0.0
-        if largest > self.max_step:
-            velocity = velocity * (self.max_step / largest)
-        self.configuration.integrate_inplace(velocity, self.dt)
+        """One IK step from the current configuration, applied (goal targets farther than
+        :attr:`max_step` approached by that much)."""
+        clamped = self._clamp_targets()
+        try:
+            result = self.solver.step(self.configuration, self.dt)
+        finally:
+            for name in clamped:
+                set_frame_target(self.levels, name, self.goals[name].target)
+        self.configuration.integrate_inplace(result.velocity, self.dt)
+        for _ in range(CORRECTIONS if self._correction is not None else 0):
+            if self.level0_error() <= self.tol_position:
+                break
+            fix = self._correction.step(self.configuration, self.dt)  # type: ignore[union-attr]
+            self.configuration.integrate_inplace(fix.velocity, self.dt)
         return result
+
+    def level0_error(self) -> float:
+        """The largest error norm of level 0's tasks at the current ``q`` (in each task's
+        units: [m] for positions, [rad] for rotations, mixed for poses)."""
+        worst = 0.0
+        for task in self.levels[0] if self.levels else []:
+            try:
+                error = task.compute_error(self.configuration)
+            except Exception:  # noqa: BLE001 - a task without a target: nothing to hold
+                continue
+            worst = max(worst, float(np.max(np.abs(error), initial=0.0)))
+        return worst
+
+    def _clamp_targets(self) -> list[str]:
+        """Set the intermediate targets of the goal frames beyond the trust region; returns
+        their names."""
+        if self.max_step is None:
+            return []
+        max_position, max_rotation = self.max_step
+        clamped = []
+        for name, goal in self.goals.items():
+            position, matrix = self.configuration.frame_pose(name, goal.frame_type)
+            target = goal.target
+            delta = target.position - position
+            distance = float(np.linalg.norm(delta))
+            far = distance > max_position
+            p = position + delta * (max_position / distance) if far else target.position
+            r = target.rotation
+            if r is not None:
+                angle = float(orientation_angle(matrix, r))
+                if angle > max_rotation:
+                    far = True
+                    r = _toward(matrix, r, max_rotation / angle)
+            if far:
+                set_frame_target(self.levels, name, Target(p, r))
+                clamped.append(name)
+        return clamped
 
     def solve(self, max_iterations: int | None = None) -> SolveReport:
         """Steps until the goals are within tolerance and the step has settled, or
@@ -367,6 +425,15 @@ class LiveSolve:
         if k == 0 and residual > self.tol_position:
             return "unmet"
         return "compromise" if residual > MET_RESIDUAL else "met"
+
+
+def _toward(start: np.ndarray, end: np.ndarray, fraction: float) -> np.ndarray:
+    """The rotation ``fraction`` of the way from ``start`` to ``end`` (both 3x3, world
+    frame) along the shortest rotation."""
+    from scipy.spatial.transform import Rotation
+
+    relative = Rotation.from_matrix(end @ start.T).as_rotvec()
+    return Rotation.from_rotvec(fraction * relative).as_matrix() @ start
 
 
 def _key(
