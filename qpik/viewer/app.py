@@ -74,11 +74,13 @@ def _wxyz(matrix: np.ndarray) -> np.ndarray:
 
 
 def level_html(level: LevelReport) -> str:
-    """A level's panel as HTML: state, status, residual, damping, active limits; a red
-    border and background when it cannot be met."""
+    """A level's panel as HTML: state, status, residual, damping, the number of active
+    limits (the limits bind the final step of every level alike; the summary lists
+    them); a red border and background when it cannot be met."""
     border, background = _STATE_COLOURS[level.state]
     tasks = html.escape(", ".join(level.tasks) or "(no task)")
-    limits = html.escape(", ".join(level.active_limits) or "none")
+    count = len(level.active_limits)
+    limits = f"{count} (listed above)" if count else "none"
     goal = ""
     if level.goal_error is not None:
         p, o = level.goal_error
@@ -153,6 +155,9 @@ class Viewer:
         self._playing = False
         self.drag_times: list[float] = []  # [s], the solve time behind each drag update
         self.report: SolveReport | None = None
+        #: The support polygon's corners ``(k, 2)`` [m, world x-y] as last drawn (a stack
+        #: with a support-polygon limit), else None.
+        self.support_polygon: np.ndarray | None = None
         if solve_start:
             self.live.solve(max_iterations=max(200, max_iterations))
         name = label or (self.problem.name if self.problem is not None else _model_name(self.model))
@@ -288,6 +293,7 @@ class Viewer:
             hull = points[ConvexHull(points).vertices]
         except Exception:  # noqa: BLE001 - degenerate footprints: draw nothing
             return
+        self.support_polygon = hull.copy()
         z = 0.002
         ring = np.column_stack([hull, np.full(len(hull), z)])
         segments = np.stack([ring, np.roll(ring, -1, axis=0)], axis=1)
@@ -313,13 +319,17 @@ class Viewer:
         what = f"robot `{problem.robot}`, mode `{problem.mode}`" if problem else "model"
         gui.add_markdown(f"**{html.escape(name)}** ({what}). Drag a handle: the IK re-solves.")
         self._solve_md = gui.add_markdown("solve: -")
+        self._limits_md = gui.add_markdown("active limits: none")
         with gui.add_folder("Levels (level 0 first)"):
             self._level_html = [
                 gui.add_html(level_html(level)) for level in self._report().levels
             ]
-        with gui.add_folder("Configuration", expand_by_default=False):
-            self._q_text = gui.add_text("q", _q_text(self.live.q), multiline=True)
-            self._sliders: dict[int, Any] = {}
+        with gui.add_folder("Configuration"):
+            self._q_text = gui.add_text(
+                "q", _q_text(self.live.q), multiline=True, hint="the current q, to copy"
+            )
+        self._sliders: dict[int, Any] = {}
+        with gui.add_folder("Joints", expand_by_default=False):
             lower, upper = self.live.configuration.lower, self.live.configuration.upper
             scalar = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
             for j in range(self.model.njnt):
@@ -366,6 +376,10 @@ class Viewer:
                 f"solve time: **{1000 * report.solve_time:.2f} ms** ({report.steps} steps, "
                 f"{'converged' if report.converged else 'not converged'}); goal error "
                 f"{1000 * worst[0]:.2f} mm, {np.degrees(worst[1]):.3f}&deg;"
+            )
+            active = report.levels[0].active_limits if report.levels else []
+            self._limits_md.content = "active limits: " + (
+                html.escape(", ".join(active)) if active else "none"
             )
             self._syncing = True
             try:
