@@ -84,7 +84,9 @@ def wait_for_scene(browser, timeout: float = 90.0) -> bytes:
 
 
 def changed_fraction(a: bytes, b: bytes) -> float:
-    return float(np.mean(np.abs(scene_region(pixels(a)) - scene_region(pixels(b))).sum(axis=2) > 30))
+    return float(
+        np.mean(np.abs(scene_region(pixels(a)) - scene_region(pixels(b))).sum(axis=2) > 30)
+    )
 
 
 def test_panda_problem_in_the_browser(browser, shots):

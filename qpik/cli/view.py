@@ -55,9 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="do not open a browser tab (for scripts and tests; pair with --seconds)",
     )
-    parser.add_argument(
-        "--collision", action="store_true", help="draw the collision geoms too"
-    )
+    parser.add_argument("--collision", action="store_true", help="draw the collision geoms too")
     parser.add_argument(
         "--floating-base",
         action="store_true",
@@ -139,13 +137,12 @@ def _run_mujoco(source, seconds: float | None) -> int:
             "--mujoco needs a display (DISPLAY or WAYLAND_DISPLAY is not set); use the "
             "browser viewer (qpik view without --mujoco), which needs none"
         )
-    import mujoco
-    import mujoco.viewer
+    import importlib
 
-    from ..viewer.live import LiveSolve
-    from ..viewer.app import _live_of_problem, default_stack
     from ..configuration import Configuration
     from ..problem import Problem
+    from ..viewer.app import _live_of_problem, default_stack
+    from ..viewer.live import LiveSolve
 
     if isinstance(source, Problem):
         live = _live_of_problem(source, None, None, None, 1)
@@ -156,7 +153,8 @@ def _run_mujoco(source, seconds: float | None) -> int:
         goals = []
     data = live.configuration.data
     deadline = None if seconds is None else time.monotonic() + seconds
-    with mujoco.viewer.launch_passive(live.model, data) as handle:
+    mujoco_viewer = importlib.import_module("mujoco.viewer")
+    with mujoco_viewer.launch_passive(live.model, data) as handle:
         index, steps = 0, 0
         while handle.is_running() and (deadline is None or time.monotonic() < deadline):
             if goals and steps == 0:

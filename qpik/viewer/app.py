@@ -19,7 +19,7 @@ import time
 import webbrowser
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -33,9 +33,6 @@ from ..targets import Target
 from ..tasks import OrientationTask, PositionTask, PostureTask
 from .geometry import GeomMesh, geom_meshes
 from .live import LevelReport, LiveSolve, SolveReport
-
-if TYPE_CHECKING:
-    import viser
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "Viewer", "import_viser"]
 
@@ -161,7 +158,7 @@ class Viewer:
         if solve_start:
             self.live.solve(max_iterations=max(200, max_iterations))
         name = label or (self.problem.name if self.problem is not None else _model_name(self.model))
-        self.server: viser.ViserServer = viser.ViserServer(
+        self.server: Any = viser.ViserServer(
             host=host, port=port, label=f"qpik: {name}", verbose=False
         )
         self.host = host
@@ -321,9 +318,7 @@ class Viewer:
         self._solve_md = gui.add_markdown("solve: -")
         self._limits_md = gui.add_markdown("active limits: none")
         with gui.add_folder("Levels (level 0 first)"):
-            self._level_html = [
-                gui.add_html(level_html(level)) for level in self._report().levels
-            ]
+            self._level_html = [gui.add_html(level_html(level)) for level in self._report().levels]
         with gui.add_folder("Configuration"):
             self._q_text = gui.add_text(
                 "q", _q_text(self.live.q), multiline=True, hint="the current q, to copy"
@@ -539,7 +534,9 @@ class Viewer:
             for goal in problem.goals:
                 with self._lock:
                     for frame in goal.frames:
-                        self.live.set_target(frame.frame, frame.target.position, frame.target.rotation)
+                        self.live.set_target(
+                            frame.frame, frame.target.position, frame.target.rotation
+                        )
                         self._handles[frame.frame].position = frame.target.position.copy()
                 for _ in range(problem.steps):
                     if self._stop.is_set():
@@ -609,7 +606,9 @@ def _live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) -
     frames = problem.goals[0].frames
     keys = goals if goals is not None else [(f.frame, f.frame_type) for f in frames]
     options = problem.solve_options
-    names = [[f"{s.type} {s.frame}" if s.frame else s.type for s in level] for level in problem.levels]
+    names = [
+        [f"{s.type} {s.frame}" if s.frame else s.type for s in level] for level in problem.levels
+    ]
     return LiveSolve(
         problem.model,
         levels,

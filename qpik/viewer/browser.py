@@ -196,8 +196,18 @@ class Browser:
         raise BrowserError(f"{expression!r} stayed false for {timeout} s")
 
     def screenshot(self, path: str | os.PathLike | None = None) -> bytes:
-        """A PNG of the page (written to ``path`` when given)."""
-        data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+        """A PNG of the page (written to ``path`` when given). Retried for a few seconds
+        while a navigation leaves no page attached."""
+        deadline = time.monotonic() + 10.0
+        while True:
+            try:
+                result = self.call("Page.captureScreenshot", format="png")
+                break
+            except BrowserError as exc:
+                if "Not attached" not in str(exc) or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
+        data = base64.b64decode(result["data"])
         if path is not None:
             Path(path).write_bytes(data)
         return data

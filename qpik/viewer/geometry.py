@@ -95,9 +95,7 @@ def geom_meshes(
     else:
         visual = visual_geoms(model)
         with_visual = {int(model.geom_bodyid[g]) for g in visual}
-        extra = [
-            g for g in collision_geoms(model) if int(model.geom_bodyid[g]) not in with_visual
-        ]
+        extra = [g for g in collision_geoms(model) if int(model.geom_bodyid[g]) not in with_visual]
         ids = sorted(visual + extra)
     out = []
     for g in ids:
@@ -140,7 +138,9 @@ def _mesh_of(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray] | N
     return primitive_mesh(kind, model.geom_size[g])
 
 
-def primitive_mesh(kind: int, size: np.ndarray, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
+def primitive_mesh(
+    kind: int, size: np.ndarray, segments: int = 24
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices ``(v, 3)`` [m] and faces ``(f, 3)`` of a MuJoCo primitive in its own frame.
 
     Args:

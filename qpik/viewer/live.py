@@ -17,8 +17,9 @@ per step. The priorities stay exact (the step itself is never rescaled).
 Level 0 held exactly: a step meets its levels to first order, so a large step (a target
 far away, or out of reach) leaves a second-order drift (``|dq|^2``) on what level 0 holds
 (the feet of a humanoid). When level 0 holds no goal frame, each step whose level-0 error
-exceeds ``tol_position`` is followed by Newton steps of level 0 alone (up to :data:`CORRECTIONS`), under the same
-limits (as ``examples/humanoid_talos.py`` does), which removes that drift.
+exceeds ``tol_position`` is followed by Newton steps of level 0 alone (up to
+:data:`CORRECTIONS`), under the same limits (as ``examples/humanoid_talos.py`` does),
+which removes that drift.
 
 Each level's state after a solve (:class:`LevelReport`): ``"met"``, ``"compromise"``
 (solved, but a residual remains because a higher level or a limit takes the freedom it
@@ -41,11 +42,11 @@ import numpy.typing as npt
 from ..configuration import Configuration, FrameType
 from ..hierarchy import IKSolver, StepResult, normalize_stack
 from ..limits import joint_limits
+from ..model.frames import resolve_frame
 from ..model.rotations import orientation_angle
 from ..options import StepOptions
 from ..qp_engine import set_frame_target
 from ..targets import Target
-from ..model.frames import resolve_frame
 from ..tasks import OrientationTask, PoseTask, PositionTask
 
 __all__ = ["GoalFrame", "LevelReport", "LiveSolve", "SolveReport", "describe_task"]
@@ -214,11 +215,7 @@ class LiveSolve:
             if level_names is not None
             else [[describe_task(t) for t in level] for level in self.levels]
         )
-        keys = (
-            goal_frames_of(self.levels)
-            if goals is None
-            else [_key(model, g) for g in goals]
-        )
+        keys = goal_frames_of(self.levels) if goals is None else [_key(model, g) for g in goals]
         self.goals: dict[str, GoalFrame] = {}
         for name, kind in keys:
             in_levels = [
@@ -243,9 +240,7 @@ class LiveSolve:
             self.goals[name] = GoalFrame(name, kind, in_levels, rotation, target)
             set_frame_target(self.levels, name, target)
         if self.levels and not any(0 in g.levels for g in self.goals.values()):
-            self._correction = IKSolver(
-                model, [self.levels[0]], self.limits, options=step_options
-            )
+            self._correction = IKSolver(model, [self.levels[0]], self.limits, options=step_options)
         self.last: SolveReport | None = None
 
     # ------------------------------------------------------------------ state
@@ -436,9 +431,7 @@ def _toward(start: np.ndarray, end: np.ndarray, fraction: float) -> np.ndarray:
     return Rotation.from_rotvec(fraction * relative).as_matrix() @ start
 
 
-def _key(
-    model: mujoco.MjModel, goal: str | tuple[str, FrameType | str]
-) -> tuple[str, FrameType]:
+def _key(model: mujoco.MjModel, goal: str | tuple[str, FrameType | str]) -> tuple[str, FrameType]:
     """``(name, frame_type)`` of a goal given as a name (site, body, geom: first found) or
     a pair."""
     name, kind, _ = resolve_frame(model, goal, argument="goals")
