@@ -17,6 +17,8 @@ SMALL = {
     "track_100hz.py": ["--steps", "20", "--every", "10"],
     "humanoid_talos.py": ["--steps", "3"],
     "collision_panda.py": ["--steps", "30"],
+    "viewer_panda.py": ["--headless", "--seconds", "1", "--port", "0"],
+    "viewer_humanoid.py": ["--headless", "--seconds", "1", "--port", "0"],
 }
 
 
@@ -26,6 +28,8 @@ def test_every_example_is_listed():
 
 @pytest.mark.parametrize("name", sorted(SMALL))
 def test_example_runs(name, monkeypatch, capsys):
+    if name.startswith("viewer_"):
+        pytest.importorskip("viser")  # the viewer extra
     monkeypatch.setenv("MPLBACKEND", "Agg")
     module = runpy.run_path(str(EXAMPLES / name), run_name="example")
     assert module["__doc__"] and callable(module["main"])

@@ -15,7 +15,18 @@ from collections.abc import Sequence
 from ..errors import QpikError
 
 #: Command modules, in the order ``qpik --help`` lists them.
-COMMANDS = ["robots", "fk", "demo", "analyze", "statics", "bench", "reach", "batch", "reachmap"]
+COMMANDS = [
+    "robots",
+    "fk",
+    "demo",
+    "analyze",
+    "statics",
+    "bench",
+    "reach",
+    "batch",
+    "reachmap",
+    "view",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:
