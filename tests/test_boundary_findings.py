@@ -13,30 +13,17 @@ import qpik
 from qpik.cli import main
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik/problem/loader.py (load_problem) reads the path as given: from a folder "
-    "other than the checkout 'tasks/panda_pose_reach.toml' does not exist, and there is "
-    "no fallback to the shipped problem files (qpik.problem.problem_files(), qpik/_tasks "
-    "in a wheel); exit status 2",
-)
 def test_reach_shipped_problem_from_another_folder(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["reach", "tasks/panda_pose_reach.toml", "--quiet"]) == 0
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik/model/chain.py KinematicChain.reach_bound does not check lower/upper: a "
-    "wrong shape or dtype raises IndexError / TypeError / ValueError (chain.py:191-193), "
-    "not a QpikError",
-)
 @pytest.mark.parametrize(
     "make",
     [
         lambda nq: (np.zeros(3), np.ones(3)),
         lambda nq: (np.zeros((2, nq)), np.ones(nq)),
-        lambda nq: (np.zeros(nq).astype(object), np.ones(nq)),
+        lambda nq: (np.array(["a"] * nq, dtype=object), np.ones(nq)),
     ],
     ids=["short", "2d", "object"],
 )
@@ -49,11 +36,6 @@ def test_reach_bound_rejects_bad_limits(make):
         chain.reach_bound(*make(model.nq))
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik/tasks/fast.py PostureTask wraps mink's errors in __init__ only: "
-    "set_target with a wrong shape leaks mink.exceptions.InvalidTarget (not a QpikError)",
-)
 def test_posture_set_target_wrong_shape_is_typed():
     model = qpik.load_robot("panda")
     task = qpik.tasks.PostureTask(model, cost=1.0)

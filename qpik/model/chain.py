@@ -20,7 +20,8 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import InvalidConfiguration
+from ..checks import check_vector
+from ..errors import InvalidConfiguration, InvalidInput
 from . import _kernels
 from .frames import FrameType, frame_id, frame_name
 
@@ -202,6 +203,10 @@ class KinematicChain:
         the sum of the DH lengths ``|a_k|`` and offsets ``|d_k|`` plus the tool offset. A
         slide adds its largest travel from the reference configuration.
         """
+        lower = check_vector("lower", lower, self.nq, finite=False)
+        upper = check_vector("upper", upper, self.nq, finite=False)
+        if np.isnan(lower).any() or np.isnan(upper).any():
+            raise InvalidInput("lower and upper joint limits must not be NaN (inf: unlimited)")
         jnt_type, qadr = self.arrays[3], self.arrays[6]
         nj = jnt_type.shape[0]
         limited = np.isfinite(lower) & np.isfinite(upper)

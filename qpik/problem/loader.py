@@ -203,6 +203,21 @@ class Problem:
 
 
 # ----------------------------------------------------------------------------- loading
+def _shipped_if_missing(path: Path) -> Path:
+    """``path``, or the shipped problem file it names when ``path`` is relative, does
+    not exist and is ``NAME.toml`` or ``tasks/NAME.toml``."""
+    if path.is_absolute() or path.exists() or path.suffix != ".toml":
+        return path
+    if len(path.parts) > 2 or (len(path.parts) == 2 and path.parts[0] != "tasks"):
+        return path
+    from . import problem_files
+
+    for shipped in problem_files():
+        if shipped.name == path.name:
+            return shipped
+    return path
+
+
 def load_problem(path: str | os.PathLike) -> Problem:
     """Read and validate a problem file (see :mod:`qpik.problem` for the schema).
 
@@ -210,8 +225,13 @@ def load_problem(path: str | os.PathLike) -> Problem:
     expected, for an unreadable or malformed file, a missing field, a wrong type, an
     unknown task type, frame or robot; :class:`qpik.errors.InvalidArgumentType` (also a
     ``TypeError``) when ``path`` is not a ``str`` or ``os.PathLike`` of one (``bytes``).
+
+    A relative path that does not exist but names a shipped problem file
+    (``tasks/NAME.toml`` or ``NAME.toml``, see :func:`qpik.problem.problem_files`) reads
+    that file, so the README's ``qpik reach tasks/panda_pose_reach.toml`` works from any
+    folder once qpik is installed.
     """
-    path = Path(checks.check_path("path", path))
+    path = _shipped_if_missing(Path(checks.check_path("path", path)))
     reader = Reader(str(path))
     data = read_toml(path)
     reader.unknown_keys(data, _TOP_KEYS, "")

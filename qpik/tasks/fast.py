@@ -14,8 +14,10 @@ from __future__ import annotations
 import mink
 import mujoco
 import numpy as np
+import numpy.typing as npt
 
 from .._engine.tasks import frame_error_jlog, frame_rows_into
+from ..checks import qpik_errors
 from ..errors import TargetNotSet, mink_errors_as_qpik
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
@@ -111,6 +113,12 @@ class PostureTask(mink.PostureTask):
         if self._v_ids is not None:
             self._jacobian[:, self._v_ids] = 0.0
         self._jacobian.setflags(write=False)
+
+    def set_target(self, target_q: npt.ArrayLike) -> None:
+        """The target configuration ``q*`` (nq,) [rad or m]; mink's checks, raised as
+        qpik's errors (:class:`qpik.InvalidTarget` for a wrong shape)."""
+        with qpik_errors():
+            super().set_target(target_q)
 
     def compute_error(self, configuration) -> np.ndarray:
         if self.target_q is None:
