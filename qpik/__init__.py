@@ -42,7 +42,7 @@ from .reachability import ReachabilityMap, reachability
 from .result import Reason
 from .robots import list_robots, load_robot
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"  # the one place the version is written (pyproject.toml reads it)
 
 if TYPE_CHECKING:  # imported on first use (see __getattr__); type checkers see them here
     from . import analysis, baselines, limits, scene, statics
