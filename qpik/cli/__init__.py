@@ -10,8 +10,12 @@ import argparse
 import importlib
 import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import TextIO
 
+from .. import __version__
 from ..errors import QpikError
 
 #: Command modules, in the order ``qpik --help`` lists them.
@@ -29,16 +33,29 @@ COMMANDS = [
 ]
 
 
+_VERBOSE_HELP = "show warnings in full, with the source line that raised them"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every command registered."""
     parser = argparse.ArgumentParser(
         prog="qpik",
-        description="Inverse kinematics as prioritized QPs (MuJoCo models, OSQP solver).",
+        description="Inverse kinematics as prioritized QPs on MuJoCo models, each level solved "
+        "exactly by qpik's compiled active-set solver (the default; OSQP and the qpsolvers "
+        "backends on request).",
     )
+    parser.add_argument("--version", action="version", version=f"qpik {__version__}")
+    parser.add_argument("--verbose", "-v", action="store_true", help=_VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
         importlib.import_module(f"{__name__}.{name}").register(sub)
+    for command in sub.choices.values():
+        # also after the command (qpik reach FILE --verbose); SUPPRESS keeps the top-level
+        # value when the command's own flag is not given
+        command.add_argument(
+            "--verbose", "-v", action="store_true", default=argparse.SUPPRESS, help=_VERBOSE_HELP
+        )
     return parser
 
 
@@ -56,10 +73,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     Errors never print a traceback: a :class:`qpik.QpikError` or an operating-system
     error (a file that cannot be read or written) prints ``qpik COMMAND: error: ...`` and
     returns 2; anything else is a bug, reported in one line with exit code 70 (set the
-    environment variable ``QPIK_DEBUG=1`` to see the traceback).
+    environment variable ``QPIK_DEBUG=1`` to see the traceback). Python warnings print one
+    line each, ``qpik COMMAND: warning: ...`` (``--verbose``: Python's own format).
     """
     parser = build_parser()
     args = parser.parse_args(argv)
+    with _warnings_shown(args.command, verbose=args.verbose):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the command; errors become a message and an exit code (see :func:`main`)."""
     try:
         return int(args.func(args) or 0)
     except BrokenPipeError:  # output piped into `head` and the like: stop quietly
@@ -82,8 +106,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERNAL_ERROR
 
 
-def _one_line(exc: BaseException, limit: int = 2000) -> str:
-    """The message of an exception on one line, at most ``limit`` characters."""
+@contextmanager
+def _warnings_shown(command: str, verbose: bool) -> Iterator[None]:
+    """Python warnings raised while a command runs, each printed on one line of stderr as
+    ``qpik COMMAND: warning: MESSAGE (Category)``, without the source line Python adds
+    (``verbose``: Python's own format, file, line and source included). The previous
+    ``warnings.showwarning`` is restored afterwards."""
+    with warnings.catch_warnings():
+        if not verbose:
+
+            def show(message, category, filename, lineno, file=None, line=None) -> None:
+                stream: TextIO | None = file if file is not None else sys.stderr
+                if stream is None:  # no stderr (pythonw): nowhere to say it
+                    return
+                text = _one_line(message) if str(message).strip() else category.__name__
+                try:
+                    stream.write(f"qpik {command}: warning: {text} ({category.__name__})\n")
+                except OSError:  # a closed stream: the warning is lost, not the command
+                    pass
+
+            warnings.showwarning = show
+        yield
+
+
+def _one_line(exc: BaseException | str, limit: int = 2000) -> str:
+    """The message of an exception (or a warning) on one line, at most ``limit`` characters."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= limit else text[: limit - 3] + "..."
 

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from ..configuration import Configuration
-from ..errors import InvalidInput, UnknownFrame
+from ..errors import InvalidInput, JointLimitViolation, UnknownFrame
 from ..model.frames import resolve_frame
 from ..options import PRESETS
 from ..robots import load_robot, tool_frame
@@ -137,3 +141,56 @@ def solve_options_from_args(args: argparse.Namespace) -> dict:
         if value is not None:
             options[name] = value
     return options
+
+
+#: Said in the description of the commands that take a configuration and answer outside
+#: the limits too (statics, analyze).
+OUTSIDE_LIMITS_NOTE = (
+    " A q outside the joint limits is answered too, with a one-line warning on stderr "
+    "(qpik.solve refuses such a start)."
+)
+
+#: The file name that means standard output (``--json -``).
+STDOUT = "-"
+
+JSON_HELP = "write the {} as JSON to OUT ('-': standard output, the report then on stderr)"
+
+
+def write_json(path: str, text: str) -> None:
+    """Write JSON ``text`` (and a newline) to ``path``, or to standard output when ``path``
+    is ``-``."""
+    if path == STDOUT:
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+    else:
+        Path(path).write_text(text + "\n")
+
+
+@contextlib.contextmanager
+def report_stream(json_path: str | None) -> Iterator[None]:
+    """The human-readable report of a command goes to stdout, or to stderr while the JSON
+    goes to stdout (``--json -``), so that stdout holds JSON only (``| jq``)."""
+    if json_path == STDOUT:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    else:
+        yield
+
+
+def warn_outside_limits(configuration: Configuration, command: str) -> None:
+    """One line on stderr when ``q`` is outside the joint limits (by more than 1e-6): the
+    first joint outside and how many more. The command still answers (statics and the
+    Jacobian are defined there); :func:`qpik.solve` refuses such a start instead."""
+    try:
+        configuration.check_limits()
+    except JointLimitViolation as exc:
+        q, tol = configuration.q, 1e-6
+        outside = int(
+            np.count_nonzero((q < configuration.lower - tol) | (q > configuration.upper + tol))
+        )
+        more = f" (and {outside - 1} more)" if outside > 1 else ""
+        print(
+            f"qpik {command}: warning: q is outside the joint limits: {exc}{more}; "
+            "answering for it anyway",
+            file=sys.stderr,
+        )

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from ..batch_files import solve_file
+from ..batch_files import BatchRun, solve_file
 from ._common import add_solve_arguments, solve_options_from_args
 
 
@@ -23,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and optionally qw,qx,qy,qz. Finished chunks are kept in RESULTS.chunks/ until the "
         "end: rerunning the same command resumes without redoing them. Exit status: 0 every "
         "target solved (converged or not), 2 invalid input, 3 stopped early (--max-chunks), "
-        "130 interrupted; rerun to resume.",
+        "130 interrupted; rerun to resume (it says how many targets it skips).",
         epilog="examples: qpik batch targets.npz --robot ur5e --frame ee --out results.npz; "
         "qpik batch targets.csv --robot erd:panda --frame panda_hand --out r.npz --workers 2; "
         "qpik batch targets.npz --robot ur5e --frame ee --out r.npz --ray auto",
@@ -96,8 +96,29 @@ def run(args: argparse.Namespace) -> int:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
     if not args.quiet:
+        skipped = skipped_targets(run_)
+        if skipped:
+            print(_skip_note(run_, skipped))
         print(run_.summary())
     return 0 if run_.complete else 3
+
+
+def skipped_targets(run_: BatchRun) -> int:
+    """How many targets an earlier run over the same ``--out`` had already solved, which
+    this run skipped: the rows done now (not ``pending``) less the ones solved now."""
+    pending = (run_.reasons or {}).get("pending", 0)
+    return run_.total - pending - run_.targets_solved
+
+
+def _skip_note(run_: BatchRun, skipped: int) -> str:
+    """The line that says a rerun skipped targets (all of them: nothing was left to do)."""
+    line = (
+        f"skipped {skipped} of {run_.total} targets ({run_.chunks_before} chunks): already "
+        f"solved in {run_.out} by an earlier run"
+    )
+    if run_.chunks_solved == 0 and run_.complete:
+        line += "; nothing left to do (--overwrite to solve them again)"
+    return line
 
 
 def _raise_interrupt(signum, frame) -> None:

@@ -15,6 +15,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
+from ._common import JSON_HELP, report_stream, write_json
+
 #: The checkout's benchmarks folder (absent from an installed wheel).
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
@@ -76,7 +78,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="time budget per solve [s] (default: the protocol's, 0.005 or 0.05)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the targets (0)")
-    parser.add_argument("--json", metavar="OUT", help="write the results as JSON to OUT")
+    parser.add_argument("--json", metavar="OUT", help=JSON_HELP.format("results"))
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.set_defaults(func=run)
 
@@ -98,8 +100,8 @@ def run(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"qpik bench: error: {exc}", file=sys.stderr)
         return 2
-    bench.print_table(results)
+    with report_stream(args.json):
+        bench.print_table(results)
     if args.json:
-        with open(args.json, "w") as stream:
-            json.dump(results, stream, indent=2)
+        write_json(args.json, json.dumps(results, indent=2))
     return 0

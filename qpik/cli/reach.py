@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from ..configuration import FrameType
 from ..problem import load_problem
 from ..robots import tool_frame
+from ._common import JSON_HELP, report_stream, write_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,10 +21,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "invalid input (the file, the field and what was expected).",
         epilog="examples: qpik reach tasks/panda_pose_reach.toml; "
         "qpik reach tasks/planar_4r_self_motion.toml --plot self_motion.png; "
-        "qpik reach tasks/ur5e_velocity_limits.toml --json out.json --quiet",
+        "qpik reach tasks/ur5e_velocity_limits.toml --json out.json --quiet; "
+        "qpik reach tasks/panda_pose_reach.toml --json - | jq .converged",
     )
     parser.add_argument("file", metavar="FILE", help="problem file (.toml)")
-    parser.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
+    parser.add_argument("--json", metavar="OUT", help=JSON_HELP.format("result"))
     parser.add_argument(
         "--plot", metavar="OUT.png", help="save a figure (needs the plots extra: matplotlib)"
     )
@@ -41,6 +42,22 @@ def run(args: argparse.Namespace) -> int:
 
         _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     result = problem.solve()
+    with report_stream(args.json):
+        _report(args, problem, result)
+    if args.json is not None:
+        write_json(args.json, result.to_json())
+    if args.plot is not None:
+        from ..plots import plot_result
+
+        plot_result(result, args.plot)
+    if not result.converged:
+        print(f"qpik reach: not converged: {result.reason}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _report(args: argparse.Namespace, problem, result) -> None:
+    """The goal frames and the result's summary (nothing with ``--quiet``)."""
     if not args.quiet:
         tool = tool_frame(problem.model)
         frames = [f for goal in problem.goals[:1] for f in goal.frames]
@@ -50,13 +67,3 @@ def run(args: argparse.Namespace) -> int:
             names.append(f"{FrameType(frame.frame_type).value} {frame.frame!r}{note}")
         print(f"goal frame{'s' if len(names) > 1 else ''}: {', '.join(names)}")
         print(result.summary())
-    if args.json is not None:
-        Path(args.json).write_text(result.to_json() + "\n")
-    if args.plot is not None:
-        from ..plots import plot_result
-
-        plot_result(result, args.plot)
-    if not result.converged:
-        print(f"qpik reach: not converged: {result.reason}", file=sys.stderr)
-        return 1
-    return 0

@@ -9,7 +9,12 @@ import numpy as np
 from ..configuration import joint_names
 from ..errors import InvalidInput
 from ..statics import gravity_torques, holding_torques, joint_torque_limits, joint_torques
-from ._common import add_robot_arguments, configuration_from_args
+from ._common import (
+    OUTSIDE_LIMITS_NOTE,
+    add_robot_arguments,
+    configuration_from_args,
+    warn_outside_limits,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="print the joint torques a force/torque at a frame produces, and holding torques",
         description="Statics at rest: tau = J^T [f; t] for a wrench at the frame origin (the "
         "torque it produces at the joints), the torque gravity produces, and the motor "
-        "torques that hold the robot still against both (-(gravity + tau)).",
+        "torques that hold the robot still against both (-(gravity + tau))." + OUTSIDE_LIMITS_NOTE,
         epilog="example: qpik statics ur5e --q 0 -1.57 1.57 0 0 0 --force 0 0 -20",
     )
     add_robot_arguments(parser)
@@ -59,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
     except InvalidInput:
         limits = None
     tau, gravity, holding = (np.where(np.abs(x) < 5e-9, 0.0, x) for x in (tau, gravity, holding))
+    warn_outside_limits(configuration, "statics")
     print(f"q = {np.array2string(configuration.q, precision=4)}")
     print(
         f"wrench at {args.frame_type} {args.frame!r} ({expressed_in} axes): "
