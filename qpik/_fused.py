@@ -260,12 +260,17 @@ def make_plan(
     rank_tolerance: float,
     tolerance: float,
     max_iter: int,
+    trust: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> FusedPlan | None:
     """The :class:`FusedPlan` of a stack, or None when a task or limit is not one that the
     one-call step computes (the general path then serves every step).
 
     ``scalar_joints`` (the model has hinge/slide joints only) is no longer needed (kept for
-    callers); ``max_iter``: the core's cap (0 for its default ``10 (nv + p) + 50``)."""
+    callers); ``max_iter``: the core's cap (0 for its default ``10 (nv + p) + 50``);
+    ``trust``: the step's trust region ``(dofs, speeds [rad/s or m/s])``
+    (:attr:`qpik.StepOptions.max_joint_speed`), appended to the velocity limits' entries:
+    the kernel's box bounds each of these dofs by ``speed dt``, a hard bound as a
+    velocity limit's."""
     layout = _task_layout(model, levels)
     boxes = _limit_boxes(model, limits)
     if layout is None or boxes is None:
@@ -273,6 +278,9 @@ def make_plan(
     nv, nq = model.nv, model.nq
     frames, postures, coms, relatives, tasks, frame_rows, starts = layout
     cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits = boxes
+    if trust is not None and len(trust[0]):
+        vel_dof = [*vel_dof, *np.asarray(trust[0], dtype=np.int64).tolist()]
+        vel_limit = [*vel_limit, *np.asarray(trust[1], dtype=float).tolist()]
     F, P, C, R, M = len(frames), len(postures), len(coms), len(relatives), starts[-1]
     jac = np.zeros((F, 6, nv))
     frame_data = np.zeros((F, 15))

@@ -257,6 +257,33 @@ _BOX_LIMITS: dict[type, Callable[[Any, np.ndarray, float], tuple[np.ndarray, ...
 }
 
 
+#: The name of the step's trust region in :attr:`StepResult.active_limits`.
+TRUST_REGION = "trust region"
+
+
+def _trust_region(nv: int, limits: Sequence, speed: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(dofs, speeds)`` of the trust region: the dofs that no velocity limit of
+    ``limits`` bounds (mink's or qpik's ``VelocityLimit``), each at ``speed`` [rad/s or
+    m/s]; empty when ``speed`` is None."""
+    if speed is None:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    bounded = np.zeros(nv, dtype=bool)
+    for limit in limits:
+        if isinstance(limit, mink.VelocityLimit) and len(limit.indices):
+            bounded[np.asarray(limit.indices, dtype=np.int64)] = True
+    dofs = np.flatnonzero(~bounded).astype(np.int64)
+    return dofs, np.full(dofs.size, float(speed))
+
+
+def _trust_box(
+    dofs: np.ndarray, speeds: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The trust region as box bounds on ``dq``: ``|dq| <= speed dt`` (as
+    :func:`_velocity_box`, so both paths compute the same bits)."""
+    bound = speeds * dt
+    return dofs, -bound, bound
+
+
 def _step_options(options: StepOptions | None, osqp_settings, **given) -> StepOptions:
     """``options`` (default :class:`StepOptions`) with the keywords that were given."""
     if options is not None and not isinstance(options, StepOptions):
@@ -298,6 +325,7 @@ class IKSolver:
         rank_tolerance: float | _Unset = UNSET,
         warm_start: bool | _Unset = UNSET,
         backend_options: Mapping[str, Any] | None | _Unset = UNSET,
+        max_joint_speed: float | None | _Unset = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):
@@ -311,6 +339,7 @@ class IKSolver:
             rank_tolerance=rank_tolerance,
             warm_start=warm_start,
             backend_options=backend_options,
+            max_joint_speed=max_joint_speed,
         )
         solver, damping = self.options.solver, self.options.damping
         damping_law, rank_tolerance = self.options.damping_law, self.options.rank_tolerance
@@ -345,6 +374,11 @@ class IKSolver:
         self._structure_cache: dict[int, tuple] = {}
         self._no_rows = np.zeros((0, self._nv))
         self._bounds = tuple(np.empty(self._nv) for _ in range(4))  # scratch for _limit_rows
+        #: The trust region: dofs that no velocity limit bounds, and their speed bound
+        #: [rad/s or m/s] (empty when StepOptions.max_joint_speed is None).
+        self._trust_dofs, self._trust_speed = _trust_region(
+            model.nv, self.limits, self.options.max_joint_speed
+        )
         self._scalar_joints = model.nq == model.nv and bool(
             np.all(
                 np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
@@ -365,6 +399,7 @@ class IKSolver:
             self._core.rank_tolerance,
             self._core.tolerance,
             self._core.max_iter or 0,
+            trust=(self._trust_dofs, self._trust_speed),
         )
 
     @property
@@ -444,6 +479,11 @@ class IKSolver:
                     contributions.append((name, dofs, lower))
             else:
                 self._limit_inequalities(limit, configuration, dt, lb, ub, contributions, general)
+        if self._trust_dofs.size:  # the trust region: a hard bound, as a velocity limit's
+            dofs, lower, upper = _trust_box(self._trust_dofs, self._trust_speed, dt)
+            tighten(hard_lb, hard_ub, dofs, lower, upper)
+            contributions.append((TRUST_REGION, dofs, upper))
+            contributions.append((TRUST_REGION, dofs, lower))
         lb, ub, i = merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
         if i >= 0:
             raise InfeasibleLimits(
@@ -751,6 +791,10 @@ class IKSolver:
             name = type(limit).__name__
             contributions.append((name, dofs, upper))
             contributions.append((name, dofs, lower))
+        if self._trust_dofs.size:
+            dofs, lower, upper = _trust_box(self._trust_dofs, self._trust_speed, dt)
+            contributions.append((TRUST_REGION, dofs, upper))
+            contributions.append((TRUST_REGION, dofs, lower))
         return contributions
 
     def _general_step(self, configuration: Configuration, dt: float, start: float) -> StepResult:

@@ -339,7 +339,8 @@ def _new_solver(
     limit_list = _limits(configuration, limits)
     if not levels:
         levels = [[_MinimumNorm()]]
-    options: dict[str, Any] = {"damping": damping}
+    # mink's behaviour: no trust region beyond the limits given (StepOptions.max_joint_speed).
+    options: dict[str, Any] = {"damping": damping, "max_joint_speed": None}
     if solver is not None:
         options["solver"] = solver
     if backend_options:

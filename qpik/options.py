@@ -153,6 +153,12 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
 
 
 # -------------------------------------------------------------------------- step
+#: Default trust region of a differential-IK step [rad/s or m/s]
+#: (:attr:`StepOptions.max_joint_speed`): one turn per second, 0.063 rad or m per 10 ms
+#: step, on every dof that no velocity limit of the stack bounds.
+DEFAULT_MAX_JOINT_SPEED: Final = math.pi
+
+
 @dataclass(frozen=True)
 class StepOptions:
     """How one differential-IK step is solved (:class:`qpik.IKSolver`).
@@ -177,6 +183,17 @@ class StepOptions:
         backend_options: keyword options of the backend (e.g. OSQP's ``eps_abs``), or
             ``None`` (the backend's defaults). Kept as a read-only mapping; not part of
             the hash.
+        max_joint_speed: the step's trust region [rad/s or m/s]: every dof that no
+            velocity limit of the stack bounds (MJCF models, Menagerie's among them, state
+            none) is held to ``|dq_i| <= max_joint_speed * dt``, a hard box bound merged
+            into the limits' box at every level, so that each step stays where the
+            linearisation of the tasks and limits holds (without it a blocked or
+            unreachable level takes steps of several radians). Dofs that a velocity limit
+            bounds keep that limit only (their answers are unchanged). A free joint's
+            three translations [m/s] and three rotations [rad/s] take the same number.
+            ``StepResult.active_limits`` names it ``"trust region"``. Default
+            :data:`DEFAULT_MAX_JOINT_SPEED` (``pi``: 0.031 rad per 10 ms step);
+            ``None`` turns it off (mink's behaviour).
     """
 
     solver: str = "auto"
@@ -185,9 +202,16 @@ class StepOptions:
     rank_tolerance: float = 1e-9
     warm_start: bool = False
     backend_options: Mapping[str, Any] | None = field(default=None, hash=False)
+    max_joint_speed: float | None = DEFAULT_MAX_JOINT_SPEED
 
     def __post_init__(self) -> None:
         _check_choice("solver", self.solver, SOLVERS)
+        if self.max_joint_speed is not None:
+            _set(
+                self,
+                "max_joint_speed",
+                check_number("max_joint_speed", self.max_joint_speed, maximum=1e12),
+            )
         _set(
             self,
             "damping",
@@ -229,7 +253,8 @@ STEP_FIELDS: Final = (
 )
 
 #: The steps of a full-IK solve: :class:`StepOptions` with the error-faded damping law.
-SOLVE_STEP: Final = StepOptions(damping_law=IGM_DAMPING)
+#: No step trust region (``max_joint_speed=None``): full IK sizes its own iterations.
+SOLVE_STEP: Final = StepOptions(damping_law=IGM_DAMPING, max_joint_speed=None)
 
 
 @dataclass(frozen=True)

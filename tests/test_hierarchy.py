@@ -333,10 +333,14 @@ def test_active_limits_are_named():
     model = configuration.model
     posture = PostureTask(model, cost=1.0)
     posture.set_target(configuration.mid_q() + 1.0)
-    result = IKSolver(model, [posture], [mink.VelocityLimit(model, {"joint2": 0.2})]).step(
-        configuration, DT
-    )
-    assert result.active_limits == ["joint2 upper (VelocityLimit)"]
+    limits = [mink.VelocityLimit(model, {"joint2": 0.2})]
+    result = IKSolver(model, [posture], limits, options=qpik.StepOptions(max_joint_speed=None))
+    assert result.step(configuration, DT).active_limits == ["joint2 upper (VelocityLimit)"]
+    # With the default trust region, the other joints' 1 rad steps are bounded and named.
+    result = IKSolver(model, [posture], limits).step(configuration, DT)
+    assert "joint2 upper (VelocityLimit)" in result.active_limits
+    assert "joint1 upper (trust region)" in result.active_limits
+    assert np.abs(result.displacement).max() <= np.pi * DT + 1e-12
 
 
 class SumLimit(mink.Limit):
@@ -391,7 +395,11 @@ def _closest_approach(model, limits, steps=300):
     tip.set_target([0.6, 1.7, 0.0])  # behind the obstacle: the straight way goes through it
     posture = PostureTask(model, cost=0.1)
     posture.set_target([0.0, 0.3])
-    solver = IKSolver(model, [[tip], [posture]], limits)
+    # No trust region: the rows alone must keep the links out (tests/test_physical_steps.py
+    # holds the default's).
+    solver = IKSolver(
+        model, [[tip], [posture]], limits, options=qpik.StepOptions(max_joint_speed=None)
+    )
     fromto = np.zeros(6)
     closest, active = np.inf, 0
     for _ in range(steps):
