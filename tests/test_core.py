@@ -361,7 +361,7 @@ def test_flat_mink_tasks_equal_mink_solve_ik_away_from_singularities():
             limits = limits_of(model)
             dt = 0.01
             expected = mink.solve_ik(configuration, tasks, dt, "daqp", damping=1e-6, limits=limits)
-            solver = qpik.IKSolver(model, tasks, limits, damping=1e-6)
+            solver = qpik.IKSolver(model, tasks, limits, damping=1e-6, max_joint_speed=None)
             result = solver.step(configuration, dt)
             assert result.damping == [0.0], (robot, builders, result.sigma_min)
             np.testing.assert_allclose(result.velocity * dt, expected * dt, atol=1e-9)
@@ -417,7 +417,9 @@ def test_build_returns_the_levels_qps():
     frame.set_target_from_configuration(configuration)
     posture = qpik.tasks.PostureTask(model, cost=0.1)
     posture.set_target(configuration.q)
-    solver = qpik.IKSolver(model, [[frame], [posture]], [mink.ConfigurationLimit(model)])
+    solver = qpik.IKSolver(
+        model, [[frame], [posture]], [mink.ConfigurationLimit(model)], max_joint_speed=None
+    )
     problem = solver.build(configuration, 0.01)
     assert [level.A.shape for level in problem.levels] == [(6, 7), (7, 7)]
     A, b, _ = frame.compute_qp_residual(configuration)
