@@ -52,8 +52,9 @@ inline double now() {
 }
 
 // ------------------------------------------------------- smallest singular value
-// Smallest eigenvalue of the symmetric G[:n, :n] (cyclic Jacobi; G overwritten).
-inline double smallest_eigenvalue(MatRef G, i64 n) {
+// Smallest eigenvalue of the symmetric G[:n, :n] by cyclic Jacobi (G overwritten): the
+// general size (n > 6, only through the binding: a level has at most 6 rows).
+inline double jacobi_smallest_eigenvalue(MatRef G, i64 n) {
     for (int sweep = 0; sweep < 50; ++sweep) {
         double off = 0.0;
         double diag = 0.0;
@@ -87,6 +88,107 @@ inline double smallest_eigenvalue(MatRef G, i64 n) {
     double smallest = G(0, 0);
     for (i64 i = 1; i < n; ++i)
         if (G(i, i) < smallest) smallest = G(i, i);
+    return smallest;
+}
+
+// Smallest eigenvalue of the symmetric G[:n, :n] (G overwritten): Householder reduction to
+// tridiagonal form, then the implicit QL iteration with Wilkinson's shift on its
+// eigenvalues (EISPACK's tql1); n <= 6 in fixed-size scratch, else cyclic Jacobi. Both are
+// backward stable: each eigenvalue to about eps |G| (absolute).
+inline double smallest_eigenvalue(MatRef G, i64 n) {
+    constexpr i64 N = 6;
+    if (n <= 0) return kInf;
+    double total = 0.0;
+    for (i64 i = 0; i < n; ++i)
+        for (i64 j = 0; j < n; ++j) total += std::fabs(G(i, j));
+    if (n > N || !(total < kInf)) return jacobi_smallest_eigenvalue(G, n);  // NaN, inf: as before
+    double d[N], e[N], v[N], w[N];
+    // Householder: column k's entries below the subdiagonal reflected away, G <- H G H on
+    // the trailing block (symmetric rank-2 update).
+    for (i64 k = 0; k + 2 < n; ++k) {
+        double scale = 0.0;
+        for (i64 i = k + 1; i < n; ++i) scale += std::fabs(G(i, k));
+        if (!(scale > 0.0)) {  // already reduced
+            e[k] = 0.0;
+            continue;
+        }
+        double inv_scale = 1.0 / scale;
+        double h = 0.0;
+        for (i64 i = k + 1; i < n; ++i) {
+            v[i] = G(i, k) * inv_scale;
+            h += v[i] * v[i];
+        }
+        double f = v[k + 1];
+        double g = f >= 0.0 ? -std::sqrt(h) : std::sqrt(h);
+        e[k] = scale * g;
+        h -= f * g;  // v^T v / 2, v = x - g e1
+        v[k + 1] = f - g;
+        double inv_h = 1.0 / h;
+        double vp = 0.0;
+        for (i64 i = k + 1; i < n; ++i) {
+            double s = 0.0;
+            for (i64 j = k + 1; j < n; ++j) s += G(i, j) * v[j];
+            w[i] = s * inv_h;  // p = G v / h
+            vp += v[i] * w[i];
+        }
+        double K = 0.5 * vp * inv_h;
+        for (i64 i = k + 1; i < n; ++i) w[i] -= K * v[i];  // w = p - K v
+        for (i64 i = k + 1; i < n; ++i) {
+            for (i64 j = k + 1; j <= i; ++j) {
+                double x = G(i, j) - (v[i] * w[j] + w[i] * v[j]);
+                G(i, j) = x;
+                G(j, i) = x;
+            }
+        }
+    }
+    for (i64 i = 0; i < n; ++i) d[i] = G(i, i);
+    if (n >= 2) e[n - 2] = G(n - 1, n - 2);
+    e[n - 1] = 0.0;
+    // Implicit QL: e[i] couples d[i] and d[i + 1]; an off-diagonal negligible beside its two
+    // diagonals splits the matrix. At most 60 iterations per eigenvalue (never reached on
+    // finite input; NaN input ends there).
+    for (i64 l = 0; l < n; ++l) {
+        for (int iter = 0; iter < 60; ++iter) {
+            i64 m = l;
+            for (; m + 1 < n; ++m) {
+                double dd = std::fabs(d[m]) + std::fabs(d[m + 1]);
+                if (!(std::fabs(e[m]) > 2.220446049250313e-16 * dd)) break;
+            }
+            if (m == l) break;
+            double g = (d[l + 1] - d[l]) / (2.0 * e[l]);
+            double r = std::sqrt(g * g + 1.0);
+            g = d[m] - d[l] + e[l] / (g + (g >= 0.0 ? r : -r));
+            double s = 1.0, c = 1.0, p = 0.0;
+            bool split = false;
+            for (i64 i = m - 1; i >= l; --i) {
+                double f = s * e[i];
+                double b = c * e[i];
+                r = std::sqrt(f * f + g * g);
+                e[i + 1] = r;
+                if (r == 0.0) {  // underflow: d[i + 1] is an eigenvalue of the rest
+                    d[i + 1] -= p;
+                    e[m] = 0.0;
+                    split = true;
+                    break;
+                }
+                double inv_r = 1.0 / r;
+                s = f * inv_r;
+                c = g * inv_r;
+                g = d[i + 1] - p;
+                r = (d[i] - g) * s + 2.0 * c * b;
+                p = s * r;
+                d[i + 1] = g + p;
+                g = c * r - b;
+            }
+            if (split) continue;
+            d[l] -= p;
+            e[l] = g;
+            e[m] = 0.0;
+        }
+    }
+    double smallest = d[0];
+    for (i64 i = 1; i < n; ++i)
+        if (d[i] < smallest) smallest = d[i];
     return smallest;
 }
 
