@@ -874,7 +874,7 @@ def main(argv=None) -> None:
     posture.set_target(configuration.q)
     qpik.IKSolver(model, posture).step(configuration, DT)  # loads (or compiles) the kernels
     first = time.perf_counter() - t0
-    print(f"first step (kernels loaded from numba's cache, or compiled): {first:.2f} s")
+    print(f"first step of the process (the C++ engine is built ahead of time): {first:.3f} s")
     if args.peers != "only":
         panda(args.states, rng)
         if not args.no_talos:
