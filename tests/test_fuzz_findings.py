@@ -97,3 +97,83 @@ def test_problem_file_matrix_is_projected(tmp_path) -> None:
     goal_rotation = problem.goals[0].target.rotation
     assert goal_rotation is not None
     assert np.abs(goal_rotation @ goal_rotation.T - np.eye(3)).max() < 1e-14
+
+
+# --------------------------------------------------------------------------------------
+# Class: DofFreezingTask(model, dof_indices) with a float, out-of-range or string index
+# raised a bare IndexError from mink's constructor. Indices go through
+# qpik.checks.check_indices; any AttributeError / IndexError of a mink task constructor
+# leaves as a TaskDefinitionError.
+
+
+@pytest.mark.parametrize("dofs", [[0.5], [99], "0", [0, 0], None, [True], [-1]])
+def test_dof_freezing_indices_are_checked(dofs) -> None:
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.QpikError) as info:
+        qpik.tasks.DofFreezingTask(model, dofs)
+    assert isinstance(info.value, ValueError)
+
+
+def test_dof_freezing_model_type_is_checked() -> None:
+    with pytest.raises(TypeError) as info:
+        qpik.tasks.DofFreezingTask({}, [0])  # type: ignore[arg-type]
+    assert isinstance(info.value, qpik.QpikError)
+    assert qpik.tasks.DofFreezingTask(qpik.load_robot("panda"), (1, 2)).dof_indices == [1, 2]
+
+
+# Class: joint_limits(model, velocity_scale="1") raised a bare TypeError (a sequence times
+# a float); the scale is now checked (a finite number > 0, or None).
+
+
+@pytest.mark.parametrize("scale", ["1", 0.0, -1.0, float("nan"), float("inf"), [1.0]])
+def test_velocity_scale_is_checked(scale) -> None:
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.QpikError):
+        qpik.limits.joint_limits(model, scale)
+    with pytest.raises(qpik.QpikError):
+        qpik.limits.velocity_limit_from_model(model, scale)
+    assert len(qpik.limits.joint_limits(model, None)) == 1
+
+
+# Class: a frame task built with a frame name of a wrong type (a list, None, bytes, a
+# float) was accepted and failed later, untyped. The name is checked where it enters.
+
+
+@pytest.mark.parametrize("cls", ["PoseTask", "FrameTask", "PositionTask", "OrientationTask"])
+@pytest.mark.parametrize("name", [[1.0, "x"], None, b"ee", 1.5, True])
+def test_frame_name_type_is_checked(cls: str, name) -> None:
+    with pytest.raises(TypeError) as info:
+        costs = {"position_cost": 1.0, "orientation_cost": 1.0} if cls == "FrameTask" else {}
+        getattr(qpik.tasks, cls)(name, "site", **costs)
+    assert isinstance(info.value, qpik.QpikError)
+
+
+# --------------------------------------------------------------------------------------
+# Class (boundary category): qpik.core.solve_hierarchy with a level matrix of dtype
+# object, or a 0-d bound, raised a bare TypeError / IndexError. Rooted in
+# qpik/core/hierarchy.py (not edited on this branch): see the patch in the fuzz report.
+
+
+@pytest.mark.xfail(
+    strict=False,
+    reason="fix in qpik/core/hierarchy.py: _validate_level converts A and b with "
+    "np.asarray(..., dtype=float) inside try/except (TypeError, ValueError) -> InvalidInput",
+)
+def test_hierarchy_object_arrays_are_refused_typed() -> None:
+    from qpik.core import Level, solve_hierarchy
+
+    A = np.array([[None, 1.0]], dtype=object)
+    with pytest.raises(qpik.QpikError):
+        solve_hierarchy([Level(A, np.zeros(1))], -np.ones(2), np.ones(2))
+
+
+@pytest.mark.xfail(
+    strict=False,
+    reason="fix in qpik/core/hierarchy.py: solve_hierarchy checks lb / ub as 1-D float "
+    "vectors (qpik.checks.check_vector) before reading n = lb.shape[0]",
+)
+def test_hierarchy_scalar_bounds_are_refused_typed() -> None:
+    from qpik.core import Level, solve_hierarchy
+
+    with pytest.raises(qpik.QpikError):
+        solve_hierarchy([Level(np.ones((1, 2)), np.zeros(1))], np.float64(-1.0), np.float64(1.0))
