@@ -59,7 +59,7 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-BAD = ("untyped", "nonfinite", "limits", "claim", "hang", "crash", "nondet")
+BAD = ("untyped", "nonfinite", "limits", "claim", "misreport", "hang", "crash", "nondet")
 COLUMNS = ("ok", "typed") + BAD
 CATEGORIES = (
     "solve",
@@ -271,11 +271,22 @@ TASKS = (
     "manipulability",
     "joint_limit_distance",
     "com",
+    "pose",
+    "relative_frame",
+    "kinetic_energy",
+    "dof_freezing",
+    "axis_align",
+    "look_at",
+    "equality",
 )
+#: Wrong-type values for any argument of a task's constructor (issue 25, item 2).
+WRONG_TYPES = (None, "1", b"ee", [1.0, "x"], {}, object, 2**70, True, (1.0, None), 1j)
+#: Time steps at and beyond every edge of the documented range [1e-9, 1e6] s.
+EXTREME_DT = (5e-324, 1e-300, 9.99e-10, 1e-9, 1e6, 1.0000001e6, 1e300, -0.0, True, None, [0.01])
 
 
 def _task(r: random.Random) -> dict:
-    kind = r.choice(TASKS)
+    kind = r.choice(TASKS[:-1]) if r.random() < 0.97 else "equality"  # always refused
     task: dict = {"type": kind}
     if r.random() < 0.3:
         task["cost"] = r.choice([1.0, 0.1, 0.0, -1.0, NAN, INF, 1e300, [1.0, 2.0], "x"])
@@ -285,9 +296,22 @@ def _task(r: random.Random) -> dict:
         task["lm_damping"] = r.choice([0.0, 1e-3, -1.0, NAN, INF, 1e300])
     if kind in ("frame", "position", "orientation", "manipulability"):
         task["frame"] = _maybe(r, "ee", ["nope", ("link2", "body")], 0.1)
+    if kind in ("pose", "relative_frame", "axis_align", "look_at"):
+        task["frame"] = _maybe(r, "ee", ["nope", ("link2", "body")], 0.1)
     if kind == "manipulability":
         task["rows"] = r.choice(["pose", "position", "orientation", "bogus", "pose"])
+    if kind == "kinetic_energy":
+        task["dt"] = _maybe(r, r.choice([0.01, 1.0, "unset"]), list(EXTREME_DT), 0.3)
+    if kind == "dof_freezing":
+        task["dofs"] = r.choice([[0], [0, 1], [], [-1], [99], [0, 0], "0", [0.5]])
+    if kind in ("axis_align", "look_at"):
+        task["axis"] = r.choice([(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (NAN, 0, 1)])
     task["target"] = r.choice(["reach", "start", "far", "none", "nan"])
+    if r.random() < 0.05:  # one argument of the constructor of a wrong type
+        task["wrong"] = [
+            r.choice(["frame", "frame_type", "cost", "gain", "lm_damping", "model"]),
+            r.randrange(len(WRONG_TYPES)),
+        ]
     return task
 
 
@@ -296,15 +320,20 @@ def gen_step(r: random.Random) -> dict:
     if r.random() < 0.05:
         levels = r.choice([[], [[]], "x", [None]])
     limits = []
-    for _ in range(r.choice([0, 1, 1, 2])):
+    for _ in range(r.choice([0, 1, 1, 2, 3])):
         limits.append(
             r.choice(
                 [
                     ["config", r.choice([0.95, 0.5, 1.0, 0.0, 1.5, NAN])],
                     ["config_dist", r.choice([0.0, 0.01, 10.0, -1.0])],
                     ["velocity", r.choice([1.0, 0.1, 1e-9, 0.0, -1.0, NAN, INF, 1e300])],
+                    ["joint_limits", r.choice([1.0, 0.5, None, 0.0, -1.0, NAN, "1"])],
+                    ["collision", r.choice([0.85, 0.5, 0.0, 1.5, NAN])],
+                    ["support", r.choice([0.0, 0.02, -0.1, NAN, 1e300])],
                 ]
             )
+            if r.random() < 0.95
+            else ["wrong", r.randrange(len(WRONG_TYPES))]
         )
     return {
         "robot": r.choice(ROBOTS),
@@ -319,7 +348,10 @@ def gen_step(r: random.Random) -> dict:
             0.15,
         ),
         "dt": _maybe(
-            r, r.choice([0.01, 0.002, 0.1]), [0.0, -0.01, NAN, INF, 1e-300, 1e300, "1"], 0.1
+            r,
+            r.choice([0.01, 0.002, 0.1]),
+            [0.0, -0.01, NAN, INF, 1e-300, 1e300, "1", *EXTREME_DT],
+            0.15,
         ),
         "q": _q_choice(r),
         "steps": r.choice([1, 2, 5]),
@@ -923,9 +955,19 @@ def _fk(model, q, frame: str, frame_type: str = "site"):
 
 
 def _angle(r1, r2) -> float:
+    """The angle [rad] of ``r1 r2^T``, both first projected onto SO(3) (an SVD), from
+    MuJoCo's quaternion of it: ``2 atan2(|xyz|, |w|)`` (accurate near 0, unlike an
+    ``acos`` of the trace)."""
     np = _np()
-    c = (np.trace(r1 @ r2.T) - 1.0) / 2.0
-    return float(math.acos(min(1.0, max(-1.0, c))))
+    import mujoco
+
+    def project(r):
+        u, _, vt = np.linalg.svd(np.asarray(r, dtype=float))
+        return u @ vt
+
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(project(r1) @ project(r2).T).ravel())
+    return float(2.0 * math.atan2(float(np.linalg.norm(quat[1:])), abs(float(quat[0]))))
 
 
 # Complexity above 10: one branch per kind of (malformed) input this generator draws.
@@ -1049,6 +1091,52 @@ def _solve_kwargs(spec: dict, model, rng) -> dict:
 
 
 # Complexity above 10: one branch per variant of the case it runs and checks.
+def _frame_kind(model, frame_key) -> tuple[str, str]:
+    """``(name, "site" | "body" | "geom")`` of a target's frame key, as qpik resolves a
+    bare name (a site first, then a body, then a geom)."""
+    import mujoco
+
+    name = _target_frame_name(frame_key)
+    kind = frame_key[1] if isinstance(frame_key, tuple) else None
+    if kind is None:
+        kind = (
+            "site"
+            if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0
+            else (
+                "body" if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) >= 0 else "geom"
+            )
+        )
+    return str(name), str(getattr(kind, "value", kind))
+
+
+def _fk_errors(model, q, name: str, kind: str, position, rotation) -> tuple[float, float]:
+    """Position [m] and orientation [rad] errors of a frame at ``q`` by MuJoCo's forward
+    kinematics on a fresh MjData (0 rad without a rotation target)."""
+    np = _np()
+    at, r = _fk(model, q, name, kind)
+    error = float(np.linalg.norm(at - np.asarray(position, dtype=float)))
+    return error, (0.0 if rotation is None else _angle(r, np.asarray(rotation, dtype=float)))
+
+
+def _check_reported(where: str, reported: tuple, measured: tuple) -> None:
+    """Bad('misreport') when a reported ``(position, orientation)`` error is off the
+    forward kinematics' one: by more than 1e-6 * max(1 m, the error), or 1e-6 rad."""
+    (p, o), (fp, fo) = (float(reported[0]), float(reported[1])), measured
+    if not abs(p - fp) <= 1e-6 * max(1.0, fp):
+        raise Bad("misreport", f"{where} position error {p!r} but FK says {fp!r}")
+    if not abs(o - fo) <= 1e-6:
+        raise Bad("misreport", f"{where} orientation error {o!r} but FK says {fo!r}")
+
+
+def _check_claim(where: str, measured: tuple, tol_p: float, tol_o: float) -> None:
+    """Bad('claim') when a converged result's FK errors exceed the tolerances."""
+    error, angle = measured
+    if not error <= tol_p * (1 + 1e-9) + 1e-15:
+        raise Bad("claim", f"{where} converged with position error {error:.3g} > {tol_p}")
+    if not angle <= tol_o * (1 + 1e-6) + 1e-9:
+        raise Bad("claim", f"{where} converged with orientation error {angle:.3g} > {tol_o}")
+
+
 def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -> str:
     """Invariants of an IKResult; returns its digest."""
     np = _np()
@@ -1064,34 +1152,16 @@ def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -
     limits = kwargs.get("limits", "joint")
     if limits == "joint" or (isinstance(limits, list) and limits):
         _check_within(model, q, f"{where}.q")
+    name, kind = _frame_kind(model, frame_key)
+    t = parse_target(target)
+    measured = _fk_errors(model, q, name, kind, t.position, t.rotation)
+    _check_reported(where, (result.position_error, result.orientation_error), measured)
+    for key, reported in result.frame_errors.items():
+        _check_reported(f"{where}.frame_errors[{key!r}]", reported, measured)
     if result.converged:
-        name = _target_frame_name(frame_key)
-        kind = frame_key[1] if isinstance(frame_key, tuple) else None
-        if kind is None:
-            import mujoco
-
-            kind = (
-                "site"
-                if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name) >= 0
-                else (
-                    "body"
-                    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) >= 0
-                    else "geom"
-                )
-            )
-        t = parse_target(target)
-        position, rotation = _fk(model, q, name, str(getattr(kind, "value", kind)))
         tol_p = kwargs.get("tol_position", 1e-4)
         tol_o = kwargs.get("tol_orientation", 1e-3)
-        error = float(np.linalg.norm(position - t.position))
-        if not error <= tol_p * (1 + 1e-9) + 1e-15:
-            raise Bad("claim", f"{where} converged with position error {error:.3g} > {tol_p}")
-        if t.rotation is not None:
-            angle = _angle(rotation, t.rotation)
-            if not angle <= tol_o * (1 + 1e-6) + 1e-9:
-                raise Bad(
-                    "claim", f"{where} converged with orientation error {angle:.3g} > {tol_o}"
-                )
+        _check_claim(where, measured, tol_p, tol_o)
     return _digest(q, result.converged, result.iterations, result.reason)
 
 
@@ -1170,6 +1240,24 @@ def _build_task(task: dict, model, configuration, rng):
     if isinstance(frame, tuple):
         frame, ftype = frame
     target = task["target"]
+    ctor_model = model  # what the constructors get (the harness keeps the real one)
+    if "wrong" in task:  # one argument of the constructor of a wrong type
+        arg, index = task["wrong"]
+        value = WRONG_TYPES[index]
+        if arg == "frame":
+            frame = value
+        elif arg == "frame_type":
+            ftype = value
+        elif arg == "model":
+            ctor_model = value
+        else:
+            o[arg] = value
+    if kind in ("pose", "relative_frame", "kinetic_energy", "dof_freezing") or kind in (
+        "axis_align",
+        "look_at",
+        "equality",
+    ):
+        return _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configuration, rng)
     if kind == "frame":
         o = {("position_cost" if k == "cost" else k): v for k, v in o.items()}
         t = T.FrameTask(frame, ftype, **{"position_cost": 1.0, "orientation_cost": 1.0, **o})
@@ -1178,11 +1266,11 @@ def _build_task(task: dict, model, configuration, rng):
     elif kind == "orientation":
         t = T.OrientationTask(frame, ftype, **o)
     elif kind == "posture":
-        t = T.PostureTask(model, **{"cost": 1.0, **o})
+        t = T.PostureTask(ctor_model, **{"cost": 1.0, **o})
     elif kind == "damping":
         o.pop("gain", None)
         o.pop("lm_damping", None)
-        t = T.DampingTask(model, **{"cost": 1.0, **o})
+        t = T.DampingTask(ctor_model, **{"cost": 1.0, **o})
     elif kind == "manipulability":
         o.pop("lm_damping", None)
         t = T.ManipulabilityTask(frame, ftype, rows=task["rows"], **o)
@@ -1239,6 +1327,64 @@ def _build_task(task: dict, model, configuration, rng):
     return t
 
 
+# Complexity above 10: one branch per kind of task.
+def _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configuration, rng):
+    """The task kinds beyond the first eight: every task type of ``qpik.tasks``."""
+    np = _np()
+    import mink
+    import mujoco
+
+    from qpik import tasks as T
+
+    target = task["target"]
+    if kind == "kinetic_energy":
+        t = T.KineticEnergyRegularizationTask(cost=o.get("cost", 1.0))
+        if task["dt"] != "unset":
+            t.set_dt(task["dt"])
+        return t
+    if kind == "dof_freezing":
+        return T.DofFreezingTask(ctor_model, dof_indices=task["dofs"], **{"gain": 1.0, **o})
+    if kind == "equality":  # no bundled robot has equalities: a typed refusal
+        return T.EqualityConstraintTask(ctor_model, cost=o.get("cost", 1.0))
+    if kind in ("axis_align", "look_at"):
+        cls = T.AxisAlignTask if kind == "axis_align" else T.LookAtTask
+        t = cls(frame, ftype, axis=task["axis"], **o)
+        if target == "start":
+            t.set_target_from_configuration(configuration)
+        elif target != "none":
+            value = {"reach": [0.0, 0.0, 1.0], "far": [1e300, 0.0, 0.0], "nan": [NAN] * 3}
+            t.set_target(np.array(value[target]))
+        return t
+    o = {("position_cost" if k == "cost" else k): v for k, v in o.items()}
+    o = {"position_cost": 1.0, "orientation_cost": 1.0, **o}
+    if kind == "relative_frame":
+        root = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 1) if model is not None else "x"
+        t = T.RelativeFrameTask(frame, ftype, root, "body", **o)
+    else:
+        t = T.PoseTask(frame, ftype, **o)
+    if target == "none":
+        return t
+    if target == "start":
+        t.set_target_from_configuration(configuration)
+        return t
+    q = _q_value("random", model, rng)
+    position, rotation = (
+        _fk(model, q, frame, ftype)
+        if target == "reach"
+        else ((np.full(3, 1e300), np.eye(3)) if target == "far" else (np.full(3, NAN), np.eye(3)))
+    )
+    if kind == "relative_frame":
+        if target == "nan":
+            t.set_target(np.full(7, NAN))  # not an SE3: InvalidTarget
+        else:
+            t.set_target(
+                mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), position)
+            )
+    else:
+        t.set_target(position, rotation)
+    return t
+
+
 # Complexity above 10: one branch per variant of the case it runs and checks.
 def run_step(spec: dict) -> str:
     np = _np()
@@ -1263,10 +1409,18 @@ def run_step(spec: dict) -> str:
             limits.append(qpik.limits.ConfigurationLimit(model, gain=x))
         elif kind == "config_dist":
             limits.append(qpik.limits.ConfigurationLimit(model, min_distance_from_limits=x))
+        elif kind == "joint_limits":
+            limits.extend(qpik.limits.joint_limits(model, x))
+        elif kind == "collision":
+            limits.append(qpik.limits.model_collision_limit(model, gain=x))
+        elif kind == "support":
+            limits.append(qpik.limits.SupportPolygonLimit(model, [("ee", "site")], margin=x))
+        elif kind == "wrong":
+            limits.append(WRONG_TYPES[x])
         else:
             limits.append(qpik.limits.VelocityLimit(model, {n: x for n in qpik.joint_names(model)}))
             velocity_limit = x
-    has_config = any(k in ("config", "config_dist") for k, _ in spec["limits"])
+    has_config = any(k in ("config", "config_dist", "joint_limits") for k, _ in spec["limits"])
     start_inside = bool(np.all(np.isfinite(configuration.q))) and configuration.within_limits(0.0)
     law = _weird_law(spec["damping_law"])
     options = {"solver": spec["solver"], "damping": spec["damping"]}
@@ -1570,24 +1724,43 @@ def run_problem(spec: dict) -> str:
 
 
 def _check_problem_claim(problem, result) -> None:
-    np = _np()
-    if not result.converged:
-        return
+    """Every reported error of a problem's result against forward kinematics of the
+    configuration it belongs to (every frame of every goal), and a claim of convergence
+    against the tolerances."""
     tol_p = problem.options.get("tol_position", 1e-4)
     tol_o = problem.options.get("tol_orientation", 1e-3)
+
+    def measure(goal, q) -> dict:
+        return {
+            f.frame: _fk_errors(
+                problem.model, q, f.frame, f.frame_type.value, f.target.position, f.target.rotation
+            )
+            for f in goal.frames
+        }
+
+    def worst(errors: dict) -> tuple[float, float]:
+        return max(p for p, _ in errors.values()), max(o for _, o in errors.values())
+
     if result.trace is not None:
-        checks = [(problem.goals[-1], result.q)]
+        trace = result.trace
+        for i, q in enumerate(trace.q):
+            goal = problem.goals[int(trace.goal_index[i - 1]) if i else 0]
+            reported = (trace.position_error[i], trace.orientation_error[i])
+            _check_reported(f"trace[{i}]", reported, worst(measure(goal, q)))
+        checks = [(problem.goals[-1], trace.q[-1])] if result.converged else []
     else:
-        checks = list(zip(problem.goals, [r.q for r in result.results]))
+        for k, (goal, r) in enumerate(zip(problem.goals, result.results)):
+            errors = measure(goal, r.q)
+            _check_reported(f"results[{k}]", (r.position_error, r.orientation_error), worst(errors))
+            for frame, reported in r.frame_errors.items():
+                if frame in errors:
+                    where = f"results[{k}].frame_errors[{frame!r}]"
+                    _check_reported(where, reported, errors[frame])
+            if r.converged:
+                _check_claim(f"results[{k}]", worst(errors), tol_p, tol_o)
+        checks = list(zip(problem.goals, [r.q for r in result.results])) if result.converged else []
     for goal, q in checks:
-        position, rotation = _fk(problem.model, q, goal.frame, goal.frame_type.value)
-        error = float(np.linalg.norm(position - goal.target.position))
-        if not error <= tol_p * (1 + 1e-9) + 1e-15:
-            raise Bad("claim", f"problem converged with position error {error:.3g} > {tol_p}")
-        if goal.target.rotation is not None:
-            angle = _angle(rotation, goal.target.rotation)
-            if not angle <= tol_o * (1 + 1e-6) + 1e-9:
-                raise Bad("claim", f"problem converged with orientation error {angle:.3g}")
+        _check_claim("problem", worst(measure(goal, q)), tol_p, tol_o)
 
 
 # -- CLI
@@ -2150,7 +2323,7 @@ def _mutate_array(a, how: str):
     if how == "ndim_up":
         return a[None]
     if how == "ndim_down":
-        return a.ravel() if a.ndim > 1 else (a[0] if a.size else np.float64(0.0))
+        return a.ravel() if a.ndim > 1 else (a.reshape(-1)[0] if a.size else np.float64(0.0))
     if how == "scalar":
         return np.float64(1.0)
     if how == "list":

@@ -53,6 +53,7 @@ if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool sta
 from .converge import IKSession, solve
 from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
 from .model.frames import resolve_frame
+from .model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation
 from .options import SolveOptions, resolve
 from .result import IKResult, Reason
 from .robots import resolve_robot
@@ -223,6 +224,11 @@ def _stack_targets(model: mujoco.MjModel, targets_list: Sequence) -> _StackedTar
         defect = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max()
         if not (defect <= 0.5e-6 and (np.linalg.det(R) > 0.5).all()):
             return None
+        # each target as parse_target reads it: the nearest rotation (the same function,
+        # one matrix at a time, so that the solves are bitwise those of single targets)
+        off = np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
+        for i in np.flatnonzero(off > 0.5 * ORTHONORMAL_TOLERANCE):
+            R[i] = nearest_rotation(R[i])
     resolve_frame(model, key, argument="targets_list[0]")  # an unknown frame raises here
     return _StackedTargets(key, P, R)
 

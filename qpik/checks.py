@@ -67,7 +67,9 @@ __all__ = [
     "check_choice",
     "check_dt",
     "check_finite_output",
+    "check_frame_name",
     "check_index",
+    "check_indices",
     "check_instance",
     "check_integer",
     "check_path",
@@ -219,6 +221,15 @@ def check_path(name: str, value: Any) -> str:
     raise InvalidArgumentType(name, expected, type_name(value))
 
 
+def check_frame_name(name: str, value: Any) -> Any:
+    """``value`` if it can name a frame: a ``str`` (or an int id, as mink takes); anything
+    else (``None``, a list, bytes, a float, a bool) raises :class:`InvalidArgumentType`.
+    Whether the frame exists is checked where it is looked up."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (str, int, np.integer)):
+        raise InvalidArgumentType(name, "a frame name (a str)", type_name(value))
+    return value
+
+
 def check_finite_output(what: str, value: Any) -> Any:
     """``value`` if every entry is finite; else :class:`qpik.InvalidInput` saying that
     ``what`` overflowed (the inputs, e.g. the model's sizes, are beyond float range)."""
@@ -258,6 +269,19 @@ def check_index(name: str, value: Any, size: int) -> int:
     if not 0 <= index < size:
         raise InvalidOption(name, value, f"an int in [0, {size})")
     return index
+
+
+def check_indices(name: str, value: Any, size: int) -> list[int]:
+    """``value`` as a list of distinct ints, each in ``[0, size)`` (a sequence of them; a
+    string, a mapping or a non-int entry raise :class:`InvalidArgumentType`; an entry out
+    of range or repeated :class:`qpik.InvalidOption`)."""
+    expected = f"a sequence of distinct ints in [0, {size})"
+    if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__iter__"):
+        raise InvalidArgumentType(name, expected, type_name(value))
+    indices = [check_index(f"{name}[{i}]", v, size) for i, v in enumerate(value)]
+    if len(set(indices)) != len(indices):
+        raise InvalidOption(name, value, expected)
+    return indices
 
 
 # ------------------------------------------------------------------ mink's errors

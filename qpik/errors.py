@@ -452,4 +452,6 @@ class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like conte
             raise TaskDefinitionError(
                 f"{self.what}: costs, gain and lm_damping must be numbers ({error})"
             ) from None
+        if isinstance(error, (AttributeError, IndexError)):  # an argument of a wrong kind
+            raise TaskDefinitionError(f"{self.what}: invalid argument ({error})") from None
         return False

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from .configuration import Configuration, FrameType
 from .errors import InvalidTarget
 from .model import _kernels
-from .model.rotations import orientation_angle
+from .model.rotations import nearest_rotation, orientation_angle
 
 __all__ = [
     "MAX_TARGET_DISTANCE",
@@ -110,7 +110,8 @@ def parse_target(value: TargetLike) -> Target:
     """A :class:`Target` from a position ``(3,)``, a ``(position, rotation)`` pair, a 4x4
     homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
     :class:`qpik.InvalidTarget`. The rotation is checked once, in one compiled call
-    (``|R R^T - I| <= 1e-6``, ``det R > 0``); positions farther than
+    (``|R R^T - I| <= 1e-6``, ``det R > 0``), and the target is the rotation nearest to
+    it (:func:`qpik.model.rotations.nearest_rotation`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
     position, rotation = _parts(value)
     position = _array(position, (3,), "position target")
@@ -126,7 +127,7 @@ def parse_target(value: TargetLike) -> Target:
             f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
             "world origin (its error would not be representable)"
         )
-    return Target(position, rotation if has_rot else None)
+    return Target(position, nearest_rotation(rotation) if has_rot else None)
 
 
 def pose_errors(position: np.ndarray, rotation: np.ndarray, target: Target) -> tuple[float, float]:

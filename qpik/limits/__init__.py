@@ -32,6 +32,7 @@ import numpy as np
 import numpy.typing as npt
 from mink import Constraint, Limit
 
+from .. import checks
 from ..configuration import Configuration, joint_names
 from ..errors import LimitDefinitionError
 from .collision import CollisionAvoidanceLimit, geom_distance
@@ -161,8 +162,10 @@ def velocity_limit_from_model(
     model: mujoco.MjModel, scale: float = 1.0
 ) -> mink.VelocityLimit | None:
     """A :class:`VelocityLimit` from the model's custom numeric ``velocity_limit``
-    (one value per dof, [rad/s] or [m/s]; 0 = none), times ``scale``, on the hinge and
+    (one value per dof, [rad/s] or [m/s]; 0 = none), times ``scale`` (a finite number
+    > 0), on the hinge and
     slide joints that have one; ``None`` if there is none."""
+    scale = checks.check_real("scale", scale, 0.0, open_minimum=True)
     limits = Configuration(model).velocity_limits()
     if limits is None:
         return None
@@ -181,7 +184,10 @@ def velocity_limit_from_model(
 def joint_limits(model: mujoco.MjModel, velocity_scale: float | None = 1.0) -> list[Limit]:
     """Position limits, plus a :class:`VelocityLimit` whenever the model declares velocity
     limits (``velocity_limit``: bundled models, and URDF ``<limit velocity>`` imported by
-    :func:`qpik.load_robot`), scaled by ``velocity_scale`` (``None``: no velocity limit)."""
+    :func:`qpik.load_robot`), scaled by ``velocity_scale`` (a finite number > 0; ``None``:
+    no velocity limit)."""
+    if velocity_scale is not None:
+        velocity_scale = checks.check_real("velocity_scale", velocity_scale, 0.0, open_minimum=True)
     limits: list[Limit] = [ConfigurationLimit(model)]
     if velocity_scale is not None:
         velocity = velocity_limit_from_model(model, velocity_scale)

@@ -22,7 +22,12 @@ import numpy as np
 from ..configuration import Configuration, FrameType
 from ..errors import ProblemFileError, QpikError
 from ..model.frames import frame_id
-from ..model.rotations import quaternion_to_matrix, rotation_defect, rpy_to_matrix
+from ..model.rotations import (
+    nearest_rotation,
+    quaternion_to_matrix,
+    rotation_defect,
+    rpy_to_matrix,
+)
 from ..robots import tool_frame
 
 if sys.version_info >= (3, 11):
@@ -266,7 +271,7 @@ class Reader:
         )
         if not rotation_defect(matrix) <= 1e-6:
             raise self.fail(name, "expected a rotation matrix (R R^T = I, det R = +1)")
-        return matrix
+        return nearest_rotation(matrix)
 
     def configuration(
         self,

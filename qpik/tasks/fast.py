@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from .. import checks
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..checks import qpik_errors
 from ..errors import TargetNotSet, mink_errors_as_qpik
@@ -53,6 +54,7 @@ class FrameTask(mink.FrameTask):
     def __init__(self, *args, **kwargs):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(*args, **kwargs)
+        checks.check_frame_name("frame_name", self.frame_name)
 
     def _frame_terms(self, configuration):
         """``(jac, xmat, jlog, error)`` from MuJoCo and mink's SE3 arithmetic

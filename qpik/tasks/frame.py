@@ -12,6 +12,7 @@ import mink
 import numpy as np
 import numpy.typing as npt
 
+from .. import checks
 from ..configuration import Configuration, FrameType
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
 from ..model.rotations import left_jacobian_inverse, rotation_vector
@@ -73,7 +74,7 @@ class _FrameRowsTask(mink.Task):
     ):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
-        self.frame_name = frame_name
+        self.frame_name = checks.check_frame_name("frame_name", frame_name)
         self.frame_type = FrameType.parse(frame_type)
         self.target: np.ndarray | None = None
 
@@ -171,7 +172,7 @@ class PoseTask(mink.Task):
                 ]
             )
             super().__init__(cost, gain, lm_damping)
-        self.frame_name = frame_name
+        self.frame_name = checks.check_frame_name("frame_name", frame_name)
         self.frame_type = FrameType.parse(frame_type)
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None

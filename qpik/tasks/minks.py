@@ -18,6 +18,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import mink
+import mujoco
 
 from .. import checks
 from ..errors import InvalidTarget, QpikError, TaskDefinitionError, mink_errors_as_qpik
@@ -92,7 +93,8 @@ def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
 def _with_qpik_errors(cls: _C) -> _C:
     """Wrap ``cls``'s constructor and run methods (inherited from mink) as described in
     the module docstring."""
-    cls.__init__ = _init_with_qpik_errors(cls.__mro__[1].__init__)  # type: ignore[misc]
+    init = cls.__dict__.get("__init__", cls.__mro__[1].__init__)  # type: ignore[misc]
+    cls.__init__ = _init_with_qpik_errors(init)  # type: ignore[misc]
     for name in _RUN_METHODS:
         method = getattr(cls, name, None)
         if method is not None and not getattr(method, "__isabstractmethod__", False):
@@ -108,7 +110,16 @@ class AxisAlignTask(mink.AxisAlignTask):
 
 @_with_qpik_errors
 class DofFreezingTask(mink.DofFreezingTask):
-    """mink's :class:`mink.DofFreezingTask`, with qpik's errors."""
+    """mink's :class:`mink.DofFreezingTask`, with qpik's errors: ``model`` must be an
+    ``MjModel`` and ``dof_indices`` distinct ints in ``[0, nv)``
+    (:func:`qpik.checks.check_indices`)."""
+
+    def __init__(self, model: mujoco.MjModel, dof_indices: list[int], gain: float = 1.0):
+        checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
+        if isinstance(dof_indices, (list, tuple)) and not dof_indices:
+            raise TaskDefinitionError("DofFreezingTask requires at least one DOF index")
+        indices = checks.check_indices("dof_indices", dof_indices, model.nv)
+        super().__init__(model, indices, gain)
 
 
 @_with_qpik_errors
