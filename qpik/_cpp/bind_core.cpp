@@ -172,6 +172,30 @@ void bind_core(nb::module_& m) {
         "(lb, ub, i): the merged box and the first dof whose hard bounds conflict (-1: none).");
 
     m.def(
+        "certified_level",
+        [](In2 A, In1 b, In2 AZ, In2 Z, In1 d, double rho, In1 lb, In1 ub, In2 G, In1 h, InI8_1 active,
+           i64 status, i64 max_iter, bool lower) {
+            i64 mm_ = rows(A), n = cols(A), r = cols(Z), p = rows(G);
+            need(len(b) == mm_, "certified_level: b must have shape (m,)");
+            need(rows(Z) == n, "certified_level: Z must have shape (n, r)");
+            need(rows(AZ) == mm_ && cols(AZ) == r, "certified_level: AZ must have shape (m, r)");
+            need(len(d) == n && len(lb) == n && len(ub) == n, "certified_level: d, lb, ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "certified_level: G must have shape (p, n)");
+            need(len(h) == p, "certified_level: h must have shape (p,)");
+            need(len(active) == n + p, "certified_level: active must have shape (n + p,)");
+            Vec dv(d.data(), d.data() + n);
+            core::CertifiedLevel c = core::certified_level(
+                cmat(A), cvec(b), cmat(AZ), cmat(Z), dv, rho, cvec(lb), cvec(ub), cmat(G), cvec(h),
+                VecRefT<const i8>(active.data(), n + p), status, max_iter, lower);
+            Vec cert{c.cert.primal, c.cert.stationarity, c.cert.dual, c.cert.complementarity};
+            return nb::make_tuple(c.ok, to_numpy(std::move(c.z)), to_numpy(std::move(cert)),
+                                  to_numpy(std::move(c.active)));
+        },
+        "A"_a, "b"_a, "AZ"_a, "Z"_a, "d"_a, "rho"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "active"_a, "status"_a,
+        "max_iter"_a, "lower"_a,
+        "A level made exact from a QP answer's active set and certified: (ok, z, certificate (4,), active).");
+
+    m.def(
         "solve_cascade",
         [](In2 A, In1 b, In1 w, InI64_1 starts, In1 reg, In1 lb, In1 ub, In2 G, In1 h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, InI8_2 warm,
@@ -198,9 +222,11 @@ void bind_core(nb::module_& m) {
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
                                   to_numpy(std::move(r.iterations)), to_numpy(std::move(r.active), {Ls, w2}),
-                                  to_numpy(std::move(r.residuals)));
+                                  to_numpy(std::move(r.residuals)), to_numpy(std::move(r.certificate), {Ls, 4}),
+                                  r.primal);
         },
         "A"_a, "b"_a, "w"_a, "starts"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
         "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a, "canonical"_a,
-        "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals).");
+        "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals, "
+        "certificate (L, 4): primal, stationarity, dual, complementarity, primal at the final dq).");
 }
