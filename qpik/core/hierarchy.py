@@ -518,6 +518,7 @@ class HierarchySolver:
             s0, s1 = int(starts[k]), int(starts[k + 1])
             if s1 == s0 or Z.shape[1] == 0:
                 status[k] = LevelStatus.SOLVED
+                certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)
                 continue
             Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
             AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)

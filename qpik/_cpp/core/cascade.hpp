@@ -367,11 +367,20 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             }
         }
     }
+    // The start: z = 0 (the level above's certified answer, or the clipped zero) where it
+    // is feasible (canonical), else the dual method's own iterate where that is.
     Vec start(static_cast<size_t>(qp.H.rows), 0.0);
-    // z = 0 is the level above's certified answer (a lower level) or the clipped zero.
     if (!lower && !zero_feasible(CVecRef(qp.lo), CVecRef(qp.hi))) {
-        if (!have_dual || !(cert.primal <= kCertify)) return false;
-        start = zc;
+        if (have_dual && cert.primal <= kCertify) {
+            start = zc;
+        } else if (sol.x.size() == start.size() && (sol.status == SOLVED || sol.status == MAX_ITER)) {
+            Vec Zz = mv(Z, sol.x.data());
+            for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+            if (!(certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, {}, {}, {}, 0, false).primal <= kCertify)) return false;
+            start = sol.x;
+        } else {
+            return false;
+        }
     }
     bool pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter);
     if (pok) {
@@ -442,7 +451,13 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
+            // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
+            // above left x; the certificate is the rows' feasibility there.
             res.status[k] = SOLVED;
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
+                                  false).primal;
+            ck[1] = ck[2] = ck[3] = 0.0;
             continue;
         }
         CMatRef Ak = A.rows_slice(s0, s1);
