@@ -291,6 +291,21 @@ def lexicographic(problem: Problem):
     return xs, certified
 
 
+def level_reference(problem: Problem, k: int, x_held: np.ndarray):
+    """Level ``k`` alone, the levels above held at ``x_held``'s task values (``A_j x =
+    A_j x_held``, j < k) and the limits kept, from ``x_held`` (feasible): ``(x, certified)``
+    (certified False when quadprog needed the rows widened by 1e-12)."""
+    n = problem.n
+    held = [A for A, _, _ in problem.levels[:k]]
+    N = null_space(np.vstack(held) if held else np.zeros((0, n)), n)
+    A, b, rho = problem.levels[k]
+    try:
+        return _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True)
+    except Infeasible:
+        x, _ = _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True, 1e-12)
+        return x, False
+
+
 def objective_tolerance(A, b, x_ours, x_ref, f_ours, f_ref) -> float:
     """Issue 21: worse when above the reference by more than 1e-9 of the larger objective,
     or ``1/2 (1e-7 (|b| + |A| |x|))^2``."""

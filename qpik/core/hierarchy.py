@@ -36,7 +36,8 @@ from singularities the step is the exact prioritised least-squares step.
 **Rank** is decided by the singular values themselves (one-sided Jacobi on the R factor of a
 pivoted QR, whose rotated Q columns are the left singular vectors): a direction is a rank
 direction when its singular value exceeds ``rank_tol * max(1, sigma_max)``; ``Z`` shrinks by
-exactly those directions' span.
+exactly those directions' span. Directions below the cutoff are not held: a lower level may
+change ``A_k x`` along them by at most ``rank_tol * max(1, sigma_max) |dx|``.
 
 **Exactness.** The dual active set (Goldfarb-Idnani) needs a positive definite Hessian, so
 it runs with a Tikhonov floor ``1e-14 (1 + max diag H)`` where ``rho_k + lambda_k^2`` is
