@@ -448,6 +448,22 @@ class HierarchySolver:
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
+        if self.solver == "auto" and problem.levels:
+            # One compiled call: the checks, the stacking and the cascade (None where an
+            # argument fails a check or needs a conversion: then the path below).
+            levels = problem.levels
+            L = len(levels)
+            warm = self._warm if self.warm_start else None
+            out = K.solve_levels(
+                [level.A for level in levels], [level.b for level in levels],
+                [level.regularization for level in levels], [level.weights for level in levels],
+                problem.lb, problem.ub, problem.G, problem.h, *self._law(), self.rank_tolerance,
+                self.max_iter, self.tolerance, warm, self.warm_start,
+            )  # fmt: skip
+            if out is not None:
+                result = self._result(out, L)
+                if result is not None:
+                    return result
         if validate:
             problem.validate()
         A, b, w, starts, reg = problem.stacked()
@@ -487,11 +503,20 @@ class HierarchySolver:
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
             self.warm_start,
         )  # fmt: skip
-        codes = status.tolist()
-        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+        result = self._result((x, status, sigma, lam2, its, active, residuals, cert, primal), L)
+        if result is None:
             # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
             # fallback where the active set did not settle.
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
+        return result
+
+    def _result(self, out, L: int) -> HierarchyResult | None:
+        """The kernels' tuple as a result; None when a level did not settle (MAX_ITER or
+        NUMERICAL: the caller redoes the cascade level by level)."""
+        x, status, sigma, lam2, its, active, residuals, cert, primal = out
+        codes = status.tolist()
+        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+            return None
         self._warm = active  # used as the next warm start only when warm_start is on
         return HierarchyResult(
             x, [_STATUS[s] for s in codes], residuals.tolist(), sigma.tolist(),

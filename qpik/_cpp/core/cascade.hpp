@@ -353,8 +353,9 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     Vec zc;
     bool have_dual = false;
     if (sol.status == SOLVED) {
-        BVec act = sol.active;
-        i64 q = canonical_set(act, rows, sides);
+        // The dual method's final working set (by row): its rows with a zero multiplier
+        // included, where the floor's tie-break held the point on them.
+        i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec zref = mtv(Z, d.data());

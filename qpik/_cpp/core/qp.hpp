@@ -25,6 +25,7 @@ struct QPResult {
     i64 status = SOLVED;
     i64 iterations = 0;
     BVec active;
+    BVec working;  // the final working set (every row in it, +1 lower / -1 upper), when known
 };
 
 namespace detail {
@@ -476,7 +477,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     i64 q = 0;
     {
         QPResult polished;
-        if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) return polished;
+        if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) {
+            polished.working = polished.active;  // strictly optimal: every row has u > 0
+            return polished;
+        }
     }
     Vec mc(static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
@@ -496,14 +500,25 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         i64 row, side;
         most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side);
         if (row < 0) {
+            BVec working(static_cast<size_t>(m), 0);
+            mark(working, act_row, act_side, q);
+            QPResult out;
             if (canonical) {
                 QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
-                if (polished.status == SOLVED) return polished;
+                if (polished.status == SOLVED) {
+                    polished.working = std::move(working);
+                    return polished;
+                }
             }
             QPResult ver = verified(H, c, C, x, u, act_row, act_side, q, iterations);
-            if (ver.status == SOLVED || canonical) return ver;
+            if (ver.status == SOLVED || canonical) {
+                ver.working = std::move(working);
+                return ver;
+            }
             QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
-            return polished.status == SOLVED ? polished : ver;
+            out = polished.status == SOLVED ? std::move(polished) : std::move(ver);
+            out.working = std::move(working);
+            return out;
         }
         double sd = static_cast<double>(side);
         for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
