@@ -6,7 +6,8 @@ over the limits with the levels above *held*: their task values ``A_j x = A_j x_
 (x_j the reference's own answer there), their inequalities kept (they are the limits).
 
 Each level is solved by quadprog in the null space of the held rows (numpy's SVD, the
-documented cutoff ``1e-9 max(1, sigma_max)``), with proximal-point outer iterations
+documented rank rule: level by level, a singular value of ``A_k N`` is a rank direction when
+it exceeds ``1e-9 max(1, sigma_max(A_k N))``), with proximal-point outer iterations
 (``+ eps/2 |y - y_prev|^2``, quadprog needs a positive definite Hessian) until the point
 settles, then *certified* by its KKT conditions with quadprog's multipliers (stationarity,
 primal and dual feasibility, scaled as in issue 21). :func:`lexicographic` returns the
@@ -248,6 +249,25 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
         if step <= 1e-13 * (1 + float(np.max(np.abs(y)))) or abs(f_prev - f) <= 1e-16 * (1 + abs(f)):
             break
         f_prev = f
+    # quadprog's point holds its active rows only to its own round-off (its Hessian has the
+    # proximal term's conditioning): re-solve the least-squares problem exactly on the rows
+    # with a positive multiplier (numpy's SVD and lstsq) and keep that point where it is
+    # feasible.
+    act = np.arange(C.shape[0]) < meq
+    act |= lam > 1e-12 * max(1.0, float(np.max(np.abs(lam), initial=0.0)))
+    if act.any():
+        Ca, da = C[act], d[act]
+        y_p = np.linalg.lstsq(Ca, da, rcond=None)[0]
+        Na = null_space(Ca, r, 1e-13)
+        Ma = np.vstack([M, math.sqrt(rho) * np.eye(r)]) if rho > 0 else M
+        ea = np.concatenate([e, -math.sqrt(rho) * (N.T @ x0)]) if rho > 0 else e
+        w = np.linalg.lstsq(Ma @ Na, ea - Ma @ y_p, rcond=None)[0] if Na.shape[1] else np.zeros(0)
+        y2 = y_p + Na @ w
+        slack2 = C @ y2 - d
+        # Kept where feasible even when its objective is higher: quadprog's lower value
+        # then came from violating its active rows by its round-off.
+        if float(np.min(slack2, initial=0.0)) >= -1e-14 * (1 + float(np.max(np.abs(d), initial=0.0))):
+            y = y2
     # Certificate of the reference (looser than the core's: proximal round-off).
     grad = H @ y + g
     stat = grad - C.T @ lam
@@ -262,15 +282,28 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
     return x0 + N @ y, certified
 
 
+def held_null_space(levels, n: int) -> np.ndarray:
+    """The directions the levels leave free, by the documented rank rule: level by level,
+    the null space of ``A_k N`` (N the levels above's), a singular value being a rank
+    direction when it exceeds ``1e-9 max(1, sigma_max(A_k N))``."""
+    N = np.eye(n)
+    for A in levels:
+        if N.shape[1] == 0:
+            break
+        M = A @ N
+        rows = np.abs(M).sum(axis=1) > 0
+        N = N @ null_space(M[rows], N.shape[1]) if rows.any() else N
+    return N
+
+
 def lexicographic(problem: Problem):
     """The reference: ``(xs, certified)`` per level (xs[k] the answer after level k), or
     raises :class:`Infeasible` when level 0's limits are inconsistent."""
     n = problem.n
     x = None
-    held_A = np.zeros((0, n))
     xs, certified = [], []
     for k, (A, b, rho) in enumerate(problem.levels):
-        N = null_space(held_A, n)
+        N = held_null_space([level[0] for level in problem.levels[:k]], n)
         x0 = np.zeros(n) if x is None else x
         if x is None:
             x0 = np.clip(x0, problem.lb, problem.ub)
@@ -287,7 +320,6 @@ def lexicographic(problem: Problem):
             ok = False
         xs.append(x)
         certified.append(ok)
-        held_A = np.vstack([held_A, A])
     return xs, certified
 
 
@@ -296,8 +328,7 @@ def level_reference(problem: Problem, k: int, x_held: np.ndarray):
     A_j x_held``, j < k) and the limits kept, from ``x_held`` (feasible): ``(x, certified)``
     (certified False when quadprog needed the rows widened by 1e-12)."""
     n = problem.n
-    held = [A for A, _, _ in problem.levels[:k]]
-    N = null_space(np.vstack(held) if held else np.zeros((0, n)), n)
+    N = held_null_space([A for A, _, _ in problem.levels[:k]], n)
     A, b, rho = problem.levels[k]
     try:
         return _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True)
