@@ -65,7 +65,8 @@ least-squares steps from the feasible point ``z = 0``, i.e. the level above's an
 certifies that; only when neither holds does the level report another status (level 0:
 ``numerical_failure``; lower levels: ``kept_previous``), with the certificate of its best
 candidate saying which condition failed. After a level, ``d <- d + Z z`` (projected, never
-clipped, so the levels above keep ``A_j x`` to round-off); the final answer's rows are
+clipped, so the levels above keep ``A_j x`` to round-off); the final answer's round-off
+outside the box (at most ``1e-12 (1 + |bound|)``) is put back on the bound, and its rows are
 rechecked (:attr:`HierarchyResult.primal`).
 
 **Warm starts** only change which active set the dual method tries first; every answer ends
@@ -577,6 +578,11 @@ class HierarchySolver:
                 continue
             Z = Zn
         self._warm = active  # used as the next warm start only when warm_start is on
+        # Round-off outside the box (<= 1e-12 (1 + |bound|)) put back on it, as the kernel does.
+        snap = 1e-12
+        low = (d < lb) & (lb - d <= snap * (1 + np.abs(lb)))
+        high = (d > ub) & (d - ub <= snap * (1 + np.abs(ub)))
+        d = np.where(low, lb, np.where(high, ub, d))
         return HierarchyResult(
             d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend,
             certificates(certs), _primal(d, lb, ub, G, h),

@@ -307,6 +307,17 @@ inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double*
     return ls;
 }
 
+// The final answer's round-off outside its box put back on the bound: only violations up to
+// kSnap (1 + |bound|), so A_j x moves by round-off at most (larger ones are reported by the
+// certificate, never hidden).
+constexpr double kSnap = 1e-12;
+inline void snap_to_box(Vec& d, CVecRef lb, CVecRef ub) {
+    for (size_t i = 0; i < d.size(); ++i) {
+        if (d[i] < lb[i] && lb[i] - d[i] <= kSnap * (1.0 + std::fabs(lb[i]))) d[i] = lb[i];
+        if (d[i] > ub[i] && d[i] - ub[i] <= kSnap * (1.0 + std::fabs(ub[i]))) d[i] = ub[i];
+    }
+}
+
 // Whether z = 0 (x = d) meets every row of the reduced QP.
 inline bool zero_feasible(CVecRef lo, CVecRef hi) {
     for (i64 i = 0; i < lo.size(); ++i)
@@ -505,6 +516,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             continue;
         } else {
             res.status[k] = st == INFEASIBLE || st == MAX_ITER ? st : NUMERICAL;
+            detail::snap_to_box(d, lb, ub);
             res.residuals = detail::level_residuals(A, b, starts, d);
             res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
                                        {}, 0, false).primal;
@@ -513,6 +525,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         }
         Z = std::move(pr.Zn);
     }
+    detail::snap_to_box(d, lb, ub);
     res.residuals = detail::level_residuals(A, b, starts, d);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
