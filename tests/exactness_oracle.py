@@ -73,7 +73,7 @@ def random_problem(rng: np.random.Generator, kind: str) -> Problem:
     h = G @ xf + rng.uniform(0.0, 1.0, p)
     levels = []
     feasible = True
-    for k, m in enumerate(sizes):
+    for m in sizes:
         A = _rows(rng, m, n)
         b = rng.normal(size=m) * rng.uniform(0.1, 3.0)
         levels.append([A, b, 0.0])
@@ -246,7 +246,9 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
         f = 0.5 * y_new @ H @ y_new + g @ y_new
         step = float(np.max(np.abs(y_new - y)))
         y = y_new
-        if step <= 1e-13 * (1 + float(np.max(np.abs(y)))) or abs(f_prev - f) <= 1e-16 * (1 + abs(f)):
+        if step <= 1e-13 * (1 + float(np.max(np.abs(y)))) or abs(f_prev - f) <= 1e-16 * (
+            1 + abs(f)
+        ):
             break
         f_prev = f
     # quadprog's point holds its active rows only to its own round-off (its Hessian has the
@@ -266,7 +268,9 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
         slack2 = C @ y2 - d
         # Kept where feasible even when its objective is higher: quadprog's lower value
         # then came from violating its active rows by its round-off.
-        if float(np.min(slack2, initial=0.0)) >= -1e-14 * (1 + float(np.max(np.abs(d), initial=0.0))):
+        if float(np.min(slack2, initial=0.0)) >= -1e-14 * (
+            1 + float(np.max(np.abs(d), initial=0.0))
+        ):
             y = y2
     # Certificate of the reference (looser than the core's: proximal round-off).
     grad = H @ y + g
@@ -276,7 +280,8 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
     slack = C @ y - d
     certified = (
         float(np.max(np.abs(stat) / size, initial=0.0)) <= 1e-6
-        and float(np.min(lam[meq:], initial=0.0)) >= -1e-9 * (1 + float(np.max(np.abs(lam), initial=0.0)))
+        and float(np.min(lam[meq:], initial=0.0))
+        >= -1e-9 * (1 + float(np.max(np.abs(lam), initial=0.0)))
         and float(np.max(np.abs(lam * slack) / (size.max() * (1 + np.abs(d))), initial=0.0)) <= 1e-6
     )
     return x0 + N @ y, certified
@@ -308,13 +313,17 @@ def lexicographic(problem: Problem):
         if x is None:
             x0 = np.clip(x0, problem.lb, problem.ub)
         try:
-            x, ok = _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x0, N, relax=k > 0)
+            x, ok = _level(
+                A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x0, N, relax=k > 0
+            )
         except Infeasible:
             if k == 0 and not problem.feasible:
                 raise
             # quadprog's round-off at a degenerate vertex: the rows widened by 1e-12; the
             # answer may then violate a row by that much, so it is no feasible reference.
-            x, _ = _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x0, N, True, 1e-12)
+            x, _ = _level(
+                A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x0, N, True, 1e-12
+            )
             if k == 0 and scaled_violation(x, problem.lb, problem.ub, problem.G, problem.h) > 1e-9:
                 raise Infeasible from None
             ok = False
@@ -333,7 +342,9 @@ def level_reference(problem: Problem, k: int, x_held: np.ndarray):
     try:
         return _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True)
     except Infeasible:
-        x, _ = _level(A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True, 1e-12)
+        x, _ = _level(
+            A, b, rho, problem.lb, problem.ub, problem.G, problem.h, x_held, N, True, 1e-12
+        )
         return x, False
 
 

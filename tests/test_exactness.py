@@ -116,7 +116,12 @@ def test_random_hierarchies_against_the_reference_many():
 def load(path: Path, extra: float) -> HierarchyProblem:
     z = np.load(path)
     levels = [
-        Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]) + extra, z[f"w{k}"] if f"w{k}" in z.files else None)
+        Level(
+            z[f"A{k}"],
+            z[f"b{k}"],
+            float(z[f"reg{k}"]) + extra,
+            z[f"w{k}"] if f"w{k}" in z.files else None,
+        )
         for k in range(int(z["L"]))
     ]
     return HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
@@ -134,7 +139,10 @@ def test_reproducers_are_solved_and_certified(path, extra, exact):
     assert result.ok, (result.status, result.certificate)
     for cert in result.certificate:
         assert cert.holds and not cert.failed, cert
-        assert max(cert.primal, cert.stationarity, cert.dual, cert.complementarity) <= CERTIFICATE_TOLERANCE
+        assert (
+            max(cert.primal, cert.stationarity, cert.dual, cert.complementarity)
+            <= CERTIFICATE_TOLERANCE
+        )
     assert result.primal <= 1e-9
     assert scaled_violation(result.x, problem.lb, problem.ub, problem.G, problem.h) <= 1e-9
     if exact:
@@ -170,7 +178,9 @@ def test_clip_no_longer_moves_level_0():
     problem = load(DATA / "hqp_clip_moves_level0.npz", 0.0)
     solver = HierarchySolver(damping_law=None)
     full = solver.solve(problem)
-    alone = solver.solve(HierarchyProblem(problem.levels[:1], problem.lb, problem.ub, problem.G, problem.h))
+    alone = solver.solve(
+        HierarchyProblem(problem.levels[:1], problem.lb, problem.ub, problem.G, problem.h)
+    )
     A0 = np.asarray(problem.levels[0].A)
     assert np.abs(A0 @ full.x - A0 @ alone.x).max() <= 1e-12 * (1 + np.abs(A0 @ alone.x).max())
 
@@ -180,7 +190,9 @@ def test_regularisation_floor_is_removed():
     problem = load(DATA / "hqp_regularisation_floor.npz", 0.0)
     result = HierarchySolver(damping_law=None).solve(problem)
     A, b = np.asarray(problem.levels[0].A), np.asarray(problem.levels[0].b)
-    assert result.ok and result.residuals[0] <= 1e-9 * (1 + np.linalg.norm(b) + np.linalg.norm(A) * np.linalg.norm(result.x))
+    assert result.ok and result.residuals[0] <= 1e-9 * (
+        1 + np.linalg.norm(b) + np.linalg.norm(A) * np.linalg.norm(result.x)
+    )
 
 
 @pytest.mark.parametrize("kind", KINDS[:-1])
@@ -222,7 +234,10 @@ def test_panda_two_levels_binding_states():
     names = [model.joint(j).name for j in range(model.njnt)]
     ee = FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
     posture = PostureTask(model, cost=1.0)
-    limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, {name: 2.0 for name in names})]
+    limits = [
+        mink.ConfigurationLimit(model),
+        mink.VelocityLimit(model, {name: 2.0 for name in names}),
+    ]
     solver = IKSolver(model, [[ee], [posture]], limits, damping=1e-6, damping_law=None)
     for i in range(z["q"].shape[0]):
         configuration.update(z["q"][i])

@@ -95,7 +95,7 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
-    "active_guess", "certified_level", "cholesky_into", "damping_of", "level_damping", "merge_boxes",
-    "project_level", "reduced_qp", "solve_cascade", "solve_level", "solve_levels", "solve_qp",
-    "tighten",
+    "active_guess", "certified_level", "cholesky_into", "damping_of", "level_damping",
+    "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level", "solve_levels",
+    "solve_qp", "tighten",
 ]  # fmt: skip

@@ -155,7 +155,7 @@ class LevelCertificate:
         ]  # fmt: skip
 
     @classmethod
-    def from_array(cls, row) -> "LevelCertificate":
+    def from_array(cls, row) -> LevelCertificate:
         """From ``(primal, stationarity, dual, complementarity)``."""
         return cls(*(float(v) for v in row))
 
