@@ -482,7 +482,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         double rho = reg[k] + lam;
         ReducedQP qp = reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false);
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true);
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
         Certificate cert;

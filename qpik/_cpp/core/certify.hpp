@@ -45,6 +45,72 @@ struct LSForm {
 
 namespace detail {
 
+// Householder QR of N (r, q), q <= r, with the reflections kept (Q = H_0 H_1 ... H_{q-1}
+// never formed): the same reflections and R as householder_qr without pivoting.
+struct ImplicitQR {
+    i64 r = 0, q = 0;
+    Mat R;               // (r, q): R[:q] upper triangular
+    std::vector<Vec> v;  // v[i] (r - i,)
+    Vec beta;            // 2 / |v_i|^2, 0 for an identity step
+
+    void factor(const Mat& N) {
+        r = N.rows;
+        q = N.cols;
+        R = N;
+        v.assign(static_cast<size_t>(q), Vec());
+        beta.assign(static_cast<size_t>(q), 0.0);
+        for (i64 i = 0; i < q; ++i) {
+            i64 size = r - i;
+            Vec x(static_cast<size_t>(size));
+            double alpha = 0.0;
+            for (i64 t = 0; t < size; ++t) {
+                x[t] = R(i + t, i);
+                alpha += x[t] * x[t];
+            }
+            alpha = std::sqrt(alpha);
+            if (alpha == 0.0) continue;
+            if (x[0] > 0.0) alpha = -alpha;
+            x[0] -= alpha;
+            double vn = 0.0;
+            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            if (vn == 0.0) continue;
+            for (i64 j = i; j < q; ++j) {
+                double s = 0.0;
+                for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
+                s = 2.0 * s / vn;
+                for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
+            }
+            beta[i] = 2.0 / vn;
+            v[i] = std::move(x);
+        }
+    }
+    // x <- Q^T x (x of length r).
+    void apply_t(double* x) const {
+        for (i64 i = 0; i < q; ++i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            s *= beta[i];
+            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+        }
+    }
+    // x <- Q x.
+    void apply(double* x) const {
+        for (i64 i = q - 1; i >= 0; --i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            s *= beta[i];
+            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+        }
+    }
+};
+
+
 // min |M y - f| by Householder QR with column pivoting (M (m, k) copied); pivots below
 // kLsRank |R_00| are zeros, and the solution is the one of least norm.
 inline Vec lstsq(Mat M, Vec f) {
@@ -122,14 +188,11 @@ inline Vec lstsq(Mat M, Vec f) {
                 N0(i, c) = acc / M(i, i);
             }
         }
-        Mat Qn, Rn;
-        IVec pn;
-        householder_qr(N0.cref(), false, Qn, Rn, pn);
-        for (i64 c = 0; c < nn; ++c) {
-            double acc = 0.0;
-            for (i64 i = 0; i < k; ++i) acc += Qn(i, c) * yp[i];
-            for (i64 i = 0; i < k; ++i) yp[i] -= acc * Qn(i, c);
-        }
+        ImplicitQR qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
+        qn.factor(N0);
+        qn.apply_t(yp.data());
+        for (i64 c = 0; c < nn; ++c) yp[c] = 0.0;
+        qn.apply(yp.data());
     }
     for (i64 j = 0; j < k; ++j) y[perm[j]] = yp[j];
     return y;
@@ -148,7 +211,9 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 // (n_j^T z = rhs_j, n_j = side_j C[row_j]) and their multipliers (B^T (B z - f) = N u);
 // false when the normals are dependent. No regularisation is added: of the minimisers, the
 // one closest to zref (zref moved onto the working set, then the least-norm least-squares
-// step in the working set's null space W, by the pivoted QR of B W).
+// step in the working set's null space W, by the pivoted QR of B W). N's orthogonal factor
+// is kept as reflections (O(q r) per product, never the O(q r^2) explicit Q); W_out, when
+// asked for, is formed.
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr) {
     i64 r = C.cols;
@@ -156,9 +221,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     z = zref;
     u.assign(static_cast<size_t>(q), 0.0);
     if (q > r) return false;
-    Mat Q, R;
-    IVec perm;
-    Vec t(static_cast<size_t>(q));
+    detail::ImplicitQR qr;
     if (q > 0) {
         Mat N(r, q);
         Vec rhs(static_cast<size_t>(q));
@@ -169,58 +232,58 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             for (i64 i = 0; i < r; ++i) nz += N(i, j) * zref[i];
             rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
         }
-        householder_qr(N.cref(), false, Q, R, perm);
+        qr.factor(N);
+        const Mat& R = qr.R;
         double scale = 0.0;
         for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
+        Vec t(static_cast<size_t>(r), 0.0);
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
             t[i] = acc / R(i, i);
         }
-        for (i64 i = 0; i < r; ++i) {
-            double acc = 0.0;
-            for (i64 j = 0; j < q; ++j) acc += Q(i, j) * t[j];
-            z[i] = z[i] + acc;
-        }
+        qr.apply(t.data());  // Y t
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + t[i];
     } else {
-        Q = Mat::eye(r);
+        qr.r = r;
+        qr.q = 0;
     }
     i64 nw = r - q;
     if (nw > 0) {
-        Mat BW(mb, nw);  // B W, W = Q[:, q:]
+        Mat BW(mb, nw);  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
+        Vec row(static_cast<size_t>(r));
         for (i64 i = 0; i < mb; ++i) {
             const double* bi = ls.B.row(i);
-            for (i64 k = 0; k < r; ++k) {
-                double bik = bi[k];
-                if (bik == 0.0) continue;
-                const double* qk = Q.row(k) + q;
-                double* out = BW.row(i);
-                for (i64 j = 0; j < nw; ++j) out[j] += bik * qk[j];
-            }
+            for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+            qr.apply_t(row.data());
+            for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
         }
         Vec f0 = mv(ls.B.cref(), z.data());
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec y = detail::lstsq(std::move(BW), std::move(f0));
-        for (i64 i = 0; i < r; ++i) {
-            const double* qi = Q.row(i) + q;
-            double acc = 0.0;
-            for (i64 j = 0; j < nw; ++j) acc += qi[j] * y[j];
-            z[i] = z[i] + acc;
+        Vec wy(static_cast<size_t>(r), 0.0);
+        for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
+        qr.apply(wy.data());  // W y
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
+    }
+    if (W_out) {
+        *W_out = Mat(r, nw);
+        Vec e(static_cast<size_t>(r));
+        for (i64 j = 0; j < nw; ++j) {
+            std::fill(e.begin(), e.end(), 0.0);
+            e[q + j] = 1.0;
+            qr.apply(e.data());
+            for (i64 i = 0; i < r; ++i) (*W_out)(i, j) = e[i];
         }
     }
-    if (W_out) *W_out = columns(Q.cref(), q, r);
     if (q > 0) {
         Vec g = detail::ls_gradient(ls, z);
-        Vec grad(static_cast<size_t>(q));  // Y^T g
-        for (i64 j = 0; j < q; ++j) {
-            double acc = 0.0;
-            for (i64 i = 0; i < r; ++i) acc += Q(i, j) * g[i];
-            grad[j] = acc;
-        }
+        qr.apply_t(g.data());  // Y^T g = (Q^T g)[:q]
+        const Mat& R = qr.R;
         for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T g
-            double acc = grad[i];
+            double acc = g[i];
             for (i64 k = i + 1; k < q; ++k) acc -= R(i, k) * u[k];
             u[i] = acc / R(i, i);
         }
