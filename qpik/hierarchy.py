@@ -49,7 +49,7 @@ from .core import (
     LevelStatus,
 )
 from .core._kernels import merge_boxes, tighten
-from .core.hierarchy import _STATUS
+from .core.hierarchy import _STATUS, LevelCertificate, certificates
 from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
 from .options import UNSET, StepOptions, _Unset
 from .tasks import BaseTask
@@ -85,6 +85,10 @@ class StepResult:
             ``"max_iter"``, ``"not_reached"``, ...).
         iterations: per level, active-set changes (or the forced backend's iterations).
         solve_time: wall time of the whole step [s].
+        certificate: per level, its :class:`~qpik.core.LevelCertificate` (the largest
+            scaled violation of primal feasibility, stationarity, dual signs and
+            complementarity at the point it returned; ``solved`` only when each is at most
+            :data:`~qpik.core.CERTIFICATE_TOLERANCE`, see :mod:`qpik.core.hierarchy`).
     """
 
     velocity: np.ndarray
@@ -95,6 +99,7 @@ class StepResult:
     status: list[LevelStatus]
     iterations: list[int]
     solve_time: float
+    certificate: list[LevelCertificate] = field(default_factory=list)
     _name_active_limits: Callable[[], list[str]] | None = field(default=None, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
 
@@ -754,7 +759,7 @@ class IKSolver:
         if code:
             return None
         qpos = args[0]
-        residuals, sigma, lam2, status, iterations = info.tolist()
+        residuals, sigma, lam2, status, iterations = info[:5].tolist()
         if forced and any(s != _SOLVED_CODE for s in status):
             return None
         core._warm = active
@@ -768,6 +773,7 @@ class IKSolver:
             status=[_STATUS_OF_CODE[s] for s in status],
             iterations=list(map(int, iterations)),
             solve_time=time.perf_counter() - start,
+            certificate=certificates(info[5:].T),
             _name_active_limits=lambda: self._active_limits(
                 d,
                 *box_of(plan, q, dt),
@@ -828,6 +834,7 @@ class IKSolver:
             status=result.status,
             iterations=result.iterations,
             solve_time=time.perf_counter() - start,
+            certificate=result.certificate,
             _name_active_limits=lambda: self._active_limits(
                 d, lb, ub, G, h, contributions(), names
             ),

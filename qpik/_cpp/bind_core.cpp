@@ -3,6 +3,7 @@
 // of NumPy arrays: float64, int64 status arrays, int8 active sets; Python scalars).
 // Every shape is checked here, so a bad argument raises ValueError instead of reading
 // out of bounds.
+#include <cmath>
 #include <string>
 
 #include "bind.hpp"
@@ -172,6 +173,119 @@ void bind_core(nb::module_& m) {
         "(lb, ub, i): the merged box and the first dof whose hard bounds conflict (-1: none).");
 
     m.def(
+        "certified_level",
+        [](In2 A, In1 b, In2 AZ, In2 Z, In1 d, double rho, In1 lb, In1 ub, In2 G, In1 h, InI8_1 active,
+           i64 status, i64 max_iter, bool lower) {
+            i64 mm_ = rows(A), n = cols(A), r = cols(Z), p = rows(G);
+            need(len(b) == mm_, "certified_level: b must have shape (m,)");
+            need(rows(Z) == n, "certified_level: Z must have shape (n, r)");
+            need(rows(AZ) == mm_ && cols(AZ) == r, "certified_level: AZ must have shape (m, r)");
+            need(len(d) == n && len(lb) == n && len(ub) == n, "certified_level: d, lb, ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "certified_level: G must have shape (p, n)");
+            need(len(h) == p, "certified_level: h must have shape (p,)");
+            need(len(active) == n + p, "certified_level: active must have shape (n + p,)");
+            Vec dv(d.data(), d.data() + n);
+            core::CertifiedLevel c = core::certified_level(
+                cmat(A), cvec(b), cmat(AZ), cmat(Z), dv, rho, cvec(lb), cvec(ub), cmat(G), cvec(h),
+                VecRefT<const i8>(active.data(), n + p), status, max_iter, lower);
+            Vec cert{c.cert.primal, c.cert.stationarity, c.cert.dual, c.cert.complementarity};
+            return nb::make_tuple(c.ok, to_numpy(std::move(c.z)), to_numpy(std::move(cert)),
+                                  to_numpy(std::move(c.active)));
+        },
+        "A"_a, "b"_a, "AZ"_a, "Z"_a, "d"_a, "rho"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "active"_a, "status"_a,
+        "max_iter"_a, "lower"_a,
+        "A level made exact from a QP answer's active set and certified: (ok, z, certificate (4,), active).");
+
+    m.def(
+        "solve_levels",
+        [](nb::list As, nb::list bs, nb::list regs, nb::list ws, nb::handle lb_h, nb::handle ub_h, nb::handle G_h,
+           nb::handle h_h, double threshold, double max_damping, double error_scale, double rank_tol, i64 max_iter,
+           double tol, nb::handle warm_h, bool canonical) -> nb::object {
+            // The whole solve from the levels' own arrays: checks (as HierarchyProblem.validate),
+            // stacking and the cascade in one call. None when an argument does not pass (the
+            // caller then validates in Python, which names the field) or needs a conversion.
+            In1 lb, ub, h;
+            In2 G;
+            if (!nb::try_cast(lb_h, lb, false) || !nb::try_cast(ub_h, ub, false) || !nb::try_cast(G_h, G, false) ||
+                !nb::try_cast(h_h, h, false))
+                return nb::none();
+            i64 n = len(lb), p = rows(G);
+            if (len(ub) != n || (cols(G) != n) || len(h) != p) return nb::none();
+            for (i64 i = 0; i < n; ++i)
+                if (std::isnan(lb.data()[i]) || std::isnan(ub.data()[i])) return nb::none();
+            for (i64 i = 0; i < p * n; ++i)
+                if (!std::isfinite(G.data()[i])) return nb::none();
+            for (i64 i = 0; i < p; ++i)
+                if (std::isnan(h.data()[i])) return nb::none();
+            size_t L = nb::len(As);
+            if (nb::len(bs) != L || nb::len(regs) != L || nb::len(ws) != L || L == 0) return nb::none();
+            std::vector<In2> Ak(L);
+            std::vector<In1> bk(L), wk(L);
+            std::vector<bool> has_w(L, false);
+            IVec starts(L + 1, 0);
+            Vec reg(L);
+            for (size_t k = 0; k < L; ++k) {
+                if (!nb::try_cast(As[k], Ak[k], false) || !nb::try_cast(bs[k], bk[k], false)) return nb::none();
+                if (cols(Ak[k]) != n || len(bk[k]) != rows(Ak[k])) return nb::none();
+                double r;
+                if (!nb::try_cast(regs[k], r, true) || !std::isfinite(r) || !(r >= 0.0)) return nb::none();
+                reg[k] = r;
+                if (!ws[k].is_none()) {
+                    if (!nb::try_cast(ws[k], wk[k], false) || len(wk[k]) != rows(Ak[k])) return nb::none();
+                    has_w[k] = true;
+                }
+                starts[k + 1] = starts[k] + rows(Ak[k]);
+            }
+            i64 M = starts[L];
+            Mat A(M, n);
+            Vec b(static_cast<size_t>(M)), w(static_cast<size_t>(M));
+            for (size_t k = 0; k < L; ++k) {
+                const double* a = Ak[k].data();
+                i64 mk = rows(Ak[k]);
+                for (i64 i = 0; i < mk; ++i) {
+                    double* dst = A.row(starts[k] + i);
+                    double total = 0.0;
+                    for (i64 j = 0; j < n; ++j) {
+                        double v = a[i * n + j];
+                        if (!std::isfinite(v)) return nb::none();
+                        dst[j] = v;
+                        total += std::fabs(v);
+                    }
+                    double bv = bk[k].data()[i];
+                    if (!std::isfinite(bv)) return nb::none();
+                    b[starts[k] + i] = bv;
+                    w[starts[k] + i] = has_w[k] ? wk[k].data()[i] : (total > 0.0 ? 1.0 : 0.0);
+                }
+            }
+            BVec warm_zero;
+            const i8* warm = nullptr;
+            InI8_2 warm_arr;
+            if (!warm_h.is_none() && nb::try_cast(warm_h, warm_arr, false) &&
+                static_cast<i64>(warm_arr.shape(0)) == static_cast<i64>(L) &&
+                static_cast<i64>(warm_arr.shape(1)) == n + p) {
+                warm = warm_arr.data();
+            } else {
+                warm_zero.assign(static_cast<size_t>(L) * static_cast<size_t>(n + p), 0);
+                warm = warm_zero.data();
+            }
+            if (max_iter <= 0) max_iter = 10 * (n + p) + 50;
+            core::CascadeResult r = core::solve_cascade(
+                A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), static_cast<i64>(L) + 1),
+                CVecRef(reg), cvec(lb), cvec(ub), cmat(G), cvec(h), threshold, max_damping, error_scale, rank_tol,
+                max_iter, tol, MatRefT<const i8>(warm, static_cast<i64>(L), n + p), canonical);
+            size_t w2 = static_cast<size_t>(n + p);
+            return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
+                                  to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
+                                  to_numpy(std::move(r.iterations)), to_numpy(std::move(r.active), {L, w2}),
+                                  to_numpy(std::move(r.residuals)), to_numpy(std::move(r.certificate), {L, 4}),
+                                  r.primal);
+        },
+        "As"_a, "bs"_a, "regs"_a, "ws"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
+        "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a.none(), "canonical"_a,
+        "solve_cascade from the levels' own arrays (float64, C-contiguous) with HierarchyProblem.validate's "
+        "checks: the same tuple, or None when an argument does not pass or needs a conversion.");
+
+    m.def(
         "solve_cascade",
         [](In2 A, In1 b, In1 w, InI64_1 starts, In1 reg, In1 lb, In1 ub, In2 G, In1 h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, InI8_2 warm,
@@ -198,9 +312,11 @@ void bind_core(nb::module_& m) {
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
                                   to_numpy(std::move(r.iterations)), to_numpy(std::move(r.active), {Ls, w2}),
-                                  to_numpy(std::move(r.residuals)));
+                                  to_numpy(std::move(r.residuals)), to_numpy(std::move(r.certificate), {Ls, 4}),
+                                  r.primal);
         },
         "A"_a, "b"_a, "w"_a, "starts"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
         "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a, "canonical"_a,
-        "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals).");
+        "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals, "
+        "certificate (L, 4): primal, stationarity, dual, complementarity, primal at the final dq).");
 }

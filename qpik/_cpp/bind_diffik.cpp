@@ -418,7 +418,7 @@ void bind_diffik(nb::module_& m) {
             if (r.v_is_d) r.v = r.d;
             const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
             return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                                   to_numpy(std::move(r.info), {5, L_}),
+                                   to_numpy(std::move(r.info), {9, L_}),
                                    to_numpy(std::move(r.active), {L_, cols}));
         },
         nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
@@ -428,5 +428,5 @@ void bind_diffik(nb::module_& m) {
         nb::arg("cfg_dof"), nb::arg("cfg_data"), nb::arg("vel_dof"), nb::arg("vel_limit"),
         nb::arg("settings"), nb::arg("max_iter"), nb::arg("warm"), nb::arg("canonical"),
         "Rows of every task, the limits' box and the cascade in one call; returns (code, dq, v, "
-        "info (5, L), active (L, nv) int8). See qpik._fused.fused_step.");
+        "info (9, L), active (L, nv) int8). See qpik._fused.fused_step.");
 }

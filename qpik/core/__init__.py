@@ -8,6 +8,7 @@ rows, and :class:`qpik.IKSolver` hands them to this core.
 
 from .errors import InvalidInput, MissingExtra, QpikError
 from .hierarchy import (
+    CERTIFICATE_TOLERANCE,
     DEFAULT_DAMPING,
     SOLVERS,
     DampingLaw,
@@ -15,11 +16,13 @@ from .hierarchy import (
     HierarchyResult,
     HierarchySolver,
     Level,
+    LevelCertificate,
     LevelStatus,
     solve_hierarchy,
 )
 
 __all__ = [
+    "CERTIFICATE_TOLERANCE",
     "DEFAULT_DAMPING",
     "SOLVERS",
     "DampingLaw",
@@ -28,6 +31,7 @@ __all__ = [
     "HierarchySolver",
     "InvalidInput",
     "Level",
+    "LevelCertificate",
     "LevelStatus",
     "MissingExtra",
     "QpikError",

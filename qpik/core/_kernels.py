@@ -42,7 +42,16 @@ Signatures (as the numba kernels had them):
   pos_lb, pos_ub) -> (lb, ub, i)``.
 - ``solve_cascade(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping,
   error_scale, rank_tol, max_iter, tol, warm, canonical) -> (dq, status, sigma, lam2,
-  iterations, active, residuals)``.
+  iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
+  levels' certificates (primal, stationarity, dual, complementarity; see
+  :mod:`qpik.core.hierarchy`), ``primal`` the final answer's largest scaled row violation.
+- ``solve_levels(As, bs, regs, ws, lb, ub, G, h, threshold, max_damping, error_scale,
+  rank_tol, max_iter, tol, warm, canonical)``: :func:`solve_cascade` from the levels' own
+  arrays (lists; ``ws`` entries may be None) with the checks of
+  ``HierarchyProblem.validate``; the same tuple, or None where an argument fails a check or
+  needs a conversion (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
+- ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
+  z, certificate, active)``: one level made exact from a QP answer's active set.
 - ``cholesky_into(G, n, shift, L) -> bool``.
 """
 
@@ -76,6 +85,8 @@ reduced_qp = _engine.reduced_qp
 tighten = _engine.tighten
 merge_boxes = _engine.merge_boxes
 solve_cascade = _engine.solve_cascade
+certified_level = _engine.certified_level
+solve_levels = _engine.solve_levels
 
 assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == (
     _engine.SOLVED, _engine.MAX_ITER, _engine.INFEASIBLE, _engine.KEPT_PREVIOUS,
@@ -84,6 +95,7 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
-    "active_guess", "cholesky_into", "damping_of", "level_damping", "merge_boxes",
-    "project_level", "reduced_qp", "solve_cascade", "solve_level", "solve_qp", "tighten",
+    "active_guess", "certified_level", "cholesky_into", "damping_of", "level_damping",
+    "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level", "solve_levels",
+    "solve_qp", "tighten",
 ]  # fmt: skip

@@ -32,6 +32,47 @@ singularities. With ``sigma`` the smallest remaining one::
 
 (Nakamura & Hanafusa 1986; Chiaverini 1997), ``w_max`` the level's largest row cost. Far
 from singularities the step is the exact prioritised least-squares step.
+
+**Rank** is decided by the singular values themselves (one-sided Jacobi on the R factor of a
+pivoted QR, whose rotated Q columns are the left singular vectors): a direction is a rank
+direction when its singular value exceeds ``rank_tol * max(1, sigma_max)``; ``Z`` shrinks by
+exactly those directions' span. Directions below the cutoff are not held: a lower level may
+change ``A_k x`` along them by at most ``rank_tol * max(1, sigma_max) |dx|``.
+
+**Exactness.** The dual active set (Goldfarb-Idnani) needs a positive definite Hessian, so
+it runs with a Tikhonov floor ``1e-14 (1 + max diag H)`` where ``rho_k + lambda_k^2`` is
+smaller; it only *finds the active set*. The answer is then re-solved on that canonical
+active set (rows with a positive multiplier, by row) as an equality-constrained least-squares
+problem in ``[A_k Z; sqrt(rho) I]`` without any added regularisation (pivoted QR, basic
+solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the returned point
+``x = d + Z z``:
+
+* ``primal``: every box row ``(lb - x) / (1 + |lb|)``, ``(x - ub) / (1 + |ub|)`` and general
+  row ``(g x - h) / (|g| + |h|)``, the largest positive one;
+* ``stationarity``: ``s = Z^T (A_k^T (A_k x - b_k) + rho x - sum_j lambda_j c_j)`` over the
+  active rows ``c_j`` with their signed multipliers, each component divided by
+  ``|Z|^T (|A_k|^T (|A_k| |x| + |b_k|) + rho |x|)`` (the objective's terms, at least
+  ``1e-6`` times the largest component's: round-off from the other components; the
+  multipliers' terms are left out, so that nearly dependent active rows whose huge
+  multipliers cancel to their own round-off prove nothing), the largest;
+* ``dual``: a multiplier of the wrong sign, ``max(0, -u_j) |Z^T c_j| / S`` with ``S`` the
+  largest stationarity size;
+* ``complementarity``: ``|u_j| |Z^T c_j| / S`` times row ``j``'s scaled distance to its bound.
+
+A level is ``solved`` only when all four are ``<= CERTIFICATE_TOLERANCE`` (1e-9). Otherwise
+it falls back to an independent primal active-set method (equality-constrained
+least-squares steps from the feasible point ``z = 0``, i.e. the level above's answer), and
+certifies that; only when neither holds does the level report another status (level 0:
+``numerical_failure``; lower levels: ``kept_previous``), with the certificate of its best
+candidate saying which condition failed. After a level, ``d <- d + Z z`` (projected, never
+clipped, so the levels above keep ``A_j x`` to round-off); the final answer's round-off
+outside the box (at most ``1e-12 (1 + |bound|)``) is put back on the bound, and its rows are
+rechecked (:attr:`HierarchyResult.primal`).
+
+**Warm starts** only change which active set the dual method tries first; every answer ends
+in the same canonical re-solve, so a warm start gives bitwise the cold start's answer when the
+optimal active set is unique (and the same point to round-off at degenerate vertices, where
+several active sets are optimal).
 """
 
 from __future__ import annotations
@@ -47,7 +88,9 @@ from . import _kernels as K
 from .errors import InvalidInput, QpikError
 
 __all__ = [
+    "CERTIFICATE_TOLERANCE",
     "DEFAULT_DAMPING",
+    "LevelCertificate",
     "DampingLaw",
     "HierarchyProblem",
     "HierarchyResult",
@@ -80,6 +123,47 @@ _STATUS = {
     K.NUMERICAL: LevelStatus.NUMERICAL,
     K.NOT_REACHED: LevelStatus.NOT_REACHED,
 }
+
+#: A level is ``solved`` only when every measure of its certificate is at most this.
+CERTIFICATE_TOLERANCE = 1e-9
+
+_CONDITIONS = ("primal", "stationarity", "dual", "complementarity")
+
+
+@dataclass(frozen=True)
+class LevelCertificate:
+    """The proof of a level's optimality at its returned point (see the module doc): the
+    largest scaled violation of each KKT condition (NaN: not computed, e.g. a level not
+    reached or level 0 infeasible, where only ``primal`` is known)."""
+
+    primal: float = math.nan
+    stationarity: float = math.nan
+    dual: float = math.nan
+    complementarity: float = math.nan
+
+    @property
+    def holds(self) -> bool:
+        """Every measure at most :data:`CERTIFICATE_TOLERANCE`."""
+        return not self.failed
+
+    @property
+    def failed(self) -> list[str]:
+        """The conditions above the tolerance (or not computed)."""
+        return [
+            name for name in _CONDITIONS
+            if not getattr(self, name) <= CERTIFICATE_TOLERANCE
+        ]  # fmt: skip
+
+    @classmethod
+    def from_array(cls, row) -> LevelCertificate:
+        """From ``(primal, stationarity, dual, complementarity)``."""
+        return cls(*(float(v) for v in row))
+
+
+def certificates(array: np.ndarray) -> list[LevelCertificate]:
+    """Per level, from the kernels' (L, 4) array."""
+    return [LevelCertificate.from_array(row) for row in np.asarray(array).reshape(-1, 4)]
+
 
 #: Backends of :class:`HierarchySolver`: "auto" is qpik's exact compiled active set.
 SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
@@ -246,6 +330,9 @@ class HierarchyResult:
         active: per level, the active set of its QP: (n + p,) int8, +1 at a lower bound,
             -1 at an upper bound (box rows first, then the general rows).
         backend: per level, which backend produced the answer.
+        certificate: per level, its :class:`LevelCertificate` at the point it returned
+            (``solved`` only when it holds).
+        primal: the final ``x``'s largest scaled row violation (box and general rows).
     """
 
     x: np.ndarray
@@ -256,6 +343,8 @@ class HierarchyResult:
     iterations: list[int]
     active: np.ndarray
     backend: list[str]
+    certificate: list[LevelCertificate] = field(default_factory=list)
+    primal: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -266,6 +355,24 @@ class HierarchyResult:
 def _residuals(A, b, starts, x) -> list[float]:
     r = A @ x - b
     return [float(np.sqrt(r[s0:s1] @ r[s0:s1])) for s0, s1 in zip(starts[:-1], starts[1:])]
+
+
+def _primal(x, lb, ub, G, h) -> float:
+    """The largest scaled row violation at ``x`` (module doc, ``primal``)."""
+    big = 1e20
+    worst = 0.0
+    with np.errstate(invalid="ignore"):
+        lo = lb > -big
+        if lo.any():
+            worst = max(worst, float(np.max((lb[lo] - x[lo]) / (1 + np.abs(lb[lo])))))
+        hi = ub < big
+        if hi.any():
+            worst = max(worst, float(np.max((x[hi] - ub[hi]) / (1 + np.abs(ub[hi])))))
+        if G.shape[0]:
+            scale = np.linalg.norm(G, axis=1) + np.abs(h)
+            v = (G @ x - h) / np.where(scale > 0, scale, 1.0)
+            worst = max(worst, float(np.max(v)))
+    return worst
 
 
 class HierarchySolver:
@@ -281,11 +388,10 @@ class HierarchySolver:
         rank_tolerance: relative singular value below which a direction is not a rank.
         max_iter: iteration cap of the active-set solver per level (0: ``10 (n + p) + 50``).
         tolerance: feasibility tolerance of the limits (relative, per unit row norm).
-        warm_start: try the previous call's active sets first (opt-in). Every answer is
-            then re-solved on its canonical active set (O(n^3) per level), so warm and cold
-            starts agree bit for bit on non-degenerate QPs and to round-off (1e-12) at
-            degenerate vertices. Off by default: cold starts are bitwise reproducible
-            always, and at IK sizes usually cheaper than that re-solve.
+        warm_start: try the previous call's active sets first (opt-in). Every answer, warm
+            or cold, ends in the same canonical exact re-solve (module doc), so warm and
+            cold starts agree bit for bit when the optimal active set is unique, and to
+            round-off at degenerate vertices.
         backend_options: passed to the forced backend (OSQP settings or qpsolvers kwargs).
     """
 
@@ -343,6 +449,22 @@ class HierarchySolver:
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
+        if self.solver == "auto" and problem.levels:
+            # One compiled call: the checks, the stacking and the cascade (None where an
+            # argument fails a check or needs a conversion: then the path below).
+            levels = problem.levels
+            L = len(levels)
+            warm = self._warm if self.warm_start else None
+            out = K.solve_levels(
+                [level.A for level in levels], [level.b for level in levels],
+                [level.regularization for level in levels], [level.weights for level in levels],
+                problem.lb, problem.ub, problem.G, problem.h, *self._law(), self.rank_tolerance,
+                self.max_iter, self.tolerance, warm, self.warm_start,
+            )  # fmt: skip
+            if out is not None:
+                result = self._result(out, L)
+                if result is not None:
+                    return result
         if validate:
             problem.validate()
         A, b, w, starts, reg = problem.stacked()
@@ -377,20 +499,29 @@ class HierarchySolver:
         if self.solver != "auto":
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=False)
         threshold, max_damping, error_scale = self._law()
-        x, status, sigma, lam2, its, active, residuals = K.solve_cascade(
+        x, status, sigma, lam2, its, active, residuals, cert, primal = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
             self.warm_start,
         )  # fmt: skip
-        codes = status.tolist()
-        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+        result = self._result((x, status, sigma, lam2, its, active, residuals, cert, primal), L)
+        if result is None:
             # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
             # fallback where the active set did not settle.
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
+        return result
+
+    def _result(self, out, L: int) -> HierarchyResult | None:
+        """The kernels' tuple as a result; None when a level did not settle (MAX_ITER or
+        NUMERICAL: the caller redoes the cascade level by level)."""
+        x, status, sigma, lam2, its, active, residuals, cert, primal = out
+        codes = status.tolist()
+        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+            return None
         self._warm = active  # used as the next warm start only when warm_start is on
         return HierarchyResult(
             x, [_STATUS[s] for s in codes], residuals.tolist(), sigma.tolist(),
-            lam2.tolist(), its.tolist(), active, ["auto"] * L,
+            lam2.tolist(), its.tolist(), active, ["auto"] * L, certificates(cert), float(primal),
         )  # fmt: skip
 
     # ------------------------------------------------------------------ level by level
@@ -407,12 +538,14 @@ class HierarchySolver:
         its = [0] * L
         backend = [""] * L
         active = np.zeros((L, n + p), dtype=np.int8)
+        certs = np.full((L, 4), np.nan)
         d = np.clip(np.zeros(n), lb, ub)
         Z = np.eye(n)
         for k in range(L):
             s0, s1 = int(starts[k]), int(starts[k + 1])
             if s1 == s0 or Z.shape[1] == 0:
                 status[k] = LevelStatus.SOLVED
+                certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)
                 continue
             Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
             AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)
@@ -423,8 +556,20 @@ class HierarchySolver:
             its[k], backend[k] = it, used
             if act is not None:
                 active[k] = act
+            if st != K.INFEASIBLE or k > 0:
+                # The backend's active set made exact (no added floor) and certified.
+                guess = act if act is not None else np.zeros(n + p, np.int8)
+                ok, z, cert, act2 = K.certified_level(
+                    Ak, bk, AZ, Z, d, float(reg[k]) + lam, lb, ub, G, h,
+                    np.ascontiguousarray(guess, np.int8), st, max_iter, k > 0,
+                )  # fmt: skip
+                certs[k] = cert
+                if ok:
+                    st, active[k] = K.SOLVED, act2
+                elif st == K.SOLVED:
+                    st = K.NUMERICAL
             if st == K.SOLVED:
-                d = np.clip(d + Z @ z, lb, ub)
+                d = d + Z @ z  # projected, never clipped (the levels above stay put)
                 status[k] = LevelStatus.SOLVED
             else:
                 status[k] = _STATUS[st] if k == 0 or st == K.MAX_ITER else LevelStatus.KEPT_PREVIOUS
@@ -433,9 +578,15 @@ class HierarchySolver:
                 continue
             Z = Zn
         self._warm = active  # used as the next warm start only when warm_start is on
+        # Round-off outside the box (<= 1e-12 (1 + |bound|)) put back on it, as the kernel does.
+        snap = 1e-12
+        low = (d < lb) & (lb - d <= snap * (1 + np.abs(lb)))
+        high = (d > ub) & (d - ub <= snap * (1 + np.abs(ub)))
+        d = np.where(low, lb, np.where(high, ub, d))
         return HierarchyResult(
-            d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend
-        )
+            d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend,
+            certificates(certs), _primal(d, lb, ub, G, h),
+        )  # fmt: skip
 
     def _solve_qp(self, k, H, c, C, lo, hi, warm, max_iter, fallback):
         """One level's reduced QP: ``(z, status code, iterations, active, backend)``.

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "../common.hpp"
+#include "certify.hpp"
 #include "linalg.hpp"
 #include "qp.hpp"
 
@@ -20,6 +21,8 @@ struct CascadeResult {
     IVec iterations;   // (L,)
     BVec active;       // (L, n + p) row-major: the final active sets
     Vec residuals;     // (L,) |A_k dq - b_k|
+    Vec certificate;   // (L, 4) row-major: primal, stationarity, dual, complementarity
+    double primal = 0.0;  // the final dq's largest scaled row violation (box and general)
 };
 
 // (AZ, sigma, rank, Zn) of project_level.
@@ -102,17 +105,68 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     Mat Q, R;
     IVec perm;
     householder_qr(Mt.cref(), true, Q, R, perm);
-    double top = std::fabs(R(0, 0));
+    // Singular values of the top block of R (p, keep) by one-sided Jacobi rotations of its
+    // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
+    // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
+    // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
+    // in a few sweeps).
+    i64 p = std::min(r, keep);
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+        for (i64 i = 0; i < p - 1; ++i) {
+            for (i64 j = i + 1; j < p; ++j) {
+                double* ri = R.row(i);
+                double* rj = R.row(j);
+                double alpha = 0.0, beta = 0.0, gamma = 0.0;
+                for (i64 t = 0; t < keep; ++t) {
+                    alpha += ri[t] * ri[t];
+                    beta += rj[t] * rj[t];
+                    gamma += ri[t] * rj[t];
+                }
+                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
+                rotated = true;
+                double zeta = (beta - alpha) / (2.0 * gamma);
+                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
+                double sn = cs * tt;
+                for (i64 t = 0; t < keep; ++t) {
+                    double a = ri[t], c = rj[t];
+                    ri[t] = cs * a - sn * c;
+                    rj[t] = sn * a + cs * c;
+                }
+                for (i64 t = 0; t < r; ++t) {
+                    double a = Q(t, i), c = Q(t, j);
+                    Q(t, i) = cs * a - sn * c;
+                    Q(t, j) = sn * a + cs * c;
+                }
+            }
+        }
+        if (!rotated) break;
+    }
+    Vec sv(static_cast<size_t>(p));
+    double top = 0.0;
+    for (i64 i = 0; i < p; ++i) {
+        double nn = 0.0;
+        for (i64 t = 0; t < keep; ++t) nn += R(i, t) * R(i, t);
+        sv[i] = std::sqrt(nn);
+        top = pymax(top, sv[i]);
+    }
     double cutoff = rank_tol * pymax(1.0, top);
     i64 rank = 0;
-    for (i64 i = 0; i < std::min(r, keep); ++i)
-        if (std::fabs(R(i, i)) > cutoff) rank += 1;
     double sigma = kInf;
-    if (rank > 0) {
-        sigma = min_singular(CMatRef(R.a.data(), rank, R.cols));
-        if (sigma <= cutoff) sigma = std::fabs(R(rank - 1, rank - 1));
+    IVec null_cols;
+    for (i64 i = 0; i < p; ++i) {
+        if (sv[i] > cutoff) {
+            rank += 1;
+            sigma = pymin(sigma, sv[i]);
+        } else {
+            null_cols.push_back(i);
+        }
     }
-    Mat Qr = columns(Q.cref(), rank, Q.cols);
+    for (i64 i = p; i < r; ++i) null_cols.push_back(i);
+    Mat Qr(r, static_cast<i64>(null_cols.size()));
+    for (i64 t = 0; t < r; ++t)
+        for (size_t c = 0; c < null_cols.size(); ++c) Qr(t, static_cast<i64>(c)) = Q(t, null_cols[c]);
     out.Zn = mm(Z, Qr.cref());
     out.sigma = sigma;
     out.rank = rank;
@@ -228,6 +282,158 @@ inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef
     return -1;
 }
 
+namespace detail {
+
+// The level's objective as least squares in z (see LSForm): B = [A Z; sqrt(rho) I].
+inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho) {
+    i64 m = A.rows, r = AZ.cols;
+    bool reg = rho > 0.0;
+    LSForm ls;
+    ls.B = Mat(m + (reg ? r : 0), r);
+    ls.f.assign(static_cast<size_t>(ls.B.rows), 0.0);
+    Vec e = mv(A, d);
+    for (i64 i = 0; i < m; ++i) {
+        for (i64 j = 0; j < r; ++j) ls.B(i, j) = AZ(i, j);
+        ls.f[i] = b[i] - e[i];
+    }
+    if (reg) {
+        double s = std::sqrt(rho);
+        Vec zd = mtv(Z, d);
+        for (i64 j = 0; j < r; ++j) {
+            ls.B(m + j, j) = s;
+            ls.f[m + j] = -s * zd[j];
+        }
+    }
+    return ls;
+}
+
+// The final answer's round-off outside its box put back on the bound: only violations up to
+// kSnap (1 + |bound|), so A_j x moves by round-off at most (larger ones are reported by the
+// certificate, never hidden).
+constexpr double kSnap = 1e-12;
+inline void snap_to_box(Vec& d, CVecRef lb, CVecRef ub) {
+    for (size_t i = 0; i < d.size(); ++i) {
+        if (d[i] < lb[i] && lb[i] - d[i] <= kSnap * (1.0 + std::fabs(lb[i]))) d[i] = lb[i];
+        if (d[i] > ub[i] && d[i] - ub[i] <= kSnap * (1.0 + std::fabs(ub[i]))) d[i] = ub[i];
+    }
+}
+
+// Whether z = 0 (x = d) meets every row of the reduced QP.
+inline bool zero_feasible(CVecRef lo, CVecRef hi) {
+    for (i64 i = 0; i < lo.size(); ++i)
+        if (lo[i] > 0.0 || hi[i] < 0.0) return false;
+    return true;
+}
+
+// One level made exact: the dual active set's rows (sol) re-solved on their canonical
+// active set without regularisation, then certified; else the primal active set from a
+// feasible point, certified. Returns true with z, the working set and the certificate when
+// one of them holds; else false with the best candidate's certificate.
+inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
+                        double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                        i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
+                        IVec& final_sides) {
+    i64 n = static_cast<i64>(d.size());
+    IVec rows, sides;
+    Vec u;
+    cert = Certificate{};
+    double best = kInf;
+    Vec x(static_cast<size_t>(n));
+    auto certify = [&](const Vec& zc) {
+        Vec Zz = mv(Z, zc.data());
+        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
+                                      static_cast<i64>(rows.size()));
+        if (c.worst() < best || std::isnan(cert.primal)) {
+            best = c.worst();
+            cert = c;
+        }
+        if (c.holds()) {  // the final active set: the rows with a positive multiplier
+            final_rows.clear();
+            final_sides.clear();
+            for (size_t j = 0; j < rows.size(); ++j) {
+                if (u[j] > 0.0) {
+                    final_rows.push_back(rows[j]);
+                    final_sides.push_back(sides[j]);
+                }
+            }
+            return true;
+        }
+        return false;
+    };
+    Vec zc;
+    bool have_dual = false;
+    if (sol.status == SOLVED) {
+        // The dual method's final working set (by row): its rows with a zero multiplier
+        // included, where the floor's tie-break held the point on them.
+        i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
+        // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
+        // method's floor makes: canonical (no dependence on the path or the warm start).
+        Vec zref = mtv(Z, d.data());
+        for (auto& v : zref) v = -v;
+        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u)) {
+            have_dual = true;
+            if (certify(zc)) {
+                z = std::move(zc);
+                return true;
+            }
+        }
+    }
+    // The start: z = 0 (the level above's certified answer, or the clipped zero) where it
+    // is feasible (canonical), else the dual method's own iterate where that is.
+    Vec start(static_cast<size_t>(qp.H.rows), 0.0);
+    if (!lower && !zero_feasible(CVecRef(qp.lo), CVecRef(qp.hi))) {
+        if (have_dual && cert.primal <= kCertify) {
+            start = zc;
+        } else if (sol.x.size() == start.size() && (sol.status == SOLVED || sol.status == MAX_ITER)) {
+            Vec Zz = mv(Z, sol.x.data());
+            for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+            if (!(certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, {}, {}, {}, 0, false).primal <= kCertify)) return false;
+            start = sol.x;
+        } else {
+            return false;
+        }
+    }
+    bool pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter);
+    if (pok) {
+        if (certify(start)) {
+            z = std::move(start);
+            return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace detail
+
+// One level made exact and certified from a QP answer's active set (the level-by-level
+// path of qpik.core.hierarchy): (ok, z, certificate, final active set).
+struct CertifiedLevel {
+    bool ok = false;
+    Vec z;
+    Certificate cert;
+    BVec active;
+};
+
+inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRef Z, const Vec& d, double rho,
+                                      CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, VecRefT<const i8> active,
+                                      i64 status, i64 max_iter, bool lower) {
+    i64 n = static_cast<i64>(d.size()), p = G.rows;
+    ReducedQP qp = reduced_qp(Ak, bk, AZ, Z, d.data(), rho, lb, ub, G, h);
+    QPResult sol;
+    sol.status = status;
+    sol.active.assign(active.begin(), active.end());
+    LSForm ls = detail::ls_form(Ak, bk, AZ, Z, d.data(), rho);
+    CertifiedLevel out;
+    IVec rows, sides;
+    out.ok = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, out.z, out.cert,
+                                 rows, sides);
+    out.active.assign(static_cast<size_t>(n + p), 0);
+    for (size_t j = 0; j < rows.size(); ++j) out.active[rows[j]] = static_cast<i8>(sides[j]);
+    if (!out.ok) out.z.assign(static_cast<size_t>(Z.cols), 0.0);
+    return out;
+}
+
 // All levels of a hierarchy in one call; see solve_cascade in qpik/core/_kernels.py for
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
 // h (p,), warm (L, n + p) int8).
@@ -236,6 +442,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
                                    double threshold, double max_damping, double error_scale,
                                    double rank_tol, i64 max_iter, double tol,
                                    MatRefT<const i8> warm, bool canonical) {
+    (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
@@ -245,6 +452,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     res.lam2.assign(static_cast<size_t>(L), 0.0);
     res.iterations.assign(static_cast<size_t>(L), 0);
     res.active.assign(static_cast<size_t>(L * (n + p)), 0);
+    res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
     Vec d(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < n; ++i) {
         if (d[i] < lb[i]) d[i] = lb[i];
@@ -255,7 +463,13 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
+            // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
+            // above left x; the certificate is the rows' feasibility there.
             res.status[k] = SOLVED;
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
+                                  false).primal;
+            ck[1] = ck[2] = ck[3] = 0.0;
             continue;
         }
         CMatRef Ak = A.rows_slice(s0, s1);
@@ -265,32 +479,57 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;
-        ReducedQP qp = reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), reg[k] + lam, lb, ub, G, h);
+        double rho = reg[k] + lam;
+        ReducedQP qp = reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, canonical);
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true);
         res.iterations[k] = sol.iterations;
-        for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = sol.active[i];
         i64 st = sol.status;
-        if (st == SOLVED) {
-            Vec Zz = mv(Z.cref(), sol.x.data());
-            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
-            for (i64 i = 0; i < n; ++i) {
-                if (d[i] < lb[i]) d[i] = lb[i];
-                if (d[i] > ub[i]) d[i] = ub[i];
-            }
-            res.status[k] = SOLVED;
+        Certificate cert;
+        Vec z;
+        IVec final_rows, final_sides;
+        bool exact = false;
+        if (st == INFEASIBLE && k == 0) {
+            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false);
         } else {
-            res.status[k] = (k == 0 || st == MAX_ITER) ? st : KEPT_PREVIOUS;
-            if (st == MAX_ITER || st == NUMERICAL || k == 0) {
-                res.residuals = detail::level_residuals(A, b, starts, d);
-                res.dq = std::move(d);
-                return res;
-            }
+            LSForm ls = detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho);
+            exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
+                                        final_rows, final_sides);
+        }
+        double* ck = res.certificate.data() + 4 * k;
+        ck[0] = cert.primal;
+        ck[1] = cert.stationarity;
+        ck[2] = cert.dual;
+        ck[3] = cert.complementarity;
+        for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = sol.active[i];
+        if (exact) {
+            // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
+            // above stays put to round-off); its certificate covers the rows' feasibility.
+            Vec Zz = mv(Z.cref(), z.data());
+            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
+            for (size_t j = 0; j < final_rows.size(); ++j)
+                res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
+            res.status[k] = SOLVED;
+        } else if (k > 0 && st != MAX_ITER) {
+            res.status[k] = KEPT_PREVIOUS;  // the level above's answer is kept
             continue;
+        } else {
+            res.status[k] = st == INFEASIBLE || st == MAX_ITER ? st : NUMERICAL;
+            detail::snap_to_box(d, lb, ub);
+            res.residuals = detail::level_residuals(A, b, starts, d);
+            res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
+                                       {}, 0, false).primal;
+            res.dq = std::move(d);
+            return res;
         }
         Z = std::move(pr.Zn);
     }
+    detail::snap_to_box(d, lb, ub);
     res.residuals = detail::level_residuals(A, b, starts, d);
+    // The general rows (and the box) rechecked at the final answer.
+    res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
+                               false).primal;
     res.dq = std::move(d);
     return res;
 }

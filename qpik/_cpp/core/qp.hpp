@@ -25,6 +25,7 @@ struct QPResult {
     i64 status = SOLVED;
     i64 iterations = 0;
     BVec active;
+    BVec working;  // the final working set (every row in it, +1 lower / -1 upper), when known
 };
 
 namespace detail {
@@ -359,7 +360,7 @@ inline QPResult verified(CMatRef H, CVecRef c, CMatRef C, const Vec& x, const Ve
                          const IVec& act_side, i64 q, i64 iterations) {
     i64 m = C.rows;
     i64 n = static_cast<i64>(x.size());
-    QPResult res{x, SOLVED, iterations, BVec(static_cast<size_t>(m), 0)};
+    QPResult res{x, SOLVED, iterations, BVec(static_cast<size_t>(m), 0), {}};
     double floor = dual_floor(u, q);
     Vec g = mv(H, x.data());
     for (i64 i = 0; i < n; ++i) g[i] = g[i] + c[i];
@@ -413,8 +414,8 @@ inline QPResult polish(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, C
     Vec xp, up;
     bool ok = kkt_solve(H, L, c, C, lo, hi, rows, sides, k, xp, up);
     if (ok && kkt_ok(xp, up, C, lo, hi, k, pymax(tol, 1e-9)))
-        return QPResult{std::move(xp), SOLVED, iterations, std::move(active)};
-    return QPResult{x, NUMERICAL, iterations, std::move(active)};
+        return QPResult{std::move(xp), SOLVED, iterations, std::move(active), {}};
+    return QPResult{x, NUMERICAL, iterations, std::move(active), {}};
 }
 
 // Bounds widened by scale (1 + |bound|) (1 + i / m), distinct per row.
@@ -463,20 +464,25 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
 
 // Solve min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi exactly (see solve_qp in
 // qpik/core/_kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
+// raw: return the final iterate and working set without the checks and the re-solve (the
+// cascade makes every answer exact and certifies it itself, qpik/_cpp/core/certify.hpp).
 inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                         i64 max_iter, double tol, bool canonical) {
+                         i64 max_iter, double tol, bool canonical, bool raw = false) {
     using namespace detail;
     i64 n = H.rows;
     i64 m = C.rows;
     BVec active(static_cast<size_t>(m), 0);
     Mat Lm;
-    if (!cholesky(H, Lm)) return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active)};
+    if (!cholesky(H, Lm)) return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
     CMatRef L = Lm.cref();
     IVec act_row(static_cast<size_t>(n + 1), 0), act_side(static_cast<size_t>(n + 1), 0);
     i64 q = 0;
     {
         QPResult polished;
-        if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) return polished;
+        if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) {
+            polished.working = polished.active;  // strictly optimal: every row has u > 0
+            return polished;
+        }
     }
     Vec mc(static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
@@ -496,14 +502,32 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         i64 row, side;
         most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side);
         if (row < 0) {
+            BVec working(static_cast<size_t>(m), 0);
+            mark(working, act_row, act_side, q);
+            QPResult out;
+            if (raw) {
+                BVec act(static_cast<size_t>(m), 0);
+                double floor = dual_floor(u, q);
+                for (i64 j = 0; j < q; ++j)
+                    if (u[j] > floor) act[act_row[j]] = static_cast<i8>(act_side[j]);
+                return QPResult{x, SOLVED, iterations, std::move(act), std::move(working)};
+            }
             if (canonical) {
                 QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
-                if (polished.status == SOLVED) return polished;
+                if (polished.status == SOLVED) {
+                    polished.working = std::move(working);
+                    return polished;
+                }
             }
             QPResult ver = verified(H, c, C, x, u, act_row, act_side, q, iterations);
-            if (ver.status == SOLVED || canonical) return ver;
+            if (ver.status == SOLVED || canonical) {
+                ver.working = std::move(working);
+                return ver;
+            }
             QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, iterations, tol);
-            return polished.status == SOLVED ? polished : ver;
+            out = polished.status == SOLVED ? std::move(polished) : std::move(ver);
+            out.working = std::move(working);
+            return out;
         }
         double sd = static_cast<double>(side);
         for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
@@ -513,7 +537,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
             iterations += 1;
             if (iterations > max_iter) {
                 mark(active, act_row, act_side, q);
-                return QPResult{x, MAX_ITER, iterations, std::move(active)};
+                return QPResult{x, MAX_ITER, iterations, std::move(active), {}};
             }
             directions(J, R, normal, unit[row], q, d, z, r);
             i64 drop;
@@ -541,7 +565,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                     break;
                 }
                 mark(active, act_row, act_side, q);
-                return QPResult{x, INFEASIBLE, iterations, std::move(active)};
+                return QPResult{x, INFEASIBLE, iterations, std::move(active), {}};
             }
             bool full = t2 <= t1;
             if (full) {
@@ -591,8 +615,8 @@ inline BVec active_guess(CVecRef x, CMatRef C, CVecRef lo, CVecRef hi) {
 
 // solve_qp for one level, robust to degenerate vertices (rows widened by 1e-11, 1e-9).
 inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                            i64 max_iter, double tol, bool lower, bool canonical) {
-    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical);
+                            i64 max_iter, double tol, bool lower, bool canonical, bool raw = false) {
+    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw);
     i64 st = res.status;
     if (st == SOLVED || st == MAX_ITER || (st == INFEASIBLE && !lower)) return res;
     i64 its = res.iterations;
@@ -601,7 +625,7 @@ inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef
     for (double scale : {1e-11, 1e-9}) {
         Vec lo2, hi2;
         detail::widened(lo, hi, scale, lo2, hi2);
-        res = solve_qp(H, c, C, CVecRef(lo2), CVecRef(hi2), VecRefT<const i8>(cold), max_iter, tol, canonical);
+        res = solve_qp(H, c, C, CVecRef(lo2), CVecRef(hi2), VecRefT<const i8>(cold), max_iter, tol, canonical, raw);
         its += res.iterations;
         res.iterations = its;
         if (res.status == SOLVED) return res;

@@ -324,7 +324,8 @@ struct StepResult {
     i64 code = OK;
     Vec d;        // (n,)
     Vec v;        // (n,)
-    Vec info;     // (5, L) row-major: residual, sigma, lambda^2, status, iterations
+    Vec info;     // (9, L) row-major: residual, sigma, lambda^2, status, iterations, then the
+                  // certificate: primal, stationarity, dual, complementarity
     BVec active;  // (L, active_cols) row-major
     i64 active_cols = 0;
     bool v_is_d = false;  // the reference returns d in v's place (the code is not OK then)
@@ -339,7 +340,7 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
     RowsResult rows = fused_rows(a);
     StepResult out;
     out.code = rows.code;
-    out.info.assign(static_cast<size_t>(5 * L), 0.0);
+    out.info.assign(static_cast<size_t>(9 * L), 0.0);
     if (rows.code != OK) {
         out.d.assign(static_cast<size_t>(n), 0.0);
         out.v_is_d = true;
@@ -370,6 +371,7 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
         out.info[2 * L + k] = c.lam2[k];
         out.info[3 * L + k] = static_cast<double>(c.status[k]);
         out.info[4 * L + k] = static_cast<double>(c.iterations[k]);
+        for (i64 j = 0; j < 4; ++j) out.info[(5 + j) * L + k] = c.certificate[4 * k + j];
     }
     out.v.assign(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < n; ++i) {

@@ -1,0 +1,518 @@
+// Exactness of a level: the least-squares KKT re-solve on an active set (no added
+// regularisation), a primal active-set method (the independent fallback) and the level's
+// certificate of optimality (primal feasibility, stationarity in the null space with the
+// active rows' multipliers, dual signs, complementarity), each scaled by the size of the
+// terms summed. See qpik/core/hierarchy.py (module doc, "Certificate") for the definitions
+// and the tolerance kCertify.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "linalg.hpp"
+#include "qp.hpp"
+
+namespace qpik::core {
+
+constexpr double kCertify = 1e-9;     // a level is SOLVED only when every scaled measure is <= this
+constexpr double kLsRank = 1e-14;     // |R_ii| <= this * |R_00| is a zero pivot of a least-squares QR
+constexpr double kSizeFloor = 1e-6;   // a stationarity component's scale is at least this x the largest
+constexpr double kNearDependent = 1e-8;  // a row within this angle of the working set's span is
+                                         // dependent on it (the primal active set does not add it)
+
+// The four measures of a level's certificate (each a largest scaled violation).
+struct Certificate {
+    double primal = kNaN;          // rows (box and general) violated, scaled per row
+    double stationarity = kNaN;    // Z^T (grad f - sum lambda_i c_i), per component / size of its terms
+    double dual = kNaN;            // a multiplier of the wrong sign, scaled by the gradient's size
+    double complementarity = kNaN; // multiplier x slack of a row held active, both scaled
+    bool holds(double tol = kCertify) const {
+        return primal <= tol && stationarity <= tol && dual <= tol && complementarity <= tol;
+    }
+    double worst() const {
+        double w = 0.0;
+        for (double v : {primal, stationarity, dual, complementarity}) w = std::isnan(v) ? kInf : pymax(w, v);
+        return w;
+    }
+};
+
+// The level's objective 1/2 |B z - f|^2 in null-space coordinates (B = [A Z; sqrt(rho) I],
+// f = [b - A d; -sqrt(rho) Z^T d]); H = B^T B, c = -B^T f.
+struct LSForm {
+    Mat B;
+    Vec f;
+};
+
+namespace detail {
+
+// Householder QR of N (r, q), q <= r, with the reflections kept (Q = H_0 H_1 ... H_{q-1}
+// never formed): the same reflections and R as householder_qr without pivoting.
+struct ImplicitQR {
+    i64 r = 0, q = 0;
+    Mat R;               // (r, q): R[:q] upper triangular
+    std::vector<Vec> v;  // v[i] (r - i,)
+    Vec beta;            // 2 / |v_i|^2, 0 for an identity step
+
+    void factor(const Mat& N) {
+        r = N.rows;
+        q = N.cols;
+        R = N;
+        v.assign(static_cast<size_t>(q), Vec());
+        beta.assign(static_cast<size_t>(q), 0.0);
+        for (i64 i = 0; i < q; ++i) {
+            i64 size = r - i;
+            Vec x(static_cast<size_t>(size));
+            double alpha = 0.0;
+            for (i64 t = 0; t < size; ++t) {
+                x[t] = R(i + t, i);
+                alpha += x[t] * x[t];
+            }
+            alpha = std::sqrt(alpha);
+            if (alpha == 0.0) continue;
+            if (x[0] > 0.0) alpha = -alpha;
+            x[0] -= alpha;
+            double vn = 0.0;
+            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            if (vn == 0.0) continue;
+            for (i64 j = i; j < q; ++j) {
+                double s = 0.0;
+                for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
+                s = 2.0 * s / vn;
+                for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
+            }
+            beta[i] = 2.0 / vn;
+            v[i] = std::move(x);
+        }
+    }
+    // x <- Q^T x (x of length r).
+    void apply_t(double* x) const {
+        for (i64 i = 0; i < q; ++i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            s *= beta[i];
+            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+        }
+    }
+    // x <- Q x.
+    void apply(double* x) const {
+        for (i64 i = q - 1; i >= 0; --i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            s *= beta[i];
+            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+        }
+    }
+};
+
+
+// min |M y - f| by Householder QR with column pivoting (M (m, k) copied); pivots below
+// kLsRank |R_00| are zeros, and the solution is the one of least norm.
+inline Vec lstsq(Mat M, Vec f) {
+    i64 m = M.rows, k = M.cols;
+    Vec y(static_cast<size_t>(k), 0.0);
+    if (k == 0 || m == 0) return y;
+    IVec perm(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) perm[j] = j;
+    Vec norms(static_cast<size_t>(k), 0.0);
+    for (i64 i = 0; i < m; ++i)
+        for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
+    i64 steps = std::min(m, k);
+    Vec x(static_cast<size_t>(m));
+    for (i64 i = 0; i < steps; ++i) {
+        i64 best = i;
+        for (i64 j = i + 1; j < k; ++j)
+            if (norms[j] > norms[best]) best = j;
+        if (best != i) {
+            for (i64 t = 0; t < m; ++t) std::swap(M(t, i), M(t, best));
+            std::swap(norms[i], norms[best]);
+            std::swap(perm[i], perm[best]);
+        }
+        i64 size = m - i;
+        double alpha = 0.0;
+        for (i64 t = 0; t < size; ++t) {
+            x[t] = M(i + t, i);
+            alpha += x[t] * x[t];
+        }
+        alpha = std::sqrt(alpha);
+        if (alpha != 0.0) {
+            if (x[0] > 0.0) alpha = -alpha;
+            x[0] -= alpha;
+            double vn = 0.0;
+            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            if (vn != 0.0) {
+                for (i64 j = i; j < k; ++j) {
+                    double s = 0.0;
+                    for (i64 t = 0; t < size; ++t) s += x[t] * M(i + t, j);
+                    s = 2.0 * s / vn;
+                    for (i64 t = 0; t < size; ++t) M(i + t, j) -= s * x[t];
+                }
+                double s = 0.0;
+                for (i64 t = 0; t < size; ++t) s += x[t] * f[i + t];
+                s = 2.0 * s / vn;
+                for (i64 t = 0; t < size; ++t) f[i + t] -= s * x[t];
+            }
+        }
+        for (i64 j = i + 1; j < k; ++j) {  // downdate, recomputed when it loses accuracy
+            norms[j] = 0.0;
+            for (i64 t = i + 1; t < m; ++t) norms[j] += M(t, j) * M(t, j);
+        }
+    }
+    double top = std::fabs(M(0, 0));
+    i64 rank = 0;
+    for (i64 i = 0; i < steps; ++i) {
+        if (std::fabs(M(i, i)) > kLsRank * top && top > 0.0) rank = i + 1;
+        else break;
+    }
+    Vec yp(static_cast<size_t>(k), 0.0);
+    for (i64 i = rank - 1; i >= 0; --i) {
+        double acc = f[i];
+        for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
+        yp[i] = acc / M(i, i);
+    }
+    if (rank < k) {
+        // The minimum-norm solution: the basic one less its component in the null space of
+        // [R11 R12], spanned by the orthonormalised columns of [-R11^-1 R12; I].
+        i64 nn = k - rank;
+        Mat N0(k, nn);
+        for (i64 c = 0; c < nn; ++c) {
+            N0(rank + c, c) = 1.0;
+            for (i64 i = rank - 1; i >= 0; --i) {
+                double acc = -M(i, rank + c);
+                for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * N0(j, c);
+                N0(i, c) = acc / M(i, i);
+            }
+        }
+        ImplicitQR qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
+        qn.factor(N0);
+        qn.apply_t(yp.data());
+        for (i64 c = 0; c < nn; ++c) yp[c] = 0.0;
+        qn.apply(yp.data());
+    }
+    for (i64 j = 0; j < k; ++j) y[perm[j]] = yp[j];
+    return y;
+}
+
+// B^T (B z - f): the level's reduced gradient H z + c, without any added regularisation.
+inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
+    Vec r = mv(ls.B.cref(), z.data());
+    for (size_t i = 0; i < r.size(); ++i) r[i] = r[i] - ls.f[i];
+    return mtv(ls.B.cref(), r.data());
+}
+
+}  // namespace detail
+
+// The exact minimiser of 1/2 |B z - f|^2 with the working set's rows held as equalities
+// (n_j^T z = rhs_j, n_j = side_j C[row_j]) and their multipliers (B^T (B z - f) = N u);
+// false when the normals are dependent. No regularisation is added: of the minimisers, the
+// one closest to zref (zref moved onto the working set, then the least-norm least-squares
+// step in the working set's null space W, by the pivoted QR of B W). N's orthogonal factor
+// is kept as reflections (O(q r) per product, never the O(q r^2) explicit Q); W_out, when
+// asked for, is formed.
+inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
+                   const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr) {
+    i64 r = C.cols;
+    i64 mb = ls.B.rows;
+    z = zref;
+    u.assign(static_cast<size_t>(q), 0.0);
+    if (q > r) return false;
+    detail::ImplicitQR qr;
+    if (q > 0) {
+        Mat N(r, q);
+        Vec rhs(static_cast<size_t>(q));
+        for (i64 j = 0; j < q; ++j) {
+            double side = static_cast<double>(act_side[j]);
+            for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
+            double nz = 0.0;
+            for (i64 i = 0; i < r; ++i) nz += N(i, j) * zref[i];
+            rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
+        }
+        qr.factor(N);
+        const Mat& R = qr.R;
+        double scale = 0.0;
+        for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
+        for (i64 i = 0; i < q; ++i)
+            if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
+        Vec t(static_cast<size_t>(r), 0.0);
+        for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
+            double acc = rhs[i];
+            for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
+            t[i] = acc / R(i, i);
+        }
+        qr.apply(t.data());  // Y t
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + t[i];
+    } else {
+        qr.r = r;
+        qr.q = 0;
+    }
+    i64 nw = r - q;
+    if (nw > 0) {
+        Mat BW(mb, nw);  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
+        Vec row(static_cast<size_t>(r));
+        for (i64 i = 0; i < mb; ++i) {
+            const double* bi = ls.B.row(i);
+            for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+            qr.apply_t(row.data());
+            for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+        }
+        Vec f0 = mv(ls.B.cref(), z.data());
+        for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
+        Vec y = detail::lstsq(std::move(BW), std::move(f0));
+        Vec wy(static_cast<size_t>(r), 0.0);
+        for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
+        qr.apply(wy.data());  // W y
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
+    }
+    if (W_out) {
+        *W_out = Mat(r, nw);
+        Vec e(static_cast<size_t>(r));
+        for (i64 j = 0; j < nw; ++j) {
+            std::fill(e.begin(), e.end(), 0.0);
+            e[q + j] = 1.0;
+            qr.apply(e.data());
+            for (i64 i = 0; i < r; ++i) (*W_out)(i, j) = e[i];
+        }
+    }
+    if (q > 0) {
+        Vec g = detail::ls_gradient(ls, z);
+        qr.apply_t(g.data());  // Y^T g = (Q^T g)[:q]
+        const Mat& R = qr.R;
+        for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T g
+            double acc = g[i];
+            for (i64 k = i + 1; k < q; ++k) acc -= R(i, k) * u[k];
+            u[i] = acc / R(i, i);
+        }
+    }
+    return true;
+}
+
+// The canonical working set of an answer: the rows with a positive multiplier, by row.
+inline i64 canonical_set(const BVec& active, IVec& act_row, IVec& act_side) {
+    act_row.clear();
+    act_side.clear();
+    for (size_t i = 0; i < active.size(); ++i) {
+        if (active[i] != 0) {
+            act_row.push_back(static_cast<i64>(i));
+            act_side.push_back(active[i]);
+        }
+    }
+    return static_cast<i64>(act_row.size());
+}
+
+// A primal active-set method for min 1/2 |B z - f|^2 s.t. lo <= C z <= hi from a feasible
+// z (the independent fallback of a level): equality-constrained least-squares steps
+// (eqp_ls), the blocking row added, the most negative multiplier dropped. Returns true
+// with (z, rows, sides, u) at a KKT point, false after max_iter or a dependent set.
+inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, Vec& z, IVec& act_row,
+                              IVec& act_side, Vec& u, i64 max_iter) {
+    i64 m = C.rows, r = C.cols;
+    act_row.clear();
+    act_side.clear();
+    BVec in_set(static_cast<size_t>(m), 0);
+    Vec norms = detail::row_norms(C);
+    Vec zs, us;
+    for (i64 it = 0; it < max_iter; ++it) {
+        i64 q = static_cast<i64>(act_row.size());
+        Mat W;
+        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, &W)) return false;
+        Vec p(static_cast<size_t>(r));
+        double pn = 0.0;
+        for (i64 i = 0; i < r; ++i) {
+            p[i] = zs[i] - z[i];
+            pn += p[i] * p[i];
+        }
+        pn = std::sqrt(pn);
+        double alpha = 1.0;
+        i64 block = -1, block_side = 0;
+        for (i64 i = 0; i < m; ++i) {
+            if (in_set[i] || norms[i] == 0.0) continue;
+            double cp = 0.0, cz = 0.0;
+            const double* ci = C.row(i);
+            for (i64 j = 0; j < r; ++j) {
+                cp += ci[j] * p[j];
+                cz += ci[j] * z[j];
+            }
+            if (std::fabs(cp) <= 1e-14 * norms[i] * pn) continue;
+            double a = kInf;
+            i64 side = 0;
+            if (cp < 0.0 && lo[i] > -kBig) {
+                a = pymax(cz - lo[i], 0.0) / -cp;
+                side = 1;
+            } else if (cp > 0.0 && hi[i] < kBig) {
+                a = pymax(hi[i] - cz, 0.0) / cp;
+                side = -1;
+            }
+            if (a < alpha) {
+                // A row (nearly) in the span of the working set's normals cannot block: moving in
+                // the working set's null space changes it by at most kNearDependent |p| |c|.
+                double out = 0.0;
+                for (i64 j = 0; j < W.cols; ++j) {
+                    double acc = 0.0;
+                    for (i64 t = 0; t < r; ++t) acc += W(t, j) * ci[t];
+                    out += acc * acc;
+                }
+                if (out <= kNearDependent * kNearDependent * norms[i] * norms[i]) continue;
+                alpha = a;
+                block = i;
+                block_side = side;
+            }
+        }
+        if (block >= 0) {
+            for (i64 i = 0; i < r; ++i) z[i] += alpha * p[i];
+            act_row.push_back(block);
+            act_side.push_back(block_side);
+            in_set[block] = 1;
+            continue;
+        }
+        z = zs;
+        // Optimal unless a multiplier is negative (scaled by its row's norm).
+        double big = 0.0;
+        for (i64 j = 0; j < q; ++j) big = pymax(big, std::fabs(us[j]) * norms[act_row[j]]);
+        double worst = -1e-13 * pymax(big, 1e-300);
+        i64 drop = -1;
+        for (i64 j = 0; j < q; ++j) {
+            double v = us[j] * norms[act_row[j]];
+            if (v < worst) {
+                worst = v;
+                drop = j;
+            }
+        }
+        if (drop < 0) {
+            u = us;
+            return true;
+        }
+        in_set[act_row[drop]] = 0;
+        act_row.erase(act_row.begin() + drop);
+        act_side.erase(act_side.begin() + drop);
+    }
+    return false;
+}
+
+// The certificate of level (A, b, rho) at x = d + Z z (full space), the working set's rows
+// (act_row, act_side; box rows 0..n-1, general rows n..n+p-1) with multipliers u >= 0 of
+// their normals side * c_row. Every row of the problem (lb <= x <= ub, G x <= h) is checked
+// for primal feasibility, a box row's violation scaled by 1 + |bound|, a general row's by
+// |g| + |h|. Stationarity: s = Z^T (A^T (A x - b) + rho x - sum_j u_j side_j c_j), each
+// component divided by |Z|^T (|A|^T (|A| |x| + |b|) + rho |x|) (the size
+// of the objective's terms summed, at least kSizeFloor times the largest such size; the
+// multipliers' terms are left out of the scale, so
+// nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
+// max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
+// Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
+inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
+                                 CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
+                                 const Vec& u, i64 q, bool stationarity = true) {
+    i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
+    Certificate cert;
+    double primal = 0.0;
+    for (i64 i = 0; i < n; ++i) {
+        if (lb[i] > -kBig) primal = pymax(primal, (lb[i] - x[i]) / (1.0 + std::fabs(lb[i])));
+        if (ub[i] < kBig) primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
+        if (std::isnan(x[i])) primal = kInf;
+    }
+    Vec gnorm(static_cast<size_t>(p), 0.0), gx(static_cast<size_t>(p), 0.0);
+    for (i64 j = 0; j < p; ++j) {
+        double nn = 0.0, acc = 0.0;
+        for (i64 i = 0; i < n; ++i) {
+            nn += G(j, i) * G(j, i);
+            acc += G(j, i) * x[i];
+        }
+        gnorm[j] = std::sqrt(nn);
+        gx[j] = acc;
+        if (h[j] < kBig) {
+            double scale = gnorm[j] + std::fabs(h[j]);
+            double v = gx[j] - h[j];
+            if (v > 0.0) primal = pymax(primal, scale > 0.0 ? v / scale : kInf);
+        }
+    }
+    cert.primal = primal;
+    if (!stationarity) return cert;
+    // Full-space gradient and the sizes of its terms.
+    i64 m = A.rows;
+    Vec v(static_cast<size_t>(n), 0.0), vs(static_cast<size_t>(n), 0.0);
+    for (i64 i = 0; i < m; ++i) {
+        const double* ai = A.row(i);
+        double res = -b[i], size = std::fabs(b[i]);
+        for (i64 j = 0; j < n; ++j) {
+            res += ai[j] * x[j];
+            size += std::fabs(ai[j] * x[j]);
+        }
+        if (res == 0.0 && size == 0.0) continue;
+        for (i64 j = 0; j < n; ++j) {
+            v[j] += ai[j] * res;
+            vs[j] += std::fabs(ai[j]) * size;
+        }
+    }
+    for (i64 j = 0; j < n; ++j) {
+        v[j] += rho * x[j];
+        vs[j] += std::fabs(rho * x[j]);
+    }
+    for (i64 k = 0; k < q; ++k) {
+        double lam = u[k] * static_cast<double>(act_side[k]);
+        i64 row = act_row[k];
+        // The multipliers' terms are not part of the scale: a KKT point whose multipliers
+        // cancel each other to their own round-off (nearly dependent active rows, huge
+        // multipliers) is not a proof.
+        if (row < n) {
+            v[row] -= lam;
+        } else {
+            for (i64 j = 0; j < n; ++j) v[j] -= lam * G(row - n, j);
+        }
+    }
+    double S = 0.0;
+    Vec sc(static_cast<size_t>(r)), ssc(static_cast<size_t>(r));
+    for (i64 c = 0; c < r; ++c) {
+        double s = 0.0, ss = 0.0;
+        for (i64 i = 0; i < n; ++i) {
+            double zic = Z(i, c);
+            s += zic * v[i];
+            ss += std::fabs(zic) * vs[i];
+        }
+        sc[c] = s;
+        ssc[c] = ss;
+        S = pymax(S, ss);
+    }
+    // A component whose own terms are tiny is measured against kSizeFloor S instead (the
+    // round-off the other components feed into it).
+    double stat = 0.0;
+    for (i64 c = 0; c < r; ++c) {
+        double ss = pymax(ssc[c], kSizeFloor * S);
+        if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
+        else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
+    }
+    cert.stationarity = stat;
+    double dual = 0.0, comp = 0.0;
+    for (i64 k = 0; k < q; ++k) {
+        i64 row = act_row[k];
+        double zn = 0.0;  // |Z^T c_row|
+        for (i64 c = 0; c < r; ++c) {
+            double acc = 0.0;
+            if (row < n) acc = Z(row, c);
+            else
+                for (i64 i = 0; i < n; ++i) acc += Z(i, c) * G(row - n, i);
+            zn += acc * acc;
+        }
+        zn = std::sqrt(zn);
+        double um = S > 0.0 ? u[k] * zn / S : (u[k] == 0.0 ? 0.0 : kInf);
+        dual = pymax(dual, -um);
+        double slack;
+        if (row < n) {
+            double bound = act_side[k] > 0 ? lb[row] : ub[row];
+            slack = std::fabs(x[row] - bound) / (1.0 + std::fabs(bound));
+        } else {
+            double scale = gnorm[row - n] + std::fabs(h[row - n]);
+            slack = scale > 0.0 ? std::fabs(gx[row - n] - h[row - n]) / scale : 0.0;
+        }
+        comp = pymax(comp, std::fabs(um) * slack);
+    }
+    cert.dual = dual;
+    cert.complementarity = comp;
+    return cert;
+}
+
+}  // namespace qpik::core
