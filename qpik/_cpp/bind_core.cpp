@@ -227,7 +227,7 @@ void bind_core(nb::module_& m) {
             for (size_t k = 0; k < L; ++k) {
                 if (!nb::try_cast(As[k], Ak[k], false) || !nb::try_cast(bs[k], bk[k], false)) return nb::none();
                 if (cols(Ak[k]) != n || len(bk[k]) != rows(Ak[k])) return nb::none();
-                double r;
+                double r = 0.0;
                 if (!nb::try_cast(regs[k], r, true) || !std::isfinite(r) || !(r >= 0.0)) return nb::none();
                 reg[k] = r;
                 if (!ws[k].is_none()) {
