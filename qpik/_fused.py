@@ -77,8 +77,9 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #   ``cfg_dof`` and ``cfg_data`` rows (lower, upper, gain); velocity limits ``vel_dof``,
 #   ``vel_limit`` [per s]. ``settings``: see ``DT, DAMPING, ...``. ``warm`` (L, nv) int8:
 #   the previous active sets; ``canonical``: warm starting on.
-#   ``code`` OK or why the general path must answer; ``info`` (5, L) rows: residual,
-#   sigma, lambda^2, status, iterations; ``active`` (L, nv) int8.
+#   ``code`` OK or why the general path must answer; ``info`` (9, L) rows: residual,
+#   sigma, lambda^2, status, iterations, then the certificate (primal, stationarity,
+#   dual, complementarity); ``active`` (L, nv) int8.
 # fused_rows(<fused_step's first 21 arguments>) -> (code, reg, lb, ub)
 #   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
 #   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
