@@ -43,17 +43,14 @@ def test_posture_set_target_wrong_shape_is_typed():
         task.set_target(np.zeros(3))
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="qpik/core/hierarchy.py _validate_level calls np.isfinite on A and b as given: "
-    "an object array raises TypeError (hierarchy.py:223), not InvalidInput",
-)
 def test_hierarchy_object_level_is_typed():
     from qpik.core import Level, solve_hierarchy
 
-    A = np.ones((2, 3), dtype=object)
+    A = np.array([["a", 1.0, 1.0], [1.0, 1.0, 1.0]], dtype=object)  # not numbers
     with pytest.raises(qpik.InvalidInput):
         solve_hierarchy([Level(A, np.ones(2), 1e-6)], -np.ones(3), np.ones(3))
+    numbers = np.ones((2, 3), dtype=object)  # numbers held as objects: converted
+    assert solve_hierarchy([Level(numbers, np.ones(2), 1e-6)], -np.ones(3), np.ones(3)).ok
 
 
 _BOXES = """

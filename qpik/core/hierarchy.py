@@ -298,13 +298,16 @@ class HierarchyProblem:
 
 def _validate_level(k: int, level: Level, n: int) -> None:
     """Shapes and finiteness of level ``k``; raises :class:`qpik.InvalidInput`."""
-    A = np.asarray(level.A)
-    if A.ndim != 2 or A.shape[1] != n or np.shape(level.b) != (A.shape[0],):
+    try:
+        A = np.asarray(level.A, dtype=float)
+        b = np.asarray(level.b, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"level {k} ({level.name}): A and b must be arrays of numbers") from None
+    if A.ndim != 2 or A.shape[1] != n or b.shape != (A.shape[0],):
         raise InvalidInput(
-            f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got "
-            f"{A.shape} and {np.shape(level.b)}"
+            f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got {A.shape} and {b.shape}"
         )
-    if not (np.isfinite(A).all() and np.isfinite(level.b).all()):
+    if not (np.isfinite(A).all() and np.isfinite(b).all()):
         raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
     if not (math.isfinite(level.regularization) and level.regularization >= 0):
         raise InvalidInput(
@@ -670,7 +673,16 @@ def solve_hierarchy(
     **options,
 ) -> HierarchyResult:
     """One-shot :class:`HierarchySolver` (``options`` are its arguments)."""
-    n = int(np.shape(lb)[0])
+    try:
+        lb = np.asarray(lb, dtype=float)
+        ub = np.asarray(ub, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput("lb and ub must be vectors of numbers") from None
+    if lb.ndim != 1 or ub.shape != lb.shape:
+        raise InvalidInput(
+            f"lb and ub must be vectors (n,) of one length, got {lb.shape} and {ub.shape}"
+        )
+    n = int(lb.shape[0])
     problem = HierarchyProblem(
         list(levels),
         np.asarray(lb, dtype=float),
