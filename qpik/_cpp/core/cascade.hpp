@@ -428,6 +428,9 @@ inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRe
     IVec rows, sides;
     out.ok = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, out.z, out.cert,
                                  rows, sides);
+    if (!out.ok && std::isnan(out.cert.primal)) {  // the kept point's certificate (see solve_cascade)
+        out.cert = certify_level(Ak, bk, rho, Z, d, lb, ub, G, h, {}, {}, {}, 0);
+    }
     out.active.assign(static_cast<size_t>(n + p), 0);
     for (size_t j = 0; j < rows.size(); ++j) out.active[rows[j]] = static_cast<i8>(sides[j]);
     if (!out.ok) out.z.assign(static_cast<size_t>(Z.cols), 0.0);
@@ -495,6 +498,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             LSForm ls = detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides);
+            if (!exact && std::isnan(cert.primal)) {
+                // No candidate to certify: the certificate of the point the level keeps
+                // (x = d, no working set), so it says which conditions fail there.
+                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0);
+            }
         }
         double* ck = res.certificate.data() + 4 * k;
         ck[0] = cert.primal;
