@@ -133,8 +133,10 @@ _CONDITIONS = ("primal", "stationarity", "dual", "complementarity")
 @dataclass(frozen=True)
 class LevelCertificate:
     """The proof of a level's optimality at its returned point (see the module doc): the
-    largest scaled violation of each KKT condition (NaN: not computed, e.g. a level not
-    reached or level 0 infeasible, where only ``primal`` is known)."""
+    largest scaled violation of each KKT condition. Level 0 infeasible: ``primal`` at the
+    point returned and 0 for the others (no optimum to certify); a level the cascade kept:
+    the certificate of the point it kept; NaN only for a level never reached (after level 0
+    failed)."""
 
     primal: float = math.nan
     stationarity: float = math.nan
@@ -559,7 +561,11 @@ class HierarchySolver:
             its[k], backend[k] = it, used
             if act is not None:
                 active[k] = act
-            if st != K.INFEASIBLE or k > 0:
+            if st == K.INFEASIBLE and k == 0:
+                # No optimum to certify: the measure that fails, primal feasibility, at the
+                # point returned (the other measures do not apply and are 0).
+                certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)
+            else:
                 # The backend's active set made exact (no added floor) and certified.
                 guess = act if act is not None else np.zeros(n + p, np.int8)
                 ok, z, cert, act2 = K.certified_level(

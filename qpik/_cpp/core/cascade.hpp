@@ -493,7 +493,10 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         IVec final_rows, final_sides;
         bool exact = false;
         if (st == INFEASIBLE && k == 0) {
+            // No optimum to certify: primal feasibility at the point returned; the other
+            // measures do not apply and are 0.
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false);
+            cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
             LSForm ls = detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
