@@ -22,13 +22,9 @@ inline void frame_error_jlog(const double* xmat, const double* xpos, const doubl
     model::se3_jlog(jlog, relative);
 }
 
-// Rows row:row+6 of a frame task written into A (rows >= row + 6, nv) and b: A =
-// diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e; returns lm_damping |b|^2. `jac` is
-// MuJoCo's world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9), jlog
-// row-major 6x6 (36). `local` is scratch of 6 * nv doubles.
-inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const double* xmat,
-                              const double* jlog, const double* error, const double* cost,
-                              double gain, double lm_damping, double* local) {
+// The local (body-frame) Jacobian [R^T Jp; R^T Jr] (6, nv) into `local` (row-major) from
+// MuJoCo's world-aligned one; xmat row-major 9.
+inline void local_jacobian(double* local, CMatRef jac, const double* xmat) {
     const i64 nv = jac.cols;
     for (i64 i = 0; i < 3; ++i) {
         for (i64 j = 0; j < nv; ++j) {
@@ -42,6 +38,17 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
             local[(3 + i) * nv + j] = r;
         }
     }
+}
+
+// Rows row:row+6 of a frame task written into A (rows >= row + 6, nv) and b: A =
+// diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e; returns lm_damping |b|^2. `jac` is
+// MuJoCo's world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9), jlog
+// row-major 6x6 (36). `local` is scratch of 6 * nv doubles.
+inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const double* xmat,
+                              const double* jlog, const double* error, const double* cost,
+                              double gain, double lm_damping, double* local) {
+    const i64 nv = jac.cols;
+    local_jacobian(local, jac, xmat);
     double mu = 0.0;
     for (i64 i = 0; i < 6; ++i) {
         for (i64 j = 0; j < nv; ++j) {
@@ -62,23 +69,6 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
     return frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping, local.data());
 }
 
-// The local (body-frame) Jacobian [R^T Jp; R^T Jr] (6, nv) into `local` (row-major) from
-// MuJoCo's world-aligned one; xmat row-major 9.
-inline void local_jacobian(double* local, CMatRef jac, const double* xmat) {
-    const i64 nv = jac.cols;
-    for (i64 i = 0; i < 3; ++i) {
-        for (i64 j = 0; j < nv; ++j) {
-            double a = 0.0;
-            double r = 0.0;
-            for (i64 k = 0; k < 3; ++k) {
-                a += xmat[3 * k + i] * jac(k, j);
-                r += xmat[3 * k + i] * jac(3 + k, j);
-            }
-            local[i * nv + j] = a;
-            local[(3 + i) * nv + j] = r;
-        }
-    }
-}
 
 // Rows row:row+6 of mink's RelativeFrameTask: the pose of frame f in root frame r, T_rf =
 // T_wr^-1 T_wf, to target T_rt (wxyz_xyz): error log(T_rt^-1 T_rf) (the body twist, frame
