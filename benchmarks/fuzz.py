@@ -1147,7 +1147,7 @@ def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -
     """Invariants of an IKResult; returns its digest."""
     np = _np()
     import qpik
-    from qpik.converge import parse_target
+    from qpik.igm.session import parse_target
 
     if not isinstance(result, qpik.IKResult):
         raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")

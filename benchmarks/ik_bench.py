@@ -20,12 +20,12 @@ isolates the step rule.
 
 * ``qpik``: :func:`qpik.solve` with OSQP, its default options.
 * ``pinv``: the lecture's IGM, ``q <- q + J^+ c`` with the 6-D pose error, joint positions
-  clipped into the limits after each step (:func:`qpik.baselines.pseudoinverse_igm`).
+  clipped into the limits after each step (:func:`qpik.igm.baselines.pseudoinverse_igm`).
 * ``dls``: the same loop with damped least squares, damping 0.05
-  (:func:`qpik.baselines.damped_least_squares_igm`).
+  (:func:`qpik.igm.baselines.damped_least_squares_igm`).
 * ``mink``: ``mink.solve_ik`` (a ``FrameTask``, ``ConfigurationLimit``, solver daqp when
   installed else osqp, ``dt = 1``, ``damping = 1e-3`` as in mink's examples), integrated by
-  mink, in the same restart loop (:func:`qpik.baselines.igm`); only when mink imports.
+  mink, in the same restart loop (:func:`qpik.igm.baselines.igm`); only when mink imports.
 * ``pink``: ``pink.solve_ik`` on the same robot loaded by pinocchio (the same URDF file for
   ``erd:`` robots, the MJCF file for bundled ones), with the same ``FrameTask``, a
   ``ConfigurationLimit`` (gain 0.95, mink's default), solver, ``dt`` and damping as ``mink``,
@@ -71,8 +71,8 @@ from ik_methods import (
 )
 from scipy.spatial.transform import Rotation
 
-from qpik.configuration import Configuration, FrameType
 from qpik.errors import QpikError
+from qpik.model.configuration import Configuration, FrameType
 from qpik.robots import ERD_ROBOTS, erd_robots_folder, load_robot, tool_frame
 
 __all__ = [

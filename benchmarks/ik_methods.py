@@ -2,7 +2,7 @@
 frame: qpik (:func:`qpik.IKSession.solve`, and ``oneshot``: :func:`qpik.solve` called with
 the model each time, no session), the lecture's IGM with the pseudoinverse or damped
 least squares (:mod:`qpik.baselines`), mink and pink. mink and pink run their
-``solve_ik`` as the step rule of the same restart loop (:func:`qpik.baselines.igm`), so the
+``solve_ik`` as the step rule of the same restart loop (:func:`qpik.igm.baselines.igm`), so the
 comparison isolates the step rule; pink runs on the robot as pinocchio loads it
 (:class:`PinocchioRobot` maps the joint orders and checks the two models agree).
 
@@ -39,9 +39,9 @@ import numpy as np
 
 from qpik import IKSession
 from qpik import solve as qpik_solve
-from qpik.baselines import damped_least_squares_igm, igm, pseudoinverse_igm
-from qpik.configuration import Configuration, FrameType
 from qpik.errors import QpikError
+from qpik.igm.baselines import damped_least_squares_igm, igm, pseudoinverse_igm
+from qpik.model.configuration import Configuration, FrameType
 from qpik.robots import locate_robot
 
 #: Restarts allowed to every method: more than fit in the budget, so the budget binds.
@@ -124,8 +124,8 @@ def _in_restart_loop(
     tol_position: float,
     tol_orientation: float,
 ) -> Method:
-    """A method that runs ``step`` (a :data:`qpik.baselines.StepRule`; ``None`` for an
-    ``igm_function`` that has its own) in qpik's restart loop (:func:`qpik.baselines.igm`,
+    """A method that runs ``step`` (a :data:`qpik.igm.baselines.StepRule`; ``None`` for an
+    ``igm_function`` that has its own) in qpik's restart loop (:func:`qpik.igm.baselines.igm`,
     or an ``igm_function`` with its signature: qpik's own solve), after
     ``set_target(position, rotation)`` (for steps that hold a task of their own)."""
     configuration = Configuration(model)

@@ -51,7 +51,7 @@ import numpy as np
 import qpsolvers
 
 import qpik
-from qpik.core import _kernels as K
+from qpik.core import kernels as K
 from qpik.limits import velocity_limit_from_model
 from qpik.tasks import FrameTask, PostureTask
 

@@ -37,9 +37,9 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg
 
-from . import checks
-from .configuration import Configuration, FrameType
+from .core import checks
 from .errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from .model.configuration import Configuration, FrameType
 from .model.rotations import orientation_error
 
 __all__ = [

@@ -13,13 +13,66 @@ upper, model)``) as well as qpik's way. Errors pickle (they cross process bounda
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any, Literal
 
 import mink
 import mujoco
 
-from .core.errors import InvalidInput, MissingExtra, QpikError  # noqa: F401 (re-exported)
+__all__ = [
+    "CollisionPairError",
+    "InfeasibleLimits",
+    "IntegrationTimestepNotSet",
+    "InvalidArgumentType",
+    "InvalidConfiguration",
+    "InvalidConstraint",
+    "InvalidDamping",
+    "InvalidGain",
+    "InvalidInput",
+    "InvalidKeyframe",
+    "InvalidMocapBody",
+    "InvalidOption",
+    "InvalidTarget",
+    "JointLimitViolation",
+    "LimitDefinitionError",
+    "MinkFailure",
+    "MissingExtra",
+    "NoSolutionFound",
+    "ProblemFileError",
+    "QpikError",
+    "RobotFileError",
+    "SceneError",
+    "TargetNotSet",
+    "TaskDefinitionError",
+    "UnknownFrame",
+    "UnknownFrameType",
+    "UnknownRobot",
+    "as_qpik_error",
+    "mink_errors_as_qpik",
+    "qpik_errors",
+]
+
+
+class QpikError(Exception):
+    """Root of all qpik errors."""
+
+
+class MissingExtra(QpikError, ImportError):
+    """An optional dependency is needed: the message names the pip extra."""
+
+    def __init__(self, feature: str, extra: str, package: str):
+        self.feature = feature
+        self.extra = extra
+        self.package = package
+        super().__init__(
+            f"{feature} needs the package {package!r}: install it with pip install 'qpik[{extra}]'"
+        )
+
+
+class InvalidInput(QpikError, ValueError):
+    """An argument of the wrong type, shape or range, or with NaN / inf entries; the
+    message names it."""
 
 
 # ---------------------------------------------------------------- constructor helpers
@@ -420,21 +473,61 @@ class MinkFailure(QpikError, mink.MinkError):
     mink's). Also a :class:`mink.MinkError`."""
 
 
-# mink's definition errors and their qpik counterparts (same message)
-_MINK_TO_QPIK: dict[type, type] = {
+# ------------------------------------------------------------------ mink's errors
+def _task_name(error: Exception) -> str:
+    """The class name at the end of mink's ``No target set for X`` messages."""
+    words = str(error).split()
+    return words[-1] if words else "task"
+
+
+#: mink's error classes whose qpik counterpart is built from the message alone.
+_BY_MESSAGE: dict[type, type] = {
+    mink.InvalidTarget: InvalidTarget,
     mink.InvalidGain: InvalidGain,
     mink.InvalidDamping: InvalidDamping,
+    mink.InvalidConstraint: InvalidConstraint,
     mink.TaskDefinitionError: TaskDefinitionError,
     mink.LimitDefinitionError: LimitDefinitionError,
+    mink.UnsupportedFrame: UnknownFrameType,
 }
 
 
+def as_qpik_error(error: BaseException) -> BaseException:
+    """qpik's counterpart of a mink error (which also subclasses mink's class), or
+    ``error`` itself when it is already a :class:`qpik.QpikError` or not mink's."""
+    if isinstance(error, QpikError) or not isinstance(error, mink.MinkError):
+        return error
+    if isinstance(error, mink.TargetNotSet):
+        return TargetNotSet(_task_name(error))
+    if isinstance(error, mink.IntegrationTimestepNotSet):
+        return IntegrationTimestepNotSet(_task_name(error))
+    if isinstance(error, mink.NoSolutionFound):
+        words = str(error).split()
+        return NoSolutionFound(words[2] if len(words) > 2 else "unknown")
+    for mink_class, qpik_class in _BY_MESSAGE.items():
+        if isinstance(error, mink_class):
+            return qpik_class(str(error))
+    return MinkFailure(str(error))
+
+
+@contextmanager
+def qpik_errors() -> Iterator[None]:
+    """Context manager: a mink error raised inside is re-raised as :func:`as_qpik_error`
+    gives it (the original chained as its ``__cause__``)."""
+    try:
+        yield
+    except mink.MinkError as error:
+        translated = as_qpik_error(error)
+        if translated is error:
+            raise
+        raise translated from error
+
+
 class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like contextlib's
-    """Context manager for constructors of tasks built on mink's: a mink definition error
-    (``InvalidGain``, ``InvalidDamping``, ``TaskDefinitionError``,
-    ``LimitDefinitionError``) is re-raised as its qpik counterpart (which also subclasses
-    it), and a value that is not a number (``cost="x"``) as a ``TaskDefinitionError``
-    naming ``what``."""
+    """Context manager for constructors of tasks built on mink's: a mink error is re-raised
+    as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
+    error's message prefixed with ``what``), and a value that is not a number (``cost="x"``)
+    as a ``TaskDefinitionError`` naming ``what``."""
 
     def __init__(self, what: str):
         self.what = what
@@ -445,9 +538,11 @@ class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like conte
     def __exit__(self, kind, error, tb) -> Literal[False]:
         if error is None or isinstance(error, QpikError):
             return False
-        for mink_class, qpik_class in _MINK_TO_QPIK.items():
+        for mink_class, qpik_class in _BY_MESSAGE.items():
             if isinstance(error, mink_class):
                 raise qpik_class(f"{self.what}: {error}") from None
+        if isinstance(error, mink.MinkError):
+            raise as_qpik_error(error) from error
         if isinstance(error, (TypeError, ValueError)):
             raise TaskDefinitionError(
                 f"{self.what}: costs, gain and lm_damping must be numbers ({error})"

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Final
 
-from .core.hierarchy import DEFAULT_DAMPING, SOLVERS, DampingLaw
+from .core.cascade import DEFAULT_DAMPING, SOLVERS, DampingLaw
 from .errors import InvalidOption
 
 __all__ = [
@@ -172,7 +172,7 @@ class StepOptions:
             ``1/2 mu |dq|^2`` in the units of the level's squared rows; finite, in
             ``[0, 1e12]``. Default ``1e-6``.
         damping_law: the adaptive singularity damping (:class:`qpik.DampingLaw`), or
-            ``None`` for none. Default :data:`qpik.core.hierarchy.DEFAULT_DAMPING`
+            ``None`` for none. Default :data:`qpik.core.cascade.DEFAULT_DAMPING`
             (``sigma < 0.05``: ``lambda`` up to 0.05, units of the level's Jacobian).
         rank_tolerance: relative singular value below which a direction of a level is not
             a rank (its null space is kept for lower levels); in ``(0, 1)``. Default
@@ -259,7 +259,7 @@ SOLVE_STEP: Final = StepOptions(damping_law=IGM_DAMPING, max_joint_speed=None)
 
 @dataclass(frozen=True)
 class SolveOptions:
-    r"""How a full-IK solve iterates (:func:`qpik.solve`; see :mod:`qpik.converge` for the
+    r"""How a full-IK solve iterates (:func:`qpik.solve`; see :mod:`qpik.igm.session` for the
     loop ``q_{i+1} = q_i + beta dq``, ``J dq = -alpha e``).
 
     Attributes:
@@ -445,7 +445,7 @@ def _check_fields(cls: type, overrides: Mapping[str, Any]) -> None:
 #: * ``"fast"``: 1 mm and 10 mrad, 50 iterations per attempt, 5 restarts.
 #: * ``"tracking"``: following a moving target from the last answer: no restarts (an
 #:   answer never jumps to a random configuration), 20 iterations, the velocity-control
-#:   damping law (:data:`qpik.core.hierarchy.DEFAULT_DAMPING`, no fading).
+#:   damping law (:data:`qpik.core.cascade.DEFAULT_DAMPING`, no fading).
 PRESETS: Final[Mapping[str, SolveOptions]] = MappingProxyType(
     {
         "default": SolveOptions(),

@@ -33,8 +33,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .analysis import _row_indices, manipulability, singular_values
-from .configuration import Configuration, FrameType, joint_names
 from .errors import MissingExtra
+from .model.configuration import Configuration, FrameType, joint_names
 
 if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     import mujoco

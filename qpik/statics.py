@@ -33,9 +33,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from . import checks
-from .configuration import Configuration, FrameType, joint_names
+from .core import checks
 from .errors import InvalidArgumentType, InvalidInput
+from .model.configuration import Configuration, FrameType, joint_names
 
 __all__ = [
     "ForceEllipsoid",

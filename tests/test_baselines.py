@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import configuration_of
 
-from qpik.baselines import (
+from qpik.igm.baselines import (
     IGM_REASONS,
     damped_least_squares_igm,
     pose_error,

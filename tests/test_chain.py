@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 import qpik
 from qpik.model import KinematicChain, chain_support, joint_limits
-from qpik.model import _kernels as K
+from qpik.model import kernels as K
 
 ERD_ARMS = [
     ("erd:panda", "panda_hand_tcp"),
@@ -241,7 +241,7 @@ def _brute_force_box_qp(H, g, lb, ub):
 
 
 def test_box_qp_against_brute_force_and_the_core_qp():
-    from qpik.core import _kernels as core
+    from qpik.core import kernels as core
 
     rng = np.random.default_rng(5)
     for trial in range(300):

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qpik.core import _kernels as K
+from qpik.core import kernels as K
 
 FIXTURES = Path(__file__).parent / "fixtures"
 

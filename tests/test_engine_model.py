@@ -1,4 +1,4 @@
-"""The compiled model kernels (qpik._engine.model / .igm, through qpik.model._kernels)
+"""The compiled model kernels (qpik._engine.model / .igm, through qpik.model.kernels)
 against answers recorded from the former numba kernels (tests/fixtures/model.npz, written
 by tests/fixtures/record_model.py): equal to 1e-12, and counted bitwise; and bad
 arguments raise ValueError (or TypeError for a wrong dtype) instead of crashing."""
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from qpik.model import _kernels as K
+from qpik.model import kernels as K
 
 FIXTURE = Path(__file__).parent / "fixtures" / "model.npz"
 

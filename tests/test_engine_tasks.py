@@ -10,10 +10,11 @@ import pathlib
 import numpy as np
 import pytest
 
-from qpik import _fused
 from qpik._engine import diffik as engine_diffik
 from qpik._engine import tasks as engine_tasks
-from qpik.tasks import _lie, fast
+from qpik.diffik import compiled as _fused
+from qpik.model import lie as _lie
+from qpik.tasks import fast
 
 FIXTURE = pathlib.Path(__file__).parent / "fixtures" / "tasks.npz"
 STEP_ARGS = (

@@ -134,7 +134,7 @@ def test_each_error_is_its_mink_counterpart_built_minks_way(ours, theirs):
     model = qpik.load_robot("ur5e")
     cls, mink_cls = getattr(qpik, ours), getattr(mink, theirs)
     assert issubclass(cls, mink_cls) and issubclass(cls, qpik.QpikError)
-    assert ours in qpik.__all__
+    assert ours in qpik.errors.__all__
     args = _mink_args(theirs, model)
     error = cls(**args) if isinstance(args, dict) else cls(*args)
     with pytest.raises(mink_cls):

@@ -225,7 +225,7 @@ def test_panda_two_levels_binding_states():
     import mink
     from conftest import configuration_of
 
-    from qpik.hierarchy import IKSolver
+    from qpik.diffik.solver import IKSolver
     from qpik.tasks import FrameTask, PostureTask
 
     z = np.load(DATA / "panda_two_levels_binding.npz")

@@ -1,4 +1,4 @@
-"""mink's own tasks in the one-call step (qpik._fused), and the forced-backend shortcut of
+"""mink's own tasks in the one-call step (qpik.diffik.compiled), and the forced-backend shortcut of
 qpik.solve_ik: rows equal mink's, answers equal the general path's."""
 
 from __future__ import annotations

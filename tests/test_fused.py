@@ -1,4 +1,4 @@
-"""The one-call IK step (:mod:`qpik._fused`) against the general path and against mink."""
+"""The one-call IK step (:mod:`qpik.diffik.compiled`) against the general path and against mink."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import pytest
 
 import qpik
 from qpik.limits import velocity_limit_from_model
-from qpik.tasks import FrameTask, PostureTask, _lie
+from qpik.model import lie as _lie
+from qpik.tasks import FrameTask, PostureTask
 
 DT = 0.01
 

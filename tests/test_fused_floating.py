@@ -1,4 +1,4 @@
-"""The one-call step (qpik._fused) on what users bring: floating bases (free joint), ball
+"""The one-call step (qpik.diffik.compiled) on what users bring: floating bases (free joint), ball
 joints, CoM tasks, mink's RelativeFrameTask, collision rows in the same call. Rows equal
 mink's objective to 1e-12; steps equal the general path's."""
 

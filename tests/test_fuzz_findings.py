@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik import batch
-from qpik.targets import parse_target
+from qpik.batch import pool as batch
+from qpik.igm.targets import parse_target
 
 
 def _site_pose(model: mujoco.MjModel, q: np.ndarray, name: str = "ee"):
@@ -102,7 +102,7 @@ def test_problem_file_matrix_is_projected(tmp_path) -> None:
 # --------------------------------------------------------------------------------------
 # Class: DofFreezingTask(model, dof_indices) with a float, out-of-range or string index
 # raised a bare IndexError from mink's constructor. Indices go through
-# qpik.checks.check_indices; any AttributeError / IndexError of a mink task constructor
+# qpik.core.checks.check_indices; any AttributeError / IndexError of a mink task constructor
 # leaves as a TaskDefinitionError.
 
 

@@ -10,8 +10,8 @@ from conftest import configuration_of
 
 import qpik
 from qpik import solve_ik
-from qpik.baselines import nullspace_projection_step, pseudoinverse_step
-from qpik.hierarchy import DampingLaw, IKSolver, normalize_stack
+from qpik.diffik.solver import DampingLaw, IKSolver, normalize_stack
+from qpik.igm.baselines import nullspace_projection_step, pseudoinverse_step
 from qpik.tasks import FrameTask, JointLimitDistanceTask, PositionTask, PostureTask
 
 DT = 0.01

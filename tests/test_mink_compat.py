@@ -67,7 +67,7 @@ def test_signature_is_minks(name):
         assert parameter.kind == mink_parameter.kind
         if mink_parameter.default is not inspect.Parameter.empty:
             assert parameter.default == mink_parameter.default, parameter.name
-    assert qpik.solve_ik.__module__ == "qpik.mink_api"
+    assert qpik.solve_ik.__module__ == "qpik.diffik.mink_compat"
 
 
 def test_solver_is_the_fourth_positional_argument():
@@ -674,7 +674,7 @@ def test_mink_suite_runs_a_suite_stock_and_patched(tmp_path):
         "from robot_descriptions.loaders.mujoco import load_robot_description\n\n\n"
         "class TestStyle(unittest.TestCase):\n"
         "    def test_patched(self):\n"
-        "        self.assertEqual(mink.solve_ik.__module__, 'qpik.mink_api')\n\n"
+        "        self.assertEqual(mink.solve_ik.__module__, 'qpik.diffik.mink_compat')\n\n"
         "    def test_model(self):\n"
         "        load_robot_description('ur5e_mj_description')\n\n"
         "    def test_both(self):\n"

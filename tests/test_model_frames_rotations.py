@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import qpik
-from qpik.model import _kernels as K
+from qpik.model import kernels as K
 from qpik.model import rotations as rot
 from qpik.model.frames import (
     FRAME_OBJECTS,
@@ -58,7 +58,7 @@ def test_frame_objects_is_mujocos_map():
 
 def test_frametype_is_the_one_of_qpik():
     assert qpik.FrameType is FrameType
-    assert qpik.configuration.FrameType is FrameType
+    assert qpik.model.configuration.FrameType is FrameType
     assert pickle.loads(pickle.dumps(FrameType.GEOM)) is FrameType.GEOM
 
 

@@ -1,4 +1,4 @@
-"""The compiled IGM's own rules (qpik.model._kernels): scratch reuse leaves no trace, the
+"""The compiled IGM's own rules (qpik.model.kernels): scratch reuse leaves no trace, the
 step moves only the chain's dofs, the restart draws follow the documented spread,
 igm_solve is a pure function of its inputs (bitwise), and the damping law's smallest
 singular value agrees with LAPACK's to the Gram matrix's roundoff."""
@@ -12,7 +12,7 @@ import pytest
 
 import qpik
 from qpik.model import KinematicChain
-from qpik.model import _kernels as K
+from qpik.model import kernels as K
 
 _GAMMA = 0x9E3779B97F4A7C15
 

@@ -7,7 +7,7 @@ import pickle
 import pytest
 
 import qpik
-from qpik.core.hierarchy import DEFAULT_DAMPING
+from qpik.core.cascade import DEFAULT_DAMPING
 from qpik.options import IGM_DAMPING, PRESETS, SolveOptions, StepOptions, resolve
 
 
@@ -95,9 +95,10 @@ def test_options_are_hashable_values():
 
 def test_public_names_resolve():
     assert [name for name in qpik.__all__ if not hasattr(qpik, name)] == []
-    for name in ("SolveOptions", "StepOptions", "PRESETS", "InvalidOption", "Reason"):
+    for name in ("SolveOptions", "StepOptions", "PRESETS", "Reason"):
         assert name in qpik.__all__
-    import qpik.converge as converge  # the names of the former single module stay
+    assert "InvalidOption" in qpik.errors.__all__ and qpik.InvalidOption is qpik.errors.InvalidOption
+    import qpik.igm.session as converge  # the names of the former single module stay
 
     for name in converge.__all__ + ["MAX_AUTO_RESTARTS", "DEFAULT_RESTARTS", "IGM_DAMPING"]:
         assert hasattr(converge, name), name

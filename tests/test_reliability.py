@@ -22,7 +22,8 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik import analysis, checks, statics
+from qpik import analysis, statics
+from qpik.core import checks
 from qpik.errors import InvalidArgumentType
 
 DATA = Path(__file__).parent / "data" / "reliability"
@@ -435,10 +436,10 @@ def test_classes14_and_16_a_raw_mink_task_without_target_raises_qpiks_error():
     ],
 )
 def test_every_mink_error_has_a_qpik_counterpart_that_is_also_minks(mink_error, qpik_class):
-    translated = checks.as_qpik_error(mink_error)
+    translated = qpik.errors.as_qpik_error(mink_error)
     assert isinstance(translated, qpik_class) and isinstance(translated, type(mink_error))
     with pytest.raises(qpik_class):
-        with checks.qpik_errors():
+        with qpik.errors.qpik_errors():
             raise mink_error
 
 

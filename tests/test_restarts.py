@@ -1,10 +1,10 @@
-"""qpik.restarts: the restart loop shared by qpik.solve's qp engine and the baselines,
+"""qpik.igm.restarts: the restart loop shared by qpik.solve's qp engine and the baselines,
 tested on scripted attempts (no robot, no wall clock)."""
 
 from __future__ import annotations
 
-from qpik.restarts import Attempt, Clock, StallWindow, run_attempts
-from qpik.result import Reason
+from qpik.igm.restarts import Attempt, Clock, StallWindow, run_attempts
+from qpik.igm.result import Reason
 
 
 class _Clock(Clock):
@@ -61,8 +61,8 @@ def test_time_budget_ends_the_loop_with_its_reason():
 
 
 def test_stall_window_counts_iterations_without_five_percent_progress():
-    """The qp engine's stall rule is the compiled engine's (qpik.model._kernels.PROGRESS)."""
-    from qpik.model._kernels import PROGRESS
+    """The qp engine's stall rule is the compiled engine's (qpik.model.kernels.PROGRESS)."""
+    from qpik.model.kernels import PROGRESS
 
     assert PROGRESS == 0.95
     stall = StallWindow(100.0, 2)

@@ -1,4 +1,4 @@
-"""qpik.solve_ik keeps its IKSolver between calls (qpik.mink_api.SolverCache) and reads a
+"""qpik.solve_ik keeps its IKSolver between calls (qpik.diffik.mink_compat.SolverCache) and reads a
 mink.Configuration in place: same answers, bit for bit, as a fresh solver's."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.mink_api import SOLVERS
+from qpik.diffik.mink_compat import SOLVERS
 
 
 def _setup(robot: str = "ur5e"):

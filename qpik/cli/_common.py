@@ -11,11 +11,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration
 from ..errors import InvalidInput, JointLimitViolation, UnknownFrame
+from ..model.configuration import Configuration
 from ..model.frames import resolve_frame
+from ..model.robots import load_robot, tool_frame
 from ..options import PRESETS
-from ..robots import load_robot, tool_frame
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, *, frame: bool = True) -> None:

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from ..batch_files import BatchRun, solve_file
+from ..batch.files import BatchRun, solve_file
 from ._common import add_solve_arguments, solve_options_from_args
 
 

@@ -6,10 +6,10 @@ import argparse
 
 import numpy as np
 
-from ..configuration import Configuration
-from ..converge import solve
+from ..igm.session import solve
+from ..model.configuration import Configuration
+from ..model.robots import load_robot, tool_frame
 from ..options import PRESETS
-from ..robots import load_robot, tool_frame
 from ._common import non_negative_int
 
 #: The default preset's orientation tolerance per unit of position tolerance [rad/m].

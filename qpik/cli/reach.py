@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..configuration import FrameType
+from ..model.configuration import FrameType
+from ..model.robots import tool_frame
 from ..problem import load_problem
-from ..robots import tool_frame
 from ._common import JSON_HELP, report_stream, write_json
 
 

@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from ..reachability import reachability
+from ..batch.reachability_map import reachability
 from ._common import add_solve_arguments, solve_options_from_args
 
 

@@ -5,8 +5,15 @@ from __future__ import annotations
 import argparse
 import warnings
 
-from ..configuration import FrameType, frame_names, joint_names
-from ..robots import erd_robots, erd_robots_folder, list_robots, load_robot, robot_path, tool_frame
+from ..model.configuration import FrameType, frame_names, joint_names
+from ..model.robots import (
+    erd_robots,
+    erd_robots_folder,
+    list_robots,
+    load_robot,
+    robot_path,
+    tool_frame,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -6,8 +6,8 @@ import argparse
 
 import numpy as np
 
-from ..configuration import joint_names
 from ..errors import InvalidInput
+from ..model.configuration import joint_names
 from ..statics import gravity_torques, holding_torques, joint_torque_limits, joint_torques
 from ._common import (
     OUTSIDE_LIMITS_NOTE,

@@ -111,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _source(args: argparse.Namespace):
     """The problem (a .toml file) or the robot model to show."""
+    from ..model.robots import load_robot
     from ..problem import load_problem
-    from ..robots import load_robot
 
     if Path(args.source).suffix == ".toml":
         if args.floating_base:
@@ -139,7 +139,7 @@ def _run_mujoco(source, seconds: float | None) -> int:
         )
     import importlib
 
-    from ..configuration import Configuration
+    from ..model.configuration import Configuration
     from ..problem import Problem
     from ..viewer.app import _live_of_problem, default_stack
     from ..viewer.live import LiveSolve

@@ -6,8 +6,8 @@ tasks and limits (:mod:`qpik.tasks`, :mod:`qpik.limits`) turn a robot configurat
 rows, and :class:`qpik.IKSolver` hands them to this core.
 """
 
-from .errors import InvalidInput, MissingExtra, QpikError
-from .hierarchy import (
+from ..errors import InvalidInput, MissingExtra, QpikError
+from .cascade import (
     CERTIFICATE_TOLERANCE,
     DEFAULT_DAMPING,
     SOLVERS,

@@ -18,7 +18,7 @@ from typing import Any, Protocol
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InvalidInput, MissingExtra
+from ..errors import InvalidInput, MissingExtra
 
 __all__ = [
     "BACKENDS",

@@ -32,9 +32,9 @@ import numpy as np
 import numpy.typing as npt
 from mink import Constraint, Limit
 
-from .. import checks
-from ..configuration import Configuration, joint_names
+from ..core import checks
 from ..errors import LimitDefinitionError
+from ..model.configuration import Configuration, joint_names
 from .collision import CollisionAvoidanceLimit, geom_distance
 from .geometry import collision_geoms, collision_pairs, model_collision_limit
 from .support import SupportPolygonLimit

@@ -33,20 +33,45 @@ from collections.abc import Sequence
 import mink
 import mujoco
 import numpy as np
-from mink.limits.collision_avoidance_limit import (
-    _are_geom_bodies_parent_child,
-    _is_pass_contype_conaffinity_check,
-    _is_welded_together,
-    compute_contact_normal_jacobian,
-)
+from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
 
-from ..configuration import frame_names
 from ..errors import CollisionPairError, LimitDefinitionError, UnknownFrame
+from ..model.configuration import frame_names
 
-__all__ = ["CollisionAvoidanceLimit", "geom_distance"]
+__all__ = [
+    "CollisionAvoidanceLimit",
+    "contact_bits_match",
+    "geom_distance",
+    "welded_parent_and_child",
+    "welded_together",
+]
 
 Geom = int | str
 CollisionPairs = Sequence[tuple[Sequence[Geom], Sequence[Geom]]]
+
+
+# The pair rules of MuJoCo's contact filter, as mink's CollisionAvoidanceLimit states them
+# (mink/limits/collision_avoidance_limit.py); one home for them in qpik (geometry.py's
+# model filter uses them too).
+def welded_together(model: mujoco.MjModel, a: int, b: int) -> bool:
+    """Whether geoms ``a`` and ``b`` are on one body, or on bodies welded together."""
+    weld = model.body_weldid
+    return bool(weld[model.geom_bodyid[a]] == weld[model.geom_bodyid[b]])
+
+
+def welded_parent_and_child(model: mujoco.MjModel, a: int, b: int) -> bool:
+    """Whether the welds of geoms ``a`` and ``b`` are parent and child (each weld's parent
+    taken at its own weld)."""
+    weld, parent = model.body_weldid, model.body_parentid
+    weld_a, weld_b = weld[model.geom_bodyid[a]], weld[model.geom_bodyid[b]]
+    return bool(weld_a == weld[parent[weld_b]] or weld_b == weld[parent[weld_a]])
+
+
+def contact_bits_match(model: mujoco.MjModel, a: int, b: int) -> bool:
+    """MuJoCo's contype/conaffinity test: ``contype_a & conaffinity_b || contype_b &
+    conaffinity_a``."""
+    contype, conaffinity = model.geom_contype, model.geom_conaffinity
+    return bool(contype[a] & conaffinity[b] or contype[b] & conaffinity[a])
 
 
 def _geom_label(model: mujoco.MjModel, geom: int) -> str:
@@ -164,11 +189,11 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
 
     def _reject(self, model: mujoco.MjModel, a: int, b: int) -> str | None:
         """Why mink's rules drop the pair ``(a, b)``, or None if it is kept."""
-        if a == b or _is_welded_together(model, a, b):
+        if a == b or welded_together(model, a, b):
             return "same body (or bodies welded together)"
-        if _are_geom_bodies_parent_child(model, a, b):
+        if welded_parent_and_child(model, a, b):
             return "parent and child bodies"
-        if self.respect_contype and not _is_pass_contype_conaffinity_check(model, a, b):
+        if self.respect_contype and not contact_bits_match(model, a, b):
             return "contype/conaffinity exclude contact"
         return None
 

@@ -29,9 +29,14 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ..configuration import FrameType
 from ..errors import CollisionPairError, LimitDefinitionError
-from .collision import CollisionAvoidanceLimit
+from ..model.configuration import FrameType
+from .collision import (
+    CollisionAvoidanceLimit,
+    contact_bits_match,
+    welded_parent_and_child,
+    welded_together,
+)
 
 __all__ = [
     "collision_geoms",
@@ -63,24 +68,16 @@ def _excluded_bodies(model: mujoco.MjModel) -> set[tuple[int, int]]:
 def _filtered(model: mujoco.MjModel, a: int, b: int, excluded: set[tuple[int, int]]) -> bool:
     """Whether MuJoCo's contact filter (plus the parent-child rule at the world) drops the
     geom pair ``(a, b)``."""
-    if not (
-        model.geom_contype[a] & model.geom_conaffinity[b]
-        or model.geom_contype[b] & model.geom_conaffinity[a]
-    ):
+    if not contact_bits_match(model, a, b) or welded_together(model, a, b):
         return True
     body_a, body_b = int(model.geom_bodyid[a]), int(model.geom_bodyid[b])
     weld_a, weld_b = int(model.body_weldid[body_a]), int(model.body_weldid[body_b])
-    if weld_a == weld_b:
-        return True
     adjacent = model.body_parentid[body_a] == body_b or model.body_parentid[body_b] == body_a
     if adjacent and body_a and body_b:  # the world body's own geoms are never adjacent
         return True
     filter_parent = not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT
-    if filter_parent and weld_a and weld_b:
-        parent_a = int(model.body_weldid[model.body_parentid[weld_a]])
-        parent_b = int(model.body_weldid[model.body_parentid[weld_b]])
-        if weld_a == parent_b or weld_b == parent_a:
-            return True
+    if filter_parent and weld_a and weld_b and welded_parent_and_child(model, a, b):
+        return True
     return (min(body_a, body_b), max(body_a, body_b)) in excluded
 
 

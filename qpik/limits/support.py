@@ -38,8 +38,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
-from ..configuration import FrameType
 from ..errors import InvalidInput, LimitDefinitionError
+from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 
 __all__ = ["SupportPolygonLimit"]

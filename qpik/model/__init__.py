@@ -6,7 +6,7 @@
   of frame keys (``resolve_frame``);
 - :mod:`qpik.model.rotations`: the orientation error and rotation helpers;
 - :mod:`qpik.model.chain`: a frame's kinematic chain read into arrays, with compiled
-  (C++) forward kinematics and Jacobians (kernels in :mod:`qpik.model._kernels`).
+  (C++) forward kinematics and Jacobians (kernels in :mod:`qpik.model.kernels`).
 
 The chain names are imported lazily, so that ``import qpik.model.frames`` does not load
 the compiled kernels.

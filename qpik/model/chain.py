@@ -1,6 +1,6 @@
 """The kinematic chain of one frame, read from a MuJoCo model into arrays once.
 
-:class:`KinematicChain` holds what the compiled kernels (:mod:`qpik.model._kernels`) need
+:class:`KinematicChain` holds what the compiled kernels (:mod:`qpik.model.kernels`) need
 to compute the frame's pose and Jacobian without calling MuJoCo: per body from the world to
 the frame's body, its pose in its parent (``body_pos``, ``body_quat``); per joint on those
 bodies, its type, axis and anchor in the body (``jnt_axis``, ``jnt_pos``), its reference
@@ -20,9 +20,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..checks import check_vector
+from ..core.checks import check_vector
 from ..errors import InvalidConfiguration, InvalidInput
-from . import _kernels
+from . import kernels as _kernels
 from .frames import FrameType, frame_id, frame_name
 
 __all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
@@ -93,7 +93,7 @@ class KinematicChain:
 
     Build with :meth:`from_model`. ``arrays`` is the tuple the kernels take; ``compiled``
     the same arrays checked and copied once into the compiled engine's chain object
-    (:class:`qpik.model._kernels.Chain`), which the kernels take without unpacking the
+    (:class:`qpik.model.kernels.Chain`), which the kernels take without unpacking the
     tuple at each call (what :meth:`pose`, :meth:`jacobian` and the solves pass).
     """
 

@@ -1,5 +1,5 @@
 """The one state object: a robot model, its data, and the configuration ``q``
-(``qpik.Configuration``; also importable from :mod:`qpik.configuration`).
+(``qpik.Configuration``; also importable from :mod:`qpik.model.configuration`).
 
 :class:`Configuration` subclasses :class:`mink.Configuration`, so every mink task and
 limit accepts it. It adds validated updates, world-aligned frame Jacobians in the
@@ -356,7 +356,7 @@ def as_configuration(
 ) -> Configuration:
     """A :class:`Configuration` from a Configuration, an MjModel or anything
     :func:`qpik.load_robot` accepts."""
-    from ..robots import load_robot
+    from .robots import load_robot
 
     if isinstance(robot, Configuration):
         if q is not None:

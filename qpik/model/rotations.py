@@ -1,6 +1,6 @@
 r"""Rotations: the one orientation-error formula of qpik, and rotation-matrix and quaternion
 helpers (NumPy; the compiled IGM has its own array-loop copy of :func:`rotation_vector` in
-:func:`qpik.model._kernels.rotation_log`, tested equal to this one).
+:func:`qpik.model.kernels.rotation_log`, tested equal to this one).
 
 Conventions:
 

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration, FrameType
+from ..igm.targets import FrameKey, Target
+from ..model.configuration import Configuration, FrameType
 from ..model.rotations import orientation_angle
-from ..targets import FrameKey, Target
 from .reader import ROTATION_KEYS, Reader, describe, dotted
 from .specs import TaskSpec
 

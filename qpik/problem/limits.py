@@ -9,7 +9,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration, joint_names
+from ..model.configuration import Configuration, joint_names
 from .reader import MAX_LENGTH, Reader, describe
 
 _SUPPORT_KEYS = {"frames", "frame_type", "margin", "footprint"}

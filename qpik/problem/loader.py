@@ -19,14 +19,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from .. import checks
-from ..configuration import Configuration, FrameType, joint_names
-from ..core.hierarchy import DampingLaw
+from ..core import checks
+from ..core.cascade import DampingLaw
 from ..errors import QpikError
+from ..igm.qp_engine import set_frame_target
 from ..limits import ConfigurationLimit, SupportPolygonLimit, VelocityLimit
+from ..model.configuration import Configuration, FrameType, joint_names
+from ..model.robots import list_robots, resolve_robot
 from ..options import SolveOptions
-from ..qp_engine import set_frame_target
-from ..robots import list_robots, resolve_robot
 from .goals import Goal, read_goals
 from .limits import read_limits, read_support
 from .modes import MODES

@@ -20,11 +20,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..configuration import Configuration
-from ..converge import solve
-from ..hierarchy import IKSolver
-from ..qp_engine import set_frame_target
-from ..result import IKResult, Reason
+from ..diffik.solver import IKSolver
+from ..igm.qp_engine import set_frame_target
+from ..igm.result import IKResult, Reason
+from ..igm.session import solve
+from ..model.configuration import Configuration
 from .report import TrackTrace
 
 if TYPE_CHECKING:

@@ -19,16 +19,16 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration, FrameType
 from ..errors import ProblemFileError, QpikError
+from ..model.configuration import Configuration, FrameType
 from ..model.frames import frame_id
+from ..model.robots import tool_frame
 from ..model.rotations import (
     nearest_rotation,
     quaternion_to_matrix,
     rotation_defect,
     rpy_to_matrix,
 )
-from ..robots import tool_frame
 
 if sys.version_info >= (3, 11):
     import tomllib

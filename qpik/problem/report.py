@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import statics as _statics
-from ..configuration import Configuration, FrameType
 from ..errors import QpikError
-from ..qp_engine import set_frame_target
-from ..result import IKResult
+from ..igm.qp_engine import set_frame_target
+from ..igm.result import IKResult
+from ..model.configuration import Configuration, FrameType
 
 if TYPE_CHECKING:
     from .loader import Problem

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import QpikError
 from ..limits import CollisionAvoidanceLimit, model_collision_limit
-from ..scene import SHAPES, add_obstacle
+from ..model.scene import SHAPES, add_obstacle
 from .reader import MAX_LENGTH, Reader, describe
 
 __all__ = ["build_collision", "read_collision", "read_obstacles"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..core.hierarchy import DampingLaw
+from ..core.cascade import DampingLaw
 from ..errors import InvalidOption
 from ..options import PRESETS, SolveOptions
 from .reader import RANGES, Reader

@@ -18,7 +18,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..configuration import Configuration, FrameType
+from ..model.configuration import Configuration, FrameType
 from ..tasks import (
     BaseTask,
     ComTask,

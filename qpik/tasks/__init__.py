@@ -1,5 +1,5 @@
 """Tasks: mink's, re-exported so one import serves (with qpik's errors:
-:mod:`qpik.tasks.minks`), and the ones qpik adds.
+:mod:`qpik.tasks.mink_tasks`), and the ones qpik adds.
 
 Every task follows mink's contract: ``compute_error(configuration) -> e (k,)``,
 ``compute_jacobian(configuration) -> J (k, nv)`` with ``J = de/dq``, a ``cost`` vector that
@@ -13,7 +13,7 @@ from mink.tasks.task import BaseTask
 from .com import ComTask
 from .fast import DampingTask, FrameTask, PostureTask
 from .frame import OrientationTask, PoseTask, PositionTask
-from .minks import (
+from .mink_tasks import (
     AxisAlignTask,
     DofFreezingTask,
     EqualityConstraintTask,

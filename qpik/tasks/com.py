@@ -19,7 +19,6 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..configuration import frame_names
 from ..errors import (
     InvalidTarget,
     TargetNotSet,
@@ -27,6 +26,7 @@ from ..errors import (
     UnknownFrame,
     mink_errors_as_qpik,
 )
+from ..model.configuration import frame_names
 
 __all__ = ["ComTask"]
 

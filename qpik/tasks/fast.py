@@ -5,7 +5,7 @@ same way) whose error and Jacobian are computed without building SE3 objects or
 re-allocating per step: the frame pose and world-aligned Jacobian come from MuJoCo
 (``data.site_xpos``/``site_xmat``, ``mj_jacSite``, and the body/geom equivalents), the SE3
 log, its Jacobian and the local-frame rotation from mink's Lie-group arithmetic (its C
-routines, ported to C++: :mod:`qpik.tasks._lie`).
+routines, ported to C++: :mod:`qpik.model.lie`).
 They equal mink's own to round-off (tests check 1e-12).
 """
 
@@ -16,10 +16,9 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .. import checks
 from .._engine.tasks import frame_error_jlog, frame_rows_into
-from ..checks import qpik_errors
-from ..errors import TargetNotSet, mink_errors_as_qpik
+from ..core import checks
+from ..errors import TargetNotSet, mink_errors_as_qpik, qpik_errors
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
 
@@ -38,7 +37,7 @@ def _frame_type_name(frame_type) -> str:
 #
 # frame_error_jlog(xmat, xpos, target) -> (error (6,), jlog (6, 6)): mink's frame-task error
 #     log(T_fw^-1 T_tw) (the body twist from the frame at (xpos, xmat) to target,
-#     wxyz_xyz) and jlog(T_tw^-1 T_fw), by mink's own SE(3) arithmetic (qpik.tasks._lie).
+#     wxyz_xyz) and jlog(T_tw^-1 T_fw), by mink's own SE(3) arithmetic (qpik.model.lie).
 # frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping) -> float:
 #     rows row:row+6 of a frame task written into A/b (float64 C-contiguous, in place):
 #     A = diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e (mink's

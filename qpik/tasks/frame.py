@@ -12,14 +12,14 @@ import mink
 import numpy as np
 import numpy.typing as npt
 
-from .. import checks
-from ..configuration import Configuration, FrameType
+from ..core import checks
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
+from ..model.configuration import Configuration, FrameType
 from ..model.rotations import left_jacobian_inverse, rotation_vector
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
-# ``type: ignore[override]``); qpik's entry points (qpik.mink_api) turn a mink
+# ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
 # configuration into a qpik one before any task sees it.
 
 

@@ -12,13 +12,13 @@ import mink
 import mujoco
 import numpy as np
 
-from .. import checks
-from ..configuration import Configuration, FrameType
+from ..core import checks
 from ..errors import mink_errors_as_qpik
+from ..model.configuration import Configuration, FrameType
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
-# ``type: ignore[override]``); qpik's entry points (qpik.mink_api) turn a mink
+# ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
 # configuration into a qpik one before any task sees it.
 
 

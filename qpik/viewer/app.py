@@ -25,11 +25,11 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..configuration import Configuration, FrameType
 from ..errors import InvalidInput, MissingExtra
+from ..igm.targets import Target
+from ..model.configuration import Configuration, FrameType
+from ..model.robots import load_robot, tool_frame
 from ..problem import Problem, load_problem
-from ..robots import load_robot, tool_frame
-from ..targets import Target
 from ..tasks import OrientationTask, PositionTask, PostureTask
 from .geometry import GeomMesh, geom_meshes
 from .live import LevelReport, LiveSolve, SolveReport

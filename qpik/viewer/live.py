@@ -39,14 +39,14 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..configuration import Configuration, FrameType
-from ..hierarchy import IKSolver, StepResult, normalize_stack
+from ..diffik.solver import IKSolver, StepResult, normalize_stack
+from ..igm.qp_engine import set_frame_target
+from ..igm.targets import Target
 from ..limits import joint_limits
+from ..model.configuration import Configuration, FrameType
 from ..model.frames import resolve_frame
 from ..model.rotations import orientation_angle
 from ..options import StepOptions
-from ..qp_engine import set_frame_target
-from ..targets import Target
 from ..tasks import OrientationTask, PoseTask, PositionTask
 
 __all__ = ["GoalFrame", "LevelReport", "LiveSolve", "SolveReport", "describe_task"]
@@ -165,7 +165,7 @@ class LiveSolve:
 
     Args:
         model: the MuJoCo model.
-        levels: task stack (see :func:`qpik.hierarchy.normalize_stack`), level 0 first;
+        levels: task stack (see :func:`qpik.diffik.solver.normalize_stack`), level 0 first;
             tasks on goal frames receive the targets.
         limits: limits holding at every step (default: the joint position limits).
         goals: the frames with a draggable target: names or ``(name, frame_type)``;

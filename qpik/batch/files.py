@@ -19,7 +19,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .batch import (
+from ..errors import InvalidInput, MissingExtra, ProblemFileError
+from ..igm.result import IKResult
+from ..igm.targets import FrameKey, RobotLike
+from ..model.frames import resolve_frame
+from ..options import SolveOptions
+from .pool import (
     Chunk,
     _iter_prepared,
     check_chunk_size,
@@ -29,11 +34,6 @@ from .batch import (
     progress_bar,
     solve_call,
 )
-from .errors import InvalidInput, MissingExtra, ProblemFileError
-from .model.frames import resolve_frame
-from .options import SolveOptions
-from .result import IKResult
-from .targets import FrameKey, RobotLike
 
 __all__ = [
     "RESULT_FIELDS",

@@ -32,10 +32,10 @@ import mink
 import mujoco
 import numpy as np
 
-from ._engine import diffik as _engine
-from .errors import TargetNotSet
-from .tasks.com import ComTask
-from .tasks.fast import DampingTask, FrameTask, PostureTask
+from .._engine import diffik as _engine
+from ..errors import TargetNotSet
+from ..tasks.com import ComTask
+from ..tasks.fast import DampingTask, FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "Kernel", "box_of", "fused_rows", "fused_step", "make_plan"]
 
@@ -87,7 +87,7 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #       -> (lb, ub, i)
 #   The limits' box, as :meth:`qpik.IKSolver._limit_rows` builds it: position bounds
 #   ``gain (upper - q)``, ``-gain (q - lower)`` (recoverable), velocity bounds
-#   ``|dq| <= v_max dt`` (hard), merged by :func:`qpik.core._kernels.merge_boxes`.
+#   ``|dq| <= v_max dt`` (hard), merged by :func:`qpik.core.kernels.merge_boxes`.
 #
 # Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 #        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,

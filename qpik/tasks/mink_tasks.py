@@ -4,10 +4,10 @@ Each class here subclasses mink's (``isinstance(task, mink.RelativeFrameTask)`` 
 and mink's code paths apply) and changes only its errors: an error mink raises while the
 task is built, given a target or evaluated (``TargetNotSet`` before ``set_target``,
 ``IntegrationTimestepNotSet`` before ``set_dt``, ...) is raised as qpik's counterpart
-(:func:`qpik.checks.as_qpik_error`), which also subclasses mink's, so ``except
+(:func:`qpik.errors.as_qpik_error`), which also subclasses mink's, so ``except
 mink.TargetNotSet`` and ``except qpik.QpikError`` both catch it. Numbers are checked
 where they enter: a cost must be finite and >= 0, ``set_dt`` takes ``dt`` in
-[:data:`qpik.checks.DT_MIN`, :data:`qpik.checks.DT_MAX`] [s].
+[:data:`qpik.core.checks.DT_MIN`, :data:`qpik.core.checks.DT_MAX`] [s].
 """
 
 from __future__ import annotations
@@ -20,8 +20,14 @@ from typing import Any, TypeVar
 import mink
 import mujoco
 
-from .. import checks
-from ..errors import InvalidTarget, QpikError, TaskDefinitionError, mink_errors_as_qpik
+from ..core import checks
+from ..errors import (
+    InvalidTarget,
+    QpikError,
+    TaskDefinitionError,
+    mink_errors_as_qpik,
+    qpik_errors,
+)
 
 __all__ = [
     "AxisAlignTask",
@@ -48,7 +54,7 @@ _C = TypeVar("_C", bound=type)
 def _run_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
     def wrapped(self, *args: Any, **kwargs: Any) -> Any:
-        with checks.qpik_errors():
+        with qpik_errors():
             return method(self, *args, **kwargs)
 
     return wrapped
@@ -112,7 +118,7 @@ class AxisAlignTask(mink.AxisAlignTask):
 class DofFreezingTask(mink.DofFreezingTask):
     """mink's :class:`mink.DofFreezingTask`, with qpik's errors: ``model`` must be an
     ``MjModel`` and ``dof_indices`` distinct ints in ``[0, nv)``
-    (:func:`qpik.checks.check_indices`)."""
+    (:func:`qpik.core.checks.check_indices`)."""
 
     def __init__(self, model: mujoco.MjModel, dof_indices: list[int], gain: float = 1.0):
         checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
@@ -155,6 +161,6 @@ class KineticEnergyRegularizationTask(mink.KineticEnergyRegularizationTask):
     >= 0 and a checked ``dt``."""
 
     def set_dt(self, dt: float) -> None:
-        """Set the integration time step ``dt`` [s], in [:data:`qpik.checks.DT_MIN`,
-        :data:`qpik.checks.DT_MAX`]."""
+        """Set the integration time step ``dt`` [s], in [:data:`qpik.core.checks.DT_MIN`,
+        :data:`qpik.core.checks.DT_MAX`]."""
         super().set_dt(checks.check_dt(dt))

@@ -34,11 +34,11 @@ import mink
 import numpy as np
 import qpsolvers
 
-from .configuration import Configuration
-from .core import HierarchySolver, Level, LevelStatus
-from .errors import InvalidDamping, InvalidInput, NoSolutionFound
-from .hierarchy import IKSolver
-from .tasks import BaseTask
+from ..core import HierarchySolver, Level, LevelStatus
+from ..errors import InvalidDamping, InvalidInput, NoSolutionFound
+from ..model.configuration import Configuration
+from ..tasks import BaseTask
+from .solver import IKSolver
 
 __all__ = ["SOLVERS", "SolverCache", "build_ik", "solve_ik"]
 
@@ -176,7 +176,7 @@ def solve_ik(
             (``"daqp"``, ``"osqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``; mink
             passes it fourth, positionally) forces that backend wherever a limit binds;
             its answer is polished by qpik's exact solve, so where that solve alone
-            settles every level (stacks of the one-call step, :mod:`qpik._fused`) the
+            settles every level (stacks of the one-call step, :mod:`qpik.diffik.compiled`) the
             backend is not called: the same velocity, to round-off. With backend
             ``kwargs`` the backend is always called.
         damping: Tikhonov (Levenberg-Marquardt) term on every task level [unitless], as

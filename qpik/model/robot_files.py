@@ -40,7 +40,7 @@ from typing import cast
 import mujoco
 import numpy as np
 
-from .errors import RobotFileError
+from ..errors import RobotFileError
 
 __all__ = ["ROOT_JOINT", "find_srdf", "robot_spec"]
 

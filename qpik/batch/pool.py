@@ -50,14 +50,14 @@ if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool sta
     import multiprocessing.context
     from concurrent.futures import Future, ProcessPoolExecutor
 
-from .converge import IKSession, solve
-from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
-from .model.frames import resolve_frame
-from .model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation
-from .options import SolveOptions, resolve
-from .result import IKResult, Reason
-from .robots import resolve_robot
-from .targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
+from ..errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
+from ..igm.result import IKResult, Reason
+from ..igm.session import IKSession, solve
+from ..igm.targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
+from ..model.frames import resolve_frame
+from ..model.robots import resolve_robot
+from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation
+from ..options import SolveOptions, resolve
 
 _SOLVE = solve  # qpik.solve; tests replace qpik.batch.solve to inject failures
 
@@ -158,7 +158,7 @@ class _StackedTargets(Sequence):
     """Targets ``{key: (positions[i], rotations[i])}`` (or ``{key: positions[i]}``) of one
     frame key, held as stacked float64 arrays: a slice is a view, and a chunk of them
     pickles as two arrays (a worker's transport costs a few microseconds per target).
-    The values are those :func:`qpik.targets.parse_target` reads from the originals
+    The values are those :func:`qpik.igm.targets.parse_target` reads from the originals
     (``float(x)`` of each number), so the solves are bitwise the same."""
 
     __slots__ = ("key", "positions", "rotations")
@@ -187,7 +187,7 @@ def _stack_targets(model: mujoco.MjModel, targets_list: Sequence) -> _StackedTar
     """The batch as :class:`_StackedTargets`, checked at once, when every entry is
     ``{key: (position, rotation)}`` (or ``{key: position}``) with one and the same frame
     key and numbers of the right shapes, all plainly valid (finite, rotations within half
-    of :func:`qpik.targets.parse_target`'s tolerance, inside its distance bound); else
+    of :func:`qpik.igm.targets.parse_target`'s tolerance, inside its distance bound); else
     ``None``, and :func:`check_targets` checks them one by one (and names a bad one)."""
     if not targets_list:
         return None
@@ -873,13 +873,13 @@ def _pool_classes() -> tuple[type[ProcessPoolExecutor], type[Exception]]:
 
 
 def __getattr__(name: str) -> Any:
-    """Batches on disk live in :mod:`qpik.batch_files`; their names stay importable here
+    """Batches on disk live in :mod:`qpik.batch.files`; their names stay importable here
     (and the pool's classes, :data:`_POOL_NAMES`, load on first use)."""
     if name.startswith("__"):  # the import system's probes (__path__, ...): not a reason
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     if name in _POOL_NAMES:
         return _pool_classes()[_POOL_NAMES.index(name)]
-    from . import batch_files
+    from . import files as batch_files
 
     if name in batch_files.__all__:
         return getattr(batch_files, name)

@@ -16,7 +16,7 @@ in that null space, so it cannot change any ``A_j x`` of a level above: strict p
 holds exactly (up to round-off), whatever the QP solver's tolerance.
 
 Each level's QP is solved exactly by the compiled dual active-set method of
-:func:`qpik.core._kernels.solve_qp` (``solver="auto"``), which handles box bounds and general
+:func:`qpik.core.kernels.solve_qp` (``solver="auto"``), which handles box bounds and general
 rows alike; other backends (``"osqp"`` with a persistent workspace per level and reduced
 size, or qpsolvers' ``"daqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``) can be forced,
 and their answers are polished on the active set they identify.
@@ -84,8 +84,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _kernels as K
-from .errors import InvalidInput, QpikError
+from ..errors import InvalidInput, QpikError
+from . import kernels as K
 
 __all__ = [
     "CERTIFICATE_TOLERANCE",

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from .configuration import Configuration, FrameType
-from .model.rotations import orientation_error
-from .options import PRESETS
+from ..model.configuration import Configuration, FrameType
+from ..model.rotations import orientation_error
+from ..options import PRESETS
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IGM_REASONS, Outcome, Reason
 
@@ -64,7 +64,7 @@ def nullspace_projection_step(
 # ------------------------------------------------------------------------ the IGM loop
 class IGMResult(Outcome):
     """The outcome of an IGM loop (:func:`igm`): the fields of
-    :class:`qpik.result.Outcome`, for its one frame (``q`` within the limits when ``clip``
+    :class:`qpik.igm.result.Outcome`, for its one frame (``q`` within the limits when ``clip``
     is on; ``reason`` one of :data:`IGM_REASONS`)."""
 
 
@@ -185,7 +185,7 @@ def igm(
     until the frame is within ``tol_position`` [m] and ``tol_orientation`` [rad]. With
     ``clip`` the joint positions are clipped into the limits after each step (the step rule
     itself knows nothing of them). The stopping and restart rules are those of
-    :func:`qpik.solve` (:mod:`qpik.restarts`: the same loop): an attempt ends after
+    :func:`qpik.solve` (:mod:`qpik.igm.restarts`: the same loop): an attempt ends after
     ``max_iters`` steps, or after ``stall_window`` steps without a 1 % decrease of
     ``|p| / tol_position + |theta| / tol_orientation``; then the loop restarts from a random
     configuration within the limits while ``restarts`` and ``time_budget`` [s] remain. The

@@ -28,12 +28,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .batch import _stream, check_seed, check_workers, prepare_robot, solve_call
-from .configuration import FrameType
-from .errors import InvalidInput
-from .model.frames import resolve_frame
-from .options import SolveOptions
-from .targets import FrameKey, RobotLike, parse_target
+from ..errors import InvalidInput
+from ..igm.targets import FrameKey, RobotLike, parse_target
+from ..model.configuration import FrameType
+from ..model.frames import resolve_frame
+from ..options import SolveOptions
+from .pool import _stream, check_seed, check_workers, prepare_robot, solve_call
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -138,7 +138,7 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     (ur5e: 1.15 m against 1.31 m; panda: 1.09 m against 1.16 m)."""
     bounds = [reach_bound(model, frame)]
     try:
-        from .model import KinematicChain, chain_support, joint_limits
+        from ..model import KinematicChain, chain_support, joint_limits
 
         if chain_support(model) is None:
             kind, index, _body = _frame_of(model, frame)
@@ -426,7 +426,7 @@ def plot_reachability(
     the same way, cut at the reach-bound centre's y to show the inside. Saved to ``path``
     when given (bare ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib
     (``qpik[plots]``)."""
-    from .plots import _matplotlib, _pyplot
+    from ..plots import _matplotlib, _pyplot
 
     _matplotlib()
     grid = rmap.grid

@@ -16,7 +16,7 @@ null space of their rows: a lower level never changes a higher level's ``A_j dq`
 ``delta`` (``damping``) is a constant Tikhonov term on every level, as in mink; ``mu_k`` the
 tasks' own Levenberg-Marquardt terms; ``lambda_k`` the adaptive singularity damping of
 :class:`~qpik.core.DampingLaw`, decided from the singular values of the level's unweighted
-Jacobian in the null space above (see :mod:`qpik.core.hierarchy`).
+Jacobian in the null space above (see :mod:`qpik.core.cascade`).
 
 Limits (mink's or qpik's) give box bounds on ``dq`` (joint position and velocity limits,
 computed directly for mink's ConfigurationLimit/VelocityLimit) and general rows
@@ -38,21 +38,21 @@ import mink
 import mujoco
 import numpy as np
 
-from . import checks
-from ._fused import FusedPlan, box_of, make_plan
-from .configuration import Configuration, joint_names
-from .core import (
+from ..core import (
     DampingLaw,
     HierarchyProblem,
     HierarchySolver,
     Level,
     LevelStatus,
+    checks,
 )
-from .core._kernels import merge_boxes, tighten
-from .core.hierarchy import _STATUS, LevelCertificate, certificates
-from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
-from .options import UNSET, StepOptions, _Unset
-from .tasks import BaseTask
+from ..core.cascade import _STATUS, LevelCertificate, certificates
+from ..core.kernels import merge_boxes, tighten
+from ..errors import InfeasibleLimits, InvalidInput, InvalidTarget, as_qpik_error
+from ..model.configuration import Configuration, joint_names
+from ..options import UNSET, StepOptions, _Unset
+from ..tasks import BaseTask
+from .compiled import FusedPlan, box_of, make_plan
 
 #: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
 _STATUS_OF_CODE = {float(code): status for code, status in _STATUS.items()}
@@ -88,7 +88,7 @@ class StepResult:
         certificate: per level, its :class:`~qpik.core.LevelCertificate` (the largest
             scaled violation of primal feasibility, stationarity, dual signs and
             complementarity at the point it returned; ``solved`` only when each is at most
-            :data:`~qpik.core.CERTIFICATE_TOLERANCE`, see :mod:`qpik.core.hierarchy`).
+            :data:`~qpik.core.CERTIFICATE_TOLERANCE`, see :mod:`qpik.core.cascade`).
     """
 
     velocity: np.ndarray
@@ -186,7 +186,7 @@ def level_rows(
             residual = task.compute_qp_residual(configuration)
             objective = task.compute_qp_objective(configuration) if residual is None else None
         except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
-            raise checks.as_qpik_error(exc) from exc
+            raise as_qpik_error(exc) from exc
         if objective is not None:
             H, c = objective
             values, vectors = np.linalg.eigh(0.5 * (H + H.T))
@@ -395,7 +395,7 @@ class IKSolver:
         #: level where a limit binds. Off by default (``StepResult.iterations`` then count
         #: the exact solver's iterations, not the backend's); qpik.solve_ik turns it on.
         self._exact_forced = False
-        # One compiled call per step when every task and limit allows it (see qpik._fused).
+        # One compiled call per step when every task and limit allows it (see qpik.diffik.compiled).
         self._plan = make_plan(
             model,
             self.levels,
@@ -703,7 +703,7 @@ class IKSolver:
         self, plan: FusedPlan, configuration: Configuration, dt: float, start: float
     ):
         """:meth:`step` for a forced backend: the rows and limits in one compiled call
-        (:func:`qpik._fused.fused_rows`), then the core's level-by-level solve. None where
+        (:func:`qpik.diffik.compiled.fused_rows`), then the core's level-by-level solve. None where
         the general path must answer."""
         args = plan.gather(configuration)
         if args is None:
@@ -728,10 +728,10 @@ class IKSolver:
         start: float,
         forced: bool = False,
     ):
-        """:meth:`step` in one compiled call (:mod:`qpik._fused`: the plan's ``Kernel.step``,
-        collision limits' rows ``G dq <= h`` from their own methods passed in); None where
-        the general path must answer (non-finite rows, conflicting limits, an unsettled
-        active set, a collision row on one dof, a task changed beyond its plan).
+        """:meth:`step` in one compiled call (:mod:`qpik.diffik.compiled`: the plan's
+        ``Kernel.step``, collision limits' rows ``G dq <= h`` from their own methods passed
+        in); None where the general path must answer (non-finite rows, conflicting limits,
+        an unsettled active set, a collision row on one dof, a task changed beyond its plan).
 
         ``forced`` (a forced backend, see ``_exact_forced``): the answer is kept only when
         every level was solved by the exact cold solve, which is what the forced-backend

@@ -1,6 +1,6 @@
 """The restart loop of the IGM, shared by :func:`qpik.solve`'s ``"qp"`` engine and the
-baselines (:func:`qpik.baselines.igm`); the compiled engine runs the same rules in
-:func:`qpik.model._kernels.igm_solve`.
+baselines (:func:`qpik.igm.baselines.igm`); the compiled engine runs the same rules in
+:func:`qpik.model.kernels.igm_solve`.
 
 The rules:
 
@@ -20,7 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from .model._kernels import PROGRESS
+from ..model.kernels import PROGRESS
 from .result import Reason
 
 __all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]

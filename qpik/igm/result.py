@@ -57,7 +57,7 @@ _DESCRIPTIONS = {
 REASONS: Mapping[str, str] = MappingProxyType(
     {r.value: r.description for r in Reason if r is not Reason.DIVERGED}
 )
-#: The reasons of the baseline loops (:func:`qpik.baselines.igm`), with their meaning.
+#: The reasons of the baseline loops (:func:`qpik.igm.baselines.igm`), with their meaning.
 IGM_REASONS: Mapping[str, str] = MappingProxyType(
     {
         Reason.CONVERGED.value: "the frame is within tolerance of its target",
@@ -72,7 +72,7 @@ IGM_REASONS: Mapping[str, str] = MappingProxyType(
 @dataclass
 class Outcome:
     """What every IK loop reports (:class:`IKResult` of :func:`qpik.solve`,
-    :class:`qpik.baselines.IGMResult` of the baselines).
+    :class:`qpik.igm.baselines.IGMResult` of the baselines).
 
     Attributes:
         q: the best configuration found ``(nq,)``.
@@ -109,7 +109,7 @@ class IKResult(Outcome):
         error_history: per iteration of the returned attempt (its start first), the largest
             frame ``(position_error [m], orientation_error [rad])``.
         path: the configurations of the returned attempt, its start first ``(k, nq)``.
-        engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.converge`).
+        engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.igm.session`).
     """
 
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)

@@ -21,10 +21,10 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .configuration import Configuration, FrameType
-from .errors import InvalidTarget
-from .model import _kernels
-from .model.rotations import nearest_rotation, orientation_angle
+from ..errors import InvalidTarget
+from ..model import kernels as _kernels
+from ..model.configuration import Configuration, FrameType
+from ..model.rotations import nearest_rotation, orientation_angle
 
 __all__ = [
     "MAX_TARGET_DISTANCE",

@@ -1,6 +1,6 @@
 """The ``"qp"`` engine of :func:`qpik.solve`: the IGM loop on :class:`qpik.IKSolver` steps,
 for whatever the compiled engine does not take (several frames, custom stacks, other
-limits, ball or free joints, a level-1 objective). See :mod:`qpik.converge` for the rule.
+limits, ball or free joints, a level-1 objective). See :mod:`qpik.igm.session` for the rule.
 
 A solve borrows the tasks of a caller's stack: it sets their targets and scales their
 gains (the trust region) while it runs, and gives every task back as it found it
@@ -17,15 +17,15 @@ import mink
 import mujoco
 import numpy as np
 
-from .configuration import Configuration, FrameType
-from .errors import InvalidTarget
-from .hierarchy import IKSolver, normalize_stack
-from .model._kernels import BACKTRACKS
-from .options import IGM_BACKEND_OPTIONS, SolveOptions
+from ..diffik.solver import IKSolver, normalize_stack
+from ..errors import InvalidTarget
+from ..model.configuration import Configuration, FrameType
+from ..model.kernels import BACKTRACKS
+from ..options import IGM_BACKEND_OPTIONS, SolveOptions
+from ..tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors
-from .tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
 
 __all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
 
@@ -88,7 +88,7 @@ def borrowed_tasks(levels: Sequence[Sequence]) -> Iterator[None]:
 
 def task_errors(task: Any, configuration: Configuration) -> tuple[float, float] | None:
     """(position-like error, orientation error) of a level-0 task at ``configuration``, or
-    ``None`` for a task without a target (see :mod:`qpik.converge` for the rule)."""
+    ``None`` for a task without a target (see :mod:`qpik.igm.session` for the rule)."""
     try:
         target = _task_target(task)
         if target is None:
@@ -137,7 +137,7 @@ def _task_target(task: Any) -> Target | None:
 
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
-        from .limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
+        from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
 
         return [ConfigurationLimit(model)]
     return list(options.limits or ())

@@ -9,8 +9,8 @@ of argument may be, and one error for each way it can be wrong.
   raises :class:`qpik.InvalidOption`: a :class:`qpik.InvalidInput`, so also a
   ``ValueError``, naming the argument, the value and the range.
 * An error that mink raises while qpik runs one of its tasks or limits is re-raised as
-  qpik's counterpart (:func:`as_qpik_error`), which also subclasses mink's: both kinds of
-  ``except`` catch it.
+  qpik's counterpart (:func:`qpik.errors.as_qpik_error`), which also subclasses mink's:
+  both kinds of ``except`` catch it.
 
 Documented ranges (checked once, where the value enters qpik):
 
@@ -32,36 +32,21 @@ from __future__ import annotations
 import math
 import operator
 import os
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
 from typing import Any, Final, TypeVar
 
-import mink
 import numpy as np
 
-from .errors import (
-    IntegrationTimestepNotSet,
+from ..errors import (
     InvalidArgumentType,
-    InvalidConstraint,
-    InvalidDamping,
-    InvalidGain,
     InvalidInput,
     InvalidOption,
-    InvalidTarget,
-    LimitDefinitionError,
-    MinkFailure,
-    NoSolutionFound,
-    QpikError,
-    TargetNotSet,
-    TaskDefinitionError,
-    UnknownFrameType,
 )
 
 __all__ = [
     "DT_MAX",
     "DT_MIN",
     "MAX_LENGTH",
-    "as_qpik_error",
     "check_array",
     "check_bool",
     "check_choice",
@@ -76,7 +61,6 @@ __all__ = [
     "check_real",
     "check_vector",
     "is_real",
-    "qpik_errors",
     "type_name",
 ]
 
@@ -282,53 +266,3 @@ def check_indices(name: str, value: Any, size: int) -> list[int]:
     if len(set(indices)) != len(indices):
         raise InvalidOption(name, value, expected)
     return indices
-
-
-# ------------------------------------------------------------------ mink's errors
-def _task_name(error: Exception) -> str:
-    """The class name at the end of mink's ``No target set for X`` messages."""
-    words = str(error).split()
-    return words[-1] if words else "task"
-
-
-#: mink's error classes whose qpik counterpart is built from the message alone.
-_BY_MESSAGE: Final[dict[type, type]] = {
-    mink.InvalidTarget: InvalidTarget,
-    mink.InvalidGain: InvalidGain,
-    mink.InvalidDamping: InvalidDamping,
-    mink.InvalidConstraint: InvalidConstraint,
-    mink.TaskDefinitionError: TaskDefinitionError,
-    mink.LimitDefinitionError: LimitDefinitionError,
-    mink.UnsupportedFrame: UnknownFrameType,
-}
-
-
-def as_qpik_error(error: BaseException) -> BaseException:
-    """qpik's counterpart of a mink error (which also subclasses mink's class), or
-    ``error`` itself when it is already a :class:`qpik.QpikError` or not mink's."""
-    if isinstance(error, QpikError) or not isinstance(error, mink.MinkError):
-        return error
-    if isinstance(error, mink.TargetNotSet):
-        return TargetNotSet(_task_name(error))
-    if isinstance(error, mink.IntegrationTimestepNotSet):
-        return IntegrationTimestepNotSet(_task_name(error))
-    if isinstance(error, mink.NoSolutionFound):
-        words = str(error).split()
-        return NoSolutionFound(words[2] if len(words) > 2 else "unknown")
-    for mink_class, qpik_class in _BY_MESSAGE.items():
-        if isinstance(error, mink_class):
-            return qpik_class(str(error))
-    return MinkFailure(str(error))
-
-
-@contextmanager
-def qpik_errors() -> Iterator[None]:
-    """Context manager: a mink error raised inside is re-raised as :func:`as_qpik_error`
-    gives it (the original chained as its ``__cause__``)."""
-    try:
-        yield
-    except mink.MinkError as error:
-        translated = as_qpik_error(error)
-        if translated is error:
-            raise
-        raise translated from error

@@ -39,7 +39,7 @@ from .._engine import model as _model
 HINGE = 0
 SLIDE = 1
 
-# Reasons (codes) returned by igm_solve; names in qpik.converge.REASONS.
+# Reasons (codes) returned by igm_solve; names in qpik.igm.session.REASONS.
 CONVERGED = 0
 MAX_ITERS = 1
 TIME_BUDGET = 2

@@ -27,7 +27,7 @@ QP (:func:`solve_qp`)
 Cascade (:func:`solve_cascade`)
     Levels ``(A_k, b_k)`` with regularisation, solved in the null space of the levels above
     through an orthonormal basis ``Z`` that shrinks level by level (see
-    :mod:`qpik.core.hierarchy` for the maths).
+    :mod:`qpik.core.cascade` for the maths).
 
 Signatures (as the numba kernels had them):
 
@@ -44,7 +44,7 @@ Signatures (as the numba kernels had them):
   error_scale, rank_tol, max_iter, tol, warm, canonical) -> (dq, status, sigma, lam2,
   iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
   levels' certificates (primal, stationarity, dual, complementarity; see
-  :mod:`qpik.core.hierarchy`), ``primal`` the final answer's largest scaled row violation.
+  :mod:`qpik.core.cascade`), ``primal`` the final answer's largest scaled row violation.
 - ``solve_levels(As, bs, regs, ws, lb, ub, G, h, threshold, max_damping, error_scale,
   rank_tol, max_iter, tol, warm, canonical)``: :func:`solve_cascade` from the levels' own
   arrays (lists; ``ws`` entries may be None) with the checks of
@@ -60,7 +60,7 @@ from __future__ import annotations
 # The compiled core (the extension is one module for every layer; this is its core part).
 from qpik._engine import core as _engine
 
-# Status codes shared with qpik.core.hierarchy.LevelStatus (keep in sync).
+# Status codes shared with qpik.core.cascade.LevelStatus (keep in sync).
 SOLVED = 0
 MAX_ITER = 1
 INFEASIBLE = 2

@@ -22,7 +22,7 @@ Two engines run this rule (:attr:`IKResult.engine`):
 
 * ``"compiled"``: one frame target, the default stack, joint limits (or none) and a model
   of hinge and slide joints. The whole solve (iterations, trust region, damping, stall
-  detection, restarts) is one compiled call (:mod:`qpik.model._kernels`): forward
+  detection, restarts) is one compiled call (:mod:`qpik.model.kernels`): forward
   kinematics and the frame Jacobian from arrays read once from the model, and each step's
   damped least-squares QP under the box of the joint limits solved exactly by an
   active-set method. It is the same QP as the general engine's, so both agree to round-off.
@@ -55,11 +55,10 @@ Options: every keyword of :func:`solve` and :meth:`IKSession.solve` is a field o
 defaults; ``options=`` takes a whole set (or a preset name: ``"precise"``, ``"fast"``,
 ...), and explicit keywords override it.
 
-Layout: targets are parsed in :mod:`qpik.targets`, results and reasons live in
-:mod:`qpik.result`, the ``"qp"`` engine in :mod:`qpik.qp_engine` and the restart loop (shared
-with :mod:`qpik.baselines`) in :mod:`qpik.restarts`; this module holds the session and the
-entry point. Its former names (``Target``, ``parse_target``, ``REASONS``, ...) are
-re-exported here.
+Layout: targets are parsed in :mod:`qpik.igm.targets`, results and reasons live in
+:mod:`qpik.igm.result`, the ``"qp"`` engine in :mod:`qpik.igm.qp_engine` and the restart
+loop (shared with :mod:`qpik.igm.baselines`) in :mod:`qpik.igm.restarts`; this module holds
+the session and the entry point.
 """
 
 from __future__ import annotations
@@ -75,12 +74,14 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from .configuration import Configuration, FrameType, _qpos_joint_names
-from .errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
-from .hierarchy import DampingLaw, Stack
-from .model import KinematicChain, ReachBound, _kernels, chain_support, joint_limits
-from .model.frames import resolve_frame
-from .options import (  # noqa: F401 (the limits re-exported for the former single module)
+from ..diffik.solver import DampingLaw, Stack
+from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
+from ..model import KinematicChain, ReachBound, chain_support, joint_limits
+from ..model import kernels as _kernels
+from ..model.configuration import Configuration, FrameType, _qpos_joint_names
+from ..model.frames import resolve_frame
+from ..model.robots import resolve_robot
+from ..options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
     IGM_DAMPING,
     MAX_AUTO_RESTARTS,
@@ -94,7 +95,6 @@ from .options import (  # noqa: F401 (the limits re-exported for the former sing
 from .qp_engine import QPProblem, iterate, set_frame_target
 from .restarts import Clock
 from .result import IGM_REASONS, REASONS, IKResult, LazyRows, Reason
-from .robots import resolve_robot
 from .targets import (  # noqa: F401 (MAX_TARGET_DISTANCE re-exported)
     MAX_TARGET_DISTANCE,
     FrameKey,
@@ -179,7 +179,7 @@ def _rng_state(seed: Seed) -> np.ndarray:
 
 
 def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
-    """The float and int option arrays of :func:`qpik.model._kernels.igm_solve`."""
+    """The float and int option arrays of :func:`qpik.model.kernels.igm_solve`."""
     law = s.damping_law
     max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
     options = np.array(
@@ -224,7 +224,7 @@ class _Prepared:
     """What a session reads from a model once: joint limits, the mid-range start, the
     bounds the compiled engine takes and, per target frame, its chain and reach bound (on
     first use). It holds no reference to the model (the one-shot cache keys it by a weak
-    reference to the model, :class:`qpik.converge.PreparedRobots`)."""
+    reference to the model, :class:`qpik.igm.session.PreparedRobots`)."""
 
     __slots__ = (
         "bounds_free",
@@ -308,7 +308,7 @@ class PreparedRobots:
     """The one-shot cache of :func:`solve`: per ``MjModel``, what an :class:`IKSession`
     reads from it (joint limits, mid-range start, per frame its kinematic chain and reach
     bound), so that ``qpik.solve(model, targets)`` costs what a held session's ``solve``
-    does. One instance, :data:`qpik.converge.PREPARED`; :func:`qpik.clear_caches` empties
+    does. One instance, :data:`qpik.igm.session.PREPARED`; :func:`qpik.clear_caches` empties
     it.
 
     * Keyed by the model object itself, through a weak reference: it never keeps a model
@@ -734,12 +734,12 @@ def solve(
 
     Cost of a one-shot call: given an ``MjModel`` (or a :class:`qpik.Configuration`), the
     robot's preparation (joint limits, mid-range start, the target frame's kinematic
-    chain and reach bound) is kept per model in one cache, :data:`qpik.converge.PREPARED`
-    (:class:`qpik.converge.PreparedRobots`), so a call costs what a held
+    chain and reach bound) is kept per model in one cache, :data:`qpik.igm.session.PREPARED`
+    (:class:`qpik.igm.session.PreparedRobots`), so a call costs what a held
     :class:`IKSession`'s ``solve`` does (reading those from the model takes longer than
     most solves). The cache holds the model weakly (an entry goes with its model), checks
     at each call that the model's arrays it was prepared from
-    (:data:`qpik.converge.FINGERPRINT_FIELDS`) are unchanged (a model edited in place is
+    (:data:`qpik.igm.session.FINGERPRINT_FIELDS`) are unchanged (a model edited in place is
     prepared anew), and gives bitwise the answers of a fresh :class:`IKSession`;
     :func:`qpik.clear_caches` empties it. A robot given by name or path is loaded and
     prepared at each call: to solve many targets on one robot, load it once (or hold an

@@ -1,0 +1,22 @@
+"""Many full-IK solves: the process pool (or Ray), batches on disk, reachability maps.
+
+- :mod:`.pool`: :func:`solve_many`, :func:`iter_solve`;
+- :mod:`.files`: targets files in, results files out (``qpik batch``);
+- :mod:`.reachability`: :func:`reachability` maps of a frame over a box.
+"""
+
+from .files import BatchRun, TargetArrays, load_targets, solve_file
+from .pool import WorkerError, iter_solve, solve_many
+from .reachability_map import ReachabilityMap, reachability
+
+__all__ = [
+    "BatchRun",
+    "ReachabilityMap",
+    "TargetArrays",
+    "WorkerError",
+    "iter_solve",
+    "load_targets",
+    "reachability",
+    "solve_file",
+    "solve_many",
+]

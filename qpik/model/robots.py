@@ -1,0 +1,519 @@
+"""Load robot models: bundled MJCF files, your own MJCF or URDF, or example-robot-data.
+
+``load_robot(source, *, floating_base=False, srdf=None)`` accepts:
+
+* the name of a bundled model (``qpik.list_robots()``): ``"planar_2r"``, ``"panda"``, ...;
+* a path to an MJCF ``.xml`` file or a ``.urdf`` file;
+* a ``mujoco.MjModel`` (returned as is);
+* ``"erd:NAME"``: a URDF that the package ``example-robot-data`` ships
+  (``"erd:panda"``, ``"erd:ur5"``, ``"erd:talos"``, ...; every name: :func:`erd_robots`;
+  install it with ``pip install 'qpik[robots]'``).
+
+Reading a file (MJCF or URDF, with the workarounds URDF files need, a floating base and
+SRDF keyframes) is :mod:`qpik.model.robot_files`'s; :func:`robot_spec` and :func:`find_srdf` are
+re-exported here.
+
+Every model ``load_robot`` builds also carries how it was built (a custom text element
+named :data:`SOURCE_TEXT`: the file, ``floating_base``, ``srdf``, as JSON), so that
+:func:`qpik.scene.add_obstacle` can rebuild it, bit for bit, with more geoms.
+
+Tool frame. :func:`tool_frame` names the frame a command uses when none is given, trying in
+order: the site ``ee`` (qpik's bundled robots); a site, then a body, named as a tool centre
+point (:data:`TCP_NAMES`: ``pinch_site``, ``tcp_site``, ``link_tcp``, ``end_effector``,
+``*_hand_tcp``, ...); a site, then a body, named as a flange (:data:`FLANGE_NAMES`:
+``attachment_site``, ``tool0``, ``flange``, ...); a site, then a body, named as a hand
+(:data:`HAND_NAMES`: ``left_palm``, ``right_wrist``: a humanoid's); a known tool link
+(:data:`TOOL_LINKS`); else the end of the longest chain. A name matches exactly or as the
+end of a longer name after ``/`` or ``_`` (``left/gripper``, ``panda_hand_tcp``); among
+several matches the one on the longest chain wins (ties: the lowest id). No rule ever
+picks a frame moved by a gripper joint (:func:`gripper_joints`: a finger). The longest
+chain's end is the first body that carries the most arm joints (hinge/slide joints that are
+not a gripper's; ties: the lowest id), followed down through joint-less links while they
+have a single child (a flange, a force sensor, up to a gripper's base where the fingers
+branch).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from importlib import metadata, resources
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..core import checks
+from ..errors import InvalidInput, MissingExtra, RobotFileError, UnknownRobot
+from .robot_files import ROOT_JOINT, find_srdf, robot_spec  # noqa: F401 (re-exported)
+
+__all__ = [
+    "ERD_ROBOTS",
+    "FLANGE_NAMES",
+    "GRIPPER_WORDS",
+    "HAND_NAMES",
+    "SOURCE_TEXT",
+    "TCP_NAMES",
+    "TOOL_LINKS",
+    "ToolFrame",
+    "erd_path",
+    "erd_robots",
+    "erd_robots_folder",
+    "find_srdf",
+    "gripper_joints",
+    "list_robots",
+    "load_robot",
+    "locate_robot",
+    "resolve_robot",
+    "robot_path",
+    "robot_spec",
+    "robots_dir",
+    "tool_frame",
+]
+
+#: Name of the custom text element holding how a model was built (JSON).
+SOURCE_TEXT = "qpik_source"
+
+#: ``erd:`` names that are not simply the URDF's file stem (the names example-robot-data's
+#: own loaders use), and the URDF each maps to inside example-robot-data's ``robots/``.
+#: Every other URDF is reachable by its stem (see :func:`erd_robots`).
+ERD_ROBOTS: dict[str, str] = {
+    "panda": "panda_description/urdf/panda.urdf",
+    "ur3": "ur_description/urdf/ur3_robot.urdf",
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "ur10": "ur_description/urdf/ur10_robot.urdf",
+    "xarm7": "xarm_description/urdf/xarm7.urdf",
+    "talos": "talos_data/robots/talos_reduced.urdf",
+    "talos_box": "talos_data/robots/talos_reduced_box.urdf",
+    "talos_full": "talos_data/robots/talos_full_v2.urdf",
+    "talos_full_box": "talos_data/robots/talos_full_v2_box.urdf",
+    "talos_arm": "talos_data/robots/talos_left_arm.urdf",
+    "talos_left_arm": "talos_data/robots/talos_left_arm.urdf",
+    "kinova": "kinova_description/robots/kinova.urdf",
+    "z1": "z1_description/urdf/z1.urdf",
+    "double_pendulum": "double_pendulum_description/urdf/double_pendulum.urdf",
+    "anymal": "anymal_b_simple_description/robots/anymal.urdf",
+    "anymal_c": "anymal_c_simple_description/urdf/anymal.urdf",
+}
+
+#: Names of a tool centre point (a gripper's pinch point, a TCP), as Menagerie (sites) and
+#: URDF conventions (links) spell them, in the order :func:`tool_frame` tries them.
+TCP_NAMES: tuple[str, ...] = (
+    "tcp_site",
+    "pinch_site",
+    "pinch",
+    "grasp_site",
+    "gripper_site",
+    "eef_site",
+    "ee_site",
+    "end_effector_site",
+    "hand_tcp",
+    "link_tcp",
+    "tcp",
+    "tcp_link",
+    "end_effector",
+    "end_effector_link",
+    "eef",
+    "ee",
+    "gripper",
+)
+
+#: Names of a flange (where a tool is mounted), tried after :data:`TCP_NAMES`.
+FLANGE_NAMES: tuple[str, ...] = (
+    "attachment_site",
+    "attachment",
+    "flange",
+    "tool0",
+    "tool_link",
+    "tool_frame",
+    "ee_link",
+    "link_eef",
+)
+
+#: Names of a hand's frame (humanoids: ``left_palm``, ``right_wrist``), tried after
+#: :data:`FLANGE_NAMES`.
+HAND_NAMES: tuple[str, ...] = ("palm", "hand", "wrist")
+
+#: Link names known to be a robot's tool frame (robots of example-robot-data whose names
+#: follow no convention), tried after the TCP and flange names.
+TOOL_LINKS: tuple[str, ...] = (
+    "tool0",
+    "tcp",
+    "panda_hand_tcp",
+    "link_tcp",
+    "link_eef",
+    "ee_link",
+    "end_effector",
+    "j2s6s200_end_effector",
+    "gripperStator",
+    "panda_hand",
+)
+
+#: Words that mark a gripper's joint (:func:`gripper_joints`; any case): the
+#: bodies such a joint moves (fingers) are never a tool frame.
+GRIPPER_WORDS: tuple[str, ...] = (
+    "finger",
+    "fngr",
+    "driver",
+    "gripper",
+    "knuckle",
+    "thumb",
+    "jaw",
+    "claw",
+    "pad",
+)
+
+
+def robots_dir() -> Path:
+    """The folder holding the bundled robot files.
+
+    In an installed wheel they live in ``qpik/_robots``; in a source checkout (or an
+    editable install) they are the repository's top-level ``robots/`` folder.
+    """
+    packaged = Path(str(resources.files("qpik"))) / "_robots"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parents[2] / "robots"
+
+
+def list_robots() -> list[str]:
+    """Names of the bundled robot models, sorted."""
+    return sorted(p.stem for p in robots_dir().glob("*.xml"))
+
+
+def robot_path(name: str) -> Path:
+    """Path of the bundled model ``name``; raises :class:`UnknownRobot` if there is none."""
+    path = robots_dir() / f"{name}.xml"
+    try:
+        found = bool(name) and path.is_file()
+    except (OSError, ValueError):  # a name the OS rejects (too long, ...)
+        found = False
+    if not found:
+        raise UnknownRobot(name, list_robots())
+    return path
+
+
+def load_robot(
+    source: str | os.PathLike | mujoco.MjModel,
+    *,
+    floating_base: bool = False,
+    srdf: str | os.PathLike | bool | None = None,
+) -> mujoco.MjModel:
+    """Load a robot model (see the module docstring for what ``source`` may be).
+
+    Args:
+        source: a bundled name, ``"erd:NAME"``, a path to an ``.xml``/``.urdf`` file, or
+            an ``MjModel`` (returned as is; ``floating_base`` and ``srdf`` must then be
+            left at their defaults).
+        floating_base: add a free joint ``root_joint`` at the root body (a humanoid or a
+            legged robot whose base moves in the world).
+        srdf: an SRDF file whose named states become keyframes; ``None`` (default) or
+            ``True``: look for one beside a URDF; ``False``: none.
+    """
+    floating_base = checks.check_bool("floating_base", floating_base)
+    if srdf is not None and not isinstance(srdf, bool):
+        srdf = checks.check_path("srdf", srdf)
+    if isinstance(source, mujoco.MjModel):
+        if floating_base or srdf not in (None, False):
+            raise RobotFileError(
+                "<MjModel>", "floating_base and srdf apply when loading a file, not to a model"
+            )
+        check_model(source, "<MjModel>")
+        return source
+    checks.check_instance(
+        "source", source, (str, os.PathLike), "a robot name, 'erd:NAME', a path or an MjModel"
+    )
+    path = locate_robot(source)
+    return _load_file(path, floating_base=floating_base, srdf=srdf)
+
+
+#: The model arrays of positions [m] that :func:`check_model` bounds.
+_LENGTHS = ("body_pos", "body_ipos", "jnt_pos", "site_pos", "geom_pos")
+
+
+def check_model(model: mujoco.MjModel, where: str) -> None:
+    """Raise :class:`RobotFileError` naming ``where`` for a model qpik cannot compute
+    with: a position (body, joint, site, geom, centre of mass) that is not finite or
+    farther than :data:`qpik.core.checks.MAX_LENGTH` [m] from its parent (MuJoCo's dynamics
+    overflow: NaN gravity torques), a mass or inertia that is not finite, or a custom
+    numeric ``velocity_limit`` whose length is not ``nv``."""
+    for name in _LENGTHS:
+        values = np.asarray(getattr(model, name))
+        bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
+        if bad.any():
+            row = int(np.argwhere(bad)[0][0])
+            raise RobotFileError(
+                where,
+                f"{name}[{row}] = {values[row].tolist()}: positions must be finite and within "
+                f"{checks.MAX_LENGTH:g} m",
+            )
+    for name in ("body_mass", "body_inertia"):
+        if not np.isfinite(getattr(model, name)).all():
+            raise RobotFileError(where, f"{name} has a NaN or inf entry")
+    nid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
+    if nid >= 0 and int(model.numeric_size[nid]) != model.nv:
+        raise RobotFileError(
+            where,
+            f"the custom numeric velocity_limit has {int(model.numeric_size[nid])} values; "
+            f"it needs one per dof ({model.nv})",
+        )
+
+
+def locate_robot(
+    source: str | os.PathLike, *, relative_to: str | os.PathLike | None = None
+) -> Path:
+    """The file of a robot source: a bundled name, ``"erd:NAME"``, or a path (``.xml`` /
+    ``.urdf``, or any name with a path separator or naming an existing file), relative to
+    the folder ``relative_to`` when given (a problem file's folder), else to the working
+    directory.
+
+    Raises :class:`UnknownRobot` (listing the bundled names) for an unknown name; a path is
+    returned whether or not it exists (:func:`load_robot` then raises
+    :class:`RobotFileError` naming it)."""
+    text = os.fspath(source)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    if "\0" in text:
+        raise UnknownRobot(repr(text), list_robots())
+    if text.startswith("erd:"):
+        return erd_path(text[4:])
+    path = Path(text)
+    if relative_to is not None and not path.is_absolute():
+        path = Path(os.fspath(relative_to)) / path
+    looks_like_path = path.suffix.lower() in (".xml", ".urdf") or os.sep in text or "/" in text
+    if looks_like_path or _exists(path):
+        return path
+    return robot_path(text)
+
+
+def resolve_robot(
+    robot: Any,
+    *,
+    relative_to: str | os.PathLike | None = None,
+    floating_base: bool = False,
+) -> tuple[mujoco.MjModel, np.ndarray | None]:
+    """The one resolver of what qpik's entry points accept as a robot: ``(model, q)``.
+
+    Args:
+        robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
+            caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
+            :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
+            with :func:`load_robot` (``q`` ``None``).
+        relative_to: the folder a relative path is read from (default: the working
+            directory).
+        floating_base: passed to :func:`load_robot` for a file.
+
+    Raises :class:`qpik.InvalidInput` naming ``robot`` for anything else, and
+    :func:`load_robot`'s errors.
+    """
+    from .configuration import Configuration  # robots is imported by configuration's users
+
+    if isinstance(robot, Configuration):
+        return robot.model, robot.q
+    if isinstance(robot, mujoco.MjModel):
+        return robot, None
+    if isinstance(robot, (str, os.PathLike)):
+        path = locate_robot(robot, relative_to=relative_to)
+        return load_robot(path, floating_base=floating_base), None
+    raise InvalidInput(
+        "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
+        f"qpik.Configuration, got {type(robot).__name__}"
+    )
+
+
+def _exists(path: Path) -> bool:
+    """``path.exists()``, False for names the OS rejects (too long, ...)."""
+    try:
+        return path.exists()
+    except (OSError, ValueError):
+        return False
+
+
+# ------------------------------------------------------------------ example-robot-data
+def erd_robots_folder() -> Path:
+    """The ``robots/`` folder that example-robot-data installs (it ships files, no module).
+
+    Raises :class:`MissingExtra` naming the ``robots`` extra when it is not installed.
+    """
+    try:
+        dist = metadata.distribution("example-robot-data")
+    except metadata.PackageNotFoundError as exc:
+        raise MissingExtra("'erd:' robots", "robots", "example-robot-data") from exc
+    marker = "share/example-robot-data/robots/"
+    for file in dist.files or ():
+        text = str(file).replace(os.sep, "/")
+        if marker in text:
+            root = text[: text.index(marker) + len(marker)]
+            return Path(str(dist.locate_file(root)))
+    raise RobotFileError(str(dist.locate_file("")), "example-robot-data has no robots folder")
+
+
+def erd_robots() -> dict[str, Path]:
+    """Every ``erd:`` name and its URDF, sorted by name.
+
+    The names of :data:`ERD_ROBOTS` first (example-robot-data's loader names), then every
+    other URDF the package ships under its file stem; a stem that several packages ship is
+    prefixed with the package (``anymal_b_simple_description/.../anymal.urdf`` ->
+    ``anymal_b_simple_anymal``)."""
+    base = erd_robots_folder()
+    found: dict[str, Path] = {}
+    for name, relative in ERD_ROBOTS.items():
+        if (base / relative).is_file():
+            found[name] = base / relative
+    urdfs = sorted(base.glob("*/**/*.urdf"))
+    stems: dict[str, int] = {}
+    for path in urdfs:
+        stems[path.stem] = stems.get(path.stem, 0) + 1
+    urdfs = [p for p in urdfs if "<link" in p.read_text(errors="replace")]  # ur3.urdf is empty
+    for path in urdfs:
+        package = path.relative_to(base).parts[0].removesuffix("_description")
+        name = path.stem
+        if stems[name] > 1 or found.get(name, path) != path:
+            name = f"{package}_{path.stem}"
+        found.setdefault(name, path)
+    return dict(sorted(found.items()))
+
+
+def erd_path(name: str) -> Path:
+    """The URDF of ``erd:NAME``; :class:`UnknownRobot` lists every name otherwise."""
+    if name in ERD_ROBOTS:  # the common names, without listing the package
+        path = erd_robots_folder() / ERD_ROBOTS[name]
+        if path.is_file():
+            return path
+    robots = erd_robots()
+    if name not in robots:
+        raise UnknownRobot(f"erd:{name}", [f"erd:{n}" for n in robots], erd=True)
+    return robots[name]
+
+
+# ------------------------------------------------------------------------- files
+def _load_file(path: Path, *, floating_base: bool, srdf) -> mujoco.MjModel:
+    spec = robot_spec(path, floating_base=floating_base, srdf=srdf)
+    recipe: dict[str, Any] = {
+        "path": os.path.abspath(path),  # as given: symlinks kept, as MuJoCo read it
+        "floating_base": bool(floating_base),
+        "srdf": srdf if srdf in (None, False, True) else str(Path(os.fspath(srdf)).resolve()),
+        "obstacles": [],
+    }
+    spec.add_text(name=SOURCE_TEXT, data=json.dumps(recipe))
+    try:
+        model = spec.compile()
+    except ValueError as exc:  # pragma: no cover - the model compiled a moment ago
+        raise RobotFileError(str(path), str(exc).strip()) from exc
+    check_model(model, str(path))
+    return model
+
+
+# --------------------------------------------------------------------- tool frame
+@dataclass(frozen=True)
+class ToolFrame:
+    """A robot's tool frame: ``name`` and ``frame_type`` (``"site"`` or ``"body"``), and
+    ``reason``, the rule that chose it (for the commands to print)."""
+
+    name: str
+    frame_type: str
+    reason: str
+
+
+def gripper_joints(model: mujoco.MjModel) -> list[int]:
+    """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name
+    holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``, ``gripper_left_joint``,
+    ``left_driver_joint``), or whose body's name does when no joint lies below that body (a
+    finger link's unnamed joint; a wrist joint on a ``gripper_link`` with fingers below it
+    is the arm's)."""
+    below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
+    for b in range(model.nbody - 1, 0, -1):  # children come after parents
+        if below[b] or model.body_jntnum[b]:
+            below[model.body_parentid[b]] = True
+    found = []
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) not in _SCALAR_JOINTS:
+            continue
+        body = int(model.jnt_bodyid[j])
+        name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower()
+        body_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "").lower()
+        if any(word in name for word in GRIPPER_WORDS) or (
+            not below[body] and any(word in body_name for word in GRIPPER_WORDS)
+        ):
+            found.append(j)
+    return found
+
+
+_SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per body: arm joints from the world (hinge/slide, not a gripper's), depth, and
+    whether a gripper joint moves it (on it or on an ancestor)."""
+    grippers = set(gripper_joints(model))
+    joints = np.zeros(model.nbody, dtype=int)
+    depth = np.zeros(model.nbody, dtype=int)
+    moved = np.zeros(model.nbody, dtype=bool)
+    for b in range(1, model.nbody):  # parents come before children
+        parent = model.body_parentid[b]
+        own = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+        joints[b] = joints[parent] + sum(
+            int(model.jnt_type[j]) in _SCALAR_JOINTS and j not in grippers for j in own
+        )
+        depth[b] = depth[parent] + 1
+        moved[b] = moved[parent] or any(j in grippers for j in own)
+    return joints, depth, moved
+
+
+def _name_matches(name: str, known: str) -> bool:
+    return name == known or name.endswith("/" + known) or name.endswith("_" + known)
+
+
+def tool_frame(model: mujoco.MjModel) -> ToolFrame:
+    """The robot's tool frame (the rule is in the module docstring): a site or a body, never
+    one a gripper joint moves. Raises :class:`RobotFileError` for a model with no body."""
+    if model.nbody < 2:
+        raise RobotFileError("<model>", "the model has no body to use as a tool frame")
+    joints, depth, moved = _chains(model)
+    site_body = model.site_bodyid
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
+        return ToolFrame("ee", "site", "the site named ee")
+    sites = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "" for s in range(model.nsite)
+    ]
+    bodies = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
+    ]
+
+    def best(names: list[str], owner, known: str) -> int | None:
+        hits = [i for i, n in enumerate(names) if n and _name_matches(n, known)]
+        hits = [i for i in hits if not moved[owner(i)]]
+        if not hits:
+            return None
+        return max(hits, key=lambda i: (joints[owner(i)], -i))
+
+    for names, what in (
+        (TCP_NAMES, "a tool centre point's name"),
+        (FLANGE_NAMES, "a flange's name"),
+        (HAND_NAMES, "a hand's name"),
+    ):
+        for known in names:
+            site = best(sites, lambda s: int(site_body[s]), known)
+            if site is not None:
+                return ToolFrame(sites[site], "site", f"the site with {what} ({known!r})")
+            body = best(bodies, lambda b: b, known)
+            if body is not None and body > 0:
+                return ToolFrame(bodies[body], "body", f"the body with {what} ({known!r})")
+    for name in TOOL_LINKS:
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if b > 0 and not moved[b]:
+            return ToolFrame(name, "body", "a known tool link (no site 'ee')")
+    candidates = [b for b in range(1, model.nbody) if not moved[b]] or list(range(1, model.nbody))
+    end = max(candidates, key=lambda b: (joints[b], -depth[b], -b))
+    while True:  # down through joint-less links with a single child (flange, sensor, ...)
+        children = [
+            c for c in range(end + 1, model.nbody) if model.body_parentid[c] == end and not moved[c]
+        ]
+        every_child = sum(model.body_parentid[c] == end for c in range(end + 1, model.nbody))
+        if every_child != 1 or len(children) != 1 or model.body_jntnum[children[0]]:
+            break
+        end = children[0]
+    name = bodies[end] or str(end)
+    return ToolFrame(name, "body", "the end of the longest chain (no site 'ee', no known name)")
