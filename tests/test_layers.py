@@ -5,9 +5,9 @@ upward fails here, with the module and the import named."""
 from __future__ import annotations
 
 import ast
+from pathlib import Path
 
 import pytest
-from pathlib import Path
 
 import qpik
 
