@@ -26,7 +26,7 @@ import numpy as np
 import qpik
 from qpik.problem import load_problem
 from qpik.viewer import LiveSolve, default_stack
-from qpik.viewer.app import _live_of_problem
+from qpik.viewer.app import live_of_problem
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
         "viewer default (frame task; posture)": LiveSolve(
             model, default_stack(configuration), q0=configuration.q
         ),
-        "tasks/panda_pose_reach.toml (position + orientation; posture)": _live_of_problem(
+        "tasks/panda_pose_reach.toml (position + orientation; posture)": live_of_problem(
             load_problem(ROOT / "tasks" / "panda_pose_reach.toml"), None, None, None, 20
         ),
     }

@@ -26,10 +26,12 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, Final
 
-from .core.cascade import DEFAULT_DAMPING, SOLVERS, DampingLaw
-from .errors import InvalidOption
+from .errors import InvalidInput, InvalidOption
 
 __all__ = [
+    "DEFAULT_DAMPING",
+    "SOLVERS",
+    "DampingLaw",
     "DEFAULT_RESTARTS",
     "IGM_BACKEND_OPTIONS",
     "IGM_DAMPING",
@@ -42,6 +44,60 @@ __all__ = [
     "check_integer",
     "check_number",
 ]
+
+#: Backends of the core's :class:`qpik.core.HierarchySolver`: "auto" is qpik's exact
+#: compiled active set.
+SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
+
+
+@dataclass(frozen=True)
+class DampingLaw:
+    """Adaptive damping from the smallest singular value of a level (see module doc).
+
+    Attributes:
+        singular_threshold: ``sigma`` below which damping starts, in the units of the
+            level's unweighted Jacobian (e.g. [m/rad] for a position task).
+        max_damping: ``lambda`` reached at ``sigma = 0`` (same units), scaled by the
+            level's largest cost.
+        error_scale: if set, ``lambda^2`` is further scaled by ``min(1, |b - A d| /
+            error_scale)``: damping fades as the level's error vanishes (Sugihara 2011);
+            :func:`qpik.solve` uses this, velocity control does not.
+    """
+
+    singular_threshold: float = 0.05
+    max_damping: float = 0.05
+    error_scale: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("singular_threshold", "max_damping"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InvalidInput(f"DampingLaw.{name} must be finite and >= 0, got {value!r}")
+        if self.singular_threshold > 1e6 or self.max_damping > 1e6:
+            raise InvalidInput("DampingLaw values above 1e6 are not meaningful")
+        if self.error_scale is not None and not (
+            isinstance(self.error_scale, (int, float))
+            and math.isfinite(self.error_scale)
+            and 0 < self.error_scale <= 1e6
+        ):
+            raise InvalidInput(
+                f"DampingLaw.error_scale must be None or in (0, 1e6], got {self.error_scale!r}"
+            )
+
+    def __call__(self, sigma: float, error_norm: float | None = None) -> float:
+        """``lambda^2`` (for a level of unit cost) at smallest singular value ``sigma``."""
+        if not sigma < self.singular_threshold:
+            return 0.0
+        ratio = sigma / self.singular_threshold
+        lam2 = self.max_damping**2 * (1.0 - ratio * ratio)
+        if self.error_scale is not None and error_norm is not None:
+            lam2 *= min(1.0, error_norm / self.error_scale)
+        return lam2
+
+
+#: The default damping law of every entry point.
+DEFAULT_DAMPING = DampingLaw()
+
 
 #: The damping law of a full-IK solve: the velocity-control law (:data:`DEFAULT_DAMPING`,
 #: ``sigma < 0.05``, ``lambda <= 0.05``) fading with the error (``error_scale = 0.3``).
@@ -64,7 +120,7 @@ IGM_BACKEND_OPTIONS: Final = MappingProxyType(
 _ENGINES = ("auto", "compiled", "qp")
 
 
-class _Unset:
+class Unset:
     """The default of an entry point's keyword: "not given, read it from the options"."""
 
     _instance = None
@@ -78,12 +134,12 @@ class _Unset:
         return "<from options>"
 
     def __reduce__(self):
-        return _Unset, ()
+        return Unset, ()
 
 
 #: The default of every option keyword of :func:`qpik.solve` and friends: the value then
 #: comes from the ``options`` argument (or :data:`PRESETS` ``["default"]``).
-UNSET: Final = _Unset()
+UNSET: Final = Unset()
 
 
 # ------------------------------------------------------------------------- checks

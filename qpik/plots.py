@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .analysis import _row_indices, manipulability, singular_values
+from .core.jacobian import manipulability, row_indices, singular_values
 from .errors import MissingExtra
 from .model.configuration import Configuration, FrameType, joint_names
 
@@ -56,6 +56,8 @@ __all__ = [
     "plot_robot",
     "plot_singular_values",
     "plot_task_errors",
+    "pyplot",
+    "require_matplotlib",
     "robot_segments",
 ]
 
@@ -65,7 +67,9 @@ FLOOR = 1e-12
 MAX_NAMED = 10
 
 
-def _matplotlib():
+def require_matplotlib():
+    """The ``matplotlib`` module, or :class:`qpik.errors.MissingExtra` naming the ``plots``
+    extra."""
     try:
         import matplotlib
     except ImportError as exc:
@@ -73,8 +77,9 @@ def _matplotlib():
     return matplotlib
 
 
-def _pyplot():
-    _matplotlib()
+def pyplot():
+    """``matplotlib.pyplot`` (:class:`qpik.errors.MissingExtra` without matplotlib)."""
+    require_matplotlib()
     import matplotlib.pyplot as plt
 
     return plt
@@ -84,12 +89,12 @@ def _axes(ax, projection: str | None = None):
     if ax is not None:
         return ax
     if projection is None:
-        return _pyplot().subplots()[1]
-    return _pyplot().figure().add_subplot(projection=projection)
+        return pyplot().subplots()[1]
+    return pyplot().figure().add_subplot(projection=projection)
 
 
 def _colors() -> list[str]:
-    return _matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
+    return require_matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
 
 
 def _legend_below(ax: Axes, ncol: int = 2) -> None:
@@ -349,7 +354,7 @@ def _goal_jacobian(frames: Sequence[tuple[str, str | FrameType]], rows):
     """``configuration -> J``: the frames' Jacobians stacked, ``rows`` of each (what
     :func:`qpik.analysis.analyze` takes: ``"pose"``, ``"position"``, row names...; and
     ``"planar"`` for vx, vy)."""
-    take = list(_row_indices(("vx", "vy") if rows == "planar" else rows))
+    take = list(row_indices(("vx", "vy") if rows == "planar" else rows))
 
     def jacobian(configuration: Configuration) -> np.ndarray:
         return np.vstack([configuration.frame_jacobian(f, t)[take] for f, t in frames])
@@ -570,7 +575,7 @@ def plot_result(
     planar arms). The QP residual per step is :func:`plot_level_errors`'s. Saved to
     ``path`` when given (drawn on a bare :class:`matplotlib.figure.Figure`, Agg canvas: no
     GUI, pyplot's state untouched); returns the figure."""
-    _matplotlib()
+    require_matplotlib()
     problem = result.problem
     model = problem.model
     planar = is_planar(model)
@@ -580,7 +585,7 @@ def plot_result(
 
         fig = Figure(figsize=figsize, layout="constrained")
     else:
-        fig = _pyplot().figure(figsize=figsize, layout="constrained")
+        fig = pyplot().figure(figsize=figsize, layout="constrained")
     grid = fig.add_gridspec(2, 3, width_ratios=(1.0, 1.0, 1.1))
     x, xlabel = _path_axis(result)
     time = x if result.trace is not None else None

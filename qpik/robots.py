@@ -1,6 +1,7 @@
 """Robots: the bundled models, your own MJCF or URDF, example-robot-data, and the tool
 frame of an arm (the public path over :mod:`qpik.model.robots`)."""
 
+from .model.configuration import resolve_robot
 from .model.robots import (
     ERD_ROBOTS,
     FLANGE_NAMES,
@@ -18,7 +19,6 @@ from .model.robots import (
     list_robots,
     load_robot,
     locate_robot,
-    resolve_robot,
     robot_path,
     robot_spec,
     robots_dir,
@@ -26,6 +26,7 @@ from .model.robots import (
 )
 
 __all__ = [
+    "resolve_robot",
     "ERD_ROBOTS",
     "FLANGE_NAMES",
     "GRIPPER_WORDS",
@@ -42,7 +43,6 @@ __all__ = [
     "list_robots",
     "load_robot",
     "locate_robot",
-    "resolve_robot",
     "robot_path",
     "robot_spec",
     "robots_dir",

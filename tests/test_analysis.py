@@ -320,7 +320,7 @@ def test_manipulability_gradient_matches_finite_differences(robot, frame_type, f
     configuration = configuration_of(robot)
     configuration.update(configuration.random_q(rng))
     q0 = configuration.q
-    idx = list(an._row_indices(rows))
+    idx = list(an.row_indices(rows))
     probe = configuration.copy()
 
     def w(q):

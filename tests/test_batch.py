@@ -11,7 +11,8 @@ import pytest
 
 import qpik
 import qpik.batch.pool as batch
-from qpik.batch.pool import Chunk, iter_solve, load_targets, solve_file, target_seed
+from qpik.batch import iter_solve, load_targets, solve_file
+from qpik.batch.pool import Chunk, target_seed
 from qpik.cli import main
 
 

@@ -7,8 +7,6 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import pytest
-
 import qpik
 
 ROOT = Path(qpik.__file__).parent
@@ -81,7 +79,6 @@ def imported_modules(path: Path) -> set[str]:
     return found
 
 
-@pytest.mark.xfail(reason="the layout move lands in steps", strict=True)
 def test_no_module_imports_from_a_layer_above_its_own():
     violations = []
     for path in sorted(ROOT.rglob("*.py")):
@@ -124,7 +121,6 @@ def test_the_top_of_the_package_holds_only_the_front_doors_and_the_base():
     assert len(TOP_MODULES) <= 8
 
 
-@pytest.mark.xfail(reason="the layout move lands in steps", strict=True)
 def test_no_module_imports_another_modules_underscore_names():
     """Private names stay private: ``from x import _name`` only within one module's own
     package-private engine (``qpik._engine``)."""
@@ -138,7 +134,6 @@ def test_no_module_imports_another_modules_underscore_names():
     assert not found, "\n".join(found)
 
 
-@pytest.mark.xfail(reason="the layout move lands in steps", strict=True)
 def test_no_import_circles():
     """The graph of imports between qpik's modules (at any depth of a file, so imports
     inside functions count) has no cycle, inside a folder or across folders."""

@@ -97,7 +97,9 @@ def test_public_names_resolve():
     assert [name for name in qpik.__all__ if not hasattr(qpik, name)] == []
     for name in ("SolveOptions", "StepOptions", "PRESETS", "Reason"):
         assert name in qpik.__all__
-    assert "InvalidOption" in qpik.errors.__all__ and qpik.InvalidOption is qpik.errors.InvalidOption
+    assert (
+        "InvalidOption" in qpik.errors.__all__ and qpik.InvalidOption is qpik.errors.InvalidOption
+    )
     import qpik.igm.session as converge  # the names of the former single module stay
 
     for name in converge.__all__ + ["MAX_AUTO_RESTARTS", "DEFAULT_RESTARTS", "IGM_DAMPING"]:

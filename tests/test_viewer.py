@@ -116,10 +116,10 @@ def test_live_solve_marks_an_unreachable_goal_red():
 
 
 def test_live_solve_of_a_problem_uses_its_stack_limits_and_goal():
-    from qpik.viewer.app import _live_of_problem
+    from qpik.viewer.app import live_of_problem
 
     problem = load_problem(TASKS / "panda_pose_reach.toml")
-    live = _live_of_problem(problem, None, None, None, 20)
+    live = live_of_problem(problem, None, None, None, 20)
     assert list(live.goals) == ["ee"]
     assert np.allclose(live.goals["ee"].target.position, problem.goals[0].target.position)
     assert live.level_names == [["position ee", "orientation ee"], ["posture"]]

@@ -26,10 +26,10 @@ from ..model.frames import resolve_frame
 from ..options import SolveOptions
 from .pool import (
     Chunk,
-    _iter_prepared,
     check_chunk_size,
     check_seed,
     check_workers,
+    iter_prepared,
     prepare_robot,
     progress_bar,
     solve_call,
@@ -349,7 +349,7 @@ def solve_file(
     try:
         chunks = (arrays.chunk(frame, s, min(s + chunk_size, n)) for s in todo)
         workers = workers if len(todo) > 1 else 1
-        for start, chunk in _iter_prepared(
+        for start, chunk in iter_prepared(
             spec, model, chunks, entropy, workers, backend, address, call
         ):
             results.add(start, chunk)

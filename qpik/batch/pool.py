@@ -54,8 +54,8 @@ from ..errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
 from ..igm.result import IKResult, Reason
 from ..igm.session import IKSession, solve
 from ..igm.targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
+from ..model.configuration import resolve_robot
 from ..model.frames import resolve_frame
-from ..model.robots import resolve_robot
 from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation
 from ..options import SolveOptions, resolve
 
@@ -565,10 +565,10 @@ def iter_solve(
     spec, model, q0 = prepare_robot(robot)
     call = solve_call(options, solve_options, q0)
     call[_HISTORIES] = histories
-    yield from _iter_prepared(spec, model, chunks, entropy, workers, backend, address, call)
+    yield from iter_prepared(spec, model, chunks, entropy, workers, backend, address, call)
 
 
-def _iter_prepared(
+def iter_prepared(
     spec: Any,
     model: mujoco.MjModel,
     chunks: Iterable[Chunk],
@@ -743,7 +743,7 @@ def solve_many(
     call = solve_call(options, solve_options, q0)
     call[_HISTORIES] = histories
     results: list[IKResult] = []
-    for _start, chunk_results in _stream(
+    for _start, chunk_results in stream_chunks(
         spec,
         model,
         len(targets_list),
@@ -771,7 +771,7 @@ def check_chunk_size(chunk_size: int | None, optional: bool = False) -> None:
         raise InvalidInput(f"chunk_size must be a positive integer, got {chunk_size!r}")
 
 
-def _stream(
+def stream_chunks(
     spec: Any,
     model: mujoco.MjModel,
     n: int,
@@ -806,7 +806,7 @@ def _stream(
         capacity = workers or os.cpu_count() or 1
         size = chunk_size or max(1, min(64, math.ceil((n - 1) / (4 * capacity))))
         chunks = (Chunk(s, targets_at(s, min(s + size, n))) for s in range(1, n, size))
-        solved = _iter_prepared(spec, model, chunks, entropy, workers, backend, address, options)
+        solved = iter_prepared(spec, model, chunks, entropy, workers, backend, address, options)
         counted = _counted(solved, bar)
         yield from (_in_order(counted, 1) if ordered else counted)
     finally:
@@ -873,14 +873,9 @@ def _pool_classes() -> tuple[type[ProcessPoolExecutor], type[Exception]]:
 
 
 def __getattr__(name: str) -> Any:
-    """Batches on disk live in :mod:`qpik.batch.files`; their names stay importable here
-    (and the pool's classes, :data:`_POOL_NAMES`, load on first use)."""
+    """The pool's classes, :data:`_POOL_NAMES`, load on first use."""
     if name.startswith("__"):  # the import system's probes (__path__, ...): not a reason
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     if name in _POOL_NAMES:
         return _pool_classes()[_POOL_NAMES.index(name)]
-    from . import files as batch_files
-
-    if name in batch_files.__all__:
-        return getattr(batch_files, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -33,7 +33,7 @@ from ..igm.targets import FrameKey, RobotLike, parse_target
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
-from .pool import _stream, check_seed, check_workers, prepare_robot, solve_call
+from .pool import check_seed, check_workers, prepare_robot, solve_call, stream_chunks
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -382,7 +382,7 @@ def reachability(
         ]
 
     flags = np.zeros(len(candidates) * k, dtype=bool)
-    for start, results in _stream(
+    for start, results in stream_chunks(
         spec,
         model,
         len(flags),
@@ -426,9 +426,9 @@ def plot_reachability(
     the same way, cut at the reach-bound centre's y to show the inside. Saved to ``path``
     when given (bare ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib
     (``qpik[plots]``)."""
-    from ..plots import _matplotlib, _pyplot
+    from ..plots import pyplot, require_matplotlib
 
-    _matplotlib()
+    require_matplotlib()
     grid = rmap.grid
     nx, ny, nz = rmap.shape
     # Slices spread over the heights where something is reached (else over the whole box).
@@ -442,7 +442,7 @@ def plot_reachability(
 
         fig = Figure(figsize=figsize)
     else:
-        fig = _pyplot().figure(figsize=figsize)
+        fig = pyplot().figure(figsize=figsize)
     spec = fig.add_gridspec(1, panels + 2, width_ratios=[1.0] * panels + [0.08, 1.9])
     centers = rmap.centers.reshape(nx, ny, nz, 3)
     half = rmap.resolution / 2.0

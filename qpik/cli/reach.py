@@ -38,9 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     problem = load_problem(args.file)
     if args.plot is not None:
-        from ..plots import _matplotlib
+        from ..plots import require_matplotlib
 
-        _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
+        require_matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     result = problem.solve()
     with report_stream(args.json):
         _report(args, problem, result)

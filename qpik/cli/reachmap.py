@@ -59,9 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
-        from ..plots import _matplotlib
+        from ..plots import require_matplotlib
 
-        _matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
+        require_matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     options = solve_options_from_args(args)
     rmap = reachability(
         args.robot,

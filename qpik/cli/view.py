@@ -141,11 +141,11 @@ def _run_mujoco(source, seconds: float | None) -> int:
 
     from ..model.configuration import Configuration
     from ..problem import Problem
-    from ..viewer.app import _live_of_problem, default_stack
+    from ..viewer.app import default_stack, live_of_problem
     from ..viewer.live import LiveSolve
 
     if isinstance(source, Problem):
-        live = _live_of_problem(source, None, None, None, 1)
+        live = live_of_problem(source, None, None, None, 1)
         goals = [[(f.frame, f.target) for f in goal.frames] for goal in source.goals]
     else:
         configuration = Configuration(source, source.key_qpos[0] if source.nkey else None)

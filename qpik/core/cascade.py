@@ -85,6 +85,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InvalidInput, QpikError
+from ..options import DEFAULT_DAMPING, SOLVERS, DampingLaw
 from . import kernels as K
 
 __all__ = [
@@ -98,6 +99,7 @@ __all__ = [
     "Level",
     "LevelStatus",
     "SOLVERS",
+    "STATUS_OF_CODE",
 ]
 
 
@@ -115,7 +117,8 @@ class LevelStatus(str, enum.Enum):
         return self.value
 
 
-_STATUS = {
+#: The status of each kernel status code.
+STATUS_OF_CODE = {
     K.SOLVED: LevelStatus.SOLVED,
     K.MAX_ITER: LevelStatus.MAX_ITER,
     K.INFEASIBLE: LevelStatus.INFEASIBLE,
@@ -165,59 +168,6 @@ class LevelCertificate:
 def certificates(array: np.ndarray) -> list[LevelCertificate]:
     """Per level, from the kernels' (L, 4) array."""
     return [LevelCertificate.from_array(row) for row in np.asarray(array).reshape(-1, 4)]
-
-
-#: Backends of :class:`HierarchySolver`: "auto" is qpik's exact compiled active set.
-SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
-
-
-@dataclass(frozen=True)
-class DampingLaw:
-    """Adaptive damping from the smallest singular value of a level (see module doc).
-
-    Attributes:
-        singular_threshold: ``sigma`` below which damping starts, in the units of the
-            level's unweighted Jacobian (e.g. [m/rad] for a position task).
-        max_damping: ``lambda`` reached at ``sigma = 0`` (same units), scaled by the
-            level's largest cost.
-        error_scale: if set, ``lambda^2`` is further scaled by ``min(1, |b - A d| /
-            error_scale)``: damping fades as the level's error vanishes (Sugihara 2011);
-            :func:`qpik.solve` uses this, velocity control does not.
-    """
-
-    singular_threshold: float = 0.05
-    max_damping: float = 0.05
-    error_scale: float | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("singular_threshold", "max_damping"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise InvalidInput(f"DampingLaw.{name} must be finite and >= 0, got {value!r}")
-        if self.singular_threshold > 1e6 or self.max_damping > 1e6:
-            raise InvalidInput("DampingLaw values above 1e6 are not meaningful")
-        if self.error_scale is not None and not (
-            isinstance(self.error_scale, (int, float))
-            and math.isfinite(self.error_scale)
-            and 0 < self.error_scale <= 1e6
-        ):
-            raise InvalidInput(
-                f"DampingLaw.error_scale must be None or in (0, 1e6], got {self.error_scale!r}"
-            )
-
-    def __call__(self, sigma: float, error_norm: float | None = None) -> float:
-        """``lambda^2`` (for a level of unit cost) at smallest singular value ``sigma``."""
-        if not sigma < self.singular_threshold:
-            return 0.0
-        ratio = sigma / self.singular_threshold
-        lam2 = self.max_damping**2 * (1.0 - ratio * ratio)
-        if self.error_scale is not None and error_norm is not None:
-            lam2 *= min(1.0, error_norm / self.error_scale)
-        return lam2
-
-
-#: The default damping law of every entry point.
-DEFAULT_DAMPING = DampingLaw()
 
 
 @dataclass
@@ -525,7 +475,7 @@ class HierarchySolver:
             return None
         self._warm = active  # used as the next warm start only when warm_start is on
         return HierarchyResult(
-            x, [_STATUS[s] for s in codes], residuals.tolist(), sigma.tolist(),
+            x, [STATUS_OF_CODE[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L, certificates(cert), float(primal),
         )  # fmt: skip
 
@@ -581,7 +531,9 @@ class HierarchySolver:
                 d = d + Z @ z  # projected, never clipped (the levels above stay put)
                 status[k] = LevelStatus.SOLVED
             else:
-                status[k] = _STATUS[st] if k == 0 or st == K.MAX_ITER else LevelStatus.KEPT_PREVIOUS
+                status[k] = (
+                    STATUS_OF_CODE[st] if k == 0 or st == K.MAX_ITER else LevelStatus.KEPT_PREVIOUS
+                )
                 if k == 0:
                     break
                 continue

@@ -46,16 +46,16 @@ from ..core import (
     LevelStatus,
     checks,
 )
-from ..core.cascade import _STATUS, LevelCertificate, certificates
+from ..core.cascade import STATUS_OF_CODE, LevelCertificate, certificates
 from ..core.kernels import merge_boxes, tighten
 from ..errors import InfeasibleLimits, InvalidInput, InvalidTarget, as_qpik_error
 from ..model.configuration import Configuration, joint_names
-from ..options import UNSET, StepOptions, _Unset
+from ..options import UNSET, StepOptions, Unset
 from ..tasks import BaseTask
 from .compiled import FusedPlan, box_of, make_plan
 
 #: Level statuses by the kernels' codes (as the floats of the one-call step's info array).
-_STATUS_OF_CODE = {float(code): status for code, status in _STATUS.items()}
+_STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
 __all__ = [
@@ -324,13 +324,13 @@ class IKSolver:
         limits: Sequence[mink.Limit] = (),
         *,
         options: StepOptions | None = None,
-        solver: str | _Unset = UNSET,
-        damping: float | _Unset = UNSET,
-        damping_law: DampingLaw | None | _Unset = UNSET,
-        rank_tolerance: float | _Unset = UNSET,
-        warm_start: bool | _Unset = UNSET,
-        backend_options: Mapping[str, Any] | None | _Unset = UNSET,
-        max_joint_speed: float | None | _Unset = UNSET,
+        solver: str | Unset = UNSET,
+        damping: float | Unset = UNSET,
+        damping_law: DampingLaw | None | Unset = UNSET,
+        rank_tolerance: float | Unset = UNSET,
+        warm_start: bool | Unset = UNSET,
+        backend_options: Mapping[str, Any] | None | Unset = UNSET,
+        max_joint_speed: float | None | Unset = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):

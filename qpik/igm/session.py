@@ -78,9 +78,8 @@ from ..diffik.solver import DampingLaw, Stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import KinematicChain, ReachBound, chain_support, joint_limits
 from ..model import kernels as _kernels
-from ..model.configuration import Configuration, FrameType, _qpos_joint_names
+from ..model.configuration import Configuration, FrameType, qpos_joint_names, resolve_robot
 from ..model.frames import resolve_frame
-from ..model.robots import resolve_robot
 from ..options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
     IGM_DAMPING,
@@ -89,7 +88,7 @@ from ..options import (  # noqa: F401 (the limits re-exported for the former sin
     PRESETS,
     UNSET,
     SolveOptions,
-    _Unset,
+    Unset,
     resolve,
 )
 from .qp_engine import QPProblem, iterate, set_frame_target
@@ -454,22 +453,22 @@ class IKSession:
         q0: npt.ArrayLike | None = None,
         stack: Stack | None = None,
         options: SolveOptions | str | None = None,
-        seed: Seed | _Unset = UNSET,
-        limits: str | Sequence[mink.Limit] | None | _Unset = UNSET,
-        tol_position: float | _Unset = UNSET,
-        tol_orientation: float | _Unset = UNSET,
-        max_iters: int | _Unset = UNSET,
-        time_budget: float | None | _Unset = UNSET,
-        restarts: int | None | _Unset = UNSET,
-        alpha: float | _Unset = UNSET,
-        beta: float | _Unset = UNSET,
-        solver: str | _Unset = UNSET,
-        stall_window: int | _Unset = UNSET,
-        damping_law: DampingLaw | None | _Unset = UNSET,
-        max_step: tuple[float, float] | None | _Unset = UNSET,
-        secondary: bool | _Unset = UNSET,
-        damping: float | _Unset = UNSET,
-        engine: str | _Unset = UNSET,
+        seed: Seed | Unset = UNSET,
+        limits: str | Sequence[mink.Limit] | None | Unset = UNSET,
+        tol_position: float | Unset = UNSET,
+        tol_orientation: float | Unset = UNSET,
+        max_iters: int | Unset = UNSET,
+        time_budget: float | None | Unset = UNSET,
+        restarts: int | None | Unset = UNSET,
+        alpha: float | Unset = UNSET,
+        beta: float | Unset = UNSET,
+        solver: str | Unset = UNSET,
+        stall_window: int | Unset = UNSET,
+        damping_law: DampingLaw | None | Unset = UNSET,
+        max_step: tuple[float, float] | None | Unset = UNSET,
+        secondary: bool | Unset = UNSET,
+        damping: float | Unset = UNSET,
+        engine: str | Unset = UNSET,
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
@@ -499,14 +498,14 @@ class IKSession:
         q0: npt.ArrayLike | None,
         stack: Stack | None,
         options: SolveOptions | str | None,
-        seed: Seed | _Unset,
+        seed: Seed | Unset,
         values: tuple,
         start_time: float,
     ) -> IKResult:
         """:meth:`solve` with the option keywords' values in the order of
         ``_OPTION_KEYWORDS`` (``UNSET`` where not given)."""
         settings, kernel_options = self._options(options, values)
-        rng_state = _rng_state(settings.seed if isinstance(seed, _Unset) else seed)
+        rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
         joint = settings.limits == "joint"
@@ -601,7 +600,7 @@ class IKSession:
                 raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
             if code == 2:
                 raise JointLimitViolation(
-                    _qpos_joint_names(self.model)[i],
+                    qpos_joint_names(self.model)[i],
                     i,
                     float(q[i]),
                     float(self._lower[i]),
@@ -683,22 +682,22 @@ def solve(
     q0: npt.ArrayLike | None = None,
     stack: Stack | None = None,
     options: SolveOptions | str | None = None,
-    limits: str | Sequence[mink.Limit] | None | _Unset = UNSET,
-    tol_position: float | _Unset = UNSET,
-    tol_orientation: float | _Unset = UNSET,
-    max_iters: int | _Unset = UNSET,
-    time_budget: float | None | _Unset = UNSET,
-    restarts: int | None | _Unset = UNSET,
-    seed: Seed | _Unset = UNSET,
-    alpha: float | _Unset = UNSET,
-    beta: float | _Unset = UNSET,
-    solver: str | _Unset = UNSET,
-    stall_window: int | _Unset = UNSET,
-    damping_law: DampingLaw | None | _Unset = UNSET,
-    max_step: tuple[float, float] | None | _Unset = UNSET,
-    secondary: bool | _Unset = UNSET,
-    damping: float | _Unset = UNSET,
-    engine: str | _Unset = UNSET,
+    limits: str | Sequence[mink.Limit] | None | Unset = UNSET,
+    tol_position: float | Unset = UNSET,
+    tol_orientation: float | Unset = UNSET,
+    max_iters: int | Unset = UNSET,
+    time_budget: float | None | Unset = UNSET,
+    restarts: int | None | Unset = UNSET,
+    seed: Seed | Unset = UNSET,
+    alpha: float | Unset = UNSET,
+    beta: float | Unset = UNSET,
+    solver: str | Unset = UNSET,
+    stall_window: int | Unset = UNSET,
+    damping_law: DampingLaw | None | Unset = UNSET,
+    max_step: tuple[float, float] | None | Unset = UNSET,
+    secondary: bool | Unset = UNSET,
+    damping: float | Unset = UNSET,
+    engine: str | Unset = UNSET,
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 

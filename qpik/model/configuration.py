@@ -9,7 +9,9 @@ lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and ty
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from typing import Any
 
 import mink
 import mujoco
@@ -24,6 +26,7 @@ from ..errors import (
     LimitDefinitionError,
 )
 from .frames import FrameType, frame_id, frame_names
+from .robots import load_robot, locate_robot
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
@@ -47,7 +50,7 @@ def joint_names(model: mujoco.MjModel) -> list[str]:
     ]
 
 
-def _qpos_joint_names(model: mujoco.MjModel) -> list[str]:
+def qpos_joint_names(model: mujoco.MjModel) -> list[str]:
     """For every qpos index, the name of the joint it belongs to."""
     names = [""] * model.nq
     widths = {
@@ -75,7 +78,7 @@ def _limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, list[
             lower[adr], upper[adr] = model.jnt_range[j]
     lower.setflags(write=False)
     upper.setflags(write=False)
-    return lower, upper, _qpos_joint_names(model)
+    return lower, upper, qpos_joint_names(model)
 
 
 #: _limit_vectors of the last few models seen by Configuration.sharing, by id(model):
@@ -356,10 +359,42 @@ def as_configuration(
 ) -> Configuration:
     """A :class:`Configuration` from a Configuration, an MjModel or anything
     :func:`qpik.load_robot` accepts."""
-    from .robots import load_robot
 
     if isinstance(robot, Configuration):
         if q is not None:
             robot.update(q)
         return robot
     return Configuration(load_robot(robot), q)
+
+
+def resolve_robot(
+    robot: Any,
+    *,
+    relative_to: str | os.PathLike | None = None,
+    floating_base: bool = False,
+) -> tuple[mujoco.MjModel, np.ndarray | None]:
+    """The one resolver of what qpik's entry points accept as a robot: ``(model, q)``.
+
+    Args:
+        robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
+            caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
+            :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
+            with :func:`load_robot` (``q`` ``None``).
+        relative_to: the folder a relative path is read from (default: the working
+            directory).
+        floating_base: passed to :func:`load_robot` for a file.
+
+    Raises :class:`qpik.InvalidInput` naming ``robot`` for anything else, and
+    :func:`load_robot`'s errors.
+    """
+    if isinstance(robot, Configuration):
+        return robot.model, robot.q
+    if isinstance(robot, mujoco.MjModel):
+        return robot, None
+    if isinstance(robot, (str, os.PathLike)):
+        path = locate_robot(robot, relative_to=relative_to)
+        return load_robot(path, floating_base=floating_base), None
+    raise InvalidInput(
+        "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
+        f"qpik.Configuration, got {type(robot).__name__}"
+    )

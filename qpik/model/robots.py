@@ -46,7 +46,7 @@ import mujoco
 import numpy as np
 
 from ..core import checks
-from ..errors import InvalidInput, MissingExtra, RobotFileError, UnknownRobot
+from ..errors import MissingExtra, RobotFileError, UnknownRobot
 from .robot_files import ROOT_JOINT, find_srdf, robot_spec  # noqa: F401 (re-exported)
 
 __all__ = [
@@ -66,7 +66,6 @@ __all__ = [
     "list_robots",
     "load_robot",
     "locate_robot",
-    "resolve_robot",
     "robot_path",
     "robot_spec",
     "robots_dir",
@@ -286,41 +285,6 @@ def locate_robot(
     if looks_like_path or _exists(path):
         return path
     return robot_path(text)
-
-
-def resolve_robot(
-    robot: Any,
-    *,
-    relative_to: str | os.PathLike | None = None,
-    floating_base: bool = False,
-) -> tuple[mujoco.MjModel, np.ndarray | None]:
-    """The one resolver of what qpik's entry points accept as a robot: ``(model, q)``.
-
-    Args:
-        robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
-            caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
-            :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
-            with :func:`load_robot` (``q`` ``None``).
-        relative_to: the folder a relative path is read from (default: the working
-            directory).
-        floating_base: passed to :func:`load_robot` for a file.
-
-    Raises :class:`qpik.InvalidInput` naming ``robot`` for anything else, and
-    :func:`load_robot`'s errors.
-    """
-    from .configuration import Configuration  # robots is imported by configuration's users
-
-    if isinstance(robot, Configuration):
-        return robot.model, robot.q
-    if isinstance(robot, mujoco.MjModel):
-        return robot, None
-    if isinstance(robot, (str, os.PathLike)):
-        path = locate_robot(robot, relative_to=relative_to)
-        return load_robot(path, floating_base=floating_base), None
-    raise InvalidInput(
-        "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
-        f"qpik.Configuration, got {type(robot).__name__}"
-    )
 
 
 def _exists(path: Path) -> bool:

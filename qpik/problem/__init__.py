@@ -131,10 +131,8 @@ registry), :mod:`.goals` (goals, one or several frames), :mod:`.limits` (``[limi
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from .goals import FrameGoal, Goal
-from .loader import Problem, load_problem
+from .loader import Problem, load_problem, problem_files
 from .modes import MODES
 from .reader import MAX_ANGLE, MAX_COST, MAX_LENGTH, MAX_WRENCH, RANGES
 from .report import ErrorCurve, ProblemResult, StaticsReport, TrackTrace
@@ -161,14 +159,3 @@ __all__ = [
     "load_problem",
     "problem_files",
 ]
-
-
-def problem_files() -> list[Path]:
-    """The shipped problem files (the repository's ``tasks/*.toml``, or the installed
-    copy), sorted."""
-    from importlib import resources
-
-    packaged = Path(str(resources.files("qpik"))) / "_tasks"
-    if packaged.is_dir():
-        return sorted(packaged.glob("*.toml"))
-    return sorted((Path(__file__).resolve().parents[2] / "tasks").glob("*.toml"))

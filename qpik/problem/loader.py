@@ -24,8 +24,8 @@ from ..core.cascade import DampingLaw
 from ..errors import QpikError
 from ..igm.qp_engine import set_frame_target
 from ..limits import ConfigurationLimit, SupportPolygonLimit, VelocityLimit
-from ..model.configuration import Configuration, FrameType, joint_names
-from ..model.robots import list_robots, resolve_robot
+from ..model.configuration import Configuration, FrameType, joint_names, resolve_robot
+from ..model.robots import list_robots
 from ..options import SolveOptions
 from .goals import Goal, read_goals
 from .limits import read_limits, read_support
@@ -203,6 +203,17 @@ class Problem:
 
 
 # ----------------------------------------------------------------------------- loading
+def problem_files() -> list[Path]:
+    """The shipped problem files (the repository's ``tasks/*.toml``, or the installed
+    copy), sorted."""
+    from importlib import resources
+
+    packaged = Path(str(resources.files("qpik"))) / "_tasks"
+    if packaged.is_dir():
+        return sorted(packaged.glob("*.toml"))
+    return sorted((Path(__file__).resolve().parents[2] / "tasks").glob("*.toml"))
+
+
 def _shipped_if_missing(path: Path) -> Path:
     """``path``, or the shipped problem file it names when ``path`` is relative, does
     not exist and is ``NAME.toml`` or ``tasks/NAME.toml``."""
@@ -210,8 +221,6 @@ def _shipped_if_missing(path: Path) -> Path:
         return path
     if len(path.parts) > 2 or (len(path.parts) == 2 and path.parts[0] != "tasks"):
         return path
-    from . import problem_files
-
     for shipped in problem_files():
         if shipped.name == path.name:
             return shipped

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,11 +24,8 @@ from ..igm.qp_engine import set_frame_target
 from ..igm.result import IKResult, Reason
 from ..igm.session import solve
 from ..model.configuration import Configuration
-from .report import TrackTrace
-
-if TYPE_CHECKING:
-    from .goals import Goal
-    from .loader import Problem
+from .goals import Goal
+from .report import Problem, TrackTrace
 
 #: What a mode returns: per-goal results (solve), the trace (track), converged, reason.
 ModeOutcome = tuple[list[IKResult], TrackTrace | None, bool, str]

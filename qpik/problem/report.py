@@ -10,8 +10,9 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+import mujoco
 import numpy as np
 
 from .. import statics as _statics
@@ -19,9 +20,32 @@ from ..errors import QpikError
 from ..igm.qp_engine import set_frame_target
 from ..igm.result import IKResult
 from ..model.configuration import Configuration, FrameType
+from ..options import SolveOptions
+from .goals import Goal
+from .specs import TaskSpec
 
-if TYPE_CHECKING:
-    from .loader import Problem
+
+class Problem(Protocol):
+    """What a run mode and a report read of a :class:`qpik.problem.Problem` (its fields
+    and builders; the class itself is in :mod:`.loader`, which runs the modes)."""
+
+    name: str
+    robot: str
+    mode: str
+    model: mujoco.MjModel
+    levels: list[list[TaskSpec]]
+    velocity_limits: np.ndarray | None
+    goals: list[Goal]
+    dt: float
+    steps: int
+    stop_at_goal: bool
+    solve_options: SolveOptions
+    q0: np.ndarray
+
+    def start_configuration(self) -> Configuration: ...
+    def build_stack(self, start: Configuration | None = None) -> list[list]: ...
+    def build_limits(self) -> list: ...
+    def to_dict(self) -> dict[str, Any]: ...
 
 
 def jsonable(value):

@@ -13,8 +13,15 @@ import mujoco
 import numpy as np
 
 from ..core import checks
+from ..core.jacobian import (
+    joint_limit_distance,
+    joint_limit_distance_gradient,
+    manipulability,
+    row_indices,
+)
 from ..errors import mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
+from ..model.gradients import manipulability_gradient
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
@@ -58,7 +65,6 @@ class JointLimitDistanceTask(mink.Task):
         return self._joints[1], self._joints[2]
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        from ..analysis import joint_limit_distance
 
         qpos, _ = self._indices(configuration)
         return np.array(
@@ -70,7 +76,6 @@ class JointLimitDistanceTask(mink.Task):
         )
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        from ..analysis import joint_limit_distance_gradient
 
         qpos, dofs = self._indices(configuration)
         jacobian = np.zeros((1, configuration.model.nv))
@@ -104,23 +109,20 @@ class ManipulabilityTask(mink.Task):
     ):
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
-        from ..analysis import _row_indices
 
         self.frame_name: str | int = checks.check_instance(
             "frame_name", frame_name, (str, int), "a frame name (or id)"
         )
         self.frame_type = FrameType.parse(frame_type)
-        self._row_index = list(_row_indices(rows))  # raises for an unknown choice
+        self._row_index = list(row_indices(rows))  # raises for an unknown choice
         self.rows = rows
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        from ..analysis import manipulability
 
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
         return np.array([-manipulability(jacobian[self._row_index])])
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        from ..analysis import manipulability_gradient
 
         gradient = manipulability_gradient(
             configuration, self.frame_name, self.frame_type.value, rows=self.rows

@@ -175,7 +175,7 @@ class Viewer:
         elif isinstance(source, (str, os.PathLike)) and Path(source).suffix == ".toml":
             self.problem = load_problem(source)
         if self.problem is not None:
-            return _live_of_problem(self.problem, limits, goals, q0, max_iterations)
+            return live_of_problem(self.problem, limits, goals, q0, max_iterations)
         if isinstance(source, Configuration):
             model = source.model
             start = source.q if q0 is None else q0
@@ -598,7 +598,7 @@ def default_stack(configuration: Configuration) -> list[list[Any]]:
     return [[position, orientation], [posture]]
 
 
-def _live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) -> LiveSolve:
+def live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) -> LiveSolve:
     start = problem.start_configuration()
     if q0 is not None:
         start.update(np.asarray(q0, dtype=float))
