@@ -79,6 +79,7 @@ from .configuration import Configuration, FrameType, _qpos_joint_names
 from .errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from .hierarchy import DampingLaw, Stack
 from .model import KinematicChain, ReachBound, _kernels, chain_support, joint_limits
+from .model.couplings import model_couplings
 from .model.frames import resolve_frame
 from .options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
@@ -150,6 +151,7 @@ _OPTION_KEYWORDS = (
     "secondary",
     "damping",
     "engine",
+    "couplings",
 )
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
@@ -205,10 +207,14 @@ def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Frame:
-    """A target frame of a session: name, type and, for hinge/slide models, its chain and
-    reach bound."""
+    """A target frame of a session: name, type and, when its chain has hinge and slide
+    joints only, its chain and reach bound. ``packed``: the chain over its own joints
+    (:meth:`KinematicChain.packed`), with ``index`` (their qpos addresses) and the packed
+    joint bounds, when the chain's joints are not all of ``q`` (``None`` otherwise: the
+    compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
+    (:class:`qpik.model.Couplings`) moves a joint of the chain."""
 
-    __slots__ = ("chain", "kind", "name", "reach")
+    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
 
     def __init__(
         self,
@@ -218,6 +224,10 @@ class _Frame:
         reach: ReachBound | None,
     ) -> None:
         self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
+        self.packed: KinematicChain | None = None
+        self.index: np.ndarray | None = None
+        self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
+        self.coupled = False
 
 
 class _Prepared:
@@ -229,6 +239,7 @@ class _Prepared:
     __slots__ = (
         "bounds_free",
         "bounds_joint",
+        "couplings",
         "frames",
         "lower",
         "memo",
@@ -253,6 +264,7 @@ class _Prepared:
         free = np.full(model.nq, np.inf)
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
+        self.couplings = model_couplings(model)
         self.frames: dict = {}  # frame key -> _Frame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 
@@ -266,10 +278,23 @@ class _Prepared:
             return cached
         name, kind, _ = resolve_frame(model, key, argument="targets")
         chain = reach = None
-        if self.support is None:
+        try:
             chain = KinematicChain.from_model(model, name, kind)
+        except ValueError:  # a ball or free joint (or a mocap body) on the chain
+            pass
+        if chain is not None:
             reach = chain.reach_bound(self.lower, self.upper)
         entry = _Frame(name, kind, chain, reach)
+        if chain is not None:
+            if self.couplings is not None:
+                entry.coupled = bool(np.isin(chain.dofs, self.couplings.dofs).any())
+            if not chain.covers_q:
+                index = chain.qpos_index
+                entry.packed, entry.index = chain.packed(), index
+                entry.bounds = (
+                    np.ascontiguousarray(self.bounds_joint[:, index]),
+                    np.ascontiguousarray(self.bounds_free[:, index]),
+                )
         try:
             self.frames[key] = entry
         except TypeError:
@@ -301,6 +326,17 @@ FINGERPRINT_FIELDS = (
     "geom_bodyid",
     "geom_pos",
     "geom_quat",
+    "eq_type",
+    "eq_active0",
+    "eq_obj1id",
+    "eq_obj2id",
+    "eq_data",
+    "tendon_adr",
+    "tendon_num",
+    "tendon_length0",
+    "wrap_type",
+    "wrap_objid",
+    "wrap_prm",
 )
 
 
@@ -470,6 +506,7 @@ class IKSession:
         secondary: bool | _Unset = UNSET,
         damping: float | _Unset = UNSET,
         engine: str | _Unset = UNSET,
+        couplings: bool | _Unset = UNSET,
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
@@ -490,6 +527,7 @@ class IKSession:
             secondary,
             damping,
             engine,
+            couplings,
         )
         return self._solve(targets, q0, stack, options, seed, values, start_time)
 
@@ -512,6 +550,17 @@ class IKSession:
         joint = settings.limits == "joint"
         limited = joint or bool(settings.limits)
         q_start = self._start(q0, check=limited)
+        if compiled_ok and not self._couplings_hold_off_chain(settings, frames[0][0], q_start):
+            # A coupling of joints the compiled engine keeps still is broken at the start:
+            # the "qp" engine restores it (its coupling level).
+            if settings.engine == "compiled":
+                raise InvalidInput(
+                    "engine='compiled' keeps the joints off the target's chain where they "
+                    "are, and q0 breaks a coupling among them (the model's equality "
+                    f"constraints, by {self._coupling_error(q_start):.3g}); use "
+                    "engine='auto' or couplings=False"
+                )
+            compiled_ok = False
         if compiled_ok and settings.engine != "qp":
             return self._solve_compiled(
                 frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
@@ -571,14 +620,29 @@ class IKSession:
             and len(frames) == 1
             and frames[0][0].reach is not None
             and not settings.secondary
+            and not (settings.step.couplings and frames[0][0].coupled)
         )
         if settings.engine == "compiled" and not applies:
+            coupled = settings.step.couplings and frames[0][0].coupled
             raise InvalidInput(
                 "engine='compiled' needs one frame target, the default stack, limits 'joint' "
-                "or None, secondary=False and a model of hinge and slide joints"
-                + (f" ({self._support})" if self._support else "")
+                "or None, secondary=False, hinge and slide joints on the target's chain and "
+                "no coupling of the model on it (couplings=False turns them off)"
+                + (" (a coupling moves a joint of the chain)" if coupled else "")
+                + (f" ({self._support})" if self._support and frames[0][0].reach is None else "")
             )
         return applies
+
+    def _couplings_hold_off_chain(
+        self, settings: SolveOptions, frame: _Frame, q_start: np.ndarray
+    ) -> bool:
+        """Whether the model's couplings hold at ``q_start`` (to 1e-9), which the compiled
+        engine leaves to it (they involve no joint of the chain, which it alone moves);
+        True without couplings or with ``couplings=False``."""
+        couplings = self._prepared.couplings
+        if couplings is None or not settings.step.couplings:
+            return True
+        return couplings.error(q_start) <= 1e-9
 
     def _start(self, q0: npt.ArrayLike | None, check: bool) -> np.ndarray:
         """The validated start: ``q0``, else the robot's ``q``, else mid-range."""
@@ -636,6 +700,8 @@ class IKSession:
             path=q[None, :].copy(),
             solve_time=time.perf_counter() - start_time,
             engine="qp",
+            levels_met=(False,),
+            coupling_error=self._coupling_error(q),
         )
 
     def _solve_compiled(
@@ -645,23 +711,36 @@ class IKSession:
         options, int_options = kernel_options
         deadline = start_time + settings.time_budget if int_options[3] else np.inf
         rotation = target.rotation
+        index = frame.index
+        if index is None:  # the chain's joints are all of q
+            chain, q_chain = frame.chain, q_start
+            bounds = self._bounds_joint if joint else self._bounds_free
+        else:  # the chain's joints only: the others stay where they are
+            chain, q_chain = frame.packed, q_start[index]
+            bounds = frame.bounds[0] if joint else frame.bounds[1]
         code, iterations, restarts_used, path, history = _kernels.igm_run(
-            frame.chain.compiled,
+            chain.compiled,
             target.position,
             _EYE if rotation is None else rotation,
             rotation is not None,
-            q_start,
-            self._bounds_joint if joint else self._bounds_free,
+            q_chain,
+            bounds,
             frame.reach.array,
             options,
             int_options,
             rng_state,
             deadline,
         )
+        if index is not None:
+            full = np.empty((path.shape[0], q_start.shape[0]))
+            full[:] = q_start
+            full[:, index] = path
+            path = full
         position_error, orientation_error, _ = history[-1].tolist()
+        converged = code == 0
         return IKResult(
             path[-1].copy(),
-            code == 0,
+            converged,
             _REASONS_BY_CODE[code],
             iterations,
             restarts_used,
@@ -673,7 +752,13 @@ class IKSession:
             LazyRows(history[:, :2], tuple),
             path,
             "compiled",
+            (converged,),
+            self._coupling_error(path[-1]),
         )
+
+    def _coupling_error(self, q: np.ndarray) -> float:
+        couplings = self._prepared.couplings
+        return 0.0 if couplings is None else couplings.error(q)
 
 
 def solve(
@@ -699,6 +784,7 @@ def solve(
     secondary: bool | _Unset = UNSET,
     damping: float | _Unset = UNSET,
     engine: str | _Unset = UNSET,
+    couplings: bool | _Unset = UNSET,
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 
@@ -728,6 +814,15 @@ def solve(
             (for a solve, ``damping_law`` defaults to the error-faded
             :data:`qpik.options.IGM_DAMPING`); the ``"compiled"`` engine always solves its
             QPs exactly by its own active set.
+        couplings: keep the model's couplings (:attr:`qpik.StepOptions.couplings`: joint
+            and fixed-tendon equalities, URDF ``<mimic>``) as hard rows above every level,
+            at every iterate and in the answer (``IKResult.coupling_error``). Default
+            ``True``. The compiled engine moves only the target's chain and keeps the
+            other joints where they are: it takes a model with couplings when none of
+            them moves a joint of the chain and they hold at the start (to 1e-9);
+            otherwise the solve runs on the ``"qp"`` engine, whose steps solve the
+            coupling rows first (``engine="compiled"`` then raises
+            :class:`qpik.InvalidInput`).
 
     Bad arguments raise a :class:`qpik.QpikError` subclass naming them
     (:class:`qpik.InvalidOption` for an option).
@@ -761,6 +856,7 @@ def solve(
         secondary,
         damping,
         engine,
+        couplings,
     )
     if isinstance(robot, mujoco.MjModel):
         session = IKSession._from_prepared(robot, None, PREPARED.get(robot))
