@@ -315,8 +315,10 @@ class IKSolver:
         options: how each step is solved (:class:`qpik.StepOptions`: backend, constant
             and adaptive damping, rank tolerance, warm starts; its docstring holds the
             defaults). The keywords below override single fields of it.
-        solver, damping, damping_law, rank_tolerance, warm_start, backend_options: the
-            :class:`qpik.StepOptions` fields of the same names.
+        solver, damping, damping_law, rank_tolerance, warm_start, backend_options,
+            max_joint_speed, couplings: the :class:`qpik.StepOptions` fields of the same
+            names. ``couplings`` (default ``True``): the model's joint and fixed-tendon
+            equalities (URDF ``<mimic>`` among them) hold as a level above the stack.
         osqp_settings: former name of ``backend_options`` for OSQP (an object with
             ``as_dict()``).
     """
@@ -335,6 +337,7 @@ class IKSolver:
         warm_start: bool | _Unset = UNSET,
         backend_options: Mapping[str, Any] | None | _Unset = UNSET,
         max_joint_speed: float | None | _Unset = UNSET,
+        couplings: bool | _Unset = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):
@@ -349,6 +352,7 @@ class IKSolver:
             warm_start=warm_start,
             backend_options=backend_options,
             max_joint_speed=max_joint_speed,
+            couplings=couplings,
         )
         solver, damping = self.options.solver, self.options.damping
         damping_law, rank_tolerance = self.options.damping_law, self.options.rank_tolerance

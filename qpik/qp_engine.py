@@ -20,8 +20,8 @@ import numpy as np
 from .configuration import Configuration, FrameType
 from .errors import InvalidTarget
 from .hierarchy import IKSolver, normalize_stack
-from .model.couplings import model_couplings
 from .model._kernels import BACKTRACKS
+from .model.couplings import model_couplings
 from .options import IGM_BACKEND_OPTIONS, SolveOptions
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
