@@ -20,14 +20,31 @@ in the null space of the targets.
 
 Two engines run this rule (:attr:`IKResult.engine`):
 
-* ``"compiled"``: one frame target, the default stack, joint limits (or none) and a model
-  of hinge and slide joints. The whole solve (iterations, trust region, damping, stall
+* ``"compiled"``: one frame target, the default stack, joint limits (or none) and hinge
+  and slide joints on the target's chain (joints off the chain may be of any type: a free
+  object elsewhere in the scene, another arm; they stay where they are, restarts
+  included, and the packed chain coordinates are written back into the full ``q``). The
+  whole solve (iterations, trust region, damping, stall
   detection, restarts) is one compiled call (:mod:`qpik.model._kernels`): forward
   kinematics and the frame Jacobian from arrays read once from the model, and each step's
   damped least-squares QP under the box of the joint limits solved exactly by an
   active-set method. It is the same QP as the general engine's, so both agree to round-off.
 * ``"qp"``: everything else (several frames, custom stacks, other limits, ball or free
-  joints, ``secondary=True``), on :class:`qpik.IKSolver` steps.
+  joints on the chain, ``secondary=True``, a coupling of the model that moves a joint of
+  the chain or that the start breaks), on :class:`qpik.IKSolver` steps.
+
+Couplings (``couplings=True``, the default): the model's joint and fixed-tendon equality
+constraints (``<equality><joint>``, URDF ``<mimic>``; :mod:`qpik.model.couplings`) are a
+level above the stack in every ``"qp"`` step, and count in ``converged`` (their residual
+against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``.
+
+Stacks of several levels (a custom ``stack``): the iterates are ranked lexicographically,
+the couplings first, then level 0, 1, ... (each level's largest error-to-tolerance ratio,
+``<= 1`` counting as met), then the score; an attempt that ends without converging is
+finished by steps of level 0 alone (at most :data:`qpik.qp_engine.LEVEL0_STEPS`) and
+returns its best iterate in that order, and attempts compare by it. So a solve with the
+feet in level 0 and a hand out of reach in level 1 returns the feet within tolerance
+(``converged=False``; ``IKResult.levels_met`` is ``(True, False, ...)``).
 
 Errors: position error is the distance of the frame origin to its target [m]; orientation
 error the angle of ``R R_des^T`` [rad]. A solve has **converged** when every frame with a
@@ -77,7 +94,7 @@ import numpy.typing as npt
 
 from .configuration import Configuration, FrameType, _qpos_joint_names
 from .errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
-from .hierarchy import DampingLaw, Stack
+from .hierarchy import DampingLaw, Stack, normalize_stack
 from .model import KinematicChain, ReachBound, _kernels, chain_support, joint_limits
 from .model.couplings import model_couplings
 from .model.frames import resolve_frame
@@ -565,7 +582,10 @@ class IKSession:
             return self._solve_compiled(
                 frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
             )
-        for _frame, target in frames:
+        # A target provably out of reach ends the solve at once, unless the stack has
+        # several levels (the others are still solved: level 0 may hold other frames).
+        single = stack is None or len(normalize_stack(stack)) == 1
+        for _frame, target in frames if single else ():
             if _frame.reach is not None and _frame.reach.excludes(
                 target.position, settings.tol_position
             ):

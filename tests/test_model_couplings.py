@@ -362,3 +362,28 @@ def test_ball_joint_range_holds_with_the_trust_region(dt):
         quat = configuration.q[:4]
         worst = max(worst, 2 * float(np.arctan2(np.linalg.norm(quat[1:]), abs(quat[0]))))
     assert bound - 0.01 < worst <= bound + 1e-9
+
+
+def test_fixed_arm_keeps_level_0_when_level_1_is_out_of_reach():
+    """The Panda: the flange's position in level 0 (reachable), link 4's in level 1 two
+    metres away (provably out of reach). The answer holds the flange on its target by
+    forward kinematics and reports level 0 met, level 1 not."""
+    model = qpik.load_robot("panda")
+    home = model.key_qpos[0] if model.nkey else qpik.Configuration(model).mid_q()
+    configuration = qpik.Configuration(model, home)
+    goal = configuration.frame_pose("ee")[0] + np.array([0.1, 0.1, -0.1])
+    far = configuration.frame_pose("link4", "body")[0] + np.array([2.0, 0.0, 0.0])
+    tip, elbow = PositionTask("ee"), PositionTask("link4", "body")
+    result = qpik.solve(
+        model, {"ee": goal, ("link4", "body"): far}, q0=home, stack=[[tip], [elbow]], seed=0,
+        restarts=2,
+    )  # fmt: skip
+    assert not result.converged
+    assert result.levels_met == (True, False)
+    data = mujoco.MjData(model)
+    data.qpos[:] = result.q
+    mujoco.mj_kinematics(model, data)
+    assert np.linalg.norm(data.site("ee").xpos - goal) <= 1e-4
+    # level 1 did move link 4 toward its target (within the room level 0 leaves)
+    start = np.linalg.norm(configuration.frame_pose("link4", "body")[0] - far)
+    assert np.linalg.norm(data.body("link4").xpos - far) < start
