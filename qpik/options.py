@@ -250,6 +250,14 @@ class StepOptions:
             ``StepResult.active_limits`` names it ``"trust region"``. Default
             :data:`DEFAULT_MAX_JOINT_SPEED` (``pi``: 0.031 rad per 10 ms step);
             ``None`` turns it off (mink's behaviour).
+        couplings: keep the model's couplings (its joint and fixed-tendon equality
+            constraints: MJCF ``<equality><joint>``, URDF ``<mimic>``;
+            :func:`qpik.model.model_couplings`) as hard rows above every level: a level
+            of their rows ``r(q) = 0`` (gain 1) is solved first, and the stack's levels
+            act in its null space. ``StepResult`` reports the stack's levels only (the
+            coupling level's residual as ``coupling_residual``). No effect on a model
+            without couplings. Default ``True``; ``False``: the stack alone (mink's
+            behaviour).
     """
 
     solver: str = "auto"
@@ -259,9 +267,12 @@ class StepOptions:
     warm_start: bool = False
     backend_options: Mapping[str, Any] | None = field(default=None, hash=False)
     max_joint_speed: float | None = DEFAULT_MAX_JOINT_SPEED
+    couplings: bool = True
 
     def __post_init__(self) -> None:
         _check_choice("solver", self.solver, SOLVERS)
+        if not isinstance(self.couplings, bool):
+            raise InvalidOption("couplings", self.couplings, "True or False")
         if self.max_joint_speed is not None:
             _set(
                 self,
@@ -306,6 +317,7 @@ STEP_FIELDS: Final = (
     "rank_tolerance",
     "warm_start",
     "backend_options",
+    "couplings",
 )
 
 #: The steps of a full-IK solve: :class:`StepOptions` with the error-faded damping law.
@@ -423,6 +435,11 @@ class SolveOptions:
     def damping_law(self) -> DampingLaw | None:
         """The adaptive damping law of the steps (``step.damping_law``)."""
         return self.step.damping_law
+
+    @property
+    def couplings(self) -> bool:
+        """Whether the model's couplings hold (``step.couplings``)."""
+        return self.step.couplings
 
     @property
     def effective_restarts(self) -> int:

@@ -339,8 +339,10 @@ def _new_solver(
     limit_list = _limits(configuration, limits)
     if not levels:
         levels = [[_MinimumNorm()]]
-    # mink's behaviour: no trust region beyond the limits given (StepOptions.max_joint_speed).
-    options: dict[str, Any] = {"damping": damping, "max_joint_speed": None}
+    # mink's behaviour: no trust region beyond the limits given (StepOptions.max_joint_speed),
+    # and the tasks and constraints given only (no coupling level: StepOptions.couplings;
+    # mink's EqualityConstraintTask in ``constraints`` holds a model's couplings).
+    options: dict[str, Any] = {"damping": damping, "max_joint_speed": None, "couplings": False}
     if solver is not None:
         options["solver"] = solver
     if backend_options:

@@ -89,6 +89,9 @@ class StepResult:
             scaled violation of primal feasibility, stationarity, dual signs and
             complementarity at the point it returned; ``solved`` only when each is at most
             :data:`~qpik.core.CERTIFICATE_TOLERANCE`, see :mod:`qpik.core.cascade`).
+        coupling_residual: the residual ``|A dq - b|`` of the level of the model's
+            couplings, solved above the stack (:attr:`qpik.StepOptions.couplings`);
+            ``None`` when there is none. The lists above hold the stack's levels only.
     """
 
     velocity: np.ndarray
@@ -100,6 +103,7 @@ class StepResult:
     iterations: list[int]
     solve_time: float
     certificate: list[LevelCertificate] = field(default_factory=list)
+    coupling_residual: float | None = None
     _name_active_limits: Callable[[], list[str]] | None = field(default=None, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
 
@@ -311,8 +315,10 @@ class IKSolver:
         options: how each step is solved (:class:`qpik.StepOptions`: backend, constant
             and adaptive damping, rank tolerance, warm starts; its docstring holds the
             defaults). The keywords below override single fields of it.
-        solver, damping, damping_law, rank_tolerance, warm_start, backend_options: the
-            :class:`qpik.StepOptions` fields of the same names.
+        solver, damping, damping_law, rank_tolerance, warm_start, backend_options,
+            max_joint_speed, couplings: the :class:`qpik.StepOptions` fields of the same
+            names. ``couplings`` (default ``True``): the model's joint and fixed-tendon
+            equalities (URDF ``<mimic>`` among them) hold as a level above the stack.
         osqp_settings: former name of ``backend_options`` for OSQP (an object with
             ``as_dict()``).
     """
@@ -331,6 +337,7 @@ class IKSolver:
         warm_start: bool | Unset = UNSET,
         backend_options: Mapping[str, Any] | None | Unset = UNSET,
         max_joint_speed: float | None | Unset = UNSET,
+        couplings: bool | Unset = UNSET,
         osqp_settings=None,
     ):
         if not isinstance(model, mujoco.MjModel):
@@ -345,12 +352,25 @@ class IKSolver:
             warm_start=warm_start,
             backend_options=backend_options,
             max_joint_speed=max_joint_speed,
+            couplings=couplings,
         )
         solver, damping = self.options.solver, self.options.damping
         damping_law, rank_tolerance = self.options.damping_law, self.options.rank_tolerance
         backend_options = self.options.backend_options
         self.model = model
         self.levels = normalize_stack(stack)
+        #: The levels the steps solve: the model's couplings first (StepOptions.couplings,
+        #: on a model that states some), then ``levels``.
+        self._levels = self.levels
+        self._coupling_level = False
+        if self.options.couplings and model.neq:
+            from ..model.couplings import model_couplings
+
+            if model_couplings(model) is not None:
+                from ..tasks.coupling import CouplingTask
+
+                self._levels = [[CouplingTask(model)], *self.levels]
+                self._coupling_level = True
         self.limits = list(limits)
         for limit in self.limits:
             if not hasattr(limit, "compute_qp_inequalities"):
@@ -398,7 +418,7 @@ class IKSolver:
         # One compiled call per step when every task and limit allows it (see qpik.diffik.compiled).
         self._plan = make_plan(
             model,
-            self.levels,
+            self._levels,
             self.limits,
             self._scalar_joints,
             self._core.rank_tolerance,
@@ -533,14 +553,23 @@ class IKSolver:
         ``A, b`` (weighted rows, in the displacement ``dq``), ``regularization``
         (``damping`` plus the tasks' LM terms) and row ``weights`` (costs), and the limits
         as box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h``. The adaptive
-        damping is decided by the core when it solves."""
+        damping is decided by the core when it solves. With the model's couplings
+        (:attr:`qpik.StepOptions.couplings`) their level comes first, named
+        ``"couplings"``; the stack's levels follow, named ``"level 0"``, ...."""
         return self._build(configuration, dt)[0]
 
     def _build(self, configuration: Configuration, dt: float):
         """``(problem, contributions)``; see :meth:`build`."""
         A, b, w, starts, reg, lb, ub, G, h, contributions, names = self._rows(configuration, dt)
+        shift = int(self._coupling_level)
         levels = [
-            Level(A[s0:s1], b[s0:s1], float(reg[k]), w[s0:s1], f"level {k}")
+            Level(
+                A[s0:s1],
+                b[s0:s1],
+                float(reg[k]),
+                w[s0:s1],
+                "couplings" if k < shift else f"level {k - shift}",
+            )
             for k, (s0, s1) in enumerate(zip(starts[:-1].tolist(), starts[1:].tolist()))
         ]
         return HierarchyProblem(levels, lb, ub, G, h, names), contributions
@@ -554,10 +583,10 @@ class IKSolver:
             )
         lb, ub, G, h, contributions, general_names = self._limit_rows(configuration, dt)
         A_parts, b_parts, w_parts = [], [], []
-        L = len(self.levels)
+        L = len(self._levels)
         starts = np.zeros(L + 1, dtype=np.int64)
         reg = np.empty(L)
-        for k, tasks in enumerate(self.levels):
+        for k, tasks in enumerate(self._levels):
             A, b, mu, w = level_rows(tasks, configuration, self._nv)
             A_parts.append(A)
             b_parts.append(b)
@@ -575,7 +604,7 @@ class IKSolver:
 
     def _raise_not_finite(self, A, b, starts, reg) -> None:
         """Name the first level whose rows or regularisation are not finite."""
-        for k, tasks in enumerate(self.levels):
+        for k, tasks in enumerate(self._levels):
             s0, s1 = starts[k], starts[k + 1]
             finite = np.isfinite(A[s0:s1]).all() and np.isfinite(b[s0:s1]).all()
             if not (finite and math.isfinite(reg[k])):
@@ -586,7 +615,20 @@ class IKSolver:
 
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
-        """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
+        """Solve the stack at ``configuration`` for a step of ``dt`` [s]. With the
+        model's couplings (:attr:`qpik.StepOptions.couplings`) their level is solved
+        first; the result's per-level lists are the stack's levels, and
+        ``coupling_residual`` the coupling level's."""
+        result = self._step(configuration, dt)
+        if self._coupling_level:
+            result.coupling_residual = result.residuals[0]
+            for name in ("residuals", "sigma_min", "damping", "status", "iterations"):
+                setattr(result, name, list(getattr(result, name))[1:])
+            if result.certificate:
+                result.certificate = list(result.certificate)[1:]
+        return result
+
+    def _step(self, configuration: Configuration, dt: float) -> StepResult:
         start = time.perf_counter()
         plan = self._plan
         if (

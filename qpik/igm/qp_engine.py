@@ -20,6 +20,7 @@ import numpy as np
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidTarget
 from ..model.configuration import Configuration, FrameType
+from ..model.couplings import model_couplings
 from ..model.kernels import BACKTRACKS
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
 from ..tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
@@ -28,6 +29,10 @@ from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors
 
 __all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
+
+#: At most this many steps of level 0 alone finish an attempt of a stack of several
+#: levels that ended with level 0 (or a coupling) not within tolerance.
+LEVEL0_STEPS = 20
 
 #: A frame target as the engine holds it: ``(name, frame type, target)``.
 FrameTarget = tuple[str, FrameType, Target]
@@ -178,6 +183,45 @@ class QPProblem:
         # Level-0 tasks checked for convergence besides the target frames.
         self.level0 = [t for t in levels[0] if getattr(t, "frame_name", None) not in target_frames]
         self.base_gains: list[float] = []
+        #: The model's couplings, held by the steps (their level comes first) and counted
+        #: in convergence; None without any or with ``couplings=False``.
+        self.couplings = model_couplings(model) if options.step.couplings else None
+        #: Several levels: iterates are ranked lexicographically by level
+        #: (:meth:`level_key`), and an attempt that ends with level 0 not met is finished
+        #: by steps of level 0 alone (:attr:`level0_solver`, built on first use).
+        self.multilevel = len(levels) > 1
+        self._level0_solver: IKSolver | None = None
+        self._step_options = step
+
+    @property
+    def level0_solver(self) -> IKSolver:
+        """An :class:`IKSolver` of level 0 alone (and the couplings), same limits."""
+        if self._level0_solver is None:
+            self._level0_solver = IKSolver(
+                self.configuration.model, self.levels[:1], self.limits, options=self._step_options
+            )
+        return self._level0_solver
+
+    def level_measures(
+        self, configuration: Configuration, options: SolveOptions
+    ) -> tuple[float, list[float]]:
+        """``(coupling measure, per level measure)`` at ``configuration``: the largest
+        ratio of a task's error to its tolerance (``max(p / tol_p, o / tol_o)``, 0 for a
+        level without a task with a target); a level has met its tolerance when its
+        measure is <= 1. The couplings' residual is measured against ``tol_position``."""
+        tol_p, tol_o = options.tol_position, options.tol_orientation
+        coupling = 0.0
+        if self.couplings is not None:
+            coupling = self.couplings.error(configuration.q) / tol_p
+        measures = []
+        for level in self.levels:
+            worst = 0.0
+            for task in level:
+                errors = task_errors(task, configuration)
+                if errors is not None:
+                    worst = max(worst, errors[0] / tol_p, errors[1] / tol_o)
+            measures.append(worst)
+        return coupling, measures
 
     def _default_levels(self, model: mujoco.MjModel, options: SolveOptions) -> list[list]:
         """Level 0: a position or pose task per frame (gain ``alpha``); level 1, with
@@ -250,26 +294,45 @@ class _Measure:
     tol_o)`` over frames and level-0 tasks, whether all are within tolerance, and the
     energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases."""
 
-    __slots__ = ("done", "energy", "errors", "score")
+    __slots__ = ("done", "energy", "errors", "key", "score")
 
     def __init__(self, problem: QPProblem, options: SolveOptions):
         configuration = problem.configuration
         tol_p, tol_o = options.tol_position, options.tol_orientation
         self.errors = problem.errors(configuration)
         items = list(self.errors.values()) + problem.level0_errors(configuration)
+        if problem.couplings is not None:
+            items.append((problem.couplings.error(configuration.q), 0.0))
         self.score = max(p / tol_p + o / tol_o for p, o in items)
         self.done = all(p <= tol_p and o <= tol_o for p, o in items)
         self.energy = sum(p * p + o * o for p, o in items)
+        #: Several levels: the lexicographic rank of the iterate, the couplings first,
+        #: then level 0, 1, ... (each measure of ``QPProblem.level_measures`` floored at
+        #: 1: within tolerance counts as met), then the score. Lower is better.
+        self.key: tuple[float, ...] = (self.score,)
+        if problem.multilevel:
+            coupling, levels = problem.level_measures(configuration, options)
+            self.key = (max(1.0, coupling), *(max(1.0, m) for m in levels), self.score)
 
 
 class _Path:
-    """The iterates of one attempt: residuals, worst errors and configurations."""
+    """The iterates of one attempt: residuals, worst errors, configurations and measures."""
 
     def __init__(self, measure: _Measure, q: np.ndarray):
         self.residuals: list[list[float]] = []
         self.errors = [worst_errors(measure.errors)]
         self.q = [q]
+        self.measures = [measure]
         self.last = measure
+
+    def keep_best(self) -> None:
+        """Cut the path at its best iterate by :attr:`_Measure.key` (the first among
+        equals), which becomes the last."""
+        keys = [m.key for m in self.measures]
+        best = min(range(len(keys)), key=keys.__getitem__)
+        del self.q[best + 1 :], self.errors[best + 1 :], self.measures[best + 1 :]
+        del self.residuals[best:]
+        self.last = self.measures[-1]
 
 
 def _diagnose(step: Any, singular_threshold: float) -> Reason:
@@ -314,6 +377,7 @@ class _Engine:
             scale *= 0.5
         path.errors.append(worst_errors(measure.errors))
         path.q.append(q)
+        path.measures.append(measure)
         path.last = measure
         return measure
 
@@ -341,7 +405,36 @@ class _Engine:
                 break
         if measure.done:
             reason = Reason.CONVERGED
-        return Attempt(measure.done, measure.score, reason, path)
+        elif problem.multilevel:
+            self._finish_level0(path)
+            path.keep_best()
+            measure = path.last
+        return Attempt(measure.done, measure.score, reason, path, measure.key)
+
+    def _finish_level0(self, path: _Path) -> None:
+        """Steps of level 0 alone (and the couplings) from the attempt's last iterate,
+        while level 0 or a coupling is not met (at most ``LEVEL0_STEPS``, no further once
+        a step vanishes): the lower levels' last steps may have left level 0 off by
+        their linearisation error, which these Gauss-Newton steps remove."""
+        problem, options = self.problem, self.options
+        solver = problem.level0_solver
+        for _ in range(LEVEL0_STEPS):
+            key = path.last.key
+            if key[0] <= 1.0 and key[1] <= 1.0 or self.clock.out_of_time():
+                break
+            step = solver.step(problem.configuration, 1.0)
+            self.iterations += 1
+            path.residuals.append(list(step.residuals))
+            q = problem.configuration.q.copy()
+            mujoco.mj_integratePos(problem.configuration.model, q, step.displacement, 1.0)
+            problem.configuration.update(q)
+            measure = _Measure(problem, options)
+            path.errors.append(worst_errors(measure.errors))
+            path.q.append(q)
+            path.measures.append(measure)
+            path.last = measure
+            if float(np.sqrt(step.displacement @ step.displacement)) < 1e-12:
+                break
 
 
 def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options: SolveOptions):
@@ -362,6 +455,10 @@ def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options
         )
     path = best.payload
     worst = worst_errors(path.last.errors)
+    with borrowed_tasks(problem.levels):  # the targets, to measure the levels at q
+        problem.set_targets()
+        configuration.update(path.q[-1])
+        coupling, measures = problem.level_measures(configuration, options)
     return IKResult(
         q=path.q[-1],
         converged=best.converged,
@@ -376,4 +473,6 @@ def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options
         path=np.array(path.q),
         solve_time=clock.elapsed(),
         engine="qp",
+        levels_met=tuple(m <= 1.0 for m in measures),
+        coupling_error=coupling * options.tol_position,
     )

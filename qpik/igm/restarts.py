@@ -10,7 +10,8 @@ The rules:
 * while it has not converged, restarts (``restarts`` of them at most) and time remain, the
   loop starts a new attempt from a random configuration;
 * the best attempt is returned: a converged one over one that did not, then the lowest
-  score (the first attempt among equals).
+  score (the first attempt among equals); attempts that carry a lexicographic ``key`` (a
+  stack of several levels) compare by it instead.
 """
 
 from __future__ import annotations
@@ -79,13 +80,18 @@ class Attempt(Generic[P]):
     score: float
     reason: Reason
     payload: P
+    #: A lexicographic rank that replaces ``score`` when both attempts have one (a stack
+    #: of several levels: level 0's error first, see :mod:`qpik.igm.qp_engine`).
+    key: tuple[float, ...] = ()
 
     def beats(self, other: Attempt | None) -> bool:
-        """Converged over not converged, then a strictly lower score."""
+        """Converged over not converged, then a strictly lower key (or score)."""
         if other is None:
             return True
         if self.converged != other.converged:
             return self.converged
+        if self.key and other.key:
+            return self.key < other.key
         return self.score < other.score
 
 

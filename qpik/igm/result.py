@@ -110,6 +110,12 @@ class IKResult(Outcome):
             frame ``(position_error [m], orientation_error [rad])``.
         path: the configurations of the returned attempt, its start first ``(k, nq)``.
         engine: ``"compiled"`` or ``"qp"`` (see :mod:`qpik.igm.session`).
+        levels_met: per level of the stack (level 0 first; the default stack has one),
+            whether every task of it with a target is within tolerance at ``q`` (the
+            rule of :mod:`qpik.igm.session`); with the feet in level 0 and a hand out of
+            reach in level 1, ``(True, False, ...)``.
+        coupling_error: the largest residual of the model's couplings at ``q``
+            (:func:`qpik.model.model_couplings`) [rad or m]; 0 without couplings.
     """
 
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -117,6 +123,8 @@ class IKResult(Outcome):
     error_history: Sequence[tuple[float, float]] = field(default_factory=list, repr=False)
     path: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     engine: str = "qp"
+    levels_met: tuple[bool, ...] = ()
+    coupling_error: float = 0.0
 
     def __str__(self) -> str:
         state = "converged" if self.converged else f"not converged ({self.reason})"

@@ -20,14 +20,31 @@ in the null space of the targets.
 
 Two engines run this rule (:attr:`IKResult.engine`):
 
-* ``"compiled"``: one frame target, the default stack, joint limits (or none) and a model
-  of hinge and slide joints. The whole solve (iterations, trust region, damping, stall
+* ``"compiled"``: one frame target, the default stack, joint limits (or none) and hinge
+  and slide joints on the target's chain (joints off the chain may be of any type: a free
+  object elsewhere in the scene, another arm; they stay where they are, restarts
+  included, and the packed chain coordinates are written back into the full ``q``). The
+  whole solve (iterations, trust region, damping, stall
   detection, restarts) is one compiled call (:mod:`qpik.model.kernels`): forward
   kinematics and the frame Jacobian from arrays read once from the model, and each step's
   damped least-squares QP under the box of the joint limits solved exactly by an
   active-set method. It is the same QP as the general engine's, so both agree to round-off.
 * ``"qp"``: everything else (several frames, custom stacks, other limits, ball or free
-  joints, ``secondary=True``), on :class:`qpik.IKSolver` steps.
+  joints on the chain, ``secondary=True``, a coupling of the model that moves a joint of
+  the chain or that the start breaks), on :class:`qpik.IKSolver` steps.
+
+Couplings (``couplings=True``, the default): the model's joint and fixed-tendon equality
+constraints (``<equality><joint>``, URDF ``<mimic>``; :mod:`qpik.model.couplings`) are a
+level above the stack in every ``"qp"`` step, and count in ``converged`` (their residual
+against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``.
+
+Stacks of several levels (a custom ``stack``): the iterates are ranked lexicographically,
+the couplings first, then level 0, 1, ... (each level's largest error-to-tolerance ratio,
+``<= 1`` counting as met), then the score; an attempt that ends without converging is
+finished by steps of level 0 alone (at most :data:`qpik.igm.qp_engine.LEVEL0_STEPS`) and
+returns its best iterate in that order, and attempts compare by it. So a solve with the
+feet in level 0 and a hand out of reach in level 1 returns the feet within tolerance
+(``converged=False``; ``IKResult.levels_met`` is ``(True, False, ...)``).
 
 Errors: position error is the distance of the frame origin to its target [m]; orientation
 error the angle of ``R R_des^T`` [rad]. A solve has **converged** when every frame with a
@@ -74,11 +91,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..diffik.solver import DampingLaw, Stack
+from ..diffik.solver import DampingLaw, Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import KinematicChain, ReachBound, chain_support, joint_limits
 from ..model import kernels as _kernels
 from ..model.configuration import Configuration, FrameType, qpos_joint_names, resolve_robot
+from ..model.couplings import model_couplings
 from ..model.frames import resolve_frame
 from ..options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
@@ -149,6 +167,7 @@ _OPTION_KEYWORDS = (
     "secondary",
     "damping",
     "engine",
+    "couplings",
 )
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
@@ -204,10 +223,14 @@ def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Frame:
-    """A target frame of a session: name, type and, for hinge/slide models, its chain and
-    reach bound."""
+    """A target frame of a session: name, type and, when its chain has hinge and slide
+    joints only, its chain and reach bound. ``packed``: the chain over its own joints
+    (:meth:`KinematicChain.packed`), with ``index`` (their qpos addresses) and the packed
+    joint bounds, when the chain's joints are not all of ``q`` (``None`` otherwise: the
+    compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
+    (:class:`qpik.model.Couplings`) moves a joint of the chain."""
 
-    __slots__ = ("chain", "kind", "name", "reach")
+    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
 
     def __init__(
         self,
@@ -217,6 +240,10 @@ class _Frame:
         reach: ReachBound | None,
     ) -> None:
         self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
+        self.packed: KinematicChain | None = None
+        self.index: np.ndarray | None = None
+        self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
+        self.coupled = False
 
 
 class _Prepared:
@@ -228,6 +255,7 @@ class _Prepared:
     __slots__ = (
         "bounds_free",
         "bounds_joint",
+        "couplings",
         "frames",
         "lower",
         "memo",
@@ -252,6 +280,7 @@ class _Prepared:
         free = np.full(model.nq, np.inf)
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
+        self.couplings = model_couplings(model)
         self.frames: dict = {}  # frame key -> _Frame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 
@@ -265,10 +294,23 @@ class _Prepared:
             return cached
         name, kind, _ = resolve_frame(model, key, argument="targets")
         chain = reach = None
-        if self.support is None:
+        try:
             chain = KinematicChain.from_model(model, name, kind)
+        except ValueError:  # a ball or free joint (or a mocap body) on the chain
+            pass
+        if chain is not None:
             reach = chain.reach_bound(self.lower, self.upper)
         entry = _Frame(name, kind, chain, reach)
+        if chain is not None:
+            if self.couplings is not None:
+                entry.coupled = bool(np.isin(chain.dofs, self.couplings.dofs).any())
+            if not chain.covers_q:
+                index = chain.qpos_index
+                entry.packed, entry.index = chain.packed(), index
+                entry.bounds = (
+                    np.ascontiguousarray(self.bounds_joint[:, index]),
+                    np.ascontiguousarray(self.bounds_free[:, index]),
+                )
         try:
             self.frames[key] = entry
         except TypeError:
@@ -300,6 +342,17 @@ FINGERPRINT_FIELDS = (
     "geom_bodyid",
     "geom_pos",
     "geom_quat",
+    "eq_type",
+    "eq_active0",
+    "eq_obj1id",
+    "eq_obj2id",
+    "eq_data",
+    "tendon_adr",
+    "tendon_num",
+    "tendon_length0",
+    "wrap_type",
+    "wrap_objid",
+    "wrap_prm",
 )
 
 
@@ -469,6 +522,7 @@ class IKSession:
         secondary: bool | Unset = UNSET,
         damping: float | Unset = UNSET,
         engine: str | Unset = UNSET,
+        couplings: bool | Unset = UNSET,
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
@@ -489,6 +543,7 @@ class IKSession:
             secondary,
             damping,
             engine,
+            couplings,
         )
         return self._solve(targets, q0, stack, options, seed, values, start_time)
 
@@ -511,11 +566,25 @@ class IKSession:
         joint = settings.limits == "joint"
         limited = joint or bool(settings.limits)
         q_start = self._start(q0, check=limited)
+        if compiled_ok and not self._couplings_hold_off_chain(settings, frames[0][0], q_start):
+            # A coupling of joints the compiled engine keeps still is broken at the start:
+            # the "qp" engine restores it (its coupling level).
+            if settings.engine == "compiled":
+                raise InvalidInput(
+                    "engine='compiled' keeps the joints off the target's chain where they "
+                    "are, and q0 breaks a coupling among them (the model's equality "
+                    f"constraints, by {self._coupling_error(q_start):.3g}); use "
+                    "engine='auto' or couplings=False"
+                )
+            compiled_ok = False
         if compiled_ok and settings.engine != "qp":
             return self._solve_compiled(
                 frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
             )
-        for _frame, target in frames:
+        # A target provably out of reach ends the solve at once, unless the stack has
+        # several levels (the others are still solved: level 0 may hold other frames).
+        single = stack is None or len(normalize_stack(stack)) == 1
+        for _frame, target in frames if single else ():
             if _frame.reach is not None and _frame.reach.excludes(
                 target.position, settings.tol_position
             ):
@@ -570,14 +639,29 @@ class IKSession:
             and len(frames) == 1
             and frames[0][0].reach is not None
             and not settings.secondary
+            and not (settings.step.couplings and frames[0][0].coupled)
         )
         if settings.engine == "compiled" and not applies:
+            coupled = settings.step.couplings and frames[0][0].coupled
             raise InvalidInput(
                 "engine='compiled' needs one frame target, the default stack, limits 'joint' "
-                "or None, secondary=False and a model of hinge and slide joints"
-                + (f" ({self._support})" if self._support else "")
+                "or None, secondary=False, hinge and slide joints on the target's chain and "
+                "no coupling of the model on it (couplings=False turns them off)"
+                + (" (a coupling moves a joint of the chain)" if coupled else "")
+                + (f" ({self._support})" if self._support and frames[0][0].reach is None else "")
             )
         return applies
+
+    def _couplings_hold_off_chain(
+        self, settings: SolveOptions, frame: _Frame, q_start: np.ndarray
+    ) -> bool:
+        """Whether the model's couplings hold at ``q_start`` (to 1e-9), which the compiled
+        engine leaves to it (they involve no joint of the chain, which it alone moves);
+        True without couplings or with ``couplings=False``."""
+        couplings = self._prepared.couplings
+        if couplings is None or not settings.step.couplings:
+            return True
+        return couplings.error(q_start) <= 1e-9
 
     def _start(self, q0: npt.ArrayLike | None, check: bool) -> np.ndarray:
         """The validated start: ``q0``, else the robot's ``q``, else mid-range."""
@@ -635,6 +719,8 @@ class IKSession:
             path=q[None, :].copy(),
             solve_time=time.perf_counter() - start_time,
             engine="qp",
+            levels_met=(False,),
+            coupling_error=self._coupling_error(q),
         )
 
     def _solve_compiled(
@@ -644,23 +730,36 @@ class IKSession:
         options, int_options = kernel_options
         deadline = start_time + settings.time_budget if int_options[3] else np.inf
         rotation = target.rotation
+        index = frame.index
+        if index is None:  # the chain's joints are all of q
+            chain, q_chain = frame.chain, q_start
+            bounds = self._bounds_joint if joint else self._bounds_free
+        else:  # the chain's joints only: the others stay where they are
+            chain, q_chain = frame.packed, q_start[index]
+            bounds = frame.bounds[0] if joint else frame.bounds[1]
         code, iterations, restarts_used, path, history = _kernels.igm_run(
-            frame.chain.compiled,
+            chain.compiled,
             target.position,
             _EYE if rotation is None else rotation,
             rotation is not None,
-            q_start,
-            self._bounds_joint if joint else self._bounds_free,
+            q_chain,
+            bounds,
             frame.reach.array,
             options,
             int_options,
             rng_state,
             deadline,
         )
+        if index is not None:
+            full = np.empty((path.shape[0], q_start.shape[0]))
+            full[:] = q_start
+            full[:, index] = path
+            path = full
         position_error, orientation_error, _ = history[-1].tolist()
+        converged = code == 0
         return IKResult(
             path[-1].copy(),
-            code == 0,
+            converged,
             _REASONS_BY_CODE[code],
             iterations,
             restarts_used,
@@ -672,7 +771,13 @@ class IKSession:
             LazyRows(history[:, :2], tuple),
             path,
             "compiled",
+            (converged,),
+            self._coupling_error(path[-1]),
         )
+
+    def _coupling_error(self, q: np.ndarray) -> float:
+        couplings = self._prepared.couplings
+        return 0.0 if couplings is None else couplings.error(q)
 
 
 def solve(
@@ -698,6 +803,7 @@ def solve(
     secondary: bool | Unset = UNSET,
     damping: float | Unset = UNSET,
     engine: str | Unset = UNSET,
+    couplings: bool | Unset = UNSET,
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 
@@ -727,6 +833,15 @@ def solve(
             (for a solve, ``damping_law`` defaults to the error-faded
             :data:`qpik.options.IGM_DAMPING`); the ``"compiled"`` engine always solves its
             QPs exactly by its own active set.
+        couplings: keep the model's couplings (:attr:`qpik.StepOptions.couplings`: joint
+            and fixed-tendon equalities, URDF ``<mimic>``) as hard rows above every level,
+            at every iterate and in the answer (``IKResult.coupling_error``). Default
+            ``True``. The compiled engine moves only the target's chain and keeps the
+            other joints where they are: it takes a model with couplings when none of
+            them moves a joint of the chain and they hold at the start (to 1e-9);
+            otherwise the solve runs on the ``"qp"`` engine, whose steps solve the
+            coupling rows first (``engine="compiled"`` then raises
+            :class:`qpik.InvalidInput`).
 
     Bad arguments raise a :class:`qpik.QpikError` subclass naming them
     (:class:`qpik.InvalidOption` for an option).
@@ -760,6 +875,7 @@ def solve(
         secondary,
         damping,
         engine,
+        couplings,
     )
     if isinstance(robot, mujoco.MjModel):
         session = IKSession._from_prepared(robot, None, PREPARED.get(robot))

@@ -5,9 +5,10 @@ to compute the frame's pose and Jacobian without calling MuJoCo: per body from t
 the frame's body, its pose in its parent (``body_pos``, ``body_quat``); per joint on those
 bodies, its type, axis and anchor in the body (``jnt_axis``, ``jnt_pos``), its reference
 ``qpos0`` and its qpos/dof addresses; and the frame's pose in its body (a site's or geom's
-``pos``/``quat``, identity for a body). It covers hinge and slide joints: models with ball
-or free joints, or a mocap body on the chain, are left to the general path
-(:func:`chain_support` says why).
+``pos``/``quat``, identity for a body). The chain's joints must be hinges and slides; joints
+off the chain may be of any type (a free object elsewhere in the scene, a ball-jointed
+head): the chain reads only its own joints' coordinates. A ball or free joint, or a mocap
+body, on the chain leaves the frame to the general path (:func:`chain_support` says why).
 
 Units: positions [m], angles [rad]; poses and Jacobians are in the world frame.
 """
@@ -33,16 +34,17 @@ _NO_JAC = np.empty((6, 0))
 _SLIDE = int(mujoco.mjtJoint.mjJNT_SLIDE)
 
 
-def chain_support(model: mujoco.MjModel) -> str | None:
+def chain_support(model: mujoco.MjModel, joints: npt.ArrayLike | None = None) -> str | None:
     """Why the compiled kernels cannot handle ``model`` (a ball or free joint), or
-    ``None`` when every joint is a hinge or a slide."""
+    ``None`` when every joint is a hinge or a slide. ``joints``: check only these joint
+    ids (a chain's; joints off a chain may be of any type)."""
     types = model.jnt_type
-    for j in np.flatnonzero((types != _HINGE) & (types != _SLIDE)):
+    ids = np.arange(model.njnt) if joints is None else np.asarray(joints, dtype=np.int64)
+    for j in ids[(types[ids] != _HINGE) & (types[ids] != _SLIDE)]:
         kind = int(types[j])
-        if True:
-            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
-            what = mujoco.mjtJoint(kind).name[6:].lower()
-            return f"joint {name!r} is a {what} joint (the compiled kernels take hinge and slide)"
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, int(j)) or f"#{j}"
+        what = mujoco.mjtJoint(kind).name[6:].lower()
+        return f"joint {name!r} is a {what} joint (the compiled kernels take hinge and slide)"
     return None
 
 
@@ -122,12 +124,10 @@ class KinematicChain:
     ) -> KinematicChain:
         """The chain of ``frame`` (a name or id of the given type). Raises
         :class:`qpik.UnknownFrame` for a missing frame and :class:`ValueError` when
-        :func:`chain_support` rejects the model or a mocap body is on the chain."""
+        :func:`chain_support` rejects a joint of the chain (a ball or free joint on it) or
+        a mocap body is on the chain. Joints off the chain may be of any type."""
         kind = FrameType.parse(frame_type)
         fid = frame_id(model, frame, kind)
-        reason = chain_support(model)
-        if reason is not None:
-            raise ValueError(reason)
         if kind is FrameType.BODY:
             body = fid
             frame_pos, frame_quat = np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0])
@@ -152,6 +152,9 @@ class KinematicChain:
             [np.arange(a, a + n, dtype=np.int64) for a, n in zip(jntadr, jntnum)]
             or [np.zeros(0, dtype=np.int64)]
         )
+        reason = chain_support(model, joints)
+        if reason is not None:
+            raise ValueError(reason)
         jnt_type = np.where(model.jnt_type[joints] == _HINGE, _kernels.HINGE, _kernels.SLIDE)
         qadr = model.jnt_qposadr[joints].astype(np.int64)
         arrays = (
@@ -169,6 +172,32 @@ class KinematicChain:
         )
         name = frame if isinstance(frame, str) else frame_name(model, kind, fid)
         return cls(name, kind, model.nq, model.nv, arrays, arrays[7].copy())
+
+    @property
+    def qpos_index(self) -> np.ndarray:
+        """qpos addresses ``(k,)`` of the chain's joints, in chain order."""
+        return self.arrays[6]
+
+    @property
+    def covers_q(self) -> bool:
+        """Whether the chain's joints are every coordinate of ``q``, in order (``q`` is
+        then its own packed form, see :meth:`packed`)."""
+        index = self.arrays[6]
+        return (
+            self.nq == self.nv == index.shape[0]
+            and bool(np.array_equal(index, np.arange(self.nq)))
+            and bool(np.array_equal(self.arrays[7], np.arange(self.nv)))
+        )
+
+    def packed(self) -> KinematicChain:
+        """The same chain over its own joints only: ``q`` of the packed chain is
+        ``q_full[self.qpos_index]`` (its ``nq == nv ==`` the chain's joint count), so the
+        solves that move and sample every coordinate of ``q`` move only the chain's joints;
+        the others stay where they are when the packed answer is written back."""
+        k = self.arrays[6].shape[0]
+        order = np.arange(k, dtype=np.int64)
+        arrays = (*self.arrays[:6], order, order.copy(), *self.arrays[8:])
+        return type(self)(self.frame, self.frame_type, k, k, arrays, order.copy())
 
     # ------------------------------------------------------------------ kinematics
     def _q(self, q: npt.ArrayLike) -> np.ndarray:

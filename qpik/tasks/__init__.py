@@ -11,6 +11,7 @@ from mink import Objective, Task
 from mink.tasks.task import BaseTask
 
 from .com import ComTask
+from .coupling import CouplingTask
 from .fast import DampingTask, FrameTask, PostureTask
 from .frame import OrientationTask, PoseTask, PositionTask
 from .mink_tasks import (
@@ -27,6 +28,7 @@ __all__ = [
     "AxisAlignTask",
     "BaseTask",
     "ComTask",
+    "CouplingTask",
     "DampingTask",
     "DofFreezingTask",
     "EqualityConstraintTask",

@@ -1,0 +1,186 @@
+r"""The model's couplings: the joint and fixed-tendon equality constraints it states.
+
+MuJoCo states a coupling of two scalar joints (MJCF ``<equality><joint>``, and the URDF
+``<mimic>`` tag, which MuJoCo's URDF import turns into one) as
+
+.. math::
+
+    r(q) = (q_1 - q_{1,0}) - p(q_2 - q_{2,0}) = 0, \qquad
+    p(x) = c_0 + c_1 x + c_2 x^2 + c_3 x^3 + c_4 x^4,
+
+with ``q_{i,0}`` the joints' ``qpos0`` and ``c`` the ``polycoef`` (``eq_data[:5]``); without
+``joint2``, :math:`r = q_1 - q_{1,0} - c_0`. A ``<equality><tendon>`` states the same of
+two tendons' lengths (their ``tendon_length0`` as references); qpik takes the fixed
+tendons' (a linear combination ``sum_i coef_i q_i`` of scalar joints). The Jacobian of a
+row is :math:`\partial r / \partial q_1 - p'(x)\, \partial r / \partial q_2`, exact: the
+rows are MuJoCo's own ``efc_pos`` and ``efc_J`` of these constraints (checked in
+tests/test_couplings.py).
+
+:class:`Couplings` holds these rows of a model (:func:`model_couplings`); qpik keeps them
+as the top priority of every differential step (:class:`qpik.IKSolver`, option
+``StepOptions.couplings``) and of full IK (:func:`qpik.solve`). The equalities it does not
+take (connect and weld loop closures, spatial tendons, inactive ones) are listed in
+:attr:`Couplings.skipped`; add mink's :class:`mink.EqualityConstraintTask` to a level for
+those.
+
+Units: the residual of a joint coupling is in the joints' units [rad or m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InvalidConfiguration
+
+__all__ = ["Couplings", "model_couplings"]
+
+_SCALAR = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+@dataclass(frozen=True, eq=False)
+class Couplings:
+    """The coupling rows of a model (build with :func:`model_couplings`).
+
+    Each row ``i`` couples two linear measures of ``q``, ``s_1 = a_1 . q[qadr]`` and
+    ``s_2 = a_2 . q[qadr]`` (a joint's coordinate, or a fixed tendon's length):
+    ``r_i = (s_1 - ref_1) - p_i(s_2 - ref_2)``.
+
+    Attributes:
+        names: each row's equality name (``"equality #k"`` when unnamed).
+        qadr: the qpos addresses of the coupled joints ``(m,)``.
+        dofs: their dof addresses ``(m,)`` (the same joints, in the same order).
+        first, second: the measures' coefficients ``(rows, m)`` over those joints
+            (``second`` is zero on a row without a second joint or tendon).
+        reference: ``(rows, 2)``: ``ref_1``, ``ref_2`` (at ``qpos0``).
+        poly: ``(rows, 5)``: the polynomial's coefficients ``c_0 ... c_4``.
+        has_second: ``(rows,)`` whether a row has a second joint or tendon.
+        nq, nv: the model's sizes.
+        skipped: the model's equalities not taken, each ``"name (why)"``.
+    """
+
+    names: tuple[str, ...]
+    qadr: np.ndarray = field(repr=False)
+    dofs: np.ndarray = field(repr=False)
+    first: np.ndarray = field(repr=False)
+    second: np.ndarray = field(repr=False)
+    reference: np.ndarray = field(repr=False)
+    poly: np.ndarray = field(repr=False)
+    has_second: np.ndarray = field(repr=False)
+    nq: int = 0
+    nv: int = 0
+    skipped: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def _q(self, q: npt.ArrayLike) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        if q.shape != (self.nq,) or not np.all(np.isfinite(q)):
+            raise InvalidConfiguration(f"q must be {self.nq} finite numbers, got shape {q.shape}")
+        return q
+
+    def _measures(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = q[self.qadr]
+        s1 = self.first @ x - self.reference[:, 0]
+        s2 = np.where(self.has_second, self.second @ x - self.reference[:, 1], 0.0)
+        return s1, s2
+
+    def residual(self, q: npt.ArrayLike) -> np.ndarray:
+        """The rows' residuals ``r(q)`` ``(rows,)`` [the joints' units]."""
+        s1, s2 = self._measures(self._q(q))
+        c = self.poly
+        value = c[:, 0] + s2 * (c[:, 1] + s2 * (c[:, 2] + s2 * (c[:, 3] + s2 * c[:, 4])))
+        return s1 - value
+
+    def jacobian(self, q: npt.ArrayLike) -> np.ndarray:
+        """``dr/dq`` in the tangent space ``(rows, nv)``."""
+        _, s2 = self._measures(self._q(q))
+        c = self.poly
+        slope = c[:, 1] + s2 * (2.0 * c[:, 2] + s2 * (3.0 * c[:, 3] + s2 * 4.0 * c[:, 4]))
+        slope = np.where(self.has_second, slope, 0.0)
+        jacobian = np.zeros((len(self.names), self.nv))
+        jacobian[:, self.dofs] = self.first - slope[:, None] * self.second
+        return jacobian
+
+    def error(self, q: npt.ArrayLike) -> float:
+        """The largest ``|r_i(q)|`` (0 without rows)."""
+        r = self.residual(q)
+        return float(np.abs(r).max()) if r.size else 0.0
+
+
+def _tendon_terms(model: mujoco.MjModel, tendon: int) -> dict[int, float] | None:
+    """``{joint: coef}`` of a fixed tendon, ``None`` for a spatial one."""
+    adr, num = int(model.tendon_adr[tendon]), int(model.tendon_num[tendon])
+    terms: dict[int, float] = {}
+    for w in range(adr, adr + num):
+        if int(model.wrap_type[w]) != int(mujoco.mjtWrap.mjWRAP_JOINT):
+            return None
+        j = int(model.wrap_objid[w])
+        if int(model.jnt_type[j]) not in _SCALAR:
+            return None
+        terms[j] = terms.get(j, 0.0) + float(model.wrap_prm[w])
+    return terms
+
+
+def model_couplings(model: mujoco.MjModel) -> Couplings | None:
+    """The active joint and fixed-tendon equalities of ``model`` as :class:`Couplings`, or
+    ``None`` when it states none (whatever else it states: see
+    :attr:`Couplings.skipped`, which a ``None`` answer does not carry)."""
+    rows: list[tuple[str, dict[int, float], dict[int, float], float, float, np.ndarray]] = []
+    skipped: list[str] = []
+    joint_eq, tendon_eq = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
+    for e in range(model.neq):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"equality #{e}"
+        kind = int(model.eq_type[e])
+        if not model.eq_active0[e]:
+            skipped.append(f"{name} (inactive)")
+            continue
+        id1, id2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        poly = np.array(model.eq_data[e, :5], dtype=float)
+        if kind == joint_eq:
+            a1 = {id1: 1.0}
+            a2 = {id2: 1.0} if id2 >= 0 else {}
+            ref1 = float(model.qpos0[model.jnt_qposadr[id1]])
+            ref2 = float(model.qpos0[model.jnt_qposadr[id2]]) if id2 >= 0 else 0.0
+        elif kind == tendon_eq:
+            t1 = _tendon_terms(model, id1)
+            t2 = _tendon_terms(model, id2) if id2 >= 0 else {}
+            if t1 is None or t2 is None:
+                skipped.append(f"{name} (a spatial tendon)")
+                continue
+            a1, a2 = t1, t2
+            ref1 = float(model.tendon_length0[id1])
+            ref2 = float(model.tendon_length0[id2]) if id2 >= 0 else 0.0
+        else:
+            what = mujoco.mjtEq(kind).name[5:].lower()
+            skipped.append(f"{name} (a {what} constraint)")
+            continue
+        rows.append((name, a1, a2, ref1, ref2, poly))
+    if not rows:
+        return None
+    joints = sorted({j for row in rows for j in (*row[1], *row[2])})
+    column = {j: k for k, j in enumerate(joints)}
+    first = np.zeros((len(rows), len(joints)))
+    second = np.zeros((len(rows), len(joints)))
+    for i, (_, a1, a2, *_rest) in enumerate(rows):
+        for j, coef in a1.items():
+            first[i, column[j]] += coef
+        for j, coef in a2.items():
+            second[i, column[j]] += coef
+    return Couplings(
+        names=tuple(row[0] for row in rows),
+        qadr=np.array([model.jnt_qposadr[j] for j in joints], dtype=np.int64),
+        dofs=np.array([model.jnt_dofadr[j] for j in joints], dtype=np.int64),
+        first=first,
+        second=second,
+        reference=np.array([[row[3], row[4]] for row in rows], dtype=float),
+        poly=np.array([row[5] for row in rows], dtype=float),
+        has_second=np.array([bool(row[2]) for row in rows]),
+        nq=model.nq,
+        nv=model.nv,
+        skipped=tuple(skipped),
+    )

@@ -1,0 +1,45 @@
+"""The model's couplings as a task: the rows ``r(q) = 0`` of
+:class:`qpik.model.Couplings` (joint and fixed-tendon equalities, URDF ``<mimic>``).
+
+:class:`qpik.IKSolver` puts it, alone, in a level above the stack's (option
+``StepOptions.couplings``, on by default), so the stack acts in its null space; it can
+also be placed in a stack by hand (with ``couplings=False``)."""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+
+from ..errors import TaskDefinitionError, mink_errors_as_qpik
+from ..model.couplings import Couplings, model_couplings
+
+
+class CouplingTask(mink.Task):
+    """Hold the model's couplings: error ``r(q)`` (one row per coupling,
+    :meth:`qpik.model.Couplings.residual`), Jacobian ``dr/dq`` (exact).
+
+    Args:
+        model: the MuJoCo model; it must state at least one coupling
+            (:class:`qpik.TaskDefinitionError` otherwise).
+        cost: weight of every row. Default 1.
+        gain: fraction of the residual a step removes, in [0, 1]. Default 1 (a linear
+            coupling holds after one step).
+    """
+
+    def __init__(self, model: mujoco.MjModel, cost: float = 1.0, gain: float = 1.0):
+        couplings = model_couplings(model)
+        if couplings is None:
+            raise TaskDefinitionError(
+                "CouplingTask: the model states no joint or fixed-tendon equality"
+            )
+        self.couplings: Couplings = couplings
+        self.k = len(couplings)
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(np.full(self.k, float(cost)), gain, 0.0)
+
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
+        return self.couplings.residual(configuration.q)
+
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
+        return self.couplings.jacobian(configuration.q)
