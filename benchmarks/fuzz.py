@@ -944,7 +944,10 @@ SCHEMA_FIELDS: list[tuple[tuple, list]] = [
     (("levels", 0, "name"), [("v", "reach"), ("x", 3)]),
     (("levels", 1, "tasks", 0, "cost"), [("v", 0.0), ("b", 1e6), ("x", -1.0), ("x", "@nv_short")]),
     # a posture target may lie outside the limits (the limits keep q inside)
-    (("levels", 1, "tasks", 0, "target", "q"), [(t if v != "@q_outside" else "b", v) for t, v in _Q]),
+    (
+        ("levels", 1, "tasks", 0, "target", "q"),
+        [(t if v != "@q_outside" else "b", v) for t, v in _Q],
+    ),
     (("levels", 1, "tasks", 0), [("v", "@task:" + t) for t in _TASK_TYPES] + [("x", 3)]),
     (("levels", 1, "tasks", 0, "rows"), [("x", "nonsense"), ("x", 3)]),
     (("levels", 2), [("v", "@task:" + t) for t in _TASK_TYPES]),
@@ -988,7 +991,8 @@ SCHEMA_FIELDS: list[tuple[tuple, list]] = [
     (("track", "stop_at_goal"), [("v", True), ("x", "yes")]),
     (("track", "bogus"), [("x", 1)]),
     (("statics", "frame"), _FRAME),
-    (("statics", "frame_type"), _FT),
+    # frame_type without frame: refused (it would be ignored)
+    (("statics", "frame_type"), [("x", "site"), ("x", "bogus"), ("x", 3)]),
     (("statics", "force"), _VEC3),
     (("statics", "torque"), _VEC3),
     (("statics", "payload_direction"), [("v", [0.0, 0.0, -1.0]), ("x", [0.0, 0.0, 0.0])]),
@@ -3351,8 +3355,8 @@ def _exercise_generated(model, frame: str, ftype: str, q0, target) -> str:
     if np.any(np.isnan(limits_tau)):
         raise Bad("nonfinite", f"joint_torque_limits = {limits_tau}")
     payload = statics.max_payload(cfg, frame, [0.0, 0.0, -1.0], frame_type=ftype)
-    if math.isnan(payload.force) or any(math.isnan(x) for x in payload.interval):
-        raise Bad("nonfinite", f"max_payload = {payload}")  # documented: inf, never NaN
+    if (math.isnan(payload.force) and payload.feasible) or any(map(math.isnan, payload.interval)):
+        raise Bad("nonfinite", f"max_payload = {payload}")  # documented: NaN when infeasible
     ellipsoid = statics.force_ellipsoid(cfg, frame, ftype)
     if np.any(np.isnan(ellipsoid.lengths)) or np.any(ellipsoid.lengths < 0):
         raise Bad("nonfinite", f"force_ellipsoid lengths {ellipsoid.lengths}")  # inf documented

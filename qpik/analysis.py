@@ -113,19 +113,20 @@ def _as_vector(x: npt.ArrayLike, size: int, name: str) -> np.ndarray:
     return x
 
 
-def _as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int]) -> float:
-    """The absolute singular-value threshold: ``tol``, or numpy's default when None."""
+def _as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int], name: str = "tol") -> float:
+    """The absolute singular-value threshold: ``tol``, or numpy's default when None;
+    ``name``: the argument, for messages."""
     if tol is None:  # floored at the smallest normal float: 1 / s must not overflow
         s_max = float(s[0]) if s.size else 0.0
         return max(max(shape) * np.finfo(float).eps * s_max, np.finfo(float).tiny)
     if isinstance(tol, (bool, str, bytes)):
-        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0")
+        raise InvalidInput(f"{name} is {tol!r}; it must be a finite number >= 0")
     try:
         tol = float(tol)
     except (TypeError, ValueError):
-        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0") from None
+        raise InvalidInput(f"{name} is {tol!r}; it must be a finite number >= 0") from None
     if not np.isfinite(tol) or tol < 0:
-        raise InvalidInput(f"tol is {tol}; it must be a finite number >= 0")
+        raise InvalidInput(f"{name} is {tol}; it must be a finite number >= 0")
     return tol
 
 
@@ -701,7 +702,7 @@ def analyze(
     J = configuration.frame_jacobian(frame, kind)[list(idx)]
     s = singular_values(J)
     r = rank(J, tol)
-    report = singularity(J, singular_tol)
+    report = singularity(J, _as_tol(singular_tol, np.zeros(0), J.shape, "singular_tol"))
     return KinematicReport(
         frame=frame,
         frame_type=kind.value,

@@ -50,8 +50,9 @@ if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool sta
     import multiprocessing.context
     from concurrent.futures import Future, ProcessPoolExecutor
 
+from . import checks
 from .converge import IKSession, solve
-from .errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
+from .errors import InvalidArgumentType, InvalidInput, InvalidTarget, MissingExtra, QpikError
 from .model.frames import resolve_frame
 from .model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation
 from .options import SolveOptions, resolve
@@ -731,6 +732,10 @@ def solve_many(
         **solve_options: :func:`qpik.solve`'s keywords (``q0``, ``stack``, and options
             overriding ``options``), passed to every solve.
     """
+    if isinstance(targets_list, (str, bytes, Mapping)) or not isinstance(targets_list, Iterable):
+        raise InvalidArgumentType(
+            "targets_list", "a list of targets mappings", checks.type_name(targets_list)
+        )
     targets_list = list(targets_list)
     entropy = check_seed(seed)
     workers = check_workers(workers, backend)

@@ -71,6 +71,7 @@ __all__ = [
     "check_index",
     "check_indices",
     "check_instance",
+    "check_model",
     "check_integer",
     "check_path",
     "check_real",
@@ -114,6 +115,15 @@ def check_instance(name: str, value: Any, cls: type[_T] | tuple[type, ...], expe
     if not isinstance(value, cls):
         raise InvalidArgumentType(name, expected, type_name(value))
     return value  # type: ignore[return-value]
+
+
+def check_model(name: str, value: Any) -> Any:
+    """``value`` if it is a ``mujoco.MjModel``; else :class:`InvalidArgumentType` naming
+    ``name`` (a robot name, a path or a configuration is not a model: see
+    :func:`qpik.load_robot`)."""
+    import mujoco  # imported here: the base layer needs MuJoCo for this check only
+
+    return check_instance(name, value, mujoco.MjModel, "a mujoco.MjModel (see qpik.load_robot)")
 
 
 def check_real(

@@ -588,6 +588,9 @@ class IKSolver:
     def step(self, configuration: Configuration, dt: float) -> StepResult:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]."""
         start = time.perf_counter()
+        checks.check_instance(
+            "configuration", configuration, mink.Configuration, "a qpik.Configuration"
+        )
         plan = self._plan
         if (
             plan is not None

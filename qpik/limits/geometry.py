@@ -29,8 +29,9 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from .. import checks
 from ..configuration import FrameType
-from ..errors import CollisionPairError, LimitDefinitionError
+from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError
 from .collision import CollisionAvoidanceLimit
 
 __all__ = [
@@ -44,6 +45,7 @@ __all__ = [
 def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[int]:
     """Ids of the geoms that take part in contact (``contype`` or ``conaffinity`` nonzero),
     sorted; ``robot_only``: leave out the geoms of the world body (floor, obstacles)."""
+    checks.check_model("model", model)
     return [
         g
         for g in range(model.ngeom)
@@ -91,6 +93,9 @@ def collision_pairs(
     is in the module docstring): ``scene``: a robot geom against a geom of the world body;
     ``self_collision``: two robot geoms (on bodies other than the world body)."""
     excluded = _excluded_bodies(model)
+    checks.check_model("model", model)
+    checks.check_bool("scene", scene)
+    checks.check_bool("self_collision", self_collision)
     geoms = collision_geoms(model)
     pairs = set()
     for i, a in enumerate(geoms):
@@ -150,8 +155,14 @@ def model_collision_limit(
     """
     pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
     if geoms is not None:
+        if isinstance(geoms, (str, bytes)) or not isinstance(geoms, (list, tuple, np.ndarray)):
+            raise InvalidArgumentType(
+                "geoms", "a list of geom names or ids", checks.type_name(geoms)
+            )
         wanted = set()
         for geom in geoms:
+            if not isinstance(geom, (str, int, np.integer)) or isinstance(geom, bool):
+                raise InvalidArgumentType("geoms", "geom names or ids", checks.type_name(geom))
             gid = (
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
                 if isinstance(geom, str)

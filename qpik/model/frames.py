@@ -21,6 +21,7 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
+from ..checks import check_model
 from ..errors import InvalidInput, UnknownFrame, UnknownFrameType
 
 __all__ = [
@@ -86,6 +87,7 @@ class ResolvedFrame(NamedTuple):
 
 def frame_names(model: mujoco.MjModel, frame_type: FrameType | str) -> list[str]:
     """Names of all frames of one type in ``model`` (unnamed frames are left out)."""
+    check_model("model", model)
     kind = FrameType.parse(frame_type)
     obj = FRAME_OBJECTS[kind]
     names = (mujoco.mj_id2name(model, obj, i) for i in range(getattr(model, FRAME_COUNTS[kind])))
