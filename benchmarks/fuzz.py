@@ -911,7 +911,7 @@ _COST3 += [("x", NAN), ("x", INF), ("x", [1.0, 2.0]), ("x", "a"), ("x", [1.0, 1.
 _GAIN = [("v", 0.5), ("b", 1.0), ("x", 0.0), ("x", 1.0000001), ("x", -0.1), ("x", NAN)]
 _GAIN += [("x", "a"), ("x", True)]
 _LMD = [("b", 0.0), ("b", 1e6), ("x", 1.01e6), ("x", -1.0), ("x", NAN), ("x", "a")]
-_FT = [("v", "site"), ("x", "bogus"), ("x", 3), ("b", "SITE ")]
+_FT = [("v", "site"), ("x", "bogus"), ("x", 3), ("x", "SITE ")]
 _FRAME = [("v", "ee"), ("x", "nope"), ("x", 3), ("x", ""), ("x", ["ee"])]
 _VEC3 = [("v", [0.0, 0.0, -10.0]), ("b", [1e9, 0.0, 0.0]), ("x", [1.01e9, 0.0, 0.0])]
 _VEC3 += [("x", [NAN, 0.0, 0.0]), ("x", [1.0]), ("x", "a")]
@@ -4055,6 +4055,9 @@ def _signature_call(spec: dict, ctx):
     return fn, sig, args
 
 
+_CLEARLY_WRONG = {"none", "bytes", "dict", "mjmodel", "object", "lambda", "set", "configuration"}
+
+
 def _names_argument(text: str, name: str, value) -> bool:
     """Whether an error message names the argument: its name (any case, ``_`` or a
     space), or the offending value itself (a string or number; a key of a mapping)."""
@@ -4101,7 +4104,10 @@ def run_signature(spec: dict) -> str:
         try:
             out = fn(*positional, **args)
         except qpik.QpikError as exc:
-            if not _names_argument(str(exc), param.name, wrong):
+            # a value of a wrong type must be named; a value of the right type may fail
+            # further on (no geom pair left, an unknown frame) with that reason instead
+            wrong_type = isinstance(exc, TypeError) or spec["value"] in _CLEARLY_WRONG
+            if wrong_type and not _names_argument(str(exc), param.name, wrong):
                 detail = f"{spec['target']}({param.name}={spec['value']}): {str(exc)[:200]}"
                 raise Bad("message", detail) from None
             raise

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -50,7 +50,7 @@ from .core import (
 )
 from .core._kernels import merge_boxes, tighten
 from .core.hierarchy import _STATUS, LevelCertificate, certificates
-from .errors import InfeasibleLimits, InvalidInput, InvalidTarget
+from .errors import InfeasibleLimits, InvalidArgumentType, InvalidInput, InvalidTarget
 from .options import UNSET, StepOptions, _Unset
 from .tasks import BaseTask
 
@@ -351,6 +351,8 @@ class IKSolver:
         backend_options = self.options.backend_options
         self.model = model
         self.levels = normalize_stack(stack)
+        if isinstance(limits, (str, bytes, Mapping)) or not isinstance(limits, Iterable):
+            raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))
         self.limits = list(limits)
         for limit in self.limits:
             if not hasattr(limit, "compute_qp_inequalities"):

@@ -92,10 +92,10 @@ def collision_pairs(
     """Geom id pairs ``(a, b)``, ``a < b``, sorted, that the model lets collide (the filter
     is in the module docstring): ``scene``: a robot geom against a geom of the world body;
     ``self_collision``: two robot geoms (on bodies other than the world body)."""
-    excluded = _excluded_bodies(model)
     checks.check_model("model", model)
     checks.check_bool("scene", scene)
     checks.check_bool("self_collision", self_collision)
+    excluded = _excluded_bodies(model)
     geoms = collision_geoms(model)
     pairs = set()
     for i, a in enumerate(geoms):
@@ -155,7 +155,11 @@ def model_collision_limit(
     """
     pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
     if geoms is not None:
-        if isinstance(geoms, (str, bytes)) or not isinstance(geoms, (list, tuple, np.ndarray)):
+        if (
+            isinstance(geoms, (str, bytes))
+            or not isinstance(geoms, (list, tuple, np.ndarray))
+            or np.ndim(geoms) != 1
+        ):
             raise InvalidArgumentType(
                 "geoms", "a list of geom names or ids", checks.type_name(geoms)
             )
