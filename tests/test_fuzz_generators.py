@@ -93,8 +93,8 @@ def _problem(tmp_path: Path, extra: str, robot: str = "panda") -> Path:
     path = tmp_path / "p.toml"
     path.write_text(
         f'robot = "{robot}"\n'
-        "levels = [[{type = \"position\", frame = \"ee\"}]]\n"
-        "target = {frame = \"ee\", position = [0.3, 0.1, 0.4]}\n" + extra
+        'levels = [[{type = "position", frame = "ee"}]]\n'
+        'target = {frame = "ee", position = [0.3, 0.1, 0.4]}\n' + extra
     )
     return path
 
@@ -106,13 +106,13 @@ def _problem(tmp_path: Path, extra: str, robot: str = "panda") -> Path:
         ('[[levels]]\nname = 3\ntasks = [{type = "posture"}]\n', "name"),
         # an infinite detection distance was accepted
         (
-            "[[obstacles]]\nshape = \"sphere\"\nsize = [0.05]\nposition = [0.5, 0.5, 0.5]\n"
+            '[[obstacles]]\nshape = "sphere"\nsize = [0.05]\nposition = [0.5, 0.5, 0.5]\n'
             "[limits.collision]\ndetection_distance = inf\n",
             "limits.collision.detection_distance",
         ),
         # a NaN minimum distance was named limits.collision only
         (
-            "[[obstacles]]\nshape = \"sphere\"\nsize = [0.05]\nposition = [0.5, 0.5, 0.5]\n"
+            '[[obstacles]]\nshape = "sphere"\nsize = [0.05]\nposition = [0.5, 0.5, 0.5]\n'
             "[limits.collision]\nmin_distance = nan\n",
             "limits.collision.min_distance",
         ),
