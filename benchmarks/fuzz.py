@@ -59,7 +59,8 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-BAD = ("untyped", "nonfinite", "limits", "claim", "misreport", "hang", "crash", "nondet")
+BAD = ("untyped", "nonfinite", "limits", "claim", "misreport", "message", "accepted", "refused")
+BAD += ("hang", "crash", "nondet")
 COLUMNS = ("ok", "typed") + BAD
 CATEGORIES = (
     "solve",
@@ -73,6 +74,10 @@ CATEGORIES = (
     "determinism",
     "boundary",
     "engine",
+    "robot_gen",
+    "schema",
+    "stack",
+    "signature",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
 NAN, INF = float("nan"), float("inf")
@@ -808,6 +813,424 @@ def gen_engine(r: random.Random) -> dict:
     return spec
 
 
+# -- robots generated on the fly (issue 25, item 2): odd inertias, zero-length links,
+# meshes missing or degenerate, mimic joints, continuous / fixed-only / floating bases,
+# reversed or equal limits, NaN / inf attributes, equality constraints, odd names; loaded
+# through every public door (load_robot, a path in qpik.solve, a problem file, the CLI).
+GEN_URDF_JOINTS = ("revolute", "revolute", "continuous", "prismatic", "fixed", "mimic", "planar")
+GEN_MJCF_JOINTS = ("hinge", "hinge", "slide", "ball", "fixed", "hinge", "hinge")
+GEN_INERTIAS = ("ok", "ok", "ok", "zero", "negative", "nonpd", "huge", "tiny", "none", "nan")
+GEN_MASSES = ("1", "1", "1", "0", "-1", "1e30", "1e-12", "nan", "inf")
+GEN_LENGTHS = (0.3, 0.3, 0.3, 0.0, 1e-12, 2.0, 1e3)
+GEN_LIMITS = ("ok", "ok", "ok", "reversed", "equal", "nan", "inf", "missing", "huge")
+GEN_MESHES = ("none", "none", "none", "missing", "empty", "degenerate", "tiny", "ascii")
+GEN_AXES = ("0 0 1", "0 0 1", "0 1 0", "1 0 0", "0 0 0", "nan 0 0", "0 0 5", "1e300 0 0")
+GEN_NAMES = ("plain", "plain", "plain", "space", "unicode", "long", "dup", "dots", "numeric")
+
+
+def gen_robot_gen(r: random.Random) -> dict:
+    fmt = r.choice(["urdf", "mjcf"])
+    joints = GEN_URDF_JOINTS if fmt == "urdf" else GEN_MJCF_JOINTS
+    fixed_only = r.random() < 0.05
+    links = [
+        {
+            "joint": "fixed" if fixed_only else r.choice(joints),
+            "length": r.choice(GEN_LENGTHS) if r.random() < 0.4 else 0.3,
+            "mass": r.choice(GEN_MASSES) if r.random() < 0.3 else "1",
+            "inertia": r.choice(GEN_INERTIAS) if r.random() < 0.4 else "ok",
+            "limit": r.choice(GEN_LIMITS) if r.random() < 0.4 else "ok",
+            "mesh": r.choice(GEN_MESHES) if r.random() < 0.3 else "none",
+            "axis": r.choice(GEN_AXES) if r.random() < 0.2 else "0 0 1",
+            "mimic": r.choice(["1", "-2", "0", "nan", "1e300"]),
+            "velocity": r.choice(["1", "1", "0", "-1", "nan", "1e300"]),
+            "effort": r.choice(["10", "10", "0", "-5", "inf"]),
+        }
+        for _ in range(r.choice([1, 2, 3, 4, 5]))
+    ]
+    return {
+        "format": fmt,
+        "links": links,
+        "base": r.choices(["fixed", "free", "floating_base"], [6, 1, 1])[0],
+        "names": r.choice(GEN_NAMES),
+        "equality": r.choice(["none", "none", "joint", "connect", "weld", "inactive", "bad"]),
+        "entry": r.choice(["load", "load", "load", "problem", "solve_path", "cli"]),
+        "q": r.choice(["mid", "random", "qpos0"]),
+        "seed": r.randrange(10**6),
+    }
+
+
+# -- problem files written from every field of the schema (qpik/problem/*.py): a valid
+# base per robot and mode, then one field set to a valid, boundary or invalid value.
+#: (path, [(tag, value), ...]); tag: "v" valid, "b" boundary (valid), "x" invalid. Symbolic
+#: values ("@...") are resolved against the model when the file is written.
+_BAD_TYPES = [("x", "a"), ("x", True), ("x", [1.0]), ("x", {"a": 1})]
+
+
+def _range_values(low, high, low_open, integer=False):
+    step = (lambda v: v + 1) if integer else (lambda v: v * (1 + 1e-6) if v else 1e-300)
+    down = (lambda v: v - 1) if integer else (lambda v: v * (1 - 1e-6) if v > 0 else -1e-300)
+    out = [("x" if low_open else "b", low), ("b", high), ("x", down(low)), ("x", step(high))]
+    if not integer:
+        out += [("x", NAN), ("x", INF), ("x", -INF)]
+    else:
+        out += [("x", 1.5), ("x", 2**70)]
+    return out + [("x", "a"), ("x", True)]
+
+
+SCHEMA_SOLVER = {
+    "tol_position": (1e-12, 1e3, False, False),
+    "tol_orientation": (1e-12, math.pi, False, False),
+    "max_iters": (1, 100_000, False, True),
+    "restarts": (0, 100_000, False, True),
+    "seed": (0, 2**63 - 1, False, True),
+    "time_budget": (0.0, 86_400.0, True, False),
+    "alpha": (0.0, 1.0, True, False),
+    "beta": (0.0, 100.0, True, False),
+    "singular_threshold": (0.0, 1e3, False, False),
+    "max_damping": (0.0, 1e6, False, False),
+    "damping": (0.0, 1e6, False, False),
+    "stall_window": (1, 100_000, False, True),
+}
+SCHEMA_SOLVE_ONLY = {"max_iters", "restarts", "time_budget", "alpha", "beta", "max_step", "seed"}
+SCHEMA_SOLVE_ONLY |= {"stall_window"}
+_POS = [("v", [0.3, 0.1, 0.2]), ("b", [1e6, 0.0, 0.0]), ("x", [1.01e6, 0.0, 0.0])]
+_POS += [("x", [NAN, 0.0, 0.0]), ("x", [INF, 0.0, 0.0]), ("x", [1.0, 2.0]), ("x", "a")]
+_POS += [("x", [[1.0, 2.0, 3.0]]), ("x", ["a", 0.0, 0.0]), ("x", [True, 0.0, 0.0])]
+_RPY = [("v", [0.0, 0.0, 0.0]), ("b", [100.0, 0.0, 0.0]), ("x", [100.5, 0.0, 0.0])]
+_RPY += [("x", [NAN, 0.0, 0.0]), ("x", [0.0, 0.0]), ("x", "a")]
+_QUAT = [("v", [1.0, 0.0, 0.0, 0.0]), ("x", [0.0, 0.0, 0.0, 0.0]), ("x", [NAN, 0.0, 0.0, 1.0])]
+_QUAT += [("x", [1.0, 0.0, 0.0]), ("b", [2.0, 0.0, 0.0, 0.0]), ("b", [1e308, 1e308, 0.0, 0.0])]
+_MAT = [
+    ("v", [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]),
+    ("x", [[2.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]),
+]
+_MAT += [("x", [[1.0, 0], [0, 1.0]]), ("x", [[NAN, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])]
+_MAT += [("x", [[-1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]])]
+_COST3 = [("v", 0.0), ("v", [1.0, 1.0, 0.0]), ("b", 1e6), ("x", 1.01e6), ("x", -1.0)]
+_COST3 += [("x", NAN), ("x", INF), ("x", [1.0, 2.0]), ("x", "a"), ("x", [1.0, 1.0, -1.0])]
+_GAIN = [("v", 0.5), ("b", 1.0), ("x", 0.0), ("x", 1.0000001), ("x", -0.1), ("x", NAN)]
+_GAIN += [("x", "a"), ("x", True)]
+_LMD = [("b", 0.0), ("b", 1e6), ("x", 1.01e6), ("x", -1.0), ("x", NAN), ("x", "a")]
+_FT = [("v", "site"), ("x", "bogus"), ("x", 3), ("x", "SITE ")]
+_FRAME = [("v", "ee"), ("x", "nope"), ("x", 3), ("x", ""), ("x", ["ee"])]
+_VEC3 = [("v", [0.0, 0.0, -10.0]), ("b", [1e9, 0.0, 0.0]), ("x", [1.01e9, 0.0, 0.0])]
+_VEC3 += [("x", [NAN, 0.0, 0.0]), ("x", [1.0]), ("x", "a")]
+_Q = [("v", "mid"), ("v", "qpos0"), ("b", "@q_lower"), ("b", "@q_upper"), ("x", "@q_outside")]
+_Q += [("x", "@q_nan"), ("x", "@q_short"), ("x", "@q_long"), ("x", "nokey"), ("x", 3)]
+_Q += [("x", "@q_inf"), ("x", "@q_str")]
+_TASK_TYPES = ("frame", "position", "orientation", "posture", "joint_limit_distance")
+_TASK_TYPES += ("manipulability", "damping", "com")
+
+SCHEMA_FIELDS: list[tuple[tuple, list]] = [
+    (("name",), [("v", "n"), ("b", ""), ("x", 3), ("x", ["a"])]),
+    (("description",), [("v", "d"), ("b", "x" * 10000), ("x", 1.5)]),
+    (("robot",), [("x", "nope"), ("x", 3), ("x", ""), ("x", "missing.xml"), ("x", ["panda"])]),
+    # True: every bundled robot's root body has a joint already (refused, naming it)
+    (("floating_base",), [("v", False), ("x", True), ("x", "yes"), ("x", 1)]),
+    (("q0",), _Q),
+    (("mode",), [("x", "x"), ("x", 1), ("x", "SOLVE")]),
+    (("bogus_key",), [("x", 1)]),
+    (("levels",), [("x", []), ("x", [[]]), ("x", "a"), ("x", [1]), ("x", [{"tasks": []}])]),
+    (("levels", 0, "tasks", 0, "type"), [("x", "nope"), ("x", 3), ("v", "position")]),
+    (("levels", 0, "tasks", 0), [("v", "@task:" + t) for t in _TASK_TYPES]),
+    (("levels", 0, "tasks", 0, "frame"), _FRAME),
+    (("levels", 0, "tasks", 0, "frame_type"), _FT),
+    (("levels", 0, "tasks", 0, "cost"), _COST3),
+    (("levels", 0, "tasks", 0, "gain"), _GAIN),
+    (("levels", 0, "tasks", 0, "lm_damping"), _LMD),
+    (("levels", 0, "tasks", 0, "bogus"), [("x", 1)]),
+    (("levels", 0, "tasks", 0, "target", "position"), _POS),
+    (("levels", 0, "tasks", 0, "target", "bogus"), [("x", 1)]),
+    (("levels", 0, "name"), [("v", "reach"), ("x", 3)]),
+    (("levels", 1, "tasks", 0, "cost"), [("v", 0.0), ("b", 1e6), ("x", -1.0), ("x", "@nv_short")]),
+    # a posture target may lie outside the limits (the limits keep q inside)
+    (
+        ("levels", 1, "tasks", 0, "target", "q"),
+        [(t if v != "@q_outside" else "b", v) for t, v in _Q],
+    ),
+    (("levels", 1, "tasks", 0), [("v", "@task:" + t) for t in _TASK_TYPES] + [("x", 3)]),
+    (("levels", 1, "tasks", 0, "rows"), [("x", "nonsense"), ("x", 3)]),
+    (("levels", 2), [("v", "@task:" + t) for t in _TASK_TYPES]),
+    (("target", "frame"), _FRAME),
+    (("target", "frame_type"), _FT),
+    (("target", "position"), _POS),
+    (("target", "rpy"), _RPY),
+    (("target", "quaternion"), _QUAT),
+    (("target", "matrix"), _MAT),
+    (("target", "bogus"), [("x", 1)]),
+    (("target",), [("x", 3), ("x", {}), ("x", "@both")]),
+    (("waypoints",), [("v", "@waypoints"), ("x", []), ("x", "a"), ("x", [3]), ("x", "@frames")]),
+    (("limits", "position"), [("v", True), ("v", False), ("x", "yes"), ("x", 1)]),
+    (("limits", "velocity"), [("v", False), ("v", 1.0), ("v", 0.5), ("x", 0.0)]),
+    (("limits", "velocity"), [("x", -1.0), ("x", NAN), ("x", "@nv_short"), ("v", "@nv_ones")]),
+    (("limits", "velocity"), [("v", "@velocity_table"), ("x", "@velocity_table_short")]),
+    (("limits", "velocity"), [("x", "@velocity_table_nan"), ("x", "a"), ("x", [-1.0])]),
+    (("limits", "support"), [("v", {"frames": ["ee"]}), ("x", {"frames": []}), ("x", 3)]),
+    (
+        ("limits", "support", "margin"),
+        [("b", 0.0), ("b", 1.0), ("x", 1.1), ("x", -0.1), ("x", NAN)],
+    ),
+    (("limits", "support", "footprint"), [("v", [[0.1, 0.1], [-0.1, 0.1], [0.0, -0.1]])]),
+    (("limits", "support", "footprint"), [("x", []), ("x", [[1.0]]), ("x", [[NAN, 0.0]])]),
+    (("limits", "support", "frame_type"), _FT),
+    (("limits", "collision"), [("v", {}), ("v", {"self": True}), ("x", {"bogus": 1}), ("x", 3)]),
+    (("limits", "collision", "min_distance"), [("b", 0.0), ("v", 0.01), ("x", -1.0), ("x", NAN)]),
+    (("limits", "collision", "detection_distance"), [("v", 0.1), ("x", -1.0), ("x", INF)]),
+    (("limits", "collision", "gain"), _GAIN),
+    (("limits", "collision", "pairs"), [("x", [[["nope"], ["ball"]]]), ("x", 3), ("x", [])]),
+    (("limits", "bogus"), [("x", 1)]),
+    (("solver", "preset"), [("v", "default"), ("v", "tracking"), ("v", "fast"), ("x", "nope")]),
+    (("solver", "solver"), [("v", "osqp"), ("v", "daqp"), ("v", "quadprog"), ("x", "nope")]),
+    (("solver", "adaptive_damping"), [("v", True), ("v", False), ("x", 1)]),
+    (("solver", "max_step"), [("v", [0.2, 0.5]), ("v", False), ("x", [0.0, 1.0]), ("x", [1.0])]),
+    (("solver", "max_step"), [("x", "a"), ("x", [NAN, 1.0]), ("x", True), ("b", [1e6, 1e6])]),
+    (("solver", "bogus"), [("x", 1)]),
+    (("solver",), [("x", 3)]),
+    (("track", "dt"), _range_values(1e-9, 1e3, False)),
+    (("track", "steps"), _range_values(1, 1_000_000, False, True)),
+    (("track", "stop_at_goal"), [("v", True), ("x", "yes")]),
+    (("track", "bogus"), [("x", 1)]),
+    (("statics", "frame"), _FRAME),
+    # frame_type without frame: refused (it would be ignored)
+    (("statics", "frame_type"), [("x", "site"), ("x", "bogus"), ("x", 3)]),
+    (("statics", "force"), _VEC3),
+    (("statics", "torque"), _VEC3),
+    (("statics", "payload_direction"), [("v", [0.0, 0.0, -1.0]), ("x", [0.0, 0.0, 0.0])]),
+    (("statics", "payload_direction"), [("x", [NAN, 0.0, 1.0]), ("x", [1e308, 1e308, 0.0])]),
+    (("statics", "bogus"), [("x", 1)]),
+    (
+        ("obstacles",),
+        [("v", "@obstacle:sphere"), ("v", "@obstacle:box"), ("v", "@obstacle:capsule")],
+    ),
+    (("obstacles",), [("x", "@obstacle:cone"), ("x", 3), ("x", [3]), ("x", "@obstacle:dup")]),
+    (
+        ("obstacles", 0, "size"),
+        [("x", [-1.0]), ("x", [0.0]), ("x", [1.0, 2.0, 3.0, 4.0]), ("x", "a")],
+    ),
+    (("obstacles", 0, "position"), [("x", [NAN, 0.0, 0.0]), ("b", [1e6, 0.0, 0.0]), ("x", "a")]),
+    (("obstacles", 0, "bogus"), [("x", 1)]),
+]
+SCHEMA_FIELDS += [(("solver", k), _range_values(*v)) for k, v in SCHEMA_SOLVER.items()]
+
+
+def gen_schema(r: random.Random) -> dict:
+    path, values = r.choice(SCHEMA_FIELDS)
+    tag, value = r.choice(values)
+    mode = r.choice(["solve", "solve", "track"])
+    return {
+        "robot": r.choice(ROBOTS),
+        "mode": mode,
+        "path": list(path),
+        "tag": tag,
+        "value": value,
+        "goal": r.choice(["target", "target", "waypoints"]),
+        "seed": r.randrange(10**6),
+        "cli": r.random() < 0.3,
+    }
+
+
+# -- every task and limit type (qpik's and mink's) at every priority level
+STACK_TASKS = TASKS[:-1] + (
+    "mink_frame",
+    "mink_posture",
+    "mink_com",
+    "mink_damping",
+    "mink_relative",
+    "mink_kinetic",
+    "mink_freeze",
+    "mink_look_at",
+)
+STACK_LIMITS = (
+    "config",
+    "mink_config",
+    "velocity",
+    "mink_velocity",
+    "joint_limits",
+    "collision",
+    "mink_collision",
+    "support",
+    "free_velocity",
+)
+STACK_DT = (1e-9, 1e6, 9.999e-10, 1.000001e6, 0.01, 0.01, 1.0, 1e-3)
+
+
+def gen_stack(r: random.Random) -> dict:
+    n_levels = r.choice([1, 2, 3, 4, 5])
+    tasks = []
+    for _ in range(r.choice([1, 2, 3, 4, 5, 6])):
+        kind = r.choice(STACK_TASKS)
+        task = {"type": kind}
+        while not kind.startswith("mink"):
+            task = _task(r)  # until one of this kind, with no wrong-type argument
+            if task["type"] == kind and "wrong" not in task:
+                break
+        task.setdefault("target", r.choice(["reach", "start", "far", "none", "nan"]))
+        task["level"] = r.randrange(n_levels)
+        tasks.append(task)
+    limits = []
+    for _ in range(r.choice([0, 1, 2, 3, 4])):
+        limits.append(
+            [
+                r.choice(STACK_LIMITS),
+                r.choice([0.95, 0.5, 1.0, 0.1, 0.0]),
+                r.choice([0.0, 0.0, 0.01, 0.1, 10.0]),
+            ]
+        )
+    return {
+        "robot": r.choice(ROBOTS + ("floaty", "floaty")),
+        "levels": n_levels,
+        "tasks": tasks,
+        "limits": limits,
+        "constraints": r.choice([[], [], ["freeze"], ["posture"]]),
+        "dt": r.choice(STACK_DT),
+        "q": r.choice(["mid", "random", "random", "inside_tiny", "outside"]),
+        "steps": r.choice([1, 1, 2, 3]),
+        "entry": r.choice(["step", "step", "solve_ik", "build_ik"]),
+        "solver": r.choice(["auto", "osqp", "daqp", "quadprog"]),
+    }
+
+
+# -- wrong types for every argument of every public function (by its signature)
+SIGNATURE_TARGETS = (
+    (
+        "qpik.solve",
+        "qpik.solve_many",
+        "qpik.reachability",
+        "qpik.load_robot",
+        "qpik.load_problem",
+        "qpik.frame_names",
+        "qpik.joint_names",
+        "qpik.Configuration",
+        "qpik.IKSolver",
+        "IKSolver.step",
+        "qpik.IKSession",
+        "IKSession.solve",
+        "qpik.solve_ik",
+        "qpik.build_ik",
+        "qpik.DampingLaw",
+        "qpik.SolveOptions",
+        "qpik.StepOptions",
+        "Configuration.frame_pose",
+        "Configuration.frame_jacobian",
+        "Configuration.integrate",
+        "Problem.solve",
+    )
+    + tuple(
+        f"qpik.analysis.{n}"
+        for n in (
+            "analyze",
+            "condition_number",
+            "damped_pseudoinverse",
+            "degree_of_redundancy",
+            "joint_limit_distance",
+            "joint_limit_distance_gradient",
+            "manipulability",
+            "manipulability_gradient",
+            "null_space",
+            "nullspace_step",
+            "pseudoinverse",
+            "rank",
+            "self_motion",
+            "singular_values",
+            "singularity",
+            "solution_set",
+        )
+    )
+    + tuple(
+        f"qpik.statics.{n}"
+        for n in (
+            "force_ellipsoid",
+            "gravity_torques",
+            "holding_torques",
+            "joint_torque_limits",
+            "joint_torques",
+            "max_payload",
+            "wrench_from_torques",
+        )
+    )
+    + tuple(
+        f"qpik.plots.{n}"
+        for n in (
+            "is_planar",
+            "joint_curves",
+            "plot_joints",
+            "plot_planar_arm",
+            "plot_robot",
+            "plot_singular_values",
+            "robot_segments",
+            "plot_level_errors",
+        )
+    )
+    + tuple(
+        f"qpik.tasks.{n}"
+        for n in (
+            "AxisAlignTask",
+            "ComTask",
+            "DampingTask",
+            "DofFreezingTask",
+            "FrameTask",
+            "JointLimitDistanceTask",
+            "KineticEnergyRegularizationTask",
+            "LookAtTask",
+            "ManipulabilityTask",
+            "OrientationTask",
+            "PoseTask",
+            "PositionTask",
+            "PostureTask",
+            "RelativeFrameTask",
+        )
+    )
+    + tuple(
+        f"qpik.limits.{n}"
+        for n in (
+            "ConfigurationLimit",
+            "VelocityLimit",
+            "SupportPolygonLimit",
+            "joint_limits",
+            "model_collision_limit",
+            "CollisionAvoidanceLimit",
+            "collision_pairs",
+        )
+    )
+)
+#: Wrong values for any argument: (label, how to make it; made in the worker).
+SIGNATURE_VALUES = (
+    "none",
+    "str",
+    "bytes",
+    "dict",
+    "mjmodel",
+    "nested",
+    "int_array",
+    "bool_array",
+    "complex_array",
+    "object_array",
+    "array_3d",
+    "array_0d",
+    "empty_array",
+    "bool",
+    "huge_int",
+    "neg_int",
+    "nan",
+    "inf",
+    "object",
+    "configuration",
+    "lambda",
+    "set",
+    "str_array",
+)
+
+
+def gen_signature(r: random.Random) -> dict:
+    return {
+        "target": r.choice(SIGNATURE_TARGETS),
+        "robot": r.choice(["planar_2r", "planar_4r", "panda"]),
+        "pick": r.randrange(10**6),
+        "value": r.choice(SIGNATURE_VALUES),
+        "positional": r.random() < 0.3,
+    }
+
+
 GENERATORS = {
     "solve": gen_solve,
     "solve_many": gen_solve_many,
@@ -820,6 +1243,10 @@ GENERATORS = {
     "determinism": gen_determinism,
     "boundary": gen_boundary,
     "engine": gen_engine,
+    "robot_gen": gen_robot_gen,
+    "schema": gen_schema,
+    "stack": gen_stack,
+    "signature": gen_signature,
 }
 
 
@@ -919,9 +1346,10 @@ def _limits_of(model):
     lower = np.full(model.nq, -np.inf)
     upper = np.full(model.nq, np.inf)
     for j in range(model.njnt):
-        if model.jnt_limited[j] and model.jnt_type[j] in (
-            mujoco.mjtJoint.mjJNT_HINGE,
-            mujoco.mjtJoint.mjJNT_SLIDE,
+        # int(): a NumPy integer never equals a mjtJoint member (the test was always False)
+        if model.jnt_limited[j] and int(model.jnt_type[j]) in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
         ):
             adr = model.jnt_qposadr[j]
             lower[adr], upper[adr] = model.jnt_range[j]
@@ -1733,8 +2161,8 @@ def _check_problem_claim(problem, result) -> None:
     """Every reported error of a problem's result against forward kinematics of the
     configuration it belongs to (every frame of every goal), and a claim of convergence
     against the tolerances."""
-    tol_p = problem.options.get("tol_position", 1e-4)
-    tol_o = problem.options.get("tol_orientation", 1e-3)
+    tol_p = problem.solve_options.tol_position  # the preset's, or the file's own
+    tol_o = problem.solve_options.tol_orientation
 
     def measure(goal, q) -> dict:
         return {
@@ -2680,6 +3108,1018 @@ def run_engine(spec: dict) -> str:
     return _digest(name, repr(type(out)))
 
 
+# -- robots generated on the fly
+def _gen_mesh(kind: str, folder: Path, name: str) -> str:
+    import struct
+
+    path = folder / f"{name}.stl"
+    if kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "ascii":
+        path.write_text(
+            "solid x\\nfacet normal 0 0 1\\nouter loop\\nvertex 0 0 0\\nvertex 1 0 0\\n"
+            "vertex 0 1 0\\nendloop\\nendfacet\\nendsolid x\\n"
+        )
+    elif kind in ("degenerate", "tiny"):
+        a = 0.01
+        v = [(0.0, 0.0, 0.0), (a, 0.0, 0.0), (0.0, a, 0.0), (0.0, 0.0, a)]
+        faces = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+        if kind == "degenerate":
+            v = [(0.0, 0.0, 0.0)] * 4
+        body = b"".join(
+            struct.pack("<12fH", 0.0, 0.0, 0.0, *v[i], *v[j], *v[k], 0) for i, j, k in faces
+        )
+        path.write_bytes(b"\\0" * 80 + struct.pack("<I", len(faces)) + body)
+    return path.name  # "missing": never written
+
+
+def _gen_names(style: str, n: int) -> tuple[list[str], str]:
+    """Link / body names and the tool frame's name of a generated robot."""
+    pattern, tool = {
+        "plain": ("l{}", "ee"),
+        "space": ("link {}", "end effector"),
+        "unicode": ("lien_é{}", "outil_ü"),
+        "long": ("l" * 150 + "{}", "e" * 200),
+        "dup": ("tip{}", f"tip{n - 1}"),
+        "dots": ("a.b:c/{}", "t.o/o:l"),
+        "numeric": ("{}", "0"),
+    }[style]
+    return [pattern.format(i) for i in range(n)], tool
+
+
+_INERTIA_XML = {
+    "ok": (0.01, 0.01, 0.01, 0.0, 0.0, 0.0),
+    "zero": (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+    "negative": (-0.01, 0.01, 0.01, 0.0, 0.0, 0.0),
+    "nonpd": (1.0, 0.01, 0.01, 0.0, 0.0, 0.0),
+    "offdiag": (0.01, 0.01, 0.01, 1.0, 0.0, 0.0),
+    "huge": (1e30, 1e30, 1e30, 0.0, 0.0, 0.0),
+    "tiny": (1e-30, 1e-30, 1e-30, 0.0, 0.0, 0.0),
+    "nan": (NAN, 0.01, 0.01, 0.0, 0.0, 0.0),
+}
+_LIMIT_XML = {
+    "ok": ("-2", "2"),
+    "reversed": ("1", "-1"),
+    "equal": ("0.5", "0.5"),
+    "nan": ("nan", "1"),
+    "inf": ("-inf", "inf"),
+    "huge": ("-1e300", "1e300"),
+}
+
+
+# Complexity above 10: one branch per kind of generated feature.
+def _gen_urdf(spec: dict, folder: Path) -> tuple[str, str, str]:
+    names, _tool = _gen_names(spec["names"], len(spec["links"]))
+    links = ['<link name="base"/>']
+    joints = []
+    parent = "base"
+    for i, (link, name) in enumerate(zip(spec["links"], names)):
+        inertial = ""
+        if link["inertia"] != "none":
+            xx, yy, zz, xy, xz, yz = _INERTIA_XML.get(link["inertia"], _INERTIA_XML["ok"])
+            inertial = (
+                f'<inertial><origin xyz="0 0 0"/><mass value="{link["mass"]}"/>'
+                f'<inertia ixx="{xx}" iyy="{yy}" izz="{zz}" ixy="{xy}" ixz="{xz}" iyz="{yz}"/>'
+                "</inertial>"
+            )
+        geometry = '<cylinder radius="0.03" length="0.3"/>'
+        if link["mesh"] != "none":
+            geometry = f'<mesh filename="{_gen_mesh(link["mesh"], folder, f"m{i}")}"/>'
+        links.append(
+            f'<link name="{name}">{inertial}<collision><geometry>{geometry}</geometry>'
+            f"</collision></link>"
+        )
+        kind = link["joint"]
+        jtype = "revolute" if kind == "mimic" else kind
+        if i == 0 and spec["base"] == "free":
+            jtype = "floating"
+        length = 0.0 if i == 0 else spec["links"][i - 1]["length"]
+        limit = ""
+        if link["limit"] != "missing" and jtype in ("revolute", "prismatic"):
+            lo, hi = _LIMIT_XML[link["limit"]]
+            limit = (
+                f'<limit lower="{lo}" upper="{hi}" effort="{link["effort"]}" '
+                f'velocity="{link["velocity"]}"/>'
+            )
+        mimic = ""
+        if kind == "mimic":
+            mimic = (
+                f'<mimic joint="j{i - 1 if i else 99}" multiplier="{link["mimic"]}" offset="0"/>'
+            )
+        joints.append(
+            f'<joint name="j{i}" type="{jtype}"><parent link="{parent}"/><child link="{name}"/>'
+            f'<origin xyz="{length} 0 0" rpy="0 0 0"/><axis xyz="{link["axis"]}"/>'
+            f"{limit}{mimic}</joint>"
+        )
+        parent = name
+    text = f'<?xml version="1.0"?><robot name="gen">{"".join(links)}{"".join(joints)}</robot>'
+    path = folder / "robot.urdf"
+    path.write_text(text, encoding="utf-8")
+    return str(path), names[-1], "body"
+
+
+# Complexity above 10: one branch per kind of generated feature.
+def _gen_mjcf(spec: dict, folder: Path) -> tuple[str, str, str]:
+    names, tool = _gen_names(spec["names"], len(spec["links"]))
+    bodies, assets, joint_names = [], [], []
+    for i, (link, name) in enumerate(zip(spec["links"], names)):
+        pos = "0 0 0" if i == 0 else f"{spec['links'][i - 1]['length']} 0 0"
+        kind = link["joint"]
+        joint = ""
+        if i == 0 and spec["base"] == "free":
+            joint = f'<joint name="j{i}" type="free"/>'
+        elif kind != "fixed":
+            joint = f'<joint name="j{i}" type="{kind}"'
+            if kind in ("hinge", "slide"):
+                joint += f' axis="{link["axis"]}"'
+                joint_names.append(f"j{i}")
+                if link["limit"] != "missing":
+                    joint += f' range="{" ".join(_LIMIT_XML[link["limit"]])}" limited="true"'
+            elif kind == "ball" and link["limit"] not in ("missing", "reversed", "nan"):
+                joint += ' range="0 1.5" limited="true"'
+            joint += "/>"
+        inertial = ""
+        if link["inertia"] != "none":
+            xx, yy, zz, xy, xz, yz = _INERTIA_XML.get(link["inertia"], _INERTIA_XML["ok"])
+            inertial = (
+                f'<inertial pos="0 0 0" mass="{link["mass"]}" '
+                f'fullinertia="{xx} {yy} {zz} {xy} {xz} {yz}"/>'
+            )
+        geom = f'<geom type="capsule" fromto="0 0 0 {link["length"]} 0 0" size="0.03"/>'
+        if link["mesh"] != "none":
+            assets.append(f'<mesh name="m{i}" file="{_gen_mesh(link["mesh"], folder, f"m{i}")}"/>')
+            geom = f'<geom type="mesh" mesh="m{i}"/>'
+        bodies.append(f'<body name="{name}" pos="{pos}">{joint}{inertial}{geom}')
+    site = f'<site name="{tool}" pos="{spec["links"][-1]["length"]} 0 0"/>'
+    tree = "".join(bodies) + site + "</body>" * len(bodies)
+    equality = ""
+    eq = spec["equality"]
+    if eq == "joint" and len(joint_names) >= 2:
+        equality = (
+            f'<joint joint1="{joint_names[1]}" joint2="{joint_names[0]}" polycoef="0 1 0 0 0"/>'
+        )
+    elif eq == "inactive" and len(joint_names) >= 2:
+        equality = f'<joint joint1="{joint_names[1]}" joint2="{joint_names[0]}" active="false"/>'
+    elif eq == "connect":
+        equality = f'<connect body1="{names[-1]}" body2="world" anchor="0 0 0"/>'
+    elif eq == "weld":
+        equality = f'<weld body1="{names[-1]}"/>'
+    elif eq == "bad":
+        equality = '<joint joint1="nope"/>'
+    velocities = " ".join(link["velocity"] for link in spec["links"] if link["joint"] != "fixed")
+    custom = ""
+    if any(link["velocity"] != "1" for link in spec["links"]):
+        custom = f'<custom><numeric name="velocity_limit" data="{velocities or "1"}"/></custom>'
+    text = (
+        f'<mujoco model="gen"><asset>{"".join(assets)}</asset><worldbody>{tree}</worldbody>'
+        f"{f'<equality>{equality}</equality>' if equality else ''}{custom}</mujoco>"
+    )
+    path = folder / "robot.xml"
+    path.write_text(text, encoding="utf-8")
+    return str(path), tool, "site"
+
+
+def _gen_q(kind: str, model, rng):
+    """A configuration within the model's limits: its qpos0, the middle of its ranges or a
+    random one (ball and free joints: qpos0 moved along a random velocity)."""
+    np = _np()
+    import mujoco
+
+    q = model.qpos0.copy()
+    if kind == "qpos0":
+        return q
+    v = np.zeros(model.nv)
+    for j in range(model.njnt):
+        adr, dof = model.jnt_qposadr[j], model.jnt_dofadr[j]
+        lo, hi = model.jnt_range[j]
+        limited = bool(model.jnt_limited[j]) and lo < hi
+        if int(model.jnt_type[j]) in (
+            int(mujoco.mjtJoint.mjJNT_HINGE),
+            int(mujoco.mjtJoint.mjJNT_SLIDE),
+        ):
+            lo, hi = (lo, hi) if limited else (-1.0, 1.0)
+            q[adr] = 0.5 * (lo + hi) if kind == "mid" else rng.uniform(lo, hi)
+        elif kind == "random":
+            n = 3 if int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_BALL) else 6
+            v[dof : dof + n] = rng.uniform(-0.3, 0.3, n)
+    if kind == "random":
+        mujoco.mj_integratePos(model, q, v, 1.0)
+    return q
+
+
+def _equality_residual(model, q) -> float:
+    """The largest residual of the model's active equality constraints at ``q``."""
+    np = _np()
+    import mujoco
+
+    if model.neq == 0:
+        return 0.0
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    rows = data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    return float(np.max(np.abs(data.efc_pos[: data.nefc][rows]), initial=0.0))
+
+
+def _check_equality_claim(model, q, converged: bool, where: str) -> None:
+    if converged and _equality_residual(model, q) > 1e-6:
+        raise Bad(
+            "claim", f"{where}: converged with equality residual {_equality_residual(model, q):.3g}"
+        )
+
+
+def _check_frame_pose(configuration, frame: str, ftype: str, where: str) -> None:
+    """qpik's frame pose against MuJoCo's forward kinematics of the same q."""
+    np = _np()
+    position, rotation = configuration.frame_pose(frame, ftype)
+    _finite((position, rotation), where)
+    fp, fr = _fk(configuration.model, configuration.q, frame, ftype)
+    if np.linalg.norm(np.asarray(position) - fp) > 1e-9 * max(1.0, np.linalg.norm(fp)):
+        raise Bad("misreport", f"{where} position {position} but FK says {fp}")
+    if _angle(rotation, fr) > 1e-7:
+        raise Bad("misreport", f"{where} rotation off FK by {_angle(rotation, fr)} rad")
+
+
+# Complexity above 10: every public entry point on one generated robot.
+def _exercise_generated(model, frame: str, ftype: str, q0, target) -> str:
+    np = _np()
+    import qpik
+    from qpik import analysis, statics
+
+    cfg = qpik.Configuration(model, q0)
+    _check_frame_pose(cfg, frame, ftype, "frame_pose")
+    out = [statics.gravity_torques(cfg), statics.holding_torques(cfg)]
+    out.append(statics.joint_torques(cfg, frame, [0.0, 0.0, -10.0], frame_type=ftype))
+    _finite(out, "statics")
+    limits_tau = statics.joint_torque_limits(cfg)
+    if np.any(np.isnan(limits_tau)):
+        raise Bad("nonfinite", f"joint_torque_limits = {limits_tau}")
+    payload = statics.max_payload(cfg, frame, [0.0, 0.0, -1.0], frame_type=ftype)
+    if (math.isnan(payload.force) and payload.feasible) or any(map(math.isnan, payload.interval)):
+        raise Bad("nonfinite", f"max_payload = {payload}")  # documented: NaN when infeasible
+    ellipsoid = statics.force_ellipsoid(cfg, frame, ftype)
+    if np.any(np.isnan(ellipsoid.lengths)) or np.any(ellipsoid.lengths < 0):
+        raise Bad("nonfinite", f"force_ellipsoid lengths {ellipsoid.lengths}")  # inf documented
+    _finite(ellipsoid.axes, "force_ellipsoid.axes")
+    _finite(statics.wrench_from_torques(cfg, frame, out[2], ftype), "wrench_from_torques")
+    report = analysis.analyze(cfg, frame, ftype)
+    _finite(report, "analyze", allow=(".condition_number",))
+    _finite(analysis.manipulability_gradient(cfg, frame, ftype), "manipulability_gradient")
+    digests = [_digest(*out)]
+    if model.nv == 0:
+        return _digest(*digests)
+    result = qpik.solve(model, {(frame, ftype): target}, q0=q0, restarts=1, max_iters=40, seed=0)
+    _check_ik_result(result, model, (frame, ftype), target, {})
+    _check_equality_claim(model, result.q, result.converged, "solve")
+    task = qpik.tasks.PositionTask(frame, ftype)
+    task.set_target(np.asarray(target) + 0.05)
+    com = qpik.tasks.ComTask(cost=0.1)
+    com.set_target_from_configuration(cfg)
+    posture = qpik.tasks.PostureTask(model, cost=0.01)
+    posture.set_target_from_configuration(cfg)
+    limits = [
+        qpik.limits.ConfigurationLimit(model, gain=0.95),
+        qpik.limits.ConfigurationLimit(model, gain=0.3, min_distance_from_limits=0.01),
+        *qpik.limits.joint_limits(model),
+    ]
+    step = qpik.IKSolver(model, [[task], [com], [posture]], limits).step(cfg, 0.01)
+    _finite(step, "step", allow=(".solve_time",))
+    inside = cfg.within_limits(0.0)
+    if inside:
+        _check_within(model, cfg.integrate(step.velocity, 0.01), "q after the step", tol=1e-7)
+    v = qpik.solve_ik(cfg, [[task], [posture]], 0.01, limits=limits[:1])
+    _finite(v, "solve_ik")
+    if inside:
+        _check_within(model, cfg.integrate(v, 0.01), "q after solve_ik", tol=1e-7)
+    digests.append(_digest(result.q, np.asarray(step.velocity), np.asarray(v)))
+    return _digest(*digests)
+
+
+def _gen_problem_file(spec, folder: Path, path: str, frame, ftype, q0, target) -> Path:
+    track = spec["seed"] % 3 == 0
+    data = {
+        "name": "generated",
+        "robot": Path(path).name,
+        "floating_base": spec["base"] == "floating_base",
+        "q0": [float(x) for x in q0],
+        "mode": "track" if track else "solve",
+        "levels": [
+            [{"type": "position", "frame": frame, "frame_type": ftype}],
+            [{"type": "posture", "cost": 0.01}],
+        ],
+        "target": {"frame": frame, "frame_type": ftype, "position": [float(x) for x in target]},
+        "statics": {"force": [0.0, 0.0, -10.0]},
+    }
+    if track:
+        data["track"] = {"dt": 0.01, "steps": 30}
+    else:
+        data["solver"] = {"restarts": 1, "max_iters": 40}
+    problem_path = folder / "problem.toml"
+    problem_path.write_text(to_toml(data), encoding="utf-8")
+    return problem_path
+
+
+def _check_problem_run(problem, result) -> None:
+    """A problem's result against the limits and forward kinematics."""
+    _finite(result.q, "result.q")
+    _finite(
+        result.to_dict(),
+        "result.to_dict()",
+        allow=("['solve_time']", "['step_time_mean']", "['step_time_max']"),
+    )
+    if problem.position_limits:
+        _check_within(problem.model, result.q, "result.q")
+    if problem.velocity_limits is not None and result.trace is not None:
+        if result.trace.max_velocity_ratio > 1 + 1e-6:
+            raise Bad("limits", f"max |v| / v_max = {result.trace.max_velocity_ratio}")
+    _check_problem_claim(problem, result)
+    _check_equality_claim(problem.model, result.q, result.converged, "problem")
+
+
+def _cli_json(path: Path) -> dict | None:
+    """``qpik reach FILE --json -``: its exit code checked, its JSON parsed and finite."""
+    import json
+
+    code, out, err = _cli(["reach", str(path), "--json", "-"])
+    _cli_check(code, err, (0, 1, 2))
+    if code == 2:
+        if not err.strip():
+            raise Bad("message", "exit 2 with nothing on stderr")
+        return None
+    start = out.find("\n{")
+    text = out[start + 1 :] if start >= 0 else out[out.find("{") :]
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise Bad("untyped", f"--json - printed no JSON: {exc}: {out[:200]!r}") from None
+    _finite(data, "json", allow=("['solve_time']", "['step_time_mean']", "['step_time_max']"))
+    if bool(data.get("converged")) != (code == 0):
+        raise Bad("misreport", f"exit {code} but converged = {data.get('converged')}")
+    return data
+
+
+def run_robot_gen(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    rng = np.random.default_rng(spec["seed"])
+    with tempfile.TemporaryDirectory() as d:
+        folder = Path(d)
+        writer = _gen_urdf if spec["format"] == "urdf" else _gen_mjcf
+        path, frame, ftype = writer(spec, folder)
+        floating = spec["base"] == "floating_base"
+        model = qpik.load_robot(path, floating_base=floating)
+        q0 = _gen_q(spec["q"], model, rng)
+        target = _fk(model, _gen_q("random", model, rng), frame, ftype)[0]
+        entry = spec["entry"]
+        if entry in ("problem", "cli"):
+            problem_path = _gen_problem_file(spec, folder, path, frame, ftype, q0, target)
+            if entry == "cli":
+                return _digest(repr(_cli_json(problem_path) is None))
+            problem = qpik.load_problem(problem_path)
+            result = problem.solve()
+            _check_problem_run(problem, result)
+            return _digest(result.q)
+        if entry == "solve_path" and not floating:
+            result = qpik.solve(path, {(frame, ftype): target}, q0=q0, restarts=1, max_iters=40)
+            _check_ik_result(result, model, (frame, ftype), target, {})
+            _check_equality_claim(model, result.q, result.converged, "solve")
+            return _digest(result.q)
+        return _exercise_generated(model, frame, ftype, q0, target)
+
+
+# -- problem files from every field of the schema
+def _schema_value(value, model, spec, rng):
+    """Resolve a symbolic ``@...`` value of SCHEMA_FIELDS against the model."""
+    np = _np()
+    if not (isinstance(value, str) and value.startswith("@")):
+        return value
+    lower, upper = _limits_of(model)
+    lo = np.where(np.isfinite(lower), lower, -1.0)
+    hi = np.where(np.isfinite(upper), upper, 1.0)
+    mid = [float(x) for x in 0.5 * (lo + hi)]
+    names = _schema_joint_names(model)
+    if value == "@q_lower":
+        return [float(x) for x in lo]
+    if value == "@q_upper":
+        return [float(x) for x in hi]
+    if value == "@q_outside":
+        return [float(hi[0] + 0.1)] + mid[1:]
+    if value == "@q_nan":
+        return [NAN] + mid[1:]
+    if value == "@q_inf":
+        return [INF] + mid[1:]
+    if value == "@q_str":
+        return ["a"] + mid[1:]
+    if value == "@q_short":
+        return mid[:-1]
+    if value == "@q_long":
+        return mid + [0.0]
+    if value == "@nv_short":
+        return [1.0] * (model.nv - 1)
+    if value == "@nv_ones":
+        return [1.0] * model.nv
+    if value == "@velocity_table":
+        return {n: 1.0 for n in names}
+    if value == "@velocity_table_short":
+        return {n: 1.0 for n in names[:-1]}
+    if value == "@velocity_table_nan":
+        return {n: NAN for n in names}
+    if value.startswith("@task:"):
+        return _schema_task(value[6:], model, spec["path"][:2] == ["levels", 0])
+    if value.startswith("@obstacle:"):
+        shape = value[10:]
+        size = {"sphere": [0.05], "box": [0.05, 0.05, 0.05], "capsule": [0.03, 0.1]}
+        entry = {"shape": shape, "size": size.get(shape, [0.05]), "position": [0.5, 0.5, 0.5]}
+        if shape == "dup":
+            entry = dict(entry, shape="sphere", size=[0.05], name="ob")
+            return [entry, dict(entry)]
+        return [entry]
+    return value  # "@both", "@waypoints", "@frames": resolved by the caller
+
+
+def _schema_joint_names(model) -> list[str]:
+    import mujoco
+
+    return [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+
+
+def _schema_task(kind: str, model, goal: bool) -> dict:
+    """A valid task table of ``kind``: level 0's (``goal``) regulates the goal frame ee,
+    with a position task beside it when ``kind`` cannot; others regulate a body."""
+    import mujoco
+
+    task: dict = {"type": kind}
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody - 1)
+    if kind in ("frame", "position", "orientation", "manipulability"):
+        task.update(frame=body, frame_type="body")
+    if kind in ("frame", "orientation"):
+        task["target"] = {"rpy": [0.0, 0.0, 0.0]}
+    if kind == "frame":
+        task["target"]["position"] = [0.1, 0.1, 0.1]
+    if kind == "posture":
+        task["cost"] = 0.01
+    if goal:
+        return {"tasks": [{"type": "position", "frame": "ee", "frame_type": "site"}, task]}
+    return task
+
+
+# Complexity above 10: one branch per part of the schema.
+def _schema_data(spec, model, rng) -> dict:
+    """A valid problem of ``spec``'s robot and mode with ``spec``'s field set."""
+    goal_q = _q_value("random", model, rng)
+    position = [float(x) for x in _fk(model, goal_q, "ee", "site")[0]]
+    data: dict = {"name": "schema", "robot": spec["robot"], "mode": spec["mode"], "q0": "mid"}
+    data["levels"] = [
+        {"tasks": [{"type": "position", "frame": "ee", "frame_type": "site"}]},
+        {"tasks": [{"type": "posture", "cost": 0.01}]},
+    ]
+    goal = {"frame": "ee", "frame_type": "site", "position": position}
+    if spec["goal"] == "waypoints":
+        data["waypoints"] = [goal, dict(goal, position=[p * 0.9 for p in position])]
+    else:
+        data["target"] = goal
+    if spec["mode"] == "track":
+        data["track"] = {"dt": 0.01, "steps": 30}
+    else:
+        data["solver"] = {"restarts": 0, "max_iters": 30}
+    path = spec["path"]
+    value = _schema_value(spec["value"], model, spec, rng)
+    head = path[0]
+    if head == "track" and spec["mode"] != "track":
+        data["track"] = {}
+    if head == "levels" and len(path) > 1 and path[1] == 2:
+        data["levels"].append({"tasks": [value]})
+        return data
+    if path == ["levels", 0, "tasks", 0] and isinstance(value, dict) and "tasks" in value:
+        data["levels"][0] = value
+        return data
+    if head in ("target",) and spec["goal"] == "waypoints":
+        data["target"] = data.pop("waypoints")[0]
+    if head == "waypoints":
+        data.pop("target", None)
+        if value == "@waypoints":
+            value = [goal, dict(goal, position=[p * 0.9 for p in position])]
+        elif value == "@frames":
+            value = [
+                {
+                    "frames": [
+                        goal,
+                        {"frame": "link2", "frame_type": "body", "position": [0.1, 0.0, 0.1]},
+                    ]
+                }
+            ]
+    if head == "target" and value == "@both":
+        data["waypoints"] = [goal]
+        return data
+    if head == "limits" and len(path) > 1 and path[1] == "collision":
+        data["obstacles"] = [{"shape": "sphere", "size": [0.05], "position": [0.5, 0.5, 0.5]}]
+    if head == "limits" and len(path) > 2 and path[1] == "support":
+        data.setdefault("limits", {})["support"] = {"frames": ["ee"]}
+    if head == "obstacles" and len(path) > 1:
+        data["obstacles"] = [{"shape": "sphere", "size": [0.05], "position": [0.5, 0.5, 0.5]}]
+    node = data
+    for k in path[:-1]:
+        if isinstance(node, list):
+            node = node[k]
+            continue
+        if k not in node:
+            node[k] = {}
+        node = node[k]
+    node[path[-1]] = value
+    return data
+
+
+def _schema_field_name(path: list) -> str:
+    """The name a message about ``path`` must give: its last key (an index: the key
+    before it)."""
+    keys = [k for k in path if isinstance(k, str)]
+    if path[-1] == "bogus" or path[-1] == "bogus_key":
+        return str(path[-1])
+    if keys[-1] == "tasks" or (path[0] == "levels" and isinstance(path[-1], int)):
+        return "levels"
+    return keys[-1]
+
+
+# Complexity above 10: one branch per outcome of a schema case.
+def run_schema(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    model = _model(spec["robot"])
+    rng = np.random.default_rng(_seed_of(spec))
+    data = _schema_data(spec, model, rng)
+    invalid = spec["tag"] == "x"
+    solve_only = spec["path"][0] == "solver" and spec["path"][-1] in SCHEMA_SOLVE_ONLY
+    if solve_only and spec["mode"] == "track":
+        invalid = True
+    name = _schema_field_name(spec["path"])
+    if spec["path"][0] == "track" and spec["mode"] != "track":
+        invalid, name = True, "track"
+    scale = spec["path"] == ["limits", "velocity"] and isinstance(spec["value"], float)
+    declared = qpik.Configuration(model).velocity_limits()
+    declared = declared is not None and np.any(np.isfinite(np.asarray(declared, dtype=float)))
+    if scale and not declared:
+        invalid = True  # a scale of the model's velocity_limit, which it does not declare
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "schema.toml"
+        path.write_text(to_toml(data), encoding="utf-8")
+        try:
+            problem = qpik.load_problem(path)
+        except qpik.QpikError as exc:
+            if not invalid:
+                raise Bad("refused", f"valid {spec['path']} = {spec['value']!r}: {exc}") from None
+            if name not in str(exc) or "schema.toml" not in str(exc):
+                raise Bad("message", f"{spec['path']}: message names no {name!r}: {exc}") from None
+            raise
+        if invalid:
+            raise Bad("accepted", f"invalid {spec['path']} = {spec['value']!r} loaded")
+        o = problem.options
+        work = (
+            problem.steps * len(problem.goals)
+            if problem.mode == "track"
+            else (o.get("restarts", 0) + 1) * o.get("max_iters", 100) * len(problem.goals)
+        )
+        digests = [_digest(problem.q0)]
+        if work <= 3000:
+            result = problem.solve()
+            _check_problem_run(problem, result)
+            digests.append(_digest(result.q, result.converged))
+            if spec["cli"]:
+                _cli_json(path)
+    return _digest(*digests)
+
+
+# -- every task and limit type at every level
+_FLOATY_XML = """<mujoco model="floaty"><worldbody><body name="base" pos="0 0 0.5">
+<freejoint name="root"/><geom type="box" size="0.1 0.1 0.1" mass="2"/>
+<body name="link1" pos="0.1 0 0"><joint name="ball" type="ball" range="0 1.2"/>
+<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+<body name="link2" pos="0.3 0 0"><joint name="q1" type="hinge" axis="0 1 0" range="-2 2"/>
+<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+<body name="link3" pos="0.3 0 0"><joint name="q2" type="hinge" axis="0 0 1" range="-1.5 1.5"/>
+<geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.03"/><site name="ee" pos="0.2 0 0"/>
+</body></body></body></body>
+<body name="obstacle" pos="0.6 0.4 0.5"><geom type="sphere" size="0.05"/></body>
+</worldbody><equality><joint joint1="q2" joint2="q1" polycoef="0 0.5 0 0 0"/></equality>
+</mujoco>"""
+_FLOATY: list = []
+
+
+def _stack_model(name: str):
+    import qpik
+
+    if name != "floaty":
+        return _model(name)
+    if not _FLOATY:
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / "floaty.xml"
+            path.write_text(_FLOATY_XML)
+            _FLOATY.append(qpik.load_robot(path))
+    return _FLOATY[0]
+
+
+# Complexity above 10: one branch per kind of mink task.
+def _mink_task(task: dict, model, configuration, rng):
+    np = _np()
+    import mink
+
+    kind = task["type"]
+    target = task["target"]
+    link = "link2" if model.nbody > 2 else "ee"
+    if kind == "mink_frame":
+        t = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.5)
+    elif kind == "mink_posture":
+        t = mink.PostureTask(model, cost=0.1)
+    elif kind == "mink_com":
+        t = mink.ComTask(cost=1.0)
+    elif kind == "mink_damping":
+        return mink.DampingTask(model, cost=0.01)
+    elif kind == "mink_relative":
+        t = mink.RelativeFrameTask(
+            "ee", "site", link, "body", position_cost=1.0, orientation_cost=0.1
+        )
+    elif kind == "mink_kinetic":
+        t = mink.KineticEnergyRegularizationTask(cost=0.01)
+        if target != "none":
+            t.set_dt(0.01)
+        return t
+    elif kind == "mink_freeze":
+        return mink.DofFreezingTask(model, dof_indices=[model.nv - 1])
+    else:
+        t = mink.LookAtTask("ee", "site", cost=1.0) if hasattr(mink, "LookAtTask") else None
+        if target == "start" or target == "reach":
+            t.set_target(np.array([1.0, 0.0, 0.0]))
+        elif target != "none":
+            t.set_target(np.array([1e300, 0.0, 0.0]) if target == "far" else np.full(3, NAN))
+        return t
+    if target == "none":
+        return t
+    if target == "start" or kind in ("mink_posture",) and target == "reach":
+        t.set_target_from_configuration(configuration)
+        return t
+    if kind == "mink_com":
+        t.set_target(
+            np.array([0.1, 0.0, 0.3])
+            if target == "reach"
+            else np.full(3, 1e300 if target == "far" else NAN)
+        )
+        return t
+    q = _gen_q("random", model, rng)
+    position, rotation = _fk(model, q, "ee", "site")
+    if target == "far":
+        position = np.full(3, 1e300)
+    elif target == "nan":
+        position = np.full(3, NAN)
+    pose = mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(rotation), position)
+    t.set_target(pose)
+    return t
+
+
+# Complexity above 10: one branch per kind of limit.
+def _stack_limit(kind: str, gain: float, distance: float, model):
+    import mink
+
+    import qpik
+
+    names = [n for n in _schema_joint_names(model) if n not in ("root", "ball")]
+    if kind == "config":
+        return [qpik.limits.ConfigurationLimit(model, gain=gain, min_distance_from_limits=distance)]
+    if kind == "mink_config":
+        return [mink.ConfigurationLimit(model, gain=gain, min_distance_from_limits=distance)]
+    if kind == "velocity":
+        return [qpik.limits.VelocityLimit(model, {n: 0.5 + gain for n in names})], 0.5 + gain
+    if kind == "mink_velocity":
+        return [mink.VelocityLimit(model, {n: 0.5 + gain for n in names})], 0.5 + gain
+    if kind == "joint_limits":
+        return qpik.limits.joint_limits(model, gain)
+    if kind == "collision":
+        return [qpik.limits.model_collision_limit(model, gain=gain)]
+    if kind == "mink_collision":
+        geoms = list(range(model.ngeom))
+        return [mink.CollisionAvoidanceLimit(model, [(geoms[:1], geoms[-1:])], gain=gain)]
+    if kind == "support":
+        return [qpik.limits.SupportPolygonLimit(model, [("ee", "site")], margin=distance)]
+    if model.nq == model.nv:
+        return []
+    return [mink.FreeJointVelocityLimit(model)] if hasattr(mink, "FreeJointVelocityLimit") else []
+
+
+# Complexity above 10: one branch per variant of the case it runs and checks.
+def run_stack(spec: dict) -> str:
+    np = _np()
+    import mink
+
+    import qpik
+
+    model = _stack_model(spec["robot"])
+    rng = np.random.default_rng(_seed_of(spec))
+    try:
+        return _run_stack(spec, model, rng)
+    except mink.exceptions.MinkError as exc:
+        frames = traceback.extract_tb(exc.__traceback__)
+        if isinstance(exc, qpik.QpikError) or any("/qpik/" in f.filename for f in frames):
+            raise  # raised by qpik, or escaped through it (untyped)
+        raise Typed(f"mink's own constructor: {exc}") from None
+
+
+# Complexity above 10: one branch per variant of the case it runs and checks.
+def _run_stack(spec: dict, model, rng) -> str:
+    np = _np()
+    import mink
+
+    import qpik
+
+    q = _gen_q("random", model, rng) if spec["q"] == "random" else _gen_q("mid", model, rng)
+    if spec["q"] in ("inside_tiny", "outside") and model.nq == model.nv:
+        q = _q_value(spec["q"], model, rng)
+    configuration = qpik.Configuration(model, q)
+    levels: list = [[] for _ in range(spec["levels"])]
+    for task in spec["tasks"]:
+        if task["type"].startswith("mink"):
+            built = _mink_task(task, model, configuration, rng)
+        else:
+            built = _build_task(task, model, configuration, rng)
+        levels[task["level"]].append(built)
+    levels = [level for level in levels if level] or [[qpik.tasks.DampingTask(model, cost=1.0)]]
+    limits, speeds = [], []
+    for kind, gain, distance in spec["limits"]:
+        made = _stack_limit(kind, gain, distance, model)
+        if isinstance(made, tuple):
+            made, speed = made
+            speeds.append(speed)
+        limits.extend(made)
+    constraints = []
+    if "freeze" in spec["constraints"]:
+        constraints.append(mink.DofFreezingTask(model, dof_indices=[model.nv - 1]))
+    if "posture" in spec["constraints"]:
+        posture = mink.PostureTask(model, cost=1.0)
+        posture.set_target_from_configuration(configuration)
+        constraints.append(posture)
+    dt = spec["dt"]
+    has_config = any(k in ("config", "mink_config", "joint_limits") for k, *_ in spec["limits"])
+    inside = bool(np.all(np.isfinite(configuration.q))) and configuration.within_limits(0.0)
+    velocities = []
+    if spec["entry"] == "build_ik":
+        problems = qpik.build_ik(
+            configuration, levels, dt, limits=limits, constraints=constraints or None
+        )
+        for k, p in enumerate(problems if isinstance(problems, list) else [problems]):
+            _finite([p.P, p.q], f"build_ik[{k}]")
+        return _digest(len(problems) if isinstance(problems, list) else 1)
+    if spec["entry"] == "solve_ik":
+        v = qpik.solve_ik(
+            configuration,
+            levels,
+            dt,
+            limits=limits,
+            constraints=constraints or None,
+            solver=None if spec["solver"] == "auto" else spec["solver"],
+        )
+        velocities.append(np.asarray(v))
+        if constraints and "freeze" in spec["constraints"] and abs(v[model.nv - 1]) > 1e-9:
+            raise Bad("limits", f"a frozen dof moves: v = {v[model.nv - 1]}")
+    else:
+        solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+        for k in range(spec["steps"]):
+            result = solver.step(configuration, dt)
+            _finite(result, f"step[{k}]", allow=(".solve_time",))
+            velocities.append(np.asarray(result.velocity))
+            if k + 1 < spec["steps"]:
+                configuration.integrate_inplace(result.velocity, dt)
+    for k, v in enumerate(velocities):
+        _finite(v, f"velocity[{k}]")
+    if has_config and inside and len(velocities) == 1:
+        q_next = configuration.integrate(velocities[0], dt)
+        _finite(q_next, "q after the step")
+        _check_within(model, q_next, "q after the step", tol=1e-7)
+    if speeds and len(velocities) == 1 and model.nq == model.nv:
+        top = float(np.max(np.abs(velocities[0])))
+        if top > min(speeds) * (1 + 1e-6) + 1e-12:
+            raise Bad("limits", f"|v| = {top} > {min(speeds)}")
+    return _digest(*velocities)
+
+
+# -- wrong types for every argument of every public function
+def _signature_value(label: str, model):
+    np = _np()
+    import qpik
+
+    return {
+        "none": None,
+        "str": "x",
+        "bytes": b"ee",
+        "dict": {"a": 1},
+        "mjmodel": model,
+        "nested": [[1.0, [2.0]], 3.0],
+        "int_array": np.arange(3),
+        "bool_array": np.ones(3, dtype=bool),
+        "complex_array": np.ones(3, dtype=complex),
+        "object_array": np.array([1.0, "x", None], dtype=object),
+        "array_3d": np.zeros((2, 2, 2)),
+        "array_0d": np.array(1.0),
+        "empty_array": np.zeros(0),
+        "bool": True,
+        "huge_int": 2**100,
+        "neg_int": -(2**40),
+        "nan": NAN,
+        "inf": INF,
+        "object": object(),
+        "configuration": qpik.Configuration(model),
+        "lambda": lambda *a: None,
+        "set": {1.0, 2.0},
+        "str_array": np.array(["a", "b", "c"]),
+    }[label]
+
+
+class _Ctx:
+    """Valid arguments by parameter name, for one robot."""
+
+    def __init__(self, robot: str, folder: Path):
+        np = _np()
+        import qpik
+
+        self.robot = robot
+        self.model = model = qpik.load_robot(robot)
+        self.cfg = qpik.Configuration(model, _q_value("mid", model, None))
+        self.position = self.cfg.frame_pose("ee", "site")[0]
+        task = qpik.tasks.PositionTask("ee", "site")
+        task.set_target(self.position + 0.01)
+        self.task = task
+        self.J = self.cfg.frame_jacobian("ee", "site")
+        self.path = folder / "p.toml"
+        self.path.write_text(
+            to_toml(
+                {
+                    "robot": robot,
+                    "levels": [[{"type": "position", "frame": "ee"}]],
+                    "target": {"frame": "ee", "position": [float(x) for x in self.position]},
+                    "solver": {"restarts": 0, "max_iters": 10},
+                }
+            )
+        )
+        lower, upper = _limits_of(model)
+        self.values = {
+            "robot": robot,
+            "source": robot,
+            "model": model,
+            "configuration": self.cfg,
+            "targets": {"ee": self.position},
+            "targets_list": [{"ee": self.position}],
+            "frame": "ee",
+            "frame_name": "ee",
+            "frame_type": "site",
+            "root_name": "link1" if robot != "panda" else "link1",
+            "root_type": "body",
+            "q": self.cfg.q.copy(),
+            "q0": self.cfg.q.copy(),
+            "J": self.J,
+            "xi": np.array([0.01, 0.0, 0.0, 0.0, 0.0, 0.0]),
+            "zeta": np.ones(model.nv) * 0.1,
+            "lower": np.where(np.isfinite(lower), lower, -3.0),
+            "upper": np.where(np.isfinite(upper), upper, 3.0),
+            "force": [0.0, 0.0, -1.0],
+            "direction": [0.0, 0.0, -1.0],
+            "tau": np.zeros(model.nv),
+            "dt": 0.01,
+            "tasks": [[task]],
+            "stack": [[task]],
+            "limits": [qpik.limits.ConfigurationLimit(model)],
+            "path": str(self.path),
+            "region": [[-0.1, -0.1, 0.0], [0.1, 0.1, 0.1]],
+            "resolution": 0.1,
+            "orientations": 1,
+            "cost": 1.0,
+            "position_cost": 1.0,
+            "orientation_cost": 1.0,
+            "dof_indices": [0],
+            "velocities": {n: 1.0 for n in qpik.joint_names(model)},
+            "contact_frames": [("ee", "site")],
+            "damping": 0.01,
+            "residual_history": [[0.1, 0.2], [0.05, 0.1]],
+            "geom_pairs": [([0], [model.ngeom - 1])],
+            "v": np.zeros(model.nv),
+            "velocity": np.zeros(model.nv),
+        }
+
+
+# Complexity above 10: one branch per kind of callable (method, class, function).
+def _signature_call(spec: dict, ctx):
+    """(callable, its signature, the valid arguments) of ``spec["target"]``."""
+    import inspect
+
+    import qpik
+
+    name = spec["target"]
+    np = _np()
+    if name == "IKSolver.step":
+        solver = qpik.IKSolver(ctx.model, [[ctx.task]], [qpik.limits.ConfigurationLimit(ctx.model)])
+        fn = solver.step
+    elif name == "IKSession.solve":
+        fn = qpik.IKSession(ctx.robot).solve
+    elif name.startswith("Configuration."):
+        fn = getattr(qpik.Configuration(ctx.model, ctx.cfg.q), name.split(".")[1])
+    elif name == "Problem.solve":
+        fn = qpik.load_problem(ctx.path).solve
+    else:
+        import importlib
+
+        module, attribute = name.rsplit(".", 1)
+        fn = getattr(importlib.import_module(module), attribute)
+    sig = inspect.signature(fn)
+    args = {}
+    for p in sig.parameters.values():
+        if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+            continue
+        if p.default is p.empty or p.name in ("progress",):
+            if p.name == "progress":
+                args[p.name] = False
+            elif p.name in ctx.values:
+                args[p.name] = ctx.values[p.name]
+            else:
+                args[p.name] = _SIGNATURE_FALLBACK.get(p.name, None)
+    if name == "Configuration.integrate":
+        args = {"velocity": np.zeros(ctx.model.nv), "dt": 0.01}
+    if name.startswith("qpik.plots."):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        if "path" in args:
+            args["path"] = np.array([ctx.cfg.q, ctx.cfg.q])
+    if name in ("qpik.solve_many", "qpik.reachability"):
+        args.update(workers=1, max_iters=5, restarts=0)
+    if name == "qpik.reachability":
+        args["backend"] = "thread" if "thread" in str(sig) else "process"
+    if name == "qpik.analysis.nullspace_step":
+        args["zeta"] = np.ones(ctx.model.nv) * 0.1
+    return fn, sig, args
+
+
+_CLEARLY_WRONG = {"none", "bytes", "dict", "mjmodel", "object", "lambda", "set", "configuration"}
+
+
+def _names_argument(text: str, name: str, value) -> bool:
+    """Whether an error message names the argument: its name (any case, ``_`` or a
+    space), or the offending value itself (a string or number; a key of a mapping)."""
+    low = text.lower()
+    if name.lower() in low or name.lower().replace("_", " ") in low:
+        return True
+    if isinstance(value, (str, int, float)) and not isinstance(value, bool):
+        return str(value) in text or repr(value) in text
+    if isinstance(value, dict):
+        return any(str(k) in text for k in value)
+    return False
+
+
+_SIGNATURE_FALLBACK = {"curves": [], "result": None, "wrenches": ()}
+
+
+# Complexity above 10: one branch per outcome of a wrong-type call.
+def run_signature(spec: dict) -> str:
+    import qpik
+
+    with tempfile.TemporaryDirectory() as folder:
+        ctx = _Ctx(spec["robot"], Path(folder))
+        fn, sig, args = _signature_call(spec, ctx)
+        params = [
+            p
+            for p in sig.parameters.values()
+            if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD) and p.name != "progress"
+        ]
+        if not params:
+            raise Typed("no parameter")
+        param = params[spec["pick"] % len(params)]
+        wrong = _signature_value(spec["value"], ctx.model)
+        args[param.name] = wrong
+        positional = []
+        if spec["positional"] and param.kind in (
+            param.POSITIONAL_ONLY,
+            param.POSITIONAL_OR_KEYWORD,
+        ):
+            for p in params:
+                if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.name in args:
+                    positional.append(args.pop(p.name))
+                else:
+                    break
+        try:
+            out = fn(*positional, **args)
+        except qpik.QpikError as exc:
+            # a value of a wrong type must be named; a value of the right type may fail
+            # further on (no geom pair left, an unknown frame) with that reason instead
+            wrong_type = isinstance(exc, TypeError) or spec["value"] in _CLEARLY_WRONG
+            if wrong_type and not _names_argument(str(exc), param.name, wrong):
+                detail = f"{spec['target']}({param.name}={spec['value']}): {str(exc)[:200]}"
+                raise Bad("message", detail) from None
+            raise
+        if not spec["target"].endswith("condition_number"):
+            _finite(out, "returned", allow=(".solve_time", ".elapsed", ".condition_number"))
+        if spec["target"].startswith("qpik.plots."):
+            import matplotlib.pyplot as plt
+
+            plt.close("all")
+        return _digest(repr(type(out)))
+
+
 # -- determinism
 RUNNERS = {
     "solve": run_solve,
@@ -2692,6 +4132,10 @@ RUNNERS = {
     "cli": run_cli,
     "boundary": run_boundary,
     "engine": run_engine,
+    "robot_gen": run_robot_gen,
+    "schema": run_schema,
+    "stack": run_stack,
+    "signature": run_signature,
 }
 
 
@@ -2956,6 +4400,10 @@ WEIGHTS = {
     "determinism": 1,
     "boundary": 3,
     "engine": 3,
+    "robot_gen": 3,
+    "schema": 3,
+    "stack": 3,
+    "signature": 3,
 }
 
 

@@ -40,6 +40,7 @@ from .core.jacobian import (
     Rows,
     SingularityReport,
     SolutionSet,
+    as_tol,
     as_vector,
     condition_number,
     damped_pseudoinverse,
@@ -258,7 +259,7 @@ def analyze(
     J = configuration.frame_jacobian(frame, kind)[list(idx)]
     s = singular_values(J)
     r = rank(J, tol)
-    report = singularity(J, singular_tol)
+    report = singularity(J, as_tol(singular_tol, np.zeros(0), J.shape, "singular_tol"))
     return KinematicReport(
         frame=frame,
         frame_type=kind.value,

@@ -523,7 +523,7 @@ def max_payload(
     a = configuration.frame_jacobian(frame, frame_type)[:3].T @ d
     h0 = holding_torques(configuration, gravity=gravity)
     lo, hi = limits[:, 0], limits[:, 1]
-    tol = 1e-12 * max(1.0, float(np.abs(a).max()))
+    tol = 1e-12 * max(1.0, float(np.abs(a).max(initial=0.0)))  # a robot with no dof: a is empty
     lower = np.full(a.size, -np.inf)
     upper = np.full(a.size, np.inf)
     pos, neg, zero = a > tol, a < -tol, np.abs(a) <= tol

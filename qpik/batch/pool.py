@@ -50,7 +50,8 @@ if TYPE_CHECKING:  # multiprocessing and concurrent.futures load when a pool sta
     import multiprocessing.context
     from concurrent.futures import Future, ProcessPoolExecutor
 
-from ..errors import InvalidInput, InvalidTarget, MissingExtra, QpikError
+from ..core import checks
+from ..errors import InvalidArgumentType, InvalidInput, InvalidTarget, MissingExtra, QpikError
 from ..igm.result import IKResult, Reason
 from ..igm.session import IKSession, solve
 from ..igm.targets import MAX_TARGET_DISTANCE, FrameKey, RobotLike, TargetLike, parse_target
@@ -731,6 +732,10 @@ def solve_many(
         **solve_options: :func:`qpik.solve`'s keywords (``q0``, ``stack``, and options
             overriding ``options``), passed to every solve.
     """
+    if isinstance(targets_list, (str, bytes, Mapping)) or not isinstance(targets_list, Iterable):
+        raise InvalidArgumentType(
+            "targets_list", "a list of targets mappings", checks.type_name(targets_list)
+        )
     targets_list = list(targets_list)
     entropy = check_seed(seed)
     workers = check_workers(workers, backend)

@@ -42,6 +42,7 @@ __all__ = [
     "nullspace_step",
     "pseudoinverse",
     "rank",
+    "as_tol",
     "as_vector",
     "row_indices",
     "singular_values",
@@ -96,19 +97,20 @@ def as_vector(x: npt.ArrayLike, size: int, name: str) -> np.ndarray:
     return x
 
 
-def _as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int]) -> float:
-    """The absolute singular-value threshold: ``tol``, or numpy's default when None."""
+def as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int], name: str = "tol") -> float:
+    """The absolute singular-value threshold: ``tol``, or numpy's default when None;
+    ``name``: the argument, for messages."""
     if tol is None:  # floored at the smallest normal float: 1 / s must not overflow
         s_max = float(s[0]) if s.size else 0.0
         return max(max(shape) * np.finfo(float).eps * s_max, np.finfo(float).tiny)
     if isinstance(tol, (bool, str, bytes)):
-        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0")
+        raise InvalidInput(f"{name} is {tol!r}; it must be a finite number >= 0")
     try:
         tol = float(tol)
     except (TypeError, ValueError):
-        raise InvalidInput(f"tol is {tol!r}; it must be a finite number >= 0") from None
+        raise InvalidInput(f"{name} is {tol!r}; it must be a finite number >= 0") from None
     if not np.isfinite(tol) or tol < 0:
-        raise InvalidInput(f"tol is {tol}; it must be a finite number >= 0")
+        raise InvalidInput(f"{name} is {tol}; it must be a finite number >= 0")
     return tol
 
 
@@ -178,7 +180,7 @@ def rank(J: npt.ArrayLike, tol: float | None = None) -> int:
     """Numerical rank of ``J``: the number of singular values ``> tol``."""
     J = _as_matrix(J)
     s = _svdvals(J)
-    return int(np.count_nonzero(s > _as_tol(tol, s, J.shape)))
+    return int(np.count_nonzero(s > as_tol(tol, s, J.shape)))
 
 
 def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
@@ -187,7 +189,7 @@ def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     values ``<= tol`` (and of the ``n - m`` missing ones when ``m < n``)."""
     J = _as_matrix(J)
     s = _svdvals(J)
-    tol = _as_tol(tol, s, J.shape)
+    tol = as_tol(tol, s, J.shape)
     if s[0] <= tol:  # every direction is lost (J = 0 up to tol)
         return np.eye(J.shape[1])
     scale = _scale(J)  # the basis is that of J / scale; rcond is relative to s[0]
@@ -205,7 +207,7 @@ def pseudoinverse(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     treated as zero. ``J^+ xi`` is the least-norm (least-squares) solution of
     ``J qdot = xi``."""
     J = _as_matrix(J)
-    tol = _as_tol(tol, _svdvals(J), J.shape)
+    tol = as_tol(tol, _svdvals(J), J.shape)
     scale = _scale(J)  # (J / scale)^+ = scale J^+
     with np.errstate(over="ignore"):
         pinv = scipy.linalg.pinv(J / scale, atol=tol / scale, rtol=0.0) / scale
@@ -355,7 +357,7 @@ class SingularityReport:
 def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityReport:
     """Singularity analysis of ``J`` with an absolute threshold ``tol`` on singular values."""
     J = _as_matrix(J)
-    tol = _as_tol(tol, np.zeros(0), J.shape)
+    tol = as_tol(tol, np.zeros(0), J.shape)
     m = J.shape[0]
     scale = _scale(J)
     U, s, _ = scipy.linalg.svd(J / scale)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -48,7 +48,13 @@ from ..core import (
 )
 from ..core.cascade import STATUS_OF_CODE, LevelCertificate, certificates
 from ..core.kernels import merge_boxes, tighten
-from ..errors import InfeasibleLimits, InvalidInput, InvalidTarget, as_qpik_error
+from ..errors import (
+    InfeasibleLimits,
+    InvalidArgumentType,
+    InvalidInput,
+    InvalidTarget,
+    as_qpik_error,
+)
 from ..model.configuration import Configuration, joint_names
 from ..options import UNSET, StepOptions, Unset
 from ..tasks import BaseTask
@@ -359,6 +365,8 @@ class IKSolver:
         backend_options = self.options.backend_options
         self.model = model
         self.levels = normalize_stack(stack)
+        if isinstance(limits, (str, bytes, Mapping)) or not isinstance(limits, Iterable):
+            raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))
         #: The levels the steps solve: the model's couplings first (StepOptions.couplings,
         #: on a model that states some), then ``levels``.
         self._levels = self.levels
@@ -630,6 +638,9 @@ class IKSolver:
 
     def _step(self, configuration: Configuration, dt: float) -> StepResult:
         start = time.perf_counter()
+        checks.check_instance(
+            "configuration", configuration, mink.Configuration, "a qpik.Configuration"
+        )
         plan = self._plan
         if (
             plan is not None

@@ -35,8 +35,10 @@ import mujoco
 import numpy as np
 from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
 
-from ..errors import CollisionPairError, LimitDefinitionError, UnknownFrame
+from ..core import checks
+from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError, UnknownFrame
 from ..model.configuration import frame_names
+from ..model.frames import check_model_type
 
 __all__ = [
     "CollisionAvoidanceLimit",
@@ -112,6 +114,17 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         *,
         respect_contype: bool = True,
     ):
+        check_model_type("model", model)
+        for name, value in (
+            ("gain", gain),
+            ("minimum_distance_from_collisions", minimum_distance_from_collisions),
+            ("collision_detection_distance", collision_detection_distance),
+            ("bound_relaxation", bound_relaxation),
+        ):
+            if not checks.is_real(value):
+                raise InvalidArgumentType(name, "a real number", checks.type_name(value))
+        checks.check_bool("broadphase", broadphase)
+        checks.check_bool("respect_contype", respect_contype)
         if not 0.0 < gain <= 1.0:
             raise LimitDefinitionError(f"gain must be in (0, 1], got {gain}")
         if not np.isfinite(minimum_distance_from_collisions):
@@ -163,9 +176,17 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
                 )
             ids = []
             for group in pair:
-                group = [group] if isinstance(group, (str, int)) else list(group)
+                group = [group] if isinstance(group, (str, int, np.integer)) else group
+                if not isinstance(group, (list, tuple, np.ndarray)):
+                    raise LimitDefinitionError(
+                        f"geom_pairs[{k}] must hold geom names or ids, got {group!r}"
+                    )
                 group_ids = []
                 for geom in group:
+                    if not isinstance(geom, (str, int, np.integer)) or isinstance(geom, bool):
+                        raise LimitDefinitionError(
+                            f"geom_pairs[{k}] must hold geom names or ids, got {geom!r}"
+                        )
                     if isinstance(geom, str):
                         gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
                     else:

@@ -29,8 +29,10 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ..errors import CollisionPairError, LimitDefinitionError
+from ..core import checks
+from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError
 from ..model.configuration import FrameType
+from ..model.frames import check_model_type
 from .collision import (
     CollisionAvoidanceLimit,
     contact_bits_match,
@@ -49,6 +51,7 @@ __all__ = [
 def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[int]:
     """Ids of the geoms that take part in contact (``contype`` or ``conaffinity`` nonzero),
     sorted; ``robot_only``: leave out the geoms of the world body (floor, obstacles)."""
+    check_model_type("model", model)
     return [
         g
         for g in range(model.ngeom)
@@ -87,6 +90,9 @@ def collision_pairs(
     """Geom id pairs ``(a, b)``, ``a < b``, sorted, that the model lets collide (the filter
     is in the module docstring): ``scene``: a robot geom against a geom of the world body;
     ``self_collision``: two robot geoms (on bodies other than the world body)."""
+    check_model_type("model", model)
+    checks.check_bool("scene", scene)
+    checks.check_bool("self_collision", self_collision)
     excluded = _excluded_bodies(model)
     geoms = collision_geoms(model)
     pairs = set()
@@ -147,8 +153,18 @@ def model_collision_limit(
     """
     pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
     if geoms is not None:
+        if (
+            isinstance(geoms, (str, bytes))
+            or not isinstance(geoms, (list, tuple, np.ndarray))
+            or np.ndim(geoms) != 1
+        ):
+            raise InvalidArgumentType(
+                "geoms", "a list of geom names or ids", checks.type_name(geoms)
+            )
         wanted = set()
         for geom in geoms:
+            if not isinstance(geom, (str, int, np.integer)) or isinstance(geom, bool):
+                raise InvalidArgumentType("geoms", "geom names or ids", checks.type_name(geom))
             gid = (
                 mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
                 if isinstance(geom, str)

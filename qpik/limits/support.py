@@ -38,9 +38,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.spatial import ConvexHull, QhullError
 
-from ..errors import InvalidInput, LimitDefinitionError
+from ..core import checks
+from ..errors import InvalidArgumentType, InvalidInput, LimitDefinitionError
 from ..model.configuration import FrameType
-from ..model.frames import resolve_frame
+from ..model.frames import check_model_type, resolve_frame
 
 __all__ = ["SupportPolygonLimit"]
 
@@ -72,7 +73,13 @@ class SupportPolygonLimit(mink.Limit):
         gain: float = 0.95,
         body: str | int = 1,
     ):
-        if isinstance(contact_frames, str) or not len(contact_frames):
+        check_model_type("model", model)
+        for name, value in (("margin", margin), ("gain", gain)):
+            if not checks.is_real(value):
+                raise InvalidArgumentType(name, "a real number", checks.type_name(value))
+        if footprint is not None:
+            footprint = checks.check_array("footprint", footprint, "(k, 2) points [m]")
+        if not isinstance(contact_frames, (list, tuple)) or not len(contact_frames):
             raise LimitDefinitionError(
                 f"contact_frames must be a non-empty list of frame names, got {contact_frames!r}"
             )

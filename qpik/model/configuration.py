@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import check_real, type_name
 from ..errors import (
     InvalidArgumentType,
     InvalidConfiguration,
@@ -25,7 +26,7 @@ from ..errors import (
     JointLimitViolation,
     LimitDefinitionError,
 )
-from .frames import FrameType, frame_id, frame_names
+from .frames import FrameType, check_model_type, frame_id, frame_names
 from .robots import load_robot, locate_robot
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
@@ -44,6 +45,7 @@ _MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "ge
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
     """Joint names, with ``joint<i>`` standing in for unnamed joints."""
+    check_model_type("model", model)
     return [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
         for j in range(model.njnt)
@@ -147,11 +149,11 @@ class Configuration(mink.Configuration):
             q = np.asarray(q, dtype=float)
         except (TypeError, ValueError) as exc:  # strings, ragged lists, objects
             raise InvalidConfiguration(
-                f"configuration is not a vector of {self.model.nq} numbers: {exc}"
+                f"configuration q is not a vector of {self.model.nq} numbers: {exc}"
             ) from None
         if q.ndim != 1 or q.shape[0] != self.model.nq:
             raise InvalidConfiguration(
-                f"configuration has shape {q.shape}, expected ({self.model.nq},) "
+                f"configuration q has shape {q.shape}, expected ({self.model.nq},) "
                 f"for this model (joints: {', '.join(joint_names(self.model))})"
             )
         bad = np.flatnonzero(~np.isfinite(q))
@@ -188,6 +190,7 @@ class Configuration(mink.Configuration):
         """
         if not safety_break:
             return
+        tol = check_real("tol", tol, 0.0)
         q = self.data.qpos
         outside = np.flatnonzero((q < self._lower - tol) | (q > self._upper + tol))
         if outside.size:
@@ -273,14 +276,21 @@ class Configuration(mink.Configuration):
 
     def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:
         """Configuration reached from ``q`` moving at ``velocity`` ``(nv,)`` for ``dt`` [s]."""
-        return super().integrate(self._validated_velocity(velocity), dt)
+        return super().integrate(self._validated_velocity(velocity), check_real("dt", dt))
 
     def integrate_inplace(self, velocity: npt.ArrayLike, dt: float) -> None:
         """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics."""
-        super().integrate_inplace(self._validated_velocity(velocity), dt)
+        super().integrate_inplace(self._validated_velocity(velocity), check_real("dt", dt))
 
     def _validated_velocity(self, velocity: npt.ArrayLike) -> np.ndarray:
-        v = np.asarray(velocity, dtype=float)
+        expected = f"{self.model.nv} numbers"
+        kind = getattr(getattr(velocity, "dtype", None), "kind", "f")
+        if velocity is None or isinstance(velocity, (str, bytes, dict)) or kind not in "biuf":
+            raise InvalidArgumentType("velocity", expected, type_name(velocity))
+        try:
+            v = np.asarray(velocity, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidArgumentType("velocity", expected, type_name(velocity)) from None
         if v.shape != (self.model.nv,):
             raise InvalidConfiguration(f"velocity has shape {v.shape}, expected ({self.model.nv},)")
         bad = np.flatnonzero(~np.isfinite(v))

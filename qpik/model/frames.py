@@ -21,10 +21,12 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
+from ..core import checks
 from ..errors import InvalidInput, UnknownFrame, UnknownFrameType
 
 __all__ = [
     "FRAME_COUNTS",
+    "check_model_type",
     "FRAME_OBJECTS",
     "FrameType",
     "ResolvedFrame",
@@ -33,6 +35,15 @@ __all__ = [
     "frame_names",
     "resolve_frame",
 ]
+
+
+def check_model_type(name: str, value: Any) -> Any:
+    """``value`` if it is a ``mujoco.MjModel``; else :class:`InvalidArgumentType` naming
+    ``name`` (a robot name, a path or a configuration is not a model: see
+    :func:`qpik.load_robot`)."""
+    return checks.check_instance(
+        name, value, mujoco.MjModel, "a mujoco.MjModel (see qpik.load_robot)"
+    )
 
 
 class FrameType(str, enum.Enum):
@@ -86,6 +97,7 @@ class ResolvedFrame(NamedTuple):
 
 def frame_names(model: mujoco.MjModel, frame_type: FrameType | str) -> list[str]:
     """Names of all frames of one type in ``model`` (unnamed frames are left out)."""
+    check_model_type("model", model)
     kind = FrameType.parse(frame_type)
     obj = FRAME_OBJECTS[kind]
     names = (mujoco.mj_id2name(model, obj, i) for i in range(getattr(model, FRAME_COUNTS[kind])))

@@ -134,6 +134,7 @@ _FINITE_FIELDS = (
     "jnt_pos",
     "jnt_axis",
     "jnt_range",
+    "jnt_actfrcrange",  # a URDF's <limit effort>: inf would be an unbounded torque limit
     "dof_damping",
     "dof_armature",
     "dof_frictionloss",

@@ -336,6 +336,8 @@ def _read_statics(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str
         "a [statics] table",
     )
     out: dict[str, Any] = {}
+    if "frame_type" in table and "frame" not in table:  # it would be ignored
+        raise reader.fail("statics.frame_type", "only with statics.frame (the frame it types)")
     if "frame" in table:
         out["frame"], out["frame_type"] = reader.frame(table, "statics", model)
     for key, what in (("force", "[fx, fy, fz] in newtons"), ("torque", "[tx, ty, tz] in N m")):

@@ -67,6 +67,7 @@ RANGES: dict[str, tuple[float, float, bool]] = {
     "lm_damping": (0.0, 1e6, False),
     "velocity": (1e-9, 1e6, False),  # [rad/s or m/s]
     "margin": (0.0, 1.0, False),  # [m]
+    "distance": (0.0, MAX_LENGTH, False),  # [m] ([limits.collision])
 }
 
 #: The keys of a rotation, at most one per table.

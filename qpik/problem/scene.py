@@ -89,9 +89,13 @@ def read_collision(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[st
         "detection_distance": 0.05,
         "gain": 0.85,
     }
-    for key in ("min_distance", "detection_distance", "gain"):
+    for key, rule in (
+        ("min_distance", "distance"),
+        ("detection_distance", "distance"),
+        ("gain", "gain"),
+    ):
         if key in table:
-            out[key] = float(reader.get(table, key, where, float, "a number"))
+            out[key] = float(reader.number(table[key], f"{where}.{key}", rule))
     if "pairs" in table:
         pairs = reader.get(table, "pairs", where, list, "a list of [[geoms], [geoms]] pairs")
         for i, pair in enumerate(pairs):
@@ -110,8 +114,11 @@ def read_collision(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[st
         out["pairs"] = pairs
     try:
         build_collision(model, out)
-    except QpikError as exc:
-        raise reader.fail(where, str(exc)) from exc
+    except QpikError as exc:  # a geom of pairs unknown, or no pair left: name the field
+        field = f"{where}.pairs" if "pairs" in out else where
+        if "detection_distance" in str(exc) and "detection_distance" in table:
+            field = f"{where}.detection_distance"
+        raise reader.fail(field, str(exc)) from exc
     return out
 
 

@@ -253,6 +253,7 @@ def read_levels(
         where = f"levels[{i}]"
         if isinstance(level, dict):
             reader.unknown_keys(level, {"name", "tasks"}, where)
+            reader.get(level, "name", where, str, "a level name (a string)", "")
             tasks = reader.get(level, "tasks", where, list, "a list of tasks ([[levels.tasks]])")
             where = f"{where}.tasks"
         elif isinstance(level, list):
