@@ -2,7 +2,8 @@
 
 Each figure is what its caption's command draws:
 
-* ``docs/priorities.png``: ``qpik reach tasks/planar_4r_priorities.toml --plot docs/priorities.png``.
+* ``docs/priorities.png``:
+  ``qpik reach tasks/planar_4r_priorities.toml --plot docs/priorities.png``.
 """
 
 from __future__ import annotations

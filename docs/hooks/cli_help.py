@@ -14,7 +14,18 @@ import sys
 from pathlib import Path
 
 FOLDER = Path(__file__).resolve().parent.parent / "cli-help"
-COMMANDS = ["robots", "fk", "demo", "analyze", "statics", "reach", "batch", "reachmap", "view", "bench"]
+COMMANDS = [
+    "robots",
+    "fk",
+    "demo",
+    "analyze",
+    "statics",
+    "reach",
+    "batch",
+    "reachmap",
+    "view",
+    "bench",
+]
 
 
 def help_text(command: str | None) -> str:
