@@ -1,8 +1,8 @@
 """The payload a pose can hold: statics at solved poses of the Panda.
 
 For poses with the end effector pointing down at a growing horizontal reach, qpik.solve
-finds the configuration, then the lecture's static relation tau = J^T f gives the joint
-torques a downward force produces; :func:`qpik.statics.max_payload` finds the largest
+finds the configuration, then the static relation tau = J^T f (virtual work) gives the
+joint torques a downward force produces; :func:`qpik.statics.max_payload` finds the largest
 force the motors (87 / 12 N m) can hold on top of gravity, and which joint limits it.
 The further out, the longer the lever arms and the smaller the payload.
 

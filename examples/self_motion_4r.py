@@ -1,6 +1,6 @@
 """The 4R self-motion: the tip holds still while the joints move in the null space.
 
-The lecture's example: from q1 = (0.76, 0.90, 0.69, 1.19) the tip of the 4-link planar arm
+A textbook self-motion: from q1 = (0.76, 0.90, 0.69, 1.19) the tip of the 4-link planar arm
 is at p_e = (-1, 2). Level 0 holds it there (v_e = 0); level 1 lowers the joint-limit
 distance, so that ``qdot = J^+ xi + N(q) zeta`` moves the joints toward mid-range without
 moving the tip. The problem is tasks/planar_4r_self_motion.toml, run here with a chosen

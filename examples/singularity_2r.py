@@ -1,6 +1,6 @@
 """The 2R arm near its singularity: pseudoinverse step norms against qpik's.
 
-The lecture's example: l1 = l2 = 1, q1 = pi/4, and q2 shrinking toward 0, where
+The textbook planar 2R example: l1 = l2 = 1, q1 = pi/4, and q2 shrinking toward 0, where
 det J = l1 l2 sin q2 vanishes. Asked for the same small tip velocity xi (1 cm/s along the
 lost direction) the inverse ``J^-1 xi`` grows like 1 / sin q2 (about 1000x at
 q2 = 0.001), while qpik's step (a PositionTask solved by IKSolver, with its adaptive
