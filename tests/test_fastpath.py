@@ -95,6 +95,33 @@ def test_minks_tasks_compiled_step_equals_the_general_path(panda, solver_name):
         assert fused.status == general.status
 
 
+def test_the_compiled_step_carries_every_levels_certificate(panda):
+    """The one-call step returns the certificate of each level (it once came back empty:
+    the binding cut the info array to its first five rows), equal to the general path's
+    to round-off, and ``solved`` levels are certified."""
+    model, configuration = panda
+    rng = np.random.default_rng(3)
+    tasks = _mink_tasks(model)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    levels = [[tasks[0]], [tasks[1], tasks[3]], [tasks[2], tasks[4]]]
+    solver = qpik.IKSolver(model, levels, limits)
+    assert solver._plan is not None
+    for _ in range(20):
+        _random_state(rng, model, configuration, tasks)
+        fused = solver.step(configuration, DT)
+        general = solver._general_step(configuration, DT, 0.0)
+        assert len(fused.certificate) == len(levels) == len(general.certificate)
+        for status, ours, theirs in zip(fused.status, fused.certificate, general.certificate):
+            values = np.array([ours.primal, ours.stationarity, ours.dual, ours.complementarity])
+            reference = np.array(
+                [theirs.primal, theirs.stationarity, theirs.dual, theirs.complementarity]
+            )
+            assert np.all(np.isfinite(values))
+            np.testing.assert_allclose(values, reference, rtol=0, atol=1e-9)
+            if status == "solved":
+                assert values.max() <= qpik.core.CERTIFICATE_TOLERANCE
+
+
 @pytest.mark.parametrize("backend", ["quadprog", "daqp", "osqp"])
 def test_forced_backend_shortcut_gives_the_forced_paths_answer(panda, backend):
     """qpik.solve_ik's solvers answer a forced backend by the exact one-call step when it

@@ -328,14 +328,15 @@ void bind_diffik(nb::module_& m) {
                 if (r.v_is_d) r.v = r.d;
                 const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
                 return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                                       to_numpy(std::move(r.info), {5, L_}),
+                                       to_numpy(std::move(r.info), {9, L_}),
                                        to_numpy(std::move(r.active), {L_, cols}));
             },
             nb::arg("qpos"), nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"),
             nb::arg("xmat"), nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),
             nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
             "Rows of every task, the limits' box and general rows G dq <= h, and the cascade; "
-            "returns (code, dq, v, info (5, L), active (L, nv + p) int8).")
+            "returns (code, dq, v, info (9, L): residual, sigma, lambda^2, status, iterations, "
+            "then the certificate's four measures, active (L, nv + p) int8).")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
