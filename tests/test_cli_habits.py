@@ -159,6 +159,7 @@ def _warning_command(args) -> int:
     return 0
 
 
+@pytest.mark.filterwarnings("always::UserWarning")  # the test raises one to see it printed
 def test_warnings_are_one_line_each(monkeypatch, capsys):
     import qpik.cli.fk as fk
 

@@ -604,9 +604,9 @@ class IKSolver:
         A = np.concatenate(A_parts) if L > 1 else np.ascontiguousarray(A_parts[0], dtype=float)
         b = np.concatenate(b_parts) if L > 1 else np.ascontiguousarray(b_parts[0], dtype=float)
         w = np.concatenate(w_parts) if L > 1 else np.ascontiguousarray(w_parts[0], dtype=float)
-        if not (math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))) or not (
-            math.isfinite(float(reg.sum()))
-        ):
+        with np.errstate(over="ignore"):  # sums beyond the float range: rows too large
+            sums = (float(b @ b), float(A.sum()), float(reg.sum()))
+        if not all(math.isfinite(total) for total in sums):
             self._raise_not_finite(A, b, starts, reg)
         return A, b, w, starts, reg, lb, ub, G, h, contributions, general_names
 
