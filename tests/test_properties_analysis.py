@@ -87,10 +87,12 @@ def test_damped_pseudoinverse_is_bounded_and_equals_the_formula(J, damping):
     bound = 1.0 / (2.0 * math.sqrt(damping))
     assert np.linalg.norm(D, 2) <= bound * (1 + 1e-9)
     scale = float(np.max(np.abs(J))) if J.size else 1.0
-    gram = J @ J.T + damping * np.eye(J.shape[0])
     # the textbook formula is a reference only without overflow and on a well-conditioned
     # Gram matrix (scipy warns otherwise, and its answer is then no reference)
-    if 1e-100 < scale < 1e100 and np.linalg.cond(gram) < 1e12:
+    if (
+        1e-100 < scale < 1e100
+        and np.linalg.cond(gram := J @ J.T + damping * np.eye(J.shape[0])) < 1e12
+    ):
         reference = scipy.linalg.solve(gram, J, assume_a="pos").T
         np.testing.assert_allclose(D, reference, atol=1e-9 * bound, rtol=1e-7)
 
