@@ -135,3 +135,17 @@ def test_cli_help_pages_are_the_cli():
             os.environ.pop("COLUMNS", None)
         else:
             os.environ["COLUMNS"] = saved
+
+
+def test_the_figures_script_draws_its_figures(tmp_path):
+    """docs/make_figures.py runs and draws non-empty PNGs (the quick ones here; all of them
+    in the slow run)."""
+    pytest.importorskip("matplotlib")
+    import subprocess
+
+    script = Path(__file__).resolve().parents[1] / "docs" / "make_figures.py"
+    names = ["priorities.png", "self_motion.png"]
+    subprocess.run([sys.executable, str(script), "--out", str(tmp_path), "--only", *names],
+                   check=True, capture_output=True)  # fmt: skip
+    for name in names:
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
