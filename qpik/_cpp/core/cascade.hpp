@@ -503,11 +503,12 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         const double* zi = Z.row(i);
         double nn = 0.0;
         for (i64 c = 0; c < r; ++c) nn += zi[c] * zi[c];
-        if (nn <= 1e-20) continue;  // no constraint in null-space coordinates (reduced_qp)
+        if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
             double bound = side > 0.0 ? lb[i] : ub[i];
-            if (!(std::fabs(bound) < kBig) || std::fabs(d[i] - bound) > detail::kSnap * (1.0 + std::fabs(bound))) continue;
+            if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
+                continue;
             Vec v(static_cast<size_t>(r));
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
             normals.push_back(std::move(v));
@@ -522,7 +523,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 gg += G(j, t) * G(j, t);
                 gd += G(j, t) * d[t];
             }
-            if (std::fabs(gd - h[j]) > detail::kSnap * (std::sqrt(gg) + std::fabs(h[j]))) continue;
+            if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec v(static_cast<size_t>(r), 0.0);
             for (i64 t = 0; t < n; ++t) {
                 double g = G(j, t);
@@ -531,7 +532,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
             }
             double nn = dot(v.data(), v.data(), r);
-            if (nn <= 1e-20 * gg) continue;
+            if (!(nn > 1e-20 * gg)) continue;
             double norm = std::sqrt(nn);
             for (auto& x : v) x = -x / norm;
             normals.push_back(std::move(v));
