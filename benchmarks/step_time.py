@@ -76,6 +76,8 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
     available = [name for name in REFERENCES if name in qpsolvers.available_solvers]
     for k in range(len(problem.levels)):
         s0, s1 = starts[k], starts[k + 1]
+        if s1 > s0:  # the rows the levels above pinned leave Z, as in the core
+            Z = K.drop_pinned(Z, d, lb, ub, G, h)
         if s1 == s0 or Z.shape[1] == 0:
             continue
         AZ, _, _, Zn = K.project_level(A[s0:s1], w[s0:s1], Z, solver.rank_tolerance)

@@ -8,8 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.linalg
+import scipy.optimize
 
 from qpik.core import HierarchyProblem, HierarchySolver, Level, LevelStatus
+from qpik.core import _kernels as K
 
 DATA = Path(__file__).parent / "data" / "exactness" / "trust_region_pinned_level.npz"
 
@@ -33,14 +36,130 @@ def test_kept_level_has_a_finite_certificate_naming_what_fails():
             assert certificate.failed  # says which condition fails
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="every dof but one sits at the box after levels 0-1; level 2's exact re-solve and "
-    "primal fallback both fail, so it ends kept_previous though the free dof can still move",
-)
-def test_pinned_level_is_solved():
+def _pinned_problem():
     z = np.load(DATA)
     levels = [Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"])) for k in range(int(z["L"]))]
-    problem = HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
+    return z, levels, HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
+
+
+def test_pinned_level_is_solved():
+    """After levels 0-1 every dof but the last sits on its box bound, and the bound rows of
+    dofs 0 and 2 pin a direction of the null space (both on their upper bound, opposite
+    normals there): they are eliminated as equalities (drop_pinned), so that a 4e-18
+    entry of another bound row's normal no longer closes the last dof's direction. Level
+    2 is solved, the levels above keep their rows, and the answer equals an independent
+    one: scipy's bounded least squares of level 2 along the numerical null space of the
+    levels above."""
+    z, levels, problem = _pinned_problem()
     result = HierarchySolver(damping_law=None).solve(problem)
     assert all(s == LevelStatus.SOLVED for s in result.status)
+    assert all(c.holds for c in result.certificate)
+    x = result.x
+    lb, ub, G, h = z["lb"], z["ub"], z["G"], z["h"]
+    assert np.all(x >= lb) and np.all(x <= ub) and np.all(G @ x <= h + 1e-15)
+    # The levels above are not degraded: their rows as with levels 0-1 alone.
+    above = HierarchySolver(damping_law=None).solve(HierarchyProblem(levels[:2], lb, ub, G, h))
+    for A in (z["A0"], z["A1"]):
+        np.testing.assert_allclose(A @ x, A @ above.x, rtol=0, atol=1e-15)
+    # Reference: the levels above leave the null space of [A0; A1] (numerical rank, the
+    # cascade's rank tolerance 1e-9), two directions; the one that keeps dofs 0-5 on their
+    # bounds is the last dof (to round-off). Level 2 along it, with its bound, by
+    # scipy.optimize.lsq_linear (+ the regularisation row).
+    N = scipy.linalg.null_space(np.vstack([z["A0"], z["A1"]]), rcond=1e-9)
+    assert np.all(np.minimum(x[:6] - lb[:6], ub[:6] - x[:6]) <= 1e-15)
+    D = N @ scipy.linalg.null_space(N[:6], rcond=1e-9)
+    assert D.shape[1] == 1 and abs(abs(D[6, 0]) - 1.0) < 1e-12
+    e6 = np.eye(7)[:, 6]
+    A2, b2, reg = z["A2"], z["b2"], float(z["reg2"])
+    base = above.x * (1 - e6)
+    M = np.vstack([A2 @ e6[:, None], np.sqrt(reg) * np.ones((1, 1))])
+    f = np.concatenate([b2 - A2 @ base, [0.0]])
+    ref = scipy.optimize.lsq_linear(M, f, bounds=(lb[6], ub[6]), tol=1e-15)
+    assert ref.success
+    assert abs(x[6] - ref.x[0]) <= 1e-12
+    np.testing.assert_allclose(x[:6], above.x[:6], rtol=0, atol=1e-15)
+
+
+def test_task_on_pinned_dofs_only_is_solved():
+    """Level 0 pulls x0 + x1 to 5 against the box (both at 1: in its null space their bound
+    rows pin the direction x0 - x1); level 1 is a task on x0 alone, which can no longer
+    move (its gradient in null-space coordinates is round-off of Z, measured against the
+    full-space gradient), level 2 a task on x2. Every level is solved, x0 and x1 stay on
+    their bounds exactly, and x2 equals scipy's bounded least-squares answer."""
+    n = 3
+    A0, b0 = np.array([[1.0, 1.0, 0.0]]), np.array([5.0])
+    A1, b1 = np.array([[1.0, 0.0, 0.0]]), np.array([0.0])
+    A2, b2 = np.array([[0.0, 0.0, 1.0]]), np.array([0.5])
+    lb, ub = -np.ones(n), np.ones(n)
+    reg = 1e-6
+    levels = [Level(A0, b0, reg), Level(A1, b1, reg), Level(A2, b2, reg)]
+    G, h = np.zeros((0, n)), np.zeros(0)
+    for solver in ("auto", "osqp"):
+        result = HierarchySolver(solver=solver, damping_law=None).solve(
+            HierarchyProblem(levels, lb, ub, G, h)
+        )
+        assert all(s == LevelStatus.SOLVED for s in result.status), (solver, result.status)
+        assert result.x[0] == 1.0 and result.x[1] == 1.0
+        ref = scipy.optimize.lsq_linear(
+            np.array([[1.0], [np.sqrt(reg)]]), np.array([0.5, 0.0]), bounds=(-1.0, 1.0), tol=1e-15
+        )
+        assert abs(result.x[2] - ref.x[0]) <= 1e-12
+
+
+def test_zero_width_box_row_is_an_equality():
+    """A dof whose box has width 0 (lb = ub, e.g. a position bound beyond the velocity
+    limit) keeps that value exactly and the level is solved: the other dofs equal scipy's
+    bounded least squares with the dof substituted."""
+    rng = np.random.default_rng(3)
+    n = 6
+    A, b = rng.normal(size=(4, n)), rng.normal(size=4)
+    lb, ub = -0.3 * np.ones(n), 0.3 * np.ones(n)
+    lb[2] = ub[2] = 0.1
+    reg = 1e-6
+    result = HierarchySolver(damping_law=None).solve(
+        HierarchyProblem([Level(A, b, reg)], lb, ub, np.zeros((0, n)), np.zeros(0))
+    )
+    assert result.status == [LevelStatus.SOLVED] and result.certificate[0].holds
+    assert result.x[2] == 0.1
+    free = [i for i in range(n) if i != 2]
+    M = np.vstack([A[:, free], np.sqrt(reg) * np.eye(n - 1)])
+    f = np.concatenate([b - A[:, 2] * 0.1, np.zeros(n - 1)])
+    ref = scipy.optimize.lsq_linear(M, f, bounds=(lb[free], ub[free]), tol=1e-15)
+    np.testing.assert_allclose(result.x[free], ref.x, rtol=0, atol=1e-10)
+
+
+TALOS = Path(__file__).parent / "data" / "exactness" / "talos_pinned_arms.npz"
+
+
+def test_talos_arms_pinned_by_the_levels_above_posture_is_solved():
+    """A state of benchmarks/step_time.py's fixed-base Talos (hands / torso / head /
+    posture, the left hand's target out of reach): after the hands, torso and head, each
+    arm has five joints on velocity bounds whose normals are positively dependent in the
+    null space (four dimensions), a vertex the levels above chose. The posture level was
+    kept_previous (its candidates' multipliers cancelling on those rows); with the rows
+    pinned it is solved, and equals daqp's answer to the same level stated independently
+    (full space: the levels above's rows held by an orthonormal basis of their numerical
+    row space, the box as bounds)."""
+    qpsolvers = pytest.importorskip("qpsolvers")
+    if "daqp" not in qpsolvers.available_solvers:
+        pytest.skip("daqp not installed")
+    z = np.load(TALOS)
+    A, b, w, starts, reg = z["A"], z["b"], z["w"], z["starts"], z["reg"]
+    lb, ub, G, h = z["lb"], z["ub"], z["G"], z["h"]
+    L, n = starts.shape[0] - 1, lb.shape[0]
+    out = K.solve_cascade(
+        A, b, w, starts, reg, lb, ub, G, h, float(z["threshold"]), float(z["max_damping"]),
+        float(z["error_scale"]), float(z["rank_tol"]), int(z["max_iter"]), float(z["tol"]),
+        np.zeros((L, n), np.int8), True,
+    )  # fmt: skip
+    x, status, lam2 = out[0], out[1], out[3]
+    assert status.tolist() == [K.SOLVED] * L
+    _, S, Vt = np.linalg.svd(A[: starts[L - 1]], full_matrices=False)
+    R = Vt[S > 1e-9 * max(1.0, S[0])]
+    Ak, bk = A[starts[L - 1] :], b[starts[L - 1] :]
+    P = Ak.T @ Ak + (reg[L - 1] + lam2[L - 1]) * np.eye(n)
+    q = -Ak.T @ bk
+    ref = qpsolvers.solve_qp(P, q, A=R, b=R @ x, lb=lb, ub=ub, solver="daqp")
+    assert ref is not None
+    np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
+    assert 0.5 * x @ P @ x + q @ x <= 0.5 * ref @ P @ ref + q @ ref + 1e-15

@@ -352,12 +352,6 @@ class SumLimit(mink.Limit):
         return mink.Constraint(G=G, h=np.array([0.001]))
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="certified cascade (issue 21): with the default trust region every dof but one is "
-    "at its box bound after levels 0-1, and level 2's exact re-solve and primal fallback both "
-    "fail, so it ends kept_previous (not claimed solved); widening the box solves it",
-)
 def test_general_rows_hold_at_every_level():
     configuration = panda()
     model = configuration.model

@@ -148,6 +148,24 @@ void bind_core(nb::module_& m) {
         "(H, c, C, lo, hi): the level's QP in null-space coordinates dq = d + Z z.");
 
     m.def(
+        "drop_pinned",
+        [](In2 Z, In1 d, In1 lb, In1 ub, In2 G, In1 h) {
+            i64 n = rows(Z), p = rows(G);
+            need(len(d) == n && len(lb) == n && len(ub) == n, "drop_pinned: d, lb, ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "drop_pinned: G must have shape (p, n)");
+            need(len(h) == p, "drop_pinned: h must have shape (p,)");
+            Mat Zm(n, cols(Z));
+            for (i64 i = 0; i < n; ++i)
+                for (i64 j = 0; j < cols(Z); ++j) Zm(i, j) = cmat(Z)(i, j);
+            Vec dv(d.data(), d.data() + n);
+            core::drop_pinned(Zm, dv, cvec(lb), cvec(ub), cmat(G), cvec(h));
+            return to_numpy(std::move(Zm));
+        },
+        "Z"_a, "d"_a, "lb"_a, "ub"_a, "G"_a, "h"_a,
+        "Z without the directions of the rows pinned on their bounds at d (the levels' "
+        "implied equalities; Z itself when none).");
+
+    m.def(
         "tighten",
         [](Out1 lb, Out1 ub, InI64_1 dofs, In1 lower, In1 upper) {
             i64 n = len(lb), k = len(dofs);

@@ -15,6 +15,15 @@ shrinks to the null space of ``A_k Z`` (right singular vectors). A lower level m
 in that null space, so it cannot change any ``A_j x`` of a level above: strict priority
 holds exactly (up to round-off), whatever the QP solver's tolerance.
 
+**Pinned rows.** Before each level, the rows on their bound at ``d`` (box and general;
+both sides of a zero-width box row) whose normals in null-space coordinates are positively
+dependent (``sum_j u_j n_j = 0``, ``u_j > 0``, to ``1e-12``) are pinned: no feasible move
+takes any of them off its bound (the levels above put ``d`` on a vertex of the feasible
+set within ``Z``). They are equalities from there on and leave ``Z`` exactly
+(:func:`qpik.core._kernels.drop_pinned`; a pinned box row's dof keeps its value), so that
+round-off in their normals cannot close the feasible set of a lower level that still has
+free directions.
+
 Each level's QP is solved exactly by the compiled dual active-set method of
 :func:`qpik.core.kernels.solve_qp` (``solver="auto"``), which handles box bounds and general
 rows alike; other backends (``"osqp"`` with a persistent workspace per level and reduced
@@ -52,7 +61,8 @@ solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the retu
 * ``stationarity``: ``s = Z^T (A_k^T (A_k x - b_k) + rho x - sum_j lambda_j c_j)`` over the
   active rows ``c_j`` with their signed multipliers, each component divided by
   ``|Z|^T (|A_k|^T (|A_k| |x| + |b_k|) + rho |x|)`` (the objective's terms, at least
-  ``1e-6`` times the largest component's: round-off from the other components; the
+  ``1e-6`` times the largest component's, or the largest full-space term's: round-off
+  from the other components and from ``Z``; the
   multipliers' terms are left out, so that nearly dependent active rows whose huge
   multipliers cancel to their own round-off prove nothing), the largest;
 * ``dual``: a multiplier of the wrong sign, ``max(0, -u_j) |Z^T c_j| / S`` with ``S`` the
@@ -498,6 +508,8 @@ class HierarchySolver:
         Z = np.eye(n)
         for k in range(L):
             s0, s1 = int(starts[k]), int(starts[k + 1])
+            if s1 > s0:  # rows pinned on their bounds by the levels above: equalities
+                Z = K.drop_pinned(Z, d, lb, ub, G, h)
             if s1 == s0 or Z.shape[1] == 0:
                 status[k] = LevelStatus.SOLVED
                 certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)

@@ -52,6 +52,10 @@ Signatures (as the numba kernels had them):
   needs a conversion (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
 - ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
   z, certificate, active)``: one level made exact from a QP answer's active set.
+- ``drop_pinned(Z, d, lb, ub, G, h) -> Z``: ``Z`` without the directions of the rows the
+  levels above pinned on their bounds at ``d`` (positively dependent tight rows: implied
+  equalities, eliminated exactly; ``Z`` itself when none). The cascade calls it before each
+  level.
 - ``cholesky_into(G, n, shift, L) -> bool``.
 """
 
@@ -87,6 +91,7 @@ merge_boxes = _engine.merge_boxes
 solve_cascade = _engine.solve_cascade
 certified_level = _engine.certified_level
 solve_levels = _engine.solve_levels
+drop_pinned = _engine.drop_pinned
 
 assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == (
     _engine.SOLVED, _engine.MAX_ITER, _engine.INFEASIBLE, _engine.KEPT_PREVIOUS,
@@ -95,7 +100,7 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
-    "active_guess", "certified_level", "cholesky_into", "damping_of", "level_damping",
-    "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level", "solve_levels",
-    "solve_qp", "tighten",
+    "active_guess", "certified_level", "cholesky_into", "damping_of", "drop_pinned",
+    "level_damping", "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level",
+    "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip

@@ -406,6 +406,204 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 
 }  // namespace detail
 
+namespace detail {
+
+// Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
+// most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
+inline Vec nnls(const Mat& M, const Vec& y) {
+    i64 r = M.rows, t = M.cols;
+    Vec u(static_cast<size_t>(t), 0.0);
+    BVec passive(static_cast<size_t>(t), 0);
+    double ynorm = std::sqrt(dot(y.data(), y.data(), r));
+    double wtol = 1e-14 * (1.0 + ynorm);
+    i64 cap = 3 * t + 10;
+    for (i64 outer = 0; outer < cap; ++outer) {
+        Vec res = mv(M.cref(), u.data());
+        for (i64 i = 0; i < r; ++i) res[i] = y[i] - res[i];
+        Vec w = mtv(M.cref(), res.data());  // -gradient
+        i64 add = -1;
+        double best = wtol;
+        for (i64 j = 0; j < t; ++j) {
+            if (!passive[j] && w[j] > best) {
+                best = w[j];
+                add = j;
+            }
+        }
+        if (add < 0) break;
+        passive[add] = 1;
+        for (i64 inner = 0; inner < cap; ++inner) {
+            IVec P;
+            for (i64 j = 0; j < t; ++j)
+                if (passive[j]) P.push_back(j);
+            i64 np = static_cast<i64>(P.size());
+            Mat MP(r, np);
+            for (i64 i = 0; i < r; ++i)
+                for (i64 k = 0; k < np; ++k) MP(i, k) = M(i, P[k]);
+            Vec s = lstsq(std::move(MP), y);
+            bool positive = true;
+            for (i64 k = 0; k < np; ++k)
+                if (!(s[k] > 0.0)) positive = false;
+            if (positive) {
+                for (i64 k = 0; k < np; ++k) u[P[k]] = s[k];
+                break;
+            }
+            double alpha = 1.0;
+            i64 hit = -1;
+            for (i64 k = 0; k < np; ++k) {
+                double uk = u[P[k]];
+                if (!(s[k] > 0.0)) {
+                    double a = uk / (uk - s[k]);
+                    if (hit < 0 || a < alpha) {
+                        alpha = a;
+                        hit = k;
+                    }
+                }
+            }
+            for (i64 k = 0; k < np; ++k) {
+                double& uk = u[P[k]];
+                uk += alpha * (s[k] - uk);
+                if (k == hit || !(uk > 0.0)) {
+                    uk = 0.0;
+                    passive[P[k]] = 0;
+                }
+            }
+            if (inner == 0 && !passive[add]) return u;  // round-off: the row just added left at once
+        }
+    }
+    return u;
+}
+
+}  // namespace detail
+
+constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with weights u >= 0, to
+                                   // within this (1 + sum u) are positively dependent: pinned
+
+// The rows tight at d whose movement the levels above have pinned, and Z without their
+// directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
+// lb or ub, general rows within kSnap (|g| + |h|) of h; both sides of a zero-width box row),
+// with normals n_j in null-space coordinates (the feasible moves: n_j^T z >= 0), are
+// pinned together when they are positively dependent (sum_j u_j n_j = 0, u_j > 0): every
+// feasible move keeps each of them on its bound, n_j^T z = 0 (Gordan). Pinned rows are
+// equalities of every level from here on: held as two opposing inequalities, the round-off
+// in their normals makes a thin wedge of the feasible set, or closes it (tiny entries in
+// the normals of other tight rows then fix a free direction too), and the level ends
+// uncertified though it is feasible and solvable. They are eliminated exactly instead: Z
+// becomes Z Q2, Q2 the orthonormal complement of their normals (pivoted Householder QR),
+// so that they are met to round-off and the rows left in null-space coordinates constrain
+// the free directions only. Each tight row is tested by the non-negative least squares
+// min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u) pins j
+// and the rows of weight above that; else the residual is a feasible move that leaves j
+// (and every row it moves off its bound) free. Returns whether Z changed.
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+    i64 n = Z.rows, r = Z.cols, p = G.rows;
+    if (r == 0) return false;
+    std::vector<Vec> normals;
+    IVec owner;  // the dof of a box row's normal, -1 for a general row
+    for (i64 i = 0; i < n; ++i) {
+        const double* zi = Z.row(i);
+        double nn = 0.0;
+        for (i64 c = 0; c < r; ++c) nn += zi[c] * zi[c];
+        if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
+        double norm = std::sqrt(nn);
+        for (double side : {1.0, -1.0}) {
+            double bound = side > 0.0 ? lb[i] : ub[i];
+            if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
+                continue;
+            Vec v(static_cast<size_t>(r));
+            for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
+            normals.push_back(std::move(v));
+            owner.push_back(i);
+        }
+    }
+    if (p) {
+        for (i64 j = 0; j < p; ++j) {
+            if (!(h[j] < kBig)) continue;
+            double gg = 0.0, gd = 0.0;
+            for (i64 t = 0; t < n; ++t) {
+                gg += G(j, t) * G(j, t);
+                gd += G(j, t) * d[t];
+            }
+            if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
+            Vec v(static_cast<size_t>(r), 0.0);
+            for (i64 t = 0; t < n; ++t) {
+                double g = G(j, t);
+                if (g == 0.0) continue;
+                const double* zt = Z.row(t);
+                for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
+            }
+            double nn = dot(v.data(), v.data(), r);
+            if (!(nn > 1e-20 * gg)) continue;
+            double norm = std::sqrt(nn);
+            for (auto& x : v) x = -x / norm;
+            normals.push_back(std::move(v));
+            owner.push_back(-1);
+        }
+    }
+    i64 t = static_cast<i64>(normals.size());
+    if (t < 2) return false;
+    IVec state(static_cast<size_t>(t), 0);  // 1 pinned, -1 free, 0 not known yet
+    for (i64 j = 0; j < t; ++j) {
+        if (state[j] != 0) continue;
+        IVec others;
+        for (i64 i = 0; i < t; ++i)
+            if (i != j && state[i] >= 0) others.push_back(i);
+        i64 k = static_cast<i64>(others.size());
+        Mat M(r, k);
+        for (i64 c = 0; c < r; ++c)
+            for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
+        Vec y(static_cast<size_t>(r));
+        for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
+        Vec u = detail::nnls(M, y);
+        Vec res = mv(M.cref(), u.data());  // n_j + sum u_i n_i
+        double total = 1.0;
+        for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
+        for (i64 s = 0; s < k; ++s) total += u[s];
+        double rn = std::sqrt(dot(res.data(), res.data(), r));
+        if (rn <= kPinned * total) {
+            state[j] = 1;
+            for (i64 s = 0; s < k; ++s)
+                if (u[s] > kPinned * total) state[others[s]] = 1;
+        } else {
+            state[j] = -1;  // res moves j off its bound, and every row it moves off its own
+            for (i64 i = 0; i < t; ++i)
+                if (state[i] == 0 && dot(normals[i].data(), res.data(), r) > 1e-9 * rn) state[i] = -1;
+        }
+    }
+    IVec pinned;
+    BVec box_pinned(static_cast<size_t>(n), 0);
+    for (i64 j = 0; j < t; ++j) {
+        if (state[j] != 1) continue;
+        pinned.push_back(j);
+        if (owner[j] >= 0) box_pinned[owner[j]] = 1;
+    }
+    i64 e = static_cast<i64>(pinned.size());
+    if (e == 0) return false;
+    Mat N(r, e);
+    for (i64 s = 0; s < e; ++s)
+        for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
+    Mat Q, R;
+    IVec perm;
+    householder_qr(N.cref(), true, Q, R, perm);
+    double top = std::fabs(R(0, 0));
+    i64 rank = 0;
+    for (i64 i = 0; i < std::min(r, e); ++i) {
+        if (std::fabs(R(i, i)) > 1e-10 * top) rank = i + 1;
+        else break;
+    }
+    if (rank == 0) return false;
+    Z = mm(Z.cref(), columns(Q.cref(), rank, r).cref());
+    // A pinned box row's dof no longer moves: its row of Z, round-off now, is made 0 (the
+    // dof is held exactly; a task on it sees no round-off gradient in null-space coordinates).
+    for (i64 i = 0; i < n; ++i) {
+        if (!box_pinned[i]) continue;
+        double nn = 0.0;
+        for (i64 c = 0; c < Z.cols; ++c) nn += Z(i, c) * Z(i, c);
+        if (nn <= 1e-24)
+            for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
+    }
+    return true;
+}
+
 // One level made exact and certified from a QP answer's active set (the level-by-level
 // path of qpik.core.hierarchy): (ok, z, certificate, final active set).
 struct CertifiedLevel {
@@ -464,6 +662,9 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     Mat Z = Mat::eye(n);
     for (i64 k = 0; k < L; ++k) {
         i64 s0 = starts[k], s1 = starts[k + 1];
+        // The rows the levels above pinned on their bounds become equalities, eliminated
+        // from Z (see drop_pinned): this level and the ones below move only where they can.
+        if (s1 > s0) drop_pinned(Z, d, lb, ub, G, h);
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels

@@ -399,7 +399,8 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // for primal feasibility, a box row's violation scaled by 1 + |bound|, a general row's by
 // |g| + |h|. Stationarity: s = Z^T (A^T (A x - b) + rho x - sum_j u_j side_j c_j), each
 // component divided by |Z|^T (|A|^T (|A| |x| + |b|) + rho |x|) (the size
-// of the objective's terms summed, at least kSizeFloor times the largest such size; the
+// of the objective's terms summed, at least kSizeFloor times the largest such size, in
+// null-space or full-space coordinates; the
 // multipliers' terms are left out of the scale, so
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
@@ -478,10 +479,15 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         S = pymax(S, ss);
     }
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
-    // round-off the other components feed into it).
+    // round-off the other components feed into it), S at least the largest full-space size:
+    // an entry of Z that is round-off where it is exactly 0 (a dof the levels above pinned)
+    // feeds eps |v| into every component, which sizes in null-space coordinates alone do not
+    // see when the level's whole gradient lies outside Z (a task on pinned dofs only).
+    double big = S;
+    for (i64 i = 0; i < n; ++i) big = pymax(big, vs[i]);
     double stat = 0.0;
     for (i64 c = 0; c < r; ++c) {
-        double ss = pymax(ssc[c], kSizeFloor * S);
+        double ss = pymax(ssc[c], kSizeFloor * big);
         if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
         else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
     }
