@@ -12,7 +12,7 @@ import scipy.linalg
 import scipy.optimize
 
 from qpik.core import HierarchyProblem, HierarchySolver, Level, LevelStatus
-from qpik.core import _kernels as K
+from qpik.core import kernels as K
 
 DATA = Path(__file__).parent / "data" / "exactness" / "trust_region_pinned_level.npz"
 

@@ -20,7 +20,7 @@ both sides of a zero-width box row) whose normals in null-space coordinates are 
 dependent (``sum_j u_j n_j = 0``, ``u_j > 0``, to ``1e-12``) are pinned: no feasible move
 takes any of them off its bound (the levels above put ``d`` on a vertex of the feasible
 set within ``Z``). They are equalities from there on and leave ``Z`` exactly
-(:func:`qpik.core._kernels.drop_pinned`; a pinned box row's dof keeps its value), so that
+(:func:`qpik.core.kernels.drop_pinned`; a pinned box row's dof keeps its value), so that
 round-off in their normals cannot close the feasible set of a lower level that still has
 free directions.
 
