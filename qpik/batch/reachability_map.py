@@ -33,10 +33,11 @@ from ..igm.targets import FrameKey, RobotLike, parse_target
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
-from .pool import check_seed, check_workers, prepare_robot, solve_call, stream_chunks
+from .pool import Batch, BatchKeywords, prepare_robot, stream_chunks
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+    from typing_extensions import Unpack
 
 __all__ = [
     "ReachabilityMap",
@@ -134,8 +135,7 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     """Balls that each hold every position of the frame: :func:`reach_bound`, and the
     IK engine's (:meth:`qpik.model.KinematicChain.reach_bound`, through the common
     perpendiculars of consecutive axes) where its chain is supported. Each is a proof on
-    its own, so a voxel outside either is out of reach; neither is always the tighter
-    (ur5e: 1.15 m against 1.31 m; panda: 1.09 m against 1.16 m)."""
+    its own, so a voxel outside either is out of reach; neither is always the tighter."""
     bounds = [reach_bound(model, frame)]
     try:
         from ..model import KinematicChain, chain_support, joint_limits
@@ -330,13 +330,8 @@ def reachability(
     region: npt.ArrayLike,
     resolution: float,
     orientations: int | npt.ArrayLike,
-    workers: int | None = None,
-    backend: str = "process",
-    address: str | None = None,
-    seed: int = 0,
-    progress: bool = True,
     options: SolveOptions | str | None = None,
-    **solve_options: Any,
+    **keywords: Unpack[BatchKeywords],
 ) -> ReachabilityMap:
     """Compute a reachability map of ``frame``.
 
@@ -349,25 +344,23 @@ def reachability(
         orientations: a count ``K`` (spread evenly over SO(3), :func:`so3_grid`) or
             ``(K, 3, 3)`` rotation matrices (world frame); ``0``: positions only (one
             target per voxel, no orientation: ``fraction`` is 0 or 1).
-        workers, backend, address, seed, progress, options: as for
-            :func:`qpik.solve_many`.
-        **solve_options: passed to every :func:`qpik.solve` (tolerances, ``restarts``,
-            ``time_budget``, ...: they trade the map's accuracy for its time).
+        options: the :class:`qpik.SolveOptions` (or a preset name) of every solve.
+        **keywords: as for :func:`qpik.solve_many`: how the batch runs (``workers``,
+            ``backend``, ``address``, ``seed``, ``progress``, ...), and the keywords of
+            every :func:`qpik.solve` (tolerances, ``restarts``, ``time_budget``, ...: they
+            trade the map's accuracy for its time).
 
     Returns:
         a :class:`ReachabilityMap`; ``.fraction`` has one value per voxel, ``.centers``
         the voxel centres.
     """
     start_time = time.perf_counter()
-    entropy = check_seed(seed)
-    workers = check_workers(workers, backend)
-    spec, model, q0 = prepare_robot(robot)
-    call = solve_call(options, solve_options, q0)
+    batch = Batch.prepare(robot, options, keywords, ("histories",))
     centers, shape = _grid(region, resolution)
     rotations = _rotations(orientations)
-    margin = call["options"].tol_position  # [m]: a voxel this close to the bound may converge
+    margin = batch.options.tol_position  # [m]: a voxel this close to the bound may converge
     skipped = np.zeros(len(centers), dtype=bool)
-    bounds = _reach_bounds(model, frame)
+    bounds = _reach_bounds(batch.model, frame)
     for center, radius in bounds:
         skipped |= np.linalg.norm(centers - center, axis=1) > radius + margin
     base, reach = min(bounds, key=lambda bound: bound[1])
@@ -382,23 +375,11 @@ def reachability(
         ]
 
     flags = np.zeros(len(candidates) * k, dtype=bool)
-    for start, results in stream_chunks(
-        spec,
-        model,
-        len(flags),
-        targets_at,
-        entropy=entropy,
-        workers=workers,
-        backend=backend,
-        address=address,
-        progress=progress,
-        chunk_size=None,
-        pool_threshold=1.0,
-        options=call,
-    ):
+    for start, results in stream_chunks(batch, len(flags), targets_at):
         flags[start : start + len(results)] = [r.converged for r in results]
     reached = np.zeros((len(centers), k), dtype=bool)
     reached[candidates] = flags.reshape(len(candidates), k)
+    spec = batch.setup.spec
     return ReachabilityMap(
         centers=centers,
         fraction=reached.mean(axis=1),
@@ -409,12 +390,12 @@ def reachability(
         resolution=float(resolution),
         region=np.asarray(region, dtype=float),
         frame=frame if isinstance(frame, str) else str(frame[0]),
-        robot=spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
+        robot=spec if isinstance(spec, str) else f"MjModel(nq={batch.model.nq})",
         base=base,
         reach=reach,
-        seed=entropy,
+        seed=batch.setup.entropy,
         elapsed=time.perf_counter() - start_time,
-        solve_options=dict(solve_options),
+        solve_options=dict(batch.keywords),
     )
 
 
