@@ -21,6 +21,7 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -185,6 +186,21 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
     return grid, (int(counts[0]), int(counts[1]), int(counts[2]))
 
 
+#: The array fields of a :class:`ReachabilityMap`, saved as arrays of its ``.npz``.
+_MAP_ARRAYS = ("centers", "fraction", "reached", "skipped", "orientations", "region", "base")
+#: Its other fields, saved in the JSON ``meta`` entry, with the type each is read back as
+#: (``solve_options`` aside: saved as the ``repr`` of each value).
+_MAP_META: dict[str, Callable[[Any], Any]] = {
+    "shape": tuple,
+    "resolution": float,
+    "frame": str,
+    "robot": str,
+    "reach": float,
+    "seed": int,
+    "elapsed": float,
+}
+
+
 @dataclass
 class ReachabilityMap:
     """A reachability map (see :func:`reachability`).
@@ -248,50 +264,20 @@ class ReachabilityMap:
 
     def save(self, path: str | os.PathLike) -> None:
         """Save as ``.npz`` (arrays, plus a JSON ``meta`` entry for the rest)."""
-        meta = {
-            "shape": list(self.shape),
-            "resolution": self.resolution,
-            "frame": self.frame,
-            "robot": self.robot,
-            "reach": self.reach,
-            "seed": self.seed,
-            "elapsed": self.elapsed,
-            "solve_options": {k: repr(v) for k, v in self.solve_options.items()},
-        }
-        np.savez(
-            path,
-            centers=self.centers,
-            fraction=self.fraction,
-            reached=self.reached,
-            skipped=self.skipped,
-            orientations=self.orientations,
-            region=self.region,
-            base=self.base,
-            meta=np.array(json.dumps(meta)),
-        )
+        meta: dict[str, Any] = {name: getattr(self, name) for name in _MAP_META}
+        meta["shape"] = list(self.shape)
+        meta["solve_options"] = {k: repr(v) for k, v in self.solve_options.items()}
+        arrays = {name: getattr(self, name) for name in _MAP_ARRAYS}
+        np.savez(path, **arrays, meta=np.array(json.dumps(meta)))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ReachabilityMap:
         """Read a map written by :meth:`save`."""
         with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
-            return cls(
-                centers=data["centers"],
-                fraction=data["fraction"],
-                reached=data["reached"],
-                skipped=data["skipped"],
-                orientations=data["orientations"],
-                shape=tuple(meta["shape"]),
-                resolution=float(meta["resolution"]),
-                region=data["region"],
-                frame=meta["frame"],
-                robot=meta["robot"],
-                base=data["base"],
-                reach=float(meta["reach"]),
-                seed=int(meta["seed"]),
-                elapsed=float(meta["elapsed"]),
-                solve_options=dict(meta["solve_options"]),
-            )
+            arrays = {name: data[name] for name in _MAP_ARRAYS}
+        values = {name: kind(meta[name]) for name, kind in _MAP_META.items()}
+        return cls(**arrays, **values, solve_options=dict(meta["solve_options"]))
 
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
         """See :func:`plot_reachability`."""

@@ -110,7 +110,7 @@ from .targets import (
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
-__all__ = ["IKSession", "Seed", "SolveArguments", "solve"]
+__all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.
@@ -129,6 +129,13 @@ class SolveArguments(SolveKeywords, total=False):
 
     q0: npt.ArrayLike | None
     stack: Stack | None
+
+
+class SolveCall(SolveArguments, total=False):
+    """The keywords of :func:`solve` and :meth:`IKSession.solve`: those of
+    :class:`SolveArguments` and the ``seed`` of the solve (documented by :func:`solve`)."""
+
+    seed: Seed | Unset
 
 
 def _rng_state(seed: Seed) -> np.ndarray:
@@ -241,28 +248,25 @@ class IKSession:
         self,
         targets: Mapping[FrameKey, TargetLike],
         *,
-        q0: npt.ArrayLike | None = None,
-        stack: Stack | None = None,
         options: SolveOptions | str | None = None,
-        seed: Seed | Unset = UNSET,
-        **keywords: Unpack[SolveKeywords],
+        **keywords: Unpack[SolveCall],
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
         start_time = time.perf_counter()
-        return self._solve(targets, q0, stack, options, seed, keywords, start_time)
+        return self._solve(targets, options, keywords, start_time)
 
     def _solve(
         self,
         targets: Mapping[FrameKey, TargetLike],
-        q0: npt.ArrayLike | None,
-        stack: Stack | None,
         options: SolveOptions | str | None,
-        seed: Seed | Unset,
-        keywords: Mapping[str, Any],
+        keywords: SolveCall,
         start_time: float,
     ) -> IKResult:
-        """:meth:`solve` from the start of its clock."""
+        """:meth:`solve` from the start of its clock (``keywords``: its own, changed)."""
+        q0 = keywords.pop("q0", None)
+        stack = keywords.pop("stack", None)
+        seed = keywords.pop("seed", UNSET)
         settings, kernel_options = self._options(options, keywords)
         rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
         frames = self._targets(targets)
@@ -491,11 +495,8 @@ def solve(
     robot: RobotLike,
     targets: Mapping[FrameKey, TargetLike],
     *,
-    q0: npt.ArrayLike | None = None,
-    stack: Stack | None = None,
     options: SolveOptions | str | None = None,
-    seed: Seed | Unset = UNSET,
-    **keywords: Unpack[SolveKeywords],
+    **keywords: Unpack[SolveCall],
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 
@@ -518,7 +519,8 @@ def solve(
         seed: seed of the restarts' random configurations: an int >= 0, a numpy
             ``Generator`` (one draw is taken from it) or ``SeedSequence``; same seed, same
             result. ``None``: fresh entropy. Default: ``options.seed`` (``None``).
-        **keywords: options overriding ``options``, each a field of
+        **keywords: ``q0``, ``stack``, ``seed`` (above), and options overriding
+            ``options``, each a field of
             :class:`qpik.SolveOptions` (``tol_position``, ``max_iters``, ``restarts``,
             ``time_budget``, ``engine``, ...) or of its :class:`qpik.StepOptions`
             (``solver``, ``damping``, ``damping_law``, ``couplings``, ...), documented
@@ -546,4 +548,4 @@ def solve(
     else:
         session = IKSession(robot)
     # The clock (solve_time, time_budget) starts once the robot is loaded, as a session's.
-    return session._solve(targets, q0, stack, options, seed, keywords, time.perf_counter())
+    return session._solve(targets, options, keywords, time.perf_counter())
