@@ -57,7 +57,9 @@ SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
 
 @dataclass(frozen=True)
 class DampingLaw:
-    """Adaptive damping from the smallest singular value of a level (see module doc).
+    """Adaptive damping from the smallest singular value ``sigma`` of a level:
+    ``lambda^2 = max_damping^2 (1 - (sigma / singular_threshold)^2)`` below the threshold,
+    0 above it (:meth:`__call__`).
 
     Attributes:
         singular_threshold: ``sigma`` below which damping starts, in the units of the
@@ -207,7 +209,7 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in choices:
         expected = f"one of {', '.join(map(repr, choices))}"
         message = None
-        if name == "solver":  # the message IKSolver has always given
+        if name == "solver":  # a message that lists the known solvers
             message = f"unknown QP solver {value!r}; known solvers: {', '.join(choices)}"
         raise InvalidOption(name, value, expected, message)
     return value
@@ -215,7 +217,7 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
 
 # -------------------------------------------------------------------------- step
 #: Default trust region of a differential-IK step [rad/s or m/s]
-#: (:attr:`StepOptions.max_joint_speed`): one turn per second, 0.063 rad or m per 10 ms
+#: (:attr:`StepOptions.max_joint_speed`): half a turn per second, 0.031 rad or m per 10 ms
 #: step, on every dof that no velocity limit of the stack bounds.
 DEFAULT_MAX_JOINT_SPEED: Final = math.pi
 

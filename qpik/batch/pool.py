@@ -468,9 +468,9 @@ def progress_bar(total: int, enabled: bool = True, initial: int = 0, desc: str =
 
 
 def _mp_context() -> multiprocessing.context.BaseContext:
-    """``fork`` on Linux: workers start in milliseconds and inherit the compiled kernels
-    and the loaded modules (a fresh interpreter, ``forkserver`` or ``spawn``, takes seconds
-    to import qpik). Elsewhere ``spawn``, the platform's default: scripts then need an
+    """``fork`` on Linux: workers start at once and inherit the compiled kernels and the
+    loaded modules (a fresh interpreter, ``forkserver`` or ``spawn``, imports qpik again).
+    Elsewhere ``spawn``, the platform's default: scripts then need an
     ``if __name__ == "__main__":`` guard."""
     import multiprocessing
 
