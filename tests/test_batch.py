@@ -11,8 +11,8 @@ import pytest
 
 import qpik
 import qpik.batch.pool as batch
-from qpik.batch import iter_solve, load_targets, solve_file
 import qpik.batch.worker as worker
+from qpik.batch import iter_solve, load_targets, solve_file
 from qpik.batch.chunks import Chunk
 from qpik.batch.worker import target_seed
 from qpik.cli import main

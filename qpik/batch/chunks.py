@@ -78,8 +78,8 @@ def check_targets(model: mujoco.MjModel, targets_list: Sequence, offset: int = 0
 class StackedTargets(Sequence):
     """Targets ``{key: (positions[i], rotations[i])}`` (or ``{key: positions[i]}``) of one
     frame key, held as stacked float64 arrays: a slice is a view, and a chunk of them
-    pickles as two arrays. The values are those :func:`qpik.igm.targets.parse_target` reads from the originals
-    (``float(x)`` of each number), so the solves are bitwise the same."""
+    pickles as two arrays. The values are those :func:`qpik.igm.targets.parse_target` reads
+    from the originals (``float(x)`` of each number), so the solves are bitwise the same."""
 
     __slots__ = ("key", "positions", "rotations")
 
