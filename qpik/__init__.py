@@ -8,7 +8,7 @@ from .diffik import SOLVERS as _SOLVERS
 from .diffik import DampingLaw, IKSolver, StepResult, build_ik, solve_ik
 from .errors import QpikError
 from .igm import IKResult, IKSession, Reason, solve
-from .igm.session import PREPARED as _PREPARED
+from .igm.prepared import PREPARED as _PREPARED
 from .model.configuration import Configuration, FrameType, frame_names, joint_names
 from .options import PRESETS, SolveOptions, StepOptions
 from .robots import list_robots, load_robot
@@ -56,7 +56,7 @@ def clear_caches() -> None:
     """Forget what qpik keeps between calls: the :class:`IKSolver` objects that
     :func:`solve_ik` and :func:`build_ik` keep per model, task and limit objects
     (:class:`qpik.diffik.mink_compat.SolverCache`), and the robots :func:`solve` prepared per model
-    (:data:`qpik.igm.session.PREPARED`, a :class:`qpik.igm.session.PreparedRobots`). Answers never
+    (:data:`qpik.igm.prepared.PREPARED`, a :class:`qpik.igm.prepared.PreparedRobots`). Answers never
     depend on them; only the time of the next call does."""
     _SOLVERS.clear()
     _PREPARED.clear()

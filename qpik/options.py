@@ -8,6 +8,9 @@
   :class:`StepOptions` of its steps.
 * :data:`PRESETS`: named :class:`SolveOptions` (``"default"``, ``"precise"``, ``"fast"``,
   ``"tracking"``); ``SolveOptions.preset("fast", max_iters=50)``.
+* :class:`SolveKeywords` (and its part :class:`LoopKeywords`): the option keywords of the
+  entry points, one per field, typed once: ``qpik.solve(robot, targets, max_iters=50)`` is
+  ``options.replace(max_iters=50)``.
 
 Both are frozen dataclasses, validated on construction: a bad value raises
 :class:`qpik.InvalidOption` (an :class:`qpik.InvalidInput`) naming the field, the value and
@@ -24,7 +27,7 @@ import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Any, Final
+from typing import Any, Final, TypedDict
 
 from .errors import InvalidInput, InvalidOption
 
@@ -39,6 +42,8 @@ __all__ = [
     "MAX_ITERS_LIMIT",
     "PRESETS",
     "UNSET",
+    "LoopKeywords",
+    "SolveKeywords",
     "SolveOptions",
     "StepOptions",
     "check_integer",
@@ -52,7 +57,9 @@ SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
 
 @dataclass(frozen=True)
 class DampingLaw:
-    """Adaptive damping from the smallest singular value of a level (see module doc).
+    """Adaptive damping from the smallest singular value ``sigma`` of a level:
+    ``lambda^2 = max_damping^2 (1 - (sigma / singular_threshold)^2)`` below the threshold,
+    0 above it (:meth:`__call__`).
 
     Attributes:
         singular_threshold: ``sigma`` below which damping starts, in the units of the
@@ -202,7 +209,7 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
     if not isinstance(value, str) or value not in choices:
         expected = f"one of {', '.join(map(repr, choices))}"
         message = None
-        if name == "solver":  # the message IKSolver has always given
+        if name == "solver":  # a message that lists the known solvers
             message = f"unknown QP solver {value!r}; known solvers: {', '.join(choices)}"
         raise InvalidOption(name, value, expected, message)
     return value
@@ -210,7 +217,7 @@ def _check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
 
 # -------------------------------------------------------------------------- step
 #: Default trust region of a differential-IK step [rad/s or m/s]
-#: (:attr:`StepOptions.max_joint_speed`): one turn per second, 0.063 rad or m per 10 ms
+#: (:attr:`StepOptions.max_joint_speed`): half a turn per second, 0.031 rad or m per 10 ms
 #: step, on every dof that no velocity limit of the stack bounds.
 DEFAULT_MAX_JOINT_SPEED: Final = math.pi
 
@@ -349,10 +356,13 @@ class SolveOptions:
             error a step asks for). Default ``1``.
         beta: scale of the step the QP returns, > 0 (``beta > 1`` iterates are clipped
             into the joint limits). Default ``1``.
-        stall_window: iterations without a 1 % improvement that count as no progress (int
-            >= 1). Default ``5``.
+        stall_window: iterations without progress after which an attempt stops (int >= 1):
+            an iteration makes progress when its score (over the frames, the largest
+            ``position / tol_position + orientation / tol_orientation``) falls below 95 % of
+            the score at the window's start, a 5 % decrease
+            (:data:`qpik.model.kernels.PROGRESS`). Default ``5``.
         max_step: trust region ``(metres, radians)``: no iteration asks a target task for
-            more than this; ``None`` for full steps (the lecture's recursion). Default
+            more than this; ``None`` for full steps ``J dq = -alpha e``. Default
             ``(0.2, 0.5)``.
         secondary: with the default stack on a redundant arm, add distance from the joint
             limits as a level-1 objective in the null space of the targets (``"qp"``
@@ -533,3 +543,41 @@ PRESETS: Final[Mapping[str, SolveOptions]] = MappingProxyType(
         "tracking": SolveOptions(restarts=0, max_iters=20, step=StepOptions()),
     }
 )
+
+
+# ---------------------------------------------------------------------- keywords
+class LoopKeywords(TypedDict, total=False):
+    """The option keywords of every full-IK loop, :func:`qpik.solve`'s and the baselines'
+    (:func:`qpik.baselines.igm`): the :class:`SolveOptions` fields of the same names, which
+    document them."""
+
+    tol_position: float
+    tol_orientation: float
+    max_iters: int
+    time_budget: float | None
+    restarts: int | None
+    alpha: float
+    beta: float
+    stall_window: int
+
+
+class SolveKeywords(LoopKeywords, total=False):
+    """The option keywords of :func:`qpik.solve`, :meth:`qpik.IKSession.solve`,
+    :func:`qpik.solve_many`, :func:`qpik.reachability` and the batch files: one per field of
+    :class:`SolveOptions` and per :data:`STEP_FIELDS` field of its :class:`StepOptions`
+    (documented there), each overriding the ``options`` argument. ``seed`` is not among them:
+    each entry point takes its own (a solve's also takes a numpy ``Generator``; a batch's
+    seeds every target)."""
+
+    max_step: tuple[float, float] | None
+    secondary: bool
+    limits: str | Sequence[Any] | None
+    engine: str
+    step: StepOptions
+    solver: str
+    damping: float
+    damping_law: DampingLaw | None
+    rank_tolerance: float
+    warm_start: bool
+    backend_options: Mapping[str, Any] | None
+    couplings: bool

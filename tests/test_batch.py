@@ -11,8 +11,10 @@ import pytest
 
 import qpik
 import qpik.batch.pool as batch
+import qpik.batch.worker as worker
 from qpik.batch import iter_solve, load_targets, solve_file
-from qpik.batch.pool import Chunk, target_seed
+from qpik.batch.chunks import Chunk
+from qpik.batch.worker import target_seed
 from qpik.cli import main
 
 
@@ -136,14 +138,14 @@ def test_bad_inputs_raise_typed_errors_naming_the_argument():
 
 
 def test_an_error_in_a_worker_is_raised_with_its_type(monkeypatch):
-    real_solve = batch.solve
+    real_solve = worker.solve
 
     def failing(model, targets, **options):
         if np.allclose(targets["ee"][0], TARGETS[6]["ee"][0]):
             raise qpik.InvalidTarget("target 6 is cursed")
         return real_solve(model, targets, **options)
 
-    monkeypatch.setattr(batch, "solve", failing)  # workers fork with the patch
+    monkeypatch.setattr(worker, "solve", failing)  # workers fork with the patch
     with pytest.raises(qpik.InvalidTarget, match="cursed"):
         qpik.solve_many("ur5e", TARGETS, workers=2, pool_threshold=0.0, progress=False)
 
@@ -241,13 +243,13 @@ def test_batch_file_resumes_without_redoing_chunks(tmp_path, monkeypatch):
     write_targets(tmp_path / "t.npz")
     out = tmp_path / "r.npz"
     solved: list[int] = []
-    real_solve = batch.solve
+    real_solve = worker.solve
 
     def counting(model, targets, **options):
         solved.append(1)
         return real_solve(model, targets, **options)
 
-    monkeypatch.setattr(batch, "solve", counting)
+    monkeypatch.setattr(worker, "solve", counting)
     first = solve_file("ur5e", "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1, max_chunks=2)
     assert (first.chunks, first.chunks_solved, first.complete) == (3, 2, False)
     assert len(solved) == 6
@@ -281,18 +283,18 @@ def test_batch_cli_interrupted_then_resumed_with_workers(tmp_path, monkeypatch, 
     out = tmp_path / "r.npz"
     argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
     argv += ["--out", str(out), "--chunk-size", "2", "--quiet"]
-    real_solve = batch.solve
+    real_solve = worker.solve
 
     def interrupted(model, targets, **options):
         if np.allclose(targets["ee"][0], TARGETS[5]["ee"][0]):
             raise KeyboardInterrupt
         return real_solve(model, targets, **options)
 
-    monkeypatch.setattr(batch, "solve", interrupted)
+    monkeypatch.setattr(worker, "solve", interrupted)
     assert main(argv + ["--workers", "1"]) == 130
     assert "resume" in capsys.readouterr().err
     assert np.load(out)["done"].sum() == 4  # chunks [0, 1] and [2, 3]
-    monkeypatch.setattr(batch, "solve", real_solve)
+    monkeypatch.setattr(worker, "solve", real_solve)
     assert main(argv + ["--workers", "2"]) == 0
     data = np.load(out)
     assert data["done"].all() and data["converged"].all()
@@ -358,10 +360,13 @@ def test_public_names_exist_and_are_documented():
     import inspect
 
     import qpik.batch
+    import qpik.batch.chunks
     import qpik.batch.files
+    import qpik.batch.ray
     import qpik.batch.reachability_map as reach_module
 
-    for module in (qpik.batch, batch, qpik.batch.files, reach_module):
+    modules = (qpik.batch, batch, qpik.batch.files, reach_module, qpik.batch.chunks, worker)
+    for module in (*modules, qpik.batch.ray):
         for name in module.__all__:
             obj = getattr(module, name)
             if inspect.isfunction(obj) or inspect.isclass(obj):
@@ -383,7 +388,7 @@ def test_batch_cli_sigterm_ends_like_ctrl_c(tmp_path, monkeypatch, capsys):
     out = tmp_path / "r.npz"
     argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
     argv += ["--out", str(out), "--chunk-size", "2", "--workers", "1", "--quiet"]
-    real_solve = batch.solve
+    real_solve = worker.solve
 
     def terminated(model, targets, **options):
         if np.allclose(targets["ee"][0], TARGETS[4]["ee"][0]):
@@ -391,7 +396,7 @@ def test_batch_cli_sigterm_ends_like_ctrl_c(tmp_path, monkeypatch, capsys):
         return real_solve(model, targets, **options)
 
     before = signal.getsignal(signal.SIGTERM)
-    monkeypatch.setattr(batch, "solve", terminated)
+    monkeypatch.setattr(worker, "solve", terminated)
     assert main(argv) == 130
     assert signal.getsignal(signal.SIGTERM) is before  # the CLI's handler is removed
     assert np.load(out)["done"].sum() == 4
@@ -434,7 +439,7 @@ def test_worker_transport_packs_bitwise():
     arrays (cheap to pickle); what arrives is what was sent, bitwise."""
     import pickle
 
-    from qpik.batch import pool as B
+    from qpik.batch import chunks as C
 
     model = qpik.load_robot("ur5e")
     configuration = qpik.Configuration(model)
@@ -443,21 +448,21 @@ def test_worker_transport_packs_bitwise():
     for _ in range(10):
         configuration.update(configuration.random_q(rng))
         targets.append({"ee": configuration.frame_pose("ee")})
-    packed = B._pack_chunk(B.Chunk(5, targets))
-    assert isinstance(packed, B._PackedChunk)
+    packed = C.pack_chunk(C.Chunk(5, targets))
+    assert isinstance(packed, C.PackedChunk)
     chunk = pickle.loads(pickle.dumps(packed)).unpack()
     assert chunk.start == 5
     for sent, got in zip(targets, chunk.targets):
         assert sent["ee"][0].tobytes() == got["ee"][0].tobytes()
         assert sent["ee"][1].tobytes() == got["ee"][1].tobytes()
     positions = [{"ee": t["ee"][0]} for t in targets]
-    assert B._pack_chunk(B.Chunk(0, positions)).rotations is None
+    assert C.pack_chunk(C.Chunk(0, positions)).rotations is None
     for odd in ([{"ee": [0.1, 0.2, 0.3]}], [{"ee": targets[0]["ee"]}, {"ee": [0.1, 0.2, 0.3]}],
                 [{"ee": targets[0]["ee"], ("ee", "site"): targets[1]["ee"]}]):  # fmt: skip
-        assert isinstance(B._pack_chunk(B.Chunk(0, odd)), B.Chunk)
-    results = [B._without_histories(qpik.solve(model, t, seed=i)) for i, t in enumerate(targets)]
-    results.append(B._without_histories(qpik.solve(model, {"ee": [3.0, 0.0, 0.4]}, seed=1)))
-    back = B._unpack(pickle.loads(pickle.dumps(B._pack(results))))
+        assert isinstance(C.pack_chunk(C.Chunk(0, odd)), C.Chunk)
+    results = [C.without_histories(qpik.solve(model, t, seed=i)) for i, t in enumerate(targets)]
+    results.append(C.without_histories(qpik.solve(model, {"ee": [3.0, 0.0, 0.4]}, seed=1)))
+    back = C.unpack_results(pickle.loads(pickle.dumps(C.pack_results(results))))
     for a, b in zip(results, back, strict=True):
         assert a.q.tobytes() == b.q.tobytes() and a.reason is b.reason
         assert (a.converged, a.iterations, a.restarts_used, a.engine) == (
@@ -465,14 +470,14 @@ def test_worker_transport_packs_bitwise():
         assert np.array([a.position_error, a.orientation_error, a.solve_time]).tobytes() == (
             np.array([b.position_error, b.orientation_error, b.solve_time]).tobytes())  # fmt: skip
         assert a.frame_errors == b.frame_errors and a.path.shape == b.path.shape == (0, 0)
-    assert B._pack([]) == []
+    assert C.pack_results([]) == []
 
 
 def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
     """A batch of one frame's (position, rotation) targets is checked at once and sent as
     stacked arrays; the results are bitwise those of the same targets one by one, and a bad
     target still raises the typed error naming its index."""
-    from qpik.batch import pool as B
+    from qpik.batch import chunks as C
 
     model = qpik.load_robot("ur5e")
     configuration = qpik.Configuration(model)
@@ -482,7 +487,7 @@ def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
         configuration.update(configuration.random_q(rng))
         position, rotation = configuration.frame_pose("ee")
         targets.append({"ee": (list(position), rotation)})  # lists too: read as parse_target does
-    stacked = B._stack_targets(model, targets)
+    stacked = C.stack_targets(model, targets)
     assert stacked is not None and len(stacked) == 40 and len(stacked[5:9]) == 4
     assert stacked[3]["ee"][0].tolist() == targets[3]["ee"][0]
     serial = qpik.solve_many(model, targets, workers=1, progress=False)
@@ -493,13 +498,13 @@ def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
     for a, b, c in zip(serial, pooled, one_by_one, strict=True):
         assert a.q.tobytes() == b.q.tobytes() == c.q.tobytes()
     positions = [{"ee": t["ee"][0]} for t in targets]
-    assert B._stack_targets(model, positions).rotations is None
+    assert C.stack_targets(model, positions).rotations is None
     bad = list(targets)
     bad[7] = {"ee": (targets[7]["ee"][0], 2.0 * targets[7]["ee"][1])}
-    assert B._stack_targets(model, bad) is None
+    assert C.stack_targets(model, bad) is None
     with pytest.raises(qpik.InvalidTarget, match=r"targets_list\[7\]"):
         qpik.solve_many(model, bad, workers=1, progress=False)
     mixed = [{"ee": targets[0]["ee"]}, {("ee", "site"): targets[1]["ee"]}]
-    assert B._stack_targets(model, mixed) is None
+    assert C.stack_targets(model, mixed) is None
     with pytest.raises(qpik.UnknownFrame):
-        B._stack_targets(model, [{"nope": targets[0]["ee"]}])
+        C.stack_targets(model, [{"nope": targets[0]["ee"]}])

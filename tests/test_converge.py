@@ -8,7 +8,7 @@ import pytest
 from conftest import configuration_of
 
 import qpik
-from qpik.igm.session import REASONS
+from qpik.igm.result import REASONS
 
 
 def reachable_pose(robot, rng, frame="ee"):
@@ -245,8 +245,8 @@ def test_compiled_step_with_damping_equals_its_definition(robot, rng):
             q0[4 if robot == "ur5e" else 5] = 0.02 if robot == "ur5e" else 0.02 + 0.0
             q0 = np.clip(q0, configuration.lower, configuration.upper)
         result = qpik.solve(model, {"ee": target}, q0=q0, max_iters=1, restarts=0, seed=0)
-        expected, sigma = _reference_step(model, "ee", target, q0, qpik.igm.session.IGM_DAMPING)
-        damped += sigma < qpik.igm.session.IGM_DAMPING.singular_threshold
+        expected, sigma = _reference_step(model, "ee", target, q0, qpik.options.IGM_DAMPING)
+        damped += sigma < qpik.options.IGM_DAMPING.singular_threshold
         np.testing.assert_allclose(result.path[1], expected, atol=1e-8, rtol=0)
     assert damped > 0  # the damped branch was exercised
 
@@ -413,7 +413,7 @@ def test_huge_budget_returns():
     tilted = Rotation.from_rotvec([0.5, 0.0, 0.0]).as_matrix()
     result = qpik.solve("planar_2r", {"ee": ([1.0, 1.0, 0.0], tilted)}, time_budget=1e300)
     assert not result.converged
-    assert result.restarts_used == qpik.igm.session.MAX_AUTO_RESTARTS
+    assert result.restarts_used == qpik.options.MAX_AUTO_RESTARTS
 
 
 # ------------------------------------------------------------ level-0 tasks

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.batch import pool as batch
+from qpik.batch import chunks
 from qpik.igm.targets import parse_target
 
 
@@ -77,7 +77,7 @@ def test_reported_orientation_error_matches_any_formula(form: str) -> None:
 def test_batched_rotations_are_those_of_single_targets() -> None:
     model = qpik.load_robot("panda")
     targets = [{"ee": _nearly_orthonormal(model, seed)} for seed in range(3)]
-    stacked = batch._stack_targets(model, targets)
+    stacked = chunks.stack_targets(model, targets)
     assert stacked is not None and stacked.rotations is not None
     for i, t in enumerate(targets):
         single = parse_target(t["ee"]).rotation

@@ -1,4 +1,4 @@
-"""qpik.solve(model, ...) keeps the robot's preparation per model (qpik.igm.session.PREPARED):
+"""qpik.solve(model, ...) keeps the robot's preparation per model (qpik.igm.prepared.PREPARED):
 the same bits as a fresh IKSession, never a stale answer for a model edited in place, no
 model kept alive, and qpik.clear_caches() empties it."""
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.igm.session import PREPARED, PreparedRobots
+from qpik.igm.prepared import PREPARED, PreparedRobots
 
 
 def _targets(model, n, seed=0, frame="ee"):

@@ -100,7 +100,26 @@ def test_public_names_resolve():
     assert (
         "InvalidOption" in qpik.errors.__all__ and qpik.InvalidOption is qpik.errors.InvalidOption
     )
-    import qpik.igm.session as converge  # the names of the former single module stay
+    import qpik.igm.session as session
 
-    for name in converge.__all__ + ["MAX_AUTO_RESTARTS", "DEFAULT_RESTARTS", "IGM_DAMPING"]:
-        assert hasattr(converge, name), name
+    for name in session.__all__:
+        assert hasattr(session, name), name
+
+
+def test_the_option_keywords_are_the_options_fields():
+    """SolveKeywords, which every entry point's signature reads, cannot drift from the
+    dataclasses: one key per SolveOptions field (``seed`` aside: each entry point has its
+    own) and per step field that a solve passes on to its StepOptions."""
+    import dataclasses
+    import typing
+
+    from qpik.options import STEP_FIELDS, LoopKeywords, SolveKeywords
+
+    solve_fields = {f.name for f in dataclasses.fields(SolveOptions)}
+    step_fields = {f.name for f in dataclasses.fields(StepOptions)}
+    assert set(SolveKeywords.__annotations__) | set(LoopKeywords.__annotations__) == (
+        solve_fields - {"seed"}
+    ) | set(STEP_FIELDS)
+    assert set(SolveKeywords.__optional_keys__) == set(typing.get_type_hints(SolveKeywords))
+    assert set(LoopKeywords.__annotations__) <= solve_fields
+    assert set(STEP_FIELDS) <= step_fields

@@ -120,7 +120,7 @@ def test_orientation_map_is_deterministic_and_round_trips(tmp_path):
     np.testing.assert_allclose(serial.fraction * 3, np.round(serial.fraction * 3))
     assert serial.fraction.max() > 0  # this box is well inside the ur5e's workspace
     # Each entry is a solve of (centre, rotation) with the batch's seed for its index.
-    from qpik.batch.pool import target_seed
+    from qpik.batch.worker import target_seed
 
     first = qpik.solve(
         "ur5e",

@@ -1,13 +1,17 @@
 """Many full-IK solves: the process pool (or Ray), batches on disk, reachability maps.
 
-- :mod:`.pool`: :func:`solve_many`, :func:`iter_solve`;
+- :mod:`.pool`: :func:`solve_many`, :func:`iter_solve`, and how a batch runs
+  (:class:`~qpik.batch.pool.BatchOptions`);
+- :mod:`.chunks`: what travels to the workers and back; :mod:`.worker`: what a worker
+  does; :mod:`.ray`: batches on a Ray cluster;
 - :mod:`.files`: targets files in, results files out (``qpik batch``);
-- :mod:`.reachability`: :func:`reachability` maps of a frame over a box.
+- :mod:`.reachability_map`: :func:`reachability` maps of a frame over a box.
 """
 
 from .files import BatchRun, TargetArrays, load_targets, solve_file
-from .pool import WorkerError, iter_solve, solve_many
+from .pool import iter_solve, solve_many
 from .reachability_map import ReachabilityMap, reachability
+from .worker import WorkerError
 
 __all__ = [
     "BatchRun",

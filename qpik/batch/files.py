@@ -1,7 +1,7 @@
 """Batches on disk, behind ``qpik batch``: targets files in (:func:`load_targets`: ``.npz``
 or ``.csv``, positions [m] and optional quaternions ``w x y z``, world frame), results files
 out (:func:`solve_file`: ``.npz`` or Parquet), written chunk by chunk and resumed. The
-solving itself is :mod:`qpik.batch`'s.
+solving itself is :mod:`qpik.batch.pool`'s.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import time
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -24,16 +24,11 @@ from ..igm.result import IKResult
 from ..igm.targets import FrameKey, RobotLike
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
-from .pool import (
-    Chunk,
-    check_chunk_size,
-    check_seed,
-    check_workers,
-    iter_prepared,
-    prepare_robot,
-    progress_bar,
-    solve_call,
-)
+from .chunks import Chunk
+from .pool import Batch, BatchKeywords, iter_prepared, progress_bar
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 
 __all__ = [
     "RESULT_FIELDS",
@@ -291,16 +286,10 @@ def solve_file(
     targets: str | os.PathLike | TargetArrays,
     out: str | os.PathLike,
     *,
-    chunk_size: int = 128,
-    seed: int = 0,
-    workers: int | None = None,
-    backend: str = "process",
-    address: str | None = None,
     max_chunks: int | None = None,
     overwrite: bool = False,
-    progress: bool = True,
     options: SolveOptions | str | None = None,
-    **solve_options: Any,
+    **keywords: Unpack[BatchKeywords],
 ) -> BatchRun:
     """Solve a targets file (see :func:`load_targets`) for ``frame`` and write the results
     to ``out`` (``.npz``, or ``.parquet`` with pyarrow: ``pip install 'qpik[cluster]'``)
@@ -314,19 +303,19 @@ def solve_file(
     A rerun skips the chunks already done; it refuses (``InvalidInput``) to mix runs whose
     targets, robot, frame, seed, chunk size or options differ, unless ``overwrite``.
     ``max_chunks`` stops after that many new chunks (resume later). Target ``i`` is solved
-    with :func:`target_seed(seed, i) <target_seed>`: the file's rows are the same as
-    :func:`solve_many`'s, however the run was split. ``options`` and ``solve_options``:
-    as for :func:`qpik.solve_many`.
+    with :func:`target_seed(seed, i) <qpik.batch.worker.target_seed>`: the file's rows are
+    the same as :func:`qpik.solve_many`'s, however the run was split. ``options`` and the
+    keywords: as for :func:`qpik.solve_many` (``chunk_size`` defaults to 128 here;
+    ``pool_threshold`` and ``histories`` do not apply).
     """
     start_time = time.perf_counter()
     out = _check_out(out)
     arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
-    entropy = check_seed(seed)
-    workers = check_workers(workers, backend)
-    check_chunk_size(chunk_size)
-    spec, model, q0 = prepare_robot(robot)
+    unused = ("pool_threshold", "histories")
+    batch = Batch.prepare(robot, options, keywords, unused, chunk_size=128)
+    chunk_size = batch.run.chunk_size or 128
+    model, spec = batch.model, batch.setup.spec
     resolve_frame(model, frame, argument="frame")
-    call = solve_call(options, solve_options, q0)
     n = len(arrays)
     meta = {
         "robot": spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
@@ -334,9 +323,9 @@ def solve_file(
         "targets": arrays.fingerprint(),
         "n": n,
         "nq": int(model.nq),
-        "seed": entropy,
+        "seed": batch.setup.entropy,
         "chunk_size": chunk_size,
-        "options": _described(options, solve_options),
+        "options": _described(options, batch.keywords),
     }
     results = _ResultsFile(out, meta, overwrite)
     before = len(results.done)
@@ -345,13 +334,12 @@ def solve_file(
         todo = todo[: max(0, int(max_chunks))]
     results.begin(todo)
     solved = targets_solved = 0
-    bar = progress_bar(n, progress, initial=int(results.table["done"].sum()))
+    bar = progress_bar(n, batch.run.progress, initial=int(results.table["done"].sum()))
     try:
         chunks = (arrays.chunk(frame, s, min(s + chunk_size, n)) for s in todo)
-        workers = workers if len(todo) > 1 else 1
-        for start, chunk in iter_prepared(
-            spec, model, chunks, entropy, workers, backend, address, call
-        ):
+        if len(todo) <= 1:
+            batch = batch.with_workers(1)
+        for start, chunk in iter_prepared(batch, chunks):
             results.add(start, chunk)
             solved += 1
             targets_solved += len(chunk)
@@ -359,18 +347,7 @@ def solve_file(
     finally:
         bar.close()
         results.end(solved)
-    return BatchRun(
-        out=out,
-        total=n,
-        chunks=results.chunks,
-        chunks_before=before,
-        chunks_solved=solved,
-        targets_solved=targets_solved,
-        complete=results.complete,
-        elapsed=time.perf_counter() - start_time,
-        converged=int(results.table["converged"].sum()),
-        reasons=dict(Counter(str(reason) for reason in results.table["reason"])),
-    )
+    return results.report(before, solved, targets_solved, time.perf_counter() - start_time)
 
 
 def _check_out(out: str | os.PathLike) -> str:
@@ -444,6 +421,23 @@ class _ResultsFile:
         if now - self.last_write > max(5.0, 20.0 * self.write_cost):
             _write_results(self.out, self.table, self.meta)
             self.write_cost, self.last_write = time.perf_counter() - now, time.perf_counter()
+
+    def report(self, before: int, solved: int, targets_solved: int, elapsed: float) -> BatchRun:
+        """What a run did: ``before`` chunks done before it, ``solved`` chunks and
+        ``targets_solved`` targets in it, in ``elapsed`` seconds."""
+        table = self.table
+        return BatchRun(
+            self.out,
+            len(table["done"]),
+            self.chunks,
+            before,
+            solved,
+            self.complete,
+            elapsed,
+            int(table["converged"].sum()),
+            targets_solved,
+            dict(Counter(str(reason) for reason in table["reason"])),
+        )
 
     def end(self, solved: int) -> None:
         """Write ``out`` (when anything changed), and drop the folder once complete."""

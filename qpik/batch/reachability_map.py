@@ -21,6 +21,7 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -33,10 +34,11 @@ from ..igm.targets import FrameKey, RobotLike, parse_target
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
-from .pool import check_seed, check_workers, prepare_robot, solve_call, stream_chunks
+from .pool import Batch, BatchKeywords, prepare_robot, stream_chunks
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+    from typing_extensions import Unpack
 
 __all__ = [
     "ReachabilityMap",
@@ -134,8 +136,7 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     """Balls that each hold every position of the frame: :func:`reach_bound`, and the
     IK engine's (:meth:`qpik.model.KinematicChain.reach_bound`, through the common
     perpendiculars of consecutive axes) where its chain is supported. Each is a proof on
-    its own, so a voxel outside either is out of reach; neither is always the tighter
-    (ur5e: 1.15 m against 1.31 m; panda: 1.09 m against 1.16 m)."""
+    its own, so a voxel outside either is out of reach; neither is always the tighter."""
     bounds = [reach_bound(model, frame)]
     try:
         from ..model import KinematicChain, chain_support, joint_limits
@@ -183,6 +184,21 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
     ]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     return grid, (int(counts[0]), int(counts[1]), int(counts[2]))
+
+
+#: The array fields of a :class:`ReachabilityMap`, saved as arrays of its ``.npz``.
+_MAP_ARRAYS = ("centers", "fraction", "reached", "skipped", "orientations", "region", "base")
+#: Its other fields, saved in the JSON ``meta`` entry, with the type each is read back as
+#: (``solve_options`` aside: saved as the ``repr`` of each value).
+_MAP_META: dict[str, Callable[[Any], Any]] = {
+    "shape": tuple,
+    "resolution": float,
+    "frame": str,
+    "robot": str,
+    "reach": float,
+    "seed": int,
+    "elapsed": float,
+}
 
 
 @dataclass
@@ -248,50 +264,20 @@ class ReachabilityMap:
 
     def save(self, path: str | os.PathLike) -> None:
         """Save as ``.npz`` (arrays, plus a JSON ``meta`` entry for the rest)."""
-        meta = {
-            "shape": list(self.shape),
-            "resolution": self.resolution,
-            "frame": self.frame,
-            "robot": self.robot,
-            "reach": self.reach,
-            "seed": self.seed,
-            "elapsed": self.elapsed,
-            "solve_options": {k: repr(v) for k, v in self.solve_options.items()},
-        }
-        np.savez(
-            path,
-            centers=self.centers,
-            fraction=self.fraction,
-            reached=self.reached,
-            skipped=self.skipped,
-            orientations=self.orientations,
-            region=self.region,
-            base=self.base,
-            meta=np.array(json.dumps(meta)),
-        )
+        meta: dict[str, Any] = {name: getattr(self, name) for name in _MAP_META}
+        meta["shape"] = list(self.shape)
+        meta["solve_options"] = {k: repr(v) for k, v in self.solve_options.items()}
+        arrays = {name: getattr(self, name) for name in _MAP_ARRAYS}
+        np.savez(path, **arrays, meta=np.array(json.dumps(meta)))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ReachabilityMap:
         """Read a map written by :meth:`save`."""
         with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
-            return cls(
-                centers=data["centers"],
-                fraction=data["fraction"],
-                reached=data["reached"],
-                skipped=data["skipped"],
-                orientations=data["orientations"],
-                shape=tuple(meta["shape"]),
-                resolution=float(meta["resolution"]),
-                region=data["region"],
-                frame=meta["frame"],
-                robot=meta["robot"],
-                base=data["base"],
-                reach=float(meta["reach"]),
-                seed=int(meta["seed"]),
-                elapsed=float(meta["elapsed"]),
-                solve_options=dict(meta["solve_options"]),
-            )
+            arrays = {name: data[name] for name in _MAP_ARRAYS}
+        values = {name: kind(meta[name]) for name, kind in _MAP_META.items()}
+        return cls(**arrays, **values, solve_options=dict(meta["solve_options"]))
 
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
         """See :func:`plot_reachability`."""
@@ -330,13 +316,8 @@ def reachability(
     region: npt.ArrayLike,
     resolution: float,
     orientations: int | npt.ArrayLike,
-    workers: int | None = None,
-    backend: str = "process",
-    address: str | None = None,
-    seed: int = 0,
-    progress: bool = True,
     options: SolveOptions | str | None = None,
-    **solve_options: Any,
+    **keywords: Unpack[BatchKeywords],
 ) -> ReachabilityMap:
     """Compute a reachability map of ``frame``.
 
@@ -349,25 +330,23 @@ def reachability(
         orientations: a count ``K`` (spread evenly over SO(3), :func:`so3_grid`) or
             ``(K, 3, 3)`` rotation matrices (world frame); ``0``: positions only (one
             target per voxel, no orientation: ``fraction`` is 0 or 1).
-        workers, backend, address, seed, progress, options: as for
-            :func:`qpik.solve_many`.
-        **solve_options: passed to every :func:`qpik.solve` (tolerances, ``restarts``,
-            ``time_budget``, ...: they trade the map's accuracy for its time).
+        options: the :class:`qpik.SolveOptions` (or a preset name) of every solve.
+        **keywords: as for :func:`qpik.solve_many`: how the batch runs (``workers``,
+            ``backend``, ``address``, ``seed``, ``progress``, ...), and the keywords of
+            every :func:`qpik.solve` (tolerances, ``restarts``, ``time_budget``, ...: they
+            trade the map's accuracy for its time).
 
     Returns:
         a :class:`ReachabilityMap`; ``.fraction`` has one value per voxel, ``.centers``
         the voxel centres.
     """
     start_time = time.perf_counter()
-    entropy = check_seed(seed)
-    workers = check_workers(workers, backend)
-    spec, model, q0 = prepare_robot(robot)
-    call = solve_call(options, solve_options, q0)
+    batch = Batch.prepare(robot, options, keywords, ("histories",))
     centers, shape = _grid(region, resolution)
     rotations = _rotations(orientations)
-    margin = call["options"].tol_position  # [m]: a voxel this close to the bound may converge
+    margin = batch.options.tol_position  # [m]: a voxel this close to the bound may converge
     skipped = np.zeros(len(centers), dtype=bool)
-    bounds = _reach_bounds(model, frame)
+    bounds = _reach_bounds(batch.model, frame)
     for center, radius in bounds:
         skipped |= np.linalg.norm(centers - center, axis=1) > radius + margin
     base, reach = min(bounds, key=lambda bound: bound[1])
@@ -382,23 +361,11 @@ def reachability(
         ]
 
     flags = np.zeros(len(candidates) * k, dtype=bool)
-    for start, results in stream_chunks(
-        spec,
-        model,
-        len(flags),
-        targets_at,
-        entropy=entropy,
-        workers=workers,
-        backend=backend,
-        address=address,
-        progress=progress,
-        chunk_size=None,
-        pool_threshold=1.0,
-        options=call,
-    ):
+    for start, results in stream_chunks(batch, len(flags), targets_at):
         flags[start : start + len(results)] = [r.converged for r in results]
     reached = np.zeros((len(centers), k), dtype=bool)
     reached[candidates] = flags.reshape(len(candidates), k)
+    spec = batch.setup.spec
     return ReachabilityMap(
         centers=centers,
         fraction=reached.mean(axis=1),
@@ -409,12 +376,12 @@ def reachability(
         resolution=float(resolution),
         region=np.asarray(region, dtype=float),
         frame=frame if isinstance(frame, str) else str(frame[0]),
-        robot=spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
+        robot=spec if isinstance(spec, str) else f"MjModel(nq={batch.model.nq})",
         base=base,
         reach=reach,
-        seed=entropy,
+        seed=batch.setup.entropy,
         elapsed=time.perf_counter() - start_time,
-        solve_options=dict(solve_options),
+        solve_options=dict(batch.keywords),
     )
 
 

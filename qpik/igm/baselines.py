@@ -1,25 +1,30 @@
-"""Reference methods: the lecture's pseudoinverse, damped least squares, and the classical
-two-level null-space projection, as steps, and the lecture's inverse geometric model (IGM)
-as a loop with any of these steps. Used as references in tests and as baselines in
-benchmarks; they know nothing of joint limits (the loop clips into them).
+"""Reference methods of full and differential IK: the pseudoinverse, damped least-squares
+and classical two-level null-space projection steps, and the inverse geometric model (IGM)
+loop that iterates any of these steps (:func:`igm`, :func:`pseudoinverse_igm`,
+:func:`damped_least_squares_igm`). Used as references in tests and as baselines in
+benchmarks; the steps know nothing of joint limits (the loop clips into them).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import orientation_error
-from ..options import PRESETS
+from ..options import PRESETS, LoopKeywords
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IGM_REASONS, Outcome, Reason
 
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
 __all__ = [
     "IGM_REASONS",
+    "IGMKeywords",
     "IGMResult",
     "damped_least_squares_igm",
     "damped_least_squares_step",
@@ -30,14 +35,11 @@ __all__ = [
     "pseudoinverse_step",
 ]
 
-#: The loop options shared with :func:`qpik.solve` (tolerances, iterations, gains).
-_DEFAULTS = PRESETS["default"]
-
 
 def pseudoinverse_step(J: np.ndarray, xi: np.ndarray, rcond: float = 1e-15) -> np.ndarray:
-    """The lecture's step: ``qdot = J^+ xi`` (least-norm; least-squares if ``xi`` is not
-    reachable). Unbounded near singularities: at the 2R point ``q2 = 0.001`` it is ~1000x
-    the task velocity."""
+    """The pseudoinverse step: ``qdot = J^+ xi`` (least-norm; least-squares if ``xi`` is not
+    reachable). Unbounded near singularities: its norm grows as the inverse of the smallest
+    singular value of ``J``."""
     return np.linalg.pinv(J, rcond=rcond) @ xi
 
 
@@ -75,7 +77,7 @@ def pose_error(
     target_rotation: np.ndarray | None,
     frame_type: FrameType | str = FrameType.SITE,
 ) -> np.ndarray:
-    """The lecture's task error ``c = [p_des - p; log(R_des R^T)]`` in the world frame:
+    """The IGM's task error ``c = [p_des - p; log(R_des R^T)]`` in the world frame:
     ``(6,)`` ([m], [rad]), or ``(3,)`` without a target rotation. It matches the rows of
     :meth:`Configuration.frame_jacobian` ``[v; omega]``: ``J dq = c`` moves toward the target
     (to first order)."""
@@ -157,27 +159,34 @@ class _Loop:
         return self.outcome(Reason.CONVERGED if current <= 1.0 else Reason.MAX_ITERS)
 
 
+class IGMKeywords(LoopKeywords, total=False):
+    """The keywords of the IGM loops (:func:`igm` and the loops built on it): the loop
+    options of :func:`qpik.solve` (:class:`qpik.options.LoopKeywords`, documented by
+    :class:`qpik.SolveOptions`, whose defaults they take), and:
+
+    Attributes:
+        frame_type: the type of ``frame`` (default ``"site"``).
+        q0: the start (default: the configuration's ``q``).
+        seed: seed of the restarts' random configurations (an int, a numpy ``Generator``
+            or ``None``: fresh entropy).
+        clip: clip the joint positions into the limits after each step (default ``True``).
+    """
+
+    frame_type: FrameType | str
+    q0: np.ndarray | None
+    seed: int | np.random.Generator | None
+    clip: bool
+
+
 def igm(
     configuration: Configuration,
     frame: str,
     target_position: np.ndarray,
     target_rotation: np.ndarray | None,
     step: StepRule,
-    *,
-    frame_type: FrameType | str = FrameType.SITE,
-    q0: np.ndarray | None = None,
-    tol_position: float = _DEFAULTS.tol_position,
-    tol_orientation: float = _DEFAULTS.tol_orientation,
-    max_iters: int = _DEFAULTS.max_iters,
-    time_budget: float | None = _DEFAULTS.time_budget,
-    restarts: int = _DEFAULTS.effective_restarts,
-    seed: int | np.random.Generator | None = None,
-    alpha: float = _DEFAULTS.alpha,
-    beta: float = _DEFAULTS.beta,
-    stall_window: int = _DEFAULTS.stall_window,
-    clip: bool = True,
+    **keywords: Unpack[IGMKeywords],
 ) -> IGMResult:
-    r"""The lecture's inverse geometric model with any step rule:
+    r"""The inverse geometric model with any step rule:
 
     .. math:: c_i = x_{des} - x(q_i), \qquad \dot q = \mathrm{step}(J(q_i), \alpha c_i),
         \qquad q_{i+1} = \mathrm{clip}(q_i + \beta \dot q)
@@ -186,35 +195,40 @@ def igm(
     ``clip`` the joint positions are clipped into the limits after each step (the step rule
     itself knows nothing of them). The stopping and restart rules are those of
     :func:`qpik.solve` (:mod:`qpik.igm.restarts`: the same loop): an attempt ends after
-    ``max_iters`` steps, or after ``stall_window`` steps without a 1 % decrease of
+    ``max_iters`` steps, or after ``stall_window`` steps without a 5 % decrease of
     ``|p| / tol_position + |theta| / tol_orientation``; then the loop restarts from a random
     configuration within the limits while ``restarts`` and ``time_budget`` [s] remain. The
-    best iterate over all attempts (and the start) is returned; the defaults are those of
-    :class:`qpik.SolveOptions`. ``configuration`` is left unchanged; ``q0`` defaults to its
-    ``q``.
+    best iterate over all attempts (and the start) is returned. The keywords
+    (:class:`IGMKeywords`) are checked, and default, as :class:`qpik.SolveOptions`'s.
+    ``configuration`` is left unchanged.
     """
-    clock = Clock(time.perf_counter(), time_budget)
+    given: dict[str, Any] = dict(keywords)
+    frame_type = FrameType.parse(given.pop("frame_type", FrameType.SITE))
+    q0 = given.pop("q0", None)
+    seed = given.pop("seed", None)
+    clip = bool(given.pop("clip", True))
+    settings = PRESETS["default"].replace(**given)
+    clock = Clock(time.perf_counter(), settings.time_budget)
     work = Configuration(configuration.model, configuration.q if q0 is None else q0)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     options = {
-        "tol_position": tol_position,
-        "tol_orientation": tol_orientation,
-        "max_iters": max_iters,
-        "alpha": alpha,
-        "beta": beta,
-        "stall_window": stall_window,
+        "tol_position": settings.tol_position,
+        "tol_orientation": settings.tol_orientation,
+        "max_iters": settings.max_iters,
+        "alpha": settings.alpha,
+        "beta": settings.beta,
+        "stall_window": settings.stall_window,
         "clip": clip,
     }
-    loop = _Loop(
-        work, frame, FrameType.parse(frame_type), target_position, target_rotation, step, options
-    )
+    loop = _Loop(work, frame, frame_type, target_position, target_rotation, step, options)
 
     def restart() -> None:
         work.update(work.random_q(rng))
         loop.c = loop.error()
 
     start = loop.outcome(Reason.MAX_ITERS)
-    best, reason, used = run_attempts(lambda: loop.attempt(clock), restart, restarts, clock, start)
+    attempts = settings.effective_restarts
+    best, reason, used = run_attempts(lambda: loop.attempt(clock), restart, attempts, clock, start)
     q, (position_error, orientation_error) = best.payload
     return IGMResult(
         q=q,
@@ -235,20 +249,17 @@ def pseudoinverse_igm(
     target_rotation: np.ndarray | None = None,
     *,
     rcond: float = 1e-15,
-    **options,
+    **keywords: Unpack[IGMKeywords],
 ) -> IGMResult:
-    """The lecture's plain IGM: ``q <- clip(q + beta J^+ alpha c)`` with the 6-D pose error
+    """The pseudoinverse IGM: ``q <- clip(q + beta J^+ alpha c)`` with the 6-D pose error
     ``c`` (:func:`pose_error`; 3-D without a target rotation), joint positions clipped into
-    the limits after each step, random restarts as in :func:`igm` (whose ``options`` it
+    the limits after each step, random restarts as in :func:`igm` (whose keywords it
     takes). Near a singularity the step is unbounded (see :func:`pseudoinverse_step`)."""
-    return igm(
-        configuration,
-        frame,
-        target_position,
-        target_rotation,
-        lambda _configuration, J, c: pseudoinverse_step(J, c, rcond),
-        **options,
-    )
+
+    def rule(_configuration: Configuration, J: np.ndarray, c: np.ndarray) -> np.ndarray:
+        return pseudoinverse_step(J, c, rcond)
+
+    return igm(configuration, frame, target_position, target_rotation, rule, **keywords)
 
 
 def damped_least_squares_igm(
@@ -258,16 +269,13 @@ def damped_least_squares_igm(
     target_rotation: np.ndarray | None = None,
     *,
     damping: float = 0.05,
-    **options,
+    **keywords: Unpack[IGMKeywords],
 ) -> IGMResult:
-    """The IGM loop of :func:`pseudoinverse_igm` with the damped least-squares step
+    """The damped least-squares IGM: the loop of :func:`pseudoinverse_igm` with the step
     ``J^T (J J^T + damping^2 I)^-1 c`` (:func:`damped_least_squares_step`); ``damping`` is
     constant, in the task's mixed units ([m] and [rad])."""
-    return igm(
-        configuration,
-        frame,
-        target_position,
-        target_rotation,
-        lambda _configuration, J, c: damped_least_squares_step(J, c, damping),
-        **options,
-    )
+
+    def rule(_configuration: Configuration, J: np.ndarray, c: np.ndarray) -> np.ndarray:
+        return damped_least_squares_step(J, c, damping)
+
+    return igm(configuration, frame, target_position, target_rotation, rule, **keywords)

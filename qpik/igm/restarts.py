@@ -5,7 +5,7 @@ baselines (:func:`qpik.igm.baselines.igm`); the compiled engine runs the same ru
 The rules:
 
 * an *attempt* iterates from a start until it converges, reaches ``max_iters``, runs out
-  of time, or stops making progress: ``stall_window`` iterations without a 1 % decrease
+  of time, or stops making progress: ``stall_window`` iterations without a 5 % decrease
   of its score (:class:`StallWindow`);
 * while it has not converged, restarts (``restarts`` of them at most) and time remain, the
   loop starts a new attempt from a random configuration;
@@ -26,16 +26,14 @@ from .result import Reason
 
 __all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]
 
-# PROGRESS: a score below PROGRESS times the window's first counts as progress (one
-# rule for every engine: the compiled IGM's).
-
 P = TypeVar("P")
 
 
 class StallWindow:
     """Counts iterations without progress: ``update(score)`` is True once
     ``stall_window`` consecutive scores have not gone below ``PROGRESS`` (95 %) of the
-    score at the window's start."""
+    score at the window's start (the compiled engine's rule,
+    :data:`qpik.model.kernels.PROGRESS`)."""
 
     __slots__ = ("_best", "_since", "_window")
 

@@ -1,4 +1,6 @@
-"""What a full-IK solve returns: :class:`IKResult`, and why it ended, :class:`Reason`.
+"""What a full-IK loop returns: :class:`Outcome`, the base of its results (:class:`IKResult`
+of :func:`qpik.solve`, :class:`qpik.igm.baselines.IGMResult` of the baselines), and why it
+ended, :class:`Reason`.
 
 Reasons are a string-valued :class:`enum.Enum`: ``result.reason == "converged"`` holds, and
 JSON, CSV and the CLI print the plain string.
@@ -63,7 +65,7 @@ IGM_REASONS: Mapping[str, str] = MappingProxyType(
         Reason.CONVERGED.value: "the frame is within tolerance of its target",
         Reason.MAX_ITERS.value: Reason.MAX_ITERS.description,
         Reason.TIME_BUDGET.value: Reason.TIME_BUDGET.description,
-        Reason.STALLED.value: "no progress (1 % of the error) for stall_window steps",
+        Reason.STALLED.value: "no progress (a 5 % decrease of the error) for stall_window steps",
         Reason.DIVERGED.value: Reason.DIVERGED.description,
     }
 )
@@ -71,8 +73,10 @@ IGM_REASONS: Mapping[str, str] = MappingProxyType(
 
 @dataclass
 class Outcome:
-    """What every IK loop reports (:class:`IKResult` of :func:`qpik.solve`,
-    :class:`qpik.igm.baselines.IGMResult` of the baselines).
+    """What every full-IK loop reports, the base of its results: :class:`IKResult`
+    (:func:`qpik.solve`, :meth:`qpik.IKSession.solve`, :func:`qpik.solve_many`) and
+    :class:`qpik.igm.baselines.IGMResult` (the baselines' loops) derive from it, so the same
+    things have the same names in both.
 
     Attributes:
         q: the best configuration found ``(nq,)``.

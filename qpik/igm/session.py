@@ -1,6 +1,7 @@
-r"""The inverse geometric model: iterate differential IK steps until the targets are met.
+r"""Full IK (the inverse geometric model): :func:`solve` and :class:`IKSession` iterate
+differential-IK steps until the targets are met.
 
-The lecture's recursion, for each frame with a target,
+The damped least-squares IGM, for each frame with a target,
 
 .. math::
 
@@ -9,14 +10,13 @@ The lecture's recursion, for each frame with a target,
 
 runs here with ``dt = 1``: ``alpha`` is the gain of the target tasks (the QP asks
 ``J dq = -alpha e``, ``e = x(q) - x_des``) and ``beta`` scales the displacement the QP
-returns before it is applied. The QP adds what the lecture's pseudoinverse lacks: joint
-limits hold at every iterate (``beta <= 1`` keeps them by convexity; a ``beta > 1`` iterate
-is clipped into the limits), steps stay bounded near singularities (adaptive damping that
-fades with the error), no iteration asks for more than a trust region (``max_step``), a
-step that increases the error ``sum |e_p|^2 + |e_o|^2`` is halved (up to three times: near
-singularities the damped step can otherwise overshoot into a limit cycle), and lower
-levels (by default none; distance from the joint limits with ``secondary=True``) act only
-in the null space of the targets.
+returns before it is applied. Each step is a QP: joint limits hold at every iterate
+(``beta <= 1`` keeps them by convexity; a ``beta > 1`` iterate is clipped into the limits),
+steps stay bounded near singularities (adaptive damping that fades with the error), no
+iteration asks for more than a trust region (``max_step``), a step that increases the error
+``sum |e_p|^2 + |e_o|^2`` is halved (up to three times: near singularities the damped step
+can otherwise overshoot into a limit cycle), and lower levels (by default none; distance
+from the joint limits with ``secondary=True``) act only in the null space of the targets.
 
 Two engines run this rule (:attr:`IKResult.engine`):
 
@@ -24,19 +24,23 @@ Two engines run this rule (:attr:`IKResult.engine`):
   and slide joints on the target's chain (joints off the chain may be of any type: a free
   object elsewhere in the scene, another arm; they stay where they are, restarts
   included, and the packed chain coordinates are written back into the full ``q``). The
-  whole solve (iterations, trust region, damping, stall
-  detection, restarts) is one compiled call (:mod:`qpik.model.kernels`): forward
-  kinematics and the frame Jacobian from arrays read once from the model, and each step's
-  damped least-squares QP under the box of the joint limits solved exactly by an
-  active-set method. It is the same QP as the general engine's, so both agree to round-off.
+  whole solve (iterations, trust region, damping, stall detection, restarts) is one
+  compiled call (:mod:`qpik.model.kernels`): forward kinematics and the frame Jacobian
+  from arrays read once from the model (:mod:`qpik.igm.prepared`), and each step's damped
+  least-squares QP under the box of the joint limits solved exactly by an active-set
+  method. It is the same QP as the general engine's, so both agree to round-off.
 * ``"qp"``: everything else (several frames, custom stacks, other limits, ball or free
   joints on the chain, ``secondary=True``, a coupling of the model that moves a joint of
-  the chain or that the start breaks), on :class:`qpik.IKSolver` steps.
+  the chain or that the start breaks), on :class:`qpik.IKSolver` steps
+  (:mod:`qpik.igm.qp_engine`).
 
 Couplings (``couplings=True``, the default): the model's joint and fixed-tendon equality
 constraints (``<equality><joint>``, URDF ``<mimic>``; :mod:`qpik.model.couplings`) are a
 level above the stack in every ``"qp"`` step, and count in ``converged`` (their residual
-against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``.
+against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``. The compiled
+engine moves only the target's chain: it takes a model with couplings when none of them
+moves a joint of the chain and they hold at the start (to 1e-9); otherwise the solve runs on
+the ``"qp"`` engine (``engine="compiled"`` then raises :class:`qpik.InvalidInput`).
 
 Stacks of several levels (a custom ``stack``): the iterates are ranked lexicographically,
 the couplings first, then level 0, 1, ... (each level's largest error-to-tolerance ratio,
@@ -54,66 +58,46 @@ hold them): position-like tasks (position, CoM) against ``tol_position``, orient
 tasks against ``tol_orientation``, frame/pose tasks both (the parts with a nonzero cost),
 and any other task's error norm, in its own units, against ``tol_position``.
 
-When an attempt stops making progress the reason is diagnosed (``at_limit``: a joint limit
-binds; ``singular``: the target level's smallest singular value is below the damping
-threshold; ``stalled`` otherwise) and the solve restarts from a random configuration
-within the limits, while restarts and time remain. The best iterate over all attempts is
-returned. A target position provably out of reach (farther from the base than the chain's
-reach bound, :meth:`qpik.model.KinematicChain.reach_bound`) is answered at once with
-``unreachable``.
+When an attempt stops making progress (:mod:`qpik.igm.restarts`) the reason is diagnosed
+(``at_limit``: a joint limit binds; ``singular``: the target level's smallest singular
+value is below the damping threshold; ``stalled`` otherwise) and the solve restarts from a
+random configuration within the limits, while restarts and time remain. The best iterate
+over all attempts is returned. A target position provably out of reach (farther from the
+base than the chain's reach bound, :meth:`qpik.model.KinematicChain.reach_bound`) is
+answered at once with ``unreachable``.
 
 Determinism: a solve keeps no state between calls. The same robot, targets, options and
 ``seed`` give bitwise the same ``q``, whatever was solved before, in this process or
 another, through :func:`solve` or an :class:`IKSession`. The restarts draw from a
 SplitMix64 stream seeded with ``seed``.
 
-Options: every keyword of :func:`solve` and :meth:`IKSession.solve` is a field of
-:class:`qpik.SolveOptions` (or of its :class:`qpik.StepOptions`), whose docstrings hold the
-defaults; ``options=`` takes a whole set (or a preset name: ``"precise"``, ``"fast"``,
-...), and explicit keywords override it.
-
-Layout: targets are parsed in :mod:`qpik.igm.targets`, results and reasons live in
-:mod:`qpik.igm.result`, the ``"qp"`` engine in :mod:`qpik.igm.qp_engine` and the restart
-loop (shared with :mod:`qpik.igm.baselines`) in :mod:`qpik.igm.restarts`; this module holds
-the session and the entry point.
+Options: every option keyword of :func:`solve` and :meth:`IKSession.solve`
+(:class:`qpik.options.SolveKeywords`) is a field of :class:`qpik.SolveOptions` (or of its
+:class:`qpik.StepOptions`), whose docstrings document it; ``options=`` takes a whole set
+(or a preset name: ``"precise"``, ``"fast"``, ...), and the keywords override it.
 """
 
 from __future__ import annotations
 
-import threading
 import time
-import weakref
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
 
-import mink
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from ..diffik.solver import DampingLaw, Stack, normalize_stack
+from ..diffik.solver import Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
-from ..model import KinematicChain, ReachBound, chain_support, joint_limits
+from ..model import ReachBound
 from ..model import kernels as _kernels
-from ..model.configuration import Configuration, FrameType, qpos_joint_names, resolve_robot
-from ..model.couplings import model_couplings
-from ..model.frames import resolve_frame
-from ..options import (  # noqa: F401 (the limits re-exported for the former single module)
-    DEFAULT_RESTARTS,
-    IGM_DAMPING,
-    MAX_AUTO_RESTARTS,
-    MAX_ITERS_LIMIT,
-    PRESETS,
-    UNSET,
-    SolveOptions,
-    Unset,
-    resolve,
-)
-from .qp_engine import QPProblem, iterate, set_frame_target
+from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
+from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
+from .prepared import PREPARED, PreparedFrame, PreparedRobot
+from .qp_engine import QPProblem, iterate
 from .restarts import Clock
-from .result import IGM_REASONS, REASONS, IKResult, LazyRows, Reason
-from .targets import (  # noqa: F401 (MAX_TARGET_DISTANCE re-exported)
-    MAX_TARGET_DISTANCE,
+from .result import IKResult, LazyRows, Reason
+from .targets import (
     FrameKey,
     RobotLike,
     Target,
@@ -123,59 +107,35 @@ from .targets import (  # noqa: F401 (MAX_TARGET_DISTANCE re-exported)
     worst_errors,
 )
 
-__all__ = [
-    "IGM_DAMPING",
-    "IGM_REASONS",
-    "REASONS",
-    "FrameKey",
-    "IKResult",
-    "IKSession",
-    "Reason",
-    "RobotLike",
-    "SolveOptions",
-    "Target",
-    "TargetLike",
-    "clear_pool",
-    "parse_target",
-    "set_frame_target",
-    "solve",
-]
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
+
+__all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.
 LIMIT_GAIN = 0.95
-#: Halvings of a step that increases the error ``sum |e_p|^2 + |e_o|^2`` [m^2, rad^2].
-BACKTRACKS = _kernels.BACKTRACKS
 _EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in _kernels.REASON_NAMES)
-#: The option keywords of :func:`solve` besides ``seed`` (fields of SolveOptions and of its
-#: StepOptions).
-_OPTION_KEYWORDS = (
-    "limits",
-    "tol_position",
-    "tol_orientation",
-    "max_iters",
-    "time_budget",
-    "restarts",
-    "alpha",
-    "beta",
-    "solver",
-    "stall_window",
-    "damping_law",
-    "max_step",
-    "secondary",
-    "damping",
-    "engine",
-    "couplings",
-)
+#: What a solve's ``seed`` may be (see :func:`solve`).
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
 
-def clear_pool() -> None:
-    """Kept for compatibility; does nothing. :func:`solve` keeps what it prepares per
-    model in :data:`PREPARED` (emptied by :func:`qpik.clear_caches`); an :class:`IKSession`
-    holds one robot for many solves."""
+class SolveArguments(SolveKeywords, total=False):
+    """The keywords of :func:`solve` that every solve of a batch shares
+    (:func:`qpik.solve_many`, :func:`qpik.reachability`, the batch files): the start ``q0``,
+    the ``stack`` and the option keywords (:class:`qpik.options.SolveKeywords`)."""
+
+    q0: npt.ArrayLike | None
+    stack: Stack | None
+
+
+class SolveCall(SolveArguments, total=False):
+    """The keywords of :func:`solve` and :meth:`IKSession.solve`: those of
+    :class:`SolveArguments` and the ``seed`` of the solve (documented by :func:`solve`)."""
+
+    seed: Seed | Unset
 
 
 def _rng_state(seed: Seed) -> np.ndarray:
@@ -222,221 +182,6 @@ def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
     return options, int_options
 
 
-class _Frame:
-    """A target frame of a session: name, type and, when its chain has hinge and slide
-    joints only, its chain and reach bound. ``packed``: the chain over its own joints
-    (:meth:`KinematicChain.packed`), with ``index`` (their qpos addresses) and the packed
-    joint bounds, when the chain's joints are not all of ``q`` (``None`` otherwise: the
-    compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
-    (:class:`qpik.model.Couplings`) moves a joint of the chain."""
-
-    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
-
-    def __init__(
-        self,
-        name: str,
-        kind: FrameType,
-        chain: KinematicChain | None,
-        reach: ReachBound | None,
-    ) -> None:
-        self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
-        self.packed: KinematicChain | None = None
-        self.index: np.ndarray | None = None
-        self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
-        self.coupled = False
-
-
-class _Prepared:
-    """What a session reads from a model once: joint limits, the mid-range start, the
-    bounds the compiled engine takes and, per target frame, its chain and reach bound (on
-    first use). It holds no reference to the model (the one-shot cache keys it by a weak
-    reference to the model, :class:`qpik.igm.session.PreparedRobots`)."""
-
-    __slots__ = (
-        "bounds_free",
-        "bounds_joint",
-        "couplings",
-        "frames",
-        "lower",
-        "memo",
-        "mid",
-        "support",
-        "upper",
-    )
-
-    def __init__(self, model: mujoco.MjModel) -> None:
-        self.support = chain_support(model)
-        if self.support is None:
-            lower, upper = joint_limits(model)
-        else:
-            configuration = Configuration(model)
-            lower, upper = configuration.lower.copy(), configuration.upper.copy()
-        self.lower, self.upper = lower, upper
-        sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
-        sample_hi = np.where(np.isfinite(upper), upper, np.pi)
-        self.mid = model.qpos0.copy()
-        limited = np.isfinite(lower) & np.isfinite(upper)
-        self.mid[limited] = 0.5 * (lower[limited] + upper[limited])
-        free = np.full(model.nq, np.inf)
-        self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
-        self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
-        self.couplings = model_couplings(model)
-        self.frames: dict = {}  # frame key -> _Frame
-        self.memo: list = [None]  # the options memo of the sessions using this preparation
-
-    def frame(self, model: mujoco.MjModel, key: FrameKey) -> _Frame:
-        """The :class:`_Frame` of ``key`` on ``model`` (the model this was read from)."""
-        try:
-            cached = self.frames.get(key)
-        except TypeError:  # unhashable key
-            cached = None
-        if cached is not None:
-            return cached
-        name, kind, _ = resolve_frame(model, key, argument="targets")
-        chain = reach = None
-        try:
-            chain = KinematicChain.from_model(model, name, kind)
-        except ValueError:  # a ball or free joint (or a mocap body) on the chain
-            pass
-        if chain is not None:
-            reach = chain.reach_bound(self.lower, self.upper)
-        entry = _Frame(name, kind, chain, reach)
-        if chain is not None:
-            if self.couplings is not None:
-                entry.coupled = bool(np.isin(chain.dofs, self.couplings.dofs).any())
-            if not chain.covers_q:
-                index = chain.qpos_index
-                entry.packed, entry.index = chain.packed(), index
-                entry.bounds = (
-                    np.ascontiguousarray(self.bounds_joint[:, index]),
-                    np.ascontiguousarray(self.bounds_free[:, index]),
-                )
-        try:
-            self.frames[key] = entry
-        except TypeError:
-            pass
-        return entry
-
-
-#: The arrays of an ``MjModel`` that a prepared robot (:class:`_Prepared`) is read from:
-#: what the chains, joint limits, reach bounds and the mid-range start depend on. The
-#: one-shot cache compares their bytes to those it prepared the robot from.
-FINGERPRINT_FIELDS = (
-    "qpos0",
-    "jnt_type",
-    "jnt_limited",
-    "jnt_range",
-    "jnt_axis",
-    "jnt_pos",
-    "jnt_qposadr",
-    "jnt_dofadr",
-    "body_parentid",
-    "body_mocapid",
-    "body_jntadr",
-    "body_jntnum",
-    "body_pos",
-    "body_quat",
-    "site_bodyid",
-    "site_pos",
-    "site_quat",
-    "geom_bodyid",
-    "geom_pos",
-    "geom_quat",
-    "eq_type",
-    "eq_active0",
-    "eq_obj1id",
-    "eq_obj2id",
-    "eq_data",
-    "tendon_adr",
-    "tendon_num",
-    "tendon_length0",
-    "wrap_type",
-    "wrap_objid",
-    "wrap_prm",
-)
-
-
-class PreparedRobots:
-    """The one-shot cache of :func:`solve`: per ``MjModel``, what an :class:`IKSession`
-    reads from it (joint limits, mid-range start, per frame its kinematic chain and reach
-    bound), so that ``qpik.solve(model, targets)`` costs what a held session's ``solve``
-    does. One instance, :data:`qpik.igm.session.PREPARED`; :func:`qpik.clear_caches` empties
-    it.
-
-    * Keyed by the model object itself, through a weak reference: it never keeps a model
-      alive (an entry goes with its model) and never serves another model.
-    * Never stale: each lookup compares the model's arrays that the preparation read
-      (:data:`FINGERPRINT_FIELDS`: joint types, axes, anchors, ranges, body and frame
-      poses, ``qpos0``...) with a copy of them taken when it was prepared, one ``memcmp``
-      in compiled code (about a microsecond); a model changed in place is prepared anew.
-    * Answers are bitwise those of a fresh :class:`IKSession`: the entry holds exactly what
-      a session computes, from the same arrays.
-    * At most ``max_models`` models (the first prepared goes first).
-    """
-
-    def __init__(self, max_models: int = 32) -> None:
-        self.max_models = max_models
-        self._entries: dict[int, tuple[weakref.ref, Any, _Prepared]] = {}
-        # Reentrant: a weak reference callback (a collected model) may run inside get().
-        self._lock = threading.RLock()
-
-    def __len__(self) -> int:
-        return len(self._entries)
-
-    def clear(self) -> None:
-        """Forget every prepared model."""
-        with self._lock:
-            self._entries.clear()
-
-    def get(self, model: mujoco.MjModel) -> _Prepared:
-        """The prepared robot of ``model``: the cached one when the model's arrays are
-        unchanged since it was prepared, else a new one (cached)."""
-        key = id(model)
-        entry = self._entries.get(key)
-        if entry is not None and entry[0]() is model and entry[1].unchanged():
-            return entry[2]
-        views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
-        if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
-            return _Prepared(model)  # not views of the model's memory: nothing to watch
-        watch = _kernels.ArrayWatch(views)  # the bytes first, then what is read from them
-        prepared = _Prepared(model)
-
-        def forget(ref: weakref.ref, key: int = key) -> None:
-            with self._lock:
-                current = self._entries.get(key)
-                if current is not None and current[0] is ref:
-                    del self._entries[key]
-
-        with self._lock:
-            self._entries.pop(key, None)
-            while len(self._entries) >= self.max_models:
-                oldest = next(iter(self._entries), None)
-                if oldest is None:
-                    break
-                self._entries.pop(oldest, None)
-            self._entries[key] = (weakref.ref(model, forget), watch, prepared)
-        return prepared
-
-
-def _is_view_of(model: mujoco.MjModel, name: str, view: np.ndarray) -> bool:
-    """Whether ``view`` (``getattr(model, name)``) is a C-contiguous view on memory the model
-    holds: another read of the attribute gives a view on the same address (MuJoCo's arrays
-    are fixed in the ``mjModel`` buffer for the model's life), or it is empty."""
-    if not isinstance(view, np.ndarray) or not view.flags.c_contiguous:
-        return False
-    if view.size == 0:
-        return True  # no entry to change (sizes are fixed)
-    if view.flags.owndata:
-        return False
-    again = getattr(model, name)
-    return bool(again.ctypes.data == view.ctypes.data and again.nbytes == view.nbytes)
-
-
-#: The one-shot cache of :func:`solve` (see :class:`PreparedRobots`).
-PREPARED = PreparedRobots()
-
-
-# ------------------------------------------------------------------------ session
 class IKSession:
     """A robot prepared for repeated solves: hold one per robot and call :meth:`solve`.
 
@@ -456,14 +201,14 @@ class IKSession:
 
     def __init__(self, robot: RobotLike, options: SolveOptions | str | None = None):
         model, robot_q = resolve_robot(robot)
-        self._setup(model, robot_q, resolve(options), _Prepared(model))
+        self._setup(model, robot_q, resolve(options), PreparedRobot(model))
 
     def _setup(
         self,
         model: mujoco.MjModel,
         robot_q: np.ndarray | None,
         options: SolveOptions,
-        prepared: _Prepared,
+        prepared: PreparedRobot,
     ) -> None:
         self.model: mujoco.MjModel = model
         self.options: SolveOptions = options
@@ -478,7 +223,7 @@ class IKSession:
 
     @classmethod
     def _from_prepared(
-        cls, model: mujoco.MjModel, robot_q: np.ndarray | None, prepared: _Prepared
+        cls, model: mujoco.MjModel, robot_q: np.ndarray | None, prepared: PreparedRobot
     ) -> IKSession:
         """A session on ``model`` with the default options over an existing preparation."""
         session = cls.__new__(cls)
@@ -486,7 +231,7 @@ class IKSession:
         return session
 
     # ------------------------------------------------------------------ frames
-    def _frame(self, key: FrameKey) -> _Frame:
+    def _frame(self, key: FrameKey) -> PreparedFrame:
         return self._prepared.frame(self.model, key)
 
     def reach_bound(self, frame: FrameKey) -> ReachBound | None:
@@ -503,63 +248,26 @@ class IKSession:
         self,
         targets: Mapping[FrameKey, TargetLike],
         *,
-        q0: npt.ArrayLike | None = None,
-        stack: Stack | None = None,
         options: SolveOptions | str | None = None,
-        seed: Seed | Unset = UNSET,
-        limits: str | Sequence[mink.Limit] | None | Unset = UNSET,
-        tol_position: float | Unset = UNSET,
-        tol_orientation: float | Unset = UNSET,
-        max_iters: int | Unset = UNSET,
-        time_budget: float | None | Unset = UNSET,
-        restarts: int | None | Unset = UNSET,
-        alpha: float | Unset = UNSET,
-        beta: float | Unset = UNSET,
-        solver: str | Unset = UNSET,
-        stall_window: int | Unset = UNSET,
-        damping_law: DampingLaw | None | Unset = UNSET,
-        max_step: tuple[float, float] | None | Unset = UNSET,
-        secondary: bool | Unset = UNSET,
-        damping: float | Unset = UNSET,
-        engine: str | Unset = UNSET,
-        couplings: bool | Unset = UNSET,
+        **keywords: Unpack[SolveCall],
     ) -> IKResult:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
         start_time = time.perf_counter()
-        values = (
-            limits,
-            tol_position,
-            tol_orientation,
-            max_iters,
-            time_budget,
-            restarts,
-            alpha,
-            beta,
-            solver,
-            stall_window,
-            damping_law,
-            max_step,
-            secondary,
-            damping,
-            engine,
-            couplings,
-        )
-        return self._solve(targets, q0, stack, options, seed, values, start_time)
+        return self._solve(targets, options, keywords, start_time)
 
     def _solve(
         self,
         targets: Mapping[FrameKey, TargetLike],
-        q0: npt.ArrayLike | None,
-        stack: Stack | None,
         options: SolveOptions | str | None,
-        seed: Seed | Unset,
-        values: tuple,
+        keywords: SolveCall,
         start_time: float,
     ) -> IKResult:
-        """:meth:`solve` with the option keywords' values in the order of
-        ``_OPTION_KEYWORDS`` (``UNSET`` where not given)."""
-        settings, kernel_options = self._options(options, values)
+        """:meth:`solve` from the start of its clock (``keywords``: its own, changed)."""
+        q0 = keywords.pop("q0", None)
+        stack = keywords.pop("stack", None)
+        seed = keywords.pop("seed", UNSET)
+        settings, kernel_options = self._options(options, keywords)
         rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
@@ -596,30 +304,30 @@ class IKSession:
 
     # ---------------------------------------------------------------- helpers
     def _options(
-        self, options: SolveOptions | str | None, values: tuple
+        self, options: SolveOptions | str | None, keywords: Mapping[str, Any]
     ) -> tuple[SolveOptions, tuple[np.ndarray, np.ndarray]]:
-        """The options of a solve (``values``: the option keywords' values in the order of
-        ``_OPTION_KEYWORDS``, ``UNSET`` where not given), validated once for a run of solves
-        with the same ones, with the compiled engine's option arrays."""
+        """The options of a solve (``keywords``: the option keywords given), validated once
+        for a run of solves with the same ones, with the compiled engine's option arrays."""
         base = self.options if options is None else resolve(options)
         memo = self._memo[0]
         if memo is not None and memo[0] is base:
             try:
-                if memo[1] == values:
+                if memo[1] == keywords:
                     return memo[2], memo[3]
             except (TypeError, ValueError):  # values that do not compare plainly (arrays)
                 pass
-        overrides = {k: v for k, v in zip(_OPTION_KEYWORDS, values) if v is not UNSET}
-        settings = base.replace(**overrides)
+        settings = base.replace(**keywords)
         derived = (settings, _kernel_options(settings))
         try:
-            hash(values)
+            hash(tuple(keywords.items()))
         except TypeError:  # a list of limits, say: not remembered
             return derived
-        self._memo[0] = (base, values, *derived)
+        self._memo[0] = (base, dict(keywords), *derived)
         return derived
 
-    def _targets(self, targets: Mapping[FrameKey, TargetLike]) -> list[tuple[_Frame, Target]]:
+    def _targets(
+        self, targets: Mapping[FrameKey, TargetLike]
+    ) -> list[tuple[PreparedFrame, Target]]:
         if type(targets) is not dict and not isinstance(targets, Mapping):
             raise InvalidInput(
                 f"targets must be a mapping {{frame: target}}, got {type(targets).__name__}"
@@ -629,7 +337,10 @@ class IKSession:
         return [(self._frame(key), parse_target(value)) for key, value in targets.items()]
 
     def _compiled_applies(
-        self, settings: SolveOptions, stack: Stack | None, frames: list[tuple[_Frame, Target]]
+        self,
+        settings: SolveOptions,
+        stack: Stack | None,
+        frames: list[tuple[PreparedFrame, Target]],
     ) -> bool:
         """Whether the compiled engine takes this solve; raises when ``engine='compiled'``
         was asked for and it does not."""
@@ -653,7 +364,7 @@ class IKSession:
         return applies
 
     def _couplings_hold_off_chain(
-        self, settings: SolveOptions, frame: _Frame, q_start: np.ndarray
+        self, settings: SolveOptions, frame: PreparedFrame, q_start: np.ndarray
     ) -> bool:
         """Whether the model's couplings hold at ``q_start`` (to 1e-9), which the compiled
         engine leaves to it (they involve no joint of the chain, which it alone moves);
@@ -699,7 +410,7 @@ class IKSession:
         return q
 
     def _answer_unreachable(
-        self, frames: list[tuple[_Frame, Target]], q: np.ndarray, start_time: float
+        self, frames: list[tuple[PreparedFrame, Target]], q: np.ndarray, start_time: float
     ) -> IKResult:
         errors = {}
         for frame, target in frames:
@@ -784,26 +495,8 @@ def solve(
     robot: RobotLike,
     targets: Mapping[FrameKey, TargetLike],
     *,
-    q0: npt.ArrayLike | None = None,
-    stack: Stack | None = None,
     options: SolveOptions | str | None = None,
-    limits: str | Sequence[mink.Limit] | None | Unset = UNSET,
-    tol_position: float | Unset = UNSET,
-    tol_orientation: float | Unset = UNSET,
-    max_iters: int | Unset = UNSET,
-    time_budget: float | None | Unset = UNSET,
-    restarts: int | None | Unset = UNSET,
-    seed: Seed | Unset = UNSET,
-    alpha: float | Unset = UNSET,
-    beta: float | Unset = UNSET,
-    solver: str | Unset = UNSET,
-    stall_window: int | Unset = UNSET,
-    damping_law: DampingLaw | None | Unset = UNSET,
-    max_step: tuple[float, float] | None | Unset = UNSET,
-    secondary: bool | Unset = UNSET,
-    damping: float | Unset = UNSET,
-    engine: str | Unset = UNSET,
-    couplings: bool | Unset = UNSET,
+    **keywords: Unpack[SolveCall],
 ) -> IKResult:
     """Solve inverse kinematics for one or several frame targets.
 
@@ -822,61 +515,32 @@ def solve(
             docstring).
         options: a :class:`qpik.SolveOptions`, a preset name of :data:`qpik.PRESETS`
             (``"default"``, ``"precise"``, ``"fast"``, ``"tracking"``) or ``None`` (the
-            default preset). The keywords below override it.
+            default preset). The keywords override it.
         seed: seed of the restarts' random configurations: an int >= 0, a numpy
             ``Generator`` (one draw is taken from it) or ``SeedSequence``; same seed, same
             result. ``None``: fresh entropy. Default: ``options.seed`` (``None``).
-        limits, tol_position, tol_orientation, max_iters, time_budget, restarts, alpha,
-            beta, stall_window, max_step, secondary, engine: the fields of
-            :class:`qpik.SolveOptions` (units, ranges and defaults documented there).
-        solver, damping, damping_law: the fields of :class:`qpik.StepOptions` of each step
-            (for a solve, ``damping_law`` defaults to the error-faded
-            :data:`qpik.options.IGM_DAMPING`); the ``"compiled"`` engine always solves its
-            QPs exactly by its own active set.
-        couplings: keep the model's couplings (:attr:`qpik.StepOptions.couplings`: joint
-            and fixed-tendon equalities, URDF ``<mimic>``) as hard rows above every level,
-            at every iterate and in the answer (``IKResult.coupling_error``). Default
-            ``True``. The compiled engine moves only the target's chain and keeps the
-            other joints where they are: it takes a model with couplings when none of
-            them moves a joint of the chain and they hold at the start (to 1e-9);
-            otherwise the solve runs on the ``"qp"`` engine, whose steps solve the
-            coupling rows first (``engine="compiled"`` then raises
-            :class:`qpik.InvalidInput`).
+        **keywords: ``q0``, ``stack``, ``seed`` (above), and options overriding
+            ``options``, each a field of
+            :class:`qpik.SolveOptions` (``tol_position``, ``max_iters``, ``restarts``,
+            ``time_budget``, ``engine``, ...) or of its :class:`qpik.StepOptions`
+            (``solver``, ``damping``, ``damping_law``, ``couplings``, ...), documented
+            there; :class:`qpik.options.SolveKeywords` lists them.
 
     Bad arguments raise a :class:`qpik.QpikError` subclass naming them
-    (:class:`qpik.InvalidOption` for an option).
+    (:class:`qpik.InvalidOption` for an option, an unknown keyword included).
 
     Cost of a one-shot call: given an ``MjModel`` (or a :class:`qpik.Configuration`), the
     robot's preparation (joint limits, mid-range start, the target frame's kinematic
-    chain and reach bound) is kept per model in one cache, :data:`qpik.igm.session.PREPARED`
-    (:class:`qpik.igm.session.PreparedRobots`), so a call costs what a held
-    :class:`IKSession`'s ``solve`` does (reading those from the model takes longer than
-    most solves). The cache holds the model weakly (an entry goes with its model), checks
-    at each call that the model's arrays it was prepared from
-    (:data:`qpik.igm.session.FINGERPRINT_FIELDS`) are unchanged (a model edited in place is
-    prepared anew), and gives bitwise the answers of a fresh :class:`IKSession`;
+    chain and reach bound) is kept per model in one cache, :data:`qpik.igm.prepared.PREPARED`
+    (:class:`qpik.igm.prepared.PreparedRobots`), so a call costs what a held
+    :class:`IKSession`'s ``solve`` does. The cache holds the model weakly (an entry goes
+    with its model), checks at each call that the model's arrays it was prepared from
+    (:data:`qpik.igm.prepared.FINGERPRINT_FIELDS`) are unchanged (a model edited in place
+    is prepared anew), and gives bitwise the answers of a fresh :class:`IKSession`;
     :func:`qpik.clear_caches` empties it. A robot given by name or path is loaded and
     prepared at each call: to solve many targets on one robot, load it once (or hold an
     :class:`IKSession`).
     """
-    values = (
-        limits,
-        tol_position,
-        tol_orientation,
-        max_iters,
-        time_budget,
-        restarts,
-        alpha,
-        beta,
-        solver,
-        stall_window,
-        damping_law,
-        max_step,
-        secondary,
-        damping,
-        engine,
-        couplings,
-    )
     if isinstance(robot, mujoco.MjModel):
         session = IKSession._from_prepared(robot, None, PREPARED.get(robot))
     elif isinstance(robot, Configuration):
@@ -884,4 +548,4 @@ def solve(
     else:
         session = IKSession(robot)
     # The clock (solve_time, time_budget) starts once the robot is loaded, as a session's.
-    return session._solve(targets, q0, stack, options, seed, values, time.perf_counter())
+    return session._solve(targets, options, keywords, time.perf_counter())

@@ -1,0 +1,239 @@
+"""What a full-IK solve reads from a robot model once: :class:`PreparedRobot` (joint limits,
+the mid-range start, the bounds the compiled engine takes, the model's couplings and, per
+target frame, its kinematic chain and reach bound, :class:`PreparedFrame`), and the cache
+that keeps one per model for :func:`qpik.solve`, :data:`PREPARED` (a
+:class:`PreparedRobots`, emptied by :func:`qpik.clear_caches`). An :class:`qpik.IKSession`
+holds its own.
+"""
+
+from __future__ import annotations
+
+import threading
+import weakref
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from ..model import KinematicChain, ReachBound, chain_support, joint_limits
+from ..model import kernels as _kernels
+from ..model.configuration import Configuration, FrameType
+from ..model.couplings import model_couplings
+from ..model.frames import resolve_frame
+from .targets import FrameKey
+
+__all__ = ["FINGERPRINT_FIELDS", "PREPARED", "PreparedFrame", "PreparedRobot", "PreparedRobots"]
+
+
+class PreparedFrame:
+    """A target frame of a session: name, type and, when its chain has hinge and slide
+    joints only, its chain and reach bound. ``packed``: the chain over its own joints
+    (:meth:`KinematicChain.packed`), with ``index`` (their qpos addresses) and the packed
+    joint bounds, when the chain's joints are not all of ``q`` (``None`` otherwise: the
+    compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
+    (:class:`qpik.model.Couplings`) moves a joint of the chain."""
+
+    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
+
+    def __init__(
+        self,
+        name: str,
+        kind: FrameType,
+        chain: KinematicChain | None,
+        reach: ReachBound | None,
+    ) -> None:
+        self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
+        self.packed: KinematicChain | None = None
+        self.index: np.ndarray | None = None
+        self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
+        self.coupled = False
+
+
+class PreparedRobot:
+    """What a session reads from a model once: joint limits, the mid-range start, the
+    bounds the compiled engine takes and, per target frame, its chain and reach bound (on
+    first use). It holds no reference to the model (the one-shot cache keys it by a weak
+    reference to the model, :class:`PreparedRobots`)."""
+
+    __slots__ = (
+        "bounds_free",
+        "bounds_joint",
+        "couplings",
+        "frames",
+        "lower",
+        "memo",
+        "mid",
+        "support",
+        "upper",
+    )
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.support = chain_support(model)
+        if self.support is None:
+            lower, upper = joint_limits(model)
+        else:
+            configuration = Configuration(model)
+            lower, upper = configuration.lower.copy(), configuration.upper.copy()
+        self.lower, self.upper = lower, upper
+        sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
+        sample_hi = np.where(np.isfinite(upper), upper, np.pi)
+        self.mid = model.qpos0.copy()
+        limited = np.isfinite(lower) & np.isfinite(upper)
+        self.mid[limited] = 0.5 * (lower[limited] + upper[limited])
+        free = np.full(model.nq, np.inf)
+        self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
+        self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
+        self.couplings = model_couplings(model)
+        self.frames: dict = {}  # frame key -> PreparedFrame
+        self.memo: list = [None]  # the options memo of the sessions using this preparation
+
+    def frame(self, model: mujoco.MjModel, key: FrameKey) -> PreparedFrame:
+        """The :class:`PreparedFrame` of ``key`` on ``model`` (the model this was read from)."""
+        try:
+            cached = self.frames.get(key)
+        except TypeError:  # unhashable key
+            cached = None
+        if cached is not None:
+            return cached
+        name, kind, _ = resolve_frame(model, key, argument="targets")
+        chain = reach = None
+        try:
+            chain = KinematicChain.from_model(model, name, kind)
+        except ValueError:  # a ball or free joint (or a mocap body) on the chain
+            pass
+        if chain is not None:
+            reach = chain.reach_bound(self.lower, self.upper)
+        entry = PreparedFrame(name, kind, chain, reach)
+        if chain is not None:
+            if self.couplings is not None:
+                entry.coupled = bool(np.isin(chain.dofs, self.couplings.dofs).any())
+            if not chain.covers_q:
+                index = chain.qpos_index
+                entry.packed, entry.index = chain.packed(), index
+                entry.bounds = (
+                    np.ascontiguousarray(self.bounds_joint[:, index]),
+                    np.ascontiguousarray(self.bounds_free[:, index]),
+                )
+        try:
+            self.frames[key] = entry
+        except TypeError:
+            pass
+        return entry
+
+
+#: The arrays of an ``MjModel`` that a prepared robot (:class:`PreparedRobot`) is read from:
+#: what the chains, joint limits, reach bounds and the mid-range start depend on. The
+#: one-shot cache compares their bytes to those it prepared the robot from.
+FINGERPRINT_FIELDS = (
+    "qpos0",
+    "jnt_type",
+    "jnt_limited",
+    "jnt_range",
+    "jnt_axis",
+    "jnt_pos",
+    "jnt_qposadr",
+    "jnt_dofadr",
+    "body_parentid",
+    "body_mocapid",
+    "body_jntadr",
+    "body_jntnum",
+    "body_pos",
+    "body_quat",
+    "site_bodyid",
+    "site_pos",
+    "site_quat",
+    "geom_bodyid",
+    "geom_pos",
+    "geom_quat",
+    "eq_type",
+    "eq_active0",
+    "eq_obj1id",
+    "eq_obj2id",
+    "eq_data",
+    "tendon_adr",
+    "tendon_num",
+    "tendon_length0",
+    "wrap_type",
+    "wrap_objid",
+    "wrap_prm",
+)
+
+
+class PreparedRobots:
+    """The one-shot cache of :func:`qpik.solve`: per ``MjModel``, what an :class:`qpik.IKSession`
+    reads from it (joint limits, mid-range start, per frame its kinematic chain and reach
+    bound), so that ``qpik.solve(model, targets)`` costs what a held session's ``solve``
+    does. One instance, :data:`PREPARED`; :func:`qpik.clear_caches` empties
+    it.
+
+    * Keyed by the model object itself, through a weak reference: it never keeps a model
+      alive (an entry goes with its model) and never serves another model.
+    * Never stale: each lookup compares the model's arrays that the preparation read
+      (:data:`FINGERPRINT_FIELDS`: joint types, axes, anchors, ranges, body and frame
+      poses, ``qpos0``...) with a copy of them taken when it was prepared, one ``memcmp``
+      in compiled code; a model changed in place is prepared anew.
+    * Answers are bitwise those of a fresh :class:`qpik.IKSession`: the entry holds exactly what
+      a session computes, from the same arrays.
+    * At most ``max_models`` models (the first prepared goes first).
+    """
+
+    def __init__(self, max_models: int = 32) -> None:
+        self.max_models = max_models
+        self._entries: dict[int, tuple[weakref.ref, Any, PreparedRobot]] = {}
+        # Reentrant: a weak reference callback (a collected model) may run inside get().
+        self._lock = threading.RLock()
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def clear(self) -> None:
+        """Forget every prepared model."""
+        with self._lock:
+            self._entries.clear()
+
+    def get(self, model: mujoco.MjModel) -> PreparedRobot:
+        """The prepared robot of ``model``: the cached one when the model's arrays are
+        unchanged since it was prepared, else a new one (cached)."""
+        key = id(model)
+        entry = self._entries.get(key)
+        if entry is not None and entry[0]() is model and entry[1].unchanged():
+            return entry[2]
+        views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
+        if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
+            return PreparedRobot(model)  # not views of the model's memory: nothing to watch
+        watch = _kernels.ArrayWatch(views)  # the bytes first, then what is read from them
+        prepared = PreparedRobot(model)
+
+        def forget(ref: weakref.ref, key: int = key) -> None:
+            with self._lock:
+                current = self._entries.get(key)
+                if current is not None and current[0] is ref:
+                    del self._entries[key]
+
+        with self._lock:
+            self._entries.pop(key, None)
+            while len(self._entries) >= self.max_models:
+                oldest = next(iter(self._entries), None)
+                if oldest is None:
+                    break
+                self._entries.pop(oldest, None)
+            self._entries[key] = (weakref.ref(model, forget), watch, prepared)
+        return prepared
+
+
+def _is_view_of(model: mujoco.MjModel, name: str, view: np.ndarray) -> bool:
+    """Whether ``view`` (``getattr(model, name)``) is a C-contiguous view on memory the model
+    holds: another read of the attribute gives a view on the same address (MuJoCo's arrays
+    are fixed in the ``mjModel`` buffer for the model's life), or it is empty."""
+    if not isinstance(view, np.ndarray) or not view.flags.c_contiguous:
+        return False
+    if view.size == 0:
+        return True  # no entry to change (sizes are fixed)
+    if view.flags.owndata:
+        return False
+    again = getattr(model, name)
+    return bool(again.ctypes.data == view.ctypes.data and again.nbytes == view.nbytes)
+
+
+#: The one-shot cache of :func:`qpik.solve` (see :class:`PreparedRobots`).
+PREPARED = PreparedRobots()
