@@ -1,5 +1,5 @@
 """What a differential IK step returns: :class:`StepResult` for users, and
-:class:`Solution`, what either path of a step (the compiled one-call step or the core's QP
+:class:`Solution`, what either path of a step (the compiled step or the core's QP
 cascade, :func:`solve_rows`) hands back to :class:`qpik.IKSolver`: the displacement, each
 level's report and certificate, and the limits of the step, so that the limits that bind
 are named when asked for.
