@@ -276,3 +276,31 @@ def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(s
             )  # None: a one-dof row, general path
             rows_seen += rows is not None and rows[0].shape[0] > 0
         assert rows_seen > 0
+
+
+def test_the_core_solvers_warm_start_api(panda):
+    """The core solver's public warm start: ``active_sets`` after a solve, ``warm_sets``
+    only with warm starts on and the shape matching, ``warm_start_from`` and ``reset``;
+    the compiled step keeps its active sets there, as the QP path does."""
+    levels = [qpik.core.Level(np.eye(3), np.array([2.0, 0.0, -2.0]))]
+    box = (-np.ones(3), np.ones(3))
+    warm = qpik.core.HierarchySolver(warm_start=True)
+    cold = qpik.core.HierarchySolver()
+    assert warm.active_sets is None and warm.warm_sets(1, 3) is None
+    for core in (warm, cold):
+        core.solve(qpik.core.HierarchyProblem(levels, *box, np.zeros((0, 3)), np.zeros(0)))
+        assert core.active_sets is not None and core.active_sets.shape == (1, 3)
+    assert warm.warm_sets(1, 3) is warm.active_sets and warm.warm_sets(2, 3) is None
+    assert cold.warm_sets(1, 3) is None
+    given = np.zeros((1, 3), dtype=np.int8)
+    warm.warm_start_from(given)
+    assert warm.active_sets is given
+    warm.reset()
+    assert warm.active_sets is None
+    model, configuration = panda
+    task = mink.FrameTask("ee", "site", 1.0, 1.0)
+    task.set_target(configuration.get_transform_frame_to_world("ee", "site"))
+    solver = qpik.IKSolver(model, [[task]], [mink.ConfigurationLimit(model)], warm_start=True)
+    assert solver._plan is not None
+    solver.step(configuration, DT)
+    assert solver._core.active_sets.shape == (1, model.nv)

@@ -87,9 +87,12 @@ def level_rows(
     A_parts, b_parts, w_parts = [], [], []
     mu = 0.0
     for task in tasks:
-        try:
-            residual = task.compute_qp_residual(configuration)
-            objective = task.compute_qp_objective(configuration) if residual is None else None
+        try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
+            with np.errstate(over="ignore"):
+                residual = task.compute_qp_residual(configuration)
+                objective = (
+                    None if residual is not None else task.compute_qp_objective(configuration)
+                )
         except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
             raise as_qpik_error(exc) from exc
         if objective is not None:
@@ -151,7 +154,9 @@ def stack_rows(
     b = np.concatenate(b_parts) if L > 1 else np.ascontiguousarray(b_parts[0], dtype=float)
     w = np.concatenate(w_parts) if L > 1 else np.ascontiguousarray(w_parts[0], dtype=float)
     rows = TaskRows(A, b, w, starts, reg)
-    if not (math.isfinite(float(b @ b)) and math.isfinite(float(A.sum()))) or not (
+    with np.errstate(over="ignore"):  # the squares overflow only on rows near 1e150
+        square = float(b @ b)
+    if not (math.isfinite(square) and math.isfinite(float(A.sum()))) or not (
         math.isfinite(float(reg.sum()))
     ):
         _raise_not_finite(levels, rows)
