@@ -12,7 +12,7 @@ import pytest
 
 from qpik._engine import diffik as engine_diffik
 from qpik._engine import tasks as engine_tasks
-from qpik.diffik import compiled as _fused
+from qpik.diffik import compiled
 from qpik.model import lie as _lie
 from qpik.tasks import fast
 
@@ -123,29 +123,63 @@ def _step_args(fx, prefix, s):
     return args
 
 
+def kernel_call(args):
+    """A recorded call (``STEP_ARGS``: a stack of frame and posture tasks on hinge joints)
+    as ``(kernel, poses, warm, canonical, max_iter)``: the :class:`qpik.diffik.compiled.Kernel`
+    over the recorded arrays, and its ``rows`` arguments (``step`` takes ``warm, canonical,
+    max_iter`` after them)."""
+    a = dict(zip(STEP_ARGS, args))
+    qpos = a["qpos"]
+    nv = nq = qpos.shape[0]
+    posture_map = np.stack([np.zeros(nv, np.int64), np.arange(nv, dtype=np.int64)], axis=1)
+    kernel = compiled.Kernel(
+        a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"],
+        a["frame_data"], a["posture_data"], posture_map, a["cfg_dof"], a["cfg_dof"],
+        a["cfg_data"], a["vel_dof"], a["vel_limit"], a["settings"], np.zeros((0, 3, nv)),
+        np.zeros(0, np.int64), np.zeros((0, 8)), np.zeros((0, 12, nv)),
+        np.zeros((0, 4), np.int64), np.zeros((0, 15)), nq,
+    )  # fmt: skip
+    poses = (
+        qpos, a["site_xpos"], a["site_xmat"], a["xpos"], a["xmat"], a["geom_xpos"],
+        a["geom_xmat"], np.zeros((0, 3)), np.zeros((0, nv)), np.zeros(0),
+    )  # fmt: skip
+    return kernel, poses, a["warm"], a["canonical"], a["max_iter"]
+
+
+def _rows(args):
+    kernel, poses, *_ = kernel_call(args)
+    return kernel.rows(*poses)
+
+
+def _step(args):
+    kernel, poses, warm, canonical, max_iter = kernel_call(args)
+    return kernel.step(*poses, warm, canonical, max_iter)
+
+
 @pytest.mark.parametrize("stack", ["two", "three", "flat"])
-def test_fused_rows_and_step_equal_the_recorded_answers(fx, stack):
+def test_kernel_rows_and_step_equal_the_recorded_answers(fx, stack):
     prefix = f"fused_{stack}_"
     tally = Tally()
     states = fx[prefix + "qpos"].shape[0]
     for s in range(states):
         args = _step_args(fx, prefix, s)
-        code, reg, lb, ub = _fused.fused_rows(*args[:21])
+        code, reg, lb, ub = _rows(args)
         assert isinstance(code, int)
         assert code == fx[prefix + "rows_code"][s]
         tally.check(reg, fx[prefix + "rows_reg"][s], f"reg[{s}]")
-        if code != _fused.CONFLICT:  # lb, ub are not defined then
+        if code != compiled.CONFLICT:  # lb, ub are not defined then
             tally.check(lb, fx[prefix + "rows_lb"][s], f"lb[{s}]")
             tally.check(ub, fx[prefix + "rows_ub"][s], f"ub[{s}]")
         for j, key in enumerate(("A", "b", "w")):
             tally.check(args[j], fx[prefix + "rows_" + key][s], f"{key}[{s}]")
         args = _step_args(fx, prefix, s)
-        code, d, v, info, active = _fused.fused_step(*args)
+        code, d, v, info, active = _step(args)
         assert code == fx[prefix + "step_code"][s]
         assert active.dtype == np.int8 and info.dtype == np.float64
         for got, key in ((d, "d"), (v, "v"), (info, "info"), (active, "active")):
             tally.check(got, fx[prefix + "step_" + key][s], f"step {key}[{s}]")
     tally.report(f"fused ({stack}, {states} states)")
+    assert tally.bitwise == tally.total
 
 
 def _panda_args(fx):
@@ -184,15 +218,15 @@ def test_wrong_shapes_raise_value_error(fx):
         args = list(base)
         args[STEP_ARGS.index(name)] = value
         with pytest.raises(ValueError):
-            _fused.fused_step(*args)
-        if STEP_ARGS.index(name) < 21:
+            _step(args)
+        if name != "warm":
             with pytest.raises(ValueError):
-                _fused.fused_rows(*args[:21])
+                _rows(args)
     # Outputs are never silently copied: a float32 or read-only A is refused.
     args = list(base)
     args[0] = args[0].astype(np.float32)
     with pytest.raises(TypeError):
-        _fused.fused_rows(*args[:21])
+        _rows(args)
     frozen = np.empty(6)
     frozen.setflags(write=False)
     with pytest.raises(TypeError):
@@ -200,13 +234,13 @@ def test_wrong_shapes_raise_value_error(fx):
     assert engine_tasks.EPS == 1e-10 and engine_diffik.OK == 0
 
 
-def test_box_of_equals_the_rows_box(fx):
-    """``_boxes`` on the columns of cfg_data (strided views, converted) gives fused_rows' box."""
+def test_boxes_equal_the_rows_box(fx):
+    """``boxes`` on the columns of cfg_data (strided views, converted) gives the rows' box."""
     args = _panda_args(fx)
-    code, _, lb, ub = _fused.fused_rows(*args[:21])
+    code, _, lb, ub = _rows(args)
     cfg = args[STEP_ARGS.index("cfg_data")]
     qpos = args[STEP_ARGS.index("qpos")]
-    lb2, ub2, bad = _fused._boxes(
+    lb2, ub2, bad = engine_diffik.boxes(
         qpos, float(args[20][0]), args[16], cfg[:, 0], cfg[:, 1], cfg[:, 2], args[18],
         args[19], qpos.shape[0],
     )  # fmt: skip

@@ -13,6 +13,11 @@ from qpik.limits import velocity_limit_from_model
 DT = 0.01
 
 
+def _qp_step(solver: qpik.IKSolver, configuration) -> qpik.StepResult:
+    """The step by the QP path (the tasks' and limits' own rows, then the core's cascade)."""
+    return qpik.StepResult.of(solver._qp_step(configuration, DT), 0.0)
+
+
 @pytest.fixture(scope="module")
 def panda():
     model = qpik.load_robot("panda")
@@ -59,7 +64,7 @@ def test_minks_tasks_rows_equal_minks_objective(panda):
     for _ in range(30):
         _random_state(rng, model, configuration, tasks)
         args = plan.gather(configuration)
-        solver._settings(plan, DT)
+        plan.write_settings(DT, solver.damping, solver._core)
         code, reg, _, _ = plan.kernel.rows(*args, plan.no_rows, plan.no_h)
         assert code == 0
         a = plan.arrays
@@ -90,7 +95,7 @@ def test_minks_tasks_compiled_step_equals_the_general_path(panda, solver_name):
     for _ in range(30):
         _random_state(rng, model, configuration, tasks)
         fused = solver.step(configuration, DT)
-        general = solver._general_step(configuration, DT, 0.0)
+        general = _qp_step(solver, configuration)
         np.testing.assert_allclose(fused.displacement, general.displacement, rtol=0, atol=1e-12)
         assert fused.status == general.status
 
@@ -109,7 +114,7 @@ def test_the_compiled_step_carries_every_levels_certificate(panda):
     for _ in range(20):
         _random_state(rng, model, configuration, tasks)
         fused = solver.step(configuration, DT)
-        general = solver._general_step(configuration, DT, 0.0)
+        general = _qp_step(solver, configuration)
         assert len(fused.certificate) == len(levels) == len(general.certificate)
         for status, ours, theirs in zip(fused.status, fused.certificate, general.certificate):
             values = np.array([ours.primal, ours.stationarity, ours.dual, ours.complementarity])
@@ -136,7 +141,7 @@ def test_forced_backend_shortcut_gives_the_forced_paths_answer(panda, backend):
         for levels in ([tasks], [[tasks[0]], [tasks[1]], [tasks[2]]]):
             solver = qpik.IKSolver(model, levels, limits, solver=backend, damping=1e-4)
             shortcut = qpik.IKSolver(model, levels, limits, solver=backend, damping=1e-4)
-            shortcut._exact_forced = True
+            shortcut.exact_shortcut = True
             bound = 0
             for _ in range(25):
                 _random_state(rng, model, configuration, tasks, reach=0.5)
@@ -245,7 +250,7 @@ def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(s
         solver = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
         assert solver._plan is not None and solver._plan.general_limits == [collision]
         shortcut = qpik.IKSolver(model, [[frame], [posture]], limits, solver=solver_name)
-        shortcut._exact_forced = True
+        shortcut.exact_shortcut = True
         rows_seen = 0
         for _ in range(40):
             q = rng.uniform(-1.5, 1.5, model.nq)
@@ -254,7 +259,7 @@ def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(s
             frame.set_target(mink.SE3.from_translation(rng.uniform(-0.3, 0.3, 3)) @ target)
             posture.set_target(np.zeros(model.nq))
             try:
-                general = solver._general_step(configuration, DT, 0.0)
+                general = _qp_step(solver, configuration)
             except qpik.QpikError:
                 continue
             fused = solver.step(configuration, DT)
@@ -266,8 +271,36 @@ def test_collision_limits_take_the_compiled_rows_with_the_general_paths_answer(s
             assert fused.active_limits == general.active_limits
             other = shortcut.step(configuration, DT)
             np.testing.assert_allclose(other.displacement, general.displacement, atol=1e-12)
-            rows = solver._general_rows(
-                solver._plan, configuration, DT
+            rows = solver._plan.limits.general_rows(
+                solver._plan.general_limits, configuration, DT
             )  # None: a one-dof row, general path
             rows_seen += rows is not None and rows[0].shape[0] > 0
         assert rows_seen > 0
+
+
+def test_the_core_solvers_warm_start_api(panda):
+    """The core solver's public warm start: ``active_sets`` after a solve, ``warm_sets``
+    only with warm starts on and the shape matching, ``warm_start_from`` and ``reset``;
+    the compiled step keeps its active sets there, as the QP path does."""
+    levels = [qpik.core.Level(np.eye(3), np.array([2.0, 0.0, -2.0]))]
+    box = (-np.ones(3), np.ones(3))
+    warm = qpik.core.HierarchySolver(warm_start=True)
+    cold = qpik.core.HierarchySolver()
+    assert warm.active_sets is None and warm.warm_sets(1, 3) is None
+    for core in (warm, cold):
+        core.solve(qpik.core.HierarchyProblem(levels, *box, np.zeros((0, 3)), np.zeros(0)))
+        assert core.active_sets is not None and core.active_sets.shape == (1, 3)
+    assert warm.warm_sets(1, 3) is warm.active_sets and warm.warm_sets(2, 3) is None
+    assert cold.warm_sets(1, 3) is None
+    given = np.zeros((1, 3), dtype=np.int8)
+    warm.warm_start_from(given)
+    assert warm.active_sets is given
+    warm.reset()
+    assert warm.active_sets is None
+    model, configuration = panda
+    task = mink.FrameTask("ee", "site", 1.0, 1.0)
+    task.set_target(configuration.get_transform_frame_to_world("ee", "site"))
+    solver = qpik.IKSolver(model, [[task]], [mink.ConfigurationLimit(model)], warm_start=True)
+    assert solver._plan is not None
+    solver.step(configuration, DT)
+    assert solver._core.active_sets.shape == (1, model.nv)

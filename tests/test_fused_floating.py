@@ -14,6 +14,12 @@ from qpik import _engine
 
 DT = 0.01
 
+
+def _qp_step(solver: qpik.IKSolver, configuration) -> qpik.StepResult:
+    """The step by the QP path (the tasks' and limits' own rows, then the core's cascade)."""
+    return qpik.StepResult.of(solver._qp_step(configuration, DT), 0.0)
+
+
 # A floating torso with two hinge legs, a ball "neck", a slide joint and a hinge arm.
 XML = """
 <mujoco>
@@ -147,7 +153,7 @@ def test_rows_equal_minks_objective(robot):
         configuration.update(_random_q(rng, model))
         _set_targets(rng, model, configuration, tasks)
         args = plan.gather(configuration)
-        solver._settings(plan, DT)
+        plan.write_settings(DT, solver.damping, solver._core)
         code, reg, _, _ = plan.kernel.rows(*args, plan.no_rows, plan.no_h)
         assert code == 0
         a = plan.arrays
@@ -186,7 +192,7 @@ def test_ball_joint_error_equals_mujoco(robot):
         target[adr : adr + 4] = -target[adr : adr + 4] if k % 2 else target[adr : adr + 4]
         task.set_target(target)
         args = plan.gather(configuration)
-        solver._settings(plan, DT)
+        plan.write_settings(DT, solver.damping, solver._core)
         assert plan.kernel.rows(*args, plan.no_rows, plan.no_h)[0] == 0
         np.testing.assert_allclose(plan.arrays["b"], -task.compute_error(configuration), 0, 1e-12)
 
@@ -226,7 +232,7 @@ def test_floating_step_equals_the_general_path(robot, robot_no_ball, frame_class
             configuration.update(_random_q(rng, model))
             _set_targets(rng, model, configuration, feet + [com, relative, posture])
             fused = solver.step(configuration, DT)
-            general = solver._general_step(configuration, DT, 0.0)
+            general = _qp_step(solver, configuration)
             if bitwise:
                 assert np.array_equal(fused.displacement, general.displacement)
                 assert fused.residuals == general.residuals
@@ -252,17 +258,17 @@ def test_collision_rows_in_the_one_call_step(robot_no_ball):
     limits = [mink.ConfigurationLimit(model), collision]
     solver = qpik.IKSolver(model, [feet, [posture]], limits)
     assert solver._plan is not None and solver._plan.general_limits == [collision]
-    solver._fused_general_step = None  # the auto solver never takes the two-call route
+    solver._plan._rows_then_cascade = None  # the auto solver never takes the two-call route
     rows_seen = 0
     for _ in range(40):
         configuration.update(_random_q(rng, model))
         _set_targets(rng, model, configuration, feet + [posture])
-        general = solver._general_step(configuration, DT, 0.0)
+        general = _qp_step(solver, configuration)
         fused = solver.step(configuration, DT)
         assert np.array_equal(fused.displacement, general.displacement)
         assert fused.status == general.status
         assert fused.active_limits == general.active_limits
-        rows = solver._general_rows(solver._plan, configuration, DT)
+        rows = solver._plan.limits.general_rows(solver._plan.general_limits, configuration, DT)
         rows_seen += rows is not None and rows[0].shape[0] > 0
     assert rows_seen > 0
 
@@ -310,7 +316,7 @@ def test_kernel_rejects_bad_arguments(robot):
     args = list(plan.gather(configuration))
     warm = plan.cold
     nv = model.nv
-    solver._settings(plan, DT)
+    plan.write_settings(DT, solver.damping, solver._core)
     good = (*args, plan.no_rows, plan.no_h, warm, False, 100)
     assert plan.kernel.step(*good)[0] == 0
     bad = {

@@ -82,7 +82,9 @@ rechecked (:attr:`HierarchyResult.primal`).
 **Warm starts** only change which active set the dual method tries first; every answer ends
 in the same canonical re-solve, so a warm start gives bitwise the cold start's answer when the
 optimal active set is unique (and the same point to round-off at degenerate vertices, where
-several active sets are optimal).
+several active sets are optimal). :attr:`HierarchySolver.active_sets` holds the last solve's
+active sets, :meth:`HierarchySolver.warm_start_from` sets them (a caller that solved the same
+cascade by other means), and :meth:`HierarchySolver.reset` forgets them.
 """
 
 from __future__ import annotations
@@ -396,7 +398,10 @@ class HierarchySolver:
         self._warm = None
         self._workspaces.clear()
 
-    def _law(self) -> tuple[float, float, float]:
+    @property
+    def damping_settings(self) -> tuple[float, float, float]:
+        """:attr:`damping_law` as the kernels take it: ``(singular_threshold, max_damping,
+        error_scale)``, ``error_scale`` 0 for none; ``(1, 0, 0)`` without a law."""
         law = self.damping_law
         if law is None:
             return 1.0, 0.0, 0.0
@@ -406,11 +411,38 @@ class HierarchySolver:
             float(law.error_scale) if law.error_scale is not None else 0.0,
         )
 
-    def _warm_for(self, levels: int, rows: int) -> np.ndarray:
+    @property
+    def active_sets(self) -> np.ndarray | None:
+        """The active sets of the last solve, ``(L, n + p)`` int8 (+1 at a lower bound, -1
+        at an upper bound; box rows first, then the general rows); None before the first
+        solve and after :meth:`reset`."""
+        return self._warm
+
+    def warm_sets(self, levels: int, rows: int) -> np.ndarray | None:
+        """The active sets a solve of ``levels`` levels over ``rows = n + p`` rows starts
+        from: :attr:`active_sets` when :attr:`warm_start` is on and their shape is
+        ``(levels, rows)``, else None (a cold start)."""
         warm = self._warm
         if not self.warm_start or warm is None or warm.shape != (levels, rows):
-            return np.zeros((levels, rows), dtype=np.int8)
+            return None
         return warm
+
+    def warm_start_from(self, active: np.ndarray) -> None:
+        """Take ``active`` (``(L, n + p)`` int8, as :attr:`active_sets`) as the last
+        solve's active sets: the next solve of that shape starts from them when
+        :attr:`warm_start` is on (for a caller that solved the same cascade in one
+        compiled call, :mod:`qpik.diffik.compiled`)."""
+        self._warm = active
+
+    @property
+    def workspace_setups(self) -> int:
+        """How many backend workspaces were built so far (OSQP: at most one per level and
+        reduced size; 0 with the default exact solver)."""
+        return sum(getattr(ws, "setups", 0) for ws in self._workspaces.values())
+
+    def _warm_for(self, levels: int, rows: int) -> np.ndarray:
+        warm = self.warm_sets(levels, rows)
+        return np.zeros((levels, rows), dtype=np.int8) if warm is None else warm
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
@@ -423,8 +455,8 @@ class HierarchySolver:
             out = K.solve_levels(
                 [level.A for level in levels], [level.b for level in levels],
                 [level.regularization for level in levels], [level.weights for level in levels],
-                problem.lb, problem.ub, problem.G, problem.h, *self._law(), self.rank_tolerance,
-                self.max_iter, self.tolerance, warm, self.warm_start,
+                problem.lb, problem.ub, problem.G, problem.h, *self.damping_settings,
+                self.rank_tolerance, self.max_iter, self.tolerance, warm, self.warm_start,
             )  # fmt: skip
             if out is not None:
                 result = self._result(out, L)
@@ -463,7 +495,7 @@ class HierarchySolver:
         warm = self._warm_for(L, n + p)
         if self.solver != "auto":
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=False)
-        threshold, max_damping, error_scale = self._law()
+        threshold, max_damping, error_scale = self.damping_settings
         x, status, sigma, lam2, its, active, residuals, cert, primal = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
@@ -495,7 +527,7 @@ class HierarchySolver:
         forced backend, or (``fallback``) the exact kernel then OSQP where it fails."""
         n, p = lb.shape[0], G.shape[0]
         L = starts.shape[0] - 1
-        threshold, max_damping, error_scale = self._law()
+        threshold, max_damping, error_scale = self.damping_settings
         max_iter = self.max_iter or 10 * (n + p) + 50
         status = [LevelStatus.NOT_REACHED] * L
         sigma = [math.inf] * L

@@ -1,14 +1,19 @@
 """Differential IK: one step of a task stack under limits, as a cascade of QPs.
 
-- :mod:`.solver`: :class:`IKSolver`, :class:`StepResult` (stack -> levels -> rows -> the
-  core cascade);
-- :mod:`.compiled`: the one-call compiled step for the stacks it covers;
+- :mod:`.solver`: :class:`IKSolver`, the entry point of a step;
+- :mod:`.rows`: the task stack as levels of weighted rows;
+- :mod:`.boxes`: the limits as box bounds and general rows, and the names of those that
+  bind;
+- :mod:`.compiled`: the compiled step, one C++ call per step for the stacks it covers;
+- :mod:`.result`: :class:`StepResult`, and what either path of a step hands back;
 - :mod:`.mink_compat`: mink's entry points (:func:`solve_ik`, :func:`build_ik`) with qpik
   underneath.
 """
 
 from .mink_compat import SOLVERS, SolverCache, build_ik, solve_ik
-from .solver import DampingLaw, IKSolver, LevelStatus, Stack, StepResult, normalize_stack
+from .result import StepResult
+from .rows import Stack, normalize_stack
+from .solver import DampingLaw, IKSolver, LevelStatus
 
 __all__ = [
     "SOLVERS",

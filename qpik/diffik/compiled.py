@@ -1,25 +1,18 @@
-"""One compiled call per differential IK step, for the stacks that allow it.
+"""The compiled step: one C++ call per differential IK step, for the stacks it covers.
 
-When every task of a stack is one the kernel knows (qpik's or mink's ``FrameTask``,
-``PostureTask``, ``DampingTask``, ``ComTask``, and mink's ``RelativeFrameTask``; exact
-types: a subclass may change the rows) and every limit is mink's ``ConfigurationLimit``
-(without a limited ball joint) / ``VelocityLimit`` / ``CollisionAvoidanceLimit``, on any
-model (hinge, slide, ball and free joints), :class:`qpik.IKSolver` does in Python only
-what needs MuJoCo (one ``mj_jac*`` call per frame, ``mj_jacSubtreeCom`` per CoM task, the
-collision limits' own rows ``G dq <= h``) and copies the tasks' targets and costs into
-preallocated arrays; the plan's compiled :class:`Kernel` then computes every task's rows
-(frame errors by mink's SE(3) arithmetic, ``qpik/_cpp/model/se3.hpp``; posture errors
-``q (-) q*`` on the tangent space as ``mj_differentiatePos``: free joints' rows zero, ball
-joints' rotation vectors), the box limits (each dof's coordinate at its joint's qpos
-address), and the whole cascade with the general rows (the core's ``solve_cascade``), in
-one C++ call (``qpik/_cpp/diffik/fused.hpp``).
-
-It computes what the general path computes: the same arithmetic in the same order where
-the general path's is qpik's (tests compare the two bitwise: frame tasks, CoM, postures on
-hinge/slide/free joints, limits, collision rows), mink's own arithmetic to round-off
-elsewhere (mink's FrameTask and RelativeFrameTask, ball joints: 1e-12). Anything unusual
-(a non-finite row, conflicting limits, a level whose active set did not settle) is handed
-back to the general path, which reports or recovers it.
+:func:`make_plan` builds a :class:`CompiledPlan` once per :class:`qpik.IKSolver` when every
+task and limit is one the compiled :class:`Kernel` computes (qpik's or mink's
+``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's ``RelativeFrameTask``;
+mink's ``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
+``CollisionAvoidanceLimit``; exact types, as a subclass may change the rows; any joints).
+Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
+one Jacobian call per frame, the collision limits' rows ``G dq <= h``) and the kernel
+computes every task's rows, the limits' box and the whole cascade
+(``qpik/_cpp/diffik/fused.hpp``), returning a :class:`~qpik.diffik.result.Solution`. It
+computes what the QP path computes, in the same arithmetic where that path's is qpik's
+(tests compare the two bitwise) and in mink's to round-off elsewhere; anything unusual (a
+non-finite row, conflicting limits, an active set that did not settle) returns None, and
+the QP path answers, reporting or recovering it.
 """
 
 from __future__ import annotations
@@ -33,11 +26,17 @@ import mujoco
 import numpy as np
 
 from .._engine import diffik as _engine
+from ..core import HierarchySolver
+from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
+from ..model.configuration import Configuration
 from ..tasks.com import ComTask
 from ..tasks.fast import DampingTask, FrameTask, PostureTask
+from .boxes import LimitBoxes, LimitRows
+from .result import Solution, solve_rows
+from .rows import TaskRows
 
-__all__ = ["FusedPlan", "Kernel", "box_of", "fused_rows", "fused_step", "make_plan"]
+__all__ = ["CompiledPlan", "Kernel", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
 _OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
@@ -49,98 +48,86 @@ _FRAME_TYPES = (FrameTask, mink.FrameTask)
 #: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
 _POSTURE_TYPES = (PostureTask, mink.PostureTask)
 _DAMPING_TYPES = (DampingTask, mink.DampingTask)
+#: CoM tasks: qpik's (any subtree) and mink's (the subtree of body 1). Exact types.
+_COM_TYPES = (ComTask, mink.ComTask)
+#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
+#: methods each step, in the same compiled call; exact types).
+_GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
 
-# Result codes of fused_step: anything but OK sends the step to the general path.
+# Result codes of the kernel: anything but OK sends the step to the QP path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
 assert (OK, NOT_FINITE, CONFLICT, UNSETTLED) == (
     _engine.OK, _engine.NOT_FINITE, _engine.CONFLICT, _engine.UNSETTLED
 )  # fmt: skip
-#: ``settings`` entries of :func:`fused_step`.
+#: ``settings`` entries of the kernel.
 DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
+#: Level statuses by the kernel's codes (as the floats of its info array).
+_STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
+_SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
+#: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
+_FRAME, _POSTURE, _COM, _RELATIVE, _DAMPING = 0, 1, 2, 3, 4
+#: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
+_SCALAR_DOF, _FREE_DOF, _BALL_FIRST, _BALL_OTHER = 0, 1, 2, 3
 
-# The compiled kernels (qpik/_cpp/diffik/fused.hpp, bound in qpik._engine.diffik). Arrays
-# written into (A, b, w) must be float64 C-contiguous of the plan's shapes (never copied);
-# the other arrays are used in place when they are float64 / int64 / int8 C-contiguous.
-#
-# fused_step(A, b, w, starts, tasks, jac, frames, site_xpos, site_xmat, xpos, xmat,
-#            geom_xpos, geom_xmat, frame_data, qpos, posture_data, cfg_dof, cfg_data,
-#            vel_dof, vel_limit, settings, max_iter, warm, canonical)
-#       -> (code, dq, v, info, active)
-#   Rows of every task, the limits' box and the cascade, in one call (one function on
-#   purpose: each check that sends the step to the general path sits where its data is).
-#   ``A, b, w`` (M, nv), (M,), (M,) are filled (level ``k`` in rows ``starts[k]:starts[k+1]``).
-#   ``tasks`` (T, 4) lists the tasks in stack order: kind (0 frame, 1 posture), index into
-#   the frame or posture arrays, level, first row. Frame ``f``: ``jac[f]`` its world-aligned
-#   Jacobian (6, nv); ``frames[f]`` (kind 0/1/2 site/body/geom, id) picks its pose;
-#   ``frame_data[f]`` = target ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``:
-#   ``posture_data[p]`` = target (nq), cost (nv), gain, lm_damping. Position limits:
-#   ``cfg_dof`` and ``cfg_data`` rows (lower, upper, gain); velocity limits ``vel_dof``,
-#   ``vel_limit`` [per s]. ``settings``: see ``DT, DAMPING, ...``. ``warm`` (L, nv) int8:
-#   the previous active sets; ``canonical``: warm starting on.
-#   ``code`` OK or why the general path must answer; ``info`` (9, L) rows: residual,
-#   sigma, lambda^2, status, iterations, then the certificate (primal, stationarity,
-#   dual, complementarity); ``active`` (L, nv) int8.
-# fused_rows(<fused_step's first 21 arguments>) -> (code, reg, lb, ub)
-#   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
-#   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
-# _boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n)
-#       -> (lb, ub, i)
-#   The limits' box, as :meth:`qpik.IKSolver._limit_rows` builds it: position bounds
-#   ``gain (upper - q)``, ``-gain (q - lower)`` (recoverable), velocity bounds
-#   ``|dq| <= v_max dt`` (hard), merged by :func:`qpik.core.kernels.merge_boxes`.
+# The compiled kernel (qpik/_cpp/diffik/fused.hpp, bound in qpik._engine.diffik).
 #
 # Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 #        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
 #        com_data, rel_jac, rel_frames, rel_data, nq)
 #   One stack's compiled step (built by make_plan). The index arrays are copied and checked
 #   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
-#   plan writes into them before each call). ``tasks`` (T, 4) rows: kind (0 frame,
+#   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
+#   (level ``k`` in rows ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) rows: kind (0 frame,
 #   1 posture, 2 CoM, 3 relative frame, 4 damping), index into that kind's arrays, level,
-#   first row. ``posture_map`` (nv, 2): per dof, kind (0 hinge/slide, 1 free joint, 2 first
-#   dof of a ball joint, 3 its others) and qpos address; ``cfg_qadr`` the qpos address of
-#   each position-limited dof. CoM ``c``: ``com_jac[c]`` (3, nv) from mj_jacSubtreeCom,
-#   ``com_body[c]`` its subtree's body, ``com_data[c]`` = target [m, world] (3), cost (3),
-#   gain, lm_damping. Relative frame ``r``: ``rel_jac[r]`` (12, nv) the frame's then the
-#   root's world-aligned Jacobians, ``rel_frames[r]`` = frame kind, id, root kind, id,
-#   ``rel_data[r]`` as ``frame_data`` with the target in the root frame.
+#   first row. Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]``
+#   (kind 0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
+#   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
+#   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
+#   hinge/slide, 1 free joint, 2 first dof of a ball joint, 3 its others) and qpos address.
+#   Position limits: ``cfg_dof``, ``cfg_qadr`` (each dof's qpos address) and ``cfg_data``
+#   rows (lower, upper, gain); velocity limits ``vel_dof``, ``vel_limit`` [per s].
+#   ``settings``: see ``DT, DAMPING, ...``. CoM ``c``: ``com_jac[c]`` (3, nv) from
+#   mj_jacSubtreeCom, ``com_body[c]`` its subtree's body, ``com_data[c]`` = target [m,
+#   world] (3), cost (3), gain, lm_damping. Relative frame ``r``: ``rel_jac[r]`` (12, nv)
+#   the frame's then the root's world-aligned Jacobians, ``rel_frames[r]`` = frame kind,
+#   id, root kind, id, ``rel_data[r]`` as ``frame_data`` with the target in the root frame.
 # Kernel.step(qpos, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat, subtree_com,
 #             G, h, warm, canonical, max_iter) -> (code, dq, v, info, active)
-#   As fused_step, with MuJoCo's arrays only, general rows ``G dq <= h`` (p, nv) held at
-#   every level, ``warm`` (L, nv + p); ``active`` (L, nv + p).
-# Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub): as fused_rows.
-fused_step = _engine.fused_step
-fused_rows = _engine.fused_rows
-_boxes = _engine.boxes
+#   Rows of every task, the limits' box, general rows ``G dq <= h`` (p, nv) held at every
+#   level, and the cascade, in one call. ``warm`` (L, nv + p) int8: the active sets to try
+#   first; ``canonical``: warm starting on. ``code`` OK or why the QP path must answer;
+#   ``info`` (9, L) rows: residual, sigma, lambda^2, status, iterations, then the
+#   certificate (primal, stationarity, dual, complementarity); ``active`` (L, nv + p) int8.
+# Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
+#   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
+#   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
+# boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n)
+#       -> (lb, ub, i)
+#   The limits' box as the kernel computes it: position bounds ``gain (upper - q)``,
+#   ``-gain (q - lower)`` (recoverable), velocity bounds ``|dq| <= v_max dt`` (hard),
+#   merged by :func:`qpik.core.kernels.merge_boxes`.
 Kernel = _engine.Kernel
 
 
-def box_of(plan: FusedPlan, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """The limits' merged box ``(lb, ub)`` of a plan at ``qpos`` (nq,) for a step of ``dt``
-    [s] (bounds on ``dq``, indexed by dof)."""
-    a = plan.arrays
-    cfg = a["cfg_data"]
-    nv = plan.model.nv
-    q = np.zeros(nv)
-    q[a["cfg_dof"]] = qpos[a["cfg_qadr"]]  # each position-limited dof's coordinate
-    lb, ub, _ = _boxes(
-        q, dt, a["cfg_dof"], cfg[:, 0], cfg[:, 1], cfg[:, 2], a["vel_dof"], a["vel_limit"], nv
-    )  # fmt: skip
-    return lb, ub
-
-
-#: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
-_FRAME, _POSTURE, _COM, _RELATIVE, _DAMPING = 0, 1, 2, 3, 4
-#: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
-_SCALAR_DOF, _FREE_DOF, _BALL_FIRST, _BALL_OTHER = 0, 1, 2, 3
+def _write_pose_row(row: np.ndarray, task, pose) -> None:
+    """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
+    data row (15)."""
+    if pose is None:
+        raise TargetNotSet(type(task).__name__)
+    row[0:7] = pose.wxyz_xyz
+    row[7:13] = task.cost
+    row[13] = task.gain
+    row[14] = task.lm_damping
 
 
 @dataclass
-class FusedPlan:
+class CompiledPlan:
     """Preallocated arrays, the compiled :class:`Kernel` and the task/limit bookkeeping of
-    the one-call step for one stack (built once per :class:`qpik.IKSolver`).
+    the compiled step of one stack (built once per :class:`qpik.IKSolver`).
 
-    Before each call :meth:`gather` copies what the tasks hold (targets, costs, gains) and
-    MuJoCo's Jacobians into the arrays the kernel reads (it holds them by reference)."""
+    :meth:`step` is one step: :meth:`gather` copies what the tasks hold (targets, costs,
+    gains) and MuJoCo's Jacobians into the arrays the kernel reads (it holds them by
+    reference), then the kernel answers."""
 
     model: mujoco.MjModel
     frames: list  # (task, jacobian function, id, position rows, rotation rows, data row)
@@ -153,19 +140,12 @@ class FusedPlan:
     kinds_used: tuple
     cold: np.ndarray  # (L, nv) int8 zeros: a cold start's active sets (never written)
     max_iter: int  # the core's cap on active-set changes per level (0: 10 (nv + p) + 50)
-    kernel: Any = None  # qpik._engine.diffik.Kernel over ``arrays``
+    kernel: Any  # qpik._engine.diffik.Kernel over ``arrays``
+    limits: LimitBoxes  # the solver's limits: active-limit names and general rows
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 
     def __post_init__(self) -> None:
-        a = self.arrays
-        #: fused_step's / fused_rows' arguments before the poses and after ``qpos``
-        #: (the legacy functions, on scalar-joint plans; tests).
-        self.head = (a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"])
-        self.frame_data = a["frame_data"]
-        self.tail = (
-            a["posture_data"], a["cfg_dof"], a["cfg_data"], a["vel_dof"], a["vel_limit"]
-        )  # fmt: skip
         self.no_rows = np.zeros((0, self.model.nv))
         self.no_h = np.zeros(0)
         self.colds[0] = self.cold
@@ -179,29 +159,30 @@ class FusedPlan:
             cold = self.colds[p] = np.zeros((self.cold.shape[0], self.model.nv + p), np.int8)
         return cold
 
-    def _gather_frames(self, data: mujoco.MjData) -> None:
-        """Frame tasks' targets, costs, gains and MuJoCo Jacobians into the plan."""
-        model = self.model
-        for task, jacobian, fid, jp, jr, row in self.frames:
-            pose = task.transform_target_to_world
-            if pose is None:
-                raise TargetNotSet(type(task).__name__)
-            row[0:7] = pose.wxyz_xyz
-            row[7:13] = task.cost
-            row[13] = task.gain
-            row[14] = task.lm_damping
-            jacobian(model, data, jp, jr, fid)
-
-    def gather(self, configuration) -> tuple:
+    # ----------------------------------------------------------------- inputs
+    def gather(self, configuration: Configuration) -> tuple | None:
         """Copy the tasks' current targets, costs and gains and MuJoCo's Jacobians into the
         plan's arrays; returns the kernel's MuJoCo arguments ``(qpos, site_xpos, site_xmat,
         xpos, xmat, geom_xpos, geom_xmat, subtree_com)``, or None when a task changed so
-        that the plan no longer describes it (the general path answers)."""
-        model, data = self.model, configuration.data
-        if self.frames:
-            self._gather_frames(data)
-        nv = model.nv
-        nq = model.nq
+        that the plan no longer describes it (the QP path answers)."""
+        data = configuration.data
+        model = self.model
+        for task, jacobian, fid, jp, jr, row in self.frames:
+            _write_pose_row(row, task, task.transform_target_to_world)
+            jacobian(model, data, jp, jr, fid)
+        self._gather_postures()
+        if not self._gather_coms(data):
+            return None
+        for task, (ff, fid), (rf, rid), jac, row in self.relatives:
+            _write_pose_row(row, task, task.transform_target_to_root)
+            ff(model, data, jac[0:3], jac[3:6], fid)
+            rf(model, data, jac[6:9], jac[9:12], rid)
+        self._gather_gains()
+        return self._poses(data)
+
+    def _gather_postures(self) -> None:
+        """Posture and damping tasks' targets, costs, gains and LM damping."""
+        nv, nq = self.model.nv, self.model.nq
         for task, row, damping in self.postures:
             if not damping:  # a damping task's error is zero: no target
                 target = task.target_q
@@ -211,9 +192,13 @@ class FusedPlan:
             row[nq : nq + nv] = task.cost
             row[nq + nv] = task.gain
             row[nq + nv + 1] = task.lm_damping
+
+    def _gather_coms(self, data: mujoco.MjData) -> bool:
+        """CoM tasks' targets, costs and Jacobians; False when a task's subtree changed
+        (the QP path resolves it)."""
         for task, body, given, jac, row in self.coms:
             if given is not None and task.body is not given:
-                return None  # the subtree changed: resolved by the general path
+                return False
             target = task.target_com
             if target is None:
                 raise TargetNotSet(type(task).__name__)
@@ -221,24 +206,20 @@ class FusedPlan:
             row[3:6] = task.cost
             row[6] = task.gain
             row[7] = task.lm_damping
-            mujoco.mj_jacSubtreeCom(model, data, jac, body)
-        for task, (ff, fid), (rf, rid), jac, row in self.relatives:
-            pose = task.transform_target_to_root
-            if pose is None:
-                raise TargetNotSet(type(task).__name__)
-            row[0:7] = pose.wxyz_xyz
-            row[7:13] = task.cost
-            row[13] = task.gain
-            row[14] = task.lm_damping
-            ff(model, data, jac[0:3], jac[3:6], fid)
-            rf(model, data, jac[6:9], jac[9:12], rid)
-        if self.config_limits:
-            gains = self.gains
-            for i, (limit, e0, e1) in enumerate(self.config_limits):
-                gain = limit.gain
-                if gain != gains[i]:  # written when it changes (NaN: every call)
-                    self.arrays["cfg_data"][e0:e1, 2] = gain
-                    gains[i] = gain
+            mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
+        return True
+
+    def _gather_gains(self) -> None:
+        """The position limits' gains, written when they change (NaN: every call)."""
+        gains = self.gains
+        for i, (limit, e0, e1) in enumerate(self.config_limits):
+            gain = limit.gain
+            if gain != gains[i]:
+                self.arrays["cfg_data"][e0:e1, 2] = gain
+                gains[i] = gain
+
+    def _poses(self, data: mujoco.MjData) -> tuple:
+        """The kernel's MuJoCo arguments (empty arrays for the kinds no frame uses)."""
         empty3, empty9 = self.arrays["empty3"], self.arrays["empty9"]
         site, body, geom = self.kinds_used
         return (
@@ -252,100 +233,255 @@ class FusedPlan:
             data.subtree_com if self.coms else empty3,
         )
 
+    def write_settings(self, dt: float, damping: float, core: HierarchySolver) -> None:
+        """The kernel's ``settings`` for a step of ``dt`` [s] with the constant
+        ``damping`` and ``core``'s damping law (its entries rewritten when the law
+        object changes: the law is settable)."""
+        settings = self.arrays["settings"]
+        settings[DT] = dt
+        settings[DAMPING] = damping
+        law = core.damping_law
+        if law is not self.law:
+            settings[THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
+            self.law = law
+
+    def _general(self, configuration: Configuration, dt: float):
+        """``(G, h, names)`` of the plan's general-row limits (see
+        :meth:`LimitBoxes.general_rows`; None: the QP path answers)."""
+        if not self.general_limits:
+            return self.no_rows, self.no_h, []
+        return self.limits.general_rows(self.general_limits, configuration, dt)
+
+    # ----------------------------------------------------------------- limits
+    def box(self, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The limits' merged box ``(lb, ub)`` at ``qpos`` (nq,) for a step of ``dt`` [s]
+        (bounds on ``dq``, indexed by dof), as the kernel computes it."""
+        a = self.arrays
+        cfg = a["cfg_data"]
+        nv = self.model.nv
+        q = np.zeros(nv)
+        q[a["cfg_dof"]] = qpos[a["cfg_qadr"]]  # each position-limited dof's coordinate
+        lb, ub, _ = _engine.boxes(
+            q, dt, a["cfg_dof"], cfg[:, 0], cfg[:, 1], cfg[:, 2], a["vel_dof"], a["vel_limit"], nv
+        )  # fmt: skip
+        return lb, ub
+
+    def _limit_rows(self, qpos: np.ndarray, dt: float, general: tuple, box=None) -> LimitRows:
+        """The step's :class:`LimitRows` at ``qpos`` (a copy), with the general rows
+        ``(G, h, names)``; ``box`` ``(lb, ub)`` when known (else computed here)."""
+        lb, ub = self.box(qpos, dt) if box is None else box
+        G, h, names = general
+        limits = self.limits
+        return LimitRows(
+            lb, ub, G, h, names, lambda: limits.contributions(qpos, dt), limits.dof_names
+        )
+
+    # ------------------------------------------------------------------- step
+    def step(
+        self,
+        configuration: Configuration,
+        dt: float,
+        damping: float,
+        core: HierarchySolver,
+        exact: HierarchySolver | None = None,
+    ) -> Solution | None:
+        """One step at ``configuration`` for ``dt`` [s] with the constant ``damping``,
+        solved as ``core`` solves: with the default solver in one kernel call; with a forced
+        backend, the kernel's rows and box, then ``core``'s cascade. ``exact`` (an exact
+        solver, for a forced backend whose answer is only the displacement): its answer is
+        kept when it solves every level (the forced backend's answer, polished by that same
+        exact solve, is equal to round-off), and no backend is called. None where the QP
+        path must answer (a non-finite row, conflicting limits, an unsettled active set, a
+        collision row on one dof, a task changed beyond its plan)."""
+        poses = self.gather(configuration)
+        if poses is None:
+            return None
+        self.write_settings(dt, damping, core)
+        if core.solver == "auto":
+            return self._one_call(poses, configuration, dt, core)
+        if exact is not None and not self.general_limits:
+            solution = self._one_call(poses, configuration, dt, core, forced=True)
+            if solution is not None:
+                return solution
+            exact = None
+        return self._rows_then_cascade(poses, configuration, dt, core, exact)
+
+    def _one_call(
+        self, poses: tuple, configuration: Configuration, dt: float, core, forced: bool = False
+    ) -> Solution | None:
+        """The whole step in one kernel call, warm started from ``core``'s active sets
+        (which it then updates). ``forced``: kept only when every level was solved."""
+        general = self._general(configuration, dt)
+        if general is None:
+            return None
+        G, h, _ = general
+        nv, p = self.model.nv, G.shape[0]
+        warm = core.warm_sets(self.cold.shape[0], nv + p)
+        if warm is None:
+            warm = self.cold_for(p)
+        code, d, v, info, active = self.kernel.step(
+            *poses, G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
+        )
+        if code:
+            return None
+        residuals, sigma, lam2, status, iterations = info[:5].tolist()
+        if forced and any(s != _SOLVED_CODE for s in status):
+            return None
+        core.warm_start_from(active)
+        qpos = poses[0].copy()
+        return Solution(
+            displacement=d,
+            velocity=v,
+            residuals=residuals,
+            sigma_min=sigma,
+            damping=lam2,
+            status=[_STATUS_OF_CODE[s] for s in status],
+            iterations=list(map(int, iterations)),
+            certificate=certificates(info[5:].T),
+            limits=lambda: self._limit_rows(qpos, dt, general),
+        )
+
+    def _rows_then_cascade(
+        self, poses: tuple, configuration: Configuration, dt: float, core, exact
+    ) -> Solution | None:
+        """The rows and box in one kernel call, the general rows from their limits, then
+        the cascade: ``exact``'s first when given (kept when it solves every level), else
+        ``core``'s."""
+        code, reg, lb, ub = self.kernel.rows(*poses, self.no_rows, self.no_h)
+        if code:
+            return None
+        general = self._general(configuration, dt)
+        if general is None:
+            return None
+        a = self.arrays
+        tasks = TaskRows(a["A"], a["b"], a["w"], a["starts"], reg)
+        limits = self._limit_rows(poses[0].copy(), dt, general, (lb, ub))
+        if exact is not None:
+            solution = solve_rows(exact, tasks, limits, dt)
+            if solution.ok:
+                return solution
+        return solve_rows(core, tasks, limits, dt)
+
+
+@dataclass(frozen=True)
+class _TaskLayout:
+    """Where each task of a stack goes in the plan: the frame, posture, CoM and relative
+    frame tasks with their frames or bodies, the ``tasks`` table rows, the frames used
+    ``((kind, id), relative)`` and each level's first row (``starts``)."""
+
+    frames: list
+    postures: list
+    coms: list
+    relatives: list
+    tasks: list
+    frame_rows: list
+    starts: list
+
+
+@dataclass(frozen=True)
+class _LimitLayout:
+    """The entries of a plan's limits: position limits (``cfg_dof``, ``cfg_qadr``,
+    ``cfg_data`` rows (lower, upper, gain), and ``(limit, first, last entry)``), velocity
+    limits (``vel_dof``, ``vel_limit``) and the general-row limits."""
+
+    cfg_dof: list
+    cfg_qadr: list
+    cfg_data: list
+    config_limits: list
+    vel_dof: list
+    vel_limit: list
+    general_limits: list
+
 
 def make_plan(
-    model: mujoco.MjModel,
-    levels: Sequence[Sequence],
-    limits: Sequence,
-    scalar_joints: bool,
-    rank_tolerance: float,
-    tolerance: float,
-    max_iter: int,
-    trust: tuple[np.ndarray, np.ndarray] | None = None,
-) -> FusedPlan | None:
-    """The :class:`FusedPlan` of a stack, or None when a task or limit is not one that the
-    one-call step computes (the general path then serves every step).
-
-    ``scalar_joints`` (the model has hinge/slide joints only) is no longer needed (kept for
-    callers); ``max_iter``: the core's cap (0 for its default ``10 (nv + p) + 50``);
-    ``trust``: the step's trust region ``(dofs, speeds [rad/s or m/s])``
-    (:attr:`qpik.StepOptions.max_joint_speed`), appended to the velocity limits' entries:
-    the kernel's box bounds each of these dofs by ``speed dt``, a hard bound as a
+    model: mujoco.MjModel, levels: Sequence[Sequence], limits: LimitBoxes, core: HierarchySolver
+) -> CompiledPlan | None:
+    """The :class:`CompiledPlan` of a stack under ``limits`` solved as ``core`` solves
+    (its rank tolerance, tolerance and iteration cap), or None when a task or limit is not
+    one the kernel computes (the QP path then serves every step). The trust region of
+    ``limits`` (:attr:`qpik.StepOptions.max_joint_speed`) is appended to the velocity
+    limits' entries: the kernel bounds each of its dofs by ``speed dt``, a hard bound as a
     velocity limit's."""
     layout = _task_layout(model, levels)
-    boxes = _limit_boxes(model, limits)
+    boxes = _limit_layout(model, limits.limits)
     if layout is None or boxes is None:
         return None
-    nv, nq = model.nv, model.nq
-    frames, postures, coms, relatives, tasks, frame_rows, starts = layout
-    cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits = boxes
-    if trust is not None and len(trust[0]):
-        vel_dof = [*vel_dof, *np.asarray(trust[0], dtype=np.int64).tolist()]
-        vel_limit = [*vel_limit, *np.asarray(trust[1], dtype=float).tolist()]
-    F, P, C, R, M = len(frames), len(postures), len(coms), len(relatives), starts[-1]
-    jac = np.zeros((F, 6, nv))
-    frame_data = np.zeros((F, 15))
-    posture_data = np.zeros((P, nq + nv + 2))
-    com_jac = np.zeros((C, 3, nv))
-    com_data = np.zeros((C, 8))
-    rel_jac = np.zeros((R, 12, nv))
-    rel_data = np.zeros((R, 15))
-    i64 = np.int64
-    arrays = {
-        "A": np.zeros((M, nv)),
-        "b": np.zeros(M),
-        "w": np.zeros(M),
-        "starts": np.asarray(starts, dtype=i64),
-        "tasks": np.asarray(tasks, dtype=i64).reshape(-1, 4),
-        "jac": jac,
-        "frames": np.asarray([row for row, rel in frame_rows if not rel], dtype=i64).reshape(-1, 2),
-        "frame_data": frame_data,
-        "posture_data": posture_data,
-        "posture_map": _posture_map(model),
-        "cfg_dof": np.asarray(cfg_dof, dtype=i64),
-        "cfg_qadr": np.asarray(cfg_qadr, dtype=i64),
-        "cfg_data": np.asarray(cfg_data, dtype=float).reshape(-1, 3),
-        "vel_dof": np.asarray(vel_dof, dtype=i64),
-        "vel_limit": np.asarray(vel_limit, dtype=float),
-        "settings": np.zeros(7),
-        "com_jac": com_jac,
-        "com_body": np.asarray([body for _, body, _ in coms], dtype=i64),
-        "com_data": com_data,
-        "rel_jac": rel_jac,
-        "rel_frames": np.asarray([(*f, *r) for _, f, r in relatives], dtype=i64).reshape(-1, 4),
-        "rel_data": rel_data,
-        "empty3": np.zeros((0, 3)),
-        "empty9": np.zeros((0, 9)),
-    }
+    arrays = _plan_arrays(model, layout, boxes, limits)
+    settings = arrays["settings"]
+    settings[RANK_TOL], settings[TOL] = core.rank_tolerance, core.tolerance
+    jac, frame_data, posture_data = arrays["jac"], arrays["frame_data"], arrays["posture_data"]
+    com_jac, com_data = arrays["com_jac"], arrays["com_data"]
+    rel_jac, rel_data = arrays["rel_jac"], arrays["rel_data"]
     frames = [
         (task, _JACOBIAN[kind], fid, jac[f, :3], jac[f, 3:], frame_data[f])
-        for f, (task, kind, fid) in enumerate(frames)
+        for f, (task, kind, fid) in enumerate(layout.frames)
     ]
     postures = [
-        (task, posture_data[p], type(task) in _DAMPING_TYPES) for p, task in enumerate(postures)
+        (task, posture_data[p], type(task) in _DAMPING_TYPES)
+        for p, task in enumerate(layout.postures)
     ]
     coms = [
-        (task, body, given, com_jac[c], com_data[c]) for c, (task, body, given) in enumerate(coms)
+        (task, body, given, com_jac[c], com_data[c])
+        for c, (task, body, given) in enumerate(layout.coms)
     ]
     relatives = [
         (task, (_JACOBIAN[f[0]], f[1]), (_JACOBIAN[r[0]], r[1]), rel_jac[i], rel_data[i])
-        for i, (task, f, r) in enumerate(relatives)
+        for i, (task, f, r) in enumerate(layout.relatives)
     ]
-    used = tuple(any(kind == k for (kind, _), _rel in frame_rows) for k in range(3))
-    settings = arrays["settings"]
-    settings[RANK_TOL], settings[TOL] = rank_tolerance, tolerance
-    cold = np.zeros((len(levels), nv), dtype=np.int8)
+    used = tuple(any(kind == k for (kind, _), _rel in layout.frame_rows) for k in range(3))
+    cold = np.zeros((len(levels), model.nv), dtype=np.int8)
     a = arrays
     kernel = Kernel(
         a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], a["frame_data"],
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
-        a["rel_jac"], a["rel_frames"], a["rel_data"], nq,
+        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq,
     )  # fmt: skip
-    return FusedPlan(
-        model, frames, postures, coms, relatives, config_limits, general_limits, arrays, used,
-        cold, max_iter, kernel,
+    return CompiledPlan(
+        model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
+        arrays, used, cold, core.max_iter or 0, kernel, limits,
     )  # fmt: skip
+
+
+def _plan_arrays(
+    model: mujoco.MjModel, layout: _TaskLayout, boxes: _LimitLayout, limits: LimitBoxes
+) -> dict:
+    """The arrays the kernel holds, preallocated (the float ones written before each
+    call)."""
+    nv, nq = model.nv, model.nq
+    vel_dof = [*boxes.vel_dof, *limits.trust_dofs.tolist()]
+    vel_limit = [*boxes.vel_limit, *limits.trust_speeds.tolist()]
+    F, P, C, R = len(layout.frames), len(layout.postures), len(layout.coms), len(layout.relatives)
+    M = layout.starts[-1]
+    i64 = np.int64
+    frames = [row for row, rel in layout.frame_rows if not rel]
+    rel_frames = [(*f, *r) for _, f, r in layout.relatives]
+    return {
+        "A": np.zeros((M, nv)),
+        "b": np.zeros(M),
+        "w": np.zeros(M),
+        "starts": np.asarray(layout.starts, dtype=i64),
+        "tasks": np.asarray(layout.tasks, dtype=i64).reshape(-1, 4),
+        "jac": np.zeros((F, 6, nv)),
+        "frames": np.asarray(frames, dtype=i64).reshape(-1, 2),
+        "frame_data": np.zeros((F, 15)),
+        "posture_data": np.zeros((P, nq + nv + 2)),
+        "posture_map": _posture_map(model),
+        "cfg_dof": np.asarray(boxes.cfg_dof, dtype=i64),
+        "cfg_qadr": np.asarray(boxes.cfg_qadr, dtype=i64),
+        "cfg_data": np.asarray(boxes.cfg_data, dtype=float).reshape(-1, 3),
+        "vel_dof": np.asarray(vel_dof, dtype=i64),
+        "vel_limit": np.asarray(vel_limit, dtype=float),
+        "settings": np.zeros(7),
+        "com_jac": np.zeros((C, 3, nv)),
+        "com_body": np.asarray([body for _, body, _ in layout.coms], dtype=i64),
+        "com_data": np.zeros((C, 8)),
+        "rel_jac": np.zeros((R, 12, nv)),
+        "rel_frames": np.asarray(rel_frames, dtype=i64).reshape(-1, 4),
+        "rel_data": np.zeros((R, 15)),
+        "empty3": np.zeros((0, 3)),
+        "empty9": np.zeros((0, 9)),
+    }
 
 
 def _posture_map(model: mujoco.MjModel) -> np.ndarray:
@@ -365,7 +501,7 @@ def _posture_map(model: mujoco.MjModel) -> np.ndarray:
 
 
 def _frame_entry(model: mujoco.MjModel, frame_type, frame_name) -> tuple[int, int] | None:
-    """``(kind, id)`` of a frame, None when the general path must serve it (an unknown
+    """``(kind, id)`` of a frame, None when the QP path must serve it (an unknown
     frame type or name: it reports them)."""
     kind = _KINDS.get(getattr(frame_type, "value", frame_type))
     if kind is None:
@@ -379,13 +515,9 @@ def _frame_entry(model: mujoco.MjModel, frame_type, frame_name) -> tuple[int, in
     return None if fid < 0 else (kind, fid)
 
 
-#: CoM tasks: qpik's (any subtree) and mink's (the subtree of body 1). Exact types.
-_COM_TYPES = (ComTask, mink.ComTask)
-
-
 def _com_body(model: mujoco.MjModel, task) -> tuple[int, object] | None:
     """``(body id, task.body as given)`` of a CoM task (mink's: body 1, None), None when the
-    general path must serve it (an unknown body: it reports it)."""
+    QP path must serve it (an unknown body: it reports it)."""
     if type(task) is mink.ComTask:
         return (1, None) if model.nbody > 1 else None
     given = task.body
@@ -398,11 +530,10 @@ def _com_body(model: mujoco.MjModel, task) -> tuple[int, object] | None:
     return None if body < 0 else (body, given)
 
 
-def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
-    """``(frames, postures, coms, relatives, tasks, frame_rows, starts)`` of a stack whose
-    tasks the kernel computes (qpik's or mink's FrameTask / PostureTask / DampingTask /
-    ComTask, mink's RelativeFrameTask; exact types), None otherwise: rows are laid out
-    level by level, task by task."""
+def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> _TaskLayout | None:
+    """The layout of a stack whose tasks the kernel computes (qpik's or mink's FrameTask /
+    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask; exact types), None
+    otherwise: rows are laid out level by level, task by task."""
     frames, postures, coms, relatives, tasks, frame_rows = [], [], [], [], [], []
     starts = [0]
     nv = model.nv
@@ -446,24 +577,19 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]):
             else:
                 return None
         starts.append(row)
-    return frames, postures, coms, relatives, tasks, frame_rows, starts
+    return _TaskLayout(frames, postures, coms, relatives, tasks, frame_rows, starts)
 
 
-#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
-#: methods each step, in the same compiled call; exact types).
-_GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
-
-
-def _limit_boxes(model: mujoco.MjModel, limits: Sequence):
-    """``(cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits)``
-    of mink's position and velocity limits and its collision avoidance limits (None when
-    another limit is present, or a position limit bounds a ball joint)."""
+def _limit_layout(model: mujoco.MjModel, limits: Sequence) -> _LimitLayout | None:
+    """The entries of mink's position and velocity limits and its collision avoidance
+    limits (None when another limit is present, or a position limit bounds a ball
+    joint)."""
     cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], [], []
     general_limits = []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
-            if len(getattr(limit, "_ball_qposadr", ())):
-                return None  # a ball joint's cone row: the general path
+            if _limits_a_ball_joint(limit.model):
+                return None  # a ball joint's cone row: the QP path
             indices = np.asarray(limit.indices, dtype=np.int64)
             qadr = model.jnt_qposadr[model.dof_jntid[indices]].astype(np.int64)
             e0 = len(cfg_dof)
@@ -479,4 +605,13 @@ def _limit_boxes(model: mujoco.MjModel, limits: Sequence):
             general_limits.append(limit)
         else:
             return None
-    return cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits
+    return _LimitLayout(
+        cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits
+    )
+
+
+def _limits_a_ball_joint(model: mujoco.MjModel) -> bool:
+    """A ball joint of ``model`` has a range (mink's ConfigurationLimit bounds its rotation
+    angle by a general row, which the kernel does not compute)."""
+    ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
+    return bool(np.any(ball & (model.jnt_limited != 0)))

@@ -176,7 +176,7 @@ def solve_ik(
             (``"daqp"``, ``"osqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``; mink
             passes it fourth, positionally) forces that backend wherever a limit binds;
             its answer is polished by qpik's exact solve, so where that solve alone
-            settles every level (stacks of the one-call step, :mod:`qpik.diffik.compiled`) the
+            settles every level (stacks of the compiled step, :mod:`qpik.diffik.compiled`) the
             backend is not called: the same velocity, to round-off. With backend
             ``kwargs`` the backend is always called.
         damping: Tikhonov (Levenberg-Marquardt) term on every task level [unitless], as
@@ -349,9 +349,9 @@ def _new_solver(
         options["backend_options"] = backend_options
     ik = IKSolver(configuration.model, levels, limit_list, **options)
     # Only the velocity is returned: a named backend's answer, polished by the exact solve,
-    # is that solve's (see IKSolver._exact_forced), so it is skipped where the exact
-    # one-call step solves every level; not when the caller gave the backend settings.
-    ik._exact_forced = not backend_options
+    # is that solve's (see IKSolver.exact_shortcut), so it is skipped where the exact
+    # compiled step solves every level; not when the caller gave the backend settings.
+    ik.exact_shortcut = not backend_options
     return ik
 
 

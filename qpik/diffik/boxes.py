@@ -1,0 +1,367 @@
+"""The limit side of a step: a solver's limits become box bounds ``lb <= dq <= ub`` and
+general rows ``G dq <= h``, and the limits that bind at a step's ``dq`` get their names.
+
+mink's ``ConfigurationLimit`` and ``VelocityLimit`` are computed directly as boxes on models
+of hinge and slide joints; every other limit goes through its ``compute_qp_inequalities``,
+whose single-dof rows fold into the box and whose other rows stay general. The trust region
+(:attr:`qpik.StepOptions.max_joint_speed`) bounds the dofs that no velocity limit bounds.
+Position limits are recoverable (a start outside them steers back), velocity limits and the
+trust region hard; the two boxes merge by :func:`qpik.core.kernels.merge_boxes`.
+:class:`LimitBoxes` holds one solver's limits; :class:`LimitRows` is what they give at one
+configuration.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import mink
+import mujoco
+import numpy as np
+
+from ..core import checks
+from ..core.kernels import merge_boxes, tighten
+from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from ..model.configuration import Configuration, joint_names
+
+__all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure"]
+
+#: The name of the step's trust region in :attr:`qpik.StepResult.active_limits`.
+TRUST_REGION = "trust region"
+
+#: A box contribution ``(limit name, dofs, bounds)``: one side of one limit's box.
+Contribution = tuple[str, np.ndarray, np.ndarray]
+
+
+def _configuration_box(
+    limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """mink's ConfigurationLimit as box bounds on ``dq`` at ``qpos`` (nq,): its hinge and
+    slide joints' rows (each dof's coordinate at its joint's qpos address)."""
+    if len(limit.indices) == 0:  # no limited joint (mink keeps an empty float array)
+        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+    adr = limit.indices
+    if qpos.shape[0] != limit.model.nv:  # free or ball joints: dof index != qpos index
+        model = limit.model
+        adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
+    q = qpos[adr]
+    upper = limit.gain * (limit.upper[adr] - q)
+    lower = -limit.gain * (q - limit.lower[adr])
+    return limit.indices, lower, upper
+
+
+def _velocity_box(
+    limit: mink.VelocityLimit, qpos: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt``."""
+    bound = limit.limit * dt
+    return limit.indices, -bound, bound
+
+
+#: Limits whose rows are known to be single-dof bounds, computed directly as boxes (exact
+#: type match: a subclass may change the rows).
+BOX_LIMITS: dict[type, Callable[[Any, np.ndarray, float], tuple[np.ndarray, ...]]] = {
+    mink.ConfigurationLimit: _configuration_box,
+    mink.VelocityLimit: _velocity_box,
+}
+
+
+def _trust_region(nv: int, limits: Sequence, speed: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(dofs, speeds)`` of the trust region: the dofs that no velocity limit of
+    ``limits`` bounds (mink's or qpik's ``VelocityLimit``), each at ``speed`` [rad/s or
+    m/s]; empty when ``speed`` is None."""
+    if speed is None:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    bounded = np.zeros(nv, dtype=bool)
+    for limit in limits:
+        if isinstance(limit, mink.VelocityLimit) and len(limit.indices):
+            bounded[np.asarray(limit.indices, dtype=np.int64)] = True
+    dofs = np.flatnonzero(~bounded).astype(np.int64)
+    return dofs, np.full(dofs.size, float(speed))
+
+
+def _add_sides(contributions: list, name: str, dofs: np.ndarray, lower, upper) -> None:
+    """Both sides of a box as contributions, upper first."""
+    contributions.append((name, dofs, upper))
+    contributions.append((name, dofs, lower))
+
+
+@dataclass(frozen=True)
+class RowStructure:
+    """Rows of a limit's ``G``: single-dof upper / lower bounds (row, dof, 1/coefficient),
+    general rows, and empty rows; ``unique`` when no dof is bounded twice on one side."""
+
+    upper_rows: np.ndarray
+    upper_dofs: np.ndarray
+    upper_scale: np.ndarray
+    lower_rows: np.ndarray
+    lower_dofs: np.ndarray
+    lower_scale: np.ndarray
+    general: np.ndarray
+    empty: np.ndarray | None
+    unique: bool
+
+    @classmethod
+    def of(cls, G: np.ndarray) -> RowStructure:
+        """The structure of ``G`` (p, nv)."""
+        nonzero = G != 0.0
+        count = nonzero.sum(axis=1)
+        unit = np.flatnonzero(count == 1)
+        dofs = np.argmax(nonzero[unit], axis=1) if unit.size else np.zeros(0, dtype=int)
+        coefficients = G[unit, dofs]
+        up = coefficients > 0
+        empty = np.flatnonzero(count == 0)
+        return cls(
+            upper_rows=unit[up],
+            upper_dofs=dofs[up],
+            upper_scale=1.0 / coefficients[up],
+            lower_rows=unit[~up],
+            lower_dofs=dofs[~up],
+            lower_scale=1.0 / coefficients[~up],
+            general=np.flatnonzero(count > 1),
+            empty=empty if empty.size else None,
+            unique=len(set(dofs[up].tolist())) == up.sum()
+            and len(set(dofs[~up].tolist())) == (~up).sum(),
+        )
+
+
+@dataclass(frozen=True)
+class LimitRows:
+    """The limits at one configuration: the box ``lb <= dq <= ub`` (nv,), the general rows
+    ``G dq <= h`` (p, nv) named ``row_names``, and (for naming the limits that bind)
+    ``sources()``, the box's contributions ``(limit name, dofs, bounds)``."""
+
+    lb: np.ndarray
+    ub: np.ndarray
+    G: np.ndarray
+    h: np.ndarray
+    row_names: list[str]
+    sources: Callable[[], list[Contribution]]
+    dof_names: Sequence[str]
+
+    def active(self, d: np.ndarray) -> list[str]:
+        """The limits that bind at ``d``, e.g. ``"joint4 upper (ConfigurationLimit)"``, then
+        the general rows that bind (by name)."""
+        tol = 1e-9
+        active = []
+        contributions = None
+        for side, bound, at_bound in (
+            ("upper", self.ub, np.isfinite(self.ub) & (d >= self.ub - tol)),
+            ("lower", self.lb, np.isfinite(self.lb) & (d <= self.lb + tol)),
+        ):
+            for i in np.flatnonzero(at_bound):
+                if contributions is None:
+                    contributions = self.sources()
+                source = next(
+                    (
+                        name
+                        for name, dofs, bounds in contributions
+                        if np.any((dofs == i) & (np.abs(bounds - bound[i]) <= tol))
+                    ),
+                    "limit",
+                )
+                active.append(f"{self.dof_names[i]} {side} ({source})")
+        if self.G.shape[0]:
+            for j in np.flatnonzero(self.G @ d >= self.h - 1e-7):
+                active.append(self.row_names[j])
+        return active
+
+
+@dataclass
+class _Collected:
+    """What :meth:`LimitBoxes.rows` gathers from the limits' own rows: the side of the box
+    they tighten, the box contributions, and the general rows ``G``, ``h`` and names."""
+
+    lb: np.ndarray
+    ub: np.ndarray
+    contributions: list[Contribution]
+    G: list[np.ndarray] = field(default_factory=list)
+    h: list[np.ndarray] = field(default_factory=list)
+    names: list[str] = field(default_factory=list)
+
+
+class LimitBoxes:
+    """One solver's limits (mink's or qpik's), checked once, and what they give at each
+    configuration: :meth:`rows` (the box and general rows of a step),
+    :meth:`contributions` (the box limits' sides, to name the limits that bind) and
+    :meth:`general_rows` (the rows of limits that stay general).
+
+    Args:
+        model: the robot's model.
+        limits: the limits, enforced at every level.
+        max_joint_speed: the trust region's speed [rad/s or m/s] on the dofs no velocity
+            limit bounds, or None for none.
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, limits: Iterable, max_joint_speed: float | None
+    ) -> None:
+        if isinstance(limits, (str, bytes, Mapping)) or not isinstance(limits, Iterable):
+            raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))
+        self.limits = list(limits)
+        for limit in self.limits:
+            _check_limit(limit)
+        nv = model.nv
+        names = joint_names(model)
+        #: Each dof's joint name (in messages and active-limit names).
+        self.dof_names = [names[model.dof_jntid[i]] for i in range(nv)]
+        #: The trust region: the dofs that no velocity limit bounds, and their speed bound
+        #: [rad/s or m/s] (empty when ``max_joint_speed`` is None).
+        self.trust_dofs, self.trust_speeds = _trust_region(nv, self.limits, max_joint_speed)
+        #: All joints hinges or slides: mink's box limits are computed directly.
+        self.scalar_joints = model.nq == nv and bool(
+            np.all(
+                np.isin(model.jnt_type, [mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE])
+            )
+        )
+        #: No general rows: ``G`` (0, nv).
+        self.no_rows = np.zeros((0, nv))
+        self._structures: dict[int, tuple[np.ndarray, RowStructure]] = {}
+        self._bounds = tuple(np.empty(nv) for _ in range(4))  # scratch of rows()
+
+    def _trust_box(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The trust region as box bounds on ``dq``: ``|dq| <= speed dt`` (as mink's
+        velocity limit, so that every path computes the same bits)."""
+        bound = self.trust_speeds * dt
+        return self.trust_dofs, -bound, bound
+
+    def structure(self, limit, G: np.ndarray) -> RowStructure:
+        """How a limit's rows split into single-dof bounds and general rows. Cached while
+        ``G`` is unchanged (mink's position and velocity limits return the same ``G``)."""
+        cached = self._structures.get(id(limit))
+        if cached is not None and cached[0].shape == G.shape and np.array_equal(cached[0], G):
+            return cached[1]
+        structure = RowStructure.of(G)
+        self._structures[id(limit)] = (G.copy(), structure)
+        return structure
+
+    def rows(self, configuration: Configuration, dt: float) -> LimitRows:
+        """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits at
+        ``configuration`` for a step of ``dt`` [s]; raises :class:`qpik.InfeasibleLimits`
+        where no displacement satisfies them."""
+        hard_lb, hard_ub, pos_lb, pos_ub = self._bounds
+        hard_lb.fill(-np.inf)
+        hard_ub.fill(np.inf)
+        pos_lb.fill(-np.inf)
+        pos_ub.fill(np.inf)
+        hard = _Collected(hard_lb, hard_ub, [])
+        recoverable = _Collected(pos_lb, pos_ub, hard.contributions, hard.G, hard.h, hard.names)
+        for limit in self.limits:
+            side = hard
+            if isinstance(limit, mink.ConfigurationLimit) or getattr(limit, "recoverable", False):
+                side = recoverable
+            box = BOX_LIMITS.get(type(limit)) if self.scalar_joints else None
+            if box is None:
+                self._inequalities(limit, configuration, dt, side)
+                continue
+            dofs, lower, upper = box(limit, configuration.data.qpos, dt)
+            if len(dofs):
+                tighten(side.lb, side.ub, dofs, lower, upper)
+                _add_sides(side.contributions, type(limit).__name__, dofs, lower, upper)
+        if self.trust_dofs.size:  # the trust region: a hard bound, as a velocity limit's
+            dofs, lower, upper = self._trust_box(dt)
+            tighten(hard_lb, hard_ub, dofs, lower, upper)
+            _add_sides(hard.contributions, TRUST_REGION, dofs, lower, upper)
+        lb, ub, i = merge_boxes(hard_lb, hard_ub, pos_lb, pos_ub)
+        if i >= 0:
+            raise InfeasibleLimits(
+                f"limits on {self.dof_names[i]} need {hard_lb[i]:.6g} <= dq <= "
+                f"{hard_ub[i]:.6g}: no displacement satisfies them"
+            )
+        G = np.vstack(hard.G) if hard.G else self.no_rows
+        h = np.concatenate(hard.h) if hard.h else np.zeros(0)
+        contributions = hard.contributions
+        return LimitRows(lb, ub, G, h, hard.names, lambda: contributions, self.dof_names)
+
+    def _inequalities(self, limit, configuration: Configuration, dt: float, side: _Collected):
+        """A limit's ``compute_qp_inequalities`` split into single-dof bounds (tightening
+        ``side``'s box in place) and general rows (appended to ``side``)."""
+        constraint = limit.compute_qp_inequalities(configuration, dt)
+        if constraint.inactive:
+            return
+        G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+        h = np.atleast_1d(constraint.h)
+        name = type(limit).__name__
+        structure = self.structure(limit, G)
+        if structure.empty is not None and np.any(h[structure.empty] < 0):
+            raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[structure.empty].min():.3g}")
+        s = structure
+        for rows, dofs, scale, bound, pick in (
+            (s.upper_rows, s.upper_dofs, s.upper_scale, side.ub, np.minimum),
+            (s.lower_rows, s.lower_dofs, s.lower_scale, side.lb, np.maximum),
+        ):
+            if rows.size:
+                bounds = h[rows] * scale
+                if structure.unique:
+                    bound[dofs] = pick(bound[dofs], bounds)
+                else:
+                    pick.at(bound, dofs, bounds)
+                side.contributions.append((name, dofs, bounds))
+        if structure.general.size:
+            side.G.append(G[structure.general])
+            side.h.append(h[structure.general])
+            side.names.extend(f"{name} row {int(r)}" for r in structure.general)
+
+    def contributions(self, qpos: np.ndarray, dt: float) -> list[Contribution]:
+        """The box limits' contributions ``(name, dofs, bounds)`` at ``qpos`` (nq,), upper
+        side first, then the trust region's (as :meth:`rows` lists them, for a step whose
+        limits are box limits and general-row limits only)."""
+        contributions: list[Contribution] = []
+        for limit in self.limits:
+            box = BOX_LIMITS.get(type(limit))
+            if box is None:  # a general-row limit
+                continue
+            dofs, lower, upper = box(limit, qpos, dt)
+            _add_sides(contributions, type(limit).__name__, dofs, lower, upper)
+        if self.trust_dofs.size:
+            _add_sides(contributions, TRUST_REGION, *self._trust_box(dt))
+        return contributions
+
+    def general_rows(
+        self, limits: Sequence, configuration: Configuration, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+        """``(G, h, names)`` of ``limits`` as :meth:`rows` takes them (rows on two or more
+        dofs; empty rows dropped), None when a row bounds one dof (:meth:`rows` makes it a
+        box bound) or an empty row is infeasible (:meth:`rows` names it)."""
+        G_parts: list[np.ndarray] = []
+        h_parts: list[np.ndarray] = []
+        names: list[str] = []
+        for limit in limits:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            if constraint.inactive:
+                continue
+            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+            h = np.atleast_1d(constraint.h)
+            structure = self.structure(limit, G)
+            if structure.upper_rows.size or structure.lower_rows.size:
+                return None
+            if structure.empty is not None and np.any(h[structure.empty] < 0):
+                return None
+            rows = structure.general
+            if not rows.size:
+                continue
+            G_parts.append(G[rows])
+            h_parts.append(h[rows])
+            name = type(limit).__name__
+            names.extend(f"{name} row {int(r)}" for r in rows)
+        if not G_parts:
+            return self.no_rows, np.zeros(0), names
+        G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
+        h = np.ascontiguousarray(np.concatenate(h_parts) if len(h_parts) > 1 else h_parts[0], float)
+        return G, h, names
+
+
+def _check_limit(limit) -> None:
+    """A limit object (it has ``compute_qp_inequalities``) whose position ranges are not
+    empty; raises :class:`qpik.InvalidInput` or :class:`qpik.InfeasibleLimits`."""
+    if not hasattr(limit, "compute_qp_inequalities"):
+        raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
+    if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
+        empty = limit.indices[limit.lower[limit.indices] > limit.upper[limit.indices]]
+        if len(empty):
+            raise InfeasibleLimits(
+                f"{type(limit).__name__}: the limits of dof {int(empty[0])} are "
+                "empty (min_distance_from_limits exceeds half its range)"
+            )

@@ -1,0 +1,144 @@
+"""What a differential IK step returns: :class:`StepResult` for users, and
+:class:`Solution`, what either path of a step (the compiled step or the core's QP
+cascade, :func:`solve_rows`) hands back to :class:`qpik.IKSolver`: the displacement, each
+level's report and certificate, and the limits of the step, so that the limits that bind
+are named when asked for.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core import HierarchySolver, LevelCertificate, LevelStatus
+from ..errors import InvalidTarget
+from .boxes import LimitRows
+from .rows import TaskRows
+
+__all__ = ["Solution", "StepResult", "solve_rows"]
+
+
+@dataclass
+class Solution:
+    """One step as a path computed it, every level included (the couplings' level first
+    when there is one): the displacement ``dq`` (nv,), the velocity ``dq / dt``, per level
+    the residual, smallest singular value, ``lambda^2``, status, iterations and
+    certificate, and ``limits()``, the step's :class:`~qpik.diffik.boxes.LimitRows`
+    (computed when the active limits are asked for)."""
+
+    displacement: np.ndarray
+    velocity: np.ndarray
+    residuals: list[float]
+    sigma_min: list[float]
+    damping: list[float]
+    status: list[LevelStatus]
+    iterations: list[int]
+    certificate: list[LevelCertificate]
+    limits: Callable[[], LimitRows]
+
+    @property
+    def ok(self) -> bool:
+        """True when every level was solved."""
+        return all(s == LevelStatus.SOLVED for s in self.status)
+
+
+def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: float) -> Solution:
+    """The core's cascade on a step's rows and limits (the QP path), as a
+    :class:`Solution`; raises :class:`qpik.InvalidTarget` when the answer is not finite."""
+    result = core.solve_arrays(
+        tasks.A, tasks.b, tasks.w, tasks.starts, tasks.reg, limits.lb, limits.ub, limits.G,
+        limits.h,
+    )  # fmt: skip
+    d = result.x
+    if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
+        raise InvalidTarget(
+            "the step or a level's residual is not finite: a level's rows are too large "
+            "to square in floating point (a cost or target near 1e150 or beyond?)"
+        )
+    return Solution(
+        displacement=d,
+        velocity=d / dt,
+        residuals=result.residuals,
+        sigma_min=result.sigma,
+        damping=result.damping,
+        status=result.status,
+        iterations=result.iterations,
+        certificate=result.certificate,
+        limits=lambda: limits,
+    )
+
+
+@dataclass
+class StepResult:
+    """What one differential IK step computed.
+
+    Attributes:
+        velocity: joint velocity ``(nv,)`` [rad/s or m/s] (``displacement / dt``).
+        displacement: ``dq = velocity * dt`` ``(nv,)``.
+        residuals: per level, the norm of its weighted residual ``|A_k dq - b_k|`` at the
+            final ``dq``, over all its rows (zero Jacobian rows included).
+        sigma_min: per level, the smallest singular value that drove its damping (inf
+            when the level has none).
+        damping: per level, ``lambda^2`` applied.
+        status: per level, a :class:`~qpik.core.LevelStatus` (``"solved"``,
+            ``"infeasible"``: level 0's limits admit no displacement, ``"kept_previous"``,
+            ``"max_iter"``, ``"not_reached"``, ...).
+        iterations: per level, active-set changes (or the forced backend's iterations).
+        solve_time: wall time of the whole step [s].
+        certificate: per level, its :class:`~qpik.core.LevelCertificate` (the largest
+            scaled violation of primal feasibility, stationarity, dual signs and
+            complementarity at the point it returned; ``solved`` only when each is at most
+            :data:`~qpik.core.CERTIFICATE_TOLERANCE`, see :mod:`qpik.core.cascade`).
+        coupling_residual: the residual ``|A dq - b|`` of the level of the model's
+            couplings, solved above the stack (:attr:`qpik.StepOptions.couplings`);
+            ``None`` when there is none. The lists above hold the stack's levels only.
+    """
+
+    velocity: np.ndarray
+    displacement: np.ndarray
+    residuals: list[float]
+    sigma_min: list[float]
+    damping: list[float]
+    status: list[LevelStatus]
+    iterations: list[int]
+    solve_time: float
+    certificate: list[LevelCertificate] = field(default_factory=list)
+    coupling_residual: float | None = None
+    _limits: Callable[[], LimitRows] | None = field(default=None, repr=False)
+    _active_limits: list[str] | None = field(default=None, repr=False)
+
+    @classmethod
+    def of(cls, solution: Solution, solve_time: float, couplings: bool = False) -> StepResult:
+        """The result of ``solution``; with ``couplings`` its first level is the model's
+        couplings' (reported as :attr:`coupling_residual`, left out of the lists)."""
+        skip = int(couplings)
+        return cls(
+            velocity=solution.velocity,
+            displacement=solution.displacement,
+            residuals=list(solution.residuals)[skip:],
+            sigma_min=list(solution.sigma_min)[skip:],
+            damping=list(solution.damping)[skip:],
+            status=list(solution.status)[skip:],
+            iterations=list(solution.iterations)[skip:],
+            solve_time=solve_time,
+            certificate=list(solution.certificate)[skip:],
+            coupling_residual=solution.residuals[0] if couplings else None,
+            _limits=solution.limits,
+        )
+
+    @property
+    def active_limits(self) -> list[str]:
+        """The limits that bind at the final ``dq``, e.g.
+        ``"joint4 upper (ConfigurationLimit)"`` (named on first access)."""
+        if self._active_limits is None:
+            limits = self._limits() if self._limits is not None else None
+            self._active_limits = limits.active(self.displacement) if limits else []
+        return self._active_limits
+
+    @property
+    def ok(self) -> bool:
+        """True when every level was solved."""
+        return all(s == LevelStatus.SOLVED for s in self.status)

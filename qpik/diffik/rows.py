@@ -1,0 +1,175 @@
+"""The task side of a step: a stack of tasks becomes priority levels, and each level the
+weighted rows ``A_k dq - b_k`` of its tasks, stacked as the core's cascade takes them.
+
+:func:`normalize_stack` reads the stack forms users write (a task, a list of tasks, a list
+of levels); :func:`level_rows` asks each task of a level for its rows (mink's convention:
+``A = diag(cost) J``, ``b = -gain cost e``); :func:`stack_rows` stacks every level into one
+:class:`TaskRows` and names the first level whose rows are not finite.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import cast
+
+import mink
+import numpy as np
+
+from ..errors import InvalidInput, InvalidTarget, as_qpik_error
+from ..model.configuration import Configuration
+from ..tasks import BaseTask
+
+__all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows"]
+
+#: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
+#: task or a list of tasks (level 0 first). See :func:`normalize_stack`.
+Stack = BaseTask | Sequence[BaseTask | Sequence[BaseTask]]
+
+
+def normalize_stack(stack: Stack) -> list[list[BaseTask]]:
+    """Levels from a stack description.
+
+    * a task: one level with that task;
+    * a sequence of tasks only: **one** level (weighted, like ``mink.solve_ik``);
+    * a sequence whose items are tasks or sequences of tasks, at least one a sequence: one
+      level per item, item 0 the highest priority.
+    """
+    if isinstance(stack, BaseTask):
+        return [[stack]]
+    if isinstance(stack, (str, bytes)) or not isinstance(stack, Sequence):
+        raise InvalidInput(f"the task stack must be a task or a list, got {type(stack).__name__}")
+    items = list(stack)
+    if not items:
+        raise InvalidInput("the task stack is empty")
+    if all(isinstance(item, BaseTask) for item in items):
+        return [cast("list[BaseTask]", items)]  # all tasks: checked just above
+    return [_level_of(index, item) for index, item in enumerate(items)]
+
+
+def _level_of(index: int, item) -> list[BaseTask]:
+    """Level ``index`` of a stack: a task or a non-empty sequence of tasks."""
+    if isinstance(item, BaseTask):
+        return [item]
+    level = None
+    if isinstance(item, Sequence) and not isinstance(item, (str, bytes)):
+        level = list(item)
+    if not level or not all(isinstance(t, BaseTask) for t in level):
+        raise InvalidInput(
+            f"level {index} of the stack must be a task or a non-empty list of tasks, got {item!r}"
+        )
+    return level
+
+
+def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
+    """The rows' costs of a task (its ``cost`` broadcast), 1 where it has none."""
+    cost = getattr(task, "cost", None)
+    if type(cost) is np.ndarray and cost.shape == (rows,):
+        return cost
+    if cost is None:
+        return np.ones(rows)
+    try:
+        return np.abs(np.broadcast_to(np.asarray(cost, dtype=float), (rows,)))
+    except ValueError:
+        return np.ones(rows)
+
+
+def level_rows(
+    tasks: Sequence[BaseTask], configuration: Configuration, nv: int
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """Stacked weighted residual of a level ``(A, b, mu, weights)``: the objective is
+    ``1/2 |A dq - b|^2 + 1/2 mu |dq|^2``; ``weights`` are the rows' costs.
+
+    Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c`` (unit
+    weights). Every row is kept, zero rows included.
+    """
+    A_parts, b_parts, w_parts = [], [], []
+    mu = 0.0
+    for task in tasks:
+        try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
+            with np.errstate(over="ignore"):
+                residual = task.compute_qp_residual(configuration)
+                objective = (
+                    None if residual is not None else task.compute_qp_objective(configuration)
+                )
+        except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
+            raise as_qpik_error(exc) from exc
+        if objective is not None:
+            H, c = objective
+            values, vectors = np.linalg.eigh(0.5 * (H + H.T))
+            keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
+            root = np.sqrt(values[keep])
+            A_parts.append(root[:, None] * vectors[:, keep].T)
+            b_parts.append(-(vectors[:, keep].T @ c) / root)
+            w_parts.append(np.ones(int(keep.sum())))
+        else:
+            assert residual is not None  # objective is None only when a residual was given
+            jacobian, error, task_mu = residual
+            if jacobian.ndim != 2:
+                jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
+            A_parts.append(jacobian)
+            b_parts.append(error)
+            w_parts.append(_row_weights(task, jacobian.shape[0]))
+            mu += float(task_mu)
+    if len(A_parts) == 1:
+        return A_parts[0], b_parts[0], mu, w_parts[0]
+    A = np.vstack(A_parts) if A_parts else np.zeros((0, nv))
+    b = np.concatenate(b_parts) if b_parts else np.zeros(0)
+    w = np.concatenate(w_parts) if w_parts else np.zeros(0)
+    return A, b, mu, w
+
+
+@dataclass(frozen=True)
+class TaskRows:
+    """Every level's rows stacked as the core's cascade takes them (float64, C-contiguous):
+    level ``k`` is rows ``starts[k]:starts[k + 1]`` of ``A`` (M, nv), ``b`` and ``w`` (the
+    rows' costs) (M,), with the constant Tikhonov term ``reg[k]`` (``damping`` plus its
+    tasks' LM terms)."""
+
+    A: np.ndarray
+    b: np.ndarray
+    w: np.ndarray
+    starts: np.ndarray
+    reg: np.ndarray
+
+
+def stack_rows(
+    levels: Sequence[Sequence[BaseTask]], configuration: Configuration, nv: int, damping: float
+) -> TaskRows:
+    """The :class:`TaskRows` of ``levels`` at ``configuration``; raises
+    :class:`qpik.InvalidTarget` naming the first level whose rows are not finite."""
+    A_parts, b_parts, w_parts = [], [], []
+    L = len(levels)
+    starts = np.zeros(L + 1, dtype=np.int64)
+    reg = np.empty(L)
+    for k, tasks in enumerate(levels):
+        A, b, mu, w = level_rows(tasks, configuration, nv)
+        A_parts.append(A)
+        b_parts.append(b)
+        w_parts.append(w)
+        starts[k + 1] = starts[k] + b.shape[0]
+        reg[k] = damping + mu
+    A = np.concatenate(A_parts) if L > 1 else np.ascontiguousarray(A_parts[0], dtype=float)
+    b = np.concatenate(b_parts) if L > 1 else np.ascontiguousarray(b_parts[0], dtype=float)
+    w = np.concatenate(w_parts) if L > 1 else np.ascontiguousarray(w_parts[0], dtype=float)
+    rows = TaskRows(A, b, w, starts, reg)
+    with np.errstate(over="ignore"):  # the squares overflow only on rows near 1e150
+        square = float(b @ b)
+    if not (math.isfinite(square) and math.isfinite(float(A.sum()))) or not (
+        math.isfinite(float(reg.sum()))
+    ):
+        _raise_not_finite(levels, rows)
+    return rows
+
+
+def _raise_not_finite(levels: Sequence[Sequence[BaseTask]], rows: TaskRows) -> None:
+    """Name the first level whose rows or regularisation are not finite."""
+    for k, tasks in enumerate(levels):
+        s0, s1 = rows.starts[k], rows.starts[k + 1]
+        finite = np.isfinite(rows.A[s0:s1]).all() and np.isfinite(rows.b[s0:s1]).all()
+        if not (finite and math.isfinite(rows.reg[k])):
+            raise InvalidTarget(
+                f"priority level {k}: a task error or Jacobian is not finite (a NaN "
+                f"or inf target?) in {', '.join(type(t).__name__ for t in tasks)}"
+            )
