@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 import mink
 import mujoco
+from mink.constants import FRAME_TO_COUNT_ATTR, FRAME_TO_ENUM
 
 __all__ = [
     "CollisionPairError",
@@ -95,22 +96,13 @@ def _bind(signature_of: Callable, args: tuple, kwargs: dict) -> dict[str, Any]:
     return dict(bound.arguments)
 
 
-_COUNTS = {"body": "nbody", "site": "nsite", "geom": "ngeom"}
-_OBJECTS = {
-    "body": mujoco.mjtObj.mjOBJ_BODY,
-    "site": mujoco.mjtObj.mjOBJ_SITE,
-    "geom": mujoco.mjtObj.mjOBJ_GEOM,
-}
-
-
 def _names_of(model: mujoco.MjModel, frame_type: str) -> list[str]:
     """Names of the frames of one type in ``model`` (unnamed ones left out)."""
     kind = str(getattr(frame_type, "value", frame_type))
-    if kind not in _COUNTS:
+    if kind not in FRAME_TO_ENUM:
         return []
-    names = (
-        mujoco.mj_id2name(model, _OBJECTS[kind], i) for i in range(getattr(model, _COUNTS[kind]))
-    )
+    count = getattr(model, FRAME_TO_COUNT_ATTR[kind])
+    names = (mujoco.mj_id2name(model, FRAME_TO_ENUM[kind], i) for i in range(count))
     return [n for n in names if n]
 
 

@@ -34,14 +34,15 @@ import numpy as np
 
 from .._engine import diffik as _engine
 from ..errors import TargetNotSet
+from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
 from ..tasks.com import ComTask
 from ..tasks.fast import DampingTask, FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "Kernel", "box_of", "fused_rows", "fused_step", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
-_OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
-_JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
+_OBJECTS = tuple(FRAME_OBJECTS[kind] for kind in _KINDS)  # in the order of the codes
+_JACOBIAN = tuple(FRAME_JACOBIANS[kind] for kind in _KINDS)
 #: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
 #: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
 _FRAME_TYPES = (FrameTask, mink.FrameTask)

@@ -26,21 +26,22 @@ from ..errors import (
     JointLimitViolation,
     LimitDefinitionError,
 )
-from .frames import FrameType, check_model_type, frame_id, frame_names
+from .frames import (
+    FRAME_JACOBIANS,
+    FRAME_POSITIONS,
+    FRAME_ROTATIONS,
+    FrameType,
+    check_model_type,
+    frame_id,
+    frame_names,
+)
 from .robots import load_robot, locate_robot
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
 
-_JAC = {
-    FrameType.BODY: mujoco.mj_jacBody,
-    FrameType.SITE: mujoco.mj_jacSite,
-    FrameType.GEOM: mujoco.mj_jacGeom,
-}
-_POS = {FrameType.BODY: "xpos", FrameType.SITE: "site_xpos", FrameType.GEOM: "geom_xpos"}
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-_MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "geom_xmat"}
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -255,8 +256,8 @@ class Configuration(mink.Configuration):
         """Pose of a frame in the world frame: position ``(3,)`` [m], rotation ``(3, 3)``."""
         kind = FrameType.parse(frame_type)
         fid = self.frame_id(name, kind)
-        position = getattr(self.data, _POS[kind])[fid].copy()
-        rotation = getattr(self.data, _MAT[kind])[fid].reshape(3, 3).copy()
+        position = getattr(self.data, FRAME_POSITIONS[kind])[fid].copy()
+        rotation = getattr(self.data, FRAME_ROTATIONS[kind])[fid].reshape(3, 3).copy()
         return position, rotation
 
     def frame_jacobian(
@@ -271,7 +272,7 @@ class Configuration(mink.Configuration):
         kind = FrameType.parse(frame_type)
         fid = self.frame_id(name, kind)
         jac = np.empty((6, self.model.nv))
-        _JAC[kind](self.model, self.data, jac[:3], jac[3:], fid)
+        FRAME_JACOBIANS[kind](self.model, self.data, jac[:3], jac[3:], fid)
         return jac
 
     def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:

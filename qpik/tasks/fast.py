@@ -19,14 +19,9 @@ import numpy.typing as npt
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
 from ..errors import TargetNotSet, mink_errors_as_qpik, qpik_errors
+from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FRAME_POSITIONS, FRAME_ROTATIONS
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
-
-_FRAME = {
-    "site": ("site_xpos", "site_xmat", mujoco.mj_jacSite),
-    "body": ("xpos", "xmat", mujoco.mj_jacBody),
-    "geom": ("geom_xpos", "geom_xmat", mujoco.mj_jacGeom),
-}
 
 
 def _frame_type_name(frame_type) -> str:
@@ -63,15 +58,14 @@ class FrameTask(mink.FrameTask):
         if self.transform_target_to_world is None:
             raise TargetNotSet(self.__class__.__name__)
         kind = _frame_type_name(self.frame_type)
-        spec = _FRAME.get(kind)
-        if spec is None:
+        if kind not in FRAME_OBJECTS:
             return None
         model, data = configuration.model, configuration.data
         fid = configuration._resolve_frame_id(self.frame_name, kind)
-        xpos = getattr(data, spec[0])[fid]
-        xmat = getattr(data, spec[1])[fid]
+        xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
+        xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
         jac = np.empty((6, model.nv))
-        spec[2](model, data, jac[:3], jac[3:], fid)
+        FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
         error, jlog = frame_error_jlog(xmat, xpos, self.transform_target_to_world.wxyz_xyz)
         return jac, xmat, jlog, error
 
