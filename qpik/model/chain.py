@@ -201,10 +201,7 @@ class KinematicChain:
 
     # ------------------------------------------------------------------ kinematics
     def _q(self, q: npt.ArrayLike) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.nq,) or not np.all(np.isfinite(q)):
-            raise InvalidConfiguration(f"q must be {self.nq} finite numbers, got shape {q.shape}")
-        return q
+        return check_vector("q", q, self.nq, error=InvalidConfiguration)
 
     def pose(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pose of the frame at ``q`` in the world frame: position (3,) [m], rotation (3, 3)."""

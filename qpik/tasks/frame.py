@@ -35,10 +35,7 @@ def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
 
 def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
     """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
-    position = _numbers(value, what)
-    if position.shape != (3,) or not np.all(np.isfinite(position)):
-        raise InvalidTarget(f"{what} must be 3 finite numbers, got {position!r}")
-    return position
+    return checks.check_vector(what, value, 3, error=InvalidTarget).copy()
 
 
 def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
