@@ -103,11 +103,6 @@ class PositionTask(_FrameRowsTask):
         return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
 
 
-#: The SO(3) helpers of :mod:`qpik.model.rotations` (one implementation in the package).
-so3_log = rotation_vector
-so3_left_jacobian_inverse = left_jacobian_inverse
-
-
 class OrientationTask(_FrameRowsTask):
     """Bring a frame's orientation to a target rotation (world frame).
 
@@ -130,7 +125,7 @@ class OrientationTask(_FrameRowsTask):
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
         rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
-        return so3_log(rotation @ self.target.T)
+        return rotation_vector(rotation @ self.target.T)
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         return self._error(configuration)
@@ -138,7 +133,7 @@ class OrientationTask(_FrameRowsTask):
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         error = self._error(configuration)
         angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
-        return so3_left_jacobian_inverse(error) @ angular
+        return left_jacobian_inverse(error) @ angular
 
 
 class PoseTask(mink.Task):
@@ -188,9 +183,9 @@ class PoseTask(mink.Task):
             raise TargetNotSet(type(self).__name__)
         position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        rotation_error = so3_log(rotation @ self.target_rotation.T)
+        rotation_error = rotation_vector(rotation @ self.target_rotation.T)
         error = np.concatenate([position - self.target_position, rotation_error])
-        jacobian[3:] = so3_left_jacobian_inverse(rotation_error) @ jacobian[3:]
+        jacobian[3:] = left_jacobian_inverse(rotation_error) @ jacobian[3:]
         return error, jacobian
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
