@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
 from typing import Any
 
 import mink
@@ -363,19 +362,6 @@ def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
         if model.jnt_type[j] in _SCALAR_JOINTS:
             mask[model.jnt_qposadr[j]] = True
     return mask
-
-
-def as_configuration(
-    robot: Configuration | mujoco.MjModel | str, q: Sequence[float] | None = None
-) -> Configuration:
-    """A :class:`Configuration` from a Configuration, an MjModel or anything
-    :func:`qpik.load_robot` accepts."""
-
-    if isinstance(robot, Configuration):
-        if q is not None:
-            robot.update(q)
-        return robot
-    return Configuration(load_robot(robot), q)
 
 
 def resolve_robot(
