@@ -35,8 +35,8 @@ import numpy as np
 from .._engine import diffik as _engine
 from ..errors import TargetNotSet
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
+from ..tasks import DampingTask, FrameTask, PostureTask
 from ..tasks.com import ComTask
-from ..tasks.fast import DampingTask, FrameTask, PostureTask
 
 __all__ = ["FusedPlan", "Kernel", "box_of", "fused_rows", "fused_step", "make_plan"]
 
