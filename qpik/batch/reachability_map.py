@@ -138,12 +138,12 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     (ur5e: 1.15 m against 1.31 m; panda: 1.09 m against 1.16 m)."""
     bounds = [reach_bound(model, frame)]
     try:
-        from ..model import KinematicChain, chain_support, joint_limits
+        from ..model import KinematicChain, chain_support, joint_limit_arrays
 
         if chain_support(model) is None:
             kind, index, _body = _frame_of(model, frame)
             chain = KinematicChain.from_model(model, index, kind)
-            engine = chain.reach_bound(*joint_limits(model))
+            engine = chain.reach_bound(*joint_limit_arrays(model))
             bounds.append((np.asarray(engine.center, dtype=float), float(engine.radius)))
     except (ImportError, ValueError):  # no engine bound for this chain: ours alone
         pass

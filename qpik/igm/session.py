@@ -93,7 +93,7 @@ import numpy.typing as npt
 
 from ..diffik.solver import DampingLaw, Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
-from ..model import KinematicChain, ReachBound, chain_support, joint_limits
+from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays
 from ..model import kernels as _kernels
 from ..model.configuration import Configuration, FrameType, qpos_joint_names, resolve_robot
 from ..model.couplings import model_couplings
@@ -267,7 +267,7 @@ class _Prepared:
     def __init__(self, model: mujoco.MjModel) -> None:
         self.support = chain_support(model)
         if self.support is None:
-            lower, upper = joint_limits(model)
+            lower, upper = joint_limit_arrays(model)
         else:
             configuration = Configuration(model)
             lower, upper = configuration.lower.copy(), configuration.upper.copy()
