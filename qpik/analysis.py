@@ -1,7 +1,7 @@
 """What the Jacobian reveals: rank, null space, singularities, redundancy, self-motion.
 
-The lecture's analysis of ``xi = J(q) qdot`` made executable. ``J`` is ``(m, n)``: ``m``
-task rows (equations), ``n`` joint velocities (unknowns). Jacobians of a
+The analysis of the differential kinematics ``xi = J(q) qdot`` of a configuration. ``J``
+is ``(m, n)``: ``m`` task rows (equations), ``n`` joint velocities (unknowns). Jacobians of a
 :class:`~qpik.Configuration` are world-aligned twists ``[v; omega]``: rows
 ``vx vy vz`` [m/s per joint unit] then ``wx wy wz`` [rad/s per joint unit].
 

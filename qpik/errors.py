@@ -67,7 +67,8 @@ class MissingExtra(QpikError, ImportError):
         self.extra = extra
         self.package = package
         super().__init__(
-            f"{feature} needs the package {package!r}: install it with pip install 'qpik[{extra}]'"
+            f"{feature} needs the package {package!r}, of the qpik[{extra}] extra: from a qpik "
+            f'checkout, pip install -e ".[{extra}]" (or pip install {package})'
         )
 
 
@@ -515,7 +516,7 @@ def qpik_errors() -> Iterator[None]:
         raise translated from error
 
 
-class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like contextlib's
+class mink_errors_as_qpik:  # lower case: used as a context manager, like contextlib's
     """Context manager for constructors of tasks built on mink's: a mink error is re-raised
     as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
     error's message prefixed with ``what``), and a value that is not a number (``cost="x"``)

@@ -6,7 +6,7 @@ the origin of a frame produces the joint torques
     tau = J(q)^T [f; t]                                                  (nv,) [N m or N]
 
 where ``J`` is the frame's world-aligned Jacobian ``[v; omega] = J(q) qdot``
-(:meth:`Configuration.frame_jacobian`). This is the lecture's static relation, read column
+(:meth:`Configuration.frame_jacobian`). This is the kineto-static duality, read column
 by column: for a revolute joint ``i`` with unit axis ``k_i`` and ``r_i`` the vector from
 the joint to the frame origin, ``tau_i = k_i . (r_i x f) + k_i . t``. It is the dual of the
 kinematic relation: the power ``(J qdot) . w`` that the wrench delivers equals the power

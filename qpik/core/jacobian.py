@@ -53,8 +53,8 @@ __all__ = [
 ROW_NAMES: tuple[str, ...] = ("vx", "vy", "vz", "wx", "wy", "wz")
 
 #: Default threshold of :func:`singularity` on the smallest singular value [Jacobian
-#: units]: at or below it a configuration is reported as (near) singular. With unit
-#: links, the lecture's 2R arm at ``q2 = 0.001`` (``sigma_min ~ 4.5e-4``) is flagged.
+#: units]: at or below it a configuration is reported as (near) singular. The planar 2R
+#: arm with unit links at ``q2 = 0.001`` (``sigma_min ~ 4.5e-4``) is flagged.
 SINGULAR_TOL = 1e-3
 
 #: Relative residual below which ``J x = xi`` counts as solved (see :func:`solution_set`).
@@ -181,7 +181,7 @@ def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
 
 
 def degree_of_redundancy(J: npt.ArrayLike, tol: float | None = None) -> int:
-    """The lecture's degree of redundancy: ``dim N(J) = n - rank(J)``."""
+    """The degree of redundancy: ``dim N(J) = n - rank(J)``."""
     J = _as_matrix(J)
     return J.shape[1] - rank(J, tol)
 
@@ -250,7 +250,7 @@ def condition_number(J: npt.ArrayLike) -> float:
 # --------------------------------------------------------------- J qdot = xi, cases
 @dataclasses.dataclass(frozen=True)
 class SolutionSet:
-    """The set of solutions of ``J qdot = xi``, as the lecture's case analysis.
+    """The set of solutions of ``J qdot = xi``, by cases (rank of ``J`` and of ``[J xi]``).
 
     Attributes:
         kind: ``"unique"`` (consistent, ``N(J) = {0}``), ``"infinite"`` (consistent,
@@ -301,7 +301,7 @@ def solution_set(J: npt.ArrayLike, xi: npt.ArrayLike, tol: float | None = None) 
 def nullspace_step(
     J: npt.ArrayLike, xi: npt.ArrayLike, zeta: npt.ArrayLike, *, tol: float | None = None
 ) -> np.ndarray:
-    """The lecture's general solution ``qdot = J^+ xi + (I - J^+ J) zeta`` ``(n,)``.
+    """The general solution ``qdot = J^+ xi + (I - J^+ J) zeta`` ``(n,)``.
 
     ``zeta`` ``(n,)`` is any joint velocity (for example ``-grad`` of a secondary
     criterion); its projection onto N(J) changes nothing in the task.

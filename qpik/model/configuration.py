@@ -2,8 +2,8 @@
 (``qpik.Configuration``; also importable from :mod:`qpik.model.configuration`).
 
 :class:`Configuration` subclasses :class:`mink.Configuration`, so every mink task and
-limit accepts it. It adds validated updates, world-aligned frame Jacobians in the
-lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and typed errors.
+limit accepts it. It adds validated updates, world-aligned frame Jacobians
+(``xi = [v; omega] = J(q) qdot``), joint-limit vectors and typed errors.
 """
 
 from __future__ import annotations
@@ -265,7 +265,7 @@ class Configuration(mink.Configuration):
         """Jacobian ``(6, nv)`` of the frame's twist ``[v; omega]``, world-aligned.
 
         ``v`` [m/s] is the velocity of the frame origin and ``omega`` [rad/s] the angular
-        velocity, both expressed in the world frame: the lecture's ``xi = J(q) qdot``.
+        velocity, both expressed in the world frame: ``xi = J(q) qdot``.
         (mink's ``get_frame_jacobian`` returns the same twist expressed in the local frame.)
         """
         kind = FrameType.parse(frame_type)
