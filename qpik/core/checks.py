@@ -168,17 +168,19 @@ def check_vector(
     """``value`` as a 1-D float array (of length ``size`` when given; finite unless
     ``finite=False``): the one finite-vector check of qpik.
 
-    Not numbers at all (a string, ``None``, objects): :class:`InvalidArgumentType`; a
-    wrong shape or a NaN / inf entry: ``error``, :class:`qpik.InvalidInput` by default (a
-    configuration check passes :class:`qpik.InvalidConfiguration`, a target check
-    :class:`qpik.InvalidTarget`)."""
+    A wrong shape, a NaN / inf entry, or not numbers at all (a string, ``None``, objects)
+    raises ``error``: a configuration check passes :class:`qpik.InvalidConfiguration`, a
+    target check :class:`qpik.InvalidTarget`. With the default, :class:`qpik.InvalidInput`,
+    not numbers at all raise its subclass :class:`InvalidArgumentType`."""
     expected = f"{size if size is not None else 'a vector of'} numbers"
-    if value is None or isinstance(value, (str, bytes, dict)):
-        raise InvalidArgumentType(name, expected, type_name(value))
     try:
+        if value is None or isinstance(value, (str, bytes, dict)):
+            raise TypeError(value)
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidArgumentType(name, expected, type_name(value)) from None
+        if error is InvalidInput:
+            raise InvalidArgumentType(name, expected, type_name(value)) from None
+        raise error(f"{name} must be {expected}, got {type_name(value)}") from None
     if array.ndim != 1 or (size is not None and array.shape != (size,)):
         want = f"({size},)" if size is not None else "(n,)"
         raise error(f"{name} has shape {array.shape}, expected {want}")
