@@ -1,7 +1,7 @@
 """What the Jacobian reveals: rank, null space, singularities, redundancy, self-motion.
 
-The lecture's analysis of ``xi = J(q) qdot`` made executable. ``J`` is ``(m, n)``: ``m``
-task rows (equations), ``n`` joint velocities (unknowns). Jacobians of a
+The analysis of the differential kinematics ``xi = J(q) qdot`` of a configuration. ``J``
+is ``(m, n)``: ``m`` task rows (equations), ``n`` joint velocities (unknowns). Jacobians of a
 :class:`~qpik.Configuration` are world-aligned twists ``[v; omega]``: rows
 ``vx vy vz`` [m/s per joint unit] then ``wx wy wz`` [rad/s per joint unit].
 
@@ -41,7 +41,6 @@ from .core.jacobian import (
     SingularityReport,
     SolutionSet,
     as_tol,
-    as_vector,
     condition_number,
     damped_pseudoinverse,
     degree_of_redundancy,
@@ -129,7 +128,7 @@ def self_motion(
     kind = FrameType.parse(frame_type)
     idx = list(row_indices(rows))
     work = configuration.copy()
-    zeta = as_vector(zeta, work.model.nv, "zeta")
+    zeta = checks.check_vector("zeta", zeta, work.model.nv)
     steps = checks.check_integer("steps", steps, 0, 100_000)
     step_size = checks.check_real("step_size", step_size)
     correction_tol = checks.check_real("correction_tol", correction_tol, 0.0)

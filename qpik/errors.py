@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 import mink
 import mujoco
+from mink.constants import FRAME_TO_COUNT_ATTR, FRAME_TO_ENUM
 
 __all__ = [
     "CollisionPairError",
@@ -66,7 +67,8 @@ class MissingExtra(QpikError, ImportError):
         self.extra = extra
         self.package = package
         super().__init__(
-            f"{feature} needs the package {package!r}: install it with pip install 'qpik[{extra}]'"
+            f"{feature} needs the package {package!r}, of the qpik[{extra}] extra: from a qpik "
+            f'checkout, pip install -e ".[{extra}]" (or pip install {package})'
         )
 
 
@@ -95,22 +97,13 @@ def _bind(signature_of: Callable, args: tuple, kwargs: dict) -> dict[str, Any]:
     return dict(bound.arguments)
 
 
-_COUNTS = {"body": "nbody", "site": "nsite", "geom": "ngeom"}
-_OBJECTS = {
-    "body": mujoco.mjtObj.mjOBJ_BODY,
-    "site": mujoco.mjtObj.mjOBJ_SITE,
-    "geom": mujoco.mjtObj.mjOBJ_GEOM,
-}
-
-
 def _names_of(model: mujoco.MjModel, frame_type: str) -> list[str]:
     """Names of the frames of one type in ``model`` (unnamed ones left out)."""
     kind = str(getattr(frame_type, "value", frame_type))
-    if kind not in _COUNTS:
+    if kind not in FRAME_TO_ENUM:
         return []
-    names = (
-        mujoco.mj_id2name(model, _OBJECTS[kind], i) for i in range(getattr(model, _COUNTS[kind]))
-    )
+    count = getattr(model, FRAME_TO_COUNT_ATTR[kind])
+    names = (mujoco.mj_id2name(model, FRAME_TO_ENUM[kind], i) for i in range(count))
     return [n for n in names if n]
 
 
@@ -523,7 +516,7 @@ def qpik_errors() -> Iterator[None]:
         raise translated from error
 
 
-class mink_errors_as_qpik:  # noqa: N801 - used as a context manager, like contextlib's
+class mink_errors_as_qpik:  # lower case: used as a context manager, like contextlib's
     """Context manager for constructors of tasks built on mink's: a mink error is re-raised
     as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
     error's message prefixed with ``what``), and a value that is not a number (``cost="x"``)

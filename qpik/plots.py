@@ -1,4 +1,4 @@
-"""Figures of a solved problem (matplotlib: ``pip install 'qpik[plots]'``).
+"""Figures of a solved problem (matplotlib, the ``plots`` extra: ``pip install -e ".[plots]"``).
 
 matplotlib is imported when a function here is first called, never by ``import qpik``;
 without it, :class:`qpik.MissingExtra` names the ``plots`` extra. Functions draw on axes

@@ -6,7 +6,7 @@ the origin of a frame produces the joint torques
     tau = J(q)^T [f; t]                                                  (nv,) [N m or N]
 
 where ``J`` is the frame's world-aligned Jacobian ``[v; omega] = J(q) qdot``
-(:meth:`Configuration.frame_jacobian`). This is the lecture's static relation, read column
+(:meth:`Configuration.frame_jacobian`). This is the kineto-static duality, read column
 by column: for a revolute joint ``i`` with unit axis ``k_i`` and ``r_i`` the vector from
 the joint to the frame origin, ``tau_i = k_i . (r_i x f) + k_i . t``. It is the dual of the
 kinematic relation: the power ``(J qdot) . w`` that the wrench delivers equals the power
@@ -82,12 +82,6 @@ class ReferenceFrame(str, enum.Enum):
 
 
 # ------------------------------------------------------------------------- validation
-def _vector(value: npt.ArrayLike, size: int, what: str) -> np.ndarray:
-    """``value`` as a finite float vector of shape ``(size,)``: not numbers raises
-    :class:`qpik.errors.InvalidArgumentType`, a wrong shape or NaN :class:`InvalidInput`."""
-    return checks.check_vector(what, value, size)
-
-
 #: What every function here takes as its first argument.
 _CONFIGURATION = (
     "a qpik.Configuration (build one with qpik.Configuration(qpik.load_robot(name), q))"
@@ -143,8 +137,8 @@ def joint_torques(
     _check_configuration(configuration)
     kind = FrameType.parse(frame_type)
     axes = ReferenceFrame.parse(expressed_in)
-    f = _vector(force, 3, "force")
-    t = np.zeros(3) if torque is None else _vector(torque, 3, "torque")
+    f = checks.check_vector("force", force, 3)
+    t = np.zeros(3) if torque is None else checks.check_vector("torque", torque, 3)
     jacobian = configuration.frame_jacobian(frame, kind)
     if axes is ReferenceFrame.LOCAL:
         _, rotation = configuration.frame_pose(frame, kind)
@@ -292,7 +286,7 @@ def wrench_from_torques(
         rcond: Singular values below ``rcond`` times the largest count as zero.
     """
     _check_configuration(configuration)
-    tau = _vector(tau, configuration.model.nv, "tau")
+    tau = checks.check_vector("tau", tau, configuration.model.nv)
     rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
     jacobian = configuration.frame_jacobian(frame, frame_type)
     u, s, vt = np.linalg.svd(jacobian, full_matrices=True)
@@ -511,7 +505,7 @@ def max_payload(
     """
     _check_configuration(configuration)
     gravity = checks.check_bool("gravity", gravity)
-    d = _vector(direction, 3, "direction")
+    d = checks.check_vector("direction", direction, 3)
     largest = float(np.abs(d).max())
     if largest > 0.0:  # scaled first: the norm of a 1e300 vector overflows
         d = d / largest

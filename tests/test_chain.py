@@ -13,7 +13,7 @@ from conftest import central_difference
 from scipy.spatial.transform import Rotation
 
 import qpik
-from qpik.model import KinematicChain, chain_support, joint_limits
+from qpik.model import KinematicChain, chain_support, joint_limit_arrays
 from qpik.model import kernels as K
 
 ERD_ARMS = [
@@ -61,7 +61,7 @@ def test_pose_and_jacobian_equal_mujoco(robot):
     if chain_support(model) is not None:
         pytest.skip(chain_support(model))
     data = mujoco.MjData(model)
-    lower, upper = joint_limits(model)
+    lower, upper = joint_limit_arrays(model)
     lo = np.where(np.isfinite(lower), lower, -np.pi)
     hi = np.where(np.isfinite(upper), upper, np.pi)
     rng = np.random.default_rng(7)
@@ -116,7 +116,7 @@ def test_slide_joint_and_qpos0_reference():
         np.testing.assert_allclose(p, position, atol=1e-12)
         np.testing.assert_allclose(r, rotation, atol=1e-12)
         np.testing.assert_allclose(chain.jacobian(q), jacobian, atol=1e-12)
-    lower, upper = joint_limits(model)
+    lower, upper = joint_limit_arrays(model)
     bound = chain.reach_bound(lower, upper)
     rng = np.random.default_rng(0)
     for _ in range(500):
@@ -145,7 +145,7 @@ def test_reach_bound_closed_form_planar_arms():
     for robot, radius in (("planar_2r", 2.0), ("planar_4r", 4.0)):
         model = qpik.load_robot(robot)
         chain = KinematicChain.from_model(model, "ee", "site")
-        bound = chain.reach_bound(*joint_limits(model))
+        bound = chain.reach_bound(*joint_limit_arrays(model))
         np.testing.assert_allclose(bound.radius, radius, atol=1e-12)
         np.testing.assert_allclose(bound.center, model.body_pos[1], atol=1e-12)
 
@@ -156,7 +156,7 @@ def test_reach_bound_holds_and_is_not_loose(robot):
     frame = {"erd:ur5": "tool0", "erd:xarm7": "link_eef", "erd:kinova": "j2s6s200_end_effector"}
     kind = "body" if robot.startswith("erd:") else "site"
     chain = KinematicChain.from_model(model, frame.get(robot, "ee"), kind)
-    lower, upper = joint_limits(model)
+    lower, upper = joint_limit_arrays(model)
     bound = chain.reach_bound(lower, upper)
     lo = np.where(np.isfinite(lower), lower, -np.pi)
     hi = np.where(np.isfinite(upper), upper, np.pi)
@@ -192,8 +192,8 @@ def test_rotation_log_against_scipy():
         np.testing.assert_allclose(angle, np.linalg.norm(expected), atol=1e-12)
 
 
-def test_left_jacobian_inverse_matches_qpik_tasks():
-    from qpik.tasks.frame import so3_left_jacobian_inverse
+def test_left_jacobian_inverse_binding_matches_the_rotations_helper():
+    from qpik.model.rotations import left_jacobian_inverse as so3_left_jacobian_inverse
 
     for phi in ([0.1, -0.2, 0.3], [1e-8, 0.0, 2e-8], [1.0, 2.0, -0.5]):
         out = np.empty((3, 3))

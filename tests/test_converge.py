@@ -195,7 +195,7 @@ def _reference_step(model, frame, target, q, law, damping=1e-6, max_step=(0.2, 0
     from scipy.optimize import lsq_linear
     from scipy.spatial.transform import Rotation
 
-    from qpik.tasks.frame import so3_left_jacobian_inverse
+    from qpik.model.rotations import left_jacobian_inverse as so3_left_jacobian_inverse
 
     configuration = qpik.Configuration(model, q)
     position, rotation = configuration.frame_pose(frame)

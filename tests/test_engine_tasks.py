@@ -14,7 +14,7 @@ from qpik._engine import diffik as engine_diffik
 from qpik._engine import tasks as engine_tasks
 from qpik.diffik import compiled
 from qpik.model import lie as _lie
-from qpik.tasks import fast
+from qpik.tasks import frame as fast
 
 FIXTURE = pathlib.Path(__file__).parent / "fixtures" / "tasks.npz"
 STEP_ARGS = (

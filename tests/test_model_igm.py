@@ -24,7 +24,7 @@ def _advanced(seed: int, draws: int) -> int:
 
 def _igm_inputs(model, frame, frame_type, target_q, restarts=5, max_iters=100):
     chain = KinematicChain.from_model(model, frame, frame_type)
-    lower, upper = qpik.model.joint_limits(model)
+    lower, upper = qpik.model.joint_limit_arrays(model)
     position, rotation = chain.pose(target_q)
     bounds = np.array([lower, upper, lower, upper])
     reach = chain.reach_bound(lower, upper).array

@@ -1,6 +1,5 @@
 // Bindings of the diffik layer (qpik._engine.diffik): the one-call IK step (diffik/fused.hpp,
-// re-exported by qpik._fused). Same names and Python signatures as the numba kernels they
-// replace. Every shape and index is checked here (a bad plan raises ValueError, never
+// used by qpik.diffik.compiled). Every shape and index is checked here (a bad plan raises ValueError, never
 // reads out of bounds); the plan's and MuJoCo's arrays are used in place (no copies).
 #include "bind.hpp"
 #include "diffik/fused.hpp"

@@ -155,7 +155,7 @@ void bind_model(nb::module_& m) {
         [](In1 phi, Out2 out) {
             require(phi.shape(0) == 3, "phi must be (3,)");
             require(out.shape(0) == 3 && out.shape(1) == 3, "out must be (3, 3)");
-            model::left_jacobian_inverse(phi.data(), out.data());
+            model::so3_ljacinv(out.data(), phi.data());
         },
         "phi"_a, "out"_a.noconvert(), "Inverse left Jacobian of SO(3) at rotation vector phi, into out.");
 }

@@ -1,7 +1,6 @@
-// Bindings of the tasks layer (qpik._engine.tasks): mink's SE(3) routines
-// (model/se3.hpp, re-exported by qpik.tasks._lie) and the frame task's kernels
-// (tasks/frame.hpp, re-exported by qpik.tasks.fast). Same names and Python signatures as
-// the numba kernels they replace: the Lie routines write into their first argument.
+// Bindings of the tasks layer (qpik._engine.tasks): SO(3)/SE(3) (model/so3.hpp and
+// model/se3.hpp, wrapped by qpik.model.lie) and the frame task's kernels (tasks/frame.hpp,
+// used by qpik.tasks.frame). The Lie routines write into their first argument.
 #include "bind.hpp"
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"

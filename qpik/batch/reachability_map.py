@@ -139,12 +139,12 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     its own, so a voxel outside either is out of reach; neither is always the tighter."""
     bounds = [reach_bound(model, frame)]
     try:
-        from ..model import KinematicChain, chain_support, joint_limits
+        from ..model import KinematicChain, chain_support, joint_limit_arrays
 
         if chain_support(model) is None:
             kind, index, _body = _frame_of(model, frame)
             chain = KinematicChain.from_model(model, index, kind)
-            engine = chain.reach_bound(*joint_limits(model))
+            engine = chain.reach_bound(*joint_limit_arrays(model))
             bounds.append((np.asarray(engine.center, dtype=float), float(engine.radius)))
     except (ImportError, ValueError):  # no engine bound for this chain: ours alone
         pass

@@ -95,7 +95,7 @@ def _run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(f"qpik {args.command}: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # noqa: BLE001 - the last resort of a command line
+    except Exception as exc:  # the last resort of a command line
         if os.environ.get("QPIK_DEBUG"):
             raise
         print(

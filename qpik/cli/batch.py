@@ -52,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--ray",
         metavar="ADDRESS",
         help="run on Ray: 'auto' (the running cluster), 'ray://HOST:PORT', or 'local' to "
-        "start one here (needs pip install 'qpik[cluster]')",
+        "start one here (needs the cluster extra: pip install -e '.[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="batch seed (0)")
     add_solve_arguments(parser, "target")

@@ -1,4 +1,4 @@
-"""``qpik bench``: the IK success-rate benchmark, qpik against the lecture's IGM, mink and
+"""``qpik bench``: the IK success-rate benchmark, qpik against the pseudoinverse IGM, mink and
 pink. Its harness and the adapters of the other libraries live in the repository's
 ``benchmarks/`` folder (``ik_bench.py``, ``ik_methods.py``), not in the installed package:
 the command runs from a source checkout (``git clone``, then ``pip install -e .``), and
@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="IK success rate on reachable pose targets, qpik against baselines",
         description="Per robot, N reachable pose targets (FK of uniform random q within the "
         "limits, fixed seed) for its tool frame, each solved from mid-range by every method "
-        "(qpik, the lecture's pseudoinverse IGM, damped least squares, mink, pink), "
+        "(qpik, the pseudoinverse IGM, damped least squares, mink, pink), "
         "interleaved. Protocol trac-ik (default): success = position <= 1e-5 m and "
         "rotation vector <= 1e-5 rad on each axis, joints within limits, within 5 ms, "
         "TRAC-IK's published figures beside; coarse: 1e-4 m and 1e-3 rad (norms) within "

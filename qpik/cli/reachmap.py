@@ -49,7 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--ray",
         metavar="ADDRESS",
-        help="run on Ray: 'auto', 'ray://HOST:PORT' or 'local' (pip install 'qpik[cluster]')",
+        help="run on Ray: 'auto', 'ray://HOST:PORT' or 'local' (the cluster extra: "
+        "pip install -e '.[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the IK restarts (0)")
     add_solve_arguments(parser, "pose", iterations=False)

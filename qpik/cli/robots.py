@@ -21,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "robots",
         help="list the bundled robot models (--erd: example-robot-data's)",
         description="List the bundled robot models with their DoF, joints, frames and tool "
-        "frame; with --erd, every robot of example-robot-data (pip install 'qpik[robots]') "
+        "frame; with --erd, every robot of example-robot-data (the robots extra: "
+        "pip install -e '.[robots]') "
         "as the erd:NAME that loads it.",
         epilog="examples: qpik robots; qpik robots --erd; qpik robots --erd --details",
     )

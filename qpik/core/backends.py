@@ -181,7 +181,7 @@ class QPSolversWorkspace:
         )
         try:
             solution = self._qpsolvers.solve_problem(problem, solver=self.name, **self.options)
-        except Exception as exc:  # noqa: BLE001 - backends raise many kinds
+        except Exception as exc:  # backends raise many kinds
             return QPSolution(None, f"error: {exc}", 0, time.perf_counter() - start)
         x = solution.x if solution.found else None
         if x is not None and not np.all(np.isfinite(x)):

@@ -125,7 +125,7 @@ class LevelStatus(str, enum.Enum):
     NUMERICAL = "numerical_failure"  #: the solver failed numerically
     NOT_REACHED = "not_reached"  #: a level above failed, this one was not solved
 
-    def __str__(self) -> str:  # noqa: D105
+    def __str__(self) -> str:
         return self.value
 
 
@@ -659,7 +659,7 @@ class HierarchySolver:
             solution = workspace.solve(H, c, C, lo, hi)
         except QpikError:
             raise
-        except Exception:  # noqa: BLE001 - a backend failure must not poison the solver
+        except Exception:  # a backend failure must not poison the solver
             self._workspaces.pop(key, None)
             return None
         self._workspaces[key] = workspace

@@ -158,26 +158,37 @@ def check_choice(name: str, value: Any, choices: Sequence[str]) -> str:
 
 
 def check_vector(
-    name: str, value: Any, size: int | None = None, *, finite: bool = True
+    name: str,
+    value: Any,
+    size: int | None = None,
+    *,
+    finite: bool = True,
+    error: type[Exception] = InvalidInput,
 ) -> np.ndarray:
     """``value`` as a 1-D float array (of length ``size`` when given; finite unless
-    ``finite=False``). Not numbers at all (a string, ``None``, objects):
-    :class:`InvalidArgumentType`; wrong shape or NaN / inf: :class:`qpik.InvalidInput`."""
+    ``finite=False``): the one finite-vector check of qpik.
+
+    A wrong shape, a NaN / inf entry, or not numbers at all (a string, ``None``, objects)
+    raises ``error``: a configuration check passes :class:`qpik.InvalidConfiguration`, a
+    target check :class:`qpik.InvalidTarget`. With the default, :class:`qpik.InvalidInput`,
+    not numbers at all raise its subclass :class:`InvalidArgumentType`."""
     expected = f"{size if size is not None else 'a vector of'} numbers"
-    if value is None or isinstance(value, (str, bytes, dict)):
-        raise InvalidArgumentType(name, expected, type_name(value))
     try:
+        if value is None or isinstance(value, (str, bytes, dict)):
+            raise TypeError(value)
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidArgumentType(name, expected, type_name(value)) from None
+        if error is InvalidInput:
+            raise InvalidArgumentType(name, expected, type_name(value)) from None
+        raise error(f"{name} must be {expected}, got {type_name(value)}") from None
     if array.ndim != 1 or (size is not None and array.shape != (size,)):
         want = f"({size},)" if size is not None else "(n,)"
-        raise InvalidInput(f"{name} has shape {array.shape}, expected {want}")
+        raise error(f"{name} has shape {array.shape}, expected {want}")
     if finite:
         bad = np.flatnonzero(~np.isfinite(array))
         if bad.size:
             i = int(bad[0])
-            raise InvalidInput(f"{name}[{i}] is {array[i]}; every entry must be finite")
+            raise error(f"{name}[{i}] is {array[i]}; every entry must be finite")
     return array
 
 

@@ -43,7 +43,6 @@ __all__ = [
     "pseudoinverse",
     "rank",
     "as_tol",
-    "as_vector",
     "row_indices",
     "singular_values",
     "singularity",
@@ -54,8 +53,8 @@ __all__ = [
 ROW_NAMES: tuple[str, ...] = ("vx", "vy", "vz", "wx", "wy", "wz")
 
 #: Default threshold of :func:`singularity` on the smallest singular value [Jacobian
-#: units]: at or below it a configuration is reported as (near) singular. With unit
-#: links, the lecture's 2R arm at ``q2 = 0.001`` (``sigma_min ~ 4.5e-4``) is flagged.
+#: units]: at or below it a configuration is reported as (near) singular. The planar 2R
+#: arm with unit links at ``q2 = 0.001`` (``sigma_min ~ 4.5e-4``) is flagged.
 SINGULAR_TOL = 1e-3
 
 #: Relative residual below which ``J x = xi`` counts as solved (see :func:`solution_set`).
@@ -80,21 +79,6 @@ def _as_matrix(J: npt.ArrayLike, name: str = "J") -> np.ndarray:
         i, j = (int(k) for k in bad[0])
         raise InvalidInput(f"{name}[{i}, {j}] is {J[i, j]}; every entry must be finite")
     return J
-
-
-def as_vector(x: npt.ArrayLike, size: int, name: str) -> np.ndarray:
-    """``x`` as a finite float vector of length ``size``."""
-    try:
-        x = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInput(f"{name} is not a numeric vector: {exc}") from None
-    if x.shape != (size,):
-        raise InvalidInput(f"{name} has shape {x.shape}, expected ({size},)")
-    bad = np.flatnonzero(~np.isfinite(x))
-    if bad.size:
-        i = int(bad[0])
-        raise InvalidInput(f"{name}[{i}] is {x[i]}; every entry must be finite")
-    return x
 
 
 def as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int], name: str = "tol") -> float:
@@ -197,7 +181,7 @@ def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
 
 
 def degree_of_redundancy(J: npt.ArrayLike, tol: float | None = None) -> int:
-    """The lecture's degree of redundancy: ``dim N(J) = n - rank(J)``."""
+    """The degree of redundancy: ``dim N(J) = n - rank(J)``."""
     J = _as_matrix(J)
     return J.shape[1] - rank(J, tol)
 
@@ -266,7 +250,7 @@ def condition_number(J: npt.ArrayLike) -> float:
 # --------------------------------------------------------------- J qdot = xi, cases
 @dataclasses.dataclass(frozen=True)
 class SolutionSet:
-    """The set of solutions of ``J qdot = xi``, as the lecture's case analysis.
+    """The set of solutions of ``J qdot = xi``, by cases (rank of ``J`` and of ``[J xi]``).
 
     Attributes:
         kind: ``"unique"`` (consistent, ``N(J) = {0}``), ``"infinite"`` (consistent,
@@ -287,7 +271,7 @@ class SolutionSet:
 
     def general(self, zeta: npt.ArrayLike) -> np.ndarray:
         """The general solution ``particular + null_basis @ zeta``, ``zeta`` ``(n - rank,)``."""
-        zeta = as_vector(zeta, self.null_basis.shape[1], "zeta")
+        zeta = checks.check_vector("zeta", zeta, self.null_basis.shape[1])
         return self.particular + self.null_basis @ zeta
 
 
@@ -298,7 +282,7 @@ def solution_set(J: npt.ArrayLike, xi: npt.ArrayLike, tol: float | None = None) 
     (relative to ``||xi|| + sigma_max ||J^+ xi||``); singular values ``<= tol`` count as 0.
     """
     J = _as_matrix(J)
-    xi = as_vector(xi, J.shape[0], "xi")
+    xi = checks.check_vector("xi", xi, J.shape[0])
     with np.errstate(over="ignore", invalid="ignore"):
         particular = _finite_result(pseudoinverse(J, tol) @ xi, "the solution J^+ xi")
         mismatch = _finite_result(J @ particular - xi, "the residual J J^+ xi - xi")
@@ -317,14 +301,14 @@ def solution_set(J: npt.ArrayLike, xi: npt.ArrayLike, tol: float | None = None) 
 def nullspace_step(
     J: npt.ArrayLike, xi: npt.ArrayLike, zeta: npt.ArrayLike, *, tol: float | None = None
 ) -> np.ndarray:
-    """The lecture's general solution ``qdot = J^+ xi + (I - J^+ J) zeta`` ``(n,)``.
+    """The general solution ``qdot = J^+ xi + (I - J^+ J) zeta`` ``(n,)``.
 
     ``zeta`` ``(n,)`` is any joint velocity (for example ``-grad`` of a secondary
     criterion); its projection onto N(J) changes nothing in the task.
     """
     J = _as_matrix(J)
-    xi = as_vector(xi, J.shape[0], "xi")
-    zeta = as_vector(zeta, J.shape[1], "zeta")
+    xi = checks.check_vector("xi", xi, J.shape[0])
+    zeta = checks.check_vector("zeta", zeta, J.shape[1])
     pinv = pseudoinverse(J, tol)
     with np.errstate(over="ignore", invalid="ignore"):
         step = pinv @ xi + zeta - pinv @ (J @ zeta)

@@ -2,7 +2,7 @@ r"""Compiled kernels of the core: an exact dense QP solver and the prioritised c
 
 Everything here takes and returns plain arrays; the kernels are compiled C++
 (``qpik/_cpp/core``, the extension submodule ``qpik._engine.core``), built ahead of time
-when the package is installed, and bit-for-bit equal to the numba kernels they replace
+when the package is installed; recorded answers pin them bit for bit
 (tests/fixtures/core.npz, tests/test_engine_core.py). Arrays a kernel writes into
 (``cholesky_into``'s ``L``, ``tighten``'s ``lb``/``ub``) must be float64 and C-contiguous;
 inputs of another dtype or layout are converted, and a wrong shape raises ValueError.
@@ -13,8 +13,8 @@ QP (:func:`solve_qp`)
     quadprog and eiquadprog. It starts from the unconstrained minimiser and adds violated
     constraints one at a time; it needs no feasible starting point, detects infeasibility,
     and ends in a finite number of steps (an iteration cap guards against round-off
-    cycling). The factorisations of the working set are recomputed at each step rather
-    than updated, which costs ``O(n^2 q)`` per step: negligible at IK sizes (n <= 100).
+    cycling). The factorisation of the working set is updated by Givens rotations when a
+    constraint is added or dropped, ``O(n^2)`` per change.
 
     The answer is then *polished*: the KKT system of the final active set (constraints
     with a positive multiplier, in a canonical order) is solved once more from scratch.
@@ -29,7 +29,7 @@ Cascade (:func:`solve_cascade`)
     through an orthonormal basis ``Z`` that shrinks level by level (see
     :mod:`qpik.core.cascade` for the maths).
 
-Signatures (as the numba kernels had them):
+Signatures:
 
 - ``solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical) -> (x, status, iterations,
   active)``; ``solve_level(..., tol, lower, canonical)`` the same, robust to degenerate

@@ -30,8 +30,9 @@ from ..core import HierarchySolver
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.configuration import Configuration
+from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
+from ..tasks import DampingTask, FrameTask, PostureTask
 from ..tasks.com import ComTask
-from ..tasks.fast import DampingTask, FrameTask, PostureTask
 from .boxes import LimitBoxes, LimitRows
 from .result import Solution, solve_rows
 from .rows import TaskRows
@@ -39,8 +40,8 @@ from .rows import TaskRows
 __all__ = ["CompiledPlan", "Kernel", "make_plan"]
 
 _KINDS = {"site": 0, "body": 1, "geom": 2}
-_OBJECTS = (mujoco.mjtObj.mjOBJ_SITE, mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_GEOM)
-_JACOBIAN = (mujoco.mj_jacSite, mujoco.mj_jacBody, mujoco.mj_jacGeom)
+_OBJECTS = tuple(FRAME_OBJECTS[kind] for kind in _KINDS)  # in the order of the codes
+_JACOBIAN = tuple(FRAME_JACOBIANS[kind] for kind in _KINDS)
 #: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
 #: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
 _FRAME_TYPES = (FrameTask, mink.FrameTask)

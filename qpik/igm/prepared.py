@@ -15,7 +15,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..model import KinematicChain, ReachBound, chain_support, joint_limits
+from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays
 from ..model import kernels as _kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
@@ -70,7 +70,7 @@ class PreparedRobot:
     def __init__(self, model: mujoco.MjModel) -> None:
         self.support = chain_support(model)
         if self.support is None:
-            lower, upper = joint_limits(model)
+            lower, upper = joint_limit_arrays(model)
         else:
             configuration = Configuration(model)
             lower, upper = configuration.lower.copy(), configuration.upper.copy()

@@ -19,7 +19,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the type checker sees the names; at run time __getattr__ loads them
-    from .chain import KinematicChain, ReachBound, chain_support, joint_limits
+    from .chain import KinematicChain, ReachBound, chain_support, joint_limit_arrays
     from .couplings import Couplings, model_couplings
 
 __all__ = [
@@ -27,7 +27,7 @@ __all__ = [
     "KinematicChain",
     "ReachBound",
     "chain_support",
-    "joint_limits",
+    "joint_limit_arrays",
     "model_couplings",
 ]
 

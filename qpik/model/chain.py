@@ -26,7 +26,7 @@ from ..errors import InvalidConfiguration, InvalidInput
 from . import kernels as _kernels
 from .frames import FrameType, frame_id, frame_name
 
-__all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limits"]
+__all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limit_arrays"]
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 #: The Jacobian argument of a pose-only fk_jac (never written: want_jac is False).
@@ -48,7 +48,7 @@ def chain_support(model: mujoco.MjModel, joints: npt.ArrayLike | None = None) ->
     return None
 
 
-def joint_limits(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+def joint_limit_arrays(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper position limits ``(nq,)`` [rad or m] of a hinge/slide model;
     -/+inf for unlimited joints."""
     lower = np.full(model.nq, -np.inf)
@@ -201,10 +201,7 @@ class KinematicChain:
 
     # ------------------------------------------------------------------ kinematics
     def _q(self, q: npt.ArrayLike) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.nq,) or not np.all(np.isfinite(q)):
-            raise InvalidConfiguration(f"q must be {self.nq} finite numbers, got shape {q.shape}")
-        return q
+        return check_vector("q", q, self.nq, error=InvalidConfiguration)
 
     def pose(self, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pose of the frame at ``q`` in the world frame: position (3,) [m], rotation (3, 3)."""

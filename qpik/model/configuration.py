@@ -2,15 +2,14 @@
 (``qpik.Configuration``; also importable from :mod:`qpik.model.configuration`).
 
 :class:`Configuration` subclasses :class:`mink.Configuration`, so every mink task and
-limit accepts it. It adds validated updates, world-aligned frame Jacobians in the
-lecture's convention ``xi = [v; omega] = J(q) qdot``, joint-limit vectors and typed errors.
+limit accepts it. It adds validated updates, world-aligned frame Jacobians
+(``xi = [v; omega] = J(q) qdot``), joint-limit vectors and typed errors.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
 from typing import Any
 
 import mink
@@ -26,21 +25,22 @@ from ..errors import (
     JointLimitViolation,
     LimitDefinitionError,
 )
-from .frames import FrameType, check_model_type, frame_id, frame_names
+from .frames import (
+    FRAME_JACOBIANS,
+    FRAME_POSITIONS,
+    FRAME_ROTATIONS,
+    FrameType,
+    check_model_type,
+    frame_id,
+    frame_names,
+)
 from .robots import load_robot, locate_robot
 
 __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
 
-_JAC = {
-    FrameType.BODY: mujoco.mj_jacBody,
-    FrameType.SITE: mujoco.mj_jacSite,
-    FrameType.GEOM: mujoco.mj_jacGeom,
-}
-_POS = {FrameType.BODY: "xpos", FrameType.SITE: "site_xpos", FrameType.GEOM: "geom_xpos"}
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-_MAT = {FrameType.BODY: "xmat", FrameType.SITE: "site_xmat", FrameType.GEOM: "geom_xmat"}
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -255,8 +255,8 @@ class Configuration(mink.Configuration):
         """Pose of a frame in the world frame: position ``(3,)`` [m], rotation ``(3, 3)``."""
         kind = FrameType.parse(frame_type)
         fid = self.frame_id(name, kind)
-        position = getattr(self.data, _POS[kind])[fid].copy()
-        rotation = getattr(self.data, _MAT[kind])[fid].reshape(3, 3).copy()
+        position = getattr(self.data, FRAME_POSITIONS[kind])[fid].copy()
+        rotation = getattr(self.data, FRAME_ROTATIONS[kind])[fid].reshape(3, 3).copy()
         return position, rotation
 
     def frame_jacobian(
@@ -265,13 +265,13 @@ class Configuration(mink.Configuration):
         """Jacobian ``(6, nv)`` of the frame's twist ``[v; omega]``, world-aligned.
 
         ``v`` [m/s] is the velocity of the frame origin and ``omega`` [rad/s] the angular
-        velocity, both expressed in the world frame: the lecture's ``xi = J(q) qdot``.
+        velocity, both expressed in the world frame: ``xi = J(q) qdot``.
         (mink's ``get_frame_jacobian`` returns the same twist expressed in the local frame.)
         """
         kind = FrameType.parse(frame_type)
         fid = self.frame_id(name, kind)
         jac = np.empty((6, self.model.nv))
-        _JAC[kind](self.model, self.data, jac[:3], jac[3:], fid)
+        FRAME_JACOBIANS[kind](self.model, self.data, jac[:3], jac[3:], fid)
         return jac
 
     def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:
@@ -362,19 +362,6 @@ def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
         if model.jnt_type[j] in _SCALAR_JOINTS:
             mask[model.jnt_qposadr[j]] = True
     return mask
-
-
-def as_configuration(
-    robot: Configuration | mujoco.MjModel | str, q: Sequence[float] | None = None
-) -> Configuration:
-    """A :class:`Configuration` from a Configuration, an MjModel or anything
-    :func:`qpik.load_robot` accepts."""
-
-    if isinstance(robot, Configuration):
-        if q is not None:
-            robot.update(q)
-        return robot
-    return Configuration(load_robot(robot), q)
 
 
 def resolve_robot(

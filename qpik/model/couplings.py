@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
 
 __all__ = ["Couplings", "model_couplings"]
@@ -78,10 +79,7 @@ class Couplings:
         return len(self.names)
 
     def _q(self, q: npt.ArrayLike) -> np.ndarray:
-        q = np.asarray(q, dtype=float)
-        if q.shape != (self.nq,) or not np.all(np.isfinite(q)):
-            raise InvalidConfiguration(f"q must be {self.nq} finite numbers, got shape {q.shape}")
-        return q
+        return check_vector("q", q, self.nq, error=InvalidConfiguration)
 
     def _measures(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = q[self.qadr]

@@ -1,5 +1,6 @@
-"""Frames of a MuJoCo model: the one :class:`FrameType` → ``mjtObj`` map and the one resolver
-of a frame key into ``(name, type, id)``.
+"""Frames of a MuJoCo model: the frame-type maps (object type, count, Jacobian, pose
+arrays; mink's own, keyed by :class:`FrameType`) and the resolver of a frame key into
+``(name, type, id)``.
 
 A *frame* is a body, a site or a geom: each has a pose in the world frame (MuJoCo's
 ``xpos``/``xmat``, ``site_xpos``/``site_xmat``, ``geom_xpos``/``geom_xmat``). A *frame key*,
@@ -20,14 +21,18 @@ from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
+from mink import constants as mink_constants
 
 from ..core import checks
 from ..errors import InvalidInput, UnknownFrame, UnknownFrameType
 
 __all__ = [
     "FRAME_COUNTS",
-    "check_model_type",
+    "FRAME_JACOBIANS",
     "FRAME_OBJECTS",
+    "FRAME_POSITIONS",
+    "FRAME_ROTATIONS",
+    "check_model_type",
     "FrameType",
     "ResolvedFrame",
     "frame_id",
@@ -68,19 +73,23 @@ class FrameType(str, enum.Enum):
             ) from None
 
 
-#: The MuJoCo object type of each frame type (the only copy of this map in qpik).
-FRAME_OBJECTS: Mapping[FrameType, mujoco.mjtObj] = MappingProxyType(
-    {
-        FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
-        FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
-        FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
-    }
-)
+def _by_frame_type(mink_map: Mapping[str, Any]) -> Mapping[FrameType, Any]:
+    """One of mink's frame maps (keyed ``"body"``, ``"site"``, ``"geom"``) keyed by
+    :class:`FrameType` (a ``str`` enum: the plain strings still look it up)."""
+    return MappingProxyType({FrameType(kind): value for kind, value in mink_map.items()})
 
+
+#: The MuJoCo object type of each frame type (mink's ``FRAME_TO_ENUM``).
+FRAME_OBJECTS: Mapping[FrameType, mujoco.mjtObj] = _by_frame_type(mink_constants.FRAME_TO_ENUM)
 #: The ``MjModel`` attribute counting the frames of each type.
-FRAME_COUNTS: Mapping[FrameType, str] = MappingProxyType(
-    {FrameType.SITE: "nsite", FrameType.BODY: "nbody", FrameType.GEOM: "ngeom"}
-)
+FRAME_COUNTS: Mapping[FrameType, str] = _by_frame_type(mink_constants.FRAME_TO_COUNT_ATTR)
+#: MuJoCo's Jacobian function of each frame type (``mj_jacSite``, ``mj_jacBody``,
+#: ``mj_jacGeom``; world-aligned, ``(model, data, jacp, jacr, id)``).
+FRAME_JACOBIANS: Mapping[FrameType, Any] = _by_frame_type(mink_constants.FRAME_TO_JAC_FUNC)
+#: The ``MjData`` attribute holding the world positions (n, 3) of each frame type.
+FRAME_POSITIONS: Mapping[FrameType, str] = _by_frame_type(mink_constants.FRAME_TO_POS_ATTR)
+#: The ``MjData`` attribute holding the world rotations (n, 9, row-major) of each type.
+FRAME_ROTATIONS: Mapping[FrameType, str] = _by_frame_type(mink_constants.FRAME_TO_XMAT_ATTR)
 
 #: The order in which a bare name is looked up.
 SEARCH_ORDER: tuple[FrameType, ...] = (FrameType.SITE, FrameType.BODY, FrameType.GEOM)

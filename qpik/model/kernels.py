@@ -2,12 +2,11 @@ r"""Compiled C++ kernels of the kinematic chain and of the IGM solve.
 
 The kernels live in the compiled engine (``qpik/_cpp``: ``model/chain.hpp``,
 ``model/so3.hpp``, ``igm/box_qp.hpp``, ``igm/igm.hpp``; bound as :mod:`qpik._engine.model`
-and :mod:`qpik._engine.igm`); this module re-exports them under their historical names,
-with the constants of the IGM. Every kernel takes plain arrays (no MuJoCo call happens
-inside); arrays they write into must already have the right dtype and layout (no silent
-copy), and a wrong shape raises ValueError. They are ports of the former numba kernels
-with the same operation order (the same answers, bitwise; ``tests/test_engine_model.py``
-checks them against answers recorded from the numba kernels).
+and :mod:`qpik._engine.igm`); this module names them for the Python side, with the
+constants of the IGM. Every kernel takes plain arrays (no MuJoCo call happens inside);
+arrays they write into must already have the right dtype and layout (no silent copy), and
+a wrong shape raises ValueError. ``tests/test_engine_model.py`` checks them bit for bit
+against recorded answers (``tests/fixtures/model.npz``).
 
 Kinematics follow MuJoCo's ``mj_kinematics`` (``engine_core_smooth.c``): per body on the
 chain, ``p <- p + R body_pos``, ``R <- R body_rot``; then per joint of the body, the axis
@@ -23,10 +22,7 @@ under box bounds (joint limits), solved exactly by an active-set method
 (``stall_window`` iterations without the score falling below ``PROGRESS`` times its value at
 the window's start) and restarts from a deterministic random stream (SplitMix64): odd
 restarts draw from the central ``RESTART_SPREAD`` of the restart box, even ones from all of
-it (starts near mid-range converge more often; the full box keeps the draws diverse). Over
-2,000 TRAC-IK targets per arm on six arms of example-robot-data, these two choices (with a
-5 % decrease as progress instead of 1 %) cut the mean iterations per solve by 1-13 % and the
-most for one target by up to 2.7x (ur5: 602 -> 220).
+it (starts near mid-range converge more often; the full box keeps the draws diverse).
 """
 
 from __future__ import annotations
@@ -97,7 +93,7 @@ quat2mat = _model.quat2mat
 
 # ------------------------------------------------------------------- rotations
 #: ``rotation_log(R, out) -> angle``: rotation vector of ``R`` into ``out`` (accurate near 0
-#: and near pi).
+#: and near pi); :mod:`qpik.model.lie` is its home for Python callers.
 rotation_log = _model.rotation_log
 #: ``rotation_defect(R) -> float``: ``max |R R^T - I|``, or inf when an entry is not finite
 #: or ``det R <= 0``.
@@ -106,7 +102,8 @@ rotation_defect = _model.rotation_defect
 #: 2 rotation not finite; 3 not a rotation (``|R R^T - I| > 1e-6`` or ``det R <= 0``).
 target_defect = _model.target_defect
 #: ``left_jacobian_inverse(phi, out)``: inverse left Jacobian of SO(3) at rotation vector
-#: ``phi`` (``d log(R) = Jl^-1 omega`` for a world perturbation ``dR = [omega] R``).
+#: ``phi`` into ``out`` (3, 3): the binding of ``so3_ljacinv`` (:mod:`qpik.model.lie`) that
+#: writes a (3, 3) array.
 left_jacobian_inverse = _model.left_jacobian_inverse
 
 # --------------------------------------------------------------------- box QP

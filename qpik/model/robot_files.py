@@ -41,6 +41,7 @@ import mujoco
 import numpy as np
 
 from ..errors import RobotFileError
+from .frames import FRAME_OBJECTS
 
 __all__ = ["ROOT_JOINT", "find_srdf", "robot_spec"]
 
@@ -124,6 +125,13 @@ def _srdf_path(srdf: str | os.PathLike | bool | None, root: ET.Element, path: Pa
 
 
 #: Model arrays that must be finite (MuJoCo compiles NaN / inf numbers in a file as is).
+#: The object type named by the prefix of a model field (``body_``, ``jnt_``, ...).
+_FIELD_OBJECTS = {
+    **{kind.value: obj for kind, obj in FRAME_OBJECTS.items()},
+    "jnt": mujoco.mjtObj.mjOBJ_JOINT,
+    "dof": mujoco.mjtObj.mjOBJ_DOF,
+    "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+}
 _FINITE_FIELDS = (
     "body_pos",
     "body_quat",
@@ -160,14 +168,7 @@ def _check_finite(model: mujoco.MjModel, path: Path) -> None:
         if bad.size:
             row = int(bad[0][0])
             what = name.split("_", 1)[0]
-            obj = {
-                "body": mujoco.mjtObj.mjOBJ_BODY,
-                "jnt": mujoco.mjtObj.mjOBJ_JOINT,
-                "dof": mujoco.mjtObj.mjOBJ_DOF,
-                "geom": mujoco.mjtObj.mjOBJ_GEOM,
-                "site": mujoco.mjtObj.mjOBJ_SITE,
-                "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
-            }.get(what)
+            obj = _FIELD_OBJECTS.get(what)
             label = (mujoco.mj_id2name(model, obj, row) if obj is not None else None) or row
             raise RobotFileError(
                 str(path), f"{name} of {what} {label!r} is not finite: {values[row]}"

@@ -7,7 +7,7 @@
 * a ``mujoco.MjModel`` (returned as is);
 * ``"erd:NAME"``: a URDF that the package ``example-robot-data`` ships
   (``"erd:panda"``, ``"erd:ur5"``, ``"erd:talos"``, ...; every name: :func:`erd_robots`;
-  install it with ``pip install 'qpik[robots]'``).
+  from a checkout, ``pip install -e ".[robots]"``).
 
 Reading a file (MJCF or URDF, with the workarounds URDF files need, a floating base and
 SRDF keyframes) is :mod:`qpik.model.robot_files`'s; :func:`robot_spec` and :func:`find_srdf` are

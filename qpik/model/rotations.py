@@ -1,6 +1,6 @@
-r"""Rotations: the one orientation-error formula of qpik, and rotation-matrix and quaternion
-helpers (NumPy; the compiled IGM has its own array-loop copy of :func:`rotation_vector` in
-:func:`qpik.model.kernels.rotation_log`, tested equal to this one).
+r"""Rotations: the orientation error of qpik, and rotation-matrix and quaternion helpers
+(NumPy arrays in and out; the log and the inverse left Jacobian are the compiled ones of
+:mod:`qpik.model.lie`, which the IGM and the frame tasks use too).
 
 Conventions:
 
@@ -21,6 +21,8 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from . import lie
+
 __all__ = [
     "left_jacobian_inverse",
     "matrix_to_quaternion",
@@ -40,10 +42,6 @@ __all__ = [
 #: orientations (``acos`` of the trace included) agrees within 1e-7 rad.
 ORTHONORMAL_TOLERANCE = 1e-14
 
-#: Below this cosine of the angle, the axis is read from the symmetric part of ``R``
-#: (``sin(angle)`` is too small for the skew part to carry it accurately).
-_NEAR_PI_COSINE = -0.9
-
 
 def skew(v: npt.ArrayLike) -> np.ndarray:
     """The cross-product matrix ``[v]`` (3, 3): ``[v] w = v x w``."""
@@ -54,27 +52,14 @@ def skew(v: npt.ArrayLike) -> np.ndarray:
 def rotation_vector(R: npt.ArrayLike) -> np.ndarray:
     """``log(R)`` as a rotation vector (axis * angle, angle in [0, pi]) [rad], shape (3,).
 
-    Accurate over the whole range: the angle is ``atan2(|v|, (tr R - 1) / 2)`` with ``v``
-    the skew part of ``R`` (no loss near 0, where ``acos`` of the trace loses half the
-    digits), and near pi the axis comes from the symmetric part ``R + R^T = 2 cos I +
-    2 (1 - cos) u u^T``, its sign from the skew part.
+    Accurate over the whole range (:func:`qpik.model.lie.rotation_log`): the angle is
+    ``atan2(|v|, (tr R - 1) / 2)`` with ``v`` the skew part of ``R`` (no loss near 0, where
+    ``acos`` of the trace loses half the digits), and near pi the axis comes from the
+    symmetric part ``R + R^T = 2 cos I + 2 (1 - cos) u u^T``, its sign from the skew part.
     """
-    R = np.asarray(R, dtype=float)
-    v = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    s = math.sqrt(float(v @ v))
-    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    theta = math.atan2(s, c)
-    if c > _NEAR_PI_COSINE:
-        if s < 1e-300:
-            return np.zeros(3)
-        return (theta / s) * v
-    best = int(np.argmax(np.diag(R)))
-    u = 0.5 * (R[:, best] + R[best, :])
-    u[best] -= c
-    u /= math.sqrt(float(u @ u))
-    if u @ v < 0.0:
-        u = -u
-    return theta * u
+    out = np.empty(3)
+    lie.rotation_log(_matrix(R), out)
+    return out
 
 
 def orientation_error(R_current: npt.ArrayLike, R_target: npt.ArrayLike) -> np.ndarray:
@@ -87,9 +72,7 @@ def orientation_angle(R_current: npt.ArrayLike, R_target: npt.ArrayLike) -> floa
     """The angle [rad], in [0, pi], between two orientations: the norm of
     :func:`orientation_error`, from ``atan2`` (accurate near 0 and pi)."""
     M = np.asarray(R_target, dtype=float) @ np.asarray(R_current, dtype=float).T
-    s = 0.5 * math.hypot(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])
-    c = 0.5 * (M[0, 0] + M[1, 1] + M[2, 2] - 1.0)
-    return math.atan2(s, c)
+    return float(lie.rotation_log(_matrix(M), np.empty(3)))
 
 
 def rotation_from_vector(phi: npt.ArrayLike) -> np.ndarray:
@@ -109,15 +92,11 @@ def rotation_from_vector(phi: npt.ArrayLike) -> np.ndarray:
 
 def left_jacobian_inverse(phi: npt.ArrayLike) -> np.ndarray:
     """Inverse left Jacobian of SO(3) at rotation vector ``phi`` [rad], (3, 3):
-    ``d log(R) = J_l^-1(phi) omega`` for a world-frame perturbation ``dR = [omega] R``."""
-    phi = np.asarray(phi, dtype=float)
-    theta = math.sqrt(float(phi @ phi))
-    S = skew(phi)
-    if theta < 1e-6:
-        k = 1.0 / 12.0
-    else:
-        k = 1.0 / (theta * theta) - (1.0 + math.cos(theta)) / (2.0 * theta * math.sin(theta))
-    return np.eye(3) - 0.5 * S + k * (S @ S)
+    ``d log(R) = J_l^-1(phi) omega`` for a world-frame perturbation ``dR = [omega] R``
+    (:func:`qpik.model.lie.so3_ljacinv`)."""
+    out = np.empty(9)
+    lie.so3_ljacinv(out, np.ascontiguousarray(phi, dtype=float).reshape(3))
+    return out.reshape(3, 3)
 
 
 def quaternion_to_matrix(quaternion: npt.ArrayLike) -> np.ndarray:
@@ -197,17 +176,20 @@ def nearest_rotation(R: npt.ArrayLike) -> np.ndarray:
     if not float(np.max(np.abs(R @ R.T - np.eye(3)))) > ORTHONORMAL_TOLERANCE:
         return R
     U, _, Vt = np.linalg.svd(R)
-    if np.linalg.det(U @ Vt) < 0.0:  # det R <= 0 is rejected before; kept for safety
+    if np.linalg.det(U @ Vt) < 0.0:  # det R <= 0 is rejected before reaching here
         U[:, -1] = -U[:, -1]
     return U @ Vt
 
 
 def rotation_defect(R: npt.ArrayLike) -> float:
-    """``max |R R^T - I|`` of a (3, 3) matrix, or inf when it has a non-finite entry or
-    ``det R <= 0``: a matrix is a rotation within ``tol`` when this is ``<= tol``."""
+    """``max |R R^T - I|`` of a (3, 3) matrix, or inf when it has a non-finite entry, another
+    shape, or ``det R <= 0``: a matrix is a rotation within ``tol`` when this is ``<= tol``."""
     R = np.asarray(R, dtype=float)
-    if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+    if R.shape != (3, 3):
         return math.inf
-    if not np.linalg.det(R) > 0.0:
-        return math.inf
-    return float(np.max(np.abs(R @ R.T - np.eye(3))))
+    return float(lie.rotation_defect(np.ascontiguousarray(R)))
+
+
+def _matrix(R: npt.ArrayLike) -> np.ndarray:
+    """``R`` as a C-contiguous float (3, 3) array, as the compiled routines take it."""
+    return np.ascontiguousarray(R, dtype=float).reshape(3, 3)

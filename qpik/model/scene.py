@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import check_vector
 from ..errors import SceneError
 from .robots import SOURCE_TEXT, robot_spec
 
@@ -112,8 +113,7 @@ def add_obstacle(
         raise SceneError(f"size and position must be numbers, got {size!r}, {position!r}") from None
     if sizes.shape != (count,) or not np.all(np.isfinite(sizes)) or not np.all(sizes > 0):
         raise SceneError(f"a {shape}'s size is {layout}, positive numbers [m]; got {size!r}")
-    if centre.shape != (3,) or not np.all(np.isfinite(centre)):
-        raise SceneError(f"position must be 3 finite numbers [m], got {position!r}")
+    centre = check_vector("position", centre, 3, error=SceneError)
     existing = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)}
     if name is None:
         k = 0

@@ -12,8 +12,7 @@ from mink.tasks.task import BaseTask
 
 from .com import ComTask
 from .coupling import CouplingTask
-from .fast import DampingTask, FrameTask, PostureTask
-from .frame import OrientationTask, PoseTask, PositionTask
+from .frame import FrameTask
 from .mink_tasks import (
     AxisAlignTask,
     DofFreezingTask,
@@ -22,6 +21,8 @@ from .mink_tasks import (
     LookAtTask,
     RelativeFrameTask,
 )
+from .pose import OrientationTask, PoseTask, PositionTask
+from .posture import DampingTask, PostureTask
 from .secondary import JointLimitDistanceTask, ManipulabilityTask
 
 __all__ = [

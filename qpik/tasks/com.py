@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..errors import (
     InvalidTarget,
     TargetNotSet,
@@ -69,9 +70,7 @@ class ComTask(mink.Task):
 
     def set_target(self, target_com: npt.ArrayLike) -> None:
         """Set the target CoM ``(3,)`` [m], world frame."""
-        target = np.asarray(target_com, dtype=float)
-        if target.shape != (self.k,) or not np.all(np.isfinite(target)):
-            raise InvalidTarget(f"CoM target must be 3 finite numbers [m], got {target_com!r}")
+        target = checks.check_vector("CoM target", target_com, self.k, error=InvalidTarget)
         self.target_com = target.copy()
 
     def set_target_from_configuration(self, configuration: mink.Configuration) -> None:

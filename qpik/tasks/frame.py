@@ -1,208 +1,93 @@
-"""Position-only and orientation-only frame tasks, in the world frame.
+"""FrameTask: mink's frame task with its rows computed straight from MuJoCo.
 
-mink's :class:`~mink.FrameTask` with a zero orientation cost also regulates position only,
-but keeps six rows (three of them zero) and expresses its error in the local frame. These
-tasks have exactly the rows they regulate, world-aligned, so that a level's rank and
-smallest singular value (which drive qpik's damping) mean what they say.
+It is mink's class (``isinstance(task, mink.FrameTask)`` holds, targets are set the same
+way) whose error and Jacobian are computed without building SE3 objects or re-allocating
+per step: the frame pose and world-aligned Jacobian come from MuJoCo
+(``data.site_xpos``/``site_xmat``, ``mj_jacSite``, and the body/geom equivalents), the SE3
+log, its Jacobian and the local-frame rotation from mink's Lie-group arithmetic (its C
+routines, ported to C++: :mod:`qpik.model.lie`).
+They equal mink's own to round-off (tests check 1e-12).
 """
 
 from __future__ import annotations
 
 import mink
 import numpy as np
-import numpy.typing as npt
 
+from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
-from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
-from ..model.configuration import Configuration, FrameType
-from ..model.rotations import left_jacobian_inverse, rotation_vector
+from ..errors import TargetNotSet, mink_errors_as_qpik
+from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FRAME_POSITIONS, FRAME_ROTATIONS
 
-# These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
-# their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
-# ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
-# configuration into a qpik one before any task sees it.
+__all__ = ["FrameTask"]
 
 
-def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
-    """A float copy of ``value``; :class:`InvalidTarget` when it is not numbers."""
-    if isinstance(value, (str, bytes)):
-        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}")
-    try:
-        return np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}") from None
+def _frame_type_name(frame_type) -> str:
+    return getattr(frame_type, "value", frame_type)
 
 
-def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
-    """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
-    position = _numbers(value, what)
-    if position.shape != (3,) or not np.all(np.isfinite(position)):
-        raise InvalidTarget(f"{what} must be 3 finite numbers, got {position!r}")
-    return position
+# The compiled kernels (qpik/_cpp/tasks/frame.hpp, bound in qpik._engine.tasks):
+#
+# frame_error_jlog(xmat, xpos, target) -> (error (6,), jlog (6, 6)): mink's frame-task error
+#     log(T_fw^-1 T_tw) (the body twist from the frame at (xpos, xmat) to target,
+#     wxyz_xyz) and jlog(T_tw^-1 T_fw), by mink's own SE(3) arithmetic (qpik.model.lie).
+# frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping) -> float:
+#     rows row:row+6 of a frame task written into A/b (float64 C-contiguous, in place):
+#     A = diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e (mink's
+#     _weighted_residual); returns the LM term lm_damping |b|^2. jac is MuJoCo's
+#     world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9).
 
 
-def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
-    """A copy of ``value`` as a rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
-    rotation = _numbers(value, what)
-    if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
-        raise InvalidTarget(f"{what} must be a finite 3x3 matrix, got {rotation!r}")
-    if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0:
-        raise InvalidTarget(f"{what} is not a rotation matrix (R R^T != I or det < 0)")
-    return rotation
+class FrameTask(mink.FrameTask):
+    """mink's :class:`~mink.FrameTask` (error: the body twist ``log(T_bt)`` of the frame to
+    its target, expressed in the frame's local axes [m, rad]; Jacobian ``-jlog(T_tb)
+    {}_B J``), computed from MuJoCo directly."""
 
-
-def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
-    vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
-    if not np.all(np.isfinite(vector)) or np.any(vector < 0):
-        raise InvalidTarget(f"{name} must be finite and >= 0, got {vector}")
-    return vector
-
-
-class _FrameRowsTask(mink.Task):
-    """A task on three rows of one frame's pose (see the subclasses)."""
-
-    k = 3
-    _cost_name = "cost"
-
-    def __init__(
-        self,
-        frame_name: str,
-        frame_type: FrameType | str = FrameType.SITE,
-        cost: npt.ArrayLike = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-    ):
+    def __init__(self, *args, **kwargs):
         with mink_errors_as_qpik(type(self).__name__):
-            super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
-        self.frame_name = checks.check_frame_name("frame_name", frame_name)
-        self.frame_type = FrameType.parse(frame_type)
-        self.target: np.ndarray | None = None
+            super().__init__(*args, **kwargs)
+        checks.check_frame_name("frame_name", self.frame_name)
 
+    def _frame_terms(self, configuration):
+        """``(jac, xmat, jlog, error)`` from MuJoCo and mink's SE3 arithmetic
+        (:func:`frame_error_jlog`): the world-aligned Jacobian (6, nv), the frame's rotation
+        (row-major 9), ``jlog(T_tb)`` and the body-twist error; ``None`` for a frame type
+        only mink's generic path knows."""
+        if self.transform_target_to_world is None:
+            raise TargetNotSet(self.__class__.__name__)
+        kind = _frame_type_name(self.frame_type)
+        if kind not in FRAME_OBJECTS:
+            return None
+        model, data = configuration.model, configuration.data
+        fid = configuration._resolve_frame_id(self.frame_name, kind)
+        xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
+        xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
+        jac = np.empty((6, model.nv))
+        FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
+        error, jlog = frame_error_jlog(xmat, xpos, self.transform_target_to_world.wxyz_xyz)
+        return jac, xmat, jlog, error
 
-class PositionTask(_FrameRowsTask):
-    """Bring a frame's origin to a target position (world frame, [m]).
+    def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
+        terms = self._frame_terms(configuration)
+        if terms is None:
+            return super()._error_and_jacobian(configuration)
+        jac, xmat, jlog, error = terms
+        # Local (body) Jacobian: MuJoCo's rows are world-aligned, rotate them by R^T.
+        rotation_t = xmat.reshape(3, 3).T
+        local = np.empty_like(jac)
+        np.matmul(rotation_t, jac[:3], out=local[:3])
+        np.matmul(rotation_t, jac[3:], out=local[3:])
+        return error, -(jlog @ local)
 
-    Error ``e = p(q) - p_target`` (3,), Jacobian the linear rows of the world-aligned frame
-    Jacobian.
-    """
-
-    k = 3
-    _cost_name = "position cost"
-
-    def set_target(self, position: npt.ArrayLike) -> None:
-        """Target position of the frame origin in the world frame [m]."""
-        self.target = checked_position(position)
-
-    def set_target_from_configuration(self, configuration: Configuration) -> None:
-        """Target = the frame's current position."""
-        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[0])
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        if self.target is None:
-            raise TargetNotSet(type(self).__name__)
-        return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
-
-
-#: The SO(3) helpers of :mod:`qpik.model.rotations` (one implementation in the package).
-so3_log = rotation_vector
-so3_left_jacobian_inverse = left_jacobian_inverse
-
-
-class OrientationTask(_FrameRowsTask):
-    """Bring a frame's orientation to a target rotation (world frame).
-
-    Error ``e = log(R(q) R_target^T)`` (3,) [rad], the rotation vector from the target to the
-    current orientation in world coordinates; Jacobian ``Jl^-1(e) J_omega`` (exact).
-    """
-
-    k = 3
-    _cost_name = "orientation cost"
-
-    def set_target(self, rotation: npt.ArrayLike) -> None:
-        """Target rotation matrix (3, 3) of the frame in the world frame."""
-        self.target = checked_rotation(rotation)
-
-    def set_target_from_configuration(self, configuration: Configuration) -> None:
-        """Target = the frame's current orientation."""
-        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[1])
-
-    def _error(self, configuration: Configuration) -> np.ndarray:
-        if self.target is None:
-            raise TargetNotSet(type(self).__name__)
-        rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
-        return so3_log(rotation @ self.target.T)
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error(configuration)
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        error = self._error(configuration)
-        angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
-        return so3_left_jacobian_inverse(error) @ angular
-
-
-class PoseTask(mink.Task):
-    """Bring a frame to a target pose, errors in the world frame.
-
-    Error ``e = [p(q) - p_target; log(R(q) R_target^T)]`` (6,) [m, rad]; Jacobian
-    ``[J_v; Jl^-1(e_rot) J_omega]`` (exact). The same rows as :class:`PositionTask` and
-    :class:`OrientationTask` together, computed from one frame pose and one Jacobian.
-    (mink's :class:`~mink.FrameTask` regulates the same pose with a local-frame error.)
-    """
-
-    k = 6
-
-    def __init__(
-        self,
-        frame_name: str,
-        frame_type: FrameType | str = FrameType.SITE,
-        position_cost: npt.ArrayLike = 1.0,
-        orientation_cost: npt.ArrayLike = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-    ):
-        with mink_errors_as_qpik(type(self).__name__):
-            cost = np.concatenate(
-                [
-                    _cost_vector(position_cost, "position cost"),
-                    _cost_vector(orientation_cost, "orientation cost"),
-                ]
-            )
-            super().__init__(cost, gain, lm_damping)
-        self.frame_name = checks.check_frame_name("frame_name", frame_name)
-        self.frame_type = FrameType.parse(frame_type)
-        self.target_position: np.ndarray | None = None
-        self.target_rotation: np.ndarray | None = None
-
-    def set_target(self, position: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
-        """Target position [m] and rotation matrix, in the world frame."""
-        self.target_position = checked_position(position)
-        self.target_rotation = checked_rotation(rotation)
-
-    def set_target_from_configuration(self, configuration: Configuration) -> None:
-        """Target = the frame's current pose."""
-        self.set_target(*configuration.frame_pose(self.frame_name, self.frame_type))
-
-    def _error_and_jacobian(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
-        if self.target_position is None or self.target_rotation is None:
-            raise TargetNotSet(type(self).__name__)
-        position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
-        jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        rotation_error = so3_log(rotation @ self.target_rotation.T)
-        error = np.concatenate([position - self.target_position, rotation_error])
-        jacobian[3:] = so3_left_jacobian_inverse(rotation_error) @ jacobian[3:]
-        return error, jacobian
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error_and_jacobian(configuration)[0]
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error_and_jacobian(configuration)[1]
-
-    def compute_qp_residual(  # type: ignore[override]
-        self, configuration: Configuration
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        return self._weighted_residual(*self._error_and_jacobian(configuration))
+    def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call after MuJoCo's."""
+        terms = self._frame_terms(configuration)
+        if terms is None:
+            return super().compute_qp_residual(configuration)
+        jac, xmat, jlog, error = terms
+        A = np.empty((6, jac.shape[1]))
+        b = np.empty(6)
+        mu = frame_rows_into(
+            A, b, 0, jac, xmat, jlog, error, self.cost, float(self.gain), float(self.lm_damping)
+        )
+        return A, b, mu

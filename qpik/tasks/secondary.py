@@ -1,9 +1,10 @@
-"""Secondary objectives, meant for lower priority levels (the lecture's ``zeta``).
+"""Secondary objectives, meant for lower priority levels (the ``zeta`` of
+``qdot = J^+ xi + N(q) zeta``).
 
 Both are scalar tasks: the error is a scalar measure ``w(q)``, the Jacobian its gradient
 ``dw/dq`` (1, nv), so ``J dq = -gain * w`` moves ``q`` along the gradient. Placed below a
-frame task, the QP restricts that motion to the null space of the frame task: the lecture's
-``qdot = J^+ xi + N(q) zeta``.
+frame task, the QP restricts that motion to the null space of the frame task, as in the
+general solution ``qdot = J^+ xi + N(q) zeta``.
 """
 
 from __future__ import annotations

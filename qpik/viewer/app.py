@@ -288,7 +288,7 @@ class Viewer:
         points = limit.support_points(configuration)
         try:
             hull = points[ConvexHull(points).vertices]
-        except Exception:  # noqa: BLE001 - degenerate footprints: draw nothing
+        except Exception:  # degenerate footprints: draw nothing
             return
         self.support_polygon = hull.copy()
         z = 0.002

@@ -219,7 +219,7 @@ class Browser:
         if socket is not None:
             try:
                 socket.close()
-            except Exception:  # noqa: BLE001 - closing anyway
+            except Exception:  # closing anyway
                 pass
         if self._process.poll() is None:
             self._process.terminate()

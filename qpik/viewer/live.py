@@ -318,7 +318,7 @@ class LiveSolve:
         for task in self.levels[0] if self.levels else []:
             try:
                 error = task.compute_error(self.configuration)
-            except Exception:  # noqa: BLE001 - a task without a target: nothing to hold
+            except Exception:  # a task without a target: nothing to hold
                 continue
             worst = max(worst, float(np.max(np.abs(error), initial=0.0)))
         return worst

@@ -195,6 +195,10 @@ inline double smallest_eigenvalue(MatRef G, i64 n) {
 // The min(r, nv)-th singular value of A[:m], r its rows not identically zero, from the
 // smaller Gram matrix built in the scratch G. With threshold > 0, inf when that value is
 // at least threshold (one Cholesky of G - threshold^2 I decides). Scratch: rows (m,), L.
+// Not core::min_singular (one-sided Jacobi on a copy it allocates, for the cascade's
+// certificate): this one runs every IGM iteration, so it allocates nothing, skips zero
+// rows, takes either Gram side (r > nv too), and answers "at least threshold" with one
+// Cholesky instead of computing the value.
 inline double smallest_singular_value_in(CMatRef A, i64 m, i64 nv, MatRef G, double threshold, i64* rows,
                                          MatRef L) {
     i64 r = 0;
@@ -328,7 +332,7 @@ inline void target_level(const Mat& jac, const i64* cols, i64 nc, const double* 
         b[i] = -gain * error[i];
     }
     if (has_rot) {
-        model::left_jacobian_inverse(rot_err, Jinv);
+        model::so3_ljacinv(Jinv, rot_err);
         for (int i = 0; i < 3; ++i) {
             for (i64 c = 0; c < nc; ++c) {
                 i64 j = cols[c];

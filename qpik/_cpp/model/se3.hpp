@@ -1,6 +1,7 @@
-// SE(3) and SO(3) routines of mink's compiled Lie-group module (mink/lie/_lie_ops_c.c),
-// ported from qpik/tasks/_lie.py (itself a port of mink's C) operation for operation: the
-// same floating-point operations in the same order, so the answers are bitwise equal.
+// SE(3) routines of mink's compiled Lie-group module (mink/lie/_lie_ops_c.c), ported
+// operation for operation: the same floating-point operations in the same order, so the
+// answers equal mink's to round-off. The SO(3) parts (log, inverse left Jacobian) are
+// those of so3.hpp.
 //
 // Poses are wxyz_xyz (7): a unit quaternion (w, x, y, z) then a translation [m]. Tangents
 // are [v; omega] (6) [m, rad]. 3x3 matrices are row-major (9), as MuJoCo's xmat; the 6x6
@@ -11,14 +12,13 @@
 #include <cmath>
 
 #include "../common.hpp"
+#include "so3.hpp"
 
 namespace qpik::model {
 
-constexpr double kLieEps = 1e-10;
-
 namespace se3_detail {
 
-inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+using so3_detail::dot3;
 
 inline void quat_mul(double* out, const double* a, const double* b) {
     out[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
@@ -62,61 +62,6 @@ inline void mat33_transpose(double* out, const double* m) {
 }
 
 }  // namespace se3_detail
-
-// Rotation vector [rad] of a unit quaternion (the shorter way round); reads wxyz[0:4].
-inline void so3_log(double* omega, const double* wxyz) {
-    double w = wxyz[0], x = wxyz[1], y = wxyz[2], z = wxyz[3];
-    if (w < 0.0) {
-        w = -w;
-        x = -x;
-        y = -y;
-        z = -z;
-    }
-    const double norm = std::sqrt(x * x + y * y + z * z);
-    if (norm > 0.0) {
-        const double inv = 1.0 / norm;
-        x = x * inv;
-        y = y * inv;
-        z = z * inv;
-    }
-    if (norm < kLieEps) {
-        omega[0] = 0.0;
-        omega[1] = 0.0;
-        omega[2] = 0.0;
-        return;
-    }
-    const double angle = 2.0 * std::atan2(norm, w);
-    omega[0] = angle * x;
-    omega[1] = angle * y;
-    omega[2] = angle * z;
-}
-
-// SO(3) left Jacobian inverse at omega (row-major 3x3).
-inline void so3_ljacinv(double* out, const double* omega) {
-    using namespace se3_detail;
-    const double theta = std::sqrt(dot3(omega, omega));
-    const double t2 = theta * theta;
-    double beta;
-    if (theta < kLieEps) {
-        beta = (1.0 / 12.0) * (1.0 + t2 / 60.0 * (1.0 + t2 / 42.0 * (1.0 + t2 / 40.0)));
-    } else {
-        beta = (1.0 / t2) * (1.0 - (theta * std::sin(theta) / (2.0 * (1.0 - std::cos(theta)))));
-    }
-    const double inner = dot3(omega, omega);
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            out[3 * i + j] = beta * (omega[i] * omega[j] - (i == j ? inner : 0.0));
-    const double a0 = -0.5 * omega[0], a1 = -0.5 * omega[1], a2 = -0.5 * omega[2];
-    out[1] += -a2;
-    out[2] += a1;
-    out[3] += a2;
-    out[5] += -a0;
-    out[6] += -a1;
-    out[7] += a0;
-    out[0] += 1.0;
-    out[4] += 1.0;
-    out[8] += 1.0;
-}
 
 // A MuJoCo frame (xmat row-major 9, xpos 3) as wxyz_xyz (Shepperd's method).
 inline void xmat_xpos_to_wxyz_xyz(double* out, const double* R, const double* xpos) {

@@ -1,12 +1,24 @@
-// Rotations of the model layer: log of SO(3), the inverse left Jacobian and the checks
-// of a rotation target (ported from qpik/model/_kernels.py, same operation order).
+// SO(3): the log of a rotation matrix (rotation_log) and of a unit quaternion (so3_log,
+// mink's), the inverse left Jacobian (so3_ljacinv, mink's), and the checks of a rotation
+// target. se3.hpp builds SE(3) on these.
 #pragma once
+
+#include <cmath>
 
 #include "../common.hpp"
 
 namespace qpik::model {
 
+constexpr double kLieEps = 1e-10;
+
+namespace so3_detail {
+
+inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+}  // namespace so3_detail
+
 // Rotation vector (axis * angle [rad]) of the row-major 3x3 R into out; returns the angle.
+// The log of SO(3) on matrices.
 // Accurate near 0 (atan2 of the skew part) and near pi (axis from the symmetric part).
 inline double rotation_log(const double* R, double* out) {
     auto r = [R](int i, int j) { return R[3 * i + j]; };
@@ -81,29 +93,65 @@ inline i64 target_defect(const double* position, const double* rotation, bool ha
     return 0;
 }
 
-// Inverse left Jacobian of SO(3) at rotation vector phi into out (3x3 row-major):
-// d log(R) = Jl^-1 omega for a world perturbation dR = [omega] R.
-inline void left_jacobian_inverse(const double* phi, double* out) {
-    double theta = std::sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
-    double S[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
-    S[0][1] = -phi[2];
-    S[0][2] = phi[1];
-    S[1][0] = phi[2];
-    S[1][2] = -phi[0];
-    S[2][0] = -phi[1];
-    S[2][1] = phi[0];
-    double k;
-    if (theta < 1e-6)
-        k = 1.0 / 12.0;
-    else
-        k = 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
-    for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-            double s2 = S[i][0] * S[0][j] + S[i][1] * S[1][j] + S[i][2] * S[2][j];
-            out[3 * i + j] = -0.5 * S[i][j] + k * s2;
-        }
-        out[3 * i + i] += 1.0;
+// Rotation vector [rad] of a unit quaternion (the shorter way round); reads wxyz[0:4].
+// mink's _so3_log: the log of SO(3) on quaternions (rotation_log is the one on matrices).
+inline void so3_log(double* omega, const double* wxyz) {
+    double w = wxyz[0], x = wxyz[1], y = wxyz[2], z = wxyz[3];
+    if (w < 0.0) {
+        w = -w;
+        x = -x;
+        y = -y;
+        z = -z;
     }
+    const double norm = std::sqrt(x * x + y * y + z * z);
+    if (norm > 0.0) {
+        const double inv = 1.0 / norm;
+        x = x * inv;
+        y = y * inv;
+        z = z * inv;
+    }
+    if (norm < kLieEps) {
+        omega[0] = 0.0;
+        omega[1] = 0.0;
+        omega[2] = 0.0;
+        return;
+    }
+    const double angle = 2.0 * std::atan2(norm, w);
+    omega[0] = angle * x;
+    omega[1] = angle * y;
+    omega[2] = angle * z;
+}
+
+// Inverse left Jacobian of SO(3) at rotation vector omega into out (row-major 3x3):
+// d log(R) = Jl^-1 omega' for a world perturbation dR = [omega'] R: mink's _so3_ljacinv,
+// used by jlog of SE(3) (the frame tasks) and the IGM. Its series is taken below
+// theta^2 = kLieEps (mink: theta < kLieEps), where jlog never calls it, so jlog keeps mink's
+// answers bitwise: mink's closed form divides by 1 - cos(theta), which rounds to 0 below
+// theta ~ 1e-8 (a NaN) and keeps ~|log10 theta^2| - 6 digits above 1e-5.
+inline void so3_ljacinv(double* out, const double* omega) {
+    using so3_detail::dot3;
+    const double theta = std::sqrt(dot3(omega, omega));
+    const double t2 = theta * theta;
+    double beta;
+    if (t2 < kLieEps) {
+        beta = (1.0 / 12.0) * (1.0 + t2 / 60.0 * (1.0 + t2 / 42.0 * (1.0 + t2 / 40.0)));
+    } else {
+        beta = (1.0 / t2) * (1.0 - (theta * std::sin(theta) / (2.0 * (1.0 - std::cos(theta)))));
+    }
+    const double inner = dot3(omega, omega);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            out[3 * i + j] = beta * (omega[i] * omega[j] - (i == j ? inner : 0.0));
+    const double a0 = -0.5 * omega[0], a1 = -0.5 * omega[1], a2 = -0.5 * omega[2];
+    out[1] += -a2;
+    out[2] += a1;
+    out[3] += a2;
+    out[5] += -a0;
+    out[6] += -a1;
+    out[7] += a0;
+    out[0] += 1.0;
+    out[4] += 1.0;
+    out[8] += 1.0;
 }
 
 }  // namespace qpik::model

@@ -1,5 +1,5 @@
 // A frame task's rows from MuJoCo's pose and world-aligned Jacobian (ported from the
-// kernels of qpik/tasks/fast.py, same operations in the same order): mink's error
+// kernels of qpik/tasks/frame.py, same operations in the same order): mink's error
 // log(T_fw^-1 T_tw), its jlog, and the weighted rows diag(cost) (-jlog) [R^T Jp; R^T Jr].
 #pragma once
 

@@ -1,0 +1,200 @@
+"""Position-only and orientation-only frame tasks, in the world frame.
+
+mink's :class:`~mink.FrameTask` with a zero orientation cost also regulates position only,
+but keeps six rows (three of them zero) and expresses its error in the local frame. These
+tasks have exactly the rows they regulate, world-aligned, so that a level's rank and
+smallest singular value (which drive qpik's damping) mean what they say.
+"""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import numpy.typing as npt
+
+from ..core import checks
+from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
+from ..model.configuration import Configuration, FrameType
+from ..model.rotations import left_jacobian_inverse, rotation_vector
+
+# These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
+# their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
+# ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
+# configuration into a qpik one before any task sees it.
+
+
+def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
+    """A float copy of ``value``; :class:`InvalidTarget` when it is not numbers."""
+    if isinstance(value, (str, bytes)):
+        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}")
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidTarget(f"{what} must be numbers, got {type(value).__name__}") from None
+
+
+def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.ndarray:
+    """A copy of ``value`` as a finite position (3,) [m]; :class:`InvalidTarget` otherwise."""
+    return checks.check_vector(what, value, 3, error=InvalidTarget).copy()
+
+
+def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
+    """A copy of ``value`` as a rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
+    rotation = _numbers(value, what)
+    if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
+        raise InvalidTarget(f"{what} must be a finite 3x3 matrix, got {rotation!r}")
+    if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0:
+        raise InvalidTarget(f"{what} is not a rotation matrix (R R^T != I or det < 0)")
+    return rotation
+
+
+def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
+    vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
+    if not np.all(np.isfinite(vector)) or np.any(vector < 0):
+        raise InvalidTarget(f"{name} must be finite and >= 0, got {vector}")
+    return vector
+
+
+class _FrameRowsTask(mink.Task):
+    """A task on three rows of one frame's pose (see the subclasses)."""
+
+    k = 3
+    _cost_name = "cost"
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: FrameType | str = FrameType.SITE,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        with mink_errors_as_qpik(type(self).__name__):
+            super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
+        self.frame_name = checks.check_frame_name("frame_name", frame_name)
+        self.frame_type = FrameType.parse(frame_type)
+        self.target: np.ndarray | None = None
+
+
+class PositionTask(_FrameRowsTask):
+    """Bring a frame's origin to a target position (world frame, [m]).
+
+    Error ``e = p(q) - p_target`` (3,), Jacobian the linear rows of the world-aligned frame
+    Jacobian.
+    """
+
+    k = 3
+    _cost_name = "position cost"
+
+    def set_target(self, position: npt.ArrayLike) -> None:
+        """Target position of the frame origin in the world frame [m]."""
+        self.target = checked_position(position)
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current position."""
+        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[0])
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        if self.target is None:
+            raise TargetNotSet(type(self).__name__)
+        return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
+
+
+class OrientationTask(_FrameRowsTask):
+    """Bring a frame's orientation to a target rotation (world frame).
+
+    Error ``e = log(R(q) R_target^T)`` (3,) [rad], the rotation vector from the target to the
+    current orientation in world coordinates; Jacobian ``Jl^-1(e) J_omega`` (exact).
+    """
+
+    k = 3
+    _cost_name = "orientation cost"
+
+    def set_target(self, rotation: npt.ArrayLike) -> None:
+        """Target rotation matrix (3, 3) of the frame in the world frame."""
+        self.target = checked_rotation(rotation)
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current orientation."""
+        self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[1])
+
+    def _error(self, configuration: Configuration) -> np.ndarray:
+        if self.target is None:
+            raise TargetNotSet(type(self).__name__)
+        rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
+        return rotation_vector(rotation @ self.target.T)
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return self._error(configuration)
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        error = self._error(configuration)
+        angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
+        return left_jacobian_inverse(error) @ angular
+
+
+class PoseTask(mink.Task):
+    """Bring a frame to a target pose, errors in the world frame.
+
+    Error ``e = [p(q) - p_target; log(R(q) R_target^T)]`` (6,) [m, rad]; Jacobian
+    ``[J_v; Jl^-1(e_rot) J_omega]`` (exact). The same rows as :class:`PositionTask` and
+    :class:`OrientationTask` together, computed from one frame pose and one Jacobian.
+    (mink's :class:`~mink.FrameTask` regulates the same pose with a local-frame error.)
+    """
+
+    k = 6
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: FrameType | str = FrameType.SITE,
+        position_cost: npt.ArrayLike = 1.0,
+        orientation_cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        with mink_errors_as_qpik(type(self).__name__):
+            cost = np.concatenate(
+                [
+                    _cost_vector(position_cost, "position cost"),
+                    _cost_vector(orientation_cost, "orientation cost"),
+                ]
+            )
+            super().__init__(cost, gain, lm_damping)
+        self.frame_name = checks.check_frame_name("frame_name", frame_name)
+        self.frame_type = FrameType.parse(frame_type)
+        self.target_position: np.ndarray | None = None
+        self.target_rotation: np.ndarray | None = None
+
+    def set_target(self, position: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
+        """Target position [m] and rotation matrix, in the world frame."""
+        self.target_position = checked_position(position)
+        self.target_rotation = checked_rotation(rotation)
+
+    def set_target_from_configuration(self, configuration: Configuration) -> None:
+        """Target = the frame's current pose."""
+        self.set_target(*configuration.frame_pose(self.frame_name, self.frame_type))
+
+    def _error_and_jacobian(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        if self.target_position is None or self.target_rotation is None:
+            raise TargetNotSet(type(self).__name__)
+        position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
+        jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
+        rotation_error = rotation_vector(rotation @ self.target_rotation.T)
+        error = np.concatenate([position - self.target_position, rotation_error])
+        jacobian[3:] = left_jacobian_inverse(rotation_error) @ jacobian[3:]
+        return error, jacobian
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return self._error_and_jacobian(configuration)[0]
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return self._error_and_jacobian(configuration)[1]
+
+    def compute_qp_residual(  # type: ignore[override]
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        return self._weighted_residual(*self._error_and_jacobian(configuration))
