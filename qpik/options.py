@@ -360,7 +360,7 @@ class SolveOptions:
             an iteration makes progress when its score (over the frames, the largest
             ``position / tol_position + orientation / tol_orientation``) falls below 95 % of
             the score at the window's start, a 5 % decrease
-            (:data:`qpik.model.kernels.PROGRESS`). Default ``5``.
+            (:data:`qpik.igm.kernels.PROGRESS`). Default ``5``.
         max_step: trust region ``(metres, radians)``: no iteration asks a target task for
             more than this; ``None`` for full steps ``J dq = -alpha e``. Default
             ``(0.2, 0.5)``.

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from qpik.igm import kernels as IGM
 from qpik.model import kernels as K
 
 FIXTURE = Path(__file__).parent / "fixtures" / "model.npz"
@@ -111,11 +112,11 @@ def test_rotations(recorded, tally):
         m, n = int(d["sv_m"][k]), int(d["sv_n"][k])
         A = np.ascontiguousarray(d["sv_A"][k][:, :n])
         gram = np.empty((max(6, n), max(6, n)))
-        got = K._smallest_singular_value(A, m, n, gram, float(d["sv_thr"][k]))
+        got = IGM.smallest_singular_value(A, m, n, gram, float(d["sv_thr"][k]))
         tally.add(f"sv {k}", got, d["sv_out"][k])
     # the default threshold is 0 (always computed)
     A = np.ascontiguousarray(d["sv_A"][1][:, : int(d["sv_n"][1])])
-    assert np.isfinite(K._smallest_singular_value(A, 6, A.shape[1], np.empty((9, 9))))
+    assert np.isfinite(IGM.smallest_singular_value(A, 6, A.shape[1], np.empty((9, 9))))
 
 
 def test_box_qp(recorded, tally):
@@ -125,13 +126,13 @@ def test_box_qp(recorded, tally):
         H = np.ascontiguousarray(d["qp_H"][k][:n, :n])
         args = (d["qp_g"][k][:n].copy(), d["qp_lb"][k][:n].copy(), d["qp_ub"][k][:n].copy())
         x = np.empty(n)
-        status, iterations = K.box_qp(H, *args, x, cap)
+        status, iterations = IGM.box_qp(H, *args, x, cap)
         assert isinstance(status, int) and isinstance(iterations, int)
         tally.add(f"box_qp {k}", [status, iterations], [d["qp_status"][k], d["qp_iters"][k]])
         if status != 2:  # x is partial on a singular block
             tally.add(f"box_qp x {k}", x, d["qp_x"][k][:n])
         y = np.empty(n)
-        assert K._box_qp(H, *args, y, cap, K._box_qp_workspace(n)) == (status, iterations)
+        assert IGM.box_qp_with(H, *args, y, cap, IGM.box_qp_workspace(n)) == (status, iterations)
         assert status == 2 or y.tobytes() == x.tobytes()
 
 
@@ -139,7 +140,7 @@ def test_uniform(recorded, tally):
     d = recorded
     for seed, expected in zip(d["rng_seeds"], d["rng_draws"]):
         state = np.array([seed], dtype=np.uint64)
-        draws = [K.uniform(state) for _ in range(20)]
+        draws = [IGM.uniform(state) for _ in range(20)]
         assert all(isinstance(u, float) for u in draws)
         tally.add(f"uniform {seed}", draws + [float(state[0])], expected)
 
@@ -158,7 +159,7 @@ def test_igm_solve(recorded, tally, arm):
         info = np.zeros(6, dtype=np.int64)
         state = np.array([seed], dtype=np.uint64)
         q_start = q0.copy()
-        K.igm_solve(chain, p, R, bool(has_rot), q_start, bounds, reach, fopts, iopts, state,
+        IGM.igm_solve(chain, p, R, bool(has_rot), q_start, bounds, reach, fopts, iopts, state,
                     np.inf, path, hist, info)  # fmt: skip
         assert q_start.tobytes() == q0.tobytes()  # the start is not written
         tally.add(f"igm {arm} {k} info", info, d[f"igm_{arm}_info"][k])
@@ -192,12 +193,12 @@ def test_igm_time_budget_uses_the_perf_counter_clock(recorded):
         path, hist, info = np.zeros((2, n, 6)), np.zeros((2, n, 3)), np.zeros(6, dtype=np.int64)
         q = q0.copy()
         q[0] += 0.5  # not converged at the start
-        K.igm_solve(chain, p, R, True, q, bounds, reach, fopts, iopts, np.array([1], np.uint64),
+        IGM.igm_solve(chain, p, R, True, q, bounds, reach, fopts, iopts, np.array([1], np.uint64),
                     deadline, path, hist, info)  # fmt: skip
         if expect_budget:
-            assert info[0] == K.TIME_BUDGET and info[1] == 0 and info[4] == 1
+            assert info[0] == IGM.TIME_BUDGET and info[1] == 0 and info[4] == 1
         else:
-            assert info[0] != K.TIME_BUDGET
+            assert info[0] != IGM.TIME_BUDGET
 
 
 def _igm_args(d):
@@ -215,7 +216,7 @@ def _igm_args(d):
 def test_bad_arguments_raise_instead_of_crashing(recorded):
     d = recorded
     good = _igm_args(d)
-    K.igm_solve(**good)
+    IGM.igm_solve(**good)
     bad_values = {
         "target_p": np.zeros(4),
         "target_R": np.eye(4),
@@ -231,23 +232,23 @@ def test_bad_arguments_raise_instead_of_crashing(recorded):
     }
     for key, value in bad_values.items():
         with pytest.raises(ValueError):
-            K.igm_solve(**{**good, key: value})
+            IGM.igm_solve(**{**good, key: value})
     chain = list(good["chain"])
     for index, value in ((6, chain[6] + 100), (7, chain[7] - 100), (2, chain[2][::-1].copy()),
                          (4, np.zeros((2, 3))), (1, np.zeros((3, 3)))):  # fmt: skip
         broken = chain.copy()
         broken[index] = value
         with pytest.raises(ValueError):
-            K.igm_solve(**{**good, "chain": tuple(broken)})
+            IGM.igm_solve(**{**good, "chain": tuple(broken)})
     with pytest.raises(ValueError):
-        K.igm_solve(**{**good, "chain": tuple(chain[:10])})
+        IGM.igm_solve(**{**good, "chain": tuple(chain[:10])})
     with pytest.raises(ValueError):
-        K.igm_solve(**{**good, "chain": tuple(chain[:3]) + ("x",) + tuple(chain[4:])})
+        IGM.igm_solve(**{**good, "chain": tuple(chain[:3]) + ("x",) + tuple(chain[4:])})
     # written arrays of the wrong dtype are refused, never silently copied
     with pytest.raises(TypeError):
-        K.igm_solve(**{**good, "info": np.zeros(6, dtype=np.int32)})
+        IGM.igm_solve(**{**good, "info": np.zeros(6, dtype=np.int32)})
     with pytest.raises(TypeError):
-        K.uniform(np.array([1], dtype=np.int64))
+        IGM.uniform(np.array([1], dtype=np.int64))
     with pytest.raises(TypeError):
         K.rotation_log(np.eye(3), np.zeros(3, dtype=np.float32))
 
@@ -271,18 +272,18 @@ def test_bad_arguments_raise_instead_of_crashing(recorded):
     with pytest.raises(ValueError):
         K.left_jacobian_inverse(np.zeros(3), np.empty((3, 2)))
     with pytest.raises(ValueError):
-        K.box_qp(np.eye(3), np.zeros(2), -np.ones(3), np.ones(3), np.empty(3), 10)
+        IGM.box_qp(np.eye(3), np.zeros(2), -np.ones(3), np.ones(3), np.empty(3), 10)
     with pytest.raises(ValueError):
-        K._box_qp(np.eye(3), np.zeros(3), -np.ones(3), np.ones(3), np.empty(3), 10,
-                  K._box_qp_workspace(2))  # fmt: skip
+        IGM.box_qp_with(np.eye(3), np.zeros(3), -np.ones(3), np.ones(3), np.empty(3), 10,
+                  IGM.box_qp_workspace(2))  # fmt: skip
     with pytest.raises(ValueError):
-        K._box_qp(np.eye(3), np.zeros(3), -np.ones(3), np.ones(3), np.empty(3), 10, (1, 2))
+        IGM.box_qp_with(np.eye(3), np.zeros(3), -np.ones(3), np.ones(3), np.empty(3), 10, (1, 2))
     with pytest.raises(ValueError):
-        K._smallest_singular_value(np.ones((6, 3)), 7, 3, np.empty((6, 6)))
+        IGM.smallest_singular_value(np.ones((6, 3)), 7, 3, np.empty((6, 6)))
     with pytest.raises(ValueError):
-        K._smallest_singular_value(np.ones((6, 3)), 6, 3, np.empty((2, 2)))
+        IGM.smallest_singular_value(np.ones((6, 3)), 6, 3, np.empty((2, 2)))
     with pytest.raises(ValueError):
-        K.uniform(np.zeros(2, dtype=np.uint64))
+        IGM.uniform(np.zeros(2, dtype=np.uint64))
 
 
 # --- the chain object (qpik._engine.model.Chain) and igm_run -------------------------------
@@ -325,7 +326,7 @@ def test_igm_run_gives_the_recorded_answers(recorded, tally, arm):
     for k, (p, R, has_rot, q0, bounds, fopts, iopts, seed) in enumerate(cases):
         state = np.array([seed], dtype=np.uint64)
         q_start = q0.copy()
-        code, iterations, restarts, path, hist = K.igm_run(
+        code, iterations, restarts, path, hist = IGM.igm_run(
             compiled, p, R, bool(has_rot), q_start, bounds, d[f"igm_{arm}_reach"], fopts, iopts,
             state, np.inf,
         )  # fmt: skip
@@ -367,16 +368,16 @@ def test_chain_object_and_igm_run_refuse_bad_arguments(recorded):
     args = dict(good, chain=compiled)
     for key in ("path", "hist", "info"):
         args.pop(key)
-    K.igm_run(**args)
+    IGM.igm_run(**args)
     for key, value in {"q0": np.zeros(5), "bounds": good["bounds"][:3], "reach": np.zeros(3),
                        "options": good["options"][:5], "int_options": good["int_options"][:2],
                        "target_p": np.zeros(4), "rng_state": np.zeros(2, np.uint64)}.items():  # fmt: skip
         with pytest.raises(ValueError):
-            K.igm_run(**{**args, key: value})
+            IGM.igm_run(**{**args, key: value})
     with pytest.raises(ValueError):
-        K.igm_run(**{**args, "int_options": np.array([-1, 0, 5, 0])})
+        IGM.igm_run(**{**args, "int_options": np.array([-1, 0, 5, 0])})
     with pytest.raises(ValueError):
-        K.igm_run(**{**args, "chain": "not a chain"})
+        IGM.igm_run(**{**args, "chain": "not a chain"})
 
 
 def test_start_defect():

@@ -1,4 +1,4 @@
-"""The compiled IGM's own rules (qpik.model.kernels): scratch reuse leaves no trace, the
+"""The compiled IGM's own rules (qpik.igm.kernels): scratch reuse leaves no trace, the
 step moves only the chain's dofs, the restart draws follow the documented spread,
 igm_solve is a pure function of its inputs (bitwise), and the damping law's smallest
 singular value agrees with LAPACK's to the Gram matrix's roundoff."""
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import qpik
+from qpik.igm import kernels as K
 from qpik.model import KinematicChain
-from qpik.model import kernels as K
 
 _GAMMA = 0x9E3779B97F4A7C15
 
@@ -57,17 +57,17 @@ def test_box_qp_scratch_reuse_leaves_no_trace():
         lb, ub = -rng.uniform(0, 1, n), rng.uniform(0, 1, n)
         fresh = np.empty(n)
         K.box_qp(H, g, lb, ub, fresh, 4 * n + 20)
-        dirty = K._box_qp_workspace(n)
+        dirty = K.box_qp_workspace(n)
         for array in dirty:
             array[...] = 7 if array.dtype.kind in "iu" else np.nan
         reused = np.empty(n)
-        K._box_qp(H, g, lb, ub, reused, 4 * n + 20, dirty)
+        K.box_qp_with(H, g, lb, ub, reused, 4 * n + 20, dirty)
         assert reused.tobytes() == fresh.tobytes()
 
 
 def _sigma_min(A, m, n, threshold=0.0):
     gram = np.empty((max(6, n), max(6, n)))
-    return K._smallest_singular_value(np.ascontiguousarray(A), m, n, gram, threshold)
+    return K.smallest_singular_value(np.ascontiguousarray(A), m, n, gram, threshold)
 
 
 @pytest.mark.parametrize("rows", [3, 6, 9])

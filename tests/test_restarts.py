@@ -61,8 +61,8 @@ def test_time_budget_ends_the_loop_with_its_reason():
 
 
 def test_stall_window_counts_iterations_without_five_percent_progress():
-    """The qp engine's stall rule is the compiled engine's (qpik.model.kernels.PROGRESS)."""
-    from qpik.model.kernels import PROGRESS
+    """The qp engine's stall rule is the compiled engine's (qpik.igm.kernels.PROGRESS)."""
+    from qpik.igm.kernels import PROGRESS
 
     assert PROGRESS == 0.95
     stall = StallWindow(100.0, 2)

@@ -2,7 +2,7 @@
 are met, with restarts.
 
 - :mod:`.session`: :func:`solve` and :class:`IKSession`, and the call of the compiled
-  engine (:mod:`qpik.model.kernels`);
+  engine (:mod:`qpik.igm.kernels`);
 - :mod:`.prepared`: what a solve reads from a model once, and the per-model cache of
   :func:`solve`;
 - :mod:`.qp_engine`: the ``"qp"`` engine, the same loop on :class:`qpik.IKSolver` steps;

@@ -15,8 +15,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays
-from ..model import kernels as _kernels
+from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays, kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
 from ..model.frames import resolve_frame
@@ -201,7 +200,7 @@ class PreparedRobots:
         views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
         if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
             return PreparedRobot(model)  # not views of the model's memory: nothing to watch
-        watch = _kernels.ArrayWatch(views)  # the bytes first, then what is read from them
+        watch = kernels.ArrayWatch(views)  # the bytes first, then what is read from them
         prepared = PreparedRobot(model)
 
         def forget(ref: weakref.ref, key: int = key) -> None:

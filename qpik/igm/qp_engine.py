@@ -21,9 +21,9 @@ from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidTarget
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
-from ..model.kernels import BACKTRACKS
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
 from ..tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
+from .kernels import BACKTRACKS
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors

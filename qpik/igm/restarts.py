@@ -1,6 +1,6 @@
 """The restart loop of the IGM, shared by :func:`qpik.solve`'s ``"qp"`` engine and the
 baselines (:func:`qpik.igm.baselines.igm`); the compiled engine runs the same rules in
-:func:`qpik.model.kernels.igm_solve`.
+:func:`qpik.igm.kernels.igm_solve`.
 
 The rules:
 
@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from ..model.kernels import PROGRESS
+from .kernels import PROGRESS
 from .result import Reason
 
 __all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]
@@ -33,7 +33,7 @@ class StallWindow:
     """Counts iterations without progress: ``update(score)`` is True once
     ``stall_window`` consecutive scores have not gone below ``PROGRESS`` (95 %) of the
     score at the window's start (the compiled engine's rule,
-    :data:`qpik.model.kernels.PROGRESS`)."""
+    :data:`qpik.igm.kernels.PROGRESS`)."""
 
     __slots__ = ("_best", "_since", "_window")
 

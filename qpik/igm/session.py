@@ -25,7 +25,7 @@ Two engines run this rule (:attr:`IKResult.engine`):
   object elsewhere in the scene, another arm; they stay where they are, restarts
   included, and the packed chain coordinates are written back into the full ``q``). The
   whole solve (iterations, trust region, damping, stall detection, restarts) is one
-  compiled call (:mod:`qpik.model.kernels`): forward kinematics and the frame Jacobian
+  compiled call (:mod:`qpik.igm.kernels`): forward kinematics and the frame Jacobian
   from arrays read once from the model (:mod:`qpik.igm.prepared`), and each step's damped
   least-squares QP under the box of the joint limits solved exactly by an active-set
   method. It is the same QP as the general engine's, so both agree to round-off.
@@ -90,9 +90,10 @@ import numpy.typing as npt
 from ..diffik.solver import Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import ReachBound
-from ..model import kernels as _kernels
+from ..model import kernels as model_kernels
 from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
+from . import kernels
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
 from .qp_engine import QPProblem, iterate
 from .restarts import Clock
@@ -117,7 +118,7 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 LIMIT_GAIN = 0.95
 _EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
-_REASONS_BY_CODE = tuple(Reason(name) for name in _kernels.REASON_NAMES)
+_REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 #: What a solve's ``seed`` may be (see :func:`solve`).
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
@@ -157,7 +158,7 @@ def _rng_state(seed: Seed) -> np.ndarray:
 
 
 def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
-    """The float and int option arrays of :func:`qpik.model.kernels.igm_solve`."""
+    """The float and int option arrays of :func:`qpik.igm.kernels.igm_solve`."""
     law = s.damping_law
     max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
     options = np.array(
@@ -390,7 +391,7 @@ class IKSession:
             )
         if check and self._support is None:
             # One compiled pass: finite, within the limits (1e-6), then clipped in place.
-            code, i = _kernels.start_defect(q, self._lower, self._upper, 1e-6)
+            code, i = model_kernels.start_defect(q, self._lower, self._upper, 1e-6)
             if code == 1:
                 raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
             if code == 2:
@@ -448,7 +449,7 @@ class IKSession:
         else:  # the chain's joints only: the others stay where they are
             chain, q_chain = frame.packed, q_start[index]
             bounds = frame.bounds[0] if joint else frame.bounds[1]
-        code, iterations, restarts_used, path, history = _kernels.igm_run(
+        code, iterations, restarts_used, path, history = kernels.igm_run(
             chain.compiled,
             target.position,
             _EYE if rotation is None else rotation,

@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidTarget
-from ..model import kernels as _kernels
+from ..model import kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import nearest_rotation, orientation_angle
 
@@ -117,7 +117,7 @@ def parse_target(value: TargetLike) -> Target:
     position = _array(position, (3,), "position target")
     has_rot = rotation is not None
     rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
-    defect = _kernels.target_defect(position, rotation, has_rot)
+    defect = kernels.target_defect(position, rotation, has_rot)
     if defect:
         shown = position if defect == 1 else rotation
         raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")

@@ -1,0 +1,125 @@
+r"""Compiled C++ kernels of the full-IK loop (``qpik/_cpp/igm``: ``box_qp.hpp``,
+``igm.hpp``; bound as :mod:`qpik._engine.igm`), with the loop's constants. Every kernel takes
+plain arrays (no MuJoCo call happens inside); ``tests/test_engine_model.py`` checks them bit
+for bit against recorded answers (``tests/fixtures/model.npz``).
+
+The IGM (:func:`igm_solve`): per iteration, the damped least-squares step of the pose error
+under box bounds (joint limits), solved exactly by an active-set method
+(:func:`box_qp`), with the trust region, the damping law fading with the error, backtracking
+(a step that increases the error is halved, up to ``BACKTRACKS`` times), stall detection
+(``stall_window`` iterations without the score falling below ``PROGRESS`` times its value at
+the window's start) and restarts from a deterministic random stream (SplitMix64): odd
+restarts draw from the central ``RESTART_SPREAD`` of the restart box, even ones from all of
+it (starts near mid-range converge more often; the full box keeps the draws diverse).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._engine import igm as _igm
+
+# Reasons (codes) returned by igm_solve; names in qpik.igm.result.REASONS.
+CONVERGED = 0
+MAX_ITERS = 1
+TIME_BUDGET = 2
+STALLED = 3
+AT_LIMIT = 4
+SINGULAR = 5
+UNREACHABLE = 6
+#: Halvings of a step that increases the error (see igm_solve).
+BACKTRACKS = 3
+#: An attempt progresses when its score falls below this fraction of the score at the
+#: start of its stall window.
+PROGRESS = 0.95
+#: Iterations between two reads of the clock (clock_gettime(CLOCK_MONOTONIC), the clock of
+#: time.perf_counter, so ``deadline`` is a perf_counter value).
+CLOCK_EVERY = 8
+#: Every other restart draws from this fraction of the restart box, around its center.
+RESTART_SPREAD = 0.6
+REASON_NAMES = (
+    "converged",
+    "max_iters",
+    "time_budget",
+    "stalled",
+    "at_limit",
+    "singular",
+    "unreachable",
+)
+
+# --------------------------------------------------------------------- box QP
+#: ``box_qp(H, g, lb, ub, x, max_iter) -> (status, iterations)``: ``min 1/2 x^T H x + g^T x
+#: s.t. lb <= x <= ub`` (H positive definite), exactly, by a primal active-set method from
+#: ``clip(0, lb, ub)``; status 0 solved, 1 iteration cap (``x`` feasible, not optimal), 2
+#: ``H`` not positive definite.
+box_qp = _igm.box_qp
+#: ``box_qp_with(H, g, lb, ub, x, max_iter, workspace)``: :func:`box_qp` with its scratch
+#: (:func:`box_qp_workspace`) given.
+box_qp_with = _igm._box_qp
+
+
+def box_qp_workspace(n: int) -> tuple[np.ndarray, ...]:
+    """Scratch of :func:`box_qp_with` for ``n`` variables."""
+    return (
+        np.empty(n, dtype=np.int8),
+        np.empty(n, dtype=np.int64),
+        np.empty((n, n)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+    )
+
+
+# ------------------------------------------------------- smallest singular value
+#: ``smallest_singular_value(A, m, nv, G, threshold=0.0) -> float``: the ``min(r, nv)``-th
+#: singular value of ``A[:m]`` (``r`` its rows that are not identically zero), from the
+#: smaller Gram matrix built in the scratch ``G``; with ``threshold > 0``, inf when it is at
+#: least ``threshold``.
+smallest_singular_value = _igm._smallest_singular_value
+
+# ----------------------------------------------------------------------- RNG
+#: ``uniform(state) -> float``: a uniform draw in [0, 1) from the SplitMix64 stream
+#: ``state`` (uint64 (1,), advanced in place).
+uniform = _igm.uniform
+
+# ------------------------------------------------------------------------ IGM
+#: ``igm_solve(chain, target_p, target_R, has_rot, q0, bounds, reach, options, int_options,
+#: rng_state, deadline, path, hist, info)``: the whole IGM solve of one frame target (see
+#: :func:`qpik.solve` for the rule).
+#:
+#: * ``chain``: a :class:`Chain`, or the tuple of chain arrays
+#:   (:class:`qpik.model.KinematicChain`).
+#: * ``target_p`` (3,), ``target_R`` (3, 3): the target in the world frame; ``has_rot``:
+#:   False for a position-only target.
+#: * ``q0`` (nq,): start, within the limits.
+#: * ``bounds`` (4, nq): lower and upper joint limits (+-inf where none), then the box that
+#:   random restarts draw from.
+#: * ``reach`` (4,): center (3,) [m] and radius [m] of the frame's reach bound; a target
+#:   farther than ``radius + tol_position`` from the center ends the solve at once
+#:   (UNREACHABLE).
+#: * ``options`` (float64): tol_position, tol_orientation, alpha, beta, max_step_position,
+#:   max_step_orientation (inf: none), singular_threshold, max_damping, error_scale (<= 0:
+#:   none), damping, limit_gain.
+#: * ``int_options`` (int64): max_iters, restarts, stall_window, check_time (0/1).
+#: * ``rng_state``: uint64 (1,) SplitMix64 state, advanced in place.
+#: * ``deadline``: ``time.perf_counter()`` value at which the budget ends (if checked).
+#: * ``path`` (2, max_iters + 1, nq), ``hist`` (2, max_iters + 1, 3): per attempt slot, the
+#:   iterates and, per iterate, (position error [m], orientation error [rad], QP residual of
+#:   the step that left it).
+#: * ``info`` (int64, 6): reason code, total iterations, restarts used, slot of the
+#:   returned attempt (its last iterate is the answer), its number of iterates, QP solves
+#:   that hit the iteration cap.
+igm_solve = _igm.igm_solve
+#: ``igm_run(chain, target_p, target_R, has_rot, q0, bounds, reach, options, int_options,
+#: rng_state, deadline) -> (code, iterations, restarts_used, path, hist)``: :func:`igm_solve`
+#: with its scratch allocated inside; ``path`` (k, nq) and ``hist`` (k, 3) are the returned
+#: attempt's rows (new arrays), the other results those of ``info``.
+igm_run = _igm.igm_run
+
+assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (
+    _igm.CONVERGED,
+    _igm.UNREACHABLE,
+    _igm.BACKTRACKS,
+    _igm.CLOCK_EVERY,
+)
+assert (PROGRESS, RESTART_SPREAD) == (_igm.PROGRESS, _igm.RESTART_SPREAD)
