@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from typing import TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -61,6 +62,7 @@ from .model.gradients import check_configuration, manipulability_gradient
 from .model.rotations import orientation_error
 
 __all__ = [
+    "Correction",
     "ROW_NAMES",
     "SINGULAR_TOL",
     "KinematicReport",
@@ -98,6 +100,15 @@ def _frame_error(
     return np.concatenate([target[0] - position, rotvec])[idx]
 
 
+class Correction(TypedDict, total=False):
+    """The drift correction of :func:`self_motion`: Gauss-Newton steps until the frame
+    error is at most ``correction_tol`` [m, rad] (default 1e-10), at most
+    ``max_corrections`` of them per step (default 20)."""
+
+    correction_tol: float
+    max_corrections: int
+
+
 def self_motion(
     configuration: Configuration,
     frame: str | int,
@@ -106,9 +117,7 @@ def self_motion(
     step_size: float = 0.01,
     rows: Rows = "position",
     frame_type: FrameType | str = "site",
-    *,
-    correction_tol: float = 1e-10,
-    max_corrections: int = 20,
+    **correction: Unpack[Correction],
 ) -> np.ndarray:
     """Self-motion: move ``q`` along ``qdot = (I - J^+ J) zeta`` (the null space of the
     frame's Jacobian, chosen ``rows``) while the frame stays where it is.
@@ -118,8 +127,8 @@ def self_motion(
     ``e`` (position [m], and rotation vector [rad] for the orientation rows, world frame)
     is ``<= correction_tol`` or ``max_corrections`` steps are taken (``steps`` an int in
     [0, 100000], ``step_size`` finite, ``correction_tol`` >= 0, ``max_corrections`` in
-    [0, 10000]). Joint limits are not
-    enforced. The caller's configuration is not changed.
+    [0, 10000]; both keywords of :class:`Correction`). Joint limits are not enforced. The
+    caller's configuration is not changed.
 
     Returns:
         The path of ``q``, ``(steps + 1, nq)``, starting at the current ``q``.
@@ -131,8 +140,13 @@ def self_motion(
     zeta = checks.check_vector("zeta", zeta, work.model.nv)
     steps = checks.check_integer("steps", steps, 0, 100_000)
     step_size = checks.check_real("step_size", step_size)
-    correction_tol = checks.check_real("correction_tol", correction_tol, 0.0)
-    max_corrections = checks.check_integer("max_corrections", max_corrections, 0, 10_000)
+    checks.check_keywords("self_motion", dict(correction), Correction)
+    correction_tol = checks.check_real(
+        "correction_tol", correction.get("correction_tol", 1e-10), 0.0
+    )
+    max_corrections = checks.check_integer(
+        "max_corrections", correction.get("max_corrections", 20), 0, 10_000
+    )
     target = work.frame_pose(frame, kind)
     path = np.empty((steps + 1, work.model.nq))
     path[0] = work.q

@@ -44,6 +44,7 @@ from ..errors import (
 )
 
 __all__ = [
+    "check_keywords",
     "DT_MAX",
     "DT_MIN",
     "MAX_LENGTH",
@@ -277,3 +278,17 @@ def check_indices(name: str, value: Any, size: int) -> list[int]:
     if len(set(indices)) != len(indices):
         raise InvalidOption(name, value, expected)
     return indices
+
+
+def check_keywords(where: str, given: dict[str, Any], allowed: Any) -> dict[str, Any]:
+    """``given``, the ``**keywords`` of ``where``, if every name is a key of the
+    ``TypedDict`` ``allowed``; else :class:`InvalidOption` naming the unknown keyword and
+    listing the valid ones."""
+    names = allowed.__annotations__
+    for name in given:
+        if name not in names:
+            valid = ", ".join(sorted(names))
+            raise InvalidOption(
+                name, given[name], f"one of {valid}", f"{where} has no keyword {name!r} ({valid})"
+            )
+    return given

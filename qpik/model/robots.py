@@ -430,15 +430,10 @@ def _name_matches(name: str, known: str) -> bool:
     return name == known or name.endswith("/" + known) or name.endswith("_" + known)
 
 
-def tool_frame(model: mujoco.MjModel) -> ToolFrame:
-    """The robot's tool frame (the rule is in the module docstring): a site or a body, never
-    one a gripper joint moves. Raises :class:`RobotFileError` for a model with no body."""
-    if model.nbody < 2:
-        raise RobotFileError("<model>", "the model has no body to use as a tool frame")
-    joints, depth, moved = _chains(model)
+def _named_tool(model: mujoco.MjModel, joints, moved) -> ToolFrame | None:
+    """The site or body whose name is a known tool centre point's, flange's or hand's (in
+    that order; on the longest chain first), never one a gripper joint moves."""
     site_body = model.site_bodyid
-    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
-        return ToolFrame("ee", "site", "the site named ee")
     sites = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "" for s in range(model.nsite)
     ]
@@ -465,13 +460,15 @@ def tool_frame(model: mujoco.MjModel) -> ToolFrame:
             body = best(bodies, lambda b: b, known)
             if body is not None and body > 0:
                 return ToolFrame(bodies[body], "body", f"the body with {what} ({known!r})")
-    for name in TOOL_LINKS:
-        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if b > 0 and not moved[b]:
-            return ToolFrame(name, "body", "a known tool link (no site 'ee')")
+    return None
+
+
+def _chain_end(model: mujoco.MjModel, joints, depth, moved) -> ToolFrame:
+    """The end of the longest chain, then down through joint-less links with a single
+    child (flange, sensor, ...)."""
     candidates = [b for b in range(1, model.nbody) if not moved[b]] or list(range(1, model.nbody))
     end = max(candidates, key=lambda b: (joints[b], -depth[b], -b))
-    while True:  # down through joint-less links with a single child (flange, sensor, ...)
+    while True:
         children = [
             c for c in range(end + 1, model.nbody) if model.body_parentid[c] == end and not moved[c]
         ]
@@ -479,5 +476,25 @@ def tool_frame(model: mujoco.MjModel) -> ToolFrame:
         if every_child != 1 or len(children) != 1 or model.body_jntnum[children[0]]:
             break
         end = children[0]
-    name = bodies[end] or str(end)
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, end) or str(end)
     return ToolFrame(name, "body", "the end of the longest chain (no site 'ee', no known name)")
+
+
+def tool_frame(model: mujoco.MjModel) -> ToolFrame:
+    """The robot's tool frame, a site or a body, never one a gripper joint moves: the site
+    named ``ee``; else a site or body with a known tool centre point's, flange's or hand's
+    name; else a known tool link; else the end of the longest chain. Raises
+    :class:`qpik.errors.RobotFileError` for a model with no body."""
+    if model.nbody < 2:
+        raise RobotFileError("<model>", "the model has no body to use as a tool frame")
+    joints, depth, moved = _chains(model)
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
+        return ToolFrame("ee", "site", "the site named ee")
+    named = _named_tool(model, joints, moved)
+    if named is not None:
+        return named
+    for name in TOOL_LINKS:
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if b > 0 and not moved[b]:
+            return ToolFrame(name, "body", "a known tool link (no site 'ee')")
+    return _chain_end(model, joints, depth, moved)

@@ -19,12 +19,13 @@ import time
 import webbrowser
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..errors import InvalidInput, MissingExtra
 from ..igm.targets import Target
 from ..model.configuration import Configuration, FrameType
@@ -94,6 +95,17 @@ def level_html(level: LevelReport) -> str:
     )
 
 
+class Serving(TypedDict, total=False):
+    """The keywords of :class:`Viewer` on how it serves and solves (see its docstring)."""
+
+    host: str
+    port: int
+    collision: bool
+    max_iterations: int
+    label: str | None
+    solve_start: bool
+
+
 class Viewer:
     """An interactive viewer in the browser: the robot, a draggable handle on every goal
     frame with the IK re-solved as it moves, and a panel per level.
@@ -131,13 +143,15 @@ class Viewer:
         limits: Iterable[Any] | None = None,
         goals: Sequence[str | tuple[str, FrameType | str]] | None = None,
         q0: npt.ArrayLike | None = None,
-        host: str = DEFAULT_HOST,
-        port: int = DEFAULT_PORT,
-        collision: bool = False,
-        max_iterations: int = 20,
-        label: str | None = None,
-        solve_start: bool = True,
+        **serving: Unpack[Serving],
     ):
+        checks.check_keywords("Viewer", dict(serving), Serving)
+        host = serving.get("host", DEFAULT_HOST)
+        port = serving.get("port", DEFAULT_PORT)
+        collision = serving.get("collision", False)
+        max_iterations = serving.get("max_iterations", 20)
+        label = serving.get("label")
+        solve_start = serving.get("solve_start", True)
         viser = import_viser()
         self.started_at = time.perf_counter()
         self.problem: Problem | None = None

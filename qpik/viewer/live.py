@@ -33,12 +33,13 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict, Unpack
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..diffik.solver import IKSolver, StepResult, normalize_stack
 from ..igm.qp_engine import set_frame_target
 from ..igm.targets import Target
@@ -160,6 +161,20 @@ def goal_frames_of(levels: Sequence[Sequence[Any]]) -> list[tuple[str, FrameType
     return list(seen.items())
 
 
+class LiveSettings(TypedDict, total=False):
+    """How :class:`LiveSolve` iterates: ``dt`` (the step's time [s], default 1),
+    ``tol_position`` [m] (1e-4) and ``tol_orientation`` [rad] (1e-3), ``max_iterations``
+    per drag solve (20), ``max_step`` (the trust region ``(metres, radians)``, default
+    ``(0.2, 0.5)``; ``None``: none) and ``settle`` [rad or m] (1e-4)."""
+
+    dt: float
+    tol_position: float
+    tol_orientation: float
+    max_iterations: int
+    max_step: tuple[float, float] | None
+    settle: float
+
+
 class LiveSolve:
     """A task stack on a configuration, re-solved after each move of a goal frame.
 
@@ -189,15 +204,17 @@ class LiveSolve:
         goals: Sequence[str | tuple[str, FrameType | str]] | None = None,
         q0: npt.ArrayLike | None = None,
         targets: dict[str, Target] | None = None,
-        dt: float = 1.0,
         step_options: StepOptions | None = None,
-        tol_position: float = 1e-4,
-        tol_orientation: float = 1e-3,
-        max_iterations: int = 20,
-        max_step: tuple[float, float] | None = (0.2, 0.5),
-        settle: float = 1e-4,
         level_names: Sequence[Sequence[str]] | None = None,
+        **settings: Unpack[LiveSettings],
     ):
+        checks.check_keywords("LiveSolve", dict(settings), LiveSettings)
+        dt = settings.get("dt", 1.0)
+        tol_position = settings.get("tol_position", 1e-4)
+        tol_orientation = settings.get("tol_orientation", 1e-3)
+        max_iterations = settings.get("max_iterations", 20)
+        max_step = settings.get("max_step", (0.2, 0.5))
+        settle = settings.get("settle", 1e-4)
         self.model = model
         self.configuration = Configuration(model, q0)
         self.levels: list[list[Any]] = normalize_stack(levels)
