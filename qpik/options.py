@@ -44,6 +44,7 @@ __all__ = [
     "UNSET",
     "LoopKeywords",
     "SolveKeywords",
+    "StepFieldKeywords",
     "SolveOptions",
     "StepOptions",
     "check_integer",
@@ -561,7 +562,20 @@ class LoopKeywords(TypedDict, total=False):
     stall_window: int
 
 
-class SolveKeywords(LoopKeywords, total=False):
+class StepFieldKeywords(TypedDict, total=False):
+    """The keywords that set single fields of a :class:`StepOptions` (:data:`STEP_FIELDS`,
+    documented there), in every entry point that takes them."""
+
+    solver: str
+    damping: float
+    damping_law: DampingLaw | None
+    rank_tolerance: float
+    warm_start: bool
+    backend_options: Mapping[str, Any] | None
+    couplings: bool
+
+
+class SolveKeywords(LoopKeywords, StepFieldKeywords, total=False):
     """The option keywords of :func:`qpik.solve`, :meth:`qpik.IKSession.solve`,
     :func:`qpik.solve_many`, :func:`qpik.reachability` and the batch files: one per field of
     :class:`SolveOptions` and per :data:`STEP_FIELDS` field of its :class:`StepOptions`
@@ -574,10 +588,3 @@ class SolveKeywords(LoopKeywords, total=False):
     limits: str | Sequence[Any] | None
     engine: str
     step: StepOptions
-    solver: str
-    damping: float
-    damping_law: DampingLaw | None
-    rank_tolerance: float
-    warm_start: bool
-    backend_options: Mapping[str, Any] | None
-    couplings: bool

@@ -27,8 +27,8 @@ hierarchy (:class:`qpik.core.HierarchyProblem`) for inspection.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, TypedDict
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import mink
 import mujoco
@@ -36,7 +36,7 @@ import mujoco
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
 from ..errors import InvalidInput
 from ..model.configuration import Configuration
-from ..options import UNSET, StepOptions
+from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
 from .compiled import make_plan
 from .result import Solution, StepResult, solve_rows
@@ -56,18 +56,12 @@ __all__ = [
 ]
 
 
-class StepKeywords(TypedDict, total=False):
+class StepKeywords(StepFieldKeywords, total=False):
     """The keywords of :class:`IKSolver` that override single fields of its
-    :class:`qpik.StepOptions` (the fields of the same names), and ``osqp_settings``."""
+    :class:`qpik.StepOptions` (the fields of the same names, :data:`qpik.options.STEP_FIELDS`
+    and ``max_joint_speed``), and ``osqp_settings``."""
 
-    solver: str
-    damping: float
-    damping_law: DampingLaw | None
-    rank_tolerance: float
-    warm_start: bool
-    backend_options: Mapping[str, Any] | None
     max_joint_speed: float | None
-    couplings: bool
     osqp_settings: Any
 
 
