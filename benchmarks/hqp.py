@@ -213,7 +213,7 @@ def optimum(p: Problem) -> tuple[np.ndarray, str]:
     """The certified optimum: qpik's answer when every level is solved (its certificate
     proves each level at the point it returned), checked level by level against quadprog
     solving that level alone with the levels above held at qpik's task values (the test
-    oracle, tests/test_exactness.py); else the quadprog chain."""
+    oracle, tests/diffik/test_exactness.py); else the quadprog chain."""
     solver = HierarchySolver(damping_law=None)
     result = solver.solve(core_problem(p))
     if result.ok and all(c.holds for c in result.certificate):

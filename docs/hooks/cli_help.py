@@ -3,7 +3,7 @@
 
     python docs/hooks/cli_help.py
 
-tests/test_docs.py checks that the files match the command line."""
+tests/package/test_docs.py checks that the files match the command line."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@ r"""Compiled kernels of the core: an exact dense QP solver and the prioritised c
 Everything here takes and returns plain arrays; the kernels are compiled C++
 (``qpik/_cpp/core``, the extension submodule ``qpik._engine.core``), built ahead of time
 when the package is installed; recorded answers pin them bit for bit
-(tests/fixtures/core.npz, tests/test_engine_core.py). Arrays a kernel writes into
+(tests/fixtures/core.npz, tests/core/test_engine_core.py). Arrays a kernel writes into
 (``cholesky_into``'s ``L``, ``tighten``'s ``lb``/``ub``) must be float64 and C-contiguous;
 inputs of another dtype or layout are converted, and a wrong shape raises ValueError.
 

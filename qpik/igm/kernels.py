@@ -1,6 +1,6 @@
 r"""Compiled C++ kernels of the full-IK loop (``qpik/_cpp/igm``: ``box_qp.hpp``,
 ``igm.hpp``; bound as :mod:`qpik._engine.igm`), with the loop's constants. Every kernel takes
-plain arrays (no MuJoCo call happens inside); ``tests/test_engine_model.py`` checks them bit
+plain arrays (no MuJoCo call happens inside); ``tests/model/test_engine_model.py`` checks them bit
 for bit against recorded answers (``tests/fixtures/model.npz``).
 
 The IGM (:func:`igm_solve`): per iteration, the damped least-squares step of the pose error

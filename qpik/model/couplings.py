@@ -14,7 +14,7 @@ two tendons' lengths (their ``tendon_length0`` as references); qpik takes the fi
 tendons' (a linear combination ``sum_i coef_i q_i`` of scalar joints). The Jacobian of a
 row is :math:`\partial r / \partial q_1 - p'(x)\, \partial r / \partial q_2`, exact: the
 rows are MuJoCo's own ``efc_pos`` and ``efc_J`` of these constraints (checked in
-tests/test_couplings.py).
+tests/model/test_model_couplings.py).
 
 :class:`Couplings` holds these rows of a model (:func:`model_couplings`); qpik keeps them
 as the top priority of every differential step (:class:`qpik.IKSolver`, option

@@ -4,7 +4,7 @@ The kernels live in the compiled engine (``qpik/_cpp``: ``model/chain.hpp``,
 ``model/so3.hpp``; bound as :mod:`qpik._engine.model`); this module names them for the
 Python side. Every kernel takes plain arrays (no MuJoCo call happens inside);
 arrays they write into must already have the right dtype and layout (no silent copy), and
-a wrong shape raises ValueError. ``tests/test_engine_model.py`` checks them bit for bit
+a wrong shape raises ValueError. ``tests/model/test_engine_model.py`` checks them bit for bit
 against recorded answers (``tests/fixtures/model.npz``).
 
 Kinematics follow MuJoCo's ``mj_kinematics`` (``engine_core_smooth.c``): per body on the

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 SNIPPET = re.compile(r'^([ \t]*)--8<-- "([^":]+)(?::(\d+):(\d+))?"[ \t]*$', flags=re.MULTILINE)
 BLOCK = re.compile(r"(?:<!--\s*([\w:. -]+?)\s*-->\n)?```python\n(.*?)```", flags=re.DOTALL)
@@ -143,7 +143,7 @@ def test_the_figures_script_draws_its_figures(tmp_path):
     pytest.importorskip("matplotlib")
     import subprocess
 
-    script = Path(__file__).resolve().parents[1] / "docs" / "make_figures.py"
+    script = Path(__file__).resolve().parents[2] / "docs" / "make_figures.py"
     names = ["priorities.png", "self_motion.png"]
     subprocess.run([sys.executable, str(script), "--out", str(tmp_path), "--only", *names],
                    check=True, capture_output=True)  # fmt: skip

@@ -26,7 +26,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TASKS = {path.stem: path for path in problem_files()}
 #: Panda's joint4 range is [-3.0718, -0.0698]: 0 is outside it, -1.5 inside.
 PANDA_INSIDE = ["0", "0", "0", "-1.5", "0", "1.5", "0.8"]

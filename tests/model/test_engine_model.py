@@ -13,7 +13,7 @@ import pytest
 from qpik.igm import kernels as IGM
 from qpik.model import kernels as K
 
-FIXTURE = Path(__file__).parent / "fixtures" / "model.npz"
+FIXTURE = Path(__file__).parents[1] / "fixtures" / "model.npz"
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ import pytest
 
 pytestmark = pytest.mark.browser
 
-TASKS = Path(__file__).resolve().parent.parent / "tasks"
+TASKS = Path(__file__).resolve().parents[2] / "tasks"
 
 
 def _needs() -> None:

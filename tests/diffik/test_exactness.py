@@ -21,7 +21,7 @@ from exactness_oracle import (
 
 from qpik.core import CERTIFICATE_TOLERANCE, HierarchyProblem, HierarchySolver, Level, LevelStatus
 
-DATA = Path(__file__).parent / "data" / "exactness"
+DATA = Path(__file__).parents[1] / "data" / "exactness"
 
 
 def core_problem(p) -> HierarchyProblem:

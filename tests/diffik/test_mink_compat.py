@@ -631,7 +631,7 @@ def _mink_suite_module():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parent.parent / "benchmarks" / "mink_suite.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "mink_suite.py"
     spec = importlib.util.spec_from_file_location("mink_suite", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -26,7 +26,7 @@ from qpik import analysis, statics
 from qpik.core import checks
 from qpik.errors import InvalidArgumentType
 
-DATA = Path(__file__).parent / "data" / "reliability"
+DATA = Path(__file__).parents[1] / "data" / "reliability"
 VALID = DATA / "planar_4r_valid.toml"  # tasks/planar_4r_priorities.toml, as shipped
 
 

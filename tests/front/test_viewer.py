@@ -19,8 +19,8 @@ from qpik.viewer import LiveSolve, default_stack, geom_meshes, level_html
 from qpik.viewer.geometry import primitive_mesh
 from qpik.viewer.live import LevelReport
 
-TASKS = Path(__file__).resolve().parent.parent / "tasks"
-ROOT = Path(__file__).resolve().parent.parent
+TASKS = Path(__file__).resolve().parents[2] / "tasks"
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _volume(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "humanoid_talos.py"
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "humanoid_talos.py"
 
 
 def _has_erd() -> bool:

@@ -16,7 +16,7 @@ from qpik.limits import CollisionAvoidanceLimit, geom_distance, joint_limits
 from qpik.scene import add_obstacle
 from qpik.tasks import ComTask, FrameTask, PositionTask, PostureTask
 
-DATA = pathlib.Path(__file__).parent / "data" / "menagerie"
+DATA = pathlib.Path(__file__).parents[1] / "data" / "menagerie"
 DT = 0.01
 BOUND = qpik.options.DEFAULT_MAX_JOINT_SPEED * DT  # [rad or m per step]
 

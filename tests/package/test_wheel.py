@@ -6,7 +6,7 @@ the compile commands of any build already in ``build/`` and the bundled-file loo
 compares one solve's bytes across two processes. The full build (``python -m build`` of
 the sdist and, from it, the wheel), installed into a fresh virtual environment and run
 from outside the checkout, is ``slow`` (minutes: it compiles the engine and installs the
-dependencies): ``pytest -m slow tests/test_wheel.py``.
+dependencies): ``pytest -m slow tests/package/test_wheel.py``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 ENGINE_SOURCES = ("module.cpp", "bind_core.cpp", "bind_model.cpp", "bind_tasks.cpp")
 #: Flags that would make the answers depend on the machine or on the optimiser.
 FORBIDDEN = ("-ffast-math", "-Ofast", "-march=native", "-mtune=native", "-funsafe-math")

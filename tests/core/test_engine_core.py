@@ -13,7 +13,7 @@ import pytest
 
 from qpik.core import kernels as K
 
-FIXTURES = Path(__file__).parent / "fixtures"
+FIXTURES = Path(__file__).parents[1] / "fixtures"
 
 
 def _recorder():

@@ -14,7 +14,7 @@ import scipy.optimize
 from qpik.core import HierarchyProblem, HierarchySolver, Level, LevelStatus
 from qpik.core import kernels as K
 
-DATA = Path(__file__).parent / "data" / "exactness" / "trust_region_pinned_level.npz"
+DATA = Path(__file__).parents[1] / "data" / "exactness" / "trust_region_pinned_level.npz"
 
 
 def test_kept_level_has_a_finite_certificate_naming_what_fails():
@@ -128,7 +128,7 @@ def test_zero_width_box_row_is_an_equality():
     np.testing.assert_allclose(result.x[free], ref.x, rtol=0, atol=1e-10)
 
 
-TALOS = Path(__file__).parent / "data" / "exactness" / "talos_pinned_arms.npz"
+TALOS = Path(__file__).parents[1] / "data" / "exactness" / "talos_pinned_arms.npz"
 
 
 def test_talos_arms_pinned_by_the_levels_above_posture_is_solved():

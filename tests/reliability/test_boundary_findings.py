@@ -72,7 +72,7 @@ def test_engine_boxes_rejects_n_beyond_qpos():
     import sys
     from pathlib import Path
 
-    root = str(Path(__file__).resolve().parent.parent)
+    root = str(Path(__file__).resolve().parents[2])
     out = subprocess.run(
         [sys.executable, "-c", _BOXES],
         capture_output=True,

@@ -159,7 +159,7 @@ def test_fused_answers_do_not_depend_on_history(panda):
 def test_stacks_the_fused_step_does_not_cover_use_the_general_path(panda):
     model, _ = panda
     posture = PostureTask(model, 0.1)
-    # mink's own FrameTask is computed in C++ too (tests/test_fastpath.py); a subclass
+    # mink's own FrameTask is computed in C++ too (tests/diffik/test_fastpath.py); a subclass
     # may change its rows, so it is not.
     assert qpik.IKSolver(model, [mink.FrameTask("ee", "site", 1.0, 1.0)])._plan is not None
 

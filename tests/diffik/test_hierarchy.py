@@ -395,7 +395,7 @@ def _closest_approach(model, limits, steps=300):
     tip.set_target([0.6, 1.7, 0.0])  # behind the obstacle: the straight way goes through it
     posture = PostureTask(model, cost=0.1)
     posture.set_target([0.0, 0.3])
-    # No trust region: the rows alone must keep the links out (tests/test_physical_steps.py
+    # No trust region: the rows alone must keep the links out (tests/diffik/test_physical_steps.py
     # holds the default's).
     solver = IKSolver(
         model, [[tip], [posture]], limits, options=qpik.StepOptions(max_joint_speed=None)

@@ -16,7 +16,7 @@ from qpik.diffik import compiled
 from qpik.model import lie as _lie
 from qpik.tasks import frame as fast
 
-FIXTURE = pathlib.Path(__file__).parent / "fixtures" / "tasks.npz"
+FIXTURE = pathlib.Path(__file__).parents[1] / "fixtures" / "tasks.npz"
 STEP_ARGS = (
     "A", "b", "w", "starts", "tasks", "jac", "frames", "site_xpos", "site_xmat", "xpos",
     "xmat", "geom_xpos", "geom_xmat", "frame_data", "qpos", "posture_data", "cfg_dof",

@@ -15,7 +15,7 @@ import qpik
 from qpik.problem import TASK_KINDS, TaskKind, problem_files
 from qpik.tasks import PostureTask
 
-README = Path(__file__).resolve().parent.parent / "tasks" / "README.md"
+README = Path(__file__).resolve().parents[2] / "tasks" / "README.md"
 
 TWO_FRAMES = """
 robot = "panda"

@@ -27,7 +27,7 @@ from qpik.robots import gripper_joints, tool_frame
 from qpik.scene import add_obstacle
 from qpik.tasks import PositionTask, PostureTask
 
-MENAGERIE = Path(__file__).resolve().parent / "data" / "menagerie"
+MENAGERIE = Path(__file__).resolve().parents[1] / "data" / "menagerie"
 
 
 def menagerie(name: str, **kwargs) -> mujoco.MjModel:
@@ -365,7 +365,7 @@ def test_support_polygon_is_the_boxes_and_meshes_projection():
 
 
 # ------------------------------------------------------------------------- problem files
-TASKS = Path(__file__).resolve().parent.parent / "tasks"
+TASKS = Path(__file__).resolve().parents[2] / "tasks"
 
 
 def test_problem_file_obstacles_and_collision_limits():

@@ -18,7 +18,7 @@ import pytest
 import qpik
 from qpik import analysis, statics
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 # --------------------------------------------------------------------------------------

@@ -17,8 +17,8 @@ from qpik.limits import joint_limits
 from qpik.model import KinematicChain, model_couplings
 from qpik.tasks import ComTask, CouplingTask, FrameTask, PositionTask, PostureTask
 
-DATA = pathlib.Path(__file__).parent / "data" / "menagerie"
-ROBOTS = pathlib.Path(__file__).parent.parent / "robots"
+DATA = pathlib.Path(__file__).parents[1] / "data" / "menagerie"
+ROBOTS = pathlib.Path(__file__).parents[2] / "robots"
 
 _INERTIA = '<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'  # noqa: E501
 MIMIC_URDF = f"""<robot name="mimic">
