@@ -507,6 +507,11 @@ def solve(
         targets: ``{frame: target}``; a frame is a site, body or geom name (sites first) or
             ``(name, frame_type)``; a target is a position (3,) [m], ``(position,
             rotation)``, a 4x4 matrix or a ``mink.SE3``, all in the world frame.
+        options: a :class:`qpik.SolveOptions`, a preset name of :data:`qpik.PRESETS`
+            (``"default"``, ``"precise"``, ``"fast"``, ``"tracking"``) or ``None`` (the
+            default preset). The keywords override it.
+
+    Keyword Args:
         q0: start configuration (default: the configuration's ``q``, or the mid-range).
             Must lie within the joint limits.
         stack: a task stack to use instead of the default (position/orientation tasks in
@@ -514,14 +519,10 @@ def solve(
             matches, for the solve only (the tasks are given back unchanged). Every task of
             its level 0 must be within tolerance for ``converged`` (see the module
             docstring).
-        options: a :class:`qpik.SolveOptions`, a preset name of :data:`qpik.PRESETS`
-            (``"default"``, ``"precise"``, ``"fast"``, ``"tracking"``) or ``None`` (the
-            default preset). The keywords override it.
         seed: seed of the restarts' random configurations: an int >= 0, a numpy
             ``Generator`` (one draw is taken from it) or ``SeedSequence``; same seed, same
             result. ``None``: fresh entropy. Default: ``options.seed`` (``None``).
-        **keywords: ``q0``, ``stack``, ``seed`` (above), and options overriding
-            ``options``, each a field of
+        **keywords: options overriding ``options``, each a field of
             :class:`qpik.SolveOptions` (``tol_position``, ``max_iters``, ``restarts``,
             ``time_budget``, ``engine``, ...) or of its :class:`qpik.StepOptions`
             (``solver``, ``damping``, ``damping_law``, ``couplings``, ...), documented

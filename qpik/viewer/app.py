@@ -123,6 +123,8 @@ class Viewer:
             problem's goal frames, or every frame a task of ``levels`` regulates.
         q0: start configuration ``(nq,)`` (default: the problem's, the configuration's,
             or the model's first keyframe, else ``qpos0``).
+
+    Keyword Args:
         host: interface to listen on (default ``127.0.0.1``: this machine only).
         port: TCP port (default 8080; 0 picks a free one; a busy one: the next free one).
         collision: draw the collision geoms too (translucent; a checkbox toggles them).

@@ -187,8 +187,12 @@ class LiveSolve:
             default: every frame regulated by a frame, position, orientation or pose task.
         q0: start configuration ``(nq,)`` (default: the model's ``qpos0``).
         targets: start targets ``{frame: Target}`` (default: each frame's pose at ``q0``).
-        dt: the step's time [s] (velocity limits bound a step to ``v_max dt``).
         step_options: :class:`qpik.StepOptions` of the steps.
+        level_names: the names of each level's tasks in the panel (default: described
+            from the tasks).
+
+    Keyword Args:
+        dt: the step's time [s] (velocity limits bound a step to ``v_max dt``).
         tol_position: [m]; ``tol_orientation``: [rad], when a goal frame is reached.
         max_iterations: steps per drag solve at most.
         max_step: trust region ``(metres, radians)``: what one step may ask of a goal
