@@ -99,8 +99,8 @@ def test_snippets_exist():
 
 
 def test_reference_lists_the_top_level():
-    """Every name of ``qpik.__all__`` is on the reference page of the top level, and every
-    ``qpik.NAME`` it renders is public."""
+    """The reference page of the top level renders (or links, for a module) exactly the
+    names of ``qpik.__all__``."""
     import qpik
 
     page = (DOCS / "reference" / "qpik.md").read_text()
@@ -109,9 +109,8 @@ def test_reference_lists_the_top_level():
     modules = {"tasks", "limits", "scene", "analysis", "statics", "baselines"}
     assert not set(qpik.__all__) - shown - modules - {"__version__"}
     rendered = set(re.findall(r"^::: qpik\.(\w+)\s*$", page, flags=re.MULTILINE))
-    assert rendered <= set(qpik.__all__)
-    for module in modules & set(qpik.__all__):
-        assert f"({module}.md)" in page
+    linked = {module for module in modules if f"({module}.md)" in page}
+    assert rendered | linked == set(qpik.__all__)
 
 
 def test_cli_help_pages_are_the_cli():
