@@ -178,8 +178,13 @@ def _is_real(value: Any) -> bool:
 
 
 def _is_numpy_number(value: Any) -> bool:
+    """A NumPy scalar or 0-d array of ints or floats (an array of several is not one)."""
     kind = type(value)
-    return kind.__module__ == "numpy" and hasattr(value, "dtype") and value.dtype.kind in "iuf"
+    return (
+        kind.__module__ == "numpy"
+        and getattr(value, "ndim", None) == 0
+        and value.dtype.kind in "iuf"
+    )
 
 
 def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:

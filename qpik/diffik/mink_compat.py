@@ -75,6 +75,8 @@ def as_configuration(configuration: Any, name: str = "configuration") -> Configu
 
 def _is_list_like(value: Any) -> bool:
     """A list, tuple or other iterable of items (mink iterates; a string is not one)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:  # Iterable by type, not by value
+        return False
     return isinstance(value, Iterable) and not isinstance(value, (str, bytes, BaseTask))
 
 

@@ -96,7 +96,7 @@ from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLim
 from ..model import KinematicChain, ReachBound, chain_support, joint_limits
 from ..model import kernels as _kernels
 from ..model.configuration import Configuration, FrameType, qpos_joint_names, resolve_robot
-from ..model.couplings import model_couplings
+from ..model.couplings import model_couplings, unheld_equalities, unheld_equality_errors
 from ..model.frames import resolve_frame
 from ..options import (  # noqa: F401 (the limits re-exported for the former single module)
     DEFAULT_RESTARTS,
@@ -261,6 +261,7 @@ class _Prepared:
         "memo",
         "mid",
         "support",
+        "unheld",
         "upper",
     )
 
@@ -281,6 +282,8 @@ class _Prepared:
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
         self.couplings = model_couplings(model)
+        #: the active equalities no level holds (connect, weld, ...): checked at the end
+        self.unheld = unheld_equalities(model)
         self.frames: dict = {}  # frame key -> _Frame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 
@@ -578,9 +581,10 @@ class IKSession:
                 )
             compiled_ok = False
         if compiled_ok and settings.engine != "qp":
-            return self._solve_compiled(
+            result = self._solve_compiled(
                 frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
             )
+            return self._check_unheld(result, settings)
         # A target provably out of reach ends the solve at once, unless the stack has
         # several levels (the others are still solved: level 0 may hold other frames).
         single = stack is None or len(normalize_stack(stack)) == 1
@@ -588,11 +592,30 @@ class IKSession:
             if _frame.reach is not None and _frame.reach.excludes(
                 target.position, settings.tol_position
             ):
-                return self._answer_unreachable(frames, q_start, start_time)
+                result = self._answer_unreachable(frames, q_start, start_time)
+                return self._check_unheld(result, settings)
         plain = [(f.name, f.kind, target) for f, target in frames]
         problem = QPProblem(self.model, plain, stack, settings)
         clock = Clock(start_time, settings.time_budget)
-        return iterate(problem, q_start, clock, int(rng_state[0]), settings)
+        return self._check_unheld(
+            iterate(problem, q_start, clock, int(rng_state[0]), settings), settings
+        )
+
+    def _check_unheld(self, result: IKResult, settings: SolveOptions) -> IKResult:
+        """``result`` with :attr:`IKResult.constraint_error` filled in, and not converged
+        (reason ``constraint``) where ``q`` breaks an active equality constraint of the
+        model that no level holds (connect, weld: :func:`unheld_equalities`) by more than
+        ``tol_position`` [m] or, a weld's rotation, ``tol_orientation`` [rad]."""
+        unheld = self._prepared.unheld
+        if unheld.size == 0:
+            return result
+        position, rotation = unheld_equality_errors(self.model, result.q, unheld)
+        result.constraint_error = max(position, rotation)
+        broken = position > settings.tol_position or rotation > settings.tol_orientation
+        if result.converged and broken:
+            result.converged = False
+            result.reason = Reason.CONSTRAINT
+        return result
 
     # ---------------------------------------------------------------- helpers
     def _options(

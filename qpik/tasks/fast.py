@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
-from ..errors import TargetNotSet, mink_errors_as_qpik, qpik_errors
+from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik, qpik_errors
 
 __all__ = ["DampingTask", "FrameTask", "PostureTask"]
 
@@ -51,7 +51,8 @@ class FrameTask(mink.FrameTask):
     {}_B J``), computed from MuJoCo directly."""
 
     def __init__(self, *args, **kwargs):
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = arguments_of(mink.FrameTask.__init__, self, *args, **kwargs)
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(*args, **kwargs)
         checks.check_frame_name("frame_name", self.frame_name)
 
@@ -107,7 +108,8 @@ class PostureTask(mink.PostureTask):
     identity."""
 
     def __init__(self, model: mujoco.MjModel, cost, gain: float = 1.0, lm_damping: float = 0.0):
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = {"model": model, "cost": cost, "gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(model, cost, gain, lm_damping)
         self._scalar = model.nq == model.nv and self._v_ids is None
         self._jacobian = np.eye(model.nv)
@@ -144,5 +146,5 @@ class DampingTask(mink.DampingTask):
     typed errors (each also mink's)."""
 
     def __init__(self, model: mujoco.MjModel, cost):
-        with mink_errors_as_qpik(type(self).__name__):
+        with mink_errors_as_qpik(type(self).__name__, {"model": model, "cost": cost}):
             super().__init__(model, cost)
