@@ -36,7 +36,10 @@ Two engines run this rule (:attr:`IKResult.engine`):
 Couplings (``couplings=True``, the default): the model's joint and fixed-tendon equality
 constraints (``<equality><joint>``, URDF ``<mimic>``; :mod:`qpik.model.couplings`) are a
 level above the stack in every ``"qp"`` step, and count in ``converged`` (their residual
-against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``.
+against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``. The equalities
+qpik does not hold (connect and weld loop closures: ``Couplings.skipped``) are measured at
+the returned ``q`` (``IKResult.constraint_error``, MuJoCo's residuals): a ``q`` that breaks
+one beyond the tolerances is not converged (reason ``constraint``), whatever the targets.
 
 Stacks of several levels (a custom ``stack``): the iterates are ranked lexicographically,
 the couplings first, then level 0, 1, ... (each level's largest error-to-tolerance ratio,
