@@ -487,9 +487,15 @@ def resolve(options: SolveOptions | str | None) -> SolveOptions:
 
 
 def _check_seed(seed: Any) -> int:
-    if isinstance(seed, bool) or not hasattr(seed, "__index__") or operator.index(seed) < 0:
+    if isinstance(seed, bool):
         raise InvalidOption("seed", seed, "an int >= 0 or None")
-    return operator.index(seed)
+    try:  # an array has __index__ but only a 0-d one of ints converts
+        number = operator.index(seed)
+    except TypeError:
+        raise InvalidOption("seed", seed, "an int >= 0 or None") from None
+    if number < 0:
+        raise InvalidOption("seed", seed, "an int >= 0 or None")
+    return number
 
 
 def _check_limits(limits: Any) -> str | tuple | None:

@@ -419,3 +419,80 @@ def test_nan_mimic_multiplier_is_refused_at_load(tmp_path: Path) -> None:
     )
     with pytest.raises(qpik.RobotFileError, match=r"equality .*j1, j0.*NaN"):
         qpik.load_robot(path)
+
+
+# --------------------------------------------------------------------------------------
+# Classes of the full campaign (seed 77).
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        # SolveOptions(seed=str array): operator.index on an array (TypeError)
+        (lambda m: qpik.SolveOptions(seed=np.array(["a", "b"])), "seed"),
+        # IKSolver(osqp_settings=array): .as_dict() on it (AttributeError)
+        (
+            lambda m: qpik.IKSolver(
+                m, [[qpik.tasks.DampingTask(m, 1.0)]], osqp_settings=np.zeros(0)
+            ),
+            "osqp_settings",
+        ),
+    ],
+)
+def test_full_campaign_wrong_types_are_named(call, name: str) -> None:
+    with pytest.raises(qpik.QpikError) as info:
+        call(_model())
+    assert name in str(info.value)
+
+
+def test_solve_ik_solver_of_a_wrong_type_whatever_the_cache() -> None:
+    """An array as ``solver`` is a key of the solver cache: an empty cache's dict.pop
+    never hashed it (then a typed "unknown QP solver"), a filled one raised TypeError
+    (unhashable), so the outcome depended on the calls before."""
+    model = _model()
+    configuration = qpik.Configuration(model)
+    task = qpik.tasks.DampingTask(model, 1.0)
+    for fill in (False, True):
+        qpik.clear_caches()
+        if fill:
+            qpik.solve_ik(configuration, [task], 0.01)
+        with pytest.raises(qpik.InvalidArgumentType, match="solver"):
+            qpik.solve_ik(configuration, [task], 0.01, solver=np.ones(3))
+
+
+def test_track_mode_on_a_robot_without_dofs(tmp_path: Path) -> None:
+    """A robot of fixed joints only in track mode: the trace's velocities (k, 0) were
+    reshaped with reshape(-1, 0) (ValueError; ``qpik reach`` exit 70)."""
+    (tmp_path / "fixed.xml").write_text(
+        '<mujoco><worldbody><body name="b"><geom type="sphere" size="0.1"/>'
+        '<site name="ee" pos="0.3 0 0"/></body></worldbody></mujoco>'
+    )
+    path = tmp_path / "p.toml"
+    path.write_text(
+        'robot = "fixed.xml"\nmode = "track"\nlevels = [[{type = "position", frame = "ee"}]]\n'
+        'target = {frame = "ee", position = [0.3, 0.0, 0.0]}\n'
+        "[track]\ndt = 0.01\nsteps = 3\n"
+    )
+    result = qpik.load_problem(path).solve()
+    assert result.converged and result.trace.velocity.shape[1] == 0
+
+
+def test_track_mode_does_not_claim_convergence_against_an_equality(tmp_path: Path) -> None:
+    """As qpik.solve: reaching the goal at a q that breaks a weld is not converged."""
+    (tmp_path / "welded.xml").write_text(WELDED.format(kind="weld", extra=""))
+    path = tmp_path / "p.toml"
+    path.write_text(
+        'robot = "welded.xml"\nmode = "track"\nq0 = [0.0, 0.0]\n'
+        'levels = [[{type = "position", frame = "ee"}]]\n'
+        'target = {frame = "ee", position = [0.0, 0.45, 0.0]}\n'
+        "[track]\ndt = 0.01\nsteps = 400\n"
+    )
+    result = qpik.load_problem(path).solve()
+    assert not result.converged and "constraint" in result.reason
+
+
+@pytest.mark.parametrize("case", ["robot_gen:112", "robot_gen:256"])
+def test_full_campaign_seed_77_cases(case: str) -> None:
+    fuzz = _fuzz()
+    category, index = case.split(":")
+    spec = fuzz.make_spec(77, category, int(index))
+    outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS[category], spec)
+    assert outcome not in fuzz.BAD, f"{case} {outcome}: {detail}"

@@ -305,6 +305,12 @@ def _step_options(options: StepOptions | None, osqp_settings, **given) -> StepOp
         raise InvalidInput(f"options must be a qpik.StepOptions, got {options!r}")
     overrides = {name: value for name, value in given.items() if value is not UNSET}
     if osqp_settings is not None and "backend_options" not in overrides:
+        if not callable(getattr(osqp_settings, "as_dict", None)):
+            raise InvalidArgumentType(
+                "osqp_settings",
+                "None or OSQP settings (an object with as_dict())",
+                checks.type_name(osqp_settings),
+            )
         overrides["backend_options"] = osqp_settings.as_dict()
     options = options if options is not None else StepOptions()
     return options.replace(**overrides) if overrides else options
