@@ -13,7 +13,7 @@ upper, model)``) as well as qpik's way. Errors pickle (they cross process bounda
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import Any, Literal
 
@@ -49,6 +49,7 @@ __all__ = [
     "UnknownFrame",
     "UnknownFrameType",
     "UnknownRobot",
+    "arguments_of",
     "as_qpik_error",
     "mink_errors_as_qpik",
     "qpik_errors",
@@ -519,11 +520,15 @@ def qpik_errors() -> Iterator[None]:
 class mink_errors_as_qpik:  # lower case: used as a context manager, like contextlib's
     """Context manager for constructors of tasks built on mink's: a mink error is re-raised
     as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
-    error's message prefixed with ``what``), and a value that is not a number (``cost="x"``)
-    as a ``TaskDefinitionError`` naming ``what``."""
+    error's message prefixed with ``what``), and a value of a wrong kind (``cost="x"``,
+    ``model="panda"``) as a ``TaskDefinitionError`` naming ``what`` and, when the
+    constructor's ``arguments`` (name -> value) are given, the argument at fault: a
+    ``model`` that is not an ``MjModel``, else the argument whose type or value the error
+    quotes."""
 
-    def __init__(self, what: str):
+    def __init__(self, what: str, arguments: Mapping[str, Any] | None = None):
         self.what = what
+        self.arguments = arguments
 
     def __enter__(self) -> None:
         return None
@@ -536,6 +541,14 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
                 raise qpik_class(f"{self.what}: {error}") from None
         if isinstance(error, mink.MinkError):
             raise as_qpik_error(error) from error
+        if isinstance(error, (TypeError, ValueError, AttributeError, IndexError)):
+            culprit = self._culprit(error)
+            if culprit is not None:
+                name, value = culprit
+                raise TaskDefinitionError(
+                    f"{self.what}: argument {name} is not valid (got {type(value).__name__} "
+                    f"{_short_repr(value)}: {error})"
+                ) from None
         if isinstance(error, (TypeError, ValueError)):
             raise TaskDefinitionError(
                 f"{self.what}: costs, gain and lm_damping must be numbers ({error})"
@@ -543,3 +556,36 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
         if isinstance(error, (AttributeError, IndexError)):  # an argument of a wrong kind
             raise TaskDefinitionError(f"{self.what}: invalid argument ({error})") from None
         return False
+
+    def _culprit(self, error: BaseException) -> tuple[str, Any] | None:
+        """``(name, value)`` of the argument ``error`` is about, when one can be told."""
+        arguments = {k: v for k, v in (self.arguments or {}).items() if k != "self"}
+        model = arguments.get("model", mujoco.MjModel)
+        if model is not mujoco.MjModel and not isinstance(model, mujoco.MjModel):
+            return "model", model
+        text = str(error)
+        for name, value in arguments.items():  # the type the error names: 'set', 'str'
+            if f"'{type(value).__name__}'" in text and not _is_number(value):
+                return name, value
+        for name, value in arguments.items():  # the value it quotes: 'x'
+            if isinstance(value, str) and value and repr(value) in text:
+                return name, value
+        return None
+
+
+def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any]:
+    """``function``'s arguments by name for this call (for :class:`mink_errors_as_qpik`);
+    empty when they do not fit its signature (the call itself then says so)."""
+    try:
+        return dict(inspect.signature(function).bind(*args, **kwargs).arguments)
+    except (TypeError, ValueError):
+        return {}
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _short_repr(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

@@ -186,8 +186,13 @@ def _is_real(value: Any) -> bool:
 
 
 def _is_numpy_number(value: Any) -> bool:
+    """A NumPy scalar or 0-d array of ints or floats (an array of several is not one)."""
     kind = type(value)
-    return kind.__module__ == "numpy" and hasattr(value, "dtype") and value.dtype.kind in "iuf"
+    return (
+        kind.__module__ == "numpy"
+        and getattr(value, "ndim", None) == 0
+        and value.dtype.kind in "iuf"
+    )
 
 
 def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> int:
@@ -493,9 +498,15 @@ def resolve(options: SolveOptions | str | None) -> SolveOptions:
 
 
 def _check_seed(seed: Any) -> int:
-    if isinstance(seed, bool) or not hasattr(seed, "__index__") or operator.index(seed) < 0:
+    if isinstance(seed, bool):
         raise InvalidOption("seed", seed, "an int >= 0 or None")
-    return operator.index(seed)
+    try:  # an array has __index__ but only a 0-d one of ints converts
+        number = operator.index(seed)
+    except TypeError:
+        raise InvalidOption("seed", seed, "an int >= 0 or None") from None
+    if number < 0:
+        raise InvalidOption("seed", seed, "an int >= 0 or None")
+    return number
 
 
 def _check_limits(limits: Any) -> str | tuple | None:

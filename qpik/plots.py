@@ -32,9 +32,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .core import checks
 from .core.jacobian import manipulability, row_indices, singular_values
-from .errors import MissingExtra
+from .errors import InvalidArgumentType, InvalidInput, MissingExtra
 from .model.configuration import Configuration, FrameType, joint_names
+from .model.frames import check_model_type
 
 if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     import mujoco
@@ -83,6 +85,99 @@ def pyplot():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+# ----------------------------------------------------------------------------- checks
+# Each public function checks its arguments here, once, before it draws anything: a value
+# of a wrong type raises InvalidArgumentType (a TypeError), a wrong shape or a NaN
+# InvalidInput (a ValueError), each naming the argument.
+def _check_ax(ax, three_d: bool = False):
+    """``ax``: ``None`` (new axes) or matplotlib axes (3D ones for a 3D plot)."""
+    if ax is None:
+        return None
+    require_matplotlib()
+    if three_d:
+        from mpl_toolkits.mplot3d import Axes3D
+
+        return checks.check_instance("ax", ax, Axes3D, "None or 3D matplotlib axes")
+    from matplotlib.axes import Axes
+
+    return checks.check_instance("ax", ax, Axes, "None or matplotlib axes")
+
+
+def _check_path(model: mujoco.MjModel, path) -> np.ndarray:
+    """``path``: configurations ``(k, nq)`` (k >= 1; one ``(nq,)`` is a path of one),
+    finite, as a float array."""
+    expected = f"configurations: an array (k, {model.nq}) of numbers"
+    array = checks.check_array("path", path, expected)
+    if array.ndim not in (1, 2):
+        raise InvalidInput(f"path has shape {array.shape}; expected {expected}")
+    array = np.atleast_2d(array)
+    if array.shape[0] == 0 or array.shape[1] != model.nq:
+        raise InvalidInput(f"path has shape {np.shape(path)}; expected {expected}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInput("path has NaN or infinite entries")
+    return array
+
+
+def _check_frame_type(name: str, value) -> FrameType:
+    """A frame type: a ``FrameType`` or one of the strings body, site, geom."""
+    if not isinstance(value, (str, FrameType)):
+        raise InvalidArgumentType(
+            name, "a frame type ('body', 'site' or 'geom')", checks.type_name(value)
+        )
+    return FrameType.parse(value)
+
+
+def _check_frames(name: str, frames) -> list[tuple[str, FrameType]]:
+    """A sequence of ``(frame name, frame type)`` pairs."""
+    expected = "a sequence of (frame name, frame type) pairs"
+    if isinstance(frames, (str, bytes, dict, set)) or not isinstance(frames, Sequence):
+        if not (isinstance(frames, np.ndarray) and frames.ndim == 2):
+            raise InvalidArgumentType(name, expected, checks.type_name(frames))
+    pairs = []
+    for i, pair in enumerate(frames):
+        if isinstance(pair, (str, bytes)) or not isinstance(pair, (Sequence, np.ndarray)):
+            raise InvalidArgumentType(f"{name}[{i}]", expected, checks.type_name(pair))
+        if len(pair) != 2:
+            raise InvalidInput(f"{name}[{i}] has {len(pair)} entries; expected {expected}")
+        frame = checks.check_frame_name(f"{name}[{i}][0]", pair[0])
+        pairs.append((frame, _check_frame_type(f"{name}[{i}][1]", pair[1])))
+    return pairs
+
+
+def _check_targets(targets) -> np.ndarray:
+    """``targets``: positions ``(k, 3)`` [m] (a sequence of 3-vectors, maybe empty)."""
+    expected = "a sequence of positions [x, y, z] (m)"
+    if isinstance(targets, (set, frozenset)):
+        raise InvalidArgumentType("targets", expected, checks.type_name(targets))
+    array = checks.check_array("targets", targets, expected)
+    if array.size == 0:
+        return np.zeros((0, 3))
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidInput(f"targets has shape {array.shape}; expected {expected}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInput("targets has NaN or infinite entries")
+    return array
+
+
+def _check_along(name: str, value, n: int) -> np.ndarray | None:
+    """``time`` or ``goal_index``: ``None`` or one finite number per configuration."""
+    if value is None:
+        return None
+    array = checks.check_vector(name, value, n)
+    if name == "goal_index":
+        if not np.all(array == np.round(array)):
+            raise InvalidInput(f"goal_index must hold whole numbers (goal indices), got {value}")
+        return array.astype(int)
+    return array
+
+
+def _check_label(name: str, value) -> str | None:
+    """An axis label: ``None`` or a ``str``."""
+    if value is None:
+        return None
+    return checks.check_instance(name, value, str, "a str or None")
 
 
 def _axes(ax, projection: str | None = None):
@@ -141,6 +236,7 @@ def is_planar(model: mujoco.MjModel) -> bool:
     planar arms)."""
     import mujoco
 
+    check_model_type("model", model)
     hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
     axes = Configuration(model, model.qpos0).data.xaxis
     return model.njnt > 0 and all(
@@ -196,13 +292,24 @@ _STYLE = {"m": "-", "rad": "--", "": "-."}
 def plot_task_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
     """Each task's error along the path, one colour per task, level in the label (see
     :meth:`qpik.problem.ProblemResult.task_errors`), with the tolerances."""
+    _check_result(result)
+    _check_ax(ax)
     return _plot_path_errors(result, result.task_errors(), ax, "task error per priority level")
 
 
 def plot_frame_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:
     """Each goal frame's position [m] and rotation [rad] error along the path (blank
     while the goal being reached does not name the frame), with the tolerances."""
+    _check_result(result)
+    _check_ax(ax)
     return _plot_path_errors(result, result.frame_errors(), ax, "error per goal frame")
+
+
+def _check_result(result) -> None:
+    """``result``: a :class:`qpik.problem.ProblemResult`."""
+    from .problem import ProblemResult
+
+    checks.check_instance("result", result, ProblemResult, "a qpik.problem.ProblemResult")
 
 
 def _plot_path_errors(
@@ -237,6 +344,21 @@ def plot_level_errors(
     what a step could not achieve (near zero once a level is feasible; it is not the task
     error, see :func:`plot_task_errors`); and the goal frames' largest position error [m]
     when given (``goal_error[i]`` after step ``i``, ``goal_error[0]`` at the start)."""
+    expected = "a sequence of rows, each a sequence of numbers (one per level)"
+    if (
+        isinstance(residual_history, (str, bytes, dict, set))
+        or not isinstance(residual_history, (Sequence, np.ndarray))
+        or np.ndim(residual_history) == 0
+    ):
+        raise InvalidArgumentType("residual_history", expected, checks.type_name(residual_history))
+    history = [
+        checks.check_vector(f"residual_history[{i}]", row, finite=False)
+        for i, row in enumerate(residual_history)
+    ]
+    _check_ax(ax)
+    xlabel = checks.check_instance("xlabel", xlabel, str, "a str")
+    if goal_error is not None:
+        goal_error = checks.check_vector("goal_error", goal_error, finite=False)
     ax = _axes(ax)
     if goal_error is not None:
         ax.semilogy(
@@ -246,7 +368,6 @@ def plot_level_errors(
             lw=1.5,
             label="goal position error [m]",
         )
-    history = [list(row) for row in residual_history]
     levels = max((len(row) for row in history), default=0)
     for level in range(levels):
         values = np.array([row[level] if level < len(row) else np.nan for row in history])
@@ -271,7 +392,8 @@ def joint_curves(model: mujoco.MjModel, path: np.ndarray) -> list[tuple[str, np.
     joint its position x, y, z [m] and rotation angle [rad] (no limits)."""
     import mujoco
 
-    path = np.atleast_2d(path)
+    check_model_type("model", model)
+    path = _check_path(model, path)
     names = joint_names(model)
     configuration = Configuration(model)
     curves = []
@@ -309,8 +431,13 @@ def plot_joints(
     joints: their rotation angle; free joints: position and rotation angle; see
     :func:`joint_curves`). With more than :data:`MAX_NAMED` curves, the ones that move
     most are coloured and named, the others thin and grey (their limits not drawn)."""
+    check_model_type("model", model)
+    path = _check_path(model, path)
+    _check_ax(ax)
+    time = _check_along("time", time, len(path))
+    goal_index = _check_along("goal_index", goal_index, len(path))
+    xlabel = _check_label("xlabel", xlabel)
     ax = _axes(ax)
-    path = np.atleast_2d(path)
     x = np.arange(len(path)) if time is None else time
     colors = _colors()
     curves = joint_curves(model, path)
@@ -354,7 +481,8 @@ def _goal_jacobian(frames: Sequence[tuple[str, str | FrameType]], rows):
     """``configuration -> J``: the frames' Jacobians stacked, ``rows`` of each (what
     :func:`qpik.analysis.analyze` takes: ``"pose"``, ``"position"``, row names...; and
     ``"planar"`` for vx, vy)."""
-    take = list(row_indices(("vx", "vy") if rows == "planar" else rows))
+    planar = isinstance(rows, str) and rows == "planar"
+    take = list(row_indices(("vx", "vy") if planar else rows))
 
     def jacobian(configuration: Configuration) -> np.ndarray:
         return np.vstack([configuration.frame_jacobian(f, t)[take] for f, t in frames])
@@ -376,12 +504,27 @@ def plot_singular_values(
     """Singular values of the frame's Jacobian (``rows``: ``"pose"``, ``"position"`` or
     ``"planar"`` for vx, vy; ``frame`` may be a list of ``(name, frame_type)``, whose
     Jacobians are stacked) and the manipulability ``sqrt(det J J^T)``, along ``path``."""
-    ax = _axes(ax)
-    frames = [(frame, frame_type)] if isinstance(frame, str) else list(frame)
+    check_model_type("model", model)
+    path = _check_path(model, path)
+    if isinstance(frame, str):
+        frames = [(frame, _check_frame_type("frame_type", frame_type))]
+    else:
+        frames = _check_frames("frame", frame)
+        if not frames:
+            raise InvalidInput("frame is an empty sequence; name at least one frame")
+    if not (isinstance(rows, str) and rows == "planar"):
+        row_indices(rows)
+    _check_ax(ax)
+    time = _check_along("time", time, len(path))
+    goal_index = _check_along("goal_index", goal_index, len(path))
+    xlabel = _check_label("xlabel", xlabel)
     configuration = Configuration(model)
+    for name, kind in frames:
+        configuration.frame_id(name, kind)  # an unknown frame: UnknownFrame, before drawing
+    ax = _axes(ax)
     jacobian = _goal_jacobian(frames, rows)
     sigma_rows, measure = [], []
-    for q in np.atleast_2d(path):
+    for q in path:
         configuration.update(q)
         J = jacobian(configuration)
         sigma_rows.append(singular_values(J))
@@ -412,6 +555,17 @@ def robot_segments(
     ``frames`` (a site or geom) to the frame, at the configuration."""
     import mujoco
 
+    check_model_type("model", model)
+    checks.check_instance("configuration", configuration, Configuration, "a qpik.Configuration")
+    theirs = configuration.model
+    if (theirs.nbody, theirs.nq, theirs.nsite, theirs.ngeom) != (
+        model.nbody,
+        model.nq,
+        model.nsite,
+        model.ngeom,
+    ):
+        raise InvalidInput("configuration is of another model than model (other sizes)")
+    frames = _check_frames("frames", frames)
     free = int(mujoco.mjtJoint.mjJNT_FREE)
     xpos = configuration.data.xpos
     segments = []
@@ -457,11 +611,19 @@ def plot_robot(
     (light blue) and the final one (dark blue), with the traces of ``frames`` (orange)
     and the ``targets`` [m, world] (red crosses). ``view``: (elevation, azimuth) [deg].
     Needs no GL (no offscreen rendering): it works on machines without a display."""
+    check_model_type("model", model)
+    path = _check_path(model, path)
+    target_points = _check_targets(targets)
+    frames = _check_frames("frames", frames)
+    _check_ax(ax, three_d=True)
+    intermediate = checks.check_integer("intermediate", intermediate, 0, 10_000)
+    elevation, azimuth = checks.check_vector("view", view, 2)
+    configuration = Configuration(model)
+    for name, kind in frames:
+        configuration.frame_id(name, kind)  # an unknown frame: UnknownFrame, before drawing
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     ax3d: Axes3D = _axes(ax, projection="3d")
-    path = np.atleast_2d(path)
-    configuration = Configuration(model)
     picks = _picks(len(path), intermediate)
     points = [np.zeros((0, 3))]
     for rank, index in enumerate(picks):
@@ -481,7 +643,7 @@ def plot_robot(
     for k, trace in enumerate(_frame_trace(configuration, path, frames)):
         ax3d.plot(*trace.T, color="tab:orange", lw=1, label="frame path" if k == 0 else None)
         points.append(trace)
-    for k, target in enumerate(targets):
+    for k, target in enumerate(target_points):
         ax3d.plot(
             *np.reshape(target, (3, 1)),
             "x",
@@ -492,7 +654,7 @@ def plot_robot(
         )
         points.append(np.reshape(target, (1, 3)))
     _equal_3d(ax3d, np.vstack(points))
-    ax3d.view_init(*view)
+    ax3d.view_init(float(elevation), float(azimuth))
     ax3d.set_xlabel("x [m]", fontsize="small")
     ax3d.set_ylabel("y [m]", fontsize="small")
     ax3d.set_zlabel("z [m]", fontsize="small")
@@ -530,9 +692,16 @@ def plot_planar_arm(
 ) -> Axes:
     """A planar arm seen from above at the start (light), ``intermediate`` configurations
     along ``path`` and the final one (dark), with the tip's trace and the targets."""
-    ax = _axes(ax)
-    path = np.atleast_2d(path)
+    check_model_type("model", model)
+    path = _check_path(model, path)
+    target_points = _check_targets(targets)
+    frame = checks.check_frame_name("frame", frame)
+    frame_type = _check_frame_type("frame_type", frame_type)
+    _check_ax(ax)
+    intermediate = checks.check_integer("intermediate", intermediate, 0, 10_000)
     configuration = Configuration(model)
+    configuration.frame_id(frame, frame_type)  # an unknown frame: UnknownFrame, before drawing
+    ax = _axes(ax)
     (tip,) = _frame_trace(configuration, path, [(frame, frame_type)])
     ax.plot(tip[:, 0], tip[:, 1], color="tab:orange", lw=1, label="tip path")
     picks = _picks(len(path), intermediate)
@@ -546,7 +715,7 @@ def plot_planar_arm(
         ax.plot(
             points[:, 0], points[:, 1], "-o", color=(0.1, 0.3, 0.7, shade), lw=3, ms=4, label=label
         )
-    for k, target in enumerate(targets):
+    for k, target in enumerate(target_points):
         ax.plot(
             target[0],
             target[1],
@@ -575,6 +744,10 @@ def plot_result(
     planar arms). The QP residual per step is :func:`plot_level_errors`'s. Saved to
     ``path`` when given (drawn on a bare :class:`matplotlib.figure.Figure`, Agg canvas: no
     GUI, pyplot's state untouched); returns the figure."""
+    _check_result(result)
+    if path is not None:
+        path = checks.check_path("path", path)
+    checks.check_real("dpi", dpi, 0.0, 10_000.0, open_minimum=True)
     require_matplotlib()
     problem = result.problem
     model = problem.model

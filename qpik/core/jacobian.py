@@ -133,7 +133,8 @@ def row_indices(rows: Rows) -> tuple[int, ...]:
                 f"or a sequence of row names ({' '.join(ROW_NAMES)}) or indices 0-5"
             )
         return _ROW_SETS[rows]
-    if isinstance(rows, bytes) or not isinstance(rows, Iterable):
+    zero_d = isinstance(rows, np.ndarray) and rows.ndim == 0  # iterable by type, not by value
+    if isinstance(rows, bytes) or not isinstance(rows, Iterable) or zero_d:
         raise InvalidArgumentType(
             "rows",
             "'pose', 'position', 'orientation' or a sequence of row names or indices",

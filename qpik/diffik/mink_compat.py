@@ -35,7 +35,8 @@ import numpy as np
 import qpsolvers
 
 from ..core import HierarchySolver, Level, LevelStatus
-from ..errors import InvalidDamping, InvalidInput, NoSolutionFound
+from ..core.checks import type_name
+from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
 from ..model.configuration import Configuration
 from ..tasks import BaseTask
 from .solver import IKSolver
@@ -75,6 +76,8 @@ def as_configuration(configuration: Any, name: str = "configuration") -> Configu
 
 def _is_list_like(value: Any) -> bool:
     """A list, tuple or other iterable of items (mink iterates; a string is not one)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:  # Iterable by type, not by value
+        return False
     return isinstance(value, Iterable) and not isinstance(value, (str, bytes, BaseTask))
 
 
@@ -314,6 +317,8 @@ def _solver(
     if limits is not None:
         limits = _limits(configuration, limits)
     constraint_tasks = _constraints(constraints)
+    if solver is not None and not isinstance(solver, str):  # a key of the solver cache
+        raise InvalidArgumentType("solver", "a QP solver name (str) or None", type_name(solver))
     if backend_options and solver in (None, "auto"):
         raise InvalidInput(
             f"solver keyword arguments {sorted(backend_options)} are settings of a "

@@ -34,7 +34,7 @@ import mink
 import mujoco
 
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
-from ..errors import InvalidInput
+from ..errors import InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
@@ -72,6 +72,12 @@ def _step_options(options: StepOptions | None, keywords: dict[str, Any]) -> Step
     osqp_settings = keywords.pop("osqp_settings", None)
     overrides = {name: value for name, value in keywords.items() if value is not UNSET}
     if osqp_settings is not None and "backend_options" not in overrides:
+        if not callable(getattr(osqp_settings, "as_dict", None)):
+            raise InvalidArgumentType(
+                "osqp_settings",
+                "None or OSQP settings (an object with as_dict())",
+                checks.type_name(osqp_settings),
+            )
         overrides["backend_options"] = osqp_settings.as_dict()
     options = options if options is not None else StepOptions()
     return options.replace(**overrides) if overrides else options

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays, kernels
 from ..model.configuration import Configuration, FrameType
-from ..model.couplings import model_couplings
+from ..model.couplings import model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
 from .targets import FrameKey
 
@@ -63,6 +63,7 @@ class PreparedRobot:
         "memo",
         "mid",
         "support",
+        "unheld",
         "upper",
     )
 
@@ -83,6 +84,8 @@ class PreparedRobot:
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
         self.couplings = model_couplings(model)
+        #: the active equalities no level holds (connect, weld, ...): checked at the end
+        self.unheld = unheld_equalities(model)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 

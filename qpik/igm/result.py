@@ -30,6 +30,7 @@ class Reason(str, enum.Enum):
     SINGULAR = "singular"
     UNREACHABLE = "unreachable"
     DIVERGED = "diverged"
+    CONSTRAINT = "constraint"
 
     def __str__(self) -> str:
         return self.value
@@ -53,6 +54,9 @@ _DESCRIPTIONS = {
     Reason.UNREACHABLE: "a target position is farther from the base than the arm reaches "
     "(provably: the chain's reach bound); answered without iterating",
     Reason.DIVERGED: "the step was not finite",
+    Reason.CONSTRAINT: "the targets are within tolerance, but q breaks an active equality "
+    "constraint of the model that qpik does not hold (a connect or weld constraint: "
+    "IKResult.constraint_error; hold it with mink's EqualityConstraintTask in level 0)",
 }
 
 #: The reasons :func:`qpik.solve` gives, with their meaning (read-only).
@@ -104,7 +108,8 @@ class Outcome:
 class IKResult(Outcome):
     """The outcome of :func:`qpik.solve`: the fields of :class:`Outcome` (``q`` always
     within the joint limits; ``converged`` when every frame and every level-0 task is
-    within tolerance; ``reason`` one of :data:`REASONS`), and:
+    within tolerance and ``q`` breaks none of the model's equality constraints (see
+    ``constraint_error``); ``reason`` one of :data:`REASONS`), and:
 
     Attributes:
         frame_errors: per frame, ``(position_error [m], orientation_error [rad])``.
@@ -120,6 +125,12 @@ class IKResult(Outcome):
             reach in level 1, ``(True, False, ...)``.
         coupling_error: the largest residual of the model's couplings at ``q``
             (:func:`qpik.model.model_couplings`) [rad or m]; 0 without couplings.
+        constraint_error: the largest residual at ``q`` of the model's active equality
+            constraints that qpik does not hold (connect and weld constraints:
+            :func:`qpik.model.couplings.unheld_equalities`; MuJoCo's residuals) [m, or
+            rad for a weld's rotation]; 0 without such constraints. A solve whose
+            targets are met at a ``q`` that breaks one (beyond ``tol_position`` /
+            ``tol_orientation``) is not converged: its reason is ``constraint``.
     """
 
     frame_errors: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -129,6 +140,7 @@ class IKResult(Outcome):
     engine: str = "qp"
     levels_met: tuple[bool, ...] = ()
     coupling_error: float = 0.0
+    constraint_error: float = 0.0
 
     def __str__(self) -> str:
         state = "converged" if self.converged else f"not converged ({self.reason})"

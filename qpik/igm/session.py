@@ -40,7 +40,10 @@ level above the stack in every ``"qp"`` step, and count in ``converged`` (their 
 against ``tol_position``); ``IKResult.coupling_error`` reports them at ``q``. The compiled
 engine moves only the target's chain: it takes a model with couplings when none of them
 moves a joint of the chain and they hold at the start (to 1e-9); otherwise the solve runs on
-the ``"qp"`` engine (``engine="compiled"`` then raises :class:`qpik.InvalidInput`).
+the ``"qp"`` engine (``engine="compiled"`` then raises :class:`qpik.InvalidInput`). The equalities
+qpik does not hold (connect and weld loop closures: ``Couplings.skipped``) are measured at
+the returned ``q`` (``IKResult.constraint_error``, MuJoCo's residuals): a ``q`` that breaks
+one beyond the tolerances is not converged (reason ``constraint``), whatever the targets.
 
 Stacks of several levels (a custom ``stack``): the iterates are ranked lexicographically,
 the couplings first, then level 0, 1, ... (each level's largest error-to-tolerance ratio,
@@ -92,6 +95,7 @@ from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLim
 from ..model import ReachBound
 from ..model import kernels as model_kernels
 from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
+from ..model.couplings import unheld_equality_errors
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
@@ -287,9 +291,10 @@ class IKSession:
                 )
             compiled_ok = False
         if compiled_ok and settings.engine != "qp":
-            return self._solve_compiled(
+            result = self._solve_compiled(
                 frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
             )
+            return self._check_unheld(result, settings)
         # A target provably out of reach ends the solve at once, unless the stack has
         # several levels (the others are still solved: level 0 may hold other frames).
         single = stack is None or len(normalize_stack(stack)) == 1
@@ -297,11 +302,30 @@ class IKSession:
             if _frame.reach is not None and _frame.reach.excludes(
                 target.position, settings.tol_position
             ):
-                return self._answer_unreachable(frames, q_start, start_time)
+                result = self._answer_unreachable(frames, q_start, start_time)
+                return self._check_unheld(result, settings)
         plain = [(f.name, f.kind, target) for f, target in frames]
         problem = QPProblem(self.model, plain, stack, settings)
         clock = Clock(start_time, settings.time_budget)
-        return iterate(problem, q_start, clock, int(rng_state[0]), settings)
+        return self._check_unheld(
+            iterate(problem, q_start, clock, int(rng_state[0]), settings), settings
+        )
+
+    def _check_unheld(self, result: IKResult, settings: SolveOptions) -> IKResult:
+        """``result`` with :attr:`IKResult.constraint_error` filled in, and not converged
+        (reason ``constraint``) where ``q`` breaks an active equality constraint of the
+        model that no level holds (connect, weld: :func:`unheld_equalities`) by more than
+        ``tol_position`` [m] or, a weld's rotation, ``tol_orientation`` [rad]."""
+        unheld = self._prepared.unheld
+        if unheld.size == 0:
+            return result
+        position, rotation = unheld_equality_errors(self.model, result.q, unheld)
+        result.constraint_error = max(position, rotation)
+        broken = position > settings.tol_position or rotation > settings.tol_orientation
+        if result.converged and broken:
+            result.converged = False
+            result.reason = Reason.CONSTRAINT
+        return result
 
     # ---------------------------------------------------------------- helpers
     def _options(

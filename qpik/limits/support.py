@@ -109,7 +109,7 @@ class SupportPolygonLimit(mink.Limit):
         if isinstance(body, str):
             self.body = resolve_frame(model, body, FrameType.BODY, argument="body").id
         else:
-            self.body = int(body)
+            self.body = checks.check_index("body", body, model.nbody)
         self._jac = np.empty((3, model.nv))
 
     def support_points(self, configuration: mink.Configuration) -> np.ndarray:

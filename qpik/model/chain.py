@@ -155,6 +155,9 @@ class KinematicChain:
         reason = chain_support(model, joints)
         if reason is not None:
             raise ValueError(reason)
+        axes = np.linalg.norm(model.jnt_axis[joints].reshape(-1, 3), axis=1)
+        if not np.all(np.abs(axes - 1.0) <= 1e-6):  # a zero axis: MuJoCo's FK differs
+            raise ValueError(f"a joint axis on the chain of {frame!r} is not a unit vector")
         jnt_type = np.where(model.jnt_type[joints] == _HINGE, _kernels.HINGE, _kernels.SLIDE)
         qadr = model.jnt_qposadr[joints].astype(np.int64)
         arrays = (

@@ -236,11 +236,14 @@ class Configuration(mink.Configuration):
         try:
             cached = self._frame_id_cache.get(key)
         except TypeError:  # unhashable: a list, an array, a dict
-            raise InvalidArgumentType(
-                "frame name", "a frame name (str) or id (int)", type(name).__name__
-            ) from None
+            cached = None
         if cached is not None:
             return cached
+        if isinstance(name, (bool, np.bool_)) or not isinstance(name, (str, int, np.integer)):
+            # a list, a float, a Configuration, a function: no name (nor id) at all
+            raise InvalidArgumentType(
+                "frame name", "a frame name (str) or id (int)", type(name).__name__
+            )
         fid = frame_id(self.model, name, kind)
         self._frame_id_cache[key] = fid
         return fid

@@ -21,7 +21,9 @@ as the top priority of every differential step (:class:`qpik.IKSolver`, option
 ``StepOptions.couplings``) and of full IK (:func:`qpik.solve`). The equalities it does not
 take (connect and weld loop closures, spatial tendons, inactive ones) are listed in
 :attr:`Couplings.skipped`; add mink's :class:`mink.EqualityConstraintTask` to a level for
-those.
+those. :func:`unheld_equalities` lists the active ones and :func:`unheld_equality_errors`
+measures them at a configuration (MuJoCo's own residuals): a full-IK solve does not claim
+convergence at a ``q`` that breaks one (:attr:`qpik.IKResult.constraint_error`).
 
 Units: the residual of a joint coupling is in the joints' units [rad or m].
 """
@@ -37,7 +39,7 @@ import numpy.typing as npt
 from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
 
-__all__ = ["Couplings", "model_couplings"]
+__all__ = ["Couplings", "model_couplings", "unheld_equalities", "unheld_equality_errors"]
 
 _SCALAR = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
@@ -182,3 +184,62 @@ def model_couplings(model: mujoco.MjModel) -> Couplings | None:
         nv=model.nv,
         skipped=tuple(skipped),
     )
+
+
+#: The equality types :func:`model_couplings` takes as rows (the others are not held).
+_HELD = (int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON))
+
+
+def unheld_equalities(model: mujoco.MjModel) -> np.ndarray:
+    """Ids of the model's active equalities that :func:`model_couplings` does not take as
+    rows (connect and weld constraints, spatial tendons, flex ones): nothing in qpik holds
+    them (an empty array for most robots)."""
+    ids = []
+    for e in range(model.neq):
+        if not model.eq_active0[e]:
+            continue
+        kind = int(model.eq_type[e])
+        if kind == _HELD[1]:
+            id2 = int(model.eq_obj2id[e])
+            spatial = _tendon_terms(model, int(model.eq_obj1id[e])) is None or (
+                id2 >= 0 and _tendon_terms(model, id2) is None
+            )
+            if not spatial:
+                continue
+        elif kind == _HELD[0]:
+            continue
+        ids.append(e)
+    return np.array(ids, dtype=np.int64)
+
+
+def unheld_equality_errors(
+    model: mujoco.MjModel, q: npt.ArrayLike, equalities: npt.ArrayLike
+) -> tuple[float, float]:
+    """``(position [m], rotation [rad])``: the largest residuals at ``q`` of the
+    equalities ``equalities`` (ids, from :func:`unheld_equalities`), MuJoCo's ``efc_pos``
+    (a weld's rotation rows, ``torquescale * sin(angle / 2) * axis``, as the angle
+    ``2 |row| / torquescale``; every other row is a length)."""
+    equalities = np.asarray(equalities, dtype=np.int64)
+    if equalities.size == 0:
+        return 0.0, 0.0
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_fwdPosition(model, data)
+    n = data.nefc
+    rows = np.flatnonzero(
+        (data.efc_type[:n] == int(mujoco.mjtConstraint.mjCNSTR_EQUALITY))
+        & np.isin(data.efc_id[:n], equalities)
+    )
+    position = rotation = 0.0
+    weld = int(mujoco.mjtEq.mjEQ_WELD)
+    seen: dict[int, int] = {}
+    for row in rows:
+        e = int(data.efc_id[row])
+        k = seen[e] = seen.get(e, -1) + 1  # the row's index within its equality
+        value = abs(float(data.efc_pos[row]))
+        if int(model.eq_type[e]) == weld and k >= 3:
+            scale = float(model.eq_data[e, 10]) or 1.0  # torquescale
+            rotation = max(rotation, 2.0 * value / abs(scale))
+        else:
+            position = max(position, value)
+    return position, rotation

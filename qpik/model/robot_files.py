@@ -364,6 +364,13 @@ def _add_free_joint(spec: mujoco.MjSpec, path: Path) -> None:
         )
     joint = root.add_freejoint()
     joint.name = ROOT_JOINT
+    # the free joint's 6 dofs come first (the root body is the first): a velocity_limit
+    # numeric the file carries (one value per dof) gets 6 zeros (no limit) in front
+    for numeric in spec.numerics:
+        if numeric.name == "velocity_limit":
+            data = [0.0] * 6 + list(numeric.data)
+            numeric.size = len(data)
+            numeric.data = data
 
 
 def find_srdf(urdf: str | os.PathLike) -> Path | None:

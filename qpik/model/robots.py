@@ -251,6 +251,7 @@ def check_model(model: mujoco.MjModel, where: str) -> None:
     for name in ("body_mass", "body_inertia"):
         if not np.isfinite(getattr(model, name)).all():
             raise RobotFileError(where, f"{name} has a NaN or inf entry")
+    _check_axes_and_equalities(model, where)
     nid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, "velocity_limit")
     if nid >= 0 and int(model.numeric_size[nid]) != model.nv:
         raise RobotFileError(
@@ -258,6 +259,42 @@ def check_model(model: mujoco.MjModel, where: str) -> None:
             f"the custom numeric velocity_limit has {int(model.numeric_size[nid])} values; "
             f"it needs one per dof ({model.nv})",
         )
+
+
+def _check_axes_and_equalities(model: mujoco.MjModel, where: str) -> None:
+    """A hinge or slide joint's axis is a direction (MuJoCo normalises it when it compiles:
+    an axis that overflows, ``1e300 0 0``, comes out zero, a joint that moves nothing while
+    its quaternion scales the bodies below it); an equality's numbers (a URDF ``<mimic>``'s
+    multiplier and offset, a ``polycoef``, anchors) are finite."""
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) not in _SCALAR_JOINTS:
+            continue
+        norm = float(np.linalg.norm(model.jnt_axis[j]))
+        if not abs(norm - 1.0) <= 1e-6:
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
+            raise RobotFileError(
+                where,
+                f"joint {name!r}: axis {model.jnt_axis[j].tolist()} after normalisation; an "
+                "axis must be a nonzero direction of finite size (an axis of 1e300 "
+                "overflows)",
+            )
+    for e in range(model.neq):
+        if not np.isfinite(model.eq_data[e]).all():
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"#{e}"
+            if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
+                joints = [int(model.eq_obj1id[e]), int(model.eq_obj2id[e])]
+                names = [
+                    mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
+                    for j in joints
+                    if j >= 0
+                ]
+                name += f" (joints {', '.join(names)})"
+            raise RobotFileError(
+                where,
+                f"equality {name}: eq_data {model.eq_data[e].tolist()} has a NaN or inf "
+                "entry (a URDF <mimic> multiplier or offset, an MJCF polycoef, anchor or "
+                "relpose)",
+            )
 
 
 def locate_robot(

@@ -288,8 +288,21 @@ def _read_model(reader: Reader, data: dict, path: Path) -> tuple[mujoco.MjModel,
     try:
         model, _ = resolve_robot(robot, relative_to=path.parent, floating_base=floating)
     except (QpikError, OSError, ValueError) as exc:  # ValueError: a name the OS rejects
+        if floating and _loads_fixed(robot, path):  # the free joint is what fails
+            raise reader.fail(
+                "floating_base", f"false for this robot: it cannot have a free base ({exc})"
+            ) from exc
         raise reader.fail("robot", f"{expected} ({exc})") from exc
     return read_obstacles(reader, data, model), robot
+
+
+def _loads_fixed(robot: str, path: Path) -> bool:
+    """Whether ``robot`` loads without ``floating_base``."""
+    try:
+        resolve_robot(robot, relative_to=path.parent)
+    except (QpikError, OSError, ValueError):
+        return False
+    return True
 
 
 def _read_start(reader: Reader, data: dict, model: mujoco.MjModel) -> Configuration:

@@ -24,6 +24,7 @@ from ..igm.qp_engine import set_frame_target
 from ..igm.result import IKResult, Reason
 from ..igm.session import solve
 from ..model.configuration import Configuration
+from ..model.couplings import unheld_equalities, unheld_equality_errors
 from .goals import Goal
 from .report import Problem, TrackTrace
 
@@ -131,17 +132,41 @@ def run_track(problem: Problem) -> ModeOutcome:
             error = goal.worst_error(configuration)
             record.add(configuration, step, index, error)
         reached.append(within(error))
-    trace = _trace(problem, record, all(reached))
+    broken = _broken_equalities(problem, configuration.q) if all(reached) else ""
+    trace = _trace(problem, record, all(reached) and not broken)
     if trace.converged:
         return [], trace, True, "converged"
+    if broken:
+        trace.reason = broken
+        return [], trace, False, broken
     where = _failed_goal(problem, reached.index(False))
     reason = f"{where}: not within tolerance after {problem.steps} steps of {problem.dt} s"
     trace.reason = reason
     return [], trace, False, reason
 
 
+def _broken_equalities(problem: Problem, q: np.ndarray) -> str:
+    """Why ``q`` is no answer though every goal is reached: it breaks an active connect or
+    weld equality of the model (which no level holds) beyond the tolerances; ``""`` when
+    it breaks none (as :func:`qpik.solve` judges, reason ``constraint``)."""
+    unheld = unheld_equalities(problem.model)
+    if unheld.size == 0:
+        return ""
+    options = problem.solve_options
+    position, rotation = unheld_equality_errors(problem.model, q, unheld)
+    if position <= options.tol_position and rotation <= options.tol_orientation:
+        return ""
+    return (
+        f"{Reason.CONSTRAINT}: the goals are reached, but q breaks a connect or weld equality "
+        f"of the model, which qpik does not hold (residual {max(position, rotation):.3g})"
+    )
+
+
 def _trace(problem: Problem, record: _Recorder, converged: bool) -> TrackTrace:
-    velocity = np.array(record.velocity).reshape(-1, problem.model.nv)
+    # a robot without dofs records velocities of size 0: reshape(-1, 0) cannot tell rows
+    velocity = np.array(record.velocity, dtype=float).reshape(
+        len(record.velocity), problem.model.nv
+    )
     ratio = float("nan")
     if problem.velocity_limits is not None and len(velocity):
         ratio = float(np.max(np.abs(velocity) / problem.velocity_limits))

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
-from ..errors import TargetNotSet, mink_errors_as_qpik
+from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FRAME_POSITIONS, FRAME_ROTATIONS
 
 __all__ = ["FrameTask"]
@@ -44,7 +44,8 @@ class FrameTask(mink.FrameTask):
     {}_B J``), computed from MuJoCo directly."""
 
     def __init__(self, *args, **kwargs):
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = arguments_of(mink.FrameTask.__init__, self, *args, **kwargs)
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(*args, **kwargs)
         checks.check_frame_name("frame_name", self.frame_name)
 

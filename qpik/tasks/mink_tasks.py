@@ -25,6 +25,7 @@ from ..errors import (
     InvalidTarget,
     QpikError,
     TaskDefinitionError,
+    arguments_of,
     mink_errors_as_qpik,
     qpik_errors,
 )
@@ -80,7 +81,8 @@ def _set_target_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., An
 def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
     def wrapped(self, *args: Any, **kwargs: Any) -> None:
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = arguments_of(method, self, *args, **kwargs)
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             method(self, *args, **kwargs)
         cost = getattr(self, "cost", None)
         if cost is not None:

@@ -19,7 +19,8 @@ class PostureTask(mink.PostureTask):
     identity."""
 
     def __init__(self, model: mujoco.MjModel, cost, gain: float = 1.0, lm_damping: float = 0.0):
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = {"model": model, "cost": cost, "gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(model, cost, gain, lm_damping)
         self._scalar = model.nq == model.nv and self._v_ids is None
         self._jacobian = np.eye(model.nv)
@@ -56,5 +57,5 @@ class DampingTask(mink.DampingTask):
     typed errors (each also mink's)."""
 
     def __init__(self, model: mujoco.MjModel, cost):
-        with mink_errors_as_qpik(type(self).__name__):
+        with mink_errors_as_qpik(type(self).__name__, {"model": model, "cost": cost}):
             super().__init__(model, cost)
