@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
 import numpy as np
 
@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     from .problem import ErrorCurve, ProblemResult
 
 __all__ = [
+    "PathAxis",
     "is_planar",
     "joint_curves",
     "plot_error_curves",
@@ -418,6 +419,16 @@ def joint_curves(model: mujoco.MjModel, path: np.ndarray) -> list[tuple[str, np.
     return curves
 
 
+class PathAxis(TypedDict, total=False):
+    """The x axis of a plot along a path: ``time`` ``(k,)`` [s] (default: the index),
+    ``goal_index`` ``(k,)`` (the goal each point belongs to; its starts are marked) and
+    ``xlabel``."""
+
+    time: np.ndarray | None
+    goal_index: np.ndarray | None
+    xlabel: str | None
+
+
 def plot_joints(
     model: mujoco.MjModel,
     path: np.ndarray,
@@ -497,13 +508,12 @@ def plot_singular_values(
     frame_type: str | FrameType = "site",
     rows: str = "pose",
     ax: Axes | None = None,
-    time: np.ndarray | None = None,
-    goal_index: np.ndarray | None = None,
-    xlabel: str | None = None,
+    **along: Unpack[PathAxis],
 ) -> Axes:
     """Singular values of the frame's Jacobian (``rows``: ``"pose"``, ``"position"`` or
     ``"planar"`` for vx, vy; ``frame`` may be a list of ``(name, frame_type)``, whose
-    Jacobians are stacked) and the manipulability ``sqrt(det J J^T)``, along ``path``."""
+    Jacobians are stacked) and the manipulability ``sqrt(det J J^T)``, along ``path``; the
+    x axis as :class:`PathAxis` says (``time``, ``goal_index``, ``xlabel``)."""
     check_model_type("model", model)
     path = _check_path(model, path)
     if isinstance(frame, str):
@@ -515,9 +525,10 @@ def plot_singular_values(
     if not (isinstance(rows, str) and rows == "planar"):
         row_indices(rows)
     _check_ax(ax)
-    time = _check_along("time", time, len(path))
-    goal_index = _check_along("goal_index", goal_index, len(path))
-    xlabel = _check_label("xlabel", xlabel)
+    checks.check_keywords("plot_singular_values", dict(along), PathAxis)
+    time = _check_along("time", along.get("time"), len(path))
+    goal_index = _check_along("goal_index", along.get("goal_index"), len(path))
+    xlabel = _check_label("xlabel", along.get("xlabel"))
     configuration = Configuration(model)
     for name, kind in frames:
         configuration.frame_id(name, kind)  # an unknown frame: UnknownFrame, before drawing
