@@ -59,6 +59,7 @@ struct ImplicitQR {
         R = N;
         v.assign(static_cast<size_t>(q), Vec());
         beta.assign(static_cast<size_t>(q), 0.0);
+        Vec S(static_cast<size_t>(q));
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             Vec x(static_cast<size_t>(size));
@@ -74,12 +75,7 @@ struct ImplicitQR {
             double vn = 0.0;
             for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
             if (vn == 0.0) continue;
-            for (i64 j = i; j < q; ++j) {
-                double s = 0.0;
-                for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
-                s = 2.0 * s / vn;
-                for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
-            }
+            reflect_columns(R.row(0), q, i, size, i, q, x.data(), vn, S.data());
             beta[i] = 2.0 / vn;
             v[i] = std::move(x);
         }
@@ -123,7 +119,7 @@ inline Vec lstsq(Mat M, Vec f) {
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
     i64 steps = std::min(m, k);
-    Vec x(static_cast<size_t>(m));
+    Vec x(static_cast<size_t>(m)), S(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -146,12 +142,7 @@ inline Vec lstsq(Mat M, Vec f) {
             double vn = 0.0;
             for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
             if (vn != 0.0) {
-                for (i64 j = i; j < k; ++j) {
-                    double s = 0.0;
-                    for (i64 t = 0; t < size; ++t) s += x[t] * M(i + t, j);
-                    s = 2.0 * s / vn;
-                    for (i64 t = 0; t < size; ++t) M(i + t, j) -= s * x[t];
-                }
+                reflect_columns(M.row(0), k, i, size, i, k, x.data(), vn, S.data());
                 double s = 0.0;
                 for (i64 t = 0; t < size; ++t) s += x[t] * f[i + t];
                 s = 2.0 * s / vn;

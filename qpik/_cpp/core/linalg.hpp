@@ -60,6 +60,16 @@ inline void axmy(double* y, double a, const double* x, i64 n) {
     for (; j < n; ++j) y[j] -= a * x[j];
 }
 
+// Two dot products with one vector, sa = a . x and sb = b . x, each summed in index order
+// from 0.0 as dot() does (one per lane: the same bits, twice the independent work).
+inline void dot2(const double* a, const double* b, const double* x, i64 n, double& sa, double& sb) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    for (i64 t = 0; t < n; ++t) acc += v2d{a[t], b[t]} * splat(x[t]);
+    sa = acc[0];
+    sb = acc[1];
+}
+
 // s[j] += x * M[j] (a row of column sums, accumulated one row at a time: each s[j] sums
 // over the rows in their order, as a per-column loop would).
 inline void acc_row(double* s, double x, const double* row, i64 n) { axpy(s, x, row, n); }
@@ -182,7 +192,9 @@ inline Mat mtm(CMatRef A) {
 inline Vec mv(CMatRef A, const double* x) {
     i64 m = A.rows, n = A.cols;
     Vec y(static_cast<size_t>(m));
-    for (i64 i = 0; i < m; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= m; i += 2) dot2(A.row(i), A.row(i + 1), x, n, y[i], y[i + 1]);
+    for (; i < m; ++i) {
         const double* ai = A.row(i);
         double acc = 0.0;
         for (i64 j = 0; j < n; ++j) acc += ai[j] * x[j];
@@ -313,7 +325,16 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
     if (vn == 0.0) return;
     reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
-    for (i64 row = 0; row < r; ++row) {
+    i64 row = 0;
+    for (; row + 2 <= r; row += 2) {
+        double* q0 = Q.row(row) + i;
+        double* q1 = Q.row(row + 1) + i;
+        double s0, s1;
+        dot2(q0, q1, x.data(), size, s0, s1);
+        axmy(q0, 2.0 * s0 / vn, x.data(), size);
+        axmy(q1, 2.0 * s1 / vn, x.data(), size);
+    }
+    for (; row < r; ++row) {
         double* qr = Q.row(row);
         double s = 0.0;
         for (i64 t = 0; t < size; ++t) s += qr[i + t] * x[t];
