@@ -142,13 +142,22 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     double best = 0.0;
     best_row = -1;
     best_side = 0;
+    double cx_next = 0.0;
+    bool have_next = false;
     for (i64 i = 0; i < m; ++i) {
+        bool have = have_next;
+        have_next = false;
         if (skip[i]) continue;
         double norm = norms[i];
         if (norm == 0.0) continue;
         double cx;
         if (unit[i] >= 0) {
             cx = 0.0 + C(i, unit[i]) * x[unit[i]];
+        } else if (have) {
+            cx = cx_next;  // summed with row i - 1's (dot2: the same order, the same bits)
+        } else if (i + 1 < m && !skip[i + 1] && norms[i + 1] != 0.0 && unit[i + 1] < 0) {
+            dot2(C.row(i), C.row(i + 1), x, n, cx, cx_next);
+            have_next = true;
         } else {
             cx = 0.0;
             for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
@@ -233,7 +242,9 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
     if (unit >= 0) {
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
-        for (i64 i = 0; i < n; ++i) {
+        i64 i = 0;
+        for (; i + 2 <= n; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
+        for (; i < n; ++i) {
             const double* ji = JT.row(i);
             double acc = 0.0;
             for (i64 k = 0; k < n; ++k) acc += ji[k] * normal[k];
