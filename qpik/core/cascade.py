@@ -180,7 +180,8 @@ class LevelCertificate:
 def certificates(array: np.ndarray) -> list[LevelCertificate]:
     """Per level, from the kernels' (L, 4) array."""
     # tolist() gives Python floats in one pass (the same values as float() per element).
-    return [LevelCertificate(*row) for row in np.asarray(array, dtype=float).reshape(-1, 4).tolist()]
+    rows = np.asarray(array, dtype=float).reshape(-1, 4).tolist()
+    return [LevelCertificate(*row) for row in rows]
 
 
 @dataclass
