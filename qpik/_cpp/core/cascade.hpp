@@ -111,6 +111,7 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
+    Mat Qt = transposed(Q.cref());  // Q's columns as rows: the rotations touch contiguous rows
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
@@ -129,16 +130,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
                 double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
-                for (i64 t = 0; t < keep; ++t) {
-                    double a = ri[t], c = rj[t];
-                    ri[t] = cs * a - sn * c;
-                    rj[t] = sn * a + cs * c;
-                }
-                for (i64 t = 0; t < r; ++t) {
-                    double a = Q(t, i), c = Q(t, j);
-                    Q(t, i) = cs * a - sn * c;
-                    Q(t, j) = sn * a + cs * c;
-                }
+                jacobi_rows(ri, rj, cs, sn, keep);
+                jacobi_rows(Qt.row(i), Qt.row(j), cs, sn, r);
             }
         }
         if (!rotated) break;
@@ -165,8 +158,10 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     }
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
     Mat Qr(r, static_cast<i64>(null_cols.size()));
-    for (i64 t = 0; t < r; ++t)
-        for (size_t c = 0; c < null_cols.size(); ++c) Qr(t, static_cast<i64>(c)) = Q(t, null_cols[c]);
+    for (size_t c = 0; c < null_cols.size(); ++c) {
+        const double* qc = Qt.row(null_cols[c]);
+        for (i64 t = 0; t < r; ++t) Qr(t, static_cast<i64>(c)) = qc[t];
+    }
     out.Zn = mm(Z, Qr.cref());
     out.sigma = sigma;
     out.rank = rank;

@@ -59,6 +59,7 @@ struct ImplicitQR {
         R = N;
         v.assign(static_cast<size_t>(q), Vec());
         beta.assign(static_cast<size_t>(q), 0.0);
+        Vec S(static_cast<size_t>(q));
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             Vec x(static_cast<size_t>(size));
@@ -74,12 +75,7 @@ struct ImplicitQR {
             double vn = 0.0;
             for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
             if (vn == 0.0) continue;
-            for (i64 j = i; j < q; ++j) {
-                double s = 0.0;
-                for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
-                s = 2.0 * s / vn;
-                for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
-            }
+            reflect_columns(R.row(0), q, i, size, i, q, x.data(), vn, S.data());
             beta[i] = 2.0 / vn;
             v[i] = std::move(x);
         }
@@ -123,7 +119,7 @@ inline Vec lstsq(Mat M, Vec f) {
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
     i64 steps = std::min(m, k);
-    Vec x(static_cast<size_t>(m));
+    Vec x(static_cast<size_t>(m)), S(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -146,12 +142,7 @@ inline Vec lstsq(Mat M, Vec f) {
             double vn = 0.0;
             for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
             if (vn != 0.0) {
-                for (i64 j = i; j < k; ++j) {
-                    double s = 0.0;
-                    for (i64 t = 0; t < size; ++t) s += x[t] * M(i + t, j);
-                    s = 2.0 * s / vn;
-                    for (i64 t = 0; t < size; ++t) M(i + t, j) -= s * x[t];
-                }
+                reflect_columns(M.row(0), k, i, size, i, k, x.data(), vn, S.data());
                 double s = 0.0;
                 for (i64 t = 0; t < size; ++t) s += x[t] * f[i + t];
                 s = 2.0 * s / vn;
@@ -466,18 +457,17 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         }
     }
     double S = 0.0;
-    Vec sc(static_cast<size_t>(r)), ssc(static_cast<size_t>(r));
-    for (i64 c = 0; c < r; ++c) {
-        double s = 0.0, ss = 0.0;
-        for (i64 i = 0; i < n; ++i) {
-            double zic = Z(i, c);
-            s += zic * v[i];
-            ss += std::fabs(zic) * vs[i];
+    // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
+    Vec sc(static_cast<size_t>(r), 0.0), ssc(static_cast<size_t>(r), 0.0);
+    for (i64 i = 0; i < n; ++i) {
+        const double* zi = Z.row(i);
+        double vi = v[i], vsi = vs[i];
+        for (i64 c = 0; c < r; ++c) {
+            sc[c] += zi[c] * vi;
+            ssc[c] += std::fabs(zi[c]) * vsi;
         }
-        sc[c] = s;
-        ssc[c] = ss;
-        S = pymax(S, ss);
     }
+    for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:
     // an entry of Z that is round-off where it is exactly 0 (a dof the levels above pinned)
@@ -493,15 +483,19 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
+    Vec zg(static_cast<size_t>(r));
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|
-        for (i64 c = 0; c < r; ++c) {
-            double acc = 0.0;
-            if (row < n) acc = Z(row, c);
-            else
-                for (i64 i = 0; i < n; ++i) acc += Z(i, c) * G(row - n, i);
-            zn += acc * acc;
+        if (row < n) {
+            const double* zr = Z.row(row);
+            for (i64 c = 0; c < r; ++c) zn += zr[c] * zr[c];
+        } else {
+            // Z^T g, each component summed over i in order (row by row of Z).
+            std::fill(zg.begin(), zg.end(), 0.0);
+            const double* g = G.row(row - n);
+            for (i64 i = 0; i < n; ++i) axpy(zg.data(), g[i], Z.row(i), r);
+            for (i64 c = 0; c < r; ++c) zn += zg[c] * zg[c];
         }
         zn = std::sqrt(zn);
         double um = S > 0.0 ? u[k] * zn / S : (u[k] == 0.0 ? 0.0 : kInf);

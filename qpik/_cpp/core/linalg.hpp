@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "../common.hpp"
 
@@ -16,6 +17,98 @@ namespace qpik::core {
 // when strictly smaller / larger (so a NaN second argument never wins).
 inline double pymin(double a, double b) { return b < a ? b : a; }
 inline double pymax(double a, double b) { return b > a ? b : a; }
+
+// Element-wise kernels two lanes at a time (GCC vector extensions: SSE2 on x86-64, NEON on
+// aarch64, no -march needed). Each lane does exactly the scalar loop's IEEE operations on
+// its element (a multiply, then an add; -ffp-contract=off keeps them unfused), so the bits
+// are those of the plain loops; only independent elements share an instruction. Sums over
+// an index (dot products) are never split: their order is the reference's.
+namespace simd {
+typedef double v2d __attribute__((vector_size(16)));
+inline v2d load(const double* p) {
+    v2d v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+inline void store(double* p, v2d v) { std::memcpy(p, &v, sizeof v); }
+inline v2d splat(double a) { return v2d{a, a}; }
+}  // namespace simd
+
+// y[j] += a * x[j], j < n.
+inline void axpy(double* y, double a, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a);
+    i64 j = 0;
+    for (; j + 4 <= n; j += 4) {
+        store(y + j, load(y + j) + av * load(x + j));
+        store(y + j + 2, load(y + j + 2) + av * load(x + j + 2));
+    }
+    for (; j + 2 <= n; j += 2) store(y + j, load(y + j) + av * load(x + j));
+    for (; j < n; ++j) y[j] += a * x[j];
+}
+
+// y[j] -= a * x[j], j < n.
+inline void axmy(double* y, double a, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a);
+    i64 j = 0;
+    for (; j + 4 <= n; j += 4) {
+        store(y + j, load(y + j) - av * load(x + j));
+        store(y + j + 2, load(y + j + 2) - av * load(x + j + 2));
+    }
+    for (; j + 2 <= n; j += 2) store(y + j, load(y + j) - av * load(x + j));
+    for (; j < n; ++j) y[j] -= a * x[j];
+}
+
+// Two dot products with one vector, sa = a . x and sb = b . x, each summed in index order
+// from 0.0 as dot() does (one per lane: the same bits, twice the independent work).
+inline void dot2(const double* a, const double* b, const double* x, i64 n, double& sa, double& sb) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    for (i64 t = 0; t < n; ++t) acc += v2d{a[t], b[t]} * splat(x[t]);
+    sa = acc[0];
+    sb = acc[1];
+}
+
+// s[j] += x * M[j] (a row of column sums, accumulated one row at a time: each s[j] sums
+// over the rows in their order, as a per-column loop would).
+inline void acc_row(double* s, double x, const double* row, i64 n) { axpy(s, x, row, n); }
+
+// The Jacobi rotation of two rows: a' = cs a - sn b, b' = sn a + cs b.
+inline void jacobi_rows(double* a, double* b, double cs, double sn, i64 n) {
+    using namespace simd;
+    v2d c2 = splat(cs), s2 = splat(sn);
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        store(a + t, c2 * x - s2 * y);
+        store(b + t, s2 * x + c2 * y);
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = cs * x - sn * y;
+        b[t] = sn * x + cs * y;
+    }
+}
+
+// The Givens rotation of two rows as rotate_in / drop_constraint write it:
+// a' = a cc + b ss, b' = xny (a + a') - b.
+inline void givens_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
+    using namespace simd;
+    v2d c2 = splat(cc), s2 = splat(ss), x2 = splat(xny);
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d xn = x * c2 + y * s2;
+        store(a + t, xn);
+        store(b + t, x2 * (x + xn) - y);
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = x * cc + y * ss;
+        b[t] = xny * (x + a[t]) - y;
+    }
+}
 
 // Cholesky factor of G[:n, :n] - shift I written into the lower triangle of L[:n, :n]
 // (G unchanged); false as soon as a pivot is not positive (L then holds a partial factor).
@@ -73,10 +166,7 @@ inline Mat mm(CMatRef A, CMatRef B) {
         double* ci = C.row(i);
         for (i64 t = 0; t < k; ++t) {
             double a = A(i, t);
-            if (a != 0.0) {
-                const double* bt = B.row(t);
-                for (i64 j = 0; j < n; ++j) ci[j] += a * bt[j];
-            }
+            if (a != 0.0) axpy(ci, a, B.row(t), n);
         }
     }
     return C;
@@ -90,10 +180,7 @@ inline Mat mtm(CMatRef A) {
         const double* at = A.row(t);
         for (i64 i = 0; i < n; ++i) {
             double a = at[i];
-            if (a != 0.0) {
-                double* ci = C.row(i);
-                for (i64 j = i; j < n; ++j) ci[j] += a * at[j];
-            }
+            if (a != 0.0) axpy(C.row(i) + i, a, at + i, n - i);
         }
     }
     for (i64 i = 0; i < n; ++i)
@@ -105,7 +192,9 @@ inline Mat mtm(CMatRef A) {
 inline Vec mv(CMatRef A, const double* x) {
     i64 m = A.rows, n = A.cols;
     Vec y(static_cast<size_t>(m));
-    for (i64 i = 0; i < m; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= m; i += 2) dot2(A.row(i), A.row(i + 1), x, n, y[i], y[i + 1]);
+    for (; i < m; ++i) {
         const double* ai = A.row(i);
         double acc = 0.0;
         for (i64 j = 0; j < n; ++j) acc += ai[j] * x[j];
@@ -120,10 +209,7 @@ inline Vec mtv(CMatRef A, const double* x) {
     Vec y(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < m; ++i) {
         double a = x[i];
-        if (a != 0.0) {
-            const double* ai = A.row(i);
-            for (i64 j = 0; j < n; ++j) y[j] += ai[j] * a;
-        }
+        if (a != 0.0) axpy(y.data(), a, A.row(i), n);
     }
     return y;
 }
@@ -196,6 +282,20 @@ inline double min_singular(CMatRef M) {
 
 namespace detail {
 
+// The Householder reflection (x, |x|^2 = vn) applied to columns j0..m-1 of rows
+// i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
+// M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
+// time, contiguous), with the same operations per column as a loop over the column.
+inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
+                            double* S) {
+    i64 w = m - j0;
+    if (w <= 0) return;
+    std::fill(S, S + w, 0.0);
+    for (i64 t = 0; t < size; ++t) acc_row(S, x[t], M + (i + t) * ld + j0, w);
+    for (i64 j = 0; j < w; ++j) S[j] = 2.0 * S[j] / vn;
+    for (i64 t = 0; t < size; ++t) axmy(M + (i + t) * ld + j0, x[t], S, w);
+}
+
 // Column pivoting step: bring the column of largest remaining norm to position i.
 inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
     i64 best = i;
@@ -209,7 +309,7 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 }
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right).
-inline void reflect(Mat& R, Mat& Q, Vec& x, i64 i) {
+inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
     i64 r = R.rows, m = R.cols;
     i64 size = r - i;
     double alpha = 0.0;
@@ -224,18 +324,22 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, i64 i) {
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
     if (vn == 0.0) return;
-    for (i64 j = i; j < m; ++j) {
-        double s = 0.0;
-        for (i64 t = 0; t < size; ++t) s += x[t] * R(i + t, j);
-        s = 2.0 * s / vn;
-        for (i64 t = 0; t < size; ++t) R(i + t, j) -= s * x[t];
+    reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
+    i64 row = 0;
+    for (; row + 2 <= r; row += 2) {
+        double* q0 = Q.row(row) + i;
+        double* q1 = Q.row(row + 1) + i;
+        double s0, s1;
+        dot2(q0, q1, x.data(), size, s0, s1);
+        axmy(q0, 2.0 * s0 / vn, x.data(), size);
+        axmy(q1, 2.0 * s1 / vn, x.data(), size);
     }
-    for (i64 row = 0; row < r; ++row) {
+    for (; row < r; ++row) {
         double* qr = Q.row(row);
         double s = 0.0;
         for (i64 t = 0; t < size; ++t) s += qr[i + t] * x[t];
         s = 2.0 * s / vn;
-        for (i64 t = 0; t < size; ++t) qr[i + t] -= s * x[t];
+        axmy(qr + i, s, x.data(), size);
     }
 }
 
@@ -261,10 +365,10 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm) {
     for (i64 j = 0; j < m; ++j) perm[j] = j;
     Vec norms(static_cast<size_t>(m), 0.0);
     if (pivot) detail::column_norms(R, 0, norms);
-    Vec x(static_cast<size_t>(r));
+    Vec x(static_cast<size_t>(r)), S(static_cast<size_t>(m));
     for (i64 i = 0; i < std::min(r, m); ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
-        detail::reflect(R, Q, x, i);
+        detail::reflect(R, Q, x, S, i);
         if (pivot) detail::column_norms(R, i + 1, norms);
     }
 }

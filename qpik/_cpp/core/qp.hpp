@@ -142,13 +142,22 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     double best = 0.0;
     best_row = -1;
     best_side = 0;
+    double cx_next = 0.0;
+    bool have_next = false;
     for (i64 i = 0; i < m; ++i) {
+        bool have = have_next;
+        have_next = false;
         if (skip[i]) continue;
         double norm = norms[i];
         if (norm == 0.0) continue;
         double cx;
         if (unit[i] >= 0) {
             cx = 0.0 + C(i, unit[i]) * x[unit[i]];
+        } else if (have) {
+            cx = cx_next;  // summed with row i - 1's (dot2: the same order, the same bits)
+        } else if (i + 1 < m && !skip[i + 1] && norms[i + 1] != 0.0 && unit[i + 1] < 0) {
+            dot2(C.row(i), C.row(i + 1), x, n, cx, cx_next);
+            have_next = true;
         } else {
             cx = 0.0;
             for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
@@ -210,7 +219,8 @@ inline bool strictly_optimal(const Vec& x, const Vec& u, CMatRef C, CVecRef lo, 
     return true;
 }
 
-// L^-T of a lower-triangular L.
+// L^-T of a lower-triangular L, stored transposed (row i of the result is column i of
+// L^-T): every update of the dual method touches J's columns, contiguous this way.
 inline Mat inverse_transpose(const Mat& L) {
     i64 n = L.rows;
     Mat J(n, n);
@@ -222,26 +232,27 @@ inline Mat inverse_transpose(const Mat& L) {
             J(i, k) = acc / L(k, k);
         }
     }
-    return J;
+    return transposed(J.cref());
 }
 
-// d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction).
-inline void directions(const Mat& J, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
-    i64 n = J.rows;
+// d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction). JT is J
+// transposed (see inverse_transpose).
+inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
+    i64 n = JT.rows;
     if (unit >= 0) {
-        for (i64 i = 0; i < n; ++i) d[i] = 0.0 + J(unit, i) * normal[unit];
+        for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
-        for (i64 i = 0; i < n; ++i) {
+        i64 i = 0;
+        for (; i + 2 <= n; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
+        for (; i < n; ++i) {
+            const double* ji = JT.row(i);
             double acc = 0.0;
-            for (i64 k = 0; k < n; ++k) acc += J(k, i) * normal[k];
+            for (i64 k = 0; k < n; ++k) acc += ji[k] * normal[k];
             d[i] = acc;
         }
     }
-    for (i64 k = 0; k < n; ++k) {
-        double acc = 0.0;
-        for (i64 i = q; i < n; ++i) acc += J(k, i) * d[i];
-        z[k] = acc;
-    }
+    std::fill(z.begin(), z.begin() + n, 0.0);  // z[k] = sum_{i >= q} J(k, i) d[i], i in order
+    for (i64 i = q; i < n; ++i) axpy(z.data(), d[i], JT.row(i), n);
     for (i64 i = q - 1; i >= 0; --i) {
         double acc = d[i];
         for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
@@ -278,9 +289,10 @@ inline double primal_step(const Vec& d, const Vec& z, const Vec& normal, double 
     return kInf;
 }
 
-// Add a constraint: Givens rotations of J's columns so that only d[:q+1] is non-zero.
-inline void rotate_in(Mat& J, Vec& d, i64 q) {
-    i64 n = J.rows;
+// Add a constraint: Givens rotations of J's columns (JT's rows) so that only d[:q+1] is
+// non-zero.
+inline void rotate_in(Mat& JT, Vec& d, i64 q) {
+    i64 n = JT.rows;
     for (i64 j = n - 1; j > q; --j) {
         double cc = d[j - 1];
         double ss = d[j];
@@ -297,18 +309,14 @@ inline void rotate_in(Mat& J, Vec& d, i64 q) {
             d[j - 1] = h;
         }
         double xny = ss / (1.0 + cc);
-        for (i64 k = 0; k < n; ++k) {
-            double a = J(k, j - 1);
-            double b2 = J(k, j);
-            J(k, j - 1) = a * cc + b2 * ss;
-            J(k, j) = xny * (a + J(k, j - 1)) - b2;
-        }
+        givens_rows(JT.row(j - 1), JT.row(j), cc, ss, xny, n);
     }
 }
 
 // Remove working constraint `drop` of q and restore R's triangle (and J).
-inline void drop_constraint(Mat& J, Mat& R, Vec& u, IVec& act_row, IVec& act_side, BVec& in_set, i64 drop, i64 q) {
-    i64 n = J.rows;
+inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_side, BVec& in_set, i64 drop,
+                            i64 q) {
+    i64 n = JT.rows;
     in_set[act_row[drop]] = 0;
     for (i64 j = drop; j < q - 1; ++j) {
         act_row[j] = act_row[j + 1];
@@ -336,18 +344,8 @@ inline void drop_constraint(Mat& J, Mat& R, Vec& u, IVec& act_row, IVec& act_sid
             R(j, j) = h;
         }
         double xny = ss / (1.0 + cc);
-        for (i64 k = j + 1; k < q; ++k) {
-            double a = R(j, k);
-            double b2 = R(j + 1, k);
-            R(j, k) = a * cc + b2 * ss;
-            R(j + 1, k) = xny * (a + R(j, k)) - b2;
-        }
-        for (i64 k = 0; k < n; ++k) {
-            double a = J(k, j);
-            double b2 = J(k, j + 1);
-            J(k, j) = a * cc + b2 * ss;
-            J(k, j + 1) = xny * (J(k, j) + a) - b2;
-        }
+        givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
+        givens_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
     }
 }
 
