@@ -320,7 +320,7 @@ class LimitBoxes:
         return contributions
 
     def general_rows(
-        self, limits: Sequence, configuration: Configuration, dt: float
+        self, limits: Sequence, configuration: mink.Configuration, dt: float
     ) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
         """``(G, h, names)`` of ``limits`` as :meth:`rows` takes them (rows on two or more
         dofs; empty rows dropped), None when a row bounds one dof (:meth:`rows` makes it a
@@ -333,13 +333,15 @@ class LimitBoxes:
             if constraint.inactive:
                 continue
             G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-            h = np.atleast_1d(constraint.h)
-            structure = self.structure(limit, G)
-            if structure.upper_rows.size or structure.lower_rows.size:
+            h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
+            # RowStructure.of's split, without its bookkeeping (these rows change each
+            # step): a one-dof row goes to the box (the QP path), an empty one must hold
+            count = (G != 0.0).sum(axis=1)
+            if 1 in count:
                 return None
-            if structure.empty is not None and np.any(h[structure.empty] < 0):
+            rows = count.nonzero()[0]
+            if rows.size < count.size and (h[count == 0] < 0).any():
                 return None
-            rows = structure.general
             if not rows.size:
                 continue
             G_parts.append(G[rows])

@@ -29,7 +29,6 @@ from .._engine import diffik as _engine
 from ..core import HierarchySolver
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
-from ..model.configuration import Configuration
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
 from ..tasks import DampingTask, FrameTask, PostureTask
 from ..tasks.com import ComTask
@@ -161,7 +160,7 @@ class CompiledPlan:
         return cold
 
     # ----------------------------------------------------------------- inputs
-    def gather(self, configuration: Configuration) -> tuple | None:
+    def gather(self, configuration: mink.Configuration) -> tuple | None:
         """Copy the tasks' current targets, costs and gains and MuJoCo's Jacobians into the
         plan's arrays; returns the kernel's MuJoCo arguments ``(qpos, site_xpos, site_xmat,
         xpos, xmat, geom_xpos, geom_xmat, subtree_com)``, or None when a task changed so
@@ -246,7 +245,7 @@ class CompiledPlan:
             settings[THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
             self.law = law
 
-    def _general(self, configuration: Configuration, dt: float):
+    def _general(self, configuration: mink.Configuration, dt: float):
         """``(G, h, names)`` of the plan's general-row limits (see
         :meth:`LimitBoxes.general_rows`; None: the QP path answers)."""
         if not self.general_limits:
@@ -280,7 +279,7 @@ class CompiledPlan:
     # ------------------------------------------------------------------- step
     def step(
         self,
-        configuration: Configuration,
+        configuration: mink.Configuration,
         dt: float,
         damping: float,
         core: HierarchySolver,
@@ -300,7 +299,7 @@ class CompiledPlan:
         self.write_settings(dt, damping, core)
         if core.solver == "auto":
             return self._one_call(poses, configuration, dt, core)
-        if exact is not None and not self.general_limits:
+        if exact is not None:
             solution = self._one_call(poses, configuration, dt, core, forced=True)
             if solution is not None:
                 return solution
@@ -308,27 +307,15 @@ class CompiledPlan:
         return self._rows_then_cascade(poses, configuration, dt, core, exact)
 
     def _one_call(
-        self, poses: tuple, configuration: Configuration, dt: float, core, forced: bool = False
+        self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool = False
     ) -> Solution | None:
         """The whole step in one kernel call, warm started from ``core``'s active sets
         (which it then updates). ``forced``: kept only when every level was solved."""
-        general = self._general(configuration, dt)
-        if general is None:
+        out = self._kernel_step(poses, configuration, dt, core, forced)
+        if out is None:
             return None
-        G, h, _ = general
-        nv, p = self.model.nv, G.shape[0]
-        warm = core.warm_sets(self.cold.shape[0], nv + p)
-        if warm is None:
-            warm = self.cold_for(p)
-        code, d, v, info, active = self.kernel.step(
-            *poses, G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
-        )
-        if code:
-            return None
-        residuals, sigma, lam2, status, iterations = info[:5].tolist()
-        if forced and any(s != _SOLVED_CODE for s in status):
-            return None
-        core.warm_start_from(active)
+        d, v, info, status, general = out
+        residuals, sigma, lam2, _, iterations = info[:5].tolist()
         qpos = poses[0].copy()
         return Solution(
             displacement=d,
@@ -342,8 +329,56 @@ class CompiledPlan:
             limits=lambda: self._limit_rows(qpos, dt, general),
         )
 
+    def _kernel_step(
+        self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool
+    ) -> tuple | None:
+        """The kernel's step: ``(dq, v, info, status codes, general rows)``, None where the
+        QP path must answer (``forced``: also where a level was not solved); ``core``'s
+        active sets updated."""
+        general = self._general(configuration, dt)
+        if general is None:
+            return None
+        G, h, _ = general
+        nv, p = self.model.nv, G.shape[0]
+        warm = core.warm_sets(self.cold.shape[0], nv + p)
+        if warm is None:
+            warm = self.cold_for(p)
+        code, d, v, info, active = self.kernel.step(
+            *poses, G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
+        )
+        if code:
+            return None
+        status = info[3].tolist()
+        if forced and any(s != _SOLVED_CODE for s in status):
+            return None
+        core.warm_start_from(active)
+        return d, v, info, status, general
+
+    def velocity(
+        self,
+        configuration: mink.Configuration,
+        dt: float,
+        damping: float,
+        core: HierarchySolver,
+        exact: bool,
+    ) -> tuple[np.ndarray, list[LevelStatus]] | None:
+        """The step's velocity ``dq / dt`` and its levels' statuses by one kernel call (what
+        :meth:`step` computes, without the rest of its :class:`Solution`); None where
+        :meth:`step` would go further (a forced backend without ``exact``, or a level the
+        forced backend must answer) or the QP path must answer."""
+        if core.solver != "auto" and not exact:
+            return None
+        poses = self.gather(configuration)
+        if poses is None:
+            return None
+        self.write_settings(dt, damping, core)
+        out = self._kernel_step(poses, configuration, dt, core, core.solver != "auto")
+        if out is None:
+            return None
+        return out[1], [_STATUS_OF_CODE[s] for s in out[3]]
+
     def _rows_then_cascade(
-        self, poses: tuple, configuration: Configuration, dt: float, core, exact
+        self, poses: tuple, configuration: mink.Configuration, dt: float, core, exact
     ) -> Solution | None:
         """The rows and box in one kernel call, the general rows from their limits, then
         the cascade: ``exact``'s first when given (kept when it solves every level), else

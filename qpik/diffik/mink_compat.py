@@ -201,6 +201,10 @@ def solve_ik(
             the highest level cannot be solved; ``status`` and ``level`` say why.
         qpik.InvalidInput: a malformed argument, named.
     """
+    if not (kwargs or safety_break or constraints is not None):
+        velocity = SOLVERS.velocity(configuration, tasks, dt, solver, damping, limits)
+        if velocity is not None:
+            return velocity
     configuration = as_configuration(configuration)
     _check_step(dt, damping)
     configuration.check_limits(safety_break=safety_break)
@@ -226,15 +230,20 @@ def solve_ik(
         )  # fmt: skip
         solved = core.solve(problem, validate=False)
         status, displacement = solved.status, solved.x
-    if status and status[0] != LevelStatus.SOLVED:
-        error = NoSolutionFound(ik.solver)  # mink's message, word for word
-        error.status, error.level = str(status[0]), 0
-        raise error
+    _raise_unsolved(ik, status)
     with np.errstate(over="ignore"):
         velocity = displacement / dt
     if not np.isfinite(velocity).all():
         raise InvalidInput(f"dt = {dt!r} s is too small: the velocity dq / dt overflows")
     return velocity
+
+
+def _raise_unsolved(ik: IKSolver, status: Sequence[LevelStatus]) -> None:
+    """mink's :class:`NoSolutionFound` when the highest level was not solved."""
+    if status and status[0] != LevelStatus.SOLVED:
+        error = NoSolutionFound(ik.solver)  # mink's message, word for word
+        error.status, error.level = str(status[0]), 0
+        raise error
 
 
 class SolverCache:
@@ -264,6 +273,57 @@ class SolverCache:
 
     def __len__(self) -> int:
         return len(self._entries)
+
+    def velocity(
+        self,
+        configuration: Any,
+        tasks: Any,
+        dt: Any,
+        solver: str | None,
+        damping: Any,
+        limits: Any,
+    ) -> np.ndarray | None:
+        """:func:`solve_ik`'s answer for a call with a kept solver (a flat list or tuple of
+        tasks, ``dt`` and ``damping`` floats; no constraints, backend settings or safety
+        break), None otherwise: :func:`solve_ik` then checks every argument and answers.
+
+        A kept entry holds its task and limit objects, so ids equal to its key's are those
+        objects, checked when the entry was built. The step is the kept solver's (the
+        compiled step on ``configuration`` read in place, or the QP path), and the velocity
+        the step's ``dq / dt``: bitwise :func:`solve_ik`'s full path."""
+        if type(dt) is not float or type(damping) is not float or not 0.0 <= damping < math.inf:
+            return None
+        if type(tasks) not in (list, tuple) or not isinstance(configuration, mink.Configuration):
+            return None
+        if solver is not None and type(solver) is not str:  # the full path names it
+            return None
+        model = configuration.model
+        if limits is None:
+            limit_key: tuple = (None, model.jnt_range.tobytes(), model.jnt_limited.tobytes())
+        elif type(limits) in (list, tuple):
+            limit_key = tuple(map(id, limits))
+        else:
+            return None
+        key = (id(model), (tuple(map(id, tasks)),), limit_key, solver, damping, "")
+        entry = self._entries.pop(key, None)
+        if entry is None:
+            return None
+        self._entries[key] = entry  # most recently used last
+        ik = entry[1]
+        if not 0.0 < dt < math.inf or model is not ik.model:
+            return None
+        fast = ik.compiled_velocity(configuration, dt)
+        if fast is not None:
+            velocity, status = fast
+        else:
+            solution = ik.compiled_solution(configuration, dt)
+            if solution is None:
+                solution = ik.qp_solution(as_configuration(configuration), dt)
+            velocity, status = solution.velocity, solution.status
+        _raise_unsolved(ik, status)
+        if not np.isfinite(velocity).all():
+            return None  # the full path reports it
+        return velocity
 
     def get(
         self,

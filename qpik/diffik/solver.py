@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import mink
 import mujoco
+import numpy as np
 
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
 from ..errors import InvalidArgumentType, InvalidInput
@@ -228,7 +229,32 @@ class IKSolver:
             solution = self._qp_step(configuration, dt)
         return StepResult.of(solution, time.perf_counter() - start, self._coupling_level)
 
-    def _compiled_step_applies(self, configuration: Configuration, dt: float) -> bool:
+    def compiled_solution(self, configuration: mink.Configuration, dt: float) -> Solution | None:
+        """The step by the compiled plan as a :class:`Solution` (every level, the
+        couplings' first), None where the plan does not apply or the QP path must answer.
+        ``configuration`` (qpik's or mink's) is read in place."""
+        if not self._compiled_step_applies(configuration, dt):
+            return None
+        return self._compiled_step(configuration, dt)
+
+    def compiled_velocity(
+        self, configuration: mink.Configuration, dt: float
+    ) -> tuple[np.ndarray, list[LevelStatus]] | None:
+        """The step's velocity ``dq / dt`` and every level's status (the couplings' first)
+        by the compiled plan in one call, bitwise :meth:`step`'s; None where :meth:`step`
+        would take another way (the caller then asks :meth:`compiled_solution`)."""
+        if self._plan is None or not self._compiled_step_applies(configuration, dt):
+            return None
+        core = self._core
+        exact = self.exact_shortcut and core.solver != "auto" and not core.warm_start
+        return self._plan.velocity(configuration, dt, self.damping, core, exact)
+
+    def qp_solution(self, configuration: Configuration, dt: float) -> Solution:
+        """The step by the QP path as a :class:`Solution` (every level, the couplings'
+        first)."""
+        return self._qp_step(configuration, dt)
+
+    def _compiled_step_applies(self, configuration: mink.Configuration, dt: float) -> bool:
         """The solver has a compiled plan, for this model, and ``dt`` is a valid float."""
         return (
             self._plan is not None
@@ -237,7 +263,7 @@ class IKSolver:
             and checks.DT_MIN <= dt <= checks.DT_MAX
         )
 
-    def _compiled_step(self, configuration: Configuration, dt: float) -> Solution | None:
+    def _compiled_step(self, configuration: mink.Configuration, dt: float) -> Solution | None:
         """The step by the compiled plan (:meth:`CompiledPlan.step`), None where the QP
         path must answer."""
         assert self._plan is not None

@@ -304,3 +304,29 @@ def test_the_core_solvers_warm_start_api(panda):
     assert solver._plan is not None
     solver.step(configuration, DT)
     assert solver._core.active_sets.shape == (1, model.nv)
+
+
+@pytest.mark.parametrize("backend", [None, "quadprog"])
+def test_solve_ik_kept_solver_shortcut_is_the_full_paths_answer(panda, backend):
+    """qpik.solve_ik with a kept solver answers by SolverCache.velocity (the compiled
+    step on a mink.Configuration read in place, no result object): bitwise the answer of
+    the full path (a fresh solver's step on the configuration's qpik view)."""
+    pytest.importorskip("quadprog")
+    model, _ = panda
+    configuration = mink.Configuration(model)
+    rng = np.random.default_rng(29)
+    tasks = _mink_tasks(model)[:3]
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    qpik.clear_caches()
+    for _ in range(15):
+        q = model.key_qpos[0] + rng.uniform(-0.4, 0.4, model.nq)
+        configuration.update(q)
+        _random_state(rng, model, qpik.Configuration.sharing(configuration), tasks, reach=0.3)
+        ours = qpik.solve_ik(configuration, tasks, DT, backend, 1e-3, limits=limits)
+        fresh = qpik.IKSolver(model, [tasks], limits, damping=1e-3, max_joint_speed=None,
+                              **({"solver": backend} if backend else {}))  # fmt: skip
+        fresh.exact_shortcut = True
+        full = fresh.step(qpik.Configuration.sharing(configuration), DT)
+        assert np.array_equal(ours, full.velocity)
+        assert qpik.solve_ik(configuration, tasks, DT, backend, 1e-3, limits=limits) is not ours
+    assert len(qpik.diffik.mink_compat.SOLVERS) == 1
