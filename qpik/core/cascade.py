@@ -147,8 +147,10 @@ _CONDITIONS = ("primal", "stationarity", "dual", "complementarity")
 
 @dataclass(frozen=True)
 class LevelCertificate:
-    """The proof of a level's optimality at its returned point (see the module doc): the
-    largest scaled violation of each KKT condition. Level 0 infeasible: ``primal`` at the
+    """The proof of a level's optimality at its returned point: the largest scaled
+    violation of each KKT condition of the level's QP (primal feasibility, stationarity,
+    dual signs, complementarity); ``solved`` is claimed only when each is at most
+    :data:`CERTIFICATE_TOLERANCE`. Level 0 infeasible: ``primal`` at the
     point returned and 0 for the others (no optimum to certify); a level the cascade kept:
     the certificate of the point it kept; NaN only for a level never reached (after level 0
     failed)."""

@@ -87,9 +87,11 @@ def _filtered(model: mujoco.MjModel, a: int, b: int, excluded: set[tuple[int, in
 def collision_pairs(
     model: mujoco.MjModel, *, scene: bool = True, self_collision: bool = True
 ) -> list[tuple[int, int]]:
-    """Geom id pairs ``(a, b)``, ``a < b``, sorted, that the model lets collide (the filter
-    is in the module docstring): ``scene``: a robot geom against a geom of the world body;
-    ``self_collision``: two robot geoms (on bodies other than the world body)."""
+    """Geom id pairs ``(a, b)``, ``a < b``, sorted, that the model lets collide:
+    ``scene``: a robot geom against a geom of the world body; ``self_collision``: two robot
+    geoms (on bodies other than the world body). The filter is MuJoCo's: the contact bits
+    match, the geoms are on different welds that are not parent and child, nor excluded by
+    the model's ``<contact><exclude>``; the model's ``<pair>`` elements are added."""
     check_model_type("model", model)
     checks.check_bool("scene", scene)
     checks.check_bool("self_collision", self_collision)

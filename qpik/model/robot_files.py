@@ -374,7 +374,9 @@ def _add_free_joint(spec: mujoco.MjSpec, path: Path) -> None:
 
 
 def find_srdf(urdf: str | os.PathLike) -> Path | None:
-    """The SRDF that goes with a URDF, or ``None`` (rule in the module docstring)."""
+    """The SRDF that goes with a URDF, or ``None``: in the URDF's folder or a sibling
+    ``srdf/`` folder, the one named as the URDF, else the longest name the URDF's name
+    starts with."""
     urdf = Path(urdf)
     folders = [urdf.parent, urdf.parent.parent / "srdf"]
     candidates = [p for folder in folders if folder.is_dir() for p in folder.glob("*.srdf")]

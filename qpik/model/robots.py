@@ -200,12 +200,14 @@ def load_robot(
     floating_base: bool = False,
     srdf: str | os.PathLike | bool | None = None,
 ) -> mujoco.MjModel:
-    """Load a robot model (see the module docstring for what ``source`` may be).
+    """Load a robot model.
 
     Args:
-        source: a bundled name, ``"erd:NAME"``, a path to an ``.xml``/``.urdf`` file, or
-            an ``MjModel`` (returned as is; ``floating_base`` and ``srdf`` must then be
-            left at their defaults).
+        source: the name of a bundled model (:func:`list_robots`: ``"planar_2r"``,
+            ``"panda"``, ...); ``"erd:NAME"``, a URDF that example-robot-data ships
+            (:func:`erd_robots`; the ``robots`` extra); a path to an MJCF ``.xml`` or a
+            ``.urdf`` file; or an ``MjModel`` (returned as is; ``floating_base`` and
+            ``srdf`` must then be left at their defaults).
         floating_base: add a free joint ``root_joint`` at the root body (a humanoid or a
             legged robot whose base moves in the world).
         srdf: an SRDF file whose named states become keyframes; ``None`` (default) or

@@ -40,8 +40,10 @@ SHAPES: dict[str, tuple[mujoco.mjtGeom, int, str]] = {
 
 
 def model_recipe(model: mujoco.MjModel) -> dict:
-    """How a model was built: ``{"path", "floating_base", "srdf", "obstacles"}`` (see the
-    module docstring); :class:`qpik.SceneError` for a model that does not say."""
+    """How a model was built: ``{"path", "floating_base", "srdf", "obstacles"}``, which
+    every model :func:`qpik.load_robot` and :func:`add_obstacle` return carries;
+    :class:`qpik.errors.SceneError` for a model that does not say (one compiled
+    elsewhere: load it with :func:`qpik.load_robot` first)."""
     tid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, SOURCE_TEXT)
     if tid < 0:
         raise SceneError(
