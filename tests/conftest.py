@@ -52,3 +52,30 @@ def central_difference(configuration: qpik.Configuration, function, h: float = 1
             columns.append((plus - minus) / (2 * h))
     configuration.update(q)
     return np.stack(columns, axis=1)
+
+
+#: A head on a limited ball joint (range 60 degrees): tests of ball-joint limits.
+BALL = """
+<mujoco>
+  <worldbody>
+    <body name="base">
+      <body name="head" pos="0 0 0.35">
+        <joint name="neck" type="ball" range="0 60" limited="true"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.05" mass="1"/>
+        <site name="eye" pos="0 0 0.3"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def has_erd() -> bool:
+    """Whether example-robot-data (the robots extra) is installed."""
+    import qpik
+
+    try:
+        qpik.robots.erd_robots_folder()
+    except qpik.QpikError:
+        return False
+    return True

@@ -82,6 +82,7 @@ Options: every option keyword of :func:`solve` and :meth:`IKSession.solve`
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
@@ -146,8 +147,8 @@ class SolveCall(SolveArguments, total=False):
 def _rng_state(seed: Seed) -> np.ndarray:
     """The SplitMix64 state (uint64 (1,)) of ``seed``: an int >= 0, a Generator (one draw),
     a SeedSequence, or None (fresh entropy: not reproducible)."""
-    if seed is None:
-        return np.random.SeedSequence().generate_state(1, np.uint64)
+    if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
+        return np.array([int.from_bytes(os.urandom(8), "little")], dtype=np.uint64)
     if isinstance(seed, np.random.Generator):
         return np.array([seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)])
     if isinstance(seed, np.random.SeedSequence):

@@ -173,8 +173,8 @@ def nearest_rotation(R: npt.ArrayLike) -> np.ndarray:
     a rotation: the same whatever formula measures them (an ``acos`` of the trace of a
     matrix 1e-9 off orthonormal is off by 3e-5 rad near 0)."""
     R = np.asarray(R, dtype=float)
-    if not float(np.max(np.abs(R @ R.T - np.eye(3)))) > ORTHONORMAL_TOLERANCE:
-        return R
+    if R.shape == (3, 3) and not rotation_defect(R) > ORTHONORMAL_TOLERANCE:
+        return R  # one compiled pass (rotation_defect: inf where det R <= 0, never here)
     U, _, Vt = np.linalg.svd(R)
     if np.linalg.det(U @ Vt) < 0.0:  # det R <= 0 is rejected before reaching here
         U[:, -1] = -U[:, -1]

@@ -10,6 +10,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import BALL
 
 import qpik
 from qpik.limits import CollisionAvoidanceLimit, geom_distance, joint_limits
@@ -96,21 +97,6 @@ def test_humanoid_feet_hold_with_a_hand_out_of_reach(speed):
         assert drift <= 1e-3
     else:  # without it, the feet drift (what issue 22 measured)
         assert drift > 1e-3
-
-
-BALL = """
-<mujoco>
-  <worldbody>
-    <body name="base">
-      <body name="head" pos="0 0 0.35">
-        <joint name="neck" type="ball" range="0 60" limited="true"/>
-        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.05" mass="1"/>
-        <site name="eye" pos="0 0 0.3"/>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
 
 
 def test_ball_joint_range_holds_in_differential_ik():

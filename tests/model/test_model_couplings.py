@@ -349,7 +349,7 @@ def test_full_ik_keeps_level_0_with_a_hand_out_of_reach():
 def test_ball_joint_range_holds_with_the_trust_region(dt):
     """A 60 degree ball range holds under a posture task 2.5 rad away, for steps up to
     0.2 s (the default trust region, on a model without velocity limits)."""
-    from test_physical_steps import BALL
+    from conftest import BALL
 
     model = mujoco.MjModel.from_xml_string(BALL)
     bound = float(model.jnt_range[0, 1])

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_problem import _has_erd
+from conftest import has_erd as _has_erd
 
 import qpik
 from qpik.problem import TASK_KINDS, TaskKind, problem_files
