@@ -790,3 +790,34 @@ def test_build_ik_ill_conditioned_qp_is_solve_iks_to_its_condition():
         assert np.linalg.norm(x - dq) <= 10 * condition * np.finfo(float).eps * np.linalg.norm(dq)
         if backend == "quadprog":  # exact on P's range (daqp stops at its own tolerance)
             np.testing.assert_allclose(J @ x, J @ dq, rtol=0, atol=1e-9 * np.abs(J @ dq).max())
+
+
+@pytest.mark.parametrize("rotated", [False, True])
+def test_free_joint_velocity_limit_composes_with_velocity_limit_on_g1(rotated):
+    """mink 1.3's test_composes_with_velocity_limit (and test_solve_respects_limit) on the
+    bundled G1 at its "stand" keyframe, base yawed by 90 degrees or not: the base's
+    linear rows are one-dof box rows while the base is unrotated and general rows once
+    it turns; with daqp named, every step keeps the base and joint caps."""
+    pytest.importorskip("daqp")
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "data" / "menagerie" / "g1.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    configuration = mink.Configuration(model)
+    configuration.update_from_keyframe("stand")
+    if rotated:
+        q = configuration.q.copy()
+        q[3:7] = [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]
+        configuration.update(q)
+    task = mink.FrameTask("left_six_link", "body", 1.0, 1.0)
+    task.set_target(mink.SE3.from_translation(np.array([10.0, 10.0, 10.0])))
+    base = mink.FreeJointVelocityLimit(model, 1.0, 2.0)
+    names = [model.joint(i).name for i in range(1, model.njnt)]
+    joints = mink.VelocityLimit(model, dict.fromkeys(names, np.pi))
+    for _ in range(8):
+        v = qpik.solve_ik(configuration, [task], 1e-2, "daqp", limits=[base, joints])
+        R = configuration.data.xmat[base.base_body_id].reshape(3, 3)
+        assert np.abs(R.T @ v[:3]).max() <= 1.0 + 1e-6
+        assert np.abs(v[3:6]).max() <= 2.0 + 1e-6
+        assert np.abs(v[joints.indices]).max() <= np.pi + 1e-6
+        configuration.integrate_inplace(v, 1e-2)
