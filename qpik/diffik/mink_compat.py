@@ -444,7 +444,13 @@ def build_ik(
 
     A flat list of tasks gives one :class:`qpsolvers.Problem` (mink's shape; ``[]`` gives
     mink's ``P = damping I``); its solution is :func:`solve_ik`'s ``dq`` whenever qpik's
-    adaptive damping is zero (away from singularities). A list of levels gives one problem
+    adaptive damping is zero (away from singularities): solve_ik solves the same objective
+    from the level's rows, exactly. A backend solving ``P`` agrees with it to
+    ``cond(P) eps`` relative: 1e-12 on a well-conditioned level, but with mink's damping
+    1e-12 a task with fewer rows than dofs (a frame task on a 7-dof arm) has
+    ``cond(P) ~ 1e12``, and ``P`` rounded to doubles then fixes the minimiser only to
+    ~1e-5 along the Jacobian's null direction (backends differ from each other there as
+    much; the task-space step ``J dq`` stays exact). A list of levels gives one problem
     per level; :func:`solve_ik` solves them in cascade, each level restricted to the optimal
     set of the levels above, which is why they are returned separately.
 

@@ -9,6 +9,7 @@ behaviours mink's suite checks; ``benchmarks/mink_suite.py`` runs mink's suite i
 
 from __future__ import annotations
 
+import importlib.util
 import inspect
 
 import mink
@@ -711,6 +712,104 @@ def test_free_joint_velocity_limit_composes_with_velocity_limit():
     configuration = mink.Configuration(model)
     configuration.update(model.key_qpos[0] if model.nkey else model.qpos0)
     task = mink.FrameTask("gripper_left_base_link", "body", 1.0, 1.0)
+    task.set_target(mink.SE3.from_translation(np.array([10.0, 10.0, 10.0])))
+    base = mink.FreeJointVelocityLimit(model, 1.0, 2.0)
+    names = [model.joint(i).name for i in range(1, model.njnt)]
+    joints = mink.VelocityLimit(model, dict.fromkeys(names, np.pi))
+    for _ in range(8):
+        v = qpik.solve_ik(configuration, [task], 1e-2, "daqp", limits=[base, joints])
+        R = configuration.data.xmat[base.base_body_id].reshape(3, 3)
+        assert np.abs(R.T @ v[:3]).max() <= 1.0 + 1e-6
+        assert np.abs(v[3:6]).max() <= 2.0 + 1e-6
+        assert np.abs(v[joints.indices]).max() <= np.pi + 1e-6
+        configuration.integrate_inplace(v, 1e-2)
+
+
+# ---------------------------------------------------- build_ik's QP is solve_ik's (issue 20)
+def _single_level_cases():
+    """Single-level stacks whose QP is well conditioned (cond(P) ~ 1e4..1e8): a frame task
+    with a posture task on the Panda (limits binding or not), a frame task alone on the
+    6-dof UR5e (square Jacobian)."""
+    panda = _home("panda")
+    ur5e = _home("ur5e")
+    tight = mink.VelocityLimit(
+        panda.model, {panda.model.joint(j).name: 0.2 for j in range(7)}
+    )  # fmt: skip
+    far = _frame_task(panda, offset=(0.1, -0.1, 0.1))
+    return [
+        (panda, [_frame_task(panda), _posture(panda)], []),
+        (panda, [far, _posture(panda)], [mink.ConfigurationLimit(panda.model), tight]),
+        (ur5e, [_frame_task(ur5e)], None),
+    ]
+
+
+@pytest.mark.parametrize("backend", ["daqp", "quadprog"])
+@pytest.mark.parametrize("case", range(3))
+def test_build_ik_qp_solved_by_a_backend_is_solve_iks_step(case, backend):
+    """build_ik's QP, solved by daqp or quadprog, gives solve_ik's dq to 1e-9 relative on
+    single-level stacks (the QP is mink's, bitwise, and solve_ik solves that QP)."""
+    pytest.importorskip(backend)
+    configuration, tasks, limits = _single_level_cases()[case]
+    problem = qpik.build_ik(configuration, tasks, DT, limits=limits)
+    solution = qpsolvers.solve_problem(problem, solver=backend)
+    assert solution.found
+    dq = qpik.solve_ik(configuration, tasks, DT, backend, limits=limits) * DT
+    np.testing.assert_allclose(solution.x, dq, rtol=0, atol=1e-9 * np.abs(dq).max())
+    assert np.linalg.cond(problem.P) < 1e9
+
+
+def test_build_ik_ill_conditioned_qp_is_solve_iks_to_its_condition():
+    """issue 20's 7.7e-5: a frame task alone on the 7-dof Panda with mink's damping 1e-12
+    has cond(P) ~ 3e12. Its P is mink's bitwise and solve_ik's dq is that QP's minimiser
+    (to 1e-12, from the same rows), but P itself, rounded to doubles, fixes the minimiser
+    only to ~cond(P) eps in the redundant direction: backends on P agree with solve_ik in
+    task space (what P determines well) and differ from it, and from each other, along
+    the one null direction of the Jacobian, by up to cond(P) eps relative."""
+    configuration = _home("panda")
+    tasks = [_frame_task(configuration, offset=(0.05, -0.1, 0.08))]
+    problem = qpik.build_ik(configuration, tasks, DT, limits=[])
+    np.testing.assert_array_equal(problem.P, mink.build_ik(configuration, tasks, DT, limits=[]).P)
+    condition = np.linalg.cond(problem.P)
+    assert condition > 1e11
+    dq = qpik.solve_ik(configuration, tasks, DT, "daqp", limits=[]) * DT
+    # The minimiser of |A dq - b|^2 + damping |dq|^2 from the rows themselves (the stacked
+    # least-squares system: condition sqrt(cond P), so accurate to ~1e-10).
+    ik, _ = qpik.diffik.mink_compat._solver(
+        qpik.diffik.mink_compat.as_configuration(configuration), tasks, None, 1e-12, [], None, {}
+    )
+    level = ik.build(qpik.diffik.mink_compat.as_configuration(configuration), DT).levels[0]
+    nv = configuration.model.nv
+    stacked = np.vstack([level.A, np.sqrt(level.regularization) * np.eye(nv)])
+    exact = np.linalg.lstsq(stacked, np.concatenate([level.b, np.zeros(nv)]), rcond=None)[0]
+    np.testing.assert_allclose(dq, exact, rtol=0, atol=1e-9 * np.abs(dq).max())
+    J = level.A
+    for backend in ("daqp", "quadprog"):
+        if importlib.util.find_spec(backend) is None:
+            continue
+        x = qpsolvers.solve_problem(problem, solver=backend).x
+        assert np.linalg.norm(x - dq) <= 10 * condition * np.finfo(float).eps * np.linalg.norm(dq)
+        if backend == "quadprog":  # exact on P's range (daqp stops at its own tolerance)
+            np.testing.assert_allclose(J @ x, J @ dq, rtol=0, atol=1e-9 * np.abs(J @ dq).max())
+
+
+@pytest.mark.parametrize("rotated", [False, True])
+def test_free_joint_velocity_limit_composes_with_velocity_limit_on_g1(rotated):
+    """mink 1.3's test_composes_with_velocity_limit (and test_solve_respects_limit) on the
+    bundled G1 at its "stand" keyframe, base yawed by 90 degrees or not: the base's
+    linear rows are one-dof box rows while the base is unrotated and general rows once
+    it turns; with daqp named, every step keeps the base and joint caps."""
+    pytest.importorskip("daqp")
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "data" / "menagerie" / "g1.xml"
+    model = mujoco.MjModel.from_xml_path(str(path))
+    configuration = mink.Configuration(model)
+    configuration.update_from_keyframe("stand")
+    if rotated:
+        q = configuration.q.copy()
+        q[3:7] = [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]
+        configuration.update(q)
+    task = mink.FrameTask("left_six_link", "body", 1.0, 1.0)
     task.set_target(mink.SE3.from_translation(np.array([10.0, 10.0, 10.0])))
     base = mink.FreeJointVelocityLimit(model, 1.0, 2.0)
     names = [model.joint(i).name for i in range(1, model.njnt)]
