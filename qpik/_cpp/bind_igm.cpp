@@ -43,6 +43,20 @@ nb::tuple box_qp_with(const In2& H, const In1& g, const In1& lb, const In1& ub, 
 
 }  // namespace
 
+// The argument checks igm_solve and igm_run share (shapes of the target, bounds, reach,
+// options and RNG state), as ValueError in Python.
+template <class T1, class T2, class B, class R, class O, class IO, class S>
+static void check_igm_args(const T1& target_p, const T2& target_R, const B& bounds, const R& reach,
+                           const O& options, const IO& int_options, const S& rng_state, i64 nq) {
+    require(target_p.shape(0) == 3, "target_p must be (3,)");
+    require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
+    require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
+    require(reach.shape(0) == 4, "reach must be (4,)");
+    require(options.shape(0) >= 11, "options must hold 11 floats");
+    require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
+    require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+}
+
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
     m.attr("MAX_ITERS") = igm::MAX_ITERS;
@@ -123,13 +137,7 @@ void bind_igm(nb::module_& m) {
            In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline, Out3 path, Out3 hist,
            I64Out1 info) {
             i64 nq = static_cast<i64>(q0.shape(0));
-            require(target_p.shape(0) == 3, "target_p must be (3,)");
-            require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
-            require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
-            require(reach.shape(0) == 4, "reach must be (4,)");
-            require(options.shape(0) >= 11, "options must hold 11 floats");
-            require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
-            require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+            check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
             require(info.shape(0) == 6, "info must be int64 (6,)");
             i64 max_iters = int_options.data()[0];
             require(max_iters >= 0, "max_iters must be >= 0");
@@ -148,7 +156,7 @@ void bind_igm(nb::module_& m) {
         "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q0"_a, "bounds"_a, "reach"_a, "options"_a,
         "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a, "path"_a.noconvert(), "hist"_a.noconvert(),
         "info"_a.noconvert(),
-        "The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve); writes path, "
+        "The whole IGM solve of one frame target (see qpik.igm.kernels.igm_solve); writes path, "
         "hist and info and advances rng_state in place.");
 
     m.def(
@@ -156,13 +164,7 @@ void bind_igm(nb::module_& m) {
         [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q0, In2 bounds, In1 reach,
            In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline) {
             i64 nq = static_cast<i64>(q0.shape(0));
-            require(target_p.shape(0) == 3, "target_p must be (3,)");
-            require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
-            require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
-            require(reach.shape(0) == 4, "reach must be (4,)");
-            require(options.shape(0) >= 11, "options must hold 11 floats");
-            require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
-            require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+            check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
             i64 max_iters = int_options.data()[0];
             require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
             ChainArgs holder;
