@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidInput
+from ..igm.prepared import PREPARED
 from ..igm.targets import FrameKey, RobotLike, parse_target
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
@@ -135,19 +136,14 @@ def reach_bound(robot: RobotLike, frame: FrameKey) -> tuple[np.ndarray, float]:
 def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarray, float]]:
     """Balls that each hold every position of the frame: :func:`reach_bound`, and the
     IK engine's (:meth:`qpik.model.KinematicChain.reach_bound`, through the common
-    perpendiculars of consecutive axes) where its chain is supported. Each is a proof on
-    its own, so a voxel outside either is out of reach; neither is always the tighter."""
+    perpendiculars of consecutive axes) where the frame's own chain is supported, the
+    per-frame check :func:`qpik.solve` makes (joints off the chain, a free object among
+    them, do not count). Each is a proof on its own, so a voxel outside either is out of
+    reach; neither is always the tighter."""
     bounds = [reach_bound(model, frame)]
-    try:
-        from ..model import KinematicChain, chain_support, joint_limit_arrays
-
-        if chain_support(model) is None:
-            kind, index, _body = _frame_of(model, frame)
-            chain = KinematicChain.from_model(model, index, kind)
-            engine = chain.reach_bound(*joint_limit_arrays(model))
-            bounds.append((np.asarray(engine.center, dtype=float), float(engine.radius)))
-    except (ImportError, ValueError):  # no engine bound for this chain: ours alone
-        pass
+    engine = PREPARED.get(model).frame(model, frame).reach
+    if engine is not None:
+        bounds.append((np.asarray(engine.center, dtype=float), float(engine.radius)))
     return bounds
 
 
@@ -198,6 +194,7 @@ _MAP_META: dict[str, Callable[[Any], Any]] = {
     "reach": float,
     "seed": int,
     "elapsed": float,
+    "engines": dict,
 }
 
 
@@ -220,6 +217,7 @@ class ReachabilityMap:
         frame: the frame; robot: what the robot was given as (name or path).
         base, reach: the :func:`reach_bound` sphere (centre [m], radius [m]).
         seed: the batch seed; elapsed: wall time [s]; solve_options: the IK options.
+        engines: the IK solves per engine (``{"compiled": 480}``: :attr:`qpik.IKResult.engine`).
     """
 
     centers: np.ndarray
@@ -236,6 +234,7 @@ class ReachabilityMap:
     reach: float
     seed: int = 0
     elapsed: float = 0.0
+    engines: dict[str, int] = field(default_factory=dict)
     solve_options: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -276,7 +275,7 @@ class ReachabilityMap:
         with np.load(path, allow_pickle=False) as data:
             meta = json.loads(str(data["meta"]))
             arrays = {name: data[name] for name in _MAP_ARRAYS}
-        values = {name: kind(meta[name]) for name, kind in _MAP_META.items()}
+        values = {name: kind(meta[name]) for name, kind in _MAP_META.items() if name in meta}
         return cls(**arrays, **values, solve_options=dict(meta["solve_options"]))
 
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
@@ -361,8 +360,12 @@ def reachability(
         ]
 
     flags = np.zeros(len(candidates) * k, dtype=bool)
+    engines: dict[str, int] = {}
     for start, results in stream_chunks(batch, len(flags), targets_at):
         flags[start : start + len(results)] = [r.converged for r in results]
+        for result in results:
+            engine = str(getattr(result, "engine", None))
+            engines[engine] = engines.get(engine, 0) + 1
     reached = np.zeros((len(centers), k), dtype=bool)
     reached[candidates] = flags.reshape(len(candidates), k)
     spec = batch.setup.spec
@@ -381,6 +384,7 @@ def reachability(
         reach=reach,
         seed=batch.setup.entropy,
         elapsed=time.perf_counter() - start_time,
+        engines=engines,
         solve_options=dict(batch.keywords),
     )
 

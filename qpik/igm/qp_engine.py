@@ -19,6 +19,7 @@ import numpy as np
 
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidTarget
+from ..model.chain import chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
@@ -440,16 +441,28 @@ class _Engine:
 def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options: SolveOptions):
     """The IGM loop of :func:`qpik.solve` on a prepared problem (the ``"qp"`` engine), from
     ``q0``; restarts draw from ``numpy.random.default_rng(seed)``. The caller's tasks are
-    given back unchanged."""
+    given back unchanged. Restarts draw only the joints that move the target frames."""
     configuration = problem.configuration
     rng = np.random.default_rng(seed)
     engine = _Engine(problem, options, clock)
+    # Restarts draw the joints that move the target frames (the union of their chains),
+    # as the compiled engine does; the others (a free object, another arm) keep the start.
+    # (No target frame, or none moved by a joint: every joint is drawn, as before.)
+    moved = chain_qpos_mask(configuration.model, [(name, kind) for name, kind, _ in problem.frames])
+    kept = ~moved if moved.any() else moved
+    fixed = np.asarray(q0, dtype=float)[kept]
+
+    def restart() -> None:
+        q = configuration.random_q(rng)
+        q[kept] = fixed
+        configuration.update(q)
+
     with borrowed_tasks(problem.levels):
         problem.set_targets()
         configuration.update(q0)
         best, reason, used = run_attempts(
             engine.attempt,
-            lambda: configuration.update(configuration.random_q(rng)),
+            restart,
             options.effective_restarts,
             clock,
         )

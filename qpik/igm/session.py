@@ -100,7 +100,7 @@ from ..model.couplings import unheld_equality_errors
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
-from .qp_engine import QPProblem, iterate
+from .qp_engine import QPProblem, borrowed_tasks, iterate
 from .restarts import Clock
 from .result import IKResult, LazyRows, Reason
 from .targets import (
@@ -304,6 +304,7 @@ class IKSession:
                 target.position, settings.tol_position
             ):
                 result = self._answer_unreachable(frames, q_start, start_time)
+                result.levels_met = self._levels_met(frames, stack, settings, q_start)
                 return self._check_unheld(result, settings)
         plain = [(f.name, f.kind, target) for f, target in frames]
         problem = QPProblem(self.model, plain, stack, settings)
@@ -434,6 +435,20 @@ class IKSession:
         if check:
             Configuration(self.model, q).check_limits()
         return q
+
+    def _levels_met(
+        self, frames: list[tuple[PreparedFrame, Target]], stack, settings, q: np.ndarray
+    ) -> tuple[bool, ...]:
+        """Per level of the stack the "qp" engine would solve (the default one with its
+        ``secondary`` level, or ``stack``), whether ``q`` meets it: one entry per level, as
+        an answer the engine iterated gives."""
+        plain = [(f.name, f.kind, target) for f, target in frames]
+        problem = QPProblem(self.model, plain, stack, settings)
+        with borrowed_tasks(problem.levels):
+            problem.set_targets()
+            problem.configuration.update(q)
+            _coupling, measures = problem.level_measures(problem.configuration, settings)
+        return tuple(bool(m <= 1.0) for m in measures)
 
     def _answer_unreachable(
         self, frames: list[tuple[PreparedFrame, Target]], q: np.ndarray, start_time: float

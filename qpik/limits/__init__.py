@@ -3,6 +3,9 @@
 * :func:`joint_limits`: position limits, plus velocity limits wherever the model declares
   them (the custom numeric ``velocity_limit``; URDF ``<limit velocity>`` through
   :func:`qpik.load_robot`);
+* :class:`BallJointLimit` (:mod:`qpik.limits.ball`): limited ball joints within their
+  range for a step of any size (a polytope inscribed in the rotation-angle bound), which
+  :func:`joint_limits` adds whenever the model has one;
 * :class:`CollisionAvoidanceLimit` (:mod:`qpik.limits.collision`): mink's, with its rows in
   displacement units, pushing back inside the minimum distance, and a typed error when no
   geom pair is left to check;
@@ -35,11 +38,13 @@ from mink import Constraint, Limit
 from ..core import checks
 from ..errors import LimitDefinitionError
 from ..model.configuration import Configuration, joint_names
+from .ball import BallJointLimit, limited_ball_joints
 from .collision import CollisionAvoidanceLimit, geom_distance
 from .geometry import collision_geoms, collision_pairs, model_collision_limit
 from .support import SupportPolygonLimit
 
 __all__ = [
+    "BallJointLimit",
     "CollisionAvoidanceLimit",
     "ConfigurationLimit",
     "Constraint",
@@ -50,6 +55,7 @@ __all__ = [
     "collision_pairs",
     "geom_distance",
     "joint_limits",
+    "limited_ball_joints",
     "model_collision_limit",
     "velocity_limit_from_model",
 ]
@@ -185,10 +191,13 @@ def joint_limits(model: mujoco.MjModel, velocity_scale: float | None = 1.0) -> l
     """Position limits, plus a :class:`VelocityLimit` whenever the model declares velocity
     limits (``velocity_limit``: bundled models, and URDF ``<limit velocity>`` imported by
     :func:`qpik.load_robot`), scaled by ``velocity_scale`` (a finite number > 0; ``None``:
-    no velocity limit)."""
+    no velocity limit), plus a :class:`BallJointLimit` whenever the model has a limited
+    ball joint (its range then holds for a step of any size, trust region off too)."""
     if velocity_scale is not None:
         velocity_scale = checks.check_real("velocity_scale", velocity_scale, 0.0, open_minimum=True)
     limits: list[Limit] = [ConfigurationLimit(model)]
+    if limited_ball_joints(model):
+        limits.append(BallJointLimit(model))
     if velocity_scale is not None:
         velocity = velocity_limit_from_model(model, velocity_scale)
         if velocity is not None:

@@ -19,13 +19,20 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the type checker sees the names; at run time __getattr__ loads them
-    from .chain import KinematicChain, ReachBound, chain_support, joint_limit_arrays
+    from .chain import (
+        KinematicChain,
+        ReachBound,
+        chain_qpos_mask,
+        chain_support,
+        joint_limit_arrays,
+    )
     from .couplings import Couplings, model_couplings
 
 __all__ = [
     "Couplings",
     "KinematicChain",
     "ReachBound",
+    "chain_qpos_mask",
     "chain_support",
     "joint_limit_arrays",
     "model_couplings",

@@ -26,7 +26,13 @@ from ..errors import InvalidConfiguration, InvalidInput
 from . import kernels as _kernels
 from .frames import FrameType, frame_id, frame_name
 
-__all__ = ["KinematicChain", "ReachBound", "chain_support", "joint_limit_arrays"]
+__all__ = [
+    "KinematicChain",
+    "ReachBound",
+    "chain_qpos_mask",
+    "chain_support",
+    "joint_limit_arrays",
+]
 
 _HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 #: The Jacobian argument of a pose-only fk_jac (never written: want_jac is False).
@@ -46,6 +52,41 @@ def chain_support(model: mujoco.MjModel, joints: npt.ArrayLike | None = None) ->
         what = mujoco.mjtJoint(kind).name[6:].lower()
         return f"joint {name!r} is a {what} joint (the compiled kernels take hinge and slide)"
     return None
+
+
+def chain_qpos_mask(
+    model: mujoco.MjModel, frames: list[tuple[str | int, FrameType | str]]
+) -> np.ndarray:
+    """The qpos entries ``(nq,)`` (bool) of the joints that move any of ``frames`` (each
+    ``(name or id, frame type)``): the union of their chains, every joint type. The other
+    entries (a free object, another arm, fingers off the chains) do not move the frames."""
+    mask = np.zeros(model.nq, dtype=bool)
+    for frame, frame_type in frames:
+        kind = FrameType.parse(frame_type)
+        fid = frame_id(model, frame, kind)
+        if kind is FrameType.BODY:
+            body = fid
+        elif kind is FrameType.SITE:
+            body = int(model.site_bodyid[fid])
+        else:
+            body = int(model.geom_bodyid[fid])
+        while body > 0:
+            for joint in range(
+                model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body]
+            ):
+                adr = int(model.jnt_qposadr[joint])
+                mask[adr : adr + _QPOS_WIDTH[int(model.jnt_type[joint])]] = True
+            body = int(model.body_parentid[body])
+    return mask
+
+
+#: qpos entries per joint type (free, ball, slide, hinge).
+_QPOS_WIDTH = {
+    int(mujoco.mjtJoint.mjJNT_FREE): 7,
+    int(mujoco.mjtJoint.mjJNT_BALL): 4,
+    int(mujoco.mjtJoint.mjJNT_SLIDE): 1,
+    int(mujoco.mjtJoint.mjJNT_HINGE): 1,
+}
 
 
 def joint_limit_arrays(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:

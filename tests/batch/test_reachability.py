@@ -134,6 +134,7 @@ def test_orientation_map_is_deterministic_and_round_trips(tmp_path):
     np.testing.assert_array_equal(loaded.fraction, serial.fraction)
     np.testing.assert_array_equal(loaded.orientations, serial.orientations)
     assert (loaded.shape, loaded.frame, loaded.reach) == (serial.shape, "ee", serial.reach)
+    assert loaded.engines == serial.engines == {"compiled": serial.solves}
     loaded.plot(tmp_path / "m.png")
     assert (tmp_path / "m.png").stat().st_size > 10_000
 
@@ -183,3 +184,35 @@ def test_reachmap_cli_saves_map_and_figure(tmp_path, capsys):
         == 2
     )
     assert "resolution" in capsys.readouterr().err
+
+
+def test_a_free_cube_in_the_scene_keeps_the_compiled_map():
+    """Panda + a free cube (issue 22): the map takes the same per-frame chain check as
+    qpik.solve, so every solve goes to the compiled engine, the engine's reach bound is
+    kept, and the map is the bare arm's."""
+    panda = qpik.load_robot("panda")
+    spec = mujoco.MjSpec.from_file(str(_panda_path()))
+    cube = spec.worldbody.add_body(name="cube", pos=[0.5, 0.2, 0.03])
+    cube.add_freejoint(name="cube_free")
+    cube.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=0.1)
+    scene = spec.compile()
+    assert len(_reach_bounds(scene, "ee")) == len(_reach_bounds(panda, "ee")) == 2
+    options = dict(
+        region=[[-0.9, -0.9, -0.3], [0.9, 0.9, 1.2]],
+        resolution=0.3,
+        orientations=2,
+        workers=1,
+        seed=0,
+        progress=False,
+    )
+    bare = qpik.reachability(panda, "ee", **options)
+    with_cube = qpik.reachability(scene, "ee", **options)
+    assert with_cube.engines == {"compiled": with_cube.solves} and with_cube.solves > 0
+    np.testing.assert_array_equal(with_cube.skipped, bare.skipped)
+    np.testing.assert_array_equal(with_cube.reached, bare.reached)
+
+
+def _panda_path():
+    from qpik.model.robots import locate_robot
+
+    return locate_robot("panda")

@@ -123,3 +123,13 @@ def test_chains_and_sessions_copy_and_pickle():
     target = {"ee": [0.3, 0.2, 0.4]}
     first = session.solve(target, seed=1)
     _same(copy.deepcopy(session).solve(target, seed=1), first)
+
+
+def test_an_unreachable_answer_reports_every_level():
+    """A target beyond the reach bound ends the solve at once; levels_met still has one
+    entry per level of the stack (here the default one, with its secondary level)."""
+    near = qpik.solve("panda", {"ee": [0.4, 0.0, 0.5]}, engine="qp", seed=0, secondary=True)
+    far = qpik.solve("panda", {"ee": [5.0, 0.0, 0.5]}, engine="qp", seed=0, secondary=True)
+    assert far.reason == "unreachable" and not far.converged
+    assert len(near.levels_met) == len(far.levels_met) == 2
+    assert far.levels_met[0] is False

@@ -1,10 +1,16 @@
 """qpik.igm.restarts: the restart loop shared by qpik.solve's qp engine and the baselines,
-tested on scripted attempts (no robot, no wall clock)."""
+tested on scripted attempts (no robot, no wall clock); and what restarts draw on a robot."""
 
 from __future__ import annotations
 
+import mujoco
+import numpy as np
+
+import qpik
 from qpik.igm.restarts import Attempt, Clock, StallWindow, run_attempts
 from qpik.igm.result import Reason
+from qpik.model.chain import chain_qpos_mask
+from qpik.model.robots import locate_robot
 
 
 class _Clock(Clock):
@@ -70,3 +76,32 @@ def test_stall_window_counts_iterations_without_five_percent_progress():
     assert stall.update(94.0) is False  # 6 %: progress, the window restarts at 94
     assert stall.update(90.0) is False  # within 5 % of 94 (1 of 2)
     assert stall.update(89.5) is True  # two in a row within 5 % of 94
+
+
+def test_restarts_keep_joints_off_the_targets_chains_at_the_start():
+    """Panda + a free cube (issue 22): restarts draw only the joints that move the target
+    frame, on both engines; the cube's qpos (a pose that is not its qpos0) is untouched."""
+    spec = mujoco.MjSpec.from_file(str(locate_robot("panda")))
+    cube = spec.worldbody.add_body(name="cube", pos=[0.5, 0.2, 0.03])
+    cube.add_freejoint(name="cube_free")
+    cube.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02] * 3, mass=0.1)
+    model = spec.compile()
+    moved = chain_qpos_mask(model, [("ee", "site")])
+    assert moved[:7].all() and not moved[7:].any()
+    q0 = np.concatenate(
+        [qpik.Configuration(model).mid_q()[:7], [0.4, -0.1, 0.2, 0.6, 0.0, 0.8, 0.0]]
+    )
+    p, rotation = qpik.Configuration(model, q0).frame_pose("ee")
+    far = (p + np.array([0.0, 0.0, 0.6]), rotation)  # out of reach: every restart runs
+    for engine in ("compiled", "qp"):
+        result = qpik.solve(
+            model, {"ee": far}, q0=q0, restarts=3, seed=1, max_iters=20, engine=engine
+        )
+        assert result.engine == engine and result.restarts_used == 3
+        # compiled: bitwise; qp: its steps' rounding on the cube's dofs (1e-15), no draw
+        atol = 0.0 if engine == "compiled" else 1e-12
+        np.testing.assert_allclose(result.q[7:], q0[7:], rtol=0, atol=atol)
+        np.testing.assert_allclose(
+            result.path[:, 7:], np.tile(q0[7:], (len(result.path), 1)), rtol=0, atol=atol
+        )
+        assert np.abs(result.q[:7] - q0[:7]).max() > 1e-3  # the arm moved
