@@ -122,12 +122,14 @@ def test_many_joints_name_only_those_that_move_most():
     path = np.tile(model.key("home").qpos, (5, 1))
     path[:, 3] += np.linspace(0, 0.5, 5)  # joint4 moves most
     ax = Figure().add_subplot()
-    old = plots.MAX_NAMED
+    from qpik.plots import curves
+
+    old = curves.MAX_NAMED
     try:
-        plots.MAX_NAMED = 3
+        curves.MAX_NAMED = 3
         plots.plot_joints(model, path, ax)
     finally:
-        plots.MAX_NAMED = old
+        curves.MAX_NAMED = old
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "joint4" in labels and len(labels) == 4 and labels[-1] == f"{model.njnt - 3} others"
 

@@ -1,0 +1,210 @@
+"""What every figure of :mod:`qpik.plots` shares: matplotlib imported on first use, the
+checks of the arguments, axes, colours, legends and goal markers."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, TypedDict
+
+import numpy as np
+
+from ..core import checks
+from ..errors import InvalidArgumentType, InvalidInput, MissingExtra
+from ..model.configuration import Configuration, FrameType
+from ..model.frames import check_model_type
+
+if TYPE_CHECKING:  # matplotlib is optional and imported lazily
+    import mujoco
+    from matplotlib.axes import Axes
+
+
+#: Errors below this are drawn at it (log scales cannot show 0).
+FLOOR = 1e-12
+#: At most this many curves are named in a legend; the rest are drawn thin and grey.
+MAX_NAMED = 10
+
+
+def require_matplotlib():
+    """The ``matplotlib`` module, or :class:`qpik.errors.MissingExtra` naming the ``plots``
+    extra."""
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise MissingExtra("plotting", "plots", "matplotlib") from exc
+    return matplotlib
+
+
+def pyplot():
+    """``matplotlib.pyplot`` (:class:`qpik.errors.MissingExtra` without matplotlib)."""
+    require_matplotlib()
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+# ----------------------------------------------------------------------------- checks
+# Each public function checks its arguments here, once, before it draws anything: a value
+# of a wrong type raises InvalidArgumentType (a TypeError), a wrong shape or a NaN
+# InvalidInput (a ValueError), each naming the argument.
+def check_ax(ax, three_d: bool = False):
+    """``ax``: ``None`` (new axes) or matplotlib axes (3D ones for a 3D plot)."""
+    if ax is None:
+        return None
+    require_matplotlib()
+    if three_d:
+        from mpl_toolkits.mplot3d import Axes3D
+
+        return checks.check_instance("ax", ax, Axes3D, "None or 3D matplotlib axes")
+    from matplotlib.axes import Axes
+
+    return checks.check_instance("ax", ax, Axes, "None or matplotlib axes")
+
+
+def check_path(model: mujoco.MjModel, path) -> np.ndarray:
+    """``path``: configurations ``(k, nq)`` (k >= 1; one ``(nq,)`` is a path of one),
+    finite, as a float array."""
+    expected = f"configurations: an array (k, {model.nq}) of numbers"
+    array = checks.check_array("path", path, expected)
+    if array.ndim not in (1, 2):
+        raise InvalidInput(f"path has shape {array.shape}; expected {expected}")
+    array = np.atleast_2d(array)
+    if array.shape[0] == 0 or array.shape[1] != model.nq:
+        raise InvalidInput(f"path has shape {np.shape(path)}; expected {expected}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInput("path has NaN or infinite entries")
+    return array
+
+
+def check_frame_type(name: str, value) -> FrameType:
+    """A frame type: a ``FrameType`` or one of the strings body, site, geom."""
+    if not isinstance(value, (str, FrameType)):
+        raise InvalidArgumentType(
+            name, "a frame type ('body', 'site' or 'geom')", checks.type_name(value)
+        )
+    return FrameType.parse(value)
+
+
+def check_frames(name: str, frames) -> list[tuple[str, FrameType]]:
+    """A sequence of ``(frame name, frame type)`` pairs."""
+    expected = "a sequence of (frame name, frame type) pairs"
+    if isinstance(frames, (str, bytes, dict, set)) or not isinstance(frames, Sequence):
+        if not (isinstance(frames, np.ndarray) and frames.ndim == 2):
+            raise InvalidArgumentType(name, expected, checks.type_name(frames))
+    pairs = []
+    for i, pair in enumerate(frames):
+        if isinstance(pair, (str, bytes)) or not isinstance(pair, (Sequence, np.ndarray)):
+            raise InvalidArgumentType(f"{name}[{i}]", expected, checks.type_name(pair))
+        if len(pair) != 2:
+            raise InvalidInput(f"{name}[{i}] has {len(pair)} entries; expected {expected}")
+        frame = checks.check_frame_name(f"{name}[{i}][0]", pair[0])
+        pairs.append((frame, check_frame_type(f"{name}[{i}][1]", pair[1])))
+    return pairs
+
+
+def check_targets(targets) -> np.ndarray:
+    """``targets``: positions ``(k, 3)`` [m] (a sequence of 3-vectors, maybe empty)."""
+    expected = "a sequence of positions [x, y, z] (m)"
+    if isinstance(targets, (set, frozenset)):
+        raise InvalidArgumentType("targets", expected, checks.type_name(targets))
+    array = checks.check_array("targets", targets, expected)
+    if array.size == 0:
+        return np.zeros((0, 3))
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidInput(f"targets has shape {array.shape}; expected {expected}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInput("targets has NaN or infinite entries")
+    return array
+
+
+def check_along(name: str, value, n: int) -> np.ndarray | None:
+    """``time`` or ``goal_index``: ``None`` or one finite number per configuration."""
+    if value is None:
+        return None
+    array = checks.check_vector(name, value, n)
+    if name == "goal_index":
+        if not np.all(array == np.round(array)):
+            raise InvalidInput(f"goal_index must hold whole numbers (goal indices), got {value}")
+        return array.astype(int)
+    return array
+
+
+def check_label(name: str, value) -> str | None:
+    """An axis label: ``None`` or a ``str``."""
+    if value is None:
+        return None
+    return checks.check_instance(name, value, str, "a str or None")
+
+
+def axes(ax, projection: str | None = None):
+    if ax is not None:
+        return ax
+    if projection is None:
+        return pyplot().subplots()[1]
+    return pyplot().figure().add_subplot(projection=projection)
+
+
+def palette() -> list[str]:
+    return require_matplotlib().rcParams["axes.prop_cycle"].by_key()["color"]
+
+
+def legend_below(ax: Axes, ncol: int = 2) -> None:
+    """The legend under the axes (off the data), if anything is labelled."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    ax.legend(
+        handles,
+        labels,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.16),
+        fontsize="x-small",
+        ncol=ncol,
+        frameon=False,
+    )
+
+
+def goal_starts(ax: Axes, x: np.ndarray, goal_index: np.ndarray | None) -> None:
+    """Dotted vertical lines where a new goal (waypoint) begins, named at the top; and
+    whole-number ticks when ``x`` counts iterations."""
+    if np.issubdtype(np.asarray(x).dtype, np.integer):
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if goal_index is None:
+        return
+    transform = ax.get_xaxis_transform()  # x in data, y in axes fraction
+    for k in np.flatnonzero(np.diff(goal_index)) + 1:
+        ax.axvline(x[k], color="0.5", lw=0.8, ls=":")
+        ax.text(
+            x[k],
+            0.99,
+            f" goal {goal_index[k]}",
+            transform=transform,
+            fontsize="x-small",
+            color="0.4",
+            va="top",
+        )
+
+
+def is_planar(model: mujoco.MjModel) -> bool:
+    """Whether every joint is a hinge about the world z axis at ``qpos0`` (the bundled
+    planar arms)."""
+    import mujoco
+
+    check_model_type("model", model)
+    hinge = int(mujoco.mjtJoint.mjJNT_HINGE)
+    axes = Configuration(model, model.qpos0).data.xaxis
+    return model.njnt > 0 and all(
+        int(model.jnt_type[j]) == hinge and np.allclose(np.abs(axes[j]), [0, 0, 1])
+        for j in range(model.njnt)
+    )
+
+
+class PathAxis(TypedDict, total=False):
+    """The x axis of a plot along a path: ``time`` ``(k,)`` [s] (default: the index),
+    ``goal_index`` ``(k,)`` (the goal each point belongs to; its starts are marked) and
+    ``xlabel``."""
+
+    time: np.ndarray | None
+    goal_index: np.ndarray | None
+    xlabel: str | None
