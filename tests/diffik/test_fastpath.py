@@ -168,7 +168,7 @@ def test_solve_ik_with_minks_tasks_matches_mink(panda):
 
 def test_unknown_task_types_still_use_their_own_methods(panda):
     """A subclass of mink's FrameTask (its own rows) and a custom task work at any level
-    through their methods; the stack then takes the general path."""
+    through their methods: the compiled step takes their rows from them."""
     model, configuration = panda
     configuration.update(model.key_qpos[0])
 
@@ -195,7 +195,9 @@ def test_unknown_task_types_still_use_their_own_methods(panda):
     plain.set_target_from_configuration(configuration)
     for levels in ([[frame], [posture]], [[Zero()], [frame, posture]]):
         solver = qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)])
-        assert solver._plan is None
+        assert solver._plan is not None
+        supplied = [task for task, _, _ in solver._plan.rows_tasks]
+        assert frame in supplied and posture not in supplied
         result = solver.step(configuration, DT)
         assert result.ok
         swapped = [[plain if t is frame else t for t in level] for level in levels]
