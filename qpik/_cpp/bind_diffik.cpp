@@ -4,6 +4,8 @@
 #include "bind.hpp"
 #include "diffik/fused.hpp"
 
+#include <nanobind/stl/optional.h>
+
 #include <algorithm>
 
 namespace nb = nanobind;
@@ -133,10 +135,11 @@ class Kernel {
            Held2 frame_data, Held2 posture_data, const I2& posture_map, const I1& cfg_dof,
            const I1& cfg_qadr, Held2 cfg_data, const I1& vel_dof, Held1 vel_limit, Held1 settings,
            Held3 com_jac, const I1& com_body, Held2 com_data, Held3 rel_jac, const I2& rel_frames,
-           Held2 rel_data, i64 nq)
+           Held2 rel_data, i64 nq, std::optional<Held1> user_mu)
         : A_(A), b_(b), w_(w), jac_(jac), frame_data_(frame_data), posture_data_(posture_data),
           cfg_data_(cfg_data), vel_limit_(vel_limit), settings_(settings), com_jac_(com_jac),
-          com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), nq_(nq) {
+          com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), user_mu_(std::move(user_mu)),
+          nq_(nq) {
         const i64 n = dim(A, 1), M = dim(A, 0);
         n_ = n;
         require(nq >= n, "Kernel: nq must be >= nv");
@@ -190,12 +193,14 @@ class Kernel {
             const i64 kind = tasks_.mat()(k, 0), index = tasks_.mat()(k, 1);
             const i64 level = tasks_.mat()(k, 2), row = tasks_.mat()(k, 3);
             i64 count = 0, size = 0;
+            const i64 U = user_mu_ ? dim(*user_mu_, 0) : 0;
             switch (kind) {
                 case diffik::FRAME: count = F; size = 6; break;
                 case diffik::POSTURE: case diffik::DAMPING_TASK: count = P; size = n; break;
                 case diffik::COM: count = C; size = 3; break;
                 case diffik::RELATIVE: count = R; size = 6; break;
-                default: require(false, "Kernel: a task kind is not 0 to 4");
+                case diffik::ROWS: count = U; size = 0; break;  // its rows: the caller's
+                default: require(false, "Kernel: a task kind is not 0 to 5");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             require(level >= 0 && level < L, "Kernel: a task level is out of range");
@@ -274,6 +279,7 @@ class Kernel {
         a.rel_data = cmat(rel_data_);
         a.G = CMatRef(G.data(), dim(G, 0), n_);
         a.h = cvec(h);
+        if (user_mu_) a.user_mu = cvec(*user_mu_);
         return a;
     }
 
@@ -290,6 +296,7 @@ class Kernel {
     Held2 com_data_;
     Held3 rel_jac_;
     Held2 rel_data_;
+    std::optional<Held1> user_mu_;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
         vel_dof_;
@@ -305,7 +312,7 @@ void bind_diffik(nb::module_& m) {
                        "its float arrays; see qpik._fused.FusedPlan.")
         .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
                       const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
-                      const I1&, Held2, Held3, const I2&, Held2, i64>(),
+                      const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>>(),
              nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
              nb::arg("starts"), nb::arg("tasks"), nb::arg("jac").noconvert(), nb::arg("frames"),
              nb::arg("frame_data").noconvert(), nb::arg("posture_data").noconvert(),
@@ -313,7 +320,8 @@ void bind_diffik(nb::module_& m) {
              nb::arg("cfg_data").noconvert(), nb::arg("vel_dof"), nb::arg("vel_limit").noconvert(),
              nb::arg("settings").noconvert(), nb::arg("com_jac").noconvert(), nb::arg("com_body"),
              nb::arg("com_data").noconvert(), nb::arg("rel_jac").noconvert(), nb::arg("rel_frames"),
-             nb::arg("rel_data").noconvert(), nb::arg("nq"))
+             nb::arg("rel_data").noconvert(), nb::arg("nq"),
+             nb::arg("user_mu").noconvert() = nb::none())
         .def(
             "step",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

@@ -1,13 +1,20 @@
 """The compiled step: one C++ call per differential IK step, for the stacks it covers.
 
 :func:`make_plan` builds a :class:`CompiledPlan` once per :class:`qpik.IKSolver` when every
-task and limit is one the compiled :class:`Kernel` computes (qpik's or mink's
-``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's ``RelativeFrameTask``;
-mink's ``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
-``CollisionAvoidanceLimit``; exact types, as a subclass may change the rows; any joints).
+limit is one the compiled :class:`Kernel` takes (mink's ``ConfigurationLimit`` without a
+limited ball joint, ``VelocityLimit`` and ``CollisionAvoidanceLimit``; exact types). Tasks
+the kernel computes itself: qpik's or mink's ``FrameTask``, ``PostureTask``,
+``DampingTask``, ``ComTask``, mink's ``RelativeFrameTask`` (exact types, any joints). Any
+other task (qpik's pose, coupling and secondary tasks, mink's equality, DoF-freezing and
+kinetic-energy tasks, subclasses, user tasks) supplies its own rows: each step Python asks
+it for them (:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) and writes them
+into the plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to its
+level. Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
+vector's length, else ``nv``); a step where it returns another shape goes to the QP path.
 Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
-one Jacobian call per frame, the collision limits' rows ``G dq <= h``) and the kernel
-computes every task's rows, the limits' box and the whole cascade
+one Jacobian call per frame, the rows of the tasks that supply them, the collision limits'
+rows ``G dq <= h``) and the kernel computes the other tasks' rows, the limits' box and the
+whole cascade
 (``qpik/_cpp/diffik/fused.hpp``), returning a :class:`~qpik.diffik.result.Solution`. It
 computes what the QP path computes, in the same arithmetic where that path's is qpik's
 (tests compare the two bitwise) and in mink's to round-off elsewhere; anything unusual (a
@@ -29,12 +36,13 @@ from .._engine import diffik as _engine
 from ..core import HierarchySolver
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
+from ..model.configuration import Configuration
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
 from ..tasks import DampingTask, FrameTask, PostureTask
 from ..tasks.com import ComTask
 from .boxes import LimitBoxes, LimitRows
 from .result import Solution, solve_rows
-from .rows import TaskRows
+from .rows import TaskRows, task_rows
 
 __all__ = ["CompiledPlan", "Kernel", "make_plan"]
 
@@ -65,7 +73,7 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 #: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
-_FRAME, _POSTURE, _COM, _RELATIVE, _DAMPING = 0, 1, 2, 3, 4
+_FRAME, _POSTURE, _COM, _RELATIVE, _DAMPING, _ROWS = 0, 1, 2, 3, 4, 5
 #: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
 _SCALAR_DOF, _FREE_DOF, _BALL_FIRST, _BALL_OTHER = 0, 1, 2, 3
 
@@ -73,14 +81,17 @@ _SCALAR_DOF, _FREE_DOF, _BALL_FIRST, _BALL_OTHER = 0, 1, 2, 3
 #
 # Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 #        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
-#        com_data, rel_jac, rel_frames, rel_data, nq)
+#        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None)
 #   One stack's compiled step (built by make_plan). The index arrays are copied and checked
 #   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
 #   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
 #   (level ``k`` in rows ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) rows: kind (0 frame,
-#   1 posture, 2 CoM, 3 relative frame, 4 damping), index into that kind's arrays, level,
-#   first row. Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]``
-#   (kind 0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
+#   1 posture, 2 CoM, 3 relative frame, 4 damping, 5 rows supplied by the task), index into
+#   that kind's arrays, level, first row. A kind-5 task's rows of ``A, b, w`` are written by
+#   the caller before each call and left as they are; ``user_mu[u]`` (U,) is its LM term,
+#   added to its level's regularisation in the stack's order (optional: None, no such
+#   task). Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
+#   0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
 #   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
 #   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
 #   hinge/slide, 1 free joint, 2 first dof of a ball joint, 3 its others) and qpos address.
@@ -143,6 +154,8 @@ class CompiledPlan:
     kernel: Any  # qpik._engine.diffik.Kernel over ``arrays``
     limits: LimitBoxes  # the solver's limits: active-limit names and general rows
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
+    #: tasks that supply their own rows: (task, first row, last row), ``user_mu`` in order
+    rows_tasks: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 
     def __post_init__(self) -> None:
@@ -178,7 +191,31 @@ class CompiledPlan:
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
         self._gather_gains()
+        if self.rows_tasks and not self._gather_rows(configuration):
+            return None
         return self._poses(data)
+
+    def _gather_rows(self, configuration: mink.Configuration) -> bool:
+        """The rows of the tasks that supply them (:func:`task_rows`, the QP path's arrays)
+        into ``A, b, w``, their LM terms into ``user_mu``; False when a task's rows do not
+        have its planned shape (the QP path answers)."""
+        configuration = Configuration.sharing(configuration)  # the QP path's view
+        a = self.arrays
+        A, b, w, user_mu = a["A"], a["b"], a["w"], a["user_mu"]
+        nv = self.model.nv
+        for u, (task, r0, r1) in enumerate(self.rows_tasks):
+            rows, error, mu, weights = task_rows(task, configuration)
+            if (
+                rows.shape != (r1 - r0, nv)
+                or np.shape(error) != (r1 - r0,)
+                or np.shape(weights) != (r1 - r0,)
+            ):
+                return False
+            A[r0:r1] = rows
+            b[r0:r1] = error
+            w[r0:r1] = weights
+            user_mu[u] = 0.0 if mu is None else float(mu)
+        return True
 
     def _gather_postures(self) -> None:
         """Posture and damping tasks' targets, costs, gains and LM damping."""
@@ -402,8 +439,9 @@ class CompiledPlan:
 @dataclass(frozen=True)
 class _TaskLayout:
     """Where each task of a stack goes in the plan: the frame, posture, CoM and relative
-    frame tasks with their frames or bodies, the ``tasks`` table rows, the frames used
-    ``((kind, id), relative)`` and each level's first row (``starts``)."""
+    frame tasks with their frames or bodies, the tasks that supply their rows, the ``tasks``
+    table rows, the frames used ``((kind, id), relative)`` and each level's first row
+    (``starts``)."""
 
     frames: list
     postures: list
@@ -412,6 +450,7 @@ class _TaskLayout:
     tasks: list
     frame_rows: list
     starts: list
+    rows_tasks: list  # (task, first row, last row) of the tasks that supply their rows
 
 
 @dataclass(frozen=True)
@@ -471,11 +510,11 @@ def make_plan(
         a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], a["frame_data"],
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
-        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq,
+        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"],
     )  # fmt: skip
     return CompiledPlan(
         model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
-        arrays, used, cold, core.max_iter or 0, kernel, limits,
+        arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
     )  # fmt: skip
 
 
@@ -515,6 +554,7 @@ def _plan_arrays(
         "rel_jac": np.zeros((R, 12, nv)),
         "rel_frames": np.asarray(rel_frames, dtype=i64).reshape(-1, 4),
         "rel_data": np.zeros((R, 15)),
+        "user_mu": np.zeros(len(layout.rows_tasks)),
         "empty3": np.zeros((0, 3)),
         "empty9": np.zeros((0, 9)),
     }
@@ -566,11 +606,26 @@ def _com_body(model: mujoco.MjModel, task) -> tuple[int, object] | None:
     return None if body < 0 else (body, given)
 
 
+def _declared_rows(task, nv: int) -> int:
+    """The rows a task that supplies its own declares: ``task.k`` (mink's row count), else
+    the length of its ``cost`` vector, else ``nv`` (a task of ``(H, c)`` only: its factor has
+    ``nv`` rows where ``H`` has full rank)."""
+    k = getattr(task, "k", None)
+    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
+        return int(k)
+    cost = getattr(task, "cost", None)
+    if isinstance(cost, np.ndarray) and cost.ndim == 1:
+        return cost.shape[0]
+    return nv
+
+
 def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> _TaskLayout | None:
-    """The layout of a stack whose tasks the kernel computes (qpik's or mink's FrameTask /
-    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask; exact types), None
-    otherwise: rows are laid out level by level, task by task."""
+    """The layout of a stack: the tasks the kernel computes (qpik's or mink's FrameTask /
+    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask; exact types) and those
+    that supply their rows (any other); None where a task the kernel computes names what the
+    model lacks (the QP path reports it). Rows are laid out level by level, task by task."""
     frames, postures, coms, relatives, tasks, frame_rows = [], [], [], [], [], []
+    rows_tasks: list = []
     starts = [0]
     nv = model.nv
     for k, level in enumerate(levels):
@@ -610,10 +665,13 @@ def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> _TaskLayo
                 relatives.append((task, frame, root))
                 frame_rows.extend(((frame, True), (root, True)))
                 row += 6
-            else:
-                return None
+            else:  # rows supplied by the task itself, each step
+                size = _declared_rows(task, nv)
+                tasks.append((_ROWS, len(rows_tasks), k, row))
+                rows_tasks.append((task, row, row + size))
+                row += size
         starts.append(row)
-    return _TaskLayout(frames, postures, coms, relatives, tasks, frame_rows, starts)
+    return _TaskLayout(frames, postures, coms, relatives, tasks, frame_rows, starts, rows_tasks)
 
 
 def _limit_layout(model: mujoco.MjModel, limits: Sequence) -> _LimitLayout | None:

@@ -21,7 +21,7 @@ from ..errors import InvalidInput, InvalidTarget, as_qpik_error
 from ..model.configuration import Configuration
 from ..tasks import BaseTask
 
-__all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows"]
+__all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
 
 #: A task stack: a task, a list of tasks (one weighted level), or a list of levels, each a
 #: task or a list of tasks (level 0 first). See :func:`normalize_stack`.
@@ -75,42 +75,50 @@ def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
         return np.ones(rows)
 
 
+def task_rows(
+    task: BaseTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
+    """One task's weighted rows ``(A, b, mu, weights)`` as :func:`level_rows` stacks them:
+    its ``compute_qp_residual`` (``mu`` its LM term), or, for a task that only provides
+    ``(H, c)``, the factor ``H = A^T A``, ``A^T b = -c`` (unit weights, ``mu`` None: no
+    term). The compiled step's rows supplied by a task (:mod:`.compiled`) are these arrays."""
+    try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
+        with np.errstate(over="ignore"):
+            residual = task.compute_qp_residual(configuration)
+            objective = None if residual is not None else task.compute_qp_objective(configuration)
+    except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
+        raise as_qpik_error(exc) from exc
+    if objective is not None:
+        H, c = objective
+        values, vectors = np.linalg.eigh(0.5 * (H + H.T))
+        keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
+        root = np.sqrt(values[keep])
+        A = root[:, None] * vectors[:, keep].T
+        return A, -(vectors[:, keep].T @ c) / root, None, np.ones(int(keep.sum()))
+    assert residual is not None  # objective is None only when a residual was given
+    jacobian, error, task_mu = residual
+    if jacobian.ndim != 2:
+        jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
+    return jacobian, error, task_mu, _row_weights(task, jacobian.shape[0])
+
+
 def level_rows(
     tasks: Sequence[BaseTask], configuration: Configuration, nv: int
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Stacked weighted residual of a level ``(A, b, mu, weights)``: the objective is
     ``1/2 |A dq - b|^2 + 1/2 mu |dq|^2``; ``weights`` are the rows' costs.
 
-    Tasks that only provide ``(H, c)`` are factored as ``H = A^T A``, ``A^T b = -c`` (unit
-    weights). Every row is kept, zero rows included.
+    Each task's rows are :func:`task_rows`'s (tasks that only provide ``(H, c)`` factored as
+    ``H = A^T A``, ``A^T b = -c``, unit weights). Every row is kept, zero rows included.
     """
     A_parts, b_parts, w_parts = [], [], []
     mu = 0.0
     for task in tasks:
-        try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
-            with np.errstate(over="ignore"):
-                residual = task.compute_qp_residual(configuration)
-                objective = (
-                    None if residual is not None else task.compute_qp_objective(configuration)
-                )
-        except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
-            raise as_qpik_error(exc) from exc
-        if objective is not None:
-            H, c = objective
-            values, vectors = np.linalg.eigh(0.5 * (H + H.T))
-            keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
-            root = np.sqrt(values[keep])
-            A_parts.append(root[:, None] * vectors[:, keep].T)
-            b_parts.append(-(vectors[:, keep].T @ c) / root)
-            w_parts.append(np.ones(int(keep.sum())))
-        else:
-            assert residual is not None  # objective is None only when a residual was given
-            jacobian, error, task_mu = residual
-            if jacobian.ndim != 2:
-                jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
-            A_parts.append(jacobian)
-            b_parts.append(error)
-            w_parts.append(_row_weights(task, jacobian.shape[0]))
+        A, b, task_mu, w = task_rows(task, configuration)
+        A_parts.append(A)
+        b_parts.append(b)
+        w_parts.append(w)
+        if task_mu is not None:
             mu += float(task_mu)
     if len(A_parts) == 1:
         return A_parts[0], b_parts[0], mu, w_parts[0]

@@ -168,7 +168,7 @@ def test_solve_ik_with_minks_tasks_matches_mink(panda):
 
 def test_unknown_task_types_still_use_their_own_methods(panda):
     """A subclass of mink's FrameTask (its own rows) and a custom task work at any level
-    through their methods; the stack then takes the general path."""
+    through their methods: the compiled step takes their rows from them."""
     model, configuration = panda
     configuration.update(model.key_qpos[0])
 
@@ -195,7 +195,9 @@ def test_unknown_task_types_still_use_their_own_methods(panda):
     plain.set_target_from_configuration(configuration)
     for levels in ([[frame], [posture]], [[Zero()], [frame, posture]]):
         solver = qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)])
-        assert solver._plan is None
+        assert solver._plan is not None
+        supplied = [task for task, _, _ in solver._plan.rows_tasks]
+        assert frame in supplied and posture not in supplied
         result = solver.step(configuration, DT)
         assert result.ok
         swapped = [[plain if t is frame else t for t in level] for level in levels]
@@ -330,3 +332,248 @@ def test_solve_ik_kept_solver_shortcut_is_the_full_paths_answer(panda, backend):
         assert np.array_equal(ours, full.velocity)
         assert qpik.solve_ik(configuration, tasks, DT, backend, 1e-3, limits=limits) is not ours
     assert len(qpik.diffik.mink_compat.SOLVERS) == 1
+
+
+# ------------------------------------------------- rows supplied by the task itself
+#: A chain with joint and tendon couplings (qpik's CouplingTask level) and a connect
+#: constraint (mink's EqualityConstraintTask).
+COUPLED = """
+<mujoco>
+  <option jacobian="sparse"/>
+  <worldbody>
+    <body name="a">
+      <joint name="a1" axis="0 0 1" range="-2 2"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+      <body name="b" pos="0.3 0 0">
+        <joint name="b1" axis="0 1 0" range="-2 2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+        <body name="c" pos="0.3 0 0">
+          <joint name="c1" axis="0 1 0" range="-2 2"/>
+          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
+          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
+          <site name="tip" pos="0.2 0 0"/>
+        </body>
+      </body>
+    </body>
+    <body name="d" pos="0 0.6 0">
+      <joint name="d1" axis="0 0 1" range="-1 1"/>
+      <joint name="d2" axis="0 1 0" range="-1 1"/>
+      <geom type="capsule" fromto="0 0 0 0 -0.3 0" size="0.02"/>
+      <site name="dtip" pos="0 -0.3 0"/>
+    </body>
+  </worldbody>
+  <tendon>
+    <fixed name="t1"><joint joint="a1" coef="0.5"/><joint joint="d1" coef="-1"/></fixed>
+    <fixed name="t2"><joint joint="d2" coef="2"/></fixed>
+  </tendon>
+  <equality>
+    <joint name="poly" joint1="c1" joint2="b1" polycoef="0.05 0.5 0.2 -0.1 0.03"/>
+    <tendon name="ten" tendon1="t1" tendon2="t2" polycoef="0 0.7 0.1 0 0"/>
+    <connect name="loop" body1="d" body2="c" anchor="0 -0.3 0"/>
+  </equality>
+</mujoco>
+"""
+
+
+def _supplied(solver: qpik.IKSolver) -> list:
+    """The tasks whose rows the solver's plan takes from their own methods."""
+    assert solver._plan is not None
+    return [task for task, _, _ in solver._plan.rows_tasks]
+
+
+def _compiled_equals_qp(solver: qpik.IKSolver, configuration, compiled: bool = True) -> None:
+    """One step by :meth:`IKSolver.step`: the compiled step answered (the QP path was not
+    called; ``compiled=False``: it was), with the QP path's velocity (to 1e-12), statuses
+    and certificates."""
+    calls = []
+    qp_step = solver._qp_step
+
+    def counted(*args):
+        calls.append(1)
+        return qp_step(*args)
+
+    solver._qp_step = counted  # type: ignore[method-assign]
+    try:
+        fused = solver.step(configuration, DT)
+    finally:
+        del solver._qp_step
+    assert bool(calls) is not compiled
+    general = qpik.StepResult.of(solver._qp_step(configuration, DT), 0.0, solver._coupling_level)
+    np.testing.assert_allclose(fused.velocity, general.velocity, rtol=0, atol=1e-12)
+    assert fused.status == general.status
+    for ours, theirs in zip(fused.certificate, general.certificate, strict=True):
+        np.testing.assert_allclose(
+            [ours.primal, ours.stationarity, ours.dual, ours.complementarity],
+            [theirs.primal, theirs.stationarity, theirs.dual, theirs.complementarity],
+            rtol=0, atol=1e-9,
+        )  # fmt: skip
+
+
+def _random_targets(rng, model, configuration, tasks) -> None:
+    """Random targets near the current pose for qpik's pose tasks (and mink's, see
+    :func:`_random_state`)."""
+    for task in tasks:
+        if isinstance(task, (qpik.tasks.PositionTask, qpik.tasks.PoseTask)) or isinstance(
+            task, qpik.tasks.OrientationTask
+        ):
+            position, rotation = configuration.frame_pose(task.frame_name, task.frame_type)
+            turn = mink.SO3.exp(rng.normal(size=3) * 0.3).as_matrix()
+            position = position + rng.normal(size=3) * 0.1
+            if isinstance(task, qpik.tasks.PositionTask):
+                task.set_target(position)
+            elif isinstance(task, qpik.tasks.OrientationTask):
+                task.set_target(turn @ rotation)
+            else:
+                task.set_target(position, turn @ rotation)
+
+
+def _panda_kind(name: str, model):
+    if name == "position":
+        return qpik.tasks.PositionTask("ee", "site", cost=[1.0, 0.5, 2.0], lm_damping=0.3)
+    if name == "orientation":
+        return qpik.tasks.OrientationTask("ee", "site", cost=0.7, gain=0.8)
+    if name == "pose":
+        return qpik.tasks.PoseTask("ee", "site", 1.0, 0.4, lm_damping=0.2)
+    if name == "dof_freezing":
+        return qpik.tasks.DofFreezingTask(model, [1, 4])
+    if name == "kinetic_energy":
+        task = qpik.tasks.KineticEnergyRegularizationTask(cost=1e-3)
+        task.set_dt(DT)
+        return task
+    if name == "joint_limit_distance":
+        return qpik.tasks.JointLimitDistanceTask(cost=2.0, lm_damping=0.1)
+    assert name == "manipulability"
+    return qpik.tasks.ManipulabilityTask("ee", "site", rows="position", cost=0.5)
+
+
+@pytest.mark.parametrize(
+    "kind",
+    ["position", "orientation", "pose", "dof_freezing", "kinetic_energy",
+     "joint_limit_distance", "manipulability"],
+)  # fmt: skip
+def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
+    """qpik's pose and secondary tasks and mink's DoF-freezing and kinetic-energy tasks
+    (its (H, c) factored as the QP path factors it) under a frame task, above a posture:
+    the compiled step answers, equal to the QP path's."""
+    model, configuration = panda
+    rng = np.random.default_rng(hash(kind) % 1000)
+    task = _panda_kind(kind, model)
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.1)
+    posture = mink.PostureTask(model, cost=0.05)
+    levels = [[frame], [task], [posture]]
+    if kind == "dof_freezing":
+        levels = [[task], [frame], [posture]]
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    solver = qpik.IKSolver(model, levels, limits)
+    assert _supplied(solver) == [task]
+    for _ in range(15):
+        _random_state(rng, model, configuration, [frame, posture])
+        _random_targets(rng, model, configuration, [task])
+        _compiled_equals_qp(solver, configuration)
+
+
+@pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
+def test_a_stack_mixing_kinds_at_several_levels(panda, solver_name):
+    """Kernel-computed and self-supplied tasks side by side on three levels, several with
+    LM terms (their sum per level in the stack's order): the compiled step answers, equal
+    to the QP path's."""
+    pytest.importorskip("quadprog")
+    model, configuration = panda
+    rng = np.random.default_rng(21)
+    position = qpik.tasks.PositionTask("ee", "site", cost=1.0, lm_damping=0.2)
+    frame = mink.FrameTask("link5", "body", position_cost=0.5, orientation_cost=0.0,
+                           lm_damping=0.1)  # fmt: skip
+    orientation = qpik.tasks.OrientationTask("ee", "site", cost=0.5)
+    freeze = qpik.tasks.DofFreezingTask(model, [6])
+    posture = qpik.tasks.PostureTask(model, cost=0.02, lm_damping=0.05)
+    energy = qpik.tasks.KineticEnergyRegularizationTask(cost=1e-4)
+    energy.set_dt(DT)
+    levels = [
+        [position, frame],
+        [orientation, freeze, posture],
+        [qpik.tasks.ManipulabilityTask("ee", "site", lm_damping=0.3),
+         qpik.tasks.JointLimitDistanceTask(lm_damping=0.2), energy,
+         mink.DampingTask(model, cost=0.01)],
+    ]  # fmt: skip
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    solver = qpik.IKSolver(model, levels, limits, solver=solver_name)
+    assert len(_supplied(solver)) == 6 and len(solver._plan.frames) == 1
+    tasks = [t for level in levels for t in level]
+    for _ in range(15):
+        _random_state(rng, model, configuration, tasks)
+        _random_targets(rng, model, configuration, tasks)
+        posture.set_target(configuration.q + rng.uniform(-0.3, 0.3, model.nv))
+        _compiled_equals_qp(solver, configuration)
+
+
+def test_couplings_and_equality_constraints_take_the_compiled_step():
+    """qpik's coupling level (the model's joint and tendon equalities) and mink's
+    EqualityConstraintTask (every equality, the connect constraint's 3 rows among them):
+    the compiled step answers, equal to the QP path's."""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(COUPLED)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(8)
+    equality = qpik.tasks.EqualityConstraintTask(model, cost=[1.0, 2.0, 0.5], lm_damping=0.1)
+    position = qpik.tasks.PositionTask("tip", "site")
+    posture = mink.PostureTask(model, cost=0.1)
+    limits = [mink.ConfigurationLimit(model)]
+    for levels in ([[position], [posture]], [[equality], [position, posture]]):
+        solver = qpik.IKSolver(model, levels, limits)
+        supplied = _supplied(solver)
+        assert isinstance(supplied[0], qpik.tasks.CouplingTask)  # the coupling level
+        assert (equality in supplied) is (levels[0] == [equality])
+        for _ in range(10):
+            q = rng.uniform(-0.5, 0.5, model.nq) * 0.5
+            configuration.update(q)
+            position.set_target(configuration.frame_pose("tip", "site")[0] + 0.05)
+            posture.set_target(q + rng.uniform(-0.2, 0.2, model.nq))
+            _compiled_equals_qp(solver, configuration)
+
+
+def test_an_unknown_task_supplies_its_rows_at_level_one(panda):
+    """A user's task of an unknown type (mink's contract: error, Jacobian, cost, LM
+    damping) at level 1 beside a kernel task: the compiled step takes its rows from its
+    own methods and answers as the QP path does. One whose rows do not have its declared
+    count, or whose (H, c) is rank deficient, sends the step to the QP path."""
+    model, configuration = panda
+    rng = np.random.default_rng(4)
+
+    class Elbow(mink.Task):
+        k = 2
+
+        def __init__(self):
+            super().__init__(cost=np.array([1.0, 0.3]), gain=0.5, lm_damping=0.4)
+
+        def compute_error(self, configuration):
+            return np.sin(configuration.q[:2]) - 0.2
+
+        def compute_jacobian(self, configuration):
+            jacobian = np.zeros((2, model.nv))
+            jacobian[:, :2] = np.diag(np.cos(configuration.q[:2]))
+            return jacobian
+
+    class Miscounted(Elbow):
+        k = 3  # declares 3 rows, returns 2
+
+    class Flat(mink.tasks.task.BaseTask):  # (H, c) only, H of rank 1
+        def compute_qp_objective(self, configuration):
+            H = np.zeros((model.nv, model.nv))
+            H[0, 0] = 1.0
+            return mink.Objective(H, np.zeros(model.nv))
+
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.5)
+    posture = mink.PostureTask(model, cost=0.05)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    elbow = Elbow()
+    solver = qpik.IKSolver(model, [[frame], [elbow, posture]], limits)
+    assert _supplied(solver) == [elbow]
+    for _ in range(15):
+        _random_state(rng, model, configuration, [frame, posture])
+        _compiled_equals_qp(solver, configuration)
+    for odd in (Miscounted(), Flat()):
+        solver = qpik.IKSolver(model, [[frame], [odd, posture]], limits)
+        assert _supplied(solver) == [odd]
+        _random_state(rng, model, configuration, [frame, posture])
+        _compiled_equals_qp(solver, configuration, compiled=False)

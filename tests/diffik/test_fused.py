@@ -156,23 +156,25 @@ def test_fused_answers_do_not_depend_on_history(panda):
     assert _same(first, again) and _same(first, fresh)
 
 
-def test_stacks_the_fused_step_does_not_cover_use_the_general_path(panda):
+def test_subclasses_supply_their_own_rows_to_the_fused_step(panda):
     model, _ = panda
     posture = PostureTask(model, 0.1)
     # mink's own FrameTask is computed in C++ too (tests/diffik/test_fastpath.py); a subclass
-    # may change its rows, so it is not.
+    # may change its rows, so it supplies them itself (its own methods, each step).
     assert qpik.IKSolver(model, [mink.FrameTask("ee", "site", 1.0, 1.0)])._plan is not None
 
     class MinkCustom(mink.FrameTask):
         pass
 
-    assert qpik.IKSolver(model, [MinkCustom("ee", "site", 1.0, 1.0)])._plan is None
+    plan = qpik.IKSolver(model, [MinkCustom("ee", "site", 1.0, 1.0)])._plan
+    assert plan is not None and not plan.frames and len(plan.rows_tasks) == 1
     assert qpik.IKSolver(model, [posture], [mink.ConfigurationLimit(model)])._plan is not None
 
     class Custom(FrameTask):
         pass
 
-    assert qpik.IKSolver(model, [Custom("ee", "site", 1.0, 1.0)])._plan is None
+    plan = qpik.IKSolver(model, [Custom("ee", "site", 1.0, 1.0)])._plan
+    assert plan is not None and not plan.frames and len(plan.rows_tasks) == 1
 
 
 def test_fused_step_reports_unset_and_non_finite_targets(panda):

@@ -273,7 +273,7 @@ def test_collision_rows_in_the_one_call_step(robot_no_ball):
     assert rows_seen > 0
 
 
-def test_subclasses_and_unknown_tasks_take_the_general_path(robot):
+def test_subclasses_supply_their_rows_and_unknown_frames_take_the_general_path(robot):
     model, _ = robot
 
     class MyCom(mink.ComTask):
@@ -283,9 +283,12 @@ def test_subclasses_and_unknown_tasks_take_the_general_path(robot):
         pass
 
     assert qpik.IKSolver(model, [mink.ComTask(1.0)])._plan is not None
-    assert qpik.IKSolver(model, [MyCom(1.0)])._plan is None
+    # a subclass may change the rows: it supplies them itself (its own methods, each step)
+    plan = qpik.IKSolver(model, [MyCom(1.0)])._plan
+    assert plan is not None and not plan.coms and len(plan.rows_tasks) == 1
     relative = MyRelative("hand", "site", "torso", "body", 1.0, 1.0)
-    assert qpik.IKSolver(model, [relative])._plan is None
+    plan = qpik.IKSolver(model, [relative])._plan
+    assert plan is not None and not plan.relatives and len(plan.rows_tasks) == 1
     assert qpik.IKSolver(model, [qpik.tasks.ComTask(body="nowhere")])._plan is None
     ball_limited = mujoco.MjModel.from_xml_string(
         XML.replace('<joint name="neck" type="ball"/>',

@@ -25,7 +25,7 @@ constexpr double kPi = 3.14159265358979323846;  // MuJoCo's mjPI
 constexpr i64 kFrameData = 15;  // target wxyz_xyz (7), cost (6), gain, lm_damping
 
 // The arguments of fused_rows / fused_step (views on the plan's arrays and MuJoCo's).
-// A (M, n), b, w (M,); starts (L + 1,); tasks (T, 4): kind (0 frame, 1 posture), index,
+// A (M, n), b, w (M,); starts (L + 1,); tasks (T, 4): kind (TaskKind), index,
 // level, first row; jac (F, 6, n) contiguous; frames (F, 2): kind (0 site, 1 body, 2 geom),
 // id; the six pose arrays (*, 3) / (*, 9); frame_data (F, 15); qpos (n,); posture_data
 // (P, nq + n + 2); cfg_dof (E,), cfg_data (E, 3) rows (lower, upper, gain); vel_dof,
@@ -67,10 +67,14 @@ struct FusedArgs {
     // General limit rows G dq <= h (p, nv), (p,), held at every level.
     CMatRef G = CMatRef(nullptr, 0, 0);
     CVecRef h;
+    // Tasks whose rows the caller supplies (kind 5, ROWS): their rows of A, b, w are written
+    // before the call (from the task's own methods) and left as they are; user_mu (U,) holds
+    // each one's LM term, added to its level's regularisation in the stack's task order.
+    CVecRef user_mu;
 };
 
 // Task kinds of FusedArgs::tasks.
-enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4 };
+enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5 };
 constexpr i64 kComData = 8;  // target (3), cost (3), gain, lm_damping
 enum PostureDof : i64 { SCALAR_DOF = 0, FREE_DOF = 1, BALL_FIRST = 2, BALL_OTHER = 3 };
 
@@ -232,6 +236,10 @@ inline Vec assemble_rows(const FusedArgs& a, i64 L) {
         const i64 kind = a.tasks(t, 0);
         const i64 i = a.tasks(t, 1);
         const i64 row = a.tasks(t, 3);
+        if (kind == ROWS) {  // rows supplied by the task itself: only its LM term here
+            reg[a.tasks(t, 2)] += a.user_mu[i];
+            continue;
+        }
         double mu;
         const double* cost;
         i64 size;
