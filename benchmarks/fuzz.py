@@ -3909,7 +3909,12 @@ def _run_stack(spec: dict, model, rng) -> str:
             solver=None if spec["solver"] == "auto" else spec["solver"],
         )
         velocities.append(np.asarray(v))
-        if constraints and "freeze" in spec["constraints"] and abs(v[model.nv - 1]) > 1e-9:
+        # Constraints hold exactly whenever the limits allow it (solve_ik's documented
+        # rule): a start outside the position limits, or a collision row, may force the
+        # frozen dof to move; judge the starts where nothing forces it.
+        forced = not inside or any(k == "collision" for k, *_ in spec["limits"])
+        frozen = constraints and "freeze" in spec["constraints"]
+        if frozen and not forced and abs(v[model.nv - 1]) > 1e-9:
             raise Bad("limits", f"a frozen dof moves: v = {v[model.nv - 1]}")
     else:
         solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])

@@ -564,8 +564,10 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
         if model is not mujoco.MjModel and not isinstance(model, mujoco.MjModel):
             return "model", model
         text = str(error)
-        for name, value in arguments.items():  # the type the error names: 'set', 'str'
-            if f"'{type(value).__name__}'" in text and not _is_number(value):
+        for name, value in arguments.items():  # the type the error names: 'set', 'str',
+            kind = type(value).__name__  # or qualified: 'mujoco._structs.MjModel'
+            named = f"'{kind}'" in text or f".{kind}'" in text
+            if named and not _is_number(value):
                 return name, value
         for name, value in arguments.items():  # the value it quotes: 'x'
             if isinstance(value, str) and value and repr(value) in text:

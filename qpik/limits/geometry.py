@@ -153,6 +153,14 @@ def model_collision_limit(
     Raises :class:`qpik.CollisionPairError` when the model has no such pair (no collision
     geom, or every pair excluded), naming what was asked.
     """
+    numbers = {
+        "gain": gain,
+        "minimum_distance_from_collisions": minimum_distance_from_collisions,
+        "collision_detection_distance": collision_detection_distance,
+        "bound_relaxation": bound_relaxation,
+    }
+    for name, value in numbers.items():  # each named before any pair is looked at
+        checks.check_real(name, value)
     pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
     if geoms is not None:
         if (

@@ -499,3 +499,19 @@ def test_full_campaign_seed_77_cases(case: str) -> None:
     spec = fuzz.make_spec(77, category, int(index))
     outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS[category], spec)
     assert outcome not in fuzz.BAD, f"{case} {outcome}: {detail}"
+
+
+def test_model_collision_limit_names_a_wrong_number_before_looking_at_pairs() -> None:
+    """A wrong type among the numbers is named even on a model without pairs (seed
+    20261201, signature:666: the pair error came first and named no argument)."""
+    model = qpik.load_robot("planar_2r")
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="collision_detection_distance"):
+        qpik.limits.model_collision_limit(model, collision_detection_distance=b"x")
+
+
+def test_a_task_argument_named_by_its_qualified_type() -> None:
+    """mink's error quotes the qualified type ('mujoco._structs.MjModel'); the argument
+    is still named (seed 20261201, signature:156)."""
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.QpikError, match="argument axis"):
+        qpik.tasks.LookAtTask("ee", "site", axis=model)  # type: ignore[arg-type]
