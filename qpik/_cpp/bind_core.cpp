@@ -4,7 +4,10 @@
 // Every shape is checked here, so a bad argument raises ValueError instead of reading
 // out of bounds.
 #include <cmath>
+#include <cstring>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "bind.hpp"
 #include "core/cascade.hpp"
@@ -50,6 +53,39 @@ void check_qp(const char* fn, const In2& H, const In1& c, const In2& C, const In
 nb::tuple qp_tuple(core::QPResult&& r) {
     return nb::make_tuple(to_numpy(std::move(r.x)), r.status, r.iterations, to_numpy(std::move(r.active)));
 }
+
+// A read-only (or writable) view of a Python object's buffer: C-contiguous, of the given
+// ndim and item type ('d' float64, 'b' int8); anything else is refused (no conversion).
+struct PyBuf {
+    Py_buffer v{};
+    bool held = false;
+    PyBuf() = default;
+    PyBuf(const PyBuf&) = delete;
+    PyBuf& operator=(const PyBuf&) = delete;
+    PyBuf(PyBuf&&) = delete;
+    ~PyBuf() {
+        if (held) PyBuffer_Release(&v);
+    }
+    bool get(PyObject* o, char type, int ndim, bool writable = false) {
+        if (held) {
+            PyBuffer_Release(&v);
+            held = false;
+        }
+        int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+        if (PyObject_GetBuffer(o, &v, flags) != 0) {
+            PyErr_Clear();
+            return false;
+        }
+        held = true;
+        if (v.ndim != ndim || v.itemsize != (type == 'd' ? 8 : 1) || v.format == nullptr) return false;
+        const char* f = v.format;
+        if (*f == '<' || *f == '=' || *f == '@') ++f;
+        return f[0] == type && f[1] == '\0';
+    }
+    i64 shape(int i) const { return static_cast<i64>(v.shape[i]); }
+    template <class T>
+    T* data() const { return static_cast<T*>(v.buf); }
+};
 
 }  // namespace
 
@@ -216,92 +252,120 @@ void bind_core(nb::module_& m) {
 
     m.def(
         "solve_levels",
-        [](nb::list As, nb::list bs, nb::list regs, nb::list ws, nb::handle lb_h, nb::handle ub_h, nb::handle G_h,
-           nb::handle h_h, double threshold, double max_damping, double error_scale, double rank_tol, i64 max_iter,
-           double tol, nb::handle warm_h, bool canonical) -> nb::object {
-            // The whole solve from the levels' own arrays: checks (as HierarchyProblem.validate),
-            // stacking and the cascade in one call. None when an argument does not pass (the
-            // caller then validates in Python, which names the field) or needs a conversion.
-            In1 lb, ub, h;
-            In2 G;
-            if (!nb::try_cast(lb_h, lb, false) || !nb::try_cast(ub_h, ub, false) || !nb::try_cast(G_h, G, false) ||
-                !nb::try_cast(h_h, h, false))
-                return nb::none();
-            i64 n = len(lb), p = rows(G);
-            if (len(ub) != n || (cols(G) != n) || len(h) != p) return nb::none();
+        [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
+           double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,
+           bool canonical, nb::handle out_h, nb::handle active_h) -> bool {
+            // The whole solve from the levels themselves (objects with A, b, regularization,
+            // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
+            // call, the answers written into out and active (preallocated by the caller). The
+            // arrays are read through the buffer protocol (no conversion, no new objects).
+            // False when an argument does not pass or needs a conversion (the caller then
+            // validates in Python, which names the field).
+            PyBuf lb, ub, G, h, out, act;
+            if (!lb.get(lb_h.ptr(), 'd', 1) || !ub.get(ub_h.ptr(), 'd', 1) || !G.get(G_h.ptr(), 'd', 2) ||
+                !h.get(h_h.ptr(), 'd', 1))
+                return false;
+            i64 n = lb.shape(0), p = G.shape(0);
+            if (ub.shape(0) != n || G.shape(1) != n || h.shape(0) != p) return false;
+            const double* lbp = lb.data<double>();
+            const double* ubp = ub.data<double>();
+            const double* Gp = G.data<double>();
+            const double* hp = h.data<double>();
             for (i64 i = 0; i < n; ++i)
-                if (std::isnan(lb.data()[i]) || std::isnan(ub.data()[i])) return nb::none();
+                if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return false;
             for (i64 i = 0; i < p * n; ++i)
-                if (!std::isfinite(G.data()[i])) return nb::none();
+                if (!std::isfinite(Gp[i])) return false;
             for (i64 i = 0; i < p; ++i)
-                if (std::isnan(h.data()[i])) return nb::none();
-            size_t L = nb::len(As);
-            if (nb::len(bs) != L || nb::len(regs) != L || nb::len(ws) != L || L == 0) return nb::none();
-            std::vector<In2> Ak(L);
-            std::vector<In1> bk(L), wk(L);
-            std::vector<bool> has_w(L, false);
-            IVec starts(L + 1, 0);
-            Vec reg(L);
-            for (size_t k = 0; k < L; ++k) {
-                if (!nb::try_cast(As[k], Ak[k], false) || !nb::try_cast(bs[k], bk[k], false)) return nb::none();
-                if (cols(Ak[k]) != n || len(bk[k]) != rows(Ak[k])) return nb::none();
-                double r = 0.0;
-                if (!nb::try_cast(regs[k], r, true) || !std::isfinite(r) || !(r >= 0.0)) return nb::none();
+                if (std::isnan(hp[i])) return false;
+            if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return false;
+            i64 L = static_cast<i64>(PySequence_Fast_GET_SIZE(levels_h.ptr()));
+            if (L == 0) return false;
+            if (!out.get(out_h.ptr(), 'd', 1, true) || out.shape(0) != n + 9 * L + 1) return false;
+            if (!act.get(active_h.ptr(), 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return false;
+            std::unique_ptr<PyBuf[]> Ak(new PyBuf[L]), bk(new PyBuf[L]), wk(new PyBuf[L]);
+            std::vector<bool> has_w(static_cast<size_t>(L), false);
+            IVec starts(static_cast<size_t>(L) + 1, 0);
+            Vec reg(static_cast<size_t>(L));
+            for (i64 k = 0; k < L; ++k) {
+                PyObject* level = PySequence_Fast_GET_ITEM(levels_h.ptr(), k);
+                nb::object a = nb::steal(PyObject_GetAttrString(level, "A"));
+                nb::object bb = nb::steal(PyObject_GetAttrString(level, "b"));
+                nb::object rr = nb::steal(PyObject_GetAttrString(level, "regularization"));
+                nb::object ww = nb::steal(PyObject_GetAttrString(level, "weights"));
+                if (!a.is_valid() || !bb.is_valid() || !rr.is_valid() || !ww.is_valid()) {
+                    PyErr_Clear();
+                    return false;
+                }
+                if (!Ak[k].get(a.ptr(), 'd', 2) || !bk[k].get(bb.ptr(), 'd', 1)) return false;
+                if (Ak[k].shape(1) != n || bk[k].shape(0) != Ak[k].shape(0)) return false;
+                if (!PyFloat_Check(rr.ptr()) && !PyLong_Check(rr.ptr())) return false;
+                double r = PyFloat_AsDouble(rr.ptr());
+                if (r == -1.0 && PyErr_Occurred()) {
+                    PyErr_Clear();
+                    return false;
+                }
+                if (!std::isfinite(r) || !(r >= 0.0)) return false;
                 reg[k] = r;
-                if (!ws[k].is_none()) {
-                    if (!nb::try_cast(ws[k], wk[k], false) || len(wk[k]) != rows(Ak[k])) return nb::none();
+                if (!ww.is_none()) {
+                    if (!wk[k].get(ww.ptr(), 'd', 1) || wk[k].shape(0) != Ak[k].shape(0)) return false;
                     has_w[k] = true;
                 }
-                starts[k + 1] = starts[k] + rows(Ak[k]);
+                starts[k + 1] = starts[k] + Ak[k].shape(0);
             }
             i64 M = starts[L];
             Mat A(M, n);
             Vec b(static_cast<size_t>(M)), w(static_cast<size_t>(M));
-            for (size_t k = 0; k < L; ++k) {
-                const double* a = Ak[k].data();
-                i64 mk = rows(Ak[k]);
+            for (i64 k = 0; k < L; ++k) {
+                const double* a = Ak[k].data<double>();
+                const double* bv = bk[k].data<double>();
+                const double* wv = has_w[k] ? wk[k].data<double>() : nullptr;
+                i64 mk = Ak[k].shape(0);
                 for (i64 i = 0; i < mk; ++i) {
                     double* dst = A.row(starts[k] + i);
                     double total = 0.0;
                     for (i64 j = 0; j < n; ++j) {
                         double v = a[i * n + j];
-                        if (!std::isfinite(v)) return nb::none();
+                        if (!std::isfinite(v)) return false;
                         dst[j] = v;
                         total += std::fabs(v);
                     }
-                    double bv = bk[k].data()[i];
-                    if (!std::isfinite(bv)) return nb::none();
-                    b[starts[k] + i] = bv;
-                    w[starts[k] + i] = has_w[k] ? wk[k].data()[i] : (total > 0.0 ? 1.0 : 0.0);
+                    if (!std::isfinite(bv[i])) return false;
+                    b[starts[k] + i] = bv[i];
+                    w[starts[k] + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
                 }
             }
             BVec warm_zero;
             const i8* warm = nullptr;
-            InI8_2 warm_arr;
-            if (!warm_h.is_none() && nb::try_cast(warm_h, warm_arr, false) &&
-                static_cast<i64>(warm_arr.shape(0)) == static_cast<i64>(L) &&
-                static_cast<i64>(warm_arr.shape(1)) == n + p) {
-                warm = warm_arr.data();
+            PyBuf wb;
+            if (!warm_h.is_none() && wb.get(warm_h.ptr(), 'b', 2) && wb.shape(0) == L && wb.shape(1) == n + p) {
+                warm = wb.data<i8>();
             } else {
-                warm_zero.assign(static_cast<size_t>(L) * static_cast<size_t>(n + p), 0);
+                warm_zero.assign(static_cast<size_t>(L * (n + p)), 0);
                 warm = warm_zero.data();
             }
             if (max_iter <= 0) max_iter = 10 * (n + p) + 50;
             core::CascadeResult r = core::solve_cascade(
-                A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), static_cast<i64>(L) + 1),
-                CVecRef(reg), cvec(lb), cvec(ub), cmat(G), cvec(h), threshold, max_damping, error_scale, rank_tol,
-                max_iter, tol, MatRefT<const i8>(warm, static_cast<i64>(L), n + p), canonical);
-            size_t w2 = static_cast<size_t>(n + p);
-            return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
-                                  to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
-                                  to_numpy(std::move(r.iterations)), to_numpy(std::move(r.active), {L, w2}),
-                                  to_numpy(std::move(r.residuals)), to_numpy(std::move(r.certificate), {L, 4}),
-                                  r.primal);
+                A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
+                CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), canonical);
+            double* o = out.data<double>();
+            for (i64 i = 0; i < n; ++i) *o++ = r.dq[i];
+            for (i64 k = 0; k < L; ++k) *o++ = static_cast<double>(r.status[k]);
+            for (i64 k = 0; k < L; ++k) *o++ = r.sigma[k];
+            for (i64 k = 0; k < L; ++k) *o++ = r.lam2[k];
+            for (i64 k = 0; k < L; ++k) *o++ = static_cast<double>(r.iterations[k]);
+            for (i64 k = 0; k < L; ++k) *o++ = r.residuals[k];
+            for (i64 k = 0; k < 4 * L; ++k) *o++ = r.certificate[k];
+            *o = r.primal;
+            std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
+            return true;
         },
-        "As"_a, "bs"_a, "regs"_a, "ws"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
-        "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a.none(), "canonical"_a,
-        "solve_cascade from the levels' own arrays (float64, C-contiguous) with HierarchyProblem.validate's "
-        "checks: the same tuple, or None when an argument does not pass or needs a conversion.");
+        "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
+        "max_iter"_a, "tol"_a, "warm"_a.none(), "canonical"_a, "out"_a.none(), "active"_a.none(),
+        "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
+        "C-contiguous arrays) with HierarchyProblem.validate's checks, written into out (n + 9 L + 1,): dq, "
+        "status, sigma, lam2, iterations, residuals (L each), certificate (4 L), primal; and active (L, n + p) "
+        "int8. False (nothing written) when an argument does not pass or needs a conversion.");
 
     m.def(
         "solve_cascade",

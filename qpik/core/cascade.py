@@ -179,6 +179,17 @@ class LevelCertificate:
         return cls(*(float(v) for v in row))
 
 
+_new_certificate = object.__new__
+
+
+def _certificate(row: list[float]) -> LevelCertificate:
+    """``LevelCertificate(*row)`` from four Python floats, without the frozen dataclass's
+    per-field ``object.__setattr__`` (the same object)."""
+    c = _new_certificate(LevelCertificate)
+    c.__dict__.update(zip(_CONDITIONS, row))
+    return c
+
+
 def certificates(array: np.ndarray) -> list[LevelCertificate]:
     """Per level, from the kernels' (L, 4) array."""
     # tolist() gives Python floats in one pass (the same values as float() per element).
@@ -450,20 +461,26 @@ class HierarchySolver:
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
-        if self.solver == "auto" and problem.levels:
-            # One compiled call: the checks, the stacking and the cascade (None where an
-            # argument fails a check or needs a conversion: then the path below).
-            levels = problem.levels
+        levels = problem.levels
+        lb, G = problem.lb, problem.G
+        if (
+            self.solver == "auto" and levels and type(levels) in (list, tuple)
+            and type(lb) is np.ndarray and type(G) is np.ndarray and lb.ndim == 1 and G.ndim == 2
+        ):  # fmt: skip
+            # One compiled call: the checks, the stacking and the cascade, written into
+            # preallocated arrays (False where an argument fails a check or needs a
+            # conversion: then the path below).
             L = len(levels)
-            warm = self._warm if self.warm_start else None
-            out = K.solve_levels(
-                [level.A for level in levels], [level.b for level in levels],
-                [level.regularization for level in levels], [level.weights for level in levels],
-                problem.lb, problem.ub, problem.G, problem.h, *self.damping_settings,
-                self.rank_tolerance, self.max_iter, self.tolerance, warm, self.warm_start,
-            )  # fmt: skip
-            if out is not None:
-                result = self._result(out, L)
+            n = lb.shape[0]
+            out = np.empty(n + 9 * L + 1)
+            active = np.empty((L, n + G.shape[0]), np.int8)
+            threshold, max_damping, error_scale = self.damping_settings
+            if K.solve_levels(
+                levels, lb, problem.ub, G, problem.h, threshold, max_damping, error_scale,
+                self.rank_tolerance, self.max_iter, self.tolerance,
+                self._warm if self.warm_start else None, self.warm_start, out, active,
+            ):  # fmt: skip
+                result = self._packed_result(out, active, n, L)
                 if result is not None:
                     return result
         if validate:
@@ -523,6 +540,22 @@ class HierarchySolver:
         return HierarchyResult(
             x, [STATUS_OF_CODE[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L, certificates(cert), float(primal),
+        )  # fmt: skip
+
+    def _packed_result(self, out: np.ndarray, active: np.ndarray, n: int, L: int):
+        """:meth:`_result` from :func:`qpik.core.kernels.solve_levels`' packed answer
+        ``out`` (dq, then per level status, sigma, lam2, iterations, residuals, then the
+        certificates and primal) and ``active``."""
+        values = out[n:].tolist()  # Python floats in one pass
+        codes = [int(v) for v in values[:L]]
+        if K.MAX_ITER in codes or K.NUMERICAL in codes:
+            return None
+        self._warm = active  # used as the next warm start only when warm_start is on
+        cert = values[5 * L : 9 * L]
+        return HierarchyResult(
+            out[:n], [STATUS_OF_CODE[s] for s in codes], values[4 * L : 5 * L], values[L : 2 * L],
+            values[2 * L : 3 * L], [int(v) for v in values[3 * L : 4 * L]], active, ["auto"] * L,
+            [_certificate(cert[4 * k : 4 * k + 4]) for k in range(L)], values[9 * L],
         )  # fmt: skip
 
     # ------------------------------------------------------------------ level by level

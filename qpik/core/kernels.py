@@ -45,11 +45,15 @@ Signatures:
   iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
   levels' certificates (primal, stationarity, dual, complementarity; see
   :mod:`qpik.core.cascade`), ``primal`` the final answer's largest scaled row violation.
-- ``solve_levels(As, bs, regs, ws, lb, ub, G, h, threshold, max_damping, error_scale,
-  rank_tol, max_iter, tol, warm, canonical)``: :func:`solve_cascade` from the levels' own
-  arrays (lists; ``ws`` entries may be None) with the checks of
-  ``HierarchyProblem.validate``; the same tuple, or None where an argument fails a check or
-  needs a conversion (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
+- ``solve_levels(levels, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
+  max_iter, tol, warm, canonical, out, active) -> bool``: :func:`solve_cascade` from the
+  levels themselves (a list or tuple of objects with ``A``, ``b``, ``regularization``,
+  ``weights``; arrays read through the buffer protocol, float64 C-contiguous) with the checks
+  of ``HierarchyProblem.validate``, written into the caller's ``out`` (``n + 9 L + 1``: dq,
+  then per level status, sigma, lam2, iterations, residuals, then the (L, 4) certificates
+  and primal) and ``active`` ((L, n + p) int8); False, nothing written, where an argument
+  fails a check or needs a conversion (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm``
+  None: cold).
 - ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
   z, certificate, active)``: one level made exact from a QP answer's active set.
 - ``drop_pinned(Z, d, lb, ub, G, h) -> Z``: ``Z`` without the directions of the rows the

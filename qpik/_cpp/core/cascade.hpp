@@ -74,7 +74,9 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 
 // Project a level (A, w) into the null space Z of the levels above (see project_level in
 // qpik/core/_kernels.py).
-inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol) {
+// need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
+// rank, without Q, its rotations or Zn (Zn then has no columns).
+inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
     Projection out;
     out.AZ = mm(A, Z);
     i64 m = A.rows;
@@ -104,14 +106,14 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     }
     Mat Q, R;
     IVec perm;
-    householder_qr(Mt.cref(), true, Q, R, perm);
+    householder_qr(Mt.cref(), true, Q, R, perm, need_null);
     // Singular values of the top block of R (p, keep) by one-sided Jacobi rotations of its
     // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
     // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
-    Mat Qt = transposed(Q.cref());  // Q's columns as rows: the rotations touch contiguous rows
+    Mat Qt = need_null ? transposed(Q.cref()) : Mat(0, r);  // Q's columns as rows: contiguous rotations
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
@@ -131,7 +133,7 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
                 jacobi_rows(ri, rj, cs, sn, keep);
-                jacobi_rows(Qt.row(i), Qt.row(j), cs, sn, r);
+                if (need_null) jacobi_rows(Qt.row(i), Qt.row(j), cs, sn, r);
             }
         }
         if (!rotated) break;
@@ -157,6 +159,12 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
         }
     }
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
+    out.sigma = sigma;
+    out.rank = rank;
+    if (!need_null) {
+        out.Zn = Mat(Z.rows, 0);
+        return out;
+    }
     Mat Qr(r, static_cast<i64>(null_cols.size()));
     for (size_t c = 0; c < null_cols.size(); ++c) {
         const double* qc = Qt.row(null_cols[c]);
@@ -536,6 +544,20 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     i64 t = static_cast<i64>(normals.size());
     if (t < 2) return false;
+    {
+        // Gordan's alternative, cheaply: with s the sum of the normals, n_i^T s >= c |s| for
+        // every i (c > 0) bounds every residual the test below computes from below,
+        // |n_j + sum u_i n_i| >= c (1 + sum u) (u >= 0), far above kPinned (1 + sum u) when
+        // c > 1e-9: no row is pinned, the answer the test would give (Z unchanged).
+        Vec sum(static_cast<size_t>(r), 0.0);
+        for (const Vec& v : normals)
+            for (i64 c = 0; c < r; ++c) sum[c] += v[c];
+        double sn = std::sqrt(dot(sum.data(), sum.data(), r));
+        bool free = sn > 0.0;
+        for (i64 j = 0; j < t && free; ++j)
+            if (!(dot(normals[j].data(), sum.data(), r) > 1e-9 * sn)) free = false;
+        if (free) return false;
+    }
     IVec state(static_cast<size_t>(t), 0);  // 1 pinned, -1 free, 0 not known yet
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 0) continue;
@@ -655,6 +677,9 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (d[i] > ub[i]) d[i] = ub[i];
     }
     Mat Z = Mat::eye(n);
+    i64 last = -1;  // the last level with rows: no level below it uses its null space
+    for (i64 k = 0; k < L; ++k)
+        if (starts[k + 1] > starts[k]) last = k;
     for (i64 k = 0; k < L; ++k) {
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
@@ -674,7 +699,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         CMatRef Ak = A.rows_slice(s0, s1);
         CVecRef bk = b.slice(s0, s1);
         CVecRef wk = w.slice(s0, s1);
-        Projection pr = project_level(Ak, wk, Z.cref(), rank_tol);
+        Projection pr = project_level(Ak, wk, Z.cref(), rank_tol, k < last);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;

@@ -308,10 +308,11 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
     }
 }
 
-// The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right).
+// The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
+// with no rows: R only, the same R).
 inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
-    i64 r = R.rows, m = R.cols;
-    i64 size = r - i;
+    i64 r = Q.rows, m = R.cols;
+    i64 size = R.rows - i;
     double alpha = 0.0;
     for (i64 t = 0; t < size; ++t) {
         x[t] = R(i + t, i);
@@ -355,12 +356,12 @@ inline void column_norms(const Mat& R, i64 start, Vec& norms) {
 
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
 // M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal.
-inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm) {
+inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q = true) {
     i64 r = M.rows, m = M.cols;
     R = Mat(r, m);
     for (i64 i = 0; i < r; ++i)
         for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
-    Q = Mat::eye(r);
+    Q = form_q ? Mat::eye(r) : Mat(0, r);  // no rows: R and perm only (the same R)
     perm.assign(static_cast<size_t>(m), 0);
     for (i64 j = 0; j < m; ++j) perm[j] = j;
     Vec norms(static_cast<size_t>(m), 0.0);
