@@ -1,6 +1,6 @@
-// Bindings of the core layer (qpik._engine.core): the kernels of qpik/core/_kernels.py,
-// with the same names, arguments and return types as the numba reference had (tuples
-// of NumPy arrays: float64, int64 status arrays, int8 active sets; Python scalars).
+// Bindings of the core layer (qpik._engine.core), named for Python in qpik/core/kernels.py
+// (tuples or preallocated NumPy arrays: float64, int64 status arrays, int8 active sets;
+// Python scalars).
 // Every shape is checked here, so a bad argument raises ValueError instead of reading
 // out of bounds.
 #include <cmath>

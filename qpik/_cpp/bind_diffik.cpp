@@ -125,7 +125,7 @@ using Held1 = nb::ndarray<const double, nb::numpy, nb::ndim<1>, nb::c_contig, nb
 using Held2 = nb::ndarray<const double, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 
-// The one-call step of one stack (qpik._fused.FusedPlan builds it once): the plan's
+// The one-call step of one stack (qpik.diffik.compiled.CompiledPlan builds it once): the plan's
 // structure (index arrays, copied and checked here) and its float arrays (held by
 // reference: the plan writes the tasks' targets, costs and MuJoCo's Jacobians into them
 // before each call). A call passes only MuJoCo's state; its shapes are checked per call.
@@ -309,7 +309,7 @@ class Kernel {
 void bind_diffik(nb::module_& m) {
     nb::class_<Kernel>(m, "Kernel",
                        "The one-call step of one stack: its structure and (held by reference) "
-                       "its float arrays; see qpik._fused.FusedPlan.")
+                       "its float arrays; see qpik.diffik.compiled.CompiledPlan.")
         .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
                       const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
                       const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>>(),
@@ -407,7 +407,7 @@ void bind_diffik(nb::module_& m) {
         nb::arg("cfg_dof"), nb::arg("cfg_data"), nb::arg("vel_dof"), nb::arg("vel_limit"),
         nb::arg("settings"),
         "The hierarchy's rows and limits without solving it: fills A, b, w and returns (code, "
-        "reg, lb, ub); see qpik._fused.fused_step for the arguments.");
+        "reg, lb, ub); see qpik.diffik.compiled for the arguments.");
 
     m.def(
         "fused_step",
@@ -436,5 +436,5 @@ void bind_diffik(nb::module_& m) {
         nb::arg("cfg_dof"), nb::arg("cfg_data"), nb::arg("vel_dof"), nb::arg("vel_limit"),
         nb::arg("settings"), nb::arg("max_iter"), nb::arg("warm"), nb::arg("canonical"),
         "Rows of every task, the limits' box and the cascade in one call; returns (code, dq, v, "
-        "info (9, L), active (L, nv) int8). See qpik._fused.fused_step.");
+        "info (9, L), active (L, nv) int8). See qpik.diffik.compiled.");
 }

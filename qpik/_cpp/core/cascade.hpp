@@ -1,6 +1,6 @@
-// The prioritised cascade (ported from qpik/core/_kernels.py: solve_cascade and the
-// per-level helpers it calls). Owned by the core port; the signature of solve_cascade is
-// the contract the diffik layer (diffik/fused.hpp) calls.
+// The prioritised cascade: solve_cascade and the per-level helpers it calls (named for
+// Python in qpik/core/kernels.py). The signature of solve_cascade is the contract the
+// diffik layer (diffik/fused.hpp) calls.
 #pragma once
 
 #include <stdexcept>
@@ -73,7 +73,7 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 }  // namespace detail
 
 // Project a level (A, w) into the null space Z of the levels above (see project_level in
-// qpik/core/_kernels.py).
+// qpik/core/kernels.py).
 // need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
 // rank, without Q, its rotations or Zn (Zn then has no columns).
 inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
@@ -183,7 +183,7 @@ inline double damping_of(double sigma, double threshold, double max_damping) {
     return max_damping * max_damping * (1.0 - ratio * ratio);
 }
 
-// The lambda^2 a level gets (see level_damping in qpik/core/_kernels.py).
+// The lambda^2 a level gets (see level_damping in qpik/core/kernels.py).
 inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, double sigma, double threshold,
                             double max_damping, double error_scale) {
     if (!(max_damping > 0.0)) return 0.0;
@@ -652,7 +652,7 @@ inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRe
     return out;
 }
 
-// All levels of a hierarchy in one call; see solve_cascade in qpik/core/_kernels.py for
+// All levels of a hierarchy in one call; see solve_cascade in qpik/core/kernels.py for
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
 // h (p,), warm (L, n + p) int8).
 inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,

@@ -2,7 +2,7 @@
 // regularisation), a primal active-set method (the independent fallback) and the level's
 // certificate of optimality (primal feasibility, stationarity in the null space with the
 // active rows' multipliers, dual signs, complementarity), each scaled by the size of the
-// terms summed. See qpik/core/hierarchy.py (module doc, "Certificate") for the definitions
+// terms summed. See qpik/core/cascade.py (module doc, "Certificate") for the definitions
 // and the tolerance kCertify.
 #pragma once
 

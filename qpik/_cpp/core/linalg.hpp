@@ -1,7 +1,7 @@
 // Dense linear algebra of the core: Cholesky, triangular solves, small products, QR and
-// the smallest singular value (ported from qpik/core/_kernels.py, the numba reference).
+// the smallest singular value.
 //
-// Every loop keeps the reference's order of floating-point operations, so that the same
+// Every loop keeps one fixed order of floating-point operations, so that the same
 // inputs give the same bits (the build uses -ffp-contract=off and no -ffast-math).
 #pragma once
 
@@ -13,7 +13,7 @@
 
 namespace qpik::core {
 
-// Python's min(a, b) / max(a, b) as numba compiles them: the second argument wins only
+// Python's min(a, b) / max(a, b) as Python evaluates them: the second argument wins only
 // when strictly smaller / larger (so a NaN second argument never wins).
 inline double pymin(double a, double b) { return b < a ? b : a; }
 inline double pymax(double a, double b) { return b > a ? b : a; }

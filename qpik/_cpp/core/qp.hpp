@@ -1,7 +1,7 @@
-// The exact dense QP of the core (ported from qpik/core/_kernels.py): the dual active-set
+// The exact dense QP of the core: the dual active-set
 // method of Goldfarb and Idnani with a canonical KKT re-solve (solve_qp), its robust
 // per-level wrapper (solve_level) and the active-set guess from an approximate answer.
-// Same algorithm and the same order of floating-point operations as the numba reference.
+// One fixed order of floating-point operations: the same inputs give the same bits.
 #pragma once
 
 #include <cmath>
@@ -461,7 +461,7 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
 }  // namespace detail
 
 // Solve min 1/2 x^T H x + c^T x s.t. lo <= C x <= hi exactly (see solve_qp in
-// qpik/core/_kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
+// qpik/core/kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
 // raw: return the final iterate and working set without the checks and the re-solve (the
 // cascade makes every answer exact and certifies it itself, qpik/_cpp/core/certify.hpp).
 inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,

@@ -1,8 +1,8 @@
-// The one-call differential IK step (ported from the kernels of qpik/_fused.py, same
-// operations in the same order): every task's rows (frame tasks by mink's SE(3)
+// The one-call differential IK step (qpik.diffik.compiled builds its plan): every task's
+// rows (frame tasks by mink's SE(3)
 // arithmetic, model/se3.hpp; postures on hinge/slide joints), the limits' box, and the
 // cascade (core::solve_cascade). Anything unusual (a non-finite row, conflicting limits, a
-// level whose active set did not settle) is reported by a code, for the general path.
+// level whose active set did not settle) is reported by a code, for the QP path.
 //
 // The caller (the bindings) guarantees the shapes and that every index is in range; see
 // FusedArgs.
@@ -47,7 +47,7 @@ struct FusedArgs {
     VecRefT<const i64> vel_dof;
     CVecRef vel_limit;
     CVecRef settings;
-    // The extended plan's arguments (qpik._fused.Kernel); empty in the legacy layout.
+    // The extended plan's arguments (qpik.diffik.compiled.Kernel); empty in the legacy layout.
     // posture_map (nv, 2): per dof, kind (0 hinge/slide, 1 free joint: zero row, 2 first
     // dof of a ball joint, 3 its other dofs) and qpos address; empty: dof i is qpos[i].
     MatRefT<const i64> posture_map;

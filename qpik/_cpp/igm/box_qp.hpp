@@ -1,6 +1,6 @@
 // The IGM's box QP: min 1/2 x^T H x + g^T x  s.t.  lb <= x <= ub (H positive definite),
-// exactly, by a primal active-set method (ported from qpik/model/_kernels.py, same
-// operation order: same bits).
+// exactly, by a primal active-set method (named for Python in qpik/igm/kernels.py;
+// recorded answers pin its bits).
 #pragma once
 
 #include "../common.hpp"

@@ -1,5 +1,5 @@
-// The whole IGM solve of one frame target (ported from qpik/model/_kernels.py, same
-// operation order: same bits): per iteration, the damped least-squares step of the pose
+// The whole IGM solve of one frame target (named for Python in qpik/igm/kernels.py;
+// recorded answers pin its bits): per iteration, the damped least-squares step of the pose
 // error under box bounds (joint limits), solved exactly by box_qp, with the trust region,
 // the damping law fading with the error, backtracking (a step that increases the error is
 // halved, up to BACKTRACKS times), stall detection and restarts from a deterministic

@@ -1,5 +1,5 @@
-// Kinematics of a serial chain of hinge and slide joints (ported from
-// qpik/model/_kernels.py, same operation order: same bits).
+// Kinematics of a serial chain of hinge and slide joints (named for Python in
+// qpik/model/kernels.py; recorded answers pin its bits).
 //
 // Kinematics follow MuJoCo's mj_kinematics: per body on the chain, p <- p + R body_pos,
 // R <- R body_rot; then per joint of the body, the axis R axis and anchor p + R jnt_pos in
