@@ -125,6 +125,47 @@ using Held1 = nb::ndarray<const double, nb::numpy, nb::ndim<1>, nb::c_contig, nb
 using Held2 = nb::ndarray<const double, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 
+// The kernel as Python calls it (qpik.diffik.compiled.Kernel):
+//
+// Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
+//        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
+//        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None)
+//   One stack's compiled step (built by make_plan). The index arrays are copied and checked
+//   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
+//   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
+//   (level ``k`` in rows ``starts[k]:starts[k+1]``). ``tasks`` (T, 4) rows: kind (0 frame,
+//   1 posture, 2 CoM, 3 relative frame, 4 damping, 5 rows supplied by the task), index into
+//   that kind's arrays, level, first row. A kind-5 task's rows of ``A, b, w`` are written by
+//   the caller before each call and left as they are; ``user_mu[u]`` (U,) is its LM term,
+//   added to its level's regularisation in the stack's order (optional: None, no such
+//   task). Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
+//   0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
+//   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
+//   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
+//   hinge/slide, 1 free joint, 2 first dof of a ball joint, 3 its others) and qpos address.
+//   Position limits: ``cfg_dof``, ``cfg_qadr`` (each dof's qpos address) and ``cfg_data``
+//   rows (lower, upper, gain); velocity limits ``vel_dof``, ``vel_limit`` [per s].
+//   ``settings``: see ``DT, DAMPING, ...``. CoM ``c``: ``com_jac[c]`` (3, nv) from
+//   mj_jacSubtreeCom, ``com_body[c]`` its subtree's body, ``com_data[c]`` = target [m,
+//   world] (3), cost (3), gain, lm_damping. Relative frame ``r``: ``rel_jac[r]`` (12, nv)
+//   the frame's then the root's world-aligned Jacobians, ``rel_frames[r]`` = frame kind,
+//   id, root kind, id, ``rel_data[r]`` as ``frame_data`` with the target in the root frame.
+// Kernel.step(qpos, site_xpos, site_xmat, xpos, xmat, geom_xpos, geom_xmat, subtree_com,
+//             G, h, warm, canonical, max_iter) -> (code, dq, v, info, active)
+//   Rows of every task, the limits' box, general rows ``G dq <= h`` (p, nv) held at every
+//   level, and the cascade, in one call. ``warm`` (L, nv + p) int8: the active sets to try
+//   first; ``canonical``: warm starting on. ``code`` OK or why the QP path must answer;
+//   ``info`` (9, L) rows: residual, sigma, lambda^2, status, iterations, then the
+//   certificate (primal, stationarity, dual, complementarity); ``active`` (L, nv + p) int8.
+// Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
+//   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
+//   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
+// boxes(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, vel_dof, vel_limit, n)
+//       -> (lb, ub, i)
+//   The limits' box as the kernel computes it: position bounds ``gain (upper - q)``,
+//   ``-gain (q - lower)`` (recoverable), velocity bounds ``|dq| <= v_max dt`` (hard),
+//   merged by :func:`qpik.core.kernels.merge_boxes`.
+//
 // The one-call step of one stack (qpik.diffik.compiled.CompiledPlan builds it once): the plan's
 // structure (index arrays, copied and checked here) and its float arrays (held by
 // reference: the plan writes the tasks' targets, costs and MuJoCo's Jacobians into them

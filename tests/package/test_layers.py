@@ -164,3 +164,13 @@ def test_no_import_circles():
         if not state.get(node):
             visit(node)
     assert not cycles, "\n".join(cycles)
+
+
+def test_no_module_is_over_700_lines():
+    """A module holds one idea; one over 700 lines holds several (split it by idea)."""
+    long = {
+        str(path.relative_to(ROOT)): n
+        for path in ROOT.rglob("*.py")
+        if (n := len(path.read_text().splitlines())) > 700
+    }
+    assert not long, long
