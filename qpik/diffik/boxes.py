@@ -162,10 +162,10 @@ class LimitRows:
                     ),
                     "limit",
                 )
-                active.append(f"{self.dof_names[i]} {side} ({source})")
+                active.append(f"{self.dof_names[int(i)]} {side} ({source})")
         if self.G.shape[0]:
             for j in np.flatnonzero(self.G @ d >= self.h - 1e-7):
-                active.append(self.row_names[j])
+                active.append(self.row_names[int(j)])
         return active
 
 
