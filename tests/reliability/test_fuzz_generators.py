@@ -555,7 +555,14 @@ def test_damping_task_names_cost_not_the_valid_model() -> None:
 
 @pytest.mark.parametrize(
     "case",
-    ["signature:658", "signature:492", "signature:183", "signature:36", "signature:380"],
+    [
+        "stack:320",
+        "signature:658",
+        "signature:492",
+        "signature:183",
+        "signature:36",
+        "signature:380",
+    ],
 )
 def test_full_campaign_seed_4242_cases(case: str) -> None:
     fuzz = _fuzz()
@@ -563,3 +570,14 @@ def test_full_campaign_seed_4242_cases(case: str) -> None:
     spec = fuzz.make_spec(4242, category, int(index))
     outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS[category], spec)
     assert outcome not in fuzz.BAD, f"{case} {outcome}: {detail}"
+
+
+def test_build_ik_squares_a_huge_cost_into_a_finite_problem() -> None:
+    """stack:320: a cost of 1e300 overflowed P = A^T A to inf; the level is scaled (its
+    minimiser unchanged), so P and q stay finite."""
+    model = qpik.load_robot("planar_2r")
+    configuration = qpik.Configuration(model)
+    task = qpik.tasks.DampingTask(model, 1e300)
+    problem = qpik.build_ik(configuration, [[task]], 0.01)[0]
+    assert np.isfinite(problem.P).all() and np.isfinite(problem.q).all()
+    assert np.linalg.eigvalsh(problem.P).min() > 0.0
