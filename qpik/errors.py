@@ -563,6 +563,7 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
         model = arguments.get("model", mujoco.MjModel)
         if model is not mujoco.MjModel and not isinstance(model, mujoco.MjModel):
             return "model", model
+        arguments.pop("model", None)  # an MjModel: right there, so another argument is wrong
         text = str(error)
         for name, value in arguments.items():  # the type the error names: 'set', 'str',
             kind = type(value).__name__  # or qualified: 'mujoco._structs.MjModel'

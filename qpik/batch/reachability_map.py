@@ -29,6 +29,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..errors import InvalidInput
 from ..igm.prepared import PREPARED
 from ..igm.targets import FrameKey, RobotLike, parse_target
@@ -151,7 +152,7 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
     """Voxel centres ``(V, 3)`` (C order over the (x, y, z) indices) and the grid shape:
     voxels of edge ``resolution`` [m], as many as fit in the region along each axis (at
     least one), the grid centred in the region."""
-    region = np.asarray(region, dtype=float)
+    region = checks.check_array("region", region, "a (2, 3) array of opposite corners [m]")
     if region.shape != (2, 3) or not np.isfinite(region).all():
         raise InvalidInput(
             f"region must be a finite (2, 3) array of opposite corners [m], got shape "
@@ -295,7 +296,7 @@ def _rotations(orientations: int | npt.ArrayLike) -> np.ndarray:
         return np.zeros((0, 3, 3))  # position only
     if isinstance(orientations, (int, np.integer)) and not isinstance(orientations, bool):
         return so3_grid(int(orientations))
-    rotations = np.asarray(orientations, dtype=float)
+    rotations = checks.check_array("orientations", orientations, "a count or a (K, 3, 3) array")
     if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or len(rotations) == 0:
         raise InvalidInput(
             f"orientations must be a count or a (K, 3, 3) array, got shape {rotations.shape}"

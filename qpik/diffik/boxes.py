@@ -198,7 +198,11 @@ class LimitBoxes:
     def __init__(
         self, model: mujoco.MjModel, limits: Iterable, max_joint_speed: float | None
     ) -> None:
-        if isinstance(limits, (str, bytes, Mapping)) or not isinstance(limits, Iterable):
+        if (
+            isinstance(limits, (str, bytes, Mapping))
+            or not isinstance(limits, Iterable)
+            or (isinstance(limits, np.ndarray) and limits.ndim == 0)
+        ):
             raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))
         self.limits = list(limits)
         for limit in self.limits:

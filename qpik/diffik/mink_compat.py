@@ -468,12 +468,27 @@ def build_ik(
     levels = _levels(tasks)
     problems = []
     for level in hierarchy.levels if levels else []:
-        P = level.A.T @ level.A
-        P.flat[:: nv + 1] += level.regularization
-        problems.append(qpsolvers.Problem(P, -(level.A.T @ level.b), G, h, A_eq, b_eq))
+        A, b, regularization = _squarable(level.A, level.b, level.regularization)
+        P = A.T @ A
+        P.flat[:: nv + 1] += regularization
+        problems.append(qpsolvers.Problem(P, -(A.T @ b), G, h, A_eq, b_eq))
     if not levels:  # mink's problem for no task: the smallest displacement
         problems.append(qpsolvers.Problem(damping * np.eye(nv), np.zeros(nv), G, h, A_eq, b_eq))
     return problems[0] if flat else problems
+
+
+#: Beyond this entry size a level's rows would overflow when squared into ``P``.
+_SQUARABLE = 1e150
+
+
+def _squarable(A: np.ndarray, b: np.ndarray, regularization: float) -> tuple[Any, Any, float]:
+    """A level's rows and regularisation, scaled down by ``s`` (the objective by ``s^2``,
+    which leaves its minimiser unchanged) when an entry is too large to square into a
+    finite ``P`` (a cost near 1e150 or beyond); unchanged otherwise."""
+    largest = max(float(np.abs(A).max(initial=0.0)), float(np.abs(b).max(initial=0.0)))
+    if not largest > _SQUARABLE or not math.isfinite(largest):
+        return A, b, regularization
+    return A / largest, b / largest, regularization / largest / largest
 
 
 def _inequality_rows(

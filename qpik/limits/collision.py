@@ -123,6 +123,10 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         ):
             if not checks.is_real(value):
                 raise InvalidArgumentType(name, "a real number", checks.type_name(value))
+        gain = float(gain)
+        minimum_distance_from_collisions = float(minimum_distance_from_collisions)
+        collision_detection_distance = float(collision_detection_distance)
+        bound_relaxation = float(bound_relaxation)
         checks.check_bool("broadphase", broadphase)
         checks.check_bool("respect_contype", respect_contype)
         if not 0.0 < gain <= 1.0:

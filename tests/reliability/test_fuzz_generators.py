@@ -515,3 +515,69 @@ def test_a_task_argument_named_by_its_qualified_type() -> None:
     model = qpik.load_robot("panda")
     with pytest.raises(qpik.QpikError, match="argument axis"):
         qpik.tasks.LookAtTask("ee", "site", axis=model)  # type: ignore[arg-type]
+
+
+# Seed 4242 (10,000 cases): wrong types named at the argument, or taken as numbers.
+def test_solver_limits_as_a_0d_array_is_named() -> None:
+    """signature:658: list() of a 0-d array escaped as a bare TypeError."""
+    model = qpik.load_robot("planar_2r")
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="limits"):
+        qpik.IKSolver(model, [[qpik.tasks.DampingTask(model, 1.0)]], np.array(1.0))
+
+
+@pytest.mark.parametrize(
+    ("keyword", "value"),
+    [("region", "model"), ("orientations", np.array([1.0, "x", None], dtype=object))],
+)
+def test_reachability_names_a_wrong_region_or_orientations(keyword: str, value) -> None:
+    """signature:492 and signature:183: NumPy's float conversion escaped unnamed."""
+    model = qpik.load_robot("planar_2r")
+    kwargs = {"region": [[-1.0, -1.0, -0.1], [1.0, 1.0, 0.1]], "resolution": 0.5}
+    kwargs["orientations"] = 0
+    kwargs[keyword] = model if isinstance(value, str) else value
+    with pytest.raises(qpik.errors.InvalidArgumentType, match=keyword):
+        qpik.reachability(model, "ee", **kwargs)
+
+
+def test_collision_limit_takes_a_huge_int_as_a_number() -> None:
+    """signature:36: np.isfinite of 2**100 (an object array) raised a bare TypeError."""
+    model = qpik.load_robot("planar_4r")
+    with pytest.raises(qpik.QpikError, match="minimum_distance_from_collisions"):
+        qpik.limits.CollisionAvoidanceLimit(model, [], minimum_distance_from_collisions=2**100)
+
+
+def test_damping_task_names_cost_not_the_valid_model() -> None:
+    """signature:380/173: a model given as cost blamed the (valid) model argument."""
+    model = qpik.load_robot("planar_2r")
+    with pytest.raises(qpik.QpikError, match="argument cost"):
+        qpik.tasks.DampingTask(model, cost=model)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "stack:320",
+        "signature:658",
+        "signature:492",
+        "signature:183",
+        "signature:36",
+        "signature:380",
+    ],
+)
+def test_full_campaign_seed_4242_cases(case: str) -> None:
+    fuzz = _fuzz()
+    category, index = case.split(":")
+    spec = fuzz.make_spec(4242, category, int(index))
+    outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS[category], spec)
+    assert outcome not in fuzz.BAD, f"{case} {outcome}: {detail}"
+
+
+def test_build_ik_squares_a_huge_cost_into_a_finite_problem() -> None:
+    """stack:320: a cost of 1e300 overflowed P = A^T A to inf; the level is scaled (its
+    minimiser unchanged), so P and q stay finite."""
+    model = qpik.load_robot("planar_2r")
+    configuration = qpik.Configuration(model)
+    task = qpik.tasks.DampingTask(model, 1e300)
+    problem = qpik.build_ik(configuration, [[task]], 0.01)[0]
+    assert np.isfinite(problem.P).all() and np.isfinite(problem.q).all()
+    assert np.linalg.eigvalsh(problem.P).min() > 0.0
