@@ -1282,9 +1282,14 @@ def _finite(value, where: str, allow=()) -> None:
 
     if any(where.endswith(a) for a in allow):
         return
-    if ".sigma_min" in where:  # documented: inf for a level without singular values
+    # documented +inf: a level without singular values (sigma_min), a direction the
+    # structure holds (ForceEllipsoid.lengths), no joint limit binding (PayloadLimit.force)
+    # and the payload's interval (PayloadLimit.interval: unbounded where no limit binds)
+    payload = where.endswith(("returned.force", ".lengths")) or ".interval[" in where
+    if ".sigma_min" in where or payload:
         values = np.asarray(value, dtype=float)
-        if np.any(np.isnan(values)) or np.any(values == -np.inf):
+        lower_end = ".interval[0]" in where  # unbounded below: -inf
+        if np.any(np.isnan(values)) or (np.any(values == -np.inf) and not lower_end):
             raise Bad("nonfinite", f"{where} = {value}")
         return
     if isinstance(value, (bool, str, bytes, type(None), enum.Enum)):

@@ -116,7 +116,10 @@ def check_real(
     span = _span(minimum, maximum, open_minimum) + (f" [{unit}]" if unit else "")
     if not is_real(value):
         raise InvalidArgumentType(name, f"a real number{span}", type_name(value))
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond the float range
+        raise InvalidOption(name, value, f"a finite number{span}") from None
     above = number > minimum or (not open_minimum and number == minimum)
     if not (math.isfinite(number) and above and number <= maximum):
         raise InvalidOption(name, value, f"a finite number{span}")

@@ -34,7 +34,7 @@ import mink
 import numpy as np
 import qpsolvers
 
-from ..core import HierarchySolver, Level, LevelStatus
+from ..core import HierarchySolver, Level, LevelStatus, checks
 from ..core.checks import type_name
 from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
 from ..model.configuration import Configuration
@@ -201,6 +201,7 @@ def solve_ik(
             the highest level cannot be solved; ``status`` and ``level`` say why.
         qpik.InvalidInput: a malformed argument, named.
     """
+    safety_break = checks.check_bool("safety_break", safety_break)
     if not (kwargs or safety_break or constraints is not None):
         velocity = SOLVERS.velocity(configuration, tasks, dt, solver, damping, limits)
         if velocity is not None:

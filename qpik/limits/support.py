@@ -77,6 +77,7 @@ class SupportPolygonLimit(mink.Limit):
         for name, value in (("margin", margin), ("gain", gain)):
             if not checks.is_real(value):
                 raise InvalidArgumentType(name, "a real number", checks.type_name(value))
+        margin, gain = checks.check_real("margin", margin), checks.check_real("gain", gain)
         if footprint is not None:
             footprint = checks.check_array("footprint", footprint, "(k, 2) points [m]")
         if not isinstance(contact_frames, (list, tuple)) or not len(contact_frames):

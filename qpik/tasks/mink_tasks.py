@@ -29,6 +29,7 @@ from ..errors import (
     mink_errors_as_qpik,
     qpik_errors,
 )
+from ..model.frames import FrameType
 
 __all__ = [
     "AxisAlignTask",
@@ -142,9 +143,23 @@ class LookAtTask(mink.LookAtTask):
 
 @_with_qpik_errors
 class RelativeFrameTask(mink.RelativeFrameTask):
-    """mink's :class:`mink.RelativeFrameTask`, with qpik's errors (a step before
-    ``set_target`` raises :class:`qpik.TargetNotSet`; a target that is not a
-    :class:`mink.SE3` raises :class:`qpik.InvalidTarget`)."""
+    """mink's :class:`mink.RelativeFrameTask`, with qpik's errors (a frame or root type
+    that is not ``"body"``, ``"site"`` or ``"geom"`` raises :class:`qpik.UnknownFrameType`
+    at once; a step before ``set_target`` raises :class:`qpik.TargetNotSet`; a target that
+    is not a :class:`mink.SE3` raises :class:`qpik.InvalidTarget`)."""
+
+    def __init__(
+        self,
+        frame_name: str,
+        frame_type: str,
+        root_name: str,
+        root_type: str,
+        *args: Any,
+        **kwargs: Any,
+    ) -> None:
+        FrameType.parse(frame_type)  # mink checks neither until the first step
+        FrameType.parse(root_type)
+        super().__init__(frame_name, frame_type, root_name, root_type, *args, **kwargs)
 
     def set_target(self, transform_target_to_root: mink.SE3) -> None:
         """Target pose of the frame in the root frame, a :class:`mink.SE3`."""

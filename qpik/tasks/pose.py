@@ -156,7 +156,8 @@ class PoseTask(mink.Task):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ):
-        with mink_errors_as_qpik(type(self).__name__):
+        arguments = {"position_cost": position_cost, "orientation_cost": orientation_cost}
+        with mink_errors_as_qpik(type(self).__name__, arguments):
             cost = np.concatenate(
                 [
                     _cost_vector(position_cost, "position cost"),

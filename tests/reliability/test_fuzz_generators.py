@@ -581,3 +581,19 @@ def test_build_ik_squares_a_huge_cost_into_a_finite_problem() -> None:
     problem = qpik.build_ik(configuration, [[task]], 0.01)[0]
     assert np.isfinite(problem.P).all() and np.isfinite(problem.q).all()
     assert np.linalg.eigvalsh(problem.P).min() > 0.0
+
+
+def test_seed_777_findings_are_typed() -> None:
+    """Seed 777's findings: an array as solve_ik's safety_break, a frame type of a wrong
+    kind in mink's RelativeFrameTask (mink checks it only at the first step), a set as a
+    PoseTask cost, and an int beyond the float range as a number."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="safety_break"):
+        qpik.solve_ik(configuration, [], 0.01, safety_break=np.zeros(0))  # type: ignore[arg-type]
+    with pytest.raises(qpik.errors.UnknownFrameType):
+        qpik.tasks.RelativeFrameTask("ee", 1, "link0", "body")  # type: ignore[arg-type]
+    with pytest.raises(qpik.QpikError, match="position_cost"):
+        qpik.tasks.PoseTask("ee", position_cost={1.0, 2.0})  # type: ignore[arg-type]
+    with pytest.raises(qpik.errors.InvalidOption, match="margin"):
+        qpik.core.checks.check_real("margin", 2**2000)
