@@ -549,6 +549,9 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
                     f"{self.what}: argument {name} is not valid (got {type(value).__name__} "
                     f"{_short_repr(value)}: {error})"
                 ) from None
+        if isinstance(error, TypeError) and "argument" in str(error) and "()" in str(error):
+            # a call that does not fit the signature: Python's message names the arguments
+            raise TaskDefinitionError(f"{self.what}: {error}") from None
         if isinstance(error, (TypeError, ValueError)):
             raise TaskDefinitionError(
                 f"{self.what}: costs, gain and lm_damping must be numbers ({error})"

@@ -19,12 +19,14 @@ from typing import Any, TypeVar
 
 import mink
 import mujoco
+import numpy.typing as npt
 
 from ..core import checks
 from ..errors import (
     InvalidTarget,
     QpikError,
     TaskDefinitionError,
+    UnknownFrameType,
     arguments_of,
     mink_errors_as_qpik,
     qpik_errors,
@@ -150,16 +152,26 @@ class RelativeFrameTask(mink.RelativeFrameTask):
 
     def __init__(
         self,
-        frame_name: str,
+        frame_name: str | int,
         frame_type: str,
-        root_name: str,
+        root_name: str | int,
         root_type: str,
-        *args: Any,
-        **kwargs: Any,
+        position_cost: npt.ArrayLike,
+        orientation_cost: npt.ArrayLike,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
     ) -> None:
-        FrameType.parse(frame_type)  # mink checks neither until the first step
-        FrameType.parse(root_type)
-        super().__init__(frame_name, frame_type, root_name, root_type, *args, **kwargs)
+        for name, value in (("frame_type", frame_type), ("root_type", root_type)):
+            try:  # mink checks neither until the first step
+                FrameType.parse(value)
+            except UnknownFrameType:
+                raise UnknownFrameType(
+                    f"RelativeFrameTask: {name} is {value!r}; expected one of: body, site, geom"
+                ) from None
+        super().__init__(
+            frame_name, frame_type, root_name, root_type, position_cost, orientation_cost,
+            gain, lm_damping,
+        )  # fmt: skip
 
     def set_target(self, transform_target_to_root: mink.SE3) -> None:
         """Target pose of the frame in the root frame, a :class:`mink.SE3`."""

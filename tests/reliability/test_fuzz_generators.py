@@ -592,7 +592,7 @@ def test_seed_777_findings_are_typed() -> None:
     with pytest.raises(qpik.errors.InvalidArgumentType, match="safety_break"):
         qpik.solve_ik(configuration, [], 0.01, safety_break=np.zeros(0))  # type: ignore[arg-type]
     with pytest.raises(qpik.errors.UnknownFrameType):
-        qpik.tasks.RelativeFrameTask("ee", 1, "link0", "body")  # type: ignore[arg-type]
+        qpik.tasks.RelativeFrameTask("ee", 1, "link0", "body", 1.0, 1.0)  # type: ignore[arg-type]
     with pytest.raises(qpik.QpikError, match="position_cost"):
         qpik.tasks.PoseTask("ee", position_cost={1.0, 2.0})  # type: ignore[arg-type]
     with pytest.raises(qpik.errors.InvalidOption, match="margin"):
