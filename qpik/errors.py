@@ -80,7 +80,7 @@ class InvalidInput(QpikError, ValueError):
 
 # ---------------------------------------------------------------- constructor helpers
 # The two ways an error can be constructed, as signatures (bodies unused).
-def _qpik_joint_limit_violation(joint, index, value, lower, upper, *, joint_id=None): ...
+def _qpik_joint_limit_violation(joint, index, value, lower, upper, *, joint_id=None, where=""): ...
 def _mink_not_within_limits(joint_id, value, lower, upper, model): ...
 def _qpik_unknown_frame(name, frame_type, available): ...
 def _mink_invalid_frame(frame_name, frame_type, model): ...
@@ -252,6 +252,7 @@ class JointLimitViolation(QpikError, mink.NotWithinConfigurationLimits, ValueErr
         else:
             bound = _bind(_qpik_joint_limit_violation, args, kwargs)
             joint, index, joint_id = bound["joint"], bound["index"], bound.get("joint_id")
+        self.where = str(bound.get("where", ""))  # the argument the configuration came in
         self.joint = joint
         self.index = index
         self.joint_id = joint_id
@@ -260,7 +261,8 @@ class JointLimitViolation(QpikError, mink.NotWithinConfigurationLimits, ValueErr
         self.upper = float(bound["upper"])
         Exception.__init__(
             self,
-            f"joint {joint!r} (q[{index}]) = {self.value:.6g} is outside its limits "
+            (f"{self.where}: " if self.where else "")
+            + f"joint {joint!r} (q[{index}]) = {self.value:.6g} is outside its limits "
             f"[{self.lower:.6g}, {self.upper:.6g}]",
         )
 
@@ -268,7 +270,7 @@ class JointLimitViolation(QpikError, mink.NotWithinConfigurationLimits, ValueErr
         return _rebuild, (
             type(self),
             (self.joint, self.index, self.value, self.lower, self.upper),
-            {"joint_id": self.joint_id},
+            {"joint_id": self.joint_id, "where": self.where},
         )
 
 

@@ -403,10 +403,11 @@ class IKSession:
 
     def _start(self, q0: npt.ArrayLike | None, check: bool) -> np.ndarray:
         """The validated start: ``q0``, else the robot's ``q``, else mid-range."""
+        where = "q0"
         if q0 is None:
             if self._robot_q is None:
                 return self._mid.copy()  # within the limits
-            q0 = self._robot_q
+            q0, where = self._robot_q, "robot (its configuration's q, the default start)"
         try:
             q = np.array(q0, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -427,6 +428,7 @@ class IKSession:
                     float(q[i]),
                     float(self._lower[i]),
                     float(self._upper[i]),
+                    where=where,
                 )
             return q
         if not np.isfinite(q).all():

@@ -191,3 +191,20 @@ def test_qpik_errors_pickle(error):
 
     copy = pickle.loads(pickle.dumps(error))
     assert type(copy) is type(error) and str(copy) == str(error) and vars(copy) == vars(error)
+
+
+def test_a_start_outside_the_limits_names_where_it_came_from():
+    """The robot's own q as the default start is named as the robot (the argument the
+    user passed), an explicit q0 as q0; both pickle with the same message."""
+    import pickle
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    q = configuration.q.copy()
+    q[3] = 0.0  # joint4's range is [-3.07, -0.07]
+    configuration.update(q)
+    with pytest.raises(qpik.JointLimitViolation, match=r"^robot \(its configuration") as caught:
+        qpik.solve(configuration, {"ee": np.array([0.4, 0.0, 0.4])})
+    assert str(pickle.loads(pickle.dumps(caught.value))) == str(caught.value)
+    with pytest.raises(qpik.JointLimitViolation, match=r"^q0: "):
+        qpik.solve(model, {"ee": np.array([0.4, 0.0, 0.4])}, q0=q)
