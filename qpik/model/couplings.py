@@ -106,6 +106,17 @@ class Couplings:
         jacobian[:, self.dofs] = self.first - slope[:, None] * self.second
         return jacobian
 
+    def linear_form(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(rows, offset)`` with ``r(q) = rows @ q[qadr] - offset`` when every coupling
+        is linear (a URDF mimic, a joint equality of degree 1; :meth:`residual` expanded),
+        else None. Its Jacobian is then constant."""
+        if np.any(self.poly[:, 2:]):
+            return None
+        c1 = np.where(self.has_second, self.poly[:, 1], 0.0)
+        rows = self.first - c1[:, None] * self.second
+        second_ref = np.where(self.has_second, self.reference[:, 1], 0.0)
+        return rows, self.reference[:, 0] + self.poly[:, 0] - c1 * second_ref
+
     def error(self, q: npt.ArrayLike) -> float:
         """The largest ``|r_i(q)|`` (0 without rows)."""
         r = self.residual(q)

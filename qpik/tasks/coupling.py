@@ -37,19 +37,15 @@ class CouplingTask(mink.Task):
         self.k = len(couplings)
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.full(self.k, float(cost)), gain, 0.0)
-        # Linear couplings (a URDF mimic, a joint equality of degree 1) have a constant
-        # Jacobian: computed once (the same numbers as each step's).
-        linear = not np.any(couplings.poly[:, 2:])
-        self._constant = couplings.jacobian(model.qpos0) if linear else None
-        if linear:  # r(q) = (first - c1 second) x - (ref_1 + c0 - c1 ref_2), x = q[qadr]
-            c0, c1 = couplings.poly[:, 0], np.where(couplings.has_second, couplings.poly[:, 1], 0.0)
-            self._rows = couplings.first - c1[:, None] * couplings.second
-            ref = couplings.reference
-            self._offset = ref[:, 0] + c0 - c1 * np.where(couplings.has_second, ref[:, 1], 0.0)
+        # Linear couplings (a URDF mimic, a joint equality of degree 1): one product per
+        # step for the residual, and a constant Jacobian computed once.
+        self._linear = couplings.linear_form()
+        self._constant = couplings.jacobian(model.qpos0) if self._linear else None
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
-        if self._constant is not None:  # one product (the configuration's q is checked)
-            return self._rows @ configuration.q[self.couplings.qadr] - self._offset
+        if self._linear is not None:  # the configuration's q is already checked
+            rows, offset = self._linear
+            return rows @ configuration.q[self.couplings.qadr] - offset
         return self.couplings.residual(configuration.q)
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
