@@ -19,6 +19,7 @@ import numpy as np
 
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidTarget
+from ..limits import collision_clearance, collision_limits
 from ..model.chain import chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
@@ -34,6 +35,12 @@ __all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
 #: At most this many steps of level 0 alone finish an attempt of a stack of several
 #: levels that ended with level 0 (or a coupling) not within tolerance.
 LEVEL0_STEPS = 20
+
+#: With collision limits, a step that takes a pair deeper inside its ``d_min`` (by more
+#: than half ``tol_position``) is halved up to this many times, then not taken: a full
+#: step may cross an obstacle thinner than itself before the pair's row is active (its
+#: ``collision_detection_distance``).
+COLLISION_BACKTRACKS = 10
 
 #: A frame target as the engine holds it: ``(name, frame type, target)``.
 FrameTarget = tuple[str, FrameType, Target]
@@ -166,6 +173,9 @@ class QPProblem:
         levels = self._default_levels(model, options) if stack is None else normalize_stack(stack)
         self.levels = levels
         self.limits = _limits(model, options)
+        #: The collision limits among the limits: an iterate counts as converged only
+        #: when every pair they check is at least ``d_min - tol_position`` apart.
+        self.collisions = collision_limits(self.limits)
         step = options.step
         if step.backend_options is None and step.solver in IGM_BACKEND_OPTIONS:
             step = step.replace(backend_options=IGM_BACKEND_OPTIONS[step.solver])
@@ -223,6 +233,15 @@ class QPProblem:
                     worst = max(worst, errors[0] / tol_p, errors[1] / tol_o)
             measures.append(worst)
         return coupling, measures
+
+    def collision_violation(self, configuration: Configuration, tol: float) -> float:
+        """How far [m] the closest pair of the collision limits is inside its ``d_min``
+        (``max(0, d_min - d)``; 0 without collision limits). Distances are computed up to
+        ``d_min + tol`` only (nothing farther matters)."""
+        clearance = collision_clearance(
+            configuration.model, configuration.data, self.collisions, cap=tol
+        )
+        return 0.0 if clearance is None else max(0.0, -clearance)
 
     def _default_levels(self, model: mujoco.MjModel, options: SolveOptions) -> list[list]:
         """Level 0: a position or pose task per frame (gain ``alpha``); level 1, with
@@ -293,9 +312,11 @@ class QPProblem:
 class _Measure:
     """The errors of the current iterate: per frame, the score ``max(p / tol_p + o /
     tol_o)`` over frames and level-0 tasks, whether all are within tolerance, and the
-    energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases."""
+    energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases. With collision limits,
+    the closest pair's depth inside its ``d_min`` [m] counts as one more position-like
+    error (0 when every pair keeps ``d_min``), and ranks first in :attr:`key`."""
 
-    __slots__ = ("done", "energy", "errors", "key", "score")
+    __slots__ = ("done", "energy", "errors", "key", "score", "violation")
 
     def __init__(self, problem: QPProblem, options: SolveOptions):
         configuration = problem.configuration
@@ -304,6 +325,10 @@ class _Measure:
         items = list(self.errors.values()) + problem.level0_errors(configuration)
         if problem.couplings is not None:
             items.append((problem.couplings.error(configuration.q), 0.0))
+        self.violation = 0.0
+        if problem.collisions:
+            self.violation = problem.collision_violation(configuration, tol_p)
+            items.append((self.violation, 0.0))
         self.score = max(p / tol_p + o / tol_o for p, o in items)
         self.done = all(p <= tol_p and o <= tol_o for p, o in items)
         self.energy = sum(p * p + o * o for p, o in items)
@@ -314,6 +339,8 @@ class _Measure:
         if problem.multilevel:
             coupling, levels = problem.level_measures(configuration, options)
             self.key = (max(1.0, coupling), *(max(1.0, m) for m in levels), self.score)
+        if problem.collisions:  # a configuration in collision ranks after any clear one
+            self.key = (max(1.0, self.violation / tol_p), *self.key)
 
 
 class _Path:
@@ -362,18 +389,29 @@ class _Engine:
 
     def _backtrack(self, step: Any, path: _Path) -> _Measure:
         """Apply ``beta`` times the step, halved (up to ``BACKTRACKS`` times) while it
-        increases the energy, as the compiled engine does."""
+        increases the energy, as the compiled engine does; with collision limits, also
+        halved (up to ``COLLISION_BACKTRACKS`` times) while it takes a pair deeper inside
+        its ``d_min``, and not taken if it still does."""
         configuration = self.problem.configuration
         q_base = configuration.q
         scale = self.options.beta
-        for halving in range(BACKTRACKS + 1):
+        collisions = bool(self.problem.collisions)
+        allowed = max(path.last.violation, 0.5 * self.options.tol_position)
+        halvings = COLLISION_BACKTRACKS if collisions else BACKTRACKS
+        for halving in range(halvings + 1):
             q = q_base.copy()
             mujoco.mj_integratePos(configuration.model, q, scale * step.displacement, 1.0)
             if self.options.beta > 1.0:
                 q = np.clip(q, *self.bounds)
             configuration.update(q)
             measure = _Measure(self.problem, self.options)
-            if measure.energy < path.last.energy or halving == BACKTRACKS:
+            deeper = collisions and measure.violation > allowed
+            if not deeper and (measure.energy < path.last.energy or halving >= BACKTRACKS):
+                break
+            if deeper and halving == halvings:  # still deeper at the last halving
+                q = q_base
+                configuration.update(q)
+                measure = _Measure(self.problem, self.options)
                 break
             scale *= 0.5
         path.errors.append(worst_errors(measure.errors))
