@@ -19,7 +19,7 @@ import numpy as np
 
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidTarget
-from ..limits import collision_clearance, collision_limits
+from ..limits import BallJointLimit, collision_clearance, collision_limits
 from ..model.chain import chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
@@ -30,7 +30,7 @@ from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors
 
-__all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
+__all__ = ["QPProblem", "borrowed_tasks", "idle_qpos", "iterate", "set_frame_target"]
 
 #: At most this many steps of level 0 alone finish an attempt of a stack of several
 #: levels that ended with level 0 (or a coupling) not within tolerance.
@@ -148,6 +148,92 @@ def _task_target(task: Any) -> Target | None:
     return _NOT_A_FRAME_TASK
 
 
+def _body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
+    """The joints from the world to ``body`` (every type)."""
+    joints: set[int] = set()
+    while body > 0:
+        start = int(model.body_jntadr[body])
+        joints.update(range(start, start + int(model.body_jntnum[body])))
+        body = int(model.body_parentid[body])
+    return joints
+
+
+def _frame_body(model: mujoco.MjModel, frame: Any, frame_type: Any) -> int:
+    """The body of a frame given as a task holds it (name or id, frame type)."""
+    kind = FrameType.parse(frame_type)
+    obj = {
+        FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+        FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+        FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+    }[kind]
+    fid = int(frame) if not isinstance(frame, str) else mujoco.mj_name2id(model, obj, frame)
+    if kind is FrameType.BODY:
+        return fid
+    return int(model.site_bodyid[fid] if kind is FrameType.SITE else model.geom_bodyid[fid])
+
+
+def _task_joints(model: mujoco.MjModel, task: Any) -> set[int] | None:
+    """The joints a task's rows can move (``None``: any joint): a frame task's chain (a
+    relative frame task's two chains), the limited hinge and slide joints of
+    :class:`JointLimitDistanceTask`; any other task may move any joint."""
+    if isinstance(task, (*_FRAME_TASKS, mink.FrameTask)):
+        return _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+    if isinstance(task, mink.RelativeFrameTask):
+        joints = _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+        return joints | _body_chain_joints(
+            model, _frame_body(model, task.root_name, task.root_type)
+        )
+    if isinstance(task, JointLimitDistanceTask):
+        scalar = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+        return {
+            j for j in range(model.njnt) if model.jnt_type[j] in scalar and model.jnt_limited[j]
+        }
+    return None
+
+
+def _limit_joints(model: mujoco.MjModel, limit: Any) -> set[int] | None:
+    """The joints a limit's rows can move from a start within the joint limits: none for
+    box limits (position, velocity, ball-joint ranges), the chains of every geom of a
+    collision limit's pairs; any joint for another limit."""
+    if isinstance(limit, mink.CollisionAvoidanceLimit):
+        joints: set[int] = set()
+        for pair in limit.geom_id_pairs:
+            for geom in pair:
+                joints |= _body_chain_joints(model, int(model.geom_bodyid[geom]))
+        return joints
+    if isinstance(limit, (mink.ConfigurationLimit, mink.VelocityLimit, BallJointLimit)):
+        return set()
+    return None
+
+
+def idle_qpos(
+    model: mujoco.MjModel, levels: Sequence[Sequence], limits: Sequence, couplings
+) -> np.ndarray:
+    """The qpos entries ``(nq,)`` (bool) of the joints that nothing in a solve moves: on no
+    task's chain (:func:`_task_joints`), in no coupling, moved by no limit (a free object,
+    another arm, fingers off the chains). The engine keeps them bitwise where they start
+    (the steps' rounding would move them by ~1e-16). All False when a task or limit may
+    move any joint (a posture or CoM task, a support polygon)."""
+    moved: set[int] = set()
+    for item in [*(t for level in levels for t in level), *limits]:
+        found = (
+            _task_joints(model, item)
+            if not isinstance(item, mink.Limit)
+            else _limit_joints(model, item)
+        )
+        if found is None:
+            return np.zeros(model.nq, dtype=bool)
+        moved |= found
+    if couplings is not None:
+        moved |= {int(model.dof_jntid[d]) for d in couplings.dofs}
+    idle = np.zeros(model.nq, dtype=bool)
+    widths = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
+    for j in set(range(model.njnt)) - moved:
+        adr = int(model.jnt_qposadr[j])
+        idle[adr : adr + widths[int(model.jnt_type[j])]] = True
+    return idle
+
+
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
         from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
@@ -197,6 +283,9 @@ class QPProblem:
         #: The model's couplings, held by the steps (their level comes first) and counted
         #: in convergence; None without any or with ``couplings=False``.
         self.couplings = model_couplings(model) if options.step.couplings else None
+        #: The qpos entries nothing in the solve moves (:func:`idle_qpos`): every iterate
+        #: keeps them bitwise as they start.
+        self.idle = idle_qpos(model, levels, self.limits, self.couplings)
         #: Several levels: iterates are ranked lexicographically by level
         #: (:meth:`level_key`), and an attempt that ends with level 0 not met is finished
         #: by steps of level 0 alone (:attr:`level0_solver`, built on first use).
@@ -403,6 +492,7 @@ class _Engine:
             mujoco.mj_integratePos(configuration.model, q, scale * step.displacement, 1.0)
             if self.options.beta > 1.0:
                 q = np.clip(q, *self.bounds)
+            q[self.problem.idle] = q_base[self.problem.idle]
             configuration.update(q)
             measure = _Measure(self.problem, self.options)
             deeper = collisions and measure.violation > allowed
@@ -464,8 +554,10 @@ class _Engine:
             step = solver.step(problem.configuration, 1.0)
             self.iterations += 1
             path.residuals.append(list(step.residuals))
-            q = problem.configuration.q.copy()
+            q_base = problem.configuration.q
+            q = q_base.copy()
             mujoco.mj_integratePos(problem.configuration.model, q, step.displacement, 1.0)
+            q[problem.idle] = q_base[problem.idle]
             problem.configuration.update(q)
             measure = _Measure(problem, options)
             path.errors.append(worst_errors(measure.errors))
