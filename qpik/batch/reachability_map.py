@@ -39,6 +39,7 @@ import numpy.typing as npt
 from ..core import checks
 from ..errors import InvalidInput
 from ..igm.prepared import PREPARED
+from ..igm.qp_engine import check_limits_model
 from ..igm.targets import FrameKey, RobotLike, parse_target
 from ..limits import checked_pairs, collision_limits
 from ..model.configuration import FrameType
@@ -376,6 +377,7 @@ def reachability(
     """
     start_time = time.perf_counter()
     batch = Batch.prepare(robot, options, keywords, ("histories",))
+    check_limits_model(batch.model, batch.options.limits)
     centers, shape = _grid(region, resolution)
     rotations = _rotations(orientations)
     margin = batch.options.tol_position  # [m]: a voxel this close to the bound may converge

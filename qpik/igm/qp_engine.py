@@ -18,7 +18,7 @@ import mujoco
 import numpy as np
 
 from ..diffik.solver import IKSolver, normalize_stack
-from ..errors import InvalidTarget
+from ..errors import InvalidOption, InvalidTarget
 from ..limits import BallJointLimit, collision_clearance, collision_limits
 from ..model.chain import chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
@@ -30,7 +30,14 @@ from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors
 
-__all__ = ["QPProblem", "borrowed_tasks", "idle_qpos", "iterate", "set_frame_target"]
+__all__ = [
+    "QPProblem",
+    "borrowed_tasks",
+    "check_limits_model",
+    "idle_qpos",
+    "iterate",
+    "set_frame_target",
+]
 
 #: At most this many steps of level 0 alone finish an attempt of a stack of several
 #: levels that ended with level 0 (or a coupling) not within tolerance.
@@ -234,11 +241,34 @@ def idle_qpos(
     return idle
 
 
+def check_limits_model(model: mujoco.MjModel, limits: Sequence | str | None) -> None:
+    """Raise :class:`qpik.InvalidOption` (``limits``) when a limit was built on a model of
+    another shape than the solved one (dofs; a collision limit's geoms): a collision limit
+    built on a scene (:func:`qpik.scene.add_obstacle`) but a solve of the bare robot."""
+    if limits is None or isinstance(limits, str):
+        return
+    for limit in limits:
+        own = getattr(limit, "model", None)
+        if not isinstance(own, mujoco.MjModel) or own is model:
+            continue
+        geoms = isinstance(limit, mink.CollisionAvoidanceLimit) and own.ngeom != model.ngeom
+        if own.nv != model.nv or own.nq != model.nq or geoms:
+            raise InvalidOption(
+                "limits",
+                type(limit).__name__,
+                f"limits built on the solved robot's model (this one's model has nq {own.nq}, "
+                f"nv {own.nv}, {own.ngeom} geoms; the robot nq {model.nq}, nv {model.nv}, "
+                f"{model.ngeom} geoms: build a scene's collision limit on the scene, and "
+                "solve the scene)",
+            )
+
+
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
         from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
 
         return [ConfigurationLimit(model)]
+    check_limits_model(model, options.limits)
     return list(options.limits or ())
 
 

@@ -139,3 +139,17 @@ def test_reachmap_cli_checks_collisions(tmp_path, capsys):
     assert "collisions checked" in text and "block" in text
     rmap = ReachabilityMap.load(out)
     assert rmap.collisions_checked and rmap.fraction.tolist() == [0.0, 1.0]
+
+
+def test_a_collision_limit_of_another_model_is_named(scene):
+    """A scene's collision limit with a solve of the bare robot (one geom fewer): a typed
+    error naming ``limits``, before any solve of a map."""
+    limits = collision_limits_of(scene)
+    with pytest.raises(qpik.InvalidOption, match="limits") as caught:
+        qpik.solve("panda", {"ee": ABOVE}, limits=limits, **FAST)
+    assert caught.value.field == "limits"
+    with pytest.raises(qpik.InvalidOption, match="limits"):
+        qpik.reachability(
+            "panda", "ee", region=[[0.45, -0.05, 0.25], [0.55, 0.05, 0.35]], resolution=0.1,
+            orientations=0, limits=limits, progress=False,
+        )  # fmt: skip
