@@ -574,22 +574,28 @@ class _Engine:
         """Steps of level 0 alone (and the couplings) from the attempt's last iterate,
         while level 0 or a coupling is not met (at most ``LEVEL0_STEPS``, no further once
         a step vanishes): the lower levels' last steps may have left level 0 off by
-        their linearisation error, which these Gauss-Newton steps remove."""
+        their linearisation error, which these Gauss-Newton steps remove. With collision
+        limits, a step that would take a pair deeper inside ``d_min`` ends them untaken."""
         problem, options = self.problem, self.options
         solver = problem.level0_solver
+        first = 1 if problem.collisions else 0  # the key's coupling entry
         for _ in range(LEVEL0_STEPS):
             key = path.last.key
-            if key[0] <= 1.0 and key[1] <= 1.0 or self.clock.out_of_time():
+            if key[first] <= 1.0 and key[first + 1] <= 1.0 or self.clock.out_of_time():
                 break
             step = solver.step(problem.configuration, 1.0)
-            self.iterations += 1
-            path.residuals.append(list(step.residuals))
             q_base = problem.configuration.q
             q = q_base.copy()
             mujoco.mj_integratePos(problem.configuration.model, q, step.displacement, 1.0)
             q[problem.idle] = q_base[problem.idle]
             problem.configuration.update(q)
             measure = _Measure(problem, options)
+            allowed = max(path.last.violation, 0.5 * options.tol_position)
+            if problem.collisions and measure.violation > allowed:  # deeper in collision
+                problem.configuration.update(q_base)
+                break
+            self.iterations += 1
+            path.residuals.append(list(step.residuals))
             path.errors.append(worst_errors(measure.errors))
             path.q.append(q)
             path.measures.append(measure)

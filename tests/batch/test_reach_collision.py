@@ -153,3 +153,18 @@ def test_a_collision_limit_of_another_model_is_named(scene):
             "panda", "ee", region=[[0.45, -0.05, 0.25], [0.55, 0.05, 0.35]], resolution=0.1,
             orientations=0, limits=limits, progress=False,
         )  # fmt: skip
+
+
+def test_a_stack_of_levels_with_collision_limits(scene):
+    """Position above a posture (two levels, the level-0 finishing steps too): the block's
+    centre is not reached, the position above it is, and both answers keep d_min."""
+    from qpik.tasks import PositionTask, PostureTask
+
+    limits = collision_limits_of(scene)
+    for target, reached in ((CENTRE, False), (ABOVE, True)):
+        posture = PostureTask(scene, cost=0.1)
+        posture.set_target(qpik.Configuration(scene).mid_q())
+        stack = [[PositionTask("ee")], [posture]]
+        result = qpik.solve(scene, {"ee": target}, stack=stack, limits=limits, **FAST)
+        assert result.converged is reached and result.levels_met[0] is reached
+        assert smallest_distance(scene, result.q) >= D_MIN - 1e-4
