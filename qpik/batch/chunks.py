@@ -270,6 +270,9 @@ def pack_chunk(chunk: Chunk) -> Chunk | PackedChunk:
     )
 
 
+#: The path of an unpacked result (empty, as without_histories leaves it), shared: read-only.
+_NO_PATH = np.zeros((0, 0))
+_NO_PATH.flags.writeable = False
 #: Reasons by their index in a packed chunk.
 _REASON_LIST = tuple(Reason)
 _REASON_INDEX = {reason: i for i, reason in enumerate(_REASON_LIST)}
@@ -353,7 +356,7 @@ def unpack_results(results: Any) -> list[IKResult | Failure]:
             frame_errors,
             [],
             [],
-            np.zeros((0, 0)),  # the histories' defaults (HISTORY_FIELDS)
+            _NO_PATH,  # the histories' defaults (HISTORY_FIELDS)
             engine,
             levels_met,
             coupling_error,
