@@ -345,7 +345,7 @@ def unpack_results(results: Any) -> list[IKResult | Failure]:
     reasons = _REASON_LIST
     return [
         IKResult(
-            q,
+            q.copy(),  # its own array, as a serial result's
             bool(converged),
             reasons[reason],
             iterations,
@@ -368,7 +368,7 @@ def unpack_results(results: Any) -> list[IKResult | Failure]:
             iterations,
             restarts,
         ), frame_errors, engine, levels_met in zip(
-            results.q.copy(),
+            results.q,
             results.floats.tolist(),
             results.ints.tolist(),
             results.frame_errors,
