@@ -30,6 +30,7 @@ what a worker does in :mod:`qpik.batch.worker`, Ray in :mod:`qpik.batch.ray`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -326,6 +327,8 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
     try:
         pending: set[Future] = set()
         source = iter(chunks)
+        with _frozen_heap(forked):  # the first submission forks the workers
+            _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
         while True:
             _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
             if not pending:
@@ -343,6 +346,24 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
                 yield raise_failures(local, item)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _frozen_heap(freeze: bool) -> Iterator[None]:
+    """While the workers fork: the caller's objects moved out of the garbage collector's
+    reach (``gc.freeze``), so that a forked worker's collections neither walk them nor
+    copy the memory pages they sit on (copy-on-write); the caller's own collector gets them
+    back afterwards."""
+    if not freeze:
+        yield
+        return
+    import gc
+
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _submit_ahead(
