@@ -190,4 +190,64 @@ void bind_igm(nb::module_& m) {
         "igm_solve with its scratch allocated here: returns (reason code, iterations, restarts used, "
         "path (k, nq), hist (k, 3)) of the returned attempt (its iterates, start first; per iterate "
         "position error [m], orientation error [rad] and the residual of the step that left it).");
+
+    m.def(
+        "_igm_session_run",
+        [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q_full, nb::handle index,
+           In2 bounds, In1 reach, In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline) {
+            // igm_run for IKSession: the chain's coordinates are q_full[index] (index None: all
+            // of q_full), and the returned path holds whole configurations (the others as in
+            // q_full), so that the session builds its result with no NumPy call of its own.
+            i64 nfull = static_cast<i64>(q_full.shape(0));
+            I64In1 idx;
+            bool packed = !index.is_none();
+            if (packed && !nb::try_cast(index, idx, false))
+                throw BadArgument("index must be None or an int64 array of chain coordinates");
+            i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
+            check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
+            i64 max_iters = int_options.data()[0];
+            require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
+            Vec q0(static_cast<size_t>(nq));
+            for (i64 j = 0; j < nq; ++j) {
+                i64 a = packed ? idx.data()[j] : j;
+                require(a >= 0 && a < nfull, "index entries must address q_full");
+                q0[static_cast<size_t>(j)] = q_full.data()[a];
+            }
+            ChainArgs holder;
+            const model::Chain& c = chain_arg(chain, nq, nq, holder);
+            igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
+            i64 n = max_iters + 1;
+            std::unique_ptr<double[]> path(new double[static_cast<size_t>(2 * n * nq)]);
+            std::unique_ptr<double[]> hist(new double[static_cast<size_t>(2 * n * 3)]);
+            igm::Record rec{path.get(), hist.get(), n, nq};
+            i64 info[6];
+            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(), int_options.data(),
+                           rng_state.data()[0], deadline, rec, info);
+            i64 slot = info[3], length = info[4];
+            size_t len = static_cast<size_t>(length), nf = static_cast<size_t>(nfull);
+            std::vector<double> out_path(len * nf);
+            for (i64 k = 0; k < length; ++k) {
+                double* row = out_path.data() + k * nfull;
+                const double* src = rec.path_at(slot, k);
+                if (packed) {
+                    for (i64 j = 0; j < nfull; ++j) row[j] = q_full.data()[j];
+                    for (i64 j = 0; j < nq; ++j) row[idx.data()[j]] = src[j];
+                } else {
+                    for (i64 j = 0; j < nq; ++j) row[j] = src[j];
+                }
+            }
+            std::vector<double> q_last(out_path.end() - nfull, out_path.end());
+            const double* last = rec.hist_at(slot, length - 1);
+            double position_error = last[0], orientation_error = last[1];
+            std::vector<double> out_hist(rec.hist_at(slot, 0), rec.hist_at(slot, 0) + length * 3);
+            return nb::make_tuple(info[0], info[1], info[2], to_numpy(std::move(q_last), {nf}),
+                                  to_numpy(std::move(out_path), {len, nf}),
+                                  to_numpy(std::move(out_hist), {len, size_t(3)}), position_error,
+                                  orientation_error);
+        },
+        "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q_full"_a, "index"_a.none(), "bounds"_a, "reach"_a,
+        "options"_a, "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a,
+        "igm_run on the coordinates index of q_full (None: all of them): returns (reason code, "
+        "iterations, restarts used, q (the answer, a whole configuration), path (k, len(q_full)), "
+        "hist (k, 3), position error [m], orientation error [rad]).");
 }

@@ -78,13 +78,22 @@ def check_targets(model: mujoco.MjModel, targets_list: Sequence, offset: int = 0
 class StackedTargets(Sequence):
     """Targets ``{key: (positions[i], rotations[i])}`` (or ``{key: positions[i]}``) of one
     frame key, held as stacked float64 arrays: a slice is a view, and a chunk of them
-    pickles as two arrays. The values are those :func:`qpik.igm.targets.parse_target` reads
-    from the originals (``float(x)`` of each number), so the solves are bitwise the same."""
+    pickles as two arrays. ``posed`` (bool (n,), or ``None``: every entry has a rotation
+    when ``rotations`` is given) marks the entries with a rotation in a batch that mixes
+    pose and position targets (the others' rows of ``rotations`` are unused). The values are
+    those :func:`qpik.igm.targets.parse_target` reads from the originals (``float(x)`` of each
+    number), so the solves are bitwise the same."""
 
-    __slots__ = ("key", "positions", "rotations")
+    __slots__ = ("key", "posed", "positions", "rotations")
 
-    def __init__(self, key: Any, positions: np.ndarray, rotations: np.ndarray | None):
-        self.key, self.positions, self.rotations = key, positions, rotations
+    def __init__(
+        self,
+        key: Any,
+        positions: np.ndarray,
+        rotations: np.ndarray | None,
+        posed: np.ndarray | None = None,
+    ):
+        self.key, self.positions, self.rotations, self.posed = key, positions, rotations, posed
 
     def __len__(self) -> int:
         return self.positions.shape[0]
@@ -92,61 +101,72 @@ class StackedTargets(Sequence):
     def __getitem__(self, index):
         if isinstance(index, slice):
             rotations = None if self.rotations is None else self.rotations[index]
-            return StackedTargets(self.key, self.positions[index], rotations)
-        if self.rotations is None:
+            posed = None if self.posed is None else self.posed[index]
+            return StackedTargets(self.key, self.positions[index], rotations, posed)
+        if self.rotations is None or (self.posed is not None and not self.posed[index]):
             return {self.key: self.positions[index]}
         return {self.key: (self.positions[index], self.rotations[index])}
 
     def __reduce__(self) -> tuple:
         positions = np.ascontiguousarray(self.positions)
         rotations = None if self.rotations is None else np.ascontiguousarray(self.rotations)
-        return (StackedTargets, (self.key, positions, rotations))
+        posed = None if self.posed is None else np.ascontiguousarray(self.posed)
+        return (StackedTargets, (self.key, positions, rotations, posed))
 
 
 def stack_targets(model: mujoco.MjModel, targets_list: Sequence) -> StackedTargets | None:
     """The batch as :class:`StackedTargets`, checked at once, when every entry is
-    ``{key: (position, rotation)}`` (or ``{key: position}``) with one and the same frame
-    key and numbers of the right shapes, all plainly valid (finite, rotations within half
-    of :func:`qpik.igm.targets.parse_target`'s tolerance, inside its distance bound); else
-    ``None``, and :func:`check_targets` checks them one by one (and names a bad one)."""
+    ``{key: (position, rotation)}`` or ``{key: position}`` (the two forms may mix) with one
+    and the same frame key and numbers of the right shapes, all plainly valid (finite,
+    rotations within half of :func:`qpik.igm.targets.parse_target`'s tolerance, inside its
+    distance bound); else ``None``, and :func:`check_targets` checks them one by one (and
+    names a bad one)."""
     arrays = _stacked_arrays(targets_list)
     if arrays is None:
         return None
-    key, P, R = arrays
+    key, P, R, posed = arrays
     if not (np.isfinite(P).all() and np.abs(P).max() <= MAX_TARGET_DISTANCE):
         return None
     if R is not None and not _plain_rotations(R):
         return None
     resolve_frame(model, key, argument="targets_list[0]")  # an unknown frame raises here
-    return StackedTargets(key, P, R)
+    return StackedTargets(key, P, R, posed)
 
 
-def _stacked_arrays(targets_list: Sequence) -> tuple[Any, np.ndarray, np.ndarray | None] | None:
-    """``(key, positions (n, 3), rotations (n, 3, 3) or None)`` when every entry of
-    ``targets_list`` is ``{key: (position, rotation)}`` (or ``{key: position}``) for one
-    key, with values of those shapes; else ``None``."""
+def _stacked_arrays(
+    targets_list: Sequence,
+) -> tuple[Any, np.ndarray, np.ndarray | None, np.ndarray | None] | None:
+    """``(key, positions (n, 3), rotations (n, 3, 3) or None, posed (n,) or None)`` when
+    every entry of ``targets_list`` is ``{key: (position, rotation)}`` or ``{key:
+    position}`` for one key, with values of those shapes (``posed``: which entries have a
+    rotation, when they mix; the others' rotations are the identity, unused); else
+    ``None``."""
     if not targets_list:
         return None
     first = targets_list[0]
     if type(first) is not dict or len(first) != 1:
         return None
     (key,) = first
-    with_rotation = type(first[key]) is tuple and len(first[key]) == 2
     try:
         values = [_only_value(targets, key) for targets in targets_list]
-        if with_rotation:
-            if any(type(value) is not tuple or len(value) != 2 for value in values):
-                return None
+        flags = [type(value) is tuple and len(value) == 2 for value in values]
+        n = len(values)
+        if all(flags):
             P = np.array([value[0] for value in values], dtype=float)
             R = np.array([value[1] for value in values], dtype=float)
+            posed = None
+        elif not any(flags):
+            P, R, posed = np.array(values, dtype=float), None, None
         else:
-            P, R = np.array(values, dtype=float), None
+            eye = np.eye(3)
+            P = np.array([v[0] if f else v for v, f in zip(values, flags)], dtype=float)
+            R = np.array([v[1] if f else eye for v, f in zip(values, flags)], dtype=float)
+            posed = np.array(flags)
     except (KeyError, TypeError, ValueError):
         return None
-    n = len(values)
     if P.shape != (n, 3) or (R is not None and R.shape != (n, 3, 3)):
         return None
-    return key, P, R
+    return key, P, R, posed
 
 
 def _only_value(targets: Any, key: Any) -> Any:
@@ -250,6 +270,9 @@ def pack_chunk(chunk: Chunk) -> Chunk | PackedChunk:
     )
 
 
+#: The path of an unpacked result (empty, as without_histories leaves it), shared: read-only.
+_NO_PATH = np.zeros((0, 0))
+_NO_PATH.flags.writeable = False
 #: Reasons by their index in a packed chunk.
 _REASON_LIST = tuple(Reason)
 _REASON_INDEX = {reason: i for i, reason in enumerate(_REASON_LIST)}
@@ -259,13 +282,18 @@ _REASON_INDEX = {reason: i for i, reason in enumerate(_REASON_LIST)}
 class PackedResults:
     """A worker's chunk of results without histories, as a few arrays: several times
     cheaper to pickle and unpickle than the :class:`IKResult` objects (the parent's share
-    of a pool's CPU, which competes with the workers). Values travel bitwise (float64)."""
+    of a pool's CPU, which competes with the workers). Values travel bitwise (float64), and
+    every field a result without histories has travels (a pooled result equals a serial
+    one)."""
 
     q: np.ndarray  # (k, nq)
-    floats: np.ndarray  # (k, 3): position_error, orientation_error, solve_time
+    #: (k, 5): position_error, orientation_error, solve_time, coupling_error,
+    #: constraint_error
+    floats: np.ndarray
     ints: np.ndarray  # (k, 4): converged, reason index, iterations, restarts_used
     frame_errors: list
     engines: list
+    levels_met: list
 
 
 def pack_results(results: list[IKResult | Failure]) -> list[IKResult | Failure] | PackedResults:
@@ -277,7 +305,17 @@ def pack_results(results: list[IKResult | Failure]) -> list[IKResult | Failure] 
     try:
         q = np.stack([r.q for r in plain])
         floats = np.array(
-            [(r.position_error, r.orientation_error, r.solve_time) for r in plain], dtype=float
+            [
+                (
+                    r.position_error,
+                    r.orientation_error,
+                    r.solve_time,
+                    r.coupling_error,
+                    r.constraint_error,
+                )
+                for r in plain
+            ],
+            dtype=float,
         )
         ints = np.array(
             [
@@ -288,10 +326,15 @@ def pack_results(results: list[IKResult | Failure]) -> list[IKResult | Failure] 
         )
     except (ValueError, TypeError, KeyError):  # ragged q, odd values: sent as they are
         return results
-    if q.dtype != np.float64 or floats.shape != (len(plain), 3):
+    if q.dtype != np.float64 or floats.shape != (len(plain), 5):
         return results
     return PackedResults(
-        q, floats, ints, [r.frame_errors for r in plain], [r.engine for r in plain]
+        q,
+        floats,
+        ints,
+        [r.frame_errors for r in plain],
+        [r.engine for r in plain],
+        [r.levels_met for r in plain],
     )
 
 
@@ -302,7 +345,7 @@ def unpack_results(results: Any) -> list[IKResult | Failure]:
     reasons = _REASON_LIST
     return [
         IKResult(
-            q.copy(),
+            q.copy(),  # its own array, as a serial result's
             bool(converged),
             reasons[reason],
             iterations,
@@ -311,18 +354,25 @@ def unpack_results(results: Any) -> list[IKResult | Failure]:
             orientation_error,
             solve_time,
             frame_errors,
-            engine=engine,
+            [],
+            [],
+            _NO_PATH,  # the histories' defaults (HISTORY_FIELDS)
+            engine,
+            levels_met,
+            coupling_error,
+            constraint_error,
         )
-        for q, (position_error, orientation_error, solve_time), (
+        for q, (position_error, orientation_error, solve_time, coupling_error, constraint_error), (
             converged,
             reason,
             iterations,
             restarts,
-        ), frame_errors, engine in zip(
+        ), frame_errors, engine, levels_met in zip(
             results.q,
             results.floats.tolist(),
             results.ints.tolist(),
             results.frame_errors,
             results.engines,
+            results.levels_met,
         )
     ]

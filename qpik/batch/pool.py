@@ -30,6 +30,7 @@ what a worker does in :mod:`qpik.batch.worker`, Ray in :mod:`qpik.batch.ray`.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -94,6 +95,10 @@ BACKENDS = ("process", "ray")
 
 #: Chunks submitted ahead of the workers, per worker (bounds memory on huge batches).
 _AHEAD = 3
+#: The largest default chunk: each chunk costs the caller a round trip (pickling, the
+#: pool's bookkeeping), which competes with the workers for the cores; 256 solves (tens
+#: of ms) keep that small and the last chunks short.
+_MAX_CHUNK = 256
 
 
 @dataclass(frozen=True)
@@ -114,7 +119,7 @@ class BatchOptions:
             ``None`` joins the running Ray session or starts a local one.
         progress: a progress bar with rate and ETA on stderr (tqdm), shown on runs longer
             than 2 s.
-        chunk_size: targets per task (default: about four chunks per worker, at most 64;
+        chunk_size: targets per task (default: about four chunks per worker, at most 256;
             a file's run: 128).
         pool_threshold: [s] a batch whose serial time, estimated from its first solve,
             is below this is solved in this process (no workers start).
@@ -315,12 +320,15 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
         max_workers=batch.workers,
         mp_context=context,
         initializer=init_worker,
-        # A forked worker has the model already (no file to read again).
-        initargs=(local_setup if forked else batch.setup,),
+        # A forked worker has the model already (no file to read again), and takes this
+        # process's solver as it is: the robot read, the target frame's chain prepared.
+        initargs=(local if forked else batch.setup,),
     )
     try:
         pending: set[Future] = set()
         source = iter(chunks)
+        with _frozen_heap(forked):  # the first submission forks the workers
+            _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
         while True:
             _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
             if not pending:
@@ -338,6 +346,24 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
                 yield raise_failures(local, item)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _frozen_heap(freeze: bool) -> Iterator[None]:
+    """While the workers fork: the caller's objects moved out of the garbage collector's
+    reach (``gc.freeze``), so that a forked worker's collections neither walk them nor
+    copy the memory pages they sit on (copy-on-write); the caller's own collector gets them
+    back afterwards."""
+    if not freeze:
+        yield
+        return
+    import gc
+
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 def _submit_ahead(
@@ -416,7 +442,7 @@ def stream_chunks(
         if serial:
             batch = batch.with_workers(1)
         capacity = batch.workers or os.cpu_count() or 1
-        size = run.chunk_size or max(1, min(64, math.ceil((n - 1) / (4 * capacity))))
+        size = run.chunk_size or max(1, min(_MAX_CHUNK, math.ceil((n - 1) / (4 * capacity))))
         chunks = (Chunk(s, targets_at(s, min(s + size, n))) for s in range(1, n, size))
         counted = _counted(iter_prepared(batch, chunks), bar)
         yield from (_in_order(counted, 1) if ordered else counted)

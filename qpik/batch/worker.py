@@ -95,10 +95,11 @@ class ChunkSolver:
 WORKER: dict[str, ChunkSolver] = {}
 
 
-def init_worker(setup: WorkerSetup) -> None:
-    """The initializer of a pool's worker process."""
+def init_worker(setup: WorkerSetup | ChunkSolver) -> None:
+    """The initializer of a pool's worker process: its solver, made from ``setup``, or
+    ``setup`` itself when it is one (a forked worker inherits the caller's, prepared)."""
     _die_with_parent()
-    WORKER["solver"] = ChunkSolver(setup)
+    WORKER["solver"] = setup if isinstance(setup, ChunkSolver) else ChunkSolver(setup)
 
 
 def _die_with_parent() -> None:

@@ -115,6 +115,14 @@ igm_solve = _igm.igm_solve
 #: with its scratch allocated inside; ``path`` (k, nq) and ``hist`` (k, 3) are the returned
 #: attempt's rows (new arrays), the other results those of ``info``.
 igm_run = _igm.igm_run
+#: ``igm_session_run(chain, target_p, target_R, has_rot, q_full, index, bounds, reach,
+#: options, int_options, rng_state, deadline) -> (code, iterations, restarts_used, q, path,
+#: hist, position_error, orientation_error)``: :func:`igm_run` on the coordinates ``index``
+#: (int64; ``None``: all) of the whole configuration ``q_full``, the chain being over those
+#: coordinates alone; ``q`` (the answer) and the rows of ``path`` are whole configurations
+#: (the other coordinates as in ``q_full``), the errors those of ``q`` (:class:`qpik.IKSession`'s
+#: call: its result needs no NumPy call of its own).
+igm_session_run = _igm._igm_session_run
 
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (
     _igm.CONVERGED,

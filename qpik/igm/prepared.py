@@ -57,6 +57,7 @@ class PreparedRobot:
     __slots__ = (
         "bounds_free",
         "bounds_joint",
+        "coupling_memo",
         "couplings",
         "frames",
         "lower",
@@ -84,6 +85,8 @@ class PreparedRobot:
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
         self.couplings = model_couplings(model)
+        #: (bytes of the last start, the couplings' error there), for IKSession
+        self.coupling_memo: tuple[bytes, float] | None = None
         #: the active equalities no level holds (connect, weld, ...): checked at the end
         self.unheld = unheld_equalities(model)
         self.frames: dict = {}  # frame key -> PreparedFrame

@@ -154,21 +154,34 @@ class IKResult(Outcome):
 
 class LazyRows(Sequence):
     """A read-only sequence of the rows of a 2-D array, each converted on access (to a
-    list, or a tuple): the compiled engine's histories, built only when read."""
+    list, or a tuple): the compiled engine's histories, built only when read. The rows are
+    ``array[first:, columns]`` (``columns``: ``slice(start, stop)``), sliced on access."""
 
-    __slots__ = ("_array", "_kind")
+    __slots__ = ("_array", "_columns", "_first", "_kind")
 
-    def __init__(self, array: np.ndarray, kind: type = list):
+    def __init__(
+        self,
+        array: np.ndarray,
+        kind: type = list,
+        first: int = 0,
+        start: int = 0,
+        stop: int | None = None,
+    ):
         self._array = array
         self._kind = kind
+        self._first = first
+        self._columns = slice(start, stop)
 
     def __len__(self) -> int:
-        return self._array.shape[0]
+        return max(0, self._array.shape[0] - self._first)
+
+    def _rows(self) -> np.ndarray:
+        return self._array[self._first :, self._columns]
 
     def __getitem__(self, index):
         if isinstance(index, slice):
-            return [self._kind(row) for row in self._array[index].tolist()]
-        return self._kind(self._array[index].tolist())
+            return [self._kind(row) for row in self._rows()[index].tolist()]
+        return self._kind(self._rows()[index].tolist())
 
     def __eq__(self, other) -> bool:
         return list(self) == list(other)

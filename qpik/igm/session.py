@@ -124,6 +124,10 @@ LIMIT_GAIN = 0.95
 _EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
+#: Bit generators whose raw output is their next 64-bit draw: for these,
+#: ``bit_generator.random_raw(1)`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
+#: endpoint=True)`` (one draw; the generator advances alike), without its argument handling.
+_RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
 #: What a solve's ``seed`` may be (see :func:`solve`).
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
@@ -150,6 +154,8 @@ def _rng_state(seed: Seed) -> np.ndarray:
     if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
         return np.array([int.from_bytes(os.urandom(8), "little")], dtype=np.uint64)
     if isinstance(seed, np.random.Generator):
+        if type(seed.bit_generator) in _RAW_UINT64:  # the same draw, ~10x cheaper
+            return seed.bit_generator.random_raw(1)
         return np.array([seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)])
     if isinstance(seed, np.random.SeedSequence):
         return seed.generate_state(1, np.uint64)
@@ -280,20 +286,29 @@ class IKSession:
         joint = settings.limits == "joint"
         limited = joint or bool(settings.limits)
         q_start = self._start(q0, check=limited)
-        if compiled_ok and not self._couplings_hold_off_chain(settings, frames[0][0], q_start):
+        start_coupling = None  # the couplings' error at q_start, where it was measured
+        if compiled_ok and settings.step.couplings and self._prepared.couplings is not None:
+            start_coupling = self._start_coupling_error(q_start)
+        if compiled_ok and start_coupling is not None and not start_coupling <= 1e-9:
             # A coupling of joints the compiled engine keeps still is broken at the start:
             # the "qp" engine restores it (its coupling level).
             if settings.engine == "compiled":
                 raise InvalidInput(
                     "engine='compiled' keeps the joints off the target's chain where they "
                     "are, and q0 breaks a coupling among them (the model's equality "
-                    f"constraints, by {self._coupling_error(q_start):.3g}); use "
+                    f"constraints, by {start_coupling:.3g}); use "
                     "engine='auto' or couplings=False"
                 )
             compiled_ok = False
         if compiled_ok and settings.engine != "qp":
             result = self._solve_compiled(
-                frames[0], q_start, joint, settings, kernel_options, rng_state, start_time
+                frames[0],
+                q_start,
+                joint,
+                settings,
+                (kernel_options, rng_state),
+                start_time,
+                start_coupling,
             )
             return self._check_unheld(result, settings)
         # A target provably out of reach ends the solve at once, unless the stack has
@@ -390,16 +405,17 @@ class IKSession:
             )
         return applies
 
-    def _couplings_hold_off_chain(
-        self, settings: SolveOptions, frame: PreparedFrame, q_start: np.ndarray
-    ) -> bool:
-        """Whether the model's couplings hold at ``q_start`` (to 1e-9), which the compiled
-        engine leaves to it (they involve no joint of the chain, which it alone moves);
-        True without couplings or with ``couplings=False``."""
-        couplings = self._prepared.couplings
-        if couplings is None or not settings.step.couplings:
-            return True
-        return couplings.error(q_start) <= 1e-9
+    def _start_coupling_error(self, q_start: np.ndarray) -> float:
+        """The couplings' error at ``q_start`` (the model has couplings), remembered for the
+        last start measured (a run of solves from the same start measures it once)."""
+        key = q_start.tobytes()
+        memo = self._prepared.coupling_memo
+        if memo is not None and memo[0] == key:
+            return memo[1]
+        assert self._prepared.couplings is not None
+        error = self._prepared.couplings.error(q_start)
+        self._prepared.coupling_memo = (key, error)
+        return error
 
     def _start(self, q0: npt.ArrayLike | None, check: bool) -> np.ndarray:
         """The validated start: ``q0``, else the robot's ``q``, else mid-range."""
@@ -478,41 +494,40 @@ class IKSession:
         )
 
     def _solve_compiled(
-        self, frame_target, q_start, joint, settings, kernel_options, rng_state, start_time
+        self, frame_target, q_start, joint, settings, kernel_inputs, start_time, start_coupling
     ) -> IKResult:
+        """The compiled engine's solve. ``start_coupling``: the couplings' error at
+        ``q_start`` when they were measured there (they then involve no joint of the
+        chain, which alone moves, so it is their error at the answer too), else None."""
         frame, target = frame_target
-        options, int_options = kernel_options
+        (options, int_options), rng_state = kernel_inputs
         deadline = start_time + settings.time_budget if int_options[3] else np.inf
         rotation = target.rotation
-        index = frame.index
-        if index is None:  # the chain's joints are all of q
-            chain, q_chain = frame.chain, q_start
+        if frame.index is None:  # the chain's joints are all of q
+            chain = frame.chain
             bounds = self._bounds_joint if joint else self._bounds_free
         else:  # the chain's joints only: the others stay where they are
-            chain, q_chain = frame.packed, q_start[index]
+            chain = frame.packed
             bounds = frame.bounds[0] if joint else frame.bounds[1]
-        code, iterations, restarts_used, path, history = kernels.igm_run(
-            chain.compiled,
-            target.position,
-            _EYE if rotation is None else rotation,
-            rotation is not None,
-            q_chain,
-            bounds,
-            frame.reach.array,
-            options,
-            int_options,
-            rng_state,
-            deadline,
+        code, iterations, restarts_used, q, path, history, position_error, orientation_error = (
+            kernels.igm_session_run(
+                chain.compiled,
+                target.position,
+                _EYE if rotation is None else rotation,
+                rotation is not None,
+                q_start,
+                frame.index,
+                bounds,
+                frame.reach.array,
+                options,
+                int_options,
+                rng_state,
+                deadline,
+            )
         )
-        if index is not None:
-            full = np.empty((path.shape[0], q_start.shape[0]))
-            full[:] = q_start
-            full[:, index] = path
-            path = full
-        position_error, orientation_error, _ = history[-1].tolist()
         converged = code == 0
         return IKResult(
-            path[-1].copy(),
+            q,
             converged,
             _REASONS_BY_CODE[code],
             iterations,
@@ -521,12 +536,12 @@ class IKSession:
             orientation_error,
             time.perf_counter() - start_time,
             {frame.name: (position_error, orientation_error)},
-            LazyRows(history[1:, 2:]),
-            LazyRows(history[:, :2], tuple),
+            LazyRows(history, list, 1, 2),
+            LazyRows(history, tuple, 0, 0, 2),
             path,
             "compiled",
             (converged,),
-            self._coupling_error(path[-1]),
+            start_coupling if start_coupling is not None else self._coupling_error(q),
         )
 
     def _coupling_error(self, q: np.ndarray) -> float:

@@ -508,3 +508,33 @@ def test_stacked_batches_are_checked_and_solved_as_the_plain_ones():
     assert C.stack_targets(model, mixed) is None
     with pytest.raises(qpik.UnknownFrame):
         C.stack_targets(model, [{"nope": targets[0]["ee"]}])
+
+
+def test_a_batch_mixing_poses_and_positions_is_stacked_and_pooled_as_serial():
+    """Pose targets and position targets of one frame (benchmarks/batch.py's batch) are
+    stacked at once; pooled results equal serial ones field for field (histories aside)."""
+    from qpik.batch import chunks as C
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(5)
+    targets: list[dict] = []
+    for k in range(24):
+        configuration.update(configuration.random_q(rng))
+        position, rotation = configuration.frame_pose("ee")
+        targets.append({"ee": (position, rotation)} if k % 4 else {"ee": list(position)})
+    targets.append({"ee": [3.0, 0.0, 0.4]})  # out of reach
+    stacked = C.stack_targets(model, targets)
+    assert stacked is not None and stacked.posed is not None
+    assert stacked[4]["ee"].tolist() == targets[4]["ee"] and len(stacked[3]["ee"]) == 2
+    assert len(stacked[2:9]) == 7 and stacked[2:9][2]["ee"].tolist() == targets[4]["ee"]
+    serial = qpik.solve_many(model, targets, workers=1, progress=False)
+    pooled = qpik.solve_many(
+        model, targets, workers=2, pool_threshold=0.0, chunk_size=5, progress=False
+    )
+    for a, b in zip(serial, pooled, strict=True):
+        assert a.q.tobytes() == b.q.tobytes()
+        for name in ("converged", "reason", "iterations", "restarts_used", "frame_errors"):
+            assert getattr(a, name) == getattr(b, name), name
+        for name in ("engine", "levels_met", "coupling_error", "constraint_error"):
+            assert getattr(a, name) == getattr(b, name), name

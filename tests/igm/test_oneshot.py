@@ -133,3 +133,38 @@ def test_an_unreachable_answer_reports_every_level():
     assert far.reason == "unreachable" and not far.converged
     assert len(near.levels_met) == len(far.levels_met) == 2
     assert far.levels_met[0] is False
+
+
+def test_generator_seeds_draw_as_integers_does():
+    """A numpy Generator seed takes one 64-bit draw: the same answer as the int that
+    ``integers(0, 2**64 - 1, dtype=uint64, endpoint=True)`` gives, and the generator is
+    left where that call leaves it, for every bit generator (the fast draw of the common
+    ones included)."""
+    session = qpik.IKSession("ur5e")
+    target = {"ee": ([0.3, 0.2, 0.4], np.eye(3))}
+    for kind in (np.random.PCG64, np.random.SFC64, np.random.Philox, np.random.MT19937):
+        given, twin = np.random.Generator(kind(3)), np.random.Generator(kind(3))
+        a = session.solve(target, seed=given, restarts=3, tol_position=1e-13)
+        seed = int(twin.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True))
+        b = session.solve(target, seed=seed, restarts=3, tol_position=1e-13)
+        assert a.q.tobytes() == b.q.tobytes() and a.restarts_used == b.restarts_used > 0
+        assert given.random() == twin.random()
+
+
+def test_couplings_off_the_chain_are_measured_once_and_reported():
+    """example-robot-data's panda has its fingers coupled (a URDF mimic) off the arm's
+    chain: the compiled engine's answer reports the couplings' error at the start (their
+    joints stay), as Couplings.error measures it at the answer."""
+    session = qpik.IKSession("erd:panda")
+    couplings = session._prepared.couplings
+    assert couplings is not None and len(couplings) > 0
+    frame = (qpik.robots.tool_frame(session.model).name, "body")
+    start = session.mid_q()
+    for finger in (0.01, 0.02, 0.01):
+        q0 = start.copy()
+        q0[couplings.qadr] = finger  # held: both fingers at the same opening
+        result = session.solve({frame: [0.4, 0.1, 0.5]}, q0=q0)
+        assert result.engine == "compiled"
+        assert result.coupling_error == couplings.error(result.q) == couplings.error(q0)
+    q0[couplings.qadr[0]] += 1e-3  # broken at the start: the "qp" engine restores it
+    assert session.solve({frame: [0.4, 0.1, 0.5]}, q0=q0).engine == "qp"
