@@ -2,24 +2,28 @@
 
 :func:`make_plan` builds a :class:`CompiledPlan` once per :class:`qpik.IKSolver` when every
 limit is one the compiled :class:`Kernel` takes (mink's ``ConfigurationLimit`` without a
-limited ball joint, ``VelocityLimit`` and ``CollisionAvoidanceLimit``; exact types). Tasks
-the kernel computes itself: qpik's or mink's ``FrameTask``, ``PostureTask``,
-``DampingTask``, ``ComTask``, mink's ``RelativeFrameTask`` (exact types, any joints). Any
-other task (qpik's pose, coupling and secondary tasks, mink's equality, DoF-freezing and
-kinetic-energy tasks, subclasses, user tasks) supplies its own rows: each step Python asks
-it for them (:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) and writes them
-into the plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to its
-level. Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
+limited ball joint, ``VelocityLimit`` and ``CollisionAvoidanceLimit``; exact types); its
+layout (which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself:
+qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's
+``RelativeFrameTask`` (exact types, any joints), and qpik's ``CouplingTask`` when every
+coupling is linear (a URDF mimic, a joint equality of degree 1: a constant Jacobian and a
+residual over qpos, ``qpik/_cpp/tasks/linear.hpp``). Any other task (qpik's pose,
+nonlinear coupling and secondary tasks, mink's equality, DoF-freezing and kinetic-energy
+tasks, subclasses, user tasks) supplies its own rows: each step Python asks it for them
+(:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) and writes them into the
+plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to its level.
+Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
 vector's length, else ``nv``); a step where it returns another shape goes to the QP path.
 Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
 one Jacobian call per frame, the rows of the tasks that supply them, the collision limits'
 rows ``G dq <= h``) and the kernel computes the other tasks' rows, the limits' box and the
-whole cascade
-(``qpik/_cpp/diffik/fused.hpp``), returning a :class:`~qpik.diffik.result.Solution`. It
-computes what the QP path computes, in the same arithmetic where that path's is qpik's
-(tests compare the two bitwise) and in mink's to round-off elsewhere; anything unusual (a
-non-finite row, conflicting limits, an active set that did not settle) returns None, and
-the QP path answers, reporting or recovering it.
+whole cascade (``qpik/_cpp/diffik/fused.hpp``), returning a
+:class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
+:class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
+the same arithmetic where that path's is qpik's (tests compare the two bitwise) and in
+mink's to round-off elsewhere; anything unusual (a non-finite row, conflicting limits, an
+active set that did not settle) returns None, and the QP path answers, reporting or
+recovering it.
 """
 
 from __future__ import annotations
@@ -37,30 +41,12 @@ from ..core import HierarchySolver
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.configuration import Configuration
-from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS
-from ..tasks import DampingTask, FrameTask, PostureTask
-from ..tasks.com import ComTask
 from .boxes import LimitBoxes, LimitRows
+from .layout import DAMPING_TYPES, JACOBIANS, limit_layout, plan_arrays, task_layout
 from .result import Solution, solve_rows
 from .rows import TaskRows, task_rows
 
 __all__ = ["CompiledPlan", "Kernel", "make_plan"]
-
-_KINDS = {"site": 0, "body": 1, "geom": 2}
-_OBJECTS = tuple(FRAME_OBJECTS[kind] for kind in _KINDS)  # in the order of the codes
-_JACOBIAN = tuple(FRAME_JACOBIANS[kind] for kind in _KINDS)
-#: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
-#: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
-_FRAME_TYPES = (FrameTask, mink.FrameTask)
-#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost) J``, J the identity with
-#: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
-_POSTURE_TYPES = (PostureTask, mink.PostureTask)
-_DAMPING_TYPES = (DampingTask, mink.DampingTask)
-#: CoM tasks: qpik's (any subtree) and mink's (the subtree of body 1). Exact types.
-_COM_TYPES = (ComTask, mink.ComTask)
-#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
-#: methods each step, in the same compiled call; exact types).
-_GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
 
 # Result codes of the kernel: anything but OK sends the step to the QP path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
@@ -72,10 +58,6 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #: Level statuses by the kernel's codes (as the floats of its info array).
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
-#: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
-_FRAME, _POSTURE, _COM, _RELATIVE, _DAMPING, _ROWS = 0, 1, 2, 3, 4, 5
-#: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
-_SCALAR_DOF, _FREE_DOF, _BALL_FIRST, _BALL_OTHER = 0, 1, 2, 3
 
 # The compiled kernel: its arguments are documented where it is bound
 # (qpik/_cpp/bind_diffik.cpp, above the Kernel class).
@@ -118,6 +100,9 @@ class CompiledPlan:
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
     #: tasks that supply their own rows: (task, first row, last row), ``user_mu`` in order
     rows_tasks: list = field(default_factory=list)
+    #: linear tasks (qpik's CouplingTask of linear couplings): (task, first, last column of
+    #: ``lin_data``)
+    linears: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 
     def __post_init__(self) -> None:
@@ -153,9 +138,24 @@ class CompiledPlan:
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
         self._gather_gains()
+        if self.linears and not self._gather_linears():
+            return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
         return self._poses(data)
+
+    def _gather_linears(self) -> bool:
+        """The linear tasks' costs, gains and LM damping into ``lin_data``; False when a
+        task's cost no longer has its rows' shape (the QP path answers)."""
+        lin = self.arrays["lin_data"]
+        for task, r0, r1 in self.linears:
+            cost = task.cost
+            if type(cost) is not np.ndarray or cost.shape != (r1 - r0,):
+                return False
+            lin[0, r0:r1] = cost
+            lin[1, r0] = task.gain
+            lin[2, r0] = task.lm_damping
+        return True
 
     def _gather_rows(self, configuration: mink.Configuration) -> bool:
         """The rows of the tasks that supply them (:func:`task_rows`, the QP path's arrays)
@@ -398,38 +398,6 @@ class CompiledPlan:
         return solve_rows(core, tasks, limits, dt)
 
 
-@dataclass(frozen=True)
-class _TaskLayout:
-    """Where each task of a stack goes in the plan: the frame, posture, CoM and relative
-    frame tasks with their frames or bodies, the tasks that supply their rows, the ``tasks``
-    table rows, the frames used ``((kind, id), relative)`` and each level's first row
-    (``starts``)."""
-
-    frames: list
-    postures: list
-    coms: list
-    relatives: list
-    tasks: list
-    frame_rows: list
-    starts: list
-    rows_tasks: list  # (task, first row, last row) of the tasks that supply their rows
-
-
-@dataclass(frozen=True)
-class _LimitLayout:
-    """The entries of a plan's limits: position limits (``cfg_dof``, ``cfg_qadr``,
-    ``cfg_data`` rows (lower, upper, gain), and ``(limit, first, last entry)``), velocity
-    limits (``vel_dof``, ``vel_limit``) and the general-row limits."""
-
-    cfg_dof: list
-    cfg_qadr: list
-    cfg_data: list
-    config_limits: list
-    vel_dof: list
-    vel_limit: list
-    general_limits: list
-
-
 def make_plan(
     model: mujoco.MjModel, levels: Sequence[Sequence], limits: LimitBoxes, core: HierarchySolver
 ) -> CompiledPlan | None:
@@ -439,22 +407,22 @@ def make_plan(
     ``limits`` (:attr:`qpik.StepOptions.max_joint_speed`) is appended to the velocity
     limits' entries: the kernel bounds each of its dofs by ``speed dt``, a hard bound as a
     velocity limit's."""
-    layout = _task_layout(model, levels)
-    boxes = _limit_layout(model, limits.limits)
+    layout = task_layout(model, levels)
+    boxes = limit_layout(model, limits.limits)
     if layout is None or boxes is None:
         return None
-    arrays = _plan_arrays(model, layout, boxes, limits)
+    arrays = plan_arrays(model, layout, boxes, limits)
     settings = arrays["settings"]
     settings[RANK_TOL], settings[TOL] = core.rank_tolerance, core.tolerance
     jac, frame_data, posture_data = arrays["jac"], arrays["frame_data"], arrays["posture_data"]
     com_jac, com_data = arrays["com_jac"], arrays["com_data"]
     rel_jac, rel_data = arrays["rel_jac"], arrays["rel_data"]
     frames = [
-        (task, _JACOBIAN[kind], fid, jac[f, :3], jac[f, 3:], frame_data[f])
+        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], frame_data[f])
         for f, (task, kind, fid) in enumerate(layout.frames)
     ]
     postures = [
-        (task, posture_data[p], type(task) in _DAMPING_TYPES)
+        (task, posture_data[p], type(task) in DAMPING_TYPES)
         for p, task in enumerate(layout.postures)
     ]
     coms = [
@@ -462,7 +430,7 @@ def make_plan(
         for c, (task, body, given) in enumerate(layout.coms)
     ]
     relatives = [
-        (task, (_JACOBIAN[f[0]], f[1]), (_JACOBIAN[r[0]], r[1]), rel_jac[i], rel_data[i])
+        (task, (JACOBIANS[f[0]], f[1]), (JACOBIANS[r[0]], r[1]), rel_jac[i], rel_data[i])
         for i, (task, f, r) in enumerate(layout.relatives)
     ]
     used = tuple(any(kind == k for (kind, _), _rel in layout.frame_rows) for k in range(3))
@@ -472,202 +440,15 @@ def make_plan(
         a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], a["frame_data"],
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
-        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"],
+        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
+        a["lin_const"], a["lin_data"],
     )  # fmt: skip
+    lin_starts = a["lin_starts"].tolist()
+    linears = [
+        (task, lin_starts[i], lin_starts[i + 1]) for i, (task, _, _) in enumerate(layout.linears)
+    ]
     return CompiledPlan(
         model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
         arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
+        linears=linears,
     )  # fmt: skip
-
-
-def _plan_arrays(
-    model: mujoco.MjModel, layout: _TaskLayout, boxes: _LimitLayout, limits: LimitBoxes
-) -> dict:
-    """The arrays the kernel holds, preallocated (the float ones written before each
-    call)."""
-    nv, nq = model.nv, model.nq
-    vel_dof = [*boxes.vel_dof, *limits.trust_dofs.tolist()]
-    vel_limit = [*boxes.vel_limit, *limits.trust_speeds.tolist()]
-    F, P, C, R = len(layout.frames), len(layout.postures), len(layout.coms), len(layout.relatives)
-    M = layout.starts[-1]
-    i64 = np.int64
-    frames = [row for row, rel in layout.frame_rows if not rel]
-    rel_frames = [(*f, *r) for _, f, r in layout.relatives]
-    return {
-        "A": np.zeros((M, nv)),
-        "b": np.zeros(M),
-        "w": np.zeros(M),
-        "starts": np.asarray(layout.starts, dtype=i64),
-        "tasks": np.asarray(layout.tasks, dtype=i64).reshape(-1, 4),
-        "jac": np.zeros((F, 6, nv)),
-        "frames": np.asarray(frames, dtype=i64).reshape(-1, 2),
-        "frame_data": np.zeros((F, 15)),
-        "posture_data": np.zeros((P, nq + nv + 2)),
-        "posture_map": _posture_map(model),
-        "cfg_dof": np.asarray(boxes.cfg_dof, dtype=i64),
-        "cfg_qadr": np.asarray(boxes.cfg_qadr, dtype=i64),
-        "cfg_data": np.asarray(boxes.cfg_data, dtype=float).reshape(-1, 3),
-        "vel_dof": np.asarray(vel_dof, dtype=i64),
-        "vel_limit": np.asarray(vel_limit, dtype=float),
-        "settings": np.zeros(7),
-        "com_jac": np.zeros((C, 3, nv)),
-        "com_body": np.asarray([body for _, body, _ in layout.coms], dtype=i64),
-        "com_data": np.zeros((C, 8)),
-        "rel_jac": np.zeros((R, 12, nv)),
-        "rel_frames": np.asarray(rel_frames, dtype=i64).reshape(-1, 4),
-        "rel_data": np.zeros((R, 15)),
-        "user_mu": np.zeros(len(layout.rows_tasks)),
-        "empty3": np.zeros((0, 3)),
-        "empty9": np.zeros((0, 9)),
-    }
-
-
-def _posture_map(model: mujoco.MjModel) -> np.ndarray:
-    """Per dof ``(kind, qpos address)`` (see ``_SCALAR_DOF``...): how a posture task's
-    error ``q (-) q*`` (``mj_differentiatePos``) reads ``qpos``."""
-    out = np.zeros((model.nv, 2), dtype=np.int64)
-    for j in range(model.njnt):
-        kind, q0, v0 = int(model.jnt_type[j]), int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
-        if kind == mujoco.mjtJoint.mjJNT_FREE:
-            out[v0 : v0 + 6] = (_FREE_DOF, q0)
-        elif kind == mujoco.mjtJoint.mjJNT_BALL:
-            out[v0] = (_BALL_FIRST, q0)
-            out[v0 + 1 : v0 + 3] = (_BALL_OTHER, q0)
-        else:
-            out[v0] = (_SCALAR_DOF, q0)
-    return out
-
-
-def _frame_entry(model: mujoco.MjModel, frame_type, frame_name) -> tuple[int, int] | None:
-    """``(kind, id)`` of a frame, None when the QP path must serve it (an unknown
-    frame type or name: it reports them)."""
-    kind = _KINDS.get(getattr(frame_type, "value", frame_type))
-    if kind is None:
-        return None
-    if isinstance(frame_name, (int, np.integer)) and not isinstance(frame_name, bool):
-        count = (model.nsite, model.nbody, model.ngeom)[kind]
-        return (kind, int(frame_name)) if 0 <= frame_name < count else None
-    if not isinstance(frame_name, str):
-        return None
-    fid = mujoco.mj_name2id(model, _OBJECTS[kind], frame_name)
-    return None if fid < 0 else (kind, fid)
-
-
-def _com_body(model: mujoco.MjModel, task) -> tuple[int, object] | None:
-    """``(body id, task.body as given)`` of a CoM task (mink's: body 1, None), None when the
-    QP path must serve it (an unknown body: it reports it)."""
-    if type(task) is mink.ComTask:
-        return (1, None) if model.nbody > 1 else None
-    given = task.body
-    if isinstance(given, str):
-        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, given)
-    elif isinstance(given, (int, np.integer)) and not isinstance(given, bool):
-        body = int(given) if 0 <= int(given) < model.nbody else -1
-    else:
-        return None
-    return None if body < 0 else (body, given)
-
-
-def _declared_rows(task, nv: int) -> int:
-    """The rows a task that supplies its own declares: ``task.k`` (mink's row count), else
-    the length of its ``cost`` vector, else ``nv`` (a task of ``(H, c)`` only: its factor has
-    ``nv`` rows where ``H`` has full rank)."""
-    k = getattr(task, "k", None)
-    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
-        return int(k)
-    cost = getattr(task, "cost", None)
-    if isinstance(cost, np.ndarray) and cost.ndim == 1:
-        return cost.shape[0]
-    return nv
-
-
-def _task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> _TaskLayout | None:
-    """The layout of a stack: the tasks the kernel computes (qpik's or mink's FrameTask /
-    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask; exact types) and those
-    that supply their rows (any other); None where a task the kernel computes names what the
-    model lacks (the QP path reports it). Rows are laid out level by level, task by task."""
-    frames, postures, coms, relatives, tasks, frame_rows = [], [], [], [], [], []
-    rows_tasks: list = []
-    starts = [0]
-    nv = model.nv
-    for k, level in enumerate(levels):
-        row = starts[-1]
-        for task in level:
-            kind = type(task)
-            if kind in _FRAME_TYPES:
-                entry = _frame_entry(model, task.frame_type, task.frame_name)
-                if entry is None:
-                    return None
-                tasks.append((_FRAME, len(frames), k, row))
-                frames.append((task, *entry))
-                frame_rows.append((entry, False))
-                row += 6
-            elif kind in _POSTURE_TYPES or kind in _DAMPING_TYPES:
-                if np.shape(getattr(task, "cost", None)) != (nv,):
-                    return None
-                if kind in _DAMPING_TYPES:
-                    tasks.append((_DAMPING, len(postures), k, row))
-                else:
-                    tasks.append((_POSTURE, len(postures), k, row))
-                postures.append(task)
-                row += nv
-            elif kind in _COM_TYPES:
-                entry = _com_body(model, task)
-                if entry is None or np.shape(task.cost) != (3,):
-                    return None
-                tasks.append((_COM, len(coms), k, row))
-                coms.append((task, *entry))
-                row += 3
-            elif kind is mink.RelativeFrameTask:
-                frame = _frame_entry(model, task.frame_type, task.frame_name)
-                root = _frame_entry(model, task.root_type, task.root_name)
-                if frame is None or root is None:
-                    return None
-                tasks.append((_RELATIVE, len(relatives), k, row))
-                relatives.append((task, frame, root))
-                frame_rows.extend(((frame, True), (root, True)))
-                row += 6
-            else:  # rows supplied by the task itself, each step
-                size = _declared_rows(task, nv)
-                tasks.append((_ROWS, len(rows_tasks), k, row))
-                rows_tasks.append((task, row, row + size))
-                row += size
-        starts.append(row)
-    return _TaskLayout(frames, postures, coms, relatives, tasks, frame_rows, starts, rows_tasks)
-
-
-def _limit_layout(model: mujoco.MjModel, limits: Sequence) -> _LimitLayout | None:
-    """The entries of mink's position and velocity limits and its collision avoidance
-    limits (None when another limit is present, or a position limit bounds a ball
-    joint)."""
-    cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit = [], [], [], [], [], []
-    general_limits = []
-    for limit in limits:
-        if type(limit) is mink.ConfigurationLimit:
-            if _limits_a_ball_joint(limit.model):
-                return None  # a ball joint's cone row: the QP path
-            indices = np.asarray(limit.indices, dtype=np.int64)
-            qadr = model.jnt_qposadr[model.dof_jntid[indices]].astype(np.int64)
-            e0 = len(cfg_dof)
-            cfg_dof.extend(indices.tolist())
-            cfg_qadr.extend(qadr.tolist())
-            lower, upper = np.asarray(limit.lower)[qadr], np.asarray(limit.upper)[qadr]
-            cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
-            config_limits.append((limit, e0, len(cfg_dof)))
-        elif type(limit) is mink.VelocityLimit:
-            vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
-            vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
-        elif type(limit) in _GENERAL_LIMITS:
-            general_limits.append(limit)
-        else:
-            return None
-    return _LimitLayout(
-        cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits
-    )
-
-
-def _limits_a_ball_joint(model: mujoco.MjModel) -> bool:
-    """A ball joint of ``model`` has a range (mink's ConfigurationLimit bounds its rotation
-    angle by a general row, which the kernel does not compute)."""
-    ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
-    return bool(np.any(ball & (model.jnt_limited != 0)))
