@@ -163,6 +163,9 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //   first; ``canonical``: warm starting on. ``code`` OK or why the QP path must answer;
 //   ``info`` (9, L) rows: residual, sigma, lambda^2, status, iterations, then the
 //   certificate (primal, stationarity, dual, complementarity); ``active`` (L, nv + p) int8.
+// Kernel.attach(owner, <step's first 8 arguments>); Kernel.run(G, h, warm, canonical, max_iter)
+//   MuJoCo's arrays of one MjData (owner), checked and held once (its arrays never move;
+//   the owner is kept alive with them); run is step on them, without passing them again.
 // Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
 //   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
 //   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
@@ -304,6 +307,13 @@ class Kernel {
     diffik::FusedArgs args(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
                            const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
                            const In1& h) {
+        check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
+        return fill(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
+    }
+
+    // MuJoCo's arrays checked against the plan (shapes, frame ids, CoM bodies).
+    void check_poses(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
+                     const In2& gx, const In2& gm, const In2& subtree_com) const {
         require(dim(qpos, 0) == nq_, "Kernel: qpos must have shape (nq,)");
         require(dim(sx, 1) == 3 && dim(x, 1) == 3 && dim(gx, 1) == 3 && dim(subtree_com, 1) == 3,
                 "Kernel: the positions must have shape (*, 3)");
@@ -313,6 +323,12 @@ class Kernel {
                               std::min(dim(gx, 0), dim(gm, 0))};
         for (i64 k = 0; k < 3; ++k) require(max_id_[k] < count[k], "Kernel: a frame id is out of range of its poses");
         require(max_body_ < dim(subtree_com, 0), "Kernel: a CoM body is out of range of subtree_com");
+    }
+
+    // The arguments of one call (MuJoCo's arrays already checked).
+    diffik::FusedArgs fill(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
+                           const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
+                           const In1& h) {
         require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel: G must have shape (p, nv), h (p,)");
         diffik::FusedArgs a;
         a.A = mat(A_);
@@ -356,6 +372,21 @@ class Kernel {
         return a;
     }
 
+    // MuJoCo's arrays of one MjData held for run() (checked once; `owner`, the MjData, is kept
+    // alive with them: its arrays never move).
+    void attach(nb::object owner, const In1& qpos, const In2& sx, const In2& sm, const In2& x,
+                const In2& xm, const In2& gx, const In2& gm, const In2& subtree_com) {
+        check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
+        attached_ = Attached{std::move(owner), qpos, sx, sm, x, xm, gx, gm, subtree_com};
+    }
+
+    // The arguments of one call on the attached MjData's arrays.
+    diffik::FusedArgs attached_args(const In2& G, const In1& h) {
+        require(attached_.has_value(), "Kernel.run: no MjData attached (Kernel.attach)");
+        const Attached& t = *attached_;
+        return fill(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com, G, h);
+    }
+
     i64 levels() const { return L_; }
     i64 nv() const { return n_; }
 
@@ -371,12 +402,32 @@ class Kernel {
     Held2 rel_data_;
     std::optional<Held1> user_mu_;
     std::optional<Held2> lin_const_, lin_data_;
+    struct Attached {
+        nb::object owner;
+        In1 qpos;
+        In2 sx, sm, x, xm, gx, gm, subtree_com;
+    };
+    std::optional<Attached> attached_;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
         vel_dof_, lin_starts_;
     i64 max_id_[3] = {-1, -1, -1};
     i64 max_body_ = -1;
 };
+
+// Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.
+auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
+                i64 max_iter) {
+    const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
+    require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.step: warm must have shape (L, nv + p)");
+    diffik::StepResult r =
+        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
+    if (r.v_is_d) r.v = r.d;
+    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
+                           to_numpy(std::move(r.info), {9, L_}),
+                           to_numpy(std::move(r.active), {L_, cols}));
+}
 
 }  // namespace
 
@@ -404,16 +455,7 @@ void bind_diffik(nb::module_& m) {
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
                In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
                 diffik::FusedArgs a = k.args(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
-                const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
-                require(dim(warm, 0) == L && dim(warm, 1) == n + p,
-                        "Kernel.step: warm must have shape (L, nv + p)");
-                diffik::StepResult r = diffik::fused_step(
-                    a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
-                if (r.v_is_d) r.v = r.d;
-                const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
-                return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                                       to_numpy(std::move(r.info), {9, L_}),
-                                       to_numpy(std::move(r.active), {L_, cols}));
+                return step_tuple(k, a, warm, canonical, max_iter);
             },
             nb::arg("qpos"), nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"),
             nb::arg("xmat"), nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),
@@ -421,6 +463,20 @@ void bind_diffik(nb::module_& m) {
             "Rows of every task, the limits' box and general rows G dq <= h, and the cascade; "
             "returns (code, dq, v, info (9, L): residual, sigma, lambda^2, status, iterations, "
             "then the certificate's four measures, active (L, nv + p) int8).")
+        .def("attach", &Kernel::attach, nb::arg("owner"), nb::arg("qpos"), nb::arg("site_xpos"),
+             nb::arg("site_xmat"), nb::arg("xpos"), nb::arg("xmat"), nb::arg("geom_xpos"),
+             nb::arg("geom_xmat"), nb::arg("subtree_com"),
+             "Hold one MjData's arrays (step's first 8 arguments, checked once; owner, the MjData, "
+             "kept alive with them) for run().")
+        .def(
+            "run",
+            [](Kernel& k, In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
+                diffik::FusedArgs a = k.attached_args(G, h);
+                return step_tuple(k, a, warm, canonical, max_iter);
+            },
+            nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
+            "step() on the attached MjData's arrays (Kernel.attach): step's last 5 arguments, the "
+            "same answer.")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

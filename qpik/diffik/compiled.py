@@ -28,6 +28,7 @@ recovering it.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,7 +44,7 @@ from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
 from .layout import DAMPING_TYPES, JACOBIANS, limit_layout, plan_arrays, task_layout
-from .result import Solution, solve_rows
+from .result import Solution, StepResult, solve_rows
 from .rows import TaskRows, task_rows
 
 __all__ = ["CompiledPlan", "Kernel", "make_plan"]
@@ -106,6 +107,8 @@ class CompiledPlan:
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 
     def __post_init__(self) -> None:
+        self._data: mujoco.MjData | None = None  # the MjData whose arrays _pose_args views
+        self._pose_args: tuple = ()
         self.no_rows = np.zeros((0, self.model.nv))
         self.no_h = np.zeros(0)
         self.colds[0] = self.cold
@@ -142,7 +145,11 @@ class CompiledPlan:
             return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
-        return self._poses(data)
+        if data is not self._data:  # MjData's arrays never move: their views are kept
+            self._pose_args = self._poses(data)
+            self.kernel.attach(data, *self._pose_args)
+            self._data = data
+        return self._pose_args
 
     def _gather_linears(self) -> bool:
         """The linear tasks' costs, gains and LM damping into ``lin_data``; False when a
@@ -305,6 +312,34 @@ class CompiledPlan:
             exact = None
         return self._rows_then_cascade(poses, configuration, dt, core, exact)
 
+    def step_result(
+        self,
+        configuration: mink.Configuration,
+        dt: float,
+        damping: float,
+        core: HierarchySolver,
+        start: float,
+        skip: int,
+    ) -> StepResult | None:
+        """:meth:`step` with the default solver as the :class:`StepResult` that
+        :meth:`qpik.IKSolver.step` returns (the same numbers, without the
+        :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
+        ``skip`` 1 when the first level is the couplings' (reported apart). None where the QP
+        path must answer."""
+        poses = self.gather(configuration)
+        if poses is None:
+            return None
+        self.write_settings(dt, damping, core)
+        out = self._kernel_step(poses, configuration, dt, core, False)
+        if out is None:
+            return None
+        d, v, info, general = out
+        qpos = poses[0].copy()
+        return StepResult.lazy(
+            v, d, info, skip, time.perf_counter() - start,
+            lambda: self._limit_rows(qpos, dt, general),
+        )  # fmt: skip
+
     def _one_call(
         self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool = False
     ) -> Solution | None:
@@ -313,8 +348,8 @@ class CompiledPlan:
         out = self._kernel_step(poses, configuration, dt, core, forced)
         if out is None:
             return None
-        d, v, info, status, general = out
-        residuals, sigma, lam2, _, iterations = info[:5].tolist()
+        d, v, info, general = out
+        residuals, sigma, lam2, status, iterations = info[:5].tolist()
         qpos = poses[0].copy()
         return Solution(
             displacement=d,
@@ -331,9 +366,9 @@ class CompiledPlan:
     def _kernel_step(
         self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool
     ) -> tuple | None:
-        """The kernel's step: ``(dq, v, info, status codes, general rows)``, None where the
-        QP path must answer (``forced``: also where a level was not solved); ``core``'s
-        active sets updated."""
+        """The kernel's step: ``(dq, v, info, general rows)``, None where the QP path must
+        answer (``forced``: also where a level was not solved); ``core``'s active sets
+        updated."""
         general = self._general(configuration, dt)
         if general is None:
             return None
@@ -342,16 +377,13 @@ class CompiledPlan:
         warm = core.warm_sets(self.cold.shape[0], nv + p)
         if warm is None:
             warm = self.cold_for(p)
-        code, d, v, info, active = self.kernel.step(
-            *poses, G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
+        code, d, v, info, active = self.kernel.run(  # on poses, attached by gather
+            G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
         )
-        if code:
-            return None
-        status = info[3].tolist()
-        if forced and any(s != _SOLVED_CODE for s in status):
+        if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):
             return None
         core.warm_start_from(active)
-        return d, v, info, status, general
+        return d, v, info, general
 
     def velocity(
         self,
@@ -374,7 +406,7 @@ class CompiledPlan:
         out = self._kernel_step(poses, configuration, dt, core, core.solver != "auto")
         if out is None:
             return None
-        return out[1], [_STATUS_OF_CODE[s] for s in out[3]]
+        return out[1], [_STATUS_OF_CODE[s] for s in out[2][3].tolist()]
 
     def _rows_then_cascade(
         self, poses: tuple, configuration: mink.Configuration, dt: float, core, exact
