@@ -65,13 +65,20 @@ _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SO
 Kernel = _engine.Kernel
 
 
-def _write_pose_row(row: np.ndarray, task, pose) -> None:
+def _views(row: np.ndarray, size: int, cost: int) -> tuple:
+    """A task's data row with its target ``row[:size]`` and cost ``row[size:size + cost]``
+    as views (writing into a held view is cheaper than slicing each step)."""
+    return row, row[:size], row[size : size + cost]
+
+
+def _write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
-    data row (15)."""
+    data row (15; :func:`_views`)."""
     if pose is None:
         raise TargetNotSet(type(task).__name__)
-    row[0:7] = pose.wxyz_xyz
-    row[7:13] = task.cost
+    row, target, cost = views
+    target[...] = pose.wxyz_xyz
+    cost[...] = task.cost
     row[13] = task.gain
     row[14] = task.lm_damping
 
@@ -101,12 +108,13 @@ class CompiledPlan:
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
     #: tasks that supply their own rows: (task, first row, last row), ``user_mu`` in order
     rows_tasks: list = field(default_factory=list)
-    #: linear tasks (qpik's CouplingTask of linear couplings): (task, first, last column of
-    #: ``lin_data``)
+    #: linear tasks (qpik's CouplingTask of linear couplings): (task, first column of
+    #: ``lin_data``, the view of its costs there)
     linears: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
 
     def __post_init__(self) -> None:
+        self.nv, self.levels = self.model.nv, self.cold.shape[0]
         self._data: mujoco.MjData | None = None  # the MjData whose arrays _pose_args views
         self._pose_args: tuple = ()
         self.no_rows = np.zeros((0, self.model.nv))
@@ -155,11 +163,11 @@ class CompiledPlan:
         """The linear tasks' costs, gains and LM damping into ``lin_data``; False when a
         task's cost no longer has its rows' shape (the QP path answers)."""
         lin = self.arrays["lin_data"]
-        for task, r0, r1 in self.linears:
+        for task, r0, cost_view in self.linears:
             cost = task.cost
-            if type(cost) is not np.ndarray or cost.shape != (r1 - r0,):
+            if type(cost) is not np.ndarray or cost.shape != cost_view.shape:
                 return False
-            lin[0, r0:r1] = cost
+            cost_view[...] = cost
             lin[1, r0] = task.gain
             lin[2, r0] = task.lm_damping
         return True
@@ -188,28 +196,27 @@ class CompiledPlan:
 
     def _gather_postures(self) -> None:
         """Posture and damping tasks' targets, costs, gains and LM damping."""
-        nv, nq = self.model.nv, self.model.nq
-        for task, row, damping in self.postures:
+        for task, (row, target_view, cost_view), damping in self.postures:
             if not damping:  # a damping task's error is zero: no target
                 target = task.target_q
                 if target is None:
                     raise TargetNotSet(type(task).__name__)
-                row[0:nq] = target
-            row[nq : nq + nv] = task.cost
-            row[nq + nv] = task.gain
-            row[nq + nv + 1] = task.lm_damping
+                target_view[...] = target
+            cost_view[...] = task.cost
+            row[-2] = task.gain
+            row[-1] = task.lm_damping
 
     def _gather_coms(self, data: mujoco.MjData) -> bool:
         """CoM tasks' targets, costs and Jacobians; False when a task's subtree changed
         (the QP path resolves it)."""
-        for task, body, given, jac, row in self.coms:
+        for task, body, given, jac, (row, target_view, cost_view) in self.coms:
             if given is not None and task.body is not given:
                 return False
             target = task.target_com
             if target is None:
                 raise TargetNotSet(type(task).__name__)
-            row[0:3] = target
-            row[3:6] = task.cost
+            target_view[...] = target
+            cost_view[...] = task.cost
             row[6] = task.gain
             row[7] = task.lm_damping
             mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
@@ -373,12 +380,12 @@ class CompiledPlan:
         if general is None:
             return None
         G, h, _ = general
-        nv, p = self.model.nv, G.shape[0]
-        warm = core.warm_sets(self.cold.shape[0], nv + p)
+        rows = self.nv + G.shape[0]  # box rows, then general rows
+        warm = core.warm_sets(self.levels, rows)
         if warm is None:
-            warm = self.cold_for(p)
+            warm = self.cold_for(rows - self.nv)
         code, d, v, info, active = self.kernel.run(  # on poses, attached by gather
-            G, h, warm, core.warm_start, self.max_iter or 10 * (nv + p) + 50
+            G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
         )
         if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):
             return None
@@ -450,19 +457,25 @@ def make_plan(
     com_jac, com_data = arrays["com_jac"], arrays["com_data"]
     rel_jac, rel_data = arrays["rel_jac"], arrays["rel_data"]
     frames = [
-        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], frame_data[f])
+        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], _views(frame_data[f], 7, 6))
         for f, (task, kind, fid) in enumerate(layout.frames)
     ]
     postures = [
-        (task, posture_data[p], type(task) in DAMPING_TYPES)
+        (task, _views(posture_data[p], model.nq, model.nv), type(task) in DAMPING_TYPES)
         for p, task in enumerate(layout.postures)
     ]
     coms = [
-        (task, body, given, com_jac[c], com_data[c])
+        (task, body, given, com_jac[c], _views(com_data[c], 3, 3))
         for c, (task, body, given) in enumerate(layout.coms)
     ]
     relatives = [
-        (task, (JACOBIANS[f[0]], f[1]), (JACOBIANS[r[0]], r[1]), rel_jac[i], rel_data[i])
+        (
+            task,
+            (JACOBIANS[f[0]], f[1]),
+            (JACOBIANS[r[0]], r[1]),
+            rel_jac[i],
+            _views(rel_data[i], 7, 6),
+        )
         for i, (task, f, r) in enumerate(layout.relatives)
     ]
     used = tuple(any(kind == k for (kind, _), _rel in layout.frame_rows) for k in range(3))
@@ -477,7 +490,8 @@ def make_plan(
     )  # fmt: skip
     lin_starts = a["lin_starts"].tolist()
     linears = [
-        (task, lin_starts[i], lin_starts[i + 1]) for i, (task, _, _) in enumerate(layout.linears)
+        (task, lin_starts[i], a["lin_data"][0, lin_starts[i] : lin_starts[i + 1]])
+        for i, (task, _, _) in enumerate(layout.linears)
     ]
     return CompiledPlan(
         model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
