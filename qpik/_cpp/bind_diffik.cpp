@@ -129,7 +129,8 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //
 // Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 //        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
-//        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None)
+//        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None, lin_starts=None,
+//        lin_const=None, lin_data=None)
 //   One stack's compiled step (built by make_plan). The index arrays are copied and checked
 //   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
 //   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
@@ -138,7 +139,12 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //   that kind's arrays, level, first row. A kind-5 task's rows of ``A, b, w`` are written by
 //   the caller before each call and left as they are; ``user_mu[u]`` (U,) is its LM term,
 //   added to its level's regularisation in the stack's order (optional: None, no such
-//   task). Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
+//   task). Kind 6, a linear task (qpik's CouplingTask of linear couplings, tasks/linear.hpp):
+//   task ``i`` owns the stacked rows ``r0:r1 = lin_starts[i]:lin_starts[i+1]`` of
+//   ``lin_const`` (K, nv + nq + 1), each its constant Jacobian row, its coefficients over
+//   qpos and its offset (held, written once), and the columns ``r0:r1`` of ``lin_data``
+//   (3, K): its rows' costs, then its gain and LM damping in column ``r0`` (written before
+//   each call); the three are optional, together. Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
 //   0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
 //   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
 //   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
@@ -157,6 +163,9 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //   first; ``canonical``: warm starting on. ``code`` OK or why the QP path must answer;
 //   ``info`` (9, L) rows: residual, sigma, lambda^2, status, iterations, then the
 //   certificate (primal, stationarity, dual, complementarity); ``active`` (L, nv + p) int8.
+// Kernel.attach(owner, <step's first 8 arguments>); Kernel.run(G, h, warm, canonical, max_iter)
+//   MuJoCo's arrays of one MjData (owner), checked and held once (its arrays never move;
+//   the owner is kept alive with them); run is step on them, without passing them again.
 // Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
 //   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
 //   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
@@ -176,11 +185,12 @@ class Kernel {
            Held2 frame_data, Held2 posture_data, const I2& posture_map, const I1& cfg_dof,
            const I1& cfg_qadr, Held2 cfg_data, const I1& vel_dof, Held1 vel_limit, Held1 settings,
            Held3 com_jac, const I1& com_body, Held2 com_data, Held3 rel_jac, const I2& rel_frames,
-           Held2 rel_data, i64 nq, std::optional<Held1> user_mu)
+           Held2 rel_data, i64 nq, std::optional<Held1> user_mu, std::optional<I1> lin_starts,
+           std::optional<Held2> lin_const, std::optional<Held2> lin_data)
         : A_(A), b_(b), w_(w), jac_(jac), frame_data_(frame_data), posture_data_(posture_data),
           cfg_data_(cfg_data), vel_limit_(vel_limit), settings_(settings), com_jac_(com_jac),
           com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), user_mu_(std::move(user_mu)),
-          nq_(nq) {
+          lin_const_(std::move(lin_const)), lin_data_(std::move(lin_data)), nq_(nq) {
         const i64 n = dim(A, 1), M = dim(A, 0);
         n_ = n;
         require(nq >= n, "Kernel: nq must be >= nv");
@@ -228,6 +238,24 @@ class Kernel {
             require(com_body_.data[c] >= 0, "Kernel: a CoM body id is negative");
             max_body_ = std::max(max_body_, com_body_.data[c]);
         }
+        // Linear tasks: lin_starts (U + 1) from 0 to K, lin_const (K, nv + nq + 1), lin_data (3, K).
+        require(lin_starts.has_value() == lin_const_.has_value() &&
+                    lin_starts.has_value() == lin_data_.has_value(),
+                "Kernel: lin_starts, lin_const and lin_data come together");
+        i64 lin_tasks = 0;
+        if (lin_starts) {
+            lin_starts_.assign(*lin_starts);
+            lin_tasks = lin_starts_.rows - 1;
+            require(lin_tasks >= 0, "Kernel: lin_starts must have U + 1 >= 1 entries");
+            const i64* ls = lin_starts_.data.data();
+            require(ls[0] == 0, "Kernel: lin_starts must start at 0");
+            for (i64 u = 0; u < lin_tasks; ++u) require(ls[u] <= ls[u + 1], "Kernel: lin_starts must not decrease");
+            const i64 K = ls[lin_tasks];
+            require(dim(*lin_const_, 0) == K && dim(*lin_const_, 1) == n + nq + 1,
+                    "Kernel: lin_const must have shape (K, nv + nq + 1), K = lin_starts[-1]");
+            require(dim(*lin_data_, 0) == 3 && dim(*lin_data_, 1) == K,
+                    "Kernel: lin_data must have shape (3, K), K = lin_starts[-1]");
+        }
         tasks_.assign(tasks);
         require(dim(tasks, 1) == 4, "Kernel: tasks must have shape (T, 4)");
         for (i64 k = 0; k < tasks_.rows; ++k) {
@@ -241,9 +269,11 @@ class Kernel {
                 case diffik::COM: count = C; size = 3; break;
                 case diffik::RELATIVE: count = R; size = 6; break;
                 case diffik::ROWS: count = U; size = 0; break;  // its rows: the caller's
-                default: require(false, "Kernel: a task kind is not 0 to 5");
+                case diffik::LINEAR: count = lin_tasks; break;
+                default: require(false, "Kernel: a task kind is not 0 to 6");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
+            if (kind == diffik::LINEAR) size = lin_starts_.data[index + 1] - lin_starts_.data[index];
             require(level >= 0 && level < L, "Kernel: a task level is out of range");
             require(row >= 0 && row + size <= M, "Kernel: a task's rows are out of range of A");
         }
@@ -277,6 +307,13 @@ class Kernel {
     diffik::FusedArgs args(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
                            const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
                            const In1& h) {
+        check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
+        return fill(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
+    }
+
+    // MuJoCo's arrays checked against the plan (shapes, frame ids, CoM bodies).
+    void check_poses(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
+                     const In2& gx, const In2& gm, const In2& subtree_com) const {
         require(dim(qpos, 0) == nq_, "Kernel: qpos must have shape (nq,)");
         require(dim(sx, 1) == 3 && dim(x, 1) == 3 && dim(gx, 1) == 3 && dim(subtree_com, 1) == 3,
                 "Kernel: the positions must have shape (*, 3)");
@@ -286,6 +323,12 @@ class Kernel {
                               std::min(dim(gx, 0), dim(gm, 0))};
         for (i64 k = 0; k < 3; ++k) require(max_id_[k] < count[k], "Kernel: a frame id is out of range of its poses");
         require(max_body_ < dim(subtree_com, 0), "Kernel: a CoM body is out of range of subtree_com");
+    }
+
+    // The arguments of one call (MuJoCo's arrays already checked).
+    diffik::FusedArgs fill(const In1& qpos, const In2& sx, const In2& sm, const In2& x, const In2& xm,
+                           const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
+                           const In1& h) {
         require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel: G must have shape (p, nv), h (p,)");
         diffik::FusedArgs a;
         a.A = mat(A_);
@@ -321,7 +364,27 @@ class Kernel {
         a.G = CMatRef(G.data(), dim(G, 0), n_);
         a.h = cvec(h);
         if (user_mu_) a.user_mu = cvec(*user_mu_);
+        if (lin_const_) {
+            a.lin_starts = lin_starts_.vec();
+            a.lin_const = cmat(*lin_const_);
+            a.lin_data = cmat(*lin_data_);
+        }
         return a;
+    }
+
+    // MuJoCo's arrays of one MjData held for run() (checked once; `owner`, the MjData, is kept
+    // alive with them: its arrays never move).
+    void attach(nb::object owner, const In1& qpos, const In2& sx, const In2& sm, const In2& x,
+                const In2& xm, const In2& gx, const In2& gm, const In2& subtree_com) {
+        check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
+        attached_ = Attached{std::move(owner), qpos, sx, sm, x, xm, gx, gm, subtree_com};
+    }
+
+    // The arguments of one call on the attached MjData's arrays.
+    diffik::FusedArgs attached_args(const In2& G, const In1& h) {
+        require(attached_.has_value(), "Kernel.run: no MjData attached (Kernel.attach)");
+        const Attached& t = *attached_;
+        return fill(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com, G, h);
     }
 
     i64 levels() const { return L_; }
@@ -338,12 +401,33 @@ class Kernel {
     Held3 rel_jac_;
     Held2 rel_data_;
     std::optional<Held1> user_mu_;
+    std::optional<Held2> lin_const_, lin_data_;
+    struct Attached {
+        nb::object owner;
+        In1 qpos;
+        In2 sx, sm, x, xm, gx, gm, subtree_com;
+    };
+    std::optional<Attached> attached_;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
-        vel_dof_;
+        vel_dof_, lin_starts_;
     i64 max_id_[3] = {-1, -1, -1};
     i64 max_body_ = -1;
 };
+
+// Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.
+auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
+                i64 max_iter) {
+    const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
+    require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.step: warm must have shape (L, nv + p)");
+    diffik::StepResult r =
+        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
+    if (r.v_is_d) r.v = r.d;
+    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
+                           to_numpy(std::move(r.info), {9, L_}),
+                           to_numpy(std::move(r.active), {L_, cols}));
+}
 
 }  // namespace
 
@@ -353,7 +437,8 @@ void bind_diffik(nb::module_& m) {
                        "its float arrays; see qpik.diffik.compiled.CompiledPlan.")
         .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
                       const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
-                      const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>>(),
+                      const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>,
+                      std::optional<I1>, std::optional<Held2>, std::optional<Held2>>(),
              nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
              nb::arg("starts"), nb::arg("tasks"), nb::arg("jac").noconvert(), nb::arg("frames"),
              nb::arg("frame_data").noconvert(), nb::arg("posture_data").noconvert(),
@@ -362,22 +447,15 @@ void bind_diffik(nb::module_& m) {
              nb::arg("settings").noconvert(), nb::arg("com_jac").noconvert(), nb::arg("com_body"),
              nb::arg("com_data").noconvert(), nb::arg("rel_jac").noconvert(), nb::arg("rel_frames"),
              nb::arg("rel_data").noconvert(), nb::arg("nq"),
-             nb::arg("user_mu").noconvert() = nb::none())
+             nb::arg("user_mu").noconvert() = nb::none(), nb::arg("lin_starts") = nb::none(),
+             nb::arg("lin_const").noconvert() = nb::none(),
+             nb::arg("lin_data").noconvert() = nb::none())
         .def(
             "step",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
                In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
                 diffik::FusedArgs a = k.args(qpos, sx, sm, x, xm, gx, gm, subtree_com, G, h);
-                const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
-                require(dim(warm, 0) == L && dim(warm, 1) == n + p,
-                        "Kernel.step: warm must have shape (L, nv + p)");
-                diffik::StepResult r = diffik::fused_step(
-                    a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
-                if (r.v_is_d) r.v = r.d;
-                const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
-                return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                                       to_numpy(std::move(r.info), {9, L_}),
-                                       to_numpy(std::move(r.active), {L_, cols}));
+                return step_tuple(k, a, warm, canonical, max_iter);
             },
             nb::arg("qpos"), nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"),
             nb::arg("xmat"), nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),
@@ -385,6 +463,20 @@ void bind_diffik(nb::module_& m) {
             "Rows of every task, the limits' box and general rows G dq <= h, and the cascade; "
             "returns (code, dq, v, info (9, L): residual, sigma, lambda^2, status, iterations, "
             "then the certificate's four measures, active (L, nv + p) int8).")
+        .def("attach", &Kernel::attach, nb::arg("owner"), nb::arg("qpos"), nb::arg("site_xpos"),
+             nb::arg("site_xmat"), nb::arg("xpos"), nb::arg("xmat"), nb::arg("geom_xpos"),
+             nb::arg("geom_xmat"), nb::arg("subtree_com"),
+             "Hold one MjData's arrays (step's first 8 arguments, checked once; owner, the MjData, "
+             "kept alive with them) for run().")
+        .def(
+            "run",
+            [](Kernel& k, In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
+                diffik::FusedArgs a = k.attached_args(G, h);
+                return step_tuple(k, a, warm, canonical, max_iter);
+            },
+            nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
+            "step() on the attached MjData's arrays (Kernel.attach): step's last 5 arguments, the "
+            "same answer.")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

@@ -1,9 +1,10 @@
 // Bindings of the tasks layer (qpik._engine.tasks): SO(3)/SE(3) (model/so3.hpp and
-// model/se3.hpp, wrapped by qpik.model.lie) and the frame task's kernels (tasks/frame.hpp,
-// used by qpik.tasks.frame). The Lie routines write into their first argument.
+// model/se3.hpp, wrapped by qpik.model.lie), the frame task's kernels (tasks/frame.hpp,
+// used by qpik.tasks.frame) and the linear residual (tasks/linear.hpp, qpik.tasks.coupling). The Lie routines write into their first argument.
 #include "bind.hpp"
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
+#include "tasks/linear.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -120,4 +121,17 @@ void bind_tasks(nb::module_& m) {
         nb::arg("lm_damping"),
         "Rows row:row+6 of a frame task into A, b: A = diag(cost) (-jlog) [R^T Jp; R^T Jr], "
         "b = -gain cost e; returns lm_damping |b|^2.");
+    m.def(
+        "linear_residual",
+        [](In2 form, In1 qpos) {
+            const i64 nq = static_cast<i64>(qpos.shape(0));
+            require(static_cast<i64>(form.shape(1)) == nq + 1,
+                    "linear_residual: form must have shape (k, nq + 1), nq = len(qpos)");
+            Vec r(form.shape(0));
+            tasks::linear_residual(cmat(form), qpos.data(), r.data());
+            return to_numpy(std::move(r));
+        },
+        nb::arg("form"), nb::arg("qpos"),
+        "r = form[:, :nq] @ qpos - form[:, nq] (k,), summed in the order of qpos (the compiled "
+        "step's arithmetic).");
 }

@@ -10,10 +10,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..core import HierarchySolver, LevelCertificate, LevelStatus
+from ..core.certificate import STATUS_OF_CODE, certificate_of
 from ..errors import InvalidTarget
 from .boxes import LimitRows
 from .rows import TaskRows
@@ -69,6 +71,11 @@ def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: fl
         certificate=result.certificate,
         limits=lambda: limits,
     )
+
+
+_new = object.__new__
+#: The per-level lists of a :meth:`StepResult.lazy` result, read on first access.
+_PER_LEVEL = frozenset(("residuals", "sigma_min", "damping", "status", "iterations", "certificate"))
 
 
 @dataclass
@@ -128,6 +135,51 @@ class StepResult:
             coupling_residual=solution.residuals[0] if couplings else None,
             _limits=solution.limits,
         )
+
+    @classmethod
+    def lazy(
+        cls,
+        velocity: np.ndarray,
+        displacement: np.ndarray,
+        info: np.ndarray,
+        skip: int,
+        solve_time: float,
+        limits: Callable[[], LimitRows],
+    ) -> StepResult:
+        """The result of a compiled step from the kernel's ``info`` (9, L) (rows: residual,
+        sigma, lambda^2, status code, iterations, then the certificate's four measures;
+        the couplings' level first when ``skip`` is 1): the per-level lists are read from it
+        on first access (the same values :meth:`of` gives; a control loop that reads only
+        the velocity never builds them)."""
+        result = _new(cls)
+        result.__dict__.update(
+            velocity=velocity,
+            displacement=displacement,
+            solve_time=solve_time,
+            coupling_residual=float(info[0, 0]) if skip else None,
+            _limits=limits,
+            _active_limits=None,
+            _info=(info, skip),
+        )
+        return result
+
+    def __getattr__(self, name: str) -> Any:
+        """A per-level list of a :meth:`lazy` result, read from its ``info`` now."""
+        lazy = self.__dict__.get("_info")
+        if lazy is None or name not in _PER_LEVEL:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        info, skip = lazy
+        residuals, sigma, lam2, status, iterations, *cert = info.tolist()
+        self.__dict__.update(
+            residuals=residuals[skip:],
+            sigma_min=sigma[skip:],
+            damping=lam2[skip:],
+            status=[STATUS_OF_CODE[int(code)] for code in status[skip:]],
+            iterations=[int(i) for i in iterations[skip:]],
+            certificate=[certificate_of(list(row)) for row in zip(*cert)][skip:],
+        )
+        del self.__dict__["_info"]
+        return self.__dict__[name]
 
     @property
     def active_limits(self) -> list[str]:

@@ -224,7 +224,15 @@ class IKSolver:
         )
         solution = None
         if self._compiled_step_applies(configuration, dt):
-            solution = self._compiled_step(configuration, dt)
+            if self._core.solver == "auto":  # one kernel call, straight to the result
+                assert self._plan is not None
+                result = self._plan.step_result(
+                    configuration, dt, self.damping, self._core, start, self._coupling_level
+                )
+                if result is not None:
+                    return result
+            else:
+                solution = self._compiled_step(configuration, dt)
         if solution is None:
             solution = self._qp_step(configuration, dt)
         return StepResult.of(solution, time.perf_counter() - start, self._coupling_level)

@@ -11,6 +11,7 @@ import mink
 import mujoco
 import numpy as np
 
+from .._engine.tasks import linear_residual
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.couplings import Couplings, model_couplings
 
@@ -37,15 +38,32 @@ class CouplingTask(mink.Task):
         self.k = len(couplings)
         with mink_errors_as_qpik(type(self).__name__):
             super().__init__(np.full(self.k, float(cost)), gain, 0.0)
-        # Linear couplings (a URDF mimic, a joint equality of degree 1): one product per
-        # step for the residual, and a constant Jacobian computed once.
-        self._linear = couplings.linear_form()
-        self._constant = couplings.jacobian(model.qpos0) if self._linear else None
+        # Linear couplings (a URDF mimic, a joint equality of degree 1): the residual is one
+        # compiled product over qpos (the compiled step's own arithmetic, so both paths give
+        # the same bits), and the Jacobian is constant, computed once.
+        linear = couplings.linear_form()
+        self._constant = couplings.jacobian(model.qpos0) if linear else None
+        self._form: np.ndarray | None = None
+        if linear is not None:
+            rows, offset = linear
+            form = np.zeros((self.k, model.nq + 1))
+            for t, adr in enumerate(couplings.qadr.tolist()):
+                form[:, adr] += rows[:, t]
+            form[:, model.nq] = offset
+            self._form = form
+
+    @property
+    def linear_form(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(form, jacobian)`` when every coupling is linear, else None: the residual is
+        ``form[:, :nq] @ q - form[:, nq]`` (``form`` ``(k, nq + 1)``, over qpos) and the
+        Jacobian ``(k, nv)`` is constant (copies)."""
+        if self._form is None or self._constant is None:
+            return None
+        return self._form.copy(), self._constant.copy()
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
-        if self._linear is not None:  # the configuration's q is already checked
-            rows, offset = self._linear
-            return rows @ configuration.q[self.couplings.qadr] - offset
+        if self._form is not None:  # the configuration's q is already checked
+            return linear_residual(self._form, configuration.q)
         return self.couplings.residual(configuration.q)
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:

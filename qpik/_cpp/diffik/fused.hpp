@@ -13,6 +13,7 @@
 #include "../common.hpp"
 #include "../core/cascade.hpp"
 #include "../tasks/frame.hpp"
+#include "../tasks/linear.hpp"
 
 namespace qpik::diffik {
 
@@ -71,10 +72,18 @@ struct FusedArgs {
     // before the call (from the task's own methods) and left as they are; user_mu (U,) holds
     // each one's LM term, added to its level's regularisation in the stack's task order.
     CVecRef user_mu;
+    // Linear tasks (kind 6, LINEAR: qpik's CouplingTask of linear couplings): task i has the
+    // stacked rows r0:r1 = lin_starts[i]:lin_starts[i + 1] of lin_const (K, nv + nq + 1), each
+    // row its constant Jacobian row (nv), its coefficients over qpos (nq) and its offset
+    // (tasks/linear.hpp), and the columns r0:r1 of lin_data (3, K): its rows' costs, then its
+    // gain and lm_damping in column r0.
+    VecRefT<const i64> lin_starts;
+    CMatRef lin_const = CMatRef(nullptr, 0, 0);
+    CMatRef lin_data = CMatRef(nullptr, 0, 0);
 };
 
 // Task kinds of FusedArgs::tasks.
-enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5 };
+enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5, LINEAR = 6 };
 constexpr i64 kComData = 8;  // target (3), cost (3), gain, lm_damping
 enum PostureDof : i64 { SCALAR_DOF = 0, FREE_DOF = 1, BALL_FIRST = 2, BALL_OTHER = 3 };
 
@@ -243,6 +252,19 @@ inline Vec assemble_rows(const FusedArgs& a, i64 L) {
         double mu;
         const double* cost;
         i64 size;
+        if (kind == LINEAR) {
+            const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
+            const i64 stride = a.lin_const.stride;
+            const double* c = a.lin_const.row(r0);
+            cost = a.lin_data.row(0) + r0;
+            if (static_cast<i64>(local.size()) < k) local.resize(static_cast<size_t>(k));
+            mu = tasks::linear_rows_into(a.A, a.b.p, row, CMatRef(c, k, n, stride),
+                                         CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
+                                         cost, a.lin_data(1, r0), a.lin_data(2, r0), local.data());
+            for (i64 r = 0; r < k; ++r) a.w[row + r] = cost[r];
+            reg[a.tasks(t, 2)] += mu;
+            continue;
+        }
         if (kind == FRAME) {
             const double* pos;
             const double* mat;

@@ -1,0 +1,307 @@
+"""The layout of a compiled plan (:mod:`.compiled`): which of a stack's tasks and limits
+the kernel computes, where each one's rows and data go in the plan's arrays, and those
+arrays, preallocated once per :class:`qpik.IKSolver`.
+
+Tasks the kernel computes itself (exact types; a subclass may change the rows): qpik's or
+mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's
+``RelativeFrameTask``, and qpik's ``CouplingTask`` when every coupling is linear (kind
+``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``). Any other task supplies
+its rows each step (kind ``ROWS_KIND``, laid out by its declared count).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mink
+import mujoco
+import numpy as np
+
+from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
+from ..tasks import DampingTask, FrameTask, PostureTask
+from ..tasks.com import ComTask
+from ..tasks.coupling import CouplingTask
+from .boxes import LimitBoxes
+
+__all__ = [
+    "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
+    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "limit_layout", "plan_arrays",
+    "task_layout",
+]  # fmt: skip
+
+KINDS = {"site": 0, "body": 1, "geom": 2}
+OBJECTS = tuple(FRAME_OBJECTS[FrameType(kind)] for kind in KINDS)  # in the codes' order
+JACOBIANS = tuple(FRAME_JACOBIANS[FrameType(kind)] for kind in KINDS)
+#: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
+#: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
+FRAME_TYPES = (FrameTask, mink.FrameTask)
+#: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost) J``, J the identity with
+#: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
+POSTURE_TYPES = (PostureTask, mink.PostureTask)
+DAMPING_TYPES = (DampingTask, mink.DampingTask)
+#: CoM tasks: qpik's (any subtree) and mink's (the subtree of body 1). Exact types.
+COM_TYPES = (ComTask, mink.ComTask)
+#: Limits of general rows ``G dq <= h`` that a plan takes (their rows from their own
+#: methods each step, in the same compiled call; exact types).
+GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
+
+#: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
+FRAME_KIND, POSTURE_KIND, COM_KIND, RELATIVE_KIND = 0, 1, 2, 3
+DAMPING_KIND, ROWS_KIND, LINEAR_KIND = 4, 5, 6
+#: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
+SCALAR_DOF, FREE_DOF, BALL_FIRST, BALL_OTHER = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class TaskLayout:
+    """Where each task of a stack goes in the plan: the frame, posture, CoM and relative
+    frame tasks with their frames or bodies, the tasks that supply their rows, the ``tasks``
+    table rows, the frames used ``((kind, id), relative)`` and each level's first row
+    (``starts``)."""
+
+    frames: list
+    postures: list
+    coms: list
+    relatives: list
+    tasks: list
+    frame_rows: list
+    starts: list
+    rows_tasks: list  # (task, first row, last row) of the tasks that supply their rows
+    linears: list  # (task, form (k, nq + 1), jacobian (k, nv)) of the linear tasks
+
+
+@dataclass(frozen=True)
+class LimitLayout:
+    """The entries of a plan's limits: position limits (``cfg_dof``, ``cfg_qadr``,
+    ``cfg_data`` rows (lower, upper, gain), and ``(limit, first, last entry)``), velocity
+    limits (``vel_dof``, ``vel_limit``) and the general-row limits."""
+
+    cfg_dof: list
+    cfg_qadr: list
+    cfg_data: list
+    config_limits: list
+    vel_dof: list
+    vel_limit: list
+    general_limits: list
+
+
+def plan_arrays(
+    model: mujoco.MjModel, layout: TaskLayout, boxes: LimitLayout, limits: LimitBoxes
+) -> dict:
+    """The arrays the kernel holds, preallocated (the float ones written before each
+    call)."""
+    nv, nq = model.nv, model.nq
+    vel_dof = [*boxes.vel_dof, *limits.trust_dofs.tolist()]
+    vel_limit = [*boxes.vel_limit, *limits.trust_speeds.tolist()]
+    F, P, C, R = len(layout.frames), len(layout.postures), len(layout.coms), len(layout.relatives)
+    M = layout.starts[-1]
+    i64 = np.int64
+    frames = [row for row, rel in layout.frame_rows if not rel]
+    rel_frames = [(*f, *r) for _, f, r in layout.relatives]
+    lin_sizes = [form.shape[0] for _, form, _ in layout.linears]
+    lin_starts = np.concatenate([[0], np.cumsum(lin_sizes, dtype=i64)]).astype(i64)
+    lin_const = np.zeros((int(lin_starts[-1]), nv + nq + 1))
+    for (_, form, jacobian), r0, r1 in zip(layout.linears, lin_starts[:-1], lin_starts[1:]):
+        lin_const[r0:r1, :nv] = jacobian
+        lin_const[r0:r1, nv:] = form
+    return {
+        "A": np.zeros((M, nv)),
+        "b": np.zeros(M),
+        "w": np.zeros(M),
+        "starts": np.asarray(layout.starts, dtype=i64),
+        "tasks": np.asarray(layout.tasks, dtype=i64).reshape(-1, 4),
+        "jac": np.zeros((F, 6, nv)),
+        "frames": np.asarray(frames, dtype=i64).reshape(-1, 2),
+        "frame_data": np.zeros((F, 15)),
+        "posture_data": np.zeros((P, nq + nv + 2)),
+        "posture_map": posture_map(model),
+        "cfg_dof": np.asarray(boxes.cfg_dof, dtype=i64),
+        "cfg_qadr": np.asarray(boxes.cfg_qadr, dtype=i64),
+        "cfg_data": np.asarray(boxes.cfg_data, dtype=float).reshape(-1, 3),
+        "vel_dof": np.asarray(vel_dof, dtype=i64),
+        "vel_limit": np.asarray(vel_limit, dtype=float),
+        "settings": np.zeros(7),
+        "com_jac": np.zeros((C, 3, nv)),
+        "com_body": np.asarray([body for _, body, _ in layout.coms], dtype=i64),
+        "com_data": np.zeros((C, 8)),
+        "rel_jac": np.zeros((R, 12, nv)),
+        "rel_frames": np.asarray(rel_frames, dtype=i64).reshape(-1, 4),
+        "rel_data": np.zeros((R, 15)),
+        "user_mu": np.zeros(len(layout.rows_tasks)),
+        "lin_starts": lin_starts,
+        "lin_const": lin_const,
+        "lin_data": np.zeros((3, int(lin_starts[-1]))),
+        "empty3": np.zeros((0, 3)),
+        "empty9": np.zeros((0, 9)),
+    }
+
+
+def posture_map(model: mujoco.MjModel) -> np.ndarray:
+    """Per dof ``(kind, qpos address)`` (see ``SCALAR_DOF``...): how a posture task's
+    error ``q (-) q*`` (``mj_differentiatePos``) reads ``qpos``."""
+    out = np.zeros((model.nv, 2), dtype=np.int64)
+    for j in range(model.njnt):
+        kind, q0, v0 = int(model.jnt_type[j]), int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            out[v0 : v0 + 6] = (FREE_DOF, q0)
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            out[v0] = (BALL_FIRST, q0)
+            out[v0 + 1 : v0 + 3] = (BALL_OTHER, q0)
+        else:
+            out[v0] = (SCALAR_DOF, q0)
+    return out
+
+
+def frame_entry(model: mujoco.MjModel, frame_type, frame_name) -> tuple[int, int] | None:
+    """``(kind, id)`` of a frame, None when the QP path must serve it (an unknown
+    frame type or name: it reports them)."""
+    kind = KINDS.get(getattr(frame_type, "value", frame_type))
+    if kind is None:
+        return None
+    if isinstance(frame_name, (int, np.integer)) and not isinstance(frame_name, bool):
+        count = (model.nsite, model.nbody, model.ngeom)[kind]
+        return (kind, int(frame_name)) if 0 <= frame_name < count else None
+    if not isinstance(frame_name, str):
+        return None
+    fid = mujoco.mj_name2id(model, OBJECTS[kind], frame_name)
+    return None if fid < 0 else (kind, fid)
+
+
+def com_body(model: mujoco.MjModel, task) -> tuple[int, object] | None:
+    """``(body id, task.body as given)`` of a CoM task (mink's: body 1, None), None when the
+    QP path must serve it (an unknown body: it reports it)."""
+    if type(task) is mink.ComTask:
+        return (1, None) if model.nbody > 1 else None
+    given = task.body
+    if isinstance(given, str):
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, given)
+    elif isinstance(given, (int, np.integer)) and not isinstance(given, bool):
+        body = int(given) if 0 <= int(given) < model.nbody else -1
+    else:
+        return None
+    return None if body < 0 else (body, given)
+
+
+def declared_rows(task, nv: int) -> int:
+    """The rows a task that supplies its own declares: ``task.k`` (mink's row count), else
+    the length of its ``cost`` vector, else ``nv`` (a task of ``(H, c)`` only: its factor has
+    ``nv`` rows where ``H`` has full rank)."""
+    k = getattr(task, "k", None)
+    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
+        return int(k)
+    cost = getattr(task, "cost", None)
+    if isinstance(cost, np.ndarray) and cost.ndim == 1:
+        return cost.shape[0]
+    return nv
+
+
+def task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> TaskLayout | None:
+    """The layout of a stack: the tasks the kernel computes (qpik's or mink's FrameTask /
+    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask, qpik's linear
+    CouplingTask; exact types) and those that supply their rows (any other); None where a
+    task the kernel computes names what the model lacks (the QP path reports it). Rows are
+    laid out level by level, task by task."""
+    layout = TaskLayout([], [], [], [], [], [], [0], [], [])
+    for k, level in enumerate(levels):
+        row = layout.starts[-1]
+        for task in level:
+            size = _place(layout, model, task, k, row)
+            if size is None:
+                return None
+            row += size
+        layout.starts.append(row)
+    return layout
+
+
+def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) -> int | None:
+    """Enter ``task`` (level ``k``, first row ``row``) in ``layout``; its row count, None
+    where it names what the model lacks."""
+    kind, nv = type(task), model.nv
+    if kind in FRAME_TYPES or kind is mink.RelativeFrameTask:
+        return _place_frame(layout, model, task, k, row)
+    if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
+        if np.shape(getattr(task, "cost", 0.0)) != (nv,):
+            return None
+        code = DAMPING_KIND if kind in DAMPING_TYPES else POSTURE_KIND
+        layout.tasks.append((code, len(layout.postures), k, row))
+        layout.postures.append(task)
+        return nv
+    if kind in COM_TYPES:
+        entry = com_body(model, task)
+        if entry is None or np.shape(task.cost) != (3,):
+            return None
+        layout.tasks.append((COM_KIND, len(layout.coms), k, row))
+        layout.coms.append((task, *entry))
+        return 3
+    linear = task.linear_form if kind is CouplingTask else None
+    if linear is not None:
+        form, jacobian = linear
+        layout.tasks.append((LINEAR_KIND, len(layout.linears), k, row))
+        layout.linears.append((task, form, jacobian))
+        return form.shape[0]
+    size = declared_rows(task, nv)  # rows supplied by the task itself, each step
+    layout.tasks.append((ROWS_KIND, len(layout.rows_tasks), k, row))
+    layout.rows_tasks.append((task, row, row + size))
+    return size
+
+
+def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) -> int | None:
+    """:func:`_place` for a frame or relative frame task (6 rows)."""
+    frame = frame_entry(model, task.frame_type, task.frame_name)
+    if frame is None:
+        return None
+    if type(task) is mink.RelativeFrameTask:
+        root = frame_entry(model, task.root_type, task.root_name)
+        if root is None:
+            return None
+        layout.tasks.append((RELATIVE_KIND, len(layout.relatives), k, row))
+        layout.relatives.append((task, frame, root))
+        layout.frame_rows.extend(((frame, True), (root, True)))
+        return 6
+    layout.tasks.append((FRAME_KIND, len(layout.frames), k, row))
+    layout.frames.append((task, *frame))
+    layout.frame_rows.append((frame, False))
+    return 6
+
+
+def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
+    """The entries of mink's position and velocity limits and its collision avoidance
+    limits (None when another limit is present, or a position limit bounds a ball
+    joint)."""
+    cfg_dof: list[int] = []
+    cfg_qadr: list[int] = []
+    cfg_data: list[tuple[float, float, float]] = []
+    config_limits: list[tuple] = []
+    vel_dof: list[int] = []
+    vel_limit: list[float] = []
+    general_limits: list = []
+    for limit in limits:
+        if type(limit) is mink.ConfigurationLimit:
+            if limits_a_ball_joint(limit.model):
+                return None  # a ball joint's cone row: the QP path
+            indices = np.asarray(limit.indices, dtype=np.int64)
+            qadr = model.jnt_qposadr[model.dof_jntid[indices]].astype(np.int64)
+            e0 = len(cfg_dof)
+            cfg_dof.extend(indices.tolist())
+            cfg_qadr.extend(qadr.tolist())
+            lower, upper = np.asarray(limit.lower)[qadr], np.asarray(limit.upper)[qadr]
+            cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
+            config_limits.append((limit, e0, len(cfg_dof)))
+        elif type(limit) is mink.VelocityLimit:
+            vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
+            vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
+        elif type(limit) in GENERAL_LIMITS:
+            general_limits.append(limit)
+        else:
+            return None
+    return LimitLayout(
+        cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits
+    )
+
+
+def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
+    """A ball joint of ``model`` has a range (mink's ConfigurationLimit bounds its rotation
+    angle by a general row, which the kernel does not compute)."""
+    ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
+    return bool(np.any(ball & (model.jnt_limited != 0)))
