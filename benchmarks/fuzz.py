@@ -2930,7 +2930,7 @@ def _engine_functions() -> dict:
     import qpik._engine as engine
 
     found = {}
-    for sub in ("core", "model", "tasks", "diffik", "igm"):
+    for sub in ("core", "model", "tasks", "limits", "diffik", "igm"):
         module = getattr(engine, sub, None)
         for name in dir(module):
             value = getattr(module, name)
