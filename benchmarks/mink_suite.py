@@ -17,7 +17,8 @@ may download models itself). mink's tests need ``absl-py`` (in qpik's ``dev`` ex
 
 ``--timing`` adds per-call times of ``qpik.solve_ik`` and ``mink.solve_ik`` (same solver,
 same tasks: a frame task and a posture task; mink's default limits) on the bundled robots:
-medians over repeated calls, and the ratio qpik / mink.
+medians over repeated calls, and the ratio qpik / mink; on a ``qpik.Configuration`` and on
+a ``mink.Configuration`` (the README's one-import example, with its own two-level call).
 
 ``--examples DIR`` runs mink's example scripts (``DIR/*.py``, e.g. the ``examples/`` folder
 of a mink checkout with its MuJoCo models) headless, each in its own subprocess, nothing
@@ -208,7 +209,11 @@ def _compare(stock: dict, ours: dict) -> tuple[list, list, list]:
 
 
 def run_timing(calls: int) -> None:
-    """Median per-call time of qpik.solve_ik and mink.solve_ik on the bundled robots."""
+    """Median per-call time of qpik.solve_ik and mink.solve_ik on the bundled robots, on a
+    qpik.Configuration and on a mink.Configuration (the README's one-import example: UR5e,
+    frame + posture task, mink's default limits; its last row is the README's own call,
+    two strict levels ``[[task], [posture]]`` with qpik's solver, against mink's one
+    weighted level with DAQP)."""
     import mink
     import numpy as np
 
@@ -216,18 +221,25 @@ def run_timing(calls: int) -> None:
 
     print(f"\nper-call time, {calls} calls each (frame + posture task, default limits)")
     print(
-        f"{'robot':<8}{'solver':<10}{'mink [us]':>11}{'qpik [us]':>11}{'ratio':>8}{'max |dv|':>11}"
+        f"{'robot':<8}{'Configuration':<15}{'solver':<10}{'mink [us]':>11}{'qpik [us]':>11}"
+        f"{'ratio':>8}{'max |dv|':>11}"
     )
-    for robot, frame in (("ur5e", "ee"), ("panda", "ee")):
+    cases = [("ur5e", "ee", "qpik"), ("panda", "ee", "qpik"), ("ur5e", "ee", "mink")]
+    for robot, frame, kind in cases:
         model = qpik.load_robot(robot)
         rng = np.random.default_rng(0)
-        configuration = qpik.Configuration(model, model.key("home").qpos)
+        if kind == "qpik":
+            configuration = qpik.Configuration(model, model.key("home").qpos)
+        else:  # the README's example
+            configuration = mink.Configuration(model)
+            configuration.update_from_keyframe("home")
         task = mink.FrameTask(frame, "site", position_cost=1.0, orientation_cost=1.0)
         start = configuration.get_transform_frame_to_world(frame, "site")
         posture = mink.PostureTask(model, cost=1e-2)
         posture.set_target(model.key("home").qpos)
-        for solver in ("daqp", "quadprog"):
-            times = {"mink": [], "qpik": []}
+        solvers = ("daqp", "quadprog") + (("levels",) if kind == "mink" else ())
+        for solver in solvers:
+            times: dict[str, list[float]] = {"mink": [], "qpik": []}
             worst = 0.0
             for i in range(calls):
                 offset = rng.uniform(-0.05, 0.05, 3)
@@ -235,13 +247,25 @@ def run_timing(calls: int) -> None:
                 answers = {}
                 order = ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink")
                 for name in order:
-                    solve = mink.solve_ik if name == "mink" else qpik.solve_ik
                     t0 = time.perf_counter()
-                    answers[name] = solve(configuration, [task, posture], 0.01, solver)
+                    if name == "mink":
+                        backend = "daqp" if solver == "levels" else solver
+                        answers[name] = mink.solve_ik(configuration, [task, posture], 0.01, backend)
+                    elif solver == "levels":
+                        answers[name] = qpik.solve_ik(configuration, [[task], [posture]], 0.01)
+                    else:
+                        answers[name] = qpik.solve_ik(configuration, [task, posture], 0.01, solver)
                     times[name].append(time.perf_counter() - t0)
-                worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+                if solver != "levels":
+                    worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
             m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
-            print(f"{robot:<8}{solver:<10}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
+            label = "qpik" if kind == "qpik" else "mink (README)"
+            dv = f"{worst:>11.2e}" if solver != "levels" else f"{'levels':>11}"
+            print(f"{robot:<8}{label:<15}{solver:<10}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{dv}")
+    print(
+        "README row 'levels': qpik's two strict levels [[task], [posture]], qpik's solver, "
+        "against mink's one weighted level [task, posture] with DAQP (goal: ratio <= 0.5)"
+    )
 
 
 # ----------------------------------------------------------------- mink's example scripts
