@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import itertools
 import weakref
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mink
 import mujoco
@@ -107,30 +107,56 @@ class PairCulling:
     def __init__(self, pairs: Sequence[tuple[int, int]]) -> None:
         self.pairs = np.ascontiguousarray(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
         self._out = np.empty(self.pairs.shape[0], dtype=np.int64)
+        self._source: tuple = (None, None)  # the (model, data) whose arrays are in _arrays
+        self._arrays: tuple = ()
 
     def candidates(self, model: mujoco.MjModel, data: mujoco.MjData, threshold: float) -> list:
         """Indices (ascending, into the pairs) of the pairs that may be within
         ``threshold`` [m] at ``data``'s geom placement (``mj_kinematics`` done)."""
+        source = self._source
+        if source[0] is not model or source[1] is not data:
+            # Views on the model's and data's own memory (read at each call, so a geom
+            # resized in place is seen), taken once per (model, data).
+            self._arrays = (
+                model.geom_type, model.geom_size, model.geom_aabb, model.geom_rbound,
+                data.geom_xpos, data.geom_xmat,
+            )  # fmt: skip
+            self._source = (model, data)
         count = _engine.collision_candidates(
-            self.pairs, model.geom_type, model.geom_size, model.geom_aabb, model.geom_rbound,
-            data.geom_xpos, data.geom_xmat, float(threshold), self._out,
+            self.pairs, *self._arrays, float(threshold), self._out
         )  # fmt: skip
         return self._out[:count].tolist()
 
 
-#: Each limit's culling, with the pair list it was built from (rebuilt when that changes).
-_CULLINGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Each limit's culling by the limit's id: (weak reference to the limit, the pair list it
+#: was built from, the culling); an entry goes when its limit does.
+_CULLINGS: dict[int, tuple] = {}
+
+
+def _forget(key: int) -> Callable[[weakref.ref], None]:
+    """The callback that drops the entry ``key`` when its limit goes."""
+
+    def forget(_: weakref.ref) -> None:
+        _CULLINGS.pop(key, None)
+
+    return forget
 
 
 def _culling(limit: mink.CollisionAvoidanceLimit) -> PairCulling:
     """The :class:`PairCulling` of ``limit``'s ``geom_id_pairs`` (kept while it holds the
     same list of the same length)."""
     pairs = limit.geom_id_pairs
-    entry = _CULLINGS.get(limit)
-    if entry is None or entry[0] is not pairs or entry[1].pairs.shape[0] != len(pairs):
-        entry = (pairs, PairCulling(pairs))
-        _CULLINGS[limit] = entry
-    return entry[1]
+    entry = _CULLINGS.get(id(limit))
+    if (
+        entry is None
+        or entry[0]() is not limit
+        or entry[1] is not pairs
+        or entry[2].pairs.shape[0] != len(pairs)
+    ):
+        key = id(limit)
+        entry = (weakref.ref(limit, _forget(key)), pairs, PairCulling(pairs))
+        _CULLINGS[key] = entry
+    return entry[2]
 
 
 def mink_collision_rows(

@@ -199,3 +199,21 @@ def test_bad_arguments_raise_value_errors():
         engine.collision_candidates(
             np.array([[0, 1], [1, 2]]), *args, data.geom_xpos, data.geom_xmat, 0.1, out
         )
+
+
+def test_a_limits_culling_goes_with_the_limit():
+    """The culling kept for a limit (by its identity) is dropped when the limit is."""
+    import gc
+
+    from qpik.limits import collision
+
+    model = _shapes()
+    geoms = list(range(model.ngeom))
+    limit = mink.CollisionAvoidanceLimit(model, [(geoms, geoms)])
+    configuration = mink.Configuration(model)
+    mink_collision_rows(limit, configuration, 0.01)
+    key = id(limit)
+    assert key in collision._CULLINGS
+    del limit
+    gc.collect()
+    assert key not in collision._CULLINGS
