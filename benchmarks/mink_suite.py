@@ -419,7 +419,8 @@ mujoco.viewer.launch_passive = lambda model, data, *a, **k: FakeViewer(model, da
 
 mink_solve_ik, qpik_solve_ik = mink.solve_ik, qpik.solve_ik
 times = {"mink": [], "qpik": [], "levels": []}
-state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None}
+state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None,
+         "rows": [0, 0, 0.0, 0]}  # collision rows: checks, rows, max |diff|, other pairs
 
 def levels_solver(configuration, tasks, solver, damping, limits):
     """qpik.IKSolver with each task a strict level (posture/damping tasks last)."""
@@ -452,6 +453,20 @@ def solve_ik(configuration, tasks, dt, solver=None, damping=1e-12, safety_break=
             times["levels"].append(time.perf_counter() - t0)
         except Exception as exc:
             state["levels_error"] = f"{type(exc).__name__}: {exc}"[:120]
+    for limit in limits or ():
+        if type(limit) is mink.CollisionAvoidanceLimit:  # qpik's culled rows against mink's
+            from qpik.limits.collision import mink_collision_rows
+            reference = limit.compute_qp_inequalities(configuration, dt)
+            G, h, kept = mink_collision_rows(limit, configuration, dt)
+            in_play = np.flatnonzero(np.isfinite(reference.h))
+            check = state["rows"]
+            check[0] += 1
+            check[1] += len(kept)
+            if in_play.tolist() != kept:
+                check[3] += 1
+            elif kept:
+                check[2] = max(check[2], float(np.abs(G - reference.G[in_play]).max()),
+                               float(np.abs(h - reference.h[in_play]).max()))
     state["calls"] += 1
     state["dv"] = max(state["dv"], float(np.abs(answers["mink"] - answers["qpik"]).max()))
     state["last"] = (configuration, list(tasks), solver, limits)
@@ -480,6 +495,7 @@ if state["last"] is not None:
         errors=errors,
     )
 result.update(calls=state["calls"], dv=state["dv"], levels_error=state["levels_error"],
+              rows=state["rows"],
               **{k: v for k, v in times.items()})
 with open(out, "w") as f:
     json.dump(result, f)
@@ -575,6 +591,16 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
             f"{'mink default' if r['limits'] is None else ', '.join(r['limits']) or 'none'}"
             + (f"; levels: {r['levels_error']}" if r["levels_error"] else "")
         )
+    for name, runs in rows:
+        both = [runs[d].get("rows", [0, 0, 0.0, 0]) for d in ("mink", "qpik")]
+        checks, count, other = (sum(r[i] for r in both) for i in (0, 1, 3))
+        worst = max(r[2] for r in both)
+        if checks:
+            print(
+                f"  {name}: mink's CollisionAvoidanceLimit rows, qpik's culled computation "
+                f"against mink's on {checks} states (both runs): {count} rows in play, max |diff| "
+                f"{worst:.1e}, {other} states with other pairs in play"
+            )
     for name, why in failed:
         print(f"could not run {name}: {why}")
 
