@@ -10,7 +10,8 @@ with qpik), with the first line of its failure.
 This script downloads nothing. Pass the ``tests/`` folder of a mink checkout that matches
 the installed mink version. mink's tests load robots through ``robot_descriptions``; the
 script serves them from ``--models DIR`` (``DIR/<description name>.xml``, e.g.
-``DIR/ur5e_mj_description.xml`` linked to a local MuJoCo Menagerie's ``ur5e.xml``).
+``DIR/ur5e_mj_description.xml`` linked to a local MuJoCo Menagerie's ``ur5e.xml``; a link
+is opened at its target, so that the meshes the model names relative to itself are found).
 A test whose model is not there is skipped, counted as "needs a downloaded model".
 ``--robot-descriptions`` uses the installed ``robot_descriptions`` package instead (which
 may download models itself). mink's tests need ``absl-py`` (in qpik's ``dev`` extra).
@@ -82,7 +83,8 @@ if os.environ.get("QPIK_MINK_MODELS") is not None:
         path = os.path.join(FOLDER, f"{description_name}.xml") if FOLDER else ""
         if not path or not os.path.exists(path):
             raise unittest.SkipTest(f"{MISSING}: {description_name}")
-        return mujoco.MjModel.from_xml_path(path)
+        # A link's target: MuJoCo finds meshes relative to the model file's own folder.
+        return mujoco.MjModel.from_xml_path(os.path.realpath(path))
 
     package = types.ModuleType("robot_descriptions")
     loaders = types.ModuleType("robot_descriptions.loaders")

@@ -374,7 +374,11 @@ class SolveOptions:
             limits as a level-1 objective in the null space of the targets (``"qp"``
             engine). Default ``False``.
         limits: ``"joint"`` (default: the model's joint position limits), ``None`` (none)
-            or a sequence of limits (kept as a tuple).
+            or a sequence of limits (kept as a tuple). With collision limits among them
+            (:class:`qpik.limits.CollisionAvoidanceLimit`,
+            :func:`qpik.limits.model_collision_limit`), a solve converges only where
+            every pair they check is at least ``d_min - tol_position`` apart, and its
+            steps never take a pair deeper inside ``d_min`` (``"qp"`` engine).
         engine: ``"auto"`` (default: the compiled engine when it applies), ``"compiled"``
             (raise :class:`qpik.InvalidInput` when it does not apply) or ``"qp"``.
         step: the :class:`StepOptions` of each step; default :data:`SOLVE_STEP` (the

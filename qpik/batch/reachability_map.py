@@ -13,6 +13,13 @@ from the world to the frame is a hinge, a ball or a bounded slide, so the frame 
 within :func:`reach_bound` of the chain's first joint anchor (the sum of the fixed
 distances between consecutive joint anchors, plus the slides' travel); a voxel centre
 farther than that is out of reach for every orientation.
+
+With collision limits among the solve options' ``limits`` (say
+``limits=[ConfigurationLimit(model), model_collision_limit(model)]``), a pose counts as
+reached only when its answer keeps every checked pair at least ``d_min - tol_position``
+apart (:func:`qpik.solve`'s rule), so poses that only a configuration in collision reaches
+are left out; the map records it (:attr:`ReachabilityMap.collision_pairs`,
+:attr:`ReachabilityMap.collisions_checked`) and its summary says so.
 """
 
 from __future__ import annotations
@@ -32,7 +39,9 @@ import numpy.typing as npt
 from ..core import checks
 from ..errors import InvalidInput
 from ..igm.prepared import PREPARED
+from ..igm.qp_engine import check_limits_model
 from ..igm.targets import FrameKey, RobotLike, parse_target
+from ..limits import checked_pairs, collision_limits
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
@@ -196,6 +205,8 @@ _MAP_META: dict[str, Callable[[Any], Any]] = {
     "seed": int,
     "elapsed": float,
     "engines": dict,
+    "collision_pairs": lambda pairs: [(str(a), str(b)) for a, b in pairs],
+    "collision_distance": lambda d: None if d is None else float(d),
 }
 
 
@@ -219,6 +230,11 @@ class ReachabilityMap:
         base, reach: the :func:`reach_bound` sphere (centre [m], radius [m]).
         seed: the batch seed; elapsed: wall time [s]; solve_options: the IK options.
         engines: the IK solves per engine (``{"compiled": 480}``: :attr:`qpik.IKResult.engine`).
+        collision_pairs: the geom pairs (names) that the solves' collision limits checked:
+            a pose reached only in collision (a pair closer than ``d_min -
+            tol_position``) counts as not reached; empty when the solves had no collision
+            limit (collisions not checked).
+        collision_distance: the smallest ``d_min`` [m] of those limits (None without).
     """
 
     centers: np.ndarray
@@ -237,6 +253,14 @@ class ReachabilityMap:
     elapsed: float = 0.0
     engines: dict[str, int] = field(default_factory=dict)
     solve_options: dict[str, Any] = field(default_factory=dict)
+    collision_pairs: list[tuple[str, str]] = field(default_factory=list)
+    collision_distance: float | None = None
+
+    @property
+    def collisions_checked(self) -> bool:
+        """Whether the solves checked collisions (poses reached only in collision
+        excluded)."""
+        return bool(self.collision_pairs)
 
     @property
     def grid(self) -> np.ndarray:
@@ -259,7 +283,7 @@ class ReachabilityMap:
             f"{self.fraction.mean():.3f}\n"
             f"{int(self.skipped.sum())} voxels beyond the reach bound "
             f"({self.reach:.3f} m from {np.round(self.base, 3).tolist()}) skipped; "
-            f"{self.solves} IK solves in {self.elapsed:.1f} s"
+            f"{self.solves} IK solves in {self.elapsed:.1f} s\n{_collision_text(self)}"
         )
 
     def save(self, path: str | os.PathLike) -> None:
@@ -282,6 +306,17 @@ class ReachabilityMap:
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
         """See :func:`plot_reachability`."""
         return plot_reachability(self, path, slices=slices)
+
+
+def _collision_text(rmap: ReachabilityMap) -> str:
+    if not rmap.collisions_checked:
+        return "collisions not checked (no collision limit): poses in collision may count"
+    pairs = rmap.collision_pairs
+    shown = ", ".join(f"{a}-{b}" for a, b in pairs[:4]) + (", ..." if len(pairs) > 4 else "")
+    return (
+        f"collisions checked: {len(pairs)} geom pair(s) kept {rmap.collision_distance:g} m "
+        f"apart ({shown}); poses reached only in collision excluded"
+    )
 
 
 def _orientation_text(rmap: ReachabilityMap) -> str:
@@ -342,6 +377,7 @@ def reachability(
     """
     start_time = time.perf_counter()
     batch = Batch.prepare(robot, options, keywords, ("histories",))
+    check_limits_model(batch.model, batch.options.limits)
     centers, shape = _grid(region, resolution)
     rotations = _rotations(orientations)
     margin = batch.options.tol_position  # [m]: a voxel this close to the bound may converge
@@ -370,6 +406,7 @@ def reachability(
     reached = np.zeros((len(centers), k), dtype=bool)
     reached[candidates] = flags.reshape(len(candidates), k)
     spec = batch.setup.spec
+    collisions = collision_limits(batch.options.limits)
     return ReachabilityMap(
         centers=centers,
         fraction=reached.mean(axis=1),
@@ -387,6 +424,10 @@ def reachability(
         elapsed=time.perf_counter() - start_time,
         engines=engines,
         solve_options=dict(batch.keywords),
+        collision_pairs=checked_pairs(collisions),
+        collision_distance=min(
+            (float(c.minimum_distance_from_collisions) for c in collisions), default=None
+        ),
     )
 
 

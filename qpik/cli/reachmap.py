@@ -7,6 +7,8 @@ import argparse
 import numpy as np
 
 from ..batch.reachability_map import reachability
+from ..limits import ConfigurationLimit, model_collision_limit
+from ..model.configuration import resolve_robot
 from ._common import add_solve_arguments, solve_options_from_args
 
 
@@ -54,6 +56,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the IK restarts (0)")
     add_solve_arguments(parser, "pose", iterations=False)
+    parser.add_argument(
+        "--collision",
+        choices=("scene", "self", "all"),
+        help="exclude poses reached only in collision: the robot's collision geoms against "
+        "the world's (scene), against each other (self) or both (all); pairs from the "
+        "model's own geometry (qpik.limits.model_collision_limit). Default: not checked",
+    )
+    parser.add_argument(
+        "--min-distance",
+        type=float,
+        default=0.005,
+        metavar="M",
+        help="with --collision: the distance [m] every pair keeps (0.005)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
@@ -64,6 +80,16 @@ def run(args: argparse.Namespace) -> int:
 
         require_matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
     options = solve_options_from_args(args)
+    if args.collision is not None:
+        model, _q0 = resolve_robot(args.robot)
+        collision = model_collision_limit(
+            model,
+            scene=args.collision in ("scene", "all"),
+            self_collision=args.collision in ("self", "all"),
+            minimum_distance_from_collisions=args.min_distance,
+            collision_detection_distance=args.min_distance + 0.05,
+        )
+        options["limits"] = [ConfigurationLimit(model), collision]
     rmap = reachability(
         args.robot,
         args.frame,

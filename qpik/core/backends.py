@@ -42,6 +42,9 @@ OSQP_DEFAULTS: dict[str, Any] = {
     "verbose": False,
     "check_termination": 5,
     "adaptive_rho": True,
+    # A fixed interval: OSQP's default (0) may derive it from the measured setup time
+    # (adaptive_rho_fraction), which would make the iterates depend on the machine's load.
+    "adaptive_rho_interval": 50,
     "scaling": 10,
 }
 

@@ -18,7 +18,8 @@ import mujoco
 import numpy as np
 
 from ..diffik.solver import IKSolver, normalize_stack
-from ..errors import InvalidTarget
+from ..errors import InvalidOption, InvalidTarget
+from ..limits import BallJointLimit, collision_clearance, collision_limits
 from ..model.chain import chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
@@ -29,11 +30,24 @@ from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
 from .targets import Target, pose_errors, worst_errors
 
-__all__ = ["QPProblem", "borrowed_tasks", "iterate", "set_frame_target"]
+__all__ = [
+    "QPProblem",
+    "borrowed_tasks",
+    "check_limits_model",
+    "idle_qpos",
+    "iterate",
+    "set_frame_target",
+]
 
 #: At most this many steps of level 0 alone finish an attempt of a stack of several
 #: levels that ended with level 0 (or a coupling) not within tolerance.
 LEVEL0_STEPS = 20
+
+#: With collision limits, a step that takes a pair deeper inside its ``d_min`` (by more
+#: than half ``tol_position``) is halved up to this many times, then not taken: a full
+#: step may cross an obstacle thinner than itself before the pair's row is active (its
+#: ``collision_detection_distance``).
+COLLISION_BACKTRACKS = 10
 
 #: A frame target as the engine holds it: ``(name, frame type, target)``.
 FrameTarget = tuple[str, FrameType, Target]
@@ -141,11 +155,120 @@ def _task_target(task: Any) -> Target | None:
     return _NOT_A_FRAME_TASK
 
 
+def _body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
+    """The joints from the world to ``body`` (every type)."""
+    joints: set[int] = set()
+    while body > 0:
+        start = int(model.body_jntadr[body])
+        joints.update(range(start, start + int(model.body_jntnum[body])))
+        body = int(model.body_parentid[body])
+    return joints
+
+
+def _frame_body(model: mujoco.MjModel, frame: Any, frame_type: Any) -> int:
+    """The body of a frame given as a task holds it (name or id, frame type)."""
+    kind = FrameType.parse(frame_type)
+    obj = {
+        FrameType.BODY: mujoco.mjtObj.mjOBJ_BODY,
+        FrameType.SITE: mujoco.mjtObj.mjOBJ_SITE,
+        FrameType.GEOM: mujoco.mjtObj.mjOBJ_GEOM,
+    }[kind]
+    fid = int(frame) if not isinstance(frame, str) else mujoco.mj_name2id(model, obj, frame)
+    if kind is FrameType.BODY:
+        return fid
+    return int(model.site_bodyid[fid] if kind is FrameType.SITE else model.geom_bodyid[fid])
+
+
+def _task_joints(model: mujoco.MjModel, task: Any) -> set[int] | None:
+    """The joints a task's rows can move (``None``: any joint): a frame task's chain (a
+    relative frame task's two chains), the limited hinge and slide joints of
+    :class:`JointLimitDistanceTask`; any other task may move any joint."""
+    if isinstance(task, (*_FRAME_TASKS, mink.FrameTask)):
+        return _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+    if isinstance(task, mink.RelativeFrameTask):
+        joints = _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+        return joints | _body_chain_joints(
+            model, _frame_body(model, task.root_name, task.root_type)
+        )
+    if isinstance(task, JointLimitDistanceTask):
+        scalar = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+        return {
+            j for j in range(model.njnt) if model.jnt_type[j] in scalar and model.jnt_limited[j]
+        }
+    return None
+
+
+def _limit_joints(model: mujoco.MjModel, limit: Any) -> set[int] | None:
+    """The joints a limit's rows can move from a start within the joint limits: none for
+    box limits (position, velocity, ball-joint ranges), the chains of every geom of a
+    collision limit's pairs; any joint for another limit."""
+    if isinstance(limit, mink.CollisionAvoidanceLimit):
+        joints: set[int] = set()
+        for pair in limit.geom_id_pairs:
+            for geom in pair:
+                joints |= _body_chain_joints(model, int(model.geom_bodyid[geom]))
+        return joints
+    if isinstance(limit, (mink.ConfigurationLimit, mink.VelocityLimit, BallJointLimit)):
+        return set()
+    return None
+
+
+def idle_qpos(
+    model: mujoco.MjModel, levels: Sequence[Sequence], limits: Sequence, couplings
+) -> np.ndarray:
+    """The qpos entries ``(nq,)`` (bool) of the joints that nothing in a solve moves: on no
+    task's chain (:func:`_task_joints`), in no coupling, moved by no limit (a free object,
+    another arm, fingers off the chains). The engine keeps them bitwise where they start
+    (the steps' rounding would move them by ~1e-16). All False when a task or limit may
+    move any joint (a posture or CoM task, a support polygon)."""
+    moved: set[int] = set()
+    for item in [*(t for level in levels for t in level), *limits]:
+        found = (
+            _task_joints(model, item)
+            if not isinstance(item, mink.Limit)
+            else _limit_joints(model, item)
+        )
+        if found is None:
+            return np.zeros(model.nq, dtype=bool)
+        moved |= found
+    if couplings is not None:
+        moved |= {int(model.dof_jntid[d]) for d in couplings.dofs}
+    idle = np.zeros(model.nq, dtype=bool)
+    widths = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
+    for j in set(range(model.njnt)) - moved:
+        adr = int(model.jnt_qposadr[j])
+        idle[adr : adr + widths[int(model.jnt_type[j])]] = True
+    return idle
+
+
+def check_limits_model(model: mujoco.MjModel, limits: Sequence | str | None) -> None:
+    """Raise :class:`qpik.InvalidOption` (``limits``) when a limit was built on a model of
+    another shape than the solved one (dofs; a collision limit's geoms): a collision limit
+    built on a scene (:func:`qpik.scene.add_obstacle`) but a solve of the bare robot."""
+    if limits is None or isinstance(limits, str):
+        return
+    for limit in limits:
+        own = getattr(limit, "model", None)
+        if not isinstance(own, mujoco.MjModel) or own is model:
+            continue
+        geoms = isinstance(limit, mink.CollisionAvoidanceLimit) and own.ngeom != model.ngeom
+        if own.nv != model.nv or own.nq != model.nq or geoms:
+            raise InvalidOption(
+                "limits",
+                type(limit).__name__,
+                f"limits built on the solved robot's model (this one's model has nq {own.nq}, "
+                f"nv {own.nv}, {own.ngeom} geoms; the robot nq {model.nq}, nv {model.nv}, "
+                f"{model.ngeom} geoms: build a scene's collision limit on the scene, and "
+                "solve the scene)",
+            )
+
+
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
         from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
 
         return [ConfigurationLimit(model)]
+    check_limits_model(model, options.limits)
     return list(options.limits or ())
 
 
@@ -166,6 +289,9 @@ class QPProblem:
         levels = self._default_levels(model, options) if stack is None else normalize_stack(stack)
         self.levels = levels
         self.limits = _limits(model, options)
+        #: The collision limits among the limits: an iterate counts as converged only
+        #: when every pair they check is at least ``d_min - tol_position`` apart.
+        self.collisions = collision_limits(self.limits)
         step = options.step
         if step.backend_options is None and step.solver in IGM_BACKEND_OPTIONS:
             step = step.replace(backend_options=IGM_BACKEND_OPTIONS[step.solver])
@@ -187,6 +313,9 @@ class QPProblem:
         #: The model's couplings, held by the steps (their level comes first) and counted
         #: in convergence; None without any or with ``couplings=False``.
         self.couplings = model_couplings(model) if options.step.couplings else None
+        #: The qpos entries nothing in the solve moves (:func:`idle_qpos`): every iterate
+        #: keeps them bitwise as they start.
+        self.idle = idle_qpos(model, levels, self.limits, self.couplings)
         #: Several levels: iterates are ranked lexicographically by level
         #: (:meth:`level_key`), and an attempt that ends with level 0 not met is finished
         #: by steps of level 0 alone (:attr:`level0_solver`, built on first use).
@@ -223,6 +352,15 @@ class QPProblem:
                     worst = max(worst, errors[0] / tol_p, errors[1] / tol_o)
             measures.append(worst)
         return coupling, measures
+
+    def collision_violation(self, configuration: Configuration, tol: float) -> float:
+        """How far [m] the closest pair of the collision limits is inside its ``d_min``
+        (``max(0, d_min - d)``; 0 without collision limits). Distances are computed up to
+        ``d_min + tol`` only (nothing farther matters)."""
+        clearance = collision_clearance(
+            configuration.model, configuration.data, self.collisions, cap=tol
+        )
+        return 0.0 if clearance is None else max(0.0, -clearance)
 
     def _default_levels(self, model: mujoco.MjModel, options: SolveOptions) -> list[list]:
         """Level 0: a position or pose task per frame (gain ``alpha``); level 1, with
@@ -293,9 +431,11 @@ class QPProblem:
 class _Measure:
     """The errors of the current iterate: per frame, the score ``max(p / tol_p + o /
     tol_o)`` over frames and level-0 tasks, whether all are within tolerance, and the
-    energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases."""
+    energy ``sum |e_p|^2 + |e_o|^2`` that backtracking decreases. With collision limits,
+    the closest pair's depth inside its ``d_min`` [m] counts as one more position-like
+    error (0 when every pair keeps ``d_min``), and ranks first in :attr:`key`."""
 
-    __slots__ = ("done", "energy", "errors", "key", "score")
+    __slots__ = ("done", "energy", "errors", "key", "score", "violation")
 
     def __init__(self, problem: QPProblem, options: SolveOptions):
         configuration = problem.configuration
@@ -304,6 +444,10 @@ class _Measure:
         items = list(self.errors.values()) + problem.level0_errors(configuration)
         if problem.couplings is not None:
             items.append((problem.couplings.error(configuration.q), 0.0))
+        self.violation = 0.0
+        if problem.collisions:
+            self.violation = problem.collision_violation(configuration, tol_p)
+            items.append((self.violation, 0.0))
         self.score = max(p / tol_p + o / tol_o for p, o in items)
         self.done = all(p <= tol_p and o <= tol_o for p, o in items)
         self.energy = sum(p * p + o * o for p, o in items)
@@ -314,6 +458,8 @@ class _Measure:
         if problem.multilevel:
             coupling, levels = problem.level_measures(configuration, options)
             self.key = (max(1.0, coupling), *(max(1.0, m) for m in levels), self.score)
+        if problem.collisions:  # a configuration in collision ranks after any clear one
+            self.key = (max(1.0, self.violation / tol_p), *self.key)
 
 
 class _Path:
@@ -362,18 +508,30 @@ class _Engine:
 
     def _backtrack(self, step: Any, path: _Path) -> _Measure:
         """Apply ``beta`` times the step, halved (up to ``BACKTRACKS`` times) while it
-        increases the energy, as the compiled engine does."""
+        increases the energy, as the compiled engine does; with collision limits, also
+        halved (up to ``COLLISION_BACKTRACKS`` times) while it takes a pair deeper inside
+        its ``d_min``, and not taken if it still does."""
         configuration = self.problem.configuration
         q_base = configuration.q
         scale = self.options.beta
-        for halving in range(BACKTRACKS + 1):
+        collisions = bool(self.problem.collisions)
+        allowed = max(path.last.violation, 0.5 * self.options.tol_position)
+        halvings = COLLISION_BACKTRACKS if collisions else BACKTRACKS
+        for halving in range(halvings + 1):
             q = q_base.copy()
             mujoco.mj_integratePos(configuration.model, q, scale * step.displacement, 1.0)
             if self.options.beta > 1.0:
                 q = np.clip(q, *self.bounds)
+            q[self.problem.idle] = q_base[self.problem.idle]
             configuration.update(q)
             measure = _Measure(self.problem, self.options)
-            if measure.energy < path.last.energy or halving == BACKTRACKS:
+            deeper = collisions and measure.violation > allowed
+            if not deeper and (measure.energy < path.last.energy or halving >= BACKTRACKS):
+                break
+            if deeper and halving == halvings:  # still deeper at the last halving
+                q = q_base
+                configuration.update(q)
+                measure = _Measure(self.problem, self.options)
                 break
             scale *= 0.5
         path.errors.append(worst_errors(measure.errors))
@@ -416,20 +574,28 @@ class _Engine:
         """Steps of level 0 alone (and the couplings) from the attempt's last iterate,
         while level 0 or a coupling is not met (at most ``LEVEL0_STEPS``, no further once
         a step vanishes): the lower levels' last steps may have left level 0 off by
-        their linearisation error, which these Gauss-Newton steps remove."""
+        their linearisation error, which these Gauss-Newton steps remove. With collision
+        limits, a step that would take a pair deeper inside ``d_min`` ends them untaken."""
         problem, options = self.problem, self.options
         solver = problem.level0_solver
+        first = 1 if problem.collisions else 0  # the key's coupling entry
         for _ in range(LEVEL0_STEPS):
             key = path.last.key
-            if key[0] <= 1.0 and key[1] <= 1.0 or self.clock.out_of_time():
+            if key[first] <= 1.0 and key[first + 1] <= 1.0 or self.clock.out_of_time():
                 break
             step = solver.step(problem.configuration, 1.0)
-            self.iterations += 1
-            path.residuals.append(list(step.residuals))
-            q = problem.configuration.q.copy()
+            q_base = problem.configuration.q
+            q = q_base.copy()
             mujoco.mj_integratePos(problem.configuration.model, q, step.displacement, 1.0)
+            q[problem.idle] = q_base[problem.idle]
             problem.configuration.update(q)
             measure = _Measure(problem, options)
+            allowed = max(path.last.violation, 0.5 * options.tol_position)
+            if problem.collisions and measure.violation > allowed:  # deeper in collision
+                problem.configuration.update(q_base)
+                break
+            self.iterations += 1
+            path.residuals.append(list(step.residuals))
             path.errors.append(worst_errors(measure.errors))
             path.q.append(q)
             path.measures.append(measure)

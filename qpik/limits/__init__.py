@@ -40,7 +40,15 @@ from ..errors import LimitDefinitionError
 from ..model.configuration import Configuration, joint_names
 from .ball import BallJointLimit, limited_ball_joints
 from .collision import CollisionAvoidanceLimit, geom_distance
-from .geometry import collision_geoms, collision_pairs, model_collision_limit
+from .geometry import (
+    checked_pairs,
+    closest_pair,
+    collision_clearance,
+    collision_geoms,
+    collision_limits,
+    collision_pairs,
+    model_collision_limit,
+)
 from .support import SupportPolygonLimit
 
 __all__ = [
@@ -51,7 +59,11 @@ __all__ = [
     "Limit",
     "SupportPolygonLimit",
     "VelocityLimit",
+    "checked_pairs",
+    "closest_pair",
+    "collision_clearance",
     "collision_geoms",
+    "collision_limits",
     "collision_pairs",
     "geom_distance",
     "joint_limits",

@@ -18,14 +18,20 @@ geoms have contact bits (``contype``/``conaffinity``; Menagerie puts them in gro
   link too.
 * :func:`model_collision_limit`: a :class:`qpik.limits.CollisionAvoidanceLimit` over those
   pairs;
+* :func:`collision_clearance`, :func:`closest_pair`, :func:`collision_limits`,
+  :func:`checked_pairs`: how far a
+  configuration is from breaking the collision limits of a list of limits, and which
+  pairs they check (full IK, reachability maps and problem files report them);
 * :func:`contact_footprint`: the ground footprint of a contact frame's collision geometry,
   used by :class:`qpik.limits.SupportPolygonLimit` when no footprint is given.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Iterable, Sequence
 
+import mink
 import mujoco
 import numpy as np
 
@@ -41,7 +47,11 @@ from .collision import (
 )
 
 __all__ = [
+    "checked_pairs",
+    "closest_pair",
+    "collision_clearance",
     "collision_geoms",
+    "collision_limits",
     "collision_pairs",
     "contact_footprint",
     "model_collision_limit",
@@ -203,6 +213,85 @@ def model_collision_limit(
         collision_detection_distance=collision_detection_distance,
         bound_relaxation=bound_relaxation,
     )
+
+
+# ---------------------------------------------------------------------- clearance
+def collision_limits(limits: Iterable | str | None) -> list[mink.CollisionAvoidanceLimit]:
+    """The collision limits among ``limits`` (qpik's and mink's
+    :class:`CollisionAvoidanceLimit`, subclasses included), in order; none for ``None`` or
+    a string such as ``"joint"``."""
+    if limits is None or isinstance(limits, str):
+        return []
+    return [limit for limit in limits if isinstance(limit, mink.CollisionAvoidanceLimit)]
+
+
+def _label(model: mujoco.MjModel, geom: int) -> str:
+    """A geom's name, else ``geom <id> (body '<name>')``."""
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+    if name:
+        return name
+    body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[geom])
+    return f"geom {geom} (body {body!r})"
+
+
+def checked_pairs(limits: Iterable | str | None) -> list[tuple[str, str]]:
+    """The geom pairs the collision limits among ``limits`` check, as geom labels (the
+    name, else ``geom<id>``), each pair once, in the limits' order."""
+    out: dict[tuple[str, str], None] = {}
+    for limit in collision_limits(limits):
+        for a, b in limit.geom_id_pairs:
+            out[(_label(limit.model, int(a)), _label(limit.model, int(b)))] = None
+    return list(out)
+
+
+def closest_pair(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    limits: Iterable | str | None,
+    cap: float = 1.0,
+) -> tuple[tuple[str, str], float, float] | None:
+    """``((geom, geom), distance, margin)``: the pair of the collision limits among
+    ``limits`` with the smallest margin ``d - d_min`` [m] at the kinematics in ``data``
+    (``mj_kinematics`` done), its distance ``d`` [m] and that margin: negative when the
+    pair is closer than its limit's ``minimum_distance_from_collisions`` ``d_min``, below
+    ``-d_min`` when it penetrates. Distances are MuJoCo's ``mj_geomDistance``, capped at
+    ``d_min + cap`` (a smaller ``cap`` is faster; exact whenever the margin is below
+    ``cap``); the first pair among equals. ``None`` when ``limits`` holds no collision
+    limit."""
+    found = collision_limits(limits)
+    if not found:
+        return None
+    best: tuple[int, int, mujoco.MjModel, float, float] | None = None
+    for limit in found:
+        d_min = float(limit.minimum_distance_from_collisions)
+        for a, b in limit.geom_id_pairs:
+            distance = mujoco.mj_geomDistance(model, data, int(a), int(b), d_min + cap, None)
+            if best is None or distance - d_min < best[4]:
+                best = (int(a), int(b), limit.model, distance, distance - d_min)
+    assert best is not None  # a collision limit has at least one pair
+    a, b, owner, distance, margin = best
+    return (_label(owner, a), _label(owner, b)), float(distance), float(margin)
+
+
+def collision_clearance(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    limits: Iterable | str | None,
+    cap: float = 1.0,
+) -> float | None:
+    """The smallest margin ``d - d_min`` [m] over every pair that the collision limits
+    among ``limits`` check (:func:`closest_pair`'s margin, same ``cap``); ``None`` when
+    ``limits`` holds no collision limit."""
+    found = collision_limits(limits)
+    if not found:
+        return None
+    smallest = math.inf
+    for limit in found:
+        d_min = float(limit.minimum_distance_from_collisions)
+        for a, b in limit.geom_id_pairs:
+            distance = mujoco.mj_geomDistance(model, data, int(a), int(b), d_min + cap, None)
+            smallest = min(smallest, distance - d_min)
+    return smallest
 
 
 # ---------------------------------------------------------------------- footprints

@@ -22,7 +22,8 @@ order: the site ``ee`` (qpik's bundled robots); a site, then a body, named as a 
 point (:data:`TCP_NAMES`: ``pinch_site``, ``tcp_site``, ``link_tcp``, ``end_effector``,
 ``*_hand_tcp``, ...); a site, then a body, named as a flange (:data:`FLANGE_NAMES`:
 ``attachment_site``, ``tool0``, ``flange``, ...); a site, then a body, named as a hand
-(:data:`HAND_NAMES`: ``left_palm``, ``right_wrist``: a humanoid's); a known tool link
+(:data:`HAND_NAMES`: ``left_palm``, ``right_wrist``, ``left_hand_link``: a humanoid's,
+each name also followed by ``_link``); a known tool link
 (:data:`TOOL_LINKS`); else the end of the longest chain. A name matches exactly or as the
 end of a longer name after ``/`` or ``_`` (``left/gripper``, ``panda_hand_tcp``); among
 several matches the one on the longest chain wins (ties: the lowest id). No rule ever
@@ -487,10 +488,12 @@ def _named_tool(model: mujoco.MjModel, joints, moved) -> ToolFrame | None:
             return None
         return max(hits, key=lambda i: (joints[owner(i)], -i))
 
+    # A hand's name may also end in "_link" (booster_t1's left_hand_link).
+    hands = tuple(name for known in HAND_NAMES for name in (known, known + "_link"))
     for names, what in (
         (TCP_NAMES, "a tool centre point's name"),
         (FLANGE_NAMES, "a flange's name"),
-        (HAND_NAMES, "a hand's name"),
+        (hands, "a hand's name"),
     ):
         for known in names:
             site = best(sites, lambda s: int(site_body[s]), known)

@@ -19,6 +19,7 @@ from .. import statics as _statics
 from ..errors import QpikError
 from ..igm.qp_engine import set_frame_target
 from ..igm.result import IKResult
+from ..limits import checked_pairs, closest_pair, collision_limits
 from ..model.configuration import Configuration, FrameType
 from ..options import SolveOptions
 from .goals import Goal
@@ -367,6 +368,34 @@ class ProblemResult:
             for (level, j, unit), values in columns.items()
         ]
 
+    def collisions(self) -> dict[str, Any] | None:
+        """What the file's collision limits checked: ``pairs`` (geom names),
+        ``min_distance`` (their smallest ``d_min`` [m]); at the final :attr:`q`, the
+        ``closest`` pair (the smallest ``d - d_min``) and its ``distance`` [m]
+        (``mj_geomDistance``, capped at ``d_min`` + 1 m; negative when they penetrate);
+        ``path_closest`` and ``path_distance``: the same over every configuration of
+        :attr:`path`. None when the file has no collision limit (collisions not
+        checked)."""
+        limits = collision_limits(self.problem.build_limits())
+        if not limits:
+            return None
+        configuration = Configuration(self.problem.model)
+        along = []
+        for q in self.path:
+            configuration.update(q)
+            found = closest_pair(configuration.model, configuration.data, limits)
+            assert found is not None  # limits holds a collision limit
+            along.append(found)
+        worst = min(along, key=lambda found: found[2])  # the first among equals
+        return {
+            "pairs": checked_pairs(limits),
+            "min_distance": min(float(c.minimum_distance_from_collisions) for c in limits),
+            "closest": list(along[-1][0]),
+            "distance": along[-1][1],
+            "path_closest": list(worst[0]),
+            "path_distance": worst[1],
+        }
+
     def summary(self) -> str:
         """A few lines for people."""
         p = self.problem
@@ -392,6 +421,9 @@ class ProblemResult:
                     for frame, (p, o) in r.frame_errors.items()
                 ]
         lines.append(f"  q = {np.array2string(self.q, precision=4)}")
+        collisions = self.collisions()
+        if collisions is not None:
+            lines.append(_collision_line(collisions))
         if self.statics is not None:
             lines += self.statics.summary_lines()
         return "\n".join(lines)
@@ -408,11 +440,22 @@ class ProblemResult:
             "results": [_ik_result_dict(r) for r in self.results],
             "trace": None if self.trace is None else self.trace.to_dict(),
             "statics": None if self.statics is None else self.statics.to_dict(),
+            "collisions": jsonable(self.collisions()),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
         """:meth:`to_dict` as JSON."""
         return json.dumps(self.to_dict(), indent=indent)
+
+
+def _collision_line(c: dict[str, Any]) -> str:
+    a, b = c["closest"]
+    pa, pb = c["path_closest"]
+    return (
+        f"  collisions checked: {len(c['pairs'])} geom pair(s) kept {c['min_distance']:g} m "
+        f"apart; closest at q: {a}-{b} {c['distance']:.4g} m, along the path: {pa}-{pb} "
+        f"{c['path_distance']:.4g} m"
+    )
 
 
 def _trace_lines(t: TrackTrace) -> list[str]:

@@ -658,6 +658,38 @@ def test_mink_suite_reads_junit_outcomes(tmp_path):
     }
 
 
+def test_mink_suite_serves_a_linked_model_from_its_own_folder(tmp_path, monkeypatch):
+    """--models DIR holds links (``DIR/<name>.xml`` -> a Menagerie folder's model): the model
+    is opened at the link's target, so that the files it names relative to itself (meshes in
+    ``assets/``) are found; a name without a file is a skip, not an error."""
+    import os
+    import sys
+    import unittest
+
+    module, _ = _mink_suite_module()
+    robot = tmp_path / "robot"
+    (robot / "assets").mkdir(parents=True)
+    (robot / "assets" / "tet.obj").write_text(module._TETRAHEDRON_OBJ)
+    (robot / "robot.xml").write_text(
+        '<mujoco><compiler meshdir="assets"/><asset><mesh file="tet.obj"/></asset>'
+        '<worldbody><body><joint/><geom type="mesh" mesh="tet"/></body></worldbody></mujoco>'
+    )
+    models = tmp_path / "models"
+    models.mkdir()
+    os.symlink(robot / "robot.xml", models / "robot_mj_description.xml")
+    monkeypatch.setenv("QPIK_MINK_PATCH", "0")
+    monkeypatch.setenv("QPIK_MINK_MODELS", str(models))
+    for name in ("robot_descriptions", "robot_descriptions.loaders",
+                 "robot_descriptions.loaders.mujoco"):  # fmt: skip
+        monkeypatch.setitem(sys.modules, name, None)  # restored after the test
+    exec(module._PLUGIN, {"__name__": "qpik_mink_plugin"})
+    load = sys.modules["robot_descriptions.loaders.mujoco"].load_robot_description
+    model = load("robot_mj_description")
+    assert (model.nmesh, model.njnt) == (1, 1)
+    with pytest.raises(unittest.SkipTest, match="needs a downloaded model: absent_mj"):
+        load("absent_mj_description")
+
+
 @pytest.mark.slow
 def test_mink_suite_runs_a_suite_stock_and_patched(tmp_path):
     """End to end on a three-test suite in mink's style: one test passes only with qpik

@@ -5,8 +5,6 @@ the trust region off, and leave a step alone where the range does not bind."""
 
 from __future__ import annotations
 
-import itertools
-
 import mink
 import mujoco
 import numpy as np
@@ -54,31 +52,82 @@ def test_joint_limits_adds_the_ball_limit():
         BallJointLimit(free)
 
 
-def test_rows_hold_the_range_on_their_polytope():
-    """The rows' cube (a vertex on the range's sphere, along the current axis): at its
-    vertices and at random points inside it, the angle after ``R exp(dq)`` stays within the
-    range, and ``dq = 0`` is always feasible."""
+def _vertices(rows: np.ndarray, bounds: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The vertices of ``{dq : rows dq <= bounds}`` (``inside`` strictly feasible)."""
+    from scipy.spatial import HalfspaceIntersection
+
+    return HalfspaceIntersection(np.column_stack([rows, -bounds]), inside).intersections
+
+
+def _mujoco_limit_distance(model: mujoco.MjModel, data: mujoco.MjData, quat: np.ndarray) -> float:
+    """MuJoCo's own distance to the ball joint's limit (``efc_pos`` of its limit row:
+    ``range - angle``, negative past the range), with a margin that makes the row exist
+    at every rotation."""
+    data.qpos[:] = 0.0
+    data.qpos[1:5] = quat
+    mujoco.mj_fwdPosition(model, data)
+    rows = np.flatnonzero(
+        (data.efc_type[: data.nefc] == int(mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT))
+        & (data.efc_id[: data.nefc] == 1)
+    )
+    assert len(rows) == 1
+    return float(data.efc_pos[rows[0]])
+
+
+@pytest.mark.parametrize("subdivisions", [0, 1, 2])
+def test_rows_hold_the_range_against_mujocos_limit(subdivisions):
+    """The rows' polytope is inscribed in the ball ``|phi + dq| <= range`` with a vertex
+    at ``range * phi / |phi|``; at every vertex and at random points inside, MuJoCo's own
+    ball-joint limit (``efc_pos`` after ``mj_integratePos``) is not passed; ``dq = 0`` is
+    always feasible."""
+    model = mujoco.MjModel.from_xml_string(BALL)
+    model.jnt_margin[1] = 10.0  # the limit row exists at every rotation
+    data = mujoco.MjData(model)
     rng = np.random.default_rng(3)
-    for _ in range(300):
+    for _ in range(60 if subdivisions < 2 else 15):
         rho = rng.uniform(0.05, 3.0)
+        model.jnt_range[1] = [0.0, rho]
         phi = rng.normal(size=3)
         phi *= rng.uniform(0.0, rho) / np.linalg.norm(phi)
         theta = float(np.linalg.norm(phi))
-        rows, bounds = ball_rows(phi, rho)
-        assert np.all(bounds >= 0.0)
-        faces = rows[:3]
-        half = rho / np.sqrt(3.0)
-        corners = np.array(list(itertools.product([-half, half], repeat=3))) @ faces
-        inside = rng.uniform(-half, half, size=(20, 3)) @ faces
-        if theta > 1e-12:  # the vertex on the sphere is the one along the axis
-            assert np.isclose(np.max(corners @ phi) / theta, rho)
-        for z in np.vstack([corners, inside]):
-            dq = z - phi
-            if np.any(rows @ dq > bounds + 1e-9):
-                continue  # cut by the |dq| <= pi box
-            quat = _quat(phi if theta > 1e-12 else np.array([0.0, 0.0, 1.0]), theta)
-            mujoco.mju_quatIntegrate(quat, dq, 1.0)
-            assert _angle(quat) <= rho + 1e-9
+        rows, bounds = ball_rows(phi, rho, subdivisions)
+        assert np.all(bounds >= -1e-12)  # dq = 0 is feasible
+        corners = _vertices(rows, bounds, -0.5 * phi)
+        radii = np.linalg.norm(corners + phi, axis=1)
+        assert np.all(radii <= rho + 1e-9)
+        if theta > 1e-9 and 2 * rho <= np.pi:  # the vertex along the axis (no |dq| box)
+            assert np.min(np.linalg.norm(corners + phi - rho * phi / theta, axis=1)) < 1e-9
+        weights = rng.dirichlet(np.ones(len(corners)), size=20)
+        start = _quat(phi if theta > 1e-12 else np.array([0.0, 0.0, 1.0]), theta)
+        for dq in np.vstack([corners, weights @ corners]):
+            qpos = np.zeros(model.nq)
+            qpos[1:5] = start
+            velocity = np.zeros(model.nv)
+            velocity[1:4] = dq
+            mujoco.mj_integratePos(model, qpos, velocity, 1.0)
+            assert _mujoco_limit_distance(model, data, qpos[1:5]) >= -1e-9
+            assert _angle(qpos[1:5]) <= rho + 1e-9
+
+
+def test_the_icosahedron_is_tighter_than_the_cube():
+    """Against the cube of earlier versions (6 faces, a vertex along the axis): at the
+    range's edge a tangential move needs less inward motion (tan 37.4 deg against tan 54.7
+    deg), and the rows leave alone every step that ends within 79 % of the range (58 %)."""
+    from qpik.limits.ball import unit_polytope
+
+    normals, offsets = unit_polytope(0)
+    assert normals.shape == (20, 3) and np.allclose(offsets, offsets[0])
+    assert offsets[0] == pytest.approx(0.7947, abs=1e-4) and offsets[0] > 1 / np.sqrt(3)
+    at_vertex = np.isclose(normals[:, 0], offsets)  # faces through (1, 0, 0)
+    tilt = np.degrees(np.arccos(normals[at_vertex, 0]))
+    assert at_vertex.sum() == 5 and np.allclose(tilt, 37.377, atol=1e-3)
+    assert len(unit_polytope(1)[0]) == 80 and unit_polytope(1)[1].min() > 0.93
+    model = mujoco.MjModel.from_xml_string(BALL)
+    assert (
+        len(BallJointLimit(model).compute_qp_inequalities(qpik.Configuration(model), 0.01).h) == 20
+    )
+    with pytest.raises(qpik.LimitDefinitionError):
+        BallJointLimit(model, subdivisions=3)
 
 
 @pytest.mark.parametrize("task", ["posture", "frame"])
@@ -118,7 +167,7 @@ def test_ball_range_holds_for_any_step_with_the_trust_region_off(task):
 
 def test_the_step_is_unchanged_where_the_range_does_not_bind():
     """Starts and targets within 0.25 rad of the identity under a 60 degree range (the
-    rows bind only past ``range / sqrt(3)``, 0.6 rad): the step equals the one without
+    rows bind only past 79 % of the range, 0.83 rad): the step equals the one without
     them."""
     model = mujoco.MjModel.from_xml_string(BALL)
     rng = np.random.default_rng(5)

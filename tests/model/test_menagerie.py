@@ -117,13 +117,18 @@ def test_tool_frame_is_never_a_finger(tmp_path):
     # No known name: the end of the arm (the hand the fingers branch from), not a finger,
     # although the fingers' slide joints make their chains the longest.
     path = tmp_path / "arm.xml"
-    path.write_text(ARM_WITH_FINGERS.format(hand="palm_link", finger_site="marker"))
+    path.write_text(ARM_WITH_FINGERS.format(hand="arm_end", finger_site="marker"))
     tool = tool_frame(qpik.load_robot(path))
-    assert (tool.name, tool.frame_type) == ("palm_link", "body") and "longest chain" in tool.reason
+    assert (tool.name, tool.frame_type) == ("arm_end", "body") and "longest chain" in tool.reason
     # A TCP's name on a finger is skipped too: the hand's name wins.
     path.write_text(ARM_WITH_FINGERS.format(hand="hand", finger_site="tcp"))
     tool = tool_frame(qpik.load_robot(path))
     assert (tool.name, tool.frame_type) == ("hand", "body")
+    # A hand's name followed by "_link" (booster_t1's left_hand_link) is a hand's name.
+    path.write_text(ARM_WITH_FINGERS.format(hand="left_hand_link", finger_site="marker"))
+    tool = tool_frame(qpik.load_robot(path))
+    assert (tool.name, tool.frame_type) == ("left_hand_link", "body")
+    assert "a hand's name" in tool.reason
 
 
 def test_prefixed_names_match_and_the_site_wins_over_the_body(tmp_path):

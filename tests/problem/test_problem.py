@@ -15,6 +15,7 @@ import qpik
 from qpik.problem import TASK_TYPES, problem_files
 
 TASKS = problem_files()
+TASKS_DIR = Path(__file__).resolve().parents[2] / "tasks"
 
 #: Expected outcome of each shipped file.
 CONVERGED = {
@@ -420,3 +421,41 @@ def test_q0_within_tolerance_outside_a_limit_is_clamped_and_iterates_stay_inside
     result = problem.solve()
     for q in result.path:
         assert np.all(q <= upper) and np.all(q >= -upper)
+
+
+def test_report_says_which_collisions_were_checked(solved):
+    result = solved["panda_obstacle_avoidance"]
+    collisions = result.to_dict()["collisions"]
+    limit = result.problem.build_limits()[-1]
+    model = result.problem.model
+    names = [(model.geom(a).name, model.geom(b).name) for a, b in limit.geom_id_pairs]
+    assert collisions["pairs"] == [list(pair) for pair in names]
+    assert collisions["min_distance"] == 0.01
+    # the closest pair along the path, from MuJoCo's mj_geomDistance independently
+    data = mujoco.MjData(model)
+    closest = np.inf
+    for q in result.path:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        for a, b in limit.geom_id_pairs:
+            closest = min(closest, mujoco.mj_geomDistance(model, data, a, b, 2.0, None))
+    assert collisions["path_distance"] == pytest.approx(closest, abs=1e-12)
+    assert collisions["path_distance"] >= 0.01 - 1e-3  # d_min - 1 mm
+    assert "collisions checked: 31 geom pair(s) kept 0.01 m apart" in result.summary()
+    plain = solved["panda_pose_reach"]
+    assert plain.to_dict()["collisions"] is None and "collisions" not in plain.summary()
+
+
+def test_solve_mode_with_collision_limits_excludes_a_target_inside_an_obstacle(tmp_path):
+    base = (TASKS_DIR / "panda_pose_reach.toml").read_text()
+    ball = '[[obstacles]]\nshape = "sphere"\nsize = [0.05]\nposition = [0.45, 0.25, 0.40]\n'
+    inside = base.replace('q0 = "home"\n', 'q0 = "home"\n\n' + ball, 1)
+    inside = inside.replace("restarts = 10", "restarts = 2")
+    free = qpik.load_problem(write(tmp_path, inside)).solve()
+    assert free.converged  # no collision limit: the tip goes into the ball
+    checked = inside.replace("position = true", "position = true\n[limits.collision]", 1)
+    result = qpik.load_problem(write(tmp_path, checked)).solve()
+    assert not result.converged
+    collisions = result.to_dict()["collisions"]
+    assert collisions["distance"] >= 0.005 - 1e-4  # the default d_min, 5 mm
+    assert "collisions checked" in result.summary()
