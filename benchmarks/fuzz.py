@@ -2930,7 +2930,7 @@ def _engine_functions() -> dict:
     import qpik._engine as engine
 
     found = {}
-    for sub in ("core", "model", "tasks", "diffik", "igm"):
+    for sub in ("core", "model", "tasks", "limits", "diffik", "igm"):
         module = getattr(engine, sub, None)
         for name in dir(module):
             value = getattr(module, name)
@@ -3028,6 +3028,20 @@ def _engine_recipes(calls: dict) -> dict:
         "core.damping_of": ((0.1, 0.05, 0.1), {}),
         "igm.box_qp": ((spd, np.ones(4), -np.ones(4), np.ones(4), np.zeros(4), 50), {}),
         "igm.uniform": ((np.array([12345], dtype=np.uint64),), {}),
+        "limits.collision_candidates": (
+            (
+                np.array([[0, 1]], dtype=np.int64),
+                np.array([3, 6], dtype=np.int32),
+                np.array([[0.05, 0.2, 0.0], [0.1, 0.1, 0.1]]),
+                np.zeros((2, 6)),
+                np.array([0.25, 0.18]),
+                np.array([[0.0, 0.0, 0.0], [0.3, 0.0, 0.0]]),
+                np.tile(R.ravel(), (2, 1)),
+                0.05,
+                np.zeros(1, dtype=np.int64),
+            ),
+            {},
+        ),
         "model.left_jacobian_inverse": ((np.array([0.1, 0.2, 0.3]), np.zeros((3, 3))), {}),
         "model.rotation_defect": ((R,), {}),
         "model.rotation_log": ((R, np.zeros(3)), {}),

@@ -18,7 +18,8 @@ may download models itself). mink's tests need ``absl-py`` (in qpik's ``dev`` ex
 
 ``--timing`` adds per-call times of ``qpik.solve_ik`` and ``mink.solve_ik`` (same solver,
 same tasks: a frame task and a posture task; mink's default limits) on the bundled robots:
-medians over repeated calls, and the ratio qpik / mink.
+medians over repeated calls, and the ratio qpik / mink; on a ``qpik.Configuration`` and on
+a ``mink.Configuration`` (the README's one-import example, with its own two-level call).
 
 ``--examples DIR`` runs mink's example scripts (``DIR/*.py``, e.g. the ``examples/`` folder
 of a mink checkout with its MuJoCo models) headless, each in its own subprocess, nothing
@@ -210,7 +211,11 @@ def _compare(stock: dict, ours: dict) -> tuple[list, list, list]:
 
 
 def run_timing(calls: int) -> None:
-    """Median per-call time of qpik.solve_ik and mink.solve_ik on the bundled robots."""
+    """Median per-call time of qpik.solve_ik and mink.solve_ik on the bundled robots, on a
+    qpik.Configuration and on a mink.Configuration (the README's one-import example: UR5e,
+    frame + posture task, mink's default limits; its last row is the README's own call,
+    two strict levels ``[[task], [posture]]`` with qpik's solver, against mink's one
+    weighted level with DAQP)."""
     import mink
     import numpy as np
 
@@ -218,18 +223,25 @@ def run_timing(calls: int) -> None:
 
     print(f"\nper-call time, {calls} calls each (frame + posture task, default limits)")
     print(
-        f"{'robot':<8}{'solver':<10}{'mink [us]':>11}{'qpik [us]':>11}{'ratio':>8}{'max |dv|':>11}"
+        f"{'robot':<8}{'Configuration':<15}{'solver':<10}{'mink [us]':>11}{'qpik [us]':>11}"
+        f"{'ratio':>8}{'max |dv|':>11}"
     )
-    for robot, frame in (("ur5e", "ee"), ("panda", "ee")):
+    cases = [("ur5e", "ee", "qpik"), ("panda", "ee", "qpik"), ("ur5e", "ee", "mink")]
+    for robot, frame, kind in cases:
         model = qpik.load_robot(robot)
         rng = np.random.default_rng(0)
-        configuration = qpik.Configuration(model, model.key("home").qpos)
+        if kind == "qpik":
+            configuration = qpik.Configuration(model, model.key("home").qpos)
+        else:  # the README's example
+            configuration = mink.Configuration(model)
+            configuration.update_from_keyframe("home")
         task = mink.FrameTask(frame, "site", position_cost=1.0, orientation_cost=1.0)
         start = configuration.get_transform_frame_to_world(frame, "site")
         posture = mink.PostureTask(model, cost=1e-2)
         posture.set_target(model.key("home").qpos)
-        for solver in ("daqp", "quadprog"):
-            times = {"mink": [], "qpik": []}
+        solvers = ("daqp", "quadprog") + (("levels",) if kind == "mink" else ())
+        for solver in solvers:
+            times: dict[str, list[float]] = {"mink": [], "qpik": []}
             worst = 0.0
             for i in range(calls):
                 offset = rng.uniform(-0.05, 0.05, 3)
@@ -237,13 +249,25 @@ def run_timing(calls: int) -> None:
                 answers = {}
                 order = ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink")
                 for name in order:
-                    solve = mink.solve_ik if name == "mink" else qpik.solve_ik
                     t0 = time.perf_counter()
-                    answers[name] = solve(configuration, [task, posture], 0.01, solver)
+                    if name == "mink":
+                        backend = "daqp" if solver == "levels" else solver
+                        answers[name] = mink.solve_ik(configuration, [task, posture], 0.01, backend)
+                    elif solver == "levels":
+                        answers[name] = qpik.solve_ik(configuration, [[task], [posture]], 0.01)
+                    else:
+                        answers[name] = qpik.solve_ik(configuration, [task, posture], 0.01, solver)
                     times[name].append(time.perf_counter() - t0)
-                worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+                if solver != "levels":
+                    worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
             m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
-            print(f"{robot:<8}{solver:<10}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
+            label = "qpik" if kind == "qpik" else "mink (README)"
+            dv = f"{worst:>11.2e}" if solver != "levels" else f"{'levels':>11}"
+            print(f"{robot:<8}{label:<15}{solver:<10}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{dv}")
+    print(
+        "README row 'levels': qpik's two strict levels [[task], [posture]], qpik's solver, "
+        "against mink's one weighted level [task, posture] with DAQP (goal: ratio <= 0.5)"
+    )
 
 
 # ----------------------------------------------------------------- mink's example scripts
@@ -397,7 +421,8 @@ mujoco.viewer.launch_passive = lambda model, data, *a, **k: FakeViewer(model, da
 
 mink_solve_ik, qpik_solve_ik = mink.solve_ik, qpik.solve_ik
 times = {"mink": [], "qpik": [], "levels": []}
-state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None}
+state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None,
+         "rows": [0, 0, 0.0, 0]}  # collision rows: checks, rows, max |diff|, other pairs
 
 def levels_solver(configuration, tasks, solver, damping, limits):
     """qpik.IKSolver with each task a strict level (posture/damping tasks last)."""
@@ -430,6 +455,20 @@ def solve_ik(configuration, tasks, dt, solver=None, damping=1e-12, safety_break=
             times["levels"].append(time.perf_counter() - t0)
         except Exception as exc:
             state["levels_error"] = f"{type(exc).__name__}: {exc}"[:120]
+    for limit in limits or ():
+        if type(limit) is mink.CollisionAvoidanceLimit:  # qpik's culled rows against mink's
+            from qpik.limits.collision import mink_collision_rows
+            reference = limit.compute_qp_inequalities(configuration, dt)
+            G, h, kept = mink_collision_rows(limit, configuration, dt)
+            in_play = np.flatnonzero(np.isfinite(reference.h))
+            check = state["rows"]
+            check[0] += 1
+            check[1] += len(kept)
+            if in_play.tolist() != kept:
+                check[3] += 1
+            elif kept:
+                check[2] = max(check[2], float(np.abs(G - reference.G[in_play]).max()),
+                               float(np.abs(h - reference.h[in_play]).max()))
     state["calls"] += 1
     state["dv"] = max(state["dv"], float(np.abs(answers["mink"] - answers["qpik"]).max()))
     state["last"] = (configuration, list(tasks), solver, limits)
@@ -458,6 +497,7 @@ if state["last"] is not None:
         errors=errors,
     )
 result.update(calls=state["calls"], dv=state["dv"], levels_error=state["levels_error"],
+              rows=state["rows"],
               **{k: v for k, v in times.items()})
 with open(out, "w") as f:
     json.dump(result, f)
@@ -553,6 +593,16 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
             f"{'mink default' if r['limits'] is None else ', '.join(r['limits']) or 'none'}"
             + (f"; levels: {r['levels_error']}" if r["levels_error"] else "")
         )
+    for name, runs in rows:
+        both = [runs[d].get("rows", [0, 0, 0.0, 0]) for d in ("mink", "qpik")]
+        checks, count, other = (sum(r[i] for r in both) for i in (0, 1, 3))
+        worst = max(r[2] for r in both)
+        if checks:
+            print(
+                f"  {name}: mink's CollisionAvoidanceLimit rows, qpik's culled computation "
+                f"against mink's on {checks} states (both runs): {count} rows in play, max |diff| "
+                f"{worst:.1e}, {other} states with other pairs in play"
+            )
     for name, why in failed:
         print(f"could not run {name}: {why}")
 

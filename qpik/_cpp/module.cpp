@@ -7,6 +7,7 @@ namespace nb = nanobind;
 void bind_core(nb::module_& m);
 void bind_model(nb::module_& m);
 void bind_tasks(nb::module_& m);
+void bind_limits(nb::module_& m);
 void bind_diffik(nb::module_& m);
 void bind_igm(nb::module_& m);
 
@@ -18,6 +19,8 @@ NB_MODULE(_engine, m) {
     bind_model(model);
     nb::module_ tasks = m.def_submodule("tasks", "SE(3) maps and the frame task's rows.");
     bind_tasks(tasks);
+    nb::module_ limits = m.def_submodule("limits", "Culling of collision pairs.");
+    bind_limits(limits);
     nb::module_ diffik = m.def_submodule("diffik", "The one-call differential IK step.");
     bind_diffik(diffik);
     nb::module_ igm = m.def_submodule("igm", "The full-IK loop and its box QP.");

@@ -24,6 +24,7 @@ import numpy as np
 from ..core import checks
 from ..core.kernels import merge_boxes, tighten
 from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from ..limits.collision import mink_collision_rows
 from ..model.configuration import Configuration, joint_names
 
 __all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure"]
@@ -282,11 +283,10 @@ class LimitBoxes:
     def _inequalities(self, limit, configuration: Configuration, dt: float, side: _Collected):
         """A limit's ``compute_qp_inequalities`` split into single-dof bounds (tightening
         ``side``'s box in place) and general rows (appended to ``side``)."""
-        constraint = limit.compute_qp_inequalities(configuration, dt)
-        if constraint.inactive:
+        rows_of = _inequalities_of(limit, configuration, dt)
+        if rows_of is None:
             return
-        G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-        h = np.atleast_1d(constraint.h)
+        G, h, numbers = rows_of
         name = type(limit).__name__
         structure = self.structure(limit, G)
         if structure.empty is not None and np.any(h[structure.empty] < 0):
@@ -306,7 +306,9 @@ class LimitBoxes:
         if structure.general.size:
             side.G.append(G[structure.general])
             side.h.append(h[structure.general])
-            side.names.extend(f"{name} row {int(r)}" for r in structure.general)
+            side.names.extend(
+                f"{name} row {int(r if numbers is None else numbers[r])}" for r in structure.general
+            )
 
     def contributions(self, qpos: np.ndarray, dt: float) -> list[Contribution]:
         """The box limits' contributions ``(name, dofs, bounds)`` at ``qpos`` (nq,), upper
@@ -333,11 +335,10 @@ class LimitBoxes:
         h_parts: list[np.ndarray] = []
         names: list[str] = []
         for limit in limits:
-            constraint = limit.compute_qp_inequalities(configuration, dt)
-            if constraint.inactive:
+            rows_of = _inequalities_of(limit, configuration, dt)
+            if rows_of is None or not rows_of[0].shape[0]:
                 continue
-            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-            h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
+            G, h, numbers = rows_of
             # RowStructure.of's split, without its bookkeeping (these rows change each
             # step): a one-dof row goes to the box (the QP path), an empty one must hold
             count = (G != 0.0).sum(axis=1)
@@ -351,12 +352,30 @@ class LimitBoxes:
             G_parts.append(G[rows])
             h_parts.append(h[rows])
             name = type(limit).__name__
-            names.extend(f"{name} row {int(r)}" for r in rows)
+            names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows)
         if not G_parts:
             return self.no_rows, np.zeros(0), names
         G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
         h = np.ascontiguousarray(np.concatenate(h_parts) if len(h_parts) > 1 else h_parts[0], float)
         return G, h, names
+
+
+def _inequalities_of(
+    limit, configuration: mink.Configuration, dt: float
+) -> tuple[np.ndarray, np.ndarray, list[int] | None] | None:
+    """A limit's rows ``(G, h, numbers)`` (None when inactive): its
+    ``compute_qp_inequalities`` (``numbers`` None: row ``r`` is the limit's row ``r``), or,
+    for mink's own :class:`mink.CollisionAvoidanceLimit`, only the rows of the pairs in
+    range (:func:`qpik.limits.collision.mink_collision_rows`: mink's rows, bitwise; its
+    other rows are zero with ``h = inf``), ``numbers`` their row numbers in mink's."""
+    if type(limit) is mink.CollisionAvoidanceLimit:
+        return mink_collision_rows(limit, configuration, dt)
+    constraint = limit.compute_qp_inequalities(configuration, dt)
+    if constraint.inactive:
+        return None
+    G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+    h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
+    return G, h, None
 
 
 def _check_limit(limit) -> None:

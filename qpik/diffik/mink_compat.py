@@ -247,6 +247,20 @@ def _raise_unsolved(ik: IKSolver, status: Sequence[LevelStatus]) -> None:
         raise error
 
 
+def _level_ids(tasks: list | tuple) -> tuple:
+    """The ids of ``tasks`` level by level, as :meth:`SolverCache.get` keys them: a flat list
+    is one level; a list with a list or tuple among its items has a level per item (a task
+    alone, a level of one). An item of another kind counts as a task: a key that matches
+    a kept entry names only objects that entry was built with (and holds)."""
+    for item in tasks:
+        if type(item) in (list, tuple):
+            return tuple(
+                tuple(map(id, item)) if type(item) in (list, tuple) else (id(item),)
+                for item in tasks
+            )
+    return (tuple(map(id, tasks)),)
+
+
 class SolverCache:
     """The :class:`IKSolver` objects that :func:`solve_ik` and :func:`build_ik` keep
     between calls, so that a control loop calling ``solve_ik`` with the same model, task
@@ -284,8 +298,8 @@ class SolverCache:
         damping: Any,
         limits: Any,
     ) -> np.ndarray | None:
-        """:func:`solve_ik`'s answer for a call with a kept solver (a flat list or tuple of
-        tasks, ``dt`` and ``damping`` floats; no constraints, backend settings or safety
+        """:func:`solve_ik`'s answer for a call with a kept solver (a list or tuple of tasks
+        or of levels, ``dt`` and ``damping`` floats; no constraints, backend settings or safety
         break), None otherwise: :func:`solve_ik` then checks every argument and answers.
 
         A kept entry holds its task and limit objects, so ids equal to its key's are those
@@ -305,7 +319,7 @@ class SolverCache:
             limit_key = tuple(map(id, limits))
         else:
             return None
-        key = (id(model), (tuple(map(id, tasks)),), limit_key, solver, damping, "")
+        key = (id(model), _level_ids(tasks), limit_key, solver, damping, "")
         entry = self._entries.pop(key, None)
         if entry is None:
             return None

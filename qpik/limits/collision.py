@@ -28,22 +28,27 @@ and a child body, and ``contype``/``conaffinity`` must allow contact unless
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+import weakref
+from collections.abc import Callable, Sequence
 
 import mink
 import mujoco
 import numpy as np
 from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
 
+from .._engine import limits as _engine
 from ..core import checks
 from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError, UnknownFrame
 from ..model.configuration import frame_names
 from ..model.frames import check_model_type
 
 __all__ = [
+    "CULLING_SLACK",
     "CollisionAvoidanceLimit",
+    "PairCulling",
     "contact_bits_match",
     "geom_distance",
+    "mink_collision_rows",
     "welded_parent_and_child",
     "welded_together",
 ]
@@ -76,6 +81,126 @@ def contact_bits_match(model: mujoco.MjModel, a: int, b: int) -> bool:
     return bool(contype[a] & conaffinity[b] or contype[b] & conaffinity[a])
 
 
+#: Pairs whose distance is provably above the detection distance plus this much [m] are not
+#: handed to ``mj_geomDistance`` (see :class:`PairCulling`). MuJoCo's colliders find a
+#: separated pair's distance exactly (primitives) or to ``opt.ccd_tolerance`` (1e-6 m by
+#: default; convex meshes), far inside this slack, so they would report no contact within
+#: the detection distance for such a pair either: the rows are unchanged.
+CULLING_SLACK = 1e-3
+
+
+class PairCulling:
+    """The geom pairs of a collision limit, culled by the compiled engine before any contact
+    routine runs (``qpik/_cpp/limits/collision.hpp``).
+
+    Each geom is bounded by a sphere, capsule (capsules, cylinders), oriented box (boxes,
+    ellipsoids, meshes by their ``geom_aabb``) or half-space (planes), from the model's
+    current ``geom_type``, ``geom_size``, ``geom_aabb`` and ``geom_rbound`` (mink's
+    bounding-sphere test comes first) and the data's ``geom_xpos`` /
+    ``geom_xmat``; a lower bound on each pair's distance follows (exact segment distances,
+    separating axes). :meth:`candidates` keeps the pairs whose bound is at most a threshold:
+    every pair closer than it, and a few more (height fields are always kept). It is
+    exact as a filter: the rows of the pairs it drops are those ``mj_geomDistance`` leaves
+    out, so a limit's rows are the same with and without it (tested against mink's on
+    random configurations)."""
+
+    def __init__(self, pairs: Sequence[tuple[int, int]]) -> None:
+        self.pairs = np.ascontiguousarray(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
+        self._out = np.empty(self.pairs.shape[0], dtype=np.int64)
+        self._source: tuple = (None, None)  # the (model, data) whose arrays are in _arrays
+        self._arrays: tuple = ()
+
+    def candidates(self, model: mujoco.MjModel, data: mujoco.MjData, threshold: float) -> list:
+        """Indices (ascending, into the pairs) of the pairs that may be within
+        ``threshold`` [m] at ``data``'s geom placement (``mj_kinematics`` done)."""
+        source = self._source
+        if source[0] is not model or source[1] is not data:
+            # Views on the model's and data's own memory (read at each call, so a geom
+            # resized in place is seen), taken once per (model, data).
+            self._arrays = (
+                model.geom_type, model.geom_size, model.geom_aabb, model.geom_rbound,
+                data.geom_xpos, data.geom_xmat,
+            )  # fmt: skip
+            self._source = (model, data)
+        count = _engine.collision_candidates(
+            self.pairs, *self._arrays, float(threshold), self._out
+        )  # fmt: skip
+        return self._out[:count].tolist()
+
+
+#: Each limit's culling by the limit's id: (weak reference to the limit, the pair list it
+#: was built from, the culling); an entry goes when its limit does.
+_CULLINGS: dict[int, tuple] = {}
+
+
+def _forget(key: int) -> Callable[[weakref.ref], None]:
+    """The callback that drops the entry ``key`` when its limit goes."""
+
+    def forget(_: weakref.ref) -> None:
+        _CULLINGS.pop(key, None)
+
+    return forget
+
+
+def _culling(limit: mink.CollisionAvoidanceLimit) -> PairCulling:
+    """The :class:`PairCulling` of ``limit``'s ``geom_id_pairs`` (kept while it holds the
+    same list of the same length)."""
+    pairs = limit.geom_id_pairs
+    entry = _CULLINGS.get(id(limit))
+    if (
+        entry is None
+        or entry[0]() is not limit
+        or entry[1] is not pairs
+        or entry[2].pairs.shape[0] != len(pairs)
+    ):
+        key = id(limit)
+        entry = (weakref.ref(limit, _forget(key)), pairs, PairCulling(pairs))
+        _CULLINGS[key] = entry
+    return entry[2]
+
+
+def mink_collision_rows(
+    limit: mink.CollisionAvoidanceLimit, configuration: mink.Configuration, dt: float
+) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """The rows of mink's own :class:`mink.CollisionAvoidanceLimit` that are in play:
+    ``(G, h, pairs)``, the rows ``G dq <= h`` of the pairs within the detection distance
+    and those pairs' indices (ascending) into ``limit.geom_id_pairs``.
+
+    They are the rows of :meth:`mink.CollisionAvoidanceLimit.compute_qp_inequalities` that
+    are not left out (mink's other rows are zero, with ``h = inf``), computed by mink's own
+    arithmetic (``mj_geomDistance``, mink's contact normal Jacobian; ``h`` in mink's units,
+    a velocity bound ``gain (d - d_min) / dt``), so bitwise mink's; the pairs out of range
+    are culled first by :class:`PairCulling` instead of mink's bounding spheres (every pair
+    is checked when ``limit.broadphase`` is False, as mink does)."""
+    model, data = limit.model, configuration.data
+    distmax = limit.collision_detection_distance
+    min_dist = limit.minimum_distance_from_collisions
+    gain, relaxation = limit.gain, limit.bound_relaxation
+    fromto, normal, jac1, jac2 = limit._fromto, limit._normal, limit._jac1, limit._jac2
+    rows, bounds, kept = [], [], []
+    indices: list | range = range(limit.max_num_contacts)
+    if limit.broadphase:
+        indices = _culling(limit).candidates(model, data, distmax + CULLING_SLACK)
+    for idx in indices:
+        geom1_id, geom2_id = limit.geom_id_pairs[idx]
+        dist = mujoco.mj_geomDistance(model, data, geom1_id, geom2_id, distmax, fromto)
+        if abs(dist - distmax) < 1e-12:
+            continue
+        row = compute_contact_normal_jacobian(
+            model, data, geom1_id, geom2_id, fromto, normal, jac1, jac2
+        )
+        if dist > min_dist:
+            bounds.append((gain * (dist - min_dist) / dt) + relaxation)
+        else:
+            bounds.append(relaxation)
+        sign = -1.0 if dist >= 0 else 1.0
+        rows.append(sign * row)
+        kept.append(idx)
+    if not rows:
+        return np.zeros((0, model.nv)), np.zeros(0), kept
+    return np.array(rows), np.array(bounds, dtype=float), kept
+
+
 def _geom_label(model: mujoco.MjModel, geom: int) -> str:
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
     if name:
@@ -96,7 +221,9 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         minimum_distance_from_collisions: ``d_min`` [m].
         collision_detection_distance: pairs farther apart than this [m] get no row.
         bound_relaxation: added to every row's right side [m].
-        broadphase: skip pairs whose bounding spheres are out of range (exact; mink's).
+        broadphase: cull the pairs provably out of range before computing distances
+            (:class:`PairCulling`; exact: the rows are those of checking every pair, which
+            ``False`` does).
         respect_contype: apply MuJoCo's ``contype``/``conaffinity`` filter to the pairs
             (mink does). ``False`` checks the pairs you list whatever their contact bits
             (geoms that only exist for the IK, or a model whose geoms are visual only).
@@ -259,11 +386,11 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         model = self.model
         data = configuration.data
         distmax = self.collision_detection_distance
-        indices: np.ndarray | range
-        if self.broadphase and self.max_num_contacts >= self.broadphase_min_pairs:
-            indices = np.sort(self._broadphase_survivors(data))
-        else:
-            indices = range(self.max_num_contacts)
+        # Pairs provably out of range are culled first (PairCulling: the same rows as
+        # checking every pair; mink's bounding-sphere broadphase is looser).
+        indices: list | range = range(self.max_num_contacts)
+        if self.broadphase:
+            indices = _culling(self).candidates(model, data, distmax + CULLING_SLACK)
         rows, h = self._rows, self._h
         self._distances.fill(np.inf)
         active = []

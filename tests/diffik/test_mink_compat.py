@@ -853,3 +853,26 @@ def test_free_joint_velocity_limit_composes_with_velocity_limit_on_g1(rotated):
         assert np.abs(v[3:6]).max() <= 2.0 + 1e-6
         assert np.abs(v[joints.indices]).max() <= np.pi + 1e-6
         configuration.integrate_inplace(v, 1e-2)
+
+
+def test_levels_in_new_lists_take_the_kept_solver(rng):
+    """A call that writes its levels as new lists each time (``[[task], [posture]]``, the
+    README's form) is served by the kept solver's fast path, keyed by the tasks level by
+    level, and answers bitwise as the full path; a flat list of the same tasks (one level)
+    is another solver."""
+    from qpik.diffik.mink_compat import SOLVERS
+
+    configuration = _home()
+    task = _frame_task(configuration)
+    posture = mink.PostureTask(configuration.model, cost=1e-2)
+    posture.set_target_from_configuration(configuration)
+    qpik.clear_caches()
+    full = qpik.solve_ik(configuration, [[task], [posture]], DT)
+    assert len(SOLVERS) == 1
+    for levels in ([[task], [posture]], [task, [posture]], ((task,), [posture])):
+        fast = SOLVERS.velocity(configuration, levels, DT, None, 1e-12, None)
+        assert fast is not None and np.array_equal(fast, full)
+        assert np.array_equal(qpik.solve_ik(configuration, levels, DT), full)
+    assert SOLVERS.velocity(configuration, [task, posture], DT, None, 1e-12, None) is None
+    assert SOLVERS.velocity(configuration, [[task, posture]], DT, None, 1e-12, None) is None
+    assert len(SOLVERS) == 1
