@@ -70,6 +70,25 @@ inline void dot2(const double* a, const double* b, const double* x, i64 n, doubl
     sb = acc[1];
 }
 
+// sum_t a[t]^2 for t < n, summed in index order from 0.0.
+inline double row_sq(const double* a, i64 n) {
+    double acc = 0.0;
+    for (i64 t = 0; t < n; ++t) acc += a[t] * a[t];
+    return acc;
+}
+
+// row_sq of two rows at once, one per lane (the same bits as two row_sq calls).
+inline void row_sq2(const double* a, const double* b, i64 n, double& sa, double& sb) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    for (i64 t = 0; t < n; ++t) {
+        v2d v = v2d{a[t], b[t]};
+        acc += v * v;
+    }
+    sa = acc[0];
+    sb = acc[1];
+}
+
 // s[j] += x * M[j] (a row of column sums, accumulated one row at a time: each s[j] sums
 // over the rows in their order, as a per-column loop would).
 inline void acc_row(double* s, double x, const double* row, i64 n) { axpy(s, x, row, n); }
