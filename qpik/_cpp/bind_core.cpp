@@ -87,6 +87,101 @@ struct PyBuf {
     T* data() const { return static_cast<T*>(v.buf); }
 };
 
+
+// Interned attribute names of the objects solve_levels reads and builds (made once).
+struct Names {
+    PyObject *A, *b, *regularization, *weights;
+    PyObject *x, *status, *residuals, *sigma, *damping, *iterations, *active, *backend, *certificate, *primal;
+    PyObject *stationarity, *dual, *complementarity;
+};
+inline const Names& names() {
+    static const Names n = [] {
+        auto s = [](const char* v) { return PyUnicode_InternFromString(v); };
+        return Names{s("A"), s("b"), s("regularization"), s("weights"), s("x"), s("status"), s("residuals"),
+                     s("sigma"), s("damping"), s("iterations"), s("active"), s("backend"), s("certificate"),
+                     s("primal"), s("stationarity"), s("dual"), s("complementarity")};
+    }();
+    return n;
+}
+
+inline PyObject* empty_tuple() {
+    static PyObject* t = PyTuple_New(0);
+    return t;
+}
+
+// An instance of `type` made as object.__new__(type) with its fields set through the generic
+// setattr (as object.__setattr__: a frozen dataclass's fields too); values are stolen.
+// nullptr (with the Python error set) on failure.
+inline PyObject* new_with_fields(PyTypeObject* type, std::initializer_list<std::pair<PyObject*, PyObject*>> fields) {
+    bool ok = true;
+    for (const auto& f : fields) ok = ok && f.second != nullptr;
+    PyObject* obj = ok ? PyBaseObject_Type.tp_new(type, empty_tuple(), nullptr) : nullptr;
+    for (const auto& f : fields) {
+        if (obj && PyObject_GenericSetAttr(obj, f.first, f.second) != 0) {
+            Py_DECREF(obj);
+            obj = nullptr;
+        }
+        Py_XDECREF(f.second);
+    }
+    return obj;
+}
+
+inline PyObject* float_list(const Vec& v, i64 L) {
+    PyObject* out = PyList_New(L);
+    if (!out) return nullptr;
+    for (i64 k = 0; k < L; ++k) {
+        PyObject* item = PyFloat_FromDouble(v[k]);
+        if (!item) {
+            Py_DECREF(out);
+            return nullptr;
+        }
+        PyList_SET_ITEM(out, k, item);
+    }
+    return out;
+}
+
+// The result object of solve_levels (see there); raises the Python error on failure.
+inline nb::object result_object(PyTypeObject* result_type, PyTypeObject* cert_type, PyObject* statuses,
+                                PyObject* backend, PyObject* x, PyObject* active, const core::CascadeResult& r,
+                                i64 L) {
+    const Names& nm = names();
+    PyObject* status = PyList_New(L);
+    PyObject* its = PyList_New(L);
+    PyObject* backends = PyList_New(L);
+    PyObject* certs = PyList_New(L);
+    for (i64 k = 0; k < L && status && its && backends && certs; ++k) {
+        i64 code = r.status[k] >= 0 && r.status[k] < 6 ? r.status[k] : core::NUMERICAL;
+        PyObject* st = PyTuple_GET_ITEM(statuses, code);
+        Py_INCREF(st);
+        PyList_SET_ITEM(status, k, st);
+        PyList_SET_ITEM(its, k, PyLong_FromLongLong(r.iterations[k]));
+        Py_INCREF(backend);
+        PyList_SET_ITEM(backends, k, backend);
+        const double* c = r.certificate.data() + 4 * k;
+        PyList_SET_ITEM(certs, k,
+                        new_with_fields(cert_type, {{nm.primal, PyFloat_FromDouble(c[0])},
+                                                    {nm.stationarity, PyFloat_FromDouble(c[1])},
+                                                    {nm.dual, PyFloat_FromDouble(c[2])},
+                                                    {nm.complementarity, PyFloat_FromDouble(c[3])}}));
+    }
+    if (!status || !its || !backends || !certs || PyErr_Occurred()) {
+        Py_XDECREF(status);
+        Py_XDECREF(its);
+        Py_XDECREF(backends);
+        Py_XDECREF(certs);
+        throw nb::python_error();
+    }
+    Py_INCREF(x);
+    Py_INCREF(active);
+    PyObject* obj = new_with_fields(
+        result_type, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
+                      {nm.sigma, float_list(r.sigma, L)}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
+                      {nm.active, active}, {nm.backend, backends}, {nm.certificate, certs},
+                      {nm.primal, PyFloat_FromDouble(r.primal)}});
+    if (!obj) throw nb::python_error();
+    return nb::steal(obj);
+}
+
 }  // namespace
 
 void bind_core(nb::module_& m) {
@@ -254,60 +349,72 @@ void bind_core(nb::module_& m) {
         "solve_levels",
         [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,
-           bool canonical, nb::handle out_h, nb::handle active_h) -> bool {
+           nb::handle x_h, nb::handle active_h, nb::handle kinds_h) -> nb::object {
             // The whole solve from the levels themselves (objects with A, b, regularization,
             // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
-            // call, the answers written into out and active (preallocated by the caller). The
-            // arrays are read through the buffer protocol (no conversion, no new objects).
-            // False when an argument does not pass or needs a conversion (the caller then
-            // validates in Python, which names the field).
-            PyBuf lb, ub, G, h, out, act;
+            // call, the answer written into x and active (preallocated by the caller) and
+            // returned as a result object built here (kinds: the result class, the
+            // certificate class, the statuses by code, the backend label), whose fields are
+            // set directly (as the dataclass __init__ would). The arrays are read through the
+            // buffer protocol (no conversion). None when an argument does not pass or needs a
+            // conversion (the caller then validates in Python, which names the field), or
+            // when a level did not settle (MAX_ITER, NUMERICAL: the caller's fallback).
+            nb::object none = nb::none();
+            PyBuf lb, ub, G, h, xo, act;
             if (!lb.get(lb_h.ptr(), 'd', 1) || !ub.get(ub_h.ptr(), 'd', 1) || !G.get(G_h.ptr(), 'd', 2) ||
                 !h.get(h_h.ptr(), 'd', 1))
-                return false;
+                return none;
             i64 n = lb.shape(0), p = G.shape(0);
-            if (ub.shape(0) != n || G.shape(1) != n || h.shape(0) != p) return false;
+            if (ub.shape(0) != n || G.shape(1) != n || h.shape(0) != p) return none;
             const double* lbp = lb.data<double>();
             const double* ubp = ub.data<double>();
             const double* Gp = G.data<double>();
             const double* hp = h.data<double>();
             for (i64 i = 0; i < n; ++i)
-                if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return false;
+                if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return none;
             for (i64 i = 0; i < p * n; ++i)
-                if (!std::isfinite(Gp[i])) return false;
+                if (!std::isfinite(Gp[i])) return none;
             for (i64 i = 0; i < p; ++i)
-                if (std::isnan(hp[i])) return false;
-            if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return false;
+                if (std::isnan(hp[i])) return none;
+            if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return none;
             i64 L = static_cast<i64>(PySequence_Fast_GET_SIZE(levels_h.ptr()));
-            if (L == 0) return false;
-            if (!out.get(out_h.ptr(), 'd', 1, true) || out.shape(0) != n + 9 * L + 1) return false;
-            if (!act.get(active_h.ptr(), 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return false;
+            if (L == 0) return none;
+            if (!xo.get(x_h.ptr(), 'd', 1, true) || xo.shape(0) != n) return none;
+            if (!act.get(active_h.ptr(), 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
+            if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) != 4) return none;
+            PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
+            PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);
+            PyObject* statuses = PyTuple_GET_ITEM(kinds_h.ptr(), 2);
+            PyObject* backend = PyTuple_GET_ITEM(kinds_h.ptr(), 3);
+            if (!PyType_Check(result_type) || !PyType_Check(cert_type) || !PyTuple_Check(statuses) ||
+                PyTuple_GET_SIZE(statuses) != 6)
+                return none;
             std::unique_ptr<PyBuf[]> Ak(new PyBuf[L]), bk(new PyBuf[L]), wk(new PyBuf[L]);
             std::vector<bool> has_w(static_cast<size_t>(L), false);
             IVec starts(static_cast<size_t>(L) + 1, 0);
             Vec reg(static_cast<size_t>(L));
             for (i64 k = 0; k < L; ++k) {
                 PyObject* level = PySequence_Fast_GET_ITEM(levels_h.ptr(), k);
-                nb::object a = nb::steal(PyObject_GetAttrString(level, "A"));
-                nb::object bb = nb::steal(PyObject_GetAttrString(level, "b"));
-                nb::object rr = nb::steal(PyObject_GetAttrString(level, "regularization"));
-                nb::object ww = nb::steal(PyObject_GetAttrString(level, "weights"));
+                nb::object a = nb::steal(PyObject_GetAttr(level, names().A));
+                nb::object bb = nb::steal(PyObject_GetAttr(level, names().b));
+                nb::object rr = nb::steal(PyObject_GetAttr(level, names().regularization));
+                nb::object ww = nb::steal(PyObject_GetAttr(level, names().weights));
                 if (!a.is_valid() || !bb.is_valid() || !rr.is_valid() || !ww.is_valid()) {
                     PyErr_Clear();
-                    return false;
+                    return none;
                 }
-                if (!Ak[k].get(a.ptr(), 'd', 2) || !bk[k].get(bb.ptr(), 'd', 1)) return false;
-                if (Ak[k].shape(1) != n || bk[k].shape(0) != Ak[k].shape(0)) return false;
-                if (!PyFloat_Check(rr.ptr()) && !PyLong_Check(rr.ptr())) return false;
+                if (!Ak[k].get(a.ptr(), 'd', 2) || !bk[k].get(bb.ptr(), 'd', 1)) return none;
+                if (Ak[k].shape(1) != n || bk[k].shape(0) != Ak[k].shape(0)) return none;
+                if (!PyFloat_Check(rr.ptr()) && !PyLong_Check(rr.ptr())) return none;
                 double r = PyFloat_AsDouble(rr.ptr());
                 if (r == -1.0 && PyErr_Occurred()) {
                     PyErr_Clear();
-                    return false;
+                    return none;
                 }
-                if (!std::isfinite(r) || !(r >= 0.0)) return false;
+                if (!std::isfinite(r) || !(r >= 0.0)) return none;
                 reg[k] = r;
                 if (!ww.is_none()) {
-                    if (!wk[k].get(ww.ptr(), 'd', 1) || wk[k].shape(0) != Ak[k].shape(0)) return false;
+                    if (!wk[k].get(ww.ptr(), 'd', 1) || wk[k].shape(0) != Ak[k].shape(0)) return none;
                     has_w[k] = true;
                 }
                 starts[k + 1] = starts[k] + Ak[k].shape(0);
@@ -325,11 +432,11 @@ void bind_core(nb::module_& m) {
                     double total = 0.0;
                     for (i64 j = 0; j < n; ++j) {
                         double v = a[i * n + j];
-                        if (!std::isfinite(v)) return false;
+                        if (!std::isfinite(v)) return none;
                         dst[j] = v;
                         total += std::fabs(v);
                     }
-                    if (!std::isfinite(bv[i])) return false;
+                    if (!std::isfinite(bv[i])) return none;
                     b[starts[k] + i] = bv[i];
                     w[starts[k] + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
                 }
@@ -347,25 +454,23 @@ void bind_core(nb::module_& m) {
             core::CascadeResult r = core::solve_cascade(
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
-                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), canonical);
-            double* o = out.data<double>();
-            for (i64 i = 0; i < n; ++i) *o++ = r.dq[i];
-            for (i64 k = 0; k < L; ++k) *o++ = static_cast<double>(r.status[k]);
-            for (i64 k = 0; k < L; ++k) *o++ = r.sigma[k];
-            for (i64 k = 0; k < L; ++k) *o++ = r.lam2[k];
-            for (i64 k = 0; k < L; ++k) *o++ = static_cast<double>(r.iterations[k]);
-            for (i64 k = 0; k < L; ++k) *o++ = r.residuals[k];
-            for (i64 k = 0; k < 4 * L; ++k) *o++ = r.certificate[k];
-            *o = r.primal;
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true);
+            for (i64 k = 0; k < L; ++k)
+                if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
+            std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
-            return true;
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type),
+                                 reinterpret_cast<PyTypeObject*>(cert_type), statuses, backend, x_h.ptr(),
+                                 active_h.ptr(), r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
-        "max_iter"_a, "tol"_a, "warm"_a.none(), "canonical"_a, "out"_a.none(), "active"_a.none(),
+        "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
-        "C-contiguous arrays) with HierarchyProblem.validate's checks, written into out (n + 9 L + 1,): dq, "
-        "status, sigma, lam2, iterations, residuals (L each), certificate (4 L), primal; and active (L, n + p) "
-        "int8. False (nothing written) when an argument does not pass or needs a conversion.");
+        "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
+        "into active (L, n + p) int8, returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
+        "iterations, active, backend, certificate, primal) with kinds[1] certificates (primal, stationarity, dual, "
+        "complementarity), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
+        "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");
 
     m.def(
         "solve_cascade",

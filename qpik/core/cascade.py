@@ -103,7 +103,6 @@ from .certificate import (
     STATUS_OF_CODE,
     LevelCertificate,
     LevelStatus,
-    certificate_of,
     certificates,
 )
 
@@ -282,6 +281,16 @@ def _primal(x, lb, ub, G, h) -> float:
     return worst
 
 
+#: What :func:`qpik.core.kernels.solve_levels` builds its answer from: the result and
+#: certificate classes, the statuses by kernel code, the backend's label.
+_KINDS = (
+    HierarchyResult,
+    LevelCertificate,
+    tuple(STATUS_OF_CODE[code] for code in range(6)),
+    "auto",
+)
+
+
 class HierarchySolver:
     """Solves :class:`HierarchyProblem` s. By default every level starts cold, so the same
     problem gives bitwise the same result whatever was solved before; backend workspaces
@@ -392,22 +401,19 @@ class HierarchySolver:
             self.solver == "auto" and levels and type(levels) in (list, tuple)
             and type(lb) is np.ndarray and type(G) is np.ndarray and lb.ndim == 1 and G.ndim == 2
         ):  # fmt: skip
-            # One compiled call: the checks, the stacking and the cascade, written into
-            # preallocated arrays (False where an argument fails a check or needs a
-            # conversion: then the path below).
-            L = len(levels)
-            n = lb.shape[0]
-            out = np.empty(n + 9 * L + 1)
-            active = np.empty((L, n + G.shape[0]), np.int8)
+            # One compiled call: the checks, the stacking, the cascade and the result object,
+            # its arrays preallocated here (None where an argument fails a check or needs a
+            # conversion, or a level did not settle: then the path below).
             threshold, max_damping, error_scale = self.damping_settings
-            if K.solve_levels(
+            result = K.solve_levels(
                 levels, lb, problem.ub, G, problem.h, threshold, max_damping, error_scale,
                 self.rank_tolerance, self.max_iter, self.tolerance,
-                self._warm if self.warm_start else None, self.warm_start, out, active,
-            ):  # fmt: skip
-                result = self._packed_result(out, active, n, L)
-                if result is not None:
-                    return result
+                self._warm if self.warm_start else None, np.empty(lb.shape[0]),
+                np.empty((len(levels), lb.shape[0] + G.shape[0]), np.int8), _KINDS,
+            )  # fmt: skip
+            if result is not None:
+                self._warm = result.active  # the next warm start only when warm_start is on
+                return result
         if validate:
             problem.validate()
         A, b, w, starts, reg = problem.stacked()
@@ -465,22 +471,6 @@ class HierarchySolver:
         return HierarchyResult(
             x, [STATUS_OF_CODE[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L, certificates(cert), float(primal),
-        )  # fmt: skip
-
-    def _packed_result(self, out: np.ndarray, active: np.ndarray, n: int, L: int):
-        """:meth:`_result` from :func:`qpik.core.kernels.solve_levels`' packed answer
-        ``out`` (dq, then per level status, sigma, lam2, iterations, residuals, then the
-        certificates and primal) and ``active``."""
-        values = out[n:].tolist()  # Python floats in one pass
-        codes = [int(v) for v in values[:L]]
-        if K.MAX_ITER in codes or K.NUMERICAL in codes:
-            return None
-        self._warm = active  # used as the next warm start only when warm_start is on
-        cert = values[5 * L : 9 * L]
-        return HierarchyResult(
-            out[:n], [STATUS_OF_CODE[s] for s in codes], values[4 * L : 5 * L], values[L : 2 * L],
-            values[2 * L : 3 * L], [int(v) for v in values[3 * L : 4 * L]], active, ["auto"] * L,
-            [certificate_of(cert[4 * k : 4 * k + 4]) for k in range(L)], values[9 * L],
         )  # fmt: skip
 
     # ------------------------------------------------------------------ level by level

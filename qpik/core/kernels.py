@@ -46,14 +46,16 @@ Signatures:
   levels' certificates (primal, stationarity, dual, complementarity; see
   :mod:`qpik.core.cascade`), ``primal`` the final answer's largest scaled row violation.
 - ``solve_levels(levels, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
-  max_iter, tol, warm, canonical, out, active) -> bool``: :func:`solve_cascade` from the
+  max_iter, tol, warm, x, active, kinds) -> result | None``: :func:`solve_cascade` from the
   levels themselves (a list or tuple of objects with ``A``, ``b``, ``regularization``,
   ``weights``; arrays read through the buffer protocol, float64 C-contiguous) with the checks
-  of ``HierarchyProblem.validate``, written into the caller's ``out`` (``n + 9 L + 1``: dq,
-  then per level status, sigma, lam2, iterations, residuals, then the (L, 4) certificates
-  and primal) and ``active`` ((L, n + p) int8); False, nothing written, where an argument
-  fails a check or needs a conversion (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm``
-  None: cold).
+  of ``HierarchyProblem.validate``; dq written into the caller's ``x`` (n,) and the active
+  sets into ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result
+  class, its fields set as its ``__init__`` would: ``x``, ``status`` ``kinds[2][code]``,
+  ``residuals``, ``sigma``, ``damping``, ``iterations``, ``active``, ``backend`` ``kinds[3]``,
+  ``certificate`` of ``kinds[1]``, ``primal``). None, nothing written, where an argument fails
+  a check or needs a conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL``
+  (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
 - ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
   z, certificate, active)``: one level made exact from a QP answer's active set.
 - ``drop_pinned(Z, d, lb, ub, G, h) -> Z``: ``Z`` without the directions of the rows the

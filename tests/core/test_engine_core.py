@@ -289,3 +289,44 @@ def test_inputs_of_another_layout_or_dtype_are_converted():
     Cf = np.asfortranarray(C)
     got = K.solve_qp(H, c, Cf, lo, hi, warm.astype(np.int64), 50, 1e-12, True)
     assert np.array_equal(want[0], got[0]) and want[1:3] == got[1:3]
+
+
+def test_the_one_call_result_is_the_stacked_paths_result():
+    """HierarchySolver.solve's one compiled call builds its HierarchyResult in C++ (fields set
+    as the dataclass __init__ would): the same values, types and certificates as the stacked
+    path (solve_arrays), and objects that behave as the classes' own (frozen certificates)."""
+    import dataclasses
+
+    from qpik.core import HierarchyProblem, HierarchySolver, LevelCertificate, LevelStatus
+    from qpik.core import Level as CoreLevel
+
+    rng = np.random.default_rng(7)
+    n, p = 9, 3
+    for trial in range(20):
+        levels = [
+            CoreLevel(rng.normal(size=(m, n)), rng.normal(size=m), float(trial % 2) * 1e-3)
+            for m in (3, 4, n)
+        ]
+        problem = HierarchyProblem(
+            levels, -rng.uniform(0.05, 0.5, n), rng.uniform(0.05, 0.5, n),
+            rng.normal(size=(p, n)), rng.uniform(0.0, 0.1, p),
+        )  # fmt: skip
+        solver = HierarchySolver(damping_law=None)
+        fast = solver.solve(problem)
+        assert np.array_equal(solver.active_sets, fast.active)
+        slow = HierarchySolver(damping_law=None).solve_arrays(
+            *problem.stacked(), problem.lb, problem.ub, problem.G, problem.h
+        )
+        assert type(fast) is type(slow)
+        for f in dataclasses.fields(fast):
+            a, b = getattr(fast, f.name), getattr(slow, f.name)
+            if isinstance(a, np.ndarray):
+                assert a.dtype == b.dtype and np.array_equal(a, b), f.name
+            else:
+                assert a == b, f.name
+                assert [type(v) for v in a] == [type(v) for v in b] if isinstance(a, list) else True
+        assert all(isinstance(s, LevelStatus) for s in fast.status)
+        assert all(type(c) is LevelCertificate for c in fast.certificate)
+        assert repr(fast) == repr(slow)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            fast.certificate[0].primal = 1.0  # type: ignore[misc]

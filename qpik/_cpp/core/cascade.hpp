@@ -113,19 +113,25 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
-    Mat Qt = need_null ? transposed(Q.cref()) : Mat(0, r);  // Q's columns as rows: contiguous rotations
+    // Each row's sum of squares (summed over t in order from 0.0), recomputed only after the
+    // row was rotated: a row left alone gives the same bits again. The rotations are logged
+    // and applied to Q's columns only when one of the first p is a null direction (else Zn
+    // takes Q's unrotated columns p.. alone, and the rotations of Q would be lost work).
+    Vec sq(static_cast<size_t>(p));
+    for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), keep);
+    struct Rotation {
+        i64 i, j;
+        double cs, sn;
+    };
+    std::vector<Rotation> log;
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
             for (i64 j = i + 1; j < p; ++j) {
                 double* ri = R.row(i);
                 double* rj = R.row(j);
-                double alpha = 0.0, beta = 0.0, gamma = 0.0;
-                for (i64 t = 0; t < keep; ++t) {
-                    alpha += ri[t] * ri[t];
-                    beta += rj[t] * rj[t];
-                    gamma += ri[t] * rj[t];
-                }
+                double alpha = sq[i], beta = sq[j];
+                double gamma = dot(ri, rj, keep);
                 if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
                 rotated = true;
                 double zeta = (beta - alpha) / (2.0 * gamma);
@@ -133,7 +139,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
                 jacobi_rows(ri, rj, cs, sn, keep);
-                if (need_null) jacobi_rows(Qt.row(i), Qt.row(j), cs, sn, r);
+                if (need_null) log.push_back(Rotation{i, j, cs, sn});
+                row_sq2(ri, rj, keep, sq[i], sq[j]);
             }
         }
         if (!rotated) break;
@@ -141,9 +148,7 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     Vec sv(static_cast<size_t>(p));
     double top = 0.0;
     for (i64 i = 0; i < p; ++i) {
-        double nn = 0.0;
-        for (i64 t = 0; t < keep; ++t) nn += R(i, t) * R(i, t);
-        sv[i] = std::sqrt(nn);
+        sv[i] = std::sqrt(sq[i]);
         top = pymax(top, sv[i]);
     }
     double cutoff = rank_tol * pymax(1.0, top);
@@ -158,6 +163,7 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
             null_cols.push_back(i);
         }
     }
+    bool rotated_null = !null_cols.empty();
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
     out.sigma = sigma;
     out.rank = rank;
@@ -166,9 +172,19 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
         return out;
     }
     Mat Qr(r, static_cast<i64>(null_cols.size()));
-    for (size_t c = 0; c < null_cols.size(); ++c) {
-        const double* qc = Qt.row(null_cols[c]);
-        for (i64 t = 0; t < r; ++t) Qr(t, static_cast<i64>(c)) = qc[t];
+    if (rotated_null) {
+        Mat Qt = transposed(Q.cref());  // Q's columns as rows: contiguous rotations
+        for (const Rotation& g : log) jacobi_rows(Qt.row(g.i), Qt.row(g.j), g.cs, g.sn, r);
+        for (size_t c = 0; c < null_cols.size(); ++c) {
+            const double* qc = Qt.row(null_cols[c]);
+            for (i64 t = 0; t < r; ++t) Qr(t, static_cast<i64>(c)) = qc[t];
+        }
+    } else {
+        for (i64 t = 0; t < r; ++t) {
+            const double* qt = Q.row(t);
+            double* dst = Qr.row(t);
+            for (size_t c = 0; c < null_cols.size(); ++c) dst[c] = qt[null_cols[c]];
+        }
     }
     out.Zn = mm(Z, Qr.cref());
     out.sigma = sigma;

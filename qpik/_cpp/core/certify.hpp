@@ -149,10 +149,8 @@ inline Vec lstsq(Mat M, Vec f) {
                 for (i64 t = 0; t < size; ++t) f[i + t] -= s * x[t];
             }
         }
-        for (i64 j = i + 1; j < k; ++j) {  // downdate, recomputed when it loses accuracy
-            norms[j] = 0.0;
-            for (i64 t = i + 1; t < m; ++t) norms[j] += M(t, j) * M(t, j);
-        }
+        // The remaining columns' norms, recomputed (each summed over t in order).
+        col_sq(M.a.data(), k, i + 1, m, i + 1, k, norms.data());
     }
     double top = std::fabs(M(0, 0));
     i64 rank = 0;

@@ -70,6 +70,41 @@ inline void dot2(const double* a, const double* b, const double* x, i64 n, doubl
     sb = acc[1];
 }
 
+// sum_t a[t]^2 for t < n, summed in index order from 0.0.
+inline double row_sq(const double* a, i64 n) {
+    double acc = 0.0;
+    for (i64 t = 0; t < n; ++t) acc += a[t] * a[t];
+    return acc;
+}
+
+// row_sq of two rows at once, one per lane (the same bits as two row_sq calls).
+inline void row_sq2(const double* a, const double* b, i64 n, double& sa, double& sb) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    for (i64 t = 0; t < n; ++t) {
+        v2d v = v2d{a[t], b[t]};
+        acc += v * v;
+    }
+    sa = acc[0];
+    sb = acc[1];
+}
+
+// out[j] = sum_{t0 <= t < t1} M(t, j)^2 for j0 <= j < j1 (M row-major, row stride ld), each
+// summed over t in order from 0.0 (a row at a time: contiguous, two columns per lane).
+inline void col_sq(const double* M, i64 ld, i64 t0, i64 t1, i64 j0, i64 j1, double* out) {
+    using namespace simd;
+    for (i64 j = j0; j < j1; ++j) out[j] = 0.0;
+    for (i64 t = t0; t < t1; ++t) {
+        const double* row = M + t * ld;
+        i64 j = j0;
+        for (; j + 2 <= j1; j += 2) {
+            v2d v = load(row + j);
+            store(out + j, load(out + j) + v * v);
+        }
+        for (; j < j1; ++j) out[j] += row[j] * row[j];
+    }
+}
+
 // s[j] += x * M[j] (a row of column sums, accumulated one row at a time: each s[j] sums
 // over the rows in their order, as a per-column loop would).
 inline void acc_row(double* s, double x, const double* row, i64 n) { axpy(s, x, row, n); }
@@ -346,10 +381,8 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
 
 // norms[j] = |R[start:, j]|^2 for the columns from start on.
 inline void column_norms(const Mat& R, i64 start, Vec& norms) {
-    for (i64 j = std::max<i64>(start, 0); j < R.cols; ++j) {
-        norms[j] = 0.0;
-        for (i64 t = start; t < R.rows; ++t) norms[j] += R(t, j) * R(t, j);
-    }
+    i64 j0 = std::max<i64>(start, 0);
+    col_sq(R.a.data(), R.cols, start, R.rows, j0, R.cols, norms.data());
 }
 
 }  // namespace detail
