@@ -346,6 +346,27 @@ void bind_core(nb::module_& m) {
         "A level made exact from a QP answer's active set and certified: (ok, z, certificate (4,), active).");
 
     m.def(
+        "certify_point",
+        [](In2 A, In1 b, double rho, In2 Z, In1 x, In1 lb, In1 ub, In2 G, In1 h) {
+            i64 mm_ = rows(A), n = cols(A), p = rows(G);
+            need(len(b) == mm_, "certify_point: b must have shape (m,)");
+            need(rows(Z) == n, "certify_point: Z must have shape (n, r)");
+            need(len(x) == n && len(lb) == n && len(ub) == n, "certify_point: x, lb, ub must have shape (n,)");
+            need(p == 0 || cols(G) == n, "certify_point: G must have shape (p, n)");
+            need(len(h) == p, "certify_point: h must have shape (p,)");
+            Vec xv(x.data(), x.data() + n);
+            bool stat = mm_ > 0 && cols(Z) > 0;
+            core::Certificate c = core::certify_level(cmat(A), cvec(b), rho, cmat(Z), xv, cvec(lb), cvec(ub), cmat(G),
+                                                      cvec(h), {}, {}, {}, 0, stat);
+            Vec cert{c.primal, stat ? c.stationarity : 0.0, 0.0, 0.0};
+            return to_numpy(std::move(cert));
+        },
+        "A"_a, "b"_a, "rho"_a, "Z"_a, "x"_a, "lb"_a, "ub"_a, "G"_a, "h"_a,
+        "The certificate (4,) of a level at the point x with no working set (a level not "
+        "reached: which conditions fail there); stationarity 0 for a level with no rows or "
+        "no freedom.");
+
+    m.def(
         "solve_levels",
         [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,

@@ -540,6 +540,10 @@ class HierarchySolver:
         low = (d < lb) & (lb - d <= snap * (1 + np.abs(lb)))
         high = (d > ub) & (d - ub <= snap * (1 + np.abs(ub)))
         d = np.where(low, lb, np.where(high, ub, d))
+        for j in range(L):  # levels not reached: their certificate at the returned point
+            if status[j] is LevelStatus.NOT_REACHED:
+                s0, s1 = int(starts[j]), int(starts[j + 1])
+                certs[j] = K.certify_point(A[s0:s1], b[s0:s1], float(reg[j]), Z, d, lb, ub, G, h)
         return HierarchyResult(
             d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend,
             certificates(certs), _primal(d, lb, ub, G, h),

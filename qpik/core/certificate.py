@@ -59,8 +59,9 @@ class LevelCertificate:
     dual signs, complementarity); ``solved`` is claimed only when each is at most
     :data:`CERTIFICATE_TOLERANCE`. Level 0 infeasible: ``primal`` at the
     point returned and 0 for the others (no optimum to certify); a level the cascade kept:
-    the certificate of the point it kept; NaN only for a level never reached (after level 0
-    failed)."""
+    the certificate of the point it kept; a level never reached (after level 0 failed): the
+    certificate of the returned point with no working set (primal feasibility and
+    stationarity there, dual and complementarity 0), so it says which conditions fail."""
 
     primal: float = math.nan
     stationarity: float = math.nan

@@ -58,6 +58,8 @@ Signatures:
   (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
 - ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
   z, certificate, active)``: one level made exact from a QP answer's active set.
+- ``certify_point(A, b, rho, Z, x, lb, ub, G, h) -> certificate (4,)``: a level's
+  certificate at ``x`` with no working set (the levels not reached).
 - ``drop_pinned(Z, d, lb, ub, G, h) -> Z``: ``Z`` without the directions of the rows the
   levels above pinned on their bounds at ``d`` (positively dependent tight rows: implied
   equalities, eliminated exactly; ``Z`` itself when none). The cascade calls it before each
@@ -96,6 +98,7 @@ tighten = _engine.tighten
 merge_boxes = _engine.merge_boxes
 solve_cascade = _engine.solve_cascade
 certified_level = _engine.certified_level
+certify_point = _engine.certify_point
 solve_levels = _engine.solve_levels
 drop_pinned = _engine.drop_pinned
 
@@ -106,7 +109,8 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
-    "active_guess", "certified_level", "cholesky_into", "damping_of", "drop_pinned",
+    "active_guess", "certified_level", "certify_point", "cholesky_into", "damping_of",
+    "drop_pinned",
     "level_damping", "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level",
     "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip

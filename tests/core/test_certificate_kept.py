@@ -163,3 +163,35 @@ def test_talos_arms_pinned_by_the_levels_above_posture_is_solved():
     assert ref is not None
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
     assert 0.5 * x @ P @ x + q @ x <= 0.5 * ref @ P @ ref + q @ ref + 1e-15
+
+
+@pytest.mark.parametrize("solver", ["auto", "daqp", "quadprog", "osqp"])
+def test_levels_below_a_failed_level_have_finite_certificates(solver):
+    """Level 0's rows cannot all hold (x0 <= -1 and x0 >= 1): it is infeasible and the
+    levels below are not reached. Each of them still reports the certificate of the
+    returned point (finite; their primal feasibility there, as every level's), in the
+    compiled cascade and in the level-by-level path of a forced backend alike."""
+    G = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    h = np.array([-1.0, -1.0])
+    levels = [
+        Level(np.eye(3), np.array([0.5, 0.0, 0.0])),
+        Level(np.array([[1.0, 1.0, 0.0]]), np.array([1.0])),
+        Level(np.zeros((0, 3)), np.zeros(0)),
+    ]
+    problem = HierarchyProblem(levels, -np.ones(3), np.ones(3), G, h)
+    result = HierarchySolver(solver=solver, damping_law=None).solve(problem)
+    assert result.status[0] is LevelStatus.INFEASIBLE
+    assert result.status[1:] == [LevelStatus.NOT_REACHED] * 2
+    x = np.asarray(result.x)
+    violation = max(float(np.max(G @ x - h)), 0.0)
+    for certificate in result.certificate:
+        figures = [
+            certificate.primal,
+            certificate.stationarity,
+            certificate.dual,
+            certificate.complementarity,
+        ]
+        assert all(math.isfinite(f) for f in figures), figures
+        # the same point, the same rows: every level's primal figure is the same
+        assert certificate.primal == result.certificate[0].primal
+    assert (result.certificate[0].primal > 0) == (violation > 0)

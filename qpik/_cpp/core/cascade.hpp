@@ -668,6 +668,25 @@ inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRe
     return out;
 }
 
+namespace detail {
+// The levels below a failed one are not solved; each still gets the certificate of the
+// returned point x (no working set, the levels above the failed one held: Z), so every
+// figure of the result is a number that says which conditions fail there.
+inline void certify_unreached(CascadeResult& res, CMatRef A, CVecRef b, VecRefT<const i64> starts, CVecRef reg,
+                              CMatRef Z, const Vec& x, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, i64 from) {
+    i64 L = starts.size() - 1;
+    for (i64 j = from; j < L; ++j) {
+        i64 s0 = starts[j], s1 = starts[j + 1];
+        Certificate c = certify_level(A.rows_slice(s0, s1), b.slice(s0, s1), reg[j], Z, x, lb, ub, G, h, {}, {}, {},
+                                      0, s1 > s0 && Z.cols > 0);
+        double* cj = res.certificate.data() + 4 * j;
+        cj[0] = c.primal;
+        cj[1] = s1 > s0 && Z.cols > 0 ? c.stationarity : 0.0;
+        cj[2] = cj[3] = 0.0;
+    }
+}
+}  // namespace detail
+
 // All levels of a hierarchy in one call; see solve_cascade in qpik/core/kernels.py for
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
 // h (p,), warm (L, n + p) int8).
@@ -768,6 +787,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.residuals = detail::level_residuals(A, b, starts, d);
             res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
                                        {}, 0, false).primal;
+            detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, k + 1);
             res.dq = std::move(d);
             return res;
         }
