@@ -59,10 +59,13 @@ solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the retu
 * ``primal``: every box row ``(lb - x) / (1 + |lb|)``, ``(x - ub) / (1 + |ub|)`` and general
   row ``(g x - h) / (|g| + |h|)``, the largest positive one;
 * ``stationarity``: ``s = Z^T (A_k^T (A_k x - b_k) + rho x - sum_j lambda_j c_j)`` over the
-  active rows ``c_j`` with their signed multipliers, each component divided by
-  ``|Z|^T (|A_k|^T (|A_k| |x| + |b_k|) + rho |x|)`` (the objective's terms, at least
-  ``1e-6`` times the largest component's, or the largest full-space term's: round-off
-  from the other components and from ``Z``; the
+  active rows ``c_j`` with their signed multipliers, each component divided by the larger
+  of ``|Z|^T (|A_k|^T (|A_k| |x| + |b_k|) + rho |x|)`` (the objective's terms) and
+  ``|Z|^T (|A_k|^T |A_k| 1 + rho 1) max|x|`` (the round-off a solve leaves in every entry
+  of ``x``, relative to its largest, times ``H``: a dof the level leaves near 0 while others
+  move carries it, though its own terms are tiny), at least ``1e-6`` times the largest
+  component's, or the largest full-space term's: round-off from the other components and
+  from ``Z``; the
   multipliers' terms are left out, so that nearly dependent active rows whose huge
   multipliers cancel to their own round-off prove nothing), the largest;
 * ``dual``: a multiplier of the wrong sign, ``max(0, -u_j) |Z^T c_j| / S`` with ``S`` the

@@ -387,8 +387,10 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // their normals side * c_row. Every row of the problem (lb <= x <= ub, G x <= h) is checked
 // for primal feasibility, a box row's violation scaled by 1 + |bound|, a general row's by
 // |g| + |h|. Stationarity: s = Z^T (A^T (A x - b) + rho x - sum_j u_j side_j c_j), each
-// component divided by |Z|^T (|A|^T (|A| |x| + |b|) + rho |x|) (the size
-// of the objective's terms summed, at least kSizeFloor times the largest such size, in
+// component divided by the larger of |Z|^T (|A|^T (|A| |x| + |b|) + rho |x|) (the size
+// of the objective's terms summed) and |Z|^T (|A|^T |A| 1 + rho 1) max|x| (the round-off a
+// solve leaves in every entry of x, relative to the largest, times H), at least kSizeFloor
+// times the largest size of the objective's terms, in
 // null-space or full-space coordinates; the
 // multipliers' terms are left out of the scale, so
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
@@ -424,23 +426,32 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     if (!stationarity) return cert;
     // Full-space gradient and the sizes of its terms.
     i64 m = A.rows;
-    Vec v(static_cast<size_t>(n), 0.0), vs(static_cast<size_t>(n), 0.0);
+    // xmax: the largest |x_j|. A solve leaves a round-off of order eps xmax (times the
+    // conditioning) in every entry of x, small ones included, so each component of H x
+    // carries the round-off of |H| 1 xmax (hs, |A|^T |A| 1 + rho, times xmax), not only of its
+    // own terms |A|^T |A| |x| (a dof the level leaves near 0 while others move).
+    double xmax = 0.0;
+    for (i64 j = 0; j < n; ++j) xmax = pymax(xmax, std::fabs(x[j]));
+    Vec v(static_cast<size_t>(n), 0.0), vs(static_cast<size_t>(n), 0.0), hs(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
-        double res = -b[i], size = std::fabs(b[i]);
+        double res = -b[i], size = std::fabs(b[i]), asum = 0.0;
         for (i64 j = 0; j < n; ++j) {
             res += ai[j] * x[j];
             size += std::fabs(ai[j] * x[j]);
+            asum += std::fabs(ai[j]);
         }
-        if (res == 0.0 && size == 0.0) continue;
+        if (res == 0.0 && size == 0.0 && asum == 0.0) continue;
         for (i64 j = 0; j < n; ++j) {
             v[j] += ai[j] * res;
             vs[j] += std::fabs(ai[j]) * size;
+            hs[j] += std::fabs(ai[j]) * asum;
         }
     }
     for (i64 j = 0; j < n; ++j) {
         v[j] += rho * x[j];
         vs[j] += std::fabs(rho * x[j]);
+        hs[j] = (hs[j] + std::fabs(rho)) * xmax;
     }
     for (i64 k = 0; k < q; ++k) {
         double lam = u[k] * static_cast<double>(act_side[k]);
@@ -456,13 +467,14 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
-    Vec sc(static_cast<size_t>(r), 0.0), ssc(static_cast<size_t>(r), 0.0);
+    Vec sc(static_cast<size_t>(r), 0.0), ssc(static_cast<size_t>(r), 0.0), hsc(static_cast<size_t>(r), 0.0);
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
-        double vi = v[i], vsi = vs[i];
+        double vi = v[i], vsi = vs[i], hsi = hs[i];
         for (i64 c = 0; c < r; ++c) {
             sc[c] += zi[c] * vi;
             ssc[c] += std::fabs(zi[c]) * vsi;
+            hsc[c] += std::fabs(zi[c]) * hsi;
         }
     }
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
@@ -475,7 +487,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     for (i64 i = 0; i < n; ++i) big = pymax(big, vs[i]);
     double stat = 0.0;
     for (i64 c = 0; c < r; ++c) {
-        double ss = pymax(ssc[c], kSizeFloor * big);
+        double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
         if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
         else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
     }
