@@ -236,3 +236,28 @@ def test_talos_floating_posture_level_is_solved(state):
     ref = quadprog.solve_qp(P, -q, rows.T, rhs, R.shape[0])[0]
     np.testing.assert_allclose(x, ref, rtol=0, atol=1e-10)
     assert 0.5 * x @ P @ x + q @ x <= 0.5 * ref @ P @ ref + q @ ref + 1e-15
+
+
+@pytest.mark.parametrize(
+    ("offset", "holds"), [(1e-14, True), (1e-10, True), (1e-8, False), (1e-6, False)]
+)
+def test_stationarity_scale_is_the_round_off_of_the_largest_entry(offset, holds):
+    """One level, no limits, optimum x* with one entry 0 and the others 1e-2 (the level's
+    own terms on that entry vanish at x*). Moved off x* along that entry by ``offset``
+    times max|x|, the stationarity figure is ``offset`` (the gradient there against the
+    round-off scale |H| 1 max|x|): a solve's round-off (1e-14) is certified, a move of 1e-8
+    relative is caught (the scale of the entry's own terms alone failed both)."""
+    n, j = 6, 2
+    A = 0.1 * np.eye(n)
+    xstar = np.full(n, 1e-2)
+    xstar[j] = 0.0
+    rho = 1e-6
+    b = (A.T @ A + rho * np.eye(n)) @ xstar / 0.1  # A^T (A x* - b) + rho x* = 0
+    x = xstar.copy()
+    x[j] += offset * np.abs(xstar).max()
+    inf = np.full(n, np.inf)
+    none = (np.zeros((0, n)), np.zeros(0))
+    cert = K.certify_point(A, b, rho, np.eye(n), x, -inf, inf, *none)
+    assert bool(cert[1] <= 1e-9) is holds, cert
+    assert cert[1] == pytest.approx(offset, rel=1e-6)
+    assert K.certify_point(A, b, rho, np.eye(n), xstar, -inf, inf, *none)[1] <= 1e-15
