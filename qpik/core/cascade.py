@@ -61,8 +61,9 @@ solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the retu
 * ``stationarity``: ``s = Z^T (A_k^T (A_k x - b_k) + rho x - sum_j lambda_j c_j)`` over the
   active rows ``c_j`` with their signed multipliers, each component divided by the larger
   of ``|Z|^T (|A_k|^T (|A_k| |x| + |b_k|) + rho |x|)`` (the objective's terms) and
-  ``|Z|^T (|A_k|^T |A_k| 1 + rho 1) max|x|`` (the round-off a solve leaves in every entry
-  of ``x``, relative to its largest, times ``H``: a dof the level leaves near 0 while others
+  ``|Z|^T (|A_k|^T |A_k| dx + rho dx)``, ``dx_j = max_c |Z_jc| max_c (|Z|^T |x|)_c`` (the
+  round-off a solve in ``Z`` leaves in every entry of ``x`` it moves, relative to the
+  largest null-space coordinate, times ``H``: a dof the level leaves near 0 while others
   move carries it, though its own terms are tiny), at least ``1e-6`` times the largest
   component's, or the largest full-space term's: round-off from the other components and
   from ``Z``; the

@@ -388,8 +388,9 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // for primal feasibility, a box row's violation scaled by 1 + |bound|, a general row's by
 // |g| + |h|. Stationarity: s = Z^T (A^T (A x - b) + rho x - sum_j u_j side_j c_j), each
 // component divided by the larger of |Z|^T (|A|^T (|A| |x| + |b|) + rho |x|) (the size
-// of the objective's terms summed) and |Z|^T (|A|^T |A| 1 + rho 1) max|x| (the round-off a
-// solve leaves in every entry of x, relative to the largest, times H), at least kSizeFloor
+// of the objective's terms summed) and |Z|^T (|A|^T |A| dx + rho dx), dx_j = max_c |Z_jc|
+// max_c (|Z|^T |x|)_c (the round-off a solve in Z leaves in every entry of x, relative to
+// the largest null-space coordinate, times H), at least kSizeFloor
 // times the largest size of the objective's terms, in
 // null-space or full-space coordinates; the
 // multipliers' terms are left out of the scale, so
@@ -426,32 +427,48 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     if (!stationarity) return cert;
     // Full-space gradient and the sizes of its terms.
     i64 m = A.rows;
-    // xmax: the largest |x_j|. A solve leaves a round-off of order eps xmax (times the
-    // conditioning) in every entry of x, small ones included, so each component of H x
-    // carries the round-off of |H| 1 xmax (hs, |A|^T |A| 1 + rho, times xmax), not only of its
-    // own terms |A|^T |A| |x| (a dof the level leaves near 0 while others move).
-    double xmax = 0.0;
-    for (i64 j = 0; j < n; ++j) xmax = pymax(xmax, std::fabs(x[j]));
+    // The round-off a solve in Z leaves in x: its null-space coordinates are at most
+    // zx = max_c (|Z|^T |x|)_c, and an error of eps zx in them moves x_j by up to
+    // dx_j = zx max_c |Z_jc| (every dof the level moves, small entries of x included; 0 on
+    // the dofs the levels above fixed). Each component of H x then carries the round-off of
+    // |H| dx (hs = |A|^T |A| dx + rho dx), not only of its own terms |A|^T |A| |x| (a dof the
+    // level leaves near 0 while others move).
+    Vec dx(static_cast<size_t>(n), 0.0);
+    {
+        Vec zc(static_cast<size_t>(r), 0.0);
+        for (i64 i = 0; i < n; ++i) {
+            const double* zi = Z.row(i);
+            double xi = std::fabs(x[i]), zm = 0.0;
+            for (i64 c = 0; c < r; ++c) {
+                zc[c] += std::fabs(zi[c]) * xi;
+                zm = pymax(zm, std::fabs(zi[c]));
+            }
+            dx[i] = zm;
+        }
+        double zx = 0.0;
+        for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
+        for (i64 i = 0; i < n; ++i) dx[i] *= zx;
+    }
     Vec v(static_cast<size_t>(n), 0.0), vs(static_cast<size_t>(n), 0.0), hs(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
-        double res = -b[i], size = std::fabs(b[i]), asum = 0.0;
+        double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
         for (i64 j = 0; j < n; ++j) {
             res += ai[j] * x[j];
             size += std::fabs(ai[j] * x[j]);
-            asum += std::fabs(ai[j]);
+            adx += std::fabs(ai[j]) * dx[j];
         }
-        if (res == 0.0 && size == 0.0 && asum == 0.0) continue;
+        if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
         for (i64 j = 0; j < n; ++j) {
             v[j] += ai[j] * res;
             vs[j] += std::fabs(ai[j]) * size;
-            hs[j] += std::fabs(ai[j]) * asum;
+            hs[j] += std::fabs(ai[j]) * adx;
         }
     }
     for (i64 j = 0; j < n; ++j) {
         v[j] += rho * x[j];
         vs[j] += std::fabs(rho * x[j]);
-        hs[j] = (hs[j] + std::fabs(rho)) * xmax;
+        hs[j] += std::fabs(rho) * dx[j];
     }
     for (i64 k = 0; k < q; ++k) {
         double lam = u[k] * static_cast<double>(act_side[k]);
