@@ -208,7 +208,7 @@ def test_talos_floating_posture_level_is_solved(state):
     failed stationarity alone (3.5e-9 to 4e-8) on a dof no level above touches (the
     component of a unit column of Z, posture near its target there), whose own terms are
     ~1e-16 while the solve leaves eps-relative round-off of |x| in it. Measured against
-    the round-off |H| 1 max|x| it carries, the level is solved, and its answer equals
+    the round-off a solve in Z leaves there (|Z|^T |H| dx), the level is solved, and its answer equals
     quadprog's optimum of the same level stated independently (full space: the levels
     above's rows held through an orthonormal basis of their numerical row space, the box
     as rows), objective included."""
