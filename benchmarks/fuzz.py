@@ -2597,9 +2597,21 @@ def run_statics(spec: dict) -> str:
     for i, value in enumerate(out):
         _finite(value, f"out[{i}]", allow=(".lengths",) if i == 4 else ())
     _finite(payload, "payload", allow=allow)
-    if math.isnan(payload.force) and payload.feasible:
-        raise Bad("claim", "payload force nan but feasible")
+    _check_payload(payload, "payload")
     return _digest(*[np.asarray(x) if isinstance(x, np.ndarray) else repr(x) for x in out])
+
+
+def _check_payload(payload, where: str) -> None:
+    """A PayloadLimit as documented: ``force`` never NaN, ``>= 0`` (``+inf`` when no limit
+    binds), ``0.0`` exactly when nothing ``>= 0`` can be held (``feasible`` false); the
+    interval without NaN."""
+    force, (s_min, s_max) = payload.force, payload.interval
+    if math.isnan(force) or force < 0 or math.isnan(s_min) or math.isnan(s_max):
+        raise Bad("nonfinite", f"{where} = {payload}")
+    if payload.feasible != (s_min <= s_max and s_max >= 0) or (
+        not payload.feasible and force != 0.0
+    ):
+        raise Bad("claim", f"{where}: feasible {payload.feasible} with {payload}")
 
 
 # -- analysis
@@ -3371,8 +3383,7 @@ def _exercise_generated(model, frame: str, ftype: str, q0, target) -> str:
     if np.any(np.isnan(limits_tau)):
         raise Bad("nonfinite", f"joint_torque_limits = {limits_tau}")
     payload = statics.max_payload(cfg, frame, [0.0, 0.0, -1.0], frame_type=ftype)
-    if (math.isnan(payload.force) and payload.feasible) or any(map(math.isnan, payload.interval)):
-        raise Bad("nonfinite", f"max_payload = {payload}")  # documented: NaN when infeasible
+    _check_payload(payload, "max_payload")
     ellipsoid = statics.force_ellipsoid(cfg, frame, ftype)
     if np.any(np.isnan(ellipsoid.lengths)) or np.any(ellipsoid.lengths < 0):
         raise Bad("nonfinite", f"force_ellipsoid lengths {ellipsoid.lengths}")  # inf documented

@@ -191,18 +191,17 @@ def prepare_robot(robot: RobotLike) -> tuple[Any, mujoco.MjModel, np.ndarray | N
 
 
 def solve_call(
-    options: SolveOptions | str | None, solve_options: Mapping[str, Any], q0: np.ndarray | None
+    options: SolveOptions | str | None, solve_options: Mapping[str, Any]
 ) -> dict[str, Any]:
-    """The keywords every solve of a batch gets: ``q0`` and ``stack`` as given (``q0``
-    defaulting to a Configuration's ``q``), and the other options folded into one
-    :class:`qpik.SolveOptions`, validated here (a bad option raises in the caller, typed,
-    before any worker starts). A batch's ``seed`` is its own argument: target ``i`` gets
-    :func:`target_seed(seed, i) <target_seed>`, whatever ``options.seed``."""
+    """The keywords every solve of a batch gets: ``q0`` and ``stack`` as given, and the
+    other options folded into one :class:`qpik.SolveOptions`, validated here (a bad option
+    raises in the caller, typed, before any worker starts). A Configuration's ``q`` is not
+    one of them: the workers' sessions start from it as ``qpik.solve(configuration)``
+    does (:attr:`WorkerSetup.robot_q`). A batch's ``seed`` is its own argument: target
+    ``i`` gets :func:`target_seed(seed, i) <target_seed>`, whatever ``options.seed``."""
     keywords = dict(solve_options)
     call: dict[str, Any] = {k: keywords.pop(k) for k in ("q0", "stack") if k in keywords}
     call["options"] = resolve(options).replace(**keywords)
-    if q0 is not None:
-        call.setdefault("q0", q0)
     return call
 
 
@@ -245,8 +244,9 @@ class Batch:
         workers = check_workers(run.workers, run.backend)
         check_chunk_size(run.chunk_size, optional=True)
         spec, model, q0 = prepare_robot(robot)
-        call = solve_call(options, given, q0)
-        return cls(WorkerSetup(spec, entropy, call, run.histories), model, workers, run, given)
+        call = solve_call(options, given)
+        setup = WorkerSetup(spec, entropy, call, run.histories, q0)
+        return cls(setup, model, workers, run, given)
 
     @property
     def options(self) -> SolveOptions:
