@@ -78,6 +78,7 @@ CATEGORIES = (
     "schema",
     "stack",
     "signature",
+    "erd",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
 NAN, INF = float("nan"), float("inf")
@@ -1091,6 +1092,45 @@ def gen_stack(r: random.Random) -> dict:
     }
 
 
+# -- example-robot-data robots (issue 25, item 2: many robots): humanoids, quadrupeds,
+# hands, mobile manipulators, with mimic joints and equality constraints; targets for
+# one to four of their bodies at once, reached by qpik.solve, IKSolver.step, a problem
+# file (several frames per goal) and statics, judged by MuJoCo's forward kinematics.
+ERD_NAMES = (
+    "talos", "talos_full", "talos_arm", "talos_reduced", "romeo", "romeo_small", "icub",
+    "icub_reduced", "g1_29dof_rev_1_0", "g1_29dof_with_hand_rev_1_0", "tiago", "tiago_pro",
+    "tiago_no_hand", "pr2", "baxter", "panda", "panda_collision", "ur5", "ur10_robot",
+    "ur3_gripper", "kinova", "xarm7", "z1", "so100", "so101", "allegro_left_hand",
+    "alex_psyonic_hands", "anymal", "anymal-kinova", "go1", "go2", "b1-z1", "solo12",
+    "bolt", "hyq_no_sensors", "simple_humanoid", "human", "centauro", "double_pendulum",
+    "double_pendulum_continuous", "finger_edu", "iris_simple", "quadrotor_base",
+    "borinot_flying_arm_2", "TwoDofs", "laikago", "quadruped", "alexander_v1.lowerBodyOnly",
+)  # fmt: skip
+ERD_ENTRIES = ("solve", "solve", "solve", "step", "step", "problem", "problem", "exercise")
+
+
+def gen_erd(r: random.Random) -> dict:
+    n_frames = r.choice([1, 1, 2, 2, 3, 4])
+    return {
+        "robot": r.choice(ERD_NAMES),
+        "floating": r.random() < 0.3,
+        "frames": [r.randrange(10**6) for _ in range(n_frames)],
+        "rotation": [r.random() < 0.4 for _ in range(n_frames)],
+        "offset": r.choice([0.0, 0.0, 0.0, 0.02, 0.3, 5.0]),
+        "q0": r.choice(["mid", "mid", "random", "qpos0", "robot", "keyframe"]),
+        "entry": r.choice(ERD_ENTRIES),
+        "restarts": r.choice([0, 0, 1]),
+        "max_iters": r.choice([10, 30, 60]),
+        "solver": r.choice(["auto", "auto", "osqp", "daqp", "quadprog"]),
+        "dt": r.choice([0.01, 0.01, 1.0, 1e-9, 1e6, 0.1]),
+        "steps": r.choice([1, 2, 5]),
+        "mode": r.choice(["solve", "track"]),
+        "support": r.random() < 0.2,
+        "velocity": r.choice([None, None, 0.5, 1.0]),
+        "seed": r.randrange(10**6),
+    }
+
+
 # -- wrong types for every argument of every public function (by its signature)
 SIGNATURE_TARGETS = (
     (
@@ -1248,6 +1288,7 @@ GENERATORS = {
     "schema": gen_schema,
     "stack": gen_stack,
     "signature": gen_signature,
+    "erd": gen_erd,
 }
 
 
@@ -3953,6 +3994,228 @@ def _run_stack(spec: dict, model, rng) -> str:
     return _digest(*velocities)
 
 
+# -- example-robot-data robots
+def _check_targets_result(result, model, targets: dict, tols=(1e-4, 1e-3), where="result"):
+    """An IKResult for several frames: its worst and per-frame errors against MuJoCo's
+    forward kinematics of its ``q``, its claim against the tolerances (every frame and the
+    model's equality constraints), its ``q`` within the joint limits and finite."""
+    np = _np()
+    import qpik
+    from qpik.igm.session import parse_target
+
+    if not isinstance(result, qpik.IKResult):
+        raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")
+    q = np.asarray(result.q)
+    if q.shape != (model.nq,):
+        raise Bad("untyped", f"{where}.q has shape {q.shape}")
+    _finite(result, where)
+    _check_within(model, q, f"{where}.q")
+    measured = {}
+    for key, target in targets.items():
+        name, kind = _frame_kind(model, key)
+        t = parse_target(target)
+        measured[name] = _fk_errors(model, q, name, kind, t.position, t.rotation)
+    worst = (max(p for p, _ in measured.values()), max(o for _, o in measured.values()))
+    _check_reported(where, (result.position_error, result.orientation_error), worst)
+    for name, reported in result.frame_errors.items():
+        if name not in measured:
+            raise Bad("misreport", f"{where}.frame_errors names {name!r}, not a target frame")
+        _check_reported(f"{where}.frame_errors[{name!r}]", reported, measured[name])
+    if result.converged:
+        for name, errors in measured.items():
+            _check_claim(f"{where}[{name!r}]", errors, *tols)
+    _check_equality_claim(model, q, result.converged, where, tols)
+    return _digest(q, result.converged, result.iterations, result.reason)
+
+
+def _erd_model(spec: dict):
+    import qpik
+
+    if "talos" not in qpik.robots.erd_robots():
+        raise Typed("example-robot-data is not installed")
+    return qpik.load_robot("erd:" + spec["robot"], floating_base=spec["floating"])
+
+
+def _erd_frames(spec: dict, model) -> list[str]:
+    """Distinct bodies of the model (the world aside) picked by the spec's numbers."""
+    import mujoco
+
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
+    names = [n for n in names if n]
+    picked: list[str] = []
+    for pick in spec["frames"]:
+        if names:
+            name = names[pick % len(names)]
+            if name not in picked:
+                picked.append(name)
+    return picked
+
+
+def _erd_q0(spec: dict, model, rng):
+    if spec["q0"] == "keyframe" and model.nkey:
+        return model.key_qpos[int(rng.integers(model.nkey))].copy()
+    return _gen_q({"keyframe": "mid", "robot": "mid"}.get(spec["q0"], spec["q0"]), model, rng)
+
+
+def _erd_targets(spec: dict, model, frames: list[str], rng) -> dict:
+    q_goal = _gen_q("random", model, rng)
+    targets = {}
+    for name, rotation in zip(frames, spec["rotation"]):
+        position, matrix = _fk(model, q_goal, name, "body")
+        position = position + spec["offset"] * rng.standard_normal(3)
+        targets[(name, "body")] = (position, matrix) if rotation else position
+    return targets
+
+
+def run_erd(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    model = _erd_model(spec)
+    rng = np.random.default_rng(spec["seed"])
+    frames = _erd_frames(spec, model)
+    if not frames or model.nv == 0:
+        raise Typed("no body to reach, or no dof")
+    q0 = _erd_q0(spec, model, rng)
+    targets = _erd_targets(spec, model, frames, rng)
+    entry = spec["entry"]
+    if entry == "exercise":
+        target = next(iter(targets.values()))
+        return _exercise_generated(
+            model,
+            frames[0],
+            "body",
+            q0,
+            np.asarray(target[0]) if isinstance(target, tuple) else target,
+        )
+    if entry == "step":
+        return _erd_step(spec, model, frames, q0, targets)
+    if entry == "problem":
+        return _erd_problem(spec, model, frames, q0, targets)
+    robot = model
+    kwargs = {"restarts": spec["restarts"], "max_iters": spec["max_iters"], "seed": 0}
+    if spec["q0"] == "robot":
+        robot = qpik.Configuration(model, q0)
+    else:
+        kwargs["q0"] = q0
+    if spec["solver"] != "auto":
+        kwargs["solver"] = spec["solver"]
+    result = qpik.solve(robot, targets, **kwargs)
+    return _check_targets_result(result, model, targets)
+
+
+def _erd_step(spec: dict, model, frames, q0, targets) -> str:
+    """IKSolver.step on a stack over the robot's bodies: the targets split over two
+    levels, the CoM, a posture; its limits and (on a floating base) the support polygon."""
+    np = _np()
+    import qpik
+
+    cfg = qpik.Configuration(model, q0)
+    tasks = []
+    for (name, _), target in targets.items():
+        if isinstance(target, tuple):
+            task = qpik.tasks.PoseTask(name, "body", position_cost=1.0, orientation_cost=0.5)
+            task.set_target(*target)
+        else:
+            task = qpik.tasks.PositionTask(name, "body")
+            task.set_target(np.asarray(target))
+        tasks.append(task)
+    com = qpik.tasks.ComTask(cost=0.1)
+    com.set_target_from_configuration(cfg)
+    posture = qpik.tasks.PostureTask(model, cost=0.01)
+    posture.set_target_from_configuration(cfg)
+    stack = [tasks[:1], tasks[1:] + [com], [posture]]
+    limits = list(qpik.limits.joint_limits(model))
+    if spec["support"] and len(frames) >= 2:
+        limits.append(qpik.limits.SupportPolygonLimit(model, [(f, "body") for f in frames[:2]]))
+    kwargs = {} if spec["solver"] == "auto" else {"solver": spec["solver"]}
+    solver = qpik.IKSolver(model, [level for level in stack if level], limits, **kwargs)
+    velocity_limit = _velocity_limits_of(model)
+    digests = []
+    for _ in range(spec["steps"]):
+        inside = cfg.within_limits(0.0)
+        step = solver.step(cfg, spec["dt"])
+        _finite(step, "step", allow=(".solve_time",))
+        q_next = cfg.integrate(step.velocity, spec["dt"])
+        _finite(q_next, "q after the step")
+        if inside:
+            _check_within(model, q_next, "q after the step", tol=1e-7)
+            v = np.abs(np.asarray(step.velocity))
+            over = v > velocity_limit * (1 + 1e-6) + 1e-9
+            if over.any():
+                i = int(np.flatnonzero(over)[0])
+                raise Bad("limits", f"|v[{i}]| = {v[i]} over its limit {velocity_limit[i]}")
+        cfg.update(q_next)
+        digests.append(_digest(np.asarray(step.velocity)))
+    return _digest(*digests)
+
+
+def _velocity_limits_of(model):
+    """``(nv,)`` the velocity limits qpik's joint_limits documents (the model's custom
+    ``velocity_limit`` numeric or the URDF's), inf where none: read by qpik, so only
+    respected-ness is judged, not the reading."""
+    np = _np()
+    import mink
+
+    import qpik
+
+    bound = np.full(model.nv, np.inf)
+    for limit in qpik.limits.joint_limits(model):
+        if isinstance(limit, mink.VelocityLimit):
+            indices = np.asarray(limit.indices, dtype=int)
+            bound[indices] = np.minimum(bound[indices], np.asarray(limit.limit, dtype=float))
+    return bound
+
+
+def _erd_problem(spec: dict, model, frames, q0, targets) -> str:
+    """A problem file with several frames per goal (a [target] or two waypoints), levels
+    over them, optional support polygon and velocity limits, judged by forward kinematics."""
+    import qpik
+
+    def frame_table(key, target) -> dict:
+        position, rotation = target if isinstance(target, tuple) else (target, None)
+        table = {"frame": key[0], "frame_type": "body", "position": [float(x) for x in position]}
+        if rotation is not None:
+            table["matrix"] = [[float(x) for x in row] for row in rotation]
+        return table
+
+    goal = [frame_table(k, t) for k, t in targets.items()]
+    task_type = ["position" if not isinstance(t, tuple) else "frame" for t in targets.values()]
+    level0 = [
+        {"type": kind, "frame": key[0], "frame_type": "body"}
+        for kind, key in zip(task_type, targets)
+    ]
+    data: dict = {
+        "name": "erd",
+        "robot": "erd:" + spec["robot"],
+        "floating_base": spec["floating"],
+        "q0": [float(x) for x in q0],
+        "mode": spec["mode"],
+        "levels": [level0[:2], level0[2:], [{"type": "posture", "cost": 0.01}]],
+        "limits": {"position": True},
+    }
+    data["levels"] = [level for level in data["levels"] if level]
+    if spec["offset"] == 0.02:
+        data["waypoints"] = [{"frames": goal}, {"frames": goal[::-1]}]
+    else:
+        data["target"] = {"frames": goal}
+    if spec["velocity"] is not None:
+        data["limits"]["velocity"] = spec["velocity"]
+    if spec["support"] and len(frames) >= 2:
+        data["limits"]["support"] = {"frames": frames[:2], "frame_type": "body", "margin": 0.0}
+    if spec["mode"] == "track":
+        data["track"] = {"dt": 0.01, "steps": 20}
+    else:
+        data["solver"] = {"restarts": spec["restarts"], "max_iters": spec["max_iters"]}
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "erd.toml"
+        path.write_text(to_toml(data), encoding="utf-8")
+        problem = qpik.load_problem(path)
+        result = problem.solve()
+    _check_problem_run(problem, result)
+    return _digest(result.q)
+
+
 # -- wrong types for every argument of every public function
 def _signature_value(label: str, model):
     np = _np()
@@ -4189,6 +4452,7 @@ RUNNERS = {
     "schema": run_schema,
     "stack": run_stack,
     "signature": run_signature,
+    "erd": run_erd,
 }
 
 
@@ -4457,6 +4721,7 @@ WEIGHTS = {
     "schema": 3,
     "stack": 3,
     "signature": 3,
+    "erd": 3,
 }
 
 

@@ -551,7 +551,7 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
                     f"{self.what}: argument {name} is not valid (got {type(value).__name__} "
                     f"{_short_repr(value)}: {error})"
                 ) from None
-        if isinstance(error, TypeError) and "argument" in str(error) and "()" in str(error):
+        if isinstance(error, TypeError) and _signature_mismatch(str(error)):
             # a call that does not fit the signature: Python's message names the arguments
             raise TaskDefinitionError(f"{self.what}: {error}") from None
         if isinstance(error, (TypeError, ValueError)):
@@ -575,9 +575,14 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
             named = f"'{kind}'" in text or f".{kind}'" in text
             if named and not _is_number(value):
                 return name, value
-        for name, value in arguments.items():  # the value it quotes: 'x'
-            if isinstance(value, str) and value and repr(value) in text:
-                return name, value
+        quoted = [  # the value it quotes ('x', b'x'): the longest quote, so b'ee' beats 'ee'
+            (len(repr(value)), name, value)
+            for name, value in arguments.items()
+            if isinstance(value, (str, bytes)) and value and repr(value) in text
+        ]
+        if quoted:
+            _, name, value = max(quoted, key=lambda item: item[0])
+            return name, value
         return None
 
 
@@ -588,6 +593,16 @@ def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any
         return dict(inspect.signature(function).bind(*args, **kwargs).arguments)
     except (TypeError, ValueError):
         return {}
+
+
+def _signature_mismatch(text: str) -> bool:
+    """Whether a TypeError's message is Python's for a call that does not fit a signature
+    ("takes 2 positional arguments", "missing 1 required", "unexpected keyword argument"),
+    not a conversion's ("float() argument must be a string or a real number")."""
+    return any(
+        words in text
+        for words in ("positional argument", "required positional", "keyword argument", "takes ")
+    )
 
 
 def _is_number(value: Any) -> bool:

@@ -35,7 +35,7 @@ class CouplingTask(mink.Task):
             )
         self.couplings: Couplings = couplings
         self.k = len(couplings)
-        with mink_errors_as_qpik(type(self).__name__):
+        with mink_errors_as_qpik(type(self).__name__, {"cost": cost, "gain": gain}):
             super().__init__(np.full(self.k, float(cost)), gain, 0.0)
         # Linear couplings (a URDF mimic, a joint equality of degree 1): one product per
         # step for the residual, and a constant Jacobian computed once.

@@ -54,3 +54,70 @@ def test_infeasible_payload_is_zero_not_nan() -> None:
     assert not any(math.isnan(x) for x in weak.interval)
     strong = statics.max_payload(configuration, "ee", [0.0, 0.0, -1.0])
     assert strong.feasible and 0.0 < strong.force < math.inf
+
+
+# --------------------------------------------------------------------------------------
+# Class (erd category, seed 1): a task on a frame no dof moves (a fixed robot's base
+# body: a zero Jacobian) with a damped level was reported numerical_failure and solve_ik
+# raised NoSolutionFound: x = 0 is optimal, but the least-squares round-off of b through
+# the regularisation rows (eps sqrt(rho) |b|) was measured against a zero scale.
+def test_zero_jacobian_level_is_solved() -> None:
+    n = 4
+    for rho in (0.0, 1e-12, 1e-6, 1.0):
+        level = qpik.core.Level(np.zeros((3, n)), np.array([1.0, -2.0, 0.5]), rho)
+        inf = np.full(n, np.inf)
+        problem = qpik.core.HierarchyProblem([level], -inf, inf, np.zeros((0, n)), np.zeros(0))
+        result = qpik.core.HierarchySolver().solve(problem)
+        assert [str(s) for s in result.status] == ["solved"], (rho, result.certificate)
+        assert np.abs(result.x).max() <= 1e-9
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.jnt_range.mean(axis=1))
+    base = qpik.tasks.PositionTask("link0", "body")
+    base.set_target(np.array([0.5, 0.0, 0.0]))
+    posture = qpik.tasks.PostureTask(model, cost=0.01)
+    posture.set_target_from_configuration(configuration)
+    limits = [qpik.limits.ConfigurationLimit(model, gain=0.95)]
+    step = qpik.IKSolver(model, [[base], [posture]], limits).step(configuration, 0.01)
+    assert [str(s) for s in step.status] == ["solved", "solved"]
+    v = qpik.solve_ik(configuration, [[base], [posture]], 0.01, limits=limits)
+    assert np.isfinite(v).all() and np.abs(v).max() <= 1e-9
+
+
+# --------------------------------------------------------------------------------------
+# Class (seed 31337, signature:429/826/621): a task constructor's number of a wrong type
+# (an MjModel or a function as cost, bytes as axis) was blamed on the costs in general
+# ("float() argument" read as a signature mismatch) or on another argument whose value
+# the message quoted ('ee' inside b'ee'); the argument is named.
+@pytest.mark.parametrize(
+    ("make", "name"),
+    [
+        (lambda m: qpik.tasks.JointLimitDistanceTask(cost=m), "cost"),
+        (lambda m: qpik.tasks.PositionTask("ee", cost=lambda: 1.0), "cost"),
+        (lambda m: qpik.tasks.ManipulabilityTask("ee", gain=m), "gain"),
+        (lambda m: qpik.tasks.ComTask(lm_damping=m), "lm_damping"),
+        (lambda m: qpik.tasks.ComTask(cost=m), "cost"),
+        (lambda m: qpik.tasks.LookAtTask("ee", "site", axis=b"ee"), "axis"),
+    ],
+)
+def test_task_number_of_a_wrong_type_is_named(make, name: str) -> None:
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.QpikError, match=f"argument {name} ") as caught:
+        make(model)
+    assert isinstance(caught.value, (TypeError, ValueError))
+
+
+# --------------------------------------------------------------------------------------
+# Class (erd category, seed 1): on a floating base a start outside the limits was refused
+# without saying it was q0 (the fixed-base path names it).
+def test_floating_base_start_outside_names_q0(tmp_path) -> None:
+    xml = tmp_path / "arm.xml"
+    xml.write_text(
+        '<mujoco><worldbody><body name="base"><geom size="0.1"/><body name="b">'
+        '<joint name="j" range="0.5 1"/><geom size="0.1"/><site name="ee" pos="0.3 0 0"/>'
+        "</body></body></worldbody></mujoco>"
+    )
+    model = qpik.load_robot(str(xml), floating_base=True)
+    q0 = model.qpos0.copy()  # j = 0, below its range
+    assert model.nq == 8
+    with pytest.raises(qpik.JointLimitViolation, match="^q0: joint 'j'"):
+        qpik.solve(model, {"ee": [0.3, 0.0, 0.0]}, q0=q0)
