@@ -81,6 +81,11 @@ CATEGORIES = (
     "erd",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
+#: A case over this many seconds of its worker's CPU time is a hang (issue 25); the first
+#: case of a worker gets three times as long. ``--hang`` sets it.
+HANG = 5.0
+#: ``(cpu seconds, "category:index")`` of every answered case (the summary lists the slowest).
+CPU_TIMES: list = []
 NAN, INF = float("nan"), float("inf")
 WEIRD_FLOATS = (0.0, -0.0, 1e-300, -1.0, 1e300, NAN, INF, -INF, 1e-12, 1e12, 5e-324)
 WEIRD_ANY = WEIRD_FLOATS + (None, "1", [1.0], True, 2**70, -1, (1.0,), {}, 3)
@@ -1041,6 +1046,7 @@ STACK_TASKS = TASKS[:-1] + (
     "mink_kinetic",
     "mink_freeze",
     "mink_look_at",
+    "coupling",
 )
 STACK_LIMITS = (
     "config",
@@ -1052,6 +1058,7 @@ STACK_LIMITS = (
     "mink_collision",
     "support",
     "free_velocity",
+    "ball",
 )
 STACK_DT = (1e-9, 1e6, 9.999e-10, 1.000001e6, 0.01, 0.01, 1.0, 1e-3)
 
@@ -1062,7 +1069,9 @@ def gen_stack(r: random.Random) -> dict:
     for _ in range(r.choice([1, 2, 3, 4, 5, 6])):
         kind = r.choice(STACK_TASKS)
         task = {"type": kind}
-        while not kind.startswith("mink"):
+        if kind == "coupling":  # the model's couplings (floaty: a joint equality)
+            task.update(cost=r.choice([1.0, 0.0, 10.0]), gain=r.choice([1.0, 0.5, 0.0]))
+        while not kind.startswith("mink") and kind != "coupling":
             task = _task(r)  # until one of this kind, with no wrong-type argument
             if task["type"] == kind and "wrong" not in task:
                 break
@@ -1154,7 +1163,19 @@ SIGNATURE_TARGETS = (
         "Configuration.frame_pose",
         "Configuration.frame_jacobian",
         "Configuration.integrate",
+        "Configuration.integrate_inplace",
+        "Configuration.update",
+        "Configuration.check_limits",
+        "Configuration.within_limits",
         "Problem.solve",
+        "qpik.analysis.orientation_error",
+        "qpik.tasks.CouplingTask",
+        "qpik.tasks.EqualityConstraintTask",
+        "qpik.limits.BallJointLimit",
+        "qpik.limits.velocity_limit_from_model",
+        "qpik.limits.limited_ball_joints",
+        "qpik.limits.collision_geoms",
+        "qpik.limits.geom_distance",
     )
     + tuple(
         f"qpik.analysis.{n}"
@@ -3889,6 +3910,8 @@ def _stack_limit(kind: str, gain: float, distance: float, model):
         return [mink.CollisionAvoidanceLimit(model, [(geoms[:1], geoms[-1:])], gain=gain)]
     if kind == "support":
         return [qpik.limits.SupportPolygonLimit(model, [("ee", "site")], margin=distance)]
+    if kind == "ball":
+        return [qpik.limits.BallJointLimit(model)] if qpik.limits.limited_ball_joints(model) else []
     if model.nq == model.nv:
         return []
     return [mink.FreeJointVelocityLimit(model)] if hasattr(mink, "FreeJointVelocityLimit") else []
@@ -3925,7 +3948,9 @@ def _run_stack(spec: dict, model, rng) -> str:
     configuration = qpik.Configuration(model, q)
     levels: list = [[] for _ in range(spec["levels"])]
     for task in spec["tasks"]:
-        if task["type"].startswith("mink"):
+        if task["type"] == "coupling":
+            built = qpik.tasks.CouplingTask(model, cost=task["cost"], gain=task["gain"])
+        elif task["type"].startswith("mink"):
             built = _mink_task(task, model, configuration, rng)
         else:
             built = _build_task(task, model, configuration, rng)
@@ -3987,11 +4012,29 @@ def _run_stack(spec: dict, model, rng) -> str:
         q_next = configuration.integrate(velocities[0], dt)
         _finite(q_next, "q after the step")
         _check_within(model, q_next, "q after the step", tol=1e-7)
+    ball = any(k in ("ball", "joint_limits") for k, *_ in spec["limits"])
+    if ball and inside and len(velocities) == 1 and spec["entry"] != "build_ik":
+        _check_ball_joints(model, configuration.integrate(velocities[0], dt), "q after the step")
     if speeds and len(velocities) == 1 and model.nq == model.nv:
         top = float(np.max(np.abs(velocities[0])))
         if top > min(speeds) * (1 + 1e-6) + 1e-12:
             raise Bad("limits", f"|v| = {top} > {min(speeds)}")
     return _digest(*velocities)
+
+
+def _check_ball_joints(model, q, where: str, tol: float = 1e-7) -> None:
+    """Every limited ball joint's rotation angle ``2 atan2(|xyz|, |w|)`` within its range,
+    read from the quaternion (independent of qpik)."""
+    import mujoco
+
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_BALL) or not model.jnt_limited[j]:
+            continue
+        adr = int(model.jnt_qposadr[j])
+        w, xyz = q[adr], q[adr + 1 : adr + 4]
+        angle = 2.0 * math.atan2(math.sqrt(float(xyz @ xyz)), abs(float(w)))
+        if angle > float(model.jnt_range[j, 1]) + tol:
+            raise Bad("limits", f"{where}: ball joint {j} at {angle} rad > {model.jnt_range[j, 1]}")
 
 
 # -- example-robot-data robots
@@ -4316,6 +4359,10 @@ class _Ctx:
             "geom_pairs": [([0], [model.ngeom - 1])],
             "v": np.zeros(model.nv),
             "velocity": np.zeros(model.nv),
+            "geom1": 0,
+            "geom2": model.ngeom - 1,
+            "R_current": np.eye(3),
+            "R_target": np.eye(3),
         }
 
 
@@ -4354,7 +4401,7 @@ def _signature_call(spec: dict, ctx):
                 args[p.name] = ctx.values[p.name]
             else:
                 args[p.name] = _SIGNATURE_FALLBACK.get(p.name, None)
-    if name == "Configuration.integrate":
+    if name in ("Configuration.integrate", "Configuration.integrate_inplace"):
         args = {"velocity": np.zeros(ctx.model.nv), "dt": 0.01}
     if name.startswith("qpik.plots."):
         import matplotlib
@@ -4423,6 +4470,8 @@ def run_signature(spec: dict) -> str:
             # a value of a wrong type must be named; a value of the right type may fail
             # further on (no geom pair left, an unknown frame) with that reason instead
             wrong_type = isinstance(exc, TypeError) or spec["value"] in _CLEARLY_WRONG
+            if spec["value"] == "none" and param.default is None:
+                wrong_type = False  # None is this argument's default: a valid value
             if wrong_type and not _names_argument(str(exc), param.name, wrong):
                 detail = f"{spec['target']}({param.name}={spec['value']}): {str(exc)[:200]}"
                 raise Bad("message", detail) from None
@@ -4559,7 +4608,9 @@ def _worker(conn, quiet: bool, memory_gib: float = 0.0) -> None:
         if job is None:
             return
         category, spec = job
-        conn.send(_outcome(RUNNERS[category], spec))
+        start = time.process_time()
+        outcome = _outcome(RUNNERS[category], spec)
+        conn.send((*outcome, time.process_time() - start))
 
 
 # =============================================================================== parent
@@ -4581,6 +4632,8 @@ class _Slot:
         self.job = None
         self.started = 0.0
         self.ready = False
+        self.first = True
+        self.cpu: list = getattr(self, "cpu", [])
         self.spawned = time.monotonic()
 
     def poll_ready(self, limit: float = 900.0) -> bool:
@@ -4634,6 +4687,7 @@ def run_campaign(
                 flush=True,
             )
     _shutdown(slots)
+    CPU_TIMES.extend(item for s in slots for item in s.cpu)
     return results
 
 
@@ -4653,14 +4707,21 @@ def _collect(s, answered: bool, now: float, timeout: float) -> tuple | None:
     elapsed = now - s.started
     if answered:
         try:
-            outcome, detail, digest = s.conn.recv()
+            outcome, detail, digest, cpu = s.conn.recv()
         except (EOFError, OSError):
             s.process.join(1)
             result = (category, index, "crash", f"worker died (exit {s.process.exitcode})", "")
             s.kill()
             s.start()
         else:
+            # the issue's hang: over HANG s (the first case of a worker: 3 HANG), measured
+            # as this worker's CPU time, which other loads on the machine do not inflate
+            limit = HANG * (3.0 if s.first else 1.0)
+            if cpu > limit and outcome not in BAD:
+                outcome, detail = "hang", f"{cpu:.1f} s of CPU (over {limit:.0f} s)"
             result = (category, index, outcome, detail, digest)
+            s.cpu.append((cpu, f"{category}:{index}"))
+            s.first = False
     elif elapsed > timeout:
         result = (category, index, "hang", f"no answer in {timeout:.0f} s", "")
         s.kill()
@@ -4731,6 +4792,9 @@ def parse(argv=None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
     parser.add_argument("--timeout", type=float, default=60.0, help="per-case limit [s] (60)")
+    parser.add_argument(
+        "--hang", type=float, default=HANG, help="CPU seconds that make a case a hang (5)"
+    )
     parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
     parser.add_argument(
         "--case",
@@ -4762,6 +4826,8 @@ def main(argv=None) -> int:
         f"{args.workers} workers, {args.timeout:.0f} s per case",
         flush=True,
     )
+    global HANG
+    HANG = args.hang
     start = time.monotonic()
     results = run_campaign(
         jobs, args.workers, args.timeout, quiet=not args.verbose, memory_gib=args.memory
@@ -4775,6 +4841,8 @@ def main(argv=None) -> int:
             f"wall {wall:.0f} s; per case: median {1e3 * times[len(times) // 2]:.0f} ms, "
             f"max {times[-1]:.1f} s"
         )
+    slowest = sorted(CPU_TIMES, reverse=True)[:5]
+    print("most CPU: " + ", ".join(f"{name} {cpu:.1f} s" for cpu, name in slowest))
     bad = [r for r in final if r[2] in BAD]
     for category, index, outcome, detail, *_ in bad[: args.show]:
         print(f"  {outcome:<9} {category}:{index}  {detail}")

@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 import mink
 import mujoco
+import numpy as np
 from mink.constants import FRAME_TO_COUNT_ATTR, FRAME_TO_ENUM
 
 __all__ = [
@@ -51,6 +52,7 @@ __all__ = [
     "UnknownRobot",
     "arguments_of",
     "as_qpik_error",
+    "check_task_numbers",
     "mink_errors_as_qpik",
     "qpik_errors",
 ]
@@ -519,6 +521,28 @@ def qpik_errors() -> Iterator[None]:
         raise translated from error
 
 
+def check_task_numbers(what: str, arguments: Mapping[str, Any]) -> None:
+    """Raise :class:`TaskDefinitionError` naming the first weight, gain or damping of
+    ``arguments`` (a task constructor's, name -> value) that is not a number or an array
+    of numbers (``None``, a string, a set, a model): checked before anything else of the
+    task, so that such a value is named whatever the model."""
+    for name in sorted(_NUMBER_ARGUMENTS & set(arguments)):
+        value = arguments[name]
+        if _is_number(value):
+            continue
+        fails = value is None or isinstance(value, (str, bytes, dict, set))
+        if not fails:
+            try:
+                fails = np.asarray(value, dtype=float).dtype.kind != "f"
+            except (TypeError, ValueError, OverflowError):
+                fails = True
+        if fails:
+            raise TaskDefinitionError(
+                f"{what}: argument {name} is not valid (got {type(value).__name__} "
+                f"{_short_repr(value)}: a number, or an array of numbers, is expected)"
+            )
+
+
 class mink_errors_as_qpik:  # lower case: used as a context manager, like contextlib's
     """Context manager for constructors of tasks built on mink's: a mink error is re-raised
     as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
@@ -583,7 +607,12 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
         if quoted:
             _, name, value = max(quoted, key=lambda item: item[0])
             return name, value
-        return None
+        odd = [  # the one weight or gain that is not a plain number ([1.0, 2.0], "x")
+            (name, value)
+            for name, value in arguments.items()
+            if name in _NUMBER_ARGUMENTS and not _is_number(value)
+        ]
+        return odd[0] if len(odd) == 1 else None
 
 
 def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any]:
@@ -593,6 +622,10 @@ def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any
         return dict(inspect.signature(function).bind(*args, **kwargs).arguments)
     except (TypeError, ValueError):
         return {}
+
+
+#: The numeric arguments of task constructors (weights, gain, damping).
+_NUMBER_ARGUMENTS = frozenset({"cost", "position_cost", "orientation_cost", "gain", "lm_damping"})
 
 
 def _signature_mismatch(text: str) -> bool:

@@ -52,6 +52,7 @@ def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[
     """Ids of the geoms that take part in contact (``contype`` or ``conaffinity`` nonzero),
     sorted; ``robot_only``: leave out the geoms of the world body (floor, obstacles)."""
     check_model_type("model", model)
+    robot_only = checks.check_bool("robot_only", robot_only)
     return [
         g
         for g in range(model.ngeom)

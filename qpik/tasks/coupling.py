@@ -11,7 +11,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..errors import TaskDefinitionError, mink_errors_as_qpik
+from ..errors import TaskDefinitionError, check_task_numbers, mink_errors_as_qpik
 from ..model.couplings import Couplings, model_couplings
 
 
@@ -28,6 +28,7 @@ class CouplingTask(mink.Task):
     """
 
     def __init__(self, model: mujoco.MjModel, cost: float = 1.0, gain: float = 1.0):
+        check_task_numbers(type(self).__name__, {"cost": cost, "gain": gain})
         couplings = model_couplings(model)
         if couplings is None:
             raise TaskDefinitionError(

@@ -97,6 +97,9 @@ def test_zero_jacobian_level_is_solved() -> None:
         (lambda m: qpik.tasks.ComTask(lm_damping=m), "lm_damping"),
         (lambda m: qpik.tasks.ComTask(cost=m), "cost"),
         (lambda m: qpik.tasks.LookAtTask("ee", "site", axis=b"ee"), "axis"),
+        (lambda m: qpik.tasks.OrientationTask("ee", cost=[1.0, 2.0]), "cost"),
+        (lambda m: qpik.tasks.PoseTask("ee", position_cost=[1.0, 2.0]), "position_cost"),
+        (lambda m: qpik.tasks.DampingTask(m, cost="x"), "cost"),
     ],
 )
 def test_task_number_of_a_wrong_type_is_named(make, name: str) -> None:
@@ -121,3 +124,38 @@ def test_floating_base_start_outside_names_q0(tmp_path) -> None:
     assert model.nq == 8
     with pytest.raises(qpik.JointLimitViolation, match="^q0: joint 'j'"):
         qpik.solve(model, {"ee": [0.3, 0.0, 0.0]}, q0=q0)
+
+
+# --------------------------------------------------------------------------------------
+# Class (signature, new targets): public functions the campaign had not called with wrong
+# types let Python's errors out (AttributeError 'njnt' / 'neq' / 'model', ValueError on
+# an array's truth value, matmul on a string): each argument is checked where it enters,
+# by qpik.core.checks, and named.
+def _wrong_calls():
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    return [
+        (lambda: qpik.limits.BallJointLimit(np.zeros(3)), "MjModel"),
+        (lambda: qpik.limits.limited_ball_joints("panda"), "model"),
+        (lambda: qpik.limits.collision_geoms(model, robot_only=np.ones(2)), "robot_only"),
+        (lambda: qpik.limits.geom_distance(np.zeros(3), 0, 1), "configuration"),
+        (lambda: qpik.limits.geom_distance(configuration, b"ee", 1), "geom1"),
+        (lambda: qpik.limits.geom_distance(configuration, 0, np.nan), "geom2"),
+        (lambda: qpik.limits.geom_distance(configuration, 0, 1, cap="x"), "cap"),
+        (lambda: qpik.analysis.orientation_error("x", np.eye(3)), "R_current"),
+        (lambda: qpik.analysis.orientation_error(np.eye(3), np.eye(2)), "R_target"),
+        (lambda: configuration.check_limits(safety_break=np.ones(2)), "safety_break"),
+        (lambda: configuration.within_limits(tol=np.ones(3)), "tol"),
+        (lambda: qpik.tasks.CouplingTask(model, cost=None), "cost"),
+        (lambda: qpik.tasks.CouplingTask(np.zeros(3)), "model"),
+        (lambda: qpik.tasks.EqualityConstraintTask(model, 1.0, gain={1}), "gain"),
+        (lambda: qpik.tasks.EqualityConstraintTask(model, 1.0, equalities=b"x"), "equalities"),
+    ]
+
+
+@pytest.mark.parametrize("index", range(15))
+def test_public_function_names_a_wrong_argument(index: int) -> None:
+    call, name = _wrong_calls()[index]
+    with pytest.raises(qpik.QpikError, match=name) as caught:
+        call()
+    assert isinstance(caught.value, (TypeError, ValueError))
