@@ -10,7 +10,10 @@ Each case is a plain-data *spec* (its ``repr`` is the reproduction), generated f
 ``(seed, category, index)`` by a generator that imports nothing from qpik. Cases run in
 subprocess workers (one case at a time each, many cases per worker, so that state left
 behind by earlier cases is exercised too); a worker that dies is a **crash**, a case over
-``--timeout`` seconds is a **hang** (the worker is killed and replaced).
+``--timeout`` seconds is a **hang** (the worker is killed and replaced), and so is a case
+that answers after more than ``--hang`` (5) seconds of its worker's CPU time (15 for a
+worker's first case: issue 25's limits, measured in CPU so that other loads on the machine
+do not count).
 
 Outcomes of a case:
 
@@ -36,7 +39,13 @@ strided, zero-stride, read-only, NaN / inf, empty, wrong shapes, 0-d, lists, 100
 and engine (each kernel of ``qpik._engine`` called directly with the arguments recorded
 from valid solves, one to three of them mutated likewise, scalars too, or two arrays
 aliased; the kernels are private, so any Python exception is a clean refusal, counted as
-typed, and only a crash or a hang is bad).
+typed, and only a crash or a hang is bad). Issue 25 added robot_gen (URDF / MJCF written on
+the fly: odd inertias and masses, meshes, mimic joints, equalities), schema (problem files
+from every field of the schema), stack (every task and limit type, qpik's and mink's, at
+every level, extreme time steps), signature (a wrong type for every argument of every
+public function) and erd (example-robot-data robots, fixed or floating, targets for one to
+four bodies at once through qpik.solve, IKSolver.step, problem files and statics, every
+reported error judged against MuJoCo's forward kinematics of the returned q).
 
 The table has one row per category; the exit status is 1 when any bad outcome occurred.
 """

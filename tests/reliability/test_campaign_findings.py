@@ -159,3 +159,55 @@ def test_public_function_names_a_wrong_argument(index: int) -> None:
     with pytest.raises(qpik.QpikError, match=name) as caught:
         call()
     assert isinstance(caught.value, (TypeError, ValueError))
+
+
+# --------------------------------------------------------------------------------------
+# Hypothesis properties of the classes above (derandomized, a few dozen examples each).
+from hypothesis import given  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+from properties_common import not_a_number, props  # noqa: E402
+
+
+@props(25)
+@given(
+    zero_columns=st.lists(st.booleans(), min_size=4, max_size=4),
+    rho=st.sampled_from([0.0, 1e-12, 1e-9, 1e-6, 1e-3, 1.0]),
+    seed=st.integers(0, 2**16),
+)
+def test_level_with_dofs_it_does_not_move_is_solved(zero_columns, rho, seed) -> None:
+    """A level whose Jacobian has zero columns (dofs its task does not move), damped or
+    not, is certified solved, its answer zero on those dofs."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((3, 4))
+    A[:, np.array(zero_columns)] = 0.0
+    inf = np.full(4, np.inf)
+    level = qpik.core.Level(A, rng.standard_normal(3), rho)
+    problem = qpik.core.HierarchyProblem([level], -inf, inf, np.zeros((0, 4)), np.zeros(0))
+    result = qpik.core.HierarchySolver().solve(problem)
+    assert [str(s) for s in result.status] == ["solved"], result.certificate
+    if rho > 0:
+        assert np.abs(result.x[np.array(zero_columns)]).max(initial=0.0) <= 1e-9
+
+
+@props(25)
+@given(
+    kind=st.sampled_from(["JointLimitDistanceTask", "ComTask", "PositionTask", "DampingTask"]),
+    name=st.sampled_from(["cost", "gain", "lm_damping"]),
+    value=not_a_number,
+)
+def test_task_number_of_a_wrong_kind_is_typed(kind: str, name: str, value) -> None:
+    """A task weight, gain or damping that is not a number raises a QpikError that is
+    also a ValueError or TypeError, or is accepted (a list of numbers as a cost)."""
+    model = qpik.load_robot("planar_2r")
+    make = {
+        "JointLimitDistanceTask": lambda **k: qpik.tasks.JointLimitDistanceTask(**k),
+        "ComTask": lambda **k: qpik.tasks.ComTask(**k),
+        "PositionTask": lambda **k: qpik.tasks.PositionTask("ee", **k),
+        "DampingTask": lambda **k: qpik.tasks.DampingTask(model, **k),
+    }[kind]
+    if kind == "DampingTask" and name != "cost":
+        return  # DampingTask takes a cost only
+    try:
+        make(**{name: value})
+    except qpik.QpikError as error:
+        assert isinstance(error, (TypeError, ValueError))
