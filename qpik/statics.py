@@ -348,7 +348,11 @@ def force_ellipsoid(
     """
     _check_configuration(configuration)
     rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
-    if isinstance(rows, (str, bytes)) or not isinstance(rows, Iterable):
+    if (
+        isinstance(rows, (str, bytes))
+        or not isinstance(rows, Iterable)
+        or (isinstance(rows, np.ndarray) and rows.ndim != 1)
+    ):
         raise InvalidArgumentType(
             "rows", "a sequence of Jacobian row indices in 0..5", checks.type_name(rows)
         )

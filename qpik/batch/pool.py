@@ -159,13 +159,22 @@ def check_seed(seed: int | None) -> int:
 
 
 def check_workers(workers: int | None, backend: str = "process") -> int | None:
-    """Validate ``workers`` (``None``: every core, or for Ray every CPU of the cluster)."""
+    """Validate ``workers`` (``None``: every core, or for Ray every CPU of the cluster).
+    A daemonic process (a pool's worker, say) may not start processes: the process backend
+    then solves in this process (``1``; the answers are the same, target by target)."""
     if backend not in BACKENDS:
         raise InvalidInput(f"unknown backend {backend!r}; expected one of: {', '.join(BACKENDS)}")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1
+    ):
+        raise InvalidInput(f"workers must be a positive integer or None, got {workers!r}")
+    if backend == "process":
+        import multiprocessing  # loaded here (a pool's start loads it anyway)
+
+        if multiprocessing.current_process().daemon:
+            return 1
     if workers is None:
         return (os.cpu_count() or 1) if backend == "process" else None
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise InvalidInput(f"workers must be a positive integer or None, got {workers!r}")
     return int(workers)
 
 

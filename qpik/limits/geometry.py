@@ -25,6 +25,7 @@ geoms have contact bits (``contype``/``conaffinity``; Menagerie puts them in gro
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -167,7 +168,7 @@ def model_collision_limit(
         if (
             isinstance(geoms, (str, bytes))
             or not isinstance(geoms, (list, tuple, np.ndarray))
-            or np.ndim(geoms) != 1
+            or _ndim(geoms) != 1
         ):
             raise InvalidArgumentType(
                 "geoms", "a list of geom names or ids", checks.type_name(geoms)
@@ -294,3 +295,11 @@ def contact_footprint(model: mujoco.MjModel, frame_type: FrameType, frame_id: in
             "footprint=[[x, y], ...] (a sole's corners [m] in the frame's x-y axes)"
         )
     return stacked
+
+
+def _ndim(value: Any) -> int:
+    """``np.ndim(value)``, or -1 for a ragged nesting NumPy cannot shape."""
+    try:
+        return int(np.ndim(value))
+    except (TypeError, ValueError):
+        return -1

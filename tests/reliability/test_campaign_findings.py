@@ -150,15 +150,42 @@ def _wrong_calls():
         (lambda: qpik.tasks.CouplingTask(np.zeros(3)), "model"),
         (lambda: qpik.tasks.EqualityConstraintTask(model, 1.0, gain={1}), "gain"),
         (lambda: qpik.tasks.EqualityConstraintTask(model, 1.0, equalities=b"x"), "equalities"),
+        # seed 2027, signature:638 and :605: a ragged nesting, a 0-d array of row indices
+        (lambda: qpik.limits.model_collision_limit(model, geoms=[[0, [1]], 2]), "geoms"),
+        (lambda: qpik.statics.force_ellipsoid(configuration, "ee", rows=np.array(1)), "rows"),
     ]
 
 
-@pytest.mark.parametrize("index", range(15))
+@pytest.mark.parametrize("index", range(17))
 def test_public_function_names_a_wrong_argument(index: int) -> None:
     call, name = _wrong_calls()[index]
     with pytest.raises(qpik.QpikError, match=name) as caught:
         call()
     assert isinstance(caught.value, (TypeError, ValueError))
+
+
+# --------------------------------------------------------------------------------------
+# Class (seed 2027, solve_many:174): solve_many with workers > 1 inside a daemonic process
+# (a pool's worker) raised multiprocessing's AssertionError; it solves in that process.
+def _solve_many_in(queue) -> None:
+    try:
+        results = qpik.solve_many(
+            "planar_2r", [{"ee": [1.0, 0.5, 0.0]}] * 3, workers=2, pool_threshold=1, max_iters=5
+        )
+        queue.put(("ok", len(results)))
+    except Exception as error:  # noqa: BLE001 - reported to the test
+        queue.put((type(error).__name__, str(error)))
+
+
+def test_solve_many_in_a_daemonic_process() -> None:
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    queue = context.Queue()
+    process = context.Process(target=_solve_many_in, args=(queue,), daemon=True)
+    process.start()
+    assert queue.get(timeout=120) == ("ok", 3)
+    process.join(30)
 
 
 # --------------------------------------------------------------------------------------
