@@ -238,3 +238,38 @@ def test_task_number_of_a_wrong_kind_is_typed(kind: str, name: str, value) -> No
         make(**{name: value})
     except qpik.QpikError as error:
         assert isinstance(error, (TypeError, ValueError))
+
+
+# --------------------------------------------------------------------------------------
+# Open (seeds 5150 and 2027, erd:738 and 3 more): at dt = 1e-9 (DT_MIN) a forced backend
+# (osqp, daqp, quadprog: the level-by-level path) returns a step whose velocity is 2 %
+# over a VelocityLimit on a floating anymal (the compiled "auto" path holds it): the
+# bounds v_max dt ~ 1e-9 are below the certificate's absolute primal scale (1 + |bound|).
+def _erd_has(name: str) -> bool:
+    try:
+        return name in qpik.robots.erd_robots()
+    except qpik.QpikError:
+        return False
+
+
+def _fuzz():
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).parents[2] / "benchmarks" / "fuzz.py"
+    spec = importlib.util.spec_from_file_location("qpik_fuzz", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["qpik_fuzz"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.skipif(not _erd_has("anymal"), reason="example-robot-data not installed")
+@pytest.mark.xfail(strict=True, reason="velocity limit at dt = 1e-9 with a forced backend")
+def test_forced_backend_holds_velocity_limits_at_the_smallest_dt() -> None:
+    fuzz = _fuzz()
+    spec = fuzz.make_spec(5150, "erd", 738)  # anymal, floating, quadprog, dt = 1e-9
+    outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS["erd"], spec)
+    assert outcome not in fuzz.BAD, detail
