@@ -10,7 +10,10 @@ Each case is a plain-data *spec* (its ``repr`` is the reproduction), generated f
 ``(seed, category, index)`` by a generator that imports nothing from qpik. Cases run in
 subprocess workers (one case at a time each, many cases per worker, so that state left
 behind by earlier cases is exercised too); a worker that dies is a **crash**, a case over
-``--timeout`` seconds is a **hang** (the worker is killed and replaced).
+``--timeout`` seconds is a **hang** (the worker is killed and replaced), and so is a case
+that answers after more than ``--hang`` (5) seconds of its worker's CPU time (15 for a
+worker's first case: issue 25's limits, measured in CPU so that other loads on the machine
+do not count).
 
 Outcomes of a case:
 
@@ -36,7 +39,13 @@ strided, zero-stride, read-only, NaN / inf, empty, wrong shapes, 0-d, lists, 100
 and engine (each kernel of ``qpik._engine`` called directly with the arguments recorded
 from valid solves, one to three of them mutated likewise, scalars too, or two arrays
 aliased; the kernels are private, so any Python exception is a clean refusal, counted as
-typed, and only a crash or a hang is bad).
+typed, and only a crash or a hang is bad). Issue 25 added robot_gen (URDF / MJCF written on
+the fly: odd inertias and masses, meshes, mimic joints, equalities), schema (problem files
+from every field of the schema), stack (every task and limit type, qpik's and mink's, at
+every level, extreme time steps), signature (a wrong type for every argument of every
+public function) and erd (example-robot-data robots, fixed or floating, targets for one to
+four bodies at once through qpik.solve, IKSolver.step, problem files and statics, every
+reported error judged against MuJoCo's forward kinematics of the returned q).
 
 The table has one row per category; the exit status is 1 when any bad outcome occurred.
 """
@@ -78,8 +87,14 @@ CATEGORIES = (
     "schema",
     "stack",
     "signature",
+    "erd",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
+#: A case over this many seconds of its worker's CPU time is a hang (issue 25); the first
+#: case of a worker gets three times as long. ``--hang`` sets it.
+HANG = 5.0
+#: ``(cpu seconds, "category:index")`` of every answered case (the summary lists the slowest).
+CPU_TIMES: list = []
 NAN, INF = float("nan"), float("inf")
 WEIRD_FLOATS = (0.0, -0.0, 1e-300, -1.0, 1e300, NAN, INF, -INF, 1e-12, 1e12, 5e-324)
 WEIRD_ANY = WEIRD_FLOATS + (None, "1", [1.0], True, 2**70, -1, (1.0,), {}, 3)
@@ -1040,6 +1055,7 @@ STACK_TASKS = TASKS[:-1] + (
     "mink_kinetic",
     "mink_freeze",
     "mink_look_at",
+    "coupling",
 )
 STACK_LIMITS = (
     "config",
@@ -1051,6 +1067,7 @@ STACK_LIMITS = (
     "mink_collision",
     "support",
     "free_velocity",
+    "ball",
 )
 STACK_DT = (1e-9, 1e6, 9.999e-10, 1.000001e6, 0.01, 0.01, 1.0, 1e-3)
 
@@ -1061,7 +1078,9 @@ def gen_stack(r: random.Random) -> dict:
     for _ in range(r.choice([1, 2, 3, 4, 5, 6])):
         kind = r.choice(STACK_TASKS)
         task = {"type": kind}
-        while not kind.startswith("mink"):
+        if kind == "coupling":  # the model's couplings (floaty: a joint equality)
+            task.update(cost=r.choice([1.0, 0.0, 10.0]), gain=r.choice([1.0, 0.5, 0.0]))
+        while not kind.startswith("mink") and kind != "coupling":
             task = _task(r)  # until one of this kind, with no wrong-type argument
             if task["type"] == kind and "wrong" not in task:
                 break
@@ -1091,6 +1110,45 @@ def gen_stack(r: random.Random) -> dict:
     }
 
 
+# -- example-robot-data robots (issue 25, item 2: many robots): humanoids, quadrupeds,
+# hands, mobile manipulators, with mimic joints and equality constraints; targets for
+# one to four of their bodies at once, reached by qpik.solve, IKSolver.step, a problem
+# file (several frames per goal) and statics, judged by MuJoCo's forward kinematics.
+ERD_NAMES = (
+    "talos", "talos_full", "talos_arm", "talos_reduced", "romeo", "romeo_small", "icub",
+    "icub_reduced", "g1_29dof_rev_1_0", "g1_29dof_with_hand_rev_1_0", "tiago", "tiago_pro",
+    "tiago_no_hand", "pr2", "baxter", "panda", "panda_collision", "ur5", "ur10_robot",
+    "ur3_gripper", "kinova", "xarm7", "z1", "so100", "so101", "allegro_left_hand",
+    "alex_psyonic_hands", "anymal", "anymal-kinova", "go1", "go2", "b1-z1", "solo12",
+    "bolt", "hyq_no_sensors", "simple_humanoid", "human", "centauro", "double_pendulum",
+    "double_pendulum_continuous", "finger_edu", "iris_simple", "quadrotor_base",
+    "borinot_flying_arm_2", "TwoDofs", "laikago", "quadruped", "alexander_v1.lowerBodyOnly",
+)  # fmt: skip
+ERD_ENTRIES = ("solve", "solve", "solve", "step", "step", "problem", "problem", "exercise")
+
+
+def gen_erd(r: random.Random) -> dict:
+    n_frames = r.choice([1, 1, 2, 2, 3, 4])
+    return {
+        "robot": r.choice(ERD_NAMES),
+        "floating": r.random() < 0.3,
+        "frames": [r.randrange(10**6) for _ in range(n_frames)],
+        "rotation": [r.random() < 0.4 for _ in range(n_frames)],
+        "offset": r.choice([0.0, 0.0, 0.0, 0.02, 0.3, 5.0]),
+        "q0": r.choice(["mid", "mid", "random", "qpos0", "robot", "keyframe"]),
+        "entry": r.choice(ERD_ENTRIES),
+        "restarts": r.choice([0, 0, 1]),
+        "max_iters": r.choice([10, 30, 60]),
+        "solver": r.choice(["auto", "auto", "osqp", "daqp", "quadprog"]),
+        "dt": r.choice([0.01, 0.01, 1.0, 1e-9, 1e6, 0.1]),
+        "steps": r.choice([1, 2, 5]),
+        "mode": r.choice(["solve", "track"]),
+        "support": r.random() < 0.2,
+        "velocity": r.choice([None, None, 0.5, 1.0]),
+        "seed": r.randrange(10**6),
+    }
+
+
 # -- wrong types for every argument of every public function (by its signature)
 SIGNATURE_TARGETS = (
     (
@@ -1114,7 +1172,19 @@ SIGNATURE_TARGETS = (
         "Configuration.frame_pose",
         "Configuration.frame_jacobian",
         "Configuration.integrate",
+        "Configuration.integrate_inplace",
+        "Configuration.update",
+        "Configuration.check_limits",
+        "Configuration.within_limits",
         "Problem.solve",
+        "qpik.analysis.orientation_error",
+        "qpik.tasks.CouplingTask",
+        "qpik.tasks.EqualityConstraintTask",
+        "qpik.limits.BallJointLimit",
+        "qpik.limits.velocity_limit_from_model",
+        "qpik.limits.limited_ball_joints",
+        "qpik.limits.collision_geoms",
+        "qpik.limits.geom_distance",
     )
     + tuple(
         f"qpik.analysis.{n}"
@@ -1248,6 +1318,7 @@ GENERATORS = {
     "schema": gen_schema,
     "stack": gen_stack,
     "signature": gen_signature,
+    "erd": gen_erd,
 }
 
 
@@ -2597,9 +2668,21 @@ def run_statics(spec: dict) -> str:
     for i, value in enumerate(out):
         _finite(value, f"out[{i}]", allow=(".lengths",) if i == 4 else ())
     _finite(payload, "payload", allow=allow)
-    if math.isnan(payload.force) and payload.feasible:
-        raise Bad("claim", "payload force nan but feasible")
+    _check_payload(payload, "payload")
     return _digest(*[np.asarray(x) if isinstance(x, np.ndarray) else repr(x) for x in out])
+
+
+def _check_payload(payload, where: str) -> None:
+    """A PayloadLimit as documented: ``force`` never NaN, ``>= 0`` (``+inf`` when no limit
+    binds), ``0.0`` exactly when nothing ``>= 0`` can be held (``feasible`` false); the
+    interval without NaN."""
+    force, (s_min, s_max) = payload.force, payload.interval
+    if math.isnan(force) or force < 0 or math.isnan(s_min) or math.isnan(s_max):
+        raise Bad("nonfinite", f"{where} = {payload}")
+    if payload.feasible != (s_min <= s_max and s_max >= 0) or (
+        not payload.feasible and force != 0.0
+    ):
+        raise Bad("claim", f"{where}: feasible {payload.feasible} with {payload}")
 
 
 # -- analysis
@@ -3385,8 +3468,7 @@ def _exercise_generated(model, frame: str, ftype: str, q0, target) -> str:
     if np.any(np.isnan(limits_tau)):
         raise Bad("nonfinite", f"joint_torque_limits = {limits_tau}")
     payload = statics.max_payload(cfg, frame, [0.0, 0.0, -1.0], frame_type=ftype)
-    if (math.isnan(payload.force) and payload.feasible) or any(map(math.isnan, payload.interval)):
-        raise Bad("nonfinite", f"max_payload = {payload}")  # documented: NaN when infeasible
+    _check_payload(payload, "max_payload")
     ellipsoid = statics.force_ellipsoid(cfg, frame, ftype)
     if np.any(np.isnan(ellipsoid.lengths)) or np.any(ellipsoid.lengths < 0):
         raise Bad("nonfinite", f"force_ellipsoid lengths {ellipsoid.lengths}")  # inf documented
@@ -3851,6 +3933,8 @@ def _stack_limit(kind: str, gain: float, distance: float, model):
         return [mink.CollisionAvoidanceLimit(model, [(geoms[:1], geoms[-1:])], gain=gain)]
     if kind == "support":
         return [qpik.limits.SupportPolygonLimit(model, [("ee", "site")], margin=distance)]
+    if kind == "ball":
+        return [qpik.limits.BallJointLimit(model)] if qpik.limits.limited_ball_joints(model) else []
     if model.nq == model.nv:
         return []
     return [mink.FreeJointVelocityLimit(model)] if hasattr(mink, "FreeJointVelocityLimit") else []
@@ -3887,7 +3971,9 @@ def _run_stack(spec: dict, model, rng) -> str:
     configuration = qpik.Configuration(model, q)
     levels: list = [[] for _ in range(spec["levels"])]
     for task in spec["tasks"]:
-        if task["type"].startswith("mink"):
+        if task["type"] == "coupling":
+            built = qpik.tasks.CouplingTask(model, cost=task["cost"], gain=task["gain"])
+        elif task["type"].startswith("mink"):
             built = _mink_task(task, model, configuration, rng)
         else:
             built = _build_task(task, model, configuration, rng)
@@ -3949,11 +4035,251 @@ def _run_stack(spec: dict, model, rng) -> str:
         q_next = configuration.integrate(velocities[0], dt)
         _finite(q_next, "q after the step")
         _check_within(model, q_next, "q after the step", tol=1e-7)
+    ball = any(k in ("ball", "joint_limits") for k, *_ in spec["limits"])
+    if ball and inside and len(velocities) == 1 and spec["entry"] != "build_ik":
+        _check_ball_joints(model, configuration.integrate(velocities[0], dt), "q after the step")
     if speeds and len(velocities) == 1 and model.nq == model.nv:
         top = float(np.max(np.abs(velocities[0])))
         if top > min(speeds) * (1 + 1e-6) + 1e-12:
             raise Bad("limits", f"|v| = {top} > {min(speeds)}")
     return _digest(*velocities)
+
+
+def _check_ball_joints(model, q, where: str, tol: float = 1e-7) -> None:
+    """Every limited ball joint's rotation angle ``2 atan2(|xyz|, |w|)`` within its range,
+    read from the quaternion (independent of qpik)."""
+    import mujoco
+
+    for j in range(model.njnt):
+        if int(model.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_BALL) or not model.jnt_limited[j]:
+            continue
+        adr = int(model.jnt_qposadr[j])
+        w, xyz = q[adr], q[adr + 1 : adr + 4]
+        angle = 2.0 * math.atan2(math.sqrt(float(xyz @ xyz)), abs(float(w)))
+        if angle > float(model.jnt_range[j, 1]) + tol:
+            raise Bad("limits", f"{where}: ball joint {j} at {angle} rad > {model.jnt_range[j, 1]}")
+
+
+# -- example-robot-data robots
+def _check_targets_result(result, model, targets: dict, tols=(1e-4, 1e-3), where="result"):
+    """An IKResult for several frames: its worst and per-frame errors against MuJoCo's
+    forward kinematics of its ``q``, its claim against the tolerances (every frame and the
+    model's equality constraints), its ``q`` within the joint limits and finite."""
+    np = _np()
+    import qpik
+    from qpik.igm.session import parse_target
+
+    if not isinstance(result, qpik.IKResult):
+        raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")
+    q = np.asarray(result.q)
+    if q.shape != (model.nq,):
+        raise Bad("untyped", f"{where}.q has shape {q.shape}")
+    _finite(result, where)
+    _check_within(model, q, f"{where}.q")
+    measured = {}
+    for key, target in targets.items():
+        name, kind = _frame_kind(model, key)
+        t = parse_target(target)
+        measured[name] = _fk_errors(model, q, name, kind, t.position, t.rotation)
+    worst = (max(p for p, _ in measured.values()), max(o for _, o in measured.values()))
+    _check_reported(where, (result.position_error, result.orientation_error), worst)
+    for name, reported in result.frame_errors.items():
+        if name not in measured:
+            raise Bad("misreport", f"{where}.frame_errors names {name!r}, not a target frame")
+        _check_reported(f"{where}.frame_errors[{name!r}]", reported, measured[name])
+    if result.converged:
+        for name, errors in measured.items():
+            _check_claim(f"{where}[{name!r}]", errors, *tols)
+    _check_equality_claim(model, q, result.converged, where, tols)
+    return _digest(q, result.converged, result.iterations, result.reason)
+
+
+def _erd_model(spec: dict):
+    import qpik
+
+    if "talos" not in qpik.robots.erd_robots():
+        raise Typed("example-robot-data is not installed")
+    return qpik.load_robot("erd:" + spec["robot"], floating_base=spec["floating"])
+
+
+def _erd_frames(spec: dict, model) -> list[str]:
+    """Distinct bodies of the model (the world aside) picked by the spec's numbers."""
+    import mujoco
+
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
+    names = [n for n in names if n]
+    picked: list[str] = []
+    for pick in spec["frames"]:
+        if names:
+            name = names[pick % len(names)]
+            if name not in picked:
+                picked.append(name)
+    return picked
+
+
+def _erd_q0(spec: dict, model, rng):
+    if spec["q0"] == "keyframe" and model.nkey:
+        return model.key_qpos[int(rng.integers(model.nkey))].copy()
+    return _gen_q({"keyframe": "mid", "robot": "mid"}.get(spec["q0"], spec["q0"]), model, rng)
+
+
+def _erd_targets(spec: dict, model, frames: list[str], rng) -> dict:
+    q_goal = _gen_q("random", model, rng)
+    targets = {}
+    for name, rotation in zip(frames, spec["rotation"]):
+        position, matrix = _fk(model, q_goal, name, "body")
+        position = position + spec["offset"] * rng.standard_normal(3)
+        targets[(name, "body")] = (position, matrix) if rotation else position
+    return targets
+
+
+def run_erd(spec: dict) -> str:
+    np = _np()
+    import qpik
+
+    model = _erd_model(spec)
+    rng = np.random.default_rng(spec["seed"])
+    frames = _erd_frames(spec, model)
+    if not frames or model.nv == 0:
+        raise Typed("no body to reach, or no dof")
+    q0 = _erd_q0(spec, model, rng)
+    targets = _erd_targets(spec, model, frames, rng)
+    entry = spec["entry"]
+    if entry == "exercise":
+        target = next(iter(targets.values()))
+        return _exercise_generated(
+            model,
+            frames[0],
+            "body",
+            q0,
+            np.asarray(target[0]) if isinstance(target, tuple) else target,
+        )
+    if entry == "step":
+        return _erd_step(spec, model, frames, q0, targets)
+    if entry == "problem":
+        return _erd_problem(spec, model, frames, q0, targets)
+    robot = model
+    kwargs = {"restarts": spec["restarts"], "max_iters": spec["max_iters"], "seed": 0}
+    if spec["q0"] == "robot":
+        robot = qpik.Configuration(model, q0)
+    else:
+        kwargs["q0"] = q0
+    if spec["solver"] != "auto":
+        kwargs["solver"] = spec["solver"]
+    result = qpik.solve(robot, targets, **kwargs)
+    return _check_targets_result(result, model, targets)
+
+
+def _erd_step(spec: dict, model, frames, q0, targets) -> str:
+    """IKSolver.step on a stack over the robot's bodies: the targets split over two
+    levels, the CoM, a posture; its limits and (on a floating base) the support polygon."""
+    np = _np()
+    import qpik
+
+    cfg = qpik.Configuration(model, q0)
+    tasks = []
+    for (name, _), target in targets.items():
+        if isinstance(target, tuple):
+            task = qpik.tasks.PoseTask(name, "body", position_cost=1.0, orientation_cost=0.5)
+            task.set_target(*target)
+        else:
+            task = qpik.tasks.PositionTask(name, "body")
+            task.set_target(np.asarray(target))
+        tasks.append(task)
+    com = qpik.tasks.ComTask(cost=0.1)
+    com.set_target_from_configuration(cfg)
+    posture = qpik.tasks.PostureTask(model, cost=0.01)
+    posture.set_target_from_configuration(cfg)
+    stack = [tasks[:1], tasks[1:] + [com], [posture]]
+    limits = list(qpik.limits.joint_limits(model))
+    if spec["support"] and len(frames) >= 2:
+        limits.append(qpik.limits.SupportPolygonLimit(model, [(f, "body") for f in frames[:2]]))
+    kwargs = {} if spec["solver"] == "auto" else {"solver": spec["solver"]}
+    solver = qpik.IKSolver(model, [level for level in stack if level], limits, **kwargs)
+    velocity_limit = _velocity_limits_of(model)
+    digests = []
+    for _ in range(spec["steps"]):
+        inside = cfg.within_limits(0.0)
+        step = solver.step(cfg, spec["dt"])
+        _finite(step, "step", allow=(".solve_time",))
+        q_next = cfg.integrate(step.velocity, spec["dt"])
+        _finite(q_next, "q after the step")
+        if inside:
+            _check_within(model, q_next, "q after the step", tol=1e-7)
+            v = np.abs(np.asarray(step.velocity))
+            over = v > velocity_limit * (1 + 1e-6) + 1e-9
+            if over.any():
+                i = int(np.flatnonzero(over)[0])
+                raise Bad("limits", f"|v[{i}]| = {v[i]} over its limit {velocity_limit[i]}")
+        cfg.update(q_next)
+        digests.append(_digest(np.asarray(step.velocity)))
+    return _digest(*digests)
+
+
+def _velocity_limits_of(model):
+    """``(nv,)`` the velocity limits qpik's joint_limits documents (the model's custom
+    ``velocity_limit`` numeric or the URDF's), inf where none: read by qpik, so only
+    respected-ness is judged, not the reading."""
+    np = _np()
+    import mink
+
+    import qpik
+
+    bound = np.full(model.nv, np.inf)
+    for limit in qpik.limits.joint_limits(model):
+        if isinstance(limit, mink.VelocityLimit):
+            indices = np.asarray(limit.indices, dtype=int)
+            bound[indices] = np.minimum(bound[indices], np.asarray(limit.limit, dtype=float))
+    return bound
+
+
+def _erd_problem(spec: dict, model, frames, q0, targets) -> str:
+    """A problem file with several frames per goal (a [target] or two waypoints), levels
+    over them, optional support polygon and velocity limits, judged by forward kinematics."""
+    import qpik
+
+    def frame_table(key, target) -> dict:
+        position, rotation = target if isinstance(target, tuple) else (target, None)
+        table = {"frame": key[0], "frame_type": "body", "position": [float(x) for x in position]}
+        if rotation is not None:
+            table["matrix"] = [[float(x) for x in row] for row in rotation]
+        return table
+
+    goal = [frame_table(k, t) for k, t in targets.items()]
+    task_type = ["position" if not isinstance(t, tuple) else "frame" for t in targets.values()]
+    level0 = [
+        {"type": kind, "frame": key[0], "frame_type": "body"}
+        for kind, key in zip(task_type, targets)
+    ]
+    data: dict = {
+        "name": "erd",
+        "robot": "erd:" + spec["robot"],
+        "floating_base": spec["floating"],
+        "q0": [float(x) for x in q0],
+        "mode": spec["mode"],
+        "levels": [level0[:2], level0[2:], [{"type": "posture", "cost": 0.01}]],
+        "limits": {"position": True},
+    }
+    data["levels"] = [level for level in data["levels"] if level]
+    if spec["offset"] == 0.02:
+        data["waypoints"] = [{"frames": goal}, {"frames": goal[::-1]}]
+    else:
+        data["target"] = {"frames": goal}
+    if spec["velocity"] is not None:
+        data["limits"]["velocity"] = spec["velocity"]
+    if spec["support"] and len(frames) >= 2:
+        data["limits"]["support"] = {"frames": frames[:2], "frame_type": "body", "margin": 0.0}
+    if spec["mode"] == "track":
+        data["track"] = {"dt": 0.01, "steps": 20}
+    else:
+        data["solver"] = {"restarts": spec["restarts"], "max_iters": spec["max_iters"]}
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "erd.toml"
+        path.write_text(to_toml(data), encoding="utf-8")
+        problem = qpik.load_problem(path)
+        result = problem.solve()
+    _check_problem_run(problem, result)
+    return _digest(result.q)
 
 
 # -- wrong types for every argument of every public function
@@ -4056,6 +4382,10 @@ class _Ctx:
             "geom_pairs": [([0], [model.ngeom - 1])],
             "v": np.zeros(model.nv),
             "velocity": np.zeros(model.nv),
+            "geom1": 0,
+            "geom2": model.ngeom - 1,
+            "R_current": np.eye(3),
+            "R_target": np.eye(3),
         }
 
 
@@ -4094,7 +4424,7 @@ def _signature_call(spec: dict, ctx):
                 args[p.name] = ctx.values[p.name]
             else:
                 args[p.name] = _SIGNATURE_FALLBACK.get(p.name, None)
-    if name == "Configuration.integrate":
+    if name in ("Configuration.integrate", "Configuration.integrate_inplace"):
         args = {"velocity": np.zeros(ctx.model.nv), "dt": 0.01}
     if name.startswith("qpik.plots."):
         import matplotlib
@@ -4163,6 +4493,8 @@ def run_signature(spec: dict) -> str:
             # a value of a wrong type must be named; a value of the right type may fail
             # further on (no geom pair left, an unknown frame) with that reason instead
             wrong_type = isinstance(exc, TypeError) or spec["value"] in _CLEARLY_WRONG
+            if spec["value"] == "none" and param.default is None:
+                wrong_type = False  # None is this argument's default: a valid value
             if wrong_type and not _names_argument(str(exc), param.name, wrong):
                 detail = f"{spec['target']}({param.name}={spec['value']}): {str(exc)[:200]}"
                 raise Bad("message", detail) from None
@@ -4192,6 +4524,7 @@ RUNNERS = {
     "schema": run_schema,
     "stack": run_stack,
     "signature": run_signature,
+    "erd": run_erd,
 }
 
 
@@ -4298,7 +4631,9 @@ def _worker(conn, quiet: bool, memory_gib: float = 0.0) -> None:
         if job is None:
             return
         category, spec = job
-        conn.send(_outcome(RUNNERS[category], spec))
+        start = time.process_time()
+        outcome = _outcome(RUNNERS[category], spec)
+        conn.send((*outcome, time.process_time() - start))
 
 
 # =============================================================================== parent
@@ -4320,6 +4655,8 @@ class _Slot:
         self.job = None
         self.started = 0.0
         self.ready = False
+        self.first = True
+        self.cpu: list = getattr(self, "cpu", [])
         self.spawned = time.monotonic()
 
     def poll_ready(self, limit: float = 900.0) -> bool:
@@ -4373,6 +4710,7 @@ def run_campaign(
                 flush=True,
             )
     _shutdown(slots)
+    CPU_TIMES.extend(item for s in slots for item in s.cpu)
     return results
 
 
@@ -4392,14 +4730,21 @@ def _collect(s, answered: bool, now: float, timeout: float) -> tuple | None:
     elapsed = now - s.started
     if answered:
         try:
-            outcome, detail, digest = s.conn.recv()
+            outcome, detail, digest, cpu = s.conn.recv()
         except (EOFError, OSError):
             s.process.join(1)
             result = (category, index, "crash", f"worker died (exit {s.process.exitcode})", "")
             s.kill()
             s.start()
         else:
+            # the issue's hang: over HANG s (the first case of a worker: 3 HANG), measured
+            # as this worker's CPU time, which other loads on the machine do not inflate
+            limit = HANG * (3.0 if s.first else 1.0)
+            if cpu > limit and outcome not in BAD:
+                outcome, detail = "hang", f"{cpu:.1f} s of CPU (over {limit:.0f} s)"
             result = (category, index, outcome, detail, digest)
+            s.cpu.append((cpu, f"{category}:{index}"))
+            s.first = False
     elif elapsed > timeout:
         result = (category, index, "hang", f"no answer in {timeout:.0f} s", "")
         s.kill()
@@ -4460,6 +4805,7 @@ WEIGHTS = {
     "schema": 3,
     "stack": 3,
     "signature": 3,
+    "erd": 3,
 }
 
 
@@ -4469,6 +4815,9 @@ def parse(argv=None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
     parser.add_argument("--timeout", type=float, default=60.0, help="per-case limit [s] (60)")
+    parser.add_argument(
+        "--hang", type=float, default=HANG, help="CPU seconds that make a case a hang (5)"
+    )
     parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
     parser.add_argument(
         "--case",
@@ -4500,6 +4849,8 @@ def main(argv=None) -> int:
         f"{args.workers} workers, {args.timeout:.0f} s per case",
         flush=True,
     )
+    global HANG
+    HANG = args.hang
     start = time.monotonic()
     results = run_campaign(
         jobs, args.workers, args.timeout, quiet=not args.verbose, memory_gib=args.memory
@@ -4513,6 +4864,8 @@ def main(argv=None) -> int:
             f"wall {wall:.0f} s; per case: median {1e3 * times[len(times) // 2]:.0f} ms, "
             f"max {times[-1]:.1f} s"
         )
+    slowest = sorted(CPU_TIMES, reverse=True)[:5]
+    print("most CPU: " + ", ".join(f"{name} {cpu:.1f} s" for cpu, name in slowest))
     bad = [r for r in final if r[2] in BAD]
     for category, index, outcome, detail, *_ in bad[: args.show]:
         print(f"  {outcome:<9} {category}:{index}  {detail}")

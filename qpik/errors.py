@@ -19,6 +19,7 @@ from typing import Any, Literal
 
 import mink
 import mujoco
+import numpy as np
 from mink.constants import FRAME_TO_COUNT_ATTR, FRAME_TO_ENUM
 
 __all__ = [
@@ -51,6 +52,7 @@ __all__ = [
     "UnknownRobot",
     "arguments_of",
     "as_qpik_error",
+    "check_task_numbers",
     "mink_errors_as_qpik",
     "qpik_errors",
 ]
@@ -519,6 +521,28 @@ def qpik_errors() -> Iterator[None]:
         raise translated from error
 
 
+def check_task_numbers(what: str, arguments: Mapping[str, Any]) -> None:
+    """Raise :class:`TaskDefinitionError` naming the first weight, gain or damping of
+    ``arguments`` (a task constructor's, name -> value) that is not a number or an array
+    of numbers (``None``, a string, a set, a model): checked before anything else of the
+    task, so that such a value is named whatever the model."""
+    for name in sorted(_NUMBER_ARGUMENTS & set(arguments)):
+        value = arguments[name]
+        if _is_number(value):
+            continue
+        fails = value is None or isinstance(value, (str, bytes, dict, set))
+        if not fails:
+            try:
+                fails = np.asarray(value, dtype=float).dtype.kind != "f"
+            except (TypeError, ValueError, OverflowError):
+                fails = True
+        if fails:
+            raise TaskDefinitionError(
+                f"{what}: argument {name} is not valid (got {type(value).__name__} "
+                f"{_short_repr(value)}: a number, or an array of numbers, is expected)"
+            )
+
+
 class mink_errors_as_qpik:  # lower case: used as a context manager, like contextlib's
     """Context manager for constructors of tasks built on mink's: a mink error is re-raised
     as its qpik counterpart (:func:`as_qpik_error`, which also subclasses it; a definition
@@ -551,7 +575,7 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
                     f"{self.what}: argument {name} is not valid (got {type(value).__name__} "
                     f"{_short_repr(value)}: {error})"
                 ) from None
-        if isinstance(error, TypeError) and "argument" in str(error) and "()" in str(error):
+        if isinstance(error, TypeError) and _signature_mismatch(str(error)):
             # a call that does not fit the signature: Python's message names the arguments
             raise TaskDefinitionError(f"{self.what}: {error}") from None
         if isinstance(error, (TypeError, ValueError)):
@@ -575,10 +599,20 @@ class mink_errors_as_qpik:  # lower case: used as a context manager, like contex
             named = f"'{kind}'" in text or f".{kind}'" in text
             if named and not _is_number(value):
                 return name, value
-        for name, value in arguments.items():  # the value it quotes: 'x'
-            if isinstance(value, str) and value and repr(value) in text:
-                return name, value
-        return None
+        quoted = [  # the value it quotes ('x', b'x'): the longest quote, so b'ee' beats 'ee'
+            (len(repr(value)), name, value)
+            for name, value in arguments.items()
+            if isinstance(value, (str, bytes)) and value and repr(value) in text
+        ]
+        if quoted:
+            _, name, value = max(quoted, key=lambda item: item[0])
+            return name, value
+        odd = [  # the one weight or gain that is not a plain number ([1.0, 2.0], "x")
+            (name, value)
+            for name, value in arguments.items()
+            if name in _NUMBER_ARGUMENTS and not _is_number(value)
+        ]
+        return odd[0] if len(odd) == 1 else None
 
 
 def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any]:
@@ -588,6 +622,20 @@ def arguments_of(function: Callable, *args: Any, **kwargs: Any) -> dict[str, Any
         return dict(inspect.signature(function).bind(*args, **kwargs).arguments)
     except (TypeError, ValueError):
         return {}
+
+
+#: The numeric arguments of task constructors (weights, gain, damping).
+_NUMBER_ARGUMENTS = frozenset({"cost", "position_cost", "orientation_cost", "gain", "lm_damping"})
+
+
+def _signature_mismatch(text: str) -> bool:
+    """Whether a TypeError's message is Python's for a call that does not fit a signature
+    ("takes 2 positional arguments", "missing 1 required", "unexpected keyword argument"),
+    not a conversion's ("float() argument must be a string or a real number")."""
+    return any(
+        words in text
+        for words in ("positional argument", "required positional", "keyword argument", "takes ")
+    )
 
 
 def _is_number(value: Any) -> bool:

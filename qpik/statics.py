@@ -348,7 +348,11 @@ def force_ellipsoid(
     """
     _check_configuration(configuration)
     rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
-    if isinstance(rows, (str, bytes)) or not isinstance(rows, Iterable):
+    if (
+        isinstance(rows, (str, bytes))
+        or not isinstance(rows, Iterable)
+        or (isinstance(rows, np.ndarray) and rows.ndim != 1)
+    ):
         raise InvalidArgumentType(
             "rows", "a sequence of Jacobian row indices in 0..5", checks.type_name(rows)
         )
@@ -452,7 +456,8 @@ class PayloadLimit:
     Attributes:
         force: Largest magnitude ``s`` [N] of the force ``s * direction`` the motors can
             hold; ``inf`` when no joint limit binds (the structure carries that
-            direction); ``nan`` when no ``s >= 0`` can be held.
+            direction); ``0.0`` when no ``s >= 0`` can be held (then :attr:`feasible` is
+            false: the motors cannot hold even ``s = 0``, the robot's own weight).
         direction: Unit direction ``(3,)``, world axes.
         interval: ``(s_min, s_max)`` [N]: all magnitudes (negative ones too) that can be
             held; empty (``s_min > s_max``) when none can.
@@ -469,8 +474,9 @@ class PayloadLimit:
 
     @property
     def feasible(self) -> bool:
-        """Whether some magnitude ``s >= 0`` can be held."""
-        return not np.isnan(self.force)
+        """Whether some magnitude ``s >= 0`` can be held (``interval`` meets ``s >= 0``)."""
+        s_min, s_max = self.interval
+        return bool(s_min <= s_max and s_max >= 0.0)
 
 
 def max_payload(
@@ -491,7 +497,7 @@ def max_payload(
     ``s in [(h0_i - hi_i) / a_i, (h0_i - lo_i) / a_i]`` if ``a_i > 0``, the mirrored
     interval if ``a_i < 0``, and any ``s`` (if ``lo_i <= h0_i <= hi_i``) or none if
     ``a_i = 0``. The intersection is ``interval``; ``force`` is its upper end when it
-    reaches ``s >= 0``.
+    reaches ``s >= 0``, else ``0.0`` (and :attr:`PayloadLimit.feasible` is false).
 
     Args:
         configuration: Robot at rest at its current ``q``.
@@ -532,7 +538,7 @@ def max_payload(
     if feasible and np.isfinite(s_max):
         limiting = _dof_joint_names(configuration.model)[int(np.argmin(upper))]
     return PayloadLimit(
-        force=s_max if feasible else float("nan"),
+        force=s_max if feasible else 0.0,
         direction=d,
         interval=(s_min, s_max),
         limiting_joint=limiting,

@@ -164,13 +164,22 @@ def check_seed(seed: int | None) -> int:
 
 
 def check_workers(workers: int | None, backend: str = "process") -> int | None:
-    """Validate ``workers`` (``None``: every core, or for Ray every CPU of the cluster)."""
+    """Validate ``workers`` (``None``: every core, or for Ray every CPU of the cluster).
+    A daemonic process (a pool's worker, say) may not start processes: the process backend
+    then solves in this process (``1``; the answers are the same, target by target)."""
     if backend not in BACKENDS:
         raise InvalidInput(f"unknown backend {backend!r}; expected one of: {', '.join(BACKENDS)}")
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1
+    ):
+        raise InvalidInput(f"workers must be a positive integer or None, got {workers!r}")
+    if backend == "process":
+        import multiprocessing  # loaded here (a pool's start loads it anyway)
+
+        if multiprocessing.current_process().daemon:
+            return 1
     if workers is None:
         return (os.cpu_count() or 1) if backend == "process" else None
-    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
-        raise InvalidInput(f"workers must be a positive integer or None, got {workers!r}")
     return int(workers)
 
 
@@ -196,18 +205,17 @@ def prepare_robot(robot: RobotLike) -> tuple[Any, mujoco.MjModel, np.ndarray | N
 
 
 def solve_call(
-    options: SolveOptions | str | None, solve_options: Mapping[str, Any], q0: np.ndarray | None
+    options: SolveOptions | str | None, solve_options: Mapping[str, Any]
 ) -> dict[str, Any]:
-    """The keywords every solve of a batch gets: ``q0`` and ``stack`` as given (``q0``
-    defaulting to a Configuration's ``q``), and the other options folded into one
-    :class:`qpik.SolveOptions`, validated here (a bad option raises in the caller, typed,
-    before any worker starts). A batch's ``seed`` is its own argument: target ``i`` gets
-    :func:`target_seed(seed, i) <target_seed>`, whatever ``options.seed``."""
+    """The keywords every solve of a batch gets: ``q0`` and ``stack`` as given, and the
+    other options folded into one :class:`qpik.SolveOptions`, validated here (a bad option
+    raises in the caller, typed, before any worker starts). A Configuration's ``q`` is not
+    one of them: the workers' sessions start from it as ``qpik.solve(configuration)``
+    does (:attr:`WorkerSetup.robot_q`). A batch's ``seed`` is its own argument: target
+    ``i`` gets :func:`target_seed(seed, i) <target_seed>`, whatever ``options.seed``."""
     keywords = dict(solve_options)
     call: dict[str, Any] = {k: keywords.pop(k) for k in ("q0", "stack") if k in keywords}
     call["options"] = resolve(options).replace(**keywords)
-    if q0 is not None:
-        call.setdefault("q0", q0)
     return call
 
 
@@ -250,8 +258,9 @@ class Batch:
         workers = check_workers(run.workers, run.backend)
         check_chunk_size(run.chunk_size, optional=True)
         spec, model, q0 = prepare_robot(robot)
-        call = solve_call(options, given, q0)
-        return cls(WorkerSetup(spec, entropy, call, run.histories), model, workers, run, given)
+        call = solve_call(options, given)
+        setup = WorkerSetup(spec, entropy, call, run.histories, q0)
+        return cls(setup, model, workers, run, given)
 
     @property
     def options(self) -> SolveOptions:

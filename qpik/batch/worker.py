@@ -17,7 +17,7 @@ from typing import Any
 from ..errors import QpikError
 from ..igm.result import IKResult
 from ..igm.session import IKSession, solve
-from ..model.configuration import resolve_robot
+from ..model.configuration import Configuration, resolve_robot
 from .chunks import Chunk, Failure, PackedChunk, pack_results, without_histories
 
 __all__ = [
@@ -51,13 +51,16 @@ def target_seed(seed: int, index: int) -> int:
 class WorkerSetup:
     """What a worker needs to solve a batch's chunks: the robot as workers load it
     (``spec``: a name, a path or an ``MjModel``), the batch's entropy (its seed), the
-    keywords of every solve (``call``: ``q0``, ``stack``, ``options``) and whether results
-    keep their per-iteration histories."""
+    keywords of every solve (``call``: ``q0``, ``stack``, ``options``), whether results
+    keep their per-iteration histories, and the ``q`` of a :class:`qpik.Configuration`
+    passed as the robot (``robot_q``: the default start, named ``robot`` when it is
+    outside the limits)."""
 
     spec: Any
     entropy: int
     call: Mapping[str, Any]
     histories: bool = False
+    robot_q: Any = None
 
 
 class ChunkSolver:
@@ -68,16 +71,21 @@ class ChunkSolver:
         self.entropy = setup.entropy
         self.options = dict(setup.call)
         self.histories = setup.histories
+        # the robot as the caller passed it: a Configuration's q is the default start
+        robot = self.model
+        if setup.robot_q is not None:
+            robot = Configuration(self.model, setup.robot_q)
+        self.robot: Any = robot
         # A session reads the model once; it keeps no state between solves, so its
         # results are those of qpik.solve, bitwise.
-        self.session = IKSession(self.model)
+        self.session = IKSession(robot)
 
     def solve(self, index: int, targets: Mapping) -> IKResult:
         seed = target_seed(self.entropy, index)
         if solve is _SOLVE:
             result = self.session.solve(targets, seed=seed, **self.options)
         else:  # this module's solve replaced (tests)
-            result = solve(self.model, targets, seed=seed, **self.options)
+            result = solve(self.robot, targets, seed=seed, **self.options)
         return result if self.histories else without_histories(result)
 
     def solve_chunk(self, chunk: Chunk) -> tuple[int, list[IKResult | Failure]]:

@@ -45,6 +45,7 @@ from ..errors import (
 
 __all__ = [
     "check_keywords",
+    "check_matrix",
     "DT_MAX",
     "DT_MIN",
     "MAX_LENGTH",
@@ -205,6 +206,19 @@ def check_array(name: str, value: Any, expected: str) -> np.ndarray:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise InvalidArgumentType(name, expected, type_name(value)) from None
+
+
+def check_matrix(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape``: not numbers raises
+    :class:`InvalidArgumentType`, another shape or a NaN / inf :class:`qpik.InvalidInput`,
+    naming ``name``."""
+    expected = "an array of shape " + str(shape)
+    array = check_array(name, value, expected)
+    if array.shape != shape:
+        raise InvalidInput(f"{name} must have shape {shape}, got {array.shape}")
+    if not np.isfinite(array).all():
+        raise InvalidInput(f"{name} must be finite, got {array.tolist()}")
+    return array
 
 
 def check_path(name: str, value: Any) -> str:

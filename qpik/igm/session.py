@@ -451,7 +451,12 @@ class IKSession:
             i = int(np.flatnonzero(~np.isfinite(q))[0])
             raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
         if check:
-            Configuration(self.model, q).check_limits()
+            try:
+                Configuration(self.model, q).check_limits()
+            except JointLimitViolation as exc:  # named after the argument q came in
+                raise JointLimitViolation(
+                    exc.joint, exc.index, exc.value, exc.lower, exc.upper, where=where
+                ) from None
         return q
 
     def _levels_met(

@@ -50,12 +50,14 @@ import numpy as np
 from mink import Constraint
 
 from ..errors import LimitDefinitionError
+from ..model.frames import check_model_type
 
 __all__ = ["BallJointLimit", "limited_ball_joints"]
 
 
 def limited_ball_joints(model: mujoco.MjModel) -> list[int]:
     """The ids of the ball joints whose range bounds their rotation (``range[1] < pi``)."""
+    check_model_type("model", model)
     ball = int(mujoco.mjtJoint.mjJNT_BALL)
     return [
         j

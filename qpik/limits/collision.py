@@ -429,15 +429,18 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
 def geom_distance(configuration: mink.Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0):
     """Signed distance [m] between two geoms at the configuration (MuJoCo's
     ``mj_geomDistance``: negative when they penetrate, ``cap`` when farther apart)."""
+    checks.check_instance(
+        "configuration", configuration, mink.Configuration, "a qpik.Configuration"
+    )
+    cap = checks.check_real("cap", cap, 0.0)
     model = configuration.model
     ids = []
-    for geom in (geom1, geom2):
-        gid = (
-            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
-            if isinstance(geom, str)
-            else int(geom)
-        )
-        if not 0 <= gid < model.ngeom:
-            raise UnknownFrame(geom, "geom", frame_names(model, "geom"))
+    for name, geom in (("geom1", geom1), ("geom2", geom2)):
+        if isinstance(geom, str):
+            gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, geom)
+            if gid < 0:
+                raise UnknownFrame(geom, "geom", frame_names(model, "geom"))
+        else:
+            gid = checks.check_index(name, geom, model.ngeom)
         ids.append(gid)
     return float(mujoco.mj_geomDistance(model, configuration.data, ids[0], ids[1], cap, None))

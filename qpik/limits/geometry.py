@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from typing import Any
 
 import mink
 import mujoco
@@ -62,6 +63,7 @@ def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[
     """Ids of the geoms that take part in contact (``contype`` or ``conaffinity`` nonzero),
     sorted; ``robot_only``: leave out the geoms of the world body (floor, obstacles)."""
     check_model_type("model", model)
+    robot_only = checks.check_bool("robot_only", robot_only)
     return [
         g
         for g in range(model.ngeom)
@@ -176,7 +178,7 @@ def model_collision_limit(
         if (
             isinstance(geoms, (str, bytes))
             or not isinstance(geoms, (list, tuple, np.ndarray))
-            or np.ndim(geoms) != 1
+            or _ndim(geoms) != 1
         ):
             raise InvalidArgumentType(
                 "geoms", "a list of geom names or ids", checks.type_name(geoms)
@@ -382,3 +384,11 @@ def contact_footprint(model: mujoco.MjModel, frame_type: FrameType, frame_id: in
             "footprint=[[x, y], ...] (a sole's corners [m] in the frame's x-y axes)"
         )
     return stacked
+
+
+def _ndim(value: Any) -> int:
+    """``np.ndim(value)``, or -1 for a ragged nesting NumPy cannot shape."""
+    try:
+        return int(np.ndim(value))
+    except (TypeError, ValueError):
+        return -1

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..core.checks import check_real, type_name
 from ..errors import (
     InvalidArgumentType,
@@ -188,7 +189,7 @@ class Configuration(mink.Configuration):
         With ``safety_break=False`` nothing is raised (mink's signature, kept for mink's
         ``solve_ik``).
         """
-        if not safety_break:
+        if not checks.check_bool("safety_break", safety_break):
             return
         tol = check_real("tol", tol, 0.0)
         q = self.data.qpos
@@ -204,6 +205,7 @@ class Configuration(mink.Configuration):
     def within_limits(self, tol: float = 1e-6) -> bool:
         """Whether ``q`` lies within the joint limits (up to ``tol``); a limited ball joint
         is within when its rotation angle ``2 acos|w|`` [rad] is at most its range."""
+        tol = check_real("tol", tol, 0.0)
         q = self.data.qpos
         if not np.all((q >= self._lower - tol) & (q <= self._upper + tol)):
             return False

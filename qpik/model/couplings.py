@@ -40,6 +40,7 @@ import numpy.typing as npt
 
 from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
+from .frames import check_model_type
 
 __all__ = ["Couplings", "model_couplings", "unheld_equalities", "unheld_equality_errors"]
 
@@ -145,6 +146,7 @@ def model_couplings(model: mujoco.MjModel) -> Couplings | None:
     :attr:`Couplings.skipped`, which a ``None`` answer does not carry)."""
     rows: list[tuple[str, dict[int, float], dict[int, float], float, float, np.ndarray]] = []
     skipped: list[str] = []
+    check_model_type("model", model)
     joint_eq, tendon_eq = int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)
     for e in range(model.neq):
         name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"equality #{e}"

@@ -21,6 +21,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from . import lie
 
 __all__ = [
@@ -65,7 +66,9 @@ def rotation_vector(R: npt.ArrayLike) -> np.ndarray:
 def orientation_error(R_current: npt.ArrayLike, R_target: npt.ArrayLike) -> np.ndarray:
     """The world-frame rotation vector ``log(R_target R_current^T)`` (3,) [rad] that takes
     the orientation ``R_current`` onto ``R_target`` (both frame-to-world rotations)."""
-    return rotation_vector(np.asarray(R_target, dtype=float) @ np.asarray(R_current, dtype=float).T)
+    current = checks.check_matrix("R_current", R_current, (3, 3))
+    target = checks.check_matrix("R_target", R_target, (3, 3))
+    return rotation_vector(target @ current.T)
 
 
 def orientation_angle(R_current: npt.ArrayLike, R_target: npt.ArrayLike) -> float:

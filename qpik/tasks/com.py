@@ -52,7 +52,8 @@ class ComTask(mink.Task):
         lm_damping: float = 0.0,
         body: str | int = 1,
     ):
-        with mink_errors_as_qpik(type(self).__name__):
+        numbers = {"gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
         self.body = body
         self.target_com: np.ndarray | None = None
@@ -60,7 +61,7 @@ class ComTask(mink.Task):
 
     def set_cost(self, cost: npt.ArrayLike) -> None:
         """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
-        with mink_errors_as_qpik("ComTask cost"):
+        with mink_errors_as_qpik("ComTask", {"cost": cost}):
             cost = np.atleast_1d(np.asarray(cost, dtype=float))
         if cost.ndim != 1 or cost.shape[0] not in (1, self.k) or not np.all(cost >= 0):
             raise TaskDefinitionError(

@@ -12,7 +12,7 @@ import mujoco
 import numpy as np
 
 from .._engine.tasks import linear_residual
-from ..errors import TaskDefinitionError, mink_errors_as_qpik
+from ..errors import TaskDefinitionError, check_task_numbers, mink_errors_as_qpik
 from ..model.couplings import Couplings, model_couplings
 
 
@@ -29,6 +29,7 @@ class CouplingTask(mink.Task):
     """
 
     def __init__(self, model: mujoco.MjModel, cost: float = 1.0, gain: float = 1.0):
+        check_task_numbers(type(self).__name__, {"cost": cost, "gain": gain})
         couplings = model_couplings(model)
         if couplings is None:
             raise TaskDefinitionError(
@@ -36,7 +37,7 @@ class CouplingTask(mink.Task):
             )
         self.couplings: Couplings = couplings
         self.k = len(couplings)
-        with mink_errors_as_qpik(type(self).__name__):
+        with mink_errors_as_qpik(type(self).__name__, {"cost": cost, "gain": gain}):
             super().__init__(np.full(self.k, float(cost)), gain, 0.0)
         # Linear couplings (a URDF mimic, a joint equality of degree 1): the residual is one
         # compiled product over qpos (the compiled step's own arithmetic, so both paths give

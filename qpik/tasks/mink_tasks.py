@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 import mink
 import mujoco
+import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
@@ -28,6 +29,7 @@ from ..errors import (
     TaskDefinitionError,
     UnknownFrameType,
     arguments_of,
+    check_task_numbers,
     mink_errors_as_qpik,
     qpik_errors,
 )
@@ -85,6 +87,7 @@ def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
     def wrapped(self, *args: Any, **kwargs: Any) -> None:
         arguments = arguments_of(method, self, *args, **kwargs)
+        check_task_numbers(type(self).__name__, arguments)
         with mink_errors_as_qpik(type(self).__name__, arguments):
             method(self, *args, **kwargs)
         cost = getattr(self, "cost", None)
@@ -135,7 +138,30 @@ class DofFreezingTask(mink.DofFreezingTask):
 
 @_with_qpik_errors
 class EqualityConstraintTask(mink.EqualityConstraintTask):
-    """mink's :class:`mink.EqualityConstraintTask`, with qpik's errors."""
+    """mink's :class:`mink.EqualityConstraintTask`, with qpik's errors (``equalities``
+    other than ``None`` or a sequence of equality ids and names is named)."""
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        cost: npt.ArrayLike,
+        equalities: Sequence[int | str] | None = None,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ) -> None:
+        entries = equalities if equalities is not None else []
+        if isinstance(entries, (str, bytes)) or not isinstance(entries, Sequence):
+            raise TaskDefinitionError(
+                "EqualityConstraintTask: argument equalities must be None or a sequence of "
+                f"equality ids or names, got {type(equalities).__name__}"
+            )
+        for entry in entries:
+            if isinstance(entry, bool) or not isinstance(entry, (int, np.integer, str)):
+                raise TaskDefinitionError(
+                    "EqualityConstraintTask: argument equalities holds "
+                    f"{type(entry).__name__} {entry!r}; expected equality ids or names"
+                )
+        super().__init__(model, cost, equalities, gain, lm_damping)
 
 
 @_with_qpik_errors

@@ -69,7 +69,8 @@ class _FrameRowsTask(mink.Task):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ):
-        with mink_errors_as_qpik(type(self).__name__):
+        numbers = {"cost": cost, "gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(_cost_vector(cost, self._cost_name), gain, lm_damping)
         self.frame_name = checks.check_frame_name("frame_name", frame_name)
         self.frame_type = FrameType.parse(frame_type)

@@ -54,7 +54,8 @@ class JointLimitDistanceTask(mink.Task):
     k = 1
 
     def __init__(self, cost: float = 1.0, gain: float = 0.5, lm_damping: float = 0.0):
-        with mink_errors_as_qpik(type(self).__name__):
+        numbers = {"cost": cost, "gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
         self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
 
@@ -108,7 +109,8 @@ class ManipulabilityTask(mink.Task):
         gain: float = 0.1,
         lm_damping: float = 0.0,
     ):
-        with mink_errors_as_qpik(type(self).__name__):
+        numbers = {"cost": cost, "gain": gain, "lm_damping": lm_damping}
+        with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
 
         self.frame_name: str | int = checks.check_instance(

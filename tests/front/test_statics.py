@@ -382,7 +382,7 @@ def test_max_payload_with_given_limits_and_when_gravity_cannot_be_held():
     assert symmetric.holds_gravity and symmetric.force - step <= scanned <= symmetric.force
     # Motors that cannot carry anything: no magnitude can be held.
     weak = statics.max_payload(configuration, "ee", -up, torque_limits=np.zeros(6))
-    assert not weak.holds_gravity and not weak.feasible and np.isnan(weak.force)
+    assert not weak.holds_gravity and not weak.feasible and weak.force == 0.0
 
 
 def test_max_payload_is_infinite_along_a_direction_the_structure_carries():

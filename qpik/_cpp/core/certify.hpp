@@ -502,6 +502,14 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // see when the level's whole gradient lies outside Z (a task on pinned dofs only).
     double big = S;
     for (i64 i = 0; i < n; ++i) big = pymax(big, vs[i]);
+    // The regularisation's rows sqrt(rho) I meet b in the least-squares solve (Householder
+    // mixes them): its round-off, eps sqrt(rho) |b|, is there even where A is zero (a task
+    // no dof moves), which the sizes above do not see.
+    if (rho > 0.0) {
+        double bmax = 0.0;
+        for (i64 i = 0; i < m; ++i) bmax = pymax(bmax, std::fabs(b[i]));
+        big = pymax(big, std::sqrt(rho) * bmax);
+    }
     double stat = 0.0;
     for (i64 c = 0; c < r; ++c) {
         double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
