@@ -43,6 +43,41 @@ struct ReducedQP {
 };
 
 namespace detail {
+// A Jacobi rotation of project_level (rows i, j), logged for Q's columns.
+struct Rotation {
+    i64 i, j;
+    double cs, sn;
+};
+}  // namespace detail
+
+// The storage of one solver's cascade, kept from one solve to the next by its owner (the
+// Python HierarchySolver, a compiled step's kernel): the matrices and vectors of every
+// level, sized when first needed and resized only when a size grows, so a solve of the
+// same sizes allocates them no more. Nothing carries from one solve to the next but
+// capacity: each buffer is sized and filled before it is read (the same bits as fresh
+// storage). One per solver, never shared between threads.
+struct Workspace {
+    Mat Z, Ztmp;
+    Projection pr;
+    ReducedQP qp;
+    LSForm ls;
+    QPScratch qps;
+    // project_level
+    Mat Mt, Q, R, Qt, Qr;
+    IVec perm, null_cols;
+    Vec sq, sv;
+    std::vector<detail::Rotation> log;
+    QRScratch qr;
+    // reduced_qp, ls_form, the cascade
+    Mat GZ;
+    Vec e, c1, c2, Gd, zd, Zz;
+    // drop_pinned
+    std::vector<Vec> normals;
+    IVec owner;
+    Vec sum;
+};
+
+namespace detail {
 
 // Whether diag(1/w) A is the identity (square, every weight positive).
 inline bool unit_rows(CMatRef A, CVecRef w) {
@@ -76,9 +111,9 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 // qpik/core/kernels.py).
 // need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
 // rank, without Q, its rotations or Zn (Zn then has no columns).
-inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
-    Projection out;
-    out.AZ = mm(A, Z);
+inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
+                          Projection& out) {
+    mm_into(A, Z, out.AZ);
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
@@ -87,16 +122,19 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     if (keep == 0 || r == 0) {
         out.sigma = kInf;
         out.rank = 0;
-        out.Zn = columns(Z, 0, Z.cols);
-        return out;
+        out.Zn.zeros(Z.rows, Z.cols);
+        for (i64 i = 0; i < Z.rows; ++i)
+            for (i64 j = 0; j < Z.cols; ++j) out.Zn(i, j) = Z(i, j);
+        return;
     }
     if (detail::unit_rows(A, w)) {
         out.sigma = 1.0;
         out.rank = r;
-        out.Zn = Mat(Z.rows, 0);
-        return out;
+        out.Zn.zeros(Z.rows, 0);
+        return;
     }
-    Mat Mt(r, keep);  // (diag(1/w) A Z)^T
+    Mat& Mt = ws.Mt;  // (diag(1/w) A Z)^T
+    Mt.zeros(r, keep);
     i64 k = 0;
     for (i64 i = 0; i < m; ++i) {
         if (w[i] > 0.0) {
@@ -104,9 +142,9 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
             k += 1;
         }
     }
-    Mat Q, R;
-    IVec perm;
-    householder_qr(Mt.cref(), true, Q, R, perm, need_null);
+    Mat& Q = ws.Q;
+    Mat& R = ws.R;
+    householder_qr(Mt.cref(), true, Q, R, ws.perm, need_null, ws.qr);
     // Singular values of the top block of R (p, keep) by one-sided Jacobi rotations of its
     // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
     // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
@@ -117,13 +155,12 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     // row was rotated: a row left alone gives the same bits again. The rotations are logged
     // and applied to Q's columns only when one of the first p is a null direction (else Zn
     // takes Q's unrotated columns p.. alone, and the rotations of Q would be lost work).
-    Vec sq(static_cast<size_t>(p));
+    Vec& sq = ws.sq;
+    sq.assign(static_cast<size_t>(p), 0.0);
     for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), keep);
-    struct Rotation {
-        i64 i, j;
-        double cs, sn;
-    };
-    std::vector<Rotation> log;
+    using detail::Rotation;
+    std::vector<Rotation>& log = ws.log;
+    log.clear();
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
@@ -145,7 +182,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
         }
         if (!rotated) break;
     }
-    Vec sv(static_cast<size_t>(p));
+    Vec& sv = ws.sv;
+    sv.assign(static_cast<size_t>(p), 0.0);
     double top = 0.0;
     for (i64 i = 0; i < p; ++i) {
         sv[i] = std::sqrt(sq[i]);
@@ -154,7 +192,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     double cutoff = rank_tol * pymax(1.0, top);
     i64 rank = 0;
     double sigma = kInf;
-    IVec null_cols;
+    IVec& null_cols = ws.null_cols;
+    null_cols.clear();
     for (i64 i = 0; i < p; ++i) {
         if (sv[i] > cutoff) {
             rank += 1;
@@ -168,12 +207,14 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     out.sigma = sigma;
     out.rank = rank;
     if (!need_null) {
-        out.Zn = Mat(Z.rows, 0);
-        return out;
+        out.Zn.zeros(Z.rows, 0);
+        return;
     }
-    Mat Qr(r, static_cast<i64>(null_cols.size()));
+    Mat& Qr = ws.Qr;
+    Qr.zeros(r, static_cast<i64>(null_cols.size()));
     if (rotated_null) {
-        Mat Qt = transposed(Q.cref());  // Q's columns as rows: contiguous rotations
+        Mat& Qt = ws.Qt;
+        transposed_into(Q.cref(), Qt);  // Q's columns as rows: contiguous rotations
         for (const Rotation& g : log) jacobi_rows(Qt.row(g.i), Qt.row(g.j), g.cs, g.sn, r);
         for (size_t c = 0; c < null_cols.size(); ++c) {
             const double* qc = Qt.row(null_cols[c]);
@@ -186,9 +227,15 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
             for (size_t c = 0; c < null_cols.size(); ++c) dst[c] = qt[null_cols[c]];
         }
     }
-    out.Zn = mm(Z, Qr.cref());
+    mm_into(Z, Qr.cref(), out.Zn);
     out.sigma = sigma;
     out.rank = rank;
+}
+
+inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
+    Workspace ws;
+    Projection out;
+    project_level(A, w, Z, rank_tol, need_null, ws, out);
     return out;
 }
 
@@ -218,23 +265,25 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
 }
 
 // The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
-inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                            CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
+                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
-    ReducedQP out;
-    out.H = mtm(AZ);
+    mtm_into(AZ, out.H);
     double big = 0.0;
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
     reg = pymax(reg, 1e-14 * (1.0 + big));
     for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
-    Vec e = mv(A, d);
+    Vec& e = ws.e;
+    mv_into(A, d, e);
     for (i64 i = 0; i < A.rows; ++i) e[i] = e[i] - b[i];
-    Vec c1 = mtv(AZ, e.data());
-    Vec c2 = mtv(Z, d);
+    Vec& c1 = ws.c1;
+    Vec& c2 = ws.c2;
+    mtv_into(AZ, e.data(), c1);
+    mtv_into(Z, d, c2);
     out.c.assign(static_cast<size_t>(r), 0.0);
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
-    out.C = Mat(n + p, r);
+    out.C.zeros(n + p, r);
     out.lo.assign(static_cast<size_t>(n + p), 0.0);
     out.hi.assign(static_cast<size_t>(n + p), 0.0);
     for (i64 i = 0; i < n; ++i)
@@ -244,10 +293,12 @@ inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const d
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
     }
     if (p) {
-        Mat GZ = mm(G, Z);
+        Mat& GZ = ws.GZ;
+        mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
             for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
-        Vec Gd = mv(G, d);
+        Vec& Gd = ws.Gd;
+        mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
             out.lo[n + j] = -kInf;
             out.hi[n + j] = h[j] - Gd[j];
@@ -266,6 +317,13 @@ inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const d
             out.hi[i] = kInf;
         }
     }
+}
+
+inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
+                            CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+    Workspace ws;
+    ReducedQP out;
+    reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h, ws, out);
     return out;
 }
 
@@ -304,25 +362,33 @@ inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef
 namespace detail {
 
 // The level's objective as least squares in z (see LSForm): B = [A Z; sqrt(rho) I].
-inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho) {
+inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho, Workspace& ws,
+                    LSForm& ls) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
-    LSForm ls;
-    ls.B = Mat(m + (reg ? r : 0), r);
+    ls.B.zeros(m + (reg ? r : 0), r);
     ls.f.assign(static_cast<size_t>(ls.B.rows), 0.0);
-    Vec e = mv(A, d);
+    Vec& e = ws.e;
+    mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
         for (i64 j = 0; j < r; ++j) ls.B(i, j) = AZ(i, j);
         ls.f[i] = b[i] - e[i];
     }
     if (reg) {
         double s = std::sqrt(rho);
-        Vec zd = mtv(Z, d);
+        Vec& zd = ws.zd;
+        mtv_into(Z, d, zd);
         for (i64 j = 0; j < r; ++j) {
             ls.B(m + j, j) = s;
             ls.f[m + j] = -s * zd[j];
         }
     }
+}
+
+inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho) {
+    Workspace ws;
+    LSForm ls;
+    ls_form(A, b, AZ, Z, d, rho, ws, ls);
     return ls;
 }
 
@@ -513,11 +579,17 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u) pins j
 // and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
-inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     if (r == 0) return false;
-    std::vector<Vec> normals;
-    IVec owner;  // the dof of a box row's normal, -1 for a general row
+    std::vector<Vec>& normals = ws.normals;  // the first t in use (their storage kept)
+    i64 t = 0;
+    auto next_normal = [&]() -> Vec& {
+        if (t == static_cast<i64>(normals.size())) normals.emplace_back();
+        return normals[static_cast<size_t>(t++)];
+    };
+    IVec& owner = ws.owner;  // the dof of a box row's normal, -1 for a general row
+    owner.clear();
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double nn = 0.0;
@@ -528,9 +600,9 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             double bound = side > 0.0 ? lb[i] : ub[i];
             if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
                 continue;
-            Vec v(static_cast<size_t>(r));
+            Vec& v = next_normal();
+            v.assign(static_cast<size_t>(r), 0.0);
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
-            normals.push_back(std::move(v));
             owner.push_back(i);
         }
     }
@@ -543,31 +615,36 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 gd += G(j, t) * d[t];
             }
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
-            Vec v(static_cast<size_t>(r), 0.0);
-            for (i64 t = 0; t < n; ++t) {
-                double g = G(j, t);
+            Vec& v = next_normal();
+            v.assign(static_cast<size_t>(r), 0.0);
+            for (i64 s = 0; s < n; ++s) {
+                double g = G(j, s);
                 if (g == 0.0) continue;
-                const double* zt = Z.row(t);
+                const double* zt = Z.row(s);
                 for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
             }
             double nn = dot(v.data(), v.data(), r);
-            if (!(nn > 1e-20 * gg)) continue;
+            if (!(nn > 1e-20 * gg)) {
+                t -= 1;  // not kept: its storage is reused by the next one
+                continue;
+            }
             double norm = std::sqrt(nn);
             for (auto& x : v) x = -x / norm;
-            normals.push_back(std::move(v));
             owner.push_back(-1);
         }
     }
-    i64 t = static_cast<i64>(normals.size());
     if (t < 2) return false;
     {
         // Gordan's alternative, cheaply: with s the sum of the normals, n_i^T s >= c |s| for
         // every i (c > 0) bounds every residual the test below computes from below,
         // |n_j + sum u_i n_i| >= c (1 + sum u) (u >= 0), far above kPinned (1 + sum u) when
         // c > 1e-9: no row is pinned, the answer the test would give (Z unchanged).
-        Vec sum(static_cast<size_t>(r), 0.0);
-        for (const Vec& v : normals)
+        Vec& sum = ws.sum;
+        sum.assign(static_cast<size_t>(r), 0.0);
+        for (i64 j = 0; j < t; ++j) {
+            const Vec& v = normals[static_cast<size_t>(j)];
             for (i64 c = 0; c < r; ++c) sum[c] += v[c];
+        }
         double sn = std::sqrt(dot(sum.data(), sum.data(), r));
         bool free = sn > 0.0;
         for (i64 j = 0; j < t && free; ++j)
@@ -614,9 +691,9 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     Mat N(r, e);
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
-    Mat Q, R;
-    IVec perm;
-    householder_qr(N.cref(), true, Q, R, perm);
+    Mat& Q = ws.Q;
+    Mat& R = ws.R;
+    householder_qr(N.cref(), true, Q, R, ws.perm, true, ws.qr);
     double top = std::fabs(R(0, 0));
     i64 rank = 0;
     for (i64 i = 0; i < std::min(r, e); ++i) {
@@ -624,7 +701,12 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         else break;
     }
     if (rank == 0) return false;
-    Z = mm(Z.cref(), columns(Q.cref(), rank, r).cref());
+    Mat& Qc = ws.Qr;  // Q's columns rank..r-1
+    Qc.zeros(r, r - rank);
+    for (i64 i = 0; i < r; ++i)
+        for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
+    mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
+    std::swap(Z, ws.Ztmp);
     // A pinned box row's dof no longer moves: its row of Z, round-off now, is made 0 (the
     // dof is held exactly; a task on it sees no round-off gradient in null-space coordinates).
     for (i64 i = 0; i < n; ++i) {
@@ -635,6 +717,11 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
     }
     return true;
+}
+
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+    Workspace ws;
+    return drop_pinned(Z, d, lb, ub, G, h, ws);
 }
 
 // One level made exact and certified from a QP answer's active set (the level-by-level
@@ -694,7 +781,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
                                    CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                                    double threshold, double max_damping, double error_scale,
                                    double rank_tol, i64 max_iter, double tol,
-                                   MatRefT<const i8> warm, bool canonical) {
+                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
@@ -711,7 +798,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
     }
-    Mat Z = Mat::eye(n);
+    Mat& Z = ws.Z;
+    Z.set_eye(n);
     i64 last = -1;  // the last level with rows: no level below it uses its null space
     for (i64 k = 0; k < L; ++k)
         if (starts[k + 1] > starts[k]) last = k;
@@ -719,7 +807,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
-        if (s1 > s0) drop_pinned(Z, d, lb, ub, G, h);
+        if (s1 > s0) drop_pinned(Z, d, lb, ub, G, h, ws);
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
@@ -734,14 +822,16 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         CMatRef Ak = A.rows_slice(s0, s1);
         CVecRef bk = b.slice(s0, s1);
         CVecRef wk = w.slice(s0, s1);
-        Projection pr = project_level(Ak, wk, Z.cref(), rank_tol, k < last);
+        Projection& pr = ws.pr;
+        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
-        ReducedQP qp = reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h);
+        ReducedQP& qp = ws.qp;
+        reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h, ws, qp);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true);
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
         Certificate cert;
@@ -754,7 +844,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
-            LSForm ls = detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho);
+            LSForm& ls = ws.ls;
+            detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides);
             if (!exact && std::isnan(cert.primal)) {
@@ -772,7 +863,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
-            Vec Zz = mv(Z.cref(), z.data());
+            Vec& Zz = ws.Zz;
+            mv_into(Z.cref(), z.data(), Zz);
             for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
             for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
             for (size_t j = 0; j < final_rows.size(); ++j)
@@ -791,7 +883,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.dq = std::move(d);
             return res;
         }
-        Z = std::move(pr.Zn);
+        std::swap(Z, pr.Zn);
     }
     detail::snap_to_box(d, lb, ub);
     res.residuals = detail::level_residuals(A, b, starts, d);
@@ -800,6 +892,17 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
                                false).primal;
     res.dq = std::move(d);
     return res;
+}
+
+// solve_cascade with storage of its own (allocated for this one call).
+inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
+                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                                   double threshold, double max_damping, double error_scale,
+                                   double rank_tol, i64 max_iter, double tol,
+                                   MatRefT<const i8> warm, bool canonical) {
+    Workspace ws;
+    return solve_cascade(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
+                         tol, warm, canonical, ws);
 }
 
 }  // namespace qpik::core
