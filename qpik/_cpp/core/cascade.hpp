@@ -48,6 +48,15 @@ struct Rotation {
     i64 i, j;
     double cs, sn;
 };
+
+// The storage of nnls (kept by a caller that solves often; sizes only grow).
+struct NnlsScratch {
+    Vec res, w, s, f;
+    BVec passive;
+    IVec P;
+    Mat MP;
+    LsScratch ls;
+};
 }  // namespace detail
 
 // The storage of one solver's cascade, kept from one solve to the next by its owner (the
@@ -62,6 +71,7 @@ struct Workspace {
     ReducedQP qp;
     LSForm ls;
     QPScratch qps;
+    CertScratch cs;
     // project_level
     Mat Mt, Q, R, Qt, Qr;
     IVec perm, null_cols;
@@ -75,6 +85,7 @@ struct Workspace {
     std::vector<Vec> normals;
     IVec owner;
     Vec sum;
+    detail::NnlsScratch nnls;
 };
 
 namespace detail {
@@ -417,7 +428,7 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
-                        IVec& final_sides) {
+                        IVec& final_sides, CertScratch* cs = nullptr) {
     i64 n = static_cast<i64>(d.size());
     IVec rows, sides;
     Vec u;
@@ -428,7 +439,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         Vec Zz = mv(Z, zc.data());
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()));
+                                      static_cast<i64>(rows.size()), true, cs);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -456,7 +467,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec zref = mtv(Z, d.data());
         for (auto& v : zref) v = -v;
-        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u)) {
+        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
             if (certify(zc)) {
                 z = std::move(zc);
@@ -495,17 +506,20 @@ namespace detail {
 
 // Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
-inline Vec nnls(const Mat& M, const Vec& y) {
+inline Vec nnls(const Mat& M, const Vec& y, NnlsScratch& ws) {
     i64 r = M.rows, t = M.cols;
     Vec u(static_cast<size_t>(t), 0.0);
-    BVec passive(static_cast<size_t>(t), 0);
+    BVec& passive = ws.passive;
+    passive.assign(static_cast<size_t>(t), 0);
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
     double wtol = 1e-14 * (1.0 + ynorm);
     i64 cap = 3 * t + 10;
     for (i64 outer = 0; outer < cap; ++outer) {
-        Vec res = mv(M.cref(), u.data());
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);
         for (i64 i = 0; i < r; ++i) res[i] = y[i] - res[i];
-        Vec w = mtv(M.cref(), res.data());  // -gradient
+        Vec& w = ws.w;
+        mtv_into(M.cref(), res.data(), w);  // -gradient
         i64 add = -1;
         double best = wtol;
         for (i64 j = 0; j < t; ++j) {
@@ -517,14 +531,18 @@ inline Vec nnls(const Mat& M, const Vec& y) {
         if (add < 0) break;
         passive[add] = 1;
         for (i64 inner = 0; inner < cap; ++inner) {
-            IVec P;
+            IVec& P = ws.P;
+            P.clear();
             for (i64 j = 0; j < t; ++j)
                 if (passive[j]) P.push_back(j);
             i64 np = static_cast<i64>(P.size());
-            Mat MP(r, np);
+            Mat& MP = ws.MP;
+            MP.zeros(r, np);
             for (i64 i = 0; i < r; ++i)
                 for (i64 k = 0; k < np; ++k) MP(i, k) = M(i, P[k]);
-            Vec s = lstsq(std::move(MP), y);
+            ws.f = y;
+            Vec& s = ws.s;
+            lstsq_into(MP, ws.f, s, ws.ls);
             bool positive = true;
             for (i64 k = 0; k < np; ++k)
                 if (!(s[k] > 0.0)) positive = false;
@@ -556,6 +574,11 @@ inline Vec nnls(const Mat& M, const Vec& y) {
         }
     }
     return u;
+}
+
+inline Vec nnls(const Mat& M, const Vec& y) {
+    NnlsScratch ws;
+    return nnls(M, y, ws);
 }
 
 }  // namespace detail
@@ -663,7 +686,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
         Vec y(static_cast<size_t>(r));
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
-        Vec u = detail::nnls(M, y);
+        Vec u = detail::nnls(M, y, ws.nnls);
         Vec res = mv(M.cref(), u.data());  // n_j + sum u_i n_i
         double total = 1.0;
         for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
@@ -847,7 +870,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             LSForm& ls = ws.ls;
             detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
-                                        final_rows, final_sides);
+                                        final_rows, final_sides, &ws.cs);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
