@@ -86,9 +86,24 @@ struct Workspace {
     IVec owner;
     Vec sum;
     detail::NnlsScratch nnls;
+    IVec state, others, pinned;
+    BVec box_pinned;
+    Mat M, N;
+    Vec y, u, res;
+    // the cascade's level answer
+    Vec z;
+    IVec final_rows, final_sides;
 };
 
 namespace detail {
+
+// Whether every entry of A is finite.
+inline bool all_finite(CMatRef A) {
+    for (i64 i = 0; i < A.rows; ++i)
+        for (i64 j = 0; j < A.cols; ++j)
+            if (!std::isfinite(A(i, j))) return false;
+    return true;
+}
 
 // Whether diag(1/w) A is the identity (square, every weight positive).
 inline bool unit_rows(CMatRef A, CVecRef w) {
@@ -122,9 +137,20 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 // qpik/core/kernels.py).
 // need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
 // rank, without Q, its rotations or Zn (Zn then has no columns).
+// z_eye: Z is exactly the identity (the first level with rows, nothing pinned above it):
+// the products with Z are written without forming them, the same bits (see below).
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
-                          Projection& out) {
-    mm_into(A, Z, out.AZ);
+                          Projection& out, bool z_eye = false) {
+    if (z_eye && detail::all_finite(A)) {
+        // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
+        // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
+        out.AZ.zeros(A.rows, A.cols);
+        for (i64 i = 0; i < A.rows; ++i)
+            for (i64 j = 0; j < A.cols; ++j)
+                if (A(i, j) != 0.0) out.AZ(i, j) = A(i, j);
+    } else {
+        mm_into(A, Z, out.AZ);
+    }
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
@@ -238,7 +264,18 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             for (size_t c = 0; c < null_cols.size(); ++c) dst[c] = qt[null_cols[c]];
         }
     }
-    mm_into(Z, Qr.cref(), out.Zn);
+    if (z_eye) {
+        // mm(I, Qr): row i of I has the one nonzero 1.0 (column i), so entry (i, j) is
+        // 0.0 + 1.0 * Qr(i, j), the operations axpy does.
+        out.Zn.zeros(Qr.rows, Qr.cols);
+        for (i64 i = 0; i < Qr.rows; ++i) {
+            const double* src = Qr.row(i);
+            double* dst = out.Zn.row(i);
+            for (i64 j = 0; j < Qr.cols; ++j) dst[j] = 0.0 + 1.0 * src[j];
+        }
+    } else {
+        mm_into(Z, Qr.cref(), out.Zn);
+    }
     out.sigma = sigma;
     out.rank = rank;
 }
@@ -430,13 +467,22 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr) {
     i64 n = static_cast<i64>(d.size());
-    IVec rows, sides;
-    Vec u;
+    CertScratch local;  // no storage unless used (cs: the caller's)
+    CertScratch& es = cs ? *cs : local;
+    cs = &es;
+    IVec& rows = es.xrows;
+    IVec& sides = es.xsides;
+    rows.clear();
+    sides.clear();
+    Vec& u = es.xu;
+    u.clear();
     cert = Certificate{};
     double best = kInf;
-    Vec x(static_cast<size_t>(n));
+    Vec& x = es.xx;
+    x.assign(static_cast<size_t>(n), 0.0);
     auto certify = [&](const Vec& zc) {
-        Vec Zz = mv(Z, zc.data());
+        Vec& Zz = es.xZz;
+        mv_into(Z, zc.data(), Zz);
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
                                       static_cast<i64>(rows.size()), true, cs);
@@ -457,7 +503,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         }
         return false;
     };
-    Vec zc;
+    Vec& zc = es.xzc;
+    zc.clear();
     bool have_dual = false;
     if (sol.status == SOLVED) {
         // The dual method's final working set (by row): its rows with a zero multiplier
@@ -465,12 +512,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
-        Vec zref = mtv(Z, d.data());
+        Vec& zref = es.xzref;
+        mtv_into(Z, d.data(), zref);
         for (auto& v : zref) v = -v;
         if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
             if (certify(zc)) {
-                z = std::move(zc);
+                z = zc;
                 return true;
             }
         }
@@ -506,9 +554,9 @@ namespace detail {
 
 // Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
-inline Vec nnls(const Mat& M, const Vec& y, NnlsScratch& ws) {
+inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     i64 r = M.rows, t = M.cols;
-    Vec u(static_cast<size_t>(t), 0.0);
+    u.assign(static_cast<size_t>(t), 0.0);
     BVec& passive = ws.passive;
     passive.assign(static_cast<size_t>(t), 0);
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
@@ -570,15 +618,16 @@ inline Vec nnls(const Mat& M, const Vec& y, NnlsScratch& ws) {
                     passive[P[k]] = 0;
                 }
             }
-            if (inner == 0 && !passive[add]) return u;  // round-off: the row just added left at once
+            if (inner == 0 && !passive[add]) return;  // round-off: the row just added left at once
         }
     }
-    return u;
 }
 
 inline Vec nnls(const Mat& M, const Vec& y) {
     NnlsScratch ws;
-    return nnls(M, y, ws);
+    Vec u;
+    nnls_into(M, y, ws, u);
+    return u;
 }
 
 }  // namespace detail
@@ -674,20 +723,26 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (!(dot(normals[j].data(), sum.data(), r) > 1e-9 * sn)) free = false;
         if (free) return false;
     }
-    IVec state(static_cast<size_t>(t), 0);  // 1 pinned, -1 free, 0 not known yet
+    IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
+    state.assign(static_cast<size_t>(t), 0);
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 0) continue;
-        IVec others;
+        IVec& others = ws.others;
+        others.clear();
         for (i64 i = 0; i < t; ++i)
             if (i != j && state[i] >= 0) others.push_back(i);
         i64 k = static_cast<i64>(others.size());
-        Mat M(r, k);
+        Mat& M = ws.M;
+        M.zeros(r, k);
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
-        Vec y(static_cast<size_t>(r));
+        Vec& y = ws.y;
+        y.assign(static_cast<size_t>(r), 0.0);
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
-        Vec u = detail::nnls(M, y, ws.nnls);
-        Vec res = mv(M.cref(), u.data());  // n_j + sum u_i n_i
+        Vec& u = ws.u;
+        detail::nnls_into(M, y, ws.nnls, u);
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);  // n_j + sum u_i n_i
         double total = 1.0;
         for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
         for (i64 s = 0; s < k; ++s) total += u[s];
@@ -702,8 +757,10 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 if (state[i] == 0 && dot(normals[i].data(), res.data(), r) > 1e-9 * rn) state[i] = -1;
         }
     }
-    IVec pinned;
-    BVec box_pinned(static_cast<size_t>(n), 0);
+    IVec& pinned = ws.pinned;
+    pinned.clear();
+    BVec& box_pinned = ws.box_pinned;
+    box_pinned.assign(static_cast<size_t>(n), 0);
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 1) continue;
         pinned.push_back(j);
@@ -711,7 +768,8 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     i64 e = static_cast<i64>(pinned.size());
     if (e == 0) return false;
-    Mat N(r, e);
+    Mat& N = ws.N;
+    N.zeros(r, e);
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
     Mat& Q = ws.Q;
@@ -823,6 +881,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     }
     Mat& Z = ws.Z;
     Z.set_eye(n);
+    bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
     i64 last = -1;  // the last level with rows: no level below it uses its null space
     for (i64 k = 0; k < L; ++k)
         if (starts[k + 1] > starts[k]) last = k;
@@ -830,7 +889,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
-        if (s1 > s0) drop_pinned(Z, d, lb, ub, G, h, ws);
+        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws)) z_eye = false;
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
@@ -846,7 +905,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         CVecRef bk = b.slice(s0, s1);
         CVecRef wk = w.slice(s0, s1);
         Projection& pr = ws.pr;
-        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr);
+        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr, z_eye);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;
@@ -858,13 +917,14 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
         Certificate cert;
-        Vec z;
-        IVec final_rows, final_sides;
+        Vec& z = ws.z;
+        IVec& final_rows = ws.final_rows;
+        IVec& final_sides = ws.final_sides;
         bool exact = false;
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
-            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false);
+            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
             LSForm& ls = ws.ls;
@@ -874,7 +934,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
-                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0);
+                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs);
             }
         }
         double* ck = res.certificate.data() + 4 * k;
@@ -907,6 +967,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             return res;
         }
         std::swap(Z, pr.Zn);
+        z_eye = false;
     }
     detail::snap_to_box(d, lb, ub);
     res.residuals = detail::level_residuals(A, b, starts, d);

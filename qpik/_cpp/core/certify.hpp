@@ -237,6 +237,8 @@ struct CertScratch {
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
     Vec gnorm, gx, v, vs, sc, ssc, zg;  // certify_level
+    IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
+    Vec xu, xx, xZz, xzc, xzref;
 };
 
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
