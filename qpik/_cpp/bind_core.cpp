@@ -192,6 +192,16 @@ void bind_core(nb::module_& m) {
     m.attr("NUMERICAL") = static_cast<i64>(core::NUMERICAL);
     m.attr("NOT_REACHED") = static_cast<i64>(core::NOT_REACHED);
 
+    nb::class_<core::Workspace>(
+        m, "CascadeWorkspace",
+        "The storage of one solver's cascade (solve_levels / solve_cascade), kept between its "
+        "solves so that a solve of the same sizes allocates no matrices: one per solver, never "
+        "shared between threads. Holds no state but capacity (the answers do not depend on it); "
+        "a copy or an unpickled one starts empty.")
+        .def(nb::init<>())
+        .def("__getstate__", [](const core::Workspace&) { return nb::make_tuple(); })
+        .def("__setstate__", [](core::Workspace& ws, const nb::tuple&) { new (&ws) core::Workspace(); });
+
     m.def(
         "cholesky_into",
         [](In2 G, i64 n, double shift, Out2 L) {
@@ -370,7 +380,7 @@ void bind_core(nb::module_& m) {
         "solve_levels",
         [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,
-           nb::handle x_h, nb::handle active_h, nb::handle kinds_h) -> nb::object {
+           nb::handle x_h, nb::handle active_h, nb::handle kinds_h, core::Workspace* ws) -> nb::object {
             // The whole solve from the levels themselves (objects with A, b, regularization,
             // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
             // call, the answer written into x and active (preallocated by the caller) and
@@ -472,10 +482,12 @@ void bind_core(nb::module_& m) {
                 warm = warm_zero.data();
             }
             if (max_iter <= 0) max_iter = 10 * (n + p) + 50;
+            core::Workspace local;  // only when the caller keeps none (its storage: ws)
             core::CascadeResult r = core::solve_cascade(
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
-                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true);
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true,
+                ws ? *ws : local);
             for (i64 k = 0; k < L; ++k)
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
@@ -486,6 +498,7 @@ void bind_core(nb::module_& m) {
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
+        "workspace"_a.none() = nb::none(),
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
         "into active (L, n + p) int8, returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
@@ -497,7 +510,7 @@ void bind_core(nb::module_& m) {
         "solve_cascade",
         [](In2 A, In1 b, In1 w, InI64_1 starts, In1 reg, In1 lb, In1 ub, In2 G, In1 h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, InI8_2 warm,
-           bool canonical) {
+           bool canonical, core::Workspace* ws) {
             i64 M = rows(A), n = len(lb), p = rows(G);
             need(cols(A) == n, "solve_cascade: A must have shape (M, n) with lb (n,)");
             need(len(b) == M && len(w) == M, "solve_cascade: b and w must have shape (M,)");
@@ -512,10 +525,11 @@ void bind_core(nb::module_& m) {
             need(len(h) == p, "solve_cascade: h must have shape (p,)");
             need(static_cast<i64>(warm.shape(0)) == L && static_cast<i64>(warm.shape(1)) == n + p,
                  "solve_cascade: warm must have shape (L, n + p)");
+            core::Workspace local;  // only when the caller keeps none (its storage: ws)
             core::CascadeResult r = core::solve_cascade(
                 cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb), cvec(ub), cmat(G),
                 cvec(h), threshold, max_damping, error_scale, rank_tol, max_iter, tol,
-                MatRefT<const i8>(warm.data(), L, n + p), canonical);
+                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : local);
             size_t Ls = static_cast<size_t>(L), w2 = static_cast<size_t>(n + p);
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
@@ -525,6 +539,7 @@ void bind_core(nb::module_& m) {
         },
         "A"_a, "b"_a, "w"_a, "starts"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
         "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a, "canonical"_a,
+        "workspace"_a.none() = nb::none(),
         "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals, "
         "certificate (L, 4): primal, stationarity, dual, complementarity, primal at the final dq).");
 }

@@ -389,6 +389,8 @@ class Kernel {
 
     i64 levels() const { return L_; }
     i64 nv() const { return n_; }
+    // The cascade's storage, kept from one step to the next (sizes only grow).
+    core::Workspace& workspace() const { return ws_; }
 
   private:
     Out2 A_;
@@ -413,6 +415,7 @@ class Kernel {
         vel_dof_, lin_starts_;
     i64 max_id_[3] = {-1, -1, -1};
     i64 max_body_ = -1;
+    mutable core::Workspace ws_;
 };
 
 // Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.
@@ -421,7 +424,7 @@ auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, boo
     const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
     require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.step: warm must have shape (L, nv + p)");
     diffik::StepResult r =
-        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical);
+        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace());
     if (r.v_is_d) r.v = r.d;
     const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
     return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
@@ -554,8 +557,9 @@ void bind_diffik(nb::module_& m) {
                                             settings);
             const i64 n = a.qpos.n, L = a.starts.n - 1;
             require(dim(warm, 0) == L && dim(warm, 1) == n, "fused_step: warm must have shape (L, nv)");
+            core::Workspace ws;  // a one-off step: storage of its own
             diffik::StepResult r = diffik::fused_step(
-                a, max_iter, MatRefT<const i8>(warm.data(), L, n), canonical);
+                a, max_iter, MatRefT<const i8>(warm.data(), L, n), canonical, ws);
             if (r.v_is_d) r.v = r.d;
             const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
             return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),

@@ -78,6 +78,18 @@ struct Mat {
         for (i64 i = 0; i < n; ++i) m(i, i) = 1.0;
         return m;
     }
+    // Reshaped to (r, c) and filled with zeros, the storage kept (no allocation unless it
+    // grows): the same contents as Mat(r, c).
+    void zeros(i64 r, i64 c) {
+        rows = r;
+        cols = c;
+        a.assign(static_cast<size_t>(r * c), 0.0);
+    }
+    // The identity of order n, the storage kept: the same contents as Mat::eye(n).
+    void set_eye(i64 n) {
+        zeros(n, n);
+        for (i64 i = 0; i < n; ++i) (*this)(i, i) = 1.0;
+    }
     double& operator()(i64 i, i64 j) { return a[static_cast<size_t>(i * cols + j)]; }
     double operator()(i64 i, i64 j) const { return a[static_cast<size_t>(i * cols + j)]; }
     double* row(i64 i) { return a.data() + i * cols; }

@@ -341,6 +341,8 @@ class HierarchySolver:
         self.backend_options = dict(backend_options or {})
         self._warm: np.ndarray | None = None
         self._workspaces: dict = {}
+        # The compiled cascade's storage, kept between solves (no state but capacity).
+        self._cascade_workspace = K.CascadeWorkspace()
         if solver != "auto":
             from .backends import make_workspace
 
@@ -414,6 +416,7 @@ class HierarchySolver:
                 self.rank_tolerance, self.max_iter, self.tolerance,
                 self._warm if self.warm_start else None, np.empty(lb.shape[0]),
                 np.empty((len(levels), lb.shape[0] + G.shape[0]), np.int8), _KINDS,
+                self._cascade_workspace,
             )  # fmt: skip
             if result is not None:
                 self._warm = result.active  # the next warm start only when warm_start is on
@@ -455,7 +458,7 @@ class HierarchySolver:
         x, status, sigma, lam2, its, active, residuals, cert, primal = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
-            self.warm_start,
+            self.warm_start, self._cascade_workspace,
         )  # fmt: skip
         result = self._result((x, status, sigma, lam2, its, active, residuals, cert, primal), L)
         if result is None:

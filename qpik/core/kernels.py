@@ -41,21 +41,25 @@ Signatures:
 - ``tighten(lb, ub, dofs, lower, upper)`` (in place); ``merge_boxes(hard_lb, hard_ub,
   pos_lb, pos_ub) -> (lb, ub, i)``.
 - ``solve_cascade(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping,
-  error_scale, rank_tol, max_iter, tol, warm, canonical) -> (dq, status, sigma, lam2,
-  iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
+  error_scale, rank_tol, max_iter, tol, warm, canonical, workspace=None) -> (dq, status,
+  sigma, lam2, iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
   levels' certificates (primal, stationarity, dual, complementarity; see
   :mod:`qpik.core.cascade`), ``primal`` the final answer's largest scaled row violation.
-- ``solve_levels(levels, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
-  max_iter, tol, warm, x, active, kinds) -> result | None``: :func:`solve_cascade` from the
+- ``solve_levels(levels, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
+  tol, warm, x, active, kinds, workspace=None) -> result | None``: :func:`solve_cascade` from the
   levels themselves (a list or tuple of objects with ``A``, ``b``, ``regularization``,
-  ``weights``; arrays read through the buffer protocol, float64 C-contiguous) with the checks
-  of ``HierarchyProblem.validate``; dq written into the caller's ``x`` (n,) and the active
-  sets into ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result
-  class, its fields set as its ``__init__`` would: ``x``, ``status`` ``kinds[2][code]``,
-  ``residuals``, ``sigma``, ``damping``, ``iterations``, ``active``, ``backend`` ``kinds[3]``,
-  ``certificate`` of ``kinds[1]``, ``primal``). None, nothing written, where an argument fails
-  a check or needs a conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL``
-  (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
+  ``weights``; arrays read through the buffer protocol, float64 C-contiguous) with the checks of
+  ``HierarchyProblem.validate``; dq written into the caller's ``x`` (n,) and the active sets into
+  ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result class, its
+  fields set as its ``__init__`` would: ``x``, ``status`` ``kinds[2][code]``, ``residuals``,
+  ``sigma``, ``damping``, ``iterations``, ``active``, ``backend`` ``kinds[3]``, ``certificate`` of
+  ``kinds[1]``, ``primal``). None, nothing written, where an argument fails a check or needs a
+  conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL`` (``max_iter <= 0``: ``10 (n + p) +
+  50``; ``warm`` None: cold).
+- ``CascadeWorkspace()``: the storage of one solver's cascade, passed as ``workspace`` to
+  :func:`solve_cascade` / :func:`solve_levels` so that repeated solves of the same sizes
+  allocate no matrices (one per solver, never shared between threads; no state but
+  capacity: the answers are the same bits with or without it).
 - ``certified_level(A, b, AZ, Z, d, rho, lb, ub, G, h, active, status, max_iter, lower) -> (ok,
   z, certificate, active)``: one level made exact from a QP answer's active set.
 - ``certify_point(A, b, rho, Z, x, lb, ub, G, h) -> certificate (4,)``: a level's
@@ -97,6 +101,7 @@ reduced_qp = _engine.reduced_qp
 tighten = _engine.tighten
 merge_boxes = _engine.merge_boxes
 solve_cascade = _engine.solve_cascade
+CascadeWorkspace = _engine.CascadeWorkspace
 certified_level = _engine.certified_level
 certify_point = _engine.certify_point
 solve_levels = _engine.solve_levels
@@ -109,8 +114,8 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
-    "active_guess", "certified_level", "certify_point", "cholesky_into", "damping_of",
-    "drop_pinned",
+    "CascadeWorkspace", "active_guess", "certified_level", "certify_point", "cholesky_into",
+    "damping_of", "drop_pinned",
     "level_damping", "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level",
     "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip

@@ -43,6 +43,67 @@ struct ReducedQP {
 };
 
 namespace detail {
+// A Jacobi rotation of project_level (rows i, j), logged for Q's columns.
+struct Rotation {
+    i64 i, j;
+    double cs, sn;
+};
+
+// The storage of nnls (kept by a caller that solves often; sizes only grow).
+struct NnlsScratch {
+    Vec res, w, s, f;
+    BVec passive;
+    IVec P;
+    Mat MP;
+    LsScratch ls;
+};
+}  // namespace detail
+
+// The storage of one solver's cascade, kept from one solve to the next by its owner (the
+// Python HierarchySolver, a compiled step's kernel): the matrices and vectors of every
+// level, sized when first needed and resized only when a size grows, so a solve of the
+// same sizes allocates them no more. Nothing carries from one solve to the next but
+// capacity: each buffer is sized and filled before it is read (the same bits as fresh
+// storage). One per solver, never shared between threads.
+struct Workspace {
+    Mat Z, Ztmp;
+    Projection pr;
+    ReducedQP qp;
+    LSForm ls;
+    QPScratch qps;
+    CertScratch cs;
+    // project_level
+    Mat Mt, Q, R, Qt, Qr;
+    IVec perm, null_cols;
+    Vec sq, sv;
+    std::vector<detail::Rotation> log;
+    QRScratch qr;
+    // reduced_qp, ls_form, the cascade
+    Mat GZ;
+    Vec e, c1, c2, Gd, zd, Zz;
+    // drop_pinned
+    std::vector<Vec> normals;
+    IVec owner;
+    Vec sum;
+    detail::NnlsScratch nnls;
+    IVec state, others, pinned;
+    BVec box_pinned;
+    Mat M, N;
+    Vec y, u, res;
+    // the cascade's level answer
+    Vec z;
+    IVec final_rows, final_sides;
+};
+
+namespace detail {
+
+// Whether every entry of A is finite.
+inline bool all_finite(CMatRef A) {
+    for (i64 i = 0; i < A.rows; ++i)
+        for (i64 j = 0; j < A.cols; ++j)
+            if (!std::isfinite(A(i, j))) return false;
+    return true;
+}
 
 // Whether diag(1/w) A is the identity (square, every weight positive).
 inline bool unit_rows(CMatRef A, CVecRef w) {
@@ -76,9 +137,20 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 // qpik/core/kernels.py).
 // need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
 // rank, without Q, its rotations or Zn (Zn then has no columns).
-inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
-    Projection out;
-    out.AZ = mm(A, Z);
+// z_eye: Z is exactly the identity (the first level with rows, nothing pinned above it):
+// the products with Z are written without forming them, the same bits (see below).
+inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
+                          Projection& out, bool z_eye = false) {
+    if (z_eye && detail::all_finite(A)) {
+        // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
+        // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
+        out.AZ.zeros(A.rows, A.cols);
+        for (i64 i = 0; i < A.rows; ++i)
+            for (i64 j = 0; j < A.cols; ++j)
+                if (A(i, j) != 0.0) out.AZ(i, j) = A(i, j);
+    } else {
+        mm_into(A, Z, out.AZ);
+    }
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
@@ -87,16 +159,19 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     if (keep == 0 || r == 0) {
         out.sigma = kInf;
         out.rank = 0;
-        out.Zn = columns(Z, 0, Z.cols);
-        return out;
+        out.Zn.zeros(Z.rows, Z.cols);
+        for (i64 i = 0; i < Z.rows; ++i)
+            for (i64 j = 0; j < Z.cols; ++j) out.Zn(i, j) = Z(i, j);
+        return;
     }
     if (detail::unit_rows(A, w)) {
         out.sigma = 1.0;
         out.rank = r;
-        out.Zn = Mat(Z.rows, 0);
-        return out;
+        out.Zn.zeros(Z.rows, 0);
+        return;
     }
-    Mat Mt(r, keep);  // (diag(1/w) A Z)^T
+    Mat& Mt = ws.Mt;  // (diag(1/w) A Z)^T
+    Mt.zeros(r, keep);
     i64 k = 0;
     for (i64 i = 0; i < m; ++i) {
         if (w[i] > 0.0) {
@@ -104,9 +179,9 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
             k += 1;
         }
     }
-    Mat Q, R;
-    IVec perm;
-    householder_qr(Mt.cref(), true, Q, R, perm, need_null);
+    Mat& Q = ws.Q;
+    Mat& R = ws.R;
+    householder_qr(Mt.cref(), true, Q, R, ws.perm, need_null, ws.qr);
     // Singular values of the top block of R (p, keep) by one-sided Jacobi rotations of its
     // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
     // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
@@ -117,13 +192,12 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     // row was rotated: a row left alone gives the same bits again. The rotations are logged
     // and applied to Q's columns only when one of the first p is a null direction (else Zn
     // takes Q's unrotated columns p.. alone, and the rotations of Q would be lost work).
-    Vec sq(static_cast<size_t>(p));
+    Vec& sq = ws.sq;
+    sq.assign(static_cast<size_t>(p), 0.0);
     for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), keep);
-    struct Rotation {
-        i64 i, j;
-        double cs, sn;
-    };
-    std::vector<Rotation> log;
+    using detail::Rotation;
+    std::vector<Rotation>& log = ws.log;
+    log.clear();
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
@@ -145,7 +219,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
         }
         if (!rotated) break;
     }
-    Vec sv(static_cast<size_t>(p));
+    Vec& sv = ws.sv;
+    sv.assign(static_cast<size_t>(p), 0.0);
     double top = 0.0;
     for (i64 i = 0; i < p; ++i) {
         sv[i] = std::sqrt(sq[i]);
@@ -154,7 +229,8 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     double cutoff = rank_tol * pymax(1.0, top);
     i64 rank = 0;
     double sigma = kInf;
-    IVec null_cols;
+    IVec& null_cols = ws.null_cols;
+    null_cols.clear();
     for (i64 i = 0; i < p; ++i) {
         if (sv[i] > cutoff) {
             rank += 1;
@@ -168,12 +244,14 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     out.sigma = sigma;
     out.rank = rank;
     if (!need_null) {
-        out.Zn = Mat(Z.rows, 0);
-        return out;
+        out.Zn.zeros(Z.rows, 0);
+        return;
     }
-    Mat Qr(r, static_cast<i64>(null_cols.size()));
+    Mat& Qr = ws.Qr;
+    Qr.zeros(r, static_cast<i64>(null_cols.size()));
     if (rotated_null) {
-        Mat Qt = transposed(Q.cref());  // Q's columns as rows: contiguous rotations
+        Mat& Qt = ws.Qt;
+        transposed_into(Q.cref(), Qt);  // Q's columns as rows: contiguous rotations
         for (const Rotation& g : log) jacobi_rows(Qt.row(g.i), Qt.row(g.j), g.cs, g.sn, r);
         for (size_t c = 0; c < null_cols.size(); ++c) {
             const double* qc = Qt.row(null_cols[c]);
@@ -186,9 +264,26 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
             for (size_t c = 0; c < null_cols.size(); ++c) dst[c] = qt[null_cols[c]];
         }
     }
-    out.Zn = mm(Z, Qr.cref());
+    if (z_eye) {
+        // mm(I, Qr): row i of I has the one nonzero 1.0 (column i), so entry (i, j) is
+        // 0.0 + 1.0 * Qr(i, j), the operations axpy does.
+        out.Zn.zeros(Qr.rows, Qr.cols);
+        for (i64 i = 0; i < Qr.rows; ++i) {
+            const double* src = Qr.row(i);
+            double* dst = out.Zn.row(i);
+            for (i64 j = 0; j < Qr.cols; ++j) dst[j] = 0.0 + 1.0 * src[j];
+        }
+    } else {
+        mm_into(Z, Qr.cref(), out.Zn);
+    }
     out.sigma = sigma;
     out.rank = rank;
+}
+
+inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {
+    Workspace ws;
+    Projection out;
+    project_level(A, w, Z, rank_tol, need_null, ws, out);
     return out;
 }
 
@@ -218,23 +313,25 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
 }
 
 // The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
-inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                            CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
+                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
-    ReducedQP out;
-    out.H = mtm(AZ);
+    mtm_into(AZ, out.H);
     double big = 0.0;
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
     reg = pymax(reg, 1e-14 * (1.0 + big));
     for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
-    Vec e = mv(A, d);
+    Vec& e = ws.e;
+    mv_into(A, d, e);
     for (i64 i = 0; i < A.rows; ++i) e[i] = e[i] - b[i];
-    Vec c1 = mtv(AZ, e.data());
-    Vec c2 = mtv(Z, d);
+    Vec& c1 = ws.c1;
+    Vec& c2 = ws.c2;
+    mtv_into(AZ, e.data(), c1);
+    mtv_into(Z, d, c2);
     out.c.assign(static_cast<size_t>(r), 0.0);
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
-    out.C = Mat(n + p, r);
+    out.C.zeros(n + p, r);
     out.lo.assign(static_cast<size_t>(n + p), 0.0);
     out.hi.assign(static_cast<size_t>(n + p), 0.0);
     for (i64 i = 0; i < n; ++i)
@@ -244,10 +341,12 @@ inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const d
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
     }
     if (p) {
-        Mat GZ = mm(G, Z);
+        Mat& GZ = ws.GZ;
+        mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
             for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
-        Vec Gd = mv(G, d);
+        Vec& Gd = ws.Gd;
+        mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
             out.lo[n + j] = -kInf;
             out.hi[n + j] = h[j] - Gd[j];
@@ -266,6 +365,13 @@ inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const d
             out.hi[i] = kInf;
         }
     }
+}
+
+inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
+                            CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+    Workspace ws;
+    ReducedQP out;
+    reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h, ws, out);
     return out;
 }
 
@@ -304,25 +410,33 @@ inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef
 namespace detail {
 
 // The level's objective as least squares in z (see LSForm): B = [A Z; sqrt(rho) I].
-inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho) {
+inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho, Workspace& ws,
+                    LSForm& ls) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
-    LSForm ls;
-    ls.B = Mat(m + (reg ? r : 0), r);
+    ls.B.zeros(m + (reg ? r : 0), r);
     ls.f.assign(static_cast<size_t>(ls.B.rows), 0.0);
-    Vec e = mv(A, d);
+    Vec& e = ws.e;
+    mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
         for (i64 j = 0; j < r; ++j) ls.B(i, j) = AZ(i, j);
         ls.f[i] = b[i] - e[i];
     }
     if (reg) {
         double s = std::sqrt(rho);
-        Vec zd = mtv(Z, d);
+        Vec& zd = ws.zd;
+        mtv_into(Z, d, zd);
         for (i64 j = 0; j < r; ++j) {
             ls.B(m + j, j) = s;
             ls.f[m + j] = -s * zd[j];
         }
     }
+}
+
+inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho) {
+    Workspace ws;
+    LSForm ls;
+    ls_form(A, b, AZ, Z, d, rho, ws, ls);
     return ls;
 }
 
@@ -351,18 +465,27 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
-                        IVec& final_sides) {
+                        IVec& final_sides, CertScratch* cs = nullptr) {
     i64 n = static_cast<i64>(d.size());
-    IVec rows, sides;
-    Vec u;
+    CertScratch local;  // no storage unless used (cs: the caller's)
+    CertScratch& es = cs ? *cs : local;
+    cs = &es;
+    IVec& rows = es.xrows;
+    IVec& sides = es.xsides;
+    rows.clear();
+    sides.clear();
+    Vec& u = es.xu;
+    u.clear();
     cert = Certificate{};
     double best = kInf;
-    Vec x(static_cast<size_t>(n));
+    Vec& x = es.xx;
+    x.assign(static_cast<size_t>(n), 0.0);
     auto certify = [&](const Vec& zc) {
-        Vec Zz = mv(Z, zc.data());
+        Vec& Zz = es.xZz;
+        mv_into(Z, zc.data(), Zz);
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()));
+                                      static_cast<i64>(rows.size()), true, cs);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -380,7 +503,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         }
         return false;
     };
-    Vec zc;
+    Vec& zc = es.xzc;
+    zc.clear();
     bool have_dual = false;
     if (sol.status == SOLVED) {
         // The dual method's final working set (by row): its rows with a zero multiplier
@@ -388,12 +512,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
-        Vec zref = mtv(Z, d.data());
+        Vec& zref = es.xzref;
+        mtv_into(Z, d.data(), zref);
         for (auto& v : zref) v = -v;
-        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u)) {
+        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
             if (certify(zc)) {
-                z = std::move(zc);
+                z = zc;
                 return true;
             }
         }
@@ -429,17 +554,20 @@ namespace detail {
 
 // Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
-inline Vec nnls(const Mat& M, const Vec& y) {
+inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     i64 r = M.rows, t = M.cols;
-    Vec u(static_cast<size_t>(t), 0.0);
-    BVec passive(static_cast<size_t>(t), 0);
+    u.assign(static_cast<size_t>(t), 0.0);
+    BVec& passive = ws.passive;
+    passive.assign(static_cast<size_t>(t), 0);
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
     double wtol = 1e-14 * (1.0 + ynorm);
     i64 cap = 3 * t + 10;
     for (i64 outer = 0; outer < cap; ++outer) {
-        Vec res = mv(M.cref(), u.data());
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);
         for (i64 i = 0; i < r; ++i) res[i] = y[i] - res[i];
-        Vec w = mtv(M.cref(), res.data());  // -gradient
+        Vec& w = ws.w;
+        mtv_into(M.cref(), res.data(), w);  // -gradient
         i64 add = -1;
         double best = wtol;
         for (i64 j = 0; j < t; ++j) {
@@ -451,14 +579,18 @@ inline Vec nnls(const Mat& M, const Vec& y) {
         if (add < 0) break;
         passive[add] = 1;
         for (i64 inner = 0; inner < cap; ++inner) {
-            IVec P;
+            IVec& P = ws.P;
+            P.clear();
             for (i64 j = 0; j < t; ++j)
                 if (passive[j]) P.push_back(j);
             i64 np = static_cast<i64>(P.size());
-            Mat MP(r, np);
+            Mat& MP = ws.MP;
+            MP.zeros(r, np);
             for (i64 i = 0; i < r; ++i)
                 for (i64 k = 0; k < np; ++k) MP(i, k) = M(i, P[k]);
-            Vec s = lstsq(std::move(MP), y);
+            ws.f = y;
+            Vec& s = ws.s;
+            lstsq_into(MP, ws.f, s, ws.ls);
             bool positive = true;
             for (i64 k = 0; k < np; ++k)
                 if (!(s[k] > 0.0)) positive = false;
@@ -486,9 +618,15 @@ inline Vec nnls(const Mat& M, const Vec& y) {
                     passive[P[k]] = 0;
                 }
             }
-            if (inner == 0 && !passive[add]) return u;  // round-off: the row just added left at once
+            if (inner == 0 && !passive[add]) return;  // round-off: the row just added left at once
         }
     }
+}
+
+inline Vec nnls(const Mat& M, const Vec& y) {
+    NnlsScratch ws;
+    Vec u;
+    nnls_into(M, y, ws, u);
     return u;
 }
 
@@ -513,11 +651,17 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u) pins j
 // and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
-inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     if (r == 0) return false;
-    std::vector<Vec> normals;
-    IVec owner;  // the dof of a box row's normal, -1 for a general row
+    std::vector<Vec>& normals = ws.normals;  // the first t in use (their storage kept)
+    i64 t = 0;
+    auto next_normal = [&]() -> Vec& {
+        if (t == static_cast<i64>(normals.size())) normals.emplace_back();
+        return normals[static_cast<size_t>(t++)];
+    };
+    IVec& owner = ws.owner;  // the dof of a box row's normal, -1 for a general row
+    owner.clear();
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double nn = 0.0;
@@ -528,9 +672,9 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             double bound = side > 0.0 ? lb[i] : ub[i];
             if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
                 continue;
-            Vec v(static_cast<size_t>(r));
+            Vec& v = next_normal();
+            v.assign(static_cast<size_t>(r), 0.0);
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
-            normals.push_back(std::move(v));
             owner.push_back(i);
         }
     }
@@ -543,51 +687,62 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 gd += G(j, t) * d[t];
             }
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
-            Vec v(static_cast<size_t>(r), 0.0);
-            for (i64 t = 0; t < n; ++t) {
-                double g = G(j, t);
+            Vec& v = next_normal();
+            v.assign(static_cast<size_t>(r), 0.0);
+            for (i64 s = 0; s < n; ++s) {
+                double g = G(j, s);
                 if (g == 0.0) continue;
-                const double* zt = Z.row(t);
+                const double* zt = Z.row(s);
                 for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
             }
             double nn = dot(v.data(), v.data(), r);
-            if (!(nn > 1e-20 * gg)) continue;
+            if (!(nn > 1e-20 * gg)) {
+                t -= 1;  // not kept: its storage is reused by the next one
+                continue;
+            }
             double norm = std::sqrt(nn);
             for (auto& x : v) x = -x / norm;
-            normals.push_back(std::move(v));
             owner.push_back(-1);
         }
     }
-    i64 t = static_cast<i64>(normals.size());
     if (t < 2) return false;
     {
         // Gordan's alternative, cheaply: with s the sum of the normals, n_i^T s >= c |s| for
         // every i (c > 0) bounds every residual the test below computes from below,
         // |n_j + sum u_i n_i| >= c (1 + sum u) (u >= 0), far above kPinned (1 + sum u) when
         // c > 1e-9: no row is pinned, the answer the test would give (Z unchanged).
-        Vec sum(static_cast<size_t>(r), 0.0);
-        for (const Vec& v : normals)
+        Vec& sum = ws.sum;
+        sum.assign(static_cast<size_t>(r), 0.0);
+        for (i64 j = 0; j < t; ++j) {
+            const Vec& v = normals[static_cast<size_t>(j)];
             for (i64 c = 0; c < r; ++c) sum[c] += v[c];
+        }
         double sn = std::sqrt(dot(sum.data(), sum.data(), r));
         bool free = sn > 0.0;
         for (i64 j = 0; j < t && free; ++j)
             if (!(dot(normals[j].data(), sum.data(), r) > 1e-9 * sn)) free = false;
         if (free) return false;
     }
-    IVec state(static_cast<size_t>(t), 0);  // 1 pinned, -1 free, 0 not known yet
+    IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
+    state.assign(static_cast<size_t>(t), 0);
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 0) continue;
-        IVec others;
+        IVec& others = ws.others;
+        others.clear();
         for (i64 i = 0; i < t; ++i)
             if (i != j && state[i] >= 0) others.push_back(i);
         i64 k = static_cast<i64>(others.size());
-        Mat M(r, k);
+        Mat& M = ws.M;
+        M.zeros(r, k);
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
-        Vec y(static_cast<size_t>(r));
+        Vec& y = ws.y;
+        y.assign(static_cast<size_t>(r), 0.0);
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
-        Vec u = detail::nnls(M, y);
-        Vec res = mv(M.cref(), u.data());  // n_j + sum u_i n_i
+        Vec& u = ws.u;
+        detail::nnls_into(M, y, ws.nnls, u);
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);  // n_j + sum u_i n_i
         double total = 1.0;
         for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
         for (i64 s = 0; s < k; ++s) total += u[s];
@@ -602,8 +757,10 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 if (state[i] == 0 && dot(normals[i].data(), res.data(), r) > 1e-9 * rn) state[i] = -1;
         }
     }
-    IVec pinned;
-    BVec box_pinned(static_cast<size_t>(n), 0);
+    IVec& pinned = ws.pinned;
+    pinned.clear();
+    BVec& box_pinned = ws.box_pinned;
+    box_pinned.assign(static_cast<size_t>(n), 0);
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 1) continue;
         pinned.push_back(j);
@@ -611,12 +768,13 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     i64 e = static_cast<i64>(pinned.size());
     if (e == 0) return false;
-    Mat N(r, e);
+    Mat& N = ws.N;
+    N.zeros(r, e);
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
-    Mat Q, R;
-    IVec perm;
-    householder_qr(N.cref(), true, Q, R, perm);
+    Mat& Q = ws.Q;
+    Mat& R = ws.R;
+    householder_qr(N.cref(), true, Q, R, ws.perm, true, ws.qr);
     double top = std::fabs(R(0, 0));
     i64 rank = 0;
     for (i64 i = 0; i < std::min(r, e); ++i) {
@@ -624,7 +782,12 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         else break;
     }
     if (rank == 0) return false;
-    Z = mm(Z.cref(), columns(Q.cref(), rank, r).cref());
+    Mat& Qc = ws.Qr;  // Q's columns rank..r-1
+    Qc.zeros(r, r - rank);
+    for (i64 i = 0; i < r; ++i)
+        for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
+    mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
+    std::swap(Z, ws.Ztmp);
     // A pinned box row's dof no longer moves: its row of Z, round-off now, is made 0 (the
     // dof is held exactly; a task on it sees no round-off gradient in null-space coordinates).
     for (i64 i = 0; i < n; ++i) {
@@ -635,6 +798,11 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
     }
     return true;
+}
+
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
+    Workspace ws;
+    return drop_pinned(Z, d, lb, ub, G, h, ws);
 }
 
 // One level made exact and certified from a QP answer's active set (the level-by-level
@@ -694,7 +862,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
                                    CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                                    double threshold, double max_damping, double error_scale,
                                    double rank_tol, i64 max_iter, double tol,
-                                   MatRefT<const i8> warm, bool canonical) {
+                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
@@ -711,7 +879,9 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
     }
-    Mat Z = Mat::eye(n);
+    Mat& Z = ws.Z;
+    Z.set_eye(n);
+    bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
     i64 last = -1;  // the last level with rows: no level below it uses its null space
     for (i64 k = 0; k < L; ++k)
         if (starts[k + 1] > starts[k]) last = k;
@@ -719,7 +889,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
-        if (s1 > s0) drop_pinned(Z, d, lb, ub, G, h);
+        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws)) z_eye = false;
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
@@ -734,33 +904,37 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         CMatRef Ak = A.rows_slice(s0, s1);
         CVecRef bk = b.slice(s0, s1);
         CVecRef wk = w.slice(s0, s1);
-        Projection pr = project_level(Ak, wk, Z.cref(), rank_tol, k < last);
+        Projection& pr = ws.pr;
+        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr, z_eye);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
-        ReducedQP qp = reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h);
+        ReducedQP& qp = ws.qp;
+        reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h, ws, qp);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true);
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
         Certificate cert;
-        Vec z;
-        IVec final_rows, final_sides;
+        Vec& z = ws.z;
+        IVec& final_rows = ws.final_rows;
+        IVec& final_sides = ws.final_sides;
         bool exact = false;
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
-            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false);
+            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
-            LSForm ls = detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho);
+            LSForm& ls = ws.ls;
+            detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
-                                        final_rows, final_sides);
+                                        final_rows, final_sides, &ws.cs);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
-                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0);
+                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs);
             }
         }
         double* ck = res.certificate.data() + 4 * k;
@@ -772,7 +946,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
-            Vec Zz = mv(Z.cref(), z.data());
+            Vec& Zz = ws.Zz;
+            mv_into(Z.cref(), z.data(), Zz);
             for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
             for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
             for (size_t j = 0; j < final_rows.size(); ++j)
@@ -791,7 +966,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.dq = std::move(d);
             return res;
         }
-        Z = std::move(pr.Zn);
+        std::swap(Z, pr.Zn);
+        z_eye = false;
     }
     detail::snap_to_box(d, lb, ub);
     res.residuals = detail::level_residuals(A, b, starts, d);
@@ -800,6 +976,17 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
                                false).primal;
     res.dq = std::move(d);
     return res;
+}
+
+// solve_cascade with storage of its own (allocated for this one call).
+inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
+                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                                   double threshold, double max_damping, double error_scale,
+                                   double rank_tol, i64 max_iter, double tol,
+                                   MatRefT<const i8> warm, bool canonical) {
+    Workspace ws;
+    return solve_cascade(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
+                         tol, warm, canonical, ws);
 }
 
 }  // namespace qpik::core

@@ -53,16 +53,21 @@ struct ImplicitQR {
     std::vector<Vec> v;  // v[i] (r - i,)
     Vec beta;            // 2 / |v_i|^2, 0 for an identity step
 
+    Vec S;               // scratch
+
+    // (v's and S's storage is kept from one factor to the next: v[i] is read only where
+    // beta[i] != 0, and is then this factor's.)
     void factor(const Mat& N) {
         r = N.rows;
         q = N.cols;
         R = N;
-        v.assign(static_cast<size_t>(q), Vec());
+        if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
         beta.assign(static_cast<size_t>(q), 0.0);
-        Vec S(static_cast<size_t>(q));
+        S.assign(static_cast<size_t>(q), 0.0);
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
-            Vec x(static_cast<size_t>(size));
+            Vec& x = v[static_cast<size_t>(i)];
+            x.assign(static_cast<size_t>(size), 0.0);
             double alpha = 0.0;
             for (i64 t = 0; t < size; ++t) {
                 x[t] = R(i + t, i);
@@ -77,7 +82,6 @@ struct ImplicitQR {
             if (vn == 0.0) continue;
             reflect_columns(R.row(0), q, i, size, i, q, x.data(), vn, S.data());
             beta[i] = 2.0 / vn;
-            v[i] = std::move(x);
         }
     }
     // x <- Q^T x (x of length r).
@@ -107,19 +111,33 @@ struct ImplicitQR {
 };
 
 
-// min |M y - f| by Householder QR with column pivoting (M (m, k) copied); pivots below
-// kLsRank |R_00| are zeros, and the solution is the one of least norm.
-inline Vec lstsq(Mat M, Vec f) {
+// The scratch of lstsq (kept by a caller that solves often; sizes only grow).
+struct LsScratch {
+    IVec perm;
+    Vec norms, x, S, yp;
+    Mat N0;
+    ImplicitQR qn;
+};
+
+// min |M y - f| by Householder QR with column pivoting, into y (M (m, k) and f are
+// overwritten); pivots below kLsRank |R_00| are zeros, and the solution is the one of
+// least norm.
+inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 m = M.rows, k = M.cols;
-    Vec y(static_cast<size_t>(k), 0.0);
-    if (k == 0 || m == 0) return y;
-    IVec perm(static_cast<size_t>(k));
+    y.assign(static_cast<size_t>(k), 0.0);
+    if (k == 0 || m == 0) return;
+    IVec& perm = ws.perm;
+    perm.assign(static_cast<size_t>(k), 0);
     for (i64 j = 0; j < k; ++j) perm[j] = j;
-    Vec norms(static_cast<size_t>(k), 0.0);
+    Vec& norms = ws.norms;
+    norms.assign(static_cast<size_t>(k), 0.0);
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
     i64 steps = std::min(m, k);
-    Vec x(static_cast<size_t>(m)), S(static_cast<size_t>(k));
+    Vec& x = ws.x;
+    Vec& S = ws.S;
+    x.assign(static_cast<size_t>(m), 0.0);
+    S.assign(static_cast<size_t>(k), 0.0);
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -158,7 +176,8 @@ inline Vec lstsq(Mat M, Vec f) {
         if (std::fabs(M(i, i)) > kLsRank * top && top > 0.0) rank = i + 1;
         else break;
     }
-    Vec yp(static_cast<size_t>(k), 0.0);
+    Vec& yp = ws.yp;
+    yp.assign(static_cast<size_t>(k), 0.0);
     for (i64 i = rank - 1; i >= 0; --i) {
         double acc = f[i];
         for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
@@ -168,7 +187,8 @@ inline Vec lstsq(Mat M, Vec f) {
         // The minimum-norm solution: the basic one less its component in the null space of
         // [R11 R12], spanned by the orthonormalised columns of [-R11^-1 R12; I].
         i64 nn = k - rank;
-        Mat N0(k, nn);
+        Mat& N0 = ws.N0;
+        N0.zeros(k, nn);
         for (i64 c = 0; c < nn; ++c) {
             N0(rank + c, c) = 1.0;
             for (i64 i = rank - 1; i >= 0; --i) {
@@ -177,13 +197,20 @@ inline Vec lstsq(Mat M, Vec f) {
                 N0(i, c) = acc / M(i, i);
             }
         }
-        ImplicitQR qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
+        ImplicitQR& qn = ws.qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
         qn.factor(N0);
         qn.apply_t(yp.data());
         for (i64 c = 0; c < nn; ++c) yp[c] = 0.0;
         qn.apply(yp.data());
     }
     for (i64 j = 0; j < k; ++j) y[perm[j]] = yp[j];
+}
+
+// min |M y - f| (lstsq_into on copies).
+inline Vec lstsq(Mat M, Vec f) {
+    LsScratch ws;
+    Vec y;
+    lstsq_into(M, f, y, ws);
     return y;
 }
 
@@ -203,17 +230,33 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 // step in the working set's null space W, by the pivoted QR of B W). N's orthogonal factor
 // is kept as reflections (O(q r) per product, never the O(q r^2) explicit Q); W_out, when
 // asked for, is formed.
+// The storage of eqp_ls and certify_level (kept by a caller that solves often).
+struct CertScratch {
+    detail::ImplicitQR qr;
+    detail::LsScratch ls;
+    Mat N, BW;
+    Vec rhs, t, row, f0, y, wy, e, g, r;
+    Vec gnorm, gx, v, vs, sc, ssc, zg;  // certify_level
+    IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
+    Vec xu, xx, xZz, xzc, xzref;
+};
+
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
-                   const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr) {
+                   const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
+                   CertScratch* scratch = nullptr) {
     i64 r = C.cols;
     i64 mb = ls.B.rows;
     z = zref;
     u.assign(static_cast<size_t>(q), 0.0);
     if (q > r) return false;
-    detail::ImplicitQR qr;
+    CertScratch local;  // no storage unless used (scratch: the caller's)
+    CertScratch& ws = scratch ? *scratch : local;
+    detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
-        Mat N(r, q);
-        Vec rhs(static_cast<size_t>(q));
+        Mat& N = ws.N;
+        N.zeros(r, q);
+        Vec& rhs = ws.rhs;
+        rhs.assign(static_cast<size_t>(q), 0.0);
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
             for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
@@ -227,7 +270,8 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
-        Vec t(static_cast<size_t>(r), 0.0);
+        Vec& t = ws.t;
+        t.assign(static_cast<size_t>(r), 0.0);
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
@@ -241,25 +285,31 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     }
     i64 nw = r - q;
     if (nw > 0) {
-        Mat BW(mb, nw);  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
-        Vec row(static_cast<size_t>(r));
+        Mat& BW = ws.BW;  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
+        BW.zeros(mb, nw);
+        Vec& row = ws.row;
+        row.assign(static_cast<size_t>(r), 0.0);
         for (i64 i = 0; i < mb; ++i) {
             const double* bi = ls.B.row(i);
             for (i64 k = 0; k < r; ++k) row[k] = bi[k];
             qr.apply_t(row.data());
             for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
         }
-        Vec f0 = mv(ls.B.cref(), z.data());
+        Vec& f0 = ws.f0;
+        mv_into(ls.B.cref(), z.data(), f0);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
-        Vec y = detail::lstsq(std::move(BW), std::move(f0));
-        Vec wy(static_cast<size_t>(r), 0.0);
+        Vec& y = ws.y;
+        detail::lstsq_into(BW, f0, y, ws.ls);
+        Vec& wy = ws.wy;
+        wy.assign(static_cast<size_t>(r), 0.0);
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
     }
     if (W_out) {
         *W_out = Mat(r, nw);
-        Vec e(static_cast<size_t>(r));
+        Vec& e = ws.e;
+        e.assign(static_cast<size_t>(r), 0.0);
         for (i64 j = 0; j < nw; ++j) {
             std::fill(e.begin(), e.end(), 0.0);
             e[q + j] = 1.0;
@@ -268,7 +318,10 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         }
     }
     if (q > 0) {
-        Vec g = detail::ls_gradient(ls, z);
+        Vec& g = ws.g;
+        mv_into(ls.B.cref(), z.data(), ws.r);  // B^T (B z - f), as ls_gradient
+        for (size_t i = 0; i < ws.r.size(); ++i) ws.r[i] = ws.r[i] - ls.f[i];
+        mtv_into(ls.B.cref(), ws.r.data(), g);
         qr.apply_t(g.data());  // Y^T g = (Q^T g)[:q]
         const Mat& R = qr.R;
         for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T g
@@ -399,8 +452,10 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
-                                 const Vec& u, i64 q, bool stationarity = true) {
+                                 const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
+    CertScratch local;  // no storage unless used (scratch: the caller's)
+    CertScratch& ws = scratch ? *scratch : local;
     Certificate cert;
     double primal = 0.0;
     for (i64 i = 0; i < n; ++i) {
@@ -408,7 +463,10 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         if (ub[i] < kBig) primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
         if (std::isnan(x[i])) primal = kInf;
     }
-    Vec gnorm(static_cast<size_t>(p), 0.0), gx(static_cast<size_t>(p), 0.0);
+    Vec& gnorm = ws.gnorm;
+    Vec& gx = ws.gx;
+    gnorm.assign(static_cast<size_t>(p), 0.0);
+    gx.assign(static_cast<size_t>(p), 0.0);
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         for (i64 i = 0; i < n; ++i) {
@@ -449,7 +507,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
-    Vec v(static_cast<size_t>(n), 0.0), vs(static_cast<size_t>(n), 0.0), hs(static_cast<size_t>(n), 0.0);
+    Vec hs(static_cast<size_t>(n), 0.0);
+    Vec& v = ws.v;
+    Vec& vs = ws.vs;
+    v.assign(static_cast<size_t>(n), 0.0);
+    vs.assign(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
@@ -484,7 +546,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
-    Vec sc(static_cast<size_t>(r), 0.0), ssc(static_cast<size_t>(r), 0.0), hsc(static_cast<size_t>(r), 0.0);
+    Vec hsc(static_cast<size_t>(r), 0.0);
+    Vec& sc = ws.sc;
+    Vec& ssc = ws.ssc;
+    sc.assign(static_cast<size_t>(r), 0.0);
+    ssc.assign(static_cast<size_t>(r), 0.0);
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double vi = v[i], vsi = vs[i], hsi = hs[i];
@@ -518,7 +584,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
-    Vec zg(static_cast<size_t>(r));
+    Vec& zg = ws.zg;
+    zg.assign(static_cast<size_t>(r), 0.0);
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|

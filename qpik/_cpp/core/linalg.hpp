@@ -169,34 +169,45 @@ inline bool cholesky(CMatRef H, Mat& L) {
     return cholesky_into(H, H.rows, 0.0, L.ref());
 }
 
-// L^-1 b for lower-triangular L.
-inline Vec forward_vec(CMatRef L, const Vec& b) {
+// L^-1 b for lower-triangular L into x (its storage kept; x is not b).
+inline void forward_into(CMatRef L, const Vec& b, Vec& x) {
     i64 n = static_cast<i64>(b.size());
-    Vec x(static_cast<size_t>(n));
+    x.resize(static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) {
         double s = b[i];
         for (i64 k = 0; k < i; ++k) s -= L(i, k) * x[k];
         x[i] = s / L(i, i);
     }
+}
+
+inline Vec forward_vec(CMatRef L, const Vec& b) {
+    Vec x;
+    forward_into(L, b, x);
     return x;
 }
 
-// L^-T b for lower-triangular L.
-inline Vec backward_vec(CMatRef L, const Vec& b) {
+// L^-T b for lower-triangular L into x (its storage kept; x is not b).
+inline void backward_into(CMatRef L, const Vec& b, Vec& x) {
     i64 n = static_cast<i64>(b.size());
-    Vec x(static_cast<size_t>(n));
+    x.resize(static_cast<size_t>(n));
     for (i64 i = n - 1; i >= 0; --i) {
         double s = b[i];
         for (i64 k = i + 1; k < n; ++k) s -= L(k, i) * x[k];
         x[i] = s / L(i, i);
     }
+}
+
+// L^-T b for lower-triangular L.
+inline Vec backward_vec(CMatRef L, const Vec& b) {
+    Vec x;
+    backward_into(L, b, x);
     return x;
 }
 
-// A @ B (skipping zero entries of A, as the reference does).
-inline Mat mm(CMatRef A, CMatRef B) {
+// A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
+inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     i64 m = A.rows, k = A.cols, n = B.cols;
-    Mat C(m, n);
+    C.zeros(m, n);
     for (i64 i = 0; i < m; ++i) {
         double* ci = C.row(i);
         for (i64 t = 0; t < k; ++t) {
@@ -204,13 +215,19 @@ inline Mat mm(CMatRef A, CMatRef B) {
             if (a != 0.0) axpy(ci, a, B.row(t), n);
         }
     }
+}
+
+// A @ B (skipping zero entries of A, as the reference does).
+inline Mat mm(CMatRef A, CMatRef B) {
+    Mat C;
+    mm_into(A, B, C);
     return C;
 }
 
-// A^T @ A (symmetric, computed once per pair).
-inline Mat mtm(CMatRef A) {
+// A^T @ A (symmetric, computed once per pair) into C (its storage kept).
+inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
-    Mat C(n, n);
+    C.zeros(n, n);
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
         for (i64 i = 0; i < n; ++i) {
@@ -220,13 +237,19 @@ inline Mat mtm(CMatRef A) {
     }
     for (i64 i = 0; i < n; ++i)
         for (i64 j = 0; j < i; ++j) C(i, j) = C(j, i);
+}
+
+// A^T @ A (symmetric, computed once per pair).
+inline Mat mtm(CMatRef A) {
+    Mat C;
+    mtm_into(A, C);
     return C;
 }
 
-// A @ x.
-inline Vec mv(CMatRef A, const double* x) {
+// A @ x into y (its storage kept).
+inline void mv_into(CMatRef A, const double* x, Vec& y) {
     i64 m = A.rows, n = A.cols;
-    Vec y(static_cast<size_t>(m));
+    y.resize(static_cast<size_t>(m));
     i64 i = 0;
     for (; i + 2 <= m; i += 2) dot2(A.row(i), A.row(i + 1), x, n, y[i], y[i + 1]);
     for (; i < m; ++i) {
@@ -235,17 +258,29 @@ inline Vec mv(CMatRef A, const double* x) {
         for (i64 j = 0; j < n; ++j) acc += ai[j] * x[j];
         y[i] = acc;
     }
+}
+
+// A @ x.
+inline Vec mv(CMatRef A, const double* x) {
+    Vec y;
+    mv_into(A, x, y);
     return y;
 }
 
-// A^T @ x.
-inline Vec mtv(CMatRef A, const double* x) {
+// A^T @ x into y (its storage kept).
+inline void mtv_into(CMatRef A, const double* x, Vec& y) {
     i64 m = A.rows, n = A.cols;
-    Vec y(static_cast<size_t>(n), 0.0);
+    y.assign(static_cast<size_t>(n), 0.0);
     for (i64 i = 0; i < m; ++i) {
         double a = x[i];
         if (a != 0.0) axpy(y.data(), a, A.row(i), n);
     }
+}
+
+// A^T @ x.
+inline Vec mtv(CMatRef A, const double* x) {
+    Vec y;
+    mtv_into(A, x, y);
     return y;
 }
 
@@ -264,10 +299,15 @@ inline Mat columns(CMatRef M, i64 c0, i64 c1) {
     return out;
 }
 
-inline Mat transposed(CMatRef M) {
-    Mat out(M.cols, M.rows);
+inline void transposed_into(CMatRef M, Mat& out) {
+    out.zeros(M.cols, M.rows);
     for (i64 i = 0; i < M.rows; ++i)
         for (i64 j = 0; j < M.cols; ++j) out(j, i) = M(i, j);
+}
+
+inline Mat transposed(CMatRef M) {
+    Mat out;
+    transposed_into(M, out);
     return out;
 }
 
@@ -387,24 +427,40 @@ inline void column_norms(const Mat& R, i64 start, Vec& norms) {
 
 }  // namespace detail
 
+// The scratch vectors of householder_qr (kept by a caller that factors often).
+struct QRScratch {
+    Vec norms, x, S;
+};
+
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
-// M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal.
-inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q = true) {
+// M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal. Q, R, perm and the
+// scratch keep their storage (no allocation unless a size grows).
+inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
-    R = Mat(r, m);
+    R.zeros(r, m);
     for (i64 i = 0; i < r; ++i)
         for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
-    Q = form_q ? Mat::eye(r) : Mat(0, r);  // no rows: R and perm only (the same R)
+    if (form_q) Q.set_eye(r);
+    else Q.zeros(0, r);  // no rows: R and perm only (the same R)
     perm.assign(static_cast<size_t>(m), 0);
     for (i64 j = 0; j < m; ++j) perm[j] = j;
-    Vec norms(static_cast<size_t>(m), 0.0);
+    Vec& norms = ws.norms;
+    norms.assign(static_cast<size_t>(m), 0.0);
     if (pivot) detail::column_norms(R, 0, norms);
-    Vec x(static_cast<size_t>(r)), S(static_cast<size_t>(m));
+    Vec& x = ws.x;
+    Vec& S = ws.S;
+    x.assign(static_cast<size_t>(r), 0.0);
+    S.assign(static_cast<size_t>(m), 0.0);
     for (i64 i = 0; i < std::min(r, m); ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
         detail::reflect(R, Q, x, S, i);
         if (pivot) detail::column_norms(R, i + 1, norms);
     }
+}
+
+inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q = true) {
+    QRScratch ws;
+    householder_qr(M, pivot, Q, R, perm, form_q, ws);
 }
 
 }  // namespace qpik::core

@@ -28,6 +28,16 @@ struct QPResult {
     BVec working;  // the final working set (every row in it, +1 lower / -1 upper), when known
 };
 
+// The storage solve_qp / solve_level work in, kept between calls by a caller that solves
+// often (sizes only grow: no allocation once they are reached). Nothing in it carries from
+// one call to the next but capacity: every buffer is sized and filled before it is read.
+struct QPScratch {
+    Mat L, J, JT, R;
+    Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2;
+    IVec act_row, act_side, unit;
+    BVec in_set;
+};
+
 namespace detail {
 
 inline double rhs_of(CVecRef lo, CVecRef hi, i64 row, i64 side) { return side > 0 ? lo[row] : -hi[row]; }
@@ -106,19 +116,24 @@ inline double max_abs(const Vec& u, i64 q) {
     return big;
 }
 
-inline Vec row_norms(CMatRef C) {
-    Vec norms(static_cast<size_t>(C.rows));
+inline void row_norms_into(CMatRef C, Vec& norms) {
+    norms.resize(static_cast<size_t>(C.rows));
     for (i64 i = 0; i < C.rows; ++i) {
         double norm = 0.0;
         for (i64 j = 0; j < C.cols; ++j) norm += C(i, j) * C(i, j);
         norms[i] = std::sqrt(norm);
     }
+}
+
+inline Vec row_norms(CMatRef C) {
+    Vec norms;
+    row_norms_into(C, norms);
     return norms;
 }
 
 // Per row, the column of its single entry when the row is +-e_j, else -1.
-inline IVec unit_columns(CMatRef C) {
-    IVec unit(static_cast<size_t>(C.rows), -1);
+inline void unit_columns_into(CMatRef C, IVec& unit) {
+    unit.assign(static_cast<size_t>(C.rows), -1);
     for (i64 i = 0; i < C.rows; ++i) {
         i64 col = -1;
         for (i64 j = 0; j < C.cols; ++j) {
@@ -132,6 +147,11 @@ inline IVec unit_columns(CMatRef C) {
         }
         if (col >= 0) unit[i] = col;
     }
+}
+
+inline IVec unit_columns(CMatRef C) {
+    IVec unit;
+    unit_columns_into(C, unit);
     return unit;
 }
 
@@ -221,9 +241,9 @@ inline bool strictly_optimal(const Vec& x, const Vec& u, CMatRef C, CVecRef lo, 
 
 // L^-T of a lower-triangular L, stored transposed (row i of the result is column i of
 // L^-T): every update of the dual method touches J's columns, contiguous this way.
-inline Mat inverse_transpose(const Mat& L) {
+inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
     i64 n = L.rows;
-    Mat J(n, n);
+    J.zeros(n, n);
     for (i64 i = 0; i < n; ++i) {
         J(i, i) = 1.0 / L(i, i);
         for (i64 k = i + 1; k < n; ++k) {
@@ -232,7 +252,7 @@ inline Mat inverse_transpose(const Mat& L) {
             J(i, k) = acc / L(k, k);
         }
     }
-    return transposed(J.cref());
+    transposed_into(J.cref(), JT);
 }
 
 // d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction). JT is J
@@ -465,15 +485,20 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
 // raw: return the final iterate and working set without the checks and the re-solve (the
 // cascade makes every answer exact and certifies it itself, qpik/_cpp/core/certify.hpp).
 inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                         i64 max_iter, double tol, bool canonical, bool raw = false) {
+                         i64 max_iter, double tol, bool canonical, bool raw, QPScratch& ws) {
     using namespace detail;
     i64 n = H.rows;
     i64 m = C.rows;
     BVec active(static_cast<size_t>(m), 0);
-    Mat Lm;
-    if (!cholesky(H, Lm)) return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
+    Mat& Lm = ws.L;
+    Lm.zeros(n, n);
+    if (!cholesky_into(H, n, 0.0, Lm.ref()))
+        return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
     CMatRef L = Lm.cref();
-    IVec act_row(static_cast<size_t>(n + 1), 0), act_side(static_cast<size_t>(n + 1), 0);
+    IVec& act_row = ws.act_row;
+    IVec& act_side = ws.act_side;
+    act_row.assign(static_cast<size_t>(n + 1), 0);
+    act_side.assign(static_cast<size_t>(n + 1), 0);
     i64 q = 0;
     {
         QPResult polished;
@@ -482,19 +507,37 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
             return polished;
         }
     }
-    Vec mc(static_cast<size_t>(n));
+    Vec& mc = ws.mc;
+    mc.resize(static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
-    Vec x = backward_vec(L, forward_vec(L, mc));
-    Mat J = inverse_transpose(Lm);
-    Mat R(n, n);
+    forward_into(L, mc, ws.y);
+    Vec& x = ws.x;
+    backward_into(L, ws.y, x);
+    inverse_transpose_into(Lm, ws.J, ws.JT);
+    Mat& J = ws.JT;
+    Mat& R = ws.R;
+    R.zeros(n, n);
     double r_norm = 1.0;
-    Vec u(static_cast<size_t>(n + 1), 0.0);
-    Vec d(static_cast<size_t>(n)), z(static_cast<size_t>(n)), r(static_cast<size_t>(n + 1));
-    BVec in_set(static_cast<size_t>(m), 0);
-    Vec norms = row_norms(C);
-    IVec unit = unit_columns(C);
-    Vec x_old(static_cast<size_t>(n)), u_old(static_cast<size_t>(n + 1));
-    Vec normal(static_cast<size_t>(n));
+    Vec& u = ws.u;
+    u.assign(static_cast<size_t>(n + 1), 0.0);
+    Vec& d = ws.d;
+    Vec& z = ws.z;
+    Vec& r = ws.r;
+    d.assign(static_cast<size_t>(n), 0.0);
+    z.assign(static_cast<size_t>(n), 0.0);
+    r.assign(static_cast<size_t>(n + 1), 0.0);
+    BVec& in_set = ws.in_set;
+    in_set.assign(static_cast<size_t>(m), 0);
+    Vec& norms = ws.norms;
+    row_norms_into(C, norms);
+    IVec& unit = ws.unit;
+    unit_columns_into(C, unit);
+    Vec& x_old = ws.x_old;
+    Vec& u_old = ws.u_old;
+    x_old.assign(static_cast<size_t>(n), 0.0);
+    u_old.assign(static_cast<size_t>(n + 1), 0.0);
+    Vec& normal = ws.normal;
+    normal.assign(static_cast<size_t>(n), 0.0);
     i64 iterations = 0;
     while (true) {
         i64 row, side;
@@ -612,23 +655,37 @@ inline BVec active_guess(CVecRef x, CMatRef C, CVecRef lo, CVecRef hi) {
 }
 
 // solve_qp for one level, robust to degenerate vertices (rows widened by 1e-11, 1e-9).
+inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
+                         i64 max_iter, double tol, bool canonical, bool raw = false) {
+    QPScratch ws;
+    return solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
+}
+
 inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                            i64 max_iter, double tol, bool lower, bool canonical, bool raw = false) {
-    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw);
+                            i64 max_iter, double tol, bool lower, bool canonical, bool raw, QPScratch& ws) {
+    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
     i64 st = res.status;
     if (st == SOLVED || st == MAX_ITER || (st == INFEASIBLE && !lower)) return res;
     i64 its = res.iterations;
     i64 m = lo.size();
     BVec cold(static_cast<size_t>(m), 0);
     for (double scale : {1e-11, 1e-9}) {
-        Vec lo2, hi2;
+        Vec& lo2 = ws.lo2;
+        Vec& hi2 = ws.hi2;
         detail::widened(lo, hi, scale, lo2, hi2);
-        res = solve_qp(H, c, C, CVecRef(lo2), CVecRef(hi2), VecRefT<const i8>(cold), max_iter, tol, canonical, raw);
+        res = solve_qp(H, c, C, CVecRef(lo2), CVecRef(hi2), VecRefT<const i8>(cold), max_iter, tol, canonical, raw,
+                       ws);
         its += res.iterations;
         res.iterations = its;
         if (res.status == SOLVED) return res;
     }
     return res;
+}
+
+inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
+                            i64 max_iter, double tol, bool lower, bool canonical, bool raw = false) {
+    QPScratch ws;
+    return solve_level(H, c, C, lo, hi, warm, max_iter, tol, lower, canonical, raw, ws);
 }
 
 }  // namespace qpik::core

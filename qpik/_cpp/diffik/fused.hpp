@@ -363,8 +363,9 @@ struct StepResult {
 
 // Rows of every task, the limits' box and the cascade, in one call. warm (L, n) int8 (the
 // previous active sets); see qpik/_fused.py:fused_step.
+// ws: the cascade's storage, kept by the caller between steps (core::Workspace).
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                             bool canonical) {
+                             bool canonical, core::Workspace& ws) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     RowsResult rows = fused_rows(a);
@@ -383,7 +384,7 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
         CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
         CVecRef(rows.box.lb), CVecRef(rows.box.ub), a.G.rows ? a.G : CMatRef(nullptr, 0, n), a.h,
         a.settings[THRESHOLD], a.settings[MAX_DAMPING], a.settings[ERROR_SCALE],
-        a.settings[RANK_TOL], max_iter, a.settings[TOL], warm, canonical);
+        a.settings[RANK_TOL], max_iter, a.settings[TOL], warm, canonical, ws);
     out.d = std::move(c.dq);
     out.active = std::move(c.active);
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
