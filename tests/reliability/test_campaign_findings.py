@@ -267,7 +267,6 @@ def _fuzz():
 
 
 @pytest.mark.skipif(not _erd_has("anymal"), reason="example-robot-data not installed")
-@pytest.mark.xfail(strict=False, reason="velocity limit at dt = 1e-9, forced backend (open)")
 def test_forced_backend_holds_velocity_limits_at_the_smallest_dt() -> None:
     fuzz = _fuzz()
     spec = fuzz.make_spec(5150, "erd", 738)  # anymal, floating, quadprog, dt = 1e-9

@@ -450,6 +450,34 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
+// The rows hold at x relative to the size of the numbers involved, not only to 1 + |bound|
+// (the certificate's reported scale): a box row to kRowsRelative (|bound| + max|x|), a
+// general row to kRowsRelative (|g| max|x| + |h|). For bounds of order 1 the certificate's
+// 1e-9 is the tighter test; for a tiny box (a step of dt = 1e-9 s: bounds of 1e-8) its
+// absolute 1e-9 would let a lower level leave a velocity limit by percents, which this
+// catches (the level then goes on to the primal active set).
+constexpr double kRowsRelative = 1e-6;
+inline bool rows_hold_relative(const Vec& x, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                               double tol = kRowsRelative) {
+    i64 n = static_cast<i64>(x.size()), p = G.rows;
+    double xmax = 0.0;
+    for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
+    for (i64 i = 0; i < n; ++i) {
+        if (lb[i] > -kBig && lb[i] - x[i] > tol * (std::fabs(lb[i]) + xmax)) return false;
+        if (ub[i] < kBig && x[i] - ub[i] > tol * (std::fabs(ub[i]) + xmax)) return false;
+    }
+    for (i64 j = 0; j < p; ++j) {
+        if (!(h[j] < kBig)) continue;
+        double nn = 0.0, acc = 0.0;
+        for (i64 i = 0; i < n; ++i) {
+            nn += G(j, i) * G(j, i);
+            acc += G(j, i) * x[i];
+        }
+        if (acc - h[j] > tol * (std::sqrt(nn) * xmax + std::fabs(h[j]))) return false;
+    }
+    return true;
+}
+
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
