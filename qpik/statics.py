@@ -174,7 +174,7 @@ def gravity_torques(configuration: Configuration) -> np.ndarray:
 def _wrench_items(
     wrenches: Iterable,
 ) -> list[tuple[str | int, FrameType, npt.ArrayLike, npt.ArrayLike | None]]:
-    if isinstance(wrenches, (str, bytes, dict)) or not isinstance(wrenches, Iterable):
+    if isinstance(wrenches, (str, bytes, dict)) or not checks.is_iterable(wrenches):
         raise InvalidArgumentType(
             "wrenches", "a sequence of (frame, force[, torque]) tuples", checks.type_name(wrenches)
         )
@@ -350,7 +350,7 @@ def force_ellipsoid(
     rcond = checks.check_real("rcond", rcond, 0.0, 1.0)
     if (
         isinstance(rows, (str, bytes))
-        or not isinstance(rows, Iterable)
+        or not checks.is_iterable(rows)
         or (isinstance(rows, np.ndarray) and rows.ndim != 1)
     ):
         raise InvalidArgumentType(

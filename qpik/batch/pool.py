@@ -407,7 +407,7 @@ def solve_many(
             :class:`BatchOptions`, documented there), and :func:`qpik.solve`'s keywords for
             every solve (``q0``, ``stack``, and options overriding ``options``).
     """
-    if isinstance(targets_list, (str, bytes, Mapping)) or not isinstance(targets_list, Iterable):
+    if isinstance(targets_list, (str, bytes, Mapping)) or not checks.is_iterable(targets_list):
         raise InvalidArgumentType(
             "targets_list", "a list of targets mappings", checks.type_name(targets_list)
         )

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import operator
 import os
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import Any, Final, TypeVar
 
 import numpy as np
@@ -77,6 +77,12 @@ DT_MAX: Final = 1e6
 MAX_LENGTH: Final = 1e6
 
 _T = TypeVar("_T")
+
+
+def is_iterable(value: Any) -> bool:
+    """Whether ``value`` can be iterated over: an ``Iterable`` that is not a 0-d NumPy
+    array (which claims ``__iter__`` but raises a bare ``TypeError`` when iterated)."""
+    return isinstance(value, Iterable) and not (isinstance(value, np.ndarray) and value.ndim == 0)
 
 
 def type_name(value: Any) -> str:

@@ -201,7 +201,7 @@ class LimitBoxes:
     ) -> None:
         if (
             isinstance(limits, (str, bytes, Mapping))
-            or not isinstance(limits, Iterable)
+            or not checks.is_iterable(limits)
             or (isinstance(limits, np.ndarray) and limits.ndim == 0)
         ):
             raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))

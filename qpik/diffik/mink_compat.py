@@ -27,7 +27,7 @@ define theirs).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import mink
@@ -78,7 +78,7 @@ def _is_list_like(value: Any) -> bool:
     """A list, tuple or other iterable of items (mink iterates; a string is not one)."""
     if isinstance(value, np.ndarray) and value.ndim == 0:  # Iterable by type, not by value
         return False
-    return isinstance(value, Iterable) and not isinstance(value, (str, bytes, BaseTask))
+    return checks.is_iterable(value) and not isinstance(value, (str, bytes, BaseTask))
 
 
 def _levels(tasks: Any) -> list[list[BaseTask]]:

@@ -272,3 +272,19 @@ def test_forced_backend_holds_velocity_limits_at_the_smallest_dt() -> None:
     spec = fuzz.make_spec(5150, "erd", 738)  # anymal, floating, quadprog, dt = 1e-9
     outcome, detail, _ = fuzz._outcome(fuzz.RUNNERS["erd"], spec)
     assert outcome not in fuzz.BAD, detail
+
+
+def test_a_0d_array_where_a_sequence_is_expected_is_a_typed_error() -> None:
+    """Fuzz seed 8080 signature:204: a 0-d array claims ``__iter__`` but raises a bare
+    TypeError when iterated; every sequence argument is checked with
+    ``checks.is_iterable``, which refuses it."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model)
+    zero_d = np.array(1.0)
+    with pytest.raises(qpik.QpikError, match="wrenches") as info:
+        statics.holding_torques(configuration, zero_d)
+    assert isinstance(info.value, TypeError)
+    with pytest.raises(qpik.QpikError):
+        qpik.IKSolver(model, [[qpik.tasks.PostureTask(model, cost=1.0)]], zero_d)
+    with pytest.raises(qpik.QpikError):
+        qpik.solve_many("panda", zero_d)
