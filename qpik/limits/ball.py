@@ -49,7 +49,8 @@ import mujoco
 import numpy as np
 from mink import Constraint
 
-from ..errors import LimitDefinitionError
+from ..core.checks import type_name
+from ..errors import InvalidArgumentType, LimitDefinitionError
 from ..model.frames import check_model_type
 
 __all__ = ["BallJointLimit", "limited_ball_joints"]
@@ -146,14 +147,18 @@ class BallJointLimit(mink.Limit):
             raise LimitDefinitionError(
                 f"BallJointLimit needs a mujoco.MjModel, got {type(model).__name__}"
             )
+        if isinstance(subdivisions, (bool, np.bool_)) or not isinstance(
+            subdivisions, (int, np.integer)
+        ):
+            raise InvalidArgumentType("subdivisions", "an int (0, 1 or 2)", type_name(subdivisions))
+        if int(subdivisions) not in (0, 1, 2):
+            raise LimitDefinitionError(
+                f"BallJointLimit: subdivisions must be 0, 1 or 2, got {subdivisions!r}"
+            )
         joints = limited_ball_joints(model)
         if not joints:
             raise LimitDefinitionError(
                 "BallJointLimit: the model has no ball joint with a range below pi"
-            )
-        if isinstance(subdivisions, bool) or subdivisions not in (0, 1, 2):
-            raise LimitDefinitionError(
-                f"BallJointLimit: subdivisions must be 0, 1 or 2, got {subdivisions!r}"
             )
         self.model = model
         self.subdivisions = int(subdivisions)

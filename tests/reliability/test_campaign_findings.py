@@ -288,3 +288,16 @@ def test_a_0d_array_where_a_sequence_is_expected_is_a_typed_error() -> None:
         qpik.IKSolver(model, [[qpik.tasks.PostureTask(model, cost=1.0)]], zero_d)
     with pytest.raises(qpik.QpikError):
         qpik.solve_many("panda", zero_d)
+
+
+@pytest.mark.parametrize("subdivisions", [b"1", 1.0, None, True, np.array([1, 2])])
+def test_ball_joint_limit_names_a_wrong_subdivisions_first(subdivisions) -> None:
+    """Fuzz seed 6006 signature:257/311: ``BallJointLimit(model, subdivisions=<wrong
+    type>)`` on a model without a ball joint blamed the model; the argument is checked
+    first and named (a TypeError too)."""
+    model = qpik.load_robot("panda")
+    with pytest.raises(qpik.QpikError, match="subdivisions") as info:
+        qpik.limits.BallJointLimit(model, subdivisions=subdivisions)
+    assert isinstance(info.value, TypeError)
+    with pytest.raises(qpik.LimitDefinitionError, match="subdivisions"):
+        qpik.limits.BallJointLimit(model, subdivisions=3)
