@@ -57,6 +57,31 @@ static void check_igm_args(const T1& target_p, const T2& target_R, const B& boun
     require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
 }
 
+// igm_solve with its scratch allocated here (2 (max_iters + 1) iterates of nq and of 3, left
+// uninitialised like np.empty: every entry read is written first), for igm_run and
+// _igm_session_run; the returned attempt is rec's slot info[3], info[4] rows long.
+struct IgmScratch {
+    std::unique_ptr<double[]> path, hist;
+    igm::Record rec{};
+    i64 info[6] = {};
+};
+
+static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
+                             const double* q0, i64 nq, In2 bounds, In1 reach, In1 options, In<i64, 1> int_options,
+                             U64Out1 rng_state, double deadline) {
+    i64 max_iters = int_options.data()[0];
+    require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
+    ChainArgs holder;
+    const model::Chain& c = chain_arg(chain, nq, nq, holder);
+    igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
+    i64 n = max_iters + 1;
+    s.path.reset(new double[static_cast<size_t>(2 * n * nq)]);
+    s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
+    s.rec = igm::Record{s.path.get(), s.hist.get(), n, nq};
+    igm::igm_solve(c, target, q0, nq, cmat(bounds), reach.data(), options.data(), int_options.data(),
+                   rng_state.data()[0], deadline, s.rec, s.info);
+}
+
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
     m.attr("MAX_ITERS") = igm::MAX_ITERS;
@@ -165,19 +190,11 @@ void bind_igm(nb::module_& m) {
            In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline) {
             i64 nq = static_cast<i64>(q0.shape(0));
             check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
-            i64 max_iters = int_options.data()[0];
-            require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
-            ChainArgs holder;
-            const model::Chain& c = chain_arg(chain, nq, nq, holder);
-            igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
-            i64 n = max_iters + 1;
-            // Scratch left uninitialised, like np.empty (every entry read is written first).
-            std::unique_ptr<double[]> path(new double[static_cast<size_t>(2 * n * nq)]);
-            std::unique_ptr<double[]> hist(new double[static_cast<size_t>(2 * n * 3)]);
-            igm::Record rec{path.get(), hist.get(), n, nq};
-            i64 info[6];
-            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
-                           int_options.data(), rng_state.data()[0], deadline, rec, info);
+            IgmScratch run;
+            igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
+                             int_options, rng_state, deadline);
+            const igm::Record& rec = run.rec;
+            const i64* info = run.info;
             i64 slot = info[3], length = info[4];
             std::vector<double> out_path(rec.path_at(slot, 0), rec.path_at(slot, 0) + length * nq);
             std::vector<double> out_hist(rec.hist_at(slot, 0), rec.hist_at(slot, 0) + length * 3);
@@ -205,24 +222,17 @@ void bind_igm(nb::module_& m) {
                 throw BadArgument("index must be None or an int64 array of chain coordinates");
             i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
             check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
-            i64 max_iters = int_options.data()[0];
-            require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
             Vec q0(static_cast<size_t>(nq));
             for (i64 j = 0; j < nq; ++j) {
                 i64 a = packed ? idx.data()[j] : j;
                 require(a >= 0 && a < nfull, "index entries must address q_full");
                 q0[static_cast<size_t>(j)] = q_full.data()[a];
             }
-            ChainArgs holder;
-            const model::Chain& c = chain_arg(chain, nq, nq, holder);
-            igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
-            i64 n = max_iters + 1;
-            std::unique_ptr<double[]> path(new double[static_cast<size_t>(2 * n * nq)]);
-            std::unique_ptr<double[]> hist(new double[static_cast<size_t>(2 * n * 3)]);
-            igm::Record rec{path.get(), hist.get(), n, nq};
-            i64 info[6];
-            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(), int_options.data(),
-                           rng_state.data()[0], deadline, rec, info);
+            IgmScratch run;
+            igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
+                             int_options, rng_state, deadline);
+            const igm::Record& rec = run.rec;
+            const i64* info = run.info;
             i64 slot = info[3], length = info[4];
             size_t len = static_cast<size_t>(length), nf = static_cast<size_t>(nfull);
             std::vector<double> out_path(len * nf);
