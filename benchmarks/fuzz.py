@@ -1648,11 +1648,11 @@ def _check_claim(where: str, measured: tuple, tol_p: float, tol_o: float) -> Non
         raise Bad("claim", f"{where} converged with orientation error {angle:.3g} > {tol_o}")
 
 
-def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -> str:
-    """Invariants of an IKResult; returns its digest."""
+def _ik_result_q(result, model, where: str):
+    """The ``q`` of an IKResult, after the checks every IKResult passes: its type, the
+    shape of ``q`` and finite fields."""
     np = _np()
     import qpik
-    from qpik.igm.session import parse_target
 
     if not isinstance(result, qpik.IKResult):
         raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")
@@ -1660,6 +1660,14 @@ def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -
     if q.shape != (model.nq,):
         raise Bad("untyped", f"{where}.q has shape {q.shape}")
     _finite(result, where)
+    return q
+
+
+def _check_ik_result(result, model, frame_key, target, kwargs, where="result") -> str:
+    """Invariants of an IKResult; returns its digest."""
+    from qpik.igm.session import parse_target
+
+    q = _ik_result_q(result, model, where)
     limits = kwargs.get("limits", "joint")
     if limits == "joint" or (isinstance(limits, list) and limits):
         _check_within(model, q, f"{where}.q")
@@ -4065,16 +4073,9 @@ def _check_targets_result(result, model, targets: dict, tols=(1e-4, 1e-3), where
     """An IKResult for several frames: its worst and per-frame errors against MuJoCo's
     forward kinematics of its ``q``, its claim against the tolerances (every frame and the
     model's equality constraints), its ``q`` within the joint limits and finite."""
-    np = _np()
-    import qpik
     from qpik.igm.session import parse_target
 
-    if not isinstance(result, qpik.IKResult):
-        raise Bad("untyped", f"{where} is a {type(result).__name__}, not an IKResult")
-    q = np.asarray(result.q)
-    if q.shape != (model.nq,):
-        raise Bad("untyped", f"{where}.q has shape {q.shape}")
-    _finite(result, where)
+    q = _ik_result_q(result, model, where)
     _check_within(model, q, f"{where}.q")
     measured = {}
     for key, target in targets.items():
