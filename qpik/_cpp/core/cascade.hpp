@@ -490,7 +490,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             best = c.worst();
             cert = c;
         }
-        if (c.holds() && rows_hold_relative(x, lb, ub, G, h)) {  // the final active set: rows with u > 0
+        if (c.holds() && c.rows_relative) {  // the final active set: the rows with a positive multiplier
             final_rows.clear();
             final_sides.clear();
             for (size_t j = 0; j < rows.size(); ++j) {

@@ -15,6 +15,7 @@
 namespace qpik::core {
 
 constexpr double kCertify = 1e-9;     // a level is SOLVED only when every scaled measure is <= this
+constexpr double kRowsRelative = 1e-6;  // rows hold to this relative to |bound| + max|x| (rows_relative)
 constexpr double kLsRank = 1e-14;     // |R_ii| <= this * |R_00| is a zero pivot of a least-squares QR
 constexpr double kSizeFloor = 1e-6;   // a stationarity component's scale is at least this x the largest
 constexpr double kNearDependent = 1e-8;  // a row within this angle of the working set's span is
@@ -26,6 +27,12 @@ struct Certificate {
     double stationarity = kNaN;    // Z^T (grad f - sum lambda_i c_i), per component / size of its terms
     double dual = kNaN;            // a multiplier of the wrong sign, scaled by the gradient's size
     double complementarity = kNaN; // multiplier x slack of a row held active, both scaled
+    // The rows also hold relative to the numbers involved (not reported): a box row to
+    // kRowsRelative (|bound| + max|x|), a general row to kRowsRelative (|g| max|x| + |h|).
+    // For bounds of order 1 the primal measure's 1e-9 (1 + |bound|) is the tighter test;
+    // for a tiny box (a step of dt = 1e-9 s: bounds of 1e-8) it would let a lower level
+    // leave a velocity limit by percents, which this catches (exact_level then goes on).
+    bool rows_relative = true;
     bool holds(double tol = kCertify) const {
         return primal <= tol && stationarity <= tol && dual <= tol && complementarity <= tol;
     }
@@ -450,34 +457,6 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
-// The rows hold at x relative to the size of the numbers involved, not only to 1 + |bound|
-// (the certificate's reported scale): a box row to kRowsRelative (|bound| + max|x|), a
-// general row to kRowsRelative (|g| max|x| + |h|). For bounds of order 1 the certificate's
-// 1e-9 is the tighter test; for a tiny box (a step of dt = 1e-9 s: bounds of 1e-8) its
-// absolute 1e-9 would let a lower level leave a velocity limit by percents, which this
-// catches (the level then goes on to the primal active set).
-constexpr double kRowsRelative = 1e-6;
-inline bool rows_hold_relative(const Vec& x, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
-                               double tol = kRowsRelative) {
-    i64 n = static_cast<i64>(x.size()), p = G.rows;
-    double xmax = 0.0;
-    for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
-    for (i64 i = 0; i < n; ++i) {
-        if (lb[i] > -kBig && lb[i] - x[i] > tol * (std::fabs(lb[i]) + xmax)) return false;
-        if (ub[i] < kBig && x[i] - ub[i] > tol * (std::fabs(ub[i]) + xmax)) return false;
-    }
-    for (i64 j = 0; j < p; ++j) {
-        if (!(h[j] < kBig)) continue;
-        double nn = 0.0, acc = 0.0;
-        for (i64 i = 0; i < n; ++i) {
-            nn += G(j, i) * G(j, i);
-            acc += G(j, i) * x[i];
-        }
-        if (acc - h[j] > tol * (std::sqrt(nn) * xmax + std::fabs(h[j]))) return false;
-    }
-    return true;
-}
-
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
@@ -485,10 +464,18 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     CertScratch local;  // no storage unless used (scratch: the caller's)
     CertScratch& ws = scratch ? *scratch : local;
     Certificate cert;
-    double primal = 0.0;
+    double primal = 0.0, xmax = 0.0;
+    bool relative = true;
+    for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
     for (i64 i = 0; i < n; ++i) {
-        if (lb[i] > -kBig) primal = pymax(primal, (lb[i] - x[i]) / (1.0 + std::fabs(lb[i])));
-        if (ub[i] < kBig) primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
+        if (lb[i] > -kBig) {
+            primal = pymax(primal, (lb[i] - x[i]) / (1.0 + std::fabs(lb[i])));
+            relative = relative && !(lb[i] - x[i] > kRowsRelative * (std::fabs(lb[i]) + xmax));
+        }
+        if (ub[i] < kBig) {
+            primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
+            relative = relative && !(x[i] - ub[i] > kRowsRelative * (std::fabs(ub[i]) + xmax));
+        }
         if (std::isnan(x[i])) primal = kInf;
     }
     Vec& gnorm = ws.gnorm;
@@ -507,9 +494,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             double scale = gnorm[j] + std::fabs(h[j]);
             double v = gx[j] - h[j];
             if (v > 0.0) primal = pymax(primal, scale > 0.0 ? v / scale : kInf);
+            relative = relative && !(v > kRowsRelative * (gnorm[j] * xmax + std::fabs(h[j])));
         }
     }
     cert.primal = primal;
+    cert.rows_relative = relative;
     if (!stationarity) return cert;
     // Full-space gradient and the sizes of its terms.
     i64 m = A.rows;
