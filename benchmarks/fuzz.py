@@ -1760,6 +1760,7 @@ def _build_task(task: dict, model, configuration, rng):
         frame, ftype = frame
     target = task["target"]
     ctor_model = model  # what the constructors get (the harness keeps the real one)
+    valid_frame = frame  # the frame the harness's own targets are computed at
     if "wrong" in task:  # one argument of the constructor of a wrong type
         arg, index = task["wrong"]
         value = WRONG_TYPES[index]
@@ -1776,7 +1777,9 @@ def _build_task(task: dict, model, configuration, rng):
         "look_at",
         "equality",
     ):
-        return _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configuration, rng)
+        return _build_more_task(
+            task, kind, o, (frame, valid_frame), ftype, model, ctor_model, configuration, rng
+        )
     if kind == "frame":
         o = {("position_cost" if k == "cost" else k): v for k, v in o.items()}
         t = T.FrameTask(frame, ftype, **{"position_cost": 1.0, "orientation_cost": 1.0, **o})
@@ -1848,8 +1851,10 @@ def _build_task(task: dict, model, configuration, rng):
 
 # Complexity above 10: one branch per kind of task.
 def _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configuration, rng):
-    """The task kinds beyond the first eight: every task type of ``qpik.tasks``."""
+    """The task kinds beyond the first eight: every task type of ``qpik.tasks``. ``frame``
+    is ``(the constructor's frame, the valid frame the harness's own targets use)``."""
     np = _np()
+    frame, valid_frame = frame
     import mink
     import mujoco
 
@@ -1888,7 +1893,7 @@ def _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configurati
         return t
     q = _q_value("random", model, rng)
     position, rotation = (
-        _fk(model, q, frame, ftype)
+        _fk(model, q, valid_frame, ftype)
         if target == "reach"
         else ((np.full(3, 1e300), np.eye(3)) if target == "far" else (np.full(3, NAN), np.eye(3)))
     )

@@ -56,6 +56,9 @@ _RUN_METHODS = (
 
 _C = TypeVar("_C", bound=type)
 
+#: The constructor arguments that name a frame (a str, or an int id as mink takes).
+_FRAME_ARGUMENTS = ("frame_name", "root_name")
+
 
 def _run_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
@@ -87,6 +90,9 @@ def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
     @functools.wraps(method)
     def wrapped(self, *args: Any, **kwargs: Any) -> None:
         arguments = arguments_of(method, self, *args, **kwargs)
+        for name in _FRAME_ARGUMENTS:  # mink checks none of them until the first step
+            if name in arguments:
+                checks.check_frame_name(name, arguments[name])
         check_task_numbers(type(self).__name__, arguments)
         with mink_errors_as_qpik(type(self).__name__, arguments):
             method(self, *args, **kwargs)

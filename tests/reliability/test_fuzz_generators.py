@@ -597,3 +597,23 @@ def test_seed_777_findings_are_typed() -> None:
         qpik.tasks.PoseTask("ee", position_cost={1.0, 2.0})  # type: ignore[arg-type]
     with pytest.raises(qpik.errors.InvalidOption, match="margin"):
         qpik.core.checks.check_real("margin", 2**2000)
+
+
+@pytest.mark.parametrize("name", ["frame_name", "root_name"])
+@pytest.mark.parametrize("value", [None, b"ee", 3.5, True, ["ee"]])
+def test_seed_777001_frame_names_of_mink_tasks_are_checked(name: str, value: object) -> None:
+    """Seed 777001: mink's RelativeFrameTask took a frame name of any type (mink checks it
+    only at the first step); qpik's checks it at once, as its own tasks do, naming it."""
+    arguments = {"frame_name": "ee", "root_name": "link0", name: value}
+    with pytest.raises(qpik.errors.InvalidArgumentType, match=name) as error:
+        qpik.tasks.RelativeFrameTask(
+            arguments["frame_name"],
+            "site",
+            arguments["root_name"],
+            "body",
+            1.0,
+            1.0,  # type: ignore[arg-type]
+        )
+    assert isinstance(error.value, TypeError)
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="frame_name"):
+        qpik.tasks.AxisAlignTask(value, "site", axis=np.array([0.0, 0.0, 1.0]))  # type: ignore[arg-type]
