@@ -1760,7 +1760,7 @@ def _build_task(task: dict, model, configuration, rng):
         frame, ftype = frame
     target = task["target"]
     ctor_model = model  # what the constructors get (the harness keeps the real one)
-    valid_frame = frame  # the frame the harness's own targets are computed at
+    valid = (frame, ftype)  # the frame the harness's own targets are computed at
     if "wrong" in task:  # one argument of the constructor of a wrong type
         arg, index = task["wrong"]
         value = WRONG_TYPES[index]
@@ -1778,7 +1778,7 @@ def _build_task(task: dict, model, configuration, rng):
         "equality",
     ):
         return _build_more_task(
-            task, kind, o, (frame, valid_frame), ftype, model, ctor_model, configuration, rng
+            task, kind, o, (frame, valid), ftype, model, ctor_model, configuration, rng
         )
     if kind == "frame":
         o = {("position_cost" if k == "cost" else k): v for k, v in o.items()}
@@ -1810,7 +1810,7 @@ def _build_task(task: dict, model, configuration, rng):
             t.set_target_from_configuration(configuration)
             return t
         position, rotation = (
-            _fk(model, q, frame, ftype)
+            _fk(model, q, *valid)
             if target == "reach"
             else (
                 (np.full(3, 1e300), np.eye(3))
@@ -1852,9 +1852,9 @@ def _build_task(task: dict, model, configuration, rng):
 # Complexity above 10: one branch per kind of task.
 def _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configuration, rng):
     """The task kinds beyond the first eight: every task type of ``qpik.tasks``. ``frame``
-    is ``(the constructor's frame, the valid frame the harness's own targets use)``."""
+    is ``(the constructor's frame, (the valid frame, its type) the harness's own targets use)``."""
     np = _np()
-    frame, valid_frame = frame
+    frame, valid = frame
     import mink
     import mujoco
 
@@ -1893,7 +1893,7 @@ def _build_more_task(task, kind, o, frame, ftype, model, ctor_model, configurati
         return t
     q = _q_value("random", model, rng)
     position, rotation = (
-        _fk(model, q, valid_frame, ftype)
+        _fk(model, q, *valid)
         if target == "reach"
         else ((np.full(3, 1e300), np.eye(3)) if target == "far" else (np.full(3, NAN), np.eye(3)))
     )

@@ -32,6 +32,7 @@ __all__ = [
     "FRAME_OBJECTS",
     "FRAME_POSITIONS",
     "FRAME_ROTATIONS",
+    "check_frame_type",
     "check_model_type",
     "FrameType",
     "ResolvedFrame",
@@ -71,6 +72,19 @@ class FrameType(str, enum.Enum):
             raise UnknownFrameType(
                 f"unknown frame type {value!r}; expected one of: body, site, geom"
             ) from None
+
+
+def check_frame_type(owner: str, name: str, value: Any) -> FrameType:
+    """``value`` as a :class:`FrameType` for the argument ``name`` of ``owner`` (a class
+    name); anything but body, site or geom (any case), a :class:`FrameType` included, raises
+    :class:`qpik.UnknownFrameType` naming the argument (mink checks a frame type only at the
+    first step)."""
+    try:
+        return FrameType.parse(value)
+    except UnknownFrameType:
+        raise UnknownFrameType(
+            f"{owner}: {name} is {value!r}; expected one of: body, site, geom"
+        ) from None
 
 
 def _by_frame_type(mink_map: Mapping[str, Any]) -> Mapping[FrameType, Any]:

@@ -17,7 +17,13 @@ import numpy as np
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
 from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik
-from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FRAME_POSITIONS, FRAME_ROTATIONS
+from ..model.frames import (
+    FRAME_JACOBIANS,
+    FRAME_OBJECTS,
+    FRAME_POSITIONS,
+    FRAME_ROTATIONS,
+    check_frame_type,
+)
 
 __all__ = ["FrameTask"]
 
@@ -48,6 +54,7 @@ class FrameTask(mink.FrameTask):
         with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(*args, **kwargs)
         checks.check_frame_name("frame_name", self.frame_name)
+        check_frame_type(type(self).__name__, "frame_type", self.frame_type)
 
     def _frame_terms(self, configuration):
         """``(jac, xmat, jlog, error)`` from MuJoCo and mink's SE3 arithmetic

@@ -27,13 +27,12 @@ from ..errors import (
     InvalidTarget,
     QpikError,
     TaskDefinitionError,
-    UnknownFrameType,
     arguments_of,
     check_task_numbers,
     mink_errors_as_qpik,
     qpik_errors,
 )
-from ..model.frames import FrameType
+from ..model.frames import check_frame_type
 
 __all__ = [
     "AxisAlignTask",
@@ -58,6 +57,8 @@ _C = TypeVar("_C", bound=type)
 
 #: The constructor arguments that name a frame (a str, or an int id as mink takes).
 _FRAME_ARGUMENTS = ("frame_name", "root_name")
+#: The constructor arguments that name a frame type (body, site or geom).
+_FRAME_TYPE_ARGUMENTS = ("frame_type", "root_type")
 
 
 def _run_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
@@ -93,6 +94,9 @@ def _init_with_qpik_errors(method: Callable[..., Any]) -> Callable[..., Any]:
         for name in _FRAME_ARGUMENTS:  # mink checks none of them until the first step
             if name in arguments:
                 checks.check_frame_name(name, arguments[name])
+        for name in _FRAME_TYPE_ARGUMENTS:
+            if name in arguments:
+                check_frame_type(type(self).__name__, name, arguments[name])
         check_task_numbers(type(self).__name__, arguments)
         with mink_errors_as_qpik(type(self).__name__, arguments):
             method(self, *args, **kwargs)
@@ -193,13 +197,6 @@ class RelativeFrameTask(mink.RelativeFrameTask):
         gain: float = 1.0,
         lm_damping: float = 0.0,
     ) -> None:
-        for name, value in (("frame_type", frame_type), ("root_type", root_type)):
-            try:  # mink checks neither until the first step
-                FrameType.parse(value)
-            except UnknownFrameType:
-                raise UnknownFrameType(
-                    f"RelativeFrameTask: {name} is {value!r}; expected one of: body, site, geom"
-                ) from None
         super().__init__(
             frame_name, frame_type, root_name, root_type, position_cost, orientation_cost,
             gain, lm_damping,

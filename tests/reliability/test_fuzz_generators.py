@@ -617,3 +617,28 @@ def test_seed_777001_frame_names_of_mink_tasks_are_checked(name: str, value: obj
     assert isinstance(error.value, TypeError)
     with pytest.raises(qpik.errors.InvalidArgumentType, match="frame_name"):
         qpik.tasks.AxisAlignTask(value, "site", axis=np.array([0.0, 0.0, 1.0]))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("value", [True, None, b"site", 3.5, "joint"])
+def test_seed_8675309_frame_types_are_checked_at_construction(value: object) -> None:
+    """Seed 8675309: FrameTask (and mink's AxisAlignTask, LookAtTask) took any frame type
+    until the first step; every task checks it at once, naming the argument."""
+    axis = np.array([0.0, 0.0, 1.0])
+    builds = {
+        "FrameTask": lambda: qpik.tasks.FrameTask(
+            "ee", value, position_cost=1.0, orientation_cost=1.0
+        ),
+        "AxisAlignTask": lambda: qpik.tasks.AxisAlignTask("ee", value, axis=axis),
+        "LookAtTask": lambda: qpik.tasks.LookAtTask("ee", value, axis=axis),
+        "RelativeFrameTask": lambda: qpik.tasks.RelativeFrameTask(
+            "ee", "site", "link0", value, 1.0, 1.0
+        ),
+    }
+    for owner, build in builds.items():
+        with pytest.raises(
+            qpik.errors.UnknownFrameType, match=f"{owner}: (frame|root)_type"
+        ) as error:
+            build()
+        assert isinstance(error.value, ValueError)
+    task = qpik.tasks.FrameTask("ee", "SITE", position_cost=1.0, orientation_cost=1.0)
+    assert task.frame_type == "SITE"  # kept as given (mink's own paths read it)
