@@ -42,6 +42,7 @@ __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_FLOAT64 = np.dtype(np.float64)
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -168,10 +169,25 @@ class Configuration(mink.Configuration):
         return q
 
     def update(self, q: npt.ArrayLike | None = None) -> None:
-        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics."""
+        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics (what
+        :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
+        model with equalities, ``mj_makeConstraint``)."""
+        model, data = self.model, self.data
         if q is not None:
-            q = self._validated(q)
-        super().update(q)
+            # A float64 vector of nq finite entries (q @ q finite: no NaN, no inf; one
+            # that overflows is judged by _validated) is taken as it is.
+            if not (
+                type(q) is np.ndarray
+                and q.dtype is _FLOAT64
+                and q.shape == (model.nq,)
+                and math.isfinite(q @ q)
+            ):
+                q = self._validated(q)
+            data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        if model.neq > 0:
+            mujoco.mj_makeConstraint(model, data)
 
     @property
     def lower(self) -> np.ndarray:
