@@ -473,6 +473,79 @@ class Kernel {
         return true;
     }
 
+    // The frame Jacobians go() computes itself, as MuJoCo's mj_jacSite / mj_jacBody /
+    // mj_jacGeom do (mj_jac: per dof of the frame's chain, the rotation rows cdof[0:3] and
+    // the translation rows cdof[3:6] + cdof[0:3] x (point - subtree_com[root])): `jac` the
+    // plan's (F, 6, nv) (the array the kernel holds), frame f's dofs
+    // dofs[starts[f]:starts[f+1]], its body's root roots[f]; cdof (nv, 6) and subtree_com
+    // (nbody, 3) the attached MjData's (held; attach_chains again when it changes).
+    void set_chains(Out3 jac, const I1& starts, const I1& dofs, const I1& roots) {
+        const i64 F = frames_.rows;
+        require(jac.data() == jac_.data() && dim(jac, 0) == F && dim(jac, 1) == 6 && dim(jac, 2) == n_,
+                "Kernel.set_chains: jac must be the kernel's jac");
+        chain_starts_.assign(starts);
+        chain_dofs_.assign(dofs);
+        chain_roots_.assign(roots);
+        require(chain_starts_.rows == F + 1 && chain_roots_.rows == F,
+                "Kernel.set_chains: starts must have F + 1 entries, roots F");
+        const i64* st = chain_starts_.data.data();
+        require(st[0] == 0 && st[F] == chain_dofs_.rows, "Kernel.set_chains: starts must run from 0 to len(dofs)");
+        for (i64 f = 0; f < F; ++f) require(st[f] <= st[f + 1], "Kernel.set_chains: starts must not decrease");
+        check_dofs(chain_dofs_.vec(), n_, "Kernel.set_chains: a dof is out of range");
+        max_root_ = -1;
+        for (i64 f = 0; f < F; ++f) {
+            require(chain_roots_.data[f] >= 0, "Kernel.set_chains: a root is negative");
+            max_root_ = std::max(max_root_, chain_roots_.data[f]);
+        }
+        jac_w_ = jac;
+        cdof_.reset();
+    }
+
+    void attach_chains(const In2& cdof, const In2& subtree_com) {
+        require(jac_w_.has_value(), "Kernel.attach_chains: no chains (Kernel.set_chains)");
+        require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6, "Kernel.attach_chains: cdof must have shape (nv, 6)");
+        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0),
+                "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
+        cdof_ = Chains{cdof, subtree_com};
+    }
+
+    // The frames' Jacobians into jac (see set_chains).
+    void frame_jacobians() {
+        const auto& t = *attached_;
+        const auto& c = *cdof_;
+        double* J = jac_w_->data();
+        const double* cdof = c.cdof.data();
+        const double* com = c.subtree_com.data();
+        const i64* st = chain_starts_.data.data();
+        const i64* dofs = chain_dofs_.data.data();
+        const i64 n = n_;
+        for (i64 f = 0; f < frames_.rows; ++f) {
+            double* jp = J + f * 6 * n;
+            double* jr = jp + 3 * n;
+            std::fill(jp, jp + 6 * n, 0.0);
+            const i64 kind = frames_.mat()(f, 0), fid = frames_.mat()(f, 1);
+            const auto& pos = kind == 0 ? t.sx : (kind == 1 ? t.x : t.gx);
+            const double* point = pos.data() + 3 * fid;
+            const double* root = com + 3 * chain_roots_.data[f];
+            double offset[3];
+            for (int k = 0; k < 3; ++k) offset[k] = point[k] - root[k];
+            for (i64 e = st[f]; e < st[f + 1]; ++e) {
+                const i64 da = dofs[e];
+                const double* cd = cdof + 6 * da;
+                jr[da] = cd[0];
+                jr[da + n] = cd[1];
+                jr[da + 2 * n] = cd[2];
+                double tmp[3];
+                tmp[0] = cd[1] * offset[2] - cd[2] * offset[1];
+                tmp[1] = cd[2] * offset[0] - cd[0] * offset[2];
+                tmp[2] = cd[0] * offset[1] - cd[1] * offset[0];
+                jp[da] = cd[3] + tmp[0];
+                jp[da + n] = cd[4] + tmp[1];
+                jp[da + 2 * n] = cd[5] + tmp[2];
+            }
+        }
+    }
+
     // The rows that go() writes its answers into (K steps each; held): dq, v (K, nv), info
     // (K, 9, L), active sets (K, L, nv) int8, qpos (K, nq).
     void attach_out(Out2 d, Out2 v, Out3 info, Act3 active, Out2 qpos) {
@@ -497,6 +570,10 @@ class Kernel {
         Outputs& o = *out_;
         require(row >= 0 && row < o.K, "Kernel.go: row out of range");
         const Attached& t = *attached_;
+        if (jac_w_) {
+            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
+            frame_jacobians();
+        }
         diffik::FusedArgs a = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
         const i8* w = nullptr;
         if (warm) {
@@ -559,6 +636,13 @@ class Kernel {
     };
     std::optional<Outputs> out_;
     BVec cold_;
+    std::optional<Out3> jac_w_;
+    IndexCopy chain_starts_, chain_dofs_, chain_roots_;
+    i64 max_root_ = -1;
+    struct Chains {
+        In2 cdof, subtree_com;
+    };
+    std::optional<Chains> cdof_;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
         vel_dof_, lin_starts_;
@@ -632,6 +716,12 @@ void bind_diffik(nb::module_& m) {
         .def("set_slots", &Kernel::set_slots, nb::arg("views"), nb::arg("scalar"),
              "The slots go()'s values are written into: writable float64 vectors (views of the "
              "plan's arrays, held), scalar[i] True where slot i takes one number for all its entries.")
+        .def("set_chains", &Kernel::set_chains, nb::arg("jac").noconvert(), nb::arg("starts"),
+             nb::arg("dofs"), nb::arg("roots"),
+             "go() computes the frames' Jacobians itself (as MuJoCo's mj_jac): each frame's dof "
+             "chain dofs[starts[f]:starts[f+1]] and its body's root roots[f]; jac the kernel's.")
+        .def("attach_chains", &Kernel::attach_chains, nb::arg("cdof"), nb::arg("subtree_com"),
+             "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
         .def("attach_out", &Kernel::attach_out, nb::arg("d").noconvert(), nb::arg("v").noconvert(),
              nb::arg("info").noconvert(), nb::arg("active").noconvert(), nb::arg("qpos").noconvert(),
              "Hold the rows go() writes into: d, v (K, nv), info (K, 9, L), active (K, L, nv) "

@@ -126,8 +126,13 @@ class CompiledPlan:
         #: the outputs :meth:`_lean` steps write into (see :meth:`_new_outputs`)
         self._out: tuple = ()
         self._row = _OUTPUT_ROWS
+        self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
+            if self.frames:
+                self.kernel.set_chains(
+                    self.arrays["jac"], *_frame_chains(self.model, self.arrays["frames"])
+                )
 
     def _slots(self) -> tuple[list, list]:
         """The views :meth:`_values` fills, in its order, and which take one number."""
@@ -356,10 +361,12 @@ class CompiledPlan:
         return True
 
     def _jacobians(self, data: mujoco.MjData) -> None:
-        """MuJoCo's Jacobians of the frame, CoM and relative-frame tasks into the plan."""
+        """MuJoCo's Jacobians of the CoM and relative-frame tasks into the plan (the frame
+        tasks' the kernel computes, from ``data``'s ``cdof`` and ``subtree_com``)."""
         model = self.model
-        for _task, jacobian, fid, jp, jr, _row in self.frames:
-            jacobian(model, data, jp, jr, fid)
+        if data is not self._chain_data and self.frames:  # the kernel computes the frames'
+            self.kernel.attach_chains(data.cdof, data.subtree_com)
+            self._chain_data = data
         for _task, body, _given, jac, _row in self.coms:
             mujoco.mj_jacSubtreeCom(model, data, jac, body)
         for _task, (ff, fid), (rf, rid), jac, _row in self.relatives:
@@ -604,6 +611,25 @@ class CompiledPlan:
             if solution.ok:
                 return solution
         return solve_rows(core, tasks, limits, dt)
+
+
+def _frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
+    """Per frame ``(kind, id)`` of ``frames``, the dofs that move it, in the order MuJoCo's
+    ``mj_jac`` visits them (from its body's last dof up the ``dof_parentid`` chain; a body
+    without dofs: its first moving ancestor's), and its body's root: ``(starts (F + 1,),
+    dofs, roots (F,))``."""
+    starts, dofs, roots = [0], [], []
+    for kind, fid in frames.tolist():
+        body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
+        roots.append(int(model.body_rootid[body]))
+        while body and not model.body_dofnum[body]:
+            body = int(model.body_parentid[body])
+        da = int(model.body_dofadr[body] + model.body_dofnum[body]) - 1 if body else -1
+        while da >= 0:
+            dofs.append(da)
+            da = int(model.dof_parentid[da])
+        starts.append(len(dofs))
+    return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
 
 
 def make_plan(

@@ -117,3 +117,34 @@ def test_a_gain_changed_between_paths_is_written(panda):
         fresh = qpik.IKSolver(model, levels, [limit]).step(configuration, DT)
         assert np.array_equal(ours.velocity, fresh.velocity)
     frame.cost = np.ones(6)
+
+
+@pytest.mark.parametrize("robot", ["erd:talos", "ur5e", "panda"])
+def test_kernel_frame_jacobians_are_mujocos(robot):
+    """The frame Jacobians the lean step computes (Kernel.set_chains) are bitwise MuJoCo's
+    mj_jacSite / mj_jacBody / mj_jacGeom, on sites, bodies and geoms of every depth (a
+    floating base, a body welded to its parent, the world body)."""
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(7)
+    kinds = [("body", model.nbody), ("site", model.nsite), ("geom", model.ngeom)]
+    frames = [
+        (kind, int(i))
+        for kind, count in kinds
+        for i in np.unique(np.linspace(0, count - 1, 6).astype(int))
+        if count
+    ]
+    tasks = [qpik.tasks.FrameTask(fid, kind, 1.0, 1.0) for kind, fid in frames]
+    solver = qpik.IKSolver(model, [tasks], [mink.ConfigurationLimit(model)])
+    plan = solver._plan
+    assert plan is not None and not plan.general_limits
+    plan.gather = lambda *args: pytest.fail("the lean step only")
+    for _ in range(5):
+        q = configuration.random_q(rng)
+        configuration.update(q)
+        for task in tasks:
+            task.set_target_from_configuration(configuration)
+        solver.step(configuration, DT)
+        for f, (kind, fid) in enumerate(frames):
+            expected = configuration.frame_jacobian(fid, kind)
+            assert np.array_equal(plan.arrays["jac"][f], expected), (kind, fid)
