@@ -177,6 +177,15 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 // Kernel.attach(owner, <step's first 8 arguments>); Kernel.run(G, h, warm, canonical, max_iter)
 //   MuJoCo's arrays of one MjData (owner), checked and held once (its arrays never move;
 //   the owner is kept alive with them); run is step on them, without passing them again.
+// Kernel.set_slots(views, scalar); Kernel.attach_out(d, v, info, active, qpos);
+// Kernel.set_chains(jac, starts, dofs, roots); Kernel.attach_chains(cdof, subtree_com);
+// Kernel.go(values, row, warm, canonical, max_iter) -> code
+//   The lean step (qpik.diffik.compiled.CompiledPlan._lean), without general rows: the
+//   tasks' values (a list, one per slot: a view of the plan's arrays) written by the kernel,
+//   the frames' Jacobians computed as MuJoCo's mj_jac does (when chains are set), and the
+//   answers written into row `row` of the attached outputs (no array allocated per call).
+//   code -1: a value is not what its slot takes as it is (nothing solved; the caller writes
+//   the values its general way and calls run).
 // Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
 //   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
 //   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).

@@ -15,9 +15,14 @@ plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to i
 Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
 vector's length, else ``nv``); a step where it returns another shape goes to the QP path.
 Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
-one Jacobian call per frame, the rows of the tasks that supply them, the collision limits'
-rows ``G dq <= h``) and the kernel computes the other tasks' rows, the limits' box and the
-whole cascade (``qpik/_cpp/diffik/fused.hpp``), returning a
+the rows of the tasks that supply them, the collision limits' rows ``G dq <= h``, MuJoCo's
+CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows, the limits'
+box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
+is lean (:meth:`CompiledPlan._lean`): the tasks' values go to the kernel as one list, which
+it writes into the plan's arrays itself, it computes the frame tasks' Jacobians itself
+(bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
+allocated :data:`_OUTPUT_ROWS` steps at a time (a result's arrays are views of its own row,
+never written again). The step returns a
 :class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
 :class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
 the same arithmetic where that path's is qpik's (tests compare the two bitwise) and in

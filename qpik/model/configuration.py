@@ -173,20 +173,26 @@ class Configuration(mink.Configuration):
         :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
         model with equalities, ``mj_makeConstraint``)."""
         model, data = self.model, self.data
+        # (data, model, data.qpos, (nq,), neq > 0), kept while model and data are these
+        # (MuJoCo's arrays never move)
+        kept = self.__dict__.get("_update_kept")
+        if kept is None or kept[0] is not data or kept[1] is not model:
+            kept = self._update_kept = (data, model, data.qpos, (model.nq,), model.neq > 0)
         if q is not None:
-            # A float64 vector of nq finite entries (q @ q finite: no NaN, no inf; one
-            # that overflows is judged by _validated) is taken as it is.
+            # A float64 vector of nq finite entries (its sum finite: no NaN, no inf, with no
+            # floating-point warning; one whose sum overflows is judged by _validated) is
+            # taken as it is.
             if not (
                 type(q) is np.ndarray
                 and q.dtype is _FLOAT64
-                and q.shape == (model.nq,)
-                and math.isfinite(q @ q)
+                and q.shape == kept[3]
+                and math.isfinite(sum(q.tolist()))
             ):
                 q = self._validated(q)
-            data.qpos[:] = q
+            kept[2][:] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        if model.neq > 0:
+        if kept[4]:
             mujoco.mj_makeConstraint(model, data)
 
     @property
