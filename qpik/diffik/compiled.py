@@ -369,8 +369,9 @@ class CompiledPlan:
         """MuJoCo's Jacobians of the CoM and relative-frame tasks into the plan (the frame
         tasks' the kernel computes, from ``data``'s ``cdof`` and ``subtree_com``)."""
         model = self.model
-        if data is not self._chain_data and self.frames:  # the kernel computes the frames'
-            self.kernel.attach_chains(data.cdof, data.subtree_com)
+        if data is not self._chain_data:
+            if self.frames:  # the kernel computes the frames'
+                self.kernel.attach_chains(data.cdof, data.subtree_com)
             self._chain_data = data
         for _task, body, _given, jac, _row in self.coms:
             mujoco.mj_jacSubtreeCom(model, data, jac, body)
@@ -403,7 +404,8 @@ class CompiledPlan:
         if values is None:
             return -1
         data = configuration.data
-        self._jacobians(data)
+        if data is not self._chain_data or self.coms or self.relatives:
+            self._jacobians(data)
         if self.rows_tasks and not self._gather_rows(configuration):
             return -1
         if data is not self._data:  # MjData's arrays never move: their views are kept
