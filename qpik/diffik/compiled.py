@@ -48,7 +48,14 @@ from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
-from .layout import DAMPING_TYPES, JACOBIANS, limit_layout, plan_arrays, task_layout
+from .layout import (
+    DAMPING_TYPES,
+    JACOBIANS,
+    frame_chains,
+    limit_layout,
+    plan_arrays,
+    task_layout,
+)
 from .result import Solution, StepResult, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -136,7 +143,7 @@ class CompiledPlan:
             self.kernel.set_slots(*self._slots())
             if self.frames:
                 self.kernel.set_chains(
-                    self.arrays["jac"], *_frame_chains(self.model, self.arrays["frames"])
+                    self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
                 )
 
     def _slots(self) -> tuple[list, list]:
@@ -618,25 +625,6 @@ class CompiledPlan:
             if solution.ok:
                 return solution
         return solve_rows(core, tasks, limits, dt)
-
-
-def _frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
-    """Per frame ``(kind, id)`` of ``frames``, the dofs that move it, in the order MuJoCo's
-    ``mj_jac`` visits them (from its body's last dof up the ``dof_parentid`` chain; a body
-    without dofs: its first moving ancestor's), and its body's root: ``(starts (F + 1,),
-    dofs, roots (F,))``."""
-    starts, dofs, roots = [0], [], []
-    for kind, fid in frames.tolist():
-        body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
-        roots.append(int(model.body_rootid[body]))
-        while body and not model.body_dofnum[body]:
-            body = int(model.body_parentid[body])
-        da = int(model.body_dofadr[body] + model.body_dofnum[body]) - 1 if body else -1
-        while da >= 0:
-            dofs.append(da)
-            da = int(model.dof_parentid[da])
-        starts.append(len(dofs))
-    return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
 
 
 def make_plan(
