@@ -7,6 +7,8 @@
 #include <nanobind/stl/optional.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -122,6 +124,15 @@ struct IndexCopy {
 };
 
 using Held1 = nb::ndarray<const double, nb::numpy, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
+using View1 = nb::ndarray<double, nb::numpy, nb::ndim<1>, nb::device::cpu>;  // any stride
+using Act3 = nb::ndarray<i8, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
+
+bool is_little_endian() {
+    const std::uint16_t one = 1;
+    unsigned char first;
+    std::memcpy(&first, &one, 1);
+    return first == 1;
+}
 using Held2 = nb::ndarray<const double, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 
@@ -166,6 +177,15 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 // Kernel.attach(owner, <step's first 8 arguments>); Kernel.run(G, h, warm, canonical, max_iter)
 //   MuJoCo's arrays of one MjData (owner), checked and held once (its arrays never move;
 //   the owner is kept alive with them); run is step on them, without passing them again.
+// Kernel.set_slots(views, scalar); Kernel.attach_out(d, v, info, active, qpos);
+// Kernel.set_chains(jac, starts, dofs, roots); Kernel.attach_chains(cdof, subtree_com);
+// Kernel.go(values, row, warm, canonical, max_iter) -> code
+//   The lean step (qpik.diffik.compiled.CompiledPlan._lean), without general rows: the
+//   tasks' values (a list, one per slot: a view of the plan's arrays) written by the kernel,
+//   the frames' Jacobians computed as MuJoCo's mj_jac does (when chains are set), and the
+//   answers written into row `row` of the attached outputs (no array allocated per call).
+//   code -1: a value is not what its slot takes as it is (nothing solved; the caller writes
+//   the values its general way and calls run).
 // Kernel.rows(<step's first 10 arguments>) -> (code, reg, lb, ub)
 //   The hierarchy's rows and limits without solving it: fills ``A, b, w``; ``code`` OK,
 //   NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
@@ -330,6 +350,16 @@ class Kernel {
                            const In2& gx, const In2& gm, const In2& subtree_com, const In2& G,
                            const In1& h) {
         require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel: G must have shape (p, nv), h (p,)");
+        diffik::FusedArgs a = fill_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
+        a.G = CMatRef(G.data(), dim(G, 0), n_);
+        a.h = cvec(h);
+        return a;
+    }
+
+    // The arguments of one call without general rows (G, h empty).
+    diffik::FusedArgs fill_poses(const In1& qpos, const In2& sx, const In2& sm, const In2& x,
+                                 const In2& xm, const In2& gx, const In2& gm,
+                                 const In2& subtree_com) {
         diffik::FusedArgs a;
         a.A = mat(A_);
         a.b = vec(b_);
@@ -361,8 +391,7 @@ class Kernel {
         a.rel_jac = rel_jac_.data();
         a.rel_frames = rel_frames_.mat();
         a.rel_data = cmat(rel_data_);
-        a.G = CMatRef(G.data(), dim(G, 0), n_);
-        a.h = cvec(h);
+        a.G = CMatRef(nullptr, 0, n_);
         if (user_mu_) a.user_mu = cvec(*user_mu_);
         if (lin_const_) {
             a.lin_starts = lin_starts_.vec();
@@ -385,6 +414,196 @@ class Kernel {
         require(attached_.has_value(), "Kernel.run: no MjData attached (Kernel.attach)");
         const Attached& t = *attached_;
         return fill(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com, G, h);
+    }
+
+    // The slots that go()'s values are written into: writable float64 vectors of the plan's
+    // arrays (views, held), each taking a vector of its length or, `scalar`, one number for
+    // every entry.
+    void set_slots(nb::list views, nb::list scalar) {
+        require(views.size() == scalar.size(), "Kernel.set_slots: views and scalar differ in length");
+        std::vector<Slot> slots;
+        for (size_t i = 0; i < views.size(); ++i) {
+            Slot t;
+            t.view = nb::cast<View1>(views[i]);
+            t.p = t.view.data();
+            t.size = dim(t.view, 0);
+            t.stride = t.view.stride(0);
+            t.scalar = nb::cast<bool>(scalar[i]);
+            slots.push_back(std::move(t));
+        }
+        slots_ = std::move(slots);
+    }
+
+    // values[i] into slot i; false (some slots then written, some not) when the list does not
+    // have one value per slot or a value is not what its slot takes as it is: a real number
+    // (float or int) for a scalar slot, else a float64 vector of the slot's length (the
+    // caller then writes them its general way, with NumPy's conversions and errors).
+    bool load(nb::handle values) const {
+        PyObject* list = values.ptr();
+        if (!PyList_CheckExact(list) || PyList_GET_SIZE(list) != static_cast<Py_ssize_t>(slots_.size()))
+            return false;
+        for (size_t i = 0; i < slots_.size(); ++i) {
+            const Slot& t = slots_[i];
+            PyObject* o = PyList_GET_ITEM(list, static_cast<Py_ssize_t>(i));
+            if (t.scalar) {
+                double x;
+                if (PyFloat_Check(o)) {
+                    x = PyFloat_AS_DOUBLE(o);
+                } else if (PyLong_CheckExact(o)) {
+                    x = PyLong_AsDouble(o);
+                    if (x == -1.0 && PyErr_Occurred()) {
+                        PyErr_Clear();
+                        return false;
+                    }
+                } else {
+                    return false;
+                }
+                for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
+                continue;
+            }
+            Py_buffer b;
+            if (PyObject_GetBuffer(o, &b, PyBUF_STRIDES | PyBUF_FORMAT) != 0) {
+                PyErr_Clear();
+                return false;
+            }
+            const char* f = b.format;
+            const bool ok = b.ndim == 1 && b.itemsize == 8 && b.shape[0] == t.size && f != nullptr &&
+                            (f[0] == 'd' || ((f[0] == '<' || f[0] == '=' || f[0] == '@') && f[1] == 'd' &&
+                                             is_little_endian())) &&
+                            f[f[0] == 'd' ? 1 : 2] == '\0';
+            if (ok) {
+                const char* src = static_cast<const char*>(b.buf);
+                for (i64 k = 0; k < t.size; ++k)
+                    std::memcpy(t.p + k * t.stride, src + k * b.strides[0], sizeof(double));
+            }
+            PyBuffer_Release(&b);
+            if (!ok) return false;
+        }
+        return true;
+    }
+
+    // The frame Jacobians go() computes itself, as MuJoCo's mj_jacSite / mj_jacBody /
+    // mj_jacGeom do (mj_jac: per dof of the frame's chain, the rotation rows cdof[0:3] and
+    // the translation rows cdof[3:6] + cdof[0:3] x (point - subtree_com[root])): `jac` the
+    // plan's (F, 6, nv) (the array the kernel holds), frame f's dofs
+    // dofs[starts[f]:starts[f+1]], its body's root roots[f]; cdof (nv, 6) and subtree_com
+    // (nbody, 3) the attached MjData's (held; attach_chains again when it changes).
+    void set_chains(Out3 jac, const I1& starts, const I1& dofs, const I1& roots) {
+        const i64 F = frames_.rows;
+        require(jac.data() == jac_.data() && dim(jac, 0) == F && dim(jac, 1) == 6 && dim(jac, 2) == n_,
+                "Kernel.set_chains: jac must be the kernel's jac");
+        chain_starts_.assign(starts);
+        chain_dofs_.assign(dofs);
+        chain_roots_.assign(roots);
+        require(chain_starts_.rows == F + 1 && chain_roots_.rows == F,
+                "Kernel.set_chains: starts must have F + 1 entries, roots F");
+        const i64* st = chain_starts_.data.data();
+        require(st[0] == 0 && st[F] == chain_dofs_.rows, "Kernel.set_chains: starts must run from 0 to len(dofs)");
+        for (i64 f = 0; f < F; ++f) require(st[f] <= st[f + 1], "Kernel.set_chains: starts must not decrease");
+        check_dofs(chain_dofs_.vec(), n_, "Kernel.set_chains: a dof is out of range");
+        max_root_ = -1;
+        for (i64 f = 0; f < F; ++f) {
+            require(chain_roots_.data[f] >= 0, "Kernel.set_chains: a root is negative");
+            max_root_ = std::max(max_root_, chain_roots_.data[f]);
+        }
+        jac_w_ = jac;
+        cdof_.reset();
+    }
+
+    void attach_chains(const In2& cdof, const In2& subtree_com) {
+        require(jac_w_.has_value(), "Kernel.attach_chains: no chains (Kernel.set_chains)");
+        require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6, "Kernel.attach_chains: cdof must have shape (nv, 6)");
+        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0),
+                "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
+        cdof_ = Chains{cdof, subtree_com};
+    }
+
+    // The frames' Jacobians into jac (see set_chains).
+    void frame_jacobians() {
+        const auto& t = *attached_;
+        const auto& c = *cdof_;
+        double* J = jac_w_->data();
+        const double* cdof = c.cdof.data();
+        const double* com = c.subtree_com.data();
+        const i64* st = chain_starts_.data.data();
+        const i64* dofs = chain_dofs_.data.data();
+        const i64 n = n_;
+        for (i64 f = 0; f < frames_.rows; ++f) {
+            double* jp = J + f * 6 * n;
+            double* jr = jp + 3 * n;
+            std::fill(jp, jp + 6 * n, 0.0);
+            const i64 kind = frames_.mat()(f, 0), fid = frames_.mat()(f, 1);
+            const auto& pos = kind == 0 ? t.sx : (kind == 1 ? t.x : t.gx);
+            const double* point = pos.data() + 3 * fid;
+            const double* root = com + 3 * chain_roots_.data[f];
+            double offset[3];
+            for (int k = 0; k < 3; ++k) offset[k] = point[k] - root[k];
+            for (i64 e = st[f]; e < st[f + 1]; ++e) {
+                const i64 da = dofs[e];
+                const double* cd = cdof + 6 * da;
+                jr[da] = cd[0];
+                jr[da + n] = cd[1];
+                jr[da + 2 * n] = cd[2];
+                double tmp[3];
+                tmp[0] = cd[1] * offset[2] - cd[2] * offset[1];
+                tmp[1] = cd[2] * offset[0] - cd[0] * offset[2];
+                tmp[2] = cd[0] * offset[1] - cd[1] * offset[0];
+                jp[da] = cd[3] + tmp[0];
+                jp[da + n] = cd[4] + tmp[1];
+                jp[da + 2 * n] = cd[5] + tmp[2];
+            }
+        }
+    }
+
+    // The rows that go() writes its answers into (K steps each; held): dq, v (K, nv), info
+    // (K, 9, L), active sets (K, L, nv) int8, qpos (K, nq).
+    void attach_out(Out2 d, Out2 v, Out3 info, Act3 active, Out2 qpos) {
+        const i64 K = dim(d, 0);
+        require(dim(d, 1) == n_ && dim(v, 0) == K && dim(v, 1) == n_,
+                "Kernel.attach_out: d and v must have shape (K, nv)");
+        require(dim(info, 0) == K && dim(info, 1) == 9 && dim(info, 2) == L_,
+                "Kernel.attach_out: info must have shape (K, 9, L)");
+        require(dim(active, 0) == K && dim(active, 1) == L_ && dim(active, 2) == n_,
+                "Kernel.attach_out: active must have shape (K, L, nv)");
+        require(dim(qpos, 0) == K && dim(qpos, 1) == nq_, "Kernel.attach_out: qpos must have shape (K, nq)");
+        out_ = Outputs{d, v, info, active, qpos, K};
+    }
+
+    // One step on the attached MjData without general rows: values into the slots, the
+    // cascade, its answers into row `row` of the attached outputs. Returns -1 when the values
+    // do not load (nothing solved), else the step's code (its answers written only when OK).
+    i64 go(nb::handle values, i64 row, const std::optional<B2>& warm, bool canonical, i64 max_iter) {
+        if (!load(values)) return -1;
+        require(attached_.has_value(), "Kernel.go: no MjData attached (Kernel.attach)");
+        require(out_.has_value(), "Kernel.go: no outputs attached (Kernel.attach_out)");
+        Outputs& o = *out_;
+        require(row >= 0 && row < o.K, "Kernel.go: row out of range");
+        const Attached& t = *attached_;
+        if (jac_w_) {
+            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
+            frame_jacobians();
+        }
+        diffik::FusedArgs a = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
+        const i8* w = nullptr;
+        if (warm) {
+            require(dim(*warm, 0) == L_ && dim(*warm, 1) == n_, "Kernel.go: warm must have shape (L, nv)");
+            w = warm->data();
+        } else {
+            if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
+            w = cold_.data();
+        }
+        diffik::StepResult r = diffik::fused_step(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_);
+        if (r.code != diffik::OK) return r.code;
+        require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
+                    static_cast<i64>(r.info.size()) == 9 * L_,
+                "Kernel.go: unexpected answer shapes");
+        const Vec& v = r.v_is_d ? r.d : r.v;
+        std::memcpy(o.d.data() + row * n_, r.d.data(), sizeof(double) * n_);
+        std::memcpy(o.v.data() + row * n_, v.data(), sizeof(double) * n_);
+        std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
+        std::memcpy(o.active.data() + row * L_ * n_, r.active.data(), L_ * n_);
+        std::memcpy(o.qpos.data() + row * nq_, t.qpos.data(), sizeof(double) * nq_);
+        return r.code;
     }
 
     i64 levels() const { return L_; }
@@ -410,6 +629,29 @@ class Kernel {
         In2 sx, sm, x, xm, gx, gm, subtree_com;
     };
     std::optional<Attached> attached_;
+    struct Slot {
+        View1 view;
+        double* p = nullptr;
+        i64 size = 0, stride = 1;
+        bool scalar = false;
+    };
+    std::vector<Slot> slots_;
+    struct Outputs {
+        Out2 d, v;
+        Out3 info;
+        Act3 active;
+        Out2 qpos;
+        i64 K = 0;
+    };
+    std::optional<Outputs> out_;
+    BVec cold_;
+    std::optional<Out3> jac_w_;
+    IndexCopy chain_starts_, chain_dofs_, chain_roots_;
+    i64 max_root_ = -1;
+    struct Chains {
+        In2 cdof, subtree_com;
+    };
+    std::optional<Chains> cdof_;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
         vel_dof_, lin_starts_;
@@ -480,6 +722,25 @@ void bind_diffik(nb::module_& m) {
             nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
             "step() on the attached MjData's arrays (Kernel.attach): step's last 5 arguments, the "
             "same answer.")
+        .def("set_slots", &Kernel::set_slots, nb::arg("views"), nb::arg("scalar"),
+             "The slots go()'s values are written into: writable float64 vectors (views of the "
+             "plan's arrays, held), scalar[i] True where slot i takes one number for all its entries.")
+        .def("set_chains", &Kernel::set_chains, nb::arg("jac").noconvert(), nb::arg("starts"),
+             nb::arg("dofs"), nb::arg("roots"),
+             "go() computes the frames' Jacobians itself (as MuJoCo's mj_jac): each frame's dof "
+             "chain dofs[starts[f]:starts[f+1]] and its body's root roots[f]; jac the kernel's.")
+        .def("attach_chains", &Kernel::attach_chains, nb::arg("cdof"), nb::arg("subtree_com"),
+             "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
+        .def("attach_out", &Kernel::attach_out, nb::arg("d").noconvert(), nb::arg("v").noconvert(),
+             nb::arg("info").noconvert(), nb::arg("active").noconvert(), nb::arg("qpos").noconvert(),
+             "Hold the rows go() writes into: d, v (K, nv), info (K, 9, L), active (K, L, nv) "
+             "int8, qpos (K, nq).")
+        .def("go", &Kernel::go, nb::arg("values"), nb::arg("row"), nb::arg("warm").none(),
+             nb::arg("canonical"), nb::arg("max_iter"),
+             "run() without general rows, the values (a list, one per slot) written into the slots "
+             "first and the answers (dq, v, info, active, the step's qpos) into row `row` of the "
+             "attached outputs; returns -1 when the values do not load (nothing solved), else the "
+             "step's code (answers written only when OK). warm: None for a cold start.")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

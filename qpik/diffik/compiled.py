@@ -15,9 +15,14 @@ plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to i
 Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
 vector's length, else ``nv``); a step where it returns another shape goes to the QP path.
 Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
-one Jacobian call per frame, the rows of the tasks that supply them, the collision limits'
-rows ``G dq <= h``) and the kernel computes the other tasks' rows, the limits' box and the
-whole cascade (``qpik/_cpp/diffik/fused.hpp``), returning a
+the rows of the tasks that supply them, the collision limits' rows ``G dq <= h``, MuJoCo's
+CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows, the limits'
+box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
+is lean (:meth:`CompiledPlan._lean`): the tasks' values go to the kernel as one list, which
+it writes into the plan's arrays itself, it computes the frame tasks' Jacobians itself
+(bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
+allocated :data:`_OUTPUT_ROWS` steps at a time (a result's arrays are views of its own row,
+never written again). The step returns a
 :class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
 :class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
 the same arithmetic where that path's is qpik's (tests compare the two bitwise) and in
@@ -43,7 +48,14 @@ from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
-from .layout import DAMPING_TYPES, JACOBIANS, limit_layout, plan_arrays, task_layout
+from .layout import (
+    DAMPING_TYPES,
+    JACOBIANS,
+    frame_chains,
+    limit_layout,
+    plan_arrays,
+    task_layout,
+)
 from .result import Solution, StepResult, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -59,6 +71,9 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #: Level statuses by the kernel's codes (as the floats of its info array).
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
+
+#: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
+_OUTPUT_ROWS = 64
 
 # The compiled kernel: its arguments are documented where it is bound
 # (qpik/_cpp/bind_diffik.cpp, above the Kernel class).
@@ -120,8 +135,59 @@ class CompiledPlan:
         self.no_rows = np.zeros((0, self.model.nv))
         self.no_h = np.zeros(0)
         self.colds[0] = self.cold
-        #: the gains last written into ``cfg_data`` (NaN: not yet)
-        self.gains = [float("nan")] * len(self.config_limits)
+        #: the outputs :meth:`_lean` steps write into (see :meth:`_new_outputs`)
+        self._out: tuple = ()
+        self._row = _OUTPUT_ROWS
+        self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
+        if not self.general_limits:
+            self.kernel.set_slots(*self._slots())
+            if self.frames:
+                self.kernel.set_chains(
+                    self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
+                )
+
+    def _slots(self) -> tuple[list, list]:
+        """The views :meth:`_values` fills, in its order, and which take one number."""
+        views: list = []
+        scalar: list = []
+
+        def add(view: np.ndarray, one: bool = False) -> None:
+            views.append(view)
+            scalar.append(one)
+
+        a = self.arrays
+        settings = a["settings"]
+        add(settings[DT : DT + 1], True)
+        add(settings[DAMPING : DAMPING + 1], True)
+        for *_, (row, target, cost) in self.frames:
+            add(target)
+            add(cost)
+            add(row[13:14], True)
+            add(row[14:15], True)
+        for _task, (row, target, cost), damping in self.postures:
+            if not damping:  # a damping task's error is zero: no target
+                add(target)
+            add(cost)
+            add(row[-2:-1], True)
+            add(row[-1:], True)
+        for *_, (row, target, cost) in self.coms:
+            add(target)
+            add(cost)
+            add(row[6:7], True)
+            add(row[7:8], True)
+        for *_, (row, target, cost) in self.relatives:
+            add(target)
+            add(cost)
+            add(row[13:14], True)
+            add(row[14:15], True)
+        lin = a["lin_data"]
+        for _task, r0, cost_view in self.linears:
+            add(cost_view)
+            add(lin[1, r0 : r0 + 1], True)
+            add(lin[2, r0 : r0 + 1], True)
+        for _limit, e0, e1 in self.config_limits:
+            add(a["cfg_data"][e0:e1, 2], True)
+        return views, scalar
 
     def cold_for(self, p: int) -> np.ndarray:
         """Zero active sets ``(L, nv + p)`` int8 (a cold start with ``p`` general rows)."""
@@ -223,13 +289,10 @@ class CompiledPlan:
         return True
 
     def _gather_gains(self) -> None:
-        """The position limits' gains, written when they change (NaN: every call)."""
-        gains = self.gains
-        for i, (limit, e0, e1) in enumerate(self.config_limits):
-            gain = limit.gain
-            if gain != gains[i]:
-                self.arrays["cfg_data"][e0:e1, 2] = gain
-                gains[i] = gain
+        """The position limits' gains."""
+        cfg = self.arrays["cfg_data"]
+        for limit, e0, e1 in self.config_limits:
+            cfg[e0:e1, 2] = limit.gain
 
     def _poses(self, data: mujoco.MjData) -> tuple:
         """The kernel's MuJoCo arguments (empty arrays for the kinds no frame uses)."""
@@ -264,6 +327,138 @@ class CompiledPlan:
         if not self.general_limits:
             return self.no_rows, self.no_h, []
         return self.limits.general_rows(self.general_limits, configuration, dt)
+
+    # ------------------------------------------------------------ lean step
+    def _values(self, dt: float, damping: float) -> list | None:
+        """What :meth:`gather` copies, as the list of :meth:`_slots`' values (the kernel
+        writes them, checking each; :meth:`gather` when one is not what its slot takes as it
+        is); None when a CoM task's subtree changed (the QP path resolves it)."""
+        values: list = [dt, damping]
+        for task, *_ in self.frames:
+            pose = task.transform_target_to_world
+            if pose is None:
+                raise TargetNotSet(type(task).__name__)
+            values += (pose.wxyz_xyz, task.cost, task.gain, task.lm_damping)
+        for task, _views, damping_task in self.postures:
+            if damping_task:
+                values += (task.cost, task.gain, task.lm_damping)
+                continue
+            target = task.target_q
+            if target is None:
+                raise TargetNotSet(type(task).__name__)
+            values += (target, task.cost, task.gain, task.lm_damping)
+        if (self.coms or self.relatives) and not self._more_values(values):
+            return None
+        for task, *_ in self.linears:
+            values += (task.cost, task.gain, task.lm_damping)
+        for limit, *_ in self.config_limits:
+            values.append(limit.gain)
+        return values
+
+    def _more_values(self, values: list) -> bool:
+        """The CoM and relative-frame tasks' part of :meth:`_values`, appended to
+        ``values``; False when a CoM task's subtree changed."""
+        for task, _body, given, *_ in self.coms:
+            if given is not None and task.body is not given:
+                return False
+            target = task.target_com
+            if target is None:
+                raise TargetNotSet(type(task).__name__)
+            values += (target, task.cost, task.gain, task.lm_damping)
+        for task, *_ in self.relatives:
+            pose = task.transform_target_to_root
+            if pose is None:
+                raise TargetNotSet(type(task).__name__)
+            values += (pose.wxyz_xyz, task.cost, task.gain, task.lm_damping)
+        return True
+
+    def _jacobians(self, data: mujoco.MjData) -> None:
+        """MuJoCo's Jacobians of the CoM and relative-frame tasks into the plan (the frame
+        tasks' the kernel computes, from ``data``'s ``cdof`` and ``subtree_com``)."""
+        model = self.model
+        if data is not self._chain_data:
+            if self.frames:  # the kernel computes the frames'
+                self.kernel.attach_chains(data.cdof, data.subtree_com)
+            self._chain_data = data
+        for _task, body, _given, jac, _row in self.coms:
+            mujoco.mj_jacSubtreeCom(model, data, jac, body)
+        for _task, (ff, fid), (rf, rid), jac, _row in self.relatives:
+            ff(model, data, jac[0:3], jac[3:6], fid)
+            rf(model, data, jac[6:9], jac[9:12], rid)
+
+    def _new_outputs(self) -> None:
+        """Fresh rows for the next :data:`_OUTPUT_ROWS` lean steps' answers (a step's
+        answers are views of its own row, never written again; the arrays live on while
+        a result holds a view)."""
+        nv, levels = self.nv, self.levels
+        rows = _OUTPUT_ROWS
+        self._out = (
+            np.empty((rows, nv)),
+            np.empty((rows, nv)),
+            np.empty((rows, 9, levels)),
+            np.empty((rows, levels, nv), np.int8),
+            np.empty((rows, self.model.nq)),
+        )
+        self.kernel.attach_out(*self._out)
+        self._row = 0
+
+    def _lean(self, configuration: mink.Configuration, dt: float, damping: float, core) -> int:
+        """The step of a plan without general rows in one kernel call that also writes the
+        tasks' values (:meth:`_values`): the row of ``self._out`` that holds its answers,
+        ``-1`` where the QP path must answer, ``-2`` where :meth:`gather` must write the
+        values (then nothing was solved)."""
+        values = self._values(dt, damping)
+        if values is None:
+            return -1
+        data = configuration.data
+        if data is not self._chain_data or self.coms or self.relatives:
+            self._jacobians(data)
+        if self.rows_tasks and not self._gather_rows(configuration):
+            return -1
+        if data is not self._data:  # MjData's arrays never move: their views are kept
+            self._pose_args = self._poses(data)
+            self.kernel.attach(data, *self._pose_args)
+            self._data = data
+        if core.damping_law is not self.law:
+            self.arrays["settings"][THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
+            self.law = core.damping_law
+        row = self._row
+        if row == _OUTPUT_ROWS:
+            self._new_outputs()
+            row = 0
+        nv = self.nv
+        warm = core.warm_sets(self.levels, nv) if core.warm_start else None
+        code = self.kernel.go(values, row, warm, core.warm_start, self.max_iter or 10 * nv + 50)
+        if code == -1:
+            return -2
+        self._row = row + 1
+        return row if code == OK else -1
+
+    def _solve(
+        self, configuration: mink.Configuration, dt: float, damping: float, core, forced: bool
+    ) -> tuple | None:
+        """The kernel's step: ``(dq, v, info, general rows, qpos)``, None where the QP
+        path must answer (``forced``: also where a level was not solved); ``core``'s
+        active sets updated."""
+        if not self.general_limits:
+            row = self._lean(configuration, dt, damping, core)
+            if row >= 0:
+                d, v, info, active, qpos = self._out
+                info = info[row]
+                if forced and any(s != _SOLVED_CODE for s in info[3].tolist()):
+                    return None
+                core.warm_start_from(active[row])
+                return d[row], v[row], info, (self.no_rows, self.no_h, []), qpos[row]
+            if row == -1:
+                return None
+        poses = self.gather(configuration)
+        if poses is None:
+            return None
+        self.write_settings(dt, damping, core)
+        out = self._kernel_step(poses, configuration, dt, core, forced)
+        if out is None:
+            return None
+        return (*out, poses[0].copy())
 
     # ----------------------------------------------------------------- limits
     def box(self, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -306,17 +501,17 @@ class CompiledPlan:
         exact solve, is equal to round-off), and no backend is called. None where the QP
         path must answer (a non-finite row, conflicting limits, an unsettled active set, a
         collision row on one dof, a task changed beyond its plan)."""
+        if core.solver == "auto":
+            return self._one_call(configuration, dt, damping, core)
+        if exact is not None:
+            solution = self._one_call(configuration, dt, damping, core, forced=True)
+            if solution is not None:
+                return solution
+            exact = None
         poses = self.gather(configuration)
         if poses is None:
             return None
         self.write_settings(dt, damping, core)
-        if core.solver == "auto":
-            return self._one_call(poses, configuration, dt, core)
-        if exact is not None:
-            solution = self._one_call(poses, configuration, dt, core, forced=True)
-            if solution is not None:
-                return solution
-            exact = None
         return self._rows_then_cascade(poses, configuration, dt, core, exact)
 
     def step_result(
@@ -333,31 +528,30 @@ class CompiledPlan:
         :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
         ``skip`` 1 when the first level is the couplings' (reported apart). None where the QP
         path must answer."""
-        poses = self.gather(configuration)
-        if poses is None:
-            return None
-        self.write_settings(dt, damping, core)
-        out = self._kernel_step(poses, configuration, dt, core, False)
+        out = self._solve(configuration, dt, damping, core, False)
         if out is None:
             return None
-        d, v, info, general = out
-        qpos = poses[0].copy()
+        d, v, info, general, qpos = out
         return StepResult.lazy(
             v, d, info, skip, time.perf_counter() - start,
             lambda: self._limit_rows(qpos, dt, general),
         )  # fmt: skip
 
     def _one_call(
-        self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool = False
+        self,
+        configuration: mink.Configuration,
+        dt: float,
+        damping: float,
+        core,
+        forced: bool = False,
     ) -> Solution | None:
         """The whole step in one kernel call, warm started from ``core``'s active sets
         (which it then updates). ``forced``: kept only when every level was solved."""
-        out = self._kernel_step(poses, configuration, dt, core, forced)
+        out = self._solve(configuration, dt, damping, core, forced)
         if out is None:
             return None
-        d, v, info, general = out
+        d, v, info, general, qpos = out
         residuals, sigma, lam2, status, iterations = info[:5].tolist()
-        qpos = poses[0].copy()
         return Solution(
             displacement=d,
             velocity=v,
@@ -406,11 +600,7 @@ class CompiledPlan:
         forced backend must answer) or the QP path must answer."""
         if core.solver != "auto" and not exact:
             return None
-        poses = self.gather(configuration)
-        if poses is None:
-            return None
-        self.write_settings(dt, damping, core)
-        out = self._kernel_step(poses, configuration, dt, core, core.solver != "auto")
+        out = self._solve(configuration, dt, damping, core, core.solver != "auto")
         if out is None:
             return None
         return out[1], [_STATUS_OF_CODE[s] for s in out[2][3].tolist()]

@@ -26,8 +26,8 @@ from .boxes import LimitBoxes
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
-    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "limit_layout", "plan_arrays",
-    "task_layout",
+    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "frame_chains", "limit_layout",
+    "plan_arrays", "task_layout",
 ]  # fmt: skip
 
 KINDS = {"site": 0, "body": 1, "geom": 2}
@@ -305,3 +305,22 @@ def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
     angle by a general row, which the kernel does not compute)."""
     ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
     return bool(np.any(ball & (model.jnt_limited != 0)))
+
+
+def frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
+    """Per frame ``(kind, id)`` of ``frames``, the dofs that move it, in the order MuJoCo's
+    ``mj_jac`` visits them (from its body's last dof up the ``dof_parentid`` chain; a body
+    without dofs: its first moving ancestor's), and its body's root: ``(starts (F + 1,),
+    dofs, roots (F,))``."""
+    starts, dofs, roots = [0], [], []
+    for kind, fid in frames.tolist():
+        body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
+        roots.append(int(model.body_rootid[body]))
+        while body and not model.body_dofnum[body]:
+            body = int(model.body_parentid[body])
+        da = int(model.body_dofadr[body] + model.body_dofnum[body]) - 1 if body else -1
+        while da >= 0:
+            dofs.append(da)
+            da = int(model.dof_parentid[da])
+        starts.append(len(dofs))
+    return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))

@@ -336,7 +336,8 @@ class SolverCache:
                 solution = ik.qp_solution(as_configuration(configuration), dt)
             velocity, status = solution.velocity, solution.status
         _raise_unsolved(ik, status)
-        if not np.isfinite(velocity).all():
+        # finite (its sum finite, else every entry checked: a finite v may overflow it)
+        if not (math.isfinite(sum(velocity.tolist())) or np.isfinite(velocity).all()):
             return None  # the full path reports it
         return velocity
 

@@ -46,6 +46,9 @@ from .rows import Stack, TaskRows, normalize_stack, stack_rows
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 
+_perf_counter = time.perf_counter
+_DT_MIN, _DT_MAX = checks.DT_MIN, checks.DT_MAX
+
 __all__ = [
     "DampingLaw",
     "IKSolver",
@@ -218,21 +221,27 @@ class IKSolver:
         model's couplings (:attr:`qpik.StepOptions.couplings`) their level is solved
         first; the result's per-level lists are the stack's levels, and
         ``coupling_residual`` the coupling level's."""
-        start = time.perf_counter()
+        start = _perf_counter()
+        plan, core = self._plan, self._core
+        if (  # the default solver: one kernel call, straight to the result
+            plan is not None
+            and type(dt) is float
+            and core.solver == "auto"
+            and isinstance(configuration, mink.Configuration)
+            and configuration.model is self.model
+            and _DT_MIN <= dt <= _DT_MAX
+        ):
+            result = plan.step_result(
+                configuration, dt, self.damping, core, start, self._coupling_level
+            )
+            if result is not None:
+                return result
         checks.check_instance(
             "configuration", configuration, mink.Configuration, "a qpik.Configuration"
         )
         solution = None
-        if self._compiled_step_applies(configuration, dt):
-            if self._core.solver == "auto":  # one kernel call, straight to the result
-                assert self._plan is not None
-                result = self._plan.step_result(
-                    configuration, dt, self.damping, self._core, start, self._coupling_level
-                )
-                if result is not None:
-                    return result
-            else:
-                solution = self._compiled_step(configuration, dt)
+        if core.solver != "auto" and self._compiled_step_applies(configuration, dt):
+            solution = self._compiled_step(configuration, dt)
         if solution is None:
             solution = self._qp_step(configuration, dt)
         return StepResult.of(solution, time.perf_counter() - start, self._coupling_level)

@@ -42,6 +42,7 @@ __all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
 
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+_FLOAT64 = np.dtype(np.float64)
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -168,10 +169,31 @@ class Configuration(mink.Configuration):
         return q
 
     def update(self, q: npt.ArrayLike | None = None) -> None:
-        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics."""
+        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics (what
+        :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
+        model with equalities, ``mj_makeConstraint``)."""
+        model, data = self.model, self.data
+        # (data, model, data.qpos, (nq,), neq > 0), kept while model and data are these
+        # (MuJoCo's arrays never move)
+        kept = self.__dict__.get("_update_kept")
+        if kept is None or kept[0] is not data or kept[1] is not model:
+            kept = self._update_kept = (data, model, data.qpos, (model.nq,), model.neq > 0)
         if q is not None:
-            q = self._validated(q)
-        super().update(q)
+            # A float64 vector of nq finite entries (its sum finite: no NaN, no inf, with no
+            # floating-point warning; one whose sum overflows is judged by _validated) is
+            # taken as it is.
+            if not (
+                type(q) is np.ndarray
+                and q.dtype is _FLOAT64
+                and q.shape == kept[3]
+                and math.isfinite(sum(q.tolist()))
+            ):
+                q = self._validated(q)
+            kept[2][:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        if kept[4]:
+            mujoco.mj_makeConstraint(model, data)
 
     @property
     def lower(self) -> np.ndarray:
