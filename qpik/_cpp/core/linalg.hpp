@@ -385,9 +385,10 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
 // with no rows: R only, the same R).
-inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
+inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
+    if (keep_vn) *keep_vn = 0.0;
     double alpha = 0.0;
     for (i64 t = 0; t < size; ++t) {
         x[t] = R(i + t, i);
@@ -400,6 +401,10 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
     if (vn == 0.0) return;
+    if (keep_vn) {
+        *keep_vn = vn;
+        std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
+    }
     reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
     i64 row = 0;
     for (; row + 2 <= r; row += 2) {
@@ -427,9 +432,15 @@ inline void column_norms(const Mat& R, i64 start, Vec& norms) {
 
 }  // namespace detail
 
-// The scratch vectors of householder_qr (kept by a caller that factors often).
+// The scratch vectors of householder_qr (kept by a caller that factors often). With
+// keep_reflectors, V row i holds step i's Householder vector x (entries i..r-1 of the row,
+// the rest 0) and vn[i] = |x|^2 (0 where the step reflected nothing), so that
+// Q = H_0 H_1 ... H_{k-1}, H_i = I - 2 x x^T / vn[i], can be applied without forming it.
 struct QRScratch {
     Vec norms, x, S;
+    bool keep_reflectors = false;
+    Mat V;
+    Vec vn;
 };
 
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
@@ -451,10 +462,56 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     Vec& S = ws.S;
     x.assign(static_cast<size_t>(r), 0.0);
     S.assign(static_cast<size_t>(m), 0.0);
-    for (i64 i = 0; i < std::min(r, m); ++i) {
+    i64 steps = std::min(r, m);
+    if (ws.keep_reflectors) {
+        ws.V.zeros(steps, r);
+        ws.vn.assign(static_cast<size_t>(steps), 0.0);
+    }
+    for (i64 i = 0; i < steps; ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
-        detail::reflect(R, Q, x, S, i);
+        if (ws.keep_reflectors) detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)]);
+        else detail::reflect(R, Q, x, S, i);
         if (pivot) detail::column_norms(R, i + 1, norms);
+    }
+}
+
+// Y (rows, r) <- Y H_0 H_1 ... H_{k-1} for the first k reflectors kept by householder_qr
+// (ws.keep_reflectors): Y = I gives Q; Y = Z gives Z Q without forming Q. Per reflector and
+// row, the operations reflect() does on Q's rows.
+inline void apply_reflectors_right(Mat& Y, const QRScratch& ws, i64 k) {
+    i64 r = ws.V.cols, n = Y.rows;
+    for (i64 i = 0; i < k; ++i) {
+        double vn = ws.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        const double* x = ws.V.row(i) + i;
+        i64 size = r - i;
+        i64 row = 0;
+        for (; row + 2 <= n; row += 2) {
+            double* q0 = Y.row(row) + i;
+            double* q1 = Y.row(row + 1) + i;
+            double s0, s1;
+            dot2(q0, q1, x, size, s0, s1);
+            axmy(q0, 2.0 * s0 / vn, x, size);
+            axmy(q1, 2.0 * s1 / vn, x, size);
+        }
+        for (; row < n; ++row) {
+            double* qr = Y.row(row) + i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += qr[t] * x[t];
+            axmy(qr, 2.0 * s / vn, x, size);
+        }
+    }
+}
+
+// E (r, c) <- H_0 H_1 ... H_{k-1} E (reflectors kept by householder_qr, applied last to
+// first): Q's columns Q e without forming Q, at (r - i) c per reflector.
+inline void apply_reflectors_left(Mat& E, QRScratch& ws, i64 k) {
+    i64 r = ws.V.cols, c = E.cols;
+    ws.S.resize(static_cast<size_t>(std::max<i64>(c, 1)));
+    for (i64 i = k - 1; i >= 0; --i) {
+        double vn = ws.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        detail::reflect_columns(E.row(0), c, i, r - i, 0, c, ws.V.row(i) + i, vn, ws.S.data());
     }
 }
 
