@@ -76,7 +76,7 @@ struct Workspace {
     Mat Mt, Q, R, Qt, Qr;
     IVec perm, null_cols;
     Vec sq, sv;
-    BVec clean;
+    IVec clean;
     std::vector<detail::Rotation> log;
     QRScratch qr;
     // reduced_qp, ls_form, the cascade
@@ -142,37 +142,61 @@ namespace detail {
 // The rotations are logged when log_rotations. A pair found orthogonal is checked again only
 // after one of its rows was rotated (clean[i p + j]): its rows and sq are the same bits, so the
 // check would give the same answer; the rotations are those of checking every pair.
-inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, BVec& clean,
+inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
                              std::vector<Rotation>& log) {
     sq.assign(static_cast<size_t>(p), 0.0);
     for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), cols);
     log.clear();
-    clean.assign(static_cast<size_t>(p * p), 0);
+    // clean[i p + j]: the time (a count of checks and rotations, from 1) pair (i, j) was last
+    // found orthogonal, 0 if never; clean[p p + i]: the time row i was last rotated, 0 if never.
+    // A pair is clean when found orthogonal after both its rows were last rotated.
+    clean.assign(static_cast<size_t>(p * p + p), 0);
+    i64* stamp = clean.data() + p * p;
+    i64 now = 0;
+    auto is_clean = [&](i64 i, i64 j) {
+        i64 c = clean[i * p + j];
+        return c > stamp[i] && c > stamp[j];
+    };
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
         for (i64 i = 0; i < p - 1; ++i) {
+            // Row i's products with two rows j < j2 are taken in one pass (dot2: each lane
+            // the sum dot() makes, the same bits); j2's is used when row i is still the same
+            // at j2 (no rotation at j).
+            i64 next = -1;
+            double next_gamma = 0.0;
             for (i64 j = i + 1; j < p; ++j) {
-                if (clean[i * p + j]) continue;
+                if (is_clean(i, j)) continue;
                 double* ri = R.row(i);
                 double* rj = R.row(j);
                 double alpha = sq[i], beta = sq[j];
-                double gamma = dot(ri, rj, cols);
+                double gamma;
+                if (next == j) {
+                    gamma = next_gamma;
+                    next = -1;
+                } else {
+                    i64 j2 = j + 1;
+                    while (j2 < p && is_clean(i, j2)) ++j2;
+                    if (j2 < p) {
+                        dot2(rj, R.row(j2), ri, cols, gamma, next_gamma);
+                        next = j2;
+                    } else {
+                        gamma = dot(ri, rj, cols);
+                    }
+                }
                 if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) {
-                    clean[i * p + j] = 1;
+                    clean[i * p + j] = ++now;
                     continue;
                 }
+                next = -1;  // row i is rotated: its product with j2 is taken again
                 rotated = true;
                 double zeta = (beta - alpha) / (2.0 * gamma);
                 double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
-                jacobi_rows(ri, rj, cs, sn, cols);
+                jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
                 if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
-                row_sq2(ri, rj, cols, sq[i], sq[j]);
-                for (i64 k = 0; k < p; ++k) {
-                    clean[std::min(i, k) * p + std::max(i, k)] = 0;
-                    clean[std::min(j, k) * p + std::max(j, k)] = 0;
-                }
+                stamp[i] = stamp[j] = ++now;
             }
         }
         if (!rotated) break;
