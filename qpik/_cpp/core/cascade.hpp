@@ -203,6 +203,31 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
     }
 }
 
+// R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
+// that span the same space, nearly orthogonal, with the same singular values); left as they
+// are where QL does not converge.
+inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
+    Mat& G = ws.Q;
+    G.zeros(p, p);
+    for (i64 i = 0; i < p; ++i) {
+        const double* ri = R.row(i);
+        for (i64 j = i; j < p; ++j) {
+            double g = dot(ri, R.row(j), cols);
+            G(i, j) = g;
+            G(j, i) = g;
+        }
+    }
+    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return;
+    Mat& T = ws.Qr;
+    T.zeros(p, cols);
+    for (i64 k = 0; k < p; ++k) {
+        double* tk = T.row(k);
+        const double* vk = G.row(k);
+        for (i64 i = 0; i < p; ++i) axpy(tk, vk[i], R.row(i), cols);
+    }
+    for (i64 k = 0; k < p; ++k) std::memcpy(R.row(k), T.row(k), static_cast<size_t>(cols) * sizeof(double));
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -352,6 +377,11 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
+    // Without Zn (no rotations to log) and with many rows, the rows are first turned by the
+    // eigenvectors of their Gram matrix R R^T (symmetric QL, O(p^3)): nearly orthogonal, so
+    // that Jacobi, which decides the singular values as before (the norms of rows it made
+    // orthogonal), ends in a sweep or two rather than many (clustered singular values).
+    if (!need_null && p >= 16) detail::gram_precondition(R, p, cols, ws);
     using detail::Rotation;
     std::vector<Rotation>& log = ws.log;
     detail::jacobi_row_norms(R, p, cols, need_null, ws.sq, ws.clean, log);

@@ -386,6 +386,159 @@ inline double min_singular(CMatRef M) {
 
 namespace detail {
 
+// sqrt(a^2 + b^2) without overflow (IEEE operations only: the same bits everywhere).
+inline double safe_hypot(double a, double b) {
+    a = std::fabs(a);
+    b = std::fabs(b);
+    if (a < b) std::swap(a, b);
+    if (a == 0.0) return 0.0;
+    double q = b / a;
+    return a * std::sqrt(1.0 + q * q);
+}
+
+}  // namespace detail
+
+// Eigenvectors of the symmetric V (n, n), in place: on return row k of V is the k-th
+// eigenvector (V^T on return holds them as columns) and d[k] its eigenvalue (unsorted).
+// Householder tridiagonalisation then the implicit QL method (EISPACK tred2 / tql2, as JAMA
+// writes them), every loop in one fixed order. false where QL did not converge in 30 n
+// iterations (V then holds no meaning).
+inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
+    i64 n = V.rows;
+    d.assign(static_cast<size_t>(n), 0.0);
+    e.assign(static_cast<size_t>(n), 0.0);
+    if (n == 0) return true;
+    for (i64 j = 0; j < n; ++j) d[j] = V(n - 1, j);
+    for (i64 i = n - 1; i > 0; --i) {
+        double scale = 0.0, h = 0.0;
+        for (i64 k = 0; k < i; ++k) scale += std::fabs(d[k]);
+        if (scale == 0.0) {
+            e[i] = d[i - 1];
+            for (i64 j = 0; j < i; ++j) {
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+                V(j, i) = 0.0;
+            }
+        } else {
+            for (i64 k = 0; k < i; ++k) {
+                d[k] /= scale;
+                h += d[k] * d[k];
+            }
+            double f = d[i - 1];
+            double g = std::sqrt(h);
+            if (f > 0.0) g = -g;
+            e[i] = scale * g;
+            h = h - f * g;
+            d[i - 1] = f - g;
+            for (i64 j = 0; j < i; ++j) e[j] = 0.0;
+            for (i64 j = 0; j < i; ++j) {
+                f = d[j];
+                V(j, i) = f;
+                g = e[j] + V(j, j) * f;
+                for (i64 k = j + 1; k <= i - 1; ++k) {
+                    g += V(k, j) * d[k];
+                    e[k] += V(k, j) * f;
+                }
+                e[j] = g;
+            }
+            f = 0.0;
+            for (i64 j = 0; j < i; ++j) {
+                e[j] /= h;
+                f += e[j] * d[j];
+            }
+            double hh = f / (h + h);
+            for (i64 j = 0; j < i; ++j) e[j] -= hh * d[j];
+            for (i64 j = 0; j < i; ++j) {
+                f = d[j];
+                g = e[j];
+                for (i64 k = j; k <= i - 1; ++k) V(k, j) -= (f * e[k] + g * d[k]);
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+            }
+        }
+        d[i] = h;
+    }
+    for (i64 i = 0; i < n - 1; ++i) {
+        V(n - 1, i) = V(i, i);
+        V(i, i) = 1.0;
+        double h = d[i + 1];
+        if (h != 0.0) {
+            for (i64 k = 0; k <= i; ++k) d[k] = V(k, i + 1) / h;
+            for (i64 j = 0; j <= i; ++j) {
+                double g = 0.0;
+                for (i64 k = 0; k <= i; ++k) g += V(k, i + 1) * V(k, j);
+                for (i64 k = 0; k <= i; ++k) V(k, j) -= g * d[k];
+            }
+        }
+        for (i64 k = 0; k <= i; ++k) V(k, i + 1) = 0.0;
+    }
+    for (i64 j = 0; j < n; ++j) {
+        d[j] = V(n - 1, j);
+        V(n - 1, j) = 0.0;
+    }
+    V(n - 1, n - 1) = 1.0;
+    e[0] = 0.0;
+    // QL on the rows of Vt = V^T (a rotation of columns i, i+1 of V is one of rows: contiguous).
+    transposed_into(V.cref(), Vt);
+    for (i64 i = 1; i < n; ++i) e[i - 1] = e[i];
+    e[n - 1] = 0.0;
+    double f = 0.0, tst1 = 0.0;
+    const double eps = 2.220446049250313e-16;
+    i64 budget = 30 * n;
+    for (i64 l = 0; l < n; ++l) {
+        tst1 = pymax(tst1, std::fabs(d[l]) + std::fabs(e[l]));
+        i64 m = l;
+        while (m < n) {
+            if (std::fabs(e[m]) <= eps * tst1) break;
+            ++m;
+        }
+        if (m == n) m = n - 1;
+        if (m > l) {
+            do {
+                if (--budget < 0) return false;
+                double g = d[l];
+                double p = (d[l + 1] - g) / (2.0 * e[l]);
+                double r = detail::safe_hypot(p, 1.0);
+                if (p < 0) r = -r;
+                d[l] = e[l] / (p + r);
+                d[l + 1] = e[l] * (p + r);
+                double dl1 = d[l + 1];
+                double h = g - d[l];
+                for (i64 i = l + 2; i < n; ++i) d[i] -= h;
+                f = f + h;
+                p = d[m];
+                double c = 1.0, c2 = 1.0, c3 = 1.0;
+                double el1 = e[l + 1];
+                double s = 0.0, s2 = 0.0;
+                for (i64 i = m - 1; i >= l; --i) {
+                    c3 = c2;
+                    c2 = c;
+                    s2 = s;
+                    g = c * e[i];
+                    h = c * p;
+                    r = detail::safe_hypot(p, e[i]);
+                    e[i + 1] = s * r;
+                    s = e[i] / r;
+                    c = p / r;
+                    p = c * d[i] - s * g;
+                    d[i + 1] = h + s * (c * g + s * d[i]);
+                    // columns i, i+1 of V: new i+1 = s v_i + c v_{i+1}, new i = c v_i - s v_{i+1}
+                    jacobi_rows(Vt.row(i), Vt.row(i + 1), c, s, n);
+                }
+                p = -s * s2 * c3 * el1 * e[l] / dl1;
+                e[l] = s * p;
+                d[l] = c * p;
+            } while (std::fabs(e[l]) > eps * tst1);
+        }
+        d[l] = d[l] + f;
+        e[l] = 0.0;
+    }
+    std::swap(V, Vt);
+    return true;
+}
+
+namespace detail {
+
 // The Householder reflection (x, |x|^2 = vn) applied to columns j0..m-1 of rows
 // i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
 // M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
