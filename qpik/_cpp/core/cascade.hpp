@@ -76,6 +76,7 @@ struct Workspace {
     Mat Mt, Q, R, Qt, Qr;
     IVec perm, null_cols;
     Vec sq, sv;
+    IVec clean;
     std::vector<detail::Rotation> log;
     QRScratch qr;
     // reduced_qp, ls_form, the cascade
@@ -133,6 +134,172 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 
 }  // namespace detail
 
+namespace detail {
+
+// One-sided Jacobi on the first p rows of R (each cols long), cyclic by rows until a sweep
+// rotates nothing: sq[i] = |row i|^2 on return (summed over t in order from 0.0,
+// recomputed only after the row was rotated: a row left alone gives the same bits again).
+// The rotations are logged when log_rotations. A pair found orthogonal is checked again only
+// after one of its rows was rotated (clean[i p + j]): its rows and sq are the same bits, so the
+// check would give the same answer; the rotations are those of checking every pair.
+inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
+                             std::vector<Rotation>& log) {
+    sq.assign(static_cast<size_t>(p), 0.0);
+    for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), cols);
+    log.clear();
+    // clean[i p + j]: the time (a count of checks and rotations, from 1) pair (i, j) was last
+    // found orthogonal, 0 if never; clean[p p + i]: the time row i was last rotated, 0 if never.
+    // A pair is clean when found orthogonal after both its rows were last rotated.
+    clean.assign(static_cast<size_t>(p * p + p), 0);
+    i64* stamp = clean.data() + p * p;
+    i64 now = 0;
+    auto is_clean = [&](i64 i, i64 j) {
+        i64 c = clean[i * p + j];
+        return c > stamp[i] && c > stamp[j];
+    };
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+        for (i64 i = 0; i < p - 1; ++i) {
+            // Row i's products with two rows j < j2 are taken in one pass (dot2: each lane
+            // the sum dot() makes, the same bits); j2's is used when row i is still the same
+            // at j2 (no rotation at j).
+            i64 next = -1;
+            double next_gamma = 0.0;
+            for (i64 j = i + 1; j < p; ++j) {
+                if (is_clean(i, j)) continue;
+                double* ri = R.row(i);
+                double* rj = R.row(j);
+                double alpha = sq[i], beta = sq[j];
+                double gamma;
+                if (next == j) {
+                    gamma = next_gamma;
+                    next = -1;
+                } else {
+                    i64 j2 = j + 1;
+                    while (j2 < p && is_clean(i, j2)) ++j2;
+                    if (j2 < p) {
+                        dot2(rj, R.row(j2), ri, cols, gamma, next_gamma);
+                        next = j2;
+                    } else {
+                        gamma = dot(ri, rj, cols);
+                    }
+                }
+                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) {
+                    clean[i * p + j] = ++now;
+                    continue;
+                }
+                next = -1;  // row i is rotated: its product with j2 is taken again
+                rotated = true;
+                double zeta = (beta - alpha) / (2.0 * gamma);
+                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
+                double sn = cs * tt;
+                jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
+                if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
+                stamp[i] = stamp[j] = ++now;
+            }
+        }
+        if (!rotated) break;
+    }
+}
+
+// R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
+// that span the same space, nearly orthogonal, with the same singular values); left as they
+// are where QL does not converge.
+inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
+    Mat& G = ws.Q;
+    G.zeros(p, p);
+    for (i64 i = 0; i < p; ++i) {
+        const double* ri = R.row(i);
+        for (i64 j = i; j < p; ++j) {
+            double g = dot(ri, R.row(j), cols);
+            G(i, j) = g;
+            G(j, i) = g;
+        }
+    }
+    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return;
+    Mat& T = ws.Qr;
+    T.zeros(p, cols);
+    for (i64 k = 0; k < p; ++k) {
+        double* tk = T.row(k);
+        const double* vk = G.row(k);
+        for (i64 i = 0; i < p; ++i) axpy(tk, vk[i], R.row(i), cols);
+    }
+    for (i64 k = 0; k < p; ++k) std::memcpy(R.row(k), T.row(k), static_cast<size_t>(cols) * sizeof(double));
+}
+
+// Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
+// first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
+// reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
+// the sizes alone (so the same inputs take the same path): Y = Z H_0 ... H_{p-1} (the
+// reflectors applied to Z's rows, (n, r)), or E = H_0 ... H_{p-1} [e_c or Theta^T e_c] (the
+// null columns alone, (r, c)) then Z E (E itself when Z is the identity).
+inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspace& ws, Mat& Zn) {
+    const IVec& null_cols = ws.null_cols;
+    i64 n = Z.rows, r = Z.cols;
+    i64 c = static_cast<i64>(null_cols.size());
+    double span = 0.0;  // sum over the reflectors of their lengths
+    for (i64 i = 0; i < p; ++i) span += static_cast<double>(r - i);
+    double cost_right = 4.0 * static_cast<double>(n) * span;
+    double cost_left = 4.0 * static_cast<double>(c) * span;
+    if (!z_eye) cost_left += 2.0 * static_cast<double>(n) * static_cast<double>(r) * static_cast<double>(c);
+    if (rotated_null) cost_left += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(p);
+    if (rotated_null) cost_right += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(n);
+    if (cost_right < cost_left) {
+        Mat& Y = ws.Q;
+        if (z_eye) {
+            Y.set_eye(r);
+        } else {
+            Y.zeros(n, r);
+            for (i64 i = 0; i < n; ++i) std::memcpy(Y.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
+        }
+        apply_reflectors_right(Y, ws.qr, p);
+        Zn.zeros(n, c);
+        if (rotated_null) {
+            Mat& Yt = ws.Qt;  // Y's first p columns as rows: contiguous rotations
+            Yt.zeros(p, n);
+            for (i64 i = 0; i < n; ++i)
+                for (i64 j = 0; j < p; ++j) Yt(j, i) = Y(i, j);
+            for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
+            for (i64 q = 0; q < c; ++q) {
+                i64 col = null_cols[q];
+                if (col < p)
+                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Yt(col, i);
+                else
+                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Y(i, col);
+            }
+        } else {
+            for (i64 i = 0; i < n; ++i) {
+                const double* src = Y.row(i);
+                double* dst = Zn.row(i);
+                for (i64 q = 0; q < c; ++q) dst[q] = src[null_cols[q]];
+            }
+        }
+        return;
+    }
+    Mat& E = ws.Qr;
+    E.zeros(r, c);
+    if (rotated_null) {
+        Mat& T = ws.Qt;  // Theta (p, p): the logged rotations of the identity's rows
+        T.set_eye(p);
+        for (const Rotation& g : ws.log) jacobi_rows(T.row(g.i), T.row(g.j), g.cs, g.sn, p);
+        for (i64 q = 0; q < c; ++q) {
+            i64 col = null_cols[q];
+            if (col < p)
+                for (i64 t = 0; t < p; ++t) E(t, q) = T(col, t);
+            else
+                E(col, q) = 1.0;
+        }
+    } else {
+        for (i64 q = 0; q < c; ++q) E(null_cols[q], q) = 1.0;
+    }
+    apply_reflectors_left(E, ws.qr, p);
+    if (z_eye) std::swap(Zn, E);
+    else mm_into(Z, E.cref(), Zn);
+}
+
+}  // namespace detail
+
 // Project a level (A, w) into the null space Z of the levels above (see project_level in
 // qpik/core/kernels.py).
 // need_null false (the last level with rows: no level below uses Zn): the same AZ, sigma and
@@ -170,55 +337,55 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         out.Zn.zeros(Z.rows, 0);
         return;
     }
-    Mat& Mt = ws.Mt;  // (diag(1/w) A Z)^T
-    Mt.zeros(r, keep);
-    i64 k = 0;
-    for (i64 i = 0; i < m; ++i) {
-        if (w[i] > 0.0) {
-            for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+    // The singular values come from the rows of R, the pivoted QR of M^T or M, M = diag(1/w)
+    // A Z over the kept rows (keep, r). Where Zn is needed, M^T (r, keep) is factored: its Q
+    // holds the null directions. Otherwise the factor with the shorter rows: M (keep, r)
+    // when keep > r (R's rows r long rather than keep; the same singular values, to
+    // round-off), else M^T.
+    bool tall = !need_null && keep > r;
+    Mat& Mt = ws.Mt;
+    if (tall) {
+        Mt.zeros(keep, r);
+        i64 k = 0;
+        for (i64 i = 0; i < m; ++i) {
+            if (!(w[i] > 0.0)) continue;
+            const double* src = out.AZ.row(i);
+            double* dst = Mt.row(k);
+            for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
             k += 1;
         }
+    } else {
+        Mt.zeros(r, keep);
+        i64 k = 0;
+        for (i64 i = 0; i < m; ++i) {
+            if (w[i] > 0.0) {
+                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+                k += 1;
+            }
+        }
     }
-    Mat& Q = ws.Q;
+    i64 cols = Mt.cols;  // R's row length
     Mat& R = ws.R;
-    householder_qr(Mt.cref(), true, Q, R, ws.perm, need_null, ws.qr);
-    // Singular values of the top block of R (p, keep) by one-sided Jacobi rotations of its
+    // Q is never formed: the reflectors are kept where Zn needs them (applied to Z, or to the
+    // identity's null columns only).
+    ws.qr.keep_reflectors = need_null;
+    householder_qr(Mt.cref(), true, ws.Q, R, ws.perm, false, ws.qr);
+    ws.qr.keep_reflectors = false;
+    // Singular values of the top block of R (p, cols) by one-sided Jacobi rotations of its
     // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
     // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
-    // Each row's sum of squares (summed over t in order from 0.0), recomputed only after the
-    // row was rotated: a row left alone gives the same bits again. The rotations are logged
-    // and applied to Q's columns only when one of the first p is a null direction (else Zn
-    // takes Q's unrotated columns p.. alone, and the rotations of Q would be lost work).
-    Vec& sq = ws.sq;
-    sq.assign(static_cast<size_t>(p), 0.0);
-    for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), keep);
+    // Without Zn (no rotations to log) and with many rows, the rows are first turned by the
+    // eigenvectors of their Gram matrix R R^T (symmetric QL, O(p^3)): nearly orthogonal, so
+    // that Jacobi, which decides the singular values as before (the norms of rows it made
+    // orthogonal), ends in a sweep or two rather than many (clustered singular values).
+    if (!need_null && p >= 16) detail::gram_precondition(R, p, cols, ws);
     using detail::Rotation;
     std::vector<Rotation>& log = ws.log;
-    log.clear();
-    for (int sweep = 0; sweep < 60; ++sweep) {
-        bool rotated = false;
-        for (i64 i = 0; i < p - 1; ++i) {
-            for (i64 j = i + 1; j < p; ++j) {
-                double* ri = R.row(i);
-                double* rj = R.row(j);
-                double alpha = sq[i], beta = sq[j];
-                double gamma = dot(ri, rj, keep);
-                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
-                rotated = true;
-                double zeta = (beta - alpha) / (2.0 * gamma);
-                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
-                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
-                double sn = cs * tt;
-                jacobi_rows(ri, rj, cs, sn, keep);
-                if (need_null) log.push_back(Rotation{i, j, cs, sn});
-                row_sq2(ri, rj, keep, sq[i], sq[j]);
-            }
-        }
-        if (!rotated) break;
-    }
+    detail::jacobi_row_norms(R, p, cols, need_null, ws.sq, ws.clean, log);
+    Vec& sq = ws.sq;
     Vec& sv = ws.sv;
     sv.assign(static_cast<size_t>(p), 0.0);
     double top = 0.0;
@@ -247,37 +414,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         out.Zn.zeros(Z.rows, 0);
         return;
     }
-    Mat& Qr = ws.Qr;
-    Qr.zeros(r, static_cast<i64>(null_cols.size()));
-    if (rotated_null) {
-        Mat& Qt = ws.Qt;
-        transposed_into(Q.cref(), Qt);  // Q's columns as rows: contiguous rotations
-        for (const Rotation& g : log) jacobi_rows(Qt.row(g.i), Qt.row(g.j), g.cs, g.sn, r);
-        for (size_t c = 0; c < null_cols.size(); ++c) {
-            const double* qc = Qt.row(null_cols[c]);
-            for (i64 t = 0; t < r; ++t) Qr(t, static_cast<i64>(c)) = qc[t];
-        }
-    } else {
-        for (i64 t = 0; t < r; ++t) {
-            const double* qt = Q.row(t);
-            double* dst = Qr.row(t);
-            for (size_t c = 0; c < null_cols.size(); ++c) dst[c] = qt[null_cols[c]];
-        }
-    }
-    if (z_eye) {
-        // mm(I, Qr): row i of I has the one nonzero 1.0 (column i), so entry (i, j) is
-        // 0.0 + 1.0 * Qr(i, j), the operations axpy does.
-        out.Zn.zeros(Qr.rows, Qr.cols);
-        for (i64 i = 0; i < Qr.rows; ++i) {
-            const double* src = Qr.row(i);
-            double* dst = out.Zn.row(i);
-            for (i64 j = 0; j < Qr.cols; ++j) dst[j] = 0.0 + 1.0 * src[j];
-        }
-    } else {
-        mm_into(Z, Qr.cref(), out.Zn);
-    }
-    out.sigma = sigma;
-    out.rank = rank;
+    detail::null_basis(Z, z_eye, p, rotated_null, ws, out.Zn);
 }
 
 inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null = true) {

@@ -126,6 +126,35 @@ inline void jacobi_rows(double* a, double* b, double cs, double sn, i64 n) {
     }
 }
 
+// jacobi_rows, then sa = |a'|^2 and sb = |b'|^2 as row_sq2 sums them (over t in order from
+// 0.0, one row per lane: the same bits), in the same pass over the rows.
+inline void jacobi_rows_sq(double* a, double* b, double cs, double sn, i64 n, double& sa, double& sb) {
+    using namespace simd;
+    v2d c2 = splat(cs), s2 = splat(sn);
+    v2d acc = splat(0.0);
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d xn = c2 * x - s2 * y;
+        v2d yn = s2 * x + c2 * y;
+        store(a + t, xn);
+        store(b + t, yn);
+        v2d v0 = v2d{xn[0], yn[0]};
+        v2d v1 = v2d{xn[1], yn[1]};
+        acc += v0 * v0;
+        acc += v1 * v1;
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = cs * x - sn * y;
+        b[t] = sn * x + cs * y;
+        v2d v = v2d{a[t], b[t]};
+        acc += v * v;
+    }
+    sa = acc[0];
+    sb = acc[1];
+}
+
 // The Givens rotation of two rows as rotate_in / drop_constraint write it:
 // a' = a cc + b ss, b' = xny (a + a') - b.
 inline void givens_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
@@ -357,6 +386,159 @@ inline double min_singular(CMatRef M) {
 
 namespace detail {
 
+// sqrt(a^2 + b^2) without overflow (IEEE operations only: the same bits everywhere).
+inline double safe_hypot(double a, double b) {
+    a = std::fabs(a);
+    b = std::fabs(b);
+    if (a < b) std::swap(a, b);
+    if (a == 0.0) return 0.0;
+    double q = b / a;
+    return a * std::sqrt(1.0 + q * q);
+}
+
+}  // namespace detail
+
+// Eigenvectors of the symmetric V (n, n), in place: on return row k of V is the k-th
+// eigenvector (V^T on return holds them as columns) and d[k] its eigenvalue (unsorted).
+// Householder tridiagonalisation then the implicit QL method (EISPACK tred2 / tql2, as JAMA
+// writes them), every loop in one fixed order. false where QL did not converge in 30 n
+// iterations (V then holds no meaning).
+inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
+    i64 n = V.rows;
+    d.assign(static_cast<size_t>(n), 0.0);
+    e.assign(static_cast<size_t>(n), 0.0);
+    if (n == 0) return true;
+    for (i64 j = 0; j < n; ++j) d[j] = V(n - 1, j);
+    for (i64 i = n - 1; i > 0; --i) {
+        double scale = 0.0, h = 0.0;
+        for (i64 k = 0; k < i; ++k) scale += std::fabs(d[k]);
+        if (scale == 0.0) {
+            e[i] = d[i - 1];
+            for (i64 j = 0; j < i; ++j) {
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+                V(j, i) = 0.0;
+            }
+        } else {
+            for (i64 k = 0; k < i; ++k) {
+                d[k] /= scale;
+                h += d[k] * d[k];
+            }
+            double f = d[i - 1];
+            double g = std::sqrt(h);
+            if (f > 0.0) g = -g;
+            e[i] = scale * g;
+            h = h - f * g;
+            d[i - 1] = f - g;
+            for (i64 j = 0; j < i; ++j) e[j] = 0.0;
+            for (i64 j = 0; j < i; ++j) {
+                f = d[j];
+                V(j, i) = f;
+                g = e[j] + V(j, j) * f;
+                for (i64 k = j + 1; k <= i - 1; ++k) {
+                    g += V(k, j) * d[k];
+                    e[k] += V(k, j) * f;
+                }
+                e[j] = g;
+            }
+            f = 0.0;
+            for (i64 j = 0; j < i; ++j) {
+                e[j] /= h;
+                f += e[j] * d[j];
+            }
+            double hh = f / (h + h);
+            for (i64 j = 0; j < i; ++j) e[j] -= hh * d[j];
+            for (i64 j = 0; j < i; ++j) {
+                f = d[j];
+                g = e[j];
+                for (i64 k = j; k <= i - 1; ++k) V(k, j) -= (f * e[k] + g * d[k]);
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+            }
+        }
+        d[i] = h;
+    }
+    for (i64 i = 0; i < n - 1; ++i) {
+        V(n - 1, i) = V(i, i);
+        V(i, i) = 1.0;
+        double h = d[i + 1];
+        if (h != 0.0) {
+            for (i64 k = 0; k <= i; ++k) d[k] = V(k, i + 1) / h;
+            for (i64 j = 0; j <= i; ++j) {
+                double g = 0.0;
+                for (i64 k = 0; k <= i; ++k) g += V(k, i + 1) * V(k, j);
+                for (i64 k = 0; k <= i; ++k) V(k, j) -= g * d[k];
+            }
+        }
+        for (i64 k = 0; k <= i; ++k) V(k, i + 1) = 0.0;
+    }
+    for (i64 j = 0; j < n; ++j) {
+        d[j] = V(n - 1, j);
+        V(n - 1, j) = 0.0;
+    }
+    V(n - 1, n - 1) = 1.0;
+    e[0] = 0.0;
+    // QL on the rows of Vt = V^T (a rotation of columns i, i+1 of V is one of rows: contiguous).
+    transposed_into(V.cref(), Vt);
+    for (i64 i = 1; i < n; ++i) e[i - 1] = e[i];
+    e[n - 1] = 0.0;
+    double f = 0.0, tst1 = 0.0;
+    const double eps = 2.220446049250313e-16;
+    i64 budget = 30 * n;
+    for (i64 l = 0; l < n; ++l) {
+        tst1 = pymax(tst1, std::fabs(d[l]) + std::fabs(e[l]));
+        i64 m = l;
+        while (m < n) {
+            if (std::fabs(e[m]) <= eps * tst1) break;
+            ++m;
+        }
+        if (m == n) m = n - 1;
+        if (m > l) {
+            do {
+                if (--budget < 0) return false;
+                double g = d[l];
+                double p = (d[l + 1] - g) / (2.0 * e[l]);
+                double r = detail::safe_hypot(p, 1.0);
+                if (p < 0) r = -r;
+                d[l] = e[l] / (p + r);
+                d[l + 1] = e[l] * (p + r);
+                double dl1 = d[l + 1];
+                double h = g - d[l];
+                for (i64 i = l + 2; i < n; ++i) d[i] -= h;
+                f = f + h;
+                p = d[m];
+                double c = 1.0, c2 = 1.0, c3 = 1.0;
+                double el1 = e[l + 1];
+                double s = 0.0, s2 = 0.0;
+                for (i64 i = m - 1; i >= l; --i) {
+                    c3 = c2;
+                    c2 = c;
+                    s2 = s;
+                    g = c * e[i];
+                    h = c * p;
+                    r = detail::safe_hypot(p, e[i]);
+                    e[i + 1] = s * r;
+                    s = e[i] / r;
+                    c = p / r;
+                    p = c * d[i] - s * g;
+                    d[i + 1] = h + s * (c * g + s * d[i]);
+                    // columns i, i+1 of V: new i+1 = s v_i + c v_{i+1}, new i = c v_i - s v_{i+1}
+                    jacobi_rows(Vt.row(i), Vt.row(i + 1), c, s, n);
+                }
+                p = -s * s2 * c3 * el1 * e[l] / dl1;
+                e[l] = s * p;
+                d[l] = c * p;
+            } while (std::fabs(e[l]) > eps * tst1);
+        }
+        d[l] = d[l] + f;
+        e[l] = 0.0;
+    }
+    std::swap(V, Vt);
+    return true;
+}
+
+namespace detail {
+
 // The Householder reflection (x, |x|^2 = vn) applied to columns j0..m-1 of rows
 // i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
 // M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
@@ -385,9 +567,10 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
 // with no rows: R only, the same R).
-inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
+inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
+    if (keep_vn) *keep_vn = 0.0;
     double alpha = 0.0;
     for (i64 t = 0; t < size; ++t) {
         x[t] = R(i + t, i);
@@ -400,6 +583,10 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i) {
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
     if (vn == 0.0) return;
+    if (keep_vn) {
+        *keep_vn = vn;
+        std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
+    }
     reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
     i64 row = 0;
     for (; row + 2 <= r; row += 2) {
@@ -427,9 +614,15 @@ inline void column_norms(const Mat& R, i64 start, Vec& norms) {
 
 }  // namespace detail
 
-// The scratch vectors of householder_qr (kept by a caller that factors often).
+// The scratch vectors of householder_qr (kept by a caller that factors often). With
+// keep_reflectors, V row i holds step i's Householder vector x (entries i..r-1 of the row,
+// the rest 0) and vn[i] = |x|^2 (0 where the step reflected nothing), so that
+// Q = H_0 H_1 ... H_{k-1}, H_i = I - 2 x x^T / vn[i], can be applied without forming it.
 struct QRScratch {
     Vec norms, x, S;
+    bool keep_reflectors = false;
+    Mat V;
+    Vec vn;
 };
 
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
@@ -451,10 +644,56 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     Vec& S = ws.S;
     x.assign(static_cast<size_t>(r), 0.0);
     S.assign(static_cast<size_t>(m), 0.0);
-    for (i64 i = 0; i < std::min(r, m); ++i) {
+    i64 steps = std::min(r, m);
+    if (ws.keep_reflectors) {
+        ws.V.zeros(steps, r);
+        ws.vn.assign(static_cast<size_t>(steps), 0.0);
+    }
+    for (i64 i = 0; i < steps; ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
-        detail::reflect(R, Q, x, S, i);
+        if (ws.keep_reflectors) detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)]);
+        else detail::reflect(R, Q, x, S, i);
         if (pivot) detail::column_norms(R, i + 1, norms);
+    }
+}
+
+// Y (rows, r) <- Y H_0 H_1 ... H_{k-1} for the first k reflectors kept by householder_qr
+// (ws.keep_reflectors): Y = I gives Q; Y = Z gives Z Q without forming Q. Per reflector and
+// row, the operations reflect() does on Q's rows.
+inline void apply_reflectors_right(Mat& Y, const QRScratch& ws, i64 k) {
+    i64 r = ws.V.cols, n = Y.rows;
+    for (i64 i = 0; i < k; ++i) {
+        double vn = ws.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        const double* x = ws.V.row(i) + i;
+        i64 size = r - i;
+        i64 row = 0;
+        for (; row + 2 <= n; row += 2) {
+            double* q0 = Y.row(row) + i;
+            double* q1 = Y.row(row + 1) + i;
+            double s0, s1;
+            dot2(q0, q1, x, size, s0, s1);
+            axmy(q0, 2.0 * s0 / vn, x, size);
+            axmy(q1, 2.0 * s1 / vn, x, size);
+        }
+        for (; row < n; ++row) {
+            double* qr = Y.row(row) + i;
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += qr[t] * x[t];
+            axmy(qr, 2.0 * s / vn, x, size);
+        }
+    }
+}
+
+// E (r, c) <- H_0 H_1 ... H_{k-1} E (reflectors kept by householder_qr, applied last to
+// first): Q's columns Q e without forming Q, at (r - i) c per reflector.
+inline void apply_reflectors_left(Mat& E, QRScratch& ws, i64 k) {
+    i64 r = ws.V.cols, c = E.cols;
+    ws.S.resize(static_cast<size_t>(std::max<i64>(c, 1)));
+    for (i64 i = k - 1; i >= 0; --i) {
+        double vn = ws.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        detail::reflect_columns(E.row(0), c, i, r - i, 0, c, ws.V.row(i) + i, vn, ws.S.data());
     }
 }
 
