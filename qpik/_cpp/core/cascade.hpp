@@ -312,11 +312,10 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
     return lam;
 }
 
-// The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
-inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
-                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
-    i64 n = Z.rows, r = Z.cols;
-    i64 p = G.rows;
+// The objective (H, c) of reduced_qp.
+inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
+                              Workspace& ws, ReducedQP& out) {
+    i64 r = Z.cols;
     mtm_into(AZ, out.H);
     double big = 0.0;
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
@@ -331,6 +330,13 @@ inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double
     mtv_into(Z, d, c2);
     out.c.assign(static_cast<size_t>(r), 0.0);
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+}
+
+// The rows (C, lo, hi) of reduced_qp.
+inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
+                         ReducedQP& out) {
+    i64 n = Z.rows, r = Z.cols;
+    i64 p = G.rows;
     out.C.zeros(n + p, r);
     out.lo.assign(static_cast<size_t>(n + p), 0.0);
     out.hi.assign(static_cast<size_t>(n + p), 0.0);
@@ -365,6 +371,13 @@ inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double
             out.hi[i] = kInf;
         }
     }
+}
+
+// The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
+inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
+                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
+    reduced_objective(A, b, AZ, Z, d, reg, ws, out);
+    reduced_rows(Z, d, lb, ub, G, h, ws, out);
 }
 
 inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
@@ -546,6 +559,103 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         }
     }
     return false;
+}
+
+// Whether the dual method, cold, stops at once on the level's QP (qp's H and c; its rows
+// C, lo, hi those reduced_rows writes, not formed): H's Cholesky factor exists and the
+// unconstrained minimiser x0 = -H^-1 c violates no row by more than tol. Each test is
+// solve_qp's, with the same bits: x0 by the same factor and solves, a row's norm, bounds and
+// C x0 as reduced_rows and most_violated compute them (C's rows are Z's and G Z's). solve_level
+// then returns x0 with an empty working set, and the level's answer is exact_level's re-solve
+// with no rows (free_answer).
+inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
+                               CVecRef h, double tol, Workspace& ws) {
+    i64 n = Z.rows, r = Z.cols, p = G.rows;
+    QPScratch& qs = ws.qps;
+    Mat& Lm = qs.L;
+    Lm.zeros(r, r);
+    if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
+    Vec& mc = qs.mc;
+    mc.resize(static_cast<size_t>(r));
+    for (i64 i = 0; i < r; ++i) mc[i] = -qp.c[i];
+    forward_into(Lm.cref(), mc, qs.y);
+    Vec& x = qs.x;
+    backward_into(Lm.cref(), qs.y, x);
+    // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general one).
+    auto violated = [&](const double* c, double lo, double hi, double size) {
+        double norm = 0.0;
+        for (i64 t = 0; t < r; ++t) norm += c[t] * c[t];
+        if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
+        norm = std::sqrt(norm);
+        i64 col = -1;  // unit_columns_into
+        for (i64 j = 0; j < r; ++j) {
+            if (c[j] != 0.0) {
+                if (col >= 0 || std::fabs(c[j]) != 1.0) {
+                    col = -2;
+                    break;
+                }
+                col = j;
+            }
+        }
+        double cx = 0.0;
+        if (col >= 0) {
+            cx = 0.0 + c[col] * x[col];
+        } else {
+            for (i64 j = 0; j < r; ++j) cx += c[j] * x[j];
+        }
+        if (lo > -kBig) {
+            double v = (lo - cx) / norm;
+            if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) return true;
+        }
+        if (hi < kBig) {
+            double v = (cx - hi) / norm;
+            if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) return true;
+        }
+        return false;
+    };
+    for (i64 i = 0; i < n; ++i) {
+        double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
+        double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        if (violated(Z.row(i), lo, hi, 1.0)) return false;
+    }
+    if (p) {
+        Mat& GZ = ws.GZ;
+        mm_into(G, Z, GZ);
+        Vec& Gd = ws.Gd;
+        mv_into(G, d, Gd);
+        for (i64 j = 0; j < p; ++j) {
+            double size = 0.0;
+            for (i64 t = 0; t < n; ++t) size += G(j, t) * G(j, t);
+            if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
+        }
+    }
+    return true;
+}
+
+// exact_level after a dual method that stopped at once (dual_stops_at_once): of the
+// least-squares minimisers, the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d),
+// certified; true when its certificate holds (else exact_level goes on from there: the
+// caller then takes the general path).
+inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
+                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es) {
+    i64 n = static_cast<i64>(d.size()), r = Z.cols;
+    IVec& rows = es.xrows;
+    IVec& sides = es.xsides;
+    rows.clear();
+    sides.clear();
+    Vec& zref = es.xzref;
+    mtv_into(Z, d.data(), zref);
+    for (auto& v : zref) v = -v;
+    Vec& u = es.xu;
+    if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
+        return false;
+    Vec& Zz = es.xZz;
+    mv_into(Z, z.data(), Zz);
+    Vec& x = es.xx;
+    x.resize(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+    cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
+    return cert.holds() && cert.rows_relative;
 }
 
 }  // namespace detail
@@ -911,24 +1021,44 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h, ws, qp);
-        QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
-        res.iterations[k] = sol.iterations;
-        i64 st = sol.status;
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp);
+        LSForm& ls = ws.ls;
+        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
         Certificate cert;
         Vec& z = ws.z;
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
+        bool cold = true;
+        for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
+        // A level no row binds: the answer of the general path below when the dual method
+        // stops at once (no row formed, no dual method run; the same bits).
+        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws) &&
+            detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = cert.primal;
+            ck[1] = cert.stationarity;
+            ck[2] = cert.dual;
+            ck[3] = cert.complementarity;
+            Vec& Zz = ws.Zz;
+            mv_into(Z.cref(), z.data(), Zz);
+            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            res.status[k] = SOLVED;
+            std::swap(Z, pr.Zn);
+            z_eye = false;
+            continue;
+        }
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp);
+        QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
+        res.iterations[k] = sol.iterations;
+        i64 st = sol.status;
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
-            LSForm& ls = ws.ls;
-            detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs);
             if (!exact && std::isnan(cert.primal)) {

@@ -293,14 +293,20 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     i64 nw = r - q;
     if (nw > 0) {
         Mat& BW = ws.BW;  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
-        BW.zeros(mb, nw);
-        Vec& row = ws.row;
-        row.assign(static_cast<size_t>(r), 0.0);
-        for (i64 i = 0; i < mb; ++i) {
-            const double* bi = ls.B.row(i);
-            for (i64 k = 0; k < r; ++k) row[k] = bi[k];
-            qr.apply_t(row.data());
-            for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+        if (q == 0) {  // Q = I: B itself
+            BW.rows = mb;
+            BW.cols = nw;
+            BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
+        } else {
+            BW.zeros(mb, nw);
+            Vec& row = ws.row;
+            row.resize(static_cast<size_t>(r));
+            for (i64 i = 0; i < mb; ++i) {
+                const double* bi = ls.B.row(i);
+                for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                qr.apply_t(row.data());
+                for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+            }
         }
         Vec& f0 = ws.f0;
         mv_into(ls.B.cref(), z.data(), f0);
