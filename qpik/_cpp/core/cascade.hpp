@@ -568,12 +568,15 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // C x0 as reduced_rows and most_violated compute them (C's rows are Z's and G Z's). solve_level
 // then returns x0 with an empty working set, and the level's answer is exact_level's re-solve
 // with no rows (free_answer).
+// factored: whether ws.qps then holds H's factor and x0 as solve_qp computes them (its
+// `factored` argument).
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
-                               CVecRef h, double tol, Workspace& ws) {
+                               CVecRef h, double tol, Workspace& ws, bool& factored) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
     Lm.zeros(r, r);
+    factored = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
     mc.resize(static_cast<size_t>(r));
@@ -581,6 +584,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     forward_into(Lm.cref(), mc, qs.y);
     Vec& x = qs.x;
     backward_into(Lm.cref(), qs.y, x);
+    factored = true;
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general one).
     auto violated = [&](const double* c, double lo, double hi, double size) {
         double norm = 0.0;
@@ -1029,11 +1033,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
-        bool cold = true;
+        bool cold = true, factored = false;
         for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
-        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws) &&
+        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored) &&
             detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
@@ -1050,7 +1054,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         }
         reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
+                                   factored);
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
         if (st == INFEASIBLE && k == 0) {

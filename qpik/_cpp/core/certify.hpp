@@ -134,7 +134,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     y.assign(static_cast<size_t>(k), 0.0);
     if (k == 0 || m == 0) return;
     IVec& perm = ws.perm;
-    perm.assign(static_cast<size_t>(k), 0);
+    perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
     norms.assign(static_cast<size_t>(k), 0.0);
@@ -143,8 +143,8 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.assign(static_cast<size_t>(m), 0.0);
-    S.assign(static_cast<size_t>(k), 0.0);
+    x.resize(static_cast<size_t>(m));  // x[:size] written before read; S filled by reflect_columns
+    S.resize(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -243,7 +243,7 @@ struct CertScratch {
     detail::LsScratch ls;
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
-    Vec gnorm, gx, v, vs, sc, ssc, zg;  // certify_level
+    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref;
 };
@@ -514,9 +514,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // the dofs the levels above fixed). Each component of H x then carries the round-off of
     // |H| dx (hs = |A|^T |A| dx + rho dx), not only of its own terms |A|^T |A| |x| (a dof the
     // level leaves near 0 while others move).
-    Vec dx(static_cast<size_t>(n), 0.0);
+    Vec& dx = ws.dx;
+    dx.resize(static_cast<size_t>(n));  // every entry written below
     {
-        Vec zc(static_cast<size_t>(r), 0.0);
+        Vec& zc = ws.zc;
+        zc.assign(static_cast<size_t>(r), 0.0);
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             double xi = std::fabs(x[i]), zm = 0.0;
@@ -530,7 +532,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
-    Vec hs(static_cast<size_t>(n), 0.0);
+    Vec& hs = ws.hs;
+    hs.assign(static_cast<size_t>(n), 0.0);
     Vec& v = ws.v;
     Vec& vs = ws.vs;
     v.assign(static_cast<size_t>(n), 0.0);
@@ -569,7 +572,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
-    Vec hsc(static_cast<size_t>(r), 0.0);
+    Vec& hsc = ws.hsc;
+    hsc.assign(static_cast<size_t>(r), 0.0);
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
     sc.assign(static_cast<size_t>(r), 0.0);

@@ -484,35 +484,42 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
 // qpik/core/kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
 // raw: return the final iterate and working set without the checks and the re-solve (the
 // cascade makes every answer exact and certifies it itself, qpik/_cpp/core/certify.hpp).
+// factored: ws.L already holds H's Cholesky factor (lower triangle of ws.L, zeros above) and
+// ws.x the unconstrained minimiser -H^-1 c, computed as below (the cascade's
+// dual_stops_at_once), and warm has no row: the same steps from there.
 inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                         i64 max_iter, double tol, bool canonical, bool raw, QPScratch& ws) {
+                         i64 max_iter, double tol, bool canonical, bool raw, QPScratch& ws, bool factored = false) {
     using namespace detail;
     i64 n = H.rows;
     i64 m = C.rows;
     BVec active(static_cast<size_t>(m), 0);
     Mat& Lm = ws.L;
-    Lm.zeros(n, n);
-    if (!cholesky_into(H, n, 0.0, Lm.ref()))
-        return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
+    if (!factored) {
+        Lm.zeros(n, n);
+        if (!cholesky_into(H, n, 0.0, Lm.ref()))
+            return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
+    }
     CMatRef L = Lm.cref();
     IVec& act_row = ws.act_row;
     IVec& act_side = ws.act_side;
     act_row.assign(static_cast<size_t>(n + 1), 0);
     act_side.assign(static_cast<size_t>(n + 1), 0);
     i64 q = 0;
-    {
+    if (!factored) {
         QPResult polished;
         if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) {
             polished.working = polished.active;  // strictly optimal: every row has u > 0
             return polished;
         }
     }
-    Vec& mc = ws.mc;
-    mc.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
-    forward_into(L, mc, ws.y);
     Vec& x = ws.x;
-    backward_into(L, ws.y, x);
+    if (!factored) {
+        Vec& mc = ws.mc;
+        mc.resize(static_cast<size_t>(n));
+        for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
+        forward_into(L, mc, ws.y);
+        backward_into(L, ws.y, x);
+    }
     inverse_transpose_into(Lm, ws.J, ws.JT);
     Mat& J = ws.JT;
     Mat& R = ws.R;
@@ -661,9 +668,11 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     return solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
 }
 
+// factored: see solve_qp (its first call only; the widened retries factor H again).
 inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                            i64 max_iter, double tol, bool lower, bool canonical, bool raw, QPScratch& ws) {
-    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
+                            i64 max_iter, double tol, bool lower, bool canonical, bool raw, QPScratch& ws,
+                            bool factored = false) {
+    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws, factored);
     i64 st = res.status;
     if (st == SOLVED || st == MAX_ITER || (st == INFEASIBLE && !lower)) return res;
     i64 its = res.iterations;
