@@ -328,7 +328,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     mtv_into(Z, d, c2);
-    out.c.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
 
@@ -338,8 +338,8 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     out.C.zeros(n + p, r);
-    out.lo.assign(static_cast<size_t>(n + p), 0.0);
-    out.hi.assign(static_cast<size_t>(n + p), 0.0);
+    zero_fill(out.lo, static_cast<size_t>(n + p));
+    zero_fill(out.hi, static_cast<size_t>(n + p));
     for (i64 i = 0; i < n; ++i)
         for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
     for (i64 i = 0; i < n; ++i) {
@@ -401,8 +401,8 @@ inline void tighten(VecRef lb, VecRef ub, VecRefT<const i64> dofs, CVecRef lower
 // conflict (entries from there on are left 0), else -1.
 inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef pos_ub, Vec& lb, Vec& ub) {
     i64 n = hard_lb.size();
-    lb.assign(static_cast<size_t>(n), 0.0);
-    ub.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(lb, static_cast<size_t>(n));
+    zero_fill(ub, static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) {
         if (hard_lb[i] > hard_ub[i]) return i;
         double lo = pymax(hard_lb[i], pos_lb[i]);
@@ -428,7 +428,7 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
     ls.B.zeros(m + (reg ? r : 0), r);
-    ls.f.assign(static_cast<size_t>(ls.B.rows), 0.0);
+    zero_fill(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = ws.e;
     mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
@@ -492,7 +492,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     cert = Certificate{};
     double best = kInf;
     Vec& x = es.xx;
-    x.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(x, static_cast<size_t>(n));
     auto certify = [&](const Vec& zc) {
         Vec& Zz = es.xZz;
         mv_into(Z, zc.data(), Zz);
@@ -670,7 +670,7 @@ namespace detail {
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
 inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     i64 r = M.rows, t = M.cols;
-    u.assign(static_cast<size_t>(t), 0.0);
+    zero_fill(u, static_cast<size_t>(t));
     BVec& passive = ws.passive;
     passive.assign(static_cast<size_t>(t), 0);
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
@@ -787,7 +787,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
                 continue;
             Vec& v = next_normal();
-            v.assign(static_cast<size_t>(r), 0.0);
+            zero_fill(v, static_cast<size_t>(r));
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
             owner.push_back(i);
         }
@@ -802,7 +802,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             }
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
-            v.assign(static_cast<size_t>(r), 0.0);
+            zero_fill(v, static_cast<size_t>(r));
             for (i64 s = 0; s < n; ++s) {
                 double g = G(j, s);
                 if (g == 0.0) continue;
@@ -826,7 +826,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         // |n_j + sum u_i n_i| >= c (1 + sum u) (u >= 0), far above kPinned (1 + sum u) when
         // c > 1e-9: no row is pinned, the answer the test would give (Z unchanged).
         Vec& sum = ws.sum;
-        sum.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(sum, static_cast<size_t>(r));
         for (i64 j = 0; j < t; ++j) {
             const Vec& v = normals[static_cast<size_t>(j)];
             for (i64 c = 0; c < r; ++c) sum[c] += v[c];
@@ -851,7 +851,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
         Vec& y = ws.y;
-        y.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(y, static_cast<size_t>(r));
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
         Vec& u = ws.u;
         detail::nnls_into(M, y, ws.nnls, u);
@@ -946,7 +946,7 @@ inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRe
     }
     out.active.assign(static_cast<size_t>(n + p), 0);
     for (size_t j = 0; j < rows.size(); ++j) out.active[rows[j]] = static_cast<i8>(sides[j]);
-    if (!out.ok) out.z.assign(static_cast<size_t>(Z.cols), 0.0);
+    if (!out.ok) zero_fill(out.z, static_cast<size_t>(Z.cols));
     return out;
 }
 
@@ -984,7 +984,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     CascadeResult res;
     res.status.assign(static_cast<size_t>(L), NOT_REACHED);
     res.sigma.assign(static_cast<size_t>(L), kInf);
-    res.lam2.assign(static_cast<size_t>(L), 0.0);
+    zero_fill(res.lam2, static_cast<size_t>(L));
     res.iterations.assign(static_cast<size_t>(L), 0);
     res.active.assign(static_cast<size_t>(L * (n + p)), 0);
     res.certificate.assign(static_cast<size_t>(4 * L), kNaN);

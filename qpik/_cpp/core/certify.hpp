@@ -69,12 +69,12 @@ struct ImplicitQR {
         q = N.cols;
         R = N;
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        beta.assign(static_cast<size_t>(q), 0.0);
-        S.assign(static_cast<size_t>(q), 0.0);
+        zero_fill(beta, static_cast<size_t>(q));
+        zero_fill(S, static_cast<size_t>(q));
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             Vec& x = v[static_cast<size_t>(i)];
-            x.assign(static_cast<size_t>(size), 0.0);
+            zero_fill(x, static_cast<size_t>(size));
             double alpha = 0.0;
             for (i64 t = 0; t < size; ++t) {
                 x[t] = R(i + t, i);
@@ -131,13 +131,13 @@ struct LsScratch {
 // least norm.
 inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 m = M.rows, k = M.cols;
-    y.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(y, static_cast<size_t>(k));
     if (k == 0 || m == 0) return;
     IVec& perm = ws.perm;
     perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    norms.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(norms, static_cast<size_t>(k));
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
     i64 steps = std::min(m, k);
@@ -184,7 +184,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         else break;
     }
     Vec& yp = ws.yp;
-    yp.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(yp, static_cast<size_t>(k));
     for (i64 i = rank - 1; i >= 0; --i) {
         double acc = f[i];
         for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
@@ -254,7 +254,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     i64 r = C.cols;
     i64 mb = ls.B.rows;
     z = zref;
-    u.assign(static_cast<size_t>(q), 0.0);
+    zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
     CertScratch local;  // no storage unless used (scratch: the caller's)
     CertScratch& ws = scratch ? *scratch : local;
@@ -263,7 +263,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Mat& N = ws.N;
         N.zeros(r, q);
         Vec& rhs = ws.rhs;
-        rhs.assign(static_cast<size_t>(q), 0.0);
+        zero_fill(rhs, static_cast<size_t>(q));
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
             for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
@@ -278,7 +278,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
         Vec& t = ws.t;
-        t.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(t, static_cast<size_t>(r));
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
@@ -314,7 +314,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls);
         Vec& wy = ws.wy;
-        wy.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(wy, static_cast<size_t>(r));
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
@@ -322,7 +322,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     if (W_out) {
         *W_out = Mat(r, nw);
         Vec& e = ws.e;
-        e.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(e, static_cast<size_t>(r));
         for (i64 j = 0; j < nw; ++j) {
             std::fill(e.begin(), e.end(), 0.0);
             e[q + j] = 1.0;
@@ -486,8 +486,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     Vec& gnorm = ws.gnorm;
     Vec& gx = ws.gx;
-    gnorm.assign(static_cast<size_t>(p), 0.0);
-    gx.assign(static_cast<size_t>(p), 0.0);
+    zero_fill(gnorm, static_cast<size_t>(p));
+    zero_fill(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         for (i64 i = 0; i < n; ++i) {
@@ -518,7 +518,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     dx.resize(static_cast<size_t>(n));  // every entry written below
     {
         Vec& zc = ws.zc;
-        zc.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             double xi = std::fabs(x[i]), zm = 0.0;
@@ -533,11 +533,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
     Vec& hs = ws.hs;
-    hs.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(hs, static_cast<size_t>(n));
     Vec& v = ws.v;
     Vec& vs = ws.vs;
-    v.assign(static_cast<size_t>(n), 0.0);
-    vs.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(v, static_cast<size_t>(n));
+    zero_fill(vs, static_cast<size_t>(n));
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
@@ -573,11 +573,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
     Vec& hsc = ws.hsc;
-    hsc.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(hsc, static_cast<size_t>(r));
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
-    sc.assign(static_cast<size_t>(r), 0.0);
-    ssc.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(sc, static_cast<size_t>(r));
+    zero_fill(ssc, static_cast<size_t>(r));
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double vi = v[i], vsi = vs[i], hsi = hs[i];
@@ -612,7 +612,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
-    zg.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(zg, static_cast<size_t>(r));
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|

@@ -68,8 +68,8 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
     for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
     for (i64 i = 0; i < q; ++i) {
         if (std::fabs(R(i, i)) <= 1e-13 * pymax(scale, 1e-300)) {
-            x.assign(static_cast<size_t>(n), 0.0);
-            u.assign(static_cast<size_t>(q), 0.0);
+            zero_fill(x, static_cast<size_t>(n));
+            zero_fill(u, static_cast<size_t>(q));
             return false;
         }
     }
@@ -87,7 +87,7 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
         Mat Hr = mm(Wt.cref(), mm(H, W.cref()).cref());
         Mat Lr;
         if (!cholesky(Hr.cref(), Lr)) {
-            u.assign(static_cast<size_t>(q), 0.0);
+            zero_fill(u, static_cast<size_t>(q));
             return false;
         }
         Vec hx = mv(H, x.data());
@@ -101,7 +101,7 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
     Vec hx = mv(H, x.data());
     for (i64 i = 0; i < n; ++i) hx[i] = hx[i] + c[i];
     Vec grad = mtv(Y.cref(), hx.data());
-    u.assign(static_cast<size_t>(q), 0.0);
+    zero_fill(u, static_cast<size_t>(q));
     for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T (H x + c)
         double acc = grad[i];
         for (i64 k = i + 1; k < q; ++k) acc -= R(i, k) * u[k];
@@ -439,8 +439,8 @@ inline QPResult polish(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, C
 // Bounds widened by scale (1 + |bound|) (1 + i / m), distinct per row.
 inline void widened(CVecRef lo, CVecRef hi, double scale, Vec& lo2, Vec& hi2) {
     i64 m = lo.size();
-    lo2.assign(static_cast<size_t>(m), 0.0);
-    hi2.assign(static_cast<size_t>(m), 0.0);
+    zero_fill(lo2, static_cast<size_t>(m));
+    zero_fill(hi2, static_cast<size_t>(m));
     double denom = static_cast<double>(std::max<i64>(m, 1));
     for (i64 i = 0; i < m; ++i) {
         double eps = scale * (1.0 + static_cast<double>(i) / denom);
@@ -526,13 +526,13 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     R.zeros(n, n);
     double r_norm = 1.0;
     Vec& u = ws.u;
-    u.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(u, static_cast<size_t>(n + 1));
     Vec& d = ws.d;
     Vec& z = ws.z;
     Vec& r = ws.r;
-    d.assign(static_cast<size_t>(n), 0.0);
-    z.assign(static_cast<size_t>(n), 0.0);
-    r.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(d, static_cast<size_t>(n));
+    zero_fill(z, static_cast<size_t>(n));
+    zero_fill(r, static_cast<size_t>(n + 1));
     BVec& in_set = ws.in_set;
     in_set.assign(static_cast<size_t>(m), 0);
     Vec& norms = ws.norms;
@@ -541,10 +541,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     unit_columns_into(C, unit);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
-    x_old.assign(static_cast<size_t>(n), 0.0);
-    u_old.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(x_old, static_cast<size_t>(n));
+    zero_fill(u_old, static_cast<size_t>(n + 1));
     Vec& normal = ws.normal;
-    normal.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(normal, static_cast<size_t>(n));
     i64 iterations = 0;
     while (true) {
         i64 row, side;
