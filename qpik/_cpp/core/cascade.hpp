@@ -332,9 +332,10 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
 
-// The rows (C, lo, hi) of reduced_qp.
+// The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
+// (computed as below, by dual_stops_at_once).
 inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
-                         ReducedQP& out) {
+                         ReducedQP& out, bool have_gz = false) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     out.C.zeros(n + p, r);
@@ -348,11 +349,11 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     }
     if (p) {
         Mat& GZ = ws.GZ;
-        mm_into(G, Z, GZ);
+        if (!have_gz) mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
             for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
         Vec& Gd = ws.Gd;
-        mv_into(G, d, Gd);
+        if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
             out.lo[n + j] = -kInf;
             out.hi[n + j] = h[j] - Gd[j];
@@ -569,14 +570,15 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // then returns x0 with an empty working set, and the level's answer is exact_level's re-solve
 // with no rows (free_answer).
 // factored: whether ws.qps then holds H's factor and x0 as solve_qp computes them (its
-// `factored` argument).
+// `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
+// computes them.
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
-                               CVecRef h, double tol, Workspace& ws, bool& factored) {
+                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
     Lm.zeros(r, r);
-    factored = false;
+    factored = have_gz = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
     mc.resize(static_cast<size_t>(r));
@@ -585,28 +587,20 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     Vec& x = qs.x;
     backward_into(Lm.cref(), qs.y, x);
     factored = true;
-    // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general one).
+    // A non-finite x0: the general path decides (most_violated's unit rows read one entry).
+    for (i64 i = 0; i < r; ++i)
+        if (!std::isfinite(x[i])) return false;
+    // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
+    // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
+    // one-entry sum on a unit row (the other terms are zeros), so the same decision.
     auto violated = [&](const double* c, double lo, double hi, double size) {
-        double norm = 0.0;
-        for (i64 t = 0; t < r; ++t) norm += c[t] * c[t];
+        double norm = 0.0, cx = 0.0;
+        for (i64 t = 0; t < r; ++t) {
+            norm += c[t] * c[t];
+            cx += c[t] * x[t];
+        }
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
         norm = std::sqrt(norm);
-        i64 col = -1;  // unit_columns_into
-        for (i64 j = 0; j < r; ++j) {
-            if (c[j] != 0.0) {
-                if (col >= 0 || std::fabs(c[j]) != 1.0) {
-                    col = -2;
-                    break;
-                }
-                col = j;
-            }
-        }
-        double cx = 0.0;
-        if (col >= 0) {
-            cx = 0.0 + c[col] * x[col];
-        } else {
-            for (i64 j = 0; j < r; ++j) cx += c[j] * x[j];
-        }
         if (lo > -kBig) {
             double v = (lo - cx) / norm;
             if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) return true;
@@ -617,21 +611,24 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
         }
         return false;
     };
-    for (i64 i = 0; i < n; ++i) {
-        double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
-        double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
-        if (violated(Z.row(i), lo, hi, 1.0)) return false;
-    }
+    // General rows first (the rows a binding level meets most often); G Z and G d are kept for
+    // reduced_rows (have_gz).
     if (p) {
         Mat& GZ = ws.GZ;
         mm_into(G, Z, GZ);
         Vec& Gd = ws.Gd;
         mv_into(G, d, Gd);
+        have_gz = true;
         for (i64 j = 0; j < p; ++j) {
             double size = 0.0;
             for (i64 t = 0; t < n; ++t) size += G(j, t) * G(j, t);
             if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
         }
+    }
+    for (i64 i = 0; i < n; ++i) {
+        double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
+        double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        if (violated(Z.row(i), lo, hi, 1.0)) return false;
     }
     return true;
 }
@@ -1033,11 +1030,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
-        bool cold = true, factored = false;
+        bool cold = true, factored = false, have_gz = false;
         for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
-        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored) &&
+        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz) &&
             detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
@@ -1052,7 +1049,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             z_eye = false;
             continue;
         }
-        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp);
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
