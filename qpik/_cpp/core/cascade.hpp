@@ -91,7 +91,7 @@ struct Workspace {
     Mat M, N;
     Vec y, u, res;
     // the cascade's level answer
-    Vec z;
+    Vec z, free_z;
     IVec final_rows, final_sides;
 };
 
@@ -479,7 +479,8 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
-                        IVec& final_sides, CertScratch* cs = nullptr) {
+                        IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
+                        const Certificate* free_cert = nullptr) {
     i64 n = static_cast<i64>(d.size());
     CertScratch local;  // no storage unless used (cs: the caller's)
     CertScratch& es = cs ? *cs : local;
@@ -524,12 +525,21 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         // The dual method's final working set (by row): its rows with a zero multiplier
         // included, where the floor's tie-break held the point on them.
         i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
+        if (q == 0 && free_z && free_cert) {
+            // free_answer made this re-solve and its certificate, which failed: the same
+            // candidate and certificate, not made again.
+            zc = *free_z;
+            have_dual = true;
+            cert = *free_cert;
+            best = cert.worst();
+        }
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec& zref = es.xzref;
         mtv_into(Z, d.data(), zref);
         for (auto& v : zref) v = -v;
-        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
+        if (!have_dual &&
+            eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
             if (certify(zc)) {
                 z = zc;
@@ -1034,8 +1044,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
-        if (cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz) &&
-            detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
+        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz);
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
@@ -1061,8 +1071,13 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
+            // The dual method stopped at once (stops: sol is x0 with no working set), so
+            // exact_level's first candidate is free_answer's, held in ws.free_z and tried.
+            Certificate tried = cert;
+            if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
-                                        final_rows, final_sides, &ws.cs);
+                                        final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
+                                        stops ? &tried : nullptr);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
