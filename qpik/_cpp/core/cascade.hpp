@@ -92,7 +92,7 @@ struct Workspace {
     Mat M, N;
     Vec y, u, res;
     // the cascade's level answer
-    Vec z;
+    Vec z, free_z;
     IVec final_rows, final_sides;
 };
 
@@ -449,11 +449,10 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
     return lam;
 }
 
-// The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
-inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
-                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
-    i64 n = Z.rows, r = Z.cols;
-    i64 p = G.rows;
+// The objective (H, c) of reduced_qp.
+inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
+                              Workspace& ws, ReducedQP& out) {
+    i64 r = Z.cols;
     mtm_into(AZ, out.H);
     double big = 0.0;
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
@@ -466,11 +465,19 @@ inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     mtv_into(Z, d, c2);
-    out.c.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+}
+
+// The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
+// (computed as below, by dual_stops_at_once).
+inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
+                         ReducedQP& out, bool have_gz = false) {
+    i64 n = Z.rows, r = Z.cols;
+    i64 p = G.rows;
     out.C.zeros(n + p, r);
-    out.lo.assign(static_cast<size_t>(n + p), 0.0);
-    out.hi.assign(static_cast<size_t>(n + p), 0.0);
+    zero_fill(out.lo, static_cast<size_t>(n + p));
+    zero_fill(out.hi, static_cast<size_t>(n + p));
     for (i64 i = 0; i < n; ++i)
         for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
     for (i64 i = 0; i < n; ++i) {
@@ -479,11 +486,11 @@ inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double
     }
     if (p) {
         Mat& GZ = ws.GZ;
-        mm_into(G, Z, GZ);
+        if (!have_gz) mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
             for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
         Vec& Gd = ws.Gd;
-        mv_into(G, d, Gd);
+        if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
             out.lo[n + j] = -kInf;
             out.hi[n + j] = h[j] - Gd[j];
@@ -502,6 +509,13 @@ inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double
             out.hi[i] = kInf;
         }
     }
+}
+
+// The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).
+inline void reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg, CVecRef lb,
+                       CVecRef ub, CMatRef G, CVecRef h, Workspace& ws, ReducedQP& out) {
+    reduced_objective(A, b, AZ, Z, d, reg, ws, out);
+    reduced_rows(Z, d, lb, ub, G, h, ws, out);
 }
 
 inline ReducedQP reduced_qp(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
@@ -525,8 +539,8 @@ inline void tighten(VecRef lb, VecRef ub, VecRefT<const i64> dofs, CVecRef lower
 // conflict (entries from there on are left 0), else -1.
 inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef pos_ub, Vec& lb, Vec& ub) {
     i64 n = hard_lb.size();
-    lb.assign(static_cast<size_t>(n), 0.0);
-    ub.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(lb, static_cast<size_t>(n));
+    zero_fill(ub, static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) {
         if (hard_lb[i] > hard_ub[i]) return i;
         double lo = pymax(hard_lb[i], pos_lb[i]);
@@ -552,7 +566,7 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
     ls.B.zeros(m + (reg ? r : 0), r);
-    ls.f.assign(static_cast<size_t>(ls.B.rows), 0.0);
+    zero_fill(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = ws.e;
     mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
@@ -602,7 +616,8 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
-                        IVec& final_sides, CertScratch* cs = nullptr) {
+                        IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
+                        const Certificate* free_cert = nullptr) {
     i64 n = static_cast<i64>(d.size());
     CertScratch local;  // no storage unless used (cs: the caller's)
     CertScratch& es = cs ? *cs : local;
@@ -616,7 +631,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     cert = Certificate{};
     double best = kInf;
     Vec& x = es.xx;
-    x.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(x, static_cast<size_t>(n));
     auto certify = [&](const Vec& zc) {
         Vec& Zz = es.xZz;
         mv_into(Z, zc.data(), Zz);
@@ -647,12 +662,21 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         // The dual method's final working set (by row): its rows with a zero multiplier
         // included, where the floor's tie-break held the point on them.
         i64 q = canonical_set(sol.working.size() == sol.active.size() ? sol.working : sol.active, rows, sides);
+        if (q == 0 && free_z && free_cert) {
+            // free_answer made this re-solve and its certificate, which failed: the same
+            // candidate and certificate, not made again.
+            zc = *free_z;
+            have_dual = true;
+            cert = *free_cert;
+            best = cert.worst();
+        }
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec& zref = es.xzref;
         mtv_into(Z, d.data(), zref);
         for (auto& v : zref) v = -v;
-        if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
+        if (!have_dual &&
+            eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
             if (certify(zc)) {
                 z = zc;
@@ -685,6 +709,103 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     return false;
 }
 
+// Whether the dual method, cold, stops at once on the level's QP (qp's H and c; its rows
+// C, lo, hi those reduced_rows writes, not formed): H's Cholesky factor exists and the
+// unconstrained minimiser x0 = -H^-1 c violates no row by more than tol. Each test is
+// solve_qp's, with the same bits: x0 by the same factor and solves, a row's norm, bounds and
+// C x0 as reduced_rows and most_violated compute them (C's rows are Z's and G Z's). solve_level
+// then returns x0 with an empty working set, and the level's answer is exact_level's re-solve
+// with no rows (free_answer).
+// factored: whether ws.qps then holds H's factor and x0 as solve_qp computes them (its
+// `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
+// computes them.
+inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
+                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz) {
+    i64 n = Z.rows, r = Z.cols, p = G.rows;
+    QPScratch& qs = ws.qps;
+    Mat& Lm = qs.L;
+    Lm.zeros(r, r);
+    factored = have_gz = false;
+    if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
+    Vec& mc = qs.mc;
+    mc.resize(static_cast<size_t>(r));
+    for (i64 i = 0; i < r; ++i) mc[i] = -qp.c[i];
+    forward_into(Lm.cref(), mc, qs.y);
+    Vec& x = qs.x;
+    backward_into(Lm.cref(), qs.y, x);
+    factored = true;
+    // A non-finite x0: the general path decides (most_violated's unit rows read one entry).
+    for (i64 i = 0; i < r; ++i)
+        if (!std::isfinite(x[i])) return false;
+    // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
+    // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
+    // one-entry sum on a unit row (the other terms are zeros), so the same decision.
+    auto violated = [&](const double* c, double lo, double hi, double size) {
+        double norm = 0.0, cx = 0.0;
+        for (i64 t = 0; t < r; ++t) {
+            norm += c[t] * c[t];
+            cx += c[t] * x[t];
+        }
+        if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
+        norm = std::sqrt(norm);
+        if (lo > -kBig) {
+            double v = (lo - cx) / norm;
+            if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) return true;
+        }
+        if (hi < kBig) {
+            double v = (cx - hi) / norm;
+            if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) return true;
+        }
+        return false;
+    };
+    // General rows first (the rows a binding level meets most often); G Z and G d are kept for
+    // reduced_rows (have_gz).
+    if (p) {
+        Mat& GZ = ws.GZ;
+        mm_into(G, Z, GZ);
+        Vec& Gd = ws.Gd;
+        mv_into(G, d, Gd);
+        have_gz = true;
+        for (i64 j = 0; j < p; ++j) {
+            double size = 0.0;
+            for (i64 t = 0; t < n; ++t) size += G(j, t) * G(j, t);
+            if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
+        }
+    }
+    for (i64 i = 0; i < n; ++i) {
+        double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
+        double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        if (violated(Z.row(i), lo, hi, 1.0)) return false;
+    }
+    return true;
+}
+
+// exact_level after a dual method that stopped at once (dual_stops_at_once): of the
+// least-squares minimisers, the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d),
+// certified; true when its certificate holds (else exact_level goes on from there: the
+// caller then takes the general path).
+inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
+                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es) {
+    i64 n = static_cast<i64>(d.size()), r = Z.cols;
+    IVec& rows = es.xrows;
+    IVec& sides = es.xsides;
+    rows.clear();
+    sides.clear();
+    Vec& zref = es.xzref;
+    mtv_into(Z, d.data(), zref);
+    for (auto& v : zref) v = -v;
+    Vec& u = es.xu;
+    if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
+        return false;
+    Vec& Zz = es.xZz;
+    mv_into(Z, z.data(), Zz);
+    Vec& x = es.xx;
+    x.resize(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+    cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
+    return cert.holds() && cert.rows_relative;
+}
+
 }  // namespace detail
 
 namespace detail {
@@ -693,7 +814,7 @@ namespace detail {
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
 inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     i64 r = M.rows, t = M.cols;
-    u.assign(static_cast<size_t>(t), 0.0);
+    zero_fill(u, static_cast<size_t>(t));
     BVec& passive = ws.passive;
     passive.assign(static_cast<size_t>(t), 0);
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
@@ -810,7 +931,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
                 continue;
             Vec& v = next_normal();
-            v.assign(static_cast<size_t>(r), 0.0);
+            zero_fill(v, static_cast<size_t>(r));
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
             owner.push_back(i);
         }
@@ -825,7 +946,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             }
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
-            v.assign(static_cast<size_t>(r), 0.0);
+            zero_fill(v, static_cast<size_t>(r));
             for (i64 s = 0; s < n; ++s) {
                 double g = G(j, s);
                 if (g == 0.0) continue;
@@ -849,7 +970,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         // |n_j + sum u_i n_i| >= c (1 + sum u) (u >= 0), far above kPinned (1 + sum u) when
         // c > 1e-9: no row is pinned, the answer the test would give (Z unchanged).
         Vec& sum = ws.sum;
-        sum.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(sum, static_cast<size_t>(r));
         for (i64 j = 0; j < t; ++j) {
             const Vec& v = normals[static_cast<size_t>(j)];
             for (i64 c = 0; c < r; ++c) sum[c] += v[c];
@@ -874,7 +995,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
         Vec& y = ws.y;
-        y.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(y, static_cast<size_t>(r));
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
         Vec& u = ws.u;
         detail::nnls_into(M, y, ws.nnls, u);
@@ -969,7 +1090,7 @@ inline CertifiedLevel certified_level(CMatRef Ak, CVecRef bk, CMatRef AZ, CMatRe
     }
     out.active.assign(static_cast<size_t>(n + p), 0);
     for (size_t j = 0; j < rows.size(); ++j) out.active[rows[j]] = static_cast<i8>(sides[j]);
-    if (!out.ok) out.z.assign(static_cast<size_t>(Z.cols), 0.0);
+    if (!out.ok) zero_fill(out.z, static_cast<size_t>(Z.cols));
     return out;
 }
 
@@ -1007,7 +1128,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     CascadeResult res;
     res.status.assign(static_cast<size_t>(L), NOT_REACHED);
     res.sigma.assign(static_cast<size_t>(L), kInf);
-    res.lam2.assign(static_cast<size_t>(L), 0.0);
+    zero_fill(res.lam2, static_cast<size_t>(L));
     res.iterations.assign(static_cast<size_t>(L), 0);
     res.active.assign(static_cast<size_t>(L * (n + p)), 0);
     res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
@@ -1048,26 +1169,52 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_qp(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, lb, ub, G, h, ws, qp);
-        QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
-                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps);
-        res.iterations[k] = sol.iterations;
-        i64 st = sol.status;
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp);
+        LSForm& ls = ws.ls;
+        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
         Certificate cert;
         Vec& z = ws.z;
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
+        bool cold = true, factored = false, have_gz = false;
+        for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
+        // A level no row binds: the answer of the general path below when the dual method
+        // stops at once (no row formed, no dual method run; the same bits).
+        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz);
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = cert.primal;
+            ck[1] = cert.stationarity;
+            ck[2] = cert.dual;
+            ck[3] = cert.complementarity;
+            Vec& Zz = ws.Zz;
+            mv_into(Z.cref(), z.data(), Zz);
+            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            res.status[k] = SOLVED;
+            std::swap(Z, pr.Zn);
+            z_eye = false;
+            continue;
+        }
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz);
+        QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
+                                   VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
+                                   factored);
+        res.iterations[k] = sol.iterations;
+        i64 st = sol.status;
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
-            LSForm& ls = ws.ls;
-            detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
+            // The dual method stopped at once (stops: sol is x0 with no working set), so
+            // exact_level's first candidate is free_answer's, held in ws.free_z and tried.
+            Certificate tried = cert;
+            if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
-                                        final_rows, final_sides, &ws.cs);
+                                        final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
+                                        stops ? &tried : nullptr);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.

@@ -69,12 +69,12 @@ struct ImplicitQR {
         q = N.cols;
         R = N;
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        beta.assign(static_cast<size_t>(q), 0.0);
-        S.assign(static_cast<size_t>(q), 0.0);
+        zero_fill(beta, static_cast<size_t>(q));
+        zero_fill(S, static_cast<size_t>(q));
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             Vec& x = v[static_cast<size_t>(i)];
-            x.assign(static_cast<size_t>(size), 0.0);
+            zero_fill(x, static_cast<size_t>(size));
             double alpha = 0.0;
             for (i64 t = 0; t < size; ++t) {
                 x[t] = R(i + t, i);
@@ -131,20 +131,20 @@ struct LsScratch {
 // least norm.
 inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 m = M.rows, k = M.cols;
-    y.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(y, static_cast<size_t>(k));
     if (k == 0 || m == 0) return;
     IVec& perm = ws.perm;
-    perm.assign(static_cast<size_t>(k), 0);
+    perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    norms.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(norms, static_cast<size_t>(k));
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.assign(static_cast<size_t>(m), 0.0);
-    S.assign(static_cast<size_t>(k), 0.0);
+    x.resize(static_cast<size_t>(m));  // x[:size] written before read; S filled by reflect_columns
+    S.resize(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -184,7 +184,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         else break;
     }
     Vec& yp = ws.yp;
-    yp.assign(static_cast<size_t>(k), 0.0);
+    zero_fill(yp, static_cast<size_t>(k));
     for (i64 i = rank - 1; i >= 0; --i) {
         double acc = f[i];
         for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
@@ -243,7 +243,7 @@ struct CertScratch {
     detail::LsScratch ls;
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
-    Vec gnorm, gx, v, vs, sc, ssc, zg;  // certify_level
+    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref;
 };
@@ -254,7 +254,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     i64 r = C.cols;
     i64 mb = ls.B.rows;
     z = zref;
-    u.assign(static_cast<size_t>(q), 0.0);
+    zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
     CertScratch local;  // no storage unless used (scratch: the caller's)
     CertScratch& ws = scratch ? *scratch : local;
@@ -263,7 +263,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Mat& N = ws.N;
         N.zeros(r, q);
         Vec& rhs = ws.rhs;
-        rhs.assign(static_cast<size_t>(q), 0.0);
+        zero_fill(rhs, static_cast<size_t>(q));
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
             for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
@@ -278,7 +278,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
         Vec& t = ws.t;
-        t.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(t, static_cast<size_t>(r));
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
@@ -293,14 +293,20 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     i64 nw = r - q;
     if (nw > 0) {
         Mat& BW = ws.BW;  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
-        BW.zeros(mb, nw);
-        Vec& row = ws.row;
-        row.assign(static_cast<size_t>(r), 0.0);
-        for (i64 i = 0; i < mb; ++i) {
-            const double* bi = ls.B.row(i);
-            for (i64 k = 0; k < r; ++k) row[k] = bi[k];
-            qr.apply_t(row.data());
-            for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+        if (q == 0) {  // Q = I: B itself
+            BW.rows = mb;
+            BW.cols = nw;
+            BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
+        } else {
+            BW.zeros(mb, nw);
+            Vec& row = ws.row;
+            row.resize(static_cast<size_t>(r));
+            for (i64 i = 0; i < mb; ++i) {
+                const double* bi = ls.B.row(i);
+                for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                qr.apply_t(row.data());
+                for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+            }
         }
         Vec& f0 = ws.f0;
         mv_into(ls.B.cref(), z.data(), f0);
@@ -308,7 +314,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls);
         Vec& wy = ws.wy;
-        wy.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(wy, static_cast<size_t>(r));
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
@@ -316,7 +322,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     if (W_out) {
         *W_out = Mat(r, nw);
         Vec& e = ws.e;
-        e.assign(static_cast<size_t>(r), 0.0);
+        zero_fill(e, static_cast<size_t>(r));
         for (i64 j = 0; j < nw; ++j) {
             std::fill(e.begin(), e.end(), 0.0);
             e[q + j] = 1.0;
@@ -480,8 +486,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     Vec& gnorm = ws.gnorm;
     Vec& gx = ws.gx;
-    gnorm.assign(static_cast<size_t>(p), 0.0);
-    gx.assign(static_cast<size_t>(p), 0.0);
+    zero_fill(gnorm, static_cast<size_t>(p));
+    zero_fill(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         for (i64 i = 0; i < n; ++i) {
@@ -508,9 +514,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // the dofs the levels above fixed). Each component of H x then carries the round-off of
     // |H| dx (hs = |A|^T |A| dx + rho dx), not only of its own terms |A|^T |A| |x| (a dof the
     // level leaves near 0 while others move).
-    Vec dx(static_cast<size_t>(n), 0.0);
+    Vec& dx = ws.dx;
+    dx.resize(static_cast<size_t>(n));  // every entry written below
     {
-        Vec zc(static_cast<size_t>(r), 0.0);
+        Vec& zc = ws.zc;
+        zero_fill(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             double xi = std::fabs(x[i]), zm = 0.0;
@@ -524,11 +532,12 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
-    Vec hs(static_cast<size_t>(n), 0.0);
+    Vec& hs = ws.hs;
+    zero_fill(hs, static_cast<size_t>(n));
     Vec& v = ws.v;
     Vec& vs = ws.vs;
-    v.assign(static_cast<size_t>(n), 0.0);
-    vs.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(v, static_cast<size_t>(n));
+    zero_fill(vs, static_cast<size_t>(n));
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
@@ -563,11 +572,12 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
-    Vec hsc(static_cast<size_t>(r), 0.0);
+    Vec& hsc = ws.hsc;
+    zero_fill(hsc, static_cast<size_t>(r));
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
-    sc.assign(static_cast<size_t>(r), 0.0);
-    ssc.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(sc, static_cast<size_t>(r));
+    zero_fill(ssc, static_cast<size_t>(r));
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double vi = v[i], vsi = vs[i], hsi = hs[i];
@@ -602,7 +612,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
-    zg.assign(static_cast<size_t>(r), 0.0);
+    zero_fill(zg, static_cast<size_t>(r));
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|

@@ -68,8 +68,8 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
     for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
     for (i64 i = 0; i < q; ++i) {
         if (std::fabs(R(i, i)) <= 1e-13 * pymax(scale, 1e-300)) {
-            x.assign(static_cast<size_t>(n), 0.0);
-            u.assign(static_cast<size_t>(q), 0.0);
+            zero_fill(x, static_cast<size_t>(n));
+            zero_fill(u, static_cast<size_t>(q));
             return false;
         }
     }
@@ -87,7 +87,7 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
         Mat Hr = mm(Wt.cref(), mm(H, W.cref()).cref());
         Mat Lr;
         if (!cholesky(Hr.cref(), Lr)) {
-            u.assign(static_cast<size_t>(q), 0.0);
+            zero_fill(u, static_cast<size_t>(q));
             return false;
         }
         Vec hx = mv(H, x.data());
@@ -101,7 +101,7 @@ inline bool kkt_solve(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, CV
     Vec hx = mv(H, x.data());
     for (i64 i = 0; i < n; ++i) hx[i] = hx[i] + c[i];
     Vec grad = mtv(Y.cref(), hx.data());
-    u.assign(static_cast<size_t>(q), 0.0);
+    zero_fill(u, static_cast<size_t>(q));
     for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T (H x + c)
         double acc = grad[i];
         for (i64 k = i + 1; k < q; ++k) acc -= R(i, k) * u[k];
@@ -439,8 +439,8 @@ inline QPResult polish(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, C
 // Bounds widened by scale (1 + |bound|) (1 + i / m), distinct per row.
 inline void widened(CVecRef lo, CVecRef hi, double scale, Vec& lo2, Vec& hi2) {
     i64 m = lo.size();
-    lo2.assign(static_cast<size_t>(m), 0.0);
-    hi2.assign(static_cast<size_t>(m), 0.0);
+    zero_fill(lo2, static_cast<size_t>(m));
+    zero_fill(hi2, static_cast<size_t>(m));
     double denom = static_cast<double>(std::max<i64>(m, 1));
     for (i64 i = 0; i < m; ++i) {
         double eps = scale * (1.0 + static_cast<double>(i) / denom);
@@ -484,48 +484,55 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
 // qpik/core/kernels.py). H (n, n), c (n,), C (m, n), lo/hi/warm (m,).
 // raw: return the final iterate and working set without the checks and the re-solve (the
 // cascade makes every answer exact and certifies it itself, qpik/_cpp/core/certify.hpp).
+// factored: ws.L already holds H's Cholesky factor (lower triangle of ws.L, zeros above) and
+// ws.x the unconstrained minimiser -H^-1 c, computed as below (the cascade's
+// dual_stops_at_once), and warm has no row: the same steps from there.
 inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                         i64 max_iter, double tol, bool canonical, bool raw, QPScratch& ws) {
+                         i64 max_iter, double tol, bool canonical, bool raw, QPScratch& ws, bool factored = false) {
     using namespace detail;
     i64 n = H.rows;
     i64 m = C.rows;
     BVec active(static_cast<size_t>(m), 0);
     Mat& Lm = ws.L;
-    Lm.zeros(n, n);
-    if (!cholesky_into(H, n, 0.0, Lm.ref()))
-        return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
+    if (!factored) {
+        Lm.zeros(n, n);
+        if (!cholesky_into(H, n, 0.0, Lm.ref()))
+            return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
+    }
     CMatRef L = Lm.cref();
     IVec& act_row = ws.act_row;
     IVec& act_side = ws.act_side;
     act_row.assign(static_cast<size_t>(n + 1), 0);
     act_side.assign(static_cast<size_t>(n + 1), 0);
     i64 q = 0;
-    {
+    if (!factored) {
         QPResult polished;
         if (warm_answer(H, L, c, C, lo, hi, warm, tol, act_row, act_side, polished)) {
             polished.working = polished.active;  // strictly optimal: every row has u > 0
             return polished;
         }
     }
-    Vec& mc = ws.mc;
-    mc.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
-    forward_into(L, mc, ws.y);
     Vec& x = ws.x;
-    backward_into(L, ws.y, x);
+    if (!factored) {
+        Vec& mc = ws.mc;
+        mc.resize(static_cast<size_t>(n));
+        for (i64 i = 0; i < n; ++i) mc[i] = -c[i];
+        forward_into(L, mc, ws.y);
+        backward_into(L, ws.y, x);
+    }
     inverse_transpose_into(Lm, ws.J, ws.JT);
     Mat& J = ws.JT;
     Mat& R = ws.R;
     R.zeros(n, n);
     double r_norm = 1.0;
     Vec& u = ws.u;
-    u.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(u, static_cast<size_t>(n + 1));
     Vec& d = ws.d;
     Vec& z = ws.z;
     Vec& r = ws.r;
-    d.assign(static_cast<size_t>(n), 0.0);
-    z.assign(static_cast<size_t>(n), 0.0);
-    r.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(d, static_cast<size_t>(n));
+    zero_fill(z, static_cast<size_t>(n));
+    zero_fill(r, static_cast<size_t>(n + 1));
     BVec& in_set = ws.in_set;
     in_set.assign(static_cast<size_t>(m), 0);
     Vec& norms = ws.norms;
@@ -534,10 +541,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     unit_columns_into(C, unit);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
-    x_old.assign(static_cast<size_t>(n), 0.0);
-    u_old.assign(static_cast<size_t>(n + 1), 0.0);
+    zero_fill(x_old, static_cast<size_t>(n));
+    zero_fill(u_old, static_cast<size_t>(n + 1));
     Vec& normal = ws.normal;
-    normal.assign(static_cast<size_t>(n), 0.0);
+    zero_fill(normal, static_cast<size_t>(n));
     i64 iterations = 0;
     while (true) {
         i64 row, side;
@@ -661,9 +668,11 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     return solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
 }
 
+// factored: see solve_qp (its first call only; the widened retries factor H again).
 inline QPResult solve_level(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi, VecRefT<const i8> warm,
-                            i64 max_iter, double tol, bool lower, bool canonical, bool raw, QPScratch& ws) {
-    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws);
+                            i64 max_iter, double tol, bool lower, bool canonical, bool raw, QPScratch& ws,
+                            bool factored = false) {
+    QPResult res = solve_qp(H, c, C, lo, hi, warm, max_iter, tol, canonical, raw, ws, factored);
     i64 st = res.status;
     if (st == SOLVED || st == MAX_ITER || (st == INFEASIBLE && !lower)) return res;
     i64 its = res.iterations;
