@@ -1711,6 +1711,8 @@ def run_solve(spec: dict) -> str:
     if not isinstance(targets, dict) or len(targets) != 1:
         _finite(result, "result")
         return _digest(np.asarray(result.q))
+    # One entry: the frame asked for (two keys naming one frame leave the last target).
+    frame, target = next(iter(targets.items()))
     return _check_ik_result(result, model, frame, target, kwargs)
 
 
