@@ -219,7 +219,13 @@ class CompiledPlan:
             return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
-        if data is not self._data:  # MjData's arrays never move: their views are kept
+        return self._attach(data)
+
+    def _attach(self, data: mujoco.MjData) -> tuple:
+        """The kernel's MuJoCo arguments of ``data`` (:meth:`_poses`), attached to the
+        kernel when ``data`` is not the MjData it holds (MjData's arrays never move: their
+        views are kept)."""
+        if data is not self._data:
             self._pose_args = self._poses(data)
             self.kernel.attach(data, *self._pose_args)
             self._data = data
@@ -316,9 +322,14 @@ class CompiledPlan:
         settings = self.arrays["settings"]
         settings[DT] = dt
         settings[DAMPING] = damping
+        self._write_law(core)
+
+    def _write_law(self, core: HierarchySolver) -> None:
+        """``core``'s damping-law entries of ``settings``, rewritten when the law object
+        changes (the law is settable)."""
         law = core.damping_law
         if law is not self.law:
-            settings[THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
+            self.arrays["settings"][THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
             self.law = law
 
     def _general(self, configuration: mink.Configuration, dt: float):
@@ -415,13 +426,8 @@ class CompiledPlan:
             self._jacobians(data)
         if self.rows_tasks and not self._gather_rows(configuration):
             return -1
-        if data is not self._data:  # MjData's arrays never move: their views are kept
-            self._pose_args = self._poses(data)
-            self.kernel.attach(data, *self._pose_args)
-            self._data = data
-        if core.damping_law is not self.law:
-            self.arrays["settings"][THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
-            self.law = core.damping_law
+        self._attach(data)
+        self._write_law(core)
         row = self._row
         if row == _OUTPUT_ROWS:
             self._new_outputs()
