@@ -174,3 +174,22 @@ def test_no_module_is_over_700_lines():
         if (n := len(path.read_text().splitlines())) > 700
     }
     assert not long, long
+
+
+def test_import_qpik_loads_nothing_heavy_beyond_mujoco_and_mink():
+    """``import qpik`` stays light (issue 20: at most 0.2 s over ``import mujoco, mink``):
+    in a fresh process it loads only qpik's own modules and the standard library beyond
+    what ``import mujoco, mink`` loads. Heavy optional parts (scipy.spatial for support
+    polygons, matplotlib, viser, tqdm, ray) are imported where they are used."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, mujoco, mink; before = set(sys.modules); import qpik; "
+        "print(' '.join(sorted({m.split('.')[0] for m in set(sys.modules) - before})))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split()
+    heavy = [m for m in out if m in {"scipy", "matplotlib", "viser", "tqdm", "ray", "pandas"}]
+    assert not heavy, f"import qpik loads {heavy} beyond mujoco and mink: {out}"
