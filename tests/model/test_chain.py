@@ -222,10 +222,9 @@ def test_smallest_singular_value_against_svd():
 
 
 def _brute_force_box_qp(H, g, lb, ub):
-    """Every active set (free / lower / upper per variable): the feasible KKT point with
-    the right multiplier signs."""
+    """Every active set (free / lower / upper per variable) until the feasible KKT point
+    with the right multiplier signs (H is positive definite: it is the unique minimiser)."""
     n = len(g)
-    best = None
     for pattern in itertools.product((0, -1, 1), repeat=n):
         fixed = np.array(pattern)
         x = np.where(fixed < 0, lb, np.where(fixed > 0, ub, 0.0))
@@ -237,8 +236,8 @@ def _brute_force_box_qp(H, g, lb, ub):
             continue
         grad = H @ x + g
         if np.all(grad[fixed < 0] >= -1e-10) and np.all(grad[fixed > 0] <= 1e-10):
-            best = x
-    return best
+            return x
+    return None
 
 
 def test_box_qp_against_brute_force_and_the_core_qp():

@@ -136,14 +136,21 @@ def test_cli_help_pages_are_the_cli():
             os.environ["COLUMNS"] = saved
 
 
-def test_the_figures_script_draws_its_figures(tmp_path):
-    """docs/make_figures.py runs and draws non-empty PNGs (the quick ones here; all of them
-    in the slow run)."""
+@pytest.mark.parametrize(
+    "names",
+    [
+        ["priorities.png"],
+        pytest.param(["self_motion.png", "talos.png"], marks=pytest.mark.slow),
+    ],
+)
+def test_the_figures_script_draws_its_figures(tmp_path, names):
+    """docs/make_figures.py runs and draws non-empty PNGs (one here: matplotlib takes about
+    5 s a figure; the others in the slow run, and self_motion.png's example is drawn by
+    tests/package/test_examples.py)."""
     pytest.importorskip("matplotlib")
     import subprocess
 
     script = Path(__file__).resolve().parents[2] / "docs" / "make_figures.py"
-    names = ["priorities.png", "self_motion.png"]
     subprocess.run([sys.executable, str(script), "--out", str(tmp_path), "--only", *names],
                    check=True, capture_output=True)  # fmt: skip
     for name in names:
