@@ -24,7 +24,7 @@ import numpy.typing as npt
 from ..errors import InvalidTarget
 from ..model import kernels
 from ..model.configuration import Configuration, FrameType
-from ..model.rotations import nearest_rotation, orientation_angle
+from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation, orientation_angle
 
 __all__ = [
     "MAX_TARGET_DISTANCE",
@@ -59,7 +59,6 @@ FrameKey = str | tuple[str, FrameType | str]
 #: A target: a position (3,), ``(position, rotation)``, a 4x4 matrix, an SE3 or a Target.
 TargetLike = Target | mink.SE3 | npt.ArrayLike | tuple[npt.ArrayLike, npt.ArrayLike]
 
-_EYE = np.eye(3)
 
 _TARGET_DEFECTS = {
     1: "position target must be 3 finite numbers",
@@ -111,23 +110,29 @@ def parse_target(value: TargetLike) -> Target:
     homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
     :class:`qpik.InvalidTarget`. The rotation is checked once, in one compiled call
     (``|R R^T - I| <= 1e-6``, ``det R > 0``), and the target is the rotation nearest to
-    it (:func:`qpik.model.rotations.nearest_rotation`); positions farther than
+    it (:func:`qpik.model.rotations.nearest_rotation`, which keeps a matrix orthonormal
+    within :data:`qpik.model.rotations.ORTHONORMAL_TOLERANCE`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
     position, rotation = _parts(value)
     position = _array(position, (3,), "position target")
-    has_rot = rotation is not None
-    rotation = _array(rotation, (3, 3), "rotation target") if has_rot else _EYE
-    defect = kernels.target_defect(position, rotation, has_rot)
-    if defect:
-        shown = position if defect == 1 else rotation
-        raise InvalidTarget(f"{_TARGET_DEFECTS[defect]}, got {shown!r}")
-    x, y, z = position.tolist()  # finite (checked above)
+    x, y, z = position.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise InvalidTarget(f"{_TARGET_DEFECTS[1]}, got {position!r}")
+    if rotation is not None:
+        rotation = _array(rotation, (3, 3), "rotation target")
+        # One compiled pass: max |R R^T - I|, inf where R is not finite or det R <= 0.
+        defect = kernels.rotation_defect(rotation)
+        if not defect <= 1e-6:
+            code = 3 if np.isfinite(rotation).all() else 2
+            raise InvalidTarget(f"{_TARGET_DEFECTS[code]}, got {rotation!r}")
+        if defect > ORTHONORMAL_TOLERANCE:
+            rotation = nearest_rotation(rotation)
     if not max(abs(x), abs(y), abs(z)) <= MAX_TARGET_DISTANCE:
         raise InvalidTarget(
             f"position target {position!r} is farther than {MAX_TARGET_DISTANCE:g} m from the "
             "world origin (its error would not be representable)"
         )
-    return Target(position, nearest_rotation(rotation) if has_rot else None)
+    return Target(position, rotation)
 
 
 def pose_errors(position: np.ndarray, rotation: np.ndarray, target: Target) -> tuple[float, float]:
