@@ -62,21 +62,33 @@ struct ImplicitQR {
 
     Vec S;               // scratch
 
+    IVec len;            // len[i]: reflector i's vector is 0 past its first len[i] entries
+
     // (v's and S's storage is kept from one factor to the next: v[i] is read only where
     // beta[i] != 0, and is then this factor's.)
-    void factor(const Mat& N) {
+    // band >= 0: N's column i is exactly +0 below row i + band at step i, and so is every
+    // column j > i there, but for entries a reflection never reached (N = [T; I] with T
+    // band rows: lstsq's null-space basis; step i's vector then spans rows i..i + band,
+    // the rows below it untouched). The reflections skip those rows: their terms are
+    // x[t] * (a finite entry) = +-0, which leave a sum from +0 as it is, and their updates
+    // subtract +-0 from +0 or a nonzero entry, which leaves it as it is: the same bits
+    // (N finite; a reflection's sums finite, as they are unless N's entries near overflow).
+    void factor(const Mat& N, i64 band = -1) {
         r = N.rows;
         q = N.cols;
         R = N;
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
         zero_fill(beta, static_cast<size_t>(q));
         zero_fill(S, static_cast<size_t>(q));
+        len.assign(static_cast<size_t>(q), 0);
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
+            i64 used = band >= 0 ? std::min(size, band + 1) : size;
             Vec& x = v[static_cast<size_t>(i)];
             zero_fill(x, static_cast<size_t>(size));
+            len[static_cast<size_t>(i)] = used;
             double alpha = 0.0;
-            for (i64 t = 0; t < size; ++t) {
+            for (i64 t = 0; t < used; ++t) {
                 x[t] = R(i + t, i);
                 alpha += x[t] * x[t];
             }
@@ -85,32 +97,36 @@ struct ImplicitQR {
             if (x[0] > 0.0) alpha = -alpha;
             x[0] -= alpha;
             double vn = 0.0;
-            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
             if (vn == 0.0) continue;
-            reflect_columns(R.row(0), q, i, size, i, q, x.data(), vn, S.data());
+            reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
             beta[i] = 2.0 / vn;
         }
     }
-    // x <- Q^T x (x of length r).
-    void apply_t(double* x) const {
+    // x <- Q^T x (x of length r). finite: every entry of x is finite, so that the terms
+    // past len[i] (vi[t] = 0) of a reflection's sum are +-0 and are skipped (the same bits);
+    // its update still runs over every entry (x - s * 0 turns a -0 entry into +0).
+    void apply_t(double* x, bool finite = false) const {
         for (i64 i = 0; i < q; ++i) {
             if (beta[i] == 0.0) continue;
             const Vec& vi = v[i];
             i64 size = r - i;
+            i64 used = finite ? len[static_cast<size_t>(i)] : size;
             double s = 0.0;
-            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            for (i64 t = 0; t < used; ++t) s += vi[t] * x[i + t];
             s *= beta[i];
             for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
         }
     }
-    // x <- Q x.
-    void apply(double* x) const {
+    // x <- Q x (finite: as apply_t).
+    void apply(double* x, bool finite = false) const {
         for (i64 i = q - 1; i >= 0; --i) {
             if (beta[i] == 0.0) continue;
             const Vec& vi = v[i];
             i64 size = r - i;
+            i64 used = finite ? len[static_cast<size_t>(i)] : size;
             double s = 0.0;
-            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            for (i64 t = 0; t < used; ++t) s += vi[t] * x[i + t];
             s *= beta[i];
             for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
         }
@@ -205,10 +221,17 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
             }
         }
         ImplicitQR& qn = ws.qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
-        qn.factor(N0);
-        qn.apply_t(yp.data());
+        bool n0_finite = true;
+        for (i64 i = 0; i < rank; ++i)
+            for (i64 c = 0; c < nn; ++c) n0_finite = n0_finite && std::isfinite(N0(i, c));
+        qn.factor(N0, n0_finite ? rank : -1);  // N0's columns: rank rows, then the identity's
+        bool finite = true;
+        for (i64 j = 0; j < k; ++j) finite = finite && std::isfinite(yp[j]);
+        qn.apply_t(yp.data(), finite);
         for (i64 c = 0; c < nn; ++c) yp[c] = 0.0;
-        qn.apply(yp.data());
+        finite = true;
+        for (i64 j = 0; j < k; ++j) finite = finite && std::isfinite(yp[j]);
+        qn.apply(yp.data(), finite);
     }
     for (i64 j = 0; j < k; ++j) y[perm[j]] = yp[j];
 }
