@@ -348,7 +348,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     bool tall = !need_null && keep > r;
     Mat& Mt = ws.Mt;
     if (tall) {
-        Mt.zeros(keep, r);
+        shape(Mt, keep, r);  // every entry written below
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (!(w[i] > 0.0)) continue;
@@ -358,7 +358,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             k += 1;
         }
     } else {
-        Mt.zeros(r, keep);
+        shape(Mt, r, keep);  // every entry written below
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (w[i] > 0.0) {
@@ -468,7 +468,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     mtv_into(Z, d, c2);
-    zero_fill(out.c, static_cast<size_t>(r));
+    shape(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
 
@@ -478,9 +478,9 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
                          ReducedQP& out, bool have_gz = false) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
-    out.C.zeros(n + p, r);
-    zero_fill(out.lo, static_cast<size_t>(n + p));
-    zero_fill(out.hi, static_cast<size_t>(n + p));
+    shape(out.C, n + p, r);  // every entry, bound written below
+    shape(out.lo, static_cast<size_t>(n + p));
+    shape(out.hi, static_cast<size_t>(n + p));
     for (i64 i = 0; i < n; ++i)
         for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
     for (i64 i = 0; i < n; ++i) {
@@ -568,8 +568,9 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
                     LSForm& ls) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
-    ls.B.zeros(m + (reg ? r : 0), r);
-    zero_fill(ls.f, static_cast<size_t>(ls.B.rows));
+    shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
+    if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
+    shape(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = ws.e;
     mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {

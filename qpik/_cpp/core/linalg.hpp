@@ -13,6 +13,17 @@
 
 namespace qpik::core {
 
+// M reshaped to (r, c), the storage kept, its entries left as they were (stale): for a
+// matrix every entry of which is written before it is read (Mat::zeros fills it first).
+inline void shape(Mat& M, i64 r, i64 c) {
+    M.rows = r;
+    M.cols = c;
+    M.a.resize(static_cast<size_t>(r * c));
+}
+
+// v of size n, its entries left as they were (every one written before it is read).
+inline void shape(Vec& v, size_t n) { v.resize(n); }
+
 // Python's min(a, b) / max(a, b) as Python evaluates them: the second argument wins only
 // when strictly smaller / larger (so a NaN second argument never wins).
 inline double pymin(double a, double b) { return b < a ? b : a; }
@@ -256,7 +267,8 @@ inline Mat mm(CMatRef A, CMatRef B) {
 // A^T @ A (symmetric, computed once per pair) into C (its storage kept).
 inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
-    C.zeros(n, n);
+    shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
+    for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
         for (i64 i = 0; i < n; ++i) {
@@ -630,7 +642,7 @@ struct QRScratch {
 // scratch keep their storage (no allocation unless a size grows).
 inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
-    R.zeros(r, m);
+    shape(R, r, m);  // every entry copied
     for (i64 i = 0; i < r; ++i)
         for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
     if (form_q) Q.set_eye(r);
