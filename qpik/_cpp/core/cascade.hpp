@@ -1003,8 +1003,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     owner.clear();
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
-        double nn = 0.0;
-        for (i64 c = 0; c < r; ++c) nn += zi[c] * zi[c];
+        double nn = dot(zi, zi, r);
         if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
@@ -1032,7 +1031,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 double g = G(j, s);
                 if (g == 0.0) continue;
                 const double* zt = Z.row(s);
-                for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
+                axpy(v.data(), g, zt, r);
             }
             double nn = dot(v.data(), v.data(), r);
             if (!(nn > 1e-20 * gg)) {

@@ -112,10 +112,9 @@ struct ImplicitQR {
             const Vec& vi = v[i];
             i64 size = r - i;
             i64 used = finite ? len[static_cast<size_t>(i)] : size;
-            double s = 0.0;
-            for (i64 t = 0; t < used; ++t) s += vi[t] * x[i + t];
+            double s = dot(vi.data(), x + i, used);
             s *= beta[i];
-            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+            axmy(x + i, s, vi.data(), size);
         }
     }
     // x <- Q x (finite: as apply_t).
@@ -125,10 +124,9 @@ struct ImplicitQR {
             const Vec& vi = v[i];
             i64 size = r - i;
             i64 used = finite ? len[static_cast<size_t>(i)] : size;
-            double s = 0.0;
-            for (i64 t = 0; t < used; ++t) s += vi[t] * x[i + t];
+            double s = dot(vi.data(), x + i, used);
             s *= beta[i];
-            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+            axmy(x + i, s, vi.data(), size);
         }
     }
 };
@@ -153,9 +151,8 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    zero_fill(norms, static_cast<size_t>(k));
-    for (i64 i = 0; i < m; ++i)
-        for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
+    norms.resize(static_cast<size_t>(k));
+    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());  // each summed over the rows in order
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
@@ -180,14 +177,12 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         if (alpha != 0.0) {
             if (x[0] > 0.0) alpha = -alpha;
             x[0] -= alpha;
-            double vn = 0.0;
-            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            double vn = dot(x.data(), x.data(), size);
             if (vn != 0.0) {
                 reflect_columns(M.row(0), k, i, size, i, k, x.data(), vn, S.data());
-                double s = 0.0;
-                for (i64 t = 0; t < size; ++t) s += x[t] * f[i + t];
+                double s = dot(x.data(), f.data() + i, size);
                 s = 2.0 * s / vn;
-                for (i64 t = 0; t < size; ++t) f[i + t] -= s * x[t];
+                axmy(f.data() + i, s, x.data(), size);
             }
         }
         // The remaining columns' norms, recomputed (each summed over t in order).
@@ -545,10 +540,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             double xi = std::fabs(x[i]), zm = 0.0;
-            for (i64 c = 0; c < r; ++c) {
-                zc[c] += std::fabs(zi[c]) * xi;
-                zm = pymax(zm, std::fabs(zi[c]));
-            }
+            abs_axpy(zc.data(), xi, zi, r);
+            for (i64 c = 0; c < r; ++c) zm = pymax(zm, std::fabs(zi[c]));
             dx[i] = zm;
         }
         double zx = 0.0;
@@ -570,11 +563,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             adx += std::fabs(ai[j]) * dx[j];
         }
         if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
-        for (i64 j = 0; j < n; ++j) {
-            v[j] += ai[j] * res;
-            vs[j] += std::fabs(ai[j]) * size;
-            hs[j] += std::fabs(ai[j]) * adx;
-        }
+        axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
     }
     for (i64 j = 0; j < n; ++j) {
         v[j] += rho * x[j];
@@ -602,13 +591,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     zero_fill(sc, static_cast<size_t>(r));
     zero_fill(ssc, static_cast<size_t>(r));
     for (i64 i = 0; i < n; ++i) {
-        const double* zi = Z.row(i);
-        double vi = v[i], vsi = vs[i], hsi = hs[i];
-        for (i64 c = 0; c < r; ++c) {
-            sc[c] += zi[c] * vi;
-            ssc[c] += std::fabs(zi[c]) * vsi;
-            hsc[c] += std::fabs(zi[c]) * hsi;
-        }
+        axpy3(sc.data(), ssc.data(), hsc.data(), Z.row(i), v[i], vs[i], hs[i], r);
     }
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the

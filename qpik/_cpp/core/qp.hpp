@@ -248,7 +248,16 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
         J(i, i) = 1.0 / L(i, i);
         for (i64 k = i + 1; k < n; ++k) {
             double acc = 0.0;
-            for (i64 j = i; j < k; ++j) acc -= L(k, j) * J(i, j);
+            const double* lk = L.row(k);
+            const double* ji = J.row(i);
+            i64 j = i;
+            for (; j + 4 <= k; j += 4) {  // subtracted in order of j
+                acc -= lk[j] * ji[j];
+                acc -= lk[j + 1] * ji[j + 1];
+                acc -= lk[j + 2] * ji[j + 2];
+                acc -= lk[j + 3] * ji[j + 3];
+            }
+            for (; j < k; ++j) acc -= lk[j] * ji[j];
             J(i, k) = acc / L(k, k);
         }
     }
