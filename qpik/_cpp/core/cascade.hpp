@@ -505,8 +505,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
             size = 0.0;
             for (i64 t = 0; t < n; ++t) size += G(i - n, t) * G(i - n, t);
         }
-        double norm = 0.0;
-        for (i64 t = 0; t < r; ++t) norm += out.C(i, t) * out.C(i, t);
+        double norm = dot(out.C.row(i), out.C.row(i), r);
         if (norm <= 1e-20 * size) {
             out.lo[i] = -kInf;
             out.hi[i] = kInf;

@@ -119,9 +119,8 @@ inline double max_abs(const Vec& u, i64 q) {
 inline void row_norms_into(CMatRef C, Vec& norms) {
     norms.resize(static_cast<size_t>(C.rows));
     for (i64 i = 0; i < C.rows; ++i) {
-        double norm = 0.0;
-        for (i64 j = 0; j < C.cols; ++j) norm += C(i, j) * C(i, j);
-        norms[i] = std::sqrt(norm);
+        const double* ci = C.p + i * C.stride;
+        norms[i] = std::sqrt(dot(ci, ci, C.cols));
     }
 }
 
@@ -179,8 +178,7 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
             dot2(C.row(i), C.row(i + 1), x, n, cx, cx_next);
             have_next = true;
         } else {
-            cx = 0.0;
-            for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
+            cx = dot(C.p + i * C.stride, x, n);
         }
         if (lo[i] > -kBig) {
             double v = (lo[i] - cx) / norm;
