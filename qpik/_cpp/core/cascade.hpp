@@ -56,6 +56,9 @@ struct NnlsScratch {
     IVec P;
     Mat MP;
     LsScratch ls;
+    // the passive columns' QR kept from one added column to the next (nnls_into)
+    Mat V, Rc;
+    Vec vn, qy, col;
 };
 }  // namespace detail
 
@@ -345,7 +348,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     bool tall = !need_null && keep > r;
     Mat& Mt = ws.Mt;
     if (tall) {
-        Mt.zeros(keep, r);
+        shape(Mt, keep, r);  // every entry written below
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (!(w[i] > 0.0)) continue;
@@ -355,7 +358,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             k += 1;
         }
     } else {
-        Mt.zeros(r, keep);
+        shape(Mt, r, keep);  // every entry written below
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (w[i] > 0.0) {
@@ -465,7 +468,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     mtv_into(Z, d, c2);
-    zero_fill(out.c, static_cast<size_t>(r));
+    shape(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
 
@@ -475,9 +478,9 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
                          ReducedQP& out, bool have_gz = false) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
-    out.C.zeros(n + p, r);
-    zero_fill(out.lo, static_cast<size_t>(n + p));
-    zero_fill(out.hi, static_cast<size_t>(n + p));
+    shape(out.C, n + p, r);  // every entry, bound written below
+    shape(out.lo, static_cast<size_t>(n + p));
+    shape(out.hi, static_cast<size_t>(n + p));
     for (i64 i = 0; i < n; ++i)
         for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
     for (i64 i = 0; i < n; ++i) {
@@ -502,8 +505,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
             size = 0.0;
             for (i64 t = 0; t < n; ++t) size += G(i - n, t) * G(i - n, t);
         }
-        double norm = 0.0;
-        for (i64 t = 0; t < r; ++t) norm += out.C(i, t) * out.C(i, t);
+        double norm = dot(out.C.row(i), out.C.row(i), r);
         if (norm <= 1e-20 * size) {
             out.lo[i] = -kInf;
             out.hi[i] = kInf;
@@ -565,8 +567,9 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
                     LSForm& ls) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
-    ls.B.zeros(m + (reg ? r : 0), r);
-    zero_fill(ls.f, static_cast<size_t>(ls.B.rows));
+    shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
+    if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
+    shape(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = ws.e;
     mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
@@ -812,6 +815,13 @@ namespace detail {
 
 // Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
 // most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
+// The least-squares problem on the passive columns is solved from a QR of them kept while
+// columns are only added (Householder reflections, each new column reflected by the ones
+// before: O(r np) a step rather than a new factorisation): the usual path of the method.
+// Once a column leaves the passive set, or a new column is (nearly) dependent on the
+// passive ones (|R_kk| <= 1e-8 max(|R_ii|, |column|): far above lstsq's own zero pivots, so
+// that the kept QR only ever solves well-conditioned systems), every later step takes the
+// pivoted, minimum-norm lstsq of the passive columns instead.
 inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     i64 r = M.rows, t = M.cols;
     zero_fill(u, static_cast<size_t>(t));
@@ -820,6 +830,65 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     double ynorm = std::sqrt(dot(y.data(), y.data(), r));
     double wtol = 1e-14 * (1.0 + ynorm);
     i64 cap = 3 * t + 10;
+    // The kept QR: reflector k in V's row k (entries k..r-1), vn[k] = |v_k|^2 (0: none);
+    // Rc's row c holds R's column c (entries 0..c); qy = Q^T y; P the columns in the order
+    // they were added.
+    bool inc = true;
+    i64 np = 0;
+    double rmax = 0.0;
+    IVec& P = ws.P;
+    P.clear();
+    ws.V.zeros(std::min(r, t), r);
+    ws.Rc.zeros(std::min(r, t), std::min(r, t));
+    zero_fill(ws.vn, static_cast<size_t>(std::min(r, t)));
+    ws.qy = y;
+    // Adds column a to the kept QR; false (nothing kept changed but V's row np) when it is
+    // (nearly) dependent on the passive columns or there is no room.
+    auto add_column = [&](i64 a) {
+        if (np >= r) return false;
+        Vec& col = ws.col;
+        col.resize(static_cast<size_t>(r));
+        for (i64 i = 0; i < r; ++i) col[i] = M(i, a);
+        double cn = std::sqrt(dot(col.data(), col.data(), r));
+        for (i64 k = 0; k < np; ++k) {
+            double vnk = ws.vn[static_cast<size_t>(k)];
+            if (vnk == 0.0) continue;
+            const double* v = ws.V.row(k);
+            double sk = 0.0;
+            for (i64 i = k; i < r; ++i) sk += v[i] * col[i];
+            sk = 2.0 * sk / vnk;
+            for (i64 i = k; i < r; ++i) col[i] -= sk * v[i];
+        }
+        double alpha = 0.0;
+        for (i64 i = np; i < r; ++i) alpha += col[i] * col[i];
+        alpha = std::sqrt(alpha);
+        double diag = col[np];
+        double* v = ws.V.row(np);
+        double vn = 0.0;
+        if (alpha != 0.0) {
+            if (col[np] > 0.0) alpha = -alpha;
+            for (i64 i = 0; i < np; ++i) v[i] = 0.0;
+            for (i64 i = np; i < r; ++i) v[i] = col[i];
+            v[np] -= alpha;
+            for (i64 i = np; i < r; ++i) vn += v[i] * v[i];
+            if (vn != 0.0) diag = alpha;
+        }
+        if (!(std::fabs(diag) > 1e-8 * pymax(rmax, cn)) || !std::isfinite(diag)) return false;
+        ws.vn[static_cast<size_t>(np)] = vn;
+        if (vn != 0.0) {
+            double sq = 0.0;
+            for (i64 i = np; i < r; ++i) sq += v[i] * ws.qy[i];
+            sq = 2.0 * sq / vn;
+            for (i64 i = np; i < r; ++i) ws.qy[i] -= sq * v[i];
+        }
+        double* rc = ws.Rc.row(np);
+        for (i64 i = 0; i < np; ++i) rc[i] = col[i];
+        rc[np] = diag;
+        rmax = pymax(rmax, std::fabs(diag));
+        P.push_back(a);
+        np += 1;
+        return true;
+    };
     for (i64 outer = 0; outer < cap; ++outer) {
         Vec& res = ws.res;
         mv_into(M.cref(), u.data(), res);
@@ -837,28 +906,39 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
         if (add < 0) break;
         passive[add] = 1;
         for (i64 inner = 0; inner < cap; ++inner) {
-            IVec& P = ws.P;
-            P.clear();
-            for (i64 j = 0; j < t; ++j)
-                if (passive[j]) P.push_back(j);
-            i64 np = static_cast<i64>(P.size());
-            Mat& MP = ws.MP;
-            MP.zeros(r, np);
-            for (i64 i = 0; i < r; ++i)
-                for (i64 k = 0; k < np; ++k) MP(i, k) = M(i, P[k]);
-            ws.f = y;
             Vec& s = ws.s;
-            lstsq_into(MP, ws.f, s, ws.ls);
+            if (inc && inner == 0 && add_column(add)) {
+                s.resize(static_cast<size_t>(np));
+                for (i64 c = np - 1; c >= 0; --c) {  // R s = (Q^T y)[:np]
+                    double acc = ws.qy[c];
+                    for (i64 j = c + 1; j < np; ++j) acc -= ws.Rc(j, c) * s[j];
+                    s[c] = acc / ws.Rc(c, c);
+                }
+            } else {
+                inc = false;
+                P.clear();
+                for (i64 j = 0; j < t; ++j)
+                    if (passive[j]) P.push_back(j);
+                i64 nq = static_cast<i64>(P.size());
+                Mat& MP = ws.MP;
+                MP.zeros(r, nq);
+                for (i64 i = 0; i < r; ++i)
+                    for (i64 k = 0; k < nq; ++k) MP(i, k) = M(i, P[k]);
+                ws.f = y;
+                lstsq_into(MP, ws.f, s, ws.ls);
+            }
+            i64 np2 = static_cast<i64>(P.size());
             bool positive = true;
-            for (i64 k = 0; k < np; ++k)
+            for (i64 k = 0; k < np2; ++k)
                 if (!(s[k] > 0.0)) positive = false;
             if (positive) {
-                for (i64 k = 0; k < np; ++k) u[P[k]] = s[k];
+                for (i64 k = 0; k < np2; ++k) u[P[k]] = s[k];
                 break;
             }
+            inc = false;  // a column leaves: the kept QR no longer matches
             double alpha = 1.0;
             i64 hit = -1;
-            for (i64 k = 0; k < np; ++k) {
+            for (i64 k = 0; k < np2; ++k) {
                 double uk = u[P[k]];
                 if (!(s[k] > 0.0)) {
                     double a = uk / (uk - s[k]);
@@ -868,7 +948,7 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
                     }
                 }
             }
-            for (i64 k = 0; k < np; ++k) {
+            for (i64 k = 0; k < np2; ++k) {
                 double& uk = u[P[k]];
                 uk += alpha * (s[k] - uk);
                 if (k == hit || !(uk > 0.0)) {
@@ -922,8 +1002,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     owner.clear();
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
-        double nn = 0.0;
-        for (i64 c = 0; c < r; ++c) nn += zi[c] * zi[c];
+        double nn = dot(zi, zi, r);
         if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
@@ -951,7 +1030,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 double g = G(j, s);
                 if (g == 0.0) continue;
                 const double* zt = Z.row(s);
-                for (i64 c = 0; c < r; ++c) v[c] += g * zt[c];
+                axpy(v.data(), g, zt, r);
             }
             double nn = dot(v.data(), v.data(), r);
             if (!(nn > 1e-20 * gg)) {

@@ -62,21 +62,33 @@ struct ImplicitQR {
 
     Vec S;               // scratch
 
+    IVec len;            // len[i]: reflector i's vector is 0 past its first len[i] entries
+
     // (v's and S's storage is kept from one factor to the next: v[i] is read only where
     // beta[i] != 0, and is then this factor's.)
-    void factor(const Mat& N) {
+    // band >= 0: N's column i is exactly +0 below row i + band at step i, and so is every
+    // column j > i there, but for entries a reflection never reached (N = [T; I] with T
+    // band rows: lstsq's null-space basis; step i's vector then spans rows i..i + band,
+    // the rows below it untouched). The reflections skip those rows: their terms are
+    // x[t] * (a finite entry) = +-0, which leave a sum from +0 as it is, and their updates
+    // subtract +-0 from +0 or a nonzero entry, which leaves it as it is: the same bits
+    // (N finite; a reflection's sums finite, as they are unless N's entries near overflow).
+    void factor(const Mat& N, i64 band = -1) {
         r = N.rows;
         q = N.cols;
         R = N;
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
         zero_fill(beta, static_cast<size_t>(q));
         zero_fill(S, static_cast<size_t>(q));
+        len.assign(static_cast<size_t>(q), 0);
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
+            i64 used = band >= 0 ? std::min(size, band + 1) : size;
             Vec& x = v[static_cast<size_t>(i)];
             zero_fill(x, static_cast<size_t>(size));
+            len[static_cast<size_t>(i)] = used;
             double alpha = 0.0;
-            for (i64 t = 0; t < size; ++t) {
+            for (i64 t = 0; t < used; ++t) {
                 x[t] = R(i + t, i);
                 alpha += x[t] * x[t];
             }
@@ -85,34 +97,36 @@ struct ImplicitQR {
             if (x[0] > 0.0) alpha = -alpha;
             x[0] -= alpha;
             double vn = 0.0;
-            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
             if (vn == 0.0) continue;
-            reflect_columns(R.row(0), q, i, size, i, q, x.data(), vn, S.data());
+            reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
             beta[i] = 2.0 / vn;
         }
     }
-    // x <- Q^T x (x of length r).
-    void apply_t(double* x) const {
+    // x <- Q^T x (x of length r). finite: every entry of x is finite, so that the terms
+    // past len[i] (vi[t] = 0) of a reflection's sum are +-0 and are skipped (the same bits);
+    // its update still runs over every entry (x - s * 0 turns a -0 entry into +0).
+    void apply_t(double* x, bool finite = false) const {
         for (i64 i = 0; i < q; ++i) {
             if (beta[i] == 0.0) continue;
             const Vec& vi = v[i];
             i64 size = r - i;
-            double s = 0.0;
-            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            i64 used = finite ? len[static_cast<size_t>(i)] : size;
+            double s = dot(vi.data(), x + i, used);
             s *= beta[i];
-            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+            axmy(x + i, s, vi.data(), size);
         }
     }
-    // x <- Q x.
-    void apply(double* x) const {
+    // x <- Q x (finite: as apply_t).
+    void apply(double* x, bool finite = false) const {
         for (i64 i = q - 1; i >= 0; --i) {
             if (beta[i] == 0.0) continue;
             const Vec& vi = v[i];
             i64 size = r - i;
-            double s = 0.0;
-            for (i64 t = 0; t < size; ++t) s += vi[t] * x[i + t];
+            i64 used = finite ? len[static_cast<size_t>(i)] : size;
+            double s = dot(vi.data(), x + i, used);
             s *= beta[i];
-            for (i64 t = 0; t < size; ++t) x[i + t] -= s * vi[t];
+            axmy(x + i, s, vi.data(), size);
         }
     }
 };
@@ -137,9 +151,8 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    zero_fill(norms, static_cast<size_t>(k));
-    for (i64 i = 0; i < m; ++i)
-        for (i64 j = 0; j < k; ++j) norms[j] += M(i, j) * M(i, j);
+    norms.resize(static_cast<size_t>(k));
+    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());  // each summed over the rows in order
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
@@ -164,14 +177,12 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         if (alpha != 0.0) {
             if (x[0] > 0.0) alpha = -alpha;
             x[0] -= alpha;
-            double vn = 0.0;
-            for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
+            double vn = dot(x.data(), x.data(), size);
             if (vn != 0.0) {
                 reflect_columns(M.row(0), k, i, size, i, k, x.data(), vn, S.data());
-                double s = 0.0;
-                for (i64 t = 0; t < size; ++t) s += x[t] * f[i + t];
+                double s = dot(x.data(), f.data() + i, size);
                 s = 2.0 * s / vn;
-                for (i64 t = 0; t < size; ++t) f[i + t] -= s * x[t];
+                axmy(f.data() + i, s, x.data(), size);
             }
         }
         // The remaining columns' norms, recomputed (each summed over t in order).
@@ -205,10 +216,17 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
             }
         }
         ImplicitQR& qn = ws.qn;  // yp - Qn Qn^T yp: zero the first nn entries of Q^T yp, then Q
-        qn.factor(N0);
-        qn.apply_t(yp.data());
+        bool n0_finite = true;
+        for (i64 i = 0; i < rank; ++i)
+            for (i64 c = 0; c < nn; ++c) n0_finite = n0_finite && std::isfinite(N0(i, c));
+        qn.factor(N0, n0_finite ? rank : -1);  // N0's columns: rank rows, then the identity's
+        bool finite = true;
+        for (i64 j = 0; j < k; ++j) finite = finite && std::isfinite(yp[j]);
+        qn.apply_t(yp.data(), finite);
         for (i64 c = 0; c < nn; ++c) yp[c] = 0.0;
-        qn.apply(yp.data());
+        finite = true;
+        for (i64 j = 0; j < k; ++j) finite = finite && std::isfinite(yp[j]);
+        qn.apply(yp.data(), finite);
     }
     for (i64 j = 0; j < k; ++j) y[perm[j]] = yp[j];
 }
@@ -522,10 +540,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             double xi = std::fabs(x[i]), zm = 0.0;
-            for (i64 c = 0; c < r; ++c) {
-                zc[c] += std::fabs(zi[c]) * xi;
-                zm = pymax(zm, std::fabs(zi[c]));
-            }
+            abs_axpy(zc.data(), xi, zi, r);
+            for (i64 c = 0; c < r; ++c) zm = pymax(zm, std::fabs(zi[c]));
             dx[i] = zm;
         }
         double zx = 0.0;
@@ -547,11 +563,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             adx += std::fabs(ai[j]) * dx[j];
         }
         if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
-        for (i64 j = 0; j < n; ++j) {
-            v[j] += ai[j] * res;
-            vs[j] += std::fabs(ai[j]) * size;
-            hs[j] += std::fabs(ai[j]) * adx;
-        }
+        axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
     }
     for (i64 j = 0; j < n; ++j) {
         v[j] += rho * x[j];
@@ -579,13 +591,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     zero_fill(sc, static_cast<size_t>(r));
     zero_fill(ssc, static_cast<size_t>(r));
     for (i64 i = 0; i < n; ++i) {
-        const double* zi = Z.row(i);
-        double vi = v[i], vsi = vs[i], hsi = hs[i];
-        for (i64 c = 0; c < r; ++c) {
-            sc[c] += zi[c] * vi;
-            ssc[c] += std::fabs(zi[c]) * vsi;
-            hsc[c] += std::fabs(zi[c]) * hsi;
-        }
+        axpy3(sc.data(), ssc.data(), hsc.data(), Z.row(i), v[i], vs[i], hs[i], r);
     }
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the

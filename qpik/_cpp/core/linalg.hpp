@@ -13,6 +13,17 @@
 
 namespace qpik::core {
 
+// M reshaped to (r, c), the storage kept, its entries left as they were (stale): for a
+// matrix every entry of which is written before it is read (Mat::zeros fills it first).
+inline void shape(Mat& M, i64 r, i64 c) {
+    M.rows = r;
+    M.cols = c;
+    M.a.resize(static_cast<size_t>(r * c));
+}
+
+// v of size n, its entries left as they were (every one written before it is read).
+inline void shape(Vec& v, size_t n) { v.resize(n); }
+
 // Python's min(a, b) / max(a, b) as Python evaluates them: the second argument wins only
 // when strictly smaller / larger (so a NaN second argument never wins).
 inline double pymin(double a, double b) { return b < a ? b : a; }
@@ -32,7 +43,45 @@ inline v2d load(const double* p) {
 }
 inline void store(double* p, v2d v) { std::memcpy(p, &v, sizeof v); }
 inline v2d splat(double a) { return v2d{a, a}; }
+// |v| per lane: the sign bit cleared, as std::fabs does.
+typedef long long v2i __attribute__((vector_size(16)));
+inline v2d vabs(v2d v) {
+    v2i bits;
+    std::memcpy(&bits, &v, sizeof v);
+    bits &= v2i{0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
+    std::memcpy(&v, &bits, sizeof v);
+    return v;
+}
 }  // namespace simd
+
+// y[j] += |x[j]| * a, j < n (two lanes at a time, each the scalar loop's operations).
+inline void abs_axpy(double* y, double a, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) store(y + j, load(y + j) + vabs(load(x + j)) * av);
+    for (; j < n; ++j) y[j] += std::fabs(x[j]) * a;
+}
+
+// y[j] += x[j] * a, s[j] += |x[j]| * b, h[j] += |x[j]| * c, j < n (two lanes at a time,
+// each the scalar loop's operations).
+inline void axpy3(double* y, double* s, double* h, const double* x, double a, double b, double c, i64 n) {
+    using namespace simd;
+    v2d av = splat(a), bv = splat(b), cv = splat(c);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        v2d xv = load(x + j);
+        v2d ax = vabs(xv);
+        store(y + j, load(y + j) + xv * av);
+        store(s + j, load(s + j) + ax * bv);
+        store(h + j, load(h + j) + ax * cv);
+    }
+    for (; j < n; ++j) {
+        y[j] += x[j] * a;
+        s[j] += std::fabs(x[j]) * b;
+        h[j] += std::fabs(x[j]) * c;
+    }
+}
 
 // y[j] += a * x[j], j < n.
 inline void axpy(double* y, double a, const double* x, i64 n) {
@@ -62,10 +111,18 @@ inline void axmy(double* y, double a, const double* x, i64 n) {
 
 // Two dot products with one vector, sa = a . x and sb = b . x, each summed in index order
 // from 0.0 as dot() does (one per lane: the same bits, twice the independent work).
+// (Four terms a pass: the same additions in the same order, fewer loop instructions.)
 inline void dot2(const double* a, const double* b, const double* x, i64 n, double& sa, double& sb) {
     using namespace simd;
     v2d acc = splat(0.0);
-    for (i64 t = 0; t < n; ++t) acc += v2d{a[t], b[t]} * splat(x[t]);
+    i64 t = 0;
+    for (; t + 4 <= n; t += 4) {
+        acc += v2d{a[t], b[t]} * splat(x[t]);
+        acc += v2d{a[t + 1], b[t + 1]} * splat(x[t + 1]);
+        acc += v2d{a[t + 2], b[t + 2]} * splat(x[t + 2]);
+        acc += v2d{a[t + 3], b[t + 3]} * splat(x[t + 3]);
+    }
+    for (; t < n; ++t) acc += v2d{a[t], b[t]} * splat(x[t]);
     sa = acc[0];
     sb = acc[1];
 }
@@ -179,13 +236,22 @@ inline void givens_rows(double* a, double* b, double cc, double ss, double xny, 
 inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
     for (i64 j = 0; j < n; ++j) {
         double s = G(j, j) - shift;
-        for (i64 k = 0; k < j; ++k) s -= L(j, k) * L(j, k);
+        const double* lj = L.p + j * L.stride;
+        for (i64 k = 0; k < j; ++k) s -= lj[k] * lj[k];
         if (!(s > 0.0)) return false;
         double d = std::sqrt(s);
         L(j, j) = d;
         for (i64 i = j + 1; i < n; ++i) {
             double t = G(i, j);
-            for (i64 k = 0; k < j; ++k) t -= L(i, k) * L(j, k);
+            const double* li = L.p + i * L.stride;
+            i64 k = 0;
+            for (; k + 4 <= j; k += 4) {  // subtracted in order of k
+                t -= li[k] * lj[k];
+                t -= li[k + 1] * lj[k + 1];
+                t -= li[k + 2] * lj[k + 2];
+                t -= li[k + 3] * lj[k + 3];
+            }
+            for (; k < j; ++k) t -= li[k] * lj[k];
             L(i, j) = t / d;
         }
     }
@@ -256,7 +322,8 @@ inline Mat mm(CMatRef A, CMatRef B) {
 // A^T @ A (symmetric, computed once per pair) into C (its storage kept).
 inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
-    C.zeros(n, n);
+    shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
+    for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
         for (i64 i = 0; i < n; ++i) {
@@ -314,9 +381,17 @@ inline Vec mtv(CMatRef A, const double* x) {
 }
 
 // x @ y for vectors of length n.
+// (Four terms a pass, added in index order.)
 inline double dot(const double* x, const double* y, i64 n) {
     double acc = 0.0;
-    for (i64 i = 0; i < n; ++i) acc += x[i] * y[i];
+    i64 i = 0;
+    for (; i + 4 <= n; i += 4) {
+        acc += x[i] * y[i];
+        acc += x[i + 1] * y[i + 1];
+        acc += x[i + 2] * y[i + 2];
+        acc += x[i + 3] * y[i + 3];
+    }
+    for (; i < n; ++i) acc += x[i] * y[i];
     return acc;
 }
 
@@ -630,7 +705,7 @@ struct QRScratch {
 // scratch keep their storage (no allocation unless a size grows).
 inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
-    R.zeros(r, m);
+    shape(R, r, m);  // every entry copied
     for (i64 i = 0; i < r; ++i)
         for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
     if (form_q) Q.set_eye(r);

@@ -119,9 +119,8 @@ inline double max_abs(const Vec& u, i64 q) {
 inline void row_norms_into(CMatRef C, Vec& norms) {
     norms.resize(static_cast<size_t>(C.rows));
     for (i64 i = 0; i < C.rows; ++i) {
-        double norm = 0.0;
-        for (i64 j = 0; j < C.cols; ++j) norm += C(i, j) * C(i, j);
-        norms[i] = std::sqrt(norm);
+        const double* ci = C.p + i * C.stride;
+        norms[i] = std::sqrt(dot(ci, ci, C.cols));
     }
 }
 
@@ -179,8 +178,7 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
             dot2(C.row(i), C.row(i + 1), x, n, cx, cx_next);
             have_next = true;
         } else {
-            cx = 0.0;
-            for (i64 j = 0; j < n; ++j) cx += C(i, j) * x[j];
+            cx = dot(C.p + i * C.stride, x, n);
         }
         if (lo[i] > -kBig) {
             double v = (lo[i] - cx) / norm;
@@ -248,7 +246,16 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
         J(i, i) = 1.0 / L(i, i);
         for (i64 k = i + 1; k < n; ++k) {
             double acc = 0.0;
-            for (i64 j = i; j < k; ++j) acc -= L(k, j) * J(i, j);
+            const double* lk = L.row(k);
+            const double* ji = J.row(i);
+            i64 j = i;
+            for (; j + 4 <= k; j += 4) {  // subtracted in order of j
+                acc -= lk[j] * ji[j];
+                acc -= lk[j + 1] * ji[j + 1];
+                acc -= lk[j + 2] * ji[j + 2];
+                acc -= lk[j + 3] * ji[j + 3];
+            }
+            for (; j < k; ++j) acc -= lk[j] * ji[j];
             J(i, k) = acc / L(k, k);
         }
     }
