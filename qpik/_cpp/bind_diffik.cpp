@@ -592,7 +592,8 @@ class Kernel {
             if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
             w = cold_.data();
         }
-        diffik::StepResult r = diffik::fused_step(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_);
+        diffik::StepResult r =
+            diffik::fused_step(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_);
         if (r.code != diffik::OK) return r.code;
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
@@ -610,6 +611,8 @@ class Kernel {
     i64 nv() const { return n_; }
     // The cascade's storage, kept from one step to the next (sizes only grow).
     core::Workspace& workspace() const { return ws_; }
+    // The rows' and boxes' storage, kept likewise.
+    diffik::Scratch& scratch() const { return scratch_; }
 
   private:
     Out2 A_;
@@ -658,6 +661,7 @@ class Kernel {
     i64 max_id_[3] = {-1, -1, -1};
     i64 max_body_ = -1;
     mutable core::Workspace ws_;
+    mutable diffik::Scratch scratch_;
 };
 
 // Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.
@@ -666,7 +670,8 @@ auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, boo
     const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
     require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.step: warm must have shape (L, nv + p)");
     diffik::StepResult r =
-        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace());
+        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace(),
+                           k.scratch());
     if (r.v_is_d) r.v = r.d;
     const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
     return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),

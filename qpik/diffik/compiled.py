@@ -1,9 +1,10 @@
 """The compiled step: one C++ call per differential IK step, for the stacks it covers.
 
-:func:`make_plan` builds a :class:`CompiledPlan` once per :class:`qpik.IKSolver` when every
-limit is one the compiled :class:`Kernel` takes (mink's ``ConfigurationLimit`` without a
-limited ball joint, ``VelocityLimit`` and ``CollisionAvoidanceLimit``; exact types); its
-layout (which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself:
+:func:`qpik.diffik.plan.make_plan` builds a :class:`CompiledPlan` once per
+:class:`qpik.IKSolver` when every limit is one the compiled :class:`Kernel` takes (mink's
+``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
+``CollisionAvoidanceLimit``; exact types); its layout (which task goes where) is
+:mod:`.layout`'s. Tasks the kernel computes itself:
 qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's
 ``RelativeFrameTask`` (exact types, any joints), and qpik's ``CouplingTask`` when every
 coupling is linear (a URDF mimic, a joint equality of degree 1: a constant Jacobian and a
@@ -34,7 +35,6 @@ recovering it.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,17 +49,12 @@ from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
 from .layout import (
-    DAMPING_TYPES,
-    JACOBIANS,
     frame_chains,
-    limit_layout,
-    plan_arrays,
-    task_layout,
 )
 from .result import Solution, StepResult, solve_rows
 from .rows import TaskRows, task_rows
 
-__all__ = ["CompiledPlan", "Kernel", "make_plan"]
+__all__ = ["CompiledPlan", "Kernel"]
 
 # Result codes of the kernel: anything but OK sends the step to the QP path.
 OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
@@ -72,6 +67,8 @@ DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
+_perf_counter = time.perf_counter
+
 #: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
 _OUTPUT_ROWS = 64
 
@@ -80,15 +77,9 @@ _OUTPUT_ROWS = 64
 Kernel = _engine.Kernel
 
 
-def _views(row: np.ndarray, size: int, cost: int) -> tuple:
-    """A task's data row with its target ``row[:size]`` and cost ``row[size:size + cost]``
-    as views (writing into a held view is cheaper than slicing each step)."""
-    return row, row[:size], row[size : size + cost]
-
-
 def _write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
-    data row (15; :func:`_views`)."""
+    data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
     if pose is None:
         raise TargetNotSet(type(task).__name__)
     row, target, cost = views
@@ -139,6 +130,10 @@ class CompiledPlan:
         self._out: tuple = ()
         self._row = _OUTPUT_ROWS
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
+        # the tasks and limits _values reads, in its order (the lists never change)
+        self._frame_tasks = [f[0] for f in self.frames]
+        self._linear_tasks = [t[0] for t in self.linears]
+        self._config_limits = [c[0] for c in self.config_limits]
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
             if self.frames:
@@ -345,7 +340,7 @@ class CompiledPlan:
         writes them, checking each; :meth:`gather` when one is not what its slot takes as it
         is); None when a CoM task's subtree changed (the QP path resolves it)."""
         values: list = [dt, damping]
-        for task, *_ in self.frames:
+        for task in self._frame_tasks:
             pose = task.transform_target_to_world
             if pose is None:
                 raise TargetNotSet(type(task).__name__)
@@ -360,9 +355,9 @@ class CompiledPlan:
             values += (target, task.cost, task.gain, task.lm_damping)
         if (self.coms or self.relatives) and not self._more_values(values):
             return None
-        for task, *_ in self.linears:
+        for task in self._linear_tasks:
             values += (task.cost, task.gain, task.lm_damping)
-        for limit, *_ in self.config_limits:
+        for limit in self._config_limits:
             values.append(limit.gain)
         return values
 
@@ -426,8 +421,10 @@ class CompiledPlan:
             self._jacobians(data)
         if self.rows_tasks and not self._gather_rows(configuration):
             return -1
-        self._attach(data)
-        self._write_law(core)
+        if data is not self._data:
+            self._attach(data)
+        if core.damping_law is not self.law:
+            self._write_law(core)
         row = self._row
         if row == _OUTPUT_ROWS:
             self._new_outputs()
@@ -441,12 +438,18 @@ class CompiledPlan:
         return row if code == OK else -1
 
     def _solve(
-        self, configuration: mink.Configuration, dt: float, damping: float, core, forced: bool
+        self,
+        configuration: mink.Configuration,
+        dt: float,
+        damping: float,
+        core,
+        forced: bool,
+        lean: bool = True,
     ) -> tuple | None:
         """The kernel's step: ``(dq, v, info, general rows, qpos)``, None where the QP
         path must answer (``forced``: also where a level was not solved); ``core``'s
         active sets updated."""
-        if not self.general_limits:
+        if lean and not self.general_limits:
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
                 d, v, info, active, qpos = self._out
@@ -534,12 +537,23 @@ class CompiledPlan:
         :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
         ``skip`` 1 when the first level is the couplings' (reported apart). None where the QP
         path must answer."""
-        out = self._solve(configuration, dt, damping, core, False)
+        if not self.general_limits:  # the lean step, its answers in row `row` of _out
+            row = self._lean(configuration, dt, damping, core)
+            if row >= 0:
+                d, v, info, active, qpos = self._out
+                core.warm_start_from(active[row])
+                return StepResult.lazy(
+                    v[row], d[row], info, skip, _perf_counter() - start,
+                    lambda: self._limit_rows(qpos[row], dt, (self.no_rows, self.no_h, [])), row,
+                )  # fmt: skip
+            if row == -1:
+                return None
+        out = self._solve(configuration, dt, damping, core, False, lean=False)
         if out is None:
             return None
         d, v, info, general, qpos = out
         return StepResult.lazy(
-            v, d, info, skip, time.perf_counter() - start,
+            v, d, info, skip, _perf_counter() - start,
             lambda: self._limit_rows(qpos, dt, general),
         )  # fmt: skip
 
@@ -631,66 +645,3 @@ class CompiledPlan:
             if solution.ok:
                 return solution
         return solve_rows(core, tasks, limits, dt)
-
-
-def make_plan(
-    model: mujoco.MjModel, levels: Sequence[Sequence], limits: LimitBoxes, core: HierarchySolver
-) -> CompiledPlan | None:
-    """The :class:`CompiledPlan` of a stack under ``limits`` solved as ``core`` solves
-    (its rank tolerance, tolerance and iteration cap), or None when a task or limit is not
-    one the kernel computes (the QP path then serves every step). The trust region of
-    ``limits`` (:attr:`qpik.StepOptions.max_joint_speed`) is appended to the velocity
-    limits' entries: the kernel bounds each of its dofs by ``speed dt``, a hard bound as a
-    velocity limit's."""
-    layout = task_layout(model, levels)
-    boxes = limit_layout(model, limits.limits)
-    if layout is None or boxes is None:
-        return None
-    arrays = plan_arrays(model, layout, boxes, limits)
-    settings = arrays["settings"]
-    settings[RANK_TOL], settings[TOL] = core.rank_tolerance, core.tolerance
-    jac, frame_data, posture_data = arrays["jac"], arrays["frame_data"], arrays["posture_data"]
-    com_jac, com_data = arrays["com_jac"], arrays["com_data"]
-    rel_jac, rel_data = arrays["rel_jac"], arrays["rel_data"]
-    frames = [
-        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], _views(frame_data[f], 7, 6))
-        for f, (task, kind, fid) in enumerate(layout.frames)
-    ]
-    postures = [
-        (task, _views(posture_data[p], model.nq, model.nv), type(task) in DAMPING_TYPES)
-        for p, task in enumerate(layout.postures)
-    ]
-    coms = [
-        (task, body, given, com_jac[c], _views(com_data[c], 3, 3))
-        for c, (task, body, given) in enumerate(layout.coms)
-    ]
-    relatives = [
-        (
-            task,
-            (JACOBIANS[f[0]], f[1]),
-            (JACOBIANS[r[0]], r[1]),
-            rel_jac[i],
-            _views(rel_data[i], 7, 6),
-        )
-        for i, (task, f, r) in enumerate(layout.relatives)
-    ]
-    used = tuple(any(kind == k for (kind, _), _rel in layout.frame_rows) for k in range(3))
-    cold = np.zeros((len(levels), model.nv), dtype=np.int8)
-    a = arrays
-    kernel = Kernel(
-        a["A"], a["b"], a["w"], a["starts"], a["tasks"], a["jac"], a["frames"], a["frame_data"],
-        a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
-        a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
-        a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
-        a["lin_const"], a["lin_data"],
-    )  # fmt: skip
-    lin_starts = a["lin_starts"].tolist()
-    linears = [
-        (task, lin_starts[i], a["lin_data"][0, lin_starts[i] : lin_starts[i + 1]])
-        for i, (task, _, _) in enumerate(layout.linears)
-    ]
-    return CompiledPlan(
-        model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
-        arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
-        linears=linears,
-    )  # fmt: skip

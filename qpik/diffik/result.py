@@ -145,22 +145,25 @@ class StepResult:
         skip: int,
         solve_time: float,
         limits: Callable[[], LimitRows],
+        row: int | None = None,
     ) -> StepResult:
         """The result of a compiled step from the kernel's ``info`` (9, L) (rows: residual,
         sigma, lambda^2, status code, iterations, then the certificate's four measures;
-        the couplings' level first when ``skip`` is 1): the per-level lists are read from it
-        on first access (the same values :meth:`of` gives; a control loop that reads only
-        the velocity never builds them)."""
+        the couplings' level first when ``skip`` is 1), or from ``info[row]`` of a stack of
+        them (K, 9, L) when ``row`` is given: the per-level lists are read from it on first
+        access (the same values :meth:`of` gives; a control loop that reads only the
+        velocity never builds them)."""
         result = _new(cls)
-        result.__dict__.update(
-            velocity=velocity,
-            displacement=displacement,
-            solve_time=solve_time,
-            coupling_residual=float(info[0, 0]) if skip else None,
-            _limits=limits,
-            _active_limits=None,
-            _info=(info, skip),
-        )
+        first = (0, 0) if row is None else (row, 0, 0)
+        result.__dict__ = {
+            "velocity": velocity,
+            "displacement": displacement,
+            "solve_time": solve_time,
+            "coupling_residual": info.item(first) if skip else None,
+            "_limits": limits,
+            "_active_limits": None,
+            "_info": (info, row, skip),
+        }
         return result
 
     def __getattr__(self, name: str) -> Any:
@@ -168,7 +171,9 @@ class StepResult:
         lazy = self.__dict__.get("_info")
         if lazy is None or name not in _PER_LEVEL:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        info, skip = lazy
+        info, row, skip = lazy
+        if row is not None:
+            info = info[row]
         residuals, sigma, lam2, status, iterations, *cert = info.tolist()
         self.__dict__.update(
             residuals=residuals[skip:],

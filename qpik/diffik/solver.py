@@ -39,7 +39,7 @@ from ..errors import InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
-from .compiled import make_plan
+from .plan import make_plan
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
 
@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from typing_extensions import Unpack
 
 _perf_counter = time.perf_counter
+_MinkConfiguration = mink.Configuration
 _DT_MIN, _DT_MAX = checks.DT_MIN, checks.DT_MAX
 
 __all__ = [
@@ -227,7 +228,7 @@ class IKSolver:
             plan is not None
             and type(dt) is float
             and core.solver == "auto"
-            and isinstance(configuration, mink.Configuration)
+            and isinstance(configuration, _MinkConfiguration)
             and configuration.model is self.model
             and _DT_MIN <= dt <= _DT_MAX
         ):

@@ -192,6 +192,23 @@ def test_fused_step_reports_unset_and_non_finite_targets(panda):
     assert solver.step(configuration, DT).ok  # still usable
 
 
+def test_rows_whose_sum_overflows_go_to_the_qp_path(panda):
+    """Every entry of A finite but their sum past the largest float (posture costs 1e308
+    on a zero error): the kernel reports the rows not finite and the QP path answers, as
+    when it summed them all; costs just below that bound stay in the kernel."""
+    model, configuration = panda
+    configuration.update(model.key_qpos[0])
+    frame, posture = FrameTask("ee", "site", 1.0, 1.0), PostureTask(model, 1e308)
+    solver = qpik.IKSolver(model, [[frame], [posture]], [mink.ConfigurationLimit(model)])
+    frame.set_target(mink.SE3.from_translation(np.array([0.3, 0.0, 0.5])))
+    posture.set_target(model.key_qpos[0])
+    plan, core = solver._plan, solver._core
+    assert plan is not None
+    assert plan._solve(configuration, DT, solver.damping, core, False) is None
+    posture.cost = np.full(model.nv, 1e10)
+    assert plan._solve(configuration, DT, solver.damping, core, False) is not None
+
+
 @pytest.mark.parametrize("backend", ["osqp", "daqp", "quadprog"])
 def test_forced_backends_build_rows_in_one_call_with_the_same_answers(panda, backend):
     """With a forced backend the rows and limits come from one compiled call; the answer

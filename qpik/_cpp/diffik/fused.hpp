@@ -104,7 +104,10 @@ inline double posture_rows(MatRef A, double* b, i64 row, CVecRef qpos, const dou
     const i64 nv = qpos.n;
     double mu = 0.0;
     for (i64 i = 0; i < nv; ++i) {
-        for (i64 j = 0; j < nv; ++j) A(row + i, j) = cost[i] * (i == j ? 1.0 : 0.0);
+        const double off = cost[i] * 0.0;  // the products of the loop's zeros, once
+        double* Ai = &A(row + i, 0);
+        for (i64 j = 0; j < nv; ++j) Ai[j] = off;
+        Ai[i] = cost[i] * 1.0;
         b[row + i] = cost[i] * (-gain * (qpos[i] - target[i]));
         mu += b[row + i] * b[row + i];
     }
@@ -175,7 +178,10 @@ inline double posture_rows_map(MatRef A, double* b, i64 row, CVecRef qpos,
     double mu = 0.0;
     for (i64 i = 0; i < nv; ++i) {
         const double diag = map(i, 0) == FREE_DOF ? 0.0 : 1.0;
-        for (i64 j = 0; j < nv; ++j) A(row + i, j) = cost[i] * (i == j ? diag : 0.0);
+        const double off = cost[i] * 0.0;  // the products of the loop's zeros, once
+        double* Ai = &A(row + i, 0);
+        for (i64 j = 0; j < nv; ++j) Ai[j] = off;
+        Ai[i] = cost[i] * diag;
         b[row + i] = cost[i] * (-gain * e[i]);
         mu += b[row + i] * b[row + i];
     }
@@ -193,12 +199,21 @@ struct Box {
 // Position limit e: lower[e * stride], upper[e * stride], gain[e * stride]. Every dof index
 // is in [0, min(n, qpos.n)).
 // cfg_qadr (E,) the qpos address of each entry (empty: the dof index; hinge/slide only).
-inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const double* cfg_lower,
-                 const double* cfg_upper, const double* cfg_gain, i64 stride,
-                 VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
-                 VecRefT<const i64> cfg_qadr = VecRefT<const i64>()) {
-    Vec hard_lb(static_cast<size_t>(n), -kInf), hard_ub(static_cast<size_t>(n), kInf);
-    Vec pos_lb(static_cast<size_t>(n), -kInf), pos_ub(static_cast<size_t>(n), kInf);
+// The storage of boxes_into (sizes only grow; every entry written before it is read).
+struct BoxScratch {
+    Vec hard_lb, hard_ub, pos_lb, pos_ub;
+};
+
+inline void boxes_into(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const double* cfg_lower,
+                       const double* cfg_upper, const double* cfg_gain, i64 stride,
+                       VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
+                       VecRefT<const i64> cfg_qadr, BoxScratch& s, Box& box) {
+    const size_t m = static_cast<size_t>(n);
+    s.hard_lb.assign(m, -kInf);
+    s.hard_ub.assign(m, kInf);
+    s.pos_lb.assign(m, -kInf);
+    s.pos_ub.assign(m, kInf);
+    Vec &hard_lb = s.hard_lb, &hard_ub = s.hard_ub, &pos_lb = s.pos_lb, &pos_ub = s.pos_ub;
     for (i64 e = 0; e < cfg_dof.n; ++e) {
         const i64 i = cfg_dof[e];
         const double q = qpos[cfg_qadr.n ? cfg_qadr[e] : i];
@@ -214,9 +229,18 @@ inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const doub
         if (-bound > hard_lb[i]) hard_lb[i] = -bound;
         if (bound < hard_ub[i]) hard_ub[i] = bound;
     }
-    Box box;
     box.bad = core::merge_boxes(CVecRef(hard_lb), CVecRef(hard_ub), CVecRef(pos_lb),
                                 CVecRef(pos_ub), box.lb, box.ub);
+}
+
+inline Box boxes(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, const double* cfg_lower,
+                 const double* cfg_upper, const double* cfg_gain, i64 stride,
+                 VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
+                 VecRefT<const i64> cfg_qadr = VecRefT<const i64>()) {
+    BoxScratch s;
+    Box box;
+    boxes_into(qpos, dt, cfg_dof, cfg_lower, cfg_upper, cfg_gain, stride, vel_dof, vel_limit, n,
+               cfg_qadr, s, box);
     return box;
 }
 
@@ -235,12 +259,12 @@ inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos
     }
 }
 
-// Fill every task's rows of A, b, w; returns each level's LM term sum lm_damping
-// |b_task|^2 (L).
-inline Vec assemble_rows(const FusedArgs& a, i64 L) {
+// Fill every task's rows of A, b, w; each level's LM term sum lm_damping |b_task|^2 into
+// reg (L); local: scratch (sizes only grow).
+inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local) {
     const i64 n = a.A.cols;
-    Vec reg(static_cast<size_t>(L), 0.0);
-    std::vector<double> local(static_cast<size_t>(18 * n + n));
+    zero_fill(reg, static_cast<size_t>(L));
+    if (local.size() < static_cast<size_t>(19 * n)) local.resize(static_cast<size_t>(19 * n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0);
         const i64 i = a.tasks(t, 1);
@@ -310,7 +334,6 @@ inline Vec assemble_rows(const FusedArgs& a, i64 L) {
         for (i64 r = 0; r < size; ++r) a.w[row + r] = cost[r];
         reg[a.tasks(t, 2)] += mu;
     }
-    return reg;
 }
 
 struct RowsResult {
@@ -319,35 +342,86 @@ struct RowsResult {
     Box box;
 };
 
-// The hierarchy's rows and limits without solving it: fills A, b, w; code OK, NOT_FINITE
-// (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
-inline RowsResult fused_rows(const FusedArgs& a) {
+// The storage of a compiled step kept by its kernel from one step to the next (sizes only
+// grow; every entry written before it is read): the same bits as fresh storage.
+struct Scratch {
+    RowsResult rows;
+    Vec local;
+    BoxScratch box;
+};
+
+// Whether the serial sums of fused_rows (of the squares of x, or of its entries) are
+// finite, decided without their chain of adds where it can be: every entry finite and
+// count * max |x| (squared) at most 1e300 means no partial sum overflows; otherwise the
+// sum itself, in its order, decides.
+struct FiniteSum {
+    bool finite = true;
+    double max = 0.0;
+    i64 count = 0;
+    void add(double x) {
+        finite = finite && std::isfinite(x);
+        const double m = std::fabs(x);
+        max = m > max ? m : max;
+        ++count;
+    }
+    bool safe(bool squares) const {
+        if (!finite) return false;
+        if (!squares) return max * static_cast<double>(count) <= 1e300;
+        return max <= 1e150 && max * max * static_cast<double>(count) <= 1e300;
+    }
+};
+
+// The hierarchy's rows and limits without solving it into s.rows: fills A, b, w; code OK,
+// NOT_FINITE (a row or regularisation) or CONFLICT (velocity-like limits of a dof).
+inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
-    RowsResult res;
-    res.reg = assemble_rows(a, L);
+    RowsResult& res = s.rows;
+    res.code = OK;
+    assemble_rows(a, L, res.reg, s.local);
     for (i64 k = 0; k < L; ++k) res.reg[k] = a.settings[DAMPING] + res.reg[k];
     const double* cfg = a.cfg_data.p;
-    res.box = boxes(a.qpos, a.settings[DT], a.cfg_dof, cfg, cfg + 1, cfg + 2, a.cfg_data.stride,
-                    a.vel_dof, a.vel_limit, n, a.cfg_qadr);
-    double square = 0.0;
-    double total = 0.0;
+    boxes_into(a.qpos, a.settings[DT], a.cfg_dof, cfg, cfg + 1, cfg + 2, a.cfg_data.stride,
+               a.vel_dof, a.vel_limit, n, a.cfg_qadr, s.box, res.box);
+    FiniteSum bs, ts;
     for (i64 r = 0; r < a.b.n; ++r) {
-        square += a.b[r] * a.b[r];
-        for (i64 j = 0; j < n; ++j) total += a.A(r, j);
+        bs.add(a.b[r]);
+        for (i64 j = 0; j < n; ++j) ts.add(a.A(r, j));
+    }
+    for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
+        ts.add(a.h[r]);
+        for (i64 j = 0; j < n; ++j) ts.add(a.G(r, j));
+    }
+    bool finite = true;
+    if (!bs.safe(true)) {
+        double square = 0.0;
+        for (i64 r = 0; r < a.b.n; ++r) square += a.b[r] * a.b[r];
+        finite = std::isfinite(square);
+    }
+    if (finite && !ts.safe(false)) {
+        double total = 0.0;
+        for (i64 r = 0; r < a.b.n; ++r)
+            for (i64 j = 0; j < n; ++j) total += a.A(r, j);
+        for (i64 r = 0; r < a.G.rows; ++r) {
+            total += a.h[r];
+            for (i64 j = 0; j < n; ++j) total += a.G(r, j);
+        }
+        finite = std::isfinite(total);
     }
     double reg_sum = 0.0;
     for (i64 k = 0; k < L; ++k) reg_sum += res.reg[k];
-    for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
-        total += a.h[r];
-        for (i64 j = 0; j < n; ++j) total += a.G(r, j);
-    }
-    if (!(std::isfinite(square) && std::isfinite(total) && std::isfinite(reg_sum))) {
+    if (!(finite && std::isfinite(reg_sum))) {
         res.code = NOT_FINITE;
     } else if (res.box.bad >= 0) {
         res.code = CONFLICT;
     }
-    return res;
+    return res.code;
+}
+
+inline RowsResult fused_rows(const FusedArgs& a) {
+    Scratch s;
+    fused_rows_into(a, s);
+    return std::move(s.rows);
 }
 
 struct StepResult {
@@ -364,11 +438,13 @@ struct StepResult {
 // Rows of every task, the limits' box and the cascade, in one call. warm (L, n) int8 (the
 // previous active sets); see qpik/_fused.py:fused_step.
 // ws: the cascade's storage, kept by the caller between steps (core::Workspace).
+// s: fused_rows_into's storage, kept by the caller between steps (Scratch).
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                             bool canonical, core::Workspace& ws) {
+                             bool canonical, core::Workspace& ws, Scratch& s) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
-    RowsResult rows = fused_rows(a);
+    fused_rows_into(a, s);
+    const RowsResult& rows = s.rows;
     StepResult out;
     out.code = rows.code;
     out.info.assign(static_cast<size_t>(9 * L), 0.0);
@@ -414,6 +490,12 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
         out.v_is_d = true;
     }
     return out;
+}
+
+inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                             bool canonical, core::Workspace& ws) {
+    Scratch s;
+    return fused_step(a, max_iter, warm, canonical, ws, s);
 }
 
 }  // namespace qpik::diffik

@@ -3,6 +3,7 @@
 // log(T_fw^-1 T_tw), its jlog, and the weighted rows diag(cost) (-jlog) [R^T Jp; R^T Jr].
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "../common.hpp"
@@ -48,14 +49,50 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
                               const double* jlog, const double* error, const double* cost,
                               double gain, double lm_damping, double* local) {
     const i64 nv = jac.cols;
-    local_jacobian(local, jac, xmat);
+    bool finite = true;
+    for (int k = 0; k < 9; ++k) finite = finite && std::isfinite(xmat[k]);
+    for (int k = 0; k < 36; ++k) finite = finite && std::isfinite(jlog[k]);
+    if (finite) {
+        // Column by column, each entry by the same sums as below; a column of the
+        // Jacobian that is exactly zero (a dof off the frame's chain) gives local entries
+        // +0 (0.0 + finite * 0, in any order) and so A entries -cost[i] * 0.0, written
+        // without the sums: the same bits.
+        for (i64 j = 0; j < nv; ++j) {
+            bool zero = true;
+            for (i64 k = 0; k < 6; ++k) zero = zero && jac(k, j) == 0.0;
+            if (zero) {
+                for (i64 i = 0; i < 6; ++i) A(row + i, j) = -cost[i] * 0.0;
+                continue;
+            }
+            double col[6];
+            for (i64 i = 0; i < 3; ++i) {
+                double a = 0.0;
+                double r = 0.0;
+                for (i64 k = 0; k < 3; ++k) {
+                    a += xmat[3 * k + i] * jac(k, j);
+                    r += xmat[3 * k + i] * jac(3 + k, j);
+                }
+                col[i] = a;
+                col[3 + i] = r;
+            }
+            for (i64 i = 0; i < 6; ++i) {
+                double acc = 0.0;
+                for (i64 k = 0; k < 6; ++k) acc += jlog[6 * i + k] * col[k];
+                A(row + i, j) = -cost[i] * acc;
+            }
+        }
+    } else {
+        local_jacobian(local, jac, xmat);
+        for (i64 i = 0; i < 6; ++i) {
+            for (i64 j = 0; j < nv; ++j) {
+                double acc = 0.0;
+                for (i64 k = 0; k < 6; ++k) acc += jlog[6 * i + k] * local[k * nv + j];
+                A(row + i, j) = -cost[i] * acc;
+            }
+        }
+    }
     double mu = 0.0;
     for (i64 i = 0; i < 6; ++i) {
-        for (i64 j = 0; j < nv; ++j) {
-            double acc = 0.0;
-            for (i64 k = 0; k < 6; ++k) acc += jlog[6 * i + k] * local[k * nv + j];
-            A(row + i, j) = -cost[i] * acc;
-        }
         b[row + i] = cost[i] * (-gain * error[i]);
         mu += b[row + i] * b[row + i];
     }
