@@ -245,18 +245,7 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
     for (i64 i = 0; i < n; ++i) {
         J(i, i) = 1.0 / L(i, i);
         for (i64 k = i + 1; k < n; ++k) {
-            double acc = 0.0;
-            const double* lk = L.row(k);
-            const double* ji = J.row(i);
-            i64 j = i;
-            for (; j + 4 <= k; j += 4) {  // subtracted in order of j
-                acc -= lk[j] * ji[j];
-                acc -= lk[j + 1] * ji[j + 1];
-                acc -= lk[j + 2] * ji[j + 2];
-                acc -= lk[j + 3] * ji[j + 3];
-            }
-            for (; j < k; ++j) acc -= lk[j] * ji[j];
-            J(i, k) = acc / L(k, k);
+            J(i, k) = minus_dot(0.0, L.row(k) + i, J.row(i) + i, k - i) / L(k, k);
         }
     }
     transposed_into(J.cref(), JT);
