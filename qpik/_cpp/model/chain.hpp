@@ -8,6 +8,9 @@
 // has, per dof, [u x (p_f - a); u] for a hinge and [u; 0] for a slide ([v; omega]).
 #pragma once
 
+#include <cmath>
+#include <vector>
+
 #include "../common.hpp"
 
 namespace qpik::model {
@@ -119,17 +122,18 @@ inline void walk(const Chain& c, const double* q, MatRef axes, MatRef anchors, d
     matmul3(R, c.frame_rot, rotation);
 }
 
-// fk_jac with the scratch axes, anchors (njnt, 3) given.
-inline void fk_jac_in(const Chain& c, const double* q, MatRef axes, MatRef anchors, double* position,
-                      double* rotation, MatRef jac, bool want_jac) {
-    walk(c, q, axes, anchors, position, rotation);
-    if (!want_jac) return;
+// The world-aligned Jacobian jac (6, jac.cols) [v; omega] of a point at position from the
+// world axes and anchors (nj, 3) of the joints moving it: joint j is a hinge if hinge(j)
+// (else a slide) and moves dof dof(j); columns of other dofs zero.
+template <class IsHinge, class Dof>
+inline void axes_jacobian(const double* position, MatRef axes, MatRef anchors, i64 nj, IsHinge hinge, Dof dof,
+                          MatRef jac) {
     for (int i = 0; i < 6; ++i)
         for (i64 j = 0; j < jac.cols; ++j) jac(i, j) = 0.0;
-    for (i64 j = 0; j < c.njnt; ++j) {
-        i64 d = c.jnt_dadr[j];
+    for (i64 j = 0; j < nj; ++j) {
+        i64 d = dof(j);
         double u0 = axes(j, 0), u1 = axes(j, 1), u2 = axes(j, 2);
-        if (c.jnt_type[j] == HINGE) {
+        if (hinge(j)) {
             double r0 = position[0] - anchors(j, 0);
             double r1 = position[1] - anchors(j, 1);
             double r2 = position[2] - anchors(j, 2);
@@ -147,12 +151,184 @@ inline void fk_jac_in(const Chain& c, const double* q, MatRef axes, MatRef ancho
     }
 }
 
+// fk_jac with the scratch axes, anchors (njnt, 3) given.
+inline void fk_jac_in(const Chain& c, const double* q, MatRef axes, MatRef anchors, double* position,
+                      double* rotation, MatRef jac, bool want_jac) {
+    walk(c, q, axes, anchors, position, rotation);
+    if (!want_jac) return;
+    axes_jacobian(position, axes, anchors, c.njnt, [&c](i64 j) { return c.jnt_type[j] == HINGE; },
+                  [&c](i64 j) { return c.jnt_dadr[j]; }, jac);
+}
+
 // Pose of the chain's frame at q (position (3,) [m], rotation (3, 3)) and, if want_jac,
 // its world-aligned Jacobian jac (6, nv) [v; omega] (columns of dofs off the chain zero).
 inline void fk_jac(const Chain& c, const double* q, double* position, double* rotation, MatRef jac,
                    bool want_jac) {
     Mat axes(c.njnt, 3), anchors(c.njnt, 3);
     fk_jac_in(c, q, axes.ref(), anchors.ref(), position, rotation, jac, want_jac);
+}
+
+// ------------------------------------------------------------- the compact chain
+// A Chain re-read once (the IGM does it once per solve) for many evaluations: the
+// fixed transforms between consecutive joints (bodies without joints, body offsets) are
+// composed into one per joint (and the trailing ones into the frame's), an identity
+// rotation or a zero offset is skipped, and a hinge about a coordinate axis (+-x, +-y,
+// +-z, the usual case) rotates two columns of R by (cos, sin) instead of a general
+// Rodrigues product. The same kinematics as walk (MuJoCo's), rounded differently
+// (to a few ulps); the IGM's bits are its own (tests/fixtures/model.npz).
+struct FastJoint {
+    double pos[3];  // fixed offset before the joint, in the frame before it
+    double rot[9];  // fixed rotation before the joint
+    bool has_pos, has_rot;
+    bool hinge;
+    int axis_index;     // 0, 1, 2: the hinge turns about +-e_k (axis_sign); -1: general
+    int turn_a, turn_b;  // with axis_index k: the columns k + 1, k + 2 (mod 3) that turn
+    double axis_sign;   // +-1 with axis_index >= 0
+    bool has_anchor;    // jnt_pos != 0
+    const double* axis;
+    const double* anchor;
+    i64 qadr, dadr;
+    double qpos0;
+};
+
+struct FastChain {
+    std::vector<FastJoint> joints;
+    double frame_pos[3], frame_rot[9];
+    bool frame_has_rot;
+};
+
+inline bool is_identity3(const double* R) {
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            if (R[3 * i + j] != (i == j ? 1.0 : 0.0)) return false;
+    return true;
+}
+
+// Compose the fixed transform (pos, rot) with (bp, br): pos += rot bp, rot = rot br.
+inline void compose_fixed(double* pos, double* rot, const double* bp, const double* br) {
+    double tmp[9];
+    for (int i = 0; i < 3; ++i) pos[i] += rot[3 * i] * bp[0] + rot[3 * i + 1] * bp[1] + rot[3 * i + 2] * bp[2];
+    matmul3(rot, br, tmp);
+    copy3(tmp, rot);
+}
+
+inline FastChain fast_chain(const Chain& c) {
+    FastChain f;
+    f.joints.reserve(static_cast<size_t>(c.njnt));
+    double pos[3] = {0.0, 0.0, 0.0};
+    double rot[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    auto reset = [&]() {
+        for (int i = 0; i < 3; ++i) pos[i] = 0.0;
+        for (int i = 0; i < 9; ++i) rot[i] = (i % 4 == 0) ? 1.0 : 0.0;
+    };
+    for (i64 b = 0; b < c.nbody; ++b) {
+        compose_fixed(pos, rot, c.body_pos + 3 * b, c.body_rot + 9 * b);
+        for (i64 j = c.jnt_start[b]; j < c.jnt_start[b + 1]; ++j) {
+            FastJoint J;
+            for (int i = 0; i < 3; ++i) J.pos[i] = pos[i];
+            for (int i = 0; i < 9; ++i) J.rot[i] = rot[i];
+            J.has_pos = pos[0] != 0.0 || pos[1] != 0.0 || pos[2] != 0.0;
+            J.has_rot = !is_identity3(rot);
+            J.hinge = c.jnt_type[j] == HINGE;
+            J.axis = c.jnt_axis + 3 * j;
+            J.anchor = c.jnt_pos + 3 * j;
+            J.has_anchor = J.anchor[0] != 0.0 || J.anchor[1] != 0.0 || J.anchor[2] != 0.0;
+            J.axis_index = -1;
+            J.axis_sign = 1.0;
+            for (int k = 0; k < 3; ++k) {
+                double a = J.axis[k], o1 = J.axis[(k + 1) % 3], o2 = J.axis[(k + 2) % 3];
+                if ((a == 1.0 || a == -1.0) && o1 == 0.0 && o2 == 0.0) {
+                    J.axis_index = k;
+                    J.axis_sign = a;
+                }
+            }
+            J.turn_a = J.turn_b = 0;
+            if (J.axis_index >= 0) {
+                J.turn_a = (J.axis_index + 1) % 3;
+                J.turn_b = (J.axis_index + 2) % 3;
+            }
+            J.qadr = c.jnt_qadr[j];
+            J.dadr = c.jnt_dadr[j];
+            J.qpos0 = c.jnt_qpos0[j];
+            f.joints.push_back(J);
+            reset();  // the next joint's offset starts at this one
+        }
+    }
+    compose_fixed(pos, rot, c.frame_pos, c.frame_rot);
+    for (int i = 0; i < 3; ++i) f.frame_pos[i] = pos[i];
+    for (int i = 0; i < 9; ++i) f.frame_rot[i] = rot[i];
+    f.frame_has_rot = !is_identity3(rot);
+    return f;
+}
+
+// R <- R Rot(e_k, angle) for a hinge about the coordinate axis k (s: the signed sine):
+// the columns a = k + 1, b = k + 2 (mod 3) turn, e_a -> c e_a + s e_b.
+inline void rotate_about_axis(double* R, int a, int b, double c, double s) {
+    for (int i = 0; i < 3; ++i) {
+        double ra = R[3 * i + a], rb = R[3 * i + b];
+        R[3 * i + a] = c * ra + s * rb;
+        R[3 * i + b] = c * rb - s * ra;
+    }
+}
+
+// Pose of the frame at q (position, rotation) and its Jacobian jac (6, nq) [v; omega]
+// (columns of dofs off the chain zero), through the FastChain f; axes, anchors (njnt, 3).
+inline void fast_fk_jac(const FastChain& f, const double* q, MatRef axes, MatRef anchors, double* position,
+                        double* rotation, MatRef jac) {
+    double R[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    double p[3] = {0.0, 0.0, 0.0};
+    double tmp[9], rot[9];
+    i64 nj = static_cast<i64>(f.joints.size());
+    for (i64 j = 0; j < nj; ++j) {
+        const FastJoint& J = f.joints[static_cast<size_t>(j)];
+        if (J.has_pos)
+            for (int i = 0; i < 3; ++i)
+                p[i] += R[3 * i] * J.pos[0] + R[3 * i + 1] * J.pos[1] + R[3 * i + 2] * J.pos[2];
+        if (J.has_rot) {
+            matmul3(R, J.rot, tmp);
+            copy3(tmp, R);
+        }
+        double* u = axes.row(j);
+        double* a = anchors.row(j);
+        if (J.axis_index >= 0) {
+            for (int i = 0; i < 3; ++i) u[i] = J.axis_sign * R[3 * i + J.axis_index];
+        } else {
+            const double* ax = J.axis;
+            for (int i = 0; i < 3; ++i) u[i] = R[3 * i] * ax[0] + R[3 * i + 1] * ax[1] + R[3 * i + 2] * ax[2];
+        }
+        const double* jp = J.anchor;
+        if (J.has_anchor) {
+            for (int i = 0; i < 3; ++i) a[i] = p[i] + R[3 * i] * jp[0] + R[3 * i + 1] * jp[1] + R[3 * i + 2] * jp[2];
+        } else {
+            for (int i = 0; i < 3; ++i) a[i] = p[i];
+        }
+        double value = q[J.qadr] - J.qpos0;
+        if (J.hinge) {
+            double c = std::cos(value);
+            double s = std::sin(value);
+            if (J.axis_index >= 0) {
+                rotate_about_axis(R, J.turn_a, J.turn_b, c, J.axis_sign * s);
+            } else {
+                axis_rotation(J.axis, value, rot);
+                matmul3(R, rot, tmp);
+                copy3(tmp, R);
+            }
+            if (J.has_anchor)
+                for (int i = 0; i < 3; ++i)
+                    p[i] = a[i] - (R[3 * i] * jp[0] + R[3 * i + 1] * jp[1] + R[3 * i + 2] * jp[2]);
+        } else {
+            for (int i = 0; i < 3; ++i) p[i] += u[i] * value;
+        }
+    }
+    const double* fp = f.frame_pos;
+    for (int i = 0; i < 3; ++i)
+        position[i] = p[i] + R[3 * i] * fp[0] + R[3 * i + 1] * fp[1] + R[3 * i + 2] * fp[2];
+    if (f.frame_has_rot)
+        matmul3(R, f.frame_rot, rotation);
+    else
+        copy3(R, rotation);
+    axes_jacobian(position, axes, anchors, nj, [&f](i64 j) { return f.joints[static_cast<size_t>(j)].hinge; },
+                  [&f](i64 j) { return f.joints[static_cast<size_t>(j)].dadr; }, jac);
 }
 
 inline double dot3(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
