@@ -444,12 +444,11 @@ class CompiledPlan:
         damping: float,
         core,
         forced: bool,
-        lean: bool = True,
     ) -> tuple | None:
         """The kernel's step: ``(dq, v, info, general rows, qpos)``, None where the QP
         path must answer (``forced``: also where a level was not solved); ``core``'s
         active sets updated."""
-        if lean and not self.general_limits:
+        if not self.general_limits:
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
                 d, v, info, active, qpos = self._out
@@ -460,6 +459,19 @@ class CompiledPlan:
                 return d[row], v[row], info, (self.no_rows, self.no_h, []), qpos[row]
             if row == -1:
                 return None
+        return self._gathered_step(configuration, dt, damping, core, forced)
+
+    def _gathered_step(
+        self,
+        configuration: mink.Configuration,
+        dt: float,
+        damping: float,
+        core,
+        forced: bool,
+    ) -> tuple | None:
+        """:meth:`_solve` by gathering the step's arrays in Python (:meth:`gather`): where
+        the lean step does not apply (general-row limits, a value it does not take as it
+        is)."""
         poses = self.gather(configuration)
         if poses is None:
             return None
@@ -548,7 +560,7 @@ class CompiledPlan:
                 )  # fmt: skip
             if row == -1:
                 return None
-        out = self._solve(configuration, dt, damping, core, False, lean=False)
+        out = self._gathered_step(configuration, dt, damping, core, False)
         if out is None:
             return None
         d, v, info, general, qpos = out
