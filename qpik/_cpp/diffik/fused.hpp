@@ -97,6 +97,14 @@ inline double frame_rows(MatRef A, double* b, i64 row, CMatRef jac, const double
     return tasks::frame_rows_into(A, b, row, jac, xmat, jlog, error, cost, gain, lm_damping, local);
 }
 
+// Row i of diag(cost) scaled: cost * 0.0 off the diagonal (computed once: the products of
+// zeros, whose sign follows cost's) and cost * diag at column i, over nv columns.
+inline void cost_row(double* Ai, i64 nv, i64 i, double cost, double diag) {
+    const double off = cost * 0.0;
+    for (i64 j = 0; j < nv; ++j) Ai[j] = off;
+    Ai[i] = cost * diag;
+}
+
 // Rows row:row+nv of a posture task on hinge/slide joints: A = diag(cost), b = cost (-gain
 // (q - q*)); returns lm_damping |b|^2.
 inline double posture_rows(MatRef A, double* b, i64 row, CVecRef qpos, const double* target,
@@ -104,10 +112,7 @@ inline double posture_rows(MatRef A, double* b, i64 row, CVecRef qpos, const dou
     const i64 nv = qpos.n;
     double mu = 0.0;
     for (i64 i = 0; i < nv; ++i) {
-        const double off = cost[i] * 0.0;  // the products of the loop's zeros, once
-        double* Ai = &A(row + i, 0);
-        for (i64 j = 0; j < nv; ++j) Ai[j] = off;
-        Ai[i] = cost[i] * 1.0;
+        cost_row(&A(row + i, 0), nv, i, cost[i], 1.0);
         b[row + i] = cost[i] * (-gain * (qpos[i] - target[i]));
         mu += b[row + i] * b[row + i];
     }
@@ -178,10 +183,7 @@ inline double posture_rows_map(MatRef A, double* b, i64 row, CVecRef qpos,
     double mu = 0.0;
     for (i64 i = 0; i < nv; ++i) {
         const double diag = map(i, 0) == FREE_DOF ? 0.0 : 1.0;
-        const double off = cost[i] * 0.0;  // the products of the loop's zeros, once
-        double* Ai = &A(row + i, 0);
-        for (i64 j = 0; j < nv; ++j) Ai[j] = off;
-        Ai[i] = cost[i] * diag;
+        cost_row(&A(row + i, 0), nv, i, cost[i], diag);
         b[row + i] = cost[i] * (-gain * e[i]);
         mu += b[row + i] * b[row + i];
     }
