@@ -1,7 +1,8 @@
 // The one-call differential IK step (qpik.diffik.compiled builds its plan): every task's
 // rows (frame tasks by mink's SE(3)
 // arithmetic, model/se3.hpp; postures on hinge/slide joints), the limits' box, and the
-// cascade (core::solve_cascade). Anything unusual (a non-finite row, conflicting limits, a
+// cascade (core::solve_cascade; a first level of pair couplings, a mimic, by the exact fast
+// path of couple.hpp). Anything unusual (a non-finite row, conflicting limits, a
 // level whose active set did not settle) is reported by a code, for the QP path.
 //
 // The caller (the bindings) guarantees the shapes and that every index is in range; see
