@@ -194,3 +194,33 @@ def test_fast_path_does_not_depend_on_history(name):
             step_at(solver, other)
         assert step_at(solver, seed) == first
         assert step_at(qpik.IKSolver(model, levels, limits), seed) == first
+
+
+@pytest.mark.parametrize("ratio, offset", [(-3.2, 0.02), (0.05, -0.1), (7.0, 0.0), (1.0, 0.0)])
+def test_fast_path_on_other_ratios(ratio, offset):
+    """Mimics of other ratios (either sign, small and large) and offsets, velocity limits
+    tight or loose on either joint: the step equals the QP path's to 1e-12, statuses equal."""
+    xml = MIMIC.replace('polycoef="0.05 -0.7 0 0 0"', f'polycoef="{offset} {ratio} 0 0 0"')
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model)
+    frame = FrameTask("tip", "site", position_cost=1.0, orientation_cost=0.0)
+    posture = PostureTask(model, 0.1)
+    rng = np.random.default_rng(11)
+    for speeds in ({"b1": 0.05, "c1": 2.0}, {"b1": 2.0, "c1": 0.05}, {"b1": 0.5, "c1": 0.5}):
+        limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, speeds)]
+        solver = qpik.IKSolver(model, [[frame], [posture]], limits)
+        for k in range(15):
+            q = rng.uniform(-1.0, 1.0, model.nq) * np.array([1.5, 2.2, 0.6, 0.12])
+            if k % 3 == 0:
+                q[2] = offset + ratio * q[1]  # the coupling held
+            configuration.update(q)
+            spread = 0.3 if k % 2 else 0.01
+            position = configuration.frame_pose("tip", "site")[0] + rng.uniform(-spread, spread, 3)
+            frame.set_target(mink.SE3.from_translation(position))
+            posture.set_target(configuration.q + rng.uniform(-1.0, 1.0, model.nq))
+            fast = solver.step(configuration, DT)
+            general = StepResult.of(solver._qp_step(configuration, DT), 0.0, True)
+            assert fast.status == general.status
+            scale = 1.0 + float(np.abs(general.displacement).max())
+            assert float(np.abs(fast.displacement - general.displacement).max()) <= 1e-12 * scale
+            assert fast.coupling_residual == pytest.approx(general.coupling_residual, abs=1e-12)
