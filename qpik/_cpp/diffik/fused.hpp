@@ -1,7 +1,8 @@
 // The one-call differential IK step (qpik.diffik.compiled builds its plan): every task's
 // rows (frame tasks by mink's SE(3)
 // arithmetic, model/se3.hpp; postures on hinge/slide joints), the limits' box, and the
-// cascade (core::solve_cascade). Anything unusual (a non-finite row, conflicting limits, a
+// cascade (core::solve_cascade; a first level of pair couplings, a mimic, by the exact fast
+// path of couple.hpp). Anything unusual (a non-finite row, conflicting limits, a
 // level whose active set did not settle) is reported by a code, for the QP path.
 //
 // The caller (the bindings) guarantees the shapes and that every index is in range; see
@@ -14,6 +15,7 @@
 #include "../core/cascade.hpp"
 #include "../tasks/frame.hpp"
 #include "../tasks/linear.hpp"
+#include "couple.hpp"
 
 namespace qpik::diffik {
 
@@ -350,6 +352,7 @@ struct Scratch {
     RowsResult rows;
     Vec local;
     BoxScratch box;
+    CoupleScratch couple;
 };
 
 // Whether the serial sums of fused_rows (of the squares of x, or of its entries) are
@@ -458,11 +461,20 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
         return out;
     }
     const double dt = a.settings[DT];
-    core::CascadeResult c = core::solve_cascade(
-        CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
-        CVecRef(rows.box.lb), CVecRef(rows.box.ub), a.G.rows ? a.G : CMatRef(nullptr, 0, n), a.h,
-        a.settings[THRESHOLD], a.settings[MAX_DAMPING], a.settings[ERROR_SCALE],
-        a.settings[RANK_TOL], max_iter, a.settings[TOL], warm, canonical, ws);
+    const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
+    core::CascadeResult c;
+    // A first level of pair couplings (a mimic) by its exact fast path (couple.hpp), else
+    // the general cascade.
+    if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
+                     CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
+                     a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
+                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c)) {
+        c = core::solve_cascade(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
+                                CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
+                                a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
+                                a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
+                                a.settings[TOL], warm, canonical, ws);
+    }
     out.d = std::move(c.dq);
     out.active = std::move(c.active);
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
