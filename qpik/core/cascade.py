@@ -17,7 +17,8 @@ holds exactly (up to round-off), whatever the QP solver's tolerance.
 
 **Pinned rows.** Before each level, the rows on their bound at ``d`` (box and general;
 both sides of a zero-width box row) whose normals in null-space coordinates are positively
-dependent (``sum_j u_j n_j = 0``, ``u_j > 0``, to ``1e-12``) are pinned: no feasible move
+dependent (``sum_j u_j n_j = 0``, ``u_j > 0``, to ``1e-12 (1 + sum u)``, that sum counted
+up to ``1e6``) are pinned: no feasible move
 takes any of them off its bound (the levels above put ``d`` on a vertex of the feasible
 set within ``Z``). They are equalities from there on and leave ``Z`` exactly
 (:func:`qpik.core.kernels.drop_pinned`; a pinned box row's dof keeps its value), so that

@@ -972,6 +972,12 @@ inline Vec nnls(const Mat& M, const Vec& y) {
 
 constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with weights u >= 0, to
                                    // within this (1 + sum u) are positively dependent: pinned
+// ... with (1 + sum u) counted up to this: weights beyond it cancel in normals that are
+// themselves nearly positively dependent, so their round-off (1e-14 in the normal of a row of
+// Z of norm 1e-3, say) could stand for any residual up to 1, whatever the move it leaves (a
+// finger on its limit, the arm pinned at a vertex: residual 0.026 at sum u = 9e13, which
+// pinned the finger, where it was free to move 0.002).
+constexpr double kPinnedWeight = 1e6;
 
 // The rows tight at d whose movement the levels above have pinned, and Z without their
 // directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
@@ -986,8 +992,8 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // becomes Z Q2, Q2 the orthonormal complement of their normals (pivoted Householder QR),
 // so that they are met to round-off and the rows left in null-space coordinates constrain
 // the free directions only. Each tight row is tested by the non-negative least squares
-// min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u) pins j
-// and the rows of weight above that; else the residual is a feasible move that leaves j
+// min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u), the sum
+// counted up to kPinnedWeight, pins j and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
 inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
@@ -1084,7 +1090,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
         for (i64 s = 0; s < k; ++s) total += u[s];
         double rn = std::sqrt(dot(res.data(), res.data(), r));
-        if (rn <= kPinned * total) {
+        if (rn <= kPinned * std::min(total, kPinnedWeight)) {
             state[j] = 1;
             for (i64 s = 0; s < k; ++s)
                 if (u[s] > kPinned * total) state[others[s]] = 1;
