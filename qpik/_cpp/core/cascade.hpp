@@ -253,14 +253,14 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         if (z_eye) {
             Y.set_eye(r);
         } else {
-            Y.zeros(n, r);
+            shape(Y, n, r);  // every row copied
             for (i64 i = 0; i < n; ++i) std::memcpy(Y.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
         }
         apply_reflectors_right(Y, ws.qr, p);
-        Zn.zeros(n, c);
+        shape(Zn, n, c);  // every entry written below
         if (rotated_null) {
             Mat& Yt = ws.Qt;  // Y's first p columns as rows: contiguous rotations
-            Yt.zeros(p, n);
+            shape(Yt, p, n);  // every entry copied
             for (i64 i = 0; i < n; ++i)
                 for (i64 j = 0; j < p; ++j) Yt(j, i) = Y(i, j);
             for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
@@ -723,7 +723,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
 // computes them.
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
-                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz) {
+                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
+                               bool z_eye = false) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
@@ -765,7 +766,20 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // reduced_rows (have_gz).
     if (p) {
         Mat& GZ = ws.GZ;
-        mm_into(G, Z, GZ);
+        if (z_eye && all_finite(G)) {
+            // mm(G, I) written without forming it (as project_level's A Z): the entry G(i, j)
+            // where it is nonzero, else +0 (every other term a finite G(i, t) * 0 = +-0 added
+            // to a sum from +0).
+            GZ.zeros(p, n);
+            for (i64 i = 0; i < p; ++i) {
+                const double* gi = G.row(i);
+                double* dst = GZ.row(i);
+                for (i64 j = 0; j < n; ++j)
+                    if (gi[j] != 0.0) dst[j] = gi[j];
+            }
+        } else {
+            mm_into(G, Z, GZ);
+        }
         Vec& Gd = ws.Gd;
         mv_into(G, d, Gd);
         have_gz = true;
@@ -780,6 +794,21 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
         double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
         if (violated(Z.row(i), lo, hi, 1.0)) return false;
     }
+    return true;
+}
+
+// Whether B zref = f exactly (eqp_ls's right-hand side f - B zref with no rows, computed as
+// eqp_ls does, is zero in every entry), with B finite and below 1e100 in every entry and zref
+// finite (free_answer's shortcut).
+inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
+    Vec& f0 = es.f0;
+    mv_into(ls.B.cref(), zref.data(), f0);
+    for (i64 i = 0; i < ls.B.rows; ++i)
+        if (ls.f[i] - f0[i] != 0.0) return false;
+    for (double v : zref)
+        if (!std::isfinite(v)) return false;
+    for (double v : ls.B.a)
+        if (!(std::fabs(v) <= 1e100)) return false;
     return true;
 }
 
@@ -798,15 +827,32 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     mtv_into(Z, d.data(), zref);
     for (auto& v : zref) v = -v;
     Vec& u = es.xu;
+    Vec& Zz = es.xZz;
+    Vec& x = es.xx;
+    auto certified = [&]() {
+        mv_into(Z, z.data(), Zz);
+        x.resize(static_cast<size_t>(n));
+        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
+        return cert.holds() && cert.rows_relative;
+    };
+    if (residual_free(ls, zref, es)) {
+        // The level is already met at zref (B zref = f): eqp_ls's least-squares step y is then
+        // zero, its entries +-0 by the signs of the QR's pivots (every reflection of a zero
+        // right-hand side leaves it zero; each back-substitution divides a zero by a finite
+        // pivot; B is finite and far from overflow, so the QR's entries are finite). z = zref +
+        // y differs from zref + (+0) at most in the sign of a zero entry, which no sum of Z z
+        // (from +0, Z finite) sees: x, its certificate and the level's answer d + Z z are the
+        // same bits without the QR. z itself is read past here only when the certificate fails
+        // (exact_level's free_z): then eqp_ls makes it as before.
+        z.resize(static_cast<size_t>(r));
+        for (i64 i = 0; i < r; ++i) z[i] = zref[i] + 0.0;
+        u.clear();
+        if (certified()) return true;
+    }
     if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
         return false;
-    Vec& Zz = es.xZz;
-    mv_into(Z, z.data(), Zz);
-    Vec& x = es.xx;
-    x.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
-    cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
-    return cert.holds() && cert.rows_relative;
+    return certified();
 }
 
 }  // namespace detail
@@ -921,7 +967,7 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
                     if (passive[j]) P.push_back(j);
                 i64 nq = static_cast<i64>(P.size());
                 Mat& MP = ws.MP;
-                MP.zeros(r, nq);
+                shape(MP, r, nq);  // every entry copied
                 for (i64 i = 0; i < r; ++i)
                     for (i64 k = 0; k < nq; ++k) MP(i, k) = M(i, P[k]);
                 ws.f = y;
@@ -1070,7 +1116,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (i != j && state[i] >= 0) others.push_back(i);
         i64 k = static_cast<i64>(others.size());
         Mat& M = ws.M;
-        M.zeros(r, k);
+        shape(M, r, k);  // every entry written
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
         Vec& y = ws.y;
@@ -1106,7 +1152,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     i64 e = static_cast<i64>(pinned.size());
     if (e == 0) return false;
     Mat& N = ws.N;
-    N.zeros(r, e);
+    shape(N, r, e);  // every entry written
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
     Mat& Q = ws.Q;
@@ -1120,7 +1166,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     if (rank == 0) return false;
     Mat& Qc = ws.Qr;  // Q's columns rank..r-1
-    Qc.zeros(r, r - rank);
+    shape(Qc, r, r - rank);  // every entry copied
     for (i64 i = 0; i < r; ++i)
         for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
     mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
@@ -1260,7 +1306,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
-        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz);
+        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
+                                                        z_eye);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;

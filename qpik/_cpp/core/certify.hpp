@@ -279,7 +279,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
         Mat& N = ws.N;
-        N.zeros(r, q);
+        shape(N, r, q);  // every entry written below
         Vec& rhs = ws.rhs;
         zero_fill(rhs, static_cast<size_t>(q));
         for (i64 j = 0; j < q; ++j) {
@@ -316,7 +316,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             BW.cols = nw;
             BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
         } else {
-            BW.zeros(mb, nw);
+            shape(BW, mb, nw);  // every entry written below
             Vec& row = ws.row;
             row.resize(static_cast<size_t>(r));
             for (i64 i = 0; i < mb; ++i) {
@@ -539,10 +539,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         zero_fill(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
-            double xi = std::fabs(x[i]), zm = 0.0;
-            abs_axpy(zc.data(), xi, zi, r);
-            for (i64 c = 0; c < r; ++c) zm = pymax(zm, std::fabs(zi[c]));
-            dx[i] = zm;
+            dx[i] = abs_axpy_max(zc.data(), std::fabs(x[i]), zi, r);
         }
         double zx = 0.0;
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);

@@ -63,6 +63,26 @@ inline void abs_axpy(double* y, double a, const double* x, i64 n) {
     for (; j < n; ++j) y[j] += std::fabs(x[j]) * a;
 }
 
+// abs_axpy(y, a, x, n), returning m = pymax(... pymax(pymax(0, |x[0]|), |x[1]|) ..., |x[n-1]|)
+// from the same pass: the largest |x[j]| (NaN entries never win a pymax), taken over the
+// even and the odd entries apart, then both (the largest of a set is exact, in any order).
+inline double abs_axpy_max(double* y, double a, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a), mv = splat(0.0);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        v2d ax = vabs(load(x + j));
+        store(y + j, load(y + j) + ax * av);
+        mv = ax > mv ? ax : mv;
+    }
+    double m = pymax(mv[0], mv[1]);
+    for (; j < n; ++j) {
+        y[j] += std::fabs(x[j]) * a;
+        m = pymax(m, std::fabs(x[j]));
+    }
+    return m;
+}
+
 // y[j] += x[j] * a, s[j] += |x[j]| * b, h[j] += |x[j]| * c, j < n (two lanes at a time,
 // each the scalar loop's operations).
 inline void axpy3(double* y, double* s, double* h, const double* x, double a, double b, double c, i64 n) {
@@ -125,6 +145,31 @@ inline void dot2(const double* a, const double* b, const double* x, i64 n, doubl
     for (; t < n; ++t) acc += v2d{a[t], b[t]} * splat(x[t]);
     sa = acc[0];
     sb = acc[1];
+}
+
+// Four dot products with one vector (a . x, b . x, c . x, d . x), each summed in index order
+// from 0.0 as dot() does (one per lane of two pairs: the same bits; x[t] loaded once).
+inline void dot4(const double* a, const double* b, const double* c, const double* d, const double* x, i64 n,
+                 double& sa, double& sb, double& sc, double& sd) {
+    using namespace simd;
+    v2d acc0 = splat(0.0), acc1 = splat(0.0);
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x0 = splat(x[t]), x1 = splat(x[t + 1]);
+        acc0 += v2d{a[t], b[t]} * x0;
+        acc1 += v2d{c[t], d[t]} * x0;
+        acc0 += v2d{a[t + 1], b[t + 1]} * x1;
+        acc1 += v2d{c[t + 1], d[t + 1]} * x1;
+    }
+    for (; t < n; ++t) {
+        v2d xv = splat(x[t]);
+        acc0 += v2d{a[t], b[t]} * xv;
+        acc1 += v2d{c[t], d[t]} * xv;
+    }
+    sa = acc0[0];
+    sb = acc0[1];
+    sc = acc1[0];
+    sd = acc1[1];
 }
 
 // sum_t a[t]^2 for t < n, summed in index order from 0.0.
@@ -351,6 +396,8 @@ inline void mv_into(CMatRef A, const double* x, Vec& y) {
     i64 m = A.rows, n = A.cols;
     y.resize(static_cast<size_t>(m));
     i64 i = 0;
+    for (; i + 4 <= m; i += 4)
+        dot4(A.row(i), A.row(i + 1), A.row(i + 2), A.row(i + 3), x, n, y[i], y[i + 1], y[i + 2], y[i + 3]);
     for (; i + 2 <= m; i += 2) dot2(A.row(i), A.row(i + 1), x, n, y[i], y[i + 1]);
     for (; i < m; ++i) {
         const double* ai = A.row(i);
@@ -408,7 +455,7 @@ inline Mat columns(CMatRef M, i64 c0, i64 c1) {
 }
 
 inline void transposed_into(CMatRef M, Mat& out) {
-    out.zeros(M.cols, M.rows);
+    shape(out, M.cols, M.rows);  // every entry written
     for (i64 i = 0; i < M.rows; ++i)
         for (i64 j = 0; j < M.cols; ++j) out(j, i) = M(i, j);
 }
