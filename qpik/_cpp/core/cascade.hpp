@@ -3,6 +3,7 @@
 // diffik layer (diffik/fused.hpp) calls.
 #pragma once
 
+#include <memory>
 #include <stdexcept>
 
 #include "../common.hpp"
@@ -197,7 +198,14 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
                 double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
-                jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
+                if (j + 1 < p) {
+                    // Row i rotated, (i, j + 1) is not clean: the pair checked next. Its product
+                    // is summed in the rotation's pass (the same sum dot() makes).
+                    jacobi_rows_sq_dot(ri, rj, R.row(j + 1), cs, sn, cols, sq[i], sq[j], next_gamma);
+                    next = j + 1;
+                } else {
+                    jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
+                }
                 if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
                 stamp[i] = stamp[j] = ++now;
             }
@@ -622,8 +630,9 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
                         const Certificate* free_cert = nullptr) {
     i64 n = static_cast<i64>(d.size());
-    CertScratch local;  // no storage unless used (cs: the caller's)
-    CertScratch& es = cs ? *cs : local;
+    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (cs)
+    if (!cs) local.reset(new CertScratch());
+    CertScratch& es = cs ? *cs : *local;
     cs = &es;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -1046,15 +1055,18 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     };
     IVec& owner = ws.owner;  // the dof of a box row's normal, -1 for a general row
     owner.clear();
+    auto tight = [&](double di, double bound) {
+        return std::fabs(bound) < kBig && std::fabs(di - bound) <= detail::kSnap * (1.0 + std::fabs(bound));
+    };
     for (i64 i = 0; i < n; ++i) {
+        if (!tight(d[i], lb[i]) && !tight(d[i], ub[i])) continue;  // no normal (its row's norm unused)
         const double* zi = Z.row(i);
         double nn = dot(zi, zi, r);
         if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
             double bound = side > 0.0 ? lb[i] : ub[i];
-            if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
-                continue;
+            if (!tight(d[i], bound)) continue;
             Vec& v = next_normal();
             zero_fill(v, static_cast<size_t>(r));
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;

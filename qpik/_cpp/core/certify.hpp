@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "linalg.hpp"
 #include "qp.hpp"
@@ -274,8 +275,9 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     z = zref;
     zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
-    CertScratch local;  // no storage unless used (scratch: the caller's)
-    CertScratch& ws = scratch ? *scratch : local;
+    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.reset(new CertScratch());
+    CertScratch& ws = scratch ? *scratch : *local;
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
         Mat& N = ws.N;
@@ -485,8 +487,9 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
-    CertScratch local;  // no storage unless used (scratch: the caller's)
-    CertScratch& ws = scratch ? *scratch : local;
+    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.reset(new CertScratch());
+    CertScratch& ws = scratch ? *scratch : *local;
     Certificate cert;
     double primal = 0.0, xmax = 0.0;
     bool relative = true;

@@ -116,6 +116,22 @@ inline void axpy(double* y, double a, const double* x, i64 n) {
     for (; j < n; ++j) y[j] += a * x[j];
 }
 
+// y[j] += a * x[j] and z[j] += b * x[j], j < n (axpy twice, x loaded once).
+inline void axpy2(double* y, double* z, double a, double b, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a), bv = splat(b);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        v2d xv = load(x + j);
+        store(y + j, load(y + j) + av * xv);
+        store(z + j, load(z + j) + bv * xv);
+    }
+    for (; j < n; ++j) {
+        y[j] += a * x[j];
+        z[j] += b * x[j];
+    }
+}
+
 // y[j] -= a * x[j], j < n.
 inline void axmy(double* y, double a, const double* x, i64 n) {
     using namespace simd;
@@ -257,6 +273,41 @@ inline void jacobi_rows_sq(double* a, double* b, double cs, double sn, i64 n, do
     sb = acc[1];
 }
 
+// jacobi_rows_sq, and sc = a' . c summed over t in order from 0.0 (the sum dot(a', c) and
+// dot2's lane make: the same bits), in the same pass.
+inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs, double sn, i64 n, double& sa,
+                               double& sb, double& sc) {
+    using namespace simd;
+    v2d c2 = splat(cs), s2 = splat(sn);
+    v2d acc = splat(0.0);
+    double g = 0.0;
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d xn = c2 * x - s2 * y;
+        v2d yn = s2 * x + c2 * y;
+        store(a + t, xn);
+        store(b + t, yn);
+        v2d v0 = v2d{xn[0], yn[0]};
+        v2d v1 = v2d{xn[1], yn[1]};
+        acc += v0 * v0;
+        acc += v1 * v1;
+        g += xn[0] * c[t];
+        g += xn[1] * c[t + 1];
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = cs * x - sn * y;
+        b[t] = sn * x + cs * y;
+        v2d v = v2d{a[t], b[t]};
+        acc += v * v;
+        g += a[t] * c[t];
+    }
+    sa = acc[0];
+    sb = acc[1];
+    sc = g;
+}
+
 // The Givens rotation of two rows as rotate_in / drop_constraint write it:
 // a' = a cc + b ss, b' = xny (a + a') - b.
 inline void givens_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
@@ -300,9 +351,19 @@ inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
         if (!(s > 0.0)) return false;
         double d = std::sqrt(s);
         L(j, j) = d;
-        for (i64 i = j + 1; i < n; ++i) {
-            L(i, j) = minus_dot(G(i, j), L.p + i * L.stride, lj, j) / d;
+        i64 i = j + 1;
+        for (; i + 2 <= n; i += 2) {
+            // Rows i and i + 1 in one pass, one per lane: each minus_dot's subtractions in
+            // order (the same bits).
+            using namespace simd;
+            const double* a = L.p + i * L.stride;
+            const double* b = a + L.stride;
+            v2d acc = v2d{G(i, j), G(i + 1, j)};
+            for (i64 k = 0; k < j; ++k) acc -= v2d{a[k], b[k]} * splat(lj[k]);
+            L(i, j) = acc[0] / d;
+            L(i + 1, j) = acc[1] / d;
         }
+        for (; i < n; ++i) L(i, j) = minus_dot(G(i, j), L.p + i * L.stride, lj, j) / d;
     }
     return true;
 }
@@ -349,10 +410,23 @@ inline Vec backward_vec(CMatRef L, const Vec& b) {
 }
 
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
+// (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
+// entry of C the same sum over t in order.)
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     i64 m = A.rows, k = A.cols, n = B.cols;
     C.zeros(m, n);
-    for (i64 i = 0; i < m; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= m; i += 2) {
+        double* c0 = C.row(i);
+        double* c1 = C.row(i + 1);
+        for (i64 t = 0; t < k; ++t) {
+            double a0 = A(i, t), a1 = A(i + 1, t);
+            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
+            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
+            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
+        }
+    }
+    for (; i < m; ++i) {
         double* ci = C.row(i);
         for (i64 t = 0; t < k; ++t) {
             double a = A(i, t);

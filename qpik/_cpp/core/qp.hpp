@@ -165,10 +165,10 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     best_row = -1;
     best_side = 0;
     shape(cx, static_cast<size_t>(m));  // read only where written below
-    rows.clear();
+    if (static_cast<i64>(rows.size()) < m) rows.resize(static_cast<size_t>(m));  // the first k in use
+    i64 k = 0, t = 0;
     for (i64 i = 0; i < m; ++i)
-        if (!skip[i] && norms[i] != 0.0 && unit[i] < 0) rows.push_back(i);
-    i64 k = static_cast<i64>(rows.size()), t = 0;
+        if (!skip[i] && norms[i] != 0.0 && unit[i] < 0) rows[k++] = i;
     for (; t + 4 <= k; t += 4) {
         i64 a = rows[t], b = rows[t + 1], c = rows[t + 2], d = rows[t + 3];
         dot4(C.row(a), C.row(b), C.row(c), C.row(d), x, n, cx[a], cx[b], cx[c], cx[d]);
