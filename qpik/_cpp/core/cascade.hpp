@@ -3,7 +3,7 @@
 // diffik layer (diffik/fused.hpp) calls.
 #pragma once
 
-#include <memory>
+#include <optional>
 #include <stdexcept>
 
 #include "../common.hpp"
@@ -630,8 +630,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
                         const Certificate* free_cert = nullptr) {
     i64 n = static_cast<i64>(d.size());
-    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (cs)
-    if (!cs) local.reset(new CertScratch());
+    std::optional<CertScratch> local;  // made only when the caller keeps none (cs)
+    if (!cs) local.emplace();
     CertScratch& es = cs ? *cs : *local;
     cs = &es;
     IVec& rows = es.xrows;
@@ -1292,7 +1292,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.status[k] = SOLVED;
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                                  false).primal;
+                                  false, &ws.cs).primal;
             ck[1] = ck[2] = ck[3] = 0.0;
             continue;
         }
@@ -1395,7 +1395,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     res.residuals = detail::level_residuals(A, b, starts, d);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                               false).primal;
+                               false, &ws.cs).primal;
     res.dq = std::move(d);
     return res;
 }

@@ -8,7 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
+#include <optional>
 
 #include "linalg.hpp"
 #include "qp.hpp"
@@ -275,8 +275,8 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     z = zref;
     zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
-    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.reset(new CertScratch());
+    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.emplace();
     CertScratch& ws = scratch ? *scratch : *local;
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
@@ -487,8 +487,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
-    std::unique_ptr<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.reset(new CertScratch());
+    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.emplace();
     CertScratch& ws = scratch ? *scratch : *local;
     Certificate cert;
     double primal = 0.0, xmax = 0.0;

@@ -411,9 +411,60 @@ inline Vec backward_vec(CMatRef L, const Vec& b) {
 
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
 // (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
-// entry of C the same sum over t in order.)
+// entry of C the same sum over t in order. Where no entry of A is zero, a block of C (four
+// rows, two columns) is summed in registers over t instead: the same products added in the
+// same order from +0.)
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     i64 m = A.rows, k = A.cols, n = B.cols;
+    bool dense = m >= 4 && n >= 2;
+    for (i64 r = 0; r < m && dense; ++r) {
+        const double* ar = A.row(r);
+        for (i64 t = 0; t < k; ++t)
+            if (ar[t] == 0.0) {
+                dense = false;
+                break;
+            }
+    }
+    if (dense) {
+        using namespace simd;
+        shape(C, m, n);  // every entry written below
+        i64 i = 0;
+        for (; i + 4 <= m; i += 4) {
+            const double* a0 = A.row(i);
+            const double* a1 = A.row(i + 1);
+            const double* a2 = A.row(i + 2);
+            const double* a3 = A.row(i + 3);
+            i64 j = 0;
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 t = 0; t < k; ++t) {
+                    v2d bt = load(B.row(t) + j);
+                    c0 += splat(a0[t]) * bt;
+                    c1 += splat(a1[t]) * bt;
+                    c2 += splat(a2[t]) * bt;
+                    c3 += splat(a3[t]) * bt;
+                }
+                store(C.row(i) + j, c0);
+                store(C.row(i + 1) + j, c1);
+                store(C.row(i + 2) + j, c2);
+                store(C.row(i + 3) + j, c3);
+            }
+            for (; j < n; ++j) {
+                for (i64 r = i; r < i + 4; ++r) {
+                    const double* ar = A.row(r);
+                    double acc = 0.0;
+                    for (i64 t = 0; t < k; ++t) acc += ar[t] * B(t, j);
+                    C(r, j) = acc;
+                }
+            }
+        }
+        for (; i < m; ++i) {
+            double* ci = C.row(i);
+            std::memset(ci, 0, static_cast<size_t>(n) * sizeof(double));
+            for (i64 t = 0; t < k; ++t) axpy(ci, A(i, t), B.row(t), n);
+        }
+        return;
+    }
     C.zeros(m, n);
     i64 i = 0;
     for (; i + 2 <= m; i += 2) {
@@ -443,9 +494,60 @@ inline Mat mm(CMatRef A, CMatRef B) {
 }
 
 // A^T @ A (symmetric, computed once per pair) into C (its storage kept).
+// (Where no entry of A is zero, the upper triangle is summed in registers by blocks of four
+// rows and two columns over t instead: each entry the same products in the same order from +0;
+// a block's entries below the diagonal are overwritten by the copy.)
 inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
+    bool dense = n >= 4;
+    for (i64 t = 0; t < m && dense; ++t) {
+        const double* at = A.row(t);
+        for (i64 i = 0; i < n; ++i)
+            if (at[i] == 0.0) {
+                dense = false;
+                break;
+            }
+    }
+    if (dense) {
+        using namespace simd;
+        i64 i = 0;
+        for (; i + 4 <= n; i += 4) {
+            i64 j = i;
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 t = 0; t < m; ++t) {
+                    const double* at = A.row(t);
+                    v2d bt = load(at + j);
+                    c0 += splat(at[i]) * bt;
+                    c1 += splat(at[i + 1]) * bt;
+                    c2 += splat(at[i + 2]) * bt;
+                    c3 += splat(at[i + 3]) * bt;
+                }
+                store(C.row(i) + j, c0);
+                store(C.row(i + 1) + j, c1);
+                store(C.row(i + 2) + j, c2);
+                store(C.row(i + 3) + j, c3);
+            }
+            for (; j < n; ++j) {
+                for (i64 r = i; r < i + 4; ++r) {
+                    double acc = 0.0;
+                    for (i64 t = 0; t < m; ++t) acc += A(t, r) * A(t, j);
+                    C(r, j) = acc;
+                }
+            }
+        }
+        for (; i < n; ++i) {
+            for (i64 j = i; j < n; ++j) {
+                double acc = 0.0;
+                for (i64 t = 0; t < m; ++t) acc += A(t, i) * A(t, j);
+                C(i, j) = acc;
+            }
+        }
+        for (i64 r = 0; r < n; ++r)
+            for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
+        return;
+    }
     for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
