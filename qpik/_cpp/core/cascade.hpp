@@ -816,8 +816,9 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
         if (ls.f[i] - f0[i] != 0.0) return false;
     for (double v : zref)
         if (!std::isfinite(v)) return false;
-    for (double v : ls.B.a)
-        if (!(std::fabs(v) <= 1e100)) return false;
+    for (i64 i = 0; i < ls.B.rows; ++i)
+        for (i64 j = 0; j < ls.B.cols; ++j)
+            if (!(std::fabs(ls.B(i, j)) <= 1e100)) return false;
     return true;
 }
 

@@ -590,9 +590,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& ssc = ws.ssc;
     zero_fill(sc, static_cast<size_t>(r));
     zero_fill(ssc, static_cast<size_t>(r));
-    for (i64 i = 0; i < n; ++i) {
-        axpy3(sc.data(), ssc.data(), hsc.data(), Z.row(i), v[i], vs[i], hs[i], r);
-    }
+    axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:

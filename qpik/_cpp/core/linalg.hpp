@@ -15,10 +15,12 @@ namespace qpik::core {
 
 // M reshaped to (r, c), the storage kept, its entries left as they were (stale): for a
 // matrix every entry of which is written before it is read (Mat::zeros fills it first).
+// M.a never shrinks here (it may hold more than r c entries past the matrix's, never read):
+// a matrix shaped smaller then larger again is not value-initialised each time it grows.
 inline void shape(Mat& M, i64 r, i64 c) {
     M.rows = r;
     M.cols = c;
-    M.a.resize(static_cast<size_t>(r * c));
+    if (M.a.size() < static_cast<size_t>(r * c)) M.a.resize(static_cast<size_t>(r * c));
 }
 
 // v of size n, its entries left as they were (every one written before it is read).
@@ -100,6 +102,38 @@ inline void axpy3(double* y, double* s, double* h, const double* x, double a, do
         y[j] += x[j] * a;
         s[j] += std::fabs(x[j]) * b;
         h[j] += std::fabs(x[j]) * c;
+    }
+}
+
+// axpy3(y, s, h, Z.row(i), a[i], b[i], c[i], Z.cols) for every row i of Z in order: two
+// columns a pass, summed over i in registers (each entry the same operations in the same
+// order).
+inline void axpy3_rows(double* y, double* s, double* h, CMatRef Z, const double* a, const double* b,
+                       const double* c) {
+    using namespace simd;
+    i64 n = Z.rows, r = Z.cols;
+    i64 j = 0;
+    for (; j + 2 <= r; j += 2) {
+        v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
+        const double* p = Z.p + j;
+        for (i64 i = 0; i < n; ++i, p += Z.stride) {
+            v2d xv = load(p);
+            v2d ax = vabs(xv);
+            yv = yv + xv * splat(a[i]);
+            sv = sv + ax * splat(b[i]);
+            hv = hv + ax * splat(c[i]);
+        }
+        store(y + j, yv);
+        store(s + j, sv);
+        store(h + j, hv);
+    }
+    for (; j < r; ++j) {
+        for (i64 i = 0; i < n; ++i) {
+            double x = Z(i, j);
+            y[j] += x * a[i];
+            s[j] += std::fabs(x) * b[i];
+            h[j] += std::fabs(x) * c[i];
+        }
     }
 }
 
@@ -209,8 +243,38 @@ inline void row_sq2(const double* a, const double* b, i64 n, double& sa, double&
 
 // out[j] = sum_{t0 <= t < t1} M(t, j)^2 for j0 <= j < j1 (M row-major, row stride ld), each
 // summed over t in order from 0.0 (a row at a time: contiguous, two columns per lane).
+// (Four columns a pass summed over t in registers, then two: the same sums.)
 inline void col_sq(const double* M, i64 ld, i64 t0, i64 t1, i64 j0, i64 j1, double* out) {
     using namespace simd;
+    if (j1 - j0 >= 2) {
+        i64 j = j0;
+        for (; j + 4 <= j1; j += 4) {
+            v2d a = splat(0.0), b = splat(0.0);
+            const double* p = M + t0 * ld + j;
+            for (i64 t = t0; t < t1; ++t, p += ld) {
+                v2d u = load(p), v = load(p + 2);
+                a += u * u;
+                b += v * v;
+            }
+            store(out + j, a);
+            store(out + j + 2, b);
+        }
+        for (; j + 2 <= j1; j += 2) {
+            v2d a = splat(0.0);
+            const double* p = M + t0 * ld + j;
+            for (i64 t = t0; t < t1; ++t, p += ld) {
+                v2d u = load(p);
+                a += u * u;
+            }
+            store(out + j, a);
+        }
+        for (; j < j1; ++j) {
+            double a = 0.0;
+            for (i64 t = t0; t < t1; ++t) a += M[t * ld + j] * M[t * ld + j];
+            out[j] = a;
+        }
+        return;
+    }
     for (i64 j = j0; j < j1; ++j) out[j] = 0.0;
     for (i64 t = t0; t < t1; ++t) {
         const double* row = M + t * ld;
@@ -845,10 +909,83 @@ namespace detail {
 // i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
 // M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
 // time, contiguous), with the same operations per column as a loop over the column.
+// (Eight, four or two columns a pass: s_j summed over t in registers, then those columns
+// updated: per column the same operations in the same order as the row-at-a-time loops
+// below, which the last odd column takes.)
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
                             double* S) {
     i64 w = m - j0;
     if (w <= 0) return;
+    if (w >= 2) {
+        using namespace simd;
+        double* base = M + i * ld + j0;
+        i64 j = 0;
+        for (; j + 8 <= w; j += 8) {
+            v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+            const double* p = base + j;
+            for (i64 t = 0; t < size; ++t, p += ld) {
+                v2d xt = splat(x[t]);
+                s0 += xt * load(p);
+                s1 += xt * load(p + 2);
+                s2 += xt * load(p + 4);
+                s3 += xt * load(p + 6);
+            }
+            v2d two = splat(2.0), vv = splat(vn);
+            s0 = two * s0 / vv;
+            s1 = two * s1 / vv;
+            s2 = two * s2 / vv;
+            s3 = two * s3 / vv;
+            store(S + j, s0);
+            store(S + j + 2, s1);
+            store(S + j + 4, s2);
+            store(S + j + 6, s3);
+            double* q = base + j;
+            for (i64 t = 0; t < size; ++t, q += ld) {
+                v2d xt = splat(x[t]);
+                store(q, load(q) - xt * s0);
+                store(q + 2, load(q + 2) - xt * s1);
+                store(q + 4, load(q + 4) - xt * s2);
+                store(q + 6, load(q + 6) - xt * s3);
+            }
+        }
+        for (; j + 4 <= w; j += 4) {
+            v2d s = splat(0.0), s2 = splat(0.0);
+            const double* p = base + j;
+            for (i64 t = 0; t < size; ++t, p += ld) {
+                v2d xt = splat(x[t]);
+                s += xt * load(p);
+                s2 += xt * load(p + 2);
+            }
+            s = splat(2.0) * s / splat(vn);
+            s2 = splat(2.0) * s2 / splat(vn);
+            store(S + j, s);
+            store(S + j + 2, s2);
+            double* q = base + j;
+            for (i64 t = 0; t < size; ++t, q += ld) {
+                v2d xt = splat(x[t]);
+                store(q, load(q) - xt * s);
+                store(q + 2, load(q + 2) - xt * s2);
+            }
+        }
+        for (; j + 2 <= w; j += 2) {
+            v2d s = splat(0.0);
+            for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(base + t * ld + j);
+            s = splat(2.0) * s / splat(vn);
+            store(S + j, s);
+            for (i64 t = 0; t < size; ++t) {
+                double* p = base + t * ld + j;
+                store(p, load(p) - splat(x[t]) * s);
+            }
+        }
+        if (j < w) {
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += x[t] * base[t * ld + j];
+            s = 2.0 * s / vn;
+            S[j] = s;
+            for (i64 t = 0; t < size; ++t) base[t * ld + j] -= x[t] * s;
+        }
+        return;
+    }
     std::fill(S, S + w, 0.0);
     for (i64 t = 0; t < size; ++t) acc_row(S, x[t], M + (i + t) * ld + j0, w);
     for (i64 j = 0; j < w; ++j) S[j] = 2.0 * S[j] / vn;
