@@ -489,8 +489,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     shape(out.C, n + p, r);  // every entry, bound written below
     shape(out.lo, static_cast<size_t>(n + p));
     shape(out.hi, static_cast<size_t>(n + p));
-    for (i64 i = 0; i < n; ++i)
-        for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
+    for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
     for (i64 i = 0; i < n; ++i) {
         out.lo[i] = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
@@ -499,7 +498,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
         Mat& GZ = ws.GZ;
         if (!have_gz) mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
-            for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
+            std::memcpy(out.C.row(n + i), GZ.row(i), static_cast<size_t>(r) * sizeof(double));
         Vec& Gd = ws.Gd;
         if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {

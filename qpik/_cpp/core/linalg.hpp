@@ -439,10 +439,22 @@ inline bool cholesky(CMatRef H, Mat& L) {
 }
 
 // L^-1 b for lower-triangular L into x (its storage kept; x is not b).
+// (Rows i and i + 1 a pass, one per lane: row i + 1's subtractions over k < i run beside row
+// i's, then its k = i one; each row's subtractions in order.)
 inline void forward_into(CMatRef L, const Vec& b, Vec& x) {
+    using namespace simd;
     i64 n = static_cast<i64>(b.size());
     x.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= n; i += 2) {
+        const double* l0 = L.row(i);
+        const double* l1 = L.row(i + 1);
+        v2d acc = v2d{b[i], b[i + 1]};
+        for (i64 k = 0; k < i; ++k) acc -= v2d{l0[k], l1[k]} * splat(x[k]);
+        x[i] = acc[0] / l0[i];
+        x[i + 1] = (acc[1] - l1[i] * x[i]) / l1[i + 1];
+    }
+    for (; i < n; ++i) {
         double s = b[i];
         for (i64 k = 0; k < i; ++k) s -= L(i, k) * x[k];
         x[i] = s / L(i, i);

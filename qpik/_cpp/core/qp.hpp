@@ -34,7 +34,7 @@ struct QPResult {
 struct QPScratch {
     Mat L, J, JT, R;
     Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
-    IVec act_row, act_side, unit, rows;
+    IVec act_row, act_side, unit, rows, dense;
     BVec in_set;
 };
 
@@ -159,7 +159,7 @@ inline IVec unit_columns(CMatRef C) {
 // index order from 0.0, the same bits as dot), into cx (scratch; rows is scratch too).
 inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
                           double tol, const Vec& norms, const IVec& unit, i64& best_row, i64& best_side,
-                          Vec& cx, IVec& rows) {
+                          Vec& cx, IVec& rows, const IVec* dense = nullptr) {
     i64 m = C.rows, n = C.cols;
     double best = 0.0;
     best_row = -1;
@@ -167,8 +167,13 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     shape(cx, static_cast<size_t>(m));  // read only where written below
     if (static_cast<i64>(rows.size()) < m) rows.resize(static_cast<size_t>(m));  // the first k in use
     i64 k = 0, t = 0;
-    for (i64 i = 0; i < m; ++i)
-        if (!skip[i] && norms[i] != 0.0 && unit[i] < 0) rows[k++] = i;
+    if (dense) {  // the rows with norms[i] != 0 and unit[i] < 0, in order (the caller's)
+        for (i64 i : *dense)
+            if (!skip[i]) rows[k++] = i;
+    } else {
+        for (i64 i = 0; i < m; ++i)
+            if (!skip[i] && norms[i] != 0.0 && unit[i] < 0) rows[k++] = i;
+    }
     for (; t + 4 <= k; t += 4) {
         i64 a = rows[t], b = rows[t + 1], c = rows[t + 2], d = rows[t + 3];
         dot4(C.row(a), C.row(b), C.row(c), C.row(d), x, n, cx[a], cx[b], cx[c], cx[d]);
@@ -277,8 +282,33 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
-    std::fill(z.begin(), z.begin() + n, 0.0);  // z[k] = sum_{i >= q} J(k, i) d[i], i in order
-    for (i64 i = q; i < n; ++i) axpy(z.data(), d[i], JT.row(i), n);
+    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (four entries a pass in registers,
+    // then two, then one: the sums axpy over JT's rows makes).
+    {
+        using namespace simd;
+        i64 k = 0;
+        for (; k + 4 <= n; k += 4) {
+            v2d a = splat(0.0), b = splat(0.0);
+            for (i64 i = q; i < n; ++i) {
+                const double* ji = JT.row(i) + k;
+                v2d di = splat(d[i]);
+                a = a + di * load(ji);
+                b = b + di * load(ji + 2);
+            }
+            store(z.data() + k, a);
+            store(z.data() + k + 2, b);
+        }
+        for (; k + 2 <= n; k += 2) {
+            v2d a = splat(0.0);
+            for (i64 i = q; i < n; ++i) a = a + splat(d[i]) * load(JT.row(i) + k);
+            store(z.data() + k, a);
+        }
+        for (; k < n; ++k) {
+            double a = 0.0;
+            for (i64 i = q; i < n; ++i) a += d[i] * JT(i, k);
+            z[k] = a;
+        }
+    }
     for (i64 i = q - 1; i >= 0; --i) {
         double acc = d[i];
         for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
@@ -545,6 +575,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     row_norms_into(C, norms);
     IVec& unit = ws.unit;
     unit_columns_into(C, unit);
+    IVec& dense = ws.dense;  // the rows most_violated takes C x of
+    dense.clear();
+    for (i64 i = 0; i < m; ++i)
+        if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
     zero_fill(x_old, static_cast<size_t>(n));
@@ -554,7 +588,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     i64 iterations = 0;
     while (true) {
         i64 row, side;
-        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows);
+        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
         if (row < 0) {
             BVec working(static_cast<size_t>(m), 0);
             mark(working, act_row, act_side, q);
