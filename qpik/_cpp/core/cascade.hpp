@@ -83,8 +83,9 @@ struct Workspace {
     IVec clean;
     std::vector<detail::Rotation> log;
     QRScratch qr;
-    // reduced_qp, ls_form, the cascade
+    // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
+    Vec gsq;
     Vec e, c1, c2, Gd, zd, Zz;
     // drop_pinned
     std::vector<Vec> normals;
@@ -483,7 +484,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
 // (computed as below, by dual_stops_at_once).
 inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
-                         ReducedQP& out, bool have_gz = false) {
+                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     shape(out.C, n + p, r);  // every entry, bound written below
@@ -508,10 +509,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     }
     for (i64 i = 0; i < n + p; ++i) {
         double size = 1.0;
-        if (i >= n) {
-            size = 0.0;
-            for (i64 t = 0; t < n; ++t) size += G(i - n, t) * G(i - n, t);
-        }
+        if (i >= n) size = gsq ? gsq[i - n] : row_sq_of(G, i - n);
         double norm = dot(out.C.row(i), out.C.row(i), r);
         if (norm <= 1e-20 * size) {
             out.lo[i] = -kInf;
@@ -627,7 +625,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
-                        const Certificate* free_cert = nullptr) {
+                        const Certificate* free_cert = nullptr, const double* gsq = nullptr) {
     i64 n = static_cast<i64>(d.size());
     std::optional<CertScratch> local;  // made only when the caller keeps none (cs)
     if (!cs) local.emplace();
@@ -648,7 +646,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         mv_into(Z, zc.data(), Zz);
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs);
+                                      static_cast<i64>(rows.size()), true, cs, gsq);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -732,7 +730,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // computes them.
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
                                CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
-                               bool z_eye = false) {
+                               bool z_eye = false, const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
@@ -792,8 +790,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
         mv_into(G, d, Gd);
         have_gz = true;
         for (i64 j = 0; j < p; ++j) {
-            double size = 0.0;
-            for (i64 t = 0; t < n; ++t) size += G(j, t) * G(j, t);
+            double size = gsq ? gsq[j] : row_sq_of(G, j);
             if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
         }
     }
@@ -826,7 +823,8 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
 // certified; true when its certificate holds (else exact_level goes on from there: the
 // caller then takes the general path).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
-                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es) {
+                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
+                        const double* gsq = nullptr) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -842,7 +840,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         mv_into(Z, z.data(), Zz);
         x.resize(static_cast<size_t>(n));
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
-        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq);
         return cert.holds() && cert.rows_relative;
     };
     if (residual_free(ls, zref, es)) {
@@ -1044,7 +1042,8 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u) pins j
 // and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
-inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws) {
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
+                        const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     if (r == 0) return false;
     std::vector<Vec>& normals = ws.normals;  // the first t in use (their storage kept)
@@ -1076,11 +1075,8 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     if (p) {
         for (i64 j = 0; j < p; ++j) {
             if (!(h[j] < kBig)) continue;
-            double gg = 0.0, gd = 0.0;
-            for (i64 t = 0; t < n; ++t) {
-                gg += G(j, t) * G(j, t);
-                gd += G(j, t) * d[t];
-            }
+            double gg = gsq ? gsq[j] : row_sq_of(G, j), gd = 0.0;
+            for (i64 t = 0; t < n; ++t) gd += G(j, t) * d[t];
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
             zero_fill(v, static_cast<size_t>(r));
@@ -1274,6 +1270,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
     }
+    // |G_j|^2 of every general row, summed once (the same sums drop_pinned, reduced_rows,
+    // dual_stops_at_once and certify_level would each make).
+    shape(ws.gsq, static_cast<size_t>(p));
+    for (i64 j = 0; j < p; ++j) ws.gsq[j] = row_sq_of(G, j);
+    const double* gsq = ws.gsq.data();
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
@@ -1284,7 +1285,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
-        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws)) z_eye = false;
+        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws, gsq)) z_eye = false;
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
@@ -1292,7 +1293,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.status[k] = SOLVED;
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                                  false, &ws.cs).primal;
+                                  false, &ws.cs, gsq).primal;
             ck[1] = ck[2] = ck[3] = 0.0;
             continue;
         }
@@ -1319,8 +1320,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
-                                                        z_eye);
-        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
+                                                        z_eye, gsq);
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
@@ -1334,7 +1335,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             z_eye = false;
             continue;
         }
-        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz);
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
@@ -1343,7 +1344,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
-            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
+            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
             // The dual method stopped at once (stops: sol is x0 with no working set), so
@@ -1352,11 +1353,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr);
+                                        stops ? &tried : nullptr, gsq);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
-                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs);
+                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs, gsq);
             }
         }
         double* ck = res.certificate.data() + 4 * k;
@@ -1395,7 +1396,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     res.residuals = detail::level_residuals(A, b, starts, d);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                               false, &ws.cs).primal;
+                               false, &ws.cs, gsq).primal;
     res.dq = std::move(d);
     return res;
 }

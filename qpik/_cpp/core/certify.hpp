@@ -485,7 +485,9 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
-                                 const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
+                                 const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
+                                 const double* gsq = nullptr) {
+    // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
     std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
     if (!scratch) local.emplace();
@@ -511,9 +513,14 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     zero_fill(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
-        for (i64 i = 0; i < n; ++i) {
-            nn += G(j, i) * G(j, i);
-            acc += G(j, i) * x[i];
+        if (gsq) {
+            nn = gsq[j];
+            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+        } else {
+            for (i64 i = 0; i < n; ++i) {
+                nn += G(j, i) * G(j, i);
+                acc += G(j, i) * x[i];
+            }
         }
         gnorm[j] = std::sqrt(nn);
         gx[j] = acc;

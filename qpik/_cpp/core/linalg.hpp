@@ -222,6 +222,14 @@ inline void dot4(const double* a, const double* b, const double* c, const double
     sd = acc1[1];
 }
 
+// sum_t G(j, t)^2, summed in index order from 0.0 (a general row's norm squared, as the
+// cascade's functions sum it).
+inline double row_sq_of(CMatRef G, i64 j) {
+    double s = 0.0;
+    for (i64 t = 0; t < G.cols; ++t) s += G(j, t) * G(j, t);
+    return s;
+}
+
 // sum_t a[t]^2 for t < n, summed in index order from 0.0.
 inline double row_sq(const double* a, i64 n) {
     double acc = 0.0;
