@@ -424,6 +424,26 @@ inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
         double d = std::sqrt(s);
         L(j, j) = d;
         i64 i = j + 1;
+        for (; i + 4 <= n; i += 4) {
+            // Rows i .. i + 3 in one pass, one per lane: each minus_dot's subtractions in
+            // order (the same bits).
+            using namespace simd;
+            const double* a = L.p + i * L.stride;
+            const double* b = a + L.stride;
+            const double* c = b + L.stride;
+            const double* e = c + L.stride;
+            v2d acc = v2d{G(i, j), G(i + 1, j)};
+            v2d acc2 = v2d{G(i + 2, j), G(i + 3, j)};
+            for (i64 k = 0; k < j; ++k) {
+                v2d lk = splat(lj[k]);
+                acc -= v2d{a[k], b[k]} * lk;
+                acc2 -= v2d{c[k], e[k]} * lk;
+            }
+            L(i, j) = acc[0] / d;
+            L(i + 1, j) = acc[1] / d;
+            L(i + 2, j) = acc2[0] / d;
+            L(i + 3, j) = acc2[1] / d;
+        }
         for (; i + 2 <= n; i += 2) {
             // Rows i and i + 1 in one pass, one per lane: each minus_dot's subtractions in
             // order (the same bits).
