@@ -3,6 +3,7 @@
 // diffik layer (diffik/fused.hpp) calls.
 #pragma once
 
+#include <optional>
 #include <stdexcept>
 
 #include "../common.hpp"
@@ -82,8 +83,9 @@ struct Workspace {
     IVec clean;
     std::vector<detail::Rotation> log;
     QRScratch qr;
-    // reduced_qp, ls_form, the cascade
+    // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
+    Vec gsq;
     Vec e, c1, c2, Gd, zd, Zz;
     // drop_pinned
     std::vector<Vec> normals;
@@ -197,7 +199,14 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
                 double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
-                jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
+                if (j + 1 < p) {
+                    // Row i rotated, (i, j + 1) is not clean: the pair checked next. Its product
+                    // is summed in the rotation's pass (the same sum dot() makes).
+                    jacobi_rows_sq_dot(ri, rj, R.row(j + 1), cs, sn, cols, sq[i], sq[j], next_gamma);
+                    next = j + 1;
+                } else {
+                    jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
+                }
                 if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
                 stamp[i] = stamp[j] = ++now;
             }
@@ -253,14 +262,14 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         if (z_eye) {
             Y.set_eye(r);
         } else {
-            Y.zeros(n, r);
+            shape(Y, n, r);  // every row copied
             for (i64 i = 0; i < n; ++i) std::memcpy(Y.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
         }
         apply_reflectors_right(Y, ws.qr, p);
-        Zn.zeros(n, c);
+        shape(Zn, n, c);  // every entry written below
         if (rotated_null) {
             Mat& Yt = ws.Qt;  // Y's first p columns as rows: contiguous rotations
-            Yt.zeros(p, n);
+            shape(Yt, p, n);  // every entry copied
             for (i64 i = 0; i < n; ++i)
                 for (i64 j = 0; j < p; ++j) Yt(j, i) = Y(i, j);
             for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
@@ -475,14 +484,13 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
 // (computed as below, by dual_stops_at_once).
 inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
-                         ReducedQP& out, bool have_gz = false) {
+                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     shape(out.C, n + p, r);  // every entry, bound written below
     shape(out.lo, static_cast<size_t>(n + p));
     shape(out.hi, static_cast<size_t>(n + p));
-    for (i64 i = 0; i < n; ++i)
-        for (i64 j = 0; j < r; ++j) out.C(i, j) = Z(i, j);
+    for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
     for (i64 i = 0; i < n; ++i) {
         out.lo[i] = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
@@ -491,7 +499,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
         Mat& GZ = ws.GZ;
         if (!have_gz) mm_into(G, Z, GZ);
         for (i64 i = 0; i < p; ++i)
-            for (i64 j = 0; j < r; ++j) out.C(n + i, j) = GZ(i, j);
+            std::memcpy(out.C.row(n + i), GZ.row(i), static_cast<size_t>(r) * sizeof(double));
         Vec& Gd = ws.Gd;
         if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
@@ -501,10 +509,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     }
     for (i64 i = 0; i < n + p; ++i) {
         double size = 1.0;
-        if (i >= n) {
-            size = 0.0;
-            for (i64 t = 0; t < n; ++t) size += G(i - n, t) * G(i - n, t);
-        }
+        if (i >= n) size = gsq ? gsq[i - n] : row_sq_of(G, i - n);
         double norm = dot(out.C.row(i), out.C.row(i), r);
         if (norm <= 1e-20 * size) {
             out.lo[i] = -kInf;
@@ -620,10 +625,11 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
-                        const Certificate* free_cert = nullptr) {
+                        const Certificate* free_cert = nullptr, const double* gsq = nullptr) {
     i64 n = static_cast<i64>(d.size());
-    CertScratch local;  // no storage unless used (cs: the caller's)
-    CertScratch& es = cs ? *cs : local;
+    std::optional<CertScratch> local;  // made only when the caller keeps none (cs)
+    if (!cs) local.emplace();
+    CertScratch& es = cs ? *cs : *local;
     cs = &es;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -640,7 +646,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         mv_into(Z, zc.data(), Zz);
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs);
+                                      static_cast<i64>(rows.size()), true, cs, gsq);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -723,7 +729,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
 // computes them.
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
-                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz) {
+                               CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
+                               bool z_eye = false, const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
@@ -765,13 +772,25 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // reduced_rows (have_gz).
     if (p) {
         Mat& GZ = ws.GZ;
-        mm_into(G, Z, GZ);
+        if (z_eye && all_finite(G)) {
+            // mm(G, I) written without forming it (as project_level's A Z): the entry G(i, j)
+            // where it is nonzero, else +0 (every other term a finite G(i, t) * 0 = +-0 added
+            // to a sum from +0).
+            GZ.zeros(p, n);
+            for (i64 i = 0; i < p; ++i) {
+                const double* gi = G.row(i);
+                double* dst = GZ.row(i);
+                for (i64 j = 0; j < n; ++j)
+                    if (gi[j] != 0.0) dst[j] = gi[j];
+            }
+        } else {
+            mm_into(G, Z, GZ);
+        }
         Vec& Gd = ws.Gd;
         mv_into(G, d, Gd);
         have_gz = true;
         for (i64 j = 0; j < p; ++j) {
-            double size = 0.0;
-            for (i64 t = 0; t < n; ++t) size += G(j, t) * G(j, t);
+            double size = gsq ? gsq[j] : row_sq_of(G, j);
             if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
         }
     }
@@ -783,12 +802,29 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     return true;
 }
 
+// Whether B zref = f exactly (eqp_ls's right-hand side f - B zref with no rows, computed as
+// eqp_ls does, is zero in every entry), with B finite and below 1e100 in every entry and zref
+// finite (free_answer's shortcut).
+inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
+    Vec& f0 = es.f0;
+    mv_into(ls.B.cref(), zref.data(), f0);
+    for (i64 i = 0; i < ls.B.rows; ++i)
+        if (ls.f[i] - f0[i] != 0.0) return false;
+    for (double v : zref)
+        if (!std::isfinite(v)) return false;
+    for (i64 i = 0; i < ls.B.rows; ++i)
+        for (i64 j = 0; j < ls.B.cols; ++j)
+            if (!(std::fabs(ls.B(i, j)) <= 1e100)) return false;
+    return true;
+}
+
 // exact_level after a dual method that stopped at once (dual_stops_at_once): of the
 // least-squares minimisers, the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d),
 // certified; true when its certificate holds (else exact_level goes on from there: the
 // caller then takes the general path).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
-                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es) {
+                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
+                        const double* gsq = nullptr) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -798,15 +834,32 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     mtv_into(Z, d.data(), zref);
     for (auto& v : zref) v = -v;
     Vec& u = es.xu;
+    Vec& Zz = es.xZz;
+    Vec& x = es.xx;
+    auto certified = [&]() {
+        mv_into(Z, z.data(), Zz);
+        x.resize(static_cast<size_t>(n));
+        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq);
+        return cert.holds() && cert.rows_relative;
+    };
+    if (residual_free(ls, zref, es)) {
+        // The level is already met at zref (B zref = f): eqp_ls's least-squares step y is then
+        // zero, its entries +-0 by the signs of the QR's pivots (every reflection of a zero
+        // right-hand side leaves it zero; each back-substitution divides a zero by a finite
+        // pivot; B is finite and far from overflow, so the QR's entries are finite). z = zref +
+        // y differs from zref + (+0) at most in the sign of a zero entry, which no sum of Z z
+        // (from +0, Z finite) sees: x, its certificate and the level's answer d + Z z are the
+        // same bits without the QR. z itself is read past here only when the certificate fails
+        // (exact_level's free_z): then eqp_ls makes it as before.
+        z.resize(static_cast<size_t>(r));
+        for (i64 i = 0; i < r; ++i) z[i] = zref[i] + 0.0;
+        u.clear();
+        if (certified()) return true;
+    }
     if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
         return false;
-    Vec& Zz = es.xZz;
-    mv_into(Z, z.data(), Zz);
-    Vec& x = es.xx;
-    x.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
-    cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es);
-    return cert.holds() && cert.rows_relative;
+    return certified();
 }
 
 }  // namespace detail
@@ -921,7 +974,7 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
                     if (passive[j]) P.push_back(j);
                 i64 nq = static_cast<i64>(P.size());
                 Mat& MP = ws.MP;
-                MP.zeros(r, nq);
+                shape(MP, r, nq);  // every entry copied
                 for (i64 i = 0; i < r; ++i)
                     for (i64 k = 0; k < nq; ++k) MP(i, k) = M(i, P[k]);
                 ws.f = y;
@@ -995,7 +1048,8 @@ constexpr double kPinnedWeight = 1e6;
 // min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u), the sum
 // counted up to kPinnedWeight, pins j and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
-inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws) {
+inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
+                        const double* gsq = nullptr) {
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     if (r == 0) return false;
     std::vector<Vec>& normals = ws.normals;  // the first t in use (their storage kept)
@@ -1006,15 +1060,18 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     };
     IVec& owner = ws.owner;  // the dof of a box row's normal, -1 for a general row
     owner.clear();
+    auto tight = [&](double di, double bound) {
+        return std::fabs(bound) < kBig && std::fabs(di - bound) <= detail::kSnap * (1.0 + std::fabs(bound));
+    };
     for (i64 i = 0; i < n; ++i) {
+        if (!tight(d[i], lb[i]) && !tight(d[i], ub[i])) continue;  // no normal (its row's norm unused)
         const double* zi = Z.row(i);
         double nn = dot(zi, zi, r);
         if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
             double bound = side > 0.0 ? lb[i] : ub[i];
-            if (!(std::fabs(bound) < kBig) || !(std::fabs(d[i] - bound) <= detail::kSnap * (1.0 + std::fabs(bound))))
-                continue;
+            if (!tight(d[i], bound)) continue;
             Vec& v = next_normal();
             zero_fill(v, static_cast<size_t>(r));
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
@@ -1024,11 +1081,8 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     if (p) {
         for (i64 j = 0; j < p; ++j) {
             if (!(h[j] < kBig)) continue;
-            double gg = 0.0, gd = 0.0;
-            for (i64 t = 0; t < n; ++t) {
-                gg += G(j, t) * G(j, t);
-                gd += G(j, t) * d[t];
-            }
+            double gg = gsq ? gsq[j] : row_sq_of(G, j), gd = 0.0;
+            for (i64 t = 0; t < n; ++t) gd += G(j, t) * d[t];
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
             zero_fill(v, static_cast<size_t>(r));
@@ -1076,7 +1130,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (i != j && state[i] >= 0) others.push_back(i);
         i64 k = static_cast<i64>(others.size());
         Mat& M = ws.M;
-        M.zeros(r, k);
+        shape(M, r, k);  // every entry written
         for (i64 c = 0; c < r; ++c)
             for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
         Vec& y = ws.y;
@@ -1112,7 +1166,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     i64 e = static_cast<i64>(pinned.size());
     if (e == 0) return false;
     Mat& N = ws.N;
-    N.zeros(r, e);
+    shape(N, r, e);  // every entry written
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
     Mat& Q = ws.Q;
@@ -1126,7 +1180,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     if (rank == 0) return false;
     Mat& Qc = ws.Qr;  // Q's columns rank..r-1
-    Qc.zeros(r, r - rank);
+    shape(Qc, r, r - rank);  // every entry copied
     for (i64 i = 0; i < r; ++i)
         for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
     mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
@@ -1222,6 +1276,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
     }
+    // |G_j|^2 of every general row, summed once (the same sums drop_pinned, reduced_rows,
+    // dual_stops_at_once and certify_level would each make).
+    shape(ws.gsq, static_cast<size_t>(p));
+    for (i64 j = 0; j < p; ++j) ws.gsq[j] = row_sq_of(G, j);
+    const double* gsq = ws.gsq.data();
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
@@ -1232,7 +1291,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         i64 s0 = starts[k], s1 = starts[k + 1];
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
-        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws)) z_eye = false;
+        if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws, gsq)) z_eye = false;
         i64 r = Z.cols;
         if (s1 == s0 || r == 0) {
             // Nothing to choose (no rows, or no freedom left): optimal wherever the levels
@@ -1240,7 +1299,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             res.status[k] = SOLVED;
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                                  false).primal;
+                                  false, &ws.cs, gsq).primal;
             ck[1] = ck[2] = ck[3] = 0.0;
             continue;
         }
@@ -1266,8 +1325,9 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
-        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz);
-        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs)) {
+        bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
+                                                        z_eye, gsq);
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
@@ -1281,7 +1341,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             z_eye = false;
             continue;
         }
-        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz);
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
@@ -1290,7 +1350,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
-            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs);
+            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq);
             cert.stationarity = cert.dual = cert.complementarity = 0.0;
         } else {
             // The dual method stopped at once (stops: sol is x0 with no working set), so
@@ -1299,11 +1359,11 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr);
+                                        stops ? &tried : nullptr, gsq);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
-                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs);
+                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs, gsq);
             }
         }
         double* ck = res.certificate.data() + 4 * k;
@@ -1342,7 +1402,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
     res.residuals = detail::level_residuals(A, b, starts, d);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                               false).primal;
+                               false, &ws.cs, gsq).primal;
     res.dq = std::move(d);
     return res;
 }

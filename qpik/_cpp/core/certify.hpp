@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "linalg.hpp"
 #include "qp.hpp"
@@ -274,12 +275,13 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     z = zref;
     zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
-    CertScratch local;  // no storage unless used (scratch: the caller's)
-    CertScratch& ws = scratch ? *scratch : local;
+    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.emplace();
+    CertScratch& ws = scratch ? *scratch : *local;
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
         Mat& N = ws.N;
-        N.zeros(r, q);
+        shape(N, r, q);  // every entry written below
         Vec& rhs = ws.rhs;
         zero_fill(rhs, static_cast<size_t>(q));
         for (i64 j = 0; j < q; ++j) {
@@ -316,7 +318,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             BW.cols = nw;
             BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
         } else {
-            BW.zeros(mb, nw);
+            shape(BW, mb, nw);  // every entry written below
             Vec& row = ws.row;
             row.resize(static_cast<size_t>(r));
             for (i64 i = 0; i < mb; ++i) {
@@ -483,10 +485,13 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
-                                 const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr) {
+                                 const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
+                                 const double* gsq = nullptr) {
+    // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
-    CertScratch local;  // no storage unless used (scratch: the caller's)
-    CertScratch& ws = scratch ? *scratch : local;
+    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
+    if (!scratch) local.emplace();
+    CertScratch& ws = scratch ? *scratch : *local;
     Certificate cert;
     double primal = 0.0, xmax = 0.0;
     bool relative = true;
@@ -508,9 +513,14 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     zero_fill(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
-        for (i64 i = 0; i < n; ++i) {
-            nn += G(j, i) * G(j, i);
-            acc += G(j, i) * x[i];
+        if (gsq) {
+            nn = gsq[j];
+            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+        } else {
+            for (i64 i = 0; i < n; ++i) {
+                nn += G(j, i) * G(j, i);
+                acc += G(j, i) * x[i];
+            }
         }
         gnorm[j] = std::sqrt(nn);
         gx[j] = acc;
@@ -539,10 +549,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         zero_fill(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
-            double xi = std::fabs(x[i]), zm = 0.0;
-            abs_axpy(zc.data(), xi, zi, r);
-            for (i64 c = 0; c < r; ++c) zm = pymax(zm, std::fabs(zi[c]));
-            dx[i] = zm;
+            dx[i] = abs_axpy_max(zc.data(), std::fabs(x[i]), zi, r);
         }
         double zx = 0.0;
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
@@ -590,9 +597,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& ssc = ws.ssc;
     zero_fill(sc, static_cast<size_t>(r));
     zero_fill(ssc, static_cast<size_t>(r));
-    for (i64 i = 0; i < n; ++i) {
-        axpy3(sc.data(), ssc.data(), hsc.data(), Z.row(i), v[i], vs[i], hs[i], r);
-    }
+    axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:

@@ -15,10 +15,12 @@ namespace qpik::core {
 
 // M reshaped to (r, c), the storage kept, its entries left as they were (stale): for a
 // matrix every entry of which is written before it is read (Mat::zeros fills it first).
+// M.a never shrinks here (it may hold more than r c entries past the matrix's, never read):
+// a matrix shaped smaller then larger again is not value-initialised each time it grows.
 inline void shape(Mat& M, i64 r, i64 c) {
     M.rows = r;
     M.cols = c;
-    M.a.resize(static_cast<size_t>(r * c));
+    if (M.a.size() < static_cast<size_t>(r * c)) M.a.resize(static_cast<size_t>(r * c));
 }
 
 // v of size n, its entries left as they were (every one written before it is read).
@@ -63,6 +65,26 @@ inline void abs_axpy(double* y, double a, const double* x, i64 n) {
     for (; j < n; ++j) y[j] += std::fabs(x[j]) * a;
 }
 
+// abs_axpy(y, a, x, n), returning m = pymax(... pymax(pymax(0, |x[0]|), |x[1]|) ..., |x[n-1]|)
+// from the same pass: the largest |x[j]| (NaN entries never win a pymax), taken over the
+// even and the odd entries apart, then both (the largest of a set is exact, in any order).
+inline double abs_axpy_max(double* y, double a, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a), mv = splat(0.0);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        v2d ax = vabs(load(x + j));
+        store(y + j, load(y + j) + ax * av);
+        mv = ax > mv ? ax : mv;
+    }
+    double m = pymax(mv[0], mv[1]);
+    for (; j < n; ++j) {
+        y[j] += std::fabs(x[j]) * a;
+        m = pymax(m, std::fabs(x[j]));
+    }
+    return m;
+}
+
 // y[j] += x[j] * a, s[j] += |x[j]| * b, h[j] += |x[j]| * c, j < n (two lanes at a time,
 // each the scalar loop's operations).
 inline void axpy3(double* y, double* s, double* h, const double* x, double a, double b, double c, i64 n) {
@@ -83,6 +105,38 @@ inline void axpy3(double* y, double* s, double* h, const double* x, double a, do
     }
 }
 
+// axpy3(y, s, h, Z.row(i), a[i], b[i], c[i], Z.cols) for every row i of Z in order: two
+// columns a pass, summed over i in registers (each entry the same operations in the same
+// order).
+inline void axpy3_rows(double* y, double* s, double* h, CMatRef Z, const double* a, const double* b,
+                       const double* c) {
+    using namespace simd;
+    i64 n = Z.rows, r = Z.cols;
+    i64 j = 0;
+    for (; j + 2 <= r; j += 2) {
+        v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
+        const double* p = Z.p + j;
+        for (i64 i = 0; i < n; ++i, p += Z.stride) {
+            v2d xv = load(p);
+            v2d ax = vabs(xv);
+            yv = yv + xv * splat(a[i]);
+            sv = sv + ax * splat(b[i]);
+            hv = hv + ax * splat(c[i]);
+        }
+        store(y + j, yv);
+        store(s + j, sv);
+        store(h + j, hv);
+    }
+    for (; j < r; ++j) {
+        for (i64 i = 0; i < n; ++i) {
+            double x = Z(i, j);
+            y[j] += x * a[i];
+            s[j] += std::fabs(x) * b[i];
+            h[j] += std::fabs(x) * c[i];
+        }
+    }
+}
+
 // y[j] += a * x[j], j < n.
 inline void axpy(double* y, double a, const double* x, i64 n) {
     using namespace simd;
@@ -94,6 +148,22 @@ inline void axpy(double* y, double a, const double* x, i64 n) {
     }
     for (; j + 2 <= n; j += 2) store(y + j, load(y + j) + av * load(x + j));
     for (; j < n; ++j) y[j] += a * x[j];
+}
+
+// y[j] += a * x[j] and z[j] += b * x[j], j < n (axpy twice, x loaded once).
+inline void axpy2(double* y, double* z, double a, double b, const double* x, i64 n) {
+    using namespace simd;
+    v2d av = splat(a), bv = splat(b);
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        v2d xv = load(x + j);
+        store(y + j, load(y + j) + av * xv);
+        store(z + j, load(z + j) + bv * xv);
+    }
+    for (; j < n; ++j) {
+        y[j] += a * x[j];
+        z[j] += b * x[j];
+    }
 }
 
 // y[j] -= a * x[j], j < n.
@@ -127,6 +197,39 @@ inline void dot2(const double* a, const double* b, const double* x, i64 n, doubl
     sb = acc[1];
 }
 
+// Four dot products with one vector (a . x, b . x, c . x, d . x), each summed in index order
+// from 0.0 as dot() does (one per lane of two pairs: the same bits; x[t] loaded once).
+inline void dot4(const double* a, const double* b, const double* c, const double* d, const double* x, i64 n,
+                 double& sa, double& sb, double& sc, double& sd) {
+    using namespace simd;
+    v2d acc0 = splat(0.0), acc1 = splat(0.0);
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x0 = splat(x[t]), x1 = splat(x[t + 1]);
+        acc0 += v2d{a[t], b[t]} * x0;
+        acc1 += v2d{c[t], d[t]} * x0;
+        acc0 += v2d{a[t + 1], b[t + 1]} * x1;
+        acc1 += v2d{c[t + 1], d[t + 1]} * x1;
+    }
+    for (; t < n; ++t) {
+        v2d xv = splat(x[t]);
+        acc0 += v2d{a[t], b[t]} * xv;
+        acc1 += v2d{c[t], d[t]} * xv;
+    }
+    sa = acc0[0];
+    sb = acc0[1];
+    sc = acc1[0];
+    sd = acc1[1];
+}
+
+// sum_t G(j, t)^2, summed in index order from 0.0 (a general row's norm squared, as the
+// cascade's functions sum it).
+inline double row_sq_of(CMatRef G, i64 j) {
+    double s = 0.0;
+    for (i64 t = 0; t < G.cols; ++t) s += G(j, t) * G(j, t);
+    return s;
+}
+
 // sum_t a[t]^2 for t < n, summed in index order from 0.0.
 inline double row_sq(const double* a, i64 n) {
     double acc = 0.0;
@@ -148,8 +251,38 @@ inline void row_sq2(const double* a, const double* b, i64 n, double& sa, double&
 
 // out[j] = sum_{t0 <= t < t1} M(t, j)^2 for j0 <= j < j1 (M row-major, row stride ld), each
 // summed over t in order from 0.0 (a row at a time: contiguous, two columns per lane).
+// (Four columns a pass summed over t in registers, then two: the same sums.)
 inline void col_sq(const double* M, i64 ld, i64 t0, i64 t1, i64 j0, i64 j1, double* out) {
     using namespace simd;
+    if (j1 - j0 >= 2) {
+        i64 j = j0;
+        for (; j + 4 <= j1; j += 4) {
+            v2d a = splat(0.0), b = splat(0.0);
+            const double* p = M + t0 * ld + j;
+            for (i64 t = t0; t < t1; ++t, p += ld) {
+                v2d u = load(p), v = load(p + 2);
+                a += u * u;
+                b += v * v;
+            }
+            store(out + j, a);
+            store(out + j + 2, b);
+        }
+        for (; j + 2 <= j1; j += 2) {
+            v2d a = splat(0.0);
+            const double* p = M + t0 * ld + j;
+            for (i64 t = t0; t < t1; ++t, p += ld) {
+                v2d u = load(p);
+                a += u * u;
+            }
+            store(out + j, a);
+        }
+        for (; j < j1; ++j) {
+            double a = 0.0;
+            for (i64 t = t0; t < t1; ++t) a += M[t * ld + j] * M[t * ld + j];
+            out[j] = a;
+        }
+        return;
+    }
     for (i64 j = j0; j < j1; ++j) out[j] = 0.0;
     for (i64 t = t0; t < t1; ++t) {
         const double* row = M + t * ld;
@@ -212,6 +345,41 @@ inline void jacobi_rows_sq(double* a, double* b, double cs, double sn, i64 n, do
     sb = acc[1];
 }
 
+// jacobi_rows_sq, and sc = a' . c summed over t in order from 0.0 (the sum dot(a', c) and
+// dot2's lane make: the same bits), in the same pass.
+inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs, double sn, i64 n, double& sa,
+                               double& sb, double& sc) {
+    using namespace simd;
+    v2d c2 = splat(cs), s2 = splat(sn);
+    v2d acc = splat(0.0);
+    double g = 0.0;
+    i64 t = 0;
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d xn = c2 * x - s2 * y;
+        v2d yn = s2 * x + c2 * y;
+        store(a + t, xn);
+        store(b + t, yn);
+        v2d v0 = v2d{xn[0], yn[0]};
+        v2d v1 = v2d{xn[1], yn[1]};
+        acc += v0 * v0;
+        acc += v1 * v1;
+        g += xn[0] * c[t];
+        g += xn[1] * c[t + 1];
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = cs * x - sn * y;
+        b[t] = sn * x + cs * y;
+        v2d v = v2d{a[t], b[t]};
+        acc += v * v;
+        g += a[t] * c[t];
+    }
+    sa = acc[0];
+    sb = acc[1];
+    sc = g;
+}
+
 // The Givens rotation of two rows as rotate_in / drop_constraint write it:
 // a' = a cc + b ss, b' = xny (a + a') - b.
 inline void givens_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
@@ -255,9 +423,39 @@ inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
         if (!(s > 0.0)) return false;
         double d = std::sqrt(s);
         L(j, j) = d;
-        for (i64 i = j + 1; i < n; ++i) {
-            L(i, j) = minus_dot(G(i, j), L.p + i * L.stride, lj, j) / d;
+        i64 i = j + 1;
+        for (; i + 4 <= n; i += 4) {
+            // Rows i .. i + 3 in one pass, one per lane: each minus_dot's subtractions in
+            // order (the same bits).
+            using namespace simd;
+            const double* a = L.p + i * L.stride;
+            const double* b = a + L.stride;
+            const double* c = b + L.stride;
+            const double* e = c + L.stride;
+            v2d acc = v2d{G(i, j), G(i + 1, j)};
+            v2d acc2 = v2d{G(i + 2, j), G(i + 3, j)};
+            for (i64 k = 0; k < j; ++k) {
+                v2d lk = splat(lj[k]);
+                acc -= v2d{a[k], b[k]} * lk;
+                acc2 -= v2d{c[k], e[k]} * lk;
+            }
+            L(i, j) = acc[0] / d;
+            L(i + 1, j) = acc[1] / d;
+            L(i + 2, j) = acc2[0] / d;
+            L(i + 3, j) = acc2[1] / d;
         }
+        for (; i + 2 <= n; i += 2) {
+            // Rows i and i + 1 in one pass, one per lane: each minus_dot's subtractions in
+            // order (the same bits).
+            using namespace simd;
+            const double* a = L.p + i * L.stride;
+            const double* b = a + L.stride;
+            v2d acc = v2d{G(i, j), G(i + 1, j)};
+            for (i64 k = 0; k < j; ++k) acc -= v2d{a[k], b[k]} * splat(lj[k]);
+            L(i, j) = acc[0] / d;
+            L(i + 1, j) = acc[1] / d;
+        }
+        for (; i < n; ++i) L(i, j) = minus_dot(G(i, j), L.p + i * L.stride, lj, j) / d;
     }
     return true;
 }
@@ -269,10 +467,22 @@ inline bool cholesky(CMatRef H, Mat& L) {
 }
 
 // L^-1 b for lower-triangular L into x (its storage kept; x is not b).
+// (Rows i and i + 1 a pass, one per lane: row i + 1's subtractions over k < i run beside row
+// i's, then its k = i one; each row's subtractions in order.)
 inline void forward_into(CMatRef L, const Vec& b, Vec& x) {
+    using namespace simd;
     i64 n = static_cast<i64>(b.size());
     x.resize(static_cast<size_t>(n));
-    for (i64 i = 0; i < n; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= n; i += 2) {
+        const double* l0 = L.row(i);
+        const double* l1 = L.row(i + 1);
+        v2d acc = v2d{b[i], b[i + 1]};
+        for (i64 k = 0; k < i; ++k) acc -= v2d{l0[k], l1[k]} * splat(x[k]);
+        x[i] = acc[0] / l0[i];
+        x[i + 1] = (acc[1] - l1[i] * x[i]) / l1[i + 1];
+    }
+    for (; i < n; ++i) {
         double s = b[i];
         for (i64 k = 0; k < i; ++k) s -= L(i, k) * x[k];
         x[i] = s / L(i, i);
@@ -304,10 +514,74 @@ inline Vec backward_vec(CMatRef L, const Vec& b) {
 }
 
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
+// (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
+// entry of C the same sum over t in order. Where no entry of A is zero, a block of C (four
+// rows, two columns) is summed in registers over t instead: the same products added in the
+// same order from +0.)
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     i64 m = A.rows, k = A.cols, n = B.cols;
+    bool dense = m >= 4 && n >= 2;
+    for (i64 r = 0; r < m && dense; ++r) {
+        const double* ar = A.row(r);
+        for (i64 t = 0; t < k; ++t)
+            if (ar[t] == 0.0) {
+                dense = false;
+                break;
+            }
+    }
+    if (dense) {
+        using namespace simd;
+        shape(C, m, n);  // every entry written below
+        i64 i = 0;
+        for (; i + 4 <= m; i += 4) {
+            const double* a0 = A.row(i);
+            const double* a1 = A.row(i + 1);
+            const double* a2 = A.row(i + 2);
+            const double* a3 = A.row(i + 3);
+            i64 j = 0;
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 t = 0; t < k; ++t) {
+                    v2d bt = load(B.row(t) + j);
+                    c0 += splat(a0[t]) * bt;
+                    c1 += splat(a1[t]) * bt;
+                    c2 += splat(a2[t]) * bt;
+                    c3 += splat(a3[t]) * bt;
+                }
+                store(C.row(i) + j, c0);
+                store(C.row(i + 1) + j, c1);
+                store(C.row(i + 2) + j, c2);
+                store(C.row(i + 3) + j, c3);
+            }
+            for (; j < n; ++j) {
+                for (i64 r = i; r < i + 4; ++r) {
+                    const double* ar = A.row(r);
+                    double acc = 0.0;
+                    for (i64 t = 0; t < k; ++t) acc += ar[t] * B(t, j);
+                    C(r, j) = acc;
+                }
+            }
+        }
+        for (; i < m; ++i) {
+            double* ci = C.row(i);
+            std::memset(ci, 0, static_cast<size_t>(n) * sizeof(double));
+            for (i64 t = 0; t < k; ++t) axpy(ci, A(i, t), B.row(t), n);
+        }
+        return;
+    }
     C.zeros(m, n);
-    for (i64 i = 0; i < m; ++i) {
+    i64 i = 0;
+    for (; i + 2 <= m; i += 2) {
+        double* c0 = C.row(i);
+        double* c1 = C.row(i + 1);
+        for (i64 t = 0; t < k; ++t) {
+            double a0 = A(i, t), a1 = A(i + 1, t);
+            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
+            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
+            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
+        }
+    }
+    for (; i < m; ++i) {
         double* ci = C.row(i);
         for (i64 t = 0; t < k; ++t) {
             double a = A(i, t);
@@ -324,9 +598,60 @@ inline Mat mm(CMatRef A, CMatRef B) {
 }
 
 // A^T @ A (symmetric, computed once per pair) into C (its storage kept).
+// (Where no entry of A is zero, the upper triangle is summed in registers by blocks of four
+// rows and two columns over t instead: each entry the same products in the same order from +0;
+// a block's entries below the diagonal are overwritten by the copy.)
 inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
+    bool dense = n >= 4;
+    for (i64 t = 0; t < m && dense; ++t) {
+        const double* at = A.row(t);
+        for (i64 i = 0; i < n; ++i)
+            if (at[i] == 0.0) {
+                dense = false;
+                break;
+            }
+    }
+    if (dense) {
+        using namespace simd;
+        i64 i = 0;
+        for (; i + 4 <= n; i += 4) {
+            i64 j = i;
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 t = 0; t < m; ++t) {
+                    const double* at = A.row(t);
+                    v2d bt = load(at + j);
+                    c0 += splat(at[i]) * bt;
+                    c1 += splat(at[i + 1]) * bt;
+                    c2 += splat(at[i + 2]) * bt;
+                    c3 += splat(at[i + 3]) * bt;
+                }
+                store(C.row(i) + j, c0);
+                store(C.row(i + 1) + j, c1);
+                store(C.row(i + 2) + j, c2);
+                store(C.row(i + 3) + j, c3);
+            }
+            for (; j < n; ++j) {
+                for (i64 r = i; r < i + 4; ++r) {
+                    double acc = 0.0;
+                    for (i64 t = 0; t < m; ++t) acc += A(t, r) * A(t, j);
+                    C(r, j) = acc;
+                }
+            }
+        }
+        for (; i < n; ++i) {
+            for (i64 j = i; j < n; ++j) {
+                double acc = 0.0;
+                for (i64 t = 0; t < m; ++t) acc += A(t, i) * A(t, j);
+                C(i, j) = acc;
+            }
+        }
+        for (i64 r = 0; r < n; ++r)
+            for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
+        return;
+    }
     for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
@@ -351,6 +676,8 @@ inline void mv_into(CMatRef A, const double* x, Vec& y) {
     i64 m = A.rows, n = A.cols;
     y.resize(static_cast<size_t>(m));
     i64 i = 0;
+    for (; i + 4 <= m; i += 4)
+        dot4(A.row(i), A.row(i + 1), A.row(i + 2), A.row(i + 3), x, n, y[i], y[i + 1], y[i + 2], y[i + 3]);
     for (; i + 2 <= m; i += 2) dot2(A.row(i), A.row(i + 1), x, n, y[i], y[i + 1]);
     for (; i < m; ++i) {
         const double* ai = A.row(i);
@@ -408,7 +735,7 @@ inline Mat columns(CMatRef M, i64 c0, i64 c1) {
 }
 
 inline void transposed_into(CMatRef M, Mat& out) {
-    out.zeros(M.cols, M.rows);
+    shape(out, M.cols, M.rows);  // every entry written
     for (i64 i = 0; i < M.rows; ++i)
         for (i64 j = 0; j < M.cols; ++j) out(j, i) = M(i, j);
 }
@@ -622,10 +949,83 @@ namespace detail {
 // i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
 // M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
 // time, contiguous), with the same operations per column as a loop over the column.
+// (Eight, four or two columns a pass: s_j summed over t in registers, then those columns
+// updated: per column the same operations in the same order as the row-at-a-time loops
+// below, which the last odd column takes.)
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
                             double* S) {
     i64 w = m - j0;
     if (w <= 0) return;
+    if (w >= 2) {
+        using namespace simd;
+        double* base = M + i * ld + j0;
+        i64 j = 0;
+        for (; j + 8 <= w; j += 8) {
+            v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+            const double* p = base + j;
+            for (i64 t = 0; t < size; ++t, p += ld) {
+                v2d xt = splat(x[t]);
+                s0 += xt * load(p);
+                s1 += xt * load(p + 2);
+                s2 += xt * load(p + 4);
+                s3 += xt * load(p + 6);
+            }
+            v2d two = splat(2.0), vv = splat(vn);
+            s0 = two * s0 / vv;
+            s1 = two * s1 / vv;
+            s2 = two * s2 / vv;
+            s3 = two * s3 / vv;
+            store(S + j, s0);
+            store(S + j + 2, s1);
+            store(S + j + 4, s2);
+            store(S + j + 6, s3);
+            double* q = base + j;
+            for (i64 t = 0; t < size; ++t, q += ld) {
+                v2d xt = splat(x[t]);
+                store(q, load(q) - xt * s0);
+                store(q + 2, load(q + 2) - xt * s1);
+                store(q + 4, load(q + 4) - xt * s2);
+                store(q + 6, load(q + 6) - xt * s3);
+            }
+        }
+        for (; j + 4 <= w; j += 4) {
+            v2d s = splat(0.0), s2 = splat(0.0);
+            const double* p = base + j;
+            for (i64 t = 0; t < size; ++t, p += ld) {
+                v2d xt = splat(x[t]);
+                s += xt * load(p);
+                s2 += xt * load(p + 2);
+            }
+            s = splat(2.0) * s / splat(vn);
+            s2 = splat(2.0) * s2 / splat(vn);
+            store(S + j, s);
+            store(S + j + 2, s2);
+            double* q = base + j;
+            for (i64 t = 0; t < size; ++t, q += ld) {
+                v2d xt = splat(x[t]);
+                store(q, load(q) - xt * s);
+                store(q + 2, load(q + 2) - xt * s2);
+            }
+        }
+        for (; j + 2 <= w; j += 2) {
+            v2d s = splat(0.0);
+            for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(base + t * ld + j);
+            s = splat(2.0) * s / splat(vn);
+            store(S + j, s);
+            for (i64 t = 0; t < size; ++t) {
+                double* p = base + t * ld + j;
+                store(p, load(p) - splat(x[t]) * s);
+            }
+        }
+        if (j < w) {
+            double s = 0.0;
+            for (i64 t = 0; t < size; ++t) s += x[t] * base[t * ld + j];
+            s = 2.0 * s / vn;
+            S[j] = s;
+            for (i64 t = 0; t < size; ++t) base[t * ld + j] -= x[t] * s;
+        }
+        return;
+    }
     std::fill(S, S + w, 0.0);
     for (i64 t = 0; t < size; ++t) acc_row(S, x[t], M + (i + t) * ld + j0, w);
     for (i64 j = 0; j < w; ++j) S[j] = 2.0 * S[j] / vn;

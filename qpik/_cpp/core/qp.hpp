@@ -33,8 +33,8 @@ struct QPResult {
 // one call to the next but capacity: every buffer is sized and filled before it is read.
 struct QPScratch {
     Mat L, J, JT, R;
-    Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2;
-    IVec act_row, act_side, unit;
+    Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
+    IVec act_row, act_side, unit, rows, dense;
     BVec in_set;
 };
 
@@ -155,33 +155,38 @@ inline IVec unit_columns(CMatRef C) {
 }
 
 // The most violated constraint (row, side) at x; row -1 when every one holds within tol.
+// C x is taken for the rows that need it first, four rows a pass (dot4: each row's sum in
+// index order from 0.0, the same bits as dot), into cx (scratch; rows is scratch too).
 inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
-                          double tol, const Vec& norms, const IVec& unit, i64& best_row, i64& best_side) {
+                          double tol, const Vec& norms, const IVec& unit, i64& best_row, i64& best_side,
+                          Vec& cx, IVec& rows, const IVec* dense = nullptr) {
     i64 m = C.rows, n = C.cols;
     double best = 0.0;
     best_row = -1;
     best_side = 0;
-    double cx_next = 0.0;
-    bool have_next = false;
+    shape(cx, static_cast<size_t>(m));  // read only where written below
+    if (static_cast<i64>(rows.size()) < m) rows.resize(static_cast<size_t>(m));  // the first k in use
+    i64 k = 0, t = 0;
+    if (dense) {  // the rows with norms[i] != 0 and unit[i] < 0, in order (the caller's)
+        for (i64 i : *dense)
+            if (!skip[i]) rows[k++] = i;
+    } else {
+        for (i64 i = 0; i < m; ++i)
+            if (!skip[i] && norms[i] != 0.0 && unit[i] < 0) rows[k++] = i;
+    }
+    for (; t + 4 <= k; t += 4) {
+        i64 a = rows[t], b = rows[t + 1], c = rows[t + 2], d = rows[t + 3];
+        dot4(C.row(a), C.row(b), C.row(c), C.row(d), x, n, cx[a], cx[b], cx[c], cx[d]);
+    }
+    for (; t + 2 <= k; t += 2) dot2(C.row(rows[t]), C.row(rows[t + 1]), x, n, cx[rows[t]], cx[rows[t + 1]]);
+    for (; t < k; ++t) cx[rows[t]] = dot(C.row(rows[t]), x, n);
     for (i64 i = 0; i < m; ++i) {
-        bool have = have_next;
-        have_next = false;
         if (skip[i]) continue;
         double norm = norms[i];
         if (norm == 0.0) continue;
-        double cx;
-        if (unit[i] >= 0) {
-            cx = 0.0 + C(i, unit[i]) * x[unit[i]];
-        } else if (have) {
-            cx = cx_next;  // summed with row i - 1's (dot2: the same order, the same bits)
-        } else if (i + 1 < m && !skip[i + 1] && norms[i + 1] != 0.0 && unit[i + 1] < 0) {
-            dot2(C.row(i), C.row(i + 1), x, n, cx, cx_next);
-            have_next = true;
-        } else {
-            cx = dot(C.p + i * C.stride, x, n);
-        }
+        double ci = unit[i] >= 0 ? 0.0 + C(i, unit[i]) * x[unit[i]] : cx[i];
         if (lo[i] > -kBig) {
-            double v = (lo[i] - cx) / norm;
+            double v = (lo[i] - ci) / norm;
             if (v > tol * (1.0 + std::fabs(lo[i])) && v > best) {
                 best = v;
                 best_row = i;
@@ -189,7 +194,7 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
             }
         }
         if (hi[i] < kBig) {
-            double v = (cx - hi[i]) / norm;
+            double v = (ci - hi[i]) / norm;
             if (v > tol * (1.0 + std::fabs(hi[i])) && v > best) {
                 best = v;
                 best_row = i;
@@ -197,6 +202,13 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
             }
         }
     }
+}
+
+inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
+                          double tol, const Vec& norms, const IVec& unit, i64& best_row, i64& best_side) {
+    Vec cx;
+    IVec rows;
+    most_violated(x, C, lo, hi, skip, tol, norms, unit, best_row, best_side, cx, rows);
 }
 
 inline double dual_floor(const Vec& u, i64 q) { return 1e-12 * (1.0 + max_abs(u, q)); }
@@ -259,6 +271,9 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
         i64 i = 0;
+        for (; i + 4 <= n; i += 4)
+            dot4(JT.row(i), JT.row(i + 1), JT.row(i + 2), JT.row(i + 3), normal.data(), n, d[i], d[i + 1], d[i + 2],
+                 d[i + 3]);
         for (; i + 2 <= n; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
         for (; i < n; ++i) {
             const double* ji = JT.row(i);
@@ -267,8 +282,33 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
-    std::fill(z.begin(), z.begin() + n, 0.0);  // z[k] = sum_{i >= q} J(k, i) d[i], i in order
-    for (i64 i = q; i < n; ++i) axpy(z.data(), d[i], JT.row(i), n);
+    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (four entries a pass in registers,
+    // then two, then one: the sums axpy over JT's rows makes).
+    {
+        using namespace simd;
+        i64 k = 0;
+        for (; k + 4 <= n; k += 4) {
+            v2d a = splat(0.0), b = splat(0.0);
+            for (i64 i = q; i < n; ++i) {
+                const double* ji = JT.row(i) + k;
+                v2d di = splat(d[i]);
+                a = a + di * load(ji);
+                b = b + di * load(ji + 2);
+            }
+            store(z.data() + k, a);
+            store(z.data() + k + 2, b);
+        }
+        for (; k + 2 <= n; k += 2) {
+            v2d a = splat(0.0);
+            for (i64 i = q; i < n; ++i) a = a + splat(d[i]) * load(JT.row(i) + k);
+            store(z.data() + k, a);
+        }
+        for (; k < n; ++k) {
+            double a = 0.0;
+            for (i64 i = q; i < n; ++i) a += d[i] * JT(i, k);
+            z[k] = a;
+        }
+    }
     for (i64 i = q - 1; i >= 0; --i) {
         double acc = d[i];
         for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
@@ -535,6 +575,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     row_norms_into(C, norms);
     IVec& unit = ws.unit;
     unit_columns_into(C, unit);
+    IVec& dense = ws.dense;  // the rows most_violated takes C x of
+    dense.clear();
+    for (i64 i = 0; i < m; ++i)
+        if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
     zero_fill(x_old, static_cast<size_t>(n));
@@ -544,7 +588,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     i64 iterations = 0;
     while (true) {
         i64 row, side;
-        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side);
+        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
         if (row < 0) {
             BVec working(static_cast<size_t>(m), 0);
             mark(working, act_row, act_side, q);
