@@ -94,6 +94,7 @@ void bind_igm(nb::module_& m) {
     m.attr("PROGRESS") = igm::PROGRESS;
     m.attr("CLOCK_EVERY") = igm::CLOCK_EVERY;
     m.attr("RESTART_SPREAD") = igm::RESTART_SPREAD;
+    m.attr("BLOCKED") = igm::BLOCKED;
 
     m.def(
         "box_qp",

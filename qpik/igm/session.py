@@ -61,7 +61,8 @@ hold them): position-like tasks (position, CoM) against ``tol_position``, orient
 tasks against ``tol_orientation``, frame/pose tasks both (the parts with a nonzero cost),
 and any other task's error norm, in its own units, against ``tol_position``.
 
-When an attempt stops making progress (:mod:`qpik.igm.restarts`) the reason is diagnosed
+When an attempt stops making progress (:mod:`qpik.igm.restarts`; the compiled engine also
+stops one at a step the limits or the damping block) the reason is diagnosed
 (``at_limit``: a joint limit binds; ``singular``: the target level's smallest singular
 value is below the damping threshold; ``stalled`` otherwise) and the solve restarts from a
 random configuration within the limits, while restarts and time remain. The best iterate
