@@ -133,7 +133,8 @@ igm_run = _igm.igm_run
 #: (int64; ``None``: all) of the whole configuration ``q_full``, the chain being over those
 #: coordinates alone; ``q`` (the answer) and the rows of ``path`` are whole configurations
 #: (the other coordinates as in ``q_full``), the errors those of ``q`` (:class:`qpik.IKSession`'s
-#: call: its result needs no NumPy call of its own).
+#: call: its result needs no NumPy call of its own). ``rng_state`` is here a plain int in
+#: ``[0, 2**64)`` (the stream's state, not written back).
 igm_session_run = _igm._igm_session_run
 
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (

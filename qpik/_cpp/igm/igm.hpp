@@ -489,6 +489,84 @@ inline bool within_box(const double* x, const double* lb, const double* ub, i64 
     return true;
 }
 
+// ------------------------------------------------ the row-space step, sizes fixed
+// row_gram, regularisation_gram and row_space_step for M rows and NC dofs known at compile
+// time (the usual 6 x 6 and 6 x 7 levels): the same operations in the same order, so the
+// same bits, with the loops unrolled. G is (6, 6).
+template <int M>
+inline bool cholesky_fixed(const double* G, double shift, double* L) {
+    for (int j = 0; j < M; ++j) {
+        double s = G[j * 6 + j] - shift;
+        for (int k = 0; k < j; ++k) s -= L[j * 6 + k] * L[j * 6 + k];
+        if (!(s > 0.0)) return false;
+        double d = std::sqrt(s);
+        L[j * 6 + j] = d;
+        for (int i = j + 1; i < M; ++i) {
+            double t = G[i * 6 + j];
+            for (int k = 0; k < j; ++k) t -= L[i * 6 + k] * L[j * 6 + k];
+            L[i * 6 + j] = t / d;
+        }
+    }
+    return true;
+}
+
+// (rg, whether the row-space minimiser is in dx): see level_step.
+template <int M, int NC>
+inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg) {
+    const double* a = qw.A.a.data();  // (M, NC), stride NC
+    const double* b = qw.b.data();
+    double* G = qw.G.a.data();  // (6, 6)
+    for (int i = 0; i < M; ++i) {
+        for (int c = i; c < M; ++c) {
+            double s = 0.0;
+            for (int k = 0; k < NC; ++k) s += a[i * NC + k] * a[c * NC + k];
+            G[i * 6 + c] = s;
+            G[c * 6 + i] = s;
+        }
+    }
+    bool zero_row = false;
+    for (int i = 0; i < M; ++i) {
+        bool nonzero = false;
+        for (int k = 0; k < NC; ++k) nonzero = nonzero || a[i * NC + k] != 0.0;
+        zero_row = zero_row || !nonzero;
+    }
+    double L[36];
+    double threshold = options[6];
+    if (!(threshold > 0.0)) {
+        rg = {options[9], kInf};
+    } else if (zero_row) {
+        rg = regularisation_gram(qw.A, b, M, qw.G, qw.gram, options, qw.rows.data(), qw.L);
+    } else {
+        double sigma = kInf;
+        if (!cholesky_fixed<M>(G, threshold * threshold, L)) {
+            for (int i = 0; i < M; ++i)
+                for (int c = 0; c < M; ++c) qw.gram(i, c) = G[i * 6 + c];
+            double e = smallest_eigenvalue(qw.gram.ref(), M);
+            sigma = std::sqrt(0.0 > e ? 0.0 : e);
+        }
+        rg = damping_law(sigma, b, M, options);
+    }
+    if (!cholesky_fixed<M>(G, -rg.reg, L)) return false;
+    double y[M];
+    for (int i = 0; i < M; ++i) {
+        double t = b[i];
+        for (int k = 0; k < i; ++k) t -= L[i * 6 + k] * y[k];
+        y[i] = t / L[i * 6 + i];
+    }
+    for (int i = M - 1; i >= 0; --i) {
+        double t = y[i];
+        for (int k = i + 1; k < M; ++k) t -= L[k * 6 + i] * y[k];
+        y[i] = t / L[i * 6 + i];
+    }
+    double* dx = qw.dx.data();
+    for (int j = 0; j < NC; ++j) {
+        double t = 0.0;
+        for (int i = 0; i < M; ++i) t += a[i * NC + j] * y[i];
+        dx[j] = t;
+    }
+    return true;
+}
+
 // The step of the target level into qw.dx: the damped least-squares QP
 // min 1/2 |A dx - b|^2 + reg/2 |dx|^2 under the step box, with reg from the damping law.
 // A level with no more rows than dofs (m <= nc, the usual 6 x 6 or 6 x 7) builds its
@@ -506,9 +584,15 @@ inline Regularisation level_step(QPWork& qw, i64 m, const double* q, const i64* 
     Regularisation rg;
     bool free_step = false;
     if (m <= nc) {
-        row_gram(A, m, qw.G);
-        rg = regularisation_gram(A, b, m, qw.G, qw.gram, options, qw.rows.data(), qw.L);
-        free_step = row_space_step(A, b, m, qw.G, rg.reg, qw.L, qw.y.data(), qw.dx.data());
+        if (m == 6 && nc == 7) {
+            free_step = row_step_fixed<6, 7>(qw, options, rg);
+        } else if (m == 6 && nc == 6) {
+            free_step = row_step_fixed<6, 6>(qw, options, rg);
+        } else {
+            row_gram(A, m, qw.G);
+            rg = regularisation_gram(A, b, m, qw.G, qw.gram, options, qw.rows.data(), qw.L);
+            free_step = row_space_step(A, b, m, qw.G, rg.reg, qw.L, qw.y.data(), qw.dx.data());
+        }
         if (free_step && within_box(qw.dx.data(), qw.lb.data(), qw.ub.data(), nc)) return rg;
     } else {
         rg = regularisation(A, b, m, qw.gram, options, qw.rows.data(), qw.L);
