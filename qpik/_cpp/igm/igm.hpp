@@ -497,12 +497,14 @@ template <int M>
 inline bool cholesky_fixed(const double* G, double shift, double* L) {
     for (int j = 0; j < M; ++j) {
         double s = G[j * 6 + j] - shift;
+#pragma GCC unroll 8
         for (int k = 0; k < j; ++k) s -= L[j * 6 + k] * L[j * 6 + k];
         if (!(s > 0.0)) return false;
         double d = std::sqrt(s);
         L[j * 6 + j] = d;
         for (int i = j + 1; i < M; ++i) {
             double t = G[i * 6 + j];
+#pragma GCC unroll 8
             for (int k = 0; k < j; ++k) t -= L[i * 6 + k] * L[j * 6 + k];
             L[i * 6 + j] = t / d;
         }
@@ -519,16 +521,17 @@ inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg
     for (int i = 0; i < M; ++i) {
         for (int c = i; c < M; ++c) {
             double s = 0.0;
+#pragma GCC unroll 8
             for (int k = 0; k < NC; ++k) s += a[i * NC + k] * a[c * NC + k];
             G[i * 6 + c] = s;
             G[c * 6 + i] = s;
         }
     }
     bool zero_row = false;
-    for (int i = 0; i < M; ++i) {
-        bool nonzero = false;
-        for (int k = 0; k < NC; ++k) nonzero = nonzero || a[i * NC + k] != 0.0;
-        zero_row = zero_row || !nonzero;
+    for (int i = 0; i < M && !zero_row; ++i) {
+        int k = 0;
+        while (k < NC && a[i * NC + k] == 0.0) ++k;
+        zero_row = k == NC;
     }
     double L[36];
     double threshold = options[6];
@@ -561,6 +564,7 @@ inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg
     double* dx = qw.dx.data();
     for (int j = 0; j < NC; ++j) {
         double t = 0.0;
+#pragma GCC unroll 8
         for (int i = 0; i < M; ++i) t += a[i * NC + j] * y[i];
         dx[j] = t;
     }
