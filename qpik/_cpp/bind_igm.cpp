@@ -45,15 +45,21 @@ nb::tuple box_qp_with(const In2& H, const In1& g, const In1& lb, const In1& ub, 
 
 // The argument checks igm_solve and igm_run share (shapes of the target, bounds, reach,
 // options and RNG state), as ValueError in Python.
-template <class T1, class T2, class B, class R, class O, class IO, class S>
-static void check_igm_args(const T1& target_p, const T2& target_R, const B& bounds, const R& reach,
-                           const O& options, const IO& int_options, const S& rng_state, i64 nq) {
+template <class T1, class T2, class B, class R, class O, class IO>
+static void check_igm_shapes(const T1& target_p, const T2& target_R, const B& bounds, const R& reach,
+                             const O& options, const IO& int_options, i64 nq) {
     require(target_p.shape(0) == 3, "target_p must be (3,)");
     require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
     require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
     require(reach.shape(0) == 4, "reach must be (4,)");
     require(options.shape(0) >= 11, "options must hold 11 floats");
     require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
+}
+
+template <class T1, class T2, class B, class R, class O, class IO, class S>
+static void check_igm_args(const T1& target_p, const T2& target_R, const B& bounds, const R& reach,
+                           const O& options, const IO& int_options, const S& rng_state, i64 nq) {
+    check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
     require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
 }
 
@@ -68,7 +74,7 @@ struct IgmScratch {
 
 static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
                              const double* q0, i64 nq, In2 bounds, In1 reach, In1 options, In<i64, 1> int_options,
-                             U64Out1 rng_state, double deadline) {
+                             std::uint64_t& rng_state, double deadline) {
     i64 max_iters = int_options.data()[0];
     require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
     ChainArgs holder;
@@ -78,8 +84,8 @@ static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 
     s.path.reset(new double[static_cast<size_t>(2 * n * nq)]);
     s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
     s.rec = igm::Record{s.path.get(), s.hist.get(), n, nq};
-    igm::igm_solve(c, target, q0, nq, cmat(bounds), reach.data(), options.data(), int_options.data(),
-                   rng_state.data()[0], deadline, s.rec, s.info);
+    igm::igm_solve(c, target, q0, nq, cmat(bounds), reach.data(), options.data(), int_options.data(), rng_state,
+                   deadline, s.rec, s.info);
 }
 
 void bind_igm(nb::module_& m) {
@@ -94,6 +100,7 @@ void bind_igm(nb::module_& m) {
     m.attr("PROGRESS") = igm::PROGRESS;
     m.attr("CLOCK_EVERY") = igm::CLOCK_EVERY;
     m.attr("RESTART_SPREAD") = igm::RESTART_SPREAD;
+    m.attr("BLOCKED") = igm::BLOCKED;
 
     m.def(
         "box_qp",
@@ -192,7 +199,7 @@ void bind_igm(nb::module_& m) {
             check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
             IgmScratch run;
             igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
-                             int_options, rng_state, deadline);
+                             int_options, rng_state.data()[0], deadline);
             const igm::Record& rec = run.rec;
             const i64* info = run.info;
             i64 slot = info[3], length = info[4];
@@ -211,7 +218,7 @@ void bind_igm(nb::module_& m) {
     m.def(
         "_igm_session_run",
         [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q_full, nb::handle index,
-           In2 bounds, In1 reach, In1 options, In<i64, 1> int_options, U64Out1 rng_state, double deadline) {
+           In2 bounds, In1 reach, In1 options, In<i64, 1> int_options, std::uint64_t rng_state, double deadline) {
             // igm_run for IKSession: the chain's coordinates are q_full[index] (index None: all
             // of q_full), and the returned path holds whole configurations (the others as in
             // q_full), so that the session builds its result with no NumPy call of its own.
@@ -221,7 +228,7 @@ void bind_igm(nb::module_& m) {
             if (packed && !nb::try_cast(index, idx, false))
                 throw BadArgument("index must be None or an int64 array of chain coordinates");
             i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
-            check_igm_args(target_p, target_R, bounds, reach, options, int_options, rng_state, nq);
+            check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
             Vec q0(static_cast<size_t>(nq));
             for (i64 j = 0; j < nq; ++j) {
                 i64 a = packed ? idx.data()[j] : j;
@@ -230,7 +237,7 @@ void bind_igm(nb::module_& m) {
             }
             IgmScratch run;
             igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
-                             int_options, rng_state, deadline);
+                             int_options, rng_state, deadline);  // a copy of the state: advanced here only
             const igm::Record& rec = run.rec;
             const i64* info = run.info;
             i64 slot = info[3], length = info[4];
@@ -256,8 +263,9 @@ void bind_igm(nb::module_& m) {
                                   orientation_error);
         },
         "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q_full"_a, "index"_a.none(), "bounds"_a, "reach"_a,
-        "options"_a, "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a,
-        "igm_run on the coordinates index of q_full (None: all of them): returns (reason code, "
+        "options"_a, "int_options"_a, "rng_state"_a, "deadline"_a,
+        "igm_run on the coordinates index of q_full (None: all of them), from the SplitMix64 state "
+        "rng_state (an int in [0, 2**64); not written back): returns (reason code, "
         "iterations, restarts used, q (the answer, a whole configuration), path (k, len(q_full)), "
         "hist (k, 3), position error [m], orientation error [rad]).");
 }

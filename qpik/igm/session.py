@@ -61,7 +61,8 @@ hold them): position-like tasks (position, CoM) against ``tol_position``, orient
 tasks against ``tol_orientation``, frame/pose tasks both (the parts with a nonzero cost),
 and any other task's error norm, in its own units, against ``tol_position``.
 
-When an attempt stops making progress (:mod:`qpik.igm.restarts`) the reason is diagnosed
+When an attempt stops making progress (:mod:`qpik.igm.restarts`; the compiled engine also
+stops one at a step the limits or the damping block) the reason is diagnosed
 (``at_limit``: a joint limit binds; ``singular``: the target level's smallest singular
 value is below the damping threshold; ``stalled`` otherwise) and the solve restarts from a
 random configuration within the limits, while restarts and time remain. The best iterate
@@ -125,7 +126,7 @@ _EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 #: Bit generators whose raw output is their next 64-bit draw: for these,
-#: ``bit_generator.random_raw(1)`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
+#: ``bit_generator.random_raw()`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
 #: endpoint=True)`` (one draw; the generator advances alike), without its argument handling.
 _RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
 #: What a solve's ``seed`` may be (see :func:`solve`).
@@ -148,21 +149,21 @@ class SolveCall(SolveArguments, total=False):
     seed: Seed | Unset
 
 
-def _rng_state(seed: Seed) -> np.ndarray:
-    """The SplitMix64 state (uint64 (1,)) of ``seed``: an int >= 0, a Generator (one draw),
-    a SeedSequence, or None (fresh entropy: not reproducible)."""
+def _rng_state(seed: Seed) -> int:
+    """The SplitMix64 state (an int in ``[0, 2**64)``) of ``seed``: an int >= 0, a Generator
+    (one draw), a SeedSequence, or None (fresh entropy: not reproducible)."""
     if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
-        return np.array([int.from_bytes(os.urandom(8), "little")], dtype=np.uint64)
+        return int.from_bytes(os.urandom(8), "little")
     if isinstance(seed, np.random.Generator):
         if type(seed.bit_generator) in _RAW_UINT64:  # the same draw, ~10x cheaper
-            return seed.bit_generator.random_raw(1)
-        return np.array([seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True)])
+            return seed.bit_generator.random_raw()
+        return int(seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True))
     if isinstance(seed, np.random.SeedSequence):
-        return seed.generate_state(1, np.uint64)
+        return int(seed.generate_state(1, np.uint64)[0])
     if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0:
         if seed < 2**64:
-            return np.array([seed], dtype=np.uint64)
-        return np.random.SeedSequence(int(seed)).generate_state(1, np.uint64)
+            return int(seed)
+        return int(np.random.SeedSequence(int(seed)).generate_state(1, np.uint64)[0])
     raise InvalidInput(
         f"seed must be an int >= 0, a numpy Generator or SeedSequence, or None; got {seed!r}"
     )
@@ -324,9 +325,7 @@ class IKSession:
         plain = [(f.name, f.kind, target) for f, target in frames]
         problem = QPProblem(self.model, plain, stack, settings)
         clock = Clock(start_time, settings.time_budget)
-        return self._check_unheld(
-            iterate(problem, q_start, clock, int(rng_state[0]), settings), settings
-        )
+        return self._check_unheld(iterate(problem, q_start, clock, rng_state, settings), settings)
 
     def _check_unheld(self, result: IKResult, settings: SolveOptions) -> IKResult:
         """``result`` with :attr:`IKResult.constraint_error` filled in, and not converged

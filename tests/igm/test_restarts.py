@@ -102,3 +102,37 @@ def test_restarts_keep_joints_off_the_targets_chains_at_the_start():
         np.testing.assert_array_equal(result.q[7:], q0[7:])
         np.testing.assert_array_equal(result.path[:, 7:], np.tile(q0[7:], (len(result.path), 1)))
         assert np.abs(result.q[:7] - q0[:7]).max() > 1e-3  # the arm moved
+
+
+_HINGE = """<mujoco><compiler angle="radian"/><worldbody><body name="link">
+<joint name="j" type="hinge" axis="0 0 1" range="-1 1"/>
+<geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/><site name="tip" pos="1 0 0"/>
+</body></worldbody></mujoco>"""
+
+
+def test_compiled_engine_ends_an_attempt_at_a_blocked_step():
+    # A hinge limited to [-1, 1] rad and a target on its circle at 1.5 rad (within the reach
+    # bound): the steps are the qp engine's until the joint nears its limit; there the
+    # box leaves the step less than a tenth of the decrease it asks for (residual above
+    # BLOCKED |b|) and the compiled engine ends the attempt at once, where the qp engine
+    # waits for its stall window or a vanishing step.
+    from qpik.igm.kernels import BLOCKED
+
+    model = mujoco.MjModel.from_xml_string(_HINGE)
+    target = np.array([np.cos(1.5), np.sin(1.5), 0.0])
+    kwargs = dict(restarts=0, stall_window=1000, max_iters=100, seed=0)
+    compiled = qpik.solve(model, {"tip": target}, engine="compiled", **kwargs)
+    reference = qpik.solve(model, {"tip": target}, engine="qp", **kwargs)
+    assert compiled.reason == reference.reason == Reason.AT_LIMIT
+    k = len(compiled.path)
+    assert compiled.iterations == k  # the blocked step is counted, not taken
+    assert reference.iterations > compiled.iterations
+    np.testing.assert_allclose(compiled.path, reference.path[:k], atol=1e-9, rtol=0)
+    # The blocked step is the reference's k-th: residual above BLOCKED times what it asked.
+    gain = min(1.0, 0.2 / compiled.error_history[-1][0])
+    asked = gain * compiled.error_history[-1][0]
+    assert reference.residual_history[k - 1][0] > BLOCKED * asked
+    assert all(
+        r[0] <= BLOCKED * min(1.0, 0.2 / e[0]) * e[0]
+        for r, e in zip(compiled.residual_history, compiled.error_history)
+    )

@@ -141,21 +141,28 @@ struct BoxQPResult {
     i64 iterations;
 };
 
-// box_qp with its scratch given: from the feasible point clip(0, lb, ub), the working set
-// grows by the blocking bound of each ratio test and shrinks by the bound with the most
-// negative multiplier (lowest index on ties), up to max_iter changes.
-inline BoxQPResult box_qp(CMatRef H, const double* g, const double* lb, const double* ub, double* x,
-                          i64 max_iter, const BoxQPWork& w) {
+// box_qp whose first iterate's target, the unconstrained minimiser -H^-1 g, is given as
+// first (may alias x; nullptr: solved here).
+inline BoxQPResult box_qp_from(CMatRef H, const double* g, const double* lb, const double* ub, double* x,
+                               i64 max_iter, const BoxQPWork& w, const double* first) {
     i64 n = H.rows;
+    if (first != nullptr && max_iter > 0) {
+        for (i64 i = 0; i < n; ++i) w.target[i] = first[i];
+    }
     for (i64 i = 0; i < n; ++i) {
         w.state[i] = 0;
         double lo = lb[i] > 0.0 ? lb[i] : 0.0;  // Python's max(0.0, lb[i])
         x[i] = ub[i] < lo ? ub[i] : lo;         // min(., ub[i])
     }
     for (i64 iteration = 0; iteration < max_iter; ++iteration) {
-        i64 nfree = free_rhs(H, g, x, w.state, w.free, w.target, w.rhs);
-        if (nfree > 0 && !cholesky_solve_subset(H, w.rhs, w.free, nfree, w.L, w.target, w.y))
-            return {2, iteration};
+        i64 nfree = n;
+        if (iteration == 0 && first != nullptr) {
+            for (i64 i = 0; i < n; ++i) w.free[i] = i;
+        } else {
+            nfree = free_rhs(H, g, x, w.state, w.free, w.target, w.rhs);
+            if (nfree > 0 && !cholesky_solve_subset(H, w.rhs, w.free, nfree, w.L, w.target, w.y))
+                return {2, iteration};
+        }
         Ratio r = ratio_test(x, w.target, lb, ub, w.free, nfree);
         for (i64 a = 0; a < nfree; ++a) {
             i64 i = w.free[a];
@@ -171,6 +178,14 @@ inline BoxQPResult box_qp(CMatRef H, const double* g, const double* lb, const do
         w.state[release] = 0;
     }
     return {1, max_iter};
+}
+
+// box_qp with its scratch given: from the feasible point clip(0, lb, ub), the working set
+// grows by the blocking bound of each ratio test and shrinks by the bound with the most
+// negative multiplier (lowest index on ties), up to max_iter changes.
+inline BoxQPResult box_qp(CMatRef H, const double* g, const double* lb, const double* ub, double* x,
+                          i64 max_iter, const BoxQPWork& w) {
+    return box_qp_from(H, g, lb, ub, x, max_iter, w, nullptr);
 }
 
 }  // namespace qpik::igm

@@ -2,9 +2,10 @@
 // recorded answers pin its bits): per iteration, the damped least-squares step of the pose
 // error under box bounds (joint limits), solved exactly by box_qp, with the trust region,
 // the damping law fading with the error, backtracking (a step that increases the error is
-// halved, up to BACKTRACKS times), stall detection and restarts from a deterministic
-// random stream (SplitMix64): odd restarts draw from the central RESTART_SPREAD of the
-// restart box, even ones from all of it.
+// halved, up to BACKTRACKS times), stall detection (a window without progress, or a step
+// blocked by the limits or the damping: residual above BLOCKED |b|) and restarts from a
+// deterministic random stream (SplitMix64): odd restarts draw from the central
+// RESTART_SPREAD of the restart box, even ones from all of it.
 #pragma once
 
 #include <time.h>
@@ -31,6 +32,7 @@ constexpr int BACKTRACKS = 3;
 constexpr double PROGRESS = 0.95;
 constexpr i64 CLOCK_EVERY = 8;
 constexpr double RESTART_SPREAD = 0.6;
+constexpr double BLOCKED = 0.9;
 
 // ------------------------------------------------------------------------- RNG, clock
 // A uniform draw in [0, 1) from the SplitMix64 stream state (advanced in place).
@@ -278,11 +280,14 @@ struct QPWork {
     Mat gram;
     IVec rows;
     Mat L;
+    Mat G;  // (6, 6): the level's Gram matrix A A^T (rows m <= 6)
+    Vec y;  // (6,)
     BoxQPScratch box;
     QPWork(i64 nc, i64 nq)
         : A(6, nc), b(6), H(nc, nc), g(static_cast<size_t>(nc)), lb(static_cast<size_t>(nc)),
           ub(static_cast<size_t>(nc)), dx(static_cast<size_t>(nc)), q_base(static_cast<size_t>(nq)),
-          gram(nc > 6 ? nc : 6, nc > 6 ? nc : 6), rows(6), L(nc > 6 ? nc : 6, nc > 6 ? nc : 6), box(nc) {}
+          gram(nc > 6 ? nc : 6, nc > 6 ? nc : 6), rows(6), L(nc > 6 ? nc : 6, nc > 6 ? nc : 6), G(6, 6), y(6),
+          box(nc) {}
 };
 
 struct Errors {
@@ -349,13 +354,10 @@ struct Regularisation {
     double reg, sigma;
 };
 
-// (damping + lambda^2, sigma): the adaptive damping of the level and its smallest
-// singular value (inf when not computed).
-inline Regularisation regularisation(const Mat& A, const double* b, i64 m, Mat& gram, const double* options,
-                                     i64* rows, Mat& L) {
+// (damping + lambda^2, sigma) from the level's smallest singular value sigma (inf: at
+// least the threshold): the adaptive damping law.
+inline Regularisation damping_law(double sigma, const double* b, i64 m, const double* options) {
     double threshold = options[6], max_damping = options[7], error_scale = options[8], reg = options[9];
-    if (!(threshold > 0.0)) return {reg, kInf};
-    double sigma = smallest_singular_value_in(A.cref(), m, A.cols, gram.ref(), threshold, rows, L.ref());
     if (sigma < threshold) {
         double ratio = sigma / threshold;
         double lam2 = max_damping * max_damping * (1.0 - ratio * ratio);
@@ -371,11 +373,88 @@ inline Regularisation regularisation(const Mat& A, const double* b, i64 m, Mat& 
     return {reg, sigma};
 }
 
+// (damping + lambda^2, sigma): the adaptive damping of the level and its smallest
+// singular value (inf when not computed).
+inline Regularisation regularisation(const Mat& A, const double* b, i64 m, Mat& gram, const double* options,
+                                     i64* rows, Mat& L) {
+    double threshold = options[6];
+    if (!(threshold > 0.0)) return {options[9], kInf};
+    double sigma = smallest_singular_value_in(A.cref(), m, A.cols, gram.ref(), threshold, rows, L.ref());
+    return damping_law(sigma, b, m, options);
+}
+
+// G[:m, :m] = A[:m] A[:m]^T (each entry summed over the dofs in order, as
+// smallest_singular_value_in sums it).
+inline void row_gram(const Mat& A, i64 m, Mat& G) {
+    i64 nc = A.cols;
+    for (i64 a = 0; a < m; ++a) {
+        const double* ra = A.row(a);
+        for (i64 c = a; c < m; ++c) {
+            const double* rc = A.row(c);
+            double s = 0.0;
+            for (i64 k = 0; k < nc; ++k) s += ra[k] * rc[k];
+            G(a, c) = s;
+            G(c, a) = s;
+        }
+    }
+}
+
+// regularisation() of a level with no more rows than dofs (m <= A.cols) from its Gram
+// matrix G = A A^T (row_gram; left unchanged): the same sigma, bit for bit (the Gram
+// matrix of its nonzero rows is G's submatrix), without building it again.
+inline Regularisation regularisation_gram(const Mat& A, const double* b, i64 m, const Mat& G, Mat& gram,
+                                          const double* options, i64* rows, Mat& L) {
+    double threshold = options[6];
+    if (!(threshold > 0.0)) return {options[9], kInf};
+    i64 r = 0;
+    for (i64 i = 0; i < m; ++i) {
+        for (i64 k = 0; k < A.cols; ++k) {
+            if (A(i, k) != 0.0) {
+                rows[r] = i;
+                r += 1;
+                break;
+            }
+        }
+    }
+    double sigma = kInf;
+    if (r > 0) {
+        for (i64 a = 0; a < r; ++a)
+            for (i64 c = 0; c < r; ++c) gram(a, c) = G(rows[a], rows[c]);
+        if (!core::cholesky_into(gram.cref(), r, threshold * threshold, L.ref())) {
+            double e = smallest_eigenvalue(gram.ref(), r);
+            sigma = std::sqrt(0.0 > e ? 0.0 : e);
+        }
+    }
+    return damping_law(sigma, b, m, options);
+}
+
+// The unconstrained minimiser of |A dx - b|^2 + reg |dx|^2 in the row space,
+// dx = A^T (G + reg I)^-1 b (G = A A^T, m x m), into dx; false (dx untouched) when
+// G + reg I is not positive definite. Scratch: L (m, m), y (m,).
+inline bool row_space_step(const Mat& A, const double* b, i64 m, const Mat& G, double reg, Mat& L, double* y,
+                           double* dx) {
+    if (!core::cholesky_into(G.cref(), m, -reg, L.ref())) return false;
+    for (i64 i = 0; i < m; ++i) {
+        double s = b[i];
+        for (i64 k = 0; k < i; ++k) s -= L(i, k) * y[k];
+        y[i] = s / L(i, i);
+    }
+    for (i64 i = m - 1; i >= 0; --i) {
+        double s = y[i];
+        for (i64 k = i + 1; k < m; ++k) s -= L(k, i) * y[k];
+        y[i] = s / L(i, i);
+    }
+    for (i64 j = 0; j < A.cols; ++j) {
+        double s = 0.0;
+        for (i64 i = 0; i < m; ++i) s += A(i, j) * y[i];
+        dx[j] = s;
+    }
+    return true;
+}
+
 // The damped least-squares QP of the level, H = A^T A + reg I, g = -A^T b, under the box
 // limit_gain (limits - q) of the dofs cols (it always holds 0).
-inline void box_problem(const Mat& A, const double* b, i64 m, double reg, const double* q, const i64* cols,
-                        const double* lower, const double* upper, double limit_gain, Mat& H, double* g,
-                        double* lb, double* ub) {
+inline void box_problem(const Mat& A, const double* b, i64 m, double reg, Mat& H, double* g) {
     i64 nc = A.cols;
     for (i64 i = 0; i < nc; ++i) {
         double s = 0.0;
@@ -388,12 +467,152 @@ inline void box_problem(const Mat& A, const double* b, i64 m, double reg, const 
             H(j, i) = s;
         }
         H(i, i) += reg;
+    }
+}
+
+// The box of the step on the dofs cols: limit_gain (limits - q), widened to hold 0.
+inline void step_box(const double* q, const i64* cols, i64 nc, const double* lower, const double* upper,
+                     double limit_gain, double* lb, double* ub) {
+    for (i64 i = 0; i < nc; ++i) {
         i64 d = cols[i];
         lb[i] = limit_gain * (lower[d] - q[d]);
         ub[i] = limit_gain * (upper[d] - q[d]);
         if (lb[i] > 0.0) lb[i] = 0.0;
         if (ub[i] < 0.0) ub[i] = 0.0;
     }
+}
+
+// Whether lb <= x <= ub (false on NaN).
+inline bool within_box(const double* x, const double* lb, const double* ub, i64 n) {
+    for (i64 i = 0; i < n; ++i)
+        if (!(lb[i] <= x[i] && x[i] <= ub[i])) return false;
+    return true;
+}
+
+// ------------------------------------------------ the row-space step, sizes fixed
+// row_gram, regularisation_gram and row_space_step for M rows and NC dofs known at compile
+// time (the usual 6 x 6 and 6 x 7 levels): the same operations in the same order, so the
+// same bits, with the loops unrolled. G is (6, 6).
+template <int M>
+inline bool cholesky_fixed(const double* G, double shift, double* L) {
+    for (int j = 0; j < M; ++j) {
+        double s = G[j * 6 + j] - shift;
+#pragma GCC unroll 8
+        for (int k = 0; k < j; ++k) s -= L[j * 6 + k] * L[j * 6 + k];
+        if (!(s > 0.0)) return false;
+        double d = std::sqrt(s);
+        L[j * 6 + j] = d;
+        for (int i = j + 1; i < M; ++i) {
+            double t = G[i * 6 + j];
+#pragma GCC unroll 8
+            for (int k = 0; k < j; ++k) t -= L[i * 6 + k] * L[j * 6 + k];
+            L[i * 6 + j] = t / d;
+        }
+    }
+    return true;
+}
+
+// (rg, whether the row-space minimiser is in dx): see level_step.
+template <int M, int NC>
+inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg) {
+    const double* a = qw.A.a.data();  // (M, NC), stride NC
+    const double* b = qw.b.data();
+    double* G = qw.G.a.data();  // (6, 6)
+    for (int i = 0; i < M; ++i) {
+        for (int c = i; c < M; ++c) {
+            double s = 0.0;
+#pragma GCC unroll 8
+            for (int k = 0; k < NC; ++k) s += a[i * NC + k] * a[c * NC + k];
+            G[i * 6 + c] = s;
+            G[c * 6 + i] = s;
+        }
+    }
+    bool zero_row = false;
+    for (int i = 0; i < M && !zero_row; ++i) {
+        int k = 0;
+        while (k < NC && a[i * NC + k] == 0.0) ++k;
+        zero_row = k == NC;
+    }
+    double L[36];
+    double threshold = options[6];
+    if (!(threshold > 0.0)) {
+        rg = {options[9], kInf};
+    } else if (zero_row) {
+        rg = regularisation_gram(qw.A, b, M, qw.G, qw.gram, options, qw.rows.data(), qw.L);
+    } else {
+        double sigma = kInf;
+        if (!cholesky_fixed<M>(G, threshold * threshold, L)) {
+            for (int i = 0; i < M; ++i)
+                for (int c = 0; c < M; ++c) qw.gram(i, c) = G[i * 6 + c];
+            double e = smallest_eigenvalue(qw.gram.ref(), M);
+            sigma = std::sqrt(0.0 > e ? 0.0 : e);
+        }
+        rg = damping_law(sigma, b, M, options);
+    }
+    if (!cholesky_fixed<M>(G, -rg.reg, L)) return false;
+    double y[M];
+    for (int i = 0; i < M; ++i) {
+        double t = b[i];
+        for (int k = 0; k < i; ++k) t -= L[i * 6 + k] * y[k];
+        y[i] = t / L[i * 6 + i];
+    }
+    for (int i = M - 1; i >= 0; --i) {
+        double t = y[i];
+        for (int k = i + 1; k < M; ++k) t -= L[k * 6 + i] * y[k];
+        y[i] = t / L[i * 6 + i];
+    }
+    double* dx = qw.dx.data();
+    for (int j = 0; j < NC; ++j) {
+        double t = 0.0;
+#pragma GCC unroll 8
+        for (int i = 0; i < M; ++i) t += a[i * NC + j] * y[i];
+        dx[j] = t;
+    }
+    return true;
+}
+
+// The step of the target level into qw.dx: the damped least-squares QP
+// min 1/2 |A dx - b|^2 + reg/2 |dx|^2 under the step box, with reg from the damping law.
+// A level with no more rows than dofs (m <= nc, the usual 6 x 6 or 6 x 7) builds its
+// m x m Gram matrix G = A A^T once, for the singular-value test and for the row-space
+// minimiser A^T (G + reg I)^-1 b; when that lies within the box it is the QP's answer
+// (box_qp's first iterate, no bound held); otherwise box_qp continues from it on
+// H = A^T A + reg I. counts: QP solves and capped QP solves, added to.
+inline Regularisation level_step(QPWork& qw, i64 m, const double* q, const i64* cols, const double* lower,
+                                 const double* upper, const double* options, i64* counts) {
+    const Mat& A = qw.A;
+    const double* b = qw.b.data();
+    i64 nc = A.cols;
+    step_box(q, cols, nc, lower, upper, options[10], qw.lb.data(), qw.ub.data());
+    counts[0] += 1;
+    Regularisation rg;
+    bool free_step = false;
+    if (m <= nc) {
+        if (m == 6 && nc == 7) {
+            free_step = row_step_fixed<6, 7>(qw, options, rg);
+        } else if (m == 6 && nc == 6) {
+            free_step = row_step_fixed<6, 6>(qw, options, rg);
+        } else {
+            row_gram(A, m, qw.G);
+            rg = regularisation_gram(A, b, m, qw.G, qw.gram, options, qw.rows.data(), qw.L);
+            free_step = row_space_step(A, b, m, qw.G, rg.reg, qw.L, qw.y.data(), qw.dx.data());
+        }
+        if (free_step && within_box(qw.dx.data(), qw.lb.data(), qw.ub.data(), nc)) return rg;
+    } else {
+        rg = regularisation(A, b, m, qw.gram, options, qw.rows.data(), qw.L);
+    }
+    box_problem(A, b, m, rg.reg, qw.H, qw.g.data());
+    BoxQPResult qp = box_qp_from(qw.H.cref(), qw.g.data(), qw.lb.data(), qw.ub.data(), qw.dx.data(), 4 * nc + 20,
+                                 qw.box.work(), free_step ? qw.dx.data() : nullptr);
+    if (qp.status != 0) counts[1] += 1;
+    return rg;
+}
+
+// |x[:n]|.
+inline double norm(const double* x, i64 n) {
+    double s = 0.0;
+    for (i64 i = 0; i < n; ++i) s += x[i] * x[i];
+    return std::sqrt(s);
 }
 
 struct StepFacts {
@@ -467,7 +686,7 @@ inline AttemptResult attempt(const Chain& c, const Target& target, double* q, co
     const double* upper = settings.bounds.row(1);
     const double* options = settings.options;
     double tol_p = options[0], tol_o = options[1], alpha = options[2], beta = options[3];
-    double max_step_p = options[4], max_step_o = options[5], threshold = options[6], limit_gain = options[10];
+    double max_step_p = options[4], max_step_o = options[5], threshold = options[6];
     i64 max_iters = settings.int_options[0], stall_window = settings.int_options[2];
     i64 check_time = settings.int_options[3];
     i64 m = target.has_rot ? 6 : 3;
@@ -487,16 +706,14 @@ inline AttemptResult attempt(const Chain& c, const Target& target, double* q, co
             return {TIME_BUDGET, length, current, true};
         double gain = trust_gain(alpha, ep, eo, target.has_rot, max_step_p, max_step_o);
         target_level(w.jac, cols, nc, w.error, w.rot_err, target.has_rot, gain, qw.A, qw.b.data(), qw.Jinv);
-        Regularisation rg = regularisation(qw.A, qw.b.data(), m, qw.gram, options, qw.rows.data(), qw.L);
-        box_problem(qw.A, qw.b.data(), m, rg.reg, q, cols, lower, upper, limit_gain, qw.H, qw.g.data(),
-                    qw.lb.data(), qw.ub.data());
-        BoxQPResult qp = box_qp(qw.H.cref(), qw.g.data(), qw.lb.data(), qw.ub.data(), qw.dx.data(), 4 * nc + 20,
-                                qw.box.work());
-        counts[0] += 1;
-        if (qp.status != 0) counts[1] += 1;
+        Regularisation rg = level_step(qw, m, q, cols, lower, upper, options, counts);
         StepFacts f = step_facts(qw.A, qw.b.data(), m, qw.dx.data(), nc, cols, qw.lb.data(), qw.ub.data(), lower,
                                  upper);
         rec.hist_at(slot, it + 1)[2] = f.residual;
+        // A step that achieves less than 1 - BLOCKED of the decrease it asks for: the
+        // joint limits or the singularity damping block the target from here.
+        if (f.residual > BLOCKED * norm(qw.b.data(), m))
+            return {stall_reason(f.active, rg.sigma, threshold), length, current, false};
         for (i64 j = 0; j < nq; ++j) qw.q_base[j] = q[j];
         e = line_search(c, target, q, qw.q_base.data(), qw.dx.data(), cols, nc, beta, lower, upper, ep, eo, w);
         ep = e.ep;
