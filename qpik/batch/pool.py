@@ -76,6 +76,7 @@ __all__ = [
     "Chunk",
     "WorkerError",
     "check_chunk_size",
+    "chunk_starts",
     "check_seed",
     "check_targets",
     "check_workers",
@@ -95,10 +96,12 @@ BACKENDS = ("process", "ray")
 
 #: Chunks submitted ahead of the workers, per worker (bounds memory on huge batches).
 _AHEAD = 3
-#: The largest default chunk: each chunk costs the caller a round trip (pickling, the
-#: pool's bookkeeping), which competes with the workers for the cores; 256 solves (tens
-#: of ms) keep that small and the last chunks short.
-_MAX_CHUNK = 256
+#: The default chunks are guided (:func:`chunk_starts`): each takes a share of what is left,
+#: between these sizes. Each chunk costs the caller a round trip (pickling, the pool's
+#: bookkeeping), which competes with the workers for the cores: large chunks while much is
+#: left, small ones at the end, so that the workers finish together.
+_MAX_CHUNK = 1024
+_MIN_CHUNK = 16
 
 
 @dataclass(frozen=True)
@@ -119,8 +122,8 @@ class BatchOptions:
             ``None`` joins the running Ray session or starts a local one.
         progress: a progress bar with rate and ETA on stderr (tqdm), shown on runs longer
             than 2 s.
-        chunk_size: targets per task (default: about four chunks per worker, at most 256;
-            a file's run: 128).
+        chunk_size: targets per task (default: guided, each task a share of the targets
+            left, from 1024 down to 16 at the end; a file's run: 128).
         pool_threshold: [s] a batch whose serial time, estimated from its first solve,
             is below this is solved in this process (no workers start).
         histories: keep each result's per-iteration ``residual_history``,
@@ -451,12 +454,31 @@ def stream_chunks(
         if serial:
             batch = batch.with_workers(1)
         capacity = batch.workers or os.cpu_count() or 1
-        size = run.chunk_size or max(1, min(_MAX_CHUNK, math.ceil((n - 1) / (4 * capacity))))
-        chunks = (Chunk(s, targets_at(s, min(s + size, n))) for s in range(1, n, size))
+        bounds = chunk_starts(1, n, capacity, run.chunk_size)
+        chunks = (Chunk(s, targets_at(s, e)) for s, e in bounds)
         counted = _counted(iter_prepared(batch, chunks), bar)
         yield from (_in_order(counted, 1) if ordered else counted)
     finally:
         bar.close()
+
+
+def chunk_starts(
+    start: int, stop: int, workers: int, size: int | None = None
+) -> Iterator[tuple[int, int]]:
+    """The chunks ``(first, end)`` of targets ``start..stop - 1``: of ``size`` each, or by
+    default guided (as OpenMP's ``schedule(guided)``): each chunk a ``1 / (2 workers)``
+    share of the targets left, between ``_MIN_CHUNK`` and ``_MAX_CHUNK``. Results do not
+    depend on the chunks (each target has its own seed)."""
+    first = start
+    while first < stop:
+        if size is not None:
+            step = size
+        else:
+            share = math.ceil((stop - first) / (2 * max(1, workers)))
+            step = max(_MIN_CHUNK, min(_MAX_CHUNK, share))
+        end = min(first + step, stop)
+        yield first, end
+        first = end
 
 
 def _counted(

@@ -538,3 +538,22 @@ def test_a_batch_mixing_poses_and_positions_is_stacked_and_pooled_as_serial():
             assert getattr(a, name) == getattr(b, name), name
         for name in ("engine", "levels_met", "coupling_error", "constraint_error"):
             assert getattr(a, name) == getattr(b, name), name
+
+
+@pytest.mark.parametrize("n", [1, 2, 17, 1000, 20401])
+@pytest.mark.parametrize("workers", [1, 2, 16])
+def test_guided_chunks_cover_the_targets_once_largest_first(n, workers):
+    """Default chunks: consecutive, covering targets 1..n-1 once, each between the
+    smallest and the largest default size (but the last), sizes never growing; a given
+    chunk_size is used as it is."""
+    from qpik.batch.pool import _MAX_CHUNK, _MIN_CHUNK, chunk_starts
+
+    chunks = list(chunk_starts(1, n, workers))
+    assert [s for s, _ in chunks] == [1, *(e for _, e in chunks[:-1])][: len(chunks)]
+    assert (chunks[-1][1] if chunks else 1) == max(n, 1)
+    sizes = [e - s for s, e in chunks]
+    assert all(_MIN_CHUNK <= k <= _MAX_CHUNK for k in sizes[:-1])
+    assert all(a >= b for a, b in zip(sizes, sizes[1:]))
+    assert [e - s for s, e in chunk_starts(1, n, workers, 7)][:-1] == [7] * max(
+        0, len(range(1, n, 7)) - 1
+    )
