@@ -32,7 +32,7 @@ class PreparedFrame:
     compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
     (:class:`qpik.model.Couplings`) moves a joint of the chain."""
 
-    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
+    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "plan", "reach")
 
     def __init__(
         self,
@@ -46,6 +46,18 @@ class PreparedFrame:
         self.index: np.ndarray | None = None
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
         self.coupled = False
+        #: (kernel options, joint limits?, time checked?, compiled plan) of the last compiled
+        #: solve (:meth:`qpik.IKSession._plan`), reused while the options are the same object
+        self.plan: tuple | None = None
+
+    def __getstate__(self) -> dict:
+        # Pickled (and deep-copied) without the compiled plan, rebuilt at the next solve.
+        return {name: getattr(self, name) for name in self.__slots__ if name != "plan"}
+
+    def __setstate__(self, state: dict) -> None:
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.plan = None
 
 
 class PreparedRobot:

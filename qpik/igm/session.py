@@ -122,7 +122,6 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.
 LIMIT_GAIN = 0.95
-_EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 #: Bit generators whose raw output is their next 64-bit draw: for these,
@@ -497,6 +496,33 @@ class IKSession:
             coupling_error=self._coupling_error(q),
         )
 
+    def _plan(self, frame: PreparedFrame, joint: bool, kernel_options: tuple) -> tuple:
+        """The compiled engine's fixed arguments for ``frame`` (its chain, bounds, reach
+        bound) under ``kernel_options`` (:func:`_kernel_options`'s arrays), checked and
+        copied once into a :func:`qpik.igm.kernels.igm_plan` (kept on the frame while the
+        solves' options are the same object)."""
+        options, int_options = kernel_options
+        if frame.index is None:  # the chain's joints are all of q
+            chain = frame.chain
+            bounds = self._bounds_joint if joint else self._bounds_free
+        else:  # the chain's joints only: the others stay where they are
+            chain = frame.packed
+            assert frame.bounds is not None
+            bounds = frame.bounds[0] if joint else frame.bounds[1]
+        assert chain is not None and frame.reach is not None
+        compiled = kernels.igm_plan(
+            chain.compiled,
+            frame.index,
+            self._mid.shape[0],
+            bounds,
+            frame.reach.array,
+            options,
+            int_options,
+        )
+        plan = (kernel_options, joint, bool(int_options[3]), compiled)
+        frame.plan = plan
+        return plan
+
     def _solve_compiled(
         self, frame_target, q_start, joint, settings, kernel_inputs, start_time, start_coupling
     ) -> IKResult:
@@ -504,31 +530,15 @@ class IKSession:
         ``q_start`` when they were measured there (they then involve no joint of the
         chain, which alone moves, so it is their error at the answer too), else None."""
         frame, target = frame_target
-        (options, int_options), rng_state = kernel_inputs
-        deadline = start_time + settings.time_budget if int_options[3] else np.inf
-        rotation = target.rotation
-        if frame.index is None:  # the chain's joints are all of q
-            chain = frame.chain
-            bounds = self._bounds_joint if joint else self._bounds_free
-        else:  # the chain's joints only: the others stay where they are
-            chain = frame.packed
-            bounds = frame.bounds[0] if joint else frame.bounds[1]
-        code, iterations, restarts_used, q, path, history, position_error, orientation_error = (
-            kernels.igm_session_run(
-                chain.compiled,
-                target.position,
-                _EYE if rotation is None else rotation,
-                rotation is not None,
-                q_start,
-                frame.index,
-                bounds,
-                frame.reach.array,
-                options,
-                int_options,
-                rng_state,
-                deadline,
-            )
+        kernel_options, rng_state = kernel_inputs
+        plan = frame.plan
+        if plan is None or plan[0] is not kernel_options or plan[1] is not joint:
+            plan = self._plan(frame, joint, kernel_options)
+        deadline = start_time + settings.time_budget if plan[2] else np.inf
+        run = kernels.igm_plan_run(
+            plan[3], target.position, target.rotation, q_start, rng_state, deadline
         )
+        code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
         converged = code == 0
         return IKResult(
             q,

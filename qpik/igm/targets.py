@@ -25,6 +25,7 @@ from ..errors import InvalidTarget
 from ..model import kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation, orientation_angle
+from .kernels import target_pair
 
 __all__ = [
     "MAX_TARGET_DISTANCE",
@@ -118,6 +119,12 @@ def parse_target(value: TargetLike) -> Target:
     it (:func:`qpik.model.rotations.nearest_rotation`, which keeps a matrix orthonormal
     within :data:`qpik.model.rotations.ORTHONORMAL_TOLERANCE`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
+    if type(value) is tuple and len(value) == 2:
+        # The common (position, rotation) pair of float64 arrays, valid and orthonormal:
+        # checked and copied in one compiled call; anything else takes the general path.
+        pair = target_pair(value[0], value[1], ORTHONORMAL_TOLERANCE, MAX_TARGET_DISTANCE)
+        if pair is not None:
+            return Target(*pair)
     position, rotation = _parts(value)
     position = _array(position, (3,), "position target")
     x, y, z = position.tolist()
