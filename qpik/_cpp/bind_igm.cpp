@@ -370,24 +370,23 @@ void bind_igm(nb::module_& m) {
         "position-only target. Returns what _igm_session_run does.");
 
     m.def(
-        "_target_pair",
-        [](nb::handle position, nb::handle rotation, double orthonormal_tolerance, double max_distance) -> nb::object {
+        "_target_ok",
+        [](nb::handle position, nb::handle rotation, double orthonormal_tolerance, double max_distance) {
             // The common target of parse_target in one call: float64 C-contiguous arrays (3,)
             // and (3, 3), finite, the rotation orthonormal within orthonormal_tolerance
-            // (rotation_defect) and the position within max_distance of the origin: copies
-            // of both. Anything else: None (parse_target's general path decides).
+            // (rotation_defect) and the position within max_distance of the origin. Anything
+            // else: false (parse_target's general path decides).
             In1 p;
             In2 R;
-            if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false)) return nb::none();
-            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return nb::none();
+            if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false)) return false;
+            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return false;
             const double* pd = p.data();
             for (int i = 0; i < 3; ++i)
-                if (!(std::fabs(pd[i]) <= max_distance)) return nb::none();  // NaN too
-            if (!(model::rotation_defect(R.data()) <= orthonormal_tolerance)) return nb::none();
-            std::vector<double> pc(pd, pd + 3), Rc(R.data(), R.data() + 9);
-            return nb::make_tuple(to_numpy(std::move(pc), {size_t(3)}), to_numpy(std::move(Rc), {size_t(3), size_t(3)}));
+                if (!(std::fabs(pd[i]) <= max_distance)) return false;  // NaN too
+            return model::rotation_defect(R.data()) <= orthonormal_tolerance;
         },
         "position"_a, "rotation"_a, "orthonormal_tolerance"_a, "max_distance"_a,
-        "Copies (position, rotation) of a float64 (3,) and (3, 3) target pair that is finite, "
-        "orthonormal within orthonormal_tolerance and within max_distance of the origin; else None.");
+        "Whether (position, rotation) are float64 C-contiguous (3,) and (3, 3) arrays, finite, the "
+        "rotation orthonormal within orthonormal_tolerance and the position within max_distance of "
+        "the origin (each coordinate).");
 }

@@ -145,12 +145,12 @@ igm_plan = _igm._IgmPlan
 #: :func:`igm_session_run` with the fixed arguments of ``plan`` (:func:`igm_plan`);
 #: ``target_R`` None: a position-only target. Same results, same bits.
 igm_plan_run = _igm._igm_plan_run
-#: ``target_pair(position, rotation, orthonormal_tolerance, max_distance)``: copies of a
-#: float64 C-contiguous target pair (3,), (3, 3) that is finite, whose rotation is
+#: ``target_ok(position, rotation, orthonormal_tolerance, max_distance) -> bool``: whether
+#: a target pair is float64 C-contiguous arrays (3,) and (3, 3), finite, whose rotation is
 #: orthonormal within ``orthonormal_tolerance`` (``max |R R^T - I|``, ``det R > 0``) and whose
-#: position is within ``max_distance`` [m] of the origin (each coordinate); else None
+#: position is within ``max_distance`` [m] of the origin (each coordinate)
 #: (:func:`qpik.igm.targets.parse_target`'s fast path).
-target_pair = _igm._target_pair
+target_ok = _igm._target_ok
 
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (
     _igm.CONVERGED,
