@@ -310,6 +310,8 @@ class IKSession:
                 start_time,
                 start_coupling,
             )
+            if self._prepared.unheld.size == 0:  # nothing to check (_check_unheld)
+                return result
             return self._check_unheld(result, settings)
         # A target provably out of reach ends the solve at once, unless the stack has
         # several levels (the others are still solved: level 0 may hold other frames).
@@ -374,7 +376,15 @@ class IKSession:
             )
         if not targets:
             raise InvalidTarget("no targets given: pass {frame: target, ...}")
-        return [(self._frame(key), parse_target(value)) for key, value in targets.items()]
+        prepared = self._prepared.frames
+        frames = []
+        for key, value in targets.items():
+            try:
+                frame = prepared[key]  # the frame's preparation, once read (self._frame)
+            except (KeyError, TypeError):
+                frame = self._frame(key)
+            frames.append((frame, parse_target(value)))
+        return frames
 
     def _compiled_applies(
         self,
