@@ -174,6 +174,36 @@ struct IgmPlan {
     }
 };
 
+// The joint-limit box of a start, copied once (qpik._engine.igm._StartBox): check(q) is
+// qpik._engine.model.start_defect(q, lower, upper, tol) with one array to convert a call.
+struct StartBox {
+    std::vector<double> lower, upper;
+    double tol = 0.0;
+
+    StartBox(In1 lower_, In1 upper_, double tol_) : tol(tol_) {
+        require(lower_.shape(0) == upper_.shape(0), "lower and upper must have the same shape");
+        lower.assign(lower_.data(), lower_.data() + lower_.shape(0));
+        upper.assign(upper_.data(), upper_.data() + upper_.shape(0));
+    }
+
+    nb::tuple check(Out1 q) const {
+        size_t n = q.shape(0);
+        require(lower.size() == n, "q must be (n,) like lower and upper");
+        double* x = q.data();
+        const double* lo = lower.data();
+        const double* hi = upper.data();
+        for (size_t i = 0; i < n; ++i)
+            if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
+        for (size_t i = 0; i < n; ++i)
+            if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
+        for (size_t i = 0; i < n; ++i) {  // np.clip(q, lower, upper): minimum(maximum(q, lo), hi)
+            if (x[i] < lo[i]) x[i] = lo[i];
+            if (x[i] > hi[i]) x[i] = hi[i];
+        }
+        return nb::make_tuple(0, static_cast<i64>(-1));
+    }
+};
+
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
     m.attr("MAX_ITERS") = igm::MAX_ITERS;
@@ -389,4 +419,12 @@ void bind_igm(nb::module_& m) {
         "Whether (position, rotation) are float64 C-contiguous (3,) and (3, 3) arrays, finite, the "
         "rotation orthonormal within orthonormal_tolerance and the position within max_distance of "
         "the origin (each coordinate).");
+
+    nb::class_<StartBox>(m, "_StartBox",
+                         "A start's joint-limit box (lower, upper, tol), copied once; check(q) is "
+                         "qpik._engine.model.start_defect(q, lower, upper, tol).")
+        .def(nb::init<In1, In1, double>(), "lower"_a, "upper"_a, "tol"_a)
+        .def("check", &StartBox::check, "q"_a.noconvert(),
+             "(1, i) for the first entry of q not finite, (2, i) for the first outside [lower - tol, "
+             "upper + tol], else (0, -1) with q clipped into [lower, upper] in place.");
 }

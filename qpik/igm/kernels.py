@@ -151,6 +151,9 @@ igm_plan_run = _igm._igm_plan_run
 #: position is within ``max_distance`` [m] of the origin (each coordinate)
 #: (:func:`qpik.igm.targets.parse_target`'s fast path).
 target_ok = _igm._target_ok
+#: ``start_box(lower, upper, tol)``: a start's joint-limit box, copied once; its
+#: ``check(q)`` is :func:`qpik.model.kernels.start_defect` ``(q, lower, upper, tol)``.
+start_box = _igm._StartBox
 
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (
     _igm.CONVERGED,

@@ -19,6 +19,7 @@ from ..model import KinematicChain, ReachBound, chain_support, joint_limit_array
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
+from .kernels import start_box
 from .targets import FrameKey
 
 __all__ = ["FINGERPRINT_FIELDS", "PREPARED", "PreparedFrame", "PreparedRobot", "PreparedRobots"]
@@ -75,6 +76,7 @@ class PreparedRobot:
         "lower",
         "memo",
         "mid",
+        "start_box",
         "support",
         "unheld",
         "upper",
@@ -88,6 +90,8 @@ class PreparedRobot:
             configuration = Configuration(model)
             lower, upper = configuration.lower.copy(), configuration.upper.copy()
         self.lower, self.upper = lower, upper
+        #: the start check of IKSession (start_defect with the limits bound once)
+        self.start_box = start_box(lower, upper, 1e-6)
         sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
         sample_hi = np.where(np.isfinite(upper), upper, np.pi)
         self.mid = model.qpos0.copy()
@@ -103,6 +107,15 @@ class PreparedRobot:
         self.unheld = unheld_equalities(model)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
+
+    def __getstate__(self) -> dict:
+        # Pickled (and deep-copied) without the compiled start box, rebuilt from the limits.
+        return {name: getattr(self, name) for name in self.__slots__ if name != "start_box"}
+
+    def __setstate__(self, state: dict) -> None:
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.start_box = start_box(self.lower, self.upper, 1e-6)
 
     def frame(self, model: mujoco.MjModel, key: FrameKey) -> PreparedFrame:
         """The :class:`PreparedFrame` of ``key`` on ``model`` (the model this was read from)."""

@@ -95,7 +95,6 @@ import numpy.typing as npt
 from ..diffik.solver import Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import ReachBound
-from ..model import kernels as model_kernels
 from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
 from ..model.couplings import unheld_equality_errors
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
@@ -442,7 +441,7 @@ class IKSession:
             )
         if check and self._support is None:
             # One compiled pass: finite, within the limits (1e-6), then clipped in place.
-            code, i = model_kernels.start_defect(q, self._lower, self._upper, 1e-6)
+            code, i = self._prepared.start_box.check(q)  # start_defect(q, lower, upper, 1e-6)
             if code == 1:
                 raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
             if code == 2:
