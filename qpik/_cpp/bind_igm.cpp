@@ -1,6 +1,7 @@
 // Bindings of the igm layer (qpik._engine.igm): the full-IK loop, its box QP, the
 // SplitMix64 stream and the smallest singular value of a level.
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -72,21 +73,136 @@ struct IgmScratch {
     i64 info[6] = {};
 };
 
-static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
-                             const double* q0, i64 nq, In2 bounds, In1 reach, In1 options, In<i64, 1> int_options,
-                             std::uint64_t& rng_state, double deadline) {
-    i64 max_iters = int_options.data()[0];
+static void igm_with_scratch(IgmScratch& s, const model::Chain& c, const double* target_p, const double* target_R,
+                             bool has_rot, const double* q0, i64 nq, CMatRef bounds, const double* reach,
+                             const double* options, const i64* int_options, std::uint64_t& rng_state,
+                             double deadline) {
+    i64 max_iters = int_options[0];
     require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
-    ChainArgs holder;
-    const model::Chain& c = chain_arg(chain, nq, nq, holder);
-    igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
+    igm::Target target{target_p, target_R, has_rot};
     i64 n = max_iters + 1;
     s.path.reset(new double[static_cast<size_t>(2 * n * nq)]);
     s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
     s.rec = igm::Record{s.path.get(), s.hist.get(), n, nq};
-    igm::igm_solve(c, target, q0, nq, cmat(bounds), reach.data(), options.data(), int_options.data(), rng_state,
-                   deadline, s.rec, s.info);
+    igm::igm_solve(c, target, q0, nq, bounds, reach, options, int_options, rng_state, deadline, s.rec, s.info);
 }
+
+static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
+                             const double* q0, i64 nq, In2 bounds, In1 reach, In1 options, In<i64, 1> int_options,
+                             std::uint64_t& rng_state, double deadline) {
+    ChainArgs holder;
+    const model::Chain& c = chain_arg(chain, nq, nq, holder);
+    igm_with_scratch(s, c, target_p.data(), target_R.data(), truthy(has_rot), q0, nq, cmat(bounds), reach.data(),
+                     options.data(), int_options.data(), rng_state, deadline);
+}
+
+// The chain's start q_full[index] (index null: all of q_full) into q0 (nq,).
+static void gather_start(const double* q_full, i64 nfull, const i64* index, i64 nq, double* q0) {
+    for (i64 j = 0; j < nq; ++j) {
+        i64 a = index != nullptr ? index[j] : j;
+        require(a >= 0 && a < nfull, "index entries must address q_full");
+        q0[j] = q_full[a];
+    }
+}
+
+// The tuple of _igm_session_run from a finished run: the returned attempt's path as whole
+// configurations (the coordinates off index as in q_full), its errors and history.
+static nb::tuple session_tuple(const IgmScratch& run, const double* q_full, i64 nfull, const i64* index, i64 nq) {
+    const igm::Record& rec = run.rec;
+    const i64* info = run.info;
+    i64 slot = info[3], length = info[4];
+    size_t len = static_cast<size_t>(length), nf = static_cast<size_t>(nfull);
+    std::vector<double> out_path(len * nf);
+    for (i64 k = 0; k < length; ++k) {
+        double* row = out_path.data() + k * nfull;
+        const double* src = rec.path_at(slot, k);
+        if (index != nullptr) {
+            for (i64 j = 0; j < nfull; ++j) row[j] = q_full[j];
+            for (i64 j = 0; j < nq; ++j) row[index[j]] = src[j];
+        } else {
+            for (i64 j = 0; j < nq; ++j) row[j] = src[j];
+        }
+    }
+    std::vector<double> q_last(out_path.end() - nfull, out_path.end());
+    const double* last = rec.hist_at(slot, length - 1);
+    double position_error = last[0], orientation_error = last[1];
+    std::vector<double> out_hist(rec.hist_at(slot, 0), rec.hist_at(slot, 0) + length * 3);
+    return nb::make_tuple(info[0], info[1], info[2], to_numpy(std::move(q_last), {nf}),
+                          to_numpy(std::move(out_path), {len, nf}), to_numpy(std::move(out_hist), {len, size_t(3)}),
+                          position_error, orientation_error);
+}
+
+// What _igm_session_run takes besides the target, the start, the RNG state and the
+// deadline, checked and copied once (qpik._engine.igm._IgmPlan): an IKSession keeps one per
+// (frame, limits, options), so that a solve converts six arguments instead of twelve.
+struct IgmPlan {
+    nb::object chain_ref;  // keeps the ChainData alive
+    const model::Chain* chain = nullptr;
+    i64 nfull = 0, nq = 0;
+    std::vector<i64> index;  // empty: the chain's coordinates are all of q_full
+    std::vector<double> bounds, reach, options;
+    std::vector<i64> int_options;
+
+    IgmPlan(nb::handle chain_obj, nb::handle index_obj, i64 nfull_, In2 bounds_, In1 reach_, In1 options_,
+            In<i64, 1> int_options_) {
+        require(nfull_ >= 0, "nfull must be >= 0");
+        nfull = nfull_;
+        bool packed = !index_obj.is_none();
+        I64In1 idx;
+        if (packed && !nb::try_cast(index_obj, idx, false))
+            throw BadArgument("index must be None or an int64 array of chain coordinates");
+        nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
+        if (packed) {
+            index.assign(idx.data(), idx.data() + nq);
+            for (i64 a : index) require(a >= 0 && a < nfull, "index entries must address q_full");
+        }
+        ChainData* data = nullptr;
+        if (!nb::try_cast<ChainData*>(chain_obj, data, false) || data == nullptr)
+            throw BadArgument("chain must be a qpik._engine.model.Chain");
+        chain = &data->fit(nq, nq);
+        chain_ref = nb::borrow(chain_obj);
+        require(bounds_.shape(0) == 4 && static_cast<i64>(bounds_.shape(1)) == nq, "bounds must be (4, nq)");
+        require(reach_.shape(0) == 4, "reach must be (4,)");
+        require(options_.shape(0) >= 11, "options must hold 11 floats");
+        require(int_options_.shape(0) >= 4, "int_options must hold 4 ints");
+        i64 max_iters = int_options_.data()[0];
+        require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
+        bounds.assign(bounds_.data(), bounds_.data() + 4 * nq);
+        reach.assign(reach_.data(), reach_.data() + 4);
+        options.assign(options_.data(), options_.data() + options_.shape(0));
+        int_options.assign(int_options_.data(), int_options_.data() + int_options_.shape(0));
+    }
+};
+
+// The joint-limit box of a start, copied once (qpik._engine.igm._StartBox): check(q) is
+// qpik._engine.model.start_defect(q, lower, upper, tol) with one array to convert a call.
+struct StartBox {
+    std::vector<double> lower, upper;
+    double tol = 0.0;
+
+    StartBox(In1 lower_, In1 upper_, double tol_) : tol(tol_) {
+        require(lower_.shape(0) == upper_.shape(0), "lower and upper must have the same shape");
+        lower.assign(lower_.data(), lower_.data() + lower_.shape(0));
+        upper.assign(upper_.data(), upper_.data() + upper_.shape(0));
+    }
+
+    nb::tuple check(Out1 q) const {
+        size_t n = q.shape(0);
+        require(lower.size() == n, "q must be (n,) like lower and upper");
+        double* x = q.data();
+        const double* lo = lower.data();
+        const double* hi = upper.data();
+        for (size_t i = 0; i < n; ++i)
+            if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
+        for (size_t i = 0; i < n; ++i)
+            if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
+        for (size_t i = 0; i < n; ++i) {  // np.clip(q, lower, upper): minimum(maximum(q, lo), hi)
+            if (x[i] < lo[i]) x[i] = lo[i];
+            if (x[i] > hi[i]) x[i] = hi[i];
+        }
+        return nb::make_tuple(0, static_cast<i64>(-1));
+    }
+};
 
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
@@ -229,38 +345,13 @@ void bind_igm(nb::module_& m) {
                 throw BadArgument("index must be None or an int64 array of chain coordinates");
             i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
             check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
+            const i64* index_p = packed ? idx.data() : nullptr;
             Vec q0(static_cast<size_t>(nq));
-            for (i64 j = 0; j < nq; ++j) {
-                i64 a = packed ? idx.data()[j] : j;
-                require(a >= 0 && a < nfull, "index entries must address q_full");
-                q0[static_cast<size_t>(j)] = q_full.data()[a];
-            }
+            gather_start(q_full.data(), nfull, index_p, nq, q0.data());
             IgmScratch run;
             igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
                              int_options, rng_state, deadline);  // a copy of the state: advanced here only
-            const igm::Record& rec = run.rec;
-            const i64* info = run.info;
-            i64 slot = info[3], length = info[4];
-            size_t len = static_cast<size_t>(length), nf = static_cast<size_t>(nfull);
-            std::vector<double> out_path(len * nf);
-            for (i64 k = 0; k < length; ++k) {
-                double* row = out_path.data() + k * nfull;
-                const double* src = rec.path_at(slot, k);
-                if (packed) {
-                    for (i64 j = 0; j < nfull; ++j) row[j] = q_full.data()[j];
-                    for (i64 j = 0; j < nq; ++j) row[idx.data()[j]] = src[j];
-                } else {
-                    for (i64 j = 0; j < nq; ++j) row[j] = src[j];
-                }
-            }
-            std::vector<double> q_last(out_path.end() - nfull, out_path.end());
-            const double* last = rec.hist_at(slot, length - 1);
-            double position_error = last[0], orientation_error = last[1];
-            std::vector<double> out_hist(rec.hist_at(slot, 0), rec.hist_at(slot, 0) + length * 3);
-            return nb::make_tuple(info[0], info[1], info[2], to_numpy(std::move(q_last), {nf}),
-                                  to_numpy(std::move(out_path), {len, nf}),
-                                  to_numpy(std::move(out_hist), {len, size_t(3)}), position_error,
-                                  orientation_error);
+            return session_tuple(run, q_full.data(), nfull, index_p, nq);
         },
         "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q_full"_a, "index"_a.none(), "bounds"_a, "reach"_a,
         "options"_a, "int_options"_a, "rng_state"_a, "deadline"_a,
@@ -268,4 +359,72 @@ void bind_igm(nb::module_& m) {
         "rng_state (an int in [0, 2**64); not written back): returns (reason code, "
         "iterations, restarts used, q (the answer, a whole configuration), path (k, len(q_full)), "
         "hist (k, 3), position error [m], orientation error [rad]).");
+
+    nb::class_<IgmPlan>(m, "_IgmPlan",
+                        "The fixed arguments of _igm_session_run (chain, index, bounds, reach, options, "
+                        "int_options), checked and copied once, for _igm_plan_run.")
+        .def(nb::init<nb::handle, nb::handle, i64, In2, In1, In1, In<i64, 1>>(), "chain"_a, "index"_a.none(),
+             "nfull"_a, "bounds"_a, "reach"_a, "options"_a, "int_options"_a,
+             "Check and copy the arguments of _igm_session_run that do not change between solves "
+             "(chain: a qpik._engine.model.Chain over the coordinates index of configurations of "
+             "nfull coordinates; index None: all of them).")
+        .def_ro("nfull", &IgmPlan::nfull, "Coordinates of the whole configuration.");
+
+    m.def(
+        "_igm_plan_run",
+        [](const IgmPlan& plan, In1 target_p, nb::handle target_R, In1 q_full, std::uint64_t rng_state,
+           double deadline) {
+            require(target_p.shape(0) == 3, "target_p must be (3,)");
+            require(static_cast<i64>(q_full.shape(0)) == plan.nfull, "q_full must be (nfull,)");
+            static const double eye[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+            const double* R = eye;
+            In2 rot;
+            bool has_rot = !target_R.is_none();
+            if (has_rot) {
+                if (!nb::try_cast(target_R, rot, true))
+                    throw BadArgument("target_R must be None or a float64 (3, 3) array");
+                require(rot.shape(0) == 3 && rot.shape(1) == 3, "target_R must be (3, 3)");
+                R = rot.data();
+            }
+            const i64* index_p = plan.index.empty() ? nullptr : plan.index.data();
+            Vec q0(static_cast<size_t>(plan.nq));
+            gather_start(q_full.data(), plan.nfull, index_p, plan.nq, q0.data());
+            IgmScratch run;
+            igm_with_scratch(run, *plan.chain, target_p.data(), R, has_rot, q0.data(), plan.nq,
+                             CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
+                             plan.int_options.data(), rng_state, deadline);
+            return session_tuple(run, q_full.data(), plan.nfull, index_p, plan.nq);
+        },
+        "plan"_a, "target_p"_a, "target_R"_a.none(), "q_full"_a, "rng_state"_a, "deadline"_a,
+        "_igm_session_run with its fixed arguments in plan (an _IgmPlan); target_R None: a "
+        "position-only target. Returns what _igm_session_run does.");
+
+    m.def(
+        "_target_ok",
+        [](nb::handle position, nb::handle rotation, double orthonormal_tolerance, double max_distance) {
+            // The common target of parse_target in one call: float64 C-contiguous arrays (3,)
+            // and (3, 3), finite, the rotation orthonormal within orthonormal_tolerance
+            // (rotation_defect) and the position within max_distance of the origin. Anything
+            // else: false (parse_target's general path decides).
+            In1 p;
+            In2 R;
+            if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false)) return false;
+            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return false;
+            const double* pd = p.data();
+            for (int i = 0; i < 3; ++i)
+                if (!(std::fabs(pd[i]) <= max_distance)) return false;  // NaN too
+            return model::rotation_defect(R.data()) <= orthonormal_tolerance;
+        },
+        "position"_a, "rotation"_a, "orthonormal_tolerance"_a, "max_distance"_a,
+        "Whether (position, rotation) are float64 C-contiguous (3,) and (3, 3) arrays, finite, the "
+        "rotation orthonormal within orthonormal_tolerance and the position within max_distance of "
+        "the origin (each coordinate).");
+
+    nb::class_<StartBox>(m, "_StartBox",
+                         "A start's joint-limit box (lower, upper, tol), copied once; check(q) is "
+                         "qpik._engine.model.start_defect(q, lower, upper, tol).")
+        .def(nb::init<In1, In1, double>(), "lower"_a, "upper"_a, "tol"_a)
+        .def("check", &StartBox::check, "q"_a.noconvert(),
+             "(1, i) for the first entry of q not finite, (2, i) for the first outside [lower - tol, "
+             "upper + tol], else (0, -1) with q clipped into [lower, upper] in place.");
 }

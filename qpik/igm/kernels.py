@@ -136,6 +136,24 @@ igm_run = _igm.igm_run
 #: call: its result needs no NumPy call of its own). ``rng_state`` is here a plain int in
 #: ``[0, 2**64)`` (the stream's state, not written back).
 igm_session_run = _igm._igm_session_run
+#: ``igm_plan(chain, index, nfull, bounds, reach, options, int_options)``: the arguments of
+#: :func:`igm_session_run` that do not change between solves (``chain`` a compiled
+#: :class:`qpik.model.KinematicChain` chain over the coordinates ``index`` of
+#: configurations of ``nfull`` coordinates), checked and copied once.
+igm_plan = _igm._IgmPlan
+#: ``igm_plan_run(plan, target_p, target_R, q_full, rng_state, deadline)``:
+#: :func:`igm_session_run` with the fixed arguments of ``plan`` (:func:`igm_plan`);
+#: ``target_R`` None: a position-only target. Same results, same bits.
+igm_plan_run = _igm._igm_plan_run
+#: ``target_ok(position, rotation, orthonormal_tolerance, max_distance) -> bool``: whether
+#: a target pair is float64 C-contiguous arrays (3,) and (3, 3), finite, whose rotation is
+#: orthonormal within ``orthonormal_tolerance`` (``max |R R^T - I|``, ``det R > 0``) and whose
+#: position is within ``max_distance`` [m] of the origin (each coordinate)
+#: (:func:`qpik.igm.targets.parse_target`'s fast path).
+target_ok = _igm._target_ok
+#: ``start_box(lower, upper, tol)``: a start's joint-limit box, copied once; its
+#: ``check(q)`` is :func:`qpik.model.kernels.start_defect` ``(q, lower, upper, tol)``.
+start_box = _igm._StartBox
 
 assert (CONVERGED, UNREACHABLE, BACKTRACKS, CLOCK_EVERY) == (
     _igm.CONVERGED,

@@ -19,6 +19,7 @@ from ..model import KinematicChain, ReachBound, chain_support, joint_limit_array
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
+from .kernels import start_box
 from .targets import FrameKey
 
 __all__ = ["FINGERPRINT_FIELDS", "PREPARED", "PreparedFrame", "PreparedRobot", "PreparedRobots"]
@@ -32,7 +33,7 @@ class PreparedFrame:
     compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
     (:class:`qpik.model.Couplings`) moves a joint of the chain."""
 
-    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "reach")
+    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "plan", "reach")
 
     def __init__(
         self,
@@ -46,6 +47,18 @@ class PreparedFrame:
         self.index: np.ndarray | None = None
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
         self.coupled = False
+        #: (kernel options, joint limits?, time checked?, compiled plan) of the last compiled
+        #: solve (:meth:`qpik.IKSession._plan`), reused while the options are the same object
+        self.plan: tuple | None = None
+
+    def __getstate__(self) -> dict:
+        # Pickled (and deep-copied) without the compiled plan, rebuilt at the next solve.
+        return {name: getattr(self, name) for name in self.__slots__ if name != "plan"}
+
+    def __setstate__(self, state: dict) -> None:
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.plan = None
 
 
 class PreparedRobot:
@@ -63,6 +76,7 @@ class PreparedRobot:
         "lower",
         "memo",
         "mid",
+        "start_box",
         "support",
         "unheld",
         "upper",
@@ -76,6 +90,8 @@ class PreparedRobot:
             configuration = Configuration(model)
             lower, upper = configuration.lower.copy(), configuration.upper.copy()
         self.lower, self.upper = lower, upper
+        #: the start check of IKSession (start_defect with the limits bound once)
+        self.start_box = start_box(lower, upper, 1e-6)
         sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
         sample_hi = np.where(np.isfinite(upper), upper, np.pi)
         self.mid = model.qpos0.copy()
@@ -91,6 +107,15 @@ class PreparedRobot:
         self.unheld = unheld_equalities(model)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
+
+    def __getstate__(self) -> dict:
+        # Pickled (and deep-copied) without the compiled start box, rebuilt from the limits.
+        return {name: getattr(self, name) for name in self.__slots__ if name != "start_box"}
+
+    def __setstate__(self, state: dict) -> None:
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.start_box = start_box(self.lower, self.upper, 1e-6)
 
     def frame(self, model: mujoco.MjModel, key: FrameKey) -> PreparedFrame:
         """The :class:`PreparedFrame` of ``key`` on ``model`` (the model this was read from)."""

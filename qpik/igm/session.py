@@ -95,7 +95,6 @@ import numpy.typing as npt
 from ..diffik.solver import Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import ReachBound
-from ..model import kernels as model_kernels
 from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
 from ..model.couplings import unheld_equality_errors
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
@@ -122,7 +121,6 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 #: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
 #: this fraction of the distance to a limit.
 LIMIT_GAIN = 0.95
-_EYE = np.eye(3)
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 #: Bit generators whose raw output is their next 64-bit draw: for these,
@@ -311,6 +309,8 @@ class IKSession:
                 start_time,
                 start_coupling,
             )
+            if self._prepared.unheld.size == 0:  # nothing to check (_check_unheld)
+                return result
             return self._check_unheld(result, settings)
         # A target provably out of reach ends the solve at once, unless the stack has
         # several levels (the others are still solved: level 0 may hold other frames).
@@ -375,7 +375,15 @@ class IKSession:
             )
         if not targets:
             raise InvalidTarget("no targets given: pass {frame: target, ...}")
-        return [(self._frame(key), parse_target(value)) for key, value in targets.items()]
+        prepared = self._prepared.frames
+        frames = []
+        for key, value in targets.items():
+            try:
+                frame = prepared[key]  # the frame's preparation, once read (self._frame)
+            except (KeyError, TypeError):
+                frame = self._frame(key)
+            frames.append((frame, parse_target(value)))
+        return frames
 
     def _compiled_applies(
         self,
@@ -433,7 +441,7 @@ class IKSession:
             )
         if check and self._support is None:
             # One compiled pass: finite, within the limits (1e-6), then clipped in place.
-            code, i = model_kernels.start_defect(q, self._lower, self._upper, 1e-6)
+            code, i = self._prepared.start_box.check(q)  # start_defect(q, lower, upper, 1e-6)
             if code == 1:
                 raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
             if code == 2:
@@ -497,6 +505,33 @@ class IKSession:
             coupling_error=self._coupling_error(q),
         )
 
+    def _plan(self, frame: PreparedFrame, joint: bool, kernel_options: tuple) -> tuple:
+        """The compiled engine's fixed arguments for ``frame`` (its chain, bounds, reach
+        bound) under ``kernel_options`` (:func:`_kernel_options`'s arrays), checked and
+        copied once into a :func:`qpik.igm.kernels.igm_plan` (kept on the frame while the
+        solves' options are the same object)."""
+        options, int_options = kernel_options
+        if frame.index is None:  # the chain's joints are all of q
+            chain = frame.chain
+            bounds = self._bounds_joint if joint else self._bounds_free
+        else:  # the chain's joints only: the others stay where they are
+            chain = frame.packed
+            assert frame.bounds is not None
+            bounds = frame.bounds[0] if joint else frame.bounds[1]
+        assert chain is not None and frame.reach is not None
+        compiled = kernels.igm_plan(
+            chain.compiled,
+            frame.index,
+            self._mid.shape[0],
+            bounds,
+            frame.reach.array,
+            options,
+            int_options,
+        )
+        plan = (kernel_options, joint, bool(int_options[3]), compiled)
+        frame.plan = plan
+        return plan
+
     def _solve_compiled(
         self, frame_target, q_start, joint, settings, kernel_inputs, start_time, start_coupling
     ) -> IKResult:
@@ -504,31 +539,15 @@ class IKSession:
         ``q_start`` when they were measured there (they then involve no joint of the
         chain, which alone moves, so it is their error at the answer too), else None."""
         frame, target = frame_target
-        (options, int_options), rng_state = kernel_inputs
-        deadline = start_time + settings.time_budget if int_options[3] else np.inf
-        rotation = target.rotation
-        if frame.index is None:  # the chain's joints are all of q
-            chain = frame.chain
-            bounds = self._bounds_joint if joint else self._bounds_free
-        else:  # the chain's joints only: the others stay where they are
-            chain = frame.packed
-            bounds = frame.bounds[0] if joint else frame.bounds[1]
-        code, iterations, restarts_used, q, path, history, position_error, orientation_error = (
-            kernels.igm_session_run(
-                chain.compiled,
-                target.position,
-                _EYE if rotation is None else rotation,
-                rotation is not None,
-                q_start,
-                frame.index,
-                bounds,
-                frame.reach.array,
-                options,
-                int_options,
-                rng_state,
-                deadline,
-            )
+        kernel_options, rng_state = kernel_inputs
+        plan = frame.plan
+        if plan is None or plan[0] is not kernel_options or plan[1] is not joint:
+            plan = self._plan(frame, joint, kernel_options)
+        deadline = start_time + settings.time_budget if plan[2] else np.inf
+        run = kernels.igm_plan_run(
+            plan[3], target.position, target.rotation, q_start, rng_state, deadline
         )
+        code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
         converged = code == 0
         return IKResult(
             q,

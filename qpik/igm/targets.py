@@ -25,6 +25,7 @@ from ..errors import InvalidTarget
 from ..model import kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation, orientation_angle
+from .kernels import target_ok
 
 __all__ = [
     "MAX_TARGET_DISTANCE",
@@ -118,6 +119,16 @@ def parse_target(value: TargetLike) -> Target:
     it (:func:`qpik.model.rotations.nearest_rotation`, which keeps a matrix orthonormal
     within :data:`qpik.model.rotations.ORTHONORMAL_TOLERANCE`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
+    if type(value) is tuple and len(value) == 2:
+        # The common (position, rotation) pair of float64 arrays, valid and orthonormal:
+        # checked in one compiled call; anything else takes the general path.
+        position, rotation = value
+        if (
+            type(position) is np.ndarray
+            and type(rotation) is np.ndarray
+            and target_ok(position, rotation, ORTHONORMAL_TOLERANCE, MAX_TARGET_DISTANCE)
+        ):
+            return Target(position.copy(), rotation.copy())
     position, rotation = _parts(value)
     position = _array(position, (3,), "position target")
     x, y, z = position.tolist()

@@ -1,0 +1,71 @@
+"""The compiled engine's call path (issue 20): the per-frame plan of fixed kernel arguments,
+the start box and parse_target's fast path give the answers of the general path, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qpik
+from qpik.igm.targets import parse_target
+from qpik.model.rotations import nearest_rotation
+
+
+def _rotation(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_fast_path_targets_equal_the_general_path():
+    p, R = np.array([0.3, 0.2, 0.4]), _rotation(0.3)
+    fast = parse_target((p, R))
+    general = parse_target((p.tolist(), R.tolist()))  # lists: the general path
+    assert fast.position.tobytes() == general.position.tobytes()
+    assert fast.rotation is not None and general.rotation is not None
+    assert fast.rotation.tobytes() == general.rotation.tobytes()
+    assert fast.position is not p and fast.rotation is not R  # copies
+    skewed = R + 1e-12  # orthonormal within 1e-6 but not 1e-14: projected (general path)
+    assert parse_target((p, skewed)).rotation.tobytes() == nearest_rotation(skewed).tobytes()
+
+
+@pytest.mark.parametrize(
+    "target",
+    [
+        (np.array([np.nan, 0.0, 0.0]), np.eye(3)),
+        (np.array([2e9, 0.0, 0.0]), np.eye(3)),
+        (np.zeros(3), np.full((3, 3), np.nan)),
+        (np.zeros(3), 2.0 * np.eye(3)),
+        (np.zeros(3), np.eye(3).T[:, ::-1]),  # not C-contiguous, det < 0
+        (np.zeros(4), np.eye(3)),
+    ],
+)
+def test_fast_path_rejects_as_the_general_path(target):
+    with pytest.raises(qpik.InvalidTarget):
+        parse_target(target)
+
+
+def test_plans_follow_the_options():
+    """A session reuses its plan while the options are the same and rebuilds it when they
+    change: every answer equals a fresh session's."""
+    session = qpik.IKSession("ur5e")
+    target = {"ee": [0.3, 0.2, 0.4]}
+    for keywords in ({}, {"max_iters": 7}, {}, {"limits": None}, {"tol_position": 1e-3}, {}):
+        got = session.solve(target, seed=3, **keywords)
+        want = qpik.IKSession("ur5e").solve(target, seed=3, **keywords)
+        assert got.q.tobytes() == want.q.tobytes() and got.iterations == want.iterations
+
+
+def test_start_box_checks_and_clips():
+    session = qpik.IKSession("ur5e")
+    target = {"ee": [0.3, 0.2, 0.4]}
+    q0 = session.mid_q()
+    q0[0] = np.nan
+    with pytest.raises(qpik.InvalidConfiguration):
+        session.solve(target, q0=q0)
+    q0 = session.mid_q()
+    q0[1] = session._upper[1] + 1e-3
+    with pytest.raises(qpik.JointLimitViolation):
+        session.solve(target, q0=q0)
+    q0[1] = session._upper[1] + 1e-7  # within 1e-6: clipped
+    result = session.solve(target, q0=q0, max_iters=0, restarts=0)
+    assert result.path[0][1] == session._upper[1]
