@@ -4503,6 +4503,8 @@ def run_signature(spec: dict) -> str:
             wrong_type = isinstance(exc, TypeError) or spec["value"] in _CLEARLY_WRONG
             if spec["value"] == "none" and param.default is None:
                 wrong_type = False  # None is this argument's default: a valid value
+            if spec["value"] == "mjmodel" and param.name == "model":
+                wrong_type = False  # an MjModel is what a model argument takes
             if wrong_type and not _names_argument(str(exc), param.name, wrong):
                 detail = f"{spec['target']}({param.name}={spec['value']}): {str(exc)[:200]}"
                 raise Bad("message", detail) from None

@@ -139,7 +139,8 @@ struct IgmPlan {
     nb::object chain_ref;  // keeps the ChainData alive
     const model::Chain* chain = nullptr;
     i64 nfull = 0, nq = 0;
-    std::vector<i64> index;  // empty: the chain's coordinates are all of q_full
+    bool packed = false;     // the chain's coordinates are q_full[index]; else all of q_full
+    std::vector<i64> index;  // (nq,) when packed: empty for a frame no joint moves
     std::vector<double> bounds, reach, options;
     std::vector<i64> int_options;
 
@@ -147,7 +148,7 @@ struct IgmPlan {
             In<i64, 1> int_options_) {
         require(nfull_ >= 0, "nfull must be >= 0");
         nfull = nfull_;
-        bool packed = !index_obj.is_none();
+        packed = !index_obj.is_none();
         I64In1 idx;
         if (packed && !nb::try_cast(index_obj, idx, false))
             throw BadArgument("index must be None or an int64 array of chain coordinates");
@@ -345,7 +346,8 @@ void bind_igm(nb::module_& m) {
                 throw BadArgument("index must be None or an int64 array of chain coordinates");
             i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
             check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
-            const i64* index_p = packed ? idx.data() : nullptr;
+            static const i64 none = 0;  // packed with no joint (see _igm_plan_run)
+            const i64* index_p = !packed ? nullptr : nq == 0 ? &none : idx.data();
             Vec q0(static_cast<size_t>(nq));
             gather_start(q_full.data(), nfull, index_p, nq, q0.data());
             IgmScratch run;
@@ -386,7 +388,10 @@ void bind_igm(nb::module_& m) {
                 require(rot.shape(0) == 3 && rot.shape(1) == 3, "target_R must be (3, 3)");
                 R = rot.data();
             }
-            const i64* index_p = plan.index.empty() ? nullptr : plan.index.data();
+            // packed with no joint: index_p must still say packed (the coordinates off
+            // the chain, all of them, as in q_full); an empty vector's data() may be null
+            static const i64 none = 0;
+            const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
             Vec q0(static_cast<size_t>(plan.nq));
             gather_start(q_full.data(), plan.nfull, index_p, plan.nq, q0.data());
             IgmScratch run;

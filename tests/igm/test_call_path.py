@@ -69,3 +69,21 @@ def test_start_box_checks_and_clips():
     q0[1] = session._upper[1] + 1e-7  # within 1e-6: clipped
     result = session.solve(target, q0=q0, max_iters=0, restarts=0)
     assert result.path[0][1] == session._upper[1]
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.01, 5.0])
+def test_a_frame_no_joint_moves_keeps_the_start(offset):
+    """A frame on a body fixed to the world (its chain has no joint: an empty index, not
+    "every coordinate"): the answer is the start, met or unreachable, and the compiled
+    plan copies the whole start into q and path (it returned zeros once)."""
+    model = qpik.load_robot("ur5e")
+    start = np.clip(model.qpos0 + 0.3, model.jnt_range[:, 0], model.jnt_range[:, 1])
+    configuration = qpik.Configuration(model, start)
+    p, _ = configuration.frame_pose("base_link", "body")
+    session = qpik.IKSession(configuration)
+    for _ in range(2):  # the plan built, then reused
+        result = session.solve({("base_link", "body"): p + offset})
+        assert result.engine == "compiled"
+        assert result.q.tobytes() == start.tobytes()
+        assert result.path.shape == (1, model.nq) and result.path[0].tobytes() == start.tobytes()
+        assert result.converged == (offset == 0.0)
