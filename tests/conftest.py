@@ -79,3 +79,24 @@ def has_erd() -> bool:
     except qpik.QpikError:
         return False
     return True
+
+
+def three_link_arm(c1_range: str = "-2 2") -> str:
+    """The MJCF body ``a`` that several tests' models share: hinges ``a1`` (z), ``b1`` and
+    ``c1`` (y; ``c1`` in ``c1_range`` [rad]), a slide ``c2`` (x) and the site ``tip``."""
+    return f"""
+    <body name="a">
+      <joint name="a1" axis="0 0 1" range="-2 2"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+      <body name="b" pos="0.3 0 0">
+        <joint name="b1" axis="0 1 0" range="-2 2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+        <body name="c" pos="0.3 0 0">
+          <joint name="c1" axis="0 1 0" range="{c1_range}"/>
+          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
+          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
+          <site name="tip" pos="0.2 0 0"/>
+        </body>
+      </body>
+    </body>
+"""

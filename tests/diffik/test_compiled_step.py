@@ -9,6 +9,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import three_link_arm
 
 import qpik
 from qpik.diffik.result import StepResult
@@ -18,24 +19,13 @@ DT = 0.01
 
 #: A chain with linear couplings only: a mimic-like joint equality (degree 1, with an
 #: offset) and a fixed-tendon equality of degree 1; the kernel computes their level.
-LINEAR = """
+LINEAR = (
+    """
 <mujoco>
   <worldbody>
-    <body name="a">
-      <joint name="a1" axis="0 0 1" range="-2 2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-      <body name="b" pos="0.3 0 0">
-        <joint name="b1" axis="0 1 0" range="-2 2"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="c" pos="0.3 0 0">
-          <joint name="c1" axis="0 1 0" range="-2 2"/>
-          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
-          <site name="tip" pos="0.2 0 0"/>
-        </body>
-      </body>
-    </body>
-    <body name="d" pos="0 0.6 0">
+"""
+    + three_link_arm()
+    + """    <body name="d" pos="0 0.6 0">
       <joint name="d1" axis="0 0 1" range="-1 1"/>
       <joint name="d2" axis="0 1 0" range="-1 1"/>
       <geom type="capsule" fromto="0 0 0 0 -0.3 0" size="0.02"/>
@@ -51,6 +41,7 @@ LINEAR = """
   </equality>
 </mujoco>
 """
+)
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import three_link_arm
 from exactness_oracle import Problem, lexicographic
 
 import qpik
@@ -23,30 +24,20 @@ DT = 0.01
 
 #: A chain whose only coupling is a mimic c1 = 0.05 - 0.7 b1 (a pair: the fast path), a
 #: slide joint and a hinge on no coupling.
-MIMIC = """
+MIMIC = (
+    """
 <mujoco>
   <compiler angle="radian"/>
   <worldbody>
-    <body name="a">
-      <joint name="a1" axis="0 0 1" range="-2 2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-      <body name="b" pos="0.3 0 0">
-        <joint name="b1" axis="0 1 0" range="-2 2"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="c" pos="0.3 0 0">
-          <joint name="c1" axis="0 1 0" range="-0.5 0.5"/>
-          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
-          <site name="tip" pos="0.2 0 0"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
+"""
+    + three_link_arm("-0.5 0.5")
+    + """  </worldbody>
   <equality>
     <joint name="mimic" joint1="c1" joint2="b1" polycoef="0.05 -0.7 0 0 0"/>
   </equality>
 </mujoco>
 """
+)
 
 
 def _panda_states(rng, configuration, frame, posture, regime):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import mink
 import numpy as np
 import pytest
+from conftest import three_link_arm
 
 import qpik
 from qpik.limits import velocity_limit_from_model
@@ -337,25 +338,14 @@ def test_solve_ik_kept_solver_shortcut_is_the_full_paths_answer(panda, backend):
 # ------------------------------------------------- rows supplied by the task itself
 #: A chain with joint and tendon couplings (qpik's CouplingTask level) and a connect
 #: constraint (mink's EqualityConstraintTask).
-COUPLED = """
+COUPLED = (
+    """
 <mujoco>
   <option jacobian="sparse"/>
   <worldbody>
-    <body name="a">
-      <joint name="a1" axis="0 0 1" range="-2 2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-      <body name="b" pos="0.3 0 0">
-        <joint name="b1" axis="0 1 0" range="-2 2"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="c" pos="0.3 0 0">
-          <joint name="c1" axis="0 1 0" range="-2 2"/>
-          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
-          <site name="tip" pos="0.2 0 0"/>
-        </body>
-      </body>
-    </body>
-    <body name="d" pos="0 0.6 0">
+"""
+    + three_link_arm()
+    + """    <body name="d" pos="0 0.6 0">
       <joint name="d1" axis="0 0 1" range="-1 1"/>
       <joint name="d2" axis="0 1 0" range="-1 1"/>
       <geom type="capsule" fromto="0 0 0 0 -0.3 0" size="0.02"/>
@@ -373,6 +363,7 @@ COUPLED = """
   </equality>
 </mujoco>
 """
+)
 
 
 def _supplied(solver: qpik.IKSolver) -> list:

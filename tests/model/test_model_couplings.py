@@ -11,6 +11,7 @@ import pathlib
 import mujoco
 import numpy as np
 import pytest
+from conftest import three_link_arm
 
 import qpik
 from qpik.limits import joint_limits
@@ -37,24 +38,13 @@ MIMIC_URDF = f"""<robot name="mimic">
 
 #: A joint coupling with a cubic polynomial, one without a second joint, and a fixed
 #: tendon equality; a connect constraint, which the couplings do not take.
-MJCF = """
+MJCF = (
+    """
 <mujoco>
   <worldbody>
-    <body name="a">
-      <joint name="a1" axis="0 0 1" range="-2 2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-      <body name="b" pos="0.3 0 0">
-        <joint name="b1" axis="0 1 0" range="-2 2"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="c" pos="0.3 0 0">
-          <joint name="c1" axis="0 1 0" range="-2 2"/>
-          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
-          <site name="tip" pos="0.2 0 0"/>
-        </body>
-      </body>
-    </body>
-    <body name="d" pos="0 1 0">
+"""
+    + three_link_arm()
+    + """    <body name="d" pos="0 1 0">
       <joint name="d1" axis="0 0 1" range="-1 1"/>
       <joint name="d2" axis="0 1 0" range="-1 1"/>
       <geom type="sphere" size="0.05"/>
@@ -72,6 +62,7 @@ MJCF = """
   </equality>
 </mujoco>
 """
+)
 
 
 def _mimic(tmp_path: pathlib.Path) -> mujoco.MjModel:
