@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -166,6 +167,21 @@ inline bool truthy(nb::handle h) {
     int r = PyObject_IsTrue(h.ptr());
     if (r < 0) throw nb::python_error();
     return r != 0;
+}
+
+// qpik._engine.model.start_defect and _StartBox.check: (1, i) if x[i] is not finite, (2, i)
+// if it is beyond [lo, hi] by more than tol, else (0, -1) with x clipped in place onto the
+// box as np.clip(x, lo, hi) (minimum(maximum(x, lo), hi)).
+inline nb::tuple start_defect(double* x, const double* lo, const double* hi, size_t n, double tol) {
+    for (size_t i = 0; i < n; ++i)
+        if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
+    for (size_t i = 0; i < n; ++i)
+        if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
+    for (size_t i = 0; i < n; ++i) {
+        if (x[i] < lo[i]) x[i] = lo[i];
+        if (x[i] > hi[i]) x[i] = hi[i];
+    }
+    return nb::make_tuple(0, static_cast<i64>(-1));
 }
 
 }  // namespace qpik::bind

@@ -190,18 +190,7 @@ struct StartBox {
     nb::tuple check(Out1 q) const {
         size_t n = q.shape(0);
         require(lower.size() == n, "q must be (n,) like lower and upper");
-        double* x = q.data();
-        const double* lo = lower.data();
-        const double* hi = upper.data();
-        for (size_t i = 0; i < n; ++i)
-            if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
-        for (size_t i = 0; i < n; ++i)
-            if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
-        for (size_t i = 0; i < n; ++i) {  // np.clip(q, lower, upper): minimum(maximum(q, lo), hi)
-            if (x[i] < lo[i]) x[i] = lo[i];
-            if (x[i] > hi[i]) x[i] = hi[i];
-        }
-        return nb::make_tuple(0, static_cast<i64>(-1));
+        return start_defect(q.data(), lower.data(), upper.data(), n, tol);
     }
 };
 

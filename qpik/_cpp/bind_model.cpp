@@ -82,18 +82,7 @@ void bind_model(nb::module_& m) {
         [](Out1 q, In1 lower, In1 upper, double tol) {
             size_t n = q.shape(0);
             require(lower.shape(0) == n && upper.shape(0) == n, "lower and upper must be (n,) like q");
-            double* x = q.data();
-            const double* lo = lower.data();
-            const double* hi = upper.data();
-            for (size_t i = 0; i < n; ++i)
-                if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
-            for (size_t i = 0; i < n; ++i)
-                if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
-            for (size_t i = 0; i < n; ++i) {  // np.clip(q, lower, upper): minimum(maximum(q, lo), hi)
-                if (x[i] < lo[i]) x[i] = lo[i];
-                if (x[i] > hi[i]) x[i] = hi[i];
-            }
-            return nb::make_tuple(0, static_cast<i64>(-1));
+            return start_defect(q.data(), lower.data(), upper.data(), n, tol);
         },
         "q"_a.noconvert(), "lower"_a, "upper"_a, "tol"_a,
         "Check a start q against the joint limits: (1, i) for the first entry not finite, (2, i) "
