@@ -317,38 +317,11 @@ inline void jacobi_rows(double* a, double* b, double cs, double sn, i64 n) {
 }
 
 // jacobi_rows, then sa = |a'|^2 and sb = |b'|^2 as row_sq2 sums them (over t in order from
-// 0.0, one row per lane: the same bits), in the same pass over the rows.
-inline void jacobi_rows_sq(double* a, double* b, double cs, double sn, i64 n, double& sa, double& sb) {
-    using namespace simd;
-    v2d c2 = splat(cs), s2 = splat(sn);
-    v2d acc = splat(0.0);
-    i64 t = 0;
-    for (; t + 2 <= n; t += 2) {
-        v2d x = load(a + t), y = load(b + t);
-        v2d xn = c2 * x - s2 * y;
-        v2d yn = s2 * x + c2 * y;
-        store(a + t, xn);
-        store(b + t, yn);
-        v2d v0 = v2d{xn[0], yn[0]};
-        v2d v1 = v2d{xn[1], yn[1]};
-        acc += v0 * v0;
-        acc += v1 * v1;
-    }
-    for (; t < n; ++t) {
-        double x = a[t], y = b[t];
-        a[t] = cs * x - sn * y;
-        b[t] = sn * x + cs * y;
-        v2d v = v2d{a[t], b[t]};
-        acc += v * v;
-    }
-    sa = acc[0];
-    sb = acc[1];
-}
-
-// jacobi_rows_sq, and sc = a' . c summed over t in order from 0.0 (the sum dot(a', c) and
-// dot2's lane make: the same bits), in the same pass.
-inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs, double sn, i64 n, double& sa,
-                               double& sb, double& sc) {
+// 0.0, one row per lane: the same bits), in the same pass over the rows; with Dot, also
+// sc = a' . c summed over t in order from 0.0 (the sum dot(a', c) and dot2's lane make).
+template <bool Dot>
+inline void jacobi_rows_sums(double* a, double* b, const double* c, double cs, double sn, i64 n, double& sa,
+                             double& sb, double& sc) {
     using namespace simd;
     v2d c2 = splat(cs), s2 = splat(sn);
     v2d acc = splat(0.0);
@@ -364,8 +337,10 @@ inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs,
         v2d v1 = v2d{xn[1], yn[1]};
         acc += v0 * v0;
         acc += v1 * v1;
-        g += xn[0] * c[t];
-        g += xn[1] * c[t + 1];
+        if constexpr (Dot) {
+            g += xn[0] * c[t];
+            g += xn[1] * c[t + 1];
+        }
     }
     for (; t < n; ++t) {
         double x = a[t], y = b[t];
@@ -373,11 +348,21 @@ inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs,
         b[t] = sn * x + cs * y;
         v2d v = v2d{a[t], b[t]};
         acc += v * v;
-        g += a[t] * c[t];
+        if constexpr (Dot) g += a[t] * c[t];
     }
     sa = acc[0];
     sb = acc[1];
     sc = g;
+}
+
+inline void jacobi_rows_sq(double* a, double* b, double cs, double sn, i64 n, double& sa, double& sb) {
+    double unused = 0.0;
+    jacobi_rows_sums<false>(a, b, nullptr, cs, sn, n, sa, sb, unused);
+}
+
+inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs, double sn, i64 n, double& sa,
+                               double& sb, double& sc) {
+    jacobi_rows_sums<true>(a, b, c, cs, sn, n, sa, sb, sc);
 }
 
 // The Givens rotation of two rows as rotate_in / drop_constraint write it:
