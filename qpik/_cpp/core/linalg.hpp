@@ -498,6 +498,16 @@ inline Vec backward_vec(CMatRef L, const Vec& b) {
     return x;
 }
 
+// Whether no entry of A is zero (a product may then sum in register blocks: nothing to skip).
+inline bool no_zero_entry(CMatRef A) {
+    for (i64 r = 0; r < A.rows; ++r) {
+        const double* ar = A.row(r);
+        for (i64 t = 0; t < A.cols; ++t)
+            if (ar[t] == 0.0) return false;
+    }
+    return true;
+}
+
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
 // (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
 // entry of C the same sum over t in order. Where no entry of A is zero, a block of C (four
@@ -505,15 +515,7 @@ inline Vec backward_vec(CMatRef L, const Vec& b) {
 // same order from +0.)
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     i64 m = A.rows, k = A.cols, n = B.cols;
-    bool dense = m >= 4 && n >= 2;
-    for (i64 r = 0; r < m && dense; ++r) {
-        const double* ar = A.row(r);
-        for (i64 t = 0; t < k; ++t)
-            if (ar[t] == 0.0) {
-                dense = false;
-                break;
-            }
-    }
+    bool dense = m >= 4 && n >= 2 && no_zero_entry(A);
     if (dense) {
         using namespace simd;
         shape(C, m, n);  // every entry written below
@@ -589,15 +591,7 @@ inline Mat mm(CMatRef A, CMatRef B) {
 inline void mtm_into(CMatRef A, Mat& C) {
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
-    bool dense = n >= 4;
-    for (i64 t = 0; t < m && dense; ++t) {
-        const double* at = A.row(t);
-        for (i64 i = 0; i < n; ++i)
-            if (at[i] == 0.0) {
-                dense = false;
-                break;
-            }
-    }
+    bool dense = n >= 4 && no_zero_entry(A);
     if (dense) {
         using namespace simd;
         i64 i = 0;
