@@ -66,7 +66,7 @@ static void check_igm_args(const T1& target_p, const T2& target_R, const B& boun
 
 // igm_solve with its scratch allocated here (2 (max_iters + 1) iterates of nq and of 3, left
 // uninitialised like np.empty: every entry read is written first), for igm_run and
-// _igm_session_run; the returned attempt is rec's slot info[3], info[4] rows long.
+// _igm_plan_run; the returned attempt is rec's slot info[3], info[4] rows long.
 struct IgmScratch {
     std::unique_ptr<double[]> path, hist;
     igm::Record rec{};
@@ -105,7 +105,7 @@ static void gather_start(const double* q_full, i64 nfull, const i64* index, i64 
     }
 }
 
-// The tuple of _igm_session_run from a finished run: the returned attempt's path as whole
+// The tuple of _igm_plan_run from a finished run: the returned attempt's path as whole
 // configurations (the coordinates off index as in q_full), its errors and history.
 static nb::tuple session_tuple(const IgmScratch& run, const double* q_full, i64 nfull, const i64* index, i64 nq) {
     const igm::Record& rec = run.rec;
@@ -132,7 +132,7 @@ static nb::tuple session_tuple(const IgmScratch& run, const double* q_full, i64 
                           position_error, orientation_error);
 }
 
-// What _igm_session_run takes besides the target, the start, the RNG state and the
+// What _igm_plan_run takes besides the target, the start, the RNG state and the
 // deadline, checked and copied once (qpik._engine.igm._IgmPlan): an IKSession keeps one per
 // (frame, limits, options), so that a solve converts six arguments instead of twelve.
 struct IgmPlan {
@@ -321,42 +321,12 @@ void bind_igm(nb::module_& m) {
         "path (k, nq), hist (k, 3)) of the returned attempt (its iterates, start first; per iterate "
         "position error [m], orientation error [rad] and the residual of the step that left it).");
 
-    m.def(
-        "_igm_session_run",
-        [](nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot, In1 q_full, nb::handle index,
-           In2 bounds, In1 reach, In1 options, In<i64, 1> int_options, std::uint64_t rng_state, double deadline) {
-            // igm_run for IKSession: the chain's coordinates are q_full[index] (index None: all
-            // of q_full), and the returned path holds whole configurations (the others as in
-            // q_full), so that the session builds its result with no NumPy call of its own.
-            i64 nfull = static_cast<i64>(q_full.shape(0));
-            I64In1 idx;
-            bool packed = !index.is_none();
-            if (packed && !nb::try_cast(index, idx, false))
-                throw BadArgument("index must be None or an int64 array of chain coordinates");
-            i64 nq = packed ? static_cast<i64>(idx.shape(0)) : nfull;
-            check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
-            static const i64 none = 0;  // packed with no joint (see _igm_plan_run)
-            const i64* index_p = !packed ? nullptr : nq == 0 ? &none : idx.data();
-            Vec q0(static_cast<size_t>(nq));
-            gather_start(q_full.data(), nfull, index_p, nq, q0.data());
-            IgmScratch run;
-            igm_with_scratch(run, chain, target_p, target_R, has_rot, q0.data(), nq, bounds, reach, options,
-                             int_options, rng_state, deadline);  // a copy of the state: advanced here only
-            return session_tuple(run, q_full.data(), nfull, index_p, nq);
-        },
-        "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q_full"_a, "index"_a.none(), "bounds"_a, "reach"_a,
-        "options"_a, "int_options"_a, "rng_state"_a, "deadline"_a,
-        "igm_run on the coordinates index of q_full (None: all of them), from the SplitMix64 state "
-        "rng_state (an int in [0, 2**64); not written back): returns (reason code, "
-        "iterations, restarts used, q (the answer, a whole configuration), path (k, len(q_full)), "
-        "hist (k, 3), position error [m], orientation error [rad]).");
-
     nb::class_<IgmPlan>(m, "_IgmPlan",
-                        "The fixed arguments of _igm_session_run (chain, index, bounds, reach, options, "
-                        "int_options), checked and copied once, for _igm_plan_run.")
+                        "The fixed arguments of _igm_plan_run (chain, index, bounds, reach, options, "
+                        "int_options), checked and copied once.")
         .def(nb::init<nb::handle, nb::handle, i64, In2, In1, In1, In<i64, 1>>(), "chain"_a, "index"_a.none(),
              "nfull"_a, "bounds"_a, "reach"_a, "options"_a, "int_options"_a,
-             "Check and copy the arguments of _igm_session_run that do not change between solves "
+             "Check and copy the arguments of _igm_plan_run that do not change between solves "
              "(chain: a qpik._engine.model.Chain over the coordinates index of configurations of "
              "nfull coordinates; index None: all of them).")
         .def_ro("nfull", &IgmPlan::nfull, "Coordinates of the whole configuration.");
@@ -390,8 +360,11 @@ void bind_igm(nb::module_& m) {
             return session_tuple(run, q_full.data(), plan.nfull, index_p, plan.nq);
         },
         "plan"_a, "target_p"_a, "target_R"_a.none(), "q_full"_a, "rng_state"_a, "deadline"_a,
-        "_igm_session_run with its fixed arguments in plan (an _IgmPlan); target_R None: a "
-        "position-only target. Returns what _igm_session_run does.");
+        "igm_run on the coordinates plan.index of q_full (None: all of them) with the fixed "
+        "arguments in plan (an _IgmPlan), from the SplitMix64 state rng_state (an int in "
+        "[0, 2**64); not written back); target_R None: a position-only target. Returns "
+        "(reason code, iterations, restarts used, q (the answer, a whole configuration), path "
+        "(k, len(q_full)), hist (k, 3), position error [m], orientation error [rad]).");
 
     m.def(
         "_target_ok",

@@ -127,23 +127,19 @@ igm_solve = _igm.igm_solve
 #: with its scratch allocated inside; ``path`` (k, nq) and ``hist`` (k, 3) are the returned
 #: attempt's rows (new arrays), the other results those of ``info``.
 igm_run = _igm.igm_run
-#: ``igm_session_run(chain, target_p, target_R, has_rot, q_full, index, bounds, reach,
-#: options, int_options, rng_state, deadline) -> (code, iterations, restarts_used, q, path,
-#: hist, position_error, orientation_error)``: :func:`igm_run` on the coordinates ``index``
-#: (int64; ``None``: all) of the whole configuration ``q_full``, the chain being over those
-#: coordinates alone; ``q`` (the answer) and the rows of ``path`` are whole configurations
-#: (the other coordinates as in ``q_full``), the errors those of ``q`` (:class:`qpik.IKSession`'s
-#: call: its result needs no NumPy call of its own). ``rng_state`` is here a plain int in
-#: ``[0, 2**64)`` (the stream's state, not written back).
-igm_session_run = _igm._igm_session_run
 #: ``igm_plan(chain, index, nfull, bounds, reach, options, int_options)``: the arguments of
-#: :func:`igm_session_run` that do not change between solves (``chain`` a compiled
+#: :func:`igm_plan_run` that do not change between solves (``chain`` a compiled
 #: :class:`qpik.model.KinematicChain` chain over the coordinates ``index`` of
 #: configurations of ``nfull`` coordinates), checked and copied once.
 igm_plan = _igm._IgmPlan
-#: ``igm_plan_run(plan, target_p, target_R, q_full, rng_state, deadline)``:
-#: :func:`igm_session_run` with the fixed arguments of ``plan`` (:func:`igm_plan`);
-#: ``target_R`` None: a position-only target. Same results, same bits.
+#: ``igm_plan_run(plan, target_p, target_R, q_full, rng_state, deadline) -> (code,
+#: iterations, restarts_used, q, path, hist, position_error, orientation_error)``:
+#: :func:`igm_run` with the fixed arguments of ``plan`` (:func:`igm_plan`) on its coordinates
+#: ``index`` (``None``: all) of the whole configuration ``q_full``; ``target_R`` None: a
+#: position-only target. ``q`` (the answer) and the rows of ``path`` are whole configurations
+#: (the other coordinates as in ``q_full``), the errors those of ``q`` (:class:`qpik.IKSession`'s
+#: call: its result needs no NumPy call of its own). ``rng_state`` is a plain int in
+#: ``[0, 2**64)`` (the stream's state, not written back).
 igm_plan_run = _igm._igm_plan_run
 #: ``target_ok(position, rotation, orthonormal_tolerance, max_distance) -> bool``: whether
 #: a target pair is float64 C-contiguous arrays (3,) and (3, 3), finite, whose rotation is
