@@ -20,7 +20,7 @@ quadprog (two independent exact QP solvers) to the same reduced QP (the core's n
 basis, damping and level-above answer), on a sample of states; also the per-level
 statuses over every state.
 
-* **Issue 20, the peers** (``--peers on|off|only``; each skipped with a line when PlaCo,
+* **Issue 20, the peers** (``--peers on|off|only|talos``; each skipped with a line when PlaCo,
   pink, pinocchio or daqp is missing: ``pip install 'qpik[compare]'``):
 
   - *Panda beside PlaCo and pink*: example-robot-data's Panda (the same URDF loaded by
@@ -39,6 +39,7 @@ statuses over every state.
 
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
     python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
+    python benchmarks/step_time.py --peers talos [--talos-steps 300]   # the Talos peers alone
 """
 
 from __future__ import annotations
@@ -697,7 +698,18 @@ def talos_peers(n_steps: int = 300) -> None:
     levels; PlaCo with its two (feet hard; CoM, hands and posture soft, weights 100, 1,
     0.01); mink + daqp's one weighted level (costs 10, 10, 1, 0.1: the same weights). Task
     errors are measured by MuJoCo's kinematics at each method's configuration after each
-    step."""
+    step.
+
+    The feet are held exactly in each step's rows (qpik's level 0, PlaCo's hard task), so
+    what remains after the step is its second-order remainder, the curvature of the legs'
+    and the free joint's motion: about ``c |dq_legs|^2`` (``dq_legs``: the step's free-joint
+    and leg entries, by mj_differentiatePos from the configuration before to the one
+    after), ``c`` of the same size for qpik and PlaCo (it depends on the step's direction,
+    not on the solver). The report gives each method's rms of ``|dq_legs|`` and the median
+    of ``feet error / |dq_legs|^2``: where that median is alike, a larger feet error comes
+    from larger steps, not from a less exact one. mink's feet are weighted, not held, and
+    keep a first-order error besides (a larger median)."""
+    import mujoco
     import placo
 
     from qpik.robots import locate_robot
@@ -784,6 +796,18 @@ def talos_peers(n_steps: int = 300) -> None:
     errors = {name: [] for name in label.values()}
     failed = dict.fromkeys(label.values(), 0)
     measure = qpik.Configuration(model, home)
+    # The dofs whose motion moves the feet: the free joint's and every joint above a sole.
+    legs = set()
+    for f in feet:
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f)
+        while body > 0:
+            start = model.body_dofadr[body]
+            legs.update(range(start, start + model.body_dofnum[body]))
+            body = model.body_parentid[body]
+    legs = np.array(sorted(legs))
+    previous = dict.fromkeys(label, home)
+    steps = {name: [] for name in label.values()}
+    dq = np.zeros(model.nv)
 
     def step(name, k):
         if name == "placo":
@@ -817,6 +841,9 @@ def talos_peers(n_steps: int = 300) -> None:
             name = order[(k + i) % len(order)]
             elapsed, q = step(name, k)
             times[label[name]].append(elapsed)
+            mujoco.mj_differentiatePos(model, dq, 1.0, previous[name], q)
+            previous[name] = q.copy()
+            steps[label[name]].append(np.linalg.norm(dq[legs]))
             measure.update(q)
             foot_err = max(
                 max(1e3 * np.linalg.norm(measure.frame_pose(f, "body")[0] - p),
@@ -833,10 +860,14 @@ def talos_peers(n_steps: int = 300) -> None:
     h = n_steps // 2
     for name, rows in errors.items():
         a = np.array(rows)
+        s = np.array(steps[name])
+        moved = s > 1e-6
         extra[name] = (
             f"feet {a[:, 0].mean():.3f} (max {a[:, 0].max():.3f}), CoM {a[:, 1].mean():.2f} "
             f"(max {a[:, 1].max():.2f}), right hand {a[:, 3].mean():.2f}, left hand in reach "
-            f"{a[:h, 2].mean():.2f} / out of reach {a[h:, 2].mean():.1f}"
+            f"{a[:h, 2].mean():.2f} / out of reach {a[h:, 2].mean():.1f}; |dq_legs| rms "
+            f"{np.sqrt(np.mean(s**2)):.3f}, feet / |dq_legs|^2 median "
+            f"{np.median(a[moved, 0] / s[moved] ** 2):.0f}"
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
         )
     _report_peers(
@@ -844,7 +875,8 @@ def talos_peers(n_steps: int = 300) -> None:
         f"position + velocity limits, {n_steps} steps at 100 Hz, each method in its own closed "
         "loop (per-step wall time; ratio: median / the reference's; task errors after each "
         "step, mean [mm, feet: max of mm and mrad], by MuJoCo's kinematics; the left hand's "
-        "target is 0.6 m out of reach in the second half)",
+        "target is 0.6 m out of reach in the second half; |dq_legs|: the step's free-joint "
+        "and leg entries [m, rad]: the feet error after a step is its second-order term)",
         {name: 1e6 * np.array(t) for name, t in times.items()},
         {label["placo"]: "PlaCo", label["mink"]: "mink"},
         extra,
@@ -860,10 +892,10 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--peers",
-        choices=["on", "off", "only"],
+        choices=["on", "off", "only", "talos"],
         default="on",
         help="issue 20's sections beside PlaCo and pink (erd:panda, Talos floating): on "
-        "(after qpik's own), off, or only them",
+        "(after qpik's own), off, only them, or talos (only the floating-Talos one)",
     )
     parser.add_argument("--peer-states", type=int, default=400, help="erd:panda states a regime")
     parser.add_argument("--talos-steps", type=int, default=300, help="closed-loop Talos steps")
@@ -877,7 +909,7 @@ def main(argv=None) -> None:
     qpik.IKSolver(model, posture).step(configuration, DT)  # loads (or compiles) the kernels
     first = time.perf_counter() - t0
     print(f"first step of the process (the C++ engine is built ahead of time): {first:.3f} s")
-    if args.peers != "only":
+    if args.peers not in ("only", "talos"):
         panda(args.states, rng)
         if not args.no_talos:
             talos(args.talos_states)
@@ -888,8 +920,9 @@ def main(argv=None) -> None:
     if missing:
         print(f"\npeers skipped: {', '.join(missing)} not installed (pip install 'qpik[compare]')")
         return
-    panda_peers(args.peer_states, rng)
-    if not args.no_talos:
+    if args.peers != "talos":
+        panda_peers(args.peer_states, rng)
+    if not args.no_talos or args.peers == "talos":
         talos_peers(args.talos_steps)
 
 
