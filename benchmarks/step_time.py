@@ -695,10 +695,12 @@ def talos_peers(n_steps: int = 300) -> None:
     feet / both hands (position; from the middle on the left hand's target is 0.6 m away, out
     of reach) / posture, position and velocity limits, each method in its own closed loop at
     100 Hz from half_sitting, stepped in lockstep (the order rotating): qpik's four strict
-    levels; PlaCo with its two (feet hard; CoM, hands and posture soft, weights 100, 1,
-    0.01); mink + daqp's one weighted level (costs 10, 10, 1, 0.1: the same weights). Task
-    errors are measured by MuJoCo's kinematics at each method's configuration after each
-    step.
+    levels, without and with one second-order correction pass
+    (:attr:`qpik.StepOptions.correction_passes`: the held levels' remainder at ``q (+) dq``
+    shifted out of their targets and the step solved again); PlaCo with its two (feet hard;
+    CoM, hands and posture soft, weights 100, 1, 0.01); mink + daqp's one weighted level
+    (costs 10, 10, 1, 0.1: the same weights). Task errors are measured by MuJoCo's
+    kinematics at each method's configuration after each step.
 
     The feet are held exactly in each step's rows (qpik's level 0, PlaCo's hard task), so
     what remains after the step is its second-order remainder, the curvature of the legs'
@@ -708,7 +710,8 @@ def talos_peers(n_steps: int = 300) -> None:
     not on the solver). The report gives each method's rms of ``|dq_legs|`` and the median
     of ``feet error / |dq_legs|^2``: where that median is alike, a larger feet error comes
     from larger steps, not from a less exact one. mink's feet are weighted, not held, and
-    keep a first-order error besides (a larger median)."""
+    keep a first-order error besides (a larger median). The corrected qpik row removes the
+    second-order term itself: what it leaves is of third order (a smaller median)."""
     import mujoco
     import placo
 
@@ -755,6 +758,11 @@ def talos_peers(n_steps: int = 300) -> None:
 
     ours, theirs = stack("qpik"), stack("mink")
     auto = qpik.IKSolver(model, ours, limits)
+    # The same four levels with one second-order correction pass (StepOptions
+    # correction_passes): the held levels' targets shifted by their remainder at q (+) dq.
+    ours_corrected = stack("qpik")
+    corrected = qpik.IKSolver(model, ours_corrected, limits, correction_passes=1)
+    solvers = {"qpik": (auto, ours), "qpik1": (corrected, ours_corrected)}
     flat = [t for level in theirs for t in level]
 
     robot = _placo_robot(urdf)
@@ -786,9 +794,10 @@ def talos_peers(n_steps: int = 300) -> None:
     ]
     assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
 
-    configs = {"qpik": qpik.Configuration(model, home), "mink": qpik.Configuration(model, home)}
+    configs = {name: qpik.Configuration(model, home) for name in ("qpik", "qpik1", "mink")}
     label = {
         "qpik": "qpik IKSolver.step, 4 strict levels",
+        "qpik1": "qpik 4 levels + 1 correction",
         "placo": "PlaCo solve(True), feet hard + 3 soft",
         "mink": "mink + daqp, 1 weighted level",
     }
@@ -824,10 +833,10 @@ def talos_peers(n_steps: int = 300) -> None:
             robot.update_kinematics()
             return elapsed, mapping.to_mujoco(robot.state.q, model.nq)
         c = configs[name]
-        set_targets(ours if name == "qpik" else theirs, k)
+        set_targets(solvers[name][1] if name in solvers else theirs, k)
         t0 = time.perf_counter()
-        if name == "qpik":
-            v = auto.step(c, DT).velocity
+        if name in solvers:
+            v = solvers[name][0].step(c, DT).velocity
         else:
             v = mink.solve_ik(c, flat, DT, "daqp", damping=1e-6, limits=limits)
         elapsed = time.perf_counter() - t0

@@ -6,6 +6,8 @@
   bind;
 - :mod:`.compiled`: the compiled step, one C++ call per step for the stacks it covers;
 - :mod:`.result`: :class:`StepResult`, and what either path of a step hands back;
+- :mod:`.correction`: second-order correction passes of a step (opt-in,
+  :attr:`qpik.StepOptions.correction_passes`);
 - :mod:`.mink_compat`: mink's entry points (:func:`solve_ik`, :func:`build_ik`) with qpik
   underneath.
 """

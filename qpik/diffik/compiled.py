@@ -48,6 +48,7 @@ from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
+from .correction import LeanCorrection
 from .layout import (
     frame_chains,
 )
@@ -130,6 +131,8 @@ class CompiledPlan:
         self._out: tuple = ()
         self._row = _OUTPUT_ROWS
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
+        #: the correction passes of :meth:`_correct` (built on the first)
+        self._corrector: LeanCorrection | None = None
         # the tasks and limits _values reads, in its order (the lists never change)
         self._frame_tasks = [f[0] for f in self.frames]
         self._linear_tasks = [t[0] for t in self.linears]
@@ -392,6 +395,20 @@ class CompiledPlan:
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
 
+    def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
+        """``passes`` second-order corrections of the lean step in row ``row`` of the
+        outputs (:class:`qpik.diffik.correction.LeanCorrection`, on the plan's own
+        configuration at ``q (+) dq``). False where the QP path must answer."""
+        corrector = self._corrector
+        if corrector is None:
+            aux = Configuration(self.model)
+            self.kernel.attach_aux(aux.data, *self._poses(aux.data))
+            corrector = self._corrector = LeanCorrection(
+                self.kernel, aux, self.rows_tasks, bool(self.coms), self.arrays["b"].shape[0],
+                self.max_iter or 10 * self.nv + 50,
+            )  # fmt: skip
+        return corrector.run(configuration, self._out[1][row], row, dt, passes)
+
     def _new_outputs(self) -> None:
         """Fresh rows for the next :data:`_OUTPUT_ROWS` lean steps' answers (a step's
         answers are views of its own row, never written again; the arrays live on while
@@ -543,14 +560,21 @@ class CompiledPlan:
         core: HierarchySolver,
         start: float,
         skip: int,
+        passes: int = 0,
     ) -> StepResult | None:
         """:meth:`step` with the default solver as the :class:`StepResult` that
         :meth:`qpik.IKSolver.step` returns (the same numbers, without the
         :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
-        ``skip`` 1 when the first level is the couplings' (reported apart). None where the QP
+        ``skip`` 1 when the first level is the couplings' (reported apart), ``passes`` the
+        second-order correction passes (:attr:`qpik.StepOptions.correction_passes`; the
+        lean step only: with general-row limits the QP path corrects). None where the QP
         path must answer."""
+        if passes and self.general_limits:
+            return None
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
             row = self._lean(configuration, dt, damping, core)
+            if row >= 0 and passes and not self._correct(configuration, row, dt, passes):
+                return None
             if row >= 0:
                 d, v, info, active, qpos = self._out
                 core.warm_start_from(active[row])

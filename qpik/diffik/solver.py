@@ -39,6 +39,7 @@ from ..errors import InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
+from .correction import qp_corrected
 from .plan import make_plan
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
@@ -63,10 +64,11 @@ __all__ = [
 
 class StepKeywords(StepFieldKeywords, total=False):
     """The keywords of :class:`IKSolver` that override single fields of its
-    :class:`qpik.StepOptions` (the fields of the same names, :data:`qpik.options.STEP_FIELDS`
-    and ``max_joint_speed``), and ``osqp_settings``."""
+    :class:`qpik.StepOptions` (the fields of the same names, :data:`qpik.options.STEP_FIELDS`,
+    ``max_joint_speed`` and ``correction_passes``), and ``osqp_settings``."""
 
     max_joint_speed: float | None
+    correction_passes: int
     osqp_settings: Any
 
 
@@ -100,7 +102,8 @@ class IKSolver:
             and adaptive damping, rank tolerance, warm starts; its docstring holds the
             defaults). The keywords below override single fields of it.
         keywords: ``solver``, ``damping``, ``damping_law``, ``rank_tolerance``,
-            ``warm_start``, ``backend_options``, ``max_joint_speed``, ``couplings``: the
+            ``warm_start``, ``backend_options``, ``max_joint_speed``, ``couplings``,
+            ``correction_passes`` (second-order corrections of each step): the
             :class:`qpik.StepOptions` fields of the same names (an unknown name raises
             :class:`qpik.InvalidOption`). ``couplings`` (default ``True``): the model's
             joint and fixed-tendon equalities (URDF ``<mimic>`` among them) hold as a level
@@ -149,6 +152,8 @@ class IKSolver:
             backend_options=None if backend_options is None else dict(backend_options),
         )
         self._exact: HierarchySolver | None = None
+        self._aux: Configuration | None = None  # kinematics at q (+) dq (correction passes)
+        self._passes = self.options.correction_passes
         self._nv = model.nv
         #: With a forced backend, answer by the exact compiled solve when it solves every
         #: level: the forced-backend path returns that same answer to round-off (the exact
@@ -221,7 +226,11 @@ class IKSolver:
         """Solve the stack at ``configuration`` for a step of ``dt`` [s]. With the
         model's couplings (:attr:`qpik.StepOptions.couplings`) their level is solved
         first; the result's per-level lists are the stack's levels, and
-        ``coupling_residual`` the coupling level's."""
+        ``coupling_residual`` the coupling level's. With
+        :attr:`qpik.StepOptions.correction_passes`, the held levels' second-order remainder
+        at ``configuration.integrate(velocity, dt)`` is shifted out of their targets and the
+        step solved again, that many times (:meth:`_corrected`; the compiled step does it in
+        its kernel)."""
         start = _perf_counter()
         plan, core = self._plan, self._core
         if (  # the default solver: one kernel call, straight to the result
@@ -233,7 +242,7 @@ class IKSolver:
             and _DT_MIN <= dt <= _DT_MAX
         ):
             result = plan.step_result(
-                configuration, dt, self.damping, core, start, self._coupling_level
+                configuration, dt, self.damping, core, start, self._coupling_level, self._passes
             )
             if result is not None:
                 return result
@@ -241,7 +250,10 @@ class IKSolver:
             "configuration", configuration, mink.Configuration, "a qpik.Configuration"
         )
         solution = None
-        if core.solver != "auto" and self._compiled_step_applies(configuration, dt):
+        passes = self._passes
+        if passes:  # the corrected step: the QP path's (see _corrected)
+            solution = self._corrected(configuration, dt, passes)
+        elif core.solver != "auto" and self._compiled_step_applies(configuration, dt):
             solution = self._compiled_step(configuration, dt)
         if solution is None:
             solution = self._qp_step(configuration, dt)
@@ -250,8 +262,9 @@ class IKSolver:
     def compiled_solution(self, configuration: mink.Configuration, dt: float) -> Solution | None:
         """The step by the compiled plan as a :class:`Solution` (every level, the
         couplings' first), None where the plan does not apply or the QP path must answer.
-        ``configuration`` (qpik's or mink's) is read in place."""
-        if not self._compiled_step_applies(configuration, dt):
+        ``configuration`` (qpik's or mink's) is read in place. With
+        :attr:`qpik.StepOptions.correction_passes`: None (:meth:`qp_solution` corrects)."""
+        if self._passes or not self._compiled_step_applies(configuration, dt):
             return None
         return self._compiled_step(configuration, dt)
 
@@ -260,8 +273,9 @@ class IKSolver:
     ) -> tuple[np.ndarray, list[LevelStatus]] | None:
         """The step's velocity ``dq / dt`` and every level's status (the couplings' first)
         by the compiled plan in one call, bitwise :meth:`step`'s; None where :meth:`step`
-        would take another way (the caller then asks :meth:`compiled_solution`)."""
-        if self._plan is None or not self._compiled_step_applies(configuration, dt):
+        would take another way (the caller then asks :meth:`compiled_solution`), and with
+        :attr:`qpik.StepOptions.correction_passes`."""
+        if self._plan is None or self._passes or not self._compiled_step_applies(configuration, dt):
             return None
         core = self._core
         exact = self.exact_shortcut and core.solver != "auto" and not core.warm_start
@@ -269,7 +283,10 @@ class IKSolver:
 
     def qp_solution(self, configuration: Configuration, dt: float) -> Solution:
         """The step by the QP path as a :class:`Solution` (every level, the couplings'
-        first)."""
+        first), corrected as :meth:`step` corrects
+        (:attr:`qpik.StepOptions.correction_passes`)."""
+        if self._passes:
+            return self._corrected(configuration, dt, self._passes)
         return self._qp_step(configuration, dt)
 
     def _compiled_step_applies(self, configuration: mink.Configuration, dt: float) -> bool:
@@ -296,6 +313,19 @@ class IKSolver:
         cascade."""
         tasks, limits = self._rows(configuration, dt)
         return solve_rows(self._core, tasks, limits, dt)
+
+    def _corrected(self, configuration: Configuration, dt: float, passes: int) -> Solution:
+        """The step with ``passes`` second-order corrections on the QP path
+        (:attr:`qpik.StepOptions.correction_passes`; :func:`qpik.diffik.correction.qp_corrected`;
+        the compiled lean step does the same in its kernel): the step at ``configuration``;
+        then, on the levels it holds (:func:`qpik.diffik.correction.held_levels`), each pass
+        reads the tasks' errors at ``q (+) dq`` (one forward kinematics, no Jacobian), shifts
+        those levels' targets by the remainder ``cost (e(q (+) dq) - e(q)) - A dq`` and solves
+        again with the same rows, damping and limits."""
+        if self._aux is None:
+            self._aux = Configuration(self.model)
+        rows = self._rows(configuration, dt)
+        return qp_corrected(self._core, self._levels, configuration, dt, passes, rows, self._aux)
 
     def _exact_core(self) -> HierarchySolver:
         """An exact-solver core with this solver's settings (for :attr:`exact_shortcut`)."""

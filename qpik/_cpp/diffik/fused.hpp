@@ -444,11 +444,21 @@ struct StepResult {
 // previous active sets); see qpik/_fused.py:fused_step.
 // ws: the cascade's storage, kept by the caller between steps (core::Workspace).
 // s: fused_rows_into's storage, kept by the caller between steps (Scratch).
+inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                  bool canonical, core::Workspace& ws, Scratch& s);
+
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                              bool canonical, core::Workspace& ws, Scratch& s) {
+    fused_rows_into(a, s);
+    return solve_rows_step(a, max_iter, warm, canonical, ws, s);
+}
+
+// The cascade on the rows, regularisation and box that fused_rows_into left in s.rows (A,
+// b, w of `a`): fused_step after its rows.
+inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                  bool canonical, core::Workspace& ws, Scratch& s) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
-    fused_rows_into(a, s);
     const RowsResult& rows = s.rows;
     StepResult out;
     out.code = rows.code;
@@ -510,6 +520,143 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
                              bool canonical, core::Workspace& ws) {
     Scratch s;
     return fused_step(a, max_iter, warm, canonical, ws, s);
+}
+
+// ---------------------------------------------------------------------------------------
+// Second-order correction (qpik.StepOptions.correction_passes): after a step dq at q, the
+// held levels' targets are shifted by their tasks' remainder r = e(q (+) dq) - e(q) - J dq
+// (b <- b - cost r, A = diag(cost) J unchanged) and the step is solved again on the same
+// rows, regularisation and box.
+
+// Whether level k of a step is held (met): status solved and |A_k d - b_k| <= 1e-2 |b_k| +
+// 1e-9 |A_k|_F |d| (residual: the cascade's; b: the uncorrected targets).
+constexpr double kHeldFraction = 1e-2;
+constexpr double kHeldRoundoff = 1e-9;
+
+inline void held_levels(const FusedArgs& a, CVecRef b, const double* d, const double* info,
+                        std::vector<char>& held) {
+    const i64 n = a.A.cols;
+    const i64 L = a.starts.n - 1;
+    double dd = 0.0;
+    for (i64 j = 0; j < n; ++j) dd += d[j] * d[j];
+    held.assign(static_cast<size_t>(L), 0);
+    for (i64 k = 0; k < L; ++k) {
+        if (info[3 * L + k] != static_cast<double>(core::SOLVED)) continue;
+        double bb = 0.0, aa = 0.0;
+        for (i64 r = a.starts[k]; r < a.starts[k + 1]; ++r) {
+            bb += b[r] * b[r];
+            for (i64 j = 0; j < n; ++j) aa += a.A(r, j) * a.A(r, j);
+        }
+        const double bound = kHeldFraction * std::sqrt(bb) + kHeldRoundoff * std::sqrt(aa) * std::sqrt(dd);
+        held[static_cast<size_t>(k)] = info[k] <= bound ? 1 : 0;
+    }
+}
+
+// cost (.) e, the weighted error of every task the kernel computes on a held level, at the
+// poses and qpos of `a`, into we (M,) (rows of other tasks left as they are). The same
+// errors as the tasks' rows (fused_rows), without their Jacobians; local: scratch.
+inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, double* we, Vec& local) {
+    const i64 n = a.A.cols;
+    if (local.size() < static_cast<size_t>(n)) local.resize(static_cast<size_t>(n));
+    for (i64 t = 0; t < a.tasks.rows; ++t) {
+        const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
+        if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS) continue;
+        if (kind == FRAME) {
+            const double *pos, *mat;
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
+            const double* data = a.frame_data.row(i);
+            double frame[7], error[6];
+            model::xmat_xpos_to_wxyz_xyz(frame, mat, pos);
+            model::se3_rminus(error, data, frame);
+            for (i64 r = 0; r < 6; ++r) we[row + r] = data[7 + r] * error[r];
+        } else if (kind == COM) {
+            const double* data = a.com_data.row(i);
+            const double* com = a.subtree_com.row(a.com_body[i]);
+            for (i64 r = 0; r < 3; ++r) we[row + r] = data[3 + r] * (com[r] - data[r]);
+        } else if (kind == RELATIVE) {
+            const double *pf, *mf, *pr, *mr;
+            frame_pose(a, a.rel_frames(i, 0), a.rel_frames(i, 1), pf, mf);
+            frame_pose(a, a.rel_frames(i, 2), a.rel_frames(i, 3), pr, mr);
+            const double* data = a.rel_data.row(i);
+            double frame[7], root[7], rel[7], error[6];
+            model::xmat_xpos_to_wxyz_xyz(frame, mf, pf);
+            model::xmat_xpos_to_wxyz_xyz(root, mr, pr);
+            model::se3_inverse_multiply(rel, root, frame);
+            model::se3_rminus(error, rel, data);
+            for (i64 r = 0; r < 6; ++r) we[row + r] = data[7 + r] * error[r];
+        } else if (kind == LINEAR) {
+            const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
+            const i64 stride = a.lin_const.stride;
+            const double* c = a.lin_const.row(r0);
+            if (static_cast<i64>(local.size()) < k) local.resize(static_cast<size_t>(k));
+            tasks::linear_residual(CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p, local.data());
+            const double* cost = a.lin_data.row(0) + r0;
+            for (i64 r = 0; r < k; ++r) we[row + r] = cost[r] * local[r];
+        } else {  // POSTURE, DAMPING_TASK
+            const double* data = a.posture_data.row(i);
+            const i64 nq = a.posture_data.cols - n - 2;
+            const double* cost = data + nq;
+            double* e = local.data();
+            if (a.posture_map.rows == 0) {
+                for (i64 r = 0; r < n; ++r) e[r] = kind == DAMPING_TASK ? 0.0 : a.qpos[r] - data[r];
+            } else {
+                for (i64 r = 0; r < n; ++r) {
+                    const i64 dof = a.posture_map(r, 0), adr = a.posture_map(r, 1);
+                    if (kind == DAMPING_TASK || dof == FREE_DOF) {
+                        e[r] = 0.0;
+                    } else if (dof == SCALAR_DOF) {
+                        e[r] = a.qpos[adr] - data[adr];
+                    } else if (dof == BALL_FIRST) {
+                        ball_difference(e + r, a.qpos.p + adr, data + adr);
+                    }
+                }
+            }
+            for (i64 r = 0; r < n; ++r) we[row + r] = cost[r] * e[r];
+        }
+    }
+}
+
+// The held levels' rows of b shifted for a correction pass: b[r] = b0[r] - ((we1[r] -
+// we0[r]) - (A d)[r]) on the kernel's tasks' rows; on the rows of tasks that supply their
+// own (ROWS), shift (M,) when given stands for we1 - we0 where it is finite (the caller
+// leaves NaN on every other row: those keep b0 or the kernel's shift). Returns false when a shifted entry is not finite.
+inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVecRef b0,
+                          const double* we0, const double* we1, const double* shift,
+                          const double* d) {
+    const i64 n = a.A.cols;
+    bool finite = true;
+    for (i64 t = 0; t < a.tasks.rows; ++t) {
+        const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
+        if (!held[static_cast<size_t>(a.tasks(t, 2))]) continue;
+        i64 size;
+        switch (kind) {
+            case FRAME: case RELATIVE: size = 6; break;
+            case COM: size = 3; break;
+            case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
+            case ROWS: size = 0; break;  // below, from the caller's shift
+            default: size = n;
+        }
+        for (i64 r = row; r < row + size; ++r) {
+            double adq = 0.0;
+            for (i64 j = 0; j < n; ++j) adq += a.A(r, j) * d[j];
+            a.b[r] = b0[r] - ((we1[r] - we0[r]) - adq);
+            finite = finite && std::isfinite(a.b[r]);
+        }
+    }
+    if (shift != nullptr) {  // the caller's rows (ROWS tasks): where shift is finite
+        const i64 L = a.starts.n - 1;
+        for (i64 k = 0; k < L; ++k) {
+            if (!held[static_cast<size_t>(k)]) continue;
+            for (i64 r = a.starts[k]; r < a.starts[k + 1]; ++r) {
+                if (!std::isfinite(shift[r])) continue;
+                double adq = 0.0;
+                for (i64 j = 0; j < n; ++j) adq += a.A(r, j) * d[j];
+                a.b[r] = b0[r] - (shift[r] - adq);
+                finite = finite && std::isfinite(a.b[r]);
+            }
+        }
+    }
+    return finite;
 }
 
 }  // namespace qpik::diffik
