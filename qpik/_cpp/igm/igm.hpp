@@ -10,6 +10,9 @@
 
 #include <time.h>
 
+#include <memory>
+#include <type_traits>
+
 #include "../common.hpp"
 #include "../core/linalg.hpp"
 #include "../model/chain.hpp"
@@ -93,11 +96,14 @@ inline double jacobi_smallest_eigenvalue(MatRef G, i64 n) {
     return smallest;
 }
 
+// smallest_eigenvalue's body, n an i64 or a compile-time size (std::integral_constant: the
+// same operations in the same order, so the same bits, with the loops unrolled).
 // Smallest eigenvalue of the symmetric G[:n, :n] (G overwritten): Householder reduction to
 // tridiagonal form, then the implicit QL iteration with Wilkinson's shift on its
 // eigenvalues (EISPACK's tql1); n <= 6 in fixed-size scratch, else cyclic Jacobi. Both are
 // backward stable: each eigenvalue to about eps |G| (absolute).
-inline double smallest_eigenvalue(MatRef G, i64 n) {
+template <class Size>
+inline double smallest_eigenvalue_sized(MatRef G, Size n) {
     constexpr i64 N = 6;
     if (n <= 0) return kInf;
     double total = 0.0;
@@ -194,6 +200,14 @@ inline double smallest_eigenvalue(MatRef G, i64 n) {
     return smallest;
 }
 
+// Smallest eigenvalue of the symmetric G[:n, :n] (G overwritten): smallest_eigenvalue_sized,
+// its loops unrolled for the usual sizes (6: a pose level, 3: a position level).
+inline double smallest_eigenvalue(MatRef G, i64 n) {
+    if (n == 6) return smallest_eigenvalue_sized(G, std::integral_constant<i64, 6>{});
+    if (n == 3) return smallest_eigenvalue_sized(G, std::integral_constant<i64, 3>{});
+    return smallest_eigenvalue_sized(G, n);
+}
+
 // The min(r, nv)-th singular value of A[:m], r its rows not identically zero, from the
 // smaller Gram matrix built in the scratch G. With threshold > 0, inf when that value is
 // at least threshold (one Cholesky of G - threshold^2 I decides). Scratch: rows (m,), L.
@@ -288,6 +302,16 @@ struct QPWork {
           ub(static_cast<size_t>(nc)), dx(static_cast<size_t>(nc)), q_base(static_cast<size_t>(nq)),
           gram(nc > 6 ? nc : 6, nc > 6 ? nc : 6), rows(6), L(nc > 6 ? nc : 6, nc > 6 ? nc : 6), G(6, 6), y(6),
           box(nc) {}
+};
+
+// The scratch of one igm_solve (kinematics and step), reusable by the next solve on the same
+// chain and nq: every entry a solve reads it writes first, so a reused workspace gives the
+// bits of a fresh one (bind_igm.cpp's _IgmPlan keeps one).
+struct Workspace {
+    Work w;
+    QPWork qw;
+    Vec q;  // (nq,): the iterate
+    Workspace(const Chain& c, i64 nq) : w(c, nq), qw(c.njnt, nq), q(static_cast<size_t>(nq)) {}
 };
 
 struct Errors {
@@ -762,16 +786,23 @@ inline void restart_start(double* q, i64 nq, const double* sample_lo, const doub
 // The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve for the
 // arguments). path (2, max_iters + 1, nq), hist (2, max_iters + 1, 3) and info (6,) are
 // written; rng_state advanced.
+// ws: a Workspace(c, nq) to use (its contents do not matter), or nullptr (one made here).
 inline void igm_solve(const Chain& c, const Target& target, const double* q0, i64 nq, CMatRef bounds,
                       const double* reach, const double* options, const i64* int_options, std::uint64_t& rng_state,
-                      double deadline, const Record& rec, i64* info) {
+                      double deadline, const Record& rec, i64* info, Workspace* ws = nullptr) {
     i64 restarts = int_options[1], check_time = int_options[3];
     const double* sample_lo = bounds.row(2);
     const double* sample_hi = bounds.row(3);
-    Work w(c, nq);
-    QPWork qw(c.njnt, nq);
+    std::unique_ptr<Workspace> own;
+    if (ws == nullptr) {
+        own.reset(new Workspace(c, nq));
+        ws = own.get();
+    }
+    Work& w = ws->w;
+    QPWork& qw = ws->qw;
     Settings settings{bounds, options, int_options, deadline};
-    Vec q(q0, q0 + nq);
+    Vec& q = ws->q;
+    std::copy(q0, q0 + nq, q.begin());
     i64 counts[2] = {0, 0};
     if (beyond_reach(target.p, reach, options[0])) {
         Errors e = evaluate(c, q.data(), target, w);
