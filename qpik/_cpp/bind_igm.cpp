@@ -1,6 +1,7 @@
 // Bindings of the igm layer (qpik._engine.igm): the full-IK loop, its box QP, the
 // SplitMix64 stream and the smallest singular value of a level.
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -73,18 +74,22 @@ struct IgmScratch {
     i64 info[6] = {};
 };
 
+// s's path and hist are (re)allocated unless already that size (an _IgmPlan's kept scratch);
+// ws: igm_solve's workspace (nullptr: its own).
 static void igm_with_scratch(IgmScratch& s, const model::Chain& c, const double* target_p, const double* target_R,
                              bool has_rot, const double* q0, i64 nq, CMatRef bounds, const double* reach,
                              const double* options, const i64* int_options, std::uint64_t& rng_state,
-                             double deadline) {
+                             double deadline, igm::Workspace* ws = nullptr) {
     i64 max_iters = int_options[0];
     require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
     igm::Target target{target_p, target_R, has_rot};
     i64 n = max_iters + 1;
-    s.path.reset(new double[static_cast<size_t>(2 * n * nq)]);
-    s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
+    if (!s.path || s.rec.n != n || s.rec.nq != nq) {
+        s.path.reset(new double[static_cast<size_t>(2 * n * nq)]);
+        s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
+    }
     s.rec = igm::Record{s.path.get(), s.hist.get(), n, nq};
-    igm::igm_solve(c, target, q0, nq, bounds, reach, options, int_options, rng_state, deadline, s.rec, s.info);
+    igm::igm_solve(c, target, q0, nq, bounds, reach, options, int_options, rng_state, deadline, s.rec, s.info, ws);
 }
 
 static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
@@ -143,6 +148,14 @@ struct IgmPlan {
     std::vector<i64> index;  // (nq,) when packed: empty for a frame no joint moves
     std::vector<double> bounds, reach, options;
     std::vector<i64> int_options;
+    // The scratch of a run (igm_solve's workspace, the attempts' paths, the start), made by
+    // the first run and reused by the next ones: a run's answer never depends on it (every
+    // entry read is written first). busy: a run holds it (another run, on another thread,
+    // makes its own).
+    mutable std::unique_ptr<igm::Workspace> workspace;
+    mutable IgmScratch scratch;
+    mutable Vec start;
+    mutable std::atomic<bool> busy{false};
 
     IgmPlan(nb::handle chain_obj, nb::handle index_obj, i64 nfull_, In2 bounds_, In1 reach_, In1 options_,
             In<i64, 1> int_options_) {
@@ -173,6 +186,32 @@ struct IgmPlan {
         options.assign(options_.data(), options_.data() + options_.shape(0));
         int_options.assign(int_options_.data(), int_options_.data() + int_options_.shape(0));
     }
+};
+
+// A run's scratch: the plan's kept one when free (taken until this goes), else its own.
+class PlanScratch {
+  public:
+    explicit PlanScratch(const IgmPlan& plan) : plan_(plan) {
+        bool expected = false;
+        held_ = plan.busy.compare_exchange_strong(expected, true);
+        if (held_ && !plan.workspace) plan.workspace.reset(new igm::Workspace(*plan.chain, plan.nq));
+        if (held_ && plan.start.size() != static_cast<size_t>(plan.nq)) plan.start.resize(static_cast<size_t>(plan.nq));
+        if (!held_) own_start_.resize(static_cast<size_t>(plan.nq));
+    }
+    ~PlanScratch() {
+        if (held_) plan_.busy.store(false);
+    }
+    PlanScratch(const PlanScratch&) = delete;
+    PlanScratch& operator=(const PlanScratch&) = delete;
+    Vec& start() { return held_ ? plan_.start : own_start_; }
+    IgmScratch& run() { return held_ ? plan_.scratch : own_run_; }
+    igm::Workspace* workspace() { return held_ ? plan_.workspace.get() : nullptr; }
+
+  private:
+    const IgmPlan& plan_;
+    bool held_ = false;
+    Vec own_start_;
+    IgmScratch own_run_;
 };
 
 // The joint-limit box of a start, copied once (qpik._engine.igm._StartBox): check(q) is
@@ -351,13 +390,13 @@ void bind_igm(nb::module_& m) {
             // the chain, all of them, as in q_full); an empty vector's data() may be null
             static const i64 none = 0;
             const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
-            Vec q0(static_cast<size_t>(plan.nq));
+            PlanScratch held(plan);
+            Vec& q0 = held.start();
             gather_start(q_full.data(), plan.nfull, index_p, plan.nq, q0.data());
-            IgmScratch run;
-            igm_with_scratch(run, *plan.chain, target_p.data(), R, has_rot, q0.data(), plan.nq,
+            igm_with_scratch(held.run(), *plan.chain, target_p.data(), R, has_rot, q0.data(), plan.nq,
                              CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
-                             plan.int_options.data(), rng_state, deadline);
-            return session_tuple(run, q_full.data(), plan.nfull, index_p, plan.nq);
+                             plan.int_options.data(), rng_state, deadline, held.workspace());
+            return session_tuple(held.run(), q_full.data(), plan.nfull, index_p, plan.nq);
         },
         "plan"_a, "target_p"_a, "target_R"_a.none(), "q_full"_a, "rng_state"_a, "deadline"_a,
         "igm_run on the coordinates plan.index of q_full (None: all of them) with the fixed "

@@ -55,6 +55,36 @@ def test_plans_follow_the_options():
         assert got.q.tobytes() == want.q.tobytes() and got.iterations == want.iterations
 
 
+def test_a_plans_kept_scratch_gives_a_fresh_runs_bits():
+    """A plan keeps its run's scratch (kinematics, step, paths) for the next run with the same
+    options: after pose, position-only, unreachable, restarted and capped solves in any order,
+    every answer (q, path, histories) equals a fresh session's, bit for bit."""
+    rng = np.random.default_rng(5)
+    targets = []
+    for k in range(8):
+        position = rng.uniform([-0.5, -0.5, 0.1], [0.5, 0.5, 0.7])
+        if k % 4 == 1:
+            targets.append({"ee": position})  # position only
+        elif k % 4 == 3:
+            targets.append({"ee": (position * 10.0, _rotation(0.1 * k))})  # out of reach
+        else:
+            targets.append({"ee": (position, _rotation(0.3 * k))})
+    for keywords in ({"max_iters": 6, "restarts": 2}, {"tol_position": 1e-6}):
+        session = qpik.IKSession("ur5e")
+        for seed, target in [*enumerate(targets), *enumerate(targets[::-1])]:
+            got = session.solve(target, seed=seed, **keywords)
+            want = qpik.IKSession("ur5e").solve(target, seed=seed, **keywords)
+            assert got.q.tobytes() == want.q.tobytes()
+            assert got.path.tobytes() == want.path.tobytes()
+            assert list(got.error_history) == list(want.error_history)
+            assert list(got.residual_history) == list(want.residual_history)
+            assert (got.iterations, got.restarts_used, got.reason) == (
+                want.iterations,
+                want.restarts_used,
+                want.reason,
+            )
+
+
 def test_start_box_checks_and_clips():
     session = qpik.IKSession("ur5e")
     target = {"ee": [0.3, 0.2, 0.4]}

@@ -10,6 +10,9 @@
 
 #include <time.h>
 
+#include <memory>
+#include <type_traits>
+
 #include "../common.hpp"
 #include "../core/linalg.hpp"
 #include "../model/chain.hpp"
@@ -93,11 +96,14 @@ inline double jacobi_smallest_eigenvalue(MatRef G, i64 n) {
     return smallest;
 }
 
+// smallest_eigenvalue's body, n an i64 or a compile-time size (std::integral_constant: the
+// same operations in the same order, so the same bits, with the loops unrolled).
 // Smallest eigenvalue of the symmetric G[:n, :n] (G overwritten): Householder reduction to
 // tridiagonal form, then the implicit QL iteration with Wilkinson's shift on its
 // eigenvalues (EISPACK's tql1); n <= 6 in fixed-size scratch, else cyclic Jacobi. Both are
 // backward stable: each eigenvalue to about eps |G| (absolute).
-inline double smallest_eigenvalue(MatRef G, i64 n) {
+template <class Size>
+inline double smallest_eigenvalue_sized(MatRef G, Size n) {
     constexpr i64 N = 6;
     if (n <= 0) return kInf;
     double total = 0.0;
@@ -194,6 +200,111 @@ inline double smallest_eigenvalue(MatRef G, i64 n) {
     return smallest;
 }
 
+// The smallest eigenvalue of a Gram matrix G[:N, :N] (symmetric positive semidefinite, N <= 6;
+// G left unchanged), clamped at 0, by Laguerre's iteration on its characteristic polynomial
+// from x = 0: each step factors G - x I = L L^T (Cholesky) and, from S1 = tr (G - x I)^-1
+// = |L^-1|_F^2 and S2 = |(G - x I)^-1|_F^2, takes x += N / (S1 + sqrt((N - 1)(N S2 - S1^2))).
+// Every root real, the iterates rise monotonically to the smallest one (cubically near it);
+// the loop ends when a step is below round-off (4 eps tr G), or when G - x I no longer
+// factors (x has reached it). A G that does not factor at 0 (numerically singular) gives 0.
+// Accuracy: a backward-stable factorization per step, so the answer is within a few eps |G|
+// of the eigenvalue (tests/model/test_model_igm.py asks 64 eps |G| against LAPACK). Cost on
+// the IGM's 6 x 6 levels: 3 to 4 factorizations, about 1.8k instructions (Householder + QL,
+// smallest_eigenvalue: about 4.6k). Returns -1 (the caller then runs smallest_eigenvalue) on
+// non-finite input or after 40 steps (never seen).
+template <int N>
+inline double laguerre_smallest_eigenvalue(CMatRef G) {
+    double g[N * N], L[N * N], W[N * N], inv[N];
+    double trace = 0.0;
+    for (int i = 0; i < N; ++i) {
+#pragma GCC unroll 8
+        for (int j = 0; j < N; ++j) g[i * N + j] = G(i, j);
+        trace += g[i * N + i];
+    }
+    if (!(trace > 0.0) || !(trace < kInf)) return trace == 0.0 ? 0.0 : -1.0;
+    const double tiny = 4.0 * 2.220446049250313e-16 * trace;
+    double x = 0.0;
+    for (int step = 0; step < 40; ++step) {
+        // L L^T = G - x I (inv: 1 / diag L)
+#pragma GCC unroll 8
+        for (int j = 0; j < N; ++j) {
+            double d = g[j * N + j] - x;
+#pragma GCC unroll 8
+            for (int k = 0; k < j; ++k) d -= L[j * N + k] * L[j * N + k];
+            if (!(d > 0.0)) return x;  // x at (or, by round-off, past) the smallest eigenvalue
+            d = std::sqrt(d);
+            double r = 1.0 / d;
+            inv[j] = r;
+#pragma GCC unroll 8
+            for (int i = j + 1; i < N; ++i) {
+                double t = g[i * N + j];
+#pragma GCC unroll 8
+                for (int k = 0; k < j; ++k) t -= L[i * N + k] * L[j * N + k];
+                L[i * N + j] = t * r;
+            }
+        }
+        // W = L^-1 (lower triangular), column by column
+#pragma GCC unroll 8
+        for (int c = 0; c < N; ++c) {
+            W[c * N + c] = inv[c];
+#pragma GCC unroll 8
+            for (int i = c + 1; i < N; ++i) {
+                double t = 0.0;
+#pragma GCC unroll 8
+                for (int k = c; k < i; ++k) t -= L[i * N + k] * W[k * N + c];
+                W[i * N + c] = t * inv[i];
+            }
+        }
+        // (G - x I)^-1 = W^T W: S1 its trace, S2 its squared Frobenius norm
+        double s1 = 0.0, s2 = 0.0;
+#pragma GCC unroll 8
+        for (int a = 0; a < N; ++a) {
+#pragma GCC unroll 8
+            for (int b = a; b < N; ++b) {
+                double m = 0.0;
+#pragma GCC unroll 8
+                for (int k = b; k < N; ++k) m += W[k * N + a] * W[k * N + b];
+                s1 += a == b ? m : 0.0;
+                s2 += (a == b ? 1.0 : 2.0) * m * m;
+            }
+        }
+        constexpr double n = N;
+        double disc = (n - 1.0) * (n * s2 - s1 * s1);
+        double dx = n / (s1 + std::sqrt(disc > 0.0 ? disc : 0.0));
+        if (!(dx < kInf)) return -1.0;
+        x += dx;
+        if (dx <= tiny) return x;
+    }
+    return -1.0;
+}
+
+// Smallest eigenvalue of the symmetric G[:n, :n] (G overwritten): smallest_eigenvalue_sized,
+// its loops unrolled for the usual sizes (6: a pose level, 3: a position level).
+inline double smallest_eigenvalue(MatRef G, i64 n) {
+    if (n == 6) return smallest_eigenvalue_sized(G, std::integral_constant<i64, 6>{});
+    if (n == 3) return smallest_eigenvalue_sized(G, std::integral_constant<i64, 3>{});
+    return smallest_eigenvalue_sized(G, n);
+}
+
+// The smallest eigenvalue of a Gram matrix G[:n, :n], clamped at 0 (what the damping law
+// reads: sigma_min^2): laguerre_smallest_eigenvalue for n <= 6 (G unchanged), else (or
+// should it not settle) smallest_eigenvalue (G overwritten).
+inline double gram_smallest_eigenvalue(MatRef G, i64 n) {
+    double e = -1.0;
+    switch (n) {
+        case 1: e = laguerre_smallest_eigenvalue<1>(G); break;
+        case 2: e = laguerre_smallest_eigenvalue<2>(G); break;
+        case 3: e = laguerre_smallest_eigenvalue<3>(G); break;
+        case 4: e = laguerre_smallest_eigenvalue<4>(G); break;
+        case 5: e = laguerre_smallest_eigenvalue<5>(G); break;
+        case 6: e = laguerre_smallest_eigenvalue<6>(G); break;
+        default: break;
+    }
+    if (e >= 0.0) return e;
+    e = smallest_eigenvalue(G, n);
+    return 0.0 > e ? 0.0 : e;
+}
+
 // The min(r, nv)-th singular value of A[:m], r its rows not identically zero, from the
 // smaller Gram matrix built in the scratch G. With threshold > 0, inf when that value is
 // at least threshold (one Cholesky of G - threshold^2 I decides). Scratch: rows (m,), L.
@@ -232,8 +343,7 @@ inline double smallest_singular_value_in(CMatRef A, i64 m, i64 nv, MatRef G, dou
         }
     }
     if (threshold > 0.0 && core::cholesky_into(G, n, threshold * threshold, L)) return kInf;
-    double e = smallest_eigenvalue(G, n);
-    return std::sqrt(0.0 > e ? 0.0 : e);  // Python's max(e, 0.0)
+    return std::sqrt(gram_smallest_eigenvalue(G, n));
 }
 
 // ------------------------------------------------------------------------ the IGM
@@ -288,6 +398,16 @@ struct QPWork {
           ub(static_cast<size_t>(nc)), dx(static_cast<size_t>(nc)), q_base(static_cast<size_t>(nq)),
           gram(nc > 6 ? nc : 6, nc > 6 ? nc : 6), rows(6), L(nc > 6 ? nc : 6, nc > 6 ? nc : 6), G(6, 6), y(6),
           box(nc) {}
+};
+
+// The scratch of one igm_solve (kinematics and step), reusable by the next solve on the same
+// chain and nq: every entry a solve reads it writes first, so a reused workspace gives the
+// bits of a fresh one (bind_igm.cpp's _IgmPlan keeps one).
+struct Workspace {
+    Work w;
+    QPWork qw;
+    Vec q;  // (nq,): the iterate
+    Workspace(const Chain& c, i64 nq) : w(c, nq), qw(c.njnt, nq), q(static_cast<size_t>(nq)) {}
 };
 
 struct Errors {
@@ -421,8 +541,7 @@ inline Regularisation regularisation_gram(const Mat& A, const double* b, i64 m, 
         for (i64 a = 0; a < r; ++a)
             for (i64 c = 0; c < r; ++c) gram(a, c) = G(rows[a], rows[c]);
         if (!core::cholesky_into(gram.cref(), r, threshold * threshold, L.ref())) {
-            double e = smallest_eigenvalue(gram.ref(), r);
-            sigma = std::sqrt(0.0 > e ? 0.0 : e);
+            sigma = std::sqrt(gram_smallest_eigenvalue(gram.ref(), r));
         }
     }
     return damping_law(sigma, b, m, options);
@@ -544,8 +663,7 @@ inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg
         if (!cholesky_fixed<M>(G, threshold * threshold, L)) {
             for (int i = 0; i < M; ++i)
                 for (int c = 0; c < M; ++c) qw.gram(i, c) = G[i * 6 + c];
-            double e = smallest_eigenvalue(qw.gram.ref(), M);
-            sigma = std::sqrt(0.0 > e ? 0.0 : e);
+            sigma = std::sqrt(gram_smallest_eigenvalue(qw.gram.ref(), M));
         }
         rg = damping_law(sigma, b, M, options);
     }
@@ -762,16 +880,23 @@ inline void restart_start(double* q, i64 nq, const double* sample_lo, const doub
 // The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve for the
 // arguments). path (2, max_iters + 1, nq), hist (2, max_iters + 1, 3) and info (6,) are
 // written; rng_state advanced.
+// ws: a Workspace(c, nq) to use (its contents do not matter), or nullptr (one made here).
 inline void igm_solve(const Chain& c, const Target& target, const double* q0, i64 nq, CMatRef bounds,
                       const double* reach, const double* options, const i64* int_options, std::uint64_t& rng_state,
-                      double deadline, const Record& rec, i64* info) {
+                      double deadline, const Record& rec, i64* info, Workspace* ws = nullptr) {
     i64 restarts = int_options[1], check_time = int_options[3];
     const double* sample_lo = bounds.row(2);
     const double* sample_hi = bounds.row(3);
-    Work w(c, nq);
-    QPWork qw(c.njnt, nq);
+    std::unique_ptr<Workspace> own;
+    if (ws == nullptr) {
+        own.reset(new Workspace(c, nq));
+        ws = own.get();
+    }
+    Work& w = ws->w;
+    QPWork& qw = ws->qw;
     Settings settings{bounds, options, int_options, deadline};
-    Vec q(q0, q0 + nq);
+    Vec& q = ws->q;
+    std::copy(q0, q0 + nq, q.begin());
     i64 counts[2] = {0, 0};
     if (beyond_reach(target.p, reach, options[0])) {
         Errors e = evaluate(c, q.data(), target, w);
