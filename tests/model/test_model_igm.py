@@ -72,8 +72,8 @@ def _sigma_min(A, m, n, threshold=0.0):
 
 @pytest.mark.parametrize("rows", [3, 6, 9])
 def test_smallest_singular_value_agrees_with_lapack(rows):
-    """Householder + QL (Gram matrices up to 6 x 6) and Jacobi (larger, through this
-    binding only): sigma_min^2 within a few eps |A|^2 of LAPACK's, also at (near-)rank
+    """Laguerre's iteration on Cholesky factors (Gram matrices up to 6 x 6, Householder + QL
+    where it does not settle) and Jacobi (larger, through this binding only): sigma_min^2 within a few eps |A|^2 of LAPACK's, also at (near-)rank
     deficiency, graded columns and repeated singular values; with a threshold, inf exactly
     when LAPACK's is clearly above it."""
     rng = np.random.default_rng(11)
