@@ -626,11 +626,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
                         const Certificate* free_cert = nullptr, const double* gsq = nullptr) {
+    if (!cs) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, z, cert, final_rows,
+                           final_sides, &local, free_z, free_cert, gsq);
+    }
     i64 n = static_cast<i64>(d.size());
-    std::optional<CertScratch> local;  // made only when the caller keeps none (cs)
-    if (!cs) local.emplace();
-    CertScratch& es = cs ? *cs : *local;
-    cs = &es;
+    CertScratch& es = *cs;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
     rows.clear();

@@ -270,14 +270,16 @@ struct CertScratch {
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
                    CertScratch* scratch = nullptr) {
+    if (!scratch) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return eqp_ls(ls, C, lo, hi, act_row, act_side, q, zref, z, u, W_out, &local);
+    }
     i64 r = C.cols;
     i64 mb = ls.B.rows;
     z = zref;
     zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
-    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.emplace();
-    CertScratch& ws = scratch ? *scratch : *local;
+    CertScratch& ws = *scratch;
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
         Mat& N = ws.N;
@@ -488,10 +490,12 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
                                  const double* gsq = nullptr) {
     // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
+    if (!scratch) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return certify_level(A, b, rho, Z, x, lb, ub, G, h, act_row, act_side, u, q, stationarity, &local, gsq);
+    }
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
-    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.emplace();
-    CertScratch& ws = scratch ? *scratch : *local;
+    CertScratch& ws = *scratch;
     Certificate cert;
     double primal = 0.0, xmax = 0.0;
     bool relative = true;
@@ -509,8 +513,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     Vec& gnorm = ws.gnorm;
     Vec& gx = ws.gx;
-    zero_fill(gnorm, static_cast<size_t>(p));
-    zero_fill(gx, static_cast<size_t>(p));
+    shape(gnorm, static_cast<size_t>(p));  // every entry written below
+    shape(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         if (gsq) {
@@ -623,7 +627,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
-    zero_fill(zg, static_cast<size_t>(r));
+    shape(zg, static_cast<size_t>(r));  // zeroed before each use below
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|
