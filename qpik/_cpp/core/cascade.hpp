@@ -86,7 +86,7 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
-    Vec e, c1, c2, Gd, zd, Zz;
+    Vec e, c1, c2, Gd, zd, Zz, Ad;
     // drop_pinned
     std::vector<Vec> normals;
     IVec owner;
@@ -470,9 +470,13 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
     reg = pymax(reg, 1e-14 * (1.0 + big));
     for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
+    // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
+    // same products they would make again.
+    Vec& Ad = ws.Ad;
+    mv_into(A, d, Ad);
     Vec& e = ws.e;
-    mv_into(A, d, e);
-    for (i64 i = 0; i < A.rows; ++i) e[i] = e[i] - b[i];
+    shape(e, static_cast<size_t>(A.rows));
+    for (i64 i = 0; i < A.rows; ++i) e[i] = Ad[i] - b[i];
     Vec& c1 = ws.c1;
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
@@ -568,23 +572,25 @@ inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef
 namespace detail {
 
 // The level's objective as least squares in z (see LSForm): B = [A Z; sqrt(rho) I].
+// kept: ws.Ad and ws.c2 hold A d and Z^T d as reduced_objective computed them (the same
+// products, not made again).
 inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho, Workspace& ws,
-                    LSForm& ls) {
+                    LSForm& ls, bool kept = false) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
     shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
     if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
     shape(ls.f, static_cast<size_t>(ls.B.rows));
-    Vec& e = ws.e;
-    mv_into(A, d, e);
+    Vec& e = kept ? ws.Ad : ws.e;
+    if (!kept) mv_into(A, d, e);
     for (i64 i = 0; i < m; ++i) {
-        for (i64 j = 0; j < r; ++j) ls.B(i, j) = AZ(i, j);
+        if (r) std::memcpy(ls.B.row(i), AZ.row(i), static_cast<size_t>(r) * sizeof(double));
         ls.f[i] = b[i] - e[i];
     }
     if (reg) {
         double s = std::sqrt(rho);
-        Vec& zd = ws.zd;
-        mtv_into(Z, d, zd);
+        Vec& zd = kept ? ws.c2 : ws.zd;
+        if (!kept) mtv_into(Z, d, zd);
         for (i64 j = 0; j < r; ++j) {
             ls.B(m + j, j) = s;
             ls.f[m + j] = -s * zd[j];
@@ -597,6 +603,17 @@ inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double*
     LSForm ls;
     ls_form(A, b, AZ, Z, d, rho, ws, ls);
     return ls;
+}
+
+// zref = -Z^T d (mtv_into's sum, negated), from ztd = Z^T d when the caller has it.
+inline void neg_ztd(CMatRef Z, const Vec& d, const double* ztd, Vec& zref) {
+    if (ztd) {
+        shape(zref, static_cast<size_t>(Z.cols));
+        for (i64 i = 0; i < Z.cols; ++i) zref[i] = -ztd[i];
+        return;
+    }
+    mtv_into(Z, d.data(), zref);
+    for (auto& v : zref) v = -v;
 }
 
 // The final answer's round-off outside its box put back on the bound: only violations up to
@@ -625,11 +642,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
-                        const Certificate* free_cert = nullptr, const double* gsq = nullptr) {
+                        const Certificate* free_cert = nullptr, const double* gsq = nullptr,
+                        const double* ztd = nullptr) {
+    // ztd: Z^T d as mtv_into computes it, when the caller has it (the same product).
     if (!cs) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, z, cert, final_rows,
-                           final_sides, &local, free_z, free_cert, gsq);
+                           final_sides, &local, free_z, free_cert, gsq, ztd);
     }
     i64 n = static_cast<i64>(d.size());
     CertScratch& es = *cs;
@@ -684,8 +703,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec& zref = es.xzref;
-        mtv_into(Z, d.data(), zref);
-        for (auto& v : zref) v = -v;
+        neg_ztd(Z, d, ztd, zref);
         if (!have_dual &&
             eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
@@ -826,15 +844,14 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
 // caller then takes the general path).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
-                        const double* gsq = nullptr) {
+                        const double* gsq = nullptr, const double* ztd = nullptr) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
     rows.clear();
     sides.clear();
     Vec& zref = es.xzref;
-    mtv_into(Z, d.data(), zref);
-    for (auto& v : zref) v = -v;
+    neg_ztd(Z, d, ztd, zref);
     Vec& u = es.xu;
     Vec& Zz = es.xZz;
     Vec& x = es.xx;
@@ -1317,7 +1334,8 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         ReducedQP& qp = ws.qp;
         reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp);
         LSForm& ls = ws.ls;
-        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
+        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
+        const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
         Certificate cert;
         Vec& z = ws.z;
         IVec& final_rows = ws.final_rows;
@@ -1329,15 +1347,15 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         // stops at once (no row formed, no dual method run; the same bits).
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq);
-        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq)) {
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
             ck[2] = cert.dual;
             ck[3] = cert.complementarity;
-            Vec& Zz = ws.Zz;
-            mv_into(Z.cref(), z.data(), Zz);
-            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            // d + Z z, as free_answer computed it for the certificate (ws.cs.xx: the same
+            // product and sums).
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
             res.status[k] = SOLVED;
             std::swap(Z, pr.Zn);
             z_eye = false;
@@ -1361,7 +1379,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr, gsq);
+                                        stops ? &tried : nullptr, gsq, ztd);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
@@ -1377,9 +1395,9 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
-            Vec& Zz = ws.Zz;
-            mv_into(Z.cref(), z.data(), Zz);
-            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            // d + Z z, as exact_level computed it for the certificate that held (ws.cs.xx: the
+            // same product and sums).
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
             for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
             for (size_t j = 0; j < final_rows.size(); ++j)
                 res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
