@@ -876,8 +876,25 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         u.clear();
         if (certified()) return true;
     }
-    if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
-        return false;
+    // eqp_ls with no rows from zref, its steps for q = 0 (the same bits): z = zref + y, y the
+    // least-norm step of min |B y - (f - B zref)| (lstsq of a copy of B); B zref is es.f0,
+    // which residual_free computed (mv_into, as eqp_ls would again).
+    es.qr.r = r;
+    es.qr.q = 0;
+    z = zref;
+    u.clear();
+    if (r > 0) {
+        i64 mb = ls.B.rows;
+        Mat& BW = es.BW;
+        BW.rows = mb;
+        BW.cols = r;
+        BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * r);
+        Vec& f0 = es.f0;
+        for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
+        Vec& y = es.y;
+        lstsq_into(BW, f0, y, es.ls);
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + y[i];
+    }
     return certified();
 }
 

@@ -146,8 +146,11 @@ struct LsScratch {
 // least norm.
 inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 m = M.rows, k = M.cols;
-    zero_fill(y, static_cast<size_t>(k));
-    if (k == 0 || m == 0) return;
+    if (k == 0 || m == 0) {
+        zero_fill(y, static_cast<size_t>(k));
+        return;
+    }
+    shape(y, static_cast<size_t>(k));  // every entry written at the end (perm is a permutation)
     IVec& perm = ws.perm;
     perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
