@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -482,12 +483,15 @@ void bind_core(nb::module_& m) {
                 warm = warm_zero.data();
             }
             if (max_iter <= 0) max_iter = 10 * (n + p) + 50;
-            core::Workspace local;  // only when the caller keeps none (its storage: ws)
-            core::CascadeResult r = core::solve_cascade(
+            // The caller's storage (ws) and result kept in it, else storage of its own.
+            std::optional<core::Workspace> local;
+            if (!ws) local.emplace();
+            core::Workspace& wsr = ws ? *ws : *local;
+            core::CascadeResult& r = wsr.result;
+            core::solve_cascade_into(
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
-                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true,
-                ws ? *ws : local);
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true, wsr, r);
             for (i64 k = 0; k < L; ++k)
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
@@ -525,11 +529,12 @@ void bind_core(nb::module_& m) {
             need(len(h) == p, "solve_cascade: h must have shape (p,)");
             need(static_cast<i64>(warm.shape(0)) == L && static_cast<i64>(warm.shape(1)) == n + p,
                  "solve_cascade: warm must have shape (L, n + p)");
-            core::Workspace local;  // only when the caller keeps none (its storage: ws)
+            std::optional<core::Workspace> local;  // only when the caller keeps none (its storage: ws)
+            if (!ws) local.emplace();
             core::CascadeResult r = core::solve_cascade(
                 cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb), cvec(ub), cmat(G),
                 cvec(h), threshold, max_damping, error_scale, rank_tol, max_iter, tol,
-                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : local);
+                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : *local);
             size_t Ls = static_cast<size_t>(L), w2 = static_cast<size_t>(n + p);
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),

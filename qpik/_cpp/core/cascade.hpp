@@ -99,6 +99,10 @@ struct Workspace {
     // the cascade's level answer
     Vec z, free_z;
     IVec final_rows, final_sides;
+    // level_residuals' A x - b; the result a caller of solve_cascade_into may keep here (its
+    // storage reused by the next solve; every entry written by each)
+    Vec lres;
+    CascadeResult result;
 };
 
 namespace detail {
@@ -123,17 +127,22 @@ inline bool unit_rows(CMatRef A, CVecRef w) {
     return true;
 }
 
-// Per level, |A_k x - b_k| over all its rows.
-inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x) {
-    Vec r = mv(A, x.data());
+// Per level, |A_k x - b_k| over all its rows, into out (r: scratch).
+inline void level_residuals_into(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x, Vec& r, Vec& out) {
+    mv_into(A, x.data(), r);
     for (i64 i = 0; i < A.rows; ++i) r[i] = r[i] - b[i];
     i64 L = starts.size() - 1;
-    Vec out(static_cast<size_t>(L));
+    shape(out, static_cast<size_t>(L));  // every entry written below
     for (i64 k = 0; k < L; ++k) {
         double s = 0.0;
         for (i64 i = starts[k]; i < starts[k + 1]; ++i) s += r[i] * r[i];
         out[k] = std::sqrt(s);
     }
+}
+
+inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x) {
+    Vec r, out;
+    level_residuals_into(A, b, starts, x, r, out);
     return out;
 }
 
@@ -1290,24 +1299,26 @@ inline void certify_unreached(CascadeResult& res, CMatRef A, CVecRef b, VecRefT<
 
 // All levels of a hierarchy in one call; see solve_cascade in qpik/core/kernels.py for
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
-// h (p,), warm (L, n + p) int8).
-inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
-                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
-                                   double threshold, double max_damping, double error_scale,
-                                   double rank_tol, i64 max_iter, double tol,
-                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
+// h (p,), warm (L, n + p) int8). Into res: every field of it written (its storage reused,
+// so that a caller that keeps res, ws.result say, allocates no result vectors on a solve
+// of the same sizes; nothing of a previous result is read).
+inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
+                               CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
+                               double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
+                               bool canonical, Workspace& ws, CascadeResult& res) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
-    CascadeResult res;
     res.status.assign(static_cast<size_t>(L), NOT_REACHED);
     res.sigma.assign(static_cast<size_t>(L), kInf);
     zero_fill(res.lam2, static_cast<size_t>(L));
     res.iterations.assign(static_cast<size_t>(L), 0);
     res.active.assign(static_cast<size_t>(L * (n + p)), 0);
     res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
-    Vec d(static_cast<size_t>(n), 0.0);
+    res.primal = 0.0;
+    Vec& d = res.dq;
+    zero_fill(d, static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) {
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
@@ -1425,22 +1436,31 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         } else {
             res.status[k] = st == INFEASIBLE || st == MAX_ITER ? st : NUMERICAL;
             detail::snap_to_box(d, lb, ub);
-            res.residuals = detail::level_residuals(A, b, starts, d);
+            detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
             res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
                                        {}, 0, false).primal;
             detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, k + 1);
-            res.dq = std::move(d);
-            return res;
+            return;
         }
         std::swap(Z, pr.Zn);
         z_eye = false;
     }
     detail::snap_to_box(d, lb, ub);
-    res.residuals = detail::level_residuals(A, b, starts, d);
+    detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
                                false, &ws.cs, gsq).primal;
-    res.dq = std::move(d);
+}
+
+// solve_cascade_into a result of its own.
+inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
+                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                                   double threshold, double max_damping, double error_scale,
+                                   double rank_tol, i64 max_iter, double tol,
+                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
+    CascadeResult res;
+    solve_cascade_into(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
+                       tol, warm, canonical, ws, res);
     return res;
 }
 
