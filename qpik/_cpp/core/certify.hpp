@@ -77,16 +77,21 @@ struct ImplicitQR {
     void factor(const Mat& N, i64 band = -1) {
         r = N.rows;
         q = N.cols;
-        R = N;
+        // N's (r, q) entries (its storage may hold more past them)
+        R.rows = r;
+        R.cols = q;
+        R.a.assign(N.a.begin(), N.a.begin() + r * q);
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
         zero_fill(beta, static_cast<size_t>(q));
-        zero_fill(S, static_cast<size_t>(q));
-        len.assign(static_cast<size_t>(q), 0);
+        shape(S, static_cast<size_t>(q));  // written by reflect_columns before it is read
+        len.resize(static_cast<size_t>(q));  // every entry written below
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             i64 used = band >= 0 ? std::min(size, band + 1) : size;
             Vec& x = v[static_cast<size_t>(i)];
-            zero_fill(x, static_cast<size_t>(size));
+            // entries 0..used-1 written below, the rest +0
+            shape(x, static_cast<size_t>(size));
+            zero_small(x.data() + used, static_cast<size_t>(size - used));
             len[static_cast<size_t>(i)] = used;
             double alpha = 0.0;
             for (i64 t = 0; t < used; ++t) {
@@ -288,7 +293,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Mat& N = ws.N;
         shape(N, r, q);  // every entry written below
         Vec& rhs = ws.rhs;
-        zero_fill(rhs, static_cast<size_t>(q));
+        shape(rhs, static_cast<size_t>(q));  // every entry written below
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
             for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
