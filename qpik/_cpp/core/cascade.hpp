@@ -724,7 +724,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     }
     // The start: z = 0 (the level above's certified answer, or the clipped zero) where it
     // is feasible (canonical), else the dual method's own iterate where that is.
-    Vec start(static_cast<size_t>(qp.H.rows), 0.0);
+    Vec& start = es.xstart;
+    start.assign(static_cast<size_t>(qp.H.rows), 0.0);
     if (!lower && !zero_feasible(CVecRef(qp.lo), CVecRef(qp.hi))) {
         if (have_dual && cert.primal <= kCertify) {
             start = zc;
@@ -740,7 +741,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     bool pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter);
     if (pok) {
         if (certify(start)) {
-            z = std::move(start);
+            z = start;
             return true;
         }
     }
@@ -1370,7 +1371,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         IVec& final_sides = ws.final_sides;
         bool exact = false;
         bool cold = true, factored = false, have_gz = false;
-        for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
+        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
@@ -1419,14 +1420,14 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         ck[1] = cert.stationarity;
         ck[2] = cert.dual;
         ck[3] = cert.complementarity;
-        for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = sol.active[i];
+        if (!exact) std::memcpy(res.active.data() + k * (n + p), sol.active.data(), static_cast<size_t>(n + p));
         if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
             // d + Z z, as exact_level computed it for the certificate that held (ws.cs.xx: the
             // same product and sums).
             std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
-            for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
+            // the final active set alone (the row was zeroed when res.active was sized)
             for (size_t j = 0; j < final_rows.size(); ++j)
                 res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
             res.status[k] = SOLVED;

@@ -272,7 +272,7 @@ struct CertScratch {
     Vec rhs, t, row, f0, y, wy, e, g, r;
     Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
-    Vec xu, xx, xZz, xzc, xzref;
+    Vec xu, xx, xZz, xzc, xzref, xstart;
 };
 
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
