@@ -509,11 +509,14 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     bool relative = true;
     for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
     for (i64 i = 0; i < n; ++i) {
-        if (lb[i] > -kBig) {
+        // Only a row violated (lb - x > 0, x - ub > 0) moves primal (>= +0: a quotient <= 0 or
+        // NaN never wins pymax) or relative (its bound kRowsRelative (|bound| + xmax) is >= 0):
+        // the same values as taking every row.
+        if (lb[i] > -kBig && lb[i] - x[i] > 0.0) {
             primal = pymax(primal, (lb[i] - x[i]) / (1.0 + std::fabs(lb[i])));
             relative = relative && !(lb[i] - x[i] > kRowsRelative * (std::fabs(lb[i]) + xmax));
         }
-        if (ub[i] < kBig) {
+        if (ub[i] < kBig && x[i] - ub[i] > 0.0) {
             primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
             relative = relative && !(x[i] - ub[i] > kRowsRelative * (std::fabs(ub[i]) + xmax));
         }
