@@ -103,6 +103,14 @@ struct Workspace {
     // storage reused by the next solve; every entry written by each)
     Vec lres;
     CascadeResult result;
+    // The stacked problem a binding builds from the levels (qpik/_cpp/bind_core.cpp,
+    // solve_levels): every entry written for each call.
+    struct Stacked {
+        Mat A;
+        Vec b, w, reg;
+        IVec starts;
+        BVec warm_zero;
+    } stacked;
 };
 
 namespace detail {
