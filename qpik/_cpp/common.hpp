@@ -129,6 +129,13 @@ inline void zero_fill(Vec& v, size_t n) {
     v.resize(n);
 }
 
+// v's first n entries +0.0, its size at least n (grown, never shrunk: for scratch read only
+// through its first n entries, so that sizes that alternate call no resize).
+inline void zero_prefix(Vec& v, size_t n) {
+    if (v.size() < n) v.resize(n);
+    zero_small(v.data(), n);
+}
+
 inline void Mat::zeros(i64 r, i64 c) {
     rows = r;
     cols = c;

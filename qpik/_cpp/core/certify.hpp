@@ -561,7 +561,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     dx.resize(static_cast<size_t>(n));  // every entry written below
     {
         Vec& zc = ws.zc;
-        zero_fill(zc, static_cast<size_t>(r));
+        zero_prefix(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             dx[i] = abs_axpy_max(zc.data(), std::fabs(x[i]), zi, r);
@@ -607,11 +607,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
     Vec& hsc = ws.hsc;
-    zero_fill(hsc, static_cast<size_t>(r));
+    zero_prefix(hsc, static_cast<size_t>(r));
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
-    zero_fill(sc, static_cast<size_t>(r));
-    zero_fill(ssc, static_cast<size_t>(r));
+    zero_prefix(sc, static_cast<size_t>(r));
+    zero_prefix(ssc, static_cast<size_t>(r));
     axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
@@ -638,7 +638,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
-    shape(zg, static_cast<size_t>(r));  // zeroed before each use below
+    if (zg.size() < static_cast<size_t>(r)) zg.resize(static_cast<size_t>(r));  // entries 0..r-1 zeroed before each use
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|
@@ -647,7 +647,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             for (i64 c = 0; c < r; ++c) zn += zr[c] * zr[c];
         } else {
             // Z^T g, each component summed over i in order (row by row of Z).
-            std::fill(zg.begin(), zg.end(), 0.0);
+            zero_small(zg.data(), static_cast<size_t>(r));
             const double* g = G.row(row - n);
             for (i64 i = 0; i < n; ++i) axpy(zg.data(), g[i], Z.row(i), r);
             for (i64 c = 0; c < r; ++c) zn += zg[c] * zg[c];
