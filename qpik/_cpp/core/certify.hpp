@@ -82,15 +82,17 @@ struct ImplicitQR {
         R.cols = q;
         R.a.assign(N.a.begin(), N.a.begin() + r * q);
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        zero_fill(beta, static_cast<size_t>(q));
-        shape(S, static_cast<size_t>(q));  // written by reflect_columns before it is read
-        len.resize(static_cast<size_t>(q));  // every entry written below
+        // (beta, S, len and each v[i] are read through their first q / r - i entries only:
+        // grown, never shrunk)
+        zero_prefix(beta, static_cast<size_t>(q));
+        if (S.size() < static_cast<size_t>(q)) S.resize(static_cast<size_t>(q));  // written by reflect_columns first
+        if (len.size() < static_cast<size_t>(q)) len.resize(static_cast<size_t>(q));  // every entry written below
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             i64 used = band >= 0 ? std::min(size, band + 1) : size;
             Vec& x = v[static_cast<size_t>(i)];
             // entries 0..used-1 written below, the rest +0
-            shape(x, static_cast<size_t>(size));
+            if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
             zero_small(x.data() + used, static_cast<size_t>(size - used));
             len[static_cast<size_t>(i)] = used;
             double alpha = 0.0;
@@ -156,17 +158,20 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         return;
     }
     shape(y, static_cast<size_t>(k));  // every entry written at the end (perm is a permutation)
+    // The scratch (perm, norms, x, S, yp) is read through its first k / m entries only:
+    // grown, never shrunk.
     IVec& perm = ws.perm;
-    perm.resize(static_cast<size_t>(k));
+    if (perm.size() < static_cast<size_t>(k)) perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    norms.resize(static_cast<size_t>(k));
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
     col_sq(M.a.data(), k, 0, m, 0, k, norms.data());  // each summed over the rows in order
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.resize(static_cast<size_t>(m));  // x[:size] written before read; S filled by reflect_columns
-    S.resize(static_cast<size_t>(k));
+    // x[:size] written before read; S filled by reflect_columns
+    if (x.size() < static_cast<size_t>(m)) x.resize(static_cast<size_t>(m));
+    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -204,7 +209,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         else break;
     }
     Vec& yp = ws.yp;
-    zero_fill(yp, static_cast<size_t>(k));
+    zero_prefix(yp, static_cast<size_t>(k));
     for (i64 i = rank - 1; i >= 0; --i) {
         double acc = f[i];
         for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
@@ -308,7 +313,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
         Vec& t = ws.t;
-        zero_fill(t, static_cast<size_t>(r));
+        zero_prefix(t, static_cast<size_t>(r));  // read through its first r entries
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
@@ -330,7 +335,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         } else {
             shape(BW, mb, nw);  // every entry written below
             Vec& row = ws.row;
-            row.resize(static_cast<size_t>(r));
+            if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
             for (i64 i = 0; i < mb; ++i) {
                 const double* bi = ls.B.row(i);
                 for (i64 k = 0; k < r; ++k) row[k] = bi[k];
@@ -344,7 +349,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls);
         Vec& wy = ws.wy;
-        zero_fill(wy, static_cast<size_t>(r));
+        zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
