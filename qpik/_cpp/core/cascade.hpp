@@ -511,7 +511,11 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     shape(out.C, n + p, r);  // every entry, bound written below
     shape(out.lo, static_cast<size_t>(n + p));
     shape(out.hi, static_cast<size_t>(n + p));
-    for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
+    if (Z.stride == r) {  // Z's rows contiguous: one copy
+        if (n > 0 && r > 0) std::memcpy(out.C.row(0), Z.row(0), static_cast<size_t>(n * r) * sizeof(double));
+    } else {
+        for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
+    }
     for (i64 i = 0; i < n; ++i) {
         out.lo[i] = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
@@ -519,8 +523,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     if (p) {
         Mat& GZ = ws.GZ;
         if (!have_gz) mm_into(G, Z, GZ);
-        for (i64 i = 0; i < p; ++i)
-            std::memcpy(out.C.row(n + i), GZ.row(i), static_cast<size_t>(r) * sizeof(double));
+        if (r > 0) std::memcpy(out.C.row(n), GZ.row(0), static_cast<size_t>(p * r) * sizeof(double));  // GZ (p, r)
         Vec& Gd = ws.Gd;
         if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
@@ -600,10 +603,13 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
     shape(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = kept ? ws.Ad : ws.e;
     if (!kept) mv_into(A, d, e);
-    for (i64 i = 0; i < m; ++i) {
-        if (r) std::memcpy(ls.B.row(i), AZ.row(i), static_cast<size_t>(r) * sizeof(double));
-        ls.f[i] = b[i] - e[i];
+    if (AZ.stride == r) {  // A Z's rows contiguous: one copy
+        if (m > 0 && r > 0) std::memcpy(ls.B.row(0), AZ.row(0), static_cast<size_t>(m * r) * sizeof(double));
+    } else {
+        for (i64 i = 0; i < m; ++i)
+            if (r) std::memcpy(ls.B.row(i), AZ.row(i), static_cast<size_t>(r) * sizeof(double));
     }
+    for (i64 i = 0; i < m; ++i) ls.f[i] = b[i] - e[i];
     if (reg) {
         double s = std::sqrt(rho);
         Vec& zd = kept ? ws.c2 : ws.zd;
