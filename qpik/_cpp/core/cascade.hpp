@@ -666,12 +666,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
                         const Certificate* free_cert = nullptr, const double* gsq = nullptr,
-                        const double* ztd = nullptr) {
-    // ztd: Z^T d as mtv_into computes it, when the caller has it (the same product).
+                        const double* ztd = nullptr, bool z_eye = false) {
+    // ztd: Z^T d as mtv_into computes it, when the caller has it (the same product); z_eye: Z
+    // is exactly the identity (certify_level's).
     if (!cs) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, z, cert, final_rows,
-                           final_sides, &local, free_z, free_cert, gsq, ztd);
+                           final_sides, &local, free_z, free_cert, gsq, ztd, z_eye);
     }
     i64 n = static_cast<i64>(d.size());
     CertScratch& es = *cs;
@@ -690,7 +691,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         mv_into(Z, zc.data(), Zz);
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq);
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -868,7 +869,7 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
 // caller then takes the general path).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
-                        const double* gsq = nullptr, const double* ztd = nullptr) {
+                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -883,7 +884,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         mv_into(Z, z.data(), Zz);
         x.resize(static_cast<size_t>(n));
         for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
-        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq);
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
         return cert.holds() && cert.rows_relative;
     };
     if (residual_free(ls, zref, es)) {
@@ -1390,7 +1391,8 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         // stops at once (no row formed, no dual method run; the same bits).
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq);
-        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd)) {
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
+                                             z_eye)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
@@ -1422,7 +1424,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr, gsq, ztd);
+                                        stops ? &tried : nullptr, gsq, ztd, z_eye);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.

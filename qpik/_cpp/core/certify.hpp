@@ -501,11 +501,14 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
-                                 const double* gsq = nullptr) {
+                                 const double* gsq = nullptr, bool z_eye = false) {
     // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
+    // z_eye: Z is exactly the identity (n, n); its products below are then written without
+    // forming them where every term is finite (the same bits, see there).
     if (!scratch) {  // storage of its own, only when the caller keeps none
         CertScratch local;
-        return certify_level(A, b, rho, Z, x, lb, ub, G, h, act_row, act_side, u, q, stationarity, &local, gsq);
+        return certify_level(A, b, rho, Z, x, lb, ub, G, h, act_row, act_side, u, q, stationarity, &local, gsq,
+                             z_eye);
     }
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
     CertScratch& ws = *scratch;
@@ -564,7 +567,19 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // level leaves near 0 while others move).
     Vec& dx = ws.dx;
     dx.resize(static_cast<size_t>(n));  // every entry written below
-    {
+    bool eye = z_eye && Z.rows == n && r == n;
+    auto finite = [n](const double* a) {
+        for (i64 i = 0; i < n; ++i)
+            if (!std::isfinite(a[i])) return false;
+        return true;
+    };
+    if (eye && finite(x.data())) {
+        // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
+        // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx.
+        double zx = 0.0;
+        for (i64 c = 0; c < r; ++c) zx = pymax(zx, std::fabs(x[c]));
+        for (i64 i = 0; i < n; ++i) dx[i] = zx;
+    } else {
         Vec& zc = ws.zc;
         zero_prefix(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
@@ -617,7 +632,18 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& ssc = ws.ssc;
     zero_prefix(sc, static_cast<size_t>(r));
     zero_prefix(ssc, static_cast<size_t>(r));
-    axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+    if (eye && finite(v.data()) && finite(vs.data()) && finite(hs.data())) {
+        // Z = I, every term finite: axpy3_rows' sum for component c is +0 plus v_c and
+        // terms 0 v_i = +-0, which is v_c + 0.0 (a -0 made +0, as adding +0 first does);
+        // the same for vs and hs.
+        for (i64 c = 0; c < r; ++c) {
+            sc[c] = v[c] + 0.0;
+            ssc[c] = vs[c] + 0.0;
+            hsc[c] = hs[c] + 0.0;
+        }
+    } else {
+        axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+    }
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:
