@@ -479,8 +479,9 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
 }
 
 // The objective (H, c) of reduced_qp.
+// z_eye: Z is exactly the identity (Z^T d then written without the product, see there).
 inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                              Workspace& ws, ReducedQP& out) {
+                              Workspace& ws, ReducedQP& out, bool z_eye = false) {
     i64 r = Z.cols;
     mtm_into(AZ, out.H);
     double big = 0.0;
@@ -497,7 +498,16 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     Vec& c1 = ws.c1;
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
-    mtv_into(Z, d, c2);
+    bool eye = z_eye && Z.rows == r;
+    for (i64 i = 0; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    if (eye) {
+        // Z = I, d finite: mtv_into's sum for entry c is +0 plus d_c (where d_c != 0) and terms
+        // d_i 0 = +-0, which is d_c + 0.0.
+        shape(c2, static_cast<size_t>(r));
+        for (i64 i = 0; i < r; ++i) c2[i] = d[i] + 0.0;
+    } else {
+        mtv_into(Z, d, c2);
+    }
     shape(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
@@ -628,6 +638,20 @@ inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double*
     return ls;
 }
 
+// x = d + Z z (mv_into's sums). z_eye: Z is exactly the identity; with z finite each sum is
+// +0 plus z_i and terms 0 z_t = +-0, which is z_i + 0.0 (the same bits without the product).
+inline void add_step(CMatRef Z, const Vec& d, const Vec& z, bool z_eye, Vec& Zz, Vec& x) {
+    i64 n = static_cast<i64>(d.size());
+    bool eye = z_eye && Z.rows == n && Z.cols == n;
+    for (i64 i = 0; eye && i < n; ++i) eye = std::isfinite(z[i]);
+    if (eye) {
+        for (i64 i = 0; i < n; ++i) x[i] = d[i] + (z[i] + 0.0);
+        return;
+    }
+    mv_into(Z, z.data(), Zz);
+    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+}
+
 // zref = -Z^T d (mtv_into's sum, negated), from ztd = Z^T d when the caller has it.
 inline void neg_ztd(CMatRef Z, const Vec& d, const double* ztd, Vec& zref) {
     if (ztd) {
@@ -687,9 +711,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     Vec& x = es.xx;
     zero_fill(x, static_cast<size_t>(n));
     auto certify = [&](const Vec& zc) {
-        Vec& Zz = es.xZz;
-        mv_into(Z, zc.data(), Zz);
-        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
                                       static_cast<i64>(rows.size()), true, cs, gsq, z_eye);
         if (c.worst() < best || std::isnan(cert.primal)) {
@@ -795,11 +817,18 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
     // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
     // one-entry sum on a unit row (the other terms are zeros), so the same decision.
-    auto violated = [&](const double* c, double lo, double hi, double size) {
+    // unit >= 0: c is row `unit` of the identity (Z = I): norm = 1 and cx = x[unit] + 0.0, the
+    // sums' values (+0 plus one term 1 or x[unit], the others 0 * 0 or 0 * x_t = +-0; x0 finite).
+    auto violated = [&](const double* c, double lo, double hi, double size, i64 unit = -1) {
         double norm = 0.0, cx = 0.0;
-        for (i64 t = 0; t < r; ++t) {
-            norm += c[t] * c[t];
-            cx += c[t] * x[t];
+        if (unit >= 0) {
+            norm = 1.0;
+            cx = x[unit] + 0.0;
+        } else {
+            for (i64 t = 0; t < r; ++t) {
+                norm += c[t] * c[t];
+                cx += c[t] * x[t];
+            }
         }
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
         norm = std::sqrt(norm);
@@ -842,7 +871,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     for (i64 i = 0; i < n; ++i) {
         double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
-        if (violated(Z.row(i), lo, hi, 1.0)) return false;
+        if (violated(Z.row(i), lo, hi, 1.0, z_eye && r == n ? i : -1)) return false;
     }
     return true;
 }
@@ -881,9 +910,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     Vec& Zz = es.xZz;
     Vec& x = es.xx;
     auto certified = [&]() {
-        mv_into(Z, z.data(), Zz);
         x.resize(static_cast<size_t>(n));
-        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        add_step(Z, d, z, z_eye, Zz, x);
         cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
         return cert.holds() && cert.rows_relative;
     };
@@ -1376,7 +1404,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp);
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye);
         LSForm& ls = ws.ls;
         detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
         const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
