@@ -514,8 +514,9 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
 // (computed as below, by dual_stops_at_once).
+// z_eye: Z is exactly the identity (a box row's norm is then 1: +0 plus 1 and 0 * 0 terms).
 inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
-                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr) {
+                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr, bool z_eye = false) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     shape(out.C, n + p, r);  // every entry, bound written below
@@ -541,7 +542,8 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
             out.hi[n + j] = h[j] - Gd[j];
         }
     }
-    for (i64 i = 0; i < n + p; ++i) {
+    // (with Z = I a box row's norm 1 is above 1e-20: its bounds stay)
+    for (i64 i = z_eye && r == n ? n : 0; i < n + p; ++i) {
         double size = 1.0;
         if (i >= n) size = gsq ? gsq[i - n] : row_sq_of(G, i - n);
         double norm = dot(out.C.row(i), out.C.row(i), r);
@@ -1434,7 +1436,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             z_eye = false;
             continue;
         }
-        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq);
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
