@@ -80,7 +80,8 @@ struct Mat {
         return m;
     }
     // Reshaped to (r, c) and filled with zeros, the storage kept (no allocation unless it
-    // grows): the same contents as Mat(r, c).
+    // grows): the same contents as Mat(r, c) in its r c entries (a may hold more past them,
+    // as shape leaves it; never shrunk, so that sizes that alternate call no resize).
     void zeros(i64 r, i64 c);
     // The identity of order n, the storage kept: the same contents as Mat::eye(n).
     void set_eye(i64 n) {
@@ -139,7 +140,7 @@ inline void zero_prefix(Vec& v, size_t n) {
 inline void Mat::zeros(i64 r, i64 c) {
     rows = r;
     cols = c;
-    zero_fill(a, static_cast<size_t>(r * c));
+    zero_prefix(a, static_cast<size_t>(r * c));
 }
 using IVec = std::vector<i64>;
 using BVec = std::vector<i8>;
