@@ -133,7 +133,12 @@ inline void zero_fill(Vec& v, size_t n) {
 // v's first n entries +0.0, its size at least n (grown, never shrunk: for scratch read only
 // through its first n entries, so that sizes that alternate call no resize).
 inline void zero_prefix(Vec& v, size_t n) {
-    if (v.size() < n) v.resize(n);
+    const size_t old = v.size();
+    if (old < n) {  // growing: the entries it had cleared, resize value-initialises the rest
+        zero_small(v.data(), old);
+        v.resize(n);
+        return;
+    }
     zero_small(v.data(), n);
 }
 
