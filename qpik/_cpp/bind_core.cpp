@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -420,74 +421,87 @@ void bind_core(nb::module_& m) {
             if (!PyType_Check(result_type) || !PyType_Check(cert_type) || !PyTuple_Check(statuses) ||
                 PyTuple_GET_SIZE(statuses) != 6)
                 return none;
-            std::unique_ptr<PyBuf[]> Ak(new PyBuf[L]), bk(new PyBuf[L]), wk(new PyBuf[L]);
-            std::vector<bool> has_w(static_cast<size_t>(L), false);
-            IVec starts(static_cast<size_t>(L) + 1, 0);
-            Vec reg(static_cast<size_t>(L));
-            for (i64 k = 0; k < L; ++k) {
-                PyObject* level = PySequence_Fast_GET_ITEM(levels_h.ptr(), k);
-                nb::object a = nb::steal(PyObject_GetAttr(level, names().A));
-                nb::object bb = nb::steal(PyObject_GetAttr(level, names().b));
-                nb::object rr = nb::steal(PyObject_GetAttr(level, names().regularization));
-                nb::object ww = nb::steal(PyObject_GetAttr(level, names().weights));
-                if (!a.is_valid() || !bb.is_valid() || !rr.is_valid() || !ww.is_valid()) {
-                    PyErr_Clear();
-                    return none;
-                }
-                if (!Ak[k].get(a.ptr(), 'd', 2) || !bk[k].get(bb.ptr(), 'd', 1)) return none;
-                if (Ak[k].shape(1) != n || bk[k].shape(0) != Ak[k].shape(0)) return none;
-                if (!PyFloat_Check(rr.ptr()) && !PyLong_Check(rr.ptr())) return none;
-                double r = PyFloat_AsDouble(rr.ptr());
-                if (r == -1.0 && PyErr_Occurred()) {
-                    PyErr_Clear();
-                    return none;
-                }
-                if (!std::isfinite(r) || !(r >= 0.0)) return none;
-                reg[k] = r;
-                if (!ww.is_none()) {
-                    if (!wk[k].get(ww.ptr(), 'd', 1) || wk[k].shape(0) != Ak[k].shape(0)) return none;
-                    has_w[k] = true;
-                }
-                starts[k + 1] = starts[k] + Ak[k].shape(0);
-            }
-            i64 M = starts[L];
-            Mat A(M, n);
-            Vec b(static_cast<size_t>(M)), w(static_cast<size_t>(M));
-            for (i64 k = 0; k < L; ++k) {
-                const double* a = Ak[k].data<double>();
-                const double* bv = bk[k].data<double>();
-                const double* wv = has_w[k] ? wk[k].data<double>() : nullptr;
-                i64 mk = Ak[k].shape(0);
-                for (i64 i = 0; i < mk; ++i) {
-                    double* dst = A.row(starts[k] + i);
-                    double total = 0.0;
-                    for (i64 j = 0; j < n; ++j) {
-                        double v = a[i * n + j];
-                        if (!std::isfinite(v)) return none;
-                        dst[j] = v;
-                        total += std::fabs(v);
+            // The caller's storage (ws), else storage of its own: the stacked problem and the
+            // result (every entry written by this call; nothing of a previous one is read).
+            std::optional<core::Workspace> local;
+            if (!ws) local.emplace();
+            core::Workspace& wsr = ws ? *ws : *local;
+            // Level by level: its buffers read, checked and its rows stacked (then released);
+            // any check that fails returns None, as with the checks taken in any order.
+            core::Workspace::Stacked& st = wsr.stacked;
+            IVec& starts = st.starts;
+            starts.assign(static_cast<size_t>(L) + 1, 0);
+            Vec& reg = st.reg;
+            core::shape(reg, static_cast<size_t>(L));  // every entry written below
+            Mat& A = st.A;
+            Vec& b = st.b;
+            Vec& w = st.w;
+            {
+                i64 M = 0;  // rows stacked so far
+                PyBuf ab, bb, wb;
+                for (i64 k = 0; k < L; ++k) {
+                    PyObject* level = PySequence_Fast_GET_ITEM(levels_h.ptr(), k);
+                    nb::object a = nb::steal(PyObject_GetAttr(level, names().A));
+                    nb::object bo = nb::steal(PyObject_GetAttr(level, names().b));
+                    nb::object rr = nb::steal(PyObject_GetAttr(level, names().regularization));
+                    nb::object ww = nb::steal(PyObject_GetAttr(level, names().weights));
+                    if (!a.is_valid() || !bo.is_valid() || !rr.is_valid() || !ww.is_valid()) {
+                        PyErr_Clear();
+                        return none;
                     }
-                    if (!std::isfinite(bv[i])) return none;
-                    b[starts[k] + i] = bv[i];
-                    w[starts[k] + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
+                    if (!ab.get(a.ptr(), 'd', 2) || !bb.get(bo.ptr(), 'd', 1)) return none;
+                    if (ab.shape(1) != n || bb.shape(0) != ab.shape(0)) return none;
+                    if (!PyFloat_Check(rr.ptr()) && !PyLong_Check(rr.ptr())) return none;
+                    double r = PyFloat_AsDouble(rr.ptr());
+                    if (r == -1.0 && PyErr_Occurred()) {
+                        PyErr_Clear();
+                        return none;
+                    }
+                    if (!std::isfinite(r) || !(r >= 0.0)) return none;
+                    reg[k] = r;
+                    bool has_w = !ww.is_none();
+                    if (has_w && (!wb.get(ww.ptr(), 'd', 1) || wb.shape(0) != ab.shape(0))) return none;
+                    i64 mk = ab.shape(0);
+                    starts[k + 1] = starts[k] + mk;
+                    // A's storage grows (kept rows copied) only past its capacity
+                    A.rows = M + mk;
+                    A.cols = n;
+                    if (A.a.size() < static_cast<size_t>((M + mk) * n)) A.a.resize(static_cast<size_t>((M + mk) * n));
+                    core::shape(b, static_cast<size_t>(M + mk));
+                    core::shape(w, static_cast<size_t>(M + mk));
+                    const double* av = ab.data<double>();
+                    const double* bv = bb.data<double>();
+                    const double* wv = has_w ? wb.data<double>() : nullptr;
+                    for (i64 i = 0; i < mk; ++i) {
+                        double* dst = A.row(M + i);
+                        double total = 0.0;
+                        for (i64 j = 0; j < n; ++j) {
+                            double v = av[i * n + j];
+                            if (!std::isfinite(v)) return none;
+                            dst[j] = v;
+                            total += std::fabs(v);
+                        }
+                        if (!std::isfinite(bv[i])) return none;
+                        b[M + i] = bv[i];
+                        w[M + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
+                    }
+                    M += mk;
                 }
             }
-            BVec warm_zero;
             const i8* warm = nullptr;
-            PyBuf wb;
-            if (!warm_h.is_none() && wb.get(warm_h.ptr(), 'b', 2) && wb.shape(0) == L && wb.shape(1) == n + p) {
-                warm = wb.data<i8>();
+            PyBuf wbuf;
+            if (!warm_h.is_none() && wbuf.get(warm_h.ptr(), 'b', 2) && wbuf.shape(0) == L && wbuf.shape(1) == n + p) {
+                warm = wbuf.data<i8>();
             } else {
-                warm_zero.assign(static_cast<size_t>(L * (n + p)), 0);
-                warm = warm_zero.data();
+                st.warm_zero.assign(static_cast<size_t>(L * (n + p)), 0);
+                warm = st.warm_zero.data();
             }
             if (max_iter <= 0) max_iter = 10 * (n + p) + 50;
-            core::Workspace local;  // only when the caller keeps none (its storage: ws)
-            core::CascadeResult r = core::solve_cascade(
+            core::CascadeResult& r = wsr.result;
+            core::solve_cascade_into(
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
-                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true,
-                ws ? *ws : local);
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true, wsr, r);
             for (i64 k = 0; k < L; ++k)
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
@@ -525,11 +539,12 @@ void bind_core(nb::module_& m) {
             need(len(h) == p, "solve_cascade: h must have shape (p,)");
             need(static_cast<i64>(warm.shape(0)) == L && static_cast<i64>(warm.shape(1)) == n + p,
                  "solve_cascade: warm must have shape (L, n + p)");
-            core::Workspace local;  // only when the caller keeps none (its storage: ws)
+            std::optional<core::Workspace> local;  // only when the caller keeps none (its storage: ws)
+            if (!ws) local.emplace();
             core::CascadeResult r = core::solve_cascade(
                 cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb), cvec(ub), cmat(G),
                 cvec(h), threshold, max_damping, error_scale, rank_tol, max_iter, tol,
-                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : local);
+                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : *local);
             size_t Ls = static_cast<size_t>(L), w2 = static_cast<size_t>(n + p);
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),

@@ -80,7 +80,8 @@ struct Mat {
         return m;
     }
     // Reshaped to (r, c) and filled with zeros, the storage kept (no allocation unless it
-    // grows): the same contents as Mat(r, c).
+    // grows): the same contents as Mat(r, c) in its r c entries (a may hold more past them,
+    // as shape leaves it; never shrunk, so that sizes that alternate call no resize).
     void zeros(i64 r, i64 c);
     // The identity of order n, the storage kept: the same contents as Mat::eye(n).
     void set_eye(i64 n) {
@@ -101,16 +102,50 @@ using Vec = std::vector<double>;
 // v of size n, every entry +0.0: the contents of v.assign(n, 0.0) (+0.0 is the all-zero bit
 // pattern), written by memset (the element loop of assign is ~3 instructions an entry).
 // Growing, only the entries v already had are cleared: resize value-initialises the rest.
+// Up to 8 entries are stored one by one (no call: the sizes of IK's small levels), more by
+// memset.
+inline void zero_small(double* p, size_t n) {
+    switch (n) {
+        case 8: p[7] = 0.0; [[fallthrough]];
+        case 7: p[6] = 0.0; [[fallthrough]];
+        case 6: p[5] = 0.0; [[fallthrough]];
+        case 5: p[4] = 0.0; [[fallthrough]];
+        case 4: p[3] = 0.0; [[fallthrough]];
+        case 3: p[2] = 0.0; [[fallthrough]];
+        case 2: p[1] = 0.0; [[fallthrough]];
+        case 1: p[0] = 0.0; [[fallthrough]];
+        case 0: return;
+        default: std::memset(p, 0, n * sizeof(double));
+    }
+}
+
 inline void zero_fill(Vec& v, size_t n) {
-    const size_t kept = n < v.size() ? n : v.size();
-    if (kept) std::memset(v.data(), 0, kept * sizeof(double));
+    const size_t old = v.size();
+    if (n <= old) {
+        if (n < old) v.resize(n);  // shrinking: no call, no allocation
+        zero_small(v.data(), n);
+        return;
+    }
+    zero_small(v.data(), old);
     v.resize(n);
+}
+
+// v's first n entries +0.0, its size at least n (grown, never shrunk: for scratch read only
+// through its first n entries, so that sizes that alternate call no resize).
+inline void zero_prefix(Vec& v, size_t n) {
+    const size_t old = v.size();
+    if (old < n) {  // growing: the entries it had cleared, resize value-initialises the rest
+        zero_small(v.data(), old);
+        v.resize(n);
+        return;
+    }
+    zero_small(v.data(), n);
 }
 
 inline void Mat::zeros(i64 r, i64 c) {
     rows = r;
     cols = c;
-    zero_fill(a, static_cast<size_t>(r * c));
+    zero_prefix(a, static_cast<size_t>(r * c));
 }
 using IVec = std::vector<i64>;
 using BVec = std::vector<i8>;

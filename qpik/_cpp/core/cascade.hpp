@@ -86,7 +86,7 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
-    Vec e, c1, c2, Gd, zd, Zz;
+    Vec e, c1, c2, Gd, zd, Zz, Ad;
     // drop_pinned
     std::vector<Vec> normals;
     IVec owner;
@@ -99,6 +99,18 @@ struct Workspace {
     // the cascade's level answer
     Vec z, free_z;
     IVec final_rows, final_sides;
+    // level_residuals' A x - b; the result a caller of solve_cascade_into may keep here (its
+    // storage reused by the next solve; every entry written by each)
+    Vec lres;
+    CascadeResult result;
+    // The stacked problem a binding builds from the levels (qpik/_cpp/bind_core.cpp,
+    // solve_levels): every entry written for each call.
+    struct Stacked {
+        Mat A;
+        Vec b, w, reg;
+        IVec starts;
+        BVec warm_zero;
+    } stacked;
 };
 
 namespace detail {
@@ -123,17 +135,22 @@ inline bool unit_rows(CMatRef A, CVecRef w) {
     return true;
 }
 
-// Per level, |A_k x - b_k| over all its rows.
-inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x) {
-    Vec r = mv(A, x.data());
+// Per level, |A_k x - b_k| over all its rows, into out (r: scratch).
+inline void level_residuals_into(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x, Vec& r, Vec& out) {
+    mv_into(A, x.data(), r);
     for (i64 i = 0; i < A.rows; ++i) r[i] = r[i] - b[i];
     i64 L = starts.size() - 1;
-    Vec out(static_cast<size_t>(L));
+    shape(out, static_cast<size_t>(L));  // every entry written below
     for (i64 k = 0; k < L; ++k) {
         double s = 0.0;
         for (i64 i = starts[k]; i < starts[k + 1]; ++i) s += r[i] * r[i];
         out[k] = std::sqrt(s);
     }
+}
+
+inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, const Vec& x) {
+    Vec r, out;
+    level_residuals_into(A, b, starts, x, r, out);
     return out;
 }
 
@@ -462,35 +479,54 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
 }
 
 // The objective (H, c) of reduced_qp.
+// z_eye: Z is exactly the identity (Z^T d then written without the product, see there).
 inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                              Workspace& ws, ReducedQP& out) {
+                              Workspace& ws, ReducedQP& out, bool z_eye = false) {
     i64 r = Z.cols;
     mtm_into(AZ, out.H);
     double big = 0.0;
     for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
     reg = pymax(reg, 1e-14 * (1.0 + big));
     for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
+    // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
+    // same products they would make again.
+    Vec& Ad = ws.Ad;
+    mv_into(A, d, Ad);
     Vec& e = ws.e;
-    mv_into(A, d, e);
-    for (i64 i = 0; i < A.rows; ++i) e[i] = e[i] - b[i];
+    shape(e, static_cast<size_t>(A.rows));
+    for (i64 i = 0; i < A.rows; ++i) e[i] = Ad[i] - b[i];
     Vec& c1 = ws.c1;
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
-    mtv_into(Z, d, c2);
+    bool eye = z_eye && Z.rows == r;
+    for (i64 i = 0; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    if (eye) {
+        // Z = I, d finite: mtv_into's sum for entry c is +0 plus d_c (where d_c != 0) and terms
+        // d_i 0 = +-0, which is d_c + 0.0.
+        shape(c2, static_cast<size_t>(r));
+        for (i64 i = 0; i < r; ++i) c2[i] = d[i] + 0.0;
+    } else {
+        mtv_into(Z, d, c2);
+    }
     shape(out.c, static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
 // (computed as below, by dual_stops_at_once).
+// z_eye: Z is exactly the identity (a box row's norm is then 1: +0 plus 1 and 0 * 0 terms).
 inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
-                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr) {
+                         ReducedQP& out, bool have_gz = false, const double* gsq = nullptr, bool z_eye = false) {
     i64 n = Z.rows, r = Z.cols;
     i64 p = G.rows;
     shape(out.C, n + p, r);  // every entry, bound written below
     shape(out.lo, static_cast<size_t>(n + p));
     shape(out.hi, static_cast<size_t>(n + p));
-    for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
+    if (Z.stride == r) {  // Z's rows contiguous: one copy
+        if (n > 0 && r > 0) std::memcpy(out.C.row(0), Z.row(0), static_cast<size_t>(n * r) * sizeof(double));
+    } else {
+        for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
+    }
     for (i64 i = 0; i < n; ++i) {
         out.lo[i] = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
@@ -498,8 +534,7 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     if (p) {
         Mat& GZ = ws.GZ;
         if (!have_gz) mm_into(G, Z, GZ);
-        for (i64 i = 0; i < p; ++i)
-            std::memcpy(out.C.row(n + i), GZ.row(i), static_cast<size_t>(r) * sizeof(double));
+        if (r > 0) std::memcpy(out.C.row(n), GZ.row(0), static_cast<size_t>(p * r) * sizeof(double));  // GZ (p, r)
         Vec& Gd = ws.Gd;
         if (!have_gz) mv_into(G, d, Gd);
         for (i64 j = 0; j < p; ++j) {
@@ -507,7 +542,8 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
             out.hi[n + j] = h[j] - Gd[j];
         }
     }
-    for (i64 i = 0; i < n + p; ++i) {
+    // (with Z = I a box row's norm 1 is above 1e-20: its bounds stay)
+    for (i64 i = z_eye && r == n ? n : 0; i < n + p; ++i) {
         double size = 1.0;
         if (i >= n) size = gsq ? gsq[i - n] : row_sq_of(G, i - n);
         double norm = dot(out.C.row(i), out.C.row(i), r);
@@ -568,23 +604,28 @@ inline i64 merge_boxes(CVecRef hard_lb, CVecRef hard_ub, CVecRef pos_lb, CVecRef
 namespace detail {
 
 // The level's objective as least squares in z (see LSForm): B = [A Z; sqrt(rho) I].
+// kept: ws.Ad and ws.c2 hold A d and Z^T d as reduced_objective computed them (the same
+// products, not made again).
 inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double rho, Workspace& ws,
-                    LSForm& ls) {
+                    LSForm& ls, bool kept = false) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
     shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
     if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
     shape(ls.f, static_cast<size_t>(ls.B.rows));
-    Vec& e = ws.e;
-    mv_into(A, d, e);
-    for (i64 i = 0; i < m; ++i) {
-        for (i64 j = 0; j < r; ++j) ls.B(i, j) = AZ(i, j);
-        ls.f[i] = b[i] - e[i];
+    Vec& e = kept ? ws.Ad : ws.e;
+    if (!kept) mv_into(A, d, e);
+    if (AZ.stride == r) {  // A Z's rows contiguous: one copy
+        if (m > 0 && r > 0) std::memcpy(ls.B.row(0), AZ.row(0), static_cast<size_t>(m * r) * sizeof(double));
+    } else {
+        for (i64 i = 0; i < m; ++i)
+            if (r) std::memcpy(ls.B.row(i), AZ.row(i), static_cast<size_t>(r) * sizeof(double));
     }
+    for (i64 i = 0; i < m; ++i) ls.f[i] = b[i] - e[i];
     if (reg) {
         double s = std::sqrt(rho);
-        Vec& zd = ws.zd;
-        mtv_into(Z, d, zd);
+        Vec& zd = kept ? ws.c2 : ws.zd;
+        if (!kept) mtv_into(Z, d, zd);
         for (i64 j = 0; j < r; ++j) {
             ls.B(m + j, j) = s;
             ls.f[m + j] = -s * zd[j];
@@ -597,6 +638,31 @@ inline LSForm ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double*
     LSForm ls;
     ls_form(A, b, AZ, Z, d, rho, ws, ls);
     return ls;
+}
+
+// x = d + Z z (mv_into's sums). z_eye: Z is exactly the identity; with z finite each sum is
+// +0 plus z_i and terms 0 z_t = +-0, which is z_i + 0.0 (the same bits without the product).
+inline void add_step(CMatRef Z, const Vec& d, const Vec& z, bool z_eye, Vec& Zz, Vec& x) {
+    i64 n = static_cast<i64>(d.size());
+    bool eye = z_eye && Z.rows == n && Z.cols == n;
+    for (i64 i = 0; eye && i < n; ++i) eye = std::isfinite(z[i]);
+    if (eye) {
+        for (i64 i = 0; i < n; ++i) x[i] = d[i] + (z[i] + 0.0);
+        return;
+    }
+    mv_into(Z, z.data(), Zz);
+    for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+}
+
+// zref = -Z^T d (mtv_into's sum, negated), from ztd = Z^T d when the caller has it.
+inline void neg_ztd(CMatRef Z, const Vec& d, const double* ztd, Vec& zref) {
+    if (ztd) {
+        shape(zref, static_cast<size_t>(Z.cols));
+        for (i64 i = 0; i < Z.cols; ++i) zref[i] = -ztd[i];
+        return;
+    }
+    mtv_into(Z, d.data(), zref);
+    for (auto& v : zref) v = -v;
 }
 
 // The final answer's round-off outside its box put back on the bound: only violations up to
@@ -625,12 +691,17 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
-                        const Certificate* free_cert = nullptr, const double* gsq = nullptr) {
+                        const Certificate* free_cert = nullptr, const double* gsq = nullptr,
+                        const double* ztd = nullptr, bool z_eye = false) {
+    // ztd: Z^T d as mtv_into computes it, when the caller has it (the same product); z_eye: Z
+    // is exactly the identity (certify_level's).
+    if (!cs) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, z, cert, final_rows,
+                           final_sides, &local, free_z, free_cert, gsq, ztd, z_eye);
+    }
     i64 n = static_cast<i64>(d.size());
-    std::optional<CertScratch> local;  // made only when the caller keeps none (cs)
-    if (!cs) local.emplace();
-    CertScratch& es = cs ? *cs : *local;
-    cs = &es;
+    CertScratch& es = *cs;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
     rows.clear();
@@ -642,11 +713,9 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     Vec& x = es.xx;
     zero_fill(x, static_cast<size_t>(n));
     auto certify = [&](const Vec& zc) {
-        Vec& Zz = es.xZz;
-        mv_into(Z, zc.data(), Zz);
-        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
+        add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq);
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -682,8 +751,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
         Vec& zref = es.xzref;
-        mtv_into(Z, d.data(), zref);
-        for (auto& v : zref) v = -v;
+        neg_ztd(Z, d, ztd, zref);
         if (!have_dual &&
             eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, q, zref, zc, u, nullptr, cs)) {
             have_dual = true;
@@ -695,7 +763,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     }
     // The start: z = 0 (the level above's certified answer, or the clipped zero) where it
     // is feasible (canonical), else the dual method's own iterate where that is.
-    Vec start(static_cast<size_t>(qp.H.rows), 0.0);
+    Vec& start = es.xstart;
+    start.assign(static_cast<size_t>(qp.H.rows), 0.0);
     if (!lower && !zero_feasible(CVecRef(qp.lo), CVecRef(qp.hi))) {
         if (have_dual && cert.primal <= kCertify) {
             start = zc;
@@ -711,7 +780,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     bool pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter);
     if (pok) {
         if (certify(start)) {
-            z = std::move(start);
+            z = start;
             return true;
         }
     }
@@ -750,11 +819,18 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
     // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
     // one-entry sum on a unit row (the other terms are zeros), so the same decision.
-    auto violated = [&](const double* c, double lo, double hi, double size) {
+    // unit >= 0: c is row `unit` of the identity (Z = I): norm = 1 and cx = x[unit] + 0.0, the
+    // sums' values (+0 plus one term 1 or x[unit], the others 0 * 0 or 0 * x_t = +-0; x0 finite).
+    auto violated = [&](const double* c, double lo, double hi, double size, i64 unit = -1) {
         double norm = 0.0, cx = 0.0;
-        for (i64 t = 0; t < r; ++t) {
-            norm += c[t] * c[t];
-            cx += c[t] * x[t];
+        if (unit >= 0) {
+            norm = 1.0;
+            cx = x[unit] + 0.0;
+        } else {
+            for (i64 t = 0; t < r; ++t) {
+                norm += c[t] * c[t];
+                cx += c[t] * x[t];
+            }
         }
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
         norm = std::sqrt(norm);
@@ -797,7 +873,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     for (i64 i = 0; i < n; ++i) {
         double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
-        if (violated(Z.row(i), lo, hi, 1.0)) return false;
+        if (violated(Z.row(i), lo, hi, 1.0, z_eye && r == n ? i : -1)) return false;
     }
     return true;
 }
@@ -824,23 +900,21 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
 // caller then takes the general path).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
-                        const double* gsq = nullptr) {
+                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
     rows.clear();
     sides.clear();
     Vec& zref = es.xzref;
-    mtv_into(Z, d.data(), zref);
-    for (auto& v : zref) v = -v;
+    neg_ztd(Z, d, ztd, zref);
     Vec& u = es.xu;
     Vec& Zz = es.xZz;
     Vec& x = es.xx;
     auto certified = [&]() {
-        mv_into(Z, z.data(), Zz);
         x.resize(static_cast<size_t>(n));
-        for (i64 i = 0; i < n; ++i) x[i] = d[i] + Zz[i];
-        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq);
+        add_step(Z, d, z, z_eye, Zz, x);
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
         return cert.holds() && cert.rows_relative;
     };
     if (residual_free(ls, zref, es)) {
@@ -857,8 +931,25 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         u.clear();
         if (certified()) return true;
     }
-    if (!eqp_ls(ls, CMatRef(nullptr, 0, r), CVecRef(), CVecRef(), rows, sides, 0, zref, z, u, nullptr, &es))
-        return false;
+    // eqp_ls with no rows from zref, its steps for q = 0 (the same bits): z = zref + y, y the
+    // least-norm step of min |B y - (f - B zref)| (lstsq of a copy of B); B zref is es.f0,
+    // which residual_free computed (mv_into, as eqp_ls would again).
+    es.qr.r = r;
+    es.qr.q = 0;
+    z = zref;
+    u.clear();
+    if (r > 0) {
+        i64 mb = ls.B.rows;
+        Mat& BW = es.BW;
+        BW.rows = mb;
+        BW.cols = r;
+        BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * r);
+        Vec& f0 = es.f0;
+        for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
+        Vec& y = es.y;
+        lstsq_into(BW, f0, y, es.ls);
+        for (i64 i = 0; i < r; ++i) z[i] = z[i] + y[i];
+    }
     return certified();
 }
 
@@ -1254,24 +1345,26 @@ inline void certify_unreached(CascadeResult& res, CMatRef A, CVecRef b, VecRefT<
 
 // All levels of a hierarchy in one call; see solve_cascade in qpik/core/kernels.py for
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
-// h (p,), warm (L, n + p) int8).
-inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
-                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
-                                   double threshold, double max_damping, double error_scale,
-                                   double rank_tol, i64 max_iter, double tol,
-                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
+// h (p,), warm (L, n + p) int8). Into res: every field of it written (its storage reused,
+// so that a caller that keeps res, ws.result say, allocates no result vectors on a solve
+// of the same sizes; nothing of a previous result is read).
+inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
+                               CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
+                               double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
+                               bool canonical, Workspace& ws, CascadeResult& res) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
-    CascadeResult res;
     res.status.assign(static_cast<size_t>(L), NOT_REACHED);
     res.sigma.assign(static_cast<size_t>(L), kInf);
     zero_fill(res.lam2, static_cast<size_t>(L));
     res.iterations.assign(static_cast<size_t>(L), 0);
     res.active.assign(static_cast<size_t>(L * (n + p)), 0);
     res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
-    Vec d(static_cast<size_t>(n), 0.0);
+    res.primal = 0.0;
+    Vec& d = res.dq;
+    zero_fill(d, static_cast<size_t>(n));
     for (i64 i = 0; i < n; ++i) {
         if (d[i] < lb[i]) d[i] = lb[i];
         if (d[i] > ub[i]) d[i] = ub[i];
@@ -1313,35 +1406,37 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp);
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye);
         LSForm& ls = ws.ls;
-        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls);
+        detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
+        const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
         Certificate cert;
         Vec& z = ws.z;
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
         bool cold = true, factored = false, have_gz = false;
-        for (i64 i = 0; i < n + p; ++i) cold = cold && warm(k, i) == 0;
+        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq);
-        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq)) {
+        if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
+                                             z_eye)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
             ck[2] = cert.dual;
             ck[3] = cert.complementarity;
-            Vec& Zz = ws.Zz;
-            mv_into(Z.cref(), z.data(), Zz);
-            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
+            // d + Z z, as free_answer computed it for the certificate (ws.cs.xx: the same
+            // product and sums).
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
             res.status[k] = SOLVED;
             std::swap(Z, pr.Zn);
             z_eye = false;
             continue;
         }
-        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq);
+        reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
@@ -1359,7 +1454,7 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr, gsq);
+                                        stops ? &tried : nullptr, gsq, ztd, z_eye);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.
@@ -1371,14 +1466,14 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         ck[1] = cert.stationarity;
         ck[2] = cert.dual;
         ck[3] = cert.complementarity;
-        for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = sol.active[i];
+        if (!exact) std::memcpy(res.active.data() + k * (n + p), sol.active.data(), static_cast<size_t>(n + p));
         if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
-            Vec& Zz = ws.Zz;
-            mv_into(Z.cref(), z.data(), Zz);
-            for (i64 i = 0; i < n; ++i) d[i] = d[i] + Zz[i];
-            for (i64 i = 0; i < n + p; ++i) res.active[k * (n + p) + i] = 0;
+            // d + Z z, as exact_level computed it for the certificate that held (ws.cs.xx: the
+            // same product and sums).
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
+            // the final active set alone (the row was zeroed when res.active was sized)
             for (size_t j = 0; j < final_rows.size(); ++j)
                 res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
             res.status[k] = SOLVED;
@@ -1388,22 +1483,31 @@ inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<cons
         } else {
             res.status[k] = st == INFEASIBLE || st == MAX_ITER ? st : NUMERICAL;
             detail::snap_to_box(d, lb, ub);
-            res.residuals = detail::level_residuals(A, b, starts, d);
+            detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
             res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
                                        {}, 0, false).primal;
             detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, k + 1);
-            res.dq = std::move(d);
-            return res;
+            return;
         }
         std::swap(Z, pr.Zn);
         z_eye = false;
     }
     detail::snap_to_box(d, lb, ub);
-    res.residuals = detail::level_residuals(A, b, starts, d);
+    detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
     // The general rows (and the box) rechecked at the final answer.
     res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
                                false, &ws.cs, gsq).primal;
-    res.dq = std::move(d);
+}
+
+// solve_cascade_into a result of its own.
+inline CascadeResult solve_cascade(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts,
+                                   CVecRef reg, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
+                                   double threshold, double max_damping, double error_scale,
+                                   double rank_tol, i64 max_iter, double tol,
+                                   MatRefT<const i8> warm, bool canonical, Workspace& ws) {
+    CascadeResult res;
+    solve_cascade_into(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
+                       tol, warm, canonical, ws, res);
     return res;
 }
 

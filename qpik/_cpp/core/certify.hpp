@@ -77,16 +77,23 @@ struct ImplicitQR {
     void factor(const Mat& N, i64 band = -1) {
         r = N.rows;
         q = N.cols;
-        R = N;
+        // N's (r, q) entries (its storage may hold more past them)
+        R.rows = r;
+        R.cols = q;
+        R.a.assign(N.a.begin(), N.a.begin() + r * q);
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        zero_fill(beta, static_cast<size_t>(q));
-        zero_fill(S, static_cast<size_t>(q));
-        len.assign(static_cast<size_t>(q), 0);
+        // (beta, S, len and each v[i] are read through their first q / r - i entries only:
+        // grown, never shrunk)
+        zero_prefix(beta, static_cast<size_t>(q));
+        if (S.size() < static_cast<size_t>(q)) S.resize(static_cast<size_t>(q));  // written by reflect_columns first
+        if (len.size() < static_cast<size_t>(q)) len.resize(static_cast<size_t>(q));  // every entry written below
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
             i64 used = band >= 0 ? std::min(size, band + 1) : size;
             Vec& x = v[static_cast<size_t>(i)];
-            zero_fill(x, static_cast<size_t>(size));
+            // entries 0..used-1 written below, the rest +0
+            if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
+            zero_small(x.data() + used, static_cast<size_t>(size - used));
             len[static_cast<size_t>(i)] = used;
             double alpha = 0.0;
             for (i64 t = 0; t < used; ++t) {
@@ -146,19 +153,25 @@ struct LsScratch {
 // least norm.
 inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     i64 m = M.rows, k = M.cols;
-    zero_fill(y, static_cast<size_t>(k));
-    if (k == 0 || m == 0) return;
+    if (k == 0 || m == 0) {
+        zero_fill(y, static_cast<size_t>(k));
+        return;
+    }
+    shape(y, static_cast<size_t>(k));  // every entry written at the end (perm is a permutation)
+    // The scratch (perm, norms, x, S, yp) is read through its first k / m entries only:
+    // grown, never shrunk.
     IVec& perm = ws.perm;
-    perm.resize(static_cast<size_t>(k));
+    if (perm.size() < static_cast<size_t>(k)) perm.resize(static_cast<size_t>(k));
     for (i64 j = 0; j < k; ++j) perm[j] = j;
     Vec& norms = ws.norms;
-    norms.resize(static_cast<size_t>(k));
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
     col_sq(M.a.data(), k, 0, m, 0, k, norms.data());  // each summed over the rows in order
     i64 steps = std::min(m, k);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.resize(static_cast<size_t>(m));  // x[:size] written before read; S filled by reflect_columns
-    S.resize(static_cast<size_t>(k));
+    // x[:size] written before read; S filled by reflect_columns
+    if (x.size() < static_cast<size_t>(m)) x.resize(static_cast<size_t>(m));
+    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
@@ -196,7 +209,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
         else break;
     }
     Vec& yp = ws.yp;
-    zero_fill(yp, static_cast<size_t>(k));
+    zero_prefix(yp, static_cast<size_t>(k));
     for (i64 i = rank - 1; i >= 0; --i) {
         double acc = f[i];
         for (i64 j = i + 1; j < rank; ++j) acc -= M(i, j) * yp[j];
@@ -264,26 +277,28 @@ struct CertScratch {
     Vec rhs, t, row, f0, y, wy, e, g, r;
     Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
-    Vec xu, xx, xZz, xzc, xzref;
+    Vec xu, xx, xZz, xzc, xzref, xstart;
 };
 
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
                    CertScratch* scratch = nullptr) {
+    if (!scratch) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return eqp_ls(ls, C, lo, hi, act_row, act_side, q, zref, z, u, W_out, &local);
+    }
     i64 r = C.cols;
     i64 mb = ls.B.rows;
     z = zref;
     zero_fill(u, static_cast<size_t>(q));
     if (q > r) return false;
-    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.emplace();
-    CertScratch& ws = scratch ? *scratch : *local;
+    CertScratch& ws = *scratch;
     detail::ImplicitQR& qr = ws.qr;
     if (q > 0) {
         Mat& N = ws.N;
         shape(N, r, q);  // every entry written below
         Vec& rhs = ws.rhs;
-        zero_fill(rhs, static_cast<size_t>(q));
+        shape(rhs, static_cast<size_t>(q));  // every entry written below
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
             for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
@@ -298,7 +313,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         for (i64 i = 0; i < q; ++i)
             if (std::fabs(R(i, i)) <= kDependent * pymax(scale, 1e-300)) return false;
         Vec& t = ws.t;
-        zero_fill(t, static_cast<size_t>(r));
+        zero_prefix(t, static_cast<size_t>(r));  // read through its first r entries
         for (i64 i = 0; i < q; ++i) {  // R1^T t = rhs
             double acc = rhs[i];
             for (i64 k = 0; k < i; ++k) acc -= R(k, i) * t[k];
@@ -320,7 +335,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         } else {
             shape(BW, mb, nw);  // every entry written below
             Vec& row = ws.row;
-            row.resize(static_cast<size_t>(r));
+            if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
             for (i64 i = 0; i < mb; ++i) {
                 const double* bi = ls.B.row(i);
                 for (i64 k = 0; k < r; ++k) row[k] = bi[k];
@@ -334,7 +349,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls);
         Vec& wy = ws.wy;
-        zero_fill(wy, static_cast<size_t>(r));
+        zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
@@ -486,22 +501,30 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
-                                 const double* gsq = nullptr) {
+                                 const double* gsq = nullptr, bool z_eye = false) {
     // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
+    // z_eye: Z is exactly the identity (n, n); its products below are then written without
+    // forming them where every term is finite (the same bits, see there).
+    if (!scratch) {  // storage of its own, only when the caller keeps none
+        CertScratch local;
+        return certify_level(A, b, rho, Z, x, lb, ub, G, h, act_row, act_side, u, q, stationarity, &local, gsq,
+                             z_eye);
+    }
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
-    std::optional<CertScratch> local;  // made only when the caller keeps none (scratch)
-    if (!scratch) local.emplace();
-    CertScratch& ws = scratch ? *scratch : *local;
+    CertScratch& ws = *scratch;
     Certificate cert;
     double primal = 0.0, xmax = 0.0;
     bool relative = true;
     for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
     for (i64 i = 0; i < n; ++i) {
-        if (lb[i] > -kBig) {
+        // Only a row violated (lb - x > 0, x - ub > 0) moves primal (>= +0: a quotient <= 0 or
+        // NaN never wins pymax) or relative (its bound kRowsRelative (|bound| + xmax) is >= 0):
+        // the same values as taking every row.
+        if (lb[i] > -kBig && lb[i] - x[i] > 0.0) {
             primal = pymax(primal, (lb[i] - x[i]) / (1.0 + std::fabs(lb[i])));
             relative = relative && !(lb[i] - x[i] > kRowsRelative * (std::fabs(lb[i]) + xmax));
         }
-        if (ub[i] < kBig) {
+        if (ub[i] < kBig && x[i] - ub[i] > 0.0) {
             primal = pymax(primal, (x[i] - ub[i]) / (1.0 + std::fabs(ub[i])));
             relative = relative && !(x[i] - ub[i] > kRowsRelative * (std::fabs(ub[i]) + xmax));
         }
@@ -509,8 +532,8 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     Vec& gnorm = ws.gnorm;
     Vec& gx = ws.gx;
-    zero_fill(gnorm, static_cast<size_t>(p));
-    zero_fill(gx, static_cast<size_t>(p));
+    shape(gnorm, static_cast<size_t>(p));  // every entry written below
+    shape(gx, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         if (gsq) {
@@ -544,9 +567,21 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // level leaves near 0 while others move).
     Vec& dx = ws.dx;
     dx.resize(static_cast<size_t>(n));  // every entry written below
-    {
+    bool eye = z_eye && Z.rows == n && r == n;
+    auto finite = [n](const double* a) {
+        for (i64 i = 0; i < n; ++i)
+            if (!std::isfinite(a[i])) return false;
+        return true;
+    };
+    if (eye && finite(x.data())) {
+        // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
+        // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx.
+        double zx = 0.0;
+        for (i64 c = 0; c < r; ++c) zx = pymax(zx, std::fabs(x[c]));
+        for (i64 i = 0; i < n; ++i) dx[i] = zx;
+    } else {
         Vec& zc = ws.zc;
-        zero_fill(zc, static_cast<size_t>(r));
+        zero_prefix(zc, static_cast<size_t>(r));
         for (i64 i = 0; i < n; ++i) {
             const double* zi = Z.row(i);
             dx[i] = abs_axpy_max(zc.data(), std::fabs(x[i]), zi, r);
@@ -592,12 +627,23 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
     Vec& hsc = ws.hsc;
-    zero_fill(hsc, static_cast<size_t>(r));
+    zero_prefix(hsc, static_cast<size_t>(r));
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
-    zero_fill(sc, static_cast<size_t>(r));
-    zero_fill(ssc, static_cast<size_t>(r));
-    axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+    zero_prefix(sc, static_cast<size_t>(r));
+    zero_prefix(ssc, static_cast<size_t>(r));
+    if (eye && finite(v.data()) && finite(vs.data()) && finite(hs.data())) {
+        // Z = I, every term finite: axpy3_rows' sum for component c is +0 plus v_c and
+        // terms 0 v_i = +-0, which is v_c + 0.0 (a -0 made +0, as adding +0 first does);
+        // the same for vs and hs.
+        for (i64 c = 0; c < r; ++c) {
+            sc[c] = v[c] + 0.0;
+            ssc[c] = vs[c] + 0.0;
+            hsc[c] = hs[c] + 0.0;
+        }
+    } else {
+        axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+    }
     for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:
@@ -623,7 +669,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
-    zero_fill(zg, static_cast<size_t>(r));
+    if (zg.size() < static_cast<size_t>(r)) zg.resize(static_cast<size_t>(r));  // entries 0..r-1 zeroed before each use
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|
@@ -632,7 +678,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             for (i64 c = 0; c < r; ++c) zn += zr[c] * zr[c];
         } else {
             // Z^T g, each component summed over i in order (row by row of Z).
-            std::fill(zg.begin(), zg.end(), 0.0);
+            zero_small(zg.data(), static_cast<size_t>(r));
             const double* g = G.row(row - n);
             for (i64 i = 0; i < n; ++i) axpy(zg.data(), g[i], Z.row(i), r);
             for (i64 c = 0; c < r; ++c) zn += zg[c] * zg[c];
