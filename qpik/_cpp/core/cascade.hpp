@@ -217,8 +217,8 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
 
 // R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
 // that span the same space, nearly orthogonal, with the same singular values); left as they
-// are where QL does not converge.
-inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
+// are where QL does not converge (false).
+inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
     Mat& G = ws.Q;
     G.zeros(p, p);
     for (i64 i = 0; i < p; ++i) {
@@ -229,7 +229,7 @@ inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
             G(j, i) = g;
         }
     }
-    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return;
+    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return false;
     Mat& T = ws.Qr;
     T.zeros(p, cols);
     for (i64 k = 0; k < p; ++k) {
@@ -238,6 +238,7 @@ inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
         for (i64 i = 0; i < p; ++i) axpy(tk, vk[i], R.row(i), cols);
     }
     for (i64 k = 0; k < p; ++k) std::memcpy(R.row(k), T.row(k), static_cast<size_t>(cols) * sizeof(double));
+    return true;
 }
 
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
@@ -318,6 +319,9 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
 // rank, without Q, its rotations or Zn (Zn then has no columns).
 // z_eye: Z is exactly the identity (the first level with rows, nothing pinned above it):
 // the products with Z are written without forming them, the same bits (see below).
+// Levels of this many rows or more to rank are turned first (see below).
+constexpr i64 kTurnRows = 8;
+
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
     if (z_eye && detail::all_finite(A)) {
@@ -389,21 +393,50 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
-    // Without Zn (no rotations to log) and with many rows, the rows are first turned by the
-    // eigenvectors of their Gram matrix R R^T (symmetric QL, O(p^3)): nearly orthogonal, so
-    // that Jacobi, which decides the singular values as before (the norms of rows it made
-    // orthogonal), ends in a sweep or two rather than many (clustered singular values).
-    if (!need_null && p >= 16) detail::gram_precondition(R, p, cols, ws);
+    // With many rows, the rows are first turned by the eigenvectors of their Gram matrix R R^T
+    // (symmetric QL, O(p^3)): nearly orthogonal, so that Jacobi, which decides the singular
+    // values as before (the norms of rows it made orthogonal), ends in a sweep or two rather
+    // than five or more (clustered singular values). Turned, Q's first p columns are no longer
+    // followed, so the turn decides only a full rank, far from the cutoff (every singular value
+    // above 2 cutoff; the last level of 16 rows or more: whatever it finds): then Zn is Q's
+    // columns p.. alone, and sigma the least singular value. Otherwise the rows are restored
+    // and ranked as without the turn (the rotations logged for Zn's null directions).
     using detail::Rotation;
     std::vector<Rotation>& log = ws.log;
-    detail::jacobi_row_norms(R, p, cols, need_null, ws.sq, ws.clean, log);
     Vec& sq = ws.sq;
     Vec& sv = ws.sv;
-    sv.assign(static_cast<size_t>(p), 0.0);
+    bool final_turn = !need_null && p >= 16;
+    bool turned = false;
+    // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
+    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): the turn
+    // cannot decide, and is not taken.
+    bool turn = final_turn;
+    if (!final_turn && p >= kTurnRows)
+        turn = std::sqrt(row_sq(R.row(p - 1), cols)) > 2.0 * rank_tol * pymax(1.0, std::sqrt(row_sq(R.row(0), cols)));
+    if (turn) {
+        if (!final_turn) {  // R's rows kept in Mt (free once factored) for the plain ranking
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+        }
+        turned = detail::gram_precondition(R, p, cols, ws);
+    }
     double top = 0.0;
-    for (i64 i = 0; i < p; ++i) {
-        sv[i] = std::sqrt(sq[i]);
-        top = pymax(top, sv[i]);
+    for (int pass = 0; pass < 2; ++pass) {
+        detail::jacobi_row_norms(R, p, cols, need_null && !turned, sq, ws.clean, log);
+        sv.assign(static_cast<size_t>(p), 0.0);
+        top = 0.0;
+        for (i64 i = 0; i < p; ++i) {
+            sv[i] = std::sqrt(sq[i]);
+            top = pymax(top, sv[i]);
+        }
+        if (!turned || final_turn) break;
+        double far = 2.0 * rank_tol * pymax(1.0, top);
+        bool clear = true;
+        for (i64 i = 0; i < p; ++i)
+            if (!(sv[i] > far)) clear = false;
+        if (clear) break;
+        turned = false;
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
     }
     double cutoff = rank_tol * pymax(1.0, top);
     i64 rank = 0;
