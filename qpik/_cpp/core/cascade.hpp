@@ -1064,6 +1064,10 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // finger on its limit, the arm pinned at a vertex: residual 0.026 at sum u = 9e13, which
 // pinned the finger, where it was free to move 0.002).
 constexpr double kPinnedWeight = 1e6;
+// drop_pinned's test of every tight row at once (one NNLS): a residual within this, with
+// weights summing to at most kPinnedAllWeight, pins them all.
+constexpr double kPinnedAll = 1e-13;
+constexpr double kPinnedAllWeight = 100.0;
 
 // The rows tight at d whose movement the levels above have pinned, and Z without their
 // directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
@@ -1155,6 +1159,38 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
     state.assign(static_cast<size_t>(t), 0);
+    if (t > r) {
+        // Every row at once first, in one NNLS rather than one a row: u = 1 + v, v >= 0
+        // minimising |N 1 + N v| (N the normals as columns). With |N u| within kPinnedAll and
+        // sum u within kPinnedAllWeight, each row j has the weights u_i / u_j (u_j >= 1):
+        // residual |N u| / u_j within kPinnedAll, far inside the row's own test below
+        // (kPinned (1 + sum u), sum u >= 0), so that the test would pin every row: all are
+        // pinned. Else, a residual far above any the test accepts (kPinned kPinnedWeight
+        // (1 + sum u)) is a feasible move (NNLS's optimality: n_i^T N u >= 0 for every i, to
+        // its tolerance), and the rows it moves off their bounds are free, as the test marks
+        // them; the test then goes on with the others.
+        Mat& M = ws.M;
+        shape(M, r, t);  // every entry written
+        for (i64 c = 0; c < r; ++c)
+            for (i64 s = 0; s < t; ++s) M(c, s) = normals[s][c];
+        Vec& y = ws.y;
+        zero_fill(y, static_cast<size_t>(r));
+        for (i64 c = 0; c < r; ++c) y[c] = -ws.sum[c];
+        Vec& u = ws.u;  // v
+        detail::nnls_into(M, y, ws.nnls, u);
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);  // N (1 + v) = N v - y
+        double total = 0.0;
+        for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
+        for (i64 s = 0; s < t; ++s) total += 1.0 + u[s];
+        double rn = std::sqrt(dot(res.data(), res.data(), r));
+        if (rn <= kPinnedAll && total <= kPinnedAllWeight) {
+            for (i64 j = 0; j < t; ++j) state[j] = 1;
+        } else if (rn > kPinned * kPinnedWeight * (1.0 + total)) {
+            for (i64 i = 0; i < t; ++i)
+                if (dot(normals[i].data(), res.data(), r) > 1e-9 * rn) state[i] = -1;
+        }
+    }
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 0) continue;
         IVec& others = ws.others;
