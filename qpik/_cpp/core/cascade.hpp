@@ -218,8 +218,8 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
 // R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
 // that span the same space, nearly orthogonal, with the same singular values); left as they
 // are where QL does not converge (false).
-inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
-    Mat& G = ws.Q;
+// G = R R^T of R's first p rows (cols long).
+inline void gram_into(const Mat& R, i64 p, i64 cols, Mat& G) {
     G.zeros(p, p);
     for (i64 i = 0; i < p; ++i) {
         const double* ri = R.row(i);
@@ -229,6 +229,28 @@ inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
             G(j, i) = g;
         }
     }
+}
+
+// The least and the largest eigenvalue of R R^T (R's first p rows, cols long: the squares
+// of their least and largest singular values) by sym_eigen without vectors; false where QL
+// does not converge.
+inline bool gram_extremes(const Mat& R, i64 p, i64 cols, Workspace& ws, double& low, double& high) {
+    Mat& G = ws.Q;
+    gram_into(R, p, cols, G);
+    Vec& d = ws.qr.norms;
+    if (!sym_eigen(G, d, ws.qr.x, ws.Qt, false)) return false;
+    low = kInf;
+    high = -kInf;
+    for (i64 i = 0; i < p; ++i) {
+        low = pymin(low, d[i]);
+        high = pymax(high, d[i]);
+    }
+    return true;
+}
+
+inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
+    Mat& G = ws.Q;
+    gram_into(R, p, cols, G);
     if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return false;
     Mat& T = ws.Qr;
     T.zeros(p, cols);
@@ -321,6 +343,9 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
 // the products with Z are written without forming them, the same bits (see below).
 // Levels of this many rows or more to rank are turned first (see below).
 constexpr i64 kTurnRows = 8;
+// ... and ranked by the eigenvalues of R R^T alone when the least is at least this times the
+// largest (condition number 10 or less).
+constexpr double kConditioned = 1e-2;
 
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
@@ -408,11 +433,29 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     bool final_turn = !need_null && p >= 16;
     bool turned = false;
     // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
-    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): the turn
-    // cannot decide, and is not taken.
-    bool turn = final_turn;
-    if (!final_turn && p >= kTurnRows)
-        turn = std::sqrt(row_sq(R.row(p - 1), cols)) > 2.0 * rank_tol * pymax(1.0, std::sqrt(row_sq(R.row(0), cols)));
+    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): neither the
+    // eigenvalues nor the turn can decide, and neither is taken.
+    bool roomy = p >= kTurnRows &&
+                 std::sqrt(row_sq(R.row(p - 1), cols)) > 2.0 * rank_tol * pymax(1.0, std::sqrt(row_sq(R.row(0), cols)));
+    double top = 0.0;
+    bool decided = false;
+    if (roomy) {
+        // Well conditioned (the least eigenvalue of R R^T at least kConditioned times the
+        // largest, each found within a few p eps of the largest: sigma to 1e-13 or so): the
+        // singular values are the square roots of the eigenvalues, no rotation needed; a full
+        // rank when the least is above 2 cutoff.
+        double low = 0.0, high = 0.0;
+        if (detail::gram_extremes(R, p, cols, ws, low, high) && high > 0.0 && low >= kConditioned * high) {
+            top = std::sqrt(high);
+            double least = std::sqrt(low);
+            if (least > 2.0 * rank_tol * pymax(1.0, top)) {
+                decided = true;
+                sv.assign(static_cast<size_t>(p), least);
+                log.clear();
+            }
+        }
+    }
+    bool turn = !decided && (final_turn || roomy);
     if (turn) {
         if (!final_turn) {  // R's rows kept in Mt (free once factored) for the plain ranking
             shape(Mt, p, cols);  // every entry copied
@@ -420,8 +463,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
         turned = detail::gram_precondition(R, p, cols, ws);
     }
-    double top = 0.0;
-    for (int pass = 0; pass < 2; ++pass) {
+    for (int pass = 0; pass < 2 && !decided; ++pass) {
         detail::jacobi_row_norms(R, p, cols, need_null && !turned, sq, ws.clean, log);
         sv.assign(static_cast<size_t>(p), 0.0);
         top = 0.0;
