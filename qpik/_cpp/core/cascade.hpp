@@ -346,6 +346,7 @@ constexpr i64 kTurnRows = 8;
 // ... and ranked by the eigenvalues of R R^T alone when the least is at least this times the
 // largest (condition number 10 or less).
 constexpr double kConditioned = 1e-2;
+constexpr double kGraded = 0.1;
 
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
@@ -435,8 +436,13 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
     // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): neither the
     // eigenvalues nor the turn can decide, and neither is taken.
-    bool roomy = p >= kTurnRows &&
-                 std::sqrt(row_sq(R.row(p - 1), cols)) > 2.0 * rank_tol * pymax(1.0, std::sqrt(row_sq(R.row(0), cols)));
+    // A last row below kGraded times the first (graded rows, a condition number above 1 /
+    // kGraded): the plain Jacobi converges in a few sweeps by itself, and is taken as is.
+    bool roomy = false;
+    if (p >= kTurnRows) {
+        double last = std::sqrt(row_sq(R.row(p - 1), cols)), first = std::sqrt(row_sq(R.row(0), cols));
+        roomy = last > 2.0 * rank_tol * pymax(1.0, first) && last >= kGraded * first;
+    }
     double top = 0.0;
     bool decided = false;
     if (roomy) {
@@ -1201,8 +1207,10 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
     state.assign(static_cast<size_t>(t), 0);
-    if (t > r) {
-        // Every row at once first, in one NNLS rather than one a row: u = 1 + v, v >= 0
+    if (2 * t >= 3 * r) {
+        // Many more tight rows than null-space directions (t >= 1.5 r: one NNLS a row would
+        // take several, each pinning at most r + 1 rows; with fewer, one or two usually do,
+        // and this test would add one). Every row at once first, in one NNLS rather than one a row: u = 1 + v, v >= 0
         // minimising |N 1 + N v| (N the normals as columns). With |N u| within kPinnedAll and
         // sum u within kPinnedAllWeight, each row j has the weights u_i / u_j (u_j >= 1):
         // residual |N u| / u_j within kPinnedAll, far inside the row's own test below
