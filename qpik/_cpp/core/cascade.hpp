@@ -233,7 +233,7 @@ inline void gram_into(const Mat& R, i64 p, i64 cols, Mat& G) {
 
 // The least and the largest eigenvalue of R R^T (R's first p rows, cols long: the squares
 // of their least and largest singular values) by sym_eigen without vectors; false where QL
-// does not converge.
+// does not converge or an eigenvalue is not finite.
 inline bool gram_extremes(const Mat& R, i64 p, i64 cols, Workspace& ws, double& low, double& high) {
     Mat& G = ws.Q;
     gram_into(R, p, cols, G);
@@ -242,6 +242,7 @@ inline bool gram_extremes(const Mat& R, i64 p, i64 cols, Workspace& ws, double& 
     low = kInf;
     high = -kInf;
     for (i64 i = 0; i < p; ++i) {
+        if (!std::isfinite(d[i])) return false;  // (non-finite rows: the plain ranking decides)
         low = pymin(low, d[i]);
         high = pymax(high, d[i]);
     }
