@@ -234,9 +234,9 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
 
 // R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
 // that span the same space, nearly orthogonal, with the same singular values); left as they
-// are where QL does not converge.
-inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
-    Mat& G = ws.Q;
+// are where QL does not converge (false).
+// G = R R^T of R's first p rows (cols long).
+inline void gram_into(const Mat& R, i64 p, i64 cols, Mat& G) {
     G.zeros(p, p);
     for (i64 i = 0; i < p; ++i) {
         const double* ri = R.row(i);
@@ -246,7 +246,30 @@ inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
             G(j, i) = g;
         }
     }
-    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return;
+}
+
+// The least and the largest eigenvalue of R R^T (R's first p rows, cols long: the squares
+// of their least and largest singular values) by sym_eigen without vectors; false where QL
+// does not converge or an eigenvalue is not finite.
+inline bool gram_extremes(const Mat& R, i64 p, i64 cols, Workspace& ws, double& low, double& high) {
+    Mat& G = ws.Q;
+    gram_into(R, p, cols, G);
+    Vec& d = ws.qr.norms;
+    if (!sym_eigen(G, d, ws.qr.x, ws.Qt, false)) return false;
+    low = kInf;
+    high = -kInf;
+    for (i64 i = 0; i < p; ++i) {
+        if (!std::isfinite(d[i])) return false;  // (non-finite rows: the plain ranking decides)
+        low = pymin(low, d[i]);
+        high = pymax(high, d[i]);
+    }
+    return true;
+}
+
+inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
+    Mat& G = ws.Q;
+    gram_into(R, p, cols, G);
+    if (!sym_eigen(G, ws.qr.norms, ws.qr.x, ws.Qt)) return false;
     Mat& T = ws.Qr;
     T.zeros(p, cols);
     for (i64 k = 0; k < p; ++k) {
@@ -255,6 +278,7 @@ inline void gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
         for (i64 i = 0; i < p; ++i) axpy(tk, vk[i], R.row(i), cols);
     }
     for (i64 k = 0; k < p; ++k) std::memcpy(R.row(k), T.row(k), static_cast<size_t>(cols) * sizeof(double));
+    return true;
 }
 
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
@@ -335,6 +359,13 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
 // rank, without Q, its rotations or Zn (Zn then has no columns).
 // z_eye: Z is exactly the identity (the first level with rows, nothing pinned above it):
 // the products with Z are written without forming them, the same bits (see below).
+// Levels of this many rows or more to rank are turned first (see below).
+constexpr i64 kTurnRows = 8;
+// ... and ranked by the eigenvalues of R R^T alone when the least is at least this times the
+// largest (condition number 10 or less).
+constexpr double kConditioned = 1e-2;
+constexpr double kGraded = 0.1;
+
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
     if (z_eye && detail::all_finite(A)) {
@@ -406,21 +437,72 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
     // in a few sweeps).
     i64 p = std::min(r, keep);
-    // Without Zn (no rotations to log) and with many rows, the rows are first turned by the
-    // eigenvectors of their Gram matrix R R^T (symmetric QL, O(p^3)): nearly orthogonal, so
-    // that Jacobi, which decides the singular values as before (the norms of rows it made
-    // orthogonal), ends in a sweep or two rather than many (clustered singular values).
-    if (!need_null && p >= 16) detail::gram_precondition(R, p, cols, ws);
+    // With many rows, the rows are first turned by the eigenvectors of their Gram matrix R R^T
+    // (symmetric QL, O(p^3)): nearly orthogonal, so that Jacobi, which decides the singular
+    // values as before (the norms of rows it made orthogonal), ends in a sweep or two rather
+    // than five or more (clustered singular values). Turned, Q's first p columns are no longer
+    // followed, so the turn decides only a full rank, far from the cutoff (every singular value
+    // above 2 cutoff; the last level of 16 rows or more: whatever it finds): then Zn is Q's
+    // columns p.. alone, and sigma the least singular value. Otherwise the rows are restored
+    // and ranked as without the turn (the rotations logged for Zn's null directions).
     using detail::Rotation;
     std::vector<Rotation>& log = ws.log;
-    detail::jacobi_row_norms(R, p, cols, need_null, ws.sq, ws.clean, log);
     Vec& sq = ws.sq;
     Vec& sv = ws.sv;
-    sv.assign(static_cast<size_t>(p), 0.0);
+    bool final_turn = !need_null && p >= 16;
+    bool turned = false;
+    // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
+    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): neither the
+    // eigenvalues nor the turn can decide, and neither is taken.
+    // A last row below kGraded times the first (graded rows, a condition number above 1 /
+    // kGraded): the plain Jacobi converges in a few sweeps by itself, and is taken as is.
+    bool roomy = false;
+    if (p >= kTurnRows) {
+        double last = std::sqrt(row_sq(R.row(p - 1), cols)), first = std::sqrt(row_sq(R.row(0), cols));
+        roomy = last > 2.0 * rank_tol * pymax(1.0, first) && last >= kGraded * first;
+    }
     double top = 0.0;
-    for (i64 i = 0; i < p; ++i) {
-        sv[i] = std::sqrt(sq[i]);
-        top = pymax(top, sv[i]);
+    bool decided = false;
+    if (roomy) {
+        // Well conditioned (the least eigenvalue of R R^T at least kConditioned times the
+        // largest, each found within a few p eps of the largest: sigma to 1e-13 or so): the
+        // singular values are the square roots of the eigenvalues, no rotation needed; a full
+        // rank when the least is above 2 cutoff.
+        double low = 0.0, high = 0.0;
+        if (detail::gram_extremes(R, p, cols, ws, low, high) && high > 0.0 && low >= kConditioned * high) {
+            top = std::sqrt(high);
+            double least = std::sqrt(low);
+            if (least > 2.0 * rank_tol * pymax(1.0, top)) {
+                decided = true;
+                sv.assign(static_cast<size_t>(p), least);
+                log.clear();
+            }
+        }
+    }
+    bool turn = !decided && (final_turn || roomy);
+    if (turn) {
+        if (!final_turn) {  // R's rows kept in Mt (free once factored) for the plain ranking
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+        }
+        turned = detail::gram_precondition(R, p, cols, ws);
+    }
+    for (int pass = 0; pass < 2 && !decided; ++pass) {
+        detail::jacobi_row_norms(R, p, cols, need_null && !turned, sq, ws.clean, log);
+        sv.assign(static_cast<size_t>(p), 0.0);
+        top = 0.0;
+        for (i64 i = 0; i < p; ++i) {
+            sv[i] = std::sqrt(sq[i]);
+            top = pymax(top, sv[i]);
+        }
+        if (!turned || final_turn) break;
+        double far = 2.0 * rank_tol * pymax(1.0, top);
+        bool clear = true;
+        for (i64 i = 0; i < p; ++i)
+            if (!(sv[i] > far)) clear = false;
+        if (clear) break;
+        turned = false;
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
     }
     double cutoff = rank_tol * pymax(1.0, top);
     i64 rank = 0;
@@ -1122,6 +1204,10 @@ constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with we
 // finger on its limit, the arm pinned at a vertex: residual 0.026 at sum u = 9e13, which
 // pinned the finger, where it was free to move 0.002).
 constexpr double kPinnedWeight = 1e6;
+// drop_pinned's test of every tight row at once (one NNLS): a residual within this, with
+// weights summing to at most kPinnedAllWeight, pins them all.
+constexpr double kPinnedAll = 1e-13;
+constexpr double kPinnedAllWeight = 100.0;
 
 // The rows tight at d whose movement the levels above have pinned, and Z without their
 // directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
@@ -1213,6 +1299,40 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
     state.assign(static_cast<size_t>(t), 0);
+    if (2 * t >= 3 * r) {
+        // Many more tight rows than null-space directions (t >= 1.5 r: one NNLS a row would
+        // take several, each pinning at most r + 1 rows; with fewer, one or two usually do,
+        // and this test would add one). Every row at once first, in one NNLS rather than one a row: u = 1 + v, v >= 0
+        // minimising |N 1 + N v| (N the normals as columns). With |N u| within kPinnedAll and
+        // sum u within kPinnedAllWeight, each row j has the weights u_i / u_j (u_j >= 1):
+        // residual |N u| / u_j within kPinnedAll, far inside the row's own test below
+        // (kPinned (1 + sum u), sum u >= 0), so that the test would pin every row: all are
+        // pinned. Else, a residual far above any the test accepts (kPinned kPinnedWeight
+        // (1 + sum u)) is a feasible move (NNLS's optimality: n_i^T N u >= 0 for every i, to
+        // its tolerance), and the rows it moves off their bounds are free, as the test marks
+        // them; the test then goes on with the others.
+        Mat& M = ws.M;
+        shape(M, r, t);  // every entry written
+        for (i64 c = 0; c < r; ++c)
+            for (i64 s = 0; s < t; ++s) M(c, s) = normals[s][c];
+        Vec& y = ws.y;
+        zero_fill(y, static_cast<size_t>(r));
+        for (i64 c = 0; c < r; ++c) y[c] = -ws.sum[c];
+        Vec& u = ws.u;  // v
+        detail::nnls_into(M, y, ws.nnls, u);
+        Vec& res = ws.res;
+        mv_into(M.cref(), u.data(), res);  // N (1 + v) = N v - y
+        double total = 0.0;
+        for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
+        for (i64 s = 0; s < t; ++s) total += 1.0 + u[s];
+        double rn = std::sqrt(dot(res.data(), res.data(), r));
+        if (rn <= kPinnedAll && total <= kPinnedAllWeight) {
+            for (i64 j = 0; j < t; ++j) state[j] = 1;
+        } else if (rn > kPinned * kPinnedWeight * (1.0 + total)) {
+            for (i64 i = 0; i < t; ++i)
+                if (dot(normals[i].data(), res.data(), r) > 1e-9 * rn) state[i] = -1;
+        }
+    }
     for (i64 j = 0; j < t; ++j) {
         if (state[j] != 0) continue;
         IVec& others = ws.others;

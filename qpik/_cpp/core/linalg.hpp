@@ -788,7 +788,9 @@ inline double safe_hypot(double a, double b) {
 // Householder tridiagonalisation then the implicit QL method (EISPACK tred2 / tql2, as JAMA
 // writes them), every loop in one fixed order. false where QL did not converge in 30 n
 // iterations (V then holds no meaning).
-inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
+// vectors false: the eigenvalues alone (the same d; V then holds no meaning, Vt is not used):
+// neither the reflections are accumulated nor the QL rotations applied to vectors.
+inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
     i64 n = V.rows;
     d.assign(static_cast<size_t>(n), 0.0);
     e.assign(static_cast<size_t>(n), 0.0);
@@ -843,7 +845,11 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
         }
         d[i] = h;
     }
-    for (i64 i = 0; i < n - 1; ++i) {
+    if (!vectors) {
+        // The tridiagonal's diagonal, as the accumulation below leaves it in d.
+        for (i64 j = 0; j < n; ++j) d[j] = V(j, j);
+    }
+    for (i64 i = 0; i < n - 1 && vectors; ++i) {
         V(n - 1, i) = V(i, i);
         V(i, i) = 1.0;
         double h = d[i + 1];
@@ -857,14 +863,16 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
         }
         for (i64 k = 0; k <= i; ++k) V(k, i + 1) = 0.0;
     }
-    for (i64 j = 0; j < n; ++j) {
-        d[j] = V(n - 1, j);
-        V(n - 1, j) = 0.0;
+    if (vectors) {
+        for (i64 j = 0; j < n; ++j) {
+            d[j] = V(n - 1, j);
+            V(n - 1, j) = 0.0;
+        }
+        V(n - 1, n - 1) = 1.0;
     }
-    V(n - 1, n - 1) = 1.0;
     e[0] = 0.0;
     // QL on the rows of Vt = V^T (a rotation of columns i, i+1 of V is one of rows: contiguous).
-    transposed_into(V.cref(), Vt);
+    if (vectors) transposed_into(V.cref(), Vt);
     for (i64 i = 1; i < n; ++i) e[i - 1] = e[i];
     e[n - 1] = 0.0;
     double f = 0.0, tst1 = 0.0;
@@ -908,7 +916,7 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
                     p = c * d[i] - s * g;
                     d[i + 1] = h + s * (c * g + s * d[i]);
                     // columns i, i+1 of V: new i+1 = s v_i + c v_{i+1}, new i = c v_i - s v_{i+1}
-                    jacobi_rows(Vt.row(i), Vt.row(i + 1), c, s, n);
+                    if (vectors) jacobi_rows(Vt.row(i), Vt.row(i + 1), c, s, n);
                 }
                 p = -s * s2 * c3 * el1 * e[l] / dl1;
                 e[l] = s * p;
@@ -918,7 +926,7 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt) {
         d[l] = d[l] + f;
         e[l] = 0.0;
     }
-    std::swap(V, Vt);
+    if (vectors) std::swap(V, Vt);
     return true;
 }
 
