@@ -35,6 +35,8 @@ struct QPScratch {
     Mat L, J, JT, R;
     Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
     IVec act_row, act_side, unit, rows, dense;
+    Vec CT, thr_lo, thr_hi, cxd;  // see RowScan
+    IVec cand;
     BVec in_set;
 };
 
@@ -209,6 +211,118 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     Vec cx;
     IVec rows;
     most_violated(x, C, lo, hi, skip, tol, norms, unit, best_row, best_side, cx, rows);
+}
+
+// most_violated's work, laid out once per solve_qp (C, lo, hi, tol fixed): the dense rows'
+// normals transposed (column j of CT the j-th dense row, columns padded to an even count with
+// zeros), so C x of all of them is taken two rows a vector; the candidate rows (norm != 0) in
+// order; per row its thresholds tol (1 + |bound|), NaN for an absent bound (no v exceeds it).
+// Needs tol >= 0 (a violation then has bound - C x > 0, so the division is taken only there).
+struct RowScan {
+    i64 kd = 0, ld = 0;
+};
+
+inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const Vec& norms, const IVec& unit,
+                          const IVec& dense, QPScratch& ws, RowScan& rs) {
+    i64 m = C.rows, n = C.cols;
+    rs.kd = static_cast<i64>(dense.size());
+    rs.ld = (rs.kd + 1) & ~static_cast<i64>(1);
+    Vec& CT = ws.CT;
+    shape(CT, static_cast<size_t>(n * rs.ld));
+    for (i64 k = 0; k < n; ++k) {
+        double* ck = CT.data() + k * rs.ld;
+        for (i64 j = 0; j < rs.kd; ++j) ck[j] = C(dense[j], k);
+        if (rs.ld > rs.kd) ck[rs.kd] = 0.0;
+    }
+    // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
+    // product, or -1 - column for a unit row.
+    ws.cand.clear();
+    shape(ws.thr_lo, static_cast<size_t>(m));
+    shape(ws.thr_hi, static_cast<size_t>(m));
+    i64 slot = 0;
+    for (i64 i = 0; i < m; ++i) {
+        if (norms[i] == 0.0) continue;
+        ws.cand.push_back(i);
+        ws.cand.push_back(unit[i] >= 0 ? -1 - unit[i] : slot++);
+        ws.thr_lo[i] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
+        ws.thr_hi[i] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
+    }
+}
+
+// most_violated(x, ...) by RowScan (the same bits and answer:
+// each dense row's C x summed in index order from +0, as dot; v and the order of the tests
+// as there).
+inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
+                               const Vec& norms, const RowScan& rs,
+                               QPScratch& ws, i64& best_row, i64& best_side) {
+    using namespace simd;
+    i64 n = C.cols, ld = rs.ld;
+    const double* CT = ws.CT.data();
+    Vec& out = ws.cxd;
+    shape(out, static_cast<size_t>(ld));
+    i64 j = 0;
+    for (; j + 8 <= ld; j += 8) {
+        v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) {
+            v2d xk = splat(x[k]);
+            a = a + load(p) * xk;
+            b = b + load(p + 2) * xk;
+            c = c + load(p + 4) * xk;
+            e = e + load(p + 6) * xk;
+        }
+        store(out.data() + j, a);
+        store(out.data() + j + 2, b);
+        store(out.data() + j + 4, c);
+        store(out.data() + j + 6, e);
+    }
+    for (; j + 4 <= ld; j += 4) {
+        v2d a = splat(0.0), b = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) {
+            v2d xk = splat(x[k]);
+            a = a + load(p) * xk;
+            b = b + load(p + 2) * xk;
+        }
+        store(out.data() + j, a);
+        store(out.data() + j + 2, b);
+    }
+    for (; j + 2 <= ld; j += 2) {
+        v2d a = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) a = a + load(p) * splat(x[k]);
+        store(out.data() + j, a);
+    }
+    double best = 0.0;
+    best_row = -1;
+    best_side = 0;
+    const double* tl = ws.thr_lo.data();
+    const double* th = ws.thr_hi.data();
+    const i64* cand = ws.cand.data();
+    i64 nc = static_cast<i64>(ws.cand.size());
+    for (i64 t = 0; t < nc; t += 2) {
+        i64 i = cand[t], at = cand[t + 1];
+        if (skip[i]) continue;
+        double ci = at >= 0 ? out[at] : 0.0 + C(i, -1 - at) * x[-1 - at];
+        double a = lo[i] - ci;
+        if (a > 0.0) {
+            double v = a / norms[i];
+            if (v > tl[i] && v > best) {
+                best = v;
+                best_row = i;
+                best_side = 1;
+            }
+        }
+        double b = ci - hi[i];
+        if (b > 0.0) {
+            double v = b / norms[i];
+            if (v > th[i] && v > best) {
+                best = v;
+                best_row = i;
+                best_side = -1;
+            }
+        }
+    }
 }
 
 inline double dual_floor(const Vec& u, i64 q) { return 1e-12 * (1.0 + max_abs(u, q)); }
@@ -579,6 +693,9 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     dense.clear();
     for (i64 i = 0; i < m; ++i)
         if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
+    RowScan scan;
+    bool scanned = tol >= 0.0;  // RowScan's condition
+    if (scanned) row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
     zero_fill(x_old, static_cast<size_t>(n));
@@ -588,7 +705,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     i64 iterations = 0;
     while (true) {
         i64 row, side;
-        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
+        if (scanned)
+            most_violated_scan(x.data(), C, lo, hi, in_set, norms, scan, ws, row, side);
+        else
+            most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
         if (row < 0) {
             BVec working(static_cast<size_t>(m), 0);
             mark(working, act_row, act_side, q);
