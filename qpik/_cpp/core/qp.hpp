@@ -377,6 +377,52 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
     transposed_into(J.cref(), JT);
 }
 
+// inverse_transpose_into's JT alone, with the same bits: row k of JT (column k of J) is
+// -(sum over t < k of L(k, t) JT(t, :)) / L(k, k), each entry's sum from +0 in the order of t
+// (minus_dot's). Four entries i0..i0+3 a pass in registers, t from i0: an entry i > t meets
+// JT(t, i) = 0 (a structural zero), L(k, t) * 0 = +-0 taken from +0 leaves +0, as if its sum
+// had not started (L finite; else axmy passes, entry i only from t = i on).
+inline void inverse_transpose_into(const Mat& L, Mat& JT) {
+    using namespace simd;
+    i64 n = L.rows;
+    JT.zeros(n, n);
+    bool finite = true;
+    for (i64 k = 0; k < n && finite; ++k)
+        for (i64 t = 0; t <= k; ++t)
+            if (!std::isfinite(L(k, t))) finite = false;
+    for (i64 k = 0; k < n; ++k) {
+        double* jk = JT.row(k);
+        const double* lk = L.row(k);
+        double lkk = lk[k];
+        if (!finite) {
+            for (i64 t = 0; t < k; ++t) axmy(jk, lk[t], JT.row(t), t + 1);
+            for (i64 i = 0; i < k; ++i) jk[i] = jk[i] / lkk;
+            jk[k] = 1.0 / lkk;
+            continue;
+        }
+        v2d dv = splat(lkk);
+        i64 i0 = 0;
+        for (; i0 + 2 < k; i0 += 4) {  // entries i0..i0+3 (those >= k written below or zero)
+            v2d a = splat(0.0), b = splat(0.0);
+            const double* p = JT.row(i0) + i0;
+            for (i64 t = i0; t < k; ++t, p += n) {
+                v2d l = splat(lk[t]);
+                a = a - l * load(p);
+                b = b - l * load(p + 2);
+            }
+            store(jk + i0, a / dv);
+            store(jk + i0 + 2, b / dv);
+        }
+        for (; i0 < k; i0 += 2) {  // entries i0, i0 + 1 (i0 + 1 <= k)
+            v2d a = splat(0.0);
+            const double* p = JT.row(i0) + i0;
+            for (i64 t = i0; t < k; ++t, p += n) a = a - splat(lk[t]) * load(p);
+            store(jk + i0, a / dv);
+        }
+        jk[k] = 1.0 / lkk;
+    }
+}
+
 // d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction). JT is J
 // transposed (see inverse_transpose).
 inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
@@ -670,7 +716,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         forward_into(L, mc, ws.y);
         backward_into(L, ws.y, x);
     }
-    inverse_transpose_into(Lm, ws.J, ws.JT);
+    inverse_transpose_into(Lm, ws.JT);
     Mat& J = ws.JT;
     Mat& R = ws.R;
     R.zeros(n, n);
