@@ -229,11 +229,14 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
     rs.ld = (rs.kd + 1) & ~static_cast<i64>(1);
     Vec& CT = ws.CT;
     shape(CT, static_cast<size_t>(n * rs.ld));
-    for (i64 k = 0; k < n; ++k) {
-        double* ck = CT.data() + k * rs.ld;
-        for (i64 j = 0; j < rs.kd; ++j) ck[j] = C(dense[j], k);
-        if (rs.ld > rs.kd) ck[rs.kd] = 0.0;
+    i64 ld = rs.ld;
+    for (i64 j = 0; j < rs.kd; ++j) {
+        const double* cj = C.row(dense[j]);
+        double* dst = CT.data() + j;
+        for (i64 k = 0; k < n; ++k) dst[k * ld] = cj[k];
     }
+    if (ld > rs.kd)
+        for (i64 k = 0; k < n; ++k) CT[k * ld + rs.kd] = 0.0;
     // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
     // product, or -1 - column for a unit row.
     ws.cand.clear();
