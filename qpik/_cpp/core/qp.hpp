@@ -541,11 +541,13 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
         act_row[j] = act_row[j + 1];
         act_side[j] = act_side[j + 1];
         u[j] = u[j + 1];
-        for (i64 i = 0; i < n; ++i) R(i, j) = R(i, j + 1);
+        // R is upper triangular with exact zeros below: column j + 1 has rows <= j + 1 only,
+        // and the rows below are zeros in both columns.
+        for (i64 i = 0; i <= j + 1; ++i) R(i, j) = R(i, j + 1);
     }
     u[q - 1] = u[q];
     u[q] = 0.0;
-    for (i64 i = 0; i < n; ++i) R(i, q - 1) = 0.0;
+    for (i64 i = 0; i < q; ++i) R(i, q - 1) = 0.0;  // (rows >= q of it are zeros)
     q -= 1;
     for (i64 j = drop; j < q; ++j) {
         double cc = R(j, j);
@@ -829,8 +831,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 x_old = x;
                 u_old = u;
             }
-            if (t2 < kInf)
-                for (i64 k = 0; k < n; ++k) x[k] += t * z[k];
+            if (t2 < kInf) axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k]
             for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
             u[q] += t;
             if (full) {
