@@ -428,17 +428,20 @@ inline void inverse_transpose_into(const Mat& L, Mat& JT) {
 
 // d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction). JT is J
 // transposed (see inverse_transpose).
-inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
+// d0, d1: for a row not a unit row, only d[d0:d1] is taken afresh (the others hold J^T n of
+// JT's rows as they still are, with the same normal: the same values).
+inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r,
+                       i64 d0 = 0, i64 d1 = -1) {
     i64 n = JT.rows;
     if (unit >= 0) {
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
-        i64 i = 0;
-        for (; i + 4 <= n; i += 4)
+        i64 i = d0, e = d1 >= 0 ? d1 : n;
+        for (; i + 4 <= e; i += 4)
             dot4(JT.row(i), JT.row(i + 1), JT.row(i + 2), JT.row(i + 3), normal.data(), n, d[i], d[i + 1], d[i + 2],
                  d[i + 3]);
-        for (; i + 2 <= n; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
-        for (; i < n; ++i) {
+        for (; i + 2 <= e; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
+        for (; i < e; ++i) {
             const double* ji = JT.row(i);
             double acc = 0.0;
             for (i64 k = 0; k < n; ++k) acc += ji[k] * normal[k];
@@ -792,13 +795,14 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
         double rhs = rhs_of(lo, hi, row, side);
         u[q] = 0.0;
+        i64 d0 = 0, d1 = -1;  // the rows of d to take afresh (see directions)
         while (true) {
             iterations += 1;
             if (iterations > max_iter) {
                 mark(active, act_row, act_side, q);
                 return QPResult{x, MAX_ITER, iterations, std::move(active), {}};
             }
-            directions(J, R, normal, unit[row], q, d, z, r);
+            directions(J, R, normal, unit[row], q, d, z, r, d0, d1);
             i64 drop;
             double t1 = dual_step(u, r, q, drop);
             double slack = dot(normal.data(), x.data(), n) - rhs;
@@ -852,6 +856,8 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 break;
             }
             drop_constraint(J, R, u, act_row, act_side, in_set, drop, q);
+            d0 = drop;  // drop_constraint turned JT's rows drop..q - 1 only
+            d1 = q;
             q -= 1;
         }
     }
