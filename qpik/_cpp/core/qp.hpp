@@ -35,6 +35,8 @@ struct QPScratch {
     Mat L, J, JT, R;
     Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
     IVec act_row, act_side, unit, rows, dense;
+    Vec CT, thr_lo, thr_hi, cxd;  // see RowScan
+    IVec cand;
     BVec in_set;
 };
 
@@ -211,6 +213,121 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
     most_violated(x, C, lo, hi, skip, tol, norms, unit, best_row, best_side, cx, rows);
 }
 
+// most_violated's work, laid out once per solve_qp (C, lo, hi, tol fixed): the dense rows'
+// normals transposed (column j of CT the j-th dense row, columns padded to an even count with
+// zeros), so C x of all of them is taken two rows a vector; the candidate rows (norm != 0) in
+// order; per row its thresholds tol (1 + |bound|), NaN for an absent bound (no v exceeds it).
+// Needs tol >= 0 (a violation then has bound - C x > 0, so the division is taken only there).
+struct RowScan {
+    i64 kd = 0, ld = 0;
+};
+
+inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const Vec& norms, const IVec& unit,
+                          const IVec& dense, QPScratch& ws, RowScan& rs) {
+    i64 m = C.rows, n = C.cols;
+    rs.kd = static_cast<i64>(dense.size());
+    rs.ld = (rs.kd + 1) & ~static_cast<i64>(1);
+    Vec& CT = ws.CT;
+    shape(CT, static_cast<size_t>(n * rs.ld));
+    i64 ld = rs.ld;
+    for (i64 j = 0; j < rs.kd; ++j) {
+        const double* cj = C.row(dense[j]);
+        double* dst = CT.data() + j;
+        for (i64 k = 0; k < n; ++k) dst[k * ld] = cj[k];
+    }
+    if (ld > rs.kd)
+        for (i64 k = 0; k < n; ++k) CT[k * ld + rs.kd] = 0.0;
+    // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
+    // product, or -1 - column for a unit row.
+    ws.cand.clear();
+    shape(ws.thr_lo, static_cast<size_t>(m));
+    shape(ws.thr_hi, static_cast<size_t>(m));
+    i64 slot = 0;
+    for (i64 i = 0; i < m; ++i) {
+        if (norms[i] == 0.0) continue;
+        ws.cand.push_back(i);
+        ws.cand.push_back(unit[i] >= 0 ? -1 - unit[i] : slot++);
+        ws.thr_lo[i] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
+        ws.thr_hi[i] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
+    }
+}
+
+// most_violated(x, ...) by RowScan (the same bits and answer:
+// each dense row's C x summed in index order from +0, as dot; v and the order of the tests
+// as there).
+inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
+                               const Vec& norms, const RowScan& rs,
+                               QPScratch& ws, i64& best_row, i64& best_side) {
+    using namespace simd;
+    i64 n = C.cols, ld = rs.ld;
+    const double* CT = ws.CT.data();
+    Vec& out = ws.cxd;
+    shape(out, static_cast<size_t>(ld));
+    i64 j = 0;
+    for (; j + 8 <= ld; j += 8) {
+        v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) {
+            v2d xk = splat(x[k]);
+            a = a + load(p) * xk;
+            b = b + load(p + 2) * xk;
+            c = c + load(p + 4) * xk;
+            e = e + load(p + 6) * xk;
+        }
+        store(out.data() + j, a);
+        store(out.data() + j + 2, b);
+        store(out.data() + j + 4, c);
+        store(out.data() + j + 6, e);
+    }
+    for (; j + 4 <= ld; j += 4) {
+        v2d a = splat(0.0), b = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) {
+            v2d xk = splat(x[k]);
+            a = a + load(p) * xk;
+            b = b + load(p + 2) * xk;
+        }
+        store(out.data() + j, a);
+        store(out.data() + j + 2, b);
+    }
+    for (; j + 2 <= ld; j += 2) {
+        v2d a = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) a = a + load(p) * splat(x[k]);
+        store(out.data() + j, a);
+    }
+    double best = 0.0;
+    best_row = -1;
+    best_side = 0;
+    const double* tl = ws.thr_lo.data();
+    const double* th = ws.thr_hi.data();
+    const i64* cand = ws.cand.data();
+    i64 nc = static_cast<i64>(ws.cand.size());
+    for (i64 t = 0; t < nc; t += 2) {
+        i64 i = cand[t], at = cand[t + 1];
+        if (skip[i]) continue;
+        double ci = at >= 0 ? out[at] : 0.0 + C(i, -1 - at) * x[-1 - at];
+        double a = lo[i] - ci;
+        if (a > 0.0) {
+            double v = a / norms[i];
+            if (v > tl[i] && v > best) {
+                best = v;
+                best_row = i;
+                best_side = 1;
+            }
+        }
+        double b = ci - hi[i];
+        if (b > 0.0) {
+            double v = b / norms[i];
+            if (v > th[i] && v > best) {
+                best = v;
+                best_row = i;
+                best_side = -1;
+            }
+        }
+    }
+}
+
 inline double dual_floor(const Vec& u, i64 q) { return 1e-12 * (1.0 + max_abs(u, q)); }
 
 // Primal feasibility of x and dual feasibility of the multipliers u.
@@ -263,19 +380,68 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
     transposed_into(J.cref(), JT);
 }
 
+// inverse_transpose_into's JT alone, with the same bits: row k of JT (column k of J) is
+// -(sum over t < k of L(k, t) JT(t, :)) / L(k, k), each entry's sum from +0 in the order of t
+// (minus_dot's). Four entries i0..i0+3 a pass in registers, t from i0: an entry i > t meets
+// JT(t, i) = 0 (a structural zero), L(k, t) * 0 = +-0 taken from +0 leaves +0, as if its sum
+// had not started (L finite; else axmy passes, entry i only from t = i on).
+inline void inverse_transpose_into(const Mat& L, Mat& JT) {
+    using namespace simd;
+    i64 n = L.rows;
+    JT.zeros(n, n);
+    bool finite = true;
+    for (i64 k = 0; k < n && finite; ++k)
+        for (i64 t = 0; t <= k; ++t)
+            if (!std::isfinite(L(k, t))) finite = false;
+    for (i64 k = 0; k < n; ++k) {
+        double* jk = JT.row(k);
+        const double* lk = L.row(k);
+        double lkk = lk[k];
+        if (!finite) {
+            for (i64 t = 0; t < k; ++t) axmy(jk, lk[t], JT.row(t), t + 1);
+            for (i64 i = 0; i < k; ++i) jk[i] = jk[i] / lkk;
+            jk[k] = 1.0 / lkk;
+            continue;
+        }
+        v2d dv = splat(lkk);
+        i64 i0 = 0;
+        for (; i0 + 2 < k; i0 += 4) {  // entries i0..i0+3 (those >= k written below or zero)
+            v2d a = splat(0.0), b = splat(0.0);
+            const double* p = JT.row(i0) + i0;
+            for (i64 t = i0; t < k; ++t, p += n) {
+                v2d l = splat(lk[t]);
+                a = a - l * load(p);
+                b = b - l * load(p + 2);
+            }
+            store(jk + i0, a / dv);
+            store(jk + i0 + 2, b / dv);
+        }
+        for (; i0 < k; i0 += 2) {  // entries i0, i0 + 1 (i0 + 1 <= k)
+            v2d a = splat(0.0);
+            const double* p = JT.row(i0) + i0;
+            for (i64 t = i0; t < k; ++t, p += n) a = a - splat(lk[t]) * load(p);
+            store(jk + i0, a / dv);
+        }
+        jk[k] = 1.0 / lkk;
+    }
+}
+
 // d = J^T n; z = J2 d2 (primal direction); r = R^-1 d1 (dual direction). JT is J
 // transposed (see inverse_transpose).
-inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r) {
+// d0, d1: for a row not a unit row, only d[d0:d1] is taken afresh (the others hold J^T n of
+// JT's rows as they still are, with the same normal: the same values).
+inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit, i64 q, Vec& d, Vec& z, Vec& r,
+                       i64 d0 = 0, i64 d1 = -1) {
     i64 n = JT.rows;
     if (unit >= 0) {
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
-        i64 i = 0;
-        for (; i + 4 <= n; i += 4)
+        i64 i = d0, e = d1 >= 0 ? d1 : n;
+        for (; i + 4 <= e; i += 4)
             dot4(JT.row(i), JT.row(i + 1), JT.row(i + 2), JT.row(i + 3), normal.data(), n, d[i], d[i + 1], d[i + 2],
                  d[i + 3]);
-        for (; i + 2 <= n; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
-        for (; i < n; ++i) {
+        for (; i + 2 <= e; i += 2) dot2(JT.row(i), JT.row(i + 1), normal.data(), n, d[i], d[i + 1]);
+        for (; i < e; ++i) {
             const double* ji = JT.row(i);
             double acc = 0.0;
             for (i64 k = 0; k < n; ++k) acc += ji[k] * normal[k];
@@ -378,11 +544,13 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
         act_row[j] = act_row[j + 1];
         act_side[j] = act_side[j + 1];
         u[j] = u[j + 1];
-        for (i64 i = 0; i < n; ++i) R(i, j) = R(i, j + 1);
+        // R is upper triangular with exact zeros below: column j + 1 has rows <= j + 1 only,
+        // and the rows below are zeros in both columns.
+        for (i64 i = 0; i <= j + 1; ++i) R(i, j) = R(i, j + 1);
     }
     u[q - 1] = u[q];
     u[q] = 0.0;
-    for (i64 i = 0; i < n; ++i) R(i, q - 1) = 0.0;
+    for (i64 i = 0; i < q; ++i) R(i, q - 1) = 0.0;  // (rows >= q of it are zeros)
     q -= 1;
     for (i64 j = drop; j < q; ++j) {
         double cc = R(j, j);
@@ -556,7 +724,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         forward_into(L, mc, ws.y);
         backward_into(L, ws.y, x);
     }
-    inverse_transpose_into(Lm, ws.J, ws.JT);
+    inverse_transpose_into(Lm, ws.JT);
     Mat& J = ws.JT;
     Mat& R = ws.R;
     R.zeros(n, n);
@@ -579,6 +747,9 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     dense.clear();
     for (i64 i = 0; i < m; ++i)
         if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
+    RowScan scan;
+    bool scanned = tol >= 0.0;  // RowScan's condition
+    if (scanned) row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan);
     Vec& x_old = ws.x_old;
     Vec& u_old = ws.u_old;
     zero_fill(x_old, static_cast<size_t>(n));
@@ -588,7 +759,10 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     i64 iterations = 0;
     while (true) {
         i64 row, side;
-        most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
+        if (scanned)
+            most_violated_scan(x.data(), C, lo, hi, in_set, norms, scan, ws, row, side);
+        else
+            most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
         if (row < 0) {
             BVec working(static_cast<size_t>(m), 0);
             mark(working, act_row, act_side, q);
@@ -621,13 +795,14 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
         for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
         double rhs = rhs_of(lo, hi, row, side);
         u[q] = 0.0;
+        i64 d0 = 0, d1 = -1;  // the rows of d to take afresh (see directions)
         while (true) {
             iterations += 1;
             if (iterations > max_iter) {
                 mark(active, act_row, act_side, q);
                 return QPResult{x, MAX_ITER, iterations, std::move(active), {}};
             }
-            directions(J, R, normal, unit[row], q, d, z, r);
+            directions(J, R, normal, unit[row], q, d, z, r, d0, d1);
             i64 drop;
             double t1 = dual_step(u, r, q, drop);
             double slack = dot(normal.data(), x.data(), n) - rhs;
@@ -660,8 +835,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 x_old = x;
                 u_old = u;
             }
-            if (t2 < kInf)
-                for (i64 k = 0; k < n; ++k) x[k] += t * z[k];
+            if (t2 < kInf) axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k]
             for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
             u[q] += t;
             if (full) {
@@ -682,6 +856,8 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 break;
             }
             drop_constraint(J, R, u, act_row, act_side, in_set, drop, q);
+            d0 = drop;  // drop_constraint turned JT's rows drop..q - 1 only
+            d1 = q;
             q -= 1;
         }
     }
