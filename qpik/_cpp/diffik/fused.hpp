@@ -353,6 +353,7 @@ struct Scratch {
     Vec local;
     BoxScratch box;
     CoupleScratch couple;
+    core::CascadeResult cascade;  // the step's cascade result (every field written each step)
 };
 
 // Whether the serial sums of fused_rows (of the squares of x, or of its entries) are
@@ -472,21 +473,21 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
     }
     const double dt = a.settings[DT];
     const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
-    core::CascadeResult c;
+    core::CascadeResult& c = s.cascade;
     // A first level of pair couplings (a mimic) by its exact fast path (couple.hpp), else
     // the general cascade.
     if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
                      CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
                      a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
                      max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c)) {
-        c = core::solve_cascade(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
-                                CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
-                                a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
-                                a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                a.settings[TOL], warm, canonical, ws);
+        core::solve_cascade_into(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
+                                 CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
+                                 a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
+                                 a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
+                                 a.settings[TOL], warm, canonical, ws, c);
     }
-    out.d = std::move(c.dq);
-    out.active = std::move(c.active);
+    out.d.assign(c.dq.begin(), c.dq.end());
+    out.active.assign(c.active.begin(), c.active.end());
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
     double res_sum = 0.0;
     for (double r : c.residuals) res_sum += r;
