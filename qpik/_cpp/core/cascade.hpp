@@ -210,19 +210,31 @@ inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, s
                 double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
                 double cs = 1.0 / std::sqrt(1.0 + tt * tt);
                 double sn = cs * tt;
-                double sa = 0.0, sb = 0.0;
-#pragma GCC unroll 8
-                for (int t = 0; t < C; ++t) {
-                    const double x = ri[t], y = rj[t];
-                    const double xn = cs * x - sn * y;
-                    const double yn = sn * x + cs * y;
-                    ri[t] = xn;
-                    rj[t] = yn;
-                    sa += xn * xn;
-                    sb += yn * yn;
+                // (two entries a pass; lane 0 sums row i's squares, lane 1 row j's, in order)
+                using namespace simd;
+                const v2d c2 = splat(cs), s2 = splat(sn);
+                v2d acc = splat(0.0);
+#pragma GCC unroll 4
+                for (int t = 0; t + 2 <= C; t += 2) {
+                    const v2d x = load(ri + t), y = load(rj + t);
+                    const v2d xn = c2 * x - s2 * y;
+                    const v2d yn = s2 * x + c2 * y;
+                    store(ri + t, xn);
+                    store(rj + t, yn);
+                    const v2d v0 = v2d{xn[0], yn[0]};
+                    const v2d v1 = v2d{xn[1], yn[1]};
+                    acc += v0 * v0;
+                    acc += v1 * v1;
                 }
-                sq[i] = sa;
-                sq[j] = sb;
+                if constexpr (C % 2 == 1) {
+                    const double x = ri[C - 1], y = rj[C - 1];
+                    ri[C - 1] = cs * x - sn * y;
+                    rj[C - 1] = sn * x + cs * y;
+                    const v2d v = v2d{ri[C - 1], rj[C - 1]};
+                    acc += v * v;
+                }
+                sq[i] = acc[0];
+                sq[j] = acc[1];
                 if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
                 stamp[i] = stamp[j] = ++now;
             }
