@@ -9,6 +9,7 @@
 // FusedArgs.
 #pragma once
 
+#include <limits>
 #include <vector>
 
 #include "../common.hpp"
@@ -370,6 +371,20 @@ struct FiniteSum {
         max = m > max ? m : max;
         ++count;
     }
+    // add() of x[0], ..., x[n - 1] (branch-free: |x| <= DBL_MAX is false for an infinity or
+    // a NaN, and a NaN leaves max as add() leaves it; max is read only when all are finite).
+    void add_n(const double* x, i64 n) {
+        bool ok = true;
+        double mx = max;
+        for (i64 t = 0; t < n; ++t) {
+            const double m = std::fabs(x[t]);
+            ok &= m <= std::numeric_limits<double>::max();
+            mx = m > mx ? m : mx;
+        }
+        finite = finite && ok;
+        max = mx;
+        count += n;
+    }
     bool safe(bool squares) const {
         if (!finite) return false;
         if (!squares) return max * static_cast<double>(count) <= 1e300;
@@ -392,11 +407,11 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     FiniteSum bs, ts;
     for (i64 r = 0; r < a.b.n; ++r) {
         bs.add(a.b[r]);
-        for (i64 j = 0; j < n; ++j) ts.add(a.A(r, j));
+        ts.add_n(a.A.row(r), n);
     }
     for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
         ts.add(a.h[r]);
-        for (i64 j = 0; j < n; ++j) ts.add(a.G(r, j));
+        ts.add_n(a.G.row(r), n);
     }
     bool finite = true;
     if (!bs.safe(true)) {
