@@ -460,23 +460,42 @@ struct StepResult {
 // previous active sets); see qpik/_fused.py:fused_step.
 // ws: the cascade's storage, kept by the caller between steps (core::Workspace).
 // s: fused_rows_into's storage, kept by the caller between steps (Scratch).
+// The _into forms write into a StepResult the caller keeps (its vectors' storage reused;
+// every field written, as a fresh one would hold it).
+inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out);
+
 inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                  bool canonical, core::Workspace& ws, Scratch& s);
+                                  bool canonical, core::Workspace& ws, Scratch& s) {
+    StepResult out;
+    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
+    return out;
+}
+
+inline void fused_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                            bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
+    fused_rows_into(a, s);
+    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
+}
 
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                              bool canonical, core::Workspace& ws, Scratch& s) {
-    fused_rows_into(a, s);
-    return solve_rows_step(a, max_iter, warm, canonical, ws, s);
+    StepResult out;
+    fused_step_into(a, max_iter, warm, canonical, ws, s, out);
+    return out;
 }
 
 // The cascade on the rows, regularisation and box that fused_rows_into left in s.rows (A,
 // b, w of `a`): fused_step after its rows.
-inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                  bool canonical, core::Workspace& ws, Scratch& s) {
+inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     const RowsResult& rows = s.rows;
-    StepResult out;
+    // a fresh result's fields (d and active are written on every path below)
+    out.v.clear();
+    out.active_cols = 0;
+    out.v_is_d = false;
     out.code = rows.code;
     out.info.assign(static_cast<size_t>(9 * L), 0.0);
     if (rows.code != OK) {
@@ -484,7 +503,7 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         out.v_is_d = true;
         out.active.assign(static_cast<size_t>(L * n), 0);
         out.active_cols = n;
-        return out;
+        return;
     }
     const double dt = a.settings[DT];
     const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
@@ -511,7 +530,7 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         if (c.status[k] == core::MAX_ITER || c.status[k] == core::NUMERICAL) {
             out.code = UNSETTLED;
             out.v_is_d = true;
-            return out;
+            return;
         }
         out.info[0 * L + k] = c.residuals[k];
         out.info[1 * L + k] = c.sigma[k];
@@ -529,7 +548,6 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         out.code = NOT_FINITE;
         out.v_is_d = true;
     }
-    return out;
 }
 
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
