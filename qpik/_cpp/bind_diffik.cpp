@@ -602,8 +602,8 @@ class Kernel {
             if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
             w = cold_.data();
         }
-        diffik::StepResult r =
-            diffik::fused_step(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_);
+        diffik::StepResult& r = step_;  // kept: its vectors' storage reused
+        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r);
         if (r.code != diffik::OK) return r.code;
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
@@ -667,8 +667,9 @@ class Kernel {
         // level in its canonical re-solve), and fewer instructions (Talos: 2.15M per pass
         // against 2.39M warm).
         if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
-        diffik::StepResult r = diffik::solve_rows_step(a, max_iter, MatRefT<const i8>(cold_.data(), L_, n_),
-                                                       false, ws_, scratch_);
+        diffik::StepResult& r = step_;
+        diffik::solve_rows_step_into(a, max_iter, MatRefT<const i8>(cold_.data(), L_, n_), false, ws_,
+                                     scratch_, r);
         if (r.code != diffik::OK) return r.code;
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
@@ -738,6 +739,7 @@ class Kernel {
     i64 max_body_ = -1;
     mutable core::Workspace ws_;
     mutable diffik::Scratch scratch_;
+    mutable diffik::StepResult step_;  // go()'s and correct()'s answer (every field written by each)
 };
 
 // Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.

@@ -164,8 +164,100 @@ namespace detail {
 // The rotations are logged when log_rotations. A pair found orthogonal is checked again only
 // after one of its rows was rotated (clean[i p + j]): its rows and sq are the same bits, so the
 // check would give the same answer; the rotations are those of checking every pair.
+// jacobi_row_norms for rows of C entries and p <= kJacobiFixed rows: the same checks,
+// rotations and sums (each product and square summed over t in order from 0.0, as dot,
+// row_sq and jacobi_rows_sums sum them: the same bits), the rows' length known to the
+// compiler and the pairs' stamps on the stack.
+constexpr i64 kJacobiFixed = 8;
+
+template <int C>
+inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+    sq.resize(static_cast<size_t>(p));  // every entry written below
+    for (i64 i = 0; i < p; ++i) {
+        const double* ri = R.row(i);
+        double acc = 0.0;
+#pragma GCC unroll 8
+        for (int t = 0; t < C; ++t) acc += ri[t] * ri[t];
+        sq[i] = acc;
+    }
+    log.clear();
+    // clean[i][j], stamp[i]: as jacobi_row_norms' clean
+    i64 clean[kJacobiFixed][kJacobiFixed];
+    i64 stamp[kJacobiFixed];
+    for (i64 i = 0; i < p; ++i) {
+        stamp[i] = 0;
+        for (i64 j = 0; j < p; ++j) clean[i][j] = 0;
+    }
+    i64 now = 0;
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+        for (i64 i = 0; i < p - 1; ++i) {
+            double* ri = R.row(i);
+            for (i64 j = i + 1; j < p; ++j) {
+                const i64 c = clean[i][j];
+                if (c > stamp[i] && c > stamp[j]) continue;
+                double* rj = R.row(j);
+                const double alpha = sq[i], beta = sq[j];
+                double gamma = 0.0;
+#pragma GCC unroll 8
+                for (int t = 0; t < C; ++t) gamma += ri[t] * rj[t];
+                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) {
+                    clean[i][j] = ++now;
+                    continue;
+                }
+                rotated = true;
+                double zeta = (beta - alpha) / (2.0 * gamma);
+                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
+                double sn = cs * tt;
+                // (two entries a pass; lane 0 sums row i's squares, lane 1 row j's, in order)
+                using namespace simd;
+                const v2d c2 = splat(cs), s2 = splat(sn);
+                v2d acc = splat(0.0);
+#pragma GCC unroll 4
+                for (int t = 0; t + 2 <= C; t += 2) {
+                    const v2d x = load(ri + t), y = load(rj + t);
+                    const v2d xn = c2 * x - s2 * y;
+                    const v2d yn = s2 * x + c2 * y;
+                    store(ri + t, xn);
+                    store(rj + t, yn);
+                    const v2d v0 = v2d{xn[0], yn[0]};
+                    const v2d v1 = v2d{xn[1], yn[1]};
+                    acc += v0 * v0;
+                    acc += v1 * v1;
+                }
+                if constexpr (C % 2 == 1) {
+                    const double x = ri[C - 1], y = rj[C - 1];
+                    ri[C - 1] = cs * x - sn * y;
+                    rj[C - 1] = sn * x + cs * y;
+                    const v2d v = v2d{ri[C - 1], rj[C - 1]};
+                    acc += v * v;
+                }
+                sq[i] = acc[0];
+                sq[j] = acc[1];
+                if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
+                stamp[i] = stamp[j] = ++now;
+            }
+        }
+        if (!rotated) break;
+    }
+}
+
 inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
                              std::vector<Rotation>& log) {
+    if (p <= kJacobiFixed) {
+        switch (cols) {
+            case 1: return jacobi_row_norms_fixed<1>(R, p, log_rotations, sq, log);
+            case 2: return jacobi_row_norms_fixed<2>(R, p, log_rotations, sq, log);
+            case 3: return jacobi_row_norms_fixed<3>(R, p, log_rotations, sq, log);
+            case 4: return jacobi_row_norms_fixed<4>(R, p, log_rotations, sq, log);
+            case 5: return jacobi_row_norms_fixed<5>(R, p, log_rotations, sq, log);
+            case 6: return jacobi_row_norms_fixed<6>(R, p, log_rotations, sq, log);
+            case 7: return jacobi_row_norms_fixed<7>(R, p, log_rotations, sq, log);
+            case 8: return jacobi_row_norms_fixed<8>(R, p, log_rotations, sq, log);
+            default: break;
+        }
+    }
     sq.assign(static_cast<size_t>(p), 0.0);
     for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), cols);
     log.clear();

@@ -44,6 +44,9 @@ struct CoupleScratch {
     IVec startsr, rows, sides;
     BVec warmr;
     core::CertScratch cs;
+    // the reduced cascade's result and the answer's residual rows (kept: no allocation a step)
+    core::CascadeResult low;
+    Vec xs, rr;
 };
 
 namespace couple_detail {
@@ -301,14 +304,16 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
             s.warmr[static_cast<size_t>((k - 1) * nr + c)] = v;
         }
     }
-    core::CascadeResult low = core::solve_cascade(
+    core::CascadeResult& low = s.low;  // every field written by solve_cascade_into
+    core::solve_cascade_into(
         s.Ar.cref(), CVecRef(s.br), w.slice(m0, M), VecRefT<const i64>(s.startsr), reg.slice(1, L),
         CVecRef(s.lbr), CVecRef(s.ubr), CMatRef(nullptr, 0, nr), h, threshold, max_damping,
         error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(s.warmr.data(), L - 1, nr),
-        canonical, ws);
+        canonical, ws, low);
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
     // Back to x, snapped to the box as the cascade snaps; a larger excess: the general path.
-    Vec x(static_cast<size_t>(n), 0.0);
+    Vec& x = s.xs;
+    x.assign(static_cast<size_t>(n), 0.0);
     for (i64 c = 0; c < nr; ++c) {
         const i64 t = dof[c];
         const i64 k = s.pair_of[t];
@@ -324,7 +329,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     for (i64 i = 0; i < n; ++i)
         if (x[i] < lb[i] || x[i] > ub[i]) return false;
     // The result: level 0's own figures, then the levels below as the reduced cascade found them.
-    out.dq = std::move(x);
+    out.dq.assign(x.begin(), x.end());
     out.status.assign(static_cast<size_t>(L), core::SOLVED);
     out.sigma.assign(static_cast<size_t>(L), sigma);
     out.lam2.assign(static_cast<size_t>(L), lam);
@@ -357,7 +362,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
             out.active[static_cast<size_t>(k * n + at)] = static_cast<i8>(side);
         }
     }
-    out.residuals = core::detail::level_residuals(A, b, starts, out.dq);
+    core::detail::level_residuals_into(A, b, starts, out.dq, s.rr, out.residuals);
     out.primal = 0.0;  // x is inside its box (checked above)
     return true;
 }

@@ -9,6 +9,7 @@
 // FusedArgs.
 #pragma once
 
+#include <limits>
 #include <vector>
 
 #include "../common.hpp"
@@ -353,6 +354,7 @@ struct Scratch {
     Vec local;
     BoxScratch box;
     CoupleScratch couple;
+    core::CascadeResult cascade;  // the step's cascade result (every field written each step)
 };
 
 // Whether the serial sums of fused_rows (of the squares of x, or of its entries) are
@@ -368,6 +370,20 @@ struct FiniteSum {
         const double m = std::fabs(x);
         max = m > max ? m : max;
         ++count;
+    }
+    // add() of x[0], ..., x[n - 1] (branch-free: |x| <= DBL_MAX is false for an infinity or
+    // a NaN, and a NaN leaves max as add() leaves it; max is read only when all are finite).
+    void add_n(const double* x, i64 n) {
+        bool ok = true;
+        double mx = max;
+        for (i64 t = 0; t < n; ++t) {
+            const double m = std::fabs(x[t]);
+            ok &= m <= std::numeric_limits<double>::max();
+            mx = m > mx ? m : mx;
+        }
+        finite = finite && ok;
+        max = mx;
+        count += n;
     }
     bool safe(bool squares) const {
         if (!finite) return false;
@@ -391,11 +407,11 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     FiniteSum bs, ts;
     for (i64 r = 0; r < a.b.n; ++r) {
         bs.add(a.b[r]);
-        for (i64 j = 0; j < n; ++j) ts.add(a.A(r, j));
+        ts.add_n(a.A.row(r), n);
     }
     for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
         ts.add(a.h[r]);
-        for (i64 j = 0; j < n; ++j) ts.add(a.G(r, j));
+        ts.add_n(a.G.row(r), n);
     }
     bool finite = true;
     if (!bs.safe(true)) {
@@ -444,23 +460,42 @@ struct StepResult {
 // previous active sets); see qpik/_fused.py:fused_step.
 // ws: the cascade's storage, kept by the caller between steps (core::Workspace).
 // s: fused_rows_into's storage, kept by the caller between steps (Scratch).
+// The _into forms write into a StepResult the caller keeps (its vectors' storage reused;
+// every field written, as a fresh one would hold it).
+inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out);
+
 inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                  bool canonical, core::Workspace& ws, Scratch& s);
+                                  bool canonical, core::Workspace& ws, Scratch& s) {
+    StepResult out;
+    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
+    return out;
+}
+
+inline void fused_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                            bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
+    fused_rows_into(a, s);
+    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
+}
 
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                              bool canonical, core::Workspace& ws, Scratch& s) {
-    fused_rows_into(a, s);
-    return solve_rows_step(a, max_iter, warm, canonical, ws, s);
+    StepResult out;
+    fused_step_into(a, max_iter, warm, canonical, ws, s, out);
+    return out;
 }
 
 // The cascade on the rows, regularisation and box that fused_rows_into left in s.rows (A,
 // b, w of `a`): fused_step after its rows.
-inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                  bool canonical, core::Workspace& ws, Scratch& s) {
+inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     const RowsResult& rows = s.rows;
-    StepResult out;
+    // a fresh result's fields (d and active are written on every path below)
+    out.v.clear();
+    out.active_cols = 0;
+    out.v_is_d = false;
     out.code = rows.code;
     out.info.assign(static_cast<size_t>(9 * L), 0.0);
     if (rows.code != OK) {
@@ -468,25 +503,25 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         out.v_is_d = true;
         out.active.assign(static_cast<size_t>(L * n), 0);
         out.active_cols = n;
-        return out;
+        return;
     }
     const double dt = a.settings[DT];
     const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
-    core::CascadeResult c;
+    core::CascadeResult& c = s.cascade;
     // A first level of pair couplings (a mimic) by its exact fast path (couple.hpp), else
     // the general cascade.
     if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
                      CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
                      a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
                      max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c)) {
-        c = core::solve_cascade(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
-                                CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
-                                a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
-                                a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                a.settings[TOL], warm, canonical, ws);
+        core::solve_cascade_into(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
+                                 CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
+                                 a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
+                                 a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
+                                 a.settings[TOL], warm, canonical, ws, c);
     }
-    out.d = std::move(c.dq);
-    out.active = std::move(c.active);
+    out.d.assign(c.dq.begin(), c.dq.end());
+    out.active.assign(c.active.begin(), c.active.end());
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
     double res_sum = 0.0;
     for (double r : c.residuals) res_sum += r;
@@ -495,7 +530,7 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         if (c.status[k] == core::MAX_ITER || c.status[k] == core::NUMERICAL) {
             out.code = UNSETTLED;
             out.v_is_d = true;
-            return out;
+            return;
         }
         out.info[0 * L + k] = c.residuals[k];
         out.info[1 * L + k] = c.sigma[k];
@@ -513,7 +548,6 @@ inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<cons
         out.code = NOT_FINITE;
         out.v_is_d = true;
     }
-    return out;
 }
 
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
