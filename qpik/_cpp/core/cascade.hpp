@@ -1029,7 +1029,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         Vec& f0 = es.f0;
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = es.y;
-        lstsq_into(BW, f0, y, es.ls);
+        lstsq_into(BW, f0, y, es.ls, true);  // B itself: its sqrt(rho) I rows mostly zeros
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + y[i];
     }
     return certified();
