@@ -210,8 +210,9 @@ inline void reflect_rows(Mat& M, const i64* sup, i64 ns, i64 i, const double* x,
 // col_sq (rows t0..t1-1, columns j0..j1-1, each summed over the rows in order from +0) on
 // the rows whose mask has a bit in the column block (the others' entries there are +0,
 // whose squares leave the sums as they are).
+// Only the blocks of columns with a bit in need are summed (the others' out left as it is).
 inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, i64 t1, i64 j0, i64 j1,
-                          double* out) {
+                          double* out, unsigned long long need) {
     using namespace simd;
     i64 k = M.cols;
     const double* A = M.a.data();
@@ -219,6 +220,7 @@ inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, 
     i64 j = j0;
     for (; j + 8 <= j1; j += 8) {
         unsigned long long bb = bits(j, 8);
+        if (!(need & bb)) continue;
         v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), d = splat(0.0);
         for (i64 t = t0; t < t1; ++t) {
             if (!(mask[t] & bb)) continue;
@@ -236,6 +238,7 @@ inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, 
     }
     for (; j + 4 <= j1; j += 4) {
         unsigned long long bb = bits(j, 4);
+        if (!(need & bb)) continue;
         v2d a = splat(0.0), b = splat(0.0);
         for (i64 t = t0; t < t1; ++t) {
             if (!(mask[t] & bb)) continue;
@@ -249,6 +252,7 @@ inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, 
     }
     for (; j + 2 <= j1; j += 2) {
         unsigned long long bb = bits(j, 2);
+        if (!(need & bb)) continue;
         v2d a = splat(0.0);
         for (i64 t = t0; t < t1; ++t) {
             if (!(mask[t] & bb)) continue;
@@ -259,6 +263,7 @@ inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, 
     }
     for (; j < j1; ++j) {
         unsigned long long bb = 1ULL << j;
+        if (!(need & bb)) continue;
         double a = 0.0;
         for (i64 t = t0; t < t1; ++t)
             if (mask[t] & bb) a += A[t * k + j] * A[t * k + j];
@@ -325,6 +330,11 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
                 if (bi != bb) mask[t] = b ^ ((1ULL << i) | (1ULL << best));
             }
         }
+        // The columns whose norms change: those with a bit in the updated rows (the union
+        // mask un, row i's included). Elsewhere the updated rows and row i hold +0, which the
+        // step leaves +0 (S_j = +0): the norm over rows i + 1.. is the one over rows i..
+        // less a first term (+0) (+0), the same sum.
+        u64 need = all;
         // the rows updated: row i and every row below with bit i
         i64 ns = 0;
         sup[ns++] = i;
@@ -355,6 +365,7 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
                 u64 un = 0;
                 for (i64 a = 0; a < ns; ++a) un |= mask[sup[a]];
                 for (i64 a = 0; a < ns; ++a) mask[sup[a]] = un;
+                need = un;
                 if (!fin) {  // the skipped rows as before (x_t = +0), now unclean
                     i64 a = 0;
                     for (i64 t = i; t < m; ++t) {
@@ -365,13 +376,14 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
                         axmy(M.row(t) + i, 0.0, S.data(), w);
                         mask[t] = all;
                     }
+                    need = all;
                 }
             }
         }
         // the remaining columns' norms (each summed over the rows below i in order)
         i64 j0 = i + 1;
         if (j0 >= k) continue;
-        masked_col_sq(M, mask.data(), j0, m, j0, k, norms.data());
+        masked_col_sq(M, mask.data(), j0, m, j0, k, norms.data(), need);
     }
 }
 
