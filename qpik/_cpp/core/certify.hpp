@@ -146,8 +146,7 @@ struct LsScratch {
     IVec perm;
     Vec norms, x, S, yp;
     std::vector<unsigned long long> mask;  // sparse_qr_steps
-    IVec sup;
-    Vec xfull;
+    IVec sup, fz;
     Mat N0;
     ImplicitQR qn;
 };
@@ -314,20 +313,25 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
     if (sup.size() < static_cast<size_t>(m)) sup.resize(static_cast<size_t>(m));
     Vec& x = ws.x;  // x[t] for the updated rows, by position in sup
     Vec& S = ws.S;
-    Vec& xfull = ws.xfull;
-    if (xfull.size() < static_cast<size_t>(m)) xfull.resize(static_cast<size_t>(m));
+    IVec& fz = ws.fz;  // the rows whose f entry is -0
+    fz.clear();
+    for (i64 t = 0; t < m; ++t)
+        if (f[t] == 0.0 && std::signbit(f[t])) fz.push_back(t);
     for (i64 i = 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
             if (norms[j] > norms[best]) best = j;
         if (best != i) {
-            for (i64 t = 0; t < m; ++t) std::swap(M(t, i), M(t, best));
             std::swap(norms[i], norms[best]);
             std::swap(perm[i], perm[best]);
+            // (a clean row without either bit holds +0 in both: nothing to swap)
+            u64 pair = (1ULL << i) | (1ULL << best);
             for (i64 t = 0; t < m; ++t) {
                 u64 b = mask[t];
+                if (!(b & pair)) continue;
+                std::swap(M(t, i), M(t, best));
                 u64 bi = (b >> i) & 1ULL, bb = (b >> best) & 1ULL;
-                if (bi != bb) mask[t] = b ^ ((1ULL << i) | (1ULL << best));
+                if (bi != bb) mask[t] = b ^ pair;
             }
         }
         // The columns whose norms change: those with a bit in the updated rows (the union
@@ -355,13 +359,26 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
                 reflect_rows(M, sup.data(), ns, i, x.data(), vn, S.data());
                 bool fin = true;
                 for (i64 j = 0; j < w; ++j) fin = fin && std::isfinite(S[j]);
-                // f as lstsq_into updates it, over every row (x_t = +0 on the rows skipped)
-                double* xf = xfull.data();
-                zero_small(xf, static_cast<size_t>(m - i));
-                for (i64 a = 0; a < ns; ++a) xf[sup[a] - i] = x[a];
-                double sf = dot(xf, f.data() + i, m - i);
+                // f as lstsq_into updates it: its sum over the updated rows (the others' terms
+                // (+0) (finite f_t) = +-0), every row updated (f_t - sf (+0) is f_t but for
+                // f_t = -0, the rows in fz)
+                double sf = 0.0;
+                for (i64 a = 0; a < ns; ++a) sf += x[a] * f[sup[a]];
                 sf = 2.0 * sf / vn;
-                axmy(f.data() + i, sf, xf, m - i);
+                for (i64 a = 0; a < ns; ++a) f[sup[a]] -= sf * x[a];
+                if (std::isfinite(sf)) {
+                    // (a row made +0, or one no later step reaches, leaves the list)
+                    size_t kept = 0;
+                    for (i64 t : fz) {
+                        if (t <= i) continue;
+                        if (!((mask[t] >> i) & 1ULL)) f[t] -= sf * 0.0;
+                        if (f[t] == 0.0 && std::signbit(f[t])) fz[kept++] = t;
+                    }
+                    fz.resize(kept);
+                } else {
+                    for (i64 t = i + 1; t < m; ++t)
+                        if (!((mask[t] >> i) & 1ULL)) f[t] -= sf * 0.0;
+                }
                 u64 un = 0;
                 for (i64 a = 0; a < ns; ++a) un |= mask[sup[a]];
                 for (i64 a = 0; a < ns; ++a) mask[sup[a]] = un;
@@ -414,6 +431,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint =
     if (x.size() < static_cast<size_t>(m)) x.resize(static_cast<size_t>(m));
     if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
     bool sparse = sparse_hint && k >= 2 && k <= 64;
+    for (i64 t = 0; sparse && t < m; ++t) sparse = std::isfinite(f[t]);  // (sparse_qr_steps skips f's terms)
     if (sparse) sparse_qr_steps(M, f, perm, norms, ws);
     for (i64 i = sparse ? steps : 0; i < steps; ++i) {
         i64 best = i;
