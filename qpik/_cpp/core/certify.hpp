@@ -50,6 +50,7 @@ struct Certificate {
 struct LSForm {
     Mat B;
     Vec f;
+    bool reg = false;  // B holds the rows sqrt(rho) I (rho > 0): mostly zeros
 };
 
 namespace detail {
@@ -430,7 +431,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint =
     // x[:size] written before read; S filled by reflect_columns
     if (x.size() < static_cast<size_t>(m)) x.resize(static_cast<size_t>(m));
     if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
-    bool sparse = sparse_hint && k >= 2 && k <= 64;
+    bool sparse = sparse_hint && k >= 12 && k <= 64;  // (below 12 columns its bookkeeping costs more than it saves)
     for (i64 t = 0; sparse && t < m; ++t) sparse = std::isfinite(f[t]);  // (sparse_qr_steps skips f's terms)
     if (sparse) sparse_qr_steps(M, f, perm, norms, ws);
     for (i64 i = sparse ? steps : 0; i < steps; ++i) {
@@ -608,7 +609,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         mv_into(ls.B.cref(), z.data(), f0);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = ws.y;
-        detail::lstsq_into(BW, f0, y, ws.ls, q == 0);
+        detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
         Vec& wy = ws.wy;
         zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
