@@ -784,6 +784,7 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
                     LSForm& ls, bool kept = false) {
     i64 m = A.rows, r = AZ.cols;
     bool reg = rho > 0.0;
+    ls.reg = reg;
     shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
     if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
     shape(ls.f, static_cast<size_t>(ls.B.rows));
@@ -1121,7 +1122,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         Vec& f0 = es.f0;
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = es.y;
-        lstsq_into(BW, f0, y, es.ls);
+        lstsq_into(BW, f0, y, es.ls, ls.reg);  // B itself: its sqrt(rho) I rows mostly zeros
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + y[i];
     }
     return certified();

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <cstring>
 
 #include "linalg.hpp"
 #include "qp.hpp"
@@ -49,6 +50,7 @@ struct Certificate {
 struct LSForm {
     Mat B;
     Vec f;
+    bool reg = false;  // B holds the rows sqrt(rho) I (rho > 0): mostly zeros
 };
 
 namespace detail {
@@ -144,14 +146,271 @@ struct ImplicitQR {
 struct LsScratch {
     IVec perm;
     Vec norms, x, S, yp;
+    std::vector<unsigned long long> mask;  // sparse_qr_steps
+    IVec sup, fz;
     Mat N0;
     ImplicitQR qn;
 };
 
+// The reflection of reflect_columns on rows sup[0..ns) (in order), columns i..k-1 of M:
+// S_j = 2 (sum_a x_a M(sup_a, j)) / vn, each sum in order from +0, then M(sup_a, j) -=
+// x_a S_j (the same operations, per column, as reflect_columns on those rows).
+inline void reflect_rows(Mat& M, const i64* sup, i64 ns, i64 i, const double* x, double vn, double* S) {
+    using namespace simd;
+    i64 k = M.cols, w = k - i;
+    double* base = M.a.data() + i;
+    i64 j = 0;
+    for (; j + 8 <= w; j += 8) {
+        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+        for (i64 a = 0; a < ns; ++a) {
+            const double* p = base + sup[a] * k + j;
+            v2d xt = splat(x[a]);
+            s0 += xt * load(p);
+            s1 += xt * load(p + 2);
+            s2 += xt * load(p + 4);
+            s3 += xt * load(p + 6);
+        }
+        v2d two = splat(2.0), vv = splat(vn);
+        s0 = two * s0 / vv;
+        s1 = two * s1 / vv;
+        s2 = two * s2 / vv;
+        s3 = two * s3 / vv;
+        store(S + j, s0);
+        store(S + j + 2, s1);
+        store(S + j + 4, s2);
+        store(S + j + 6, s3);
+        for (i64 a = 0; a < ns; ++a) {
+            double* q = base + sup[a] * k + j;
+            v2d xt = splat(x[a]);
+            store(q, load(q) - xt * s0);
+            store(q + 2, load(q + 2) - xt * s1);
+            store(q + 4, load(q + 4) - xt * s2);
+            store(q + 6, load(q + 6) - xt * s3);
+        }
+    }
+    for (; j + 2 <= w; j += 2) {
+        v2d s0 = splat(0.0);
+        for (i64 a = 0; a < ns; ++a) s0 += splat(x[a]) * load(base + sup[a] * k + j);
+        s0 = splat(2.0) * s0 / splat(vn);
+        store(S + j, s0);
+        for (i64 a = 0; a < ns; ++a) {
+            double* q = base + sup[a] * k + j;
+            store(q, load(q) - splat(x[a]) * s0);
+        }
+    }
+    for (; j < w; ++j) {
+        double s0 = 0.0;
+        for (i64 a = 0; a < ns; ++a) s0 += x[a] * base[sup[a] * k + j];
+        s0 = 2.0 * s0 / vn;
+        S[j] = s0;
+        for (i64 a = 0; a < ns; ++a) base[sup[a] * k + j] -= x[a] * s0;
+    }
+}
+
+// col_sq (rows t0..t1-1, columns j0..j1-1, each summed over the rows in order from +0) on
+// the rows whose mask has a bit in the column block (the others' entries there are +0,
+// whose squares leave the sums as they are).
+// Only the blocks of columns with a bit in need are summed (the others' out left as it is).
+inline void masked_col_sq(const Mat& M, const unsigned long long* mask, i64 t0, i64 t1, i64 j0, i64 j1,
+                          double* out, unsigned long long need) {
+    using namespace simd;
+    i64 k = M.cols;
+    const double* A = M.a.data();
+    auto bits = [](i64 j, i64 c) { return ((c >= 64 ? ~0ULL : ((1ULL << c) - 1ULL))) << j; };
+    i64 j = j0;
+    for (; j + 8 <= j1; j += 8) {
+        unsigned long long bb = bits(j, 8);
+        if (!(need & bb)) continue;
+        v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), d = splat(0.0);
+        for (i64 t = t0; t < t1; ++t) {
+            if (!(mask[t] & bb)) continue;
+            const double* p = A + t * k + j;
+            v2d u = load(p), v = load(p + 2), x = load(p + 4), z = load(p + 6);
+            a += u * u;
+            b += v * v;
+            c += x * x;
+            d += z * z;
+        }
+        store(out + j, a);
+        store(out + j + 2, b);
+        store(out + j + 4, c);
+        store(out + j + 6, d);
+    }
+    for (; j + 4 <= j1; j += 4) {
+        unsigned long long bb = bits(j, 4);
+        if (!(need & bb)) continue;
+        v2d a = splat(0.0), b = splat(0.0);
+        for (i64 t = t0; t < t1; ++t) {
+            if (!(mask[t] & bb)) continue;
+            const double* p = A + t * k + j;
+            v2d u = load(p), v = load(p + 2);
+            a += u * u;
+            b += v * v;
+        }
+        store(out + j, a);
+        store(out + j + 2, b);
+    }
+    for (; j + 2 <= j1; j += 2) {
+        unsigned long long bb = bits(j, 2);
+        if (!(need & bb)) continue;
+        v2d a = splat(0.0);
+        for (i64 t = t0; t < t1; ++t) {
+            if (!(mask[t] & bb)) continue;
+            v2d u = load(A + t * k + j);
+            a += u * u;
+        }
+        store(out + j, a);
+    }
+    for (; j < j1; ++j) {
+        unsigned long long bb = 1ULL << j;
+        if (!(need & bb)) continue;
+        double a = 0.0;
+        for (i64 t = t0; t < t1; ++t)
+            if (mask[t] & bb) a += A[t * k + j] * A[t * k + j];
+        out[j] = a;
+    }
+}
+
+// The pivoted Householder steps of lstsq_into (k <= 64 columns) on the rows that can change:
+// the same pivots, reflections, R and Q^T f bits, with the work of the rows a step cannot
+// touch left out (a least-squares matrix [A Z; sqrt(rho) I] is mostly zeros: rho's rows
+// hold one entry until a reflection reaches them, a task's Jacobian rows miss the joints
+// it does not depend on).
+// A row is clean when its entries and its f entry are finite and none is -0; a clean row's
+// mask has a bit per column (in the current column order) that may be nonzero, every other
+// entry being exactly +0 (an unclean row's mask is all ones: always taken). Step i's
+// reflector x is column i below row i: on a clean row without bit i its entry is +0, so
+// (1) the sums of the step (alpha, vn, the column products S_j, x . f) each get a term
+// (+0) (finite entry) = +-0 there, which leaves a sum from +0 as it is (a sum from +0 is
+// never -0); (2) the update M_tj - x_t S_j = M_tj - (+-0) leaves M_tj as it is when S_j is
+// finite and M_tj is not -0 (clean), the same for f_t; so such rows are skipped, unless an
+// S_j (or f's coefficient) is not finite, when they are updated as before and become
+// unclean. A row the step updates gets the union of the updated rows' masks: where every
+// one of them is +0 the column's S_j is 2 (+0) / vn = +0 and its entries stay +0. Row i
+// is always updated (x_0 = R_ii - alpha). No update makes a -0 (x - y = -0 in round to
+// nearest only for x = -0, y = +0), so clean rows stay clean. The remaining columns'
+// norms are summed over the rows in order as col_sq does, a clean row adding only its
+// masked entries (the others' squares are +0).
+inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& ws) {
+    using u64 = unsigned long long;
+    i64 m = M.rows, k = M.cols;
+    i64 steps = std::min(m, k);
+    std::vector<u64>& mask = ws.mask;
+    if (mask.size() < static_cast<size_t>(m)) mask.resize(static_cast<size_t>(m));
+    const u64 all = k == 64 ? ~0ULL : ((1ULL << k) - 1ULL);
+    // clean: no entry -0 (bits 0x8000...) or non-finite (exponent all ones)
+    for (i64 t = 0; t < m; ++t) {
+        const double* row = M.row(t);
+        u64 b = 0, badv = 0;
+        for (i64 j = 0; j < k; ++j) {
+            u64 v;
+            std::memcpy(&v, row + j, sizeof v);
+            if (v << 1) b |= 1ULL << j;  // nonzero (either sign)
+            badv |= static_cast<u64>(v == 0x8000000000000000ULL) | static_cast<u64>((v & 0x7ff0000000000000ULL) == 0x7ff0000000000000ULL);
+        }
+        mask[t] = badv ? all : b;
+    }
+    IVec& sup = ws.sup;
+    if (sup.size() < static_cast<size_t>(m)) sup.resize(static_cast<size_t>(m));
+    Vec& x = ws.x;  // x[t] for the updated rows, by position in sup
+    Vec& S = ws.S;
+    IVec& fz = ws.fz;  // the rows whose f entry is -0
+    fz.clear();
+    for (i64 t = 0; t < m; ++t)
+        if (f[t] == 0.0 && std::signbit(f[t])) fz.push_back(t);
+    for (i64 i = 0; i < steps; ++i) {
+        i64 best = i;
+        for (i64 j = i + 1; j < k; ++j)
+            if (norms[j] > norms[best]) best = j;
+        if (best != i) {
+            std::swap(norms[i], norms[best]);
+            std::swap(perm[i], perm[best]);
+            // (a clean row without either bit holds +0 in both: nothing to swap)
+            u64 pair = (1ULL << i) | (1ULL << best);
+            for (i64 t = 0; t < m; ++t) {
+                u64 b = mask[t];
+                if (!(b & pair)) continue;
+                std::swap(M(t, i), M(t, best));
+                u64 bi = (b >> i) & 1ULL, bb = (b >> best) & 1ULL;
+                if (bi != bb) mask[t] = b ^ pair;
+            }
+        }
+        // The columns whose norms change: those with a bit in the updated rows (the union
+        // mask un, row i's included). Elsewhere the updated rows and row i hold +0, which the
+        // step leaves +0 (S_j = +0): the norm over rows i + 1.. is the one over rows i..
+        // less a first term (+0) (+0), the same sum.
+        u64 need = all;
+        // the rows updated: row i and every row below with bit i
+        i64 ns = 0;
+        sup[ns++] = i;
+        for (i64 t = i + 1; t < m; ++t)
+            if ((mask[t] >> i) & 1ULL) sup[ns++] = t;
+        double alpha = 0.0;
+        for (i64 a = 0; a < ns; ++a) {
+            x[a] = M(sup[a], i);
+            alpha += x[a] * x[a];
+        }
+        alpha = std::sqrt(alpha);
+        if (alpha != 0.0) {
+            if (x[0] > 0.0) alpha = -alpha;
+            x[0] -= alpha;
+            double vn = dot(x.data(), x.data(), ns);
+            if (vn != 0.0) {
+                i64 w = k - i;
+                reflect_rows(M, sup.data(), ns, i, x.data(), vn, S.data());
+                bool fin = true;
+                for (i64 j = 0; j < w; ++j) fin = fin && std::isfinite(S[j]);
+                // f as lstsq_into updates it: its sum over the updated rows (the others' terms
+                // (+0) (finite f_t) = +-0), every row updated (f_t - sf (+0) is f_t but for
+                // f_t = -0, the rows in fz)
+                double sf = 0.0;
+                for (i64 a = 0; a < ns; ++a) sf += x[a] * f[sup[a]];
+                sf = 2.0 * sf / vn;
+                for (i64 a = 0; a < ns; ++a) f[sup[a]] -= sf * x[a];
+                if (std::isfinite(sf)) {
+                    // (a row made +0, or one no later step reaches, leaves the list)
+                    size_t kept = 0;
+                    for (i64 t : fz) {
+                        if (t <= i) continue;
+                        if (!((mask[t] >> i) & 1ULL)) f[t] -= sf * 0.0;
+                        if (f[t] == 0.0 && std::signbit(f[t])) fz[kept++] = t;
+                    }
+                    fz.resize(kept);
+                } else {
+                    for (i64 t = i + 1; t < m; ++t)
+                        if (!((mask[t] >> i) & 1ULL)) f[t] -= sf * 0.0;
+                }
+                u64 un = 0;
+                for (i64 a = 0; a < ns; ++a) un |= mask[sup[a]];
+                for (i64 a = 0; a < ns; ++a) mask[sup[a]] = un;
+                need = un;
+                if (!fin) {  // the skipped rows as before (x_t = +0), now unclean
+                    i64 a = 0;
+                    for (i64 t = i; t < m; ++t) {
+                        if (a < ns && sup[a] == t) {
+                            ++a;
+                            continue;
+                        }
+                        axmy(M.row(t) + i, 0.0, S.data(), w);
+                        mask[t] = all;
+                    }
+                    need = all;
+                }
+            }
+        }
+        // the remaining columns' norms (each summed over the rows below i in order)
+        i64 j0 = i + 1;
+        if (j0 >= k) continue;
+        masked_col_sq(M, mask.data(), j0, m, j0, k, norms.data(), need);
+    }
+}
+
 // min |M y - f| by Householder QR with column pivoting, into y (M (m, k) and f are
 // overwritten); pivots below kLsRank |R_00| are zeros, and the solution is the one of
 // least norm.
-inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
+// sparse: M is mostly exact zeros (B = [A Z; sqrt(rho) I] itself), where the Householder
+// steps skip the rows they cannot touch (sparse_qr_steps: the same bits).
+inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint = false) {
     i64 m = M.rows, k = M.cols;
     if (k == 0 || m == 0) {
         zero_fill(y, static_cast<size_t>(k));
@@ -172,7 +431,10 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws) {
     // x[:size] written before read; S filled by reflect_columns
     if (x.size() < static_cast<size_t>(m)) x.resize(static_cast<size_t>(m));
     if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
-    for (i64 i = 0; i < steps; ++i) {
+    bool sparse = sparse_hint && k >= 12 && k <= 64;  // (below 12 columns its bookkeeping costs more than it saves)
+    for (i64 t = 0; sparse && t < m; ++t) sparse = std::isfinite(f[t]);  // (sparse_qr_steps skips f's terms)
+    if (sparse) sparse_qr_steps(M, f, perm, norms, ws);
+    for (i64 i = sparse ? steps : 0; i < steps; ++i) {
         i64 best = i;
         for (i64 j = i + 1; j < k; ++j)
             if (norms[j] > norms[best]) best = j;
@@ -347,7 +609,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         mv_into(ls.B.cref(), z.data(), f0);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = ws.y;
-        detail::lstsq_into(BW, f0, y, ws.ls);
+        detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
         Vec& wy = ws.wy;
         zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
