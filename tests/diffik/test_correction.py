@@ -12,12 +12,11 @@ on the integrated configuration; the correction is recomputed independently (the
 
 from __future__ import annotations
 
-from importlib import metadata
-
 import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import has_erd, three_link_arm
 from scipy.spatial.transform import Rotation
 
 import qpik
@@ -31,15 +30,7 @@ FEET = ("left_sole_link", "right_sole_link")
 HANDS = ("gripper_left_base_link", "gripper_right_base_link")
 
 
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+requires_erd = pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
 
 
 def _held(configuration, frame, kind="body", cls=FrameTask):
@@ -410,30 +401,20 @@ def test_talos_compiled_and_qp_corrections_agree_with_an_independent_one():
 
 
 # ------------------------------------------------------------------------- couplings
-MIMIC = """
+MIMIC = (
+    """
 <mujoco>
   <compiler angle="radian"/>
   <worldbody>
-    <body name="a">
-      <joint name="a1" axis="0 0 1" range="-2 2"/>
-      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-      <body name="b" pos="0.3 0 0">
-        <joint name="b1" axis="0 1 0" range="-2 2"/>
-        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
-        <body name="c" pos="0.3 0 0">
-          <joint name="c1" axis="0 1 0" range="-0.5 0.5"/>
-          <joint name="c2" type="slide" axis="1 0 0" range="-0.1 0.1"/>
-          <geom type="capsule" fromto="0 0 0 0.2 0 0" size="0.02"/>
-          <site name="tip" pos="0.2 0 0"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
+"""
+    + three_link_arm("-0.5 0.5")
+    + """  </worldbody>
   <equality>
     <joint name="mimic" joint1="c1" joint2="b1" polycoef="0.05 -0.7 0 0 0"/>
   </equality>
 </mujoco>
 """
+)
 
 
 def test_mimic_coupling_level_and_the_tip_are_corrected_on_both_paths():

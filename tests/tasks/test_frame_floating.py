@@ -8,13 +8,11 @@ the rows and the integration would leave a first-order error, which halves)."""
 
 from __future__ import annotations
 
-from importlib import metadata
-
 import mink
 import mujoco
 import numpy as np
 import pytest
-from conftest import central_difference
+from conftest import central_difference, has_erd
 
 import qpik
 from qpik.limits import velocity_limit_from_model
@@ -24,15 +22,7 @@ FEET = ("left_sole_link", "right_sole_link")
 HANDS = ("gripper_left_base_link", "gripper_right_base_link")
 
 
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-pytestmark = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+pytestmark = pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
 
 
 def _talos():
