@@ -156,55 +156,9 @@ struct LsScratch {
 // S_j = 2 (sum_a x_a M(sup_a, j)) / vn, each sum in order from +0, then M(sup_a, j) -=
 // x_a S_j (the same operations, per column, as reflect_columns on those rows).
 inline void reflect_rows(Mat& M, const i64* sup, i64 ns, i64 i, const double* x, double vn, double* S) {
-    using namespace simd;
-    i64 k = M.cols, w = k - i;
+    i64 k = M.cols;
     double* base = M.a.data() + i;
-    i64 j = 0;
-    for (; j + 8 <= w; j += 8) {
-        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
-        for (i64 a = 0; a < ns; ++a) {
-            const double* p = base + sup[a] * k + j;
-            v2d xt = splat(x[a]);
-            s0 += xt * load(p);
-            s1 += xt * load(p + 2);
-            s2 += xt * load(p + 4);
-            s3 += xt * load(p + 6);
-        }
-        v2d two = splat(2.0), vv = splat(vn);
-        s0 = two * s0 / vv;
-        s1 = two * s1 / vv;
-        s2 = two * s2 / vv;
-        s3 = two * s3 / vv;
-        store(S + j, s0);
-        store(S + j + 2, s1);
-        store(S + j + 4, s2);
-        store(S + j + 6, s3);
-        for (i64 a = 0; a < ns; ++a) {
-            double* q = base + sup[a] * k + j;
-            v2d xt = splat(x[a]);
-            store(q, load(q) - xt * s0);
-            store(q + 2, load(q + 2) - xt * s1);
-            store(q + 4, load(q + 4) - xt * s2);
-            store(q + 6, load(q + 6) - xt * s3);
-        }
-    }
-    for (; j + 2 <= w; j += 2) {
-        v2d s0 = splat(0.0);
-        for (i64 a = 0; a < ns; ++a) s0 += splat(x[a]) * load(base + sup[a] * k + j);
-        s0 = splat(2.0) * s0 / splat(vn);
-        store(S + j, s0);
-        for (i64 a = 0; a < ns; ++a) {
-            double* q = base + sup[a] * k + j;
-            store(q, load(q) - splat(x[a]) * s0);
-        }
-    }
-    for (; j < w; ++j) {
-        double s0 = 0.0;
-        for (i64 a = 0; a < ns; ++a) s0 += x[a] * base[sup[a] * k + j];
-        s0 = 2.0 * s0 / vn;
-        S[j] = s0;
-        for (i64 a = 0; a < ns; ++a) base[sup[a] * k + j] -= x[a] * s0;
-    }
+    reflect_row_set([base, sup, k](i64 a) { return base + sup[a] * k; }, ns, k - i, x, vn, S);
 }
 
 // col_sq (rows t0..t1-1, columns j0..j1-1, each summed over the rows in order from +0) on

@@ -932,85 +932,91 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
 
 namespace detail {
 
-// The Householder reflection (x, |x|^2 = vn) applied to columns j0..m-1 of rows
-// i..i+size-1 of M (row stride ld): per column, s_j = 2 (sum_t x[t] M(i+t, j)) / vn, then
-// M(i+t, j) -= s_j x[t]. The sums run over t in order, all columns together (a row at a
-// time, contiguous), with the same operations per column as a loop over the column.
-// (Eight, four or two columns a pass: s_j summed over t in registers, then those columns
-// updated: per column the same operations in the same order as the row-at-a-time loops
-// below, which the last odd column takes.)
+// The Householder reflection (x, |x|^2 = vn) applied to w columns of the rows row(0..size-1)
+// (row(t): a pointer to the first of them in row t): per column, s_j = 2 (sum_t x[t] M(t, j)) / vn,
+// then M(t, j) -= s_j x[t]. Eight, four or two columns a pass: s_j summed over t in order
+// in registers, then those columns updated; the last odd column alone. Per column the same
+// operations in the same order whatever the blocking (reflect_columns: contiguous rows;
+// certify.hpp's reflect_rows: a subset of a matrix's rows).
+template <class Row>
+inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S) {
+    using namespace simd;
+    i64 j = 0;
+    for (; j + 8 <= w; j += 8) {
+        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+        for (i64 t = 0; t < size; ++t) {
+            const double* p = row(t) + j;
+            v2d xt = splat(x[t]);
+            s0 += xt * load(p);
+            s1 += xt * load(p + 2);
+            s2 += xt * load(p + 4);
+            s3 += xt * load(p + 6);
+        }
+        v2d two = splat(2.0), vv = splat(vn);
+        s0 = two * s0 / vv;
+        s1 = two * s1 / vv;
+        s2 = two * s2 / vv;
+        s3 = two * s3 / vv;
+        store(S + j, s0);
+        store(S + j + 2, s1);
+        store(S + j + 4, s2);
+        store(S + j + 6, s3);
+        for (i64 t = 0; t < size; ++t) {
+            double* q = row(t) + j;
+            v2d xt = splat(x[t]);
+            store(q, load(q) - xt * s0);
+            store(q + 2, load(q + 2) - xt * s1);
+            store(q + 4, load(q + 4) - xt * s2);
+            store(q + 6, load(q + 6) - xt * s3);
+        }
+    }
+    for (; j + 4 <= w; j += 4) {
+        v2d s = splat(0.0), s2 = splat(0.0);
+        for (i64 t = 0; t < size; ++t) {
+            const double* p = row(t) + j;
+            v2d xt = splat(x[t]);
+            s += xt * load(p);
+            s2 += xt * load(p + 2);
+        }
+        s = splat(2.0) * s / splat(vn);
+        s2 = splat(2.0) * s2 / splat(vn);
+        store(S + j, s);
+        store(S + j + 2, s2);
+        for (i64 t = 0; t < size; ++t) {
+            double* q = row(t) + j;
+            v2d xt = splat(x[t]);
+            store(q, load(q) - xt * s);
+            store(q + 2, load(q + 2) - xt * s2);
+        }
+    }
+    for (; j + 2 <= w; j += 2) {
+        v2d s = splat(0.0);
+        for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(row(t) + j);
+        s = splat(2.0) * s / splat(vn);
+        store(S + j, s);
+        for (i64 t = 0; t < size; ++t) {
+            double* p = row(t) + j;
+            store(p, load(p) - splat(x[t]) * s);
+        }
+    }
+    if (j < w) {
+        double s = 0.0;
+        for (i64 t = 0; t < size; ++t) s += x[t] * row(t)[j];
+        s = 2.0 * s / vn;
+        S[j] = s;
+        for (i64 t = 0; t < size; ++t) row(t)[j] -= x[t] * s;
+    }
+}
+
+// reflect_row_set on columns j0..m-1 of rows i..i+size-1 of M (row stride ld); a single
+// column by rows (acc_row, axmy: the same sums in the same order).
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
                             double* S) {
     i64 w = m - j0;
     if (w <= 0) return;
     if (w >= 2) {
-        using namespace simd;
         double* base = M + i * ld + j0;
-        i64 j = 0;
-        for (; j + 8 <= w; j += 8) {
-            v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
-            const double* p = base + j;
-            for (i64 t = 0; t < size; ++t, p += ld) {
-                v2d xt = splat(x[t]);
-                s0 += xt * load(p);
-                s1 += xt * load(p + 2);
-                s2 += xt * load(p + 4);
-                s3 += xt * load(p + 6);
-            }
-            v2d two = splat(2.0), vv = splat(vn);
-            s0 = two * s0 / vv;
-            s1 = two * s1 / vv;
-            s2 = two * s2 / vv;
-            s3 = two * s3 / vv;
-            store(S + j, s0);
-            store(S + j + 2, s1);
-            store(S + j + 4, s2);
-            store(S + j + 6, s3);
-            double* q = base + j;
-            for (i64 t = 0; t < size; ++t, q += ld) {
-                v2d xt = splat(x[t]);
-                store(q, load(q) - xt * s0);
-                store(q + 2, load(q + 2) - xt * s1);
-                store(q + 4, load(q + 4) - xt * s2);
-                store(q + 6, load(q + 6) - xt * s3);
-            }
-        }
-        for (; j + 4 <= w; j += 4) {
-            v2d s = splat(0.0), s2 = splat(0.0);
-            const double* p = base + j;
-            for (i64 t = 0; t < size; ++t, p += ld) {
-                v2d xt = splat(x[t]);
-                s += xt * load(p);
-                s2 += xt * load(p + 2);
-            }
-            s = splat(2.0) * s / splat(vn);
-            s2 = splat(2.0) * s2 / splat(vn);
-            store(S + j, s);
-            store(S + j + 2, s2);
-            double* q = base + j;
-            for (i64 t = 0; t < size; ++t, q += ld) {
-                v2d xt = splat(x[t]);
-                store(q, load(q) - xt * s);
-                store(q + 2, load(q + 2) - xt * s2);
-            }
-        }
-        for (; j + 2 <= w; j += 2) {
-            v2d s = splat(0.0);
-            for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(base + t * ld + j);
-            s = splat(2.0) * s / splat(vn);
-            store(S + j, s);
-            for (i64 t = 0; t < size; ++t) {
-                double* p = base + t * ld + j;
-                store(p, load(p) - splat(x[t]) * s);
-            }
-        }
-        if (j < w) {
-            double s = 0.0;
-            for (i64 t = 0; t < size; ++t) s += x[t] * base[t * ld + j];
-            s = 2.0 * s / vn;
-            S[j] = s;
-            for (i64 t = 0; t < size; ++t) base[t * ld + j] -= x[t] * s;
-        }
+        reflect_row_set([base, ld](i64 t) { return base + t * ld; }, size, w, x, vn, S);
         return;
     }
     std::fill(S, S + w, 0.0);
