@@ -16,8 +16,9 @@ import mink
 import mujoco
 import numpy as np
 import pytest
-from conftest import has_erd, three_link_arm
+from conftest import has_erd
 from scipy.spatial.transform import Rotation
+from test_couple_fastpath import MIMIC  # the same mimic chain
 
 import qpik
 from qpik.core import HierarchyProblem, HierarchySolver, Level, LevelStatus
@@ -401,20 +402,6 @@ def test_talos_compiled_and_qp_corrections_agree_with_an_independent_one():
 
 
 # ------------------------------------------------------------------------- couplings
-MIMIC = (
-    """
-<mujoco>
-  <compiler angle="radian"/>
-  <worldbody>
-"""
-    + three_link_arm("-0.5 0.5")
-    + """  </worldbody>
-  <equality>
-    <joint name="mimic" joint1="c1" joint2="b1" polycoef="0.05 -0.7 0 0 0"/>
-  </equality>
-</mujoco>
-"""
-)
 
 
 def test_mimic_coupling_level_and_the_tip_are_corrected_on_both_paths():
