@@ -465,13 +465,6 @@ struct StepResult {
 inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                                  bool canonical, core::Workspace& ws, Scratch& s, StepResult& out);
 
-inline StepResult solve_rows_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                  bool canonical, core::Workspace& ws, Scratch& s) {
-    StepResult out;
-    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
-    return out;
-}
-
 inline void fused_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
                             bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
     fused_rows_into(a, s);
