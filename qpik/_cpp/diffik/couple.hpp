@@ -232,10 +232,12 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         for (i64 c = 0; c < 2; ++c)
             if (side[c] != 0) hold(dofs[c], side[c], g[c]);
     }
-    s.eye.set_eye(n);
+    // Z = I (n, n), kept from one step to the next (only couple_step writes it); certified
+    // with z_eye (its products written without forming them: the same bits).
+    if (s.eye.rows != n || s.eye.cols != n) s.eye.set_eye(n);
     const core::Certificate cert =
         core::certify_level(A0, b0, rho, s.eye.cref(), d0, lb, ub, G, h, rows, sides, u,
-                            static_cast<i64>(rows.size()), true, &s.cs);
+                            static_cast<i64>(rows.size()), true, &s.cs, nullptr, true);
     if (!(cert.holds() && cert.rows_relative)) return false;
     // The levels below in y: x = d_perp + T y.
     const i64 nr = n - static_cast<i64>(s.pairs.size());
