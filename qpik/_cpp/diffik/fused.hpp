@@ -524,13 +524,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     const RowsResult& rows = s.rows;
-    // a fresh result's fields (d and active are written on every path below)
-    out.v.clear();
+    // a fresh result's fields (d, info and active are written on every path below; v
+    // emptied on each path that returns without it)
     out.active_cols = 0;
     out.v_is_d = false;
     out.code = rows.code;
-    out.info.assign(static_cast<size_t>(9 * L), 0.0);
     if (rows.code != OK) {
+        out.v.clear();
+        out.info.assign(static_cast<size_t>(9 * L), 0.0);
         out.d.assign(static_cast<size_t>(n), 0.0);
         out.v_is_d = true;
         out.active.assign(static_cast<size_t>(L * n), 0);
@@ -558,10 +559,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     double res_sum = 0.0;
     for (double r : c.residuals) res_sum += r;
     bool finite = std::isfinite(res_sum);
+    out.info.resize(static_cast<size_t>(9 * L));  // every entry written below
     for (i64 k = 0; k < L; ++k) {
         if (c.status[k] == core::MAX_ITER || c.status[k] == core::NUMERICAL) {
             out.code = UNSETTLED;
             out.v_is_d = true;
+            out.v.clear();
+            for (i64 j = 0; j < 9; ++j)  // the levels from k on: zeros (a fresh result's)
+                for (i64 q = k; q < L; ++q) out.info[j * L + q] = 0.0;
             return;
         }
         out.info[0 * L + k] = c.residuals[k];
@@ -571,7 +576,7 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
         out.info[4 * L + k] = static_cast<double>(c.iterations[k]);
         for (i64 j = 0; j < 4; ++j) out.info[(5 + j) * L + k] = c.certificate[4 * k + j];
     }
-    out.v.assign(static_cast<size_t>(n), 0.0);
+    out.v.resize(static_cast<size_t>(n));  // every entry written below
     for (i64 i = 0; i < n; ++i) {
         out.v[i] = out.d[i] / dt;
         finite = finite && std::isfinite(out.d[i] * out.d[i]) && std::isfinite(out.v[i]);
