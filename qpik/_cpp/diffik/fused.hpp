@@ -438,8 +438,8 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     boxes_into(a.qpos, a.settings[DT], a.cfg_dof, cfg, cfg + 1, cfg + 2, a.cfg_data.stride,
                a.vel_dof, a.vel_limit, n, a.cfg_qadr, s.box, res.box);
     FiniteSum bs, ts;
+    bs.add_n(a.b.p, a.b.n);
     for (i64 r = 0; r < a.b.n; ++r) {
-        bs.add(a.b[r]);
         const i64 d = s.diag[static_cast<size_t>(r)];
         if (d < 0) {
             ts.add_n(a.A.row(r), n);

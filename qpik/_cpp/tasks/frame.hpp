@@ -4,10 +4,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <vector>
 
 #include "../common.hpp"
+#include "../core/linalg.hpp"
 #include "../model/se3.hpp"
 
 namespace qpik::tasks {
@@ -54,12 +57,17 @@ inline bool all_finite(const double* x) {
     return acc == 0.0;
 }
 
-// Whether column j of jac (6, nv) is exactly zero (+-0 entries): the sum of |entries| is
-// 0 exactly when each is (a NaN or an overflow to inf is not 0).
+// Whether column j of jac (6, nv) is exactly zero (+-0 entries): every bit but the sign
+// is 0 exactly for +-0 (a NaN or an infinity has exponent bits).
 inline bool zero_column(CMatRef jac, i64 j) {
-    return std::fabs(jac(0, j)) + std::fabs(jac(1, j)) + std::fabs(jac(2, j)) + std::fabs(jac(3, j)) +
-               std::fabs(jac(4, j)) + std::fabs(jac(5, j)) ==
-           0.0;
+    std::uint64_t bits = 0;
+#pragma GCC unroll 6
+    for (i64 k = 0; k < 6; ++k) {
+        std::uint64_t u;
+        std::memcpy(&u, &jac(k, j), sizeof u);
+        bits |= u;
+    }
+    return (bits << 1) == 0;
 }
 
 // The shape of a finite jlog (row-major 6x6): 0 general, 1 the lower-left block exactly
@@ -103,14 +111,18 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
         // A column whose local entries are all finite: a term jlog[i][k] col[k] with
         // jlog[i][k] exactly zero is +-0, and acc (+0 at the start, never -0: a sum is -0
         // only of two -0) plus +-0 is acc; such terms are left out (the same bits).
+        // Every row is first filled with its zero column's entry (contiguous stores), then
+        // the other columns written over it.
         const int shape = jlog_shape(jlog);
-        double zc[6];
-        for (i64 i = 0; i < 6; ++i) zc[i] = -cost[i] * 0.0;
+        for (i64 i = 0; i < 6; ++i) {
+            const core::simd::v2d zc = core::simd::splat(-cost[i] * 0.0);
+            double* Ai = &A(row + i, 0);
+            i64 j = 0;
+            for (; j + 2 <= nv; j += 2) core::simd::store(Ai + j, zc);
+            if (j < nv) Ai[j] = zc[0];
+        }
         for (i64 j = 0; j < nv; ++j) {
-            if (zero_column(jac, j)) {
-                for (i64 i = 0; i < 6; ++i) A(row + i, j) = zc[i];
-                continue;
-            }
+            if (zero_column(jac, j)) continue;
             double col[6];
             for (i64 i = 0; i < 3; ++i) {
                 double a = 0.0;
