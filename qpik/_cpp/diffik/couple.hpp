@@ -42,6 +42,8 @@ struct CoupleScratch {
     Mat Ar, eye;
     Vec br, lbr, ubr, d0, u, x;
     IVec startsr, rows, sides;
+    IVec runs;   // (c, t, len) triples: reduced columns c:c+len are dofs t:t+len (on no pair)
+    IVec pcols;  // the reduced columns of the pairs, in order
     BVec warmr;
     core::CertScratch cs;
     // the reduced cascade's result and the answer's residual rows (kept: no allocation a step)
@@ -232,10 +234,12 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         for (i64 c = 0; c < 2; ++c)
             if (side[c] != 0) hold(dofs[c], side[c], g[c]);
     }
-    s.eye.set_eye(n);
+    // Z = I (n, n), kept from one step to the next (only couple_step writes it); certified
+    // with z_eye (its products written without forming them: the same bits).
+    if (s.eye.rows != n || s.eye.cols != n) s.eye.set_eye(n);
     const core::Certificate cert =
         core::certify_level(A0, b0, rho, s.eye.cref(), d0, lb, ub, G, h, rows, sides, u,
-                            static_cast<i64>(rows.size()), true, &s.cs);
+                            static_cast<i64>(rows.size()), true, &s.cs, nullptr, true);
     if (!(cert.holds() && cert.rows_relative)) return false;
     // The levels below in y: x = d_perp + T y.
     const i64 nr = n - static_cast<i64>(s.pairs.size());
@@ -245,8 +249,8 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         const i64 k = s.pair_of[t];
         if (k < 0 || s.pairs[k].i == t) dof.push_back(t);
     }
-    zero_fill(s.lbr, static_cast<size_t>(nr));
-    zero_fill(s.ubr, static_cast<size_t>(nr));
+    s.lbr.resize(static_cast<size_t>(nr));  // every entry written below
+    s.ubr.resize(static_cast<size_t>(nr));
     for (i64 c = 0; c < nr; ++c) {
         const i64 t = dof[c];
         const i64 k = s.pair_of[t];
@@ -267,21 +271,40 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         if (!(p.p1 > 0.0) || p.p2 == 0.0) return false;
         if (!pair_interval(p, lb, ub, ystar, s.lbr[c], s.ubr[c])) return false;
     }
+    // The reduced columns: runs of dofs on no pair (copied), then each pair's column (in
+    // order of c, so shift sums its terms in the order of the columns).
+    IVec& runs = s.runs;
+    IVec& pcols = s.pcols;
+    runs.clear();
+    pcols.clear();
+    for (i64 c = 0; c < nr; ++c) {
+        const i64 t = dof[c];
+        if (s.pair_of[t] >= 0) {
+            pcols.push_back(c);
+        } else if (!runs.empty() && runs[runs.size() - 3] + runs[runs.size() - 1] == c &&
+                   runs[runs.size() - 2] + runs[runs.size() - 1] == t) {
+            ++runs[runs.size() - 1];
+        } else {
+            runs.push_back(c);
+            runs.push_back(t);
+            runs.push_back(1);
+        }
+    }
     const i64 Mr = M - m0;
-    s.Ar.zeros(Mr, nr);
-    zero_fill(s.br, static_cast<size_t>(Mr));
+    core::shape(s.Ar, Mr, nr);  // every entry written below
+    s.br.resize(static_cast<size_t>(Mr));
     for (i64 r = 0; r < Mr; ++r) {
         const double* ar = A.row(m0 + r);
         double* dst = s.Ar.row(r);
+        for (size_t q = 0; q < runs.size(); q += 3) {
+            double* d = dst + runs[q];
+            const double* src = ar + runs[q + 1];
+            const i64 len = runs[q + 2];
+            for (i64 e = 0; e < len; ++e) d[e] = src[e];
+        }
         double shift = 0.0;
-        for (i64 c = 0; c < nr; ++c) {
-            const i64 t = dof[c];
-            const i64 k = s.pair_of[t];
-            if (k < 0) {
-                dst[c] = ar[t];
-                continue;
-            }
-            const CouplePair& p = s.pairs[k];
+        for (const i64 c : pcols) {
+            const CouplePair& p = s.pairs[s.pair_of[dof[c]]];
             dst[c] = ar[p.i] * p.p1 + ar[p.j] * p.p2;
             shift += ar[p.i] * p.di + ar[p.j] * p.dj;
         }
@@ -290,7 +313,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     s.startsr.resize(static_cast<size_t>(L));
     for (i64 k = 1; k <= L; ++k) s.startsr[k - 1] = starts[k] - m0;
     // Warm sets of the reduced columns: a pair's from its bound rows (y's side).
-    s.warmr.assign(static_cast<size_t>((L - 1) * nr), 0);
+    s.warmr.resize(static_cast<size_t>((L - 1) * nr));  // every entry written below
     for (i64 k = 1; k < L; ++k) {
         for (i64 c = 0; c < nr; ++c) {
             const i64 t = dof[c];
@@ -313,7 +336,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
     // Back to x, snapped to the box as the cascade snaps; a larger excess: the general path.
     Vec& x = s.xs;
-    x.assign(static_cast<size_t>(n), 0.0);
+    x.resize(static_cast<size_t>(n));  // every entry written below (each pair's two dofs)
     for (i64 c = 0; c < nr; ++c) {
         const i64 t = dof[c];
         const i64 k = s.pair_of[t];
@@ -330,11 +353,16 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         if (x[i] < lb[i] || x[i] > ub[i]) return false;
     // The result: level 0's own figures, then the levels below as the reduced cascade found them.
     out.dq.assign(x.begin(), x.end());
-    out.status.assign(static_cast<size_t>(L), core::SOLVED);
-    out.sigma.assign(static_cast<size_t>(L), sigma);
-    out.lam2.assign(static_cast<size_t>(L), lam);
-    out.iterations.assign(static_cast<size_t>(L), 0);
-    out.certificate.assign(static_cast<size_t>(4 * L), 0.0);
+    // Level 0's entries here, every other one in the loop below.
+    out.status.resize(static_cast<size_t>(L));
+    out.sigma.resize(static_cast<size_t>(L));
+    out.lam2.resize(static_cast<size_t>(L));
+    out.iterations.resize(static_cast<size_t>(L));
+    out.certificate.resize(static_cast<size_t>(4 * L));
+    out.status[0] = core::SOLVED;
+    out.sigma[0] = sigma;
+    out.lam2[0] = lam;
+    out.iterations[0] = 0;
     out.certificate[0] = cert.primal;
     out.certificate[1] = cert.stationarity;
     out.certificate[2] = cert.dual;

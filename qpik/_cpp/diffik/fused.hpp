@@ -104,7 +104,10 @@ inline double frame_rows(MatRef A, double* b, i64 row, CMatRef jac, const double
 // zeros, whose sign follows cost's) and cost * diag at column i, over nv columns.
 inline void cost_row(double* Ai, i64 nv, i64 i, double cost, double diag) {
     const double off = cost * 0.0;
-    for (i64 j = 0; j < nv; ++j) Ai[j] = off;
+    const core::simd::v2d o = core::simd::splat(off);
+    i64 j = 0;
+    for (; j + 2 <= nv; j += 2) core::simd::store(Ai + j, o);
+    if (j < nv) Ai[j] = off;
     Ai[i] = cost * diag;
 }
 
@@ -265,10 +268,13 @@ inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos
 }
 
 // Fill every task's rows of A, b, w; each level's LM term sum lm_damping |b_task|^2 into
-// reg (L); local: scratch (sizes only grow).
-inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local) {
+// reg (L); local: scratch (sizes only grow). diag (M): per row of A, the column of its
+// diagonal entry where a posture or damping task wrote it last (cost_row: every other entry
+// the same value), else -1.
+inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec& diag) {
     const i64 n = a.A.cols;
     zero_fill(reg, static_cast<size_t>(L));
+    diag.assign(static_cast<size_t>(a.A.rows), -1);
     if (local.size() < static_cast<size_t>(19 * n)) local.resize(static_cast<size_t>(19 * n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0);
@@ -291,6 +297,7 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local) {
                                          CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
                                          cost, a.lin_data(1, r0), a.lin_data(2, r0), local.data());
             for (i64 r = 0; r < k; ++r) a.w[row + r] = cost[r];
+            for (i64 r = 0; r < k; ++r) diag[static_cast<size_t>(row + r)] = -1;
             reg[a.tasks(t, 2)] += mu;
             continue;
         }
@@ -335,7 +342,12 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local) {
                                       local.data());
             }
             size = n;
+            for (i64 r = 0; r < n; ++r) diag[static_cast<size_t>(row + r)] = r;
+            for (i64 r = 0; r < size; ++r) a.w[row + r] = cost[r];
+            reg[a.tasks(t, 2)] += mu;
+            continue;
         }
+        for (i64 r = 0; r < size; ++r) diag[static_cast<size_t>(row + r)] = -1;
         for (i64 r = 0; r < size; ++r) a.w[row + r] = cost[r];
         reg[a.tasks(t, 2)] += mu;
     }
@@ -352,6 +364,7 @@ struct RowsResult {
 struct Scratch {
     RowsResult rows;
     Vec local;
+    IVec diag;  // assemble_rows' posture rows
     BoxScratch box;
     CoupleScratch couple;
     core::CascadeResult cascade;  // the step's cascade result (every field written each step)
@@ -373,17 +386,37 @@ struct FiniteSum {
     }
     // add() of x[0], ..., x[n - 1] (branch-free: |x| <= DBL_MAX is false for an infinity or
     // a NaN, and a NaN leaves max as add() leaves it; max is read only when all are finite).
+    // Two entries at a time: a lane's max is its entries' (a NaN never wins), and the
+    // lanes' maxima combined, the same max wherever every entry is finite (the only place
+    // it is read).
     void add_n(const double* x, i64 n) {
-        bool ok = true;
-        double mx = max;
-        for (i64 t = 0; t < n; ++t) {
+        using namespace core::simd;
+        constexpr double big = std::numeric_limits<double>::max();
+        v2d mx2 = splat(max);
+        v2d ok2 = splat(0.0);  // lanes 0 while every entry is finite
+        i64 t = 0;
+        for (; t + 2 <= n; t += 2) {
+            const v2d m = vabs(load(x + t));
+            ok2 = (m <= splat(big)) ? ok2 : splat(1.0);
+            mx2 = m > mx2 ? m : mx2;
+        }
+        bool ok = ok2[0] == 0.0 && ok2[1] == 0.0;
+        double mx = mx2[1] > mx2[0] ? mx2[1] : mx2[0];
+        for (; t < n; ++t) {
             const double m = std::fabs(x[t]);
-            ok &= m <= std::numeric_limits<double>::max();
+            ok &= m <= big;
             mx = m > mx ? m : mx;
         }
         finite = finite && ok;
         max = mx;
         count += n;
+    }
+    // add() of x, k times (k >= 1).
+    void add_rep(double x, i64 k) {
+        const double m = std::fabs(x);
+        finite = finite && m <= std::numeric_limits<double>::max();
+        max = m > max ? m : max;
+        count += k;
     }
     bool safe(bool squares) const {
         if (!finite) return false;
@@ -399,15 +432,21 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     const i64 L = a.starts.n - 1;
     RowsResult& res = s.rows;
     res.code = OK;
-    assemble_rows(a, L, res.reg, s.local);
+    assemble_rows(a, L, res.reg, s.local, s.diag);
     for (i64 k = 0; k < L; ++k) res.reg[k] = a.settings[DAMPING] + res.reg[k];
     const double* cfg = a.cfg_data.p;
     boxes_into(a.qpos, a.settings[DT], a.cfg_dof, cfg, cfg + 1, cfg + 2, a.cfg_data.stride,
                a.vel_dof, a.vel_limit, n, a.cfg_qadr, s.box, res.box);
     FiniteSum bs, ts;
+    bs.add_n(a.b.p, a.b.n);
     for (i64 r = 0; r < a.b.n; ++r) {
-        bs.add(a.b[r]);
-        ts.add_n(a.A.row(r), n);
+        const i64 d = s.diag[static_cast<size_t>(r)];
+        if (d < 0) {
+            ts.add_n(a.A.row(r), n);
+        } else {  // a posture row (cost_row): its diagonal entry and n - 1 equal others
+            ts.add(a.A(r, d));
+            if (n > 1) ts.add_rep(a.A(r, d == 0 ? 1 : 0), n - 1);
+        }
     }
     for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
         ts.add(a.h[r]);
@@ -485,13 +524,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     const RowsResult& rows = s.rows;
-    // a fresh result's fields (d and active are written on every path below)
-    out.v.clear();
+    // a fresh result's fields (d, info and active are written on every path below; v
+    // emptied on each path that returns without it)
     out.active_cols = 0;
     out.v_is_d = false;
     out.code = rows.code;
-    out.info.assign(static_cast<size_t>(9 * L), 0.0);
     if (rows.code != OK) {
+        out.v.clear();
+        out.info.assign(static_cast<size_t>(9 * L), 0.0);
         out.d.assign(static_cast<size_t>(n), 0.0);
         out.v_is_d = true;
         out.active.assign(static_cast<size_t>(L * n), 0);
@@ -519,10 +559,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     double res_sum = 0.0;
     for (double r : c.residuals) res_sum += r;
     bool finite = std::isfinite(res_sum);
+    out.info.resize(static_cast<size_t>(9 * L));  // every entry written below
     for (i64 k = 0; k < L; ++k) {
         if (c.status[k] == core::MAX_ITER || c.status[k] == core::NUMERICAL) {
             out.code = UNSETTLED;
             out.v_is_d = true;
+            out.v.clear();
+            for (i64 j = 0; j < 9; ++j)  // the levels from k on: zeros (a fresh result's)
+                for (i64 q = k; q < L; ++q) out.info[j * L + q] = 0.0;
             return;
         }
         out.info[0 * L + k] = c.residuals[k];
@@ -532,7 +576,7 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
         out.info[4 * L + k] = static_cast<double>(c.iterations[k]);
         for (i64 j = 0; j < 4; ++j) out.info[(5 + j) * L + k] = c.certificate[4 * k + j];
     }
-    out.v.assign(static_cast<size_t>(n), 0.0);
+    out.v.resize(static_cast<size_t>(n));  // every entry written below
     for (i64 i = 0; i < n; ++i) {
         out.v[i] = out.d[i] / dt;
         finite = finite && std::isfinite(out.d[i] * out.d[i]) && std::isfinite(out.v[i]);

@@ -139,7 +139,9 @@ inline void so3_ljacinv(double* out, const double* omega) {
         beta = (1.0 / t2) * (1.0 - (theta * std::sin(theta) / (2.0 * (1.0 - std::cos(theta)))));
     }
     const double inner = dot3(omega, omega);
+#pragma GCC unroll 3
     for (int i = 0; i < 3; ++i)
+#pragma GCC unroll 3
         for (int j = 0; j < 3; ++j)
             out[3 * i + j] = beta * (omega[i] * omega[j] - (i == j ? inner : 0.0));
     const double a0 = -0.5 * omega[0], a1 = -0.5 * omega[1], a2 = -0.5 * omega[2];

@@ -4,9 +4,13 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
 #include <vector>
 
 #include "../common.hpp"
+#include "../core/linalg.hpp"
 #include "../model/se3.hpp"
 
 namespace qpik::tasks {
@@ -41,6 +45,55 @@ inline void local_jacobian(double* local, CMatRef jac, const double* xmat) {
     }
 }
 
+namespace frame_detail {
+
+// Whether every x[0..N) is finite: x * 0.0 is +-0 for a finite x and NaN otherwise, and
+// their sum (from +0) compares equal to 0 exactly when every term is +-0.
+template <int N>
+inline bool all_finite(const double* x) {
+    double acc = 0.0;
+#pragma GCC unroll 36
+    for (int k = 0; k < N; ++k) acc += x[k] * 0.0;
+    return acc == 0.0;
+}
+
+// Whether column j of jac (6, nv) is exactly zero (+-0 entries): every bit but the sign
+// is 0 exactly for +-0 (a NaN or an infinity has exponent bits).
+inline bool zero_column(CMatRef jac, i64 j) {
+    std::uint64_t bits = 0;
+#pragma GCC unroll 6
+    for (i64 k = 0; k < 6; ++k) {
+        std::uint64_t u;
+        std::memcpy(&u, &jac(k, j), sizeof u);
+        bits |= u;
+    }
+    return (bits << 1) == 0;
+}
+
+// The shape of a finite jlog (row-major 6x6): 0 general, 1 the lower-left block exactly
+// zero (as se3_jlog writes it), 2 the identity exactly (se3_jlog near 0).
+inline int jlog_shape(const double* jlog) {
+    double low = 0.0;
+#pragma GCC unroll 3
+    for (int i = 3; i < 6; ++i) low += std::fabs(jlog[6 * i]) + std::fabs(jlog[6 * i + 1]) + std::fabs(jlog[6 * i + 2]);
+    if (low != 0.0) return 0;
+    for (int i = 0; i < 6; ++i)
+        for (int k = 0; k < 6; ++k)
+            if (jlog[6 * i + k] != (i == k ? 1.0 : 0.0)) return 1;
+    return 2;
+}
+
+// sum_{k = K0}^{5} row[k] col[k], from +0 in order of k.
+template <int K0>
+inline double dot6_from(const double* row, const double* col) {
+    double acc = 0.0;
+#pragma GCC unroll 6
+    for (int k = K0; k < 6; ++k) acc += row[k] * col[k];
+    return acc;
+}
+
+}  // namespace frame_detail
+
 // Rows row:row+6 of a frame task written into A (rows >= row + 6, nv) and b: A =
 // diag(cost) (-jlog) [R^T Jp; R^T Jr], b = -gain cost e; returns lm_damping |b|^2. `jac` is
 // MuJoCo's world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9), jlog
@@ -48,22 +101,28 @@ inline void local_jacobian(double* local, CMatRef jac, const double* xmat) {
 inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const double* xmat,
                               const double* jlog, const double* error, const double* cost,
                               double gain, double lm_damping, double* local) {
+    using namespace frame_detail;
     const i64 nv = jac.cols;
-    bool finite = true;
-    for (int k = 0; k < 9; ++k) finite = finite && std::isfinite(xmat[k]);
-    for (int k = 0; k < 36; ++k) finite = finite && std::isfinite(jlog[k]);
-    if (finite) {
+    if (all_finite<9>(xmat) && all_finite<36>(jlog)) {
         // Column by column, each entry by the same sums as below; a column of the
         // Jacobian that is exactly zero (a dof off the frame's chain) gives local entries
         // +0 (0.0 + finite * 0, in any order) and so A entries -cost[i] * 0.0, written
         // without the sums: the same bits.
+        // A column whose local entries are all finite: a term jlog[i][k] col[k] with
+        // jlog[i][k] exactly zero is +-0, and acc (+0 at the start, never -0: a sum is -0
+        // only of two -0) plus +-0 is acc; such terms are left out (the same bits).
+        // Every row is first filled with its zero column's entry (contiguous stores), then
+        // the other columns written over it.
+        const int shape = jlog_shape(jlog);
+        for (i64 i = 0; i < 6; ++i) {
+            const core::simd::v2d zc = core::simd::splat(-cost[i] * 0.0);
+            double* Ai = &A(row + i, 0);
+            i64 j = 0;
+            for (; j + 2 <= nv; j += 2) core::simd::store(Ai + j, zc);
+            if (j < nv) Ai[j] = zc[0];
+        }
         for (i64 j = 0; j < nv; ++j) {
-            bool zero = true;
-            for (i64 k = 0; k < 6; ++k) zero = zero && jac(k, j) == 0.0;
-            if (zero) {
-                for (i64 i = 0; i < 6; ++i) A(row + i, j) = -cost[i] * 0.0;
-                continue;
-            }
+            if (zero_column(jac, j)) continue;
             double col[6];
             for (i64 i = 0; i < 3; ++i) {
                 double a = 0.0;
@@ -75,10 +134,14 @@ inline double frame_rows_into(MatRef A, double* b, i64 row, CMatRef jac, const d
                 col[i] = a;
                 col[3 + i] = r;
             }
-            for (i64 i = 0; i < 6; ++i) {
-                double acc = 0.0;
-                for (i64 k = 0; k < 6; ++k) acc += jlog[6 * i + k] * col[k];
-                A(row + i, j) = -cost[i] * acc;
+            const bool sparse = shape != 0 && all_finite<6>(col);
+            if (sparse && shape == 2) {
+                for (i64 i = 0; i < 6; ++i) A(row + i, j) = -cost[i] * (0.0 + col[i]);
+            } else if (sparse) {
+                for (i64 i = 0; i < 3; ++i) A(row + i, j) = -cost[i] * dot6_from<0>(jlog + 6 * i, col);
+                for (i64 i = 3; i < 6; ++i) A(row + i, j) = -cost[i] * dot6_from<3>(jlog + 6 * i, col);
+            } else {
+                for (i64 i = 0; i < 6; ++i) A(row + i, j) = -cost[i] * dot6_from<0>(jlog + 6 * i, col);
             }
         }
     } else {
