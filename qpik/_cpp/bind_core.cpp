@@ -57,20 +57,34 @@ nb::tuple qp_tuple(core::QPResult&& r) {
 
 // A read-only (or writable) view of a Python object's buffer: C-contiguous, of the given
 // ndim and item type ('d' float64, 'b' int8); anything else is refused (no conversion).
+// An exact NumPy array is read directly (bind.hpp's fast_array: the same data, no
+// PyObject_GetBuffer), anything else through the buffer protocol.
 struct PyBuf {
     Py_buffer v{};
-    bool held = false;
+    bool held = false;        // v holds a buffer (released by release())
+    PyObject* fast = nullptr;  // the array read directly (a reference held)
+    void* buf = nullptr;
+    const Py_ssize_t* shp = nullptr;
     PyBuf() = default;
     PyBuf(const PyBuf&) = delete;
     PyBuf& operator=(const PyBuf&) = delete;
     PyBuf(PyBuf&&) = delete;
-    ~PyBuf() {
+    ~PyBuf() { release(); }
+    void release() {
         if (held) PyBuffer_Release(&v);
+        held = false;
+        Py_CLEAR(fast);
     }
     bool get(PyObject* o, char type, int ndim, bool writable = false) {
-        if (held) {
-            PyBuffer_Release(&v);
-            held = false;
+        release();
+        FastArray fa;
+        if (fast_array(o, type, writable, fa)) {
+            if (fa.ndim != ndim || !fa.c_contiguous) return false;
+            Py_INCREF(o);
+            fast = o;
+            buf = fa.data;
+            shp = fa.shape;
+            return true;
         }
         int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
         if (PyObject_GetBuffer(o, &v, flags) != 0) {
@@ -78,14 +92,16 @@ struct PyBuf {
             return false;
         }
         held = true;
+        buf = v.buf;
+        shp = v.shape;
         if (v.ndim != ndim || v.itemsize != (type == 'd' ? 8 : 1) || v.format == nullptr) return false;
         const char* f = v.format;
         if (*f == '<' || *f == '=' || *f == '@') ++f;
         return f[0] == type && f[1] == '\0';
     }
-    i64 shape(int i) const { return static_cast<i64>(v.shape[i]); }
+    i64 shape(int i) const { return static_cast<i64>(shp[i]); }
     template <class T>
-    T* data() const { return static_cast<T*>(v.buf); }
+    T* data() const { return static_cast<T*>(buf); }
 };
 
 
