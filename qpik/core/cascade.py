@@ -262,6 +262,18 @@ class HierarchyResult:
         """True when every level was solved."""
         return all(s is LevelStatus.SOLVED for s in self.status)
 
+    def __getattr__(self, name: str):
+        """``certificate`` of a result of the one-call solve, built on first access from
+        its measures (``_cert``: the (L, 4) float64 bytes :func:`K.solve_levels` left; the
+        same values)."""
+        d = self.__dict__
+        raw = d.get("_cert") if name == "certificate" else None
+        if raw is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = d["certificate"] = certificates(np.frombuffer(raw))
+        del d["_cert"]
+        return value
+
 
 def _residuals(A, b, starts, x) -> list[float]:
     r = A @ x - b
@@ -294,6 +306,9 @@ _KINDS = (
     tuple(STATUS_OF_CODE[code] for code in range(6)),
     "auto",
 )
+
+
+_UNSET_LAW = object()
 
 
 class HierarchySolver:
@@ -335,6 +350,8 @@ class HierarchySolver:
             raise InvalidInput(f"damping_law must be a DampingLaw or None, got {damping_law!r}")
         self.solver = solver
         self.damping_law = damping_law
+        self._settings_law: object = _UNSET_LAW  # the law _settings was computed for
+        self._settings: tuple[float, float, float] = (1.0, 0.0, 0.0)
         self.rank_tolerance = float(rank_tolerance)
         self.max_iter = int(max_iter)
         self.tolerance = float(tolerance)
@@ -429,7 +446,11 @@ class HierarchySolver:
             # One compiled call: the checks, the stacking, the cascade and the result object,
             # its arrays preallocated here (None where an argument fails a check or needs a
             # conversion, or a level did not settle: then the path below).
-            threshold, max_damping, error_scale = self.damping_settings
+            if self.damping_law is self._settings_law:  # (a DampingLaw is frozen)
+                threshold, max_damping, error_scale = self._settings
+            else:
+                threshold, max_damping, error_scale = self._settings = self.damping_settings
+                self._settings_law = self.damping_law
             result = K.solve_levels(
                 levels, lb, problem.ub, G, problem.h, threshold, max_damping, error_scale,
                 self.rank_tolerance, self.max_iter, self.tolerance,
