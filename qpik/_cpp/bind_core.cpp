@@ -57,20 +57,34 @@ nb::tuple qp_tuple(core::QPResult&& r) {
 
 // A read-only (or writable) view of a Python object's buffer: C-contiguous, of the given
 // ndim and item type ('d' float64, 'b' int8); anything else is refused (no conversion).
+// An exact NumPy array is read directly (bind.hpp's fast_array: the same data, no
+// PyObject_GetBuffer), anything else through the buffer protocol.
 struct PyBuf {
     Py_buffer v{};
-    bool held = false;
+    bool held = false;        // v holds a buffer (released by release())
+    PyObject* fast = nullptr;  // the array read directly (a reference held)
+    void* buf = nullptr;
+    const Py_ssize_t* shp = nullptr;
     PyBuf() = default;
     PyBuf(const PyBuf&) = delete;
     PyBuf& operator=(const PyBuf&) = delete;
     PyBuf(PyBuf&&) = delete;
-    ~PyBuf() {
+    ~PyBuf() { release(); }
+    void release() {
         if (held) PyBuffer_Release(&v);
+        held = false;
+        Py_CLEAR(fast);
     }
     bool get(PyObject* o, char type, int ndim, bool writable = false) {
-        if (held) {
-            PyBuffer_Release(&v);
-            held = false;
+        release();
+        FastArray fa;
+        if (fast_array(o, type, writable, fa)) {
+            if (fa.ndim != ndim || !fa.c_contiguous) return false;
+            Py_INCREF(o);
+            fast = o;
+            buf = fa.data;
+            shp = fa.shape;
+            return true;
         }
         int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
         if (PyObject_GetBuffer(o, &v, flags) != 0) {
@@ -78,14 +92,16 @@ struct PyBuf {
             return false;
         }
         held = true;
+        buf = v.buf;
+        shp = v.shape;
         if (v.ndim != ndim || v.itemsize != (type == 'd' ? 8 : 1) || v.format == nullptr) return false;
         const char* f = v.format;
         if (*f == '<' || *f == '=' || *f == '@') ++f;
         return f[0] == type && f[1] == '\0';
     }
-    i64 shape(int i) const { return static_cast<i64>(v.shape[i]); }
+    i64 shape(int i) const { return static_cast<i64>(shp[i]); }
     template <class T>
-    T* data() const { return static_cast<T*>(v.buf); }
+    T* data() const { return static_cast<T*>(buf); }
 };
 
 
@@ -93,14 +109,14 @@ struct PyBuf {
 struct Names {
     PyObject *A, *b, *regularization, *weights;
     PyObject *x, *status, *residuals, *sigma, *damping, *iterations, *active, *backend, *certificate, *primal;
-    PyObject *stationarity, *dual, *complementarity;
+    PyObject *stationarity, *dual, *complementarity, *cert_raw;
 };
 inline const Names& names() {
     static const Names n = [] {
         auto s = [](const char* v) { return PyUnicode_InternFromString(v); };
         return Names{s("A"), s("b"), s("regularization"), s("weights"), s("x"), s("status"), s("residuals"),
                      s("sigma"), s("damping"), s("iterations"), s("active"), s("backend"), s("certificate"),
-                     s("primal"), s("stationarity"), s("dual"), s("complementarity")};
+                     s("primal"), s("stationarity"), s("dual"), s("complementarity"), s("_cert")};
     }();
     return n;
 }
@@ -141,16 +157,16 @@ inline PyObject* float_list(const Vec& v, i64 L) {
     return out;
 }
 
-// The result object of solve_levels (see there); raises the Python error on failure.
-inline nb::object result_object(PyTypeObject* result_type, PyTypeObject* cert_type, PyObject* statuses,
-                                PyObject* backend, PyObject* x, PyObject* active, const core::CascadeResult& r,
-                                i64 L) {
+// The result object of solve_levels (see there); raises the Python error on failure. Its
+// certificates are left to the result class to build on first access: the (L, 4) float64
+// measures as bytes in ``_cert`` (HierarchyResult.__getattr__; the same values).
+inline nb::object result_object(PyTypeObject* result_type, PyObject* statuses, PyObject* backend, PyObject* x,
+                                PyObject* active, const core::CascadeResult& r, i64 L) {
     const Names& nm = names();
     PyObject* status = PyList_New(L);
     PyObject* its = PyList_New(L);
     PyObject* backends = PyList_New(L);
-    PyObject* certs = PyList_New(L);
-    for (i64 k = 0; k < L && status && its && backends && certs; ++k) {
+    for (i64 k = 0; k < L && status && its && backends; ++k) {
         i64 code = r.status[k] >= 0 && r.status[k] < 6 ? r.status[k] : core::NUMERICAL;
         PyObject* st = PyTuple_GET_ITEM(statuses, code);
         Py_INCREF(st);
@@ -158,26 +174,21 @@ inline nb::object result_object(PyTypeObject* result_type, PyTypeObject* cert_ty
         PyList_SET_ITEM(its, k, PyLong_FromLongLong(r.iterations[k]));
         Py_INCREF(backend);
         PyList_SET_ITEM(backends, k, backend);
-        const double* c = r.certificate.data() + 4 * k;
-        PyList_SET_ITEM(certs, k,
-                        new_with_fields(cert_type, {{nm.primal, PyFloat_FromDouble(c[0])},
-                                                    {nm.stationarity, PyFloat_FromDouble(c[1])},
-                                                    {nm.dual, PyFloat_FromDouble(c[2])},
-                                                    {nm.complementarity, PyFloat_FromDouble(c[3])}}));
     }
-    if (!status || !its || !backends || !certs || PyErr_Occurred()) {
+    if (!status || !its || !backends || PyErr_Occurred()) {
         Py_XDECREF(status);
         Py_XDECREF(its);
         Py_XDECREF(backends);
-        Py_XDECREF(certs);
         throw nb::python_error();
     }
     Py_INCREF(x);
     Py_INCREF(active);
+    PyObject* cert = PyBytes_FromStringAndSize(reinterpret_cast<const char*>(r.certificate.data()),
+                                               static_cast<Py_ssize_t>(4 * L * sizeof(double)));
     PyObject* obj = new_with_fields(
         result_type, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
                       {nm.sigma, float_list(r.sigma, L)}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
-                      {nm.active, active}, {nm.backend, backends}, {nm.certificate, certs},
+                      {nm.active, active}, {nm.backend, backends}, {nm.cert_raw, cert},
                       {nm.primal, PyFloat_FromDouble(r.primal)}});
     if (!obj) throw nb::python_error();
     return nb::steal(obj);
@@ -415,7 +426,7 @@ void bind_core(nb::module_& m) {
             if (!act.get(active_h.ptr(), 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
             if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) != 4) return none;
             PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
-            PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);
+            PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (its _cert)
             PyObject* statuses = PyTuple_GET_ITEM(kinds_h.ptr(), 2);
             PyObject* backend = PyTuple_GET_ITEM(kinds_h.ptr(), 3);
             if (!PyType_Check(result_type) || !PyType_Check(cert_type) || !PyTuple_Check(statuses) ||
@@ -506,8 +517,9 @@ void bind_core(nb::module_& m) {
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
-            return result_object(reinterpret_cast<PyTypeObject*>(result_type),
-                                 reinterpret_cast<PyTypeObject*>(cert_type), statuses, backend, x_h.ptr(),
+            static_assert(sizeof(double) == 8, "the certificate bytes are float64");
+            if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type), statuses, backend, x_h.ptr(),
                                  active_h.ptr(), r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
@@ -516,8 +528,8 @@ void bind_core(nb::module_& m) {
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
         "into active (L, n + p) int8, returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
-        "iterations, active, backend, certificate, primal) with kinds[1] certificates (primal, stationarity, dual, "
-        "complementarity), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
+        "iterations, active, backend, certificate, primal; the certificates, kinds[1] (primal, stationarity, dual, "
+        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
         "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");
 
     m.def(

@@ -207,6 +207,8 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 // reference: the plan writes the tasks' targets, costs and MuJoCo's Jacobians into them
 // before each call). A call passes only MuJoCo's state; its shapes are checked per call.
 class Kernel {
+    struct Slot;  // defined below
+
   public:
     Kernel(Out2 A, Out1 b, Out1 w, const I1& starts, const I2& tasks, Held3 jac, const I2& frames,
            Held2 frame_data, Held2 posture_data, const I2& posture_map, const I1& cfg_dof,
@@ -450,41 +452,103 @@ class Kernel {
         PyObject* list = values.ptr();
         if (!PyList_CheckExact(list) || PyList_GET_SIZE(list) != static_cast<Py_ssize_t>(slots_.size()))
             return false;
-        for (size_t i = 0; i < slots_.size(); ++i) {
-            const Slot& t = slots_[i];
-            PyObject* o = PyList_GET_ITEM(list, static_cast<Py_ssize_t>(i));
-            if (t.scalar) {
-                double x;
-                if (PyFloat_Check(o)) {
-                    x = PyFloat_AS_DOUBLE(o);
-                } else if (PyLong_CheckExact(o)) {
-                    x = PyLong_AsDouble(o);
-                    if (x == -1.0 && PyErr_Occurred()) {
-                        PyErr_Clear();
-                        return false;
-                    }
-                } else {
+        for (size_t i = 0; i < slots_.size(); ++i)
+            if (!load_one(slots_[i], PyList_GET_ITEM(list, static_cast<Py_ssize_t>(i)))) return false;
+        return true;
+    }
+
+    // One value into its slot (see load).
+    static bool load_one(const Slot& t, PyObject* o) {
+        if (t.scalar) {
+            double x;
+            if (PyFloat_Check(o)) {
+                x = PyFloat_AS_DOUBLE(o);
+            } else if (PyLong_CheckExact(o)) {
+                x = PyLong_AsDouble(o);
+                if (x == -1.0 && PyErr_Occurred()) {
+                    PyErr_Clear();
                     return false;
                 }
-                for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
-                continue;
+            } else {
+                return false;
             }
-            Py_buffer b;
-            if (PyObject_GetBuffer(o, &b, PyBUF_STRIDES | PyBUF_FORMAT) != 0) {
+            for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
+            return true;
+        }
+        FastArray fa;
+        if (fast_array(o, 'd', false, fa)) {  // an ndarray read directly: the same bytes
+            if (fa.ndim != 1 || fa.shape[0] != t.size) return false;
+            for (i64 k = 0; k < t.size; ++k)
+                std::memcpy(t.p + k * t.stride, fa.data + k * fa.strides[0], sizeof(double));
+            return true;
+        }
+        Py_buffer b;
+        if (PyObject_GetBuffer(o, &b, PyBUF_STRIDES | PyBUF_FORMAT) != 0) {
+            PyErr_Clear();
+            return false;
+        }
+        const char* f = b.format;
+        const bool ok = b.ndim == 1 && b.itemsize == 8 && b.shape[0] == t.size && f != nullptr &&
+                        (f[0] == 'd' || ((f[0] == '<' || f[0] == '=' || f[0] == '@') && f[1] == 'd' &&
+                                         is_little_endian())) &&
+                        f[f[0] == 'd' ? 1 : 2] == '\0';
+        if (ok) {
+            const char* src = static_cast<const char*>(b.buf);
+            for (i64 k = 0; k < t.size; ++k)
+                std::memcpy(t.p + k * t.stride, src + k * b.strides[0], sizeof(double));
+        }
+        PyBuffer_Release(&b);
+        return ok;
+    }
+
+    // Where go_sources() reads each slot's value but the first two (dt, damping): per slot
+    // after those, (object, name) or (object, name, inner name): getattr(object, name), or
+    // getattr(getattr(object, name), inner name) (a task's target pose: its wxyz_xyz).
+    void set_sources(nb::list sources) {
+        require(sources.size() + 2 == slots_.size(), "Kernel.set_sources: one source per slot after the first two");
+        std::vector<Source> out;
+        for (size_t i = 0; i < sources.size(); ++i) {
+            nb::handle item = sources[i];
+            require(PyTuple_Check(item.ptr()) && (PyTuple_GET_SIZE(item.ptr()) == 2 || PyTuple_GET_SIZE(item.ptr()) == 3),
+                    "Kernel.set_sources: a source is (object, name) or (object, name, inner name)");
+            Source src;
+            src.obj = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 0));
+            src.name = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 1));
+            require(PyUnicode_Check(src.name.ptr()), "Kernel.set_sources: a name is not a str");
+            if (PyTuple_GET_SIZE(item.ptr()) == 3) {
+                src.inner = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 2));
+                require(PyUnicode_Check(src.inner.ptr()), "Kernel.set_sources: an inner name is not a str");
+            }
+            out.push_back(std::move(src));
+        }
+        sources_ = std::move(out);
+    }
+
+    // dt and damping into the first two slots, then each source's current value into its
+    // slot (set_sources); false as load() (a value it does not take as it is, a None
+    // target, an attribute that raised: its error cleared, the caller's general way
+    // reports it).
+    bool load_sources(double dt, double damping) const {
+        if (slots_.size() != sources_.size() + 2 || slots_.size() < 2) return false;
+        for (size_t s = 0; s < 2; ++s) {
+            const Slot& t = slots_[s];
+            const double x = s == 0 ? dt : damping;
+            for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
+        }
+        for (size_t i = 0; i < sources_.size(); ++i) {
+            const Source& src = sources_[i];
+            PyObject* o = PyObject_GetAttr(src.obj.ptr(), src.name.ptr());
+            if (o && src.inner.is_valid()) {
+                PyObject* inner = o == Py_None ? nullptr : PyObject_GetAttr(o, src.inner.ptr());
+                Py_DECREF(o);
+                o = inner;
+            }
+            if (!o) {
                 PyErr_Clear();
                 return false;
             }
-            const char* f = b.format;
-            const bool ok = b.ndim == 1 && b.itemsize == 8 && b.shape[0] == t.size && f != nullptr &&
-                            (f[0] == 'd' || ((f[0] == '<' || f[0] == '=' || f[0] == '@') && f[1] == 'd' &&
-                                             is_little_endian())) &&
-                            f[f[0] == 'd' ? 1 : 2] == '\0';
-            if (ok) {
-                const char* src = static_cast<const char*>(b.buf);
-                for (i64 k = 0; k < t.size; ++k)
-                    std::memcpy(t.p + k * t.stride, src + k * b.strides[0], sizeof(double));
-            }
-            PyBuffer_Release(&b);
+            const bool ok = load_one(slots_[i + 2], o);
+            Py_DECREF(o);
             if (!ok) return false;
         }
         return true;
@@ -584,6 +648,20 @@ class Kernel {
         last_row_ = -1;
         pass_row_ = -1;
         if (!load(values)) return -1;
+        return solve_into(row, warm, canonical, max_iter);
+    }
+
+    // go() with the values read from the sources (set_sources) by the kernel itself.
+    i64 go_sources(double dt, double damping, i64 row, const std::optional<B2>& warm, bool canonical,
+                   i64 max_iter) {
+        last_row_ = -1;
+        pass_row_ = -1;
+        if (!load_sources(dt, damping)) return -1;
+        return solve_into(row, warm, canonical, max_iter);
+    }
+
+    // go()'s step once its values are in the slots.
+    i64 solve_into(i64 row, const std::optional<B2>& warm, bool canonical, i64 max_iter) {
         require(attached_.has_value(), "Kernel.go: no MjData attached (Kernel.attach)");
         require(out_.has_value(), "Kernel.go: no outputs attached (Kernel.attach_out)");
         Outputs& o = *out_;
@@ -716,6 +794,10 @@ class Kernel {
         bool scalar = false;
     };
     std::vector<Slot> slots_;
+    struct Source {
+        nb::object obj, name, inner;
+    };
+    std::vector<Source> sources_;
     struct Outputs {
         Out2 d, v;
         Out3 info;
@@ -834,6 +916,15 @@ void bind_diffik(nb::module_& m) {
              "first and the answers (dq, v, info, active, the step's qpos) into row `row` of the "
              "attached outputs; returns -1 when the values do not load (nothing solved), else the "
              "step's code (answers written only when OK). warm: None for a cold start.")
+        .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
+             "Where go_sources() reads the values of the slots after the first two (dt, damping): "
+             "per slot (object, name) or (object, name, inner name), getattr(object, name) or "
+             "getattr(getattr(object, name), inner name); the objects are held.")
+        .def("go_sources", &Kernel::go_sources, nb::arg("dt"), nb::arg("damping"), nb::arg("row"),
+             nb::arg("warm").none(), nb::arg("canonical"), nb::arg("max_iter"),
+             "go() with dt and damping as the first two values and the others read from the "
+             "sources (set_sources) by the kernel: -1 (nothing solved) where a value is not what "
+             "its slot takes as it is, is None or raised (the caller's general way reports it).")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

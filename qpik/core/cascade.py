@@ -262,6 +262,18 @@ class HierarchyResult:
         """True when every level was solved."""
         return all(s is LevelStatus.SOLVED for s in self.status)
 
+    def __getattr__(self, name: str):
+        """``certificate`` of a result of the one-call solve, built on first access from
+        its measures (``_cert``: the (L, 4) float64 bytes :func:`K.solve_levels` left; the
+        same values)."""
+        d = self.__dict__
+        raw = d.get("_cert") if name == "certificate" else None
+        if raw is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = d["certificate"] = certificates(np.frombuffer(raw))
+        del d["_cert"]
+        return value
+
 
 def _residuals(A, b, starts, x) -> list[float]:
     r = A @ x - b
@@ -294,6 +306,9 @@ _KINDS = (
     tuple(STATUS_OF_CODE[code] for code in range(6)),
     "auto",
 )
+
+
+_UNSET_LAW = object()
 
 
 class HierarchySolver:
@@ -335,12 +350,17 @@ class HierarchySolver:
             raise InvalidInput(f"damping_law must be a DampingLaw or None, got {damping_law!r}")
         self.solver = solver
         self.damping_law = damping_law
+        self._settings_law: object = _UNSET_LAW  # the law _settings was computed for
+        self._settings: tuple[float, float, float] = (1.0, 0.0, 0.0)
         self.rank_tolerance = float(rank_tolerance)
         self.max_iter = int(max_iter)
         self.tolerance = float(tolerance)
         self.warm_start = warm_start
         self.backend_options = dict(backend_options or {})
         self._warm: np.ndarray | None = None
+        #: ``(stack, row)`` when the last solve's active sets are ``stack[row]``, not yet
+        #: read (:meth:`warm_start_from_row`); ``_warm`` is then None.
+        self._warm_row: tuple | None = None
         self._workspaces: dict = {}
         # The compiled cascade's storage, kept between solves (no state but capacity).
         self._cascade_workspace = K.CascadeWorkspace()
@@ -351,7 +371,7 @@ class HierarchySolver:
 
     def reset(self) -> None:
         """Forget the warm start and backend workspaces."""
-        self._warm = None
+        self._warm = self._warm_row = None
         self._workspaces.clear()
 
     @property
@@ -372,14 +392,24 @@ class HierarchySolver:
         """The active sets of the last solve, ``(L, n + p)`` int8 (+1 at a lower bound, -1
         at an upper bound; box rows first, then the general rows); None before the first
         solve and after :meth:`reset`."""
+        return self._last_active()
+
+    def _last_active(self) -> np.ndarray | None:
+        """The last solve's active sets (``_warm``, read from ``_warm_row`` first if set)."""
+        pending = self._warm_row
+        if pending is not None:
+            stack, row = pending
+            self._warm, self._warm_row = stack[row], None
         return self._warm
 
     def warm_sets(self, levels: int, rows: int) -> np.ndarray | None:
         """The active sets a solve of ``levels`` levels over ``rows = n + p`` rows starts
         from: :attr:`active_sets` when :attr:`warm_start` is on and their shape is
         ``(levels, rows)``, else None (a cold start)."""
-        warm = self._warm
-        if not self.warm_start or warm is None or warm.shape != (levels, rows):
+        if not self.warm_start:
+            return None
+        warm = self._last_active()
+        if warm is None or warm.shape != (levels, rows):
             return None
         return warm
 
@@ -388,7 +418,12 @@ class HierarchySolver:
         solve's active sets: the next solve of that shape starts from them when
         :attr:`warm_start` is on (for a caller that solved the same cascade in one
         compiled call, :mod:`qpik.diffik.compiled`)."""
-        self._warm = active
+        self._warm, self._warm_row = active, None
+
+    def warm_start_from_row(self, stack: np.ndarray, row: int) -> None:
+        """:meth:`warm_start_from` ``stack[row]``, the row read only when the active sets
+        are asked for (``stack``'s row ``row`` must never be written again)."""
+        self._warm, self._warm_row = None, (stack, row)
 
     @property
     def workspace_setups(self) -> int:
@@ -411,16 +446,20 @@ class HierarchySolver:
             # One compiled call: the checks, the stacking, the cascade and the result object,
             # its arrays preallocated here (None where an argument fails a check or needs a
             # conversion, or a level did not settle: then the path below).
-            threshold, max_damping, error_scale = self.damping_settings
+            if self.damping_law is self._settings_law:  # (a DampingLaw is frozen)
+                threshold, max_damping, error_scale = self._settings
+            else:
+                threshold, max_damping, error_scale = self._settings = self.damping_settings
+                self._settings_law = self.damping_law
             result = K.solve_levels(
                 levels, lb, problem.ub, G, problem.h, threshold, max_damping, error_scale,
                 self.rank_tolerance, self.max_iter, self.tolerance,
-                self._warm if self.warm_start else None, np.empty(lb.shape[0]),
+                self._last_active() if self.warm_start else None, np.empty(lb.shape[0]),
                 np.empty((len(levels), lb.shape[0] + G.shape[0]), np.int8), _KINDS,
                 self._cascade_workspace,
             )  # fmt: skip
             if result is not None:
-                self._warm = result.active  # the next warm start only when warm_start is on
+                self._warm, self._warm_row = result.active, None  # the next warm start
                 return result
         if validate:
             problem.validate()
@@ -475,7 +514,7 @@ class HierarchySolver:
         codes = status.tolist()
         if K.MAX_ITER in codes or K.NUMERICAL in codes:
             return None
-        self._warm = active  # used as the next warm start only when warm_start is on
+        self._warm, self._warm_row = active, None  # the next warm start (warm_start on)
         return HierarchyResult(
             x, [STATUS_OF_CODE[s] for s in codes], residuals.tolist(), sigma.tolist(),
             lam2.tolist(), its.tolist(), active, ["auto"] * L, certificates(cert), float(primal),
@@ -542,7 +581,7 @@ class HierarchySolver:
                     break
                 continue
             Z = Zn
-        self._warm = active  # used as the next warm start only when warm_start is on
+        self._warm, self._warm_row = active, None  # the next warm start (warm_start on)
         # Round-off outside the box (<= 1e-12 (1 + |bound|)) put back on it, as the kernel does.
         snap = 1e-12
         low = (d < lb) & (lb - d <= snap * (1 + np.abs(lb)))

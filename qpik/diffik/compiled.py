@@ -19,8 +19,8 @@ Each step, Python does only what needs MuJoCo or the task objects (their targets
 the rows of the tasks that supply them, the collision limits' rows ``G dq <= h``, MuJoCo's
 CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows, the limits'
 box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
-is lean (:meth:`CompiledPlan._lean`): the tasks' values go to the kernel as one list, which
-it writes into the plan's arrays itself, it computes the frame tasks' Jacobians itself
+is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
+objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it computes the frame tasks' Jacobians itself
 (bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
 allocated :data:`_OUTPUT_ROWS` steps at a time (a result's arrays are views of its own row,
 never written again). The step returns a
@@ -69,6 +69,7 @@ _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items(
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
 _perf_counter = time.perf_counter
+_lean_result = StepResult.lean
 
 #: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
 _OUTPUT_ROWS = 64
@@ -133,19 +134,21 @@ class CompiledPlan:
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
         #: the correction passes of :meth:`_correct` (built on the first)
         self._corrector: LeanCorrection | None = None
-        # the tasks and limits _values reads, in its order (the lists never change)
+        # the tasks and limits _sources reads, in its order (the lists never change)
         self._frame_tasks = [f[0] for f in self.frames]
         self._linear_tasks = [t[0] for t in self.linears]
         self._config_limits = [c[0] for c in self.config_limits]
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
+            self.kernel.set_sources(self._sources())
             if self.frames:
                 self.kernel.set_chains(
                     self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
                 )
 
     def _slots(self) -> tuple[list, list]:
-        """The views :meth:`_values` fills, in its order, and which take one number."""
+        """The views the lean step fills (``dt``, ``damping``, then :meth:`_sources`' values
+        in order), and which take one number."""
         views: list = []
         scalar: list = []
 
@@ -338,48 +341,35 @@ class CompiledPlan:
         return self.limits.general_rows(self.general_limits, configuration, dt)
 
     # ------------------------------------------------------------ lean step
-    def _values(self, dt: float, damping: float) -> list | None:
-        """What :meth:`gather` copies, as the list of :meth:`_slots`' values (the kernel
-        writes them, checking each; :meth:`gather` when one is not what its slot takes as it
-        is); None when a CoM task's subtree changed (the QP path resolves it)."""
-        values: list = [dt, damping]
-        for task in self._frame_tasks:
-            pose = task.transform_target_to_world
-            if pose is None:
-                raise TargetNotSet(type(task).__name__)
-            values += (pose.wxyz_xyz, task.cost, task.gain, task.lm_damping)
-        for task, _views, damping_task in self.postures:
-            if damping_task:
-                values += (task.cost, task.gain, task.lm_damping)
-                continue
-            target = task.target_q
-            if target is None:
-                raise TargetNotSet(type(task).__name__)
-            values += (target, task.cost, task.gain, task.lm_damping)
-        if (self.coms or self.relatives) and not self._more_values(values):
-            return None
-        for task in self._linear_tasks:
-            values += (task.cost, task.gain, task.lm_damping)
-        for limit in self._config_limits:
-            values.append(limit.gain)
-        return values
+    def _sources(self) -> list:
+        """Where the kernel reads the values of :meth:`_slots` after ``dt`` and ``damping``
+        (``Kernel.set_sources``, in the same order): each task's target, cost, gain and LM
+        damping and the position limits' gains, read by the kernel at each lean step (as
+        :meth:`gather` copies them; a value it does not take as it is, a target not set:
+        :meth:`gather` writes them, or raises)."""
+        sources: list = []
 
-    def _more_values(self, values: list) -> bool:
-        """The CoM and relative-frame tasks' part of :meth:`_values`, appended to
-        ``values``; False when a CoM task's subtree changed."""
-        for task, _body, given, *_ in self.coms:
-            if given is not None and task.body is not given:
-                return False
-            target = task.target_com
-            if target is None:
-                raise TargetNotSet(type(task).__name__)
-            values += (target, task.cost, task.gain, task.lm_damping)
-        for task, *_ in self.relatives:
-            pose = task.transform_target_to_root
-            if pose is None:
-                raise TargetNotSet(type(task).__name__)
-            values += (pose.wxyz_xyz, task.cost, task.gain, task.lm_damping)
-        return True
+        def task(t, target=None, inner=None) -> None:
+            if target is not None:
+                sources.append((t, target) if inner is None else (t, target, inner))
+            sources.extend(((t, "cost"), (t, "gain"), (t, "lm_damping")))
+
+        for t in self._frame_tasks:
+            task(t, "transform_target_to_world", "wxyz_xyz")
+        for t, _views, damping_task in self.postures:
+            task(t, None if damping_task else "target_q")
+        for t, *_ in self.coms:
+            task(t, "target_com")
+        for t, *_ in self.relatives:
+            task(t, "transform_target_to_root", "wxyz_xyz")
+        for t in self._linear_tasks:
+            task(t)
+        sources.extend((limit, "gain") for limit in self._config_limits)
+        return sources
+
+    def _coms_unchanged(self) -> bool:
+        """False when a CoM task's subtree changed since the plan (the QP path resolves it)."""
+        return all(given is None or t.body is given for t, _body, given, *_ in self.coms)
 
     def _jacobians(self, data: mujoco.MjData) -> None:
         """MuJoCo's Jacobians of the CoM and relative-frame tasks into the plan (the frame
@@ -427,11 +417,10 @@ class CompiledPlan:
 
     def _lean(self, configuration: mink.Configuration, dt: float, damping: float, core) -> int:
         """The step of a plan without general rows in one kernel call that also writes the
-        tasks' values (:meth:`_values`): the row of ``self._out`` that holds its answers,
+        tasks' values (:meth:`_sources`): the row of ``self._out`` that holds its answers,
         ``-1`` where the QP path must answer, ``-2`` where :meth:`gather` must write the
         values (then nothing was solved)."""
-        values = self._values(dt, damping)
-        if values is None:
+        if self.coms and not self._coms_unchanged():
             return -1
         data = configuration.data
         if data is not self._chain_data or self.coms or self.relatives:
@@ -448,7 +437,9 @@ class CompiledPlan:
             row = 0
         nv = self.nv
         warm = core.warm_sets(self.levels, nv) if core.warm_start else None
-        code = self.kernel.go(values, row, warm, core.warm_start, self.max_iter or 10 * nv + 50)
+        code = self.kernel.go_sources(
+            dt, damping, row, warm, core.warm_start, self.max_iter or 10 * nv + 50
+        )
         if code == -1:
             return -2
         self._row = row + 1
@@ -472,7 +463,7 @@ class CompiledPlan:
                 info = info[row]
                 if forced and any(s != _SOLVED_CODE for s in info[3].tolist()):
                     return None
-                core.warm_start_from(active[row])
+                core.warm_start_from_row(active, row)
                 return d[row], v[row], info, (self.no_rows, self.no_h, []), qpos[row]
             if row == -1:
                 return None
@@ -511,6 +502,11 @@ class CompiledPlan:
             q, dt, a["cfg_dof"], cfg[:, 0], cfg[:, 1], cfg[:, 2], a["vel_dof"], a["vel_limit"], nv
         )  # fmt: skip
         return lb, ub
+
+    def lean_limits(self, qpos: np.ndarray, dt: float) -> LimitRows:
+        """The :class:`LimitRows` of a lean step (no general rows) at ``qpos`` (a row of
+        the outputs, never written again) for ``dt`` [s]."""
+        return self._limit_rows(qpos, dt, (self.no_rows, self.no_h, []))
 
     def _limit_rows(self, qpos: np.ndarray, dt: float, general: tuple, box=None) -> LimitRows:
         """The step's :class:`LimitRows` at ``qpos`` (a copy), with the general rows
@@ -573,15 +569,14 @@ class CompiledPlan:
             return None
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
             row = self._lean(configuration, dt, damping, core)
-            if row >= 0 and passes and not self._correct(configuration, row, dt, passes):
-                return None
             if row >= 0:
-                d, v, info, active, qpos = self._out
-                core.warm_start_from(active[row])
-                return StepResult.lazy(
-                    v[row], d[row], info, skip, _perf_counter() - start,
-                    lambda: self._limit_rows(qpos[row], dt, (self.no_rows, self.no_h, [])), row,
-                )  # fmt: skip
+                if passes and not self._correct(configuration, row, dt, passes):
+                    return None
+                out = self._out
+                core.warm_start_from_row(out[3], row)
+                return _lean_result(
+                    out[1][row], _perf_counter() - start, (out, row, skip, self, dt)
+                )
             if row == -1:
                 return None
         out = self._gathered_step(configuration, dt, damping, core, False)

@@ -76,6 +76,13 @@ def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: fl
 _new = object.__new__
 #: The per-level lists of a :meth:`StepResult.lazy` result, read on first access.
 _PER_LEVEL = frozenset(("residuals", "sigma_min", "damping", "status", "iterations", "certificate"))
+#: What a :meth:`StepResult.lean` result reads on first access: the per-level lists, the
+#: displacement, the couplings' residual and the limits.
+_LEAN = _PER_LEVEL | {"displacement", "coupling_residual", "_limits"}
+
+
+def _none() -> None:
+    return None
 
 
 @dataclass
@@ -113,8 +120,10 @@ class StepResult:
     iterations: list[int]
     solve_time: float
     certificate: list[LevelCertificate] = field(default_factory=list)
-    coupling_residual: float | None = None
-    _limits: Callable[[], LimitRows] | None = field(default=None, repr=False)
+    # No class-level defaults for these two (default factories): a :meth:`lean` result
+    # leaves them out of its ``__dict__`` and :meth:`__getattr__` reads them when asked.
+    coupling_residual: float | None = field(default_factory=_none)
+    _limits: Callable[[], LimitRows] | None = field(default_factory=_none, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
 
     @classmethod
@@ -166,25 +175,58 @@ class StepResult:
         }
         return result
 
+    @classmethod
+    def lean(cls, velocity: np.ndarray, solve_time: float, source: tuple) -> StepResult:
+        """The result of a lean compiled step (:meth:`qpik.diffik.compiled.CompiledPlan.step_result`)
+        with only its velocity and time set: ``source`` is ``(out, row, skip, plan, dt)``,
+        the plan's output arrays ``out = (d, v, info, active, qpos)`` (stacks of rows, never
+        written again at ``row``), the step's row, 1 when the first level is the couplings'
+        (reported apart), and the plan and ``dt`` that give the step's limits. Everything
+        else (the displacement ``d[row]``, the per-level lists of ``info[row]``, the
+        couplings' residual, the limits) is read from it on first access: the same values
+        :meth:`of` gives, none of them built by a control loop that reads the velocity."""
+        result = _new(cls)
+        result.velocity = velocity
+        result.solve_time = solve_time
+        result._src = source
+        return result
+
     def __getattr__(self, name: str) -> Any:
-        """A per-level list of a :meth:`lazy` result, read from its ``info`` now."""
-        lazy = self.__dict__.get("_info")
-        if lazy is None or name not in _PER_LEVEL:
-            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        info, row, skip = lazy
-        if row is not None:
-            info = info[row]
-        residuals, sigma, lam2, status, iterations, *cert = info.tolist()
-        self.__dict__.update(
-            residuals=residuals[skip:],
-            sigma_min=sigma[skip:],
-            damping=lam2[skip:],
-            status=[STATUS_OF_CODE[int(code)] for code in status[skip:]],
-            iterations=[int(i) for i in iterations[skip:]],
-            certificate=[certificate_of(list(row)) for row in zip(*cert)][skip:],
-        )
-        del self.__dict__["_info"]
-        return self.__dict__[name]
+        """A field of a :meth:`lazy` or :meth:`lean` result, read now."""
+        d = self.__dict__
+        src = d.get("_src")
+        if src is not None and name in _LEAN:
+            out, row, skip, plan, dt = src
+            if name == "displacement":
+                value = d["displacement"] = out[0][row]
+                return value
+            if name == "coupling_residual":
+                value = d["coupling_residual"] = out[2].item(row, 0, 0) if skip else None
+                return value
+            if name == "_limits":
+                qpos = out[4][row]
+                value = d["_limits"] = lambda: plan.lean_limits(qpos, dt)
+                return value
+            info = out[2][row]
+        else:
+            lazy = d.get("_info")
+            if lazy is None or name not in _PER_LEVEL:
+                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+            info, row, skip = lazy
+            if row is not None:
+                info = info[row]
+            del d["_info"]
+        if "residuals" not in d:
+            residuals, sigma, lam2, status, iterations, *cert = info.tolist()
+            d.update(
+                residuals=residuals[skip:],
+                sigma_min=sigma[skip:],
+                damping=lam2[skip:],
+                status=[STATUS_OF_CODE[int(code)] for code in status[skip:]],
+                iterations=[int(i) for i in iterations[skip:]],
+                certificate=[certificate_of(list(row)) for row in zip(*cert)][skip:],
+            )
+        return d[name]
 
     @property
     def active_limits(self) -> list[str]:
