@@ -938,8 +938,11 @@ namespace detail {
 // in registers, then those columns updated; the last odd column alone. Per column the same
 // operations in the same order whatever the blocking (reflect_columns: contiguous rows;
 // certify.hpp's reflect_rows: a subset of a matrix's rows).
-template <class Row>
-inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S) {
+// Norms: also N[j] = sum_{t >= 1} M(t, j)^2 of the updated columns, summed over t in order
+// from 0.0 in the update's pass (the sums col_sq makes of rows 1..size-1 afterwards: the same
+// bits, without reading the rows again).
+template <class Row, bool Norms = false>
+inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S, double* N = nullptr) {
     using namespace simd;
     i64 j = 0;
     for (; j + 8 <= w; j += 8) {
@@ -961,13 +964,30 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         store(S + j + 2, s1);
         store(S + j + 4, s2);
         store(S + j + 6, s3);
+        v2d n0 = splat(0.0), n1 = splat(0.0), n2 = splat(0.0), n3 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* q = row(t) + j;
             v2d xt = splat(x[t]);
-            store(q, load(q) - xt * s0);
-            store(q + 2, load(q + 2) - xt * s1);
-            store(q + 4, load(q + 4) - xt * s2);
-            store(q + 6, load(q + 6) - xt * s3);
+            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
+            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
+            store(q, u0);
+            store(q + 2, u1);
+            store(q + 4, u2);
+            store(q + 6, u3);
+            if constexpr (Norms) {
+                if (t >= 1) {
+                    n0 += u0 * u0;
+                    n1 += u1 * u1;
+                    n2 += u2 * u2;
+                    n3 += u3 * u3;
+                }
+            }
+        }
+        if constexpr (Norms) {
+            store(N + j, n0);
+            store(N + j + 2, n1);
+            store(N + j + 4, n2);
+            store(N + j + 6, n3);
         }
     }
     for (; j + 4 <= w; j += 4) {
@@ -982,11 +1002,23 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         s2 = splat(2.0) * s2 / splat(vn);
         store(S + j, s);
         store(S + j + 2, s2);
+        v2d n0 = splat(0.0), n1 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* q = row(t) + j;
             v2d xt = splat(x[t]);
-            store(q, load(q) - xt * s);
-            store(q + 2, load(q + 2) - xt * s2);
+            v2d u0 = load(q) - xt * s, u1 = load(q + 2) - xt * s2;
+            store(q, u0);
+            store(q + 2, u1);
+            if constexpr (Norms) {
+                if (t >= 1) {
+                    n0 += u0 * u0;
+                    n1 += u1 * u1;
+                }
+            }
+        }
+        if constexpr (Norms) {
+            store(N + j, n0);
+            store(N + j + 2, n1);
         }
     }
     for (; j + 2 <= w; j += 2) {
@@ -994,26 +1026,47 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(row(t) + j);
         s = splat(2.0) * s / splat(vn);
         store(S + j, s);
+        v2d n0 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* p = row(t) + j;
-            store(p, load(p) - splat(x[t]) * s);
+            v2d u0 = load(p) - splat(x[t]) * s;
+            store(p, u0);
+            if constexpr (Norms) {
+                if (t >= 1) n0 += u0 * u0;
+            }
         }
+        if constexpr (Norms) store(N + j, n0);
     }
     if (j < w) {
         double s = 0.0;
         for (i64 t = 0; t < size; ++t) s += x[t] * row(t)[j];
         s = 2.0 * s / vn;
         S[j] = s;
-        for (i64 t = 0; t < size; ++t) row(t)[j] -= x[t] * s;
+        double n0 = 0.0;
+        for (i64 t = 0; t < size; ++t) {
+            double u0 = row(t)[j] - x[t] * s;
+            row(t)[j] = u0;
+            if constexpr (Norms) {
+                if (t >= 1) n0 += u0 * u0;
+            }
+        }
+        if constexpr (Norms) N[j] = n0;
     }
 }
 
 // reflect_row_set on columns j0..m-1 of rows i..i+size-1 of M (row stride ld); a single
 // column by rows (acc_row, axmy: the same sums in the same order).
+// N: also N[j - j0] = |M[i+1 : i+size, j]|^2 of the updated columns (reflect_row_set's Norms).
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
-                            double* S) {
+                            double* S, double* N = nullptr) {
     i64 w = m - j0;
     if (w <= 0) return;
+    if (N) {
+        double* base = M + i * ld + j0;
+        auto row = [base, ld](i64 t) { return base + t * ld; };
+        reflect_row_set<decltype(row), true>(row, size, w, x, vn, S, N);
+        return;
+    }
     if (w >= 2) {
         double* base = M + i * ld + j0;
         reflect_row_set([base, ld](i64 t) { return base + t * ld; }, size, w, x, vn, S);
@@ -1038,8 +1091,11 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 }
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
-// with no rows: R only, the same R).
-inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr) {
+// with no rows: R only, the same R). norms: where R was reflected (true returned), also
+// norms[j] = |R[i+1:, j]|^2 for j >= i (column_norms(R, i + 1, norms)'s sums, from the
+// reflection's pass; norms[i] too).
+inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr,
+                    double* norms = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
     if (keep_vn) *keep_vn = 0.0;
@@ -1049,17 +1105,17 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
         alpha += x[t] * x[t];
     }
     alpha = std::sqrt(alpha);
-    if (alpha == 0.0) return;
+    if (alpha == 0.0) return false;
     if (x[0] > 0.0) alpha = -alpha;
     x[0] -= alpha;
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
-    if (vn == 0.0) return;
+    if (vn == 0.0) return false;
     if (keep_vn) {
         *keep_vn = vn;
         std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
     }
-    reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
+    reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data(), norms ? norms + i : nullptr);
     i64 row = 0;
     for (; row + 2 <= r; row += 2) {
         double* q0 = Q.row(row) + i;
@@ -1076,6 +1132,7 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
         s = 2.0 * s / vn;
         axmy(qr + i, s, x.data(), size);
     }
+    return true;
 }
 
 // norms[j] = |R[start:, j]|^2 for the columns from start on.
@@ -1103,19 +1160,19 @@ struct QRScratch {
 inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
     shape(R, r, m);  // every entry copied
-    for (i64 i = 0; i < r; ++i)
-        for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
+    for (i64 i = 0; i < r && m > 0; ++i) std::memcpy(R.row(i), M.row(i), static_cast<size_t>(m) * sizeof(double));
     if (form_q) Q.set_eye(r);
     else Q.zeros(0, r);  // no rows: R and perm only (the same R)
     perm.assign(static_cast<size_t>(m), 0);
     for (i64 j = 0; j < m; ++j) perm[j] = j;
+    // (norms, x and S sized only: each entry written before it is read)
     Vec& norms = ws.norms;
-    norms.assign(static_cast<size_t>(m), 0.0);
+    shape(norms, static_cast<size_t>(m));
     if (pivot) detail::column_norms(R, 0, norms);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.assign(static_cast<size_t>(r), 0.0);
-    S.assign(static_cast<size_t>(m), 0.0);
+    shape(x, static_cast<size_t>(r));
+    shape(S, static_cast<size_t>(m));
     i64 steps = std::min(r, m);
     if (ws.keep_reflectors) {
         ws.V.zeros(steps, r);
@@ -1123,9 +1180,12 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     }
     for (i64 i = 0; i < steps; ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
-        if (ws.keep_reflectors) detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)]);
-        else detail::reflect(R, Q, x, S, i);
-        if (pivot) detail::column_norms(R, i + 1, norms);
+        // (with pivoting, the next step's column norms summed in the reflection's pass)
+        double* nrm = pivot ? norms.data() : nullptr;
+        bool done = ws.keep_reflectors
+                        ? detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)], nrm)
+                        : detail::reflect(R, Q, x, S, i, nullptr, nullptr, nrm);
+        if (pivot && !done) detail::column_norms(R, i + 1, norms);
     }
 }
 
