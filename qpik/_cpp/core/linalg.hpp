@@ -508,37 +508,114 @@ inline bool no_zero_entry(CMatRef A) {
     return true;
 }
 
+namespace detail {
+// Rows r0..r1-1 of C = A @ B, each row zeroed then B's rows added (axpy, axpy2) where A's
+// entry is nonzero, in t order: entry (i, j) is +0 plus the products A(i, t) B(t, j) of the
+// nonzero A(i, t), added in t order. (Two rows a pass: B's row loaded once.)
+inline void mm_rows(CMatRef A, CMatRef B, Mat& C, i64 r0, i64 r1) {
+    i64 k = A.cols, n = B.cols;
+    if (r1 > r0) zero_small(C.row(r0), static_cast<size_t>((r1 - r0) * n));  // C's rows contiguous
+    i64 i = r0;
+    for (; i + 2 <= r1; i += 2) {
+        double* c0 = C.row(i);
+        double* c1 = C.row(i + 1);
+        for (i64 t = 0; t < k; ++t) {
+            double a0 = A(i, t), a1 = A(i + 1, t);
+            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
+            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
+            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
+        }
+    }
+    for (; i < r1; ++i) {
+        double* ci = C.row(i);
+        for (i64 t = 0; t < k; ++t) {
+            double a = A(i, t);
+            if (a != 0.0) axpy(ci, a, B.row(t), n);
+        }
+    }
+}
+}  // namespace detail
+
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
-// (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
-// entry of C the same sum over t in order. Where no entry of A is zero, a block of C (four
-// rows, two columns) is summed in registers over t instead: the same products added in the
-// same order from +0.)
+// Each entry (i, j) is +0 plus the products A(i, t) B(t, j) of the nonzero A(i, t), added in t
+// order. Four rows of A with no zero entry (A's entries, each broadcast to a pair, laid out
+// once for them): blocks of C (four rows, four or two columns) summed in registers over t,
+// from +0 (the same products in the same order: the same bits); other rows by detail::mm_rows.
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
+    using namespace simd;
     i64 m = A.rows, k = A.cols, n = B.cols;
-    bool dense = m >= 4 && n >= 2 && no_zero_entry(A);
-    if (dense) {
-        using namespace simd;
-        shape(C, m, n);  // every entry written below
-        i64 i = 0;
+    constexpr i64 kSplat = 256;  // the most columns of A laid out on the stack (16 kB)
+    shape(C, m, n);              // every entry written below
+    i64 i = 0;
+    if (n >= 2 && k <= kSplat && m >= 4) {
+        v2d AS[4 * kSplat];
         for (; i + 4 <= m; i += 4) {
             const double* a0 = A.row(i);
             const double* a1 = A.row(i + 1);
             const double* a2 = A.row(i + 2);
             const double* a3 = A.row(i + 3);
+            bool zero = false;
+            for (i64 t = 0; t < k; ++t) {
+                zero = (a0[t] == 0.0) | (a1[t] == 0.0) | (a2[t] == 0.0) | (a3[t] == 0.0);
+                if (zero) break;
+                AS[4 * t] = splat(a0[t]);
+                AS[4 * t + 1] = splat(a1[t]);
+                AS[4 * t + 2] = splat(a2[t]);
+                AS[4 * t + 3] = splat(a3[t]);
+            }
+            if (zero) {
+                detail::mm_rows(A, B, C, i, i + 4);
+                continue;
+            }
+            double* r0 = C.row(i);
+            double* r1 = C.row(i + 1);
+            double* r2 = C.row(i + 2);
+            double* r3 = C.row(i + 3);
             i64 j = 0;
+            for (; j + 4 <= n; j += 4) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
+                const double* bp = B.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
+                    v2d b0 = load(bp), b1 = load(bp + 2);
+                    v2d x = as[0];
+                    c0 += x * b0;
+                    d0 += x * b1;
+                    x = as[1];
+                    c1 += x * b0;
+                    d1 += x * b1;
+                    x = as[2];
+                    c2 += x * b0;
+                    d2 += x * b1;
+                    x = as[3];
+                    c3 += x * b0;
+                    d3 += x * b1;
+                }
+                store(r0 + j, c0);
+                store(r0 + j + 2, d0);
+                store(r1 + j, c1);
+                store(r1 + j + 2, d1);
+                store(r2 + j, c2);
+                store(r2 + j + 2, d2);
+                store(r3 + j, c3);
+                store(r3 + j + 2, d3);
+            }
             for (; j + 2 <= n; j += 2) {
                 v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                for (i64 t = 0; t < k; ++t) {
-                    v2d bt = load(B.row(t) + j);
-                    c0 += splat(a0[t]) * bt;
-                    c1 += splat(a1[t]) * bt;
-                    c2 += splat(a2[t]) * bt;
-                    c3 += splat(a3[t]) * bt;
+                const double* bp = B.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
+                    v2d bt = load(bp);
+                    c0 += as[0] * bt;
+                    c1 += as[1] * bt;
+                    c2 += as[2] * bt;
+                    c3 += as[3] * bt;
                 }
-                store(C.row(i) + j, c0);
-                store(C.row(i + 1) + j, c1);
-                store(C.row(i + 2) + j, c2);
-                store(C.row(i + 3) + j, c3);
+                store(r0 + j, c0);
+                store(r1 + j, c1);
+                store(r2 + j, c2);
+                store(r3 + j, c3);
             }
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
@@ -549,32 +626,8 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
                 }
             }
         }
-        for (; i < m; ++i) {
-            double* ci = C.row(i);
-            std::memset(ci, 0, static_cast<size_t>(n) * sizeof(double));
-            for (i64 t = 0; t < k; ++t) axpy(ci, A(i, t), B.row(t), n);
-        }
-        return;
     }
-    C.zeros(m, n);
-    i64 i = 0;
-    for (; i + 2 <= m; i += 2) {
-        double* c0 = C.row(i);
-        double* c1 = C.row(i + 1);
-        for (i64 t = 0; t < k; ++t) {
-            double a0 = A(i, t), a1 = A(i + 1, t);
-            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
-            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
-            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
-        }
-    }
-    for (; i < m; ++i) {
-        double* ci = C.row(i);
-        for (i64 t = 0; t < k; ++t) {
-            double a = A(i, t);
-            if (a != 0.0) axpy(ci, a, B.row(t), n);
-        }
-    }
+    detail::mm_rows(A, B, C, i, m);
 }
 
 // A @ B (skipping zero entries of A, as the reference does).
