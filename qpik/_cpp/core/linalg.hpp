@@ -637,33 +637,100 @@ inline Mat mm(CMatRef A, CMatRef B) {
     return C;
 }
 
-// A^T @ A (symmetric, computed once per pair) into C (its storage kept).
-// (Where no entry of A is zero, the upper triangle is summed in registers by blocks of four
-// rows and two columns over t instead: each entry the same products in the same order from +0;
-// a block's entries below the diagonal are overwritten by the copy.)
+namespace detail {
+// Rows r0..r1-1 of the upper triangle of C = A^T A: C(i, j) for j >= i is +0 plus the products
+// A(t, i) A(t, j) of the nonzero A(t, i), added in t order (row i of C zeroed from i on, then
+// A's rows added by axpy where A(t, i) is nonzero).
+inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
+    i64 m = A.rows, n = A.cols;
+    for (i64 i = r0; i < r1; ++i) zero_small(C.row(i) + i, static_cast<size_t>(n - i));
+    for (i64 t = 0; t < m; ++t) {
+        const double* at = A.row(t);
+        for (i64 i = r0; i < r1; ++i) {
+            double a = at[i];
+            if (a != 0.0) axpy(C.row(i) + i, a, at + i, n - i);
+        }
+    }
+}
+}  // namespace detail
+
+// A^T @ A (symmetric, computed once per pair) into C (its storage kept): C(i, j) is +0 plus
+// the products A(t, i) A(t, j) of the nonzero A(t, i), added in t order, for j >= i; the lower
+// triangle copied from the upper one.
+// (Four rows of C whose columns of A hold no zero entry (A(t, i..i+3) broadcast to pairs once,
+// on the stack): the upper triangle's blocks of four rows and four or two columns summed in
+// registers over t from +0 (the same products in the same order: the same bits; a block's
+// entries below the diagonal are overwritten by the copy), up to the first block with a zero;
+// the rows from there by detail::mtm_rows.)
 inline void mtm_into(CMatRef A, Mat& C) {
+    using namespace simd;
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
-    bool dense = n >= 4 && no_zero_entry(A);
-    if (dense) {
-        using namespace simd;
-        i64 i = 0;
+    constexpr i64 kSplat = 256;  // the most rows of A laid out on the stack (16 kB)
+    i64 i = 0;
+    if (n >= 4 && m <= kSplat) {
+        v2d AS[4 * kSplat];
         for (; i + 4 <= n; i += 4) {
+            bool zero = false;
+            for (i64 t = 0; t < m; ++t) {
+                const double* at = A.row(t) + i;
+                zero = (at[0] == 0.0) | (at[1] == 0.0) | (at[2] == 0.0) | (at[3] == 0.0);
+                if (zero) break;
+                AS[4 * t] = splat(at[0]);
+                AS[4 * t + 1] = splat(at[1]);
+                AS[4 * t + 2] = splat(at[2]);
+                AS[4 * t + 3] = splat(at[3]);
+            }
+            if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
+            double* r0 = C.row(i);
+            double* r1 = C.row(i + 1);
+            double* r2 = C.row(i + 2);
+            double* r3 = C.row(i + 3);
             i64 j = i;
+            for (; j + 4 <= n; j += 4) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
+                const double* bp = A.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
+                    v2d b0 = load(bp), b1 = load(bp + 2);
+                    v2d x = as[0];
+                    c0 += x * b0;
+                    d0 += x * b1;
+                    x = as[1];
+                    c1 += x * b0;
+                    d1 += x * b1;
+                    x = as[2];
+                    c2 += x * b0;
+                    d2 += x * b1;
+                    x = as[3];
+                    c3 += x * b0;
+                    d3 += x * b1;
+                }
+                store(r0 + j, c0);
+                store(r0 + j + 2, d0);
+                store(r1 + j, c1);
+                store(r1 + j + 2, d1);
+                store(r2 + j, c2);
+                store(r2 + j + 2, d2);
+                store(r3 + j, c3);
+                store(r3 + j + 2, d3);
+            }
             for (; j + 2 <= n; j += 2) {
                 v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                for (i64 t = 0; t < m; ++t) {
-                    const double* at = A.row(t);
-                    v2d bt = load(at + j);
-                    c0 += splat(at[i]) * bt;
-                    c1 += splat(at[i + 1]) * bt;
-                    c2 += splat(at[i + 2]) * bt;
-                    c3 += splat(at[i + 3]) * bt;
+                const double* bp = A.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
+                    v2d bt = load(bp);
+                    c0 += as[0] * bt;
+                    c1 += as[1] * bt;
+                    c2 += as[2] * bt;
+                    c3 += as[3] * bt;
                 }
-                store(C.row(i) + j, c0);
-                store(C.row(i + 1) + j, c1);
-                store(C.row(i + 2) + j, c2);
-                store(C.row(i + 3) + j, c3);
+                store(r0 + j, c0);
+                store(r1 + j, c1);
+                store(r2 + j, c2);
+                store(r3 + j, c3);
             }
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
@@ -673,27 +740,10 @@ inline void mtm_into(CMatRef A, Mat& C) {
                 }
             }
         }
-        for (; i < n; ++i) {
-            for (i64 j = i; j < n; ++j) {
-                double acc = 0.0;
-                for (i64 t = 0; t < m; ++t) acc += A(t, i) * A(t, j);
-                C(i, j) = acc;
-            }
-        }
-        for (i64 r = 0; r < n; ++r)
-            for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
-        return;
     }
-    for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
-    for (i64 t = 0; t < m; ++t) {
-        const double* at = A.row(t);
-        for (i64 i = 0; i < n; ++i) {
-            double a = at[i];
-            if (a != 0.0) axpy(C.row(i) + i, a, at + i, n - i);
-        }
-    }
-    for (i64 i = 0; i < n; ++i)
-        for (i64 j = 0; j < i; ++j) C(i, j) = C(j, i);
+    detail::mtm_rows(A, C, i, n);
+    for (i64 r = 0; r < n; ++r)
+        for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
 }
 
 // A^T @ A (symmetric, computed once per pair).
