@@ -391,34 +391,33 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
     if (rotated_null) cost_left += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(p);
     if (rotated_null) cost_right += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(n);
     if (cost_right < cost_left) {
-        Mat& Y = ws.Q;
+        // Y^T = H_{p-1} ... H_0 Z^T, held as Yt (r, n): reflector i reflects rows i.. of Yt
+        // (reflect_columns: per entry of Y, the sum and update apply_reflectors_right makes
+        // on Y's row, the same products in the same order: the same bits), Y's columns
+        // contiguous rows (the rotations below act on them in place).
+        Mat& Yt = ws.Q;
         if (z_eye) {
-            Y.set_eye(r);
+            Yt.set_eye(r);
         } else {
-            shape(Y, n, r);  // every row copied
-            for (i64 i = 0; i < n; ++i) std::memcpy(Y.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
-        }
-        apply_reflectors_right(Y, ws.qr, p);
-        shape(Zn, n, c);  // every entry written below
-        if (rotated_null) {
-            Mat& Yt = ws.Qt;  // Y's first p columns as rows: contiguous rotations
-            shape(Yt, p, n);  // every entry copied
-            for (i64 i = 0; i < n; ++i)
-                for (i64 j = 0; j < p; ++j) Yt(j, i) = Y(i, j);
-            for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
-            for (i64 q = 0; q < c; ++q) {
-                i64 col = null_cols[q];
-                if (col < p)
-                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Yt(col, i);
-                else
-                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Y(i, col);
-            }
-        } else {
+            shape(Yt, r, n);  // every entry copied
             for (i64 i = 0; i < n; ++i) {
-                const double* src = Y.row(i);
-                double* dst = Zn.row(i);
-                for (i64 q = 0; q < c; ++q) dst[q] = src[null_cols[q]];
+                const double* zi = Z.row(i);
+                for (i64 j = 0; j < r; ++j) Yt(j, i) = zi[j];
             }
+        }
+        Vec& S = ws.qr.S;
+        if (S.size() < static_cast<size_t>(n)) S.resize(static_cast<size_t>(n));  // written before read
+        for (i64 i = 0; i < p; ++i) {
+            double vn = ws.qr.vn[static_cast<size_t>(i)];
+            if (vn == 0.0) continue;
+            detail::reflect_columns(Yt.row(0), n, i, r - i, 0, n, ws.qr.V.row(i) + i, vn, S.data());
+        }
+        if (rotated_null)
+            for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
+        shape(Zn, n, c);  // every entry written below
+        for (i64 q = 0; q < c; ++q) {
+            const double* src = Yt.row(null_cols[q]);
+            for (i64 i = 0; i < n; ++i) Zn(i, q) = src[i];
         }
         return;
     }
