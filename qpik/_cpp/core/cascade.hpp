@@ -1172,10 +1172,10 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
             double vnk = ws.vn[static_cast<size_t>(k)];
             if (vnk == 0.0) continue;
             const double* v = ws.V.row(k);
-            double sk = 0.0;
-            for (i64 i = k; i < r; ++i) sk += v[i] * col[i];
+            // (dot and axmy: the same sum in order from 0.0 and the same updates)
+            double sk = dot(v + k, col.data() + k, r - k);
             sk = 2.0 * sk / vnk;
-            for (i64 i = k; i < r; ++i) col[i] -= sk * v[i];
+            axmy(col.data() + k, sk, v + k, r - k);
         }
         double alpha = 0.0;
         for (i64 i = np; i < r; ++i) alpha += col[i] * col[i];
@@ -1194,10 +1194,9 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
         if (!(std::fabs(diag) > 1e-8 * pymax(rmax, cn)) || !std::isfinite(diag)) return false;
         ws.vn[static_cast<size_t>(np)] = vn;
         if (vn != 0.0) {
-            double sq = 0.0;
-            for (i64 i = np; i < r; ++i) sq += v[i] * ws.qy[i];
+            double sq = dot(v + np, ws.qy.data() + np, r - np);
             sq = 2.0 * sq / vn;
-            for (i64 i = np; i < r; ++i) ws.qy[i] -= sq * v[i];
+            axmy(ws.qy.data() + np, sq, v + np, r - np);
         }
         double* rc = ws.Rc.row(np);
         for (i64 i = 0; i < np; ++i) rc[i] = col[i];
