@@ -462,10 +462,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     if (z_eye && detail::all_finite(A)) {
         // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
         // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
-        out.AZ.zeros(A.rows, A.cols);
-        for (i64 i = 0; i < A.rows; ++i)
-            for (i64 j = 0; j < A.cols; ++j)
-                if (A(i, j) != 0.0) out.AZ(i, j) = A(i, j);
+        shape(out.AZ, A.rows, A.cols);  // every entry written
+        for (i64 i = 0; i < A.rows; ++i) {
+            const double* ai = A.row(i);
+            double* zi = out.AZ.row(i);
+            for (i64 j = 0; j < A.cols; ++j) zi[j] = ai[j] != 0.0 ? ai[j] : 0.0;
+        }
     } else {
         mm_into(A, Z, out.AZ);
     }
@@ -785,7 +787,7 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
     bool reg = rho > 0.0;
     ls.reg = reg;
     shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
-    if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
+    if (reg) zero_small(ls.B.row(m), static_cast<size_t>(r * r));  // (16-byte stores: no memset call)
     shape(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = kept ? ws.Ad : ws.e;
     if (!kept) mv_into(A, d, e);
