@@ -391,34 +391,33 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
     if (rotated_null) cost_left += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(p);
     if (rotated_null) cost_right += static_cast<double>(ws.log.size()) * 6.0 * static_cast<double>(n);
     if (cost_right < cost_left) {
-        Mat& Y = ws.Q;
+        // Y^T = H_{p-1} ... H_0 Z^T, held as Yt (r, n): reflector i reflects rows i.. of Yt
+        // (reflect_columns: per entry of Y, the sum and update apply_reflectors_right makes
+        // on Y's row, the same products in the same order: the same bits), Y's columns
+        // contiguous rows (the rotations below act on them in place).
+        Mat& Yt = ws.Q;
         if (z_eye) {
-            Y.set_eye(r);
+            Yt.set_eye(r);
         } else {
-            shape(Y, n, r);  // every row copied
-            for (i64 i = 0; i < n; ++i) std::memcpy(Y.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
-        }
-        apply_reflectors_right(Y, ws.qr, p);
-        shape(Zn, n, c);  // every entry written below
-        if (rotated_null) {
-            Mat& Yt = ws.Qt;  // Y's first p columns as rows: contiguous rotations
-            shape(Yt, p, n);  // every entry copied
-            for (i64 i = 0; i < n; ++i)
-                for (i64 j = 0; j < p; ++j) Yt(j, i) = Y(i, j);
-            for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
-            for (i64 q = 0; q < c; ++q) {
-                i64 col = null_cols[q];
-                if (col < p)
-                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Yt(col, i);
-                else
-                    for (i64 i = 0; i < n; ++i) Zn(i, q) = Y(i, col);
-            }
-        } else {
+            shape(Yt, r, n);  // every entry copied
             for (i64 i = 0; i < n; ++i) {
-                const double* src = Y.row(i);
-                double* dst = Zn.row(i);
-                for (i64 q = 0; q < c; ++q) dst[q] = src[null_cols[q]];
+                const double* zi = Z.row(i);
+                for (i64 j = 0; j < r; ++j) Yt(j, i) = zi[j];
             }
+        }
+        Vec& S = ws.qr.S;
+        if (S.size() < static_cast<size_t>(n)) S.resize(static_cast<size_t>(n));  // written before read
+        for (i64 i = 0; i < p; ++i) {
+            double vn = ws.qr.vn[static_cast<size_t>(i)];
+            if (vn == 0.0) continue;
+            detail::reflect_columns(Yt.row(0), n, i, r - i, 0, n, ws.qr.V.row(i) + i, vn, S.data());
+        }
+        if (rotated_null)
+            for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
+        shape(Zn, n, c);  // every entry written below
+        for (i64 q = 0; q < c; ++q) {
+            const double* src = Yt.row(null_cols[q]);
+            for (i64 i = 0; i < n; ++i) Zn(i, q) = src[i];
         }
         return;
     }
@@ -463,10 +462,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     if (z_eye && detail::all_finite(A)) {
         // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
         // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
-        out.AZ.zeros(A.rows, A.cols);
-        for (i64 i = 0; i < A.rows; ++i)
-            for (i64 j = 0; j < A.cols; ++j)
-                if (A(i, j) != 0.0) out.AZ(i, j) = A(i, j);
+        shape(out.AZ, A.rows, A.cols);  // every entry written
+        for (i64 i = 0; i < A.rows; ++i) {
+            const double* ai = A.row(i);
+            double* zi = out.AZ.row(i);
+            for (i64 j = 0; j < A.cols; ++j) zi[j] = ai[j] != 0.0 ? ai[j] : 0.0;
+        }
     } else {
         mm_into(A, Z, out.AZ);
     }
@@ -786,7 +787,7 @@ inline void ls_form(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d
     bool reg = rho > 0.0;
     ls.reg = reg;
     shape(ls.B, m + (reg ? r : 0), r);  // A Z's rows copied, sqrt(rho) I's zeroed then set
-    if (reg) std::memset(ls.B.row(m), 0, static_cast<size_t>(r * r) * sizeof(double));
+    if (reg) zero_small(ls.B.row(m), static_cast<size_t>(r * r));  // (16-byte stores: no memset call)
     shape(ls.f, static_cast<size_t>(ls.B.rows));
     Vec& e = kept ? ws.Ad : ws.e;
     if (!kept) mv_into(A, d, e);
@@ -1173,10 +1174,10 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
             double vnk = ws.vn[static_cast<size_t>(k)];
             if (vnk == 0.0) continue;
             const double* v = ws.V.row(k);
-            double sk = 0.0;
-            for (i64 i = k; i < r; ++i) sk += v[i] * col[i];
+            // (dot and axmy: the same sum in order from 0.0 and the same updates)
+            double sk = dot(v + k, col.data() + k, r - k);
             sk = 2.0 * sk / vnk;
-            for (i64 i = k; i < r; ++i) col[i] -= sk * v[i];
+            axmy(col.data() + k, sk, v + k, r - k);
         }
         double alpha = 0.0;
         for (i64 i = np; i < r; ++i) alpha += col[i] * col[i];
@@ -1195,10 +1196,9 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
         if (!(std::fabs(diag) > 1e-8 * pymax(rmax, cn)) || !std::isfinite(diag)) return false;
         ws.vn[static_cast<size_t>(np)] = vn;
         if (vn != 0.0) {
-            double sq = 0.0;
-            for (i64 i = np; i < r; ++i) sq += v[i] * ws.qy[i];
+            double sq = dot(v + np, ws.qy.data() + np, r - np);
             sq = 2.0 * sq / vn;
-            for (i64 i = np; i < r; ++i) ws.qy[i] -= sq * v[i];
+            axmy(ws.qy.data() + np, sq, v + np, r - np);
         }
         double* rc = ws.Rc.row(np);
         for (i64 i = 0; i < np; ++i) rc[i] = col[i];

@@ -508,37 +508,114 @@ inline bool no_zero_entry(CMatRef A) {
     return true;
 }
 
+namespace detail {
+// Rows r0..r1-1 of C = A @ B, each row zeroed then B's rows added (axpy, axpy2) where A's
+// entry is nonzero, in t order: entry (i, j) is +0 plus the products A(i, t) B(t, j) of the
+// nonzero A(i, t), added in t order. (Two rows a pass: B's row loaded once.)
+inline void mm_rows(CMatRef A, CMatRef B, Mat& C, i64 r0, i64 r1) {
+    i64 k = A.cols, n = B.cols;
+    if (r1 > r0) zero_small(C.row(r0), static_cast<size_t>((r1 - r0) * n));  // C's rows contiguous
+    i64 i = r0;
+    for (; i + 2 <= r1; i += 2) {
+        double* c0 = C.row(i);
+        double* c1 = C.row(i + 1);
+        for (i64 t = 0; t < k; ++t) {
+            double a0 = A(i, t), a1 = A(i + 1, t);
+            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
+            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
+            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
+        }
+    }
+    for (; i < r1; ++i) {
+        double* ci = C.row(i);
+        for (i64 t = 0; t < k; ++t) {
+            double a = A(i, t);
+            if (a != 0.0) axpy(ci, a, B.row(t), n);
+        }
+    }
+}
+}  // namespace detail
+
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
-// (Two rows of C a pass where both rows' entries of A are nonzero: B's row loaded once, each
-// entry of C the same sum over t in order. Where no entry of A is zero, a block of C (four
-// rows, two columns) is summed in registers over t instead: the same products added in the
-// same order from +0.)
+// Each entry (i, j) is +0 plus the products A(i, t) B(t, j) of the nonzero A(i, t), added in t
+// order. Four rows of A with no zero entry (A's entries, each broadcast to a pair, laid out
+// once for them): blocks of C (four rows, four or two columns) summed in registers over t,
+// from +0 (the same products in the same order: the same bits); other rows by detail::mm_rows.
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
+    using namespace simd;
     i64 m = A.rows, k = A.cols, n = B.cols;
-    bool dense = m >= 4 && n >= 2 && no_zero_entry(A);
-    if (dense) {
-        using namespace simd;
-        shape(C, m, n);  // every entry written below
-        i64 i = 0;
+    constexpr i64 kSplat = 256;  // the most columns of A laid out on the stack (16 kB)
+    shape(C, m, n);              // every entry written below
+    i64 i = 0;
+    if (n >= 2 && k <= kSplat && m >= 4) {
+        v2d AS[4 * kSplat];
         for (; i + 4 <= m; i += 4) {
             const double* a0 = A.row(i);
             const double* a1 = A.row(i + 1);
             const double* a2 = A.row(i + 2);
             const double* a3 = A.row(i + 3);
+            bool zero = false;
+            for (i64 t = 0; t < k; ++t) {
+                zero = (a0[t] == 0.0) | (a1[t] == 0.0) | (a2[t] == 0.0) | (a3[t] == 0.0);
+                if (zero) break;
+                AS[4 * t] = splat(a0[t]);
+                AS[4 * t + 1] = splat(a1[t]);
+                AS[4 * t + 2] = splat(a2[t]);
+                AS[4 * t + 3] = splat(a3[t]);
+            }
+            if (zero) {
+                detail::mm_rows(A, B, C, i, i + 4);
+                continue;
+            }
+            double* r0 = C.row(i);
+            double* r1 = C.row(i + 1);
+            double* r2 = C.row(i + 2);
+            double* r3 = C.row(i + 3);
             i64 j = 0;
+            for (; j + 4 <= n; j += 4) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
+                const double* bp = B.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
+                    v2d b0 = load(bp), b1 = load(bp + 2);
+                    v2d x = as[0];
+                    c0 += x * b0;
+                    d0 += x * b1;
+                    x = as[1];
+                    c1 += x * b0;
+                    d1 += x * b1;
+                    x = as[2];
+                    c2 += x * b0;
+                    d2 += x * b1;
+                    x = as[3];
+                    c3 += x * b0;
+                    d3 += x * b1;
+                }
+                store(r0 + j, c0);
+                store(r0 + j + 2, d0);
+                store(r1 + j, c1);
+                store(r1 + j + 2, d1);
+                store(r2 + j, c2);
+                store(r2 + j + 2, d2);
+                store(r3 + j, c3);
+                store(r3 + j + 2, d3);
+            }
             for (; j + 2 <= n; j += 2) {
                 v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                for (i64 t = 0; t < k; ++t) {
-                    v2d bt = load(B.row(t) + j);
-                    c0 += splat(a0[t]) * bt;
-                    c1 += splat(a1[t]) * bt;
-                    c2 += splat(a2[t]) * bt;
-                    c3 += splat(a3[t]) * bt;
+                const double* bp = B.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
+                    v2d bt = load(bp);
+                    c0 += as[0] * bt;
+                    c1 += as[1] * bt;
+                    c2 += as[2] * bt;
+                    c3 += as[3] * bt;
                 }
-                store(C.row(i) + j, c0);
-                store(C.row(i + 1) + j, c1);
-                store(C.row(i + 2) + j, c2);
-                store(C.row(i + 3) + j, c3);
+                store(r0 + j, c0);
+                store(r1 + j, c1);
+                store(r2 + j, c2);
+                store(r3 + j, c3);
             }
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
@@ -549,32 +626,8 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
                 }
             }
         }
-        for (; i < m; ++i) {
-            double* ci = C.row(i);
-            std::memset(ci, 0, static_cast<size_t>(n) * sizeof(double));
-            for (i64 t = 0; t < k; ++t) axpy(ci, A(i, t), B.row(t), n);
-        }
-        return;
     }
-    C.zeros(m, n);
-    i64 i = 0;
-    for (; i + 2 <= m; i += 2) {
-        double* c0 = C.row(i);
-        double* c1 = C.row(i + 1);
-        for (i64 t = 0; t < k; ++t) {
-            double a0 = A(i, t), a1 = A(i + 1, t);
-            if (a0 != 0.0 && a1 != 0.0) axpy2(c0, c1, a0, a1, B.row(t), n);
-            else if (a0 != 0.0) axpy(c0, a0, B.row(t), n);
-            else if (a1 != 0.0) axpy(c1, a1, B.row(t), n);
-        }
-    }
-    for (; i < m; ++i) {
-        double* ci = C.row(i);
-        for (i64 t = 0; t < k; ++t) {
-            double a = A(i, t);
-            if (a != 0.0) axpy(ci, a, B.row(t), n);
-        }
-    }
+    detail::mm_rows(A, B, C, i, m);
 }
 
 // A @ B (skipping zero entries of A, as the reference does).
@@ -584,33 +637,100 @@ inline Mat mm(CMatRef A, CMatRef B) {
     return C;
 }
 
-// A^T @ A (symmetric, computed once per pair) into C (its storage kept).
-// (Where no entry of A is zero, the upper triangle is summed in registers by blocks of four
-// rows and two columns over t instead: each entry the same products in the same order from +0;
-// a block's entries below the diagonal are overwritten by the copy.)
+namespace detail {
+// Rows r0..r1-1 of the upper triangle of C = A^T A: C(i, j) for j >= i is +0 plus the products
+// A(t, i) A(t, j) of the nonzero A(t, i), added in t order (row i of C zeroed from i on, then
+// A's rows added by axpy where A(t, i) is nonzero).
+inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
+    i64 m = A.rows, n = A.cols;
+    for (i64 i = r0; i < r1; ++i) zero_small(C.row(i) + i, static_cast<size_t>(n - i));
+    for (i64 t = 0; t < m; ++t) {
+        const double* at = A.row(t);
+        for (i64 i = r0; i < r1; ++i) {
+            double a = at[i];
+            if (a != 0.0) axpy(C.row(i) + i, a, at + i, n - i);
+        }
+    }
+}
+}  // namespace detail
+
+// A^T @ A (symmetric, computed once per pair) into C (its storage kept): C(i, j) is +0 plus
+// the products A(t, i) A(t, j) of the nonzero A(t, i), added in t order, for j >= i; the lower
+// triangle copied from the upper one.
+// (Four rows of C whose columns of A hold no zero entry (A(t, i..i+3) broadcast to pairs once,
+// on the stack): the upper triangle's blocks of four rows and four or two columns summed in
+// registers over t from +0 (the same products in the same order: the same bits; a block's
+// entries below the diagonal are overwritten by the copy), up to the first block with a zero;
+// the rows from there by detail::mtm_rows.)
 inline void mtm_into(CMatRef A, Mat& C) {
+    using namespace simd;
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
-    bool dense = n >= 4 && no_zero_entry(A);
-    if (dense) {
-        using namespace simd;
-        i64 i = 0;
+    constexpr i64 kSplat = 256;  // the most rows of A laid out on the stack (16 kB)
+    i64 i = 0;
+    if (n >= 4 && m <= kSplat) {
+        v2d AS[4 * kSplat];
         for (; i + 4 <= n; i += 4) {
+            bool zero = false;
+            for (i64 t = 0; t < m; ++t) {
+                const double* at = A.row(t) + i;
+                zero = (at[0] == 0.0) | (at[1] == 0.0) | (at[2] == 0.0) | (at[3] == 0.0);
+                if (zero) break;
+                AS[4 * t] = splat(at[0]);
+                AS[4 * t + 1] = splat(at[1]);
+                AS[4 * t + 2] = splat(at[2]);
+                AS[4 * t + 3] = splat(at[3]);
+            }
+            if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
+            double* r0 = C.row(i);
+            double* r1 = C.row(i + 1);
+            double* r2 = C.row(i + 2);
+            double* r3 = C.row(i + 3);
             i64 j = i;
+            for (; j + 4 <= n; j += 4) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
+                const double* bp = A.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
+                    v2d b0 = load(bp), b1 = load(bp + 2);
+                    v2d x = as[0];
+                    c0 += x * b0;
+                    d0 += x * b1;
+                    x = as[1];
+                    c1 += x * b0;
+                    d1 += x * b1;
+                    x = as[2];
+                    c2 += x * b0;
+                    d2 += x * b1;
+                    x = as[3];
+                    c3 += x * b0;
+                    d3 += x * b1;
+                }
+                store(r0 + j, c0);
+                store(r0 + j + 2, d0);
+                store(r1 + j, c1);
+                store(r1 + j + 2, d1);
+                store(r2 + j, c2);
+                store(r2 + j + 2, d2);
+                store(r3 + j, c3);
+                store(r3 + j + 2, d3);
+            }
             for (; j + 2 <= n; j += 2) {
                 v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                for (i64 t = 0; t < m; ++t) {
-                    const double* at = A.row(t);
-                    v2d bt = load(at + j);
-                    c0 += splat(at[i]) * bt;
-                    c1 += splat(at[i + 1]) * bt;
-                    c2 += splat(at[i + 2]) * bt;
-                    c3 += splat(at[i + 3]) * bt;
+                const double* bp = A.p + j;
+                const v2d* as = AS;
+                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
+                    v2d bt = load(bp);
+                    c0 += as[0] * bt;
+                    c1 += as[1] * bt;
+                    c2 += as[2] * bt;
+                    c3 += as[3] * bt;
                 }
-                store(C.row(i) + j, c0);
-                store(C.row(i + 1) + j, c1);
-                store(C.row(i + 2) + j, c2);
-                store(C.row(i + 3) + j, c3);
+                store(r0 + j, c0);
+                store(r1 + j, c1);
+                store(r2 + j, c2);
+                store(r3 + j, c3);
             }
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
@@ -620,27 +740,10 @@ inline void mtm_into(CMatRef A, Mat& C) {
                 }
             }
         }
-        for (; i < n; ++i) {
-            for (i64 j = i; j < n; ++j) {
-                double acc = 0.0;
-                for (i64 t = 0; t < m; ++t) acc += A(t, i) * A(t, j);
-                C(i, j) = acc;
-            }
-        }
-        for (i64 r = 0; r < n; ++r)
-            for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
-        return;
     }
-    for (i64 i = 0; i < n; ++i) std::memset(C.row(i) + i, 0, static_cast<size_t>(n - i) * sizeof(double));
-    for (i64 t = 0; t < m; ++t) {
-        const double* at = A.row(t);
-        for (i64 i = 0; i < n; ++i) {
-            double a = at[i];
-            if (a != 0.0) axpy(C.row(i) + i, a, at + i, n - i);
-        }
-    }
-    for (i64 i = 0; i < n; ++i)
-        for (i64 j = 0; j < i; ++j) C(i, j) = C(j, i);
+    detail::mtm_rows(A, C, i, n);
+    for (i64 r = 0; r < n; ++r)
+        for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
 }
 
 // A^T @ A (symmetric, computed once per pair).
@@ -938,8 +1041,11 @@ namespace detail {
 // in registers, then those columns updated; the last odd column alone. Per column the same
 // operations in the same order whatever the blocking (reflect_columns: contiguous rows;
 // certify.hpp's reflect_rows: a subset of a matrix's rows).
-template <class Row>
-inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S) {
+// Norms: also N[j] = sum_{t >= 1} M(t, j)^2 of the updated columns, summed over t in order
+// from 0.0 in the update's pass (the sums col_sq makes of rows 1..size-1 afterwards: the same
+// bits, without reading the rows again).
+template <class Row, bool Norms = false>
+inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S, double* N = nullptr) {
     using namespace simd;
     i64 j = 0;
     for (; j + 8 <= w; j += 8) {
@@ -961,13 +1067,30 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         store(S + j + 2, s1);
         store(S + j + 4, s2);
         store(S + j + 6, s3);
+        v2d n0 = splat(0.0), n1 = splat(0.0), n2 = splat(0.0), n3 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* q = row(t) + j;
             v2d xt = splat(x[t]);
-            store(q, load(q) - xt * s0);
-            store(q + 2, load(q + 2) - xt * s1);
-            store(q + 4, load(q + 4) - xt * s2);
-            store(q + 6, load(q + 6) - xt * s3);
+            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
+            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
+            store(q, u0);
+            store(q + 2, u1);
+            store(q + 4, u2);
+            store(q + 6, u3);
+            if constexpr (Norms) {
+                if (t >= 1) {
+                    n0 += u0 * u0;
+                    n1 += u1 * u1;
+                    n2 += u2 * u2;
+                    n3 += u3 * u3;
+                }
+            }
+        }
+        if constexpr (Norms) {
+            store(N + j, n0);
+            store(N + j + 2, n1);
+            store(N + j + 4, n2);
+            store(N + j + 6, n3);
         }
     }
     for (; j + 4 <= w; j += 4) {
@@ -982,11 +1105,23 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         s2 = splat(2.0) * s2 / splat(vn);
         store(S + j, s);
         store(S + j + 2, s2);
+        v2d n0 = splat(0.0), n1 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* q = row(t) + j;
             v2d xt = splat(x[t]);
-            store(q, load(q) - xt * s);
-            store(q + 2, load(q + 2) - xt * s2);
+            v2d u0 = load(q) - xt * s, u1 = load(q + 2) - xt * s2;
+            store(q, u0);
+            store(q + 2, u1);
+            if constexpr (Norms) {
+                if (t >= 1) {
+                    n0 += u0 * u0;
+                    n1 += u1 * u1;
+                }
+            }
+        }
+        if constexpr (Norms) {
+            store(N + j, n0);
+            store(N + j + 2, n1);
         }
     }
     for (; j + 2 <= w; j += 2) {
@@ -994,26 +1129,47 @@ inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn
         for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(row(t) + j);
         s = splat(2.0) * s / splat(vn);
         store(S + j, s);
+        v2d n0 = splat(0.0);
         for (i64 t = 0; t < size; ++t) {
             double* p = row(t) + j;
-            store(p, load(p) - splat(x[t]) * s);
+            v2d u0 = load(p) - splat(x[t]) * s;
+            store(p, u0);
+            if constexpr (Norms) {
+                if (t >= 1) n0 += u0 * u0;
+            }
         }
+        if constexpr (Norms) store(N + j, n0);
     }
     if (j < w) {
         double s = 0.0;
         for (i64 t = 0; t < size; ++t) s += x[t] * row(t)[j];
         s = 2.0 * s / vn;
         S[j] = s;
-        for (i64 t = 0; t < size; ++t) row(t)[j] -= x[t] * s;
+        double n0 = 0.0;
+        for (i64 t = 0; t < size; ++t) {
+            double u0 = row(t)[j] - x[t] * s;
+            row(t)[j] = u0;
+            if constexpr (Norms) {
+                if (t >= 1) n0 += u0 * u0;
+            }
+        }
+        if constexpr (Norms) N[j] = n0;
     }
 }
 
 // reflect_row_set on columns j0..m-1 of rows i..i+size-1 of M (row stride ld); a single
 // column by rows (acc_row, axmy: the same sums in the same order).
+// N: also N[j - j0] = |M[i+1 : i+size, j]|^2 of the updated columns (reflect_row_set's Norms).
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
-                            double* S) {
+                            double* S, double* N = nullptr) {
     i64 w = m - j0;
     if (w <= 0) return;
+    if (N) {
+        double* base = M + i * ld + j0;
+        auto row = [base, ld](i64 t) { return base + t * ld; };
+        reflect_row_set<decltype(row), true>(row, size, w, x, vn, S, N);
+        return;
+    }
     if (w >= 2) {
         double* base = M + i * ld + j0;
         reflect_row_set([base, ld](i64 t) { return base + t * ld; }, size, w, x, vn, S);
@@ -1038,8 +1194,11 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 }
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
-// with no rows: R only, the same R).
-inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr) {
+// with no rows: R only, the same R). norms: where R was reflected (true returned), also
+// norms[j] = |R[i+1:, j]|^2 for j >= i (column_norms(R, i + 1, norms)'s sums, from the
+// reflection's pass; norms[i] too).
+inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr,
+                    double* norms = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
     if (keep_vn) *keep_vn = 0.0;
@@ -1049,17 +1208,17 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
         alpha += x[t] * x[t];
     }
     alpha = std::sqrt(alpha);
-    if (alpha == 0.0) return;
+    if (alpha == 0.0) return false;
     if (x[0] > 0.0) alpha = -alpha;
     x[0] -= alpha;
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
-    if (vn == 0.0) return;
+    if (vn == 0.0) return false;
     if (keep_vn) {
         *keep_vn = vn;
         std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
     }
-    reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data());
+    reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data(), norms ? norms + i : nullptr);
     i64 row = 0;
     for (; row + 2 <= r; row += 2) {
         double* q0 = Q.row(row) + i;
@@ -1076,6 +1235,7 @@ inline void reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
         s = 2.0 * s / vn;
         axmy(qr + i, s, x.data(), size);
     }
+    return true;
 }
 
 // norms[j] = |R[start:, j]|^2 for the columns from start on.
@@ -1103,19 +1263,19 @@ struct QRScratch {
 inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
     shape(R, r, m);  // every entry copied
-    for (i64 i = 0; i < r; ++i)
-        for (i64 j = 0; j < m; ++j) R(i, j) = M(i, j);
+    for (i64 i = 0; i < r && m > 0; ++i) std::memcpy(R.row(i), M.row(i), static_cast<size_t>(m) * sizeof(double));
     if (form_q) Q.set_eye(r);
     else Q.zeros(0, r);  // no rows: R and perm only (the same R)
     perm.assign(static_cast<size_t>(m), 0);
     for (i64 j = 0; j < m; ++j) perm[j] = j;
+    // (norms, x and S sized only: each entry written before it is read)
     Vec& norms = ws.norms;
-    norms.assign(static_cast<size_t>(m), 0.0);
+    shape(norms, static_cast<size_t>(m));
     if (pivot) detail::column_norms(R, 0, norms);
     Vec& x = ws.x;
     Vec& S = ws.S;
-    x.assign(static_cast<size_t>(r), 0.0);
-    S.assign(static_cast<size_t>(m), 0.0);
+    shape(x, static_cast<size_t>(r));
+    shape(S, static_cast<size_t>(m));
     i64 steps = std::min(r, m);
     if (ws.keep_reflectors) {
         ws.V.zeros(steps, r);
@@ -1123,9 +1283,12 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     }
     for (i64 i = 0; i < steps; ++i) {
         if (pivot) detail::swap_pivot(R, norms, perm, i);
-        if (ws.keep_reflectors) detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)]);
-        else detail::reflect(R, Q, x, S, i);
-        if (pivot) detail::column_norms(R, i + 1, norms);
+        // (with pivoting, the next step's column norms summed in the reflection's pass)
+        double* nrm = pivot ? norms.data() : nullptr;
+        bool done = ws.keep_reflectors
+                        ? detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)], nrm)
+                        : detail::reflect(R, Q, x, S, i, nullptr, nullptr, nrm);
+        if (pivot && !done) detail::column_norms(R, i + 1, norms);
     }
 }
 
