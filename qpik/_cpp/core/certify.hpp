@@ -881,11 +881,25 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& gx = ws.gx;
     shape(gnorm, static_cast<size_t>(p));  // every entry written below
     shape(gx, static_cast<size_t>(p));
+    if (gsq) {
+        // G x as mv_into sums it (each row in order from +0: the same sums as one row at a
+        // time, four or two rows a pass)
+        i64 j = 0;
+        for (; j + 4 <= p; j += 4)
+            dot4(G.row(j), G.row(j + 1), G.row(j + 2), G.row(j + 3), x.data(), n, gx[j], gx[j + 1], gx[j + 2],
+                 gx[j + 3]);
+        for (; j + 2 <= p; j += 2) dot2(G.row(j), G.row(j + 1), x.data(), n, gx[j], gx[j + 1]);
+        for (; j < p; ++j) {
+            double acc = 0.0;
+            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+            gx[j] = acc;
+        }
+    }
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         if (gsq) {
             nn = gsq[j];
-            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+            acc = gx[j];
         } else {
             for (i64 i = 0; i < n; ++i) {
                 nn += G(j, i) * G(j, i);
@@ -943,7 +957,31 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& vs = ws.vs;
     zero_fill(v, static_cast<size_t>(n));
     zero_fill(vs, static_cast<size_t>(n));
-    for (i64 i = 0; i < m; ++i) {
+    i64 i0 = 0;
+    {
+        // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
+        // order (res from -b_i, size from |b_i|, adx from +0); the rows then added in order.
+        using namespace simd;
+        for (; i0 + 2 <= m; i0 += 2) {
+            const double* a0 = A.row(i0);
+            const double* a1 = A.row(i0 + 1);
+            v2d res = v2d{-b[i0], -b[i0 + 1]};
+            v2d size = vabs(v2d{b[i0], b[i0 + 1]});
+            v2d adx = splat(0.0);
+            for (i64 j = 0; j < n; ++j) {
+                v2d aj = v2d{a0[j], a1[j]};
+                v2d ax = aj * splat(x[j]);
+                res += ax;
+                size += vabs(ax);
+                adx += vabs(aj) * splat(dx[j]);
+            }
+            if (!(res[0] == 0.0 && size[0] == 0.0 && adx[0] == 0.0))
+                axpy3(v.data(), vs.data(), hs.data(), a0, res[0], size[0], adx[0], n);
+            if (!(res[1] == 0.0 && size[1] == 0.0 && adx[1] == 0.0))
+                axpy3(v.data(), vs.data(), hs.data(), a1, res[1], size[1], adx[1], n);
+        }
+    }
+    for (i64 i = i0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
         for (i64 j = 0; j < n; ++j) {
