@@ -627,6 +627,60 @@ struct CertScratch {
     Vec xu, xx, xZz, xzc, xzref, xstart;
 };
 
+namespace detail {
+// B z into y, as mv_into(B, z) computes it. With the regularisation's rows (ls.reg: row m + j
+// of B is sqrt(rho) e_j, its other entries +0, as ls_form writes them) and z finite, that
+// row's sum from +0 adds terms (+0) z_t = +-0 and the one term s z_j: its value is
+// s z_j + 0.0 (a -0 made +0), written without the sum; rows 0..m-1 are mv_into's (each row's
+// sum the same in any grouping of the rows).
+inline void ls_mv_into(const LSForm& ls, const double* z, Vec& y) {
+    i64 mb = ls.B.rows, r = ls.B.cols;
+    bool eye = ls.reg && mb >= r;
+    for (i64 j = 0; eye && j < r; ++j) eye = std::isfinite(z[j]);
+    if (!eye) {
+        mv_into(ls.B.cref(), z, y);
+        return;
+    }
+    i64 m = mb - r;
+    y.resize(static_cast<size_t>(mb));
+    i64 i = 0;
+    for (; i + 4 <= m; i += 4)
+        dot4(ls.B.row(i), ls.B.row(i + 1), ls.B.row(i + 2), ls.B.row(i + 3), z, r, y[i], y[i + 1], y[i + 2],
+             y[i + 3]);
+    for (; i + 2 <= m; i += 2) dot2(ls.B.row(i), ls.B.row(i + 1), z, r, y[i], y[i + 1]);
+    for (; i < m; ++i) {
+        const double* bi = ls.B.row(i);
+        double acc = 0.0;
+        for (i64 j = 0; j < r; ++j) acc += bi[j] * z[j];
+        y[i] = acc;
+    }
+    for (i64 j = 0; j < r; ++j) y[m + j] = ls.B(m + j, j) * z[j] + 0.0;
+}
+
+// B^T x into y, as mtv_into(B, x) computes it. With the regularisation's rows (ls.reg) and
+// their x entries finite, row m + j adds x_{m+j} s to y_j and x_{m+j} (+0) = +-0 to the
+// other entries, which leaves them as they are (a sum from +0 is never -0): only the first.
+inline void ls_mtv_into(const LSForm& ls, const double* x, Vec& y) {
+    i64 mb = ls.B.rows, r = ls.B.cols;
+    bool eye = ls.reg && mb >= r;
+    for (i64 j = mb - r; eye && j < mb; ++j) eye = std::isfinite(x[j]);
+    if (!eye) {
+        mtv_into(ls.B.cref(), x, y);
+        return;
+    }
+    i64 m = mb - r;
+    y.assign(static_cast<size_t>(r), 0.0);
+    for (i64 i = 0; i < m; ++i) {
+        double a = x[i];
+        if (a != 0.0) axpy(y.data(), a, ls.B.row(i), r);
+    }
+    for (i64 j = 0; j < r; ++j) {
+        double a = x[m + j];
+        if (a != 0.0) y[j] += a * ls.B(m + j, j);
+    }
+}
+}  // namespace detail
+
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
                    CertScratch* scratch = nullptr) {
@@ -691,7 +745,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
         }
         Vec& f0 = ws.f0;
-        mv_into(ls.B.cref(), z.data(), f0);
+        detail::ls_mv_into(ls, z.data(), f0);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
@@ -714,9 +768,9 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     }
     if (q > 0) {
         Vec& g = ws.g;
-        mv_into(ls.B.cref(), z.data(), ws.r);  // B^T (B z - f), as ls_gradient
+        detail::ls_mv_into(ls, z.data(), ws.r);  // B^T (B z - f), as ls_gradient
         for (size_t i = 0; i < ws.r.size(); ++i) ws.r[i] = ws.r[i] - ls.f[i];
-        mtv_into(ls.B.cref(), ws.r.data(), g);
+        detail::ls_mtv_into(ls, ws.r.data(), g);
         qr.apply_t(g.data());  // Y^T g = (Q^T g)[:q]
         const Mat& R = qr.R;
         for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T g
