@@ -624,7 +624,6 @@ struct CertScratch {
     Vec rhs, t, row, f0, y, wy, e, g, r;
     Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
-    IVec nzj;                           // certify_level: a sparse row's nonzero columns
     Vec xu, xx, xZz, xzc, xzref, xstart;
 };
 
@@ -1012,74 +1011,16 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& vs = ws.vs;
     zero_fill(v, static_cast<size_t>(n));
     zero_fill(vs, static_cast<size_t>(n));
-    // A row with few nonzero entries (at most n / 4; x and dx finite) is summed over those
-    // alone: each term skipped is a_ij x_j = +-0 (|.| = +0, |a_ij| dx_j = +0), which leaves
-    // size and adx as they are (sums from +0 of terms >= +0 are never -0) and res but for the
-    // sign of a zero; its update of v, vs, hs (res, size, adx finite) adds +-0 to the entries
-    // of the skipped columns, which leaves them as they are (sums from +0, never -0), and a
-    // zero res of either sign adds +-0 everywhere: the same bits. (The rows mujoco's posture
-    // and joint tasks make hold one entry each.)
-    bool sparse_ok = true;
-    for (i64 j = 0; sparse_ok && j < n; ++j) sparse_ok = std::isfinite(x[j]) && std::isfinite(dx[j]);
-    IVec& nzj = ws.nzj;
-    i64 lim = n / 4;
-    if (sparse_ok && static_cast<i64>(nzj.size()) < lim) nzj.resize(static_cast<size_t>(lim));
-    // the nonzero columns of row i into nzj, or -1 when there are more than lim
-    auto gather = [&](const double* ai) -> i64 {
-        if (!sparse_ok) return -1;
-        i64 c = 0;
-        for (i64 j = 0; j < n; ++j) {
-            if (ai[j] != 0.0) {
-                if (c == lim) return -1;
-                nzj[c++] = j;
-            }
-        }
-        return c;
-    };
-    auto dense_row = [&](i64 i) {
-        const double* ai = A.row(i);
-        double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
-        for (i64 j = 0; j < n; ++j) {
-            res += ai[j] * x[j];
-            size += std::fabs(ai[j] * x[j]);
-            adx += std::fabs(ai[j]) * dx[j];
-        }
-        if (res == 0.0 && size == 0.0 && adx == 0.0) return;
-        axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
-    };
-    for (i64 i = 0; i < m;) {
-        const double* ai = A.row(i);
-        i64 c = gather(ai);
-        if (c >= 0) {
-            double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
-            for (i64 a = 0; a < c; ++a) {
-                i64 j = nzj[a];
-                res += ai[j] * x[j];
-                size += std::fabs(ai[j] * x[j]);
-                adx += std::fabs(ai[j]) * dx[j];
-            }
-            ++i;
-            if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
-            if (std::isfinite(res) && std::isfinite(size) && std::isfinite(adx)) {
-                for (i64 a = 0; a < c; ++a) {
-                    i64 j = nzj[a];
-                    v[j] += ai[j] * res;
-                    vs[j] += std::fabs(ai[j]) * size;
-                    hs[j] += std::fabs(ai[j]) * adx;
-                }
-            } else {
-                axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
-            }
-            continue;
-        }
-        if (i + 1 < m && gather(A.row(i + 1)) < 0) {
-            // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
-            // order (res from -b_i, size from |b_i|, adx from +0); the rows then added in order.
-            using namespace simd;
-            const double* a0 = ai;
-            const double* a1 = A.row(i + 1);
-            v2d res = v2d{-b[i], -b[i + 1]};
-            v2d size = vabs(v2d{b[i], b[i + 1]});
+    i64 i0 = 0;
+    {
+        // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
+        // order (res from -b_i, size from |b_i|, adx from +0); the rows then added in order.
+        using namespace simd;
+        for (; i0 + 2 <= m; i0 += 2) {
+            const double* a0 = A.row(i0);
+            const double* a1 = A.row(i0 + 1);
+            v2d res = v2d{-b[i0], -b[i0 + 1]};
+            v2d size = vabs(v2d{b[i0], b[i0 + 1]});
             v2d adx = splat(0.0);
             for (i64 j = 0; j < n; ++j) {
                 v2d aj = v2d{a0[j], a1[j]};
@@ -1092,11 +1033,18 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                 axpy3(v.data(), vs.data(), hs.data(), a0, res[0], size[0], adx[0], n);
             if (!(res[1] == 0.0 && size[1] == 0.0 && adx[1] == 0.0))
                 axpy3(v.data(), vs.data(), hs.data(), a1, res[1], size[1], adx[1], n);
-            i += 2;
-            continue;
         }
-        dense_row(i);  // (row i + 1, sparse, is the next pass's)
-        ++i;
+    }
+    for (i64 i = i0; i < m; ++i) {
+        const double* ai = A.row(i);
+        double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
+        for (i64 j = 0; j < n; ++j) {
+            res += ai[j] * x[j];
+            size += std::fabs(ai[j] * x[j]);
+            adx += std::fabs(ai[j]) * dx[j];
+        }
+        if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
+        axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
     }
     for (i64 j = 0; j < n; ++j) {
         v[j] += rho * x[j];
