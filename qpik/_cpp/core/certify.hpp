@@ -702,9 +702,13 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         shape(rhs, static_cast<size_t>(q));  // every entry written below
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
-            for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
-            double nz = 0.0;
-            for (i64 i = 0; i < r; ++i) nz += N(i, j) * zref[i];
+            const double* cj = C.row(act_row[j]);
+            double nz = 0.0;  // n_j . zref, summed as n_j is written
+            for (i64 i = 0; i < r; ++i) {
+                double e = cj[i] * side;
+                N(i, j) = e;
+                nz += e * zref[i];
+            }
             rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
         }
         qr.factor(N);
