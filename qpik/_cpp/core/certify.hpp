@@ -359,6 +359,135 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
     }
 }
 
+// reflect_columns (rows i..m-1, columns i..k-1 of M, row stride k) followed by
+// col_sq(M, k, i + 1, m, i + 1, k, norms): the reflection's operations as reflect_row_set
+// makes them (the same blocking of the columns: eight, four, two, then one), each updated
+// entry of rows i + 1.. squared and added to its column's sum as it is stored, the sums
+// over the rows in order from +0: the values col_sq then reads and sums in the same order
+// (the same bits, one pass fewer over the rows). norms[i] gets the pivot column's sum too
+// (never read: the next step searches columns i + 1..).
+inline void reflect_columns_norms(Mat& M, i64 i, i64 size, const double* x, double vn, double* S, double* norms) {
+    using namespace simd;
+    i64 k = M.cols;
+    i64 w = k - i;
+    if (w < 2) {  // one column: no norm left to sum
+        reflect_columns(M.row(0), k, i, size, i, k, x, vn, S);
+        return;
+    }
+    double* base = M.a.data() + i * k + i;
+    i64 j = 0;
+    for (; j + 8 <= w; j += 8) {
+        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+        const double* p = base + j;
+        for (i64 t = 0; t < size; ++t, p += k) {
+            v2d xt = splat(x[t]);
+            s0 += xt * load(p);
+            s1 += xt * load(p + 2);
+            s2 += xt * load(p + 4);
+            s3 += xt * load(p + 6);
+        }
+        v2d two = splat(2.0), vv = splat(vn);
+        s0 = two * s0 / vv;
+        s1 = two * s1 / vv;
+        s2 = two * s2 / vv;
+        s3 = two * s3 / vv;
+        store(S + j, s0);
+        store(S + j + 2, s1);
+        store(S + j + 4, s2);
+        store(S + j + 6, s3);
+        double* q = base + j;
+        {
+            v2d xt = splat(x[0]);
+            store(q, load(q) - xt * s0);
+            store(q + 2, load(q + 2) - xt * s1);
+            store(q + 4, load(q + 4) - xt * s2);
+            store(q + 6, load(q + 6) - xt * s3);
+        }
+        v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
+        q += k;
+        for (i64 t = 1; t < size; ++t, q += k) {
+            v2d xt = splat(x[t]);
+            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
+            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
+            store(q, u0);
+            store(q + 2, u1);
+            store(q + 4, u2);
+            store(q + 6, u3);
+            a0 += u0 * u0;
+            a1 += u1 * u1;
+            a2 += u2 * u2;
+            a3 += u3 * u3;
+        }
+        store(norms + i + j, a0);
+        store(norms + i + j + 2, a1);
+        store(norms + i + j + 4, a2);
+        store(norms + i + j + 6, a3);
+    }
+    for (; j + 4 <= w; j += 4) {
+        v2d s = splat(0.0), s2 = splat(0.0);
+        const double* p = base + j;
+        for (i64 t = 0; t < size; ++t, p += k) {
+            v2d xt = splat(x[t]);
+            s += xt * load(p);
+            s2 += xt * load(p + 2);
+        }
+        s = splat(2.0) * s / splat(vn);
+        s2 = splat(2.0) * s2 / splat(vn);
+        store(S + j, s);
+        store(S + j + 2, s2);
+        double* q = base + j;
+        {
+            v2d xt = splat(x[0]);
+            store(q, load(q) - xt * s);
+            store(q + 2, load(q + 2) - xt * s2);
+        }
+        v2d a0 = splat(0.0), a1 = splat(0.0);
+        q += k;
+        for (i64 t = 1; t < size; ++t, q += k) {
+            v2d xt = splat(x[t]);
+            v2d u0 = load(q) - xt * s, u1 = load(q + 2) - xt * s2;
+            store(q, u0);
+            store(q + 2, u1);
+            a0 += u0 * u0;
+            a1 += u1 * u1;
+        }
+        store(norms + i + j, a0);
+        store(norms + i + j + 2, a1);
+    }
+    for (; j + 2 <= w; j += 2) {
+        v2d s = splat(0.0);
+        const double* p = base + j;
+        for (i64 t = 0; t < size; ++t, p += k) s += splat(x[t]) * load(p);
+        s = splat(2.0) * s / splat(vn);
+        store(S + j, s);
+        double* q = base + j;
+        store(q, load(q) - splat(x[0]) * s);
+        v2d a0 = splat(0.0);
+        q += k;
+        for (i64 t = 1; t < size; ++t, q += k) {
+            v2d u0 = load(q) - splat(x[t]) * s;
+            store(q, u0);
+            a0 += u0 * u0;
+        }
+        store(norms + i + j, a0);
+    }
+    if (j < w) {
+        double s = 0.0;
+        double* q = base + j;
+        for (i64 t = 0; t < size; ++t) s += x[t] * q[t * k];
+        s = 2.0 * s / vn;
+        S[j] = s;
+        q[0] -= x[0] * s;
+        double a = 0.0;
+        for (i64 t = 1; t < size; ++t) {
+            double u = q[t * k] - x[t] * s;
+            q[t * k] = u;
+            a += u * u;
+        }
+        norms[i + j] = a;
+    }
+}
+
 // min |M y - f| by Householder QR with column pivoting, into y (M (m, k) and f are
 // overwritten); pivots below kLsRank |R_00| are zeros, and the solution is the one of
 // least norm.
@@ -409,10 +538,12 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint =
             x[0] -= alpha;
             double vn = dot(x.data(), x.data(), size);
             if (vn != 0.0) {
-                reflect_columns(M.row(0), k, i, size, i, k, x.data(), vn, S.data());
+                // the remaining columns' norms summed as the entries are updated
+                reflect_columns_norms(M, i, size, x.data(), vn, S.data(), norms.data());
                 double s = dot(x.data(), f.data() + i, size);
                 s = 2.0 * s / vn;
                 axmy(f.data() + i, s, x.data(), size);
+                continue;
             }
         }
         // The remaining columns' norms, recomputed (each summed over t in order).
@@ -496,6 +627,60 @@ struct CertScratch {
     Vec xu, xx, xZz, xzc, xzref, xstart;
 };
 
+namespace detail {
+// B z into y, as mv_into(B, z) computes it. With the regularisation's rows (ls.reg: row m + j
+// of B is sqrt(rho) e_j, its other entries +0, as ls_form writes them) and z finite, that
+// row's sum from +0 adds terms (+0) z_t = +-0 and the one term s z_j: its value is
+// s z_j + 0.0 (a -0 made +0), written without the sum; rows 0..m-1 are mv_into's (each row's
+// sum the same in any grouping of the rows).
+inline void ls_mv_into(const LSForm& ls, const double* z, Vec& y) {
+    i64 mb = ls.B.rows, r = ls.B.cols;
+    bool eye = ls.reg && mb >= r;
+    for (i64 j = 0; eye && j < r; ++j) eye = std::isfinite(z[j]);
+    if (!eye) {
+        mv_into(ls.B.cref(), z, y);
+        return;
+    }
+    i64 m = mb - r;
+    y.resize(static_cast<size_t>(mb));
+    i64 i = 0;
+    for (; i + 4 <= m; i += 4)
+        dot4(ls.B.row(i), ls.B.row(i + 1), ls.B.row(i + 2), ls.B.row(i + 3), z, r, y[i], y[i + 1], y[i + 2],
+             y[i + 3]);
+    for (; i + 2 <= m; i += 2) dot2(ls.B.row(i), ls.B.row(i + 1), z, r, y[i], y[i + 1]);
+    for (; i < m; ++i) {
+        const double* bi = ls.B.row(i);
+        double acc = 0.0;
+        for (i64 j = 0; j < r; ++j) acc += bi[j] * z[j];
+        y[i] = acc;
+    }
+    for (i64 j = 0; j < r; ++j) y[m + j] = ls.B(m + j, j) * z[j] + 0.0;
+}
+
+// B^T x into y, as mtv_into(B, x) computes it. With the regularisation's rows (ls.reg) and
+// their x entries finite, row m + j adds x_{m+j} s to y_j and x_{m+j} (+0) = +-0 to the
+// other entries, which leaves them as they are (a sum from +0 is never -0): only the first.
+inline void ls_mtv_into(const LSForm& ls, const double* x, Vec& y) {
+    i64 mb = ls.B.rows, r = ls.B.cols;
+    bool eye = ls.reg && mb >= r;
+    for (i64 j = mb - r; eye && j < mb; ++j) eye = std::isfinite(x[j]);
+    if (!eye) {
+        mtv_into(ls.B.cref(), x, y);
+        return;
+    }
+    i64 m = mb - r;
+    y.assign(static_cast<size_t>(r), 0.0);
+    for (i64 i = 0; i < m; ++i) {
+        double a = x[i];
+        if (a != 0.0) axpy(y.data(), a, ls.B.row(i), r);
+    }
+    for (i64 j = 0; j < r; ++j) {
+        double a = x[m + j];
+        if (a != 0.0) y[j] += a * ls.B(m + j, j);
+    }
+}
+}  // namespace detail
+
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
                    CertScratch* scratch = nullptr) {
@@ -517,9 +702,13 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         shape(rhs, static_cast<size_t>(q));  // every entry written below
         for (i64 j = 0; j < q; ++j) {
             double side = static_cast<double>(act_side[j]);
-            for (i64 i = 0; i < r; ++i) N(i, j) = C(act_row[j], i) * side;
-            double nz = 0.0;
-            for (i64 i = 0; i < r; ++i) nz += N(i, j) * zref[i];
+            const double* cj = C.row(act_row[j]);
+            double nz = 0.0;  // n_j . zref, summed as n_j is written
+            for (i64 i = 0; i < r; ++i) {
+                double e = cj[i] * side;
+                N(i, j) = e;
+                nz += e * zref[i];
+            }
             rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
         }
         qr.factor(N);
@@ -560,7 +749,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
         }
         Vec& f0 = ws.f0;
-        mv_into(ls.B.cref(), z.data(), f0);
+        detail::ls_mv_into(ls, z.data(), f0);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = ws.y;
         detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
@@ -583,9 +772,9 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     }
     if (q > 0) {
         Vec& g = ws.g;
-        mv_into(ls.B.cref(), z.data(), ws.r);  // B^T (B z - f), as ls_gradient
+        detail::ls_mv_into(ls, z.data(), ws.r);  // B^T (B z - f), as ls_gradient
         for (size_t i = 0; i < ws.r.size(); ++i) ws.r[i] = ws.r[i] - ls.f[i];
-        mtv_into(ls.B.cref(), ws.r.data(), g);
+        detail::ls_mtv_into(ls, ws.r.data(), g);
         qr.apply_t(g.data());  // Y^T g = (Q^T g)[:q]
         const Mat& R = qr.R;
         for (i64 i = q - 1; i >= 0; --i) {  // R1 u = Y^T g
@@ -750,11 +939,25 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& gx = ws.gx;
     shape(gnorm, static_cast<size_t>(p));  // every entry written below
     shape(gx, static_cast<size_t>(p));
+    if (gsq) {
+        // G x as mv_into sums it (each row in order from +0: the same sums as one row at a
+        // time, four or two rows a pass)
+        i64 j = 0;
+        for (; j + 4 <= p; j += 4)
+            dot4(G.row(j), G.row(j + 1), G.row(j + 2), G.row(j + 3), x.data(), n, gx[j], gx[j + 1], gx[j + 2],
+                 gx[j + 3]);
+        for (; j + 2 <= p; j += 2) dot2(G.row(j), G.row(j + 1), x.data(), n, gx[j], gx[j + 1]);
+        for (; j < p; ++j) {
+            double acc = 0.0;
+            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+            gx[j] = acc;
+        }
+    }
     for (i64 j = 0; j < p; ++j) {
         double nn = 0.0, acc = 0.0;
         if (gsq) {
             nn = gsq[j];
-            for (i64 i = 0; i < n; ++i) acc += G(j, i) * x[i];
+            acc = gx[j];
         } else {
             for (i64 i = 0; i < n; ++i) {
                 nn += G(j, i) * G(j, i);
@@ -812,7 +1015,31 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& vs = ws.vs;
     zero_fill(v, static_cast<size_t>(n));
     zero_fill(vs, static_cast<size_t>(n));
-    for (i64 i = 0; i < m; ++i) {
+    i64 i0 = 0;
+    {
+        // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
+        // order (res from -b_i, size from |b_i|, adx from +0); the rows then added in order.
+        using namespace simd;
+        for (; i0 + 2 <= m; i0 += 2) {
+            const double* a0 = A.row(i0);
+            const double* a1 = A.row(i0 + 1);
+            v2d res = v2d{-b[i0], -b[i0 + 1]};
+            v2d size = vabs(v2d{b[i0], b[i0 + 1]});
+            v2d adx = splat(0.0);
+            for (i64 j = 0; j < n; ++j) {
+                v2d aj = v2d{a0[j], a1[j]};
+                v2d ax = aj * splat(x[j]);
+                res += ax;
+                size += vabs(ax);
+                adx += vabs(aj) * splat(dx[j]);
+            }
+            if (!(res[0] == 0.0 && size[0] == 0.0 && adx[0] == 0.0))
+                axpy3(v.data(), vs.data(), hs.data(), a0, res[0], size[0], adx[0], n);
+            if (!(res[1] == 0.0 && size[1] == 0.0 && adx[1] == 0.0))
+                axpy3(v.data(), vs.data(), hs.data(), a1, res[1], size[1], adx[1], n);
+        }
+    }
+    for (i64 i = i0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
         for (i64 j = 0; j < n; ++j) {
