@@ -978,7 +978,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
-    Lm.zeros(r, r);
+    zero_upper(Lm, r);  // cholesky_into writes the rest before reading it
     factored = have_gz = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
