@@ -238,13 +238,17 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
     Vec& CT = ws.CT;
     shape(CT, static_cast<size_t>(n * rs.ld));
     i64 ld = rs.ld;
-    for (i64 j = 0; j < rs.kd; ++j) {
-        const double* cj = C.row(dense[j]);
+    // Two rows a pass (adjacent columns of CT, one store); an odd last row with the zero pad.
+    for (i64 j = 0; j < ld; j += 2) {
+        const double* c0 = C.row(dense[j]);
         double* dst = CT.data() + j;
-        for (i64 k = 0; k < n; ++k) dst[k * ld] = cj[k];
+        if (j + 1 < rs.kd) {
+            const double* c1 = C.row(dense[j + 1]);
+            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], c1[k]});
+        } else {
+            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], 0.0});
+        }
     }
-    if (ld > rs.kd)
-        for (i64 k = 0; k < n; ++k) CT[k * ld + rs.kd] = 0.0;
     // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
     // product, or -1 - column for a unit row.
     ws.cand.clear();
