@@ -979,7 +979,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     i64 n = Z.rows, r = Z.cols, p = G.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
-    Lm.zeros(r, r);
+    zero_upper(Lm, r);  // cholesky_into writes the rest before reading it
     factored = have_gz = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
@@ -995,19 +995,32 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
     // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
     // one-entry sum on a unit row (the other terms are zeros), so the same decision.
-    // unit >= 0: c is row `unit` of the identity (Z = I): norm = 1 and cx = x[unit] + 0.0, the
-    // sums' values (+0 plus one term 1 or x[unit], the others 0 * 0 or 0 * x_t = +-0; x0 finite).
-    auto violated = [&](const double* c, double lo, double hi, double size, i64 unit = -1) {
-        double norm = 0.0, cx = 0.0;
-        if (unit >= 0) {
-            norm = 1.0;
-            cx = x[unit] + 0.0;
-        } else {
-            for (i64 t = 0; t < r; ++t) {
-                norm += c[t] * c[t];
-                cx += c[t] * x[t];
-            }
+    // Z = I: box row i is row i of the identity, norm = 1 and cx = x[i] + 0.0, the sums' values
+    // (+0 plus one term 1 or x[i], the others 0 * 0 or 0 * x_t = +-0; x0 finite).
+    // The sums of a row (norm = |c|^2, cx = c . x0), two rows a pass (one a lane; each sum in
+    // index order from +0, the scalar loop's operations).
+    auto sums2 = [&](const double* c0, const double* c1, double& n0, double& x0, double& n1, double& x1) {
+        using namespace simd;
+        v2d nn = splat(0.0), cc = splat(0.0);
+        for (i64 t = 0; t < r; ++t) {
+            v2d ct = v2d{c0[t], c1[t]};
+            nn = nn + ct * ct;
+            cc = cc + ct * splat(x[t]);
         }
+        n0 = nn[0];
+        x0 = cc[0];
+        n1 = nn[1];
+        x1 = cc[1];
+    };
+    auto sums1 = [&](const double* c, double& norm, double& cx) {
+        norm = 0.0;
+        cx = 0.0;
+        for (i64 t = 0; t < r; ++t) {
+            norm += c[t] * c[t];
+            cx += c[t] * x[t];
+        }
+    };
+    auto decide = [&](double norm, double cx, double lo, double hi, double size) {
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
         norm = std::sqrt(norm);
         if (lo > -kBig) {
@@ -1041,15 +1054,41 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
         Vec& Gd = ws.Gd;
         mv_into(G, d, Gd);
         have_gz = true;
-        for (i64 j = 0; j < p; ++j) {
+        auto general = [&](i64 j, double norm, double cx) {
             double size = gsq ? gsq[j] : row_sq_of(G, j);
-            if (violated(GZ.row(j), -kInf, h[j] - Gd[j], size)) return false;
+            return decide(norm, cx, -kInf, h[j] - Gd[j], size);
+        };
+        i64 j = 0;
+        for (; j + 2 <= p; j += 2) {  // rows j, j + 1 summed together, decided in order
+            double n0, x0, n1, x1;
+            sums2(GZ.row(j), GZ.row(j + 1), n0, x0, n1, x1);
+            if (general(j, n0, x0) || general(j + 1, n1, x1)) return false;
+        }
+        for (; j < p; ++j) {
+            double norm, cx;
+            sums1(GZ.row(j), norm, cx);
+            if (general(j, norm, cx)) return false;
         }
     }
-    for (i64 i = 0; i < n; ++i) {
+    auto box = [&](i64 i, double norm, double cx) {
         double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
         double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
-        if (violated(Z.row(i), lo, hi, 1.0, z_eye && r == n ? i : -1)) return false;
+        return decide(norm, cx, lo, hi, 1.0);
+    };
+    i64 i = 0;
+    if (z_eye && r == n) {
+        for (; i < n; ++i)
+            if (box(i, 1.0, x[i] + 0.0)) return false;
+    }
+    for (; i + 2 <= n; i += 2) {
+        double n0, x0, n1, x1;
+        sums2(Z.row(i), Z.row(i + 1), n0, x0, n1, x1);
+        if (box(i, n0, x0) || box(i + 1, n1, x1)) return false;
+    }
+    for (; i < n; ++i) {
+        double norm, cx;
+        sums1(Z.row(i), norm, cx);
+        if (box(i, norm, cx)) return false;
     }
     return true;
 }

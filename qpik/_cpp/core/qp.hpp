@@ -38,9 +38,17 @@ struct QPScratch {
     Vec CT, thr_lo, thr_hi, cxd;  // see RowScan
     IVec cand;
     BVec in_set;
+    Vec rot;  // rotate_in's coefficients
 };
 
 namespace detail {
+
+// M (r, r) with +0 strictly above the diagonal, the rest of its storage left as it was (for a
+// triangular factor that writes every entry on and below the diagonal before reading it).
+inline void zero_upper(Mat& M, i64 r) {
+    shape(M, r, r);
+    for (i64 i = 0; i + 1 < r; ++i) zero_small(M.row(i) + i + 1, static_cast<size_t>(r - i - 1));
+}
 
 inline double rhs_of(CVecRef lo, CVecRef hi, i64 row, i64 side) { return side > 0 ? lo[row] : -hi[row]; }
 
@@ -230,13 +238,17 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
     Vec& CT = ws.CT;
     shape(CT, static_cast<size_t>(n * rs.ld));
     i64 ld = rs.ld;
-    for (i64 j = 0; j < rs.kd; ++j) {
-        const double* cj = C.row(dense[j]);
+    // Two rows a pass (adjacent columns of CT, one store); an odd last row with the zero pad.
+    for (i64 j = 0; j < ld; j += 2) {
+        const double* c0 = C.row(dense[j]);
         double* dst = CT.data() + j;
-        for (i64 k = 0; k < n; ++k) dst[k * ld] = cj[k];
+        if (j + 1 < rs.kd) {
+            const double* c1 = C.row(dense[j + 1]);
+            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], c1[k]});
+        } else {
+            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], 0.0});
+        }
     }
-    if (ld > rs.kd)
-        for (i64 k = 0; k < n; ++k) CT[k * ld + rs.kd] = 0.0;
     // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
     // product, or -1 - column for a unit row.
     ws.cand.clear();
@@ -388,7 +400,7 @@ inline void inverse_transpose_into(const Mat& L, Mat& J, Mat& JT) {
 inline void inverse_transpose_into(const Mat& L, Mat& JT) {
     using namespace simd;
     i64 n = L.rows;
-    JT.zeros(n, n);
+    zero_upper(JT, n);  // row k's entries 0..k are written below
     bool finite = true;
     for (i64 k = 0; k < n && finite; ++k)
         for (i64 t = 0; t <= k; ++t)
@@ -511,15 +523,117 @@ inline double primal_step(const Vec& d, const Vec& z, const Vec& normal, double 
     return kInf;
 }
 
+// The Givens sweeps of rotate_in (up: rotations j = hi - 1 down to lo + 1 on rows j - 1, j)
+// and drop_constraint (down: j = lo .. hi - 2 on rows j, j + 1) applied to columns
+// [t, t + 2 W) of a row-major matrix (row stride ld) in one pass, each row loaded and
+// stored once: the row both rotations of a step meet is held in registers (`carry`).
+// rot: per rotation j, its cc, ss and xny each twice (lanes), at rot + 6 j. Every entry
+// undergoes givens_rows's operations (a' = a cc + b ss, b' = xny (a + a') - b) in the same
+// order: the same bits.
+template <int W>
+inline void sweep_up(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double* rot) {
+    using namespace simd;
+    double* pj = base + (hi - 1) * ld + t;
+    v2d c[W];
+#pragma GCC unroll 4
+    for (int w = 0; w < W; ++w) c[w] = load(pj + 2 * w);
+    for (i64 j = hi - 1; j > lo; --j, pj -= ld) {
+        const double* rj = rot + 6 * j;
+        v2d cv = load(rj), sv = load(rj + 2), xv = load(rj + 4);
+        double* pa = pj - ld;
+#pragma GCC unroll 4
+        for (int w = 0; w < W; ++w) {
+            v2d a = load(pa + 2 * w);
+            v2d an = a * cv + c[w] * sv;
+            store(pj + 2 * w, xv * (a + an) - c[w]);
+            c[w] = an;
+        }
+    }
+#pragma GCC unroll 4
+    for (int w = 0; w < W; ++w) store(pj + 2 * w, c[w]);
+}
+
+template <int W>
+inline void sweep_down(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double* rot) {
+    using namespace simd;
+    double* pj = base + lo * ld + t;
+    v2d c[W];
+#pragma GCC unroll 4
+    for (int w = 0; w < W; ++w) c[w] = load(pj + 2 * w);
+    for (i64 j = lo; j < hi - 1; ++j, pj += ld) {
+        const double* rj = rot + 6 * j;
+        v2d cv = load(rj), sv = load(rj + 2), xv = load(rj + 4);
+        double* pb = pj + ld;
+#pragma GCC unroll 4
+        for (int w = 0; w < W; ++w) {
+            v2d b = load(pb + 2 * w);
+            v2d an = c[w] * cv + b * sv;
+            store(pj + 2 * w, an);
+            c[w] = xv * (c[w] + an) - b;
+        }
+    }
+#pragma GCC unroll 4
+    for (int w = 0; w < W; ++w) store(pj + 2 * w, c[w]);
+}
+
+// Every column of an n-column matrix by sweep_up / sweep_down (the last odd column by the
+// scalar loop, givens_rows's tail).
+inline void sweep(bool up, double* base, i64 n, i64 lo, i64 hi, const double* rot) {
+    i64 t = 0;
+    if (up) {
+        for (; t + 8 <= n; t += 8) sweep_up<4>(base, n, t, lo, hi, rot);
+        for (; t + 4 <= n; t += 4) sweep_up<2>(base, n, t, lo, hi, rot);
+        for (; t + 2 <= n; t += 2) sweep_up<1>(base, n, t, lo, hi, rot);
+    } else {
+        for (; t + 8 <= n; t += 8) sweep_down<4>(base, n, t, lo, hi, rot);
+        for (; t + 4 <= n; t += 4) sweep_down<2>(base, n, t, lo, hi, rot);
+        for (; t + 2 <= n; t += 2) sweep_down<1>(base, n, t, lo, hi, rot);
+    }
+    for (; t < n; ++t) {
+        if (up) {
+            double* pj = base + (hi - 1) * n + t;
+            double c = *pj;
+            for (i64 j = hi - 1; j > lo; --j, pj -= n) {
+                const double* rj = rot + 6 * j;
+                double a = pj[-n];
+                double an = a * rj[0] + c * rj[2];
+                *pj = rj[4] * (a + an) - c;
+                c = an;
+            }
+            *pj = c;
+        } else {
+            double* pj = base + lo * n + t;
+            double c = *pj;
+            for (i64 j = lo; j < hi - 1; ++j, pj += n) {
+                const double* rj = rot + 6 * j;
+                double b = pj[n];
+                double an = c * rj[0] + b * rj[2];
+                *pj = an;
+                c = rj[4] * (c + an) - b;
+            }
+            *pj = c;
+        }
+    }
+}
+
 // Add a constraint: Givens rotations of J's columns (JT's rows) so that only d[:q+1] is
-// non-zero.
-inline void rotate_in(Mat& JT, Vec& d, i64 q) {
+// non-zero. The rotations' coefficients depend on d alone: taken first, in order (into rot,
+// see sweep_up; cc -1 marks a skipped one, h = 0), then applied to JT by sweep (the same
+// bits as givens_rows one rotation at a time).
+inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
     i64 n = JT.rows;
+    if (n - 1 <= q) return;
+    shape(rot, static_cast<size_t>(6 * n));
+    bool skipped = false;
     for (i64 j = n - 1; j > q; --j) {
         double cc = d[j - 1];
         double ss = d[j];
         double h = std::hypot(cc, ss);
-        if (h == 0.0) continue;
+        if (h == 0.0) {
+            skipped = true;
+            rot[6 * j] = -1.0;  // (a rotation's cc is >= 0 or NaN)
+            continue;
+        }
         d[j] = 0.0;
         ss /= h;
         cc /= h;
@@ -531,13 +645,27 @@ inline void rotate_in(Mat& JT, Vec& d, i64 q) {
             d[j - 1] = h;
         }
         double xny = ss / (1.0 + cc);
-        givens_rows(JT.row(j - 1), JT.row(j), cc, ss, xny, n);
+        double* rj = rot.data() + 6 * j;
+        rj[0] = rj[1] = cc;
+        rj[2] = rj[3] = ss;
+        rj[4] = rj[5] = xny;
+    }
+    if (!skipped) {
+        sweep(true, JT.row(0), n, q, n, rot.data());
+        return;
+    }
+    // A rotation skipped (h = 0, rare): one rotation at a time, in the same order.
+    for (i64 j = n - 1; j > q; --j) {
+        const double* rj = rot.data() + 6 * j;
+        if (rj[0] == -1.0) continue;
+        givens_rows(JT.row(j - 1), JT.row(j), rj[0], rj[2], rj[4], n);
     }
 }
 
 // Remove working constraint `drop` of q and restore R's triangle (and J).
 inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_side, BVec& in_set, i64 drop,
-                            i64 q) {
+                            i64 q, Vec& rot) {
+    using namespace simd;
     i64 n = JT.rows;
     in_set[act_row[drop]] = 0;
     for (i64 j = drop; j < q - 1; ++j) {
@@ -552,11 +680,21 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
     u[q] = 0.0;
     for (i64 i = 0; i < q; ++i) R(i, q - 1) = 0.0;  // (rows >= q of it are zeros)
     q -= 1;
+    if (drop >= q) return;
+    // R's rotations in order (each needs the one before), their coefficients kept in rot as
+    // rotate_in's; then JT's in one sweep (sweep_down), the same bits as one at a time.
+    shape(rot, static_cast<size_t>(6 * n));
+    bool skipped = false;
     for (i64 j = drop; j < q; ++j) {
+        double* rj = rot.data() + 6 * j;
         double cc = R(j, j);
         double ss = R(j + 1, j);
         double h = std::hypot(cc, ss);
-        if (h == 0.0) continue;
+        if (h == 0.0) {
+            skipped = true;
+            rj[0] = -1.0;
+            continue;
+        }
         cc /= h;
         ss /= h;
         R(j + 1, j) = 0.0;
@@ -569,7 +707,18 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
         }
         double xny = ss / (1.0 + cc);
         givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
-        givens_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
+        rj[0] = rj[1] = cc;
+        rj[2] = rj[3] = ss;
+        rj[4] = rj[5] = xny;
+    }
+    if (!skipped) {
+        sweep(false, JT.row(0), n, drop, q + 1, rot.data());
+        return;
+    }
+    for (i64 j = drop; j < q; ++j) {
+        const double* rj = rot.data() + 6 * j;
+        if (rj[0] == -1.0) continue;
+        givens_rows(JT.row(j), JT.row(j + 1), rj[0], rj[2], rj[4], n);
     }
 }
 
@@ -699,7 +848,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     BVec active(static_cast<size_t>(m), 0);
     Mat& Lm = ws.L;
     if (!factored) {
-        Lm.zeros(n, n);
+        detail::zero_upper(Lm, n);  // cholesky_into writes the rest before reading it
         if (!cholesky_into(H, n, 0.0, Lm.ref()))
             return QPResult{Vec(static_cast<size_t>(n), 0.0), NUMERICAL, 0, std::move(active), {}};
     }
@@ -727,7 +876,9 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     inverse_transpose_into(Lm, ws.JT);
     Mat& J = ws.JT;
     Mat& R = ws.R;
-    R.zeros(n, n);
+    // R: read only where written (its upper triangle as columns are added, and the entry
+    // below the diagonal drop_constraint moves there), so not cleared.
+    shape(R, n, n);
     double r_norm = 1.0;
     Vec& u = ws.u;
     zero_fill(u, static_cast<size_t>(n + 1));
@@ -839,7 +990,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
             for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
             u[q] += t;
             if (full) {
-                rotate_in(J, d, q);
+                rotate_in(J, d, q, ws.rot);
                 for (i64 i = 0; i < q + 1; ++i) R(i, q) = d[i];
                 if (std::fabs(d[q]) <= 1e-14 * r_norm) {
                     x = x_old;
@@ -855,7 +1006,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 q += 1;
                 break;
             }
-            drop_constraint(J, R, u, act_row, act_side, in_set, drop, q);
+            drop_constraint(J, R, u, act_row, act_side, in_set, drop, q, ws.rot);
             d0 = drop;  // drop_constraint turned JT's rows drop..q - 1 only
             d1 = q;
             q -= 1;
