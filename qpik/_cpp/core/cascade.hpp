@@ -1091,39 +1091,13 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
     return true;
 }
 
-// Where H = (A Z)^T A Z + rho I is factored (dual_stops_at_once: qs.L, qs.x = x0 = -H^-1 c)
-// and its factor may stand for B's (see free_answer): qs, else nullptr. That is: rho > 0 at
-// least twice reduced_objective's floor 1e-14 (1 + max diag (A Z)^T A Z), bounded here by H's
-// own diagonal (so the floor was not taken: H is B^T B itself), and trace H <= kNormalCond rho,
-// which bounds H's condition number (its least eigenvalue is at least rho) by kNormalCond.
-constexpr double kNormalCond = 1e10;
-inline const QPScratch* unfloored_x0(const ReducedQP& qp, double rho, bool factored, const QPScratch& qs) {
-    if (!factored || !(rho > 0.0)) return nullptr;
-    double big = 0.0, trace = 0.0;
-    for (i64 i = 0; i < qp.H.rows; ++i) {
-        big = pymax(big, qp.H(i, i));
-        trace += qp.H(i, i);
-    }
-    if (!(rho >= 2e-14 * (1.0 + big)) || !(trace <= kNormalCond * rho)) return nullptr;
-    if (static_cast<i64>(qs.x.size()) != qp.H.rows || qs.L.rows < qp.H.rows) return nullptr;
-    return &qs;
-}
-
 // exact_level after a dual method that stopped at once (dual_stops_at_once): of the
 // least-squares minimisers, the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d),
 // certified; true when its certificate holds (else exact_level goes on from there: the
 // caller then takes the general path).
-// x0: dual_stops_at_once's factor L of H = (A Z)^T A Z + rho I and x0 = -H^-1 c, given where
-// H had no floor added and its condition number is at most kNormalCond (unfloored_x0). With
-// rho > 0, B has full column rank and one least-squares minimiser, which x0 solves by the
-// normal equations. z = x0 + H^-1 B^T (f - B x0) (one step of refinement from B's own
-// residual, by the same factor: the error of the normal equations, about cond(H) eps,
-// multiplied by about cond(H) eps again) is tried and certified before the QR, which is
-// then not made; where its certificate fails, the QR re-solve as before.
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
-                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false,
-                        const QPScratch* x0 = nullptr) {
+                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -1151,29 +1125,6 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         // (exact_level's free_z): then eqp_ls makes it as before.
         z.resize(static_cast<size_t>(r));
         for (i64 i = 0; i < r; ++i) z[i] = zref[i] + 0.0;
-        u.clear();
-        if (certified()) return true;
-    }
-    if (x0 && static_cast<i64>(x0->x.size()) == r && ls.B.cols == r && ls.B.rows == Ak.rows + r) {
-        const Vec& x00 = x0->x;
-        CMatRef L(x0->L.a.data(), r, r, x0->L.cols);
-        // B = [A Z; s I] (ls_form: s = sqrt(rho) on the diagonal of its last r rows, zeros
-        // elsewhere): f - B x0 and B^T of it from A Z's rows and the diagonal alone.
-        i64 m = Ak.rows;
-        CMatRef AZ = ls.B.cref().rows_slice(0, m);
-        Vec& res = es.e;
-        mv_into(AZ, x00.data(), res);
-        for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - res[i];
-        Vec& g = es.g;
-        mtv_into(AZ, res.data(), g);
-        for (i64 j = 0; j < r; ++j) {
-            double sj = ls.B(m + j, j);
-            g[j] += sj * (ls.f[m + j] - sj * x00[j]);
-        }
-        forward_into(L, g, es.wy);
-        backward_into(L, es.wy, es.r);
-        z.resize(static_cast<size_t>(r));
-        for (i64 i = 0; i < r; ++i) z[i] = x00[i] + es.r[i];
         u.clear();
         if (certified()) return true;
     }
@@ -1706,7 +1657,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
-                                         z_eye, detail::unfloored_x0(qp, rho, factored, ws.qps))) {
+                                             z_eye)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
