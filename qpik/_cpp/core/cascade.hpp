@@ -172,32 +172,42 @@ constexpr i64 kJacobiFixed = 8;
 
 template <int C>
 inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
-    sq.resize(static_cast<size_t>(p));  // every entry written below
-    for (i64 i = 0; i < p; ++i) {
-        const double* ri = R.row(i);
+    // The rows, their squared norms and the pairs' stamps held on the stack (no store to a
+    // row can then alias sq or R's storage), copied back at the end; the rotations logged in
+    // batches (the same entries in the same order as one push_back each).
+    constexpr int P = static_cast<int>(kJacobiFixed);
+    const int np = static_cast<int>(p);
+    alignas(16) double W[P][C];
+    double s[P];
+    for (int i = 0; i < np; ++i) {
+        std::memcpy(W[i], R.row(i), sizeof(double) * C);
+        const double* ri = W[i];
         double acc = 0.0;
 #pragma GCC unroll 8
         for (int t = 0; t < C; ++t) acc += ri[t] * ri[t];
-        sq[i] = acc;
+        s[i] = acc;
     }
     log.clear();
     // clean[i][j], stamp[i]: as jacobi_row_norms' clean
-    i64 clean[kJacobiFixed][kJacobiFixed];
-    i64 stamp[kJacobiFixed];
-    for (i64 i = 0; i < p; ++i) {
+    int clean[P][P];
+    int stamp[P];
+    for (int i = 0; i < np; ++i) {
         stamp[i] = 0;
-        for (i64 j = 0; j < p; ++j) clean[i][j] = 0;
+        for (int j = 0; j < np; ++j) clean[i][j] = 0;
     }
-    i64 now = 0;
+    constexpr int kBatch = 32;
+    Rotation batch[kBatch];
+    int nb = 0;
+    int now = 0;
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
-        for (i64 i = 0; i < p - 1; ++i) {
-            double* ri = R.row(i);
-            for (i64 j = i + 1; j < p; ++j) {
-                const i64 c = clean[i][j];
+        for (int i = 0; i < np - 1; ++i) {
+            double* ri = W[i];
+            for (int j = i + 1; j < np; ++j) {
+                const int c = clean[i][j];
                 if (c > stamp[i] && c > stamp[j]) continue;
-                double* rj = R.row(j);
-                const double alpha = sq[i], beta = sq[j];
+                double* rj = W[j];
+                const double alpha = s[i], beta = s[j];
                 double gamma = 0.0;
 #pragma GCC unroll 8
                 for (int t = 0; t < C; ++t) gamma += ri[t] * rj[t];
@@ -233,13 +243,25 @@ inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, s
                     const v2d v = v2d{ri[C - 1], rj[C - 1]};
                     acc += v * v;
                 }
-                sq[i] = acc[0];
-                sq[j] = acc[1];
-                if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
+                s[i] = acc[0];
+                s[j] = acc[1];
+                if (log_rotations) {
+                    batch[nb++] = Rotation{i, j, cs, sn};
+                    if (nb == kBatch) {
+                        log.insert(log.end(), batch, batch + nb);
+                        nb = 0;
+                    }
+                }
                 stamp[i] = stamp[j] = ++now;
             }
         }
         if (!rotated) break;
+    }
+    if (nb) log.insert(log.end(), batch, batch + nb);
+    sq.resize(static_cast<size_t>(p));  // every entry written
+    for (int i = 0; i < np; ++i) {
+        sq[i] = s[i];
+        std::memcpy(R.row(i), W[i], sizeof(double) * C);
     }
 }
 
