@@ -386,25 +386,30 @@ struct FiniteSum {
     }
     // add() of x[0], ..., x[n - 1] (branch-free: |x| <= DBL_MAX is false for an infinity or
     // a NaN, and a NaN leaves max as add() leaves it; max is read only when all are finite).
-    // Two entries at a time: a lane's max is its entries' (a NaN never wins), and the
-    // lanes' maxima combined, the same max wherever every entry is finite (the only place
-    // it is read).
+    // Two entries at a time: x * 0.0 is +-0 for a finite x and NaN otherwise, so the lanes'
+    // sums of them compare equal to 0 exactly when every entry is finite; a lane's max is
+    // its entries' (a NaN never wins), and the lanes' maxima combined, the same max
+    // wherever every entry is finite (the only place it is read).
     void add_n(const double* x, i64 n) {
         using namespace core::simd;
-        constexpr double big = std::numeric_limits<double>::max();
+        v2d z2 = splat(0.0);
         v2d mx2 = splat(max);
-        v2d ok2 = splat(0.0);  // lanes 0 while every entry is finite
         i64 t = 0;
         for (; t + 2 <= n; t += 2) {
-            const v2d m = vabs(load(x + t));
-            ok2 = (m <= splat(big)) ? ok2 : splat(1.0);
+            const v2d v = load(x + t);
+            z2 += v * splat(0.0);
+            const v2d m = vabs(v);
+#if defined(__SSE2__)
+            mx2 = __builtin_ia32_maxpd(m, mx2);  // m > mx2 ? m : mx2, lane by lane
+#else
             mx2 = m > mx2 ? m : mx2;
+#endif
         }
-        bool ok = ok2[0] == 0.0 && ok2[1] == 0.0;
+        bool ok = z2[0] == 0.0 && z2[1] == 0.0;
         double mx = mx2[1] > mx2[0] ? mx2[1] : mx2[0];
         for (; t < n; ++t) {
             const double m = std::fabs(x[t]);
-            ok &= m <= big;
+            ok &= m <= std::numeric_limits<double>::max();
             mx = m > mx ? m : mx;
         }
         finite = finite && ok;
