@@ -1416,12 +1416,47 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             for (i64 t = 0; t < n; ++t) gd += G(j, t) * d[t];
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
-            zero_fill(v, static_cast<size_t>(r));
-            for (i64 s = 0; s < n; ++s) {
-                double g = G(j, s);
-                if (g == 0.0) continue;
-                const double* zt = Z.row(s);
-                axpy(v.data(), g, zt, r);
+            // v = G_j Z: v[c] = +0 plus G(j, s) Z(s, c) over the nonzero G(j, s) in s order (the
+            // sums of axpy rows from zero, eight or two columns a pass in registers).
+            shape(v, static_cast<size_t>(r));  // every entry written
+            const double* gj = G.row(j);
+            {
+                using namespace simd;
+                double* vp = v.data();
+                i64 c = 0;
+                for (; c + 8 <= r; c += 8) {
+                    v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
+                    for (i64 s = 0; s < n; ++s) {
+                        const double g = gj[s];
+                        if (g == 0.0) continue;
+                        const v2d gv = splat(g);
+                        const double* zt = Z.row(s) + c;
+                        a0 += gv * load(zt);
+                        a1 += gv * load(zt + 2);
+                        a2 += gv * load(zt + 4);
+                        a3 += gv * load(zt + 6);
+                    }
+                    store(vp + c, a0);
+                    store(vp + c + 2, a1);
+                    store(vp + c + 4, a2);
+                    store(vp + c + 6, a3);
+                }
+                for (; c + 2 <= r; c += 2) {
+                    v2d a0 = splat(0.0);
+                    for (i64 s = 0; s < n; ++s) {
+                        const double g = gj[s];
+                        if (g != 0.0) a0 += splat(g) * load(Z.row(s) + c);
+                    }
+                    store(vp + c, a0);
+                }
+                for (; c < r; ++c) {
+                    double a0 = 0.0;
+                    for (i64 s = 0; s < n; ++s) {
+                        const double g = gj[s];
+                        if (g != 0.0) a0 += g * Z(s, c);
+                    }
+                    vp[c] = a0;
+                }
             }
             double nn = dot(v.data(), v.data(), r);
             if (!(nn > 1e-20 * gg)) {
