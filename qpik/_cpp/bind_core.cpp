@@ -105,6 +105,40 @@ struct PyBuf {
 };
 
 
+// numpy.empty(shape) (float64) or numpy.empty(shape, numpy.int8): a new array, nullptr (the
+// Python error cleared) on failure.
+struct NumpyEmpty {
+    PyObject* empty = nullptr;  // numpy.empty and numpy.int8, held for the life of the process
+    PyObject* int8 = nullptr;
+};
+inline const NumpyEmpty& numpy_empty_fns() {
+    static const NumpyEmpty f = [] {
+        NumpyEmpty r;
+        PyObject* np = PyImport_ImportModule("numpy");
+        if (np) {
+            r.empty = PyObject_GetAttrString(np, "empty");
+            r.int8 = PyObject_GetAttrString(np, "int8");
+            Py_DECREF(np);
+        }
+        if (PyErr_Occurred()) PyErr_Clear();
+        return r;
+    }();
+    return f;
+}
+inline PyObject* numpy_empty(PyObject* shape, bool int8) {
+    const NumpyEmpty& f = numpy_empty_fns();
+    if (!f.empty || !f.int8 || !shape) {
+        Py_XDECREF(shape);
+        if (PyErr_Occurred()) PyErr_Clear();
+        return nullptr;
+    }
+    PyObject* args[2] = {shape, f.int8};
+    PyObject* out = PyObject_Vectorcall(f.empty, args, int8 ? 2 : 1, nullptr);
+    Py_DECREF(shape);
+    if (!out) PyErr_Clear();
+    return out;
+}
+
 // Interned attribute names of the objects solve_levels reads and builds (made once).
 struct Names {
     PyObject *A, *b, *regularization, *weights;
@@ -422,8 +456,24 @@ void bind_core(nb::module_& m) {
             if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return none;
             i64 L = static_cast<i64>(PySequence_Fast_GET_SIZE(levels_h.ptr()));
             if (L == 0) return none;
-            if (!xo.get(x_h.ptr(), 'd', 1, true) || xo.shape(0) != n) return none;
-            if (!act.get(active_h.ptr(), 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
+            // x and active: the caller's, or new arrays made here (numpy.empty) when None
+            nb::object x_new, act_new;
+            PyObject* x_p = x_h.ptr();
+            PyObject* act_p = active_h.ptr();
+            if (x_h.is_none()) {
+                x_new = nb::steal(numpy_empty(PyLong_FromLongLong(n), false));
+                if (!x_new.is_valid()) return none;
+                x_p = x_new.ptr();
+            }
+            if (active_h.is_none()) {
+                act_new = nb::steal(numpy_empty(Py_BuildValue("(LL)", static_cast<long long>(L),
+                                                              static_cast<long long>(n + p)),
+                                                true));
+                if (!act_new.is_valid()) return none;
+                act_p = act_new.ptr();
+            }
+            if (!xo.get(x_p, 'd', 1, true) || xo.shape(0) != n) return none;
+            if (!act.get(act_p, 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
             if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) != 4) return none;
             PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
             PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (its _cert)
@@ -519,15 +569,14 @@ void bind_core(nb::module_& m) {
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
             static_assert(sizeof(double) == 8, "the certificate bytes are float64");
             if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
-            return result_object(reinterpret_cast<PyTypeObject*>(result_type), statuses, backend, x_h.ptr(),
-                                 active_h.ptr(), r, L);
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type), statuses, backend, x_p, act_p, r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
         "workspace"_a.none() = nb::none(),
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
-        "into active (L, n + p) int8, returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
+        "into active (L, n + p) int8 (each made here by numpy.empty when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
         "iterations, active, backend, certificate, primal; the certificates, kinds[1] (primal, stationarity, dual, "
         "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
         "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");

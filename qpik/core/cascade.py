@@ -437,25 +437,20 @@ class HierarchySolver:
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
-        levels = problem.levels
-        lb, G = problem.lb, problem.G
-        if (
-            self.solver == "auto" and levels and type(levels) in (list, tuple)
-            and type(lb) is np.ndarray and type(G) is np.ndarray and lb.ndim == 1 and G.ndim == 2
-        ):  # fmt: skip
-            # One compiled call: the checks, the stacking, the cascade and the result object,
-            # its arrays preallocated here (None where an argument fails a check or needs a
-            # conversion, or a level did not settle: then the path below).
+        if self.solver == "auto":
+            # One compiled call: the checks, the stacking, the cascade and the result object
+            # with its arrays (None where an argument fails a check or needs a conversion -
+            # not a list or tuple of levels, not float64 C-contiguous arrays - or a level did
+            # not settle: then the path below, which names the argument or falls back).
             if self.damping_law is self._settings_law:  # (a DampingLaw is frozen)
                 threshold, max_damping, error_scale = self._settings
             else:
                 threshold, max_damping, error_scale = self._settings = self.damping_settings
                 self._settings_law = self.damping_law
             result = K.solve_levels(
-                levels, lb, problem.ub, G, problem.h, threshold, max_damping, error_scale,
-                self.rank_tolerance, self.max_iter, self.tolerance,
-                self._last_active() if self.warm_start else None, np.empty(lb.shape[0]),
-                np.empty((len(levels), lb.shape[0] + G.shape[0]), np.int8), _KINDS,
+                problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
+                max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
+                self._last_active() if self.warm_start else None, None, None, _KINDS,
                 self._cascade_workspace,
             )  # fmt: skip
             if result is not None:

@@ -146,6 +146,11 @@ class CompiledPlan:
                     self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
                 )
 
+    def __deepcopy__(self, memo: dict) -> CompiledPlan:
+        """The plan itself: it is the solver's machinery, not data (a deep copy of a
+        :class:`StepResult`, which reads its lazy fields through the plan, shares it)."""
+        return self
+
     def _slots(self) -> tuple[list, list]:
         """The views the lean step fills (``dt``, ``damping``, then :meth:`_sources`' values
         in order), and which take one number."""
