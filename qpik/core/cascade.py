@@ -167,7 +167,7 @@ class HierarchyProblem:
     @property
     def n(self) -> int:
         """Size of the variable."""
-        return int(self.lb.shape[0])
+        return len(self.lb)
 
     def stacked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(A, b, w, starts, reg)``: the levels' rows stacked as the kernel takes them."""
@@ -190,18 +190,39 @@ class HierarchyProblem:
         return A, b, w, starts, reg
 
     def validate(self) -> None:
-        """Shapes and finiteness; raises :class:`qpik.InvalidInput` naming the field."""
-        n = self.n
-        if self.ub.shape != (n,):
-            raise InvalidInput(f"ub must have shape ({n},), got {self.ub.shape}")
-        if self.G.ndim != 2 or self.G.shape[1] != n or self.h.shape != (self.G.shape[0],):
-            raise InvalidInput(f"G must be (p, {n}) and h (p,), got {self.G.shape}, {self.h.shape}")
-        if np.isnan(self.lb).any() or np.isnan(self.ub).any() or not np.isfinite(self.G).all():
+        """Types, shapes and finiteness; raises :class:`qpik.InvalidInput` naming the field."""
+        lb, ub = _float_array("lb", self.lb, 1), _float_array("ub", self.ub, 1)
+        G, h = _float_array("G", self.G, 2), _float_array("h", self.h, 1)
+        n = lb.shape[0]
+        if ub.shape != (n,):
+            raise InvalidInput(f"ub must have shape ({n},) as lb, got {ub.shape}")
+        if G.shape[1] != n or h.shape != (G.shape[0],):
+            raise InvalidInput(f"G must be (p, {n}) and h (p,), got {G.shape}, {h.shape}")
+        if np.isnan(lb).any() or np.isnan(ub).any() or not np.isfinite(G).all():
             raise InvalidInput("limits contain NaN")
-        if np.isnan(self.h).any():
+        if np.isnan(h).any():
             raise InvalidInput("h contains NaN")
+        if not isinstance(self.levels, (list, tuple)):
+            raise InvalidInput(f"levels must be a list of Level, got {type(self.levels).__name__}")
         for k, level in enumerate(self.levels):
             _validate_level(k, level, n)
+
+
+def _float_array(name: str, value, ndim: int) -> np.ndarray:
+    """``value`` as a float array of ``ndim`` dimensions; :class:`qpik.InvalidInput`
+    naming the field otherwise."""
+    if value is None:
+        raise InvalidInput(f"{name} must be an array of numbers, got None")
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(
+            f"{name} must be an array of numbers, got {type(value).__name__}"
+        ) from None
+    if a.ndim != ndim:
+        shape = "(n,)" if name in ("lb", "ub") else "(p, n)" if ndim == 2 else "(p,)"
+        raise InvalidInput(f"{name} must be a {shape} array, got shape {a.shape}")
+    return a
 
 
 def _validate_level(k: int, level: Level, n: int) -> None:
@@ -447,12 +468,15 @@ class HierarchySolver:
             else:
                 threshold, max_damping, error_scale = self._settings = self.damping_settings
                 self._settings_law = self.damping_law
-            result = K.solve_levels(
-                problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
-                max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
-                self._last_active() if self.warm_start else None, None, None, _KINDS,
-                self._cascade_workspace,
-            )  # fmt: skip
+            try:
+                result = K.solve_levels(
+                    problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
+                    max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
+                    self._last_active() if self.warm_start else None, None, None, _KINDS,
+                    self._cascade_workspace,
+                )  # fmt: skip
+            except TypeError:  # an argument of a type it does not take (None): the checks name it
+                result = None
             if result is not None:
                 self._warm, self._warm_row = result.active, None  # the next warm start
                 return result

@@ -265,6 +265,35 @@ def test_damping_law_and_problem_validation():
         HierarchySolver("nope")
 
 
+def test_problem_limits_of_other_types_are_converted_or_named():
+    """Lists are taken as arrays (the same answer); None, scalars, strings and wrong
+    shapes raise InvalidInput naming the field, never an AttributeError or TypeError."""
+    levels = [Level(np.eye(3), np.full(3, 2.0))]
+    lb, ub, G0, h0 = -np.ones(3), np.ones(3), np.zeros((0, 3)), np.zeros(0)
+    ref = HierarchySolver().solve(HierarchyProblem(levels, lb, ub, G0, h0)).x
+    for kw in (
+        dict(lb=[-1, -1, -1]),
+        dict(ub=(1.0, 1.0, 1.0)),
+        dict(G=[[0.0, 0.0, 0.0]], h=[5.0]),
+    ):
+        args = dict(lb=lb, ub=ub, G=G0, h=h0) | kw
+        assert np.array_equal(HierarchySolver().solve(HierarchyProblem(levels, **args)).x, ref)
+    for kw, field_name in (
+        (dict(lb=None), "lb"),
+        (dict(ub=None), "ub"),
+        (dict(lb=-1.0), "lb"),
+        (dict(G=None, h=None), "G"),
+        (dict(G=[], h=[]), "G"),
+        (dict(h=None), "h"),
+        (dict(lb=np.array(["a", "b", "c"])), "lb"),
+        (dict(ub=np.ones(4)), "ub"),
+        (dict(G=np.ones((1, 2)), h=np.ones(1)), "G"),
+    ):
+        args = dict(lb=lb, ub=ub, G=G0, h=h0) | kw
+        with pytest.raises(qpik.InvalidInput, match=field_name):
+            HierarchySolver().solve(HierarchyProblem(levels, **args))
+
+
 # ------------------------------------------------------------- IK layer against mink
 def _mink_cases():
     """(robot, tasks builder, limits builder) combinations of mink's tasks and limits."""
