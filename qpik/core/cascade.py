@@ -102,6 +102,7 @@ import numpy as np
 
 from ..errors import InvalidInput, QpikError
 from ..options import DEFAULT_DAMPING, SOLVERS, DampingLaw
+from . import checks
 from . import kernels as K
 from .certificate import (
     CERTIFICATE_TOLERANCE,
@@ -191,8 +192,10 @@ class HierarchyProblem:
 
     def validate(self) -> None:
         """Types, shapes and finiteness; raises :class:`qpik.InvalidInput` naming the field."""
-        lb, ub = _float_array("lb", self.lb, 1), _float_array("ub", self.ub, 1)
-        G, h = _float_array("G", self.G, 2), _float_array("h", self.h, 1)
+        lb = checks.check_array("lb", self.lb, "(n,)", ndim=1)
+        ub = checks.check_array("ub", self.ub, "(n,)", ndim=1)
+        G = checks.check_array("G", self.G, "(p, n)", ndim=2)
+        h = checks.check_array("h", self.h, "(p,)", ndim=1)
         n = lb.shape[0]
         if ub.shape != (n,):
             raise InvalidInput(f"ub must have shape ({n},) as lb, got {ub.shape}")
@@ -205,46 +208,9 @@ class HierarchyProblem:
         if not isinstance(self.levels, (list, tuple)):
             raise InvalidInput(f"levels must be a list of Level, got {type(self.levels).__name__}")
         for k, level in enumerate(self.levels):
-            _validate_level(k, level, n)
-
-
-def _float_array(name: str, value, ndim: int) -> np.ndarray:
-    """``value`` as a float array of ``ndim`` dimensions; :class:`qpik.InvalidInput`
-    naming the field otherwise."""
-    if value is None:
-        raise InvalidInput(f"{name} must be an array of numbers, got None")
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInput(
-            f"{name} must be an array of numbers, got {type(value).__name__}"
-        ) from None
-    if a.ndim != ndim:
-        shape = "(n,)" if name in ("lb", "ub") else "(p, n)" if ndim == 2 else "(p,)"
-        raise InvalidInput(f"{name} must be a {shape} array, got shape {a.shape}")
-    return a
-
-
-def _validate_level(k: int, level: Level, n: int) -> None:
-    """Shapes and finiteness of level ``k``; raises :class:`qpik.InvalidInput`."""
-    try:
-        A = np.asarray(level.A, dtype=float)
-        b = np.asarray(level.b, dtype=float)
-    except (TypeError, ValueError):
-        raise InvalidInput(f"level {k} ({level.name}): A and b must be arrays of numbers") from None
-    if A.ndim != 2 or A.shape[1] != n or b.shape != (A.shape[0],):
-        raise InvalidInput(
-            f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got {A.shape} and {b.shape}"
-        )
-    if not (np.isfinite(A).all() and np.isfinite(b).all()):
-        raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
-    if not (math.isfinite(level.regularization) and level.regularization >= 0):
-        raise InvalidInput(
-            f"level {k} ({level.name}): regularization must be finite and >= 0, "
-            f"got {level.regularization}"
-        )
-    if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
-        raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
+            if not isinstance(level, Level):
+                raise InvalidInput(f"level {k} must be a Level, got {type(level).__name__}")
+            checks.check_level(k, level, n)
 
 
 @dataclass

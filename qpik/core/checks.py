@@ -203,15 +203,19 @@ def check_vector(
     return array
 
 
-def check_array(name: str, value: Any, expected: str) -> np.ndarray:
-    """``value`` as a float array of any shape (the caller checks it); not numbers at
-    all: :class:`InvalidArgumentType` saying ``name`` must be ``expected``."""
+def check_array(name: str, value: Any, expected: str, ndim: int | None = None) -> np.ndarray:
+    """``value`` as a float array of any shape (the caller checks it), or of ``ndim``
+    dimensions; not numbers at all: :class:`InvalidArgumentType` saying ``name`` must be
+    ``expected``; other dimensions: :class:`qpik.InvalidInput`."""
     if value is None or isinstance(value, (str, bytes, dict)):
         raise InvalidArgumentType(name, expected, type_name(value))
     try:
-        return np.asarray(value, dtype=float)
+        array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
         raise InvalidArgumentType(name, expected, type_name(value)) from None
+    if ndim is not None and array.ndim != ndim:
+        raise InvalidInput(f"{name} must be a {expected} array, got shape {array.shape}")
+    return array
 
 
 def check_matrix(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -315,3 +319,26 @@ def check_keywords(where: str, given: dict[str, Any], allowed: Any) -> dict[str,
                 name, given[name], f"one of {valid}", f"{where} has no keyword {name!r} ({valid})"
             )
     return given
+
+
+def check_level(k: int, level: Any, n: int) -> None:
+    """Shapes and finiteness of :class:`qpik.core.Level` ``k`` of a problem on ``n``
+    variables; raises :class:`qpik.InvalidInput` naming it."""
+    try:
+        A = np.asarray(level.A, dtype=float)
+        b = np.asarray(level.b, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"level {k} ({level.name}): A and b must be arrays of numbers") from None
+    if A.ndim != 2 or A.shape[1] != n or b.shape != (A.shape[0],):
+        raise InvalidInput(
+            f"level {k} ({level.name}): A must be (m, {n}) and b (m,), got {A.shape} and {b.shape}"
+        )
+    if not (np.isfinite(A).all() and np.isfinite(b).all()):
+        raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
+    if not (math.isfinite(level.regularization) and level.regularization >= 0):
+        raise InvalidInput(
+            f"level {k} ({level.name}): regularization must be finite and >= 0, "
+            f"got {level.regularization}"
+        )
+    if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
+        raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")

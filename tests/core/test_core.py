@@ -292,6 +292,8 @@ def test_problem_limits_of_other_types_are_converted_or_named():
         args = dict(lb=lb, ub=ub, G=G0, h=h0) | kw
         with pytest.raises(qpik.InvalidInput, match=field_name):
             HierarchySolver().solve(HierarchyProblem(levels, **args))
+    with pytest.raises(qpik.InvalidInput, match="level 1 must be a Level"):
+        HierarchySolver().solve(HierarchyProblem([levels[0], {"A": 1}], lb, ub, G0, h0))
 
 
 # ------------------------------------------------------------- IK layer against mink
