@@ -188,7 +188,7 @@ class StepResult:
         result = _new(cls)
         result.velocity = velocity
         result.solve_time = solve_time
-        result._src = source
+        result.__dict__["_src"] = source  # (not a field: read by __getattr__)
         return result
 
     def __getattr__(self, name: str) -> Any:
