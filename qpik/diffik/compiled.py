@@ -20,8 +20,8 @@ the rows of the tasks that supply them, the collision limits' rows ``G dq <= h``
 CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows, the limits'
 box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
 is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
-objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it computes the frame tasks' Jacobians itself
-(bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
+objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it
+computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
 allocated :data:`_OUTPUT_ROWS` steps at a time (a result's arrays are views of its own row,
 never written again). The step returns a
 :class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the

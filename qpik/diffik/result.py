@@ -177,8 +177,8 @@ class StepResult:
 
     @classmethod
     def lean(cls, velocity: np.ndarray, solve_time: float, source: tuple) -> StepResult:
-        """The result of a lean compiled step (:meth:`qpik.diffik.compiled.CompiledPlan.step_result`)
-        with only its velocity and time set: ``source`` is ``(out, row, skip, plan, dt)``,
+        """The result of a lean compiled step
+        (:meth:`qpik.diffik.compiled.CompiledPlan.step_result`) with only its velocity and time set: ``source`` is ``(out, row, skip, plan, dt)``,
         the plan's output arrays ``out = (d, v, info, active, qpos)`` (stacks of rows, never
         written again at ``row``), the step's row, 1 when the first level is the couplings'
         (reported apart), and the plan and ``dt`` that give the step's limits. Everything
