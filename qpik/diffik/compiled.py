@@ -21,9 +21,9 @@ CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows,
 box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
 is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
 objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it
-computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its answers into a row of output arrays
-allocated :data:`_OUTPUT_ROWS` steps at a time (a result's arrays are views of its own row,
-never written again). The step returns a
+computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its
+answers into a row of output arrays allocated :data:`_OUTPUT_ROWS` steps at a time (a
+result's arrays are views of its own row, never written again). The step returns a
 :class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
 :class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
 the same arithmetic where that path's is qpik's (tests compare the two bitwise) and in

@@ -178,13 +178,14 @@ class StepResult:
     @classmethod
     def lean(cls, velocity: np.ndarray, solve_time: float, source: tuple) -> StepResult:
         """The result of a lean compiled step
-        (:meth:`qpik.diffik.compiled.CompiledPlan.step_result`) with only its velocity and time set: ``source`` is ``(out, row, skip, plan, dt)``,
-        the plan's output arrays ``out = (d, v, info, active, qpos)`` (stacks of rows, never
-        written again at ``row``), the step's row, 1 when the first level is the couplings'
-        (reported apart), and the plan and ``dt`` that give the step's limits. Everything
-        else (the displacement ``d[row]``, the per-level lists of ``info[row]``, the
-        couplings' residual, the limits) is read from it on first access: the same values
-        :meth:`of` gives, none of them built by a control loop that reads the velocity."""
+        (:meth:`qpik.diffik.compiled.CompiledPlan.step_result`) with only its velocity and time
+        set: ``source`` is ``(out, row, skip, plan, dt)``, the plan's output arrays ``out = (d,
+        v, info, active, qpos)`` (stacks of rows, never written again at ``row``), the step's
+        row, 1 when the first level is the couplings' (reported apart), and the plan and ``dt``
+        that give the step's limits. Everything else (the displacement ``d[row]``, the per-level
+        lists of ``info[row]``, the couplings' residual, the limits) is read from it on first
+        access: the same values :meth:`of` gives, none of them built by a control loop that
+        reads the velocity."""
         result = _new(cls)
         result.velocity = velocity
         result.solve_time = solve_time
