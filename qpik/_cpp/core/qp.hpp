@@ -460,11 +460,26 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
-    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (four entries a pass in registers,
-    // then two, then one: the sums axpy over JT's rows makes).
+    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (eight entries a pass in registers,
+    // then four, two, one: the sums axpy over JT's rows makes).
     {
         using namespace simd;
         i64 k = 0;
+        for (; k + 8 <= n; k += 8) {
+            v2d a = splat(0.0), b = splat(0.0), e = splat(0.0), f = splat(0.0);
+            for (i64 i = q; i < n; ++i) {
+                const double* ji = JT.row(i) + k;
+                v2d di = splat(d[i]);
+                a = a + di * load(ji);
+                b = b + di * load(ji + 2);
+                e = e + di * load(ji + 4);
+                f = f + di * load(ji + 6);
+            }
+            store(z.data() + k, a);
+            store(z.data() + k + 2, b);
+            store(z.data() + k + 4, e);
+            store(z.data() + k + 6, f);
+        }
         for (; k + 4 <= n; k += 4) {
             v2d a = splat(0.0), b = splat(0.0);
             for (i64 i = q; i < n; ++i) {
