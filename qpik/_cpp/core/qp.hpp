@@ -460,11 +460,26 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
-    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (four entries a pass in registers,
-    // then two, then one: the sums axpy over JT's rows makes).
+    // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (eight entries a pass in registers,
+    // then four, two, one: the sums axpy over JT's rows makes).
     {
         using namespace simd;
         i64 k = 0;
+        for (; k + 8 <= n; k += 8) {
+            v2d a = splat(0.0), b = splat(0.0), e = splat(0.0), f = splat(0.0);
+            for (i64 i = q; i < n; ++i) {
+                const double* ji = JT.row(i) + k;
+                v2d di = splat(d[i]);
+                a = a + di * load(ji);
+                b = b + di * load(ji + 2);
+                e = e + di * load(ji + 4);
+                f = f + di * load(ji + 6);
+            }
+            store(z.data() + k, a);
+            store(z.data() + k + 2, b);
+            store(z.data() + k + 4, e);
+            store(z.data() + k + 6, f);
+        }
         for (; k + 4 <= n; k += 4) {
             v2d a = splat(0.0), b = splat(0.0);
             for (i64 i = q; i < n; ++i) {
@@ -576,6 +591,9 @@ inline void sweep_down(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double
     for (int w = 0; w < W; ++w) store(pj + 2 * w, c[w]);
 }
 
+// Below this many columns rotate_in / drop_constraint rotate JT one rotation at a time.
+constexpr i64 kSweepMin = 12;
+
 // Every column of an n-column matrix by sweep_up / sweep_down (the last odd column by the
 // scalar loop, givens_rows's tail).
 inline void sweep(bool up, double* base, i64 n, i64 lo, i64 hi, const double* rot) {
@@ -623,6 +641,26 @@ inline void sweep(bool up, double* base, i64 n, i64 lo, i64 hi, const double* ro
 inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
     i64 n = JT.rows;
     if (n - 1 <= q) return;
+    if (n < kSweepMin) {  // few columns: one rotation at a time (the same bits, less set-up)
+        for (i64 j = n - 1; j > q; --j) {
+            double cc = d[j - 1];
+            double ss = d[j];
+            double h = std::hypot(cc, ss);
+            if (h == 0.0) continue;
+            d[j] = 0.0;
+            ss /= h;
+            cc /= h;
+            if (cc < 0.0) {
+                cc = -cc;
+                ss = -ss;
+                d[j - 1] = -h;
+            } else {
+                d[j - 1] = h;
+            }
+            givens_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
+        }
+        return;
+    }
     shape(rot, static_cast<size_t>(6 * n));
     bool skipped = false;
     for (i64 j = n - 1; j > q; --j) {
@@ -707,10 +745,15 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
         }
         double xny = ss / (1.0 + cc);
         givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
+        if (n < kSweepMin) {  // few columns: JT's rotation now (the same bits)
+            givens_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
+            continue;
+        }
         rj[0] = rj[1] = cc;
         rj[2] = rj[3] = ss;
         rj[4] = rj[5] = xny;
     }
+    if (n < kSweepMin) return;
     if (!skipped) {
         sweep(false, JT.row(0), n, drop, q + 1, rot.data());
         return;
