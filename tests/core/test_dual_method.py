@@ -72,7 +72,7 @@ def test_an_iteration_limit_ends_in_max_iter():
 
 
 def _humanoid_like(rng: np.random.Generator, n: int) -> HierarchyProblem:
-    v = rng.standard_normal(n)
+    rng.standard_normal(n)  # (a draw the recorded cases were made after)
     levels = [
         Level(0.3 * rng.standard_normal((6, n)), np.zeros(6)),
         Level(0.4 * rng.standard_normal((8, n)), 0.01 * rng.standard_normal(8)),
