@@ -66,7 +66,16 @@ def _case(rng, m, k, n, kind):
     return A, Z
 
 
-SHAPES = [(1, 3, 2), (4, 4, 4), (5, 7, 3), (8, 9, 8), (9, 13, 10), (12, 35, 20), (6, 5, 1), (7, 3, 11)]
+SHAPES = [
+    (1, 3, 2),
+    (4, 4, 4),
+    (5, 7, 3),
+    (8, 9, 8),
+    (9, 13, 10),
+    (12, 35, 20),
+    (6, 5, 1),
+    (7, 3, 11),
+]
 
 
 @pytest.mark.parametrize("kind", ["dense", "zeros", "nonfinite", "cancel"])
@@ -88,7 +97,9 @@ def test_objective_hessian_is_the_ordered_skip_zero_sum(shape, kind):
     AZ = _mm_reference(A, Z)
     # d, lb, ub of length k; no general rows
     d = np.zeros(k)
-    H = E.reduced_qp(A, np.zeros(m), AZ, Z, d, 0.0, -np.ones(k), np.ones(k), np.zeros((0, k)), np.zeros(0))[0]
+    H = E.reduced_qp(
+        A, np.zeros(m), AZ, Z, d, 0.0, -np.ones(k), np.ones(k), np.zeros((0, k)), np.zeros(0)
+    )[0]
     ref = _mtm_reference(AZ)
     off = ~np.eye(n, dtype=bool)
     assert _same_bits(H[off], ref[off])

@@ -40,7 +40,11 @@ def _kkt_residuals(H, c, C, lo, hi, x):
     if N.shape[1] == 0:
         return primal, float(np.linalg.norm(g)), 0.0
     u, *_ = np.linalg.lstsq(N, g, rcond=None)
-    return primal, float(np.linalg.norm(N @ u - g) / (1.0 + np.linalg.norm(g))), float(-min(0.0, u.min()))
+    return (
+        primal,
+        float(np.linalg.norm(N @ u - g) / (1.0 + np.linalg.norm(g))),
+        float(-min(0.0, u.min())),
+    )
 
 
 @pytest.mark.parametrize("diagonal", [False, True])
@@ -94,4 +98,6 @@ def test_a_kept_workspace_after_larger_dual_solves_gives_fresh_bits():
     assert any(sum(HierarchySolver(damping_law=None).solve(p).iterations) > 10 for p in problems)
     reused = HierarchySolver(damping_law=None)
     for problem in problems + problems[::-1]:
-        assert _bits(reused.solve(problem)) == _bits(HierarchySolver(damping_law=None).solve(problem))
+        assert _bits(reused.solve(problem)) == _bits(
+            HierarchySolver(damping_law=None).solve(problem)
+        )

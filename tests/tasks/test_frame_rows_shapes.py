@@ -93,7 +93,10 @@ def test_frame_rows_into_non_finite_jlog_and_xmat():
     R, jlogs = _jlogs(rng)
     jac = _jac(rng, nv)
     cost = np.ones(6)
-    for jlog, xmat in ((np.array(jlogs["jlog"]), R.ravel().copy()), (jlogs["eye"], R.ravel().copy())):
+    for jlog, xmat in (
+        (np.array(jlogs["jlog"]), R.ravel().copy()),
+        (jlogs["eye"], R.ravel().copy()),
+    ):
         jlog = np.array(jlog)
         jlog[0, 5] = np.inf
         A = np.zeros((6, nv))
