@@ -47,7 +47,12 @@ class PostureTask(mink.PostureTask):
     def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
         error = self.compute_error(configuration)
         weighted_error = self.cost * (-self.gain * error)
-        mu = self.lm_damping * float(weighted_error @ weighted_error)
+        # |b|^2 summed in order, as the fused step's posture_rows sums it (a BLAS dot's
+        # order differs in the last bit, and the level's answer may see it).
+        acc = 0.0
+        for v in weighted_error.tolist():
+            acc += v * v
+        mu = self.lm_damping * acc
         return self.cost[:, None] * self._jacobian, weighted_error, mu
 
 

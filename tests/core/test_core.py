@@ -532,3 +532,37 @@ def test_far_frame_targets_are_solved_at_the_velocity_limits(distance):
     )
     np.testing.assert_allclose(result.displacement, reference, atol=1e-4)
     assert np.abs(result.displacement).max() == pytest.approx(np.abs(problem.ub).max())
+
+
+def test_warm_start_gives_the_cold_bits_on_damped_levels(rng):
+    """Damped levels (rho > 0: the free level's Cholesky answer, free_answer's second
+    candidate) solved cold and warm-started after a history of other problems: the same bits.
+    Wide boxes (no row binds: the cold level stops at once, the warm one ends its dual method
+    with an empty working set) and tight ones (rows bind on some levels), mixed."""
+    problems = []
+    for trial in range(120):
+        n = int(rng.integers(2, 9))
+        levels, lb, ub, G, h = random_problem(rng, n, levels=int(rng.integers(1, 4)), general=1)
+        for level in levels:
+            level.regularization = 10.0 ** rng.uniform(-8, 0)
+            if trial % 3 == 0:
+                level.b = level.b * 1e-3  # near the start: nothing binds
+        if trial % 3 != 2:  # wide boxes and general rows: free levels
+            lb, ub, h = lb * 1e3, ub * 1e3, h + 1e3
+        problems.append(HierarchyProblem(levels, lb, ub, G, h))
+    free = 0
+    for law in (None, DampingLaw()):
+        cold = [HierarchySolver(damping_law=law).solve(p) for p in problems]
+        free += sum(not r.active.any() for r in cold)
+        warm = HierarchySolver(damping_law=law, warm_start=True)
+        for _round in range(2):
+            # each problem after the others (warm starts from their active sets) and again
+            # after itself
+            for order in (range(len(problems)), reversed(range(len(problems)))):
+                for i in order:
+                    for _ in range(2):
+                        result = warm.solve(problems[i])
+                        assert result.ok, (i, result.status)
+                        np.testing.assert_array_equal(result.x, cold[i].x, err_msg=str(i))
+                        np.testing.assert_array_equal(result.active, cold[i].active)
+    assert free > 40  # levels where nothing binds, cold and warm

@@ -881,6 +881,12 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
     return true;
 }
 
+// (below; exact_level's answer for an empty working set)
+inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
+                        CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
+                        const double* gsq, const double* ztd, bool z_eye, const ReducedQP* qp,
+                        const QPScratch* made);
+
 // One level made exact: the dual active set's rows (sol) re-solved on their canonical
 // active set without regularisation, then certified; else the primal active set from a
 // feasible point, certified. Returns true with z, the working set and the certificate when
@@ -948,6 +954,19 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
         }
         // Of the minimisers, the one nearest x = 0 (z = -Z^T d), the tie-break the dual
         // method's floor makes: canonical (no dependence on the path or the warm start).
+        if (q == 0 && !have_dual) {
+            // An empty working set (cold or warm): free_answer's candidates in its order, the
+            // same bits as where the cascade calls it; where none holds, its QR re-solve and
+            // certificate (eqp_ls's with no rows) go on as the dual candidate.
+            have_dual = true;
+            if (free_answer(ls, Ak, bk, rho, Z, d, lb, ub, G, h, zc, cert, es, gsq, ztd, z_eye, &qp, nullptr)) {
+                final_rows.clear();
+                final_sides.clear();
+                z = zc;
+                return true;
+            }
+            best = cert.worst();
+        }
         Vec& zref = es.xzref;
         neg_ztd(Z, d, ztd, zref);
         if (!have_dual &&
@@ -1131,13 +1150,88 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
     return true;
 }
 
-// exact_level after a dual method that stopped at once (dual_stops_at_once): of the
-// least-squares minimisers, the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d),
-// certified; true when its certificate holds (else exact_level goes on from there: the
-// caller then takes the general path).
+// The free level's answer by the normal equations (free_answer's second candidate), a function
+// of B = [A Z; s I] and f alone (ls_form's; s = sqrt(rho)), as the QR re-solve is: where rho > 0
+// and trace B^T B <= kNormalCond s^2 (B^T B's condition number at most kNormalCond, its least
+// eigenvalue being at least s^2), B has full column rank and one least-squares minimiser, which
+// x0 = N^-1 B^T f solves, N = (A Z)^T A Z + s^2 I (mtm_into of B's first m rows, s * s added to
+// its diagonal) by its Cholesky factor (cholesky_into on a zeroed r x r matrix); z = x0 + N^-1
+// B^T (f - B x0) is one step of refinement by the same factor from B's own residual (the error
+// of the normal equations, about cond eps, multiplied by about cond eps again). False (no
+// candidate) where a condition fails or N's factor does not exist.
+// Not rho itself (nor qp's c): two paths may pass rho an ulp apart with the same s, B and f (the
+// IK step's fused and general paths sum a level's LM terms in different orders), and the QR's
+// answer sees rho only through s. N is qp.H bit for bit where s * s == rho and qp.H had no
+// floor added (reduced_objective: the same mtm_into, then + reg, reg = rho where rho >= 2e-14
+// (1 + max diag H)); there made, dual_stops_at_once's factor of qp.H (ws.qps.L: the same
+// cholesky_into on a zeroed r x r matrix), is taken rather than made again: the same bits.
+// Either way the candidate is the same bits on every path to it (cold or warm, cascade or
+// level by level, fused or general).
+constexpr double kNormalCond = 1e10;
+inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const QPScratch* made,
+                             CertScratch& es, Vec& z) {
+    i64 r = ls.B.cols;
+    if (!ls.reg || r <= 0 || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r) return false;
+    CMatRef AZ = ls.B.cref().rows_slice(0, m);
+    double s = ls.B(m, 0);
+    double s2 = s * s;
+    double trace = 0.0;  // trace (A Z)^T A Z, summed by rows
+    for (i64 i = 0; i < m; ++i) {
+        const double* ai = AZ.row(i);
+        for (i64 j = 0; j < r; ++j) trace += ai[j] * ai[j];
+    }
+    if (!(s2 > 0.0) || !(trace + static_cast<double>(r) * s2 <= kNormalCond * s2)) return false;
+    bool same = made != nullptr && s2 == rho && qp.H.rows == r && qp.H.cols == r && made->L.rows == r &&
+                made->L.cols == r;
+    double big = 0.0;
+    for (i64 i = 0; same && i < r; ++i) big = pymax(big, qp.H(i, i));
+    same = same && rho >= 2e-14 * (1.0 + big);
+    CMatRef L;
+    if (same) {
+        L = made->L.cref();
+    } else {
+        Mat& N = es.N;  // eqp_ls's N and BW, unused with no rows until the QR
+        mtm_into(AZ, N);
+        for (i64 i = 0; i < r; ++i) N(i, i) += s2;
+        Mat& Lm = es.BW;
+        Lm.zeros(r, r);
+        if (!cholesky_into(N.cref(), r, 0.0, Lm.ref())) return false;
+        L = Lm.cref();
+    }
+    // x0 = N^-1 B^T f (B^T f from A Z's rows and the diagonal alone: B's last r rows are s I)
+    Vec& g = es.g;
+    mtv_into(AZ, ls.f.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * ls.f[m + j];
+    forward_into(L, g, es.wy);
+    Vec& x0 = es.t;
+    backward_into(L, es.wy, x0);
+    // z = x0 + N^-1 B^T (f - B x0)
+    Vec& res = es.e;
+    mv_into(AZ, x0.data(), res);
+    for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - res[i];
+    mtv_into(AZ, res.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * (ls.f[m + j] - s * x0[j]);
+    forward_into(L, g, es.wy);
+    backward_into(L, es.wy, es.r);
+    z.resize(static_cast<size_t>(r));
+    for (i64 i = 0; i < r; ++i) z[i] = x0[i] + es.r[i];
+    return true;
+}
+
+// exact_level after a dual method that stopped at once (dual_stops_at_once), and exact_level's
+// own answer for an empty working set (q == 0, cold or warm): of the least-squares minimisers,
+// the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d), certified; true when its
+// certificate holds (else exact_level goes on from there: the caller then takes the general
+// path). Its candidates, in this order on every path: zref where B zref = f already
+// (residual_free: the QR's own bits), normal_candidate where qp is given and its conditions
+// hold, then the QR re-solve; the first whose certificate holds is the answer, and where none
+// does z and cert are the QR's.
+// made: dual_stops_at_once's factor of qp.H (ws.qps), else nullptr (normal_candidate then
+// factors N itself: the same bits).
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
-                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false) {
+                        const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false,
+                        const ReducedQP* qp = nullptr, const QPScratch* made = nullptr) {
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -1165,6 +1259,10 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         // (exact_level's free_z): then eqp_ls makes it as before.
         z.resize(static_cast<size_t>(r));
         for (i64 i = 0; i < r; ++i) z[i] = zref[i] + 0.0;
+        u.clear();
+        if (certified()) return true;
+    }
+    if (qp && normal_candidate(ls, *qp, rho, Ak.rows, made, es, z)) {
         u.clear();
         if (certified()) return true;
     }
@@ -1731,7 +1829,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
-                                             z_eye)) {
+                                         z_eye, &qp, factored ? &ws.qps : nullptr)) {
             double* ck = res.certificate.data() + 4 * k;
             ck[0] = cert.primal;
             ck[1] = cert.stationarity;
