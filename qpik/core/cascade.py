@@ -314,7 +314,8 @@ class HierarchySolver:
         warm_start: try the previous call's active sets first (opt-in). Every answer, warm
             or cold, ends in the same canonical exact re-solve (module doc), so warm and
             cold starts agree bit for bit when the optimal active set is unique, and to
-            round-off at degenerate vertices.
+            round-off at degenerate vertices. Speed only, and today not a gain: the
+            warm set's KKT check costs more than the dual iterations it saves.
         backend_options: passed to the forced backend (OSQP settings or qpsolvers kwargs).
     """
 
