@@ -359,135 +359,6 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
     }
 }
 
-// reflect_columns (rows i..m-1, columns i..k-1 of M, row stride k) followed by
-// col_sq(M, k, i + 1, m, i + 1, k, norms): the reflection's operations as reflect_row_set
-// makes them (the same blocking of the columns: eight, four, two, then one), each updated
-// entry of rows i + 1.. squared and added to its column's sum as it is stored, the sums
-// over the rows in order from +0: the values col_sq then reads and sums in the same order
-// (the same bits, one pass fewer over the rows). norms[i] gets the pivot column's sum too
-// (never read: the next step searches columns i + 1..).
-inline void reflect_columns_norms(Mat& M, i64 i, i64 size, const double* x, double vn, double* S, double* norms) {
-    using namespace simd;
-    i64 k = M.cols;
-    i64 w = k - i;
-    if (w < 2) {  // one column: no norm left to sum
-        reflect_columns(M.row(0), k, i, size, i, k, x, vn, S);
-        return;
-    }
-    double* base = M.a.data() + i * k + i;
-    i64 j = 0;
-    for (; j + 8 <= w; j += 8) {
-        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
-        const double* p = base + j;
-        for (i64 t = 0; t < size; ++t, p += k) {
-            v2d xt = splat(x[t]);
-            s0 += xt * load(p);
-            s1 += xt * load(p + 2);
-            s2 += xt * load(p + 4);
-            s3 += xt * load(p + 6);
-        }
-        v2d two = splat(2.0), vv = splat(vn);
-        s0 = two * s0 / vv;
-        s1 = two * s1 / vv;
-        s2 = two * s2 / vv;
-        s3 = two * s3 / vv;
-        store(S + j, s0);
-        store(S + j + 2, s1);
-        store(S + j + 4, s2);
-        store(S + j + 6, s3);
-        double* q = base + j;
-        {
-            v2d xt = splat(x[0]);
-            store(q, load(q) - xt * s0);
-            store(q + 2, load(q + 2) - xt * s1);
-            store(q + 4, load(q + 4) - xt * s2);
-            store(q + 6, load(q + 6) - xt * s3);
-        }
-        v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
-        q += k;
-        for (i64 t = 1; t < size; ++t, q += k) {
-            v2d xt = splat(x[t]);
-            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
-            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
-            store(q, u0);
-            store(q + 2, u1);
-            store(q + 4, u2);
-            store(q + 6, u3);
-            a0 += u0 * u0;
-            a1 += u1 * u1;
-            a2 += u2 * u2;
-            a3 += u3 * u3;
-        }
-        store(norms + i + j, a0);
-        store(norms + i + j + 2, a1);
-        store(norms + i + j + 4, a2);
-        store(norms + i + j + 6, a3);
-    }
-    for (; j + 4 <= w; j += 4) {
-        v2d s = splat(0.0), s2 = splat(0.0);
-        const double* p = base + j;
-        for (i64 t = 0; t < size; ++t, p += k) {
-            v2d xt = splat(x[t]);
-            s += xt * load(p);
-            s2 += xt * load(p + 2);
-        }
-        s = splat(2.0) * s / splat(vn);
-        s2 = splat(2.0) * s2 / splat(vn);
-        store(S + j, s);
-        store(S + j + 2, s2);
-        double* q = base + j;
-        {
-            v2d xt = splat(x[0]);
-            store(q, load(q) - xt * s);
-            store(q + 2, load(q + 2) - xt * s2);
-        }
-        v2d a0 = splat(0.0), a1 = splat(0.0);
-        q += k;
-        for (i64 t = 1; t < size; ++t, q += k) {
-            v2d xt = splat(x[t]);
-            v2d u0 = load(q) - xt * s, u1 = load(q + 2) - xt * s2;
-            store(q, u0);
-            store(q + 2, u1);
-            a0 += u0 * u0;
-            a1 += u1 * u1;
-        }
-        store(norms + i + j, a0);
-        store(norms + i + j + 2, a1);
-    }
-    for (; j + 2 <= w; j += 2) {
-        v2d s = splat(0.0);
-        const double* p = base + j;
-        for (i64 t = 0; t < size; ++t, p += k) s += splat(x[t]) * load(p);
-        s = splat(2.0) * s / splat(vn);
-        store(S + j, s);
-        double* q = base + j;
-        store(q, load(q) - splat(x[0]) * s);
-        v2d a0 = splat(0.0);
-        q += k;
-        for (i64 t = 1; t < size; ++t, q += k) {
-            v2d u0 = load(q) - splat(x[t]) * s;
-            store(q, u0);
-            a0 += u0 * u0;
-        }
-        store(norms + i + j, a0);
-    }
-    if (j < w) {
-        double s = 0.0;
-        double* q = base + j;
-        for (i64 t = 0; t < size; ++t) s += x[t] * q[t * k];
-        s = 2.0 * s / vn;
-        S[j] = s;
-        q[0] -= x[0] * s;
-        double a = 0.0;
-        for (i64 t = 1; t < size; ++t) {
-            double u = q[t * k] - x[t] * s;
-            q[t * k] = u;
-            a += u * u;
-        }
-        norms[i + j] = a;
-    }
-}
-
 // min |M y - f| by Householder QR with column pivoting, into y (M (m, k) and f are
 // overwritten); pivots below kLsRank |R_00| are zeros, and the solution is the one of
 // least norm.
@@ -539,7 +410,8 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint =
             double vn = dot(x.data(), x.data(), size);
             if (vn != 0.0) {
                 // the remaining columns' norms summed as the entries are updated
-                reflect_columns_norms(M, i, size, x.data(), vn, S.data(), norms.data());
+                reflect_columns(M.a.data(), M.cols, i, size, i, M.cols, x.data(), vn, S.data(),
+                                norms.data() + i);
                 double s = dot(x.data(), f.data() + i, size);
                 s = 2.0 * s / vn;
                 axmy(f.data() + i, s, x.data(), size);

@@ -536,6 +536,67 @@ inline void mm_rows(CMatRef A, CMatRef B, Mat& C, i64 r0, i64 r1) {
 }
 }  // namespace detail
 
+namespace detail {
+
+// Rows r0..r3 of a product, columns j0 .. n (two or four at a time; the rest, an odd last
+// column, left to the caller, whose column is returned): entry (r, j) = +0 plus AS[4 t + r]
+// X(t, j) over t < k in t order, AS holding the four rows' entries broadcast to pairs and X
+// rows `stride` apart (mm_into's and mtm_into's blocks: the same products in the same order).
+__attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const double* X, i64 stride,
+                                                      i64 k, i64 j0, i64 n, double* r0, double* r1,
+                                                      double* r2, double* r3) {
+    using namespace simd;
+    i64 j = j0;
+    for (; j + 4 <= n; j += 4) {
+        v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+        v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
+        const double* bp = X + j;
+        const v2d* as = AS;
+        for (i64 t = 0; t < k; ++t, bp += stride, as += 4) {
+            v2d b0 = load(bp), b1 = load(bp + 2);
+            v2d x = as[0];
+            c0 += x * b0;
+            d0 += x * b1;
+            x = as[1];
+            c1 += x * b0;
+            d1 += x * b1;
+            x = as[2];
+            c2 += x * b0;
+            d2 += x * b1;
+            x = as[3];
+            c3 += x * b0;
+            d3 += x * b1;
+        }
+        store(r0 + j, c0);
+        store(r0 + j + 2, d0);
+        store(r1 + j, c1);
+        store(r1 + j + 2, d1);
+        store(r2 + j, c2);
+        store(r2 + j + 2, d2);
+        store(r3 + j, c3);
+        store(r3 + j + 2, d3);
+    }
+    for (; j + 2 <= n; j += 2) {
+        v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+        const double* bp = X + j;
+        const v2d* as = AS;
+        for (i64 t = 0; t < k; ++t, bp += stride, as += 4) {
+            v2d bt = load(bp);
+            c0 += as[0] * bt;
+            c1 += as[1] * bt;
+            c2 += as[2] * bt;
+            c3 += as[3] * bt;
+        }
+        store(r0 + j, c0);
+        store(r1 + j, c1);
+        store(r2 + j, c2);
+        store(r3 + j, c3);
+    }
+    return j;
+}
+
+}  // namespace detail
+
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
 // Each entry (i, j) is +0 plus the products A(i, t) B(t, j) of the nonzero A(i, t), added in t
 // order. Four rows of A with no zero entry (A's entries, each broadcast to a pair, laid out
@@ -567,56 +628,8 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
                 detail::mm_rows(A, B, C, i, i + 4);
                 continue;
             }
-            double* r0 = C.row(i);
-            double* r1 = C.row(i + 1);
-            double* r2 = C.row(i + 2);
-            double* r3 = C.row(i + 3);
-            i64 j = 0;
-            for (; j + 4 <= n; j += 4) {
-                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
-                const double* bp = B.p + j;
-                const v2d* as = AS;
-                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
-                    v2d b0 = load(bp), b1 = load(bp + 2);
-                    v2d x = as[0];
-                    c0 += x * b0;
-                    d0 += x * b1;
-                    x = as[1];
-                    c1 += x * b0;
-                    d1 += x * b1;
-                    x = as[2];
-                    c2 += x * b0;
-                    d2 += x * b1;
-                    x = as[3];
-                    c3 += x * b0;
-                    d3 += x * b1;
-                }
-                store(r0 + j, c0);
-                store(r0 + j + 2, d0);
-                store(r1 + j, c1);
-                store(r1 + j + 2, d1);
-                store(r2 + j, c2);
-                store(r2 + j + 2, d2);
-                store(r3 + j, c3);
-                store(r3 + j + 2, d3);
-            }
-            for (; j + 2 <= n; j += 2) {
-                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                const double* bp = B.p + j;
-                const v2d* as = AS;
-                for (i64 t = 0; t < k; ++t, bp += B.stride, as += 4) {
-                    v2d bt = load(bp);
-                    c0 += as[0] * bt;
-                    c1 += as[1] * bt;
-                    c2 += as[2] * bt;
-                    c3 += as[3] * bt;
-                }
-                store(r0 + j, c0);
-                store(r1 + j, c1);
-                store(r2 + j, c2);
-                store(r3 + j, c3);
-            }
+            i64 j = detail::block4_rows(AS, B.p, B.stride, k, 0, n, C.row(i), C.row(i + 1), C.row(i + 2),
+                                        C.row(i + 3));
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
                     const double* ar = A.row(r);
@@ -682,56 +695,8 @@ inline void mtm_into(CMatRef A, Mat& C) {
                 AS[4 * t + 3] = splat(at[3]);
             }
             if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
-            double* r0 = C.row(i);
-            double* r1 = C.row(i + 1);
-            double* r2 = C.row(i + 2);
-            double* r3 = C.row(i + 3);
-            i64 j = i;
-            for (; j + 4 <= n; j += 4) {
-                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                v2d d0 = splat(0.0), d1 = splat(0.0), d2 = splat(0.0), d3 = splat(0.0);
-                const double* bp = A.p + j;
-                const v2d* as = AS;
-                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
-                    v2d b0 = load(bp), b1 = load(bp + 2);
-                    v2d x = as[0];
-                    c0 += x * b0;
-                    d0 += x * b1;
-                    x = as[1];
-                    c1 += x * b0;
-                    d1 += x * b1;
-                    x = as[2];
-                    c2 += x * b0;
-                    d2 += x * b1;
-                    x = as[3];
-                    c3 += x * b0;
-                    d3 += x * b1;
-                }
-                store(r0 + j, c0);
-                store(r0 + j + 2, d0);
-                store(r1 + j, c1);
-                store(r1 + j + 2, d1);
-                store(r2 + j, c2);
-                store(r2 + j + 2, d2);
-                store(r3 + j, c3);
-                store(r3 + j + 2, d3);
-            }
-            for (; j + 2 <= n; j += 2) {
-                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
-                const double* bp = A.p + j;
-                const v2d* as = AS;
-                for (i64 t = 0; t < m; ++t, bp += A.stride, as += 4) {
-                    v2d bt = load(bp);
-                    c0 += as[0] * bt;
-                    c1 += as[1] * bt;
-                    c2 += as[2] * bt;
-                    c3 += as[3] * bt;
-                }
-                store(r0 + j, c0);
-                store(r1 + j, c1);
-                store(r2 + j, c2);
-                store(r3 + j, c3);
-            }
+            i64 j = detail::block4_rows(AS, A.p, A.stride, m, i, n, C.row(i), C.row(i + 1), C.row(i + 2),
+                                        C.row(i + 3));
             for (; j < n; ++j) {
                 for (i64 r = i; r < i + 4; ++r) {
                     double acc = 0.0;
