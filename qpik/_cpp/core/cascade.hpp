@@ -1061,6 +1061,22 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
             cx += c[t] * x[t];
         }
     };
+    // Whether rows i0..i1 - 1 of M (its rows' norms and products with x; rows j, j + 1 summed
+    // together) hold a row `test` finds violated, decided in row order.
+    auto violated = [&](const auto& M, i64 i0, i64 i1, const auto& test) {
+        i64 i = i0;
+        for (; i + 2 <= i1; i += 2) {
+            double n0, x0, n1, x1;
+            sums2(M.row(i), M.row(i + 1), n0, x0, n1, x1);
+            if (test(i, n0, x0) || test(i + 1, n1, x1)) return true;
+        }
+        for (; i < i1; ++i) {
+            double norm, cx;
+            sums1(M.row(i), norm, cx);
+            if (test(i, norm, cx)) return true;
+        }
+        return false;
+    };
     auto decide = [&](double norm, double cx, double lo, double hi, double size) {
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
         norm = std::sqrt(norm);
@@ -1099,17 +1115,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
             double size = gsq ? gsq[j] : row_sq_of(G, j);
             return decide(norm, cx, -kInf, h[j] - Gd[j], size);
         };
-        i64 j = 0;
-        for (; j + 2 <= p; j += 2) {  // rows j, j + 1 summed together, decided in order
-            double n0, x0, n1, x1;
-            sums2(GZ.row(j), GZ.row(j + 1), n0, x0, n1, x1);
-            if (general(j, n0, x0) || general(j + 1, n1, x1)) return false;
-        }
-        for (; j < p; ++j) {
-            double norm, cx;
-            sums1(GZ.row(j), norm, cx);
-            if (general(j, norm, cx)) return false;
-        }
+        if (violated(GZ, 0, p, general)) return false;
     }
     auto box = [&](i64 i, double norm, double cx) {
         double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
@@ -1121,17 +1127,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
         for (; i < n; ++i)
             if (box(i, 1.0, x[i] + 0.0)) return false;
     }
-    for (; i + 2 <= n; i += 2) {
-        double n0, x0, n1, x1;
-        sums2(Z.row(i), Z.row(i + 1), n0, x0, n1, x1);
-        if (box(i, n0, x0) || box(i + 1, n1, x1)) return false;
-    }
-    for (; i < n; ++i) {
-        double norm, cx;
-        sums1(Z.row(i), norm, cx);
-        if (box(i, norm, cx)) return false;
-    }
-    return true;
+    return !violated(Z, i, n, box);
 }
 
 // Whether B zref = f exactly (eqp_ls's right-hand side f - B zref with no rows, computed as

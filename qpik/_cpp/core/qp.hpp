@@ -634,6 +634,26 @@ inline void sweep(bool up, double* base, i64 n, i64 lo, i64 hi, const double* ro
     }
 }
 
+// The rotation of entries j - 1, j of d that zeroes d[j] (rotate_in's): false where both are
+// zero (no rotation); else (cc, ss) with cc >= 0 (or NaN), d[j - 1] = +-hypot and d[j] = 0.
+inline bool givens_of(Vec& d, i64 j, double& cc, double& ss) {
+    cc = d[j - 1];
+    ss = d[j];
+    double h = std::hypot(cc, ss);
+    if (h == 0.0) return false;
+    d[j] = 0.0;
+    ss /= h;
+    cc /= h;
+    if (cc < 0.0) {
+        cc = -cc;
+        ss = -ss;
+        d[j - 1] = -h;
+    } else {
+        d[j - 1] = h;
+    }
+    return true;
+}
+
 // Add a constraint: Givens rotations of J's columns (JT's rows) so that only d[:q+1] is
 // non-zero. The rotations' coefficients depend on d alone: taken first, in order (into rot,
 // see sweep_up; cc -1 marks a skipped one, h = 0), then applied to JT by sweep (the same
@@ -643,44 +663,19 @@ inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
     if (n - 1 <= q) return;
     if (n < kSweepMin) {  // few columns: one rotation at a time (the same bits, less set-up)
         for (i64 j = n - 1; j > q; --j) {
-            double cc = d[j - 1];
-            double ss = d[j];
-            double h = std::hypot(cc, ss);
-            if (h == 0.0) continue;
-            d[j] = 0.0;
-            ss /= h;
-            cc /= h;
-            if (cc < 0.0) {
-                cc = -cc;
-                ss = -ss;
-                d[j - 1] = -h;
-            } else {
-                d[j - 1] = h;
-            }
-            givens_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
+            double cc, ss;
+            if (givens_of(d, j, cc, ss)) givens_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
         }
         return;
     }
     shape(rot, static_cast<size_t>(6 * n));
     bool skipped = false;
     for (i64 j = n - 1; j > q; --j) {
-        double cc = d[j - 1];
-        double ss = d[j];
-        double h = std::hypot(cc, ss);
-        if (h == 0.0) {
+        double cc, ss;
+        if (!givens_of(d, j, cc, ss)) {
             skipped = true;
             rot[6 * j] = -1.0;  // (a rotation's cc is >= 0 or NaN)
             continue;
-        }
-        d[j] = 0.0;
-        ss /= h;
-        cc /= h;
-        if (cc < 0.0) {
-            cc = -cc;
-            ss = -ss;
-            d[j - 1] = -h;
-        } else {
-            d[j - 1] = h;
         }
         double xny = ss / (1.0 + cc);
         double* rj = rot.data() + 6 * j;
