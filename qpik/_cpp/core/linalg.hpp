@@ -1000,6 +1000,45 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
 
 namespace detail {
 
+// reflect_row_set's pass over the 2 L columns j.. (L pairs): s summed over t in order in
+// registers, stored to S, then the columns updated (and their norms of rows 1.., Norms).
+template <int L, bool Norms, class Row>
+__attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 j, const double* x, double vn,
+                                                         double* S, double* N) {
+    using namespace simd;
+    v2d s[L], nn[L];
+#pragma GCC unroll 8
+    for (int l = 0; l < L; ++l) s[l] = nn[l] = splat(0.0);
+    for (i64 t = 0; t < size; ++t) {
+        const double* p = row(t) + j;
+        v2d xt = splat(x[t]);
+#pragma GCC unroll 8
+        for (int l = 0; l < L; ++l) s[l] += xt * load(p + 2 * l);
+    }
+    v2d two = splat(2.0), vv = splat(vn);
+#pragma GCC unroll 8
+    for (int l = 0; l < L; ++l) {
+        s[l] = two * s[l] / vv;
+        store(S + j + 2 * l, s[l]);
+    }
+    for (i64 t = 0; t < size; ++t) {
+        double* q = row(t) + j;
+        v2d xt = splat(x[t]);
+#pragma GCC unroll 8
+        for (int l = 0; l < L; ++l) {
+            v2d u = load(q + 2 * l) - xt * s[l];
+            store(q + 2 * l, u);
+            if constexpr (Norms) {
+                if (t >= 1) nn[l] += u * u;
+            }
+        }
+    }
+    if constexpr (Norms) {
+#pragma GCC unroll 8
+        for (int l = 0; l < L; ++l) store(N + j + 2 * l, nn[l]);
+    }
+}
+
 // The Householder reflection (x, |x|^2 = vn) applied to w columns of the rows row(0..size-1)
 // (row(t): a pointer to the first of them in row t): per column, s_j = 2 (sum_t x[t] M(t, j)) / vn,
 // then M(t, j) -= s_j x[t]. Sixteen, eight, four or two columns a pass: s_j summed over t in order
@@ -1012,173 +1051,11 @@ namespace detail {
 // bits, without reading the rows again).
 template <class Row, bool Norms = false>
 inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S, double* N = nullptr) {
-    using namespace simd;
     i64 j = 0;
-    for (; j + 16 <= w; j += 16) {
-        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
-        v2d s4 = splat(0.0), s5 = splat(0.0), s6 = splat(0.0), s7 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            const double* p = row(t) + j;
-            v2d xt = splat(x[t]);
-            s0 += xt * load(p);
-            s1 += xt * load(p + 2);
-            s2 += xt * load(p + 4);
-            s3 += xt * load(p + 6);
-            s4 += xt * load(p + 8);
-            s5 += xt * load(p + 10);
-            s6 += xt * load(p + 12);
-            s7 += xt * load(p + 14);
-        }
-        v2d two = splat(2.0), vv = splat(vn);
-        s0 = two * s0 / vv;
-        s1 = two * s1 / vv;
-        s2 = two * s2 / vv;
-        s3 = two * s3 / vv;
-        s4 = two * s4 / vv;
-        s5 = two * s5 / vv;
-        s6 = two * s6 / vv;
-        s7 = two * s7 / vv;
-        store(S + j, s0);
-        store(S + j + 2, s1);
-        store(S + j + 4, s2);
-        store(S + j + 6, s3);
-        store(S + j + 8, s4);
-        store(S + j + 10, s5);
-        store(S + j + 12, s6);
-        store(S + j + 14, s7);
-        v2d n0 = splat(0.0), n1 = splat(0.0), n2 = splat(0.0), n3 = splat(0.0);
-        v2d n4 = splat(0.0), n5 = splat(0.0), n6 = splat(0.0), n7 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            double* q = row(t) + j;
-            v2d xt = splat(x[t]);
-            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
-            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
-            v2d u4 = load(q + 8) - xt * s4, u5 = load(q + 10) - xt * s5;
-            v2d u6 = load(q + 12) - xt * s6, u7 = load(q + 14) - xt * s7;
-            store(q, u0);
-            store(q + 2, u1);
-            store(q + 4, u2);
-            store(q + 6, u3);
-            store(q + 8, u4);
-            store(q + 10, u5);
-            store(q + 12, u6);
-            store(q + 14, u7);
-            if constexpr (Norms) {
-                if (t >= 1) {
-                    n0 += u0 * u0;
-                    n1 += u1 * u1;
-                    n2 += u2 * u2;
-                    n3 += u3 * u3;
-                    n4 += u4 * u4;
-                    n5 += u5 * u5;
-                    n6 += u6 * u6;
-                    n7 += u7 * u7;
-                }
-            }
-        }
-        if constexpr (Norms) {
-            store(N + j, n0);
-            store(N + j + 2, n1);
-            store(N + j + 4, n2);
-            store(N + j + 6, n3);
-            store(N + j + 8, n4);
-            store(N + j + 10, n5);
-            store(N + j + 12, n6);
-            store(N + j + 14, n7);
-        }
-    }
-    for (; j + 8 <= w; j += 8) {
-        v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            const double* p = row(t) + j;
-            v2d xt = splat(x[t]);
-            s0 += xt * load(p);
-            s1 += xt * load(p + 2);
-            s2 += xt * load(p + 4);
-            s3 += xt * load(p + 6);
-        }
-        v2d two = splat(2.0), vv = splat(vn);
-        s0 = two * s0 / vv;
-        s1 = two * s1 / vv;
-        s2 = two * s2 / vv;
-        s3 = two * s3 / vv;
-        store(S + j, s0);
-        store(S + j + 2, s1);
-        store(S + j + 4, s2);
-        store(S + j + 6, s3);
-        v2d n0 = splat(0.0), n1 = splat(0.0), n2 = splat(0.0), n3 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            double* q = row(t) + j;
-            v2d xt = splat(x[t]);
-            v2d u0 = load(q) - xt * s0, u1 = load(q + 2) - xt * s1;
-            v2d u2 = load(q + 4) - xt * s2, u3 = load(q + 6) - xt * s3;
-            store(q, u0);
-            store(q + 2, u1);
-            store(q + 4, u2);
-            store(q + 6, u3);
-            if constexpr (Norms) {
-                if (t >= 1) {
-                    n0 += u0 * u0;
-                    n1 += u1 * u1;
-                    n2 += u2 * u2;
-                    n3 += u3 * u3;
-                }
-            }
-        }
-        if constexpr (Norms) {
-            store(N + j, n0);
-            store(N + j + 2, n1);
-            store(N + j + 4, n2);
-            store(N + j + 6, n3);
-        }
-    }
-    for (; j + 4 <= w; j += 4) {
-        v2d s = splat(0.0), s2 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            const double* p = row(t) + j;
-            v2d xt = splat(x[t]);
-            s += xt * load(p);
-            s2 += xt * load(p + 2);
-        }
-        s = splat(2.0) * s / splat(vn);
-        s2 = splat(2.0) * s2 / splat(vn);
-        store(S + j, s);
-        store(S + j + 2, s2);
-        v2d n0 = splat(0.0), n1 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            double* q = row(t) + j;
-            v2d xt = splat(x[t]);
-            v2d u0 = load(q) - xt * s, u1 = load(q + 2) - xt * s2;
-            store(q, u0);
-            store(q + 2, u1);
-            if constexpr (Norms) {
-                if (t >= 1) {
-                    n0 += u0 * u0;
-                    n1 += u1 * u1;
-                }
-            }
-        }
-        if constexpr (Norms) {
-            store(N + j, n0);
-            store(N + j + 2, n1);
-        }
-    }
-    for (; j + 2 <= w; j += 2) {
-        v2d s = splat(0.0);
-        for (i64 t = 0; t < size; ++t) s += splat(x[t]) * load(row(t) + j);
-        s = splat(2.0) * s / splat(vn);
-        store(S + j, s);
-        v2d n0 = splat(0.0);
-        for (i64 t = 0; t < size; ++t) {
-            double* p = row(t) + j;
-            v2d u0 = load(p) - splat(x[t]) * s;
-            store(p, u0);
-            if constexpr (Norms) {
-                if (t >= 1) n0 += u0 * u0;
-            }
-        }
-        if constexpr (Norms) store(N + j, n0);
-    }
+    for (; j + 16 <= w; j += 16) reflect_block<8, Norms>(row, size, j, x, vn, S, N);
+    for (; j + 8 <= w; j += 8) reflect_block<4, Norms>(row, size, j, x, vn, S, N);
+    for (; j + 4 <= w; j += 4) reflect_block<2, Norms>(row, size, j, x, vn, S, N);
+    for (; j + 2 <= w; j += 2) reflect_block<1, Norms>(row, size, j, x, vn, S, N);
     if (j < w) {
         double s = 0.0;
         for (i64 t = 0; t < size; ++t) s += x[t] * row(t)[j];
