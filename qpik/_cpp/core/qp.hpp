@@ -860,6 +860,20 @@ inline bool warm_answer(CMatRef H, CMatRef L, CVecRef c, CMatRef C, CVecRef lo, 
     Vec x, u;
     bool ok = kkt_solve(H, L, c, C, lo, hi, act_row, act_side, q, x, u);
     if (ok && strictly_optimal(x, u, C, lo, hi, act_row, q)) {
+        // Where every multiplier is above polish's dual_floor (strictly_optimal's bound, unless
+        // a NaN passed its tests), polish would take these rows in this (row) order and its
+        // kkt_solve would give these bits: its answer without the second solve, only its
+        // check left. Otherwise polish itself.
+        double floor = dual_floor(u, q);
+        bool all_rows = true;
+        for (i64 j = 0; j < q; ++j) all_rows = all_rows && u[j] > floor;
+        if (all_rows) {
+            if (!kkt_ok(x, u, C, lo, hi, q, pymax(tol, 1e-9))) return false;
+            BVec active(static_cast<size_t>(m), 0);
+            for (i64 j = 0; j < q; ++j) active[act_row[j]] = static_cast<i8>(act_side[j]);
+            out = QPResult{std::move(x), SOLVED, 0, std::move(active), {}};
+            return true;
+        }
         QPResult polished = polish(H, L, c, C, lo, hi, x, u, act_row, act_side, q, 0, tol);
         if (polished.status == SOLVED) {
             out = std::move(polished);
