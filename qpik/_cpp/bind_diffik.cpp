@@ -179,9 +179,10 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //   the owner is kept alive with them); run is step on them, without passing them again.
 // Kernel.set_slots(views, scalar); Kernel.attach_out(d, v, info, active, qpos);
 // Kernel.set_chains(jac, starts, dofs, roots); Kernel.attach_chains(cdof, subtree_com);
-// Kernel.go(values, row, warm, canonical, max_iter) -> code
+// Kernel.set_sources(sources); Kernel.go(dt, damping, row, warm, canonical, max_iter) -> code
 //   The lean step (qpik.diffik.compiled.CompiledPlan._lean), without general rows: the
-//   tasks' values (a list, one per slot: a view of the plan's arrays) written by the kernel,
+//   tasks' values (read from their objects, each into its slot: a view of the plan's
+//   arrays) written by the kernel,
 //   the frames' Jacobians computed as MuJoCo's mj_jac does (when chains are set), and the
 //   answers written into row `row` of the attached outputs (no array allocated per call).
 //   code -1: a value is not what its slot takes as it is (nothing solved; the caller writes
@@ -444,20 +445,9 @@ class Kernel {
         slots_ = std::move(slots);
     }
 
-    // values[i] into slot i; false (some slots then written, some not) when the list does not
-    // have one value per slot or a value is not what its slot takes as it is: a real number
-    // (float or int) for a scalar slot, else a float64 vector of the slot's length (the
-    // caller then writes them its general way, with NumPy's conversions and errors).
-    bool load(nb::handle values) const {
-        PyObject* list = values.ptr();
-        if (!PyList_CheckExact(list) || PyList_GET_SIZE(list) != static_cast<Py_ssize_t>(slots_.size()))
-            return false;
-        for (size_t i = 0; i < slots_.size(); ++i)
-            if (!load_one(slots_[i], PyList_GET_ITEM(list, static_cast<Py_ssize_t>(i)))) return false;
-        return true;
-    }
-
-    // One value into its slot (see load).
+    // One value into its slot; false when it is not what the slot takes as it is: a real
+    // number (float or int) for a scalar slot, else a float64 vector of the slot's length (the
+    // caller then writes the values its general way, with NumPy's conversions and errors).
     static bool load_one(const Slot& t, PyObject* o) {
         if (t.scalar) {
             double x;
@@ -501,7 +491,7 @@ class Kernel {
         return ok;
     }
 
-    // Where go_sources() reads each slot's value but the first two (dt, damping): per slot
+    // Where go() reads each slot's value but the first two (dt, damping): per slot
     // after those, (object, name) or (object, name, inner name): getattr(object, name), or
     // getattr(getattr(object, name), inner name) (a task's target pose: its wxyz_xyz).
     void set_sources(nb::list sources) {
@@ -525,7 +515,7 @@ class Kernel {
     }
 
     // dt and damping into the first two slots, then each source's current value into its
-    // slot (set_sources); false as load() (a value it does not take as it is, a None
+    // slot (set_sources); false as load_one() (a value it does not take as it is, a None
     // target, an attribute that raised: its error cleared, the caller's general way
     // reports it).
     bool load_sources(double dt, double damping) const {
@@ -644,15 +634,9 @@ class Kernel {
     // One step on the attached MjData without general rows: values into the slots, the
     // cascade, its answers into row `row` of the attached outputs. Returns -1 when the values
     // do not load (nothing solved), else the step's code (its answers written only when OK).
-    i64 go(nb::handle values, i64 row, const std::optional<B2>& warm, bool canonical, i64 max_iter) {
-        last_row_ = -1;
-        pass_row_ = -1;
-        if (!load(values)) return -1;
-        return solve_into(row, warm, canonical, max_iter);
-    }
-
-    // go() with the values read from the sources (set_sources) by the kernel itself.
-    i64 go_sources(double dt, double damping, i64 row, const std::optional<B2>& warm, bool canonical,
+    // The lean step: dt and damping and the sources' values (set_sources) read into the slots
+    // by the kernel itself, then solve_into.
+    i64 go(double dt, double damping, i64 row, const std::optional<B2>& warm, bool canonical,
                    i64 max_iter) {
         last_row_ = -1;
         pass_row_ = -1;
@@ -910,21 +894,18 @@ void bind_diffik(nb::module_& m) {
              nb::arg("info").noconvert(), nb::arg("active").noconvert(), nb::arg("qpos").noconvert(),
              "Hold the rows go() writes into: d, v (K, nv), info (K, 9, L), active (K, L, nv) "
              "int8, qpos (K, nq).")
-        .def("go", &Kernel::go, nb::arg("values"), nb::arg("row"), nb::arg("warm").none(),
-             nb::arg("canonical"), nb::arg("max_iter"),
-             "run() without general rows, the values (a list, one per slot) written into the slots "
-             "first and the answers (dq, v, info, active, the step's qpos) into row `row` of the "
-             "attached outputs; returns -1 when the values do not load (nothing solved), else the "
-             "step's code (answers written only when OK). warm: None for a cold start.")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
-             "Where go_sources() reads the values of the slots after the first two (dt, damping): "
+             "Where go() reads the values of the slots after the first two (dt, damping): "
              "per slot (object, name) or (object, name, inner name), getattr(object, name) or "
              "getattr(getattr(object, name), inner name); the objects are held.")
-        .def("go_sources", &Kernel::go_sources, nb::arg("dt"), nb::arg("damping"), nb::arg("row"),
+        .def("go", &Kernel::go, nb::arg("dt"), nb::arg("damping"), nb::arg("row"),
              nb::arg("warm").none(), nb::arg("canonical"), nb::arg("max_iter"),
-             "go() with dt and damping as the first two values and the others read from the "
-             "sources (set_sources) by the kernel: -1 (nothing solved) where a value is not what "
-             "its slot takes as it is, is None or raised (the caller's general way reports it).")
+             "run() without general rows: dt and damping as the first two slots' values and the "
+             "others read from the sources (set_sources) by the kernel, then the answers (dq, v, "
+             "info, active, the step's qpos) written into row `row` of the attached outputs; "
+             "returns -1 (nothing solved) where a value is not what its slot takes as it is, is "
+             "None or raised (the caller's general way reports it), else the step's code (answers "
+             "written only when OK). warm: None for a cold start.")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

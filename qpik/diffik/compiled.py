@@ -442,7 +442,7 @@ class CompiledPlan:
             row = 0
         nv = self.nv
         warm = core.warm_sets(self.levels, nv) if core.warm_start else None
-        code = self.kernel.go_sources(
+        code = self.kernel.go(
             dt, damping, row, warm, core.warm_start, self.max_iter or 10 * nv + 50
         )
         if code == -1:
