@@ -93,6 +93,16 @@ def test_correction_passes_are_an_option_field():
 
 
 # ------------------------------------------------------------------------ fixed arm
+
+
+def _limits(model, limits: str) -> list:
+    """Position limits, and the velocity limits too where ``limits`` is ``"all"``."""
+    chosen = [mink.ConfigurationLimit(model)]
+    if limits == "all":
+        chosen.append(velocity_limit_from_model(model))
+    return chosen
+
+
 def _panda(
     passes=0,
     solver="auto",
@@ -110,9 +120,7 @@ def _panda(
     frame = frame_class("ee", "site", position_cost=1.0, orientation_cost=orientation)
     posture = PostureTask(model, 0.1)
     posture.set_target(q0)
-    chosen = [mink.ConfigurationLimit(model)]
-    if limits == "all":
-        chosen.append(velocity_limit_from_model(model))
+    chosen = _limits(model, limits)
     ik = qpik.IKSolver(
         model, [[frame], [posture]], chosen, solver=solver, correction_passes=passes, **keywords
     )
@@ -295,9 +303,7 @@ def _talos(passes, limits="all", com_cost=1.0, **keywords):
     hands = [FrameTask(h, "body", position_cost=1.0, orientation_cost=0.0) for h in HANDS]
     posture = PostureTask(model, 0.1)
     posture.set_target(home)
-    chosen = [mink.ConfigurationLimit(model)]
-    if limits == "all":
-        chosen.append(velocity_limit_from_model(model))
+    chosen = _limits(model, limits)
     ik = qpik.IKSolver(
         model, [feet, [com], hands, [posture]], chosen, correction_passes=passes, **keywords
     )
