@@ -77,3 +77,70 @@ def test_cholesky_in_place(n):
     assert K.cholesky_into(L, n, 0.0, L) is True and ref_ok
     low = np.tril_indices(n)
     assert np.array_equal(_bits(L[low]), _bits(R[low]))
+
+
+# The products with few zero entries in A (register blocks that add the zero products
+# too, the same bits where the other factors are finite) and with non-finite ones (the
+# zero entries' products skipped: 0 * inf is never added).
+def _mm_reference(A, B):
+    m, k = A.shape
+    C = np.zeros((m, B.shape[1]))
+    with np.errstate(all="ignore"):
+        for i in range(m):
+            for j in range(B.shape[1]):
+                acc = np.float64(0.0)
+                for t in range(k):
+                    if A[i, t] != 0.0:
+                        acc = acc + A[i, t] * B[t, j]
+                C[i, j] = acc
+    return C
+
+
+def _sparse_case(rng, m, k, n, kind):
+    A = rng.normal(size=(m, k))
+    Z = rng.normal(size=(k, n))
+    A[rng.random((m, k)) < 0.08] = 0.0
+    A[rng.random((m, k)) < 0.04] = -0.0
+    if kind == "nonfinite":
+        Z[rng.random((k, n)) < 0.03] = np.inf
+        Z[rng.random((k, n)) < 0.03] = np.nan
+        A[rng.random((m, k)) < 0.02] = -np.inf
+    elif kind == "cancel":  # sums that end at +0, and zero products of both signs
+        A[:, 1::2] = A[:, 0::2][:, : A[:, 1::2].shape[1]]
+        Z[1::2, :] = -Z[0::2, :][: Z[1::2, :].shape[0], :]
+    elif kind == "huge":  # products that overflow to inf beside zero entries
+        A *= 1e200
+        Z *= 1e200
+    return A, Z
+
+
+@pytest.mark.parametrize("kind", ["sparse", "nonfinite", "cancel", "huge"])
+@pytest.mark.parametrize("shape", [(4, 6, 5), (8, 38, 23), (12, 23, 17), (13, 9, 7)])
+def test_product_blocks_with_zero_entries(shape, kind):
+    from qpik._engine import core as E
+
+    m, k, n = shape
+    rng = np.random.default_rng(sum(shape) + len(kind))
+    A, Z = _sparse_case(rng, m, k, n, kind)
+    AZ = E.project_level(A, np.ones(m), Z, 1e-10)[0]
+    assert np.array_equal(_bits(AZ), _bits(_mm_reference(A, Z)))
+
+
+@pytest.mark.parametrize("kind", ["sparse", "nonfinite", "cancel", "huge"])
+@pytest.mark.parametrize("shape", [(6, 8), (12, 38), (38, 17), (9, 23)])
+def test_gram_blocks_with_zero_entries(shape, kind):
+    from qpik._engine import core as E
+
+    m, n = shape
+    rng = np.random.default_rng(3 * sum(shape) + len(kind))
+    AZ, _ = _sparse_case(rng, m, n, 1, kind)
+    AZ[:, n // 3] = 0.0  # a zero column: its rows of the Gram matrix all +0
+    k = n
+    H = E.reduced_qp(
+        np.eye(m, k) if m <= k else np.eye(m, k), np.zeros(m), AZ, np.eye(k), np.zeros(k), 0.0,
+        -np.ones(k), np.ones(k), np.zeros((0, k)), np.zeros(0)
+    )[0]
+    ref = _mm_reference(AZ.T.copy(), AZ)
+    ref = np.triu(ref) + np.triu(ref, 1).T  # the upper triangle's sums, mirrored
+    off = ~np.eye(n, dtype=bool)
+    assert np.array_equal(_bits(H[off]), _bits(ref[off]))

@@ -707,13 +707,34 @@ __attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const
     return j;
 }
 
+// Column j of the same four rows (the odd last column block4_rows leaves): entry (r, j) =
+// +0 plus AS[4 t + r] X(t, j) over t < k in t order, two rows a lane (two chains side by side
+// rather than four sums one after the other).
+__attribute__((always_inline)) inline void block4_col(const simd::v2d* AS, const double* X, i64 stride, i64 k,
+                                                      i64 j, double* r0, double* r1, double* r2, double* r3) {
+    using namespace simd;
+    v2d c01 = splat(0.0), c23 = splat(0.0);
+    const double* bp = X + j;
+    const v2d* as = AS;
+    for (i64 t = 0; t < k; ++t, bp += stride, as += 4) {
+        v2d x = splat(*bp);
+        c01 += v2d{as[0][0], as[1][0]} * x;
+        c23 += v2d{as[2][0], as[3][0]} * x;
+    }
+    r0[j] = c01[0];
+    r1[j] = c01[1];
+    r2[j] = c23[0];
+    r3[j] = c23[1];
+}
+
 }  // namespace detail
 
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
 // Each entry (i, j) is +0 plus the products A(i, t) B(t, j) of the nonzero A(i, t), added in t
 // order. Four rows of A with no zero entry (A's entries, each broadcast to a pair, laid out
 // once for them): blocks of C (four rows, four or two columns) summed in registers over t,
-// from +0 (the same products in the same order: the same bits); other rows by detail::mm_rows.
+// from +0 (the same products in the same order: the same bits; an odd last column by
+// detail::block4_col); other rows by detail::mm_rows.
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     using namespace simd;
     i64 m = A.rows, k = A.cols, n = B.cols;
@@ -742,14 +763,8 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
             }
             i64 j = detail::block4_rows(AS, B.p, B.stride, k, 0, n, C.row(i), C.row(i + 1), C.row(i + 2),
                                         C.row(i + 3));
-            for (; j < n; ++j) {
-                for (i64 r = i; r < i + 4; ++r) {
-                    const double* ar = A.row(r);
-                    double acc = 0.0;
-                    for (i64 t = 0; t < k; ++t) acc += ar[t] * B(t, j);
-                    C(r, j) = acc;
-                }
-            }
+            if (j < n)
+                detail::block4_col(AS, B.p, B.stride, k, j, C.row(i), C.row(i + 1), C.row(i + 2), C.row(i + 3));
         }
     }
     detail::mm_rows(A, B, C, i, m);
@@ -809,13 +824,8 @@ inline void mtm_into(CMatRef A, Mat& C) {
             if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
             i64 j = detail::block4_rows(AS, A.p, A.stride, m, i, n, C.row(i), C.row(i + 1), C.row(i + 2),
                                         C.row(i + 3));
-            for (; j < n; ++j) {
-                for (i64 r = i; r < i + 4; ++r) {
-                    double acc = 0.0;
-                    for (i64 t = 0; t < m; ++t) acc += A(t, r) * A(t, j);
-                    C(r, j) = acc;
-                }
-            }
+            if (j < n)
+                detail::block4_col(AS, A.p, A.stride, m, j, C.row(i), C.row(i + 1), C.row(i + 2), C.row(i + 3));
         }
     }
     detail::mtm_rows(A, C, i, n);
