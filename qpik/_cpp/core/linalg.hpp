@@ -1258,18 +1258,27 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 }
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
-// with no rows: R only, the same R). norms: where R was reflected (true returned), also
-// norms[j] = |R[i+1:, j]|^2 for j >= i (column_norms(R, i + 1, norms)'s sums, from the
-// reflection's pass; norms[i] too).
+// with no rows: R only, the same R). norms: on entry norms[i] = |R[i:, i]|^2 as column_norms
+// sums it (householder_qr's pivoting keeps them so: the reflection's sum of squares is taken
+// from it); where R was reflected (true returned), also norms[j] = |R[i+1:, j]|^2 for j >= i
+// (column_norms(R, i + 1, norms)'s sums, from the reflection's pass; norms[i] too).
 inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr,
                     double* norms = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
     if (keep_vn) *keep_vn = 0.0;
     double alpha = 0.0;
-    for (i64 t = 0; t < size; ++t) {
-        x[t] = R(i + t, i);
-        alpha += x[t] * x[t];
+    if (norms) {
+        // norms[i] is already this sum: |R[i:, i]|^2 summed over the rows in order from 0.0
+        // (column_norms, or the previous reflection's pass, then swap_pivot), the same bits
+        // without its serial chain of additions.
+        for (i64 t = 0; t < size; ++t) x[t] = R(i + t, i);
+        alpha = norms[i];
+    } else {
+        for (i64 t = 0; t < size; ++t) {
+            x[t] = R(i + t, i);
+            alpha += x[t] * x[t];
+        }
     }
     alpha = std::sqrt(alpha);
     if (alpha == 0.0) return false;
