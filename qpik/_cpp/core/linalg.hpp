@@ -1293,6 +1293,19 @@ inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
     }
     reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data(), norms ? norms + i : nullptr);
     i64 row = 0;
+    // (four rows a pass, then two: each row's sum in t order from 0.0, one per lane)
+    for (; row + 4 <= r; row += 4) {
+        double* q0 = Q.row(row) + i;
+        double* q1 = Q.row(row + 1) + i;
+        double* q2 = Q.row(row + 2) + i;
+        double* q3 = Q.row(row + 3) + i;
+        double s0, s1, s2, s3;
+        dot4(q0, q1, q2, q3, x.data(), size, s0, s1, s2, s3);
+        axmy(q0, 2.0 * s0 / vn, x.data(), size);
+        axmy(q1, 2.0 * s1 / vn, x.data(), size);
+        axmy(q2, 2.0 * s2 / vn, x.data(), size);
+        axmy(q3, 2.0 * s3 / vn, x.data(), size);
+    }
     for (; row + 2 <= r; row += 2) {
         double* q0 = Q.row(row) + i;
         double* q1 = Q.row(row + 1) + i;
@@ -1376,6 +1389,18 @@ inline void apply_reflectors_right(Mat& Y, const QRScratch& ws, i64 k) {
         const double* x = ws.V.row(i) + i;
         i64 size = r - i;
         i64 row = 0;
+        for (; row + 4 <= n; row += 4) {
+            double* q0 = Y.row(row) + i;
+            double* q1 = Y.row(row + 1) + i;
+            double* q2 = Y.row(row + 2) + i;
+            double* q3 = Y.row(row + 3) + i;
+            double s0, s1, s2, s3;
+            dot4(q0, q1, q2, q3, x, size, s0, s1, s2, s3);
+            axmy(q0, 2.0 * s0 / vn, x, size);
+            axmy(q1, 2.0 * s1 / vn, x, size);
+            axmy(q2, 2.0 * s2 / vn, x, size);
+            axmy(q3, 2.0 * s3 / vn, x, size);
+        }
         for (; row + 2 <= n; row += 2) {
             double* q0 = Y.row(row) + i;
             double* q1 = Y.row(row + 1) + i;
