@@ -111,6 +111,10 @@ def _sparse_case(rng, m, k, n, kind):
     elif kind == "huge":  # products that overflow to inf beside zero entries
         A *= 1e200
         Z *= 1e200
+    elif kind == "zero_rows":  # whole rows of zeros of both signs (no products at all)
+        A[::3, :] = 0.0
+        A[1::5, :] = -0.0
+        A[-1, :] = np.inf  # and a non-finite row among the kept ones
     return A, Z
 
 
@@ -126,8 +130,8 @@ def test_product_blocks_with_zero_entries(shape, kind):
     assert np.array_equal(_bits(AZ), _bits(_mm_reference(A, Z)))
 
 
-@pytest.mark.parametrize("kind", ["sparse", "nonfinite", "cancel", "huge"])
-@pytest.mark.parametrize("shape", [(6, 8), (12, 38), (38, 17), (9, 23)])
+@pytest.mark.parametrize("kind", ["sparse", "nonfinite", "cancel", "huge", "zero_rows"])
+@pytest.mark.parametrize("shape", [(6, 8), (12, 38), (38, 17), (9, 23), (4, 4), (70, 60)])
 def test_gram_blocks_with_zero_entries(shape, kind):
     from qpik._engine import core as E
 

@@ -804,6 +804,33 @@ inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
 // the rows from there by detail::mtm_rows.)
 inline void mtm_into(CMatRef A, Mat& C) {
     using namespace simd;
+    // A's rows with no nonzero entry add no product to any entry (every one skipped): where
+    // there are such rows (and the rest fit on the stack), the others are copied together,
+    // in order (the same products in the same order), so that the register blocks below
+    // can take them.
+    constexpr i64 kCompact = 4096;  // the most entries copied (32 kB)
+    double kept[kCompact];
+    if (A.rows * A.cols <= kCompact && A.rows >= 4 && A.cols >= 4) {
+        auto zero_row = [&](i64 t) {
+            const double* at = A.row(t);
+            for (i64 c = 0; c < A.cols; ++c)
+                if (at[c] != 0.0) return false;
+            return true;
+        };
+        i64 first = 0;
+        while (first < A.rows && !zero_row(first)) ++first;
+        if (first < A.rows) {
+            for (i64 t = 0; t < first; ++t)
+                std::memcpy(kept + t * A.cols, A.row(t), static_cast<size_t>(A.cols) * sizeof(double));
+            i64 nz = first;
+            for (i64 t = first + 1; t < A.rows; ++t) {
+                if (zero_row(t)) continue;
+                std::memcpy(kept + nz * A.cols, A.row(t), static_cast<size_t>(A.cols) * sizeof(double));
+                ++nz;
+            }
+            A = CMatRef(kept, nz, A.cols);
+        }
+    }
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
     constexpr i64 kSplat = 256;  // the most rows of A laid out on the stack (16 kB)
