@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "../common.hpp"
 
@@ -398,9 +399,10 @@ inline double minus_dot(double acc, const double* x, const double* y, i64 n) {
     return acc;
 }
 
-// Cholesky factor of G[:n, :n] - shift I written into the lower triangle of L[:n, :n]
-// (G unchanged); false as soon as a pivot is not positive (L then holds a partial factor).
-inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
+namespace detail {
+// cholesky_into column by column (each entry's dot product summed at once, rows two or four a
+// pass, one per lane).
+inline bool cholesky_left(CMatRef G, i64 n, double shift, MatRef L) {
     for (i64 j = 0; j < n; ++j) {
         double s = G(j, j) - shift;
         const double* lj = L.p + j * L.stride;
@@ -441,6 +443,116 @@ inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
             L(i + 1, j) = acc[1] / d;
         }
         for (; i < n; ++i) L(i, j) = minus_dot(G(i, j), L.p + i * L.stride, lj, j) / d;
+    }
+    return true;
+}
+
+}  // namespace detail
+
+namespace detail {
+// Column j's sums for the 2 P rows i0.. (v2d a[p]: rows i0 + 2p, i0 + 2p + 1, holding G's
+// entries on entry): a[p] -= T(k, i0 + 2p ..) T(k, j) for k < j in k order (T: L's columns
+// as rows, row stride ldt). Each lane a chain of subtractions over k; P chains side by side.
+template <int P>
+__attribute__((always_inline)) inline void chol_chunk(const double* T, i64 ldt, i64 j, i64 i0, simd::v2d* a) {
+    using namespace simd;
+    v2d r[P];
+#pragma GCC unroll 8
+    for (int q = 0; q < P; ++q) r[q] = a[q];
+    const double* tj = T + j;
+    const double* ti = T + i0;
+    for (i64 k = 0; k < j; ++k, tj += ldt, ti += ldt) {
+        v2d x = splat(*tj);
+#pragma GCC unroll 8
+        for (int q = 0; q < P; ++q) r[q] -= load(ti + 2 * q) * x;
+    }
+#pragma GCC unroll 8
+    for (int q = 0; q < P; ++q) a[q] = r[q];
+}
+
+inline void chol_chunk_n(const double* T, i64 ldt, i64 j, i64 i0, i64 P, simd::v2d* a) {
+    switch (P) {
+        case 1: chol_chunk<1>(T, ldt, j, i0, a); break;
+        case 2: chol_chunk<2>(T, ldt, j, i0, a); break;
+        case 3: chol_chunk<3>(T, ldt, j, i0, a); break;
+        case 4: chol_chunk<4>(T, ldt, j, i0, a); break;
+        case 5: chol_chunk<5>(T, ldt, j, i0, a); break;
+        case 6: chol_chunk<6>(T, ldt, j, i0, a); break;
+        case 7: chol_chunk<7>(T, ldt, j, i0, a); break;
+        default: chol_chunk<8>(T, ldt, j, i0, a); break;
+    }
+}
+}  // namespace detail
+
+// Cholesky factor of G[:n, :n] - shift I written into the lower triangle of L[:n, :n]
+// (G unchanged); false as soon as a pivot is not positive (L then holds a partial factor).
+// Entry (i, j), j <= i: G(i, j) (less shift on the diagonal) minus L(i, k) L(j, k) for k < j,
+// subtracted in k order, then divided by L(j, j) (off the diagonal) or its square root taken
+// (on it): the operations of cholesky_left, the same bits.
+// Column by column, L's columns also kept as the rows of T (on the stack): column j's rows
+// j.. (its diagonal among them) two a lane, sixteen a pass, each lane's subtractions over
+// k one chain, the pairs T(k, i..i+1) one load (a row's sums are latency-bound: the more
+// rows a pass, the more chains side by side). The pairs start at even rows (the loads then
+// meet the very stores that wrote them: no store-forwarding stall); below an odd j, the
+// first pair's row j - 1 lane (above the diagonal) is summed but never stored to L, and T's
+// column n is a zero pad (an odd last row's other lane).
+inline bool cholesky_into(CMatRef G, i64 n, double shift, MatRef L) {
+    using namespace simd;
+    constexpr i64 kMax = 64;  // the largest n on the stack (T: 33 kB)
+    // Below 24, the column-by-column form is as fast (each column's fixed cost here: the
+    // root's and the divisions' latency before the next column's loads).
+    if (n > kMax || n < 24) return detail::cholesky_left(G, n, shift, L);
+    alignas(16) double T[kMax * (kMax + 2)];
+    const i64 ldt = (n + 2) & ~i64(1);  // even: every pair 16-byte aligned
+    const i64 ldg = G.stride, ldl = L.stride;
+    for (i64 j = 0; j < n; ++j) {
+        double* tj = T + j * ldt;  // L's column j, entries j+1.. (and the pad n)
+        const i64 e = j & ~i64(1);  // the first pair's row
+        const bool odd = j != e;    // the diagonal in the first pair's second lane
+        double d = 0.0;
+        v2d dv = splat(0.0);
+        for (i64 i0 = e; i0 < n; i0 += 16) {
+            const i64 P = std::min<i64>(8, (n - i0 + 1) / 2);
+            const bool tail = i0 + 2 * P > n;  // the last pair's second lane: the pad
+            v2d a[8];
+            // G's column j: rows i0.. (row e = j - 1 above the diagonal, and the pad's lane
+            // a copy of row n - 1: both summed, never stored to L).
+            const double* g = G.p + i0 * ldg + j;
+            const i64 full = tail ? P - 1 : P;
+            for (i64 q = 0; q < full; ++q, g += 2 * ldg) a[q] = v2d{g[0], g[ldg]};
+            if (tail) a[P - 1] = v2d{g[0], g[0]};
+            // the diagonal less shift (x - +0 = x on the other lane, whatever x: the same bits)
+            if (i0 == e) a[0] = a[0] - (odd ? v2d{0.0, shift} : v2d{shift, 0.0});
+            detail::chol_chunk_n(T, ldt, j, i0, P, a);
+            if (i0 == e) {
+                double s = odd ? a[0][1] : a[0][0];
+                if (!(s > 0.0)) return false;
+                d = std::sqrt(s);
+                L.p[j * ldl + j] = d;
+                dv = splat(d);
+            }
+            double* l = L.p + i0 * ldl + j;
+            i64 q = 0;
+            if (i0 == e) {
+                v2d v = a[0] / dv;
+                store(tj + i0, v);
+                if (!odd && !(tail && P == 1)) l[ldl] = v[1];
+                q = 1;
+                l += 2 * ldl;
+            }
+            for (; q < full; ++q, l += 2 * ldl) {
+                v2d v = a[q] / dv;
+                store(tj + i0 + 2 * q, v);
+                l[0] = v[0];
+                l[ldl] = v[1];
+            }
+            if (tail && q < P) {
+                v2d v = a[q] / dv;
+                store(tj + i0 + 2 * q, v);
+                l[0] = v[0];
+            }
+        }
+        tj[n] = 0.0;  // the pad (its lane never stored to L)
     }
     return true;
 }
@@ -595,13 +707,34 @@ __attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const
     return j;
 }
 
+// Column j of the same four rows (the odd last column block4_rows leaves): entry (r, j) =
+// +0 plus AS[4 t + r] X(t, j) over t < k in t order, two rows a lane (two chains side by side
+// rather than four sums one after the other).
+__attribute__((always_inline)) inline void block4_col(const simd::v2d* AS, const double* X, i64 stride, i64 k,
+                                                      i64 j, double* r0, double* r1, double* r2, double* r3) {
+    using namespace simd;
+    v2d c01 = splat(0.0), c23 = splat(0.0);
+    const double* bp = X + j;
+    const v2d* as = AS;
+    for (i64 t = 0; t < k; ++t, bp += stride, as += 4) {
+        v2d x = splat(*bp);
+        c01 += v2d{as[0][0], as[1][0]} * x;
+        c23 += v2d{as[2][0], as[3][0]} * x;
+    }
+    r0[j] = c01[0];
+    r1[j] = c01[1];
+    r2[j] = c23[0];
+    r3[j] = c23[1];
+}
+
 }  // namespace detail
 
 // A @ B (skipping zero entries of A, as the reference does) into C (its storage kept).
 // Each entry (i, j) is +0 plus the products A(i, t) B(t, j) of the nonzero A(i, t), added in t
 // order. Four rows of A with no zero entry (A's entries, each broadcast to a pair, laid out
 // once for them): blocks of C (four rows, four or two columns) summed in registers over t,
-// from +0 (the same products in the same order: the same bits); other rows by detail::mm_rows.
+// from +0 (the same products in the same order: the same bits; an odd last column by
+// detail::block4_col); other rows by detail::mm_rows.
 inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     using namespace simd;
     i64 m = A.rows, k = A.cols, n = B.cols;
@@ -630,14 +763,8 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
             }
             i64 j = detail::block4_rows(AS, B.p, B.stride, k, 0, n, C.row(i), C.row(i + 1), C.row(i + 2),
                                         C.row(i + 3));
-            for (; j < n; ++j) {
-                for (i64 r = i; r < i + 4; ++r) {
-                    const double* ar = A.row(r);
-                    double acc = 0.0;
-                    for (i64 t = 0; t < k; ++t) acc += ar[t] * B(t, j);
-                    C(r, j) = acc;
-                }
-            }
+            if (j < n)
+                detail::block4_col(AS, B.p, B.stride, k, j, C.row(i), C.row(i + 1), C.row(i + 2), C.row(i + 3));
         }
     }
     detail::mm_rows(A, B, C, i, m);
@@ -677,6 +804,33 @@ inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
 // the rows from there by detail::mtm_rows.)
 inline void mtm_into(CMatRef A, Mat& C) {
     using namespace simd;
+    // A's rows with no nonzero entry add no product to any entry (every one skipped): where
+    // there are such rows (and the rest fit on the stack), the others are copied together,
+    // in order (the same products in the same order), so that the register blocks below
+    // can take them.
+    constexpr i64 kCompact = 4096;  // the most entries copied (32 kB)
+    double kept[kCompact];
+    if (A.rows * A.cols <= kCompact && A.rows >= 4 && A.cols >= 4) {
+        auto zero_row = [&](i64 t) {
+            const double* at = A.row(t);
+            for (i64 c = 0; c < A.cols; ++c)
+                if (at[c] != 0.0) return false;
+            return true;
+        };
+        i64 first = 0;
+        while (first < A.rows && !zero_row(first)) ++first;
+        if (first < A.rows) {
+            for (i64 t = 0; t < first; ++t)
+                std::memcpy(kept + t * A.cols, A.row(t), static_cast<size_t>(A.cols) * sizeof(double));
+            i64 nz = first;
+            for (i64 t = first + 1; t < A.rows; ++t) {
+                if (zero_row(t)) continue;
+                std::memcpy(kept + nz * A.cols, A.row(t), static_cast<size_t>(A.cols) * sizeof(double));
+                ++nz;
+            }
+            A = CMatRef(kept, nz, A.cols);
+        }
+    }
     i64 m = A.rows, n = A.cols;
     shape(C, n, n);  // the upper triangle summed from +0, the lower one copied from it
     constexpr i64 kSplat = 256;  // the most rows of A laid out on the stack (16 kB)
@@ -697,13 +851,8 @@ inline void mtm_into(CMatRef A, Mat& C) {
             if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
             i64 j = detail::block4_rows(AS, A.p, A.stride, m, i, n, C.row(i), C.row(i + 1), C.row(i + 2),
                                         C.row(i + 3));
-            for (; j < n; ++j) {
-                for (i64 r = i; r < i + 4; ++r) {
-                    double acc = 0.0;
-                    for (i64 t = 0; t < m; ++t) acc += A(t, r) * A(t, j);
-                    C(r, j) = acc;
-                }
-            }
+            if (j < n)
+                detail::block4_col(AS, A.p, A.stride, m, j, C.row(i), C.row(i + 1), C.row(i + 2), C.row(i + 3));
         }
     }
     detail::mtm_rows(A, C, i, n);
@@ -1000,20 +1149,27 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
 
 namespace detail {
 
-// reflect_row_set's pass over the 2 L columns j.. (L pairs): s summed over t in order in
-// registers, stored to S, then the columns updated (and their norms of rows 1.., Norms).
-template <int L, bool Norms, class Row>
+// reflect_row_set's pass over the 2 L columns j.. (L pairs) and, with Odd, the one column
+// after them (a scalar lane): s summed over t in order in registers, stored to S, then the
+// columns updated (and their norms of rows 1.., Norms). Every column's sum is its own chain
+// over t: the more columns a pass holds, the more chains run side by side (the sums are
+// latency-bound: one add a row per chain).
+template <int L, bool Odd, bool Norms, class Row>
 __attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 j, const double* x, double vn,
                                                          double* S, double* N) {
     using namespace simd;
-    v2d s[L], nn[L];
+    constexpr int LA = L > 0 ? L : 1;
+    v2d s[LA], nn[LA];
+    double so = 0.0, no = 0.0;
 #pragma GCC unroll 8
     for (int l = 0; l < L; ++l) s[l] = nn[l] = splat(0.0);
     for (i64 t = 0; t < size; ++t) {
         const double* p = row(t) + j;
-        v2d xt = splat(x[t]);
+        double xs = x[t];
+        v2d xt = splat(xs);
 #pragma GCC unroll 8
         for (int l = 0; l < L; ++l) s[l] += xt * load(p + 2 * l);
+        if constexpr (Odd) so += xs * p[2 * L];
     }
     v2d two = splat(2.0), vv = splat(vn);
 #pragma GCC unroll 8
@@ -1021,80 +1177,99 @@ __attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 
         s[l] = two * s[l] / vv;
         store(S + j + 2 * l, s[l]);
     }
-    for (i64 t = 0; t < size; ++t) {
+    if constexpr (Odd) {
+        so = 2.0 * so / vn;
+        S[j + 2 * L] = so;
+    }
+    // Row t's update (its squares added to the norms where Acc: rows 1..).
+    auto update = [&](i64 t, auto acc) __attribute__((always_inline)) {
+        constexpr bool Acc = decltype(acc)::value;
         double* q = row(t) + j;
-        v2d xt = splat(x[t]);
+        double xs = x[t];
+        v2d xt = splat(xs);
 #pragma GCC unroll 8
         for (int l = 0; l < L; ++l) {
             v2d u = load(q + 2 * l) - xt * s[l];
             store(q + 2 * l, u);
-            if constexpr (Norms) {
-                if (t >= 1) nn[l] += u * u;
-            }
+            if constexpr (Acc) nn[l] += u * u;
         }
-    }
+        if constexpr (Odd) {
+            double u0 = q[2 * L] - xs * so;
+            q[2 * L] = u0;
+            if constexpr (Acc) no += u0 * u0;
+        }
+    };
     if constexpr (Norms) {
+        if (size > 0) update(0, std::false_type{});
+        for (i64 t = 1; t < size; ++t) update(t, std::true_type{});
 #pragma GCC unroll 8
         for (int l = 0; l < L; ++l) store(N + j + 2 * l, nn[l]);
+        if constexpr (Odd) N[j + 2 * L] = no;
+    } else {
+        for (i64 t = 0; t < size; ++t) update(t, std::false_type{});
+    }
+}
+
+// The last 1..17 columns from j in one pass (n pairs and, where n is odd, the column after).
+template <bool Norms, class Row>
+inline void reflect_tail(Row row, i64 size, i64 j, i64 n, const double* x, double vn, double* S, double* N) {
+    switch (n) {
+        case 1: reflect_block<0, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 2: reflect_block<1, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 3: reflect_block<1, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 4: reflect_block<2, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 5: reflect_block<2, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 6: reflect_block<3, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 7: reflect_block<3, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 8: reflect_block<4, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 9: reflect_block<4, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 10: reflect_block<5, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 11: reflect_block<5, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 12: reflect_block<6, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 13: reflect_block<6, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 14: reflect_block<7, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 15: reflect_block<7, true, Norms>(row, size, j, x, vn, S, N); break;
+        case 16: reflect_block<8, false, Norms>(row, size, j, x, vn, S, N); break;
+        case 17: reflect_block<8, true, Norms>(row, size, j, x, vn, S, N); break;
+        default: break;
     }
 }
 
 // The Householder reflection (x, |x|^2 = vn) applied to w columns of the rows row(0..size-1)
 // (row(t): a pointer to the first of them in row t): per column, s_j = 2 (sum_t x[t] M(t, j)) / vn,
-// then M(t, j) -= s_j x[t]. Sixteen, eight, four or two columns a pass: s_j summed over t in order
-// in registers, then those columns updated (sixteen first: wide rows pay the per-row
-// overhead fewer times); the last odd column alone. Per column the same
-// operations in the same order whatever the blocking (reflect_columns: contiguous rows;
-// certify.hpp's reflect_rows: a subset of a matrix's rows).
+// then M(t, j) -= s_j x[t]. Up to 17 columns in one pass (pairs, and an odd last column as a
+// scalar lane): s_j summed over t in order in registers, then those columns updated; wider
+// sets by passes of sixteen (or eight) columns first. Per column the same operations in the
+// same order whatever the blocking (reflect_columns: contiguous rows; certify.hpp's
+// reflect_rows: a subset of a matrix's rows).
 // Norms: also N[j] = sum_{t >= 1} M(t, j)^2 of the updated columns, summed over t in order
 // from 0.0 in the update's pass (the sums col_sq makes of rows 1..size-1 afterwards: the same
 // bits, without reading the rows again).
 template <class Row, bool Norms = false>
 inline void reflect_row_set(Row row, i64 size, i64 w, const double* x, double vn, double* S, double* N = nullptr) {
     i64 j = 0;
-    for (; j + 16 <= w; j += 16) reflect_block<8, Norms>(row, size, j, x, vn, S, N);
-    for (; j + 8 <= w; j += 8) reflect_block<4, Norms>(row, size, j, x, vn, S, N);
-    for (; j + 4 <= w; j += 4) reflect_block<2, Norms>(row, size, j, x, vn, S, N);
-    for (; j + 2 <= w; j += 2) reflect_block<1, Norms>(row, size, j, x, vn, S, N);
-    if (j < w) {
-        double s = 0.0;
-        for (i64 t = 0; t < size; ++t) s += x[t] * row(t)[j];
-        s = 2.0 * s / vn;
-        S[j] = s;
-        double n0 = 0.0;
-        for (i64 t = 0; t < size; ++t) {
-            double u0 = row(t)[j] - x[t] * s;
-            row(t)[j] = u0;
-            if constexpr (Norms) {
-                if (t >= 1) n0 += u0 * u0;
-            }
+    while (w - j > 17) {
+        if (w - j >= 24) {
+            reflect_block<8, false, Norms>(row, size, j, x, vn, S, N);
+            j += 16;
+        } else {
+            reflect_block<4, false, Norms>(row, size, j, x, vn, S, N);
+            j += 8;
         }
-        if constexpr (Norms) N[j] = n0;
     }
+    reflect_tail<Norms>(row, size, j, w - j, x, vn, S, N);
 }
 
-// reflect_row_set on columns j0..m-1 of rows i..i+size-1 of M (row stride ld); a single
-// column by rows (acc_row, axmy: the same sums in the same order).
+// reflect_row_set on columns j0..m-1 of rows i..i+size-1 of M (row stride ld).
 // N: also N[j - j0] = |M[i+1 : i+size, j]|^2 of the updated columns (reflect_row_set's Norms).
 inline void reflect_columns(double* M, i64 ld, i64 i, i64 size, i64 j0, i64 m, const double* x, double vn,
                             double* S, double* N = nullptr) {
     i64 w = m - j0;
     if (w <= 0) return;
-    if (N) {
-        double* base = M + i * ld + j0;
-        auto row = [base, ld](i64 t) { return base + t * ld; };
-        reflect_row_set<decltype(row), true>(row, size, w, x, vn, S, N);
-        return;
-    }
-    if (w >= 2) {
-        double* base = M + i * ld + j0;
-        reflect_row_set([base, ld](i64 t) { return base + t * ld; }, size, w, x, vn, S);
-        return;
-    }
-    std::fill(S, S + w, 0.0);
-    for (i64 t = 0; t < size; ++t) acc_row(S, x[t], M + (i + t) * ld + j0, w);
-    for (i64 j = 0; j < w; ++j) S[j] = 2.0 * S[j] / vn;
-    for (i64 t = 0; t < size; ++t) axmy(M + (i + t) * ld + j0, x[t], S, w);
+    double* base = M + i * ld + j0;
+    auto row = [base, ld](i64 t) { return base + t * ld; };
+    if (N) reflect_row_set<decltype(row), true>(row, size, w, x, vn, S, N);
+    else reflect_row_set<decltype(row), false>(row, size, w, x, vn, S);
 }
 
 // Column pivoting step: bring the column of largest remaining norm to position i.
@@ -1110,18 +1285,27 @@ inline void swap_pivot(Mat& R, Vec& norms, IVec& perm, i64 i) {
 }
 
 // The Householder reflection zeroing R[i+1:, i], applied to R (left) and Q (right; Q
-// with no rows: R only, the same R). norms: where R was reflected (true returned), also
-// norms[j] = |R[i+1:, j]|^2 for j >= i (column_norms(R, i + 1, norms)'s sums, from the
-// reflection's pass; norms[i] too).
+// with no rows: R only, the same R). norms: on entry norms[i] = |R[i:, i]|^2 as column_norms
+// sums it (householder_qr's pivoting keeps them so: the reflection's sum of squares is taken
+// from it); where R was reflected (true returned), also norms[j] = |R[i+1:, j]|^2 for j >= i
+// (column_norms(R, i + 1, norms)'s sums, from the reflection's pass; norms[i] too).
 inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = nullptr, double* keep_vn = nullptr,
                     double* norms = nullptr) {
     i64 r = Q.rows, m = R.cols;
     i64 size = R.rows - i;
     if (keep_vn) *keep_vn = 0.0;
     double alpha = 0.0;
-    for (i64 t = 0; t < size; ++t) {
-        x[t] = R(i + t, i);
-        alpha += x[t] * x[t];
+    if (norms) {
+        // norms[i] is already this sum: |R[i:, i]|^2 summed over the rows in order from 0.0
+        // (column_norms, or the previous reflection's pass, then swap_pivot), the same bits
+        // without its serial chain of additions.
+        for (i64 t = 0; t < size; ++t) x[t] = R(i + t, i);
+        alpha = norms[i];
+    } else {
+        for (i64 t = 0; t < size; ++t) {
+            x[t] = R(i + t, i);
+            alpha += x[t] * x[t];
+        }
     }
     alpha = std::sqrt(alpha);
     if (alpha == 0.0) return false;
@@ -1136,6 +1320,19 @@ inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
     }
     reflect_columns(R.row(0), R.cols, i, size, i, m, x.data(), vn, S.data(), norms ? norms + i : nullptr);
     i64 row = 0;
+    // (four rows a pass, then two: each row's sum in t order from 0.0, one per lane)
+    for (; row + 4 <= r; row += 4) {
+        double* q0 = Q.row(row) + i;
+        double* q1 = Q.row(row + 1) + i;
+        double* q2 = Q.row(row + 2) + i;
+        double* q3 = Q.row(row + 3) + i;
+        double s0, s1, s2, s3;
+        dot4(q0, q1, q2, q3, x.data(), size, s0, s1, s2, s3);
+        axmy(q0, 2.0 * s0 / vn, x.data(), size);
+        axmy(q1, 2.0 * s1 / vn, x.data(), size);
+        axmy(q2, 2.0 * s2 / vn, x.data(), size);
+        axmy(q3, 2.0 * s3 / vn, x.data(), size);
+    }
     for (; row + 2 <= r; row += 2) {
         double* q0 = Q.row(row) + i;
         double* q1 = Q.row(row + 1) + i;
@@ -1219,6 +1416,18 @@ inline void apply_reflectors_right(Mat& Y, const QRScratch& ws, i64 k) {
         const double* x = ws.V.row(i) + i;
         i64 size = r - i;
         i64 row = 0;
+        for (; row + 4 <= n; row += 4) {
+            double* q0 = Y.row(row) + i;
+            double* q1 = Y.row(row + 1) + i;
+            double* q2 = Y.row(row + 2) + i;
+            double* q3 = Y.row(row + 3) + i;
+            double s0, s1, s2, s3;
+            dot4(q0, q1, q2, q3, x, size, s0, s1, s2, s3);
+            axmy(q0, 2.0 * s0 / vn, x, size);
+            axmy(q1, 2.0 * s1 / vn, x, size);
+            axmy(q2, 2.0 * s2 / vn, x, size);
+            axmy(q3, 2.0 * s3 / vn, x, size);
+        }
         for (; row + 2 <= n; row += 2) {
             double* q0 = Y.row(row) + i;
             double* q1 = Y.row(row + 1) + i;
