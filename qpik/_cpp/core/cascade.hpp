@@ -397,8 +397,9 @@ inline void jacobi_sweeps(double* base, i64 stride, i64 p, i64 cols, bool log_ro
 
 // jacobi_sweeps for p <= kJacobiFixed rows of C <= kJacobiFixed entries: the rows, their
 // squared norms, the pairs' stamps and the order on the stack (no store to a row can then
-// alias the norms or the order), copied back at the end.
-constexpr i64 kJacobiFixed = 8;
+// alias the norms or the order), copied back at the end; the same operations as
+// jacobi_sweeps<0> on R's rows (the same bits), the loops over a row unrolled.
+constexpr i64 kJacobiFixed = 16;
 
 template <int C>
 inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
@@ -439,6 +440,14 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
             case 6: return jacobi_row_norms_fixed<6>(R, p, log_rotations, sq, log);
             case 7: return jacobi_row_norms_fixed<7>(R, p, log_rotations, sq, log);
             case 8: return jacobi_row_norms_fixed<8>(R, p, log_rotations, sq, log);
+            case 9: return jacobi_row_norms_fixed<9>(R, p, log_rotations, sq, log);
+            case 10: return jacobi_row_norms_fixed<10>(R, p, log_rotations, sq, log);
+            case 11: return jacobi_row_norms_fixed<11>(R, p, log_rotations, sq, log);
+            case 12: return jacobi_row_norms_fixed<12>(R, p, log_rotations, sq, log);
+            case 13: return jacobi_row_norms_fixed<13>(R, p, log_rotations, sq, log);
+            case 14: return jacobi_row_norms_fixed<14>(R, p, log_rotations, sq, log);
+            case 15: return jacobi_row_norms_fixed<15>(R, p, log_rotations, sq, log);
+            case 16: return jacobi_row_norms_fixed<16>(R, p, log_rotations, sq, log);
             default: break;
         }
     }
