@@ -158,113 +158,276 @@ inline Vec level_residuals(CMatRef A, CVecRef b, VecRefT<const i64> starts, cons
 
 namespace detail {
 
-// One-sided Jacobi on the first p rows of R (each cols long), cyclic by rows until a sweep
-// rotates nothing: sq[i] = |row i|^2 on return (summed over t in order from 0.0,
-// recomputed only after the row was rotated: a row left alone gives the same bits again).
-// The rotations are logged when log_rotations. A pair found orthogonal is checked again only
-// after one of its rows was rotated (clean[i p + j]): its rows and sq are the same bits, so the
-// check would give the same answer; the rotations are those of checking every pair.
-// jacobi_row_norms for rows of C entries and p <= kJacobiFixed rows: the same checks,
-// rotations and sums (each product and square summed over t in order from 0.0, as dot,
-// row_sq and jacobi_rows_sums sum them: the same bits), the rows' length known to the
-// compiler and the pairs' stamps on the stack.
-constexpr i64 kJacobiFixed = 8;
+// The rotation (cs, sn) of one-sided Jacobi that makes two rows orthogonal (alpha, beta their
+// squared norms, gamma != 0 their product): x' = cs x - sn y, y' = sn x + cs y with
+// tan(theta) = t = sign(zeta) / (|zeta| + sqrt(1 + zeta^2)), zeta = (beta - alpha) / (2 gamma)
+// (Rutishauser's root, |theta| <= pi/4), written with fewer divisions and roots on the
+// rotation's critical path:
+// - |zeta| >= 2^27 (an angle below 2^-28, the common case once the rows are nearly
+//   orthogonal): t^2 < 2^-56, so cs = 1 / sqrt(1 + t^2) rounds to 1 and sn = t = 1 / (2 zeta)
+//   to within 2^-56 relative: cs = 1, sn = gamma / (beta - alpha) (one division);
+// - |zeta| >= 2^7: with x = gamma / (beta - alpha) = 1 / (2 zeta) (|x| <= 2^-8, u = x^2 <=
+//   2^-16), tan(2 theta) = 2 x, so t = x (1 - t^2) = x (1 - u + 2 u^2 - 5 u^3 + 14 u^4 ...)
+//   and cs = cos(theta) = 1 - u / 2 + 11 u^2 / 8 - 69 u^3 / 16 + 1843 u^4 / 128 ...: both
+//   through u^3 (the terms left out below 2^-59 relative), sn = cs t (one division);
+// - otherwise, with d = beta - alpha, g = 2 gamma, h = hypot(d, g): t = sign(zeta) |g| /
+//   (|d| + h), 1 + t^2 = 2 h / (|d| + h), so cs = (|d| + h) r, sn = sign(zeta) |g| r with
+//   r = 1 / sqrt(2 h (|d| + h)) (two roots and one division rather than three divisions and
+//   two roots; no cancellation: |d| + h adds two nonnegative numbers);
+// - where d^2 + g^2 or 2 h (|d| + h) could overflow or underflow (|d| or |g| above 1e150, or
+//   both below 1e-150), the textbook formulas from zeta.
+// (Always inlined: a call would pass cs and sn through memory on the round's critical path.)
+__attribute__((always_inline)) inline void jacobi_rotation(double alpha, double beta, double gamma, double& cs, double& sn) {
+    const double d = beta - alpha, g = 2.0 * gamma;
+    const double ad = std::fabs(d), ag = std::fabs(g);
+    if (ag <= 0x1p-27 * ad) {
+        cs = 1.0;
+        sn = gamma / d;  // sign(zeta) |g| / (2 |d|) = g / (2 d)
+        return;
+    }
+    if (ag <= 0x1p-7 * ad) {
+        const double x = gamma / d, u = x * x;
+        const double t = x * (1.0 - u * (1.0 - u * (2.0 - 5.0 * u)));
+        cs = 1.0 - u * (0.5 - u * (1.375 - u * 4.3125));
+        sn = cs * t;
+        return;
+    }
+    if (ad < 1e150 && ag < 1e150 && (ad > 1e-150 || ag > 1e-150)) {
+        const double h = std::sqrt(d * d + g * g);
+        const double u = ad + h;
+        const double r = 1.0 / std::sqrt(2.0 * h * u);
+        const bool negative = d != 0.0 && ((d < 0.0) != (g < 0.0));  // zeta < 0 (zeta = +-0 counts as >= 0)
+        cs = u * r;
+        sn = (negative ? -ag : ag) * r;
+        return;
+    }
+    const double zeta = d / g;
+    const double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+    cs = 1.0 / std::sqrt(1.0 + tt * tt);
+    sn = cs * tt;
+}
+
+// Whether rows of squared norms alpha, beta with product gamma count as orthogonal:
+// gamma == 0 or |gamma| <= 1e-15 sqrt(alpha) sqrt(beta), decided by gamma^2 <= 1e-30 alpha
+// beta (no root) where alpha beta lies in [1e-250, 1e250] (neither side then overflows or
+// leaves the normal range: gamma^2 <= alpha beta to round-off); else by the roots of alpha and
+// beta apart (alpha beta itself would overflow, every pair then found orthogonal, or
+// underflow, none).
+inline bool jacobi_orthogonal(double alpha, double beta, double gamma) {
+    if (gamma == 0.0) return true;
+    const double ab = alpha * beta;
+    if (ab >= 1e-250 && ab <= 1e250) return gamma * gamma <= 1e-30 * ab;
+    return std::fabs(gamma) <= 1e-15 * (std::sqrt(alpha) * std::sqrt(beta));
+}
+
+// The pairs of p rows in a round-robin order (the circle method), into start (rounds + 1),
+// pi and pj (p (p - 1) / 2 each): p - 1 rounds of p / 2 disjoint pairs (p even), or p rounds
+// of (p - 1) / 2 (p odd: one row rests each round); every pair once a sweep. Returns the
+// number of rounds. Within a round no two pairs share a row, so their products, rotations and
+// sums are independent (they overlap in the processor's pipeline, where the cyclic-by-row
+// order chains every rotation on the one before). at: scratch of p + 1 entries.
+inline i64 jacobi_rounds(i64 p, i64* start, i64* pi, i64* pj, i64* at) {
+    const i64 n = p + (p & 1);  // with a resting slot p where p is odd
+    // p even: row 0 at the fixed position 0, the others at positions 1..; p odd: the resting
+    // slot at position 0 and rows 0.. at positions 1.. (p = 3: the cyclic order (0, 1),
+    // (0, 2), (1, 2))
+    for (i64 k = 0; k < n; ++k) at[k] = (p & 1) ? (k == 0 ? p : k - 1) : k;
+    i64 np = 0;
+    for (i64 r = 0; r + 1 < n; ++r) {
+        start[r] = np;
+        for (i64 k = 0; k < n / 2; ++k) {
+            const i64 a = at[k], b = at[n - 1 - k];
+            if (a >= p || b >= p) continue;
+            pi[np] = a < b ? a : b;
+            pj[np] = a < b ? b : a;
+            ++np;
+        }
+        const i64 last = at[n - 1];  // position 0 fixed, the others turn by one
+        for (i64 k = n - 1; k > 1; --k) at[k] = at[k - 1];
+        at[1] = last;
+    }
+    const i64 rounds = n > 1 ? n - 1 : 0;
+    start[rounds] = np;
+    return rounds;
+}
+
+// x . y over n = C (C > 0, known to the compiler) or cols entries, summed in four lanes (by t
+// mod 4; where n mod 4 >= 2, the last pair in lanes 0 and 1), the lanes added as (0 + 2) +
+// (1 + 3), then an odd n's last entry.
+template <int C>
+inline double jacobi_dot(const double* x, const double* y, i64 cols) {
+    using namespace simd;
+    const i64 n = C > 0 ? C : cols;
+    v2d a = splat(0.0), b = splat(0.0);
+    i64 t = 0;
+#pragma GCC unroll 2
+    for (; t + 4 <= n; t += 4) {
+        a += load(x + t) * load(y + t);
+        b += load(x + t + 2) * load(y + t + 2);
+    }
+    if (t + 2 <= n) {
+        a += load(x + t) * load(y + t);
+        t += 2;
+    }
+    a += b;
+    double s = a[0] + a[1];
+    if (t < n) s += x[t] * y[t];
+    return s;
+}
+
+// x . x as jacobi_dot sums it.
+template <int C>
+inline double jacobi_sq(const double* x, i64 cols) {
+    return jacobi_dot<C>(x, x, cols);
+}
+
+// The rotation of two rows (x' = cs x - sn y, y' = sn x + cs y, as jacobi_rows), and their
+// squared norms summed as jacobi_sq sums them, in the same pass.
+template <int C>
+inline void jacobi_turn(double* x, double* y, double cs, double sn, i64 cols, double& sx, double& sy) {
+    using namespace simd;
+    const i64 n = C > 0 ? C : cols;
+    const v2d c2 = splat(cs), s2 = splat(sn);
+    v2d ax = splat(0.0), bx = splat(0.0), ay = splat(0.0), by = splat(0.0);
+    auto turn = [&](i64 t, v2d& accx, v2d& accy) {
+        const v2d u = load(x + t), v = load(y + t);
+        const v2d un = c2 * u - s2 * v;
+        const v2d vn = s2 * u + c2 * v;
+        store(x + t, un);
+        store(y + t, vn);
+        accx += un * un;
+        accy += vn * vn;
+    };
+    i64 t = 0;
+#pragma GCC unroll 2
+    for (; t + 4 <= n; t += 4) {
+        turn(t, ax, ay);
+        turn(t + 2, bx, by);
+    }
+    if (t + 2 <= n) {
+        turn(t, ax, ay);
+        t += 2;
+    }
+    ax += bx;
+    ay += by;
+    double qx = ax[0] + ax[1], qy = ay[0] + ay[1];
+    if (t < n) {
+        const double u = x[t], v = y[t];
+        const double un = cs * u - sn * v, vn = sn * u + cs * v;
+        x[t] = un;
+        y[t] = vn;
+        qx += un * un;
+        qy += vn * vn;
+    }
+    sx = qx;
+    sy = qy;
+}
+
+// One-sided Jacobi on p rows (row i at base + i stride, each C or cols long), by the rounds of disjoint pairs of
+// jacobi_rounds until a sweep rotates nothing: s[i] = |row i|^2 (jacobi_sq) on return,
+// recomputed only after the row was rotated (a row left alone keeps its bits). The rotations
+// are appended to log (in the order applied) when log_rotations. A pair found orthogonal is
+// checked again only after one of its rows was rotated: clean[i p + j] the time (a count of
+// checks and rotations, from 1) it was last found orthogonal, stamp[i] the time row i was last
+// rotated (0 if never); a pair is clean when found orthogonal after both its rows were last
+// rotated (its rows and norms are then the same bits, so the check would give the same
+// answer). A round is taken in chunks of up to kJacobiChunk pairs: their products, then their
+// checks and rotation angles, then their rotations (independent work side by side).
+constexpr int kJacobiChunk = 8;
 
 template <int C>
-inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
-    // The rows, their squared norms and the pairs' stamps held on the stack (no store to a
-    // row can then alias sq or R's storage), copied back at the end; the rotations logged in
-    // batches (the same entries in the same order as one push_back each).
-    constexpr int P = static_cast<int>(kJacobiFixed);
-    const int np = static_cast<int>(p);
-    alignas(16) double W[P][C];
-    double s[P];
-    for (int i = 0; i < np; ++i) {
-        std::memcpy(W[i], R.row(i), sizeof(double) * C);
-        const double* ri = W[i];
-        double acc = 0.0;
-#pragma GCC unroll 8
-        for (int t = 0; t < C; ++t) acc += ri[t] * ri[t];
-        s[i] = acc;
-    }
-    log.clear();
-    // clean[i][j], stamp[i]: as jacobi_row_norms' clean
-    int clean[P][P];
-    int stamp[P];
-    for (int i = 0; i < np; ++i) {
-        stamp[i] = 0;
-        for (int j = 0; j < np; ++j) clean[i][j] = 0;
-    }
+inline void jacobi_sweeps(double* base, i64 stride, i64 p, i64 cols, bool log_rotations, double* s, i64* clean,
+                          i64* stamp, const i64* start, const i64* pi, const i64* pj, i64 rounds,
+                          std::vector<Rotation>& log) {
+    auto row = [&](i64 i) { return base + i * stride; };
     constexpr int kBatch = 32;
     Rotation batch[kBatch];
     int nb = 0;
-    int now = 0;
+    i64 now = 0;
     for (int sweep = 0; sweep < 60; ++sweep) {
         bool rotated = false;
-        for (int i = 0; i < np - 1; ++i) {
-            double* ri = W[i];
-            for (int j = i + 1; j < np; ++j) {
-                const int c = clean[i][j];
-                if (c > stamp[i] && c > stamp[j]) continue;
-                double* rj = W[j];
-                const double alpha = s[i], beta = s[j];
-                double gamma = 0.0;
-#pragma GCC unroll 8
-                for (int t = 0; t < C; ++t) gamma += ri[t] * rj[t];
-                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) {
-                    clean[i][j] = ++now;
-                    continue;
+        for (i64 round = 0; round < rounds; ++round) {
+            for (i64 k0 = start[round]; k0 < start[round + 1]; k0 += kJacobiChunk) {
+                const i64 k1 = std::min(k0 + kJacobiChunk, start[round + 1]);
+                i64 ti[kJacobiChunk], tj[kJacobiChunk];
+                double gam[kJacobiChunk];
+                int nt = 0;
+                for (i64 k = k0; k < k1; ++k) {
+                    const i64 i = pi[k], j = pj[k];
+                    const i64 c = clean[i * p + j];
+                    if (c > stamp[i] && c > stamp[j]) continue;
+                    ti[nt] = i;
+                    tj[nt] = j;
+                    gam[nt] = jacobi_dot<C>(row(i), row(j), cols);
+                    ++nt;
                 }
-                rotated = true;
-                double zeta = (beta - alpha) / (2.0 * gamma);
-                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
-                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
-                double sn = cs * tt;
-                // (two entries a pass; lane 0 sums row i's squares, lane 1 row j's, in order)
-                using namespace simd;
-                const v2d c2 = splat(cs), s2 = splat(sn);
-                v2d acc = splat(0.0);
-#pragma GCC unroll 4
-                for (int t = 0; t + 2 <= C; t += 2) {
-                    const v2d x = load(ri + t), y = load(rj + t);
-                    const v2d xn = c2 * x - s2 * y;
-                    const v2d yn = s2 * x + c2 * y;
-                    store(ri + t, xn);
-                    store(rj + t, yn);
-                    const v2d v0 = v2d{xn[0], yn[0]};
-                    const v2d v1 = v2d{xn[1], yn[1]};
-                    acc += v0 * v0;
-                    acc += v1 * v1;
-                }
-                if constexpr (C % 2 == 1) {
-                    const double x = ri[C - 1], y = rj[C - 1];
-                    ri[C - 1] = cs * x - sn * y;
-                    rj[C - 1] = sn * x + cs * y;
-                    const v2d v = v2d{ri[C - 1], rj[C - 1]};
-                    acc += v * v;
-                }
-                s[i] = acc[0];
-                s[j] = acc[1];
-                if (log_rotations) {
-                    batch[nb++] = Rotation{i, j, cs, sn};
-                    if (nb == kBatch) {
-                        log.insert(log.end(), batch, batch + nb);
-                        nb = 0;
+                i64 ri[kJacobiChunk], rj[kJacobiChunk];
+                double cs[kJacobiChunk], sn[kJacobiChunk];
+                int nr = 0;
+                for (int q = 0; q < nt; ++q) {
+                    const i64 i = ti[q], j = tj[q];
+                    if (jacobi_orthogonal(s[i], s[j], gam[q])) {
+                        clean[i * p + j] = ++now;
+                        continue;
                     }
+                    jacobi_rotation(s[i], s[j], gam[q], cs[nr], sn[nr]);
+                    ri[nr] = i;
+                    rj[nr] = j;
+                    ++nr;
                 }
-                stamp[i] = stamp[j] = ++now;
+                for (int q = 0; q < nr; ++q) {
+                    const i64 i = ri[q], j = rj[q];
+                    jacobi_turn<C>(row(i), row(j), cs[q], sn[q], cols, s[i], s[j]);
+                    if (log_rotations) {
+                        batch[nb++] = Rotation{i, j, cs[q], sn[q]};
+                        if (nb == kBatch) {
+                            log.insert(log.end(), batch, batch + nb);
+                            nb = 0;
+                        }
+                    }
+                    stamp[i] = stamp[j] = ++now;
+                }
+                if (nr) rotated = true;
             }
         }
         if (!rotated) break;
     }
     if (nb) log.insert(log.end(), batch, batch + nb);
+}
+
+// jacobi_sweeps for p <= kJacobiFixed rows of C <= kJacobiFixed entries: the rows, their
+// squared norms, the pairs' stamps and the order on the stack (no store to a row can then
+// alias the norms or the order), copied back at the end; the same operations as
+// jacobi_sweeps<0> on R's rows (the same bits), the loops over a row unrolled.
+constexpr i64 kJacobiFixed = 16;
+
+template <int C>
+inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+    constexpr int P = static_cast<int>(kJacobiFixed);
+    alignas(16) double W[P][C];
+    double s[P];
+    for (i64 i = 0; i < p; ++i) {
+        std::memcpy(W[i], R.row(i), sizeof(double) * C);
+        s[i] = jacobi_sq<C>(W[i], C);
+    }
+    log.clear();
+    i64 clean[P * P], stamp[P];
+    for (i64 i = 0; i < p; ++i) {
+        stamp[i] = 0;
+        for (i64 j = 0; j < p; ++j) clean[i * p + j] = 0;
+    }
+    i64 start[P + 1], pi[P * (P - 1) / 2], pj[P * (P - 1) / 2], at[P + 1];
+    const i64 rounds = jacobi_rounds(p, start, pi, pj, at);
+    jacobi_sweeps<C>(&W[0][0], C, p, C, log_rotations, s, clean, stamp, start, pi, pj, rounds, log);
     sq.resize(static_cast<size_t>(p));  // every entry written
-    for (int i = 0; i < np; ++i) {
+    for (i64 i = 0; i < p; ++i) {
         sq[i] = s[i];
         std::memcpy(R.row(i), W[i], sizeof(double) * C);
     }
 }
 
+// One-sided Jacobi on the first p rows of R (each cols long): jacobi_sweeps, the rows rotated
+// in place; sq[i] = |row i|^2 on return; clean: scratch (the pairs' stamps and the order).
 inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
                              std::vector<Rotation>& log) {
     if (p <= kJacobiFixed) {
@@ -277,73 +440,32 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
             case 6: return jacobi_row_norms_fixed<6>(R, p, log_rotations, sq, log);
             case 7: return jacobi_row_norms_fixed<7>(R, p, log_rotations, sq, log);
             case 8: return jacobi_row_norms_fixed<8>(R, p, log_rotations, sq, log);
+            case 9: return jacobi_row_norms_fixed<9>(R, p, log_rotations, sq, log);
+            case 10: return jacobi_row_norms_fixed<10>(R, p, log_rotations, sq, log);
+            case 11: return jacobi_row_norms_fixed<11>(R, p, log_rotations, sq, log);
+            case 12: return jacobi_row_norms_fixed<12>(R, p, log_rotations, sq, log);
+            case 13: return jacobi_row_norms_fixed<13>(R, p, log_rotations, sq, log);
+            case 14: return jacobi_row_norms_fixed<14>(R, p, log_rotations, sq, log);
+            case 15: return jacobi_row_norms_fixed<15>(R, p, log_rotations, sq, log);
+            case 16: return jacobi_row_norms_fixed<16>(R, p, log_rotations, sq, log);
             default: break;
         }
     }
-    sq.assign(static_cast<size_t>(p), 0.0);
-    for (i64 i = 0; i < p; ++i) sq[i] = row_sq(R.row(i), cols);
+    sq.resize(static_cast<size_t>(p));  // every entry written
+    for (i64 i = 0; i < p; ++i) sq[i] = jacobi_sq<0>(R.row(i), cols);
     log.clear();
-    // clean[i p + j]: the time (a count of checks and rotations, from 1) pair (i, j) was last
-    // found orthogonal, 0 if never; clean[p p + i]: the time row i was last rotated, 0 if never.
-    // A pair is clean when found orthogonal after both its rows were last rotated.
-    clean.assign(static_cast<size_t>(p * p + p), 0);
+    // clean: p p pair stamps, p row stamps, then the order (p + 1 round starts, the pairs' i
+    // and j, p + 1 of scratch)
+    const i64 npairs = p * (p - 1) / 2;
+    clean.assign(static_cast<size_t>(p * p + p + (p + 1) + 2 * npairs + (p + 1)), 0);
     i64* stamp = clean.data() + p * p;
-    i64 now = 0;
-    auto is_clean = [&](i64 i, i64 j) {
-        i64 c = clean[i * p + j];
-        return c > stamp[i] && c > stamp[j];
-    };
-    for (int sweep = 0; sweep < 60; ++sweep) {
-        bool rotated = false;
-        for (i64 i = 0; i < p - 1; ++i) {
-            // Row i's products with two rows j < j2 are taken in one pass (dot2: each lane
-            // the sum dot() makes, the same bits); j2's is used when row i is still the same
-            // at j2 (no rotation at j).
-            i64 next = -1;
-            double next_gamma = 0.0;
-            for (i64 j = i + 1; j < p; ++j) {
-                if (is_clean(i, j)) continue;
-                double* ri = R.row(i);
-                double* rj = R.row(j);
-                double alpha = sq[i], beta = sq[j];
-                double gamma;
-                if (next == j) {
-                    gamma = next_gamma;
-                    next = -1;
-                } else {
-                    i64 j2 = j + 1;
-                    while (j2 < p && is_clean(i, j2)) ++j2;
-                    if (j2 < p) {
-                        dot2(rj, R.row(j2), ri, cols, gamma, next_gamma);
-                        next = j2;
-                    } else {
-                        gamma = dot(ri, rj, cols);
-                    }
-                }
-                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) {
-                    clean[i * p + j] = ++now;
-                    continue;
-                }
-                next = -1;  // row i is rotated: its product with j2 is taken again
-                rotated = true;
-                double zeta = (beta - alpha) / (2.0 * gamma);
-                double tt = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
-                double cs = 1.0 / std::sqrt(1.0 + tt * tt);
-                double sn = cs * tt;
-                if (j + 1 < p) {
-                    // Row i rotated, (i, j + 1) is not clean: the pair checked next. Its product
-                    // is summed in the rotation's pass (the same sum dot() makes).
-                    jacobi_rows_sq_dot(ri, rj, R.row(j + 1), cs, sn, cols, sq[i], sq[j], next_gamma);
-                    next = j + 1;
-                } else {
-                    jacobi_rows_sq(ri, rj, cs, sn, cols, sq[i], sq[j]);
-                }
-                if (log_rotations) log.push_back(Rotation{i, j, cs, sn});
-                stamp[i] = stamp[j] = ++now;
-            }
-        }
-        if (!rotated) break;
-    }
+    i64* start = stamp + p;
+    i64* pi = start + p + 1;
+    i64* pj = pi + npairs;
+    i64* at = pj + npairs;
+    const i64 rounds = jacobi_rounds(p, start, pi, pj, at);
+    jacobi_sweeps<0>(R.row(0), R.cols, p, cols, log_rotations, sq.data(), clean.data(), stamp, start, pi, pj, rounds,
+                     log);
 }
 
 // R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
