@@ -556,8 +556,9 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
                                  CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
                                  a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
                                  a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                 a.settings[TOL], warm, canonical, ws, c);
+                                 a.settings[TOL], warm, canonical, ws, c, true, false);
     }
+    // (c.primal is not read here: the general path leaves it uncomputed)
     out.d.assign(c.dq.begin(), c.dq.end());
     out.active.assign(c.active.begin(), c.active.end());
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
