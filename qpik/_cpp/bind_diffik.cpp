@@ -468,6 +468,10 @@ class Kernel {
         FastArray fa;
         if (fast_array(o, 'd', false, fa)) {  // an ndarray read directly: the same bytes
             if (fa.ndim != 1 || fa.shape[0] != t.size) return false;
+            if (t.stride == 1 && fa.strides[0] == static_cast<Py_ssize_t>(sizeof(double))) {
+                std::memcpy(t.p, fa.data, sizeof(double) * static_cast<size_t>(t.size));  // both contiguous
+                return true;
+            }
             for (i64 k = 0; k < t.size; ++k)
                 std::memcpy(t.p + k * t.stride, fa.data + k * fa.strides[0], sizeof(double));
             return true;
