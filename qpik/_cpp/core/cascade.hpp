@@ -1762,12 +1762,18 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
-    res.status.assign(static_cast<size_t>(L), NOT_REACHED);
-    res.sigma.assign(static_cast<size_t>(L), kInf);
-    zero_fill(res.lam2, static_cast<size_t>(L));
-    res.iterations.assign(static_cast<size_t>(L), 0);
-    res.active.assign(static_cast<size_t>(L * (n + p)), 0);
-    res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
+    // v.assign(m, x) inline (no call; the storage kept unless it grows)
+    auto fill = [](auto& v, size_t m, auto x) {
+        if (v.size() != m) v.resize(m);
+        auto* q = v.data();
+        for (size_t i = 0; i < m; ++i) q[i] = x;
+    };
+    fill(res.status, static_cast<size_t>(L), i64{NOT_REACHED});
+    fill(res.sigma, static_cast<size_t>(L), kInf);
+    fill(res.lam2, static_cast<size_t>(L), 0.0);
+    fill(res.iterations, static_cast<size_t>(L), i64{0});
+    fill(res.active, static_cast<size_t>(L * (n + p)), i8{0});
+    fill(res.certificate, static_cast<size_t>(4 * L), kNaN);
     res.primal = 0.0;
     Vec& d = res.dq;
     zero_fill(d, static_cast<size_t>(n));

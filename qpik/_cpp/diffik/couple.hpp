@@ -24,6 +24,15 @@
 
 namespace qpik::diffik {
 
+// v.assign(n, x) written inline (no call; the storage kept unless it grows): size n, every
+// entry x.
+template <class V, class T>
+inline void fill_as(V& v, size_t n, T x) {
+    if (v.size() != n) v.resize(n);
+    auto* p = v.data();
+    for (size_t i = 0; i < n; ++i) p[i] = x;
+}
+
 // One coupling row on dofs i < j: a1 x_i + a2 x_j, and its pieces.
 struct CouplePair {
     i64 row = 0, i = 0, j = 0;
@@ -112,7 +121,7 @@ inline bool pair_qp(double a1, double a2, double beta, double rho, const double*
 inline bool find_pairs(CMatRef A, CVecRef w, i64 m0, CVecRef lb, CVecRef ub, CoupleScratch& s) {
     const i64 n = A.cols;
     s.pairs.clear();
-    s.pair_of.assign(static_cast<size_t>(n), -1);
+    fill_as(s.pair_of, static_cast<size_t>(n), i64{-1});
     for (i64 r = 0; r < m0; ++r) {
         if (!(w[r] > 0.0)) return false;
         const double* ar = A.row(r);
@@ -377,7 +386,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     out.certificate[1] = cert.stationarity;
     out.certificate[2] = cert.dual;
     out.certificate[3] = cert.complementarity;
-    out.active.assign(static_cast<size_t>(L * n), 0);
+    fill_as(out.active, static_cast<size_t>(L * n), i8{0});
     for (size_t q = 0; q < rows.size(); ++q)
         if (u[q] > 0.0) out.active[static_cast<size_t>(rows[q])] = static_cast<i8>(sides[q]);
     for (i64 k = 1; k < L; ++k) {

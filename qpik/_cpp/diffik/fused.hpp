@@ -217,10 +217,10 @@ inline void boxes_into(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, cons
                        VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
                        VecRefT<const i64> cfg_qadr, BoxScratch& s, Box& box) {
     const size_t m = static_cast<size_t>(n);
-    s.hard_lb.assign(m, -kInf);
-    s.hard_ub.assign(m, kInf);
-    s.pos_lb.assign(m, -kInf);
-    s.pos_ub.assign(m, kInf);
+    fill_as(s.hard_lb, m, -kInf);
+    fill_as(s.hard_ub, m, kInf);
+    fill_as(s.pos_lb, m, -kInf);
+    fill_as(s.pos_ub, m, kInf);
     Vec &hard_lb = s.hard_lb, &hard_ub = s.hard_ub, &pos_lb = s.pos_lb, &pos_ub = s.pos_ub;
     for (i64 e = 0; e < cfg_dof.n; ++e) {
         const i64 i = cfg_dof[e];
@@ -274,7 +274,7 @@ inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos
 inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec& diag) {
     const i64 n = a.A.cols;
     zero_fill(reg, static_cast<size_t>(L));
-    diag.assign(static_cast<size_t>(a.A.rows), -1);
+    fill_as(diag, static_cast<size_t>(a.A.rows), i64{-1});
     if (local.size() < static_cast<size_t>(19 * n)) local.resize(static_cast<size_t>(19 * n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0);
