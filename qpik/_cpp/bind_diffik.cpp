@@ -418,6 +418,9 @@ class Kernel {
                 const In2& xm, const In2& gx, const In2& gm, const In2& subtree_com) {
         check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
         attached_ = Attached{std::move(owner), qpos, sx, sm, x, xm, gx, gm, subtree_com};
+        // go()'s arguments: views of arrays that never move (the plan's, held, and the
+        // attached MjData's), built once here
+        go_args_ = fill_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
     }
 
     // The arguments of one call on the attached MjData's arrays.
@@ -659,7 +662,7 @@ class Kernel {
             require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
             frame_jacobians();
         }
-        diffik::FusedArgs a = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
+        const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
         if (warm) {
             require(dim(*warm, 0) == L_ && dim(*warm, 1) == n_, "Kernel.go: warm must have shape (L, nv)");
@@ -772,6 +775,7 @@ class Kernel {
         In2 sx, sm, x, xm, gx, gm, subtree_com;
     };
     std::optional<Attached> attached_, aux_;
+    diffik::FusedArgs go_args_;  // fill_poses of attached_'s arrays (attach)
     i64 last_row_ = -1, pass_row_ = -1;  // go()'s last answered row; correct()'s first pass
     Vec b0_, we0_, we1_;
     std::vector<char> held_;

@@ -447,7 +447,13 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     for (i64 r = 0; r < a.b.n; ++r) {
         const i64 d = s.diag[static_cast<size_t>(r)];
         if (d < 0) {
-            ts.add_n(a.A.row(r), n);
+            // a run of such rows in one add_n where A's rows are contiguous (its finite, max
+            // and count: those of one add_n per row)
+            i64 e = r + 1;
+            if (a.A.stride == n)
+                while (e < a.b.n && s.diag[static_cast<size_t>(e)] < 0) ++e;
+            ts.add_n(a.A.row(r), (e - r) * n);
+            r = e - 1;
         } else {  // a posture row (cost_row): its diagonal entry and n - 1 equal others
             ts.add(a.A(r, d));
             if (n > 1) ts.add_rep(a.A(r, d == 0 ? 1 : 0), n - 1);
