@@ -808,7 +808,20 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         }
         xmax = pymax(mv[0], mv[1]);
         for (; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
-        for (i = 0; i < n; ++i) {
+        // (branch-free, two lanes: a lane's flags as the scalar tests; x * 0.0 is +-0 for a
+        // finite x and NaN otherwise, so the lanes' sums of them are 0 exactly when every
+        // entry is finite)
+        v2i flag = v2i{0, 0};
+        v2d z2 = splat(0.0);
+        const v2d big = splat(kBig), nbig = splat(-kBig), zero = splat(0.0);
+        for (i = 0; i + 2 <= n; i += 2) {
+            const v2d xv = load(x.data() + i), l = load(lb.p + i), u = load(ub.p + i);
+            flag |= ((l > nbig) & (l - xv > zero)) | ((u < big) & (xv - u > zero)) | (xv != xv);
+            z2 += xv * zero;
+        }
+        hit = (flag[0] | flag[1]) != 0;
+        xfin = z2[0] == 0.0 && z2[1] == 0.0;
+        for (; i < n; ++i) {
             const double xi = x[i];
             hit |= (lb[i] > -kBig && lb[i] - xi > 0.0) | (ub[i] < kBig && xi - ub[i] > 0.0) | std::isnan(xi);
             xfin &= std::isfinite(xi);
@@ -880,11 +893,6 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& dx = ws.dx;
     dx.resize(static_cast<size_t>(n));  // every entry written below
     bool eye = z_eye && Z.rows == n && r == n;
-    auto finite = [n](const double* a) {
-        for (i64 i = 0; i < n; ++i)
-            if (!std::isfinite(a[i])) return false;
-        return true;
-    };
     if (eye && xfin) {
         // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
         // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx,
@@ -1028,7 +1036,18 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         ssc.resize(static_cast<size_t>(r));
         hsc.resize(static_cast<size_t>(r));
     }
-    bool eye_sums = eye && finite(v.data()) && finite(vs.data()) && finite(hs.data());
+    bool eye_sums = eye;
+    if (eye_sums) {  // v, vs, hs all finite (their entries times 0.0 sum to 0: see above)
+        using namespace simd;
+        v2d z2 = splat(0.0);
+        const v2d zero = splat(0.0);
+        i64 j = 0;
+        for (; j + 2 <= n; j += 2)
+            z2 += (load(v.data() + j) * zero + load(vs.data() + j) * zero) + load(hs.data() + j) * zero;
+        double z1 = z2[0] + z2[1];
+        for (; j < n; ++j) z1 += (v[j] * 0.0 + vs[j] * 0.0) + hs[j] * 0.0;
+        eye_sums = z1 == 0.0;
+    }
     if (eye_sums) {
         // Z = I, every term finite: axpy3_rows' sum for component c is +0 plus v_c and
         // terms 0 v_i = +-0, which is v_c + 0.0 (a -0 made +0, as adding +0 first does);
