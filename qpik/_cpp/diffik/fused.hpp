@@ -392,19 +392,32 @@ struct FiniteSum {
     // wherever every entry is finite (the only place it is read).
     void add_n(const double* x, i64 n) {
         using namespace core::simd;
-        v2d z2 = splat(0.0);
-        v2d mx2 = splat(max);
+        // (four entries a pass into two pairs of lanes, then the pairs combined: shorter
+        // chains of dependent adds and maxima, the same finite and, where finite, max)
+        auto vmax = [](v2d m, v2d acc) {
+#if defined(__SSE2__)
+            return __builtin_ia32_maxpd(m, acc);  // m > acc ? m : acc, lane by lane
+#else
+            return m > acc ? m : acc;
+#endif
+        };
+        v2d z2 = splat(0.0), z2b = splat(0.0);
+        v2d mx2 = splat(max), mx2b = splat(max);
         i64 t = 0;
+        for (; t + 4 <= n; t += 4) {
+            const v2d v = load(x + t), w = load(x + t + 2);
+            z2 += v * splat(0.0);
+            z2b += w * splat(0.0);
+            mx2 = vmax(vabs(v), mx2);
+            mx2b = vmax(vabs(w), mx2b);
+        }
         for (; t + 2 <= n; t += 2) {
             const v2d v = load(x + t);
             z2 += v * splat(0.0);
-            const v2d m = vabs(v);
-#if defined(__SSE2__)
-            mx2 = __builtin_ia32_maxpd(m, mx2);  // m > mx2 ? m : mx2, lane by lane
-#else
-            mx2 = m > mx2 ? m : mx2;
-#endif
+            mx2 = vmax(vabs(v), mx2);
         }
+        z2 += z2b;
+        mx2 = vmax(mx2b, mx2);
         bool ok = z2[0] == 0.0 && z2[1] == 0.0;
         double mx = mx2[1] > mx2[0] ? mx2[1] : mx2[0];
         for (; t < n; ++t) {
