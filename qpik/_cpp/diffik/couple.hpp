@@ -254,10 +254,13 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     // The levels below in y: x = d_perp + T y.
     const i64 nr = n - static_cast<i64>(s.pairs.size());
     IVec& dof = s.dof;
-    dof.clear();
-    for (i64 t = 0; t < n; ++t) {
-        const i64 k = s.pair_of[t];
-        if (k < 0 || s.pairs[k].i == t) dof.push_back(t);
+    dof.resize(static_cast<size_t>(nr));  // nr entries: the dofs on no pair and each pair's i
+    {
+        size_t c = 0;
+        for (i64 t = 0; t < n; ++t) {
+            const i64 k = s.pair_of[t];
+            if (k < 0 || s.pairs[k].i == t) dof[c++] = t;
+        }
     }
     s.lbr.resize(static_cast<size_t>(nr));  // every entry written below
     s.ubr.resize(static_cast<size_t>(nr));
