@@ -602,10 +602,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
         for (i64 j = 0; j < 4; ++j) out.info[(5 + j) * L + k] = c.certificate[4 * k + j];
     }
     out.v.resize(static_cast<size_t>(n));  // every entry written below
+    // (d_i^2 and v_i all finite exactly when the sum of their products with 0.0 is 0: each
+    // term is +-0 for a finite value and NaN otherwise)
+    double zeros = 0.0;
     for (i64 i = 0; i < n; ++i) {
         out.v[i] = out.d[i] / dt;
-        finite = finite && std::isfinite(out.d[i] * out.d[i]) && std::isfinite(out.v[i]);
+        zeros += (out.d[i] * out.d[i]) * 0.0 + out.v[i] * 0.0;
     }
+    finite = finite && zeros == 0.0;
     if (!finite) {
         out.code = NOT_FINITE;
         out.v_is_d = true;
