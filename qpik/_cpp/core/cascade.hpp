@@ -1765,8 +1765,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
     // v.assign(m, x) inline (no call; the storage kept unless it grows)
     auto fill = [](auto& v, size_t m, auto x) {
         if (v.size() != m) v.resize(m);
-        auto* q = v.data();
-        for (size_t i = 0; i < m; ++i) q[i] = x;
+        std::fill(v.begin(), v.end(), x);  // (a memset for the int8 active sets)
     };
     fill(res.status, static_cast<size_t>(L), i64{NOT_REACHED});
     fill(res.sigma, static_cast<size_t>(L), kInf);

@@ -929,6 +929,41 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
         // order (res from -b_i, size from |b_i|, adx from +0).
         using namespace simd;
+        auto keep_lane = [&](i64 i, double res, double size, double adx) {
+            if (res == 0.0 && size == 0.0 && adx == 0.0) return;
+            rres[nk] = res;
+            rsize[nk] = size;
+            radx[nk] = adx;
+            keep[nk++] = i;
+        };
+        for (; i0 + 4 <= m; i0 += 4) {  // four rows a pass: two pairs of lanes, as below
+            const double* a0 = A.row(i0);
+            const double* a1 = A.row(i0 + 1);
+            const double* a2 = A.row(i0 + 2);
+            const double* a3 = A.row(i0 + 3);
+            v2d res = v2d{-b[i0], -b[i0 + 1]}, res2 = v2d{-b[i0 + 2], -b[i0 + 3]};
+            v2d size = vabs(v2d{b[i0], b[i0 + 1]}), size2 = vabs(v2d{b[i0 + 2], b[i0 + 3]});
+            bmax = pymax(bmax, size[0]);
+            bmax = pymax(bmax, size[1]);
+            bmax = pymax(bmax, size2[0]);
+            bmax = pymax(bmax, size2[1]);
+            v2d adx = splat(0.0), adx2 = splat(0.0);
+            for (i64 j = 0; j < n; ++j) {
+                const v2d xj = splat(x[j]), dj = splat(dx[j]);
+                const v2d aj = v2d{a0[j], a1[j]}, aj2 = v2d{a2[j], a3[j]};
+                const v2d ax = aj * xj, ax2 = aj2 * xj;
+                res += ax;
+                res2 += ax2;
+                size += vabs(ax);
+                size2 += vabs(ax2);
+                adx += vabs(aj) * dj;
+                adx2 += vabs(aj2) * dj;
+            }
+            keep_lane(i0, res[0], size[0], adx[0]);
+            keep_lane(i0 + 1, res[1], size[1], adx[1]);
+            keep_lane(i0 + 2, res2[0], size2[0], adx2[0]);
+            keep_lane(i0 + 3, res2[1], size2[1], adx2[1]);
+        }
         for (; i0 + 2 <= m; i0 += 2) {
             const double* a0 = A.row(i0);
             const double* a1 = A.row(i0 + 1);
@@ -980,7 +1015,39 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     {
         using namespace simd;
         const v2d rv = splat(rho), arv = splat(std::fabs(rho));
+        const double* rowp[64];  // the kept rows (a batch of up to 64)
         i64 j = 0;
+        if (nk <= 64) {
+            for (i64 t = 0; t < nk; ++t) rowp[t] = A.row(keep[t]);
+            for (; j + 4 <= n; j += 4) {  // four columns a pass (each column's operations as below)
+                v2d y0 = splat(0.0), s0 = splat(0.0), h0 = splat(0.0);
+                v2d y1 = splat(0.0), s1 = splat(0.0), h1 = splat(0.0);
+                for (i64 t = 0; t < nk; ++t) {
+                    const v2d a0 = load(rowp[t] + j), a1 = load(rowp[t] + j + 2);
+                    const v2d x0 = vabs(a0), x1 = vabs(a1);
+                    const v2d rr = splat(rres[t]), rs = splat(rsize[t]), rd = splat(radx[t]);
+                    y0 = y0 + a0 * rr;
+                    y1 = y1 + a1 * rr;
+                    s0 = s0 + x0 * rs;
+                    s1 = s1 + x1 * rs;
+                    h0 = h0 + x0 * rd;
+                    h1 = h1 + x1 * rd;
+                }
+                const v2d xv0 = load(x.data() + j), xv1 = load(x.data() + j + 2);
+                y0 += rv * xv0;
+                y1 += rv * xv1;
+                s0 += vabs(rv * xv0);
+                s1 += vabs(rv * xv1);
+                h0 += arv * load(dx.data() + j);
+                h1 += arv * load(dx.data() + j + 2);
+                store(v.data() + j, y0);
+                store(v.data() + j + 2, y1);
+                store(vs.data() + j, s0);
+                store(vs.data() + j + 2, s1);
+                store(hs.data() + j, h0);
+                store(hs.data() + j + 2, h1);
+            }
+        }
         for (; j + 2 <= n; j += 2) {
             v2d yv = splat(0.0), sv = splat(0.0), hv = splat(0.0);
             for (i64 t = 0; t < nk; ++t) {

@@ -29,8 +29,7 @@ namespace qpik::diffik {
 template <class V, class T>
 inline void fill_as(V& v, size_t n, T x) {
     if (v.size() != n) v.resize(n);
-    auto* p = v.data();
-    for (size_t i = 0; i < n; ++i) p[i] = x;
+    std::fill(v.begin(), v.end(), x);  // (a memset for int8)
 }
 
 // One coupling row on dofs i < j: a1 x_i + a2 x_j, and its pieces.
