@@ -418,6 +418,9 @@ class Kernel {
                 const In2& xm, const In2& gx, const In2& gm, const In2& subtree_com) {
         check_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
         attached_ = Attached{std::move(owner), qpos, sx, sm, x, xm, gx, gm, subtree_com};
+        // go()'s arguments: views of arrays that never move (the plan's, held, and the
+        // attached MjData's), built once here
+        go_args_ = fill_poses(qpos, sx, sm, x, xm, gx, gm, subtree_com);
     }
 
     // The arguments of one call on the attached MjData's arrays.
@@ -468,6 +471,10 @@ class Kernel {
         FastArray fa;
         if (fast_array(o, 'd', false, fa)) {  // an ndarray read directly: the same bytes
             if (fa.ndim != 1 || fa.shape[0] != t.size) return false;
+            if (t.stride == 1 && fa.strides[0] == static_cast<Py_ssize_t>(sizeof(double))) {
+                std::memcpy(t.p, fa.data, sizeof(double) * static_cast<size_t>(t.size));  // both contiguous
+                return true;
+            }
             for (i64 k = 0; k < t.size; ++k)
                 std::memcpy(t.p + k * t.stride, fa.data + k * fa.strides[0], sizeof(double));
             return true;
@@ -636,16 +643,38 @@ class Kernel {
     // do not load (nothing solved), else the step's code (its answers written only when OK).
     // The lean step: dt and damping and the sources' values (set_sources) read into the slots
     // by the kernel itself, then solve_into.
-    i64 go(double dt, double damping, i64 row, const std::optional<B2>& warm, bool canonical,
-                   i64 max_iter) {
+    // warm: None, or an int8 (L, nv) array: a C-contiguous int8 numpy.ndarray read directly
+    // (bind.hpp's fast_array: no buffer protocol, no DLPack), anything else converted as a
+    // nanobind int8 array argument converts it (TypeError where it cannot be).
+    i64 go(double dt, double damping, i64 row, nb::handle warm, bool canonical, i64 max_iter) {
+        WarmView wv;
+        B2 converted;  // a converted warm array, held for the call
+        if (!warm.is_none()) {
+            FastArray fa;
+            if (fast_array(warm.ptr(), 'b', false, fa) && fa.c_contiguous && fa.ndim == 2) {
+                wv = WarmView{reinterpret_cast<const i8*>(fa.data), static_cast<i64>(fa.shape[0]),
+                              static_cast<i64>(fa.shape[1]), true};
+            } else {
+                if (!nb::try_cast(warm, converted))
+                    throw nb::type_error("Kernel.go: warm must be None or an int8 array of shape (L, nv)");
+                wv = WarmView{converted.data(), dim(converted, 0), dim(converted, 1), true};
+            }
+        }
         last_row_ = -1;
         pass_row_ = -1;
         if (!load_sources(dt, damping)) return -1;
-        return solve_into(row, warm, canonical, max_iter);
+        return solve_into(row, wv, canonical, max_iter);
     }
 
+    // A warm array of go(): its int8 entries and shape (given false: None, a cold start).
+    struct WarmView {
+        const i8* p = nullptr;
+        i64 rows = 0, cols = 0;
+        bool given = false;
+    };
+
     // go()'s step once its values are in the slots.
-    i64 solve_into(i64 row, const std::optional<B2>& warm, bool canonical, i64 max_iter) {
+    i64 solve_into(i64 row, const WarmView& warm, bool canonical, i64 max_iter) {
         require(attached_.has_value(), "Kernel.go: no MjData attached (Kernel.attach)");
         require(out_.has_value(), "Kernel.go: no outputs attached (Kernel.attach_out)");
         Outputs& o = *out_;
@@ -655,11 +684,11 @@ class Kernel {
             require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
             frame_jacobians();
         }
-        diffik::FusedArgs a = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
+        const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
-        if (warm) {
-            require(dim(*warm, 0) == L_ && dim(*warm, 1) == n_, "Kernel.go: warm must have shape (L, nv)");
-            w = warm->data();
+        if (warm.given) {
+            require(warm.rows == L_ && warm.cols == n_, "Kernel.go: warm must have shape (L, nv)");
+            w = warm.p;
         } else {
             if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
             w = cold_.data();
@@ -768,6 +797,7 @@ class Kernel {
         In2 sx, sm, x, xm, gx, gm, subtree_com;
     };
     std::optional<Attached> attached_, aux_;
+    diffik::FusedArgs go_args_;  // fill_poses of attached_'s arrays (attach)
     i64 last_row_ = -1, pass_row_ = -1;  // go()'s last answered row; correct()'s first pass
     Vec b0_, we0_, we1_;
     std::vector<char> held_;

@@ -1872,21 +1872,29 @@ inline void certify_unreached(CascadeResult& res, CMatRef A, CVecRef b, VecRefT<
 // the arguments (A (M, n), b, w (M,), starts (L + 1,), reg (L,), lb, ub (n,), G (p, n),
 // h (p,), warm (L, n + p) int8). Into res: every field of it written (its storage reused,
 // so that a caller that keeps res, ws.result say, allocates no result vectors on a solve
-// of the same sizes; nothing of a previous result is read).
+// of the same sizes; nothing of a previous result is read), but for a caller that reads
+// no residuals (residuals false) or no primal (primal false): where every level was
+// reached, those are then left as they are (not computed; nothing else depends on them).
 inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
-                               bool canonical, Workspace& ws, CascadeResult& res) {
+                               bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
+                               bool primal = true) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
-    res.status.assign(static_cast<size_t>(L), NOT_REACHED);
-    res.sigma.assign(static_cast<size_t>(L), kInf);
-    zero_fill(res.lam2, static_cast<size_t>(L));
-    res.iterations.assign(static_cast<size_t>(L), 0);
-    res.active.assign(static_cast<size_t>(L * (n + p)), 0);
-    res.certificate.assign(static_cast<size_t>(4 * L), kNaN);
+    // v.assign(m, x) inline (no call; the storage kept unless it grows)
+    auto fill = [](auto& v, size_t m, auto x) {
+        if (v.size() != m) v.resize(m);
+        std::fill(v.begin(), v.end(), x);  // (a memset for the int8 active sets)
+    };
+    fill(res.status, static_cast<size_t>(L), i64{NOT_REACHED});
+    fill(res.sigma, static_cast<size_t>(L), kInf);
+    fill(res.lam2, static_cast<size_t>(L), 0.0);
+    fill(res.iterations, static_cast<size_t>(L), i64{0});
+    fill(res.active, static_cast<size_t>(L * (n + p)), i8{0});
+    fill(res.certificate, static_cast<size_t>(4 * L), kNaN);
     res.primal = 0.0;
     Vec& d = res.dq;
     zero_fill(d, static_cast<size_t>(n));
@@ -2018,10 +2026,11 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         z_eye = false;
     }
     detail::snap_to_box(d, lb, ub);
-    detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
+    if (residuals) detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
     // The general rows (and the box) rechecked at the final answer.
-    res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                               false, &ws.cs, gsq).primal;
+    if (primal)
+        res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {},
+                                   0, false, &ws.cs, gsq).primal;
 }
 
 // solve_cascade_into a result of its own.

@@ -495,6 +495,8 @@ struct CertScratch {
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
     Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
+    Vec rres, rsize, radx;              // certify_level's kept rows
+    IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref, xstart;
 };
@@ -792,8 +794,40 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Certificate cert;
     double primal = 0.0, xmax = 0.0;
     bool relative = true;
-    for (i64 i = 0; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
-    for (i64 i = 0; i < n; ++i) {
+    // xmax, two lanes (each lane's largest |x_i| that is not NaN, then the larger: the value
+    // pymax's chain over i gives, a NaN never winning); whether any row is violated or an
+    // entry is NaN, and whether every entry is finite.
+    bool hit = false, xfin = true;
+    {
+        using namespace simd;
+        v2d mv = splat(0.0);
+        i64 i = 0;
+        for (; i + 2 <= n; i += 2) {
+            const v2d ax = vabs(load(x.data() + i));
+            mv = ax > mv ? ax : mv;
+        }
+        xmax = pymax(mv[0], mv[1]);
+        for (; i < n; ++i) xmax = pymax(xmax, std::fabs(x[i]));
+        // (branch-free, two lanes: a lane's flags as the scalar tests; x * 0.0 is +-0 for a
+        // finite x and NaN otherwise, so the lanes' sums of them are 0 exactly when every
+        // entry is finite)
+        v2i flag = v2i{0, 0};
+        v2d z2 = splat(0.0);
+        const v2d big = splat(kBig), nbig = splat(-kBig), zero = splat(0.0);
+        for (i = 0; i + 2 <= n; i += 2) {
+            const v2d xv = load(x.data() + i), l = load(lb.p + i), u = load(ub.p + i);
+            flag |= ((l > nbig) & (l - xv > zero)) | ((u < big) & (xv - u > zero)) | (xv != xv);
+            z2 += xv * zero;
+        }
+        hit = (flag[0] | flag[1]) != 0;
+        xfin = z2[0] == 0.0 && z2[1] == 0.0;
+        for (; i < n; ++i) {
+            const double xi = x[i];
+            hit |= (lb[i] > -kBig && lb[i] - xi > 0.0) | (ub[i] < kBig && xi - ub[i] > 0.0) | std::isnan(xi);
+            xfin &= std::isfinite(xi);
+        }
+    }
+    for (i64 i = 0; hit && i < n; ++i) {
         // Only a row violated (lb - x > 0, x - ub > 0) moves primal (>= +0: a quotient <= 0 or
         // NaN never wins pymax) or relative (its bound kRowsRelative (|bound| + xmax) is >= 0):
         // the same values as taking every row.
@@ -859,17 +893,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& dx = ws.dx;
     dx.resize(static_cast<size_t>(n));  // every entry written below
     bool eye = z_eye && Z.rows == n && r == n;
-    auto finite = [n](const double* a) {
-        for (i64 i = 0; i < n; ++i)
-            if (!std::isfinite(a[i])) return false;
-        return true;
-    };
-    if (eye && finite(x.data())) {
+    if (eye && xfin) {
         // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
-        // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx.
-        double zx = 0.0;
-        for (i64 c = 0; c < r; ++c) zx = pymax(zx, std::fabs(x[c]));
-        for (i64 i = 0; i < n; ++i) dx[i] = zx;
+        // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx,
+        // zx = max_c |x_c| over c < r = n: xmax.
+        for (i64 i = 0; i < n; ++i) dx[i] = xmax;
     } else {
         Vec& zc = ws.zc;
         zero_prefix(zc, static_cast<size_t>(r));
@@ -881,22 +909,68 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
-    Vec& hs = ws.hs;
-    zero_fill(hs, static_cast<size_t>(n));
-    Vec& v = ws.v;
-    Vec& vs = ws.vs;
-    zero_fill(v, static_cast<size_t>(n));
-    zero_fill(vs, static_cast<size_t>(n));
+    // Per row i: res_i = A_i x - b_i, size_i = |b_i| + sum |A_ij x_j|, adx_i = sum |A_ij| dx_j
+    // (each summed in order of j); the rows with all three +-0 left out (their terms add
+    // nothing). bmax = max |b_i| (pymax's value, in any order: no NaN ever wins).
+    Vec& rres = ws.rres;
+    Vec& rsize = ws.rsize;
+    Vec& radx = ws.radx;
+    IVec& keep = ws.keep;
+    if (rres.size() < static_cast<size_t>(m)) {  // grown, never shrunk; entries written before read
+        rres.resize(static_cast<size_t>(m));
+        rsize.resize(static_cast<size_t>(m));
+        radx.resize(static_cast<size_t>(m));
+        keep.resize(static_cast<size_t>(m));
+    }
+    i64 nk = 0;
+    double bmax = 0.0;
     i64 i0 = 0;
     {
         // Two rows a pass, one per lane: each lane's sums are the single row's, in the same
-        // order (res from -b_i, size from |b_i|, adx from +0); the rows then added in order.
+        // order (res from -b_i, size from |b_i|, adx from +0).
         using namespace simd;
+        auto keep_lane = [&](i64 i, double res, double size, double adx) {
+            if (res == 0.0 && size == 0.0 && adx == 0.0) return;
+            rres[nk] = res;
+            rsize[nk] = size;
+            radx[nk] = adx;
+            keep[nk++] = i;
+        };
+        for (; i0 + 4 <= m; i0 += 4) {  // four rows a pass: two pairs of lanes, as below
+            const double* a0 = A.row(i0);
+            const double* a1 = A.row(i0 + 1);
+            const double* a2 = A.row(i0 + 2);
+            const double* a3 = A.row(i0 + 3);
+            v2d res = v2d{-b[i0], -b[i0 + 1]}, res2 = v2d{-b[i0 + 2], -b[i0 + 3]};
+            v2d size = vabs(v2d{b[i0], b[i0 + 1]}), size2 = vabs(v2d{b[i0 + 2], b[i0 + 3]});
+            bmax = pymax(bmax, size[0]);
+            bmax = pymax(bmax, size[1]);
+            bmax = pymax(bmax, size2[0]);
+            bmax = pymax(bmax, size2[1]);
+            v2d adx = splat(0.0), adx2 = splat(0.0);
+            for (i64 j = 0; j < n; ++j) {
+                const v2d xj = splat(x[j]), dj = splat(dx[j]);
+                const v2d aj = v2d{a0[j], a1[j]}, aj2 = v2d{a2[j], a3[j]};
+                const v2d ax = aj * xj, ax2 = aj2 * xj;
+                res += ax;
+                res2 += ax2;
+                size += vabs(ax);
+                size2 += vabs(ax2);
+                adx += vabs(aj) * dj;
+                adx2 += vabs(aj2) * dj;
+            }
+            keep_lane(i0, res[0], size[0], adx[0]);
+            keep_lane(i0 + 1, res[1], size[1], adx[1]);
+            keep_lane(i0 + 2, res2[0], size2[0], adx2[0]);
+            keep_lane(i0 + 3, res2[1], size2[1], adx2[1]);
+        }
         for (; i0 + 2 <= m; i0 += 2) {
             const double* a0 = A.row(i0);
             const double* a1 = A.row(i0 + 1);
             v2d res = v2d{-b[i0], -b[i0 + 1]};
             v2d size = vabs(v2d{b[i0], b[i0 + 1]});
+            bmax = pymax(bmax, size[0]);
+            bmax = pymax(bmax, size[1]);
             v2d adx = splat(0.0);
             for (i64 j = 0; j < n; ++j) {
                 v2d aj = v2d{a0[j], a1[j]};
@@ -905,27 +979,107 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                 size += vabs(ax);
                 adx += vabs(aj) * splat(dx[j]);
             }
-            if (!(res[0] == 0.0 && size[0] == 0.0 && adx[0] == 0.0))
-                axpy3(v.data(), vs.data(), hs.data(), a0, res[0], size[0], adx[0], n);
-            if (!(res[1] == 0.0 && size[1] == 0.0 && adx[1] == 0.0))
-                axpy3(v.data(), vs.data(), hs.data(), a1, res[1], size[1], adx[1], n);
+            for (int l = 0; l < 2; ++l) {
+                if (res[l] == 0.0 && size[l] == 0.0 && adx[l] == 0.0) continue;
+                rres[nk] = res[l];
+                rsize[nk] = size[l];
+                radx[nk] = adx[l];
+                keep[nk++] = i0 + l;
+            }
         }
     }
     for (i64 i = i0; i < m; ++i) {
         const double* ai = A.row(i);
         double res = -b[i], size = std::fabs(b[i]), adx = 0.0;
+        bmax = pymax(bmax, size);
         for (i64 j = 0; j < n; ++j) {
             res += ai[j] * x[j];
             size += std::fabs(ai[j] * x[j]);
             adx += std::fabs(ai[j]) * dx[j];
         }
         if (res == 0.0 && size == 0.0 && adx == 0.0) continue;
-        axpy3(v.data(), vs.data(), hs.data(), ai, res, size, adx, n);
+        rres[nk] = res;
+        rsize[nk] = size;
+        radx[nk] = adx;
+        keep[nk++] = i;
     }
-    for (i64 j = 0; j < n; ++j) {
-        v[j] += rho * x[j];
-        vs[j] += std::fabs(rho * x[j]);
-        hs[j] += std::fabs(rho) * dx[j];
+    // v = A^T res + rho x, vs = |A|^T size + |rho x|, hs = |A|^T adx + |rho| dx: per entry j
+    // from +0, the kept rows' terms in order of i, then rho's (the operations of adding each
+    // row to zeroed vectors in turn); two columns a pass.
+    Vec& hs = ws.hs;
+    Vec& v = ws.v;
+    Vec& vs = ws.vs;
+    shape(hs, static_cast<size_t>(n));  // every entry written below
+    shape(v, static_cast<size_t>(n));
+    shape(vs, static_cast<size_t>(n));
+    {
+        using namespace simd;
+        const v2d rv = splat(rho), arv = splat(std::fabs(rho));
+        const double* rowp[64];  // the kept rows (a batch of up to 64)
+        i64 j = 0;
+        if (nk <= 64) {
+            for (i64 t = 0; t < nk; ++t) rowp[t] = A.row(keep[t]);
+            for (; j + 4 <= n; j += 4) {  // four columns a pass (each column's operations as below)
+                v2d y0 = splat(0.0), s0 = splat(0.0), h0 = splat(0.0);
+                v2d y1 = splat(0.0), s1 = splat(0.0), h1 = splat(0.0);
+                for (i64 t = 0; t < nk; ++t) {
+                    const v2d a0 = load(rowp[t] + j), a1 = load(rowp[t] + j + 2);
+                    const v2d x0 = vabs(a0), x1 = vabs(a1);
+                    const v2d rr = splat(rres[t]), rs = splat(rsize[t]), rd = splat(radx[t]);
+                    y0 = y0 + a0 * rr;
+                    y1 = y1 + a1 * rr;
+                    s0 = s0 + x0 * rs;
+                    s1 = s1 + x1 * rs;
+                    h0 = h0 + x0 * rd;
+                    h1 = h1 + x1 * rd;
+                }
+                const v2d xv0 = load(x.data() + j), xv1 = load(x.data() + j + 2);
+                y0 += rv * xv0;
+                y1 += rv * xv1;
+                s0 += vabs(rv * xv0);
+                s1 += vabs(rv * xv1);
+                h0 += arv * load(dx.data() + j);
+                h1 += arv * load(dx.data() + j + 2);
+                store(v.data() + j, y0);
+                store(v.data() + j + 2, y1);
+                store(vs.data() + j, s0);
+                store(vs.data() + j + 2, s1);
+                store(hs.data() + j, h0);
+                store(hs.data() + j + 2, h1);
+            }
+        }
+        for (; j + 2 <= n; j += 2) {
+            v2d yv = splat(0.0), sv = splat(0.0), hv = splat(0.0);
+            for (i64 t = 0; t < nk; ++t) {
+                const v2d av = load(A.row(keep[t]) + j);
+                const v2d ax = vabs(av);
+                yv = yv + av * splat(rres[t]);
+                sv = sv + ax * splat(rsize[t]);
+                hv = hv + ax * splat(radx[t]);
+            }
+            const v2d xv = load(x.data() + j);
+            yv += rv * xv;
+            sv += vabs(rv * xv);
+            hv += arv * load(dx.data() + j);
+            store(v.data() + j, yv);
+            store(vs.data() + j, sv);
+            store(hs.data() + j, hv);
+        }
+        for (; j < n; ++j) {
+            double yv = 0.0, sv = 0.0, hv = 0.0;
+            for (i64 t = 0; t < nk; ++t) {
+                const double a = A(keep[t], j);
+                yv += a * rres[t];
+                sv += std::fabs(a) * rsize[t];
+                hv += std::fabs(a) * radx[t];
+            }
+            yv += rho * x[j];
+            sv += std::fabs(rho * x[j]);
+            hv += std::fabs(rho) * dx[j];
+            v[j] = yv;
+            vs[j] = sv;
+            hs[j] = hv;
+        }
     }
     for (i64 k = 0; k < q; ++k) {
         double lam = u[k] * static_cast<double>(act_side[k]);
@@ -942,12 +1096,26 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     double S = 0.0;
     // sc = Z^T v, ssc = |Z|^T vs, each component summed over i in order (row by row).
     Vec& hsc = ws.hsc;
-    zero_prefix(hsc, static_cast<size_t>(r));
     Vec& sc = ws.sc;
     Vec& ssc = ws.ssc;
-    zero_prefix(sc, static_cast<size_t>(r));
-    zero_prefix(ssc, static_cast<size_t>(r));
-    if (eye && finite(v.data()) && finite(vs.data()) && finite(hs.data())) {
+    if (sc.size() < static_cast<size_t>(r)) {  // grown, never shrunk: read through r entries
+        sc.resize(static_cast<size_t>(r));
+        ssc.resize(static_cast<size_t>(r));
+        hsc.resize(static_cast<size_t>(r));
+    }
+    bool eye_sums = eye;
+    if (eye_sums) {  // v, vs, hs all finite (their entries times 0.0 sum to 0: see above)
+        using namespace simd;
+        v2d z2 = splat(0.0);
+        const v2d zero = splat(0.0);
+        i64 j = 0;
+        for (; j + 2 <= n; j += 2)
+            z2 += (load(v.data() + j) * zero + load(vs.data() + j) * zero) + load(hs.data() + j) * zero;
+        double z1 = z2[0] + z2[1];
+        for (; j < n; ++j) z1 += (v[j] * 0.0 + vs[j] * 0.0) + hs[j] * 0.0;
+        eye_sums = z1 == 0.0;
+    }
+    if (eye_sums) {
         // Z = I, every term finite: axpy3_rows' sum for component c is +0 plus v_c and
         // terms 0 v_i = +-0, which is v_c + 0.0 (a -0 made +0, as adding +0 first does);
         // the same for vs and hs.
@@ -957,24 +1125,36 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             hsc[c] = hs[c] + 0.0;
         }
     } else {
+        zero_small(sc.data(), static_cast<size_t>(r));
+        zero_small(ssc.data(), static_cast<size_t>(r));
+        zero_small(hsc.data(), static_cast<size_t>(r));
         axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     }
-    for (i64 c = 0; c < r; ++c) S = pymax(S, ssc[c]);
+    {
+        // S = max_c ssc_c, two lanes (the value of pymax's chain: no NaN ever wins)
+        using namespace simd;
+        v2d mv = splat(0.0);
+        i64 c = 0;
+        for (; c + 2 <= r; c += 2) {
+            const v2d sv = load(ssc.data() + c);
+            mv = sv > mv ? sv : mv;
+        }
+        S = pymax(mv[0], mv[1]);
+        for (; c < r; ++c) S = pymax(S, ssc[c]);
+    }
     // A component whose own terms are tiny is measured against kSizeFloor S instead (the
     // round-off the other components feed into it), S at least the largest full-space size:
     // an entry of Z that is round-off where it is exactly 0 (a dof the levels above pinned)
     // feeds eps |v| into every component, which sizes in null-space coordinates alone do not
     // see when the level's whole gradient lies outside Z (a task on pinned dofs only).
+    // (With eye_sums every vs_i is finite and equals ssc_i: none is larger than S.)
     double big = S;
-    for (i64 i = 0; i < n; ++i) big = pymax(big, vs[i]);
+    if (!eye_sums)
+        for (i64 i = 0; i < n; ++i) big = pymax(big, vs[i]);
     // The regularisation's rows sqrt(rho) I meet b in the least-squares solve (Householder
     // mixes them): its round-off, eps sqrt(rho) |b|, is there even where A is zero (a task
     // no dof moves), which the sizes above do not see.
-    if (rho > 0.0) {
-        double bmax = 0.0;
-        for (i64 i = 0; i < m; ++i) bmax = pymax(bmax, std::fabs(b[i]));
-        big = pymax(big, std::sqrt(rho) * bmax);
-    }
+    if (rho > 0.0) big = pymax(big, std::sqrt(rho) * bmax);
     double stat = 0.0;
     for (i64 c = 0; c < r; ++c) {
         double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);

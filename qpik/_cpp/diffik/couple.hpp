@@ -24,6 +24,14 @@
 
 namespace qpik::diffik {
 
+// v.assign(n, x) written inline (no call; the storage kept unless it grows): size n, every
+// entry x.
+template <class V, class T>
+inline void fill_as(V& v, size_t n, T x) {
+    if (v.size() != n) v.resize(n);
+    std::fill(v.begin(), v.end(), x);  // (a memset for int8)
+}
+
 // One coupling row on dofs i < j: a1 x_i + a2 x_j, and its pieces.
 struct CouplePair {
     i64 row = 0, i = 0, j = 0;
@@ -44,6 +52,7 @@ struct CoupleScratch {
     IVec startsr, rows, sides;
     IVec runs;   // (c, t, len) triples: reduced columns c:c+len are dofs t:t+len (on no pair)
     IVec pcols;  // the reduced columns of the pairs, in order
+    std::vector<const CouplePair*> pcol_pair;  // the pair of each of pcols
     BVec warmr;
     core::CertScratch cs;
     // the reduced cascade's result and the answer's residual rows (kept: no allocation a step)
@@ -111,7 +120,7 @@ inline bool pair_qp(double a1, double a2, double beta, double rho, const double*
 inline bool find_pairs(CMatRef A, CVecRef w, i64 m0, CVecRef lb, CVecRef ub, CoupleScratch& s) {
     const i64 n = A.cols;
     s.pairs.clear();
-    s.pair_of.assign(static_cast<size_t>(n), -1);
+    fill_as(s.pair_of, static_cast<size_t>(n), i64{-1});
     for (i64 r = 0; r < m0; ++r) {
         if (!(w[r] > 0.0)) return false;
         const double* ar = A.row(r);
@@ -244,10 +253,13 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     // The levels below in y: x = d_perp + T y.
     const i64 nr = n - static_cast<i64>(s.pairs.size());
     IVec& dof = s.dof;
-    dof.clear();
-    for (i64 t = 0; t < n; ++t) {
-        const i64 k = s.pair_of[t];
-        if (k < 0 || s.pairs[k].i == t) dof.push_back(t);
+    dof.resize(static_cast<size_t>(nr));  // nr entries: the dofs on no pair and each pair's i
+    {
+        size_t c = 0;
+        for (i64 t = 0; t < n; ++t) {
+            const i64 k = s.pair_of[t];
+            if (k < 0 || s.pairs[k].i == t) dof[c++] = t;
+        }
     }
     s.lbr.resize(static_cast<size_t>(nr));  // every entry written below
     s.ubr.resize(static_cast<size_t>(nr));
@@ -293,6 +305,10 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     const i64 Mr = M - m0;
     core::shape(s.Ar, Mr, nr);  // every entry written below
     s.br.resize(static_cast<size_t>(Mr));
+    // Each pair column's pair (in order of pcols), looked up once.
+    std::vector<const CouplePair*>& pp = s.pcol_pair;
+    pp.resize(pcols.size());
+    for (size_t q = 0; q < pcols.size(); ++q) pp[q] = &s.pairs[s.pair_of[dof[pcols[q]]]];
     for (i64 r = 0; r < Mr; ++r) {
         const double* ar = A.row(m0 + r);
         double* dst = s.Ar.row(r);
@@ -300,13 +316,16 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
             double* d = dst + runs[q];
             const double* src = ar + runs[q + 1];
             const i64 len = runs[q + 2];
-            for (i64 e = 0; e < len; ++e) d[e] = src[e];
+            i64 e = 0;
+            for (; e + 2 <= len; e += 2) core::simd::store(d + e, core::simd::load(src + e));
+            if (e < len) d[e] = src[e];
         }
         double shift = 0.0;
-        for (const i64 c : pcols) {
-            const CouplePair& p = s.pairs[s.pair_of[dof[c]]];
-            dst[c] = ar[p.i] * p.p1 + ar[p.j] * p.p2;
-            shift += ar[p.i] * p.di + ar[p.j] * p.dj;
+        for (size_t q = 0; q < pcols.size(); ++q) {
+            const CouplePair& p = *pp[q];
+            const double ai = ar[p.i], aj = ar[p.j];
+            dst[pcols[q]] = ai * p.p1 + aj * p.p2;
+            shift += ai * p.di + aj * p.dj;
         }
         s.br[r] = b[m0 + r] - shift;
     }
@@ -327,12 +346,14 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
             s.warmr[static_cast<size_t>((k - 1) * nr + c)] = v;
         }
     }
-    core::CascadeResult& low = s.low;  // every field written by solve_cascade_into
+    // Every field written by solve_cascade_into but its residuals and primal (the answer's
+    // are computed below, in x).
+    core::CascadeResult& low = s.low;
     core::solve_cascade_into(
         s.Ar.cref(), CVecRef(s.br), w.slice(m0, M), VecRefT<const i64>(s.startsr), reg.slice(1, L),
         CVecRef(s.lbr), CVecRef(s.ubr), CMatRef(nullptr, 0, nr), h, threshold, max_damping,
         error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(s.warmr.data(), L - 1, nr),
-        canonical, ws, low);
+        canonical, ws, low, false, false);
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
     // Back to x, snapped to the box as the cascade snaps; a larger excess: the general path.
     Vec& x = s.xs;
@@ -367,7 +388,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     out.certificate[1] = cert.stationarity;
     out.certificate[2] = cert.dual;
     out.certificate[3] = cert.complementarity;
-    out.active.assign(static_cast<size_t>(L * n), 0);
+    fill_as(out.active, static_cast<size_t>(L * n), i8{0});
     for (size_t q = 0; q < rows.size(); ++q)
         if (u[q] > 0.0) out.active[static_cast<size_t>(rows[q])] = static_cast<i8>(sides[q]);
     for (i64 k = 1; k < L; ++k) {

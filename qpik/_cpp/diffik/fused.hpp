@@ -217,10 +217,10 @@ inline void boxes_into(CVecRef qpos, double dt, VecRefT<const i64> cfg_dof, cons
                        VecRefT<const i64> vel_dof, CVecRef vel_limit, i64 n,
                        VecRefT<const i64> cfg_qadr, BoxScratch& s, Box& box) {
     const size_t m = static_cast<size_t>(n);
-    s.hard_lb.assign(m, -kInf);
-    s.hard_ub.assign(m, kInf);
-    s.pos_lb.assign(m, -kInf);
-    s.pos_ub.assign(m, kInf);
+    fill_as(s.hard_lb, m, -kInf);
+    fill_as(s.hard_ub, m, kInf);
+    fill_as(s.pos_lb, m, -kInf);
+    fill_as(s.pos_ub, m, kInf);
     Vec &hard_lb = s.hard_lb, &hard_ub = s.hard_ub, &pos_lb = s.pos_lb, &pos_ub = s.pos_ub;
     for (i64 e = 0; e < cfg_dof.n; ++e) {
         const i64 i = cfg_dof[e];
@@ -274,7 +274,7 @@ inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos
 inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec& diag) {
     const i64 n = a.A.cols;
     zero_fill(reg, static_cast<size_t>(L));
-    diag.assign(static_cast<size_t>(a.A.rows), -1);
+    fill_as(diag, static_cast<size_t>(a.A.rows), i64{-1});
     if (local.size() < static_cast<size_t>(19 * n)) local.resize(static_cast<size_t>(19 * n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0);
@@ -392,19 +392,32 @@ struct FiniteSum {
     // wherever every entry is finite (the only place it is read).
     void add_n(const double* x, i64 n) {
         using namespace core::simd;
-        v2d z2 = splat(0.0);
-        v2d mx2 = splat(max);
+        // (four entries a pass into two pairs of lanes, then the pairs combined: shorter
+        // chains of dependent adds and maxima, the same finite and, where finite, max)
+        auto vmax = [](v2d m, v2d acc) {
+#if defined(__SSE2__)
+            return __builtin_ia32_maxpd(m, acc);  // m > acc ? m : acc, lane by lane
+#else
+            return m > acc ? m : acc;
+#endif
+        };
+        v2d z2 = splat(0.0), z2b = splat(0.0);
+        v2d mx2 = splat(max), mx2b = splat(max);
         i64 t = 0;
+        for (; t + 4 <= n; t += 4) {
+            const v2d v = load(x + t), w = load(x + t + 2);
+            z2 += v * splat(0.0);
+            z2b += w * splat(0.0);
+            mx2 = vmax(vabs(v), mx2);
+            mx2b = vmax(vabs(w), mx2b);
+        }
         for (; t + 2 <= n; t += 2) {
             const v2d v = load(x + t);
             z2 += v * splat(0.0);
-            const v2d m = vabs(v);
-#if defined(__SSE2__)
-            mx2 = __builtin_ia32_maxpd(m, mx2);  // m > mx2 ? m : mx2, lane by lane
-#else
-            mx2 = m > mx2 ? m : mx2;
-#endif
+            mx2 = vmax(vabs(v), mx2);
         }
+        z2 += z2b;
+        mx2 = vmax(mx2b, mx2);
         bool ok = z2[0] == 0.0 && z2[1] == 0.0;
         double mx = mx2[1] > mx2[0] ? mx2[1] : mx2[0];
         for (; t < n; ++t) {
@@ -447,7 +460,13 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     for (i64 r = 0; r < a.b.n; ++r) {
         const i64 d = s.diag[static_cast<size_t>(r)];
         if (d < 0) {
-            ts.add_n(a.A.row(r), n);
+            // a run of such rows in one add_n where A's rows are contiguous (its finite, max
+            // and count: those of one add_n per row)
+            i64 e = r + 1;
+            if (a.A.stride == n)
+                while (e < a.b.n && s.diag[static_cast<size_t>(e)] < 0) ++e;
+            ts.add_n(a.A.row(r), (e - r) * n);
+            r = e - 1;
         } else {  // a posture row (cost_row): its diagonal entry and n - 1 equal others
             ts.add(a.A(r, d));
             if (n > 1) ts.add_rep(a.A(r, d == 0 ? 1 : 0), n - 1);
@@ -556,8 +575,9 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
                                  CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
                                  a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
                                  a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                 a.settings[TOL], warm, canonical, ws, c);
+                                 a.settings[TOL], warm, canonical, ws, c, true, false);
     }
+    // (c.primal is not read here: the general path leaves it uncomputed)
     out.d.assign(c.dq.begin(), c.dq.end());
     out.active.assign(c.active.begin(), c.active.end());
     out.active_cols = L > 0 ? static_cast<i64>(out.active.size()) / L : n;
@@ -582,10 +602,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
         for (i64 j = 0; j < 4; ++j) out.info[(5 + j) * L + k] = c.certificate[4 * k + j];
     }
     out.v.resize(static_cast<size_t>(n));  // every entry written below
+    // (d_i^2 and v_i all finite exactly when the sum of their products with 0.0 is 0: each
+    // term is +-0 for a finite value and NaN otherwise)
+    double zeros = 0.0;
     for (i64 i = 0; i < n; ++i) {
         out.v[i] = out.d[i] / dt;
-        finite = finite && std::isfinite(out.d[i] * out.d[i]) && std::isfinite(out.v[i]);
+        zeros += (out.d[i] * out.d[i]) * 0.0 + out.v[i] * 0.0;
     }
+    finite = finite && zeros == 0.0;
     if (!finite) {
         out.code = NOT_FINITE;
         out.v_is_d = true;

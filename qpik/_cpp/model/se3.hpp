@@ -221,10 +221,11 @@ inline void se3_rminus(double* tangent, const double* a, const double* b) {
 namespace se3_detail {
 
 // The Q block of the SE(3) left Jacobian (Sola et al., eq. 180) at c (6).
-inline void get_q(double* Q, const double* c) {
+// get_q with theta = |c[3:6]| and, where theta^2 >= kLieEps, st = sin(theta), ct =
+// cos(theta) already computed (as get_q computes them: the same bits).
+inline void get_q_at(double* Q, const double* c, double theta, double st, double ct) {
     const double* v = c;
     const double* w = c + 3;
-    const double theta = std::sqrt(dot3(w, w));
     const double t2 = theta * theta;
     const double A = 0.5;
     double B, C, D;
@@ -234,8 +235,6 @@ inline void get_q(double* Q, const double* c) {
         D = -(1.0 / 60.0);
     } else {
         const double t4 = t2 * t2;
-        const double st = std::sin(theta);
-        const double ct = std::cos(theta);
         B = (theta - st) / (t2 * theta);
         C = (1.0 - 0.5 * t2 - ct) / t4;
         D = (2.0 * theta - 3.0 * st + theta * ct) / (2.0 * t4 * theta);
@@ -257,6 +256,18 @@ inline void get_q(double* Q, const double* c) {
     }
 }
 
+inline void get_q(double* Q, const double* c) {
+    const double* w = c + 3;
+    const double theta = std::sqrt(dot3(w, w));
+    const double t2 = theta * theta;
+    double st = 0.0, ct = 1.0;
+    if (!(t2 < kLieEps)) {
+        st = std::sin(theta);
+        ct = std::cos(theta);
+    }
+    get_q_at(Q, c, theta, st, ct);
+}
+
 }  // namespace se3_detail
 
 // jlog(T): the right Jacobian inverse at log(T), row-major 6x6 (36).
@@ -271,9 +282,17 @@ inline void se3_jlog(double* jlog, const double* T) {
         for (int i = 0; i < 6; ++i) jlog[6 * i + i] = 1.0;
         return;
     }
+    // get_q and so3_ljacinv at the same theta = |neg[3:6]| (each computes it so): one sin
+    // and cos for both.
     double Q[9], lji[9];
-    get_q(Q, neg);
-    so3_ljacinv(lji, neg + 3);
+    const double theta = std::sqrt(dot3(neg + 3, neg + 3));
+    double st = 0.0, ct = 1.0;
+    if (!(theta * theta < kLieEps)) {
+        st = std::sin(theta);
+        ct = std::cos(theta);
+    }
+    get_q_at(Q, neg, theta, st, ct);
+    so3_ljacinv_at(lji, neg + 3, theta, st, ct);
 #pragma GCC unroll 3
     for (int i = 0; i < 3; ++i)
 #pragma GCC unroll 3

@@ -128,15 +128,16 @@ inline void so3_log(double* omega, const double* wxyz) {
 // theta^2 = kLieEps (mink: theta < kLieEps), where jlog never calls it, so jlog keeps mink's
 // answers bitwise: mink's closed form divides by 1 - cos(theta), which rounds to 0 below
 // theta ~ 1e-8 (a NaN) and keeps ~|log10 theta^2| - 6 digits above 1e-5.
-inline void so3_ljacinv(double* out, const double* omega) {
+// so3_ljacinv with theta = |omega| and, where theta^2 >= kLieEps, st = sin(theta), ct =
+// cos(theta) already computed (as so3_ljacinv computes them: the same bits).
+inline void so3_ljacinv_at(double* out, const double* omega, double theta, double st, double ct) {
     using so3_detail::dot3;
-    const double theta = std::sqrt(dot3(omega, omega));
     const double t2 = theta * theta;
     double beta;
     if (t2 < kLieEps) {
         beta = (1.0 / 12.0) * (1.0 + t2 / 60.0 * (1.0 + t2 / 42.0 * (1.0 + t2 / 40.0)));
     } else {
-        beta = (1.0 / t2) * (1.0 - (theta * std::sin(theta) / (2.0 * (1.0 - std::cos(theta)))));
+        beta = (1.0 / t2) * (1.0 - (theta * st / (2.0 * (1.0 - ct))));
     }
     const double inner = dot3(omega, omega);
 #pragma GCC unroll 3
@@ -154,6 +155,18 @@ inline void so3_ljacinv(double* out, const double* omega) {
     out[0] += 1.0;
     out[4] += 1.0;
     out[8] += 1.0;
+}
+
+inline void so3_ljacinv(double* out, const double* omega) {
+    using so3_detail::dot3;
+    const double theta = std::sqrt(dot3(omega, omega));
+    const double t2 = theta * theta;
+    double st = 0.0, ct = 1.0;
+    if (!(t2 < kLieEps)) {
+        st = std::sin(theta);
+        ct = std::cos(theta);
+    }
+    so3_ljacinv_at(out, omega, theta, st, ct);
 }
 
 }  // namespace qpik::model

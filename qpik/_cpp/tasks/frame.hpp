@@ -49,12 +49,14 @@ namespace frame_detail {
 
 // Whether every x[0..N) is finite: x * 0.0 is +-0 for a finite x and NaN otherwise, and
 // their sum (from +0) compares equal to 0 exactly when every term is +-0.
+// (Four sums, k mod 4, each from +0: each is +-0 exactly when its terms are all finite;
+// shorter chains of dependent adds than one sum.)
 template <int N>
 inline bool all_finite(const double* x) {
-    double acc = 0.0;
+    double acc[4] = {0.0, 0.0, 0.0, 0.0};
 #pragma GCC unroll 36
-    for (int k = 0; k < N; ++k) acc += x[k] * 0.0;
-    return acc == 0.0;
+    for (int k = 0; k < N; ++k) acc[k & 3] += x[k] * 0.0;
+    return (acc[0] + acc[1]) + (acc[2] + acc[3]) == 0.0;
 }
 
 // Whether column j of jac (6, nv) is exactly zero (+-0 entries): every bit but the sign
