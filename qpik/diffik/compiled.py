@@ -49,9 +49,7 @@ from ..errors import TargetNotSet
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
 from .correction import LeanCorrection
-from .layout import (
-    frame_chains,
-)
+from .layout import frame_chains
 from .result import Solution, StepResult, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -136,11 +134,9 @@ class CompiledPlan:
         self._corrector: LeanCorrection | None = None
         # the tasks and limits _sources reads, in its order (the lists never change)
         self._frame_tasks = [f[0] for f in self.frames]
-        #: the kernel's cap on active-set changes of a lean step
-        self._cap = self.max_iter or 10 * self.nv + 50
-        #: a lean plan whose every task the kernel reads itself (no CoM, relative-frame or
-        #: row-supplying task, no general-row limit): :meth:`step_result` calls the kernel
-        #: at once once :meth:`_lean` has attached a configuration's arrays
+        self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
+        #: no CoM, relative-frame or row-supplying task, no general rows: once :meth:`_lean`
+        #: attached a configuration, :meth:`step_result` calls the kernel at once
         self._plain = not (self.coms or self.relatives or self.rows_tasks or self.general_limits)
         self._linear_tasks = [t[0] for t in self.linears]
         self._config_limits = [c[0] for c in self.config_limits]
@@ -576,30 +572,25 @@ class CompiledPlan:
         path must answer."""
         if passes and self.general_limits:
             return None
-        if self._plain and not passes:
-            # _lean's kernel call inlined for a plan of frame, posture and damping tasks
-            # whose arrays and law are attached to this configuration (every check _lean
-            # makes holds), cold: one call and the result
-            row = self._row
-            if (
-                configuration.data is self._data
-                and self._data is self._chain_data
-                and core.damping_law is self.law
-                and row != _OUTPUT_ROWS
-                and not core.warm_start
-            ):
-                code = self.kernel.go(dt, damping, row, None, False, self._cap)
-                if code != -1:
-                    self._row = row + 1
-                    if code != OK:
-                        return None
-                    out = self._out
-                    core.warm_start_from_row(out[3], row)
-                    return _lean_result(
-                        out[1][row], _perf_counter() - start, (out, row, skip, self, dt)
-                    )
+        row = self._row
+        plain = (  # _lean inlined where each of its checks holds (else -3: _lean to call)
+            self._plain
+            and not passes
+            and configuration.data is self._data
+            and self._data is self._chain_data
+            and core.damping_law is self.law
+            and row != _OUTPUT_ROWS
+            and not core.warm_start
+        )
+        code = self.kernel.go(dt, damping, row, None, False, self._cap) if plain else -1
+        if code == -1:
+            row = -3
+        else:
+            self._row = row + 1
+            row = row if code == OK else -1
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
-            row = self._lean(configuration, dt, damping, core)
+            if row == -3:
+                row = self._lean(configuration, dt, damping, core)
             if row >= 0:
                 if passes and not self._correct(configuration, row, dt, passes):
                     return None
