@@ -126,17 +126,19 @@ inline double max_abs(const Vec& u, i64 q) {
     return big;
 }
 
-// Eight rows' dot products with one vector each (row a, b, ... with x_a, ...), or their own
-// squares (x = the rows themselves): each row's sum in index order from 0.0, as dot sums it
-// (one per lane of four pairs: the same bits, eight independent sums in flight).
-inline void dot8(const double* const* a, const double* const* x, i64 n, double* out) {
+// Eight rows' dot products with one vector (a[k] . x), or their squares (sq8: a[k] . a[k]):
+// each row's sum in index order from 0.0, as dot sums it (one per lane of four pairs: the same
+// bits, eight independent sums in flight).
+inline void dot8(const double* const* a, const double* x, i64 n, double* out) {
     using namespace simd;
     v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+    const double *a0 = a[0], *a1 = a[1], *a2 = a[2], *a3 = a[3], *a4 = a[4], *a5 = a[5], *a6 = a[6], *a7 = a[7];
     for (i64 t = 0; t < n; ++t) {
-        s0 += v2d{a[0][t], a[1][t]} * v2d{x[0][t], x[1][t]};
-        s1 += v2d{a[2][t], a[3][t]} * v2d{x[2][t], x[3][t]};
-        s2 += v2d{a[4][t], a[5][t]} * v2d{x[4][t], x[5][t]};
-        s3 += v2d{a[6][t], a[7][t]} * v2d{x[6][t], x[7][t]};
+        v2d xt = splat(x[t]);
+        s0 += v2d{a0[t], a1[t]} * xt;
+        s1 += v2d{a2[t], a3[t]} * xt;
+        s2 += v2d{a4[t], a5[t]} * xt;
+        s3 += v2d{a6[t], a7[t]} * xt;
     }
     out[0] = s0[0];
     out[1] = s0[1];
@@ -148,7 +150,28 @@ inline void dot8(const double* const* a, const double* const* x, i64 n, double* 
     out[7] = s3[1];
 }
 
-// Per row |C_i| (sqrt of dot(C_i, C_i): the same sums, eight rows a pass by dot8).
+inline void sq8(const double* const* a, i64 n, double* out) {
+    using namespace simd;
+    v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+    const double *a0 = a[0], *a1 = a[1], *a2 = a[2], *a3 = a[3], *a4 = a[4], *a5 = a[5], *a6 = a[6], *a7 = a[7];
+    for (i64 t = 0; t < n; ++t) {
+        v2d v0 = v2d{a0[t], a1[t]}, v1 = v2d{a2[t], a3[t]}, v2 = v2d{a4[t], a5[t]}, v3 = v2d{a6[t], a7[t]};
+        s0 += v0 * v0;
+        s1 += v1 * v1;
+        s2 += v2 * v2;
+        s3 += v3 * v3;
+    }
+    out[0] = s0[0];
+    out[1] = s0[1];
+    out[2] = s1[0];
+    out[3] = s1[1];
+    out[4] = s2[0];
+    out[5] = s2[1];
+    out[6] = s3[0];
+    out[7] = s3[1];
+}
+
+// Per row |C_i| (sqrt of dot(C_i, C_i): the same sums, eight rows a pass by sq8).
 inline void row_norms_into(CMatRef C, Vec& norms) {
     norms.resize(static_cast<size_t>(C.rows));
     i64 i = 0;
@@ -156,7 +179,7 @@ inline void row_norms_into(CMatRef C, Vec& norms) {
         const double* rows[8];
         for (int k = 0; k < 8; ++k) rows[k] = C.p + (i + k) * C.stride;
         double sq[8];
-        dot8(rows, rows, C.cols, sq);
+        sq8(rows, C.cols, sq);
         for (int k = 0; k < 8; ++k) norms[i + k] = std::sqrt(sq[k]);
     }
     for (; i < C.rows; ++i) {
@@ -520,12 +543,10 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
         i64 i = d0, e = d1 >= 0 ? d1 : n;
-        const double* nv = normal.data();
-        const double* xs[8] = {nv, nv, nv, nv, nv, nv, nv, nv};
         for (; i + 8 <= e; i += 8) {
             const double* rows[8];
             for (int k = 0; k < 8; ++k) rows[k] = JT.row(i + k);
-            dot8(rows, xs, n, d.data() + i);
+            dot8(rows, normal.data(), n, d.data() + i);
         }
         for (; i + 4 <= e; i += 4)
             dot4(JT.row(i), JT.row(i + 1), JT.row(i + 2), JT.row(i + 3), normal.data(), n, d[i], d[i + 1], d[i + 2],
