@@ -559,6 +559,13 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
+    // r first: its back substitution is one serial chain (each r[i] waits on r[i + 1]), which
+    // z's independent sums below then fill in around (the same operations either way).
+    for (i64 i = q - 1; i >= 0; --i) {
+        double acc = d[i];
+        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
+        r[i] = acc / R(i, i);
+    }
     // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (eight entries a pass in registers,
     // then four, two, one: the sums axpy over JT's rows makes).
     {
@@ -625,11 +632,6 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             for (i64 i = q; i < n; ++i) a += d[i] * JT(i, k);
             z[k] = a;
         }
-    }
-    for (i64 i = q - 1; i >= 0; --i) {
-        double acc = d[i];
-        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
-        r[i] = acc / R(i, i);
     }
 }
 
