@@ -1090,7 +1090,7 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // row order.
     auto violated = [&](const auto& M, i64 i0, i64 i1, const auto& test) {
         i64 i = i0;
-        for (; i + 8 <= i1; i += 8) {
+        for (; r >= 16 && i + 8 <= i1; i += 8) {  // (short rows: sums2's pairs cost less)
             const double* rows[8];
             for (int k = 0; k < 8; ++k) rows[k] = M.row(i + k);
             double nsq[8], cx[8];
