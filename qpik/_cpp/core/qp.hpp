@@ -126,9 +126,63 @@ inline double max_abs(const Vec& u, i64 q) {
     return big;
 }
 
+// Eight rows' dot products with one vector (a[k] . x), or their squares (sq8: a[k] . a[k]):
+// each row's sum in index order from 0.0, as dot sums it (one per lane of four pairs: the same
+// bits, eight independent sums in flight).
+inline void dot8(const double* const* a, const double* x, i64 n, double* out) {
+    using namespace simd;
+    v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+    const double *a0 = a[0], *a1 = a[1], *a2 = a[2], *a3 = a[3], *a4 = a[4], *a5 = a[5], *a6 = a[6], *a7 = a[7];
+    for (i64 t = 0; t < n; ++t) {
+        v2d xt = splat(x[t]);
+        s0 += v2d{a0[t], a1[t]} * xt;
+        s1 += v2d{a2[t], a3[t]} * xt;
+        s2 += v2d{a4[t], a5[t]} * xt;
+        s3 += v2d{a6[t], a7[t]} * xt;
+    }
+    out[0] = s0[0];
+    out[1] = s0[1];
+    out[2] = s1[0];
+    out[3] = s1[1];
+    out[4] = s2[0];
+    out[5] = s2[1];
+    out[6] = s3[0];
+    out[7] = s3[1];
+}
+
+inline void sq8(const double* const* a, i64 n, double* out) {
+    using namespace simd;
+    v2d s0 = splat(0.0), s1 = splat(0.0), s2 = splat(0.0), s3 = splat(0.0);
+    const double *a0 = a[0], *a1 = a[1], *a2 = a[2], *a3 = a[3], *a4 = a[4], *a5 = a[5], *a6 = a[6], *a7 = a[7];
+    for (i64 t = 0; t < n; ++t) {
+        v2d v0 = v2d{a0[t], a1[t]}, v1 = v2d{a2[t], a3[t]}, v2 = v2d{a4[t], a5[t]}, v3 = v2d{a6[t], a7[t]};
+        s0 += v0 * v0;
+        s1 += v1 * v1;
+        s2 += v2 * v2;
+        s3 += v3 * v3;
+    }
+    out[0] = s0[0];
+    out[1] = s0[1];
+    out[2] = s1[0];
+    out[3] = s1[1];
+    out[4] = s2[0];
+    out[5] = s2[1];
+    out[6] = s3[0];
+    out[7] = s3[1];
+}
+
+// Per row |C_i| (sqrt of dot(C_i, C_i): the same sums, eight rows a pass by sq8).
 inline void row_norms_into(CMatRef C, Vec& norms) {
     norms.resize(static_cast<size_t>(C.rows));
-    for (i64 i = 0; i < C.rows; ++i) {
+    i64 i = 0;
+    for (; i + 8 <= C.rows; i += 8) {
+        const double* rows[8];
+        for (int k = 0; k < 8; ++k) rows[k] = C.p + (i + k) * C.stride;
+        double sq[8];
+        sq8(rows, C.cols, sq);
+        for (int k = 0; k < 8; ++k) norms[i + k] = std::sqrt(sq[k]);
+    }
+    for (; i < C.rows; ++i) {
         const double* ci = C.p + i * C.stride;
         norms[i] = std::sqrt(dot(ci, ci, C.cols));
     }
@@ -276,6 +330,31 @@ inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef h
     Vec& out = ws.cxd;
     shape(out, static_cast<size_t>(ld));
     i64 j = 0;
+    for (; j + 16 <= ld; j += 16) {  // eight sums in flight (each column's in order of k)
+        v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
+        v2d a4 = splat(0.0), a5 = splat(0.0), a6 = splat(0.0), a7 = splat(0.0);
+        const double* p = CT + j;
+        for (i64 k = 0; k < n; ++k, p += ld) {
+            v2d xk = splat(x[k]);
+            a0 = a0 + load(p) * xk;
+            a1 = a1 + load(p + 2) * xk;
+            a2 = a2 + load(p + 4) * xk;
+            a3 = a3 + load(p + 6) * xk;
+            a4 = a4 + load(p + 8) * xk;
+            a5 = a5 + load(p + 10) * xk;
+            a6 = a6 + load(p + 12) * xk;
+            a7 = a7 + load(p + 14) * xk;
+        }
+        double* o = out.data() + j;
+        store(o, a0);
+        store(o + 2, a1);
+        store(o + 4, a2);
+        store(o + 6, a3);
+        store(o + 8, a4);
+        store(o + 10, a5);
+        store(o + 12, a6);
+        store(o + 14, a7);
+    }
     for (; j + 8 <= ld; j += 8) {
         v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
         const double* p = CT + j;
@@ -417,6 +496,21 @@ inline void inverse_transpose_into(const Mat& L, Mat& JT) {
         }
         v2d dv = splat(lkk);
         i64 i0 = 0;
+        for (; i0 + 6 < k; i0 += 8) {  // entries i0..i0+7 (as below: four sums in flight)
+            v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
+            const double* p = JT.row(i0) + i0;
+            for (i64 t = i0; t < k; ++t, p += n) {
+                v2d l = splat(lk[t]);
+                a = a - l * load(p);
+                b = b - l * load(p + 2);
+                c = c - l * load(p + 4);
+                e = e - l * load(p + 6);
+            }
+            store(jk + i0, a / dv);
+            store(jk + i0 + 2, b / dv);
+            store(jk + i0 + 4, c / dv);
+            store(jk + i0 + 6, e / dv);
+        }
         for (; i0 + 2 < k; i0 += 4) {  // entries i0..i0+3 (those >= k written below or zero)
             v2d a = splat(0.0), b = splat(0.0);
             const double* p = JT.row(i0) + i0;
@@ -449,6 +543,11 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
         for (i64 i = 0; i < n; ++i) d[i] = 0.0 + JT(i, unit) * normal[unit];
     } else {
         i64 i = d0, e = d1 >= 0 ? d1 : n;
+        for (; i + 8 <= e; i += 8) {
+            const double* rows[8];
+            for (int k = 0; k < 8; ++k) rows[k] = JT.row(i + k);
+            dot8(rows, normal.data(), n, d.data() + i);
+        }
         for (; i + 4 <= e; i += 4)
             dot4(JT.row(i), JT.row(i + 1), JT.row(i + 2), JT.row(i + 3), normal.data(), n, d[i], d[i + 1], d[i + 2],
                  d[i + 3]);
@@ -460,11 +559,43 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             d[i] = acc;
         }
     }
+    // r first: its back substitution is one serial chain (each r[i] waits on r[i + 1]), which
+    // z's independent sums below then fill in around (the same operations either way).
+    for (i64 i = q - 1; i >= 0; --i) {
+        double acc = d[i];
+        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
+        r[i] = acc / R(i, i);
+    }
     // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (eight entries a pass in registers,
     // then four, two, one: the sums axpy over JT's rows makes).
     {
         using namespace simd;
         i64 k = 0;
+        for (; k + 16 <= n; k += 16) {  // eight sums in flight
+            v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
+            v2d a4 = splat(0.0), a5 = splat(0.0), a6 = splat(0.0), a7 = splat(0.0);
+            for (i64 i = q; i < n; ++i) {
+                const double* ji = JT.row(i) + k;
+                v2d di = splat(d[i]);
+                a0 = a0 + di * load(ji);
+                a1 = a1 + di * load(ji + 2);
+                a2 = a2 + di * load(ji + 4);
+                a3 = a3 + di * load(ji + 6);
+                a4 = a4 + di * load(ji + 8);
+                a5 = a5 + di * load(ji + 10);
+                a6 = a6 + di * load(ji + 12);
+                a7 = a7 + di * load(ji + 14);
+            }
+            double* o = z.data() + k;
+            store(o, a0);
+            store(o + 2, a1);
+            store(o + 4, a2);
+            store(o + 6, a3);
+            store(o + 8, a4);
+            store(o + 10, a5);
+            store(o + 12, a6);
+            store(o + 14, a7);
+        }
         for (; k + 8 <= n; k += 8) {
             v2d a = splat(0.0), b = splat(0.0), e = splat(0.0), f = splat(0.0);
             for (i64 i = q; i < n; ++i) {
@@ -501,11 +632,6 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
             for (i64 i = q; i < n; ++i) a += d[i] * JT(i, k);
             z[k] = a;
         }
-    }
-    for (i64 i = q - 1; i >= 0; --i) {
-        double acc = d[i];
-        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
-        r[i] = acc / R(i, i);
     }
 }
 
