@@ -137,7 +137,7 @@ def test_same_bits_whatever_ran_before():
         cases.append((A, rng.uniform(0.5, 2.0, m), _orthonormal(rng, n, n)))
         cases.append((rng.standard_normal((m, n)), np.ones(m), np.eye(n)))
     first = [E.project_level(A, w, Z, RANK_TOL) for A, w, Z in cases]
-    for k in range(3):
+    for _k in range(3):
         order = rng.permutation(len(cases))
         for i in order:
             A, w, Z = cases[i]
