@@ -20,6 +20,8 @@ constexpr double kCertify = 1e-9;     // a level is SOLVED only when every scale
 constexpr double kRowsRelative = 1e-6;  // rows hold to this relative to |bound| + max|x| (rows_relative)
 constexpr double kLsRank = 1e-14;     // |R_ii| <= this * |R_00| is a zero pivot of a least-squares QR
 constexpr double kSizeFloor = 1e-6;   // a stationarity component's scale is at least this x the largest
+constexpr double kDropRoundOff = 1e-14;  // primal_active_set: a multiplier (times its row's norm) above -this x the
+                                          // gradient's size (ls_gradient_size) is round-off, never dropped
 constexpr double kNearDependent = 1e-8;  // a row within this angle of the working set's span is
                                          // dependent on it (the primal active set does not add it)
 
@@ -673,10 +675,34 @@ inline i64 canonical_set(const BVec& active, IVec& act_row, IVec& act_side) {
     return static_cast<i64>(act_row.size());
 }
 
+// The size of the terms of the gradient B^T (B z - f): max_i (|B|^T (|B| |z| + |f|))_i (the
+// scale of its round-off, as certify_level's stationarity scale; in the units of a
+// multiplier times its row's norm).
+inline double ls_gradient_size(const LSForm& ls, const Vec& z) {
+    i64 mb = ls.B.rows, r = ls.B.cols;
+    Vec s(static_cast<size_t>(r), 0.0);
+    for (i64 k = 0; k < mb; ++k) {
+        const double* bk = ls.B.row(k);
+        double t = std::fabs(ls.f[k]);
+        for (i64 i = 0; i < r; ++i) t += std::fabs(bk[i]) * std::fabs(z[i]);
+        for (i64 i = 0; i < r; ++i) s[i] += std::fabs(bk[i]) * t;
+    }
+    double big = 0.0;
+    for (i64 i = 0; i < r; ++i) big = pymax(big, s[i]);
+    return big;
+}
+
 // A primal active-set method for min 1/2 |B z - f|^2 s.t. lo <= C z <= hi from a feasible
 // z (the independent fallback of a level): equality-constrained least-squares steps
 // (eqp_ls), the blocking row added, the most negative multiplier dropped. Returns true
 // with (z, rows, sides, u) at a KKT point, false after max_iter or a dependent set.
+// A multiplier counts as negative only beyond the round-off of the gradient it balances
+// (kDropRoundOff ls_gradient_size, not relative to the largest multiplier alone): where the
+// face's minimiser needs no row (every multiplier round-off: 2e-17 to 6e-16 of that size on
+// the rank-deficient reproducers of tests/core/test_fragile_levels.py) their signs are
+// noise, and dropping one steps back onto the same row at once (alpha = 0), for ever. A
+// real one is kept (7e-14 of it on a near-singular level, whose objective dropping it
+// lowers by 1e-8 relative).
 inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, Vec& z, IVec& act_row,
                               IVec& act_side, Vec& u, i64 max_iter) {
     i64 m = C.rows, r = C.cols;
@@ -751,6 +777,7 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
                 drop = j;
             }
         }
+        if (drop >= 0 && worst >= -kDropRoundOff * ls_gradient_size(ls, z)) drop = -1;
         if (drop < 0) {
             u = us;
             return true;
