@@ -36,7 +36,11 @@ def _check(A, w, Z, rel, absolute=0.0):
     assert rank == expect
     if expect:
         s_ref = sv[expect - 1]
-        assert abs(sigma - s_ref) <= rel * s_ref + absolute * sv[0], (sigma, s_ref, abs(sigma - s_ref) / s_ref)
+        assert abs(sigma - s_ref) <= rel * s_ref + absolute * sv[0], (
+            sigma,
+            s_ref,
+            abs(sigma - s_ref) / s_ref,
+        )
     else:
         assert sigma == np.inf
     r = Z.shape[1]

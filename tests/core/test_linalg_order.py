@@ -141,8 +141,16 @@ def test_gram_blocks_with_zero_entries(shape, kind):
     AZ[:, n // 3] = 0.0  # a zero column: its rows of the Gram matrix all +0
     k = n
     H = E.reduced_qp(
-        np.eye(m, k) if m <= k else np.eye(m, k), np.zeros(m), AZ, np.eye(k), np.zeros(k), 0.0,
-        -np.ones(k), np.ones(k), np.zeros((0, k)), np.zeros(0)
+        np.eye(m, k) if m <= k else np.eye(m, k),
+        np.zeros(m),
+        AZ,
+        np.eye(k),
+        np.zeros(k),
+        0.0,
+        -np.ones(k),
+        np.ones(k),
+        np.zeros((0, k)),
+        np.zeros(0),
     )[0]
     ref = _mm_reference(AZ.T.copy(), AZ)
     ref = np.triu(ref) + np.triu(ref, 1).T  # the upper triangle's sums, mirrored

@@ -23,7 +23,9 @@ def _solver(model, configuration):
     configuration.update(configuration.mid_q())
     p, R = configuration.frame_pose("panda_hand_tcp", "body")
     frame.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p + 0.3))
-    posture.set_target(np.clip(configuration.mid_q() + 1.0, configuration.lower, configuration.upper))
+    posture.set_target(
+        np.clip(configuration.mid_q() + 1.0, configuration.lower, configuration.upper)
+    )
     solver.step(configuration, DT)
     plan = solver._plan
     assert plan is not None
