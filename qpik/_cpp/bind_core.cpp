@@ -60,7 +60,7 @@ nb::tuple qp_tuple(core::QPResult&& r) {
 // An exact NumPy array is read directly (bind.hpp's fast_array: the same data, no
 // PyObject_GetBuffer), anything else through the buffer protocol.
 struct PyBuf {
-    Py_buffer v{};
+    Py_buffer v;              // valid only while held (no zeroing: PyBufs are made on every call)
     bool held = false;        // v holds a buffer (released by release())
     PyObject* fast = nullptr;  // the array read directly (a reference held)
     void* buf = nullptr;
@@ -284,30 +284,29 @@ inline PyObject* new_with_fields(PyTypeObject* type, std::initializer_list<std::
     return obj;
 }
 
-// An instance of `type` (a class whose instances keep their attributes in a __dict__) with
-// the given fields as its instance dict, in that order, as object.__new__(type) then
-// object.__setattr__ of each field would leave it, but built in one go: a copy of a dict of
-// the same keys (`keys`: made once per field list, values None) with its values replaced,
-// set as the object's __dict__ on a freshly allocated object (about 100 instructions a field
-// fewer than the generic setattr). Values are stolen; nullptr (with the Python error set) on
-// failure. A type that is abstract or takes no __dict__ goes through new_with_fields.
-inline PyObject* new_with_dict(PyTypeObject* type, PyObject* keys,
-                               std::initializer_list<std::pair<PyObject*, PyObject*>> fields) {
-    bool ok = keys != nullptr;
-    for (const auto& f : fields) ok = ok && f.second != nullptr;
-    if (!ok || (type->tp_flags & Py_TPFLAGS_IS_ABSTRACT) || type->tp_dictoffset == 0 ||
-        type->tp_alloc == nullptr || type->tp_setattro != PyObject_GenericSetAttr)
-        return new_with_fields(type, fields);
-    PyObject* dict = PyDict_Copy(keys);
+// new_with_fields with the fields set by `fill` (a Python function fill(obj, *values) that
+// sets them in that order and returns obj, or None for new_with_fields): the interpreter's
+// specialised attribute stores cost less than the generic setattr (about 1k instructions
+// fewer for ten fields). Values are stolen; nullptr (with the Python error set) on failure.
+inline PyObject* new_filled(PyTypeObject* type, PyObject* fill,
+                            std::initializer_list<std::pair<PyObject*, PyObject*>> fields) {
+    if (fill == Py_None || fields.size() > 15) return new_with_fields(type, fields);
+    PyObject* args[16];
+    size_t k = 1;
+    bool ok = true;
     for (const auto& f : fields) {
-        if (dict && PyDict_SetItem(dict, f.first, f.second) != 0) Py_CLEAR(dict);
-        Py_DECREF(f.second);
+        ok = ok && f.second != nullptr;
+        args[k++] = f.second;
     }
-    if (!dict) return nullptr;
-    PyObject* obj = type->tp_alloc(type, 0);
-    if (obj && PyObject_GenericSetDict(obj, dict, nullptr) != 0) Py_CLEAR(obj);
-    Py_DECREF(dict);
-    return obj;
+    PyObject* obj = ok ? PyBaseObject_Type.tp_new(type, empty_tuple(), nullptr) : nullptr;
+    PyObject* out = nullptr;
+    if (obj) {
+        args[0] = obj;
+        out = PyObject_Vectorcall(fill, args, k, nullptr);
+        Py_DECREF(obj);
+    }
+    for (const auto& f : fields) Py_XDECREF(f.second);
+    return out;
 }
 
 inline PyObject* float_list(const Vec& v, i64 L) {
@@ -327,7 +326,7 @@ inline PyObject* float_list(const Vec& v, i64 L) {
 // The result object of solve_levels (see there); raises the Python error on failure. Its
 // certificates are left to the result class to build on first access: the (L, 4) float64
 // measures as bytes in ``_cert`` (HierarchyResult.__getattr__; the same values).
-inline nb::object result_object(PyTypeObject* result_type, PyObject* statuses, PyObject* backend, PyObject* x,
+inline nb::object result_object(PyTypeObject* result_type, PyObject* fill, PyObject* statuses, PyObject* backend, PyObject* x,
                                 PyObject* active, const core::CascadeResult& r, i64 L) {
     const Names& nm = names();
     PyObject* status = PyList_New(L);
@@ -352,16 +351,8 @@ inline nb::object result_object(PyTypeObject* result_type, PyObject* statuses, P
     Py_INCREF(active);
     PyObject* cert = PyBytes_FromStringAndSize(reinterpret_cast<const char*>(r.certificate.data()),
                                                static_cast<Py_ssize_t>(4 * L * sizeof(double)));
-    static PyObject* const keys = [&] {  // the result's fields in order (held for the life of the process)
-        PyObject* d = PyDict_New();
-        for (PyObject* k : {nm.x, nm.status, nm.residuals, nm.sigma, nm.damping, nm.iterations, nm.active, nm.backend,
-                            nm.cert_raw, nm.primal})
-            if (d && PyDict_SetItem(d, k, Py_None) != 0) Py_CLEAR(d);
-        if (!d) PyErr_Clear();
-        return d;
-    }();
-    PyObject* obj = new_with_dict(
-        result_type, keys, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
+    PyObject* obj = new_filled(
+        result_type, fill, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
                       {nm.sigma, float_list(r.sigma, L)}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
                       {nm.active, active}, {nm.backend, backends}, {nm.cert_raw, cert},
                       {nm.primal, PyFloat_FromDouble(r.primal)}});
@@ -613,18 +604,24 @@ void bind_core(nb::module_& m) {
             }
             if (!xo.get(x_p, 'd', 1, true) || xo.shape(0) != n) return none;
             if (!act.get(act_p, 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
-            if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) != 4) return none;
+            if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) < 4 || PyTuple_GET_SIZE(kinds_h.ptr()) > 5)
+                return none;
             PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
             PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (its _cert)
             PyObject* statuses = PyTuple_GET_ITEM(kinds_h.ptr(), 2);
             PyObject* backend = PyTuple_GET_ITEM(kinds_h.ptr(), 3);
+            // kinds[4], when given: the function that sets the result's fields (new_filled)
+            PyObject* fill = PyTuple_GET_SIZE(kinds_h.ptr()) == 5 ? PyTuple_GET_ITEM(kinds_h.ptr(), 4) : Py_None;
+            if (fill != Py_None && !PyCallable_Check(fill)) return none;
             if (!PyType_Check(result_type) || !PyType_Check(cert_type) || !PyTuple_Check(statuses) ||
                 PyTuple_GET_SIZE(statuses) != 6)
                 return none;
             // The caller's storage (ws), else storage of its own: the stacked problem and the
             // result (every entry written by this call; nothing of a previous one is read).
-            std::optional<core::Workspace> local;
-            if (!ws) local.emplace();
+            // (a unique_ptr, not an optional: the optional of the large Workspace cost about 600
+            // instructions a call even when left empty)
+            std::unique_ptr<core::Workspace> local;
+            if (!ws) local = std::make_unique<core::Workspace>();
             core::Workspace& wsr = ws ? *ws : *local;
             // Level by level: its buffers read, checked and its rows stacked (then released);
             // any check that fails returns None, as with the checks taken in any order.
@@ -708,7 +705,7 @@ void bind_core(nb::module_& m) {
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
             static_assert(sizeof(double) == 8, "the certificate bytes are float64");
             if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
-            return result_object(reinterpret_cast<PyTypeObject*>(result_type), statuses, backend, x_p, act_p, r, L);
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type), fill, statuses, backend, x_p, act_p, r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),

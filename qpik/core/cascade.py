@@ -285,13 +285,33 @@ def _primal(x, lb, ub, G, h) -> float:
     return worst
 
 
+def _fill_result(r, x, status, residuals, sigma, damping, iterations, active, backend, cert, primal):
+    """Sets the fields of ``r`` (a :class:`HierarchyResult` made by ``object.__new__``) as
+    :func:`qpik.core.kernels.solve_levels` leaves them (the certificates as their bytes
+    ``_cert``, see :meth:`HierarchyResult.__getattr__`), in this order; returns ``r``.
+    (The interpreter's specialised attribute stores cost less than the C setattr.)"""
+    r.x = x
+    r.status = status
+    r.residuals = residuals
+    r.sigma = sigma
+    r.damping = damping
+    r.iterations = iterations
+    r.active = active
+    r.backend = backend
+    r._cert = cert
+    r.primal = primal
+    return r
+
+
 #: What :func:`qpik.core.kernels.solve_levels` builds its answer from: the result and
-#: certificate classes, the statuses by kernel code, the backend's label.
+#: certificate classes, the statuses by kernel code, the backend's label, the function
+#: that sets the result's fields.
 _KINDS = (
     HierarchyResult,
     LevelCertificate,
     tuple(STATUS_OF_CODE[code] for code in range(6)),
     "auto",
+    _fill_result,
 )
 
 
