@@ -563,8 +563,9 @@ void bind_core(nb::module_& m) {
             // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
             // call, the answer written into x and active (preallocated by the caller) and
             // returned as a result object built here (kinds: the result class, the
-            // certificate class, the statuses by code, the backend label), whose fields are
-            // set directly (as the dataclass __init__ would). The arrays are read through the
+            // certificate class, the statuses by code, the backend label, and optionally the
+            // function that sets the fields: new_filled), whose fields are set directly (as
+            // the dataclass __init__ would, by kinds[4] when given, else the generic setattr). The arrays are read through the
             // buffer protocol (no conversion). None when an argument does not pass or needs a
             // conversion (the caller then validates in Python, which names the field), or
             // when a level did not settle (MAX_ITER, NUMERICAL: the caller's fallback).
@@ -671,13 +672,19 @@ void bind_core(nb::module_& m) {
                     const double* wv = has_w ? wb.data<double>() : nullptr;
                     for (i64 i = 0; i < mk; ++i) {
                         double* dst = A.row(M + i);
+                        // the row copied and its |entries| summed (in order) without a test per
+                        // entry: a NaN or inf entry makes the sum NaN or inf, and only then are
+                        // the entries tested (a sum of finite entries past DBL_MAX passes)
+                        const double* src = av + i * n;
                         double total = 0.0;
                         for (i64 j = 0; j < n; ++j) {
-                            double v = av[i * n + j];
-                            if (!std::isfinite(v)) return none;
+                            double v = src[j];
                             dst[j] = v;
                             total += std::fabs(v);
                         }
+                        if (!std::isfinite(total))
+                            for (i64 j = 0; j < n; ++j)
+                                if (!std::isfinite(src[j])) return none;
                         if (!std::isfinite(bv[i])) return none;
                         b[M + i] = bv[i];
                         w[M + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
@@ -712,9 +719,11 @@ void bind_core(nb::module_& m) {
         "workspace"_a.none() = nb::none(),
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
-        "into active (L, n + p) int8 (each made here by numpy.empty when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
+        "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
         "iterations, active, backend, certificate, primal; the certificates, kinds[1] (primal, stationarity, dual, "
-        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
+        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]; "
+        "kinds[4], when given, sets the fields: kinds[4](obj, x, status, residuals, sigma, damping, iterations, active, "
+        "backend, _cert, primal) on obj = object.__new__(kinds[0]), returning it. None (x and active untouched) when an "
         "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");
 
     m.def(
