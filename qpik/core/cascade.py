@@ -285,17 +285,15 @@ def _primal(x, lb, ub, G, h) -> float:
     return worst
 
 
-def _fill_result(r, x, status, residuals, sigma, damping, iterations, active, backend, cert, primal):
-    """Sets the fields of ``r`` (a :class:`HierarchyResult` made by ``object.__new__``) as
-    :func:`qpik.core.kernels.solve_levels` leaves them (the certificates as their bytes
-    ``_cert``, see :meth:`HierarchyResult.__getattr__`), in this order; returns ``r``.
-    (The interpreter's specialised attribute stores cost less than the C setattr.)"""
+def _fill_result(r, x, status, residuals, sigma, damping, iters, active, backend, cert, primal):
+    """The fields of ``r`` (``object.__new__(HierarchyResult)``) set as :func:`K.solve_levels`
+    leaves them, in order (specialised stores: cheaper than the C setattr); returns ``r``."""
     r.x = x
     r.status = status
     r.residuals = residuals
     r.sigma = sigma
     r.damping = damping
-    r.iterations = iterations
+    r.iterations = iters
     r.active = active
     r.backend = backend
     r._cert = cert
@@ -303,9 +301,7 @@ def _fill_result(r, x, status, residuals, sigma, damping, iterations, active, ba
     return r
 
 
-#: What :func:`qpik.core.kernels.solve_levels` builds its answer from: the result and
-#: certificate classes, the statuses by kernel code, the backend's label, the function
-#: that sets the result's fields.
+#: What :func:`K.solve_levels` builds answers of (result, certificate, statuses, backend, setter).
 _KINDS = (
     HierarchyResult,
     LevelCertificate,

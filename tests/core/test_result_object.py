@@ -10,11 +10,21 @@ import pickle
 
 import numpy as np
 
-from qpik.core import HierarchyProblem, HierarchyResult, HierarchySolver, Level
-from qpik.core import cascade
+from qpik.core import HierarchyProblem, HierarchyResult, HierarchySolver, Level, cascade
 from qpik.core import kernels as K
 
-FIELDS = ["x", "status", "residuals", "sigma", "damping", "iterations", "active", "backend", "_cert", "primal"]
+FIELDS = [
+    "x",
+    "status",
+    "residuals",
+    "sigma",
+    "damping",
+    "iterations",
+    "active",
+    "backend",
+    "_cert",
+    "primal",
+]
 
 
 def _problem(seed: int = 3, n: int = 7) -> HierarchyProblem:
@@ -33,7 +43,9 @@ def _solve(problem: HierarchyProblem, kinds) -> HierarchyResult:
     s = HierarchySolver()
     t, m, e = s.damping_settings
     args = (problem.levels, problem.lb, problem.ub, problem.G, problem.h, t, m, e, s.rank_tolerance)
-    return K.solve_levels(*args, s.max_iter, s.tolerance, None, None, None, kinds, s._cascade_workspace)
+    return K.solve_levels(
+        *args, s.max_iter, s.tolerance, None, None, None, kinds, s._cascade_workspace
+    )
 
 
 def _same(a: HierarchyResult, b: HierarchyResult) -> None:
