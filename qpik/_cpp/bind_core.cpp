@@ -309,6 +309,42 @@ inline PyObject* new_filled(PyTypeObject* type, PyObject* fill,
     return out;
 }
 
+// Whether every src[j], j < n, is finite (two lanes at a time: v * 0 is NaN exactly for a NaN
+// or infinite v, and a NaN stays in its lane's sum), each copied into dst when dst is given;
+// `nonzero`: whether some entry has |v| > 0 (for finite entries, the same as their sum of
+// |v| being > 0). No test per entry (the rows of a level are copied and checked this way).
+inline bool copy_finite(const double* src, double* dst, i64 n, bool& nonzero) {
+    namespace sd = core::simd;
+    sd::v2d z = sd::splat(0.0);
+    sd::v2i bits = {0, 0};
+    const sd::v2i mag = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        sd::v2d v = sd::load(src + j);
+        if (dst) sd::store(dst + j, v);
+        z += v * sd::splat(0.0);
+        sd::v2i b;
+        std::memcpy(&b, &v, sizeof v);
+        bits |= b & mag;
+    }
+    double zt = 0.0;
+    long long bt = 0;
+    for (; j < n; ++j) {
+        double v = src[j];
+        if (dst) dst[j] = v;
+        zt += v * 0.0;
+        long long b;
+        std::memcpy(&b, &v, sizeof v);
+        bt |= b & 0x7fffffffffffffffLL;
+    }
+    nonzero = (bits[0] | bits[1] | bt) != 0;
+    return z[0] == z[0] && z[1] == z[1] && zt == zt;
+}
+inline bool all_finite(const double* src, i64 n) {
+    bool nonzero;
+    return copy_finite(src, nullptr, n, nonzero);
+}
+
 inline PyObject* float_list(const Vec& v, i64 L) {
     PyObject* out = PyList_New(L);
     if (!out) return nullptr;
@@ -582,8 +618,7 @@ void bind_core(nb::module_& m) {
             const double* hp = h.data<double>();
             for (i64 i = 0; i < n; ++i)
                 if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return none;
-            for (i64 i = 0; i < p * n; ++i)
-                if (!std::isfinite(Gp[i])) return none;
+            if (!all_finite(Gp, p * n)) return none;
             for (i64 i = 0; i < p; ++i)
                 if (std::isnan(hp[i])) return none;
             if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return none;
@@ -671,23 +706,11 @@ void bind_core(nb::module_& m) {
                     const double* bv = bb.data<double>();
                     const double* wv = has_w ? wb.data<double>() : nullptr;
                     for (i64 i = 0; i < mk; ++i) {
-                        double* dst = A.row(M + i);
-                        // the row copied and its |entries| summed (in order) without a test per
-                        // entry: a NaN or inf entry makes the sum NaN or inf, and only then are
-                        // the entries tested (a sum of finite entries past DBL_MAX passes)
-                        const double* src = av + i * n;
-                        double total = 0.0;
-                        for (i64 j = 0; j < n; ++j) {
-                            double v = src[j];
-                            dst[j] = v;
-                            total += std::fabs(v);
-                        }
-                        if (!std::isfinite(total))
-                            for (i64 j = 0; j < n; ++j)
-                                if (!std::isfinite(src[j])) return none;
+                        bool nonzero = false;
+                        if (!copy_finite(av + i * n, A.row(M + i), n, nonzero)) return none;
                         if (!std::isfinite(bv[i])) return none;
                         b[M + i] = bv[i];
-                        w[M + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
+                        w[M + i] = wv ? wv[i] : (nonzero ? 1.0 : 0.0);
                     }
                     M += mk;
                 }

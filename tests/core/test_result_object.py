@@ -102,3 +102,21 @@ def test_bad_kinds_fall_back_to_none():
     p = _problem()
     assert _solve(p, cascade._KINDS + (None,)) is None
     assert _solve(p, cascade._KINDS[:4] + (3,)) is None
+
+
+def test_non_finite_entries_anywhere_go_to_the_checks():
+    import pytest
+
+    from qpik.errors import QpikError
+
+    for n in (1, 6, 7):
+        for bad in (np.nan, np.inf, -np.inf):
+            for pos in range(n):
+                p = _problem(n=n)
+                p.levels[0].A[1, pos] = bad
+                assert _solve(p, cascade._KINDS) is None
+                with pytest.raises(QpikError):
+                    HierarchySolver().solve(p)
+                p = _problem(n=n)
+                p.G[1, pos] = bad
+                assert _solve(p, cascade._KINDS) is None
