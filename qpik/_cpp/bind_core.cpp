@@ -309,40 +309,43 @@ inline PyObject* new_filled(PyTypeObject* type, PyObject* fill,
     return out;
 }
 
-// Whether every src[j], j < n, is finite (two lanes at a time: v * 0 is NaN exactly for a NaN
-// or infinite v, and a NaN stays in its lane's sum), each copied into dst when dst is given;
-// `nonzero`: whether some entry has |v| > 0 (for finite entries, the same as their sum of
-// |v| being > 0). No test per entry (the rows of a level are copied and checked this way).
-inline bool copy_finite(const double* src, double* dst, i64 n, bool& nonzero) {
+// src[j], j < n, copied into dst (when given) two lanes at a time, with `z` += v * 0 per lane
+// (NaN exactly once some v is NaN or infinite; z[2] takes an odd n's last entry): the
+// finiteness of many rows decided by one test of z at the end (finite_sum), none per entry.
+// Returns whether some entry has |v| > 0 (for finite entries, the same as their sum of |v|
+// being > 0).
+struct FiniteSum {
+    core::simd::v2d z = {0.0, 0.0};
+    double zt = 0.0;
+    bool ok() const { return z[0] == z[0] && z[1] == z[1] && zt == zt; }
+};
+__attribute__((always_inline)) inline bool copy_scan(const double* src, double* dst, i64 n, FiniteSum& f) {
     namespace sd = core::simd;
-    sd::v2d z = sd::splat(0.0);
     sd::v2i bits = {0, 0};
     const sd::v2i mag = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
     i64 j = 0;
     for (; j + 2 <= n; j += 2) {
         sd::v2d v = sd::load(src + j);
         if (dst) sd::store(dst + j, v);
-        z += v * sd::splat(0.0);
+        f.z += v * sd::splat(0.0);
         sd::v2i b;
         std::memcpy(&b, &v, sizeof v);
         bits |= b & mag;
     }
-    double zt = 0.0;
     long long bt = 0;
-    for (; j < n; ++j) {
+    if (j < n) {
         double v = src[j];
         if (dst) dst[j] = v;
-        zt += v * 0.0;
-        long long b;
-        std::memcpy(&b, &v, sizeof v);
-        bt |= b & 0x7fffffffffffffffLL;
+        f.zt += v * 0.0;
+        std::memcpy(&bt, &v, sizeof v);
+        bt &= 0x7fffffffffffffffLL;
     }
-    nonzero = (bits[0] | bits[1] | bt) != 0;
-    return z[0] == z[0] && z[1] == z[1] && zt == zt;
+    return (bits[0] | bits[1] | bt) != 0;
 }
 inline bool all_finite(const double* src, i64 n) {
-    bool nonzero;
-    return copy_finite(src, nullptr, n, nonzero);
+    FiniteSum f;
+    copy_scan(src, nullptr, n, f);
+    return f.ok();
 }
 
 inline PyObject* float_list(const Vec& v, i64 L) {
@@ -705,13 +708,14 @@ void bind_core(nb::module_& m) {
                     const double* av = ab.data<double>();
                     const double* bv = bb.data<double>();
                     const double* wv = has_w ? wb.data<double>() : nullptr;
+                    FiniteSum fin;  // the level's rows and targets tested once, after the copy
                     for (i64 i = 0; i < mk; ++i) {
-                        bool nonzero = false;
-                        if (!copy_finite(av + i * n, A.row(M + i), n, nonzero)) return none;
-                        if (!std::isfinite(bv[i])) return none;
+                        bool nonzero = copy_scan(av + i * n, A.row(M + i), n, fin);
                         b[M + i] = bv[i];
                         w[M + i] = wv ? wv[i] : (nonzero ? 1.0 : 0.0);
                     }
+                    copy_scan(bv, nullptr, mk, fin);
+                    if (!fin.ok()) return none;
                     M += mk;
                 }
             }
