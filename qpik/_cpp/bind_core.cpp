@@ -60,7 +60,7 @@ nb::tuple qp_tuple(core::QPResult&& r) {
 // An exact NumPy array is read directly (bind.hpp's fast_array: the same data, no
 // PyObject_GetBuffer), anything else through the buffer protocol.
 struct PyBuf {
-    Py_buffer v{};
+    Py_buffer v;              // valid only while held (no zeroing: PyBufs are made on every call)
     bool held = false;        // v holds a buffer (released by release())
     PyObject* fast = nullptr;  // the array read directly (a reference held)
     void* buf = nullptr;
@@ -139,6 +139,113 @@ inline PyObject* numpy_empty(PyObject* shape, bool int8) {
     return out;
 }
 
+// The same new arrays made through NumPy's C API table (the `_ARRAY_API` capsule NumPy's own
+// import_array reads; slots 0, 2, 45, 94 are part of NumPy's stable ABI: the ABI version,
+// ndarray, PyArray_DescrFromType, PyArray_NewFromDescr), without numpy.empty's Python call
+// and argument parsing (about 1.2k instructions an array). Turned on only when, on this
+// NumPy, ndarray is the type bind.hpp's fast path reads and arrays made this way match
+// numpy.empty's (type, dtype, shape, strides, flags) on arrays made for the check; else every
+// array comes from numpy.empty, as before.
+namespace npy_c {
+using DescrFromType = PyObject* (*)(int);
+using NewFromDescr = PyObject* (*)(PyTypeObject*, PyObject*, int, const Py_ssize_t*, const Py_ssize_t*, void*, int,
+                                   PyObject*);
+struct Api {
+    PyTypeObject* type = nullptr;  // nullptr: off
+    DescrFromType descr = nullptr;
+    NewFromDescr make = nullptr;
+};
+inline PyObject* make(const Api& a, int type_num, int nd, const Py_ssize_t* dims) {
+    PyObject* d = a.descr(type_num);
+    return d ? a.make(a.type, d, nd, dims, nullptr, nullptr, 0, nullptr) : nullptr;  // d stolen
+}
+// Same type, dtype, shape, strides and flags (the data pointers aside).
+inline bool same_kind(PyObject* p, PyObject* q) {
+    using namespace npy_detail;
+    if (!p || !q || Py_TYPE(p) != Py_TYPE(q)) return false;
+    const auto* a = reinterpret_cast<const ArrayFields*>(p);
+    const auto* b = reinterpret_cast<const ArrayFields*>(q);
+    if (a->nd != b->nd || a->flags != b->flags || a->descr != b->descr || a->base != nullptr || b->base != nullptr)
+        return false;
+    for (int k = 0; k < a->nd; ++k)
+        if (a->dimensions[k] != b->dimensions[k] || a->strides[k] != b->strides[k]) return false;
+    return true;
+}
+inline Api checked_api() {
+    Api api, none;
+    PyTypeObject* nd = npy_detail::ndarray_type();
+    if (!nd) return none;
+    PyObject* mod = PyImport_ImportModule("numpy._core._multiarray_umath");
+    if (!mod) {
+        PyErr_Clear();
+        mod = PyImport_ImportModule("numpy.core._multiarray_umath");
+    }
+    PyObject* cap = mod ? PyObject_GetAttrString(mod, "_ARRAY_API") : nullptr;
+    void** table = cap && PyCapsule_CheckExact(cap) ? static_cast<void**>(PyCapsule_GetPointer(cap, nullptr)) : nullptr;
+    // The capsule's table lives as long as NumPy's module (held for the life of the process).
+    if (table && reinterpret_cast<PyTypeObject*>(table[2]) == nd) {
+        api.type = nd;
+        api.descr = reinterpret_cast<DescrFromType>(table[45]);
+        api.make = reinterpret_cast<NewFromDescr>(table[94]);
+        bool ok = true;
+        const Py_ssize_t d1[1] = {5}, d2[2] = {3, 4}, d0[1] = {0}, dz[2] = {0, 2};
+        struct Case {
+            int type_num, nd;
+            const Py_ssize_t* dims;
+            PyObject* shape;
+            bool int8;
+        } cases[] = {{12, 1, d1, Py_BuildValue("(n)", d1[0]), false},
+                     {1, 2, d2, Py_BuildValue("(nn)", d2[0], d2[1]), true},
+                     {12, 1, d0, Py_BuildValue("(n)", d0[0]), false},
+                     {1, 2, dz, Py_BuildValue("(nn)", dz[0], dz[1]), true}};
+        for (const Case& c : cases) {
+            PyObject* mine = make(api, c.type_num, c.nd, c.dims);
+            PyObject* theirs = numpy_empty(c.shape, c.int8);  // shape stolen
+            FastArray fa;
+            ok = ok && same_kind(mine, theirs) && fast_array(mine, c.int8 ? 'b' : 'd', true, fa) && fa.c_contiguous;
+            Py_XDECREF(mine);
+            Py_XDECREF(theirs);
+        }
+        if (!ok) api = none;
+    }
+    if (PyErr_Occurred()) PyErr_Clear();
+    Py_XDECREF(cap);
+    Py_XDECREF(mod);
+    return api;
+}
+inline const Api& api() {
+    static const Api a = checked_api();
+    return a;
+}
+}  // namespace npy_c
+
+// A new float64 (n,) array, or a new int8 (L, w) one: numpy.empty's, made through the C API
+// when it checked out (above). nullptr (the Python error cleared) on failure.
+inline PyObject* new_x(i64 n) {
+    const npy_c::Api& a = npy_c::api();
+    if (!a.type) return numpy_empty(PyLong_FromLongLong(n), false);
+    const Py_ssize_t dims[1] = {static_cast<Py_ssize_t>(n)};
+    PyObject* out = npy_c::make(a, 12, 1, dims);
+    if (!out) PyErr_Clear();
+    return out;
+}
+inline PyObject* new_active(i64 L, i64 w) {
+    const npy_c::Api& a = npy_c::api();
+    if (!a.type) {
+        PyObject* shape = PyTuple_New(2);
+        if (shape) {
+            PyTuple_SET_ITEM(shape, 0, PyLong_FromLongLong(L));
+            PyTuple_SET_ITEM(shape, 1, PyLong_FromLongLong(w));
+            if (!PyTuple_GET_ITEM(shape, 0) || !PyTuple_GET_ITEM(shape, 1)) Py_CLEAR(shape);
+        }
+        return numpy_empty(shape, true);
+    }
+    const Py_ssize_t dims[2] = {static_cast<Py_ssize_t>(L), static_cast<Py_ssize_t>(w)};
+    PyObject* out = npy_c::make(a, 1, 2, dims);
+    if (!out) PyErr_Clear();
+    return out;
+}
+
 // Interned attribute names of the objects solve_levels reads and builds (made once).
 struct Names {
     PyObject *A, *b, *regularization, *weights;
@@ -177,6 +284,70 @@ inline PyObject* new_with_fields(PyTypeObject* type, std::initializer_list<std::
     return obj;
 }
 
+// new_with_fields with the fields set by `fill` (a Python function fill(obj, *values) that
+// sets them in that order and returns obj, or None for new_with_fields): the interpreter's
+// specialised attribute stores cost less than the generic setattr (about 1k instructions
+// fewer for ten fields). Values are stolen; nullptr (with the Python error set) on failure.
+inline PyObject* new_filled(PyTypeObject* type, PyObject* fill,
+                            std::initializer_list<std::pair<PyObject*, PyObject*>> fields) {
+    if (fill == Py_None || fields.size() > 15) return new_with_fields(type, fields);
+    PyObject* args[16];
+    size_t k = 1;
+    bool ok = true;
+    for (const auto& f : fields) {
+        ok = ok && f.second != nullptr;
+        args[k++] = f.second;
+    }
+    PyObject* obj = ok ? PyBaseObject_Type.tp_new(type, empty_tuple(), nullptr) : nullptr;
+    PyObject* out = nullptr;
+    if (obj) {
+        args[0] = obj;
+        out = PyObject_Vectorcall(fill, args, k, nullptr);
+        Py_DECREF(obj);
+    }
+    for (const auto& f : fields) Py_XDECREF(f.second);
+    return out;
+}
+
+// src[j], j < n, copied into dst (when given) two lanes at a time, with `z` += v * 0 per lane
+// (NaN exactly once some v is NaN or infinite; z[2] takes an odd n's last entry): the
+// finiteness of many rows decided by one test of z at the end (finite_sum), none per entry.
+// Returns whether some entry has |v| > 0 (for finite entries, the same as their sum of |v|
+// being > 0).
+struct FiniteSum {
+    core::simd::v2d z = {0.0, 0.0};
+    double zt = 0.0;
+    bool ok() const { return z[0] == z[0] && z[1] == z[1] && zt == zt; }
+};
+__attribute__((always_inline)) inline bool copy_scan(const double* src, double* dst, i64 n, FiniteSum& f) {
+    namespace sd = core::simd;
+    sd::v2i bits = {0, 0};
+    const sd::v2i mag = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
+    i64 j = 0;
+    for (; j + 2 <= n; j += 2) {
+        sd::v2d v = sd::load(src + j);
+        if (dst) sd::store(dst + j, v);
+        f.z += v * sd::splat(0.0);
+        sd::v2i b;
+        std::memcpy(&b, &v, sizeof v);
+        bits |= b & mag;
+    }
+    long long bt = 0;
+    if (j < n) {
+        double v = src[j];
+        if (dst) dst[j] = v;
+        f.zt += v * 0.0;
+        std::memcpy(&bt, &v, sizeof v);
+        bt &= 0x7fffffffffffffffLL;
+    }
+    return (bits[0] | bits[1] | bt) != 0;
+}
+inline bool all_finite(const double* src, i64 n) {
+    FiniteSum f;
+    copy_scan(src, nullptr, n, f);
+    return f.ok();
+}
+
 inline PyObject* float_list(const Vec& v, i64 L) {
     PyObject* out = PyList_New(L);
     if (!out) return nullptr;
@@ -194,7 +365,7 @@ inline PyObject* float_list(const Vec& v, i64 L) {
 // The result object of solve_levels (see there); raises the Python error on failure. Its
 // certificates are left to the result class to build on first access: the (L, 4) float64
 // measures as bytes in ``_cert`` (HierarchyResult.__getattr__; the same values).
-inline nb::object result_object(PyTypeObject* result_type, PyObject* statuses, PyObject* backend, PyObject* x,
+inline nb::object result_object(PyTypeObject* result_type, PyObject* fill, PyObject* statuses, PyObject* backend, PyObject* x,
                                 PyObject* active, const core::CascadeResult& r, i64 L) {
     const Names& nm = names();
     PyObject* status = PyList_New(L);
@@ -219,8 +390,8 @@ inline nb::object result_object(PyTypeObject* result_type, PyObject* statuses, P
     Py_INCREF(active);
     PyObject* cert = PyBytes_FromStringAndSize(reinterpret_cast<const char*>(r.certificate.data()),
                                                static_cast<Py_ssize_t>(4 * L * sizeof(double)));
-    PyObject* obj = new_with_fields(
-        result_type, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
+    PyObject* obj = new_filled(
+        result_type, fill, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
                       {nm.sigma, float_list(r.sigma, L)}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
                       {nm.active, active}, {nm.backend, backends}, {nm.cert_raw, cert},
                       {nm.primal, PyFloat_FromDouble(r.primal)}});
@@ -431,8 +602,9 @@ void bind_core(nb::module_& m) {
             // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
             // call, the answer written into x and active (preallocated by the caller) and
             // returned as a result object built here (kinds: the result class, the
-            // certificate class, the statuses by code, the backend label), whose fields are
-            // set directly (as the dataclass __init__ would). The arrays are read through the
+            // certificate class, the statuses by code, the backend label, and optionally the
+            // function that sets the fields: new_filled), whose fields are set directly (as
+            // the dataclass __init__ would, by kinds[4] when given, else the generic setattr). The arrays are read through the
             // buffer protocol (no conversion). None when an argument does not pass or needs a
             // conversion (the caller then validates in Python, which names the field), or
             // when a level did not settle (MAX_ITER, NUMERICAL: the caller's fallback).
@@ -449,8 +621,7 @@ void bind_core(nb::module_& m) {
             const double* hp = h.data<double>();
             for (i64 i = 0; i < n; ++i)
                 if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return none;
-            for (i64 i = 0; i < p * n; ++i)
-                if (!std::isfinite(Gp[i])) return none;
+            if (!all_finite(Gp, p * n)) return none;
             for (i64 i = 0; i < p; ++i)
                 if (std::isnan(hp[i])) return none;
             if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return none;
@@ -461,31 +632,35 @@ void bind_core(nb::module_& m) {
             PyObject* x_p = x_h.ptr();
             PyObject* act_p = active_h.ptr();
             if (x_h.is_none()) {
-                x_new = nb::steal(numpy_empty(PyLong_FromLongLong(n), false));
+                x_new = nb::steal(new_x(n));
                 if (!x_new.is_valid()) return none;
                 x_p = x_new.ptr();
             }
             if (active_h.is_none()) {
-                act_new = nb::steal(numpy_empty(Py_BuildValue("(LL)", static_cast<long long>(L),
-                                                              static_cast<long long>(n + p)),
-                                                true));
+                act_new = nb::steal(new_active(L, n + p));
                 if (!act_new.is_valid()) return none;
                 act_p = act_new.ptr();
             }
             if (!xo.get(x_p, 'd', 1, true) || xo.shape(0) != n) return none;
             if (!act.get(act_p, 'b', 2, true) || act.shape(0) != L || act.shape(1) != n + p) return none;
-            if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) != 4) return none;
+            if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) < 4 || PyTuple_GET_SIZE(kinds_h.ptr()) > 5)
+                return none;
             PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
             PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (its _cert)
             PyObject* statuses = PyTuple_GET_ITEM(kinds_h.ptr(), 2);
             PyObject* backend = PyTuple_GET_ITEM(kinds_h.ptr(), 3);
+            // kinds[4], when given: the function that sets the result's fields (new_filled)
+            PyObject* fill = PyTuple_GET_SIZE(kinds_h.ptr()) == 5 ? PyTuple_GET_ITEM(kinds_h.ptr(), 4) : Py_None;
+            if (fill != Py_None && !PyCallable_Check(fill)) return none;
             if (!PyType_Check(result_type) || !PyType_Check(cert_type) || !PyTuple_Check(statuses) ||
                 PyTuple_GET_SIZE(statuses) != 6)
                 return none;
             // The caller's storage (ws), else storage of its own: the stacked problem and the
             // result (every entry written by this call; nothing of a previous one is read).
-            std::optional<core::Workspace> local;
-            if (!ws) local.emplace();
+            // (a unique_ptr, not an optional: the optional of the large Workspace cost about 600
+            // instructions a call even when left empty)
+            std::unique_ptr<core::Workspace> local;
+            if (!ws) local = std::make_unique<core::Workspace>();
             core::Workspace& wsr = ws ? *ws : *local;
             // Level by level: its buffers read, checked and its rows stacked (then released);
             // any check that fails returns None, as with the checks taken in any order.
@@ -533,19 +708,14 @@ void bind_core(nb::module_& m) {
                     const double* av = ab.data<double>();
                     const double* bv = bb.data<double>();
                     const double* wv = has_w ? wb.data<double>() : nullptr;
+                    FiniteSum fin;  // the level's rows and targets tested once, after the copy
                     for (i64 i = 0; i < mk; ++i) {
-                        double* dst = A.row(M + i);
-                        double total = 0.0;
-                        for (i64 j = 0; j < n; ++j) {
-                            double v = av[i * n + j];
-                            if (!std::isfinite(v)) return none;
-                            dst[j] = v;
-                            total += std::fabs(v);
-                        }
-                        if (!std::isfinite(bv[i])) return none;
+                        bool nonzero = copy_scan(av + i * n, A.row(M + i), n, fin);
                         b[M + i] = bv[i];
-                        w[M + i] = wv ? wv[i] : (total > 0.0 ? 1.0 : 0.0);
+                        w[M + i] = wv ? wv[i] : (nonzero ? 1.0 : 0.0);
                     }
+                    copy_scan(bv, nullptr, mk, fin);
+                    if (!fin.ok()) return none;
                     M += mk;
                 }
             }
@@ -569,16 +739,18 @@ void bind_core(nb::module_& m) {
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
             static_assert(sizeof(double) == 8, "the certificate bytes are float64");
             if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
-            return result_object(reinterpret_cast<PyTypeObject*>(result_type), statuses, backend, x_p, act_p, r, L);
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type), fill, statuses, backend, x_p, act_p, r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
         "workspace"_a.none() = nb::none(),
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
-        "into active (L, n + p) int8 (each made here by numpy.empty when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
+        "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
         "iterations, active, backend, certificate, primal; the certificates, kinds[1] (primal, stationarity, dual, "
-        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]. None (x and active untouched) when an "
+        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]; "
+        "kinds[4], when given, sets the fields: kinds[4](obj, x, status, residuals, sigma, damping, iterations, active, "
+        "backend, _cert, primal) on obj = object.__new__(kinds[0]), returning it. None (x and active untouched) when an "
         "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");
 
     m.def(
