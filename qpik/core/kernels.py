@@ -53,7 +53,8 @@ Signatures:
   ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result class, its
   fields set as its ``__init__`` would: ``x``, ``status`` ``kinds[2][code]``, ``residuals``,
   ``sigma``, ``damping``, ``iterations``, ``active``, ``backend`` ``kinds[3]``, ``certificate`` of
-  ``kinds[1]``, ``primal``). None, nothing written, where an argument fails a check or needs a
+  ``kinds[1]``, ``primal``; an optional ``kinds[4]``, ``cascade._fill_result``, sets them in
+  its place). None, nothing written, where an argument fails a check or needs a
   conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL`` (``max_iter <= 0``: ``10 (n + p) +
   50``; ``warm`` None: cold).
 - ``CascadeWorkspace()``: the storage of one solver's cascade, passed as ``workspace`` to
