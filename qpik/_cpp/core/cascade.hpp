@@ -60,6 +60,9 @@ struct NnlsScratch {
     // the passive columns' QR kept from one added column to the next (nnls_into)
     Mat V, Rc;
     Vec vn, qy, col;
+    IVec out;                        // the non-passive columns
+    std::vector<const double*> cols;  // the columns (nnls_cols)
+    Mat MT;                           // nnls_into's M transposed
 };
 }  // namespace detail
 
@@ -1443,8 +1446,16 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
 
 namespace detail {
 
-// Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t)); at
-// most 3 t + 10 steps of each loop (round-off cannot make it cycle for ever).
+// True when every one of the n entries is finite.
+inline bool all_finite(const double* p, i64 n) {
+    bool ok = true;
+    for (i64 i = 0; i < n; ++i) ok = ok && std::isfinite(p[i]);
+    return ok;
+}
+
+// Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t), given by
+// its columns: col[j] points to column j's r entries); at most 3 t + 10 steps of each loop
+// (round-off cannot make it cycle for ever).
 // The least-squares problem on the passive columns is solved from a QR of them kept while
 // columns are only added (Householder reflections, each new column reflected by the ones
 // before: O(r np) a step rather than a new factorisation): the usual path of the method.
@@ -1452,8 +1463,16 @@ namespace detail {
 // passive ones (|R_kk| <= 1e-8 max(|R_ii|, |column|): far above lstsq's own zero pivots, so
 // that the kept QR only ever solves well-conditioned systems), every later step takes the
 // pivoted, minimum-norm lstsq of the passive columns instead.
-inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
-    i64 r = M.rows, t = M.cols;
+// The residual y - M u and the gradient M^T (y - M u) are the sums mv_into and mtv_into
+// make (each entry summed in index order from +0.0): M u's entry i over the columns j in
+// order, M^T x's entry j over the rows i in order (the terms of the rows with x_i = 0
+// left out). finite (every entry of the t columns finite) lets them leave out terms that
+// are +-0: a column j with u_j = +0 adds (finite) (+0) = +-0 to each entry of M u, and a
+// row with x_i = 0 adds +-0 to each entry of M^T x, which leaves a sum from +0.0 as it is
+// (such a sum is never -0: x + y is -0 in round to nearest only for x = y = -0); without
+// it every term is taken as mv_into and mtv_into take them. Only the non-passive entries of
+// the gradient are read (the column to add), so only those are summed.
+inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const Vec& y, NnlsScratch& ws, Vec& u) {
     zero_fill(u, static_cast<size_t>(t));
     BVec& passive = ws.passive;
     passive.assign(static_cast<size_t>(t), 0);
@@ -1461,8 +1480,8 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     double wtol = 1e-14 * (1.0 + ynorm);
     i64 cap = 3 * t + 10;
     // The kept QR: reflector k in V's row k (entries k..r-1), vn[k] = |v_k|^2 (0: none);
-    // Rc's row c holds R's column c (entries 0..c); qy = Q^T y; P the columns in the order
-    // they were added.
+    // Rc is R (row c: entries c..np-1); qy = Q^T y; P the columns in the order they were
+    // added.
     bool inc = true;
     i64 np = 0;
     double rmax = 0.0;
@@ -1476,31 +1495,30 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
     // (nearly) dependent on the passive columns or there is no room.
     auto add_column = [&](i64 a) {
         if (np >= r) return false;
-        Vec& col = ws.col;
-        col.resize(static_cast<size_t>(r));
-        for (i64 i = 0; i < r; ++i) col[i] = M(i, a);
-        double cn = std::sqrt(dot(col.data(), col.data(), r));
+        Vec& c = ws.col;
+        c.resize(static_cast<size_t>(r));
+        std::memcpy(c.data(), col[a], static_cast<size_t>(r) * sizeof(double));
+        double cn = std::sqrt(dot(c.data(), c.data(), r));
         for (i64 k = 0; k < np; ++k) {
             double vnk = ws.vn[static_cast<size_t>(k)];
             if (vnk == 0.0) continue;
             const double* v = ws.V.row(k);
             // (dot and axmy: the same sum in order from 0.0 and the same updates)
-            double sk = dot(v + k, col.data() + k, r - k);
+            double sk = dot(v + k, c.data() + k, r - k);
             sk = 2.0 * sk / vnk;
-            axmy(col.data() + k, sk, v + k, r - k);
+            axmy(c.data() + k, sk, v + k, r - k);
         }
-        double alpha = 0.0;
-        for (i64 i = np; i < r; ++i) alpha += col[i] * col[i];
-        alpha = std::sqrt(alpha);
-        double diag = col[np];
+        // (dot: the sums of squares in order from 0.0)
+        double alpha = std::sqrt(dot(c.data() + np, c.data() + np, r - np));
+        double diag = c[np];
         double* v = ws.V.row(np);
         double vn = 0.0;
         if (alpha != 0.0) {
-            if (col[np] > 0.0) alpha = -alpha;
-            for (i64 i = 0; i < np; ++i) v[i] = 0.0;
-            for (i64 i = np; i < r; ++i) v[i] = col[i];
+            if (c[np] > 0.0) alpha = -alpha;
+            std::memset(v, 0, static_cast<size_t>(np) * sizeof(double));  // (+0.0)
+            std::memcpy(v + np, c.data() + np, static_cast<size_t>(r - np) * sizeof(double));
             v[np] -= alpha;
-            for (i64 i = np; i < r; ++i) vn += v[i] * v[i];
+            vn = dot(v + np, v + np, r - np);
             if (vn != 0.0) diag = alpha;
         }
         if (!(std::fabs(diag) > 1e-8 * pymax(rmax, cn)) || !std::isfinite(diag)) return false;
@@ -1510,24 +1528,54 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
             sq = 2.0 * sq / vn;
             axmy(ws.qy.data() + np, sq, v + np, r - np);
         }
-        double* rc = ws.Rc.row(np);
-        for (i64 i = 0; i < np; ++i) rc[i] = col[i];
-        rc[np] = diag;
+        for (i64 i = 0; i < np; ++i) ws.Rc(i, np) = c[i];  // R's column np
+        ws.Rc(np, np) = diag;
         rmax = pymax(rmax, std::fabs(diag));
         P.push_back(a);
         np += 1;
         return true;
     };
+    Vec& res = ws.res;
+    Vec& w = ws.w;
+    shape(w, static_cast<size_t>(t));  // only the non-passive entries written and read
+    IVec& out = ws.out;
+    out.resize(static_cast<size_t>(t));  // the first no written, then read
     for (i64 outer = 0; outer < cap; ++outer) {
-        Vec& res = ws.res;
-        mv_into(M.cref(), u.data(), res);
-        for (i64 i = 0; i < r; ++i) res[i] = y[i] - res[i];
-        Vec& w = ws.w;
-        mtv_into(M.cref(), res.data(), w);  // -gradient
+        // res = y - M u (mv_into's sums: see above)
+        zero_fill(res, static_cast<size_t>(r));
+        for (i64 j = 0; j < t; ++j)
+            if (!finite || u[j] != 0.0) axpy(res.data(), u[j], col[j], r);
+        {
+            using namespace simd;
+            i64 i = 0;
+            for (; i + 2 <= r; i += 2) store(res.data() + i, load(y.data() + i) - load(res.data() + i));
+            for (; i < r; ++i) res[i] = y[i] - res[i];
+        }
+        // w = M^T res (-gradient; mtv_into's sums) on the non-passive columns
+        i64 no = 0;
+        for (i64 j = 0; j < t; ++j)
+            if (!passive[j]) out[no++] = j;
+        if (finite) {
+            i64 a = 0;
+            for (; a + 4 <= no; a += 4)
+                dot4(col[out[a]], col[out[a + 1]], col[out[a + 2]], col[out[a + 3]], res.data(), r, w[out[a]],
+                     w[out[a + 1]], w[out[a + 2]], w[out[a + 3]]);
+            for (; a + 2 <= no; a += 2) dot2(col[out[a]], col[out[a + 1]], res.data(), r, w[out[a]], w[out[a + 1]]);
+            for (; a < no; ++a) w[out[a]] = dot(col[out[a]], res.data(), r);
+        } else {
+            for (i64 a = 0; a < no; ++a) {
+                const double* cj = col[out[a]];
+                double acc = 0.0;
+                for (i64 i = 0; i < r; ++i)
+                    if (res[i] != 0.0) acc += res[i] * cj[i];
+                w[out[a]] = acc;
+            }
+        }
         i64 add = -1;
         double best = wtol;
-        for (i64 j = 0; j < t; ++j) {
-            if (!passive[j] && w[j] > best) {
+        for (i64 a = 0; a < no; ++a) {
+            i64 j = out[a];
+            if (w[j] > best) {
                 best = w[j];
                 add = j;
             }
@@ -1539,9 +1587,17 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
             if (inc && inner == 0 && add_column(add)) {
                 s.resize(static_cast<size_t>(np));
                 for (i64 c = np - 1; c >= 0; --c) {  // R s = (Q^T y)[:np]
+                    const double* rc = ws.Rc.row(c);
                     double acc = ws.qy[c];
-                    for (i64 j = c + 1; j < np; ++j) acc -= ws.Rc(j, c) * s[j];
-                    s[c] = acc / ws.Rc(c, c);
+                    i64 j = c + 1;
+                    for (; j + 4 <= np; j += 4) {  // (in order, four a pass)
+                        acc -= rc[j] * s[j];
+                        acc -= rc[j + 1] * s[j + 1];
+                        acc -= rc[j + 2] * s[j + 2];
+                        acc -= rc[j + 3] * s[j + 3];
+                    }
+                    for (; j < np; ++j) acc -= rc[j] * s[j];
+                    s[c] = acc / rc[c];
                 }
             } else {
                 inc = false;
@@ -1551,8 +1607,10 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
                 i64 nq = static_cast<i64>(P.size());
                 Mat& MP = ws.MP;
                 shape(MP, r, nq);  // every entry copied
-                for (i64 i = 0; i < r; ++i)
-                    for (i64 k = 0; k < nq; ++k) MP(i, k) = M(i, P[k]);
+                for (i64 k = 0; k < nq; ++k) {
+                    const double* cp = col[P[k]];
+                    for (i64 i = 0; i < r; ++i) MP(i, k) = cp[i];
+                }
                 ws.f = y;
                 lstsq_into(MP, ws.f, s, ws.ls);
             }
@@ -1588,6 +1646,19 @@ inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
             if (inner == 0 && !passive[add]) return;  // round-off: the row just added left at once
         }
     }
+}
+
+// nnls_cols of M (r, t) given as a matrix.
+inline void nnls_into(const Mat& M, const Vec& y, NnlsScratch& ws, Vec& u) {
+    i64 r = M.rows, t = M.cols;
+    Mat& MT = ws.MT;
+    shape(MT, t, r);  // every entry written
+    for (i64 i = 0; i < r; ++i)
+        for (i64 j = 0; j < t; ++j) MT(j, i) = M(i, j);
+    std::vector<const double*>& col = ws.cols;
+    col.resize(static_cast<size_t>(t));
+    for (i64 j = 0; j < t; ++j) col[j] = MT.row(j);
+    nnls_cols(col.data(), r, t, all_finite(MT.a.data(), r * t), y, ws, u);
 }
 
 inline Vec nnls(const Mat& M, const Vec& y) {
@@ -1644,16 +1715,16 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         return std::fabs(bound) < kBig && std::fabs(di - bound) <= detail::kSnap * (1.0 + std::fabs(bound));
     };
     for (i64 i = 0; i < n; ++i) {
-        if (!tight(d[i], lb[i]) && !tight(d[i], ub[i])) continue;  // no normal (its row's norm unused)
+        bool at_lb = tight(d[i], lb[i]), at_ub = tight(d[i], ub[i]);
+        if (!at_lb && !at_ub) continue;  // no normal (its row's norm unused)
         const double* zi = Z.row(i);
         double nn = dot(zi, zi, r);
         if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
-            double bound = side > 0.0 ? lb[i] : ub[i];
-            if (!tight(d[i], bound)) continue;
+            if (!(side > 0.0 ? at_lb : at_ub)) continue;
             Vec& v = next_normal();
-            zero_fill(v, static_cast<size_t>(r));
+            shape(v, static_cast<size_t>(r));  // every entry written
             for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
             owner.push_back(i);
         }
@@ -1737,6 +1808,21 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
     state.assign(static_cast<size_t>(t), 0);
+    // The NNLS below read the normals in place (col: the columns of the matrix of each).
+    std::vector<const double*>& col = ws.nnls.cols;
+    col.resize(static_cast<size_t>(t));
+    bool finite = true;
+    for (i64 j = 0; j < t && finite; ++j) finite = detail::all_finite(normals[j].data(), r);
+    // res = (sum_s u_s col[s]) - y, the sum mv_into makes of the matrix of columns col[0..k)
+    // (each entry over s in order from +0.0; with finite columns, the terms of u_s = +0
+    // left out: they add +-0, see nnls_cols).
+    Vec& res = ws.res;
+    auto combine = [&](i64 k, const Vec& u) {
+        zero_fill(res, static_cast<size_t>(r));
+        for (i64 s = 0; s < k; ++s)
+            if (!finite || u[s] != 0.0) axpy(res.data(), u[s], col[s], r);
+        for (i64 c = 0; c < r; ++c) res[c] = res[c] - ws.y[c];
+    };
     if (2 * t >= 3 * r) {
         // Many more tight rows than null-space directions (t >= 1.5 r: one NNLS a row would
         // take several, each pinning at most r + 1 rows; with fewer, one or two usually do,
@@ -1749,19 +1835,14 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         // (1 + sum u)) is a feasible move (NNLS's optimality: n_i^T N u >= 0 for every i, to
         // its tolerance), and the rows it moves off their bounds are free, as the test marks
         // them; the test then goes on with the others.
-        Mat& M = ws.M;
-        shape(M, r, t);  // every entry written
-        for (i64 c = 0; c < r; ++c)
-            for (i64 s = 0; s < t; ++s) M(c, s) = normals[s][c];
+        for (i64 s = 0; s < t; ++s) col[s] = normals[s].data();
         Vec& y = ws.y;
-        zero_fill(y, static_cast<size_t>(r));
+        shape(y, static_cast<size_t>(r));  // every entry written
         for (i64 c = 0; c < r; ++c) y[c] = -ws.sum[c];
         Vec& u = ws.u;  // v
-        detail::nnls_into(M, y, ws.nnls, u);
-        Vec& res = ws.res;
-        mv_into(M.cref(), u.data(), res);  // N (1 + v) = N v - y
+        detail::nnls_cols(col.data(), r, t, finite, y, ws.nnls, u);
+        combine(t, u);  // N (1 + v) = N v - y
         double total = 0.0;
-        for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
         for (i64 s = 0; s < t; ++s) total += 1.0 + u[s];
         double rn = std::sqrt(dot(res.data(), res.data(), r));
         if (rn <= kPinnedAll && total <= kPinnedAllWeight) {
@@ -1778,19 +1859,14 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 i = 0; i < t; ++i)
             if (i != j && state[i] >= 0) others.push_back(i);
         i64 k = static_cast<i64>(others.size());
-        Mat& M = ws.M;
-        shape(M, r, k);  // every entry written
-        for (i64 c = 0; c < r; ++c)
-            for (i64 s = 0; s < k; ++s) M(c, s) = normals[others[s]][c];
+        for (i64 s = 0; s < k; ++s) col[s] = normals[others[s]].data();
         Vec& y = ws.y;
-        zero_fill(y, static_cast<size_t>(r));
+        shape(y, static_cast<size_t>(r));  // every entry written
         for (i64 c = 0; c < r; ++c) y[c] = -normals[j][c];
         Vec& u = ws.u;
-        detail::nnls_into(M, y, ws.nnls, u);
-        Vec& res = ws.res;
-        mv_into(M.cref(), u.data(), res);  // n_j + sum u_i n_i
+        detail::nnls_cols(col.data(), r, k, finite, y, ws.nnls, u);
+        combine(k, u);  // n_j + sum u_i n_i
         double total = 1.0;
-        for (i64 c = 0; c < r; ++c) res[c] = res[c] - y[c];
         for (i64 s = 0; s < k; ++s) total += u[s];
         double rn = std::sqrt(dot(res.data(), res.data(), r));
         if (rn <= kPinned * std::min(total, kPinnedWeight)) {
@@ -1820,7 +1896,13 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
     Mat& Q = ws.Q;
     Mat& R = ws.R;
-    householder_qr(N.cref(), true, Q, R, ws.perm, true, ws.qr);
+    // R first (form_q false: the same R and pivots), its reflectors kept: Q is formed from
+    // them only where some of its columns are used (rank < r), by apply_reflectors_right on
+    // the identity, the operations householder_qr's form_q makes on Q's rows (the same Q).
+    bool keep = ws.qr.keep_reflectors;
+    ws.qr.keep_reflectors = true;
+    householder_qr(N.cref(), true, Q, R, ws.perm, false, ws.qr);
+    ws.qr.keep_reflectors = keep;
     double top = std::fabs(R(0, 0));
     i64 rank = 0;
     for (i64 i = 0; i < std::min(r, e); ++i) {
@@ -1828,6 +1910,12 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         else break;
     }
     if (rank == 0) return false;
+    if (rank == r) {  // every direction pinned: Z has no columns left (Z Q's columns rank..r-1)
+        shape(Z, n, 0);
+        return true;
+    }
+    Q.set_eye(r);
+    apply_reflectors_right(Q, ws.qr, std::min(r, e));
     Mat& Qc = ws.Qr;  // Q's columns rank..r-1
     shape(Qc, r, r - rank);  // every entry copied
     for (i64 i = 0; i < r; ++i)
