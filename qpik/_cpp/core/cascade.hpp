@@ -1446,11 +1446,58 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
 
 namespace detail {
 
-// True when every one of the n entries is finite.
+// True when every one of the n entries is finite (x - x: +0 for a finite x, NaN for an
+// infinite or NaN one; the sum of them 0 only when every one is +0).
 inline bool all_finite(const double* p, i64 n) {
-    bool ok = true;
-    for (i64 i = 0; i < n; ++i) ok = ok && std::isfinite(p[i]);
-    return ok;
+    using namespace simd;
+    v2d acc = splat(0.0);
+    i64 i = 0;
+    for (; i + 2 <= n; i += 2) {
+        v2d x = load(p + i);
+        acc += x - x;
+    }
+    double s = acc[0] + acc[1];
+    for (; i < n; ++i) s += p[i] - p[i];
+    return s == 0.0;
+}
+
+// y[c] = (a x[c]) / b, c < n (two lanes a pass; a = -1: -x[c] / b).
+inline void scale_div(double* y, const double* x, double a, double b, i64 n) {
+    using namespace simd;
+    const v2d av = splat(a), bv = splat(b);
+    i64 c = 0;
+    for (; c + 2 <= n; c += 2) store(y + c, (av * load(x + c)) / bv);
+    for (; c < n; ++c) y[c] = (a * x[c]) / b;
+}
+
+// y[c] += x[c], c < n.
+inline void add_into(double* y, const double* x, i64 n) {
+    using namespace simd;
+    i64 c = 0;
+    for (; c + 2 <= n; c += 2) store(y + c, load(y + c) + load(x + c));
+    for (; c < n; ++c) y[c] += x[c];
+}
+
+// res = y - sum_a u[js[a]] col[js[a]] over a = 0..k-1: each entry's sum in that order from
+// +0.0 (axpy's products and additions, two columns a pass), then subtracted from y.
+inline void residual_of(const double* const* col, const double* u, const i64* js, i64 k, const double* y, i64 r,
+                        Vec& res) {
+    using namespace simd;
+    zero_fill(res, static_cast<size_t>(r));
+    double* o = res.data();
+    i64 a = 0;
+    for (; a + 2 <= k; a += 2) {
+        const double *x = col[js[a]], *z = col[js[a + 1]];
+        const double ua = u[js[a]], ub = u[js[a + 1]];
+        const v2d av = splat(ua), bv = splat(ub);
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) store(o + i, (load(o + i) + av * load(x + i)) + bv * load(z + i));
+        for (; i < r; ++i) o[i] = (o[i] + ua * x[i]) + ub * z[i];
+    }
+    if (a < k) axpy(o, u[js[a]], col[js[a]], r);
+    i64 i = 0;
+    for (; i + 2 <= r; i += 2) store(o + i, load(y + i) - load(o + i));
+    for (; i < r; ++i) o[i] = y[i] - o[i];
 }
 
 // Lawson-Hanson non-negative least squares: u >= 0 minimising |M u - y| (M (r, t), given by
@@ -1542,14 +1589,11 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
     out.resize(static_cast<size_t>(t));  // the first no written, then read
     for (i64 outer = 0; outer < cap; ++outer) {
         // res = y - M u (mv_into's sums: see above)
-        zero_fill(res, static_cast<size_t>(r));
-        for (i64 j = 0; j < t; ++j)
-            if (!finite || u[j] != 0.0) axpy(res.data(), u[j], col[j], r);
         {
-            using namespace simd;
-            i64 i = 0;
-            for (; i + 2 <= r; i += 2) store(res.data() + i, load(y.data() + i) - load(res.data() + i));
-            for (; i < r; ++i) res[i] = y[i] - res[i];
+            i64 nt = 0;  // the columns taken, in order
+            for (i64 j = 0; j < t; ++j)
+                if (!finite || u[j] != 0.0) out[nt++] = j;
+            residual_of(col, u.data(), out.data(), nt, y.data(), r, res);
         }
         // w = M^T res (-gradient; mtv_into's sums) on the non-passive columns
         i64 no = 0;
@@ -1725,15 +1769,15 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
             if (!(side > 0.0 ? at_lb : at_ub)) continue;
             Vec& v = next_normal();
             shape(v, static_cast<size_t>(r));  // every entry written
-            for (i64 c = 0; c < r; ++c) v[c] = side * zi[c] / norm;
+            detail::scale_div(v.data(), zi, side, norm, r);
             owner.push_back(i);
         }
     }
     if (p) {
         for (i64 j = 0; j < p; ++j) {
             if (!(h[j] < kBig)) continue;
-            double gg = gsq ? gsq[j] : row_sq_of(G, j), gd = 0.0;
-            for (i64 t = 0; t < n; ++t) gd += G(j, t) * d[t];
+            double gg = gsq ? gsq[j] : row_sq_of(G, j);
+            double gd = dot(G.row(j), d.data(), n);  // (in order from 0.0)
             if (!(std::fabs(gd - h[j]) <= detail::kSnap * (std::sqrt(gg) + std::fabs(h[j])))) continue;
             Vec& v = next_normal();
             // v = G_j Z: v[c] = +0 plus G(j, s) Z(s, c) over the nonzero G(j, s) in s order (the
@@ -1784,7 +1828,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
                 continue;
             }
             double norm = std::sqrt(nn);
-            for (auto& x : v) x = -x / norm;
+            detail::scale_div(v.data(), v.data(), -1.0, norm, r);  // -x / norm
             owner.push_back(-1);
         }
     }
@@ -1798,7 +1842,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         zero_fill(sum, static_cast<size_t>(r));
         for (i64 j = 0; j < t; ++j) {
             const Vec& v = normals[static_cast<size_t>(j)];
-            for (i64 c = 0; c < r; ++c) sum[c] += v[c];
+            detail::add_into(sum.data(), v.data(), r);
         }
         double sn = std::sqrt(dot(sum.data(), sum.data(), r));
         bool free = sn > 0.0;
