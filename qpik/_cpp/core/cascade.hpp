@@ -97,7 +97,7 @@ struct Workspace {
     detail::NnlsScratch nnls;
     IVec state, others, pinned;
     BVec box_pinned;
-    Mat M, N;
+    Mat N;
     Vec y, u, res;
     // the cascade's level answer
     Vec z, free_z;
