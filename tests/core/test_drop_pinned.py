@@ -1,0 +1,103 @@
+"""drop_pinned: the rows pinned on their bounds by positively dependent normals are removed
+from Z (its NNLS test of each tight row, the all-at-once test with many rows, the QR of the
+pinned normals with and without directions left)."""
+
+import numpy as np
+
+from qpik.core.kernels import drop_pinned
+
+
+def _call(Z, d, lb, ub, G=None, h=None):
+    n = len(d)
+    G = np.zeros((0, n)) if G is None else np.asarray(G, dtype=float)
+    h = np.zeros(0) if h is None else np.asarray(h, dtype=float)
+    return drop_pinned(
+        np.ascontiguousarray(Z, dtype=float),
+        np.asarray(d, float),
+        np.asarray(lb, float),
+        np.asarray(ub, float),
+        np.ascontiguousarray(G),
+        h,
+    )
+
+
+def test_free_rows_leave_z_as_it_is():
+    Z = np.abs(np.random.default_rng(0).standard_normal((5, 3))) + 0.1  # normals in one orthant
+    d = np.zeros(5)
+    out = _call(Z, d, d, d + 1.0)  # every dof on its lower bound only
+    assert out.shape == Z.shape and np.array_equal(out, Z)
+
+
+def test_zero_width_row_is_removed_and_its_dof_held():
+    Z = np.eye(4)
+    d = np.zeros(4)
+    lb = np.array([0.0, 0.0, -1.0, -1.0])
+    ub = np.array([0.0, 1.0, 1.0, 1.0])  # dof 0 pinned (both sides), dof 1 on one side only
+    out = _call(Z, d, lb, ub)
+    assert out.shape == (4, 3)
+    assert np.all(out[0] == 0.0)  # the pinned dof's row made exactly 0
+    np.testing.assert_allclose(out.T @ out, np.eye(3), atol=1e-14)
+
+
+def test_every_direction_pinned_leaves_no_column():
+    Z = np.linalg.qr(np.random.default_rng(1).standard_normal((6, 3)))[0]
+    d = np.random.default_rng(2).standard_normal(6)
+    out = _call(Z, d, d, d)
+    assert out.shape == (6, 0)
+
+
+def test_opposite_general_rows_are_pinned():
+    G = np.array([[1.0, 1.0], [-2.0, -2.0]])
+    d = np.array([0.3, -0.1])
+    out = _call(np.eye(2), d, np.full(2, -5.0), np.full(2, 5.0), G, G @ d)
+    assert out.shape == (2, 1)
+    np.testing.assert_allclose(np.abs(out[:, 0]), np.full(2, np.sqrt(0.5)), atol=1e-15)
+    np.testing.assert_allclose(G @ out, 0.0, atol=1e-15)
+
+
+def test_many_rows_all_at_once():
+    # six tight rows in the plane (t >= 1.5 r): positively spanning -> nothing can move;
+    # within a half-plane -> every row is free.
+    d = np.zeros(2)
+    box = (np.full(2, -1.0), np.full(2, 1.0))
+    ang = np.linspace(0.0, 2 * np.pi, 6, endpoint=False)
+    G = np.stack([np.cos(ang), np.sin(ang)], 1)
+    assert _call(np.eye(2), d, *box, G, np.zeros(6)).shape == (2, 0)
+    half = np.linspace(0.1, np.pi - 0.1, 6)
+    G = np.stack([np.cos(half), np.sin(half)], 1)
+    out = _call(np.eye(2), d, *box, G, np.zeros(6))
+    assert np.array_equal(out, np.eye(2))
+
+
+def test_pinned_subset_keeps_the_free_directions():
+    # two opposite general rows pin one direction of three; a third row is tight but free
+    G = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    d = np.zeros(3)
+    out = _call(np.eye(3), d, np.full(3, -1.0), np.full(3, 1.0), G, np.zeros(3))
+    assert out.shape == (3, 2)
+    np.testing.assert_allclose(out[0], 0.0, atol=1e-15)
+    np.testing.assert_allclose(out.T @ out, np.eye(2), atol=1e-14)
+
+
+def test_seeded_cases_repeat_bit_for_bit():
+    # random tight sets, some with inf / NaN / -0 entries in Z: no error, the same bits on a
+    # second call (nothing carried between calls), the same shape rules
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        n = int(rng.integers(2, 10))
+        r = int(rng.integers(1, n + 1))
+        Z = rng.standard_normal((n, r))
+        if rng.random() < 0.2:
+            Z[rng.integers(n), rng.integers(r)] = rng.choice([np.inf, -np.inf, np.nan, -0.0])
+        d = rng.standard_normal(n)
+        lb = d - np.where(rng.random(n) < 0.4, 0.0, 1.0)
+        ub = d + np.where(rng.random(n) < 0.4, 0.0, 1.0)
+        k = int(rng.integers(0, 3 * r + 2))
+        G = rng.standard_normal((k, n))
+        if k >= 2:
+            G[-1] = -(rng.random(k - 1) @ G[:-1])
+        h = G @ d
+        a = _call(Z, d, lb, ub, G, h)
+        b = _call(Z, d, lb, ub, G, h)
+        assert a.shape == b.shape and a.shape[0] == n and a.shape[1] <= r
+        assert a.tobytes() == b.tobytes()
