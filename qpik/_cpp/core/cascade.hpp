@@ -60,7 +60,7 @@ struct NnlsScratch {
     // the passive columns' QR kept from one added column to the next (nnls_into)
     Mat V, Rc;
     Vec vn, qy, col;
-    IVec out;                        // the non-passive columns
+    IVec out, act;                   // the non-passive columns; the residual's
     std::vector<const double*> cols;  // the columns (nnls_cols)
     Mat MT;                           // nnls_into's M transposed
 };
@@ -1544,7 +1544,8 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
         if (np >= r) return false;
         Vec& c = ws.col;
         c.resize(static_cast<size_t>(r));
-        std::memcpy(c.data(), col[a], static_cast<size_t>(r) * sizeof(double));
+        const double* ca = col[a];
+        for (i64 i = 0; i < r; ++i) c[i] = ca[i];
         double cn = std::sqrt(dot(c.data(), c.data(), r));
         for (i64 k = 0; k < np; ++k) {
             double vnk = ws.vn[static_cast<size_t>(k)];
@@ -1562,8 +1563,8 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
         double vn = 0.0;
         if (alpha != 0.0) {
             if (c[np] > 0.0) alpha = -alpha;
-            std::memset(v, 0, static_cast<size_t>(np) * sizeof(double));  // (+0.0)
-            std::memcpy(v + np, c.data() + np, static_cast<size_t>(r - np) * sizeof(double));
+            for (i64 i = 0; i < np; ++i) v[i] = 0.0;
+            for (i64 i = np; i < r; ++i) v[i] = c[i];
             v[np] -= alpha;
             vn = dot(v + np, v + np, r - np);
             if (vn != 0.0) diag = alpha;
@@ -1586,19 +1587,32 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
     Vec& w = ws.w;
     shape(w, static_cast<size_t>(t));  // only the non-passive entries written and read
     IVec& out = ws.out;
+    IVec& act = ws.act;
     out.resize(static_cast<size_t>(t));  // the first no written, then read
+    act.resize(static_cast<size_t>(t));  // the first na written, then read
+    // act: the columns of the residual's sums, in order (finite: those with u_j != 0, all
+    // passive: a non-passive column's u_j is +0; else every column); out: the non-passive
+    // columns, in order. Both are kept from one step to the next where the step only added
+    // a column whose solve was positive at once (every passive u_j > 0 then), else built
+    // again.
+    bool lists = false;
+    i64 na = 0, no = 0;
     for (i64 outer = 0; outer < cap; ++outer) {
-        // res = y - M u (mv_into's sums: see above)
-        {
-            i64 nt = 0;  // the columns taken, in order
-            for (i64 j = 0; j < t; ++j)
-                if (!finite || u[j] != 0.0) out[nt++] = j;
-            residual_of(col, u.data(), out.data(), nt, y.data(), r, res);
+        if (!lists) {
+            na = no = 0;
+            for (i64 j = 0; j < t; ++j) {
+                if (passive[j]) {
+                    if (!finite || u[j] != 0.0) act[na++] = j;
+                } else {
+                    out[no++] = j;
+                    if (!finite) act[na++] = j;
+                }
+            }
+            lists = true;
         }
+        // res = y - M u (mv_into's sums: see above)
+        residual_of(col, u.data(), act.data(), na, y.data(), r, res);
         // w = M^T res (-gradient; mtv_into's sums) on the non-passive columns
-        i64 no = 0;
-        for (i64 j = 0; j < t; ++j)
-            if (!passive[j]) out[no++] = j;
         if (finite) {
             i64 a = 0;
             for (; a + 4 <= no; a += 4)
@@ -1615,17 +1629,19 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
                 w[out[a]] = acc;
             }
         }
-        i64 add = -1;
+        i64 add = -1, at = -1;
         double best = wtol;
         for (i64 a = 0; a < no; ++a) {
             i64 j = out[a];
             if (w[j] > best) {
                 best = w[j];
                 add = j;
+                at = a;
             }
         }
         if (add < 0) break;
         passive[add] = 1;
+        bool quick = false;  // the solve positive at once
         for (i64 inner = 0; inner < cap; ++inner) {
             Vec& s = ws.s;
             if (inc && inner == 0 && add_column(add)) {
@@ -1664,6 +1680,7 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
                 if (!(s[k] > 0.0)) positive = false;
             if (positive) {
                 for (i64 k = 0; k < np2; ++k) u[P[k]] = s[k];
+                quick = inner == 0;
                 break;
             }
             inc = false;  // a column leaves: the kept QR no longer matches
@@ -1688,6 +1705,18 @@ inline void nnls_cols(const double* const* col, i64 r, i64 t, bool finite, const
                 }
             }
             if (inner == 0 && !passive[add]) return;  // round-off: the row just added left at once
+        }
+        if (quick) {  // add leaves out and joins act (finite; else act holds every column)
+            for (i64 a = at; a + 1 < no; ++a) out[a] = out[a + 1];
+            no -= 1;
+            if (finite) {
+                i64 a = na;
+                for (; a > 0 && act[a - 1] > add; --a) act[a] = act[a - 1];
+                act[a] = add;
+                na += 1;
+            }
+        } else {
+            lists = false;
         }
     }
 }
