@@ -426,10 +426,130 @@ inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, s
     }
 }
 
+// jacobi_rounds' order for P rows, made at compile time (jacobi_square), with touch[i] the
+// bits of the pairs that hold row i.
+template <int P>
+struct JacobiOrder {
+    static constexpr int kPairs = P * (P - 1) / 2;
+    int rounds = 0;
+    int start[P + 1] = {};
+    int pi[kPairs] = {};
+    int pj[kPairs] = {};
+    std::uint64_t touch[P] = {};
+    constexpr JacobiOrder() {
+        const int n = P + (P & 1);
+        int at[P + 2] = {};
+        for (int k = 0; k < n; ++k) at[k] = (P & 1) ? (k == 0 ? P : k - 1) : k;
+        int np = 0;
+        for (int r = 0; r + 1 < n; ++r) {
+            start[r] = np;
+            for (int k = 0; k < n / 2; ++k) {
+                const int a = at[k], b = at[n - 1 - k];
+                if (a >= P || b >= P) continue;
+                pi[np] = a < b ? a : b;
+                pj[np] = a < b ? b : a;
+                touch[pi[np]] |= std::uint64_t{1} << np;
+                touch[pj[np]] |= std::uint64_t{1} << np;
+                ++np;
+            }
+            const int last = at[n - 1];
+            for (int k = n - 1; k > 1; --k) at[k] = at[k - 1];
+            at[1] = last;
+        }
+        rounds = n > 1 ? n - 1 : 0;
+        start[rounds] = np;
+    }
+};
+
+// jacobi_row_norms_fixed for a square block (p = cols = P, 2 <= P <= kJacobiSquare): the same
+// rounds, the same products, checks, rotations and sums in the same order (the same bits),
+// with the order known to the compiler (every round unrolled, no index loaded) and the clean
+// pairs held as bits (a pair's bit set when found orthogonal, cleared when one of its rows is
+// rotated: the stamps' rule). Within a round the pairs share no row, so each pair's work is
+// its own whatever the order they are taken in.
+constexpr int kJacobiSquare = 8;
+
+template <int P>
+inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+    static constexpr JacobiOrder<P> ord{};
+    constexpr int kRound = P / 2;  // pairs per round, at most
+    alignas(16) double W[P][P];
+    double s[P];
+    for (int i = 0; i < P; ++i) {
+        std::memcpy(W[i], R.row(i), sizeof(double) * P);
+        s[i] = jacobi_sq<P>(W[i], P);
+    }
+    log.clear();
+    constexpr int kBatch = 32;
+    Rotation batch[kBatch];
+    int nb = 0;
+    std::uint64_t clean = 0;
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+#pragma GCC unroll 16
+        for (int round = 0; round < ord.rounds; ++round) {
+            const int k0 = ord.start[round], k1 = ord.start[round + 1];
+            double gam[kRound] = {}, cs[kRound] = {}, sn[kRound] = {};
+            bool act[kRound], rot[kRound];
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                act[k - k0] = !(clean & (std::uint64_t{1} << k));
+                if (act[k - k0]) gam[k - k0] = jacobi_dot<P>(W[ord.pi[k]], W[ord.pj[k]], P);
+            }
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                const int q = k - k0, i = ord.pi[k], j = ord.pj[k];
+                rot[q] = false;
+                if (!act[q]) continue;
+                if (jacobi_orthogonal(s[i], s[j], gam[q])) {
+                    clean |= std::uint64_t{1} << k;
+                    continue;
+                }
+                jacobi_rotation(s[i], s[j], gam[q], cs[q], sn[q]);
+                rot[q] = true;
+            }
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                const int q = k - k0, i = ord.pi[k], j = ord.pj[k];
+                if (!rot[q]) continue;
+                jacobi_turn<P>(W[i], W[j], cs[q], sn[q], P, s[i], s[j]);
+                if (log_rotations) {
+                    batch[nb++] = Rotation{i, j, cs[q], sn[q]};
+                    if (nb == kBatch) {
+                        log.insert(log.end(), batch, batch + nb);
+                        nb = 0;
+                    }
+                }
+                clean &= ~(ord.touch[i] | ord.touch[j]);
+                rotated = true;
+            }
+        }
+        if (!rotated) break;
+    }
+    if (nb) log.insert(log.end(), batch, batch + nb);
+    sq.resize(static_cast<size_t>(P));  // every entry written
+    for (int i = 0; i < P; ++i) {
+        sq[i] = s[i];
+        std::memcpy(R.row(i), W[i], sizeof(double) * P);
+    }
+}
+
 // One-sided Jacobi on the first p rows of R (each cols long): jacobi_sweeps, the rows rotated
 // in place; sq[i] = |row i|^2 on return; clean: scratch (the pairs' stamps and the order).
 inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
                              std::vector<Rotation>& log) {
+    if (p == cols) {
+        switch (p) {
+            case 2: return jacobi_row_norms_square<2>(R, log_rotations, sq, log);
+            case 3: return jacobi_row_norms_square<3>(R, log_rotations, sq, log);
+            case 4: return jacobi_row_norms_square<4>(R, log_rotations, sq, log);
+            case 5: return jacobi_row_norms_square<5>(R, log_rotations, sq, log);
+            case 6: return jacobi_row_norms_square<6>(R, log_rotations, sq, log);
+            case 7: return jacobi_row_norms_square<7>(R, log_rotations, sq, log);
+            case 8: return jacobi_row_norms_square<8>(R, log_rotations, sq, log);
+            default: break;
+        }
+    }
     if (p <= kJacobiFixed) {
         switch (cols) {
             case 1: return jacobi_row_norms_fixed<1>(R, p, log_rotations, sq, log);
@@ -724,8 +844,22 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
         turned = detail::gram_precondition(R, p, cols, ws);
     }
+    // The rotations are logged only where Zn may need them: a null direction among R's first p
+    // rows. Where R's last diagonal entry lies far above the cutoff (pivoted QR: |R_ii| falls
+    // with i, and the least singular value lies near the last in practice), Jacobi runs
+    // without the log, R's rows kept in Mt; should a null direction among the first p turn up
+    // after all, the rows are restored and Jacobi run again with the log (the same rotations:
+    // the same bits either way).
+    bool spare = false;
     for (int pass = 0; pass < 2 && !decided; ++pass) {
-        detail::jacobi_row_norms(R, p, cols, need_null && !turned, sq, ws.clean, log);
+        bool log_now = need_null && !turned;
+        if (log_now && std::fabs(R(p - 1, p - 1)) > 1e4 * rank_tol * pymax(1.0, std::fabs(R(0, 0)))) {
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+            log_now = false;
+            spare = true;
+        }
+        detail::jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log);
         sv.assign(static_cast<size_t>(p), 0.0);
         top = 0.0;
         for (i64 i = 0; i < p; ++i) {
@@ -755,6 +889,10 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
     }
     bool rotated_null = !null_cols.empty();
+    if (rotated_null && spare) {
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
+        detail::jacobi_row_norms(R, p, cols, true, sq, ws.clean, log);
+    }
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
     out.sigma = sigma;
     out.rank = rank;
