@@ -260,6 +260,15 @@ inline double jacobi_dot(const double* x, const double* y, i64 cols) {
     const i64 n = C > 0 ? C : cols;
     v2d a = splat(0.0), b = splat(0.0);
     i64 t = 0;
+    // (n >= 4: the lanes start from their first products rather than from +0 plus them, one
+    // add less on the rotations' critical path: the same sums but for the sign of an exact
+    // zero, which neither a square's sum (never -0) nor a product gamma (gamma == 0 is
+    // orthogonal whatever its sign) shows)
+    if (n >= 4) {
+        a = load(x) * load(y);
+        b = load(x + 2) * load(y + 2);
+        t = 4;
+    }
 #pragma GCC unroll 2
     for (; t + 4 <= n; t += 4) {
         a += load(x + t) * load(y + t);
@@ -299,6 +308,20 @@ inline void jacobi_turn(double* x, double* y, double cs, double sn, i64 cols, do
         accy += vn * vn;
     };
     i64 t = 0;
+    if (n >= 4) {  // (the sums from their first squares, as jacobi_dot's)
+        auto first = [&](i64 t0, v2d& accx, v2d& accy) {
+            const v2d u = load(x + t0), v = load(y + t0);
+            const v2d un = c2 * u - s2 * v;
+            const v2d vn = s2 * u + c2 * v;
+            store(x + t0, un);
+            store(y + t0, vn);
+            accx = un * un;
+            accy = vn * vn;
+        };
+        first(0, ax, ay);
+        first(2, bx, by);
+        t = 4;
+    }
 #pragma GCC unroll 2
     for (; t + 4 <= n; t += 4) {
         turn(t, ax, ay);
