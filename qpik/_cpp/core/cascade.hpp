@@ -1446,14 +1446,42 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     return !violated(Z, i, n, box);
 }
 
+// Rows i0..i1 - 1 of B zref into f0 (sized to B's rows), each row's sum as mv_into makes it
+// (over t in order from 0.0: the same bits whichever rows are taken together).
+inline void b_zref_rows(const LSForm& ls, const Vec& zref, Vec& f0, i64 i0, i64 i1) {
+    const Mat& B = ls.B;
+    const i64 n = B.cols;
+    const double* x = zref.data();
+    i64 i = i0;
+    for (; i + 4 <= i1; i += 4)
+        dot4(B.row(i), B.row(i + 1), B.row(i + 2), B.row(i + 3), x, n, f0[i], f0[i + 1], f0[i + 2], f0[i + 3]);
+    for (; i + 2 <= i1; i += 2) dot2(B.row(i), B.row(i + 1), x, n, f0[i], f0[i + 1]);
+    for (; i < i1; ++i) {
+        const double* bi = B.row(i);
+        double acc = 0.0;
+        for (i64 j = 0; j < n; ++j) acc += bi[j] * x[j];
+        f0[i] = acc;
+    }
+}
+
 // Whether B zref = f exactly (eqp_ls's right-hand side f - B zref with no rows, computed as
 // eqp_ls does, is zero in every entry), with B finite and below 1e100 in every entry and zref
-// finite (free_answer's shortcut).
-inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
+// finite (free_answer's shortcut). B zref (es.f0) is made four rows at a time, up to the first
+// rows that differ from f: done = the rows made (the rest, where free_answer's QR needs
+// them, made there: the same bits as one mv_into).
+inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es, i64& done) {
     Vec& f0 = es.f0;
-    mv_into(ls.B.cref(), zref.data(), f0);
-    for (i64 i = 0; i < ls.B.rows; ++i)
-        if (ls.f[i] - f0[i] != 0.0) return false;
+    const i64 mb = ls.B.rows;
+    f0.resize(static_cast<size_t>(mb));  // entries 0..done - 1 written below
+    done = 0;
+    while (done < mb) {
+        const i64 next = std::min(done + 4, mb);
+        b_zref_rows(ls, zref, f0, done, next);
+        const i64 from = done;
+        done = next;
+        for (i64 i = from; i < next; ++i)
+            if (ls.f[i] - f0[i] != 0.0) return false;
+    }
     for (double v : zref)
         if (!std::isfinite(v)) return false;
     for (i64 i = 0; i < ls.B.rows; ++i)
@@ -1560,7 +1588,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
         return cert.holds() && cert.rows_relative;
     };
-    if (residual_free(ls, zref, es)) {
+    i64 made_rows = 0;  // the rows of B zref residual_free made (es.f0)
+    if (residual_free(ls, zref, es, made_rows)) {
         // The level is already met at zref (B zref = f): eqp_ls's least-squares step y is then
         // zero, its entries +-0 by the signs of the QR's pivots (every reflection of a zero
         // right-hand side leaves it zero; each back-substitution divides a zero by a finite
@@ -1580,7 +1609,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     }
     // eqp_ls with no rows from zref, its steps for q = 0 (the same bits): z = zref + y, y the
     // least-norm step of min |B y - (f - B zref)| (lstsq of a copy of B); B zref is es.f0,
-    // which residual_free computed (mv_into, as eqp_ls would again).
+    // which residual_free began (its rows from made_rows on made here: the sums mv_into, as
+    // eqp_ls, would make).
     es.qr.r = r;
     es.qr.q = 0;
     z = zref;
@@ -1592,6 +1622,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         BW.cols = r;
         BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * r);
         Vec& f0 = es.f0;
+        b_zref_rows(ls, zref, f0, made_rows, mb);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = es.y;
         lstsq_into(BW, f0, y, es.ls, ls.reg);  // B itself: its sqrt(rho) I rows mostly zeros
