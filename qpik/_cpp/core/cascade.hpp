@@ -660,6 +660,17 @@ inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
     return true;
 }
 
+// 1 / w where w is a power of two in [2^-1000, 2^1000] (the reciprocal exact), else 0: there
+// x * (1 / w) is x / w bit for bit (the same real number x 2^-k, rounded the same way; a NaN
+// x passes through either), a product in place of a division (project_level's M = diag(1/w)
+// A Z: unit weights, most often).
+inline double exact_reciprocal(double w) {
+    std::uint64_t u;
+    std::memcpy(&u, &w, sizeof u);
+    if ((u & 0x000FFFFFFFFFFFFFull) != 0 || !(w >= 0x1p-1000 && w <= 0x1p1000)) return 0.0;
+    return 1.0 / w;
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -791,7 +802,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             if (!(w[i] > 0.0)) continue;
             const double* src = out.AZ.row(i);
             double* dst = Mt.row(k);
-            for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+            const double inv = detail::exact_reciprocal(w[i]);
+            if (inv != 0.0) {
+                for (i64 j = 0; j < r; ++j) dst[j] = src[j] * inv;
+            } else {
+                for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+            }
             k += 1;
         }
     } else {
@@ -799,7 +815,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (w[i] > 0.0) {
-                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+                const double inv = detail::exact_reciprocal(w[i]);
+                if (inv != 0.0) {
+                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
+                } else {
+                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+                }
                 k += 1;
             }
         }
