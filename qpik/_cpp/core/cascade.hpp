@@ -757,18 +757,26 @@ constexpr double kGraded = 0.1;
 
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
-    if (z_eye && detail::all_finite(A)) {
-        // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
-        // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
+    bool az_made = false;
+    if (z_eye) {
+        // mm(A, I) where A is finite: each nonzero A(i, t) adds A(i, t) to entry t and a
+        // (finite) A(i, t) * 0 = +-0 to the others, from +0: the entry A(i, j) where it is
+        // nonzero, else +0. Written while A's entries are checked (a non-finite one: mm_into
+        // writes AZ again).
         shape(out.AZ, A.rows, A.cols);  // every entry written
+        bool finite = true;
         for (i64 i = 0; i < A.rows; ++i) {
             const double* ai = A.row(i);
             double* zi = out.AZ.row(i);
-            for (i64 j = 0; j < A.cols; ++j) zi[j] = ai[j] != 0.0 ? ai[j] : 0.0;
+            for (i64 j = 0; j < A.cols; ++j) {
+                const double a = ai[j];
+                finite &= std::isfinite(a);
+                zi[j] = a != 0.0 ? a : 0.0;
+            }
         }
-    } else {
-        mm_into(A, Z, out.AZ);
+        az_made = finite;
     }
+    if (!az_made) mm_into(A, Z, out.AZ);
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
