@@ -660,6 +660,41 @@ inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
     return true;
 }
 
+// A Z where no row of A holds more than one nonzero entry (a posture task's rows, a
+// selection), into C: entry (i, j) = +0 plus A(i, t) Z(t, j) for the row's nonzero A(i, t)
+// (+0 where it has none), the sum mm_into makes (its zero entries of A skipped, the one
+// product added to +0): the same bits, without its scan of pairs of rows. False, nothing
+// written, where some row holds two (or A has more than 256 rows).
+inline bool one_per_row_product(CMatRef A, CMatRef Z, Mat& C) {
+    constexpr i64 kRows = 256;
+    const i64 m = A.rows, k = A.cols, n = Z.cols;
+    if (m > kRows) return false;
+    i64 at[kRows];
+    for (i64 i = 0; i < m; ++i) {
+        const double* ai = A.row(i);
+        i64 c = -1;
+        for (i64 t = 0; t < k; ++t) {
+            if (ai[t] != 0.0) {
+                if (c >= 0) return false;
+                c = t;
+            }
+        }
+        at[i] = c;
+    }
+    shape(C, m, n);  // every entry written below
+    for (i64 i = 0; i < m; ++i) {
+        double* ci = C.row(i);
+        if (at[i] < 0) {
+            for (i64 j = 0; j < n; ++j) ci[j] = 0.0;
+            continue;
+        }
+        const double a = A(i, at[i]);
+        const double* zt = Z.row(at[i]);
+        for (i64 j = 0; j < n; ++j) ci[j] = 0.0 + a * zt[j];
+    }
+    return true;
+}
+
 // 1 / w where w is a power of two in [2^-1000, 2^1000] (the reciprocal exact), else 0: there
 // x * (1 / w) is x / w bit for bit (the same real number x 2^-k, rounded the same way; a NaN
 // x passes through either), a product in place of a division (project_level's M = diag(1/w)
@@ -776,7 +811,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
         az_made = finite;
     }
-    if (!az_made) mm_into(A, Z, out.AZ);
+    if (!az_made && !detail::one_per_row_product(A, Z, out.AZ)) mm_into(A, Z, out.AZ);
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
