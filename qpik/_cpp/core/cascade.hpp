@@ -263,6 +263,15 @@ inline double jacobi_dot(const double* x, const double* y, i64 cols) {
     const i64 n = C > 0 ? C : cols;
     v2d a = splat(0.0), b = splat(0.0);
     i64 t = 0;
+    // (n >= 4: the lanes start from their first products rather than from +0 plus them, one
+    // add less on the rotations' critical path: the same sums but for the sign of an exact
+    // zero, which neither a square's sum (never -0) nor a product gamma (gamma == 0 is
+    // orthogonal whatever its sign) shows)
+    if (n >= 4) {
+        a = load(x) * load(y);
+        b = load(x + 2) * load(y + 2);
+        t = 4;
+    }
 #pragma GCC unroll 2
     for (; t + 4 <= n; t += 4) {
         a += load(x + t) * load(y + t);
@@ -302,6 +311,20 @@ inline void jacobi_turn(double* x, double* y, double cs, double sn, i64 cols, do
         accy += vn * vn;
     };
     i64 t = 0;
+    if (n >= 4) {  // (the sums from their first squares, as jacobi_dot's)
+        auto first = [&](i64 t0, v2d& accx, v2d& accy) {
+            const v2d u = load(x + t0), v = load(y + t0);
+            const v2d un = c2 * u - s2 * v;
+            const v2d vn = s2 * u + c2 * v;
+            store(x + t0, un);
+            store(y + t0, vn);
+            accx = un * un;
+            accy = vn * vn;
+        };
+        first(0, ax, ay);
+        first(2, bx, by);
+        t = 4;
+    }
 #pragma GCC unroll 2
     for (; t + 4 <= n; t += 4) {
         turn(t, ax, ay);
@@ -429,10 +452,130 @@ inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, s
     }
 }
 
+// jacobi_rounds' order for P rows, made at compile time (jacobi_square), with touch[i] the
+// bits of the pairs that hold row i.
+template <int P>
+struct JacobiOrder {
+    static constexpr int kPairs = P * (P - 1) / 2;
+    int rounds = 0;
+    int start[P + 1] = {};
+    int pi[kPairs] = {};
+    int pj[kPairs] = {};
+    std::uint64_t touch[P] = {};
+    constexpr JacobiOrder() {
+        const int n = P + (P & 1);
+        int at[P + 2] = {};
+        for (int k = 0; k < n; ++k) at[k] = (P & 1) ? (k == 0 ? P : k - 1) : k;
+        int np = 0;
+        for (int r = 0; r + 1 < n; ++r) {
+            start[r] = np;
+            for (int k = 0; k < n / 2; ++k) {
+                const int a = at[k], b = at[n - 1 - k];
+                if (a >= P || b >= P) continue;
+                pi[np] = a < b ? a : b;
+                pj[np] = a < b ? b : a;
+                touch[pi[np]] |= std::uint64_t{1} << np;
+                touch[pj[np]] |= std::uint64_t{1} << np;
+                ++np;
+            }
+            const int last = at[n - 1];
+            for (int k = n - 1; k > 1; --k) at[k] = at[k - 1];
+            at[1] = last;
+        }
+        rounds = n > 1 ? n - 1 : 0;
+        start[rounds] = np;
+    }
+};
+
+// jacobi_row_norms_fixed for a square block (p = cols = P, 2 <= P <= kJacobiSquare): the same
+// rounds, the same products, checks, rotations and sums in the same order (the same bits),
+// with the order known to the compiler (every round unrolled, no index loaded) and the clean
+// pairs held as bits (a pair's bit set when found orthogonal, cleared when one of its rows is
+// rotated: the stamps' rule). Within a round the pairs share no row, so each pair's work is
+// its own whatever the order they are taken in.
+constexpr int kJacobiSquare = 8;
+
+template <int P>
+inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+    static constexpr JacobiOrder<P> ord{};
+    constexpr int kRound = P / 2;  // pairs per round, at most
+    alignas(16) double W[P][P];
+    double s[P];
+    for (int i = 0; i < P; ++i) {
+        std::memcpy(W[i], R.row(i), sizeof(double) * P);
+        s[i] = jacobi_sq<P>(W[i], P);
+    }
+    log.clear();
+    constexpr int kBatch = 32;
+    Rotation batch[kBatch];
+    int nb = 0;
+    std::uint64_t clean = 0;
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+#pragma GCC unroll 16
+        for (int round = 0; round < ord.rounds; ++round) {
+            const int k0 = ord.start[round], k1 = ord.start[round + 1];
+            double gam[kRound] = {}, cs[kRound] = {}, sn[kRound] = {};
+            bool act[kRound], rot[kRound];
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                act[k - k0] = !(clean & (std::uint64_t{1} << k));
+                if (act[k - k0]) gam[k - k0] = jacobi_dot<P>(W[ord.pi[k]], W[ord.pj[k]], P);
+            }
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                const int q = k - k0, i = ord.pi[k], j = ord.pj[k];
+                rot[q] = false;
+                if (!act[q]) continue;
+                if (jacobi_orthogonal(s[i], s[j], gam[q])) {
+                    clean |= std::uint64_t{1} << k;
+                    continue;
+                }
+                jacobi_rotation(s[i], s[j], gam[q], cs[q], sn[q]);
+                rot[q] = true;
+            }
+#pragma GCC unroll 16
+            for (int k = k0; k < k1; ++k) {
+                const int q = k - k0, i = ord.pi[k], j = ord.pj[k];
+                if (!rot[q]) continue;
+                jacobi_turn<P>(W[i], W[j], cs[q], sn[q], P, s[i], s[j]);
+                if (log_rotations) {
+                    batch[nb++] = Rotation{i, j, cs[q], sn[q]};
+                    if (nb == kBatch) {
+                        log.insert(log.end(), batch, batch + nb);
+                        nb = 0;
+                    }
+                }
+                clean &= ~(ord.touch[i] | ord.touch[j]);
+                rotated = true;
+            }
+        }
+        if (!rotated) break;
+    }
+    if (nb) log.insert(log.end(), batch, batch + nb);
+    sq.resize(static_cast<size_t>(P));  // every entry written
+    for (int i = 0; i < P; ++i) {
+        sq[i] = s[i];
+        std::memcpy(R.row(i), W[i], sizeof(double) * P);
+    }
+}
+
 // One-sided Jacobi on the first p rows of R (each cols long): jacobi_sweeps, the rows rotated
 // in place; sq[i] = |row i|^2 on return; clean: scratch (the pairs' stamps and the order).
 inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
                              std::vector<Rotation>& log) {
+    if (p == cols) {
+        switch (p) {
+            case 2: return jacobi_row_norms_square<2>(R, log_rotations, sq, log);
+            case 3: return jacobi_row_norms_square<3>(R, log_rotations, sq, log);
+            case 4: return jacobi_row_norms_square<4>(R, log_rotations, sq, log);
+            case 5: return jacobi_row_norms_square<5>(R, log_rotations, sq, log);
+            case 6: return jacobi_row_norms_square<6>(R, log_rotations, sq, log);
+            case 7: return jacobi_row_norms_square<7>(R, log_rotations, sq, log);
+            case 8: return jacobi_row_norms_square<8>(R, log_rotations, sq, log);
+            default: break;
+        }
+    }
     if (p <= kJacobiFixed) {
         switch (cols) {
             case 1: return jacobi_row_norms_fixed<1>(R, p, log_rotations, sq, log);
@@ -518,6 +661,52 @@ inline bool gram_precondition(Mat& R, i64 p, i64 cols, Workspace& ws) {
     }
     for (i64 k = 0; k < p; ++k) std::memcpy(R.row(k), T.row(k), static_cast<size_t>(cols) * sizeof(double));
     return true;
+}
+
+// A Z where no row of A holds more than one nonzero entry (a posture task's rows, a
+// selection), into C: entry (i, j) = +0 plus A(i, t) Z(t, j) for the row's nonzero A(i, t)
+// (+0 where it has none), the sum mm_into makes (its zero entries of A skipped, the one
+// product added to +0): the same bits, without its scan of pairs of rows. False, nothing
+// written, where some row holds two (or A has more than 256 rows).
+inline bool one_per_row_product(CMatRef A, CMatRef Z, Mat& C) {
+    constexpr i64 kRows = 256;
+    const i64 m = A.rows, k = A.cols, n = Z.cols;
+    if (m > kRows) return false;
+    i64 at[kRows];
+    for (i64 i = 0; i < m; ++i) {
+        const double* ai = A.row(i);
+        i64 c = -1;
+        for (i64 t = 0; t < k; ++t) {
+            if (ai[t] != 0.0) {
+                if (c >= 0) return false;
+                c = t;
+            }
+        }
+        at[i] = c;
+    }
+    shape(C, m, n);  // every entry written below
+    for (i64 i = 0; i < m; ++i) {
+        double* ci = C.row(i);
+        if (at[i] < 0) {
+            for (i64 j = 0; j < n; ++j) ci[j] = 0.0;
+            continue;
+        }
+        const double a = A(i, at[i]);
+        const double* zt = Z.row(at[i]);
+        for (i64 j = 0; j < n; ++j) ci[j] = 0.0 + a * zt[j];
+    }
+    return true;
+}
+
+// 1 / w where w is a power of two in [2^-1000, 2^1000] (the reciprocal exact), else 0: there
+// x * (1 / w) is x / w bit for bit (the same real number x 2^-k, rounded the same way; a NaN
+// x passes through either), a product in place of a division (project_level's M = diag(1/w)
+// A Z: unit weights, most often).
+inline double exact_reciprocal(double w) {
+    std::uint64_t u;
+    std::memcpy(&u, &w, sizeof u);
+    if ((u & 0x000FFFFFFFFFFFFFull) != 0 || !(w >= 0x1p-1000 && w <= 0x1p1000)) return 0.0;
+    return 1.0 / w;
 }
 
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
@@ -606,18 +795,26 @@ constexpr double kGraded = 0.1;
 
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
                           Projection& out, bool z_eye = false) {
-    if (z_eye && detail::all_finite(A)) {
-        // mm(A, I): each nonzero A(i, t) adds A(i, t) to entry t and a (finite) A(i, t) * 0
-        // = +-0 to the others, from +0: the entry A(i, j) where it is nonzero, else +0.
+    bool az_made = false;
+    if (z_eye) {
+        // mm(A, I) where A is finite: each nonzero A(i, t) adds A(i, t) to entry t and a
+        // (finite) A(i, t) * 0 = +-0 to the others, from +0: the entry A(i, j) where it is
+        // nonzero, else +0. Written while A's entries are checked (a non-finite one: mm_into
+        // writes AZ again).
         shape(out.AZ, A.rows, A.cols);  // every entry written
+        bool finite = true;
         for (i64 i = 0; i < A.rows; ++i) {
             const double* ai = A.row(i);
             double* zi = out.AZ.row(i);
-            for (i64 j = 0; j < A.cols; ++j) zi[j] = ai[j] != 0.0 ? ai[j] : 0.0;
+            for (i64 j = 0; j < A.cols; ++j) {
+                const double a = ai[j];
+                finite &= std::isfinite(a);
+                zi[j] = a != 0.0 ? a : 0.0;
+            }
         }
-    } else {
-        mm_into(A, Z, out.AZ);
+        az_made = finite;
     }
+    if (!az_made && !detail::one_per_row_product(A, Z, out.AZ)) mm_into(A, Z, out.AZ);
     i64 m = A.rows;
     i64 r = Z.cols;
     i64 keep = 0;
@@ -651,7 +848,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             if (!(w[i] > 0.0)) continue;
             const double* src = out.AZ.row(i);
             double* dst = Mt.row(k);
-            for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+            const double inv = detail::exact_reciprocal(w[i]);
+            if (inv != 0.0) {
+                for (i64 j = 0; j < r; ++j) dst[j] = src[j] * inv;
+            } else {
+                for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+            }
             k += 1;
         }
     } else {
@@ -659,7 +861,12 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         i64 k = 0;
         for (i64 i = 0; i < m; ++i) {
             if (w[i] > 0.0) {
-                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+                const double inv = detail::exact_reciprocal(w[i]);
+                if (inv != 0.0) {
+                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
+                } else {
+                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+                }
                 k += 1;
             }
         }
@@ -727,8 +934,22 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
         turned = detail::gram_precondition(R, p, cols, ws);
     }
+    // The rotations are logged only where Zn may need them: a null direction among R's first p
+    // rows. Where R's last diagonal entry lies far above the cutoff (pivoted QR: |R_ii| falls
+    // with i, and the least singular value lies near the last in practice), Jacobi runs
+    // without the log, R's rows kept in Mt; should a null direction among the first p turn up
+    // after all, the rows are restored and Jacobi run again with the log (the same rotations:
+    // the same bits either way).
+    bool spare = false;
     for (int pass = 0; pass < 2 && !decided; ++pass) {
-        detail::jacobi_row_norms(R, p, cols, need_null && !turned, sq, ws.clean, log);
+        bool log_now = need_null && !turned;
+        if (log_now && std::fabs(R(p - 1, p - 1)) > 1e4 * rank_tol * pymax(1.0, std::fabs(R(0, 0)))) {
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+            log_now = false;
+            spare = true;
+        }
+        detail::jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log);
         sv.assign(static_cast<size_t>(p), 0.0);
         top = 0.0;
         for (i64 i = 0; i < p; ++i) {
@@ -758,6 +979,10 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         }
     }
     bool rotated_null = !null_cols.empty();
+    if (rotated_null && spare) {
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
+        detail::jacobi_row_norms(R, p, cols, true, sq, ws.clean, log);
+    }
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
     out.sigma = sigma;
     out.rank = rank;
@@ -1288,14 +1513,42 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     return !violated(Z, i, n, box);
 }
 
+// Rows i0..i1 - 1 of B zref into f0 (sized to B's rows), each row's sum as mv_into makes it
+// (over t in order from 0.0: the same bits whichever rows are taken together).
+inline void b_zref_rows(const LSForm& ls, const Vec& zref, Vec& f0, i64 i0, i64 i1) {
+    const Mat& B = ls.B;
+    const i64 n = B.cols;
+    const double* x = zref.data();
+    i64 i = i0;
+    for (; i + 4 <= i1; i += 4)
+        dot4(B.row(i), B.row(i + 1), B.row(i + 2), B.row(i + 3), x, n, f0[i], f0[i + 1], f0[i + 2], f0[i + 3]);
+    for (; i + 2 <= i1; i += 2) dot2(B.row(i), B.row(i + 1), x, n, f0[i], f0[i + 1]);
+    for (; i < i1; ++i) {
+        const double* bi = B.row(i);
+        double acc = 0.0;
+        for (i64 j = 0; j < n; ++j) acc += bi[j] * x[j];
+        f0[i] = acc;
+    }
+}
+
 // Whether B zref = f exactly (eqp_ls's right-hand side f - B zref with no rows, computed as
 // eqp_ls does, is zero in every entry), with B finite and below 1e100 in every entry and zref
-// finite (free_answer's shortcut).
-inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es) {
+// finite (free_answer's shortcut). B zref (es.f0) is made four rows at a time, up to the first
+// rows that differ from f: done = the rows made (the rest, where free_answer's QR needs
+// them, made there: the same bits as one mv_into).
+inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es, i64& done) {
     Vec& f0 = es.f0;
-    mv_into(ls.B.cref(), zref.data(), f0);
-    for (i64 i = 0; i < ls.B.rows; ++i)
-        if (ls.f[i] - f0[i] != 0.0) return false;
+    const i64 mb = ls.B.rows;
+    f0.resize(static_cast<size_t>(mb));  // entries 0..done - 1 written below
+    done = 0;
+    while (done < mb) {
+        const i64 next = std::min(done + 4, mb);
+        b_zref_rows(ls, zref, f0, done, next);
+        const i64 from = done;
+        done = next;
+        for (i64 i = from; i < next; ++i)
+            if (ls.f[i] - f0[i] != 0.0) return false;
+    }
     for (double v : zref)
         if (!std::isfinite(v)) return false;
     for (i64 i = 0; i < ls.B.rows; ++i)
@@ -1402,7 +1655,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
         return cert.holds() && cert.rows_relative;
     };
-    if (residual_free(ls, zref, es)) {
+    i64 made_rows = 0;  // the rows of B zref residual_free made (es.f0)
+    if (residual_free(ls, zref, es, made_rows)) {
         // The level is already met at zref (B zref = f): eqp_ls's least-squares step y is then
         // zero, its entries +-0 by the signs of the QR's pivots (every reflection of a zero
         // right-hand side leaves it zero; each back-substitution divides a zero by a finite
@@ -1422,7 +1676,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     }
     // eqp_ls with no rows from zref, its steps for q = 0 (the same bits): z = zref + y, y the
     // least-norm step of min |B y - (f - B zref)| (lstsq of a copy of B); B zref is es.f0,
-    // which residual_free computed (mv_into, as eqp_ls would again).
+    // which residual_free began (its rows from made_rows on made here: the sums mv_into, as
+    // eqp_ls, would make).
     es.qr.r = r;
     es.qr.q = 0;
     z = zref;
@@ -1434,6 +1689,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         BW.cols = r;
         BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * r);
         Vec& f0 = es.f0;
+        b_zref_rows(ls, zref, f0, made_rows, mb);
         for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
         Vec& y = es.y;
         lstsq_into(BW, f0, y, es.ls, ls.reg);  // B itself: its sqrt(rho) I rows mostly zeros
