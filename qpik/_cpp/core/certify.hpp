@@ -152,6 +152,8 @@ struct LsScratch {
     IVec sup, fz;
     Mat N0;
     ImplicitQR qn;
+    Mat R;       // reg_lstsq_into
+    Vec c, v;
 };
 
 // The reflection of reflect_columns on rows sup[0..ns) (in order), columns i..k-1 of M:
@@ -474,6 +476,89 @@ inline Vec lstsq(Mat M, Vec f) {
     return y;
 }
 
+// min |M y - g|^2 + |s y - h|^2 (M (m, k), g (m,), h (k,), s > 0) into y: the least-squares
+// problem of [M; s I] with right-hand side [g; h], by Householder reflections that fold M's
+// rows into R = s I one column at a time (step j reflects R's row j and M's rows, columns
+// j.. only: the rows s I holds below j are zero in those columns), then R y = c. No pivoting:
+// taken only where [M; s I] is well conditioned enough for that, s^2 >= kRegFold max_j
+// |M_j|^2 (its least singular value is at least s, and the pivoted QR then finds no zero
+// pivot either, so the minimiser is the one lstsq_into's minimum-norm solution also gives),
+// with every entry of M, g, h finite; false (nothing written to y) otherwise. M and g are
+// overwritten. O((m + 1) k^2) rather than lstsq_into's O((m + k) k^2) on [M; s I].
+constexpr double kRegFold = 1e-16;
+inline bool reg_lstsq_into(Mat& M, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
+    i64 m = M.rows, k = M.cols;
+    if (!(s > 0.0) || !std::isfinite(s)) return false;
+    Vec& norms = ws.norms;
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
+    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());
+    double big = 0.0;
+    bool fin = true;
+    for (i64 j = 0; j < k; ++j) {
+        big = pymax(big, norms[j]);
+        fin = fin && std::isfinite(norms[j]) && std::isfinite(h[j]);
+    }
+    for (i64 t = 0; t < m; ++t) fin = fin && std::isfinite(g[t]);
+    if (!fin || !(s * s >= kRegFold * big)) return false;
+    Mat& R = ws.R;
+    R.zeros(k, k);
+    Vec& c = ws.c;
+    shape(c, static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        R(j, j) = s;
+        c[j] = h[j];
+    }
+    Vec& v = ws.v;  // column j of M (the reflector's entries past its first)
+    if (v.size() < static_cast<size_t>(m)) v.resize(static_cast<size_t>(m));
+    Vec& S = ws.S;
+    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        double rjj = R(j, j);
+        double alpha = rjj * rjj;
+        for (i64 t = 0; t < m; ++t) {
+            v[t] = M(t, j);
+            alpha += v[t] * v[t];
+        }
+        alpha = std::sqrt(alpha);
+        if (rjj > 0.0) alpha = -alpha;
+        double v0 = rjj - alpha;
+        double vn = v0 * v0;
+        for (i64 t = 0; t < m; ++t) vn += v[t] * v[t];
+        if (!(vn > 0.0)) return false;  // (cannot happen: |v0| >= s)
+        i64 w = k - j - 1;
+        double* Sj = S.data() + j + 1;
+        double* Rj = R.row(j) + j + 1;
+        for (i64 l = 0; l < w; ++l) Sj[l] = v0 * Rj[l];
+        double sc = v0 * c[j];
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axpy(Sj, vt, M.row(t) + j + 1, w);
+            sc += vt * g[t];
+        }
+        double f2 = 2.0 / vn;
+        for (i64 l = 0; l < w; ++l) Sj[l] *= f2;
+        sc *= f2;
+        axmy(Rj, v0, Sj, w);
+        c[j] -= v0 * sc;
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axmy(M.row(t) + j + 1, vt, Sj, w);
+            g[t] -= vt * sc;
+        }
+        R(j, j) = alpha;
+    }
+    shape(y, static_cast<size_t>(k));
+    for (i64 j = k - 1; j >= 0; --j) {
+        double acc = c[j];
+        const double* Rj = R.row(j);
+        for (i64 l = j + 1; l < k; ++l) acc -= Rj[l] * y[l];
+        y[j] = acc / Rj[j];
+    }
+    return true;
+}
+
 // B^T (B z - f): the level's reduced gradient H z + c, without any added regularisation.
 inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
     Vec r = mv(ls.B.cref(), z.data());
@@ -608,27 +693,53 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     }
     i64 nw = r - q;
     if (nw > 0) {
-        Mat& BW = ws.BW;  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
-        if (q == 0) {  // Q = I: B itself
-            BW.rows = mb;
-            BW.cols = nw;
-            BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
-        } else {
-            shape(BW, mb, nw);  // every entry written below
+        Vec& y = ws.y;
+        Vec& f0 = ws.f0;
+        Mat& BW = ws.BW;
+        bool done = false;
+        if (q > 0 && ls.reg && mb >= r) {
+            // B = [A Z; s I] (ls_form): |B W y - f0|^2 = |A Z W y - f0_top|^2 + |s W y - f0_bot|^2,
+            // and W's columns are orthonormal (W = Q[:, q:], Q^T W = [0; I]), so the second term
+            // is |s y - W^T f0_bot|^2 + |Y^T f0_bot|^2 (the last independent of y): the same
+            // minimiser from A Z W (only A Z's m rows reflected by Q, not B's m + r) and the
+            // s I rows (reg_lstsq_into, where it applies).
+            i64 m = mb - r;
+            double s = ls.B(m, 0);
+            shape(BW, m, nw);  // every entry written below
             Vec& row = ws.row;
             if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
-            for (i64 i = 0; i < mb; ++i) {
-                const double* bi = ls.B.row(i);
-                for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+            for (i64 i = 0; i < m; ++i) {
+                std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
                 qr.apply_t(row.data());
-                for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
             }
+            detail::ls_mv_into(ls, z.data(), f0);
+            for (i64 i = 0; i < m; ++i) f0[i] = ls.f[i] - f0[i];
+            for (i64 j = 0; j < r; ++j) row[j] = ls.f[m + j] - f0[m + j];
+            qr.apply_t(row.data());  // Q^T f0_bot: its last nw entries are W^T f0_bot
+            f0.resize(static_cast<size_t>(m));
+            done = detail::reg_lstsq_into(BW, f0, row.data() + q, s, y, ws.ls);
         }
-        Vec& f0 = ws.f0;
-        detail::ls_mv_into(ls, z.data(), f0);
-        for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
-        Vec& y = ws.y;
-        detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
+        if (!done) {  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T; pivoted, least norm
+            if (q == 0) {  // Q = I: B itself
+                BW.rows = mb;
+                BW.cols = nw;
+                BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
+            } else {
+                shape(BW, mb, nw);  // every entry written below
+                Vec& row = ws.row;
+                if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
+                for (i64 i = 0; i < mb; ++i) {
+                    const double* bi = ls.B.row(i);
+                    for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                    qr.apply_t(row.data());
+                    for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                }
+            }
+            detail::ls_mv_into(ls, z.data(), f0);
+            for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
+            detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
+        }
         Vec& wy = ws.wy;
         zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
