@@ -153,7 +153,7 @@ struct LsScratch {
     Mat N0;
     ImplicitQR qn;
     Mat R;       // reg_lstsq_into
-    Vec c, v;
+    Vec c;
 };
 
 // The reflection of reflect_columns on rows sup[0..ns) (in order), columns i..k-1 of M:
@@ -476,22 +476,38 @@ inline Vec lstsq(Mat M, Vec f) {
     return y;
 }
 
-// min |M y - g|^2 + |s y - h|^2 (M (m, k), g (m,), h (k,), s > 0) into y: the least-squares
-// problem of [M; s I] with right-hand side [g; h], by Householder reflections that fold M's
-// rows into R = s I one column at a time (step j reflects R's row j and M's rows, columns
-// j.. only: the rows s I holds below j are zero in those columns), then R y = c. No pivoting:
-// taken only where [M; s I] is well conditioned enough for that, s^2 >= kRegFold max_j
-// |M_j|^2 (its least singular value is at least s, and the pivoted QR then finds no zero
-// pivot either, so the minimiser is the one lstsq_into's minimum-norm solution also gives),
-// with every entry of M, g, h finite; false (nothing written to y) otherwise. M and g are
-// overwritten. O((m + 1) k^2) rather than lstsq_into's O((m + k) k^2) on [M; s I].
+// x . y (n entries), two lanes (even and odd terms summed apart, then added).
+inline double dot_2l(const double* x, const double* y, i64 n) {
+    using namespace simd;
+    v2d a = splat(0.0), b = splat(0.0);
+    i64 i = 0;
+    for (; i + 4 <= n; i += 4) {
+        a += load(x + i) * load(y + i);
+        b += load(x + i + 2) * load(y + i + 2);
+    }
+    for (; i + 2 <= n; i += 2) a += load(x + i) * load(y + i);
+    a += b;
+    double acc = a[0] + a[1];
+    for (; i < n; ++i) acc += x[i] * y[i];
+    return acc;
+}
+
+// min |M y - g|^2 + |s y - h|^2 (M (m, k) given by its columns, the rows of Mt (k, m, row
+// stride m); g (m,), h (k,), s > 0) into y: the least-squares problem of [M; s I] with
+// right-hand side [g; h], by Householder reflections that fold M's rows into R = s I one
+// column at a time (step j reflects R's row j and M's rows, columns j.. only: R's rows below
+// j are still s e_i, zero in those columns, and R's row j is still s e_j, c_j = h_j), then
+// R y = c. No pivoting: taken only where [M; s I] is well conditioned enough for that,
+// s^2 >= kRegFold max_j |M_j|^2 (its least singular value is at least s, so the pivoted QR
+// finds no zero pivot either and the minimiser is the one lstsq_into's minimum-norm solution
+// gives), with every entry of M, g, h finite; false (nothing written to y) otherwise. Mt and
+// g are overwritten. O(m k^2) rather than lstsq_into's O((m + k) k^2) on [M; s I].
 constexpr double kRegFold = 1e-16;
-inline bool reg_lstsq_into(Mat& M, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
-    i64 m = M.rows, k = M.cols;
+constexpr i64 kRegFoldMin = 12;  // eqp_ls folds only levels of this many free directions r (see there)
+// The checks of reg_lstsq_into: s > 0 finite, M, g, h finite, s^2 >= kRegFold max_j |M_j|^2
+// (norms[j] = |M_j|^2 given).
+inline bool reg_fold_ok(const double* norms, i64 k, const Vec& g, i64 m, const double* h, double s) {
     if (!(s > 0.0) || !std::isfinite(s)) return false;
-    Vec& norms = ws.norms;
-    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
-    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());
     double big = 0.0;
     bool fin = true;
     for (i64 j = 0; j < k; ++j) {
@@ -499,56 +515,9 @@ inline bool reg_lstsq_into(Mat& M, Vec& g, const double* h, double s, Vec& y, Ls
         fin = fin && std::isfinite(norms[j]) && std::isfinite(h[j]);
     }
     for (i64 t = 0; t < m; ++t) fin = fin && std::isfinite(g[t]);
-    if (!fin || !(s * s >= kRegFold * big)) return false;
-    Mat& R = ws.R;
-    R.zeros(k, k);
-    Vec& c = ws.c;
-    shape(c, static_cast<size_t>(k));
-    for (i64 j = 0; j < k; ++j) {
-        R(j, j) = s;
-        c[j] = h[j];
-    }
-    Vec& v = ws.v;  // column j of M (the reflector's entries past its first)
-    if (v.size() < static_cast<size_t>(m)) v.resize(static_cast<size_t>(m));
-    Vec& S = ws.S;
-    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
-    for (i64 j = 0; j < k; ++j) {
-        double rjj = R(j, j);
-        double alpha = rjj * rjj;
-        for (i64 t = 0; t < m; ++t) {
-            v[t] = M(t, j);
-            alpha += v[t] * v[t];
-        }
-        alpha = std::sqrt(alpha);
-        if (rjj > 0.0) alpha = -alpha;
-        double v0 = rjj - alpha;
-        double vn = v0 * v0;
-        for (i64 t = 0; t < m; ++t) vn += v[t] * v[t];
-        if (!(vn > 0.0)) return false;  // (cannot happen: |v0| >= s)
-        i64 w = k - j - 1;
-        double* Sj = S.data() + j + 1;
-        double* Rj = R.row(j) + j + 1;
-        for (i64 l = 0; l < w; ++l) Sj[l] = v0 * Rj[l];
-        double sc = v0 * c[j];
-        for (i64 t = 0; t < m; ++t) {
-            double vt = v[t];
-            if (vt == 0.0) continue;
-            axpy(Sj, vt, M.row(t) + j + 1, w);
-            sc += vt * g[t];
-        }
-        double f2 = 2.0 / vn;
-        for (i64 l = 0; l < w; ++l) Sj[l] *= f2;
-        sc *= f2;
-        axmy(Rj, v0, Sj, w);
-        c[j] -= v0 * sc;
-        for (i64 t = 0; t < m; ++t) {
-            double vt = v[t];
-            if (vt == 0.0) continue;
-            axmy(M.row(t) + j + 1, vt, Sj, w);
-            g[t] -= vt * sc;
-        }
-        R(j, j) = alpha;
-    }
+    return fin && s * s >= kRegFold * big;
+}
+inline void reg_back(const Mat& R, const Vec& c, i64 k, Vec& y) {
     shape(y, static_cast<size_t>(k));
     for (i64 j = k - 1; j >= 0; --j) {
         double acc = c[j];
@@ -556,6 +525,90 @@ inline bool reg_lstsq_into(Mat& M, Vec& g, const double* h, double s, Vec& y, Ls
         for (i64 l = j + 1; l < k; ++l) acc -= Rj[l] * y[l];
         y[j] = acc / Rj[j];
     }
+}
+// Mt (k, m): M's columns as rows (the layout for m > k: each step's work is k - j dot
+// products and updates of length m).
+inline bool reg_lstsq_into(double* Mt, i64 k, i64 m, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
+    Vec& norms = ws.norms;  // |M_j|^2
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) norms[j] = dot_2l(Mt + j * m, Mt + j * m, m);
+    if (!reg_fold_ok(norms.data(), k, g, m, h, s)) return false;
+    Mat& R = ws.R;  // R's strict upper triangle and diagonal, written step by step
+    shape(R, k, k);
+    Vec& c = ws.c;
+    shape(c, static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        const double* vj = Mt + j * m;  // the reflector: (s - alpha, M_j)
+        double sumv = dot_2l(vj, vj, m);  // |M_j|^2 now (the steps before changed it)
+        double alpha = std::sqrt(s * s + sumv);  // the new R_jj is -alpha (s > 0)
+        double v0 = s + alpha;
+        double f2 = 2.0 / (v0 * v0 + sumv);
+        double* Rj = R.row(j);
+        for (i64 l = j + 1; l < k; ++l) {
+            double* ml = Mt + l * m;
+            double sl = f2 * dot_2l(vj, ml, m);  // (R_jl = 0 before the step)
+            Rj[l] = -v0 * sl;
+            axmy(ml, sl, vj, m);
+        }
+        double sc = f2 * (v0 * h[j] + dot_2l(vj, g.data(), m));
+        c[j] = h[j] - v0 * sc;
+        axmy(g.data(), sc, vj, m);
+        Rj[j] = -alpha;
+    }
+    reg_back(R, c, k, y);
+    return true;
+}
+// M (m, k) by rows (the layout for m <= k: each step's work is m products and updates of
+// length k - j - 1, summed row by row).
+inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
+    i64 m = M.rows, k = M.cols;
+    Vec& norms = ws.norms;
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
+    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());
+    if (!reg_fold_ok(norms.data(), k, g, m, h, s)) return false;
+    Mat& R = ws.R;
+    shape(R, k, k);
+    Vec& c = ws.c;
+    shape(c, static_cast<size_t>(k));
+    Vec& v = ws.x;  // column j of M
+    if (v.size() < static_cast<size_t>(m)) v.resize(static_cast<size_t>(m));
+    Vec& S = ws.S;
+    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        double sumv = 0.0;
+        for (i64 t = 0; t < m; ++t) {
+            v[t] = M(t, j);
+            sumv += v[t] * v[t];
+        }
+        double alpha = std::sqrt(s * s + sumv);
+        double v0 = s + alpha;
+        double f2 = 2.0 / (v0 * v0 + sumv);
+        i64 w = k - j - 1;
+        double* Sj = S.data() + j + 1;
+        zero_small(Sj, static_cast<size_t>(w));  // (R_jl = 0 before the step)
+        double sc = v0 * h[j];
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axpy(Sj, vt, M.row(t) + j + 1, w);
+            sc += vt * g[t];
+        }
+        sc *= f2;
+        double* Rj = R.row(j);
+        for (i64 l = 0; l < w; ++l) {
+            Sj[l] *= f2;
+            Rj[j + 1 + l] = -v0 * Sj[l];
+        }
+        c[j] = h[j] - v0 * sc;
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axmy(M.row(t) + j + 1, vt, Sj, w);
+            g[t] -= vt * sc;
+        }
+        Rj[j] = -alpha;
+    }
+    reg_back(R, c, k, y);
     return true;
 }
 
@@ -697,28 +750,62 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         Vec& f0 = ws.f0;
         Mat& BW = ws.BW;
         bool done = false;
-        if (q > 0 && ls.reg && mb >= r) {
+        if (q > 0 && ls.reg && mb >= r && r >= detail::kRegFoldMin) {
             // B = [A Z; s I] (ls_form): |B W y - f0|^2 = |A Z W y - f0_top|^2 + |s W y - f0_bot|^2,
             // and W's columns are orthonormal (W = Q[:, q:], Q^T W = [0; I]), so the second term
             // is |s y - W^T f0_bot|^2 + |Y^T f0_bot|^2 (the last independent of y): the same
             // minimiser from A Z W (only A Z's m rows reflected by Q, not B's m + r) and the
-            // s I rows (reg_lstsq_into, where it applies).
+            // s I rows, by reg_lstsq_into where it applies (else the pivoted QR below).
+            // A different algorithm from the QR of B W: the same minimiser to round-off, which
+            // on a level whose B W is ill-conditioned moves the answer by about eps |B|^2 / s^2
+            // relative (4e-12 with s = 1e-3, |B| = 0.75: tests/fixtures/core.npz's case 184,
+            // r = 5). Small levels (r < kRegFoldMin), where the dense QR costs little, keep it.
             i64 m = mb - r;
             double s = ls.B(m, 0);
-            shape(BW, m, nw);  // every entry written below
             Vec& row = ws.row;
             if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
-            for (i64 i = 0; i < m; ++i) {
-                std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
-                qr.apply_t(row.data());
-                std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
-            }
             detail::ls_mv_into(ls, z.data(), f0);
             for (i64 i = 0; i < m; ++i) f0[i] = ls.f[i] - f0[i];
             for (i64 j = 0; j < r; ++j) row[j] = ls.f[m + j] - f0[m + j];
             qr.apply_t(row.data());  // Q^T f0_bot: its last nw entries are W^T f0_bot
             f0.resize(static_cast<size_t>(m));
-            done = detail::reg_lstsq_into(BW, f0, row.data() + q, s, y, ws.ls);
+            Vec& h = ws.t;  // W^T f0_bot (t is not read again)
+            shape(h, static_cast<size_t>(nw));
+            for (i64 j = 0; j < nw; ++j) h[j] = row[q + j];
+            if (m <= nw) {
+                // A Z W by rows (Q^T B_i^T for A Z's rows)
+                shape(BW, m, nw);  // every entry written below
+                for (i64 i = 0; i < m; ++i) {
+                    std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
+                    qr.apply_t(row.data());
+                    std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
+                }
+                done = detail::reg_lstsq_rows_into(BW, f0, h.data(), s, y, ws.ls);
+            } else {
+                // X = (A Z)^T (r, m), then Q^T X (reflection i on rows i..): its rows q.. are
+                // (A Z W)^T, the columns of A Z W
+                Mat& X = BW;
+                shape(X, r, m);  // every entry written below
+                for (i64 t = 0; t < m; ++t) {
+                    const double* bt = ls.B.row(t);
+                    for (i64 j = 0; j < r; ++j) X(j, t) = bt[j];
+                }
+                Vec& S = ws.e;
+                if (S.size() < static_cast<size_t>(m)) S.resize(static_cast<size_t>(m));  // first m entries used
+                for (i64 i = 0; i < q; ++i) {
+                    double beta = qr.beta[i];
+                    if (beta == 0.0) continue;
+                    const double* vi = qr.v[static_cast<size_t>(i)].data();
+                    i64 size = r - i;
+                    zero_small(S.data(), static_cast<size_t>(m));
+                    for (i64 t = 0; t < size; ++t)
+                        if (vi[t] != 0.0) axpy(S.data(), vi[t], X.row(i + t), m);
+                    for (i64 t = 0; t < m; ++t) S[t] *= beta;
+                    for (i64 t = 0; t < size; ++t)
+                        if (vi[t] != 0.0) axmy(X.row(i + t), vi[t], S.data(), m);
+                }
+                done = detail::reg_lstsq_into(X.row(q), nw, m, f0, h.data(), s, y, ws.ls);
+            }
         }
         if (!done) {  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T; pivoted, least norm
             if (q == 0) {  // Q = I: B itself
