@@ -502,7 +502,7 @@ inline double dot_2l(const double* x, const double* y, i64 n) {
 // finds no zero pivot either and the minimiser is the one lstsq_into's minimum-norm solution
 // gives), with every entry of M, g, h finite; false (nothing written to y) otherwise. Mt and
 // g are overwritten. O(m k^2) rather than lstsq_into's O((m + k) k^2) on [M; s I].
-constexpr double kRegFold = 1e-16;
+constexpr double kRegFold = 1e-10;
 constexpr i64 kRegFoldMin = 12;  // eqp_ls folds only levels of this many free directions r (see there)
 // The checks of reg_lstsq_into: s > 0 finite, M, g, h finite, s^2 >= kRegFold max_j |M_j|^2
 // (norms[j] = |M_j|^2 given).
