@@ -625,7 +625,9 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 // (n_j^T z = rhs_j, n_j = side_j C[row_j]) and their multipliers (B^T (B z - f) = N u);
 // false when the normals are dependent. No regularisation is added: of the minimisers, the
 // one closest to zref (zref moved onto the working set, then the least-norm least-squares
-// step in the working set's null space W, by the pivoted QR of B W). N's orthogonal factor
+// step in the working set's null space W, by the pivoted QR of B W; where B = [A Z; s I]
+// holds the regularisation's rows, r >= kRegFoldMin and q > 0, the unique minimiser from
+// A Z W and s I instead: reg_lstsq_into). N's orthogonal factor
 // is kept as reflections (O(q r) per product, never the O(q r^2) explicit Q); W_out, when
 // asked for, is formed.
 // The storage of eqp_ls and certify_level (kept by a caller that solves often).
