@@ -64,6 +64,7 @@ struct ImplicitQR {
     Mat R;               // (r, q): R[:q] upper triangular
     std::vector<Vec> v;  // v[i] (r - i,)
     Vec beta;            // 2 / |v_i|^2, 0 for an identity step
+    Vec vns;             // |v_i|^2, 0 for an identity step
 
     Vec S;               // scratch
 
@@ -86,33 +87,101 @@ struct ImplicitQR {
         R.cols = q;
         R.a.assign(N.a.begin(), N.a.begin() + r * q);
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        // (beta, S, len and each v[i] are read through their first q / r - i entries only:
-        // grown, never shrunk)
+        // (beta, vns, S, len and each v[i] are read through their first q / r - i entries
+        // only: grown, never shrunk)
         zero_prefix(beta, static_cast<size_t>(q));
+        zero_prefix(vns, static_cast<size_t>(q));
         if (S.size() < static_cast<size_t>(q)) S.resize(static_cast<size_t>(q));  // written by reflect_columns first
         if (len.size() < static_cast<size_t>(q)) len.resize(static_cast<size_t>(q));  // every entry written below
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
-            i64 used = band >= 0 ? std::min(size, band + 1) : size;
-            Vec& x = v[static_cast<size_t>(i)];
-            // entries 0..used-1 written below, the rest +0
-            if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
-            zero_small(x.data() + used, static_cast<size_t>(size - used));
-            len[static_cast<size_t>(i)] = used;
-            double alpha = 0.0;
-            for (i64 t = 0; t < used; ++t) {
-                x[t] = R(i + t, i);
-                alpha += x[t] * x[t];
-            }
-            alpha = std::sqrt(alpha);
-            if (alpha == 0.0) continue;
-            if (x[0] > 0.0) alpha = -alpha;
-            x[0] -= alpha;
-            double vn = 0.0;
-            for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
-            if (vn == 0.0) continue;
-            reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
-            beta[i] = 2.0 / vn;
+            step(i, band >= 0 ? std::min(size, band + 1) : size);
+        }
+    }
+    // [N c] from the factor of N (made by factor with band -1, then appends): the same bits
+    // as factor([N c]). Step i of factor reflects columns i.. of R, the new one among them,
+    // each column by its own sums (reflect_columns: S = 2 (sum_t x_t R_{i+t}, in order from
+    // +0) / |x|^2, then R_{i+t} - x_t S); here the earlier steps' reflections reach c in
+    // their order by those operations, then step q reflects it alone. The earlier columns
+    // are untouched by step q (step i reflects columns i.. only).
+    void append(const double* c) {
+        i64 qn = q + 1;
+        Mat& T = Rt;
+        shape(T, r, qn);
+        for (i64 t = 0; t < r; ++t) {
+            if (q) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(q) * sizeof(double));
+            T(t, q) = c[t];
+        }
+        std::swap(R, T);
+        if (static_cast<i64>(v.size()) < qn) v.resize(static_cast<size_t>(qn));
+        for (Vec* w : {&beta, &vns, &S})
+            if (w->size() < static_cast<size_t>(qn)) w->resize(static_cast<size_t>(qn));
+        if (len.size() < static_cast<size_t>(qn)) len.resize(static_cast<size_t>(qn));
+        for (i64 i = 0; i < q; ++i) {
+            double vn = vns[static_cast<size_t>(i)];
+            if (vn == 0.0) continue;  // (no reflection at step i)
+            const double* x = v[static_cast<size_t>(i)].data();
+            i64 used = len[static_cast<size_t>(i)];
+            double s = 0.0;
+            for (i64 t = 0; t < used; ++t) s += x[t] * R(i + t, q);
+            s = 2.0 * s / vn;
+            for (i64 t = 0; t < used; ++t) R(i + t, q) = R(i + t, q) - x[t] * s;
+        }
+        q = qn;
+        beta[qn - 1] = 0.0;
+        vns[qn - 1] = 0.0;
+        step(qn - 1, r - (qn - 1));
+    }
+
+   private:
+    Mat Rt;  // append's scratch
+    // factor's step i (reflector from R's column i, rows i..i + used - 1; columns i..q - 1 reflected)
+    void step(i64 i, i64 used) {
+        i64 size = r - i;
+        Vec& x = v[static_cast<size_t>(i)];
+        // entries 0..used-1 written below, the rest +0
+        if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
+        zero_small(x.data() + used, static_cast<size_t>(size - used));
+        len[static_cast<size_t>(i)] = used;
+        double alpha = 0.0;
+        for (i64 t = 0; t < used; ++t) {
+            x[t] = R(i + t, i);
+            alpha += x[t] * x[t];
+        }
+        alpha = std::sqrt(alpha);
+        if (alpha == 0.0) return;
+        if (x[0] > 0.0) alpha = -alpha;
+        x[0] -= alpha;
+        double vn = 0.0;
+        for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
+        if (vn == 0.0) return;
+        reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
+        beta[i] = 2.0 / vn;
+        vns[i] = vn;
+    }
+
+   public:
+    // The factor of N's first p columns (p <= q): R's first p columns are final after step
+    // p - 1 (step i reflects columns i.. only), and steps 0..p-1 are kept.
+    void truncate(i64 p) {
+        if (p >= q) return;
+        Mat& T = Rt;
+        shape(T, r, p);
+        for (i64 t = 0; t < r; ++t)
+            if (p) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(p) * sizeof(double));
+        std::swap(R, T);
+        q = p;
+    }
+    // apply_t's reflections i0..i1-1 alone (finite false), in its order: apply_t(x) is
+    // apply_t_range(x, 0, k) then apply_t_range(x, k, q), the same operations.
+    void apply_t_range(double* x, i64 i0, i64 i1) const {
+        for (i64 i = i0; i < i1; ++i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = dot(vi.data(), x + i, size);
+            s *= beta[i];
+            axmy(x + i, s, vi.data(), size);
         }
     }
     // x <- Q^T x (x of length r). finite: every entry of x is finite, so that the terms
@@ -621,6 +690,21 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 
 }  // namespace detail
 
+namespace detail {
+// What eqp_ls keeps from one call to the next for a caller whose working set changes by a
+// row at a time (primal_active_set): the working set whose normals ws.qr factors (rows,
+// sides), and B's rows reflected by that factor's first bq reflections (BQ, mb x r). A call
+// on a working set sharing a first p rows with it truncates the factor to p columns and
+// appends the rest (ImplicitQR::truncate, append), and reflects BQ by the reflections it
+// lacks: the same bits as factoring and reflecting from scratch.
+struct EqpKeep {
+    bool valid = false;
+    IVec rows, sides;
+    Mat BQ;
+    i64 bq = -1;  // -1: BQ not made
+};
+}  // namespace detail
+
 // The exact minimiser of 1/2 |B z - f|^2 with the working set's rows held as equalities
 // (n_j^T z = rhs_j, n_j = side_j C[row_j]) and their multipliers (B^T (B z - f) = N u);
 // false when the normals are dependent. No regularisation is added: of the minimisers, the
@@ -699,7 +783,8 @@ inline void ls_mtv_into(const LSForm& ls, const double* x, Vec& y) {
 
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
-                   CertScratch* scratch = nullptr) {
+                   CertScratch* scratch = nullptr, detail::EqpKeep* keep = nullptr) {
+    // keep: the state kept from this caller's previous call with the same scratch (see EqpKeep)
     if (!scratch) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return eqp_ls(ls, C, lo, hi, act_row, act_side, q, zref, z, u, W_out, &local);
@@ -727,7 +812,30 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
             rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
         }
-        qr.factor(N);
+        i64 p = -1;  // the kept factor's first p columns are this one's
+        if (keep && keep->valid && qr.r == r) {
+            i64 qf = static_cast<i64>(keep->rows.size());
+            p = 0;
+            while (p < std::min(qf, q) && keep->rows[p] == act_row[p] && keep->sides[p] == act_side[p]) ++p;
+        }
+        if (p >= 0) {
+            qr.truncate(p);
+            Vec& col = ws.row;
+            if (col.size() < static_cast<size_t>(r)) col.resize(static_cast<size_t>(r));  // first r entries used
+            for (i64 j = p; j < q; ++j) {
+                for (i64 i = 0; i < r; ++i) col[i] = N(i, j);
+                qr.append(col.data());
+            }
+            if (keep->bq > p) keep->bq = -1;  // (BQ has reflections this factor lacks)
+        } else {
+            qr.factor(N);
+            if (keep) keep->bq = -1;
+        }
+        if (keep) {
+            keep->valid = true;
+            keep->rows.assign(act_row.begin(), act_row.begin() + q);
+            keep->sides.assign(act_side.begin(), act_side.begin() + q);
+        }
         const Mat& R = qr.R;
         double scale = 0.0;
         for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
@@ -745,6 +853,12 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     } else {
         qr.r = r;
         qr.q = 0;
+        if (keep) {
+            keep->valid = true;
+            keep->rows.clear();
+            keep->sides.clear();
+            keep->bq = -1;
+        }
     }
     i64 nw = r - q;
     if (nw > 0) {
@@ -814,6 +928,21 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                 BW.rows = mb;
                 BW.cols = nw;
                 BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
+            } else if (keep) {
+                // B's rows reflected by the factor's reflections: those kept (BQ, the first bq)
+                // and the rest (apply_t's operations, in its order)
+                Mat& BQ = keep->BQ;
+                i64 from = keep->bq;
+                if (from < 0 || BQ.rows != mb || BQ.cols != r) {
+                    shape(BQ, mb, r);
+                    std::memcpy(BQ.a.data(), ls.B.a.data(), static_cast<size_t>(mb * r) * sizeof(double));
+                    from = 0;
+                }
+                for (i64 i = 0; i < mb; ++i) qr.apply_t_range(BQ.row(i), from, q);
+                keep->bq = q;
+                shape(BW, mb, nw);  // every entry written below
+                for (i64 i = 0; i < mb; ++i)
+                    std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
             } else {
                 shape(BW, mb, nw);  // every entry written below
                 Vec& row = ws.row;
@@ -911,10 +1040,12 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
     BVec in_set(static_cast<size_t>(m), 0);
     Vec norms = detail::row_norms(C);
     Vec zs, us;
+    CertScratch ws;       // eqp_ls's storage, and its factor of the working set kept from one
+    detail::EqpKeep keep;  // step to the next (the same bits as made anew)
     for (i64 it = 0; it < max_iter; ++it) {
         i64 q = static_cast<i64>(act_row.size());
         Mat W;
-        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, &W)) return false;
+        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, &W, &ws, &keep)) return false;
         Vec p(static_cast<size_t>(r));
         double pn = 0.0;
         for (i64 i = 0; i < r; ++i) {
