@@ -106,27 +106,30 @@ struct ImplicitQR {
     // are untouched by step q (step i reflects columns i.. only).
     void append(const double* c) {
         i64 qn = q + 1;
-        Mat& T = Rt;
-        shape(T, r, qn);
-        for (i64 t = 0; t < r; ++t) {
-            if (q) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(q) * sizeof(double));
-            T(t, q) = c[t];
-        }
-        std::swap(R, T);
-        if (static_cast<i64>(v.size()) < qn) v.resize(static_cast<size_t>(qn));
-        for (Vec* w : {&beta, &vns, &S})
-            if (w->size() < static_cast<size_t>(qn)) w->resize(static_cast<size_t>(qn));
-        if (len.size() < static_cast<size_t>(qn)) len.resize(static_cast<size_t>(qn));
+        Vec& w = Sc;  // the new column, reflected by steps 0..q-1 (contiguous)
+        w.assign(c, c + r);
         for (i64 i = 0; i < q; ++i) {
             double vn = vns[static_cast<size_t>(i)];
             if (vn == 0.0) continue;  // (no reflection at step i)
             const double* x = v[static_cast<size_t>(i)].data();
             i64 used = len[static_cast<size_t>(i)];
+            double* wi = w.data() + i;
             double s = 0.0;
-            for (i64 t = 0; t < used; ++t) s += x[t] * R(i + t, q);
+            for (i64 t = 0; t < used; ++t) s += x[t] * wi[t];
             s = 2.0 * s / vn;
-            for (i64 t = 0; t < used; ++t) R(i + t, q) = R(i + t, q) - x[t] * s;
+            for (i64 t = 0; t < used; ++t) wi[t] = wi[t] - x[t] * s;
         }
+        Mat& T = Rt;
+        shape(T, r, qn);
+        for (i64 t = 0; t < r; ++t) {
+            if (q) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(q) * sizeof(double));
+            T(t, q) = w[t];
+        }
+        std::swap(R, T);
+        if (static_cast<i64>(v.size()) < qn) v.resize(static_cast<size_t>(qn));
+        for (Vec* b : {&beta, &vns, &S})
+            if (b->size() < static_cast<size_t>(qn)) b->resize(static_cast<size_t>(qn));
+        if (len.size() < static_cast<size_t>(qn)) len.resize(static_cast<size_t>(qn));
         q = qn;
         beta[qn - 1] = 0.0;
         vns[qn - 1] = 0.0;
@@ -135,6 +138,7 @@ struct ImplicitQR {
 
    private:
     Mat Rt;  // append's scratch
+    Vec Sc;
     // factor's step i (reflector from R's column i, rows i..i + used - 1; columns i..q - 1 reflected)
     void step(i64 i, i64 used) {
         i64 size = r - i;
@@ -691,6 +695,19 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 }  // namespace detail
 
 namespace detail {
+// W = Q[:, q:] (r, r - q) of the factor qr (a column at a time: Q e_{q+j}).
+inline void null_columns(const ImplicitQR& qr, i64 r, i64 q, Vec& e, Mat& W) {
+    i64 nw = r - q;
+    W = Mat(r, nw);
+    zero_fill(e, static_cast<size_t>(r));
+    for (i64 j = 0; j < nw; ++j) {
+        std::fill(e.begin(), e.end(), 0.0);
+        e[q + j] = 1.0;
+        qr.apply(e.data());
+        for (i64 i = 0; i < r; ++i) W(i, j) = e[i];
+    }
+}
+
 // What eqp_ls keeps from one call to the next for a caller whose working set changes by a
 // row at a time (primal_active_set): the working set whose normals ws.qr factors (rows,
 // sides), and B's rows reflected by that factor's first bq reflections (BQ, mb x r). A call
@@ -964,17 +981,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
     }
-    if (W_out) {
-        *W_out = Mat(r, nw);
-        Vec& e = ws.e;
-        zero_fill(e, static_cast<size_t>(r));
-        for (i64 j = 0; j < nw; ++j) {
-            std::fill(e.begin(), e.end(), 0.0);
-            e[q + j] = 1.0;
-            qr.apply(e.data());
-            for (i64 i = 0; i < r; ++i) (*W_out)(i, j) = e[i];
-        }
-    }
+    if (W_out) detail::null_columns(qr, r, q, ws.e, *W_out);
     if (q > 0) {
         Vec& g = ws.g;
         detail::ls_mv_into(ls, z.data(), ws.r);  // B^T (B z - f), as ls_gradient
@@ -1044,8 +1051,9 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
     detail::EqpKeep keep;  // step to the next (the same bits as made anew)
     for (i64 it = 0; it < max_iter; ++it) {
         i64 q = static_cast<i64>(act_row.size());
-        Mat W;
-        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, &W, &ws, &keep)) return false;
+        Mat W;  // the working set's null space W, made where a row may block (eqp_ls's W_out)
+        bool have_w = false;
+        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, nullptr, &ws, &keep)) return false;
         Vec p(static_cast<size_t>(r));
         double pn = 0.0;
         for (i64 i = 0; i < r; ++i) {
@@ -1076,6 +1084,10 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
             if (a < alpha) {
                 // A row (nearly) in the span of the working set's normals cannot block: moving in
                 // the working set's null space changes it by at most kNearDependent |p| |c|.
+                if (!have_w) {
+                    detail::null_columns(ws.qr, r, q, ws.e, W);
+                    have_w = true;
+                }
                 double out = 0.0;
                 for (i64 j = 0; j < W.cols; ++j) {
                     double acc = 0.0;
