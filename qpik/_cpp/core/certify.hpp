@@ -64,6 +64,7 @@ struct ImplicitQR {
     Mat R;               // (r, q): R[:q] upper triangular
     std::vector<Vec> v;  // v[i] (r - i,)
     Vec beta;            // 2 / |v_i|^2, 0 for an identity step
+    Vec vns;             // |v_i|^2, 0 for an identity step
 
     Vec S;               // scratch
 
@@ -86,33 +87,105 @@ struct ImplicitQR {
         R.cols = q;
         R.a.assign(N.a.begin(), N.a.begin() + r * q);
         if (static_cast<i64>(v.size()) < q) v.resize(static_cast<size_t>(q));
-        // (beta, S, len and each v[i] are read through their first q / r - i entries only:
-        // grown, never shrunk)
+        // (beta, vns, S, len and each v[i] are read through their first q / r - i entries
+        // only: grown, never shrunk)
         zero_prefix(beta, static_cast<size_t>(q));
+        zero_prefix(vns, static_cast<size_t>(q));
         if (S.size() < static_cast<size_t>(q)) S.resize(static_cast<size_t>(q));  // written by reflect_columns first
         if (len.size() < static_cast<size_t>(q)) len.resize(static_cast<size_t>(q));  // every entry written below
         for (i64 i = 0; i < q; ++i) {
             i64 size = r - i;
-            i64 used = band >= 0 ? std::min(size, band + 1) : size;
-            Vec& x = v[static_cast<size_t>(i)];
-            // entries 0..used-1 written below, the rest +0
-            if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
-            zero_small(x.data() + used, static_cast<size_t>(size - used));
-            len[static_cast<size_t>(i)] = used;
-            double alpha = 0.0;
-            for (i64 t = 0; t < used; ++t) {
-                x[t] = R(i + t, i);
-                alpha += x[t] * x[t];
-            }
-            alpha = std::sqrt(alpha);
-            if (alpha == 0.0) continue;
-            if (x[0] > 0.0) alpha = -alpha;
-            x[0] -= alpha;
-            double vn = 0.0;
-            for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
-            if (vn == 0.0) continue;
-            reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
-            beta[i] = 2.0 / vn;
+            step(i, band >= 0 ? std::min(size, band + 1) : size);
+        }
+    }
+    // [N c] from the factor of N (made by factor with band -1, then appends): the same bits
+    // as factor([N c]). Step i of factor reflects columns i.. of R, the new one among them,
+    // each column by its own sums (reflect_columns: S = 2 (sum_t x_t R_{i+t}, in order from
+    // +0) / |x|^2, then R_{i+t} - x_t S); here the earlier steps' reflections reach c in
+    // their order by those operations, then step q reflects it alone. The earlier columns
+    // are untouched by step q (step i reflects columns i.. only).
+    void append(const double* c) {
+        i64 qn = q + 1;
+        Vec& w = Sc;  // the new column, reflected by steps 0..q-1 (contiguous)
+        w.assign(c, c + r);
+        for (i64 i = 0; i < q; ++i) {
+            double vn = vns[static_cast<size_t>(i)];
+            if (vn == 0.0) continue;  // (no reflection at step i)
+            const double* x = v[static_cast<size_t>(i)].data();
+            i64 used = len[static_cast<size_t>(i)];
+            double* wi = w.data() + i;
+            double s = 0.0;
+            for (i64 t = 0; t < used; ++t) s += x[t] * wi[t];
+            s = 2.0 * s / vn;
+            for (i64 t = 0; t < used; ++t) wi[t] = wi[t] - x[t] * s;
+        }
+        Mat& T = Rt;
+        shape(T, r, qn);
+        for (i64 t = 0; t < r; ++t) {
+            if (q) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(q) * sizeof(double));
+            T(t, q) = w[t];
+        }
+        std::swap(R, T);
+        if (static_cast<i64>(v.size()) < qn) v.resize(static_cast<size_t>(qn));
+        for (Vec* b : {&beta, &vns, &S})
+            if (b->size() < static_cast<size_t>(qn)) b->resize(static_cast<size_t>(qn));
+        if (len.size() < static_cast<size_t>(qn)) len.resize(static_cast<size_t>(qn));
+        q = qn;
+        beta[qn - 1] = 0.0;
+        vns[qn - 1] = 0.0;
+        step(qn - 1, r - (qn - 1));
+    }
+
+   private:
+    Mat Rt;  // append's scratch
+    Vec Sc;
+    // factor's step i (reflector from R's column i, rows i..i + used - 1; columns i..q - 1 reflected)
+    void step(i64 i, i64 used) {
+        i64 size = r - i;
+        Vec& x = v[static_cast<size_t>(i)];
+        // entries 0..used-1 written below, the rest +0
+        if (x.size() < static_cast<size_t>(size)) x.resize(static_cast<size_t>(size));
+        zero_small(x.data() + used, static_cast<size_t>(size - used));
+        len[static_cast<size_t>(i)] = used;
+        double alpha = 0.0;
+        for (i64 t = 0; t < used; ++t) {
+            x[t] = R(i + t, i);
+            alpha += x[t] * x[t];
+        }
+        alpha = std::sqrt(alpha);
+        if (alpha == 0.0) return;
+        if (x[0] > 0.0) alpha = -alpha;
+        x[0] -= alpha;
+        double vn = 0.0;
+        for (i64 t = 0; t < used; ++t) vn += x[t] * x[t];
+        if (vn == 0.0) return;
+        reflect_columns(R.row(0), q, i, used, i, q, x.data(), vn, S.data());
+        beta[i] = 2.0 / vn;
+        vns[i] = vn;
+    }
+
+   public:
+    // The factor of N's first p columns (p <= q): R's first p columns are final after step
+    // p - 1 (step i reflects columns i.. only), and steps 0..p-1 are kept.
+    void truncate(i64 p) {
+        if (p >= q) return;
+        Mat& T = Rt;
+        shape(T, r, p);
+        for (i64 t = 0; t < r; ++t)
+            if (p) std::memcpy(T.row(t), R.row(t), static_cast<size_t>(p) * sizeof(double));
+        std::swap(R, T);
+        q = p;
+    }
+    // apply_t's reflections i0..i1-1 alone (finite false), in its order: apply_t(x) is
+    // apply_t_range(x, 0, k) then apply_t_range(x, k, q), the same operations.
+    void apply_t_range(double* x, i64 i0, i64 i1) const {
+        for (i64 i = i0; i < i1; ++i) {
+            if (beta[i] == 0.0) continue;
+            const Vec& vi = v[i];
+            i64 size = r - i;
+            double s = dot(vi.data(), x + i, size);
+            s *= beta[i];
+            axmy(x + i, s, vi.data(), size);
         }
     }
     // x <- Q^T x (x of length r). finite: every entry of x is finite, so that the terms
@@ -152,6 +225,8 @@ struct LsScratch {
     IVec sup, fz;
     Mat N0;
     ImplicitQR qn;
+    Mat R;       // reg_lstsq_into
+    Vec c;
 };
 
 // The reflection of reflect_columns on rows sup[0..ns) (in order), columns i..k-1 of M:
@@ -474,6 +549,142 @@ inline Vec lstsq(Mat M, Vec f) {
     return y;
 }
 
+// x . y (n entries), two lanes (even and odd terms summed apart, then added).
+inline double dot_2l(const double* x, const double* y, i64 n) {
+    using namespace simd;
+    v2d a = splat(0.0), b = splat(0.0);
+    i64 i = 0;
+    for (; i + 4 <= n; i += 4) {
+        a += load(x + i) * load(y + i);
+        b += load(x + i + 2) * load(y + i + 2);
+    }
+    for (; i + 2 <= n; i += 2) a += load(x + i) * load(y + i);
+    a += b;
+    double acc = a[0] + a[1];
+    for (; i < n; ++i) acc += x[i] * y[i];
+    return acc;
+}
+
+// min |M y - g|^2 + |s y - h|^2 (M (m, k) given by its columns, the rows of Mt (k, m, row
+// stride m); g (m,), h (k,), s > 0) into y: the least-squares problem of [M; s I] with
+// right-hand side [g; h], by Householder reflections that fold M's rows into R = s I one
+// column at a time (step j reflects R's row j and M's rows, columns j.. only: R's rows below
+// j are still s e_i, zero in those columns, and R's row j is still s e_j, c_j = h_j), then
+// R y = c. No pivoting: taken only where [M; s I] is well conditioned enough for that,
+// s^2 >= kRegFold max_j |M_j|^2 (its least singular value is at least s, so the pivoted QR
+// finds no zero pivot either and the minimiser is the one lstsq_into's minimum-norm solution
+// gives), with every entry of M, g, h finite; false (nothing written to y) otherwise. Mt and
+// g are overwritten. O(m k^2) rather than lstsq_into's O((m + k) k^2) on [M; s I].
+constexpr double kRegFold = 1e-10;
+constexpr i64 kRegFoldMin = 12;  // eqp_ls folds only levels of this many free directions r (see there)
+// The checks of reg_lstsq_into: s > 0 finite, M, g, h finite, s^2 >= kRegFold max_j |M_j|^2
+// (norms[j] = |M_j|^2 given).
+inline bool reg_fold_ok(const double* norms, i64 k, const Vec& g, i64 m, const double* h, double s) {
+    if (!(s > 0.0) || !std::isfinite(s)) return false;
+    double big = 0.0;
+    bool fin = true;
+    for (i64 j = 0; j < k; ++j) {
+        big = pymax(big, norms[j]);
+        fin = fin && std::isfinite(norms[j]) && std::isfinite(h[j]);
+    }
+    for (i64 t = 0; t < m; ++t) fin = fin && std::isfinite(g[t]);
+    return fin && s * s >= kRegFold * big;
+}
+inline void reg_back(const Mat& R, const Vec& c, i64 k, Vec& y) {
+    shape(y, static_cast<size_t>(k));
+    for (i64 j = k - 1; j >= 0; --j) {
+        double acc = c[j];
+        const double* Rj = R.row(j);
+        for (i64 l = j + 1; l < k; ++l) acc -= Rj[l] * y[l];
+        y[j] = acc / Rj[j];
+    }
+}
+// Mt (k, m): M's columns as rows (the layout for m > k: each step's work is k - j dot
+// products and updates of length m).
+inline bool reg_lstsq_into(double* Mt, i64 k, i64 m, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
+    Vec& norms = ws.norms;  // |M_j|^2
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) norms[j] = dot_2l(Mt + j * m, Mt + j * m, m);
+    if (!reg_fold_ok(norms.data(), k, g, m, h, s)) return false;
+    Mat& R = ws.R;  // R's strict upper triangle and diagonal, written step by step
+    shape(R, k, k);
+    Vec& c = ws.c;
+    shape(c, static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        const double* vj = Mt + j * m;  // the reflector: (s - alpha, M_j)
+        double sumv = dot_2l(vj, vj, m);  // |M_j|^2 now (the steps before changed it)
+        double alpha = std::sqrt(s * s + sumv);  // the new R_jj is -alpha (s > 0)
+        double v0 = s + alpha;
+        double f2 = 2.0 / (v0 * v0 + sumv);
+        double* Rj = R.row(j);
+        for (i64 l = j + 1; l < k; ++l) {
+            double* ml = Mt + l * m;
+            double sl = f2 * dot_2l(vj, ml, m);  // (R_jl = 0 before the step)
+            Rj[l] = -v0 * sl;
+            axmy(ml, sl, vj, m);
+        }
+        double sc = f2 * (v0 * h[j] + dot_2l(vj, g.data(), m));
+        c[j] = h[j] - v0 * sc;
+        axmy(g.data(), sc, vj, m);
+        Rj[j] = -alpha;
+    }
+    reg_back(R, c, k, y);
+    return true;
+}
+// M (m, k) by rows (the layout for m <= k: each step's work is m products and updates of
+// length k - j - 1, summed row by row).
+inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& y, LsScratch& ws) {
+    i64 m = M.rows, k = M.cols;
+    Vec& norms = ws.norms;
+    if (norms.size() < static_cast<size_t>(k)) norms.resize(static_cast<size_t>(k));
+    col_sq(M.a.data(), k, 0, m, 0, k, norms.data());
+    if (!reg_fold_ok(norms.data(), k, g, m, h, s)) return false;
+    Mat& R = ws.R;
+    shape(R, k, k);
+    Vec& c = ws.c;
+    shape(c, static_cast<size_t>(k));
+    Vec& v = ws.x;  // column j of M
+    if (v.size() < static_cast<size_t>(m)) v.resize(static_cast<size_t>(m));
+    Vec& S = ws.S;
+    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
+    for (i64 j = 0; j < k; ++j) {
+        double sumv = 0.0;
+        for (i64 t = 0; t < m; ++t) {
+            v[t] = M(t, j);
+            sumv += v[t] * v[t];
+        }
+        double alpha = std::sqrt(s * s + sumv);
+        double v0 = s + alpha;
+        double f2 = 2.0 / (v0 * v0 + sumv);
+        i64 w = k - j - 1;
+        double* Sj = S.data() + j + 1;
+        zero_small(Sj, static_cast<size_t>(w));  // (R_jl = 0 before the step)
+        double sc = v0 * h[j];
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axpy(Sj, vt, M.row(t) + j + 1, w);
+            sc += vt * g[t];
+        }
+        sc *= f2;
+        double* Rj = R.row(j);
+        for (i64 l = 0; l < w; ++l) {
+            Sj[l] *= f2;
+            Rj[j + 1 + l] = -v0 * Sj[l];
+        }
+        c[j] = h[j] - v0 * sc;
+        for (i64 t = 0; t < m; ++t) {
+            double vt = v[t];
+            if (vt == 0.0) continue;
+            axmy(M.row(t) + j + 1, vt, Sj, w);
+            g[t] -= vt * sc;
+        }
+        Rj[j] = -alpha;
+    }
+    reg_back(R, c, k, y);
+    return true;
+}
+
 // B^T (B z - f): the level's reduced gradient H z + c, without any added regularisation.
 inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
     Vec r = mv(ls.B.cref(), z.data());
@@ -483,11 +694,41 @@ inline Vec ls_gradient(const LSForm& ls, const Vec& z) {
 
 }  // namespace detail
 
+namespace detail {
+// W = Q[:, q:] (r, r - q) of the factor qr (a column at a time: Q e_{q+j}).
+inline void null_columns(const ImplicitQR& qr, i64 r, i64 q, Vec& e, Mat& W) {
+    i64 nw = r - q;
+    W = Mat(r, nw);
+    zero_fill(e, static_cast<size_t>(r));
+    for (i64 j = 0; j < nw; ++j) {
+        std::fill(e.begin(), e.end(), 0.0);
+        e[q + j] = 1.0;
+        qr.apply(e.data());
+        for (i64 i = 0; i < r; ++i) W(i, j) = e[i];
+    }
+}
+
+// What eqp_ls keeps from one call to the next for a caller whose working set changes by a
+// row at a time (primal_active_set): the working set whose normals ws.qr factors (rows,
+// sides), and B's rows reflected by that factor's first bq reflections (BQ, mb x r). A call
+// on a working set sharing a first p rows with it truncates the factor to p columns and
+// appends the rest (ImplicitQR::truncate, append), and reflects BQ by the reflections it
+// lacks: the same bits as factoring and reflecting from scratch.
+struct EqpKeep {
+    bool valid = false;
+    IVec rows, sides;
+    Mat BQ;
+    i64 bq = -1;  // -1: BQ not made
+};
+}  // namespace detail
+
 // The exact minimiser of 1/2 |B z - f|^2 with the working set's rows held as equalities
 // (n_j^T z = rhs_j, n_j = side_j C[row_j]) and their multipliers (B^T (B z - f) = N u);
 // false when the normals are dependent. No regularisation is added: of the minimisers, the
 // one closest to zref (zref moved onto the working set, then the least-norm least-squares
-// step in the working set's null space W, by the pivoted QR of B W). N's orthogonal factor
+// step in the working set's null space W, by the pivoted QR of B W; where B = [A Z; s I]
+// holds the regularisation's rows, r >= kRegFoldMin and q > 0, the unique minimiser from
+// A Z W and s I instead: reg_lstsq_into). N's orthogonal factor
 // is kept as reflections (O(q r) per product, never the O(q r^2) explicit Q); W_out, when
 // asked for, is formed.
 // The storage of eqp_ls and certify_level (kept by a caller that solves often).
@@ -559,7 +800,8 @@ inline void ls_mtv_into(const LSForm& ls, const double* x, Vec& y) {
 
 inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IVec& act_row,
                    const IVec& act_side, i64 q, const Vec& zref, Vec& z, Vec& u, Mat* W_out = nullptr,
-                   CertScratch* scratch = nullptr) {
+                   CertScratch* scratch = nullptr, detail::EqpKeep* keep = nullptr) {
+    // keep: the state kept from this caller's previous call with the same scratch (see EqpKeep)
     if (!scratch) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return eqp_ls(ls, C, lo, hi, act_row, act_side, q, zref, z, u, W_out, &local);
@@ -587,7 +829,30 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
             rhs[j] = detail::rhs_of(lo, hi, act_row[j], act_side[j]) - nz;
         }
-        qr.factor(N);
+        i64 p = -1;  // the kept factor's first p columns are this one's
+        if (keep && keep->valid && qr.r == r) {
+            i64 qf = static_cast<i64>(keep->rows.size());
+            p = 0;
+            while (p < std::min(qf, q) && keep->rows[p] == act_row[p] && keep->sides[p] == act_side[p]) ++p;
+        }
+        if (p >= 0) {
+            qr.truncate(p);
+            Vec& col = ws.row;
+            if (col.size() < static_cast<size_t>(r)) col.resize(static_cast<size_t>(r));  // first r entries used
+            for (i64 j = p; j < q; ++j) {
+                for (i64 i = 0; i < r; ++i) col[i] = N(i, j);
+                qr.append(col.data());
+            }
+            if (keep->bq > p) keep->bq = -1;  // (BQ has reflections this factor lacks)
+        } else {
+            qr.factor(N);
+            if (keep) keep->bq = -1;
+        }
+        if (keep) {
+            keep->valid = true;
+            keep->rows.assign(act_row.begin(), act_row.begin() + q);
+            keep->sides.assign(act_side.begin(), act_side.begin() + q);
+        }
         const Mat& R = qr.R;
         double scale = 0.0;
         for (i64 i = 0; i < q; ++i) scale = pymax(scale, std::fabs(R(i, i)));
@@ -605,47 +870,118 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
     } else {
         qr.r = r;
         qr.q = 0;
+        if (keep) {
+            keep->valid = true;
+            keep->rows.clear();
+            keep->sides.clear();
+            keep->bq = -1;
+        }
     }
     i64 nw = r - q;
     if (nw > 0) {
-        Mat& BW = ws.BW;  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T
-        if (q == 0) {  // Q = I: B itself
-            BW.rows = mb;
-            BW.cols = nw;
-            BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
-        } else {
-            shape(BW, mb, nw);  // every entry written below
+        Vec& y = ws.y;
+        Vec& f0 = ws.f0;
+        Mat& BW = ws.BW;
+        bool done = false;
+        if (q > 0 && ls.reg && mb >= r && r >= detail::kRegFoldMin) {
+            // B = [A Z; s I] (ls_form): |B W y - f0|^2 = |A Z W y - f0_top|^2 + |s W y - f0_bot|^2,
+            // and W's columns are orthonormal (W = Q[:, q:], Q^T W = [0; I]), so the second term
+            // is |s y - W^T f0_bot|^2 + |Y^T f0_bot|^2 (the last independent of y): the same
+            // minimiser from A Z W (only A Z's m rows reflected by Q, not B's m + r) and the
+            // s I rows, by reg_lstsq_into where it applies (else the pivoted QR below).
+            // A different algorithm from the QR of B W: the same minimiser to round-off, which
+            // on a level whose B W is ill-conditioned moves the answer by about eps |B|^2 / s^2
+            // relative (4e-12 with s = 1e-3, |B| = 0.75: tests/fixtures/core.npz's case 184,
+            // r = 5). Small levels (r < kRegFoldMin), where the dense QR costs little, keep it.
+            i64 m = mb - r;
+            double s = ls.B(m, 0);
             Vec& row = ws.row;
             if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
-            for (i64 i = 0; i < mb; ++i) {
-                const double* bi = ls.B.row(i);
-                for (i64 k = 0; k < r; ++k) row[k] = bi[k];
-                qr.apply_t(row.data());
-                for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+            detail::ls_mv_into(ls, z.data(), f0);
+            for (i64 i = 0; i < m; ++i) f0[i] = ls.f[i] - f0[i];
+            for (i64 j = 0; j < r; ++j) row[j] = ls.f[m + j] - f0[m + j];
+            qr.apply_t(row.data());  // Q^T f0_bot: its last nw entries are W^T f0_bot
+            f0.resize(static_cast<size_t>(m));
+            Vec& h = ws.t;  // W^T f0_bot (t is not read again)
+            shape(h, static_cast<size_t>(nw));
+            for (i64 j = 0; j < nw; ++j) h[j] = row[q + j];
+            if (m <= nw) {
+                // A Z W by rows (Q^T B_i^T for A Z's rows)
+                shape(BW, m, nw);  // every entry written below
+                for (i64 i = 0; i < m; ++i) {
+                    std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
+                    qr.apply_t(row.data());
+                    std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
+                }
+                done = detail::reg_lstsq_rows_into(BW, f0, h.data(), s, y, ws.ls);
+            } else {
+                // X = (A Z)^T (r, m), then Q^T X (reflection i on rows i..): its rows q.. are
+                // (A Z W)^T, the columns of A Z W
+                Mat& X = BW;
+                shape(X, r, m);  // every entry written below
+                for (i64 t = 0; t < m; ++t) {
+                    const double* bt = ls.B.row(t);
+                    for (i64 j = 0; j < r; ++j) X(j, t) = bt[j];
+                }
+                Vec& S = ws.e;
+                if (S.size() < static_cast<size_t>(m)) S.resize(static_cast<size_t>(m));  // first m entries used
+                for (i64 i = 0; i < q; ++i) {
+                    double beta = qr.beta[i];
+                    if (beta == 0.0) continue;
+                    const double* vi = qr.v[static_cast<size_t>(i)].data();
+                    i64 size = r - i;
+                    zero_small(S.data(), static_cast<size_t>(m));
+                    for (i64 t = 0; t < size; ++t)
+                        if (vi[t] != 0.0) axpy(S.data(), vi[t], X.row(i + t), m);
+                    for (i64 t = 0; t < m; ++t) S[t] *= beta;
+                    for (i64 t = 0; t < size; ++t)
+                        if (vi[t] != 0.0) axmy(X.row(i + t), vi[t], S.data(), m);
+                }
+                done = detail::reg_lstsq_into(X.row(q), nw, m, f0, h.data(), s, y, ws.ls);
             }
         }
-        Vec& f0 = ws.f0;
-        detail::ls_mv_into(ls, z.data(), f0);
-        for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
-        Vec& y = ws.y;
-        detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
+        if (!done) {  // B W = (B Q)[:, q:], row by row as (Q^T B_i^T)^T; pivoted, least norm
+            if (q == 0) {  // Q = I: B itself
+                BW.rows = mb;
+                BW.cols = nw;
+                BW.a.assign(ls.B.a.begin(), ls.B.a.begin() + mb * nw);
+            } else if (keep) {
+                // B's rows reflected by the factor's reflections: those kept (BQ, the first bq)
+                // and the rest (apply_t's operations, in its order)
+                Mat& BQ = keep->BQ;
+                i64 from = keep->bq;
+                if (from < 0 || BQ.rows != mb || BQ.cols != r) {
+                    shape(BQ, mb, r);
+                    std::memcpy(BQ.a.data(), ls.B.a.data(), static_cast<size_t>(mb * r) * sizeof(double));
+                    from = 0;
+                }
+                for (i64 i = 0; i < mb; ++i) qr.apply_t_range(BQ.row(i), from, q);
+                keep->bq = q;
+                shape(BW, mb, nw);  // every entry written below
+                for (i64 i = 0; i < mb; ++i)
+                    std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
+            } else {
+                shape(BW, mb, nw);  // every entry written below
+                Vec& row = ws.row;
+                if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
+                for (i64 i = 0; i < mb; ++i) {
+                    const double* bi = ls.B.row(i);
+                    for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                    qr.apply_t(row.data());
+                    for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                }
+            }
+            detail::ls_mv_into(ls, z.data(), f0);
+            for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
+            detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
+        }
         Vec& wy = ws.wy;
         zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
         for (i64 j = 0; j < nw; ++j) wy[q + j] = y[j];
         qr.apply(wy.data());  // W y
         for (i64 i = 0; i < r; ++i) z[i] = z[i] + wy[i];
     }
-    if (W_out) {
-        *W_out = Mat(r, nw);
-        Vec& e = ws.e;
-        zero_fill(e, static_cast<size_t>(r));
-        for (i64 j = 0; j < nw; ++j) {
-            std::fill(e.begin(), e.end(), 0.0);
-            e[q + j] = 1.0;
-            qr.apply(e.data());
-            for (i64 i = 0; i < r; ++i) (*W_out)(i, j) = e[i];
-        }
-    }
+    if (W_out) detail::null_columns(qr, r, q, ws.e, *W_out);
     if (q > 0) {
         Vec& g = ws.g;
         detail::ls_mv_into(ls, z.data(), ws.r);  // B^T (B z - f), as ls_gradient
@@ -711,10 +1047,13 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
     BVec in_set(static_cast<size_t>(m), 0);
     Vec norms = detail::row_norms(C);
     Vec zs, us;
+    CertScratch ws;       // eqp_ls's storage, and its factor of the working set kept from one
+    detail::EqpKeep keep;  // step to the next (the same bits as made anew)
     for (i64 it = 0; it < max_iter; ++it) {
         i64 q = static_cast<i64>(act_row.size());
-        Mat W;
-        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, &W)) return false;
+        Mat W;  // the working set's null space W, made where a row may block (eqp_ls's W_out)
+        bool have_w = false;
+        if (!eqp_ls(ls, C, lo, hi, act_row, act_side, q, z, zs, us, nullptr, &ws, &keep)) return false;
         Vec p(static_cast<size_t>(r));
         double pn = 0.0;
         for (i64 i = 0; i < r; ++i) {
@@ -745,6 +1084,10 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
             if (a < alpha) {
                 // A row (nearly) in the span of the working set's normals cannot block: moving in
                 // the working set's null space changes it by at most kNearDependent |p| |c|.
+                if (!have_w) {
+                    detail::null_columns(ws.qr, r, q, ws.e, W);
+                    have_w = true;
+                }
                 double out = 0.0;
                 for (i64 j = 0; j < W.cols; ++j) {
                     double acc = 0.0;
