@@ -35,8 +35,8 @@ struct QPScratch {
     Mat L, J, JT, R;
     Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
     IVec act_row, act_side, unit, rows, dense;
-    Vec CT, thr_lo, thr_hi, cxd;  // see RowScan
-    IVec cand;
+    Vec CT, slot_e, unit_thr, cxd;  // see RowScan
+    IVec slot_row, slot_of, unit_rows;
     BVec in_set;
     Vec rot;  // rotate_in's coefficients
 };
@@ -276,12 +276,15 @@ inline void most_violated(const double* x, CMatRef C, CVecRef lo, CVecRef hi, co
 }
 
 // most_violated's work, laid out once per solve_qp (C, lo, hi, tol fixed): the dense rows'
-// normals transposed (column j of CT the j-th dense row, columns padded to an even count with
-// zeros), so C x of all of them is taken two rows a vector; the candidate rows (norm != 0) in
-// order; per row its thresholds tol (1 + |bound|), NaN for an absent bound (no v exceeds it).
+// normals transposed (column j of CT the normal of the row in slot j, columns padded to an
+// even count with zeros), so C x of them is taken two rows a vector; per slot its row, bounds,
+// norm and thresholds tol (1 + |bound|), NaN for an absent bound (no v exceeds it); the unit
+// rows (norm != 0) in order. Slots 0..live-1 hold the dense rows not in the working set
+// (scan_enter / scan_leave swap a row's column out of / back into that range): C x is taken
+// of those alone (each column's sum on its own, so the order of the slots changes no bits).
 // Needs tol >= 0 (a violation then has bound - C x > 0, so the division is taken only there).
 struct RowScan {
-    i64 kd = 0, ld = 0;
+    i64 kd = 0, ld = 0, live = 0;
 };
 
 inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const Vec& norms, const IVec& unit,
@@ -289,6 +292,7 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
     i64 m = C.rows, n = C.cols;
     rs.kd = static_cast<i64>(dense.size());
     rs.ld = (rs.kd + 1) & ~static_cast<i64>(1);
+    rs.live = rs.kd;
     Vec& CT = ws.CT;
     shape(CT, static_cast<size_t>(n * rs.ld));
     i64 ld = rs.ld;
@@ -303,34 +307,78 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
             for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], 0.0});
         }
     }
-    // cand: per candidate row, the row and where its C x is: slot j >= 0 of the dense
-    // product, or -1 - column for a unit row.
-    ws.cand.clear();
-    shape(ws.thr_lo, static_cast<size_t>(m));
-    shape(ws.thr_hi, static_cast<size_t>(m));
-    i64 slot = 0;
-    for (i64 i = 0; i < m; ++i) {
-        if (norms[i] == 0.0) continue;
-        ws.cand.push_back(i);
-        ws.cand.push_back(unit[i] >= 0 ? -1 - unit[i] : slot++);
-        ws.thr_lo[i] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
-        ws.thr_hi[i] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
+    // Per slot: lo, hi, norm, the two thresholds (5 entries at 5 j).
+    shape(ws.slot_e, static_cast<size_t>(5 * ld));
+    ws.slot_row.resize(static_cast<size_t>(ld));
+    ws.slot_of.assign(static_cast<size_t>(m), -1);  // (-1: not a dense row)
+    for (i64 j = 0; j < rs.kd; ++j) {
+        i64 i = dense[j];
+        ws.slot_row[j] = i;
+        ws.slot_of[i] = j;
+        double* e = ws.slot_e.data() + 5 * j;
+        e[0] = lo[i];
+        e[1] = hi[i];
+        e[2] = norms[i];
+        e[3] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
+        e[4] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
+    }
+    if (ld > rs.kd) ws.slot_row[rs.kd] = -1;
+    ws.unit_rows.clear();
+    for (i64 i = 0; i < m; ++i)
+        if (norms[i] != 0.0 && unit[i] >= 0) ws.unit_rows.push_back(i);
+    shape(ws.unit_thr, static_cast<size_t>(2 * m));  // the unit rows' thresholds
+    for (i64 i : ws.unit_rows) {
+        ws.unit_thr[2 * i] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
+        ws.unit_thr[2 * i + 1] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
     }
 }
 
-// most_violated(x, ...) by RowScan (the same bits and answer:
-// each dense row's C x summed in index order from +0, as dot; v and the order of the tests
-// as there).
+// Slots a and b of RowScan traded (their CT columns and entries).
+inline void scan_swap(QPScratch& ws, const RowScan& rs, i64 n, i64 a, i64 b) {
+    if (a == b) return;
+    double* CT = ws.CT.data();
+    i64 ld = rs.ld;
+    for (i64 k = 0; k < n; ++k) std::swap(CT[k * ld + a], CT[k * ld + b]);
+    double* ea = ws.slot_e.data() + 5 * a;
+    double* eb = ws.slot_e.data() + 5 * b;
+    for (int t = 0; t < 5; ++t) std::swap(ea[t], eb[t]);
+    i64 ra = ws.slot_row[a], rb = ws.slot_row[b];
+    ws.slot_row[a] = rb;
+    ws.slot_row[b] = ra;
+    ws.slot_of[ra] = b;
+    ws.slot_of[rb] = a;
+}
+
+// Row `row` joins the working set (out of the live slots) / leaves it (back in).
+inline void scan_enter(QPScratch& ws, RowScan& rs, i64 n, i64 row) {
+    i64 s = ws.slot_of[row];
+    if (s < 0 || s >= rs.live) return;
+    scan_swap(ws, rs, n, s, rs.live - 1);
+    rs.live -= 1;
+}
+
+inline void scan_leave(QPScratch& ws, RowScan& rs, i64 n, i64 row) {
+    i64 s = ws.slot_of[row];
+    if (s < rs.live) return;  // (also s = -1: not dense)
+    scan_swap(ws, rs, n, s, rs.live);
+    rs.live += 1;
+}
+
+// most_violated(x, ...) by RowScan (the same bits and answer: each dense row's C x summed in
+// index order from +0, as dot; v as there. most_violated keeps the first largest v in the order
+// of rows (lower bound before upper): here the largest v with the least 2 row + (side < 0),
+// the same pick in any order of the rows, v > 0 being never NaN).
 inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef hi, const BVec& skip,
-                               const Vec& norms, const RowScan& rs,
+                               const Vec& norms, const IVec& unit, const RowScan& rs,
                                QPScratch& ws, i64& best_row, i64& best_side) {
     using namespace simd;
     i64 n = C.cols, ld = rs.ld;
+    i64 nl = (rs.live + 1) & ~static_cast<i64>(1);
     const double* CT = ws.CT.data();
     Vec& out = ws.cxd;
     shape(out, static_cast<size_t>(ld));
     i64 j = 0;
-    for (; j + 16 <= ld; j += 16) {  // eight sums in flight (each column's in order of k)
+    for (; j + 16 <= nl; j += 16) {  // eight sums in flight (each column's in order of k)
         v2d a0 = splat(0.0), a1 = splat(0.0), a2 = splat(0.0), a3 = splat(0.0);
         v2d a4 = splat(0.0), a5 = splat(0.0), a6 = splat(0.0), a7 = splat(0.0);
         const double* p = CT + j;
@@ -355,7 +403,7 @@ inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef h
         store(o + 12, a6);
         store(o + 14, a7);
     }
-    for (; j + 8 <= ld; j += 8) {
+    for (; j + 8 <= nl; j += 8) {
         v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
         const double* p = CT + j;
         for (i64 k = 0; k < n; ++k, p += ld) {
@@ -370,7 +418,7 @@ inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef h
         store(out.data() + j + 4, c);
         store(out.data() + j + 6, e);
     }
-    for (; j + 4 <= ld; j += 4) {
+    for (; j + 4 <= nl; j += 4) {
         v2d a = splat(0.0), b = splat(0.0);
         const double* p = CT + j;
         for (i64 k = 0; k < n; ++k, p += ld) {
@@ -381,41 +429,59 @@ inline void most_violated_scan(const double* x, CMatRef C, CVecRef lo, CVecRef h
         store(out.data() + j, a);
         store(out.data() + j + 2, b);
     }
-    for (; j + 2 <= ld; j += 2) {
+    for (; j + 2 <= nl; j += 2) {
         v2d a = splat(0.0);
         const double* p = CT + j;
         for (i64 k = 0; k < n; ++k, p += ld) a = a + load(p) * splat(x[k]);
         store(out.data() + j, a);
     }
     double best = 0.0;
-    best_row = -1;
-    best_side = 0;
-    const double* tl = ws.thr_lo.data();
-    const double* th = ws.thr_hi.data();
-    const i64* cand = ws.cand.data();
-    i64 nc = static_cast<i64>(ws.cand.size());
-    for (i64 t = 0; t < nc; t += 2) {
-        i64 i = cand[t], at = cand[t + 1];
+    i64 best_pos = -1;  // 2 row + (side < 0)
+    auto take = [&](double v, i64 pos) {
+        if (v > best || (v == best && pos < best_pos)) {
+            best = v;
+            best_pos = pos;
+        }
+    };
+    const double* e = ws.slot_e.data();
+    const i64* slot_row = ws.slot_row.data();
+    for (i64 s = 0; s < rs.live; ++s, e += 5) {
+        double ci = out[s];
+        double a = e[0] - ci;
+        double b = ci - e[1];
+        if (!(a > 0.0) && !(b > 0.0)) continue;
+        i64 i = slot_row[s];
+        if (a > 0.0) {
+            double v = a / e[2];
+            if (v > e[3]) take(v, 2 * i);
+        }
+        if (b > 0.0) {
+            double v = b / e[2];
+            if (v > e[4]) take(v, 2 * i + 1);
+        }
+    }
+    const double* th = ws.unit_thr.data();
+    for (i64 i : ws.unit_rows) {
         if (skip[i]) continue;
-        double ci = at >= 0 ? out[at] : 0.0 + C(i, -1 - at) * x[-1 - at];
+        i64 u = unit[i];
+        double ci = 0.0 + C(i, u) * x[u];
         double a = lo[i] - ci;
         if (a > 0.0) {
             double v = a / norms[i];
-            if (v > tl[i] && v > best) {
-                best = v;
-                best_row = i;
-                best_side = 1;
-            }
+            if (v > th[2 * i]) take(v, 2 * i);
         }
         double b = ci - hi[i];
         if (b > 0.0) {
             double v = b / norms[i];
-            if (v > th[i] && v > best) {
-                best = v;
-                best_row = i;
-                best_side = -1;
-            }
+            if (v > th[2 * i + 1]) take(v, 2 * i + 1);
         }
+    }
+    if (best_pos < 0) {
+        best_row = -1;
+        best_side = 0;
+    } else {
+        best_row = best_pos >> 1;
+        best_side = (best_pos & 1) ? -1 : 1;
     }
 }
 
@@ -1089,7 +1155,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     while (true) {
         i64 row, side;
         if (scanned)
-            most_violated_scan(x.data(), C, lo, hi, in_set, norms, scan, ws, row, side);
+            most_violated_scan(x.data(), C, lo, hi, in_set, norms, unit, scan, ws, row, side);
         else
             most_violated(x.data(), C, lo, hi, in_set, tol, norms, unit, row, side, ws.cx, ws.rows, &dense);
         if (row < 0) {
@@ -1154,6 +1220,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 }
                 if (-slack <= kRoundoff * (nn * (1.0 + xmax) + std::fabs(rhs))) {
                     in_set[row] = 1;
+                    if (scanned) scan_enter(ws, scan, n, row);
                     break;
                 }
                 mark(active, act_row, act_side, q);
@@ -1175,16 +1242,20 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                     u = u_old;
                     u[q] = 0.0;
                     in_set[row] = 1;
+                    if (scanned) scan_enter(ws, scan, n, row);
                     break;
                 }
                 r_norm = pymax(r_norm, std::fabs(d[q]));
                 act_row[q] = row;
                 act_side[q] = side;
                 in_set[row] = 1;
+                if (scanned) scan_enter(ws, scan, n, row);
                 q += 1;
                 break;
             }
+            i64 left = act_row[drop];
             drop_constraint(J, R, u, act_row, act_side, in_set, drop, q, ws.rot);
+            if (scanned) scan_leave(ws, scan, n, left);
             d0 = drop;  // drop_constraint turned JT's rows drop..q - 1 only
             d1 = q;
             q -= 1;
