@@ -33,7 +33,7 @@ struct QPResult {
 // one call to the next but capacity: every buffer is sized and filled before it is read.
 struct QPScratch {
     Mat L, J, JT, R;
-    Vec mc, y, x, u, d, z, r, x_old, u_old, normal, norms, lo2, hi2, cx;
+    Vec mc, y, x, u, d, z, r, normal, norms, lo2, hi2, cx;
     IVec act_row, act_side, unit, rows, dense;
     Vec CT, slot_e, unit_thr, cxd;  // see RowScan
     IVec slot_row, slot_of, unit_rows;
@@ -628,9 +628,15 @@ inline void directions(const Mat& JT, const Mat& R, const Vec& normal, i64 unit,
     // r first: its back substitution is one serial chain (each r[i] waits on r[i + 1]), which
     // z's independent sums below then fill in around (the same operations either way).
     for (i64 i = q - 1; i >= 0; --i) {
+        const double* ri = R.row(i);
         double acc = d[i];
-        for (i64 j = i + 1; j < q; ++j) acc -= R(i, j) * r[j];
-        r[i] = acc / R(i, i);
+        i64 j = i + 1;
+        for (; j + 2 <= q; j += 2) {  // (the same chain of operations, two a pass)
+            acc -= ri[j] * r[j];
+            acc -= ri[j + 1] * r[j + 1];
+        }
+        if (j < q) acc -= ri[j] * r[j];
+        r[i] = acc / ri[i];
     }
     // z[k] = sum_{i >= q} J(k, i) d[i], i in order from +0 (eight entries a pass in registers,
     // then four, two, one: the sums axpy over JT's rows makes).
@@ -721,9 +727,12 @@ inline double dual_step(const Vec& u, const Vec& r, i64 q, i64& drop) {
 inline double primal_step(const Vec& d, const Vec& z, const Vec& normal, double slack, i64 q) {
     double outside = 0.0, total = 0.0;
     i64 n = static_cast<i64>(d.size());
-    for (i64 i = 0; i < n; ++i) {
-        total += d[i] * d[i];
-        if (i >= q) outside += d[i] * d[i];
+    i64 i = 0;
+    for (; i < q && i < n; ++i) total += d[i] * d[i];
+    for (; i < n; ++i) {
+        double sq = d[i] * d[i];
+        total += sq;
+        outside += sq;
     }
     double zn = dot(z.data(), normal.data(), static_cast<i64>(z.size()));
     if (outside > kDependent * kDependent * total && zn > 0.0) return pymax(-slack / zn, 0.0);
@@ -1145,10 +1154,6 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     RowScan scan;
     bool scanned = tol >= 0.0;  // RowScan's condition
     if (scanned) row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan);
-    Vec& x_old = ws.x_old;
-    Vec& u_old = ws.u_old;
-    zero_fill(x_old, static_cast<size_t>(n));
-    zero_fill(u_old, static_cast<size_t>(n + 1));
     Vec& normal = ws.normal;
     zero_fill(normal, static_cast<size_t>(n));
     i64 iterations = 0;
@@ -1228,23 +1233,19 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
             }
             bool full = t2 <= t1;
             if (full) {
-                x_old = x;
-                u_old = u;
-            }
-            if (t2 < kInf) axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k]
-            for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
-            u[q] += t;
-            if (full) {
+                // JT and d's rotation first (they read neither x nor u): where the step is
+                // degenerate, x and u stay as they are (the step taken and undone before).
                 rotate_in(J, d, q, ws.rot);
                 for (i64 i = 0; i < q + 1; ++i) R(i, q) = d[i];
                 if (std::fabs(d[q]) <= 1e-14 * r_norm) {
-                    x = x_old;
-                    u = u_old;
                     u[q] = 0.0;
                     in_set[row] = 1;
                     if (scanned) scan_enter(ws, scan, n, row);
                     break;
                 }
+                axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k] (t = t2 < inf)
+                for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
+                u[q] += t;
                 r_norm = pymax(r_norm, std::fabs(d[q]));
                 act_row[q] = row;
                 act_side[q] = side;
@@ -1253,6 +1254,9 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 q += 1;
                 break;
             }
+            if (t2 < kInf) axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k]
+            for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
+            u[q] += t;
             i64 left = act_row[drop];
             drop_constraint(J, R, u, act_row, act_side, in_set, drop, q, ws.rot);
             if (scanned) scan_leave(ws, scan, n, left);
