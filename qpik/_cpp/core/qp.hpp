@@ -287,8 +287,10 @@ struct RowScan {
     i64 kd = 0, ld = 0, live = 0;
 };
 
-inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const Vec& norms, const IVec& unit,
-                          const IVec& dense, QPScratch& ws, RowScan& rs) {
+// with_norms: norms[i] of the rows in dense taken here (the sums of row_norms_into: each row's
+// squares in index order from +0, then sqrt); false, and nothing past CT done, where one is 0.
+inline bool row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, Vec& norms, const IVec& unit,
+                          const IVec& dense, QPScratch& ws, RowScan& rs, bool with_norms) {
     i64 m = C.rows, n = C.cols;
     rs.kd = static_cast<i64>(dense.size());
     rs.ld = (rs.kd + 1) & ~static_cast<i64>(1);
@@ -297,16 +299,42 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
     shape(CT, static_cast<size_t>(n * rs.ld));
     i64 ld = rs.ld;
     // Two rows a pass (adjacent columns of CT, one store); an odd last row with the zero pad.
+    bool zero = false;
     for (i64 j = 0; j < ld; j += 2) {
         const double* c0 = C.row(dense[j]);
         double* dst = CT.data() + j;
-        if (j + 1 < rs.kd) {
-            const double* c1 = C.row(dense[j + 1]);
-            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], c1[k]});
+        bool pair = j + 1 < rs.kd;
+        const double* c1 = pair ? C.row(dense[j + 1]) : c0;
+        if (with_norms) {
+            simd::v2d sq = simd::splat(0.0);
+            if (pair) {
+                for (i64 k = 0; k < n; ++k, dst += ld) {
+                    simd::v2d v{c0[k], c1[k]};
+                    simd::store(dst, v);
+                    sq = sq + v * v;
+                }
+            } else {
+                for (i64 k = 0; k < n; ++k, dst += ld) {
+                    simd::v2d v{c0[k], 0.0};
+                    simd::store(dst, v);
+                    sq = sq + v * v;
+                }
+            }
+            double n0 = std::sqrt(sq[0]);
+            norms[dense[j]] = n0;
+            zero = zero || n0 == 0.0;
+            if (pair) {
+                double n1 = std::sqrt(sq[1]);
+                norms[dense[j + 1]] = n1;
+                zero = zero || n1 == 0.0;
+            }
+        } else if (pair) {
+            for (i64 k = 0; k < n; ++k, dst += ld) simd::store(dst, simd::v2d{c0[k], c1[k]});
         } else {
-            for (i64 k = 0; k < n; ++k) simd::store(dst + k * ld, simd::v2d{c0[k], 0.0});
+            for (i64 k = 0; k < n; ++k, dst += ld) simd::store(dst, simd::v2d{c0[k], 0.0});
         }
     }
+    if (zero) return false;
     // Per slot: lo, hi, norm, the two thresholds (5 entries at 5 j).
     shape(ws.slot_e, static_cast<size_t>(5 * ld));
     ws.slot_row.resize(static_cast<size_t>(ld));
@@ -331,14 +359,20 @@ inline void row_scan_init(CMatRef C, CVecRef lo, CVecRef hi, double tol, const V
         ws.unit_thr[2 * i] = lo[i] > -kBig ? tol * (1.0 + std::fabs(lo[i])) : kNaN;
         ws.unit_thr[2 * i + 1] = hi[i] < kBig ? tol * (1.0 + std::fabs(hi[i])) : kNaN;
     }
+    return true;
 }
 
 // Slots a and b of RowScan traded (their CT columns and entries).
 inline void scan_swap(QPScratch& ws, const RowScan& rs, i64 n, i64 a, i64 b) {
     if (a == b) return;
-    double* CT = ws.CT.data();
     i64 ld = rs.ld;
-    for (i64 k = 0; k < n; ++k) std::swap(CT[k * ld + a], CT[k * ld + b]);
+    double* pa = ws.CT.data() + a;
+    double* pb = ws.CT.data() + b;
+    for (i64 k = 0; k < n; ++k, pa += ld, pb += ld) {
+        double t = *pa;
+        *pa = *pb;
+        *pb = t;
+    }
     double* ea = ws.slot_e.data() + 5 * a;
     double* eb = ws.slot_e.data() + 5 * b;
     for (int t = 0; t < 5; ++t) std::swap(ea[t], eb[t]);
@@ -1144,16 +1178,35 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
     BVec& in_set = ws.in_set;
     in_set.assign(static_cast<size_t>(m), 0);
     Vec& norms = ws.norms;
-    row_norms_into(C, norms);
     IVec& unit = ws.unit;
     unit_columns_into(C, unit);
     IVec& dense = ws.dense;  // the rows most_violated takes C x of
     dense.clear();
-    for (i64 i = 0; i < m; ++i)
-        if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
     RowScan scan;
     bool scanned = tol >= 0.0;  // RowScan's condition
-    if (scanned) row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan);
+    if (scanned) {
+        // The norms as row_norms_into takes them: a unit row's is sqrt(+0 + ... + 1 + ...) = 1
+        // exactly; the others' summed as CT is laid out (row_scan_init).
+        norms.resize(static_cast<size_t>(m));
+        for (i64 i = 0; i < m; ++i) {
+            if (unit[i] >= 0)
+                norms[i] = 1.0;
+            else
+                dense.push_back(i);
+        }
+        if (!row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan, true)) {
+            // A zero row (norm 0, no candidate): laid out again without it (rare).
+            i64 k = 0;
+            for (i64 i : dense)
+                if (norms[i] != 0.0) dense[k++] = i;
+            dense.resize(static_cast<size_t>(k));
+            row_scan_init(C, lo, hi, tol, norms, unit, dense, ws, scan, false);
+        }
+    } else {
+        row_norms_into(C, norms);
+        for (i64 i = 0; i < m; ++i)
+            if (norms[i] != 0.0 && unit[i] < 0) dense.push_back(i);
+    }
     Vec& normal = ws.normal;
     zero_fill(normal, static_cast<size_t>(n));
     i64 iterations = 0;
