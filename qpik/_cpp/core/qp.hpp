@@ -940,9 +940,13 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
         act_row[j] = act_row[j + 1];
         act_side[j] = act_side[j + 1];
         u[j] = u[j + 1];
-        // R is upper triangular with exact zeros below: column j + 1 has rows <= j + 1 only,
-        // and the rows below are zeros in both columns.
-        for (i64 i = 0; i <= j + 1; ++i) R(i, j) = R(i, j + 1);
+    }
+    // R's columns drop + 1 .. q - 1 one to the left. R is upper triangular with exact zeros
+    // below: column j + 1 has rows <= j + 1 only, and the rows below are zeros in both
+    // columns; so row i moves its columns max(drop, i - 1) + 1 .. q - 1 (one copy a row).
+    for (i64 i = 0; i < q; ++i) {
+        i64 j0 = std::max<i64>(drop, i - 1);
+        if (j0 < q - 1) std::memmove(R.row(i) + j0, R.row(i) + j0 + 1, static_cast<size_t>(q - 1 - j0) * sizeof(double));
     }
     u[q - 1] = u[q];
     u[q] = 0.0;
@@ -1245,7 +1249,13 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
             return out;
         }
         double sd = static_cast<double>(side);
-        for (i64 k = 0; k < n; ++k) normal[k] = C(row, k) * sd;
+        {
+            const double* cr = C.row(row);
+            simd::v2d sv = simd::splat(sd);
+            i64 k = 0;
+            for (; k + 2 <= n; k += 2) simd::store(normal.data() + k, simd::load(cr + k) * sv);
+            for (; k < n; ++k) normal[k] = cr[k] * sd;
+        }
         double rhs = rhs_of(lo, hi, row, side);
         u[q] = 0.0;
         i64 d0 = 0, d1 = -1;  // the rows of d to take afresh (see directions)
@@ -1297,7 +1307,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                     break;
                 }
                 axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k] (t = t2 < inf)
-                for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
+                axmy(u.data(), t, r.data(), q);  // u[j] -= t * r[j]
                 u[q] += t;
                 r_norm = pymax(r_norm, std::fabs(d[q]));
                 act_row[q] = row;
@@ -1308,7 +1318,7 @@ inline QPResult solve_qp(CMatRef H, CVecRef c, CMatRef C, CVecRef lo, CVecRef hi
                 break;
             }
             if (t2 < kInf) axpy(x.data(), t, z.data(), n);  // x[k] += t * z[k]
-            for (i64 j = 0; j < q; ++j) u[j] -= t * r[j];
+            axmy(u.data(), t, r.data(), q);  // u[j] -= t * r[j]
             u[q] += t;
             i64 left = act_row[drop];
             drop_constraint(J, R, u, act_row, act_side, in_set, drop, q, ws.rot);
