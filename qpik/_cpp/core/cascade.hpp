@@ -709,6 +709,34 @@ inline double exact_reciprocal(double w) {
     return 1.0 / w;
 }
 
+// dst (cols, rows) = the transpose of the rows src(0..rows-1) (cols entries each): dst(j, i) =
+// src(i)[j], copies only, two rows by two columns a step (a 2x2 block: two loads, two
+// shuffles, two stores), the odd last row and column one entry at a time.
+template <class SrcRow>
+inline void transpose_rows(SrcRow src, i64 rows, i64 cols, Mat& dst) {
+    using namespace simd;
+    shape(dst, cols, rows);  // every entry copied
+    i64 i = 0;
+    for (; i + 2 <= rows; i += 2) {
+        const double* s0 = src(i);
+        const double* s1 = src(i + 1);
+        i64 j = 0;
+        for (; j + 2 <= cols; j += 2) {
+            v2d a = load(s0 + j), b = load(s1 + j);
+            store(dst.row(j) + i, __builtin_shuffle(a, b, v2i{0, 2}));
+            store(dst.row(j + 1) + i, __builtin_shuffle(a, b, v2i{1, 3}));
+        }
+        if (j < cols) {
+            dst(j, i) = s0[j];
+            dst(j, i + 1) = s1[j];
+        }
+    }
+    if (i < rows) {
+        const double* s0 = src(i);
+        for (i64 j = 0; j < cols; ++j) dst(j, i) = s0[j];
+    }
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -735,11 +763,7 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         if (z_eye) {
             Yt.set_eye(r);
         } else {
-            shape(Yt, r, n);  // every entry copied
-            for (i64 i = 0; i < n; ++i) {
-                const double* zi = Z.row(i);
-                for (i64 j = 0; j < r; ++j) Yt(j, i) = zi[j];
-            }
+            transpose_rows([&Z](i64 i) { return Z.row(i); }, n, r, Yt);
         }
         Vec& S = ws.qr.S;
         if (S.size() < static_cast<size_t>(n)) S.resize(static_cast<size_t>(n));  // written before read
@@ -750,11 +774,7 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         }
         if (rotated_null)
             for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
-        shape(Zn, n, c);  // every entry written below
-        for (i64 q = 0; q < c; ++q) {
-            const double* src = Yt.row(null_cols[q]);
-            for (i64 i = 0; i < n; ++i) Zn(i, q) = src[i];
-        }
+        transpose_rows([&Yt, &null_cols](i64 q) { return Yt.row(null_cols[q]); }, c, n, Zn);
         return;
     }
     Mat& E = ws.Qr;
