@@ -821,18 +821,33 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         // (finite) A(i, t) * 0 = +-0 to the others, from +0: the entry A(i, j) where it is
         // nonzero, else +0. Written while A's entries are checked (a non-finite one: mm_into
         // writes AZ again).
+        // (Two entries a step: an entry's bits kept where it is != 0.0, cleared (+0) where it
+        // is +-0, the same select; x - x == 0 exactly where x is finite.)
+        using namespace simd;
         shape(out.AZ, A.rows, A.cols);  // every entry written
         bool finite = true;
+        const v2d zero = splat(0.0);
+        v2i fin = v2i{-1, -1};
         for (i64 i = 0; i < A.rows; ++i) {
             const double* ai = A.row(i);
             double* zi = out.AZ.row(i);
-            for (i64 j = 0; j < A.cols; ++j) {
+            i64 j = 0;
+            for (; j + 2 <= A.cols; j += 2) {
+                v2d x = load(ai + j);
+                fin &= ((x - x) == zero);
+                v2i bits;
+                std::memcpy(&bits, &x, sizeof x);
+                bits &= (x != zero);
+                std::memcpy(&x, &bits, sizeof x);
+                store(zi + j, x);
+            }
+            for (; j < A.cols; ++j) {
                 const double a = ai[j];
                 finite &= std::isfinite(a);
                 zi[j] = a != 0.0 ? a : 0.0;
             }
         }
-        az_made = finite;
+        az_made = finite && fin[0] != 0 && fin[1] != 0;
     }
     if (!az_made && !detail::one_per_row_product(A, Z, out.AZ)) mm_into(A, Z, out.AZ);
     i64 m = A.rows;
@@ -877,18 +892,44 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             k += 1;
         }
     } else {
+        // Two kept rows at a time (columns k, k + 1 of Mt): each entry the same product (or
+        // quotient) per lane, then a 2x2 transpose (copies).
+        using namespace simd;
         shape(Mt, r, keep);  // every entry written below
+        auto next_kept = [&w, m](i64 i) {
+            while (i < m && !(w[i] > 0.0)) ++i;
+            return i;
+        };
+        auto scaled = [](v2d u, double inv, double wi) { return inv != 0.0 ? u * splat(inv) : u / splat(wi); };
         i64 k = 0;
-        for (i64 i = 0; i < m; ++i) {
-            if (w[i] > 0.0) {
-                const double inv = detail::exact_reciprocal(w[i]);
-                if (inv != 0.0) {
-                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
-                } else {
-                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+        for (i64 i = next_kept(0); i < m;) {
+            const i64 i1 = next_kept(i + 1);
+            const double inv = detail::exact_reciprocal(w[i]);
+            if (i1 < m) {
+                const double inv1 = detail::exact_reciprocal(w[i1]);
+                const double* a0 = out.AZ.row(i);
+                const double* a1 = out.AZ.row(i1);
+                i64 j = 0;
+                for (; j + 2 <= r; j += 2) {
+                    v2d u0 = scaled(load(a0 + j), inv, w[i]), u1 = scaled(load(a1 + j), inv1, w[i1]);
+                    store(Mt.row(j) + k, __builtin_shuffle(u0, u1, v2i{0, 2}));
+                    store(Mt.row(j + 1) + k, __builtin_shuffle(u0, u1, v2i{1, 3}));
                 }
-                k += 1;
+                if (j < r) {
+                    Mt(j, k) = inv != 0.0 ? a0[j] * inv : a0[j] / w[i];
+                    Mt(j, k + 1) = inv1 != 0.0 ? a1[j] * inv1 : a1[j] / w[i1];
+                }
+                k += 2;
+                i = next_kept(i1 + 1);
+                continue;
             }
+            if (inv != 0.0) {
+                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
+            } else {
+                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+            }
+            k += 1;
+            i = m;
         }
     }
     i64 cols = Mt.cols;  // R's row length
