@@ -884,10 +884,16 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             const double* src = out.AZ.row(i);
             double* dst = Mt.row(k);
             const double inv = detail::exact_reciprocal(w[i]);
+            // (two entries a step: the same product or quotient per lane)
+            i64 j = 0;
             if (inv != 0.0) {
-                for (i64 j = 0; j < r; ++j) dst[j] = src[j] * inv;
+                const simd::v2d iv = simd::splat(inv);
+                for (; j + 2 <= r; j += 2) simd::store(dst + j, simd::load(src + j) * iv);
+                for (; j < r; ++j) dst[j] = src[j] * inv;
             } else {
-                for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+                const simd::v2d wv = simd::splat(w[i]);
+                for (; j + 2 <= r; j += 2) simd::store(dst + j, simd::load(src + j) / wv);
+                for (; j < r; ++j) dst[j] = src[j] / w[i];
             }
             k += 1;
         }
@@ -1100,24 +1106,48 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     // same products they would make again.
     Vec& Ad = ws.Ad;
     mv_into(A, d, Ad);
+    // (The elementwise loops below two entries a step: the same operation per lane.)
+    using namespace simd;
     Vec& e = ws.e;
     shape(e, static_cast<size_t>(A.rows));
-    for (i64 i = 0; i < A.rows; ++i) e[i] = Ad[i] - b[i];
+    {
+        i64 i = 0;
+        for (; i + 2 <= A.rows; i += 2) store(e.data() + i, load(Ad.data() + i) - load(b.p + i));
+        for (; i < A.rows; ++i) e[i] = Ad[i] - b[i];
+    }
     Vec& c1 = ws.c1;
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     bool eye = z_eye && Z.rows == r;
-    for (i64 i = 0; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    if (eye) {  // d finite: d_i - d_i == 0 exactly
+        const v2d zero = splat(0.0);
+        v2i fin = v2i{-1, -1};
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) {
+            v2d x = load(d + i);
+            fin &= ((x - x) == zero);
+        }
+        eye = fin[0] != 0 && fin[1] != 0;
+        for (; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    }
     if (eye) {
         // Z = I, d finite: mtv_into's sum for entry c is +0 plus d_c (where d_c != 0) and terms
         // d_i 0 = +-0, which is d_c + 0.0.
         shape(c2, static_cast<size_t>(r));
-        for (i64 i = 0; i < r; ++i) c2[i] = d[i] + 0.0;
+        const v2d zero = splat(0.0);
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) store(c2.data() + i, load(d + i) + zero);
+        for (; i < r; ++i) c2[i] = d[i] + 0.0;
     } else {
         mtv_into(Z, d, c2);
     }
     shape(out.c, static_cast<size_t>(r));
-    for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+    {
+        const v2d rv = splat(reg);
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) store(out.c.data() + i, load(c1.data() + i) + rv * load(c2.data() + i));
+        for (; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+    }
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
