@@ -709,6 +709,34 @@ inline double exact_reciprocal(double w) {
     return 1.0 / w;
 }
 
+// dst (cols, rows) = the transpose of the rows src(0..rows-1) (cols entries each): dst(j, i) =
+// src(i)[j], copies only, two rows by two columns a step (a 2x2 block: two loads, two
+// shuffles, two stores), the odd last row and column one entry at a time.
+template <class SrcRow>
+inline void transpose_rows(SrcRow src, i64 rows, i64 cols, Mat& dst) {
+    using namespace simd;
+    shape(dst, cols, rows);  // every entry copied
+    i64 i = 0;
+    for (; i + 2 <= rows; i += 2) {
+        const double* s0 = src(i);
+        const double* s1 = src(i + 1);
+        i64 j = 0;
+        for (; j + 2 <= cols; j += 2) {
+            v2d a = load(s0 + j), b = load(s1 + j);
+            store(dst.row(j) + i, __builtin_shuffle(a, b, v2i{0, 2}));
+            store(dst.row(j + 1) + i, __builtin_shuffle(a, b, v2i{1, 3}));
+        }
+        if (j < cols) {
+            dst(j, i) = s0[j];
+            dst(j, i + 1) = s1[j];
+        }
+    }
+    if (i < rows) {
+        const double* s0 = src(i);
+        for (i64 j = 0; j < cols; ++j) dst(j, i) = s0[j];
+    }
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -735,11 +763,7 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         if (z_eye) {
             Yt.set_eye(r);
         } else {
-            shape(Yt, r, n);  // every entry copied
-            for (i64 i = 0; i < n; ++i) {
-                const double* zi = Z.row(i);
-                for (i64 j = 0; j < r; ++j) Yt(j, i) = zi[j];
-            }
+            transpose_rows([&Z](i64 i) { return Z.row(i); }, n, r, Yt);
         }
         Vec& S = ws.qr.S;
         if (S.size() < static_cast<size_t>(n)) S.resize(static_cast<size_t>(n));  // written before read
@@ -750,11 +774,7 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         }
         if (rotated_null)
             for (const Rotation& g : ws.log) jacobi_rows(Yt.row(g.i), Yt.row(g.j), g.cs, g.sn, n);
-        shape(Zn, n, c);  // every entry written below
-        for (i64 q = 0; q < c; ++q) {
-            const double* src = Yt.row(null_cols[q]);
-            for (i64 i = 0; i < n; ++i) Zn(i, q) = src[i];
-        }
+        transpose_rows([&Yt, &null_cols](i64 q) { return Yt.row(null_cols[q]); }, c, n, Zn);
         return;
     }
     Mat& E = ws.Qr;
@@ -801,18 +821,33 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         // (finite) A(i, t) * 0 = +-0 to the others, from +0: the entry A(i, j) where it is
         // nonzero, else +0. Written while A's entries are checked (a non-finite one: mm_into
         // writes AZ again).
+        // (Two entries a step: an entry's bits kept where it is != 0.0, cleared (+0) where it
+        // is +-0, the same select; x - x == 0 exactly where x is finite.)
+        using namespace simd;
         shape(out.AZ, A.rows, A.cols);  // every entry written
         bool finite = true;
+        const v2d zero = splat(0.0);
+        v2i fin = v2i{-1, -1};
         for (i64 i = 0; i < A.rows; ++i) {
             const double* ai = A.row(i);
             double* zi = out.AZ.row(i);
-            for (i64 j = 0; j < A.cols; ++j) {
+            i64 j = 0;
+            for (; j + 2 <= A.cols; j += 2) {
+                v2d x = load(ai + j);
+                fin &= ((x - x) == zero);
+                v2i bits;
+                std::memcpy(&bits, &x, sizeof x);
+                bits &= (x != zero);
+                std::memcpy(&x, &bits, sizeof x);
+                store(zi + j, x);
+            }
+            for (; j < A.cols; ++j) {
                 const double a = ai[j];
                 finite &= std::isfinite(a);
                 zi[j] = a != 0.0 ? a : 0.0;
             }
         }
-        az_made = finite;
+        az_made = finite && fin[0] != 0 && fin[1] != 0;
     }
     if (!az_made && !detail::one_per_row_product(A, Z, out.AZ)) mm_into(A, Z, out.AZ);
     i64 m = A.rows;
@@ -849,26 +884,58 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             const double* src = out.AZ.row(i);
             double* dst = Mt.row(k);
             const double inv = detail::exact_reciprocal(w[i]);
+            // (two entries a step: the same product or quotient per lane)
+            i64 j = 0;
             if (inv != 0.0) {
-                for (i64 j = 0; j < r; ++j) dst[j] = src[j] * inv;
+                const simd::v2d iv = simd::splat(inv);
+                for (; j + 2 <= r; j += 2) simd::store(dst + j, simd::load(src + j) * iv);
+                for (; j < r; ++j) dst[j] = src[j] * inv;
             } else {
-                for (i64 j = 0; j < r; ++j) dst[j] = src[j] / w[i];
+                const simd::v2d wv = simd::splat(w[i]);
+                for (; j + 2 <= r; j += 2) simd::store(dst + j, simd::load(src + j) / wv);
+                for (; j < r; ++j) dst[j] = src[j] / w[i];
             }
             k += 1;
         }
     } else {
+        // Two kept rows at a time (columns k, k + 1 of Mt): each entry the same product (or
+        // quotient) per lane, then a 2x2 transpose (copies).
+        using namespace simd;
         shape(Mt, r, keep);  // every entry written below
+        auto next_kept = [&w, m](i64 i) {
+            while (i < m && !(w[i] > 0.0)) ++i;
+            return i;
+        };
+        auto scaled = [](v2d u, double inv, double wi) { return inv != 0.0 ? u * splat(inv) : u / splat(wi); };
         i64 k = 0;
-        for (i64 i = 0; i < m; ++i) {
-            if (w[i] > 0.0) {
-                const double inv = detail::exact_reciprocal(w[i]);
-                if (inv != 0.0) {
-                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
-                } else {
-                    for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+        for (i64 i = next_kept(0); i < m;) {
+            const i64 i1 = next_kept(i + 1);
+            const double inv = detail::exact_reciprocal(w[i]);
+            if (i1 < m) {
+                const double inv1 = detail::exact_reciprocal(w[i1]);
+                const double* a0 = out.AZ.row(i);
+                const double* a1 = out.AZ.row(i1);
+                i64 j = 0;
+                for (; j + 2 <= r; j += 2) {
+                    v2d u0 = scaled(load(a0 + j), inv, w[i]), u1 = scaled(load(a1 + j), inv1, w[i1]);
+                    store(Mt.row(j) + k, __builtin_shuffle(u0, u1, v2i{0, 2}));
+                    store(Mt.row(j + 1) + k, __builtin_shuffle(u0, u1, v2i{1, 3}));
                 }
-                k += 1;
+                if (j < r) {
+                    Mt(j, k) = inv != 0.0 ? a0[j] * inv : a0[j] / w[i];
+                    Mt(j, k + 1) = inv1 != 0.0 ? a1[j] * inv1 : a1[j] / w[i1];
+                }
+                k += 2;
+                i = next_kept(i1 + 1);
+                continue;
             }
+            if (inv != 0.0) {
+                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) * inv;
+            } else {
+                for (i64 j = 0; j < r; ++j) Mt(j, k) = out.AZ(i, j) / w[i];
+            }
+            k += 1;
+            i = m;
         }
     }
     i64 cols = Mt.cols;  // R's row length
@@ -1039,24 +1106,48 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     // same products they would make again.
     Vec& Ad = ws.Ad;
     mv_into(A, d, Ad);
+    // (The elementwise loops below two entries a step: the same operation per lane.)
+    using namespace simd;
     Vec& e = ws.e;
     shape(e, static_cast<size_t>(A.rows));
-    for (i64 i = 0; i < A.rows; ++i) e[i] = Ad[i] - b[i];
+    {
+        i64 i = 0;
+        for (; i + 2 <= A.rows; i += 2) store(e.data() + i, load(Ad.data() + i) - load(b.p + i));
+        for (; i < A.rows; ++i) e[i] = Ad[i] - b[i];
+    }
     Vec& c1 = ws.c1;
     Vec& c2 = ws.c2;
     mtv_into(AZ, e.data(), c1);
     bool eye = z_eye && Z.rows == r;
-    for (i64 i = 0; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    if (eye) {  // d finite: d_i - d_i == 0 exactly
+        const v2d zero = splat(0.0);
+        v2i fin = v2i{-1, -1};
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) {
+            v2d x = load(d + i);
+            fin &= ((x - x) == zero);
+        }
+        eye = fin[0] != 0 && fin[1] != 0;
+        for (; eye && i < r; ++i) eye = std::isfinite(d[i]);
+    }
     if (eye) {
         // Z = I, d finite: mtv_into's sum for entry c is +0 plus d_c (where d_c != 0) and terms
         // d_i 0 = +-0, which is d_c + 0.0.
         shape(c2, static_cast<size_t>(r));
-        for (i64 i = 0; i < r; ++i) c2[i] = d[i] + 0.0;
+        const v2d zero = splat(0.0);
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) store(c2.data() + i, load(d + i) + zero);
+        for (; i < r; ++i) c2[i] = d[i] + 0.0;
     } else {
         mtv_into(Z, d, c2);
     }
     shape(out.c, static_cast<size_t>(r));
-    for (i64 i = 0; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+    {
+        const v2d rv = splat(reg);
+        i64 i = 0;
+        for (; i + 2 <= r; i += 2) store(out.c.data() + i, load(c1.data() + i) + rv * load(c2.data() + i));
+        for (; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
+    }
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d

@@ -654,10 +654,14 @@ namespace detail {
 // column, left to the caller, whose column is returned): entry (r, j) = +0 plus AS[4 t + r]
 // X(t, j) over t < k in t order, AS holding the four rows' entries broadcast to pairs and X
 // rows `stride` apart (mm_into's and mtm_into's blocks: the same products in the same order).
-__attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const double* X, i64 stride,
-                                                      i64 k, i64 j0, i64 n, double* r0, double* r1,
-                                                      double* r2, double* r3) {
+// R < 4: the first R of the rows only (AS still four pairs a t; the others neither read nor
+// written): each entry the same sum.
+template <int R>
+__attribute__((always_inline)) inline i64 blockr_rows(const simd::v2d* AS, const double* X, i64 stride, i64 k,
+                                                      i64 j0, i64 n, double* r0, double* r1, double* r2,
+                                                      double* r3) {
     using namespace simd;
+    static_assert(R >= 2 && R <= 4, "two to four rows");
     i64 j = j0;
     for (; j + 4 <= n; j += 4) {
         v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
@@ -672,21 +676,29 @@ __attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const
             x = as[1];
             c1 += x * b0;
             d1 += x * b1;
-            x = as[2];
-            c2 += x * b0;
-            d2 += x * b1;
-            x = as[3];
-            c3 += x * b0;
-            d3 += x * b1;
+            if constexpr (R >= 3) {
+                x = as[2];
+                c2 += x * b0;
+                d2 += x * b1;
+            }
+            if constexpr (R >= 4) {
+                x = as[3];
+                c3 += x * b0;
+                d3 += x * b1;
+            }
         }
         store(r0 + j, c0);
         store(r0 + j + 2, d0);
         store(r1 + j, c1);
         store(r1 + j + 2, d1);
-        store(r2 + j, c2);
-        store(r2 + j + 2, d2);
-        store(r3 + j, c3);
-        store(r3 + j + 2, d3);
+        if constexpr (R >= 3) {
+            store(r2 + j, c2);
+            store(r2 + j + 2, d2);
+        }
+        if constexpr (R >= 4) {
+            store(r3 + j, c3);
+            store(r3 + j + 2, d3);
+        }
     }
     for (; j + 2 <= n; j += 2) {
         v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
@@ -696,21 +708,29 @@ __attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const
             v2d bt = load(bp);
             c0 += as[0] * bt;
             c1 += as[1] * bt;
-            c2 += as[2] * bt;
-            c3 += as[3] * bt;
+            if constexpr (R >= 3) c2 += as[2] * bt;
+            if constexpr (R >= 4) c3 += as[3] * bt;
         }
         store(r0 + j, c0);
         store(r1 + j, c1);
-        store(r2 + j, c2);
-        store(r3 + j, c3);
+        if constexpr (R >= 3) store(r2 + j, c2);
+        if constexpr (R >= 4) store(r3 + j, c3);
     }
     return j;
 }
 
+__attribute__((always_inline)) inline i64 block4_rows(const simd::v2d* AS, const double* X, i64 stride,
+                                                      i64 k, i64 j0, i64 n, double* r0, double* r1,
+                                                      double* r2, double* r3) {
+    return blockr_rows<4>(AS, X, stride, k, j0, n, r0, r1, r2, r3);
+}
+
 // Column j of the same four rows (the odd last column block4_rows leaves): entry (r, j) =
 // +0 plus AS[4 t + r] X(t, j) over t < k in t order, two rows a lane (two chains side by side
-// rather than four sums one after the other).
-__attribute__((always_inline)) inline void block4_col(const simd::v2d* AS, const double* X, i64 stride, i64 k,
+// rather than four sums one after the other). R < 4: the first R rows (R = 3: row 2's lane
+// pairs with a +0 one, its result dropped).
+template <int R>
+__attribute__((always_inline)) inline void blockr_col(const simd::v2d* AS, const double* X, i64 stride, i64 k,
                                                       i64 j, double* r0, double* r1, double* r2, double* r3) {
     using namespace simd;
     v2d c01 = splat(0.0), c23 = splat(0.0);
@@ -719,12 +739,52 @@ __attribute__((always_inline)) inline void block4_col(const simd::v2d* AS, const
     for (i64 t = 0; t < k; ++t, bp += stride, as += 4) {
         v2d x = splat(*bp);
         c01 += v2d{as[0][0], as[1][0]} * x;
-        c23 += v2d{as[2][0], as[3][0]} * x;
+        if constexpr (R == 3) c23 += v2d{as[2][0], 0.0} * x;
+        if constexpr (R == 4) c23 += v2d{as[2][0], as[3][0]} * x;
     }
     r0[j] = c01[0];
     r1[j] = c01[1];
-    r2[j] = c23[0];
-    r3[j] = c23[1];
+    if constexpr (R >= 3) r2[j] = c23[0];
+    if constexpr (R >= 4) r3[j] = c23[1];
+}
+
+__attribute__((always_inline)) inline void block4_col(const simd::v2d* AS, const double* X, i64 stride, i64 k,
+                                                      i64 j, double* r0, double* r1, double* r2, double* r3) {
+    blockr_col<4>(AS, X, stride, k, j, r0, r1, r2, r3);
+}
+
+// Lays out rows a[0..R) (R of four pointers) for blockr_rows: AS[4 t + r] = (a[r][t], a[r][t]),
+// t < k, two t a step. False (at the first t where some row's entry is zero: == 0.0, as the
+// scalar tests) where any entry is zero; AS then partly written.
+template <int R>
+__attribute__((always_inline)) inline bool splat_rows(const double* const* a, i64 k, simd::v2d* AS) {
+    using namespace simd;
+    i64 t = 0;
+    const v2d zero = splat(0.0);
+    for (; t + 2 <= k; t += 2) {
+        v2d x[R];
+        v2i z = v2i{0, 0};
+#pragma GCC unroll 4
+        for (int r = 0; r < R; ++r) {
+            x[r] = load(a[r] + t);
+            z |= (x[r] == zero);
+        }
+        if ((z[0] | z[1]) != 0) return false;
+#pragma GCC unroll 4
+        for (int r = 0; r < R; ++r) {
+            AS[4 * t + r] = __builtin_shuffle(x[r], v2i{0, 0});
+            AS[4 * t + 4 + r] = __builtin_shuffle(x[r], v2i{1, 1});
+        }
+    }
+    for (; t < k; ++t) {
+        bool zero_entry = false;
+#pragma GCC unroll 4
+        for (int r = 0; r < R; ++r) zero_entry |= a[r][t] == 0.0;
+        if (zero_entry) return false;
+#pragma GCC unroll 4
+        for (int r = 0; r < R; ++r) AS[4 * t + r] = splat(a[r][t]);
+    }
+    return true;
 }
 
 }  // namespace detail
@@ -741,23 +801,11 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
     constexpr i64 kSplat = 256;  // the most columns of A laid out on the stack (16 kB)
     shape(C, m, n);              // every entry written below
     i64 i = 0;
-    if (n >= 2 && k <= kSplat && m >= 4) {
+    if (n >= 2 && k <= kSplat && m >= 2) {
         v2d AS[4 * kSplat];
         for (; i + 4 <= m; i += 4) {
-            const double* a0 = A.row(i);
-            const double* a1 = A.row(i + 1);
-            const double* a2 = A.row(i + 2);
-            const double* a3 = A.row(i + 3);
-            bool zero = false;
-            for (i64 t = 0; t < k; ++t) {
-                zero = (a0[t] == 0.0) | (a1[t] == 0.0) | (a2[t] == 0.0) | (a3[t] == 0.0);
-                if (zero) break;
-                AS[4 * t] = splat(a0[t]);
-                AS[4 * t + 1] = splat(a1[t]);
-                AS[4 * t + 2] = splat(a2[t]);
-                AS[4 * t + 3] = splat(a3[t]);
-            }
-            if (zero) {
+            const double* a[4] = {A.row(i), A.row(i + 1), A.row(i + 2), A.row(i + 3)};
+            if (!detail::splat_rows<4>(a, k, AS)) {
                 detail::mm_rows(A, B, C, i, i + 4);
                 continue;
             }
@@ -765,6 +813,24 @@ inline void mm_into(CMatRef A, CMatRef B, Mat& C) {
                                         C.row(i + 3));
             if (j < n)
                 detail::block4_col(AS, B.p, B.stride, k, j, C.row(i), C.row(i + 1), C.row(i + 2), C.row(i + 3));
+        }
+        // The last three or two rows (no zero entry): the same blocks on those rows alone.
+        if (m - i == 3) {
+            const double* a[3] = {A.row(i), A.row(i + 1), A.row(i + 2)};
+            if (detail::splat_rows<3>(a, k, AS)) {
+                i64 j = detail::blockr_rows<3>(AS, B.p, B.stride, k, 0, n, C.row(i), C.row(i + 1), C.row(i + 2),
+                                               nullptr);
+                if (j < n)
+                    detail::blockr_col<3>(AS, B.p, B.stride, k, j, C.row(i), C.row(i + 1), C.row(i + 2), nullptr);
+                i = m;
+            }
+        } else if (m - i == 2) {
+            const double* a[2] = {A.row(i), A.row(i + 1)};
+            if (detail::splat_rows<2>(a, k, AS)) {
+                i64 j = detail::blockr_rows<2>(AS, B.p, B.stride, k, 0, n, C.row(i), C.row(i + 1), nullptr, nullptr);
+                if (j < n) detail::blockr_col<2>(AS, B.p, B.stride, k, j, C.row(i), C.row(i + 1), nullptr, nullptr);
+                i = m;
+            }
         }
     }
     detail::mm_rows(A, B, C, i, m);
@@ -839,14 +905,17 @@ inline void mtm_into(CMatRef A, Mat& C) {
         v2d AS[4 * kSplat];
         for (; i + 4 <= n; i += 4) {
             bool zero = false;
+            const v2d z0 = splat(0.0);
             for (i64 t = 0; t < m; ++t) {
                 const double* at = A.row(t) + i;
-                zero = (at[0] == 0.0) | (at[1] == 0.0) | (at[2] == 0.0) | (at[3] == 0.0);
+                v2d lo = load(at), hi = load(at + 2);
+                v2i z = (lo == z0) | (hi == z0);  // (== 0.0 per entry, as the scalar tests)
+                zero = (z[0] | z[1]) != 0;
                 if (zero) break;
-                AS[4 * t] = splat(at[0]);
-                AS[4 * t + 1] = splat(at[1]);
-                AS[4 * t + 2] = splat(at[2]);
-                AS[4 * t + 3] = splat(at[3]);
+                AS[4 * t] = __builtin_shuffle(lo, v2i{0, 0});
+                AS[4 * t + 1] = __builtin_shuffle(lo, v2i{1, 1});
+                AS[4 * t + 2] = __builtin_shuffle(hi, v2i{0, 0});
+                AS[4 * t + 3] = __builtin_shuffle(hi, v2i{1, 1});
             }
             if (zero) break;  // this row and the rest by mtm_rows (one pass over A)
             i64 j = detail::block4_rows(AS, A.p, A.stride, m, i, n, C.row(i), C.row(i + 1), C.row(i + 2),
@@ -856,7 +925,21 @@ inline void mtm_into(CMatRef A, Mat& C) {
         }
     }
     detail::mtm_rows(A, C, i, n);
-    for (i64 r = 0; r < n; ++r)
+    // The lower triangle copied from the upper one (copies only), by 2x2 blocks: rows r, r+1
+    // from columns r, r+1 of rows j, j+1 < r (two loads, two shuffles, two stores), then the
+    // one entry C(r + 1, r) of the diagonal block; an odd last row one entry at a time.
+    i64 r = 0;
+    for (; r + 2 <= n; r += 2) {
+        double* c0 = C.row(r);
+        double* c1 = C.row(r + 1);
+        for (i64 j = 0; j < r; j += 2) {
+            v2d u0 = load(C.row(j) + r), u1 = load(C.row(j + 1) + r);
+            store(c0 + j, __builtin_shuffle(u0, u1, v2i{0, 2}));
+            store(c1 + j, __builtin_shuffle(u0, u1, v2i{1, 3}));
+        }
+        c1[r] = c0[r + 1];
+    }
+    for (; r < n; ++r)
         for (i64 j = 0; j < r; ++j) C(r, j) = C(j, r);
 }
 
