@@ -77,7 +77,16 @@ def test_objective_hessian_lower_triangle(shape):
     k = n  # Z = I (n, n)
     Z = np.eye(n)
     H = E.reduced_qp(
-        AZ, np.zeros(m), AZ, Z, np.zeros(k), 0.0, -np.ones(k), np.ones(k), np.zeros((0, k)), np.zeros(0)
+        AZ,
+        np.zeros(m),
+        AZ,
+        Z,
+        np.zeros(k),
+        0.0,
+        -np.ones(k),
+        np.ones(k),
+        np.zeros((0, k)),
+        np.zeros(0),
     )[0]
     ref = _mtm_reference(AZ)
     off = ~np.eye(n, dtype=bool)
@@ -99,7 +108,9 @@ def test_scaled_rows_match_prescaled(m, n, weights):
     elif weights == "other":
         w = rng.uniform(0.3, 3.0, size=m)
     else:
-        w = np.where(rng.random(m) < 0.5, 2.0 ** rng.integers(-3, 4, size=m), rng.uniform(0.3, 3.0, size=m))
+        w = np.where(
+            rng.random(m) < 0.5, 2.0 ** rng.integers(-3, 4, size=m), rng.uniform(0.3, 3.0, size=m)
+        )
     if m > 2:
         w[1] = 0.0  # a dropped row between kept ones
     kept = w > 0.0

@@ -33,7 +33,9 @@ def test_damped_level_with_active_boxes_is_the_minimiser(m, rho):
         b = rng.normal(size=m) * 3.0
         lb = -rng.uniform(0.05, 0.5, size=n)
         ub = rng.uniform(0.05, 0.5, size=n)
-        res = solver.solve(HierarchyProblem([Level(A, b, rho)], lb, ub, np.zeros((0, n)), np.zeros(0)))
+        res = solver.solve(
+            HierarchyProblem([Level(A, b, rho)], lb, ub, np.zeros((0, n)), np.zeros(0))
+        )
         assert res.status[0] is LevelStatus.SOLVED
         x = np.asarray(res.x)
         ref = _reference(A, b, rho, lb, ub)
