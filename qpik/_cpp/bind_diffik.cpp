@@ -187,6 +187,9 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 //   answers written into row `row` of the attached outputs (no array allocated per call).
 //   code -1: a value is not what its slot takes as it is (nothing solved; the caller writes
 //   the values its general way and calls run).
+// Kernel.go_cold(dt, damping, row, max_iter) -> code
+//   go(dt, damping, row, None, False, max_iter) with positional arguments only (nanobind's
+//   simple dispatch: the per-step call of qpik.IKSolver.step's plain lane).
 // Kernel.attach_aux(owner, <step's first 8 arguments>); Kernel.correct(row, shift, max_iter)
 //   -> code
 //   A second-order correction pass (qpik.StepOptions.correction_passes) of the step the last
@@ -666,6 +669,17 @@ class Kernel {
         return solve_into(row, wv, canonical, max_iter);
     }
 
+    // go(dt, damping, row, None, false, max_iter): the cold step of IKSolver.step's plain
+    // lane, bound with positional arguments only (nanobind's simple dispatch: a call from
+    // Python converts four arguments, not six through the named-argument path; about 200
+    // instructions less per step).
+    i64 go_cold(double dt, double damping, i64 row, i64 max_iter) {
+        last_row_ = -1;
+        pass_row_ = -1;
+        if (!load_sources(dt, damping)) return -1;
+        return solve_into(row, WarmView{}, false, max_iter);
+    }
+
     // A warm array of go(): its int8 entries and shape (given false: None, a cold start).
     struct WarmView {
         const i8* p = nullptr;
@@ -936,6 +950,9 @@ void bind_diffik(nb::module_& m) {
              "returns -1 (nothing solved) where a value is not what its slot takes as it is, is "
              "None or raised (the caller's general way reports it), else the step's code (answers "
              "written only when OK). warm: None for a cold start.")
+        .def("go_cold", &Kernel::go_cold,
+             "go_cold(dt, damping, row, max_iter): go(dt, damping, row, None, False, max_iter) "
+             "(a cold start), its arguments positional only (the plain lane of IKSolver.step).")
         .def(
             "rows",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,

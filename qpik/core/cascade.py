@@ -363,7 +363,7 @@ class HierarchySolver:
         self.backend_options = dict(backend_options or {})
         self._warm: np.ndarray | None = None
         #: ``(stack, row)`` when the last solve's active sets are ``stack[row]``, not yet
-        #: read (:meth:`warm_start_from_row`); ``_warm`` is then None.
+        #: read (:meth:`warm_start_from_row`); it overrides ``_warm`` (then stale, not read).
         self._warm_row: tuple | None = None
         self._workspaces: dict = {}
         # The compiled cascade's storage, kept between solves (no state but capacity).
@@ -427,7 +427,7 @@ class HierarchySolver:
     def warm_start_from_row(self, stack: np.ndarray, row: int) -> None:
         """:meth:`warm_start_from` ``stack[row]``, the row read only when the active sets
         are asked for (``stack``'s row ``row`` must never be written again)."""
-        self._warm, self._warm_row = None, (stack, row)
+        self._warm_row = (stack, row)  # (it overrides _warm: _last_active reads it first)
 
     @property
     def workspace_setups(self) -> int:

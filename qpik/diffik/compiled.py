@@ -22,7 +22,7 @@ box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision li
 is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
 objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it
 computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its
-answers into a row of output arrays allocated :data:`_OUTPUT_ROWS` steps at a time (a
+answers into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (a
 result's arrays are views of its own row, never written again). The step returns a
 :class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
 :class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
@@ -67,10 +67,10 @@ _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items(
 _SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
 
 _perf_counter = time.perf_counter
-_lean_result = StepResult.lean
+_NO_DATA = object()  # never an MjData: CompiledPlan._plain_data while no lane step may go
 
 #: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
-_OUTPUT_ROWS = 64
+OUTPUT_ROWS = 64
 
 # The compiled kernel: its arguments are documented where it is bound
 # (qpik/_cpp/bind_diffik.cpp, above the Kernel class).
@@ -128,7 +128,7 @@ class CompiledPlan:
         self.colds[0] = self.cold
         #: the outputs :meth:`_lean` steps write into (see :meth:`_new_outputs`)
         self._out: tuple = ()
-        self._row = _OUTPUT_ROWS
+        self._row = OUTPUT_ROWS
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
         #: the correction passes of :meth:`_correct` (built on the first)
         self._corrector: LeanCorrection | None = None
@@ -136,8 +136,16 @@ class CompiledPlan:
         self._frame_tasks = [f[0] for f in self.frames]
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
         #: no CoM, relative-frame or row-supplying task, no general rows: once :meth:`_lean`
-        #: attached a configuration, :meth:`step_result` calls the kernel at once
+        #: attached a configuration, :meth:`qpik.IKSolver.step`'s plain lane calls the kernel
+        #: (without correction passes; it reads _plain_data, law, _row, kernel, _cap, _out...)
         self._plain = not (self.coms or self.relatives or self.rows_tasks or self.general_limits)
+        #: a plain plan's ``_data`` once its chains are that MjData's too (else _NO_DATA):
+        #: the lane's one identity test for the three (kept by :meth:`_update_plain_data`)
+        self._plain_data: object = _NO_DATA
+        #: per row of ``_out`` (:meth:`_new_outputs`): the velocity view and the core's pending
+        #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
+        self._velocity_rows: list = []
+        self._active_rows: list = []
         self._linear_tasks = [t[0] for t in self.linears]
         self._config_limits = [c[0] for c in self.config_limits]
         if not self.general_limits:
@@ -237,7 +245,12 @@ class CompiledPlan:
             self._pose_args = self._poses(data)
             self.kernel.attach(data, *self._pose_args)
             self._data = data
+            self._update_plain_data()
         return self._pose_args
+
+    def _update_plain_data(self) -> None:  # after _data or _chain_data changed
+        plain = self._plain and self._data is self._chain_data and self._data is not None
+        self._plain_data = self._data if plain else _NO_DATA
 
     def _gather_linears(self) -> bool:
         """The linear tasks' costs, gains and LM damping into ``lin_data``; False when a
@@ -386,6 +399,7 @@ class CompiledPlan:
             if self.frames:  # the kernel computes the frames'
                 self.kernel.attach_chains(data.cdof, data.subtree_com)
             self._chain_data = data
+            self._update_plain_data()
         for _task, body, _given, jac, _row in self.coms:
             mujoco.mj_jacSubtreeCom(model, data, jac, body)
         for _task, (ff, fid), (rf, rid), jac, _row in self.relatives:
@@ -407,11 +421,11 @@ class CompiledPlan:
         return corrector.run(configuration, self._out[1][row], row, dt, passes)
 
     def _new_outputs(self) -> None:
-        """Fresh rows for the next :data:`_OUTPUT_ROWS` lean steps' answers (a step's
+        """Fresh rows for the next :data:`OUTPUT_ROWS` lean steps' answers (a step's
         answers are views of its own row, never written again; the arrays live on while
         a result holds a view)."""
         nv, levels = self.nv, self.levels
-        rows = _OUTPUT_ROWS
+        rows = OUTPUT_ROWS
         self._out = (
             np.empty((rows, nv)),
             np.empty((rows, nv)),
@@ -420,6 +434,9 @@ class CompiledPlan:
             np.empty((rows, self.model.nq)),
         )
         self.kernel.attach_out(*self._out)
+        self._velocity_rows = list(self._out[1])
+        active = self._out[3]
+        self._active_rows = [(active, row) for row in range(rows)]
         self._row = 0
 
     def _lean(self, configuration: mink.Configuration, dt: float, damping: float, core) -> int:
@@ -439,7 +456,7 @@ class CompiledPlan:
         if core.damping_law is not self.law:
             self._write_law(core)
         row = self._row
-        if row == _OUTPUT_ROWS:
+        if row == OUTPUT_ROWS:
             self._new_outputs()
             row = 0
         nv = self.nv
@@ -572,33 +589,16 @@ class CompiledPlan:
         path must answer."""
         if passes and self.general_limits:
             return None
-        row = self._row
-        plain = (  # _lean inlined where each of its checks holds (else -3: _lean to call)
-            self._plain
-            and not passes
-            and configuration.data is self._data
-            and self._data is self._chain_data
-            and core.damping_law is self.law
-            and row != _OUTPUT_ROWS
-            and not core.warm_start
-        )
-        code = self.kernel.go(dt, damping, row, None, False, self._cap) if plain else -1
-        if code == -1:
-            row = -3
-        else:
-            self._row = row + 1
-            row = row if code == OK else -1
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
-            if row == -3:
-                row = self._lean(configuration, dt, damping, core)
+            row = self._lean(configuration, dt, damping, core)
             if row >= 0:
                 if passes and not self._correct(configuration, row, dt, passes):
                     return None
-                out = self._out
-                core.warm_start_from_row(out[3], row)
-                return _lean_result(
-                    out[1][row], _perf_counter() - start, (out, row, skip, self, dt)
-                )
+                core.warm_start_from_row(self._out[3], row)
+                return StepResult.lean(
+                    self._velocity_rows[row], _perf_counter() - start,
+                    (self._out, row, skip, self, dt),
+                )  # fmt: skip
             if row == -1:
                 return None
         out = self._gathered_step(configuration, dt, damping, core, False)

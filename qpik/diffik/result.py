@@ -185,11 +185,12 @@ class StepResult:
         that give the step's limits. Everything else (the displacement ``d[row]``, the per-level
         lists of ``info[row]``, the couplings' residual, the limits) is read from it on first
         access: the same values :meth:`of` gives, none of them built by a control loop that
-        reads the velocity."""
+        reads the velocity. (:meth:`qpik.IKSolver.step`'s plain lane makes the same object in
+        its own frame: ``object.__new__`` and these three attributes.)"""
         result = _new(cls)
         result.velocity = velocity
         result.solve_time = solve_time
-        result.__dict__["_src"] = source  # (not a field: read by __getattr__)
+        result._src = source  # type: ignore[attr-defined]  # (not a field: __getattr__ reads it)
         return result
 
     def __getattr__(self, name: str) -> Any:

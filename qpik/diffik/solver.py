@@ -39,6 +39,8 @@ from ..errors import InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
+from .compiled import OK as _OK
+from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
 from .plan import make_plan
 from .result import Solution, StepResult, solve_rows
@@ -48,6 +50,7 @@ if TYPE_CHECKING:
     from typing_extensions import Unpack
 
 _perf_counter = time.perf_counter
+_new = object.__new__
 _MinkConfiguration = mink.Configuration
 _DT_MIN, _DT_MAX = checks.DT_MIN, checks.DT_MAX
 
@@ -233,8 +236,47 @@ class IKSolver:
         its kernel)."""
         start = _perf_counter()
         plan, core = self._plan, self._core
+        # The plain lane: the default solver's step by a plain plan (no CoM, relative-frame
+        # or row-supplying task, no general rows), without correction passes, when each
+        # check of CompiledPlan._lean holds (the configuration's MjData attached with its
+        # chains, the damping law's settings written, a free output row, a cold start):
+        # the kernel called from this frame and StepResult.lean's result made here. It is
+        # inlined because a Python call costs about 1.7k instructions of a 72k-instruction
+        # step. Its conditions are one `or` chain whose jumps stay short (CPython 3.11
+        # specializes a comparison only when the jump after it needs no EXTENDED_ARG).
+        if (
+            plan is None
+            or self._passes
+            or type(dt) is not float
+            or core.solver != "auto"
+            or not isinstance(configuration, _MinkConfiguration)
+            or configuration.model is not self.model
+            or not _DT_MIN <= dt <= _DT_MAX
+            or configuration.data is not plan._plain_data  # (never, for a plan not plain)
+            or core.damping_law is not plan.law
+            or (row := plan._row) == _OUTPUT_ROWS
+            or core.warm_start
+        ):
+            code = -1  # not taken: CompiledPlan.step_result decides, as for any plan
+        else:
+            code = plan.kernel.go_cold(dt, self.damping, row, plan._cap)
+            if code == _OK:  # its answers are in row `row` of the outputs
+                plan._row = row + 1
+                # core.warm_start_from_row(plan._out[3], row): its one attribute store
+                core._warm_row = plan._active_rows[row]
+                # StepResult.lean(velocity, solve_time, source), as its attributes
+                lean = _new(StepResult)
+                lean.velocity = plan._velocity_rows[row]
+                lean.solve_time = _perf_counter() - start
+                source = (plan._out, row, self._coupling_level, plan, dt)
+                lean._src = source  # type: ignore[attr-defined]  # (not a field)
+                return lean
+            if code != -1:  # not solved: the QP path reports or recovers it
+                plan._row = row + 1
+            # (code -1: a value the kernel does not take as it is: _lean's way)
         if (  # the default solver: one kernel call, straight to the result
-            plan is not None
+            code == -1
+            and plan is not None
             and type(dt) is float
             and core.solver == "auto"
             and isinstance(configuration, _MinkConfiguration)

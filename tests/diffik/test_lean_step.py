@@ -55,7 +55,7 @@ def test_lean_step_equals_general_and_qp_paths_and_keeps_its_results(panda):
     general._plan._lean = lambda *args: -2  # the values not loaded: the general way
     rng = np.random.default_rng(3)
     kept = []
-    for _ in range(compiled._OUTPUT_ROWS + 6):
+    for _ in range(compiled.OUTPUT_ROWS + 6):
         _targets(rng, configuration, frame, posture)
         a = lean.step(configuration, DT)
         b = general.step(configuration, DT)
