@@ -742,6 +742,7 @@ struct CertScratch {
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref, xstart;
+    IVec xts;                           // eqp_ls's reflection rows
 };
 
 namespace detail {
@@ -923,19 +924,64 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     const double* bt = ls.B.row(t);
                     for (i64 j = 0; j < r; ++j) X(j, t) = bt[j];
                 }
-                Vec& S = ws.e;
-                if (S.size() < static_cast<size_t>(m)) S.resize(static_cast<size_t>(m));  // first m entries used
+                // Reflection i on X's rows i..: per column c, S_c = beta (+0 plus vi[t] X(i + t, c)
+                // over the nonzero vi[t] in t order), then X(i + t, c) -= vi[t] S_c (the sums and
+                // updates of axpy into S and axmy from it, row by row: the same operations per
+                // entry), a column pair at a time in registers (its entries read once, no calls).
+                Vec& vs = ws.e;  // the nonzero vi[t] (their rows in ts)
+                IVec& ts = ws.xts;
+                if (vs.size() < static_cast<size_t>(r)) vs.resize(static_cast<size_t>(r));  // first nt used
+                if (ts.size() < static_cast<size_t>(r)) ts.resize(static_cast<size_t>(r));
                 for (i64 i = 0; i < q; ++i) {
                     double beta = qr.beta[i];
                     if (beta == 0.0) continue;
                     const double* vi = qr.v[static_cast<size_t>(i)].data();
                     i64 size = r - i;
-                    zero_small(S.data(), static_cast<size_t>(m));
-                    for (i64 t = 0; t < size; ++t)
-                        if (vi[t] != 0.0) axpy(S.data(), vi[t], X.row(i + t), m);
-                    for (i64 t = 0; t < m; ++t) S[t] *= beta;
-                    for (i64 t = 0; t < size; ++t)
-                        if (vi[t] != 0.0) axmy(X.row(i + t), vi[t], S.data(), m);
+                    i64 nt = 0;
+                    for (i64 t = 0; t < size; ++t) {
+                        if (vi[t] != 0.0) {
+                            vs[nt] = vi[t];
+                            ts[nt] = i + t;
+                            ++nt;
+                        }
+                    }
+                    using namespace simd;
+                    const v2d bv = splat(beta);
+                    const i64 ld = X.cols;
+                    double* X0 = X.row(0);
+                    i64 c = 0;
+                    for (; c + 4 <= m; c += 4) {
+                        v2d a0 = splat(0.0), a1 = splat(0.0);
+                        for (i64 k = 0; k < nt; ++k) {
+                            const double* xr = X0 + ts[k] * ld + c;
+                            const v2d vk = splat(vs[k]);
+                            a0 = a0 + vk * load(xr);
+                            a1 = a1 + vk * load(xr + 2);
+                        }
+                        a0 = a0 * bv;
+                        a1 = a1 * bv;
+                        for (i64 k = 0; k < nt; ++k) {
+                            double* xr = X0 + ts[k] * ld + c;
+                            const v2d vk = splat(vs[k]);
+                            store(xr, load(xr) - vk * a0);
+                            store(xr + 2, load(xr + 2) - vk * a1);
+                        }
+                    }
+                    for (; c + 2 <= m; c += 2) {
+                        v2d a0 = splat(0.0);
+                        for (i64 k = 0; k < nt; ++k) a0 = a0 + splat(vs[k]) * load(X0 + ts[k] * ld + c);
+                        a0 = a0 * bv;
+                        for (i64 k = 0; k < nt; ++k) {
+                            double* xr = X0 + ts[k] * ld + c;
+                            store(xr, load(xr) - splat(vs[k]) * a0);
+                        }
+                    }
+                    for (; c < m; ++c) {
+                        double a0 = 0.0;
+                        for (i64 k = 0; k < nt; ++k) a0 += vs[k] * X0[ts[k] * ld + c];
+                        a0 *= beta;
+                        for (i64 k = 0; k < nt; ++k) X0[ts[k] * ld + c] -= vs[k] * a0;
+                    }
                 }
                 done = detail::reg_lstsq_into(X.row(q), nw, m, f0, h.data(), s, y, ws.ls);
             }
