@@ -624,8 +624,58 @@ namespace detail {
 // Rows r0..r1-1 of C = A @ B, each row zeroed then B's rows added (axpy, axpy2) where A's
 // entry is nonzero, in t order: entry (i, j) is +0 plus the products A(i, t) B(t, j) of the
 // nonzero A(i, t), added in t order. (Two rows a pass: B's row loaded once.)
+// (A row's nonzero entries listed first, where A has at most kList columns: each entry of C
+// then summed in registers over that list, columns eight, two or one at a time: the same
+// products added in the same order to +0, each entry stored once.)
 inline void mm_rows(CMatRef A, CMatRef B, Mat& C, i64 r0, i64 r1) {
     i64 k = A.cols, n = B.cols;
+    constexpr i64 kList = 256;
+    if (k <= kList) {
+        using namespace simd;
+        i64 ts[kList];
+        double as[kList];
+        const double* B0 = B.p;
+        const i64 ldb = B.stride;
+        for (i64 i = r0; i < r1; ++i) {
+            const double* ai = A.row(i);
+            i64 nt = 0;
+            for (i64 t = 0; t < k; ++t) {
+                if (ai[t] != 0.0) {
+                    ts[nt] = t;
+                    as[nt] = ai[t];
+                    ++nt;
+                }
+            }
+            double* ci = C.row(i);
+            i64 j = 0;
+            for (; j + 8 <= n; j += 8) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) {
+                    const double* bp = B0 + ts[a] * ldb + j;
+                    const v2d x = splat(as[a]);
+                    c0 += x * load(bp);
+                    c1 += x * load(bp + 2);
+                    c2 += x * load(bp + 4);
+                    c3 += x * load(bp + 6);
+                }
+                store(ci + j, c0);
+                store(ci + j + 2, c1);
+                store(ci + j + 4, c2);
+                store(ci + j + 6, c3);
+            }
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) c0 += splat(as[a]) * load(B0 + ts[a] * ldb + j);
+                store(ci + j, c0);
+            }
+            for (; j < n; ++j) {
+                double c0 = 0.0;
+                for (i64 a = 0; a < nt; ++a) c0 += as[a] * B0[ts[a] * ldb + j];
+                ci[j] = c0;
+            }
+        }
+        return;
+    }
     if (r1 > r0) zero_small(C.row(r0), static_cast<size_t>((r1 - r0) * n));  // C's rows contiguous
     i64 i = r0;
     for (; i + 2 <= r1; i += 2) {
