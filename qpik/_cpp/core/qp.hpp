@@ -580,10 +580,23 @@ inline void inverse_transpose_into(const Mat& L, Mat& JT) {
     using namespace simd;
     i64 n = L.rows;
     zero_upper(JT, n);  // row k's entries 0..k are written below
+    // Whether every entry on and below the diagonal is finite: x - x is +0 for a finite x and
+    // NaN otherwise, and a sum of them is 0 only when every one is +0 (two lanes a pass).
     bool finite = true;
-    for (i64 k = 0; k < n && finite; ++k)
-        for (i64 t = 0; t <= k; ++t)
-            if (!std::isfinite(L(k, t))) finite = false;
+    {
+        v2d acc = splat(0.0);
+        double tail = 0.0;
+        for (i64 k = 0; k < n; ++k) {
+            const double* lk = L.row(k);
+            i64 t = 0;
+            for (; t + 2 <= k + 1; t += 2) {
+                v2d x = load(lk + t);
+                acc += x - x;
+            }
+            if (t <= k) tail += lk[t] - lk[t];
+        }
+        finite = (acc[0] + acc[1]) + tail == 0.0;
+    }
     for (i64 k = 0; k < n; ++k) {
         double* jk = JT.row(k);
         const double* lk = L.row(k);
