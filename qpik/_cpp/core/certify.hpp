@@ -1107,16 +1107,29 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
             } else {
                 shape(BW, mb, nw);  // every entry written below
-                // (apply_t of each row, taken on the rows as columns of B^T: the same operations)
-                Mat& BT = ws.BT;
-                shape(BT, r, mb);  // every entry written below
-                for (i64 i = 0; i < mb; ++i) {
-                    const double* bi = ls.B.row(i);
-                    for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+                if (mb >= 4 && detail::finite_block(ls.B.a.data(), mb, r, r)) {
+                    // (apply_t of each row, taken on the rows as columns of B^T: the same
+                    // operations; B finite, so that no NaN's sign or payload could follow the
+                    // order the compiler gives an addition's operands)
+                    Mat& BT = ws.BT;
+                    shape(BT, r, mb);  // every entry written below
+                    for (i64 i = 0; i < mb; ++i) {
+                        const double* bi = ls.B.row(i);
+                        for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+                    }
+                    qr.apply_t_cols(BT.row(0), mb, mb);
+                    for (i64 i = 0; i < mb; ++i)
+                        for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
+                } else {
+                    Vec& row = ws.row;
+                    if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
+                    for (i64 i = 0; i < mb; ++i) {
+                        const double* bi = ls.B.row(i);
+                        for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                        qr.apply_t(row.data());
+                        for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                    }
                 }
-                qr.apply_t_cols(BT.row(0), mb, mb);
-                for (i64 i = 0; i < mb; ++i)
-                    for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
             }
             detail::ls_mv_into(ls, z.data(), f0);
             for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];

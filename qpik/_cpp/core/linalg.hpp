@@ -624,13 +624,33 @@ namespace detail {
 // Rows r0..r1-1 of C = A @ B, each row zeroed then B's rows added (axpy, axpy2) where A's
 // entry is nonzero, in t order: entry (i, j) is +0 plus the products A(i, t) B(t, j) of the
 // nonzero A(i, t), added in t order. (Two rows a pass: B's row loaded once.)
-// (A row's nonzero entries listed first, where A has at most kList columns: each entry of C
-// then summed in registers over that list, columns eight, two or one at a time: the same
-// products added in the same order to +0, each entry stored once.)
+// Whether every entry of the rows x cols block at p (rows `stride` apart) is finite: x - x is
+// +0 for a finite x and NaN otherwise, and a sum of them is 0 only when every one is +0.
+inline bool finite_block(const double* p, i64 rows, i64 cols, i64 stride) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    double tail = 0.0;
+    for (i64 i = 0; i < rows; ++i, p += stride) {
+        i64 j = 0;
+        for (; j + 2 <= cols; j += 2) {
+            v2d x = load(p + j);
+            acc += x - x;
+        }
+        if (j < cols) tail += p[j] - p[j];
+    }
+    return (acc[0] + acc[1]) + tail == 0.0;
+}
+
+// (A row's nonzero entries listed first, where A has at most kList columns and A's rows and
+// B are finite: each entry of C then summed in registers over that list, columns eight, two
+// or one at a time: the same products added in the same order to +0, each entry stored once.
+// With a NaN among them the sum's NaN could take the other operand's sign or payload where
+// the compiler orders an addition's operands otherwise: the axpy passes below then.)
 inline void mm_rows(CMatRef A, CMatRef B, Mat& C, i64 r0, i64 r1) {
     i64 k = A.cols, n = B.cols;
     constexpr i64 kList = 256;
-    if (k <= kList) {
+    if (k <= kList && r1 > r0 && finite_block(A.row(r0), r1 - r0, k, A.stride) &&
+        finite_block(B.p, B.rows, n, B.stride)) {
         using namespace simd;
         i64 ts[kList];
         double as[kList];
@@ -897,13 +917,14 @@ namespace detail {
 // Rows r0..r1-1 of the upper triangle of C = A^T A: C(i, j) for j >= i is +0 plus the products
 // A(t, i) A(t, j) of the nonzero A(t, i), added in t order (row i of C zeroed from i on, then
 // A's rows added by axpy where A(t, i) is nonzero).
-// (Where A has at most kList rows: row i's list of the nonzero A(t, i) made first, then each
-// entry C(i, j) summed in registers over it, columns eight, two or one at a time: the same
-// products added in the same order to +0, each entry stored once.)
+// (Where A has at most kList rows and is finite: row i's list of the nonzero A(t, i) made
+// first, then each entry C(i, j) summed in registers over it, columns eight, two or one at a
+// time: the same products added in the same order to +0, each entry stored once; with a NaN
+// the axpy passes below, as mm_rows.)
 inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
     i64 m = A.rows, n = A.cols;
     constexpr i64 kList = 256;
-    if (m <= kList) {
+    if (m <= kList && r1 > r0 && finite_block(A.p, m, n, A.stride)) {
         using namespace simd;
         i64 ts[kList];
         double as[kList];
