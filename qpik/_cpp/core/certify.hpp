@@ -1107,10 +1107,13 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
             } else {
                 shape(BW, mb, nw);  // every entry written below
-                if (mb >= 4 && detail::finite_block(ls.B.a.data(), mb, r, r)) {
+                bool cols = mb >= 4;
+                if (cols) {
                     // (apply_t of each row, taken on the rows as columns of B^T: the same
-                    // operations; B finite, so that no NaN's sign or payload could follow the
-                    // order the compiler gives an addition's operands)
+                    // operations. Where an entry of the result is not finite, the rows one at a
+                    // time again: only there could a NaN meet another of another sign or
+                    // payload, where the one kept follows the operand order the compiler picks;
+                    // with every entry finite, every product and sum was finite, the same bits.)
                     Mat& BT = ws.BT;
                     shape(BT, r, mb);  // every entry written below
                     for (i64 i = 0; i < mb; ++i) {
@@ -1118,9 +1121,12 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                         for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
                     }
                     qr.apply_t_cols(BT.row(0), mb, mb);
-                    for (i64 i = 0; i < mb; ++i)
-                        for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
-                } else {
+                    cols = detail::finite_block(BT.row(0), r, mb, mb);
+                    if (cols)
+                        for (i64 i = 0; i < mb; ++i)
+                            for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
+                }
+                if (!cols) {
                     Vec& row = ws.row;
                     if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
                     for (i64 i = 0; i < mb; ++i) {
