@@ -705,7 +705,6 @@ inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& 
         double alpha = std::sqrt(s * s + sumv);
         double v0 = s + alpha;
         double f2 = 2.0 / (v0 * v0 + sumv);
-        i64 w = k - j - 1;
         // the rows with v[t] != 0 (the others add and take +-0: skipped, as before)
         i64 nt = 0;
         for (i64 t = 0; t < m; ++t)
@@ -761,7 +760,6 @@ inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& 
                 for (i64 a = 0; a < nt; ++a) M0[nz[a] * ld + l] -= v[nz[a]] * a0;
             }
         }
-        (void)w;
         c[j] = h[j] - v0 * sc;
         for (i64 a = 0; a < nt; ++a) g[nz[a]] -= v[nz[a]] * sc;
         Rj[j] = -alpha;
