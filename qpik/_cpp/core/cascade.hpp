@@ -1181,15 +1181,24 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
         }
     }
     // (with Z = I a box row's norm 1 is above 1e-20: its bounds stay)
-    for (i64 i = z_eye && r == n ? n : 0; i < n + p; ++i) {
+    // Each row's |c|^2 as dot sums it (eight rows a pass by detail::sq8: the same sums).
+    auto test = [&](i64 i, double norm) {
         double size = 1.0;
         if (i >= n) size = gsq ? gsq[i - n] : row_sq_of(G, i - n);
-        double norm = dot(out.C.row(i), out.C.row(i), r);
         if (norm <= 1e-20 * size) {
             out.lo[i] = -kInf;
             out.hi[i] = kInf;
         }
+    };
+    i64 i = z_eye && r == n ? n : 0;
+    for (; i + 8 <= n + p; i += 8) {
+        const double* rows[8];
+        for (int k = 0; k < 8; ++k) rows[k] = out.C.row(i + k);
+        double sq[8];
+        detail::sq8(rows, r, sq);
+        for (int k = 0; k < 8; ++k) test(i + k, sq[k]);
     }
+    for (; i < n + p; ++i) test(i, dot(out.C.row(i), out.C.row(i), r));
 }
 
 // The level's QP in null-space coordinates dq = d + Z z (see reduced_qp).

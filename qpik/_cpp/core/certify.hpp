@@ -202,6 +202,54 @@ struct ImplicitQR {
             axmy(x + i, s, vi.data(), size);
         }
     }
+    // apply_t (finite false) of each of the nc columns of X (r rows, row stride ld): per column,
+    // reflection i's sum from +0 of v_i[t] X(i + t, c) over every t in order (dot's), times
+    // beta_i, then X(i + t, c) -= s v_i[t] (axmy's): the same operations per column, taken a
+    // column pair (or four) at a time in registers, with no calls and several sums in flight.
+    void apply_t_cols(double* X, i64 ld, i64 nc) const {
+        using namespace simd;
+        for (i64 i = 0; i < q; ++i) {
+            if (beta[i] == 0.0) continue;
+            const double* vi = v[static_cast<size_t>(i)].data();
+            const i64 size = r - i;
+            const v2d bv = splat(beta[i]);
+            double* Xi = X + i * ld;
+            i64 c = 0;
+            for (; c + 4 <= nc; c += 4) {
+                v2d a0 = splat(0.0), a1 = splat(0.0);
+                const double* p = Xi + c;
+                for (i64 t = 0; t < size; ++t, p += ld) {
+                    const v2d vt = splat(vi[t]);
+                    a0 = a0 + vt * load(p);
+                    a1 = a1 + vt * load(p + 2);
+                }
+                a0 = a0 * bv;
+                a1 = a1 * bv;
+                double* w = Xi + c;
+                for (i64 t = 0; t < size; ++t, w += ld) {
+                    const v2d vt = splat(vi[t]);
+                    store(w, load(w) - a0 * vt);
+                    store(w + 2, load(w + 2) - a1 * vt);
+                }
+            }
+            for (; c + 2 <= nc; c += 2) {
+                v2d a0 = splat(0.0);
+                const double* p = Xi + c;
+                for (i64 t = 0; t < size; ++t, p += ld) a0 = a0 + splat(vi[t]) * load(p);
+                a0 = a0 * bv;
+                double* w = Xi + c;
+                for (i64 t = 0; t < size; ++t, w += ld) store(w, load(w) - a0 * splat(vi[t]));
+            }
+            for (; c < nc; ++c) {
+                double a0 = 0.0;
+                const double* p = Xi + c;
+                for (i64 t = 0; t < size; ++t, p += ld) a0 += vi[t] * *p;
+                a0 *= beta[i];
+                double* w = Xi + c;
+                for (i64 t = 0; t < size; ++t, w += ld) *w -= a0 * vi[t];
+            }
+        }
+    }
     // x <- Q x (finite: as apply_t).
     void apply(double* x, bool finite = false) const {
         for (i64 i = q - 1; i >= 0; --i) {
@@ -227,6 +275,7 @@ struct LsScratch {
     ImplicitQR qn;
     Mat R;       // reg_lstsq_into
     Vec c;
+    IVec nz;     // reg_lstsq_rows_into
 };
 
 // The reflection of reflect_columns on rows sup[0..ns) (in order), columns i..k-1 of M:
@@ -645,8 +694,8 @@ inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& 
     shape(c, static_cast<size_t>(k));
     Vec& v = ws.x;  // column j of M
     if (v.size() < static_cast<size_t>(m)) v.resize(static_cast<size_t>(m));
-    Vec& S = ws.S;
-    if (S.size() < static_cast<size_t>(k)) S.resize(static_cast<size_t>(k));
+    IVec& nz = ws.nz;
+    if (nz.size() < static_cast<size_t>(m)) nz.resize(static_cast<size_t>(m));  // first nt used
     for (i64 j = 0; j < k; ++j) {
         double sumv = 0.0;
         for (i64 t = 0; t < m; ++t) {
@@ -656,29 +705,63 @@ inline bool reg_lstsq_rows_into(Mat& M, Vec& g, const double* h, double s, Vec& 
         double alpha = std::sqrt(s * s + sumv);
         double v0 = s + alpha;
         double f2 = 2.0 / (v0 * v0 + sumv);
-        i64 w = k - j - 1;
-        double* Sj = S.data() + j + 1;
-        zero_small(Sj, static_cast<size_t>(w));  // (R_jl = 0 before the step)
+        // the rows with v[t] != 0 (the others add and take +-0: skipped, as before)
+        i64 nt = 0;
+        for (i64 t = 0; t < m; ++t)
+            if (v[t] != 0.0) nz[nt++] = t;
         double sc = v0 * h[j];
-        for (i64 t = 0; t < m; ++t) {
-            double vt = v[t];
-            if (vt == 0.0) continue;
-            axpy(Sj, vt, M.row(t) + j + 1, w);
-            sc += vt * g[t];
-        }
+        for (i64 a = 0; a < nt; ++a) sc += v[nz[a]] * g[nz[a]];
         sc *= f2;
+        // Per column l > j (R_jl = 0 before the step): S_l = f2 (+0 plus v[t] M(t, l) over the
+        // nonzero v[t] in t order), R_jl = -v0 S_l, then M(t, l) -= v[t] S_l: the sums of axpy
+        // into S and the updates of axmy from it, row by row, the same operations per entry,
+        // taken a column pair at a time in registers (no calls, each entry read once).
         double* Rj = R.row(j);
-        for (i64 l = 0; l < w; ++l) {
-            Sj[l] *= f2;
-            Rj[j + 1 + l] = -v0 * Sj[l];
+        {
+            using namespace simd;
+            const v2d fv = splat(f2), nv = splat(-v0);
+            const i64 ld = M.cols;
+            double* M0 = M.a.data();
+            i64 l = j + 1;
+            for (; l + 4 <= k; l += 4) {
+                v2d a0 = splat(0.0), a1 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) {
+                    const double* p = M0 + nz[a] * ld + l;
+                    const v2d va = splat(v[nz[a]]);
+                    a0 = a0 + va * load(p);
+                    a1 = a1 + va * load(p + 2);
+                }
+                a0 = a0 * fv;
+                a1 = a1 * fv;
+                store(Rj + l, nv * a0);
+                store(Rj + l + 2, nv * a1);
+                for (i64 a = 0; a < nt; ++a) {
+                    double* p = M0 + nz[a] * ld + l;
+                    const v2d va = splat(v[nz[a]]);
+                    store(p, load(p) - va * a0);
+                    store(p + 2, load(p + 2) - va * a1);
+                }
+            }
+            for (; l + 2 <= k; l += 2) {
+                v2d a0 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) a0 = a0 + splat(v[nz[a]]) * load(M0 + nz[a] * ld + l);
+                a0 = a0 * fv;
+                store(Rj + l, nv * a0);
+                for (i64 a = 0; a < nt; ++a) {
+                    double* p = M0 + nz[a] * ld + l;
+                    store(p, load(p) - splat(v[nz[a]]) * a0);
+                }
+            }
+            for (; l < k; ++l) {
+                double a0 = 0.0;
+                for (i64 a = 0; a < nt; ++a) a0 += v[nz[a]] * M0[nz[a] * ld + l];
+                a0 *= f2;
+                Rj[l] = -v0 * a0;
+                for (i64 a = 0; a < nt; ++a) M0[nz[a] * ld + l] -= v[nz[a]] * a0;
+            }
         }
         c[j] = h[j] - v0 * sc;
-        for (i64 t = 0; t < m; ++t) {
-            double vt = v[t];
-            if (vt == 0.0) continue;
-            axmy(M.row(t) + j + 1, vt, Sj, w);
-            g[t] -= vt * sc;
-        }
+        for (i64 a = 0; a < nt; ++a) g[nz[a]] -= v[nz[a]] * sc;
         Rj[j] = -alpha;
     }
     reg_back(R, c, k, y);
@@ -742,6 +825,8 @@ struct CertScratch {
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref, xstart;
+    IVec xts;                           // eqp_ls's reflection rows
+    Mat BT;                             // eqp_ls's B^T
 };
 
 namespace detail {
@@ -908,10 +993,23 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             if (m <= nw) {
                 // A Z W by rows (Q^T B_i^T for A Z's rows)
                 shape(BW, m, nw);  // every entry written below
-                for (i64 i = 0; i < m; ++i) {
-                    std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
-                    qr.apply_t(row.data());
-                    std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
+                if (m < 4) {  // (few rows: one at a time costs less than the transposes)
+                    for (i64 i = 0; i < m; ++i) {
+                        std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
+                        qr.apply_t(row.data());
+                        std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
+                    }
+                } else {
+                    // (apply_t of each row, taken on the rows as columns of B^T: the same operations)
+                    Mat& BT = ws.BT;
+                    shape(BT, r, m);  // every entry written below
+                    for (i64 i = 0; i < m; ++i) {
+                        const double* bi = ls.B.row(i);
+                        for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+                    }
+                    qr.apply_t_cols(BT.row(0), m, m);
+                    for (i64 i = 0; i < m; ++i)
+                        for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
                 }
                 done = detail::reg_lstsq_rows_into(BW, f0, h.data(), s, y, ws.ls);
             } else {
@@ -923,19 +1021,64 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     const double* bt = ls.B.row(t);
                     for (i64 j = 0; j < r; ++j) X(j, t) = bt[j];
                 }
-                Vec& S = ws.e;
-                if (S.size() < static_cast<size_t>(m)) S.resize(static_cast<size_t>(m));  // first m entries used
+                // Reflection i on X's rows i..: per column c, S_c = beta (+0 plus vi[t] X(i + t, c)
+                // over the nonzero vi[t] in t order), then X(i + t, c) -= vi[t] S_c (the sums and
+                // updates of axpy into S and axmy from it, row by row: the same operations per
+                // entry), a column pair at a time in registers (its entries read once, no calls).
+                Vec& vs = ws.e;  // the nonzero vi[t] (their rows in ts)
+                IVec& ts = ws.xts;
+                if (vs.size() < static_cast<size_t>(r)) vs.resize(static_cast<size_t>(r));  // first nt used
+                if (ts.size() < static_cast<size_t>(r)) ts.resize(static_cast<size_t>(r));
                 for (i64 i = 0; i < q; ++i) {
                     double beta = qr.beta[i];
                     if (beta == 0.0) continue;
                     const double* vi = qr.v[static_cast<size_t>(i)].data();
                     i64 size = r - i;
-                    zero_small(S.data(), static_cast<size_t>(m));
-                    for (i64 t = 0; t < size; ++t)
-                        if (vi[t] != 0.0) axpy(S.data(), vi[t], X.row(i + t), m);
-                    for (i64 t = 0; t < m; ++t) S[t] *= beta;
-                    for (i64 t = 0; t < size; ++t)
-                        if (vi[t] != 0.0) axmy(X.row(i + t), vi[t], S.data(), m);
+                    i64 nt = 0;
+                    for (i64 t = 0; t < size; ++t) {
+                        if (vi[t] != 0.0) {
+                            vs[nt] = vi[t];
+                            ts[nt] = i + t;
+                            ++nt;
+                        }
+                    }
+                    using namespace simd;
+                    const v2d bv = splat(beta);
+                    const i64 ld = X.cols;
+                    double* X0 = X.row(0);
+                    i64 c = 0;
+                    for (; c + 4 <= m; c += 4) {
+                        v2d a0 = splat(0.0), a1 = splat(0.0);
+                        for (i64 k = 0; k < nt; ++k) {
+                            const double* xr = X0 + ts[k] * ld + c;
+                            const v2d vk = splat(vs[k]);
+                            a0 = a0 + vk * load(xr);
+                            a1 = a1 + vk * load(xr + 2);
+                        }
+                        a0 = a0 * bv;
+                        a1 = a1 * bv;
+                        for (i64 k = 0; k < nt; ++k) {
+                            double* xr = X0 + ts[k] * ld + c;
+                            const v2d vk = splat(vs[k]);
+                            store(xr, load(xr) - vk * a0);
+                            store(xr + 2, load(xr + 2) - vk * a1);
+                        }
+                    }
+                    for (; c + 2 <= m; c += 2) {
+                        v2d a0 = splat(0.0);
+                        for (i64 k = 0; k < nt; ++k) a0 = a0 + splat(vs[k]) * load(X0 + ts[k] * ld + c);
+                        a0 = a0 * bv;
+                        for (i64 k = 0; k < nt; ++k) {
+                            double* xr = X0 + ts[k] * ld + c;
+                            store(xr, load(xr) - splat(vs[k]) * a0);
+                        }
+                    }
+                    for (; c < m; ++c) {
+                        double a0 = 0.0;
+                        for (i64 k = 0; k < nt; ++k) a0 += vs[k] * X0[ts[k] * ld + c];
+                        a0 *= beta;
+                        for (i64 k = 0; k < nt; ++k) X0[ts[k] * ld + c] -= vs[k] * a0;
+                    }
                 }
                 done = detail::reg_lstsq_into(X.row(q), nw, m, f0, h.data(), s, y, ws.ls);
             }
@@ -962,13 +1105,34 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
             } else {
                 shape(BW, mb, nw);  // every entry written below
-                Vec& row = ws.row;
-                if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
-                for (i64 i = 0; i < mb; ++i) {
-                    const double* bi = ls.B.row(i);
-                    for (i64 k = 0; k < r; ++k) row[k] = bi[k];
-                    qr.apply_t(row.data());
-                    for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                bool cols = mb >= 4;
+                if (cols) {
+                    // (apply_t of each row, taken on the rows as columns of B^T: the same
+                    // operations. Where an entry of the result is not finite, the rows one at a
+                    // time again: only there could a NaN meet another of another sign or
+                    // payload, where the one kept follows the operand order the compiler picks;
+                    // with every entry finite, every product and sum was finite, the same bits.)
+                    Mat& BT = ws.BT;
+                    shape(BT, r, mb);  // every entry written below
+                    for (i64 i = 0; i < mb; ++i) {
+                        const double* bi = ls.B.row(i);
+                        for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+                    }
+                    qr.apply_t_cols(BT.row(0), mb, mb);
+                    cols = detail::finite_block(BT.row(0), r, mb, mb);
+                    if (cols)
+                        for (i64 i = 0; i < mb; ++i)
+                            for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
+                }
+                if (!cols) {
+                    Vec& row = ws.row;
+                    if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
+                    for (i64 i = 0; i < mb; ++i) {
+                        const double* bi = ls.B.row(i);
+                        for (i64 k = 0; k < r; ++k) row[k] = bi[k];
+                        qr.apply_t(row.data());
+                        for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
+                    }
                 }
             }
             detail::ls_mv_into(ls, z.data(), f0);

@@ -621,6 +621,23 @@ inline bool no_zero_entry(CMatRef A) {
 }
 
 namespace detail {
+// Whether every entry of the rows x cols block at p (rows `stride` apart) is finite: x - x is
+// +0 for a finite x and NaN otherwise, and a sum of them is 0 only when every one is +0.
+inline bool finite_block(const double* p, i64 rows, i64 cols, i64 stride) {
+    using namespace simd;
+    v2d acc = splat(0.0);
+    double tail = 0.0;
+    for (i64 i = 0; i < rows; ++i, p += stride) {
+        i64 j = 0;
+        for (; j + 2 <= cols; j += 2) {
+            v2d x = load(p + j);
+            acc += x - x;
+        }
+        if (j < cols) tail += p[j] - p[j];
+    }
+    return (acc[0] + acc[1]) + tail == 0.0;
+}
+
 // Rows r0..r1-1 of C = A @ B, each row zeroed then B's rows added (axpy, axpy2) where A's
 // entry is nonzero, in t order: entry (i, j) is +0 plus the products A(i, t) B(t, j) of the
 // nonzero A(i, t), added in t order. (Two rows a pass: B's row loaded once.)
@@ -847,8 +864,74 @@ namespace detail {
 // Rows r0..r1-1 of the upper triangle of C = A^T A: C(i, j) for j >= i is +0 plus the products
 // A(t, i) A(t, j) of the nonzero A(t, i), added in t order (row i of C zeroed from i on, then
 // A's rows added by axpy where A(t, i) is nonzero).
+// (Where A has at most kList rows: row i's list of the nonzero A(t, i) made first, then each
+// entry C(i, j) summed in registers over it, columns eight, two or one at a time: the same
+// products added in the same order to +0, each entry stored once. A row with an entry not
+// finite is made again by the axpy passes below: only there could a NaN meet another NaN of
+// another sign or payload, where the one kept follows the operand order the compiler picks;
+// with every entry finite, every product and sum was finite and the bits are the same.)
 inline void mtm_rows(CMatRef A, Mat& C, i64 r0, i64 r1) {
     i64 m = A.rows, n = A.cols;
+    constexpr i64 kList = 256;
+    if (m <= kList) {
+        using namespace simd;
+        i64 ts[kList];
+        double as[kList];
+        const double* A0 = A.p;
+        const i64 lda = A.stride;
+        for (i64 i = r0; i < r1; ++i) {
+            i64 nt = 0;
+            for (i64 t = 0; t < m; ++t) {
+                const double a = A0[t * lda + i];
+                if (a != 0.0) {
+                    ts[nt] = t;
+                    as[nt] = a;
+                    ++nt;
+                }
+            }
+            double* ci = C.row(i);
+            v2d fin = splat(0.0);  // the sum of c - c over the row's entries: 0 where all finite
+            double fin1 = 0.0;
+            i64 j = i;
+            for (; j + 8 <= n; j += 8) {
+                v2d c0 = splat(0.0), c1 = splat(0.0), c2 = splat(0.0), c3 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) {
+                    const double* bp = A0 + ts[a] * lda + j;
+                    const v2d x = splat(as[a]);
+                    c0 += x * load(bp);
+                    c1 += x * load(bp + 2);
+                    c2 += x * load(bp + 4);
+                    c3 += x * load(bp + 6);
+                }
+                store(ci + j, c0);
+                store(ci + j + 2, c1);
+                store(ci + j + 4, c2);
+                store(ci + j + 6, c3);
+                fin += ((c0 - c0) + (c1 - c1)) + ((c2 - c2) + (c3 - c3));
+            }
+            for (; j + 2 <= n; j += 2) {
+                v2d c0 = splat(0.0);
+                for (i64 a = 0; a < nt; ++a) c0 += splat(as[a]) * load(A0 + ts[a] * lda + j);
+                store(ci + j, c0);
+                fin += c0 - c0;
+            }
+            for (; j < n; ++j) {
+                double c0 = 0.0;
+                for (i64 a = 0; a < nt; ++a) c0 += as[a] * A0[ts[a] * lda + j];
+                ci[j] = c0;
+                fin1 += c0 - c0;
+            }
+            if (!((fin[0] + fin[1]) + fin1 == 0.0)) {  // (rare) the row again, as below
+                zero_small(ci + i, static_cast<size_t>(n - i));
+                for (i64 t = 0; t < m; ++t) {
+                    const double* at = A.row(t);
+                    double a = at[i];
+                    if (a != 0.0) axpy(ci + i, a, at + i, n - i);
+                }
+            }
+        }
+        return;
+    }
     for (i64 i = r0; i < r1; ++i) zero_small(C.row(i) + i, static_cast<size_t>(n - i));
     for (i64 t = 0; t < m; ++t) {
         const double* at = A.row(t);
