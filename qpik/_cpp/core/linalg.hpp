@@ -1118,7 +1118,29 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
             h = h - f * g;
             d[i - 1] = f - g;
             for (i64 j = 0; j < i; ++j) e[j] = 0.0;
-            for (i64 j = 0; j < i; ++j) {
+            // (columns j, j + 1 side by side: their sums g as two independent chains in the
+            // lanes of one vector, each e[k] updated by column j then j + 1 as in the loop
+            // over j one at a time: the same operations in the same order per value)
+            i64 j = 0;
+            for (; j + 1 < i; j += 2) {
+                using namespace simd;
+                const double f0 = d[j], f1 = d[j + 1];
+                V(j, i) = f0;
+                double g0 = e[j] + V(j, j) * f0;
+                g0 += V(j + 1, j) * d[j + 1];
+                e[j + 1] += V(j + 1, j) * f0;
+                V(j + 1, i) = f1;
+                const double g1 = e[j + 1] + V(j + 1, j + 1) * f1;
+                v2d gg = v2d{g0, g1};
+                for (i64 k = j + 2; k <= i - 1; ++k) {
+                    const double* vk = V.row(k) + j;
+                    gg += load(vk) * splat(d[k]);
+                    e[k] = (e[k] + vk[0] * f0) + vk[1] * f1;
+                }
+                e[j] = gg[0];
+                e[j + 1] = gg[1];
+            }
+            for (; j < i; ++j) {
                 f = d[j];
                 V(j, i) = f;
                 g = e[j] + V(j, j) * f;
@@ -1135,7 +1157,23 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
             }
             double hh = f / (h + h);
             for (i64 j = 0; j < i; ++j) e[j] -= hh * d[j];
-            for (i64 j = 0; j < i; ++j) {
+            // (columns j, j + 1 in the lanes of one vector: the same operations per entry)
+            j = 0;
+            for (; j + 1 < i; j += 2) {
+                using namespace simd;
+                const double f0 = d[j], g0 = e[j];
+                const v2d f2 = v2d{f0, d[j + 1]}, g2 = v2d{g0, e[j + 1]};
+                V(j, j) -= (f0 * e[j] + g0 * d[j]);
+                for (i64 k = j + 1; k <= i - 1; ++k) {
+                    double* vk = V.row(k) + j;
+                    store(vk, load(vk) - (f2 * splat(e[k]) + g2 * splat(d[k])));
+                }
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+                d[j + 1] = V(i - 1, j + 1);
+                V(i, j + 1) = 0.0;
+            }
+            for (; j < i; ++j) {
                 f = d[j];
                 g = e[j];
                 for (i64 k = j; k <= i - 1; ++k) V(k, j) -= (f * e[k] + g * d[k]);
