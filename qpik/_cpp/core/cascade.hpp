@@ -673,14 +673,29 @@ inline bool one_per_row_product(CMatRef A, CMatRef Z, Mat& C) {
     const i64 m = A.rows, k = A.cols, n = Z.cols;
     if (m > kRows) return false;
     i64 at[kRows];
+    // (per row: the count of nonzero entries (x != 0.0: a NaN counts) and the last one's
+    // index, two entries a step without a branch on each, the count checked every eight)
+    using namespace simd;
+    const v2i zero_i = v2i{0, 0};
     for (i64 i = 0; i < m; ++i) {
         const double* ai = A.row(i);
-        i64 c = -1;
-        for (i64 t = 0; t < k; ++t) {
-            if (ai[t] != 0.0) {
-                if (c >= 0) return false;
-                c = t;
+        v2i cnt = zero_i, pos = v2i{-1, -1}, idx = v2i{0, 1};
+        const v2i two = v2i{2, 2};
+        i64 t = 0;
+        while (t + 2 <= k) {
+            const i64 stop = std::min<i64>(k, t + 8);
+            for (; t + 2 <= stop; t += 2) {
+                const v2i nz = (load(ai + t) != splat(0.0));
+                cnt -= nz;
+                pos = (idx & nz) | (pos & ~nz);
+                idx += two;
             }
+            if (cnt[0] + cnt[1] > 1) return false;
+        }
+        i64 c = cnt[0] ? pos[0] : cnt[1] ? pos[1] : -1;
+        if (t < k && ai[t] != 0.0) {
+            if (c >= 0) return false;
+            c = t;
         }
         at[i] = c;
     }
@@ -693,7 +708,10 @@ inline bool one_per_row_product(CMatRef A, CMatRef Z, Mat& C) {
         }
         const double a = A(i, at[i]);
         const double* zt = Z.row(at[i]);
-        for (i64 j = 0; j < n; ++j) ci[j] = 0.0 + a * zt[j];
+        i64 j = 0;
+        const v2d av = splat(a);
+        for (; j + 2 <= n; j += 2) store(ci + j, splat(0.0) + av * load(zt + j));
+        for (; j < n; ++j) ci[j] = 0.0 + a * zt[j];
     }
     return true;
 }

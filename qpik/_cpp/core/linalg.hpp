@@ -1201,7 +1201,29 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
             h = h - f * g;
             d[i - 1] = f - g;
             for (i64 j = 0; j < i; ++j) e[j] = 0.0;
-            for (i64 j = 0; j < i; ++j) {
+            // (columns j, j + 1 side by side: their sums g as two independent chains in the
+            // lanes of one vector, each e[k] updated by column j then j + 1 as in the loop
+            // over j one at a time: the same operations in the same order per value)
+            i64 j = 0;
+            for (; j + 1 < i; j += 2) {
+                using namespace simd;
+                const double f0 = d[j], f1 = d[j + 1];
+                V(j, i) = f0;
+                double g0 = e[j] + V(j, j) * f0;
+                g0 += V(j + 1, j) * d[j + 1];
+                e[j + 1] += V(j + 1, j) * f0;
+                V(j + 1, i) = f1;
+                const double g1 = e[j + 1] + V(j + 1, j + 1) * f1;
+                v2d gg = v2d{g0, g1};
+                for (i64 k = j + 2; k <= i - 1; ++k) {
+                    const double* vk = V.row(k) + j;
+                    gg += load(vk) * splat(d[k]);
+                    e[k] = (e[k] + vk[0] * f0) + vk[1] * f1;
+                }
+                e[j] = gg[0];
+                e[j + 1] = gg[1];
+            }
+            for (; j < i; ++j) {
                 f = d[j];
                 V(j, i) = f;
                 g = e[j] + V(j, j) * f;
@@ -1218,7 +1240,23 @@ inline bool sym_eigen(Mat& V, Vec& d, Vec& e, Mat& Vt, bool vectors = true) {
             }
             double hh = f / (h + h);
             for (i64 j = 0; j < i; ++j) e[j] -= hh * d[j];
-            for (i64 j = 0; j < i; ++j) {
+            // (columns j, j + 1 in the lanes of one vector: the same operations per entry)
+            j = 0;
+            for (; j + 1 < i; j += 2) {
+                using namespace simd;
+                const double f0 = d[j], g0 = e[j];
+                const v2d f2 = v2d{f0, d[j + 1]}, g2 = v2d{g0, e[j + 1]};
+                V(j, j) -= (f0 * e[j] + g0 * d[j]);
+                for (i64 k = j + 1; k <= i - 1; ++k) {
+                    double* vk = V.row(k) + j;
+                    store(vk, load(vk) - (f2 * splat(e[k]) + g2 * splat(d[k])));
+                }
+                d[j] = V(i - 1, j);
+                V(i, j) = 0.0;
+                d[j + 1] = V(i - 1, j + 1);
+                V(i, j + 1) = 0.0;
+            }
+            for (; j < i; ++j) {
                 f = d[j];
                 g = e[j];
                 for (i64 k = j; k <= i - 1; ++k) V(k, j) -= (f * e[k] + g * d[k]);
@@ -1320,13 +1358,16 @@ namespace detail {
 // columns updated (and their norms of rows 1.., Norms). Every column's sum is its own chain
 // over t: the more columns a pass holds, the more chains run side by side (the sums are
 // latency-bound: one add a row per chain).
-template <int L, bool Odd, bool Norms, class Row>
-__attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 j, const double* x, double vn,
-                                                         double* S, double* N) {
+// Vn: vn is not given but summed here, |x|^2 over t in order from 0.0 in the sum's pass (the
+// chain reflect() would sum before the pass: the same bits, its latency hidden by the
+// columns' sums), returned in vn_out; where it is 0, nothing is updated (false returned).
+template <int L, bool Odd, bool Norms, class Row, bool Vn = false>
+__attribute__((always_inline)) inline bool reflect_block(Row row, i64 size, i64 j, const double* x, double vn,
+                                                         double* S, double* N, double* vn_out = nullptr) {
     using namespace simd;
     constexpr int LA = L > 0 ? L : 1;
     v2d s[LA], nn[LA];
-    double so = 0.0, no = 0.0;
+    double so = 0.0, no = 0.0, vs = 0.0;
 #pragma GCC unroll 8
     for (int l = 0; l < L; ++l) s[l] = nn[l] = splat(0.0);
     for (i64 t = 0; t < size; ++t) {
@@ -1336,6 +1377,12 @@ __attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 
 #pragma GCC unroll 8
         for (int l = 0; l < L; ++l) s[l] += xt * load(p + 2 * l);
         if constexpr (Odd) so += xs * p[2 * L];
+        if constexpr (Vn) vs += xs * xs;
+    }
+    if constexpr (Vn) {
+        *vn_out = vs;
+        if (vs == 0.0) return false;
+        vn = vs;
     }
     v2d two = splat(2.0), vv = splat(vn);
 #pragma GCC unroll 8
@@ -1373,6 +1420,32 @@ __attribute__((always_inline)) inline void reflect_block(Row row, i64 size, i64 
         if constexpr (Odd) N[j + 2 * L] = no;
     } else {
         for (i64 t = 0; t < size; ++t) update(t, std::false_type{});
+    }
+    return true;
+}
+
+// reflect_tail with Norms and Vn (reflect_block's): n columns from j, 1 <= n <= 17.
+template <class Row>
+inline bool reflect_tail_vn(Row row, i64 size, i64 j, i64 n, const double* x, double* S, double* N, double* vn) {
+    switch (n) {
+        case 1: return reflect_block<0, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 2: return reflect_block<1, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 3: return reflect_block<1, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 4: return reflect_block<2, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 5: return reflect_block<2, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 6: return reflect_block<3, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 7: return reflect_block<3, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 8: return reflect_block<4, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 9: return reflect_block<4, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 10: return reflect_block<5, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 11: return reflect_block<5, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 12: return reflect_block<6, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 13: return reflect_block<6, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 14: return reflect_block<7, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 15: return reflect_block<7, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 16: return reflect_block<8, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        case 17: return reflect_block<8, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
+        default: return false;
     }
 }
 
@@ -1477,6 +1550,19 @@ inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
     if (alpha == 0.0) return false;
     if (x[0] > 0.0) alpha = -alpha;
     x[0] -= alpha;
+    if (norms && r == 0 && m - i >= 1 && m - i <= 17) {
+        // (R alone, the columns in one pass: |x|^2 summed in that pass, reflect_block's Vn)
+        double* base = R.row(i) + i;
+        const i64 ld = R.cols;
+        auto rowp = [base, ld](i64 t) { return base + t * ld; };
+        double vn = 0.0;
+        if (!reflect_tail_vn(rowp, size, 0, m - i, x.data(), S.data(), norms + i, &vn)) return false;
+        if (keep_vn) {
+            *keep_vn = vn;
+            std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
+        }
+        return true;
+    }
     double vn = 0.0;
     for (i64 t = 0; t < size; ++t) vn += x[t] * x[t];
     if (vn == 0.0) return false;
