@@ -206,6 +206,16 @@ struct ImplicitQR {
     // reflection i's sum from +0 of v_i[t] X(i + t, c) over every t in order (dot's), times
     // beta_i, then X(i + t, c) -= s v_i[t] (axmy's): the same operations per column, taken a
     // column pair (or four) at a time in registers, with no calls and several sums in flight.
+    // B^T's reflection: BT (r, m) = B[:m]^T (B's rows r long), then apply_t_cols on its m
+    // columns (each row of B reflected as apply_t would, the same bits).
+    void apply_t_rows_of(const Mat& B, i64 m, Mat& BT) const {
+        shape(BT, r, m);  // every entry written below
+        for (i64 i = 0; i < m; ++i) {
+            const double* bi = B.row(i);
+            for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+        }
+        apply_t_cols(BT.row(0), m, m);
+    }
     void apply_t_cols(double* X, i64 ld, i64 nc) const {
         using namespace simd;
         for (i64 i = 0; i < q; ++i) {
@@ -1002,12 +1012,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                 } else {
                     // (apply_t of each row, taken on the rows as columns of B^T: the same operations)
                     Mat& BT = ws.BT;
-                    shape(BT, r, m);  // every entry written below
-                    for (i64 i = 0; i < m; ++i) {
-                        const double* bi = ls.B.row(i);
-                        for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
-                    }
-                    qr.apply_t_cols(BT.row(0), m, m);
+                    qr.apply_t_rows_of(ls.B, m, BT);
                     for (i64 i = 0; i < m; ++i)
                         for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
                 }
@@ -1113,12 +1118,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                     // payload, where the one kept follows the operand order the compiler picks;
                     // with every entry finite, every product and sum was finite, the same bits.)
                     Mat& BT = ws.BT;
-                    shape(BT, r, mb);  // every entry written below
-                    for (i64 i = 0; i < mb; ++i) {
-                        const double* bi = ls.B.row(i);
-                        for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
-                    }
-                    qr.apply_t_cols(BT.row(0), mb, mb);
+                    qr.apply_t_rows_of(ls.B, mb, BT);
                     cols = detail::finite_block(BT.row(0), r, mb, mb);
                     if (cols)
                         for (i64 i = 0; i < mb; ++i)
