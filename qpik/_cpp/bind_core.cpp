@@ -484,6 +484,15 @@ void bind_core(nb::module_& m) {
         "A"_a, "b"_a, "w"_a, "d"_a, "sigma"_a, "threshold"_a, "max_damping"_a, "error_scale"_a,
         "The lambda^2 a level gets.");
 
+    m.def(
+        "hypot_inline",
+        [](In1 x, In1 y, Out1 out) {
+            need(len(y) == len(x) && len(out) == len(x), "hypot_inline: x, y, out must have the same length");
+            for (i64 i = 0; i < len(x); ++i) out.data()[i] = core::detail::hypot_inline(x.data()[i], y.data()[i]);
+        },
+        "x"_a, "y"_a, "out"_a.noconvert(),
+        "out[i] = hypot(x[i], y[i]) as the dual method's rotations take it (qp.hpp's hypot_inline).");
+
     m.def("damping_of", &core::damping_of, "sigma"_a, "threshold"_a, "max_damping"_a,
           "lambda^2 driven by sigma: max_damping^2 (1 - (sigma / threshold)^2) below the threshold.");
 

@@ -37,6 +37,7 @@ Signatures:
 - ``project_level(A, w, Z, rank_tol) -> (AZ, sigma, rank, Zn)``;
   ``level_damping(A, b, w, d, sigma, threshold, max_damping, error_scale) -> float``;
   ``damping_of(sigma, threshold, max_damping) -> float``;
+  ``hypot_inline(x, y, out)``: ``out[i]`` = the dual method's inline ``hypot(x[i], y[i])``;
   ``reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h) -> (H, c, C, lo, hi)``.
 - ``tighten(lb, ub, dofs, lower, upper)`` (in place); ``merge_boxes(hard_lb, hard_ub,
   pos_lb, pos_ub) -> (lb, ub, i)``.
@@ -98,6 +99,7 @@ active_guess = _engine.active_guess
 project_level = _engine.project_level
 level_damping = _engine.level_damping
 damping_of = _engine.damping_of
+hypot_inline = _engine.hypot_inline
 reduced_qp = _engine.reduced_qp
 tighten = _engine.tighten
 merge_boxes = _engine.merge_boxes
@@ -116,7 +118,7 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
     "CascadeWorkspace", "active_guess", "certified_level", "certify_point", "cholesky_into",
-    "damping_of", "drop_pinned",
+    "damping_of", "drop_pinned", "hypot_inline",
     "level_damping", "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level",
     "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip
