@@ -1424,53 +1424,31 @@ __attribute__((always_inline)) inline bool reflect_block(Row row, i64 size, i64 
     return true;
 }
 
-// reflect_tail with Norms and Vn (reflect_block's): n columns from j, 1 <= n <= 17.
-template <class Row>
-inline bool reflect_tail_vn(Row row, i64 size, i64 j, i64 n, const double* x, double* S, double* N, double* vn) {
-    switch (n) {
-        case 1: return reflect_block<0, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 2: return reflect_block<1, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 3: return reflect_block<1, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 4: return reflect_block<2, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 5: return reflect_block<2, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 6: return reflect_block<3, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 7: return reflect_block<3, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 8: return reflect_block<4, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 9: return reflect_block<4, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 10: return reflect_block<5, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 11: return reflect_block<5, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 12: return reflect_block<6, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 13: return reflect_block<6, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 14: return reflect_block<7, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 15: return reflect_block<7, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 16: return reflect_block<8, false, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        case 17: return reflect_block<8, true, true, Row, true>(row, size, j, x, 0.0, S, N, vn);
-        default: return false;
-    }
-}
-
 // The last 1..17 columns from j in one pass (n pairs and, where n is odd, the column after).
-template <bool Norms, class Row>
-inline void reflect_tail(Row row, i64 size, i64 j, i64 n, const double* x, double vn, double* S, double* N) {
+// Vn: |x|^2 summed in that pass (vn not read) into *vn_out, and false, nothing updated, where it
+// is 0 (reflect_block's Vn); else true.
+template <bool Norms, bool Vn = false, class Row>
+inline bool reflect_tail(Row row, i64 size, i64 j, i64 n, const double* x, double vn, double* S, double* N,
+                         double* vn_out = nullptr) {
     switch (n) {
-        case 1: reflect_block<0, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 2: reflect_block<1, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 3: reflect_block<1, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 4: reflect_block<2, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 5: reflect_block<2, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 6: reflect_block<3, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 7: reflect_block<3, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 8: reflect_block<4, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 9: reflect_block<4, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 10: reflect_block<5, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 11: reflect_block<5, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 12: reflect_block<6, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 13: reflect_block<6, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 14: reflect_block<7, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 15: reflect_block<7, true, Norms>(row, size, j, x, vn, S, N); break;
-        case 16: reflect_block<8, false, Norms>(row, size, j, x, vn, S, N); break;
-        case 17: reflect_block<8, true, Norms>(row, size, j, x, vn, S, N); break;
-        default: break;
+        case 1: return reflect_block<0, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 2: return reflect_block<1, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 3: return reflect_block<1, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 4: return reflect_block<2, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 5: return reflect_block<2, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 6: return reflect_block<3, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 7: return reflect_block<3, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 8: return reflect_block<4, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 9: return reflect_block<4, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 10: return reflect_block<5, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 11: return reflect_block<5, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 12: return reflect_block<6, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 13: return reflect_block<6, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 14: return reflect_block<7, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 15: return reflect_block<7, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 16: return reflect_block<8, false, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        case 17: return reflect_block<8, true, Norms, Row, Vn>(row, size, j, x, vn, S, N, vn_out);
+        default: return false;
     }
 }
 
@@ -1556,7 +1534,7 @@ inline bool reflect(Mat& R, Mat& Q, Vec& x, Vec& S, i64 i, double* keep_x = null
         const i64 ld = R.cols;
         auto rowp = [base, ld](i64 t) { return base + t * ld; };
         double vn = 0.0;
-        if (!reflect_tail_vn(rowp, size, 0, m - i, x.data(), S.data(), norms + i, &vn)) return false;
+        if (!reflect_tail<true, true>(rowp, size, 0, m - i, x.data(), 0.0, S.data(), norms + i, &vn)) return false;
         if (keep_vn) {
             *keep_vn = vn;
             std::memcpy(keep_x + i, x.data(), static_cast<size_t>(size) * sizeof(double));
