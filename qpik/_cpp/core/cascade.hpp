@@ -1820,20 +1820,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
 
 namespace detail {
 
-// True when every one of the n entries is finite (x - x: +0 for a finite x, NaN for an
-// infinite or NaN one; the sum of them 0 only when every one is +0).
-inline bool all_finite(const double* p, i64 n) {
-    using namespace simd;
-    v2d acc = splat(0.0);
-    i64 i = 0;
-    for (; i + 2 <= n; i += 2) {
-        v2d x = load(p + i);
-        acc += x - x;
-    }
-    double s = acc[0] + acc[1];
-    for (; i < n; ++i) s += p[i] - p[i];
-    return s == 0.0;
-}
+// True when every one of the n entries is finite (finite_block of one row).
+inline bool all_finite(const double* p, i64 n) { return finite_block(p, 1, n, n); }
 
 // y[c] = (a x[c]) / b, c < n (two lanes a pass; a = -1: -x[c] / b).
 inline void scale_div(double* y, const double* x, double a, double b, i64 n) {
