@@ -206,16 +206,6 @@ struct ImplicitQR {
     // reflection i's sum from +0 of v_i[t] X(i + t, c) over every t in order (dot's), times
     // beta_i, then X(i + t, c) -= s v_i[t] (axmy's): the same operations per column, taken a
     // column pair (or four) at a time in registers, with no calls and several sums in flight.
-    // B^T's reflection: BT (r, m) = B[:m]^T (B's rows r long), then apply_t_cols on its m
-    // columns (each row of B reflected as apply_t would, the same bits).
-    void apply_t_rows_of(const Mat& B, i64 m, Mat& BT) const {
-        shape(BT, r, m);  // every entry written below
-        for (i64 i = 0; i < m; ++i) {
-            const double* bi = B.row(i);
-            for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
-        }
-        apply_t_cols(BT.row(0), m, m);
-    }
     void apply_t_cols(double* X, i64 ld, i64 nc) const {
         using namespace simd;
         for (i64 i = 0; i < q; ++i) {
@@ -258,6 +248,34 @@ struct ImplicitQR {
                 double* w = Xi + c;
                 for (i64 t = 0; t < size; ++t, w += ld) *w -= a0 * vi[t];
             }
+        }
+    }
+    // BW (rows, nw) = entries q..q + nw - 1 of Q^T b_i for B's first `rows` rows b_i (each r
+    // long): apply_t of each row. Four rows or more are taken as the columns of BT = B[:rows]^T
+    // (apply_t_cols: the same operations per row). Where an entry of BT is then not finite, the
+    // rows one at a time again (row: scratch): only there could a NaN meet another of another
+    // sign or payload, where the one kept follows the operand order the compiler picks; with
+    // every entry finite, every product and sum was finite, the same bits.
+    void reflected_rows_into(const Mat& B, i64 rows, i64 nw, Mat& BT, Vec& row, Mat& BW) const {
+        shape(BW, rows, nw);  // every entry written below
+        if (rows >= 4) {  // (fewer: one at a time costs less than the transposes)
+            shape(BT, r, rows);  // every entry written below
+            for (i64 i = 0; i < rows; ++i) {
+                const double* bi = B.row(i);
+                for (i64 t = 0; t < r; ++t) BT(t, i) = bi[t];
+            }
+            apply_t_cols(BT.row(0), rows, rows);
+            if (finite_block(BT.row(0), r, rows, rows)) {
+                for (i64 i = 0; i < rows; ++i)
+                    for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
+                return;
+            }
+        }
+        if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
+        for (i64 i = 0; i < rows; ++i) {
+            std::memcpy(row.data(), B.row(i), static_cast<size_t>(r) * sizeof(double));
+            apply_t(row.data());
+            std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
         }
     }
     // x <- Q x (finite: as apply_t).
@@ -1002,20 +1020,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             for (i64 j = 0; j < nw; ++j) h[j] = row[q + j];
             if (m <= nw) {
                 // A Z W by rows (Q^T B_i^T for A Z's rows)
-                shape(BW, m, nw);  // every entry written below
-                if (m < 4) {  // (few rows: one at a time costs less than the transposes)
-                    for (i64 i = 0; i < m; ++i) {
-                        std::memcpy(row.data(), ls.B.row(i), static_cast<size_t>(r) * sizeof(double));
-                        qr.apply_t(row.data());
-                        std::memcpy(BW.row(i), row.data() + q, static_cast<size_t>(nw) * sizeof(double));
-                    }
-                } else {
-                    // (apply_t of each row, taken on the rows as columns of B^T: the same operations)
-                    Mat& BT = ws.BT;
-                    qr.apply_t_rows_of(ls.B, m, BT);
-                    for (i64 i = 0; i < m; ++i)
-                        for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
-                }
+                qr.reflected_rows_into(ls.B, m, nw, ws.BT, row, BW);
                 done = detail::reg_lstsq_rows_into(BW, f0, h.data(), s, y, ws.ls);
             } else {
                 // X = (A Z)^T (r, m), then Q^T X (reflection i on rows i..): its rows q.. are
@@ -1109,31 +1114,7 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
                 for (i64 i = 0; i < mb; ++i)
                     std::memcpy(BW.row(i), BQ.row(i) + q, static_cast<size_t>(nw) * sizeof(double));
             } else {
-                shape(BW, mb, nw);  // every entry written below
-                bool cols = mb >= 4;
-                if (cols) {
-                    // (apply_t of each row, taken on the rows as columns of B^T: the same
-                    // operations. Where an entry of the result is not finite, the rows one at a
-                    // time again: only there could a NaN meet another of another sign or
-                    // payload, where the one kept follows the operand order the compiler picks;
-                    // with every entry finite, every product and sum was finite, the same bits.)
-                    Mat& BT = ws.BT;
-                    qr.apply_t_rows_of(ls.B, mb, BT);
-                    cols = detail::finite_block(BT.row(0), r, mb, mb);
-                    if (cols)
-                        for (i64 i = 0; i < mb; ++i)
-                            for (i64 j = 0; j < nw; ++j) BW(i, j) = BT(q + j, i);
-                }
-                if (!cols) {
-                    Vec& row = ws.row;
-                    if (row.size() < static_cast<size_t>(r)) row.resize(static_cast<size_t>(r));  // first r entries used
-                    for (i64 i = 0; i < mb; ++i) {
-                        const double* bi = ls.B.row(i);
-                        for (i64 k = 0; k < r; ++k) row[k] = bi[k];
-                        qr.apply_t(row.data());
-                        for (i64 j = 0; j < nw; ++j) BW(i, j) = row[q + j];
-                    }
-                }
+                qr.reflected_rows_into(ls.B, mb, nw, ws.BT, ws.row, BW);
             }
             detail::ls_mv_into(ls, z.data(), f0);
             for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
