@@ -663,10 +663,7 @@ class Kernel {
                 wv = WarmView{converted.data(), dim(converted, 0), dim(converted, 1), true};
             }
         }
-        last_row_ = -1;
-        pass_row_ = -1;
-        if (!load_sources(dt, damping)) return -1;
-        return solve_into(row, wv, canonical, max_iter);
+        return step_from_sources(dt, damping, row, wv, canonical, max_iter);
     }
 
     // go(dt, damping, row, None, false, max_iter): the cold step of IKSolver.step's plain
@@ -674,10 +671,7 @@ class Kernel {
     // Python converts four arguments, not six through the named-argument path; about 200
     // instructions less per step).
     i64 go_cold(double dt, double damping, i64 row, i64 max_iter) {
-        last_row_ = -1;
-        pass_row_ = -1;
-        if (!load_sources(dt, damping)) return -1;
-        return solve_into(row, WarmView{}, false, max_iter);
+        return step_from_sources(dt, damping, row, WarmView{}, false, max_iter);
     }
 
     // A warm array of go(): its int8 entries and shape (given false: None, a cold start).
@@ -686,6 +680,17 @@ class Kernel {
         i64 rows = 0, cols = 0;
         bool given = false;
     };
+
+    // go() and go_cold() once the warm view is made: the sources' values into the slots, then
+    // solve_into (-1 where they do not load).
+    // (always inlined: a call costs the plain lane about 270 instructions a step)
+    __attribute__((always_inline)) i64 step_from_sources(double dt, double damping, i64 row, const WarmView& wv,
+                                                         bool canonical, i64 max_iter) {
+        last_row_ = -1;
+        pass_row_ = -1;
+        if (!load_sources(dt, damping)) return -1;
+        return solve_into(row, wv, canonical, max_iter);
+    }
 
     // go()'s step once its values are in the slots.
     i64 solve_into(i64 row, const WarmView& warm, bool canonical, i64 max_iter) {
