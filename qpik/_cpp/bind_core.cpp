@@ -250,14 +250,15 @@ inline PyObject* new_active(i64 L, i64 w) {
 struct Names {
     PyObject *A, *b, *regularization, *weights;
     PyObject *x, *status, *residuals, *sigma, *damping, *iterations, *active, *backend, *certificate, *primal;
-    PyObject *stationarity, *dual, *complementarity, *cert_raw;
+    PyObject *stationarity, *dual, *complementarity, *cert_raw, *sigma_raw;
 };
 inline const Names& names() {
     static const Names n = [] {
         auto s = [](const char* v) { return PyUnicode_InternFromString(v); };
         return Names{s("A"), s("b"), s("regularization"), s("weights"), s("x"), s("status"), s("residuals"),
                      s("sigma"), s("damping"), s("iterations"), s("active"), s("backend"), s("certificate"),
-                     s("primal"), s("stationarity"), s("dual"), s("complementarity"), s("_cert")};
+                     s("primal"), s("stationarity"), s("dual"), s("complementarity"), s("_cert"),
+                     s("_sigma")};
     }();
     return n;
 }
@@ -390,9 +391,25 @@ inline nb::object result_object(PyTypeObject* result_type, PyObject* fill, PyObj
     Py_INCREF(active);
     PyObject* cert = PyBytes_FromStringAndSize(reinterpret_cast<const char*>(r.certificate.data()),
                                                static_cast<Py_ssize_t>(4 * L * sizeof(double)));
+    // sigma: a list, or where a level's was deferred (CascadeResult::deferred), the bytes of
+    // the (L,) sigma (NaN where deferred) then the store, for the result class to resolve on
+    // first access (``_sigma``: HierarchyResult.__getattr__, resolve_sigma; the same values)
+    bool deferred = false;
+    for (i64 k = 0; k < L && k < static_cast<i64>(r.deferred.size()); ++k) deferred = deferred || r.deferred[k] != -1.0;
+    PyObject* sigma = nullptr;
+    if (deferred) {
+        sigma = PyBytes_FromStringAndSize(nullptr, static_cast<Py_ssize_t>((L + r.deferred.size()) * sizeof(double)));
+        if (sigma) {
+            char* dst = PyBytes_AS_STRING(sigma);
+            std::memcpy(dst, r.sigma.data(), static_cast<size_t>(L) * sizeof(double));
+            std::memcpy(dst + L * sizeof(double), r.deferred.data(), r.deferred.size() * sizeof(double));
+        }
+    } else {
+        sigma = float_list(r.sigma, L);
+    }
     PyObject* obj = new_filled(
         result_type, fill, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
-                      {nm.sigma, float_list(r.sigma, L)}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
+                      {deferred ? nm.sigma_raw : nm.sigma, sigma}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
                       {nm.active, active}, {nm.backend, backends}, {nm.cert_raw, cert},
                       {nm.primal, PyFloat_FromDouble(r.primal)}});
     if (!obj) throw nb::python_error();
@@ -492,6 +509,22 @@ void bind_core(nb::module_& m) {
         },
         "x"_a, "y"_a, "out"_a.noconvert(),
         "out[i] = hypot(x[i], y[i]) as the dual method's rotations take it (qp.hpp's hypot_inline).");
+
+    m.def(
+        "resolve_sigma",
+        [](In1 sigma, In1 store) {
+            const i64 L = len(sigma), n = len(store);
+            need(n >= L, "resolve_sigma: store must hold at least L entries");
+            nb::list out;
+            for (i64 k = 0; k < L; ++k) {
+                const double s = sigma(k);
+                out.append(s == s ? s : core::deferred_sigma(store.data(), n, L, k, s));
+            }
+            return out;
+        },
+        "sigma"_a, "store"_a,
+        "The per-level sigma (L,) with each NaN of a level the cascade deferred (its defer_sigma store: L header "
+        "entries, then the records) replaced by the sigma its ranking gives (the same bits as without deferral).");
 
     m.def("damping_of", &core::damping_of, "sigma"_a, "threshold"_a, "max_damping"_a,
           "lambda^2 driven by sigma: max_damping^2 (1 - (sigma / threshold)^2) below the threshold.");
@@ -741,7 +774,8 @@ void bind_core(nb::module_& m) {
             core::solve_cascade_into(
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
-                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true, wsr, r);
+                error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true, wsr, r, true, true,
+                true);
             for (i64 k = 0; k < L; ++k)
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));

@@ -177,7 +177,7 @@ using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb
 // Kernel.attach(owner, <step's first 8 arguments>); Kernel.run(G, h, warm, canonical, max_iter)
 //   MuJoCo's arrays of one MjData (owner), checked and held once (its arrays never move;
 //   the owner is kept alive with them); run is step on them, without passing them again.
-// Kernel.set_slots(views, scalar); Kernel.attach_out(d, v, info, active, qpos);
+// Kernel.set_slots(views, scalar); Kernel.attach_out(d, v, info, active, qpos, defer);
 // Kernel.set_chains(jac, starts, dofs, roots); Kernel.attach_chains(cdof, subtree_com);
 // Kernel.set_sources(sources); Kernel.go(dt, damping, row, warm, canonical, max_iter) -> code
 //   The lean step (qpik.diffik.compiled.CompiledPlan._lean), without general rows: the
@@ -629,7 +629,10 @@ class Kernel {
 
     // The rows that go() writes its answers into (K steps each; held): dq, v (K, nv), info
     // (K, 9, L), active sets (K, L, nv) int8, qpos (K, nq).
-    void attach_out(Out2 d, Out2 v, Out3 info, Act3 active, Out2 qpos) {
+    // defer (K, defer_width()): per step, the cascade's records of the levels whose sigma it
+    // deferred (core::CascadeResult::deferred: L header entries, -1 where none, then the
+    // records; info's sigma NaN there), for core::deferred_sigma (qpik.core.kernels.resolve_sigma).
+    void attach_out(Out2 d, Out2 v, Out3 info, Act3 active, Out2 qpos, Out2 defer) {
         const i64 K = dim(d, 0);
         require(dim(d, 1) == n_ && dim(v, 0) == K && dim(v, 1) == n_,
                 "Kernel.attach_out: d and v must have shape (K, nv)");
@@ -638,7 +641,9 @@ class Kernel {
         require(dim(active, 0) == K && dim(active, 1) == L_ && dim(active, 2) == n_,
                 "Kernel.attach_out: active must have shape (K, L, nv)");
         require(dim(qpos, 0) == K && dim(qpos, 1) == nq_, "Kernel.attach_out: qpos must have shape (K, nq)");
-        out_ = Outputs{d, v, info, active, qpos, K};
+        require(dim(defer, 0) == K && dim(defer, 1) == defer_width(),
+                "Kernel.attach_out: defer must have shape (K, defer_width)");
+        out_ = Outputs{d, v, info, active, qpos, defer, K};
     }
 
     // One step on the attached MjData without general rows: values into the slots, the
@@ -713,8 +718,14 @@ class Kernel {
             w = cold_.data();
         }
         diffik::StepResult& r = step_;  // kept: its vectors' storage reused
-        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r);
+        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r, true);
         if (r.code != diffik::OK) return r.code;
+        const Vec& deferred = scratch_.cascade.deferred;
+        const i64 width = dim(o.defer, 1);
+        require(static_cast<i64>(deferred.size()) <= width, "Kernel.go: deferred records past defer_width");
+        double* drow = o.defer.data() + row * width;
+        if (deferred.empty()) std::fill(drow, drow + L_, -1.0);
+        else std::memcpy(drow, deferred.data(), sizeof(double) * deferred.size());
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
                 "Kernel.go: unexpected answer shapes");
@@ -788,7 +799,21 @@ class Kernel {
         std::memcpy(o.v.data() + row * n_, r.v.data(), sizeof(double) * n_);
         std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
         std::memcpy(o.active.data() + row * L_ * n_, r.active.data(), L_ * n_);
+        double* drow = o.defer.data() + row * dim(o.defer, 1);  // (every sigma computed: none deferred)
+        std::fill(drow, drow + L_, -1.0);
         return r.code;
+    }
+
+    // The largest CascadeResult::deferred of a step: L header entries, and per level k of m_k
+    // rows a record of 4 entries and R's rows (at most min(nv, m_k) rows of at most m_k).
+    i64 defer_width() const {
+        const i64* s = starts_.data.data();
+        i64 width = L_;
+        for (i64 k = 0; k < L_; ++k) {
+            const i64 m = s[k + 1] - s[k];
+            width += 4 + std::min(n_, m) * m;
+        }
+        return width;
     }
 
     i64 levels() const { return L_; }
@@ -836,6 +861,7 @@ class Kernel {
         Out3 info;
         Act3 active;
         Out2 qpos;
+        Out2 defer;
         i64 K = 0;
     };
     std::optional<Outputs> out_;
@@ -941,8 +967,12 @@ void bind_diffik(nb::module_& m) {
              "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
         .def("attach_out", &Kernel::attach_out, nb::arg("d").noconvert(), nb::arg("v").noconvert(),
              nb::arg("info").noconvert(), nb::arg("active").noconvert(), nb::arg("qpos").noconvert(),
+             nb::arg("defer").noconvert(),
              "Hold the rows go() writes into: d, v (K, nv), info (K, 9, L), active (K, L, nv) "
-             "int8, qpos (K, nq).")
+             "int8, qpos (K, nq), defer (K, defer_width): the records of the levels whose sigma "
+             "go() deferred (info's sigma NaN there; qpik.core.kernels.resolve_sigma(info[1], defer)).")
+        .def_prop_ro("defer_width", &Kernel::defer_width,
+                     "The width of attach_out's defer rows (L header entries, then the records).")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
              "Where go() reads the values of the slots after the first two (dt, damping): "
              "per slot (object, name) or (object, name, inner name), getattr(object, name) or "

@@ -110,6 +110,7 @@ from .certificate import (
     LevelCertificate,
     LevelStatus,
     certificates,
+    primal_violation,
 )
 
 __all__ = [
@@ -252,8 +253,12 @@ class HierarchyResult:
     def __getattr__(self, name: str):
         """``certificate`` of a result of the one-call solve, built on first access from
         its measures (``_cert``: the (L, 4) float64 bytes :func:`K.solve_levels` left; the
-        same values)."""
+        same values); ``sigma`` where it left levels' deferred (``_sigma``, resolved: the
+        same bits)."""
         d = self.__dict__
+        if name == "sigma" and "_sigma" in d:  # levels' sigma deferred (K.solve_levels)
+            sigma = d["sigma"] = K.sigma_from_bytes(d.pop("_sigma"), len(d["status"]))
+            return sigma
         raw = d.get("_cert") if name == "certificate" else None
         if raw is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
@@ -267,31 +272,16 @@ def _residuals(A, b, starts, x) -> list[float]:
     return [float(np.sqrt(r[s0:s1] @ r[s0:s1])) for s0, s1 in zip(starts[:-1], starts[1:])]
 
 
-def _primal(x, lb, ub, G, h) -> float:
-    """The largest scaled row violation at ``x`` (module doc, ``primal``)."""
-    big = 1e20
-    worst = 0.0
-    with np.errstate(invalid="ignore"):
-        lo = lb > -big
-        if lo.any():
-            worst = max(worst, float(np.max((lb[lo] - x[lo]) / (1 + np.abs(lb[lo])))))
-        hi = ub < big
-        if hi.any():
-            worst = max(worst, float(np.max((x[hi] - ub[hi]) / (1 + np.abs(ub[hi])))))
-        if G.shape[0]:
-            scale = np.linalg.norm(G, axis=1) + np.abs(h)
-            v = (G @ x - h) / np.where(scale > 0, scale, 1.0)
-            worst = max(worst, float(np.max(v)))
-    return worst
-
-
 def _fill_result(r, x, status, residuals, sigma, damping, iters, active, backend, cert, primal):
     """The fields of ``r`` (``object.__new__(HierarchyResult)``) set as :func:`K.solve_levels`
     leaves them, in order (specialised stores: cheaper than the C setattr); returns ``r``."""
     r.x = x
     r.status = status
     r.residuals = residuals
-    r.sigma = sigma
+    if sigma.__class__ is bytes:  # deferred levels' sigma, resolved on first access
+        r._sigma = sigma
+    else:
+        r.sigma = sigma
     r.damping = damping
     r.iterations = iters
     r.active = active
@@ -545,7 +535,7 @@ class HierarchySolver:
                 Z = K.drop_pinned(Z, d, lb, ub, G, h)
             if s1 == s0 or Z.shape[1] == 0:
                 status[k] = LevelStatus.SOLVED
-                certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)
+                certs[k] = (primal_violation(d, lb, ub, G, h), 0.0, 0.0, 0.0)
                 continue
             Ak, bk, wk = A[s0:s1], b[s0:s1], w[s0:s1]
             AZ, sig, _, Zn = K.project_level(Ak, wk, Z, self.rank_tolerance)
@@ -559,7 +549,7 @@ class HierarchySolver:
             if st == K.INFEASIBLE and k == 0:
                 # No optimum to certify: the measure that fails, primal feasibility, at the
                 # point returned (the other measures do not apply and are 0).
-                certs[k] = (_primal(d, lb, ub, G, h), 0.0, 0.0, 0.0)
+                certs[k] = (primal_violation(d, lb, ub, G, h), 0.0, 0.0, 0.0)
             else:
                 # The backend's active set made exact (no added floor) and certified.
                 guess = act if act is not None else np.zeros(n + p, np.int8)
@@ -595,7 +585,7 @@ class HierarchySolver:
                 certs[j] = K.certify_point(A[s0:s1], b[s0:s1], float(reg[j]), Z, d, lb, ub, G, h)
         return HierarchyResult(
             d, status, _residuals(A, b, starts, d), sigma, lam2s, its, active, backend,
-            certificates(certs), _primal(d, lb, ub, G, h),
+            certificates(certs), primal_violation(d, lb, ub, G, h),
         )  # fmt: skip
 
     def _solve_qp(self, k, H, c, C, lo, hi, warm, max_iter, fallback):

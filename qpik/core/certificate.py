@@ -103,3 +103,24 @@ def certificates(array: np.ndarray) -> list[LevelCertificate]:
     # tolist() gives Python floats in one pass (the same values as float() per element).
     rows = np.asarray(array, dtype=float).reshape(-1, 4).tolist()
     return [LevelCertificate(*row) for row in rows]
+
+
+def primal_violation(
+    x: np.ndarray, lb: np.ndarray, ub: np.ndarray, G: np.ndarray, h: np.ndarray
+) -> float:
+    """The largest scaled row violation at ``x``: a box row by ``1 + |bound|``, a general
+    row ``g x <= h`` by ``|g| + |h|`` (the certificate's ``primal``)."""
+    big = 1e20
+    worst = 0.0
+    with np.errstate(invalid="ignore"):
+        lo = lb > -big
+        if lo.any():
+            worst = max(worst, float(np.max((lb[lo] - x[lo]) / (1 + np.abs(lb[lo])))))
+        hi = ub < big
+        if hi.any():
+            worst = max(worst, float(np.max((x[hi] - ub[hi]) / (1 + np.abs(ub[hi])))))
+        if G.shape[0]:
+            scale = np.linalg.norm(G, axis=1) + np.abs(h)
+            v = (G @ x - h) / np.where(scale > 0, scale, 1.0)
+            worst = max(worst, float(np.max(v)))
+    return worst

@@ -38,6 +38,8 @@ Signatures:
   ``level_damping(A, b, w, d, sigma, threshold, max_damping, error_scale) -> float``;
   ``damping_of(sigma, threshold, max_damping) -> float``;
   ``hypot_inline(x, y, out)``: ``out[i]`` = the dual method's inline ``hypot(x[i], y[i])``;
+  ``resolve_sigma(sigma, store) -> list``: the per-level ``sigma`` with each level the cascade
+  deferred (NaN; its rank proved full and no damping) given the value its ranking gives;
   ``reduced_qp(A, b, AZ, Z, d, reg, lb, ub, G, h) -> (H, c, C, lo, hi)``.
 - ``tighten(lb, ub, dofs, lower, upper)`` (in place); ``merge_boxes(hard_lb, hard_ub,
   pos_lb, pos_ub) -> (lb, ub, i)``.
@@ -75,6 +77,8 @@ Signatures:
 
 from __future__ import annotations
 
+import numpy as np
+
 # The compiled core (the extension is one module for every layer; this is its core part).
 from qpik._engine import core as _engine
 
@@ -100,6 +104,16 @@ project_level = _engine.project_level
 level_damping = _engine.level_damping
 damping_of = _engine.damping_of
 hypot_inline = _engine.hypot_inline
+resolve_sigma = _engine.resolve_sigma
+
+
+def sigma_from_bytes(raw: bytes, L: int) -> list[float]:
+    """The per-level sigma from ``solve_levels``' deferred form (the bytes of the (L,) sigma,
+    NaN where deferred, then the cascade's store of those levels' rows), resolved."""
+    values = np.frombuffer(raw)
+    return resolve_sigma(values[:L], values[L:])
+
+
 reduced_qp = _engine.reduced_qp
 tighten = _engine.tighten
 merge_boxes = _engine.merge_boxes
@@ -119,6 +133,7 @@ __all__ = [
     "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
     "CascadeWorkspace", "active_guess", "certified_level", "certify_point", "cholesky_into",
     "damping_of", "drop_pinned", "hypot_inline",
-    "level_damping", "merge_boxes", "project_level", "reduced_qp", "solve_cascade", "solve_level",
+    "level_damping", "merge_boxes", "project_level", "reduced_qp", "resolve_sigma",
+    "sigma_from_bytes", "solve_cascade", "solve_level",
     "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip

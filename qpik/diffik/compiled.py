@@ -50,7 +50,7 @@ from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
 from .correction import LeanCorrection
 from .layout import frame_chains
-from .result import Solution, StepResult, solve_rows
+from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
 
 __all__ = ["CompiledPlan", "Kernel"]
@@ -421,9 +421,8 @@ class CompiledPlan:
         return corrector.run(configuration, self._out[1][row], row, dt, passes)
 
     def _new_outputs(self) -> None:
-        """Fresh rows for the next :data:`OUTPUT_ROWS` lean steps' answers (a step's
-        answers are views of its own row, never written again; the arrays live on while
-        a result holds a view)."""
+        """Fresh rows for the next :data:`OUTPUT_ROWS` lean steps' answers (views of a
+        step's own row, never written again, live on while a result holds one)."""
         nv, levels = self.nv, self.levels
         rows = OUTPUT_ROWS
         self._out = (
@@ -432,6 +431,7 @@ class CompiledPlan:
             np.empty((rows, 9, levels)),
             np.empty((rows, levels, nv), np.int8),
             np.empty((rows, self.model.nq)),
+            np.empty((rows, self.kernel.defer_width)),
         )
         self.kernel.attach_out(*self._out)
         self._velocity_rows = list(self._out[1])
@@ -475,14 +475,14 @@ class CompiledPlan:
         core,
         forced: bool,
     ) -> tuple | None:
-        """The kernel's step: ``(dq, v, info, general rows, qpos)``, None where the QP
-        path must answer (``forced``: also where a level was not solved); ``core``'s
-        active sets updated."""
+        """The kernel's step: ``(dq, v, info, general rows, qpos)`` (deferred sigma resolved),
+        None where the QP path must answer (``forced``: also where a level was not solved);
+        ``core``'s active sets updated."""
         if not self.general_limits:
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
-                d, v, info, active, qpos = self._out
-                info = info[row]
+                d, v, info, active, qpos, defer = self._out
+                info = resolved_info(info[row], defer[row])
                 if forced and any(s != _SOLVED_CODE for s in info[3].tolist()):
                     return None
                 core.warm_start_from_row(active, row)

@@ -16,11 +16,24 @@ import numpy as np
 
 from ..core import HierarchySolver, LevelCertificate, LevelStatus
 from ..core.certificate import STATUS_OF_CODE, certificate_of
+from ..core.kernels import resolve_sigma
 from ..errors import InvalidTarget
 from .boxes import LimitRows
 from .rows import TaskRows
 
 __all__ = ["Solution", "StepResult", "solve_rows"]
+
+
+def resolved_info(info: np.ndarray, defer: np.ndarray) -> np.ndarray:
+    """A kernel step's ``info`` (9, L) with the sigma of each level it deferred (NaN: its
+    rank proved full, no damping; its record in ``defer``, the step's row of the kernel's
+    ``defer`` output) resolved (a copy), or ``info`` itself where none was deferred."""
+    sigma = info[1]
+    if not np.isnan(sigma).any():
+        return info
+    info = info.copy()
+    info[1] = resolve_sigma(sigma, defer)
+    return info
 
 
 @dataclass
@@ -220,6 +233,8 @@ class StepResult:
             del d["_info"]
         if "residuals" not in d:
             residuals, sigma, lam2, status, iterations, *cert = info.tolist()
+            if src is not None and any(s != s for s in sigma):  # deferred levels' (NaN)
+                sigma = resolve_sigma(info[1], src[0][5][src[1]])
             d.update(
                 residuals=residuals[skip:],
                 sigma_min=sigma[skip:],

@@ -1,7 +1,9 @@
 """The result object of the one-call solve (K.solve_levels: arrays made through NumPy's C
 API, fields set by cascade._fill_result) behaves as one made field by field: the same
 attributes in the same order, lazy certificates, repr, pickling, copies, and the same values
-as the result built by the generic setattr (kinds without the fill function)."""
+as the result built by the generic setattr (kinds without the fill function). A level whose
+rank the cascade proved full without damping leaves its sigma to the result (``_sigma``),
+resolved on first access to the bits the ranking gives without deferral."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ FIELDS = [
     "x",
     "status",
     "residuals",
-    "sigma",
+    "_sigma",
     "damping",
     "iterations",
     "active",
@@ -51,6 +53,7 @@ def _solve(problem: HierarchyProblem, kinds) -> HierarchyResult:
 def _same(a: HierarchyResult, b: HierarchyResult) -> None:
     assert type(a) is type(b) is HierarchyResult
     assert a.certificate == b.certificate  # (built on first access: then in both)
+    assert a.sigma == b.sigma  # (resolved on first access: then in both)
     assert list(vars(a)) == list(vars(b))
     for name, value in vars(a).items():
         other = vars(b)[name]
@@ -75,6 +78,49 @@ def test_fields_in_order_and_lazy_certificate():
     certs = r.certificate
     assert len(certs) == 3 and r.certificate is certs
     assert list(vars(r)) == [f for f in FIELDS if f != "_cert"] + ["certificate"]
+    sigma = r.sigma
+    assert r.sigma is sigma and len(sigma) == 3
+    assert list(vars(r)) == [f for f in FIELDS if f not in ("_cert", "_sigma")] + [
+        "certificate",
+        "sigma",
+    ]
+
+
+def _undeferred_sigma(problem: HierarchyProblem, s: HierarchySolver) -> list[float]:
+    """The per-level sigma of K.solve_cascade (no deferral) on the problem's levels."""
+    t, m, e = s.damping_settings
+    A = np.vstack([lv.A for lv in problem.levels])
+    b = np.concatenate([lv.b for lv in problem.levels])
+    w = np.concatenate(
+        [
+            lv.weights if lv.weights is not None else (np.abs(lv.A).sum(1) > 0).astype(float)
+            for lv in problem.levels
+        ]
+    )
+    starts = np.cumsum([0] + [lv.A.shape[0] for lv in problem.levels]).astype(np.int64)
+    reg = np.array([lv.regularization for lv in problem.levels])
+    L, n, p = len(problem.levels), problem.lb.shape[0], problem.G.shape[0]
+    out = K.solve_cascade(
+        A, b, w, starts, reg, problem.lb, problem.ub, problem.G, problem.h, t, m, e,
+        s.rank_tolerance, s.max_iter, s.tolerance, np.zeros((L, n + p), np.int8), True, None,
+    )  # fmt: skip
+    return out[2].tolist()
+
+
+def test_deferred_sigma_is_the_ranking_s_bit_for_bit():
+    """Every level's sigma, deferred or not, is the undeferred cascade's, bit for bit (the
+    ranking run on the rows kept), and at least one level was deferred."""
+    deferred = 0
+    for seed in range(40):
+        problem = _problem(seed, n=7 + seed % 5)
+        for damping_law in (None, "default"):
+            solver = HierarchySolver() if damping_law else HierarchySolver(damping_law=None)
+            r = solver.solve(problem)
+            deferred += "_sigma" in vars(r)
+            want = _undeferred_sigma(problem, solver)
+            assert np.array(r.sigma).tobytes() == np.array(want).tobytes()
+            assert all(not np.isnan(s) for s in r.sigma)
+    assert deferred > 0
 
 
 def test_fill_function_and_generic_setattr_agree():

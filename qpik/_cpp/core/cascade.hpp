@@ -24,6 +24,12 @@ struct CascadeResult {
     Vec residuals;     // (L,) |A_k dq - b_k|
     Vec certificate;   // (L, 4) row-major: primal, stationarity, dual, complementarity
     double primal = 0.0;  // the final dq's largest scaled row violation (box and general)
+    // With defer_sigma: the levels whose sigma was proved above the damping's threshold and the
+    // cutoff (project_level's defer_floor; sigma NaN in `sigma`): L header entries (-1, or the
+    // offset of the level's record), then each record: p, cols, need_null, rank_tol and R's p
+    // rows (cols each); deferred_sigma(record) gives the sigma the ranking would have given.
+    // Empty without defer_sigma.
+    Vec deferred;
 };
 
 // (AZ, sigma, rank, Zn) of project_level.
@@ -74,6 +80,9 @@ struct NnlsScratch {
 // storage). One per solver, never shared between threads.
 struct Workspace {
     Mat Z, Ztmp;
+    // project_level's proved full rank (defer_floor): R's rows kept for deferred_sigma
+    bool deferred = false;
+    Mat defer_R;
     Projection pr;
     ReducedQP qp;
     LSForm ls;
@@ -831,8 +840,172 @@ constexpr i64 kTurnRows = 8;
 constexpr double kConditioned = 1e-2;
 constexpr double kGraded = 0.1;
 
+namespace detail {
+
+// Whether every singular value of R's first p rows (cols long) is proved above both `floor`
+// and 2 rank_tol max(1, |R|_F) (so above project_level's cutoff rank_tol max(1, sigma_max))
+// with room for the round-off of any method that computes them: by a Cholesky factorization
+// of R R^T - tau I, tau = t^2 + kProvedSlack |R|_F^2 (t the larger bound). It succeeds (every
+// pivot positive) only where R R^T - tau I + E is positive definite, E its round-off (|E| a
+// few p^2 eps |R|_F^2, with the Gram's own), so that sigma_min^2 > t^2 + (kProvedSlack - a few
+// p^2 eps) |R|_F^2: a margin, far above the round-off of Jacobi's or the Gram eigenvalues'
+// sigma (a few p eps |R|_F^2 in sigma^2), that keeps their sigma above t too. False where
+// any entry is not finite, p is above kProvedRows (the slack no longer far above p^2 eps),
+// or a pivot is not positive (the caller ranks the rows itself).
+constexpr double kProvedSlack = 1e-11;
+constexpr i64 kProvedRows = 64;
+inline bool singular_values_above(const Mat& R, i64 p, i64 cols, double floor, double rank_tol, Workspace& ws) {
+    if (p > kProvedRows || p <= 0) return false;
+    Mat& G = ws.Q;  // lower triangle: R R^T, then its Cholesky factor
+    shape(G, p, p);  // the lower triangle written before it is read
+    double f2 = 0.0;
+    for (i64 i = 0; i < p; ++i) {
+        const double* ri = R.row(i);
+        for (i64 j = 0; j <= i; ++j) G(i, j) = dot(ri, R.row(j), cols);
+        f2 += G(i, i);
+    }
+    if (!(f2 < kInf)) return false;  // (NaN or inf)
+    double t = pymax(floor, 2.0 * rank_tol * pymax(1.0, std::sqrt(f2)));
+    double tau = t * t + kProvedSlack * f2;
+    if (!(tau < kInf)) return false;
+    for (i64 j = 0; j < p; ++j) {
+        double* gj = G.row(j);
+        double dj = gj[j] - tau;
+        for (i64 k = 0; k < j; ++k) dj -= gj[k] * gj[k];
+        if (!(dj > 0.0)) return false;
+        const double ljj = std::sqrt(dj);
+        gj[j] = ljj;
+        const double inv = 1.0 / ljj;
+        for (i64 i = j + 1; i < p; ++i) {
+            double* gi = G.row(i);
+            double x = gi[j];
+            for (i64 k = 0; k < j; ++k) x -= gi[k] * gj[k];
+            gi[j] = x * inv;
+        }
+    }
+    return true;
+}
+
+// The ranking of project_level: the singular values of R's first p rows (cols long) by
+// one-sided Jacobi (or, well conditioned, the eigenvalues of R R^T), sigma the least above
+// rank_tol max(1, the largest), rank their count, ws.null_cols the rows below the cutoff (in
+// order), ws.log the rotations Zn needs; returns whether a null direction is among the first
+// p (Q's columns rotated). R's rows are rotated (ws.Mt: scratch).
+inline bool rank_rows(Mat& R, i64 p, i64 cols, double rank_tol, bool need_null, Workspace& ws, double& sigma_out,
+                      i64& rank_out) {
+    Mat& Mt = ws.Mt;
+    // Singular values of the top block of R (p, cols) by one-sided Jacobi rotations of its
+    // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
+    // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
+    // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
+    // in a few sweeps).
+    // With many rows, the rows are first turned by the eigenvectors of their Gram matrix R R^T
+    // (symmetric QL, O(p^3)): nearly orthogonal, so that Jacobi, which decides the singular
+    // values as before (the norms of rows it made orthogonal), ends in a sweep or two rather
+    // than five or more (clustered singular values). Turned, Q's first p columns are no longer
+    // followed, so the turn decides only a full rank, far from the cutoff (every singular value
+    // above 2 cutoff; the last level of 16 rows or more: whatever it finds): then Zn is Q's
+    // columns p.. alone, and sigma the least singular value. Otherwise the rows are restored
+    // and ranked as without the turn (the rotations logged for Zn's null directions).
+    std::vector<Rotation>& log = ws.log;
+    Vec& sq = ws.sq;
+    Vec& sv = ws.sv;
+    bool final_turn = !need_null && p >= 16;
+    bool turned = false;
+    // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
+    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): neither the
+    // eigenvalues nor the turn can decide, and neither is taken.
+    // A last row below kGraded times the first (graded rows, a condition number above 1 /
+    // kGraded): the plain Jacobi converges in a few sweeps by itself, and is taken as is.
+    bool roomy = false;
+    if (p >= kTurnRows) {
+        double last = std::sqrt(row_sq(R.row(p - 1), cols)), first = std::sqrt(row_sq(R.row(0), cols));
+        roomy = last > 2.0 * rank_tol * pymax(1.0, first) && last >= kGraded * first;
+    }
+    double top = 0.0;
+    bool decided = false;
+    if (roomy) {
+        // Well conditioned (the least eigenvalue of R R^T at least kConditioned times the
+        // largest, each found within a few p eps of the largest: sigma to 1e-13 or so): the
+        // singular values are the square roots of the eigenvalues, no rotation needed; a full
+        // rank when the least is above 2 cutoff.
+        double low = 0.0, high = 0.0;
+        if (gram_extremes(R, p, cols, ws, low, high) && high > 0.0 && low >= kConditioned * high) {
+            top = std::sqrt(high);
+            double least = std::sqrt(low);
+            if (least > 2.0 * rank_tol * pymax(1.0, top)) {
+                decided = true;
+                sv.assign(static_cast<size_t>(p), least);
+                log.clear();
+            }
+        }
+    }
+    bool turn = !decided && (final_turn || roomy);
+    if (turn) {
+        if (!final_turn) {  // R's rows kept in Mt (free once factored) for the plain ranking
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+        }
+        turned = gram_precondition(R, p, cols, ws);
+    }
+    // The rotations are logged only where Zn may need them: a null direction among R's first p
+    // rows. Where R's last diagonal entry lies far above the cutoff (pivoted QR: |R_ii| falls
+    // with i, and the least singular value lies near the last in practice), Jacobi runs
+    // without the log, R's rows kept in Mt; should a null direction among the first p turn up
+    // after all, the rows are restored and Jacobi run again with the log (the same rotations:
+    // the same bits either way).
+    bool spare = false;
+    for (int pass = 0; pass < 2 && !decided; ++pass) {
+        bool log_now = need_null && !turned;
+        if (log_now && std::fabs(R(p - 1, p - 1)) > 1e4 * rank_tol * pymax(1.0, std::fabs(R(0, 0)))) {
+            shape(Mt, p, cols);  // every entry copied
+            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+            log_now = false;
+            spare = true;
+        }
+        jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log);
+        sv.assign(static_cast<size_t>(p), 0.0);
+        top = 0.0;
+        for (i64 i = 0; i < p; ++i) {
+            sv[i] = std::sqrt(sq[i]);
+            top = pymax(top, sv[i]);
+        }
+        if (!turned || final_turn) break;
+        double far = 2.0 * rank_tol * pymax(1.0, top);
+        bool clear = true;
+        for (i64 i = 0; i < p; ++i)
+            if (!(sv[i] > far)) clear = false;
+        if (clear) break;
+        turned = false;
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
+    }
+    double cutoff = rank_tol * pymax(1.0, top);
+    i64 rank = 0;
+    double sigma = kInf;
+    IVec& null_cols = ws.null_cols;
+    null_cols.clear();
+    for (i64 i = 0; i < p; ++i) {
+        if (sv[i] > cutoff) {
+            rank += 1;
+            sigma = pymin(sigma, sv[i]);
+        } else {
+            null_cols.push_back(i);
+        }
+    }
+    bool rotated_null = !null_cols.empty();
+    if (rotated_null && spare) {
+        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
+        jacobi_row_norms(R, p, cols, true, sq, ws.clean, log);
+    }
+    sigma_out = sigma;
+    rank_out = rank;
+    return rotated_null;
+}
+
+}  // namespace detail
+
 inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool need_null, Workspace& ws,
-                          Projection& out, bool z_eye = false) {
+                          Projection& out, bool z_eye = false, double defer_floor = -1.0) {
     bool az_made = false;
     if (z_eye) {
         // mm(A, I) where A is finite: each nonzero A(i, t) adds A(i, t) to entry t and a
@@ -963,110 +1136,25 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
     ws.qr.keep_reflectors = need_null;
     householder_qr(Mt.cref(), true, ws.Q, R, ws.perm, false, ws.qr);
     ws.qr.keep_reflectors = false;
-    // Singular values of the top block of R (p, cols) by one-sided Jacobi rotations of its
-    // rows, the same rotations applied to Q's columns, so that Mt[:, perm] = (Q Theta^T)
-    // (Theta R) with the rows of Theta R orthogonal: their norms are the singular values,
-    // Q's rotated columns the left singular vectors (pivoted QR first makes Jacobi converge
-    // in a few sweeps).
     i64 p = std::min(r, keep);
-    // With many rows, the rows are first turned by the eigenvectors of their Gram matrix R R^T
-    // (symmetric QL, O(p^3)): nearly orthogonal, so that Jacobi, which decides the singular
-    // values as before (the norms of rows it made orthogonal), ends in a sweep or two rather
-    // than five or more (clustered singular values). Turned, Q's first p columns are no longer
-    // followed, so the turn decides only a full rank, far from the cutoff (every singular value
-    // above 2 cutoff; the last level of 16 rows or more: whatever it finds): then Zn is Q's
-    // columns p.. alone, and sigma the least singular value. Otherwise the rows are restored
-    // and ranked as without the turn (the rotations logged for Zn's null directions).
-    using detail::Rotation;
-    std::vector<Rotation>& log = ws.log;
-    Vec& sq = ws.sq;
-    Vec& sv = ws.sv;
-    bool final_turn = !need_null && p >= 16;
-    bool turned = false;
-    // A last row of R within 2 rank_tol max(1, |R's first row|) bounds the least singular
-    // value by 2 cutoff (every row's norm lies between sigma_min and sigma_max): neither the
-    // eigenvalues nor the turn can decide, and neither is taken.
-    // A last row below kGraded times the first (graded rows, a condition number above 1 /
-    // kGraded): the plain Jacobi converges in a few sweeps by itself, and is taken as is.
-    bool roomy = false;
-    if (p >= kTurnRows) {
-        double last = std::sqrt(row_sq(R.row(p - 1), cols)), first = std::sqrt(row_sq(R.row(0), cols));
-        roomy = last > 2.0 * rank_tol * pymax(1.0, first) && last >= kGraded * first;
-    }
-    double top = 0.0;
-    bool decided = false;
-    if (roomy) {
-        // Well conditioned (the least eigenvalue of R R^T at least kConditioned times the
-        // largest, each found within a few p eps of the largest: sigma to 1e-13 or so): the
-        // singular values are the square roots of the eigenvalues, no rotation needed; a full
-        // rank when the least is above 2 cutoff.
-        double low = 0.0, high = 0.0;
-        if (detail::gram_extremes(R, p, cols, ws, low, high) && high > 0.0 && low >= kConditioned * high) {
-            top = std::sqrt(high);
-            double least = std::sqrt(low);
-            if (least > 2.0 * rank_tol * pymax(1.0, top)) {
-                decided = true;
-                sv.assign(static_cast<size_t>(p), least);
-                log.clear();
-            }
-        }
-    }
-    bool turn = !decided && (final_turn || roomy);
-    if (turn) {
-        if (!final_turn) {  // R's rows kept in Mt (free once factored) for the plain ranking
-            shape(Mt, p, cols);  // every entry copied
-            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
-        }
-        turned = detail::gram_precondition(R, p, cols, ws);
-    }
-    // The rotations are logged only where Zn may need them: a null direction among R's first p
-    // rows. Where R's last diagonal entry lies far above the cutoff (pivoted QR: |R_ii| falls
-    // with i, and the least singular value lies near the last in practice), Jacobi runs
-    // without the log, R's rows kept in Mt; should a null direction among the first p turn up
-    // after all, the rows are restored and Jacobi run again with the log (the same rotations:
-    // the same bits either way).
-    bool spare = false;
-    for (int pass = 0; pass < 2 && !decided; ++pass) {
-        bool log_now = need_null && !turned;
-        if (log_now && std::fabs(R(p - 1, p - 1)) > 1e4 * rank_tol * pymax(1.0, std::fabs(R(0, 0)))) {
-            shape(Mt, p, cols);  // every entry copied
-            for (i64 i = 0; i < p; ++i) std::memcpy(Mt.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
-            log_now = false;
-            spare = true;
-        }
-        detail::jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log);
-        sv.assign(static_cast<size_t>(p), 0.0);
-        top = 0.0;
-        for (i64 i = 0; i < p; ++i) {
-            sv[i] = std::sqrt(sq[i]);
-            top = pymax(top, sv[i]);
-        }
-        if (!turned || final_turn) break;
-        double far = 2.0 * rank_tol * pymax(1.0, top);
-        bool clear = true;
-        for (i64 i = 0; i < p; ++i)
-            if (!(sv[i] > far)) clear = false;
-        if (clear) break;
-        turned = false;
-        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
-    }
-    double cutoff = rank_tol * pymax(1.0, top);
-    i64 rank = 0;
     double sigma = kInf;
+    i64 rank = 0;
     IVec& null_cols = ws.null_cols;
-    null_cols.clear();
-    for (i64 i = 0; i < p; ++i) {
-        if (sv[i] > cutoff) {
-            rank += 1;
-            sigma = pymin(sigma, sv[i]);
-        } else {
-            null_cols.push_back(i);
-        }
-    }
-    bool rotated_null = !null_cols.empty();
-    if (rotated_null && spare) {
-        for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
-        detail::jacobi_row_norms(R, p, cols, true, sq, ws.clean, log);
+    bool rotated_null = false;
+    if (defer_floor >= 0.0 && detail::singular_values_above(R, p, cols, defer_floor, rank_tol, ws)) {
+        // Every singular value proved above the cutoff and above defer_floor (the damping's
+        // threshold: no damping): the full rank, the null directions Q's columns p.. alone,
+        // as the ranking below would find them; sigma itself is left to the caller, from a
+        // copy of R's rows (deferred_sigma: the same ranking, the same bits), NaN here.
+        sigma = kNaN;
+        rank = p;
+        null_cols.clear();
+        ws.deferred = true;
+        shape(ws.defer_R, p, cols);  // every entry copied
+        for (i64 i = 0; i < p; ++i)
+            std::memcpy(ws.defer_R.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
+    } else {
+        rotated_null = detail::rank_rows(R, p, cols, rank_tol, need_null, ws, sigma, rank);
     }
     for (i64 i = p; i < r; ++i) null_cols.push_back(i);
     out.sigma = sigma;
@@ -1083,6 +1171,48 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
     Projection out;
     project_level(A, w, Z, rank_tol, need_null, ws, out);
     return out;
+}
+
+namespace detail {
+
+// Level k's record of CascadeResult::deferred (its header entry set to the record's offset).
+inline void defer_record(Vec& store, i64 k, bool need_null, double rank_tol, const Mat& R) {
+    const i64 p = R.rows, cols = R.cols;
+    store[static_cast<size_t>(k)] = static_cast<double>(store.size());
+    store.push_back(static_cast<double>(p));
+    store.push_back(static_cast<double>(cols));
+    store.push_back(need_null ? 1.0 : 0.0);
+    store.push_back(rank_tol);
+    store.insert(store.end(), R.a.data(), R.a.data() + p * cols);
+}
+
+}  // namespace detail
+
+// The sigma of level k of a CascadeResult::deferred store (len entries; L levels): the
+// ranking's (detail::rank_rows) on the rows kept, the bits project_level would have
+// returned; `fallback` where level k has no record. Throws std::invalid_argument on a
+// malformed store.
+inline double deferred_sigma(const double* store, i64 len, i64 L, i64 k, double fallback) {
+    auto bad = [] { throw std::invalid_argument("deferred_sigma: malformed store"); };
+    if (L < 0 || k < 0 || k >= L || len < L) bad();
+    const double at = store[k];
+    if (at == -1.0) return fallback;
+    if (!(at >= static_cast<double>(L) && at + 4.0 <= static_cast<double>(len))) bad();
+    const i64 o = static_cast<i64>(at);
+    const double pd = store[o], cd = store[o + 1];
+    if (!(pd >= 1.0 && pd <= static_cast<double>(detail::kProvedRows) && cd >= 1.0 && cd <= 1e6) || pd != std::floor(pd) ||
+        cd != std::floor(cd))
+        bad();
+    const i64 p = static_cast<i64>(pd), cols = static_cast<i64>(cd);
+    if (o + 4 + p * cols > len) bad();
+    thread_local Workspace ws;
+    Mat& R = ws.R;
+    shape(R, p, cols);  // every entry copied
+    std::memcpy(R.a.data(), store + o + 4, static_cast<size_t>(p * cols) * sizeof(double));
+    double sigma = kInf;
+    i64 rank = 0;
+    detail::rank_rows(R, p, cols, store[o + 3], store[o + 2] != 0.0, ws, sigma, rank);
+    return sigma;
 }
 
 // lambda^2 driven by sigma: max_damping^2 (1 - (sigma / threshold)^2) below the threshold.
@@ -2435,7 +2565,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
                                bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
-                               bool primal = true) {
+                               bool primal = true, bool defer_sigma = false) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     i64 n = lb.size();
     i64 p = G.rows;
@@ -2451,6 +2581,9 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
     fill(res.iterations, static_cast<size_t>(L), i64{0});
     fill(res.active, static_cast<size_t>(L * (n + p)), i8{0});
     fill(res.certificate, static_cast<size_t>(4 * L), kNaN);
+    fill(res.deferred, static_cast<size_t>(defer_sigma ? L : 0), -1.0);
+    // no damping where sigma is at or above this (level_damping): sigma is then deferred
+    const double defer_floor = !defer_sigma ? -1.0 : max_damping > 0.0 ? threshold : 0.0;
     res.primal = 0.0;
     Vec& d = res.dq;
     zero_fill(d, static_cast<size_t>(n));
@@ -2489,7 +2622,9 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         CVecRef bk = b.slice(s0, s1);
         CVecRef wk = w.slice(s0, s1);
         Projection& pr = ws.pr;
-        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr, z_eye);
+        ws.deferred = false;
+        project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr, z_eye, defer_floor);
+        if (ws.deferred) detail::defer_record(res.deferred, k, k < last, rank_tol, ws.defer_R);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;

@@ -183,7 +183,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
                         CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold,
                         double max_damping, double error_scale, double rank_tol, i64 max_iter,
                         double tol, MatRefT<const i8> warm, bool canonical, core::Workspace& ws,
-                        CoupleScratch& s, core::CascadeResult& out) {
+                        CoupleScratch& s, core::CascadeResult& out, bool defer = false) {
     using namespace couple_detail;
     const i64 n = A.cols, L = starts.size() - 1, M = A.rows;
     if (G.rows != 0 || L < 2 || n < 2) return false;
@@ -353,7 +353,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         s.Ar.cref(), CVecRef(s.br), w.slice(m0, M), VecRefT<const i64>(s.startsr), reg.slice(1, L),
         CVecRef(s.lbr), CVecRef(s.ubr), CMatRef(nullptr, 0, nr), h, threshold, max_damping,
         error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(s.warmr.data(), L - 1, nr),
-        canonical, ws, low, false, false);
+        canonical, ws, low, false, false, defer);
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
     // Back to x, snapped to the box as the cascade snaps; a larger excess: the general path.
     Vec& x = s.xs;
@@ -382,6 +382,17 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     out.certificate.resize(static_cast<size_t>(4 * L));
     out.status[0] = core::SOLVED;
     out.sigma[0] = sigma;
+    // the levels below's deferred sigma (defer): their header entries after level 0's (none),
+    // each offset one further on, then their records as the reduced cascade left them
+    out.deferred.clear();
+    if (!low.deferred.empty()) {
+        out.deferred.push_back(-1.0);
+        for (i64 k = 0; k + 1 < L; ++k) {
+            const double at = low.deferred[static_cast<size_t>(k)];
+            out.deferred.push_back(at == -1.0 ? -1.0 : at + 1.0);
+        }
+        out.deferred.insert(out.deferred.end(), low.deferred.begin() + (L - 1), low.deferred.end());
+    }
     out.lam2[0] = lam;
     out.iterations[0] = 0;
     out.certificate[0] = cert.primal;

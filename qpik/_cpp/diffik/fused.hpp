@@ -525,13 +525,18 @@ struct StepResult {
 // s: fused_rows_into's storage, kept by the caller between steps (Scratch).
 // The _into forms write into a StepResult the caller keeps (its vectors' storage reused;
 // every field written, as a fresh one would hold it).
+// defer: a level whose rank the cascade proves full without damping leaves its sigma NaN in
+// info, its record in s.cascade.deferred (core::solve_cascade_into's defer_sigma; resolved by
+// core::deferred_sigma); else every sigma is computed.
 inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out);
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out,
+                                 bool defer = false);
 
 inline void fused_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                            bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
+                            bool canonical, core::Workspace& ws, Scratch& s, StepResult& out,
+                            bool defer = false) {
     fused_rows_into(a, s);
-    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out);
+    solve_rows_step_into(a, max_iter, warm, canonical, ws, s, out, defer);
 }
 
 inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
@@ -544,7 +549,8 @@ inline StepResult fused_step(const FusedArgs& a, i64 max_iter, MatRefT<const i8>
 // The cascade on the rows, regularisation and box that fused_rows_into left in s.rows (A,
 // b, w of `a`): fused_step after its rows.
 inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const i8> warm,
-                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out) {
+                                 bool canonical, core::Workspace& ws, Scratch& s, StepResult& out,
+                                 bool defer) {
     const i64 n = a.A.cols;
     const i64 L = a.starts.n - 1;
     const RowsResult& rows = s.rows;
@@ -565,17 +571,18 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     const double dt = a.settings[DT];
     const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
     core::CascadeResult& c = s.cascade;
+    c.deferred.clear();  // (couple_step writes it only where it answers)
     // A first level of pair couplings (a mimic) by its exact fast path (couple.hpp), else
     // the general cascade.
     if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
                      CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
                      a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
-                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c)) {
+                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c, defer)) {
         core::solve_cascade_into(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
                                  CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
                                  a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
                                  a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                 a.settings[TOL], warm, canonical, ws, c, true, false);
+                                 a.settings[TOL], warm, canonical, ws, c, true, false, defer);
     }
     // (c.primal is not read here: the general path leaves it uncomputed)
     out.d.assign(c.dq.begin(), c.dq.end());
