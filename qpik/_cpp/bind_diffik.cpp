@@ -805,13 +805,14 @@ class Kernel {
     }
 
     // The largest CascadeResult::deferred of a step: L header entries, and per level k of m_k
-    // rows a record of 4 entries and R's rows (at most min(nv, m_k) rows of at most m_k).
+    // rows a record of 5 entries and a matrix of at most min(nv, m_k) m_k entries (R's rows, or
+    // the last level's M when it has more rows than directions).
     i64 defer_width() const {
         const i64* s = starts_.data.data();
         i64 width = L_;
         for (i64 k = 0; k < L_; ++k) {
             const i64 m = s[k + 1] - s[k];
-            width += 4 + std::min(n_, m) * m;
+            width += 5 + std::min(n_, m) * m;
         }
         return width;
     }

@@ -11,6 +11,7 @@ import copy
 import pickle
 
 import numpy as np
+import pytest
 
 from qpik.core import HierarchyProblem, HierarchyResult, HierarchySolver, Level, cascade
 from qpik.core import kernels as K
@@ -166,3 +167,25 @@ def test_non_finite_entries_anywhere_go_to_the_checks():
                 p = _problem(n=n)
                 p.G[1, pos] = bad
                 assert _solve(p, cascade._KINDS) is None
+
+
+def test_resolve_sigma_rejects_a_malformed_store():
+    """A store that does not hold what the cascade writes raises ValueError (never reads past
+    it); a level without a record keeps its own value."""
+    nan = float("nan")
+    out = K.resolve_sigma(np.array([0.5, nan]), np.array([-1.0, -1.0]))
+    assert out[0] == 0.5 and np.isnan(out[1])
+    for store in (
+        [5.0],  # shorter than L
+        [2.0, 0.0],  # a record past the end
+        [1.0, 0.0, 1.0, 1.0, 0.0, 1e-10],  # an offset into the header
+        [2.0, -1.0, 3.0, 1.0, 1.0, 0.0, 1e-10, 1.0],  # an unknown kind
+        [2.0, -1.0, 0.0, 1e9, 1.0, 0.0, 1e-10, 1.0],  # rows beyond the store
+        [2.0, -1.0, 0.0, 2.5, 1.0, 0.0, 1e-10, 1.0],  # a fractional size
+        [2.0, -1.0, 0.0, 65.0, 1.0, 0.0, 1e-10] + [1.0] * 65,  # more R rows than proved
+    ):
+        with pytest.raises(ValueError):
+            K.resolve_sigma(np.array([nan, nan]), np.array(store))
+    # a well-formed record of R = diag(2, 3): sigma 2
+    store = np.array([2.0, -1.0, 0.0, 2.0, 2.0, 1.0, 1e-10, 2.0, 0.0, 0.0, 3.0])
+    assert K.resolve_sigma(np.array([nan, 7.0]), store) == [2.0, 7.0]

@@ -26,8 +26,9 @@ struct CascadeResult {
     double primal = 0.0;  // the final dq's largest scaled row violation (box and general)
     // With defer_sigma: the levels whose sigma was proved above the damping's threshold and the
     // cutoff (project_level's defer_floor; sigma NaN in `sigma`): L header entries (-1, or the
-    // offset of the level's record), then each record: p, cols, need_null, rank_tol and R's p
-    // rows (cols each); deferred_sigma(record) gives the sigma the ranking would have given.
+    // offset of the level's record), then each record: kind, rows, cols, need_null, rank_tol
+    // and the matrix (rows, cols): R's first p rows (kind 0) or M itself (kind 1, the last
+    // level's, before its QR); deferred_sigma gives the sigma the ranking would have given.
     // Empty without defer_sigma.
     Vec deferred;
 };
@@ -82,6 +83,7 @@ struct Workspace {
     Mat Z, Ztmp;
     // project_level's proved full rank (defer_floor): R's rows kept for deferred_sigma
     bool deferred = false;
+    int defer_kind = 0;  // 0: R's first p rows; 1: M itself (not yet factored)
     Mat defer_R;
     Projection pr;
     ReducedQP qp;
@@ -854,16 +856,9 @@ namespace detail {
 // or a pivot is not positive (the caller ranks the rows itself).
 constexpr double kProvedSlack = 1e-11;
 constexpr i64 kProvedRows = 64;
-inline bool singular_values_above(const Mat& R, i64 p, i64 cols, double floor, double rank_tol, Workspace& ws) {
-    if (p > kProvedRows || p <= 0) return false;
-    Mat& G = ws.Q;  // lower triangle: R R^T, then its Cholesky factor
-    shape(G, p, p);  // the lower triangle written before it is read
-    double f2 = 0.0;
-    for (i64 i = 0; i < p; ++i) {
-        const double* ri = R.row(i);
-        for (i64 j = 0; j <= i; ++j) G(i, j) = dot(ri, R.row(j), cols);
-        f2 += G(i, i);
-    }
+// The Cholesky test of singular_values_above on a Gram matrix G (p, p; its lower triangle
+// read, then overwritten by the factor) of trace f2: whether G - tau I is positive definite.
+inline bool gram_above(Mat& G, i64 p, double f2, double floor, double rank_tol) {
     if (!(f2 < kInf)) return false;  // (NaN or inf)
     double t = pymax(floor, 2.0 * rank_tol * pymax(1.0, std::sqrt(f2)));
     double tau = t * t + kProvedSlack * f2;
@@ -884,6 +879,32 @@ inline bool singular_values_above(const Mat& R, i64 p, i64 cols, double floor, d
         }
     }
     return true;
+}
+
+inline bool singular_values_above(const Mat& R, i64 p, i64 cols, double floor, double rank_tol, Workspace& ws) {
+    if (p > kProvedRows || p <= 0) return false;
+    Mat& G = ws.Q;  // lower triangle: R R^T, then its Cholesky factor
+    shape(G, p, p);  // the lower triangle written before it is read
+    double f2 = 0.0;
+    for (i64 i = 0; i < p; ++i) {
+        const double* ri = R.row(i);
+        for (i64 j = 0; j <= i; ++j) G(i, j) = dot(ri, R.row(j), cols);
+        f2 += G(i, i);
+    }
+    return gram_above(G, p, f2, floor, rank_tol);
+}
+
+// singular_values_above for the singular values of M (rows, cols), cols <= kProvedRows, from
+// its own Gram matrix M^T M (no QR: its round-off, a few rows eps |M|_F^2, is far inside the
+// margin too).
+inline bool columns_above(const Mat& M, double floor, double rank_tol, Workspace& ws) {
+    const i64 c = M.cols;
+    if (c > kProvedRows || c <= 0 || M.rows > 4 * kProvedRows) return false;
+    Mat& G = ws.Q;
+    mtm_into(M.cref(), G);
+    double f2 = 0.0;
+    for (i64 i = 0; i < c; ++i) f2 += G(i, i);
+    return gram_above(G, c, f2, floor, rank_tol);
 }
 
 // The ranking of project_level: the singular values of R's first p rows (cols long) by
@@ -1129,6 +1150,19 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
             i = m;
         }
     }
+    if (tall && defer_floor >= 0.0 && detail::columns_above(Mt, defer_floor, rank_tol, ws)) {
+        // The last level, more rows than directions: its singular values (M's) proved above the
+        // cutoff and defer_floor from M^T M (see below), so that its rank is r and its damping
+        // 0; the QR and the ranking are left to deferred_sigma, from a copy of M (the same
+        // QR, the same ranking: the same bits).
+        ws.deferred = true;
+        ws.defer_kind = 1;
+        ws.defer_R = Mt;
+        out.sigma = kNaN;
+        out.rank = r;
+        out.Zn.zeros(Z.rows, 0);
+        return;
+    }
     i64 cols = Mt.cols;  // R's row length
     Mat& R = ws.R;
     // Q is never formed: the reflectors are kept where Zn needs them (applied to Z, or to the
@@ -1150,6 +1184,7 @@ inline void project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol, bool
         rank = p;
         null_cols.clear();
         ws.deferred = true;
+        ws.defer_kind = 0;
         shape(ws.defer_R, p, cols);  // every entry copied
         for (i64 i = 0; i < p; ++i)
             std::memcpy(ws.defer_R.row(i), R.row(i), static_cast<size_t>(cols) * sizeof(double));
@@ -1176,9 +1211,10 @@ inline Projection project_level(CMatRef A, CVecRef w, CMatRef Z, double rank_tol
 namespace detail {
 
 // Level k's record of CascadeResult::deferred (its header entry set to the record's offset).
-inline void defer_record(Vec& store, i64 k, bool need_null, double rank_tol, const Mat& R) {
+inline void defer_record(Vec& store, i64 k, int kind, bool need_null, double rank_tol, const Mat& R) {
     const i64 p = R.rows, cols = R.cols;
     store[static_cast<size_t>(k)] = static_cast<double>(store.size());
+    store.push_back(static_cast<double>(kind));
     store.push_back(static_cast<double>(p));
     store.push_back(static_cast<double>(cols));
     store.push_back(need_null ? 1.0 : 0.0);
@@ -1197,21 +1233,33 @@ inline double deferred_sigma(const double* store, i64 len, i64 L, i64 k, double 
     if (L < 0 || k < 0 || k >= L || len < L) bad();
     const double at = store[k];
     if (at == -1.0) return fallback;
-    if (!(at >= static_cast<double>(L) && at + 4.0 <= static_cast<double>(len))) bad();
+    if (!(at >= static_cast<double>(L) && at + 5.0 <= static_cast<double>(len)) || at != std::floor(at)) bad();
     const i64 o = static_cast<i64>(at);
-    const double pd = store[o], cd = store[o + 1];
-    if (!(pd >= 1.0 && pd <= static_cast<double>(detail::kProvedRows) && cd >= 1.0 && cd <= 1e6) || pd != std::floor(pd) ||
-        cd != std::floor(cd))
-        bad();
-    const i64 p = static_cast<i64>(pd), cols = static_cast<i64>(cd);
-    if (o + 4 + p * cols > len) bad();
+    const double kind = store[o], rd = store[o + 1], cd = store[o + 2];
+    auto whole = [](double x, double hi) { return x >= 1.0 && x <= hi && x == std::floor(x); };
+    if (!(kind == 0.0 || kind == 1.0) || !whole(rd, 1e6) || !whole(cd, 1e6)) bad();
+    const i64 rows = static_cast<i64>(rd), cols = static_cast<i64>(cd);
+    if ((kind == 0.0 ? rows : cols) > detail::kProvedRows || o + 5 + rows * cols > len) bad();
+    const bool need_null = store[o + 3] != 0.0;
+    const double rank_tol = store[o + 4];
     thread_local Workspace ws;
     Mat& R = ws.R;
-    shape(R, p, cols);  // every entry copied
-    std::memcpy(R.a.data(), store + o + 4, static_cast<size_t>(p * cols) * sizeof(double));
+    i64 p = rows;
+    if (kind == 0.0) {  // R's first p rows
+        shape(R, rows, cols);  // every entry copied
+        std::memcpy(R.a.data(), store + o + 5, static_cast<size_t>(rows * cols) * sizeof(double));
+    } else {  // M (rows, cols): project_level's QR of it first
+        Mat& M = ws.Mt;
+        shape(M, rows, cols);  // every entry copied
+        std::memcpy(M.a.data(), store + o + 5, static_cast<size_t>(rows * cols) * sizeof(double));
+        ws.qr.keep_reflectors = need_null;
+        householder_qr(M.cref(), true, ws.Q, R, ws.perm, false, ws.qr);
+        ws.qr.keep_reflectors = false;
+        p = std::min(rows, cols);
+    }
     double sigma = kInf;
     i64 rank = 0;
-    detail::rank_rows(R, p, cols, store[o + 3], store[o + 2] != 0.0, ws, sigma, rank);
+    detail::rank_rows(R, p, cols, rank_tol, need_null, ws, sigma, rank);
     return sigma;
 }
 
@@ -2624,7 +2672,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         Projection& pr = ws.pr;
         ws.deferred = false;
         project_level(Ak, wk, Z.cref(), rank_tol, k < last, ws, pr, z_eye, defer_floor);
-        if (ws.deferred) detail::defer_record(res.deferred, k, k < last, rank_tol, ws.defer_R);
+        if (ws.deferred) detail::defer_record(res.deferred, k, ws.defer_kind, k < last, rank_tol, ws.defer_R);
         double lam = level_damping(Ak, bk, wk, d.data(), pr.sigma, threshold, max_damping, error_scale);
         res.sigma[k] = pr.sigma;
         res.lam2[k] = lam;
