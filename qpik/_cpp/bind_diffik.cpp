@@ -720,12 +720,7 @@ class Kernel {
         diffik::StepResult& r = step_;  // kept: its vectors' storage reused
         diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r, true);
         if (r.code != diffik::OK) return r.code;
-        const Vec& deferred = scratch_.cascade.deferred;
-        const i64 width = dim(o.defer, 1);
-        require(static_cast<i64>(deferred.size()) <= width, "Kernel.go: deferred records past defer_width");
-        double* drow = o.defer.data() + row * width;
-        if (deferred.empty()) std::fill(drow, drow + L_, -1.0);
-        else std::memcpy(drow, deferred.data(), sizeof(double) * deferred.size());
+        write_deferred(row);
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
                 "Kernel.go: unexpected answer shapes");
@@ -790,7 +785,7 @@ class Kernel {
         if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
         diffik::StepResult& r = step_;
         diffik::solve_rows_step_into(a, max_iter, MatRefT<const i8>(cold_.data(), L_, n_), false, ws_,
-                                     scratch_, r);
+                                     scratch_, r, true);
         if (r.code != diffik::OK) return r.code;
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
@@ -799,9 +794,20 @@ class Kernel {
         std::memcpy(o.v.data() + row * n_, r.v.data(), sizeof(double) * n_);
         std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
         std::memcpy(o.active.data() + row * L_ * n_, r.active.data(), L_ * n_);
-        double* drow = o.defer.data() + row * dim(o.defer, 1);  // (every sigma computed: none deferred)
-        std::fill(drow, drow + L_, -1.0);
+        write_deferred(row);
         return r.code;
+    }
+
+    // The step's deferred records (the cascade's, or none: the couplings' path and a step
+    // that did not solve leave them empty) into row `row` of the defer output.
+    void write_deferred(i64 row) {
+        auto& o = *out_;
+        const Vec& deferred = scratch_.cascade.deferred;
+        const i64 width = dim(o.defer, 1);
+        require(static_cast<i64>(deferred.size()) <= width, "Kernel: deferred records past defer_width");
+        double* drow = o.defer.data() + row * width;
+        if (deferred.empty()) std::fill(drow, drow + L_, -1.0);
+        else std::memcpy(drow, deferred.data(), sizeof(double) * deferred.size());
     }
 
     // The largest CascadeResult::deferred of a step: L header entries, and per level k of m_k
