@@ -3,6 +3,7 @@
 // reads out of bounds); the plan's and MuJoCo's arrays are used in place (no copies).
 #include "bind.hpp"
 #include "diffik/fused.hpp"
+#include "model/com.hpp"
 
 #include <nanobind/stl/optional.h>
 
@@ -582,12 +583,47 @@ class Kernel {
         cdof_.reset();
     }
 
+    // The CoM tasks' Jacobians computed by the kernel on each go() (model::subtree_com_jacobian,
+    // from the MjData attach_chains holds): com_jac the kernel's (C, 3, nv) array, point and
+    // root (C, nv) body ids and scale (C, nv) each task's per-dof chain
+    // (qpik.model.com.subtree_com_chain).
+    void set_com_chains(Out3 jac, const I2& point, const I2& root, const In2& scale) {
+        const i64 C = com_body_.rows;
+        require(jac.data() == com_jac_.data() && dim(jac, 0) == C && dim(jac, 1) == 3 && dim(jac, 2) == n_,
+                "Kernel.set_com_chains: com_jac must be the kernel's com_jac");
+        com_point_.assign(point);
+        com_root_.assign(root);
+        require(com_point_.rows == C && com_point_.cols == n_ && com_root_.rows == C && com_root_.cols == n_ &&
+                    dim(scale, 0) == C && dim(scale, 1) == n_,
+                "Kernel.set_com_chains: point, root and scale must have shape (C, nv)");
+        com_scale_.assign(scale.data(), scale.data() + C * n_);
+        max_com_body_ = -1;
+        for (i64 e = 0; e < C * n_; ++e) {
+            require(std::isfinite(com_scale_[e]), "Kernel.set_com_chains: a scale is not finite");
+            if (com_scale_[e] == 0.0) continue;
+            require(com_point_.data[e] >= 0 && com_root_.data[e] >= 0, "Kernel.set_com_chains: a body is negative");
+            max_com_body_ = std::max(max_com_body_, std::max(com_point_.data[e], com_root_.data[e]));
+        }
+        com_w_ = jac;
+        cdof_.reset();
+    }
+
     void attach_chains(const In2& cdof, const In2& subtree_com) {
-        require(jac_w_.has_value(), "Kernel.attach_chains: no chains (Kernel.set_chains)");
+        require(jac_w_.has_value() || com_w_.has_value(), "Kernel.attach_chains: no chains (Kernel.set_chains)");
         require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6, "Kernel.attach_chains: cdof must have shape (nv, 6)");
-        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0),
+        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0) && max_com_body_ < dim(subtree_com, 0),
                 "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
         cdof_ = Chains{cdof, subtree_com};
+    }
+
+    // The CoM tasks' Jacobians into com_jac (see set_com_chains).
+    void com_jacobians() {
+        const auto& c = *cdof_;
+        const i64 C = com_point_.rows, n = n_;
+        for (i64 k = 0; k < C; ++k)
+            model::subtree_com_jacobian(c.cdof.data(), c.subtree_com.data(), n, com_point_.data.data() + k * n,
+                                        com_root_.data.data() + k * n, com_scale_.data() + k * n,
+                                        com_w_->data() + k * 3 * n);
     }
 
     // The frames' Jacobians into jac (see set_chains).
@@ -707,6 +743,10 @@ class Kernel {
         if (jac_w_) {
             require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
             frame_jacobians();
+        }
+        if (com_w_) {
+            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
+            com_jacobians();
         }
         const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
@@ -880,6 +920,10 @@ class Kernel {
         In2 cdof, subtree_com;
     };
     std::optional<Chains> cdof_;
+    std::optional<Out3> com_w_;
+    IndexCopy com_point_, com_root_;
+    std::vector<double> com_scale_;
+    i64 max_com_body_ = -1;
     i64 nq_ = 0, n_ = 0, L_ = 0;
     IndexCopy starts_, tasks_, frames_, rel_frames_, com_body_, posture_map_, cfg_dof_, cfg_qadr_,
         vel_dof_, lin_starts_;
@@ -972,6 +1016,11 @@ void bind_diffik(nb::module_& m) {
              "chain dofs[starts[f]:starts[f+1]] and its body's root roots[f]; jac the kernel's.")
         .def("attach_chains", &Kernel::attach_chains, nb::arg("cdof"), nb::arg("subtree_com"),
              "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
+        .def("set_com_chains", &Kernel::set_com_chains, nb::arg("com_jac").noconvert(), nb::arg("point"),
+             nb::arg("root"), nb::arg("scale"),
+             "Have go() compute the CoM tasks' Jacobians into com_jac (the kernel's own (C, 3, nv) array) from "
+             "the MjData attach_chains holds: point, root (C, nv) int64 and scale (C, nv), each task's per-dof "
+             "chain (qpik.model.com.subtree_com_chain).")
         .def("attach_out", &Kernel::attach_out, nb::arg("d").noconvert(), nb::arg("v").noconvert(),
              nb::arg("info").noconvert(), nb::arg("active").noconvert(), nb::arg("qpos").noconvert(),
              nb::arg("defer").noconvert(),

@@ -2,6 +2,7 @@
 #include "bind.hpp"
 #include "bind_chain.hpp"
 #include "model/chain.hpp"
+#include "model/com.hpp"
 #include "model/so3.hpp"
 
 #include <cmath>
@@ -59,6 +60,27 @@ void bind_model(nb::module_& m) {
                            "arrays' memory must outlive every call of unchanged() (it holds no reference).")
         .def(nb::init<nb::list>(), "arrays"_a, "Remember the bytes of C-contiguous arrays (any dtype).")
         .def("unchanged", &ArrayWatch::unchanged, "Whether every array still holds the bytes remembered.");
+
+    m.def(
+        "subtree_com_jacobian",
+        [](In2 cdof, In2 subtree_com, In<i64, 1> point, In<i64, 1> root, In1 scale, Out2 jac) {
+            const i64 nv = static_cast<i64>(cdof.shape(0)), nbody = static_cast<i64>(subtree_com.shape(0));
+            require(cdof.shape(1) == 6, "cdof must be (nv, 6)");
+            require(subtree_com.shape(1) == 3, "subtree_com must be (nbody, 3)");
+            require(static_cast<i64>(point.shape(0)) == nv && static_cast<i64>(root.shape(0)) == nv &&
+                        static_cast<i64>(scale.shape(0)) == nv,
+                    "point, root and scale must be (nv,)");
+            require(jac.shape(0) == 3 && static_cast<i64>(jac.shape(1)) == nv, "jac must be (3, nv)");
+            for (i64 d = 0; d < nv; ++d)
+                require(scale(d) == 0.0 || (point(d) >= 0 && point(d) < nbody && root(d) >= 0 && root(d) < nbody),
+                        "point and root must be body ids (where scale is not 0)");
+            model::subtree_com_jacobian(cdof.data(), subtree_com.data(), nv, point.data(), root.data(), scale.data(),
+                                        jac.data());
+        },
+        "cdof"_a, "subtree_com"_a, "point"_a, "root"_a, "scale"_a, "jac"_a.noconvert(),
+        "The Jacobian jac (3, nv) [m per unit of dq], world frame, of a subtree's centre of mass from "
+        "mjData's cdof and subtree_com and its per-dof chain (qpik.model.com.subtree_com_chain), written in "
+        "place: column d = scale[d] (v_d + omega_d x (subtree_com[point[d]] - subtree_com[root[d]])).");
 
     m.def(
         "fk_jac",

@@ -46,10 +46,11 @@ from .._engine import diffik as _engine
 from ..core import HierarchySolver
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
+from ..model.com import subtree_com_jacobian
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows
 from .correction import LeanCorrection
-from .layout import frame_chains
+from .layout import com_chains, frame_chains, write_pose_row
 from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -75,18 +76,6 @@ OUTPUT_ROWS = 64
 # The compiled kernel: its arguments are documented where it is bound
 # (qpik/_cpp/bind_diffik.cpp, above the Kernel class).
 Kernel = _engine.Kernel
-
-
-def _write_pose_row(views: tuple, task, pose) -> None:
-    """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
-    data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
-    if pose is None:
-        raise TargetNotSet(type(task).__name__)
-    row, target, cost = views
-    target[...] = pose.wxyz_xyz
-    cost[...] = task.cost
-    row[13] = task.gain
-    row[14] = task.lm_damping
 
 
 @dataclass
@@ -146,6 +135,8 @@ class CompiledPlan:
         #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
         self._velocity_rows: list = []
         self._active_rows: list = []
+        #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
+        self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
         self._linear_tasks = [t[0] for t in self.linears]
         self._config_limits = [c[0] for c in self.config_limits]
         if not self.general_limits:
@@ -155,6 +146,9 @@ class CompiledPlan:
                 self.kernel.set_chains(
                     self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
                 )
+            if self._com_chains:  # the kernel computes the CoM Jacobians too
+                chains = (np.stack(a) for a in zip(*self._com_chains))
+                self.kernel.set_com_chains(self.arrays["com_jac"], *chains)
 
     def __deepcopy__(self, memo: dict) -> CompiledPlan:
         """The plan itself: it is the solver's machinery, not data (a deep copy of a
@@ -221,13 +215,13 @@ class CompiledPlan:
         data = configuration.data
         model = self.model
         for task, jacobian, fid, jp, jr, row in self.frames:
-            _write_pose_row(row, task, task.transform_target_to_world)
+            write_pose_row(row, task, task.transform_target_to_world)
             jacobian(model, data, jp, jr, fid)
         self._gather_postures()
         if not self._gather_coms(data):
             return None
         for task, (ff, fid), (rf, rid), jac, row in self.relatives:
-            _write_pose_row(row, task, task.transform_target_to_root)
+            write_pose_row(row, task, task.transform_target_to_root)
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
         self._gather_gains()
@@ -300,9 +294,11 @@ class CompiledPlan:
             row[-1] = task.lm_damping
 
     def _gather_coms(self, data: mujoco.MjData) -> bool:
-        """CoM tasks' targets, costs and Jacobians; False when a task's subtree changed
-        (the QP path resolves it)."""
-        for task, body, given, jac, (row, target_view, cost_view) in self.coms:
+        """CoM tasks' targets, costs and Jacobians; False when a task's subtree changed (the
+        QP path resolves it)."""
+        chains = self._com_chains or [None] * len(self.coms)
+        for (task, body, given, jac, views), chain in zip(self.coms, chains):
+            row, target_view, cost_view = views
             if given is not None and task.body is not given:
                 return False
             target = task.target_com
@@ -312,7 +308,10 @@ class CompiledPlan:
             cost_view[...] = task.cost
             row[6] = task.gain
             row[7] = task.lm_damping
-            mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
+            if chain is None:
+                mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
+            else:  # as the kernel's lean step computes them
+                subtree_com_jacobian(data, chain, jac)
         return True
 
     def _gather_gains(self) -> None:
@@ -392,16 +391,17 @@ class CompiledPlan:
         return all(given is None or t.body is given for t, _body, given, *_ in self.coms)
 
     def _jacobians(self, data: mujoco.MjData) -> None:
-        """MuJoCo's Jacobians of the CoM and relative-frame tasks into the plan (the frame
-        tasks' the kernel computes, from ``data``'s ``cdof`` and ``subtree_com``)."""
+        """MuJoCo's Jacobians of the relative-frame tasks into the plan (the kernel computes
+        the frames' and the CoMs' from ``data``'s ``cdof`` and ``subtree_com``)."""
         model = self.model
         if data is not self._chain_data:
-            if self.frames:  # the kernel computes the frames'
+            if self.frames or self._com_chains:  # the kernel computes the frames' (and CoMs')
                 self.kernel.attach_chains(data.cdof, data.subtree_com)
             self._chain_data = data
             self._update_plain_data()
-        for _task, body, _given, jac, _row in self.coms:
-            mujoco.mj_jacSubtreeCom(model, data, jac, body)
+        if not self._com_chains:
+            for _task, body, _given, jac, _row in self.coms:
+                mujoco.mj_jacSubtreeCom(model, data, jac, body)
         for _task, (ff, fid), (rf, rid), jac, _row in self.relatives:
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)

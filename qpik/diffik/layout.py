@@ -18,6 +18,8 @@ import mink
 import mujoco
 import numpy as np
 
+from ..errors import TargetNotSet
+from ..model.com import subtree_com_chain
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask
 from ..tasks.com import ComTask
@@ -26,8 +28,8 @@ from .boxes import LimitBoxes
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
-    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "frame_chains", "limit_layout",
-    "plan_arrays", "task_layout",
+    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "com_chains", "frame_chains", "limit_layout",
+    "plan_arrays", "task_layout", "write_pose_row",
 ]  # fmt: skip
 
 KINDS = {"site": 0, "body": 1, "geom": 2}
@@ -324,3 +326,23 @@ def frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
             da = int(model.dof_parentid[da])
         starts.append(len(dofs))
     return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
+
+
+def write_pose_row(views: tuple, task, pose) -> None:
+    """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
+    data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
+    if pose is None:
+        raise TargetNotSet(type(task).__name__)
+    row, target, cost = views
+    target[...] = pose.wxyz_xyz
+    cost[...] = task.cost
+    row[13] = task.gain
+    row[14] = task.lm_damping
+
+
+def com_chains(model: mujoco.MjModel, bodies: list[int]) -> list:
+    """Per CoM task (its subtree's root body), the per-dof chain of its Jacobian
+    (:func:`qpik.model.com.subtree_com_chain`); [] when any subtree has no mass (then
+    MuJoCo's ``mj_jacSubtreeCom`` gives every one)."""
+    chains = [subtree_com_chain(model, body) for body in bodies]
+    return chains if all(c is not None for c in chains) else []

@@ -38,6 +38,11 @@ ArrayWatch = _model.ArrayWatch
 #: zero), written in place. ``chain``: a :class:`Chain` or the tuple of
 #: :class:`qpik.model.KinematicChain`.
 fk_jac = _model.fk_jac
+#: ``subtree_com_jacobian(cdof, subtree_com, point, root, scale, jac)``: the Jacobian ``jac``
+#: (3, nv) [m per unit of dq], world frame, of a subtree's centre of mass from MuJoCo's ``cdof``
+#: and ``subtree_com`` and the subtree's per-dof chain (:func:`qpik.model.com.subtree_com_chain`),
+#: written in place, in O(nv).
+subtree_com_jacobian = _model.subtree_com_jacobian
 #: ``reach_radius(chain, q, center) -> float``: length of the path ``s_1 -> r_2 -> s_2 ->
 #: ... -> s_m -> frame`` through the feet of the common perpendiculars of consecutive hinge
 #: axes at ``q``; ``center`` receives ``s_1``. Without a hinge, the frame position and 0.

@@ -27,6 +27,7 @@ from ..errors import (
     UnknownFrame,
     mink_errors_as_qpik,
 )
+from ..model.com import subtree_com_chain, subtree_com_jacobian
 from ..model.configuration import frame_names
 
 __all__ = ["ComTask"]
@@ -57,7 +58,14 @@ class ComTask(mink.Task):
             super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
         self.body = body
         self.target_com: np.ndarray | None = None
+        #: (model, body id, its subtree's per-dof chain) of the last compute_jacobian
+        self._chain: tuple | None = None
         self.set_cost(cost)
+
+    def __getstate__(self) -> dict:
+        """The task's attributes for pickling and copies, without the cached chain (made
+        again on first use: it holds the model)."""
+        return {**self.__dict__, "_chain": None}
 
     def set_cost(self, cost: npt.ArrayLike) -> None:
         """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
@@ -99,9 +107,17 @@ class ComTask(mink.Task):
         return self.com(configuration) - self.target_com
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
-        """``J_c = d c / d q`` ``(3, nv)`` [m per unit of dq], from ``mj_jacSubtreeCom``."""
-        jacobian = np.empty((self.k, configuration.model.nv))
-        mujoco.mj_jacSubtreeCom(
-            configuration.model, configuration.data, jacobian, self._body_id(configuration)
-        )
-        return jacobian
+        """``J_c = d c / d q`` ``(3, nv)`` [m per unit of dq], world frame: the subtree's
+        mass-weighted dof columns in O(nv) (:mod:`qpik.model.com`, as the compiled step
+        computes them; ``mj_jacSubtreeCom``'s to round-off), or ``mj_jacSubtreeCom`` itself
+        for a massless subtree."""
+        model = configuration.model
+        body = self._body_id(configuration)
+        jacobian = np.empty((self.k, model.nv))
+        cached = self._chain
+        if cached is None or cached[0] is not model or cached[1] != body:
+            cached = self._chain = (model, body, subtree_com_chain(model, body))
+        if cached[2] is None:
+            mujoco.mj_jacSubtreeCom(model, configuration.data, jacobian, body)
+            return jacobian
+        return subtree_com_jacobian(configuration.data, cached[2], jacobian)
