@@ -1387,7 +1387,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     auto certify = [&](const Vec& zc) {
         add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye);
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
