@@ -1482,14 +1482,51 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // factored: whether ws.qps then holds H's factor and x0 as solve_qp computes them (its
 // `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
 // computes them.
+inline bool factor_x0(const ReducedQP& qp, Workspace& ws, bool& factored);
+inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol,
+                         Workspace& ws, bool& have_gz, bool z_eye, const double* gsq, const Vec& x);
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
                                CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
-                               bool z_eye = false, const double* gsq = nullptr) {
-    i64 n = Z.rows, r = Z.cols, p = G.rows;
+                               bool z_eye = false, const double* gsq = nullptr, bool* deferred = nullptr) {
+    // deferred (where the caller can finish the test, stops_finished): where c is zero in every
+    // entry, the rows are tested first, at x0 = 0 (see below), and H is factored only where
+    // they are violated (the factor solve_qp then takes); where they hold, *deferred is set and
+    // true returned with H not factored yet.
+    i64 r = Z.cols;
+    QPScratch& qs = ws.qps;
+    Vec& x = qs.x;
+    factored = have_gz = false;
+    if (deferred) *deferred = false;
+    bool zero_c = deferred != nullptr;
+    for (i64 i = 0; zero_c && i < r; ++i) zero_c = qp.c[i] == 0.0;
+    if (zero_c) {
+        // c = +-0: x0 = -H^-1 c from a finite factor is +-0 in every entry (each solve's sums
+        // and quotients of zeros), and every test reads x0 only through sums from +0 of terms
+        // C(i, t) x0_t (+-0 for a finite entry, NaN for a non-finite one whatever the zero's
+        // sign; a test of NaN is false either way) or x0_i + 0.0: the same decisions at x0 = +0.
+        // Only where the rows hold does the answer differ from factoring first, and only where
+        // H's factor does not exist or x0 is not finite (the general path then, free_answer's
+        // certified answer now).
+        x.assign(static_cast<size_t>(r), 0.0);
+        if (rows_hold_at(Z, d, lb, ub, G, h, tol, ws, have_gz, z_eye, gsq, x)) {
+            *deferred = true;
+            return true;
+        }
+        factor_x0(qp, ws, factored);  // (the factor and x0 the general path's solve_qp takes)
+        return false;
+    }
+    if (!factor_x0(qp, ws, factored)) return false;
+    return rows_hold_at(Z, d, lb, ub, G, h, tol, ws, have_gz, z_eye, gsq, x);
+}
+
+// H's factor (ws.qps.L) and x0 = -H^-1 c (ws.qps.x) as solve_qp computes them: false where the
+// factor does not exist (factored false) or x0 is not finite (factored true).
+inline bool factor_x0(const ReducedQP& qp, Workspace& ws, bool& factored) {
+    i64 r = qp.H.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
     zero_upper(Lm, r);  // cholesky_into writes the rest before reading it
-    factored = have_gz = false;
+    factored = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
     mc.resize(static_cast<size_t>(r));
@@ -1501,6 +1538,21 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // A non-finite x0: the general path decides (most_violated's unit rows read one entry).
     for (i64 i = 0; i < r; ++i)
         if (!std::isfinite(x[i])) return false;
+    return true;
+}
+
+// dual_stops_at_once after it deferred H's factor (*deferred) and free_answer found no answer:
+// the factor and x0 now, and whether the dual method stops at once (the rows held at x0 = 0:
+// the factor exists and x0 is finite), with factored as dual_stops_at_once would leave it.
+inline bool stops_finished(const ReducedQP& qp, Workspace& ws, bool& factored) {
+    return factor_x0(qp, ws, factored);
+}
+
+// Whether x0 (r,) violates no row of the level's QP by more than tol (dual_stops_at_once's
+// tests; G Z and G d made and kept, have_gz).
+inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol,
+                         Workspace& ws, bool& have_gz, bool z_eye, const double* gsq, const Vec& x) {
+    i64 n = Z.rows, r = Z.cols, p = G.rows;
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
     // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
     // one-entry sum on a unit row (the other terms are zeros), so the same decision.
@@ -2508,8 +2560,10 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
+        // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
+        bool deferred = false;
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
-                                                        z_eye, gsq);
+                                                        z_eye, gsq, &deferred);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
                                          z_eye, &qp, factored ? &ws.qps : nullptr)) {
             double* ck = res.certificate.data() + 4 * k;
@@ -2525,6 +2579,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             z_eye = false;
             continue;
         }
+        if (stops && deferred) stops = detail::stops_finished(qp, ws, factored);
         reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
