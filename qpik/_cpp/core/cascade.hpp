@@ -89,6 +89,7 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
+    double h_reg = 0.0;  // reduced_objective's reg where it left H to make_h (h_later)
     Vec e, c1, c2, Gd, zd, Zz, Ad;
     // drop_pinned
     std::vector<Vec> normals;
@@ -1110,16 +1111,22 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
     return lam;
 }
 
+// H = (A Z)^T A Z with reg on its diagonal (reduced_objective's, the same bits).
+inline void make_h(CMatRef AZ, double reg, ReducedQP& out) {
+    mtm_into(AZ, out.H);
+    for (i64 i = 0; i < AZ.cols; ++i) out.H(i, i) += reg;
+}
+
 // The objective (H, c) of reduced_qp.
 // z_eye: Z is exactly the identity (Z^T d then written without the product, see there).
+// h_later (where the caller makes H itself when it needs it, make_h with ws.h_reg): where c is
+// zero in every entry, H is not made here (*h_later set; ws.h_reg its diagonal's reg). The
+// floor's reg needs H's diagonal alone, summed as mtm_into sums it (+0 plus A Z(t, i)^2 over
+// t in order: its zero entries' squares +0, which leave the sum as it is): the same reg and c.
 inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                              Workspace& ws, ReducedQP& out, bool z_eye = false) {
+                              Workspace& ws, ReducedQP& out, bool z_eye = false, bool* h_later = nullptr) {
     i64 r = Z.cols;
-    mtm_into(AZ, out.H);
-    double big = 0.0;
-    for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
-    reg = pymax(reg, 1e-14 * (1.0 + big));
-    for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
+    if (h_later) *h_later = false;
     // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
     // same products they would make again.
     Vec& Ad = ws.Ad;
@@ -1159,6 +1166,20 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     } else {
         mtv_into(Z, d, c2);
     }
+    bool later = h_later != nullptr;
+    for (i64 i = 0; later && i < r; ++i) later = c1[i] == 0.0 && c2[i] == 0.0;
+    double big = 0.0;
+    if (later) {
+        for (i64 i = 0; i < r; ++i) {
+            double acc = 0.0;
+            for (i64 t = 0; t < AZ.rows; ++t) acc += AZ(t, i) * AZ(t, i);
+            big = pymax(big, acc);
+        }
+    } else {
+        mtm_into(AZ, out.H);
+        for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
+    }
+    reg = pymax(reg, 1e-14 * (1.0 + big));
     shape(out.c, static_cast<size_t>(r));
     {
         const v2d rv = splat(reg);
@@ -1166,6 +1187,16 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
         for (; i + 2 <= r; i += 2) store(out.c.data() + i, load(c1.data() + i) + rv * load(c2.data() + i));
         for (; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
     }
+    if (later) {
+        for (i64 i = 0; later && i < r; ++i) later = out.c[i] == 0.0;
+        ws.h_reg = reg;
+        if (later) {
+            *h_later = true;
+            return;
+        }
+        mtm_into(AZ, out.H);
+    }
+    for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
@@ -1489,9 +1520,9 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
                                CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
                                bool z_eye = false, const double* gsq = nullptr, bool* deferred = nullptr) {
     // deferred (where the caller can finish the test, stops_finished): where c is zero in every
-    // entry, the rows are tested first, at x0 = 0 (see below), and H is factored only where
-    // they are violated (the factor solve_qp then takes); where they hold, *deferred is set and
-    // true returned with H not factored yet.
+    // entry, the rows are tested at x0 = 0 (see below) and H is not factored (nor read: it may
+    // not be made yet, reduced_objective's h_later); where they hold, *deferred is set and true
+    // returned; where they fail, false with factored false.
     i64 r = Z.cols;
     QPScratch& qs = ws.qps;
     Vec& x = qs.x;
@@ -1512,7 +1543,8 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
             *deferred = true;
             return true;
         }
-        factor_x0(qp, ws, factored);  // (the factor and x0 the general path's solve_qp takes)
+        // (no factor: solve_qp makes it, as it makes x0, where the level is cold - as it is here
+        // - the same bits as from factored; and where it does not exist, NUMERICAL as before)
         return false;
     }
     if (!factor_x0(qp, ws, factored)) return false;
@@ -2547,7 +2579,10 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye);
+        bool cold = true, h_later = false;
+        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
+        // (cold, c = 0: H made only where the general path below needs it)
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye, cold ? &h_later : nullptr);
         LSForm& ls = ws.ls;
         detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
         const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
@@ -2556,8 +2591,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
-        bool cold = true, factored = false, have_gz = false;
-        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
+        bool factored = false, have_gz = false;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
@@ -2579,6 +2613,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             z_eye = false;
             continue;
         }
+        if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
         if (stops && deferred) stops = detail::stops_finished(qp, ws, factored);
         reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
