@@ -100,6 +100,7 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
+    double h_reg = 0.0;  // reduced_objective's reg where it left H to make_h (h_later)
     Vec e, c1, c2, Gd, zd, Zz, Ad;
     // drop_pinned
     std::vector<Vec> normals;
@@ -1288,16 +1289,22 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
     return lam;
 }
 
+// H = (A Z)^T A Z with reg on its diagonal (reduced_objective's, the same bits).
+inline void make_h(CMatRef AZ, double reg, ReducedQP& out) {
+    mtm_into(AZ, out.H);
+    for (i64 i = 0; i < AZ.cols; ++i) out.H(i, i) += reg;
+}
+
 // The objective (H, c) of reduced_qp.
 // z_eye: Z is exactly the identity (Z^T d then written without the product, see there).
+// h_later (where the caller makes H itself when it needs it, make_h with ws.h_reg): where c is
+// zero in every entry, H is not made here (*h_later set; ws.h_reg its diagonal's reg). The
+// floor's reg needs H's diagonal alone, summed as mtm_into sums it (+0 plus A Z(t, i)^2 over
+// t in order: its zero entries' squares +0, which leave the sum as it is): the same reg and c.
 inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                              Workspace& ws, ReducedQP& out, bool z_eye = false) {
+                              Workspace& ws, ReducedQP& out, bool z_eye = false, bool* h_later = nullptr) {
     i64 r = Z.cols;
-    mtm_into(AZ, out.H);
-    double big = 0.0;
-    for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
-    reg = pymax(reg, 1e-14 * (1.0 + big));
-    for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
+    if (h_later) *h_later = false;
     // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
     // same products they would make again.
     Vec& Ad = ws.Ad;
@@ -1337,6 +1344,20 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     } else {
         mtv_into(Z, d, c2);
     }
+    bool later = h_later != nullptr;
+    for (i64 i = 0; later && i < r; ++i) later = c1[i] == 0.0 && c2[i] == 0.0;
+    double big = 0.0;
+    if (later) {
+        for (i64 i = 0; i < r; ++i) {
+            double acc = 0.0;
+            for (i64 t = 0; t < AZ.rows; ++t) acc += AZ(t, i) * AZ(t, i);
+            big = pymax(big, acc);
+        }
+    } else {
+        mtm_into(AZ, out.H);
+        for (i64 i = 0; i < r; ++i) big = pymax(big, out.H(i, i));
+    }
+    reg = pymax(reg, 1e-14 * (1.0 + big));
     shape(out.c, static_cast<size_t>(r));
     {
         const v2d rv = splat(reg);
@@ -1344,6 +1365,16 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
         for (; i + 2 <= r; i += 2) store(out.c.data() + i, load(c1.data() + i) + rv * load(c2.data() + i));
         for (; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
     }
+    if (later) {
+        for (i64 i = 0; later && i < r; ++i) later = out.c[i] == 0.0;
+        ws.h_reg = reg;
+        if (later) {
+            *h_later = true;
+            return;
+        }
+        mtm_into(AZ, out.H);
+    }
+    for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
@@ -1565,7 +1596,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     auto certify = [&](const Vec& zc) {
         add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye);
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C);
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -1660,14 +1691,52 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
 // factored: whether ws.qps then holds H's factor and x0 as solve_qp computes them (its
 // `factored` argument); have_gz: whether ws.GZ and ws.Gd hold G Z and G d as reduced_rows
 // computes them.
+inline bool factor_x0(const ReducedQP& qp, Workspace& ws, bool& factored);
+inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol,
+                         Workspace& ws, bool& have_gz, bool z_eye, const double* gsq, const Vec& x);
 inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G,
                                CVecRef h, double tol, Workspace& ws, bool& factored, bool& have_gz,
-                               bool z_eye = false, const double* gsq = nullptr) {
-    i64 n = Z.rows, r = Z.cols, p = G.rows;
+                               bool z_eye = false, const double* gsq = nullptr, bool* deferred = nullptr) {
+    // deferred (where the caller can finish the test, stops_finished): where c is zero in every
+    // entry, the rows are tested at x0 = 0 (see below) and H is not factored (nor read: it may
+    // not be made yet, reduced_objective's h_later); where they hold, *deferred is set and true
+    // returned; where they fail, false with factored false.
+    i64 r = Z.cols;
+    QPScratch& qs = ws.qps;
+    Vec& x = qs.x;
+    factored = have_gz = false;
+    if (deferred) *deferred = false;
+    bool zero_c = deferred != nullptr;
+    for (i64 i = 0; zero_c && i < r; ++i) zero_c = qp.c[i] == 0.0;
+    if (zero_c) {
+        // c = +-0: x0 = -H^-1 c from a finite factor is +-0 in every entry (each solve's sums
+        // and quotients of zeros), and every test reads x0 only through sums from +0 of terms
+        // C(i, t) x0_t (+-0 for a finite entry, NaN for a non-finite one whatever the zero's
+        // sign; a test of NaN is false either way) or x0_i + 0.0: the same decisions at x0 = +0.
+        // Only where the rows hold does the answer differ from factoring first, and only where
+        // H's factor does not exist or x0 is not finite (the general path then, free_answer's
+        // certified answer now).
+        x.assign(static_cast<size_t>(r), 0.0);
+        if (rows_hold_at(Z, d, lb, ub, G, h, tol, ws, have_gz, z_eye, gsq, x)) {
+            *deferred = true;
+            return true;
+        }
+        // (no factor: solve_qp makes it, as it makes x0, where the level is cold - as it is here
+        // - the same bits as from factored; and where it does not exist, NUMERICAL as before)
+        return false;
+    }
+    if (!factor_x0(qp, ws, factored)) return false;
+    return rows_hold_at(Z, d, lb, ub, G, h, tol, ws, have_gz, z_eye, gsq, x);
+}
+
+// H's factor (ws.qps.L) and x0 = -H^-1 c (ws.qps.x) as solve_qp computes them: false where the
+// factor does not exist (factored false) or x0 is not finite (factored true).
+inline bool factor_x0(const ReducedQP& qp, Workspace& ws, bool& factored) {
+    i64 r = qp.H.rows;
     QPScratch& qs = ws.qps;
     Mat& Lm = qs.L;
     zero_upper(Lm, r);  // cholesky_into writes the rest before reading it
-    factored = have_gz = false;
+    factored = false;
     if (!cholesky_into(qp.H.cref(), r, 0.0, Lm.ref())) return false;
     Vec& mc = qs.mc;
     mc.resize(static_cast<size_t>(r));
@@ -1679,6 +1748,21 @@ inline bool dual_stops_at_once(const ReducedQP& qp, CMatRef Z, const double* d, 
     // A non-finite x0: the general path decides (most_violated's unit rows read one entry).
     for (i64 i = 0; i < r; ++i)
         if (!std::isfinite(x[i])) return false;
+    return true;
+}
+
+// dual_stops_at_once after it deferred H's factor (*deferred) and free_answer found no answer:
+// the factor and x0 now, and whether the dual method stops at once (the rows held at x0 = 0:
+// the factor exists and x0 is finite), with factored as dual_stops_at_once would leave it.
+inline bool stops_finished(const ReducedQP& qp, Workspace& ws, bool& factored) {
+    return factor_x0(qp, ws, factored);
+}
+
+// Whether x0 (r,) violates no row of the level's QP by more than tol (dual_stops_at_once's
+// tests; G Z and G d made and kept, have_gz).
+inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol,
+                         Workspace& ws, bool& have_gz, bool z_eye, const double* gsq, const Vec& x) {
+    i64 n = Z.rows, r = Z.cols, p = G.rows;
     // Row c (r,) with bounds lo, hi (reduced_rows: size 1 for a box row, |g|^2 for a general
     // one). C x0 summed over every column: for a finite x0 the same value as most_violated's
     // one-entry sum on a unit row (the other terms are zeros), so the same decision.
@@ -2678,7 +2762,10 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         res.lam2[k] = lam;
         double rho = reg[k] + lam;
         ReducedQP& qp = ws.qp;
-        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye);
+        bool cold = true, h_later = false;
+        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
+        // (cold, c = 0: H made only where the general path below needs it)
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye, cold ? &h_later : nullptr);
         LSForm& ls = ws.ls;
         detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
         const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
@@ -2687,12 +2774,13 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
         bool exact = false;
-        bool cold = true, factored = false, have_gz = false;
-        for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
+        bool factored = false, have_gz = false;
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
+        // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
+        bool deferred = false;
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
-                                                        z_eye, gsq);
+                                                        z_eye, gsq, &deferred);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
                                          z_eye, &qp, factored ? &ws.qps : nullptr)) {
             double* ck = res.certificate.data() + 4 * k;
@@ -2708,6 +2796,8 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             z_eye = false;
             continue;
         }
+        if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
+        if (stops && deferred) stops = detail::stops_finished(qp, ws, factored);
         reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,

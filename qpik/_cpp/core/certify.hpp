@@ -1292,17 +1292,54 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
+namespace detail {
+// axpy3_rows (linalg.hpp) four columns a pass: two pairs summed over i in registers, a[i], b[i],
+// c[i] broadcast once per row for both; then axpy3_rows for the rest (each entry's operations
+// and order as there: the same bits).
+inline void axpy3_rows4(double* y, double* s, double* h, CMatRef Z, const double* a, const double* b,
+                        const double* c) {
+    using namespace simd;
+    i64 n = Z.rows, r = Z.cols;
+    i64 j = 0;
+    for (; j + 4 <= r; j += 4) {
+        v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
+        v2d yw = load(y + j + 2), sw = load(s + j + 2), hw = load(h + j + 2);
+        const double* p = Z.p + j;
+        for (i64 i = 0; i < n; ++i, p += Z.stride) {
+            const v2d xv = load(p), xw = load(p + 2);
+            const v2d ax = vabs(xv), aw = vabs(xw);
+            const v2d ai = splat(a[i]), bi = splat(b[i]), ci = splat(c[i]);
+            yv = yv + xv * ai;
+            yw = yw + xw * ai;
+            sv = sv + ax * bi;
+            sw = sw + aw * bi;
+            hv = hv + ax * ci;
+            hw = hw + aw * ci;
+        }
+        store(y + j, yv);
+        store(s + j, sv);
+        store(h + j, hv);
+        store(y + j + 2, yw);
+        store(s + j + 2, sw);
+        store(h + j + 2, hw);
+    }
+    if (j < r) axpy3_rows(y + j, s + j, h + j, CMatRef(Z.p + j, n, r - j, Z.stride), a, b, c);
+}
+}  // namespace detail
+
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
-                                 const double* gsq = nullptr, bool z_eye = false) {
+                                 const double* gsq = nullptr, bool z_eye = false, const Mat* C = nullptr) {
     // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
     // z_eye: Z is exactly the identity (n, n); its products below are then written without
     // forming them where every term is finite (the same bits, see there).
+    // C: the level's rows [Z; G Z] as reduced_rows writes them (n + p, r), when the caller has
+    // them: an active row's Z^T c_row is then read there (see the dual measure below).
     if (!scratch) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return certify_level(A, b, rho, Z, x, lb, ub, G, h, act_row, act_side, u, q, stationarity, &local, gsq,
-                             z_eye);
+                             z_eye, C);
     }
     i64 n = static_cast<i64>(x.size()), r = Z.cols, p = G.rows;
     CertScratch& ws = *scratch;
@@ -1408,6 +1445,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     Vec& dx = ws.dx;
     dx.resize(static_cast<size_t>(n));  // every entry written below
     bool eye = z_eye && Z.rows == n && r == n;
+    bool zfin = eye;  // every entry of Z finite (known where it is the identity; else from zc below)
     if (eye && xfin) {
         // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
         // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx,
@@ -1421,7 +1459,13 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             dx[i] = abs_axpy_max(zc.data(), std::fabs(x[i]), zi, r);
         }
         double zx = 0.0;
-        for (i64 c = 0; c < r; ++c) zx = pymax(zx, zc[c]);
+        // (zc_c sums |x_i| |Z_ic| >= 0 over every i: a Z_ic inf or NaN makes it inf or NaN, so
+        // zc finite in every entry means Z is)
+        zfin = true;
+        for (i64 c = 0; c < r; ++c) {
+            zx = pymax(zx, zc[c]);
+            zfin &= std::isfinite(zc[c]);
+        }
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
     }
     // Per row i: res_i = A_i x - b_i, size_i = |b_i| + sum |A_ij x_j|, adx_i = sum |A_ij| dx_j
@@ -1643,7 +1687,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         zero_small(sc.data(), static_cast<size_t>(r));
         zero_small(ssc.data(), static_cast<size_t>(r));
         zero_small(hsc.data(), static_cast<size_t>(r));
-        axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+        detail::axpy3_rows4(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     }
     {
         // S = max_c ssc_c, two lanes (the value of pymax's chain: no NaN ever wins)
@@ -1680,10 +1724,19 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     double dual = 0.0, comp = 0.0;
     Vec& zg = ws.zg;
     if (zg.size() < static_cast<size_t>(r)) zg.resize(static_cast<size_t>(r));  // entries 0..r-1 zeroed before each use
+    // C's rows, where given with Z finite: row i < n is Z's row i (copied), row n + j is G Z's
+    // row j, +0 plus G(j, i) Z(i, c) over the nonzero G(j, i) in i order (mm_into, or its form
+    // for Z = I: the same values) - the sums below but for their terms G(j, i) Z(i, c) with
+    // G(j, i) = +-0, which with Z finite are +-0 and leave a sum from +0 as it is (never -0):
+    // the same Z^T c_row, bit for bit, without the n axpy passes per active general row.
+    const bool rows_c = C != nullptr && zfin && C->rows == n + p && C->cols == r;
     for (i64 k = 0; k < q; ++k) {
         i64 row = act_row[k];
         double zn = 0.0;  // |Z^T c_row|
-        if (row < n) {
+        if (rows_c) {
+            const double* cr = C->row(row);
+            for (i64 c = 0; c < r; ++c) zn += cr[c] * cr[c];
+        } else if (row < n) {
             const double* zr = Z.row(row);
             for (i64 c = 0; c < r; ++c) zn += zr[c] * zr[c];
         } else {
