@@ -755,6 +755,70 @@ inline void transpose_rows(SrcRow src, i64 rows, i64 cols, Mat& dst) {
     }
 }
 
+// null_basis's E (r, c) where householder_qr left M's zero rows out (ws.qr.compact): the same
+// bits from the reflectors on the rows it took (map). A null column e_t at a row t left out
+// is e_t: every reflector's x is finite (vn finite) and +0 at t, so its sum x_t 1 + (+-0) ...
+// is +0 from +0.0 and each entry becomes e - (+-0) = e. Every other null column (e_t, t in
+// map, or Theta^T e_t, t < p: rows below p, all in map) is +0 at the rows left out and stays
+// so while the factors S are finite (+0 - (+0) S_j), adding +0 products to its sums: it is
+// reflected on map's rows alone (the same operations in the same order), then put back.
+// false (nothing of E written) where some vn or S is not finite: E is made as before.
+inline bool null_basis_compact(i64 p, bool rotated_null, Workspace& ws, Mat& E) {
+    const IVec& null_cols = ws.null_cols;
+    const IVec& map = ws.qr.map;
+    i64 r = ws.qr.V.cols, c = static_cast<i64>(null_cols.size()), rc = static_cast<i64>(map.size());
+    if (p > rc) return false;
+    for (i64 i = 0; i < p; ++i)
+        if (!std::isfinite(ws.qr.vn[static_cast<size_t>(i)])) return false;
+    // pos[t]: row t's place in map (-1: left out); kept: the null columns on map's rows
+    IVec& pos = ws.qr.pos;
+    pos.assign(static_cast<size_t>(r), -1);
+    for (i64 t = 0; t < rc; ++t) pos[map[t]] = t;
+    i64 ce = 0;
+    for (i64 q = 0; q < c; ++q)
+        if (pos[null_cols[q]] >= 0) ce += 1;
+    Mat& Ec = ws.qr.Ec;
+    Mat& T = ws.qr.T;  // Theta (p, p) where rotated
+    if (rotated_null) {
+        T.set_eye(p);
+        for (const Rotation& g : ws.log) jacobi_rows(T.row(g.i), T.row(g.j), g.cs, g.sn, p);
+    }
+    Ec.zeros(rc, ce);
+    {
+        i64 k = 0;
+        for (i64 q = 0; q < c; ++q) {
+            i64 col = null_cols[q];
+            if (pos[col] < 0) continue;
+            if (rotated_null && col < p)
+                for (i64 t = 0; t < p; ++t) Ec(t, k) = T(col, t);
+            else
+                Ec(pos[col], k) = 1.0;
+            k += 1;
+        }
+    }
+    Vec& S = ws.qr.S;
+    S.resize(static_cast<size_t>(std::max<i64>(ce, 1)));
+    for (i64 i = p - 1; i >= 0; --i) {
+        double vn = ws.qr.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        detail::reflect_columns(Ec.row(0), ce, i, rc - i, 0, ce, ws.qr.Vc.row(i) + i, vn, S.data());
+        for (i64 j = 0; j < ce; ++j)
+            if (!std::isfinite(S[j])) return false;
+    }
+    E.zeros(r, c);
+    i64 k = 0;
+    for (i64 q = 0; q < c; ++q) {
+        i64 col = null_cols[q];
+        if (pos[col] < 0) {
+            E(col, q) = 1.0;
+            continue;
+        }
+        for (i64 t = 0; t < rc; ++t) E(map[t], q) = Ec(t, k);
+        k += 1;
+    }
+    return true;
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -796,6 +860,11 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         return;
     }
     Mat& E = ws.Qr;
+    if (ws.qr.compact && null_basis_compact(p, rotated_null, ws, E)) {
+        if (z_eye) std::swap(Zn, E);
+        else mm_into(Z, E.cref(), Zn);
+        return;
+    }
     E.zeros(r, c);
     if (rotated_null) {
         Mat& T = ws.Qt;  // Theta (p, p): the logged rotations of the identity's rows
