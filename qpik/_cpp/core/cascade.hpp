@@ -63,6 +63,11 @@ struct NnlsScratch {
     IVec out, act;                   // the non-passive columns; the residual's
     std::vector<const double*> cols;  // the columns (nnls_cols)
     Mat MT;                           // nnls_into's M transposed
+    // drop_pinned's spanning certificate (span_pins)
+    IVec pset, pperm;
+    Vec pw, pb, pc, pu;
+    Mat PN, PR, PQ;
+    QRScratch pqr;
 };
 }  // namespace detail
 
@@ -2187,6 +2192,91 @@ constexpr double kPinnedWeight = 1e6;
 constexpr double kPinnedAll = 1e-13;
 constexpr double kPinnedAllWeight = 100.0;
 
+namespace detail {
+// drop_pinned's shortcut once a row's test has pinned a set P (weights w > 0, w_j = 1 for the
+// row tested: |N_P w| within the test's tolerance) whose normals span every null-space
+// direction (|P| > r, the pivoted QR's r diagonal entries all above kSpanWell times the
+// first): then -n_i lies in the cone of P for every other tight row i (any combination
+// N_P c = -n_i, moved along w until non-negative: u = c + lam w), so each would be pinned by
+// its own test. The combination is computed (c from the QR on P's r pivot columns) and its
+// residual |n_i + N_P u| checked, far inside the test's own tolerance (kSpanMargin kPinned
+// min(1 + sum u, kPinnedWeight)); the rows so shown are pinned without their NNLS, the
+// others (none in practice: a few 1e-15 against a tolerance of 1e-12 or more) keep it.
+constexpr double kSpanWell = 1e-6;
+constexpr double kSpanMargin = 1e-2;
+inline void span_pins(const std::vector<Vec>& normals, i64 r, i64 t, i64 j, const IVec& others, const Vec& u,
+                      double total, IVec& state, NnlsScratch& ws) {
+    IVec& P = ws.pset;
+    Vec& w = ws.pw;
+    P.clear();
+    w.clear();
+    P.push_back(j);
+    w.push_back(1.0);
+    for (size_t s = 0; s < others.size(); ++s)
+        if (u[s] > kPinned * total) {
+            P.push_back(others[s]);
+            w.push_back(u[s]);
+        }
+    i64 np = static_cast<i64>(P.size());
+    if (np <= r) return;
+    Mat& N = ws.PN;
+    shape(N, r, np);  // every entry written
+    for (i64 k = 0; k < np; ++k)
+        for (i64 c = 0; c < r; ++c) N(c, k) = normals[P[k]][c];
+    ws.pqr.keep_reflectors = true;
+    householder_qr(N.cref(), true, ws.PQ, ws.PR, ws.pperm, false, ws.pqr);
+    const Mat& R = ws.PR;
+    double top = std::fabs(R(0, 0));
+    if (!(top > 0.0) || !std::isfinite(top)) return;
+    for (i64 i = 0; i < r; ++i)
+        if (!(std::fabs(R(i, i)) > kSpanWell * top) || !std::isfinite(R(i, i))) return;
+    Vec& b = ws.pb;
+    Vec& cv = ws.pc;
+    Vec& uu = ws.pu;
+    b.resize(static_cast<size_t>(r));
+    cv.resize(static_cast<size_t>(r));
+    uu.resize(static_cast<size_t>(np));
+    for (i64 i = 0; i < t; ++i) {
+        if (state[i] != 0) continue;
+        const double* ni = normals[i].data();
+        for (i64 c = 0; c < r; ++c) b[c] = -ni[c];
+        for (i64 k = 0; k < r; ++k) {  // b = Q^T b (H_0 first)
+            double vn = ws.pqr.vn[static_cast<size_t>(k)];
+            if (vn == 0.0) continue;
+            const double* x = ws.pqr.V.row(k);
+            double sk = 0.0;
+            for (i64 c = k; c < r; ++c) sk += x[c] * b[c];
+            sk = 2.0 * sk / vn;
+            for (i64 c = k; c < r; ++c) b[c] -= sk * x[c];
+        }
+        for (i64 k = r - 1; k >= 0; --k) {  // R[:r, :r] c = b
+            double acc = b[k];
+            for (i64 q = k + 1; q < r; ++q) acc -= R(k, q) * cv[q];
+            cv[k] = acc / R(k, k);
+        }
+        for (i64 k = 0; k < np; ++k) uu[k] = 0.0;
+        for (i64 k = 0; k < r; ++k) uu[ws.pperm[k]] = cv[k];
+        double lam = 0.0;
+        for (i64 k = 0; k < np; ++k)
+            if (uu[k] < 0.0) lam = pymax(lam, -uu[k] / w[k]);
+        double sum = 1.0;
+        for (i64 k = 0; k < np; ++k) {
+            uu[k] += lam * w[k];
+            if (uu[k] < 0.0) uu[k] = 0.0;
+            sum += uu[k];
+        }
+        double rr = 0.0;
+        for (i64 c = 0; c < r; ++c) {
+            double e = ni[c];
+            for (i64 k = 0; k < np; ++k) e += uu[k] * normals[P[k]][c];
+            rr += e * e;
+        }
+        double rn = std::sqrt(rr);
+        if (std::isfinite(sum) && rn <= kSpanMargin * kPinned * std::min(sum, kPinnedWeight)) state[i] = 1;
+    }
+}
+}  // namespace detail
+
 // The rows tight at d whose movement the levels above have pinned, and Z without their
 // directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
 // lb or ub, general rows within kSnap (|g| + |h|) of h; both sides of a zero-width box row),
@@ -2375,8 +2465,11 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         double rn = std::sqrt(dot(res.data(), res.data(), r));
         if (rn <= kPinned * std::min(total, kPinnedWeight)) {
             state[j] = 1;
+            bool left = false;
             for (i64 s = 0; s < k; ++s)
                 if (u[s] > kPinned * total) state[others[s]] = 1;
+            for (i64 i = j + 1; i < t && !left; ++i) left = state[i] == 0;
+            if (left) detail::span_pins(normals, r, t, j, others, u, total, state, ws.nnls);
         } else {
             state[j] = -1;  // res moves j off its bound, and every row it moves off its own
             for (i64 i = 0; i < t; ++i)
