@@ -768,7 +768,7 @@ inline void transpose_rows(SrcRow src, i64 rows, i64 cols, Mat& dst) {
 // so while the factors S are finite (+0 - (+0) S_j), adding +0 products to its sums: it is
 // reflected on map's rows alone (the same operations in the same order), then put back.
 // false (nothing of E written) where some vn or S is not finite: E is made as before.
-inline bool null_basis_compact(i64 p, bool rotated_null, Workspace& ws, Mat& E) {
+__attribute__((noinline)) inline bool null_basis_compact(i64 p, bool rotated_null, Workspace& ws, Mat& E) {
     const IVec& null_cols = ws.null_cols;
     const IVec& map = ws.qr.map;
     i64 r = ws.qr.V.cols, c = static_cast<i64>(null_cols.size()), rc = static_cast<i64>(map.size());
@@ -2204,7 +2204,7 @@ namespace detail {
 // others (none in practice: a few 1e-15 against a tolerance of 1e-12 or more) keep it.
 constexpr double kSpanWell = 1e-6;
 constexpr double kSpanMargin = 1e-2;
-inline void span_pins(const std::vector<Vec>& normals, i64 r, i64 t, i64 j, const IVec& others, const Vec& u,
+__attribute__((noinline)) inline void span_pins(const std::vector<Vec>& normals, i64 r, i64 t, i64 j, const IVec& others, const Vec& u,
                       double total, IVec& state, NnlsScratch& ws) {
     IVec& P = ws.pset;
     Vec& w = ws.pw;
@@ -2465,10 +2465,14 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         double rn = std::sqrt(dot(res.data(), res.data(), r));
         if (rn <= kPinned * std::min(total, kPinnedWeight)) {
             state[j] = 1;
-            bool left = false;
+            i64 np = 1;  // (the rows pinned with j: span_pins only where they can span)
             for (i64 s = 0; s < k; ++s)
-                if (u[s] > kPinned * total) state[others[s]] = 1;
-            for (i64 i = j + 1; i < t && !left; ++i) left = state[i] == 0;
+                if (u[s] > kPinned * total) {
+                    state[others[s]] = 1;
+                    np += 1;
+                }
+            bool left = false;
+            for (i64 i = j + 1; i < t && !left && np > r; ++i) left = state[i] == 0;
             if (left) detail::span_pins(normals, r, t, j, others, u, total, state, ws.nnls);
         } else {
             state[j] = -1;  // res moves j off its bound, and every row it moves off its own

@@ -1657,6 +1657,49 @@ inline bool qr_steps(Mat& R, bool pivot, Mat& Q, IVec& perm, QRScratch& ws, Mat*
 
 }  // namespace detail
 
+// ... and at least this many zero entries in the columns (a few short columns: the copies cost
+// more than the reflections they save).
+constexpr i64 kZeroRowsLeftOut = 8;
+constexpr i64 kZeroWorkLeftOut = 96;
+namespace detail {
+// householder_qr's factorisation without M's zero rows (see there): false, nothing of R, perm or
+// the reflectors kept, where there are fewer than kZeroRowsLeftOut or a step's factors are not
+// finite. (Out of line: the common path's code as it was.)
+__attribute__((noinline)) inline bool householder_qr_compact(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm,
+                                                             QRScratch& ws) {
+    i64 r = M.rows, m = M.cols;
+    i64 steps = std::min(r, m);
+    i64 zeros = 0;
+    for (i64 t = steps; t < r && zeros + (r - t) >= kZeroRowsLeftOut; ++t)
+        if (plus_zero_row(M.row(t), m)) zeros += 1;
+    if (zeros < kZeroRowsLeftOut || zeros * m < kZeroWorkLeftOut) return false;
+    IVec& map = ws.map;
+    map.clear();
+    for (i64 t = 0; t < r; ++t)
+        if (t < steps || !plus_zero_row(M.row(t), m)) map.push_back(t);
+    i64 rc = static_cast<i64>(map.size());
+    Mat& Rc = ws.Rc;
+    shape(Rc, rc, m);  // every entry copied
+    for (i64 t = 0; t < rc; ++t) std::memcpy(Rc.row(t), M.row(map[t]), static_cast<size_t>(m) * sizeof(double));
+    Q.zeros(0, rc);
+    Mat* V = ws.keep_reflectors ? &ws.Vc : nullptr;
+    if (!qr_steps(Rc, pivot, Q, perm, ws, V, true)) return false;
+    R.zeros(r, m);
+    for (i64 t = 0; t < rc; ++t) std::memcpy(R.row(map[t]), Rc.row(t), static_cast<size_t>(m) * sizeof(double));
+    if (V) {
+        ws.V.zeros(steps, r);
+        for (i64 i = 0; i < steps; ++i) {
+            double* v = ws.V.row(i);
+            const double* vc = ws.Vc.row(i);
+            for (i64 t = i; t < rc; ++t) v[map[t]] = vc[t];
+        }
+    }
+    Q.zeros(0, r);
+    ws.compact = true;
+    return true;
+}
+}  // namespace detail
+
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
 // M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal. Q, R, perm and the
 // scratch keep their storage (no allocation unless a size grows).
@@ -1672,42 +1715,40 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     i64 r = M.rows, m = M.cols;
     i64 steps = std::min(r, m);
     ws.compact = false;
-    if (!form_q && r > steps) {
-        IVec& map = ws.map;
-        map.clear();
-        for (i64 t = 0; t < r; ++t)
-            if (t < steps || !detail::plus_zero_row(M.row(t), m)) map.push_back(t);
-        i64 rc = static_cast<i64>(map.size());
-        if (rc < r) {
-            Mat& Rc = ws.Rc;
-            shape(Rc, rc, m);  // every entry copied
-            for (i64 t = 0; t < rc; ++t)
-                std::memcpy(Rc.row(t), M.row(map[t]), static_cast<size_t>(m) * sizeof(double));
-            Q.zeros(0, rc);
-            Mat* V = ws.keep_reflectors ? &ws.Vc : nullptr;
-            if (detail::qr_steps(Rc, pivot, Q, perm, ws, V, true)) {
-                R.zeros(r, m);
-                for (i64 t = 0; t < rc; ++t)
-                    std::memcpy(R.row(map[t]), Rc.row(t), static_cast<size_t>(m) * sizeof(double));
-                if (V) {
-                    ws.V.zeros(steps, r);
-                    for (i64 i = 0; i < steps; ++i) {
-                        double* v = ws.V.row(i);
-                        const double* vc = ws.Vc.row(i);
-                        for (i64 t = i; t < rc; ++t) v[map[t]] = vc[t];
-                    }
-                }
-                Q.zeros(0, r);
-                ws.compact = true;
-                return;
-            }
-        }
-    }
+    // (only where it saves more than the copies cost: at least kZeroRowsLeftOut zero rows and
+    // kZeroWorkLeftOut zero entries; a few of a small M, as a Panda's fingers in its frame
+    // task, or a pinned normal or two, are reflected with the others)
+    if (!form_q && r - steps >= kZeroRowsLeftOut && (r - steps) * m >= kZeroWorkLeftOut &&
+        detail::householder_qr_compact(M, pivot, Q, R, perm, ws))
+        return;
     shape(R, r, m);  // every entry copied
     for (i64 i = 0; i < r && m > 0; ++i) std::memcpy(R.row(i), M.row(i), static_cast<size_t>(m) * sizeof(double));
     if (form_q) Q.set_eye(r);
     else Q.zeros(0, r);  // no rows: R and perm only (the same R)
-    detail::qr_steps(R, pivot, Q, perm, ws, ws.keep_reflectors ? &ws.V : nullptr, false);
+    // (qr_steps' loop, written out: the common path as it was compiled before the compact one)
+    perm.assign(static_cast<size_t>(m), 0);
+    for (i64 j = 0; j < m; ++j) perm[j] = j;
+    // (norms, x and S sized only: each entry written before it is read)
+    Vec& norms = ws.norms;
+    shape(norms, static_cast<size_t>(m));
+    if (pivot) detail::column_norms(R, 0, norms);
+    Vec& x = ws.x;
+    Vec& S = ws.S;
+    shape(x, static_cast<size_t>(r));
+    shape(S, static_cast<size_t>(m));
+    if (ws.keep_reflectors) {
+        ws.V.zeros(steps, r);
+        ws.vn.assign(static_cast<size_t>(steps), 0.0);
+    }
+    for (i64 i = 0; i < steps; ++i) {
+        if (pivot) detail::swap_pivot(R, norms, perm, i);
+        // (with pivoting, the next step's column norms summed in the reflection's pass)
+        double* nrm = pivot ? norms.data() : nullptr;
+        bool done = ws.keep_reflectors
+                        ? detail::reflect(R, Q, x, S, i, ws.V.row(i), &ws.vn[static_cast<size_t>(i)], nrm)
+                        : detail::reflect(R, Q, x, S, i, nullptr, nullptr, nrm);
+        if (pivot && !done) detail::column_norms(R, i + 1, norms);
+    }
 }
 
 // Y (rows, r) <- Y H_0 H_1 ... H_{k-1} for the first k reflectors kept by householder_qr
