@@ -70,6 +70,11 @@ struct NnlsScratch {
     IVec out, act;                   // the non-passive columns; the residual's
     std::vector<const double*> cols;  // the columns (nnls_cols)
     Mat MT;                           // nnls_into's M transposed
+    // drop_pinned's spanning certificate (span_pins)
+    IVec pset, pperm;
+    Vec pw, pb, pc, pu;
+    Mat PN, PR, PQ;
+    QRScratch pqr;
 };
 }  // namespace detail
 
@@ -767,6 +772,70 @@ inline void transpose_rows(SrcRow src, i64 rows, i64 cols, Mat& dst) {
     }
 }
 
+// null_basis's E (r, c) where householder_qr left M's zero rows out (ws.qr.compact): the same
+// bits from the reflectors on the rows it took (map). A null column e_t at a row t left out
+// is e_t: every reflector's x is finite (vn finite) and +0 at t, so its sum x_t 1 + (+-0) ...
+// is +0 from +0.0 and each entry becomes e - (+-0) = e. Every other null column (e_t, t in
+// map, or Theta^T e_t, t < p: rows below p, all in map) is +0 at the rows left out and stays
+// so while the factors S are finite (+0 - (+0) S_j), adding +0 products to its sums: it is
+// reflected on map's rows alone (the same operations in the same order), then put back.
+// false (nothing of E written) where some vn or S is not finite: E is made as before.
+__attribute__((noinline)) inline bool null_basis_compact(i64 p, bool rotated_null, Workspace& ws, Mat& E) {
+    const IVec& null_cols = ws.null_cols;
+    const IVec& map = ws.qr.map;
+    i64 r = ws.qr.V.cols, c = static_cast<i64>(null_cols.size()), rc = static_cast<i64>(map.size());
+    if (p > rc) return false;
+    for (i64 i = 0; i < p; ++i)
+        if (!std::isfinite(ws.qr.vn[static_cast<size_t>(i)])) return false;
+    // pos[t]: row t's place in map (-1: left out); kept: the null columns on map's rows
+    IVec& pos = ws.qr.pos;
+    pos.assign(static_cast<size_t>(r), -1);
+    for (i64 t = 0; t < rc; ++t) pos[map[t]] = t;
+    i64 ce = 0;
+    for (i64 q = 0; q < c; ++q)
+        if (pos[null_cols[q]] >= 0) ce += 1;
+    Mat& Ec = ws.qr.Ec;
+    Mat& T = ws.qr.T;  // Theta (p, p) where rotated
+    if (rotated_null) {
+        T.set_eye(p);
+        for (const Rotation& g : ws.log) jacobi_rows(T.row(g.i), T.row(g.j), g.cs, g.sn, p);
+    }
+    Ec.zeros(rc, ce);
+    {
+        i64 k = 0;
+        for (i64 q = 0; q < c; ++q) {
+            i64 col = null_cols[q];
+            if (pos[col] < 0) continue;
+            if (rotated_null && col < p)
+                for (i64 t = 0; t < p; ++t) Ec(t, k) = T(col, t);
+            else
+                Ec(pos[col], k) = 1.0;
+            k += 1;
+        }
+    }
+    Vec& S = ws.qr.S;
+    S.resize(static_cast<size_t>(std::max<i64>(ce, 1)));
+    for (i64 i = p - 1; i >= 0; --i) {
+        double vn = ws.qr.vn[static_cast<size_t>(i)];
+        if (vn == 0.0) continue;
+        detail::reflect_columns(Ec.row(0), ce, i, rc - i, 0, ce, ws.qr.Vc.row(i) + i, vn, S.data());
+        for (i64 j = 0; j < ce; ++j)
+            if (!std::isfinite(S[j])) return false;
+    }
+    E.zeros(r, c);
+    i64 k = 0;
+    for (i64 q = 0; q < c; ++q) {
+        i64 col = null_cols[q];
+        if (pos[col] < 0) {
+            E(col, q) = 1.0;
+            continue;
+        }
+        for (i64 t = 0; t < rc; ++t) E(map[t], q) = Ec(t, k);
+        k += 1;
+    }
+    return true;
+}
+
 // Zn = Z Q_null of project_level: Q's columns p.. and, where a null direction is among the
 // first p (rotated_null), Q Theta^T's columns null_cols, Theta the logged rotations, from the
 // reflectors householder_qr kept (Q is never formed). Whichever costs fewer operations by
@@ -808,6 +877,11 @@ inline void null_basis(CMatRef Z, bool z_eye, i64 p, bool rotated_null, Workspac
         return;
     }
     Mat& E = ws.Qr;
+    if (ws.qr.compact && null_basis_compact(p, rotated_null, ws, E)) {
+        if (z_eye) std::swap(Zn, E);
+        else mm_into(Z, E.cref(), Zn);
+        return;
+    }
     E.zeros(r, c);
     if (rotated_null) {
         Mat& T = ws.Qt;  // Theta (p, p): the logged rotations of the identity's rows
@@ -2380,6 +2454,91 @@ constexpr double kPinnedWeight = 1e6;
 constexpr double kPinnedAll = 1e-13;
 constexpr double kPinnedAllWeight = 100.0;
 
+namespace detail {
+// drop_pinned's shortcut once a row's test has pinned a set P (weights w > 0, w_j = 1 for the
+// row tested: |N_P w| within the test's tolerance) whose normals span every null-space
+// direction (|P| > r, the pivoted QR's r diagonal entries all above kSpanWell times the
+// first): then -n_i lies in the cone of P for every other tight row i (any combination
+// N_P c = -n_i, moved along w until non-negative: u = c + lam w), so each would be pinned by
+// its own test. The combination is computed (c from the QR on P's r pivot columns) and its
+// residual |n_i + N_P u| checked, far inside the test's own tolerance (kSpanMargin kPinned
+// min(1 + sum u, kPinnedWeight)); the rows so shown are pinned without their NNLS, the
+// others (none in practice: a few 1e-15 against a tolerance of 1e-12 or more) keep it.
+constexpr double kSpanWell = 1e-6;
+constexpr double kSpanMargin = 1e-2;
+__attribute__((noinline)) inline void span_pins(const std::vector<Vec>& normals, i64 r, i64 t, i64 j, const IVec& others, const Vec& u,
+                      double total, IVec& state, NnlsScratch& ws) {
+    IVec& P = ws.pset;
+    Vec& w = ws.pw;
+    P.clear();
+    w.clear();
+    P.push_back(j);
+    w.push_back(1.0);
+    for (size_t s = 0; s < others.size(); ++s)
+        if (u[s] > kPinned * total) {
+            P.push_back(others[s]);
+            w.push_back(u[s]);
+        }
+    i64 np = static_cast<i64>(P.size());
+    if (np <= r) return;
+    Mat& N = ws.PN;
+    shape(N, r, np);  // every entry written
+    for (i64 k = 0; k < np; ++k)
+        for (i64 c = 0; c < r; ++c) N(c, k) = normals[P[k]][c];
+    ws.pqr.keep_reflectors = true;
+    householder_qr(N.cref(), true, ws.PQ, ws.PR, ws.pperm, false, ws.pqr);
+    const Mat& R = ws.PR;
+    double top = std::fabs(R(0, 0));
+    if (!(top > 0.0) || !std::isfinite(top)) return;
+    for (i64 i = 0; i < r; ++i)
+        if (!(std::fabs(R(i, i)) > kSpanWell * top) || !std::isfinite(R(i, i))) return;
+    Vec& b = ws.pb;
+    Vec& cv = ws.pc;
+    Vec& uu = ws.pu;
+    b.resize(static_cast<size_t>(r));
+    cv.resize(static_cast<size_t>(r));
+    uu.resize(static_cast<size_t>(np));
+    for (i64 i = 0; i < t; ++i) {
+        if (state[i] != 0) continue;
+        const double* ni = normals[i].data();
+        for (i64 c = 0; c < r; ++c) b[c] = -ni[c];
+        for (i64 k = 0; k < r; ++k) {  // b = Q^T b (H_0 first)
+            double vn = ws.pqr.vn[static_cast<size_t>(k)];
+            if (vn == 0.0) continue;
+            const double* x = ws.pqr.V.row(k);
+            double sk = 0.0;
+            for (i64 c = k; c < r; ++c) sk += x[c] * b[c];
+            sk = 2.0 * sk / vn;
+            for (i64 c = k; c < r; ++c) b[c] -= sk * x[c];
+        }
+        for (i64 k = r - 1; k >= 0; --k) {  // R[:r, :r] c = b
+            double acc = b[k];
+            for (i64 q = k + 1; q < r; ++q) acc -= R(k, q) * cv[q];
+            cv[k] = acc / R(k, k);
+        }
+        for (i64 k = 0; k < np; ++k) uu[k] = 0.0;
+        for (i64 k = 0; k < r; ++k) uu[ws.pperm[k]] = cv[k];
+        double lam = 0.0;
+        for (i64 k = 0; k < np; ++k)
+            if (uu[k] < 0.0) lam = pymax(lam, -uu[k] / w[k]);
+        double sum = 1.0;
+        for (i64 k = 0; k < np; ++k) {
+            uu[k] += lam * w[k];
+            if (uu[k] < 0.0) uu[k] = 0.0;
+            sum += uu[k];
+        }
+        double rr = 0.0;
+        for (i64 c = 0; c < r; ++c) {
+            double e = ni[c];
+            for (i64 k = 0; k < np; ++k) e += uu[k] * normals[P[k]][c];
+            rr += e * e;
+        }
+        double rn = std::sqrt(rr);
+        if (std::isfinite(sum) && rn <= kSpanMargin * kPinned * std::min(sum, kPinnedWeight)) state[i] = 1;
+    }
+}
+}  // namespace detail
+
 // The rows tight at d whose movement the levels above have pinned, and Z without their
 // directions. At d (z = 0) the rows on their bound (box rows within kSnap (1 + |bound|) of
 // lb or ub, general rows within kSnap (|g| + |h|) of h; both sides of a zero-width box row),
@@ -2568,8 +2727,15 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         double rn = std::sqrt(dot(res.data(), res.data(), r));
         if (rn <= kPinned * std::min(total, kPinnedWeight)) {
             state[j] = 1;
+            i64 np = 1;  // (the rows pinned with j: span_pins only where they can span)
             for (i64 s = 0; s < k; ++s)
-                if (u[s] > kPinned * total) state[others[s]] = 1;
+                if (u[s] > kPinned * total) {
+                    state[others[s]] = 1;
+                    np += 1;
+                }
+            bool left = false;
+            for (i64 i = j + 1; i < t && !left && np > r; ++i) left = state[i] == 0;
+            if (left) detail::span_pins(normals, r, t, j, others, u, total, state, ws.nnls);
         } else {
             state[j] = -1;  // res moves j off its bound, and every row it moves off its own
             for (i64 i = 0; i < t; ++i)

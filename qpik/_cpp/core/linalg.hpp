@@ -1593,22 +1593,139 @@ inline void column_norms(const Mat& R, i64 start, Vec& norms) {
 // keep_reflectors, V row i holds step i's Householder vector x (entries i..r-1 of the row,
 // the rest 0) and vn[i] = |x|^2 (0 where the step reflected nothing), so that
 // Q = H_0 H_1 ... H_{k-1}, H_i = I - 2 x x^T / vn[i], can be applied without forming it.
+// compact: the last factorisation left out M's zero rows (see householder_qr): map lists the
+// rows it took, in order, and Vc holds the reflectors on those rows alone (Vc(i, t) =
+// V(i, map[t]); V's other entries are +0).
 struct QRScratch {
     Vec norms, x, S;
     bool keep_reflectors = false;
     Mat V;
     Vec vn;
+    bool compact = false;
+    IVec map;
+    Mat Rc, Vc;
+    // null_basis's scratch where compact (cascade.hpp: null_basis_compact)
+    IVec pos;
+    Mat Ec, T;
 };
+
+namespace detail {
+
+// Whether every entry of the row is +0 (its bits all zero).
+inline bool plus_zero_row(const double* a, i64 n) {
+    for (i64 j = 0; j < n; ++j) {
+        std::uint64_t u;
+        std::memcpy(&u, a + j, sizeof u);
+        if (u != 0) return false;
+    }
+    return true;
+}
+
+// householder_qr's steps on R (r, m) in place (Q: no rows, or R's rows' Q), the reflectors
+// into V (V: null where not kept) and ws.vn. check: false as soon as a step's factors S are
+// not all finite (the rest not done).
+inline bool qr_steps(Mat& R, bool pivot, Mat& Q, IVec& perm, QRScratch& ws, Mat* V, bool check) {
+    i64 r = R.rows, m = R.cols;
+    perm.assign(static_cast<size_t>(m), 0);
+    for (i64 j = 0; j < m; ++j) perm[j] = j;
+    // (norms, x and S sized only: each entry written before it is read)
+    Vec& norms = ws.norms;
+    shape(norms, static_cast<size_t>(m));
+    if (pivot) column_norms(R, 0, norms);
+    Vec& x = ws.x;
+    Vec& S = ws.S;
+    shape(x, static_cast<size_t>(r));
+    shape(S, static_cast<size_t>(m));
+    i64 steps = std::min(r, m);
+    if (V) {
+        V->zeros(steps, r);
+        ws.vn.assign(static_cast<size_t>(steps), 0.0);
+    }
+    for (i64 i = 0; i < steps; ++i) {
+        if (pivot) swap_pivot(R, norms, perm, i);
+        // (with pivoting, the next step's column norms summed in the reflection's pass)
+        double* nrm = pivot ? norms.data() : nullptr;
+        bool done = V ? reflect(R, Q, x, S, i, V->row(i), &ws.vn[static_cast<size_t>(i)], nrm)
+                      : reflect(R, Q, x, S, i, nullptr, nullptr, nrm);
+        if (check && done)
+            for (i64 j = 0; j < m - i; ++j)
+                if (!std::isfinite(S[j])) return false;
+        if (pivot && !done) column_norms(R, i + 1, norms);
+    }
+    return true;
+}
+
+}  // namespace detail
+
+// ... and at least this many zero entries in the columns (a few short columns: the copies cost
+// more than the reflections they save).
+constexpr i64 kZeroRowsLeftOut = 8;
+constexpr i64 kZeroWorkLeftOut = 96;
+namespace detail {
+// householder_qr's factorisation without M's zero rows (see there): false, nothing of R, perm or
+// the reflectors kept, where there are fewer than kZeroRowsLeftOut or a step's factors are not
+// finite. (Out of line: the common path's code as it was.)
+__attribute__((noinline)) inline bool householder_qr_compact(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm,
+                                                             QRScratch& ws) {
+    i64 r = M.rows, m = M.cols;
+    i64 steps = std::min(r, m);
+    i64 zeros = 0;
+    for (i64 t = steps; t < r && zeros + (r - t) >= kZeroRowsLeftOut; ++t)
+        if (plus_zero_row(M.row(t), m)) zeros += 1;
+    if (zeros < kZeroRowsLeftOut || zeros * m < kZeroWorkLeftOut) return false;
+    IVec& map = ws.map;
+    map.clear();
+    for (i64 t = 0; t < r; ++t)
+        if (t < steps || !plus_zero_row(M.row(t), m)) map.push_back(t);
+    i64 rc = static_cast<i64>(map.size());
+    Mat& Rc = ws.Rc;
+    shape(Rc, rc, m);  // every entry copied
+    for (i64 t = 0; t < rc; ++t) std::memcpy(Rc.row(t), M.row(map[t]), static_cast<size_t>(m) * sizeof(double));
+    Q.zeros(0, rc);
+    Mat* V = ws.keep_reflectors ? &ws.Vc : nullptr;
+    if (!qr_steps(Rc, pivot, Q, perm, ws, V, true)) return false;
+    R.zeros(r, m);
+    for (i64 t = 0; t < rc; ++t) std::memcpy(R.row(map[t]), Rc.row(t), static_cast<size_t>(m) * sizeof(double));
+    if (V) {
+        ws.V.zeros(steps, r);
+        for (i64 i = 0; i < steps; ++i) {
+            double* v = ws.V.row(i);
+            const double* vc = ws.Vc.row(i);
+            for (i64 t = i; t < rc; ++t) v[map[t]] = vc[t];
+        }
+    }
+    Q.zeros(0, r);
+    ws.compact = true;
+    return true;
+}
+}  // namespace detail
 
 // QR of M (r, m) by Householder reflections, optionally with column pivoting:
 // M[:, perm] = Q R, Q (r, r) orthogonal, R (r, m) upper trapezoidal. Q, R, perm and the
 // scratch keep their storage (no allocation unless a size grows).
+// Zero rows: a row of M past the first min(r, m) whose entries are all +0 (a level's rows
+// that leave some dofs out: the feet of a floating robot, Z the identity) is never a pivot
+// row, and every reflection with finite factors leaves it as it is: its x entry is +0, so it
+// adds +-0 to each sum (from +0.0: no change; its +0 squares add nothing to the norms
+// either) and each of its entries becomes +0 - (+-0) = +0. Where Q is not formed, such rows
+// are left out of the steps (the same R, perm, norms, reflectors and vn: the steps on the
+// other rows are the same operations in the same order), the rows put back as +0 after;
+// should a step's factors not be finite, the factorisation is made again on every row.
 inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bool form_q, QRScratch& ws) {
     i64 r = M.rows, m = M.cols;
+    i64 steps = std::min(r, m);
+    ws.compact = false;
+    // (only where it saves more than the copies cost: at least kZeroRowsLeftOut zero rows and
+    // kZeroWorkLeftOut zero entries; a few of a small M, as a Panda's fingers in its frame
+    // task, or a pinned normal or two, are reflected with the others)
+    if (!form_q && r - steps >= kZeroRowsLeftOut && (r - steps) * m >= kZeroWorkLeftOut &&
+        detail::householder_qr_compact(M, pivot, Q, R, perm, ws))
+        return;
     shape(R, r, m);  // every entry copied
     for (i64 i = 0; i < r && m > 0; ++i) std::memcpy(R.row(i), M.row(i), static_cast<size_t>(m) * sizeof(double));
     if (form_q) Q.set_eye(r);
     else Q.zeros(0, r);  // no rows: R and perm only (the same R)
+    // (qr_steps' loop, written out: the common path as it was compiled before the compact one)
     perm.assign(static_cast<size_t>(m), 0);
     for (i64 j = 0; j < m; ++j) perm[j] = j;
     // (norms, x and S sized only: each entry written before it is read)
@@ -1619,7 +1736,6 @@ inline void householder_qr(CMatRef M, bool pivot, Mat& Q, Mat& R, IVec& perm, bo
     Vec& S = ws.S;
     shape(x, static_cast<size_t>(r));
     shape(S, static_cast<size_t>(m));
-    i64 steps = std::min(r, m);
     if (ws.keep_reflectors) {
         ws.V.zeros(steps, r);
         ws.vn.assign(static_cast<size_t>(steps), 0.0);
