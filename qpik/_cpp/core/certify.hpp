@@ -1292,40 +1292,6 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
-namespace detail {
-// axpy3_rows (linalg.hpp) four columns a pass: two pairs summed over i in registers, a[i], b[i],
-// c[i] broadcast once per row for both; then axpy3_rows for the rest (each entry's operations
-// and order as there: the same bits).
-inline void axpy3_rows4(double* y, double* s, double* h, CMatRef Z, const double* a, const double* b,
-                        const double* c) {
-    using namespace simd;
-    i64 n = Z.rows, r = Z.cols;
-    i64 j = 0;
-    for (; j + 4 <= r; j += 4) {
-        v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
-        v2d yw = load(y + j + 2), sw = load(s + j + 2), hw = load(h + j + 2);
-        const double* p = Z.p + j;
-        for (i64 i = 0; i < n; ++i, p += Z.stride) {
-            const v2d xv = load(p), xw = load(p + 2);
-            const v2d ax = vabs(xv), aw = vabs(xw);
-            const v2d ai = splat(a[i]), bi = splat(b[i]), ci = splat(c[i]);
-            yv = yv + xv * ai;
-            yw = yw + xw * ai;
-            sv = sv + ax * bi;
-            sw = sw + aw * bi;
-            hv = hv + ax * ci;
-            hw = hw + aw * ci;
-        }
-        store(y + j, yv);
-        store(s + j, sv);
-        store(h + j, hv);
-        store(y + j + 2, yw);
-        store(s + j + 2, sw);
-        store(h + j + 2, hw);
-    }
-    if (j < r) axpy3_rows(y + j, s + j, h + j, CMatRef(Z.p + j, n, r - j, Z.stride), a, b, c);
-}
-}  // namespace detail
 
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
@@ -1687,7 +1653,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         zero_small(sc.data(), static_cast<size_t>(r));
         zero_small(ssc.data(), static_cast<size_t>(r));
         zero_small(hsc.data(), static_cast<size_t>(r));
-        detail::axpy3_rows4(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
+        axpy3_rows(sc.data(), ssc.data(), hsc.data(), Z, v.data(), vs.data(), hs.data());
     }
     {
         // S = max_c ssc_c, two lanes (the value of pymax's chain: no NaN ever wins)

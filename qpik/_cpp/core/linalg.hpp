@@ -106,14 +106,36 @@ inline void axpy3(double* y, double* s, double* h, const double* x, double a, do
     }
 }
 
-// axpy3(y, s, h, Z.row(i), a[i], b[i], c[i], Z.cols) for every row i of Z in order: two
-// columns a pass, summed over i in registers (each entry the same operations in the same
-// order).
+// axpy3(y, s, h, Z.row(i), a[i], b[i], c[i], Z.cols) for every row i of Z in order: four
+// columns a pass (two pairs, a[i], b[i], c[i] broadcast once per row for both), then two,
+// summed over i in registers (each entry the same operations in the same order).
 inline void axpy3_rows(double* y, double* s, double* h, CMatRef Z, const double* a, const double* b,
                        const double* c) {
     using namespace simd;
     i64 n = Z.rows, r = Z.cols;
     i64 j = 0;
+    for (; j + 4 <= r; j += 4) {
+        v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
+        v2d yw = load(y + j + 2), sw = load(s + j + 2), hw = load(h + j + 2);
+        const double* p = Z.p + j;
+        for (i64 i = 0; i < n; ++i, p += Z.stride) {
+            const v2d xv = load(p), xw = load(p + 2);
+            const v2d ax = vabs(xv), aw = vabs(xw);
+            const v2d ai = splat(a[i]), bi = splat(b[i]), ci = splat(c[i]);
+            yv = yv + xv * ai;
+            yw = yw + xw * ai;
+            sv = sv + ax * bi;
+            sw = sw + aw * bi;
+            hv = hv + ax * ci;
+            hw = hw + aw * ci;
+        }
+        store(y + j, yv);
+        store(s + j, sv);
+        store(h + j, hv);
+        store(y + j + 2, yw);
+        store(s + j + 2, sw);
+        store(h + j + 2, hw);
+    }
     for (; j + 2 <= r; j += 2) {
         v2d yv = load(y + j), sv = load(s + j), hv = load(h + j);
         const double* p = Z.p + j;
