@@ -1022,7 +1022,8 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
     // columns; so row i moves its columns max(drop, i - 1) + 1 .. q - 1 (one copy a row).
     for (i64 i = 0; i < q; ++i) {
         i64 j0 = std::max<i64>(drop, i - 1);
-        if (j0 < q - 1) std::memmove(R.row(i) + j0, R.row(i) + j0 + 1, static_cast<size_t>(q - 1 - j0) * sizeof(double));
+        double* ri = R.row(i);
+        for (i64 j = j0; j < q - 1; ++j) ri[j] = ri[j + 1];  // (a few entries: no call)
     }
     u[q - 1] = u[q];
     u[q] = 0.0;
@@ -1054,7 +1055,7 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
             R(j, j) = h;
         }
         double xny = ss / (1.0 + cc);
-        givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
+        rotate_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
         if (n < kSweepMin) {  // JT's rotation now (the same bits; see kSweepMin)
             rotate_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
             continue;
