@@ -840,14 +840,11 @@ inline void sweep_down(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double
 }
 
 // Below this many columns rotate_in / drop_constraint rotate JT one rotation at a time, as
-// each rotation's coefficients are made (rotate_rows), not in one sweep after them all. The
-// coefficients are one serial chain (each hypot, its root and division, waits on the one
-// before: ~60 cycles a rotation), and a rotation's rows, independent of the next
-// coefficients, fill that wait: at the sizes of the cascade's levels (17-40) one rotation at
-// a time takes a little more instructions than the sweep (each row loaded and stored twice,
-// not once) but less time (humanoid core, 80 solves: 981k instructions a solve against 974k,
-// ~68 us against ~72 us task-clock).
-constexpr i64 kSweepMin = 48;
+// each rotation's coefficients are made (rotate_rows), not in one sweep after them all.
+// (Tried: 48, the rotation of JT's rows filling the wait of the coefficients' serial chain of
+// hypots: +0.4% instructions on the humanoid core and no time gain beyond the noise of a
+// shared machine.)
+constexpr i64 kSweepMin = 12;
 
 // givens_rows's operations on rows a and b (n entries each), four entries a pass: the same
 // bits, fewer loop instructions.
