@@ -839,8 +839,41 @@ inline void sweep_down(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double
     for (int w = 0; w < W; ++w) store(pj + 2 * w, c[w]);
 }
 
-// Below this many columns rotate_in / drop_constraint rotate JT one rotation at a time.
+// Below this many columns rotate_in / drop_constraint rotate JT one rotation at a time, as
+// each rotation's coefficients are made (rotate_rows), not in one sweep after them all.
+// (Tried: 48, the rotation of JT's rows filling the wait of the coefficients' serial chain of
+// hypots: +0.4% instructions on the humanoid core and no time gain beyond the noise of a
+// shared machine.)
 constexpr i64 kSweepMin = 12;
+
+// givens_rows's operations on rows a and b (n entries each), four entries a pass: the same
+// bits, fewer loop instructions.
+inline void rotate_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
+    using namespace simd;
+    v2d c2 = splat(cc), s2 = splat(ss), x2 = splat(xny);
+    i64 t = 0;
+    for (; t + 4 <= n; t += 4) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d x1 = load(a + t + 2), y1 = load(b + t + 2);
+        v2d xn = x * c2 + y * s2;
+        v2d xn1 = x1 * c2 + y1 * s2;
+        store(a + t, xn);
+        store(a + t + 2, xn1);
+        store(b + t, x2 * (x + xn) - y);
+        store(b + t + 2, x2 * (x1 + xn1) - y1);
+    }
+    for (; t + 2 <= n; t += 2) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d xn = x * c2 + y * s2;
+        store(a + t, xn);
+        store(b + t, x2 * (x + xn) - y);
+    }
+    for (; t < n; ++t) {
+        double x = a[t], y = b[t];
+        a[t] = x * cc + y * ss;
+        b[t] = xny * (x + a[t]) - y;
+    }
+}
 
 // Every column of an n-column matrix by sweep_up / sweep_down (the last odd column by the
 // scalar loop, givens_rows's tail).
@@ -929,17 +962,116 @@ inline bool givens_of(Vec& d, i64 j, double& cc, double& ss) {
     return true;
 }
 
-// Add a constraint: Givens rotations of J's columns (JT's rows) so that only d[:q+1] is
-// non-zero. The rotations' coefficients depend on d alone: taken first, in order (into rot,
-// see sweep_up; cc -1 marks a skipped one, h = 0), then applied to JT by sweep (the same
-// bits as givens_rows one rotation at a time).
+inline void rotate_in_givens(Mat& JT, Vec& d, i64 q, Vec& rot);
+
+// Add a constraint: one Householder reflection H of JT's rows q..n-1 (J's columns) so that
+// only d[:q+1] is non-zero (d = J^T n, so H d is d of the reflected rows): with s = |d[q:]|,
+// alpha = -sign(d[q]) s (no cancellation in v), v = (d[q:] - alpha e_0) / s (entries at
+// most 2: no product below grows past JT's own size) and tau = s / (s + |d[q]|) (in [1/2, 1]),
+// H = I - tau v v^T; per block of columns w = tau v^T JT[q:] (each entry's sum over the
+// rows in order), then JT[q + i] -= v[i] w. One norm where the Givens rotations chain n - q - 1
+// hypots (each waiting on the one before), and 7 operations a pair of entries a row where a
+// rotation takes about 10. d[q] becomes alpha (R's new diagonal entry: its sign is free, as
+// the Givens form's). Where d[q:]'s largest entry is outside [1e-140, 1e140] (a square could
+// leave the normal range) or not finite, the Givens rotations (rotate_in_givens: hypot's
+// scaling, and the old bits).
 inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
+    using namespace simd;
     i64 n = JT.rows;
     if (n - 1 <= q) return;
-    if (n < kSweepMin) {  // few columns: one rotation at a time (the same bits, less set-up)
+    double x0 = d[q];
+    double big = std::fabs(x0), sig = 0.0;
+    for (i64 i = q + 1; i < n; ++i) {
+        double a = std::fabs(d[i]);
+        if (!(a <= big)) big = a;  // (a NaN stays)
+        sig += d[i] * d[i];
+    }
+    if (!(big >= 1e-140 && big <= 1e140)) {
+        rotate_in_givens(JT, d, q, rot);
+        return;
+    }
+    if (sig == 0.0) return;  // d[q+1:] zero already
+    double nrm = std::sqrt(x0 * x0 + sig);
+    double alpha = x0 >= 0.0 ? -nrm : nrm;
+    double tau = nrm / (nrm + std::fabs(x0));
+    double inv = 1.0 / nrm;
+    d[q] = (x0 - alpha) * inv;
+    for (i64 i = q + 1; i < n; ++i) d[i] = d[i] * inv;
+    const double* v = d.data() + q;
+    i64 k = n - q;
+    double* J0 = JT.row(q);
+    // Per block of columns: w's entries (in registers), then the block's rows updated.
+    v2d tv = splat(tau);
+    i64 t = 0;
+    for (; t + 8 <= n; t += 8) {
+        v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
+        const double* p = J0 + t;
+        for (i64 i = 0; i < k; ++i, p += n) {
+            v2d vi = splat(v[i]);
+            a = a + vi * load(p);
+            b = b + vi * load(p + 2);
+            c = c + vi * load(p + 4);
+            e = e + vi * load(p + 6);
+        }
+        a = a * tv;
+        b = b * tv;
+        c = c * tv;
+        e = e * tv;
+        double* o = J0 + t;
+        for (i64 i = 0; i < k; ++i, o += n) {
+            v2d vi = splat(v[i]);
+            store(o, load(o) - vi * a);
+            store(o + 2, load(o + 2) - vi * b);
+            store(o + 4, load(o + 4) - vi * c);
+            store(o + 6, load(o + 6) - vi * e);
+        }
+    }
+    for (; t + 4 <= n; t += 4) {
+        v2d a = splat(0.0), b = splat(0.0);
+        const double* p = J0 + t;
+        for (i64 i = 0; i < k; ++i, p += n) {
+            v2d vi = splat(v[i]);
+            a = a + vi * load(p);
+            b = b + vi * load(p + 2);
+        }
+        a = a * tv;
+        b = b * tv;
+        double* o = J0 + t;
+        for (i64 i = 0; i < k; ++i, o += n) {
+            v2d vi = splat(v[i]);
+            store(o, load(o) - vi * a);
+            store(o + 2, load(o + 2) - vi * b);
+        }
+    }
+    for (; t + 2 <= n; t += 2) {
+        v2d a = splat(0.0);
+        const double* p = J0 + t;
+        for (i64 i = 0; i < k; ++i, p += n) a = a + splat(v[i]) * load(p);
+        a = a * tv;
+        double* o = J0 + t;
+        for (i64 i = 0; i < k; ++i, o += n) store(o, load(o) - splat(v[i]) * a);
+    }
+    for (; t < n; ++t) {
+        double a = 0.0;
+        for (i64 i = 0; i < k; ++i) a += v[i] * J0[i * n + t];
+        a = a * tau;
+        for (i64 i = 0; i < k; ++i) J0[i * n + t] = J0[i * n + t] - v[i] * a;
+    }
+    d[q] = alpha;
+    for (i64 i = q + 1; i < n; ++i) d[i] = 0.0;
+}
+
+// rotate_in by Givens rotations of J's columns (JT's rows; the fallback above). The
+// rotations' coefficients depend on d alone: taken first, in order (into rot, see sweep_up;
+// cc -1 marks a skipped one, h = 0), then applied to JT by sweep (the same bits as
+// givens_rows one rotation at a time).
+inline void rotate_in_givens(Mat& JT, Vec& d, i64 q, Vec& rot) {
+    i64 n = JT.rows;
+    if (n - 1 <= q) return;
+    if (n < kSweepMin) {  // one rotation at a time (the same bits; see kSweepMin)
         for (i64 j = n - 1; j > q; --j) {
             double cc, ss;
-            if (givens_of(d, j, cc, ss)) givens_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
+            if (givens_of(d, j, cc, ss)) rotate_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
         }
         return;
     }
@@ -986,7 +1118,8 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
     // columns; so row i moves its columns max(drop, i - 1) + 1 .. q - 1 (one copy a row).
     for (i64 i = 0; i < q; ++i) {
         i64 j0 = std::max<i64>(drop, i - 1);
-        if (j0 < q - 1) std::memmove(R.row(i) + j0, R.row(i) + j0 + 1, static_cast<size_t>(q - 1 - j0) * sizeof(double));
+        double* ri = R.row(i);
+        for (i64 j = j0; j < q - 1; ++j) ri[j] = ri[j + 1];  // (a few entries: no call)
     }
     u[q - 1] = u[q];
     u[q] = 0.0;
@@ -1018,9 +1151,9 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
             R(j, j) = h;
         }
         double xny = ss / (1.0 + cc);
-        givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
-        if (n < kSweepMin) {  // few columns: JT's rotation now (the same bits)
-            givens_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
+        rotate_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
+        if (n < kSweepMin) {  // JT's rotation now (the same bits; see kSweepMin)
+            rotate_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
             continue;
         }
         rj[0] = rj[1] = cc;
