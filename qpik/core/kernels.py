@@ -13,8 +13,9 @@ QP (:func:`solve_qp`)
     quadprog and eiquadprog. It starts from the unconstrained minimiser and adds violated
     constraints one at a time; it needs no feasible starting point, detects infeasibility,
     and ends in a finite number of steps (an iteration cap guards against round-off
-    cycling). The factorisation of the working set is updated by Givens rotations when a
-    constraint is added or dropped, ``O(n^2)`` per change.
+    cycling). The factorisation of the working set is updated when a constraint is added
+    (one Householder reflection of ``J``'s columns; Givens rotations where an entry is outside
+    ``[1e-140, 1e140]``) or dropped (Givens rotations), ``O(n^2)`` per change.
 
     The answer is then *polished*: the KKT system of the final active set (constraints
     with a positive multiplier, in a canonical order) is solved once more from scratch.
