@@ -1638,6 +1638,10 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
                         const double* gsq, const double* ztd, bool z_eye, const ReducedQP* qp,
                         const QPScratch* made);
 
+// (below; exact_level's first candidate for a damped level with a few active rows)
+inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
+                         const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u);
+
 // One level made exact: the dual active set's rows (sol) re-solved on their canonical
 // active set without regularisation, then certified; else the primal active set from a
 // feasible point, certified. Returns true with z, the working set and the certificate when
@@ -1647,13 +1651,15 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
                         IVec& final_sides, CertScratch* cs = nullptr, const Vec* free_z = nullptr,
                         const Certificate* free_cert = nullptr, const double* gsq = nullptr,
-                        const double* ztd = nullptr, bool z_eye = false) {
+                        const double* ztd = nullptr, bool z_eye = false, const QPScratch* made = nullptr) {
     // ztd: Z^T d as mtv_into computes it, when the caller has it (the same product); z_eye: Z
-    // is exactly the identity (certify_level's).
+    // is exactly the identity (certify_level's). made: the dual method's storage (its L:
+    // qp.H's factor, as solve_qp makes it), when the caller has it (eq_candidate, as
+    // normal_candidate, takes it where it is N's factor bit for bit, else makes N's).
     if (!cs) {  // storage of its own, only when the caller keeps none
         CertScratch local;
         return exact_level(sol, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, lower, z, cert, final_rows,
-                           final_sides, &local, free_z, free_cert, gsq, ztd, z_eye);
+                           final_sides, &local, free_z, free_cert, gsq, ztd, z_eye, made);
     }
     i64 n = static_cast<i64>(d.size());
     CertScratch& es = *cs;
@@ -1717,6 +1723,20 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                 return true;
             }
             best = cert.worst();
+        }
+        if (!have_dual && q > 0 && eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, made, es, zc, u)) {
+            // A damped level with a few active rows: the normal equations' candidate first
+            // (eq_candidate), taken only where its certificate holds; else the QR re-solve
+            // below as before (this candidate's certificate not kept: the same cert, best and
+            // start as without it).
+            Certificate kept = cert;
+            double kept_best = best;
+            if (certify(zc)) {
+                z = zc;
+                return true;
+            }
+            cert = kept;
+            best = kept_best;
         }
         Vec& zref = es.xzref;
         neg_ztd(Z, d, ztd, zref);
@@ -2028,9 +2048,11 @@ inline bool residual_free(const LSForm& ls, const Vec& zref, CertScratch& es, i6
 // cholesky_into on a zeroed r x r matrix), is taken rather than made again: the same bits.
 // Either way the candidate is the same bits on every path to it (cold or warm, cascade or
 // level by level, fused or general).
+// normal_factor: N's factor under those conditions (L, in made->L or es.BW), false where one
+// fails; normal_candidate and eq_candidate (below) both start from it.
 constexpr double kNormalCond = 1e10;
-inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const QPScratch* made,
-                             CertScratch& es, Vec& z) {
+inline bool normal_factor(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const QPScratch* made,
+                          CertScratch& es, CMatRef& L) {
     i64 r = ls.B.cols;
     if (!ls.reg || r <= 0 || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r) return false;
     CMatRef AZ = ls.B.cref().rows_slice(0, m);
@@ -2047,7 +2069,6 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
     double big = 0.0;
     for (i64 i = 0; same && i < r; ++i) big = pymax(big, qp.H(i, i));
     same = same && rho >= 2e-14 * (1.0 + big);
-    CMatRef L;
     if (same) {
         L = made->L.cref();
     } else {
@@ -2059,6 +2080,16 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
         if (!cholesky_into(N.cref(), r, 0.0, Lm.ref())) return false;
         L = Lm.cref();
     }
+    return true;
+}
+
+inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const QPScratch* made,
+                             CertScratch& es, Vec& z) {
+    CMatRef L;
+    if (!normal_factor(ls, qp, rho, m, made, es, L)) return false;
+    i64 r = ls.B.cols;
+    CMatRef AZ = ls.B.cref().rows_slice(0, m);
+    double s = ls.B(m, 0);
     // x0 = N^-1 B^T f (B^T f from A Z's rows and the diagonal alone: B's last r rows are s I)
     Vec& g = es.g;
     mtv_into(AZ, ls.f.data(), g);
@@ -2076,6 +2107,125 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
     backward_into(L, es.wy, es.r);
     z.resize(static_cast<size_t>(r));
     for (i64 i = 0; i < r; ++i) z[i] = x0[i] + es.r[i];
+    return true;
+}
+
+// exact_level's candidate on a damped level with a few active rows (0 < q <= kEqCandidateRows):
+// the minimiser of 1/2 |B z - f|^2 with the working set's rows held as equalities (n_j^T z =
+// rhs_j, n_j = side_j C[row_j], as eqp_ls writes them) and its multipliers (B^T (B z - f) =
+// sum_j u_j n_j), from N = B^T B's factor L (normal_factor: its conditions, its bits) and the
+// Schur complement S = V^T V, V = L^-1 [n_1 .. n_q] (its Cholesky factor, q x q): with w =
+// L^-1 B^T f, u = S^-1 (rhs - V^T w) and z = L^-T (w + V u); then one step of refinement by
+// the same factors from B's own residual (B^T (f - B z) + N u and rhs - N^T z; normal_candidate's
+// step with the rows added). With rho > 0 the minimiser is unique: this is eqp_ls's answer to
+// round-off, and a function of B, f, the rows and the final working set alone (never of the
+// dual method's path: cold and warm starts give the same bits). False (no candidate) where
+// normal_factor's conditions fail (its trace bound) or a pivot of S is below S_jj /
+// kNormalCond (a row within about 1e-5 of the others' span in N's metric): those levels take
+// the QR re-solve. Small levels (r < kRegFoldMin, eqp_ls's fold's bound), where the dense QR
+// costs little, keep it: the normal equations' answer differs from the QR's by about
+// eps |B|^2 / s^2 relative on an ill-conditioned one (6e-12 with s = 1e-3, |B| = 0.75:
+// tests/fixtures/core.npz's case 184, r = 5, past that test's 1e-12).
+constexpr i64 kEqCandidateRows = 8;
+inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
+                         const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u) {
+    i64 r = ls.B.cols;
+    if (q <= 0 || q > kEqCandidateRows || q >= r || r < kRegFoldMin || qp.C.cols != r) return false;
+    CMatRef L;
+    if (!normal_factor(ls, qp, rho, m, made, es, L)) return false;
+    CMatRef AZ = ls.B.cref().rows_slice(0, m);
+    double s = ls.B(m, 0);
+    const size_t rs = static_cast<size_t>(r), qs = static_cast<size_t>(q);
+    // V's rows L^-1 n_j (eV: q x r), and rhs_j
+    Mat& V = es.eV;
+    shape(V, q, r);
+    Vec& col = es.ecol;
+    col.resize(rs);
+    Vec& w = es.wy;
+    Vec& rhs = es.erhs;
+    rhs.resize(qs);
+    for (i64 j = 0; j < q; ++j) {
+        double side = static_cast<double>(sides[j]);
+        const double* cj = qp.C.row(rows[j]);
+        for (i64 i = 0; i < r; ++i) col[i] = cj[i] * side;
+        forward_into(L, col, w);
+        std::memcpy(V.row(j), w.data(), rs * sizeof(double));
+        rhs[j] = rhs_of(CVecRef(qp.lo), CVecRef(qp.hi), rows[j], sides[j]);
+    }
+    // S = V V^T (its lower triangle) and its Cholesky factor in place (eS, q x q by rows)
+    Vec& S = es.eS;
+    S.assign(qs * qs, 0.0);
+    for (i64 j = 0; j < q; ++j) {
+        const double* vj = V.row(j);
+        for (i64 k = 0; k <= j; ++k) {
+            const double* vk = V.row(k);
+            double acc = 0.0;
+            for (i64 i = 0; i < r; ++i) acc += vj[i] * vk[i];
+            S[j * q + k] = acc;
+        }
+    }
+    for (i64 j = 0; j < q; ++j) {
+        double sjj = S[j * q + j], dj = sjj;
+        for (i64 k = 0; k < j; ++k) dj -= S[j * q + k] * S[j * q + k];
+        if (!(std::isfinite(sjj) && dj > 0.0 && sjj <= kNormalCond * dj)) return false;
+        double ljj = std::sqrt(dj);
+        S[j * q + j] = ljj;
+        for (i64 i = j + 1; i < q; ++i) {
+            double a = S[i * q + j];
+            for (i64 k = 0; k < j; ++k) a -= S[i * q + k] * S[j * q + k];
+            S[i * q + j] = a / ljj;
+        }
+    }
+    // One step: (dz, du) solving H dz - N du = g, N^T dz = t (g: es.g, t: es.et)
+    Vec& g = es.g;
+    Vec& t = es.et;
+    Vec& dz = es.edz;
+    Vec& du = es.edu;
+    du.resize(qs);
+    auto step = [&]() {
+        forward_into(L, g, w);  // w = L^-1 g
+        for (i64 j = 0; j < q; ++j) {
+            const double* vj = V.row(j);
+            double acc = t[j];
+            for (i64 i = 0; i < r; ++i) acc -= vj[i] * w[i];
+            for (i64 k = 0; k < j; ++k) acc -= S[j * q + k] * du[k];
+            du[j] = acc / S[j * q + j];
+        }
+        for (i64 j = q - 1; j >= 0; --j) {
+            double acc = du[j];
+            for (i64 k = j + 1; k < q; ++k) acc -= S[k * q + j] * du[k];
+            du[j] = acc / S[j * q + j];
+        }
+        for (i64 j = 0; j < q; ++j) axpy(w.data(), du[j], V.row(j), r);  // w + V du
+        backward_into(L, w, dz);
+    };
+    // (z, u) from zero: g = B^T f, t = rhs
+    mtv_into(AZ, ls.f.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * ls.f[m + j];
+    t = rhs;
+    step();
+    z.assign(dz.begin(), dz.end());
+    u.assign(du.begin(), du.end());
+    // refined from B's residual: g = B^T (f - B z) + N u, t = rhs - N^T z
+    Vec& res = es.e;
+    mv_into(AZ, z.data(), res);
+    for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - res[i];
+    mtv_into(AZ, res.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * (ls.f[m + j] - s * z[j]);
+    for (i64 j = 0; j < q; ++j) {
+        double side = static_cast<double>(sides[j]);
+        const double* cj = qp.C.row(rows[j]);
+        double nz = 0.0;
+        for (i64 i = 0; i < r; ++i) {
+            double e = cj[i] * side;
+            g[i] += u[j] * e;
+            nz += e * z[i];
+        }
+        t[j] = rhs[j] - nz;
+    }
+    step();
+    for (i64 i = 0; i < r; ++i) z[i] = z[i] + dz[i];
+    for (i64 j = 0; j < q; ++j) u[j] = u[j] + du[j];
     return true;
 }
 
@@ -2982,7 +3132,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             if (stops) ws.free_z = z;
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
-                                        stops ? &tried : nullptr, gsq, ztd, z_eye);
+                                        stops ? &tried : nullptr, gsq, ztd, z_eye, &ws.qps);
             if (!exact && std::isnan(cert.primal)) {
                 // No candidate to certify: the certificate of the point the level keeps
                 // (x = d, no working set), so it says which conditions fail there.

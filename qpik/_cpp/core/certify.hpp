@@ -855,6 +855,8 @@ struct CertScratch {
     Vec xu, xx, xZz, xzc, xzref, xstart;
     IVec xts;                           // eqp_ls's reflection rows
     Mat BT;                             // eqp_ls's B^T
+    Mat eV;                             // exact_level's eq_candidate (qpik/_cpp/core/cascade.hpp)
+    Vec eS, erhs, et, edz, edu, ecol;
 };
 
 namespace detail {
