@@ -389,11 +389,22 @@ inline void jacobi_rows_sq_dot(double* a, double* b, const double* c, double cs,
 }
 
 // The Givens rotation of two rows as rotate_in / drop_constraint write it:
-// a' = a cc + b ss, b' = xny (a + a') - b.
+// a' = a cc + b ss, b' = xny (a + a') - b (four entries a pass, then two, then one: each
+// entry's operations the same).
 inline void givens_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
     using namespace simd;
     v2d c2 = splat(cc), s2 = splat(ss), x2 = splat(xny);
     i64 t = 0;
+    for (; t + 4 <= n; t += 4) {
+        v2d x = load(a + t), y = load(b + t);
+        v2d x1 = load(a + t + 2), y1 = load(b + t + 2);
+        v2d xn = x * c2 + y * s2;
+        v2d xn1 = x1 * c2 + y1 * s2;
+        store(a + t, xn);
+        store(a + t + 2, xn1);
+        store(b + t, x2 * (x + xn) - y);
+        store(b + t + 2, x2 * (x1 + xn1) - y1);
+    }
     for (; t + 2 <= n; t += 2) {
         v2d x = load(a + t), y = load(b + t);
         v2d xn = x * c2 + y * s2;

@@ -840,40 +840,11 @@ inline void sweep_down(double* base, i64 ld, i64 t, i64 lo, i64 hi, const double
 }
 
 // Below this many columns rotate_in / drop_constraint rotate JT one rotation at a time, as
-// each rotation's coefficients are made (rotate_rows), not in one sweep after them all.
+// each rotation's coefficients are made (givens_rows), not in one sweep after them all.
 // (Tried: 48, the rotation of JT's rows filling the wait of the coefficients' serial chain of
 // hypots: +0.4% instructions on the humanoid core and no time gain beyond the noise of a
 // shared machine.)
 constexpr i64 kSweepMin = 12;
-
-// givens_rows's operations on rows a and b (n entries each), four entries a pass: the same
-// bits, fewer loop instructions.
-inline void rotate_rows(double* a, double* b, double cc, double ss, double xny, i64 n) {
-    using namespace simd;
-    v2d c2 = splat(cc), s2 = splat(ss), x2 = splat(xny);
-    i64 t = 0;
-    for (; t + 4 <= n; t += 4) {
-        v2d x = load(a + t), y = load(b + t);
-        v2d x1 = load(a + t + 2), y1 = load(b + t + 2);
-        v2d xn = x * c2 + y * s2;
-        v2d xn1 = x1 * c2 + y1 * s2;
-        store(a + t, xn);
-        store(a + t + 2, xn1);
-        store(b + t, x2 * (x + xn) - y);
-        store(b + t + 2, x2 * (x1 + xn1) - y1);
-    }
-    for (; t + 2 <= n; t += 2) {
-        v2d x = load(a + t), y = load(b + t);
-        v2d xn = x * c2 + y * s2;
-        store(a + t, xn);
-        store(b + t, x2 * (x + xn) - y);
-    }
-    for (; t < n; ++t) {
-        double x = a[t], y = b[t];
-        a[t] = x * cc + y * ss;
-        b[t] = xny * (x + a[t]) - y;
-    }
-}
 
 // Every column of an n-column matrix by sweep_up / sweep_down (the last odd column by the
 // scalar loop, givens_rows's tail).
@@ -1071,7 +1042,7 @@ inline void rotate_in_givens(Mat& JT, Vec& d, i64 q, Vec& rot) {
     if (n < kSweepMin) {  // one rotation at a time (the same bits; see kSweepMin)
         for (i64 j = n - 1; j > q; --j) {
             double cc, ss;
-            if (givens_of(d, j, cc, ss)) rotate_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
+            if (givens_of(d, j, cc, ss)) givens_rows(JT.row(j - 1), JT.row(j), cc, ss, ss / (1.0 + cc), n);
         }
         return;
     }
@@ -1151,9 +1122,9 @@ inline void drop_constraint(Mat& JT, Mat& R, Vec& u, IVec& act_row, IVec& act_si
             R(j, j) = h;
         }
         double xny = ss / (1.0 + cc);
-        rotate_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
+        givens_rows(R.row(j) + j + 1, R.row(j + 1) + j + 1, cc, ss, xny, q - j - 1);
         if (n < kSweepMin) {  // JT's rotation now (the same bits; see kSweepMin)
-            rotate_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
+            givens_rows(JT.row(j), JT.row(j + 1), cc, ss, xny, n);
             continue;
         }
         rj[0] = rj[1] = cc;
