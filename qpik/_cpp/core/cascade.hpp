@@ -931,42 +931,24 @@ namespace detail {
 // or a pivot is not positive (the caller ranks the rows itself).
 constexpr double kProvedSlack = 1e-11;
 constexpr i64 kProvedRows = 64;
-// The Cholesky test of singular_values_above on a Gram matrix G (p, p; its lower triangle
-// read, then overwritten by the factor) of trace f2: whether G - tau I is positive definite.
-inline bool gram_above(Mat& G, i64 p, double f2, double floor, double rank_tol) {
-    if (!(f2 < kInf)) return false;  // (NaN or inf)
+// The test of singular_values_above on a Gram matrix G (p, p) of trace f2: whether the
+// Cholesky factorization of G - tau I (cholesky_into, into ws.Qt) finds every pivot positive.
+inline bool gram_above(const Mat& G, i64 p, double f2, double floor, double rank_tol, Workspace& ws) {
+    if (!(f2 < kInf)) return false;  // (NaN or inf: then some entry of G is not finite)
     double t = pymax(floor, 2.0 * rank_tol * pymax(1.0, std::sqrt(f2)));
     double tau = t * t + kProvedSlack * f2;
     if (!(tau < kInf)) return false;
-    for (i64 j = 0; j < p; ++j) {
-        double* gj = G.row(j);
-        double dj = gj[j] - tau;
-        for (i64 k = 0; k < j; ++k) dj -= gj[k] * gj[k];
-        if (!(dj > 0.0)) return false;
-        const double ljj = std::sqrt(dj);
-        gj[j] = ljj;
-        const double inv = 1.0 / ljj;
-        for (i64 i = j + 1; i < p; ++i) {
-            double* gi = G.row(i);
-            double x = gi[j];
-            for (i64 k = 0; k < j; ++k) x -= gi[k] * gj[k];
-            gi[j] = x * inv;
-        }
-    }
-    return true;
+    shape(ws.Qt, p, p);  // (cholesky_into writes the lower triangle it reads)
+    return cholesky_into(G.cref(), p, tau, ws.Qt.ref());
 }
 
 inline bool singular_values_above(const Mat& R, i64 p, i64 cols, double floor, double rank_tol, Workspace& ws) {
     if (p > kProvedRows || p <= 0) return false;
-    Mat& G = ws.Q;  // lower triangle: R R^T, then its Cholesky factor
-    shape(G, p, p);  // the lower triangle written before it is read
+    Mat& G = ws.Q;
+    gram_into(R, p, cols, G);  // R R^T
     double f2 = 0.0;
-    for (i64 i = 0; i < p; ++i) {
-        const double* ri = R.row(i);
-        for (i64 j = 0; j <= i; ++j) G(i, j) = dot(ri, R.row(j), cols);
-        f2 += G(i, i);
-    }
-    return gram_above(G, p, f2, floor, rank_tol);
+    for (i64 i = 0; i < p; ++i) f2 += G(i, i);
+    return gram_above(G, p, f2, floor, rank_tol, ws);
 }
 
 // singular_values_above for the singular values of M (rows, cols), cols <= kProvedRows, from
@@ -979,7 +961,7 @@ inline bool columns_above(const Mat& M, double floor, double rank_tol, Workspace
     mtm_into(M.cref(), G);
     double f2 = 0.0;
     for (i64 i = 0; i < c; ++i) f2 += G(i, i);
-    return gram_above(G, c, f2, floor, rank_tol);
+    return gram_above(G, c, f2, floor, rank_tol, ws);
 }
 
 // The ranking of project_level: the singular values of R's first p rows (cols long) by
