@@ -154,7 +154,7 @@ KERNELS = [
 #: J decides them in the recorded degenerate infeasible QPs (equal rows, one with lo > hi):
 #: since rotate_in reflects J's columns by one Householder reflection (the numba kernels took
 #: Givens rotations), a dependent row's dual direction keeps a 1e-16 round-off entry that the
-#: rotations left at or below 0, and the method steps through other rows first (e.g. 4 -> 6
+#: rotations left at or below 0, and the method steps through other rows first (e.g. 4 -> 5
 #: iterations in solve_qp's case 168; 70 of the 322 infeasible answers among solve_qp's and
 #: solve_level's 3,360 recorded cases).
 INFEASIBLE_FIELDS = ("x", "status")

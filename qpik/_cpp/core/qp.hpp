@@ -936,18 +936,15 @@ inline bool givens_of(Vec& d, i64 j, double& cc, double& ss) {
 inline void rotate_in_givens(Mat& JT, Vec& d, i64 q, Vec& rot);
 
 // Add a constraint: one Householder reflection H of JT's rows q..n-1 (J's columns) so that
-// only d[:q+1] is non-zero (d = J^T n, so H d is d of the reflected rows): with s = |d[q:]|,
-// alpha = -sign(d[q]) s (no cancellation in v), v = (d[q:] - alpha e_0) / s (entries at
-// most 2: no product below grows past JT's own size) and tau = s / (s + |d[q]|) (in [1/2, 1]),
-// H = I - tau v v^T; per block of columns w = tau v^T JT[q:] (each entry's sum over the
-// rows in order), then JT[q + i] -= v[i] w. One norm where the Givens rotations chain n - q - 1
-// hypots (each waiting on the one before), and 7 operations a pair of entries a row where a
-// rotation takes about 10. d[q] becomes alpha (R's new diagonal entry: its sign is free, as
-// the Givens form's). Where d[q:]'s largest entry is outside [1e-140, 1e140] (a square could
-// leave the normal range) or not finite, the Givens rotations (rotate_in_givens: hypot's
-// scaling, and the old bits).
+// only d[:q+1] is non-zero (d = J^T n, so H d is d of the reflected rows): x = d[q:] - alpha
+// e_0, alpha = -sign(d[q]) |d[q:]| (no cancellation in x), H = I - 2 x x^T / |x|^2, applied
+// to JT's rows q.. by reflect_columns (householder_qr's reflection of R's rows, the same
+// operations). One norm where the Givens rotations chain n - q - 1 hypots (each waiting on
+// the one before), and fewer operations a row. d[q] becomes alpha (R's new diagonal entry:
+// its sign is free, as the Givens form's). Where d[q:]'s largest entry is outside [1e-140,
+// 1e140] (a square could leave the normal range) or not finite, the Givens rotations
+// (rotate_in_givens: hypot's scaling, and the old bits).
 inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
-    using namespace simd;
     i64 n = JT.rows;
     if (n - 1 <= q) return;
     double x0 = d[q];
@@ -962,72 +959,12 @@ inline void rotate_in(Mat& JT, Vec& d, i64 q, Vec& rot) {
         return;
     }
     if (sig == 0.0) return;  // d[q+1:] zero already
-    double nrm = std::sqrt(x0 * x0 + sig);
-    double alpha = x0 >= 0.0 ? -nrm : nrm;
-    double tau = nrm / (nrm + std::fabs(x0));
-    double inv = 1.0 / nrm;
-    d[q] = (x0 - alpha) * inv;
-    for (i64 i = q + 1; i < n; ++i) d[i] = d[i] * inv;
-    const double* v = d.data() + q;
-    i64 k = n - q;
-    double* J0 = JT.row(q);
-    // Per block of columns: w's entries (in registers), then the block's rows updated.
-    v2d tv = splat(tau);
-    i64 t = 0;
-    for (; t + 8 <= n; t += 8) {
-        v2d a = splat(0.0), b = splat(0.0), c = splat(0.0), e = splat(0.0);
-        const double* p = J0 + t;
-        for (i64 i = 0; i < k; ++i, p += n) {
-            v2d vi = splat(v[i]);
-            a = a + vi * load(p);
-            b = b + vi * load(p + 2);
-            c = c + vi * load(p + 4);
-            e = e + vi * load(p + 6);
-        }
-        a = a * tv;
-        b = b * tv;
-        c = c * tv;
-        e = e * tv;
-        double* o = J0 + t;
-        for (i64 i = 0; i < k; ++i, o += n) {
-            v2d vi = splat(v[i]);
-            store(o, load(o) - vi * a);
-            store(o + 2, load(o + 2) - vi * b);
-            store(o + 4, load(o + 4) - vi * c);
-            store(o + 6, load(o + 6) - vi * e);
-        }
-    }
-    for (; t + 4 <= n; t += 4) {
-        v2d a = splat(0.0), b = splat(0.0);
-        const double* p = J0 + t;
-        for (i64 i = 0; i < k; ++i, p += n) {
-            v2d vi = splat(v[i]);
-            a = a + vi * load(p);
-            b = b + vi * load(p + 2);
-        }
-        a = a * tv;
-        b = b * tv;
-        double* o = J0 + t;
-        for (i64 i = 0; i < k; ++i, o += n) {
-            v2d vi = splat(v[i]);
-            store(o, load(o) - vi * a);
-            store(o + 2, load(o + 2) - vi * b);
-        }
-    }
-    for (; t + 2 <= n; t += 2) {
-        v2d a = splat(0.0);
-        const double* p = J0 + t;
-        for (i64 i = 0; i < k; ++i, p += n) a = a + splat(v[i]) * load(p);
-        a = a * tv;
-        double* o = J0 + t;
-        for (i64 i = 0; i < k; ++i, o += n) store(o, load(o) - splat(v[i]) * a);
-    }
-    for (; t < n; ++t) {
-        double a = 0.0;
-        for (i64 i = 0; i < k; ++i) a += v[i] * J0[i * n + t];
-        a = a * tau;
-        for (i64 i = 0; i < k; ++i) J0[i * n + t] = J0[i * n + t] - v[i] * a;
-    }
+    double alpha = std::sqrt(x0 * x0 + sig);
+    if (x0 > 0.0) alpha = -alpha;
+    d[q] = x0 - alpha;  // x = d[q:], |x|^2 = (x0 - alpha)^2 + sig
+    double vn = d[q] * d[q] + sig;
+    shape(rot, static_cast<size_t>(JT.cols));  // (reflect_columns' sums S: written before read)
+    detail::reflect_columns(JT.a.data(), JT.cols, q, n - q, 0, JT.cols, d.data() + q, vn, rot.data());
     d[q] = alpha;
     for (i64 i = q + 1; i < n; ++i) d[i] = 0.0;
 }
