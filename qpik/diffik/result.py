@@ -222,7 +222,7 @@ class StepResult:
                 qpos = out[4][row]
                 value = d["_limits"] = lambda: plan.lean_limits(qpos, dt)
                 return value
-            info = out[2][row]
+            info = resolved_info(out[2][row], out[5][row])
         else:
             lazy = d.get("_info")
             if lazy is None or name not in _PER_LEVEL:
@@ -233,8 +233,6 @@ class StepResult:
             del d["_info"]
         if "residuals" not in d:
             residuals, sigma, lam2, status, iterations, *cert = info.tolist()
-            if src is not None and any(s != s for s in sigma):  # deferred levels' (NaN)
-                sigma = resolve_sigma(info[1], src[0][5][src[1]])
             d.update(
                 residuals=residuals[skip:],
                 sigma_min=sigma[skip:],
