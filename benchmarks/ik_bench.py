@@ -12,8 +12,9 @@ taken from the method's own report,
 * and the wall time of the call is within ``budget`` (50 ms; also passed to the method as
   its time budget).
 
-Methods (:data:`METHODS`), run interleaved target by target (the order rotates from one
-target to the next), so machine noise hits all alike. Every method restarts from a random
+Methods (:data:`METHODS`), run interleaved target by target (in a fresh seeded random
+order for each target), so machine noise, and what the method before leaves in the caches,
+hit all alike. Every method restarts from a random
 configuration within the limits when an attempt ends (100 iterations, or 5 iterations
 without a 1 % decrease of the error), until it converges or the budget ends: the comparison
 isolates the step rule.
@@ -441,8 +442,14 @@ def _run_robot(robot, robot_index, methods, n, seed, criterion, progress) -> dic
     records: dict[str, list[dict]] = {name: [] for name in running}
     start = time.perf_counter()
     for i, target in enumerate(targets):
-        for k in range(len(running)):
-            name = running[(i + k) % len(running)]  # the order rotates from target to target
+        # A fresh order for each target (seeded): a plain rotation keeps every method's
+        # predecessor fixed (qpik always right after TRAC-IK, say), and a method's time
+        # depends on what ran before it: TRAC-IK's working set evicts much of the caches
+        # (on erd:ur5, a qpik solve right after one takes 0.059 ms against 0.037 ms after
+        # the other methods). Shuffled, each method follows each other equally often.
+        order = np.random.default_rng([seed, robot_index, i, 1 << 20]).permutation(len(running))
+        for k in order:
+            name = running[k]
             rng = np.random.default_rng([seed, robot_index, i, list(METHODS).index(name)])
             record = _timed(
                 bound[name], configuration, (frame, frame_type), target, q0, rng, criterion.budget
@@ -465,15 +472,41 @@ def _run_robot(robot, robot_index, methods, n, seed, criterion, progress) -> dic
     }
 
 
+_SETTLE_NOISE = 5e-6  # [s] the jitter of _other_threads_cpu's two clock reads
+
+
+def _other_threads_cpu() -> float:
+    """The CPU time [s] of this process's threads other than the calling one."""
+    return time.process_time() - time.thread_time()
+
+
+def _settle(limit: float = 0.01) -> None:
+    """Wait, untimed, until this process's other threads stop running (at most ``limit``
+    seconds). TRAC-IK runs its two solvers in threads that go on for tens of microseconds
+    after ``ik`` returns (about 40 us of CPU per call on erd:ur5): without this wait that work
+    overlaps the next method's timed call, and the same method always follows it."""
+    end = time.perf_counter() + limit
+    before = _other_threads_cpu()
+    while time.perf_counter() < end:
+        time.sleep(1e-4)
+        now = _other_threads_cpu()
+        if now - before <= _SETTLE_NOISE:
+            return
+        before = now
+
+
 def _timed(method, configuration, frame_key, target, q0, rng, budget) -> dict:
     """Run one method on one target from ``q0``; the errors measured here, not taken from
     the method's report, at the configuration it returns."""
     position, rotation = target
+    others = _other_threads_cpu()
     cpu = time.thread_time()
     tic = time.perf_counter()
     outcome = method(position, rotation, q0.copy(), rng, budget)
     elapsed = time.perf_counter() - tic
     cpu = time.thread_time() - cpu
+    if _other_threads_cpu() - others > _SETTLE_NOISE:
+        _settle()
     configuration.update(outcome.q)
     dp, dr = _errors(configuration, *frame_key, position, rotation)
     return {

@@ -104,9 +104,16 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
 CPU_TIMES: dict = {}  # method -> CPU times [us] of the last time_methods call
 
 
-def time_methods(methods: dict, states: list, set_state, block: int = 50) -> dict:
+def time_methods(
+    methods: dict, states: list, set_state, block: int = 50, refresh: dict | None = None
+) -> dict:
     """Wall times [us] of each method over the same states (and, in :data:`CPU_TIMES`,
-    this process's CPU times: on a shared machine they are the steadier figure)."""
+    this process's CPU times: on a shared machine they are the steadier figure).
+
+    ``refresh`` maps a method to its own library's kinematics update at a state, run again
+    after ``set_state`` (which updates every library) and just before that method's timed
+    call: each method then starts, as in a control loop, right after its own update, and
+    none gains from having been updated last."""
     times = {name: [] for name in methods}
     cpu = {name: [] for name in methods}
     for start in range(0, len(states), block):
@@ -114,6 +121,8 @@ def time_methods(methods: dict, states: list, set_state, block: int = 50) -> dic
         for name, step in methods.items():
             for state in chunk:
                 configuration = set_state(state)
+                if refresh and name in refresh:
+                    refresh[name](state)
                 c0 = time.process_time()
                 t0 = time.perf_counter()
                 step(configuration)
@@ -587,6 +596,17 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
         ),
     }
 
+    def placo_refresh(kind):
+        return lambda state: placos[kind][0].update_kinematics()
+
+    refresh = {
+        names["qpik"]: lambda state: configuration.update(state[0]),
+        names["mink"]: lambda state: configuration.update(state[0]),
+        names["hard"]: placo_refresh("hard"),
+        names["soft"]: placo_refresh("soft"),
+        names["pink"]: lambda state: pink_configuration.update(robot_pin.q_to_pinocchio(state[0])),
+    }
+
     def answers(state):
         """Each method's dq (MuJoCo's order) at the state, untimed; None where it failed."""
         out = {}
@@ -617,7 +637,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     for regime in regimes:
         states = random_states(regime)
         failures.clear()
-        times = time_methods(methods, states, set_state)
+        times = time_methods(methods, states, set_state, refresh=refresh)
         # Answers: the frame's error after the step (FK of q + dq), the posture's, and the
         # largest difference from qpik's dq; the velocity limits' largest excess.
         vmax = limits[1].limit * DT
