@@ -246,6 +246,7 @@ void bind_igm(nb::module_& m) {
     m.attr("CLOCK_EVERY") = igm::CLOCK_EVERY;
     m.attr("RESTART_SPREAD") = igm::RESTART_SPREAD;
     m.attr("BLOCKED") = igm::BLOCKED;
+    m.attr("NEAR_TARGET") = igm::NEAR_TARGET;
 
     m.def(
         "box_qp",

@@ -8,7 +8,8 @@ The rules:
   of time, or stops making progress: ``stall_window`` iterations without a 5 % decrease
   of its score (:class:`StallWindow`); the compiled engine also ends an attempt at a
   step that the joint limits or the singularity damping block (its QP residual above
-  :data:`qpik.igm.kernels.BLOCKED` times the decrease it asks for);
+  :data:`qpik.igm.kernels.BLOCKED` times the decrease it asks for) while its score is
+  above :data:`qpik.igm.kernels.NEAR_TARGET`;
 * while it has not converged, restarts (``restarts`` of them at most) and time remain, the
   loop starts a new attempt from a random configuration;
 * the best attempt is returned: a converged one over one that did not, then the lowest
