@@ -588,3 +588,39 @@ def test_the_trust_region_bounds_target_tasks_below_level_0():
     first = np.linalg.norm(configuration.frame_pose("ee")[0] - start)
     assert 0.01 < first < 0.03, first  # the whole error is 0.27 m
     assert len(result.path) > 10
+
+
+def test_a_target_on_the_workspace_boundary_converges_in_one_attempt():
+    """erd:kinova (Jaco2) with its elbow all but straight at the target (q[2] = 3.137, pi - 5e-3:
+    sigma_min of the pose Jacobian there about 1e-4): the damping slows each step near the
+    answer to a few percent. An attempt within NEAR_TARGET tolerances goes on while the stall
+    window sees progress, instead of ending at the first blocked step (each attempt from these
+    starts used to end singular at 1.3 - 2.5e-5 m, and the TRAC-IK protocol's 5 ms ran out on
+    restarts)."""
+    import warnings
+
+    from qpik.igm.kernels import BLOCKED, NEAR_TARGET
+
+    assert NEAR_TARGET > 1.0 and 0.0 < BLOCKED < 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dropped collision meshes
+        try:
+            model = qpik.load_robot("erd:kinova")
+        except qpik.QpikError as exc:
+            pytest.skip(f"erd:kinova does not load here: {exc}")
+    frame = ("j2s6s200_end_effector", "body")
+    configuration = qpik.Configuration(model)
+    target_q = np.array([-0.823, 4.512, 3.137, -2.161, 3.055, -0.442])
+    configuration.update(target_q)
+    jacobian = configuration.frame_jacobian(*frame)
+    assert np.linalg.svd(jacobian, compute_uv=False)[-1] < 3e-4  # near-singular at the answer
+    target = configuration.frame_pose(*frame)
+    session = qpik.IKSession(model)
+    rng = np.random.default_rng(5)
+    for _ in range(6):
+        result = session.solve(
+            {frame: target}, q0=configuration.random_q(rng), restarts=0,
+            tol_position=1e-5, tol_orientation=1e-5,
+        )  # fmt: skip
+        assert result.converged, (result.reason, result.position_error, result.iterations)
+        assert result.position_error <= 1e-5 and result.orientation_error <= 1e-5
