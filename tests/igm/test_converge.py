@@ -5,7 +5,7 @@ from __future__ import annotations
 import mink
 import numpy as np
 import pytest
-from conftest import configuration_of
+from conftest import configuration_of, load_or_skip
 
 import qpik
 from qpik.igm.result import REASONS
@@ -597,17 +597,10 @@ def test_a_target_on_the_workspace_boundary_converges_in_one_attempt():
     window sees progress, instead of ending at the first blocked step (each attempt from these
     starts used to end singular at 1.3 - 2.5e-5 m, and the TRAC-IK protocol's 5 ms ran out on
     restarts)."""
-    import warnings
-
     from qpik.igm.kernels import BLOCKED, NEAR_TARGET
 
     assert NEAR_TARGET > 1.0 and 0.0 < BLOCKED < 1.0
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # dropped collision meshes
-        try:
-            model = qpik.load_robot("erd:kinova")
-        except qpik.QpikError as exc:
-            pytest.skip(f"erd:kinova does not load here: {exc}")
+    model = load_or_skip("erd:kinova")
     frame = ("j2s6s200_end_effector", "body")
     configuration = qpik.Configuration(model)
     target_q = np.array([-0.823, 4.512, 3.137, -2.161, 3.055, -0.442])

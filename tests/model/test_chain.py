@@ -4,12 +4,11 @@ the compiled IGM's building blocks against independent solvers."""
 from __future__ import annotations
 
 import itertools
-import warnings
 
 import mujoco
 import numpy as np
 import pytest
-from conftest import central_difference
+from conftest import central_difference, load_or_skip
 from scipy.spatial.transform import Rotation
 
 import qpik
@@ -29,12 +28,7 @@ ERD_ARMS = [
 
 
 def _load(name: str) -> mujoco.MjModel:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # dropped collision meshes
-        try:
-            return qpik.load_robot(name)
-        except qpik.QpikError as exc:
-            pytest.skip(f"{name} does not load here: {exc}")
+    return load_or_skip(name)
 
 
 def _frames(model: mujoco.MjModel):

@@ -5,10 +5,9 @@ singular value agrees with LAPACK's to the Gram matrix's roundoff."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
+from conftest import load_or_skip
 
 import qpik
 from qpik.igm import kernels as K
@@ -118,12 +117,7 @@ def test_smallest_singular_value_of_non_finite_input_returns():
 def test_igm_moves_only_the_chains_dofs():
     """Panda of example-robot-data: the fingers (two slides off the hand's chain) keep their
     start values in an attempt without restarts, and the answer meets the target."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # dropped collision meshes
-        try:
-            model = qpik.load_robot("erd:panda")
-        except qpik.QpikError as exc:
-            pytest.skip(f"erd:panda does not load here: {exc}")
+    model = load_or_skip("erd:panda")
     configuration = qpik.Configuration(model)
     rng = np.random.default_rng(0)
     target_q = configuration.random_q(rng)
