@@ -407,6 +407,54 @@ void bind_igm(nb::module_& m) {
         "(k, len(q_full)), hist (k, 3), position error [m], orientation error [rad]).");
 
     m.def(
+        "_igm_lean_run",
+        [](const IgmPlan& plan, nb::handle position, nb::handle rotation, nb::handle q_obj, const StartBox& box,
+           std::uint64_t rng_state, double deadline, double orthonormal_tolerance,
+           double max_distance) -> nb::object {
+            // IKSession's common solve in one call: _target_ok's target, the start checked and
+            // clipped as _StartBox.check does (into a copy: q_obj is not written), then
+            // _igm_plan_run on the whole configuration. Anything else (another dtype or shape,
+            // a target or start _target_ok or check would not pass): None, nothing run, and the
+            // session's general path answers (or raises) as it always did.
+            In1 p, q;
+            In2 R;
+            if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false) ||
+                !nb::try_cast(q_obj, q, false))
+                return nb::none();
+            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return nb::none();
+            const double* pd = p.data();
+            for (int i = 0; i < 3; ++i)
+                if (!(std::fabs(pd[i]) <= max_distance)) return nb::none();  // NaN too
+            if (!(model::rotation_defect(R.data()) <= orthonormal_tolerance)) return nb::none();
+            size_t n = q.shape(0);
+            if (static_cast<i64>(n) != plan.nfull || box.lower.size() != n) return nb::none();
+            Vec q_full(q.data(), q.data() + n);
+            double* x = q_full.data();
+            const double *lo = box.lower.data(), *hi = box.upper.data();
+            for (size_t i = 0; i < n; ++i)
+                if (!std::isfinite(x[i]) || x[i] < lo[i] - box.tol || x[i] > hi[i] + box.tol) return nb::none();
+            for (size_t i = 0; i < n; ++i) {
+                if (x[i] < lo[i]) x[i] = lo[i];
+                if (x[i] > hi[i]) x[i] = hi[i];
+            }
+            static const i64 none = 0;
+            const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
+            PlanScratch held(plan);
+            Vec& q0 = held.start();
+            gather_start(x, plan.nfull, index_p, plan.nq, q0.data());
+            igm_with_scratch(held.run(), *plan.chain, pd, R.data(), true, q0.data(), plan.nq,
+                             CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
+                             plan.int_options.data(), rng_state, deadline, held.workspace());
+            return session_tuple(held.run(), x, plan.nfull, index_p, plan.nq);
+        },
+        "plan"_a, "position"_a, "rotation"_a, "q"_a, "start_box"_a, "rng_state"_a, "deadline"_a,
+        "orthonormal_tolerance"_a, "max_distance"_a,
+        "_igm_plan_run of a (position, rotation) target on the start q (a float64 (nfull,) array, "
+        "checked against start_box and clipped into it in a copy, as _StartBox.check does) when "
+        "_target_ok(position, rotation, orthonormal_tolerance, max_distance) holds and the start "
+        "passes the check; else None (nothing run).");
+
+    m.def(
         "_target_ok",
         [](nb::handle position, nb::handle rotation, double orthonormal_tolerance, double max_distance) {
             // The common target of parse_target in one call: float64 C-contiguous arrays (3,)

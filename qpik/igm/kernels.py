@@ -148,6 +148,13 @@ igm_plan = _igm._IgmPlan
 #: call: its result needs no NumPy call of its own). ``rng_state`` is a plain int in
 #: ``[0, 2**64)`` (the stream's state, not written back).
 igm_plan_run = _igm._igm_plan_run
+#: ``igm_lean_run(plan, position, rotation, q, start_box, rng_state, deadline,
+#: orthonormal_tolerance, max_distance) -> tuple | None``: :func:`igm_plan_run` of a
+#: ``(position, rotation)`` target from the start ``q`` in one call, where :func:`target_ok`
+#: holds and ``q`` (a float64 ``(nfull,)`` array) passes ``start_box.check`` (clipped into a
+#: copy, as it does); else ``None``, nothing run (:class:`qpik.IKSession`'s lean lane: the
+#: general path then answers or raises).
+igm_lean_run = _igm._igm_lean_run
 #: ``target_ok(position, rotation, orthonormal_tolerance, max_distance) -> bool``: whether
 #: a target pair is float64 C-contiguous arrays (3,) and (3, 3), finite, whose rotation is
 #: orthonormal within ``orthonormal_tolerance`` (``max |R R^T - I|``, ``det R > 0``) and whose

@@ -19,15 +19,47 @@ The rules:
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
+import numpy as np
+
+from ..errors import InvalidInput
 from .kernels import PROGRESS
 from .result import Reason
 
-__all__ = ["Attempt", "Clock", "StallWindow", "run_attempts"]
+__all__ = ["Attempt", "Clock", "Seed", "StallWindow", "rng_state", "run_attempts"]
+
+#: Bit generators whose raw output is their next 64-bit draw: for these,
+#: ``bit_generator.random_raw()`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
+#: endpoint=True)`` (one draw; the generator advances alike), without its argument handling.
+_RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
+#: What a solve's ``seed`` may be (see :func:`qpik.solve`).
+Seed = int | np.random.Generator | np.random.SeedSequence | None
+
+
+def rng_state(seed: Seed) -> int:
+    """The SplitMix64 state (an int in ``[0, 2**64)``) of ``seed``: an int >= 0, a Generator
+    (one draw), a SeedSequence, or None (fresh entropy: not reproducible)."""
+    if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
+        return int.from_bytes(os.urandom(8), "little")
+    if isinstance(seed, np.random.Generator):
+        if type(seed.bit_generator) in _RAW_UINT64:  # the same draw, ~10x cheaper
+            return seed.bit_generator.random_raw()
+        return int(seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True))
+    if isinstance(seed, np.random.SeedSequence):
+        return int(seed.generate_state(1, np.uint64)[0])
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0:
+        if seed < 2**64:
+            return int(seed)
+        return int(np.random.SeedSequence(int(seed)).generate_state(1, np.uint64)[0])
+    raise InvalidInput(
+        f"seed must be an int >= 0, a numpy Generator or SeedSequence, or None; got {seed!r}"
+    )
+
 
 P = TypeVar("P")
 

@@ -83,7 +83,6 @@ Options: every option keyword of :func:`solve` and :meth:`IKSession.solve`
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
@@ -97,13 +96,16 @@ from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLim
 from ..model import ReachBound
 from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
 from ..model.couplings import unheld_equality_errors
+from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
 from .qp_engine import QPProblem, borrowed_tasks, iterate
-from .restarts import Clock
+from .restarts import Clock, Seed
+from .restarts import rng_state as _rng_state
 from .result import IKResult, LazyRows, Reason
 from .targets import (
+    MAX_TARGET_DISTANCE,
     FrameKey,
     RobotLike,
     Target,
@@ -123,12 +125,6 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 LIMIT_GAIN = 0.95
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
-#: Bit generators whose raw output is their next 64-bit draw: for these,
-#: ``bit_generator.random_raw()`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
-#: endpoint=True)`` (one draw; the generator advances alike), without its argument handling.
-_RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
-#: What a solve's ``seed`` may be (see :func:`solve`).
-Seed = int | np.random.Generator | np.random.SeedSequence | None
 
 
 class SolveArguments(SolveKeywords, total=False):
@@ -145,26 +141,6 @@ class SolveCall(SolveArguments, total=False):
     :class:`SolveArguments` and the ``seed`` of the solve (documented by :func:`solve`)."""
 
     seed: Seed | Unset
-
-
-def _rng_state(seed: Seed) -> int:
-    """The SplitMix64 state (an int in ``[0, 2**64)``) of ``seed``: an int >= 0, a Generator
-    (one draw), a SeedSequence, or None (fresh entropy: not reproducible)."""
-    if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
-        return int.from_bytes(os.urandom(8), "little")
-    if isinstance(seed, np.random.Generator):
-        if type(seed.bit_generator) in _RAW_UINT64:  # the same draw, ~10x cheaper
-            return seed.bit_generator.random_raw()
-        return int(seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True))
-    if isinstance(seed, np.random.SeedSequence):
-        return int(seed.generate_state(1, np.uint64)[0])
-    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0:
-        if seed < 2**64:
-            return int(seed)
-        return int(np.random.SeedSequence(int(seed)).generate_state(1, np.uint64)[0])
-    raise InvalidInput(
-        f"seed must be an int >= 0, a numpy Generator or SeedSequence, or None; got {seed!r}"
-    )
 
 
 def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
@@ -280,6 +256,16 @@ class IKSession:
         seed = keywords.pop("seed", UNSET)
         settings, kernel_options = self._options(options, keywords)
         rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
+        # The lean lane: one (position, rotation) target of a frame the compiled engine
+        # already solved with these options (its plan made for them), on a robot with no
+        # coupling, no unheld equality and hinge/slide chains, limits "joint": the target
+        # and start checked, and the engine run, in one compiled call (_lean), the same bits
+        # as the general path below, which answers (or raises) wherever that call declines.
+        memo = self._memo[0]
+        if memo is not None and memo[2] is settings and memo[-1] is True and stack is None:
+            result = self._lean(targets, q0, settings, kernel_options, rng_state, start_time)
+            if result is not None:
+                return result
         frames = self._targets(targets)
         compiled_ok = self._compiled_applies(settings, stack, frames)
         joint = settings.limits == "joint"
@@ -363,7 +349,16 @@ class IKSession:
             hash(tuple(keywords.items()))
         except TypeError:  # a list of limits, say: not remembered
             return derived
-        self._memo[0] = (base, dict(keywords), *derived)
+        prepared = self._prepared
+        lean = (  # the options and robot of the lean lane (_solve)
+            settings.limits == "joint"
+            and not settings.secondary
+            and settings.engine != "qp"
+            and self._support is None
+            and prepared.couplings is None
+            and prepared.unheld.size == 0
+        )
+        self._memo[0] = (base, dict(keywords), *derived, lean)
         return derived
 
     def _targets(
@@ -531,6 +526,59 @@ class IKSession:
         plan = (kernel_options, joint, bool(int_options[3]), compiled)
         frame.plan = plan
         return plan
+
+    def _lean(
+        self,
+        targets: Mapping[FrameKey, TargetLike],
+        q0: npt.ArrayLike | None,
+        settings: SolveOptions,
+        kernel_options: tuple,
+        rng_state: int,
+        start_time: float,
+    ) -> IKResult | None:
+        """:meth:`_solve`'s lean lane (see there): its answer, or None where the general
+        path must answer (nothing run, nothing changed)."""
+        if type(targets) is not dict or len(targets) != 1:
+            return None
+        ((key, value),) = targets.items()
+        try:
+            frame = self._prepared.frames.get(key)
+        except TypeError:  # an unhashable key
+            return None
+        if frame is None or type(value) is not tuple or len(value) != 2:
+            return None
+        plan = frame.plan
+        if plan is None or plan[0] is not kernel_options or plan[1] is not True:
+            return None
+        if q0 is None:
+            q0 = self._mid if self._robot_q is None else self._robot_q
+        budget = settings.time_budget
+        deadline = start_time + budget if plan[2] and budget is not None else np.inf
+        run = kernels.igm_lean_run(
+            plan[3], value[0], value[1], q0, self._prepared.start_box, rng_state, deadline,
+            ORTHONORMAL_TOLERANCE, MAX_TARGET_DISTANCE,
+        )  # fmt: skip
+        if run is None:
+            return None
+        code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
+        converged = code == 0
+        return IKResult(
+            q,
+            converged,
+            _REASONS_BY_CODE[code],
+            iterations,
+            restarts_used,
+            position_error,
+            orientation_error,
+            time.perf_counter() - start_time,
+            {frame.name: (position_error, orientation_error)},
+            LazyRows(history, list, 1, 2),
+            LazyRows(history, tuple, 0, 0, 2),
+            path,
+            "compiled",
+            (converged,),
+            0.0,  # no coupling (the lane's condition)
+        )
 
     def _solve_compiled(
         self, frame_target, q_start, joint, settings, kernel_inputs, start_time, start_coupling

@@ -117,3 +117,99 @@ def test_a_frame_no_joint_moves_keeps_the_start(offset):
         assert result.q.tobytes() == start.tobytes()
         assert result.path.shape == (1, model.nq) and result.path[0].tobytes() == start.tobytes()
         assert result.converged == (offset == 0.0)
+
+
+def _same(a: qpik.IKResult, b: qpik.IKResult) -> None:
+    assert a.q.tobytes() == b.q.tobytes() and a.path.tobytes() == b.path.tobytes()
+    assert (a.converged, a.reason, a.iterations, a.restarts_used) == (
+        b.converged, b.reason, b.iterations, b.restarts_used,
+    )  # fmt: skip
+    assert (a.position_error, a.orientation_error) == (b.position_error, b.orientation_error)
+    assert list(a.error_history) == list(b.error_history)
+    assert list(a.residual_history) == list(b.residual_history)
+    assert a.frame_errors == b.frame_errors and a.levels_met == b.levels_met
+    assert (a.engine, a.coupling_error, a.constraint_error) == (
+        b.engine, b.coupling_error, b.constraint_error,
+    )  # fmt: skip
+
+
+def _general(session: qpik.IKSession, monkeypatch, targets, **keywords) -> qpik.IKResult:
+    """``session.solve`` with the lean lane turned off (the general path)."""
+    with monkeypatch.context() as patch:
+        patch.setattr(qpik.IKSession, "_lean", lambda *args: None)
+        return session.solve(targets, **keywords)
+
+
+def test_the_lean_lane_gives_the_general_paths_answers(monkeypatch):
+    """IKSession's lean lane (one (position, rotation) target, a plan made for the options,
+    limits 'joint'): the general path's answers bit for bit, with int and Generator seeds, q0
+    given or not, a time budget or not; and the lane is taken (one compiled call) on every
+    solve but the first of a run with the same options (which makes the plan)."""
+    from qpik.igm import kernels
+
+    model = qpik.load_robot("ur5e")
+    lean, general = qpik.IKSession(model), qpik.IKSession(model)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(3)
+    calls = []
+    real = kernels.igm_lean_run
+    monkeypatch.setattr(kernels, "igm_lean_run", lambda *args: calls.append(1) or real(*args))
+    runs = ({}, {"tol_position": 1e-6}, {"time_budget": 10.0, "restarts": 3})
+    for keywords in runs:
+        for k in range(15):
+            configuration.update(configuration.random_q(rng))
+            target = configuration.frame_pose("ee")
+            q0 = configuration.random_q(rng) if k % 2 else None
+            seeds = (k, k) if k % 3 else (np.random.default_rng(k), np.random.default_rng(k))
+            a = lean.solve({"ee": target}, q0=q0, seed=seeds[0], **keywords)
+            b = _general(general, monkeypatch, {"ee": target}, q0=q0, seed=seeds[1], **keywords)
+            _same(a, b)
+    assert len(calls) == len(runs) * 14
+
+
+@pytest.mark.parametrize(
+    "q0, error",
+    [
+        (np.full(6, np.nan), qpik.InvalidConfiguration),
+        (np.full(6, 10.0), qpik.JointLimitViolation),
+        (np.zeros(5), qpik.InvalidConfiguration),
+    ],
+)
+def test_the_lean_lane_leaves_bad_starts_to_the_general_path(q0, error):
+    model = qpik.load_robot("ur5e")
+    session = qpik.IKSession(model)
+    target = qpik.Configuration(model).frame_pose("ee")
+    session.solve({"ee": target})  # the plan made
+    with pytest.raises(error):
+        session.solve({"ee": target}, q0=q0)
+
+
+def test_the_lean_lane_leaves_other_targets_and_starts_to_the_general_path(monkeypatch):
+    """Lists, a skewed rotation (projected by the general path), a list start, a NaN target:
+    the answers (or errors) of the general path."""
+    model = qpik.load_robot("ur5e")
+    session, reference = qpik.IKSession(model), qpik.IKSession(model)
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(1)))
+    p, R = configuration.frame_pose("ee")
+    session.solve({"ee": (p, R)}, seed=0)  # the plan made
+    for target, q0 in (((p, R + 1e-12), None), ((p.tolist(), R), None), ((p, R), [0.1] * 6)):
+        expected = _general(reference, monkeypatch, {"ee": target}, q0=q0, seed=5)
+        _same(session.solve({"ee": target}, q0=q0, seed=5), expected)
+    with pytest.raises(qpik.InvalidTarget):
+        session.solve({"ee": (np.array([np.nan, 0.0, 0.0]), R)})
+
+
+def test_the_lean_lane_starts_from_a_configurations_q(monkeypatch):
+    """qpik.solve on a Configuration (its q the default start) and a session made from one:
+    the lean lane's answers are the general path's."""
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(4)))
+    start = qpik.Configuration(model, configuration.random_q(np.random.default_rng(5)))
+    target = {"ee": configuration.frame_pose("ee")}
+    session = qpik.IKSession(start)
+    for _ in range(2):  # the first solve makes the plan, the second takes the lane
+        a, b = session.solve(target, seed=2), qpik.solve(start, target, seed=2)
+    _same(a, _general(qpik.IKSession(start), monkeypatch, target, seed=2))
+    _same(b, a)
