@@ -560,25 +560,7 @@ class IKSession:
         )  # fmt: skip
         if run is None:
             return None
-        code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
-        converged = code == 0
-        return IKResult(
-            q,
-            converged,
-            _REASONS_BY_CODE[code],
-            iterations,
-            restarts_used,
-            position_error,
-            orientation_error,
-            time.perf_counter() - start_time,
-            {frame.name: (position_error, orientation_error)},
-            LazyRows(history, list, 1, 2),
-            LazyRows(history, tuple, 0, 0, 2),
-            path,
-            "compiled",
-            (converged,),
-            0.0,  # no coupling (the lane's condition)
-        )
+        return self._compiled_result(run, frame.name, start_time, 0.0)  # (no coupling)
 
     def _solve_compiled(
         self, frame_target, q_start, joint, settings, kernel_inputs, start_time, start_coupling
@@ -595,6 +577,14 @@ class IKSession:
         run = kernels.igm_plan_run(
             plan[3], target.position, target.rotation, q_start, rng_state, deadline
         )
+        return self._compiled_result(run, frame.name, start_time, start_coupling)
+
+    def _compiled_result(
+        self, run: tuple, name: str, start_time: float, coupling: float | None
+    ) -> IKResult:
+        """The :class:`IKResult` of a compiled run (:func:`qpik.igm.kernels.igm_plan_run`'s
+        tuple) for frame ``name``; ``coupling``: the couplings' error at the answer where it
+        is known, else None (measured here)."""
         code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
         converged = code == 0
         return IKResult(
@@ -606,13 +596,13 @@ class IKSession:
             position_error,
             orientation_error,
             time.perf_counter() - start_time,
-            {frame.name: (position_error, orientation_error)},
+            {name: (position_error, orientation_error)},
             LazyRows(history, list, 1, 2),
             LazyRows(history, tuple, 0, 0, 2),
             path,
             "compiled",
             (converged,),
-            start_coupling if start_coupling is not None else self._coupling_error(q),
+            coupling if coupling is not None else self._coupling_error(q),
         )
 
     def _coupling_error(self, q: np.ndarray) -> float:
