@@ -172,16 +172,24 @@ inline bool truthy(nb::handle h) {
 // qpik._engine.model.start_defect and _StartBox.check: (1, i) if x[i] is not finite, (2, i)
 // if it is beyond [lo, hi] by more than tol, else (0, -1) with x clipped in place onto the
 // box as np.clip(x, lo, hi) (minimum(maximum(x, lo), hi)).
-inline nb::tuple start_defect(double* x, const double* lo, const double* hi, size_t n, double tol) {
+// start_defect_code: the same test and clip, as (code, index) without a Python tuple.
+inline i64 start_defect_code(double* x, const double* lo, const double* hi, size_t n, double tol, i64& index) {
+    index = -1;
     for (size_t i = 0; i < n; ++i)
-        if (!std::isfinite(x[i])) return nb::make_tuple(1, static_cast<i64>(i));
+        if (!std::isfinite(x[i])) return index = static_cast<i64>(i), 1;
     for (size_t i = 0; i < n; ++i)
-        if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return nb::make_tuple(2, static_cast<i64>(i));
+        if (x[i] < lo[i] - tol || x[i] > hi[i] + tol) return index = static_cast<i64>(i), 2;
     for (size_t i = 0; i < n; ++i) {
         if (x[i] < lo[i]) x[i] = lo[i];
         if (x[i] > hi[i]) x[i] = hi[i];
     }
-    return nb::make_tuple(0, static_cast<i64>(-1));
+    return 0;
+}
+
+inline nb::tuple start_defect(double* x, const double* lo, const double* hi, size_t n, double tol) {
+    i64 index;
+    i64 code = start_defect_code(x, lo, hi, n, tol, index);
+    return nb::make_tuple(code, index);
 }
 
 }  // namespace qpik::bind

@@ -233,6 +233,34 @@ struct StartBox {
     }
 };
 
+// _target_ok's test of a (3,) position and (3, 3) rotation: the shapes, the position within
+// max_distance of the origin (each coordinate; NaN fails) and the rotation orthonormal within
+// orthonormal_tolerance (rotation_defect).
+static bool target_pair_ok(const In1& p, const In2& R, double orthonormal_tolerance, double max_distance) {
+    if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return false;
+    const double* pd = p.data();
+    for (int i = 0; i < 3; ++i)
+        if (!(std::fabs(pd[i]) <= max_distance)) return false;  // NaN too
+    return model::rotation_defect(R.data()) <= orthonormal_tolerance;
+}
+
+// A plan's run from the whole configuration q_full (nfull,): its chain's start gathered, the
+// IGM run in the plan's kept scratch, and _igm_plan_run's tuple.
+static nb::tuple run_plan(const IgmPlan& plan, const double* target_p, const double* R, bool has_rot,
+                          const double* q_full, std::uint64_t rng_state, double deadline) {
+    // packed with no joint: index_p must still say packed (the coordinates off the chain,
+    // all of them, as in q_full); an empty vector's data() may be null
+    static const i64 none = 0;
+    const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
+    PlanScratch held(plan);
+    Vec& q0 = held.start();
+    gather_start(q_full, plan.nfull, index_p, plan.nq, q0.data());
+    igm_with_scratch(held.run(), *plan.chain, target_p, R, has_rot, q0.data(), plan.nq,
+                     CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
+                     plan.int_options.data(), rng_state, deadline, held.workspace());
+    return session_tuple(held.run(), q_full, plan.nfull, index_p, plan.nq);
+}
+
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
     m.attr("MAX_ITERS") = igm::MAX_ITERS;
@@ -387,17 +415,7 @@ void bind_igm(nb::module_& m) {
                 require(rot.shape(0) == 3 && rot.shape(1) == 3, "target_R must be (3, 3)");
                 R = rot.data();
             }
-            // packed with no joint: index_p must still say packed (the coordinates off
-            // the chain, all of them, as in q_full); an empty vector's data() may be null
-            static const i64 none = 0;
-            const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
-            PlanScratch held(plan);
-            Vec& q0 = held.start();
-            gather_start(q_full.data(), plan.nfull, index_p, plan.nq, q0.data());
-            igm_with_scratch(held.run(), *plan.chain, target_p.data(), R, has_rot, q0.data(), plan.nq,
-                             CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
-                             plan.int_options.data(), rng_state, deadline, held.workspace());
-            return session_tuple(held.run(), q_full.data(), plan.nfull, index_p, plan.nq);
+            return run_plan(plan, target_p.data(), R, has_rot, q_full.data(), rng_state, deadline);
         },
         "plan"_a, "target_p"_a, "target_R"_a.none(), "q_full"_a, "rng_state"_a, "deadline"_a,
         "igm_run on the coordinates plan.index of q_full (None: all of them) with the fixed "
@@ -421,31 +439,14 @@ void bind_igm(nb::module_& m) {
             if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false) ||
                 !nb::try_cast(q_obj, q, false))
                 return nb::none();
-            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return nb::none();
-            const double* pd = p.data();
-            for (int i = 0; i < 3; ++i)
-                if (!(std::fabs(pd[i]) <= max_distance)) return nb::none();  // NaN too
-            if (!(model::rotation_defect(R.data()) <= orthonormal_tolerance)) return nb::none();
+            if (!target_pair_ok(p, R, orthonormal_tolerance, max_distance)) return nb::none();
             size_t n = q.shape(0);
             if (static_cast<i64>(n) != plan.nfull || box.lower.size() != n) return nb::none();
             Vec q_full(q.data(), q.data() + n);
-            double* x = q_full.data();
-            const double *lo = box.lower.data(), *hi = box.upper.data();
-            for (size_t i = 0; i < n; ++i)
-                if (!std::isfinite(x[i]) || x[i] < lo[i] - box.tol || x[i] > hi[i] + box.tol) return nb::none();
-            for (size_t i = 0; i < n; ++i) {
-                if (x[i] < lo[i]) x[i] = lo[i];
-                if (x[i] > hi[i]) x[i] = hi[i];
-            }
-            static const i64 none = 0;
-            const i64* index_p = !plan.packed ? nullptr : plan.index.empty() ? &none : plan.index.data();
-            PlanScratch held(plan);
-            Vec& q0 = held.start();
-            gather_start(x, plan.nfull, index_p, plan.nq, q0.data());
-            igm_with_scratch(held.run(), *plan.chain, pd, R.data(), true, q0.data(), plan.nq,
-                             CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
-                             plan.int_options.data(), rng_state, deadline, held.workspace());
-            return session_tuple(held.run(), x, plan.nfull, index_p, plan.nq);
+            i64 index;
+            if (start_defect_code(q_full.data(), box.lower.data(), box.upper.data(), n, box.tol, index) != 0)
+                return nb::none();
+            return run_plan(plan, p.data(), R.data(), true, q_full.data(), rng_state, deadline);
         },
         "plan"_a, "position"_a, "rotation"_a, "q"_a, "start_box"_a, "rng_state"_a, "deadline"_a,
         "orthonormal_tolerance"_a, "max_distance"_a,
@@ -464,11 +465,7 @@ void bind_igm(nb::module_& m) {
             In1 p;
             In2 R;
             if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false)) return false;
-            if (p.shape(0) != 3 || R.shape(0) != 3 || R.shape(1) != 3) return false;
-            const double* pd = p.data();
-            for (int i = 0; i < 3; ++i)
-                if (!(std::fabs(pd[i]) <= max_distance)) return false;  // NaN too
-            return model::rotation_defect(R.data()) <= orthonormal_tolerance;
+            return target_pair_ok(p, R, orthonormal_tolerance, max_distance);
         },
         "position"_a, "rotation"_a, "orthonormal_tolerance"_a, "max_distance"_a,
         "Whether (position, rotation) are float64 C-contiguous (3,) and (3, 3) arrays, finite, the "
