@@ -17,7 +17,7 @@ import numpy as np
 
 from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays, kernels
 from ..model.configuration import Configuration, FrameType
-from ..model.couplings import model_couplings, unheld_equalities
+from ..model.couplings import closed_chain_start, model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
 from .kernels import start_box
 from .targets import FrameKey
@@ -94,9 +94,11 @@ class PreparedRobot:
         self.start_box = start_box(lower, upper, 1e-6)
         sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
         sample_hi = np.where(np.isfinite(upper), upper, np.pi)
-        self.mid = model.qpos0.copy()
+        mid = model.qpos0.copy()
         limited = np.isfinite(lower) & np.isfinite(upper)
-        self.mid[limited] = 0.5 * (lower[limited] + upper[limited])
+        mid[limited] = 0.5 * (lower[limited] + upper[limited])
+        #: the default start: mid-range, the closed chains of unheld equalities at qpos0
+        self.mid = closed_chain_start(model, mid, lower, upper)
         free = np.full(model.nq, np.inf)
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])

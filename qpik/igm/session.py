@@ -227,7 +227,9 @@ class IKSession:
         return self._frame(frame).reach
 
     def mid_q(self) -> np.ndarray:
-        """The mid-range configuration (``qpos0`` for unlimited joints)."""
+        """The default start: the mid-range configuration (``qpos0`` for unlimited joints),
+        as :meth:`qpik.Configuration.mid_q` (closed chains of connect or weld constraints
+        at ``qpos0``)."""
         return self._mid.copy()
 
     # ------------------------------------------------------------------- solve

@@ -26,6 +26,7 @@ from ..errors import (
     JointLimitViolation,
     LimitDefinitionError,
 )
+from .couplings import closed_chain_start
 from .frames import (
     FRAME_JACOBIANS,
     FRAME_POSITIONS,
@@ -343,11 +344,14 @@ class Configuration(mink.Configuration):
         return q
 
     def mid_q(self) -> np.ndarray:
-        """The mid-range configuration (``qpos0`` for unlimited joints)."""
+        """The mid-range configuration (``qpos0`` for unlimited joints), with the joints of
+        closed chains that the model's connect or weld constraints close (a gripper's
+        linkage) at ``qpos0`` where that meets those constraints better
+        (:func:`qpik.model.couplings.closed_chain_start`): the default start of full IK."""
         q = self.model.qpos0.copy()
         limited = np.isfinite(self._lower) & np.isfinite(self._upper)
         q[limited] = 0.5 * (self._lower[limited] + self._upper[limited])
-        return q
+        return closed_chain_start(self.model, q, self._lower, self._upper)
 
     def velocity_limits(self) -> np.ndarray | None:
         """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric

@@ -42,7 +42,14 @@ from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
 from .frames import check_model_type
 
-__all__ = ["Couplings", "model_couplings", "unheld_equalities", "unheld_equality_errors"]
+__all__ = [
+    "Couplings",
+    "closed_chain_start",
+    "equality_dofs",
+    "model_couplings",
+    "unheld_equalities",
+    "unheld_equality_errors",
+]
 
 _SCALAR = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
@@ -274,3 +281,75 @@ def unheld_equality_errors(
         else:
             position = max(position, value)
     return position, rotation
+
+
+def _chain_dofs(model: mujoco.MjModel, body: int) -> set[int]:
+    """The dofs of ``body`` and its ancestors."""
+    dofs: set[int] = set()
+    while body > 0:
+        start = int(model.body_dofadr[body])
+        dofs.update(range(start, start + int(model.body_dofnum[body])))
+        body = int(model.body_parentid[body])
+    return dofs
+
+
+def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarray:
+    """The dofs (sorted ids) that close the loops of the connect and weld equalities among
+    ``equalities`` (ids): those that move one of an equality's two bodies (or sites'
+    bodies) and not the other. The dofs on both chains carry the loop rigidly. Other kinds
+    of equality add none."""
+    kinds = {int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)}
+    site = int(mujoco.mjtObj.mjOBJ_SITE)
+    loop: set[int] = set()
+    for e in np.asarray(equalities, dtype=np.int64).tolist():
+        if int(model.eq_type[e]) not in kinds:
+            continue
+        bodies = []
+        for obj in (int(model.eq_obj1id[e]), int(model.eq_obj2id[e])):
+            if int(model.eq_objtype[e]) == site and obj >= 0:
+                obj = int(model.site_bodyid[obj])
+            bodies.append(max(obj, 0))
+        loop |= _chain_dofs(model, bodies[0]) ^ _chain_dofs(model, bodies[1])
+    return np.array(sorted(loop), dtype=np.int64)
+
+
+_QPOS_SIZE = {
+    int(mujoco.mjtJoint.mjJNT_FREE): 7,
+    int(mujoco.mjtJoint.mjJNT_BALL): 4,
+    int(mujoco.mjtJoint.mjJNT_SLIDE): 1,
+    int(mujoco.mjtJoint.mjJNT_HINGE): 1,
+}
+
+
+def closed_chain_start(
+    model: mujoco.MjModel, q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike
+) -> np.ndarray:
+    """``q`` (a start, ``(nq,)``) with the closed chains that the model's unheld equalities
+    close (a gripper's four-bar linkage: connect or weld constraints, which no level holds,
+    :func:`unheld_equalities`) set back to ``qpos0``, where that breaks them less.
+
+    The joints reset are those that close the loops (:func:`equality_dofs`), their
+    ``qpos0`` clipped to ``[lower, upper]`` (``(nq,)``
+    [rad or m]). Mid-range values of a linkage's joints, taken one joint at a time, break
+    its closure (by 28 mm on the Robotiq 2F-85), and a full-IK solve that does not move
+    them cannot converge (reason ``constraint``). Returns ``q`` itself (a copy) where the
+    model has no unheld equality or ``qpos0`` does not meet them better."""
+    q = np.array(q, dtype=np.float64)
+    unheld = unheld_equalities(model)
+    if unheld.size == 0:
+        return q
+    dofs = equality_dofs(model, unheld)
+    if dofs.size == 0:
+        return q
+    candidate = q.copy()
+    for joint in np.unique(model.dof_jntid[dofs]):
+        start = int(model.jnt_qposadr[joint])
+        stop = start + _QPOS_SIZE[int(model.jnt_type[joint])]
+        candidate[start:stop] = model.qpos0[start:stop]
+        if stop - start == 1:
+            candidate[start] = min(max(candidate[start], lower[start]), upper[start])
+    if max(unheld_equality_errors(model, candidate, unheld)) < max(
+        unheld_equality_errors(model, q, unheld)
+    ):
+        return candidate
+    return q
