@@ -264,10 +264,12 @@ class StepOptions:
         max_joint_speed: the step's trust region [rad/s or m/s]: every dof that no
             velocity limit of the stack bounds (MJCF models, Menagerie's among them, state
             none) is held to ``|dq_i| <= max_joint_speed * dt``, a hard box bound merged
-            into the limits' box at every level, so that each step stays where the
-            linearisation of the tasks and limits holds (without it a blocked or
-            unreachable level takes steps of several radians). Dofs that a velocity limit
-            bounds keep that limit only (their answers are unchanged). A free joint's
+            into the limits' box at every level (met as every hard row is: to the
+            certificate's tolerance, a violation of at most 1e-9 (1 + bound)), so that
+            each step stays where the linearisation of the tasks and limits holds (without
+            it a blocked or unreachable level takes steps of several radians). Dofs that a
+            velocity limit bounds keep that limit only (their answers are unchanged). A
+            free joint's
             three translations [m/s] and three rotations [rad/s] take the same number.
             ``StepResult.active_limits`` names it ``"trust region"``. Default
             :data:`DEFAULT_MAX_JOINT_SPEED` (``pi``: 0.031 rad per 10 ms step);

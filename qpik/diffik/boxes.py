@@ -27,7 +27,7 @@ from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 from ..limits.collision import mink_collision_rows
 from ..model.configuration import Configuration, joint_names
 
-__all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure"]
+__all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure", "relaxable"]
 
 #: The name of the step's trust region in :attr:`qpik.StepResult.active_limits`.
 TRUST_REGION = "trust region"
@@ -141,6 +141,8 @@ class LimitRows:
     row_names: list[str]
     sources: Callable[[], list[Contribution]]
     dof_names: Sequence[str]
+    #: (p,) bool: the general rows that may be relaxed (:func:`relaxable`); None: none
+    relaxable: np.ndarray | None = None
 
     def active(self, d: np.ndarray) -> list[str]:
         """The limits that bind at ``d``, e.g. ``"joint4 upper (ConfigurationLimit)"``, then
@@ -181,6 +183,17 @@ class _Collected:
     G: list[np.ndarray] = field(default_factory=list)
     h: list[np.ndarray] = field(default_factory=list)
     names: list[str] = field(default_factory=list)
+    relax: list[np.ndarray] = field(default_factory=list)  # per part: rows that may relax
+
+
+def relaxable(limit: Any) -> bool:
+    """Whether a limit's general rows are recoverable (:mod:`qpik.diffik.recovery`): the
+    collision rows (mink's :class:`mink.CollisionAvoidanceLimit` and qpik's) and the limits
+    that say so (``relaxable_rows = True``: :class:`qpik.limits.SupportPolygonLimit`).
+    Other limits' rows stay hard."""
+    return isinstance(limit, mink.CollisionAvoidanceLimit) or bool(
+        getattr(limit, "relaxable_rows", False)
+    )
 
 
 class LimitBoxes:
@@ -242,24 +255,33 @@ class LimitBoxes:
         self._structures[id(limit)] = (G.copy(), structure)
         return structure
 
-    def rows(self, configuration: Configuration, dt: float) -> LimitRows:
+    def rows(self, configuration: Configuration, dt: float, fold: bool = True) -> LimitRows:
         """Box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h`` of all limits at
         ``configuration`` for a step of ``dt`` [s]; raises :class:`qpik.InfeasibleLimits`
-        where no displacement satisfies them."""
+        where the box admits no displacement. ``fold=False``: the rows of the relaxable
+        limits (:func:`relaxable`: collision rows, the support polygon) all stay general
+        rows, their one-dof rows and their empty rows that no displacement meets included
+        (for the step's recovery, :mod:`qpik.diffik.recovery`, where folding them made the
+        box empty)."""
         hard_lb, hard_ub, pos_lb, pos_ub = self._bounds
         hard_lb.fill(-np.inf)
         hard_ub.fill(np.inf)
         pos_lb.fill(-np.inf)
         pos_ub.fill(np.inf)
         hard = _Collected(hard_lb, hard_ub, [])
-        recoverable = _Collected(pos_lb, pos_ub, hard.contributions, hard.G, hard.h, hard.names)
+        recoverable = _Collected(
+            pos_lb, pos_ub, hard.contributions, hard.G, hard.h, hard.names, hard.relax
+        )
         for limit in self.limits:
             side = hard
             if isinstance(limit, mink.ConfigurationLimit) or getattr(limit, "recoverable", False):
                 side = recoverable
             box = BOX_LIMITS.get(type(limit)) if self.scalar_joints else None
             if box is None:
-                self._inequalities(limit, configuration, dt, side)
+                if fold or side is recoverable or not relaxable(limit):
+                    self._inequalities(limit, configuration, dt, side)
+                else:
+                    _unfolded(limit, configuration, dt, side)
                 continue
             dofs, lower, upper = box(limit, configuration.data.qpos, dt)
             if len(dofs):
@@ -278,7 +300,8 @@ class LimitBoxes:
         G = np.vstack(hard.G) if hard.G else self.no_rows
         h = np.concatenate(hard.h) if hard.h else np.zeros(0)
         contributions = hard.contributions
-        return LimitRows(lb, ub, G, h, hard.names, lambda: contributions, self.dof_names)
+        relax = np.concatenate(hard.relax) if hard.relax else np.zeros(0, dtype=bool)
+        return LimitRows(lb, ub, G, h, hard.names, lambda: contributions, self.dof_names, relax)
 
     def _inequalities(self, limit, configuration: Configuration, dt: float, side: _Collected):
         """A limit's ``compute_qp_inequalities`` split into single-dof bounds (tightening
@@ -306,6 +329,7 @@ class LimitBoxes:
         if structure.general.size:
             side.G.append(G[structure.general])
             side.h.append(h[structure.general])
+            side.relax.append(np.full(structure.general.size, relaxable(limit)))
             side.names.extend(
                 f"{name} row {int(r if numbers is None else numbers[r])}" for r in structure.general
             )
@@ -358,6 +382,24 @@ class LimitBoxes:
         G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
         h = np.ascontiguousarray(np.concatenate(h_parts) if len(h_parts) > 1 else h_parts[0], float)
         return G, h, names
+
+
+def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) -> None:
+    """A relaxable limit's ``compute_qp_inequalities`` as general rows only (appended to
+    ``side``):
+    every row on one dof or more, and every empty row that no displacement meets
+    (``0 <= h < 0``); the empty rows that hold are dropped."""
+    rows_of = _inequalities_of(limit, configuration, dt)
+    if rows_of is None:
+        return
+    G, h, numbers = rows_of
+    keep = np.flatnonzero(np.any(G != 0.0, axis=1) | (h < 0))
+    if keep.size:
+        name = type(limit).__name__
+        side.G.append(G[keep])
+        side.h.append(h[keep])
+        side.relax.append(np.ones(keep.size, dtype=bool))
+        side.names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in keep)
 
 
 def _inequalities_of(

@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from .._engine import diffik as _engine
-from ..core import HierarchySolver
+from ..core import HierarchySolver, kernels
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.com import subtree_com_jacobian
@@ -65,7 +65,7 @@ assert (OK, NOT_FINITE, CONFLICT, UNSETTLED) == (
 DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #: Level statuses by the kernel's codes (as the floats of its info array).
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
-_SOLVED_CODE = next(c for c, s in _STATUS_OF_CODE.items() if s == LevelStatus.SOLVED)
+_SOLVED_CODE, _INFEASIBLE_CODE = float(kernels.SOLVED), float(kernels.INFEASIBLE)
 
 _perf_counter = time.perf_counter
 _NO_DATA = object()  # never an MjData: CompiledPlan._plain_data while no lane step may go
@@ -654,7 +654,8 @@ class CompiledPlan:
         code, d, v, info, active = self.kernel.run(  # on poses, attached by gather
             G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
         )
-        if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):
+        relax = _INFEASIBLE_CODE if len(h) else None  # infeasible: the QP path relaxes G, h
+        if code or any(s != _SOLVED_CODE and (forced or s == relax) for s in info[3].tolist()):
             return None
         core.warm_start_from(active)
         return d, v, info, general
@@ -667,10 +668,9 @@ class CompiledPlan:
         core: HierarchySolver,
         exact: bool,
     ) -> tuple[np.ndarray, list[LevelStatus]] | None:
-        """The step's velocity ``dq / dt`` and its levels' statuses by one kernel call (what
-        :meth:`step` computes, without the rest of its :class:`Solution`); None where
-        :meth:`step` would go further (a forced backend without ``exact``, or a level the
-        forced backend must answer) or the QP path must answer."""
+        """The step's velocity ``dq / dt`` and its levels' statuses by one kernel call (as
+        :meth:`step`, without the rest of its :class:`Solution`); None where :meth:`step` goes
+        further (a forced backend without ``exact``, or a level it must answer)."""
         if core.solver != "auto" and not exact:
             return None
         out = self._solve(configuration, dt, damping, core, core.solver != "auto")

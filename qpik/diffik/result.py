@@ -53,6 +53,8 @@ class Solution:
     iterations: list[int]
     certificate: list[LevelCertificate]
     limits: Callable[[], LimitRows]
+    #: the general rows' slack when level 0 was infeasible (qpik.diffik.recovery), else None
+    relaxation: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -122,6 +124,12 @@ class StepResult:
         coupling_residual: the residual ``|A dq - b|`` of the level of the model's
             couplings, solved above the stack (:attr:`qpik.StepOptions.couplings`);
             ``None`` when there is none. The lists above hold the stack's levels only.
+        relaxation: ``None``, unless the limits admitted no displacement at all (level 0
+            infeasible: say a collision pair deeper inside its minimum distance than one
+            step can leave): then the general rows ``G dq <= h`` were relaxed by the least
+            slack ``s`` (p,) [the rows' units] and the step solved on ``G dq <= h + s``
+            (:mod:`qpik.diffik.recovery`): it separates as fast as the box allows, and the
+            statuses and certificates refer to the relaxed rows.
     """
 
     velocity: np.ndarray
@@ -138,6 +146,7 @@ class StepResult:
     coupling_residual: float | None = field(default_factory=_none)
     _limits: Callable[[], LimitRows] | None = field(default_factory=_none, repr=False)
     _active_limits: list[str] | None = field(default=None, repr=False)
+    relaxation: np.ndarray | None = None
 
     @classmethod
     def of(cls, solution: Solution, solve_time: float, couplings: bool = False) -> StepResult:
@@ -156,6 +165,7 @@ class StepResult:
             certificate=list(solution.certificate)[skip:],
             coupling_residual=solution.residuals[0] if couplings else None,
             _limits=solution.limits,
+            relaxation=solution.relaxation,
         )
 
     @classmethod

@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
-from ..errors import InvalidArgumentType, InvalidInput
+from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
 from .boxes import LimitBoxes, LimitRows
@@ -43,8 +43,11 @@ from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
 from .plan import make_plan
+from .recovery import least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
+
+_INFEASIBLE = LevelStatus.INFEASIBLE
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -214,14 +217,17 @@ class IKSolver:
         ]
         return HierarchyProblem(levels, limits.lb, limits.ub, limits.G, limits.h, limits.row_names)
 
-    def _rows(self, configuration: Configuration, dt: float) -> tuple[TaskRows, LimitRows]:
-        """Every level's rows stacked as the core takes them, and the limits."""
+    def _rows(
+        self, configuration: Configuration, dt: float, fold: bool = True
+    ) -> tuple[TaskRows, LimitRows]:
+        """Every level's rows stacked as the core takes them, and the limits
+        (``fold``: :meth:`LimitBoxes.rows`')."""
         dt = checks.check_dt(dt)
         if configuration.model is not self.model and configuration.model.nv != self._nv:
             raise InvalidInput(
                 f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
             )
-        limits = self._limits.rows(configuration, dt)
+        limits = self._limits.rows(configuration, dt, fold)
         return stack_rows(self._levels, configuration, self._nv, self.damping), limits
 
     # ------------------------------------------------------------------- step
@@ -297,6 +303,8 @@ class IKSolver:
             solution = self._corrected(configuration, dt, passes)
         elif core.solver != "auto" and self._compiled_step_applies(configuration, dt):
             solution = self._compiled_step(configuration, dt)
+            if solution is not None and solution.status[self._coupling_level] == _INFEASIBLE:
+                solution = None  # the QP path relaxes the general rows (qpik.diffik.recovery)
         if solution is None:
             solution = self._qp_step(configuration, dt)
         return StepResult.of(solution, time.perf_counter() - start, self._coupling_level)
@@ -353,8 +361,33 @@ class IKSolver:
     def _qp_step(self, configuration: Configuration, dt: float) -> Solution:
         """The step for any stack: the tasks' and limits' own rows, then the core's
         cascade."""
-        tasks, limits = self._rows(configuration, dt)
-        return solve_rows(self._core, tasks, limits, dt)
+        try:
+            tasks, limits = self._rows(configuration, dt)
+        except InfeasibleLimits:  # a general-row limit's one-dof row emptied the box
+            tasks, limits = self._rows(configuration, dt, fold=False)
+        solution = solve_rows(self._core, tasks, limits, dt)
+        slack = self._slack(solution, limits)
+        if slack is None:
+            return solution
+        return self._relaxed(solve_rows(self._core, tasks, relaxed_rows(limits, slack), dt), slack)
+
+    def _relaxed(self, solution: Solution, slack: np.ndarray) -> Solution:
+        """``solution`` of the relaxed rows, its first stack level still reported
+        ``infeasible`` (the limits as given admit no displacement) and ``relaxation`` set."""
+        level = int(self._coupling_level)
+        solution.status = [*solution.status]
+        solution.status[level] = LevelStatus.INFEASIBLE
+        solution.relaxation = slack
+        return solution
+
+    def _slack(self, solution: Solution, limits: LimitRows) -> np.ndarray | None:
+        """The general rows' least slack (:func:`qpik.diffik.recovery.least_slack`) where
+        ``solution``'s first stack level is infeasible and there are general rows; else
+        None."""
+        if limits.G.shape[0] == 0 or solution.status[int(self._coupling_level)] != _INFEASIBLE:
+            return None
+        slack = least_slack(limits)
+        return slack if slack is not None and slack.any() else None
 
     def _corrected(self, configuration: Configuration, dt: float, passes: int) -> Solution:
         """The step with ``passes`` second-order corrections on the QP path
@@ -366,8 +399,17 @@ class IKSolver:
         again with the same rows, damping and limits."""
         if self._aux is None:
             self._aux = Configuration(self.model)
-        rows = self._rows(configuration, dt)
-        return qp_corrected(self._core, self._levels, configuration, dt, passes, rows, self._aux)
+        tasks, limits = self._rows(configuration, dt)
+        levels = self._levels
+        rows = (tasks, limits)
+        solution = qp_corrected(self._core, levels, configuration, dt, passes, rows, self._aux)
+        slack = self._slack(solution, limits)
+        if slack is None:
+            return solution
+        relaxed = (tasks, relaxed_rows(limits, slack))
+        return self._relaxed(
+            qp_corrected(self._core, levels, configuration, dt, passes, relaxed, self._aux), slack
+        )
 
     def _exact_core(self) -> HierarchySolver:
         """An exact-solver core with this solver's settings (for :attr:`exact_shortcut`)."""

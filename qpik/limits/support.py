@@ -63,6 +63,11 @@ class SupportPolygonLimit(mink.Limit):
         body: subtree whose CoM is kept inside (name or id; default 1, the robot).
     """
 
+    #: Its rows are recoverable: where they admit no step (the CoM farther outside the
+    #: support than one step can bring back), IKSolver.step relaxes them by the least slack
+    #: (qpik.diffik.recovery).
+    relaxable_rows = True
+
     def __init__(
         self,
         model: mujoco.MjModel,

@@ -322,7 +322,7 @@ _QPOS_SIZE = {
 
 
 def closed_chain_start(
-    model: mujoco.MjModel, q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike
+    model: mujoco.MjModel, q: npt.ArrayLike, lower: np.ndarray, upper: np.ndarray
 ) -> np.ndarray:
     """``q`` (a start, ``(nq,)``) with the closed chains that the model's unheld equalities
     close (a gripper's four-bar linkage: connect or weld constraints, which no level holds,

@@ -1,0 +1,93 @@
+"""Recoverable general rows: a step whose limits admit no displacement at all.
+
+A collision row asks a pair that is closer than its ``minimum_distance_from_collisions``
+to separate by ``gain * (d_min - d)`` within the step. Deep inside (a start in contact, a
+disturbance), that separation can exceed what the box allows: the trust region
+(:attr:`qpik.StepOptions.max_joint_speed`), the velocity limits and the position limits.
+Level 0 is then infeasible, and without recovery the robot would stay where it is at
+every step (velocity zero, status ``infeasible``), never leaving the contact.
+
+As position limits are recoverable (a start outside them steers back as fast as the other
+limits allow), so are the collision rows and the support polygon's
+(:func:`qpik.diffik.boxes.relaxable`; the rows of other limits stay hard): where level 0
+is infeasible, each such row ``g_i dq <= h_i`` is relaxed by the smallest slack ``s`` in
+the least-squares sense (``s_i = 0`` on the hard rows),
+
+.. math::
+
+    \\min_{dq, s} \\tfrac12 |s|^2 \\quad \\text{s.t.} \\quad G\\, dq - s \\le h,
+    \\quad lb \\le dq \\le ub,
+
+solved exactly by the core (:class:`qpik.core.HierarchySolver`, no damping, no
+regularisation; ``s`` is unique). The step is then the cascade on the relaxed rows
+``G dq <= h + s``: it separates as fast as the box allows. Level 0 is still reported
+``infeasible`` (the limits as given admit no step), the levels below refer to the relaxed
+rows, and :attr:`qpik.StepResult.relaxation` holds ``s`` (per general row, in the row's
+units; ``None`` where nothing was relaxed). Contradictory box bounds and hard rows stay
+infeasible (no slack of these rows helps them): the step is then zero, as before.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..core import HierarchyProblem, HierarchySolver, Level, LevelStatus
+from .boxes import LimitRows
+
+__all__ = ["RELAXATION_MARGIN", "least_slack", "relaxed_rows"]
+
+#: A relaxed row's bound is ``h_i + s_i + RELAXATION_MARGIN * (|g_i| + |h_i|)``: the slack
+#: problem's answer meets its rows to the certificate's tolerance (1e-9, scaled by
+#: ``|g_i| + |h_i|``), so the relaxed level 0 is feasible beyond round-off.
+RELAXATION_MARGIN = 1e-9
+
+
+def least_slack(limits: LimitRows) -> np.ndarray | None:
+    """The least-squares slack ``s`` (p,) of the relaxable general rows
+    (:attr:`LimitRows.relaxable`; 0 on the others, which stay hard) that makes the rows
+    feasible within the box (module docstring), or ``None`` where no row may relax or the
+    box is empty.
+
+    Entries of ``G`` whose largest effect over the box is below round-off of their row
+    (``1e-14`` of ``|h_i| + sum_j |g_ij| max(|lb_j|, |ub_j|)``: a collision row's
+    Jacobian along a dof that cannot move the pair, say 1e-15) are dropped in this problem
+    only; the core would otherwise not certify an optimum whose stationarity they touch at
+    1e-17. Where the core does not solve it, each relaxable row's own least slack (its
+    smallest value over the box, ``sum_j min(g_ij lb_j, g_ij ub_j)``, less ``h_i``) is
+    taken."""
+    G, h, lb, ub, relax = limits.G, limits.h, limits.lb, limits.ub, limits.relaxable
+    p, n = G.shape
+    if p == 0 or relax is None or not relax.any() or not np.all(lb <= ub):
+        return None
+    reach = np.maximum(np.abs(lb), np.abs(ub))
+    with np.errstate(invalid="ignore"):  # 0 * inf: a zero entry on an unbounded dof
+        effect = np.where(G == 0.0, 0.0, np.abs(G) * reach)
+    scale = np.abs(h) + effect.sum(axis=1)
+    G = np.where(effect <= 1e-14 * scale[:, None], 0.0, G)
+    k = int(relax.sum())
+    objective = np.hstack([np.zeros((k, n)), np.eye(k)])
+    rows = np.hstack([G, -np.eye(p)[:, relax]])
+    free = np.full(k, np.inf)
+    problem = HierarchyProblem(
+        [Level(objective, np.zeros(k), 0.0)],
+        np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h,
+    )  # fmt: skip
+    result = HierarchySolver("auto", damping_law=None).solve(problem)
+    slack = np.zeros(p)
+    if result.status[0] == LevelStatus.SOLVED and np.all(np.isfinite(result.x)):
+        slack[relax] = np.maximum(result.x[n:], 0.0)
+        return slack
+    with np.errstate(invalid="ignore"):
+        lowest = np.where(G == 0.0, 0.0, np.minimum(G * lb, G * ub)).sum(axis=1)
+    slack[relax] = np.maximum(lowest - h, 0.0)[relax]
+    return slack if np.all(np.isfinite(slack)) else None
+
+
+def relaxed_rows(limits: LimitRows, slack: np.ndarray) -> LimitRows:
+    """``limits`` with each general row that needs slack relaxed to
+    ``h_i + s_i + RELAXATION_MARGIN (|g_i| + |h_i|)`` (the others as they are)."""
+    scale = np.linalg.norm(limits.G, axis=1) + np.abs(limits.h)
+    h = np.where(slack > 0.0, limits.h + slack + RELAXATION_MARGIN * scale, limits.h)
+    return dataclasses.replace(limits, h=h)

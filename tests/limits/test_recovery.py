@@ -1,0 +1,131 @@
+"""Recoverable collision rows (qpik.diffik.recovery): a start deeper inside a collision
+distance than one step can leave, under the trust region. Before, level 0 was infeasible
+at every step (the robot stayed where it was, velocity zero), or, where a one-dof row
+emptied the box, IKSolver.step raised InfeasibleLimits. References: the closed form of
+the least slack of one row over a box, MuJoCo's own distance (mj_geomDistance) after the
+step, and the hard rows of other limits, which stay hard."""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+import pytest
+
+import qpik
+from qpik.diffik.recovery import least_slack
+from qpik.tasks import PostureTask
+
+DT = 0.01
+BOUND = qpik.options.DEFAULT_MAX_JOINT_SPEED * DT  # the trust region per step
+
+#: A sphere on slides pressed into a fixed sphere (penetration 5 cm): a carriage on x (or x
+#: and y) carries the puck on a z slide, across the contact normal (so that mink's
+#: collision filter, which skips a body and its weld's parent, keeps the pair).
+XML = """<mujoco><worldbody>
+  <body name="carriage">{joints}<geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/>
+    <body name="puck"><joint name="z" type="slide" axis="0 0 1" range="-1 1"/>
+      <geom name="puck" type="sphere" size="0.1"/></body></body>
+  <body name="post" pos="{post}"><geom name="post" type="sphere" size="0.1"/></body>
+</worldbody></mujoco>"""
+SLIDE = '<joint name="{0}" type="slide" axis="{1}" range="-1 1"/>'
+
+
+def _model(planar: bool) -> mujoco.MjModel:
+    joints = SLIDE.format("x", "1 0 0") + (SLIDE.format("y", "0 1 0") if planar else "")
+    post = "0.106 0.106 0" if planar else "0.15 0 0"
+    return mujoco.MjModel.from_xml_string(XML.format(joints=joints, post=post))
+
+
+def _distance(model: mujoco.MjModel, q: np.ndarray) -> float:
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    return mujoco.mj_geomDistance(model, data, 1, 2, 1.0, None)
+
+
+def _solver(model, extra=()):
+    collision = qpik.limits.CollisionAvoidanceLimit(
+        model, [(["puck"], ["post"])], minimum_distance_from_collisions=0.01,
+        collision_detection_distance=0.2,
+    )  # fmt: skip
+    posture = PostureTask(model, cost=1.0)
+    posture.set_target(np.full(model.nq, 0.5))  # toward the post
+    limits = [mink.ConfigurationLimit(model), collision, *extra]
+    return qpik.IKSolver(model, [[posture]], limits), posture
+
+
+@pytest.mark.parametrize("planar", [False, True])
+def test_a_start_in_deep_contact_separates_as_fast_as_the_trust_region_allows(planar):
+    """One dof (its row folds into the box and emptied it: InfeasibleLimits) and two (a
+    general row: level 0 infeasible, a zero step): now the step leaves the contact at the
+    trust region's speed along the normal, level 0 still says infeasible, and the
+    relaxation is the row's least slack (closed form for one row over a box)."""
+    model = _model(planar)
+    solver, _ = _solver(model)
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    start = _distance(model, configuration.q)
+    assert start == pytest.approx(-0.05, abs=1e-3)
+    result = solver.step(configuration, DT)
+    assert result.status[0] == "infeasible" and not result.ok
+    normal = result.displacement[:-1]  # the carriage's dofs; the z slide is free
+    # away, at the bound (less the relaxed row's margin, RELAXATION_MARGIN (|g| + |h|))
+    np.testing.assert_allclose(normal, -BOUND, rtol=0, atol=2e-9)
+    limits = solver._rows(configuration, DT, fold=False)[1]
+    (g,), (h,) = limits.G, limits.h  # the z slide's entry: zero (across the normal)
+    lowest = np.minimum(g * limits.lb, g * limits.ub).sum()  # the row's least value
+    np.testing.assert_allclose(result.relaxation, [lowest - h], rtol=1e-9)
+    assert result.relaxation[0] > 0.0
+    assert _distance(model, configuration.q + result.displacement) > start + 0.03
+    # a closed loop leaves the contact, step after step, then the posture task moves on
+    for _ in range(20):
+        step = solver.step(configuration, DT)
+        assert np.abs(step.displacement).max() <= BOUND * (1 + 1e-12)
+        configuration.integrate_inplace(step.velocity, DT)
+    assert _distance(model, configuration.q) >= 0.01 - 1e-6
+    assert step.ok and step.relaxation is None
+
+
+def test_the_slack_problem_matches_the_one_row_closed_form_on_random_rows():
+    """least_slack on one relaxable row over random boxes: the row's own least slack."""
+    rng = np.random.default_rng(0)
+    model = _model(True)
+    solver, _ = _solver(model)
+    limits = solver._rows(qpik.Configuration(model, np.zeros(model.nq)), DT, fold=False)[1]
+    for _ in range(50):
+        g = rng.normal(size=2)
+        lb = -rng.uniform(0.01, 0.1, 2)
+        ub = rng.uniform(0.01, 0.1, 2)
+        h = np.minimum(g * lb, g * ub).sum() - rng.uniform(0.0, 0.05)
+        rows = type(limits)(lb, ub, g[None], np.array([h]), ["r"], lambda: [], ["x", "y"],
+                            np.array([True]))  # fmt: skip
+        expected = np.minimum(g * lb, g * ub).sum() - h
+        np.testing.assert_allclose(least_slack(rows), [expected], rtol=1e-9, atol=1e-15)
+
+
+class _HardRow(mink.Limit):
+    """A user limit x <= -0.1 (hard: not relaxed)."""
+
+    def compute_qp_inequalities(self, configuration, dt):
+        G = np.zeros((1, configuration.nv))
+        G[0, 0] = 1.0
+        return mink.Constraint(G=G, h=np.array([-0.1]))
+
+
+def test_rows_of_other_limits_stay_hard():
+    """A user limit's one-dof row that empties the box still raises InfeasibleLimits; the
+    collision row alone relaxes, and only the collision row takes slack."""
+    model = _model(False)
+    solver, _ = _solver(model, [_HardRow()])
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    with pytest.raises(qpik.InfeasibleLimits):
+        solver.step(configuration, DT)
+    plain, _ = _solver(model)
+    assert plain.step(configuration, DT).relaxation is not None
+
+
+def test_a_step_that_needs_no_relaxation_reports_none():
+    model = _model(True)
+    solver, _ = _solver(model)
+    result = solver.step(qpik.Configuration(model, np.array([-0.3, -0.3, 0.0])), DT)
+    assert result.ok and result.relaxation is None
