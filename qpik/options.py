@@ -269,8 +269,8 @@ class StepOptions:
             each step stays where the linearisation of the tasks and limits holds (without
             it a blocked or unreachable level takes steps of several radians). Dofs that a
             velocity limit bounds keep that limit only (their answers are unchanged). A
-            free joint's
-            three translations [m/s] and three rotations [rad/s] take the same number.
+            free joint's three translations [m/s] and three rotations [rad/s] take the
+            same number.
             ``StepResult.active_limits`` names it ``"trust region"``. Default
             :data:`DEFAULT_MAX_JOINT_SPEED` (``pi``: 0.031 rad per 10 ms step);
             ``None`` turns it off (mink's behaviour).
