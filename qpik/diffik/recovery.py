@@ -64,8 +64,9 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     reach = np.maximum(np.abs(lb), np.abs(ub))
     with np.errstate(invalid="ignore"):  # 0 * inf: a zero entry on an unbounded dof
         effect = np.where(G == 0.0, 0.0, np.abs(G) * reach)
-    scale = np.abs(h) + effect.sum(axis=1)
-    G = np.where(effect <= 1e-14 * scale[:, None], 0.0, G)
+    bounded = np.isfinite(effect)  # an entry on an unbounded dof is never dropped
+    scale = np.abs(h) + np.where(bounded, effect, 0.0).sum(axis=1)
+    G = np.where(bounded & (effect <= 1e-14 * scale[:, None]), 0.0, G)
     k = int(relax.sum())
     objective = np.hstack([np.zeros((k, n)), np.eye(k)])
     rows = np.hstack([G, -np.eye(p)[:, relax]])

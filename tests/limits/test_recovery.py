@@ -129,3 +129,23 @@ def test_a_step_that_needs_no_relaxation_reports_none():
     solver, _ = _solver(model)
     result = solver.step(qpik.Configuration(model, np.array([-0.3, -0.3, 0.0])), DT)
     assert result.ok and result.relaxation is None
+
+
+def test_without_a_trust_region_the_rows_need_no_relaxation():
+    """max_joint_speed=None (mink's behaviour): the box no longer stops the separation; the
+    step leaves the contact at once and nothing is relaxed. An unbounded dof's entry is
+    kept in the slack problem (least_slack on the same rows with the box opened)."""
+    model = _model(True)
+    collision = qpik.limits.CollisionAvoidanceLimit(
+        model, [(["puck"], ["post"])], minimum_distance_from_collisions=0.01,
+        collision_detection_distance=0.2,
+    )  # fmt: skip
+    posture = PostureTask(model, cost=1.0)
+    posture.set_target(np.full(model.nq, 0.5))
+    solver = qpik.IKSolver(model, [[posture]], [collision], max_joint_speed=None)
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    result = solver.step(configuration, DT)
+    assert result.ok and result.relaxation is None
+    limits = solver._rows(configuration, DT, fold=False)[1]
+    assert not np.isfinite(limits.lb).any()
+    np.testing.assert_array_equal(least_slack(limits), 0.0)
