@@ -20,7 +20,7 @@ import numpy as np
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidOption, InvalidTarget
 from ..limits import BallJointLimit, collision_clearance, collision_limits
-from ..model.chain import chain_qpos_mask
+from ..model.chain import body_chain_joints, chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
@@ -155,16 +155,6 @@ def _task_target(task: Any) -> Target | None:
     return _NOT_A_FRAME_TASK
 
 
-def _body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
-    """The joints from the world to ``body`` (every type)."""
-    joints: set[int] = set()
-    while body > 0:
-        start = int(model.body_jntadr[body])
-        joints.update(range(start, start + int(model.body_jntnum[body])))
-        body = int(model.body_parentid[body])
-    return joints
-
-
 def _frame_body(model: mujoco.MjModel, frame: Any, frame_type: Any) -> int:
     """The body of a frame given as a task holds it (name or id, frame type)."""
     kind = FrameType.parse(frame_type)
@@ -184,12 +174,10 @@ def _task_joints(model: mujoco.MjModel, task: Any) -> set[int] | None:
     relative frame task's two chains), the limited hinge and slide joints of
     :class:`JointLimitDistanceTask`; any other task may move any joint."""
     if isinstance(task, (*_FRAME_TASKS, mink.FrameTask)):
-        return _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+        return body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
     if isinstance(task, mink.RelativeFrameTask):
-        joints = _body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
-        return joints | _body_chain_joints(
-            model, _frame_body(model, task.root_name, task.root_type)
-        )
+        joints = body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
+        return joints | body_chain_joints(model, _frame_body(model, task.root_name, task.root_type))
     if isinstance(task, JointLimitDistanceTask):
         scalar = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
         return {
@@ -206,7 +194,7 @@ def _limit_joints(model: mujoco.MjModel, limit: Any) -> set[int] | None:
         joints: set[int] = set()
         for pair in limit.geom_id_pairs:
             for geom in pair:
-                joints |= _body_chain_joints(model, int(model.geom_bodyid[geom]))
+                joints |= body_chain_joints(model, int(model.geom_bodyid[geom]))
         return joints
     if isinstance(limit, (mink.ConfigurationLimit, mink.VelocityLimit, BallJointLimit)):
         return set()

@@ -80,6 +80,16 @@ def chain_qpos_mask(
     return mask
 
 
+def body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
+    """The joints (ids, every type) from the world to ``body``."""
+    joints: set[int] = set()
+    while body > 0:
+        start = int(model.body_jntadr[body])
+        joints.update(range(start, start + int(model.body_jntnum[body])))
+        body = int(model.body_parentid[body])
+    return joints
+
+
 #: qpos entries per joint type (free, ball, slide, hinge).
 _QPOS_WIDTH = {
     int(mujoco.mjtJoint.mjJNT_FREE): 7,

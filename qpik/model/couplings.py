@@ -40,6 +40,7 @@ import numpy.typing as npt
 
 from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
+from .chain import _QPOS_WIDTH, body_chain_joints
 from .frames import check_model_type
 
 __all__ = [
@@ -283,20 +284,10 @@ def unheld_equality_errors(
     return position, rotation
 
 
-def _chain_dofs(model: mujoco.MjModel, body: int) -> set[int]:
-    """The dofs of ``body`` and its ancestors."""
-    dofs: set[int] = set()
-    while body > 0:
-        start = int(model.body_dofadr[body])
-        dofs.update(range(start, start + int(model.body_dofnum[body])))
-        body = int(model.body_parentid[body])
-    return dofs
-
-
 def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarray:
     """The dofs (sorted ids) that close the loops of the connect and weld equalities among
-    ``equalities`` (ids): those that move one of an equality's two bodies (or sites'
-    bodies) and not the other. The dofs on both chains carry the loop rigidly. Other kinds
+    ``equalities`` (ids): those of the joints that move one of an equality's two bodies (or
+    sites' bodies) and not the other. The dofs on both chains carry the loop rigidly. Other kinds
     of equality add none."""
     kinds = {int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)}
     site = int(mujoco.mjtObj.mjOBJ_SITE)
@@ -309,16 +300,8 @@ def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarra
             if int(model.eq_objtype[e]) == site and obj >= 0:
                 obj = int(model.site_bodyid[obj])
             bodies.append(max(obj, 0))
-        loop |= _chain_dofs(model, bodies[0]) ^ _chain_dofs(model, bodies[1])
-    return np.array(sorted(loop), dtype=np.int64)
-
-
-_QPOS_SIZE = {
-    int(mujoco.mjtJoint.mjJNT_FREE): 7,
-    int(mujoco.mjtJoint.mjJNT_BALL): 4,
-    int(mujoco.mjtJoint.mjJNT_SLIDE): 1,
-    int(mujoco.mjtJoint.mjJNT_HINGE): 1,
-}
+        loop |= body_chain_joints(model, bodies[0]) ^ body_chain_joints(model, bodies[1])
+    return np.flatnonzero(np.isin(model.dof_jntid, sorted(loop)))
 
 
 def closed_chain_start(
@@ -344,7 +327,7 @@ def closed_chain_start(
     candidate = q.copy()
     for joint in np.unique(model.dof_jntid[dofs]):
         start = int(model.jnt_qposadr[joint])
-        stop = start + _QPOS_SIZE[int(model.jnt_type[joint])]
+        stop = start + _QPOS_WIDTH[int(model.jnt_type[joint])]
         candidate[start:stop] = model.qpos0[start:stop]
         if stop - start == 1:
             candidate[start] = min(max(candidate[start], lower[start]), upper[start])
