@@ -287,8 +287,8 @@ def unheld_equality_errors(
 def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarray:
     """The dofs (sorted ids) that close the loops of the connect and weld equalities among
     ``equalities`` (ids): those of the joints that move one of an equality's two bodies (or
-    sites' bodies) and not the other. The dofs on both chains carry the loop rigidly. Other kinds
-    of equality add none."""
+    sites' bodies) and not the other. The dofs on both chains carry the loop rigidly. Other
+    kinds of equality add none."""
     kinds = {int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)}
     site = int(mujoco.mjtObj.mjOBJ_SITE)
     loop: set[int] = set()
