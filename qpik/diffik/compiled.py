@@ -165,15 +165,16 @@ class CompiledPlan:
             views.append(view)
             scalar.append(one)
 
+        def task(target, cost, gain: np.ndarray, lm: np.ndarray) -> None:  # a task's values
+            for view, one in ((target, False), (cost, False), (gain, True), (lm, True)):
+                add(view, one)
+
         a = self.arrays
         settings = a["settings"]
         add(settings[DT : DT + 1], True)
         add(settings[DAMPING : DAMPING + 1], True)
         for *_, (row, target, cost) in self.frames:
-            add(target)
-            add(cost)
-            add(row[13:14], True)
-            add(row[14:15], True)
+            task(target, cost, row[13:14], row[14:15])
         for _task, (row, target, cost), damping in self.postures:
             if not damping:  # a damping task's error is zero: no target
                 add(target)
@@ -181,15 +182,9 @@ class CompiledPlan:
             add(row[-2:-1], True)
             add(row[-1:], True)
         for *_, (row, target, cost) in self.coms:
-            add(target)
-            add(cost)
-            add(row[6:7], True)
-            add(row[7:8], True)
+            task(target, cost, row[6:7], row[7:8])
         for *_, (row, target, cost) in self.relatives:
-            add(target)
-            add(cost)
-            add(row[13:14], True)
-            add(row[14:15], True)
+            task(target, cost, row[13:14], row[14:15])
         lin = a["lin_data"]
         for _task, r0, cost_view in self.linears:
             add(cost_view)
@@ -655,7 +650,11 @@ class CompiledPlan:
             G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
         )
         relax = _INFEASIBLE_CODE if len(h) else None  # infeasible: the QP path relaxes G, h
-        if code or any(s != _SOLVED_CODE and (forced or s == relax) for s in info[3].tolist()):
+        if (
+            code
+            or (forced or relax)
+            and any(s != _SOLVED_CODE and (forced or s == relax) for s in info[3].tolist())
+        ):
             return None
         core.warm_start_from(active)
         return d, v, info, general
