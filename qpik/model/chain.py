@@ -27,8 +27,10 @@ from . import kernels as _kernels
 from .frames import FrameType, frame_id, frame_name
 
 __all__ = [
+    "QPOS_WIDTH",
     "KinematicChain",
     "ReachBound",
+    "body_chain_joints",
     "chain_qpos_mask",
     "chain_support",
     "joint_limit_arrays",
@@ -75,7 +77,7 @@ def chain_qpos_mask(
                 model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body]
             ):
                 adr = int(model.jnt_qposadr[joint])
-                mask[adr : adr + _QPOS_WIDTH[int(model.jnt_type[joint])]] = True
+                mask[adr : adr + QPOS_WIDTH[int(model.jnt_type[joint])]] = True
             body = int(model.body_parentid[body])
     return mask
 
@@ -91,7 +93,7 @@ def body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
 
 
 #: qpos entries per joint type (free, ball, slide, hinge).
-_QPOS_WIDTH = {
+QPOS_WIDTH = {
     int(mujoco.mjtJoint.mjJNT_FREE): 7,
     int(mujoco.mjtJoint.mjJNT_BALL): 4,
     int(mujoco.mjtJoint.mjJNT_SLIDE): 1,

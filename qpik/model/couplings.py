@@ -40,7 +40,7 @@ import numpy.typing as npt
 
 from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
-from .chain import _QPOS_WIDTH, body_chain_joints
+from .chain import QPOS_WIDTH, body_chain_joints
 from .frames import check_model_type
 
 __all__ = [
@@ -327,7 +327,7 @@ def closed_chain_start(
     candidate = q.copy()
     for joint in np.unique(model.dof_jntid[dofs]):
         start = int(model.jnt_qposadr[joint])
-        stop = start + _QPOS_WIDTH[int(model.jnt_type[joint])]
+        stop = start + QPOS_WIDTH[int(model.jnt_type[joint])]
         candidate[start:stop] = model.qpos0[start:stop]
         if stop - start == 1:
             candidate[start] = min(max(candidate[start], lower[start]), upper[start])
