@@ -386,9 +386,8 @@ class LimitBoxes:
 
 def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) -> None:
     """A relaxable limit's ``compute_qp_inequalities`` as general rows only (appended to
-    ``side``):
-    every row on one dof or more, and every empty row that no displacement meets
-    (``0 <= h < 0``); the empty rows that hold are dropped."""
+    ``side``): every row on one dof or more, and every empty row that no displacement
+    meets (``0 <= h < 0``); the empty rows that hold are dropped."""
     rows_of = _inequalities_of(limit, configuration, dt)
     if rows_of is None:
         return

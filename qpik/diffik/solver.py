@@ -360,16 +360,25 @@ class IKSolver:
 
     def _qp_step(self, configuration: Configuration, dt: float) -> Solution:
         """The step for any stack: the tasks' and limits' own rows, then the core's
-        cascade."""
-        try:
-            tasks, limits = self._rows(configuration, dt)
-        except InfeasibleLimits:  # a general-row limit's one-dof row emptied the box
-            tasks, limits = self._rows(configuration, dt, fold=False)
+        cascade; where level 0 is infeasible, again on the relaxable rows relaxed by their
+        least slack (:mod:`qpik.diffik.recovery`)."""
+        tasks, limits = self._recoverable_rows(configuration, dt)
         solution = solve_rows(self._core, tasks, limits, dt)
         slack = self._slack(solution, limits)
         if slack is None:
             return solution
         return self._relaxed(solve_rows(self._core, tasks, relaxed_rows(limits, slack), dt), slack)
+
+    def _recoverable_rows(
+        self, configuration: Configuration, dt: float
+    ) -> tuple[TaskRows, LimitRows]:
+        """:meth:`_rows`, or, where a relaxable limit's one-dof row emptied the box
+        (:class:`qpik.InfeasibleLimits`), the rows with those limits' rows all general (the
+        same error where the box is empty without them)."""
+        try:
+            return self._rows(configuration, dt)
+        except InfeasibleLimits:
+            return self._rows(configuration, dt, fold=False)
 
     def _relaxed(self, solution: Solution, slack: np.ndarray) -> Solution:
         """``solution`` of the relaxed rows, its first stack level still reported
@@ -399,7 +408,7 @@ class IKSolver:
         again with the same rows, damping and limits."""
         if self._aux is None:
             self._aux = Configuration(self.model)
-        tasks, limits = self._rows(configuration, dt)
+        tasks, limits = self._recoverable_rows(configuration, dt)
         levels = self._levels
         rows = (tasks, limits)
         solution = qp_corrected(self._core, levels, configuration, dt, passes, rows, self._aux)

@@ -149,3 +149,16 @@ def test_without_a_trust_region_the_rows_need_no_relaxation():
     limits = solver._rows(configuration, DT, fold=False)[1]
     assert not np.isfinite(limits.lb).any()
     np.testing.assert_array_equal(least_slack(limits), 0.0)
+
+
+def test_the_corrected_step_recovers_too():
+    """correction_passes=1 (the QP path's corrected step): the same recovery, the same
+    relaxation as the plain step at the same state."""
+    model = _model(True)
+    plain, posture = _solver(model)
+    corrected = qpik.IKSolver(model, [[posture]], plain.limits, correction_passes=1)
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    a, b = plain.step(configuration, DT), corrected.step(configuration, DT)
+    assert b.status[0] == "infeasible" and b.relaxation is not None
+    np.testing.assert_allclose(b.relaxation, a.relaxation, rtol=1e-12)
+    np.testing.assert_allclose(b.displacement[:-1], -BOUND, rtol=0, atol=2e-9)
