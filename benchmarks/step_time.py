@@ -168,7 +168,7 @@ def compare(title, states, set_state, methods, solvers, reference="mink + daqp, 
             result = solver.step(c, DT)
             statuses.update(str(s) for s in result.status)
             bad += any(s in ("kept_previous", "max_iter") for s in result.status)
-            active = solver._core._warm
+            active = solver._core.active_sets
             if active is not None:
                 counts += active.any(axis=1)
             if i % stride == 0:
