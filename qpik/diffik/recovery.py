@@ -36,12 +36,14 @@ import numpy as np
 from ..core import HierarchyProblem, HierarchySolver, Level, LevelStatus
 from .boxes import LimitRows
 
-__all__ = ["RELAXATION_MARGIN", "least_slack", "relaxed_rows"]
+__all__ = ["RELAXATION_MARGINS", "least_slack", "relaxed_rows"]
 
-#: A relaxed row's bound is ``h_i + s_i + RELAXATION_MARGIN * (|g_i| + |h_i|)``: the slack
-#: problem's answer meets its rows to the certificate's tolerance (1e-9, scaled by
-#: ``|g_i| + |h_i|``), so the relaxed level 0 is feasible beyond round-off.
-RELAXATION_MARGIN = 1e-9
+#: A relaxed row's bound is ``h_i + s_i + margin * (|g_i| + |h_i|)``, the margins tried in
+#: this order until level 0 of the relaxed step is solved: the slack problem's answer meets
+#: its rows to the certificate's tolerance (1e-9, scaled by ``|g_i| + |h_i|``), but the
+#: relaxed rows can meet at a degenerate vertex (the support polygon's edges, several
+#: collision pairs) where level 0 is not certified until the set is a little wider.
+RELAXATION_MARGINS = (1e-9, 1e-6, 1e-4)
 
 
 def least_slack(limits: LimitRows) -> np.ndarray | None:
@@ -86,9 +88,9 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     return slack if np.all(np.isfinite(slack)) else None
 
 
-def relaxed_rows(limits: LimitRows, slack: np.ndarray) -> LimitRows:
+def relaxed_rows(limits: LimitRows, slack: np.ndarray, margin: float) -> LimitRows:
     """``limits`` with each general row that needs slack relaxed to
-    ``h_i + s_i + RELAXATION_MARGIN (|g_i| + |h_i|)`` (the others as they are)."""
+    ``h_i + s_i + margin (|g_i| + |h_i|)`` (the others as they are)."""
     scale = np.linalg.norm(limits.G, axis=1) + np.abs(limits.h)
-    h = np.where(slack > 0.0, limits.h + slack + RELAXATION_MARGIN * scale, limits.h)
+    h = np.where(slack > 0.0, limits.h + slack + margin * scale, limits.h)
     return dataclasses.replace(limits, h=h)

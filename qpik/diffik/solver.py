@@ -27,7 +27,7 @@ hierarchy (:class:`qpik.core.HierarchyProblem`) for inspection.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import mink
@@ -43,7 +43,7 @@ from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
 from .plan import make_plan
-from .recovery import least_slack, relaxed_rows
+from .recovery import RELAXATION_MARGINS, least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
 
@@ -367,7 +367,7 @@ class IKSolver:
         slack = self._slack(solution, limits)
         if slack is None:
             return solution
-        return self._relaxed(solve_rows(self._core, tasks, relaxed_rows(limits, slack), dt), slack)
+        return self._relaxed(lambda rows: solve_rows(self._core, tasks, rows, dt), limits, slack)
 
     def _recoverable_rows(
         self, configuration: Configuration, dt: float
@@ -380,10 +380,18 @@ class IKSolver:
         except InfeasibleLimits:
             return self._rows(configuration, dt, fold=False)
 
-    def _relaxed(self, solution: Solution, slack: np.ndarray) -> Solution:
-        """``solution`` of the relaxed rows, its first stack level still reported
-        ``infeasible`` (the limits as given admit no displacement) and ``relaxation`` set."""
+    def _relaxed(
+        self, solve: Callable[[LimitRows], Solution], limits: LimitRows, slack: np.ndarray
+    ) -> Solution:
+        """``solve`` on ``limits`` relaxed by ``slack``, each margin of
+        :data:`qpik.diffik.recovery.RELAXATION_MARGINS` in turn until the first stack level
+        is solved; that solution with its first stack level still reported ``infeasible``
+        (the limits as given admit no displacement) and ``relaxation`` set."""
         level = int(self._coupling_level)
+        for margin in RELAXATION_MARGINS:
+            solution = solve(relaxed_rows(limits, slack, margin))
+            if solution.status[level] == LevelStatus.SOLVED:
+                break
         solution.status = [*solution.status]
         solution.status[level] = LevelStatus.INFEASIBLE
         solution.relaxation = slack
@@ -409,15 +417,17 @@ class IKSolver:
         if self._aux is None:
             self._aux = Configuration(self.model)
         tasks, limits = self._recoverable_rows(configuration, dt)
-        levels = self._levels
-        rows = (tasks, limits)
-        solution = qp_corrected(self._core, levels, configuration, dt, passes, rows, self._aux)
+        levels, aux = self._levels, self._aux
+        solution = qp_corrected(self._core, levels, configuration, dt, passes, (tasks, limits), aux)
         slack = self._slack(solution, limits)
         if slack is None:
             return solution
-        relaxed = (tasks, relaxed_rows(limits, slack))
         return self._relaxed(
-            qp_corrected(self._core, levels, configuration, dt, passes, relaxed, self._aux), slack
+            lambda relaxed: qp_corrected(
+                self._core, levels, configuration, dt, passes, (tasks, relaxed), aux
+            ),
+            limits,
+            slack,
         )
 
     def _exact_core(self) -> HierarchySolver:

@@ -69,7 +69,7 @@ def test_a_start_in_deep_contact_separates_as_fast_as_the_trust_region_allows(pl
     result = solver.step(configuration, DT)
     assert result.status[0] == "infeasible" and not result.ok
     normal = result.displacement[:-1]  # the carriage's dofs; the z slide is free
-    # away, at the bound (less the relaxed row's margin, RELAXATION_MARGIN (|g| + |h|))
+    # away, at the bound (less the relaxed row's margin, RELAXATION_MARGINS[0] (|g| + |h|))
     np.testing.assert_allclose(normal, -BOUND, rtol=0, atol=2e-9)
     limits = solver._rows(configuration, DT, fold=False)[1]
     (g,), (h,) = limits.G, limits.h  # the z slide's entry: zero (across the normal)
@@ -162,3 +162,35 @@ def test_the_corrected_step_recovers_too():
     assert b.status[0] == "infeasible" and b.relaxation is not None
     np.testing.assert_allclose(b.relaxation, a.relaxation, rtol=1e-12)
     np.testing.assert_allclose(b.displacement[:-1], -BOUND, rtol=0, atol=2e-9)
+
+
+def test_a_degenerate_relaxed_set_is_widened_until_level_0_is_solved():
+    """Where the relaxed rows meet at a degenerate vertex, level 0 may not be certified at
+    the first margin: the next margin of RELAXATION_MARGINS is tried (here a stand-in
+    solve, certified from the second margin on), and the last is kept where none is."""
+    from qpik.core import LevelStatus
+    from qpik.diffik.recovery import RELAXATION_MARGINS
+    from qpik.diffik.result import Solution
+
+    model = _model(True)
+    solver, _ = _solver(model)
+    limits = solver._rows(qpik.Configuration(model, np.zeros(model.nq)), DT, fold=False)[1]
+    slack = least_slack(limits)
+    seen = []
+
+    def solve(rows, certified_from=1):
+        seen.append(rows.h.copy())
+        ok = len(seen) > certified_from
+        status = [LevelStatus.SOLVED if ok else LevelStatus.NUMERICAL]
+        d = np.full(model.nv, float(len(seen)))
+        return Solution(d, d / DT, [0.0], [1.0], [0.0], status, [0], [], lambda: rows)
+
+    result = solver._relaxed(solve, limits, slack)
+    assert len(seen) == 2 and result.displacement[0] == 2.0
+    assert result.status == [LevelStatus.INFEASIBLE] and result.relaxation is slack
+    widened = (seen[1] - seen[0])[slack > 0]
+    scale = (np.linalg.norm(limits.G, axis=1) + np.abs(limits.h))[slack > 0]
+    np.testing.assert_allclose(widened, (RELAXATION_MARGINS[1] - RELAXATION_MARGINS[0]) * scale)
+    seen.clear()
+    result = solver._relaxed(lambda rows: solve(rows, 99), limits, slack)
+    assert len(seen) == len(RELAXATION_MARGINS) and result.displacement[0] == len(seen)
