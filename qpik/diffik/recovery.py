@@ -36,29 +36,36 @@ import numpy as np
 from ..core import HierarchyProblem, HierarchySolver, Level, LevelStatus
 from .boxes import LimitRows
 
-__all__ = ["RELAXATION_MARGINS", "least_slack", "relaxed_rows"]
+__all__ = ["RELAXATION_MARGINS", "SLACK_STEP_WEIGHT", "least_slack", "relaxed_rows"]
 
 #: A relaxed row's bound is ``h_i + s_i + margin * (|g_i| + |h_i|)``, the margins tried in
 #: this order until level 0 of the relaxed step is solved: the slack problem's answer meets
 #: its rows to the certificate's tolerance (1e-9, scaled by ``|g_i| + |h_i|``), but the
 #: relaxed rows can meet at a degenerate vertex (the support polygon's edges, several
 #: collision pairs) where level 0 is not certified until the set is a little wider.
-RELAXATION_MARGINS = (1e-9, 1e-6, 1e-4)
+RELAXATION_MARGINS = (1e-9, 1e-6, 1e-4, 1e-2)
+#: The slack problem also weighs the step ``x`` by this (``|s|^2 + 1e-12 |x|^2``): without
+#: it ``x`` is free in a singular objective, and the core's certificate can fail by a hair
+#: (stationarity 1.8e-9 on a humanoid's support polygon). Its effect on ``s`` is of order
+#: 1e-12 of the step's size, far below the relaxed rows' margin; every answer ``(x, s)``
+#: still meets ``G x - s <= h``, so the rows relaxed by ``s`` admit ``x``.
+SLACK_STEP_WEIGHT = 1e-6
 
 
 def least_slack(limits: LimitRows) -> np.ndarray | None:
     """The least-squares slack ``s`` (p,) of the relaxable general rows
     (:attr:`LimitRows.relaxable`; 0 on the others, which stay hard) that makes the rows
-    feasible within the box (module docstring), or ``None`` where no row may relax or the
-    box is empty.
+    feasible within the box (module docstring), or ``None`` where no row may relax, the
+    box is empty or no step within the box meets the hard rows.
 
     Entries of ``G`` whose largest effect over the box is below round-off of their row
     (``1e-14`` of ``|h_i| + sum_j |g_ij| max(|lb_j|, |ub_j|)``: a collision row's
     Jacobian along a dof that cannot move the pair, say 1e-15) are dropped in this problem
     only; the core would otherwise not certify an optimum whose stationarity they touch at
-    1e-17. Where the core does not solve it, each relaxable row's own least slack (its
-    smallest value over the box, ``sum_j min(g_ij lb_j, g_ij ub_j)``, less ``h_i``) is
-    taken."""
+    1e-17. Where the core does not certify its answer, a feasible slack is taken instead:
+    the one that lets the relaxable rows admit the core's step ``x`` (or, where that step
+    is outside the box or breaks a hard row, the box's point nearest 0),
+    ``s_i = max(0, g_i x - h_i)``: not the least, but the relaxed rows then admit a step."""
     G, h, lb, ub, relax = limits.G, limits.h, limits.lb, limits.ub, limits.relaxable
     p, n = G.shape
     if p == 0 or relax is None or not relax.any() or not np.all(lb <= ub):
@@ -70,22 +77,30 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     scale = np.abs(h) + np.where(bounded, effect, 0.0).sum(axis=1)
     G = np.where(bounded & (effect <= 1e-14 * scale[:, None]), 0.0, G)
     k = int(relax.sum())
-    objective = np.hstack([np.zeros((k, n)), np.eye(k)])
+    objective = np.zeros((n + k, n + k))  # |s|^2, and |x|^2 at SLACK_STEP_WEIGHT^2
+    objective[:n, :n] = SLACK_STEP_WEIGHT * np.eye(n)
+    objective[n:, n:] = np.eye(k)
     rows = np.hstack([G, -np.eye(p)[:, relax]])
     free = np.full(k, np.inf)
     problem = HierarchyProblem(
-        [Level(objective, np.zeros(k), 0.0)],
+        [Level(objective, np.zeros(n + k), 0.0)],
         np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h,
     )  # fmt: skip
     result = HierarchySolver("auto", damping_law=None).solve(problem)
-    slack = np.zeros(p)
+    row_scale = np.linalg.norm(limits.G, axis=1) + np.abs(h)
     if result.status[0] == LevelStatus.SOLVED and np.all(np.isfinite(result.x)):
-        slack[relax] = np.maximum(result.x[n:], 0.0)
-        return slack
-    with np.errstate(invalid="ignore"):
-        lowest = np.where(G == 0.0, 0.0, np.minimum(G * lb, G * ub)).sum(axis=1)
-    slack[relax] = np.maximum(lowest - h, 0.0)[relax]
-    return slack if np.all(np.isfinite(slack)) else None
+        slack = np.zeros(p)
+        slack[relax] = result.x[n:]
+        # below the first margin: round-off, or the step weight's pull (a row x can meet)
+        return np.where(slack > RELAXATION_MARGINS[0] * row_scale, slack, 0.0)
+    tolerance = RELAXATION_MARGINS[0] * row_scale
+    for x in (result.x[:n], np.clip(0.0, lb, ub)):
+        if not (np.all(np.isfinite(x)) and np.all((lb <= x) & (x <= ub))):
+            continue
+        excess = limits.G @ x - h
+        if np.all(excess[~relax] <= tolerance[~relax]):  # the hard rows hold at x
+            return np.where(relax & (excess > 0.0), excess, 0.0)
+    return None
 
 
 def relaxed_rows(limits: LimitRows, slack: np.ndarray, margin: float) -> LimitRows:

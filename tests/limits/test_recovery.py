@@ -194,3 +194,33 @@ def test_a_degenerate_relaxed_set_is_widened_until_level_0_is_solved():
     seen.clear()
     result = solver._relaxed(lambda rows: solve(rows, 99), limits, slack)
     assert len(seen) == len(RELAXATION_MARGINS) and result.displacement[0] == len(seen)
+
+
+def test_an_uncertified_slack_problem_still_gives_a_slack_that_admits_a_step(monkeypatch):
+    """Where the core does not certify the slack problem, the slack that lets the rows
+    admit its step x (inside the box), else the box's point nearest 0: the relaxed rows
+    then admit that step (here a stand-in core returning numerical_failure)."""
+    import qpik.diffik.recovery as recovery
+    from qpik.core import LevelStatus
+
+    model = _model(True)
+    solver, _ = _solver(model)
+    limits = solver._rows(qpik.Configuration(model, np.zeros(model.nq)), DT, fold=False)[1]
+    n, p = model.nv, limits.G.shape[0]
+
+    class Stub:
+        x = np.zeros(n + p)
+
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def solve(self, problem):
+            return type("R", (), {"status": [LevelStatus.NUMERICAL], "x": Stub.x})()
+
+    monkeypatch.setattr(recovery, "HierarchySolver", Stub)
+    for step in (np.array([-0.02, -0.01, 0.0]), np.array([1.0, 0.0, 0.0])):  # in / out of box
+        Stub.x = np.concatenate([step, np.zeros(p)])
+        slack = least_slack(limits)
+        x = step if np.all((limits.lb <= step) & (step <= limits.ub)) else np.zeros(n)
+        np.testing.assert_array_equal(slack, np.maximum(limits.G @ x - limits.h, 0.0))
+        assert np.all(limits.G @ x <= limits.h + slack)
