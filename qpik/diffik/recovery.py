@@ -15,15 +15,16 @@ the least-squares sense (``s_i = 0`` on the hard rows),
 
 .. math::
 
-    \\min_{dq, s} \\tfrac12 |s|^2 \\quad \\text{s.t.} \\quad G\\, dq - s \\le h,
-    \\quad lb \\le dq \\le ub,
+    \\min_{dq, s} \\tfrac12 |s|^2 + \\tfrac12 \\epsilon^2 |dq|^2 \\quad \\text{s.t.}
+    \\quad G\\, dq - s \\le h, \\quad lb \\le dq \\le ub,
 
 solved exactly by the core (:class:`qpik.core.HierarchySolver`, no damping, no
-regularisation; ``s`` is unique). The step is then the cascade on the relaxed rows
-``G dq <= h + s``: it separates as fast as the box allows. Level 0 is still reported
-``infeasible`` (the limits as given admit no step), the levels below refer to the relaxed
-rows, and :attr:`qpik.StepResult.relaxation` holds ``s`` (per general row, in the row's
-units; ``None`` where nothing was relaxed). Contradictory box bounds and hard rows stay
+regularisation; ``epsilon`` = :data:`SLACK_STEP_WEIGHT`, 1e-6, keeps the problem strictly
+convex). The step is then the cascade on the relaxed rows ``G dq <= h + s`` (plus a small
+margin, :data:`RELAXATION_MARGINS`): it separates as fast as the box allows. Level 0 is
+still reported ``infeasible`` (the limits as given admit no step), the levels below refer
+to the relaxed rows, and :attr:`qpik.StepResult.relaxation` holds ``s`` (per general row,
+in the row's units; ``None`` where nothing was relaxed). Contradictory box bounds and hard rows stay
 infeasible (no slack of these rows helps them): the step is then zero, as before.
 """
 
