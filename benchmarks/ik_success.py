@@ -50,6 +50,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -163,12 +164,20 @@ def first_use(workdir: Path) -> dict:
         check=True, cwd=clone, capture_output=True,
     )  # fmt: skip
     install = time.perf_counter() - tic
+    # The build requirements (nanobind's CMake package) into the environment, for the
+    # engine's separate build below: pip's install built it in an isolated environment.
+    text = (clone / "pyproject.toml").read_text()
+    requires = json.loads(re.search(r"^requires = (\[.*\])$", text, re.M).group(1))
+    subprocess.run(
+        [python, "-m", "pip", "install", "-q", *requires, "ninja", "cmake"],
+        check=True, capture_output=True,
+    )  # fmt: skip
     cmake = [
-        "cmake", "-S", ".", "-B", "build/first-use", "-G", "Ninja",
-        f"-DPython_EXECUTABLE={python}",
+        str(clone / ".venv" / "bin" / "cmake"), "-S", ".", "-B", "build/first-use", "-G",
+        "Ninja", f"-DPython_EXECUTABLE={python}",
     ]  # fmt: skip
     subprocess.run(cmake, check=True, cwd=clone, capture_output=True)
-    compile_wall, compile_cpu = _timed_command(["cmake", "--build", "build/first-use"], clone)
+    compile_wall, compile_cpu = _timed_command([cmake[0], "--build", "build/first-use"], clone)
     out = {"install_s": install, "compile_s": compile_wall, "compile_cpu_s": compile_cpu}
     first_reach = _timed_command(
         [str(clone / ".venv" / "bin" / "qpik"), "reach", "tasks/panda_pose_reach.toml"], clone
