@@ -196,6 +196,11 @@ def print_startup(st: dict) -> None:
             f"{st['compile_s']:.1f} s wall / {st['compile_cpu_s']:.1f} s CPU (goal <= 90 s); "
             f"the very first qpik reach: {st['qpik_reach_very_first_s']:.2f} s"
         )
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        print(
+            "note: PYTHONDONTWRITEBYTECODE is set here: no module's bytecode is cached, so "
+            "every fresh process below compiles qpik's (and its dependencies') sources again"
+        )
     over = st["import_over_s"]
     ratio = st["qpik_reach_s"] / st["python_import_mujoco_mink_s"]
     print(
