@@ -3,7 +3,6 @@
 from typing import TYPE_CHECKING, Any
 
 from . import errors, tasks
-from .batch import ReachabilityMap, reachability, solve_many
 from .diffik import SOLVERS as _SOLVERS
 from .diffik import DampingLaw, IKSolver, StepResult, build_ik, solve_ik
 from .errors import QpikError
@@ -17,6 +16,7 @@ __version__ = "0.2.0"  # the one place the version is written (pyproject.toml re
 
 if TYPE_CHECKING:  # imported on first use (see __getattr__); type checkers see them here
     from . import analysis, limits, scene, statics
+    from .batch import ReachabilityMap, reachability, solve_many
     from .igm import baselines
     from .problem import load_problem
 
@@ -29,6 +29,9 @@ _LAZY = {
     "scene": ("qpik.scene", None),
     "statics": ("qpik.statics", None),
     "load_problem": ("qpik.problem", "load_problem"),
+    "solve_many": ("qpik.batch", "solve_many"),
+    "reachability": ("qpik.batch", "reachability"),
+    "ReachabilityMap": ("qpik.batch", "ReachabilityMap"),
 }
 
 
