@@ -269,7 +269,7 @@ def test_stationarity_scale_is_the_round_off_of_the_largest_entry(offset, holds)
     assert K.certify_point(A, b, rho, np.eye(n), xstar, -inf, inf, *none)[1] <= 1e-15
 
 
-SINGULAR = Path(__file__).parents[1] / "data" / "exactness" / "hqp_singular_objective_slack.npz"
+SINGULAR = Path(__file__).parents[1] / "data" / "exactness" / "open_singular_objective_slack.npz"
 
 
 def _singular_problem(extra: float):
