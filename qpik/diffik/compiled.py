@@ -48,7 +48,7 @@ from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
 from ..errors import TargetNotSet
 from ..model.com import subtree_com_jacobian
 from ..model.configuration import Configuration
-from .boxes import LimitBoxes, LimitRows
+from .boxes import LimitBoxes, LimitRows, relaxable
 from .correction import LeanCorrection
 from .layout import com_chains, frame_chains, write_pose_row
 from .result import Solution, StepResult, resolved_info, solve_rows
@@ -138,6 +138,8 @@ class CompiledPlan:
         #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
         self._linear_tasks = [t[0] for t in self.linears]
+        #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
+        self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
@@ -649,12 +651,9 @@ class CompiledPlan:
         code, d, v, info, active = self.kernel.run(  # on poses, attached by gather
             G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
         )
-        relax = _INFEASIBLE_CODE if len(h) else None  # infeasible: the QP path relaxes G, h
-        if (
-            code
-            or (forced or relax)
-            and any(s != _SOLVED_CODE and (forced or s == relax) for s in info[3].tolist())
-        ):
+        if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):
+            return None
+        if self._relaxable and _INFEASIBLE_CODE in info[3]:  # the QP path relaxes them
             return None
         core.warm_start_from(active)
         return d, v, info, general

@@ -24,8 +24,8 @@ convex). The step is then the cascade on the relaxed rows ``G dq <= h + s`` (plu
 margin, :data:`RELAXATION_MARGINS`): it separates as fast as the box allows. Level 0 is
 still reported ``infeasible`` (the limits as given admit no step), the levels below refer
 to the relaxed rows, and :attr:`qpik.StepResult.relaxation` holds ``s`` (per general row,
-in the row's units; ``None`` where nothing was relaxed). Contradictory box bounds and hard rows stay
-infeasible (no slack of these rows helps them): the step is then zero, as before.
+in the row's units; ``None`` where nothing was relaxed). Contradictory box bounds and hard
+rows stay infeasible (no slack of these rows helps them): the step is then zero, as before.
 """
 
 from __future__ import annotations
@@ -88,13 +88,12 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
         np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h,
     )  # fmt: skip
     result = HierarchySolver("auto", damping_law=None).solve(problem)
-    row_scale = np.linalg.norm(limits.G, axis=1) + np.abs(h)
+    tolerance = RELAXATION_MARGINS[0] * _row_scale(limits)
     if result.status[0] == LevelStatus.SOLVED and np.all(np.isfinite(result.x)):
         slack = np.zeros(p)
         slack[relax] = result.x[n:]
         # below the first margin: round-off, or the step weight's pull (a row x can meet)
-        return np.where(slack > RELAXATION_MARGINS[0] * row_scale, slack, 0.0)
-    tolerance = RELAXATION_MARGINS[0] * row_scale
+        return np.where(slack > tolerance, slack, 0.0)
     for x in (result.x[:n], np.clip(0.0, lb, ub)):
         if not (np.all(np.isfinite(x)) and np.all((lb <= x) & (x <= ub))):
             continue
@@ -107,6 +106,11 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
 def relaxed_rows(limits: LimitRows, slack: np.ndarray, margin: float) -> LimitRows:
     """``limits`` with each general row that needs slack relaxed to
     ``h_i + s_i + margin (|g_i| + |h_i|)`` (the others as they are)."""
-    scale = np.linalg.norm(limits.G, axis=1) + np.abs(limits.h)
-    h = np.where(slack > 0.0, limits.h + slack + margin * scale, limits.h)
+    h = np.where(slack > 0.0, limits.h + slack + margin * _row_scale(limits), limits.h)
     return dataclasses.replace(limits, h=h)
+
+
+def _row_scale(limits: LimitRows) -> np.ndarray:
+    """Each general row's scale ``|g_i| + |h_i|`` (the certificate's, for a row's
+    violation)."""
+    return np.linalg.norm(limits.G, axis=1) + np.abs(limits.h)

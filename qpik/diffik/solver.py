@@ -38,7 +38,7 @@ from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelSt
 from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
 from ..options import UNSET, StepFieldKeywords, StepOptions
-from .boxes import LimitBoxes, LimitRows
+from .boxes import LimitBoxes, LimitRows, relaxable
 from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
@@ -46,8 +46,6 @@ from .plan import make_plan
 from .recovery import RELAXATION_MARGINS, least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
-
-_INFEASIBLE = LevelStatus.INFEASIBLE
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -303,7 +301,7 @@ class IKSolver:
             solution = self._corrected(configuration, dt, passes)
         elif core.solver != "auto" and self._compiled_step_applies(configuration, dt):
             solution = self._compiled_step(configuration, dt)
-            if solution is not None and solution.status[self._coupling_level] == _INFEASIBLE:
+            if solution is not None and self._recoverable(solution):
                 solution = None  # the QP path relaxes the general rows (qpik.diffik.recovery)
         if solution is None:
             solution = self._qp_step(configuration, dt)
@@ -397,11 +395,17 @@ class IKSolver:
         solution.relaxation = slack
         return solution
 
+    def _recoverable(self, solution: Solution) -> bool:
+        """Whether ``solution``'s first stack level is infeasible and a limit's rows may be
+        relaxed (:func:`qpik.diffik.boxes.relaxable`): the recovery's case."""
+        return solution.status[int(self._coupling_level)] == LevelStatus.INFEASIBLE and any(
+            relaxable(limit) for limit in self._limits.limits
+        )
+
     def _slack(self, solution: Solution, limits: LimitRows) -> np.ndarray | None:
-        """The general rows' least slack (:func:`qpik.diffik.recovery.least_slack`) where
-        ``solution``'s first stack level is infeasible and there are general rows; else
-        None."""
-        if limits.G.shape[0] == 0 or solution.status[int(self._coupling_level)] != _INFEASIBLE:
+        """The relaxable general rows' least slack (:func:`qpik.diffik.recovery.least_slack`)
+        where :meth:`_recoverable` holds; else None."""
+        if limits.G.shape[0] == 0 or not self._recoverable(solution):
             return None
         slack = least_slack(limits)
         return slack if slack is not None and slack.any() else None

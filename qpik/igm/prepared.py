@@ -94,11 +94,6 @@ class PreparedRobot:
         self.start_box = start_box(lower, upper, 1e-6)
         sample_lo = np.where(np.isfinite(lower), lower, -np.pi)
         sample_hi = np.where(np.isfinite(upper), upper, np.pi)
-        mid = model.qpos0.copy()
-        limited = np.isfinite(lower) & np.isfinite(upper)
-        mid[limited] = 0.5 * (lower[limited] + upper[limited])
-        #: the default start: mid-range, the closed chains of unheld equalities at qpos0
-        self.mid = closed_chain_start(model, mid, lower, upper)
         free = np.full(model.nq, np.inf)
         self.bounds_joint = np.array([lower, upper, sample_lo, sample_hi])
         self.bounds_free = np.array([-free, free, sample_lo, sample_hi])
@@ -107,6 +102,11 @@ class PreparedRobot:
         self.coupling_memo: tuple[bytes, float] | None = None
         #: the active equalities no level holds (connect, weld, ...): checked at the end
         self.unheld = unheld_equalities(model)
+        mid = model.qpos0.copy()
+        limited = np.isfinite(lower) & np.isfinite(upper)
+        mid[limited] = 0.5 * (lower[limited] + upper[limited])
+        #: the default start: mid-range, the closed chains of unheld equalities at qpos0
+        self.mid = closed_chain_start(model, mid, lower, upper, self.unheld)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 

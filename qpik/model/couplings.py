@@ -284,11 +284,8 @@ def unheld_equality_errors(
     return position, rotation
 
 
-def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarray:
-    """The dofs (sorted ids) that close the loops of the connect and weld equalities among
-    ``equalities`` (ids): those of the joints that move one of an equality's two bodies (or
-    sites' bodies) and not the other. The dofs on both chains carry the loop rigidly. Other
-    kinds of equality add none."""
+def _loop_joints(model: mujoco.MjModel, equalities: npt.ArrayLike) -> list[int]:
+    """The joints (sorted ids) of :func:`equality_dofs`."""
     kinds = {int(mujoco.mjtEq.mjEQ_CONNECT), int(mujoco.mjtEq.mjEQ_WELD)}
     site = int(mujoco.mjtObj.mjOBJ_SITE)
     loop: set[int] = set()
@@ -301,31 +298,43 @@ def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarra
                 obj = int(model.site_bodyid[obj])
             bodies.append(max(obj, 0))
         loop |= body_chain_joints(model, bodies[0]) ^ body_chain_joints(model, bodies[1])
-    return np.flatnonzero(np.isin(model.dof_jntid, sorted(loop)))
+    return sorted(loop)
+
+
+def equality_dofs(model: mujoco.MjModel, equalities: npt.ArrayLike) -> np.ndarray:
+    """The dofs (sorted ids) that close the loops of the connect and weld equalities among
+    ``equalities`` (ids): those of the joints that move one of an equality's two bodies (or
+    sites' bodies) and not the other. The dofs on both chains carry the loop rigidly. Other
+    kinds of equality add none."""
+    return np.flatnonzero(np.isin(model.dof_jntid, _loop_joints(model, equalities)))
 
 
 def closed_chain_start(
-    model: mujoco.MjModel, q: npt.ArrayLike, lower: np.ndarray, upper: np.ndarray
+    model: mujoco.MjModel,
+    q: npt.ArrayLike,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    unheld: np.ndarray | None = None,
 ) -> np.ndarray:
     """``q`` (a start, ``(nq,)``) with the closed chains that the model's unheld equalities
     close (a gripper's four-bar linkage: connect or weld constraints, which no level holds,
-    :func:`unheld_equalities`) set back to ``qpos0``, where that breaks them less.
+    :func:`unheld_equalities`; ``unheld``: their ids where the caller has them) set back to
+    ``qpos0``, where that breaks them less.
 
-    The joints reset are those that close the loops (:func:`equality_dofs`), their
-    ``qpos0`` clipped to ``[lower, upper]`` (``(nq,)``
-    [rad or m]). Mid-range values of a linkage's joints, taken one joint at a time, break
-    its closure (by 28 mm on the Robotiq 2F-85), and a full-IK solve that does not move
-    them cannot converge (reason ``constraint``). Returns ``q`` itself (a copy) where the
-    model has no unheld equality or ``qpos0`` does not meet them better."""
+    The joints reset are those that close the loops (the joints of :func:`equality_dofs`), their
+    ``qpos0`` clipped to ``[lower, upper]`` (``(nq,)`` [rad or m]). Mid-range values of a
+    linkage's joints, taken one joint at a time, break its closure (by 28 mm on the Robotiq
+    2F-85), and a full-IK solve that does not move them cannot converge (reason
+    ``constraint``). Returns ``q`` itself (a copy) where the model has no unheld equality or
+    ``qpos0`` does not meet them better."""
     q = np.array(q, dtype=np.float64)
-    unheld = unheld_equalities(model)
-    if unheld.size == 0:
-        return q
-    dofs = equality_dofs(model, unheld)
-    if dofs.size == 0:
+    if unheld is None:
+        unheld = unheld_equalities(model)
+    joints = _loop_joints(model, unheld) if unheld.size else []
+    if not joints:
         return q
     candidate = q.copy()
-    for joint in np.unique(model.dof_jntid[dofs]):
+    for joint in joints:
         start = int(model.jnt_qposadr[joint])
         stop = start + QPOS_WIDTH[int(model.jnt_type[joint])]
         candidate[start:stop] = model.qpos0[start:stop]
