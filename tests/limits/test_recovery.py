@@ -224,3 +224,25 @@ def test_an_uncertified_slack_problem_still_gives_a_slack_that_admits_a_step(mon
         x = step if np.all((limits.lb <= step) & (step <= limits.ub)) else np.zeros(n)
         np.testing.assert_array_equal(slack, np.maximum(limits.G @ x - limits.h, 0.0))
         assert np.all(limits.G @ x <= limits.h + slack)
+
+
+def test_the_recovered_step_is_the_same_bits_whatever_ran_before():
+    """The deep-contact step of a fresh solver, of the same solver after other steps
+    (free and recovered ones), and of another solver instance: bitwise the same velocity,
+    relaxation and statuses."""
+    model = _model(True)
+    deep = np.zeros(model.nq)
+
+    def step(solver):
+        result = solver.step(qpik.Configuration(model, deep), DT)
+        return result.velocity.tobytes(), result.relaxation.tobytes(), list(result.status)
+
+    fresh, _ = _solver(model)
+    reference = step(fresh)
+    used, _ = _solver(model)
+    for q in ([-0.3, -0.3, 0.0], [0.05, 0.0, 0.1], [-0.01, 0.02, 0.0]):
+        used.step(qpik.Configuration(model, np.array(q)), DT)
+    assert step(used) == reference
+    assert step(used) == reference  # again, right after itself
+    other, _ = _solver(model)
+    assert step(other) == reference
