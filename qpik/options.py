@@ -38,6 +38,7 @@ __all__ = [
     "DEFAULT_RESTARTS",
     "IGM_BACKEND_OPTIONS",
     "IGM_DAMPING",
+    "DEFAULT_WORK_ATTEMPTS",
     "MAX_AUTO_RESTARTS",
     "MAX_ITERS_LIMIT",
     "PRESETS",
@@ -111,10 +112,19 @@ DEFAULT_DAMPING = DampingLaw()
 #: ``sigma < 0.05``, ``lambda <= 0.05``) fading with the error (``error_scale = 0.3``).
 IGM_DAMPING: Final = DampingLaw(error_scale=0.3)
 
-#: Restarts when ``SolveOptions.restarts`` is ``None``: without a time budget, and the
-#: most with one.
-DEFAULT_RESTARTS: Final = 20
+#: Restarts when ``SolveOptions.restarts`` is ``None``: without a time budget (at most: see
+#: :data:`DEFAULT_WORK_ATTEMPTS`), and the most with one. 100 is the Robotics Toolbox's
+#: default number of searches (``ik_LM``'s ``slimit``).
+DEFAULT_RESTARTS: Final = 100
 MAX_AUTO_RESTARTS: Final = 1000
+#: Without a time budget and with ``restarts=None``, a solve starts no new attempt once it
+#: has run as many iterations as this many attempts of ``max_iters`` can (the work of the
+#: first attempt and 20 restarts that each run to ``max_iters``): a deterministic work
+#: budget. Attempts that stop early (stalled, blocked at a joint limit: the usual failure of
+#: a 5- or 6-DoF arm, a few iterations each) leave room for more restarts, up to
+#: :data:`DEFAULT_RESTARTS`; a target no attempt reaches costs no more iterations than 21
+#: full attempts.
+DEFAULT_WORK_ATTEMPTS: Final = 21
 #: The largest ``max_iters`` (the returned attempt's path is kept in memory).
 MAX_ITERS_LIMIT: Final = 100_000
 #: The largest constant damping: beyond it the QP's regularisation swamps every task.
@@ -395,8 +405,10 @@ class SolveOptions:
             (default, no limit) or finite and >= 0. A budget makes the result depend on
             the machine's speed.
         restarts: random restarts allowed after the first attempt (int >= 0); ``None``
-            (default): 20 without a time budget, and as many as ``time_budget`` allows (at
-            most 1000) with one (:attr:`effective_restarts`).
+            (default): without a time budget, up to 100 within a work budget of
+            ``21 * max_iters`` iterations in all (:attr:`iteration_budget`: attempts that
+            stop early leave room for more restarts), and with one, as many as
+            ``time_budget`` allows (at most 1000) (:attr:`effective_restarts`).
         seed: seed of the restarts' random configurations, an int >= 0, or ``None``
             (default: fresh entropy, not reproducible). Same seed, bitwise the same result.
             (:func:`qpik.solve` also takes a numpy ``Generator`` or ``SeedSequence`` as its
@@ -506,10 +518,21 @@ class SolveOptions:
 
     @property
     def effective_restarts(self) -> int:
-        """``restarts``, or for ``None`` 20 without a time budget and 1000 with one."""
+        """``restarts``, or for ``None`` 100 without a time budget (within
+        :attr:`iteration_budget`) and 1000 with one."""
         if self.restarts is not None:
             return self.restarts
         return DEFAULT_RESTARTS if self.time_budget is None else MAX_AUTO_RESTARTS
+
+    @property
+    def iteration_budget(self) -> int | None:
+        """The iterations (over all attempts) after which a solve starts no new attempt:
+        ``DEFAULT_WORK_ATTEMPTS * max_iters`` when ``restarts`` and ``time_budget`` are both
+        ``None`` (:data:`DEFAULT_WORK_ATTEMPTS`), else ``None`` (no such budget: the
+        restarts given, or the time budget, bound the solve)."""
+        if self.restarts is None and self.time_budget is None:
+            return DEFAULT_WORK_ATTEMPTS * self.max_iters
+        return None
 
     # ------------------------------------------------------------------ builders
     def replace(self, **overrides: Any) -> SolveOptions:
@@ -581,7 +604,7 @@ def _check_fields(cls: type, overrides: Mapping[str, Any]) -> None:
 #: Named :class:`SolveOptions`:
 #:
 #: * ``"default"``: the defaults of :class:`SolveOptions` (0.1 mm, 1 mrad, 100 iterations,
-#:   20 restarts).
+#:   up to 100 restarts within the work of 21 full attempts).
 #: * ``"precise"``: 1 um and 10 urad, 300 iterations per attempt, 50 restarts, and a
 #:   trust region half the default.
 #: * ``"fast"``: 1 mm and 10 mrad, 50 iterations per attempt, 5 restarts.

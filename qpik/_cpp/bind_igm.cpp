@@ -55,7 +55,7 @@ static void check_igm_shapes(const T1& target_p, const T2& target_R, const B& bo
     require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
     require(reach.shape(0) == 4, "reach must be (4,)");
     require(options.shape(0) >= 11, "options must hold 11 floats");
-    require(int_options.shape(0) >= 4, "int_options must hold 4 ints");
+    require(int_options.shape(0) == 4 || int_options.shape(0) == 5, "int_options must hold 4 or 5 ints");
 }
 
 template <class T1, class T2, class B, class R, class O, class IO, class S>
@@ -78,7 +78,7 @@ struct IgmScratch {
 // ws: igm_solve's workspace (nullptr: its own).
 static void igm_with_scratch(IgmScratch& s, const model::Chain& c, const double* target_p, const double* target_R,
                              bool has_rot, const double* q0, i64 nq, CMatRef bounds, const double* reach,
-                             const double* options, const i64* int_options, std::uint64_t& rng_state,
+                             const double* options, const i64* int_options, i64 budget, std::uint64_t& rng_state,
                              double deadline, igm::Workspace* ws = nullptr) {
     i64 max_iters = int_options[0];
     require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
@@ -89,7 +89,8 @@ static void igm_with_scratch(IgmScratch& s, const model::Chain& c, const double*
         s.hist.reset(new double[static_cast<size_t>(2 * n * 3)]);
     }
     s.rec = igm::Record{s.path.get(), s.hist.get(), n, nq};
-    igm::igm_solve(c, target, q0, nq, bounds, reach, options, int_options, rng_state, deadline, s.rec, s.info, ws);
+    igm::igm_solve(c, target, q0, nq, bounds, reach, options, int_options, budget, rng_state, deadline, s.rec, s.info,
+                   ws);
 }
 
 static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 target_R, nb::handle has_rot,
@@ -98,7 +99,9 @@ static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 
     ChainArgs holder;
     const model::Chain& c = chain_arg(chain, nq, nq, holder);
     igm_with_scratch(s, c, target_p.data(), target_R.data(), truthy(has_rot), q0, nq, cmat(bounds), reach.data(),
-                     options.data(), int_options.data(), rng_state, deadline);
+                     options.data(), int_options.data(),
+                     igm::iteration_budget(int_options.data(), static_cast<i64>(int_options.shape(0))), rng_state,
+                     deadline);
 }
 
 // The chain's start q_full[index] (index null: all of q_full) into q0 (nq,).
@@ -178,7 +181,7 @@ struct IgmPlan {
         require(bounds_.shape(0) == 4 && static_cast<i64>(bounds_.shape(1)) == nq, "bounds must be (4, nq)");
         require(reach_.shape(0) == 4, "reach must be (4,)");
         require(options_.shape(0) >= 11, "options must hold 11 floats");
-        require(int_options_.shape(0) >= 4, "int_options must hold 4 ints");
+        require(int_options_.shape(0) == 4 || int_options_.shape(0) == 5, "int_options must hold 4 or 5 ints");
         i64 max_iters = int_options_.data()[0];
         require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
         bounds.assign(bounds_.data(), bounds_.data() + 4 * nq);
@@ -257,7 +260,9 @@ static nb::tuple run_plan(const IgmPlan& plan, const double* target_p, const dou
     gather_start(q_full, plan.nfull, index_p, plan.nq, q0.data());
     igm_with_scratch(held.run(), *plan.chain, target_p, R, has_rot, q0.data(), plan.nq,
                      CMatRef(plan.bounds.data(), 4, plan.nq), plan.reach.data(), plan.options.data(),
-                     plan.int_options.data(), rng_state, deadline, held.workspace());
+                     plan.int_options.data(),
+                     igm::iteration_budget(plan.int_options.data(), static_cast<i64>(plan.int_options.size())),
+                     rng_state, deadline, held.workspace());
     return session_tuple(held.run(), q_full, plan.nfull, index_p, plan.nq);
 }
 
@@ -357,7 +362,9 @@ void bind_igm(nb::module_& m) {
             igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
             igm::Record rec{path.data(), hist.data(), static_cast<i64>(path.shape(1)), nq};
             igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
-                           int_options.data(), rng_state.data()[0], deadline, rec, info.data());
+                           int_options.data(),
+                           igm::iteration_budget(int_options.data(), static_cast<i64>(int_options.shape(0))),
+                           rng_state.data()[0], deadline, rec, info.data());
         },
         "chain"_a, "target_p"_a, "target_R"_a, "has_rot"_a, "q0"_a, "bounds"_a, "reach"_a, "options"_a,
         "int_options"_a, "rng_state"_a.noconvert(), "deadline"_a, "path"_a.noconvert(), "hist"_a.noconvert(),

@@ -228,7 +228,15 @@ def igm(
 
     start = loop.outcome(Reason.MAX_ITERS)
     attempts = settings.effective_restarts
-    best, reason, used = run_attempts(lambda: loop.attempt(clock), restart, attempts, clock, start)
+    best, reason, used = run_attempts(
+        lambda: loop.attempt(clock),
+        restart,
+        attempts,
+        clock,
+        start,
+        budget=settings.iteration_budget,
+        spent=lambda: loop.iterations,
+    )
     q, (position_error, orientation_error) = best.payload
     return IGMResult(
         q=q,

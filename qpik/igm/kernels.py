@@ -119,7 +119,9 @@ uniform = _igm.uniform
 #: * ``options`` (float64): tol_position, tol_orientation, alpha, beta, max_step_position,
 #:   max_step_orientation (inf: none), singular_threshold, max_damping, error_scale (<= 0:
 #:   none), damping, limit_gain.
-#: * ``int_options`` (int64): max_iters, restarts, stall_window, check_time (0/1).
+#: * ``int_options`` (int64): max_iters, restarts, stall_window, check_time (0/1), and
+#:   optionally the iteration budget (:attr:`qpik.SolveOptions.iteration_budget`: no new
+#:   attempt starts once the solve's iterations reach it; -1 or absent: none).
 #: * ``rng_state``: uint64 (1,) SplitMix64 state, advanced in place.
 #: * ``deadline``: ``time.perf_counter()`` value at which the budget ends (if checked).
 #: * ``path`` (2, max_iters + 1, nq), ``hist`` (2, max_iters + 1, 3): per attempt slot, the

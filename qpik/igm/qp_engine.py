@@ -619,6 +619,8 @@ def iterate(problem: QPProblem, q0: np.ndarray, clock: Clock, seed: int, options
             restart,
             options.effective_restarts,
             clock,
+            budget=options.iteration_budget,
+            spent=lambda: engine.iterations,
         )
     path = best.payload
     worst = worst_errors(path.last.errors)

@@ -10,7 +10,8 @@ The rules:
   step that the joint limits or the singularity damping block (its QP residual above
   :data:`qpik.igm.kernels.BLOCKED` times the decrease it asks for) while its score is
   above :data:`qpik.igm.kernels.NEAR_TARGET`;
-* while it has not converged, restarts (``restarts`` of them at most) and time remain, the
+* while it has not converged, restarts (``restarts`` of them at most), time and
+  iterations (:attr:`qpik.SolveOptions.iteration_budget`, over all attempts) remain, the
   loop starts a new attempt from a random configuration;
 * the best attempt is returned: a converged one over one that did not, then the lowest
   score (the first attempt among equals); attempts that carry a lexicographic ``key`` (a
@@ -134,9 +135,12 @@ def run_attempts(
     restarts: int,
     clock: Clock,
     best: Attempt[P] | None = None,
+    budget: int | None = None,
+    spent: Callable[[], int] | None = None,
 ) -> tuple[Attempt[P], Reason, int]:
     """Run ``attempt`` from the current start, then after each ``restart()`` (which draws a
-    new start), until one converges, ``restarts`` restarts are spent or the clock runs out.
+    new start), until one converges, ``restarts`` restarts are spent, the clock runs out or
+    the iterations reach ``budget``.
 
     Args:
         attempt: runs one attempt from the current start.
@@ -145,6 +149,9 @@ def run_attempts(
         clock: the solve's time budget.
         best: an outcome to beat (e.g. the start itself); ``None``: the first attempt is
             kept whatever its score.
+        budget: iterations over all attempts after which no new attempt starts
+            (:attr:`qpik.SolveOptions.iteration_budget`); ``None``: none.
+        spent: the iterations run so far (read only with a ``budget``).
 
     Returns:
         ``(best attempt, reason, restarts used)``: ``reason`` is ``CONVERGED`` when the
@@ -158,7 +165,8 @@ def run_attempts(
             best = outcome
         reason = outcome.reason
         timed_out = clock.out_of_time()
-        if reason is Reason.CONVERGED or used >= restarts or timed_out:
+        exhausted = budget is not None and spent is not None and spent() >= budget
+        if reason is Reason.CONVERGED or used >= restarts or timed_out or exhausted:
             if timed_out and reason is not Reason.CONVERGED:
                 reason = Reason.TIME_BUDGET
             break

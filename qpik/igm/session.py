@@ -162,8 +162,15 @@ def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
             LIMIT_GAIN,
         ]
     )
+    budget = s.iteration_budget
     int_options = np.array(
-        [s.max_iters, s.effective_restarts, s.stall_window, int(s.time_budget is not None)],
+        [
+            s.max_iters,
+            s.effective_restarts,
+            s.stall_window,
+            int(s.time_budget is not None),
+            -1 if budget is None else budget,
+        ],
         dtype=np.int64,
     )
     return options, int_options

@@ -14,7 +14,12 @@ from qpik.options import IGM_DAMPING, PRESETS, SolveOptions, StepOptions, resolv
 def test_defaults_are_those_documented():
     options = SolveOptions()
     assert (options.tol_position, options.tol_orientation) == (1e-4, 1e-3)
-    assert (options.max_iters, options.restarts, options.effective_restarts) == (100, None, 20)
+    assert (options.max_iters, options.restarts, options.effective_restarts) == (100, None, 100)
+    assert options.iteration_budget == 21 * 100  # the work of 21 full attempts
+    # restarts given, or a time budget: no iteration budget
+    assert SolveOptions(restarts=20).iteration_budget is None
+    assert SolveOptions(time_budget=1.0).iteration_budget is None
+    assert SolveOptions(max_iters=7).iteration_budget == 21 * 7
     assert options.max_step == (0.2, 0.5) and options.limits == "joint"
     assert options.damping_law is IGM_DAMPING and options.solver == "auto"
     assert options.damping == 1e-6

@@ -416,6 +416,64 @@ def test_huge_budget_returns():
     assert result.restarts_used == qpik.options.MAX_AUTO_RESTARTS
 
 
+# A reachable Panda pose (forward kinematics of this q) that 20 restarts miss: every one of
+# those attempts ends blocked at a joint limit.
+HARD_PANDA_Q = [-1.3112442847710999, 0.8879239088593973, 1.1947678194236544, -3.033074414548327,
+                2.531297971140878, 2.4269590023353884, 2.4292851694955373]  # fmt: skip
+
+
+def test_default_restarts_continue_within_the_work_budget():
+    # restarts=None, no time budget: up to DEFAULT_RESTARTS restarts while the iterations
+    # stay below DEFAULT_WORK_ATTEMPTS * max_iters. Attempts that end early (blocked at a
+    # limit) leave room for more restarts than the 20 the iterations of 20 full attempts
+    # would buy, and the hard pose converges.
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, np.array(HARD_PANDA_Q))
+    target = {"ee": configuration.frame_pose("ee", "site")}
+    capped = qpik.solve(model, target, seed=0, restarts=20)
+    assert not capped.converged and capped.restarts_used == 20
+    result = qpik.solve(model, target, seed=0)
+    assert result.converged and 20 < result.restarts_used <= qpik.options.DEFAULT_RESTARTS
+    assert result.iterations < qpik.options.DEFAULT_WORK_ATTEMPTS * 100
+    again = qpik.solve(model, target, seed=0)  # deterministic: no clock involved
+    assert again.restarts_used == result.restarts_used
+    assert np.array_equal(again.q, result.q)
+
+
+@pytest.mark.parametrize("engine", ["compiled", "qp"])
+def test_work_budget_bounds_a_solve_no_attempt_can_finish(engine):
+    # The tilted pose of a planar arm: every attempt fails. With max_iters 3 the budget
+    # (63 iterations) ends the restarts before DEFAULT_RESTARTS; with the default 100 the
+    # restarts run out first. Either way no attempt starts past the budget.
+    from scipy.spatial.transform import Rotation
+
+    tilted = Rotation.from_rotvec([0.5, 0.0, 0.0]).as_matrix()
+    target = {"ee": ([1.0, 1.0, 0.0], tilted)}
+    for max_iters in (3, 100):
+        result = qpik.solve("planar_2r", target, seed=0, engine=engine, max_iters=max_iters)
+        budget = qpik.options.DEFAULT_WORK_ATTEMPTS * max_iters
+        assert not result.converged and result.engine == engine
+        assert result.restarts_used <= qpik.options.DEFAULT_RESTARTS
+        assert result.iterations < budget + max_iters  # the last attempt started below it
+        assert result.iterations >= budget or result.restarts_used == qpik.options.DEFAULT_RESTARTS
+    # Restarts given: no work budget, those restarts are all run.
+    result = qpik.solve("planar_2r", target, seed=0, engine=engine, max_iters=3, restarts=40)
+    assert result.restarts_used == 40
+
+
+def test_baseline_loop_keeps_the_work_budget():
+    from scipy.spatial.transform import Rotation
+
+    configuration = qpik.Configuration(qpik.load_robot("planar_2r"))
+    tilted = Rotation.from_rotvec([0.5, 0.0, 0.0]).as_matrix()
+    result = qpik.baselines.damped_least_squares_igm(
+        configuration, "ee", np.array([1.0, 1.0, 0.0]), tilted, max_iters=3, seed=0
+    )
+    assert not result.converged
+    assert 3 * qpik.options.DEFAULT_WORK_ATTEMPTS <= result.iterations
+    assert result.iterations < 3 * (qpik.options.DEFAULT_WORK_ATTEMPTS + 1)
+
+
 # ------------------------------------------------------------ level-0 tasks
 def test_convergence_covers_every_level0_task(rng):
     model = qpik.load_robot("panda")

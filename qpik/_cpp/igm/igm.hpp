@@ -884,13 +884,19 @@ inline void restart_start(double* q, i64 nq, const double* sample_lo, const doub
     }
 }
 
-// The whole IGM solve of one frame target (see qpik.model._kernels.igm_solve for the
+// The iteration budget of int_options (len entries): its fifth entry, -1 (none) where it
+// has four.
+inline i64 iteration_budget(const i64* int_options, i64 len) { return len >= 5 ? int_options[4] : -1; }
+
+// The whole IGM solve of one frame target (see qpik.igm.kernels.igm_solve for the
 // arguments). path (2, max_iters + 1, nq), hist (2, max_iters + 1, 3) and info (6,) are
-// written; rng_state advanced.
+// written; rng_state advanced. budget: no new attempt starts once the solve's iterations
+// reach it (SolveOptions.iteration_budget; -1: none).
 // ws: a Workspace(c, nq) to use (its contents do not matter), or nullptr (one made here).
 inline void igm_solve(const Chain& c, const Target& target, const double* q0, i64 nq, CMatRef bounds,
-                      const double* reach, const double* options, const i64* int_options, std::uint64_t& rng_state,
-                      double deadline, const Record& rec, i64* info, Workspace* ws = nullptr) {
+                      const double* reach, const double* options, const i64* int_options, i64 budget,
+                      std::uint64_t& rng_state, double deadline, const Record& rec, i64* info,
+                      Workspace* ws = nullptr) {
     i64 restarts = int_options[1], check_time = int_options[3];
     const double* sample_lo = bounds.row(2);
     const double* sample_hi = bounds.row(3);
@@ -930,7 +936,7 @@ inline void igm_solve(const Chain& c, const Target& target, const double* q0, i6
             best_reason = reason;
             slot = 1 - slot;
         }
-        if (done || attempt_no >= restarts) break;
+        if (done || attempt_no >= restarts || (budget >= 0 && counts[0] >= budget)) break;
         if (check_time != 0 && (out_of_time || now() > deadline)) {
             out_of_time = true;
             break;
