@@ -67,9 +67,11 @@ solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the retu
   largest null-space coordinate, times ``H``: a dof the level leaves near 0 while others
   move carries it, though its own terms are tiny), at least ``1e-6`` times the largest
   component's, or the largest full-space term's: round-off from the other components and
-  from ``Z``; the
-  multipliers' terms are left out, so that nearly dependent active rows whose huge
-  multipliers cancel to their own round-off prove nothing), the largest;
+  from ``Z``; or by the size of the multipliers' terms ``|Z|^T sum_j |lambda_j| |c_j|``
+  where that is larger, counted up to that largest size only: a component the objective
+  leaves out, a dof that only the active rows hold, carries the round-off of their
+  cancellation, while nearly dependent active rows whose huge multipliers cancel to their
+  own round-off still prove nothing), the largest;
 * ``dual``: a multiplier of the wrong sign, ``max(0, -u_j) |Z^T c_j| / S`` with ``S`` the
   largest stationarity size;
 * ``complementarity``: ``|u_j| |Z^T c_j| / S`` times row ``j``'s scaled distance to its bound.

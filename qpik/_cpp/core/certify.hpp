@@ -848,7 +848,7 @@ struct CertScratch {
     detail::LsScratch ls;
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
-    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc;  // certify_level
+    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc, ms, msc;  // certify_level
     Vec rres, rsize, radx;              // certify_level's kept rows
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
@@ -1289,9 +1289,10 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // max_c (|Z|^T |x|)_c (the round-off a solve in Z leaves in every entry of x, relative to
 // the largest null-space coordinate, times H), at least kSizeFloor
 // times the largest size of the objective's terms, in
-// null-space or full-space coordinates; the
-// multipliers' terms are left out of the scale, so
-// nearly dependent active rows whose huge multipliers cancel are not certified). Dual:
+// null-space or full-space coordinates (big); or by the size of the multipliers' terms,
+// |Z|^T sum_j u_j |c_j|, where that is larger, counted up to big only (a component the
+// objective leaves out carries their cancellation's round-off; nearly dependent active
+// rows whose huge multipliers cancel are still not certified). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
 
@@ -1608,16 +1609,22 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             hs[j] = hv;
         }
     }
+    // ms: the sizes of the multipliers' terms, |u_k c_k| summed per entry (for the scale below,
+    // where they count up to the level's largest objective size only).
+    Vec& ms = ws.ms;
+    if (q > 0) zero_fill(ms, static_cast<size_t>(n));
     for (i64 k = 0; k < q; ++k) {
         double lam = u[k] * static_cast<double>(act_side[k]);
         i64 row = act_row[k];
-        // The multipliers' terms are not part of the scale: a KKT point whose multipliers
-        // cancel each other to their own round-off (nearly dependent active rows, huge
-        // multipliers) is not a proof.
         if (row < n) {
             v[row] -= lam;
+            ms[row] += std::fabs(lam);
         } else {
-            for (i64 j = 0; j < n; ++j) v[j] -= lam * G(row - n, j);
+            for (i64 j = 0; j < n; ++j) {
+                const double t = lam * G(row - n, j);
+                v[j] -= t;
+                ms[j] += std::fabs(t);
+            }
         }
     }
     double S = 0.0;
@@ -1682,9 +1689,31 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // mixes them): its round-off, eps sqrt(rho) |b|, is there even where A is zero (a task
     // no dof moves), which the sizes above do not see.
     if (rho > 0.0) big = pymax(big, std::sqrt(rho) * bmax);
+    // The multipliers' terms in each component, msc = |Z|^T ms (summed as ssc is), count in
+    // its scale up to big only: a component the objective leaves out (a dof only the active
+    // rows hold) carries the round-off of their cancellation, eps |u| |c|, which the floor
+    // kSizeFloor big does not see; capped at big, nearly dependent active rows whose huge
+    // multipliers cancel to their own round-off still prove nothing (no component's scale
+    // exceeds the level's largest objective size).
+    Vec& msc = ws.msc;
+    if (q > 0) {
+        if (msc.size() < static_cast<size_t>(r)) msc.resize(static_cast<size_t>(r));
+        if (eye) {
+            for (i64 c = 0; c < r; ++c) msc[c] = ms[c];
+        } else {
+            zero_small(msc.data(), static_cast<size_t>(r));
+            for (i64 i = 0; i < n; ++i) {
+                const double* zi = Z.row(i);
+                const double mi = ms[i];
+                if (mi == 0.0) continue;
+                for (i64 c = 0; c < r; ++c) msc[c] += std::fabs(zi[c]) * mi;
+            }
+        }
+    }
     double stat = 0.0;
     for (i64 c = 0; c < r; ++c) {
         double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
+        if (q > 0) ss = pymax(ss, pymin(msc[c], big));
         if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
         else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
     }
