@@ -583,6 +583,33 @@ class Kernel {
         cdof_.reset();
     }
 
+    // go() computes the relative-frame tasks' Jacobians too (as set_chains the frames'):
+    // `rel_jac` the kernel's (R, 12, nv) array, read as 2R frames of (6, nv): frame 2r the
+    // task r's frame, 2r + 1 its root frame (rel_frames' two pairs), each frame k's dofs
+    // dofs[starts[k]:starts[k+1]] and its body's root roots[k].
+    void set_rel_chains(Out3 rel_jac, const I1& starts, const I1& dofs, const I1& roots) {
+        const i64 R = rel_frames_.rows, K = 2 * R;
+        require(rel_jac.data() == rel_jac_.data() && dim(rel_jac, 0) == R && dim(rel_jac, 1) == 12 &&
+                    dim(rel_jac, 2) == n_,
+                "Kernel.set_rel_chains: rel_jac must be the kernel's rel_jac");
+        rel_starts_.assign(starts);
+        rel_dofs_.assign(dofs);
+        rel_roots_.assign(roots);
+        require(rel_starts_.rows == K + 1 && rel_roots_.rows == K,
+                "Kernel.set_rel_chains: starts must have 2R + 1 entries, roots 2R");
+        const i64* st = rel_starts_.data.data();
+        require(st[0] == 0 && st[K] == rel_dofs_.rows, "Kernel.set_rel_chains: starts must run from 0 to len(dofs)");
+        for (i64 k = 0; k < K; ++k) require(st[k] <= st[k + 1], "Kernel.set_rel_chains: starts must not decrease");
+        check_dofs(rel_dofs_.vec(), n_, "Kernel.set_rel_chains: a dof is out of range");
+        max_rel_root_ = -1;
+        for (i64 k = 0; k < K; ++k) {
+            require(rel_roots_.data[k] >= 0, "Kernel.set_rel_chains: a root is negative");
+            max_rel_root_ = std::max(max_rel_root_, rel_roots_.data[k]);
+        }
+        rel_w_ = rel_jac;
+        cdof_.reset();
+    }
+
     // The CoM tasks' Jacobians computed by the kernel on each go() (model::subtree_com_jacobian,
     // from the MjData attach_chains holds): com_jac the kernel's (C, 3, nv) array, point and
     // root (C, nv) body ids and scale (C, nv) each task's per-dof chain
@@ -609,9 +636,11 @@ class Kernel {
     }
 
     void attach_chains(const In2& cdof, const In2& subtree_com) {
-        require(jac_w_.has_value() || com_w_.has_value(), "Kernel.attach_chains: no chains (Kernel.set_chains)");
+        require(jac_w_.has_value() || com_w_.has_value() || rel_w_.has_value(),
+                "Kernel.attach_chains: no chains (Kernel.set_chains)");
         require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6, "Kernel.attach_chains: cdof must have shape (nv, 6)");
-        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0) && max_com_body_ < dim(subtree_com, 0),
+        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0) && max_com_body_ < dim(subtree_com, 0) &&
+                    max_rel_root_ < dim(subtree_com, 0),
                 "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
         cdof_ = Chains{cdof, subtree_com};
     }
@@ -628,22 +657,43 @@ class Kernel {
 
     // The frames' Jacobians into jac (see set_chains).
     void frame_jacobians() {
+        const auto frame = [this](i64 f, i64& kind, i64& fid) {
+            kind = frames_.mat()(f, 0);
+            fid = frames_.mat()(f, 1);
+        };
+        chain_jacobians(frames_.rows, frame, jac_w_->data(), chain_starts_, chain_dofs_, chain_roots_);
+    }
+
+    // The relative-frame tasks' Jacobians into rel_jac (see set_rel_chains).
+    void rel_jacobians() {
+        const auto frame = [this](i64 k, i64& kind, i64& fid) {
+            kind = rel_frames_.mat()(k / 2, 2 * (k % 2));
+            fid = rel_frames_.mat()(k / 2, 2 * (k % 2) + 1);
+        };
+        chain_jacobians(2 * rel_frames_.rows, frame, rel_w_->data(), rel_starts_, rel_dofs_, rel_roots_);
+    }
+
+    // count frames' Jacobians (6, nv) into J, as mj_jac computes them: frame f (kind and id
+    // from frame(f, kind, id)) by its dof chain dofs[st[f]:st[f+1]] and its body's root roots[f].
+    template <class Frame>
+    void chain_jacobians(i64 count, const Frame& frame, double* J, const IndexCopy& starts, const IndexCopy& chain,
+                         const IndexCopy& roots) {
         const auto& t = *attached_;
         const auto& c = *cdof_;
-        double* J = jac_w_->data();
         const double* cdof = c.cdof.data();
         const double* com = c.subtree_com.data();
-        const i64* st = chain_starts_.data.data();
-        const i64* dofs = chain_dofs_.data.data();
+        const i64* st = starts.data.data();
+        const i64* dofs = chain.data.data();
         const i64 n = n_;
-        for (i64 f = 0; f < frames_.rows; ++f) {
+        for (i64 f = 0; f < count; ++f) {
             double* jp = J + f * 6 * n;
             double* jr = jp + 3 * n;
             std::fill(jp, jp + 6 * n, 0.0);
-            const i64 kind = frames_.mat()(f, 0), fid = frames_.mat()(f, 1);
+            i64 kind = 0, fid = 0;
+            frame(f, kind, fid);
             const auto& pos = kind == 0 ? t.sx : (kind == 1 ? t.x : t.gx);
             const double* point = pos.data() + 3 * fid;
-            const double* root = com + 3 * chain_roots_.data[f];
+            const double* root = com + 3 * roots.data[f];
             double offset[3];
             for (int k = 0; k < 3; ++k) offset[k] = point[k] - root[k];
             for (i64 e = st[f]; e < st[f + 1]; ++e) {
@@ -747,6 +797,10 @@ class Kernel {
         if (com_w_) {
             require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
             com_jacobians();
+        }
+        if (rel_w_) {
+            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
+            rel_jacobians();
         }
         const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
@@ -920,6 +974,9 @@ class Kernel {
         In2 cdof, subtree_com;
     };
     std::optional<Chains> cdof_;
+    std::optional<Out3> rel_w_;
+    IndexCopy rel_starts_, rel_dofs_, rel_roots_;
+    i64 max_rel_root_ = -1;
     std::optional<Out3> com_w_;
     IndexCopy com_point_, com_root_;
     std::vector<double> com_scale_;
@@ -1014,6 +1071,11 @@ void bind_diffik(nb::module_& m) {
              nb::arg("dofs"), nb::arg("roots"),
              "go() computes the frames' Jacobians itself (as MuJoCo's mj_jac): each frame's dof "
              "chain dofs[starts[f]:starts[f+1]] and its body's root roots[f]; jac the kernel's.")
+        .def("set_rel_chains", &Kernel::set_rel_chains, nb::arg("rel_jac").noconvert(), nb::arg("starts"),
+             nb::arg("dofs"), nb::arg("roots"),
+             "go() computes the relative-frame tasks' Jacobians too (as MuJoCo's mj_jac): rel_jac the "
+             "kernel's (R, 12, nv), read as 2R frames (each task's frame, then its root frame), frame k's "
+             "dof chain dofs[starts[k]:starts[k+1]] and its body's root roots[k].")
         .def("attach_chains", &Kernel::attach_chains, nb::arg("cdof"), nb::arg("subtree_com"),
              "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
         .def("set_com_chains", &Kernel::set_com_chains, nb::arg("com_jac").noconvert(), nb::arg("point"),

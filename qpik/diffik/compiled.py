@@ -5,7 +5,7 @@
 ``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
 ``CollisionAvoidanceLimit``; exact types); its layout (which task goes where) is
 :mod:`.layout`'s. Tasks the kernel computes itself:
-qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's
+qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``RelativeFrameTask`` (exact types, any joints), and qpik's ``CouplingTask`` when every
 coupling is linear (a URDF mimic, a joint equality of degree 1: a constant Jacobian and a
 residual over qpos, ``qpik/_cpp/tasks/linear.hpp``). Any other task (qpik's pose,
@@ -124,10 +124,10 @@ class CompiledPlan:
         # the tasks and limits _sources reads, in its order (the lists never change)
         self._frame_tasks = [f[0] for f in self.frames]
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
-        #: no CoM, relative-frame or row-supplying task, no general rows: once :meth:`_lean`
+        #: no CoM or row-supplying task, no general rows: once :meth:`_lean`
         #: attached a configuration, :meth:`qpik.IKSolver.step`'s plain lane calls the kernel
         #: (without correction passes; it reads _plain_data, law, _row, kernel, _cap, _out...)
-        self._plain = not (self.coms or self.relatives or self.rows_tasks or self.general_limits)
+        self._plain = not (self.coms or self.rows_tasks or self.general_limits)
         #: a plain plan's ``_data`` once its chains are that MjData's too (else _NO_DATA):
         #: the lane's one identity test for the three (kept by :meth:`_update_plain_data`)
         self._plain_data: object = _NO_DATA
@@ -148,6 +148,9 @@ class CompiledPlan:
                 self.kernel.set_chains(
                     self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
                 )
+            if self.relatives:  # and the relative frames' (each task's frame, then its root)
+                rel = self.arrays["rel_frames"].reshape(-1, 2)
+                self.kernel.set_rel_chains(self.arrays["rel_jac"], *frame_chains(self.model, rel))
             if self._com_chains:  # the kernel computes the CoM Jacobians too
                 chains = (np.stack(a) for a in zip(*self._com_chains))
                 self.kernel.set_com_chains(self.arrays["com_jac"], *chains)
@@ -388,20 +391,17 @@ class CompiledPlan:
         return all(given is None or t.body is given for t, _body, given, *_ in self.coms)
 
     def _jacobians(self, data: mujoco.MjData) -> None:
-        """MuJoCo's Jacobians of the relative-frame tasks into the plan (the kernel computes
-        the frames' and the CoMs' from ``data``'s ``cdof`` and ``subtree_com``)."""
-        model = self.model
+        """The kernel computes the frames', relative frames' and CoMs' Jacobians from
+        ``data``'s ``cdof`` and ``subtree_com`` (attached here); MuJoCo's CoM Jacobians where
+        the CoM tasks have no chains."""
         if data is not self._chain_data:
-            if self.frames or self._com_chains:  # the kernel computes the frames' (and CoMs')
+            if self.frames or self._com_chains or self.relatives:
                 self.kernel.attach_chains(data.cdof, data.subtree_com)
             self._chain_data = data
             self._update_plain_data()
         if not self._com_chains:
             for _task, body, _given, jac, _row in self.coms:
-                mujoco.mj_jacSubtreeCom(model, data, jac, body)
-        for _task, (ff, fid), (rf, rid), jac, _row in self.relatives:
-            ff(model, data, jac[0:3], jac[3:6], fid)
-            rf(model, data, jac[6:9], jac[9:12], rid)
+                mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
 
     def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
         """``passes`` second-order corrections of the lean step in row ``row`` of the
@@ -444,7 +444,7 @@ class CompiledPlan:
         if self.coms and not self._coms_unchanged():
             return -1
         data = configuration.data
-        if data is not self._chain_data or self.coms or self.relatives:
+        if data is not self._chain_data or self.coms:
             self._jacobians(data)
         if self.rows_tasks and not self._gather_rows(configuration):
             return -1
@@ -471,15 +471,16 @@ class CompiledPlan:
         damping: float,
         core,
         forced: bool,
+        resolve: bool = True,
     ) -> tuple | None:
-        """The kernel's step: ``(dq, v, info, general rows, qpos)`` (deferred sigma resolved),
-        None where the QP path must answer (``forced``: also where a level was not solved);
-        ``core``'s active sets updated."""
+        """The kernel's step: ``(dq, v, info, general rows, qpos)`` (deferred sigma resolved;
+        ``resolve=False``: left NaN), None where the QP path must answer (``forced``: also
+        where a level was not solved); ``core``'s active sets updated."""
         if not self.general_limits:
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
                 d, v, info, active, qpos, defer = self._out
-                info = resolved_info(info[row], defer[row])
+                info = resolved_info(info[row], defer[row]) if resolve else info[row]
                 if forced and any(s != _SOLVED_CODE for s in info[3].tolist()):
                     return None
                 core.warm_start_from_row(active, row)
@@ -671,7 +672,7 @@ class CompiledPlan:
         further (a forced backend without ``exact``, or a level it must answer)."""
         if core.solver != "auto" and not exact:
             return None
-        out = self._solve(configuration, dt, damping, core, core.solver != "auto")
+        out = self._solve(configuration, dt, damping, core, core.solver != "auto", False)
         if out is None:
             return None
         return out[1], [_STATUS_OF_CODE[s] for s in out[2][3].tolist()]

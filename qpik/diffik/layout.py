@@ -3,7 +3,7 @@ the kernel computes, where each one's rows and data go in the plan's arrays, and
 arrays, preallocated once per :class:`qpik.IKSolver`.
 
 Tasks the kernel computes itself (exact types; a subclass may change the rows): qpik's or
-mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, mink's
+mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``RelativeFrameTask``, and qpik's ``CouplingTask`` when every coupling is linear (kind
 ``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``). Any other task supplies
 its rows each step (kind ``ROWS_KIND``, laid out by its declared count).
@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import TargetNotSet
 from ..model.com import subtree_com_chain
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
-from ..tasks import DampingTask, FrameTask, PostureTask
+from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from .boxes import LimitBoxes
@@ -38,6 +38,8 @@ JACOBIANS = tuple(FRAME_JACOBIANS[FrameType(kind)] for kind in KINDS)
 #: Frame tasks computed in C++: qpik's, and mink's own class (same rows, mink's SE(3)
 #: arithmetic; equal to mink's to round-off). Exact types: a subclass may change the rows.
 FRAME_TYPES = (FrameTask, mink.FrameTask)
+#: Relative frame tasks: qpik's (mink's with qpik's errors) and mink's. Exact types.
+RELATIVE_TYPES = (RelativeFrameTask, mink.RelativeFrameTask)
 #: Posture-like tasks: mink's/qpik's PostureTask (rows ``diag(cost) J``, J the identity with
 #: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
 POSTURE_TYPES = (PostureTask, mink.PostureTask)
@@ -200,7 +202,7 @@ def declared_rows(task, nv: int) -> int:
 
 def task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> TaskLayout | None:
     """The layout of a stack: the tasks the kernel computes (qpik's or mink's FrameTask /
-    PostureTask / DampingTask / ComTask, mink's RelativeFrameTask, qpik's linear
+    PostureTask / DampingTask / ComTask / RelativeFrameTask, qpik's linear
     CouplingTask; exact types) and those that supply their rows (any other); None where a
     task the kernel computes names what the model lacks (the QP path reports it). Rows are
     laid out level by level, task by task."""
@@ -220,7 +222,7 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     """Enter ``task`` (level ``k``, first row ``row``) in ``layout``; its row count, None
     where it names what the model lacks."""
     kind, nv = type(task), model.nv
-    if kind in FRAME_TYPES or kind is mink.RelativeFrameTask:
+    if kind in FRAME_TYPES or kind in RELATIVE_TYPES:
         return _place_frame(layout, model, task, k, row)
     if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
         if np.shape(getattr(task, "cost", 0.0)) != (nv,):
@@ -253,7 +255,7 @@ def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: i
     frame = frame_entry(model, task.frame_type, task.frame_name)
     if frame is None:
         return None
-    if type(task) is mink.RelativeFrameTask:
+    if type(task) in RELATIVE_TYPES:
         root = frame_entry(model, task.root_type, task.root_name)
         if root is None:
             return None

@@ -240,7 +240,7 @@ class IKSolver:
         its kernel)."""
         start = _perf_counter()
         plan, core = self._plan, self._core
-        # The plain lane: the default solver's step by a plain plan (no CoM, relative-frame
+        # The plain lane: the default solver's step by a plain plan (no CoM
         # or row-supplying task, no general rows), without correction passes, when each
         # check of CompiledPlan._lean holds (the configuration's MjData attached with its
         # chains, the damping law's settings written, a free output row, a cold start):

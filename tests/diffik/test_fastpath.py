@@ -3,6 +3,8 @@ qpik.solve_ik: rows equal mink's, answers equal the general path's."""
 
 from __future__ import annotations
 
+import zlib
+
 import mink
 import numpy as np
 import pytest
@@ -390,7 +392,11 @@ def _compiled_equals_qp(solver: qpik.IKSolver, configuration, compiled: bool = T
         del solver._qp_step
     assert bool(calls) is not compiled
     general = qpik.StepResult.of(solver._qp_step(configuration, DT), 0.0, solver._coupling_level)
-    np.testing.assert_allclose(fused.velocity, general.velocity, rtol=0, atol=1e-12)
+    # (two computations of one answer, the rows summed in other orders: round-off, which an
+    # ill-conditioned level amplifies; 1e-11 of the velocity's size, at least 1e-11 rad/s.
+    # The DoF-freezing stack over 15,000 random states: at most 3.7e-12 of it.)
+    scale = max(1.0, float(np.abs(general.velocity).max()))
+    np.testing.assert_allclose(fused.velocity, general.velocity, rtol=0, atol=1e-11 * scale)
     assert fused.status == general.status
     for ours, theirs in zip(fused.certificate, general.certificate, strict=True):
         np.testing.assert_allclose(
@@ -447,7 +453,7 @@ def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     (its (H, c) factored as the QP path factors it) under a frame task, above a posture:
     the compiled step answers, equal to the QP path's."""
     model, configuration = panda
-    rng = np.random.default_rng(hash(kind) % 1000)
+    rng = np.random.default_rng(zlib.crc32(kind.encode()))  # (hash() of a str varies by process)
     task = _panda_kind(kind, model)
     frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.1)
     posture = mink.PostureTask(model, cost=0.05)

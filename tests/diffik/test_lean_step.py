@@ -164,3 +164,41 @@ def test_kernel_frame_jacobians_are_mujocos(robot):
         for f, (kind, fid) in enumerate(frames):
             expected = configuration.frame_jacobian(fid, kind)
             assert np.array_equal(plan.arrays["jac"][f], expected), (kind, fid)
+
+
+@pytest.mark.parametrize("robot", ["erd:talos", "panda"])
+def test_kernel_relative_frame_jacobians_are_mujocos(robot):
+    """The relative-frame tasks' Jacobians the lean step computes (Kernel.set_rel_chains)
+    are bitwise MuJoCo's, for the task's frame and its root frame alike; the step takes the
+    plain lane (no Python Jacobian calls) and equals a fresh solver's."""
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(8)
+    last, mid = model.body(model.nbody - 1).name, model.body(model.nbody // 2).name
+    pairs = [((last, "body"), (mid, "body")), ((mid, "body"), (model.body(0).name, "body"))]
+    if model.nsite:
+        pairs.append(((model.site(model.nsite - 1).name, "site"), (mid, "body")))
+    tasks = [
+        qpik.tasks.RelativeFrameTask(f, fk, r, rk, position_cost=1.0, orientation_cost=0.5)
+        for (f, fk), (r, rk) in pairs
+    ]
+    levels = [tasks, [qpik.tasks.PostureTask(model, 0.1)]]
+    solver = qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)])
+    plan = solver._plan
+    assert plan is not None and plan._plain and not plan.general_limits
+    plan.gather = lambda *args: pytest.fail("the lean step only")
+    for _ in range(4):
+        configuration.update(configuration.random_q(rng))
+        for task in tasks:
+            task.set_target_from_configuration(configuration)
+        levels[1][0].set_target(configuration.random_q(rng))
+        step = solver.step(configuration, DT)
+        assert configuration.data is plan._plain_data  # the plain lane
+        for r, task in enumerate(tasks):
+            frame = configuration.frame_jacobian(task.frame_name, task.frame_type)
+            root = configuration.frame_jacobian(task.root_name, task.root_type)
+            assert np.array_equal(plan.arrays["rel_jac"][r, :6], frame)
+            assert np.array_equal(plan.arrays["rel_jac"][r, 6:], root)
+        fresh = qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)])
+        fresh._plan.gather = plan.gather
+        assert np.array_equal(fresh.step(configuration, DT).velocity, step.velocity)
