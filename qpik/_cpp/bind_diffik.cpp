@@ -124,6 +124,32 @@ struct IndexCopy {
     MatRefT<const i64> mat() const { return MatRefT<const i64>(data.data(), rows, cols); }
 };
 
+// The dof chains of `count` frames whose Jacobians go() computes (Kernel.set_chains,
+// Kernel.set_rel_chains): frame f's dofs dofs[starts[f]:starts[f+1]] (each in [0, n)) and its
+// body's root roots[f] (>= 0; max_root the largest), checked; `who` names the caller in errors.
+struct DofChains {
+    IndexCopy starts, dofs, roots;
+    i64 max_root = -1;
+    template <class I1>
+    void assign(const I1& starts_, const I1& dofs_, const I1& roots_, i64 count, i64 n, const std::string& who) {
+        auto say = [&who](const char* what) { return who + ": " + what; };
+        starts.assign(starts_);
+        dofs.assign(dofs_);
+        roots.assign(roots_);
+        require(starts.rows == count + 1 && roots.rows == count,
+                say("starts must have one entry per frame and one more, roots one per frame").c_str());
+        const i64* st = starts.data.data();
+        require(st[0] == 0 && st[count] == dofs.rows, say("starts must run from 0 to len(dofs)").c_str());
+        for (i64 f = 0; f < count; ++f) require(st[f] <= st[f + 1], say("starts must not decrease").c_str());
+        check_dofs(dofs.vec(), n, say("a dof is out of range").c_str());
+        max_root = -1;
+        for (i64 f = 0; f < count; ++f) {
+            require(roots.data[f] >= 0, say("a root is negative").c_str());
+            max_root = std::max(max_root, roots.data[f]);
+        }
+    }
+};
+
 using Held1 = nb::ndarray<const double, nb::numpy, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using View1 = nb::ndarray<double, nb::numpy, nb::ndim<1>, nb::device::cpu>;  // any stride
 using Act3 = nb::ndarray<i8, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
@@ -565,20 +591,7 @@ class Kernel {
         const i64 F = frames_.rows;
         require(jac.data() == jac_.data() && dim(jac, 0) == F && dim(jac, 1) == 6 && dim(jac, 2) == n_,
                 "Kernel.set_chains: jac must be the kernel's jac");
-        chain_starts_.assign(starts);
-        chain_dofs_.assign(dofs);
-        chain_roots_.assign(roots);
-        require(chain_starts_.rows == F + 1 && chain_roots_.rows == F,
-                "Kernel.set_chains: starts must have F + 1 entries, roots F");
-        const i64* st = chain_starts_.data.data();
-        require(st[0] == 0 && st[F] == chain_dofs_.rows, "Kernel.set_chains: starts must run from 0 to len(dofs)");
-        for (i64 f = 0; f < F; ++f) require(st[f] <= st[f + 1], "Kernel.set_chains: starts must not decrease");
-        check_dofs(chain_dofs_.vec(), n_, "Kernel.set_chains: a dof is out of range");
-        max_root_ = -1;
-        for (i64 f = 0; f < F; ++f) {
-            require(chain_roots_.data[f] >= 0, "Kernel.set_chains: a root is negative");
-            max_root_ = std::max(max_root_, chain_roots_.data[f]);
-        }
+        frame_chains_.assign(starts, dofs, roots, F, n_, "Kernel.set_chains");
         jac_w_ = jac;
         cdof_.reset();
     }
@@ -588,24 +601,11 @@ class Kernel {
     // task r's frame, 2r + 1 its root frame (rel_frames' two pairs), each frame k's dofs
     // dofs[starts[k]:starts[k+1]] and its body's root roots[k].
     void set_rel_chains(Out3 rel_jac, const I1& starts, const I1& dofs, const I1& roots) {
-        const i64 R = rel_frames_.rows, K = 2 * R;
+        const i64 R = rel_frames_.rows;
         require(rel_jac.data() == rel_jac_.data() && dim(rel_jac, 0) == R && dim(rel_jac, 1) == 12 &&
                     dim(rel_jac, 2) == n_,
                 "Kernel.set_rel_chains: rel_jac must be the kernel's rel_jac");
-        rel_starts_.assign(starts);
-        rel_dofs_.assign(dofs);
-        rel_roots_.assign(roots);
-        require(rel_starts_.rows == K + 1 && rel_roots_.rows == K,
-                "Kernel.set_rel_chains: starts must have 2R + 1 entries, roots 2R");
-        const i64* st = rel_starts_.data.data();
-        require(st[0] == 0 && st[K] == rel_dofs_.rows, "Kernel.set_rel_chains: starts must run from 0 to len(dofs)");
-        for (i64 k = 0; k < K; ++k) require(st[k] <= st[k + 1], "Kernel.set_rel_chains: starts must not decrease");
-        check_dofs(rel_dofs_.vec(), n_, "Kernel.set_rel_chains: a dof is out of range");
-        max_rel_root_ = -1;
-        for (i64 k = 0; k < K; ++k) {
-            require(rel_roots_.data[k] >= 0, "Kernel.set_rel_chains: a root is negative");
-            max_rel_root_ = std::max(max_rel_root_, rel_roots_.data[k]);
-        }
+        rel_chains_.assign(starts, dofs, roots, 2 * R, n_, "Kernel.set_rel_chains");
         rel_w_ = rel_jac;
         cdof_.reset();
     }
@@ -639,8 +639,8 @@ class Kernel {
         require(jac_w_.has_value() || com_w_.has_value() || rel_w_.has_value(),
                 "Kernel.attach_chains: no chains (Kernel.set_chains)");
         require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6, "Kernel.attach_chains: cdof must have shape (nv, 6)");
-        require(dim(subtree_com, 1) == 3 && max_root_ < dim(subtree_com, 0) && max_com_body_ < dim(subtree_com, 0) &&
-                    max_rel_root_ < dim(subtree_com, 0),
+        require(dim(subtree_com, 1) == 3 && frame_chains_.max_root < dim(subtree_com, 0) &&
+                    max_com_body_ < dim(subtree_com, 0) && rel_chains_.max_root < dim(subtree_com, 0),
                 "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
         cdof_ = Chains{cdof, subtree_com};
     }
@@ -661,7 +661,7 @@ class Kernel {
             kind = frames_.mat()(f, 0);
             fid = frames_.mat()(f, 1);
         };
-        chain_jacobians(frames_.rows, frame, jac_w_->data(), chain_starts_, chain_dofs_, chain_roots_);
+        chain_jacobians(frames_.rows, frame, jac_w_->data(), frame_chains_);
     }
 
     // The relative-frame tasks' Jacobians into rel_jac (see set_rel_chains).
@@ -670,20 +670,19 @@ class Kernel {
             kind = rel_frames_.mat()(k / 2, 2 * (k % 2));
             fid = rel_frames_.mat()(k / 2, 2 * (k % 2) + 1);
         };
-        chain_jacobians(2 * rel_frames_.rows, frame, rel_w_->data(), rel_starts_, rel_dofs_, rel_roots_);
+        chain_jacobians(2 * rel_frames_.rows, frame, rel_w_->data(), rel_chains_);
     }
 
     // count frames' Jacobians (6, nv) into J, as mj_jac computes them: frame f (kind and id
     // from frame(f, kind, id)) by its dof chain dofs[st[f]:st[f+1]] and its body's root roots[f].
     template <class Frame>
-    void chain_jacobians(i64 count, const Frame& frame, double* J, const IndexCopy& starts, const IndexCopy& chain,
-                         const IndexCopy& roots) {
+    void chain_jacobians(i64 count, const Frame& frame, double* J, const DofChains& chains) {
         const auto& t = *attached_;
         const auto& c = *cdof_;
         const double* cdof = c.cdof.data();
         const double* com = c.subtree_com.data();
-        const i64* st = starts.data.data();
-        const i64* dofs = chain.data.data();
+        const i64* st = chains.starts.data.data();
+        const i64* dofs = chains.dofs.data.data();
         const i64 n = n_;
         for (i64 f = 0; f < count; ++f) {
             double* jp = J + f * 6 * n;
@@ -693,7 +692,7 @@ class Kernel {
             frame(f, kind, fid);
             const auto& pos = kind == 0 ? t.sx : (kind == 1 ? t.x : t.gx);
             const double* point = pos.data() + 3 * fid;
-            const double* root = com + 3 * roots.data[f];
+            const double* root = com + 3 * chains.roots.data[f];
             double offset[3];
             for (int k = 0; k < 3; ++k) offset[k] = point[k] - root[k];
             for (i64 e = st[f]; e < st[f + 1]; ++e) {
@@ -968,15 +967,13 @@ class Kernel {
     std::optional<Outputs> out_;
     BVec cold_;
     std::optional<Out3> jac_w_;
-    IndexCopy chain_starts_, chain_dofs_, chain_roots_;
-    i64 max_root_ = -1;
+    DofChains frame_chains_;
     struct Chains {
         In2 cdof, subtree_com;
     };
     std::optional<Chains> cdof_;
     std::optional<Out3> rel_w_;
-    IndexCopy rel_starts_, rel_dofs_, rel_roots_;
-    i64 max_rel_root_ = -1;
+    DofChains rel_chains_;
     std::optional<Out3> com_w_;
     IndexCopy com_point_, com_root_;
     std::vector<double> com_scale_;
