@@ -71,7 +71,11 @@ solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the retu
   where that is larger, counted up to that largest size only: a component the objective
   leaves out, a dof that only the active rows hold, carries the round-off of their
   cancellation, while nearly dependent active rows whose huge multipliers cancel to their
-  own round-off still prove nothing), the largest;
+  own round-off still prove nothing), the largest; where the candidate's multipliers leave
+  it failing, the same with no multipliers (the objective's own gradient: a level whose
+  gradient vanishes at the point to round-off, such as a slack level at ``s = 0`` with rows
+  active at a degenerate vertex, is a KKT point with zero multipliers; dual and
+  complementarity are then 0);
 * ``dual``: a multiplier of the wrong sign, ``max(0, -u_j) |Z^T c_j| / S`` with ``S`` the
   largest stationarity size;
 * ``complementarity``: ``|u_j| |Z^T c_j| / S`` times row ``j``'s scaled distance to its bound.

@@ -321,3 +321,45 @@ def test_a_singular_objective_is_solved_exactly():
     # s; the dofs x, which it leaves out, are not).
     floored = HierarchySolver(damping_law=None).solve(_singular_problem(1e-14)[0])
     np.testing.assert_allclose(result.x[-k:], floored.x[-k:], rtol=0, atol=1e-12)
+
+
+def _slack_level(seed: int):
+    """A slack level (the recovery's shape, qpik.diffik.recovery): objective 1/2 |s|^2 on k
+    slacks only, nx dofs x in a box that the objective leaves out, rows G x - s <= h."""
+    rng = np.random.default_rng(seed)
+    nx, k = int(rng.integers(3, 30)), int(rng.integers(2, 15))
+    A = np.hstack([np.zeros((k, nx)), np.eye(k)])
+    G = np.hstack([rng.normal(size=(k, nx)), -np.eye(k)])
+    h = rng.normal(size=k) - 0.5
+    box = rng.uniform(0.01, 0.1)
+    lb = np.concatenate([np.full(nx, -box), np.full(k, -np.inf)])
+    ub = np.concatenate([np.full(nx, box), np.full(k, np.inf)])
+    return HierarchyProblem([Level(A, np.zeros(k), 0.0)], lb, ub, G, h), nx
+
+
+# seeds 195, 306, 395, ...: the optimum puts s on 0 with a row active at a degenerate vertex
+# (the objective's gradient vanishes there): numerical_failure before the zero-multiplier
+# certificate (certify.hpp)
+@pytest.mark.parametrize(
+    "seeds", [range(0, 60), [195, 306, 395, 431, 547, 550, 662, 682, 683, 741, 766, 778]]
+)
+def test_slack_levels_are_solved_exactly(seeds):
+    """Slack levels in the exact mode: every one solved, at quadprog's optimum (1e-10 |x|^2
+    added for strict convexity), every row met. Where the optimum has s = 0 with a row
+    active, the certificate holds with zero multipliers (the candidate's are round-off)."""
+    for seed in seeds:
+        problem, nx = _slack_level(seed)
+        result = HierarchySolver(damping_law=None).solve(problem)
+        assert result.status == [LevelStatus.SOLVED], (seed, result.certificate)
+        assert result.certificate[0].holds
+        s = result.x[nx:]
+        G, h, lb, ub = problem.G, problem.h, problem.lb, problem.ub
+        assert (G @ result.x - h).max() <= 1e-9 * (1 + np.abs(h).max())
+        assert np.all(result.x >= lb - 1e-12) and np.all(result.x <= ub + 1e-12)
+        n = problem.n
+        P = problem.levels[0].A.T @ problem.levels[0].A + 1e-10 * np.eye(n)
+        fin_l, fin_u = np.isfinite(lb), np.isfinite(ub)
+        C = np.vstack([-G, np.eye(n)[fin_l], -np.eye(n)[fin_u]]).T
+        b0 = np.concatenate([-h, lb[fin_l], -ub[fin_u]])
+        ref = quadprog.solve_qp(P, np.zeros(n), C, b0)[0][nx:]
+        assert 0.5 * s @ s <= 0.5 * ref @ ref * (1 + 1e-6) + 1e-12, seed

@@ -848,7 +848,7 @@ struct CertScratch {
     detail::LsScratch ls;
     Mat N, BW;
     Vec rhs, t, row, f0, y, wy, e, g, r;
-    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc, ms, msc;  // certify_level
+    Vec gnorm, gx, v, vs, sc, ssc, zg, dx, zc, hs, hsc, ms, msc, v0;  // certify_level
     Vec rres, rsize, radx;              // certify_level's kept rows
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
@@ -1292,7 +1292,9 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 // null-space or full-space coordinates (big); or by the size of the multipliers' terms,
 // |Z|^T sum_j u_j |c_j|, where that is larger, counted up to big only (a component the
 // objective leaves out carries their cancellation's round-off; nearly dependent active
-// rows whose huge multipliers cancel are still not certified). Dual:
+// rows whose huge multipliers cancel are still not certified); where that fails, the same
+// with u = 0 (the objective's own gradient), which, where it holds, certifies the point with
+// zero multipliers (dual and complementarity 0). Dual:
 // max_j max(0, -u_j) |Z^T c_j| / S, S the largest of those sizes.
 // Complementarity: max_j |u_j| |Z^T c_j| / S times row j's scaled distance to its bound.
 
@@ -1612,7 +1614,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     // ms: the sizes of the multipliers' terms, |u_k c_k| summed per entry (for the scale below,
     // where they count up to the level's largest objective size only).
     Vec& ms = ws.ms;
-    if (q > 0) zero_fill(ms, static_cast<size_t>(n));
+    Vec& v0 = ws.v0;  // the objective's own gradient, before the multipliers' terms
+    if (q > 0) {
+        zero_fill(ms, static_cast<size_t>(n));
+        v0.assign(v.begin(), v.begin() + n);
+    }
     for (i64 k = 0; k < q; ++k) {
         double lam = u[k] * static_cast<double>(act_side[k]);
         i64 row = act_row[k];
@@ -1716,6 +1722,33 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         if (q > 0) ss = pymax(ss, pymin(msc[c], big));
         if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
         else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
+    }
+    // No multipliers at all: where the candidate's leave stationarity failing, the same point
+    // with u = 0, the objective's own gradient against the same scale without the
+    // multipliers' terms. Where that holds, the point is a KKT point with zero multipliers
+    // (dual and complementarity 0): a level whose gradient vanishes at the point to its
+    // round-off (an objective at its minimum, 0 on a flat level; degenerate rows active with
+    // round-off multipliers, whose terms are then the only ones in a component the objective
+    // leaves out).
+    if (q > 0 && !(stat <= kCertify)) {
+        double stat0 = 0.0;
+        for (i64 c = 0; c < r; ++c) {
+            double s0 = 0.0;
+            if (eye) {
+                s0 = v0[c];
+            } else {
+                for (i64 i = 0; i < n; ++i) s0 += Z(i, c) * v0[i];
+            }
+            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
+            if (ss > 0.0) stat0 = pymax(stat0, std::fabs(s0) / ss);
+            else if (s0 != 0.0 || std::isnan(s0)) stat0 = kInf;
+        }
+        if (stat0 <= kCertify) {
+            cert.stationarity = stat0;
+            cert.dual = 0.0;
+            cert.complementarity = 0.0;
+            return cert;
+        }
     }
     cert.stationarity = stat;
     double dual = 0.0, comp = 0.0;
