@@ -90,6 +90,10 @@ clipped, so the levels above keep ``A_j x`` to round-off); the final answer's ro
 outside the box (at most ``1e-12 (1 + |bound|)``) is put back on the bound, and its rows are
 rechecked (:attr:`HierarchyResult.primal`).
 
+**Infeasibility** (level 0) is checked before it is reported: the dual method on the identity
+Hessian seeks a point meeting every row (a nearly singular ``H``'s floor can mislead it); where
+one is found, the level is solved from it, as above.
+
 **Warm starts** only change which active set the dual method tries first; every answer ends
 in the same canonical re-solve, so a warm start gives bitwise the cold start's answer when the
 optimal active set is unique (and the same point to round-off at degenerate vertices, where

@@ -105,6 +105,10 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
+    // the feasibility check of a level-0 infeasibility claim (feasible_after_all)
+    Mat eye;
+    Vec zeros;
+    BVec cold_rows;
     double h_reg = 0.0;  // reduced_objective's reg where it left H to make_h (h_later)
     Vec e, c1, c2, Gd, zd, Zz, Ad;
     // drop_pinned
@@ -2991,6 +2995,38 @@ inline void certify_unreached(CascadeResult& res, CMatRef A, CVecRef b, VecRefT<
 // of the same sizes; nothing of a previous result is read), but for a caller that reads
 // no residuals (residuals false) or no primal (primal false): where every level was
 // reached, those are then left as they are (not computed; nothing else depends on them).
+namespace detail {
+// The check of the dual method's infeasibility claim at level 0: where H is nearly singular
+// (a level that leaves dofs out, no regularisation), its floor can make the dual method stop
+// on a row it could meet (rows with empty interior, such as an equality written as two
+// inequalities, at a tight box). The nearest point to z = 0 that meets the rows is found by
+// the same dual method on the identity Hessian (well conditioned, c = 0); where that finds a
+// point the rows hold at (certified primal feasibility), the level is solved by exact_level
+// from it (its candidates, then the primal active set from that feasible point) and true is
+// returned with z, cert and the final active set written. Where it finds none, the claim
+// stands (false; nothing written but scratch).
+inline bool feasible_after_all(const ReducedQP& qp, const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z,
+                               const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, i64 max_iter, double tol,
+                               const double* gsq, const double* ztd, bool z_eye, Workspace& ws, Vec& z,
+                               Certificate& cert, IVec& final_rows, IVec& final_sides) {
+    const i64 r = qp.H.rows, m = qp.C.rows;
+    ws.eye.set_eye(r);
+    ws.zeros.assign(static_cast<size_t>(r), 0.0);
+    ws.cold_rows.assign(static_cast<size_t>(m), 0);
+    QPResult feas = solve_level(ws.eye.cref(), CVecRef(ws.zeros), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
+                                VecRefT<const i8>(ws.cold_rows.data(), m), max_iter, tol, false, false, true, ws.qps,
+                                false);
+    if (feas.status != SOLVED || feas.x.size() != static_cast<size_t>(r)) return false;
+    Vec& x = ws.cs.xx;
+    x.resize(d.size());
+    add_step(Z, d, feas.x, z_eye, ws.cs.xZz, x);
+    if (!(certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq, z_eye).primal <= kCertify))
+        return false;
+    return exact_level(feas, ls, qp, Ak, bk, rho, Z, d, lb, ub, G, h, max_iter, false, z, cert, final_rows,
+                       final_sides, &ws.cs, nullptr, nullptr, gsq, ztd, z_eye, nullptr);
+}
+}  // namespace detail
+
 inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
@@ -3102,7 +3138,13 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
                                    factored);
         res.iterations[k] = sol.iterations;
         i64 st = sol.status;
-        if (st == INFEASIBLE && k == 0) {
+        if (st == INFEASIBLE && k == 0 &&
+            detail::feasible_after_all(qp, ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, tol, gsq, ztd, z_eye,
+                                       ws, z, cert, final_rows, final_sides)) {
+            // The dual method's claim did not hold: the level solved from a feasible point.
+            st = SOLVED;
+            exact = true;
+        } else if (st == INFEASIBLE && k == 0) {
             // No optimum to certify: primal feasibility at the point returned; the other
             // measures do not apply and are 0.
             cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq);
