@@ -70,12 +70,12 @@ REFERENCES = ("daqp", "quadprog")  # independent exact QP solvers (qpsolvers bac
 REFERENCE_VIOLATION = 1e-9
 
 
-def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
+def exact_reference(solver: qpik.IKSolver, configuration, result) -> tuple[dict, dict]:
     """Largest difference, in dq, between the core's answer to each level's reduced QP and
     each reference solver's answer to the same reduced QP (built along the core's own
     cascade: the same null-space basis, the same damping, the level above's answer), per
-    reference; NaN where a reference fails, and under ``"infeasible " + name`` the count of
-    levels where its answer violates the rows (:data:`REFERENCE_VIOLATION`; not compared)."""
+    reference (NaN where a reference fails); and per reference, the count of levels where
+    its answer violates the rows (:data:`REFERENCE_VIOLATION`; not compared)."""
     problem = solver.build(configuration, DT)
     n = problem.n
     A, b, w, starts, reg = problem.stacked()
@@ -83,6 +83,7 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
     d = np.clip(np.zeros(n), lb, ub)
     Z = np.eye(n)
     worst = dict.fromkeys(REFERENCES, 0.0)
+    infeasible: dict = {}
     available = [name for name in REFERENCES if name in qpsolvers.available_solvers]
     for k in range(len(problem.levels)):
         s0, s1 = starts[k], starts[k + 1]
@@ -104,13 +105,12 @@ def exact_reference(solver: qpik.IKSolver, configuration, result) -> dict:
             if y is None or status != K.SOLVED:
                 worst[name] = float("nan")
             elif (Gq @ y - hq > REFERENCE_VIOLATION * (1.0 + np.abs(hq))).any():
-                key = "infeasible " + name
-                worst[key] = worst.get(key, 0) + 1
+                infeasible[name] = infeasible.get(name, 0) + 1
             elif not np.isnan(worst[name]):
                 worst[name] = max(worst[name], float(np.abs(Z @ (z - y)).max()))
         d = np.clip(d + Z @ z, lb, ub)
         Z = Zn
-    return {name: value for name, value in worst.items() if name in available or " " in name}
+    return {name: worst[name] for name in available}, infeasible
 
 
 CPU_TIMES: dict = {}  # method -> CPU times [us] of the last time_methods call
@@ -185,10 +185,11 @@ def compare(title, states, set_state, methods, solvers, reference="mink + daqp, 
             if active is not None:
                 counts += active.any(axis=1)
             if i % stride == 0:
-                for ref, difference in exact_reference(solver, c, result).items():
-                    if ref.startswith("infeasible "):
-                        infeasible[ref[11:]] = infeasible.get(ref[11:], 0) + difference
-                    elif np.isnan(difference):
+                differences, off_rows = exact_reference(solver, c, result)
+                for ref, count in off_rows.items():
+                    infeasible[ref] = infeasible.get(ref, 0) + count
+                for ref, difference in differences.items():
+                    if np.isnan(difference):
                         failed += 1
                     else:
                         worst[ref] = max(worst.get(ref, 0.0), difference)
