@@ -360,12 +360,25 @@ class IKSolver:
         """The step for any stack: the tasks' and limits' own rows, then the core's
         cascade; where level 0 is infeasible, again on the relaxable rows relaxed by their
         least slack (:mod:`qpik.diffik.recovery`)."""
+        return self._recovered(
+            configuration, dt, lambda tasks, limits: solve_rows(self._core, tasks, limits, dt)
+        )
+
+    def _recovered(
+        self,
+        configuration: Configuration,
+        dt: float,
+        solve: Callable[[TaskRows, LimitRows], Solution],
+    ) -> Solution:
+        """``solve`` on the step's rows (:meth:`_recoverable_rows`); where its first stack
+        level is infeasible and a limit may relax, ``solve`` again on the relaxable rows
+        relaxed by their least slack (:meth:`_relaxed`)."""
         tasks, limits = self._recoverable_rows(configuration, dt)
-        solution = solve_rows(self._core, tasks, limits, dt)
+        solution = solve(tasks, limits)
         slack = self._slack(solution, limits)
         if slack is None:
             return solution
-        return self._relaxed(lambda rows: solve_rows(self._core, tasks, rows, dt), limits, slack)
+        return self._relaxed(lambda rows: solve(tasks, rows), limits, slack)
 
     def _recoverable_rows(
         self, configuration: Configuration, dt: float
@@ -420,18 +433,13 @@ class IKSolver:
         again with the same rows, damping and limits."""
         if self._aux is None:
             self._aux = Configuration(self.model)
-        tasks, limits = self._recoverable_rows(configuration, dt)
         levels, aux = self._levels, self._aux
-        solution = qp_corrected(self._core, levels, configuration, dt, passes, (tasks, limits), aux)
-        slack = self._slack(solution, limits)
-        if slack is None:
-            return solution
-        return self._relaxed(
-            lambda relaxed: qp_corrected(
-                self._core, levels, configuration, dt, passes, (tasks, relaxed), aux
+        return self._recovered(
+            configuration,
+            dt,
+            lambda tasks, limits: qp_corrected(
+                self._core, levels, configuration, dt, passes, (tasks, limits), aux
             ),
-            limits,
-            slack,
         )
 
     def _exact_core(self) -> HierarchySolver:
