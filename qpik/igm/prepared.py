@@ -17,7 +17,7 @@ import numpy as np
 
 from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays, kernels
 from ..model.configuration import Configuration, FrameType
-from ..model.couplings import closed_chain_start, model_couplings, unheld_equalities
+from ..model.couplings import default_start, model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
 from .kernels import start_box
 from .targets import FrameKey
@@ -102,11 +102,8 @@ class PreparedRobot:
         self.coupling_memo: tuple[bytes, float] | None = None
         #: the active equalities no level holds (connect, weld, ...): checked at the end
         self.unheld = unheld_equalities(model)
-        mid = model.qpos0.copy()
-        limited = np.isfinite(lower) & np.isfinite(upper)
-        mid[limited] = 0.5 * (lower[limited] + upper[limited])
         #: the default start: mid-range, the closed chains of unheld equalities at qpos0
-        self.mid = closed_chain_start(model, mid, lower, upper, self.unheld)
+        self.mid = default_start(model, lower, upper, self.unheld)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
 

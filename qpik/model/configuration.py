@@ -26,7 +26,7 @@ from ..errors import (
     JointLimitViolation,
     LimitDefinitionError,
 )
-from .couplings import closed_chain_start
+from .couplings import default_start
 from .frames import (
     FRAME_JACOBIANS,
     FRAME_POSITIONS,
@@ -348,10 +348,7 @@ class Configuration(mink.Configuration):
         closed chains that the model's connect or weld constraints close (a gripper's
         linkage) at ``qpos0`` where that meets those constraints better
         (:func:`qpik.model.couplings.closed_chain_start`): the default start of full IK."""
-        q = self.model.qpos0.copy()
-        limited = np.isfinite(self._lower) & np.isfinite(self._upper)
-        q[limited] = 0.5 * (self._lower[limited] + self._upper[limited])
-        return closed_chain_start(self.model, q, self._lower, self._upper)
+        return default_start(self.model, self._lower, self._upper)
 
     def velocity_limits(self) -> np.ndarray | None:
         """Joint velocity limits ``(nv,)`` [rad/s or m/s] from the model's custom numeric

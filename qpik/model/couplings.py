@@ -46,6 +46,7 @@ from .frames import check_model_type
 __all__ = [
     "Couplings",
     "closed_chain_start",
+    "default_start",
     "equality_dofs",
     "model_couplings",
     "unheld_equalities",
@@ -345,3 +346,16 @@ def closed_chain_start(
     ):
         return candidate
     return q
+
+
+def default_start(
+    model: mujoco.MjModel, lower: np.ndarray, upper: np.ndarray, unheld: np.ndarray | None = None
+) -> np.ndarray:
+    """Full IK's default start ``(nq,)``: ``qpos0`` with every joint limited on both sides
+    (``lower``, ``upper``: ``(nq,)`` [rad or m]) at mid-range, then the closed chains of the
+    unheld equalities at ``qpos0`` where that meets them better (:func:`closed_chain_start`;
+    ``unheld``: their ids where the caller has them)."""
+    q = model.qpos0.copy()
+    limited = np.isfinite(lower) & np.isfinite(upper)
+    q[limited] = 0.5 * (lower[limited] + upper[limited])
+    return closed_chain_start(model, q, lower, upper, unheld)
