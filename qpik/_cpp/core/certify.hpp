@@ -19,6 +19,10 @@ namespace qpik::core {
 constexpr double kCertify = 1e-9;     // a level is SOLVED only when every scaled measure is <= this
 constexpr double kRowsRelative = 1e-6;  // rows hold to this relative to |bound| + max|x| (rows_relative)
 constexpr double kLsRank = 1e-14;     // |R_ii| <= this * |R_00| is a zero pivot of a least-squares QR
+constexpr double kLsRankRef = 1e-13;  // ... and so is |R_ii| <= this * the untransformed matrix's largest column
+                                      // norm (lstsq_into's ref): a column that reflections made of round-off
+                                      // (seen at 1e-14 ref; a near-singular level's least pivot, 3.6e-13 ref in the
+                                      // oracle sweep's seed 20261211, is a rank)
 constexpr double kSizeFloor = 1e-6;   // a stationarity component's scale is at least this x the largest
 constexpr double kDropRoundOff = 1e-14;  // primal_active_set: a multiplier (times its row's norm) above -this x the
                                           // gradient's size (ls_gradient_size) is round-off, never dropped
@@ -518,7 +522,12 @@ inline void sparse_qr_steps(Mat& M, Vec& f, IVec& perm, Vec& norms, LsScratch& w
 // least norm.
 // sparse: M is mostly exact zeros (B = [A Z; sqrt(rho) I] itself), where the Householder
 // steps skip the rows they cannot touch (sparse_qr_steps: the same bits).
-inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint = false) {
+// ref: the largest column norm of the matrix M was reflected from (eqp_ls's B, of which M = B W
+// with W's columns orthonormal), 0 where M is that matrix itself. A pivot at or below kLsRankRef
+// ref is zero whatever |R_00|: where every direction left is flat (B W zero but for round-off,
+// about eps |B| times the reflections made), the relative test alone took round-off pivots for a
+// rank and the step divided by them (|y| ~ 1e13 |f| / |B|).
+inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint = false, double ref = 0.0) {
     i64 m = M.rows, k = M.cols;
     if (k == 0 || m == 0) {
         zero_fill(y, static_cast<size_t>(k));
@@ -578,7 +587,7 @@ inline void lstsq_into(Mat& M, Vec& f, Vec& y, LsScratch& ws, bool sparse_hint =
     double top = std::fabs(M(0, 0));
     i64 rank = 0;
     for (i64 i = 0; i < steps; ++i) {
-        if (std::fabs(M(i, i)) > kLsRank * top && top > 0.0) rank = i + 1;
+        if (std::fabs(M(i, i)) > kLsRank * top && top > 0.0 && std::fabs(M(i, i)) > kLsRankRef * ref) rank = i + 1;
         else break;
     }
     Vec& yp = ws.yp;
@@ -1120,7 +1129,17 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
             detail::ls_mv_into(ls, z.data(), f0);
             for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
-            detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg);
+            // (B W from B by reflections where q > 0: its pivots judged against B's scale too)
+            double ref = 0.0;
+            if (q > 0) {
+                for (i64 j = 0; j < r; ++j) {
+                    double cs = 0.0;
+                    for (i64 i = 0; i < mb; ++i) cs += ls.B(i, j) * ls.B(i, j);
+                    ref = pymax(ref, cs);
+                }
+                ref = std::sqrt(ref);
+            }
+            detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg, ref);
         }
         Vec& wy = ws.wy;
         zero_prefix(wy, static_cast<size_t>(r));  // read through its first r entries
