@@ -11,7 +11,11 @@ and its least-squares QR took those pivots for a rank, since it judged them only
 own largest pivot. Its step divided by them (a point 3e15 off its rows), and the primal
 active set that followed inherited such steps (stationarity 1.2e-9 to 2.8e-9, above the
 certificate's 1e-9). A pivot is now zero also where it is below 1e-13 of the untransformed
-``B``'s largest column norm (``kLsRankRef``, ``qpik/_cpp/core/certify.hpp``).
+``B``'s largest column norm (``kLsRankRef``, ``qpik/_cpp/core/certify.hpp``). A rarer case
+(1 in 3,000: a lower level on a flat direction, one general row active) ended
+``kept_previous`` at stationarity 1.5e-9: the round-off of the null-space basis's entries
+(a few eps of the level's largest gradient size) against a floor of 1e-6 of that size
+(``kSizeFloor``), now 1e-5.
 Reference: quadprog on the level's objective plus ``1e-10 |x|^2`` (strictly convex)."""
 
 from __future__ import annotations
@@ -88,3 +92,22 @@ def test_the_family_is_solved_level_by_level():
         result = solver.solve(problem)
         assert all(s is LevelStatus.SOLVED for s in result.status), result.status
         assert np.all(problem.G @ result.x - problem.h <= 1e-9 * (1 + np.abs(problem.h)))
+
+
+def test_flat_lower_level_is_solved():
+    """Two levels (data/exactness/flat_lower_level.npz): level 1 sees no dof of the working
+    set's null space (flat), one general row active; it ended kept_previous (stationarity
+    1.5e-9, all round-off of the null-space basis), and is now solved with its rows met."""
+    z = np.load(DATA / "flat_lower_level.npz")
+    levels = [Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"])) for k in range(int(z["L"]))]
+    problem = HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
+    result = HierarchySolver(damping_law=None).solve(problem)
+    assert result.status == [LevelStatus.SOLVED] * 2, result.certificate
+    assert all(c.holds for c in result.certificate)
+    assert np.all(problem.G @ result.x - problem.h <= 1e-9 * (1 + np.abs(problem.h)))
+    # level 0 is kept exactly where it was: the level below moves only where it sees nothing
+    alone = HierarchySolver(damping_law=None).solve(
+        HierarchyProblem(levels[:1], *[z[k] for k in ("lb", "ub", "G", "h")])
+    )
+    A0 = z["A0"]
+    assert np.allclose(A0 @ result.x, A0 @ alone.x, atol=1e-12)

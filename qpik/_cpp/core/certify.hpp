@@ -23,7 +23,7 @@ constexpr double kLsRankRef = 1e-13;  // ... and so is |R_ii| <= this * the untr
                                       // norm (lstsq_into's ref): a column that reflections made of round-off
                                       // (seen at 1e-14 ref; a near-singular level's least pivot, 3.6e-13 ref in the
                                       // oracle sweep's seed 20261211, is a rank)
-constexpr double kSizeFloor = 1e-6;   // a stationarity component's scale is at least this x the largest
+constexpr double kSizeFloor = 1e-5;   // a stationarity component's scale is at least this x the largest
 constexpr double kDropRoundOff = 1e-14;  // primal_active_set: a multiplier (times its row's norm) above -this x the
                                           // gradient's size (ls_gradient_size) is round-off, never dropped
 constexpr double kNearDependent = 1e-8;  // a row within this angle of the working set's span is
