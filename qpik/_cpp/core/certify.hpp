@@ -1735,12 +1735,35 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             }
         }
     }
-    double stat = 0.0;
-    for (i64 c = 0; c < r; ++c) {
-        double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
-        if (q > 0) ss = pymax(ss, pymin(msc[c], big));
-        if (ss > 0.0) stat = pymax(stat, std::fabs(sc[c]) / ss);
-        else if (sc[c] != 0.0 || std::isnan(sc[c])) stat = kInf;
+    // floor: the size the floor kSizeFloor takes its share of (big, or the data's below)
+    double floor = big;
+    auto stationarity_at = [&]() {
+        double st = 0.0;
+        for (i64 c = 0; c < r; ++c) {
+            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * floor);
+            if (q > 0) ss = pymax(ss, pymin(msc[c], big));
+            if (ss > 0.0) st = pymax(st, std::fabs(sc[c]) / ss);
+            else if (sc[c] != 0.0 || std::isnan(sc[c])) st = kInf;
+        }
+        return st;
+    };
+    double stat = stationarity_at();
+    if (!(stat <= kCertify)) {
+        // A level whose gradient vanishes at its answer to within its terms' round-off, where
+        // those terms are themselves round-off (rows that no dof moves, their targets out of
+        // reach; the rows that do move met exactly): the least-squares solve mixes every row
+        // of B and f (Householder), so eps max|A| max|b| reaches every component whatever the
+        // terms that survive in it. The floor takes that size too (only where the test failed
+        // on the others: every certificate that held is the same).
+        double amax = 0.0;
+        for (i64 i = 0; i < m; ++i) {
+            const double* ai = A.row(i);
+            for (i64 j = 0; j < n; ++j) amax = pymax(amax, std::fabs(ai[j]));
+        }
+        if (amax * bmax > floor) {
+            floor = amax * bmax;
+            stat = stationarity_at();
+        }
     }
     // No multipliers at all: where the candidate's leave stationarity failing, the same point
     // with u = 0, the objective's own gradient against the same scale without the
@@ -1758,7 +1781,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             } else {
                 for (i64 i = 0; i < n; ++i) s0 += Z(i, c) * v0[i];
             }
-            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * big);
+            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * floor);
             if (ss > 0.0) stat0 = pymax(stat0, std::fabs(s0) / ss);
             else if (s0 != 0.0 || std::isnan(s0)) stat0 = kInf;
         }
