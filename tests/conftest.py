@@ -81,6 +81,10 @@ def has_erd() -> bool:
     return True
 
 
+#: Skips a test where example-robot-data (the robots extra) is not installed.
+requires_erd = pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
+
+
 def load_or_skip(name: str):
     """``qpik.load_robot(name)`` with its warnings silenced (an example-robot-data URDF's
     dropped collision meshes); the test is skipped where the robot does not load here."""

@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import has_erd
 
 from qpik.cli import main
 from qpik.cli.bench import BENCHMARKS, harness
@@ -150,17 +151,9 @@ def test_cli_bench_unknown_robot_exits_2(capsys):
 
 
 # ------------------------------------------------------------------ pink (qpik[compare])
-def _has_erd() -> bool:
-    from importlib import metadata
-
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
 
 
-_PINK_ROBOTS = ["ur5e", "panda"] + (["erd:panda", "erd:ur5", "erd:kinova"] if _has_erd() else [])
+_PINK_ROBOTS = ["ur5e", "panda"] + (["erd:panda", "erd:ur5", "erd:kinova"] if has_erd() else [])
 
 
 @pytest.mark.parametrize("robot", _PINK_ROBOTS)
@@ -187,7 +180,7 @@ def test_pinocchio_robot_matches_mujoco(robot, rng):
     np.testing.assert_array_equal(robot_pin.v_to_mujoco(robot_pin.v_to_pinocchio(v)), v)
 
 
-@pytest.mark.parametrize("robot", ["ur5e", "panda"] + (["erd:panda"] if _has_erd() else []))
+@pytest.mark.parametrize("robot", ["ur5e", "panda"] + (["erd:panda"] if has_erd() else []))
 def test_pink_method_solves_small_targets(robot):
     pytest.importorskip("pinocchio")
     pytest.importorskip("pink")
@@ -222,7 +215,7 @@ def test_cli_bench_outside_a_checkout_says_so(monkeypatch, tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ issue 20's peers
-_ERD_ARMS = ["erd:panda", "erd:ur5"] if _has_erd() else []
+_ERD_ARMS = ["erd:panda", "erd:ur5"] if has_erd() else []
 
 
 def test_oneshot_method_solves_small_targets():

@@ -3,23 +3,13 @@
 
 from __future__ import annotations
 
-from importlib import metadata
 from pathlib import Path
 
 import pytest
+from conftest import requires_erd
 
 from qpik.cli import main
 
-
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
 

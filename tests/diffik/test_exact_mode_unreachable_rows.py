@@ -13,27 +13,17 @@ also takes ``max|A| max|b|`` where the test fails on the terms alone
 
 from __future__ import annotations
 
-from importlib import metadata
-
 import mink
 import numpy as np
 import pytest
+from conftest import requires_erd
 
 import qpik
 from qpik.core import HierarchySolver
 from qpik.limits import velocity_limit_from_model
 from qpik.tasks import FrameTask, PostureTask
 
-
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-pytestmark = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+pytestmark = requires_erd
 
 
 @pytest.mark.parametrize("body", ["panda_link0", "panda_link1", "panda_link2"])

@@ -4,23 +4,15 @@ its support polygon, no joint position or velocity limit crossed."""
 from __future__ import annotations
 
 import runpy
-from importlib import metadata
 from pathlib import Path
 
 import pytest
+from conftest import has_erd
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "humanoid_talos.py"
 
 
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-@pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+@pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
 def test_humanoid_stack_holds_the_feet_and_the_limits(capsys):
     run = runpy.run_path(str(EXAMPLE), run_name="example")["run"]
     figures = run(steps=8)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from conftest import configuration_of
+from conftest import configuration_of, has_erd
 
 import qpik
 from qpik import statics
@@ -426,14 +426,6 @@ def test_public_api():
 
 
 # ------------------------------------------------------------- effort ranges (URDF)
-def _has_erd() -> bool:
-    from importlib import metadata
-
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
 
 
 JOINT_EFFORTS = """
@@ -469,7 +461,7 @@ def test_joint_effort_ranges_are_torque_limits_where_no_actuator_drives():
     np.testing.assert_array_equal(limits[2], [0, 0])  # neither: passive
 
 
-@pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
+@pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
 def test_erd_ur5_statics_uses_the_urdf_efforts():
     import warnings
     import xml.etree.ElementTree as ET

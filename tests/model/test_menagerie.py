@@ -6,12 +6,12 @@ example-robot-data."""
 from __future__ import annotations
 
 import warnings
-from importlib import metadata
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
+from conftest import requires_erd
 from scipy.spatial import ConvexHull
 
 import qpik
@@ -32,17 +32,6 @@ MENAGERIE = Path(__file__).resolve().parents[1] / "data" / "menagerie"
 
 def menagerie(name: str, **kwargs) -> mujoco.MjModel:
     return qpik.load_robot(MENAGERIE / f"{name}.xml", **kwargs)
-
-
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
 
 
 def _moved_by_gripper(model: mujoco.MjModel, body: int) -> bool:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import math
 import warnings
-from importlib import metadata
 
 import mujoco
 import numpy as np
 import pytest
+from conftest import has_erd, requires_erd
 
 import qpik
 from qpik.robots import ERD_ROBOTS
@@ -97,15 +97,7 @@ def test_urdf_with_fixed_tool_link_and_dae_mesh(tmp_path):
         np.testing.assert_allclose(rotation[:, 0], fore_y, atol=1e-9)
 
 
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-@pytest.mark.skipif(not _has_erd(), reason="example-robot-data not installed (qpik[robots])")
+@pytest.mark.skipif(not has_erd(), reason="example-robot-data not installed (qpik[robots])")
 @pytest.mark.parametrize("name", ["panda", "ur5"])
 def test_erd_robots_load_with_tool_frames(name):
     with warnings.catch_warnings():
@@ -116,7 +108,7 @@ def test_erd_robots_load_with_tool_frames(name):
 
 
 def test_erd_unknown_name_lists_known(monkeypatch):
-    if not _has_erd():
+    if not has_erd():
         pytest.skip("example-robot-data not installed")
     with pytest.raises(qpik.UnknownRobot, match="erd:panda"):
         qpik.load_robot("erd:nonexistent")
@@ -124,7 +116,6 @@ def test_erd_unknown_name_lists_known(monkeypatch):
 
 
 # ------------------------------------------------------------ example-robot-data
-requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
 
 
 def _quiet_load(source, **kwargs):
@@ -134,7 +125,7 @@ def _quiet_load(source, **kwargs):
 
 
 def _erd_names() -> list[str]:
-    return list(qpik.robots.erd_robots()) if _has_erd() else []
+    return list(qpik.robots.erd_robots()) if has_erd() else []
 
 
 def _check_erd_robot(name):

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import warnings
-from importlib import metadata
 
 import mujoco
 import numpy as np
 import pytest
+from conftest import has_erd
 
 import qpik
 from qpik.limits import geom_distance
@@ -31,17 +31,9 @@ ROBOT_ARRAYS = [
 ]
 
 
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
 def _sources():
     sources = [("panda", False), ("ur5e", False)]
-    if _has_erd():
+    if has_erd():
         sources += [("erd:panda", False), ("erd:talos", True)]
     return sources
 

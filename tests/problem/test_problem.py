@@ -10,6 +10,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from conftest import has_erd
 
 import qpik
 from qpik.problem import TASK_TYPES, problem_files
@@ -30,14 +31,6 @@ CONVERGED = {
 }
 
 
-def _has_erd() -> bool:
-    try:
-        qpik.robots.erd_robots_folder()
-    except qpik.QpikError:
-        return False
-    return True
-
-
 #: Shipped files that need example-robot-data (the robots extra).
 NEEDS_ERD = {"talos_both_hands"}
 
@@ -51,7 +44,7 @@ def solved():
     return {
         path.stem: qpik.load_problem(path).solve()
         for path in TASKS
-        if path.stem not in NEEDS_ERD or _has_erd()
+        if path.stem not in NEEDS_ERD or has_erd()
     }
 
 

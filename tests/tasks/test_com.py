@@ -4,28 +4,16 @@ square support and under an IK that pushes the CoM out."""
 from __future__ import annotations
 
 import warnings
-from importlib import metadata
 
 import mink
 import mujoco
 import numpy as np
 import pytest
-from conftest import central_difference, configuration_of
+from conftest import central_difference, configuration_of, has_erd, requires_erd
 
 import qpik
 from qpik.limits import SupportPolygonLimit, joint_limits
 from qpik.tasks import ComTask
-
-
-def _has_erd() -> bool:
-    try:
-        metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        return False
-    return True
-
-
-requires_erd = pytest.mark.skipif(not _has_erd(), reason="needs qpik[robots]")
 
 # A floating box (the "pelvis") on four point feet at (+-0.2, +-0.1) and an arm that moves
 # the CoM: the support polygon is the rectangle [-0.2, 0.2] x [-0.1, 0.1].
@@ -63,7 +51,7 @@ def _models():
         ("panda", qpik.load_robot("panda")),
         ("quadruped", mujoco.MjModel.from_xml_string(QUADRUPED)),
     ]
-    if _has_erd():
+    if has_erd():
         models.append(("talos", _talos()))
     return models
 
