@@ -3104,6 +3104,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
         const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
         Certificate cert;
+        bool kept_optimal = false;  // no candidate certified, but the kept point d is an optimum
         Vec& z = ws.z;
         IVec& final_rows = ws.final_rows;
         IVec& final_sides = ws.final_sides;
@@ -3157,10 +3158,20 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
                                         stops ? &tried : nullptr, gsq, ztd, z_eye, &ws.qps);
-            if (!exact && std::isnan(cert.primal)) {
-                // No candidate to certify: the certificate of the point the level keeps
-                // (x = d, no working set), so it says which conditions fail there.
-                cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs, gsq);
+            if (!exact) {
+                // No candidate certified: the certificate of the point the level keeps (x = d,
+                // no working set). Where it holds, d is itself an optimum (the level's gradient
+                // vanishes there in Z, every row met: a level whose rows no free direction
+                // moves, or that the levels above already met) and the level is solved there.
+                // Else, where no candidate was certified at all, it says which conditions fail.
+                Certificate at_d = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, true, &ws.cs,
+                                                 gsq);
+                if (at_d.holds() && at_d.rows_relative) {
+                    kept_optimal = true;
+                    cert = at_d;
+                } else if (std::isnan(cert.primal)) {
+                    cert = at_d;
+                }
             }
         }
         double* ck = res.certificate.data() + 4 * k;
@@ -3168,8 +3179,12 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         ck[1] = cert.stationarity;
         ck[2] = cert.dual;
         ck[3] = cert.complementarity;
-        if (!exact) std::memcpy(res.active.data() + k * (n + p), sol.active.data(), static_cast<size_t>(n + p));
-        if (exact) {
+        if (!exact && !kept_optimal)
+            std::memcpy(res.active.data() + k * (n + p), sol.active.data(), static_cast<size_t>(n + p));
+        if (kept_optimal) {
+            // d stays; no working set (the row was zeroed when res.active was sized)
+            res.status[k] = SOLVED;
+        } else if (exact) {
             // Projected, not clipped: a lower level moves only in Z (A_j x of the levels
             // above stays put to round-off); its certificate covers the rows' feasibility.
             // d + Z z, as exact_level computed it for the certificate that held (ws.cs.xx: the
