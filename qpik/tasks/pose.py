@@ -38,8 +38,11 @@ def checked_position(value: npt.ArrayLike, what: str = "position target") -> np.
     return checks.check_vector(what, value, 3, error=InvalidTarget).copy()
 
 
-def checked_rotation(value: npt.ArrayLike, what: str = "rotation target") -> np.ndarray:
-    """A copy of ``value`` as a rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
+def checked_rotation(value: npt.ArrayLike | mink.SO3, what: str = "rotation target") -> np.ndarray:
+    """A copy of ``value`` (a rotation matrix (3, 3), or mink's :class:`~mink.SO3`) as a
+    rotation matrix (3, 3); :class:`InvalidTarget` otherwise."""
+    if isinstance(value, mink.SO3):
+        value = value.as_matrix()
     rotation = _numbers(value, what)
     if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
         raise InvalidTarget(f"{what} must be a finite 3x3 matrix, got {rotation!r}")
@@ -114,8 +117,9 @@ class OrientationTask(_FrameRowsTask):
     k = 3
     _cost_name = "orientation cost"
 
-    def set_target(self, rotation: npt.ArrayLike) -> None:
-        """Target rotation matrix (3, 3) of the frame in the world frame."""
+    def set_target(self, rotation: npt.ArrayLike | mink.SO3) -> None:
+        """Target rotation of the frame in the world frame: a rotation matrix (3, 3) or
+        mink's :class:`~mink.SO3`."""
         self.target = checked_rotation(rotation)
 
     def set_target_from_configuration(self, configuration: Configuration) -> None:
@@ -171,8 +175,21 @@ class PoseTask(mink.Task):
         self.target_position: np.ndarray | None = None
         self.target_rotation: np.ndarray | None = None
 
-    def set_target(self, position: npt.ArrayLike, rotation: npt.ArrayLike) -> None:
-        """Target position [m] and rotation matrix, in the world frame."""
+    def set_target(
+        self, position: npt.ArrayLike | mink.SE3, rotation: npt.ArrayLike | mink.SO3 | None = None
+    ) -> None:
+        """Target pose in the world frame: a position (3,) [m] and a rotation (a matrix (3, 3)
+        or mink's :class:`~mink.SO3`), or one mink :class:`~mink.SE3` (``rotation`` left
+        out)."""
+        if isinstance(position, mink.SE3):
+            if rotation is not None:
+                raise InvalidTarget(
+                    "PoseTask.set_target: give one mink.SE3, or a position and a rotation"
+                )
+            rotation = position.rotation()
+            position = position.translation()
+        elif rotation is None:
+            raise InvalidTarget("PoseTask.set_target: rotation is missing (or give one mink.SE3)")
         self.target_position = checked_position(position)
         self.target_rotation = checked_rotation(rotation)
 

@@ -81,3 +81,26 @@ def test_pose_task_equals_position_and_orientation_tasks(rng):
         ),
         atol=1e-12,
     )
+
+
+def test_world_frame_tasks_take_mink_lie_groups():
+    """OrientationTask and PoseTask take mink's SO3 / SE3 as targets, the same as matrices."""
+    import mink
+
+    from qpik.tasks import OrientationTask, PoseTask
+
+    rotation = mink.SO3.exp(np.array([0.1, -0.2, 0.3]))
+    position = np.array([0.1, 0.2, 0.3])
+    by_group, by_matrix = OrientationTask("link1", "body"), OrientationTask("link1", "body")
+    by_group.set_target(rotation)
+    by_matrix.set_target(rotation.as_matrix())
+    np.testing.assert_array_equal(by_group.target, by_matrix.target)
+    pose, pose_matrix = PoseTask("link1", "body"), PoseTask("link1", "body")
+    pose.set_target(mink.SE3.from_rotation_and_translation(rotation, position))
+    pose_matrix.set_target(position, rotation.as_matrix())
+    np.testing.assert_allclose(pose.target_position, pose_matrix.target_position, atol=1e-15)
+    np.testing.assert_allclose(pose.target_rotation, pose_matrix.target_rotation, atol=1e-15)
+    with pytest.raises(qpik.InvalidTarget, match="rotation is missing"):
+        pose.set_target(position)
+    with pytest.raises(qpik.InvalidTarget, match="one mink.SE3"):
+        pose.set_target(mink.SE3.identity(), rotation)
