@@ -49,3 +49,44 @@ def test_unreachable_rows_step_is_solved(body):
             assert all(s.value == "solved" for s in core.status)
             assert all(c.holds for c in core.certificate)
             configuration.integrate_inplace(result.velocity, 0.01)
+
+
+def test_relative_task_between_rigidly_attached_frames():
+    """A relative-frame task between two frames no joint separates (UR5's ``tool0`` and
+    ``wrist_3_link``: its rows are round-off, its target out of reach) over a posture met at
+    the start: the posture level cancels level 0's round-off move, and ended kept_previous at
+    stationarity 0.7 (the core problem of one such step: data/exactness/step_cancels_its_start.npz); now solved."""
+    from qpik.tasks import RelativeFrameTask
+
+    model = qpik.load_robot("erd:ur5")
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    task = RelativeFrameTask("tool0", "body", "wrist_3_link", "body", 1.0, 1.0)
+    posture = PostureTask(model, 0.1)
+    posture.set_target(model.qpos0)
+    configuration = qpik.Configuration(model, qpik.Configuration(model).mid_q())
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        task.set_target(mink.SE3.from_translation(rng.normal(size=3) * 0.2))
+        solver = qpik.IKSolver(model, [[task], [posture]], limits)
+        result = solver.step(configuration, 0.01)
+        assert all(s.value == "solved" for s in result.status), result.certificate
+
+
+def test_core_problem_of_a_cancelled_step_is_certified():
+    """data/exactness/step_cancels_its_start.npz, cold and warm: every level solved, its
+    certificate holding, level 0's task values kept by the posture level."""
+    from pathlib import Path
+
+    from qpik.core import HierarchyProblem, Level
+
+    z = np.load(
+        Path(__file__).resolve().parents[1] / "data" / "exactness" / "step_cancels_its_start.npz"
+    )
+    levels = [
+        Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]), z[f"w{k}"]) for k in range(int(z["L"]))
+    ]
+    problem = HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
+    for warm in (False, True):
+        result = HierarchySolver(damping_law=None, warm_start=warm).solve(problem)
+        assert all(s.value == "solved" for s in result.status), result.certificate
+        assert all(c.holds for c in result.certificate)

@@ -1662,7 +1662,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     auto certify = [&](const Vec& zc) {
         add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C);
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C, abs_max(zc));
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -2242,7 +2242,8 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
     auto certified = [&]() {
         x.resize(static_cast<size_t>(n));
         add_step(Z, d, z, z_eye, Zz, x);
-        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye);
+        cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye, nullptr,
+                             abs_max(z));
         return cert.holds() && cert.rows_relative;
     };
     i64 made_rows = 0;  // the rows of B zref residual_free made (es.f0)

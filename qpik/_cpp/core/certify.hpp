@@ -1298,6 +1298,13 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
     return false;
 }
 
+// max_i |v_i| (pymax's value: no NaN ever wins; 0 for an empty v).
+inline double abs_max(const Vec& v) {
+    double m = 0.0;
+    for (double e : v) m = pymax(m, std::fabs(e));
+    return m;
+}
+
 // The certificate of level (A, b, rho) at x = d + Z z (full space), the working set's rows
 // (act_row, act_side; box rows 0..n-1, general rows n..n+p-1) with multipliers u >= 0 of
 // their normals side * c_row. Every row of the problem (lb <= x <= ub, G x <= h) is checked
@@ -1320,7 +1327,8 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
 inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, const Vec& x, CVecRef lb,
                                  CVecRef ub, CMatRef G, CVecRef h, const IVec& act_row, const IVec& act_side,
                                  const Vec& u, i64 q, bool stationarity = true, CertScratch* scratch = nullptr,
-                                 const double* gsq = nullptr, bool z_eye = false, const Mat* C = nullptr) {
+                                 const double* gsq = nullptr, bool z_eye = false, const Mat* C = nullptr,
+                                 double zmax = 0.0) {
     // gsq: |G_j|^2 per general row as summed below (row_sq_of), when the caller has them.
     // z_eye: Z is exactly the identity (n, n); its products below are then written without
     // forming them where every term is finite (the same bits, see there).
@@ -1436,11 +1444,13 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     dx.resize(static_cast<size_t>(n));  // every entry written below
     bool eye = z_eye && Z.rows == n && r == n;
     bool zfin = eye;  // every entry of Z finite (known where it is the identity; else from zc below)
+    double zx_used = 0.0;  // the null-space size dx was made from (zx below)
     if (eye && xfin) {
         // Z = I, x finite: abs_axpy_max's sums zc_c = +0 + ... + |x_c| + ..., every other
         // term 0 |x_i| = +0, are |x_c|; each row's largest |Z_ic| is 1, so dx_i = 1 zx = zx,
         // zx = max_c |x_c| over c < r = n: xmax.
         for (i64 i = 0; i < n; ++i) dx[i] = xmax;
+        zx_used = xmax;
     } else {
         Vec& zc = ws.zc;
         zero_prefix(zc, static_cast<size_t>(r));
@@ -1457,6 +1467,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             zfin &= std::isfinite(zc[c]);
         }
         for (i64 i = 0; i < n; ++i) dx[i] *= zx;
+        zx_used = zx;
     }
     // Per row i: res_i = A_i x - b_i, size_i = |b_i| + sum |A_ij x_j|, adx_i = sum |A_ij| dx_j
     // (each summed in order of j); the rows with all three +-0 left out (their terms add
@@ -1764,6 +1775,15 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             floor = amax * bmax;
             stat = stationarity_at();
         }
+    }
+    if (!(stat <= kCertify) && zmax > zx_used && zx_used > 0.0 && std::isfinite(zmax)) {
+        // A step that cancels the point it started from (x = d + Z z, |z| far above |Z^T x|:
+        // a level whose optimum is near 0, the levels above left d away from it) carries the
+        // round-off of its null-space coordinates z, not of x's own: the same term hs with
+        // zx = max |z| (dx, hs and hsc are linear in zx), where the test failed on the others.
+        const double scale = zmax / zx_used;
+        for (i64 c = 0; c < r; ++c) hsc[c] *= scale;
+        stat = stationarity_at();
     }
     // No multipliers at all: where the candidate's leave stationarity failing, the same point
     // with u = 0, the objective's own gradient against the same scale without the
