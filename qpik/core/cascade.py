@@ -53,9 +53,9 @@ change ``A_k x`` along them by at most ``rank_tol * max(1, sigma_max) |dx|``.
 it runs with a Tikhonov floor ``1e-14 (1 + max diag H)`` where ``rho_k + lambda_k^2`` is
 smaller; it only *finds the active set*. The answer is then re-solved on that canonical
 active set (rows with a positive multiplier, by row) as an equality-constrained least-squares
-problem in ``[A_k Z; sqrt(rho) I]`` without any added regularisation (pivoted QR, basic
-solution; pivots below ``1e-14 |R_00|`` are zero), and **certified** at the returned point
-``x = d + Z z``:
+problem in ``[A_k Z; sqrt(rho) I]`` without any added regularisation (pivoted QR, least-norm
+step; pivots below ``1e-14 |R_00|`` or 1e-13 of the rows' scale are zero), and **certified**
+at the returned point ``x = d + Z z``:
 
 * ``primal``: every box row ``(lb - x) / (1 + |lb|)``, ``(x - ub) / (1 + |ub|)`` and general
   row ``(g x - h) / (|g| + |h|)``, the largest positive one;
