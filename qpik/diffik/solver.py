@@ -409,9 +409,10 @@ class IKSolver:
         return solution
 
     def _recoverable(self, solution: Solution) -> bool:
-        """Whether ``solution``'s first stack level is infeasible and a limit's rows may be
-        relaxed (:func:`qpik.diffik.boxes.relaxable`): the recovery's case."""
-        return solution.status[int(self._coupling_level)] == LevelStatus.INFEASIBLE and any(
+        """Whether ``solution``'s first level is infeasible (the couplings' where the model
+        has couplings: no level below is then reached) and a limit's rows may be relaxed
+        (:func:`qpik.diffik.boxes.relaxable`): the recovery's case."""
+        return solution.status[0] == LevelStatus.INFEASIBLE and any(
             relaxable(limit) for limit in self._limits.limits
         )
 
