@@ -86,3 +86,104 @@ def test_random_stacks_are_solved_and_no_worse_than_the_reference(name, damping)
             configuration.integrate_inplace(result.velocity, 0.01)
     assert total["worse"] == 0 and total["violation"] == 0, total
     assert total["compared"] >= 0.8 * total["solved"], total
+
+
+def _any_task(model, bodies, rng):
+    """One task of a random type on random bodies (the types of qpik.tasks a stack mixes)."""
+    from qpik import tasks
+
+    body = bodies[int(rng.integers(len(bodies)))]
+    other = bodies[int(rng.integers(len(bodies)))]
+    kind = int(rng.integers(0, 8))
+    if kind == 0:
+        return tasks.ComTask(cost=1.0)
+    if kind == 1:
+        return tasks.RelativeFrameTask(
+            body, "body", other, "body", 1.0, float(rng.choice([0.0, 1.0]))
+        )
+    if kind == 2:
+        return tasks.PositionTask(body, "body")
+    if kind == 3:
+        return tasks.OrientationTask(body, "body")
+    if kind == 4:
+        return tasks.AxisAlignTask(body, "body")
+    if kind == 5:
+        return tasks.JointLimitDistanceTask(cost=1.0)
+    if kind == 6:
+        return tasks.DampingTask(model, 1.0)
+    return FrameTask(body, "body", position_cost=1.0, orientation_cost=1.0)
+
+
+def _aim(task, configuration, rng) -> None:
+    """A random target near the task's current value (0.2 m, 0.3 rad)."""
+    from qpik import tasks
+
+    if isinstance(task, tasks.ComTask):
+        task.set_target(configuration.data.subtree_com[1] + rng.normal(size=3) * 0.1)
+    elif isinstance(task, tasks.RelativeFrameTask):
+        task.set_target(mink.SE3.from_translation(rng.normal(size=3) * 0.2))
+    elif isinstance(task, tasks.PositionTask):
+        p = configuration.frame_pose(task.frame_name, "body")[0]
+        task.set_target(p + rng.normal(size=3) * 0.2)
+    elif isinstance(task, tasks.OrientationTask):
+        R = configuration.frame_pose(task.frame_name, "body")[1]
+        task.set_target(mink.SO3.exp(rng.normal(size=3) * 0.3) @ mink.SO3.from_matrix(R))
+    elif isinstance(task, tasks.AxisAlignTask):
+        v = rng.normal(size=3)
+        task.set_target(v / np.linalg.norm(v))
+    elif isinstance(task, FrameTask):
+        p, R = configuration.frame_pose(task.frame_name, "body")
+        rotation = mink.SO3.from_matrix(R)
+        task.set_target(
+            mink.SE3.from_rotation_and_translation(rotation, p + rng.normal(size=3) * 0.2)
+        )
+
+
+@pytest.mark.parametrize(
+    "name, damping",
+    [
+        ("erd:panda", 0.0),
+        ("erd:kinova", 0.0),
+        ("erd:talos", 0.0),
+        ("erd:ur5", None),
+        ("erd:g1_29dof_rev_1_0", None),
+    ],
+)
+def test_stacks_of_every_task_type(name, damping):
+    """1-3 levels of 1-2 tasks of any type over a posture: every level solved; in the exact
+    mode (damping 0), level by level no worse than quadprog's. ``damping=None``: the default
+    options (the damping law; no oracle: its damping is the law's). The exact mode's Kinova
+    stack (a damping task and an orientation at one level) found the dependent working sets
+    of ``exact_level``. Not here: erd's Romeo, where a posture level at a vertex of 27 nearly
+    dependent rows (multipliers 1e6 against a gradient of 0.02) is left kept_previous."""
+    model = load_or_skip(name)
+    bodies = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, i) for i in range(1, model.nbody)]
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    rng = np.random.default_rng(11)
+    keywords = {} if damping is None else {"damping": damping, "damping_law": None}
+    total = Counter()
+    for _ in range(25):
+        levels = [
+            [_any_task(model, bodies, rng) for _ in range(int(rng.integers(1, 3)))]
+            for _ in range(int(rng.integers(1, 4)))
+        ]
+        posture = PostureTask(model, 0.1)
+        posture.set_target(model.qpos0)
+        levels.append([posture])
+        solver = qpik.IKSolver(model, levels, limits, **keywords)
+        configuration = qpik.Configuration(model, qpik.Configuration(model).mid_q())
+        for _ in range(3):
+            for level in levels[:-1]:
+                for task in level:
+                    _aim(task, configuration, rng)
+            result = solver.step(configuration, 0.01)
+            assert all(s is LevelStatus.SOLVED for s in result.status), (
+                [s.value for s in result.status],
+                [type(t).__name__ for lv in levels for t in lv],
+                [(c.primal, c.stationarity, c.dual) for c in result.certificate],
+            )
+            if damping is not None:
+                problem, oracle = _oracle_problem(solver, configuration, 0.01)
+                total += compare(oracle, HierarchySolver(damping_law=None).solve(problem))
+            configuration.integrate_inplace(result.velocity, 0.01)
+    assert total["worse"] == 0 and total["violation"] == 0, total

@@ -1632,6 +1632,41 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
 // active set without regularisation, then certified; else the primal active set from a
 // feasible point, certified. Returns true with z, the working set and the certificate when
 // one of them holds; else false with the best candidate's certificate.
+// The rows of the working set (rows, sides: C's rows, their signs; the first q) that are
+// independent in order: each kept unless its normal side_j C[row_j] lies within kDependent of
+// the span of those kept before it (the test eqp_ls makes of the whole set, on R's diagonal).
+inline void independent_rows(CMatRef C, const IVec& rows, const IVec& sides, i64 q, IVec& kept_rows,
+                             IVec& kept_sides) {
+    const i64 r = C.cols;
+    kept_rows.clear();
+    kept_sides.clear();
+    ImplicitQR qr;
+    qr.r = r;
+    qr.q = 0;
+    shape(qr.R, r, 0);
+    Vec col(static_cast<size_t>(r));
+    double scale = 0.0;
+    for (i64 j = 0; j < q && qr.q < r; ++j) {
+        const double side = static_cast<double>(sides[j]);
+        const double* cj = C.row(rows[j]);
+        double norm = 0.0;
+        for (i64 i = 0; i < r; ++i) {
+            col[i] = side * cj[i];
+            norm += col[i] * col[i];
+        }
+        const i64 k = qr.q;
+        qr.append(col.data());
+        const double pivot = std::fabs(qr.R(k, k));
+        if (!(pivot > kDependent * pymax(pymax(scale, std::sqrt(norm)), 1e-300))) {
+            qr.truncate(k);
+            continue;
+        }
+        scale = pymax(scale, pivot);
+        kept_rows.push_back(rows[j]);
+        kept_sides.push_back(sides[j]);
+    }
+}
+
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
@@ -1732,6 +1767,27 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             if (certify(zc)) {
                 z = zc;
                 return true;
+            }
+        }
+        if (!have_dual && q > 0) {
+            // The working set's rows depend on one another in Z (eqp_ls declined it: a row
+            // within kDependent of the others' span, as box rows whose Z rows are parallel):
+            // the same re-solve on its independent rows, in order (each row the others left
+            // out is met where they are, to that tolerance; the certificate checks every row).
+            IVec kept_rows, kept_sides;
+            detail::independent_rows(qp.C.cref(), rows, sides, q, kept_rows, kept_sides);
+            if (static_cast<i64>(kept_rows.size()) < q) {
+                rows = kept_rows;
+                sides = kept_sides;
+                const i64 qk = static_cast<i64>(rows.size());
+                if (eqp_ls(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), rows, sides, qk, zref, zc, u, nullptr,
+                           cs)) {
+                    have_dual = true;
+                    if (certify(zc)) {
+                        z = zc;
+                        return true;
+                    }
+                }
             }
         }
     }
