@@ -1628,10 +1628,6 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
 inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
                          const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u);
 
-// One level made exact: the dual active set's rows (sol) re-solved on their canonical
-// active set without regularisation, then certified; else the primal active set from a
-// feasible point, certified. Returns true with z, the working set and the certificate when
-// one of them holds; else false with the best candidate's certificate.
 // The rows of the working set (rows, sides: C's rows, their signs; the first q) that are
 // independent in order: each kept unless its normal side_j C[row_j] lies within kDependent of
 // the span of those kept before it (the test eqp_ls makes of the whole set, on R's diagonal).
@@ -1667,6 +1663,10 @@ inline void independent_rows(CMatRef C, const IVec& rows, const IVec& sides, i64
     }
 }
 
+// One level made exact: the dual active set's rows (sol) re-solved on their canonical
+// active set without regularisation, then certified; else the primal active set from a
+// feasible point, certified. Returns true with z, the working set and the certificate when
+// one of them holds; else false with the best candidate's certificate.
 inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk,
                         double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h,
                         i64 max_iter, bool lower, Vec& z, Certificate& cert, IVec& final_rows,
@@ -1697,7 +1697,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     auto certify = [&](const Vec& zc) {
         add_step(Z, d, zc, z_eye, es.xZz, x);
         Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u,
-                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C, abs_max(zc));
+                                      static_cast<i64>(rows.size()), true, cs, gsq, z_eye, &qp.C,
+                                      max_abs(zc, static_cast<i64>(zc.size())));
         if (c.worst() < best || std::isnan(cert.primal)) {
             best = c.worst();
             cert = c;
@@ -2299,7 +2300,7 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         x.resize(static_cast<size_t>(n));
         add_step(Z, d, z, z_eye, Zz, x);
         cert = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, 0, true, &es, gsq, z_eye, nullptr,
-                             abs_max(z));
+                             max_abs(z, static_cast<i64>(z.size())));
         return cert.holds() && cert.rows_relative;
     };
     i64 made_rows = 0;  // the rows of B zref residual_free made (es.f0)

@@ -1129,14 +1129,15 @@ inline bool eqp_ls(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, const IV
             }
             detail::ls_mv_into(ls, z.data(), f0);
             for (i64 i = 0; i < mb; ++i) f0[i] = ls.f[i] - f0[i];
-            // (B W from B by reflections where q > 0: its pivots judged against B's scale too)
+            // (B W from B by reflections where q > 0: its pivots judged against B's scale too,
+            // its largest column norm; B's column sums into lstsq_into's norms, which it
+            // overwrites before it reads them)
             double ref = 0.0;
             if (q > 0) {
-                for (i64 j = 0; j < r; ++j) {
-                    double cs = 0.0;
-                    for (i64 i = 0; i < mb; ++i) cs += ls.B(i, j) * ls.B(i, j);
-                    ref = pymax(ref, cs);
-                }
+                Vec& norms = ws.ls.norms;
+                if (norms.size() < static_cast<size_t>(r)) norms.resize(static_cast<size_t>(r));
+                col_sq(ls.B.a.data(), ls.B.cols, 0, mb, 0, r, norms.data());
+                for (i64 j = 0; j < r; ++j) ref = pymax(ref, norms[j]);
                 ref = std::sqrt(ref);
             }
             detail::lstsq_into(BW, f0, y, ws.ls, q == 0 && ls.reg, ref);
@@ -1296,13 +1297,6 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
         act_side.erase(act_side.begin() + drop);
     }
     return false;
-}
-
-// max_i |v_i| (pymax's value: no NaN ever wins; 0 for an empty v).
-inline double abs_max(const Vec& v) {
-    double m = 0.0;
-    for (double e : v) m = pymax(m, std::fabs(e));
-    return m;
 }
 
 // The certificate of level (A, b, rho) at x = d + Z z (full space), the working set's rows
