@@ -1692,6 +1692,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     u.clear();
     cert = Certificate{};
     double best = kInf;
+    es.has_best = false;
+    double best_feasible = kInf;
     Vec& x = es.xx;
     zero_fill(x, static_cast<size_t>(n));
     auto certify = [&](const Vec& zc) {
@@ -1713,6 +1715,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
                 }
             }
             return true;
+        }
+        if (c.primal <= kCertify && c.rows_relative && c.worst() < best_feasible) {
+            // (a feasible candidate not certified: kept for certified_by_refined_multipliers,
+            // which the cascade tries last)
+            best_feasible = c.worst();
+            es.xbest = zc;
+            es.has_best = true;
         }
         return false;
     };
@@ -2633,6 +2642,253 @@ inline Vec nnls(const Mat& M, const Vec& y) {
     return u;
 }
 
+// A row is active at a candidate's point, for certified_by_refined_multipliers, where its
+// slack is at most this times its scale (1 + |bound|; a general row's |G_j| + |h_j|).
+constexpr double kRefinedActive = 1e-12;
+
+// The last fallback of a level that no candidate certified (exact_level, then the point the
+// level keeps): the feasible candidate exact_level certified best (es.xbest), with its
+// multipliers found again and its stationarity summed in extended precision.
+//
+// At a degenerate vertex (more rows active than free directions, some of them nearly
+// dependent in Z) every set of multipliers that makes the gradient vanish can be huge (2e6
+// against a gradient of 1e-2): the gradient is a difference of nearly parallel normals.
+// Rounded to double, such multipliers leave a residual of eps |u| |c| whatever their fit, which
+// the certificate does not count as scale (a cancellation proves nothing), so an optimum
+// fails on stationarity. Here:
+// - every row active at the point (kRefinedActive) takes part, each with its side;
+// - u >= 0 minimising |sum_k u_k s_k Z^T c_k - Z^T grad| (nnls_cols, in double) chooses the
+//   rows (its passive set; where that has more than r, the least kept out until r remain);
+// - their multipliers are the least-squares solution again, in long double (x86-64's 64-bit
+//   significand: eps 5.4e-20; Householder QR), the gradient Z^T grad and a general row's
+//   normal summed in long double too;
+// - the certificate in double at the point with those rows and (rounded) multipliers gives
+//   primal, dual, complementarity and each component's scale; its stationarity is taken
+//   again from the long double residual: per component, (|residual| + a bound on the long
+//   double sums' own round-off) over the scale the double certificate uses, max(ssc, hsc,
+//   kSizeFloor big), never the multipliers' terms.
+// True, with cert, z and the final rows (those with u_k > 0), only where every measure holds;
+// false, with nothing of them written, otherwise. Answers that another path certified never
+// reach it (the same bits as without it).
+inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d,
+                                             CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, const ReducedQP& qp,
+                                             bool z_eye, const double* gsq, CertScratch& es, NnlsScratch& ns,
+                                             Vec& z, Certificate& cert, IVec& final_rows, IVec& final_sides) {
+    using ld = long double;
+    const i64 n = static_cast<i64>(d.size()), r = Z.cols, p = G.rows, m = Ak.rows;
+    if (!es.has_best || static_cast<i64>(es.xbest.size()) != r || qp.C.rows != n + p || qp.C.cols != r || r == 0 ||
+        Z.rows != n)
+        return false;
+    const Vec zb = es.xbest;  // (a copy: es is certify_level's scratch below)
+    Vec& x = es.xx;
+    x.resize(static_cast<size_t>(n));
+    add_step(Z, d, zb, z_eye, es.xZz, x);
+    if (!finite_block(x.data(), 1, n, n)) return false;
+    // the rows active at x, each with its side (+1 lower, -1 upper)
+    IVec& rows = es.xrows;
+    IVec& sides = es.xsides;
+    rows.clear();
+    sides.clear();
+    for (i64 i = 0; i < n; ++i) {
+        if (x[i] - lb[i] <= kRefinedActive * (1.0 + std::fabs(lb[i]))) {
+            rows.push_back(i);
+            sides.push_back(1);
+        }
+        if (ub[i] - x[i] <= kRefinedActive * (1.0 + std::fabs(ub[i]))) {
+            rows.push_back(i);
+            sides.push_back(-1);
+        }
+    }
+    for (i64 j = 0; j < p; ++j) {
+        const double gn = gsq ? std::sqrt(gsq[j]) : std::sqrt(row_sq_of(G, j));
+        if (h[j] - dot(G.row(j), x.data(), n) <= kRefinedActive * (gn + std::fabs(h[j]))) {
+            rows.push_back(n + j);
+            sides.push_back(-1);
+        }
+    }
+    const i64 t = static_cast<i64>(rows.size());
+    if (t == 0) return false;  // (no row: the point's own certificate was the one tried)
+    // the gradient at x in null-space coordinates, y = Z^T (A^T (A x - b) + rho x), in long
+    // double (yl), and in double (y, for the first fit)
+    std::vector<ld>& yl = es.ny;
+    yl.assign(static_cast<size_t>(r), 0.0L);
+    {
+        std::vector<ld>& v = es.nres;
+        v.assign(static_cast<size_t>(n), 0.0L);
+        for (i64 i = 0; i < m; ++i) {
+            const double* ai = Ak.row(i);
+            ld ri = -static_cast<ld>(bk[i]);
+            for (i64 j = 0; j < n; ++j) ri += static_cast<ld>(ai[j]) * static_cast<ld>(x[j]);
+            for (i64 j = 0; j < n; ++j) v[j] += static_cast<ld>(ai[j]) * ri;
+        }
+        for (i64 j = 0; j < n; ++j) v[j] += static_cast<ld>(rho) * static_cast<ld>(x[j]);
+        for (i64 i = 0; i < n; ++i) {
+            const double* zi = Z.row(i);
+            for (i64 c = 0; c < r; ++c) yl[c] += static_cast<ld>(zi[c]) * v[i];
+        }
+    }
+    Vec& y = es.y;
+    y.resize(static_cast<size_t>(r));
+    for (i64 c = 0; c < r; ++c) y[c] = static_cast<double>(yl[c]);
+    // the signed normals s_k Z^T c_k: a box row's is Z's row (exact); a general row's summed
+    // in long double (Ml), and rounded for the fits (M)
+    std::vector<ld>& Ml = es.nMl;
+    Ml.assign(static_cast<size_t>(t * r), 0.0L);
+    Mat& M = es.nM;
+    shape(M, t, r);
+    std::vector<const double*>& cols = es.ncols;
+    cols.resize(static_cast<size_t>(t));
+    for (i64 k = 0; k < t; ++k) {
+        const ld s = static_cast<ld>(sides[k]);
+        ld* mk = Ml.data() + k * r;
+        if (rows[k] < n) {
+            const double* zi = Z.row(rows[k]);
+            for (i64 c = 0; c < r; ++c) mk[c] = s * static_cast<ld>(zi[c]);
+        } else {
+            const double* g = G.row(rows[k] - n);
+            for (i64 i = 0; i < n; ++i) {
+                if (g[i] == 0.0) continue;
+                const double* zi = Z.row(i);
+                for (i64 c = 0; c < r; ++c) mk[c] += static_cast<ld>(g[i]) * static_cast<ld>(zi[c]);
+            }
+            for (i64 c = 0; c < r; ++c) mk[c] *= s;
+        }
+        double* md = M.row(k);
+        for (i64 c = 0; c < r; ++c) md[c] = static_cast<double>(mk[c]);
+        if (!finite_block(md, 1, r, r)) return false;
+        cols[k] = md;
+    }
+    Vec& u = es.xu;
+    nnls_cols(cols.data(), r, t, true, y, ns, u);
+    // the passive rows' multipliers again, in long double: the least-squares solution of
+    // Ml_P u_P = yl by Householder QR (no pivoting: NNLS kept the passive columns independent
+    // to its tolerance); its residual is then round-off of long double, eps_ld |M| |u|, where
+    // in double a nearly dependent set leaves eps |M| |u| (the test below needs the former)
+    IVec& pas = es.npas;
+    pas.clear();
+    for (i64 k = 0; k < t; ++k)
+        if (u[k] > 0.0) pas.push_back(k);
+    // (more passive columns than free directions: dependent; the least kept out, in order of
+    // their double multipliers, until there are r: the least-squares solution of the rest)
+    while (static_cast<i64>(pas.size()) > r) {
+        size_t least = 0;
+        for (size_t j = 1; j < pas.size(); ++j)
+            if (u[pas[j]] < u[pas[least]]) least = j;
+        pas.erase(pas.begin() + static_cast<std::ptrdiff_t>(least));
+    }
+    const i64 kp = static_cast<i64>(pas.size());
+    if (kp == 0) return false;
+    std::vector<ld>& ul = es.nu;  // the multipliers in long double
+    {
+        std::vector<ld>& a = es.nMP;  // (r, kp) by rows: a[c * kp + j] = Ml[pas[j]][c]
+        a.assign(static_cast<size_t>(r * kp), 0.0L);
+        for (i64 c = 0; c < r; ++c)
+            for (i64 j = 0; j < kp; ++j) a[c * kp + j] = Ml[pas[j] * r + c];
+        std::vector<ld>& q = es.nq;  // the right-hand side, reflected with the columns
+        q.assign(yl.begin(), yl.end());
+        std::vector<ld>& vh = es.nv;
+        vh.resize(static_cast<size_t>(r));
+        for (i64 j = 0; j < kp; ++j) {
+            ld norm2 = 0.0L;
+            for (i64 i = j; i < r; ++i) norm2 += a[i * kp + j] * a[i * kp + j];
+            const ld norm = std::sqrt(norm2);
+            if (!(norm > 0.0L) || !std::isfinite(static_cast<double>(norm))) return false;
+            const ld alpha = a[j * kp + j] > 0.0L ? -norm : norm;
+            for (i64 i = j; i < r; ++i) vh[i] = a[i * kp + j];
+            vh[j] -= alpha;
+            ld vn2 = 0.0L;
+            for (i64 i = j; i < r; ++i) vn2 += vh[i] * vh[i];
+            if (vn2 > 0.0L) {
+                for (i64 k = j + 1; k < kp; ++k) {
+                    ld sk = 0.0L;
+                    for (i64 i = j; i < r; ++i) sk += vh[i] * a[i * kp + k];
+                    sk = 2.0L * sk / vn2;
+                    for (i64 i = j; i < r; ++i) a[i * kp + k] -= sk * vh[i];
+                }
+                ld sq = 0.0L;
+                for (i64 i = j; i < r; ++i) sq += vh[i] * q[i];
+                sq = 2.0L * sq / vn2;
+                for (i64 i = j; i < r; ++i) q[i] -= sq * vh[i];
+            }
+            a[j * kp + j] = alpha;
+        }
+        ul.assign(static_cast<size_t>(t), 0.0L);
+        for (i64 j = kp - 1; j >= 0; --j) {
+            ld acc = q[j];
+            for (i64 k = j + 1; k < kp; ++k) acc -= a[j * kp + k] * ul[pas[k]];
+            ul[pas[j]] = acc / a[j * kp + j];
+        }
+        for (i64 k = 0; k < t; ++k) u[k] = static_cast<double>(ul[k]);
+        if (!finite_block(u.data(), 1, t, t)) return false;
+    }
+    // yl - Ml^T ul in long double, each component a compensated (Neumaier) sum: the
+    // multipliers ul themselves (u, rounded to double, for certify_level's signs and
+    // complementarity), whose rounding would leave eps |u| |M|; the sum's own error then
+    // at most 2 eps_ld mu + O(t^2 eps_ld^2) mu (mu: the size of its terms), not t eps_ld mu
+    std::vector<ld>& res = es.nres;
+    res.resize(static_cast<size_t>(r));
+    for (i64 c = 0; c < r; ++c) {
+        ld sum = yl[c], carry = 0.0L;
+        for (i64 k = 0; k < t; ++k) {
+            if (ul[k] == 0.0L) continue;
+            const ld term = -(ul[k] * Ml[k * r + c]);
+            const ld next = sum + term;
+            if (std::fabs(sum) >= std::fabs(term)) carry += (sum - next) + term;
+            else carry += (term - next) + sum;
+            sum = next;
+        }
+        res[c] = sum + carry;
+    }
+    for (i64 k = 0; k < t; ++k)
+        if (u[k] < 0.0) return false;  // (a sign the row's side does not allow)
+    // the certificate in double: primal, dual, complementarity and the scales
+    Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, t, true, &es, gsq, z_eye, &qp.C,
+                                  max_abs(zb, r));
+    if (!(c.primal <= kCertify && c.dual <= kCertify && c.complementarity <= kCertify && c.rows_relative))
+        return false;
+    if (!c.holds()) {
+        // the stationarity from the long double residual, over certify_level's own scale
+        // (its sizes ssc, hsc and vs, as it left them in es; big as it takes it)
+        double S = 0.0, bmax = 0.0;
+        for (i64 k = 0; k < r; ++k) S = pymax(S, es.ssc[k]);
+        double big = S;
+        for (i64 i = 0; i < n; ++i) big = pymax(big, es.vs[i]);
+        for (i64 i = 0; i < m; ++i) bmax = pymax(bmax, std::fabs(bk[i]));
+        if (rho > 0.0) big = pymax(big, std::sqrt(rho) * bmax);
+        // the long double sums' own round-off, bounded by eps_ld times the size of their
+        // terms: the residual's 2 + (t + 2)^2 eps_ld (products rounded once each, a
+        // compensated sum; the multipliers' |u_k| |M_kc|, summed as mu), with a general
+        // row's normal n more (a plain sum); the gradient's n + m + 2 (at most ssc_c)
+        const ld eps = std::numeric_limits<ld>::epsilon();
+        const ld tl = static_cast<ld>(t + 2);
+        const ld mult_terms = (2.0L + tl * tl * eps + static_cast<ld>(p > 0 ? n : 0)) * eps;
+        const ld grad_terms = static_cast<ld>(n + m + 2) * eps;
+        double stat = 0.0;
+        for (i64 k = 0; k < r; ++k) {
+            ld mu = 0.0L;
+            for (i64 j = 0; j < t; ++j) mu += std::fabs(ul[j] * Ml[j * r + k]);
+            const double bound = static_cast<double>(std::fabs(res[k]) + mult_terms * mu +
+                                                     grad_terms * static_cast<ld>(es.ssc[k]));
+            const double ss = pymax(pymax(es.ssc[k], es.hsc[k]), kSizeFloor * big);
+            if (!(ss > 0.0)) return false;
+            stat = pymax(stat, bound / ss);
+        }
+        if (!(stat <= kCertify)) return false;
+        c.stationarity = stat;
+    }
+    cert = c;
+    z = zb;
+    final_rows.clear();
+    final_sides.clear();
+    for (i64 k = 0; k < t; ++k) {
+        if (u[k] > 0.0) {
+            final_rows.push_back(rows[k]);
+            final_sides.push_back(sides[k]);
+        }
+    }
+    return true;
+}
+
 }  // namespace detail
 
 constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with weights u >= 0, to
@@ -3227,6 +3483,10 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
                 if (at_d.holds() && at_d.rows_relative) {
                     kept_optimal = true;
                     cert = at_d;
+                } else if (detail::certified_by_refined_multipliers(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, qp, z_eye,
+                                                                    gsq, ws.cs, ws.nnls, z, cert, final_rows,
+                                                                    final_sides)) {
+                    exact = true;  // (its x in ws.cs.xx, as exact_level leaves a certified one)
                 } else if (std::isnan(cert.primal)) {
                     cert = at_d;
                 }

@@ -862,6 +862,12 @@ struct CertScratch {
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
     Vec xu, xx, xZz, xzc, xzref, xstart;
+    Vec xbest;                          // exact_level's feasible candidate of least worst measure,
+    bool has_best = false;              // for certified_by_refined_multipliers (cascade.hpp)
+    Mat nM;                             // ... its signed row normals (t, r)
+    std::vector<const double*> ncols;   // ... as nnls_cols' columns
+    std::vector<long double> ny, nMl, nres, nMP, nq, nv, nu;  // ... in extended precision
+    IVec npas;                          // ... the passive rows
     IVec xts;                           // eqp_ls's reflection rows
     Mat BT;                             // eqp_ls's B^T
     Mat eV;                             // exact_level's eq_candidate (qpik/_cpp/core/cascade.hpp)
