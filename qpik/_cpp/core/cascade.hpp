@@ -2645,6 +2645,9 @@ inline Vec nnls(const Mat& M, const Vec& y) {
 // A row is active at a candidate's point, for certified_by_refined_multipliers, where its
 // slack is at most this times its scale (1 + |bound|; a general row's |G_j| + |h_j|).
 constexpr double kRefinedActive = 1e-12;
+// ... and a box row whose slack is at most this times 1 + |bound| (its point's rounding, a
+// few eps) is met exactly there.
+constexpr double kSnapBound = 8.0 * 2.220446049250313e-16;
 
 // The last fallback of a level that no candidate certified (exact_level, then the point the
 // level keeps): the feasible candidate exact_level certified best (es.xbest), with its
@@ -2656,6 +2659,7 @@ constexpr double kRefinedActive = 1e-12;
 // Rounded to double, such multipliers leave a residual of eps |u| |c| whatever their fit, which
 // the certificate does not count as scale (a cancellation proves nothing), so an optimum
 // fails on stationarity. Here:
+// - the point is put exactly on each bound it meets to its own rounding (kSnapBound);
 // - every row active at the point (kRefinedActive) takes part, each with its side;
 // - u >= 0 minimising |sum_k u_k s_k Z^T c_k - Z^T grad| (nnls_cols, in double) chooses the
 //   rows (its passive set; where that has more than r, the least kept out until r remain);
@@ -2669,7 +2673,8 @@ constexpr double kRefinedActive = 1e-12;
 //   kSizeFloor big), never the multipliers' terms.
 // True, with cert, z and the final rows (those with u_k > 0), only where every measure holds;
 // false, with nothing of them written, otherwise. Answers that another path certified never
-// reach it (the same bits as without it).
+// reach it (the same bits as without it). Where long double is double (MSVC, macOS on arm64)
+// the bounds are double's and it proves no more than the double certificate.
 inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d,
                                              CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, const ReducedQP& qp,
                                              bool z_eye, const double* gsq, CertScratch& es, NnlsScratch& ns,
@@ -2690,6 +2695,12 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
     rows.clear();
     sides.clear();
     for (i64 i = 0; i < n; ++i) {
+        // (a bound the point meets to its own rounding, kSnapBound, is met exactly: x = d + Z z
+        // rounded leaves it 1e-17 off either side, which with multipliers of 1e6 the
+        // complementarity measure would count; the move is round-off of x, far below what
+        // any row above sees)
+        if (std::fabs(x[i] - lb[i]) <= kSnapBound * (1.0 + std::fabs(lb[i]))) x[i] = lb[i];
+        else if (std::fabs(ub[i] - x[i]) <= kSnapBound * (1.0 + std::fabs(ub[i]))) x[i] = ub[i];
         if (x[i] - lb[i] <= kRefinedActive * (1.0 + std::fabs(lb[i]))) {
             rows.push_back(i);
             sides.push_back(1);
