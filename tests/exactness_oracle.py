@@ -348,10 +348,22 @@ def level_reference(problem: Problem, k: int, x_held: np.ndarray):
         return x, False
 
 
-def objective_tolerance(A, b, x_ours, x_ref, f_ours, f_ref) -> float:
+def objective_tolerance(A, b, x_ours, x_ref, f_ours, f_ref, box: float = 0.0) -> float:
     """Issue 21: worse when above the reference by more than 1e-9 of the larger objective,
-    or ``1/2 (1e-7 (|b| + |A| |x|))^2``."""
-    size = float(np.linalg.norm(b)) + float(np.linalg.norm(A, 2)) * max(
+    or ``1/2 (1e-7 (|b| + |A| |x|))^2``, or ``1/2 (16 eps |A| box)^2``: the objective that a
+    move of ``x`` by its own rounding within the box (``box``: the largest finite bound)
+    makes, where the level's target and answer are both about 0 (objectives of 1e-38 against
+    1e-50 are then both 0)."""
+    a = float(np.linalg.norm(A, 2))
+    size = float(np.linalg.norm(b)) + a * max(
         float(np.linalg.norm(x_ours)), float(np.linalg.norm(x_ref))
     )
-    return max(1e-9 * max(f_ours, f_ref), 0.5 * (1e-7 * size) ** 2)
+    rounding = 16.0 * np.finfo(float).eps * a * box
+    return max(1e-9 * max(f_ours, f_ref), 0.5 * (1e-7 * size) ** 2, 0.5 * rounding**2)
+
+
+def box_size(lb, ub) -> float:
+    """The largest finite bound of a box (0 where none is finite)."""
+    bounds = np.abs(np.concatenate([np.asarray(lb, float), np.asarray(ub, float)]))
+    bounds = bounds[np.isfinite(bounds) & (bounds < 1e20)]
+    return float(bounds.max()) if bounds.size else 0.0

@@ -19,7 +19,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from exactness_oracle import level_reference, objective, objective_tolerance, scaled_violation
+from exactness_oracle import (
+    box_size,
+    level_reference,
+    objective,
+    objective_tolerance,
+    scaled_violation,
+)
 
 from qpik.core import HierarchyProblem, HierarchySolver, Level, LevelStatus
 from qpik.core import kernels as K
@@ -117,7 +123,7 @@ def test_not_worse_than_the_reference(path):
         if not certified or scaled_violation(x_ref, p.lb, p.ub, p.G, p.h) > 1e-10:
             continue
         f_ours, f_ref = objective(A, b, rho, x_k), objective(A, b, rho, x_ref)
-        tol = objective_tolerance(A, b, x_k, x_ref, f_ours, f_ref)
+        tol = objective_tolerance(A, b, x_k, x_ref, f_ours, f_ref, box_size(p.lb, p.ub))
         assert f_ours <= f_ref + tol, (k, f_ours, f_ref)
 
 

@@ -55,7 +55,7 @@ def test_relative_task_between_rigidly_attached_frames():
     """A relative-frame task between two frames no joint separates (UR5's ``tool0`` and
     ``wrist_3_link``: its rows are round-off, its target out of reach) over a posture met at
     the start: the posture level cancels level 0's round-off move, and ended kept_previous at
-    stationarity 0.7 (the core problem of one such step: data/exactness/step_cancels_its_start.npz); now solved."""
+    stationarity 0.7 (the core problem of one such step: data/exactness/hqp_step_cancels_its_start.npz); now solved."""
     from qpik.tasks import RelativeFrameTask
 
     model = qpik.load_robot("erd:ur5")
@@ -73,14 +73,14 @@ def test_relative_task_between_rigidly_attached_frames():
 
 
 def test_core_problem_of_a_cancelled_step_is_certified():
-    """data/exactness/step_cancels_its_start.npz, cold and warm: every level solved, its
+    """data/exactness/hqp_step_cancels_its_start.npz, cold and warm: every level solved, its
     certificate holding, level 0's task values kept by the posture level."""
     from pathlib import Path
 
     from qpik.core import HierarchyProblem, Level
 
     z = np.load(
-        Path(__file__).resolve().parents[1] / "data" / "exactness" / "step_cancels_its_start.npz"
+        Path(__file__).resolve().parents[1] / "data" / "exactness" / "hqp_step_cancels_its_start.npz"
     )
     levels = [
         Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]), z[f"w{k}"]) for k in range(int(z["L"]))

@@ -12,6 +12,7 @@ import pytest
 from exactness_oracle import (
     KINDS,
     Infeasible,
+    box_size,
     level_reference,
     objective,
     objective_tolerance,
@@ -62,7 +63,7 @@ def compare(p, result) -> dict:
             out["reference_violates"] += 1  # no feasible reference to compare with
             continue
         f_ours, f_ref = objective(A, b, rho, x_k), objective(A, b, rho, x_ref)
-        tol = objective_tolerance(A, b, x_k, x_ref, f_ours, f_ref)
+        tol = objective_tolerance(A, b, x_k, x_ref, f_ours, f_ref, box_size(p.lb, p.ub))
         out["compared"] += 1
         if f_ours > f_ref + tol:
             out["worse"] += 1
