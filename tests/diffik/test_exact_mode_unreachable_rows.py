@@ -80,7 +80,10 @@ def test_core_problem_of_a_cancelled_step_is_certified():
     from qpik.core import HierarchyProblem, Level
 
     z = np.load(
-        Path(__file__).resolve().parents[1] / "data" / "exactness" / "hqp_step_cancels_its_start.npz"
+        Path(__file__).resolve().parents[1]
+        / "data"
+        / "exactness"
+        / "hqp_step_cancels_its_start.npz"
     )
     levels = [
         Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]), z[f"w{k}"]) for k in range(int(z["L"]))
