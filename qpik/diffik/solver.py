@@ -199,8 +199,15 @@ class IKSolver:
         as box bounds ``lb <= dq <= ub`` and general rows ``G dq <= h``. The adaptive
         damping is decided by the core when it solves. With the model's couplings
         (:attr:`qpik.StepOptions.couplings`) their level comes first, named
-        ``"couplings"``; the stack's levels follow, named ``"level 0"``, ...."""
-        tasks, limits = self._rows(configuration, dt)
+        ``"couplings"``; the stack's levels follow, named ``"level 0"``, ....
+
+        The limits are the ones :meth:`step` solves with: where a relaxable limit's row
+        admits no displacement at all (a collision pair deeper inside its minimum distance
+        than one step can leave, or one no joint moves), that limit's rows stay general
+        rows, and the core reports level 0 ``infeasible`` on this problem as the step does
+        before it relaxes them (:mod:`qpik.diffik.recovery`); :class:`qpik.InfeasibleLimits`
+        only where the box is empty without them."""
+        tasks, limits = self._recoverable_rows(configuration, dt)
         shift = int(self._coupling_level)
         starts = tasks.starts.tolist()
         levels = [

@@ -280,3 +280,41 @@ def test_a_model_with_couplings_recovers_too():
     assert result.coupling_residual < 1e-6
     assert abs(d[3] - d[0]) <= 2e-6 * abs(d[0])
     assert _distance(model, configuration.q + d) > start + 0.03
+
+
+#: A ball on a hinge about its own centre's vertical axis, inside a fixed box: the turn
+#: does not move the ball, so the pair's distance row is 0 . dq <= h with h < 0 (5 cm deep).
+UNMOVED = """<mujoco><worldbody>
+  <body name="spinner" pos="0 0 0"><joint name="spin" type="hinge" axis="0 0 1" range="-1 1"/>
+    <geom name="ball" type="sphere" size="0.1"/></body>
+  <body name="other"><joint name="x" type="slide" axis="1 0 0" range="-1 1"/>
+    <geom type="box" size="0.01 0.01 0.01" contype="0" conaffinity="0"/></body>
+  <geom name="wall" type="box" pos="0.15 0 0" size="0.1 0.1 0.1"/>
+</worldbody></mujoco>"""
+
+
+def test_build_returns_the_problem_the_step_solves_where_no_joint_moves_a_pair():
+    """A collision row that no dof moves, violated at the start (0 . dq <= -0.047). The core
+    called level 0 numerical_failure (the dual method skips a row of norm 0), so the step did
+    not recover and stood still; and build raised InfeasibleLimits ("a row 0 . dq <= ...")
+    where the step went on (erd Tiago with model_collision_limit at its middle
+    configuration). Now level 0 is infeasible (the row is its own proof), the step relaxes
+    the row and moves, and build returns the step's problem, the collision rows general."""
+    from qpik.core import HierarchySolver
+
+    model = mujoco.MjModel.from_xml_string(UNMOVED)
+    limit = qpik.limits.model_collision_limit(model, collision_detection_distance=0.2)
+    posture = PostureTask(model, cost=1.0)
+    posture.set_target(np.array([0.5, 0.5]))
+    solver = qpik.IKSolver(model, [[posture]], [mink.ConfigurationLimit(model), limit])
+    configuration = qpik.Configuration(model, np.zeros(model.nq))
+    result = solver.step(configuration, DT)
+    assert result.status[0] == "infeasible" and result.relaxation is not None
+    problem = solver.build(configuration, DT)
+    assert problem.G.shape[0] >= 1 and np.all(problem.G[np.argmin(problem.h)] == 0.0)
+    assert problem.h.min() < 0.0
+    core = HierarchySolver().solve(problem)
+    assert core.status[0] == "infeasible"  # (was numerical_failure: no recovery then)
+    # the row relaxed by its violation, and the posture pursued within the box
+    assert result.relaxation[0] == pytest.approx(-problem.h.min(), rel=1e-12)
+    np.testing.assert_allclose(result.displacement, problem.ub, rtol=1e-12)

@@ -3392,6 +3392,8 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
     shape(ws.gsq, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) ws.gsq[j] = row_sq_of(G, j);
     const double* gsq = ws.gsq.data();
+    bool constant_row_violated = false;  // a row 0 dq <= h_j < 0 (see level 0 below)
+    for (i64 j = 0; j < p; ++j) constant_row_violated |= gsq[j] == 0.0 && h[j] < 0.0;
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
@@ -3400,6 +3402,22 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
         if (starts[k + 1] > starts[k]) last = k;
     for (i64 k = 0; k < L; ++k) {
         i64 s0 = starts[k], s1 = starts[k + 1];
+        if (k == 0 && constant_row_violated) {
+            // A general row that no displacement moves (G_j = 0) and that h_j < 0 violates:
+            // no x meets it, whatever the levels (the proof is the row itself). Level 0 is
+            // infeasible, as where the dual method finds it so: its primal measure at d, the
+            // others 0 (a caller may then relax the rows, qpik.diffik.recovery).
+            res.status[0] = INFEASIBLE;
+            double* ck = res.certificate.data();
+            ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
+                                  false, &ws.cs, gsq).primal;
+            ck[1] = ck[2] = ck[3] = 0.0;
+            detail::snap_to_box(d, lb, ub);
+            detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
+            res.primal = ck[0];
+            detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, 1);
+            return;
+        }
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
         if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws, gsq)) z_eye = false;
