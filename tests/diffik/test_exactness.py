@@ -248,3 +248,27 @@ def test_panda_two_levels_binding_states():
         assert result.ok, (i, result.status)
         assert all(c.holds for c in result.certificate), (i, result.certificate)
         assert np.abs(result.velocity - z["v_optimal"][i]).max() <= 1e-8, i
+
+
+@pytest.mark.parametrize("name", ["hqp_degenerate_vertex.npz", "hqp_degenerate_vertex_2.npz"])
+def test_degenerate_vertex_with_unbounded_dofs(name):
+    """The degenerate-vertex reproducers with every dof that no level's answer brings near
+    its bounds made unbounded (a floating base's): the same answer, proved by the cascade's
+    last fallback, which reads only finite bounds as rows (an infinite one once counted as
+    met: |x - (-inf)| <= tol (1 + inf))."""
+    problem = load(DATA / name, 0.0)
+    solver = HierarchySolver()
+    free = np.ones(len(problem.lb), dtype=bool)
+    for k in range(len(problem.levels)):
+        cut = HierarchyProblem(
+            problem.levels[: k + 1], problem.lb, problem.ub, problem.G, problem.h
+        )
+        x = solver.solve(cut).x
+        free &= (x - problem.lb > 1e-6) & (problem.ub - x > 1e-6)
+    assert free.sum() >= 10
+    lb, ub = problem.lb.copy(), problem.ub.copy()
+    lb[free], ub[free] = -np.inf, np.inf
+    bounded = solver.solve(problem)
+    result = solver.solve(HierarchyProblem(problem.levels, lb, ub, problem.G, problem.h))
+    assert result.ok and all(c.holds for c in result.certificate), result.certificate
+    np.testing.assert_allclose(result.x, bounded.x, atol=1e-10)

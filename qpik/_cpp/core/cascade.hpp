@@ -2699,18 +2699,21 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
         // rounded leaves it 1e-17 off either side, which with multipliers of 1e6 the
         // complementarity measure would count; the move is round-off of x, far below what
         // any row above sees)
-        if (std::fabs(x[i] - lb[i]) <= kSnapBound * (1.0 + std::fabs(lb[i]))) x[i] = lb[i];
-        else if (std::fabs(ub[i] - x[i]) <= kSnapBound * (1.0 + std::fabs(ub[i]))) x[i] = ub[i];
-        if (x[i] - lb[i] <= kRefinedActive * (1.0 + std::fabs(lb[i]))) {
+        // (finite bounds only: an unbounded side, +-inf or beyond kBig, is never met)
+        const bool low = std::fabs(lb[i]) < kBig, high = std::fabs(ub[i]) < kBig;
+        if (low && std::fabs(x[i] - lb[i]) <= kSnapBound * (1.0 + std::fabs(lb[i]))) x[i] = lb[i];
+        else if (high && std::fabs(ub[i] - x[i]) <= kSnapBound * (1.0 + std::fabs(ub[i]))) x[i] = ub[i];
+        if (low && x[i] - lb[i] <= kRefinedActive * (1.0 + std::fabs(lb[i]))) {
             rows.push_back(i);
             sides.push_back(1);
         }
-        if (ub[i] - x[i] <= kRefinedActive * (1.0 + std::fabs(ub[i]))) {
+        if (high && ub[i] - x[i] <= kRefinedActive * (1.0 + std::fabs(ub[i]))) {
             rows.push_back(i);
             sides.push_back(-1);
         }
     }
     for (i64 j = 0; j < p; ++j) {
+        if (!(std::fabs(h[j]) < kBig)) continue;
         const double gn = gsq ? std::sqrt(gsq[j]) : std::sqrt(row_sq_of(G, j));
         if (h[j] - dot(G.row(j), x.data(), n) <= kRefinedActive * (gn + std::fabs(h[j]))) {
             rows.push_back(n + j);
