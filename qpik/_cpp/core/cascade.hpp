@@ -86,6 +86,7 @@ struct NnlsScratch {
 // storage). One per solver, never shared between threads.
 struct Workspace {
     Mat Z, Ztmp;
+    Mat A_flush;  // the cascade's A with its rows' round-off entries zero (flushed_rows)
     // project_level's proved full rank (defer_floor): R's rows kept for deferred_sigma
     bool deferred = false;
     int defer_kind = 0;  // 0: R's first p rows; 1: M itself (not yet factored)
@@ -138,6 +139,34 @@ struct Workspace {
 };
 
 namespace detail {
+
+// kFlushEps: see solve_cascade_into.
+constexpr double kFlushEps = 2.220446049250313e-16;
+// A itself where no row has a nonzero entry at or below kFlushEps n |row|_max, else a copy in
+// `store` with those entries zero.
+inline CMatRef flushed_rows(CMatRef A, Mat& store) {
+    const i64 m = A.rows, n = A.cols;
+    const double rel = kFlushEps * static_cast<double>(n);
+    bool any = false;
+    for (i64 i = 0; i < m && !any; ++i) {
+        const double* a = A.row(i);
+        double top = 0.0;
+        for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
+        const double cut = rel * top;
+        for (i64 j = 0; j < n && !any; ++j) any = a[j] != 0.0 && std::fabs(a[j]) <= cut;
+    }
+    if (!any) return A;
+    shape(store, m, n);
+    for (i64 i = 0; i < m; ++i) {
+        const double* a = A.row(i);
+        double* s = store.row(i);
+        double top = 0.0;
+        for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
+        const double cut = rel * top;
+        for (i64 j = 0; j < n; ++j) s[j] = std::fabs(a[j]) <= cut ? 0.0 : a[j];
+    }
+    return store.cref();
+}
 
 // Whether every entry of A is finite.
 inline bool all_finite(CMatRef A) {
@@ -3360,12 +3389,19 @@ inline bool feasible_after_all(const ReducedQP& qp, const LSForm& ls, CMatRef Ak
 }
 }  // namespace detail
 
-inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
+inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
                                bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
                                bool primal = true, bool defer_sigma = false) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
+    // Entries of a task row at or below kFlushEps n times its largest are its round-off (the
+    // products that made it: 1e-18 in a row of 6e-4 where a dof moves nothing), zero here: a
+    // level of small rank would otherwise keep them, amplified by 1 / sigma, in the direction
+    // it eliminates from Z, which couples them with every row that direction touches (erd
+    // Tiago dual: a free direction of three dofs lost to every level below). The same A
+    // where no entry is that small (no copy).
+    const CMatRef A = detail::flushed_rows(A_in, ws.A_flush);
     i64 n = lb.size();
     i64 p = G.rows;
     i64 L = starts.size() - 1;
