@@ -152,6 +152,7 @@ inline CMatRef flushed_rows(CMatRef A, Mat& store) {
         const double* a = A.row(i);
         double top = 0.0;
         for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
+        if (!std::isfinite(top)) continue;  // (a row with inf: left as it is, for the checks)
         const double cut = rel * top;
         for (i64 j = 0; j < n && !any; ++j) any = a[j] != 0.0 && std::fabs(a[j]) <= cut;
     }
@@ -162,8 +163,8 @@ inline CMatRef flushed_rows(CMatRef A, Mat& store) {
         double* s = store.row(i);
         double top = 0.0;
         for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
-        const double cut = rel * top;
-        for (i64 j = 0; j < n; ++j) s[j] = std::fabs(a[j]) <= cut ? 0.0 : a[j];
+        const double cut = std::isfinite(top) ? rel * top : 0.0;
+        for (i64 j = 0; j < n; ++j) s[j] = a[j] != 0.0 && std::fabs(a[j]) <= cut ? 0.0 : a[j];
     }
     return store.cref();
 }
