@@ -145,16 +145,31 @@ constexpr double kFlushEps = 2.220446049250313e-16;
 // A itself where no row has a nonzero entry at or below kFlushEps n |row|_max, else a copy in
 // `store` with those entries zero.
 inline CMatRef flushed_rows(CMatRef A, Mat& store) {
+    using namespace simd;
     const i64 m = A.rows, n = A.cols;
     const double rel = kFlushEps * static_cast<double>(n);
     bool any = false;
+    // per row, two lanes: the largest |a| and the smallest nonzero |a| (a NaN makes neither:
+    // its comparisons are false), then smallest <= rel largest
+    const v2d zero = splat(0.0), inf = splat(kInf);
     for (i64 i = 0; i < m && !any; ++i) {
         const double* a = A.row(i);
-        double top = 0.0;
-        for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
+        v2d hi = zero, lo = inf;
+        i64 j = 0;
+        for (; j + 2 <= n; j += 2) {
+            const v2d v = vabs(load(a + j));
+            hi = v > hi ? v : hi;
+            const v2d nz = v > zero ? v : inf;
+            lo = nz < lo ? nz : lo;
+        }
+        double top = pymax(hi[0], hi[1]), low = std::min(lo[0], lo[1]);
+        for (; j < n; ++j) {
+            const double v = std::fabs(a[j]);
+            top = pymax(top, v);
+            if (v > 0.0 && v < low) low = v;
+        }
         if (!std::isfinite(top)) continue;  // (a row with inf: left as it is, for the checks)
-        const double cut = rel * top;
-        for (i64 j = 0; j < n && !any; ++j) any = a[j] != 0.0 && std::fabs(a[j]) <= cut;
+        any = low <= rel * top;
     }
     if (!any) return A;
     shape(store, m, n);
