@@ -318,3 +318,31 @@ def test_build_returns_the_problem_the_step_solves_where_no_joint_moves_a_pair()
     # the row relaxed by its violation, and the posture pursued within the box
     assert result.relaxation[0] == pytest.approx(-problem.h.min(), rel=1e-12)
     np.testing.assert_allclose(result.displacement, problem.ub, rtol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-20, -1e-20])
+def test_a_row_no_displacement_in_the_box_meets_makes_level_0_infeasible(scale):
+    """A general row whose entries are 0 or round-off (1e-20: erd Panda's collision pair
+    between bodies no joint separates, 3.3 cm deep) against a box of 0.03: no displacement in
+    the box meets it, and the dual method, which skips a row of norm (nearly) 0, ended
+    numerical_failure there, so the step's recovery never ran and every level was
+    not_reached. Now level 0 is infeasible (the row and the box are the proof)."""
+    from qpik.core import HierarchyProblem, HierarchySolver, Level
+
+    n = 3
+    problem = HierarchyProblem(
+        [Level(np.eye(n), np.ones(n), 0.0)],
+        np.full(n, -0.03), np.full(n, 0.03),
+        np.array([[scale, 0.0, 0.0], [1.0, 1.0, 0.0]]), np.array([-0.033, 0.05]),
+    )  # fmt: skip
+    for solver in (HierarchySolver(), HierarchySolver(damping_law=None)):
+        result = solver.solve(problem)
+        assert result.status[0] == "infeasible", result.status
+        assert result.certificate[0].primal > 1e-3
+    # a row that the box can meet is left to the dual method as before
+    feasible = HierarchyProblem(
+        [Level(np.eye(n), np.ones(n), 0.0)],
+        np.full(n, -0.03), np.full(n, 0.03),
+        np.array([[1.0, 0.0, 0.0]]), np.array([-0.02]),
+    )  # fmt: skip
+    assert HierarchySolver().solve(feasible).status[0] == "solved"

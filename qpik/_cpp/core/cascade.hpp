@@ -140,6 +140,35 @@ struct Workspace {
 
 namespace detail {
 
+// Whether some general row G_j x <= h_j is unmet at every x of the box lb <= x <= ub: its
+// least value over the box, sum_i min(G_ji lb_i, G_ji ub_i) (-inf where an unbounded side
+// enters), is above h_j by more than kCertify times the row's scale (|h_j| plus
+// sum_i |G_ji| max(|lb_i|, |ub_i|)): a proof of infeasibility that needs no solve. A row
+// that no displacement moves (G_j = 0, or entries of 1e-20 against a box of 0.03: erd Panda's
+// collision pair between bodies no joint separates) with h_j < 0 is the usual one; the dual
+// method skips a row of norm 0 (or nearly) and would end numerical_failure there.
+inline bool row_unmet_in_box(CMatRef G, CVecRef h, CVecRef lb, CVecRef ub) {
+    const i64 p = G.rows, n = G.cols;
+    for (i64 j = 0; j < p; ++j) {
+        if (!(std::fabs(h[j]) < kBig)) continue;
+        const double* g = G.row(j);
+        double least = 0.0, scale = std::fabs(h[j]);
+        bool bounded = true;
+        for (i64 i = 0; i < n && bounded; ++i) {
+            if (g[i] == 0.0) continue;
+            const double side = g[i] > 0.0 ? lb[i] : ub[i];
+            if (!(std::fabs(side) < kBig) || !std::isfinite(g[i])) {
+                bounded = false;
+                break;
+            }
+            least += g[i] * side;
+            scale += std::fabs(g[i]) * pymax(std::fabs(lb[i]), std::fabs(ub[i]));
+        }
+        if (bounded && least > h[j] + kCertify * scale) return true;
+    }
+    return false;
+}
+
 // kFlushEps: see solve_cascade_into.
 constexpr double kFlushEps = 2.220446049250313e-16;
 // A itself where no row has a nonzero entry at or below kFlushEps n |row|_max, else a copy in
@@ -3447,8 +3476,6 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
     shape(ws.gsq, static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) ws.gsq[j] = row_sq_of(G, j);
     const double* gsq = ws.gsq.data();
-    bool constant_row_violated = false;  // a row 0 dq <= h_j < 0 (see level 0 below)
-    for (i64 j = 0; j < p; ++j) constant_row_violated |= gsq[j] == 0.0 && h[j] < 0.0;
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
@@ -3457,22 +3484,6 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         if (starts[k + 1] > starts[k]) last = k;
     for (i64 k = 0; k < L; ++k) {
         i64 s0 = starts[k], s1 = starts[k + 1];
-        if (k == 0 && constant_row_violated) {
-            // A general row that no displacement moves (G_j = 0) and that h_j < 0 violates:
-            // no x meets it, whatever the levels (the proof is the row itself). Level 0 is
-            // infeasible, as where the dual method finds it so: its primal measure at d, the
-            // others 0 (a caller may then relax the rows, qpik.diffik.recovery).
-            res.status[0] = INFEASIBLE;
-            double* ck = res.certificate.data();
-            ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0,
-                                  false, &ws.cs, gsq).primal;
-            ck[1] = ck[2] = ck[3] = 0.0;
-            detail::snap_to_box(d, lb, ub);
-            detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
-            res.primal = ck[0];
-            detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, 1);
-            return;
-        }
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
         if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws, gsq)) z_eye = false;
@@ -3606,6 +3617,17 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             continue;
         } else {
             res.status[k] = st == INFEASIBLE || st == MAX_ITER ? st : NUMERICAL;
+            if (k == 0 && res.status[0] == NUMERICAL && detail::row_unmet_in_box(G, h, lb, ub)) {
+                // A general row that no displacement in the box meets (row_unmet_in_box: one
+                // that no displacement moves, G_j = 0 or 1e-20, with h_j < 0, say), which the
+                // dual method skips: level 0 is infeasible (the proof is the row and the box),
+                // as where the dual method finds it so: its primal measure at d, the others 0
+                // (a caller may then relax the rows, qpik.diffik.recovery).
+                res.status[0] = INFEASIBLE;
+                ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
+                                      {}, 0, false, &ws.cs, gsq).primal;
+                ck[1] = ck[2] = ck[3] = 0.0;
+            }
             detail::snap_to_box(d, lb, ub);
             detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
             res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
