@@ -2758,7 +2758,7 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
     if (!es.has_best || static_cast<i64>(es.xbest.size()) != r || qp.C.rows != n + p || qp.C.cols != r || r == 0 ||
         Z.rows != n)
         return false;
-    const Vec zb = es.xbest;  // (a copy: es is certify_level's scratch below)
+    const Vec& zb = es.xbest;  // (certify_level below leaves it as it is)
     Vec& x = es.xx;
     x.resize(static_cast<size_t>(n));
     add_step(Z, d, zb, z_eye, es.xZz, x);
@@ -3548,6 +3548,13 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
         if (stops && deferred) stops = detail::stops_finished(qp, ws, factored);
         reduced_rows(Z.cref(), d.data(), lb, ub, G, h, ws, qp, have_gz, gsq, z_eye);
+        // Level 0 with no feasible point, no optimum to certify: primal feasibility at the
+        // point returned; the other measures do not apply and are 0.
+        auto infeasible_certificate = [&]() {
+            Certificate c = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq);
+            c.stationarity = c.dual = c.complementarity = 0.0;
+            return c;
+        };
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
@@ -3560,10 +3567,7 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             st = SOLVED;
             exact = true;
         } else if (st == INFEASIBLE && k == 0) {
-            // No optimum to certify: primal feasibility at the point returned; the other
-            // measures do not apply and are 0.
-            cert = certify_level(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, {}, {}, {}, 0, false, &ws.cs, gsq);
-            cert.stationarity = cert.dual = cert.complementarity = 0.0;
+            cert = infeasible_certificate();
         } else {
             // The dual method stopped at once (stops: sol is x0 with no working set), so
             // exact_level's first candidate is free_answer's, held in ws.free_z and tried.
@@ -3624,8 +3628,8 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
                 // as where the dual method finds it so: its primal measure at d, the others 0
                 // (a caller may then relax the rows, qpik.diffik.recovery).
                 res.status[0] = INFEASIBLE;
-                ck[0] = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {},
-                                      {}, 0, false, &ws.cs, gsq).primal;
+                cert = infeasible_certificate();
+                ck[0] = cert.primal;
                 ck[1] = ck[2] = ck[3] = 0.0;
             }
             detail::snap_to_box(d, lb, ub);
