@@ -28,7 +28,11 @@ and the core agree on); also the per-level statuses over every state.
   - *Panda beside PlaCo and pink*: example-robot-data's Panda (the same URDF loaded by
     qpik's MuJoCo model, PlaCo and pink; poses checked equal), a pose task on
     ``panda_hand_tcp`` over a posture (cost 0.1), position + velocity limits (the URDF's),
-    regimes ``free`` and ``both bind``; the same states for qpik's two strict levels, PlaCo's
+    regimes ``free`` and ``both bind``; the same states for qpik's two strict levels (twice:
+    by default qpik also holds the URDF's finger mimic, ``panda_finger_joint2`` following
+    ``panda_finger_joint1``, a MuJoCo joint equality, as a level above the stack; with
+    ``couplings=False`` it solves the peers' problem, which moves the two fingers
+    independently: the row to compare with them), PlaCo's
     ``KinematicsSolver`` (frame task hard + posture soft; and both soft with mink's weights,
     1 and 0.1^2, which is mink's problem), pink + daqp and mink + daqp. Besides the times:
     each answer's frame and posture errors after the step, its largest difference from
@@ -505,6 +509,11 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
         PostureTask(model, 0.1),
     )
     auto = qpik.IKSolver(model, [[ours[0]], [ours[1]]], limits)
+    # The URDF's finger mimic (panda_finger_joint2 follows joint1) is a MuJoCo joint
+    # equality, which qpik holds by default as a level above the stack (StepOptions
+    # couplings); PlaCo, pink and mink move the two fingers independently. The same
+    # problem as theirs: the two levels alone.
+    uncoupled = qpik.IKSolver(model, [[ours[0]], [ours[1]]], limits, couplings=False)
     theirs = (mink.FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
               mink.PostureTask(model, 0.1))  # fmt: skip
 
@@ -598,7 +607,8 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
         return step
 
     names = {
-        "qpik": "qpik IKSolver.step, 2 strict levels",
+        "qpik": "qpik IKSolver.step, 2 levels + mimic",
+        "qpik2": "qpik IKSolver.step, couplings=False",
         "hard": "PlaCo solve(True), frame hard/posture soft",
         "soft": "PlaCo solve(True), both soft (mink's w)",
         "pink": "pink + daqp, 1 weighted level",
@@ -606,6 +616,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     }
     methods = {
         names["qpik"]: lambda c: auto.step(c, DT),
+        names["qpik2"]: lambda c: uncoupled.step(c, DT),
         names["hard"]: placo_step("hard"),
         names["soft"]: placo_step("soft"),
         names["pink"]: lambda c: pink.solve_ik(
@@ -621,6 +632,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
 
     refresh = {
         names["qpik"]: lambda state: configuration.update(state[0]),
+        names["qpik2"]: lambda state: configuration.update(state[0]),
         names["mink"]: lambda state: configuration.update(state[0]),
         names["hard"]: placo_refresh("hard"),
         names["soft"]: placo_refresh("soft"),
@@ -632,6 +644,8 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
         out = {}
         c = set_state(state)
         out[names["qpik"]] = auto.step(c, DT).velocity * DT
+        c = set_state(state)
+        out[names["qpik2"]] = uncoupled.step(c, DT).velocity * DT
         for kind in ("hard", "soft"):
             c = set_state(state)
             try:
