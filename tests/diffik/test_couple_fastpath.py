@@ -7,6 +7,8 @@ figures are those of its own answer; the step does not depend on the solver's hi
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import mink
 import mujoco
 import numpy as np
@@ -215,3 +217,39 @@ def test_fast_path_on_other_ratios(ratio, offset):
             scale = 1.0 + float(np.abs(general.displacement).max())
             assert float(np.abs(fast.displacement - general.displacement).max()) <= 1e-12 * scale
             assert fast.coupling_residual == pytest.approx(general.coupling_residual, abs=1e-12)
+
+
+def test_level_the_reduced_cascade_does_not_certify_goes_to_the_general_path():
+    """erd Baxter (its gripper fingers' mimic, a pair: the fast path) under a CoM level, an
+    orientation + CoM level, an axis-align level and a posture (tests/data/exactness/
+    baxter_mimic_reduced_uncertified.npz: a state of random stacks at seed 2026). On the
+    reduced variables y the second level's stationarity ended 1.01e-9, above the
+    certificate's 1e-9 (kept_previous); the general path's cascade on x certifies it
+    (2.9e-13). A level below that the reduced cascade does not solve leaves the step to the
+    general path: every level solved, the QP path's answer bit for bit."""
+    from conftest import load_or_skip
+
+    from qpik.tasks import AxisAlignTask, ComTask, OrientationTask
+
+    model = load_or_skip("erd:baxter")
+    data = Path(__file__).parents[1] / "data" / "exactness"
+    case = np.load(data / "baxter_mimic_reduced_uncertified.npz")
+    configuration = qpik.Configuration(model, case["q"])
+    com0, com1 = ComTask(cost=1.0), ComTask(cost=1.0)
+    com0.set_target(case["com0"])
+    com1.set_target(case["com1"])
+    orientation = OrientationTask("right_gripper_base_link", "body")
+    orientation.set_target(mink.SO3.from_matrix(case["orientation"]))
+    axis = AxisAlignTask("right_wrist", "body")
+    axis.set_target(case["axis"])
+    posture = PostureTask(model, 0.1)
+    posture.set_target(case["posture"])
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    solver = qpik.IKSolver(model, [[com0], [orientation, com1], [axis], [posture]], limits)
+    assert solver._plan is not None and solver._coupling_level  # the pair fast path applies
+    fast = solver.step(configuration, DT)
+    assert all(s is LevelStatus.SOLVED for s in fast.status), fast.status
+    assert all(c.holds for c in fast.certificate)
+    general = StepResult.of(solver._qp_step(configuration, DT), 0.0, True)
+    assert general.status == fast.status
+    np.testing.assert_array_equal(fast.displacement, general.displacement)

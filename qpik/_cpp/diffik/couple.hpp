@@ -14,7 +14,8 @@
 // the general cascade on n - pairs variables, then mapped back. The same optimum as the
 // general path, to round-off: the bits differ. Anything else (general rows, a dof fixed by
 // its box, a row under the rank cutoff, no candidate meeting the KKT conditions as
-// computed, a failed certificate) leaves it to the general path.
+// computed, a failed certificate, a level below that the reduced cascade does not solve)
+// leaves it to the general path.
 #pragma once
 
 #include <vector>
@@ -355,6 +356,12 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(s.warmr.data(), L - 1, nr),
         canonical, ws, low, false, false, defer);
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
+    // A level below not certified in y (kept_previous, a numerical failure): the general
+    // path's cascade on x, whose round-off differs, may certify it (erd Baxter's gripper
+    // mimic under an orientation + CoM level: stationarity 1.01e-9 in y, 2.9e-13 in x). Its
+    // answer is then the step's, whatever it certifies.
+    for (i64 k = 0; k + 1 < L; ++k)
+        if (low.status[static_cast<size_t>(k)] != core::SOLVED) return false;
     // Back to x, snapped to the box as the cascade snaps; a larger excess: the general path.
     Vec& x = s.xs;
     x.resize(static_cast<size_t>(n));  // every entry written below (each pair's two dofs)
