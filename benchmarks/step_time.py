@@ -32,7 +32,8 @@ and the core agree on); also the per-level statuses over every state.
     by default qpik also holds the URDF's finger mimic, ``panda_finger_joint2`` following
     ``panda_finger_joint1``, a MuJoCo joint equality, as a level above the stack; with
     ``couplings=False`` it solves the peers' problem, which moves the two fingers
-    independently: the row to compare with them), PlaCo's
+    independently: the row to compare with them; and once more as one weighted level with
+    ``couplings=False``, the problem of PlaCo's "both soft", pink's and mink's), PlaCo's
     ``KinematicsSolver`` (frame task hard + posture soft; and both soft with mink's weights,
     1 and 0.1^2, which is mink's problem), pink + daqp and mink + daqp. Besides the times:
     each answer's frame and posture errors after the step, its largest difference from
@@ -41,7 +42,9 @@ and the core agree on); also the per-level statuses over every state.
     apart).
   - *Talos, floating base*: feet held / CoM / both hands / posture, 300 closed-loop steps
     (:func:`talos_peers`): times and task errors of qpik's four levels, PlaCo (feet hard,
-    the rest soft) and mink + daqp (one weighted level, the same weights).
+    the rest soft) and mink + daqp (one weighted level, the same weights); and qpik on
+    PlaCo's problem (the feet a strict level, the rest one weighted level below it with
+    PlaCo's weights).
 
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
     python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
@@ -514,6 +517,8 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     # couplings); PlaCo, pink and mink move the two fingers independently. The same
     # problem as theirs: the two levels alone.
     uncoupled = qpik.IKSolver(model, [[ours[0]], [ours[1]]], limits, couplings=False)
+    # PlaCo's "both soft" problem (and mink's, pink's): the two tasks one weighted level.
+    weighted = qpik.IKSolver(model, [[ours[0], ours[1]]], limits, couplings=False)
     theirs = (mink.FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
               mink.PostureTask(model, 0.1))  # fmt: skip
 
@@ -609,6 +614,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     names = {
         "qpik": "qpik IKSolver.step, 2 levels + mimic",
         "qpik2": "qpik IKSolver.step, couplings=False",
+        "qpikw": "qpik 1 weighted level, couplings=False",
         "hard": "PlaCo solve(True), frame hard/posture soft",
         "soft": "PlaCo solve(True), both soft (mink's w)",
         "pink": "pink + daqp, 1 weighted level",
@@ -617,6 +623,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     methods = {
         names["qpik"]: lambda c: auto.step(c, DT),
         names["qpik2"]: lambda c: uncoupled.step(c, DT),
+        names["qpikw"]: lambda c: weighted.step(c, DT),
         names["hard"]: placo_step("hard"),
         names["soft"]: placo_step("soft"),
         names["pink"]: lambda c: pink.solve_ik(
@@ -633,6 +640,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     refresh = {
         names["qpik"]: lambda state: configuration.update(state[0]),
         names["qpik2"]: lambda state: configuration.update(state[0]),
+        names["qpikw"]: lambda state: configuration.update(state[0]),
         names["mink"]: lambda state: configuration.update(state[0]),
         names["hard"]: placo_refresh("hard"),
         names["soft"]: placo_refresh("soft"),
@@ -646,6 +654,8 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
         out[names["qpik"]] = auto.step(c, DT).velocity * DT
         c = set_state(state)
         out[names["qpik2"]] = uncoupled.step(c, DT).velocity * DT
+        c = set_state(state)
+        out[names["qpikw"]] = weighted.step(c, DT).velocity * DT
         for kind in ("hard", "soft"):
             c = set_state(state)
             try:
@@ -752,7 +762,9 @@ def talos_peers(n_steps: int = 300) -> None:
     levels, without and with one second-order correction pass
     (:attr:`qpik.StepOptions.correction_passes`: the held levels' remainder at ``q (+) dq``
     shifted out of their targets and the step solved again); PlaCo with its two (feet hard;
-    CoM, hands and posture soft, weights 100, 1, 0.01); mink + daqp's one weighted level
+    CoM, hands and posture soft, weights 100, 1, 0.01), and qpik on that same problem (the
+    feet a strict level, CoM, hands and posture one weighted level with costs 10, 1, 0.1,
+    the square roots of PlaCo's weights); mink + daqp's one weighted level
     (costs 10, 10, 1, 0.1: the same weights). Task errors are measured by MuJoCo's
     kinematics at each method's configuration after each step.
 
@@ -816,7 +828,18 @@ def talos_peers(n_steps: int = 300) -> None:
     # correction_passes): the held levels' targets shifted by their remainder at q (+) dq.
     ours_corrected = stack("qpik")
     corrected = qpik.IKSolver(model, ours_corrected, limits, correction_passes=1)
-    solvers = {"qpik": (auto, ours), "qpik1": (corrected, ours_corrected)}
+    # PlaCo's own problem by qpik: the feet a strict level, CoM, hands and posture one
+    # weighted level below with PlaCo's weights (100, 1, 0.01: costs 10, 1, 0.1).
+    ours_placo = stack("qpik")
+    ours_placo[1] = [ComTask(10.0)]
+    placo_problem = qpik.IKSolver(
+        model, [ours_placo[0], ours_placo[1] + ours_placo[2] + ours_placo[3]], limits
+    )
+    solvers = {
+        "qpik": (auto, ours),
+        "qpik1": (corrected, ours_corrected),
+        "qpikp": (placo_problem, ours_placo),
+    }
     flat = [t for level in theirs for t in level]
 
     robot = _placo_robot(urdf)
@@ -848,10 +871,11 @@ def talos_peers(n_steps: int = 300) -> None:
     ]
     assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
 
-    configs = {name: qpik.Configuration(model, home) for name in ("qpik", "qpik1", "mink")}
+    configs = {name: qpik.Configuration(model, home) for name in ("qpik", "qpik1", "qpikp", "mink")}
     label = {
         "qpik": "qpik IKSolver.step, 4 strict levels",
         "qpik1": "qpik 4 levels + 1 correction",
+        "qpikp": "qpik 2 levels: feet / PlaCo's soft",
         "placo": "PlaCo solve(True), feet hard + 3 soft",
         "mink": "mink + daqp, 1 weighted level",
     }
