@@ -101,3 +101,28 @@ def test_seeded_cases_repeat_bit_for_bit():
         b = _call(Z, d, lb, ub, G, h)
         assert a.shape == b.shape and a.shape[0] == n and a.shape[1] <= r
         assert a.tobytes() == b.tobytes()
+
+
+def test_centauro_posture_moves_the_dofs_no_pin_holds():
+    """tests/data/exactness/pinned_span_untouched_coordinates.npz (erd Centauro, exact mode,
+    random stacks at seed 32): a frame level, a level of zero columns on dofs 19, 26 and 32,
+    then a posture. Thirty rows pinned after the second level (pivots down to 1e-8) left the
+    unit directions of those dofs mixed with another's by 1.3e-8, and the posture's
+    certificate, its multipliers fit to that Z, proved them on their lower bounds (level
+    objective 5.135e-4, 0.8 % above the independent reference's 5.093e-4). Now the posture
+    brings them to its target and meets the reference's objective."""
+    from pathlib import Path
+
+    from qpik.core import HierarchyProblem, HierarchySolver, Level
+
+    z = np.load(
+        Path(__file__).parents[1] / "data" / "exactness" / "pinned_span_untouched_coordinates.npz"
+    )
+    levels = [Level(z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]), z[f"w{k}"]) for k in range(3)]
+    problem = HierarchyProblem(levels, z["lb"], z["ub"], z["G"], z["h"])
+    result = HierarchySolver(damping_law=None).solve(problem)
+    assert result.ok and all(c.holds for c in result.certificate)
+    np.testing.assert_allclose(result.x[[19, 26, 32]], 0.0, atol=1e-12)
+    A, b = z["A2"] * z["w2"][:, None], z["b2"] * z["w2"]
+    objective = 0.5 * float(np.sum((A @ result.x - b) ** 2))
+    assert objective <= 5.0934297390725e-4 * (1 + 1e-9), objective

@@ -118,6 +118,7 @@ struct Workspace {
     Vec sum;
     detail::NnlsScratch nnls;
     IVec state, others, pinned;
+    IVec pin_keep, pin_touched;  // drop_pinned's coordinates no pinned normal touches, and the others
     BVec box_pinned;
     Mat N;
     Vec y, u, res;
@@ -2981,11 +2982,13 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
 
 constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with weights u >= 0, to
                                    // within this (1 + sum u) are positively dependent: pinned
-// ... with (1 + sum u) counted up to this: weights beyond it cancel in normals that are
-// themselves nearly positively dependent, so their round-off (1e-14 in the normal of a row of
-// Z of norm 1e-3, say) could stand for any residual up to 1, whatever the move it leaves (a
-// finger on its limit, the arm pinned at a vertex: residual 0.026 at sum u = 9e13, which
-// pinned the finger, where it was free to move 0.002).
+// ... and (1 + sum u) at most this: weights beyond it cancel in normals that are themselves
+// nearly positively dependent, so their round-off (1e-14 in the normal of a row of Z of norm
+// 1e-3, say) could stand for any residual, whatever the move it leaves (a finger on its limit,
+// the arm pinned at a vertex: residual 0.026 at sum u = 9e13, which pinned the finger, where
+// it was free to move 0.002; erd Centauro: residual 9e-8 at sum u = 8e8 from normals 3e-9
+// off orthogonal to a dof's unit direction, which pinned that free dof). Such a row is not
+// pinned: its own test's residual is the move that leaves it free, or it stays a row.
 constexpr double kPinnedWeight = 1e6;
 // drop_pinned's test of every tight row at once (one NNLS): a residual within this, with
 // weights summing to at most kPinnedAllWeight, pins them all.
@@ -3005,7 +3008,7 @@ namespace detail {
 // N_P c = -n_i, moved along w until non-negative: u = c + lam w), so each would be pinned by
 // its own test. The combination is computed (c from the QR on P's r pivot columns) and its
 // residual |n_i + N_P u| checked, far inside the test's own tolerance (kSpanMargin kPinned
-// min(1 + sum u, kPinnedWeight)); the rows so shown are pinned without their NNLS, the
+// (1 + sum u), the sum at most kPinnedWeight); the rows so shown are pinned without their NNLS, the
 // others (none in practice: a few 1e-15 against a tolerance of 1e-12 or more) keep it.
 constexpr double kSpanWell = 1e-6;
 constexpr double kSpanMargin = 1e-2;
@@ -3077,8 +3080,79 @@ __attribute__((noinline)) inline void span_pins(const std::vector<Vec>& normals,
             rr += e * e;
         }
         double rn = std::sqrt(rr);
-        if (std::isfinite(sum) && rn <= kSpanMargin * kPinned * std::min(sum, kPinnedWeight)) state[i] = 1;
+        if (std::isfinite(sum) && sum <= kPinnedWeight && rn <= kSpanMargin * kPinned * sum) state[i] = 1;
     }
+}
+}  // namespace detail
+
+namespace detail {
+// drop_pinned's elimination where some null-space coordinates (keep, in order) are touched by
+// no pinned normal: the pivoted QR of the normals on the touched coordinates alone (the same
+// rank rule), Z's columns on them times their complement, then Z's untouched columns as
+// they are. Returns whether Z changed.
+inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const IVec& pinned, const IVec& keep,
+                                const BVec& box_pinned, Workspace& ws) {
+    const i64 n = Z.rows, r = Z.cols, e = static_cast<i64>(pinned.size());
+    IVec& touched = ws.pin_touched;
+    touched.clear();
+    {
+        size_t q = 0;
+        for (i64 c = 0; c < r; ++c) {
+            if (q < keep.size() && keep[q] == c) {
+                q += 1;
+                continue;
+            }
+            touched.push_back(c);
+        }
+    }
+    const i64 rs = static_cast<i64>(touched.size());
+    Mat& N = ws.N;
+    shape(N, rs, e);  // every entry written
+    for (i64 s = 0; s < e; ++s)
+        for (i64 a = 0; a < rs; ++a) N(a, s) = normals[pinned[s]][touched[a]];
+    Mat& Q = ws.Q;
+    Mat& R = ws.R;
+    bool kept = ws.qr.keep_reflectors;
+    ws.qr.keep_reflectors = true;
+    householder_qr(N.cref(), true, Q, R, ws.perm, false, ws.qr);
+    ws.qr.keep_reflectors = kept;
+    double top = std::fabs(R(0, 0));
+    i64 rank = 0;
+    for (i64 i = 0; i < std::min(rs, e); ++i) {
+        if (std::fabs(R(i, i)) > 1e-10 * top) rank = i + 1;
+        else break;
+    }
+    if (rank == 0) return false;
+    const i64 kc = static_cast<i64>(keep.size());
+    Mat& Qc = ws.Qr;  // the touched coordinates' complement: Q's columns rank..rs-1
+    if (rank < rs) {
+        Q.set_eye(rs);
+        apply_reflectors_right(Q, ws.qr, std::min(rs, e));
+        shape(Qc, rs, rs - rank);  // every entry copied
+        for (i64 a = 0; a < rs; ++a)
+            for (i64 j = rank; j < rs; ++j) Qc(a, j - rank) = Q(a, j);
+    }
+    Mat& Zt = ws.Ztmp;
+    shape(Zt, n, rs - rank + kc);  // every entry written
+    for (i64 i = 0; i < n; ++i) {
+        const double* zi = Z.row(i);
+        double* out = Zt.row(i);
+        for (i64 j = 0; j < rs - rank; ++j) {
+            double acc = 0.0;
+            for (i64 a = 0; a < rs; ++a) acc += zi[touched[a]] * Qc(a, j);
+            out[j] = acc;
+        }
+        for (i64 q = 0; q < kc; ++q) out[rs - rank + q] = zi[keep[q]];
+    }
+    std::swap(Z, Zt);
+    for (i64 i = 0; i < n; ++i) {
+        if (!box_pinned[i]) continue;
+        double nn = 0.0;
+        for (i64 c = 0; c < Z.cols; ++c) nn += Z(i, c) * Z(i, c);
+        if (nn <= 1e-24)
+            for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
+    }
+    return true;
 }
 }  // namespace detail
 
@@ -3096,7 +3170,7 @@ __attribute__((noinline)) inline void span_pins(const std::vector<Vec>& normals,
 // so that they are met to round-off and the rows left in null-space coordinates constrain
 // the free directions only. Each tight row is tested by the non-negative least squares
 // min |n_j + sum_{i != j} u_i n_i| (u >= 0): a residual within kPinned (1 + sum u), the sum
-// counted up to kPinnedWeight, pins j and the rows of weight above that; else the residual is a feasible move that leaves j
+// at most kPinnedWeight, pins j and the rows of weight above that; else the residual is a feasible move that leaves j
 // (and every row it moves off its bound) free. Returns whether Z changed.
 inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, Workspace& ws,
                         const double* gsq = nullptr) {
@@ -3268,7 +3342,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         double total = 1.0;
         for (i64 s = 0; s < k; ++s) total += u[s];
         double rn = std::sqrt(dot(res.data(), res.data(), r));
-        if (rn <= kPinned * std::min(total, kPinnedWeight)) {
+        if (total <= kPinnedWeight && rn <= kPinned * total) {
             state[j] = 1;
             i64 np = 1;  // (the rows pinned with j: span_pins only where they can span)
             for (i64 s = 0; s < k; ++s)
@@ -3296,6 +3370,27 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     }
     i64 e = static_cast<i64>(pinned.size());
     if (e == 0) return false;
+    // The null-space coordinates no pinned normal touches (every normal's entry there +-0: a
+    // column of Z on dofs that no pinned row moves, as e_i of a dof that no task above moved)
+    // are orthogonal to the pinned span exactly and stay in Z as they are: the QR below is of
+    // the other coordinates alone (where there are such coordinates). Reflected with the
+    // others, such a coordinate could be a pivot row, and the complement's basis then mixes it
+    // with the rest by the round-off of the pivots, amplified by the smallest (1.3e-8 of a
+    // dof's unit direction spread on another's in erd Centauro's posture level after 30 pins
+    // of pivots down to 1e-8: the certificate's multipliers, fit to that Z, then proved a
+    // point 0.8 % above the posture's optimum with three free dofs left on their bounds).
+    IVec& keep_c = ws.pin_keep;
+    keep_c.clear();
+    i64 touched = 0;
+    for (i64 c = 0; c < r; ++c) {
+        bool any = false;
+        for (i64 s = 0; s < e && !any; ++s) any = normals[pinned[s]][c] != 0.0;
+        if (any) touched += 1;
+        else keep_c.push_back(c);
+    }
+    if (touched == 0) return false;
+    if (!keep_c.empty())
+        return detail::drop_pinned_touched(Z, normals, pinned, keep_c, box_pinned, ws);
     Mat& N = ws.N;
     shape(N, r, e);  // every entry written
     for (i64 s = 0; s < e; ++s)
