@@ -92,3 +92,39 @@ def test_held_feet_keep_only_the_second_order_remainder_of_a_step():
         assert remainders[0] > 1e-7  # the step is large enough to see its curvature
         assert 3.8 <= remainders[0] / remainders[1] <= 4.2
         configuration.update(configuration.integrate(velocity, dt))
+
+
+def test_relative_frame_level_on_a_shared_chain_is_certified():
+    """erd ANYmal-Kinova, floating: a position task of the gripper's link 6 relative to link 4
+    (tests/data/exactness/relative_frame_shared_chain.npz: the middle configuration and the
+    target of random stacks at seed 42), exact mode. The base's dofs and the arm's joints
+    above link 4 move both frames alike; the difference of the two frames' Jacobians left
+    them entries of 1e-15 (their round-off, against rows of 0.07), a gradient no move could
+    meet: the level ended numerical_failure at stationarity 1.2e-9. Those entries are now
+    exactly 0 (the compiled rows) and the level is certified."""
+    import warnings
+    from pathlib import Path
+
+    from conftest import load_or_skip
+
+    from qpik.core import LevelStatus
+    from qpik.tasks import RelativeFrameTask
+
+    load_or_skip("erd:anymal-kinova")  # (skipped where it does not load)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dropped collision meshes
+        model = qpik.load_robot("erd:anymal-kinova", floating_base=True)
+    case = np.load(
+        Path(__file__).parents[1] / "data" / "exactness" / "relative_frame_shared_chain.npz"
+    )
+    configuration = qpik.Configuration(model, case["q"])
+    task = RelativeFrameTask(
+        "j2s6s200_link_6", "body", "j2s6s200_link_4", "body",
+        position_cost=1.0, orientation_cost=0.0,
+    )  # fmt: skip
+    task.set_target(mink.SE3(case["target"]))
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    solver = qpik.IKSolver(model, [[task]], limits, damping=0.0, damping_law=None)
+    result = solver.step(configuration, 0.01)
+    assert result.status == [LevelStatus.SOLVED], (result.status, result.certificate)
+    assert result.certificate[0].holds
