@@ -3155,16 +3155,23 @@ inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const I
         for (i64 a = 0; a < rs; ++a)
             for (i64 j = rank; j < rs; ++j) Qc(a, j - rank) = Q(a, j);
     }
+    // Z's touched columns times their complement (mm_into's sums), then the untouched columns
+    Mat& Zs = ws.Mt;  // (project_level's scratch: made again by each projection)
+    shape(Zs, n, rs);  // every entry copied
+    for (i64 i = 0; i < n; ++i) {
+        const double* zi = Z.row(i);
+        double* out = Zs.row(i);
+        for (i64 a = 0; a < rs; ++a) out[a] = zi[touched[a]];
+    }
+    Mat& P = ws.Qt;  // (the same)
+    if (rank < rs) mm_into(Zs.cref(), Qc.cref(), P);
     Mat& Zt = ws.Ztmp;
     shape(Zt, n, rs - rank + kc);  // every entry written
+    const size_t head = static_cast<size_t>(rs - rank);
     for (i64 i = 0; i < n; ++i) {
         const double* zi = Z.row(i);
         double* out = Zt.row(i);
-        for (i64 j = 0; j < rs - rank; ++j) {
-            double acc = 0.0;
-            for (i64 a = 0; a < rs; ++a) acc += zi[touched[a]] * Qc(a, j);
-            out[j] = acc;
-        }
+        if (head) std::memcpy(out, P.row(i), head * sizeof(double));
         for (i64 q = 0; q < kc; ++q) out[rs - rank + q] = zi[keep[q]];
     }
     std::swap(Z, Zt);
