@@ -3109,6 +3109,39 @@ inline void zero_roundoff_rows(Mat& Z) {
 }  // namespace detail
 
 namespace detail {
+// The pivoted QR of the pinned normals N (rows: null-space coordinates, columns: normals), its
+// reflectors kept in ws.qr (R first, form_q false: the same R and pivots; Q is formed from the
+// reflectors only where some of its columns are used), and its rank: the leading diagonal
+// entries of R above 1e-10 of the first.
+inline i64 pinned_rank(const Mat& N, Workspace& ws) {
+    bool kept = ws.qr.keep_reflectors;
+    ws.qr.keep_reflectors = true;
+    householder_qr(N.cref(), true, ws.Q, ws.R, ws.perm, false, ws.qr);
+    ws.qr.keep_reflectors = kept;
+    const Mat& R = ws.R;
+    double top = std::fabs(R(0, 0));
+    i64 rank = 0;
+    for (i64 i = 0; i < std::min(N.rows, N.cols); ++i) {
+        if (std::fabs(R(i, i)) > 1e-10 * top) rank = i + 1;
+        else break;
+    }
+    return rank;
+}
+
+// A pinned box row's dof no longer moves: its row of Z, round-off now, is made 0 (the dof is
+// held exactly; a task on it sees no round-off gradient in null-space coordinates).
+inline void hold_pinned_rows(Mat& Z, const BVec& box_pinned) {
+    for (i64 i = 0; i < Z.rows; ++i) {
+        if (!box_pinned[i]) continue;
+        double nn = 0.0;
+        for (i64 c = 0; c < Z.cols; ++c) nn += Z(i, c) * Z(i, c);
+        if (nn <= 1e-24)
+            for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
+    }
+}
+}  // namespace detail
+
+namespace detail {
 // drop_pinned's elimination where some null-space coordinates (keep, in order) are touched by
 // no pinned normal: the pivoted QR of the normals on the touched coordinates alone (the same
 // rank rule), Z's columns on them times their complement, then Z's untouched columns as
@@ -3134,17 +3167,7 @@ inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const I
     for (i64 s = 0; s < e; ++s)
         for (i64 a = 0; a < rs; ++a) N(a, s) = normals[pinned[s]][touched[a]];
     Mat& Q = ws.Q;
-    Mat& R = ws.R;
-    bool kept = ws.qr.keep_reflectors;
-    ws.qr.keep_reflectors = true;
-    householder_qr(N.cref(), true, Q, R, ws.perm, false, ws.qr);
-    ws.qr.keep_reflectors = kept;
-    double top = std::fabs(R(0, 0));
-    i64 rank = 0;
-    for (i64 i = 0; i < std::min(rs, e); ++i) {
-        if (std::fabs(R(i, i)) > 1e-10 * top) rank = i + 1;
-        else break;
-    }
+    const i64 rank = pinned_rank(N, ws);
     if (rank == 0) return false;
     const i64 kc = static_cast<i64>(keep.size());
     Mat& Qc = ws.Qr;  // the touched coordinates' complement: Q's columns rank..rs-1
@@ -3175,13 +3198,7 @@ inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const I
         for (i64 q = 0; q < kc; ++q) out[rs - rank + q] = zi[keep[q]];
     }
     std::swap(Z, Zt);
-    for (i64 i = 0; i < n; ++i) {
-        if (!box_pinned[i]) continue;
-        double nn = 0.0;
-        for (i64 c = 0; c < Z.cols; ++c) nn += Z(i, c) * Z(i, c);
-        if (nn <= 1e-24)
-            for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
-    }
+    hold_pinned_rows(Z, box_pinned);
     return true;
 }
 }  // namespace detail
@@ -3426,20 +3443,9 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     for (i64 s = 0; s < e; ++s)
         for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
     Mat& Q = ws.Q;
-    Mat& R = ws.R;
-    // R first (form_q false: the same R and pivots), its reflectors kept: Q is formed from
-    // them only where some of its columns are used (rank < r), by apply_reflectors_right on
-    // the identity, the operations householder_qr's form_q makes on Q's rows (the same Q).
-    bool keep = ws.qr.keep_reflectors;
-    ws.qr.keep_reflectors = true;
-    householder_qr(N.cref(), true, Q, R, ws.perm, false, ws.qr);
-    ws.qr.keep_reflectors = keep;
-    double top = std::fabs(R(0, 0));
-    i64 rank = 0;
-    for (i64 i = 0; i < std::min(r, e); ++i) {
-        if (std::fabs(R(i, i)) > 1e-10 * top) rank = i + 1;
-        else break;
-    }
+    // (Q formed from the reflectors, where rank < r, by apply_reflectors_right on the identity:
+    // the operations householder_qr's form_q makes on Q's rows, the same Q)
+    const i64 rank = detail::pinned_rank(N, ws);
     if (rank == 0) return false;
     if (rank == r) {  // every direction pinned: Z has no columns left (Z Q's columns rank..r-1)
         shape(Z, n, 0);
@@ -3453,15 +3459,7 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
     mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
     std::swap(Z, ws.Ztmp);
-    // A pinned box row's dof no longer moves: its row of Z, round-off now, is made 0 (the
-    // dof is held exactly; a task on it sees no round-off gradient in null-space coordinates).
-    for (i64 i = 0; i < n; ++i) {
-        if (!box_pinned[i]) continue;
-        double nn = 0.0;
-        for (i64 c = 0; c < Z.cols; ++c) nn += Z(i, c) * Z(i, c);
-        if (nn <= 1e-24)
-            for (i64 c = 0; c < Z.cols; ++c) Z(i, c) = 0.0;
-    }
+    detail::hold_pinned_rows(Z, box_pinned);
     return true;
 }
 
