@@ -224,9 +224,11 @@ def test_level_the_reduced_cascade_does_not_certify_goes_to_the_general_path():
     orientation + CoM level, an axis-align level and a posture (tests/data/exactness/
     baxter_mimic_reduced_uncertified.npz: a state of random stacks at seed 2026). On the
     reduced variables y the second level's stationarity ended 1.01e-9, above the
-    certificate's 1e-9 (kept_previous); the general path's cascade on x certifies it
+    certificate's 1e-9 (kept_previous), where the general path's cascade on x certified it
     (2.9e-13). A level below that the reduced cascade does not solve leaves the step to the
-    general path: every level solved, the QP path's answer bit for bit."""
+    general path; the certificate of a damped level now also allows its solve's round-off
+    (eps cond(B)), and the reduced cascade certifies the level itself. Either way: every level
+    solved, the general path's answer to round-off."""
     from conftest import load_or_skip
 
     from qpik.tasks import AxisAlignTask, ComTask, OrientationTask
@@ -252,4 +254,5 @@ def test_level_the_reduced_cascade_does_not_certify_goes_to_the_general_path():
     assert all(c.holds for c in fast.certificate)
     general = StepResult.of(solver._qp_step(configuration, DT), 0.0, True)
     assert general.status == fast.status
-    np.testing.assert_array_equal(fast.displacement, general.displacement)
+    scale = 1.0 + float(np.abs(general.displacement).max())
+    assert float(np.abs(fast.displacement - general.displacement).max()) <= 1e-12 * scale

@@ -24,6 +24,8 @@ constexpr double kLsRankRef = 1e-13;  // ... and so is |R_ii| <= this * the untr
                                       // (seen at 1e-14 ref; a near-singular level's least pivot, 3.6e-13 ref in the
                                       // oracle sweep's seed 20261211, is a rank)
 constexpr double kSizeFloor = 1e-5;   // a stationarity component's scale is at least this x the largest
+constexpr double kDampedRoundOff = 4.0;  // ... and, on a damped level where that fails, this x eps cond(B) / kCertify
+constexpr double kDampedFloorMax = 1e-2;  // ... up to this x the largest (cond(B) about 1e4)
 constexpr double kDropRoundOff = 1e-14;  // primal_active_set: a multiplier (times its row's norm) above -this x the
                                           // gradient's size (ls_gradient_size) is round-off, never dropped
 constexpr double kNearDependent = 1e-8;  // a row within this angle of the working set's span is
@@ -1748,10 +1750,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
     }
     // floor: the size the floor kSizeFloor takes its share of (big, or the data's below)
     double floor = big;
+    double size_floor = kSizeFloor;  // (raised below for a damped level where the test fails)
     auto stationarity_at = [&]() {
         double st = 0.0;
         for (i64 c = 0; c < r; ++c) {
-            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * floor);
+            double ss = pymax(pymax(ssc[c], hsc[c]), size_floor * floor);
             if (q > 0) ss = pymax(ss, pymin(msc[c], big));
             if (ss > 0.0) st = pymax(st, std::fabs(sc[c]) / ss);
             else if (sc[c] != 0.0 || std::isnan(sc[c])) st = kInf;
@@ -1785,6 +1788,25 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) hsc[c] *= scale;
         stat = stationarity_at();
     }
+    if (!(stat <= kCertify) && rho > 0.0) {
+        // A damped level's solve (B = [A Z; sqrt(rho) I]) leaves a round-off of about
+        // eps cond(B) in every null-space coordinate, cond(B) at most sqrt(1 + |A|_F^2 / rho)
+        // (its least singular value is at least sqrt(rho)), which H feeds into every component
+        // of the gradient: a component whose own terms are tiny carries up to
+        // kDampedRoundOff eps cond(B) of the largest size, above the fixed floor where cond(B)
+        // is above about 10 (erd Tiago dual, damping 1e-6: a free component at 4.4e-14 of a
+        // gradient of size 0.5, cond(B) about 3e3, left a level kept_previous 1e-6 above its
+        // optimum). Only where the test failed on the others: every certificate that held is
+        // the same.
+        double af2 = 0.0;
+        for (i64 i = 0; i < m; ++i) af2 += dot(A.row(i), A.row(i), n);
+        const double cond = std::sqrt(1.0 + af2 / rho);
+        const double damped = kDampedRoundOff * 2.220446049250313e-16 * cond / kCertify;
+        if (std::isfinite(damped) && damped > size_floor) {
+            size_floor = pymin(damped, kDampedFloorMax);
+            stat = stationarity_at();
+        }
+    }
     // No multipliers at all: where the candidate's leave stationarity failing, the same point
     // with u = 0, the objective's own gradient against the same scale without the
     // multipliers' terms. Where that holds, the point is a KKT point with zero multipliers
@@ -1801,7 +1823,7 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
             } else {
                 for (i64 i = 0; i < n; ++i) s0 += Z(i, c) * v0[i];
             }
-            double ss = pymax(pymax(ssc[c], hsc[c]), kSizeFloor * floor);
+            double ss = pymax(pymax(ssc[c], hsc[c]), size_floor * floor);
             if (ss > 0.0) stat0 = pymax(stat0, std::fabs(s0) / ss);
             else if (s0 != 0.0 || std::isnan(s0)) stat0 = kInf;
         }
