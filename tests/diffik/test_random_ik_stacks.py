@@ -34,13 +34,12 @@ pytestmark = [pytest.mark.slow, requires_erd]
 
 
 def _oracle_problem(solver: qpik.IKSolver, configuration, dt: float) -> tuple:
-    """The step's core problem and the same levels for the oracle (row weights folded)."""
+    """The step's core problem and the same levels for the oracle. A level's rows are weighted
+    already (``diag(cost) J``); its ``weights`` only judge rank and singularity, and are not
+    applied again (folding them in twice changed the oracle's problem wherever a level's
+    regularisation or its rows' costs differ)."""
     problem = solver.build(configuration, dt)
-    levels = []
-    for level in problem.levels:
-        w = level.weights
-        A, b = (level.A, level.b) if w is None else (level.A * w[:, None], level.b * w)
-        levels.append((A, b, float(level.regularization)))
+    levels = [(level.A, level.b, float(level.regularization)) for level in problem.levels]
     return problem, Problem(levels, problem.lb, problem.ub, problem.G, problem.h, "ik", True)
 
 
