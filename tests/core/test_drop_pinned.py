@@ -126,3 +126,14 @@ def test_centauro_posture_moves_the_dofs_no_pin_holds():
     A, b = z["A2"] * z["w2"][:, None], z["b2"] * z["w2"]
     objective = 0.5 * float(np.sum((A @ result.x - b) ** 2))
     assert objective <= 5.0934297390725e-4 * (1 + 1e-9), objective
+    # The same bits from a solver whose workspace solved other problems first (its kept
+    # storage, drop_pinned's included, carries nothing but capacity) and from a fresh one.
+    used = HierarchySolver(damping_law=None)
+    data = Path(__file__).parents[1] / "data" / "exactness"
+    for other in sorted(data.glob("hqp_*.npz"))[:4]:
+        o = np.load(other)
+        lv = [Level(o[f"A{k}"], o[f"b{k}"], float(o[f"reg{k}"])) for k in range(int(o["L"]))]
+        used.solve(HierarchyProblem(lv, o["lb"], o["ub"], o["G"], o["h"]))
+    again = used.solve(problem)
+    fresh = HierarchySolver(damping_law=None).solve(problem)
+    assert np.array_equal(again.x, result.x) and np.array_equal(fresh.x, result.x)
