@@ -3142,35 +3142,28 @@ inline void hold_pinned_rows(Mat& Z, const BVec& box_pinned) {
 }  // namespace detail
 
 namespace detail {
-// drop_pinned's elimination where some null-space coordinates (keep, in order) are touched by
-// no pinned normal: the pivoted QR of the normals on the touched coordinates alone (the same
-// rank rule), Z's columns on them times their complement, then Z's untouched columns as
-// they are. Returns whether Z changed.
-inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const IVec& pinned, const IVec& keep,
-                                const BVec& box_pinned, Workspace& ws) {
-    const i64 n = Z.rows, r = Z.cols, e = static_cast<i64>(pinned.size());
-    IVec& touched = ws.pin_touched;
-    touched.clear();
-    {
-        size_t q = 0;
-        for (i64 c = 0; c < r; ++c) {
-            if (q < keep.size() && keep[q] == c) {
-                q += 1;
-                continue;
-            }
-            touched.push_back(c);
-        }
-    }
-    const i64 rs = static_cast<i64>(touched.size());
+// drop_pinned's elimination of the pinned directions: the pivoted QR of the pinned normals on
+// the null-space coordinates they touch (`touched`), Q formed from its reflectors where some
+// of its columns are used (apply_reflectors_right on the identity: the operations
+// householder_qr's form_q makes on Q's rows), and Z's touched columns times Q's columns
+// rank.. (their complement), then Z's untouched columns (`keep`) as they are. Returns whether
+// Z changed.
+inline bool eliminate_pinned(Mat& Z, const std::vector<Vec>& normals, const IVec& pinned, const IVec& touched,
+                             const IVec& keep, const BVec& box_pinned, Workspace& ws) {
+    const i64 n = Z.rows, e = static_cast<i64>(pinned.size());
+    const i64 rs = static_cast<i64>(touched.size()), kc = static_cast<i64>(keep.size());
     Mat& N = ws.N;
     shape(N, rs, e);  // every entry written
     for (i64 s = 0; s < e; ++s)
         for (i64 a = 0; a < rs; ++a) N(a, s) = normals[pinned[s]][touched[a]];
-    Mat& Q = ws.Q;
     const i64 rank = pinned_rank(N, ws);
     if (rank == 0) return false;
-    const i64 kc = static_cast<i64>(keep.size());
-    Mat& Qc = ws.Qr;  // the touched coordinates' complement: Q's columns rank..rs-1
+    if (rank == rs && kc == 0) {  // every direction pinned: Z has no columns left
+        shape(Z, n, 0);
+        return true;
+    }
+    Mat& Q = ws.Q;
+    Mat& Qc = ws.Qr;  // Q's columns rank..rs-1
     if (rank < rs) {
         Q.set_eye(rs);
         apply_reflectors_right(Q, ws.qr, std::min(rs, e));
@@ -3178,26 +3171,30 @@ inline bool drop_pinned_touched(Mat& Z, const std::vector<Vec>& normals, const I
         for (i64 a = 0; a < rs; ++a)
             for (i64 j = rank; j < rs; ++j) Qc(a, j - rank) = Q(a, j);
     }
-    // Z's touched columns times their complement (mm_into's sums), then the untouched columns
-    Mat& Zs = ws.Mt;  // (project_level's scratch: made again by each projection)
-    shape(Zs, n, rs);  // every entry copied
-    for (i64 i = 0; i < n; ++i) {
-        const double* zi = Z.row(i);
-        double* out = Zs.row(i);
-        for (i64 a = 0; a < rs; ++a) out[a] = zi[touched[a]];
+    if (kc == 0) {
+        mm_into(Z.cref(), Qc.cref(), ws.Ztmp);  // (every coordinate touched: Z Qc itself)
+    } else {
+        // Z's touched columns times Qc (mm_into's sums), then the untouched columns
+        Mat& Zs = ws.Mt;  // (project_level's scratch: made again by each projection)
+        shape(Zs, n, rs);  // every entry copied
+        for (i64 i = 0; i < n; ++i) {
+            const double* zi = Z.row(i);
+            double* out = Zs.row(i);
+            for (i64 a = 0; a < rs; ++a) out[a] = zi[touched[a]];
+        }
+        Mat& P = ws.Qt;  // (the same)
+        if (rank < rs) mm_into(Zs.cref(), Qc.cref(), P);
+        Mat& Zt = ws.Ztmp;
+        shape(Zt, n, rs - rank + kc);  // every entry written
+        const size_t head = static_cast<size_t>(rs - rank);
+        for (i64 i = 0; i < n; ++i) {
+            const double* zi = Z.row(i);
+            double* out = Zt.row(i);
+            if (head) std::memcpy(out, P.row(i), head * sizeof(double));
+            for (i64 q = 0; q < kc; ++q) out[rs - rank + q] = zi[keep[q]];
+        }
     }
-    Mat& P = ws.Qt;  // (the same)
-    if (rank < rs) mm_into(Zs.cref(), Qc.cref(), P);
-    Mat& Zt = ws.Ztmp;
-    shape(Zt, n, rs - rank + kc);  // every entry written
-    const size_t head = static_cast<size_t>(rs - rank);
-    for (i64 i = 0; i < n; ++i) {
-        const double* zi = Z.row(i);
-        double* out = Zt.row(i);
-        if (head) std::memcpy(out, P.row(i), head * sizeof(double));
-        for (i64 q = 0; q < kc; ++q) out[rs - rank + q] = zi[keep[q]];
-    }
-    std::swap(Z, Zt);
+    std::swap(Z, ws.Ztmp);
     hold_pinned_rows(Z, box_pinned);
     return true;
 }
@@ -3419,48 +3416,24 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
     if (e == 0) return false;
     // The null-space coordinates no pinned normal touches (every normal's entry there +-0: a
     // column of Z on dofs that no pinned row moves, as e_i of a dof that no task above moved)
-    // are orthogonal to the pinned span exactly and stay in Z as they are: the QR below is of
-    // the other coordinates alone (where there are such coordinates). Reflected with the
+    // are orthogonal to the pinned span exactly and stay in Z as they are: eliminate_pinned's
+    // QR is of the touched coordinates alone. Reflected with the
     // others, such a coordinate could be a pivot row, and the complement's basis then mixes it
     // with the rest by the round-off of the pivots, amplified by the smallest (1.3e-8 of a
     // dof's unit direction spread on another's in erd Centauro's posture level after 30 pins
     // of pivots down to 1e-8: the certificate's multipliers, fit to that Z, then proved a
     // point 0.8 % above the posture's optimum with three free dofs left on their bounds).
-    IVec& keep_c = ws.pin_keep;
-    keep_c.clear();
-    i64 touched = 0;
+    IVec& touched = ws.pin_touched;
+    IVec& keep = ws.pin_keep;
+    touched.clear();
+    keep.clear();
     for (i64 c = 0; c < r; ++c) {
         bool any = false;
         for (i64 s = 0; s < e && !any; ++s) any = normals[pinned[s]][c] != 0.0;
-        if (any) touched += 1;
-        else keep_c.push_back(c);
+        (any ? touched : keep).push_back(c);
     }
-    if (touched == 0) return false;
-    if (!keep_c.empty())
-        return detail::drop_pinned_touched(Z, normals, pinned, keep_c, box_pinned, ws);
-    Mat& N = ws.N;
-    shape(N, r, e);  // every entry written
-    for (i64 s = 0; s < e; ++s)
-        for (i64 c = 0; c < r; ++c) N(c, s) = normals[pinned[s]][c];
-    Mat& Q = ws.Q;
-    // (Q formed from the reflectors, where rank < r, by apply_reflectors_right on the identity:
-    // the operations householder_qr's form_q makes on Q's rows, the same Q)
-    const i64 rank = detail::pinned_rank(N, ws);
-    if (rank == 0) return false;
-    if (rank == r) {  // every direction pinned: Z has no columns left (Z Q's columns rank..r-1)
-        shape(Z, n, 0);
-        return true;
-    }
-    Q.set_eye(r);
-    apply_reflectors_right(Q, ws.qr, std::min(r, e));
-    Mat& Qc = ws.Qr;  // Q's columns rank..r-1
-    shape(Qc, r, r - rank);  // every entry copied
-    for (i64 i = 0; i < r; ++i)
-        for (i64 j = rank; j < r; ++j) Qc(i, j - rank) = Q(i, j);
-    mm_into(Z.cref(), Qc.cref(), ws.Ztmp);
-    std::swap(Z, ws.Ztmp);
-    detail::hold_pinned_rows(Z, box_pinned);
-    return true;
+    if (touched.empty()) return false;
+    return detail::eliminate_pinned(Z, normals, pinned, touched, keep, box_pinned, ws);
 }
 
 inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h) {
@@ -3602,6 +3575,13 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
+    // After a solved level, its null space (project_level's Zn) is Z for the levels below, its
+    // rows of round-off made exactly 0 (zero_roundoff_rows).
+    auto take_null_space = [&]() {
+        std::swap(Z, ws.pr.Zn);
+        detail::zero_roundoff_rows(Z);
+        z_eye = false;
+    };
     i64 last = -1;  // the last level with rows: no level below it uses its null space
     for (i64 k = 0; k < L; ++k)
         if (starts[k + 1] > starts[k]) last = k;
@@ -3664,9 +3644,7 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             // product and sums).
             std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
             res.status[k] = SOLVED;
-            std::swap(Z, pr.Zn);
-            detail::zero_roundoff_rows(Z);
-            z_eye = false;
+            take_null_space();
             continue;
         }
         if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
@@ -3763,9 +3741,7 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             detail::certify_unreached(res, A, b, starts, reg, Z.cref(), d, lb, ub, G, h, k + 1);
             return;
         }
-        std::swap(Z, pr.Zn);
-        detail::zero_roundoff_rows(Z);
-        z_eye = false;
+        take_null_space();
     }
     detail::snap_to_box(d, lb, ub);
     if (residuals) detail::level_residuals_into(A, b, starts, d, ws.lres, res.residuals);
