@@ -13,7 +13,8 @@
   inside the contacts' convex hull (by default, of the contact bodies' collision geometry);
 * :func:`model_collision_limit`, :func:`collision_pairs`, :func:`collision_geoms`
   (:mod:`qpik.limits.geometry`): collision avoidance over the pairs the model's own
-  geometry lets collide (robot--scene and self-collision, adjacent bodies excluded).
+  geometry lets collide (robot--scene and self-collision, adjacent bodies excluded), less
+  the self-collision pairs :func:`always_in_contact` finds overlapping in every pose.
 
 :class:`ConfigurationLimit` and :class:`VelocityLimit` build mink's own objects, after
 checking their arguments (typed :class:`qpik.LimitDefinitionError`).
@@ -41,6 +42,7 @@ from ..model.configuration import Configuration, joint_names
 from .ball import BallJointLimit, limited_ball_joints
 from .collision import CollisionAvoidanceLimit, geom_distance
 from .geometry import (
+    always_in_contact,
     checked_pairs,
     closest_pair,
     collision_clearance,
@@ -59,6 +61,7 @@ __all__ = [
     "Limit",
     "SupportPolygonLimit",
     "VelocityLimit",
+    "always_in_contact",
     "checked_pairs",
     "closest_pair",
     "collision_clearance",

@@ -16,8 +16,11 @@ geoms have contact bits (``contype``/``conaffinity``; Menagerie puts them in gro
   base and the first link), which MuJoCo leaves to an ``<exclude>``; the geoms of the world
   body itself (the scene) are adjacent to nothing, so an obstacle pairs with the first
   link too.
+* :func:`always_in_contact`: the self-collision pairs that overlap in every pose the joint
+  ranges allow (sampled), which no step can separate: a URDF without an SRDF's
+  ``<disable_collisions>`` (erd Baxter's elbow links, Tiago's hand) has them;
 * :func:`model_collision_limit`: a :class:`qpik.limits.CollisionAvoidanceLimit` over those
-  pairs;
+  pairs, less the ones always in contact;
 * :func:`collision_clearance`, :func:`closest_pair`, :func:`collision_limits`,
   :func:`checked_pairs`: how far a
   configuration is from breaking the collision limits of a list of limits, and which
@@ -54,6 +57,7 @@ __all__ = [
     "collision_geoms",
     "collision_limits",
     "collision_pairs",
+    "always_in_contact",
     "contact_footprint",
     "model_collision_limit",
 ]
@@ -125,10 +129,68 @@ def collision_pairs(
     return sorted(pairs)
 
 
+#: Poses :func:`always_in_contact` samples (besides ``qpos0`` and the keyframes).
+ALWAYS_SAMPLES = 32
+
+
+def always_in_contact(
+    model: mujoco.MjModel, pairs: Sequence[tuple[int, int]], *, samples: int = ALWAYS_SAMPLES
+) -> list[tuple[int, int]]:
+    """The self-collision pairs among ``pairs`` (geom ids, both on moving bodies of the
+    robot) that penetrate (MuJoCo's contact distance below 0) at ``qpos0``, at every keyframe
+    and at each of ``samples`` poses drawn uniformly in the joint ranges (a fixed seed:
+    the same pairs on every call; unlimited hinges in [-pi, pi]; free, ball and unlimited
+    slide joints at ``qpos0``): MoveIt's "always in collision". No step can separate such
+    a pair, and its collision row would make every step infeasible. Robot--scene pairs are
+    never in the list (an obstacle may overlap the robot where it starts). MuJoCo's own
+    contact filter decides what its collision detection tests, so a pair it never tests
+    (an explicit ``<pair>`` aside) is never in the list either."""
+    check_model_type("model", model)
+    samples = checks.check_integer("samples", samples, 0, 100_000)
+    wanted = {
+        (min(int(a), int(b)), max(int(a), int(b)))
+        for a, b in pairs
+        if model.geom_bodyid[a] != 0 and model.geom_bodyid[b] != 0
+    }
+    if not wanted or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
+        return []
+    poses = [model.qpos0.copy(), *(np.array(model.key_qpos[k]) for k in range(model.nkey))]
+    rng = np.random.default_rng(0)
+    for _ in range(samples):
+        q = model.qpos0.copy()
+        for j in range(model.njnt):
+            kind, adr = int(model.jnt_type[j]), int(model.jnt_qposadr[j])
+            low, high = model.jnt_range[j]
+            limited = bool(model.jnt_limited[j]) and high > low
+            if kind == int(mujoco.mjtJoint.mjJNT_HINGE):
+                q[adr] = rng.uniform(low, high) if limited else rng.uniform(-math.pi, math.pi)
+            elif kind == int(mujoco.mjtJoint.mjJNT_SLIDE) and limited:
+                q[adr] = rng.uniform(low, high)
+        poses.append(q)
+    data = mujoco.MjData(model)
+    for q in poses:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        touching = set()
+        for c in range(data.ncon):
+            contact = data.contact[c]
+            if contact.dist < 0:
+                a, b = int(contact.geom[0]), int(contact.geom[1])
+                touching.add((min(a, b), max(a, b)))
+        wanted &= touching
+        if not wanted:
+            return []
+    return sorted(wanted)
+
+
 class _ModelCollisionLimit(CollisionAvoidanceLimit):
     """:class:`CollisionAvoidanceLimit` over pairs already filtered by
     :func:`collision_pairs`: a geom of the world body itself (an obstacle, the floor) pairs
     with the robot's first link too, which mink's rule drops as "parent and child"."""
+
+    #: The self-collision pairs left out (:func:`always_in_contact`), geom ids.
+    always_in_contact: list[tuple[int, int]] = []  # noqa: RUF012 (set per instance)
 
     def _reject(self, model: mujoco.MjModel, a: int, b: int) -> str | None:
         body_a, body_b = int(model.geom_bodyid[a]), int(model.geom_bodyid[b])
@@ -138,7 +200,7 @@ class _ModelCollisionLimit(CollisionAvoidanceLimit):
         return super()._reject(model, a, b)
 
 
-def model_collision_limit(
+def model_collision_limit(  # noqa: PLR0913 (the pair filters and mink's four numbers)
     model: mujoco.MjModel,
     *,
     scene: bool = True,
@@ -148,10 +210,14 @@ def model_collision_limit(
     minimum_distance_from_collisions: float = 0.005,
     collision_detection_distance: float = 0.01,
     bound_relaxation: float = 0.0,
+    keep_always_in_contact: bool = False,
 ) -> CollisionAvoidanceLimit:
     """A :class:`CollisionAvoidanceLimit` over the pairs the model lets collide
     (:func:`collision_pairs`): robot against scene (``scene``) and robot against itself
-    (``self_collision``).
+    (``self_collision``), less the self-collision pairs :func:`always_in_contact` finds
+    (unless ``keep_always_in_contact``), which the limit lists as ``always_in_contact``
+    (geom id pairs). A URDF's SRDF ``<disable_collisions>`` pairs are already excluded by
+    :func:`qpik.load_robot`.
 
     Args:
         model: the robot or scene model (obstacles from :func:`qpik.scene.add_obstacle`).
@@ -161,6 +227,9 @@ def model_collision_limit(
         geoms: only pairs with at least one of these geoms (names or ids; default: all).
         gain, minimum_distance_from_collisions, collision_detection_distance,
             bound_relaxation: :class:`CollisionAvoidanceLimit`'s, in [m] where a distance.
+        keep_always_in_contact: keep the pairs that overlap in every pose too (their rows
+            then make every step infeasible until the relaxation of
+            :mod:`qpik.diffik.recovery` frees them).
 
     Raises :class:`qpik.CollisionPairError` when the model has no such pair (no collision
     geom, or every pair excluded), naming what was asked.
@@ -173,6 +242,7 @@ def model_collision_limit(
     }
     for name, value in numbers.items():  # each named before any pair is looked at
         checks.check_real(name, value)
+    keep_always_in_contact = checks.check_bool("keep_always_in_contact", keep_always_in_contact)
     pairs = collision_pairs(model, scene=scene, self_collision=self_collision)
     if geoms is not None:
         if (
@@ -196,6 +266,10 @@ def model_collision_limit(
                 raise LimitDefinitionError(f"unknown geom {geom!r}")
             wanted.add(gid)
         pairs = [(a, b) for a, b in pairs if a in wanted or b in wanted]
+    always = [] if keep_always_in_contact else always_in_contact(model, pairs)
+    if always:
+        dropped = set(always)
+        pairs = [pair for pair in pairs if pair not in dropped]
     if not pairs:
         asked = " and ".join(
             what for what, on in (("robot-scene", scene), ("self-collision", self_collision)) if on
@@ -206,8 +280,9 @@ def model_collision_limit(
             "(contype/conaffinity), "
             f"{len(collision_geoms(model)) - len(collision_geoms(model, robot_only=True))} "
             "in the world (add one with qpik.scene.add_obstacle)"
+            + (f"; {len(always)} pair(s) always in contact left out" if always else "")
         )
-    return _ModelCollisionLimit(
+    limit = _ModelCollisionLimit(
         model,
         [([a], [b]) for a, b in pairs],
         gain=gain,
@@ -215,6 +290,8 @@ def model_collision_limit(
         collision_detection_distance=collision_detection_distance,
         bound_relaxation=bound_relaxation,
     )
+    limit.always_in_contact = always
+    return limit
 
 
 # ---------------------------------------------------------------------- clearance

@@ -26,6 +26,17 @@ as ``srdf=``) has its ``<group_state>`` entries loaded as MuJoCo keyframes
 (``model.key("half_sitting")``), usable as ``q0 = "half_sitting"`` in problem files. Joints
 a state does not name keep ``qpos0``; ``root_joint`` values (Pinocchio's ``x y z qx qy qz
 qw``) set the free joint's pose when the base floats.
+
+Collision pairs. The same SRDF's ``<disable_collisions link1=... link2=...>`` entries (each
+pair MoveIt's setup assistant found adjacent, in collision in the default pose, always in
+collision, or never in collision, or that its author excluded) become MuJoCo contact
+excludes between the two links' bodies (``model.exclude_signature``), as Pinocchio's
+``removeCollisionPairs`` and PlaCo read them: :func:`qpik.limits.collision_pairs` and
+:func:`qpik.limits.model_collision_limit` leave them out, and so does MuJoCo's own
+collision detection. Without them, links whose collision meshes overlap in every pose
+(erd Talos's ``arm_left_5_link`` and ``arm_left_7_link``, PR2's ``base_link`` and
+``r_shoulder_pan_link``) make a collision row no step can meet. ``srdf=False`` reads
+neither the states nor the pairs.
 """
 
 from __future__ import annotations
@@ -76,7 +87,9 @@ def robot_spec(
         _add_velocity_numeric(spec, model, velocities)
     srdf_path = _srdf_path(srdf, root, path)
     if srdf_path is not None:
-        _add_srdf_keyframes(spec, model, srdf_path)
+        srdf_root = _read_srdf(srdf_path)
+        _add_srdf_keyframes(spec, model, srdf_root, srdf_path)
+        _add_srdf_exclusions(spec, model, srdf_root)
     return spec
 
 
@@ -389,12 +402,53 @@ def find_srdf(urdf: str | os.PathLike) -> Path | None:
     return None
 
 
-def _add_srdf_keyframes(spec: mujoco.MjSpec, model: mujoco.MjModel, path: Path) -> bool:
-    """The SRDF's ``<group_state>`` entries as keyframes; True if any was added."""
+def _read_srdf(path: Path) -> ET.Element:
+    """The root element of an SRDF file."""
     try:
-        root = ET.parse(path).getroot()
+        return ET.parse(path).getroot()
     except (ET.ParseError, OSError) as exc:
         raise RobotFileError(str(path), f"cannot read SRDF ({exc})") from exc
+
+
+def _add_srdf_exclusions(spec: mujoco.MjSpec, model: mujoco.MjModel, root: ET.Element) -> int:
+    """The SRDF's ``<disable_collisions>`` pairs as contact excludes between the two links'
+    bodies (every reason: Adjacent, Default, Always, Never, User), and the pairs of a
+    ``<disable_default_collisions link=...>`` link with every other body except those an
+    ``<enable_collisions>`` names; links that are not bodies of the model are skipped. The
+    number of excludes added."""
+
+    def body(name: str | None) -> int:
+        return -1 if not name else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+
+    done = {
+        (min(a, b), max(a, b))
+        for a, b in (divmod(int(sig), 1 << 16) for sig in model.exclude_signature)
+    }
+    enabled = {
+        (min(a, b), max(a, b))
+        for a, b in (
+            (body(e.get("link1")), body(e.get("link2"))) for e in root.iter("enable_collisions")
+        )
+    }
+    wanted = [(body(e.get("link1")), body(e.get("link2"))) for e in root.iter("disable_collisions")]
+    for e in root.iter("disable_default_collisions"):
+        a = body(e.get("link"))
+        wanted += [(a, b) for b in range(1, model.nbody) if (min(a, b), max(a, b)) not in enabled]
+    added = 0
+    for a, b in wanted:
+        pair = (min(a, b), max(a, b))
+        if a <= 0 or b <= 0 or a == b or pair in done:
+            continue
+        done.add(pair)
+        spec.add_exclude(bodyname1=model.body(a).name, bodyname2=model.body(b).name)
+        added += 1
+    return added
+
+
+def _add_srdf_keyframes(
+    spec: mujoco.MjSpec, model: mujoco.MjModel, root: ET.Element, path: Path
+) -> bool:
+    """The SRDF's ``<group_state>`` entries as keyframes; True if any was added."""
     existing = {key.name for key in spec.keys}
     added = False
     for state in root.iter("group_state"):

@@ -211,7 +211,8 @@ def load_robot(
             ``srdf`` must then be left at their defaults).
         floating_base: add a free joint ``root_joint`` at the root body (a humanoid or a
             legged robot whose base moves in the world).
-        srdf: an SRDF file whose named states become keyframes; ``None`` (default) or
+        srdf: an SRDF file whose named states become keyframes and whose
+            ``<disable_collisions>`` pairs become contact excludes; ``None`` (default) or
             ``True``: look for one beside a URDF; ``False``: none.
     """
     floating_base = checks.check_bool("floating_base", floating_base)
