@@ -3086,26 +3086,17 @@ __attribute__((noinline)) inline void span_pins(const std::vector<Vec>& normals,
 }  // namespace detail
 
 namespace detail {
-// A row of Z (a dof's motion per unit of the null-space coordinates) whose squared norm is at
-// most kRowRoundOff eps adds no more than that to Z^T Z, the size of Z's own round-off: the
-// dof is held by the levels above (its motion 1e-8 of any other's) and its row is made exactly
-// 0. Left as it was, its bounds' normals in null-space coordinates are known to 1e-8 of their
-// length only (entries of Z carry an absolute round-off of about eps), yet a level below may
-// take such a row as active with a multiplier of 1e12 and fit a gradient of 1e-4 to that
-// round-off: erd Romeo's posture, exact mode, certified 3.2e-6 above its optimum with a dof at
-// 1.16e-8 on its bound (tests/data/exactness/README.md).
+// A tight box row whose row of Z (the dof's motion per unit of the null-space coordinates) has
+// a squared norm of at most kRowRoundOff eps moves its dof by 1e-8 of any other's at most:
+// drop_pinned leaves it out of the pinning test (it pins nothing, and nothing pins it). Its
+// normalised normal, the direction of that tiny row, would otherwise join the test at full
+// weight: erd Romeo's posture, exact mode, was left 3.2e-6 above its optimum by the pins such
+// a row of 1.16e-8 made (tests/data/exactness/hqp_held_dof_roundoff_row.npz). The row itself
+// stays in Z as it is, a constraint of the level's QP like any other: such a row can be the
+// small but exact part of a null direction (erd UR10: a dof's 2.95e-8 that keeps A Z = 0
+// where a wrist joint's Jacobian column is 5e-9), and making it 0 would leave the levels
+// above a direction they move (tests/data/exactness/hqp_small_null_component.npz).
 constexpr double kRowRoundOff = 4.0;
-inline void zero_roundoff_rows(Mat& Z) {
-    const i64 n = Z.rows, r = Z.cols;
-    const double cut = kRowRoundOff * 2.220446049250313e-16;
-    for (i64 i = 0; i < n; ++i) {
-        double* zi = Z.row(i);
-        double nn = 0.0;
-        for (i64 c = 0; c < r; ++c) nn += zi[c] * zi[c];
-        if (nn > 0.0 && nn <= cut)
-            for (i64 c = 0; c < r; ++c) zi[c] = 0.0;
-    }
-}
 }  // namespace detail
 
 namespace detail {
@@ -3236,7 +3227,8 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         if (!at_lb && !at_ub) continue;  // no normal (its row's norm unused)
         const double* zi = Z.row(i);
         double nn = dot(zi, zi, r);
-        if (!(nn > 1e-20)) continue;  // no constraint in null-space coordinates (reduced_qp)
+        // (no constraint in null-space coordinates (reduced_qp), or too small to pin: kRowRoundOff)
+        if (!(nn > detail::kRowRoundOff * 2.220446049250313e-16)) continue;
         double norm = std::sqrt(nn);
         for (double side : {1.0, -1.0}) {
             if (!(side > 0.0 ? at_lb : at_ub)) continue;
@@ -3575,11 +3567,9 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
     Mat& Z = ws.Z;
     Z.set_eye(n);
     bool z_eye = true;  // Z is still exactly the identity (nothing pinned, no level projected)
-    // After a solved level, its null space (project_level's Zn) is Z for the levels below, its
-    // rows of round-off made exactly 0 (zero_roundoff_rows).
+    // After a solved level, its null space (project_level's Zn) is Z for the levels below.
     auto take_null_space = [&]() {
         std::swap(Z, ws.pr.Zn);
-        detail::zero_roundoff_rows(Z);
         z_eye = false;
     };
     i64 last = -1;  // the last level with rows: no level below it uses its null space
