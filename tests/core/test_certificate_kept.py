@@ -363,3 +363,39 @@ def test_slack_levels_are_solved_exactly(seeds):
         b0 = np.concatenate([-h, lb[fin_l], -ub[fin_u]])
         ref = quadprog.solve_qp(P, np.zeros(n), C, b0)[0][nx:]
         assert 0.5 * s @ s <= 0.5 * ref @ ref * (1 + 1e-6) + 1e-12, seed
+
+
+VERTEX = Path(__file__).parents[1] / "data" / "exactness" / "degenerate_vertex_kept_point.npz"
+
+
+def test_degenerate_vertex_kept_point_is_certified():
+    """erd Romeo LAAS small, exact mode (tests/data/exactness/README.md): level 1 leaves every
+    dof of level 2's free directions on a bound, and that point is level 2's optimum; the dual
+    method's candidates all fail there, and the level is solved at the point it keeps, by
+    multipliers found again in extended precision. Checked here without qpik: the point is a
+    KKT point of level 2 (scipy's NNLS on the null space of the levels above, the bounds on
+    which it sits), with the objective of the level above unchanged."""
+    z = np.load(VERTEX)
+    levels = [
+        Level(
+            z[f"A{k}"], z[f"b{k}"], float(z[f"reg{k}"]), z[f"w{k}"] if f"w{k}" in z.files else None
+        )
+        for k in range(int(z["L"]))
+    ]
+    lb, ub = z["lb"], z["ub"]
+    solver = HierarchySolver(damping_law=None)
+    above = solver.solve(HierarchyProblem(levels[:2], lb, ub, z["G"], z["h"]))
+    result = solver.solve(HierarchyProblem(levels[:3], lb, ub, z["G"], z["h"]))
+    assert result.status[2] == LevelStatus.SOLVED, result.certificate[2]
+    assert result.certificate[2].holds
+    x = result.x
+    np.testing.assert_allclose(x, above.x, rtol=0, atol=1e-15)  # the kept point (snapped)
+    # independent KKT check of level 2 at x
+    A0, A1, A2 = (np.asarray(z[f"A{k}"]) for k in range(3))
+    N = scipy.linalg.null_space(np.vstack([A0, A1]))
+    g = N.T @ (A2.T @ (A2 @ x - z["b2"]))
+    low = np.flatnonzero(x - lb <= 1e-12 * (1 + np.abs(lb)))
+    high = np.flatnonzero(ub - x <= 1e-12 * (1 + np.abs(ub)))
+    normals = np.array([N[i] for i in low] + [-N[i] for i in high]).T
+    u, residual = scipy.optimize.nnls(normals, g, maxiter=100_000)
+    assert residual <= 1e-9 * np.linalg.norm(g), residual

@@ -2978,6 +2978,33 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
     return true;
 }
 
+// certified_by_refined_multipliers at the point the level keeps, d itself (z = 0), where no
+// feasible candidate of exact_level was left to try (none, or its own try failed): at a
+// degenerate vertex (every free direction blocked by rows on their bounds, multipliers of 1e3
+// or more) the dual method's candidates can all fail while d is the level's optimum (erd
+// Romeo LAAS small, exact mode: 39 dofs on their bounds, d within 3e-14 of the independent
+// reference's objective, yet the level was kept_previous). The same tests as for a candidate:
+// true only where every measure holds at d (snapped to the bounds it meets to its rounding),
+// with cert, z = 0 and the final rows written; the answer is then d as the level above left it
+// (to that snap).
+inline bool kept_point_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d,
+                                              CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, const ReducedQP& qp,
+                                              bool z_eye, const double* gsq, CertScratch& es, NnlsScratch& ns,
+                                              Vec& z, Certificate& cert, IVec& final_rows, IVec& final_sides) {
+    const i64 r = Z.cols;
+    if (r == 0) return false;
+    const bool had = es.has_best;
+    Vec saved;
+    std::swap(saved, es.xbest);
+    es.xbest.assign(static_cast<size_t>(r), 0.0);
+    es.has_best = true;
+    const bool ok = certified_by_refined_multipliers(Ak, bk, rho, Z, d, lb, ub, G, h, qp, z_eye, gsq, es, ns, z,
+                                                     cert, final_rows, final_sides);
+    std::swap(saved, es.xbest);
+    es.has_best = had;
+    return ok;
+}
+
 }  // namespace detail
 
 constexpr double kPinned = 1e-12;  // tight rows whose unit normals sum, with weights u >= 0, to
@@ -3681,7 +3708,10 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
                     cert = at_d;
                 } else if (detail::certified_by_refined_multipliers(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, qp, z_eye,
                                                                     gsq, ws.cs, ws.nnls, z, cert, final_rows,
-                                                                    final_sides)) {
+                                                                    final_sides) ||
+                           detail::kept_point_by_refined_multipliers(Ak, bk, rho, Z.cref(), d, lb, ub, G, h, qp,
+                                                                     z_eye, gsq, ws.cs, ws.nnls, z, cert, final_rows,
+                                                                     final_sides)) {
                     exact = true;  // (its x in ws.cs.xx, as exact_level leaves a certified one)
                 } else if (std::isnan(cert.primal)) {
                     cert = at_d;
