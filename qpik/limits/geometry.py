@@ -133,27 +133,31 @@ def collision_pairs(
 ALWAYS_SAMPLES = 32
 
 
-def always_in_contact(
-    model: mujoco.MjModel, pairs: Sequence[tuple[int, int]], *, samples: int = ALWAYS_SAMPLES
-) -> list[tuple[int, int]]:
-    """The self-collision pairs among ``pairs`` (geom ids, both on moving bodies of the
-    robot) that penetrate (MuJoCo's contact distance below 0) at ``qpos0``, at every keyframe
-    and at each of ``samples`` poses drawn uniformly in the joint ranges (a fixed seed:
-    the same pairs on every call; unlimited hinges in [-pi, pi]; free, ball and unlimited
-    slide joints at ``qpos0``): MoveIt's "always in collision". No step can separate such
-    a pair, and its collision row would make every step infeasible. Robot--scene pairs are
-    never in the list (an obstacle may overlap the robot where it starts). MuJoCo's own
-    contact filter decides what its collision detection tests, so a pair it never tests
-    (an explicit ``<pair>`` aside) is never in the list either."""
-    check_model_type("model", model)
-    samples = checks.check_integer("samples", samples, 0, 100_000)
-    wanted = {
-        (min(int(a), int(b)), max(int(a), int(b)))
-        for a, b in pairs
-        if model.geom_bodyid[a] != 0 and model.geom_bodyid[b] != 0
-    }
-    if not wanted or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
-        return []
+def _geom_pairs(model: mujoco.MjModel, pairs: Any) -> list[tuple[int, int]]:
+    """``pairs`` checked: (geom id, geom id) pairs of ints in ``[0, ngeom)``, each sorted."""
+    if isinstance(pairs, (str, bytes)) or not isinstance(pairs, (list, tuple, np.ndarray)):
+        raise InvalidArgumentType(
+            "pairs", "a list of (geom id, geom id) pairs", checks.type_name(pairs)
+        )
+    checked = []
+    for pair in pairs:
+        ints = isinstance(pair, (list, tuple, np.ndarray)) and len(pair) == 2
+        ints = ints and all(
+            isinstance(g, (int, np.integer)) and not isinstance(g, (bool, np.bool_)) for g in pair
+        )
+        if not ints:
+            raise InvalidArgumentType("pairs", "(geom id, geom id) pairs of ints", repr(pair)[:60])
+        a, b = int(pair[0]), int(pair[1])
+        if not (0 <= a < model.ngeom and 0 <= b < model.ngeom):
+            raise LimitDefinitionError(f"pairs: geom id out of range [0, {model.ngeom}): {(a, b)}")
+        checked.append((min(a, b), max(a, b)))
+    return checked
+
+
+def _sampled_poses(model: mujoco.MjModel, samples: int) -> list[np.ndarray]:
+    """``qpos0``, the keyframes, and ``samples`` poses drawn uniformly in the joint ranges
+    (seed 0; unlimited hinges in [-pi, pi]; free, ball and unlimited slide joints at
+    ``qpos0``)."""
     poses = [model.qpos0.copy(), *(np.array(model.key_qpos[k]) for k in range(model.nkey))]
     rng = np.random.default_rng(0)
     for _ in range(samples):
@@ -167,8 +171,33 @@ def always_in_contact(
             elif kind == int(mujoco.mjtJoint.mjJNT_SLIDE) and limited:
                 q[adr] = rng.uniform(low, high)
         poses.append(q)
+    return poses
+
+
+def always_in_contact(
+    model: mujoco.MjModel, pairs: Sequence[tuple[int, int]], *, samples: int = ALWAYS_SAMPLES
+) -> list[tuple[int, int]]:
+    """The self-collision pairs among ``pairs`` (geom ids, both on moving bodies of the
+    robot) that penetrate (MuJoCo's contact distance below 0) at ``qpos0``, at every keyframe
+    and at each of ``samples`` poses drawn uniformly in the joint ranges (a fixed seed:
+    the same pairs on every call; unlimited hinges in [-pi, pi]; free, ball and unlimited
+    slide joints at ``qpos0``): MoveIt's "always in collision". No step can separate such
+    a pair, and its collision row would make every step infeasible. Robot--scene pairs are
+    never in the list (an obstacle may overlap the robot where it starts). MuJoCo's own
+    contact filter decides what its collision detection tests, so a pair it never tests
+    (an explicit ``<pair>`` aside) is never in the list either. Raises a typed
+    :class:`qpik.QpikError` naming ``pairs`` or ``samples`` for bad input."""
+    check_model_type("model", model)
+    samples = checks.check_integer("samples", samples, 0, 100_000)
+    wanted = {
+        (a, b)
+        for a, b in _geom_pairs(model, pairs)
+        if model.geom_bodyid[a] != 0 and model.geom_bodyid[b] != 0
+    }
+    if not wanted or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
+        return []
     data = mujoco.MjData(model)
-    for q in poses:
+    for q in _sampled_poses(model, samples):
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_collision(model, data)

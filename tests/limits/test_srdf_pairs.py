@@ -135,6 +135,11 @@ def test_always_in_contact_is_the_pairs_no_pose_separates(tmp_path):
     assert _names(scene, always_in_contact(scene, pairs, samples=0)) >= {("a_g", "b_g")}
     with pytest.raises(qpik.QpikError, match="samples"):
         always_in_contact(scene, pairs, samples=-1)
+    for bad in ("a_g", [(0,)], [(0, "b")], [(True, 1)], 3):
+        with pytest.raises(qpik.QpikError, match="pairs"):
+            always_in_contact(scene, bad)
+    with pytest.raises(qpik.QpikError, match="out of range"):
+        always_in_contact(scene, [(0, scene.ngeom)])
 
 
 def test_model_collision_limit_leaves_out_the_pairs_always_in_contact():
