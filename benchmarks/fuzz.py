@@ -1261,6 +1261,7 @@ SIGNATURE_TARGETS = (
             "model_collision_limit",
             "CollisionAvoidanceLimit",
             "collision_pairs",
+            "always_in_contact",
         )
     )
 )

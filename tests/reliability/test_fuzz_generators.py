@@ -60,6 +60,11 @@ CASES = {
         "gain",
     ),
     "collision_pairs": (lambda m: qpik.limits.collision_pairs(True), "model"),
+    "always_in_contact_pairs": (lambda m: qpik.limits.always_in_contact(m, [(0, "a")]), "pairs"),
+    "always_in_contact_samples": (
+        lambda m: qpik.limits.always_in_contact(m, [], samples=1.5),
+        "samples",
+    ),
     "collision_geoms": (
         lambda m: qpik.limits.model_collision_limit(m, geoms=np.array(1)),
         "geoms",
