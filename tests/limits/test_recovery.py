@@ -11,6 +11,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+import scipy.optimize
 
 import qpik
 from qpik.diffik.recovery import least_slack
@@ -346,3 +347,35 @@ def test_a_row_no_displacement_in_the_box_meets_makes_level_0_infeasible(scale):
         np.array([[1.0, 0.0, 0.0]]), np.array([-0.02]),
     )  # fmt: skip
     assert HierarchySolver().solve(feasible).status[0] == "solved"
+
+
+def test_the_slack_problem_leaves_out_rows_the_box_meets():
+    """Many rows (a many-pair robot's collision rows within the detection distance), a few of
+    which a step in the box can break: least_slack gives the rows the box meets everywhere no
+    slack, and the others the least-squares slack an independent solver finds (scipy's
+    L-BFGS-B on 1/2 |max(0, G x - h)|^2 + 1/2 eps^2 |x|^2 over the box)."""
+    from qpik.diffik.boxes import LimitRows
+    from qpik.diffik.recovery import SLACK_STEP_WEIGHT
+
+    rng = np.random.default_rng(3)
+    n, far, near = 7, 300, 6
+    lb, ub = -np.full(n, 0.03), np.full(n, 0.03)
+    G = rng.normal(size=(far + near, n))
+    reach = np.abs(G) @ ub  # the largest g_i x over the box
+    h = reach + rng.uniform(0.001, 0.1, far + near)  # met everywhere in the box
+    h[:near] = -reach[:near] * rng.uniform(0.1, 0.8, near)  # not met at x = 0, nor together
+    rows = LimitRows(lb, ub, G, h, [f"r{i}" for i in range(len(h))], lambda: [],
+                     [f"q{j}" for j in range(n)], np.ones(len(h), bool))  # fmt: skip
+    slack = least_slack(rows)
+    assert slack is not None and np.all(slack[near:] == 0.0) and np.all(slack[:near] >= 0.0)
+
+    def objective(x):
+        excess = np.maximum(0.0, G @ x - h)
+        eps2 = SLACK_STEP_WEIGHT**2  # (the level's rows: SLACK_STEP_WEIGHT I on x)
+        return 0.5 * excess @ excess + 0.5 * eps2 * x @ x, G.T @ excess + eps2 * x
+
+    best = scipy.optimize.minimize(objective, np.zeros(n), jac=True, method="L-BFGS-B",
+                                   bounds=list(zip(lb, ub)), options={"ftol": 1e-15, "gtol": 1e-13})  # fmt: skip
+    expected = np.maximum(0.0, G @ best.x - h)
+    assert 0.5 * slack @ slack <= 0.5 * expected @ expected * (1 + 1e-6) + 1e-15
+    np.testing.assert_allclose(slack, expected, rtol=1e-4, atol=1e-7)
