@@ -66,8 +66,13 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     1e-17. Rows that every step in the box meets (their largest value over the box at most
     ``h_i``) take no slack and are left out of the problem: the optimum is the same, and a
     robot with many collision pairs within the detection distance solves a problem of the
-    few rows a step can break (erd Tiago, 374 rows: a full IK iteration in recovery 4x
-    faster). Where the core does not certify its answer, a feasible slack is taken instead:
+    few rows a step can break. It is solved first by Newton's method on ``x`` alone
+    (:func:`_hinge_newton`: a least squares of ``n`` variables per round, each certified),
+    and by the slack problem (``n`` plus one variable per row) only where that does not
+    settle. On erd Tiago from ``qpos0`` (374 collision rows, its hand's links in contact) a
+    full IK with two restarts took 0.31 s rather than 3.8 s; on 68 recovered steps of six erd
+    robots both ways agree to 8e-15. Where the core does not certify its answer, a
+    feasible slack is taken instead:
     the one that lets the relaxable rows admit the core's step ``x`` (or, where that step
     is outside the box or breaks a hard row, the box's point nearest 0),
     ``s_i = max(0, g_i x - h_i)``: not the least, but the relaxed rows then admit a step."""
@@ -90,6 +95,12 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     needed = ~(np.isfinite(highest) & (highest <= h))
     relax_kept = relax[needed]
     G, h_kept = G[needed], h[needed]
+    tolerance = RELAXATION_MARGINS[0] * _row_scale(limits)
+    newton = _hinge_newton(G, h_kept, relax_kept, lb, ub)
+    if newton is not None:
+        slack = np.zeros(p)
+        slack[needed] = newton
+        return np.where(slack > tolerance, slack, 0.0)
     k = int(relax_kept.sum())
     objective = np.zeros((n + k, n + k))  # |s|^2, and |x|^2 at SLACK_STEP_WEIGHT^2
     objective[:n, :n] = SLACK_STEP_WEIGHT * np.eye(n)
@@ -101,7 +112,6 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
         np.concatenate([lb, -free]), np.concatenate([ub, free]), rows, h_kept,
     )  # fmt: skip
     result = HierarchySolver("auto", damping_law=None).solve(problem)
-    tolerance = RELAXATION_MARGINS[0] * _row_scale(limits)
     if result.status[0] == LevelStatus.SOLVED and np.all(np.isfinite(result.x)):
         slack = np.zeros(p)
         slack[np.flatnonzero(needed)[relax_kept]] = result.x[n:]
@@ -113,6 +123,49 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
         excess = limits.G @ x - h
         if np.all(excess[~relax] <= tolerance[~relax]):  # the hard rows hold at x
             return np.where(relax & (excess > 0.0), excess, 0.0)
+    return None
+
+
+#: The most active sets :func:`_hinge_newton` tries before the slack problem takes over.
+NEWTON_ROUNDS = 30
+
+
+def _hinge_newton(
+    G: np.ndarray, h: np.ndarray, relax: np.ndarray, lb: np.ndarray, ub: np.ndarray
+) -> np.ndarray | None:
+    """The least-squares slack by Newton's method on ``x`` alone: the slack problem is
+    ``min_x 1/2 sum_i max(0, g_i x - h_i)^2 + 1/2 eps^2 |x|^2`` over the box and the hard rows
+    (``s_i = max(0, g_i x - h_i)`` at its optimum), a convex function whose gradient is that
+    of the least squares of the rows it breaks, ``A = {i relaxable: g_i x > h_i}``. From the
+    box's point nearest 0, each round solves that least squares exactly (the core, certified;
+    ``n`` variables rather than ``n`` plus one per row) and takes the rows the answer breaks;
+    where they are the same rows, the answer meets the optimality conditions of the whole
+    problem (the same gradient, the same constraints) and its slack is returned (0 on the
+    hard rows). None where a round is not certified, the sets cycle, or
+    :data:`NEWTON_ROUNDS` pass: the slack problem itself decides then."""
+    n = G.shape[1]
+    hard = ~relax
+    solver = HierarchySolver("auto", damping_law=None)
+    x = np.clip(0.0, lb, ub)
+    active = relax & (G @ x - h > 0.0)
+    seen: set[bytes] = set()
+    for _ in range(NEWTON_ROUNDS):
+        key = active.tobytes()
+        if key in seen:
+            return None
+        seen.add(key)
+        rows = np.vstack([G[active], SLACK_STEP_WEIGHT * np.eye(n)])
+        targets = np.concatenate([h[active], np.zeros(n)])
+        problem = HierarchyProblem([Level(rows, targets, 0.0)], lb, ub, G[hard], h[hard])
+        result = solver.solve(problem)
+        if result.status[0] != LevelStatus.SOLVED or not np.all(np.isfinite(result.x)):
+            return None
+        x = result.x
+        excess = G @ x - h
+        broken = relax & (excess > 0.0)
+        if np.array_equal(broken, active):
+            return np.where(broken, excess, 0.0)
+        active = broken
     return None
 
 
