@@ -159,6 +159,18 @@ def _culling(limit: mink.CollisionAvoidanceLimit) -> PairCulling:
     return entry[2]
 
 
+def near_pairs(
+    limit: mink.CollisionAvoidanceLimit,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    threshold: float,
+) -> list[int]:
+    """Indices (ascending, into ``limit.geom_id_pairs``) of the pairs that may be within
+    ``threshold`` [m] at ``data``'s geom placement (``mj_kinematics`` done): every pair
+    closer than that, and a few more (:class:`PairCulling`, kept per limit)."""
+    return _culling(limit).candidates(model, data, threshold)
+
+
 def mink_collision_rows(
     limit: mink.CollisionAvoidanceLimit, configuration: mink.Configuration, dt: float
 ) -> tuple[np.ndarray, np.ndarray, list[int]]:

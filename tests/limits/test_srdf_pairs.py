@@ -192,3 +192,28 @@ def test_erd_robots_keep_only_pairs_a_step_can_meet():
     )
     configuration = qpik.Configuration(talos, talos.key("half_sitting").qpos)
     assert [s.value for s in solver.step(configuration, 0.01).status] == ["solved"]
+
+
+@pytest.mark.parametrize("cap", [1.0, 0.05, 1e-3])
+def test_collision_clearance_skips_far_pairs_with_the_same_answer(cap):
+    """collision_clearance hands mj_geomDistance only the pairs the culling keeps; the far
+    ones count as mj_geomDistance would return them (d_min + cap): the same value, bit for bit,
+    as every pair's distance taken."""
+    import math
+
+    from qpik.limits import collision_clearance
+
+    model = qpik.load_robot("panda")
+    limit = model_collision_limit(model, collision_detection_distance=0.05)
+    configuration = qpik.Configuration(model)
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        configuration.update(configuration.random_q(rng))
+        d_min = float(limit.minimum_distance_from_collisions)
+        every = math.inf
+        for a, b in limit.geom_id_pairs:
+            distance = mujoco.mj_geomDistance(
+                model, configuration.data, int(a), int(b), d_min + cap, None
+            )
+            every = min(every, distance - d_min)
+        assert collision_clearance(model, configuration.data, [limit], cap) == every
