@@ -399,3 +399,11 @@ def test_degenerate_vertex_kept_point_is_certified():
     normals = np.array([N[i] for i in low] + [-N[i] for i in high]).T
     u, residual = scipy.optimize.nnls(normals, g, maxiter=100_000)
     assert residual <= 1e-9 * np.linalg.norm(g), residual
+    # The same bits from a solver whose workspace solved other problems first (the kept
+    # point's fallback borrows the last candidate's storage and gives it back).
+    busy = HierarchySolver(damping_law=None)
+    busy.solve(HierarchyProblem(levels, lb, ub, z["G"], z["h"]))
+    busy.solve(_pinned_problem()[2])
+    again = busy.solve(HierarchyProblem(levels[:3], lb, ub, z["G"], z["h"]))
+    assert np.array_equal(again.x, result.x)
+    assert [s.value for s in again.status] == [s.value for s in result.status]
