@@ -144,7 +144,8 @@ def _hinge_newton(
     hard rows). None where a round is not certified, the sets cycle, or
     :data:`NEWTON_ROUNDS` pass: the slack problem itself decides then."""
     n = G.shape[1]
-    hard = ~relax
+    G_hard, h_hard = G[~relax], h[~relax]
+    step_rows, step_targets = SLACK_STEP_WEIGHT * np.eye(n), np.zeros(n)
     solver = HierarchySolver("auto", damping_law=None)
     x = np.clip(0.0, lb, ub)
     active = relax & (G @ x - h > 0.0)
@@ -154,9 +155,9 @@ def _hinge_newton(
         if key in seen:
             return None
         seen.add(key)
-        rows = np.vstack([G[active], SLACK_STEP_WEIGHT * np.eye(n)])
-        targets = np.concatenate([h[active], np.zeros(n)])
-        problem = HierarchyProblem([Level(rows, targets, 0.0)], lb, ub, G[hard], h[hard])
+        rows = np.vstack([G[active], step_rows])
+        targets = np.concatenate([h[active], step_targets])
+        problem = HierarchyProblem([Level(rows, targets, 0.0)], lb, ub, G_hard, h_hard)
         result = solver.solve(problem)
         if result.status[0] != LevelStatus.SOLVED or not np.all(np.isfinite(result.x)):
             return None

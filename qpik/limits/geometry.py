@@ -42,7 +42,7 @@ import numpy as np
 from ..core import checks
 from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError
 from ..model.configuration import FrameType
-from ..model.frames import check_model_type
+from ..model.frames import check_model_type, excluded_body_pairs
 from .collision import (
     CollisionAvoidanceLimit,
     contact_bits_match,
@@ -77,14 +77,6 @@ def collision_geoms(model: mujoco.MjModel, *, robot_only: bool = False) -> list[
     ]
 
 
-def _excluded_bodies(model: mujoco.MjModel) -> set[tuple[int, int]]:
-    pairs = set()
-    for signature in model.exclude_signature:
-        a, b = int(signature) >> 16, int(signature) & 0xFFFF
-        pairs.add((min(a, b), max(a, b)))
-    return pairs
-
-
 def _filtered(model: mujoco.MjModel, a: int, b: int, excluded: set[tuple[int, int]]) -> bool:
     """Whether MuJoCo's contact filter (plus the parent-child rule at the world) drops the
     geom pair ``(a, b)``."""
@@ -112,7 +104,7 @@ def collision_pairs(
     check_model_type("model", model)
     checks.check_bool("scene", scene)
     checks.check_bool("self_collision", self_collision)
-    excluded = _excluded_bodies(model)
+    excluded = excluded_body_pairs(model)
     geoms = collision_geoms(model)
     pairs = set()
     for i, a in enumerate(geoms):

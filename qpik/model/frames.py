@@ -34,6 +34,7 @@ __all__ = [
     "FRAME_ROTATIONS",
     "check_frame_type",
     "check_model_type",
+    "excluded_body_pairs",
     "FrameType",
     "ResolvedFrame",
     "frame_id",
@@ -41,6 +42,17 @@ __all__ = [
     "frame_names",
     "resolve_frame",
 ]
+
+
+def excluded_body_pairs(model: mujoco.MjModel) -> set[tuple[int, int]]:
+    """The body id pairs ``(a, b)``, ``a <= b``, of the model's contact excludes
+    (``<contact><exclude>``, and a URDF's SRDF ``<disable_collisions>`` as
+    :func:`qpik.load_robot` adds them), from ``model.exclude_signature``."""
+    pairs = set()
+    for signature in model.exclude_signature:
+        a, b = int(signature) >> 16, int(signature) & 0xFFFF
+        pairs.add((min(a, b), max(a, b)))
+    return pairs
 
 
 def check_model_type(name: str, value: Any) -> Any:

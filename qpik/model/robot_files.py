@@ -52,7 +52,7 @@ import mujoco
 import numpy as np
 
 from ..errors import RobotFileError
-from .frames import FRAME_OBJECTS
+from .frames import FRAME_OBJECTS, excluded_body_pairs
 
 __all__ = ["ROOT_JOINT", "find_srdf", "robot_spec"]
 
@@ -410,20 +410,16 @@ def _read_srdf(path: Path) -> ET.Element:
         raise RobotFileError(str(path), f"cannot read SRDF ({exc})") from exc
 
 
-def _add_srdf_exclusions(spec: mujoco.MjSpec, model: mujoco.MjModel, root: ET.Element) -> int:
+def _add_srdf_exclusions(spec: mujoco.MjSpec, model: mujoco.MjModel, root: ET.Element) -> None:
     """The SRDF's ``<disable_collisions>`` pairs as contact excludes between the two links'
     bodies (every reason: Adjacent, Default, Always, Never, User), and the pairs of a
     ``<disable_default_collisions link=...>`` link with every other body except those an
-    ``<enable_collisions>`` names; links that are not bodies of the model are skipped. The
-    number of excludes added."""
+    ``<enable_collisions>`` names; links that are not bodies of the model are skipped."""
 
     def body(name: str | None) -> int:
         return -1 if not name else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
 
-    done = {
-        (min(a, b), max(a, b))
-        for a, b in (divmod(int(sig), 1 << 16) for sig in model.exclude_signature)
-    }
+    done = excluded_body_pairs(model)
     enabled = {
         (min(a, b), max(a, b))
         for a, b in (
@@ -434,15 +430,12 @@ def _add_srdf_exclusions(spec: mujoco.MjSpec, model: mujoco.MjModel, root: ET.El
     for e in root.iter("disable_default_collisions"):
         a = body(e.get("link"))
         wanted += [(a, b) for b in range(1, model.nbody) if (min(a, b), max(a, b)) not in enabled]
-    added = 0
     for a, b in wanted:
         pair = (min(a, b), max(a, b))
         if a <= 0 or b <= 0 or a == b or pair in done:
             continue
         done.add(pair)
         spec.add_exclude(bodyname1=model.body(a).name, bodyname2=model.body(b).name)
-        added += 1
-    return added
 
 
 def _add_srdf_keyframes(
