@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InvalidInput, MissingExtra
+from . import kernels as K
 
 __all__ = [
     "BACKENDS",
@@ -26,7 +27,9 @@ __all__ = [
     "OSQPWorkspace",
     "QPSolution",
     "QPWorkspace",
+    "made_exact",
     "make_workspace",
+    "working_set_with_violated",
 ]
 
 _INF = 1e20  # what OSQP treats as infinity
@@ -211,3 +214,38 @@ def make_workspace(
     if solver not in BACKENDS:
         raise InvalidInput(f"unknown QP solver {solver!r}; known solvers: {', '.join(BACKENDS)}")
     return QPSolversWorkspace(solver, n, m, options)
+
+
+def working_set_with_violated(z, act, C, lo, hi, size: int) -> np.ndarray:
+    """The working set a level's answer ``z`` (reduced coordinates) is made exact on: the
+    solver's own (``act``: +1 on a row's lower bound, -1 on its upper; zeros where None),
+    plus every row ``z`` leaves strictly outside its bounds, however little. A backend's
+    (or the dual method's) answer may leave a row outside by its tolerance, which the
+    certificate's primal measure (scaled by ``1 + |bound|``) accepts where the bounds
+    are themselves that small: a velocity limit of 1.5 rad/s at ``dt = 1e-9`` is a bound
+    of 1.5e-9, and 5.5e-12 past it is a 0.4 % overshoot. Held, the row is met exactly
+    by the re-solve (its multiplier is then >= 0: the answer pushed against it)."""
+    guess = np.zeros(size, np.int8) if act is None else np.array(act, np.int8)
+    if z is None or C.shape[0] == 0:
+        return guess
+    Cz = C @ z
+    free = guess == 0
+    guess[free & (Cz < lo)] = 1
+    guess[free & (Cz > hi)] = -1
+    return guess
+
+
+def made_exact(x, qp: tuple, max_iter: int, tol: float, lower: bool):
+    """A backend's answer ``x`` made exact: the kernel's canonical cold solve of the same
+    QP, so the answer never depends on the backend (or its warm start); where that fails
+    numerically, the kernel started from the active set the backend identified. ``qp``:
+    the level's ``(H, c, C, lo, hi)``. Returns ``(z, status code, active)``."""
+    H, c, C, lo, hi = qp
+    cold = np.zeros(C.shape[0], dtype=np.int8)
+    z, st, _, act = K.solve_level(H, c, C, lo, hi, cold, max_iter, tol, lower, True)
+    if st != K.SOLVED:
+        guess = K.active_guess(x, C, lo, hi)
+        z2, st2, _, act2 = K.solve_level(H, c, C, lo, hi, guess, max_iter, tol, lower, True)
+        if st2 == K.SOLVED:
+            z, st, act = z2, st2, act2
+    return z, st, act

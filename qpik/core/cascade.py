@@ -112,7 +112,7 @@ import numpy as np
 
 from ..errors import InvalidInput, QpikError
 from ..options import DEFAULT_DAMPING, SOLVERS, DampingLaw
-from . import checks
+from . import backends, checks
 from . import kernels as K
 from .certificate import (
     CERTIFICATE_TOLERANCE,
@@ -369,9 +369,9 @@ class HierarchySolver:
         # The compiled cascade's storage, kept between solves (no state but capacity).
         self._cascade_workspace = K.CascadeWorkspace()
         if solver != "auto":
-            from .backends import make_workspace
-
-            make_workspace(solver, 1, 1, self.backend_options)  # fail early, naming the extra
+            backends.make_workspace(
+                solver, 1, 1, self.backend_options
+            )  # fail early, naming the extra
 
     def reset(self) -> None:
         """Forget the warm start and backend workspaces."""
@@ -561,8 +561,9 @@ class HierarchySolver:
                 # point returned (the other measures do not apply and are 0).
                 certs[k] = (primal_violation(d, lb, ub, G, h), 0.0, 0.0, 0.0)
             else:
-                # The backend's active set made exact (no added floor) and certified.
-                guess = act if act is not None else np.zeros(n + p, np.int8)
+                # The backend's active set, with the rows its answer leaves outside their
+                # bounds, made exact (no added floor) and certified.
+                guess = backends.working_set_with_violated(z, act, C, lo, hi, n + p)
                 ok, z, cert, act2 = K.certified_level(
                     Ak, bk, AZ, Z, d, float(reg[k]) + lam, lb, ub, G, h,
                     np.ascontiguousarray(guess, np.int8), st, max_iter, k > 0,
@@ -622,7 +623,9 @@ class HierarchySolver:
             name = self.solver
         solution = self._backend_solve(k, name, H, c, C, lo, hi)
         if solution is not None and solution.found:
-            z, st, act = self._made_exact(k, solution.x, H, c, C, lo, hi, max_iter)
+            z, st, act = backends.made_exact(
+                solution.x, (H, c, C, lo, hi), max_iter, self.tolerance, k > 0
+            )
             return z, st, solution.iterations, act, name
         if fallback:
             code = K.MAX_ITER if solution is None or "max_iter" in solution.status else (
@@ -635,32 +638,16 @@ class HierarchySolver:
         )
         return z, st, it, act, f"{name} failed: auto"
 
-    def _made_exact(self, k, x, H, c, C, lo, hi, max_iter):
-        """A backend's answer ``x`` made exact: the kernel's canonical cold solve of the
-        same QP, so the answer never depends on the backend (or its warm start); where
-        that fails numerically, the kernel started from the active set the backend
-        identified. Returns ``(z, status code, active)``."""
-        cold = np.zeros(C.shape[0], dtype=np.int8)
-        z, st, _, act = K.solve_level(H, c, C, lo, hi, cold, max_iter, self.tolerance, k > 0, True)
-        if st != K.SOLVED:
-            guess = K.active_guess(x, C, lo, hi)
-            z2, st2, _, act2 = K.solve_level(
-                H, c, C, lo, hi, guess, max_iter, self.tolerance, k > 0, True
-            )
-            if st2 == K.SOLVED:
-                z, st, act = z2, st2, act2
-        return z, st, act
-
     def _backend_solve(self, k, name, H, c, C, lo, hi):
         """The backend's solution, or None if it raised (its workspace is then dropped, so
         the next call starts a fresh one)."""
-        from .backends import make_workspace
-
         key = (k, name, H.shape[0], C.shape[0])
         workspace = self._workspaces.get(key)
         try:
             if workspace is None:
-                workspace = make_workspace(name, H.shape[0], C.shape[0], self.backend_options)
+                workspace = backends.make_workspace(
+                    name, H.shape[0], C.shape[0], self.backend_options
+                )
             solution = workspace.solve(H, c, C, lo, hi)
         except QpikError:
             raise
