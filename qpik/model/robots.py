@@ -283,6 +283,7 @@ def _check_axes_and_equalities(model: mujoco.MjModel, where: str) -> None:
                 "overflows)",
             )
     for e in range(model.neq):
+        _check_coupling_size(model, e, where)
         if not np.isfinite(model.eq_data[e]).all():
             name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"#{e}"
             if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_JOINT):
@@ -299,6 +300,36 @@ def _check_axes_and_equalities(model: mujoco.MjModel, where: str) -> None:
                 "entry (a URDF <mimic> multiplier or offset, an MJCF polycoef, anchor or "
                 "relpose)",
             )
+
+
+#: The largest coefficient of a joint or tendon coupling (a URDF ``<mimic>``'s multiplier or
+#: offset, an MJCF ``polycoef``): a gear ratio of a million. Beyond it the coupling's rows
+#: (``q2 - c1 q1 - ...``) make the products of a step overflow (1e300 x 1e9 = inf).
+COUPLING_COEF_MAX = 1e6
+
+
+def _check_coupling_size(model: mujoco.MjModel, e: int, where: str) -> None:
+    """A joint or tendon equality's polynomial coefficients are at most
+    :data:`COUPLING_COEF_MAX` in size (NaN and inf are named by the caller's check)."""
+    if int(model.eq_type[e]) not in (int(mujoco.mjtEq.mjEQ_JOINT), int(mujoco.mjtEq.mjEQ_TENDON)):
+        return
+    coef = model.eq_data[e][:5]
+    if not np.all(np.abs(coef[np.isfinite(coef)]) <= COUPLING_COEF_MAX):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e) or f"#{e}"
+        kind = mujoco.mjtObj.mjOBJ_JOINT
+        if int(model.eq_type[e]) == int(mujoco.mjtEq.mjEQ_TENDON):
+            kind = mujoco.mjtObj.mjOBJ_TENDON
+        names = [
+            mujoco.mj_id2name(model, kind, int(i)) or f"#{int(i)}"
+            for i in (model.eq_obj1id[e], model.eq_obj2id[e])
+            if i >= 0
+        ]
+        raise RobotFileError(
+            where,
+            f"equality {name} (of {', '.join(names)}): coefficients {coef.tolist()}; a "
+            f"coupling's coefficients (a URDF <mimic> multiplier or offset, an MJCF polycoef) "
+            f"must be at most {COUPLING_COEF_MAX:g} in size",
+        )
 
 
 def locate_robot(

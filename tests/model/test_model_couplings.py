@@ -14,6 +14,7 @@ import pytest
 from conftest import three_link_arm
 
 import qpik
+from qpik.errors import RobotFileError
 from qpik.limits import joint_limits
 from qpik.model import KinematicChain, model_couplings
 from qpik.tasks import ComTask, CouplingTask, FrameTask, PositionTask, PostureTask
@@ -382,3 +383,18 @@ def test_fixed_arm_keeps_level_0_when_level_1_is_out_of_reach():
     # level 1 did move link 4 toward its target (within the room level 0 leaves)
     start = np.linalg.norm(configuration.frame_pose("link4", "body")[0] - far)
     assert np.linalg.norm(data.body("link4").xpos - far) < start
+
+
+@pytest.mark.parametrize("multiplier", ["1e300", "-2e6", "nan"])
+def test_a_coupling_whose_rows_overflow_is_refused_at_load(tmp_path, multiplier):
+    """A ``<mimic>`` multiplier of 1e300 made the coupling row ``[-1e300, 1]``: every level
+    of a step ended ``kept_previous`` with certificates of inf (benchmarks/fuzz.py --seed
+    7304, case robot_gen:319). Such a file is refused with the equality and joints named;
+    a gear ratio up to COUPLING_COEF_MAX (1e6) loads."""
+    path = tmp_path / "mimic.urdf"
+    path.write_text(MIMIC_URDF.replace('multiplier="0.5"', f'multiplier="{multiplier}"'))
+    with pytest.raises(RobotFileError, match="j3") as caught:
+        qpik.load_robot(path)
+    assert "j2" in str(caught.value)
+    path.write_text(MIMIC_URDF.replace('multiplier="0.5"', 'multiplier="-1e6"'))
+    assert qpik.load_robot(path).neq == 1
