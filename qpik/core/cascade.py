@@ -28,8 +28,9 @@ free directions.
 Each level's QP is solved exactly by the compiled dual active-set method of
 :func:`qpik.core.kernels.solve_qp` (``solver="auto"``), which handles box bounds and general
 rows alike; other backends (``"osqp"`` with a persistent workspace per level and reduced
-size, or qpsolvers' ``"daqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``) can be forced,
-and their answers are polished on the active set they identify.
+size, or qpsolvers' ``"daqp"``, ``"quadprog"``, ``"proxqp"``, ``"clarabel"``) can be forced:
+a backend proposes each level's active set, and the exact cascade, started from them,
+answers (the same answer as ``"auto"``, bit for bit where the optimal sets are unique).
 
 **Damping** (singularity robustness) is decided from the singular values of the level's
 *unweighted* projected rows ``diag(1/w) A_k Z`` (``w`` the rows' costs), so it does not fire
@@ -317,7 +318,7 @@ _UNSET_LAW = object()
 class HierarchySolver:
     """Solves :class:`HierarchyProblem` s. By default every level starts cold, so the same
     problem gives bitwise the same result whatever was solved before; backend workspaces
-    (OSQP) are kept, and their answers are re-solved exactly on the active set they find.
+    (OSQP) are kept, and the active sets they find start the exact cascade, which answers.
 
     Args:
         solver: ``"auto"`` (exact compiled active set, OSQP as fallback if it does not
@@ -493,20 +494,29 @@ class HierarchySolver:
         if L == 0:
             x = np.clip(np.zeros(n), lb, ub)
             return HierarchyResult(x, [], [], [], [], [], np.zeros((0, n + p), np.int8), [])
-        warm = self._warm_for(L, n + p)
+        warm, warm_start, proposed = self._warm_for(L, n + p), self.warm_start, None
         if self.solver != "auto":
-            return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=False)
+            # The forced backend proposes each level's active set, level by level; the exact
+            # cascade, started from them, answers: its canonical re-solve, so the answer is
+            # "auto"'s whichever backend proposed (bit for bit where the optimal active sets
+            # are unique), and certified the same way.
+            proposed = self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=False)
+            warm, warm_start = proposed.active, True
         threshold, max_damping, error_scale = self.damping_settings
         x, status, sigma, lam2, its, active, residuals, cert, primal = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
-            self.warm_start, self._cascade_workspace,
+            warm_start, self._cascade_workspace,
         )  # fmt: skip
         result = self._result((x, status, sigma, lam2, its, active, residuals, cert, primal), L)
         if result is None:
-            # Rare: round-off cycling. Redo the cascade level by level with OSQP as the
-            # fallback where the active set did not settle.
+            # Rare: round-off cycling. The backend's own answer, else the cascade level by
+            # level with OSQP as the fallback where the active set did not settle.
+            if proposed is not None:
+                return proposed
             return self._solve_levels(A, b, w, starts, reg, lb, ub, G, h, warm, fallback=True)
+        if proposed is not None:
+            result.iterations, result.backend = proposed.iterations, proposed.backend
         return result
 
     def _result(self, out, L: int) -> HierarchyResult | None:
