@@ -4376,6 +4376,7 @@ class _Ctx:
             "tasks": [[task]],
             "stack": [[task]],
             "limits": [qpik.limits.ConfigurationLimit(model)],
+            "pairs": [],  # (geom id pairs: always_in_contact's; none, a valid list)
             "path": str(self.path),
             "region": [[-0.1, -0.1, 0.0], [0.1, 0.1, 0.1]],
             "resolution": 0.1,

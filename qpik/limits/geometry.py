@@ -168,20 +168,29 @@ def _sampled_poses(model: mujoco.MjModel, samples: int) -> list[np.ndarray]:
 
 
 def always_in_contact(
-    model: mujoco.MjModel, pairs: Sequence[tuple[int, int]], *, samples: int = ALWAYS_SAMPLES
+    model: mujoco.MjModel,
+    pairs: Sequence[tuple[int, int]],
+    *,
+    samples: int = ALWAYS_SAMPLES,
+    distance: float = 0.0,
 ) -> list[tuple[int, int]]:
     """The self-collision pairs among ``pairs`` (geom ids, both on moving bodies of the
-    robot) that penetrate (MuJoCo's contact distance below 0) at ``qpos0``, at every keyframe
-    and at each of ``samples`` poses drawn uniformly in the joint ranges (a fixed seed:
-    the same pairs on every call; unlimited hinges in [-pi, pi]; free, ball and unlimited
-    slide joints at ``qpos0``): MoveIt's "always in collision". No step can separate such
-    a pair, and its collision row would make every step infeasible. Robot--scene pairs are
-    never in the list (an obstacle may overlap the robot where it starts). MuJoCo's own
-    contact filter decides what its collision detection tests, so a pair it never tests
-    (an explicit ``<pair>`` aside) is never in the list either. Raises a typed
-    :class:`qpik.QpikError` naming ``pairs`` or ``samples`` for bad input."""
+    robot) that penetrate (MuJoCo's contact distance below 0), or with ``distance`` > 0 come
+    closer than ``distance`` [m] (``mj_geomDistance``, the distance the collision rows
+    measure), at ``qpos0``, at every keyframe and at each of ``samples`` poses drawn
+    uniformly in the joint ranges (a fixed seed: the same pairs on every call; unlimited
+    hinges in [-pi, pi]; free, ball and unlimited slide joints at ``qpos0``): MoveIt's
+    "always in collision", for a collision limit that keeps pairs ``distance`` apart. No
+    step can separate such a pair by that much, and its collision row would make every step
+    infeasible (erd Tiago's finger phalanges touch, 1e-5 m apart, in every pose).
+    Robot--scene pairs are never in the list (an obstacle may overlap the robot where it
+    starts). With ``distance`` 0, MuJoCo's own contact filter decides what its collision
+    detection tests, so a pair it never tests (an explicit ``<pair>`` aside) is never in the
+    list either. Raises a typed :class:`qpik.QpikError` naming ``pairs``, ``samples`` or
+    ``distance`` for bad input."""
     check_model_type("model", model)
     samples = checks.check_integer("samples", samples, 0, 100_000)
+    distance = checks.check_real("distance", distance, minimum=0.0)
     wanted = {
         (a, b)
         for a, b in _geom_pairs(model, pairs)
@@ -193,17 +202,33 @@ def always_in_contact(
     for q in _sampled_poses(model, samples):
         data.qpos[:] = q
         mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
-        touching = set()
-        for c in range(data.ncon):
-            contact = data.contact[c]
-            if contact.dist < 0:
-                a, b = int(contact.geom[0]), int(contact.geom[1])
-                touching.add((min(a, b), max(a, b)))
-        wanted &= touching
+        wanted &= _close_pairs(model, data, wanted, distance)
         if not wanted:
             return []
     return sorted(wanted)
+
+
+def _close_pairs(
+    model: mujoco.MjModel, data: mujoco.MjData, pairs: set, distance: float
+) -> set[tuple[int, int]]:
+    """The pairs (geom ids, sorted) closer than ``distance`` at ``data``'s kinematics:
+    penetrating contacts of MuJoCo's collision detection where ``distance`` is 0, else each
+    pair's ``mj_geomDistance`` below ``distance``."""
+    if distance > 0.0:
+        fromto = np.zeros(6)
+        return {
+            (a, b)
+            for a, b in pairs
+            if mujoco.mj_geomDistance(model, data, a, b, distance, fromto) < distance
+        }
+    mujoco.mj_collision(model, data)
+    touching = set()
+    for c in range(data.ncon):
+        contact = data.contact[c]
+        if contact.dist < 0:
+            a, b = int(contact.geom[0]), int(contact.geom[1])
+            touching.add((min(a, b), max(a, b)))
+    return touching
 
 
 class _ModelCollisionLimit(CollisionAvoidanceLimit):
@@ -249,9 +274,10 @@ def model_collision_limit(  # noqa: PLR0913 (the pair filters and mink's four nu
         geoms: only pairs with at least one of these geoms (names or ids; default: all).
         gain, minimum_distance_from_collisions, collision_detection_distance,
             bound_relaxation: :class:`CollisionAvoidanceLimit`'s, in [m] where a distance.
-        keep_always_in_contact: keep the pairs that overlap in every pose too (their rows
-            then make every step infeasible until the relaxation of
-            :mod:`qpik.diffik.recovery` frees them).
+        keep_always_in_contact: keep the pairs that come closer than
+            ``minimum_distance_from_collisions`` in every pose too (overlapping, or touching
+            as erd Tiago's finger phalanges do; their rows then make every step infeasible
+            until the relaxation of :mod:`qpik.diffik.recovery` frees them).
 
     Raises :class:`qpik.CollisionPairError` when the model has no such pair (no collision
     geom, or every pair excluded), naming what was asked.
@@ -288,7 +314,11 @@ def model_collision_limit(  # noqa: PLR0913 (the pair filters and mink's four nu
                 raise LimitDefinitionError(f"unknown geom {geom!r}")
             wanted.add(gid)
         pairs = [(a, b) for a, b in pairs if a in wanted or b in wanted]
-    always = [] if keep_always_in_contact else always_in_contact(model, pairs)
+    always = []
+    if not keep_always_in_contact:
+        always = always_in_contact(
+            model, pairs, distance=max(minimum_distance_from_collisions, 0.0)
+        )
     if always:
         dropped = set(always)
         pairs = [pair for pair in pairs if pair not in dropped]
