@@ -217,8 +217,8 @@ def test_pairs_always_within_the_minimum_distance_are_left_out():
     grandchild, so MuJoCo tests the pair): never in contact, always within 5 mm. With the
     limit's default 5 mm it is left out (``distance``), as erd Tiago's finger phalanges
     (1e-5 m apart in every pose) now are; a full IK on Tiago with its collision limit then
-    reaches a target in front of it (before: ``at_limit`` after 6 iterations, 0.57 m off,
-    every step level-0 infeasible; ``qpik reachmap --collision self`` reached none of 8
+    reaches a target in front of it within its joint limits (before: ``at_limit`` after 19
+    iterations, 0.065 m off, every step level-0 infeasible; ``qpik reachmap --collision self`` reached none of 8
     voxels in 109 s, now all 8 in 0.4 s)."""
     model = mujoco.MjModel.from_xml_string(TOUCHING)
     pairs = collision_pairs(model)
@@ -248,7 +248,12 @@ def test_tiago_full_ik_with_its_collision_limit_reaches_in_front():
         for a, b in limit.always_in_contact
     }
     assert ("hand_index_flex_2_link", "hand_index_flex_3_link") in names
-    result = qpik.solve(tiago, {"arm_tool_link": np.array([0.4, -0.4, 0.7])}, limits=[limit])
+    result = qpik.solve(
+        tiago,
+        {"arm_tool_link": np.array([0.4, -0.4, 0.7])},
+        limits=[mink.ConfigurationLimit(tiago), limit],
+        seed=0,
+    )
     assert result.converged, (result.reason, result.position_error)
     data = mujoco.MjData(tiago)
     data.qpos[:] = result.q
@@ -258,6 +263,7 @@ def test_tiago_full_ik_with_its_collision_limit_reaches_in_front():
         mujoco.mj_geomDistance(tiago, data, a, b, 0.05, fromto) for a, b in limit.geom_id_pairs
     )
     assert closest >= 0.005 - 1e-6
+    assert qpik.Configuration(tiago, result.q).within_limits(1e-9)
 
 
 @pytest.mark.parametrize("cap", [1.0, 0.05, 1e-3])
