@@ -160,10 +160,10 @@ class IKSolver:
         self._passes = self.options.correction_passes
         self._nv = model.nv
         #: With a forced backend, answer by the exact compiled solve when it solves every
-        #: level: the forced-backend path returns that same answer to round-off (the exact
-        #: cold solve polishes the backend's), at a backend call per level where a limit
-        #: binds. Off by default (``StepResult.iterations`` then count the exact solver's
-        #: iterations, not the backend's); :func:`qpik.solve_ik` turns it on.
+        #: level: the forced-backend path returns that same answer (the exact cascade,
+        #: started from the backend's active sets, answers), at a backend call per level
+        #: where a limit binds. Off by default (``StepResult.iterations`` then count the
+        #: exact solver's iterations, not the backend's); :func:`qpik.solve_ik` turns it on.
         self.exact_shortcut = False
         # One compiled call per step when every task and limit allows it.
         self._plan = make_plan(model, self._levels, self._limits, self._core)
