@@ -20,7 +20,7 @@ import numpy as np
 from ..diffik.solver import IKSolver, normalize_stack
 from ..errors import InvalidOption, InvalidTarget
 from ..limits import BallJointLimit, collision_clearance, collision_limits
-from ..model.chain import body_chain_joints, chain_qpos_mask
+from ..model.chain import bodies_chain_joints, body_chain_joints, chain_qpos_mask
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
@@ -191,11 +191,10 @@ def _limit_joints(model: mujoco.MjModel, limit: Any) -> set[int] | None:
     box limits (position, velocity, ball-joint ranges), the chains of every geom of a
     collision limit's pairs; any joint for another limit."""
     if isinstance(limit, mink.CollisionAvoidanceLimit):
-        joints: set[int] = set()
-        for pair in limit.geom_id_pairs:
-            for geom in pair:
-                joints |= body_chain_joints(model, int(model.geom_bodyid[geom]))
-        return joints
+        # each body's chain once (Talos: 883 pairs over 60 bodies; a chain per geom of
+        # every pair took 14 ms of each solve)
+        geoms = np.asarray(limit.geom_id_pairs, dtype=np.int64).reshape(-1)
+        return bodies_chain_joints(model, np.unique(model.geom_bodyid[geoms]).tolist())
     if isinstance(limit, (mink.ConfigurationLimit, mink.VelocityLimit, BallJointLimit)):
         return set()
     return None

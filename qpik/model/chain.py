@@ -15,6 +15,7 @@ Units: positions [m], angles [rad]; poses and Jacobians are in the world frame.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import mujoco
@@ -30,6 +31,7 @@ __all__ = [
     "QPOS_WIDTH",
     "KinematicChain",
     "ReachBound",
+    "bodies_chain_joints",
     "body_chain_joints",
     "chain_qpos_mask",
     "chain_support",
@@ -84,11 +86,22 @@ def chain_qpos_mask(
 
 def body_chain_joints(model: mujoco.MjModel, body: int) -> set[int]:
     """The joints (ids, every type) from the world to ``body``."""
+    return bodies_chain_joints(model, (body,))
+
+
+def bodies_chain_joints(model: mujoco.MjModel, bodies: Iterable[int]) -> set[int]:
+    """The joints (ids, every type) from the world to any of ``bodies``: the union of their
+    chains, each body above them walked once (a collision limit's hundreds of pairs share a
+    few dozen bodies and their ancestors)."""
     joints: set[int] = set()
-    while body > 0:
-        start = int(model.body_jntadr[body])
-        joints.update(range(start, start + int(model.body_jntnum[body])))
-        body = int(model.body_parentid[body])
+    seen: set[int] = set()
+    for start_body in bodies:
+        body = int(start_body)
+        while body > 0 and body not in seen:
+            seen.add(body)
+            start = int(model.body_jntadr[body])
+            joints.update(range(start, start + int(model.body_jntnum[body])))
+            body = int(model.body_parentid[body])
     return joints
 
 
