@@ -36,8 +36,10 @@ COMMANDS = [
 _VERBOSE_HELP = "show warnings in full, with the source line that raised them"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every command registered."""
+def build_parser(commands: Sequence[str] = COMMANDS) -> argparse.ArgumentParser:
+    """The argument parser with ``commands`` registered (default: every command; :func:`main`
+    registers only the one its arguments name, so that ``qpik reach`` imports no other
+    command's modules)."""
     parser = argparse.ArgumentParser(
         prog="qpik",
         description="Inverse kinematics as prioritized QPs on MuJoCo models, each level solved "
@@ -48,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--verbose", "-v", action="store_true", help=_VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMANDS:
+    for name in commands:
         importlib.import_module(f"{__name__}.{name}").register(sub)
     for command in sub.choices.values():
         # also after the command (qpik reach FILE --verbose); SUPPRESS keeps the top-level
@@ -76,8 +78,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     environment variable ``QPIK_DEBUG=1`` to see the traceback). Python warnings print one
     line each, ``qpik COMMAND: warning: ...`` (``--verbose``: Python's own format).
     """
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    # The command is the first word that is not an option (the top level's options take no
+    # value); any other first word (a typo, none, --help) gets every command, for the usage.
+    named = next((word for word in words if not word.startswith("-")), None)
+    parser = build_parser([named] if named in COMMANDS else COMMANDS)
+    args = parser.parse_args(words)
     with _warnings_shown(args.command, verbose=args.verbose):
         return _run(args)
 

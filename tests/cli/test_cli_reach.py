@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import pathlib
 
 import pytest
 
@@ -139,3 +140,32 @@ def test_plot_without_matplotlib_names_the_extra(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "qpik[plots]" in err and err.count("\n") == 1
     assert not (tmp_path / "x.png").exists()
+
+
+def test_a_command_imports_no_other_command():
+    """main() registers only the command its arguments name: ``qpik reach`` imports neither
+    the batch nor the reachmap command (nor qpik.batch), about 30 ms of a 0.45 s first run
+    here; a word that is no command still gets every command in the usage."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from qpik.cli import main\n"
+        "assert main(['reach', 'tasks/panda_pose_reach.toml', '--quiet']) in (0, 1)\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('qpik.cli.', 'qpik.batch'))))\n"
+    )
+    root = pathlib.Path(__file__).parents[2]
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=root, capture_output=True, text=True, check=True
+    ).stdout
+    assert "qpik.cli.reach" in out
+    for other in ("qpik.cli.batch", "qpik.cli.reachmap", "qpik.cli.view", "qpik.batch"):
+        assert f"'{other}'" not in out, out
+
+
+def test_a_word_that_is_no_command_gets_every_command(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["no-such-command"])
+    assert info.value.code == 2
+    assert "reachmap" in capsys.readouterr().err  # the usage names every command
