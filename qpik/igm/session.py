@@ -94,7 +94,12 @@ import numpy.typing as npt
 from ..diffik.solver import Stack, normalize_stack
 from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
 from ..model import ReachBound
-from ..model.configuration import Configuration, qpos_joint_names, resolve_robot
+from ..model.configuration import (
+    Configuration,
+    check_within_limits,
+    qpos_joint_names,
+    resolve_robot,
+)
 from ..model.couplings import unheld_equality_errors
 from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
@@ -463,7 +468,7 @@ class IKSession:
             raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
         if check:
             try:
-                Configuration(self.model, q).check_limits()
+                check_within_limits(self.model, q, self._lower, self._upper)
             except JointLimitViolation as exc:  # named after the argument q came in
                 raise JointLimitViolation(
                     exc.joint, exc.index, exc.value, exc.lower, exc.upper, where=where

@@ -38,7 +38,7 @@ from .frames import (
 )
 from .robots import load_robot, locate_robot
 
-__all__ = ["Configuration", "FrameType", "frame_names", "joint_names"]
+__all__ = ["Configuration", "FrameType", "check_within_limits", "frame_names", "joint_names"]
 
 
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
@@ -103,6 +103,44 @@ def _shared_limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray
     vectors = _limit_vectors(model)
     _SHARED_LIMITS[id(model)] = (model, stamp, vectors)
     return vectors
+
+
+def _ball_violations_of(
+    model: mujoco.MjModel, qpos: np.ndarray, tol: float
+) -> list[tuple[int, int, float, float]]:
+    """``(joint, qpos address, angle, limit)`` of ``qpos``'s limited ball joints rotated past
+    their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
+    out = []
+    for j, adr in _ball_joints(model):
+        if not model.jnt_limited[j]:
+            continue
+        limit = float(model.jnt_range[j, 1])
+        angle = _ball_angle(qpos, adr)
+        if angle > limit + tol:
+            out.append((j, int(adr), angle, limit))
+    return out
+
+
+def check_within_limits(
+    model: mujoco.MjModel,
+    qpos: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    tol: float = 1e-6,
+) -> None:
+    """Raise :class:`JointLimitViolation` (the first joint, in qpos order, then the ball
+    joints) where ``qpos`` ``(nq,)`` is outside ``lower`` / ``upper`` ``(nq,)`` (a
+    configuration's :attr:`Configuration.lower` / ``upper``) or a limited ball joint's range
+    by more than ``tol``: :meth:`Configuration.check_limits` without an ``MjData`` (a
+    configuration costs 0.4 ms on a humanoid)."""
+    outside = np.flatnonzero((qpos < lower - tol) | (qpos > upper + tol))
+    if outside.size:
+        i = int(outside[0])
+        raise JointLimitViolation(
+            qpos_joint_names(model)[i], i, float(qpos[i]), float(lower[i]), float(upper[i])
+        )
+    for j, adr, angle, limit in _ball_violations_of(model, qpos, tol):
+        raise JointLimitViolation(joint_names(model)[j], adr, angle, 0.0, limit)
 
 
 class Configuration(mink.Configuration):
@@ -215,15 +253,7 @@ class Configuration(mink.Configuration):
         if not checks.check_bool("safety_break", safety_break):
             return
         tol = check_real("tol", tol, 0.0)
-        q = self.data.qpos
-        outside = np.flatnonzero((q < self._lower - tol) | (q > self._upper + tol))
-        if outside.size:
-            i = int(outside[0])
-            raise JointLimitViolation(
-                self._qpos_joint[i], i, float(q[i]), float(self._lower[i]), float(self._upper[i])
-            )
-        for j, adr, angle, limit in self._ball_violations(tol):
-            raise JointLimitViolation(joint_names(self.model)[j], adr, angle, 0.0, limit)
+        check_within_limits(self.model, self.data.qpos, self._lower, self._upper, tol)
 
     def within_limits(self, tol: float = 1e-6) -> bool:
         """Whether ``q`` lies within the joint limits (up to ``tol``); a limited ball joint
@@ -243,15 +273,7 @@ class Configuration(mink.Configuration):
     def _ball_violations(self, tol: float) -> list[tuple[int, int, float, float]]:
         """``(joint, qpos address, angle, limit)`` of limited ball joints rotated past
         their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
-        out = []
-        for j, adr in _ball_joints(self.model):
-            if not self.model.jnt_limited[j]:
-                continue
-            limit = float(self.model.jnt_range[j, 1])
-            angle = _ball_angle(self.data.qpos, adr)
-            if angle > limit + tol:
-                out.append((j, int(adr), angle, limit))
-        return out
+        return _ball_violations_of(self.model, self.data.qpos, tol)
 
     # ----------------------------------------------------------------- frames
     def frame_id(self, name: str | int, frame_type: FrameType | str = FrameType.SITE) -> int:
