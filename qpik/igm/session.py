@@ -219,6 +219,19 @@ class IKSession:
         # [the last (base options, option values, settings, kernel arrays)], shared by the
         # one-shot sessions of a prepared robot.
         self._memo: list = prepared.memo
+        # What the "qp" engine's solves borrow (QPProblem's scratch and joint_limits): this
+        # session's own, made on first use (a session solves one target at a time).
+        self._lent: tuple[Configuration, list] | None = None
+
+    def _qp_problem(self, frames: list, stack: Any, settings: SolveOptions) -> QPProblem:
+        """A "qp"-engine problem with this session's scratch configuration and joint
+        limits lent (0.7 ms of each solve on a humanoid)."""
+        if self._lent is None:
+            from ..limits import ConfigurationLimit  # (it imports scipy.spatial)
+
+            self._lent = (Configuration(self.model), [ConfigurationLimit(self.model)])
+        scratch, joint_limits = self._lent
+        return QPProblem(self.model, frames, stack, settings, scratch, joint_limits)
 
     @classmethod
     def _from_prepared(
@@ -323,7 +336,7 @@ class IKSession:
                 result.levels_met = self._levels_met(frames, stack, settings, q_start)
                 return self._check_unheld(result, settings)
         plain = [(f.name, f.kind, target) for f, target in frames]
-        problem = QPProblem(self.model, plain, stack, settings)
+        problem = self._qp_problem(plain, stack, settings)
         clock = Clock(start_time, settings.time_budget)
         return self._check_unheld(iterate(problem, q_start, clock, rng_state, settings), settings)
 
@@ -482,7 +495,7 @@ class IKSession:
         ``secondary`` level, or ``stack``), whether ``q`` meets it: one entry per level, as
         an answer the engine iterated gives."""
         plain = [(f.name, f.kind, target) for f, target in frames]
-        problem = QPProblem(self.model, plain, stack, settings)
+        problem = self._qp_problem(plain, stack, settings)
         with borrowed_tasks(problem.levels):
             problem.set_targets()
             problem.configuration.update(q)

@@ -213,3 +213,49 @@ def test_the_lean_lane_starts_from_a_configurations_q(monkeypatch):
         a, b = session.solve(target, seed=2), qpik.solve(start, target, seed=2)
     _same(a, _general(qpik.IKSession(start), monkeypatch, target, seed=2))
     _same(b, a)
+
+
+def test_the_qp_engines_lent_scratch_gives_a_fresh_runs_bits():
+    """The "qp" engine's solves borrow their session's scratch configuration and joint
+    limits (IKSession._qp_problem): on a floating-base humanoid, after multi-frame,
+    unreachable, restarted and custom-limit solves in any order, every answer (q, path,
+    histories) equals a fresh session's, bit for bit."""
+    model = _floating_arms()
+    rng = np.random.default_rng(7)
+    configuration = qpik.Configuration(model)
+    hands = ("left", "right")
+    targets = []
+    for k in range(6):
+        configuration.update(configuration.random_q(rng))
+        goal = {h: configuration.frame_pose(h, "site")[0] for h in hands}
+        if k % 3 == 2:
+            goal["left"] = goal["left"] + 5.0  # out of reach of the arm (the base is free)
+        targets.append(goal)
+    custom = [qpik.limits.ConfigurationLimit(model, gain=0.5)]
+    session = qpik.IKSession(model)
+    for seed, target in [*enumerate(targets), *enumerate(targets[::-1])]:
+        for keywords in ({"max_iters": 8, "restarts": 1}, {"limits": custom, "max_iters": 5}):
+            got = session.solve(target, seed=seed, engine="qp", **keywords)
+            want = qpik.IKSession(model).solve(target, seed=seed, engine="qp", **keywords)
+            assert got.q.tobytes() == want.q.tobytes()
+            assert got.path.tobytes() == want.path.tobytes()
+            assert list(got.error_history) == list(want.error_history)
+            assert list(got.residual_history) == list(want.residual_history)
+
+
+def _floating_arms():
+    import mujoco
+
+    arm = """<body name="{s}1" pos="0 {y} 0"><joint name="{s}a" axis="0 0 1" range="-2 2"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <body name="{s}2" pos="0.3 0 0"><joint name="{s}b" axis="0 1 0" range="-2 2"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+        <site name="{s}" pos="0.3 0 0"/></body></body>"""
+    xml = (
+        '<mujoco><compiler angle="radian"/><worldbody><body name="base"><freejoint/>'
+        '<geom type="box" size="0.1 0.1 0.1"/>'
+        + arm.format(s="left", y=0.15)
+        + arm.format(s="right", y=-0.15)
+        + "</body></worldbody></mujoco>"
+    )
+    return mujoco.MjModel.from_xml_string(xml)
