@@ -216,7 +216,14 @@ def make_workspace(
     return QPSolversWorkspace(solver, n, m, options)
 
 
-def working_set_with_violated(z, act, C, lo, hi, size: int) -> np.ndarray:
+def working_set_with_violated(
+    z: np.ndarray | None,
+    act: np.ndarray | None,
+    C: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    size: int,
+) -> np.ndarray:
     """The working set a level's answer ``z`` (reduced coordinates) is made exact on: the
     solver's own (``act``: +1 on a row's lower bound, -1 on its upper; zeros where None),
     plus every row ``z`` leaves strictly outside its bounds, however little. A backend's
@@ -235,7 +242,9 @@ def working_set_with_violated(z, act, C, lo, hi, size: int) -> np.ndarray:
     return guess
 
 
-def made_exact(x, qp: tuple, max_iter: int, tol: float, lower: bool):
+def made_exact(
+    x: np.ndarray, qp: tuple, max_iter: int, tol: float, lower: bool
+) -> tuple[np.ndarray, int, np.ndarray]:
     """A backend's answer ``x`` made exact: the kernel's canonical cold solve of the same
     QP, so the answer never depends on the backend (or its warm start); where that fails
     numerically, the kernel started from the active set the backend identified. ``qp``:

@@ -370,9 +370,8 @@ class HierarchySolver:
         # The compiled cascade's storage, kept between solves (no state but capacity).
         self._cascade_workspace = K.CascadeWorkspace()
         if solver != "auto":
-            backends.make_workspace(
-                solver, 1, 1, self.backend_options
-            )  # fail early, naming the extra
+            # (fail early, naming the extra a backend needs)
+            backends.make_workspace(solver, 1, 1, self.backend_options)
 
     def reset(self) -> None:
         """Forget the warm start and backend workspaces."""
