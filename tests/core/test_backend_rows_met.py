@@ -79,3 +79,22 @@ def test_violated_rows_join_the_working_set():
     np.testing.assert_array_equal(working_set_with_violated(z, act, C, lo, hi, 4), [1, -1, 0, -1])
     np.testing.assert_array_equal(working_set_with_violated(z, None, C, lo, hi, 4), [1, -1, 0, 0])
     np.testing.assert_array_equal(working_set_with_violated(None, act, C, lo, hi, 4), act)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_backends_answer_does_not_depend_on_what_it_solved_before(backend):
+    """One backend solver instance (OSQP keeps a warm workspace per level and size) solves
+    both reproducers in turn, twice, with the default law and with none: every answer equals
+    a fresh instance's and the exact solver's, bit for bit."""
+    problems = [(_arrays(DATA), {}), (_arrays(TIE), {"damping_law": None})]
+    busy = {
+        "default": HierarchySolver(solver=backend),
+        "none": HierarchySolver(solver=backend, damping_law=None),
+    }
+    for _round in range(2):
+        for arrays, kwargs in [*problems, *problems[::-1]]:
+            got = busy["none" if kwargs else "default"].solve_arrays(*arrays)
+            fresh = HierarchySolver(solver=backend, **kwargs).solve_arrays(*arrays)
+            exact = HierarchySolver(**kwargs).solve_arrays(*arrays)
+            assert got.x.tobytes() == fresh.x.tobytes() == exact.x.tobytes()
+            assert [s.value for s in got.status] == [s.value for s in exact.status]
