@@ -262,18 +262,13 @@ class Configuration(mink.Configuration):
         q = self.data.qpos
         if not np.all((q >= self._lower - tol) & (q <= self._upper + tol)):
             return False
-        return not self._ball_violations(tol)
+        return not _ball_violations_of(self.model, q, tol)
 
     def ball_angles(self) -> dict[str, float]:
         """Rotation angle [rad] of every ball joint (``2 atan2(|xyz|, |w|)``, in [0, pi]),
         by joint name."""
         names = joint_names(self.model)
         return {names[j]: _ball_angle(self.data.qpos, adr) for j, adr in _ball_joints(self.model)}
-
-    def _ball_violations(self, tol: float) -> list[tuple[int, int, float, float]]:
-        """``(joint, qpos address, angle, limit)`` of limited ball joints rotated past
-        their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
-        return _ball_violations_of(self.model, self.data.qpos, tol)
 
     # ----------------------------------------------------------------- frames
     def frame_id(self, name: str | int, frame_type: FrameType | str = FrameType.SITE) -> int:
