@@ -36,6 +36,7 @@ __all__ = [
     "check_limits_model",
     "idle_qpos",
     "iterate",
+    "joint_position_limits",
     "set_frame_target",
 ]
 
@@ -250,11 +251,16 @@ def check_limits_model(model: mujoco.MjModel, limits: Sequence | str | None) -> 
             )
 
 
+def joint_position_limits(model: mujoco.MjModel) -> list:
+    """The limits of ``limits="joint"``: the model's joint position limits."""
+    from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
+
+    return [ConfigurationLimit(model)]
+
+
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:
     if options.limits == "joint":
-        from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
-
-        return [ConfigurationLimit(model)]
+        return joint_position_limits(model)
     check_limits_model(model, options.limits)
     return list(options.limits or ())
 

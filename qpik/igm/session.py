@@ -105,7 +105,7 @@ from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
-from .qp_engine import QPProblem, borrowed_tasks, iterate
+from .qp_engine import QPProblem, borrowed_tasks, iterate, joint_position_limits
 from .restarts import Clock, Seed
 from .restarts import rng_state as _rng_state
 from .result import IKResult, LazyRows, Reason
@@ -227,9 +227,7 @@ class IKSession:
         """A "qp"-engine problem with this session's scratch configuration and joint
         limits lent (0.7 ms of each solve on a humanoid)."""
         if self._lent is None:
-            from ..limits import ConfigurationLimit  # (it imports scipy.spatial)
-
-            self._lent = (Configuration(self.model), [ConfigurationLimit(self.model)])
+            self._lent = (Configuration(self.model), joint_position_limits(self.model))
         scratch, joint_limits = self._lent
         return QPProblem(self.model, frames, stack, settings, scratch, joint_limits)
 
