@@ -270,8 +270,9 @@ class Kernel {
         require(dim(rel_frames, 1) == 4, "Kernel: rel_frames must have shape (R, 4)");
         require(dim(jac, 0) == F && dim(jac, 1) == 6 && dim(jac, 2) == n,
                 "Kernel: jac must have shape (F, 6, nv)");
-        require(dim(frame_data, 0) == F && dim(frame_data, 1) == diffik::kFrameData,
-                "Kernel: frame_data must have shape (F, 15)");
+        require(dim(frame_data, 0) == F &&
+                    (dim(frame_data, 1) == diffik::kFrameData || dim(frame_data, 1) == diffik::kPoseData),
+                "Kernel: frame_data must have shape (F, 15), or (F, 20) with pose tasks");
         require(dim(posture_data, 1) == nq + n + 2, "Kernel: posture_data must have shape (P, nq + nv + 2)");
         require(dim(com_jac, 0) == C && dim(com_jac, 1) == 3 && dim(com_jac, 2) == n,
                 "Kernel: com_jac must have shape (C, 3, nv)");
@@ -330,7 +331,13 @@ class Kernel {
                 case diffik::RELATIVE: count = R; size = 6; break;
                 case diffik::ROWS: count = U; size = 0; break;  // its rows: the caller's
                 case diffik::LINEAR: count = lin_tasks; break;
-                default: require(false, "Kernel: a task kind is not 0 to 6");
+                case diffik::POSE_POSITION: case diffik::POSE_ORIENTATION: case diffik::POSE_FULL:
+                    require(dim(frame_data, 1) == diffik::kPoseData,
+                            "Kernel: frame_data must have shape (F, 20) with pose tasks");
+                    count = F;
+                    size = tasks::pose_part_rows(kind - diffik::POSE_BASE);
+                    break;
+                default: require(false, "Kernel: a task kind is not 0 to 9");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             if (kind == diffik::LINEAR) size = lin_starts_.data[index + 1] - lin_starts_.data[index];
@@ -500,6 +507,12 @@ class Kernel {
         }
         FastArray fa;
         if (fast_array(o, 'd', false, fa)) {  // an ndarray read directly: the same bytes
+            if (fa.ndim == 2 && fa.c_contiguous && fa.shape[0] * fa.shape[1] == t.size) {
+                // a matrix (a pose task's target rotation (3, 3)), row-major
+                for (i64 k = 0; k < t.size; ++k)
+                    std::memcpy(t.p + k * t.stride, fa.data + k * static_cast<i64>(sizeof(double)), sizeof(double));
+                return true;
+            }
             if (fa.ndim != 1 || fa.shape[0] != t.size) return false;
             if (t.stride == 1 && fa.strides[0] == static_cast<Py_ssize_t>(sizeof(double))) {
                 std::memcpy(t.p, fa.data, sizeof(double) * static_cast<size_t>(t.size));  // both contiguous

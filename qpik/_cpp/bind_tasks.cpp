@@ -5,6 +5,7 @@
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
 #include "tasks/linear.hpp"
+#include "tasks/pose.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -121,6 +122,33 @@ void bind_tasks(nb::module_& m) {
         nb::arg("lm_damping"),
         "Rows row:row+6 of a frame task into A, b: A = diag(cost) (-jlog) [R^T Jp; R^T Jr], "
         "b = -gain cost e; returns lm_damping |b|^2.");
+    m.attr("POSE_POSITION") = static_cast<i64>(tasks::POSE_POSITION);
+    m.attr("POSE_ORIENTATION") = static_cast<i64>(tasks::POSE_ORIENTATION);
+    m.attr("POSE_FULL") = static_cast<i64>(tasks::POSE_FULL);
+    m.def(
+        "pose_rows_into",
+        [](Out2 A, Out1 b, i64 row, In2 jac, In1 xpos, In1 xmat, In1 target, i64 part, In1 cost, double gain,
+           double lm_damping) {
+            require(part == tasks::POSE_POSITION || part == tasks::POSE_ORIENTATION || part == tasks::POSE_FULL,
+                    "pose_rows_into: part must be 1 (position), 2 (orientation) or 3 (both)");
+            const i64 k = tasks::pose_part_rows(part);
+            const i64 nv = static_cast<i64>(jac.shape(1));
+            require(jac.shape(0) == 6, "pose_rows_into: jac must have shape (6, nv)");
+            require(static_cast<i64>(A.shape(1)) == nv, "pose_rows_into: A must have nv columns");
+            require(row >= 0 && row + k <= static_cast<i64>(A.shape(0)) &&
+                        row + k <= static_cast<i64>(b.shape(0)),
+                    "pose_rows_into: rows row:row+k must lie in A and b");
+            require(xpos.shape(0) >= 3 && xmat.shape(0) >= 9 && target.shape(0) >= tasks::kPoseTarget &&
+                        static_cast<i64>(cost.shape(0)) >= k,
+                    "pose_rows_into: xpos (3,), xmat (9,), target (12,) and cost (k,) expected");
+            return tasks::pose_rows_into(mat(A), b.data(), row, cmat(jac), xpos.data(), xmat.data(), target.data(),
+                                         part, cost.data(), gain, lm_damping);
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("row"), nb::arg("jac"), nb::arg("xpos"),
+        nb::arg("xmat"), nb::arg("target"), nb::arg("part"), nb::arg("cost"), nb::arg("gain"), nb::arg("lm_damping"),
+        "Rows row:row+k of a world-frame pose task (part 1 position, 2 orientation, 3 both; k = 3, 3, 6) into "
+        "A, b: A = diag(cost) [Jv; Jl^-1(e_rot) Jw], b = -gain cost e, e = [p - p*; log(R R*^T)] (world frame); "
+        "target = p* (3) then R* (row-major 9). Returns lm_damping |b|^2.");
     m.def(
         "linear_residual",
         [](In2 form, In1 qpos) {

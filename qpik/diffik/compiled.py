@@ -50,7 +50,7 @@ from ..model.com import subtree_com_jacobian
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .correction import LeanCorrection
-from .layout import com_chains, frame_chains, write_pose_row
+from .layout import POSE_COST, com_chains, frame_chains, write_frame_row, write_pose_row
 from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -121,8 +121,6 @@ class CompiledPlan:
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
         #: the correction passes of :meth:`_correct` (built on the first)
         self._corrector: LeanCorrection | None = None
-        # the tasks and limits _sources reads, in its order (the lists never change)
-        self._frame_tasks = [f[0] for f in self.frames]
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
         #: no CoM or row-supplying task, no general rows: once :meth:`_lean`
         #: attached a configuration, :meth:`qpik.IKSolver.step`'s plain lane calls the kernel
@@ -137,7 +135,7 @@ class CompiledPlan:
         self._active_rows: list = []
         #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
-        self._linear_tasks = [t[0] for t in self.linears]
+        self._linear_tasks = [t[0] for t in self.linears]  # (_sources reads them)
         #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
         self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
@@ -170,16 +168,17 @@ class CompiledPlan:
             views.append(view)
             scalar.append(one)
 
-        def task(target, cost, gain: np.ndarray, lm: np.ndarray) -> None:  # a task's values
-            for view, one in ((target, False), (cost, False), (gain, True), (lm, True)):
-                add(view, one)
+        def task(targets, cost, gain: np.ndarray, lm: np.ndarray) -> None:  # a task's values
+            views.extend((*targets, cost, gain, lm))
+            scalar.extend((*(False for _ in targets), False, True, True))
 
         a = self.arrays
         settings = a["settings"]
         add(settings[DT : DT + 1], True)
         add(settings[DAMPING : DAMPING + 1], True)
-        for *_, (row, target, cost) in self.frames:
-            task(target, cost, row[13:14], row[14:15])
+        for *_, (row, target, cost), names in self.frames:  # (names: a pose task's targets)
+            g = 13 if names is None else POSE_COST + 6
+            task((target,) if names is None else target, cost, row[g : g + 1], row[g + 1 : g + 2])
         for _task, (row, target, cost), damping in self.postures:
             if not damping:  # a damping task's error is zero: no target
                 add(target)
@@ -187,9 +186,9 @@ class CompiledPlan:
             add(row[-2:-1], True)
             add(row[-1:], True)
         for *_, (row, target, cost) in self.coms:
-            task(target, cost, row[6:7], row[7:8])
+            task((target,), cost, row[6:7], row[7:8])
         for *_, (row, target, cost) in self.relatives:
-            task(target, cost, row[13:14], row[14:15])
+            task((target,), cost, row[13:14], row[14:15])
         lin = a["lin_data"]
         for _task, r0, cost_view in self.linears:
             add(cost_view)
@@ -214,8 +213,8 @@ class CompiledPlan:
         that the plan no longer describes it (the QP path answers)."""
         data = configuration.data
         model = self.model
-        for task, jacobian, fid, jp, jr, row in self.frames:
-            write_pose_row(row, task, task.transform_target_to_world)
+        for task, jacobian, fid, jp, jr, row, names in self.frames:
+            write_frame_row(row, task, names)
             jacobian(model, data, jp, jr, fid)
         self._gather_postures()
         if not self._gather_coms(data):
@@ -368,13 +367,15 @@ class CompiledPlan:
         :meth:`gather` writes them, or raises)."""
         sources: list = []
 
-        def task(t, target=None, inner=None) -> None:
-            if target is not None:
+        def task(t, target=None, inner=None) -> None:  # (target: a name, or a tuple of them)
+            if isinstance(target, tuple):
+                sources.extend((t, name) for name in target)
+            elif target is not None:
                 sources.append((t, target) if inner is None else (t, target, inner))
             sources.extend(((t, "cost"), (t, "gain"), (t, "lm_damping")))
 
-        for t in self._frame_tasks:
-            task(t, "transform_target_to_world", "wxyz_xyz")
+        for t, *_, names in self.frames:  # (names: a world-frame pose task's targets)
+            task(t, names or "transform_target_to_world", None if names else "wxyz_xyz")
         for t, _views, damping_task in self.postures:
             task(t, None if damping_task else "target_q")
         for t, *_ in self.coms:

@@ -4,7 +4,8 @@ arrays, preallocated once per :class:`qpik.IKSolver`.
 
 Tasks the kernel computes itself (exact types; a subclass may change the rows): qpik's or
 mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
-``RelativeFrameTask``, and qpik's ``CouplingTask`` when every coupling is linear (kind
+``RelativeFrameTask``, qpik's world-frame ``PositionTask``, ``OrientationTask`` and
+``PoseTask`` (kinds ``POSE_KINDS``), and qpik's ``CouplingTask`` when every coupling is linear (kind
 ``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``). Any other task supplies
 its rows each step (kind ``ROWS_KIND``, laid out by its declared count).
 """
@@ -24,12 +25,14 @@ from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
+from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from .boxes import LimitBoxes
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
-    "POSTURE_TYPES", "LimitLayout", "TaskLayout", "com_chains", "frame_chains", "limit_layout",
-    "plan_arrays", "task_layout", "write_pose_row",
+    "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
+    "TaskLayout", "com_chains", "frame_chains", "limit_layout", "plan_arrays", "task_layout",
+    "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
 KINDS = {"site": 0, "body": 1, "geom": 2}
@@ -53,6 +56,22 @@ GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
 #: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
 FRAME_KIND, POSTURE_KIND, COM_KIND, RELATIVE_KIND = 0, 1, 2, 3
 DAMPING_KIND, ROWS_KIND, LINEAR_KIND = 4, 5, 6
+#: qpik's world-frame pose tasks (qpik/_cpp/tasks/pose.hpp), a frame of the ``frames``
+#: table each, by exact type: their kind (7 position, 8 orientation, 9 both) and rows.
+POSE_KINDS: dict[type, tuple[int, int]] = {
+    PositionTask: (7, 3),
+    OrientationTask: (8, 3),
+    PoseTask: (9, 6),
+}
+#: A pose task's data row (``frame_data`` then has ``POSE_DATA`` columns): its targets'
+#: entries by attribute (position 0:3 [m], rotation 3:12 row-major), then its cost at
+#: ``POSE_COST`` (3 or 6 entries), gain and LM damping at ``POSE_COST + 6`` and ``+ 7``.
+POSE_TARGETS: dict[type, tuple[tuple[str, int, int], ...]] = {
+    PositionTask: (("target", 0, 3),),
+    OrientationTask: (("target", 3, 12),),
+    PoseTask: (("target_position", 0, 3), ("target_rotation", 3, 12)),
+}
+POSE_COST, POSE_DATA = 12, 20
 #: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
 SCALAR_DOF, FREE_DOF, BALL_FIRST, BALL_OTHER = 0, 1, 2, 3
 
@@ -73,6 +92,12 @@ class TaskLayout:
     starts: list
     rows_tasks: list  # (task, first row, last row) of the tasks that supply their rows
     linears: list  # (task, form (k, nq + 1), jacobian (k, nv)) of the linear tasks
+
+    @property
+    def has_pose(self) -> bool:
+        """Whether a frame of the plan is a world-frame pose task's (``frame_data`` is then
+        ``POSE_DATA`` wide)."""
+        return any(type(task) in POSE_KINDS for task, *_ in self.frames)
 
 
 @dataclass(frozen=True)
@@ -117,7 +142,7 @@ def plan_arrays(
         "tasks": np.asarray(layout.tasks, dtype=i64).reshape(-1, 4),
         "jac": np.zeros((F, 6, nv)),
         "frames": np.asarray(frames, dtype=i64).reshape(-1, 2),
-        "frame_data": np.zeros((F, 15)),
+        "frame_data": np.zeros((F, POSE_DATA if layout.has_pose else 15)),
         "posture_data": np.zeros((P, nq + nv + 2)),
         "posture_map": posture_map(model),
         "cfg_dof": np.asarray(boxes.cfg_dof, dtype=i64),
@@ -222,7 +247,7 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     """Enter ``task`` (level ``k``, first row ``row``) in ``layout``; its row count, None
     where it names what the model lacks."""
     kind, nv = type(task), model.nv
-    if kind in FRAME_TYPES or kind in RELATIVE_TYPES:
+    if kind in FRAME_TYPES or kind in RELATIVE_TYPES or kind in POSE_KINDS:
         return _place_frame(layout, model, task, k, row)
     if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
         if np.shape(getattr(task, "cost", 0.0)) != (nv,):
@@ -251,10 +276,20 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
 
 
 def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) -> int | None:
-    """:func:`_place` for a frame or relative frame task (6 rows)."""
+    """:func:`_place` for a frame, relative frame or world-frame pose task (6 rows; a
+    position or orientation task 3)."""
     frame = frame_entry(model, task.frame_type, task.frame_name)
     if frame is None:
         return None
+    pose = POSE_KINDS.get(type(task))
+    if pose is not None:
+        code, size = pose
+        if np.shape(getattr(task, "cost", 0.0)) != (size,):
+            return None  # a cost not of its rows' shape: the QP path reports it
+        layout.tasks.append((code, len(layout.frames), k, row))
+        layout.frames.append((task, *frame))
+        layout.frame_rows.append((frame, False))
+        return size
     if type(task) in RELATIVE_TYPES:
         root = frame_entry(model, task.root_type, task.root_name)
         if root is None:
@@ -340,6 +375,30 @@ def write_pose_row(views: tuple, task, pose) -> None:
     cost[...] = task.cost
     row[13] = task.gain
     row[14] = task.lm_damping
+
+
+def write_world_pose_row(views: tuple, task, names: tuple) -> None:
+    """A world-frame pose task's targets, cost, gain and LM damping into its data row
+    (``POSE_DATA`` wide; the views of :func:`qpik.diffik.plan.make_plan`, its targets'
+    views in the order of their attribute ``names``, :data:`POSE_TARGETS`)."""
+    row, targets, cost = views
+    for name, view in zip(names, targets, strict=True):
+        value = getattr(task, name)
+        if value is None:
+            raise TargetNotSet(type(task).__name__)
+        view[...] = np.reshape(value, -1)
+    cost[...] = task.cost
+    row[POSE_COST + 6] = task.gain
+    row[POSE_COST + 7] = task.lm_damping
+
+
+def write_frame_row(views: tuple, task, names: tuple | None) -> None:
+    """A frame's data row: :func:`write_pose_row` of a frame task's target (``names``
+    None), else :func:`write_world_pose_row`."""
+    if names is None:
+        write_pose_row(views, task, task.transform_target_to_world)
+    else:
+        write_world_pose_row(views, task, names)
 
 
 def com_chains(model: mujoco.MjModel, bodies: list[int]) -> list:

@@ -14,7 +14,16 @@ import numpy as np
 from ..core import HierarchySolver
 from .boxes import LimitBoxes
 from .compiled import RANK_TOL, TOL, CompiledPlan, Kernel
-from .layout import DAMPING_TYPES, JACOBIANS, limit_layout, plan_arrays, task_layout
+from .layout import (
+    DAMPING_TYPES,
+    JACOBIANS,
+    POSE_COST,
+    POSE_KINDS,
+    POSE_TARGETS,
+    limit_layout,
+    plan_arrays,
+    task_layout,
+)
 
 __all__ = ["make_plan"]
 
@@ -23,6 +32,19 @@ def _views(row: np.ndarray, size: int, cost: int) -> tuple:
     """A task's data row with its target ``row[:size]`` and cost ``row[size:size + cost]``
     as views (writing into a held view is cheaper than slicing each step)."""
     return row, row[:size], row[size : size + cost]
+
+
+def _frame_views(task, row: np.ndarray) -> tuple:
+    """``(views, names)`` of a frame's data row: :func:`_views` of a frame task's (target
+    wxyz_xyz, cost (6), gain and LM damping at 13 and 14) and None; a world-frame pose
+    task's ``(row, its targets' views, its cost's at POSE_COST)`` and its targets'
+    attribute names (:data:`POSE_TARGETS`; gain and LM damping at ``POSE_COST + 6``, ``+ 7``)."""
+    pose = POSE_KINDS.get(type(task))
+    if pose is None:
+        return _views(row, 7, 6), None
+    entries = POSE_TARGETS[type(task)]
+    views = tuple(row[a:b] for _, a, b in entries)
+    return (row, views, row[POSE_COST : POSE_COST + pose[1]]), tuple(n for n, _, _ in entries)
 
 
 def make_plan(
@@ -45,7 +67,7 @@ def make_plan(
     com_jac, com_data = arrays["com_jac"], arrays["com_data"]
     rel_jac, rel_data = arrays["rel_jac"], arrays["rel_data"]
     frames = [
-        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], _views(frame_data[f], 7, 6))
+        (task, JACOBIANS[kind], fid, jac[f, :3], jac[f, 3:], *_frame_views(task, frame_data[f]))
         for f, (task, kind, fid) in enumerate(layout.frames)
     ]
     postures = [

@@ -12,15 +12,50 @@ import mink
 import numpy as np
 import numpy.typing as npt
 
+from .._engine.tasks import POSE_FULL, POSE_ORIENTATION, POSE_POSITION, pose_rows_into
 from ..core import checks
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
-from ..model.rotations import left_jacobian_inverse, rotation_vector
+from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
 
+# Their rows come from one compiled routine (qpik/_cpp/tasks/pose.hpp, pose_rows_into), the
+# one the compiled step calls for them too (kinds 7 to 9 of qpik.diffik.layout.POSE_KINDS):
+# the same bits on both paths. Its error and Jacobian are its rows with unit cost and gain
+# -1 (b = 1 (1 e) = e, A = 1 J = J: exact).
+#
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
 # ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
 # configuration into a qpik one before any task sees it.
+
+
+_UNIT = np.ones(6)
+
+
+def _pose_rows(
+    task,
+    configuration: Configuration,
+    target: np.ndarray,
+    part: int,
+    cost: np.ndarray,
+    gain: float,
+    lm_damping: float,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(A, b, mu)`` of ``part`` (``POSE_POSITION``, ``POSE_ORIENTATION`` or ``POSE_FULL``)
+    of ``task``'s frame at ``configuration``: ``A = diag(cost) J``, ``b = -gain cost e``,
+    ``mu = lm_damping |b|^2`` (world frame; ``target``: position (3) [m] then rotation
+    (row-major 9))."""
+    kind = task.frame_type
+    fid = configuration.frame_id(task.frame_name, kind)
+    model, data = configuration.model, configuration.data
+    xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
+    xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
+    jac = np.empty((6, model.nv))
+    FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
+    k = 6 if part == POSE_FULL else 3
+    A, b = np.empty((k, model.nv)), np.empty(k)
+    mu = pose_rows_into(A, b, 0, jac, xpos, xmat, target, part, cost, gain, lm_damping)
+    return A, b, mu
 
 
 def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
@@ -79,6 +114,28 @@ class _FrameRowsTask(mink.Task):
         self.frame_type = FrameType.parse(frame_type)
         self.target: np.ndarray | None = None
 
+    _part = POSE_POSITION
+
+    def _target12(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _rows(self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float):
+        return _pose_rows(self, configuration, self._target12(), self._part, cost, gain, lm)
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        """The error ``e`` (3,) in the world frame (see the class)."""
+        return self._rows(configuration, _UNIT, -1.0, 0.0)[1]
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        """The Jacobian ``de/dq`` (3, nv) (see the class)."""
+        return self._rows(configuration, _UNIT, -1.0, 0.0)[0]
+
+    def compute_qp_residual(  # type: ignore[override]
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call."""
+        return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))
+
 
 class PositionTask(_FrameRowsTask):
     """Bring a frame's origin to a target position (world frame, [m]).
@@ -98,13 +155,12 @@ class PositionTask(_FrameRowsTask):
         """Target = the frame's current position."""
         self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[0])
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+    def _target12(self) -> np.ndarray:
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
-        return configuration.frame_pose(self.frame_name, self.frame_type)[0] - self.target
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return configuration.frame_jacobian(self.frame_name, self.frame_type)[:3]
+        target = np.zeros(12)
+        target[:3] = self.target
+        return target
 
 
 class OrientationTask(_FrameRowsTask):
@@ -126,19 +182,14 @@ class OrientationTask(_FrameRowsTask):
         """Target = the frame's current orientation."""
         self.set_target(configuration.frame_pose(self.frame_name, self.frame_type)[1])
 
-    def _error(self, configuration: Configuration) -> np.ndarray:
+    _part = POSE_ORIENTATION
+
+    def _target12(self) -> np.ndarray:
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
-        rotation = configuration.frame_pose(self.frame_name, self.frame_type)[1]
-        return rotation_vector(rotation @ self.target.T)
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error(configuration)
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        error = self._error(configuration)
-        angular = configuration.frame_jacobian(self.frame_name, self.frame_type)[3:]
-        return left_jacobian_inverse(error) @ angular
+        target = np.zeros(12)
+        target[3:] = self.target.reshape(-1)
+        return target
 
 
 class PoseTask(mink.Task):
@@ -197,23 +248,24 @@ class PoseTask(mink.Task):
         """Target = the frame's current pose."""
         self.set_target(*configuration.frame_pose(self.frame_name, self.frame_type))
 
-    def _error_and_jacobian(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+    def _rows(self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float):
         if self.target_position is None or self.target_rotation is None:
             raise TargetNotSet(type(self).__name__)
-        position, rotation = configuration.frame_pose(self.frame_name, self.frame_type)
-        jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        rotation_error = rotation_vector(rotation @ self.target_rotation.T)
-        error = np.concatenate([position - self.target_position, rotation_error])
-        jacobian[3:] = left_jacobian_inverse(rotation_error) @ jacobian[3:]
-        return error, jacobian
+        target = np.empty(12)
+        target[:3] = self.target_position
+        target[3:] = self.target_rotation.reshape(-1)
+        return _pose_rows(self, configuration, target, POSE_FULL, cost, gain, lm)
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error_and_jacobian(configuration)[0]
+        """The error ``e`` (6,) [m, rad] in the world frame (see the class)."""
+        return self._rows(configuration, _UNIT, -1.0, 0.0)[1]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._error_and_jacobian(configuration)[1]
+        """The Jacobian ``de/dq`` (6, nv) (see the class)."""
+        return self._rows(configuration, _UNIT, -1.0, 0.0)[0]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        return self._weighted_residual(*self._error_and_jacobian(configuration))
+        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call."""
+        return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))

@@ -15,6 +15,7 @@
 #include "../common.hpp"
 #include "../core/cascade.hpp"
 #include "../tasks/frame.hpp"
+#include "../tasks/pose.hpp"
 #include "../tasks/linear.hpp"
 #include "couple.hpp"
 
@@ -27,6 +28,9 @@ enum Setting : i64 { DT = 0, DAMPING = 1, THRESHOLD = 2, MAX_DAMPING = 3, ERROR_
 constexpr i64 kSettings = 7;
 constexpr double kPi = 3.14159265358979323846;  // MuJoCo's mjPI
 constexpr i64 kFrameData = 15;  // target wxyz_xyz (7), cost (6), gain, lm_damping
+// A world-frame pose task's row of frame_data (kinds POSE_*; the table then has at least
+// this many columns): target position (3), rotation (row-major 9), cost (6), gain, lm_damping.
+constexpr i64 kPoseData = tasks::kPoseTarget + 8;
 
 // The arguments of fused_rows / fused_step (views on the plan's arrays and MuJoCo's).
 // A (M, n), b, w (M,); starts (L + 1,); tasks (T, 4): kind (TaskKind), index,
@@ -86,7 +90,14 @@ struct FusedArgs {
 };
 
 // Task kinds of FusedArgs::tasks.
-enum TaskKind : i64 { FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5, LINEAR = 6 };
+enum TaskKind : i64 {
+    FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5, LINEAR = 6,
+    // qpik's world-frame pose tasks (tasks/pose.hpp; a frame of the frames table): part
+    // kind - POSE_BASE (1 position, 2 orientation, 3 both)
+    POSE_POSITION = 7, POSE_ORIENTATION = 8, POSE_FULL = 9
+};
+constexpr i64 POSE_BASE = 6;
+inline bool is_pose(i64 kind) { return kind >= POSE_POSITION && kind <= POSE_FULL; }
 constexpr i64 kComData = 8;  // target (3), cost (3), gain, lm_damping
 enum PostureDof : i64 { SCALAR_DOF = 0, FREE_DOF = 1, BALL_FIRST = 2, BALL_OTHER = 3 };
 
@@ -311,6 +322,17 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
             mu = frame_rows(a.A, a.b.p, row, jac, pos, mat, data, cost, data[13], data[14],
                             local.data());
             size = 6;
+        } else if (is_pose(kind)) {
+            const double* pos;
+            const double* mat;
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
+            const double* data = a.frame_data.row(i);
+            const i64 part = kind - POSE_BASE;
+            cost = data + tasks::kPoseTarget;
+            CMatRef jac(a.jac + i * 6 * n, 6, n);
+            mu = tasks::pose_rows_into(a.A, a.b.p, row, jac, pos, mat, data, part, cost,
+                                       data[tasks::kPoseTarget + 6], data[tasks::kPoseTarget + 7]);
+            size = tasks::pose_part_rows(part);
         } else if (kind == COM) {
             const double* data = a.com_data.row(i);
             cost = data + 3;
@@ -676,6 +698,13 @@ inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, d
             model::xmat_xpos_to_wxyz_xyz(frame, mat, pos);
             model::se3_rminus(error, data, frame);
             for (i64 r = 0; r < 6; ++r) we[row + r] = data[7 + r] * error[r];
+        } else if (is_pose(kind)) {
+            const double *pos, *mat;
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
+            const double* data = a.frame_data.row(i);
+            double error[6], jinv[9];
+            const i64 k = tasks::pose_error(pos, mat, data, kind - POSE_BASE, error, jinv);
+            for (i64 r = 0; r < k; ++r) we[row + r] = data[tasks::kPoseTarget + r] * error[r];
         } else if (kind == COM) {
             const double* data = a.com_data.row(i);
             const double* com = a.subtree_com.row(a.com_body[i]);
@@ -739,6 +768,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
         switch (kind) {
             case FRAME: case RELATIVE: size = 6; break;
             case COM: size = 3; break;
+            case POSE_POSITION: case POSE_ORIENTATION: case POSE_FULL: size = tasks::pose_part_rows(kind - POSE_BASE); break;
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
             default: size = n;
