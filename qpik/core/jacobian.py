@@ -37,6 +37,8 @@ __all__ = [
     "degree_of_redundancy",
     "joint_limit_distance",
     "joint_limit_distance_gradient",
+    "joint_limit_distance_terms",
+    "joint_limit_midranges",
     "manipulability",
     "null_space",
     "nullspace_step",
@@ -421,7 +423,36 @@ def joint_limit_distance_gradient(
     """Gradient ``(n,)`` [1/rad or 1/m] of :func:`joint_limit_distance` w.r.t. ``q``:
     ``(q_i - qbar_i) / (n (q_max_i - q_min_i)^2)``, 0 for unlimited joints."""
     q, mid, half = _limits(q, lower, upper)
+    return _gradient(q, half, _ratio(q, mid, half))
+
+
+def joint_limit_distance_terms(
+    q: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike
+) -> tuple[float, np.ndarray]:
+    """:func:`joint_limit_distance` and :func:`joint_limit_distance_gradient` together (the
+    same values), the inputs checked once: what a task needs each step."""
+    q, mid, half = _limits(q, lower, upper)
+    if q.size == 0:
+        return 0.0, np.zeros(0)
     ratio = _ratio(q, mid, half)
+    with np.errstate(over="ignore"):
+        w = np.sum(ratio**2) / (2 * q.size)
+    value = float(_finite_result(np.asarray(w), "the joint-limit distance"))
+    return value, _gradient(q, half, ratio)
+
+
+def joint_limit_midranges(
+    lower: npt.ArrayLike, upper: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(mid, half)`` (n,) of the limits that :func:`joint_limit_distance` uses: the
+    mid-range and half-range of each joint with two finite, distinct limits, 0 and 0 for
+    the others (checked as there: :class:`InvalidInput`, :class:`InfeasibleLimits`)."""
+    _, mid, half = _limits(np.zeros(np.shape(lower)), lower, upper)
+    return mid, half
+
+
+def _gradient(q: np.ndarray, half: np.ndarray, ratio: np.ndarray) -> np.ndarray:
+    """The gradient of :func:`joint_limit_distance_gradient` from its ratio terms."""
     gradient = np.zeros_like(q)
     limited = half > 0
     with np.errstate(over="ignore"):  # ratio / (n span) = ratio / (2 n half)

@@ -30,8 +30,6 @@ Units: the residual of a joint coupling is in the joints' units [rad or m].
 
 from __future__ import annotations
 
-import threading
-import weakref
 from dataclasses import dataclass, field
 
 import mujoco
@@ -42,6 +40,7 @@ from ..core.checks import check_vector
 from ..errors import InvalidConfiguration
 from .chain import QPOS_WIDTH, body_chain_joints
 from .frames import check_model_type
+from .scratch import scratch_data
 
 __all__ = [
     "Couplings",
@@ -236,19 +235,9 @@ def unheld_equalities(model: mujoco.MjModel) -> np.ndarray:
     return np.array(ids, dtype=np.int64)
 
 
-#: Per thread, a scratch ``MjData`` per model for :func:`unheld_equality_errors` (making
-#: one costs milliseconds on a model with large meshes: 5 ms for Menagerie's xarm7).
-_SCRATCH = threading.local()
-
-
 def _scratch_data(model: mujoco.MjModel) -> mujoco.MjData:
-    cache = getattr(_SCRATCH, "data", None)
-    if cache is None:
-        cache = _SCRATCH.data = weakref.WeakKeyDictionary()
-    data = cache.get(model)
-    if data is None:
-        data = cache[model] = mujoco.MjData(model)
-    return data
+    """The scratch MjData of :func:`unheld_equality_errors` (:func:`.scratch.scratch_data`)."""
+    return scratch_data(model, "couplings")
 
 
 def unheld_equality_errors(

@@ -10,6 +10,7 @@ import scipy.linalg
 from ..core import checks
 from ..core.jacobian import Rows, row_indices
 from .configuration import Configuration, FrameType
+from .scratch import scratch_data
 
 __all__ = ["check_configuration", "frame_point", "manipulability_gradient"]
 
@@ -61,8 +62,11 @@ def manipulability_gradient(
     nv = model.nv
     if len(idx) > nv:
         return np.zeros(nv)
-    data = mujoco.MjData(model)
+    data = scratch_data(model, "gradients")  # (every input it reads is set here)
     data.qpos[:] = configuration.q
+    if model.nmocap:
+        data.mocap_pos[:] = configuration.data.mocap_pos
+        data.mocap_quat[:] = configuration.data.mocap_quat
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
     point, body = frame_point(configuration, data, frame, kind)
@@ -70,6 +74,9 @@ def manipulability_gradient(
     mujoco.mj_jac(model, data, jac[:3], jac[3:], point, body)
     U, s, Vt = scipy.linalg.svd(jac[idx], full_matrices=False)
     coefficients = np.array([np.prod(np.delete(s, i)) for i in range(s.size)])
+    # sum_i c_i u_i^T dJ v_i = <dJ, W>, W = U diag(c) V^T (the rows idx)
+    weights = np.zeros((6, nv))
+    np.add.at(weights, idx, (U * coefficients) @ Vt)  # (a row named twice: both terms)
     gradient = np.empty(nv)
     jac_dot = np.empty((6, nv))
     for k in range(nv):
@@ -77,6 +84,5 @@ def manipulability_gradient(
         data.qvel[k] = 1.0
         mujoco.mj_comVel(model, data)
         mujoco.mj_jacDot(model, data, jac_dot[:3], jac_dot[3:], point, body)
-        dJ = jac_dot[idx]
-        gradient[k] = np.sum(coefficients * np.einsum("ji,jk,ik->i", U, dJ, Vt))
+        gradient[k] = np.vdot(jac_dot, weights)
     return gradient

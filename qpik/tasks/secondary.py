@@ -15,8 +15,8 @@ import numpy as np
 
 from ..core import checks
 from ..core.jacobian import (
-    joint_limit_distance,
-    joint_limit_distance_gradient,
+    joint_limit_distance_terms,
+    joint_limit_midranges,
     manipulability,
     row_indices,
 )
@@ -58,6 +58,8 @@ class JointLimitDistanceTask(mink.Task):
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
         self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
+        #: (lower, upper, limited, half, mid / half) of the last limits seen (see _terms)
+        self._midranges: tuple | None = None
 
     def _indices(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """The model's scalar joints (see :func:`_scalar_joints`), kept per model."""
@@ -66,25 +68,47 @@ class JointLimitDistanceTask(mink.Task):
             self._joints = (model, *_scalar_joints(model))
         return self._joints[1], self._joints[2]
 
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+    def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """The error (1,) and Jacobian (1, nv) (see the class), from one pass: the values of
+        :func:`qpik.analysis.joint_limit_distance` and its gradient, bit for bit, with the
+        limits' mid-ranges kept while the limits are the same (checked once, when they
+        change); :func:`joint_limit_distance_terms` itself where a value is not finite (it
+        raises the typed error)."""
+        qpos, dofs = self._indices(configuration)
+        q = configuration.q[qpos]
+        lower, upper = configuration.lower[qpos], configuration.upper[qpos]
+        kept = self._midranges
+        if kept is None or not (np.array_equal(kept[0], lower) and np.array_equal(kept[1], upper)):
+            mid, half = joint_limit_midranges(lower, upper)
+            limited = half > 0
+            with np.errstate(over="ignore", invalid="ignore"):
+                kept = (lower, upper, limited, half[limited], mid[limited] / half[limited])
+            self._midranges = kept
+        _, _, limited, half, mid_over_half = kept
+        n = q.size
+        ratio = np.zeros(n)
+        gradient = np.zeros(n)
+        with np.errstate(over="ignore", invalid="ignore"):
+            ratio[limited] = 0.5 * (q[limited] / half - mid_over_half)
+            w = np.sum(ratio**2) / (2 * n) if n else 0.0
+            gradient[limited] = ratio[limited] / (2 * n) / half
+        if not (np.isfinite(w) and np.isfinite(gradient).all()):
+            w, gradient = joint_limit_distance_terms(q, lower, upper)  # raises
+        jacobian = np.zeros((1, configuration.model.nv))
+        jacobian[0, dofs] = gradient
+        return np.array([float(w)]), jacobian
 
-        qpos, _ = self._indices(configuration)
-        return np.array(
-            [
-                joint_limit_distance(
-                    configuration.q[qpos], configuration.lower[qpos], configuration.upper[qpos]
-                )
-            ]
-        )
+    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return self._terms(configuration)[0]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
+        return self._terms(configuration)[1]
 
-        qpos, dofs = self._indices(configuration)
-        jacobian = np.zeros((1, configuration.model.nv))
-        jacobian[0, dofs] = joint_limit_distance_gradient(
-            configuration.q[qpos], configuration.lower[qpos], configuration.upper[qpos]
-        )
-        return jacobian
+    def compute_qp_residual(  # type: ignore[override]
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """mink's weighted residual of :meth:`_terms` (one pass, not two)."""
+        return self._weighted_residual(*self._terms(configuration))
 
 
 class ManipulabilityTask(mink.Task):
