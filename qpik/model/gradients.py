@@ -8,11 +8,16 @@ import numpy as np
 import scipy.linalg
 
 from ..core import checks
-from ..core.jacobian import Rows, row_indices
+from ..core.jacobian import Rows, manipulability, row_indices
 from .configuration import Configuration, FrameType
 from .scratch import scratch_data
 
-__all__ = ["check_configuration", "frame_point", "manipulability_gradient"]
+__all__ = [
+    "check_configuration",
+    "frame_point",
+    "manipulability_gradient",
+    "manipulability_terms",
+]
 
 
 def frame_point(
@@ -55,13 +60,23 @@ def manipulability_gradient(
     returned). Zero when ``m > n`` (``w`` is then identically 0). The caller's
     configuration is not changed.
     """
+    return manipulability_terms(configuration, frame, frame_type, rows)[1]
+
+
+def manipulability_terms(
+    configuration: Configuration,
+    frame: str | int,
+    frame_type: FrameType | str = "site",
+    rows: Rows = "pose",
+) -> tuple[float, np.ndarray]:
+    """The manipulability ``w`` of the frame's Jacobian rows
+    (:func:`qpik.analysis.manipulability`) and its gradient (:func:`manipulability_gradient`)
+    from one Jacobian: what a task needs each step."""
     check_configuration(configuration)
     kind = FrameType.parse(frame_type)
     idx = list(row_indices(rows))
     model = configuration.model
     nv = model.nv
-    if len(idx) > nv:
-        return np.zeros(nv)
     data = scratch_data(model, "gradients")  # (every input it reads is set here)
     data.qpos[:] = configuration.q
     if model.nmocap:
@@ -72,8 +87,18 @@ def manipulability_gradient(
     point, body = frame_point(configuration, data, frame, kind)
     jac = np.empty((6, nv))
     mujoco.mj_jac(model, data, jac[:3], jac[3:], point, body)
+    value = manipulability(jac[idx])
+    if len(idx) > nv:
+        return value, np.zeros(nv)
     U, s, Vt = scipy.linalg.svd(jac[idx], full_matrices=False)
-    coefficients = np.array([np.prod(np.delete(s, i)) for i in range(s.size)])
+    singular = s.tolist()
+    coefficients = np.empty(len(singular))
+    for i in range(len(singular)):  # prod_{j != i} s_j, in order (np.prod's)
+        product = 1.0
+        for j, sj in enumerate(singular):
+            if j != i:
+                product *= sj
+        coefficients[i] = product
     # sum_i c_i u_i^T dJ v_i = <dJ, W>, W = U diag(c) V^T (the rows idx)
     weights = np.zeros((6, nv))
     np.add.at(weights, idx, (U * coefficients) @ Vt)  # (a row named twice: both terms)
@@ -85,4 +110,4 @@ def manipulability_gradient(
         mujoco.mj_comVel(model, data)
         mujoco.mj_jacDot(model, data, jac_dot[:3], jac_dot[3:], point, body)
         gradient[k] = np.vdot(jac_dot, weights)
-    return gradient
+    return value, gradient

@@ -22,7 +22,7 @@ from ..core.jacobian import (
 )
 from ..errors import mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
-from ..model.gradients import manipulability_gradient
+from ..model.gradients import manipulability_gradient, manipulability_terms
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
@@ -155,3 +155,13 @@ class ManipulabilityTask(mink.Task):
             configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
         return -np.asarray(gradient)[None, :]
+
+    def compute_qp_residual(  # type: ignore[override]
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """mink's weighted residual of the error and Jacobian from one frame Jacobian
+        (:func:`qpik.model.gradients.manipulability_terms`)."""
+        value, gradient = manipulability_terms(
+            configuration, self.frame_name, self.frame_type.value, rows=self.rows
+        )
+        return self._weighted_residual(np.array([-value]), -gradient[None, :])

@@ -72,3 +72,19 @@ def test_manipulability_gradient_does_not_depend_on_what_ran_before():
             values.append(manipulability(probe.frame_jacobian("ee", "site")))
         numeric[k] = (values[0] - values[1]) / (2 * h)
     np.testing.assert_allclose(first, numeric, rtol=1e-6, atol=1e-8)
+
+
+def test_manipulability_task_rows_are_its_error_and_jacobian():
+    """compute_qp_residual (one frame Jacobian) against compute_error / compute_jacobian
+    (each its own), bit for bit, for each row choice."""
+    from qpik.tasks import ManipulabilityTask
+
+    model = qpik.load_robot("panda")
+    rng = np.random.default_rng(9)
+    for rows in ("pose", "position", "orientation"):
+        task = ManipulabilityTask("ee", "site", rows=rows, cost=0.5, gain=0.3)
+        for _ in range(5):
+            configuration = qpik.Configuration(model, model.qpos0 + rng.uniform(-1, 1, model.nq))
+            A, b, _ = task.compute_qp_residual(configuration)
+            np.testing.assert_array_equal(A, 0.5 * task.compute_jacobian(configuration))
+            np.testing.assert_array_equal(b, 0.5 * (-0.3 * task.compute_error(configuration)))
