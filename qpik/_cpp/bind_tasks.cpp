@@ -138,9 +138,9 @@ void bind_tasks(nb::module_& m) {
             require(row >= 0 && row + k <= static_cast<i64>(A.shape(0)) &&
                         row + k <= static_cast<i64>(b.shape(0)),
                     "pose_rows_into: rows row:row+k must lie in A and b");
-            require(xpos.shape(0) >= 3 && xmat.shape(0) >= 9 && target.shape(0) >= tasks::kPoseTarget &&
-                        static_cast<i64>(cost.shape(0)) >= k,
-                    "pose_rows_into: xpos (3,), xmat (9,), target (12,) and cost (k,) expected");
+            require(xpos.shape(0) >= 3 && xmat.shape(0) >= 9 && target.shape(0) >= tasks::kPoseTarget,
+                    "pose_rows_into: xpos (3,), xmat (9,) and target (12,) expected");
+            require(static_cast<i64>(cost.shape(0)) == k, "pose_rows_into: cost must have one entry per row");
             return tasks::pose_rows_into(mat(A), b.data(), row, cmat(jac), xpos.data(), xmat.data(), target.data(),
                                          part, cost.data(), gain, lm_damping);
         },

@@ -19,7 +19,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..errors import TargetNotSet
+from ..errors import QpikError, TargetNotSet, TaskDefinitionError
 from ..model.com import subtree_com_chain
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
@@ -395,10 +395,18 @@ def write_world_pose_row(views: tuple, task, names: tuple) -> None:
 def write_frame_row(views: tuple, task, names: tuple | None) -> None:
     """A frame's data row: :func:`write_pose_row` of a frame task's target (``names``
     None), else :func:`write_world_pose_row`."""
-    if names is None:
-        write_pose_row(views, task, task.transform_target_to_world)
-    else:
-        write_world_pose_row(views, task, names)
+    try:
+        if names is None:
+            write_pose_row(views, task, task.transform_target_to_world)
+        else:
+            write_world_pose_row(views, task, names)
+    except (ValueError, TypeError) as exc:  # an attribute set to what does not fit its rows
+        if isinstance(exc, QpikError):
+            raise
+        raise TaskDefinitionError(
+            f"{type(task).__name__} {task.frame_name!r}: its target, cost, gain or lm_damping "
+            f"does not fit its rows ({exc})"
+        ) from exc
 
 
 def com_chains(model: mujoco.MjModel, bodies: list[int]) -> list:

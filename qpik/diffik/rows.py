@@ -17,7 +17,7 @@ from typing import cast
 import mink
 import numpy as np
 
-from ..errors import InvalidInput, InvalidTarget, as_qpik_error
+from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError, as_qpik_error
 from ..model.configuration import Configuration
 from ..tasks import BaseTask
 
@@ -88,6 +88,10 @@ def task_rows(
             objective = None if residual is not None else task.compute_qp_objective(configuration)
     except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
         raise as_qpik_error(exc) from exc
+    except (ValueError, TypeError) as exc:  # (a cost or gain set to what does not fit)
+        if isinstance(exc, QpikError):
+            raise
+        raise TaskDefinitionError(f"{type(task).__name__}: its rows failed ({exc})") from exc
     if objective is not None:
         H, c = objective
         values, vectors = np.linalg.eigh(0.5 * (H + H.T))

@@ -29,7 +29,7 @@ from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
 # configuration into a qpik one before any task sees it.
 
 
-_UNIT = np.ones(6)
+_UNIT3, _UNIT6 = np.ones(3), np.ones(6)  # unit costs
 
 
 def _pose_rows(
@@ -124,11 +124,11 @@ class _FrameRowsTask(mink.Task):
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """The error ``e`` (3,) in the world frame (see the class)."""
-        return self._rows(configuration, _UNIT, -1.0, 0.0)[1]
+        return self._rows(configuration, _UNIT3, -1.0, 0.0)[1]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """The Jacobian ``de/dq`` (3, nv) (see the class)."""
-        return self._rows(configuration, _UNIT, -1.0, 0.0)[0]
+        return self._rows(configuration, _UNIT3, -1.0, 0.0)[0]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
@@ -258,11 +258,11 @@ class PoseTask(mink.Task):
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """The error ``e`` (6,) [m, rad] in the world frame (see the class)."""
-        return self._rows(configuration, _UNIT, -1.0, 0.0)[1]
+        return self._rows(configuration, _UNIT6, -1.0, 0.0)[1]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """The Jacobian ``de/dq`` (6, nv) (see the class)."""
-        return self._rows(configuration, _UNIT, -1.0, 0.0)[0]
+        return self._rows(configuration, _UNIT6, -1.0, 0.0)[0]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration

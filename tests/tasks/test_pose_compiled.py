@@ -14,9 +14,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import qpik
-from qpik.errors import TargetNotSet
+from qpik.errors import TargetNotSet, TaskDefinitionError
 from qpik.limits import velocity_limit_from_model
-from qpik.tasks import OrientationTask, PoseTask, PositionTask, PostureTask
+from qpik.tasks import FrameTask, OrientationTask, PoseTask, PositionTask, PostureTask
 
 DT = 0.01
 
@@ -168,3 +168,39 @@ def test_a_target_not_set_is_reported(panda):
     solver = qpik.IKSolver(model, [[OrientationTask("ee", "site")]], [])
     with pytest.raises(TargetNotSet):
         solver.step(configuration, DT)
+
+
+def _attribute_cases():
+    frame = (mink.FrameTask, FrameTask)
+    return [
+        (PositionTask, "cost", np.ones(6)),
+        (OrientationTask, "target", np.eye(4)),
+        (PoseTask, "gain", "x"),
+        (PoseTask, "cost", np.ones(3)),
+        *((cls, "cost", np.ones(3)) for cls in frame),
+        *((cls, "gain", "x") for cls in frame),
+    ]
+
+
+@pytest.mark.parametrize(("cls", "name", "value"), _attribute_cases())
+def test_an_attribute_set_to_what_does_not_fit_is_a_typed_error(panda, cls, name, value):
+    """A task's cost, gain or target set directly (not by its setters) to what does not fit
+    its rows: TaskDefinitionError naming the task, on the compiled step and on the QP path
+    (not NumPy's ValueError from inside the plan)."""
+    model, configuration = panda
+    configuration.update(model.key_qpos[0])
+    if cls in (mink.FrameTask, FrameTask):
+        task = cls("ee", "site", position_cost=1.0, orientation_cost=1.0)
+        task.set_target(mink.SE3.from_translation(np.array([0.3, 0.0, 0.5])))
+    else:
+        task = cls("ee", "site")
+        _random_targets(np.random.default_rng(0), configuration, [task])
+    posture = PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    solver = qpik.IKSolver(model, [[task], [posture]], [mink.ConfigurationLimit(model)])
+    solver.step(configuration, DT)
+    setattr(task, name, value)
+    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
+        solver.step(configuration, DT)
+    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
+        solver.qp_solution(configuration, DT)
