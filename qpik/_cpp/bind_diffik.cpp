@@ -507,12 +507,6 @@ class Kernel {
         }
         FastArray fa;
         if (fast_array(o, 'd', false, fa)) {  // an ndarray read directly: the same bytes
-            if (fa.ndim == 2 && fa.c_contiguous && fa.shape[0] * fa.shape[1] == t.size) {
-                // a matrix (a pose task's target rotation (3, 3)), row-major
-                for (i64 k = 0; k < t.size; ++k)
-                    std::memcpy(t.p + k * t.stride, fa.data + k * static_cast<i64>(sizeof(double)), sizeof(double));
-                return true;
-            }
             if (fa.ndim != 1 || fa.shape[0] != t.size) return false;
             if (t.stride == 1 && fa.strides[0] == static_cast<Py_ssize_t>(sizeof(double))) {
                 std::memcpy(t.p, fa.data, sizeof(double) * static_cast<size_t>(t.size));  // both contiguous

@@ -68,8 +68,8 @@ POSE_KINDS: dict[type, tuple[int, int]] = {
 #: ``POSE_COST`` (3 or 6 entries), gain and LM damping at ``POSE_COST + 6`` and ``+ 7``.
 POSE_TARGETS: dict[type, tuple[tuple[str, int, int], ...]] = {
     PositionTask: (("target", 0, 3),),
-    OrientationTask: (("target", 3, 12),),
-    PoseTask: (("target_position", 0, 3), ("target_rotation", 3, 12)),
+    OrientationTask: (("_rotation_entries", 3, 12),),  # (the target's 9 entries, 1-D)
+    PoseTask: (("target_position", 0, 3), ("_rotation_entries", 3, 12)),
 }
 POSE_COST, POSE_DATA = 12, 20
 #: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).

@@ -184,6 +184,12 @@ class OrientationTask(_FrameRowsTask):
 
     _part = POSE_ORIENTATION
 
+    @property
+    def _rotation_entries(self) -> np.ndarray | None:
+        """The target rotation's 9 entries, row-major (None while no target is set): what
+        the compiled step reads each step (a 1-D view of the matrix)."""
+        return None if self.target is None else self.target.reshape(-1)
+
     def _target12(self) -> np.ndarray:
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
@@ -247,6 +253,13 @@ class PoseTask(mink.Task):
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current pose."""
         self.set_target(*configuration.frame_pose(self.frame_name, self.frame_type))
+
+    @property
+    def _rotation_entries(self) -> np.ndarray | None:
+        """The target rotation's 9 entries, row-major (None while no target is set): what
+        the compiled step reads each step (a 1-D view of the matrix)."""
+        rotation = self.target_rotation
+        return None if rotation is None else rotation.reshape(-1)
 
     def _rows(self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float):
         if self.target_position is None or self.target_rotation is None:
