@@ -23,13 +23,13 @@ from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
 # the same bits on both paths. Its error and Jacobian are its rows with unit cost and gain
 # -1 (b = 1 (1 e) = e, A = 1 J = J: exact).
 #
-# These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian), so
-# their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
-# ``type: ignore[override]``); qpik's entry points (qpik.diffik.mink_compat) turn a mink
-# configuration into a qpik one before any task sees it.
+# These tasks read what only qpik.Configuration has (frame_id and its MjData), so their
+# compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
+# ``type: ignore`` on the classes that take them); qpik's entry points
+# (qpik.diffik.mink_compat) turn a mink configuration into a qpik one before any task sees it.
 
 
-_UNIT3, _UNIT6 = np.ones(3), np.ones(6)  # unit costs
+_UNITS = {3: np.ones(3), 6: np.ones(6)}  # unit costs by row count
 
 
 def _pose_rows(
@@ -93,7 +93,37 @@ def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
     return vector
 
 
-class _FrameRowsTask(mink.Task):
+class _CompiledRows:
+    """The error, Jacobian and weighted rows of a world-frame pose task from its ``_rows``
+    (one compiled call: :func:`_pose_rows`): the error and Jacobian are the rows at unit
+    cost and gain -1."""
+
+    k: int
+    cost: np.ndarray
+    gain: float
+    lm_damping: float
+
+    def _rows(
+        self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        raise NotImplementedError
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        """The error ``e`` (k,) in the world frame [m, rad] (see the class)."""
+        return self._rows(configuration, _UNITS[self.k], -1.0, 0.0)[1]
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        """The Jacobian ``de/dq`` (k, nv) (see the class)."""
+        return self._rows(configuration, _UNITS[self.k], -1.0, 0.0)[0]
+
+    def compute_qp_residual(
+        self, configuration: Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call."""
+        return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))
+
+
+class _FrameRowsTask(_CompiledRows, mink.Task):  # type: ignore[misc]  # (see the note above)
     """A task on three rows of one frame's pose (see the subclasses)."""
 
     k = 3
@@ -121,20 +151,6 @@ class _FrameRowsTask(mink.Task):
 
     def _rows(self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float):
         return _pose_rows(self, configuration, self._target12(), self._part, cost, gain, lm)
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        """The error ``e`` (3,) in the world frame (see the class)."""
-        return self._rows(configuration, _UNIT3, -1.0, 0.0)[1]
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        """The Jacobian ``de/dq`` (3, nv) (see the class)."""
-        return self._rows(configuration, _UNIT3, -1.0, 0.0)[0]
-
-    def compute_qp_residual(  # type: ignore[override]
-        self, configuration: Configuration
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call."""
-        return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))
 
 
 class PositionTask(_FrameRowsTask):
@@ -198,7 +214,7 @@ class OrientationTask(_FrameRowsTask):
         return target
 
 
-class PoseTask(mink.Task):
+class PoseTask(_CompiledRows, mink.Task):  # type: ignore[misc]  # (see the note above)
     """Bring a frame to a target pose, errors in the world frame.
 
     Error ``e = [p(q) - p_target; log(R(q) R_target^T)]`` (6,) [m, rad]; Jacobian
@@ -268,17 +284,3 @@ class PoseTask(mink.Task):
         target[:3] = self.target_position
         target[3:] = self.target_rotation.reshape(-1)
         return _pose_rows(self, configuration, target, POSE_FULL, cost, gain, lm)
-
-    def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        """The error ``e`` (6,) [m, rad] in the world frame (see the class)."""
-        return self._rows(configuration, _UNIT6, -1.0, 0.0)[1]
-
-    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        """The Jacobian ``de/dq`` (6, nv) (see the class)."""
-        return self._rows(configuration, _UNIT6, -1.0, 0.0)[0]
-
-    def compute_qp_residual(  # type: ignore[override]
-        self, configuration: Configuration
-    ) -> tuple[np.ndarray, np.ndarray, float]:
-        """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call."""
-        return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))

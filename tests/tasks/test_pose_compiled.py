@@ -11,6 +11,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import central_difference
 from scipy.spatial.transform import Rotation
 
 import qpik
@@ -107,27 +108,15 @@ def test_rows_equal_an_independent_reference(panda):
 
 
 def test_jacobian_is_the_errors_derivative(panda):
-    """Central differences of the error along each dof by mj_integratePos."""
+    """Central differences of the error along each dof by mj_integratePos (conftest's)."""
     model, configuration = panda
     rng = np.random.default_rng(6)
     tasks = _tasks()
     configuration.update(model.key_qpos[0] + rng.uniform(-0.5, 0.5, model.nq))
     _random_targets(rng, configuration, tasks)
-    q0, h = configuration.q.copy(), 1e-6
-    probe = qpik.Configuration(model, q0)
     for task in tasks:
         J = task.compute_jacobian(configuration)
-        fd = np.zeros_like(J)
-        for j in range(model.nv):
-            step = np.zeros(model.nv)
-            step[j] = h
-            errors = []
-            for sign in (1.0, -1.0):
-                q = q0.copy()
-                mujoco.mj_integratePos(model, q, sign * step, 1.0)
-                probe.update(q)
-                errors.append(task.compute_error(probe))
-            fd[:, j] = (errors[0] - errors[1]) / (2 * h)
+        fd = central_difference(configuration, task.compute_error)
         np.testing.assert_allclose(J, fd, rtol=0, atol=1e-7)
 
 
@@ -144,14 +133,9 @@ def test_the_kernel_computes_them_with_the_qp_paths_bits(panda):
     solver = qpik.IKSolver(model, [[pose], [position, orientation], [posture]], limits)
     plan = solver._plan
     assert plan is not None and not plan.rows_tasks and len(plan.frames) == 3
-    gathered = []
+    gathered: list = []
     gather = plan.gather
-
-    def counted(*args):
-        gathered.append(1)
-        return gather(*args)
-
-    plan.gather = counted  # type: ignore[method-assign]
+    plan.gather = lambda *args: gathered.append(1) or gather(*args)  # type: ignore[method-assign]
     for k in range(12):
         configuration.update(model.key_qpos[0] + rng.uniform(-0.4, 0.4, model.nq))
         _random_targets(rng, configuration, [position, orientation, pose])
