@@ -58,7 +58,8 @@ class JointLimitDistanceTask(mink.Task):
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
         self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
-        #: (lower, upper, limited, half, mid / half) of the last limits seen (see _terms)
+        #: (the limits' bytes, limited joints, their qpos and dofs, half, mid / half) of the
+        #: last limits seen (see _terms)
         self._midranges: tuple | None = None
 
     def _indices(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
@@ -75,27 +76,27 @@ class JointLimitDistanceTask(mink.Task):
         change); :func:`joint_limit_distance_terms` itself where a value is not finite (it
         raises the typed error)."""
         qpos, dofs = self._indices(configuration)
-        q = configuration.q[qpos]
-        lower, upper = configuration.lower[qpos], configuration.upper[qpos]
+        key = (configuration.lower.tobytes(), configuration.upper.tobytes())
         kept = self._midranges
-        if kept is None or not (np.array_equal(kept[0], lower) and np.array_equal(kept[1], upper)):
-            mid, half = joint_limit_midranges(lower, upper)
-            limited = half > 0
+        if kept is None or kept[0] != key:
+            mid, half = joint_limit_midranges(configuration.lower[qpos], configuration.upper[qpos])
+            where = np.flatnonzero(half > 0)  # the limited joints, in joint order
             with np.errstate(over="ignore", invalid="ignore"):
-                kept = (lower, upper, limited, half[limited], mid[limited] / half[limited])
+                kept = (key, where, qpos[where], dofs[where], half[where], mid[where] / half[where])
             self._midranges = kept
-        _, _, limited, half, mid_over_half = kept
-        n = q.size
-        ratio = np.zeros(n)
-        gradient = np.zeros(n)
+        _, where, limited_qpos, limited_dofs, half, mid_over_half = kept
+        n = qpos.size
+        ratio = np.zeros(n)  # (zeros kept at the unlimited joints: np.sum's grouping)
         with np.errstate(over="ignore", invalid="ignore"):
-            ratio[limited] = 0.5 * (q[limited] / half - mid_over_half)
+            limited = 0.5 * (configuration.q[limited_qpos] / half - mid_over_half)
+            ratio[where] = limited
             w = np.sum(ratio**2) / (2 * n) if n else 0.0
-            gradient[limited] = ratio[limited] / (2 * n) / half
+            gradient = limited / (2 * n) / half
         if not (np.isfinite(w) and np.isfinite(gradient).all()):
-            w, gradient = joint_limit_distance_terms(q, lower, upper)  # raises
+            q = configuration.q[qpos]  # the checked computation: it raises the typed error
+            joint_limit_distance_terms(q, configuration.lower[qpos], configuration.upper[qpos])
         jacobian = np.zeros((1, configuration.model.nv))
-        jacobian[0, dofs] = gradient
+        jacobian[0, limited_dofs] = gradient
         return np.array([float(w)]), jacobian
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
