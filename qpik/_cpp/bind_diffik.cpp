@@ -331,16 +331,19 @@ class Kernel {
                 case diffik::RELATIVE: count = R; size = 6; break;
                 case diffik::ROWS: count = U; size = 0; break;  // its rows: the caller's
                 case diffik::LINEAR: count = lin_tasks; break;
+                case diffik::JOINT_LIMITS: count = lin_tasks; break;  // (lin_const checked above)
                 case diffik::POSE_POSITION: case diffik::POSE_ORIENTATION: case diffik::POSE_FULL:
                     require(dim(frame_data, 1) == diffik::kPoseData,
                             "Kernel: frame_data must have shape (F, 20) with pose tasks");
                     count = F;
                     size = tasks::pose_part_rows(kind - diffik::POSE_BASE);
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 9");
+                default: require(false, "Kernel: a task kind is not 0 to 10");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
-            if (kind == diffik::LINEAR) size = lin_starts_.data[index + 1] - lin_starts_.data[index];
+            if (kind == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
+                size = lin_starts_.data[index + 1] - lin_starts_.data[index];
+            if (kind == diffik::JOINT_LIMITS) require(size == 1, "Kernel: a joint-limit task has one row");
             require(level >= 0 && level < L, "Kernel: a task level is out of range");
             require(row >= 0 && row + size <= M, "Kernel: a task's rows are out of range of A");
         }

@@ -6,6 +6,7 @@
 #include "tasks/frame.hpp"
 #include "tasks/linear.hpp"
 #include "tasks/pose.hpp"
+#include "tasks/joint_limits.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -149,6 +150,38 @@ void bind_tasks(nb::module_& m) {
         "Rows row:row+k of a world-frame pose task (part 1 position, 2 orientation, 3 both; k = 3, 3, 6) into "
         "A, b: A = diag(cost) [Jv; Jl^-1(e_rot) Jw], b = -gain cost e, e = [p - p*; log(R R*^T)] (world frame); "
         "target = p* (3) then R* (row-major 9). Returns lm_damping |b|^2.");
+    m.def(
+        "joint_limit_distance_row",
+        [](Out2 A, Out1 b, i64 row, In1 qpos, In<i64, 1> qadr, In<i64, 1> dofs, In1 half, In1 mid_over_half, double n, double cost,
+           double gain, double lm_damping) {
+            const i64 m = static_cast<i64>(qadr.shape(0));
+            const i64 nv = static_cast<i64>(A.shape(1)), nq = static_cast<i64>(qpos.shape(0));
+            require(row >= 0 && row < static_cast<i64>(A.shape(0)) && row < static_cast<i64>(b.shape(0)),
+                    "joint_limit_distance_row: row must lie in A and b");
+            require(static_cast<i64>(dofs.shape(0)) == m && static_cast<i64>(half.shape(0)) == m &&
+                        static_cast<i64>(mid_over_half.shape(0)) == m,
+                    "joint_limit_distance_row: qadr, dofs, half and mid_over_half must have one entry per joint");
+            for (i64 k = 0; k < m; ++k)
+                require(qadr.data()[k] >= 0 && qadr.data()[k] < nq && dofs.data()[k] >= 0 && dofs.data()[k] < nv,
+                        "joint_limit_distance_row: a qpos address or dof is out of range");
+            auto joint = [&](i64 k, i64& adr, i64& dof, double& h, double& moh) {
+                adr = qadr.data()[k];
+                dof = dofs.data()[k];
+                h = half.data()[k];
+                moh = mid_over_half.data()[k];
+                return true;
+            };
+            double w = 0.0;
+            const double mu = tasks::joint_limit_distance_row(mat(A), b.data(), row, qpos.data(), m, joint, n, cost,
+                                                              gain, lm_damping, &w);
+            return std::make_tuple(mu, w);
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("row"), nb::arg("qpos"), nb::arg("qadr"),
+        nb::arg("dofs"), nb::arg("half"), nb::arg("mid_over_half"), nb::arg("n"), nb::arg("cost"), nb::arg("gain"),
+        nb::arg("lm_damping"),
+        "Row `row` of the joint-limit distance task into A, b (A = cost dw/dq, b = -gain cost w) from the limited "
+        "joints' qpos addresses, dofs, half ranges and mid / half (joint order) and n, the scalar joints counted; "
+        "returns (lm_damping b^2, w).");
     m.def(
         "linear_residual",
         [](In2 form, In1 qpos) {

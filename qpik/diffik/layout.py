@@ -5,7 +5,8 @@ arrays, preallocated once per :class:`qpik.IKSolver`.
 Tasks the kernel computes itself (exact types; a subclass may change the rows): qpik's or
 mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``RelativeFrameTask``, qpik's world-frame ``PositionTask``, ``OrientationTask`` and
-``PoseTask`` (kinds ``POSE_KINDS``), and qpik's ``CouplingTask`` when every coupling is linear (kind
+``PoseTask`` (kinds ``POSE_KINDS``), qpik's ``JointLimitDistanceTask`` (kind
+``JOINT_LIMITS_KIND``), and qpik's ``CouplingTask`` when every coupling is linear (kind
 ``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``). Any other task supplies
 its rows each step (kind ``ROWS_KIND``, laid out by its declared count).
 """
@@ -21,18 +22,20 @@ import numpy as np
 
 from ..errors import QpikError, TargetNotSet, TaskDefinitionError
 from ..model.com import subtree_com_chain
+from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
+from ..tasks.secondary import JointLimitDistanceTask
 from .boxes import LimitBoxes
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
     "TaskLayout", "com_chains", "frame_chains", "limit_layout", "plan_arrays", "task_layout",
-    "write_frame_row", "write_pose_row", "write_world_pose_row",
+    "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
 KINDS = {"site": 0, "body": 1, "geom": 2}
@@ -56,6 +59,10 @@ GENERAL_LIMITS = (mink.CollisionAvoidanceLimit,)
 #: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
 FRAME_KIND, POSTURE_KIND, COM_KIND, RELATIVE_KIND = 0, 1, 2, 3
 DAMPING_KIND, ROWS_KIND, LINEAR_KIND = 4, 5, 6
+#: qpik's JointLimitDistanceTask (qpik/_cpp/tasks/joint_limits.hpp): one row, its constants
+#: in the linear tasks' table (:func:`joint_limit_constants`), its cost, gain and LM
+#: damping loaded as theirs.
+JOINT_LIMITS_KIND = 10
 #: qpik's world-frame pose tasks (qpik/_cpp/tasks/pose.hpp), a frame of the ``frames``
 #: table each, by exact type: their kind (7 position, 8 orientation, 9 both) and rows.
 POSE_KINDS: dict[type, tuple[int, int]] = {
@@ -264,6 +271,13 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         layout.coms.append((task, *entry))
         return 3
     linear = task.linear_form if kind is CouplingTask else None
+    if kind is JointLimitDistanceTask:
+        linear = joint_limit_constants(model, task)
+        if linear is None:
+            return None
+        layout.tasks.append((JOINT_LIMITS_KIND, len(layout.linears), k, row))
+        layout.linears.append((task, *linear))
+        return 1
     if linear is not None:
         form, jacobian = linear
         layout.tasks.append((LINEAR_KIND, len(layout.linears), k, row))
@@ -273,6 +287,27 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     layout.tasks.append((ROWS_KIND, len(layout.rows_tasks), k, row))
     layout.rows_tasks.append((task, row, row + size))
     return size
+
+
+def joint_limit_constants(model: mujoco.MjModel, task) -> tuple | None:
+    """A joint-limit distance task's constants in the linear tasks' table (its one row of
+    ``lin_const``, kind ``JOINT_LIMITS_KIND``): ``(form (1, nq + 1), jacobian (1, nv))``,
+    the half range by dof (0 where the dof is not a limited joint's) as its Jacobian row,
+    mid / half by qpos address and ``n`` (the scalar joints counted) as its form; None where
+    its cost is not one number or the limits do not check (the QP path reports them)."""
+    if np.shape(getattr(task, "cost", 0.0)) != (1,):
+        return None
+    lower, upper = limit_vectors(model)
+    try:
+        qadr, dofs, half, mid_over_half, n = task.limited_joints(model, lower, upper)
+    except QpikError:
+        return None
+    jacobian = np.zeros((1, model.nv))
+    jacobian[0, dofs] = half
+    form = np.zeros((1, model.nq + 1))
+    form[0, qadr] = mid_over_half
+    form[0, -1] = n
+    return form, jacobian
 
 
 def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) -> int | None:

@@ -38,7 +38,14 @@ from .frames import (
 )
 from .robots import load_robot, locate_robot
 
-__all__ = ["Configuration", "FrameType", "check_within_limits", "frame_names", "joint_names"]
+__all__ = [
+    "Configuration",
+    "FrameType",
+    "check_within_limits",
+    "frame_names",
+    "joint_names",
+    "limit_vectors",
+]
 
 
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
@@ -103,6 +110,14 @@ def _shared_limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray
     vectors = _limit_vectors(model)
     _SHARED_LIMITS[id(model)] = (model, stamp, vectors)
     return vectors
+
+
+def limit_vectors(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits ``(lower, upper)`` ``(nq,)`` [rad or m] that a
+    :class:`Configuration` of ``model`` has (read-only; +-inf where a scalar joint is
+    unlimited, and on ball and free joints), kept per model until its limits change."""
+    lower, upper, _ = _shared_limit_vectors(model)
+    return lower, upper
 
 
 def _ball_violations_of(

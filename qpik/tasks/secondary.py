@@ -13,6 +13,7 @@ import mink
 import mujoco
 import numpy as np
 
+from .._engine.tasks import joint_limit_distance_row
 from ..core import checks
 from ..core.jacobian import (
     joint_limit_distance_terms,
@@ -58,58 +59,74 @@ class JointLimitDistanceTask(mink.Task):
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
         self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
-        #: (the limits' bytes, limited joints, their qpos and dofs, half, mid / half) of the
-        #: last limits seen (see _terms)
+        #: (the limits' bytes, limited_joints()) of the last limits seen (see _rows)
         self._midranges: tuple | None = None
 
     def _indices(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """The model's scalar joints (see :func:`_scalar_joints`), kept per model."""
-        model = configuration.model
+        _, qpos, dofs = self._indices_of(configuration.model)
+        return qpos, dofs
+
+    def limited_joints(
+        self, model: mujoco.MjModel, lower: np.ndarray, upper: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """``(qpos addresses, dofs, half ranges, mid / half, n)`` of ``model``'s limited
+        hinge and slide joints in joint order under the limits ``lower``, ``upper`` (nq,),
+        and ``n`` the hinge and slide joints counted (limited or not): what its row is made
+        of (``qpik._engine.tasks.joint_limit_distance_row``, which the compiled step calls
+        too). The limits are checked here (:func:`qpik.analysis.joint_limit_distance`'s
+        errors)."""
+        _, qpos, dofs = self._indices_of(model)
+        mid, half = joint_limit_midranges(lower[qpos], upper[qpos])
+        where = np.flatnonzero(half > 0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            moh = mid[where] / half[where]
+        return qpos[where], dofs[where], half[where], moh, int(qpos.size)
+
+    def _indices_of(self, model: mujoco.MjModel) -> tuple[mujoco.MjModel, np.ndarray, np.ndarray]:
         if self._joints is None or self._joints[0] is not model:
             self._joints = (model, *_scalar_joints(model))
-        return self._joints[1], self._joints[2]
+        return self._joints
 
-    def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
-        """The error (1,) and Jacobian (1, nv) (see the class), from one pass: the values of
-        :func:`qpik.analysis.joint_limit_distance` and its gradient, bit for bit, with the
-        limits' mid-ranges kept while the limits are the same (checked once, when they
-        change); :func:`joint_limit_distance_terms` itself where a value is not finite (it
-        raises the typed error)."""
-        qpos, dofs = self._indices(configuration)
+    def _rows(
+        self, configuration: Configuration, cost: float, gain: float, lm_damping: float
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(A (1, nv), b (1,), mu)`` in one compiled call, the limited joints kept while the
+        limits are the same (by their bytes); where a value is not finite,
+        :func:`joint_limit_distance_terms` raises the typed error."""
         key = (configuration.lower.tobytes(), configuration.upper.tobytes())
         kept = self._midranges
         if kept is None or kept[0] != key:
-            mid, half = joint_limit_midranges(configuration.lower[qpos], configuration.upper[qpos])
-            where = np.flatnonzero(half > 0)  # the limited joints, in joint order
-            with np.errstate(over="ignore", invalid="ignore"):
-                kept = (key, where, qpos[where], dofs[where], half[where], mid[where] / half[where])
-            self._midranges = kept
-        _, where, limited_qpos, limited_dofs, half, mid_over_half = kept
-        n = qpos.size
-        ratio = np.zeros(n)  # (zeros kept at the unlimited joints: np.sum's grouping)
-        with np.errstate(over="ignore", invalid="ignore"):
-            limited = 0.5 * (configuration.q[limited_qpos] / half - mid_over_half)
-            ratio[where] = limited
-            w = np.sum(ratio**2) / (2 * n) if n else 0.0
-            gradient = limited / (2 * n) / half
-        if not (np.isfinite(w) and np.isfinite(gradient).all()):
-            q = configuration.q[qpos]  # the checked computation: it raises the typed error
-            joint_limit_distance_terms(q, configuration.lower[qpos], configuration.upper[qpos])
-        jacobian = np.zeros((1, configuration.model.nv))
-        jacobian[0, limited_dofs] = gradient
-        return np.array([float(w)]), jacobian
+            joints = self.limited_joints(
+                configuration.model, configuration.lower, configuration.upper
+            )
+            kept = self._midranges = (key, joints)
+        qadr, dofs, half, moh, n = kept[1]
+        A, b = np.empty((1, configuration.model.nv)), np.empty(1)
+        mu, w = joint_limit_distance_row(
+            A, b, 0, configuration.q, qadr, dofs, half, moh, float(n), cost, gain, lm_damping
+        )
+        if not (np.isfinite(w) and np.isfinite(A).all()):
+            qpos, _ = self._indices(configuration)  # the checked computation: it raises
+            joint_limit_distance_terms(
+                configuration.q[qpos], configuration.lower[qpos], configuration.upper[qpos]
+            )
+        return A, b, mu
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._terms(configuration)[0]
+        """``w(q)`` (1,) (see the class)."""
+        return self._rows(configuration, 1.0, -1.0, 0.0)[1]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-        return self._terms(configuration)[1]
+        """``dw/dq`` (1, nv) (see the class)."""
+        return self._rows(configuration, 1.0, -1.0, 0.0)[0]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        """mink's weighted residual of :meth:`_terms` (one pass, not two)."""
-        return self._weighted_residual(*self._terms(configuration))
+        """``(cost dw/dq, -gain cost w, mu)`` in one compiled call."""
+        cost = float(np.asarray(self.cost, dtype=float).reshape(-1)[0])
+        return self._rows(configuration, cost, float(self.gain), float(self.lm_damping))
 
 
 class ManipulabilityTask(mink.Task):

@@ -1,5 +1,5 @@
-"""The secondary tasks' rows each step: JointLimitDistanceTask keeps its limits' mid-ranges
-while the limits stay the same (the values of qpik.analysis' public functions, bit for bit,
+"""The secondary tasks' rows each step: JointLimitDistanceTask keeps its limited joints
+while the limits stay the same (the values of qpik.analysis' public functions to round-off,
 and the new limits once a model's ranges change in place); the manipulability gradient
 uses a scratch MjData kept per model, so its answer does not depend on what ran before and
 the caller's data is not touched."""
@@ -25,9 +25,10 @@ def _reference(task, configuration):
 
 
 @pytest.mark.parametrize("name", ["panda", "erd:talos"])
-def test_joint_limit_distance_rows_are_the_public_functions_bits(name):
-    """The Panda's 7 joints and Talos' 32 (np.sum groups 8 terms and more in pairs: the
-    zeros of unlimited joints kept in place)."""
+def test_joint_limit_distance_rows_are_the_public_functions(name):
+    """The Panda's 7 joints and Talos' 32: the task's compiled row (a sum in joint order)
+    against qpik.analysis' NumPy functions (np.sum's pairwise grouping: round-off apart),
+    and its rows exactly its error and Jacobian weighted."""
     model = load_or_skip(name)
     rng = np.random.default_rng(3)
     task = JointLimitDistanceTask(cost=2.0, gain=0.4)
@@ -36,11 +37,15 @@ def test_joint_limit_distance_rows_are_the_public_functions_bits(name):
         q = np.clip(model.qpos0 + rng.uniform(-1.0, 1.0, model.nq), bounds.lower, bounds.upper)
         configuration = qpik.Configuration(model, q)
         error, jacobian = _reference(task, configuration)
-        np.testing.assert_array_equal(task.compute_error(configuration), error)
-        np.testing.assert_array_equal(task.compute_jacobian(configuration), jacobian)
+        ours_error, ours_jacobian = (
+            task.compute_error(configuration),
+            task.compute_jacobian(configuration),
+        )
+        np.testing.assert_allclose(ours_error, error, rtol=1e-14, atol=0)
+        np.testing.assert_allclose(ours_jacobian, jacobian, rtol=1e-14, atol=0)
         A, b, _ = task.compute_qp_residual(configuration)
-        np.testing.assert_array_equal(A, 2.0 * jacobian)
-        np.testing.assert_array_equal(b, 2.0 * (-0.4 * error))
+        np.testing.assert_array_equal(A, 2.0 * ours_jacobian)
+        np.testing.assert_array_equal(b, 2.0 * (-0.4 * ours_error))
 
 
 def test_joint_limit_distance_follows_limits_changed_in_place():
@@ -51,8 +56,8 @@ def test_joint_limit_distance_follows_limits_changed_in_place():
     model.jnt_range[0] = [-0.5, 0.1]  # joint 1's range, halved and shifted
     configuration = qpik.Configuration(model, model.qpos0)
     error, jacobian = _reference(task, configuration)
-    np.testing.assert_array_equal(task.compute_error(configuration), error)
-    np.testing.assert_array_equal(task.compute_jacobian(configuration), jacobian)
+    np.testing.assert_allclose(task.compute_error(configuration), error, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(task.compute_jacobian(configuration), jacobian, rtol=1e-14, atol=0)
     assert error[0] != before[0]
 
 
@@ -95,3 +100,39 @@ def test_manipulability_task_rows_are_its_error_and_jacobian():
             A, b, _ = task.compute_qp_residual(configuration)
             np.testing.assert_array_equal(A, 0.5 * task.compute_jacobian(configuration))
             np.testing.assert_array_equal(b, 0.5 * (-0.3 * task.compute_error(configuration)))
+
+
+@pytest.mark.parametrize("name", ["panda", "erd:talos"])
+def test_joint_limit_distance_in_the_compiled_step_has_the_qp_paths_bits(name):
+    """A frame task, the joint-limit distance, a posture, position and velocity limits: the
+    kernel computes the joint-limit row itself (no task supplies its rows), and each step's
+    velocity equals the QP path's (the task's own compiled row) bit for bit; with a
+    correction pass too (the kernel's weighted errors of the held levels)."""
+    import mink
+
+    from qpik.limits import velocity_limit_from_model
+    from qpik.tasks import FrameTask, PostureTask
+
+    model = load_or_skip(name)
+    rng = np.random.default_rng(12)
+    frame_name, kind = ("ee", "site") if name == "panda" else ("gripper_left_base_link", "body")
+    frame = FrameTask(frame_name, kind, position_cost=1.0, orientation_cost=1.0)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    posture = PostureTask(model, cost=0.05)
+    for passes in (0, 1):
+        task = JointLimitDistanceTask(cost=1.5, gain=0.5, lm_damping=0.1)
+        solver = qpik.IKSolver(
+            model, [[frame], [task], [posture]], limits, correction_passes=passes
+        )
+        assert solver._plan is not None and not solver._plan.rows_tasks
+        bounds = qpik.Configuration(model)
+        for _ in range(8):
+            q = np.clip(model.qpos0 + rng.uniform(-0.6, 0.6, model.nq), bounds.lower, bounds.upper)
+            configuration = qpik.Configuration(model, q)
+            frame.set_target_from_configuration(configuration)
+            posture.set_target(q)
+            result = solver.step(configuration, 0.01)
+            if passes == 0:
+                reference = solver.qp_solution(configuration, 0.01)
+                np.testing.assert_array_equal(result.velocity, reference.velocity)
+            assert all(s == "solved" for s in result.status)

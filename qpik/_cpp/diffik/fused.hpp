@@ -16,6 +16,7 @@
 #include "../core/cascade.hpp"
 #include "../tasks/frame.hpp"
 #include "../tasks/pose.hpp"
+#include "../tasks/joint_limits.hpp"
 #include "../tasks/linear.hpp"
 #include "couple.hpp"
 
@@ -94,7 +95,11 @@ enum TaskKind : i64 {
     FRAME = 0, POSTURE = 1, COM = 2, RELATIVE = 3, DAMPING_TASK = 4, ROWS = 5, LINEAR = 6,
     // qpik's world-frame pose tasks (tasks/pose.hpp; a frame of the frames table): part
     // kind - POSE_BASE (1 position, 2 orientation, 3 both)
-    POSE_POSITION = 7, POSE_ORIENTATION = 8, POSE_FULL = 9
+    POSE_POSITION = 7, POSE_ORIENTATION = 8, POSE_FULL = 9,
+    // qpik's JointLimitDistanceTask (tasks/joint_limits.hpp): one row; its constants in row
+    // lin_starts[index] of lin_const: half range by dof (0: not counted), mid / half by qpos
+    // address, then n (the scalar joints counted); its cost, gain and LM damping in lin_data
+    JOINT_LIMITS = 10
 };
 constexpr i64 POSE_BASE = 6;
 inline bool is_pose(i64 kind) { return kind >= POSE_POSITION && kind <= POSE_FULL; }
@@ -278,6 +283,37 @@ inline void frame_pose(const FusedArgs& a, i64 kind, i64 fid, const double*& pos
     }
 }
 
+// The joint-limit distance task's row `row` of A, b (tasks/joint_limits.hpp) from its
+// constants in row r0 of lin_const (half range by dof, 0 where the dof is not a limited
+// joint's; mid / half by qpos address; n) and its cost, gain and LM damping in column r0 of
+// lin_data, the limited joints in dof order (a scalar dof's qpos address from posture_map).
+// Returns its LM term.
+inline auto joint_limits_slots(const FusedArgs& a, i64 r0) {
+    const i64 n = a.A.cols;
+    const double* c = a.lin_const.row(r0);
+    return [&a, c, n](i64 k, i64& adr, i64& dof, double& half, double& moh) {
+        if (!(c[k] > 0.0)) return false;
+        dof = k;
+        adr = a.posture_map(k, 1);
+        half = c[k];
+        moh = c[n + adr];
+        return true;
+    };
+}
+
+inline double joint_limits_row(const FusedArgs& a, i64 r0, i64 row) {
+    const i64 n = a.A.cols, nq = a.qpos.n;
+    return tasks::joint_limit_distance_row(a.A, a.b.p, row, a.qpos.p, n, joint_limits_slots(a, r0),
+                                           a.lin_const(r0, n + nq), a.lin_data(0, r0), a.lin_data(1, r0),
+                                           a.lin_data(2, r0));
+}
+
+// Its w alone (A and b untouched).
+inline double joint_limits_value(const FusedArgs& a, i64 r0) {
+    const i64 n = a.A.cols, nq = a.qpos.n;
+    return tasks::joint_limit_distance_value(a.qpos.p, n, joint_limits_slots(a, r0), a.lin_const(r0, n + nq));
+}
+
 // Fill every task's rows of A, b, w; each level's LM term sum lm_damping |b_task|^2 into
 // reg (L); local: scratch (sizes only grow). diag (M): per row of A, the column of its
 // diagonal entry where a posture or damping task wrote it last (cost_row: every other entry
@@ -298,6 +334,14 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
         double mu;
         const double* cost;
         i64 size;
+        if (kind == JOINT_LIMITS) {
+            const i64 r0 = a.lin_starts[i];
+            mu = joint_limits_row(a, r0, row);
+            a.w[row] = a.lin_data(0, r0);
+            diag[static_cast<size_t>(row)] = -1;
+            reg[a.tasks(t, 2)] += mu;
+            continue;
+        }
         if (kind == LINEAR) {
             const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
             const i64 stride = a.lin_const.stride;
@@ -720,6 +764,10 @@ inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, d
             model::se3_inverse_multiply(rel, root, frame);
             model::se3_rminus(error, rel, data);
             for (i64 r = 0; r < 6; ++r) we[row + r] = data[7 + r] * error[r];
+        } else if (kind == JOINT_LIMITS) {
+            // cost * w (the row itself written to scratch: A and b keep the step's)
+            const i64 r0 = a.lin_starts[i];
+            we[row] = a.lin_data(0, r0) * joint_limits_value(a, r0);
         } else if (kind == LINEAR) {
             const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
             const i64 stride = a.lin_const.stride;
@@ -770,6 +818,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case COM: size = 3; break;
             case POSE_POSITION: case POSE_ORIENTATION: case POSE_FULL: size = tasks::pose_part_rows(kind - POSE_BASE); break;
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
+            case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
             default: size = n;
         }
