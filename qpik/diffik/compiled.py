@@ -135,7 +135,6 @@ class CompiledPlan:
         self._active_rows: list = []
         #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
-        self._linear_tasks = [t[0] for t in self.linears]  # (_sources reads them)
         #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
         self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
@@ -246,16 +245,17 @@ class CompiledPlan:
         self._plain_data = self._data if plain else _NO_DATA
 
     def _gather_linears(self) -> bool:
-        """The linear tasks' costs, gains and LM damping into ``lin_data``; False when a
-        task's cost no longer has its rows' shape (the QP path answers)."""
+        """The linear tasks' costs, gains and LM damping; False where one does not fit."""
         lin = self.arrays["lin_data"]
         for task, r0, cost_view in self.linears:
             cost = task.cost
             if type(cost) is not np.ndarray or cost.shape != cost_view.shape:
                 return False
             cost_view[...] = cost
-            lin[1, r0] = task.gain
-            lin[2, r0] = task.lm_damping
+            try:
+                lin[1:, r0] = task.gain, task.lm_damping
+            except (TypeError, ValueError):
+                return False
         return True
 
     def _gather_rows(self, configuration: mink.Configuration) -> bool:
@@ -382,7 +382,7 @@ class CompiledPlan:
             task(t, "target_com")
         for t, *_ in self.relatives:
             task(t, "transform_target_to_root", "wxyz_xyz")
-        for t in self._linear_tasks:
+        for t, *_ in self.linears:
             task(t)
         sources.extend((limit, "gain") for limit in self._config_limits)
         return sources

@@ -21,7 +21,7 @@ from ..core.jacobian import (
     manipulability,
     row_indices,
 )
-from ..errors import mink_errors_as_qpik
+from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
 from ..model.gradients import manipulability_gradient, manipulability_terms
 
@@ -125,8 +125,14 @@ class JointLimitDistanceTask(mink.Task):
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
         """``(cost dw/dq, -gain cost w, mu)`` in one compiled call."""
-        cost = float(np.asarray(self.cost, dtype=float).reshape(-1)[0])
-        return self._rows(configuration, cost, float(self.gain), float(self.lm_damping))
+        cost = np.asarray(self.cost, dtype=float)
+        if cost.size != 1:
+            raise TaskDefinitionError(
+                f"JointLimitDistanceTask: cost must be one number, got shape {cost.shape}"
+            )
+        return self._rows(
+            configuration, float(cost.reshape(-1)[0]), float(self.gain), float(self.lm_damping)
+        )
 
 
 class ManipulabilityTask(mink.Task):

@@ -136,3 +136,28 @@ def test_joint_limit_distance_in_the_compiled_step_has_the_qp_paths_bits(name):
                 reference = solver.qp_solution(configuration, 0.01)
                 np.testing.assert_array_equal(result.velocity, reference.velocity)
             assert all(s == "solved" for s in result.status)
+
+
+@pytest.mark.parametrize(("name", "value"), [("cost", np.ones(2)), ("gain", "x")])
+def test_joint_limit_distance_attribute_that_does_not_fit_is_a_typed_error(name, value):
+    """The task's cost or gain set directly to what its row cannot take: TaskDefinitionError
+    naming it, on the compiled step (which hands it to the QP path) and the QP path."""
+    import mink
+
+    from qpik.errors import TaskDefinitionError
+    from qpik.tasks import FrameTask, PostureTask
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target_from_configuration(configuration)
+    posture = PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    task = JointLimitDistanceTask()
+    solver = qpik.IKSolver(model, [[frame], [task], [posture]], [mink.ConfigurationLimit(model)])
+    solver.step(configuration, 0.01)
+    setattr(task, name, value)
+    with pytest.raises(TaskDefinitionError, match="JointLimitDistanceTask"):
+        solver.step(configuration, 0.01)
+    with pytest.raises(TaskDefinitionError, match="JointLimitDistanceTask"):
+        solver.qp_solution(configuration, 0.01)
