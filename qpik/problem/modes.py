@@ -24,7 +24,7 @@ from ..igm.qp_engine import set_frame_target
 from ..igm.result import IKResult, Reason
 from ..igm.session import solve
 from ..model.configuration import Configuration
-from ..model.couplings import unheld_equalities, unheld_equality_errors
+from ..model.couplings import model_couplings, unheld_equalities, unheld_equality_errors
 from .goals import Goal
 from .report import Problem, TrackTrace
 
@@ -146,13 +146,21 @@ def run_track(problem: Problem) -> ModeOutcome:
 
 
 def _broken_equalities(problem: Problem, q: np.ndarray) -> str:
-    """Why ``q`` is no answer though every goal is reached: it breaks an active connect or
-    weld equality of the model (which no level holds) beyond the tolerances; ``""`` when
-    it breaks none (as :func:`qpik.solve` judges, reason ``constraint``)."""
+    """Why ``q`` is no answer though every goal is reached: it breaks a joint or tendon
+    equality of the model that the steps hold (their coupling level, which moves toward it
+    at the steps' pace from a start that breaks it) by more than ``tol_position``, or an
+    active connect or weld equality (which no level holds) beyond the tolerances; ``""``
+    when it breaks none (as :func:`qpik.solve` judges, reason ``constraint``)."""
+    options = problem.solve_options
+    couplings = model_couplings(problem.model) if options.step.couplings else None
+    if couplings is not None and couplings.error(q) > options.tol_position:
+        return (
+            f"{Reason.CONSTRAINT}: the goals are reached, but q breaks a joint or tendon "
+            f"equality of the model by {couplings.error(q):.3g} (its level had not met it yet)"
+        )
     unheld = unheld_equalities(problem.model)
     if unheld.size == 0:
         return ""
-    options = problem.solve_options
     position, rotation = unheld_equality_errors(problem.model, q, unheld)
     if position <= options.tol_position and rotation <= options.tol_orientation:
         return ""
