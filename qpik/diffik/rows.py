@@ -94,7 +94,14 @@ def task_rows(
         raise TaskDefinitionError(f"{type(task).__name__}: its rows failed ({exc})") from exc
     if objective is not None:
         H, c = objective
-        values, vectors = np.linalg.eigh(0.5 * (H + H.T))
+        with np.errstate(over="ignore", invalid="ignore"):
+            symmetric = 0.5 * (H + H.T)
+        if not (np.isfinite(symmetric).all() and np.isfinite(c).all()):
+            raise TaskDefinitionError(
+                f"{type(task).__name__}: its objective (H, c) is not finite (a cost, gain or "
+                "time step out of range?)"
+            )
+        values, vectors = np.linalg.eigh(symmetric)
         keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
         root = np.sqrt(values[keep])
         A = root[:, None] * vectors[:, keep].T

@@ -161,3 +161,26 @@ def test_joint_limit_distance_attribute_that_does_not_fit_is_a_typed_error(name,
         solver.step(configuration, 0.01)
     with pytest.raises(TaskDefinitionError, match="JointLimitDistanceTask"):
         solver.qp_solution(configuration, 0.01)
+
+
+@pytest.mark.parametrize("solver_name", ["auto", "osqp"])
+def test_an_objective_that_overflows_is_a_typed_error(solver_name):
+    """mink's kinetic-energy task with a cost of 1e300 and a time step of 1e-9: its (H, c)
+    overflows; the step raises TaskDefinitionError naming it, not NumPy's LinAlgError from
+    factoring an infinite H (benchmarks/fuzz.py --seed 7323, case stack:577)."""
+    import mink
+
+    from qpik.errors import TaskDefinitionError
+    from qpik.tasks import KineticEnergyRegularizationTask, PositionTask
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model, model.key_qpos[0] if model.nkey else model.qpos0)
+    position = PositionTask("ee", "site")
+    position.set_target_from_configuration(configuration)
+    energy = KineticEnergyRegularizationTask(cost=1e300)
+    energy.set_dt(1e-9)
+    solver = qpik.IKSolver(
+        model, [[position], [energy]], [mink.ConfigurationLimit(model)], solver=solver_name
+    )
+    with pytest.raises(TaskDefinitionError, match="KineticEnergyRegularizationTask"):
+        solver.step(configuration, 0.01)
