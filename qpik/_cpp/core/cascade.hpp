@@ -123,7 +123,7 @@ struct Workspace {
     Mat N;
     Vec y, u, res;
     // the cascade's level answer
-    Vec z, free_z;
+    Vec z, free_z, rz;  // rz: the row-space try's candidate (solve_cascade_into)
     IVec final_rows, final_sides;
     // level_residuals' A x - b; the result a caller of solve_cascade_into may keep here (its
     // storage reused by the next solve; every entry written by each)
@@ -1436,8 +1436,11 @@ inline void make_h(CMatRef AZ, double reg, ReducedQP& out) {
 // zero in every entry, H is not made here (*h_later set; ws.h_reg its diagonal's reg). The
 // floor's reg needs H's diagonal alone, summed as mtm_into sums it (+0 plus A Z(t, i)^2 over
 // t in order: its zero entries' squares +0, which leave the sum as it is): the same reg and c.
+// defer: H is not made here whatever c is (*h_later set): the cascade tries the level's
+// row-space answer first (see solve_cascade_into), which needs no H.
 inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const double* d, double reg,
-                              Workspace& ws, ReducedQP& out, bool z_eye = false, bool* h_later = nullptr) {
+                              Workspace& ws, ReducedQP& out, bool z_eye = false, bool* h_later = nullptr,
+                              bool defer = false) {
     i64 r = Z.cols;
     if (h_later) *h_later = false;
     // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
@@ -1480,7 +1483,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
         mtv_into(Z, d, c2);
     }
     bool later = h_later != nullptr;
-    for (i64 i = 0; later && i < r; ++i) later = c1[i] == 0.0 && c2[i] == 0.0;
+    for (i64 i = 0; later && !defer && i < r; ++i) later = c1[i] == 0.0 && c2[i] == 0.0;
     double big = 0.0;
     if (later) {
         for (i64 i = 0; i < r; ++i) {
@@ -1501,7 +1504,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
         for (; i < r; ++i) out.c[i] = c1[i] + reg * c2[i];
     }
     if (later) {
-        for (i64 i = 0; later && i < r; ++i) later = out.c[i] == 0.0;
+        for (i64 i = 0; later && !defer && i < r; ++i) later = out.c[i] == 0.0;
         ws.h_reg = reg;
         if (later) {
             *h_later = true;
@@ -1697,7 +1700,7 @@ inline bool zero_feasible(CVecRef lo, CVecRef hi) {
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
                         const double* gsq, const double* ztd, bool z_eye, const ReducedQP* qp,
-                        const QPScratch* made);
+                        const QPScratch* made, const Vec* row_space);
 
 // (below; exact_level's first candidate for a damped level with a few active rows)
 inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
@@ -1822,7 +1825,8 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             // same bits as where the cascade calls it; where none holds, its QR re-solve and
             // certificate (eqp_ls's with no rows) go on as the dual candidate.
             have_dual = true;
-            if (free_answer(ls, Ak, bk, rho, Z, d, lb, ub, G, h, zc, cert, es, gsq, ztd, z_eye, &qp, nullptr)) {
+            if (free_answer(ls, Ak, bk, rho, Z, d, lb, ub, G, h, zc, cert, es, gsq, ztd, z_eye, &qp, nullptr,
+                            nullptr)) {
                 final_rows.clear();
                 final_sides.clear();
                 z = zc;
@@ -2237,6 +2241,75 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
     return true;
 }
 
+// free_answer's candidate on a damped level of few rows (m rows, r free directions, 2 m <= r:
+// a humanoid's feet or CoM level, whose r x r normal equations cost most of the level), in
+// place of normal_candidate's: the same minimiser of 1/2 |B z - f|^2 (B = [M; s I], M = A Z,
+// f = [f1; f2], ls_form's) through the space of M's rows. With z = f2 / s + v, v minimises
+// |M v - e|^2 + s^2 |v|^2, e = f1 - M f2 / s, whose answer is v = M^T K^-1 e, K = M M^T +
+// s^2 I (m x m, its Cholesky factor), with no cancellation (the terms of z add, none is the
+// difference of two large ones); then one step of refinement from B's own residual (the
+// same solve for f - B z, added). The conditions are normal_factor's (rho > 0, trace B^T B
+// <= kNormalCond s^2: K's condition number is at most N's bound), so the candidate is as
+// accurate as normal_candidate's. A function of B and f alone: every path to free_answer
+// (the cascade's cold level, exact_level's empty working set, warm or cold) makes the same
+// bits. False (no candidate: normal_candidate's then) where a condition fails, K's factor
+// does not exist or an entry is not finite.
+inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
+    i64 r = ls.B.cols;
+    if (!ls.reg || m <= 0 || 2 * m > r || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
+        return false;
+    CMatRef M = ls.B.cref().rows_slice(0, m);
+    const double s = ls.B(m, 0);
+    const double s2 = s * s;
+    double trace = 0.0;  // trace M M^T (normal_factor's sum)
+    for (i64 i = 0; i < m; ++i) {
+        const double* mi = M.row(i);
+        for (i64 j = 0; j < r; ++j) trace += mi[j] * mi[j];
+    }
+    if (!(s2 > 0.0) || !(trace + static_cast<double>(r) * s2 <= kNormalCond * s2)) return false;
+    Mat& K = es.N;  // (normal_factor's storage: free_answer takes one candidate or the other)
+    K.zeros(m, m);
+    for (i64 i = 0; i < m; ++i) {
+        for (i64 j = 0; j <= i; ++j) K(i, j) = dot(M.row(i), M.row(j), r);
+        K(i, i) += s2;
+    }
+    Mat& Lm = es.BW;
+    Lm.zeros(m, m);
+    if (!cholesky_into(K.cref(), m, 0.0, Lm.ref())) return false;
+    CMatRef L = Lm.cref();
+    // out = g2 / s + M^T K^-1 (g1 - M g2 / s): the minimiser for the right-hand side [g1; g2]
+    auto solve = [&](const double* g1, const double* g2, Vec& out) {
+        out.resize(static_cast<size_t>(r));
+        for (i64 j = 0; j < r; ++j) out[j] = g2[j] / s;
+        Vec& e = es.e;
+        e.resize(static_cast<size_t>(m));
+        for (i64 i = 0; i < m; ++i) e[i] = g1[i] - dot(M.row(i), out.data(), r);
+        forward_into(L, e, es.wy);
+        backward_into(L, es.wy, es.g);
+        for (i64 i = 0; i < m; ++i) axpy(out.data(), es.g[i], M.row(i), r);
+    };
+    solve(ls.f.data(), ls.f.data() + m, z);
+    // One step of refinement: z += N^-1 g, g = B^T (f - B z) (the normal equations' error,
+    // small), by N^-1 = (I - M^T K^-1 M) / s^2 (g's part in M's row space, where N^-1 is
+    // (M^T M + s^2 I)^-1 and the subtraction cancels, is about eps / s^2 relative off in a
+    // correction that is itself about cond(K) eps relative: far below the answer's ulp).
+    Vec& res = es.t;
+    res.resize(static_cast<size_t>(m));
+    for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - dot(M.row(i), z.data(), r);
+    Vec& g = es.r;
+    g.resize(static_cast<size_t>(r));
+    for (i64 j = 0; j < r; ++j) g[j] = s * (ls.f[m + j] - s * z[j]);
+    for (i64 i = 0; i < m; ++i) axpy(g.data(), res[i], M.row(i), r);
+    Vec& e = es.e;
+    e.resize(static_cast<size_t>(m));
+    for (i64 i = 0; i < m; ++i) e[i] = dot(M.row(i), g.data(), r);
+    forward_into(L, e, es.wy);
+    backward_into(L, es.wy, es.g);
+    for (i64 i = 0; i < m; ++i) axpy(g.data(), -es.g[i], M.row(i), r);
+    for (i64 j = 0; j < r; ++j) z[j] = z[j] + g[j] / s2;
+    return finite_block(z.data(), 1, r, r);
+}
+
 // exact_level's candidate on a damped level with a few active rows (0 < q <= kEqCandidateRows):
 // the minimiser of 1/2 |B z - f|^2 with the working set's rows held as equalities (n_j^T z =
 // rhs_j, n_j = side_j C[row_j], as eqp_ls writes them) and its multipliers (B^T (B z - f) =
@@ -2369,7 +2442,9 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
 inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb,
                         CVecRef ub, CMatRef G, CVecRef h, Vec& z, Certificate& cert, CertScratch& es,
                         const double* gsq = nullptr, const double* ztd = nullptr, bool z_eye = false,
-                        const ReducedQP* qp = nullptr, const QPScratch* made = nullptr) {
+                        const ReducedQP* qp = nullptr, const QPScratch* made = nullptr,
+                        const Vec* row_space = nullptr) {
+    // row_space: row_space_candidate's answer, made by the caller (the same bits).
     i64 n = static_cast<i64>(d.size()), r = Z.cols;
     IVec& rows = es.xrows;
     IVec& sides = es.xsides;
@@ -2402,7 +2477,18 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
         u.clear();
         if (certified()) return true;
     }
-    if (qp && normal_candidate(ls, *qp, rho, Ak.rows, made, es, z)) {
+    // The second candidate: row_space_candidate's where it applies (few rows), else
+    // normal_candidate's.
+    bool second = false;
+    if (qp) {
+        if (row_space) {
+            z = *row_space;
+            second = true;
+        } else {
+            second = row_space_candidate(ls, Ak.rows, es, z) || normal_candidate(ls, *qp, rho, Ak.rows, made, es, z);
+        }
+    }
+    if (second) {
         u.clear();
         if (certified()) return true;
     }
@@ -3632,8 +3718,15 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         ReducedQP& qp = ws.qp;
         bool cold = true, h_later = false;
         for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
-        // (cold, c = 0: H made only where the general path below needs it)
-        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye, cold ? &h_later : nullptr);
+        // A cold damped level of few rows (2 m <= r: a humanoid's feet or CoM) first tries its
+        // row-space answer (row_space_candidate, free_answer's second candidate there): where
+        // it meets every row to the dual method's tol and its certificate holds, the level is
+        // solved without H (r x r) or its factor; else H is made and the level goes on below
+        // as any other (the same path, the same bits as without the try).
+        const bool row_space = cold && rho > 0.0 && 2 * Ak.rows <= r;
+        // (cold, c = 0, or the row-space try: H made only where the general path below needs it)
+        reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye, cold ? &h_later : nullptr,
+                          row_space);
         LSForm& ls = ws.ls;
         detail::ls_form(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, ls, true);
         const double* ztd = ws.c2.data();  // Z^T d (reduced_objective)
@@ -3644,6 +3737,26 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         IVec& final_sides = ws.final_sides;
         bool exact = false;
         bool factored = false, have_gz = false;
+        if (row_space) {
+            Vec& rz = ws.rz;
+            bool gz = false;
+            if (detail::row_space_candidate(ls, Ak.rows, ws.cs, rz) &&
+                detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz) &&
+                detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd, z_eye, &qp,
+                                    nullptr, &rz)) {
+                double* ck = res.certificate.data() + 4 * k;
+                ck[0] = cert.primal;
+                ck[1] = cert.stationarity;
+                ck[2] = cert.dual;
+                ck[3] = cert.complementarity;
+                std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
+                res.status[k] = SOLVED;
+                take_null_space();
+                continue;
+            }
+            if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
+            h_later = false;
+        }
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
