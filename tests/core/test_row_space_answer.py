@@ -1,4 +1,5 @@
-"""A damped level of few rows (2 m <= r free directions: a humanoid's feet or CoM level) takes
+"""A damped level of few rows (m < r free directions, 2 m <= r or m <= 8: a humanoid's feet or
+CoM level, an arm's frame task) takes
 its free answer through the space of its rows (row_space_candidate in
 qpik/_cpp/core/cascade.hpp, an m x m factor rather than the r x r normal equations).
 
@@ -45,13 +46,13 @@ def _empty_rows(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("seed", range(4))
 def test_free_level_of_few_rows_matches_a_long_double_solve(seed):
-    """One level, m rows, n >= 2 m variables, rho > 0, a box no answer reaches: the answer is
+    """One level, m rows (2 m <= n or m <= 8, m < n), n variables, rho > 0, a box no answer reaches: the answer is
     the damped least-squares minimiser to a few ulps (the row-space candidate, refined)."""
     rng = np.random.default_rng(1000 + seed)
     worst = 0.0
     for _ in range(40):
         n = int(rng.integers(6, 40))
-        m = int(rng.integers(1, n // 2 + 1))
+        m = int(rng.integers(1, max(n // 2, min(n - 1, 8)) + 1))  # (row_space_level's levels)
         # rows of graded sizes (a Jacobian's: singular values over about three decades)
         U, _, Vt = np.linalg.svd(rng.standard_normal((m, n)), full_matrices=False)
         A = (U * np.logspace(0, -rng.uniform(0, 3), m)) @ Vt

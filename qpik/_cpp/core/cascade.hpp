@@ -2241,22 +2241,33 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
     return true;
 }
 
-// free_answer's candidate on a damped level of few rows (m rows, r free directions, 2 m <= r:
-// a humanoid's feet or CoM level, whose r x r normal equations cost most of the level), in
+// free_answer's candidate on a damped level of few rows (m rows, r free directions,
+// row_space_level: a humanoid's feet or CoM level, an arm's frame task), in
 // place of normal_candidate's: the same minimiser of 1/2 |B z - f|^2 (B = [M; s I], M = A Z,
 // f = [f1; f2], ls_form's) through the space of M's rows. With z = f2 / s + v, v minimises
 // |M v - e|^2 + s^2 |v|^2, e = f1 - M f2 / s, whose answer is v = M^T K^-1 e, K = M M^T +
 // s^2 I (m x m, its Cholesky factor), with no cancellation (the terms of z add, none is the
-// difference of two large ones); then one step of refinement from B's own residual (the
-// same solve for f - B z, added). The conditions are normal_factor's (rho > 0, trace B^T B
+// difference of two large ones); then one step of refinement, z += N^-1 B^T (f - B z) by
+// N^-1 = (I - M^T K^-1 M) / s^2 (row_space_refine). The conditions are normal_factor's (rho > 0, trace B^T B
 // <= kNormalCond s^2: K's condition number is at most N's bound), so the candidate is as
 // accurate as normal_candidate's. A function of B and f alone: every path to free_answer
 // (the cascade's cold level, exact_level's empty working set, warm or cold) makes the same
 // bits. False (no candidate: normal_candidate's then) where a condition fails, K's factor
 // does not exist or an entry is not finite.
-inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
+// The levels row_space_candidate takes: fewer rows than free directions, and either at most
+// half as many (a humanoid's feet: 12 rows, 38 directions) or at most kRowSpaceFew (a frame
+// task's 6 rows on an arm of 7 to 9 dofs), where K's factor costs little against H's (r x r)
+// and the level binds no row most often. (A humanoid's hands, 12 rows against 23 directions
+// under the feet and CoM, bind most steps: there the try would cost more than it saves.)
+constexpr i64 kRowSpaceFew = 8;
+inline bool row_space_level(i64 m, i64 r) { return m < r && (2 * m <= r || m <= kRowSpaceFew); }
+
+// refine false: the first solve alone (K's factor left in es.BW for row_space_refine, which
+// then makes the same bits as refine true).
+inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z);
+inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z, bool refine = true) {
     i64 r = ls.B.cols;
-    if (!ls.reg || m <= 0 || 2 * m > r || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
+    if (!ls.reg || m <= 0 || !row_space_level(m, r) || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
         return false;
     CMatRef M = ls.B.cref().rows_slice(0, m);
     const double s = ls.B(m, 0);
@@ -2289,6 +2300,17 @@ inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z
         for (i64 i = 0; i < m; ++i) axpy(out.data(), es.g[i], M.row(i), r);
     };
     solve(ls.f.data(), ls.f.data() + m, z);
+    if (!finite_block(z.data(), 1, r, r)) return false;
+    if (refine) row_space_refine(ls, m, es, z);
+    return refine ? finite_block(z.data(), 1, r, r) : true;
+}
+
+inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
+    i64 r = ls.B.cols;
+    CMatRef M = ls.B.cref().rows_slice(0, m);
+    const double s = ls.B(m, 0);
+    const double s2 = s * s;
+    CMatRef L = es.BW.cref();
     // One step of refinement: z += N^-1 g, g = B^T (f - B z) (the normal equations' error,
     // small), by N^-1 = (I - M^T K^-1 M) / s^2 (g's part in M's row space, where N^-1 is
     // (M^T M + s^2 I)^-1 and the subtraction cancels, is about eps / s^2 relative off in a
@@ -2307,7 +2329,6 @@ inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z
     backward_into(L, es.wy, es.g);
     for (i64 i = 0; i < m; ++i) axpy(g.data(), -es.g[i], M.row(i), r);
     for (i64 j = 0; j < r; ++j) z[j] = z[j] + g[j] / s2;
-    return finite_block(z.data(), 1, r, r);
 }
 
 // exact_level's candidate on a damped level with a few active rows (0 < q <= kEqCandidateRows):
@@ -3718,12 +3739,12 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         ReducedQP& qp = ws.qp;
         bool cold = true, h_later = false;
         for (i64 i = 0; i < n + p && cold; ++i) cold = warm(k, i) == 0;
-        // A cold damped level of few rows (2 m <= r: a humanoid's feet or CoM) first tries its
+        // A cold damped level of few rows (row_space_level: a humanoid's feet or CoM) first tries its
         // row-space answer (row_space_candidate, free_answer's second candidate there): where
         // it meets every row to the dual method's tol and its certificate holds, the level is
         // solved without H (r x r) or its factor; else H is made and the level goes on below
         // as any other (the same path, the same bits as without the try).
-        const bool row_space = cold && rho > 0.0 && 2 * Ak.rows <= r;
+        const bool row_space = cold && rho > 0.0 && detail::row_space_level(Ak.rows, r);
         // (cold, c = 0, or the row-space try: H made only where the general path below needs it)
         reduced_objective(Ak, bk, pr.AZ.cref(), Z.cref(), d.data(), rho, ws, qp, z_eye, cold ? &h_later : nullptr,
                           row_space);
@@ -3737,11 +3758,16 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         IVec& final_sides = ws.final_sides;
         bool exact = false;
         bool factored = false, have_gz = false;
+        bool binds = false;  // the row-space answer leaves a row by more than tol: the dual method runs
         if (row_space) {
             Vec& rz = ws.rz;
             bool gz = false;
-            if (detail::row_space_candidate(ls, Ak.rows, ws.cs, rz) &&
-                detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz) &&
+            // (the rows tested at the first solve; refined only where they hold: the same bits
+            // as row_space_candidate's)
+            bool made = detail::row_space_candidate(ls, Ak.rows, ws.cs, rz, false);
+            binds = made && !detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz);
+            if (made && !binds &&
+                (detail::row_space_refine(ls, Ak.rows, ws.cs, rz), detail::finite_block(rz.data(), 1, r, r)) &&
                 detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd, z_eye, &qp,
                                     nullptr, &rz)) {
                 double* ck = res.certificate.data() + 4 * k;
@@ -3760,6 +3786,7 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
+        // (where the row-space answer already left a row, the dual method runs: not tested again)
         bool deferred = false;
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq, &deferred);
