@@ -4,32 +4,26 @@
 :class:`qpik.IKSolver` when every limit is one the compiled :class:`Kernel` takes (mink's
 ``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
 ``CollisionAvoidanceLimit``; exact types); its layout (which task goes where) is
-:mod:`.layout`'s. Tasks the kernel computes itself:
-qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
-``RelativeFrameTask`` (exact types, any joints), and qpik's ``CouplingTask`` when every
-coupling is linear (a URDF mimic, a joint equality of degree 1: a constant Jacobian and a
-residual over qpos, ``qpik/_cpp/tasks/linear.hpp``). Any other task (qpik's pose,
-nonlinear coupling and secondary tasks, mink's equality, DoF-freezing and kinetic-energy
-tasks, subclasses, user tasks) supplies its own rows: each step Python asks it for them
-(:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) and writes them into the
-plan's ``A, b, w``, its LM term into ``user_mu``; the kernel adds that term to its level.
-Such a task's rows are laid out by its declared count (``task.k``, else its ``cost``
-vector's length, else ``nv``); a step where it returns another shape goes to the QP path.
-Each step, Python does only what needs MuJoCo or the task objects (their targets and costs,
-the rows of the tasks that supply them, the collision limits' rows ``G dq <= h``, MuJoCo's
-CoM and relative-frame Jacobians) and the kernel computes the other tasks' rows, the limits'
+:mod:`.layout`'s. Tasks the kernel computes itself (exact types, any joints): qpik's or
+mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, ``RelativeFrameTask``;
+qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``, ``JointLimitDistanceTask``, and
+its ``CouplingTask`` when every coupling is linear (``qpik/_cpp/tasks/linear.hpp``). Any
+other task (nonlinear couplings, the other secondary tasks, mink's equality, DoF-freezing and
+kinetic-energy tasks, subclasses, user tasks) supplies its own rows each step
+(:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) into the plan's ``A, b, w``,
+its LM term into ``user_mu``, laid out by its declared count (``task.k``, else its ``cost``
+vector's length, else ``nv``; another shape sends the step to the QP path). Python does only
+what needs MuJoCo or the task objects; the kernel computes the other tasks' rows, the limits'
 box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
 is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
 objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it
 computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its
-answers into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (a
-result's arrays are views of its own row, never written again). The step returns a
-:class:`~qpik.diffik.result.Solution` (or, for :meth:`qpik.IKSolver.step`, the
-:class:`~qpik.diffik.result.StepResult` itself). It computes what the QP path computes, in
-the same arithmetic where that path's is qpik's (tests compare the two bitwise) and in
-mink's to round-off elsewhere; anything unusual (a non-finite row, conflicting limits, an
-active set that did not settle) returns None, and the QP path answers, reporting or
-recovering it.
+answers into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (views of
+that row, never written again): a :class:`~qpik.diffik.result.Solution`, or
+:meth:`qpik.IKSolver.step`'s :class:`~qpik.diffik.result.StepResult` itself. It computes what
+the QP path computes, bit for bit where that path's arithmetic is qpik's, to round-off where
+it is mink's; anything unusual (a non-finite row, conflicting limits, an active set that did
+not settle) returns None, and the QP path answers, reporting or recovering it.
 """
 
 from __future__ import annotations
@@ -112,8 +106,7 @@ class CompiledPlan:
         self.nv, self.levels = self.model.nv, self.cold.shape[0]
         self._data: mujoco.MjData | None = None  # the MjData whose arrays _pose_args views
         self._pose_args: tuple = ()
-        self.no_rows = np.zeros((0, self.model.nv))
-        self.no_h = np.zeros(0)
+        self.no_rows, self.no_h = np.zeros((0, self.model.nv)), np.zeros(0)
         self.colds[0] = self.cold
         #: the outputs :meth:`_lean` steps write into (see :meth:`_new_outputs`)
         self._out: tuple = ()
@@ -122,19 +115,23 @@ class CompiledPlan:
         #: the correction passes of :meth:`_correct` (built on the first)
         self._corrector: LeanCorrection | None = None
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
-        #: no CoM or row-supplying task, no general rows: once :meth:`_lean`
-        #: attached a configuration, :meth:`qpik.IKSolver.step`'s plain lane calls the kernel
-        #: (without correction passes; it reads _plain_data, law, _row, kernel, _cap, _out...)
-        self._plain = not (self.coms or self.rows_tasks or self.general_limits)
-        #: a plain plan's ``_data`` once its chains are that MjData's too (else _NO_DATA):
-        #: the lane's one identity test for the three (kept by :meth:`_update_plain_data`)
+        #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
+        self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
+        #: no row-supplying task or general rows, CoM tasks only with chains: once _lean
+        #: attached a configuration, IKSolver.step's plain lane calls the kernel (no correction
+        #: passes; it reads _plain_data, law, _row, kernel, _cap, _out...); a CoM task whose
+        #: subtree is set again tells the plan (ComTask.watch, :meth:`task_changed`)
+        chained = bool(self._com_chains) or not self.coms
+        self._plain = chained and not (self.rows_tasks or self.general_limits)
+        for task in (c[0] for c in self.coms if c[2] is not None):
+            task.watch(self)
+        #: a plain plan's ``_data`` once its chains and CoM subtrees are that MjData's and the
+        #: plan's (else _NO_DATA): the lane's one identity test (:meth:`_update_plain_data`)
         self._plain_data: object = _NO_DATA
         #: per row of ``_out`` (:meth:`_new_outputs`): the velocity view and the core's pending
         #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
         self._velocity_rows: list = []
         self._active_rows: list = []
-        #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
-        self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
         #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
         self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
@@ -142,9 +139,8 @@ class CompiledPlan:
             self.kernel.set_slots(*self._slots())
             self.kernel.set_sources(self._sources())
             if self.frames:
-                self.kernel.set_chains(
-                    self.arrays["jac"], *frame_chains(self.model, self.arrays["frames"])
-                )
+                frames = frame_chains(self.model, self.arrays["frames"])
+                self.kernel.set_chains(self.arrays["jac"], *frames)
             if self.relatives:  # and the relative frames' (each task's frame, then its root)
                 rel = self.arrays["rel_frames"].reshape(-1, 2)
                 self.kernel.set_rel_chains(self.arrays["rel_jac"], *frame_chains(self.model, rel))
@@ -240,9 +236,15 @@ class CompiledPlan:
             self._update_plain_data()
         return self._pose_args
 
-    def _update_plain_data(self) -> None:  # after _data or _chain_data changed
+    def _update_plain_data(self) -> None:  # after _data, _chain_data or a CoM task changed
         plain = self._plain and self._data is self._chain_data and self._data is not None
-        self._plain_data = self._data if plain else _NO_DATA
+        self._plain_data = self._data if plain and self._coms_unchanged() else _NO_DATA
+
+    def task_changed(self) -> None:
+        """A CoM task's subtree was set again (ComTask.watch): no lane step until :meth:`_lean`
+        finds the plan's subtrees again, the chains attached anew."""
+        self._plain_data = _NO_DATA
+        self._chain_data = None
 
     def _gather_linears(self) -> bool:
         """The linear tasks' costs, gains and LM damping; False where one does not fit."""
@@ -293,8 +295,7 @@ class CompiledPlan:
             row[-1] = task.lm_damping
 
     def _gather_coms(self, data: mujoco.MjData) -> bool:
-        """CoM tasks' targets, costs and Jacobians; False when a task's subtree changed (the
-        QP path resolves it)."""
+        """CoM tasks' targets, costs and Jacobians; False where a subtree changed (QP path)."""
         chains = self._com_chains or [None] * len(self.coms)
         for (task, body, given, jac, views), chain in zip(self.coms, chains):
             row, target_view, cost_view = views
@@ -392,9 +393,8 @@ class CompiledPlan:
         return all(given is None or t.body is given for t, _body, given, *_ in self.coms)
 
     def _jacobians(self, data: mujoco.MjData) -> None:
-        """The kernel computes the frames', relative frames' and CoMs' Jacobians from
-        ``data``'s ``cdof`` and ``subtree_com`` (attached here); MuJoCo's CoM Jacobians where
-        the CoM tasks have no chains."""
+        """Attach ``data``'s ``cdof`` and ``subtree_com``, whence the kernel makes the tasks'
+        Jacobians; MuJoCo's CoM Jacobians where the CoM tasks have no chains."""
         if data is not self._chain_data:
             if self.frames or self._com_chains or self.relatives:
                 self.kernel.attach_chains(data.cdof, data.subtree_com)

@@ -59,7 +59,9 @@ def test_free_level_of_few_rows_matches_a_long_double_solve(seed):
         b = rng.standard_normal(m)
         rho = 10.0 ** rng.uniform(-7, -2)
         result = HierarchySolver(damping_law=None).solve(
-            HierarchyProblem([Level(A, b, rho)], -1e6 * np.ones(n), 1e6 * np.ones(n), *_empty_rows(n))
+            HierarchyProblem(
+                [Level(A, b, rho)], -1e6 * np.ones(n), 1e6 * np.ones(n), *_empty_rows(n)
+            )
         )
         assert result.ok, result.status
         reference = _damped_least_squares(A, b, rho)
@@ -80,7 +82,9 @@ def test_few_rows_binding_box_matches_an_independent_qp_solver():
         rho = 10.0 ** rng.uniform(-5, -2)
         lb = -rng.uniform(0.05, 0.4, n)
         ub = rng.uniform(0.05, 0.4, n)
-        result = HierarchySolver(damping_law=None).solve(HierarchyProblem([Level(A, b, rho)], lb, ub, *_empty_rows(n)))
+        result = HierarchySolver(damping_law=None).solve(
+            HierarchyProblem([Level(A, b, rho)], lb, ub, *_empty_rows(n))
+        )
         assert result.ok, result.status
         H = A.T @ A + rho * np.eye(n)
         reference = qpsolvers.solve_qp(H, -A.T @ b, lb=lb, ub=ub, solver="quadprog")
@@ -99,7 +103,11 @@ def test_few_rows_levels_cold_and_warm_give_the_same_bits():
         levels = []
         for _ in range(int(rng.integers(1, 4))):
             m = int(rng.integers(1, max(2, n // 4)))
-            levels.append(Level(rng.standard_normal((m, n)), rng.standard_normal(m), 10.0 ** rng.uniform(-7, -2)))
+            levels.append(
+                Level(
+                    rng.standard_normal((m, n)), rng.standard_normal(m), 10.0 ** rng.uniform(-7, -2)
+                )
+            )
         width = 1e3 if trial % 2 else rng.uniform(0.1, 0.6)
         lb = -width * np.ones(n)
         ub = width * np.ones(n)

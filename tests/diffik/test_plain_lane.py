@@ -7,6 +7,7 @@ starts, correction passes, a non-finite target, a bad argument) routed as before
 from __future__ import annotations
 
 import mink
+import mujoco
 import numpy as np
 import pytest
 
@@ -170,3 +171,78 @@ def test_what_the_lane_does_not_cover_goes_the_way_it_went(panda):
     assert corrected._plan._plain_data is configuration.data  # the lane's key would hold
     _same(corrected.step(configuration, DT), first)
     assert not np.array_equal(uncorrected.step(configuration, DT).velocity, first.velocity)
+
+
+def _humanoid_solver(model, body):
+    """A floating humanoid's feet / CoM (qpik's ComTask of subtree ``body``) / posture."""
+    feet = [
+        qpik.tasks.FrameTask(f, "body", 1.0, 1.0) for f in ("left_sole_link", "right_sole_link")
+    ]
+    com = qpik.tasks.ComTask(1.0, body=body)
+    posture = qpik.tasks.PostureTask(model, 0.1)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    return qpik.IKSolver(model, [feet, [com], [posture]], limits), feet, com, posture
+
+
+def test_com_plans_take_the_lane_and_a_changed_subtree_leaves_it():
+    """A plan with a CoM task whose Jacobian the kernel makes takes the lane (the same
+    results as step_result's lean step, bitwise); setting the task's subtree (ComTask.body)
+    again takes the plan off the lane at once (the QP path answers, for the new subtree:
+    a fresh solver's answer), and back on it once the subtree is the plan's again."""
+    model = qpik.load_robot("erd:talos", floating_base=True)
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    solver, feet, com, posture = _humanoid_solver(model, 1)
+    plain_solver = qpik.IKSolver(model, solver.levels, solver.limits)
+    plain_solver._plan._update_plain_data = lambda: None  # no lane: every step by step_result
+    plan = solver._plan
+    assert plan._plain and plan.coms
+    for foot in feet:
+        foot.set_target_from_configuration(configuration)
+    posture.set_target(configuration.q)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        com.set_target(com.com(configuration) + rng.uniform(-0.03, 0.03, 3))
+        _same(solver.step(configuration, DT), plain_solver.step(configuration, DT))
+    assert plan._plain_data is configuration.data
+    pelvis = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, 2)
+    com.body = pelvis  # another subtree: the plan's CoM row no longer applies
+    assert plan._plain_data is not configuration.data
+    fresh, *_ = _humanoid_solver(model, pelvis)
+    fresh_com = fresh.levels[1][0]
+    fresh_com.set_target(com.target_com)
+    for foot, other in zip(feet, fresh.levels[0]):
+        other.set_target(foot.transform_target_to_world)
+    fresh.levels[2][0].set_target(posture.target_q)
+    changed = solver.step(configuration, DT)
+    reference = fresh.step(configuration, DT)
+    np.testing.assert_allclose(changed.velocity, reference.velocity, rtol=0, atol=1e-12)
+    # (the subtrees ask for different motions: body 1's answer is another)
+    whole, *_ = _humanoid_solver(model, 1)
+    whole.levels[1][0].set_target(com.target_com)
+    for foot, other in zip(feet, whole.levels[0]):
+        other.set_target(foot.transform_target_to_world)
+    whole.levels[2][0].set_target(posture.target_q)
+    assert np.abs(whole.step(configuration, DT).velocity - changed.velocity).max() > 1e-6
+    assert plan._plain_data is not configuration.data
+    com.body = 1  # the plan's subtree again (the same object: an int kept by identity)
+    solver.step(configuration, DT)
+    assert plan._plain_data is configuration.data
+    _same(solver.step(configuration, DT), plain_solver.step(configuration, DT))
+
+
+def test_a_com_task_copied_or_pickled_keeps_no_watchers():
+    """ComTask.watch holds its plans weakly, and a copy or a pickle of the task has none."""
+    import copy
+    import gc
+    import pickle
+
+    model = qpik.load_robot("erd:talos", floating_base=True)
+    solver, _feet, com, _posture = _humanoid_solver(model, 1)
+    assert [ref() for ref in com._watchers] == [solver._plan]
+    for twin in (copy.deepcopy(com), pickle.loads(pickle.dumps(com))):
+        assert twin._watchers is None and twin.body == 1
+        twin.body = 2  # no plan told
+    del solver
+    gc.collect()
+    com.body = 2  # the plan is gone: nothing to tell
+    assert all(ref() is None for ref in com._watchers)
