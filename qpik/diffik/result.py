@@ -70,7 +70,8 @@ def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: fl
         limits.h,
     )  # fmt: skip
     d = result.x
-    if not (math.isfinite(float(d @ d)) and math.isfinite(sum(result.residuals))):
+    finite = math.isfinite(sum(result.residuals)) and math.isfinite(sum(result.damping))
+    if not (math.isfinite(float(d @ d)) and finite):  # (damping: a weight past 1e154, squared)
         raise InvalidTarget(
             "the step or a level's residual is not finite: a level's rows are too large "
             "to square in floating point (a cost or target near 1e150 or beyond?)"

@@ -184,3 +184,37 @@ def test_an_objective_that_overflows_is_a_typed_error(solver_name):
     )
     with pytest.raises(TaskDefinitionError, match="KineticEnergyRegularizationTask"):
         solver.step(configuration, 0.01)
+
+
+@pytest.mark.parametrize(
+    "solver_name, kind",
+    [("quadprog", "manipulability"), ("daqp", "frame"), ("auto", "manipulability")],
+)
+def test_a_damping_that_overflows_is_a_typed_error(solver_name, kind):
+    """A task of cost 1e300 at UR5e's singular zero pose: the damping law's lambda^2 scales
+    with the square of the level's largest weight, which overflows; the step raises
+    InvalidTarget (as where the rows overflow) or answers with every number finite, never a
+    damping of inf (benchmarks/fuzz.py --seed 7333, cases step:86 and step:317)."""
+    import mink
+
+    from qpik.errors import InvalidTarget
+    from qpik.tasks import FrameTask, ManipulabilityTask
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model, model.qpos0)
+    if kind == "manipulability":
+        task = ManipulabilityTask("ee", "site", rows="position", cost=1e300, gain=0.0)
+    else:
+        task = FrameTask("ee", "site", position_cost=1e300, orientation_cost=1e300)
+        task.set_target_from_configuration(configuration)
+    speeds = {model.joint(j).name: 1.0 for j in range(model.njnt)}
+    solver = qpik.IKSolver(
+        model, [[task]], [mink.VelocityLimit(model, speeds)], solver=solver_name, damping=1e-3
+    )
+    for _ in range(3):
+        try:
+            result = solver.step(configuration, 0.002)
+        except InvalidTarget:
+            continue
+        assert np.isfinite(result.velocity).all()
+        assert np.isfinite(result.damping).all() and np.isfinite(result.residuals).all()
