@@ -1434,12 +1434,13 @@ def _limits_of(model):
     return lower, upper
 
 
-def _check_within(model, q, where: str, tol: float = 1e-9) -> None:
+def _check_within(model, q, where: str, tol: float = 1e-9, widen: float = 0.0) -> None:
+    """q within the model's joint limits to tol (relative) plus widen [rad or m]."""
     np = _np()
     lower, upper = _limits_of(model)
     over = np.maximum(lower - q, q - upper)
     span = np.maximum(1.0, np.abs(np.where(np.isfinite(lower), lower, 0.0)))
-    bad = np.flatnonzero(over > tol * span)
+    bad = np.flatnonzero(over > tol * span + widen)
     if bad.size:
         i = int(bad[0])
         raise Bad("limits", f"{where}[{i}] = {q[i]!r} outside [{lower[i]!r}, {upper[i]!r}]")
@@ -1978,7 +1979,9 @@ def run_step(spec: dict) -> str:
     if has_config and start_inside and spec["entry"] == "step" and spec["steps"] == 1:
         q_next = configuration.integrate(steps_v[0], dt)
         _finite(q_next, "q after the step")
-        _check_within(model, q_next, "q after the step", tol=1e-7)
+        # a negative min_distance_from_limits widens the limits by as much (mink's meaning)
+        widened = max([-x for k, x in spec["limits"] if k == "config_dist"] + [0.0])
+        _check_within(model, q_next, "q after the step", tol=1e-7, widen=widened)
     return _digest(*digests)
 
 
