@@ -19,6 +19,28 @@ def bundled_robot(request) -> str:
     return request.param
 
 
+def warm_solves_give_cold_bits(problems: list, rounds: int = 1) -> int:
+    """Each problem solved cold, then warm-started after the others (each order, twice in a
+    row) by one warm solver per damping law (none, the default): the same answers and active
+    sets bit for bit. Returns how many cold answers have no active row (summed over laws)."""
+    from qpik.core import DampingLaw, HierarchySolver
+
+    free = 0
+    for law in (None, DampingLaw()):
+        cold = [HierarchySolver(damping_law=law).solve(p) for p in problems]
+        free += sum(not r.active.any() for r in cold)
+        warm = HierarchySolver(damping_law=law, warm_start=True)
+        for _round in range(rounds):
+            for order in (range(len(problems)), reversed(range(len(problems)))):
+                for i in order:
+                    for _ in range(2):
+                        result = warm.solve(problems[i])
+                        assert result.ok, (i, result.status)
+                        np.testing.assert_array_equal(result.x, cold[i].x, err_msg=str(i))
+                        np.testing.assert_array_equal(result.active, cold[i].active)
+    return free
+
+
 def configuration_of(name: str, q=None) -> qpik.Configuration:
     """A fresh configuration of a bundled robot (fresh per test: tests never share state)."""
     return qpik.Configuration(qpik.load_robot(name), q)

@@ -10,6 +10,7 @@ import mink
 import numpy as np
 import pytest
 import qpsolvers
+from conftest import warm_solves_give_cold_bits
 
 import qpik
 from qpik.core import (
@@ -550,19 +551,6 @@ def test_warm_start_gives_the_cold_bits_on_damped_levels(rng):
         if trial % 3 != 2:  # wide boxes and general rows: free levels
             lb, ub, h = lb * 1e3, ub * 1e3, h + 1e3
         problems.append(HierarchyProblem(levels, lb, ub, G, h))
-    free = 0
-    for law in (None, DampingLaw()):
-        cold = [HierarchySolver(damping_law=law).solve(p) for p in problems]
-        free += sum(not r.active.any() for r in cold)
-        warm = HierarchySolver(damping_law=law, warm_start=True)
-        for _round in range(2):
-            # each problem after the others (warm starts from their active sets) and again
-            # after itself
-            for order in (range(len(problems)), reversed(range(len(problems)))):
-                for i in order:
-                    for _ in range(2):
-                        result = warm.solve(problems[i])
-                        assert result.ok, (i, result.status)
-                        np.testing.assert_array_equal(result.x, cold[i].x, err_msg=str(i))
-                        np.testing.assert_array_equal(result.active, cold[i].active)
+    # each problem after the others (warm starts from their active sets) and again after itself
+    free = warm_solves_give_cold_bits(problems, rounds=2)
     assert free > 40  # levels where nothing binds, cold and warm

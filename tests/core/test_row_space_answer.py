@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import qpsolvers
+from conftest import warm_solves_give_cold_bits
 
-from qpik.core import DampingLaw, HierarchyProblem, HierarchySolver, Level
+from qpik.core import HierarchyProblem, HierarchySolver, Level
 
 
 def _solve_long_double(K: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -112,16 +113,4 @@ def test_few_rows_levels_cold_and_warm_give_the_same_bits():
         lb = -width * np.ones(n)
         ub = width * np.ones(n)
         problems.append(HierarchyProblem(levels, lb, ub, *_empty_rows(n)))
-    free = 0
-    for law in (None, DampingLaw()):
-        cold = [HierarchySolver(damping_law=law).solve(p) for p in problems]
-        free += sum(not r.active.any() for r in cold)
-        warm = HierarchySolver(damping_law=law, warm_start=True)
-        for order in (range(len(problems)), reversed(range(len(problems)))):
-            for i in order:
-                for _ in range(2):
-                    result = warm.solve(problems[i])
-                    assert result.ok, (i, result.status)
-                    np.testing.assert_array_equal(result.x, cold[i].x, err_msg=str(i))
-                    np.testing.assert_array_equal(result.active, cold[i].active)
-    assert free > 30
+    assert warm_solves_give_cold_bits(problems) > 30

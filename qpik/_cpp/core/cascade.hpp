@@ -3758,26 +3758,29 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         IVec& final_sides = ws.final_sides;
         bool exact = false;
         bool factored = false, have_gz = false;
-        bool binds = false;  // the row-space answer leaves a row by more than tol: the dual method runs
+        // The level solved by free_answer's answer (its certificate cert): d + Z z, as
+        // free_answer computed it for the certificate (ws.cs.xx: the same product and sums).
+        auto take_free = [&]() {
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = cert.primal;
+            ck[1] = cert.stationarity;
+            ck[2] = cert.dual;
+            ck[3] = cert.complementarity;
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
+            res.status[k] = SOLVED;
+            take_null_space();
+        };
         if (row_space) {
             Vec& rz = ws.rz;
             bool gz = false;
             // (the rows tested at the first solve; refined only where they hold: the same bits
             // as row_space_candidate's)
-            bool made = detail::row_space_candidate(ls, Ak.rows, ws.cs, rz, false);
-            binds = made && !detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz);
-            if (made && !binds &&
+            if (detail::row_space_candidate(ls, Ak.rows, ws.cs, rz, false) &&
+                detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz) &&
                 (detail::row_space_refine(ls, Ak.rows, ws.cs, rz), detail::finite_block(rz.data(), 1, r, r)) &&
                 detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd, z_eye, &qp,
                                     nullptr, &rz)) {
-                double* ck = res.certificate.data() + 4 * k;
-                ck[0] = cert.primal;
-                ck[1] = cert.stationarity;
-                ck[2] = cert.dual;
-                ck[3] = cert.complementarity;
-                std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
-                res.status[k] = SOLVED;
-                take_null_space();
+                take_free();
                 continue;
             }
             if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
@@ -3786,22 +3789,12 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         // A level no row binds: the answer of the general path below when the dual method
         // stops at once (no row formed, no dual method run; the same bits).
         // (c = 0 with every row met at z = 0: H's factor only where free_answer finds no answer)
-        // (where the row-space answer already left a row, the dual method runs: not tested again)
         bool deferred = false;
         bool stops = cold && detail::dual_stops_at_once(qp, Z.cref(), d.data(), lb, ub, G, h, tol, ws, factored, have_gz,
                                                         z_eye, gsq, &deferred);
         if (stops && detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd,
                                          z_eye, &qp, factored ? &ws.qps : nullptr)) {
-            double* ck = res.certificate.data() + 4 * k;
-            ck[0] = cert.primal;
-            ck[1] = cert.stationarity;
-            ck[2] = cert.dual;
-            ck[3] = cert.complementarity;
-            // d + Z z, as free_answer computed it for the certificate (ws.cs.xx: the same
-            // product and sums).
-            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
-            res.status[k] = SOLVED;
-            take_null_space();
+            take_free();
             continue;
         }
         if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
