@@ -123,6 +123,9 @@ class OSQPWorkspace:
         lo = np.maximum(lo, -_INF)
         hi = np.minimum(hi, _INF)
         start = time.perf_counter()
+        if not (np.isfinite(H).all() and np.isfinite(c).all() and np.isfinite(C).all()):
+            # (OSQP's setup would print its own error from C; the exact cascade answers)
+            return QPSolution(None, "non_finite", 0, time.perf_counter() - start)
         if self._solver is None:
             self._setup(H, c, C, lo, hi)
         else:

@@ -98,3 +98,20 @@ def test_a_backends_answer_does_not_depend_on_what_it_solved_before(backend):
             exact = HierarchySolver(**kwargs).solve_arrays(*arrays)
             assert got.x.tobytes() == fresh.x.tobytes() == exact.x.tobytes()
             assert [s.value for s in got.status] == [s.value for s in exact.status]
+
+
+def test_osqp_is_not_called_on_data_that_is_not_finite(capfd):
+    """An infinite H (a weight of 1e300, squared): OSQP's setup would print its own error
+    from C ("ERROR in LDL_factor ... non-convex") to the terminal. The workspace returns no
+    answer without calling it, and prints nothing."""
+    from qpik.core import backends
+
+    workspace = backends.OSQPWorkspace(2, 2)
+    H = np.array([[np.inf, 0.0], [0.0, 1.0]])
+    solution = workspace.solve(H, np.zeros(2), np.eye(2), -np.ones(2), np.ones(2))
+    assert solution.x is None and solution.status == "non_finite"
+    assert workspace.setups == 0
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    finite = workspace.solve(np.eye(2), np.ones(2), np.eye(2), -np.ones(2), np.ones(2))
+    np.testing.assert_allclose(finite.x, [-1.0, -1.0], atol=1e-3)
