@@ -39,12 +39,19 @@ import numpy as np
 from .._engine import diffik as _engine
 from ..core import HierarchySolver, kernels
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
-from ..errors import TargetNotSet
 from ..model.com import subtree_com_jacobian
 from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .correction import LeanCorrection
-from .layout import POSE_COST, com_chains, frame_chains, write_frame_row, write_pose_row
+from .layout import (
+    POSE_COST,
+    com_chains,
+    frame_chains,
+    write_com_row,
+    write_frame_row,
+    write_posture_row,
+    write_relative_row,
+)
 from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
 
@@ -215,7 +222,7 @@ class CompiledPlan:
         if not self._gather_coms(data):
             return None
         for task, (ff, fid), (rf, rid), jac, row in self.relatives:
-            write_pose_row(row, task, task.transform_target_to_root)
+            write_relative_row(row, task)
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
         self._gather_gains()
@@ -284,30 +291,16 @@ class CompiledPlan:
 
     def _gather_postures(self) -> None:
         """Posture and damping tasks' targets, costs, gains and LM damping."""
-        for task, (row, target_view, cost_view), damping in self.postures:
-            if not damping:  # a damping task's error is zero: no target
-                target = task.target_q
-                if target is None:
-                    raise TargetNotSet(type(task).__name__)
-                target_view[...] = target
-            cost_view[...] = task.cost
-            row[-2] = task.gain
-            row[-1] = task.lm_damping
+        for task, views, damping in self.postures:
+            write_posture_row(views, task, damping)
 
     def _gather_coms(self, data: mujoco.MjData) -> bool:
         """CoM tasks' targets, costs and Jacobians; False where a subtree changed (QP path)."""
         chains = self._com_chains or [None] * len(self.coms)
         for (task, body, given, jac, views), chain in zip(self.coms, chains):
-            row, target_view, cost_view = views
             if given is not None and task.body is not given:
                 return False
-            target = task.target_com
-            if target is None:
-                raise TargetNotSet(type(task).__name__)
-            target_view[...] = target
-            cost_view[...] = task.cost
-            row[6] = task.gain
-            row[7] = task.lm_damping
+            write_com_row(views, task)
             if chain is None:
                 mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
             else:  # as the kernel's lean step computes them

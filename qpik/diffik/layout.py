@@ -427,6 +427,19 @@ def write_world_pose_row(views: tuple, task, names: tuple) -> None:
     row[POSE_COST + 7] = task.lm_damping
 
 
+def _unfit(task, exc: Exception) -> Exception:
+    """What a task's values that do not fit its rows raise: ``exc`` itself where it is
+    qpik's, else TaskDefinitionError naming the task (NumPy's ValueError or TypeError from
+    an attribute set directly to the wrong shape or type)."""
+    if isinstance(exc, QpikError):
+        return exc
+    name = getattr(task, "frame_name", None)
+    label = type(task).__name__ + ("" if name is None else f" {name!r}")
+    return TaskDefinitionError(
+        f"{label}: its target, cost, gain or lm_damping does not fit its rows ({exc})"
+    )
+
+
 def write_frame_row(views: tuple, task, names: tuple | None) -> None:
     """A frame's data row: :func:`write_pose_row` of a frame task's target (``names``
     None), else :func:`write_world_pose_row`."""
@@ -436,12 +449,48 @@ def write_frame_row(views: tuple, task, names: tuple | None) -> None:
         else:
             write_world_pose_row(views, task, names)
     except (ValueError, TypeError) as exc:  # an attribute set to what does not fit its rows
-        if isinstance(exc, QpikError):
-            raise
-        raise TaskDefinitionError(
-            f"{type(task).__name__} {task.frame_name!r}: its target, cost, gain or lm_damping "
-            f"does not fit its rows ({exc})"
-        ) from exc
+        raise _unfit(task, exc) from exc
+
+
+def write_relative_row(views: tuple, task) -> None:
+    """A relative frame task's data row (:func:`write_pose_row` of its target in its root)."""
+    try:
+        write_pose_row(views, task, task.transform_target_to_root)
+    except (ValueError, TypeError) as exc:
+        raise _unfit(task, exc) from exc
+
+
+def write_posture_row(views: tuple, task, damping: bool) -> None:
+    """A posture or damping task's target (none for a damping task: its error is zero),
+    costs, gain and LM damping into its data row ``views = (row, target, cost)``."""
+    row, target_view, cost_view = views
+    try:
+        if not damping:
+            target = task.target_q
+            if target is None:
+                raise TargetNotSet(type(task).__name__)
+            target_view[...] = target
+        cost_view[...] = task.cost
+        row[-2] = task.gain
+        row[-1] = task.lm_damping
+    except (ValueError, TypeError) as exc:
+        raise _unfit(task, exc) from exc
+
+
+def write_com_row(views: tuple, task) -> None:
+    """A CoM task's target, costs, gain and LM damping into its data row
+    ``views = (row, target, cost)``."""
+    row, target_view, cost_view = views
+    try:
+        target = task.target_com
+        if target is None:
+            raise TargetNotSet(type(task).__name__)
+        target_view[...] = target
+        cost_view[...] = task.cost
+        row[6] = task.gain
+        row[7] = task.lm_damping
+    except (ValueError, TypeError) as exc:
+        raise _unfit(task, exc) from exc
 
 
 def com_chains(model: mujoco.MjModel, bodies: list[int]) -> list:
