@@ -23,7 +23,7 @@ import numpy as np
 
 from ..core import checks
 from ..core.kernels import merge_boxes, tighten
-from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput, LimitDefinitionError
 from ..limits.collision import mink_collision_rows
 from ..model.configuration import Configuration, joint_names
 
@@ -56,9 +56,27 @@ def _configuration_box(
 def _velocity_box(
     limit: mink.VelocityLimit, qpos: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt``."""
-    bound = limit.limit * dt
+    """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt`` (``limit.limit``
+    read as floats, as the compiled step reads it)."""
+    bound = np.asarray(limit.limit, dtype=float) * dt
     return limit.indices, -bound, bound
+
+
+def _box_of(box: Callable, limit: Any, qpos: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+    """``box(limit, qpos, dt)`` (a BOX_LIMITS entry): LimitDefinitionError naming the limit
+    where an attribute set directly (its gain, bounds or speeds) does not fit its dofs."""
+    try:
+        dofs, lower, upper = box(limit, qpos, dt)
+        dofs = np.asarray(dofs, dtype=np.int64)
+        lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    except (ValueError, TypeError, IndexError) as exc:
+        raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
+    if not (lower.shape == upper.shape == dofs.shape and dofs.ndim == 1):
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: bounds of shape {lower.shape} for {dofs.shape[0]} dofs "
+            "(a gain, bound or speed set to what does not fit?)"
+        )
+    return dofs, lower, upper
 
 
 #: Limits whose rows are known to be single-dof bounds, computed directly as boxes (exact
@@ -283,7 +301,7 @@ class LimitBoxes:
                 else:
                     _unfolded(limit, configuration, dt, side)
                 continue
-            dofs, lower, upper = box(limit, configuration.data.qpos, dt)
+            dofs, lower, upper = _box_of(box, limit, configuration.data.qpos, dt)
             if len(dofs):
                 tighten(side.lb, side.ub, dofs, lower, upper)
                 _add_sides(side.contributions, type(limit).__name__, dofs, lower, upper)
@@ -343,7 +361,7 @@ class LimitBoxes:
             box = BOX_LIMITS.get(type(limit))
             if box is None:  # a general-row limit
                 continue
-            dofs, lower, upper = box(limit, qpos, dt)
+            dofs, lower, upper = _box_of(box, limit, qpos, dt)
             _add_sides(contributions, type(limit).__name__, dofs, lower, upper)
         if self.trust_dofs.size:
             _add_sides(contributions, TRUST_REGION, *self._trust_box(dt))

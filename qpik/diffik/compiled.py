@@ -49,6 +49,7 @@ from .layout import (
     frame_chains,
     write_com_row,
     write_frame_row,
+    write_limit_values,
     write_posture_row,
     write_relative_row,
 )
@@ -108,6 +109,7 @@ class CompiledPlan:
     #: ``lin_data``, the view of its costs there)
     linears: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
+    vel_limits: list = field(default_factory=list)  # (limit, first, last vel_limit entry)
 
     def __post_init__(self) -> None:
         self.nv, self.levels = self.model.nv, self.cold.shape[0]
@@ -198,6 +200,8 @@ class CompiledPlan:
             add(lin[2, r0 : r0 + 1], True)
         for _limit, e0, e1 in self.config_limits:
             add(a["cfg_data"][e0:e1, 2], True)
+        for _limit, v0, v1 in self.vel_limits:
+            add(a["vel_limit"][v0:v1])
         return views, scalar
 
     def cold_for(self, p: int) -> np.ndarray:
@@ -308,10 +312,12 @@ class CompiledPlan:
         return True
 
     def _gather_gains(self) -> None:
-        """The position limits' gains."""
-        cfg = self.arrays["cfg_data"]
+        """The position limits' gains and the velocity limits' speeds (write_limit_values)."""
+        cfg, vel = self.arrays["cfg_data"], self.arrays["vel_limit"]
         for limit, e0, e1 in self.config_limits:
-            cfg[e0:e1, 2] = limit.gain
+            write_limit_values(cfg[e0:e1, 2], limit, "gain")
+        for limit, v0, v1 in self.vel_limits:
+            write_limit_values(vel[v0:v1], limit, "limit")
 
     def _poses(self, data: mujoco.MjData) -> tuple:
         """The kernel's MuJoCo arguments (empty arrays for the kinds no frame uses)."""
@@ -379,6 +385,7 @@ class CompiledPlan:
         for t, *_ in self.linears:
             task(t)
         sources.extend((limit, "gain") for limit in self._config_limits)
+        sources.extend((limit, "limit") for limit, *_ in self.vel_limits)
         return sources
 
     def _coms_unchanged(self) -> bool:

@@ -20,7 +20,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..errors import QpikError, TargetNotSet, TaskDefinitionError
+from ..errors import LimitDefinitionError, QpikError, TargetNotSet, TaskDefinitionError
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
@@ -111,7 +111,8 @@ class TaskLayout:
 class LimitLayout:
     """The entries of a plan's limits: position limits (``cfg_dof``, ``cfg_qadr``,
     ``cfg_data`` rows (lower, upper, gain), and ``(limit, first, last entry)``), velocity
-    limits (``vel_dof``, ``vel_limit``) and the general-row limits."""
+    limits (``vel_dof``, ``vel_limit``, and ``(limit, first, last entry)``) and the
+    general-row limits."""
 
     cfg_dof: list
     cfg_qadr: list
@@ -120,6 +121,7 @@ class LimitLayout:
     vel_dof: list
     vel_limit: list
     general_limits: list
+    vel_limits: list
 
 
 def plan_arrays(
@@ -349,6 +351,7 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     config_limits: list[tuple] = []
     vel_dof: list[int] = []
     vel_limit: list[float] = []
+    vel_limits: list[tuple] = []
     general_limits: list = []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
@@ -363,14 +366,16 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
             cfg_data.extend(zip(lower.tolist(), upper.tolist(), [0.0] * len(indices)))
             config_limits.append((limit, e0, len(cfg_dof)))
         elif type(limit) is mink.VelocityLimit:
+            v0 = len(vel_dof)
             vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
             vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
+            vel_limits.append((limit, v0, len(vel_dof)))
         elif type(limit) in GENERAL_LIMITS:
             general_limits.append(limit)
         else:
             return None
     return LimitLayout(
-        cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits
+        cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits, vel_limits
     )
 
 
@@ -475,6 +480,17 @@ def write_posture_row(views: tuple, task, damping: bool) -> None:
         row[-1] = task.lm_damping
     except (ValueError, TypeError) as exc:
         raise _unfit(task, exc) from exc
+
+
+def write_limit_values(view: np.ndarray, limit, name: str) -> None:
+    """A limit's ``name`` (a position limit's gain, a velocity limit's speeds) into
+    ``view``: LimitDefinitionError naming the limit where it does not fit."""
+    try:
+        view[...] = getattr(limit, name)
+    except (ValueError, TypeError) as exc:
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its {name} does not fit its rows ({exc})"
+        ) from exc
 
 
 def write_com_row(views: tuple, task) -> None:

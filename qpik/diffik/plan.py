@@ -106,5 +106,5 @@ def make_plan(
     return CompiledPlan(
         model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
         arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
-        linears=linears,
+        linears=linears, vel_limits=boxes.vel_limits,
     )  # fmt: skip

@@ -69,3 +69,57 @@ def test_an_attribute_that_does_not_fit_is_a_typed_error(make, cls, name, value)
         solver.step(configuration, DT)
     with pytest.raises(TaskDefinitionError, match=cls.__name__):
         solver.qp_solution(configuration, DT)
+
+
+def _limits_solver():
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    p = configuration.frame_pose("ee", "site")[0]
+    frame.set_target(mink.SE3.from_translation(p + 0.2))  # far: the speeds bind
+    position = mink.ConfigurationLimit(model)
+    speeds = {model.joint(j).name: 1.0 for j in range(model.njnt)}
+    velocity = mink.VelocityLimit(model, speeds)
+    solver = qpik.IKSolver(model, [[frame]], [position, velocity])
+    solver.step(configuration, DT)
+    solver.step(configuration, DT)
+    return solver, configuration, position, velocity
+
+
+@pytest.mark.parametrize(
+    ("which", "name", "value"),
+    [
+        ("position", "gain", "x"),
+        ("position", "gain", np.ones(3)),
+        ("velocity", "limit", np.ones(3)),
+        ("velocity", "limit", "x"),
+    ],
+)
+def test_a_limit_attribute_that_does_not_fit_is_a_typed_error(which, name, value):
+    """A position limit's gain or a velocity limit's speeds set directly to what does not
+    fit its dofs: LimitDefinitionError naming the limit, on the compiled step and on the QP
+    path (not NumPy's ValueError or TypeError, nor tighten's)."""
+    from qpik.errors import LimitDefinitionError
+
+    solver, configuration, position, velocity = _limits_solver()
+    limit = position if which == "position" else velocity
+    setattr(limit, name, value)
+    with pytest.raises(LimitDefinitionError, match=type(limit).__name__):
+        solver.step(configuration, DT)
+    with pytest.raises(LimitDefinitionError, match=type(limit).__name__):
+        solver.qp_solution(configuration, DT)
+
+
+@pytest.mark.parametrize("kind", [np.asarray, list])
+def test_new_speeds_of_a_velocity_limit_hold_on_every_path(kind):
+    """A velocity limit given new speeds after the solver was built (a new array: mink's is
+    read-only): the compiled step reads them each step, as the QP path and mink do (it kept
+    the speeds of the plan's build before), on the lane and on the QP path alike."""
+    solver, configuration, _position, velocity = _limits_solver()
+    assert np.abs(solver.step(configuration, DT).velocity).max() == pytest.approx(1.0)
+    velocity.limit = kind(np.asarray(velocity.limit) * 0.1)
+    stepped = solver.step(configuration, DT).velocity
+    reference = solver.qp_solution(configuration, DT).velocity
+    assert np.abs(stepped).max() == pytest.approx(0.1)
+    np.testing.assert_allclose(stepped, reference, rtol=0, atol=1e-12)
+    assert solver._plan._plain_data is configuration.data  # (the lane took the step)
