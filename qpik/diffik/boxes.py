@@ -23,7 +23,13 @@ import numpy as np
 
 from ..core import checks
 from ..core.kernels import merge_boxes, tighten
-from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput, LimitDefinitionError
+from ..errors import (
+    InfeasibleLimits,
+    InvalidArgumentType,
+    InvalidInput,
+    LimitDefinitionError,
+    QpikError,
+)
 from ..limits.collision import mink_collision_rows
 from ..model.configuration import Configuration, joint_names
 
@@ -427,14 +433,30 @@ def _inequalities_of(
     for mink's own :class:`mink.CollisionAvoidanceLimit`, only the rows of the pairs in
     range (:func:`qpik.limits.collision.mink_collision_rows`: mink's rows, bitwise; its
     other rows are zero with ``h = inf``), ``numbers`` their row numbers in mink's."""
-    if type(limit) is mink.CollisionAvoidanceLimit:
-        return mink_collision_rows(limit, configuration, dt)
-    constraint = limit.compute_qp_inequalities(configuration, dt)
-    if constraint.inactive:
-        return None
-    G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-    h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
-    return G, h, None
+    rows: tuple[np.ndarray, np.ndarray, list[int] | None] | None
+    try:
+        if type(limit) is mink.CollisionAvoidanceLimit:
+            rows = mink_collision_rows(limit, configuration, dt)
+        else:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            if constraint.inactive:
+                return None
+            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
+            h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
+            rows = G, h, None
+    except (ValueError, TypeError, IndexError) as exc:  # (an attribute set to what does not fit)
+        if isinstance(exc, QpikError):
+            raise
+        raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
+    if rows is not None:
+        G, h = rows[0], rows[1]
+        nv = configuration.model.nv
+        if not (G.ndim == 2 and G.shape[1] == nv and h.shape == (G.shape[0],)):
+            raise LimitDefinitionError(
+                f"{type(limit).__name__}: rows G of shape {G.shape} and h of shape {h.shape}; "
+                f"G must be (p, {nv}) and h (p,)"
+            )
+    return rows
 
 
 def _check_limit(limit) -> None:

@@ -123,3 +123,52 @@ def test_new_speeds_of_a_velocity_limit_hold_on_every_path(kind):
     assert np.abs(stepped).max() == pytest.approx(0.1)
     np.testing.assert_allclose(stepped, reference, rtol=0, atol=1e-12)
     assert solver._plan._plain_data is configuration.data  # (the lane took the step)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("collision_detection_distance", None),
+        ("gain", "x"),
+        ("minimum_distance_from_collisions", "x"),
+    ],
+)
+def test_a_collision_limit_attribute_that_does_not_fit_is_a_typed_error(name, value):
+    """A collision limit's attribute set directly to what its rows cannot use (with pairs
+    in play): LimitDefinitionError naming the limit on both paths, not a TypeError."""
+    from qpik.errors import LimitDefinitionError
+    from qpik.limits import model_collision_limit
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model, qpik.Configuration(model).mid_q())
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target_from_configuration(configuration)
+    collision = model_collision_limit(model)
+    solver = qpik.IKSolver(model, [[frame]], [mink.ConfigurationLimit(model), collision])
+    solver.step(configuration, DT)
+    collision.collision_detection_distance = 10.0  # every pair in play
+    setattr(collision, name, value)
+    with pytest.raises(LimitDefinitionError, match=type(collision).__name__):
+        solver.step(configuration, DT)
+    with pytest.raises(LimitDefinitionError, match=type(collision).__name__):
+        solver.qp_solution(configuration, DT)
+
+
+class _WrongRows:
+    """A user limit whose rows G have the wrong number of columns."""
+
+    def compute_qp_inequalities(self, configuration, dt):
+        nv = configuration.model.nv
+        return mink.Constraint(G=np.ones((2, nv + 1)), h=np.ones(2))
+
+
+def test_a_user_limit_with_rows_of_the_wrong_shape_is_a_typed_error():
+    from qpik.errors import LimitDefinitionError
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target_from_configuration(configuration)
+    solver = qpik.IKSolver(model, [[frame]], [_WrongRows()])
+    with pytest.raises(LimitDefinitionError, match="_WrongRows"):
+        solver.step(configuration, DT)
