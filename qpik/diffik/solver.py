@@ -37,7 +37,7 @@ import numpy as np
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
 from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
 from ..model.configuration import Configuration
-from ..options import UNSET, StepFieldKeywords, StepOptions
+from ..options import MAX_DAMPING, UNSET, StepFieldKeywords, StepOptions, check_number
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
@@ -145,7 +145,7 @@ class IKSolver:
         self._limits = LimitBoxes(model, limits, self.options.max_joint_speed)
         self.limits = self._limits.limits
         self.solver = self.options.solver
-        self.damping = float(self.options.damping)
+        self._damping = float(self.options.damping)
         self.damping_law = self.options.damping_law
         self.rank_tolerance = self.options.rank_tolerance
         self._core = HierarchySolver(
@@ -167,6 +167,16 @@ class IKSolver:
         self.exact_shortcut = False
         # One compiled call per step when every task and limit allows it.
         self._plan = make_plan(model, self._levels, self._limits, self._core)
+
+    @property
+    def damping(self) -> float:
+        """The constant Tikhonov damping ``mu`` added to every level (settable: a number in
+        ``[0, 1e12]``, as :attr:`qpik.StepOptions.damping`; else :class:`qpik.InvalidOption`)."""
+        return self._damping
+
+    @damping.setter
+    def damping(self, value: float) -> None:
+        self._damping = float(check_number("damping", value, allow_zero=True, maximum=MAX_DAMPING))
 
     @property
     def damping_law(self) -> DampingLaw | None:
@@ -233,7 +243,7 @@ class IKSolver:
                 f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
             )
         limits = self._limits.rows(configuration, dt, fold)
-        return stack_rows(self._levels, configuration, self._nv, self.damping), limits
+        return stack_rows(self._levels, configuration, self._nv, self._damping), limits
 
     # ------------------------------------------------------------------- step
     def step(self, configuration: Configuration, dt: float) -> StepResult:
@@ -270,7 +280,7 @@ class IKSolver:
         ):
             code = -1  # not taken: CompiledPlan.step_result decides, as for any plan
         else:
-            code = plan.kernel.go_cold(dt, self.damping, row, plan._cap)
+            code = plan.kernel.go_cold(dt, self._damping, row, plan._cap)
             if code == _OK:  # its answers are in row `row` of the outputs
                 plan._row = row + 1
                 # core.warm_start_from_row(plan._out[3], row): its one attribute store
@@ -295,7 +305,7 @@ class IKSolver:
             and _DT_MIN <= dt <= _DT_MAX
         ):
             result = plan.step_result(
-                configuration, dt, self.damping, core, start, self._coupling_level, self._passes
+                configuration, dt, self._damping, core, start, self._coupling_level, self._passes
             )
             if result is not None:
                 return result
@@ -334,7 +344,7 @@ class IKSolver:
             return None
         core = self._core
         exact = self.exact_shortcut and core.solver != "auto" and not core.warm_start
-        return self._plan.velocity(configuration, dt, self.damping, core, exact)
+        return self._plan.velocity(configuration, dt, self._damping, core, exact)
 
     def qp_solution(self, configuration: Configuration, dt: float) -> Solution:
         """The step by the QP path as a :class:`Solution` (every level, the couplings'
@@ -361,7 +371,7 @@ class IKSolver:
         exact = None
         if self.exact_shortcut and core.solver != "auto" and not core.warm_start:
             exact = self._exact_core()
-        return self._plan.step(configuration, dt, self.damping, core, exact)
+        return self._plan.step(configuration, dt, self._damping, core, exact)
 
     def _qp_step(self, configuration: Configuration, dt: float) -> Solution:
         """The step for any stack: the tasks' and limits' own rows, then the core's

@@ -172,3 +172,26 @@ def test_a_user_limit_with_rows_of_the_wrong_shape_is_a_typed_error():
     solver = qpik.IKSolver(model, [[frame]], [_WrongRows()])
     with pytest.raises(LimitDefinitionError, match="_WrongRows"):
         solver.step(configuration, DT)
+
+
+@pytest.mark.parametrize("value", ["x", -1.0, np.nan, np.ones(3), 1e300])
+def test_a_solver_damping_that_is_no_damping_is_refused(value):
+    """IKSolver.damping set to what StepOptions would refuse: refused where it is set, with
+    qpik's typed error (not a TypeError from the compiled step's call later, nor a negative
+    damping taken); the solver keeps its damping and steps on."""
+    from qpik.errors import QpikError
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target_from_configuration(configuration)
+    solver = qpik.IKSolver(model, [[frame]], [mink.ConfigurationLimit(model)], damping=1e-4)
+    solver.step(configuration, DT)
+    with pytest.raises(QpikError, match="damping"):
+        solver.damping = value
+    assert solver.damping == 1e-4
+    assert np.isfinite(solver.step(configuration, DT).velocity).all()
+    solver.damping = 1e-3
+    assert (
+        solver.damping == 1e-3 and solver.build(configuration, DT).levels[0].regularization == 1e-3
+    )
