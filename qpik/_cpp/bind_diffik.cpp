@@ -588,7 +588,41 @@ class Kernel {
             Py_DECREF(o);
             if (!ok) return false;
         }
+        // The guards: each task attribute the plan was built from (a frame's name and type)
+        // still that object, or equal to it; else false (the task changed beyond the plan:
+        // the caller's general way, where the QP path answers).
+        for (const Guard& g : guards_) {
+            PyObject* o = PyObject_GetAttr(g.obj.ptr(), g.name.ptr());
+            if (!o) {
+                PyErr_Clear();
+                return false;
+            }
+            int same = o == g.value.ptr() ? 1 : PyObject_RichCompareBool(o, g.value.ptr(), Py_EQ);
+            Py_DECREF(o);
+            if (same != 1) {
+                PyErr_Clear();
+                return false;
+            }
+        }
         return true;
+    }
+
+    // The task attributes the plan was built from, (object, name, value) each: load_sources
+    // declines a step where one is no longer that value (see there).
+    void set_guards(nb::list guards) {
+        std::vector<Guard> out;
+        for (size_t i = 0; i < guards.size(); ++i) {
+            nb::handle item = guards[i];
+            require(PyTuple_Check(item.ptr()) && PyTuple_GET_SIZE(item.ptr()) == 3,
+                    "Kernel.set_guards: a guard is (object, name, value)");
+            Guard g;
+            g.obj = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 0));
+            g.name = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 1));
+            g.value = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 2));
+            require(PyUnicode_Check(g.name.ptr()), "Kernel.set_guards: a name is not a str");
+            out.push_back(std::move(g));
+        }
+        guards_ = std::move(out);
     }
 
     // The frame Jacobians go() computes itself, as MuJoCo's mj_jacSite / mj_jacBody /
@@ -966,6 +1000,10 @@ class Kernel {
         nb::object obj, name, inner;
     };
     std::vector<Source> sources_;
+    struct Guard {
+        nb::object obj, name, value;
+    };
+    std::vector<Guard> guards_;
     struct Outputs {
         Out2 d, v;
         Out3 info;
@@ -1098,6 +1136,10 @@ void bind_diffik(nb::module_& m) {
              "go() deferred (info's sigma NaN there; qpik.core.kernels.resolve_sigma(info[1], defer)).")
         .def_prop_ro("defer_width", &Kernel::defer_width,
                      "The width of attach_out's defer rows (L header entries, then the records).")
+        .def("set_guards", &Kernel::set_guards, nb::arg("guards"),
+             "The task attributes the plan was built from, per guard (object, name, value): "
+             "go() declines a step (-1) where getattr(object, name) is neither value nor equal "
+             "to it; the objects are held.")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
              "Where go() reads the values of the slots after the first two (dt, damping): "
              "per slot (object, name) or (object, name, inner name), getattr(object, name) or "

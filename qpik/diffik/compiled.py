@@ -47,6 +47,8 @@ from .layout import (
     POSE_COST,
     com_chains,
     frame_chains,
+    frame_guards,
+    guards_hold,
     write_com_row,
     write_frame_row,
     write_limit_values,
@@ -117,12 +119,10 @@ class CompiledPlan:
         self._pose_args: tuple = ()
         self.no_rows, self.no_h = np.zeros((0, self.model.nv)), np.zeros(0)
         self.colds[0] = self.cold
-        #: the outputs :meth:`_lean` steps write into (see :meth:`_new_outputs`)
-        self._out: tuple = ()
+        self._out: tuple = ()  # the outputs _lean steps write into (_new_outputs)
         self._row = OUTPUT_ROWS
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
-        #: the correction passes of :meth:`_correct` (built on the first)
-        self._corrector: LeanCorrection | None = None
+        self._corrector: LeanCorrection | None = None  # _correct's passes (built on the first)
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
         #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
@@ -144,6 +144,8 @@ class CompiledPlan:
         #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
         self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
+        self._guards = frame_guards([f[0] for f in self.frames], [r[0] for r in self.relatives])
+        self.kernel.set_guards(self._guards)
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
             self.kernel.set_sources(self._sources())
@@ -217,13 +219,12 @@ class CompiledPlan:
         plan's arrays; returns the kernel's MuJoCo arguments ``(qpos, site_xpos, site_xmat,
         xpos, xmat, geom_xpos, geom_xmat, subtree_com)``, or None when a task changed so
         that the plan no longer describes it (the QP path answers)."""
-        data = configuration.data
-        model = self.model
+        data, model = configuration.data, self.model
         for task, jacobian, fid, jp, jr, row, names in self.frames:
             write_frame_row(row, task, names)
             jacobian(model, data, jp, jr, fid)
         self._gather_postures()
-        if not self._gather_coms(data):
+        if not (self._gather_coms(data) and guards_hold(self._guards)):  # (a frame changed)
             return None
         for task, (ff, fid), (rf, rid), jac, row in self.relatives:
             write_relative_row(row, task)
@@ -421,8 +422,7 @@ class CompiledPlan:
     def _new_outputs(self) -> None:
         """Fresh rows for the next :data:`OUTPUT_ROWS` lean steps' answers (views of a
         step's own row, never written again, live on while a result holds one)."""
-        nv, levels = self.nv, self.levels
-        rows = OUTPUT_ROWS
+        nv, levels, rows = self.nv, self.levels, OUTPUT_ROWS
         self._out = (
             np.empty((rows, nv)),
             np.empty((rows, nv)),

@@ -482,6 +482,33 @@ def write_posture_row(views: tuple, task, damping: bool) -> None:
         raise _unfit(task, exc) from exc
 
 
+#: The attributes a plan resolves to frame ids when it is built, per kind of task.
+_FRAME_ATTRIBUTES = ("frame_name", "frame_type")
+_RELATIVE_ATTRIBUTES = (*_FRAME_ATTRIBUTES, "root_name", "root_type")
+
+
+def frame_guards(frame_tasks: Sequence, relative_tasks: Sequence) -> list[tuple]:
+    """``(task, name, value)`` of every frame and root attribute a plan resolved to a frame
+    id: a step where one changed is no longer the plan's (:func:`guards_hold`; the kernel
+    checks the same, ``Kernel.set_guards``)."""
+    guards = [(t, name, getattr(t, name)) for t in frame_tasks for name in _FRAME_ATTRIBUTES]
+    return guards + [(t, n, getattr(t, n)) for t in relative_tasks for n in _RELATIVE_ATTRIBUTES]
+
+
+def guards_hold(guards: list[tuple]) -> bool:
+    """Whether every guarded attribute is still its value (the same object, or equal)."""
+    for task, name, value in guards:
+        current = getattr(task, name, None)
+        if current is value:
+            continue
+        try:
+            if not bool(current == value):
+                return False
+        except (ValueError, TypeError):  # (an array, say: not the plan's name)
+            return False
+    return True
+
+
 def write_limit_values(view: np.ndarray, limit, name: str) -> None:
     """A limit's ``name`` (a position limit's gain, a velocity limit's speeds) into
     ``view``: LimitDefinitionError naming the limit where it does not fit."""

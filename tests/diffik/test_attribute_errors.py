@@ -195,3 +195,53 @@ def test_a_solver_damping_that_is_no_damping_is_refused(value):
     assert (
         solver.damping == 1e-3 and solver.build(configuration, DT).levels[0].regularization == 1e-3
     )
+
+
+def _frame_case(cls, configuration):
+    """A task on link7 (a relative one: the ee site in link0), the target 5 cm away, and
+    the attribute to change with its new value."""
+    if cls in (qpik.tasks.RelativeFrameTask, mink.RelativeFrameTask):
+        task = cls("ee", "site", "link0", "body", position_cost=1.0, orientation_cost=1.0)
+        task.set_target(mink.SE3.from_translation(np.array([0.4, 0.1, 0.5])))
+        return task, ("root_name", "link1")
+    p = configuration.frame_pose("link7", "body")[0] + 0.05
+    if cls is qpik.tasks.PositionTask:
+        task = cls("link7", "body")
+        task.set_target(p)
+    else:
+        task = cls("link7", "body", position_cost=1.0, orientation_cost=1.0)
+        task.set_target(mink.SE3.from_translation(p))
+    return task, ("frame_name", "link5")
+
+
+@pytest.mark.parametrize(
+    "cls",
+    [
+        qpik.tasks.FrameTask,
+        mink.FrameTask,
+        qpik.tasks.PositionTask,
+        qpik.tasks.RelativeFrameTask,
+        mink.RelativeFrameTask,
+    ],
+)
+def test_a_frame_changed_after_the_build_is_the_one_the_step_tracks(cls):
+    """A task's frame (its name, a relative task's root) set to another frame after
+    the solver was built: the compiled step no longer answers for the frame it was built
+    with (it did, silently: a wrong answer), the QP path answers for the new one; set back,
+    the compiled step (its lane) answers again, with its own bits."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    task, (name, other) = _frame_case(cls, configuration)
+    solver = qpik.IKSolver(model, [[task]], [mink.ConfigurationLimit(model)])
+    solver.step(configuration, DT)
+    before = solver.step(configuration, DT).velocity.copy()
+    assert solver._plan._plain_data is configuration.data
+    original = getattr(task, name)
+    setattr(task, name, other)
+    changed = solver.step(configuration, DT).velocity
+    np.testing.assert_array_equal(changed, solver.qp_solution(configuration, DT).velocity)
+    assert np.abs(changed - before).max() > 1e-3
+    setattr(task, name, original)
+    solver.step(configuration, DT)
+    np.testing.assert_array_equal(solver.step(configuration, DT).velocity, before)
+    assert solver._plan._plain_data is configuration.data
