@@ -47,8 +47,8 @@ from .layout import (
     POSE_COST,
     com_chains,
     frame_chains,
-    frame_guards,
     guards_hold,
+    plan_guards,
     write_com_row,
     write_frame_row,
     write_limit_values,
@@ -128,14 +128,11 @@ class CompiledPlan:
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
         #: no row-supplying task or general rows, CoM tasks only with chains: once _lean
         #: attached a configuration, IKSolver.step's plain lane calls the kernel (no correction
-        #: passes; it reads _plain_data, law, _row, kernel, _cap, _out...); a CoM task whose
-        #: subtree is set again tells the plan (ComTask.watch, :meth:`task_changed`)
+        #: passes; it reads _plain_data, law, _row, kernel, _cap, _out...)
         chained = bool(self._com_chains) or not self.coms
         self._plain = chained and not (self.rows_tasks or self.general_limits)
-        for task in (c[0] for c in self.coms if c[2] is not None):
-            task.watch(self)
-        #: a plain plan's ``_data`` once its chains and CoM subtrees are that MjData's and the
-        #: plan's (else _NO_DATA): the lane's one identity test (:meth:`_update_plain_data`)
+        #: a plain plan's ``_data`` once its chains are that MjData's too (else _NO_DATA):
+        #: the lane's one identity test for the three (kept by :meth:`_update_plain_data`)
         self._plain_data: object = _NO_DATA
         #: per row of ``_out`` (:meth:`_new_outputs`): the velocity view and the core's pending
         #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
@@ -144,7 +141,8 @@ class CompiledPlan:
         #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
         self._relaxable = any(relaxable(limit) for limit in self.general_limits)
         self._config_limits = [c[0] for c in self.config_limits]
-        self._guards = frame_guards([f[0] for f in self.frames], [r[0] for r in self.relatives])
+        #: the frames and subtrees the plan resolved, checked each step (plan_guards)
+        self._guards = plan_guards(self.frames, self.relatives, self.coms)
         self.kernel.set_guards(self._guards)
         if not self.general_limits:
             self.kernel.set_slots(*self._slots())
@@ -224,7 +222,8 @@ class CompiledPlan:
             write_frame_row(row, task, names)
             jacobian(model, data, jp, jr, fid)
         self._gather_postures()
-        if not (self._gather_coms(data) and guards_hold(self._guards)):  # (a frame changed)
+        self._gather_coms(data)
+        if not guards_hold(self._guards):  # a frame or subtree the plan resolved changed
             return None
         for task, (ff, fid), (rf, rid), jac, row in self.relatives:
             write_relative_row(row, task)
@@ -248,15 +247,9 @@ class CompiledPlan:
             self._update_plain_data()
         return self._pose_args
 
-    def _update_plain_data(self) -> None:  # after _data, _chain_data or a CoM task changed
+    def _update_plain_data(self) -> None:  # after _data or _chain_data changed
         plain = self._plain and self._data is self._chain_data and self._data is not None
-        self._plain_data = self._data if plain and self._coms_unchanged() else _NO_DATA
-
-    def task_changed(self) -> None:
-        """A CoM task's subtree was set again (ComTask.watch): no lane step until :meth:`_lean`
-        finds the plan's subtrees again, the chains attached anew."""
-        self._plain_data = _NO_DATA
-        self._chain_data = None
+        self._plain_data = self._data if plain else _NO_DATA
 
     def _gather_linears(self) -> bool:
         """The linear tasks' costs, gains and LM damping; False where one does not fit."""
@@ -299,18 +292,15 @@ class CompiledPlan:
         for task, views, damping in self.postures:
             write_posture_row(views, task, damping)
 
-    def _gather_coms(self, data: mujoco.MjData) -> bool:
-        """CoM tasks' targets, costs and Jacobians; False where a subtree changed (QP path)."""
+    def _gather_coms(self, data: mujoco.MjData) -> None:
+        """CoM tasks' targets, costs and Jacobians (of the plan's subtrees: plan_guards)."""
         chains = self._com_chains or [None] * len(self.coms)
-        for (task, body, given, jac, views), chain in zip(self.coms, chains):
-            if given is not None and task.body is not given:
-                return False
+        for (task, body, _given, jac, views), chain in zip(self.coms, chains):
             write_com_row(views, task)
             if chain is None:
                 mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
             else:  # as the kernel's lean step computes them
                 subtree_com_jacobian(data, chain, jac)
-        return True
 
     def _gather_gains(self) -> None:
         """The position limits' gains and the velocity limits' speeds (write_limit_values)."""
@@ -389,10 +379,6 @@ class CompiledPlan:
         sources.extend((limit, "limit") for limit, *_ in self.vel_limits)
         return sources
 
-    def _coms_unchanged(self) -> bool:
-        """False when a CoM task's subtree changed since the plan (the QP path resolves it)."""
-        return all(given is None or t.body is given for t, _body, given, *_ in self.coms)
-
     def _jacobians(self, data: mujoco.MjData) -> None:
         """Attach ``data``'s ``cdof`` and ``subtree_com``, whence the kernel makes the tasks'
         Jacobians; MuJoCo's CoM Jacobians where the CoM tasks have no chains."""
@@ -442,8 +428,6 @@ class CompiledPlan:
         tasks' values (:meth:`_sources`): the row of ``self._out`` that holds its answers,
         ``-1`` where the QP path must answer, ``-2`` where :meth:`gather` must write the
         values (then nothing was solved)."""
-        if self.coms and not self._coms_unchanged():
-            return -1
         data = configuration.data
         if data is not self._chain_data or self.coms:
             self._jacobians(data)

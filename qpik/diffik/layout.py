@@ -487,12 +487,15 @@ _FRAME_ATTRIBUTES = ("frame_name", "frame_type")
 _RELATIVE_ATTRIBUTES = (*_FRAME_ATTRIBUTES, "root_name", "root_type")
 
 
-def frame_guards(frame_tasks: Sequence, relative_tasks: Sequence) -> list[tuple]:
-    """``(task, name, value)`` of every frame and root attribute a plan resolved to a frame
-    id: a step where one changed is no longer the plan's (:func:`guards_hold`; the kernel
-    checks the same, ``Kernel.set_guards``)."""
-    guards = [(t, name, getattr(t, name)) for t in frame_tasks for name in _FRAME_ATTRIBUTES]
-    return guards + [(t, n, getattr(t, n)) for t in relative_tasks for n in _RELATIVE_ATTRIBUTES]
+def plan_guards(frames: Sequence, relatives: Sequence, coms: Sequence) -> list[tuple]:
+    """``(task, name, value)`` of every task attribute a plan resolved when it was built
+    (the frame and root attributes it made frame ids of, a CoM task's subtree ``body`` as
+    given), from its ``frames``, ``relatives`` and ``coms`` entries (the task first): a step
+    where one changed is no longer the plan's (:func:`guards_hold`; the kernel checks the
+    same, ``Kernel.set_guards``), and the QP path answers for the task as it is."""
+    guards = [(f[0], n, getattr(f[0], n)) for f in frames for n in _FRAME_ATTRIBUTES]
+    guards += [(r[0], n, getattr(r[0], n)) for r in relatives for n in _RELATIVE_ATTRIBUTES]
+    return guards + [(c[0], "body", c[2]) for c in coms if c[2] is not None]
 
 
 def guards_hold(guards: list[tuple]) -> bool:

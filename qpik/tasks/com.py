@@ -14,8 +14,6 @@ finite differences).
 
 from __future__ import annotations
 
-import weakref
-
 import mink
 import mujoco
 import numpy as np
@@ -64,29 +62,10 @@ class ComTask(mink.Task):
         self._chain: tuple | None = None
         self.set_cost(cost)
 
-    @property
-    def body(self) -> str | int:
-        """Root of the subtree, by name or id."""
-        return self._body
-
-    @body.setter
-    def body(self, body: str | int) -> None:
-        self._body = body
-        for ref in self.__dict__.get("_watchers") or ():
-            watcher = ref()
-            if watcher is not None:
-                watcher.task_changed()
-
-    def watch(self, watcher: object) -> None:
-        """Call ``watcher.task_changed()`` whenever :attr:`body` is set (held weakly): a
-        compiled step that took this task's subtree as fixed (:mod:`qpik.diffik.compiled`)."""
-        alive = [ref for ref in self.__dict__.get("_watchers") or () if ref() is not None]
-        self._watchers = [*alive, weakref.ref(watcher)]
-
     def __getstate__(self) -> dict:
         """The task's attributes for pickling and copies, without the cached chain (made
-        again on first use: it holds the model) or the watchers (a copy has none)."""
-        return {**self.__dict__, "_chain": None, "_watchers": None}
+        again on first use: it holds the model)."""
+        return {**self.__dict__, "_chain": None}
 
     def set_cost(self, cost: npt.ArrayLike) -> None:
         """Set the weights: one number for all three axes, or ``(3,)``, all >= 0."""
