@@ -128,13 +128,15 @@ ALWAYS_SAMPLES = 32
 
 def _geom_pairs(model: mujoco.MjModel, pairs: Any) -> list[tuple[int, int]]:
     """``pairs`` checked: (geom id, geom id) pairs of ints in ``[0, ngeom)``, each sorted."""
-    if isinstance(pairs, (str, bytes)) or not isinstance(pairs, (list, tuple, np.ndarray)):
+    listed = isinstance(pairs, (list, tuple)) or (isinstance(pairs, np.ndarray) and pairs.ndim)
+    if not listed:  # (a str, a number, a 0-d array: nothing to iterate over)
         raise InvalidArgumentType(
             "pairs", "a list of (geom id, geom id) pairs", checks.type_name(pairs)
         )
     checked = []
     for pair in pairs:
-        ints = isinstance(pair, (list, tuple, np.ndarray)) and len(pair) == 2
+        ints = isinstance(pair, (list, tuple)) or (isinstance(pair, np.ndarray) and pair.ndim == 1)
+        ints = ints and len(pair) == 2
         ints = ints and all(
             isinstance(g, (int, np.integer)) and not isinstance(g, (bool, np.bool_)) for g in pair
         )

@@ -289,3 +289,17 @@ def test_collision_clearance_skips_far_pairs_with_the_same_answer(cap):
             )
             every = min(every, distance - d_min)
         assert collision_clearance(model, configuration.data, [limit], cap) == every
+
+
+@pytest.mark.parametrize(
+    "pairs",
+    [np.array(3), np.array([1, 2]), [np.array(5)], [np.array([[0, 1]])], "ab", 3, [(0,)]],
+)
+def test_always_in_contact_refuses_pairs_that_are_no_list_of_pairs(pairs):
+    """``pairs`` a 0-d array, a flat array, 0-d or 2-d items, a str, a number: the typed
+    error naming ``pairs``, not Python's "iteration over a 0-d array" (fuzz seed 7342, case
+    signature:147)."""
+    from qpik.errors import InvalidArgumentType
+
+    with pytest.raises(InvalidArgumentType, match="pairs"):
+        always_in_contact(qpik.load_robot("planar_2r"), pairs=pairs)
