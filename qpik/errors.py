@@ -43,6 +43,7 @@ __all__ = [
     "NoSolutionFound",
     "ProblemFileError",
     "QpikError",
+    "ReadOnlyAttribute",
     "RobotFileError",
     "SceneError",
     "TargetNotSet",
@@ -464,6 +465,22 @@ class InvalidArgumentType(InvalidInput, TypeError):
 
     def __reduce__(self):
         return type(self), (self.argument, self.expected, self.got)
+
+
+class ReadOnlyAttribute(QpikError, AttributeError):
+    """An attribute fixed when its object was built (``IKSolver.solver``, its ``levels``,
+    ``limits``, ``rank_tolerance``, ...) was assigned: the object would go on with what it
+    was built from, so the assignment is refused. Also an ``AttributeError``. Fields:
+    ``owner`` (the class's name), ``attribute`` and ``hint`` (what to do instead)."""
+
+    def __init__(self, owner: str, attribute: str, hint: str):
+        self.owner = owner
+        self.attribute = attribute
+        self.hint = hint
+        super().__init__(f"{owner}.{attribute} is fixed when the {owner} is built: {hint}")
+
+    def __reduce__(self):
+        return type(self), (self.owner, self.attribute, self.hint)
 
 
 class MinkFailure(QpikError, mink.MinkError):

@@ -538,6 +538,20 @@ class Kernel {
         return ok;
     }
 
+    // Entries `pick` of a float64 vector value into slot t (its entry k = o[pick[k]]); false
+    // where o is not an ndarray of float64 of one dimension holding every picked index (the
+    // caller's general way then writes it, or reports it).
+    static bool load_picked(const Slot& t, PyObject* o, const std::vector<i64>& pick) {
+        FastArray fa;
+        if (!fast_array(o, 'd', false, fa) || fa.ndim != 1) return false;
+        const i64 size = static_cast<i64>(fa.shape[0]);
+        for (size_t k = 0; k < pick.size(); ++k) {
+            if (pick[k] >= size) return false;
+            std::memcpy(t.p + static_cast<i64>(k) * t.stride, fa.data + pick[k] * fa.strides[0], sizeof(double));
+        }
+        return true;
+    }
+
     // Where go() reads each slot's value but the first two (dt, damping): per slot
     // after those, (object, name) or (object, name, inner name): getattr(object, name), or
     // getattr(getattr(object, name), inner name) (a task's target pose: its wxyz_xyz).
@@ -553,8 +567,26 @@ class Kernel {
             src.name = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 1));
             require(PyUnicode_Check(src.name.ptr()), "Kernel.set_sources: a name is not a str");
             if (PyTuple_GET_SIZE(item.ptr()) == 3) {
-                src.inner = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 2));
-                require(PyUnicode_Check(src.inner.ptr()), "Kernel.set_sources: an inner name is not a str");
+                nb::handle third = PyTuple_GET_ITEM(item.ptr(), 2);
+                if (PyUnicode_Check(third.ptr())) {
+                    src.inner = nb::borrow(third);
+                } else {  // entries picked from a float64 vector: getattr(object, name)[pick]
+                    require(PyList_Check(third.ptr()),
+                            "Kernel.set_sources: a third item is an inner name (str) or a list of indices");
+                    const Py_ssize_t m = PyList_GET_SIZE(third.ptr());
+                    require(static_cast<i64>(m) == slots_[i + 2].size && !slots_[i + 2].scalar,
+                            "Kernel.set_sources: one picked index per entry of the slot");
+                    for (Py_ssize_t k = 0; k < m; ++k) {
+                        const long long index = PyLong_AsLongLong(PyList_GET_ITEM(third.ptr(), k));
+                        if (index == -1 && PyErr_Occurred()) {
+                            PyErr_Clear();
+                            require(false, "Kernel.set_sources: a picked index is not an int");
+                        }
+                        require(index >= 0, "Kernel.set_sources: a picked index is negative");
+                        src.pick.push_back(static_cast<i64>(index));
+                    }
+                    require(!src.pick.empty(), "Kernel.set_sources: an empty list of picked indices");
+                }
             }
             out.push_back(std::move(src));
         }
@@ -584,9 +616,17 @@ class Kernel {
                 PyErr_Clear();
                 return false;
             }
-            const bool ok = load_one(slots_[i + 2], o);
+            const bool ok = src.pick.empty() ? load_one(slots_[i + 2], o) : load_picked(slots_[i + 2], o, src.pick);
             Py_DECREF(o);
             if (!ok) return false;
+        }
+        // The position limits' bounds as loaded: a joint with no range (or a NaN bound) is
+        // the caller's general way too, which reports it (LimitDefinitionError).
+        {
+            const i64 E = dim(cfg_data_, 0);
+            const double* c = cfg_data_.data();
+            for (i64 e = 0; e < E; ++e)
+                if (!(c[3 * e] <= c[3 * e + 1])) return false;
         }
         // The guards: each task attribute the plan was built from (a frame's name and type)
         // still that object, or equal to it; else false (the task changed beyond the plan:
@@ -998,6 +1038,7 @@ class Kernel {
     std::vector<Slot> slots_;
     struct Source {
         nb::object obj, name, inner;
+        std::vector<i64> pick;  // entries of a vector value (empty: the value as it is)
     };
     std::vector<Source> sources_;
     struct Guard {
@@ -1142,8 +1183,10 @@ void bind_diffik(nb::module_& m) {
              "to it; the objects are held.")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
              "Where go() reads the values of the slots after the first two (dt, damping): "
-             "per slot (object, name) or (object, name, inner name), getattr(object, name) or "
-             "getattr(getattr(object, name), inner name); the objects are held.")
+             "per slot (object, name), (object, name, inner name) or (object, name, indices), "
+             "getattr(object, name), getattr(getattr(object, name), inner name) or "
+             "getattr(object, name)[indices] (a float64 vector's entries, indices a list of "
+             "ints); the objects are held.")
         .def("go", &Kernel::go, nb::arg("dt"), nb::arg("damping"), nb::arg("row"),
              nb::arg("warm").none(), nb::arg("canonical"), nb::arg("max_iter"),
              "run() without general rows: dt and damping as the first two slots' values and the "

@@ -54,8 +54,13 @@ def _configuration_box(
         model = limit.model
         adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
     q = qpos[adr]
-    upper = limit.gain * (limit.upper[adr] - q)
-    lower = -limit.gain * (q - limit.lower[adr])
+    q_max, q_min = np.asarray(limit.upper, dtype=float)[adr], np.asarray(limit.lower, dtype=float)[adr]
+    if not (q_min <= q_max).all():  # (set after the limit was built; NaN among them)
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
+        )
+    upper = limit.gain * (q_max - q)
+    lower = -limit.gain * (q - q_min)
     return limit.indices, lower, upper
 
 
@@ -75,6 +80,8 @@ def _box_of(box: Callable, limit: Any, qpos: np.ndarray, dt: float) -> tuple[np.
         dofs, lower, upper = box(limit, qpos, dt)
         dofs = np.asarray(dofs, dtype=np.int64)
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    except LimitDefinitionError:
+        raise
     except (ValueError, TypeError, IndexError) as exc:
         raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
     if not (lower.shape == upper.shape == dofs.shape and dofs.ndim == 1):

@@ -51,6 +51,7 @@ from .layout import (
     plan_guards,
     write_com_row,
     write_frame_row,
+    write_limit_bounds,
     write_limit_values,
     write_posture_row,
     write_relative_row,
@@ -199,6 +200,9 @@ class CompiledPlan:
             add(lin[1, r0 : r0 + 1], True)
             add(lin[2, r0 : r0 + 1], True)
         for _limit, e0, e1 in self.config_limits:
+            if e1 > e0:  # (a model without limited joints: no entries)
+                add(a["cfg_data"][e0:e1, 0])
+                add(a["cfg_data"][e0:e1, 1])
             add(a["cfg_data"][e0:e1, 2], True)
         for _limit, v0, v1 in self.vel_limits:
             add(a["vel_limit"][v0:v1])
@@ -305,8 +309,11 @@ class CompiledPlan:
     def _gather_gains(self) -> None:
         """The position limits' gains and the velocity limits' speeds (write_limit_values)."""
         cfg, vel = self.arrays["cfg_data"], self.arrays["vel_limit"]
+        qadr = self.arrays["cfg_qadr"]
         for limit, e0, e1 in self.config_limits:
             write_limit_values(cfg[e0:e1, 2], limit, "gain")
+            if e1 > e0:
+                write_limit_bounds(cfg[e0:e1, :2], limit, qadr[e0:e1])
         for limit, v0, v1 in self.vel_limits:
             write_limit_values(vel[v0:v1], limit, "limit")
 
@@ -375,7 +382,12 @@ class CompiledPlan:
             task(t, "transform_target_to_root", "wxyz_xyz")
         for t, *_ in self.linears:
             task(t)
-        sources.extend((limit, "gain") for limit in self._config_limits)
+        qadr = self.arrays["cfg_qadr"]
+        for limit, e0, e1 in self.config_limits:  # bounds [rad or m] at each dof's qpos entry
+            if e1 > e0:
+                picked = qadr[e0:e1].tolist()
+                sources.extend(((limit, "lower", picked), (limit, "upper", picked)))
+            sources.append((limit, "gain"))
         sources.extend((limit, "limit") for limit, *_ in self.vel_limits)
         return sources
 

@@ -523,6 +523,29 @@ def write_limit_values(view: np.ndarray, limit, name: str) -> None:
         ) from exc
 
 
+def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
+    """A position limit's bounds (``lower``, ``upper`` [rad or m], each of the model's
+    ``nq`` entries) at its dofs' qpos entries ``qadr`` into the columns of ``view``
+    ``(E, 2)``: LimitDefinitionError naming the limit where they do not fit, or leave a
+    joint no range."""
+    try:
+        lower = np.asarray(limit.lower, dtype=float)
+        upper = np.asarray(limit.upper, dtype=float)
+        if lower.ndim != 1 or upper.ndim != 1:
+            raise ValueError(f"bounds of shapes {lower.shape} and {upper.shape}")
+        view[:, 0] = lower[qadr]
+        view[:, 1] = upper[qadr]
+    except (ValueError, TypeError, IndexError) as exc:
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its lower and upper bounds do not fit the model's "
+            f"{limit.model.nq} coordinates ({exc})"
+        ) from exc
+    if np.isnan(view).any() or (view[:, 0] > view[:, 1]).any():
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
+        )
+
+
 def write_com_row(views: tuple, task) -> None:
     """A CoM task's target, costs, gain and LM damping into its data row
     ``views = (row, target, cost)``."""

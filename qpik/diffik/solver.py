@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
-from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput
+from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput, ReadOnlyAttribute
 from ..model.configuration import Configuration
 from ..options import MAX_DAMPING, UNSET, StepFieldKeywords, StepOptions, check_number
 from .boxes import LimitBoxes, LimitRows, relaxable
@@ -49,6 +49,8 @@ from .rows import Stack, TaskRows, normalize_stack, stack_rows
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
+
+    from ..tasks import BaseTask
 
 _perf_counter = time.perf_counter
 _new = object.__new__
@@ -94,6 +96,20 @@ def _step_options(options: StepOptions | None, keywords: dict[str, Any]) -> Step
     return options.replace(**overrides) if overrides else options
 
 
+#: The attributes of an :class:`IKSolver` fixed at construction, with what to do instead of
+#: assigning one (:class:`qpik.ReadOnlyAttribute`).
+_FIXED = {
+    "model": "build an IKSolver for the other model",
+    "options": "build a new IKSolver with options=...",
+    "levels": "build a new IKSolver with the new stack (tasks are kept by reference: "
+    "task.set_target(...) moves a target)",
+    "limits": "build a new IKSolver with the new limits (a limit's gain, bounds and speeds "
+    "may be changed in place)",
+    "solver": "build a new IKSolver with solver=...",
+    "rank_tolerance": "build a new IKSolver with rank_tolerance=...",
+}
+
+
 class IKSolver:
     """Differential IK with strict priorities.
 
@@ -126,38 +142,37 @@ class IKSolver:
     ):
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
-        self.options = _step_options(options, dict(keywords))
-        backend_options = self.options.backend_options
-        self.model = model
-        self.levels = normalize_stack(stack)
+        options = _step_options(options, dict(keywords))
+        self._options = options
+        backend_options = options.backend_options
+        self._model = model
+        stack_levels = normalize_stack(stack)
+        self._stack = tuple(tuple(level) for level in stack_levels)
         #: The levels the steps solve: the model's couplings first (StepOptions.couplings,
         #: on a model that states some), then ``levels``.
-        self._levels = self.levels
+        self._levels = stack_levels
         self._coupling_level = False
-        if self.options.couplings and model.neq:
+        if options.couplings and model.neq:
             from ..model.couplings import model_couplings
 
             if model_couplings(model) is not None:
                 from ..tasks.coupling import CouplingTask
 
-                self._levels = [[CouplingTask(model)], *self.levels]
+                self._levels = [[CouplingTask(model)], *stack_levels]
                 self._coupling_level = True
-        self._limits = LimitBoxes(model, limits, self.options.max_joint_speed)
-        self.limits = self._limits.limits
-        self.solver = self.options.solver
-        self._damping = float(self.options.damping)
-        self.damping_law = self.options.damping_law
-        self.rank_tolerance = self.options.rank_tolerance
+        self._limits = LimitBoxes(model, limits, options.max_joint_speed)
+        self._damping = float(options.damping)
+        self.damping_law = options.damping_law
         self._core = HierarchySolver(
-            self.solver,
+            options.solver,
             damping_law=self.damping_law,
-            rank_tolerance=self.rank_tolerance,
-            warm_start=self.options.warm_start,
+            rank_tolerance=options.rank_tolerance,
+            warm_start=options.warm_start,
             backend_options=None if backend_options is None else dict(backend_options),
         )
         self._exact: HierarchySolver | None = None
         self._aux: Configuration | None = None  # kinematics at q (+) dq (correction passes)
-        self._passes = self.options.correction_passes
+        self._passes = options.correction_passes
         self._nv = model.nv
         #: With a forced backend, answer by the exact compiled solve when it solves every
         #: level: the forced-backend path returns that same answer (the exact cascade,
@@ -167,6 +182,49 @@ class IKSolver:
         self.exact_shortcut = False
         # One compiled call per step when every task and limit allows it.
         self._plan = make_plan(model, self._levels, self._limits, self._core)
+
+    # The attributes fixed at construction: read-only (an assignment would leave the built
+    # plan, core and boxes answering for the old value: ReadOnlyAttribute says so).
+    def __setattr__(self, name: str, value: Any) -> None:
+        hint = _FIXED.get(name)
+        if hint is not None:
+            raise ReadOnlyAttribute("IKSolver", name, hint)
+        object.__setattr__(self, name, value)
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The MuJoCo model the solver was built for (read-only)."""
+        return self._model
+
+    @property
+    def options(self) -> StepOptions:
+        """The :class:`qpik.StepOptions` the solver was built with, the keywords applied
+        (read-only; :attr:`damping` and :attr:`damping_law` are the settable ones)."""
+        return self._options
+
+    @property
+    def levels(self) -> tuple[tuple[BaseTask, ...], ...]:
+        """The task stack, level by level, highest priority first, as given (read-only
+        tuples: the tasks themselves are kept by reference, so ``task.set_target(...)``
+        between steps moves them; the model's couplings, solved above them, not included)."""
+        return self._stack
+
+    @property
+    def limits(self) -> tuple[Any, ...]:
+        """The limits enforced at every level, as given (read-only; each limit kept by
+        reference: its gain, bounds or speeds may change between steps)."""
+        return tuple(self._limits.limits)
+
+    @property
+    def solver(self) -> str:
+        """The QP backend (:attr:`qpik.StepOptions.solver`; read-only)."""
+        return self._core.solver
+
+    @property
+    def rank_tolerance(self) -> float:
+        """The relative rank tolerance of each level (:attr:`qpik.StepOptions.rank_tolerance`;
+        read-only)."""
+        return self._core.rank_tolerance
 
     @property
     def damping(self) -> float:
@@ -238,7 +296,7 @@ class IKSolver:
         """Every level's rows stacked as the core takes them, and the limits
         (``fold``: :meth:`LimitBoxes.rows`')."""
         dt = checks.check_dt(dt)
-        if configuration.model is not self.model and configuration.model.nv != self._nv:
+        if configuration.model is not self._model and configuration.model.nv != self._nv:
             raise InvalidInput(
                 f"configuration has nv={configuration.model.nv}, the solver's model {self._nv}"
             )
@@ -271,7 +329,7 @@ class IKSolver:
             or type(dt) is not float
             or core.solver != "auto"
             or not isinstance(configuration, _MinkConfiguration)
-            or configuration.model is not self.model
+            or configuration.model is not self._model
             or not _DT_MIN <= dt <= _DT_MAX
             or configuration.data is not plan._plain_data  # (never, for a plan not plain)
             or core.damping_law is not plan.law
@@ -301,7 +359,7 @@ class IKSolver:
             and type(dt) is float
             and core.solver == "auto"
             and isinstance(configuration, _MinkConfiguration)
-            and configuration.model is self.model
+            and configuration.model is self._model
             and _DT_MIN <= dt <= _DT_MAX
         ):
             result = plan.step_result(
@@ -358,7 +416,7 @@ class IKSolver:
         """The solver has a compiled plan, for this model, and ``dt`` is a valid float."""
         return (
             self._plan is not None
-            and configuration.model is self.model
+            and configuration.model is self._model
             and type(dt) is float
             and checks.DT_MIN <= dt <= checks.DT_MAX
         )
@@ -450,7 +508,7 @@ class IKSolver:
         those levels' targets by the remainder ``cost (e(q (+) dq) - e(q)) - A dq`` and solves
         again with the same rows, damping and limits."""
         if self._aux is None:
-            self._aux = Configuration(self.model)
+            self._aux = Configuration(self._model)
         levels, aux = self._levels, self._aux
         return self._recovered(
             configuration,

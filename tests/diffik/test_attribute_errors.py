@@ -125,6 +125,87 @@ def test_new_speeds_of_a_velocity_limit_hold_on_every_path(kind):
     assert solver._plan._plain_data is configuration.data  # (the lane took the step)
 
 
+@pytest.mark.parametrize("how", ["in place", "new array"])
+def test_new_bounds_of_a_position_limit_hold_on_every_path(how):
+    """A position limit given new bounds after the solver was built (a joint's range
+    narrowed around the start): the compiled step reads them each step, as the QP path and
+    mink do (it kept the bounds of the plan's build before, and stepped past the new ones),
+    on the lane and on the QP path alike."""
+    solver, configuration, position, _velocity = _limits_solver()
+    free = solver.step(configuration, DT).velocity
+    q = configuration.q
+    dof = int(np.argmax(np.abs(free)))  # the joint that moves most
+    adr = int(solver.model.jnt_qposadr[solver.model.dof_jntid[dof]])
+    room = 0.1 * abs(free[dof]) * DT  # a tenth of its free step
+    lower, upper = np.array(position.lower), np.array(position.upper)
+    lower[adr], upper[adr] = q[adr] - room, q[adr] + room
+    if how == "in place":
+        position.lower[:] = lower
+        position.upper[:] = upper
+    else:
+        position.lower, position.upper = lower, upper
+    stepped = solver.step(configuration, DT).velocity
+    reference = solver.qp_solution(configuration, DT).velocity
+    assert abs(stepped[dof]) * DT <= position.gain * room * (1 + 1e-12)
+    np.testing.assert_allclose(stepped, reference, rtol=0, atol=1e-12)
+    assert solver._plan._plain_data is configuration.data  # (the lane took the step)
+    fresh = qpik.IKSolver(solver.model, solver.levels, solver.limits)
+    np.testing.assert_allclose(fresh.step(configuration, DT).velocity, stepped, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("lower", "flip"), ("upper", "nan"), ("lower", np.zeros(3)), ("upper", "x")],
+)
+def test_position_bounds_that_do_not_fit_are_a_typed_error(name, value):
+    """A position limit's bounds set after the build to what leaves a joint no range (or a
+    NaN), or does not fit the model's coordinates: LimitDefinitionError naming the limit on
+    the compiled step and on the QP path, never a step taken against them."""
+    from qpik.errors import LimitDefinitionError
+
+    solver, configuration, position, _velocity = _limits_solver()
+    bounds = np.array(getattr(position, name))
+    if isinstance(value, str) and value == "flip":
+        bounds[position.indices[2]] = position.upper[position.indices[2]] + 1.0
+        value = bounds
+    elif isinstance(value, str) and value == "nan":
+        bounds[position.indices[0]] = np.nan
+        value = bounds
+    setattr(position, name, value)
+    with pytest.raises(LimitDefinitionError, match="ConfigurationLimit"):
+        solver.step(configuration, DT)
+    with pytest.raises(LimitDefinitionError, match="ConfigurationLimit"):
+        solver.qp_solution(configuration, DT)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("model", None),
+        ("options", qpik.StepOptions()),
+        ("levels", []),
+        ("limits", []),
+        ("solver", "osqp"),
+        ("rank_tolerance", 1e-3),
+    ],
+)
+def test_what_a_solver_was_built_from_is_read_only(name, value):
+    """IKSolver's model, options, levels, limits, backend and rank tolerance are fixed at
+    construction (the plan, the core and the boxes were built from them): assigning one is
+    qpik's ReadOnlyAttribute (also an AttributeError) naming it, not an assignment the steps
+    would silently ignore; the solver steps on as before."""
+    from qpik.errors import ReadOnlyAttribute
+
+    solver, configuration, _position, _velocity = _limits_solver()
+    before = solver.step(configuration, DT).velocity.copy()
+    with pytest.raises(ReadOnlyAttribute, match=f"IKSolver.{name} is fixed") as info:
+        setattr(solver, name, value)
+    assert isinstance(info.value, AttributeError) and info.value.attribute == name
+    np.testing.assert_array_equal(solver.step(configuration, DT).velocity, before)
+    assert isinstance(solver.levels, tuple) and all(isinstance(x, tuple) for x in solver.levels)
+    assert isinstance(solver.limits, tuple) and solver.solver == "auto"
+
+
 @pytest.mark.parametrize(
     ("name", "value"),
     [
