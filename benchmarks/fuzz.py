@@ -69,7 +69,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 BAD = ("untyped", "nonfinite", "limits", "claim", "misreport", "message", "accepted", "refused")
-BAD += ("hang", "crash", "nondet")
+BAD += ("hang", "crash", "nondet", "stale")
 COLUMNS = ("ok", "typed") + BAD
 CATEGORIES = (
     "solve",
@@ -88,6 +88,7 @@ CATEGORIES = (
     "stack",
     "signature",
     "erd",
+    "mutate",
 )
 ROBOTS = ("planar_2r", "planar_4r", "panda", "ur5e")
 #: A case over this many seconds of its worker's CPU time is a hang (issue 25); the first
@@ -1303,6 +1304,31 @@ def gen_signature(r: random.Random) -> dict:
     }
 
 
+# -- attributes changed after the build (stale state): a stack as gen_stack's, stepped once
+# by IKSolver.step, then one to three attributes of its tasks and limits assigned directly
+# (valid and not: a new cost, gain, frame, subtree, target, a position limit's narrowed
+# bounds in place or anew, a velocity limit's speeds, ...), and stepped again. The oracle:
+# a new IKSolver built from the same (changed) objects, stepped at the same configuration,
+# gives the same outcome (both a typed error, or both answers within 1e-9): the solver that
+# stepped before keeps nothing of what the change made stale.
+def gen_mutate(r: random.Random) -> dict:
+    spec = gen_stack(r)
+    spec.update(entry="step", steps=1, dt=r.choice([0.01, 0.01, 1e-3, 1.0]))
+    spec["q"] = r.choice(["mid", "random", "random"])
+    for task in spec["tasks"]:  # (a stack that answers: the changes are what is under test)
+        task["target"] = r.choice(["reach", "start"])
+        for key in ("cost", "gain", "lm_damping", "wrong"):
+            task.pop(key, None)
+        if task["type"] == "coupling":
+            task.update(cost=1.0, gain=1.0)
+    spec["limits"] = [[kind, r.choice([0.95, 0.5, 1.0]), 0.0] for kind, *_ in spec["limits"]]
+    spec["mutations"] = [
+        (r.randrange(10**6), r.randrange(10**6), r.randrange(10**6), r.random() < 0.3)
+        for _ in range(r.choice([1, 1, 2, 3]))
+    ]
+    return spec
+
+
 GENERATORS = {
     "solve": gen_solve,
     "solve_many": gen_solve_many,
@@ -1320,6 +1346,7 @@ GENERATORS = {
     "stack": gen_stack,
     "signature": gen_signature,
     "erd": gen_erd,
+    "mutate": gen_mutate,
 }
 
 
@@ -3977,11 +4004,8 @@ def run_stack(spec: dict) -> str:
         raise Typed(f"mink's own constructor: {exc}") from None
 
 
-# Complexity above 10: one branch per variant of the case it runs and checks.
-def _run_stack(spec: dict, model, rng) -> str:
-    np = _np()
-    import mink
-
+def _stack_objects(spec: dict, model, rng) -> tuple:
+    """The configuration, levels and limits of a stack case (gen_stack)."""
     import qpik
 
     q = _gen_q("random", model, rng) if spec["q"] == "random" else _gen_q("mid", model, rng)
@@ -3998,13 +4022,28 @@ def _run_stack(spec: dict, model, rng) -> str:
             built = _build_task(task, model, configuration, rng)
         levels[task["level"]].append(built)
     levels = [level for level in levels if level] or [[qpik.tasks.DampingTask(model, cost=1.0)]]
-    limits, speeds = [], []
+    limits = []
     for kind, gain, distance in spec["limits"]:
         made = _stack_limit(kind, gain, distance, model)
         if isinstance(made, tuple):
-            made, speed = made
-            speeds.append(speed)
+            made = made[0]
         limits.extend(made)
+    return configuration, levels, limits
+
+
+# Complexity above 10: one branch per variant of the case it runs and checks.
+def _run_stack(spec: dict, model, rng) -> str:
+    np = _np()
+    import mink
+
+    import qpik
+
+    configuration, levels, limits = _stack_objects(spec, model, rng)
+    speeds = [
+        _stack_limit(kind, gain, distance, model)[1]
+        for kind, gain, distance in spec["limits"]
+        if kind in ("velocity", "mink_velocity")
+    ]
     constraints = []
     if "freeze" in spec["constraints"]:
         constraints.append(mink.DofFreezingTask(model, dof_indices=[model.nv - 1]))
@@ -4523,6 +4562,124 @@ def run_signature(spec: dict) -> str:
         return _digest(repr(type(out)))
 
 
+# -- attributes changed after the build
+MUTABLE = (
+    "cost", "position_cost", "orientation_cost", "gain", "lm_damping", "frame_name",
+    "frame_type", "root_name", "root_type", "body", "target_q", "target_com", "lower",
+    "upper", "limit", "minimum_distance_from_collisions", "collision_detection_distance",
+)  # fmt: skip
+
+
+def _mutation_values(obj, name: str, model, configuration, rng) -> list:
+    """Candidate new values of ``obj.name``, ``(valid, weird)``: each a list of
+    ``(how, value)``, how "set" (an assignment) or "inplace" (an in-place write of an
+    array's entries); valid ones within what the attribute takes, weird ones not."""
+    np = _np()
+    import mujoco
+
+    current = getattr(obj, name)
+    weird = [("set", v) for v in (NAN, -1.0, "x", None, np.ones(5), np.full(3, NAN))]
+    if name in ("frame_name", "root_name"):
+        kind = getattr(obj, "frame_type" if name == "frame_name" else "root_type", "body")
+        obj_type = {"site": mujoco.mjtObj.mjOBJ_SITE, "geom": mujoco.mjtObj.mjOBJ_GEOM}.get(
+            kind, mujoco.mjtObj.mjOBJ_BODY
+        )
+        count = {"site": model.nsite, "geom": model.ngeom}.get(kind, model.nbody)
+        names = [mujoco.mj_id2name(model, obj_type, i) for i in range(count)]
+        names = [n for n in names if n]
+        return [("set", n) for n in names[-3:]], [("set", "nope"), ("set", 3)]
+    if name in ("frame_type", "root_type"):
+        return [("set", v) for v in ("body", "site", "geom")], [("set", "nope"), ("set", None)]
+    if name == "body":
+        valid = [("set", v) for v in (0, 1, model.nbody - 1)]
+        return valid, [("set", v) for v in (model.nbody, -1, "x")]
+    limited = isinstance(current, np.ndarray) and current.shape == (model.nq,)
+    if name in ("lower", "upper") and limited and hasattr(obj, "indices"):
+        q = configuration.q
+        idx = np.asarray(obj.indices, dtype=np.int64)
+        adr = model.jnt_qposadr[model.dof_jntid[idx]] if idx.size else idx
+        narrowed = current.copy()
+        room = np.abs(rng.normal(0.0, 0.05, size=adr.size))
+        narrowed[adr] = q[adr] + (room if name == "upper" else -room)
+        flipped = current.copy()
+        if adr.size:
+            flipped[adr[0]] = q[adr[0]] + (-1.0 if name == "upper" else 1.0)
+        return [("inplace", narrowed), ("set", narrowed)], [("set", flipped)] + weird[:5]
+    if isinstance(current, np.ndarray) and current.dtype.kind == "f" and current.ndim >= 1:
+        scaled = current * rng.uniform(0.1, 3.0)
+        zero = np.zeros_like(current)
+        return [("set", scaled), ("inplace", scaled), ("set", zero)], weird
+    if isinstance(current, (int, float)) and not isinstance(current, bool):
+        return [("set", float(current) * 0.5), ("set", 0.5)], weird[:4]
+    return [], weird
+
+
+def _step_outcome(make, configuration, dt) -> tuple:
+    """("ok", velocity) or ("typed", error class name) of ``make().step(configuration, dt)``
+    (an untyped error propagates: the harness counts it)."""
+    np = _np()
+    import qpik
+
+    try:
+        velocity = np.array(make().step(configuration, dt).velocity)
+    except qpik.QpikError as exc:
+        return ("typed", type(exc).__name__)
+    _finite(velocity, "velocity")
+    return ("ok", velocity)
+
+
+def run_mutate(spec: dict) -> str:
+    np = _np()
+    import mink
+
+    import qpik
+
+    model = _stack_model(spec["robot"])
+    rng = np.random.default_rng(_seed_of(spec))
+    try:
+        configuration, levels, limits = _stack_objects(spec, model, rng)
+    except mink.exceptions.MinkError as exc:
+        if isinstance(exc, qpik.QpikError):
+            raise
+        raise Typed(f"mink's own constructor: {exc}") from None
+    dt = spec["dt"]
+    solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+    _step_outcome(lambda: solver, configuration, dt)  # the step that builds its state
+    objects = [t for level in levels for t in level] + list(limits)
+    applied = []
+    for o_pick, a_pick, v_pick, weird in spec["mutations"]:
+        obj = objects[o_pick % len(objects)]
+        names = [n for n in MUTABLE if hasattr(obj, n) and not callable(getattr(obj, n))]
+        if not names:
+            continue
+        name = names[a_pick % len(names)]
+        valid, bad = _mutation_values(obj, name, model, configuration, rng)
+        values = bad if weird or not valid else valid
+        how, value = values[v_pick % len(values)]
+        try:
+            if how == "inplace":
+                getattr(obj, name)[...] = value
+            else:
+                setattr(obj, name, value)
+        except (AttributeError, TypeError, ValueError):
+            continue  # (an attribute its class does not let be set, or not to this)
+        applied.append(f"{type(obj).__name__}.{name} {how} {str(value)[:40]}")
+    old = _step_outcome(lambda: solver, configuration, dt)
+    fresh = _step_outcome(
+        lambda: qpik.IKSolver(model, levels, limits, solver=spec["solver"]), configuration, dt
+    )
+    if old[0] != fresh[0]:
+        typed = old[1] if old[0] == "typed" else fresh[1]
+        detail = f"after {applied}: the solver {old[0]}, a new one {fresh[0]} ({typed})"
+        raise Bad("stale", detail)
+    if old[0] == "typed":
+        raise Typed(old[1])
+    gap = float(np.max(np.abs(old[1] - fresh[1]), initial=0.0))
+    if gap > 1e-9 * (1.0 + float(np.max(np.abs(fresh[1]), initial=0.0))):
+        raise Bad("stale", f"after {applied}: |v - v_new| = {gap:.3g} rad/s")
+    return _digest(old[1])
+
+
 # -- determinism
 RUNNERS = {
     "solve": run_solve,
@@ -4540,6 +4697,7 @@ RUNNERS = {
     "stack": run_stack,
     "signature": run_signature,
     "erd": run_erd,
+    "mutate": run_mutate,
 }
 
 
@@ -4821,6 +4979,7 @@ WEIGHTS = {
     "stack": 3,
     "signature": 3,
     "erd": 3,
+    "mutate": 3,
 }
 
 

@@ -620,13 +620,18 @@ class Kernel {
             Py_DECREF(o);
             if (!ok) return false;
         }
-        // The position limits' bounds as loaded: a joint with no range (or a NaN bound) is
-        // the caller's general way too, which reports it (LimitDefinitionError).
+        // The limits' values as loaded: a position limit's joint with no range (or a NaN
+        // bound), a gain outside (0, 1], a speed below 0 (or NaN) are the caller's general
+        // way too, which reports them (LimitDefinitionError; layout.limit_values_hold).
         {
             const i64 E = dim(cfg_data_, 0);
             const double* c = cfg_data_.data();
             for (i64 e = 0; e < E; ++e)
-                if (!(c[3 * e] <= c[3 * e + 1])) return false;
+                if (!(c[3 * e] <= c[3 * e + 1]) || !(c[3 * e + 2] > 0.0 && c[3 * e + 2] <= 1.0)) return false;
+            const i64 V = dim(vel_limit_, 0);
+            const double* v = vel_limit_.data();
+            for (i64 j = 0; j < V; ++j)
+                if (!(v[j] >= 0.0)) return false;
         }
         // The guards: each task attribute the plan was built from (a frame's name and type)
         // still that object, or equal to it; else false (the task changed beyond the plan:

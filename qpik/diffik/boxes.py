@@ -42,6 +42,57 @@ TRUST_REGION = "trust region"
 Contribution = tuple[str, np.ndarray, np.ndarray]
 
 
+def _check_limit_values(limit: Any) -> Any:
+    """A position limit's gain (one number in ``(0, 1]``, as mink checks it when the limit
+    is built) or a velocity limit's speeds (``>= 0`` [rad/s or m/s]), returned as read;
+    LimitDefinitionError naming the limit where it was set to another value later (the
+    compiled step's kernel checks the same: layout.limit_values_hold)."""
+    if isinstance(limit, mink.ConfigurationLimit):
+        gain = limit.gain
+        try:
+            valid = np.ndim(gain) == 0 and 0.0 < float(gain) <= 1.0
+        except (TypeError, ValueError):
+            valid = False
+        if not valid:
+            raise LimitDefinitionError(
+                f"{type(limit).__name__}: its gain must be a number in (0, 1], got {gain!r}"
+            )
+        return gain
+    if isinstance(limit, mink.VelocityLimit):
+        try:
+            speeds = np.asarray(limit.limit, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise LimitDefinitionError(
+                f"{type(limit).__name__}: its limit must be speeds >= 0 ({exc})"
+            ) from exc
+        if not (speeds >= 0.0).all():
+            raise LimitDefinitionError(
+                f"{type(limit).__name__}: its limit must be speeds >= 0, got {limit.limit!r}"
+            )
+        return speeds
+    return None
+
+
+def _check_bounds(limit: mink.ConfigurationLimit) -> None:
+    """A position limit's bounds at its dofs' qpos entries leave each joint a range (no NaN):
+    LimitDefinitionError naming the limit otherwise (bounds set after it was built)."""
+    if len(limit.indices) == 0:
+        return
+    model = limit.model
+    adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
+    try:
+        q_max = np.asarray(limit.upper, dtype=float)[adr]
+        q_min = np.asarray(limit.lower, dtype=float)[adr]
+    except (TypeError, ValueError, IndexError) as exc:
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its lower and upper bounds do not fit its dofs ({exc})"
+        ) from exc
+    if not (q_min <= q_max).all():
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
+        )
+
+
 def _configuration_box(
     limit: mink.ConfigurationLimit, qpos: np.ndarray, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -53,14 +104,18 @@ def _configuration_box(
     if qpos.shape[0] != limit.model.nv:  # free or ball joints: dof index != qpos index
         model = limit.model
         adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
+    gain = float(_check_limit_values(limit))
     q = qpos[adr]
-    q_max, q_min = np.asarray(limit.upper, dtype=float)[adr], np.asarray(limit.lower, dtype=float)[adr]
+    q_max, q_min = (
+        np.asarray(limit.upper, dtype=float)[adr],
+        np.asarray(limit.lower, dtype=float)[adr],
+    )
     if not (q_min <= q_max).all():  # (set after the limit was built; NaN among them)
         raise LimitDefinitionError(
             f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
         )
-    upper = limit.gain * (q_max - q)
-    lower = -limit.gain * (q - q_min)
+    upper = gain * (q_max - q)
+    lower = -gain * (q - q_min)
     return limit.indices, lower, upper
 
 
@@ -69,7 +124,7 @@ def _velocity_box(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt`` (``limit.limit``
     read as floats, as the compiled step reads it)."""
-    bound = np.asarray(limit.limit, dtype=float) * dt
+    bound = _check_limit_values(limit) * dt
     return limit.indices, -bound, bound
 
 
@@ -252,6 +307,11 @@ class LimitBoxes:
         self.limits = list(limits)
         for limit in self.limits:
             _check_limit(limit)
+            box = BOX_LIMITS.get(type(limit))
+            if box is not None:
+                # its values as a step reads them (attributes set after the limit was built:
+                # the same typed errors here as at a step)
+                _box_of(box, limit, model.qpos0, 1.0)
         nv = model.nv
         names = joint_names(model)
         #: Each dof's joint name (in messages and active-limit names).
@@ -309,6 +369,9 @@ class LimitBoxes:
                 side = recoverable
             box = BOX_LIMITS.get(type(limit)) if self.scalar_joints else None
             if box is None:
+                _check_limit_values(limit)  # (mink's rows take them as they are)
+                if isinstance(limit, mink.ConfigurationLimit):
+                    _check_bounds(limit)
                 if fold or side is recoverable or not relaxable(limit):
                     self._inequalities(limit, configuration, dt, side)
                 else:
@@ -472,7 +535,14 @@ def _check_limit(limit) -> None:
     if not hasattr(limit, "compute_qp_inequalities"):
         raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
     if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
-        empty = limit.indices[limit.lower[limit.indices] > limit.upper[limit.indices]]
+        try:
+            lower = np.asarray(limit.lower, dtype=float)[limit.indices]
+            upper = np.asarray(limit.upper, dtype=float)[limit.indices]
+        except (TypeError, ValueError, IndexError) as exc:  # bounds set to what does not fit
+            raise LimitDefinitionError(
+                f"{type(limit).__name__}: its lower and upper bounds do not fit its dofs ({exc})"
+            ) from exc
+        empty = limit.indices[lower > upper]
         if len(empty):
             raise InfeasibleLimits(
                 f"{type(limit).__name__}: the limits of dof {int(empty[0])} are "

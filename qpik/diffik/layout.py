@@ -405,14 +405,24 @@ def frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
     return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
 
 
+def _put(view: np.ndarray, value) -> None:
+    """``value`` into ``view``, of ``view``'s shape exactly (no broadcasting: a scalar where
+    a task keeps an array is refused as on the kernel's lean step and at the plan's build,
+    with NumPy's ValueError, which the callers report as the task's)."""
+    array = np.asarray(value, dtype=float)
+    if array.shape != view.shape:
+        raise ValueError(f"a value of shape {array.shape} where its rows take {view.shape}")
+    view[...] = array
+
+
 def write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
     data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
     if pose is None:
         raise TargetNotSet(type(task).__name__)
     row, target, cost = views
-    target[...] = pose.wxyz_xyz
-    cost[...] = task.cost
+    _put(target, pose.wxyz_xyz)
+    _put(cost, task.cost)
     row[13] = task.gain
     row[14] = task.lm_damping
 
@@ -427,7 +437,7 @@ def write_world_pose_row(views: tuple, task, names: tuple) -> None:
         if value is None:
             raise TargetNotSet(type(task).__name__)
         view[...] = np.reshape(value, -1)
-    cost[...] = task.cost
+    _put(cost, task.cost)
     row[POSE_COST + 6] = task.gain
     row[POSE_COST + 7] = task.lm_damping
 
@@ -474,8 +484,8 @@ def write_posture_row(views: tuple, task, damping: bool) -> None:
             target = task.target_q
             if target is None:
                 raise TargetNotSet(type(task).__name__)
-            target_view[...] = target
-        cost_view[...] = task.cost
+            _put(target_view, target)
+        _put(cost_view, task.cost)
         row[-2] = task.gain
         row[-1] = task.lm_damping
     except (ValueError, TypeError) as exc:
@@ -513,14 +523,35 @@ def guards_hold(guards: list[tuple]) -> bool:
 
 
 def write_limit_values(view: np.ndarray, limit, name: str) -> None:
-    """A limit's ``name`` (a position limit's gain, a velocity limit's speeds) into
-    ``view``: LimitDefinitionError naming the limit where it does not fit."""
+    """A limit's ``name`` (a position limit's gain, one number in ``(0, 1]`` for all its
+    entries; a velocity limit's speeds [rad/s or m/s], one ``>= 0`` per entry) into
+    ``view``: LimitDefinitionError naming the limit where it does not fit, or is out of
+    that range."""
+    value = getattr(limit, name)
     try:
-        view[...] = getattr(limit, name)
+        if name == "gain":
+            if np.ndim(value) != 0:
+                raise ValueError(f"a gain of shape {np.shape(value)}, not one number")
+            view[...] = float(value)
+        else:
+            _put(view, value)
     except (ValueError, TypeError) as exc:
         raise LimitDefinitionError(
             f"{type(limit).__name__}: its {name} does not fit its rows ({exc})"
         ) from exc
+    if not (view.size == 0 or limit_values_hold(view, name)):
+        expected = "in (0, 1]" if name == "gain" else "speeds >= 0"
+        raise LimitDefinitionError(
+            f"{type(limit).__name__}: its {name} must be {expected}, got {value!r}"
+        )
+
+
+def limit_values_hold(values: np.ndarray, name: str) -> bool:
+    """A position limit's gain in ``(0, 1]`` (``name`` "gain") or a velocity limit's
+    speeds ``>= 0`` (NaN: neither), as the compiled step's kernel checks them."""
+    if name == "gain":
+        return bool(((values > 0.0) & (values <= 1.0)).all())
+    return bool((values >= 0.0).all())
 
 
 def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
@@ -554,8 +585,8 @@ def write_com_row(views: tuple, task) -> None:
         target = task.target_com
         if target is None:
             raise TargetNotSet(type(task).__name__)
-        target_view[...] = target
-        cost_view[...] = task.cost
+        _put(target_view, target)
+        _put(cost_view, task.cost)
         row[6] = task.gain
         row[7] = task.lm_damping
     except (ValueError, TypeError) as exc:

@@ -108,8 +108,21 @@ def task_rows(
         return A, -(vectors[:, keep].T @ c) / root, None, np.ones(int(keep.sum()))
     assert residual is not None  # objective is None only when a residual was given
     jacobian, error, task_mu = residual
+    # (a NaN: its error is, which the finiteness checks report as the target's)
+    if task_mu is not None and (np.ndim(task_mu) != 0 or float(task_mu) < 0.0):
+        raise TaskDefinitionError(
+            f"{type(task).__name__}: its LM damping term must be one number >= 0, got "
+            f"{task_mu!r} (an lm_damping set to what does not fit?)"
+        )
     if jacobian.ndim != 2:
         jacobian, error = np.atleast_2d(jacobian), np.atleast_1d(error)
+    nv = configuration.model.nv
+    if jacobian.ndim != 2 or jacobian.shape[1] != nv or np.shape(error) != (jacobian.shape[0],):
+        raise TaskDefinitionError(
+            f"{type(task).__name__}: its rows are of shape {jacobian.shape} and its error "
+            f"{np.shape(error)}; ({jacobian.shape[0]}, {nv}) and ({jacobian.shape[0]},) "
+            "expected (a cost or gain set to what does not fit?)"
+        )
     return jacobian, error, task_mu, _row_weights(task, jacobian.shape[0])
 
 

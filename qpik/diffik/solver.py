@@ -35,13 +35,20 @@ import mujoco
 import numpy as np
 
 from ..core import DampingLaw, HierarchyProblem, HierarchySolver, Level, LevelStatus, checks
-from ..errors import InfeasibleLimits, InvalidArgumentType, InvalidInput, ReadOnlyAttribute
+from ..errors import (
+    InfeasibleLimits,
+    InvalidArgumentType,
+    InvalidInput,
+    QpikError,
+    ReadOnlyAttribute,
+)
 from ..model.configuration import Configuration
 from ..options import MAX_DAMPING, UNSET, StepFieldKeywords, StepOptions, check_number
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
+from .layout import guards_hold
 from .plan import make_plan
 from .recovery import RELAXATION_MARGINS, least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
@@ -365,6 +372,11 @@ class IKSolver:
             result = plan.step_result(
                 configuration, dt, self._damping, core, start, self._coupling_level, self._passes
             )
+            if result is None and self._replanned():  # (the plan of the tasks as they are)
+                result = self._plan.step_result(  # type: ignore[union-attr]
+                    configuration, dt, self._damping, core, start, self._coupling_level,
+                    self._passes,
+                )  # fmt: skip
             if result is not None:
                 return result
         checks.check_instance(
@@ -429,7 +441,30 @@ class IKSolver:
         exact = None
         if self.exact_shortcut and core.solver != "auto" and not core.warm_start:
             exact = self._exact_core()
-        return self._plan.step(configuration, dt, self._damping, core, exact)
+        solution = self._plan.step(configuration, dt, self._damping, core, exact)
+        if solution is None and self._replanned():
+            solution = self._plan.step(configuration, dt, self._damping, core, exact)
+        return solution
+
+    def _replanned(self) -> bool:
+        """Where a task attribute the compiled plan resolved when it was built (a frame's
+        name or type, a relative task's root, a CoM task's body: its guards) changed since,
+        the plan of the tasks as they are now replaces it, so that the steps from here are
+        a new solver's, bit for bit (not the QP path's answer, equal only to round-off);
+        True when it did. Where no plan applies to them now (an unknown frame, say), the old
+        plan stays: its guards send the steps to the QP path, which answers or raises, and
+        it serves again once the attributes are back."""
+        plan = self._plan
+        if plan is None or guards_hold(plan._guards):
+            return False
+        try:
+            new = make_plan(self._model, self._levels, self._limits, self._core)
+        except (QpikError, ValueError, TypeError, IndexError):
+            return False  # (an attribute that does not fit: the QP path names it)
+        if new is None or not guards_hold(new._guards):
+            return False
+        self._plan = new
+        return True
 
     def _qp_step(self, configuration: Configuration, dt: float) -> Solution:
         """The step for any stack: the tasks' and limits' own rows, then the core's

@@ -164,9 +164,31 @@ class ManipulabilityTask(mink.Task):
         self.frame_name: str | int = checks.check_instance(
             "frame_name", frame_name, (str, int), "a frame name (or id)"
         )
-        self.frame_type = FrameType.parse(frame_type)
-        self._row_index = list(row_indices(rows))  # raises for an unknown choice
+        self.frame_type = frame_type
         self.rows = rows
+
+    @property
+    def frame_type(self) -> FrameType:
+        """The frame's type (settable: a :class:`qpik.model.frames.FrameType` or its name;
+        an unknown one raises :class:`qpik.UnknownFrameType`)."""
+        return self._frame_type
+
+    @frame_type.setter
+    def frame_type(self, value: FrameType | str) -> None:
+        self._frame_type = FrameType.parse(value)
+
+    @property
+    def rows(self) -> str:
+        """Which rows of the frame Jacobian the manipulability is of (settable, as the
+        constructor's ``rows``: ``"pose"``, ``"position"``, ``"orientation"`` or a sequence
+        of row names or indices, :func:`qpik.core.jacobian.row_indices`; another raises
+        :class:`qpik.InvalidInput`)."""
+        return self._rows
+
+    @rows.setter
+    def rows(self, value: str) -> None:
+        self._row_index = list(row_indices(value))  # raises for an unknown choice
+        self._rows = value
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
 
