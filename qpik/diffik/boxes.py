@@ -74,8 +74,8 @@ def _check_limit_values(limit: Any) -> Any:
 
 
 def _check_bounds(limit: mink.ConfigurationLimit) -> None:
-    """A position limit's bounds at its dofs' qpos entries leave each joint a range (no NaN):
-    LimitDefinitionError naming the limit otherwise (bounds set after it was built)."""
+    """A position limit's bounds at its dofs' qpos entries fit and leave each joint a range
+    (:func:`bounds_hold`); LimitDefinitionError naming the limit where they do not fit."""
     if len(limit.indices) == 0:
         return
     model = limit.model
@@ -87,9 +87,22 @@ def _check_bounds(limit: mink.ConfigurationLimit) -> None:
         raise LimitDefinitionError(
             f"{type(limit).__name__}: its lower and upper bounds do not fit its dofs ({exc})"
         ) from exc
-    if not (q_min <= q_max).all():
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
+    bounds_hold(limit, q_min, q_max, limit.indices)
+
+
+def bounds_hold(limit: Any, q_min: np.ndarray, q_max: np.ndarray, dofs: np.ndarray) -> None:
+    """A position limit's bounds at its dofs ``dofs``: LimitDefinitionError naming the
+    limit where one is NaN, InfeasibleLimits where a joint's lower bound is above its upper
+    (no displacement meets them: as for mink's ``min_distance_from_limits`` of more than
+    half a range), as at the build (:func:`_check_limit`)."""
+    if np.isnan(q_min).any() or np.isnan(q_max).any():
+        raise LimitDefinitionError(f"{type(limit).__name__}: a lower or upper bound is NaN")
+    empty = np.flatnonzero(q_min > q_max)
+    if empty.size:
+        raise InfeasibleLimits(
+            f"{type(limit).__name__}: the limits of dof {int(dofs[empty[0]])} are empty (its "
+            "lower bound above its upper: bounds set so, or min_distance_from_limits more "
+            "than half its range)"
         )
 
 
@@ -110,10 +123,7 @@ def _configuration_box(
         np.asarray(limit.upper, dtype=float)[adr],
         np.asarray(limit.lower, dtype=float)[adr],
     )
-    if not (q_min <= q_max).all():  # (set after the limit was built; NaN among them)
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
-        )
+    bounds_hold(limit, q_min, q_max, limit.indices)  # (bounds set after the limit was built)
     upper = gain * (q_max - q)
     lower = -gain * (q - q_min)
     return limit.indices, lower, upper
@@ -135,7 +145,7 @@ def _box_of(box: Callable, limit: Any, qpos: np.ndarray, dt: float) -> tuple[np.
         dofs, lower, upper = box(limit, qpos, dt)
         dofs = np.asarray(dofs, dtype=np.int64)
         lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    except LimitDefinitionError:
+    except QpikError:
         raise
     except (ValueError, TypeError, IndexError) as exc:
         raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
@@ -534,17 +544,5 @@ def _check_limit(limit) -> None:
     empty; raises :class:`qpik.InvalidInput` or :class:`qpik.InfeasibleLimits`."""
     if not hasattr(limit, "compute_qp_inequalities"):
         raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
-    if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
-        try:
-            lower = np.asarray(limit.lower, dtype=float)[limit.indices]
-            upper = np.asarray(limit.upper, dtype=float)[limit.indices]
-        except (TypeError, ValueError, IndexError) as exc:  # bounds set to what does not fit
-            raise LimitDefinitionError(
-                f"{type(limit).__name__}: its lower and upper bounds do not fit its dofs ({exc})"
-            ) from exc
-        empty = limit.indices[lower > upper]
-        if len(empty):
-            raise InfeasibleLimits(
-                f"{type(limit).__name__}: the limits of dof {int(empty[0])} are "
-                "empty (min_distance_from_limits exceeds half its range)"
-            )
+    if isinstance(limit, mink.ConfigurationLimit):
+        _check_bounds(limit)  # (at each dof's qpos entry: a free joint moves them apart)

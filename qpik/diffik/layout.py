@@ -29,7 +29,7 @@ from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
-from .boxes import LimitBoxes
+from .boxes import LimitBoxes, bounds_hold
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
@@ -557,8 +557,8 @@ def limit_values_hold(values: np.ndarray, name: str) -> bool:
 def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
     """A position limit's bounds (``lower``, ``upper`` [rad or m], each of the model's
     ``nq`` entries) at its dofs' qpos entries ``qadr`` into the columns of ``view``
-    ``(E, 2)``: LimitDefinitionError naming the limit where they do not fit, or leave a
-    joint no range."""
+    ``(E, 2)``: LimitDefinitionError naming the limit where they do not fit or one is NaN,
+    InfeasibleLimits where a joint's lower bound is above its upper (boxes.bounds_hold)."""
     try:
         lower = np.asarray(limit.lower, dtype=float)
         upper = np.asarray(limit.upper, dtype=float)
@@ -571,10 +571,7 @@ def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
             f"{type(limit).__name__}: its lower and upper bounds do not fit the model's "
             f"{limit.model.nq} coordinates ({exc})"
         ) from exc
-    if np.isnan(view).any() or (view[:, 0] > view[:, 1]).any():
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its lower and upper bounds leave a joint no range"
-        )
+    bounds_hold(limit, view[:, 0], view[:, 1], np.asarray(limit.indices))
 
 
 def write_com_row(views: tuple, task) -> None:

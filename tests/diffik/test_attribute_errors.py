@@ -158,12 +158,15 @@ def test_new_bounds_of_a_position_limit_hold_on_every_path(how):
     [("lower", "flip"), ("upper", "nan"), ("lower", np.zeros(3)), ("upper", "x")],
 )
 def test_position_bounds_that_do_not_fit_are_a_typed_error(name, value):
-    """A position limit's bounds set after the build to what leaves a joint no range (or a
-    NaN), or does not fit the model's coordinates: LimitDefinitionError naming the limit on
-    the compiled step and on the QP path, never a step taken against them."""
-    from qpik.errors import LimitDefinitionError
+    """A position limit's bounds set after the build to what leaves a joint no range
+    (InfeasibleLimits, as for mink's min_distance_from_limits beyond half a range), a NaN or
+    what does not fit the model's coordinates (LimitDefinitionError), naming the limit on
+    the compiled step, on the QP path and at a new solver's build, never a step taken
+    against them."""
+    from qpik.errors import InfeasibleLimits, LimitDefinitionError
 
     solver, configuration, position, _velocity = _limits_solver()
+    error = InfeasibleLimits if isinstance(value, str) and value == "flip" else LimitDefinitionError
     bounds = np.array(getattr(position, name))
     if isinstance(value, str) and value == "flip":
         bounds[position.indices[2]] = position.upper[position.indices[2]] + 1.0
@@ -172,10 +175,12 @@ def test_position_bounds_that_do_not_fit_are_a_typed_error(name, value):
         bounds[position.indices[0]] = np.nan
         value = bounds
     setattr(position, name, value)
-    with pytest.raises(LimitDefinitionError, match="ConfigurationLimit"):
+    with pytest.raises(error, match="ConfigurationLimit"):
         solver.step(configuration, DT)
-    with pytest.raises(LimitDefinitionError, match="ConfigurationLimit"):
+    with pytest.raises(error, match="ConfigurationLimit"):
         solver.qp_solution(configuration, DT)
+    with pytest.raises(error, match="ConfigurationLimit"):
+        qpik.IKSolver(solver.model, solver.levels, solver.limits).step(configuration, DT)
 
 
 @pytest.mark.parametrize(

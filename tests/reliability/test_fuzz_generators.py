@@ -192,7 +192,7 @@ def _fuzz():
     return module
 
 
-@pytest.mark.parametrize("category", ["robot_gen", "schema", "stack", "signature"])
+@pytest.mark.parametrize("category", ["robot_gen", "schema", "stack", "signature", "mutate"])
 def test_fuzz_generated_categories_smoke(category: str) -> None:
     fuzz = _fuzz()
     for index in range(6):
