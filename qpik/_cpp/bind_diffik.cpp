@@ -593,18 +593,10 @@ class Kernel {
         sources_ = std::move(out);
     }
 
-    // dt and damping into the first two slots, then each source's current value into its
-    // slot (set_sources); false as load_one() (a value it does not take as it is, a None
-    // target, an attribute that raised: its error cleared, the caller's general way
-    // reports it).
-    bool load_sources(double dt, double damping) const {
-        if (slots_.size() != sources_.size() + 2 || slots_.size() < 2) return false;
-        for (size_t s = 0; s < 2; ++s) {
-            const Slot& t = slots_[s];
-            const double x = s == 0 ? dt : damping;
-            for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
-        }
-        for (size_t i = 0; i < sources_.size(); ++i) {
+    // Sources first.. (and their slots, two further on) loaded as load_sources loads them;
+    // false as there.
+    bool load_range(size_t first) const {
+        for (size_t i = first; i < sources_.size(); ++i) {
             const Source& src = sources_[i];
             PyObject* o = PyObject_GetAttr(src.obj.ptr(), src.name.ptr());
             if (o && src.inner.is_valid()) {
@@ -620,19 +612,46 @@ class Kernel {
             Py_DECREF(o);
             if (!ok) return false;
         }
-        // The limits' values as loaded: a position limit's joint with no range (or a NaN
-        // bound), a gain outside (0, 1], a speed below 0 (or NaN) are the caller's general
-        // way too, which reports them (LimitDefinitionError; layout.limit_values_hold).
-        {
-            const i64 E = dim(cfg_data_, 0);
-            const double* c = cfg_data_.data();
-            for (i64 e = 0; e < E; ++e)
-                if (!(c[3 * e] <= c[3 * e + 1]) || !(c[3 * e + 2] > 0.0 && c[3 * e + 2] <= 1.0)) return false;
-            const i64 V = dim(vel_limit_, 0);
-            const double* v = vel_limit_.data();
-            for (i64 j = 0; j < V; ++j)
-                if (!(v[j] >= 0.0)) return false;
+        return true;
+    }
+
+    // The limits' values as loaded: a position limit's joint with no range (or a NaN bound),
+    // a gain outside (0, 1], a speed below 0 (or NaN) are the caller's general way, which
+    // reports them (LimitDefinitionError, InfeasibleLimits; layout.limit_values_hold).
+    bool limits_hold() const {
+        const i64 E = dim(cfg_data_, 0);
+        const double* c = cfg_data_.data();
+        for (i64 e = 0; e < E; ++e)
+            if (!(c[3 * e] <= c[3 * e + 1]) || !(c[3 * e + 2] > 0.0 && c[3 * e + 2] <= 1.0)) return false;
+        const i64 V = dim(vel_limit_, 0);
+        const double* v = vel_limit_.data();
+        for (i64 j = 0; j < V; ++j)
+            if (!(v[j] >= 0.0)) return false;
+        return true;
+    }
+
+    // The gathered step's limit values (its tasks' are written by the caller): sources
+    // first.. loaded into their slots and checked (limits_hold); false where one is not
+    // taken as it is or fails the check (the caller then writes them its general way, which
+    // raises the typed error).
+    bool load_limits(i64 first) {
+        if (slots_.size() != sources_.size() + 2 || first < 0 || static_cast<size_t>(first) > sources_.size())
+            return false;
+        return load_range(static_cast<size_t>(first)) && limits_hold();
+    }
+
+    // dt and damping into the first two slots, then each source's current value into its
+    // slot (set_sources); false as load_one() (a value it does not take as it is, a None
+    // target, an attribute that raised: its error cleared, the caller's general way
+    // reports it).
+    bool load_sources(double dt, double damping) const {
+        if (slots_.size() != sources_.size() + 2 || slots_.size() < 2) return false;
+        for (size_t s = 0; s < 2; ++s) {
+            const Slot& t = slots_[s];
+            const double x = s == 0 ? dt : damping;
+            for (i64 k = 0; k < t.size; ++k) t.p[k * t.stride] = x;
         }
+        if (!load_range(0) || !limits_hold()) return false;
         // The guards: each task attribute the plan was built from (a frame's name and type)
         // still that object, or equal to it; else false (the task changed beyond the plan:
         // the caller's general way, where the QP path answers).
@@ -1186,6 +1205,11 @@ void bind_diffik(nb::module_& m) {
              "The task attributes the plan was built from, per guard (object, name, value): "
              "go() declines a step (-1) where getattr(object, name) is neither value nor equal "
              "to it; the objects are held.")
+        .def("load_limits", &Kernel::load_limits, nb::arg("first"),
+             "The limits' values of the gathered step: sources first.. (set_sources; the position "
+             "limits' bounds and gains, the velocity limits' speeds) loaded into their slots and "
+             "checked (bounds with a range, gains in (0, 1], speeds >= 0); False where one is not "
+             "taken as it is or fails (the caller writes them its general way, which reports it).")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
              "Where go() reads the values of the slots after the first two (dt, damping): "
              "per slot (object, name), (object, name, inner name) or (object, name, indices), "

@@ -145,9 +145,10 @@ class CompiledPlan:
         #: the frames and subtrees the plan resolved, checked each step (plan_guards)
         self._guards = plan_guards(self.frames, self.relatives, self.coms)
         self.kernel.set_guards(self._guards)
+        self._limit_first = 0  # (the limits' first source: Kernel.load_limits, gathered step)
+        self.kernel.set_slots(*self._slots())
+        self.kernel.set_sources(self._sources())
         if not self.general_limits:
-            self.kernel.set_slots(*self._slots())
-            self.kernel.set_sources(self._sources())
             if self.frames:
                 frames = frame_chains(self.model, self.arrays["frames"])
                 self.kernel.set_chains(self.arrays["jac"], *frames)
@@ -307,13 +308,15 @@ class CompiledPlan:
                 subtree_com_jacobian(data, chain, jac)
 
     def _gather_gains(self) -> None:
-        """The position limits' gains and the velocity limits' speeds (write_limit_values)."""
+        """The limits' bounds, gains and speeds: loaded and checked by the kernel, else
+        written here (write_limit_values / _bounds: the typed error of what does not fit)."""
+        if self.kernel.load_limits(self._limit_first):
+            return
         cfg, vel = self.arrays["cfg_data"], self.arrays["vel_limit"]
-        qadr = self.arrays["cfg_qadr"]
         for limit, e0, e1 in self.config_limits:
             write_limit_values(cfg[e0:e1, 2], limit, "gain")
             if e1 > e0:
-                write_limit_bounds(cfg[e0:e1, :2], limit, qadr[e0:e1])
+                write_limit_bounds(cfg[e0:e1, :2], limit, self.arrays["cfg_qadr"][e0:e1])
         for limit, v0, v1 in self.vel_limits:
             write_limit_values(vel[v0:v1], limit, "limit")
 
@@ -382,6 +385,7 @@ class CompiledPlan:
             task(t, "transform_target_to_root", "wxyz_xyz")
         for t, *_ in self.linears:
             task(t)
+        self._limit_first = len(sources)
         qadr = self.arrays["cfg_qadr"]
         for limit, e0, e1 in self.config_limits:  # bounds [rad or m] at each dof's qpos entry
             if e1 > e0:

@@ -409,6 +409,9 @@ def _put(view: np.ndarray, value) -> None:
     """``value`` into ``view``, of ``view``'s shape exactly (no broadcasting: a scalar where
     a task keeps an array is refused as on the kernel's lean step and at the plan's build,
     with NumPy's ValueError, which the callers report as the task's)."""
+    if type(value) is np.ndarray and value.shape == view.shape:  # (the usual case, fast)
+        view[...] = value
+        return
     array = np.asarray(value, dtype=float)
     if array.shape != view.shape:
         raise ValueError(f"a value of shape {array.shape} where its rows take {view.shape}")
