@@ -1313,7 +1313,8 @@ def gen_signature(r: random.Random) -> dict:
 # stepped before keeps nothing of what the change made stale.
 def gen_mutate(r: random.Random) -> dict:
     spec = gen_stack(r)
-    spec.update(entry="step", steps=1, dt=r.choice([0.01, 0.01, 1e-3, 1.0]))
+    spec.update(entry=r.choice(["step", "step", "solve_ik"]), steps=1)
+    spec["dt"] = r.choice([0.01, 0.01, 1e-3, 1.0])
     spec["q"] = r.choice(["mid", "random", "random"])
     for task in spec["tasks"]:  # (a stack that answers: the changes are what is under test)
         task["target"] = r.choice(["reach", "start"])
@@ -4616,12 +4617,17 @@ def _mutation_values(obj, name: str, model, configuration, rng) -> list:
 
 def _step_outcome(make, configuration, dt) -> tuple:
     """("ok", velocity) or ("typed", error class name) of ``make().step(configuration, dt)``
-    (an untyped error propagates: the harness counts it)."""
+    (``make()`` None: of ``qpik.solve_ik`` by the case's call, its solver cache kept; an
+    untyped error propagates: the harness counts it)."""
     np = _np()
     import qpik
 
     try:
-        velocity = np.array(make().step(configuration, dt).velocity)
+        solver = make()
+        if isinstance(solver, qpik.IKSolver):
+            velocity = np.array(solver.step(configuration, dt).velocity)
+        else:
+            velocity = np.array(solver(configuration, dt))
     except qpik.QpikError as exc:
         return ("typed", type(exc).__name__)
     _finite(velocity, "velocity")
@@ -4643,7 +4649,22 @@ def run_mutate(spec: dict) -> str:
             raise
         raise Typed(f"mink's own constructor: {exc}") from None
     dt = spec["dt"]
-    solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+    backend = None if spec["solver"] == "auto" else spec["solver"]
+    if spec["entry"] == "solve_ik":  # mink's call, its kept solver (qpik's solver cache)
+        qpik.clear_caches()
+
+        def solver(configuration, dt):
+            return qpik.solve_ik(configuration, levels, dt, solver=backend, limits=limits)
+
+        def fresh_solver():
+            qpik.clear_caches()
+            return solver
+    else:
+        solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+
+        def fresh_solver():
+            return qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+
     _step_outcome(lambda: solver, configuration, dt)  # the step that builds its state
     objects = [t for level in levels for t in level] + list(limits)
     applied = []
@@ -4665,9 +4686,7 @@ def run_mutate(spec: dict) -> str:
             continue  # (an attribute its class does not let be set, or not to this)
         applied.append(f"{type(obj).__name__}.{name} {how} {str(value)[:40]}")
     old = _step_outcome(lambda: solver, configuration, dt)
-    fresh = _step_outcome(
-        lambda: qpik.IKSolver(model, levels, limits, solver=spec["solver"]), configuration, dt
-    )
+    fresh = _step_outcome(fresh_solver, configuration, dt)
     if old[0] != fresh[0]:
         typed = old[1] if old[0] == "typed" else fresh[1]
         detail = f"after {applied}: the solver {old[0]}, a new one {fresh[0]} ({typed})"
