@@ -4568,6 +4568,9 @@ MUTABLE = (
     "cost", "position_cost", "orientation_cost", "gain", "lm_damping", "frame_name",
     "frame_type", "root_name", "root_type", "body", "target_q", "target_com", "lower",
     "upper", "limit", "minimum_distance_from_collisions", "collision_detection_distance",
+    "dof_indices", "axis", "target_dir", "target_pos", "target", "target_position",
+    "target_rotation", "margin", "bound_relaxation", "max_num_contacts", "geom_id_pairs",
+    "inv_dt_sq", "joints", "subdivisions", "rows",
 )  # fmt: skip
 
 
@@ -4610,8 +4613,18 @@ def _mutation_values(obj, name: str, model, configuration, rng) -> list:
         scaled = current * rng.uniform(0.1, 3.0)
         zero = np.zeros_like(current)
         return [("set", scaled), ("inplace", scaled), ("set", zero)], weird
-    if isinstance(current, (int, float)) and not isinstance(current, bool):
+    if name == "dof_indices":
+        return [("set", [0]), ("set", [model.nv - 1])], [("set", [model.nv]), ("set", [0, 0])]
+    if name == "rows":
+        return [("set", "position"), ("set", "orientation")], [("set", "bogus"), ("set", 3)]
+    if name == "geom_id_pairs" and isinstance(current, list):
+        return [("set", current[:1]), ("set", current[::-1])], [("set", [(0, 10**6)])]
+    if isinstance(current, int) and not isinstance(current, bool):
+        return [("set", current), ("set", max(1, current - 1))], [("set", -1), ("set", "x")]
+    if isinstance(current, float):
         return [("set", float(current) * 0.5), ("set", 0.5)], weird[:4]
+    if isinstance(current, (list, tuple)) and current:
+        return [("set", type(current)(current[:1]))], [("set", "x"), ("set", None)]
     return [], weird
 
 

@@ -439,7 +439,7 @@ def write_world_pose_row(views: tuple, task, names: tuple) -> None:
         value = getattr(task, name)
         if value is None:
             raise TargetNotSet(type(task).__name__)
-        view[...] = np.reshape(value, -1)
+        _put(view, np.reshape(value, -1))  # (no broadcasting: a number is not a vector)
     _put(cost, task.cost)
     row[POSE_COST + 6] = task.gain
     row[POSE_COST + 7] = task.lm_damping

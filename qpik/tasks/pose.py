@@ -86,6 +86,19 @@ def checked_rotation(value: npt.ArrayLike | mink.SO3, what: str = "rotation targ
     return rotation
 
 
+def _entries(value, shape: tuple[int, ...], what: str) -> np.ndarray:
+    """A target attribute (set by the setters, or assigned directly) as float entries of
+    ``shape``, flattened: ValueError naming it where it is not (a number where a vector or
+    matrix is expected: no broadcasting), which the steps report as the task's
+    TaskDefinitionError."""
+    if type(value) is np.ndarray and value.shape == shape and value.dtype == np.float64:
+        return value.reshape(-1)  # (the setters' arrays: the usual case, no copy)
+    entries = np.asarray(value, dtype=float)
+    if entries.shape != shape:
+        raise ValueError(f"a {what} of shape {entries.shape}, not {shape}")
+    return entries.reshape(-1)
+
+
 def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
     vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
     if not np.all(np.isfinite(vector)) or np.any(vector < 0):
@@ -175,7 +188,7 @@ class PositionTask(_FrameRowsTask):
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
         target = np.zeros(12)
-        target[:3] = self.target
+        target[:3] = _entries(self.target, (3,), "position target")
         return target
 
 
@@ -204,13 +217,13 @@ class OrientationTask(_FrameRowsTask):
     def _rotation_entries(self) -> np.ndarray | None:
         """The target rotation's 9 entries, row-major (None while no target is set): what
         the compiled step reads each step (a 1-D view of the matrix)."""
-        return None if self.target is None else self.target.reshape(-1)
+        return None if self.target is None else _entries(self.target, (3, 3), "rotation target")
 
     def _target12(self) -> np.ndarray:
         if self.target is None:
             raise TargetNotSet(type(self).__name__)
         target = np.zeros(12)
-        target[3:] = self.target.reshape(-1)
+        target[3:] = _entries(self.target, (3, 3), "rotation target")
         return target
 
 
@@ -275,12 +288,12 @@ class PoseTask(_CompiledRows, mink.Task):  # type: ignore[misc]  # (see the note
         """The target rotation's 9 entries, row-major (None while no target is set): what
         the compiled step reads each step (a 1-D view of the matrix)."""
         rotation = self.target_rotation
-        return None if rotation is None else rotation.reshape(-1)
+        return None if rotation is None else _entries(rotation, (3, 3), "rotation target")
 
     def _rows(self, configuration: Configuration, cost: np.ndarray, gain: float, lm: float):
         if self.target_position is None or self.target_rotation is None:
             raise TargetNotSet(type(self).__name__)
         target = np.empty(12)
-        target[:3] = self.target_position
-        target[3:] = self.target_rotation.reshape(-1)
+        target[:3] = _entries(self.target_position, (3,), "position target")
+        target[3:] = _entries(self.target_rotation, (3, 3), "rotation target")
         return _pose_rows(self, configuration, target, POSE_FULL, cost, gain, lm)

@@ -155,3 +155,34 @@ def test_manipulability_task_frame_type_and_rows_are_checked_when_set():
     np.testing.assert_array_equal(
         task.compute_jacobian(configuration), fresh.compute_jacobian(configuration)
     )
+
+
+@pytest.mark.parametrize(
+    ("make", "name", "value"),
+    [
+        (lambda: qpik.tasks.PositionTask("ee", "site"), "target", 0.5),
+        (lambda: qpik.tasks.OrientationTask("ee", "site"), "target", 1.0),
+        (lambda: qpik.tasks.OrientationTask("ee", "site"), "target", np.ones(9)),
+        (lambda: qpik.tasks.PoseTask("ee", "site"), "target_rotation", 1.0),
+        (lambda: qpik.tasks.PoseTask("ee", "site"), "target_position", np.zeros(2)),
+    ],
+)
+def test_a_target_of_the_wrong_shape_is_refused_on_every_path(make, name, value):
+    """A world-frame target assigned directly as a number (or of the wrong shape) where the
+    task keeps a vector or matrix: TaskDefinitionError naming the task on the lane, the QP
+    path and a new solver (before: an AttributeError from the QP path, and a number
+    broadcast into every entry on the gathered step)."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    task = make()
+    task.set_target_from_configuration(configuration)
+    limits = [mink.ConfigurationLimit(model)]
+    solver = qpik.IKSolver(model, [[task]], limits)
+    solver.step(configuration, DT)
+    setattr(task, name, value)
+    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
+        solver.step(configuration, DT)
+    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
+        solver.qp_solution(configuration, DT)
+    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
+        qpik.IKSolver(model, [[task]], limits).step(configuration, DT)
