@@ -22,10 +22,18 @@ dofs takes its step from its Gram matrix ``A A^T`` (built once for the singular-
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .._engine import igm as _igm
 
+if TYPE_CHECKING:
+    from ..options import SolveOptions
+
+#: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
+#: this fraction of the distance to a limit.
+LIMIT_GAIN = 0.95
 # Reasons (codes) returned by igm_solve; names in qpik.igm.result.REASONS.
 CONVERGED = 0
 MAX_ITERS = 1
@@ -179,3 +187,36 @@ assert (PROGRESS, RESTART_SPREAD, BLOCKED, NEAR_TARGET) == (
     _igm.BLOCKED,
     _igm.NEAR_TARGET,
 )
+
+
+def kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
+    """The float and int option arrays of :func:`igm_solve` for the options ``s``."""
+    law = s.damping_law
+    max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
+    options = np.array(
+        [
+            s.tol_position,
+            s.tol_orientation,
+            s.alpha,
+            s.beta,
+            max_step[0],
+            max_step[1],
+            law.singular_threshold if law is not None else 0.0,
+            law.max_damping if law is not None else 0.0,
+            law.error_scale if law is not None and law.error_scale is not None else 0.0,
+            s.damping,
+            LIMIT_GAIN,
+        ]
+    )
+    budget = s.iteration_budget
+    int_options = np.array(
+        [
+            s.max_iters,
+            s.effective_restarts,
+            s.stall_window,
+            int(s.time_budget is not None),
+            -1 if budget is None else budget,
+        ],
+        dtype=np.int64,
+    )
+    return options, int_options

@@ -92,7 +92,13 @@ import numpy as np
 import numpy.typing as npt
 
 from ..diffik.solver import Stack, normalize_stack
-from ..errors import InvalidConfiguration, InvalidInput, InvalidTarget, JointLimitViolation
+from ..errors import (
+    InvalidConfiguration,
+    InvalidInput,
+    InvalidTarget,
+    JointLimitViolation,
+    ReadOnlyAttribute,
+)
 from ..model import ReachBound
 from ..model.configuration import (
     Configuration,
@@ -104,6 +110,7 @@ from ..model.couplings import unheld_equality_errors
 from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
+from .kernels import kernel_options as _kernel_options
 from .prepared import PREPARED, PreparedFrame, PreparedRobot
 from .qp_engine import QPProblem, borrowed_tasks, iterate, joint_position_limits
 from .restarts import Clock, Seed
@@ -125,9 +132,7 @@ if TYPE_CHECKING:
 
 __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 
-#: Gain of the joint-limit box (mink's ConfigurationLimit default): a step covers at most
-#: this fraction of the distance to a limit.
-LIMIT_GAIN = 0.95
+LIMIT_GAIN = kernels.LIMIT_GAIN
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 
@@ -146,39 +151,6 @@ class SolveCall(SolveArguments, total=False):
     :class:`SolveArguments` and the ``seed`` of the solve (documented by :func:`solve`)."""
 
     seed: Seed | Unset
-
-
-def _kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
-    """The float and int option arrays of :func:`qpik.igm.kernels.igm_solve`."""
-    law = s.damping_law
-    max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
-    options = np.array(
-        [
-            s.tol_position,
-            s.tol_orientation,
-            s.alpha,
-            s.beta,
-            max_step[0],
-            max_step[1],
-            law.singular_threshold if law is not None else 0.0,
-            law.max_damping if law is not None else 0.0,
-            law.error_scale if law is not None and law.error_scale is not None else 0.0,
-            s.damping,
-            LIMIT_GAIN,
-        ]
-    )
-    budget = s.iteration_budget
-    int_options = np.array(
-        [
-            s.max_iters,
-            s.effective_restarts,
-            s.stall_window,
-            int(s.time_budget is not None),
-            -1 if budget is None else budget,
-        ],
-        dtype=np.int64,
-    )
-    return options, int_options
 
 
 class IKSession:
@@ -209,8 +181,8 @@ class IKSession:
         options: SolveOptions,
         prepared: PreparedRobot,
     ) -> None:
-        self.model: mujoco.MjModel = model
-        self.options: SolveOptions = options
+        self._model = model
+        self._defaults = options
         self._robot_q = robot_q
         self._prepared = prepared
         self._support = prepared.support
@@ -222,6 +194,27 @@ class IKSession:
         # What the "qp" engine's solves borrow (QPProblem's scratch and joint_limits): this
         # session's own, made on first use (a session solves one target at a time).
         self._lent: tuple[Configuration, list] | None = None
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The robot's model (read-only: the session's preparation is of it; assigning one
+        raises :class:`qpik.ReadOnlyAttribute`: build a new session for another robot)."""
+        return self._model
+
+    @model.setter
+    def model(self, value: Any) -> None:
+        raise ReadOnlyAttribute("IKSession", "model", "build an IKSession for the other robot")
+
+    @property
+    def options(self) -> SolveOptions:
+        """The session's default :class:`qpik.SolveOptions` (settable: options, a preset name
+        or ``None``, checked as the constructor's; another value raises
+        :class:`qpik.InvalidOption`)."""
+        return self._defaults
+
+    @options.setter
+    def options(self, value: SolveOptions | str | None) -> None:
+        self._defaults = resolve(value)
 
     def _qp_problem(self, frames: list, stack: Any, settings: SolveOptions) -> QPProblem:
         """A "qp"-engine problem with this session's scratch configuration and joint
