@@ -123,6 +123,7 @@ from .certificate import (
     certificates,
     primal_violation,
 )
+from .settings import SolverSettings
 
 __all__ = [
     "CERTIFICATE_TOLERANCE",
@@ -236,7 +237,10 @@ class HierarchyResult:
         sigma: per level, the smallest singular value that drove its damping (inf when
             none).
         damping: per level, ``lambda^2`` applied.
-        iterations: per level, active-set changes (or the backend's iterations).
+        iterations: per level, active-set changes (or the backend's iterations: a
+            forced backend's, or OSQP's where the cascade fell back to it; OSQP's workspace
+            is kept warm between solves, so its count is a speed figure that depends on
+            what was solved before, unlike every other field).
         active: per level, the active set of its QP: (n + p,) int8, +1 at a lower bound,
             -1 at an upper bound (box rows first, then the general rows).
         backend: per level, which backend produced the answer.
@@ -315,7 +319,7 @@ _KINDS = (
 _UNSET_LAW = object()
 
 
-class HierarchySolver:
+class HierarchySolver(SolverSettings):
     """Solves :class:`HierarchyProblem` s. By default every level starts cold, so the same
     problem gives bitwise the same result whatever was solved before; backend workspaces
     (OSQP) are kept, and the active sets they find start the exact cascade, which answers.
@@ -347,21 +351,16 @@ class HierarchySolver:
         warm_start: bool = False,
         backend_options: dict | None = None,
     ):
-        if solver not in SOLVERS:
-            raise InvalidInput(f"unknown QP solver {solver!r}; known solvers: {', '.join(SOLVERS)}")
-        if not (isinstance(rank_tolerance, (int, float)) and 0 < rank_tolerance < 1):
-            raise InvalidInput(f"rank_tolerance must be in (0, 1), got {rank_tolerance!r}")
-        if damping_law is not None and not isinstance(damping_law, DampingLaw):
-            raise InvalidInput(f"damping_law must be a DampingLaw or None, got {damping_law!r}")
+        # (each setting checked by its property: qpik.core.settings)
+        self.backend_options = backend_options
         self.solver = solver
         self.damping_law = damping_law
         self._settings_law: object = _UNSET_LAW  # the law _settings was computed for
         self._settings: tuple[float, float, float] = (1.0, 0.0, 0.0)
-        self.rank_tolerance = float(rank_tolerance)
-        self.max_iter = int(max_iter)
-        self.tolerance = float(tolerance)
+        self.rank_tolerance = rank_tolerance
+        self.max_iter = max_iter
+        self.tolerance = tolerance
         self.warm_start = warm_start
-        self.backend_options = dict(backend_options or {})
         self._warm: np.ndarray | None = None
         #: ``(stack, row)`` when the last solve's active sets are ``stack[row]``, not yet
         #: read (:meth:`warm_start_from_row`); it overrides ``_warm`` (then stale, not read).
@@ -369,9 +368,6 @@ class HierarchySolver:
         self._workspaces: dict = {}
         # The compiled cascade's storage, kept between solves (no state but capacity).
         self._cascade_workspace = K.CascadeWorkspace()
-        if solver != "auto":
-            # (fail early, naming the extra a backend needs)
-            backends.make_workspace(solver, 1, 1, self.backend_options)
 
     def reset(self) -> None:
         """Forget the warm start and backend workspaces."""

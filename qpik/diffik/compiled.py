@@ -44,10 +44,17 @@ from ..model.configuration import Configuration
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .correction import LeanCorrection
 from .layout import (
-    POSE_COST,
+    DAMPING,
+    DT,
+    ERROR_SCALE,
+    RANK_TOL,
+    THRESHOLD,
+    TOL,
     com_chains,
     frame_chains,
     guards_hold,
+    lean_slots,
+    lean_sources,
     plan_guards,
     write_com_row,
     write_frame_row,
@@ -66,8 +73,6 @@ OK, NOT_FINITE, CONFLICT, UNSETTLED = 0, 1, 2, 3
 assert (OK, NOT_FINITE, CONFLICT, UNSETTLED) == (
     _engine.OK, _engine.NOT_FINITE, _engine.CONFLICT, _engine.UNSETTLED
 )  # fmt: skip
-#: ``settings`` entries of the kernel.
-DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
 #: Level statuses by the kernel's codes (as the floats of its info array).
 _STATUS_OF_CODE = {float(code): status for code, status in STATUS_OF_CODE.items()}
 _SOLVED_CODE, _INFEASIBLE_CODE = float(kernels.SOLVED), float(kernels.INFEASIBLE)
@@ -125,6 +130,7 @@ class CompiledPlan:
         self._chain_data: mujoco.MjData | None = None  # the MjData of attach_chains
         self._corrector: LeanCorrection | None = None  # _correct's passes (built on the first)
         self._cap = self.max_iter or 10 * self.nv + 50  # a lean step's cap on changes
+        self._synced = self._version = -1  # the core's settings_version copied (sync)
         #: per CoM task, its per-dof chain ([]: mj_jacSubtreeCom gives every CoM Jacobian)
         self._com_chains = com_chains(self.model, [c[1] for c in self.coms])
         #: no row-supplying task or general rows, CoM tasks only with chains: once _lean
@@ -145,9 +151,9 @@ class CompiledPlan:
         #: the frames and subtrees the plan resolved, checked each step (plan_guards)
         self._guards = plan_guards(self.frames, self.relatives, self.coms)
         self.kernel.set_guards(self._guards)
-        self._limit_first = 0  # (the limits' first source: Kernel.load_limits, gathered step)
-        self.kernel.set_slots(*self._slots())
-        self.kernel.set_sources(self._sources())
+        self.kernel.set_slots(*lean_slots(self))
+        sources, self._limit_first = lean_sources(self)
+        self.kernel.set_sources(sources)
         if not self.general_limits:
             if self.frames:
                 frames = frame_chains(self.model, self.arrays["frames"])
@@ -163,51 +169,6 @@ class CompiledPlan:
         """The plan itself: it is the solver's machinery, not data (a deep copy of a
         :class:`StepResult`, which reads its lazy fields through the plan, shares it)."""
         return self
-
-    def _slots(self) -> tuple[list, list]:
-        """The views the lean step fills (``dt``, ``damping``, then :meth:`_sources`' values
-        in order), and which take one number."""
-        views: list = []
-        scalar: list = []
-
-        def add(view: np.ndarray, one: bool = False) -> None:
-            views.append(view)
-            scalar.append(one)
-
-        def task(targets, cost, gain: np.ndarray, lm: np.ndarray) -> None:  # a task's values
-            views.extend((*targets, cost, gain, lm))
-            scalar.extend((*(False for _ in targets), False, True, True))
-
-        a = self.arrays
-        settings = a["settings"]
-        add(settings[DT : DT + 1], True)
-        add(settings[DAMPING : DAMPING + 1], True)
-        for *_, (row, target, cost), names in self.frames:  # (names: a pose task's targets)
-            g = 13 if names is None else POSE_COST + 6
-            task((target,) if names is None else target, cost, row[g : g + 1], row[g + 1 : g + 2])
-        for _task, (row, target, cost), damping in self.postures:
-            if not damping:  # a damping task's error is zero: no target
-                add(target)
-            add(cost)
-            add(row[-2:-1], True)
-            add(row[-1:], True)
-        for *_, (row, target, cost) in self.coms:
-            task((target,), cost, row[6:7], row[7:8])
-        for *_, (row, target, cost) in self.relatives:
-            task((target,), cost, row[13:14], row[14:15])
-        lin = a["lin_data"]
-        for _task, r0, cost_view in self.linears:
-            add(cost_view)
-            add(lin[1, r0 : r0 + 1], True)
-            add(lin[2, r0 : r0 + 1], True)
-        for _limit, e0, e1 in self.config_limits:
-            if e1 > e0:  # (a model without limited joints: no entries)
-                add(a["cfg_data"][e0:e1, 0])
-                add(a["cfg_data"][e0:e1, 1])
-            add(a["cfg_data"][e0:e1, 2], True)
-        for _limit, v0, v1 in self.vel_limits:
-            add(a["vel_limit"][v0:v1])
-        return views, scalar
 
     def cold_for(self, p: int) -> np.ndarray:
         """Zero active sets ``(L, nv + p)`` int8 (a cold start with ``p`` general rows)."""
@@ -337,20 +298,27 @@ class CompiledPlan:
 
     def write_settings(self, dt: float, damping: float, core: HierarchySolver) -> None:
         """The kernel's ``settings`` for a step of ``dt`` [s] with the constant
-        ``damping`` and ``core``'s damping law (its entries rewritten when the law
-        object changes: the law is settable)."""
+        ``damping`` and ``core``'s settings (:meth:`sync`)."""
         settings = self.arrays["settings"]
         settings[DT] = dt
         settings[DAMPING] = damping
-        self._write_law(core)
+        if core.settings_version != self._synced:
+            self.sync(core)
 
-    def _write_law(self, core: HierarchySolver) -> None:
-        """``core``'s damping-law entries of ``settings``, rewritten when the law object
-        changes (the law is settable)."""
-        law = core.damping_law
-        if law is not self.law:
-            self.arrays["settings"][THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
-            self.law = law
+    def sync(self, core: HierarchySolver) -> None:
+        """``core``'s settings copied again where they changed since the last copy (its
+        ``settings_version``): damping law, rank tolerance, tolerance, cap on changes; the
+        plain lane's ``_version`` is the core's where it may take steps (the default solver,
+        cold starts), else -1 (IKSolver.step compares them)."""
+        settings, law = self.arrays["settings"], core.damping_law
+        settings[THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
+        settings[RANK_TOL], settings[TOL] = core.rank_tolerance, core.tolerance
+        if core.max_iter != self.max_iter:
+            self.max_iter, self._corrector = core.max_iter, None
+            self._cap = self.max_iter or 10 * self.nv + 50
+        self.law, self._synced = law, core.settings_version
+        lane = core.solver == "auto" and not core.warm_start
+        self._version = self._synced if lane else -1
 
     def _general(self, configuration: mink.Configuration, dt: float):
         """``(G, h, names)`` of the plan's general-row limits (see
@@ -360,41 +328,6 @@ class CompiledPlan:
         return self.limits.general_rows(self.general_limits, configuration, dt)
 
     # ------------------------------------------------------------ lean step
-    def _sources(self) -> list:
-        """Where the kernel reads the values of :meth:`_slots` after ``dt`` and ``damping``
-        (``Kernel.set_sources``, in the same order): each task's target, cost, gain and LM
-        damping and the position limits' gains, read by the kernel at each lean step (as
-        :meth:`gather` copies them; a value it does not take as it is, a target not set:
-        :meth:`gather` writes them, or raises)."""
-        sources: list = []
-
-        def task(t, target=None, inner=None) -> None:  # (target: a name, or a tuple of them)
-            if isinstance(target, tuple):
-                sources.extend((t, name) for name in target)
-            elif target is not None:
-                sources.append((t, target) if inner is None else (t, target, inner))
-            sources.extend(((t, "cost"), (t, "gain"), (t, "lm_damping")))
-
-        for t, *_, names in self.frames:  # (names: a world-frame pose task's targets)
-            task(t, names or "transform_target_to_world", None if names else "wxyz_xyz")
-        for t, _views, damping_task in self.postures:
-            task(t, None if damping_task else "target_q")
-        for t, *_ in self.coms:
-            task(t, "target_com")
-        for t, *_ in self.relatives:
-            task(t, "transform_target_to_root", "wxyz_xyz")
-        for t, *_ in self.linears:
-            task(t)
-        self._limit_first = len(sources)
-        qadr = self.arrays["cfg_qadr"]
-        for limit, e0, e1 in self.config_limits:  # bounds [rad or m] at each dof's qpos entry
-            if e1 > e0:
-                picked = qadr[e0:e1].tolist()
-                sources.extend(((limit, "lower", picked), (limit, "upper", picked)))
-            sources.append((limit, "gain"))
-        sources.extend((limit, "limit") for limit, *_ in self.vel_limits)
-        return sources
-
     def _jacobians(self, data: mujoco.MjData) -> None:
         """Attach ``data``'s ``cdof`` and ``subtree_com``, whence the kernel makes the tasks'
         Jacobians; MuJoCo's CoM Jacobians where the CoM tasks have no chains."""
@@ -451,8 +384,8 @@ class CompiledPlan:
             return -1
         if data is not self._data:
             self._attach(data)
-        if core.damping_law is not self.law:
-            self._write_law(core)
+        if core.settings_version != self._synced:
+            self.sync(core)
         row = self._row
         if row == OUTPUT_ROWS:
             self._new_outputs()

@@ -116,7 +116,8 @@ class StepResult:
         status: per level, a :class:`~qpik.core.LevelStatus` (``"solved"``,
             ``"infeasible"``: level 0's limits admit no displacement, ``"kept_previous"``,
             ``"max_iter"``, ``"not_reached"``, ...).
-        iterations: per level, active-set changes (or the forced backend's iterations).
+        iterations: per level, active-set changes (or the forced backend's iterations,
+            which depend on its warm workspace: a speed figure, unlike every other field).
         solve_time: wall time of the whole step [s].
         certificate: per level, its :class:`~qpik.core.LevelCertificate` (the largest
             scaled violation of primal feasibility, stationarity, dual signs and

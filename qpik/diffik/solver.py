@@ -325,7 +325,8 @@ class IKSolver:
         # The plain lane: the default solver's step by a plain plan (no CoM
         # or row-supplying task, no general rows), without correction passes, when each
         # check of CompiledPlan._lean holds (the configuration's MjData attached with its
-        # chains, the damping law's settings written, a free output row, a cold start):
+        # chains, the core's settings copied and lane-fit: CompiledPlan.sync, a free output
+        # row):
         # the kernel called from this frame and StepResult.lean's result made here. It is
         # inlined because a Python call costs about 1.7k instructions of a 72k-instruction
         # step. Its conditions are one `or` chain whose jumps stay short (CPython 3.11
@@ -334,14 +335,12 @@ class IKSolver:
             plan is None
             or self._passes
             or type(dt) is not float
-            or core.solver != "auto"
+            or core.settings_version != plan._version  # (the default solver, cold: sync)
             or not isinstance(configuration, _MinkConfiguration)
             or configuration.model is not self._model
             or not _DT_MIN <= dt <= _DT_MAX
             or configuration.data is not plan._plain_data  # (never, for a plan not plain)
-            or core.damping_law is not plan.law
             or (row := plan._row) == _OUTPUT_ROWS
-            or core.warm_start
         ):
             code = -1  # not taken: CompiledPlan.step_result decides, as for any plan
         else:

@@ -1,0 +1,141 @@
+"""The settings of a :class:`qpik.core.HierarchySolver`, checked where they are set.
+
+Each setting is a property: the constructor's keyword and an assignment afterwards go through
+the same check (a value of the wrong type or range raises :class:`qpik.InvalidOption` naming
+the setting; an unknown backend :class:`qpik.InvalidInput`), so that no solve starts from a
+setting it cannot use. Every assignment also advances :attr:`SolverSettings.settings_version`:
+a compiled plan that copied the settings (:class:`qpik.diffik.compiled.CompiledPlan`) compares
+it with the version it copied, and copies them again where they changed.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+from typing import Any
+
+from ..errors import InvalidInput, InvalidOption
+from ..options import SOLVERS, DampingLaw
+from . import backends
+
+__all__ = ["SolverSettings"]
+
+
+class SolverSettings:
+    """The checked settings of a hierarchical solver (see the module doc)."""
+
+    _solver: str
+    _damping_law: DampingLaw | None
+    _rank_tolerance: float
+    _max_iter: int
+    _tolerance: float
+    _warm_start: bool
+    _backend_options: dict
+    #: Advanced by every assignment of a setting (the plans that copy them compare it).
+    settings_version: int = 0
+
+    def _changed(self) -> None:
+        self.settings_version += 1
+        self._workspaces: dict = {}  # (a backend's workspaces were made for the old settings)
+
+    @property
+    def solver(self) -> str:
+        """The QP backend of the levels where a limit binds: ``"auto"`` (the exact compiled
+        active set) or a name of :data:`qpik.core.SOLVERS` (its optional extra installed)."""
+        return self._solver
+
+    @solver.setter
+    def solver(self, value: str) -> None:
+        if not isinstance(value, str) or value not in SOLVERS:
+            raise InvalidInput(f"unknown QP solver {value!r}; known solvers: {', '.join(SOLVERS)}")
+        if value != "auto":  # (fail here, naming the extra a backend needs)
+            backends.make_workspace(value, 1, 1, getattr(self, "_backend_options", {}))
+        self._solver = value
+        self._changed()
+
+    @property
+    def damping_law(self) -> DampingLaw | None:
+        """The adaptive damping law (a :class:`qpik.DampingLaw`, or None for none)."""
+        return self._damping_law
+
+    @damping_law.setter
+    def damping_law(self, value: DampingLaw | None) -> None:
+        if value is not None and not isinstance(value, DampingLaw):
+            raise InvalidOption("damping_law", value, "a qpik.DampingLaw or None")
+        self._damping_law = value
+        self._changed()
+
+    @property
+    def rank_tolerance(self) -> float:
+        """The relative rank tolerance of each level, in ``(0, 1)``."""
+        return self._rank_tolerance
+
+    @rank_tolerance.setter
+    def rank_tolerance(self, value: float) -> None:
+        number = _real(value)
+        if not 0.0 < number < 1.0:
+            raise InvalidOption("rank_tolerance", value, "a number in (0, 1)")
+        self._rank_tolerance = number
+        self._changed()
+
+    @property
+    def max_iter(self) -> int:
+        """The cap on active-set changes per level (an int ``>= 0``; 0: ``10 (n + p) + 50``)."""
+        return self._max_iter
+
+    @max_iter.setter
+    def max_iter(self, value: int) -> None:
+        try:
+            number = operator.index(value)
+        except TypeError:
+            number = -1
+        if isinstance(value, bool) or number < 0:
+            raise InvalidOption("max_iter", value, "an int >= 0 (0: the default cap)")
+        self._max_iter = number
+        self._changed()
+
+    @property
+    def tolerance(self) -> float:
+        """The feasibility tolerance of the limits (relative, per unit row norm; finite)."""
+        return self._tolerance
+
+    @tolerance.setter
+    def tolerance(self, value: float) -> None:
+        number = _real(value)
+        if not math.isfinite(number):
+            raise InvalidOption("tolerance", value, "a finite number")
+        self._tolerance = number
+        self._changed()
+
+    @property
+    def warm_start(self) -> bool:
+        """Whether a solve tries the previous solve's active sets first (a bool)."""
+        return self._warm_start
+
+    @warm_start.setter
+    def warm_start(self, value: bool) -> None:
+        if not isinstance(value, bool):
+            raise InvalidOption("warm_start", value, "True or False")
+        self._warm_start = value
+        self._changed()
+
+    @property
+    def backend_options(self) -> dict:
+        """The forced backend's settings (OSQP settings or qpsolvers keywords; a dict)."""
+        return self._backend_options
+
+    @backend_options.setter
+    def backend_options(self, value: dict | None) -> None:
+        if value is not None and not isinstance(value, dict):
+            raise InvalidOption("backend_options", value, "a dict of backend settings or None")
+        self._backend_options = dict(value or {})
+        self._changed()
+
+
+def _real(value: Any) -> float:
+    """``value`` as a float where it is a real number (Python's or NumPy's, not a bool),
+    else NaN (which no check passes)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        return math.nan
+    return float(value)

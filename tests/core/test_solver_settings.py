@@ -1,0 +1,102 @@
+"""HierarchySolver's settings are checked where they are set (the constructor's keywords
+and assignments afterwards alike: qpik.core.settings), and a setting changed after a solve
+is the one the next solve uses, on the core and on the compiled step that copied it."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+
+import qpik
+from qpik.core import DampingLaw, HierarchyProblem, HierarchySolver, Level
+from qpik.errors import InvalidInput, InvalidOption
+
+BAD = [
+    ("solver", "nope"),
+    ("solver", 3),
+    ("rank_tolerance", "x"),
+    ("rank_tolerance", -1.0),
+    ("rank_tolerance", np.nan),
+    ("rank_tolerance", True),
+    ("warm_start", "yes"),
+    ("warm_start", 1),
+    ("damping_law", "x"),
+    ("tolerance", np.inf),
+    ("tolerance", "x"),
+    ("max_iter", -5),
+    ("max_iter", 2.5),
+    ("max_iter", "x"),
+    ("backend_options", "x"),
+]
+
+
+def _problem() -> HierarchyProblem:
+    rng = np.random.default_rng(0)
+    levels = [Level(rng.normal(size=(3, 5)), rng.normal(size=3)), Level(np.eye(5), np.zeros(5))]
+    return HierarchyProblem(
+        levels, lb=-0.3 * np.ones(5), ub=0.3 * np.ones(5), G=np.zeros((0, 5)), h=np.zeros(0)
+    )
+
+
+@pytest.mark.parametrize(("name", "value"), BAD)
+def test_a_setting_out_of_its_range_is_refused_where_it_is_set(name, value):
+    """Assigned after construction or given to the constructor: qpik's InvalidOption naming
+    the setting (an unknown backend: InvalidInput), never a solve that runs with it (before,
+    an assignment was taken as it was: 'nope' solved as 'auto', -1 as a rank tolerance, and
+    'x' raised TypeError from the compiled call)."""
+    solver = HierarchySolver()
+    before = solver.solve(_problem()).x.copy()
+    error = InvalidInput if name == "solver" else InvalidOption
+    with pytest.raises(error, match=name if name != "solver" else "solver"):
+        setattr(solver, name, value)
+    np.testing.assert_array_equal(solver.solve(_problem()).x, before)
+    with pytest.raises(error):
+        HierarchySolver(**{name: value})  # type: ignore[arg-type]
+
+
+def test_a_setting_changed_after_a_solve_is_the_next_solves():
+    problem = _problem()
+    solver = HierarchySolver(damping_law=None)
+    solver.solve(problem)
+    solver.max_iter, solver.tolerance = 3, 1e-10
+    fresh = HierarchySolver(damping_law=None, max_iter=3, tolerance=1e-10)
+    np.testing.assert_array_equal(solver.solve(problem).x, fresh.solve(problem).x)
+    assert solver.settings_version > 0
+
+
+def test_the_compiled_step_copies_the_core_settings_again_where_they_changed():
+    """An IKSolver's core settings changed after its plan copied them (its damping law
+    through IKSolver.damping_law, its rank tolerance and cap through the core): the next
+    step is that of a solver built with them, bit for bit, on the plain lane (before, the
+    lane kept the copied rank tolerance and cap)."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    p = configuration.frame_pose("ee", "site")[0]
+    frame.set_target(mink.SE3.from_translation(p + 0.3))
+    posture = qpik.tasks.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0] + 0.5)
+    limits = [mink.ConfigurationLimit(model), qpik.limits.velocity_limit_from_model(model)]
+    law = DampingLaw(singular_threshold=0.3, max_damping=0.2, error_scale=None)
+    solver = qpik.IKSolver(model, [[frame], [posture]], limits)
+    solver.step(configuration, 0.01)
+    solver.step(configuration, 0.01)
+    solver.damping_law = law
+    solver._core.rank_tolerance = 0.1  # (drops a direction here)
+    solver._core.max_iter = 2
+    changed = solver.step(configuration, 0.01)
+    again = solver.step(configuration, 0.01)  # (the lane)
+    assert solver._plan._plain_data is configuration.data
+    fresh = qpik.IKSolver(model, [[frame], [posture]], limits, damping_law=law, rank_tolerance=0.1)
+    fresh._core.max_iter = 2
+    expected = fresh.step(configuration, 0.01)
+    np.testing.assert_array_equal(changed.velocity, expected.velocity)
+    np.testing.assert_array_equal(again.velocity, expected.velocity)
+    assert [str(s) for s in again.status] == [str(s) for s in expected.status]
+    # the cap and tolerance the plan's kernel reads (before: the build's, 0 and 1e-9)
+    from qpik.diffik.layout import RANK_TOL
+
+    assert solver._plan._cap == 2 and solver._plan.arrays["settings"][RANK_TOL] == 0.1
+    default = qpik.IKSolver(model, [[frame], [posture]], limits, damping_law=law)
+    assert np.abs(default.step(configuration, 0.01).velocity - again.velocity).max() > 1e-3
