@@ -338,6 +338,10 @@ class HierarchySolver(SolverSettings):
             round-off at degenerate vertices. Speed only, and today not a gain: the
             warm set's KKT check costs more than the dual iterations it saves.
         backend_options: passed to the forced backend (OSQP settings or qpsolvers kwargs).
+
+    Each of these is also an attribute, checked when it is assigned as when it is given
+    (:class:`qpik.core.settings.SolverSettings`: :class:`qpik.InvalidOption` naming it);
+    the next solve uses the new value.
     """
 
     def __init__(
