@@ -238,9 +238,10 @@ class HierarchyResult:
             none).
         damping: per level, ``lambda^2`` applied.
         iterations: per level, active-set changes (or the backend's iterations: a
-            forced backend's, or OSQP's where the cascade fell back to it; OSQP's workspace
-            is kept warm between solves, so its count is a speed figure that depends on
-            what was solved before, unlike every other field).
+            forced backend's, whose workspace is kept warm between solves, so that its
+            count is a speed figure that depends on what was solved before, unlike every
+            other field; or, where the exact cascade did not settle, those of OSQP from a
+            fresh workspace).
         active: per level, the active set of its QP: (n + p,) int8, +1 at a lower bound,
             -1 at an upper bound (box rows first, then the general rows).
         backend: per level, which backend produced the answer.
@@ -630,7 +631,7 @@ class HierarchySolver(SolverSettings):
             if st == K.SOLVED and it == 0 and not act.any():
                 return z, st, 0, act, self.solver
             name = self.solver
-        solution = self._backend_solve(k, name, H, c, C, lo, hi)
+        solution = self._backend_solve(k, name, H, c, C, lo, hi, keep=not fallback)
         if solution is not None and solution.found:
             z, st, act = backends.made_exact(
                 solution.x, (H, c, C, lo, hi), max_iter, self.tolerance, k > 0
@@ -647,11 +648,12 @@ class HierarchySolver(SolverSettings):
         )
         return z, st, it, act, f"{name} failed: auto"
 
-    def _backend_solve(self, k, name, H, c, C, lo, hi):
+    def _backend_solve(self, k, name, H, c, C, lo, hi, keep: bool = True):
         """The backend's solution, or None if it raised (its workspace is then dropped, so
-        the next call starts a fresh one)."""
+        the next call starts a fresh one). ``keep=False``: a fresh workspace, not kept (the
+        fallback's OSQP: its iterations then depend on this problem alone)."""
         key = (k, name, H.shape[0], C.shape[0])
-        workspace = self._workspaces.get(key)
+        workspace = self._workspaces.get(key) if keep else None
         try:
             if workspace is None:
                 workspace = backends.make_workspace(
@@ -663,7 +665,8 @@ class HierarchySolver(SolverSettings):
         except Exception:  # a backend failure must not poison the solver
             self._workspaces.pop(key, None)
             return None
-        self._workspaces[key] = workspace
+        if keep:
+            self._workspaces[key] = workspace
         return solution
 
 

@@ -100,3 +100,32 @@ def test_the_compiled_step_copies_the_core_settings_again_where_they_changed():
     assert solver._plan._cap == 2 and solver._plan.arrays["settings"][RANK_TOL] == 0.1
     default = qpik.IKSolver(model, [[frame], [posture]], limits, damping_law=law)
     assert np.abs(default.step(configuration, 0.01).velocity - again.velocity).max() > 1e-3
+
+
+def test_a_level_past_its_cap_reports_the_same_whatever_ran_before():
+    """A cap the dual method hits (max_iter=2): the level falls back to OSQP, from a fresh
+    workspace, so that its iteration count, like every other field, is the same on a first
+    solve, a second one and one after another problem (before: 55, 5 and 115, from a kept,
+    warm OSQP workspace; x the same)."""
+    pytest.importorskip("osqp")
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    p = configuration.frame_pose("ee", "site")[0]
+    frame.set_target(mink.SE3.from_translation(p + 0.3))
+    posture = qpik.tasks.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0] + 0.5)
+    limits = [mink.ConfigurationLimit(model), qpik.limits.velocity_limit_from_model(model)]
+    ik = qpik.IKSolver(model, [[frame], [posture]], limits)
+    problem = ik.build(configuration, 0.01)
+    other = ik.build(qpik.Configuration(model, model.key_qpos[0] + 0.1), 0.01)
+    first = HierarchySolver(max_iter=2)
+    a = first.solve(problem)
+    again = first.solve(problem)
+    after = HierarchySolver(max_iter=2)
+    after.solve(other)
+    b = after.solve(problem)
+    assert a.backend[0] == "osqp"  # (the fallback this is about)
+    for result in (again, b):
+        np.testing.assert_array_equal(result.x, a.x)
+        assert result.iterations == a.iterations and result.status == a.status
