@@ -1327,6 +1327,15 @@ def gen_mutate(r: random.Random) -> dict:
         (r.randrange(10**6), r.randrange(10**6), r.randrange(10**6), r.random() < 0.3)
         for _ in range(r.choice([1, 1, 2, 3]))
     ]
+    # a solver setting changed too (IKSolver.damping / .damping_law: the settable ones)
+    spec["setting"] = r.choice(
+        [
+            None,
+            None,
+            ["damping", r.choice([0.0, 1e-3, 1.0, -1.0, "x", NAN])],
+            ["damping_law", r.choice(["none", "strong", "x"])],
+        ]
+    )
     return spec
 
 
@@ -4674,11 +4683,22 @@ def run_mutate(spec: dict) -> str:
             return solver
     else:
         solver = qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+        settings: dict = {}
 
         def fresh_solver():
-            return qpik.IKSolver(model, levels, limits, solver=spec["solver"])
+            return qpik.IKSolver(model, levels, limits, solver=spec["solver"], **settings)
 
     _step_outcome(lambda: solver, configuration, dt)  # the step that builds its state
+    if spec["entry"] == "step" and spec.get("setting"):
+        name, value = spec["setting"]
+        if name == "damping_law":
+            law = {"none": None, "strong": qpik.DampingLaw(0.3, 0.2, None)}.get(value, value)
+            value = law
+        try:
+            setattr(solver, name, value)
+            settings[name] = value
+        except qpik.QpikError:
+            pass  # (refused where it is set: the solver keeps its own)
     objects = [t for level in levels for t in level] + list(limits)
     applied = []
     for o_pick, a_pick, v_pick, weird in spec["mutations"]:
