@@ -4,9 +4,9 @@
 :class:`qpik.IKSolver` when every limit is one the compiled :class:`Kernel` takes (mink's
 ``ConfigurationLimit`` without a limited ball joint and ``VelocityLimit``, exact types;
 collision avoidance and the support polygon, :data:`.layout.GENERAL_LIMITS`); its layout
-(which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself (exact types, any joints): qpik's or
-mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``, ``RelativeFrameTask``;
-qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``, ``JointLimitDistanceTask``, and
+(which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself (exact
+types, any joints): qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``,
+``ComTask``, ``RelativeFrameTask``; qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``, ``JointLimitDistanceTask``, and
 its ``CouplingTask`` when every coupling is linear (``qpik/_cpp/tasks/linear.hpp``). Any
 other task (nonlinear couplings, the other secondary tasks, mink's equality, DoF-freezing and
 kinetic-energy tasks, subclasses, user tasks) supplies its own rows each step
