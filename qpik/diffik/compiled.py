@@ -4,26 +4,27 @@
 :class:`qpik.IKSolver` when every limit is one the compiled :class:`Kernel` takes (mink's
 ``ConfigurationLimit`` without a limited ball joint and ``VelocityLimit``, exact types;
 collision avoidance and the support polygon, :data:`.layout.GENERAL_LIMITS`); its layout
-(which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself (exact
-types, any joints): qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``,
-``ComTask``, ``RelativeFrameTask``; qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``, ``JointLimitDistanceTask``, and
-its ``CouplingTask`` when every coupling is linear (``qpik/_cpp/tasks/linear.hpp``). Any
-other task (nonlinear couplings, the other secondary tasks, mink's equality, DoF-freezing and
-kinetic-energy tasks, subclasses, user tasks) supplies its own rows each step
-(:func:`qpik.diffik.rows.task_rows`, the QP path's very arrays) into the plan's ``A, b, w``,
-its LM term into ``user_mu``, laid out by its declared count (``task.k``, else its ``cost``
-vector's length, else ``nv``; another shape sends the step to the QP path). Python does only
-what needs MuJoCo or the task objects; the kernel computes the other tasks' rows, the limits'
-box and the whole cascade (``qpik/_cpp/diffik/fused.hpp``). Without collision limits a step
-is lean (:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task
-objects (held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it
-computes the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its
-answers into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (views of
-that row, never written again): a :class:`~qpik.diffik.result.Solution`, or
-:meth:`qpik.IKSolver.step`'s :class:`~qpik.diffik.result.StepResult` itself. It computes what
-the QP path computes, bit for bit where that path's arithmetic is qpik's, to round-off where
-it is mink's; anything unusual (a non-finite row, conflicting limits, an active set that did
-not settle) returns None, and the QP path answers, reporting or recovering it.
+(which task goes where) is :mod:`.layout`'s. Tasks the kernel computes itself (exact types,
+any joints): qpik's or mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
+``RelativeFrameTask``; qpik's ``PositionTask``, ``OrientationTask``, ``PoseTask``,
+``JointLimitDistanceTask``, and its ``CouplingTask`` when every coupling is linear
+(``qpik/_cpp/tasks/linear.hpp``). Any other task (nonlinear couplings, the other secondary
+tasks, mink's equality, DoF-freezing and kinetic-energy tasks, subclasses, user tasks)
+supplies its own rows each step (:func:`qpik.diffik.rows.task_rows`, the QP path's very
+arrays) into the plan's ``A, b, w``, its LM term into ``user_mu``, laid out by its declared
+count (``task.k``, else its ``cost`` vector's length, else ``nv``; another shape sends the
+step to the QP path). Python does only what needs MuJoCo or the task objects; the kernel
+computes the other tasks' rows, the limits' box and the whole cascade
+(``qpik/_cpp/diffik/fused.hpp``). Without general-row limits a step is lean
+(:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task objects
+(held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it computes
+the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its answers
+into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (views of that
+row, never written again): a :class:`~qpik.diffik.result.Solution`, or
+:meth:`qpik.IKSolver.step`'s :class:`~qpik.diffik.result.StepResult` itself. It computes
+what the QP path computes, bit for bit where that path's arithmetic is qpik's, to round-off
+where it is mink's; anything unusual (a non-finite row, conflicting limits, an active set
+that did not settle) returns None, and the QP path answers, reporting or recovering it.
 """
 
 from __future__ import annotations
