@@ -227,10 +227,9 @@ class PreparedRobots:
         entry = self._entries.get(key)
         if entry is not None and entry[0]() is model and entry[1].unchanged():
             return entry[2]
-        views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
-        if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
+        watch = model_watch(model)  # the bytes first, then what is read from them
+        if watch is None:
             return PreparedRobot(model)  # not views of the model's memory: nothing to watch
-        watch = kernels.ArrayWatch(views)  # the bytes first, then what is read from them
         prepared = PreparedRobot(model)
 
         def forget(ref: weakref.ref, key: int = key) -> None:
@@ -248,6 +247,16 @@ class PreparedRobots:
                 self._entries.pop(oldest, None)
             self._entries[key] = (weakref.ref(model, forget), watch, prepared)
         return prepared
+
+
+def model_watch(model: mujoco.MjModel) -> Any:
+    """A copy of the bytes of ``model``'s :data:`FINGERPRINT_FIELDS`
+    (``qpik.model.kernels.ArrayWatch``: ``unchanged()`` compares them again, one ``memcmp``
+    in compiled code), or None where they are not views of the model's memory."""
+    views = [getattr(model, name) for name in FINGERPRINT_FIELDS]
+    if not all(_is_view_of(model, n, v) for n, v in zip(FINGERPRINT_FIELDS, views)):
+        return None
+    return kernels.ArrayWatch(views)
 
 
 def _is_view_of(model: mujoco.MjModel, name: str, view: np.ndarray) -> bool:

@@ -111,7 +111,7 @@ from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .kernels import kernel_options as _kernel_options
-from .prepared import PREPARED, PreparedFrame, PreparedRobot
+from .prepared import PREPARED, PreparedFrame, PreparedRobot, model_watch
 from .qp_engine import QPProblem, borrowed_tasks, iterate, joint_position_limits
 from .restarts import Clock, Seed
 from .restarts import rng_state as _rng_state
@@ -157,10 +157,12 @@ class IKSession:
     """A robot prepared for repeated solves: hold one per robot and call :meth:`solve`.
 
     It loads the robot once and reads the model once (joint limits, and per target frame
-    its kinematic chain and reach bound, on first use). These caches belong to the session:
-    after editing the model in place (its joint ranges, say), make a new session. Results
-    never depend on what it solved before. :func:`solve` uses the same preparation, kept
-    per model in :data:`PREPARED` (checked against the model's arrays at each call).
+    its kinematic chain and reach bound, on first use). These caches belong to the session,
+    and each solve checks them against the model's arrays they were read from (one
+    ``memcmp``): a model edited in place (its joint ranges narrowed, say) is read again, and
+    the solve is a new session's, bit for bit. Results never depend on what it solved
+    before. :func:`solve` uses the same preparation, kept per model in :data:`PREPARED`
+    (checked the same way at each call).
 
     Args:
         robot: anything :func:`qpik.robots.resolve_robot` accepts (a name, ``"erd:NAME"``,
@@ -172,6 +174,7 @@ class IKSession:
 
     def __init__(self, robot: RobotLike, options: SolveOptions | str | None = None):
         model, robot_q = resolve_robot(robot)
+        self._watch = model_watch(model)  # (the arrays read; compared at each solve)
         self._setup(model, robot_q, resolve(options), PreparedRobot(model))
 
     def _setup(
@@ -188,12 +191,15 @@ class IKSession:
         self._support = prepared.support
         self._lower, self._upper, self._mid = prepared.lower, prepared.upper, prepared.mid
         self._bounds_joint, self._bounds_free = prepared.bounds_joint, prepared.bounds_free
-        # [the last (base options, option values, settings, kernel arrays)], shared by the
-        # one-shot sessions of a prepared robot.
-        self._memo: list = prepared.memo
-        # What the "qp" engine's solves borrow (QPProblem's scratch and joint_limits): this
-        # session's own, made on first use (a session solves one target at a time).
+        self._memo: list = prepared.memo  # [the last (options, values, settings, arrays)]
+        # the "qp" engine's scratch configuration and joint limits (made on first use)
         self._lent: tuple[Configuration, list] | None = None
+
+    def __getstate__(self) -> dict:  # (the watch is compiled: made again from the model)
+        return {**self.__dict__, "_watch": None}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state, _watch=model_watch(state["_model"]))
 
     @property
     def model(self) -> mujoco.MjModel:
@@ -230,6 +236,7 @@ class IKSession:
     ) -> IKSession:
         """A session on ``model`` with the default options over an existing preparation."""
         session = cls.__new__(cls)
+        session._watch = None  # (the one-shot cache watches the model: PreparedRobots.get)
         session._setup(model, robot_q, PRESETS["default"], prepared)
         return session
 
@@ -259,6 +266,10 @@ class IKSession:
         """Solve inverse kinematics; the arguments are :func:`solve`'s (``options``
         defaults to the session's)."""
         start_time = time.perf_counter()
+        watch = self._watch
+        if watch is not None and not watch.unchanged():  # the model edited in place
+            self._watch = model_watch(self._model)
+            self._setup(self._model, self._robot_q, self._defaults, PreparedRobot(self._model))
         return self._solve(targets, options, keywords, start_time)
 
     def _solve(

@@ -40,3 +40,18 @@ def test_session_options_set_after_the_build_are_checked_and_used():
         with pytest.raises(InvalidOption, match="options"):
             session.options = value  # type: ignore[assignment]
     assert session.options == qpik.IKSession("panda").options
+
+
+def test_a_model_edited_in_place_is_read_again_by_the_session():
+    """A joint range narrowed in the model after the session was built: the next solve
+    reads the model again and answers as a new session does, bit for bit, within the new
+    range (before: the session's preparation kept the old range, and its answer, 0.29 rad
+    on a joint now limited to 0.05, was reported converged)."""
+    model = qpik.load_robot("panda")
+    session = qpik.IKSession(model)
+    target = {"ee": [0.4, 0.3, 0.4]}
+    assert abs(session.solve(target).q[0]) > 0.2
+    model.jnt_range[0] = [-0.05, 0.05]
+    narrowed = session.solve(target)
+    assert abs(narrowed.q[0]) <= 0.05
+    np.testing.assert_array_equal(narrowed.q, qpik.IKSession(model).solve(target).q)
