@@ -65,11 +65,9 @@ def test_a_setting_changed_after_a_solve_is_the_next_solves():
     assert solver.settings_version > 0
 
 
-def test_the_compiled_step_copies_the_core_settings_again_where_they_changed():
-    """An IKSolver's core settings changed after its plan copied them (its damping law
-    through IKSolver.damping_law, its rank tolerance and cap through the core): the next
-    step is that of a solver built with them, bit for bit, on the plain lane (before, the
-    lane kept the copied rank tolerance and cap)."""
+def _panda_far():
+    """The bundled Panda at its home pose, a frame target 0.3 m away over a posture 0.5 rad
+    away (both levels bind), its position and velocity limits."""
     model = qpik.load_robot("panda")
     configuration = qpik.Configuration(model, model.key_qpos[0])
     frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
@@ -78,6 +76,15 @@ def test_the_compiled_step_copies_the_core_settings_again_where_they_changed():
     posture = qpik.tasks.PostureTask(model, cost=0.1)
     posture.set_target(model.key_qpos[0] + 0.5)
     limits = [mink.ConfigurationLimit(model), qpik.limits.velocity_limit_from_model(model)]
+    return model, configuration, frame, posture, limits
+
+
+def test_the_compiled_step_copies_the_core_settings_again_where_they_changed():
+    """An IKSolver's core settings changed after its plan copied them (its damping law
+    through IKSolver.damping_law, its rank tolerance and cap through the core): the next
+    step is that of a solver built with them, bit for bit, on the plain lane (before, the
+    lane kept the copied rank tolerance and cap)."""
+    model, configuration, frame, posture, limits = _panda_far()
     law = DampingLaw(singular_threshold=0.3, max_damping=0.2, error_scale=None)
     solver = qpik.IKSolver(model, [[frame], [posture]], limits)
     solver.step(configuration, 0.01)
@@ -108,14 +115,7 @@ def test_a_level_past_its_cap_reports_the_same_whatever_ran_before():
     solve, a second one and one after another problem (before: 55, 5 and 115, from a kept,
     warm OSQP workspace; x the same)."""
     pytest.importorskip("osqp")
-    model = qpik.load_robot("panda")
-    configuration = qpik.Configuration(model, model.key_qpos[0])
-    frame = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
-    p = configuration.frame_pose("ee", "site")[0]
-    frame.set_target(mink.SE3.from_translation(p + 0.3))
-    posture = qpik.tasks.PostureTask(model, cost=0.1)
-    posture.set_target(model.key_qpos[0] + 0.5)
-    limits = [mink.ConfigurationLimit(model), qpik.limits.velocity_limit_from_model(model)]
+    model, configuration, frame, posture, limits = _panda_far()
     ik = qpik.IKSolver(model, [[frame], [posture]], limits)
     problem = ik.build(configuration, 0.01)
     other = ik.build(qpik.Configuration(model, model.key_qpos[0] + 0.1), 0.01)

@@ -43,6 +43,19 @@ FLOATING = """
 """
 
 
+def _refused_on_every_path(error, match: str, solver, configuration, fresh) -> None:
+    """``error`` (its message naming ``match``) from ``solver``'s step, from its QP path and
+    from the step of ``fresh()``, a solver built after the change."""
+    calls = (
+        lambda: solver.step(configuration, DT),
+        lambda: solver.qp_solution(configuration, DT),
+        lambda: fresh().step(configuration, DT),
+    )
+    for call in calls:
+        with pytest.raises(error, match=match):
+            call()
+
+
 def _panda(limits_of=None):
     model = qpik.load_robot("panda")
     configuration = qpik.Configuration(model, model.key_qpos[0])
@@ -100,12 +113,13 @@ def test_limit_values_out_of_range_are_refused_everywhere(robot, which, name, va
         value = current
     error = InfeasibleLimits if name == "lower" else LimitDefinitionError  # (an empty range)
     setattr(limit, name, value)
-    with pytest.raises(error, match=type(limit).__name__):
-        solver.step(configuration, DT)
-    with pytest.raises(error, match=type(limit).__name__):
-        solver.qp_solution(configuration, DT)
-    with pytest.raises(error, match=type(limit).__name__):
-        qpik.IKSolver(model, levels, limits).step(configuration, DT)
+    _refused_on_every_path(
+        error,
+        type(limit).__name__,
+        solver,
+        configuration,
+        lambda: qpik.IKSolver(model, levels, limits),
+    )
 
 
 def test_a_cost_of_the_wrong_shape_is_refused_on_every_path():
@@ -180,9 +194,7 @@ def test_a_target_of_the_wrong_shape_is_refused_on_every_path(make, name, value)
     solver = qpik.IKSolver(model, [[task]], limits)
     solver.step(configuration, DT)
     setattr(task, name, value)
-    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
-        solver.step(configuration, DT)
-    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
-        solver.qp_solution(configuration, DT)
-    with pytest.raises(TaskDefinitionError, match=type(task).__name__):
-        qpik.IKSolver(model, [[task]], limits).step(configuration, DT)
+    _refused_on_every_path(
+        TaskDefinitionError, type(task).__name__, solver, configuration,
+        lambda: qpik.IKSolver(model, [[task]], limits),
+    )  # fmt: skip
