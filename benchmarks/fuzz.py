@@ -25,7 +25,8 @@ Outcomes of a case:
   ``nonfinite``, ``limits`` (a returned configuration outside its joint limits or a
   velocity over its limit), ``claim`` (converged, but not within tolerance), ``hang``,
   ``crash``, ``nondet`` (the same case twice, in a process with another history, gives a
-  different answer bit for bit).
+  different answer bit for bit), ``stale`` (a solver whose tasks, limits or settings were
+  changed after it stepped answers otherwise than a new one built from them).
 
 Categories: solve, solve_many, step (``IKSolver.step`` and ``solve_ik`` with random
 stacks and limits), problem (``load_problem`` + solve + ``qpik reach`` on mutated problem
@@ -45,7 +46,12 @@ from every field of the schema), stack (every task and limit type, qpik's and mi
 every level, extreme time steps), signature (a wrong type for every argument of every
 public function) and erd (example-robot-data robots, fixed or floating, targets for one to
 four bodies at once through qpik.solve, IKSolver.step, problem files and statics, every
-reported error judged against MuJoCo's forward kinematics of the returned q).
+reported error judged against MuJoCo's forward kinematics of the returned q). mutate: a
+stack as ``stack`` draws one, stepped once (``IKSolver.step``, or ``solve_ik`` with its kept
+solver), then one to three attributes of its tasks and limits assigned directly, valid
+values and not (and sometimes the solver's damping or damping law), and stepped again,
+against a new solver built from the changed objects: both a typed error, or answers
+within 1e-9.
 
 The table has one row per category; the exit status is 1 when any bad outcome occurred.
 """
