@@ -42,6 +42,16 @@ TRUST_REGION = "trust region"
 Contribution = tuple[str, np.ndarray, np.ndarray]
 
 
+def limit_name(limit: Any) -> str:
+    """The name of ``limit``'s class in messages and active-limit names; for a private class
+    of qpik's, its first public base's (``model_collision_limit`` gives a private subclass of
+    ``CollisionAvoidanceLimit``: named so)."""
+    cls = type(limit)
+    if cls.__name__.startswith("_") and cls.__module__.startswith("qpik."):
+        return next((c.__name__ for c in cls.__mro__ if not c.__name__.startswith("_")), "")
+    return cls.__name__
+
+
 def _check_limit_values(limit: Any) -> Any:
     """A position limit's gain (one number in ``(0, 1]``, as mink checks it when the limit
     is built) or a velocity limit's speeds (``>= 0`` [rad/s or m/s]), returned as read;
@@ -55,7 +65,7 @@ def _check_limit_values(limit: Any) -> Any:
             valid = False
         if not valid:
             raise LimitDefinitionError(
-                f"{type(limit).__name__}: its gain must be a number in (0, 1], got {gain!r}"
+                f"{limit_name(limit)}: its gain must be a number in (0, 1], got {gain!r}"
             )
         return gain
     if isinstance(limit, mink.VelocityLimit):
@@ -63,11 +73,11 @@ def _check_limit_values(limit: Any) -> Any:
             speeds = np.asarray(limit.limit, dtype=float)
         except (TypeError, ValueError) as exc:
             raise LimitDefinitionError(
-                f"{type(limit).__name__}: its limit must be speeds >= 0 ({exc})"
+                f"{limit_name(limit)}: its limit must be speeds >= 0 ({exc})"
             ) from exc
         if not (speeds >= 0.0).all():
             raise LimitDefinitionError(
-                f"{type(limit).__name__}: its limit must be speeds >= 0, got {limit.limit!r}"
+                f"{limit_name(limit)}: its limit must be speeds >= 0, got {limit.limit!r}"
             )
         return speeds
     return None
@@ -85,7 +95,7 @@ def _check_bounds(limit: mink.ConfigurationLimit) -> None:
         q_min = np.asarray(limit.lower, dtype=float)[adr]
     except (TypeError, ValueError, IndexError) as exc:
         raise LimitDefinitionError(
-            f"{type(limit).__name__}: its lower and upper bounds do not fit its dofs ({exc})"
+            f"{limit_name(limit)}: its lower and upper bounds do not fit its dofs ({exc})"
         ) from exc
     bounds_hold(limit, q_min, q_max, limit.indices)
 
@@ -96,11 +106,11 @@ def bounds_hold(limit: Any, q_min: np.ndarray, q_max: np.ndarray, dofs: np.ndarr
     (no displacement meets them: as for mink's ``min_distance_from_limits`` of more than
     half a range), as at the build (:func:`_check_limit`)."""
     if np.isnan(q_min).any() or np.isnan(q_max).any():
-        raise LimitDefinitionError(f"{type(limit).__name__}: a lower or upper bound is NaN")
+        raise LimitDefinitionError(f"{limit_name(limit)}: a lower or upper bound is NaN")
     empty = np.flatnonzero(q_min > q_max)
     if empty.size:
         raise InfeasibleLimits(
-            f"{type(limit).__name__}: the limits of dof {int(dofs[empty[0]])} are empty (its "
+            f"{limit_name(limit)}: the limits of dof {int(dofs[empty[0]])} are empty (its "
             "lower bound above its upper: bounds set so, or min_distance_from_limits more "
             "than half its range)"
         )
@@ -148,10 +158,10 @@ def _box_of(box: Callable, limit: Any, qpos: np.ndarray, dt: float) -> tuple[np.
     except QpikError:
         raise
     except (ValueError, TypeError, IndexError) as exc:
-        raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
+        raise LimitDefinitionError(f"{limit_name(limit)}: its rows failed ({exc})") from exc
     if not (lower.shape == upper.shape == dofs.shape and dofs.ndim == 1):
         raise LimitDefinitionError(
-            f"{type(limit).__name__}: bounds of shape {lower.shape} for {dofs.shape[0]} dofs "
+            f"{limit_name(limit)}: bounds of shape {lower.shape} for {dofs.shape[0]} dofs "
             "(a gain, bound or speed set to what does not fit?)"
         )
     return dofs, lower, upper
@@ -390,7 +400,7 @@ class LimitBoxes:
             dofs, lower, upper = _box_of(box, limit, configuration.data.qpos, dt)
             if len(dofs):
                 tighten(side.lb, side.ub, dofs, lower, upper)
-                _add_sides(side.contributions, type(limit).__name__, dofs, lower, upper)
+                _add_sides(side.contributions, limit_name(limit), dofs, lower, upper)
         if self.trust_dofs.size:  # the trust region: a hard bound, as a velocity limit's
             dofs, lower, upper = self._trust_box(dt)
             tighten(hard_lb, hard_ub, dofs, lower, upper)
@@ -414,7 +424,7 @@ class LimitBoxes:
         if rows_of is None:
             return
         G, h, numbers = rows_of
-        name = type(limit).__name__
+        name = limit_name(limit)
         structure = self.structure(limit, G)
         if structure.empty is not None and np.any(h[structure.empty] < 0):
             raise InfeasibleLimits(f"{name} has a row 0 . dq <= {h[structure.empty].min():.3g}")
@@ -448,7 +458,7 @@ class LimitBoxes:
             if box is None:  # a general-row limit
                 continue
             dofs, lower, upper = _box_of(box, limit, qpos, dt)
-            _add_sides(contributions, type(limit).__name__, dofs, lower, upper)
+            _add_sides(contributions, limit_name(limit), dofs, lower, upper)
         if self.trust_dofs.size:
             _add_sides(contributions, TRUST_REGION, *self._trust_box(dt))
         return contributions
@@ -479,7 +489,7 @@ class LimitBoxes:
                 continue
             G_parts.append(G[rows])
             h_parts.append(h[rows])
-            name = type(limit).__name__
+            name = limit_name(limit)
             names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows)
         if not G_parts:
             return self.no_rows, np.zeros(0), names
@@ -498,7 +508,7 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
     G, h, numbers = rows_of
     keep = np.flatnonzero(np.any(G != 0.0, axis=1) | (h < 0))
     if keep.size:
-        name = type(limit).__name__
+        name = limit_name(limit)
         side.G.append(G[keep])
         side.h.append(h[keep])
         side.relax.append(np.ones(keep.size, dtype=bool))
@@ -527,13 +537,13 @@ def _inequalities_of(
     except (ValueError, TypeError, IndexError) as exc:  # (an attribute set to what does not fit)
         if isinstance(exc, QpikError):
             raise
-        raise LimitDefinitionError(f"{type(limit).__name__}: its rows failed ({exc})") from exc
+        raise LimitDefinitionError(f"{limit_name(limit)}: its rows failed ({exc})") from exc
     if rows is not None:
         G, h = rows[0], rows[1]
         nv = configuration.model.nv
         if not (G.ndim == 2 and G.shape[1] == nv and h.shape == (G.shape[0],)):
             raise LimitDefinitionError(
-                f"{type(limit).__name__}: rows G of shape {G.shape} and h of shape {h.shape}; "
+                f"{limit_name(limit)}: rows G of shape {G.shape} and h of shape {h.shape}; "
                 f"G must be (p, {nv}) and h (p,)"
             )
     return rows

@@ -234,9 +234,9 @@ def test_a_collision_limit_attribute_that_does_not_fit_is_a_typed_error(name, va
     solver.step(configuration, DT)
     collision.collision_detection_distance = 10.0  # every pair in play
     setattr(collision, name, value)
-    with pytest.raises(LimitDefinitionError, match=type(collision).__name__):
+    with pytest.raises(LimitDefinitionError, match="CollisionAvoidanceLimit"):
         solver.step(configuration, DT)
-    with pytest.raises(LimitDefinitionError, match=type(collision).__name__):
+    with pytest.raises(LimitDefinitionError, match="CollisionAvoidanceLimit"):
         solver.qp_solution(configuration, DT)
 
 

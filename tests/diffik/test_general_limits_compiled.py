@@ -33,6 +33,7 @@ def _closed_loop(solver, configuration, steps, kind):
         expected = qpik.StepResult.of(reference, 0.0)
         assert sorted(result.active_limits) == sorted(expected.active_limits)
         names += any(kind in name for name in result.active_limits)
+        assert not any(name.startswith("_") for name in result.active_limits)  # (public names)
         configuration.integrate_inplace(result.velocity, DT)
     return worst, names
 
