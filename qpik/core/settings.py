@@ -3,13 +3,15 @@
 Each setting is a property: the constructor's keyword and an assignment afterwards go through
 the same check (a value of the wrong type or range raises :class:`qpik.InvalidOption` naming
 the setting; an unknown backend :class:`qpik.InvalidInput`), so that no solve starts from a
-setting it cannot use. Every assignment also advances :attr:`SolverSettings.settings_version`:
-a compiled plan that copied the settings (:class:`qpik.diffik.compiled.CompiledPlan`) compares
-it with the version it copied, and copies them again where they changed.
+setting it cannot use. Every assignment also gives :attr:`SolverSettings.settings_version` a
+new number, unique across solvers: a compiled plan that copied the settings
+(:class:`qpik.diffik.compiled.CompiledPlan`) compares it with the version it copied, and
+copies them again where they changed.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 import operator
@@ -20,6 +22,10 @@ from ..options import SOLVERS, DampingLaw
 from . import backends
 
 __all__ = ["SolverSettings"]
+
+#: The settings versions, unique across solvers (one plan never mistakes another solver's
+#: settings for those it copied).
+_VERSIONS = itertools.count(1)
 
 
 class SolverSettings:
@@ -32,11 +38,12 @@ class SolverSettings:
     _tolerance: float
     _warm_start: bool
     _backend_options: dict
-    #: Advanced by every assignment of a setting (the plans that copy them compare it).
+    #: A new number at every assignment of a setting, never one another solver had (the
+    #: plans that copy the settings compare it).
     settings_version: int = 0
 
     def _changed(self) -> None:
-        self.settings_version += 1
+        self.settings_version = next(_VERSIONS)
         self._workspaces: dict = {}  # (a backend's workspaces were made for the old settings)
 
     @property

@@ -129,3 +129,13 @@ def test_a_level_past_its_cap_reports_the_same_whatever_ran_before():
     for result in (again, b):
         np.testing.assert_array_equal(result.x, a.x)
         assert result.iterations == a.iterations and result.status == a.status
+
+
+def test_settings_versions_are_never_shared_between_solvers():
+    """Two solvers built alike have different settings versions, and every assignment gives
+    a new one (a plan that copied one solver's settings never takes another's for them)."""
+    a, b = HierarchySolver(), HierarchySolver()
+    assert a.settings_version != b.settings_version
+    before = a.settings_version
+    a.warm_start = False  # (the same value: still a new version)
+    assert a.settings_version not in (before, b.settings_version)
