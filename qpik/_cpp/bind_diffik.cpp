@@ -617,7 +617,7 @@ class Kernel {
 
     // The limits' values as loaded: a position limit's joint with no range (or a NaN bound),
     // a gain outside (0, 1], a speed below 0 (or NaN) are the caller's general way, which
-    // reports them (LimitDefinitionError, InfeasibleLimits; layout.limit_values_hold).
+    // reports them (LimitDefinitionError, InfeasibleLimits; boxes.limit_values, limit_bounds).
     bool limits_hold() const {
         const i64 E = dim(cfg_data_, 0);
         const double* c = cfg_data_.data();

@@ -52,11 +52,12 @@ def limit_name(limit: Any) -> str:
     return cls.__name__
 
 
-def _check_limit_values(limit: Any) -> Any:
+def limit_values(limit: Any) -> Any:
     """A position limit's gain (one number in ``(0, 1]``, as mink checks it when the limit
-    is built) or a velocity limit's speeds (``>= 0`` [rad/s or m/s]), returned as read;
-    LimitDefinitionError naming the limit where it was set to another value later (the
-    compiled step's kernel checks the same: layout.limit_values_hold)."""
+    is built) or a velocity limit's speeds (a float array, ``>= 0`` [rad/s or m/s]), as
+    read; LimitDefinitionError naming the limit where it was set to another value later
+    (the compiled step's kernel checks the same: ``Kernel.load_limits``). None for another
+    limit."""
     if isinstance(limit, mink.ConfigurationLimit):
         gain = limit.gain
         try:
@@ -83,37 +84,38 @@ def _check_limit_values(limit: Any) -> Any:
     return None
 
 
-def _check_bounds(limit: mink.ConfigurationLimit) -> None:
-    """A position limit's bounds at its dofs' qpos entries fit and leave each joint a range
-    (:func:`bounds_hold`); LimitDefinitionError naming the limit where they do not fit."""
-    if len(limit.indices) == 0:
-        return
-    model = limit.model
-    adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
+def limit_bounds(limit: mink.ConfigurationLimit, adr: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A position limit's bounds ``(lower, upper)`` [rad or m] at the qpos entries ``adr`` of
+    its dofs: LimitDefinitionError naming the limit where they do not fit (bounds set after
+    it was built) or one is NaN, InfeasibleLimits where a joint's lower bound is above its
+    upper (no displacement meets them: as for mink's ``min_distance_from_limits`` of more
+    than half a range)."""
     try:
-        q_max = np.asarray(limit.upper, dtype=float)[adr]
-        q_min = np.asarray(limit.lower, dtype=float)[adr]
+        lower = np.asarray(limit.lower, dtype=float)
+        upper = np.asarray(limit.upper, dtype=float)
+        if lower.ndim != 1 or upper.ndim != 1:
+            raise ValueError(f"bounds of shapes {lower.shape} and {upper.shape}")
+        q_min, q_max = lower[adr], upper[adr]
     except (TypeError, ValueError, IndexError) as exc:
         raise LimitDefinitionError(
             f"{limit_name(limit)}: its lower and upper bounds do not fit its dofs ({exc})"
         ) from exc
-    bounds_hold(limit, q_min, q_max, limit.indices)
-
-
-def bounds_hold(limit: Any, q_min: np.ndarray, q_max: np.ndarray, dofs: np.ndarray) -> None:
-    """A position limit's bounds at its dofs ``dofs``: LimitDefinitionError naming the
-    limit where one is NaN, InfeasibleLimits where a joint's lower bound is above its upper
-    (no displacement meets them: as for mink's ``min_distance_from_limits`` of more than
-    half a range), as at the build (:func:`_check_limit`)."""
     if np.isnan(q_min).any() or np.isnan(q_max).any():
         raise LimitDefinitionError(f"{limit_name(limit)}: a lower or upper bound is NaN")
     empty = np.flatnonzero(q_min > q_max)
     if empty.size:
         raise InfeasibleLimits(
-            f"{limit_name(limit)}: the limits of dof {int(dofs[empty[0]])} are empty (its "
-            "lower bound above its upper: bounds set so, or min_distance_from_limits more "
-            "than half its range)"
+            f"{limit_name(limit)}: the limits of dof {int(limit.indices[empty[0]])} are empty "
+            "(its lower bound above its upper: bounds set so, or min_distance_from_limits "
+            "more than half its range)"
         )
+    return q_min, q_max
+
+
+def _qpos_addresses(limit: mink.ConfigurationLimit) -> np.ndarray:
+    """The qpos entries of a position limit's dofs (a free or ball joint moves them apart)."""
+    model = limit.model
+    return model.jnt_qposadr[model.dof_jntid[limit.indices]]
 
 
 def _configuration_box(
@@ -125,15 +127,10 @@ def _configuration_box(
         return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
     adr = limit.indices
     if qpos.shape[0] != limit.model.nv:  # free or ball joints: dof index != qpos index
-        model = limit.model
-        adr = model.jnt_qposadr[model.dof_jntid[limit.indices]]
-    gain = float(_check_limit_values(limit))
+        adr = _qpos_addresses(limit)
+    gain = float(limit_values(limit))
     q = qpos[adr]
-    q_max, q_min = (
-        np.asarray(limit.upper, dtype=float)[adr],
-        np.asarray(limit.lower, dtype=float)[adr],
-    )
-    bounds_hold(limit, q_min, q_max, limit.indices)  # (bounds set after the limit was built)
+    q_min, q_max = limit_bounds(limit, adr)  # (checked: set after the limit was built?)
     upper = gain * (q_max - q)
     lower = -gain * (q - q_min)
     return limit.indices, lower, upper
@@ -144,7 +141,7 @@ def _velocity_box(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mink's VelocityLimit as box bounds on ``dq``: ``|dq| <= v_max dt`` (``limit.limit``
     read as floats, as the compiled step reads it)."""
-    bound = _check_limit_values(limit) * dt
+    bound = limit_values(limit) * dt
     return limit.indices, -bound, bound
 
 
@@ -389,9 +386,9 @@ class LimitBoxes:
                 side = recoverable
             box = BOX_LIMITS.get(type(limit)) if self.scalar_joints else None
             if box is None:
-                _check_limit_values(limit)  # (mink's rows take them as they are)
-                if isinstance(limit, mink.ConfigurationLimit):
-                    _check_bounds(limit)
+                limit_values(limit)  # (mink's rows take them as they are)
+                if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
+                    limit_bounds(limit, _qpos_addresses(limit))
                 if fold or side is recoverable or not relaxable(limit):
                     self._inequalities(limit, configuration, dt, side)
                 else:
@@ -554,5 +551,5 @@ def _check_limit(limit) -> None:
     empty; raises :class:`qpik.InvalidInput` or :class:`qpik.InfeasibleLimits`."""
     if not hasattr(limit, "compute_qp_inequalities"):
         raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
-    if isinstance(limit, mink.ConfigurationLimit):
-        _check_bounds(limit)  # (at each dof's qpos entry: a free joint moves them apart)
+    if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
+        limit_bounds(limit, _qpos_addresses(limit))

@@ -30,7 +30,7 @@ from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
-from .boxes import LimitBoxes, bounds_hold
+from .boxes import LimitBoxes, limit_bounds, limit_values
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
@@ -535,15 +535,16 @@ def guards_hold(guards: list[tuple]) -> bool:
 
 
 def write_limit_values(view: np.ndarray, limit, name: str) -> None:
-    """A limit's ``name`` (a position limit's gain, one number in ``(0, 1]`` for all its
-    entries; a velocity limit's speeds [rad/s or m/s], one ``>= 0`` per entry) into
-    ``view``: LimitDefinitionError naming the limit where it does not fit, or is out of
-    that range."""
-    value = getattr(limit, name)
+    """A limit's ``name`` (a position limit's gain, one number for all its entries; a
+    velocity limit's speeds [rad/s or m/s], one per entry) into ``view``, checked as the QP
+    path checks them (:func:`qpik.diffik.boxes.limit_values`): LimitDefinitionError naming
+    the limit where it does not fit or is out of range (nothing read for no entries, as the
+    kernel and the QP path read nothing then)."""
+    if view.size == 0:
+        return
+    value = limit_values(limit)
     try:
         if name == "gain":
-            if np.ndim(value) != 0:
-                raise ValueError(f"a gain of shape {np.shape(value)}, not one number")
             view[...] = float(value)
         else:
             _put(view, value)
@@ -551,39 +552,13 @@ def write_limit_values(view: np.ndarray, limit, name: str) -> None:
         raise LimitDefinitionError(
             f"{type(limit).__name__}: its {name} does not fit its rows ({exc})"
         ) from exc
-    if not (view.size == 0 or limit_values_hold(view, name)):
-        expected = "in (0, 1]" if name == "gain" else "speeds >= 0"
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its {name} must be {expected}, got {value!r}"
-        )
-
-
-def limit_values_hold(values: np.ndarray, name: str) -> bool:
-    """A position limit's gain in ``(0, 1]`` (``name`` "gain") or a velocity limit's
-    speeds ``>= 0`` (NaN: neither), as the compiled step's kernel checks them."""
-    if name == "gain":
-        return bool(((values > 0.0) & (values <= 1.0)).all())
-    return bool((values >= 0.0).all())
 
 
 def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
-    """A position limit's bounds (``lower``, ``upper`` [rad or m], each of the model's
-    ``nq`` entries) at its dofs' qpos entries ``qadr`` into the columns of ``view``
-    ``(E, 2)``: LimitDefinitionError naming the limit where they do not fit or one is NaN,
-    InfeasibleLimits where a joint's lower bound is above its upper (boxes.bounds_hold)."""
-    try:
-        lower = np.asarray(limit.lower, dtype=float)
-        upper = np.asarray(limit.upper, dtype=float)
-        if lower.ndim != 1 or upper.ndim != 1:
-            raise ValueError(f"bounds of shapes {lower.shape} and {upper.shape}")
-        view[:, 0] = lower[qadr]
-        view[:, 1] = upper[qadr]
-    except (ValueError, TypeError, IndexError) as exc:
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its lower and upper bounds do not fit the model's "
-            f"{limit.model.nq} coordinates ({exc})"
-        ) from exc
-    bounds_hold(limit, view[:, 0], view[:, 1], np.asarray(limit.indices))
+    """A position limit's bounds (``lower``, ``upper`` [rad or m]) at its dofs' qpos entries
+    ``qadr`` into the columns of ``view`` ``(E, 2)``, checked as the QP path checks them
+    (:func:`qpik.diffik.boxes.limit_bounds`: LimitDefinitionError or InfeasibleLimits)."""
+    view[:, 0], view[:, 1] = limit_bounds(limit, qadr)
 
 
 def write_com_row(views: tuple, task) -> None:
