@@ -42,6 +42,17 @@ class SolverSettings:
     #: plans that copy the settings compare it).
     settings_version: int = 0
 
+    def __getstate__(self) -> dict:
+        """The settings, without the backend workspaces (OSQP's do not copy or pickle; a
+        copy makes its own at its first solve)."""
+        state = self.__dict__.copy()
+        state["_workspaces"] = {}
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.settings_version = next(_VERSIONS)  # (a copy's settings are its own)
+
     def _changed(self) -> None:
         self.settings_version = next(_VERSIONS)
         self._workspaces: dict = {}  # (a backend's workspaces were made for the old settings)

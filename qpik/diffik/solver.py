@@ -26,6 +26,7 @@ hierarchy (:class:`qpik.core.HierarchyProblem`) for inspection.
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
@@ -189,6 +190,40 @@ class IKSolver:
         self.exact_shortcut = False
         # One compiled call per step when every task and limit allows it.
         self._plan = make_plan(model, self._levels, self._limits, self._core)
+
+    # Copies (copy.copy, copy.deepcopy) and pickles: the compiled plan is the solver's
+    # machinery, bound to the tasks and limits it was built from (and its kernel does not
+    # pickle). A copy makes its plan again from its own tasks and limits, as a new solver
+    # does, so that its steps take the compiled path on them (a deep copy that shared the
+    # original's plan answered every step on the QP path, 20 times slower). The core drops
+    # its warm start and backend workspaces (HierarchySolver.__getstate__): a copy starts
+    # cold, which changes no answer.
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_plan"] = self._plan is not None  # (made again by __setstate__)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        planned = state.pop("_plan")
+        self.__dict__.update(state)
+        plan = None
+        if planned:
+            try:
+                plan = make_plan(self._model, self._levels, self._limits, self._core)
+            except (QpikError, ValueError, TypeError, IndexError):
+                plan = None  # (a task changed so that no plan applies: the QP path names it)
+        self.__dict__["_plan"] = plan
+
+    def __deepcopy__(self, memo: dict) -> IKSolver:
+        """A copy with its own tasks, limits and core, on the same model: the model is the
+        robot's description, shared as the configurations built on it are (the compiled step
+        takes a configuration of the solver's own model; a copied model would send every
+        step of the copy to the QP path)."""
+        memo.setdefault(id(self._model), self._model)
+        new = IKSolver.__new__(IKSolver)
+        memo[id(self)] = new
+        new.__setstate__(copy.deepcopy(self.__getstate__(), memo))
+        return new
 
     # The attributes fixed at construction: read-only (an assignment would leave the built
     # plan, core and boxes answering for the old value: ReadOnlyAttribute says so).
