@@ -374,13 +374,6 @@ class HierarchySolver(SolverSettings):
         # The compiled cascade's storage, kept between solves (no state but capacity).
         self._cascade_workspace = K.CascadeWorkspace()
 
-    def __getstate__(self) -> dict:
-        """The settings (copies and pickles): a copy starts cold, without this solver's
-        warm start or backend workspaces (which changes no answer)."""
-        state = super().__getstate__()
-        state["_warm"] = state["_warm_row"] = None
-        return state
-
     def reset(self) -> None:
         """Forget the warm start and backend workspaces."""
         self._warm = self._warm_row = None

@@ -43,10 +43,14 @@ class SolverSettings:
     settings_version: int = 0
 
     def __getstate__(self) -> dict:
-        """The settings, without the backend workspaces (OSQP's do not copy or pickle; a
-        copy makes its own at its first solve)."""
+        """The settings (copies and pickles), without the backend workspaces (OSQP's do not
+        copy or pickle; a copy makes its own at its first solve) or the solver's warm start
+        (a :class:`qpik.core.HierarchySolver`'s): a copy starts cold, which changes no answer."""
         state = self.__dict__.copy()
         state["_workspaces"] = {}
+        for warm in ("_warm", "_warm_row"):
+            if warm in state:
+                state[warm] = None
         return state
 
     def __setstate__(self, state: dict) -> None:

@@ -101,11 +101,17 @@ def task_rows(
                 f"{type(task).__name__}: its objective (H, c) is not finite (a cost, gain or "
                 "time step out of range?)"
             )
+        # One row per eigenvector, whatever H's rank: an eigenvalue at or below the cutoff
+        # gives a zero row (b 0), so that the task's rows keep their shape from step to step
+        # (the compiled step plans them; a cost of 0, say, made the row count change and
+        # sent every step to the QP path). A zero row adds nothing to the level's objective.
         values, vectors = np.linalg.eigh(symmetric)
         keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
-        root = np.sqrt(values[keep])
-        A = root[:, None] * vectors[:, keep].T
-        return A, -(vectors[:, keep].T @ c) / root, None, np.ones(int(keep.sum()))
+        root = np.sqrt(np.where(keep, values, 0.0))
+        A = root[:, None] * vectors.T
+        b = np.zeros(len(values))
+        b[keep] = -(vectors[:, keep].T @ c) / root[keep]
+        return A, b, None, np.ones(len(values))
     assert residual is not None  # objective is None only when a residual was given
     jacobian, error, task_mu = residual
     # (a NaN: its error is, which the finiteness checks report as the target's)

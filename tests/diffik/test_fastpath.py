@@ -537,8 +537,9 @@ def test_couplings_and_equality_constraints_take_the_compiled_step():
 def test_an_unknown_task_supplies_its_rows_at_level_one(panda):
     """A user's task of an unknown type (mink's contract: error, Jacobian, cost, LM
     damping) at level 1 beside a kernel task: the compiled step takes its rows from its
-    own methods and answers as the QP path does. One whose rows do not have its declared
-    count, or whose (H, c) is rank deficient, sends the step to the QP path."""
+    own methods and answers as the QP path does, a task that gives only a rank-deficient
+    (H, c) too (its factor keeps a zero row for each zero eigenvalue: the same shape at every
+    step). One whose rows do not have its declared count sends the step to the QP path."""
     model, configuration = panda
     rng = np.random.default_rng(4)
 
@@ -574,8 +575,36 @@ def test_an_unknown_task_supplies_its_rows_at_level_one(panda):
     for _ in range(15):
         _random_state(rng, model, configuration, [frame, posture])
         _compiled_equals_qp(solver, configuration)
-    for odd in (Miscounted(), Flat()):
+    for odd, compiled in ((Miscounted(), False), (Flat(), True)):
         solver = qpik.IKSolver(model, [[frame], [odd, posture]], limits)
         assert _supplied(solver) == [odd]
         _random_state(rng, model, configuration, [frame, posture])
-        _compiled_equals_qp(solver, configuration, compiled=False)
+        _compiled_equals_qp(solver, configuration, compiled=compiled)
+
+
+def test_kinetic_energy_task_of_any_cost_is_compiled(panda):
+    """mink's KineticEnergyRegularizationTask (an (H, c)-only task) beside a frame task in
+    one level, as mink's kinetic_energy_reg example stacks them (its default cost is 0): the
+    compiled step answers at every cost, 0 included, as the QP path does (H = 0 gave a
+    factor with no rows, which sent every step to the QP path: 2.2x mink's time per call)."""
+    model, configuration = panda
+    rng = np.random.default_rng(11)
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
+    energy = qpik.tasks.KineticEnergyRegularizationTask(cost=0.0)
+    energy.set_dt(DT)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    solver = qpik.IKSolver(model, [[frame, energy]], limits)
+    assert _supplied(solver) == [energy]
+    for cost in (0.0, 1e-5, 0.0, 1e-2):
+        energy.cost = cost
+        _random_state(rng, model, configuration, [frame])
+        _compiled_equals_qp(solver, configuration)
+    # mink.solve_ik's problem: one weighted level, damping 1e-12, no trust region
+    energy.cost = 0.0
+    _random_state(rng, model, configuration, [frame], reach=0.05)
+    velocity = qpik.solve_ik(configuration, [frame, energy], DT, damping=1e-12)
+    jacobian = frame.compute_jacobian(configuration)[:3]
+    error = -frame.compute_error(configuration)[:3]
+    closed = jacobian.T @ np.linalg.solve(jacobian @ jacobian.T + 1e-12 * np.eye(3), error) / DT
+    assert np.all(np.isfinite(velocity))
+    np.testing.assert_allclose(velocity, closed, rtol=0, atol=1e-9)
