@@ -348,8 +348,8 @@ def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: i
 
 def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     """The entries of mink's position and velocity limits and its collision avoidance
-    limits (None when another limit is present, or a position limit bounds a ball
-    joint)."""
+    limits, a position limit's ball-joint rows as general rows (:class:`_BallJointRows`);
+    None when another limit is present."""
     cfg_dof: list[int] = []
     cfg_qadr: list[int] = []
     cfg_data: list[tuple[float, float, float]] = []
@@ -360,8 +360,8 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     general_limits: list = []
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
-            if limits_a_ball_joint(limit.model):
-                return None  # a ball joint's cone row: the QP path
+            if limits_a_ball_joint(limit.model):  # its cones' rows: general rows
+                general_limits.append(_BallJointRows(limit))
             indices = np.asarray(limit.indices, dtype=np.int64)
             qadr = model.jnt_qposadr[model.dof_jntid[indices]].astype(np.int64)
             e0 = len(cfg_dof)
@@ -382,6 +382,28 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     return LimitLayout(
         cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits, vel_limits
     )
+
+
+class _BallJointRows(mink.ConfigurationLimit):
+    """The rows of a :class:`mink.ConfigurationLimit` that bound its ball joints' rotation
+    angles (``a^T dq <= gain (max_angle - angle)``, one a ball), for the compiled step's
+    general rows; its other dofs' bounds are the kernel's box entries. The rows are mink's
+    own, bitwise: the limit's ``compute_qp_inequalities`` with its one-dof rows made empty
+    (``h = inf``, dropped), so that a row keeps its number in the limit's rows (active-limit
+    names as the QP path gives them) and the gain is read at each step. Named as the limit
+    (:func:`.boxes.limit_name`: its first public base)."""
+
+    def __init__(self, limit: mink.ConfigurationLimit):  # (not mink's: nothing to build)
+        self.limit = limit
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
+        constraint = self.limit.compute_qp_inequalities(configuration, dt)
+        boxed = 2 * len(self.limit.indices)  # (mink's upper then lower rows, ball rows after)
+        G, h = constraint.G, constraint.h
+        if boxed and G is not None and h is not None:
+            G[:boxed] = 0.0
+            h[:boxed] = np.inf
+        return constraint
 
 
 def limits_a_ball_joint(model: mujoco.MjModel) -> bool:

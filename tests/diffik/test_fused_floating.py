@@ -295,7 +295,9 @@ def test_subclasses_supply_their_rows_and_unknown_frames_take_the_general_path(r
                     '<joint name="neck" type="ball" range="0 1" limited="true"/>')
     )  # fmt: skip
     limits = [mink.ConfigurationLimit(ball_limited)]
-    assert qpik.IKSolver(ball_limited, [mink.ComTask(1.0)], limits)._plan is None
+    # (its cone's row: a general row of the compiled step, no longer the QP path)
+    plan = qpik.IKSolver(ball_limited, [mink.ComTask(1.0)], limits)._plan
+    assert plan is not None and len(plan.general_limits) == 1
 
 
 def test_unset_targets_raise_as_the_general_path(robot):
