@@ -5,6 +5,7 @@
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
 #include "tasks/linear.hpp"
+#include "tasks/look_at.hpp"
 #include "tasks/pose.hpp"
 #include "tasks/joint_limits.hpp"
 
@@ -195,4 +196,25 @@ void bind_tasks(nb::module_& m) {
         nb::arg("form"), nb::arg("qpos"),
         "r = form[:, :nq] @ qpos - form[:, nq] (k,), summed in the order of qpos (the compiled "
         "step's arithmetic).");
+    m.def(
+        "look_at_residual",
+        [](Out2 A, Out1 b, In2 jac, In1 xmat, In1 xpos, In1 target, In1 axis, In1 cost, double gain,
+           double lm_damping, double eps) {
+            const size_t nv = jac.shape(1);
+            require(jac.shape(0) == 6, "look_at_residual: jac must have shape (6, nv)");
+            require(A.shape(0) == 3 && A.shape(1) == nv, "look_at_residual: A must have shape (3, nv)");
+            require(b.shape(0) == 3, "look_at_residual: b must have shape (3,)");
+            require(xmat.shape(0) == 9, "look_at_residual: xmat must have shape (9,)");
+            for (const In1* x : {&xpos, &target, &axis, &cost})
+                require(x->shape(0) == 3, "look_at_residual: xpos, target, axis and cost must have shape (3,)");
+            return tasks::look_at_residual(jac.data(), static_cast<i64>(nv), xmat.data(), xpos.data(),
+                                           target.data(), axis.data(), cost.data(), gain, lm_damping, eps,
+                                           A.data(), b.data());
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("jac"), nb::arg("xmat"), nb::arg("xpos"),
+        nb::arg("target"), nb::arg("axis"), nb::arg("cost"), nb::arg("gain"), nb::arg("lm_damping"),
+        nb::arg("eps"),
+        "mink's LookAtTask's weighted residual from a frame's world-aligned Jacobian jac (6, nv),\n"
+        "rotation xmat (9,) and position xpos (3,) [m]: A = cost J (3, nv) and b = -cost gain e\n"
+        "(3,) written; returns mu = lm_damping |b|^2 (tasks/look_at.hpp).");
 }
