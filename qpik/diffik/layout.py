@@ -387,23 +387,42 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
 class _BallJointRows(mink.ConfigurationLimit):
     """The rows of a :class:`mink.ConfigurationLimit` that bound its ball joints' rotation
     angles (``a^T dq <= gain (max_angle - angle)``, one a ball), for the compiled step's
-    general rows; its other dofs' bounds are the kernel's box entries. The rows are mink's
-    own, bitwise: the limit's ``compute_qp_inequalities`` with its one-dof rows made empty
-    (``h = inf``, dropped), so that a row keeps its number in the limit's rows (active-limit
-    names as the QP path gives them) and the gain is read at each step. Named as the limit
+    general rows; its other dofs' bounds are the kernel's box entries. mink's rows, bitwise
+    (its arithmetic: ``mju_quat2Vel``, the angle its norm, the axis the vector over it, a zero
+    row at the identity), with the gain read at each step; a row keeps its number in the
+    limit's rows (after the ``2 len(indices)`` box rows: active-limit names as the QP path
+    gives them). Where the limit lacks mink 1.3's ball-joint attributes, its
+    ``compute_qp_inequalities`` with the box rows emptied (``h = inf``). Named as the limit
     (:func:`.boxes.limit_name`: its first public base)."""
 
     def __init__(self, limit: mink.ConfigurationLimit):  # (not mink's: nothing to build)
         self.limit = limit
+        self._phi = np.empty(3)
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
-        constraint = self.limit.compute_qp_inequalities(configuration, dt)
-        boxed = 2 * len(self.limit.indices)  # (mink's upper then lower rows, ball rows after)
-        G, h = constraint.G, constraint.h
-        if boxed and G is not None and h is not None:
-            G[:boxed] = 0.0
-            h[:boxed] = np.inf
-        return constraint
+        limit = self.limit
+        boxed = 2 * len(limit.indices)  # (mink's upper then lower rows, ball rows after)
+        try:
+            qadr, dadr = limit._ball_qposadr, limit._ball_dofadr  # (mink 1.3's)
+            max_angle = limit._ball_max_angle
+        except AttributeError:
+            constraint = limit.compute_qp_inequalities(configuration, dt)
+            G, h = constraint.G, constraint.h
+            if boxed and G is not None and h is not None:
+                G[:boxed] = 0.0
+                h[:boxed] = np.inf
+            return constraint
+        G = np.zeros((boxed + len(qadr), configuration.model.nv))
+        h = np.full(boxed + len(qadr), np.inf)
+        q, phi, gain = configuration.q, self._phi, limit.gain
+        balls = zip(qadr.tolist(), dadr.tolist(), max_angle.tolist())
+        for i, (padr, vadr, top) in enumerate(balls):
+            mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
+            angle = float(np.linalg.norm(phi))
+            if angle > 1e-9:
+                G[boxed + i, vadr : vadr + 3] = phi / angle
+            h[boxed + i] = gain * (top - angle)
+        return mink.Constraint(G=G, h=h)
 
 
 def limits_a_ball_joint(model: mujoco.MjModel) -> bool:

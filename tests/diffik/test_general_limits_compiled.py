@@ -161,5 +161,12 @@ def test_ball_joint_rows_of_a_position_limit_take_the_compiled_step():
             qpik.solve_ik(configuration, tasks, DT, "daqp", 1e-6, limits=limits),
             mink_answer, rtol=0, atol=1e-7,
         )  # fmt: skip
+        # the cones' rows: mink's, bitwise
+        ours = plan.general_limits[0].compute_qp_inequalities(configuration, DT)
+        theirs = limits[0].compute_qp_inequalities(configuration, DT)
+        boxed = 2 * len(limits[0].indices)
+        assert np.array_equal(ours.G[boxed:], theirs.G[boxed:])
+        assert np.array_equal(ours.h[boxed:], theirs.h[boxed:])
+        assert not ours.G[:boxed].any() and np.isinf(ours.h[:boxed]).all()
         configuration.integrate_inplace(result.velocity, DT)
     assert binds > 0
