@@ -34,7 +34,7 @@ import mink
 import numpy as np
 import qpsolvers
 
-from ..core import HierarchySolver, Level, LevelStatus, checks
+from ..core import LevelStatus, checks
 from ..core.checks import type_name
 from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
 from ..model.configuration import Configuration
@@ -58,6 +58,49 @@ class _MinimumNorm(BaseTask):
     def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
         nv = configuration.model.nv
         return mink.Objective(np.eye(nv), np.zeros(nv))
+
+
+class _ConstraintRows(BaseTask):
+    """mink's constraint tasks (``solve_ik(constraints=...)``) as one task whose rows are
+    their equalities ``J dq = -gain e`` (:func:`_equality_rows`, costs not applied), each
+    row scaled to unit norm (the same equalities: a row's units then neither trigger the
+    adaptive damping nor meet the core's round-off floor), with no LM term: the level above
+    the tasks' in :func:`_constrained_solver`'s solver, which holds them exactly where they
+    can be met. ``k``: their number of rows at the configuration it was made at."""
+
+    def __init__(self, constraints: list, configuration: Configuration):
+        self.constraints = constraints
+        self.k = int(self.compute_qp_residual(configuration)[0].shape[0])
+
+    def compute_qp_residual(self, configuration: mink.Configuration):
+        own = as_configuration(configuration)
+        A, b = _equality_rows(own, self.constraints, configuration.model.nv)
+        norms = np.sqrt(np.einsum("ij,ij->i", A, A))
+        scale = np.divide(1.0, norms, out=np.ones_like(norms), where=norms > 0)
+        return A * scale[:, None], b * scale, None
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
+        A, b, _ = self.compute_qp_residual(configuration)
+        return mink.Objective(A.T @ A, -(A.T @ b))
+
+
+class _Tikhonov(BaseTask):
+    """mink's ``damping`` of a task level as a task with no rows: its LM term, ``damping``,
+    the level's constant regularisation (:func:`_constrained_solver`: the solver's own
+    damping is 0 there, so that the constraints' level gets none)."""
+
+    k = 0
+
+    def __init__(self, damping: float):
+        self.damping = float(damping)
+
+    def compute_qp_residual(self, configuration: mink.Configuration):
+        nv = configuration.model.nv
+        return np.zeros((0, nv)), np.zeros(0), self.damping
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
+        nv = configuration.model.nv
+        return mink.Objective(self.damping * np.eye(nv), np.zeros(nv))
 
 
 def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
@@ -209,28 +252,15 @@ def solve_ik(
     configuration = as_configuration(configuration)
     _check_step(dt, damping)
     configuration.check_limits(safety_break=safety_break)
-    ik, constraint_rows = _solver(
-        configuration, tasks, solver, damping, limits, constraints, kwargs
-    )
-    if constraint_rows is None:
-        result = ik.step(configuration, dt)
-        status, displacement = result.status, result.displacement
+    constraint_tasks = _constraints(constraints)  # (an iterable, read once)
+    if constraint_tasks:  # held exactly, in a level above the tasks'
+        ik = _constrained_solver(
+            configuration, tasks, solver, damping, limits, constraint_tasks, kwargs
+        )
     else:
-        problem = ik.build(configuration, dt)
-        A_eq, b_eq = constraint_rows
-        # Unit rows (the same equalities): a row's scale (units) then neither triggers the
-        # adaptive damping nor meets the core's round-off floor; only nearly dependent rows
-        # are damped, as at any level.
-        norms = np.sqrt(np.einsum("ij,ij->i", A_eq, A_eq))
-        scale = np.divide(1.0, norms, out=np.ones_like(norms), where=norms > 0)
-        level = Level(A_eq * scale[:, None], b_eq * scale, 0.0, None, "constraints")
-        problem.levels.insert(0, level)
-        core = HierarchySolver(
-            ik.solver, damping_law=ik.damping_law, rank_tolerance=ik.rank_tolerance,
-            warm_start=False, backend_options=kwargs,
-        )  # fmt: skip
-        solved = core.solve(problem, validate=False)
-        status, displacement = solved.status, solved.x
+        ik, _ = _solver(configuration, tasks, solver, damping, limits, None, kwargs)
+    result = ik.step(configuration, dt)
+    status, displacement = result.status, result.displacement
     _raise_unsolved(ik, status)
     with np.errstate(over="ignore"):
         velocity = displacement / dt
@@ -283,8 +313,9 @@ class SolverCache:
         self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
 
     def clear(self) -> None:
-        """Forget every kept solver."""
+        """Forget every kept solver (and the constraint tasks kept for them)."""
         self._entries.clear()
+        _CONSTRAINED.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -405,6 +436,44 @@ def _solver(
     if constraint_tasks:
         rows = _equality_rows(configuration, constraint_tasks, configuration.model.nv)
     return ik, rows
+
+
+#: The constraint and damping tasks of :func:`_constrained_solver`, kept as the solvers are
+#: (:class:`SolverCache`): by the identity of the constraint tasks, the damping and the
+#: number of levels, the least recently used dropped first; an entry holds its tasks.
+_CONSTRAINED: dict[tuple, tuple] = {}
+
+
+def _constrained_solver(
+    configuration: Configuration,
+    tasks: Any,
+    solver: str | None,
+    damping: float,
+    limits: Any,
+    constraint_tasks: list,
+    backend_options: dict,
+) -> IKSolver:
+    """The solver of a call with constraints (``constraint_tasks``, checked by
+    :func:`_constraints`): their rows (:class:`_ConstraintRows`, no damping) a level above
+    the task levels, each task level with mink's ``damping`` as an
+    LM term (:class:`_Tikhonov`; the solver's own damping 0), kept between calls as
+    :class:`SolverCache` keeps solvers (the constraint and damping tasks are kept too, so
+    that the same call finds the same solver). Each step is then the compiled step's where
+    it applies, as without constraints; before, each call solved an ``IKSolver.build``
+    problem with the constraints' level inserted, by a new core (1.6x mink's time a call on
+    mink's arm_panda_dof_freezing example)."""
+    levels = _levels(tasks) or [[_MinimumNorm()]]
+    key = (tuple(map(id, constraint_tasks)), float(damping), len(levels))
+    entry = _CONSTRAINED.pop(key, None)
+    if entry is None:
+        rows = _ConstraintRows(constraint_tasks, configuration)
+        entry = (constraint_tasks, rows, [_Tikhonov(damping) for _ in levels])
+        if len(_CONSTRAINED) >= SolverCache.size:
+            _CONSTRAINED.pop(next(iter(_CONSTRAINED)))
+    _CONSTRAINED[key] = entry  # most recently used last
+    _, rows, tikhonov = entry
+    stack = [[rows], *([*level, extra] for level, extra in zip(levels, tikhonov, strict=True))]
+    return _solver(configuration, stack, solver, 0.0, limits, None, backend_options)[0]
 
 
 def _new_solver(

@@ -876,3 +876,52 @@ def test_levels_in_new_lists_take_the_kept_solver(rng):
     assert SOLVERS.velocity(configuration, [task, posture], DT, None, 1e-12, None) is None
     assert SOLVERS.velocity(configuration, [[task, posture]], DT, None, 1e-12, None) is None
     assert len(SOLVERS) == 1
+
+
+def test_constraints_take_the_compiled_step_and_answer_as_before():
+    """``constraints``: their rows a level above the tasks' with no damping, mink's damping
+    on each task level (mink_compat._constrained_solver), by the compiled step and kept
+    between calls; the answer is the cascade's with the constraints' level inserted above
+    the tasks' levels (the way solve_ik answered before, by a new core each call: 1.6x
+    mink's time a call on mink's arm_panda_dof_freezing example), and mink's to round-off."""
+    from qpik.core import HierarchySolver, Level
+    from qpik.diffik import mink_compat
+
+    model = qpik.load_robot("panda")
+    configuration = mink.Configuration(model)
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0, lm_damping=1.0)
+    posture = mink.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    freeze = mink.DofFreezingTask(model, dof_indices=[0, 1, 2])
+    rng = np.random.default_rng(5)
+    qpik.clear_caches()
+    for turn in range(30):
+        q = model.key_qpos[0] + rng.uniform(-0.8, 0.8, model.nq)
+        configuration.update(np.clip(q, model.jnt_range[:, 0], model.jnt_range[:, 1]))
+        pose = configuration.get_transform_frame_to_world("ee", "site")
+        frame.set_target(pose.multiply(mink.SE3.exp(rng.normal(size=6) * 0.3)))
+        damping = (1e-3, 1e-12)[turn % 2]
+        constraints = [freeze] if turn % 3 else []  # (toggled, as the example does)
+        velocity = qpik.solve_ik(configuration, [frame, posture], DT, "daqp", damping,
+                                 constraints=constraints)  # fmt: skip
+        theirs = mink.solve_ik(configuration, [frame, posture], DT, "daqp", damping,
+                               constraints=constraints)  # fmt: skip
+        np.testing.assert_allclose(velocity, theirs, rtol=0, atol=1e-9)
+        if not constraints:
+            continue
+        assert np.all(velocity[:3] == 0.0)  # the frozen dofs, exactly
+        own = mink_compat.as_configuration(configuration)
+        ik = mink_compat._constrained_solver(
+            own, [frame, posture], "daqp", damping, None, [freeze], {}
+        )  # fmt: skip
+        assert ik.compiled_velocity(own, DT) is not None  # (the compiled step applies)
+        # the former answer: the tasks' problem with the constraints' unit rows above
+        plain = mink_compat._new_solver(own, [[frame, posture]], "daqp", damping, None, {})
+        problem = plain.build(own, DT)
+        A, b = mink_compat._equality_rows(own, [freeze], model.nv)
+        problem.levels.insert(0, Level(A, b, 0.0, None, "constraints"))
+        reference = HierarchySolver("daqp", damping_law=plain.damping_law).solve(problem)
+        np.testing.assert_allclose(velocity, reference.x / DT, rtol=0, atol=1e-10)
+    assert mink_compat._CONSTRAINED
+    qpik.clear_caches()
+    assert not mink_compat._CONSTRAINED
