@@ -470,6 +470,17 @@ class LimitBoxes:
         h_parts: list[np.ndarray] = []
         names: list[str] = []
         for limit in limits:
+            compact = getattr(limit, "compact_rows", None)  # (rows in play, named: as below)
+            if compact is not None:
+                rows_in_play = compact(configuration, dt)
+                if rows_in_play is None:
+                    return None
+                if rows_in_play is not NotImplemented:
+                    if rows_in_play[0].shape[0]:
+                        G_parts.append(rows_in_play[0])
+                        h_parts.append(rows_in_play[1])
+                        names.extend(rows_in_play[2])
+                    continue
             rows_of = _inequalities_of(limit, configuration, dt)
             if rows_of is None or not rows_of[0].shape[0]:
                 continue

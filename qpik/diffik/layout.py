@@ -389,40 +389,62 @@ class _BallJointRows(mink.ConfigurationLimit):
     angles (``a^T dq <= gain (max_angle - angle)``, one a ball), for the compiled step's
     general rows; its other dofs' bounds are the kernel's box entries. mink's rows, bitwise
     (its arithmetic: ``mju_quat2Vel``, the angle its norm, the axis the vector over it, a zero
-    row at the identity), with the gain read at each step; a row keeps its number in the
-    limit's rows (after the ``2 len(indices)`` box rows: active-limit names as the QP path
-    gives them). Where the limit lacks mink 1.3's ball-joint attributes, its
-    ``compute_qp_inequalities`` with the box rows emptied (``h = inf``). Named as the limit
-    (:func:`.boxes.limit_name`: its first public base)."""
+    row at the identity), with the gain read at each step; a row is named by its number in
+    the limit's rows (after the ``2 len(indices)`` box rows), as the QP path names it.
+    :meth:`compact_rows` gives the rows in play directly (:meth:`.boxes.LimitBoxes.general_rows`
+    takes them); where the limit lacks mink 1.3's ball-joint attributes, the limit's own
+    ``compute_qp_inequalities`` with its box rows emptied (``h = inf``) is read instead.
+    Named as the limit (:func:`.boxes.limit_name`: its first public base)."""
 
     def __init__(self, limit: mink.ConfigurationLimit):  # (not mink's: nothing to build)
         self.limit = limit
         self._phi = np.empty(3)
+        boxed = 2 * len(limit.indices)  # (mink's upper then lower rows, ball rows after)
+        self._boxed = boxed
+        try:
+            balls = zip(
+                limit._ball_qposadr.tolist(),  # (mink 1.3's)
+                limit._ball_dofadr.tolist(),
+                limit._ball_max_angle.tolist(),
+            )  # fmt: skip
+            self._balls: list | None = list(balls)
+        except AttributeError:
+            self._balls = None
+        self._names = [f"ConfigurationLimit row {boxed + i}" for i in range(len(self._balls or ()))]
+
+    def compact_rows(self, configuration: mink.Configuration, dt: float):
+        """``(G, h, names)`` of the ball rows in play (an empty row, at the identity, left
+        out where it holds), None where a row bounds one dof (the QP path folds it into the
+        box) or an empty row fails, NotImplemented without mink's attributes (the generic
+        rows then)."""
+        if self._balls is None:
+            return NotImplemented
+        q, phi, gain = configuration.q, self._phi, self.limit.gain
+        rows, h, names = [], [], []
+        for i, (padr, vadr, top) in enumerate(self._balls):
+            mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
+            angle = float(np.sqrt(phi.dot(phi)))  # (np.linalg.norm's arithmetic)
+            if angle > 1e-9:
+                axis = phi / angle
+                if np.count_nonzero(axis) == 1:
+                    return None
+                rows.append((vadr, axis))
+                h.append(gain * (top - angle))
+                names.append(self._names[i])
+            elif gain * (top - angle) < 0.0:  # (an empty row no displacement meets)
+                return None
+        G = np.zeros((len(rows), configuration.model.nv))
+        for k, (vadr, axis) in enumerate(rows):
+            G[k, vadr : vadr + 3] = axis
+        return G, np.array(h, dtype=float), names
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
-        limit = self.limit
-        boxed = 2 * len(limit.indices)  # (mink's upper then lower rows, ball rows after)
-        try:
-            qadr, dadr = limit._ball_qposadr, limit._ball_dofadr  # (mink 1.3's)
-            max_angle = limit._ball_max_angle
-        except AttributeError:
-            constraint = limit.compute_qp_inequalities(configuration, dt)
-            G, h = constraint.G, constraint.h
-            if boxed and G is not None and h is not None:
-                G[:boxed] = 0.0
-                h[:boxed] = np.inf
-            return constraint
-        G = np.zeros((boxed + len(qadr), configuration.model.nv))
-        h = np.full(boxed + len(qadr), np.inf)
-        q, phi, gain = configuration.q, self._phi, limit.gain
-        balls = zip(qadr.tolist(), dadr.tolist(), max_angle.tolist())
-        for i, (padr, vadr, top) in enumerate(balls):
-            mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
-            angle = float(np.linalg.norm(phi))
-            if angle > 1e-9:
-                G[boxed + i, vadr : vadr + 3] = phi / angle
-            h[boxed + i] = gain * (top - angle)
-        return mink.Constraint(G=G, h=h)
+        constraint = self.limit.compute_qp_inequalities(configuration, dt)
+        G, h, boxed = constraint.G, constraint.h, self._boxed
+        if boxed and G is not None and h is not None:
+            G[:boxed] = 0.0
+            h[:boxed] = np.inf
+        return constraint
 
 
 def limits_a_ball_joint(model: mujoco.MjModel) -> bool:

@@ -168,5 +168,11 @@ def test_ball_joint_rows_of_a_position_limit_take_the_compiled_step():
         assert np.array_equal(ours.G[boxed:], theirs.G[boxed:])
         assert np.array_equal(ours.h[boxed:], theirs.h[boxed:])
         assert not ours.G[:boxed].any() and np.isinf(ours.h[:boxed]).all()
+        compact = plan.general_limits[0].compact_rows(configuration, DT)
+        if compact is not None:  # (the rows in play, as general_rows takes them)
+            G, h, row_names = compact
+            kept = [boxed + i for i in range(len(theirs.h) - boxed) if theirs.G[boxed + i].any()]
+            assert np.array_equal(G, theirs.G[kept]) and np.array_equal(h, theirs.h[kept])
+            assert row_names == [f"ConfigurationLimit row {r}" for r in kept]
         configuration.integrate_inplace(result.velocity, DT)
     assert binds > 0
