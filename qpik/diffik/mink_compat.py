@@ -462,16 +462,20 @@ def _constrained_solver(
     it applies, as without constraints; before, each call solved an ``IKSolver.build``
     problem with the constraints' level inserted, by a new core (1.6x mink's time a call on
     mink's arm_panda_dof_freezing example)."""
-    levels = _levels(tasks) or [[_MinimumNorm()]]
-    key = (tuple(map(id, constraint_tasks)), float(damping), len(levels))
+    levels = _levels(tasks)
+    model = configuration.model
+    key = (id(model), tuple(map(id, constraint_tasks)), float(damping), len(levels))
     entry = _CONSTRAINED.pop(key, None)
     if entry is None:
         rows = _ConstraintRows(constraint_tasks, configuration)
-        entry = (constraint_tasks, rows, [_Tikhonov(damping) for _ in levels])
+        tikhonov = [_Tikhonov(damping) for _ in range(max(len(levels), 1))]
+        # (no task: the smallest displacement, one kept task, as _new_solver's)
+        entry = (model, constraint_tasks, rows, tikhonov, [_MinimumNorm()] if not levels else [])
         if len(_CONSTRAINED) >= SolverCache.size:
             _CONSTRAINED.pop(next(iter(_CONSTRAINED)))
     _CONSTRAINED[key] = entry  # most recently used last
-    _, rows, tikhonov = entry
+    _, _, rows, tikhonov, minimum = entry
+    levels = levels or [minimum]
     stack = [[rows], *([*level, extra] for level, extra in zip(levels, tikhonov, strict=True))]
     return _solver(configuration, stack, solver, 0.0, limits, None, backend_options)[0]
 

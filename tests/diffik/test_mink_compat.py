@@ -925,3 +925,8 @@ def test_constraints_take_the_compiled_step_and_answer_as_before():
     assert mink_compat._CONSTRAINED
     qpik.clear_caches()
     assert not mink_compat._CONSTRAINED
+    for _ in range(3):  # no task (the smallest displacement): one solver, kept
+        velocity = qpik.solve_ik(configuration, [], DT, "daqp", constraints=[freeze])
+        theirs = mink.solve_ik(configuration, [], DT, "daqp", constraints=[freeze])
+        np.testing.assert_allclose(velocity, theirs, rtol=0, atol=1e-12)
+    assert len(mink_compat.SOLVERS) == 1 and len(mink_compat._CONSTRAINED) == 1
