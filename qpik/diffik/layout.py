@@ -449,7 +449,7 @@ class _BallJointRows(mink.ConfigurationLimit):
 
 def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
     """A ball joint of ``model`` has a range (mink's ConfigurationLimit bounds its rotation
-    angle by a general row, which the kernel does not compute)."""
+    angle by a general row: the compiled step takes it from :class:`_BallJointRows`)."""
     ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
     return bool(np.any(ball & (model.jnt_limited != 0)))
 
