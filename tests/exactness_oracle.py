@@ -243,6 +243,8 @@ def _level(A, b, rho, lb, ub, G, h, x0, N, relax, margin=0.0):
                 raise Infeasible from None
             raise
         y_new, lam = sol[0], sol[4]
+        if not np.isfinite(y_new).all():  # quadprog broke down (an ill-conditioned level)
+            return x0 + N @ y, False  # (no reference: the case is not compared)
         f = 0.5 * y_new @ H @ y_new + g @ y_new
         step = float(np.max(np.abs(y_new - y)))
         y = y_new
