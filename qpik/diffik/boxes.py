@@ -45,8 +45,11 @@ Contribution = tuple[str, np.ndarray, np.ndarray]
 def limit_name(limit: Any) -> str:
     """The name of ``limit``'s class in messages and active-limit names; for a private class
     of qpik's, its first public base's (``model_collision_limit`` gives a private subclass of
-    ``CollisionAvoidanceLimit``: named so)."""
+    ``CollisionAvoidanceLimit``: named so); for a view of part of a mink limit
+    (:mod:`.mink_limits`), the limit's class."""
     cls = type(limit)
+    if getattr(cls, "VIEW", False):  # (a view of part of a mink limit: .mink_limits)
+        return cls.__mro__[1].__name__
     if cls.__name__.startswith("_") and cls.__module__.startswith("qpik."):
         return next((c.__name__ for c in cls.__mro__ if not c.__name__.startswith("_")), "")
     return cls.__name__
@@ -452,6 +455,11 @@ class LimitBoxes:
         contributions: list[Contribution] = []
         for limit in self.limits:
             box = BOX_LIMITS.get(type(limit))
+            if type(limit) is mink.FreeJointVelocityLimit and limit.angular_max is not None:
+                # its angular rows, one dof each: the box's (.mink_limits.FreeJointAngular)
+                dofs = np.arange(3, 6) + int(limit._lin_dofs[0])
+                bound = dt * np.asarray(limit.angular_max, dtype=float)
+                _add_sides(contributions, limit_name(limit), dofs, -bound, bound)
             if box is None:  # a general-row limit
                 continue
             dofs, lower, upper = _box_of(box, limit, qpos, dt)

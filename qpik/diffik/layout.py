@@ -31,6 +31,7 @@ from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
 from .boxes import LimitBoxes, limit_bounds, limit_values
+from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
@@ -348,8 +349,9 @@ def _place_frame(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: i
 
 def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     """The entries of mink's position and velocity limits and its collision avoidance
-    limits, a position limit's ball-joint rows as general rows (:class:`_BallJointRows`);
-    None when another limit is present."""
+    limits, a position limit's ball-joint rows as general rows and a free-joint velocity
+    limit's angular bounds as box entries and its linear rows as general rows (views of
+    them: :mod:`.mink_limits`); None when another limit is present."""
     cfg_dof: list[int] = []
     cfg_qadr: list[int] = []
     cfg_data: list[tuple[float, float, float]] = []
@@ -361,7 +363,7 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     for limit in limits:
         if type(limit) is mink.ConfigurationLimit:
             if limits_a_ball_joint(limit.model):  # its cones' rows: general rows
-                general_limits.append(_BallJointRows(limit))
+                general_limits.append(BallJointRows(limit))
             indices = np.asarray(limit.indices, dtype=np.int64)
             qadr = model.jnt_qposadr[model.dof_jntid[indices]].astype(np.int64)
             e0 = len(cfg_dof)
@@ -375,6 +377,19 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
             vel_dof.extend(np.asarray(limit.indices, dtype=np.int64).tolist())
             vel_limit.extend(np.asarray(limit.limit, dtype=float).tolist())
             vel_limits.append((limit, v0, len(vel_dof)))
+        elif type(limit) is mink.FreeJointVelocityLimit:  # (mink 1.3's attributes read)
+            try:
+                linear = FreeJointLinear(limit) if limit.linear_max is not None else None
+                angular = FreeJointAngular(limit) if limit.angular_max is not None else None
+            except (AttributeError, IndexError, TypeError):
+                return None
+            if angular is not None:  # its angular bounds: velocity-limit box entries
+                v0 = len(vel_dof)
+                vel_dof.extend(angular.indices.tolist())
+                vel_limit.extend(np.asarray(angular.limit, dtype=float).tolist())
+                vel_limits.append((angular, v0, len(vel_dof)))
+            if linear is not None:  # its linear rows: general rows
+                general_limits.append(linear)
         elif isinstance(limit, GENERAL_LIMITS) and not getattr(limit, "recoverable", False):
             general_limits.append(limit)
         else:
@@ -384,72 +399,10 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
     )
 
 
-class _BallJointRows(mink.ConfigurationLimit):
-    """The rows of a :class:`mink.ConfigurationLimit` that bound its ball joints' rotation
-    angles (``a^T dq <= gain (max_angle - angle)``, one a ball), for the compiled step's
-    general rows; its other dofs' bounds are the kernel's box entries. mink's rows, bitwise
-    (its arithmetic: ``mju_quat2Vel``, the angle its norm, the axis the vector over it, a zero
-    row at the identity), with the gain read at each step; a row is named by its number in
-    the limit's rows (after the ``2 len(indices)`` box rows), as the QP path names it.
-    :meth:`compact_rows` gives the rows in play directly (:meth:`.boxes.LimitBoxes.general_rows`
-    takes them); where the limit lacks mink 1.3's ball-joint attributes, the limit's own
-    ``compute_qp_inequalities`` with its box rows emptied (``h = inf``) is read instead.
-    Named as the limit (:func:`.boxes.limit_name`: its first public base)."""
-
-    def __init__(self, limit: mink.ConfigurationLimit):  # (not mink's: nothing to build)
-        self.limit = limit
-        self._phi = np.empty(3)
-        boxed = 2 * len(limit.indices)  # (mink's upper then lower rows, ball rows after)
-        self._boxed = boxed
-        try:
-            balls = zip(
-                limit._ball_qposadr.tolist(),  # (mink 1.3's)
-                limit._ball_dofadr.tolist(),
-                limit._ball_max_angle.tolist(),
-            )  # fmt: skip
-            self._balls: list | None = list(balls)
-        except AttributeError:
-            self._balls = None
-        self._names = [f"ConfigurationLimit row {boxed + i}" for i in range(len(self._balls or ()))]
-
-    def compact_rows(self, configuration: mink.Configuration, dt: float):
-        """``(G, h, names)`` of the ball rows in play (an empty row, at the identity, left
-        out where it holds), None where a row bounds one dof (the QP path folds it into the
-        box) or an empty row fails, NotImplemented without mink's attributes (the generic
-        rows then)."""
-        if self._balls is None:
-            return NotImplemented
-        q, phi, gain = configuration.q, self._phi, self.limit.gain
-        rows, h, names = [], [], []
-        for i, (padr, vadr, top) in enumerate(self._balls):
-            mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
-            angle = float(np.sqrt(phi.dot(phi)))  # (np.linalg.norm's arithmetic)
-            if angle > 1e-9:
-                axis = phi / angle
-                if np.count_nonzero(axis) == 1:
-                    return None
-                rows.append((vadr, axis))
-                h.append(gain * (top - angle))
-                names.append(self._names[i])
-            elif gain * (top - angle) < 0.0:  # (an empty row no displacement meets)
-                return None
-        G = np.zeros((len(rows), configuration.model.nv))
-        for k, (vadr, axis) in enumerate(rows):
-            G[k, vadr : vadr + 3] = axis
-        return G, np.array(h, dtype=float), names
-
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
-        constraint = self.limit.compute_qp_inequalities(configuration, dt)
-        G, h, boxed = constraint.G, constraint.h, self._boxed
-        if boxed and G is not None and h is not None:
-            G[:boxed] = 0.0
-            h[:boxed] = np.inf
-        return constraint
-
-
 def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
     """A ball joint of ``model`` has a range (mink's ConfigurationLimit bounds its rotation
-    angle by a general row: the compiled step takes it from :class:`_BallJointRows`)."""
+    angle by a general row: the compiled step takes it from
+    :class:`.mink_limits.BallJointRows`)."""
     ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
     return bool(np.any(ball & (model.jnt_limited != 0)))
 

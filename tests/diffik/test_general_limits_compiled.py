@@ -139,9 +139,7 @@ def test_ball_joint_rows_of_a_position_limit_take_the_compiled_step():
     ]
     solver = qpik.IKSolver(model, [aim + [jaw]], limits)
     plan = solver._plan
-    assert plan is not None and [type(g).__name__ for g in plan.general_limits] == [
-        "_BallJointRows"
-    ]
+    assert plan is not None and [type(g).__name__ for g in plan.general_limits] == ["BallJointRows"]
     binds = 0
     rng = np.random.default_rng(2)
     for turn in range(80):
@@ -176,3 +174,73 @@ def test_ball_joint_rows_of_a_position_limit_take_the_compiled_step():
             assert row_names == [f"ConfigurationLimit row {r}" for r in kept]
         configuration.integrate_inplace(result.velocity, DT)
     assert binds > 0
+
+
+#: a floating base with a two-link arm
+FLOATING = """
+<mujoco>
+  <worldbody>
+    <body name="base" pos="0 0 0.5">
+      <freejoint/>
+      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
+      <body name="link1" pos="0 0 0.1">
+        <joint name="j1" type="hinge" axis="0 1 0" range="-1.5 1.5"/>
+        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
+        <body name="link2" pos="0 0 0.3">
+          <joint name="j2" type="hinge" axis="1 0 0" range="-1.5 1.5"/>
+          <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
+          <site name="tip" pos="0 0 0.3"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_free_joint_velocity_limit_takes_the_compiled_step():
+    """mink's FreeJointVelocityLimit (mink 1.3): its angular bounds are velocity entries of
+    the kernel's box, its linear rows (R^T, the base's rotation) general rows (views:
+    qpik.diffik.mink_limits); the step is the QP path's to round-off with the same limits
+    named, and mink's answer to mink's problem. Where a linear row bounds one dof (an
+    upright base: R^T's rows are unit vectors) the QP path answers, as it folds such a row
+    into the box. Before, the limit sent every step to the QP path (a floating Talos
+    stack: 3.6x mink's time a call)."""
+    import mink
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(FLOATING)
+    configuration = qpik.Configuration(model)
+    tip = PositionTask("tip", "site", gain=0.5)
+    tip.set_target(configuration.frame_pose("tip", "site")[0])
+    base = PostureTask(model, cost=1e-2)
+    base.set_target(configuration.q)
+    free = mink.FreeJointVelocityLimit(model, max_linear_velocity=0.3, max_angular_velocity=0.5)
+    limits = [mink.ConfigurationLimit(model), free]
+    solver = qpik.IKSolver(model, [[tip], [base]], limits)
+    plan = solver._plan
+    assert plan is not None and [type(g).__name__ for g in plan.general_limits] == [
+        "FreeJointLinear"
+    ]
+    assert solver.compiled_velocity(configuration, DT) is None  # (upright: one-dof rows)
+    rng = np.random.default_rng(4)
+    compiled = names = 0
+    for turn in range(60):
+        if turn % 15 == 0:
+            tip.set_target(configuration.frame_pose("tip", "site")[0] + rng.normal(size=3))
+        if turn == 30:  # a new angular bound, read at the next step
+            free.angular_max = np.array([0.2, 0.3, 0.1])
+        result = solver.step(configuration, DT)
+        reference = solver.qp_solution(configuration, DT)
+        np.testing.assert_allclose(result.velocity, reference.velocity, rtol=0, atol=1e-9)
+        expected = qpik.StepResult.of(reference, 0.0).active_limits
+        assert sorted(result.active_limits) == sorted(expected)
+        names += any("FreeJointVelocityLimit" in name for name in expected)
+        compiled += solver.compiled_velocity(configuration, DT) is not None
+        fresh = qpik.IKSolver(model, [[tip], [base]], limits).step(configuration, DT)
+        np.testing.assert_array_equal(fresh.velocity, result.velocity)
+        ours = qpik.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
+        theirs = mink.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-7)
+        configuration.integrate_inplace(result.velocity, DT)
+    assert compiled >= 50 and names > 0

@@ -1,0 +1,141 @@
+"""mink's limits whose rows the compiled step takes in parts (:func:`.layout.limit_layout`):
+a view of each part (``VIEW``), named as the limit (:func:`.boxes.limit_name` gives a view
+its first base's name, so that the active limits are named as on the QP path). They read
+mink 1.3's attributes of the limit; where one is missing, :func:`.layout.limit_layout`
+leaves the limit to the QP path.
+
+* :class:`BallJointRows`: a :class:`mink.ConfigurationLimit`'s ball-joint cone rows, general
+  rows (its other dofs' bounds are the kernel's box entries).
+* :class:`FreeJointAngular`: a :class:`mink.FreeJointVelocityLimit`'s angular bounds, one dof
+  each: velocity-limit entries of the kernel's box (``|dq| <= dt angular_max``).
+* :class:`FreeJointLinear`: its linear rows ``+-R^T v <= linear_max`` (``R`` the base's
+  rotation), general rows; where one bounds a single dof (an upright base: the QP path folds
+  such a row into the box), the step is the QP path's.
+"""
+
+from __future__ import annotations
+
+import mink
+import mujoco
+import numpy as np
+
+__all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear"]
+
+
+class BallJointRows(mink.ConfigurationLimit):
+    """The rows of a :class:`mink.ConfigurationLimit` that bound its ball joints' rotation
+    angles (``a^T dq <= gain (max_angle - angle)``, one a ball), for the compiled step's
+    general rows; its other dofs' bounds are the kernel's box entries. mink's rows, bitwise
+    (its arithmetic: ``mju_quat2Vel``, the angle its norm, the axis the vector over it, a zero
+    row at the identity), with the gain read at each step; a row is named by its number in
+    the limit's rows (after the ``2 len(indices)`` box rows), as the QP path names it.
+    :meth:`compact_rows` gives the rows in play directly (:meth:`.boxes.LimitBoxes.general_rows`
+    takes them); where the limit lacks mink 1.3's ball-joint attributes, the limit's own
+    ``compute_qp_inequalities`` with its box rows emptied (``h = inf``) is read instead.
+    Named as the limit (:func:`.boxes.limit_name`: its first public base)."""
+
+    VIEW = True
+
+    def __init__(self, limit: mink.ConfigurationLimit):  # (not mink's: nothing to build)
+        self.limit = limit
+        self._phi = np.empty(3)
+        boxed = 2 * len(limit.indices)  # (mink's upper then lower rows, ball rows after)
+        self._boxed = boxed
+        try:
+            balls = zip(
+                limit._ball_qposadr.tolist(),  # (mink 1.3's)
+                limit._ball_dofadr.tolist(),
+                limit._ball_max_angle.tolist(),
+            )  # fmt: skip
+            self._balls: list | None = list(balls)
+        except AttributeError:
+            self._balls = None
+        self._names = [f"ConfigurationLimit row {boxed + i}" for i in range(len(self._balls or ()))]
+
+    def compact_rows(self, configuration: mink.Configuration, dt: float):
+        """``(G, h, names)`` of the ball rows in play (an empty row, at the identity, left
+        out where it holds), None where a row bounds one dof (the QP path folds it into the
+        box) or an empty row fails, NotImplemented without mink's attributes (the generic
+        rows then)."""
+        if self._balls is None:
+            return NotImplemented
+        q, phi, gain = configuration.q, self._phi, self.limit.gain
+        rows, h, names = [], [], []
+        for i, (padr, vadr, top) in enumerate(self._balls):
+            mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
+            angle = float(np.sqrt(phi.dot(phi)))  # (np.linalg.norm's arithmetic)
+            if angle > 1e-9:
+                axis = phi / angle
+                if np.count_nonzero(axis) == 1:
+                    return None
+                rows.append((vadr, axis))
+                h.append(gain * (top - angle))
+                names.append(self._names[i])
+            elif gain * (top - angle) < 0.0:  # (an empty row no displacement meets)
+                return None
+        G = np.zeros((len(rows), configuration.model.nv))
+        for k, (vadr, axis) in enumerate(rows):
+            G[k, vadr : vadr + 3] = axis
+        return G, np.array(h, dtype=float), names
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
+        constraint = self.limit.compute_qp_inequalities(configuration, dt)
+        G, h, boxed = constraint.G, constraint.h, self._boxed
+        if boxed and G is not None and h is not None:
+            G[:boxed] = 0.0
+            h[:boxed] = np.inf
+        return constraint
+
+
+class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
+    """The angular part of a :class:`mink.FreeJointVelocityLimit` as a velocity limit of the
+    kernel's box: ``indices`` the free joint's three angular dofs, ``limit`` its
+    ``angular_max`` [rad/s] read at each step (mink's rows are ``+-dq_i <= dt max_i``, one
+    dof each, which the QP path folds into the same box bounds). A velocity limit for
+    :func:`.boxes.limit_values` (its speeds checked >= 0), named as the limit."""
+
+    VIEW = True
+
+    def __init__(self, limit: mink.FreeJointVelocityLimit):  # (not mink's: nothing to build)
+        self.source = limit
+        start = int(limit._lin_dofs[0]) + 3  # (mink 1.3's: the free joint's first dof)
+        self.indices = np.arange(start, start + 3)
+
+    @property
+    def limit(self):
+        return self.source.angular_max
+
+
+class FreeJointLinear(mink.FreeJointVelocityLimit):
+    """The linear part of a :class:`mink.FreeJointVelocityLimit`: mink's rows ``R^T`` on the
+    free joint's linear dofs, ``<= dt linear_max``, and their negation, bitwise (``R`` the
+    base body's ``xmat``), numbered as in the limit's rows (the angular rows, where set, after
+    each sign's linear ones); :meth:`compact_rows` for :meth:`.boxes.LimitBoxes.general_rows`."""
+
+    VIEW = True
+
+    def __init__(self, limit: mink.FreeJointVelocityLimit):  # (not mink's: nothing to build)
+        self.source = limit
+        per_side = 3 + (3 if limit.angular_max is not None else 0)
+        self._names = [f"FreeJointVelocityLimit row {r}" for r in (0, 1, 2)] + [
+            f"FreeJointVelocityLimit row {per_side + r}" for r in (0, 1, 2)
+        ]
+
+    def compact_rows(self, configuration: mink.Configuration, dt: float):
+        """``(G, h, names)`` of the six linear rows, None where one bounds a single dof."""
+        limit = self.source
+        R = configuration.data.xmat[limit.base_body_id].reshape(3, 3)
+        rows = R.T
+        if (np.count_nonzero(rows, axis=1) <= 1).any():
+            return None
+        G = np.zeros((6, configuration.model.nv))
+        G[:3, limit._lin_dofs] = rows
+        G[3:] = -G[:3]
+        h_half = dt * np.asarray(limit.linear_max, dtype=float)
+        return G, np.concatenate([h_half, h_half]), self._names
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
+        rows = self.compact_rows(configuration, dt)
+        if rows is None:  # (one-dof rows: read apart only by general_rows, which refuses them)
+            return self.source.compute_qp_inequalities(configuration, dt)
+        return mink.Constraint(G=rows[0], h=rows[1])
