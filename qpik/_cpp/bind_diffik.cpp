@@ -1116,6 +1116,23 @@ auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, boo
                            to_numpy(std::move(r.active), {L_, cols}));
 }
 
+// Kernel.run_deferred: run()'s step with the sigma of each level whose rank the cascade
+// proves full left NaN in info (as go() leaves it; the same answer, statuses and
+// certificates): the velocity without the work of those sigmas.
+auto step_tuple_deferred(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
+                         i64 max_iter) {
+    const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
+    require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.run_deferred: warm must have shape (L, nv + p)");
+    diffik::StepResult r;
+    diffik::fused_step_into(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace(),
+                            k.scratch(), r, true);
+    if (r.v_is_d) r.v = r.d;
+    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
+                           to_numpy(std::move(r.info), {9, L_}),
+                           to_numpy(std::move(r.active), {L_, cols}));
+}
+
 }  // namespace
 
 void bind_diffik(nb::module_& m) {
@@ -1164,6 +1181,15 @@ void bind_diffik(nb::module_& m) {
             nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
             "step() on the attached MjData's arrays (Kernel.attach): step's last 5 arguments, the "
             "same answer.")
+        .def(
+            "run_deferred",
+            [](Kernel& k, In2 G, In1 h, B2 warm, bool canonical, i64 max_iter) {
+                diffik::FusedArgs a = k.attached_args(G, h);
+                return step_tuple_deferred(k, a, warm, canonical, max_iter);
+            },
+            nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
+            "run() with the sigma of each level whose rank the cascade proves full left NaN in "
+            "info (as go() defers it): the same answer, statuses and certificates.")
         .def("attach_aux", &Kernel::attach_aux, nb::arg("owner"), nb::arg("qpos"),
              nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"), nb::arg("xmat"),
              nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),

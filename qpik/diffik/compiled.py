@@ -421,7 +421,7 @@ class CompiledPlan:
                 return d[row], v[row], info, (self.no_rows, self.no_h, []), qpos[row]
             if row == -1:
                 return None
-        return self._gathered_step(configuration, dt, damping, core, forced)
+        return self._gathered_step(configuration, dt, damping, core, forced, resolve)
 
     def _gathered_step(
         self,
@@ -430,15 +430,17 @@ class CompiledPlan:
         damping: float,
         core,
         forced: bool,
+        resolve: bool = True,
     ) -> tuple | None:
         """:meth:`_solve` by gathering the step's arrays in Python (:meth:`gather`): where
         the lean step does not apply (general-row limits, a value it does not take as it
-        is)."""
+        is). ``resolve=False``: the sigma of each level whose rank the cascade proves full
+        left NaN in the info (as the lean step defers it; nothing else changes)."""
         poses = self.gather(configuration)
         if poses is None:
             return None
         self.write_settings(dt, damping, core)
-        out = self._kernel_step(poses, configuration, dt, core, forced)
+        out = self._kernel_step(poses, configuration, dt, core, forced, resolve)
         if out is None:
             return None
         return (*out, poses[0].copy())
@@ -570,11 +572,18 @@ class CompiledPlan:
         )
 
     def _kernel_step(
-        self, poses: tuple, configuration: mink.Configuration, dt: float, core, forced: bool
+        self,
+        poses: tuple,
+        configuration: mink.Configuration,
+        dt: float,
+        core,
+        forced: bool,
+        resolve: bool = True,
     ) -> tuple | None:
         """The kernel's step: ``(dq, v, info, general rows)``, None where the QP path must
         answer (``forced``: also where a level was not solved); ``core``'s active sets
-        updated."""
+        updated. ``resolve=False``: the levels' sigmas the cascade may defer left NaN
+        (``Kernel.run_deferred``: half the instructions of a humanoid's weighted level)."""
         general = self._general(configuration, dt)
         if general is None:
             return None
@@ -583,7 +592,8 @@ class CompiledPlan:
         warm = core.warm_sets(self.levels, rows)
         if warm is None:
             warm = self.cold_for(rows - self.nv)
-        code, d, v, info, active = self.kernel.run(  # on poses, attached by gather
+        run = self.kernel.run if resolve else self.kernel.run_deferred
+        code, d, v, info, active = run(  # on poses, attached by gather
             G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
         )
         if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):

@@ -28,6 +28,10 @@ def _closed_loop(solver, configuration, steps, kind):
     for _ in range(steps):
         result = solver.step(configuration, DT)
         reference = solver.qp_solution(configuration, DT)
+        fast = solver.compiled_velocity(configuration, DT)  # (the sigmas deferred: the same)
+        assert fast is not None
+        np.testing.assert_array_equal(fast[0], result.velocity)
+        assert [str(s) for s in fast[1]] == [str(s) for s in result.status]
         worst = max(worst, float(np.abs(result.velocity - reference.velocity).max()))
         assert [str(s) for s in result.status] == [str(s) for s in reference.status]
         expected = qpik.StepResult.of(reference, 0.0)
@@ -236,7 +240,11 @@ def test_a_free_joint_velocity_limit_takes_the_compiled_step():
         expected = qpik.StepResult.of(reference, 0.0).active_limits
         assert sorted(result.active_limits) == sorted(expected)
         names += any("FreeJointVelocityLimit" in name for name in expected)
-        compiled += solver.compiled_velocity(configuration, DT) is not None
+        fast = solver.compiled_velocity(configuration, DT)  # (its sigmas deferred)
+        if fast is not None:
+            compiled += 1
+            np.testing.assert_array_equal(fast[0], result.velocity)
+            assert [str(s) for s in fast[1]] == [str(s) for s in result.status]
         fresh = qpik.IKSolver(model, [[tip], [base]], limits).step(configuration, DT)
         np.testing.assert_array_equal(fresh.velocity, result.velocity)
         ours = qpik.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
