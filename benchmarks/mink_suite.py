@@ -268,6 +268,64 @@ def run_timing(calls: int) -> None:
         "README row 'levels': qpik's two strict levels [[task], [posture]], qpik's solver, "
         "against mink's one weighted level [task, posture] with DAQP (goal: ratio <= 0.5)"
     )
+    _timing_free_joint(min(calls, 300))
+
+
+def _timing_free_joint(calls: int) -> None:
+    """Per-call time on a floating humanoid with mink 1.3's FreeJointVelocityLimit (Talos
+    from example-robot-data: feet, CoM, a hand and posture in one weighted level; position,
+    velocity and free-joint velocity limits; DAQP), in closed loop (mink's answer
+    integrated, so that the base turns): qpik's compiled step takes the limit's angular
+    bounds into its box and its linear rows as general rows."""
+    import mink
+    import numpy as np
+
+    import qpik
+    from qpik.limits import velocity_limit_from_model
+
+    try:
+        model = qpik.load_robot("erd:talos", floating_base=True)
+    except qpik.QpikError as exc:  # (the robots extra: example-robot-data)
+        print(f"\nfree-joint velocity limit: skipped ({exc})")
+        return
+    home = model.key("half_sitting").qpos.copy()
+    configuration = mink.Configuration(model, home)
+    feet = [
+        mink.FrameTask(f, "body", position_cost=10.0, orientation_cost=10.0)
+        for f in ("left_sole_link", "right_sole_link")
+    ]
+    for task in feet:
+        task.set_target_from_configuration(configuration)
+    hand = mink.FrameTask("gripper_left_base_link", "body", position_cost=1.0, orientation_cost=0.0)
+    start = configuration.get_transform_frame_to_world("gripper_left_base_link", "body")
+    com = mink.ComTask(10.0)
+    com0 = configuration.data.subtree_com[1].copy()
+    posture = mink.PostureTask(model, 0.1)
+    posture.set_target(home)
+    tasks = [*feet, com, hand, posture]
+    free = mink.FreeJointVelocityLimit(model, max_linear_velocity=0.2, max_angular_velocity=0.3)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model), free]
+    times: dict[str, list[float]] = {"mink": [], "qpik": []}
+    worst = 0.0
+    for i in range(calls):
+        sway = np.array([np.sin(i / 20), 2 * np.sin(i / 30), -np.sin(i / 25)])
+        com.set_target(com0 + 0.02 * sway)
+        offset = np.array([0.2 * np.sin(i / 15), 0.1, 0.1 * np.cos(i / 10)])
+        hand.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        answers = {}
+        for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
+            solve = mink.solve_ik if name == "mink" else qpik.solve_ik
+            t0 = time.perf_counter()
+            answers[name] = solve(configuration, tasks, 0.01, "daqp", 1e-6, limits=limits)
+            times[name].append(time.perf_counter() - t0)
+        worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+        configuration.integrate_inplace(answers["mink"], 0.01)
+    m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+    print(
+        f"\nfloating Talos (erd:talos), feet + CoM + hand + posture, FreeJointVelocityLimit, "
+        f"{calls} closed-loop calls, DAQP: mink {m:.1f} us, qpik {q:.1f} us, ratio {q / m:.2f}, "
+        f"max |dv| {worst:.2e}"
+    )
 
 
 # ----------------------------------------------------------------- mink's example scripts
