@@ -123,19 +123,16 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
 
     def compact_rows(self, configuration: mink.Configuration, dt: float):
         """``(G, h, names)`` of the six linear rows, None where one bounds a single dof."""
-        limit = self.source
-        R = configuration.data.xmat[limit.base_body_id].reshape(3, 3)
-        rows = R.T
-        if (np.count_nonzero(rows, axis=1) <= 1).any():
+        constraint = self.compute_qp_inequalities(configuration, dt)
+        if (np.count_nonzero(constraint.G, axis=1) <= 1).any():
             return None
-        G = np.zeros((6, configuration.model.nv))
-        G[:3, limit._lin_dofs] = rows
-        G[3:] = -G[:3]
-        h_half = dt * np.asarray(limit.linear_max, dtype=float)
-        return G, np.concatenate([h_half, h_half]), self._names
+        return constraint.G, constraint.h, self._names
 
     def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
-        rows = self.compact_rows(configuration, dt)
-        if rows is None:  # (one-dof rows: read apart only by general_rows, which refuses them)
-            return self.source.compute_qp_inequalities(configuration, dt)
-        return mink.Constraint(G=rows[0], h=rows[1])
+        """The six linear rows ``G dq <= h`` as mink computes them."""
+        limit = self.source
+        G = np.zeros((6, configuration.model.nv))
+        G[:3, limit._lin_dofs] = configuration.data.xmat[limit.base_body_id].reshape(3, 3).T
+        G[3:] = -G[:3]
+        h_half = dt * np.asarray(limit.linear_max, dtype=float)
+        return mink.Constraint(G=G, h=np.concatenate([h_half, h_half]))

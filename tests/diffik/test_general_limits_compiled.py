@@ -245,6 +245,11 @@ def test_a_free_joint_velocity_limit_takes_the_compiled_step():
             compiled += 1
             np.testing.assert_array_equal(fast[0], result.velocity)
             assert [str(s) for s in fast[1]] == [str(s) for s in result.status]
+        view = plan.general_limits[0].compute_qp_inequalities(configuration, DT)
+        theirs_rows = free.compute_qp_inequalities(configuration, DT)
+        linear = [0, 1, 2, 6, 7, 8]  # (mink's rows: linear, angular, then their negations)
+        assert np.array_equal(view.G, theirs_rows.G[linear])
+        assert np.array_equal(view.h, theirs_rows.h[linear])
         fresh = qpik.IKSolver(model, [[tip], [base]], limits).step(configuration, DT)
         np.testing.assert_array_equal(fresh.velocity, result.velocity)
         ours = qpik.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
