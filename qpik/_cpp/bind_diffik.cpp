@@ -1118,7 +1118,8 @@ auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, boo
 
 // Kernel.run_deferred: run()'s step with the sigma of each level whose rank the cascade
 // proves full left NaN in info (as go() leaves it; the same answer, statuses and
-// certificates): the velocity without the work of those sigmas.
+// certificates), and the cascade's records of them (core::CascadeResult::deferred, as go()
+// writes them into its defer output: qpik.core.kernels.resolve_sigma resolves them).
 auto step_tuple_deferred(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
                          i64 max_iter) {
     const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
@@ -1128,9 +1129,10 @@ auto step_tuple_deferred(const Kernel& k, const diffik::FusedArgs& a, const B2& 
                             k.scratch(), r, true);
     if (r.v_is_d) r.v = r.d;
     const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    Vec deferred = r.code == diffik::OK ? k.scratch().cascade.deferred : Vec();
     return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
                            to_numpy(std::move(r.info), {9, L_}),
-                           to_numpy(std::move(r.active), {L_, cols}));
+                           to_numpy(std::move(r.active), {L_, cols}), to_numpy(std::move(deferred)));
 }
 
 }  // namespace
@@ -1189,7 +1191,8 @@ void bind_diffik(nb::module_& m) {
             },
             nb::arg("G"), nb::arg("h"), nb::arg("warm"), nb::arg("canonical"), nb::arg("max_iter"),
             "run() with the sigma of each level whose rank the cascade proves full left NaN in "
-            "info (as go() defers it): the same answer, statuses and certificates.")
+            "info (as go() defers it; the same answer, statuses and certificates), and the "
+            "records that resolve them: (code, d, v, info, active, deferred).")
         .def("attach_aux", &Kernel::attach_aux, nb::arg("owner"), nb::arg("qpos"),
              nb::arg("site_xpos"), nb::arg("site_xmat"), nb::arg("xpos"), nb::arg("xmat"),
              nb::arg("geom_xpos"), nb::arg("geom_xmat"), nb::arg("subtree_com"),

@@ -124,6 +124,8 @@ class CompiledPlan:
         self._data: mujoco.MjData | None = None  # the MjData whose arrays _pose_args views
         self._pose_args: tuple = ()
         self.no_rows, self.no_h = np.zeros((0, self.model.nv)), np.zeros(0)
+        #: the last gathered step's records of the sigmas it deferred (_kernel_step)
+        self._deferred: np.ndarray | None = None
         self.colds[0] = self.cold
         self._out: tuple = ()  # the outputs _lean steps write into (_new_outputs)
         self._row = OUTPUT_ROWS
@@ -535,13 +537,13 @@ class CompiledPlan:
                 )  # fmt: skip
             if row == -1:
                 return None
-        out = self._gathered_step(configuration, dt, damping, core, False)
+        out = self._gathered_step(configuration, dt, damping, core, False, False)
         if out is None:
             return None
         d, v, info, general, qpos = out
         return StepResult.lazy(
             v, d, info, skip, _perf_counter() - start,
-            lambda: self._limit_rows(qpos, dt, general),
+            lambda: self._limit_rows(qpos, dt, general), deferred=self._deferred,
         )  # fmt: skip
 
     def _one_call(
@@ -592,10 +594,14 @@ class CompiledPlan:
         warm = core.warm_sets(self.levels, rows)
         if warm is None:
             warm = self.cold_for(rows - self.nv)
-        run = self.kernel.run if resolve else self.kernel.run_deferred
-        code, d, v, info, active = run(  # on poses, attached by gather
-            G, h, warm, core.warm_start, self.max_iter or 10 * rows + 50
-        )
+        max_iter = self.max_iter or 10 * rows + 50
+        if resolve:  # (on poses, attached by gather)
+            code, d, v, info, active = self.kernel.run(G, h, warm, core.warm_start, max_iter)
+            self._deferred = None
+        else:  # the deferred sigmas' records kept for the step's result (step_result)
+            code, d, v, info, active, self._deferred = self.kernel.run_deferred(
+                G, h, warm, core.warm_start, max_iter
+            )
         if code or (forced and any(s != _SOLVED_CODE for s in info[3].tolist())):
             return None
         if self._relaxable and _INFEASIBLE_CODE in info[3]:  # the QP path relaxes them

@@ -180,13 +180,15 @@ class StepResult:
         solve_time: float,
         limits: Callable[[], LimitRows],
         row: int | None = None,
+        deferred: np.ndarray | None = None,
     ) -> StepResult:
         """The result of a compiled step from the kernel's ``info`` (9, L) (rows: residual,
         sigma, lambda^2, status code, iterations, then the certificate's four measures;
         the couplings' level first when ``skip`` is 1), or from ``info[row]`` of a stack of
         them (K, 9, L) when ``row`` is given: the per-level lists are read from it on first
         access (the same values :meth:`of` gives; a control loop that reads only the
-        velocity never builds them)."""
+        velocity never builds them). ``deferred``: the kernel's records of the sigmas it
+        deferred (NaN in ``info``), resolved then."""
         result = _new(cls)
         first = (0, 0) if row is None else (row, 0, 0)
         result.__dict__ = {
@@ -196,7 +198,7 @@ class StepResult:
             "coupling_residual": info.item(first) if skip else None,
             "_limits": limits,
             "_active_limits": None,
-            "_info": (info, row, skip),
+            "_info": (info, row, skip, deferred),
         }
         return result
 
@@ -239,9 +241,11 @@ class StepResult:
             lazy = d.get("_info")
             if lazy is None or name not in _PER_LEVEL:
                 raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-            info, row, skip = lazy
+            info, row, skip, deferred = lazy
             if row is not None:
                 info = info[row]
+            if deferred is not None:
+                info = resolved_info(info, deferred)
             del d["_info"]
         if "residuals" not in d:
             residuals, sigma, lam2, status, iterations, *cert = info.tolist()

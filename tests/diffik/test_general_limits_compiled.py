@@ -20,6 +20,11 @@ DT = 0.01
 ARM = ["link4", "link5", "link6", "link7", "hand"]
 
 
+def expected_sigma(reference) -> list:
+    """The QP path's smallest singular value per level (its own computation: round-off)."""
+    return qpik.StepResult.of(reference, 0.0).sigma_min
+
+
 def _closed_loop(solver, configuration, steps, kind):
     """Steps of ``solver`` in closed loop, each compared with its QP path at that state:
     the largest velocity difference [rad/s] and the steps where a row of ``kind`` binds."""
@@ -32,6 +37,14 @@ def _closed_loop(solver, configuration, steps, kind):
         assert fast is not None
         np.testing.assert_array_equal(fast[0], result.velocity)
         assert [str(s) for s in fast[1]] == [str(s) for s in result.status]
+        # the step's deferred sigmas, resolved when read: the kernel's own, bitwise
+        core = solver._core
+        whole = solver._plan._gathered_step(configuration, DT, solver._damping, core, False)
+        assert whole is not None
+        np.testing.assert_array_equal(np.array(result.sigma_min), whole[2][1])
+        np.testing.assert_allclose(
+            result.sigma_min, expected_sigma(reference), rtol=1e-8, atol=1e-12
+        )
         worst = max(worst, float(np.abs(result.velocity - reference.velocity).max()))
         assert [str(s) for s in result.status] == [str(s) for s in reference.status]
         expected = qpik.StepResult.of(reference, 0.0)
