@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <tuple>
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -1101,19 +1102,33 @@ class Kernel {
     mutable diffik::StepResult step_;  // go()'s and correct()'s answer (every field written by each)
 };
 
-// Kernel.step / Kernel.run: the cascade on a call's arguments, as Python receives it.
-auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
-                i64 max_iter) {
+// The cascade on a call's arguments (Kernel.step, run, run_deferred): the step's result,
+// v = d where it has no velocity. defer: as fused_step_into's (the sigmas the cascade may
+// defer left NaN, their records in the scratch's cascade.deferred).
+diffik::StepResult kernel_step(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
+                               i64 max_iter, bool defer) {
     const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
     require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.step: warm must have shape (L, nv + p)");
-    diffik::StepResult r =
-        diffik::fused_step(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace(),
-                           k.scratch());
+    diffik::StepResult r;
+    diffik::fused_step_into(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace(),
+                            k.scratch(), r, defer);
     if (r.v_is_d) r.v = r.d;
+    return r;
+}
+
+// A step's result as Python receives it: (code, dq, v, info (9, L), active (L, nv + p)).
+auto result_tuple(diffik::StepResult& r, i64 L) {
     const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
     return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
                            to_numpy(std::move(r.info), {9, L_}),
                            to_numpy(std::move(r.active), {L_, cols}));
+}
+
+// Kernel.step / Kernel.run.
+auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
+                i64 max_iter) {
+    diffik::StepResult r = kernel_step(k, a, warm, canonical, max_iter, false);
+    return result_tuple(r, k.levels());
 }
 
 // Kernel.run_deferred: run()'s step with the sigma of each level whose rank the cascade
@@ -1122,17 +1137,9 @@ auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, boo
 // writes them into its defer output: qpik.core.kernels.resolve_sigma resolves them).
 auto step_tuple_deferred(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
                          i64 max_iter) {
-    const i64 n = k.nv(), L = k.levels(), p = a.G.rows;
-    require(dim(warm, 0) == L && dim(warm, 1) == n + p, "Kernel.run_deferred: warm must have shape (L, nv + p)");
-    diffik::StepResult r;
-    diffik::fused_step_into(a, max_iter, MatRefT<const i8>(warm.data(), L, n + p), canonical, k.workspace(),
-                            k.scratch(), r, true);
-    if (r.v_is_d) r.v = r.d;
-    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    diffik::StepResult r = kernel_step(k, a, warm, canonical, max_iter, true);
     Vec deferred = r.code == diffik::OK ? k.scratch().cascade.deferred : Vec();
-    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                           to_numpy(std::move(r.info), {9, L_}),
-                           to_numpy(std::move(r.active), {L_, cols}), to_numpy(std::move(deferred)));
+    return std::tuple_cat(result_tuple(r, k.levels()), std::make_tuple(to_numpy(std::move(deferred))));
 }
 
 }  // namespace

@@ -32,6 +32,7 @@ from ..errors import (
 )
 from ..limits.collision import mink_collision_rows
 from ..model.configuration import Configuration, joint_names
+from .mink_limits import angular_dofs
 
 __all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure", "relaxable"]
 
@@ -457,7 +458,7 @@ class LimitBoxes:
             box = BOX_LIMITS.get(type(limit))
             if type(limit) is mink.FreeJointVelocityLimit and limit.angular_max is not None:
                 # its angular rows, one dof each: the box's (.mink_limits.FreeJointAngular)
-                dofs = np.arange(3, 6) + int(limit._lin_dofs[0])
+                dofs = angular_dofs(limit)
                 bound = dt * np.asarray(limit.angular_max, dtype=float)
                 _add_sides(contributions, limit_name(limit), dofs, -bound, bound)
             if box is None:  # a general-row limit

@@ -19,7 +19,7 @@ import mink
 import mujoco
 import numpy as np
 
-__all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear"]
+__all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear", "angular_dofs"]
 
 
 class BallJointRows(mink.ConfigurationLimit):
@@ -87,6 +87,12 @@ class BallJointRows(mink.ConfigurationLimit):
         return constraint
 
 
+def angular_dofs(limit: mink.FreeJointVelocityLimit) -> np.ndarray:
+    """The free joint's three angular dofs (after its three linear ones; mink 1.3's
+    ``_lin_dofs``)."""
+    return np.arange(3, 6) + int(limit._lin_dofs[0])
+
+
 class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
     """The angular part of a :class:`mink.FreeJointVelocityLimit` as a velocity limit of the
     kernel's box: ``indices`` the free joint's three angular dofs, ``limit`` its
@@ -98,8 +104,7 @@ class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
 
     def __init__(self, limit: mink.FreeJointVelocityLimit):  # (not mink's: nothing to build)
         self.source = limit
-        start = int(limit._lin_dofs[0]) + 3  # (mink 1.3's: the free joint's first dof)
-        self.indices = np.arange(start, start + 3)
+        self.indices = angular_dofs(limit)
 
     @property
     def limit(self):

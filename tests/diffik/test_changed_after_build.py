@@ -9,6 +9,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from conftest import FLOATING
 
 import qpik
 from qpik.errors import (
@@ -20,27 +21,6 @@ from qpik.errors import (
 )
 
 DT = 0.01
-
-#: a small floating robot: its free joint makes the limits mink's rows (not boxes)
-FLOATING = """
-<mujoco>
-  <worldbody>
-    <body name="base">
-      <freejoint/>
-      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
-      <body name="link1" pos="0 0 0.1">
-        <joint name="j1" type="hinge" axis="0 1 0" range="-1 1"/>
-        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
-        <body name="link2" pos="0 0 0.3">
-          <joint name="j2" type="hinge" axis="0 1 0" range="-1.5 1.5"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
-          <site name="ee" pos="0 0 0.3"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
 
 
 def _refused_on_every_path(error, match: str, solver, configuration, fresh) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import has_erd
+from conftest import FLOATING, has_erd
 
 import qpik
 from qpik.limits import CollisionAvoidanceLimit, SupportPolygonLimit, joint_limits
@@ -193,28 +193,6 @@ def test_ball_joint_rows_of_a_position_limit_take_the_compiled_step():
     assert binds > 0
 
 
-#: a floating base with a two-link arm
-FLOATING = """
-<mujoco>
-  <worldbody>
-    <body name="base" pos="0 0 0.5">
-      <freejoint/>
-      <geom type="box" size="0.1 0.1 0.1" mass="1"/>
-      <body name="link1" pos="0 0 0.1">
-        <joint name="j1" type="hinge" axis="0 1 0" range="-1.5 1.5"/>
-        <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
-        <body name="link2" pos="0 0 0.3">
-          <joint name="j2" type="hinge" axis="1 0 0" range="-1.5 1.5"/>
-          <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.03" mass="0.5"/>
-          <site name="tip" pos="0 0 0.3"/>
-        </body>
-      </body>
-    </body>
-  </worldbody>
-</mujoco>
-"""
-
-
 def test_a_free_joint_velocity_limit_takes_the_compiled_step():
     """mink's FreeJointVelocityLimit (mink 1.3): its angular bounds are velocity entries of
     the kernel's box, its linear rows (R^T, the base's rotation) general rows (views:
@@ -228,8 +206,8 @@ def test_a_free_joint_velocity_limit_takes_the_compiled_step():
 
     model = mujoco.MjModel.from_xml_string(FLOATING)
     configuration = qpik.Configuration(model)
-    tip = PositionTask("tip", "site", gain=0.5)
-    tip.set_target(configuration.frame_pose("tip", "site")[0])
+    tip = PositionTask("ee", "site", gain=0.5)
+    tip.set_target(configuration.frame_pose("ee", "site")[0])
     base = PostureTask(model, cost=1e-2)
     base.set_target(configuration.q)
     free = mink.FreeJointVelocityLimit(model, max_linear_velocity=0.3, max_angular_velocity=0.5)
@@ -244,7 +222,7 @@ def test_a_free_joint_velocity_limit_takes_the_compiled_step():
     compiled = names = 0
     for turn in range(60):
         if turn % 15 == 0:
-            tip.set_target(configuration.frame_pose("tip", "site")[0] + rng.normal(size=3))
+            tip.set_target(configuration.frame_pose("ee", "site")[0] + rng.normal(size=3))
         if turn == 30:  # a new angular bound, read at the next step
             free.angular_max = np.array([0.2, 0.3, 0.1])
         result = solver.step(configuration, DT)
