@@ -954,7 +954,9 @@ def talos_peers(n_steps: int = 300) -> None:
             f"(max {a[:, 1].max():.2f}), right hand {a[:, 3].mean():.2f}, left hand in reach "
             f"{a[:h, 2].mean():.2f} / out of reach {a[h:, 2].mean():.1f}; |dq_legs| rms "
             f"{np.sqrt(np.mean(s**2)):.3f}, feet / |dq_legs|^2 median "
-            f"{np.median(a[moved, 0] / s[moved] ** 2):.0f}"
+            f"{np.median(a[moved, 0] / s[moved] ** 2):.0f}; median us in reach "
+            f"{1e6 * np.median(times[name][:h]):.1f} / out of reach "
+            f"{1e6 * np.median(times[name][h:]):.1f}"
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
         )
     _report_peers(

@@ -137,3 +137,63 @@ def test_centauro_posture_moves_the_dofs_no_pin_holds():
     again = used.solve(problem)
     fresh = HierarchySolver(damping_law=None).solve(problem)
     assert np.array_equal(again.x, result.x) and np.array_equal(fresh.x, result.x)
+
+
+def _pinned_by_reference(normals: np.ndarray) -> list[bool]:
+    """drop_pinned's test of each tight row by scipy's NNLS (no qpik code): row j is pinned
+    when min |n_j + sum_i u_i n_i| over u >= 0 is within 1e-12 (1 + sum u), sum u <= 1e6."""
+    from scipy.optimize import nnls
+
+    out = []
+    for j in range(len(normals)):
+        others = np.delete(normals, j, axis=0).T
+        u, res = nnls(others, -normals[j]) if others.shape[1] else (np.zeros(0), 1.0)
+        out.append(bool(res <= 1e-12 * (1 + u.sum()) and 1 + u.sum() <= 1e6))
+    return out
+
+
+def test_independent_tight_rows_pin_nothing():
+    # Tight rows at most as many as Z's columns, their normals independent but not in one
+    # half-space (no shortcut by their sum): Z comes back bit for bit, as scipy's NNLS of
+    # each row says (no row pinned).
+    rng = np.random.default_rng(11)
+    checked = 0
+    for _ in range(1500):
+        n = int(rng.integers(3, 12))
+        r = int(rng.integers(2, n + 1))
+        Z = np.linalg.qr(rng.standard_normal((n, r)))[0]
+        d = rng.standard_normal(n)
+        t = int(rng.integers(2, r + 1))
+        tight = rng.choice(n, size=t, replace=False)
+        lb, ub = d - 1.0, d + 1.0
+        lower = rng.random(t) < 0.5
+        lb[tight[lower]] = d[tight[lower]]
+        ub[tight[~lower]] = d[tight[~lower]]
+        sides = np.where(lower, 1.0, -1.0)[:, None]
+        normals = sides * Z[tight] / np.linalg.norm(Z[tight], axis=1)[:, None]
+        if np.all(normals @ normals.sum(0) > 1e-9 * np.linalg.norm(normals.sum(0))):
+            continue  # (the sum's shortcut decides these)
+        if np.linalg.svd(normals, compute_uv=False)[-1] < 1e-4:
+            continue
+        assert not any(_pinned_by_reference(normals))
+        out = _call(Z, d, lb, ub)
+        assert out.shape == Z.shape and out.tobytes() == Z.tobytes()
+        checked += 1
+    assert checked > 40
+
+
+def test_nearly_opposite_rows_are_decided_by_their_residual():
+    # Two tight general rows on a plane, opposite up to eps in a second coordinate: within
+    # the test's 1e-12 they are pinned together (one direction left); at 1e-6 they are not
+    # (their Gram matrix is too close to singular for the independence shortcut, and the
+    # NNLS residual frees them); at 1e-3 the shortcut itself leaves Z as it is.
+    d = np.zeros(2)
+    box = (np.full(2, -1.0), np.full(2, 1.0))
+    for eps, columns in ((1e-13, 1), (1e-6, 2), (1e-3, 2)):
+        G = np.array([[1.0, 0.0], [-1.0, eps]])
+        out = _call(np.eye(2), d, *box, G, np.zeros(2))
+        normals = -G / np.linalg.norm(G, axis=1)[:, None]
+        assert any(_pinned_by_reference(normals)) == (columns == 1)
+        assert out.shape == (2, columns)
+        if columns == 2:
+            assert np.array_equal(out, np.eye(2))

@@ -120,6 +120,7 @@ struct Workspace {
     IVec state, others, pinned;
     IVec pin_keep, pin_touched;  // drop_pinned's coordinates no pinned normal touches, and the others
     BVec box_pinned;
+    Mat pin_gram, pin_factor;  // the independence test's Gram matrix and its factor
     Mat N;
     Vec y, u, res;
     // the cascade's level answer
@@ -3134,6 +3135,9 @@ constexpr double kPinnedAllWeight = 100.0;
 // row, which its own test then decides (Tiago: two rows on their bounds pinned with weights
 // 4.7e-12 and 6.1e-12, free to move 0.02 rad; the posture below ended 0.2 % above its optimum).
 constexpr double kPinnedWith = 1e-8;
+// drop_pinned's independence test: the tight rows' unit normals pin nothing where their Gram
+// matrix less this multiple of I has a Cholesky factor (least singular value above 1e-5).
+constexpr double kPinFreeGram = 1e-10;
 
 namespace detail {
 // drop_pinned's shortcut once a row's test has pinned a set P (weights w > 0, w_j = 1 for the
@@ -3449,6 +3453,22 @@ inline bool drop_pinned(Mat& Z, const Vec& d, CVecRef lb, CVecRef ub, CMatRef G,
         for (i64 j = 0; j < t && free; ++j)
             if (!(dot(normals[j].data(), sum.data(), r) > 1e-9 * sn)) free = false;
         if (free) return false;
+    }
+    if (t <= r) {
+        // Independent normals pin nothing: where the Gram matrix M = N^T N of the unit
+        // normals less kPinFreeGram I has a Cholesky factor, M's least eigenvalue is above
+        // kPinFreeGram less the round-off of forming and factoring it (about t r eps, far
+        // below), so |N w| >= 1e-5 |w| >= 1e-5 (1 + sum u) / sqrt(t) for w = (1, u), u >= 0:
+        // every residual the test below computes is far above kPinned (1 + sum u), and it
+        // would mark every row free (Z unchanged): the same answer, without its NNLS (one a
+        // row). A non-finite normal makes a NaN pivot: the test below decides.
+        Mat& M = ws.pin_gram;
+        shape(M, t, t);
+        for (i64 i = 0; i < t; ++i)
+            for (i64 j = 0; j <= i; ++j) M(i, j) = dot(normals[i].data(), normals[j].data(), r);
+        Mat& L = ws.pin_factor;
+        L.zeros(t, t);
+        if (cholesky_into(M.cref(), t, kPinFreeGram, L.ref())) return false;
     }
     IVec& state = ws.state;  // 1 pinned, -1 free, 0 not known yet
     state.assign(static_cast<size_t>(t), 0);
