@@ -269,6 +269,55 @@ def run_timing(calls: int) -> None:
         "against mink's one weighted level [task, posture] with DAQP (goal: ratio <= 0.5)"
     )
     _timing_free_joint(min(calls, 300))
+    _timing_constraints(min(calls, 1000))
+
+
+def _timing_constraints(calls: int) -> None:
+    """Per-call time with mink 1.3's ``constraints=`` (bundled Panda: frame + posture task,
+    the hand's orientation held by a FrameTask constraint, then dofs 0 and 1 frozen by a
+    DofFreezingTask; position limits; DAQP), in closed loop on mink's answer: qpik holds the
+    constraints as a level above the tasks' (the compiled step, their rows scaled to unit
+    norm at each call)."""
+    import mink
+    import numpy as np
+
+    import qpik
+
+    model = qpik.load_robot("panda")
+    frame = "ee"
+    print(f"\nconstraints=, {calls} closed-loop calls each (bundled Panda, frame + posture task)")
+    print(f"{'constraint':<28}{'mink [us]':>11}{'qpik [us]':>11}{'ratio':>8}{'max |dv|':>11}")
+    for label in ("FrameTask (orientation)", "DofFreezingTask (dofs 0, 1)"):
+        configuration = mink.Configuration(model)
+        configuration.update_from_keyframe("home")
+        task = mink.FrameTask(frame, "site", position_cost=1.0, orientation_cost=1.0)
+        start = configuration.get_transform_frame_to_world(frame, "site")
+        posture = mink.PostureTask(model, cost=1e-2)
+        posture.set_target(configuration.q)
+        if label.startswith("FrameTask"):
+            held = mink.FrameTask(frame, "site", position_cost=0.0, orientation_cost=1.0)
+            held.set_target_from_configuration(configuration)
+        else:
+            held = mink.DofFreezingTask(model, dof_indices=[0, 1])
+        limits = [mink.ConfigurationLimit(model)]
+        times: dict[str, list[float]] = {"mink": [], "qpik": []}
+        worst = 0.0
+        for i in range(calls):
+            offset = 0.05 * np.array([np.sin(i / 40), np.cos(i / 50) - 1, np.sin(i / 30)])
+            task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+            answers = {}
+            for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
+                solve = mink.solve_ik if name == "mink" else qpik.solve_ik
+                t0 = time.perf_counter()
+                answers[name] = solve(
+                    configuration, [task, posture], 0.01, "daqp", 1e-6, limits=limits,
+                    constraints=[held],
+                )  # fmt: skip
+                times[name].append(time.perf_counter() - t0)
+            worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+            configuration.integrate_inplace(answers["mink"], 0.01)
+        m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+        print(f"{label:<28}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
 
 
 def _timing_free_joint(calls: int) -> None:

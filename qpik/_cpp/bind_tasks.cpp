@@ -1,6 +1,8 @@
 // Bindings of the tasks layer (qpik._engine.tasks): SO(3)/SE(3) (model/so3.hpp and
 // model/se3.hpp, wrapped by qpik.model.lie), the frame task's kernels (tasks/frame.hpp,
 // used by qpik.tasks.frame) and the linear residual (tasks/linear.hpp, qpik.tasks.coupling). The Lie routines write into their first argument.
+#include <cmath>
+
 #include "bind.hpp"
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
@@ -217,4 +219,33 @@ void bind_tasks(nb::module_& m) {
         "mink's LookAtTask's weighted residual from a frame's world-aligned Jacobian jac (6, nv),\n"
         "rotation xmat (9,) and position xpos (3,) [m]: A = cost J (3, nv) and b = -cost gain e\n"
         "(3,) written; returns mu = lm_damping |b|^2 (tasks/look_at.hpp).");
+    m.def(
+        "unit_rows",
+        [](Out2 A, Out1 b, In2 J, In1 e, double gain) {
+            const size_t k = J.shape(0), nv = J.shape(1);
+            require(e.shape(0) == k, "unit_rows: e must have shape (k,), k the rows of J");
+            require(A.shape(0) == k && A.shape(1) == nv, "unit_rows: A must have J's shape");
+            require(b.shape(0) == k, "unit_rows: b must have shape (k,)");
+            const double* j = J.data();
+            const double* ev = e.data();
+            for (size_t t = 0; t < k * nv; ++t)
+                if (!std::isfinite(j[t])) return false;
+            for (size_t i = 0; i < k; ++i)
+                if (!std::isfinite(-gain * ev[i])) return false;
+            for (size_t i = 0; i < k; ++i) {
+                const double* r = j + i * nv;
+                double sq = 0.0;
+                for (size_t c = 0; c < nv; ++c) sq += r[c] * r[c];
+                const double norm = std::sqrt(sq);
+                const double s = norm > 0.0 ? 1.0 / norm : 1.0;
+                double* a = A.data() + i * nv;
+                for (size_t c = 0; c < nv; ++c) a[c] = r[c] * s;
+                b.data()[i] = (-gain * ev[i]) * s;
+            }
+            return true;
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("J"), nb::arg("e"), nb::arg("gain"),
+        "Equality rows J dq = -gain e scaled to unit norm: A = s J and b = s (-gain e) written,\n"
+        "s = 1 / |J_i| per row (1 for a zero row; |J_i| by its squares summed in order). False,\n"
+        "with nothing written, where an entry of J or of -gain e is not finite.");
 }

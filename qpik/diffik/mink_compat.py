@@ -39,6 +39,7 @@ from ..core.checks import type_name
 from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
 from ..model.configuration import Configuration
 from ..tasks import BaseTask
+from .constraints import ConstraintRows, Tikhonov, equality_rows
 from .solver import IKSolver
 
 __all__ = ["SOLVERS", "SolverCache", "build_ik", "solve_ik"]
@@ -58,49 +59,6 @@ class _MinimumNorm(BaseTask):
     def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
         nv = configuration.model.nv
         return mink.Objective(np.eye(nv), np.zeros(nv))
-
-
-class _ConstraintRows(BaseTask):
-    """mink's constraint tasks (``solve_ik(constraints=...)``) as one task whose rows are
-    their equalities ``J dq = -gain e`` (:func:`_equality_rows`, costs not applied), each
-    row scaled to unit norm (the same equalities: a row's units then neither trigger the
-    adaptive damping nor meet the core's round-off floor), with no LM term: the level above
-    the tasks' in :func:`_constrained_solver`'s solver, which holds them exactly where they
-    can be met. ``k``: their number of rows at the configuration it was made at."""
-
-    def __init__(self, constraints: list, configuration: Configuration):
-        self.constraints = constraints
-        self.k = int(self.compute_qp_residual(configuration)[0].shape[0])
-
-    def compute_qp_residual(self, configuration: mink.Configuration):
-        own = as_configuration(configuration)
-        A, b = _equality_rows(own, self.constraints, configuration.model.nv)
-        norms = np.sqrt(np.einsum("ij,ij->i", A, A))
-        scale = np.divide(1.0, norms, out=np.ones_like(norms), where=norms > 0)
-        return A * scale[:, None], b * scale, None
-
-    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
-        A, b, _ = self.compute_qp_residual(configuration)
-        return mink.Objective(A.T @ A, -(A.T @ b))
-
-
-class _Tikhonov(BaseTask):
-    """mink's ``damping`` of a task level as a task with no rows: its LM term, ``damping``,
-    the level's constant regularisation (:func:`_constrained_solver`: the solver's own
-    damping is 0 there, so that the constraints' level gets none)."""
-
-    k = 0
-
-    def __init__(self, damping: float):
-        self.damping = float(damping)
-
-    def compute_qp_residual(self, configuration: mink.Configuration):
-        nv = configuration.model.nv
-        return np.zeros((0, nv)), np.zeros(0), self.damping
-
-    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
-        nv = configuration.model.nv
-        return mink.Objective(self.damping * np.eye(nv), np.zeros(nv))
 
 
 def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
@@ -179,19 +137,6 @@ def _constraints(constraints: Any) -> list[mink.Task]:
     return constraints
 
 
-def _equality_rows(
-    configuration: Configuration, constraints: Sequence[mink.Task], nv: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """mink's equality rows ``J dq = -gain e`` of the constraint tasks (costs not applied)."""
-    A = [np.atleast_2d(task.compute_jacobian(configuration)) for task in constraints]
-    b = [-task.gain * np.atleast_1d(task.compute_error(configuration)) for task in constraints]
-    A_eq = np.vstack(A) if A else np.zeros((0, nv))
-    b_eq = np.concatenate(b) if b else np.zeros(0)
-    if not (np.isfinite(A_eq).all() and np.isfinite(b_eq).all()):
-        raise InvalidInput("constraints: a constraint's Jacobian or error is not finite")
-    return A_eq, b_eq
-
-
 def _check_step(dt: Any, damping: Any) -> None:
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise InvalidInput(f"dt must be a positive number of seconds, got {dt!r}")
@@ -245,8 +190,8 @@ def solve_ik(
         qpik.InvalidInput: a malformed argument, named.
     """
     safety_break = checks.check_bool("safety_break", safety_break)
-    if not (kwargs or safety_break or constraints is not None):
-        velocity = SOLVERS.velocity(configuration, tasks, dt, solver, damping, limits)
+    if not (kwargs or safety_break):
+        velocity = SOLVERS.velocity(configuration, tasks, dt, solver, damping, limits, constraints)
         if velocity is not None:
             return velocity
     configuration = as_configuration(configuration)
@@ -257,6 +202,8 @@ def solve_ik(
         ik = _constrained_solver(
             configuration, tasks, solver, damping, limits, constraint_tasks, kwargs
         )
+        if not kwargs:  # the next such call: SOLVERS.velocity's
+            SOLVERS.keep_constrained(configuration, tasks, limits, solver, damping, constraints, ik)
     else:
         ik, _ = _solver(configuration, tasks, solver, damping, limits, None, kwargs)
     result = ik.step(configuration, dt)
@@ -311,34 +258,30 @@ class SolverCache:
 
     def __init__(self) -> None:
         self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
+        #: the solvers of calls with constraints, by the call's objects (keep_constrained)
+        self._constrained: dict[tuple, tuple[tuple, IKSolver]] = {}
 
     def clear(self) -> None:
         """Forget every kept solver (and the constraint tasks kept for them)."""
         self._entries.clear()
+        self._constrained.clear()
         _CONSTRAINED.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
 
-    def velocity(
+    def _fast_key(
         self,
         configuration: Any,
         tasks: Any,
-        dt: Any,
-        solver: str | None,
-        damping: Any,
         limits: Any,
-    ) -> np.ndarray | None:
-        """:func:`solve_ik`'s answer for a call with a kept solver (a list or tuple of tasks
-        or of levels, ``dt`` and ``damping`` floats; no constraints, backend settings or safety
-        break), None otherwise: :func:`solve_ik` then checks every argument and answers.
-
-        A kept entry holds its task and limit objects, so ids equal to its key's are those
-        objects, checked when the entry was built. The step is the kept solver's (the
-        compiled step on ``configuration`` read in place, or the QP path), and the velocity
-        the step's ``dq / dt``: bitwise :func:`solve_ik`'s full path."""
-        if type(dt) is not float or type(damping) is not float or not 0.0 <= damping < math.inf:
-            return None
+        solver: Any,
+        damping: Any,
+        constraints: Any,
+    ) -> tuple | None:
+        """The key of :meth:`velocity`'s kept solvers for these arguments (None where the
+        call is not one it answers: not a list or tuple of tasks, of limits or of
+        constraints; ``limits=None`` keyed by the model's joint ranges)."""
         if type(tasks) not in (list, tuple) or not isinstance(configuration, mink.Configuration):
             return None
         if solver is not None and type(solver) is not str:  # the full path names it
@@ -350,12 +293,76 @@ class SolverCache:
             limit_key = tuple(map(id, limits))
         else:
             return None
-        key = (id(model), _level_ids(tasks), limit_key, solver, damping, "")
-        entry = self._entries.pop(key, None)
+        if constraints is None:
+            return (id(model), _level_ids(tasks), limit_key, solver, damping, "")
+        if type(constraints) not in (list, tuple) or not constraints:
+            return None
+        # (a call with constraints: a key of its own kind, in _constrained)
+        return (
+            id(model),
+            _level_ids(tasks),
+            limit_key,
+            solver,
+            damping,
+            tuple(map(id, constraints)),
+        )
+
+    def keep_constrained(
+        self,
+        configuration: Any,
+        tasks: Any,
+        limits: Any,
+        solver: str | None,
+        damping: Any,
+        constraints: Any,
+        ik: IKSolver,
+    ) -> None:
+        """Keep ``ik``, the solver of a checked call with ``constraints``
+        (:func:`_constrained_solver`'s), for :meth:`velocity`: by the identity of the model,
+        of every task, limit and constraint, and the solver name and damping (the call's
+        objects held while it is kept)."""
+        if type(damping) is not float:
+            return
+        key = self._fast_key(configuration, tasks, limits, solver, damping, constraints)
+        if key is None:
+            return
+        self._constrained.pop(key, None)
+        if len(self._constrained) >= self.size:
+            self._constrained.pop(next(iter(self._constrained)))
+        held = (configuration.model, list(tasks), limits, list(constraints))
+        self._constrained[key] = (held, ik)  # most recently used last
+
+    def velocity(
+        self,
+        configuration: Any,
+        tasks: Any,
+        dt: Any,
+        solver: str | None,
+        damping: Any,
+        limits: Any,
+        constraints: Any = None,
+    ) -> np.ndarray | None:
+        """:func:`solve_ik`'s answer for a call with a kept solver (a list or tuple of tasks
+        or of levels, ``dt`` and ``damping`` floats, constraints None or a list or tuple of
+        the constraint tasks of a kept solver; no backend settings or safety break), None
+        otherwise: :func:`solve_ik` then checks every argument and answers.
+
+        A kept entry holds its task and limit objects, so ids equal to its key's are those
+        objects, checked when the entry was built. The step is the kept solver's (the
+        compiled step on ``configuration`` read in place, or the QP path), and the velocity
+        the step's ``dq / dt``: bitwise :func:`solve_ik`'s full path."""
+        if type(dt) is not float or type(damping) is not float or not 0.0 <= damping < math.inf:
+            return None
+        key = self._fast_key(configuration, tasks, limits, solver, damping, constraints)
+        if key is None:
+            return None
+        entries = self._entries if constraints is None else self._constrained
+        entry = entries.pop(key, None)
         if entry is None:
             return None
-        self._entries[key] = entry  # most recently used last
+        entries[key] = entry  # most recently used last
         ik = entry[1]
+        model = configuration.model
         if not 0.0 < dt < math.inf or model is not ik.model:
             return None
         fast = ik.compiled_velocity(configuration, dt)
@@ -434,7 +441,7 @@ def _solver(
     ik = SOLVERS.get(configuration, levels, limits, solver, damping, backend_options)
     rows = None
     if constraint_tasks:
-        rows = _equality_rows(configuration, constraint_tasks, configuration.model.nv)
+        rows = equality_rows(configuration, constraint_tasks, configuration.model.nv)
     return ik, rows
 
 
@@ -454,21 +461,21 @@ def _constrained_solver(
     backend_options: dict,
 ) -> IKSolver:
     """The solver of a call with constraints (``constraint_tasks``, checked by
-    :func:`_constraints`): their rows (:class:`_ConstraintRows`, no damping) a level above
-    the task levels, each task level with mink's ``damping`` as an
-    LM term (:class:`_Tikhonov`; the solver's own damping 0), kept between calls as
-    :class:`SolverCache` keeps solvers (the constraint and damping tasks are kept too, so
-    that the same call finds the same solver). Each step is then the compiled step's where
-    it applies, as without constraints; before, each call solved an ``IKSolver.build``
-    problem with the constraints' level inserted, by a new core (1.6x mink's time a call on
-    mink's arm_panda_dof_freezing example)."""
+    :func:`_constraints`): their rows (:class:`~qpik.diffik.constraints.ConstraintRows`,
+    no damping) a level above the task levels, each task level with mink's ``damping`` as
+    an LM term (:class:`~qpik.diffik.constraints.Tikhonov`; the solver's own damping 0),
+    kept between calls as :class:`SolverCache` keeps solvers (the constraint and damping
+    tasks are kept too, so that the same call finds the same solver). Each step is then the
+    compiled step's where it applies, as without constraints; before, each call solved an
+    ``IKSolver.build`` problem with the constraints' level inserted, by a new core (1.6x
+    mink's time a call on mink's arm_panda_dof_freezing example)."""
     levels = _levels(tasks)
     model = configuration.model
     key = (id(model), tuple(map(id, constraint_tasks)), float(damping), len(levels))
     entry = _CONSTRAINED.pop(key, None)
     if entry is None:
-        rows = _ConstraintRows(constraint_tasks, configuration)
-        tikhonov = [_Tikhonov(damping) for _ in range(max(len(levels), 1))]
+        rows = ConstraintRows(constraint_tasks, configuration)
+        tikhonov = [Tikhonov(damping) for _ in range(max(len(levels), 1))]
         # (no task: the smallest displacement, one kept task, as _new_solver's)
         entry = (model, constraint_tasks, rows, tikhonov, [_MinimumNorm()] if not levels else [])
         if len(_CONSTRAINED) >= SolverCache.size:

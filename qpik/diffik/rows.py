@@ -120,13 +120,26 @@ def _look_at_residual(
     return weighted, weighted_error, mu
 
 
+class SuppliedRows(BaseTask):
+    """A task of qpik's own that makes its rows as :func:`task_rows` returns them, already
+    checked (shapes, finiteness) and with typed errors: :meth:`rows_now`. The tasks that
+    :func:`qpik.solve_ik` builds around mink's constraints (:mod:`.constraints`)."""
+
+    def rows_now(self, configuration: Configuration) -> tuple:
+        """``(A, b, mu, weights)`` at ``configuration``, as :func:`task_rows` returns them."""
+        raise NotImplementedError
+
+
 def task_rows(
     task: BaseTask, configuration: Configuration
 ) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
     """One task's weighted rows ``(A, b, mu, weights)`` as :func:`level_rows` stacks them:
     its ``compute_qp_residual`` (``mu`` its LM term), or, for a task that only provides
     ``(H, c)``, the factor ``H = A^T A``, ``A^T b = -c`` (unit weights, ``mu`` None: no
-    term). The compiled step's rows supplied by a task (:mod:`.compiled`) are these arrays."""
+    term); a :class:`SuppliedRows` task's :meth:`~SuppliedRows.rows_now`. The compiled
+    step's rows supplied by a task (:mod:`.compiled`) are these arrays."""
+    if isinstance(task, SuppliedRows):
+        return task.rows_now(configuration)
     residual = None
     if type(task) in _LOOK_AT:
         residual = _look_at_residual(cast(mink.LookAtTask, task), configuration)

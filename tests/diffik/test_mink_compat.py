@@ -20,6 +20,7 @@ import qpsolvers
 from conftest import configuration_of
 
 import qpik
+from qpik.diffik import constraints as constraints_module
 
 DT = 0.01
 BACKENDS = [None, "daqp", "quadprog", "osqp"]
@@ -256,6 +257,80 @@ def test_constraints_are_held_exactly_and_match_mink():
         configuration.integrate_inplace(v, DT)
     assert np.all(configuration.q[:2] == start[:2])
     assert np.abs(configuration.q[2:] - start[2:]).max() > 1e-3
+
+
+def test_constraint_calls_kept_answer_bitwise_as_a_fresh_call(monkeypatch):
+    """A call with constraints keeps its solver (SolverCache.keep_constrained): the next
+    call with the same objects takes SolverCache.velocity's way, bitwise the answer of the
+    full path after the caches are cleared; another constraint list (other objects) or a
+    constraint whose target moved is answered afresh, not from the kept solver's rows."""
+    model = qpik.load_robot("erd:panda")
+    configuration = mink.Configuration(model)
+    configuration.update(model.jnt_range.mean(1))
+    frame = mink.FrameTask("panda_hand_tcp", "body", position_cost=1.0, orientation_cost=1.0)
+    start = configuration.get_transform_frame_to_world("panda_hand_tcp", "body")
+    frame.set_target(start @ mink.SE3.from_translation(np.array([0.03, -0.02, 0.01])))
+    posture = mink.PostureTask(model, cost=0.1)
+    posture.set_target(configuration.q)
+    hold = mink.FrameTask("panda_hand_tcp", "body", position_cost=0.0, orientation_cost=1.0)
+    hold.set_target_from_configuration(configuration)
+    limits = [mink.ConfigurationLimit(model)]
+
+    def call(constraints):
+        return qpik.solve_ik(configuration, [frame, posture], DT, "daqp", 1e-6, limits=limits,
+                             constraints=constraints)  # fmt: skip
+
+    qpik.clear_caches()
+    first = call([hold])
+    built = []
+    full = qpik.diffik.mink_compat._constrained_solver
+    monkeypatch.setattr(
+        "qpik.diffik.mink_compat._constrained_solver", lambda *a: built.append(1) or full(*a)
+    )
+    second = call([hold])  # (SolverCache.velocity: the full path not taken)
+    assert second.tobytes() == first.tobytes() and not built
+    theirs = mink.solve_ik(configuration, [frame, posture], DT, "daqp", 1e-6, limits=limits,
+                           constraints=[hold])  # fmt: skip
+    np.testing.assert_allclose(first, theirs, rtol=0, atol=1e-8)
+    # the constraint held: the hand's rotation does not move (to first order)
+    J = hold.compute_jacobian(configuration)
+    np.testing.assert_allclose(J @ first, -hold.gain * hold.compute_error(configuration) / DT,
+                               atol=1e-9)  # fmt: skip
+    # a moved target is read at the call, through the kept solver
+    hold.set_target(start @ mink.SE3.from_rotation(mink.SO3.from_z_radians(0.01)))
+    moved = call([hold])
+    qpik.clear_caches()
+    assert call([hold]).tobytes() == moved.tobytes()
+    assert np.abs(moved - first).max() > 1e-3
+    # another constraint object: a solver of its own
+    freeze = mink.DofFreezingTask(model, dof_indices=[0])
+    frozen = call([freeze])
+    assert frozen[0] == 0.0 and call([freeze]).tobytes() == frozen.tobytes()
+
+
+def test_unit_rows_scale_each_row_and_refuse_what_is_not_finite():
+    from qpik._engine.tasks import unit_rows
+
+    rng = np.random.default_rng(3)
+    J = rng.standard_normal((5, 7))
+    J[2] = 0.0  # a zero row stays as it is
+    e = rng.standard_normal(5)
+    A, b = np.empty_like(J), np.empty(5)
+    assert unit_rows(A, b, J, e, 2.0)
+    norms = np.linalg.norm(J, axis=1)
+    scale = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 1.0)
+    np.testing.assert_allclose(A, J * scale[:, None], rtol=1e-15, atol=0)
+    np.testing.assert_allclose(b, -2.0 * e * scale, rtol=1e-15, atol=0)
+    assert np.all(A[2] == 0.0) and b[2] == -2.0 * e[2]
+    np.testing.assert_allclose(np.linalg.norm(A[[0, 1, 3, 4]], axis=1), 1.0, rtol=1e-15)
+    for bad in (np.nan, np.inf):
+        Jb, A2, b2 = J.copy(), np.zeros_like(J), np.zeros(5)
+        Jb[1, 3] = bad
+        assert not unit_rows(A2, b2, Jb, e, 2.0)
+        assert not np.any(A2) and not np.any(b2)  # nothing written
+    assert not unit_rows(A, b, J, e, np.inf)  # -gain e not finite
+    with pytest.raises(ValueError):
+        unit_rows(A, b, J, e[:3], 1.0)
 
 
 class _ScaledRow(mink.Task):
@@ -918,7 +993,7 @@ def test_constraints_take_the_compiled_step_and_answer_as_before():
         # the former answer: the tasks' problem with the constraints' unit rows above
         plain = mink_compat._new_solver(own, [[frame, posture]], "daqp", damping, None, {})
         problem = plain.build(own, DT)
-        A, b = mink_compat._equality_rows(own, [freeze], model.nv)
+        A, b = constraints_module.equality_rows(own, [freeze], model.nv)
         problem.levels.insert(0, Level(A, b, 0.0, None, "constraints"))
         reference = HierarchySolver("daqp", damping_law=plain.damping_law).solve(problem)
         np.testing.assert_allclose(velocity, reference.x / DT, rtol=0, atol=1e-10)

@@ -1,0 +1,132 @@
+"""The tasks :func:`qpik.solve_ik` builds around mink's ``constraints``: their equality rows
+``J dq = -gain e`` as one level above the tasks (:class:`ConstraintRows`), and mink's
+``damping`` as each task level's constant Tikhonov term (:class:`Tikhonov`).
+
+Both supply their rows themselves (:class:`qpik.diffik.rows.SuppliedRows`): made, checked
+and, for the constraints, scaled to unit norm in one call at each step, by the compiled
+step's gathered rows and the QP path alike (:func:`qpik.diffik.rows.task_rows`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mink
+import numpy as np
+
+from .._engine.tasks import unit_rows
+from ..errors import InvalidInput, QpikError, TaskDefinitionError, as_qpik_error
+from ..model.configuration import Configuration
+from .rows import SuppliedRows
+
+__all__ = ["ConstraintRows", "Tikhonov", "equality_rows"]
+
+
+def _stacked(
+    configuration: mink.Configuration, constraints: Sequence[mink.Task], nv: int
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The constraints' Jacobian rows ``J`` and the vector ``e`` with the number ``gain``
+    whose rows ``J dq = -gain e`` they are: one task's own arrays and gain, or every task's
+    stacked in order with ``e`` its ``-gain e`` already (and ``gain`` -1)."""
+    if len(constraints) == 1:
+        task = constraints[0]
+        J = np.atleast_2d(task.compute_jacobian(configuration))
+        return J, np.atleast_1d(task.compute_error(configuration)), float(task.gain)
+    A = [np.atleast_2d(task.compute_jacobian(configuration)) for task in constraints]
+    with np.errstate(over="ignore", invalid="ignore"):  # (checked where they are used)
+        b = [-task.gain * np.atleast_1d(task.compute_error(configuration)) for task in constraints]
+    A_eq = np.vstack(A) if A else np.zeros((0, nv))
+    b_eq = np.concatenate(b) if b else np.zeros(0)
+    return A_eq, b_eq, -1.0
+
+
+def _not_finite() -> InvalidInput:
+    return InvalidInput("constraints: a constraint's Jacobian or error is not finite")
+
+
+def equality_rows(
+    configuration: mink.Configuration, constraints: Sequence[mink.Task], nv: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """mink's equality rows ``J dq = -gain e`` of the constraint tasks (costs not applied),
+    stacked in order: ``A`` (k, nv) in the tasks' units, ``b`` (k,); raises
+    :class:`qpik.InvalidInput` where they are not finite."""
+    J, e, gain = _stacked(configuration, constraints, nv)
+    with np.errstate(over="ignore", invalid="ignore"):
+        b = -gain * e
+    if not (np.isfinite(J).all() and np.isfinite(b).all()):
+        raise _not_finite()
+    return J, b
+
+
+class ConstraintRows(SuppliedRows):
+    """mink's constraint tasks (``solve_ik(constraints=...)``) as one task whose rows are
+    their equalities ``J dq = -gain e`` (:func:`equality_rows`, costs not applied), each
+    row scaled to unit norm (the same equalities: a row's units then neither trigger the
+    adaptive damping nor meet the core's round-off floor), with no LM term: the level above
+    the tasks' in :func:`qpik.solve_ik`'s solver, which holds them exactly where they can
+    be met. ``k``: their number of rows at the configuration it was made at."""
+
+    def __init__(self, constraints: list, configuration: Configuration):
+        self.constraints = constraints
+        self.k = int(self.compute_qp_residual(configuration)[0].shape[0])
+
+    def _unit_rows(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """The equalities with each row scaled to unit norm (a zero row as it is;
+        ``qpik._engine.tasks.unit_rows``)."""
+        nv = configuration.model.nv
+        J, e, gain = _stacked(configuration, self.constraints, nv)
+        if J.ndim != 2 or J.shape[1] != nv or e.shape != (J.shape[0],):
+            raise TaskDefinitionError(
+                f"constraints: their rows are of shape {J.shape} and their errors {e.shape}; "
+                f"(k, {nv}) and (k,) expected"
+            )
+        A, b = np.empty(J.shape), np.empty(J.shape[0])
+        if not unit_rows(A, b, J, e, gain):
+            raise _not_finite()
+        return A, b
+
+    def compute_qp_residual(self, configuration: mink.Configuration):
+        A, b = self._unit_rows(configuration)
+        return A, b, None
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
+        A, b = self._unit_rows(configuration)
+        return mink.Objective(A.T @ A, -(A.T @ b))
+
+    def rows_now(self, configuration: mink.Configuration) -> tuple:
+        try:
+            A, b = self._unit_rows(configuration)
+        except mink.MinkError as exc:  # a constraint of mink's: qpik's counterpart
+            raise as_qpik_error(exc) from exc
+        except (ValueError, TypeError) as exc:  # (a gain or target that does not fit)
+            if isinstance(exc, QpikError):
+                raise
+            raise TaskDefinitionError(f"constraints: their rows failed ({exc})") from exc
+        return A, b, None, np.ones(A.shape[0])
+
+
+class Tikhonov(SuppliedRows):
+    """mink's ``damping`` of a task level as a task with no rows: its LM term, ``damping``,
+    the level's constant regularisation (:func:`qpik.solve_ik` with constraints: the
+    solver's own damping is 0 there, so that the constraints' level gets none)."""
+
+    k = 0
+
+    def __init__(self, damping: float):
+        self.damping = float(damping)
+        self._empty: tuple | None = None
+
+    def compute_qp_residual(self, configuration: mink.Configuration):
+        nv = configuration.model.nv
+        return np.zeros((0, nv)), np.zeros(0), self.damping
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
+        nv = configuration.model.nv
+        return mink.Objective(self.damping * np.eye(nv), np.zeros(nv))
+
+    def rows_now(self, configuration: mink.Configuration) -> tuple:
+        nv = configuration.model.nv
+        empty = self._empty
+        if empty is None or empty[0].shape[1] != nv:
+            empty = self._empty = (np.zeros((0, nv)), np.zeros(0), np.zeros(0))
+        return empty[0], empty[1], self.damping, empty[2]
