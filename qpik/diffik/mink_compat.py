@@ -190,8 +190,10 @@ def solve_ik(
         qpik.InvalidInput: a malformed argument, named.
     """
     safety_break = checks.check_bool("safety_break", safety_break)
-    if not (kwargs or safety_break):
-        velocity = SOLVERS.velocity(configuration, tasks, dt, solver, damping, limits, constraints)
+    if not kwargs:
+        velocity = SOLVERS.velocity(
+            configuration, tasks, dt, solver, damping, limits, constraints, safety_break
+        )
         if velocity is not None:
             return velocity
     configuration = as_configuration(configuration)
@@ -341,11 +343,14 @@ class SolverCache:
         damping: Any,
         limits: Any,
         constraints: Any = None,
+        safety_break: bool = False,
     ) -> np.ndarray | None:
         """:func:`solve_ik`'s answer for a call with a kept solver (a list or tuple of tasks
         or of levels, ``dt`` and ``damping`` floats, constraints None or a list or tuple of
-        the constraint tasks of a kept solver; no backend settings or safety break), None
-        otherwise: :func:`solve_ik` then checks every argument and answers.
+        the constraint tasks of a kept solver; no backend settings), None otherwise:
+        :func:`solve_ik` then checks every argument and answers. With ``safety_break`` the
+        configuration's position limits are checked first, as there
+        (:class:`qpik.JointLimitViolation`).
 
         A kept entry holds its task and limit objects, so ids equal to its key's are those
         objects, checked when the entry was built. The step is the kept solver's (the
@@ -365,6 +370,8 @@ class SolverCache:
         model = configuration.model
         if not 0.0 < dt < math.inf or model is not ik.model:
             return None
+        if safety_break:
+            as_configuration(configuration).check_limits(safety_break=True)
         fast = ik.compiled_velocity(configuration, dt)
         if fast is not None:
             velocity, status = fast

@@ -125,7 +125,9 @@ def _ball_violations_of(
 ) -> list[tuple[int, int, float, float]]:
     """``(joint, qpos address, angle, limit)`` of ``qpos``'s limited ball joints rotated past
     their range (MuJoCo's ball-joint limit: ``range[1]``, the largest angle)."""
-    out = []
+    out: list[tuple[int, int, float, float]] = []
+    if not (model.jnt_type == mujoco.mjtJoint.mjJNT_BALL).any():  # (one test, no loop)
+        return out
     for j, adr in _ball_joints(model):
         if not model.jnt_limited[j]:
             continue

@@ -198,6 +198,25 @@ def test_safety_break_raises_minks_exception():
     )
 
 
+def test_safety_break_holds_on_the_kept_solver_way():
+    """With a kept solver (the second call of the same objects) safety_break still checks
+    the limits first, and inside them answers bitwise as without it."""
+    model = qpik.load_robot("ur5e")
+    configuration = _home()
+    task = _frame_task(configuration)
+    tasks = [task]
+    plain = qpik.solve_ik(configuration, tasks, DT, "daqp")
+    kept = qpik.solve_ik(configuration, tasks, DT, "daqp", safety_break=True)
+    assert kept.tobytes() == plain.tobytes()
+    q = configuration.q
+    q[1] = model.jnt_range[1, 0] - 0.05
+    configuration.update(q)
+    qpik.solve_ik(configuration, tasks, DT, "daqp")  # (kept, and answered: no safety break)
+    with pytest.raises(qpik.JointLimitViolation) as info:
+        qpik.solve_ik(configuration, tasks, DT, "daqp", safety_break=True)
+    assert info.value.joint == "shoulder_lift_joint"
+
+
 def test_without_safety_break_a_start_outside_the_limits_moves_back():
     """Without ``safety_break`` there is no exception; the smallest velocity the limits
     allow is the one that heads back inside (mink's QP gives the same)."""
