@@ -149,3 +149,36 @@ def test_same_bits_whatever_ran_before():
             f = first[i]
             assert again[1] == f[1] and again[2] == f[2]
             assert again[0].tobytes() == f[0].tobytes() and again[3].tobytes() == f[3].tobytes()
+
+
+def test_rows_whose_squares_underflow_end_the_sweeps():
+    """tests/data/dual_arm_weighted_level.npz: the one weighted level of mink's
+    arm_dual_panda example (two identical arms, frame tasks and a posture, and a free object
+    joint with zero rows and columns; A weighted, w its rows' costs). Ranked as a last level
+    (its rows turned by the Gram matrix's eigenvectors), rows left with entries whose
+    squares underflow (a squared norm of 0 with a nonzero product against another row) were
+    rotated by angles whose sine underflowed, sweep after sweep to the bound of 60 (3 M
+    instructions a solve, now a few sweeps: benchmarks/mink_suite.py --examples). The
+    answer, sigma and rank against numpy's least squares and SVD."""
+    from pathlib import Path
+
+    from qpik.core import HierarchyProblem, HierarchySolver, Level
+
+    z = np.load(Path(__file__).parents[1] / "data" / "dual_arm_weighted_level.npz")
+    A, w = z["A"], z["w"]
+    n = A.shape[1]
+    b = np.random.default_rng(0).standard_normal(A.shape[0]) * 0.01
+    sv = np.linalg.svd(A / w[:, None], compute_uv=False)
+    for reg in (5e-3, 1e-3):
+        problem = HierarchyProblem(
+            [Level(A, b, reg, w)], -np.ones(n), np.ones(n), np.zeros((0, n)), np.zeros(0)
+        )
+        result = HierarchySolver(damping_law=None).solve(problem)
+        stacked = np.vstack([A, np.sqrt(reg) * np.eye(n)])
+        reference = np.linalg.lstsq(stacked, np.concatenate([b, np.zeros(n)]), rcond=None)[0]
+        assert np.abs(reference).max() < 1.0  # (the box inactive)
+        np.testing.assert_allclose(result.x, reference, rtol=0, atol=1e-14)
+        kept = sv[sv > 1e-9 * sv[0]]
+        assert result.sigma[0] == pytest.approx(kept.min(), rel=1e-13)
+    _, sigma, rank, _ = E.project_level(A, w, np.eye(n), RANK_TOL)
+    assert rank == 18 and sigma == pytest.approx(1.0, rel=1e-13)

@@ -313,8 +313,14 @@ __attribute__((always_inline)) inline void jacobi_rotation(double alpha, double 
 // leaves the normal range: gamma^2 <= alpha beta to round-off); else by the roots of alpha and
 // beta apart (alpha beta itself would overflow, every pair then found orthogonal, or
 // underflow, none).
+// A row whose squared norm is 0 as summed (every entry below about 1e-162, its squares
+// underflowing) counts as orthogonal to any other: no rotation can make it more so, and
+// one with it is by an angle whose sine underflows too (0 or a subnormal), so that it
+// changes neither row: the pair was found not orthogonal again, sweep after sweep, up to
+// the sweeps' bound (60, 3 M instructions a level on mink's arm_dual_panda, whose free
+// object joint's zero rows, turned by the Gram matrix's eigenvectors, kept such residues).
 inline bool jacobi_orthogonal(double alpha, double beta, double gamma) {
-    if (gamma == 0.0) return true;
+    if (gamma == 0.0 || alpha == 0.0 || beta == 0.0) return true;
     const double ab = alpha * beta;
     if (ab >= 1e-250 && ab <= 1e250) return gamma * gamma <= 1e-30 * ab;
     return std::fabs(gamma) <= 1e-15 * (std::sqrt(alpha) * std::sqrt(beta));
