@@ -158,8 +158,10 @@ def test_rows_whose_squares_underflow_end_the_sweeps():
     (its rows turned by the Gram matrix's eigenvectors), rows left with entries whose
     squares underflow (a squared norm of 0 with a nonzero product against another row) were
     rotated by angles whose sine underflowed, sweep after sweep to the bound of 60 (3 M
-    instructions a solve, now a few sweeps: benchmarks/mink_suite.py --examples). The
-    answer, sigma and rank against numpy's least squares and SVD."""
+    instructions a solve); the null rows' noise (norms 1e-20 to 1e-36 of the largest) then
+    kept 13 sweeps turning against the others, now left alone below 1e-9 of the rank cutoff
+    (a few sweeps: benchmarks/mink_suite.py --examples, 0.90x -> 0.20x mink's time a call).
+    The answer, sigma and rank against numpy's least squares and SVD."""
     from pathlib import Path
 
     from qpik.core import HierarchyProblem, HierarchySolver, Level

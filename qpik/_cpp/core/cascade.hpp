@@ -319,8 +319,12 @@ __attribute__((always_inline)) inline void jacobi_rotation(double alpha, double 
 // changes neither row: the pair was found not orthogonal again, sweep after sweep, up to
 // the sweeps' bound (60, 3 M instructions a level on mink's arm_dual_panda, whose free
 // object joint's zero rows, turned by the Gram matrix's eigenvectors, kept such residues).
-inline bool jacobi_orthogonal(double alpha, double beta, double gamma) {
-    if (gamma == 0.0 || alpha == 0.0 || beta == 0.0) return true;
+// floor: a squared norm at or below which a row counts as orthogonal to any other (rank_rows':
+// far below the rank cutoff, so that neither the rank, nor sigma, nor the null directions
+// move beyond round-off; its rotations only turned the null rows' noise against the others,
+// sweep after sweep: 13 sweeps on mink's arm_dual_panda level, a few without).
+inline bool jacobi_orthogonal(double alpha, double beta, double gamma, double floor = 0.0) {
+    if (gamma == 0.0 || alpha <= floor || beta <= floor) return true;
     const double ab = alpha * beta;
     if (ab >= 1e-250 && ab <= 1e250) return gamma * gamma <= 1e-30 * ab;
     return std::fabs(gamma) <= 1e-15 * (std::sqrt(alpha) * std::sqrt(beta));
@@ -467,7 +471,7 @@ constexpr int kJacobiChunk = 8;
 template <int C>
 inline void jacobi_sweeps(double* base, i64 stride, i64 p, i64 cols, bool log_rotations, double* s, i64* clean,
                           i64* stamp, const i64* start, const i64* pi, const i64* pj, i64 rounds,
-                          std::vector<Rotation>& log) {
+                          std::vector<Rotation>& log, double floor = 0.0) {
     auto row = [&](i64 i) { return base + i * stride; };
     constexpr int kBatch = 32;
     Rotation batch[kBatch];
@@ -495,7 +499,7 @@ inline void jacobi_sweeps(double* base, i64 stride, i64 p, i64 cols, bool log_ro
                 int nr = 0;
                 for (int q = 0; q < nt; ++q) {
                     const i64 i = ti[q], j = tj[q];
-                    if (jacobi_orthogonal(s[i], s[j], gam[q])) {
+                    if (jacobi_orthogonal(s[i], s[j], gam[q], floor)) {
                         clean[i * p + j] = ++now;
                         continue;
                     }
@@ -531,7 +535,8 @@ inline void jacobi_sweeps(double* base, i64 stride, i64 p, i64 cols, bool log_ro
 constexpr i64 kJacobiFixed = 16;
 
 template <int C>
-inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, std::vector<Rotation>& log,
+                                   double floor = 0.0) {
     constexpr int P = static_cast<int>(kJacobiFixed);
     alignas(16) double W[P][C];
     double s[P];
@@ -547,7 +552,7 @@ inline void jacobi_row_norms_fixed(Mat& R, i64 p, bool log_rotations, Vec& sq, s
     }
     i64 start[P + 1], pi[P * (P - 1) / 2], pj[P * (P - 1) / 2], at[P + 1];
     const i64 rounds = jacobi_rounds(p, start, pi, pj, at);
-    jacobi_sweeps<C>(&W[0][0], C, p, C, log_rotations, s, clean, stamp, start, pi, pj, rounds, log);
+    jacobi_sweeps<C>(&W[0][0], C, p, C, log_rotations, s, clean, stamp, start, pi, pj, rounds, log, floor);
     sq.resize(static_cast<size_t>(p));  // every entry written
     for (i64 i = 0; i < p; ++i) {
         sq[i] = s[i];
@@ -599,7 +604,8 @@ struct JacobiOrder {
 constexpr int kJacobiSquare = 8;
 
 template <int P>
-inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::vector<Rotation>& log) {
+inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::vector<Rotation>& log,
+                                    double floor = 0.0) {
     static constexpr JacobiOrder<P> ord{};
     constexpr int kRound = P / 2;  // pairs per round, at most
     alignas(16) double W[P][P];
@@ -630,7 +636,7 @@ inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::ve
                 const int q = k - k0, i = ord.pi[k], j = ord.pj[k];
                 rot[q] = false;
                 if (!act[q]) continue;
-                if (jacobi_orthogonal(s[i], s[j], gam[q])) {
+                if (jacobi_orthogonal(s[i], s[j], gam[q], floor)) {
                     clean |= std::uint64_t{1} << k;
                     continue;
                 }
@@ -666,37 +672,37 @@ inline void jacobi_row_norms_square(Mat& R, bool log_rotations, Vec& sq, std::ve
 // One-sided Jacobi on the first p rows of R (each cols long): jacobi_sweeps, the rows rotated
 // in place; sq[i] = |row i|^2 on return; clean: scratch (the pairs' stamps and the order).
 inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& sq, IVec& clean,
-                             std::vector<Rotation>& log) {
+                             std::vector<Rotation>& log, double floor = 0.0) {
     if (p == cols) {
         switch (p) {
-            case 2: return jacobi_row_norms_square<2>(R, log_rotations, sq, log);
-            case 3: return jacobi_row_norms_square<3>(R, log_rotations, sq, log);
-            case 4: return jacobi_row_norms_square<4>(R, log_rotations, sq, log);
-            case 5: return jacobi_row_norms_square<5>(R, log_rotations, sq, log);
-            case 6: return jacobi_row_norms_square<6>(R, log_rotations, sq, log);
-            case 7: return jacobi_row_norms_square<7>(R, log_rotations, sq, log);
-            case 8: return jacobi_row_norms_square<8>(R, log_rotations, sq, log);
+            case 2: return jacobi_row_norms_square<2>(R, log_rotations, sq, log, floor);
+            case 3: return jacobi_row_norms_square<3>(R, log_rotations, sq, log, floor);
+            case 4: return jacobi_row_norms_square<4>(R, log_rotations, sq, log, floor);
+            case 5: return jacobi_row_norms_square<5>(R, log_rotations, sq, log, floor);
+            case 6: return jacobi_row_norms_square<6>(R, log_rotations, sq, log, floor);
+            case 7: return jacobi_row_norms_square<7>(R, log_rotations, sq, log, floor);
+            case 8: return jacobi_row_norms_square<8>(R, log_rotations, sq, log, floor);
             default: break;
         }
     }
     if (p <= kJacobiFixed) {
         switch (cols) {
-            case 1: return jacobi_row_norms_fixed<1>(R, p, log_rotations, sq, log);
-            case 2: return jacobi_row_norms_fixed<2>(R, p, log_rotations, sq, log);
-            case 3: return jacobi_row_norms_fixed<3>(R, p, log_rotations, sq, log);
-            case 4: return jacobi_row_norms_fixed<4>(R, p, log_rotations, sq, log);
-            case 5: return jacobi_row_norms_fixed<5>(R, p, log_rotations, sq, log);
-            case 6: return jacobi_row_norms_fixed<6>(R, p, log_rotations, sq, log);
-            case 7: return jacobi_row_norms_fixed<7>(R, p, log_rotations, sq, log);
-            case 8: return jacobi_row_norms_fixed<8>(R, p, log_rotations, sq, log);
-            case 9: return jacobi_row_norms_fixed<9>(R, p, log_rotations, sq, log);
-            case 10: return jacobi_row_norms_fixed<10>(R, p, log_rotations, sq, log);
-            case 11: return jacobi_row_norms_fixed<11>(R, p, log_rotations, sq, log);
-            case 12: return jacobi_row_norms_fixed<12>(R, p, log_rotations, sq, log);
-            case 13: return jacobi_row_norms_fixed<13>(R, p, log_rotations, sq, log);
-            case 14: return jacobi_row_norms_fixed<14>(R, p, log_rotations, sq, log);
-            case 15: return jacobi_row_norms_fixed<15>(R, p, log_rotations, sq, log);
-            case 16: return jacobi_row_norms_fixed<16>(R, p, log_rotations, sq, log);
+            case 1: return jacobi_row_norms_fixed<1>(R, p, log_rotations, sq, log, floor);
+            case 2: return jacobi_row_norms_fixed<2>(R, p, log_rotations, sq, log, floor);
+            case 3: return jacobi_row_norms_fixed<3>(R, p, log_rotations, sq, log, floor);
+            case 4: return jacobi_row_norms_fixed<4>(R, p, log_rotations, sq, log, floor);
+            case 5: return jacobi_row_norms_fixed<5>(R, p, log_rotations, sq, log, floor);
+            case 6: return jacobi_row_norms_fixed<6>(R, p, log_rotations, sq, log, floor);
+            case 7: return jacobi_row_norms_fixed<7>(R, p, log_rotations, sq, log, floor);
+            case 8: return jacobi_row_norms_fixed<8>(R, p, log_rotations, sq, log, floor);
+            case 9: return jacobi_row_norms_fixed<9>(R, p, log_rotations, sq, log, floor);
+            case 10: return jacobi_row_norms_fixed<10>(R, p, log_rotations, sq, log, floor);
+            case 11: return jacobi_row_norms_fixed<11>(R, p, log_rotations, sq, log, floor);
+            case 12: return jacobi_row_norms_fixed<12>(R, p, log_rotations, sq, log, floor);
+            case 13: return jacobi_row_norms_fixed<13>(R, p, log_rotations, sq, log, floor);
+            case 14: return jacobi_row_norms_fixed<14>(R, p, log_rotations, sq, log, floor);
+            case 15: return jacobi_row_norms_fixed<15>(R, p, log_rotations, sq, log, floor);
+            case 16: return jacobi_row_norms_fixed<16>(R, p, log_rotations, sq, log, floor);
             default: break;
         }
     }
@@ -714,7 +720,7 @@ inline void jacobi_row_norms(Mat& R, i64 p, i64 cols, bool log_rotations, Vec& s
     i64* at = pj + npairs;
     const i64 rounds = jacobi_rounds(p, start, pi, pj, at);
     jacobi_sweeps<0>(R.row(0), R.cols, p, cols, log_rotations, sq.data(), clean.data(), stamp, start, pi, pj, rounds,
-                     log);
+                     log, floor);
 }
 
 // R's first p rows (cols long) replaced by V^T R, V the eigenvectors of R R^T (rows of R
@@ -1055,6 +1061,20 @@ inline bool columns_above(const Mat& M, double floor, double rank_tol, Workspace
 // rank_tol max(1, the largest), rank their count, ws.null_cols the rows below the cutoff (in
 // order), ws.log the rotations Zn needs; returns whether a null direction is among the first
 // p (Q's columns rotated). R's rows are rotated (ws.Mt: scratch).
+// The squared row norm at or below which Jacobi leaves a row of R alone (jacobi_orthogonal's
+// floor): kJacobiNegligible times the rank cutoff rank_tol max(1, top), top R's largest row
+// norm (at most the largest singular value): a row that small is null whatever its
+// rotations, and turning it against another row moves that row's norm by its square over
+// the other's (rank and sigma unchanged beyond round-off) and the null directions by its
+// ratio to the other's.
+constexpr double kJacobiNegligible = 1e-9;
+inline double negligible_rows(const Mat& R, i64 p, i64 cols, double rank_tol) {
+    double top = 0.0;
+    for (i64 i = 0; i < p; ++i) top = pymax(top, row_sq(R.row(i), cols));
+    const double bound = kJacobiNegligible * rank_tol * pymax(1.0, std::sqrt(top));
+    return bound * bound;
+}
+
 inline bool rank_rows(Mat& R, i64 p, i64 cols, double rank_tol, bool need_null, Workspace& ws, double& sigma_out,
                       i64& rank_out) {
     Mat& Mt = ws.Mt;
@@ -1127,7 +1147,7 @@ inline bool rank_rows(Mat& R, i64 p, i64 cols, double rank_tol, bool need_null, 
             log_now = false;
             spare = true;
         }
-        jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log);
+        jacobi_row_norms(R, p, cols, log_now, sq, ws.clean, log, negligible_rows(R, p, cols, rank_tol));
         sv.assign(static_cast<size_t>(p), 0.0);
         top = 0.0;
         for (i64 i = 0; i < p; ++i) {
@@ -1159,7 +1179,7 @@ inline bool rank_rows(Mat& R, i64 p, i64 cols, double rank_tol, bool need_null, 
     bool rotated_null = !null_cols.empty();
     if (rotated_null && spare) {
         for (i64 i = 0; i < p; ++i) std::memcpy(R.row(i), Mt.row(i), static_cast<size_t>(cols) * sizeof(double));
-        jacobi_row_norms(R, p, cols, true, sq, ws.clean, log);
+        jacobi_row_norms(R, p, cols, true, sq, ws.clean, log, negligible_rows(R, p, cols, rank_tol));
     }
     sigma_out = sigma;
     rank_out = rank;
