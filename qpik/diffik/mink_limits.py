@@ -127,17 +127,28 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
         ]
 
     def compact_rows(self, configuration: mink.Configuration, dt: float):
-        """``(G, h, names)`` of the six linear rows, None where one bounds a single dof."""
-        constraint = self.compute_qp_inequalities(configuration, dt)
-        if (np.count_nonzero(constraint.G, axis=1) <= 1).any():
-            return None
-        return constraint.G, constraint.h, self._names
+        """``(G, h, names)`` of the six linear rows, None where one bounds a single dof
+        (a row of ``R^T`` with two zero entries: an upright base's third, say)."""
+        x = configuration.data.xmat[self.source.base_body_id].tolist()  # R, row-major
+        for i in range(3):  # row i of R^T: column i of R
+            if (x[i] != 0.0) + (x[3 + i] != 0.0) + (x[6 + i] != 0.0) <= 1:
+                return None
+        G, h = self._rows(configuration, dt)
+        return G, h, self._names
 
-    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
-        """The six linear rows ``G dq <= h`` as mink computes them."""
+    def _rows(self, configuration: mink.Configuration, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(G, h)`` as mink computes them: ``R^T`` on the linear dofs, its negation below
+        (every entry of the lower rows negated, zeros to -0), ``dt linear_max`` twice."""
         limit = self.source
         G = np.zeros((6, configuration.model.nv))
         G[:3, limit._lin_dofs] = configuration.data.xmat[limit.base_body_id].reshape(3, 3).T
-        G[3:] = -G[:3]
-        h_half = dt * np.asarray(limit.linear_max, dtype=float)
-        return mink.Constraint(G=G, h=np.concatenate([h_half, h_half]))
+        np.negative(G[:3], out=G[3:])
+        h = np.empty(6)
+        np.multiply(dt, np.asarray(limit.linear_max, dtype=float), out=h[:3])
+        h[3:] = h[:3]
+        return G, h
+
+    def compute_qp_inequalities(self, configuration: mink.Configuration, dt: float):
+        """The six linear rows ``G dq <= h`` as mink computes them."""
+        G, h = self._rows(configuration, dt)
+        return mink.Constraint(G=G, h=h)
