@@ -606,11 +606,6 @@ def explain(configuration, tasks, dt, solver, damping, limits, velocity):
     ref = qpsolvers.solve_problem(problem, solver="daqp").x
     if ref is not None:
         state["dv_exact"] = max(state["dv_exact"], float(np.abs(velocity - ref / dt).max()))
-    xr, mult = z[:n], z[n:]
-    eq = 0 if problem.A is None else len(problem.b)
-    if np.all(G @ xr <= h + 1e-9 * (1.0 + np.abs(h))) and np.all(mult[eq:] >= -1e-9):
-        return xr
-    return x
 
 def levels_solver(configuration, tasks, solver, damping, limits):
     """qpik.IKSolver with each task a strict level (posture/damping tasks last)."""

@@ -733,6 +733,27 @@ def _mink_suite_module():
     return module, path
 
 
+def test_mink_suite_example_child_has_no_undefined_name(tmp_path):
+    """The example scripts' child program is a string in benchmarks/mink_suite.py (no lint
+    reaches it): ruff's undefined-name check on it as a file. A leftover of an earlier
+    change (``xr, mult = z[:n], z[n:]`` in explain()) raised NameError on every state where
+    the two answers differed, and mink's humanoid_g1 example could not run."""
+    import shutil
+    import subprocess
+
+    ruff = shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed (the dev extra)")
+    child = tmp_path / "_run_example.py"
+    child.write_text(_mink_suite_module()[0]._EXAMPLE_CHILD)
+    done = subprocess.run(
+        [ruff, "check", "--no-cache", "--isolated", "--select", "F821,F841", str(child)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
 def test_mink_suite_reads_junit_outcomes(tmp_path):
     module, _ = _mink_suite_module()
     report = tmp_path / "report.xml"
