@@ -496,8 +496,17 @@ class LimitBoxes:
             G, h, numbers = rows_of
             # RowStructure.of's split, without its bookkeeping (these rows change each
             # step): a one-dof row goes to the box (the QP path), an empty one must hold
-            count = (G != 0.0).sum(axis=1)
-            if 1 in count:
+            count = np.count_nonzero(G, axis=1)
+            name = limit_name(limit)
+            if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
+                G_parts.append(G.copy())  # (the limit's own arrays not kept: a copy)
+                h_parts.append(h.copy())
+                names.extend(
+                    f"{name} row {r if numbers is None else int(numbers[r])}"
+                    for r in range(count.size)
+                )
+                continue
+            if (count == 1).any():
                 return None
             rows = count.nonzero()[0]
             if rows.size < count.size and (h[count == 0] < 0).any():
@@ -506,7 +515,6 @@ class LimitBoxes:
                 continue
             G_parts.append(G[rows])
             h_parts.append(h[rows])
-            name = limit_name(limit)
             names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows)
         if not G_parts:
             return self.no_rows, np.zeros(0), names
