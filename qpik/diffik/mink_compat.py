@@ -295,9 +295,10 @@ class SolverCache:
             limit_key = tuple(map(id, limits))
         else:
             return None
-        if constraints is None:
+        if constraints is None or (type(constraints) in (list, tuple) and not constraints):
+            # (no constraint: an empty list is none, as the full path takes it)
             return (id(model), _level_ids(tasks), limit_key, solver, damping, "")
-        if type(constraints) not in (list, tuple) or not constraints:
+        if type(constraints) not in (list, tuple):
             return None
         # (a call with constraints: a key of its own kind, in _constrained)
         return (
@@ -361,7 +362,7 @@ class SolverCache:
         key = self._fast_key(configuration, tasks, limits, solver, damping, constraints)
         if key is None:
             return None
-        entries = self._entries if constraints is None else self._constrained
+        entries = self._entries if key[-1] == "" else self._constrained
         entry = entries.pop(key, None)
         if entry is None:
             return None

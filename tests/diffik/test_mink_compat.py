@@ -321,6 +321,8 @@ def test_constraint_calls_kept_answer_bitwise_as_a_fresh_call(monkeypatch):
     qpik.clear_caches()
     assert call([hold]).tobytes() == moved.tobytes()
     assert np.abs(moved - first).max() > 1e-3
+    # no constraint, as None or as an empty list: the same kept solver, the same bits
+    assert call(None).tobytes() == call([]).tobytes() == call(()).tobytes()
     # another constraint object: a solver of its own
     freeze = mink.DofFreezingTask(model, dof_indices=[0])
     frozen = call([freeze])
