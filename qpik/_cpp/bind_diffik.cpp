@@ -1246,6 +1246,12 @@ void bind_diffik(nb::module_& m) {
              "limits' bounds and gains, the velocity limits' speeds) loaded into their slots and "
              "checked (bounds with a range, gains in (0, 1], speeds >= 0); False where one is not "
              "taken as it is or fails (the caller writes them its general way, which reports it).")
+        .def("load_sources", &Kernel::load_sources, nb::arg("dt"), nb::arg("damping"),
+             "The values go() reads before it solves, for the gathered step (run): dt and damping "
+             "into the first two slots, every source's value into its slot (the tasks' targets, "
+             "costs, gains and LM damping, the limits' values, checked) and the guards checked; "
+             "False where one is not taken as it is (the caller then writes them its general "
+             "way, which reports it).")
         .def("set_sources", &Kernel::set_sources, nb::arg("sources"),
              "Where go() reads the values of the slots after the first two (dt, damping): "
              "per slot (object, name), (object, name, inner name) or (object, name, indices), "

@@ -180,26 +180,32 @@ class CompiledPlan:
         return cold
 
     # ----------------------------------------------------------------- inputs
-    def gather(self, configuration: mink.Configuration) -> tuple | None:
+    def gather(self, configuration: mink.Configuration, loaded: bool = False) -> tuple | None:
         """Copy the tasks' current targets, costs and gains and MuJoCo's Jacobians into the
         plan's arrays; returns the kernel's MuJoCo arguments ``(qpos, site_xpos, site_xmat,
         xpos, xmat, geom_xpos, geom_xmat, subtree_com)``, or None when a task changed so
-        that the plan no longer describes it (the QP path answers)."""
+        that the plan no longer describes it (the QP path answers). ``loaded``: the kernel
+        has read the tasks' and limits' values and checked the guards (``Kernel.load_sources``,
+        as the lean step does): the Jacobians alone are made here."""
         data, model = configuration.data, self.model
         for task, jacobian, fid, jp, jr, row, names in self.frames:
-            write_frame_row(row, task, names)
+            if not loaded:
+                write_frame_row(row, task, names)
             jacobian(model, data, jp, jr, fid)
-        self._gather_postures()
-        self._gather_coms(data)
-        if not guards_hold(self._guards):  # a frame or subtree the plan resolved changed
+        if not loaded:
+            self._gather_postures()
+        self._gather_coms(data, loaded)
+        if not loaded and not guards_hold(self._guards):  # a frame or subtree changed
             return None
         for task, (ff, fid), (rf, rid), jac, row in self.relatives:
-            write_relative_row(row, task)
+            if not loaded:
+                write_relative_row(row, task)
             ff(model, data, jac[0:3], jac[3:6], fid)
             rf(model, data, jac[6:9], jac[9:12], rid)
-        self._gather_gains()
-        if self.linears and not self._gather_linears():
-            return None
+        if not loaded:
+            self._gather_gains()
+            if self.linears and not self._gather_linears():
+                return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
         return self._attach(data)
@@ -260,11 +266,13 @@ class CompiledPlan:
         for task, views, damping in self.postures:
             write_posture_row(views, task, damping)
 
-    def _gather_coms(self, data: mujoco.MjData) -> None:
-        """CoM tasks' targets, costs and Jacobians (of the plan's subtrees: plan_guards)."""
+    def _gather_coms(self, data: mujoco.MjData, loaded: bool = False) -> None:
+        """CoM tasks' targets, costs and Jacobians (of the plan's subtrees: plan_guards);
+        ``loaded``: the Jacobians alone (the values read by ``Kernel.load_sources``)."""
         chains = self._com_chains or [None] * len(self.coms)
         for (task, body, _given, jac, views), chain in zip(self.coms, chains):
-            write_com_row(views, task)
+            if not loaded:
+                write_com_row(views, task)
             if chain is None:
                 mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
             else:  # as the kernel's lean step computes them
@@ -438,7 +446,8 @@ class CompiledPlan:
         the lean step does not apply (general-row limits, a value it does not take as it
         is). ``resolve=False``: the sigma of each level whose rank the cascade proves full
         left NaN in the info (as the lean step defers it; nothing else changes)."""
-        poses = self.gather(configuration)
+        # (the values read by the kernel where it takes them as they are: Kernel.load_sources)
+        poses = self.gather(configuration, self.kernel.load_sources(dt, damping))
         if poses is None:
             return None
         self.write_settings(dt, damping, core)
