@@ -497,24 +497,23 @@ class LimitBoxes:
             # RowStructure.of's split, without its bookkeeping (these rows change each
             # step): a one-dof row goes to the box (the QP path), an empty one must hold
             count = np.count_nonzero(G, axis=1)
-            name = limit_name(limit)
+            rows: np.ndarray | range
             if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
-                G_parts.append(G.copy())  # (the limit's own arrays not kept: a copy)
-                h_parts.append(h.copy())
-                names.extend(
-                    f"{name} row {r if numbers is None else int(numbers[r])}"
-                    for r in range(count.size)
-                )
-                continue
-            if (count == 1).any():
-                return None
-            rows = count.nonzero()[0]
-            if rows.size < count.size and (h[count == 0] < 0).any():
-                return None
-            if not rows.size:
-                continue
-            G_parts.append(G[rows])
-            h_parts.append(h[rows])
+                rows = range(count.size)
+                G, h = G.copy(), h.copy()  # (the limit's own arrays not kept: copies)
+            else:
+                if (count == 1).any():
+                    return None
+                kept = count.nonzero()[0]
+                if kept.size < count.size and (h[count == 0] < 0).any():
+                    return None
+                if not kept.size:
+                    continue
+                rows = kept
+                G, h = G[kept], h[kept]
+            G_parts.append(G)
+            h_parts.append(h)
+            name = limit_name(limit)
             names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows)
         if not G_parts:
             return self.no_rows, np.zeros(0), names
