@@ -4,6 +4,7 @@
 #include "bind.hpp"
 #include "diffik/fused.hpp"
 #include "model/com.hpp"
+#include "model/jac.hpp"
 
 #include <nanobind/stl/optional.h>
 
@@ -754,6 +755,18 @@ class Kernel {
         cdof_ = Chains{cdof, subtree_com};
     }
 
+    // The Jacobians of every chain set (set_chains, set_rel_chains, set_com_chains) into their
+    // arrays, from the attached cdof and subtree_com (attach_chains): go()'s, and the gathered
+    // step's (run), bitwise MuJoCo's.
+    void make_jacobians() {
+        if (!(jac_w_ || com_w_ || rel_w_)) return;
+        require(cdof_.has_value(), "Kernel.make_jacobians: no cdof attached (Kernel.attach_chains)");
+        require(attached_.has_value(), "Kernel.make_jacobians: no MjData attached (Kernel.attach)");
+        if (jac_w_) frame_jacobians();
+        if (com_w_) com_jacobians();
+        if (rel_w_) rel_jacobians();
+    }
+
     // The CoM tasks' Jacobians into com_jac (see set_com_chains).
     void com_jacobians() {
         const auto& c = *cdof_;
@@ -800,24 +813,8 @@ class Kernel {
             i64 kind = 0, fid = 0;
             frame(f, kind, fid);
             const auto& pos = kind == 0 ? t.sx : (kind == 1 ? t.x : t.gx);
-            const double* point = pos.data() + 3 * fid;
-            const double* root = com + 3 * chains.roots.data[f];
-            double offset[3];
-            for (int k = 0; k < 3; ++k) offset[k] = point[k] - root[k];
-            for (i64 e = st[f]; e < st[f + 1]; ++e) {
-                const i64 da = dofs[e];
-                const double* cd = cdof + 6 * da;
-                jr[da] = cd[0];
-                jr[da + n] = cd[1];
-                jr[da + 2 * n] = cd[2];
-                double tmp[3];
-                tmp[0] = cd[1] * offset[2] - cd[2] * offset[1];
-                tmp[1] = cd[2] * offset[0] - cd[0] * offset[2];
-                tmp[2] = cd[0] * offset[1] - cd[1] * offset[0];
-                jp[da] = cd[3] + tmp[0];
-                jp[da + n] = cd[4] + tmp[1];
-                jp[da + 2 * n] = cd[5] + tmp[2];
-            }
+            model::chain_point_jacobian(cdof, n, dofs + st[f], st[f + 1] - st[f], pos.data() + 3 * fid,
+                                        com + 3 * chains.roots.data[f], jp, jr);
         }
     }
 
@@ -898,18 +895,7 @@ class Kernel {
         Outputs& o = *out_;
         require(row >= 0 && row < o.K, "Kernel.go: row out of range");
         const Attached& t = *attached_;
-        if (jac_w_) {
-            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
-            frame_jacobians();
-        }
-        if (com_w_) {
-            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
-            com_jacobians();
-        }
-        if (rel_w_) {
-            require(cdof_.has_value(), "Kernel.go: no cdof attached (Kernel.attach_chains)");
-            rel_jacobians();
-        }
+        make_jacobians();
         const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
         if (warm.given) {
@@ -1246,6 +1232,10 @@ void bind_diffik(nb::module_& m) {
              "limits' bounds and gains, the velocity limits' speeds) loaded into their slots and "
              "checked (bounds with a range, gains in (0, 1], speeds >= 0); False where one is not "
              "taken as it is or fails (the caller writes them its general way, which reports it).")
+        .def("make_jacobians", &Kernel::make_jacobians,
+             "The Jacobians of every chain set (set_chains, set_rel_chains, set_com_chains) into "
+             "the plan's arrays, from the attached cdof and subtree_com (attach_chains), as go() "
+             "makes them: bitwise MuJoCo's.")
         .def("load_sources", &Kernel::load_sources, nb::arg("dt"), nb::arg("damping"),
              "The values go() reads before it solves, for the gathered step (run): dt and damping "
              "into the first two slots, every source's value into its slot (the tasks' targets, "

@@ -40,8 +40,8 @@ import numpy as np
 from .._engine import diffik as _engine
 from ..core import HierarchySolver, kernels
 from ..core.cascade import STATUS_OF_CODE, LevelStatus, certificates
-from ..model.com import subtree_com_jacobian
 from ..model.configuration import Configuration
+from ..model.frames import frame_chains
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .correction import LeanCorrection
 from .layout import (
@@ -52,7 +52,6 @@ from .layout import (
     THRESHOLD,
     TOL,
     com_chains,
-    frame_chains,
     guards_hold,
     plan_guards,
     write_com_row,
@@ -156,16 +155,16 @@ class CompiledPlan:
         self.kernel.set_slots(*lean_slots(self))
         sources, self._limit_first = lean_sources(self)
         self.kernel.set_sources(sources)
-        if not self.general_limits:
-            if self.frames:
-                frames = frame_chains(self.model, self.arrays["frames"])
-                self.kernel.set_chains(self.arrays["jac"], *frames)
-            if self.relatives:  # and the relative frames' (each task's frame, then its root)
-                rel = self.arrays["rel_frames"].reshape(-1, 2)
-                self.kernel.set_rel_chains(self.arrays["rel_jac"], *frame_chains(self.model, rel))
-            if self._com_chains:  # the kernel computes the CoM Jacobians too
-                chains = (np.stack(a) for a in zip(*self._com_chains))
-                self.kernel.set_com_chains(self.arrays["com_jac"], *chains)
+        # The kernel makes the Jacobians, in the lean step and in the gathered one (gather)
+        if self.frames:
+            frames = frame_chains(self.model, self.arrays["frames"])
+            self.kernel.set_chains(self.arrays["jac"], *frames)
+        if self.relatives:  # and the relative frames' (each task's frame, then its root)
+            rel = self.arrays["rel_frames"].reshape(-1, 2)
+            self.kernel.set_rel_chains(self.arrays["rel_jac"], *frame_chains(self.model, rel))
+        if self._com_chains:  # the kernel computes the CoM Jacobians too
+            chains = (np.stack(a) for a in zip(*self._com_chains))
+            self.kernel.set_com_chains(self.arrays["com_jac"], *chains)
 
     def __deepcopy__(self, memo: dict) -> CompiledPlan:
         """The plan itself: it is the solver's machinery, not data (a deep copy of a
@@ -187,28 +186,29 @@ class CompiledPlan:
         that the plan no longer describes it (the QP path answers). ``loaded``: the kernel
         has read the tasks' and limits' values and checked the guards (``Kernel.load_sources``,
         as the lean step does): the Jacobians alone are made here."""
-        data, model = configuration.data, self.model
-        for task, jacobian, fid, jp, jr, row, names in self.frames:
-            if not loaded:
+        data = configuration.data
+        # The Jacobians by the kernel (Kernel.make_jacobians, as the lean step makes them:
+        # bitwise MuJoCo's, at the attached MjData's frames); MuJoCo's CoM Jacobians where
+        # the CoM tasks have no chains.
+        poses = self._attach(data)
+        self._jacobians(data)
+        self.kernel.make_jacobians()
+        if not loaded:
+            for task, _jacobian, _fid, _jp, _jr, row, names in self.frames:
                 write_frame_row(row, task, names)
-            jacobian(model, data, jp, jr, fid)
-        if not loaded:
             self._gather_postures()
-        self._gather_coms(data, loaded)
-        if not loaded and not guards_hold(self._guards):  # a frame or subtree changed
-            return None
-        for task, (ff, fid), (rf, rid), jac, row in self.relatives:
-            if not loaded:
+            for task, _body, _given, _jac, views in self.coms:
+                write_com_row(views, task)
+            if not guards_hold(self._guards):  # a frame or subtree changed
+                return None
+            for task, _ff, _rf, _jac, row in self.relatives:
                 write_relative_row(row, task)
-            ff(model, data, jac[0:3], jac[3:6], fid)
-            rf(model, data, jac[6:9], jac[9:12], rid)
-        if not loaded:
             self._gather_gains()
             if self.linears and not self._gather_linears():
                 return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
-        return self._attach(data)
+        return poses
 
     def _attach(self, data: mujoco.MjData) -> tuple:
         """The kernel's MuJoCo arguments of ``data`` (:meth:`_poses`), attached to the
@@ -265,18 +265,6 @@ class CompiledPlan:
         """Posture and damping tasks' targets, costs, gains and LM damping."""
         for task, views, damping in self.postures:
             write_posture_row(views, task, damping)
-
-    def _gather_coms(self, data: mujoco.MjData, loaded: bool = False) -> None:
-        """CoM tasks' targets, costs and Jacobians (of the plan's subtrees: plan_guards);
-        ``loaded``: the Jacobians alone (the values read by ``Kernel.load_sources``)."""
-        chains = self._com_chains or [None] * len(self.coms)
-        for (task, body, _given, jac, views), chain in zip(self.coms, chains):
-            if not loaded:
-                write_com_row(views, task)
-            if chain is None:
-                mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
-            else:  # as the kernel's lean step computes them
-                subtree_com_jacobian(data, chain, jac)
 
     def _gather_gains(self) -> None:
         """The limits' bounds, gains and speeds: loaded and checked by the kernel, else

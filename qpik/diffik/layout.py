@@ -36,7 +36,7 @@ from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
-    "TaskLayout", "com_chains", "frame_chains", "limit_layout", "plan_arrays", "task_layout",
+    "TaskLayout", "com_chains", "limit_layout", "plan_arrays", "task_layout",
     "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
@@ -405,25 +405,6 @@ def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
     :class:`.mink_limits.BallJointRows`)."""
     ball = model.jnt_type == mujoco.mjtJoint.mjJNT_BALL
     return bool(np.any(ball & (model.jnt_limited != 0)))
-
-
-def frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
-    """Per frame ``(kind, id)`` of ``frames``, the dofs that move it, in the order MuJoCo's
-    ``mj_jac`` visits them (from its body's last dof up the ``dof_parentid`` chain; a body
-    without dofs: its first moving ancestor's), and its body's root: ``(starts (F + 1,),
-    dofs, roots (F,))``."""
-    starts, dofs, roots = [0], [], []
-    for kind, fid in frames.tolist():
-        body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
-        roots.append(int(model.body_rootid[body]))
-        while body and not model.body_dofnum[body]:
-            body = int(model.body_parentid[body])
-        da = int(model.body_dofadr[body] + model.body_dofnum[body]) - 1 if body else -1
-        while da >= 0:
-            dofs.append(da)
-            da = int(model.dof_parentid[da])
-        starts.append(len(dofs))
-    return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
 
 
 #: ``settings`` entries of the kernel.

@@ -37,6 +37,7 @@ __all__ = [
     "excluded_body_pairs",
     "FrameType",
     "ResolvedFrame",
+    "frame_chains",
     "frame_id",
     "frame_name",
     "frame_names",
@@ -211,3 +212,22 @@ def resolve_frame(
             return ResolvedFrame(key, kind, fid)
     available = [n for kind in SEARCH_ORDER for n in frame_names(model, kind)]
     raise UnknownFrame(key, "site, body or geom", available)
+
+
+def frame_chains(model: mujoco.MjModel, frames: np.ndarray) -> tuple:
+    """Per frame ``(kind, id)`` of ``frames``, the dofs that move it, in the order MuJoCo's
+    ``mj_jac`` visits them (from its body's last dof up the ``dof_parentid`` chain; a body
+    without dofs: its first moving ancestor's), and its body's root: ``(starts (F + 1,),
+    dofs, roots (F,))``."""
+    starts, dofs, roots = [0], [], []
+    for kind, fid in frames.tolist():
+        body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
+        roots.append(int(model.body_rootid[body]))
+        while body and not model.body_dofnum[body]:
+            body = int(model.body_parentid[body])
+        da = int(model.body_dofadr[body] + model.body_dofnum[body]) - 1 if body else -1
+        while da >= 0:
+            dofs.append(da)
+            da = int(model.dof_parentid[da])
+        starts.append(len(dofs))
+    return tuple(np.array(x, dtype=np.int64) for x in (starts, dofs, roots))
