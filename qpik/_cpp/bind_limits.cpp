@@ -1,7 +1,9 @@
 // Bindings of the limits layer (qpik._engine.limits): the conservative culling of collision
-// pairs (limits/collision.hpp), used by qpik.limits.collision. Every shape and geom id is
+// pairs and the pairs' contact normal rows (limits/collision.hpp), used by
+// qpik.limits.collision. Every shape and geom id is
 // checked here, so a bad argument raises ValueError instead of reading out of bounds.
 #include <cstdint>
+#include <vector>
 
 #include "bind.hpp"
 #include "limits/collision.hpp"
@@ -39,4 +41,44 @@ void bind_limits(nb::module_& m) {
         "conservative lower bound from each geom's bounding sphere, capsule, box or half-space,\n"
         "MuJoCo's geom_type / geom_size / geom_aabb / geom_rbound at geom_xpos / geom_xmat), in order, written\n"
         "into out (P,) int64; returns how many.");
+    m.def(
+        "contact_normal_rows",
+        [](In2 cdof, In2 subtree_com, In<i64, 1> starts, In<i64, 1> dofs, In<i64, 1> roots, In<i64, 1> which,
+           In2 fromto, In1 dist, Out2 G) {
+            const i64 n = static_cast<i64>(cdof.shape(0));
+            const i64 nbody = static_cast<i64>(subtree_com.shape(0));
+            const i64 C = static_cast<i64>(roots.shape(0));
+            const i64 k = static_cast<i64>(which.shape(0));
+            require(cdof.shape(1) == 6, "contact_normal_rows: cdof must be (nv, 6)");
+            require(subtree_com.shape(1) == 3, "contact_normal_rows: subtree_com must be (nbody, 3)");
+            require(C % 2 == 0 && static_cast<i64>(starts.shape(0)) == C + 1,
+                    "contact_normal_rows: roots must be (2P,) and starts (2P + 1,)");
+            const i64* st = starts.data();
+            const i64 D = static_cast<i64>(dofs.shape(0));
+            require(C == 0 || (st[0] == 0 && st[C] == D), "contact_normal_rows: starts must run from 0 to len(dofs)");
+            for (i64 c = 0; c < C; ++c) {
+                require(st[c] <= st[c + 1], "contact_normal_rows: starts must not decrease");
+                require(roots.data()[c] >= 0 && roots.data()[c] < nbody, "contact_normal_rows: a root is out of range");
+            }
+            for (i64 e = 0; e < D; ++e)
+                require(dofs.data()[e] >= 0 && dofs.data()[e] < n, "contact_normal_rows: a dof is out of range");
+            for (i64 r = 0; r < k; ++r)
+                require(which.data()[r] >= 0 && 2 * which.data()[r] < C, "contact_normal_rows: a pair is out of range");
+            require(fromto.shape(0) >= static_cast<size_t>(k) && fromto.shape(1) == 6,
+                    "contact_normal_rows: fromto must be (k, 6)");
+            require(dist.shape(0) >= static_cast<size_t>(k), "contact_normal_rows: dist must hold k entries");
+            require(G.shape(0) == static_cast<size_t>(k) && static_cast<i64>(G.shape(1)) == n,
+                    "contact_normal_rows: G must be (k, nv)");
+            std::vector<double> jac(static_cast<size_t>(6 * n));
+            limits::contact_normal_rows(cdof.data(), subtree_com.data(), n, st, dofs.data(), roots.data(),
+                                        which.data(), fromto.data(), dist.data(), k, jac.data(), G.data());
+        },
+        nb::arg("cdof"), nb::arg("subtree_com"), nb::arg("starts"), nb::arg("dofs"), nb::arg("roots"),
+        nb::arg("which"), nb::arg("fromto"), nb::arg("dist"), nb::arg("G").noconvert(),
+        "The contact normal rows of geom pairs into G (k, nv), as mink's\n"
+        "compute_contact_normal_jacobian makes them and its limits sign them: row r of pair\n"
+        "which[r] (chains 2p, 2p + 1 of starts / dofs / roots: geom 1's body, geom 2's; qpik.model.frames.\n"
+        "frame_chains), mj_geomDistance's dist[r] and fromto[r]: sign n^T (J2 - J1), n the unit\n"
+        "normal from geom 1's point to geom 2's, J1 and J2 mj_jac at those points from the MjData's\n"
+        "cdof and subtree_com, sign -1 where dist >= 0, else +1.");
 }

@@ -34,13 +34,12 @@ from collections.abc import Callable, Sequence
 import mink
 import mujoco
 import numpy as np
-from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
 
 from .._engine import limits as _engine
 from ..core import checks
 from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionError, UnknownFrame
 from ..model.configuration import frame_names
-from ..model.frames import check_model_type
+from ..model.frames import check_model_type, frame_chains
 
 __all__ = [
     "CULLING_SLACK",
@@ -102,13 +101,59 @@ class PairCulling:
     every pair closer than it, and a few more (height fields are always kept). It is
     exact as a filter: the rows of the pairs it drops are those ``mj_geomDistance`` leaves
     out, so a limit's rows are the same with and without it (tested against mink's on
-    random configurations)."""
+    random configurations).
+
+    :meth:`contact_rows` makes the pairs' rows in the compiled engine too."""
 
     def __init__(self, pairs: Sequence[tuple[int, int]]) -> None:
         self.pairs = np.ascontiguousarray(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
         self._out = np.empty(self.pairs.shape[0], dtype=np.int64)
         self._source: tuple = (None, None)  # the (model, data) whose arrays are in _arrays
         self._arrays: tuple = ()
+        self._fromto = np.empty((self.pairs.shape[0], 6))  # mj_geomDistance's, per row
+        self._fromto_rows = list(self._fromto)  # (their views, made once)
+        self._chains: tuple = (None,)  # (model, starts, dofs, roots) of contact_rows
+
+    def contact_rows(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        indices: Sequence[int],
+        distmax: float,
+        mink_rule: bool,
+    ) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """``(G, dist, kept)`` of the pairs ``indices`` (ascending) that ``mj_geomDistance``
+        finds within ``distmax`` [m] at ``data``: their distances ``dist`` (k,), their
+        indices ``kept``, and their rows ``G`` (k, nv), ``sign n^T (J_2 - J_1)`` as mink's
+        ``compute_contact_normal_jacobian`` makes them and signs them (``sign = -1`` where
+        ``d >= 0``, else 1), by the compiled engine (``_engine.limits.contact_normal_rows``,
+        MuJoCo's ``mj_jac`` and ``mju_normalize3`` arithmetic). A pair is left out where
+        ``|d - distmax| < 1e-12`` (``mink_rule``: mink's own test), else where
+        ``d >= distmax - 1e-12``."""
+        chains = self._chains
+        if chains[0] is not model:  # each pair's two bodies' dof chains (mj_jac's order)
+            bodies = model.geom_bodyid[self.pairs.reshape(-1)]
+            frames = np.stack([np.ones_like(bodies), bodies], axis=1)
+            chains = self._chains = (model, *frame_chains(model, frames))
+        ids, rows = self.pairs, self._fromto_rows
+        dist: list[float] = []
+        kept: list[int] = []
+        for idx in indices:
+            d = mujoco.mj_geomDistance(
+                model, data, int(ids[idx, 0]), int(ids[idx, 1]), distmax, rows[len(kept)]
+            )
+            if abs(d - distmax) < 1e-12 if mink_rule else d >= distmax - 1e-12:
+                continue
+            dist.append(d)
+            kept.append(idx)
+        G = np.empty((len(kept), model.nv))
+        distances = np.array(dist, dtype=float)
+        if kept:
+            _engine.contact_normal_rows(
+                data.cdof, data.subtree_com, *chains[1:], np.array(kept, dtype=np.int64),
+                self._fromto, distances, G,
+            )  # fmt: skip
+        return G, distances, kept
 
     def candidates(self, model: mujoco.MjModel, data: mujoco.MjData, threshold: float) -> list:
         """Indices (ascending, into the pairs) of the pairs that may be within
@@ -188,29 +233,14 @@ def mink_collision_rows(
     distmax = limit.collision_detection_distance
     min_dist = limit.minimum_distance_from_collisions
     gain, relaxation = limit.gain, limit.bound_relaxation
-    fromto, normal, jac1, jac2 = limit._fromto, limit._normal, limit._jac1, limit._jac2
-    rows, bounds, kept = [], [], []
+    culling = _culling(limit)
     indices: list | range = range(limit.max_num_contacts)
     if limit.broadphase:
-        indices = _culling(limit).candidates(model, data, distmax + CULLING_SLACK)
-    for idx in indices:
-        geom1_id, geom2_id = limit.geom_id_pairs[idx]
-        dist = mujoco.mj_geomDistance(model, data, geom1_id, geom2_id, distmax, fromto)
-        if abs(dist - distmax) < 1e-12:
-            continue
-        row = compute_contact_normal_jacobian(
-            model, data, geom1_id, geom2_id, fromto, normal, jac1, jac2
-        )
-        if dist > min_dist:
-            bounds.append((gain * (dist - min_dist) / dt) + relaxation)
-        else:
-            bounds.append(relaxation)
-        sign = -1.0 if dist >= 0 else 1.0
-        rows.append(sign * row)
-        kept.append(idx)
-    if not rows:
-        return np.zeros((0, model.nv)), np.zeros(0), kept
-    return np.array(rows), np.array(bounds, dtype=float), kept
+        indices = culling.candidates(model, data, distmax + CULLING_SLACK)
+    G, dist, kept = culling.contact_rows(model, data, indices, distmax, True)
+    # (mink's bounds entry by entry: the same operations on each)
+    h = np.where(dist > min_dist, (gain * (dist - min_dist) / dt) + relaxation, relaxation)
+    return G, h.astype(float, copy=False), kept
 
 
 def _geom_label(model: mujoco.MjModel, geom: int) -> str:
@@ -295,9 +325,6 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         )
         if not self.geom_id_pairs:
             raise CollisionPairError(self._why_no_pairs(model))
-        self._rows = np.zeros((self.max_num_contacts, model.nv))
-        self._h = np.zeros(self.max_num_contacts)
-        self._distances = np.full(self.max_num_contacts, np.inf)
 
     # ----------------------------------------------------------------- pairs
     @staticmethod
@@ -400,31 +427,15 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         distmax = self.collision_detection_distance
         # Pairs provably out of range are culled first (PairCulling: the same rows as
         # checking every pair; mink's bounding-sphere broadphase is looser).
+        culling = _culling(self)
         indices: list | range = range(self.max_num_contacts)
         if self.broadphase:
-            indices = _culling(self).candidates(model, data, distmax + CULLING_SLACK)
-        rows, h = self._rows, self._h
-        self._distances.fill(np.inf)
-        active = []
-        for idx in indices:
-            geom1, geom2 = self.geom_id_pairs[idx]
-            distance = mujoco.mj_geomDistance(model, data, geom1, geom2, distmax, self._fromto)
-            if distance >= distmax - 1e-12:
-                continue
-            row = compute_contact_normal_jacobian(
-                model, data, geom1, geom2, self._fromto, self._normal, self._jac1, self._jac2
-            )
-            sign = -1.0 if distance >= 0 else 1.0
-            rows[idx] = sign * row
-            h[idx] = (
-                self.gain * (distance - self.minimum_distance_from_collisions)
-                + self.bound_relaxation
-            )
-            self._distances[idx] = distance
-            active.append(idx)
+            indices = culling.candidates(model, data, distmax + CULLING_SLACK)
+        G, distance, active = culling.contact_rows(model, data, indices, distmax, False)
         if not active:
             return mink.Constraint()
-        return mink.Constraint(G=rows[active].copy(), h=h[active].copy())
+        h = self.gain * (distance - self.minimum_distance_from_collisions) + self.bound_relaxation
+        return mink.Constraint(G=G, h=h)
 
     def distances(self, configuration: mink.Configuration) -> dict[tuple[str, str], float]:
         """Distance [m] of every checked pair (``mj_geomDistance``, negative when they

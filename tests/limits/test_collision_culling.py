@@ -10,6 +10,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
 
 import qpik
 from qpik._engine import limits as engine
@@ -217,3 +218,75 @@ def test_a_limits_culling_goes_with_the_limit():
     del limit
     gc.collect()
     assert key not in collision._CULLINGS
+
+
+def test_panda_contact_rows_are_minks_bitwise(rng):
+    """The contact rows made by the compiled engine (PairCulling.contact_rows: MuJoCo's
+    mj_jac arithmetic along each body's dof chain) are mink's bitwise, for mink's limit and
+    qpik's own, on the bundled Panda's links against each other and an obstacle, over random
+    configurations."""
+    from qpik.limits import CollisionAvoidanceLimit
+    from qpik.scene import add_obstacle
+
+    model = add_obstacle(qpik.load_robot("panda"), "sphere", 0.08, [0.45, 0.0, 0.45], name="ball")
+    links = ["link3", "link4", "link5", "link6", "link7", "hand"]
+    pairs = [(links[3:], links[:2]), (links, ["ball"])]
+    kwargs = dict(minimum_distance_from_collisions=0.02, collision_detection_distance=0.25)
+    theirs = mink.CollisionAvoidanceLimit(model, pairs, broadphase=False, **kwargs)
+    ours = CollisionAvoidanceLimit(model, pairs, **kwargs)
+    configuration = qpik.Configuration(model)
+    lower, upper = configuration.lower, configuration.upper
+    seen = 0
+    for _ in range(60):
+        configuration.update(rng.uniform(lower, upper))
+        reference = theirs.compute_qp_inequalities(configuration, 0.01)
+        in_play = np.flatnonzero(np.isfinite(reference.h))
+        G, h, kept = mink_collision_rows(theirs, configuration, 0.01)
+        assert kept == in_play.tolist()
+        np.testing.assert_array_equal(G, reference.G[in_play])
+        np.testing.assert_array_equal(h, reference.h[in_play])
+        # qpik's own limit (its pairs in its own order): mink's function on each pair in range
+        expected, bounds = [], []
+        for g1, g2 in ours.geom_id_pairs:
+            fromto = np.empty(6)
+            d = mujoco.mj_geomDistance(model, configuration.data, g1, g2, 0.25, fromto)
+            if d >= 0.25 - 1e-12:
+                continue
+            row = compute_contact_normal_jacobian(
+                model, configuration.data, g1, g2, fromto, np.empty(3), *np.empty((2, 3, model.nv))
+            )
+            expected.append((-1.0 if d >= 0 else 1.0) * row)
+            bounds.append(0.85 * (d - 0.02))
+        rows = ours.compute_qp_inequalities(configuration, 0.01)
+        assert rows.inactive == (not expected)
+        if expected:
+            np.testing.assert_array_equal(rows.G, np.array(expected))
+            np.testing.assert_array_equal(rows.h, np.array(bounds))
+        seen += len(kept) + len(expected)
+    assert seen > 60
+
+
+def test_contact_normal_rows_refuse_bad_arguments():
+    """The engine's contact rows check every index and shape: ValueError, never a read out of
+    bounds."""
+    n, cdof, com = 3, np.zeros((3, 6)), np.zeros((2, 3))
+    starts, dofs, roots = np.array([0, 1, 2]), np.array([0, 1]), np.array([0, 1])
+    which, fromto, dist = np.array([0]), np.zeros((1, 6)), np.zeros(1)
+    G = np.empty((1, n))
+    engine.contact_normal_rows(cdof, com, starts, dofs, roots, which, fromto, dist, G)
+    bad = {
+        "dofs": np.array([0, 3]),
+        "roots": np.array([0, 2]),
+        "which": np.array([1]),
+        "starts": np.array([0, 2, 1]),
+        "fromto": np.zeros((1, 5)),
+        "G": np.empty((1, n + 1)),
+    }
+    args = dict(starts=starts, dofs=dofs, roots=roots, which=which, fromto=fromto, G=G)
+    for name, value in bad.items():
+        call = {**args, name: value}
+        with pytest.raises(ValueError):
+            engine.contact_normal_rows(
+                cdof, com, call["starts"], call["dofs"], call["roots"], call["which"],
+                call["fromto"], dist, call["G"],
+            )  # fmt: skip

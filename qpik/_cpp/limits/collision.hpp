@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "../common.hpp"
+#include "../model/jac.hpp"
 
 namespace qpik::limits {
 
@@ -252,6 +253,47 @@ inline i64 collision_candidates(const i64* pairs, i64 P, i64 ngeom, const int* g
         if (!(bound > threshold)) out[n++] = k;  // NaN: kept
     }
     return n;
+}
+
+// The contact normal rows of geom pairs, as mink's compute_contact_normal_jacobian makes them
+// (mink/limits/collision_avoidance_limit.py) and its collision limits sign them: per row r, the
+// pair p = which[r] with mj_geomDistance's dist[r] and fromto[r] (6: the point on geom 1, then
+// on geom 2), the unit normal n = (to - from) / |to - from| (MuJoCo's mju_normalize3: (1, 0, 0)
+// below mjMINVAL), the point Jacobians J1 at `from` on geom 1's body and J2 at `to` on geom 2's
+// (mj_jac, model/jac.hpp: chains 2p and 2p + 1 of starts / dofs / roots), and
+// G[r] = sign n^T (J2 - J1), sign -1 where dist >= 0, else +1. cdof (nv, 6) and subtree_com
+// (nbody, 3) are the MjData's; jac (2, 3, nv) scratch. Every index is checked by the caller.
+inline void contact_normal_rows(const double* cdof, const double* subtree_com, i64 n, const i64* starts,
+                                const i64* dofs, const i64* roots, const i64* which, const double* fromto,
+                                const double* dist, i64 k, double* jac, double* G) {
+    constexpr double kMinVal = 1e-15;  // MuJoCo's mjMINVAL
+    double* j1 = jac;
+    double* j2 = jac + 3 * n;
+    for (i64 r = 0; r < k; ++r) {
+        const i64 c1 = 2 * which[r], c2 = c1 + 1;
+        const double* from = fromto + 6 * r;
+        const double* to = from + 3;
+        double normal[3] = {to[0] - from[0], to[1] - from[1], to[2] - from[2]};
+        const double norm = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+        if (norm < kMinVal) {
+            normal[0] = 1.0;
+            normal[1] = normal[2] = 0.0;
+        } else {
+            const double inv = 1.0 / norm;
+            for (double& x : normal) x *= inv;
+        }
+        std::fill(jac, jac + 6 * n, 0.0);
+        model::chain_point_jacobian(cdof, n, dofs + starts[c2], starts[c2 + 1] - starts[c2], to,
+                                    subtree_com + 3 * roots[c2], j2, nullptr);
+        model::chain_point_jacobian(cdof, n, dofs + starts[c1], starts[c1 + 1] - starts[c1], from,
+                                    subtree_com + 3 * roots[c1], j1, nullptr);
+        const double sign = dist[r] >= 0.0 ? -1.0 : 1.0;
+        double* g = G + r * n;
+        for (i64 j = 0; j < n; ++j) {
+            const double d0 = j2[j] - j1[j], d1 = j2[n + j] - j1[n + j], d2 = j2[2 * n + j] - j1[2 * n + j];
+            g[j] = sign * (normal[0] * d0 + normal[1] * d1 + normal[2] * d2);
+        }
+    }
 }
 
 }  // namespace qpik::limits
