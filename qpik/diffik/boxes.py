@@ -424,7 +424,7 @@ class LimitBoxes:
         rows_of = _inequalities_of(limit, configuration, dt)
         if rows_of is None:
             return
-        G, h, numbers = rows_of
+        G, h, numbers, _ = rows_of
         name = limit_name(limit)
         structure = self.structure(limit, G)
         if structure.empty is not None and np.any(h[structure.empty] < 0):
@@ -493,24 +493,13 @@ class LimitBoxes:
             rows_of = _inequalities_of(limit, configuration, dt)
             if rows_of is None or not rows_of[0].shape[0]:
                 continue
-            G, h, numbers = rows_of
-            # RowStructure.of's split, without its bookkeeping (these rows change each
-            # step): a one-dof row goes to the box (the QP path), an empty one must hold
-            count = np.count_nonzero(G, axis=1)
-            rows: np.ndarray | range
-            if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
-                rows = range(count.size)
-                G, h = G.copy(), h.copy()  # (the limit's own arrays not kept: copies)
-            else:
-                if (count == 1).any():
-                    return None
-                kept = count.nonzero()[0]
-                if kept.size < count.size and (h[count == 0] < 0).any():
-                    return None
-                if not kept.size:
-                    continue
-                rows = kept
-                G, h = G[kept], h[kept]
+            split = _multi_dof_rows(*rows_of)
+            if split is None:
+                return None
+            G, h, rows = split
+            if not len(rows):
+                continue
+            numbers = rows_of[2]
             G_parts.append(G)
             h_parts.append(h)
             name = limit_name(limit)
@@ -522,6 +511,28 @@ class LimitBoxes:
         return G, h, names
 
 
+def _multi_dof_rows(
+    G: np.ndarray, h: np.ndarray, numbers: list[int] | None, fewest: int | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | range] | None:
+    """:meth:`LimitBoxes.general_rows`' rows of one limit: ``(G, h, rows)`` its rows on
+    two dofs or more (``rows``: their numbers in ``G``; copies, not the limit's arrays,
+    except where ``fewest`` says that every row is: then they are new arrays, kept as they
+    are), None where a row bounds one dof (the QP path makes it a box bound) or an empty row
+    is infeasible (RowStructure.of's split, without its bookkeeping: these rows change each
+    step)."""
+    if fewest is not None and fewest >= 2:
+        return G, h, range(G.shape[0])
+    count = np.count_nonzero(G, axis=1)
+    if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
+        return G.copy(), h.copy(), range(count.size)
+    if (count == 1).any():
+        return None
+    kept = count.nonzero()[0]
+    if kept.size < count.size and (h[count == 0] < 0).any():
+        return None
+    return G[kept], h[kept], kept
+
+
 def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) -> None:
     """A relaxable limit's ``compute_qp_inequalities`` as general rows only (appended to
     ``side``): every row on one dof or more, and every empty row that no displacement
@@ -529,7 +540,7 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
     rows_of = _inequalities_of(limit, configuration, dt)
     if rows_of is None:
         return
-    G, h, numbers = rows_of
+    G, h, numbers, _ = rows_of
     keep = np.flatnonzero(np.any(G != 0.0, axis=1) | (h < 0))
     if keep.size:
         name = limit_name(limit)
@@ -541,13 +552,15 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
 
 def _inequalities_of(
     limit, configuration: mink.Configuration, dt: float
-) -> tuple[np.ndarray, np.ndarray, list[int] | None] | None:
-    """A limit's rows ``(G, h, numbers)`` (None when inactive): its
-    ``compute_qp_inequalities`` (``numbers`` None: row ``r`` is the limit's row ``r``), or,
-    for mink's own :class:`mink.CollisionAvoidanceLimit`, only the rows of the pairs in
-    range (:func:`qpik.limits.collision.mink_collision_rows`: mink's rows, bitwise; its
-    other rows are zero with ``h = inf``), ``numbers`` their row numbers in mink's."""
-    rows: tuple[np.ndarray, np.ndarray, list[int] | None] | None
+) -> tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None:
+    """A limit's rows ``(G, h, numbers, fewest)`` (None when inactive): its
+    ``compute_qp_inequalities`` (``numbers`` None: row ``r`` is the limit's row ``r``;
+    ``fewest`` None), or, for mink's own :class:`mink.CollisionAvoidanceLimit`, only the
+    rows of the pairs in range (:func:`qpik.limits.collision.mink_collision_rows`: mink's
+    rows, bitwise; its other rows are zero with ``h = inf``), ``numbers`` their row numbers
+    in mink's and ``fewest`` the fewest nonzero entries of a row (new arrays: not the
+    limit's own)."""
+    rows: tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None
     try:
         if type(limit) is mink.CollisionAvoidanceLimit:
             rows = mink_collision_rows(limit, configuration, dt)
@@ -557,7 +570,7 @@ def _inequalities_of(
                 return None
             G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
             h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
-            rows = G, h, None
+            rows = G, h, None, None
     except (ValueError, TypeError, IndexError) as exc:  # (an attribute set to what does not fit)
         if isinstance(exc, QpikError):
             raise

@@ -116,20 +116,26 @@ class PairCulling:
 
     def contact_rows(
         self,
-        model: mujoco.MjModel,
+        limit: mink.CollisionAvoidanceLimit,
         data: mujoco.MjData,
         indices: Sequence[int],
-        distmax: float,
-        mink_rule: bool,
-    ) -> tuple[np.ndarray, np.ndarray, list[int]]:
-        """``(G, dist, kept)`` of the pairs ``indices`` (ascending) that ``mj_geomDistance``
-        finds within ``distmax`` [m] at ``data``: their distances ``dist`` (k,), their
-        indices ``kept``, and their rows ``G`` (k, nv), ``sign n^T (J_2 - J_1)`` as mink's
+        dt: float,
+        mink_units: bool,
+    ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
+        """``(G, h, kept, fewest)`` of the pairs ``indices`` (ascending) of ``limit`` that
+        ``mj_geomDistance`` finds within its detection distance at ``data``: their indices
+        ``kept``, their rows ``G`` (k, nv), ``sign n^T (J_2 - J_1)`` as mink's
         ``compute_contact_normal_jacobian`` makes them and signs them (``sign = -1`` where
-        ``d >= 0``, else 1), by the compiled engine (``_engine.limits.contact_normal_rows``,
-        MuJoCo's ``mj_jac`` and ``mju_normalize3`` arithmetic). A pair is left out where
-        ``|d - distmax| < 1e-12`` (``mink_rule``: mink's own test), else where
-        ``d >= distmax - 1e-12``."""
+        ``d >= 0``, else 1), their right sides ``h`` (k,) and the fewest nonzero entries of a
+        row (nv where none), by the compiled engine (``_engine.limits.contact_normal_rows``:
+        MuJoCo's ``mj_jac`` and ``mju_normalize3`` arithmetic). ``mink_units``: mink's
+        limit (a pair left out where ``|d - distmax| < 1e-12``, ``h`` the velocity bound
+        ``gain (d - d_min) / dt + relaxation`` where ``d > d_min``, else ``relaxation``);
+        else qpik's (left out where ``d >= distmax - 1e-12``, ``h = gain (d - d_min) +
+        relaxation`` [m])."""
+        model = limit.model
+        distmax = limit.collision_detection_distance
+        mink_rule = mink_units
         chains = self._chains
         if chains[0] is not model:  # each pair's two bodies' dof chains (mj_jac's order)
             bodies = model.geom_bodyid[self.pairs.reshape(-1)]
@@ -146,14 +152,14 @@ class PairCulling:
                 continue
             dist.append(d)
             kept.append(idx)
-        G = np.empty((len(kept), model.nv))
-        distances = np.array(dist, dtype=float)
-        if kept:
-            _engine.contact_normal_rows(
-                data.cdof, data.subtree_com, *chains[1:], np.array(kept, dtype=np.int64),
-                self._fromto, distances, G,
-            )  # fmt: skip
-        return G, distances, kept
+        G, h = np.empty((len(kept), model.nv)), np.empty(len(kept))
+        fewest = _engine.contact_normal_rows(
+            data.cdof, data.subtree_com, *chains[1:], np.array(kept, dtype=np.int64),
+            self._fromto, np.array(dist, dtype=float), float(limit.gain),
+            float(limit.minimum_distance_from_collisions), float(limit.bound_relaxation),
+            float(dt), mink_units, G, h,
+        )  # fmt: skip
+        return G, h, kept, fewest
 
     def candidates(self, model: mujoco.MjModel, data: mujoco.MjData, threshold: float) -> list:
         """Indices (ascending, into the pairs) of the pairs that may be within
@@ -218,29 +224,27 @@ def near_pairs(
 
 def mink_collision_rows(
     limit: mink.CollisionAvoidanceLimit, configuration: mink.Configuration, dt: float
-) -> tuple[np.ndarray, np.ndarray, list[int]]:
+) -> tuple[np.ndarray, np.ndarray, list[int], int]:
     """The rows of mink's own :class:`mink.CollisionAvoidanceLimit` that are in play:
-    ``(G, h, pairs)``, the rows ``G dq <= h`` of the pairs within the detection distance
-    and those pairs' indices (ascending) into ``limit.geom_id_pairs``.
+    ``(G, h, pairs, fewest)``, the rows ``G dq <= h`` of the pairs within the detection
+    distance, those pairs' indices (ascending) into ``limit.geom_id_pairs`` and the fewest
+    nonzero entries of a row (nv where there is none).
 
     They are the rows of :meth:`mink.CollisionAvoidanceLimit.compute_qp_inequalities` that
     are not left out (mink's other rows are zero, with ``h = inf``), computed by mink's own
     arithmetic (``mj_geomDistance``, mink's contact normal Jacobian; ``h`` in mink's units,
-    a velocity bound ``gain (d - d_min) / dt``), so bitwise mink's; the pairs out of range
+    a velocity bound ``gain (d - d_min) / dt``; :meth:`PairCulling.contact_rows`), so
+    bitwise mink's; the pairs out of range
     are culled first by :class:`PairCulling` instead of mink's bounding spheres (every pair
     is checked when ``limit.broadphase`` is False, as mink does)."""
-    model, data = limit.model, configuration.data
-    distmax = limit.collision_detection_distance
-    min_dist = limit.minimum_distance_from_collisions
-    gain, relaxation = limit.gain, limit.bound_relaxation
+    data = configuration.data
     culling = _culling(limit)
     indices: list | range = range(limit.max_num_contacts)
     if limit.broadphase:
-        indices = culling.candidates(model, data, distmax + CULLING_SLACK)
-    G, dist, kept = culling.contact_rows(model, data, indices, distmax, True)
-    # (mink's bounds entry by entry: the same operations on each)
-    h = np.where(dist > min_dist, (gain * (dist - min_dist) / dt) + relaxation, relaxation)
-    return G, h.astype(float, copy=False), kept
+        indices = culling.candidates(
+            limit.model, data, limit.collision_detection_distance + CULLING_SLACK
+        )
+    return culling.contact_rows(limit, data, indices, dt, True)
 
 
 def _geom_label(model: mujoco.MjModel, geom: int) -> str:
@@ -431,10 +435,9 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         indices: list | range = range(self.max_num_contacts)
         if self.broadphase:
             indices = culling.candidates(model, data, distmax + CULLING_SLACK)
-        G, distance, active = culling.contact_rows(model, data, indices, distmax, False)
+        G, h, active, _ = culling.contact_rows(self, data, indices, dt, False)
         if not active:
             return mink.Constraint()
-        h = self.gain * (distance - self.minimum_distance_from_collisions) + self.bound_relaxation
         return mink.Constraint(G=G, h=h)
 
     def distances(self, configuration: mink.Configuration) -> dict[tuple[str, str], float]:

@@ -113,7 +113,7 @@ def test_mink_rows_are_minks_bitwise(rng, broadphase):
     for q in _random_configurations(model, rng, 150):
         configuration.update(q)
         reference = every.compute_qp_inequalities(configuration, 0.01)
-        G, h, kept = mink_collision_rows(limit, configuration, 0.01)
+        G, h, kept, _ = mink_collision_rows(limit, configuration, 0.01)
         in_play = np.flatnonzero(np.isfinite(reference.h))
         assert kept == in_play.tolist()
         np.testing.assert_array_equal(G, reference.G[in_play])
@@ -241,7 +241,7 @@ def test_panda_contact_rows_are_minks_bitwise(rng):
         configuration.update(rng.uniform(lower, upper))
         reference = theirs.compute_qp_inequalities(configuration, 0.01)
         in_play = np.flatnonzero(np.isfinite(reference.h))
-        G, h, kept = mink_collision_rows(theirs, configuration, 0.01)
+        G, h, kept, _ = mink_collision_rows(theirs, configuration, 0.01)
         assert kept == in_play.tolist()
         np.testing.assert_array_equal(G, reference.G[in_play])
         np.testing.assert_array_equal(h, reference.h[in_play])
@@ -270,23 +270,30 @@ def test_contact_normal_rows_refuse_bad_arguments():
     """The engine's contact rows check every index and shape: ValueError, never a read out of
     bounds."""
     n, cdof, com = 3, np.zeros((3, 6)), np.zeros((2, 3))
-    starts, dofs, roots = np.array([0, 1, 2]), np.array([0, 1]), np.array([0, 1])
-    which, fromto, dist = np.array([0]), np.zeros((1, 6)), np.zeros(1)
-    G = np.empty((1, n))
-    engine.contact_normal_rows(cdof, com, starts, dofs, roots, which, fromto, dist, G)
+    args = dict(
+        starts=np.array([0, 1, 2]), dofs=np.array([0, 1]), roots=np.array([0, 1]),
+        which=np.array([0]), fromto=np.zeros((1, 6)), dist=np.zeros(1),
+        G=np.empty((1, n)), h=np.empty(1),
+    )  # fmt: skip
+
+    def call(**given):
+        a = {**args, **given}
+        return engine.contact_normal_rows(
+            cdof, com, a["starts"], a["dofs"], a["roots"], a["which"], a["fromto"], a["dist"],
+            0.85, 0.005, 0.0, 0.01, True, a["G"], a["h"],
+        )  # fmt: skip
+
+    assert call() == 0  # a zero row (cdof 0): no nonzero entry
     bad = {
         "dofs": np.array([0, 3]),
         "roots": np.array([0, 2]),
         "which": np.array([1]),
         "starts": np.array([0, 2, 1]),
         "fromto": np.zeros((1, 5)),
+        "dist": np.zeros(0),
         "G": np.empty((1, n + 1)),
+        "h": np.empty(2),
     }
-    args = dict(starts=starts, dofs=dofs, roots=roots, which=which, fromto=fromto, G=G)
     for name, value in bad.items():
-        call = {**args, name: value}
         with pytest.raises(ValueError):
-            engine.contact_normal_rows(
-                cdof, com, call["starts"], call["dofs"], call["roots"], call["which"],
-                call["fromto"], dist, call["G"],
-            )  # fmt: skip
+            call(**{name: value})

@@ -261,11 +261,16 @@ inline i64 collision_candidates(const i64* pairs, i64 P, i64 ngeom, const int* g
 // on geom 2), the unit normal n = (to - from) / |to - from| (MuJoCo's mju_normalize3: (1, 0, 0)
 // below mjMINVAL), the point Jacobians J1 at `from` on geom 1's body and J2 at `to` on geom 2's
 // (mj_jac, model/jac.hpp: chains 2p and 2p + 1 of starts / dofs / roots), and
-// G[r] = sign n^T (J2 - J1), sign -1 where dist >= 0, else +1. cdof (nv, 6) and subtree_com
-// (nbody, 3) are the MjData's; jac (2, 3, nv) scratch. Every index is checked by the caller.
-inline void contact_normal_rows(const double* cdof, const double* subtree_com, i64 n, const i64* starts,
-                                const i64* dofs, const i64* roots, const i64* which, const double* fromto,
-                                const double* dist, i64 k, double* jac, double* G) {
+// G[r] = sign n^T (J2 - J1), sign -1 where dist >= 0, else +1. The right sides h[r] as the
+// limits compute them: `velocity` (mink's): gain (d - d_min) / dt + relaxation where
+// d > d_min, else relaxation; else (qpik's, a displacement): gain (d - d_min) + relaxation.
+// cdof (nv, 6) and subtree_com (nbody, 3) are the MjData's; jac (2, 3, nv) scratch. Returns
+// the fewest nonzero entries of a row (n where k = 0). Every index is checked by the caller.
+inline i64 contact_normal_rows(const double* cdof, const double* subtree_com, i64 n, const i64* starts,
+                               const i64* dofs, const i64* roots, const i64* which, const double* fromto,
+                               const double* dist, i64 k, double gain, double d_min, double relaxation,
+                               double dt, bool velocity, double* jac, double* G, double* h) {
+    i64 fewest = n;
     constexpr double kMinVal = 1e-15;  // MuJoCo's mjMINVAL
     double* j1 = jac;
     double* j2 = jac + 3 * n;
@@ -287,13 +292,20 @@ inline void contact_normal_rows(const double* cdof, const double* subtree_com, i
                                     subtree_com + 3 * roots[c2], j2, nullptr);
         model::chain_point_jacobian(cdof, n, dofs + starts[c1], starts[c1 + 1] - starts[c1], from,
                                     subtree_com + 3 * roots[c1], j1, nullptr);
-        const double sign = dist[r] >= 0.0 ? -1.0 : 1.0;
+        const double d = dist[r];
+        const double sign = d >= 0.0 ? -1.0 : 1.0;
         double* g = G + r * n;
+        i64 nonzero = 0;
         for (i64 j = 0; j < n; ++j) {
             const double d0 = j2[j] - j1[j], d1 = j2[n + j] - j1[n + j], d2 = j2[2 * n + j] - j1[2 * n + j];
             g[j] = sign * (normal[0] * d0 + normal[1] * d1 + normal[2] * d2);
+            nonzero += g[j] != 0.0;
         }
+        fewest = std::min(fewest, nonzero);
+        if (velocity) h[r] = d > d_min ? (gain * (d - d_min) / dt) + relaxation : relaxation;
+        else h[r] = gain * (d - d_min) + relaxation;
     }
+    return fewest;
 }
 
 }  // namespace qpik::limits
