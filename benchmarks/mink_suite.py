@@ -655,7 +655,7 @@ def solve_ik(configuration, tasks, dt, solver=None, damping=1e-12, safety_break=
         if type(limit) is mink.CollisionAvoidanceLimit:  # qpik's culled rows against mink's
             from qpik.limits.collision import mink_collision_rows
             reference = limit.compute_qp_inequalities(configuration, dt)
-            G, h, kept = mink_collision_rows(limit, configuration, dt)
+            G, h, kept, _ = mink_collision_rows(limit, configuration, dt)
             in_play = np.flatnonzero(np.isfinite(reference.h))
             check = state["rows"]
             check[0] += 1
