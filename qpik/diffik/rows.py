@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
+from typing import NoReturn, cast
 
 import mink
 import numpy as np
@@ -122,12 +122,29 @@ def _look_at_residual(
 
 class SuppliedRows(BaseTask):
     """A task of qpik's own that makes its rows as :func:`task_rows` returns them, already
-    checked (shapes, finiteness) and with typed errors: :meth:`rows_now`. The tasks that
-    :func:`qpik.solve_ik` builds around mink's constraints (:mod:`.constraints`)."""
+    checked (shapes, finiteness): :meth:`rows_now` (its errors typed by :func:`task_rows`,
+    naming :attr:`label`). The tasks that :func:`qpik.solve_ik` builds around mink's
+    constraints (:mod:`.constraints`)."""
+
+    #: What an error in its rows names (``"<label> failed (...)"``).
+    label = "rows"
 
     def rows_now(self, configuration: Configuration) -> tuple:
         """``(A, b, mu, weights)`` at ``configuration``, as :func:`task_rows` returns them."""
         raise NotImplementedError
+
+
+def _raise_rows_failure(exc: Exception, label: str) -> NoReturn:
+    """Raise qpik's counterpart of ``exc``, raised while a task made the rows ``label``
+    names: a :class:`mink.MinkError` (mink's own task classes) as qpik's
+    (:func:`qpik.errors.as_qpik_error`), a :class:`qpik.QpikError` as it is, another
+    ``ValueError`` or ``TypeError`` (a cost or gain set to what does not fit) as a
+    :class:`qpik.TaskDefinitionError`."""
+    if isinstance(exc, mink.MinkError):
+        raise as_qpik_error(exc) from exc
+    if isinstance(exc, QpikError):
+        raise exc
+    raise TaskDefinitionError(f"{label} failed ({exc})") from exc
 
 
 def task_rows(
@@ -139,7 +156,10 @@ def task_rows(
     term); a :class:`SuppliedRows` task's :meth:`~SuppliedRows.rows_now`. The compiled
     step's rows supplied by a task (:mod:`.compiled`) are these arrays."""
     if isinstance(task, SuppliedRows):
-        return task.rows_now(configuration)
+        try:
+            return task.rows_now(configuration)
+        except (mink.MinkError, ValueError, TypeError) as exc:
+            _raise_rows_failure(exc, task.label)
     residual = None
     if type(task) in _LOOK_AT:
         residual = _look_at_residual(cast(mink.LookAtTask, task), configuration)
@@ -148,12 +168,8 @@ def task_rows(
             if residual is None:
                 residual = task.compute_qp_residual(configuration)
             objective = None if residual is not None else task.compute_qp_objective(configuration)
-    except mink.MinkError as exc:  # mink's own task classes: qpik's counterpart
-        raise as_qpik_error(exc) from exc
-    except (ValueError, TypeError) as exc:  # (a cost or gain set to what does not fit)
-        if isinstance(exc, QpikError):
-            raise
-        raise TaskDefinitionError(f"{type(task).__name__}: its rows failed ({exc})") from exc
+    except (mink.MinkError, ValueError, TypeError) as exc:
+        _raise_rows_failure(exc, f"{type(task).__name__}: its rows")
     if objective is not None:
         H, c = objective
         with np.errstate(over="ignore", invalid="ignore"):
