@@ -2375,7 +2375,7 @@ inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
 // costs little, keep it: the normal equations' answer differs from the QR's by about
 // eps |B|^2 / s^2 relative on an ill-conditioned one (6e-12 with s = 1e-3, |B| = 0.75:
 // tests/fixtures/core.npz's case 184, r = 5, past that test's 1e-12).
-constexpr i64 kEqCandidateRows = 8;
+constexpr i64 kEqCandidateRows = 16;
 inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
                          const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u) {
     i64 r = ls.B.cols;
