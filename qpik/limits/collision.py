@@ -115,15 +115,12 @@ class PairCulling:
         self._chains: tuple = (None,)  # (model, starts, dofs, roots) of contact_rows
 
     def contact_rows(
-        self,
-        limit: mink.CollisionAvoidanceLimit,
-        data: mujoco.MjData,
-        indices: Sequence[int],
-        dt: float,
-        mink_units: bool,
+        self, limit: mink.CollisionAvoidanceLimit, data: mujoco.MjData, dt: float, mink_units: bool
     ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
-        """``(G, h, kept, fewest)`` of the pairs ``indices`` (ascending) of ``limit`` that
-        ``mj_geomDistance`` finds within its detection distance at ``data``: their indices
+        """``(G, h, kept, fewest)`` of the pairs of ``limit`` (this culling's) that
+        ``mj_geomDistance`` finds within its detection distance at ``data`` (``mj_kinematics``
+        and ``mj_comPos`` done; the pairs :meth:`candidates` keeps where ``limit.broadphase``,
+        else every pair, as mink checks them): their indices
         ``kept``, their rows ``G`` (k, nv), ``sign n^T (J_2 - J_1)`` as mink's
         ``compute_contact_normal_jacobian`` makes them and signs them (``sign = -1`` where
         ``d >= 0``, else 1), their right sides ``h`` (k,) and the fewest nonzero entries of a
@@ -135,7 +132,9 @@ class PairCulling:
         relaxation`` [m])."""
         model = limit.model
         distmax = limit.collision_detection_distance
-        mink_rule = mink_units
+        indices: list | range = range(limit.max_num_contacts)
+        if limit.broadphase:
+            indices = self.candidates(model, data, distmax + CULLING_SLACK)
         chains = self._chains
         if chains[0] is not model:  # each pair's two bodies' dof chains (mj_jac's order)
             bodies = model.geom_bodyid[self.pairs.reshape(-1)]
@@ -148,7 +147,7 @@ class PairCulling:
             d = mujoco.mj_geomDistance(
                 model, data, int(ids[idx, 0]), int(ids[idx, 1]), distmax, rows[len(kept)]
             )
-            if abs(d - distmax) < 1e-12 if mink_rule else d >= distmax - 1e-12:
+            if abs(d - distmax) < 1e-12 if mink_units else d >= distmax - 1e-12:
                 continue
             dist.append(d)
             kept.append(idx)
@@ -237,14 +236,7 @@ def mink_collision_rows(
     bitwise mink's; the pairs out of range
     are culled first by :class:`PairCulling` instead of mink's bounding spheres (every pair
     is checked when ``limit.broadphase`` is False, as mink does)."""
-    data = configuration.data
-    culling = _culling(limit)
-    indices: list | range = range(limit.max_num_contacts)
-    if limit.broadphase:
-        indices = culling.candidates(
-            limit.model, data, limit.collision_detection_distance + CULLING_SLACK
-        )
-    return culling.contact_rows(limit, data, indices, dt, True)
+    return _culling(limit).contact_rows(limit, configuration.data, dt, True)
 
 
 def _geom_label(model: mujoco.MjModel, geom: int) -> str:
@@ -426,16 +418,9 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         """``G dq <= h`` [m]: one row per pair within ``collision_detection_distance``
         (rows of pairs out of range are left out; no row at all: an inactive constraint).
         ``dt`` is not used: both sides are displacements."""
-        model = self.model
-        data = configuration.data
-        distmax = self.collision_detection_distance
         # Pairs provably out of range are culled first (PairCulling: the same rows as
         # checking every pair; mink's bounding-sphere broadphase is looser).
-        culling = _culling(self)
-        indices: list | range = range(self.max_num_contacts)
-        if self.broadphase:
-            indices = culling.candidates(model, data, distmax + CULLING_SLACK)
-        G, h, active, _ = culling.contact_rows(self, data, indices, dt, False)
+        G, h, active, _ = _culling(self).contact_rows(self, configuration.data, dt, False)
         if not active:
             return mink.Constraint()
         return mink.Constraint(G=G, h=h)
