@@ -447,6 +447,18 @@ def _shell_inertia_on_meshes(xml: Path) -> str | None:
     return f"{xml.parent.name}/{xml.name}: shellinertia moved to {len(names)} mesh asset(s)"
 
 
+def _notes_by_model(notes: list[str]) -> str:
+    """``mirror_examples``' notes (``"<model folder>/<file>: <why>"``) counted by model
+    folder and reason, e.g. ``"unitree_g1 48 missing; hello_robot_stretch_3 1 shellinertia
+    ..."``: one line, not one entry per mesh file."""
+    counts: dict[tuple[str, str], int] = {}
+    for note in notes:
+        where, _, why = note.partition(": ")
+        key = (where.split("/", 1)[0], why)
+        counts[key] = counts.get(key, 0) + 1
+    return "; ".join(f"{model} {count} {why}" for (model, why), count in sorted(counts.items()))
+
+
 def mirror_examples(source: Path, target: Path) -> list[str]:
     """Mirror mink's examples folder into ``target`` (scripts copied, model files linked)
     and replace each missing or unloadable mesh by a placeholder; returns notes on what
@@ -753,7 +765,7 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
         "per-call medians [us]"
     )
     if notes:
-        print(f"placeholder meshes: {len(notes)} ({'; '.join(notes)})")
+        print(f"placeholder meshes: {len(notes)} ({_notes_by_model(notes)})")
     header = (
         f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
         f"{'levels':>9}{'max|dv|':>10}{'damped':>7}{'ill':>5}{'vs exact':>9}{'|e| mink':>10}"
