@@ -262,12 +262,16 @@ class SolverCache:
         self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
         #: the solvers of calls with constraints, by the call's objects (keep_constrained)
         self._constrained: dict[tuple, tuple[tuple, IKSolver]] = {}
+        #: the constraint and damping tasks of :func:`_constrained_solver` (its entries: by
+        #: the identity of the constraint tasks, the damping and the number of levels; an
+        #: entry holds its tasks), kept as the solvers are
+        self.constraint_tasks: dict[tuple, tuple] = {}
 
     def clear(self) -> None:
         """Forget every kept solver (and the constraint tasks kept for them)."""
         self._entries.clear()
         self._constrained.clear()
-        _CONSTRAINED.clear()
+        self.constraint_tasks.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -453,12 +457,6 @@ def _solver(
     return ik, rows
 
 
-#: The constraint and damping tasks of :func:`_constrained_solver`, kept as the solvers are
-#: (:class:`SolverCache`): by the identity of the constraint tasks, the damping and the
-#: number of levels, the least recently used dropped first; an entry holds its tasks.
-_CONSTRAINED: dict[tuple, tuple] = {}
-
-
 def _constrained_solver(
     configuration: Configuration,
     tasks: Any,
@@ -480,15 +478,16 @@ def _constrained_solver(
     levels = _levels(tasks)
     model = configuration.model
     key = (id(model), tuple(map(id, constraint_tasks)), float(damping), len(levels))
-    entry = _CONSTRAINED.pop(key, None)
+    kept = SOLVERS.constraint_tasks
+    entry = kept.pop(key, None)
     if entry is None:
         rows = ConstraintRows(constraint_tasks, configuration)
         tikhonov = [Tikhonov(damping) for _ in range(max(len(levels), 1))]
         # (no task: the smallest displacement, one kept task, as _new_solver's)
         entry = (model, constraint_tasks, rows, tikhonov, [_MinimumNorm()] if not levels else [])
-        if len(_CONSTRAINED) >= SolverCache.size:
-            _CONSTRAINED.pop(next(iter(_CONSTRAINED)))
-    _CONSTRAINED[key] = entry  # most recently used last
+        if len(kept) >= SolverCache.size:
+            kept.pop(next(iter(kept)))
+    kept[key] = entry  # most recently used last
     _, _, rows, tikhonov, minimum = entry
     levels = levels or [minimum]
     stack = [[rows], *([*level, extra] for level, extra in zip(levels, tikhonov, strict=True))]

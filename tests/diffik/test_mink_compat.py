@@ -1039,11 +1039,11 @@ def test_constraints_take_the_compiled_step_and_answer_as_before():
         problem.levels.insert(0, Level(A, b, 0.0, None, "constraints"))
         reference = HierarchySolver("daqp", damping_law=plain.damping_law).solve(problem)
         np.testing.assert_allclose(velocity, reference.x / DT, rtol=0, atol=1e-10)
-    assert mink_compat._CONSTRAINED
+    assert mink_compat.SOLVERS.constraint_tasks
     qpik.clear_caches()
-    assert not mink_compat._CONSTRAINED
+    assert not mink_compat.SOLVERS.constraint_tasks
     for _ in range(3):  # no task (the smallest displacement): one solver, kept
         velocity = qpik.solve_ik(configuration, [], DT, "daqp", constraints=[freeze])
         theirs = mink.solve_ik(configuration, [], DT, "daqp", constraints=[freeze])
         np.testing.assert_allclose(velocity, theirs, rtol=0, atol=1e-12)
-    assert len(mink_compat.SOLVERS) == 1 and len(mink_compat._CONSTRAINED) == 1
+    assert len(mink_compat.SOLVERS) == 1 and len(mink_compat.SOLVERS.constraint_tasks) == 1
