@@ -14,9 +14,10 @@ from collections.abc import Sequence
 import mink
 import numpy as np
 
-from .._engine.tasks import unit_rows
+from .._engine.tasks import frame_rows_into, unit_rows
 from ..errors import InvalidInput, TaskDefinitionError
 from ..model.configuration import Configuration
+from ..tasks.frame import FrameTask, frame_terms
 from .rows import SuppliedRows
 
 __all__ = ["ConstraintRows", "Tikhonov", "equality_rows"]
@@ -38,6 +39,29 @@ def _stacked(
     A_eq = np.vstack(A) if A else np.zeros((0, nv))
     b_eq = np.concatenate(b) if b else np.zeros(0)
     return A_eq, b_eq, -1.0
+
+
+#: The frame tasks whose rows :func:`_frame_rows` makes (mink's class and qpik's, not a
+#: subclass that may compute its own), and their unit costs (read-only).
+_FRAME_TASKS = (mink.FrameTask, FrameTask)
+_UNIT_COST = np.ones(6)
+_UNIT_COST.flags.writeable = False
+
+
+def _frame_rows(
+    task: mink.FrameTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A frame task's equalities ``J dq = -gain e`` as :func:`_stacked` returns them
+    (``J``, ``-gain e``, ``-1``), by the engine (:func:`qpik.tasks.frame.frame_terms`, then
+    ``frame_rows_into`` with unit costs: mink's ``compute_jacobian`` and ``compute_error``
+    to round-off) rather than mink's Python; None for a frame type only mink knows."""
+    terms = frame_terms(task, configuration)
+    if terms is None:
+        return None
+    jac, xmat, jlog, error = terms
+    J, b = np.empty((6, jac.shape[1])), np.empty(6)
+    frame_rows_into(J, b, 0, jac, xmat, jlog, error, _UNIT_COST, float(task.gain), 0.0)
+    return J, b, -1.0
 
 
 def _not_finite() -> InvalidInput:
@@ -76,7 +100,15 @@ class ConstraintRows(SuppliedRows):
         """The equalities with each row scaled to unit norm (a zero row as it is;
         ``qpik._engine.tasks.unit_rows``)."""
         nv = configuration.model.nv
-        J, e, gain = _stacked(configuration, self.constraints, nv)
+        constraints = self.constraints
+        stacked = None
+        if (
+            len(constraints) == 1
+            and type(constraints[0]) in _FRAME_TASKS
+            and isinstance(configuration, Configuration)
+        ):
+            stacked = _frame_rows(constraints[0], configuration)
+        J, e, gain = stacked or _stacked(configuration, constraints, nv)
         if J.ndim != 2 or J.shape[1] != nv or e.shape != (J.shape[0],):
             raise TaskDefinitionError(
                 f"constraints: their rows are of shape {J.shape} and their errors {e.shape}; "

@@ -11,6 +11,8 @@ They equal mink's own to round-off (tests check 1e-12).
 
 from __future__ import annotations
 
+from typing import Any
+
 import mink
 import numpy as np
 
@@ -25,7 +27,7 @@ from ..model.frames import (
     check_frame_type,
 )
 
-__all__ = ["FrameTask"]
+__all__ = ["FrameTask", "frame_terms"]
 
 
 def _frame_type_name(frame_type) -> str:
@@ -44,6 +46,26 @@ def _frame_type_name(frame_type) -> str:
 #     world-aligned Jacobian (6, nv), xmat the frame's rotation (row-major 9).
 
 
+def frame_terms(task: mink.FrameTask, configuration) -> tuple | None:
+    """``(jac, xmat, jlog, error)`` of a frame task (mink's or qpik's) at ``configuration``
+    (qpik's), from MuJoCo and mink's SE3 arithmetic (:func:`frame_error_jlog`): the
+    world-aligned Jacobian (6, nv), the frame's rotation (row-major 9), ``jlog(T_tb)`` and
+    the body-twist error; ``None`` for a frame type only mink's generic path knows."""
+    if task.transform_target_to_world is None:
+        raise TargetNotSet(task.__class__.__name__)
+    kind: Any = _frame_type_name(task.frame_type)  # (a FrameType's value: its str keys)
+    if kind not in FRAME_OBJECTS:
+        return None
+    model, data = configuration.model, configuration.data
+    fid = configuration._resolve_frame_id(task.frame_name, kind)
+    xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
+    xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
+    jac = np.empty((6, model.nv))
+    FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
+    error, jlog = frame_error_jlog(xmat, xpos, task.transform_target_to_world.wxyz_xyz)
+    return jac, xmat, jlog, error
+
+
 class FrameTask(mink.FrameTask):
     """mink's :class:`~mink.FrameTask` (error: the body twist ``log(T_bt)`` of the frame to
     its target, expressed in the frame's local axes [m, rad]; Jacobian ``-jlog(T_tb)
@@ -57,23 +79,8 @@ class FrameTask(mink.FrameTask):
         check_frame_type(type(self).__name__, "frame_type", self.frame_type)
 
     def _frame_terms(self, configuration):
-        """``(jac, xmat, jlog, error)`` from MuJoCo and mink's SE3 arithmetic
-        (:func:`frame_error_jlog`): the world-aligned Jacobian (6, nv), the frame's rotation
-        (row-major 9), ``jlog(T_tb)`` and the body-twist error; ``None`` for a frame type
-        only mink's generic path knows."""
-        if self.transform_target_to_world is None:
-            raise TargetNotSet(self.__class__.__name__)
-        kind = _frame_type_name(self.frame_type)
-        if kind not in FRAME_OBJECTS:
-            return None
-        model, data = configuration.model, configuration.data
-        fid = configuration._resolve_frame_id(self.frame_name, kind)
-        xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
-        xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
-        jac = np.empty((6, model.nv))
-        FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
-        error, jlog = frame_error_jlog(xmat, xpos, self.transform_target_to_world.wxyz_xyz)
-        return jac, xmat, jlog, error
+        """:func:`frame_terms` of this task."""
+        return frame_terms(self, configuration)
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
         terms = self._frame_terms(configuration)

@@ -1047,3 +1047,42 @@ def test_constraints_take_the_compiled_step_and_answer_as_before():
         theirs = mink.solve_ik(configuration, [], DT, "daqp", constraints=[freeze])
         np.testing.assert_allclose(velocity, theirs, rtol=0, atol=1e-12)
     assert len(mink_compat.SOLVERS) == 1 and len(mink_compat.SOLVERS.constraint_tasks) == 1
+
+
+@pytest.mark.parametrize("frame_type", ["site", "body", "geom"])
+def test_frame_task_constraint_rows_by_the_engine_are_minks(rng, frame_type):
+    """A mink FrameTask (or qpik's) held as a constraint has its equalities made by the
+    engine (constraints._frame_rows: frame_terms and frame_rows_into with unit costs), the
+    rows of mink's own compute_jacobian and compute_error to round-off, on random
+    configurations and targets; a subclass of mink's keeps its own methods."""
+    model = qpik.load_robot("panda")
+    name = {"site": "ee", "body": "hand", "geom": model.geom(model.ngeom - 1).name}[frame_type]
+    configuration = qpik.Configuration(model)
+    lower, upper = configuration.lower, configuration.upper
+    for cls in (mink.FrameTask, qpik.tasks.FrameTask):
+        task = cls(name, frame_type, position_cost=1.0, orientation_cost=1.0, gain=0.7)
+        task.set_target_from_configuration(configuration)
+        rows = constraints_module.ConstraintRows([task], configuration)
+        for _ in range(20):
+            configuration.update(rng.uniform(lower, upper))
+            pose = configuration.get_transform_frame_to_world(name, frame_type)
+            task.set_target(pose @ mink.SE3.exp(rng.uniform(-0.3, 0.3, 6)))
+            A, b, mu, weights = rows.rows_now(configuration)
+            J = mink.FrameTask.compute_jacobian(task, configuration)
+            e = mink.FrameTask.compute_error(task, configuration)
+            norms = np.linalg.norm(J, axis=1)
+            np.testing.assert_allclose(A, J / norms[:, None], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(b, -0.7 * e / norms, rtol=0, atol=1e-12 * (1 + abs(b).max()))
+            assert mu is None and np.array_equal(weights, np.ones(6))
+
+    class Shifted(mink.FrameTask):  # its own error: the engine's rows must not be taken
+        def compute_error(self, configuration):
+            return super().compute_error(configuration) + 1.0
+
+    task = Shifted(name, frame_type, position_cost=1.0, orientation_cost=1.0)
+    task.set_target(configuration.get_transform_frame_to_world(name, frame_type))
+    A, b, _, _ = constraints_module.ConstraintRows([task], configuration).rows_now(configuration)
+    J = mink.FrameTask.compute_jacobian(task, configuration)
+    np.testing.assert_allclose(
+        b, -1.0 * task.compute_error(configuration) / np.linalg.norm(J, axis=1)
+    )
