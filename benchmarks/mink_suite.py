@@ -409,6 +409,46 @@ def _write_placeholder(path: Path) -> None:
         path.write_text(_TETRAHEDRON_OBJ)
 
 
+def _glyph_polyline(points: int = 400):
+    """An "M" traced as one polyline ``(points, 2)`` in [-0.08, 0.08]^2 [m] (the engraving
+    example's patch): up the left stroke, down to the middle, up and down the right."""
+    import numpy as np
+
+    corners = np.array([[-0.08, -0.08], [-0.08, 0.08], [0.0, 0.0], [0.08, 0.08], [0.08, -0.08]])
+    lengths = np.linalg.norm(np.diff(corners, axis=0), axis=1)
+    at = np.linspace(0.0, lengths.sum(), points)
+    cumulative = np.concatenate([[0.0], np.cumsum(lengths)])
+    return np.stack([np.interp(at, cumulative, corners[:, k]) for k in range(2)], axis=1)
+
+
+def _example_assets(target: Path) -> list[str]:
+    """Placeholders for the binary assets mink 1.3's ``arm_panda_engrave`` reads next to it
+    where the copy lacks them (a snapshot keeps text files): the glyph ``mujoco_M.png`` (an
+    "M" drawn on a 64 x 64 grey image) and its toolpath ``mujoco_M_toolpath.npy`` (waypoints
+    ``(x, y, lift)`` along that M at cut depth, lift 0). The example then runs on this M
+    rather than MuJoCo's logo; returns notes on what was written."""
+    import numpy as np
+
+    notes: list[str] = []
+    if not (target / "arm_panda_engrave.py").exists():
+        return notes
+    logo, toolpath = target / "mujoco_M.png", target / "mujoco_M_toolpath.npy"
+    if not logo.exists():
+        import imageio.v3 as iio
+
+        image = np.zeros((64, 64), dtype=np.uint8)
+        for x, y in _glyph_polyline(2000):
+            i, j = int(round((0.08 - y) / 0.16 * 63)), int(round((x + 0.08) / 0.16 * 63))
+            image[max(i - 3, 0) : i + 4, max(j - 3, 0) : j + 4] = 255
+        iio.imwrite(logo, image)
+        notes.append("examples/mujoco_M.png: missing (an M drawn)")
+    if not toolpath.exists():
+        path = _glyph_polyline()
+        np.save(toolpath, np.concatenate([path, np.zeros((len(path), 1))], axis=1))
+        notes.append("examples/mujoco_M_toolpath.npy: missing (along that M)")
+    return notes
+
+
 def _shell_inertia_on_meshes(xml: Path) -> str | None:
     """MuJoCo 4 refuses ``shellinertia="true"`` on a mesh geom ("for mesh geoms, inertia
     should be specified in the mesh asset"; mink 1.3's Stretch 3 uses it): the mirror's copy
@@ -477,6 +517,7 @@ def mirror_examples(source: Path, target: Path) -> list[str]:
                 out.mkdir(parents=True, exist_ok=True)
                 for name in files:
                     os.symlink(os.path.join(folder, name), out / name)
+    notes.extend(_example_assets(target))
     for xml in sorted(target.glob("*/*.xml")):
         note = _shell_inertia_on_meshes(xml)
         if note:
@@ -583,6 +624,12 @@ class FakeViewer:
         import contextlib
         return contextlib.nullcontext()
     def close(self):
+        pass
+    def update_hfield(self, *args, **kwargs):  # (a height field edited by a script)
+        pass
+    def update_mesh(self, *args, **kwargs):
+        pass
+    def update_texture(self, *args, **kwargs):
         pass
 
 mujoco.viewer.launch_passive = lambda model, data, *a, **k: FakeViewer(model, data)
@@ -765,7 +812,7 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
         "per-call medians [us]"
     )
     if notes:
-        print(f"placeholder meshes: {len(notes)} ({_notes_by_model(notes)})")
+        print(f"placeholders: {len(notes)} ({_notes_by_model(notes)})")
     header = (
         f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
         f"{'levels':>9}{'max|dv|':>10}{'damped':>7}{'ill':>5}{'vs exact':>9}{'|e| mink':>10}"
