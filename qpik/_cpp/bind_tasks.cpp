@@ -7,6 +7,7 @@
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
 #include "tasks/linear.hpp"
+#include "tasks/axis_align.hpp"
 #include "tasks/look_at.hpp"
 #include "tasks/pose.hpp"
 #include "tasks/joint_limits.hpp"
@@ -219,6 +220,25 @@ void bind_tasks(nb::module_& m) {
         "mink's LookAtTask's weighted residual from a frame's world-aligned Jacobian jac (6, nv),\n"
         "rotation xmat (9,) and position xpos (3,) [m]: A = cost J (3, nv) and b = -cost gain e\n"
         "(3,) written; returns mu = lm_damping |b|^2 (tasks/look_at.hpp).");
+    m.def(
+        "axis_align_residual",
+        [](Out2 A, Out1 b, In2 jacr, In1 xmat, In1 target, In1 axis, In1 cost, double gain, double lm_damping) {
+            const size_t nv = jacr.shape(1);
+            require(jacr.shape(0) == 3, "axis_align_residual: jacr must have shape (3, nv)");
+            require(A.shape(0) == 3 && A.shape(1) == nv, "axis_align_residual: A must have shape (3, nv)");
+            require(b.shape(0) == 3, "axis_align_residual: b must have shape (3,)");
+            require(xmat.shape(0) == 9, "axis_align_residual: xmat must have shape (9,)");
+            for (const In1* x : {&target, &axis, &cost})
+                require(x->shape(0) == 3, "axis_align_residual: target, axis and cost must have shape (3,)");
+            return tasks::axis_align_residual(jacr.data(), static_cast<i64>(nv), xmat.data(), target.data(),
+                                              axis.data(), cost.data(), gain, lm_damping, A.data(), b.data());
+        },
+        nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("jacr"), nb::arg("xmat"), nb::arg("target"),
+        nb::arg("axis"), nb::arg("cost"), nb::arg("gain"), nb::arg("lm_damping"),
+        "mink's AxisAlignTask's weighted residual from a frame's world-aligned rotation Jacobian\n"
+        "jacr (3, nv) and rotation xmat (9,): e = axis - R^T target, J = -[R^T target]x R^T jacr,\n"
+        "A = cost J (3, nv) and b = -cost gain e (3,) written; returns mu = lm_damping |b|^2\n"
+        "(tasks/axis_align.hpp).");
     m.def(
         "unit_rows",
         [](Out2 A, Out1 b, In2 J, In1 e, double gain) {

@@ -10,18 +10,18 @@ of levels); :func:`level_rows` asks each task of a level for its rows (mink's co
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NoReturn, cast
 
 import mink
 import numpy as np
 
-from .._engine.tasks import look_at_residual
+from .._engine.tasks import axis_align_residual, look_at_residual
 from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError, as_qpik_error
 from ..model.configuration import Configuration
 from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
-from ..tasks import BaseTask, LookAtTask
+from ..tasks import AxisAlignTask, BaseTask, LookAtTask
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
 
@@ -79,9 +79,6 @@ def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
 
 #: mink's ``get_epsilon(float64)``: the smallest distance to the point looked at [m]
 _EPS = 1e-10
-#: mink's LookAtTask and qpik's (the same methods, qpik's errors): their rows by
-#: :func:`_look_at_residual`.
-_LOOK_AT = (mink.LookAtTask, LookAtTask)
 
 
 def _look_at_residual(
@@ -118,6 +115,52 @@ def _look_at_residual(
         getattr(data, FRAME_POSITIONS[kind])[fid], target, axis, cost, gain, lm, _EPS,
     )  # fmt: skip
     return weighted, weighted_error, mu
+
+
+def _axis_align_residual(
+    task: mink.AxisAlignTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A :class:`mink.AxisAlignTask`'s weighted residual ``(cost J, -cost gain e, lm |.|^2)``
+    as its ``compute_qp_residual`` defines it (``e = a - d``, ``d = R^T t``, ``J = -[d]x
+    J_w``, ``J_w`` the frame's angular block), from MuJoCo's rotation and Jacobian of the
+    frame, by the compiled ``axis_align_residual`` (``qpik/_cpp/tasks/axis_align.hpp``):
+    mink's builds the frame's transform, its body Jacobian and the products in Python.
+    Equal to mink's to round-off. None where anything is not as mink's defaults make it (no
+    target, a frame name or type, axis, cost, gain or LM damping of another kind): the
+    task's own method then answers, or raises its error."""
+    try:
+        target, axis, cost = task.target_dir, task.axis, task.cost
+        gain, lm = float(task.gain), float(task.lm_damping)
+        if not (
+            type(target) is np.ndarray and target.shape == (3,)
+            and type(axis) is np.ndarray and axis.shape == (3,)
+            and type(cost) is np.ndarray and cost.shape == (3,)
+        ):  # fmt: skip
+            return None
+        kind = FrameType.parse(task.frame_type)
+        fid = configuration.frame_id(task.frame_name, kind)
+    except (QpikError, TypeError, ValueError, AttributeError, KeyError):
+        return None
+    model, data = configuration.model, configuration.data
+    jacobian = np.empty((6, model.nv))
+    FRAME_JACOBIANS[kind](model, data, jacobian[:3], jacobian[3:], fid)
+    weighted, weighted_error = np.empty((3, model.nv)), np.empty(3)
+    mu = axis_align_residual(
+        weighted, weighted_error, jacobian[3:], getattr(data, FRAME_ROTATIONS[kind])[fid],
+        target, axis, cost, gain, lm,
+    )  # fmt: skip
+    return weighted, weighted_error, mu
+
+
+#: The tasks whose weighted residual the engine computes (mink's classes and qpik's, the
+#: same methods with qpik's errors; not a subclass, which may compute its own): their
+#: residual functions.
+_COMPILED_RESIDUALS: dict[type, Callable] = {
+    mink.LookAtTask: _look_at_residual,
+    LookAtTask: _look_at_residual,
+    mink.AxisAlignTask: _axis_align_residual,
+    AxisAlignTask: _axis_align_residual,
+}
 
 
 class SuppliedRows(BaseTask):
@@ -160,9 +203,8 @@ def task_rows(
             return task.rows_now(configuration)
         except (mink.MinkError, ValueError, TypeError) as exc:
             _raise_rows_failure(exc, task.label)
-    residual = None
-    if type(task) in _LOOK_AT:
-        residual = _look_at_residual(cast(mink.LookAtTask, task), configuration)
+    compiled = _COMPILED_RESIDUALS.get(type(task))
+    residual = None if compiled is None else compiled(task, configuration)
     try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
         with np.errstate(over="ignore"):
             if residual is None:
