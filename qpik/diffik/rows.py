@@ -81,20 +81,13 @@ def _row_weights(task: BaseTask, rows: int) -> np.ndarray:
 _EPS = 1e-10
 
 
-def _look_at_residual(
-    task: mink.LookAtTask, configuration: Configuration
-) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """A :class:`mink.LookAtTask`'s weighted residual ``(cost J, -cost gain e, lm |.|^2)``
-    as its ``compute_qp_residual`` defines it (``e = a - d``, ``d = r / |r|``, ``r = R^T
-    (p* - p)``; ``J = (I - d d^T) (J_v - [r]x J_w) / |r|``, the Jacobian blocks in the
-    frame), from MuJoCo's pose and Jacobian of the frame at once, by the compiled
-    ``look_at_residual`` (``qpik/_cpp/tasks/look_at.hpp``): mink's computes the frame's
-    transform and Jacobian twice over (its error and its Jacobian apart), about 70-95 us a
-    task. Equal to mink's to round-off. None where anything is not as mink's defaults make
-    it (no target, a frame name or type, axis, cost, gain or LM damping of another kind):
-    the task's own method then answers, or raises its error."""
+def _residual_inputs(task, configuration: Configuration, target_name: str) -> tuple | None:
+    """``(kind, fid, target, axis, cost, gain, lm)`` of a look-at or axis-align task (its
+    target the attribute ``target_name``), None where anything is not as mink's defaults
+    make it (no target, a frame name or type, axis, cost, gain or LM damping of another
+    kind): the task's own method then answers, or raises its error."""
     try:
-        target, axis, cost = task.target_pos, task.axis, task.cost
+        target, axis, cost = getattr(task, target_name), task.axis, task.cost
         gain, lm = float(task.gain), float(task.lm_damping)
         if not (
             type(target) is np.ndarray and target.shape == (3,)
@@ -106,10 +99,35 @@ def _look_at_residual(
         fid = configuration.frame_id(task.frame_name, kind)
     except (QpikError, TypeError, ValueError, AttributeError, KeyError):
         return None
+    return kind, fid, target, axis, cost, gain, lm
+
+
+def _frame_jacobian(configuration: Configuration, kind: FrameType, fid: int) -> np.ndarray:
+    """MuJoCo's world-aligned Jacobian (6, nv) of a frame: translation, then rotation rows."""
     model, data = configuration.model, configuration.data
     jacobian = np.empty((6, model.nv))
     FRAME_JACOBIANS[kind](model, data, jacobian[:3], jacobian[3:], fid)
-    weighted, weighted_error = np.empty((3, model.nv)), np.empty(3)
+    return jacobian
+
+
+def _look_at_residual(
+    task: mink.LookAtTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """A :class:`mink.LookAtTask`'s weighted residual ``(cost J, -cost gain e, lm |.|^2)``
+    as its ``compute_qp_residual`` defines it (``e = a - d``, ``d = r / |r|``, ``r = R^T
+    (p* - p)``; ``J = (I - d d^T) (J_v - [r]x J_w) / |r|``, the Jacobian blocks in the
+    frame), from MuJoCo's pose and Jacobian of the frame at once, by the compiled
+    ``look_at_residual`` (``qpik/_cpp/tasks/look_at.hpp``): mink's computes the frame's
+    transform and Jacobian twice over (its error and its Jacobian apart), about 70-95 us a
+    task. Equal to mink's to round-off. None where an input does not fit
+    (:func:`_residual_inputs`)."""
+    inputs = _residual_inputs(task, configuration, "target_pos")
+    if inputs is None:
+        return None
+    kind, fid, target, axis, cost, gain, lm = inputs
+    data = configuration.data
+    jacobian = _frame_jacobian(configuration, kind, fid)
+    weighted, weighted_error = np.empty((3, jacobian.shape[1])), np.empty(3)
     mu = look_at_residual(
         weighted, weighted_error, jacobian, getattr(data, FRAME_ROTATIONS[kind])[fid],
         getattr(data, FRAME_POSITIONS[kind])[fid], target, axis, cost, gain, lm, _EPS,
@@ -125,29 +143,17 @@ def _axis_align_residual(
     J_w``, ``J_w`` the frame's angular block), from MuJoCo's rotation and Jacobian of the
     frame, by the compiled ``axis_align_residual`` (``qpik/_cpp/tasks/axis_align.hpp``):
     mink's builds the frame's transform, its body Jacobian and the products in Python.
-    Equal to mink's to round-off. None where anything is not as mink's defaults make it (no
-    target, a frame name or type, axis, cost, gain or LM damping of another kind): the
-    task's own method then answers, or raises its error."""
-    try:
-        target, axis, cost = task.target_dir, task.axis, task.cost
-        gain, lm = float(task.gain), float(task.lm_damping)
-        if not (
-            type(target) is np.ndarray and target.shape == (3,)
-            and type(axis) is np.ndarray and axis.shape == (3,)
-            and type(cost) is np.ndarray and cost.shape == (3,)
-        ):  # fmt: skip
-            return None
-        kind = FrameType.parse(task.frame_type)
-        fid = configuration.frame_id(task.frame_name, kind)
-    except (QpikError, TypeError, ValueError, AttributeError, KeyError):
+    Equal to mink's to round-off. None where an input does not fit
+    (:func:`_residual_inputs`)."""
+    inputs = _residual_inputs(task, configuration, "target_dir")
+    if inputs is None:
         return None
-    model, data = configuration.model, configuration.data
-    jacobian = np.empty((6, model.nv))
-    FRAME_JACOBIANS[kind](model, data, jacobian[:3], jacobian[3:], fid)
-    weighted, weighted_error = np.empty((3, model.nv)), np.empty(3)
+    kind, fid, target, axis, cost, gain, lm = inputs
+    jacobian = _frame_jacobian(configuration, kind, fid)
+    weighted, weighted_error = np.empty((3, jacobian.shape[1])), np.empty(3)
     mu = axis_align_residual(
-        weighted, weighted_error, jacobian[3:], getattr(data, FRAME_ROTATIONS[kind])[fid],
-        target, axis, cost, gain, lm,
+        weighted, weighted_error, jacobian[3:],
+        getattr(configuration.data, FRAME_ROTATIONS[kind])[fid], target, axis, cost, gain, lm,
     )  # fmt: skip
     return weighted, weighted_error, mu
 
