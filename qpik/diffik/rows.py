@@ -211,6 +211,15 @@ def task_rows(
             _raise_rows_failure(exc, task.label)
     compiled = _COMPILED_RESIDUALS.get(type(task))
     residual = None if compiled is None else compiled(task, configuration)
+    if residual is not None:
+        # (the engine's residual: (3, nv) rows, (3,) error and a float mu, checked inputs;
+        # the cost its (3,) array: the general checks below would pass)
+        if residual[2] < 0.0:  # (an lm_damping set below 0 directly)
+            raise TaskDefinitionError(
+                f"{type(task).__name__}: its LM damping term must be one number >= 0, got "
+                f"{residual[2]!r} (an lm_damping set to what does not fit?)"
+            )
+        return residual[0], residual[1], residual[2], task.cost  # type: ignore[attr-defined]
     try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
         with np.errstate(over="ignore"):
             if residual is None:

@@ -76,6 +76,12 @@ def test_what_does_not_fit_raises_as_minks_method(panda, kind):
     with pytest.raises(qpik.QpikError):
         task_rows(odd, own)
 
+    negative = cls("ee", "site")
+    negative.set_target(np.array([0.3, -0.2, 1.0]))
+    negative.lm_damping = -1.0  # (set directly, past mink's check)
+    with pytest.raises(qpik.TaskDefinitionError, match="LM damping"):
+        task_rows(negative, own)
+
     class Shifted(cls):  # a subclass computes its own rows
         def compute_qp_residual(self, configuration):
             A, b, mu = super().compute_qp_residual(configuration)
