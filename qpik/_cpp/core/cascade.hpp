@@ -179,12 +179,11 @@ inline CMatRef flushed_rows(CMatRef A, Mat& store) {
     using namespace simd;
     const i64 m = A.rows, n = A.cols;
     const double rel = kFlushEps * static_cast<double>(n);
-    bool any = false;
-    // per row, two lanes: the largest |a| and the smallest nonzero |a| (a NaN makes neither:
-    // its comparisons are false), then smallest <= rel largest
+    // A row's largest |a| (top) and smallest nonzero |a| (low), two lanes at a time (a NaN
+    // makes neither: its comparisons are false; the largest and smallest of a set are exact
+    // in any order).
     const v2d zero = splat(0.0), inf = splat(kInf);
-    for (i64 i = 0; i < m && !any; ++i) {
-        const double* a = A.row(i);
+    auto scan = [&](const double* a, double& top, double& low) {
         v2d hi = zero, lo = inf;
         i64 j = 0;
         for (; j + 2 <= n; j += 2) {
@@ -193,24 +192,45 @@ inline CMatRef flushed_rows(CMatRef A, Mat& store) {
             const v2d nz = v > zero ? v : inf;
             lo = nz < lo ? nz : lo;
         }
-        double top = pymax(hi[0], hi[1]), low = std::min(lo[0], lo[1]);
+        top = pymax(hi[0], hi[1]);
+        low = std::min(lo[0], lo[1]);
         for (; j < n; ++j) {
             const double v = std::fabs(a[j]);
             top = pymax(top, v);
             if (v > 0.0 && v < low) low = v;
         }
-        if (!std::isfinite(top)) continue;  // (a row with inf: left as it is, for the checks)
-        any = low <= rel * top;
+    };
+    // A row's entries at or below rel top are flushed; a row with inf is left as it is (for
+    // the checks), as is a row with no such entry (its smallest nonzero one above the cut).
+    auto cut_of = [rel](double top) { return std::isfinite(top) ? rel * top : 0.0; };
+    i64 first = -1;
+    double top = 0.0, low = 0.0;
+    for (i64 i = 0; i < m && first < 0; ++i) {
+        scan(A.row(i), top, low);
+        if (low <= cut_of(top)) first = i;
     }
-    if (!any) return A;
+    if (first < 0) return A;
     shape(store, m, n);
-    for (i64 i = 0; i < m; ++i) {
+    const size_t bytes = static_cast<size_t>(n) * sizeof(double);
+    for (i64 i = 0; i < first; ++i) std::memcpy(store.row(i), A.row(i), bytes);
+    for (i64 i = first; i < m; ++i) {
         const double* a = A.row(i);
         double* s = store.row(i);
-        double top = 0.0;
-        for (i64 j = 0; j < n; ++j) top = pymax(top, std::fabs(a[j]));
-        const double cut = std::isfinite(top) ? rel * top : 0.0;
-        for (i64 j = 0; j < n; ++j) s[j] = a[j] != 0.0 && std::fabs(a[j]) <= cut ? 0.0 : a[j];
+        if (i > first) scan(a, top, low);
+        const double cut = cut_of(top);
+        if (!(low <= cut)) {  // (nothing to flush in this row)
+            std::memcpy(s, a, bytes);
+            continue;
+        }
+        // s_j = 0 where a_j != 0 and |a_j| <= cut, else a_j (two lanes at a time)
+        const v2d cv = splat(cut);
+        i64 j = 0;
+        for (; j + 2 <= n; j += 2) {
+            const v2d x = load(a + j);
+            const v2d flushed = (x != zero) & (vabs(x) <= cv) ? zero : x;
+            simd::store(s + j, flushed);
+        }
+        for (; j < n; ++j) s[j] = a[j] != 0.0 && std::fabs(a[j]) <= cut ? 0.0 : a[j];
     }
     return store.cref();
 }
