@@ -9,8 +9,8 @@ leaves the limit to the QP path.
 * :class:`FreeJointAngular`: a :class:`mink.FreeJointVelocityLimit`'s angular bounds, one dof
   each: velocity-limit entries of the kernel's box (``|dq| <= dt angular_max``).
 * :class:`FreeJointLinear`: its linear rows ``+-R^T v <= linear_max`` (``R`` the base's
-  rotation), general rows; where one bounds a single dof (an upright base: the QP path folds
-  such a row into the box), the step is the QP path's.
+  rotation), general rows, also where one bounds a single dof (an upright or yawed base's
+  vertical row: the QP path folds it into the box; the same bound, the same optimum).
 """
 
 from __future__ import annotations
@@ -111,6 +111,10 @@ class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
         return self.source.angular_max
 
 
+#: The name the QP path gives the limit (its class's: .boxes.limit_name).
+_NAME = "FreeJointVelocityLimit"
+
+
 class FreeJointLinear(mink.FreeJointVelocityLimit):
     """The linear part of a :class:`mink.FreeJointVelocityLimit`: mink's rows ``R^T`` on the
     free joint's linear dofs, ``<= dt linear_max``, and their negation, bitwise (``R`` the
@@ -121,20 +125,50 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
 
     def __init__(self, limit: mink.FreeJointVelocityLimit):  # (not mink's: nothing to build)
         self.source = limit
+        #: the six rows' names where some bound one dof, by which and their signs
+        self._one_dof: dict[tuple, list[str]] = {}
         per_side = 3 + (3 if limit.angular_max is not None else 0)
         self._names = [f"FreeJointVelocityLimit row {r}" for r in (0, 1, 2)] + [
             f"FreeJointVelocityLimit row {per_side + r}" for r in (0, 1, 2)
         ]
 
     def compact_rows(self, configuration: mink.Configuration, dt: float):
-        """``(G, h, names)`` of the six linear rows, None where one bounds a single dof
-        (a row of ``R^T`` with two zero entries: an upright base's third, say)."""
-        x = configuration.data.xmat[self.source.base_body_id].tolist()  # R, row-major
-        for i in range(3):  # row i of R^T: column i of R
-            if (x[i] != 0.0) + (x[3 + i] != 0.0) + (x[6 + i] != 0.0) <= 1:
-                return None
+        """``(G, h, names)`` of the six linear rows, as general rows of the compiled step
+        also where one bounds a single dof (a row of ``R^T`` with two zero entries: an
+        upright or yawed base's vertical row, which the QP path folds into the box; the
+        free joint's linear dofs have no box bound of their own, so the row is the only
+        bound on that dof either way). Before, such a base sent every step to the QP path
+        (a standing floating Talos: 3.5x mink's time a call)."""
         G, h = self._rows(configuration, dt)
-        return G, h, self._names
+        x = configuration.data.xmat[self.source.base_body_id].tolist()  # R, row-major
+        # the rows of R^T on one dof (column i of R with one nonzero entry: an upright or
+        # yawed base's vertical row), each with its entry's place and sign
+        key = tuple(
+            (i, k, x[3 * k + i] > 0.0)
+            for i in range(3)
+            for k in range(3)
+            if x[3 * k + i] != 0.0 and (x[i] != 0.0) + (x[3 + i] != 0.0) + (x[6 + i] != 0.0) == 1
+        )
+        if not key:
+            return G, h, self._names
+        names = self._one_dof.get(key)
+        if names is None:
+            names = self._one_dof[key] = self._one_dof_names(configuration.model, G, key)
+        return G, h, names
+
+    def _one_dof_names(self, model: mujoco.MjModel, G: np.ndarray, key: tuple) -> list:
+        """The six rows' names where the rows ``i`` of ``key`` (a row of ``R^T`` on one dof)
+        and their negations ``i + 3`` are named as the QP path names the box bound it folds
+        them into: ``"<joint> upper|lower (FreeJointVelocityLimit)"``."""
+        names = list(self._names)
+        for i, _k, _positive in key:
+            for r in (i, i + 3):
+                dof = int(np.flatnonzero(G[r])[0])
+                j = int(model.dof_jntid[dof])
+                joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+                side = "upper" if G[r, dof] > 0.0 else "lower"
+                names[r] = f"{joint} {side} ({_NAME})"  # (.boxes: joint_names', limit_name's)
+        return names
 
     def _rows(self, configuration: mink.Configuration, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """``(G, h)`` as mink computes them: ``R^T`` on the linear dofs, its negation below
