@@ -493,7 +493,7 @@ class LimitBoxes:
             rows_of = _inequalities_of(limit, configuration, dt)
             if rows_of is None or not rows_of[0].shape[0]:
                 continue
-            split = _multi_dof_rows(*rows_of)
+            split = _multi_dof_rows(rows_of[0], rows_of[1], rows_of[3])
             if split is None:
                 return None
             G, h, rows = split
@@ -512,7 +512,7 @@ class LimitBoxes:
 
 
 def _multi_dof_rows(
-    G: np.ndarray, h: np.ndarray, numbers: list[int] | None, fewest: int | None
+    G: np.ndarray, h: np.ndarray, fewest: int | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | range] | None:
     """:meth:`LimitBoxes.general_rows`' rows of one limit: ``(G, h, rows)`` its rows on
     two dofs or more (``rows``: their numbers in ``G``; copies, not the limit's arrays,

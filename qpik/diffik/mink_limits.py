@@ -19,6 +19,8 @@ import mink
 import mujoco
 import numpy as np
 
+from ..model.configuration import joint_names
+
 __all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear", "angular_dofs"]
 
 
@@ -112,7 +114,7 @@ class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
 
 
 #: The name the QP path gives the limit (its class's: .boxes.limit_name).
-_NAME = "FreeJointVelocityLimit"
+_NAME = mink.FreeJointVelocityLimit.__name__
 
 
 class FreeJointLinear(mink.FreeJointVelocityLimit):
@@ -164,10 +166,9 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
         for i, _k, _positive in key:
             for r in (i, i + 3):
                 dof = int(np.flatnonzero(G[r])[0])
-                j = int(model.dof_jntid[dof])
-                joint = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+                joint = joint_names(model)[int(model.dof_jntid[dof])]  # (as .boxes names dofs)
                 side = "upper" if G[r, dof] > 0.0 else "lower"
-                names[r] = f"{joint} {side} ({_NAME})"  # (.boxes: joint_names', limit_name's)
+                names[r] = f"{joint} {side} ({_NAME})"
         return names
 
     def _rows(self, configuration: mink.Configuration, dt: float) -> tuple[np.ndarray, np.ndarray]:

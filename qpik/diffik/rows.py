@@ -20,7 +20,7 @@ import numpy as np
 from .._engine.tasks import axis_align_residual, look_at_residual
 from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError, as_qpik_error
 from ..model.configuration import Configuration
-from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
+from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
 from ..tasks import AxisAlignTask, BaseTask, LookAtTask
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
@@ -102,14 +102,6 @@ def _residual_inputs(task, configuration: Configuration, target_name: str) -> tu
     return kind, fid, target, axis, cost, gain, lm
 
 
-def _frame_jacobian(configuration: Configuration, kind: FrameType, fid: int) -> np.ndarray:
-    """MuJoCo's world-aligned Jacobian (6, nv) of a frame: translation, then rotation rows."""
-    model, data = configuration.model, configuration.data
-    jacobian = np.empty((6, model.nv))
-    FRAME_JACOBIANS[kind](model, data, jacobian[:3], jacobian[3:], fid)
-    return jacobian
-
-
 def _look_at_residual(
     task: mink.LookAtTask, configuration: Configuration
 ) -> tuple[np.ndarray, np.ndarray, float] | None:
@@ -126,7 +118,7 @@ def _look_at_residual(
         return None
     kind, fid, target, axis, cost, gain, lm = inputs
     data = configuration.data
-    jacobian = _frame_jacobian(configuration, kind, fid)
+    jacobian = configuration.frame_jacobian(fid, kind)
     weighted, weighted_error = np.empty((3, jacobian.shape[1])), np.empty(3)
     mu = look_at_residual(
         weighted, weighted_error, jacobian, getattr(data, FRAME_ROTATIONS[kind])[fid],
@@ -149,7 +141,7 @@ def _axis_align_residual(
     if inputs is None:
         return None
     kind, fid, target, axis, cost, gain, lm = inputs
-    jacobian = _frame_jacobian(configuration, kind, fid)
+    jacobian = configuration.frame_jacobian(fid, kind)
     weighted, weighted_error = np.empty((3, jacobian.shape[1])), np.empty(3)
     mu = axis_align_residual(
         weighted, weighted_error, jacobian[3:],

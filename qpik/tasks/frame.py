@@ -78,12 +78,8 @@ class FrameTask(mink.FrameTask):
         checks.check_frame_name("frame_name", self.frame_name)
         check_frame_type(type(self).__name__, "frame_type", self.frame_type)
 
-    def _frame_terms(self, configuration):
-        """:func:`frame_terms` of this task."""
-        return frame_terms(self, configuration)
-
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
-        terms = self._frame_terms(configuration)
+        terms = frame_terms(self, configuration)
         if terms is None:
             return super()._error_and_jacobian(configuration)
         jac, xmat, jlog, error = terms
@@ -96,7 +92,7 @@ class FrameTask(mink.FrameTask):
 
     def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
         """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call after MuJoCo's."""
-        terms = self._frame_terms(configuration)
+        terms = frame_terms(self, configuration)
         if terms is None:
             return super().compute_qp_residual(configuration)
         jac, xmat, jlog, error = terms
