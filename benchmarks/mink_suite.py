@@ -639,7 +639,16 @@ times = {"mink": [], "qpik": [], "levels": []}
 state = {"calls": 0, "dv": 0.0, "last": None, "levels": {}, "levels_error": None,
          "rows": [0, 0, 0.0, 0],  # collision rows: checks, rows, max |diff|, other pairs
          "damped": 0, "dv_exact": 0.0, "ill_posed": 0,  # where the answers differ: see explain()
-         "ref_quadprog": 0}  # states where DAQP's reference left a row (quadprog's taken)
+         "ref_quadprog": 0,  # states where DAQP's reference left a row (quadprog's taken)
+         "qp_path": [0, 0], "in": None}  # calls the QP path answered: solve_ik's, the levels'
+
+_qp_step = qpik.IKSolver._qp_step
+def counted_qp_step(self, *args, **kwargs):
+    """qpik's QP path (the compiled step did not take the call), counted per caller."""
+    if state["in"] is not None:
+        state["qp_path"][state["in"]] += 1
+    return _qp_step(self, *args, **kwargs)
+qpik.IKSolver._qp_step = counted_qp_step
 
 def explain(configuration, tasks, dt, solver, damping, limits, velocity):
     """A state where qpik's and mink's answers differ: qpik's damping law acted (it adds
@@ -698,16 +707,20 @@ def solve_ik(configuration, tasks, dt, solver=None, damping=1e-12, safety_break=
     order = ("mink", "qpik") if state["calls"] % 2 == 0 else ("qpik", "mink")
     for name in order:
         solve = mink_solve_ik if name == "mink" else qpik_solve_ik
+        state["in"] = 0 if name == "qpik" else None
         t0 = time.perf_counter()
         answers[name] = solve(configuration, tasks, dt, solver, damping, safety_break,
                               limits=limits, constraints=constraints, **kwargs)
         times[name].append(time.perf_counter() - t0)
+        state["in"] = None
     if constraints is None and state["levels_error"] is None:
         try:
             ik = levels_solver(configuration, list(tasks), solver, damping, limits)
+            state["in"] = 1
             t0 = time.perf_counter()
             ik.step(configuration, dt)
             times["levels"].append(time.perf_counter() - t0)
+            state["in"] = None
         except Exception as exc:
             state["levels_error"] = f"{type(exc).__name__}: {exc}"[:120]
     for limit in limits or ():
@@ -759,6 +772,7 @@ if state["last"] is not None:
 result.update(calls=state["calls"], dv=state["dv"], levels_error=state["levels_error"],
               rows=state["rows"], damped=state["damped"], dv_exact=state["dv_exact"],
               ill_posed=state["ill_posed"], ref_quadprog=state["ref_quadprog"],
+              qp_path=state["qp_path"],
               **{k: v for k, v in times.items()})
 with open(out, "w") as f:
     json.dump(result, f)
@@ -815,8 +829,8 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
         print(f"placeholders: {len(notes)} ({_notes_by_model(notes)})")
     header = (
         f"{'example':<22}{'solver':<10}{'calls':>6}{'mink':>9}{'qpik':>9}{'ratio':>7}"
-        f"{'levels':>9}{'max|dv|':>10}{'damped':>7}{'ill':>5}{'vs exact':>9}{'|e| mink':>10}"
-        f"{'|e| qpik':>10}{'max|de|':>10}"
+        f"{'levels':>9}{'QP path':>9}{'max|dv|':>10}{'damped':>7}{'ill':>5}{'vs exact':>9}"
+        f"{'|e| mink':>10}{'|e| qpik':>10}{'max|de|':>10}"
     )
     print(header)
     ratios: list[float] = []
@@ -842,9 +856,12 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
             quadprog_refs.append((name, refs))
         if exact > EXACT_DV:
             exact_miss.append(name)
+        # (the run integrating qpik's answers: every call of it was timed and counted)
+        qp_calls, qp_levels = runs["qpik"].get("qp_path", [0, 0])
         print(
             f"{name:<22}{str(r['solver']):<10}{r['calls']:>6}{med['mink']:>9.1f}"
-            f"{med['qpik']:>9.1f}{ratio:>7.2f}{med['levels']:>9.1f}{dv:>10.1e}{damped:>7}{ill:>5}"
+            f"{med['qpik']:>9.1f}{ratio:>7.2f}{med['levels']:>9.1f}"
+            f"{f'{qp_calls}/{qp_levels}':>9}{dv:>10.1e}{damped:>7}{ill:>5}"
             f"{exact:>9.1e}{np.linalg.norm(e_m):>10.2e}{np.linalg.norm(e_q):>10.2e}{de:>10.1e}"
         )
     if ratios:
@@ -859,7 +876,9 @@ def run_examples(folder: Path, iterations: int, only: list[str] | None) -> None:
         )
     print(
         "columns: levels = qpik.IKSolver, each task a strict level (posture/damping last), "
-        "qpik's own solver; max|dv| = largest velocity difference on the same state; damped "
+        "qpik's own solver; QP path = calls of the run integrating qpik's answers that qpik's "
+        "QP path answered (the compiled step did not take them): solve_ik's / the levels'; "
+        "max|dv| = largest velocity difference on the same state; damped "
         "= states (of those that differ by more than 1e-9) where qpik's damping law added "
         "damping near a singularity (by design); ill = states of the others where mink's QP "
         "as formed in double is too ill-conditioned to be a reference (cond(P) eps > 1e-8: it "
