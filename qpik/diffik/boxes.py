@@ -472,9 +472,10 @@ class LimitBoxes:
     def general_rows(
         self, limits: Sequence, configuration: mink.Configuration, dt: float
     ) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
-        """``(G, h, names)`` of ``limits`` as :meth:`rows` takes them (rows on two or more
-        dofs; empty rows dropped), None when a row bounds one dof (:meth:`rows` makes it a
-        box bound) or an empty row is infeasible (:meth:`rows` names it)."""
+        """``(G, h, names)`` of ``limits`` as :meth:`rows` takes them (empty rows dropped; a
+        row on one dof, which :meth:`rows` makes a box bound, kept as a general row named as
+        that bound: see :func:`_multi_dof_rows`), None when an empty row is infeasible
+        (:meth:`rows` names it) or a limit's own ``compact_rows`` declines."""
         G_parts: list[np.ndarray] = []
         h_parts: list[np.ndarray] = []
         names: list[str] = []
@@ -496,14 +497,17 @@ class LimitBoxes:
             split = _multi_dof_rows(rows_of[0], rows_of[1], rows_of[3])
             if split is None:
                 return None
-            G, h, rows = split
+            G, h, rows, one_dof = split
             if not len(rows):
                 continue
             numbers = rows_of[2]
             G_parts.append(G)
             h_parts.append(h)
             name = limit_name(limit)
-            names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows)
+            part = [f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows]
+            for k, dof, upper in one_dof:  # (named as the box bound the QP path folds it into)
+                part[k] = f"{self.dof_names[dof]} {'upper' if upper else 'lower'} ({name})"
+            names.extend(part)
         if not G_parts:
             return self.no_rows, np.zeros(0), names
         G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
@@ -513,24 +517,33 @@ class LimitBoxes:
 
 def _multi_dof_rows(
     G: np.ndarray, h: np.ndarray, fewest: int | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | range] | None:
-    """:meth:`LimitBoxes.general_rows`' rows of one limit: ``(G, h, rows)`` its rows on
-    two dofs or more (``rows``: their numbers in ``G``; copies, not the limit's arrays,
-    except where ``fewest`` says that every row is: then they are new arrays, kept as they
-    are), None where a row bounds one dof (the QP path makes it a box bound) or an empty row
-    is infeasible (RowStructure.of's split, without its bookkeeping: these rows change each
-    step)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | range, list[tuple[int, int, bool]]] | None:
+    """:meth:`LimitBoxes.general_rows`' rows of one limit: ``(G, h, rows, one_dof)`` its
+    rows on one dof or more (``rows``: their numbers in ``G``; copies, not the limit's
+    arrays, except where ``fewest`` says that every row is on two dofs or more: then they
+    are new arrays, kept as they are) and, for each kept row on one dof, ``(k, dof,
+    upper)``: its place in the kept rows, its dof and whether it bounds it from above. None
+    where an empty row is infeasible (RowStructure.of's split, without its bookkeeping:
+    these rows change each step; :meth:`LimitBoxes.rows` names it).
+
+    A row on one dof stays a general row of the compiled step, where the QP path folds it
+    into the box (``dq_i <= h / g``): the same feasible set, so the same optimum to
+    round-off (before, such a row sent the step to the QP path: a collision pair whose
+    link one joint moves, say)."""
     if fewest is not None and fewest >= 2:
-        return G, h, range(G.shape[0])
+        return G, h, range(G.shape[0]), []
     count = np.count_nonzero(G, axis=1)
     if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
-        return G.copy(), h.copy(), range(count.size)
-    if (count == 1).any():
-        return None
+        return G.copy(), h.copy(), range(count.size), []
     kept = count.nonzero()[0]
     if kept.size < count.size and (h[count == 0] < 0).any():
         return None
-    return G[kept], h[kept], kept
+    G, h = G[kept], h[kept]
+    one_dof = []
+    for k in np.flatnonzero(count[kept] == 1).tolist():
+        dof = int(np.flatnonzero(G[k])[0])
+        one_dof.append((k, dof, bool(G[k, dof] > 0.0)))
+    return G, h, kept, one_dof
 
 
 def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) -> None:

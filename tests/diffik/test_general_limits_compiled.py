@@ -290,3 +290,42 @@ def test_an_upright_base_free_joint_limit_binds_on_the_compiled_step():
         ours = qpik.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
         theirs = mink.solve_ik(configuration, [tip, base], DT, "daqp", 1e-6, limits=limits)
         np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-7)
+
+
+_TWO_LINKS = """<mujoco><compiler angle="radian"/><worldbody>
+<body name="l1"><joint name="j1" axis="0 0 1" range="-3 3"/>
+  <geom name="g1" type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+  <body name="l2" pos="0.3 0 0"><joint name="j2" axis="0 0 1" range="-3 3"/>
+    <geom name="g2" type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+    <site name="ee" pos="0.3 0 0"/></body></body>
+<body name="ball" mocap="true" pos="0.15 0.12 0"><geom name="gb" type="sphere" size="0.04"/>
+</body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("kind", ["qpik", "mink"])
+def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
+    """A collision pair whose link one joint moves (the first link of a planar arm and a
+    mocap ball): its row bounds one dof, which the QP path folds into the box. The compiled
+    step keeps it a general row (before, every such step went to the QP path): where the
+    tip's target swings the link into the ball, the row binds, and each step is the QP
+    path's to round-off, with the same statuses and the same limits named active (the row
+    as the box bound the QP path makes of it: ``"j1 upper (CollisionAvoidanceLimit)"``)."""
+    import mink
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(_TWO_LINKS)
+    cls = CollisionAvoidanceLimit if kind == "qpik" else mink.CollisionAvoidanceLimit
+    avoid = cls(
+        model, [(["g1"], ["gb"])], minimum_distance_from_collisions=0.01,
+        collision_detection_distance=0.2,
+    )  # fmt: skip
+    configuration = qpik.Configuration(model, np.array([0.0, 0.5]))
+    tip = PositionTask("ee", "site", gain=0.5)
+    tip.set_target(np.array([0.0, 0.6, 0.0]))  # (j1 turns toward the ball)
+    posture = PostureTask(model, cost=0.05)
+    posture.set_target(configuration.q)
+    solver = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
+    worst, names = _closed_loop(solver, configuration, 40, "j1 upper (CollisionAvoidanceLimit)")
+    assert worst <= 1e-12 and names >= 20
+    rows = avoid.compute_qp_inequalities(configuration, DT)
+    assert np.count_nonzero(rows.G[np.isfinite(rows.h)]) == 1  # (the row in play: one dof)
