@@ -30,7 +30,7 @@ from ..errors import (
     LimitDefinitionError,
     QpikError,
 )
-from ..limits.collision import mink_collision_rows
+from ..limits.collision import CollisionAvoidanceLimit, mink_collision_rows
 from ..model.configuration import Configuration, joint_names
 from .mink_limits import angular_dofs
 
@@ -349,6 +349,9 @@ class LimitBoxes:
         #: No general rows: ``G`` (0, nv).
         self.no_rows = np.zeros((0, nv))
         self._structures: dict[int, tuple[np.ndarray, RowStructure]] = {}
+        #: general_rows' names of a limit's rows, by the limit, its rows' numbers and the
+        #: rows on one dof (they change only when a pair comes in or out of range)
+        self._row_names: dict[tuple, list[str]] = {}
         self._bounds = tuple(np.empty(nv) for _ in range(4))  # scratch of rows()
 
     def _trust_box(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -469,6 +472,26 @@ class LimitBoxes:
             _add_sides(contributions, TRUST_REGION, *self._trust_box(dt))
         return contributions
 
+    def _names_of(self, limit, rows, numbers: list[int] | None, one_dof: list) -> list[str]:
+        """:meth:`general_rows`' names of a limit's kept ``rows`` (``numbers``: their rows in
+        the limit's own, where not the same), a row on one dof named as the box bound the QP
+        path makes of it (``one_dof``: :func:`_multi_dof_rows`'); kept by the rows."""
+        if numbers is not None:
+            kept: Any = tuple(numbers[r] for r in rows)
+        else:
+            kept = len(rows) if type(rows) is range else tuple(rows.tolist())
+        key = (id(limit), kept, tuple(one_dof))
+        part = self._row_names.get(key)
+        if part is None:
+            name = limit_name(limit)
+            part = [f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows]
+            for k, dof, upper in one_dof:
+                part[k] = f"{self.dof_names[dof]} {'upper' if upper else 'lower'} ({name})"
+            if len(self._row_names) >= 256:
+                self._row_names.clear()
+            self._row_names[key] = part
+        return part
+
     def general_rows(
         self, limits: Sequence, configuration: mink.Configuration, dt: float
     ) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
@@ -503,11 +526,7 @@ class LimitBoxes:
             numbers = rows_of[2]
             G_parts.append(G)
             h_parts.append(h)
-            name = limit_name(limit)
-            part = [f"{name} row {int(r if numbers is None else numbers[r])}" for r in rows]
-            for k, dof, upper in one_dof:  # (named as the box bound the QP path folds it into)
-                part[k] = f"{self.dof_names[dof]} {'upper' if upper else 'lower'} ({name})"
-            names.extend(part)
+            names.extend(self._names_of(limit, rows, numbers, one_dof))
         if not G_parts:
             return self.no_rows, np.zeros(0), names
         G = np.ascontiguousarray(np.vstack(G_parts) if len(G_parts) > 1 else G_parts[0], float)
@@ -535,14 +554,21 @@ def _multi_dof_rows(
     count = np.count_nonzero(G, axis=1)
     if count.min() >= 2:  # (every row on two dofs or more: all kept, in order)
         return G.copy(), h.copy(), range(count.size), []
-    kept = count.nonzero()[0]
-    if kept.size < count.size and (h[count == 0] < 0).any():
-        return None
-    G, h = G[kept], h[kept]
+    counts = count.tolist()  # (a few rows: Python's loops cost less than NumPy's calls)
+    kept: np.ndarray | range = range(len(counts))
+    if 0 in counts:
+        if any(h[k] < 0 for k, c in enumerate(counts) if not c):
+            return None
+        kept = np.array([k for k, c in enumerate(counts) if c], dtype=np.intp)
+        G, h = G[kept], h[kept]
+        counts = [c for c in counts if c]
+    else:
+        G, h = G.copy(), h.copy()
     one_dof = []
-    for k in np.flatnonzero(count[kept] == 1).tolist():
-        dof = int(np.flatnonzero(G[k])[0])
-        one_dof.append((k, dof, bool(G[k, dof] > 0.0)))
+    for k, c in enumerate(counts):
+        if c == 1:
+            dof = int(G[k].nonzero()[0][0])
+            one_dof.append((k, dof, bool(G[k, dof] > 0.0)))
     return G, h, kept, one_dof
 
 
@@ -568,8 +594,9 @@ def _inequalities_of(
 ) -> tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None:
     """A limit's rows ``(G, h, numbers, fewest)`` (None when inactive): its
     ``compute_qp_inequalities`` (``numbers`` None: row ``r`` is the limit's row ``r``;
-    ``fewest`` None), or, for mink's own :class:`mink.CollisionAvoidanceLimit`, only the
-    rows of the pairs in range (:func:`qpik.limits.collision.mink_collision_rows`: mink's
+    ``fewest`` None; for qpik's :class:`~qpik.limits.CollisionAvoidanceLimit` the fewest
+    nonzero entries of a row too), or, for mink's own :class:`mink.CollisionAvoidanceLimit`,
+    only the rows of the pairs in range (:func:`qpik.limits.collision.mink_collision_rows`: mink's
     rows, bitwise; its other rows are zero with ``h = inf``), ``numbers`` their row numbers
     in mink's and ``fewest`` the fewest nonzero entries of a row (new arrays: not the
     limit's own)."""
@@ -577,6 +604,12 @@ def _inequalities_of(
     try:
         if type(limit) is mink.CollisionAvoidanceLimit:
             rows = mink_collision_rows(limit, configuration, dt)
+        elif type(limit) is CollisionAvoidanceLimit:
+            # (its compute_qp_inequalities' rows, and the fewest nonzero entries of a row)
+            G, h, kept, fewest = limit.rows_in_play(configuration, dt)
+            if not kept:
+                return None
+            rows = G, h, None, fewest
         else:
             constraint = limit.compute_qp_inequalities(configuration, dt)
             if constraint.inactive:

@@ -418,12 +418,21 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         """``G dq <= h`` [m]: one row per pair within ``collision_detection_distance``
         (rows of pairs out of range are left out; no row at all: an inactive constraint).
         ``dt`` is not used: both sides are displacements."""
-        # Pairs provably out of range are culled first (PairCulling: the same rows as
-        # checking every pair; mink's bounding-sphere broadphase is looser).
-        G, h, active, _ = _culling(self).contact_rows(self, configuration.data, dt, False)
+        G, h, active, _ = self.rows_in_play(configuration, dt)
         if not active:
             return mink.Constraint()
         return mink.Constraint(G=G, h=h)
+
+    def rows_in_play(
+        self, configuration: mink.Configuration, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, list[int], int]:
+        """:meth:`compute_qp_inequalities`' rows as ``(G, h, pairs, fewest)``: ``G dq <= h``
+        [m], one row per pair within ``collision_detection_distance``, those pairs' indices
+        (ascending) into ``geom_id_pairs`` and the fewest nonzero entries of a row (nv where
+        there is none). ``dt`` is not used."""
+        # Pairs provably out of range are culled first (PairCulling: the same rows as
+        # checking every pair; mink's bounding-sphere broadphase is looser).
+        return _culling(self).contact_rows(self, configuration.data, dt, False)
 
     def distances(self, configuration: mink.Configuration) -> dict[tuple[str, str], float]:
         """Distance [m] of every checked pair (``mj_geomDistance``, negative when they

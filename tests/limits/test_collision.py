@@ -53,6 +53,12 @@ def test_rows_are_minks_times_dt_and_push_back_inside_d_min():
         assert a.G.shape[0] == finite.sum() >= 1
         np.testing.assert_array_equal(a.G, b.G[finite])
         np.testing.assert_allclose(a.h, b.h[finite] * dt, rtol=1e-14)
+        # rows_in_play: the same rows, the pairs in range and a row's fewest nonzero entries
+        G, h, pairs, fewest = ours.rows_in_play(configuration, dt)
+        np.testing.assert_array_equal(G, a.G)
+        np.testing.assert_array_equal(h, a.h)
+        assert pairs == np.flatnonzero(finite).tolist()
+        assert fewest == np.count_nonzero(G, axis=1).min()
     # Inside d_min the row asks the distance to grow by gain * (d_min - d) [m].
     configuration.update([0.34, 0.2])
     distance = geom_distance(configuration, "link2", "ball")
