@@ -589,6 +589,10 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
         side.names.extend(f"{name} row {int(r if numbers is None else numbers[r])}" for r in keep)
 
 
+#: qpik's CollisionAvoidanceLimit's own rows (a subclass that keeps them is read as it is)
+_QPIK_COLLISION_ROWS = CollisionAvoidanceLimit.compute_qp_inequalities
+
+
 def _inequalities_of(
     limit, configuration: mink.Configuration, dt: float
 ) -> tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None:
@@ -604,8 +608,12 @@ def _inequalities_of(
     try:
         if type(limit) is mink.CollisionAvoidanceLimit:
             rows = mink_collision_rows(limit, configuration, dt)
-        elif type(limit) is CollisionAvoidanceLimit:
-            # (its compute_qp_inequalities' rows, and the fewest nonzero entries of a row)
+        elif (
+            isinstance(limit, CollisionAvoidanceLimit)
+            and type(limit).compute_qp_inequalities is _QPIK_COLLISION_ROWS
+        ):
+            # (its compute_qp_inequalities' rows, and the fewest nonzero entries of a row;
+            # model_collision_limit's class too: a subclass with rows of its own keeps them)
             G, h, kept, fewest = limit.rows_in_play(configuration, dt)
             if not kept:
                 return None

@@ -302,7 +302,7 @@ _TWO_LINKS = """<mujoco><compiler angle="radian"/><worldbody>
 </body></worldbody></mujoco>"""
 
 
-@pytest.mark.parametrize("kind", ["qpik", "mink"])
+@pytest.mark.parametrize("kind", ["qpik", "mink", "model"])
 def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
     """A collision pair whose link one joint moves (the first link of a planar arm and a
     mocap ball): its row bounds one dof, which the QP path folds into the box. The compiled
@@ -314,11 +314,12 @@ def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
     import mujoco
 
     model = mujoco.MjModel.from_xml_string(_TWO_LINKS)
-    cls = CollisionAvoidanceLimit if kind == "qpik" else mink.CollisionAvoidanceLimit
-    avoid = cls(
-        model, [(["g1"], ["gb"])], minimum_distance_from_collisions=0.01,
-        collision_detection_distance=0.2,
-    )  # fmt: skip
+    kwargs = dict(minimum_distance_from_collisions=0.01, collision_detection_distance=0.2)
+    if kind == "model":  # (every pair: the second link's rows on two dofs beside)
+        avoid = qpik.limits.model_collision_limit(model, **kwargs)
+    else:
+        cls = CollisionAvoidanceLimit if kind == "qpik" else mink.CollisionAvoidanceLimit
+        avoid = cls(model, [(["g1"], ["gb"])], **kwargs)
     configuration = qpik.Configuration(model, np.array([0.0, 0.5]))
     tip = PositionTask("ee", "site", gain=0.5)
     tip.set_target(np.array([0.0, 0.6, 0.0]))  # (j1 turns toward the ball)
@@ -328,4 +329,5 @@ def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
     worst, names = _closed_loop(solver, configuration, 40, "j1 upper (CollisionAvoidanceLimit)")
     assert worst <= 1e-12 and names >= 20
     rows = avoid.compute_qp_inequalities(configuration, DT)
-    assert np.count_nonzero(rows.G[np.isfinite(rows.h)]) == 1  # (the row in play: one dof)
+    counts = np.count_nonzero(rows.G[np.isfinite(rows.h)], axis=1)
+    assert 1 in counts.tolist()  # (a row in play on one dof)
