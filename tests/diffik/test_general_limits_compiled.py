@@ -328,6 +328,12 @@ def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
     solver = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
     worst, names = _closed_loop(solver, configuration, 40, "j1 upper (CollisionAvoidanceLimit)")
     assert worst <= 1e-12 and names >= 20
+    # A fresh solver at the last state (its names and rows made anew): bitwise the same step
+    used = solver.step(configuration, DT)
+    fresh = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
+    again = fresh.step(configuration, DT)
+    np.testing.assert_array_equal(again.velocity, used.velocity)
+    assert again.active_limits == used.active_limits
     rows = avoid.compute_qp_inequalities(configuration, DT)
     counts = np.count_nonzero(rows.G[np.isfinite(rows.h)], axis=1)
     assert 1 in counts.tolist()  # (a row in play on one dof)
