@@ -69,15 +69,24 @@ def limited_ball_joints(model: mujoco.MjModel) -> list[int]:
     ]
 
 
+def _cross(a: list[float], b: list[float]) -> list[float]:
+    """``a x b`` of two 3-vectors, as ``np.cross`` computes it (the same products and
+    differences: the same bits), without its cost on arrays of three."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
 def _frame(phi: np.ndarray) -> tuple[float, np.ndarray]:
     """The angle ``|phi|`` and an orthonormal frame ``(a, e1, e2)`` (rows) with ``a`` along
     ``phi`` (any axis at the identity)."""
     theta = float(np.linalg.norm(phi))
-    a = phi / theta if theta > 1e-12 else np.array([0.0, 0.0, 1.0])
-    helper = np.eye(3)[int(np.argmin(np.abs(a)))]
-    e1 = np.cross(a, helper)
+    a = (phi / theta if theta > 1e-12 else np.array([0.0, 0.0, 1.0])).tolist()
+    size = [abs(v) for v in a]
+    helper = [0.0, 0.0, 0.0]
+    helper[size.index(min(size))] = 1.0  # (np.argmin's: the first smallest)
+    e1 = np.array(_cross(a, helper))
     e1 /= np.linalg.norm(e1)
-    return theta, np.vstack([a, e1, np.cross(a, e1)])
+    e1l = e1.tolist()
+    return theta, np.array([a, e1l, _cross(a, e1l)])
 
 
 @functools.lru_cache(maxsize=4)
