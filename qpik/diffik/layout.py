@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 
 from ..errors import LimitDefinitionError, QpikError, TargetNotSet, TaskDefinitionError
+from ..limits.ball import BallJointLimit
 from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
@@ -56,11 +57,12 @@ DAMPING_TYPES = (DampingTask, mink.DampingTask)
 COM_TYPES = (ComTask, mink.ComTask)
 #: Limits of general rows ``G dq <= h`` that a plan takes, their rows from their own
 #: methods each step, in the same compiled call: mink's collision avoidance (and its
-#: subclasses: qpik's, over the model's pairs too) and qpik's support polygon (and their
-#: subclasses), but for one that says it is ``recoverable`` (its rows then steer back into
-#: its region, as the QP path computes them). A step where one gives a row on a single dof
-#: is the QP path's (it folds such a row into the box: LimitBoxes.general_rows).
-GENERAL_LIMITS = (mink.CollisionAvoidanceLimit, SupportPolygonLimit)
+#: subclasses: qpik's, over the model's pairs too), qpik's support polygon and its
+#: ball-joint ranges (the rows :func:`qpik.limits.joint_limits` adds for a limited ball
+#: joint; and their subclasses), but for one that says it is ``recoverable`` (its rows then
+#: steer back into its region, as the QP path computes them). A row on a single dof stays a
+#: general row, named as the box bound the QP path folds it into (LimitBoxes.general_rows).
+GENERAL_LIMITS = (mink.CollisionAvoidanceLimit, SupportPolygonLimit, BallJointLimit)
 
 #: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
 FRAME_KIND, POSTURE_KIND, COM_KIND, RELATIVE_KIND = 0, 1, 2, 3

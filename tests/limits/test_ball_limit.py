@@ -187,3 +187,37 @@ def test_the_step_is_unchanged_where_the_range_does_not_bind():
         ours = with_rows.step(configuration, dt).velocity
         theirs = without.step(configuration, dt).velocity
         np.testing.assert_allclose(ours, theirs, atol=1e-9)
+
+
+def test_the_ball_rows_take_the_compiled_step():
+    """With :func:`joint_limits`' BallJointLimit the step is one compiled call (its rows the
+    limit's own, general rows of the step; before, every step went to the QP path): in a
+    closed loop whose targets turn the head past its range, each step is the QP path's to
+    round-off, with the same statuses and the same limits named active, the ball's rows
+    among them."""
+    model = mujoco.MjModel.from_xml_string(BALL)
+    configuration = qpik.Configuration(model)
+    frame = FrameTask("eye", "site", position_cost=1.0, orientation_cost=0.1)
+    posture = PostureTask(model, cost=1e-2)
+    posture.set_target(configuration.q)
+    solver = qpik.IKSolver(model, [[frame], [posture]], joint_limits(model))
+    rng = np.random.default_rng(3)
+    named = 0
+    for _ in range(6):
+        goal = rng.normal(size=3)
+        frame.set_target(
+            mink.SE3.from_translation([0.0, 0.0, 0.35] + 0.3 * goal / np.linalg.norm(goal))
+        )
+        for _ in range(8):
+            fast = solver.compiled_velocity(configuration, 0.05)
+            assert fast is not None
+            result = solver.step(configuration, 0.05)
+            reference = solver.qp_solution(configuration, 0.05)
+            np.testing.assert_array_equal(fast[0], result.velocity)
+            np.testing.assert_allclose(result.velocity, reference.velocity, rtol=0, atol=1e-10)
+            assert [str(s) for s in result.status] == [str(s) for s in reference.status]
+            expected = qpik.StepResult.of(reference, 0.0).active_limits
+            assert sorted(result.active_limits) == sorted(expected)
+            named += any("BallJointLimit" in name for name in result.active_limits)
+            configuration.update(configuration.integrate(result.velocity, 0.05))
+    assert named >= 10
