@@ -3,6 +3,7 @@
 #include "bind_chain.hpp"
 #include "model/chain.hpp"
 #include "model/com.hpp"
+#include "model/jac.hpp"
 #include "model/so3.hpp"
 
 #include <cmath>
@@ -122,6 +123,23 @@ void bind_model(nb::module_& m) {
         "chain"_a, "q"_a, "center"_a.noconvert(),
         "Length of the path through the feet of the common perpendiculars of consecutive hinge "
         "axes at q (to the frame); center receives its start.");
+
+    m.def(
+        "hessian_weights",
+        [](In2 jac, In2 weights, In<i64, 1> chain, Out1 out) {
+            const i64 n = static_cast<i64>(jac.shape(1));
+            require(jac.shape(0) == 6 && weights.shape(0) == 6 && static_cast<i64>(weights.shape(1)) == n &&
+                        static_cast<i64>(out.shape(0)) == n,
+                    "jac and weights must be (6, nv), out (nv,)");
+            const i64 m = static_cast<i64>(chain.shape(0));
+            for (i64 e = 0; e < m; ++e)
+                require(chain.data()[e] >= 0 && chain.data()[e] < n, "chain's dofs must be in [0, nv)");
+            model::hessian_weights(jac.data(), weights.data(), n, chain.data(), m, out.data());
+        },
+        "jac"_a, "weights"_a, "chain"_a, "out"_a.noconvert(),
+        "<dJ/dq_a, W> for every dof a into out (nv,): jac (6, nv) [v; omega] a frame's Jacobian, "
+        "weights (6, nv), chain the dofs of a chain of hinges and slides, root first (the kinematic "
+        "Hessian in closed form; 0 off the chain).");
 
     m.def(
         "quat2mat",

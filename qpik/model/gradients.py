@@ -1,21 +1,25 @@
-"""Gradients of kinematic measures with respect to the configuration, from MuJoCo's
-Jacobian derivatives (``mj_jacDot``)."""
+"""Gradients of kinematic measures with respect to the configuration, from the Jacobian's
+derivatives: in closed form on a chain of hinges and slides (the kinematic Hessian), else
+MuJoCo's (``mj_jacDot``)."""
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
-import scipy.linalg
 
 from ..core import checks
-from ..core.jacobian import Rows, manipulability, row_indices
+from ..core.jacobian import Rows, row_indices
 from .configuration import Configuration, FrameType
+from .kernels import hessian_weights
 from .scratch import scratch_data
 
 __all__ = [
     "check_configuration",
     "frame_point",
     "manipulability_gradient",
+    "manipulability_svd",
     "manipulability_terms",
 ]
 
@@ -54,7 +58,8 @@ def manipulability_gradient(
     slides).
 
     Analytic: with ``J = U S V^T``, ``dw/dq_k = sum_i (prod_{j != i} s_j) u_i^T (dJ/dq_k)
-    v_i``, where ``dJ/dq_k`` is MuJoCo's ``mj_jacDot`` at joint velocity ``e_k``. This
+    v_i``, where ``dJ/dq_k`` is the kinematic Hessian in closed form on a chain of hinges and
+    slides, else MuJoCo's ``mj_jacDot`` at joint velocity ``e_k`` (the same to round-off). This
     equals ``w tr(J^+ dJ/dq_k)`` away from singularities and stays finite at a
     singularity of rank ``m - 1`` (where ``w`` has a kink; one one-sided derivative is
     returned). Zero when ``m > n`` (``w`` is then identically 0). The caller's
@@ -87,10 +92,9 @@ def manipulability_terms(
     point, body = frame_point(configuration, data, frame, kind)
     jac = np.empty((6, nv))
     mujoco.mj_jac(model, data, jac[:3], jac[3:], point, body)
-    value = manipulability(jac[idx])
     if len(idx) > nv:
-        return value, np.zeros(nv)
-    U, s, Vt = scipy.linalg.svd(jac[idx], full_matrices=False)
+        return 0.0, np.zeros(nv)  # (w is 0 for every q: m > n)
+    value, U, s, Vt = manipulability_svd(jac[idx])
     singular = s.tolist()
     coefficients = np.empty(len(singular))
     for i in range(len(singular)):  # prod_{j != i} s_j, in order (np.prod's)
@@ -102,6 +106,9 @@ def manipulability_terms(
     # sum_i c_i u_i^T dJ v_i = <dJ, W>, W = U diag(c) V^T (the rows idx)
     weights = np.zeros((6, nv))
     np.add.at(weights, idx, (U * coefficients) @ Vt)  # (a row named twice: both terms)
+    chain = _hinge_slide_chain(model, body)
+    if chain is not None:
+        return value, _chain_gradient(jac, weights, chain, nv)
     gradient = np.empty(nv)
     jac_dot = np.empty((6, nv))
     for k in range(nv):
@@ -111,3 +118,61 @@ def manipulability_terms(
         mujoco.mj_jacDot(model, data, jac_dot[:3], jac_dot[3:], point, body)
         gradient[k] = np.vdot(jac_dot, weights)
     return value, gradient
+
+
+def manipulability_svd(J: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """``(w, U, s, Vt)`` of a finite ``(m, n)`` Jacobian, ``m <= n``: its manipulability
+    ``w = sqrt(det J J^T)`` (the product of the singular values, summed in logs; 0 where one
+    is 0) and its thin SVD ``J = U diag(s) Vt``, from one decomposition of ``J`` scaled to
+    entries of at most 1 (as :func:`qpik.analysis.manipulability` scales it: no overflow
+    inside LAPACK). The value is that function's to round-off; :class:`ManipulabilityTask`'s
+    error and rows both take it from here."""
+    scale = float(np.abs(J).max()) if J.size else 0.0
+    scale = scale if scale > 0.0 else 1.0
+    U, s, Vt = np.linalg.svd(J / scale, full_matrices=False)
+    with np.errstate(over="ignore"):
+        s = s * scale
+    if np.any(s == 0.0):
+        return 0.0, U, s, Vt
+    log = float(np.sum(np.log(s)))  # (in logs: the product of 1e200s would overflow early)
+    return (math.exp(log) if log < 709.78 else float("inf")), U, s, Vt
+
+
+def _hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
+    """The dofs that move ``body`` (root first: each one's axis and anchor move with the ones
+    before it), where every one is a hinge's or a slide's; None where a ball or free joint
+    moves it (its dofs' axes turn with it: :func:`manipulability_terms` then differentiates by
+    ``mj_jacDot``)."""
+    key = id(model), body
+    cached = _CHAINS.get(key)
+    if cached is not None and cached[0] is model:
+        return cached[1]
+    dofs: list[int] = []
+    b = body
+    while b > 0:
+        start, count = int(model.body_dofadr[b]), int(model.body_dofnum[b])
+        dofs.extend(range(start + count - 1, start - 1, -1))
+        b = int(model.body_parentid[b])
+    kinds = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}
+    simple = all(int(model.jnt_type[model.dof_jntid[d]]) in kinds for d in dofs)
+    chain = np.array(sorted(dofs), dtype=np.int64) if simple else None
+    if len(_CHAINS) >= 64:
+        _CHAINS.clear()
+    _CHAINS[key] = (model, chain)
+    return chain
+
+
+#: _hinge_slide_chain's answers by (model, body): the model kept beside its id
+_CHAINS: dict[tuple[int, int], tuple[mujoco.MjModel, np.ndarray | None]] = {}
+
+
+def _chain_gradient(jac: np.ndarray, weights: np.ndarray, chain: np.ndarray, nv: int) -> np.ndarray:
+    """``<dJ/dq_k, W>`` for every dof ``k``, ``J = [J_v; J_w]`` (6, nv) the frame's Jacobian
+    at its point and ``W`` (6, nv) the weights, on a chain of hinges and slides (``chain``:
+    its dofs, root first; the other dofs move nothing: 0): the kinematic Hessian in closed
+    form (Haviland and Corke 2023, part I), by the engine (:data:`.kernels.hessian_weights`):
+    what ``mj_jacDot`` gives at each joint velocity ``e_k``, to round-off, without a pass of
+    MuJoCo's velocity kinematics per dof."""
+    gradient = np.empty(nv)
+    hessian_weights(jac, weights, chain, gradient)
+    return gradient

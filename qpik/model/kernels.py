@@ -54,6 +54,11 @@ start_defect = _model.start_defect
 #: ``quat2mat(quat) -> (k, 3, 3)``: rotation matrices of unit quaternions (k, 4) ``(w, x,
 #: y, z)``.
 quat2mat = _model.quat2mat
+#: ``hessian_weights(jac, weights, chain, out)``: ``<dJ/dq_a, W>`` for every dof ``a`` into
+#: ``out`` (nv,), ``jac`` (6, nv) ``[v; omega]`` a frame's Jacobian at its point, ``weights``
+#: (6, nv), ``chain`` (int64) the dofs of a chain of hinges and slides, root first: the
+#: kinematic Hessian in closed form (``model/jac.hpp``; 0 off the chain).
+hessian_weights = _model.hessian_weights
 
 # ------------------------------------------------------------------- rotations
 #: ``rotation_log(R, out) -> angle``: rotation vector of ``R`` into ``out`` (accurate near 0

@@ -18,12 +18,11 @@ from ..core import checks
 from ..core.jacobian import (
     joint_limit_distance_terms,
     joint_limit_midranges,
-    manipulability,
     row_indices,
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
-from ..model.gradients import manipulability_gradient, manipulability_terms
+from ..model.gradients import manipulability_gradient, manipulability_svd, manipulability_terms
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
@@ -193,7 +192,10 @@ class ManipulabilityTask(mink.Task):
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
 
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        return np.array([-manipulability(jacobian[self._row_index])])
+        rows = jacobian[self._row_index]
+        if rows.shape[0] > rows.shape[1]:
+            return np.array([-0.0])  # (w is 0 for every q: m > n)
+        return np.array([-manipulability_svd(rows)[0]])  # (its rows' value: the same bits)
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
 

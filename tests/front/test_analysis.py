@@ -489,3 +489,64 @@ def test_wrong_configuration_type_is_a_typed_type_error():
     with pytest.raises(qpik.errors.InvalidArgumentType, match="configuration must be") as info:
         an.manipulability_gradient(np.zeros(4), "ee")
     assert isinstance(info.value, TypeError) and isinstance(info.value, qpik.QpikError)
+
+
+_SLIDE_ARM = """<mujoco><compiler angle="radian"/><worldbody>
+<body name="cart"><joint name="rail" type="slide" axis="1 0 0" range="-1 1"/>
+  <geom type="box" size="0.1 0.1 0.05"/>
+  <body name="l1" pos="0 0 0.1"><joint name="j1" axis="0 0 1" range="-3 3"/>
+    <joint name="j2" axis="0 1 0" range="-2 2"/>
+    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+    <body name="l2" pos="0.3 0 0"><joint name="lift" type="slide" axis="0 0 1" range="-0.2 0.2"/>
+      <joint name="j3" axis="1 0 0" range="-3 3"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+      <site name="ee" pos="0.3 0.05 0"/></body></body></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("robot", ["panda", "ur5e", "slide_arm"])
+def test_manipulability_gradient_in_closed_form_is_mj_jacdots(robot, rng, monkeypatch):
+    """On a chain of hinges and slides the gradient comes from the kinematic Hessian in
+    closed form (``gradients._chain_gradient``): equal to the sum over ``mj_jacDot`` at
+    each joint velocity ``e_k`` (the way taken for ball and free joints) to round-off, on
+    random configurations, for every row choice (slides and two joints on one body too)."""
+    import mujoco
+
+    from qpik.model import gradients
+
+    if robot == "slide_arm":
+        configuration = qpik.Configuration(mujoco.MjModel.from_xml_string(_SLIDE_ARM))
+    else:
+        configuration = configuration_of(robot)
+    states = [configuration.random_q(rng) for _ in range(30)]
+    rows_choices = ["pose", "position", "orientation", ["vx", "wz"]]
+    fast = []
+    for q in states:
+        configuration.update(q)
+        fast += [
+            gradients.manipulability_terms(configuration, "ee", "site", r) for r in rows_choices
+        ]
+    monkeypatch.setattr(gradients, "_hinge_slide_chain", lambda model, body: None)
+    k = 0
+    for q in states:
+        configuration.update(q)
+        for rows in rows_choices:
+            value, reference = gradients.manipulability_terms(configuration, "ee", "site", rows)
+            assert fast[k][0] == value  # the value itself: the same bits
+            scale = max(np.abs(reference).max(), 1e-12)
+            np.testing.assert_allclose(fast[k][1], reference, rtol=0, atol=1e-12 * scale)
+            k += 1
+
+
+def test_a_free_or_ball_joint_takes_mj_jacdot():
+    """A chain with a free or ball joint (its dofs' axes turn with it) is differentiated by
+    ``mj_jacDot``, not in closed form; the gradient still matches finite differences."""
+    import mujoco
+    from conftest import BALL, FLOATING
+
+    from qpik.model import gradients
+
+    for xml, frame in ((FLOATING, "ee"), (BALL, "eye")):
+        model = mujoco.MjModel.from_xml_string(xml)
+        body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)])
+        assert gradients._hinge_slide_chain(model, body) is None

@@ -405,3 +405,31 @@ def test_array_watch():
     assert not watch.unchanged()
     with pytest.raises(ValueError):
         K.ArrayWatch([np.zeros((3, 3))[:, 0]])  # not contiguous
+
+
+def test_hessian_weights_on_a_planar_arm_and_bad_arguments():
+    """``hessian_weights`` on a planar 2R arm (unit links, q2 = 0.7, tool at the tip): the
+    derivative of its manipulability ``|sin q2|`` weighted as the gradient takes it, against
+    the closed form ``cos q2``; wrong shapes and dofs off the model raise ValueError."""
+    q2 = 0.7
+    # J = [v; omega] at the tip, base frame at q1 = 0 (hinges about z)
+    p1, p2 = np.array([1.0 + np.cos(q2), np.sin(q2)]), np.array([np.cos(q2), np.sin(q2)])
+    jac = np.zeros((6, 2))
+    jac[0], jac[1] = [-p1[1], -p2[1]], [p1[0], p2[0]]
+    jac[5] = 1.0
+    rows = jac[[0, 1]]
+    U, s, Vt = np.linalg.svd(rows)
+    weights = np.zeros((6, 2))
+    weights[[0, 1]] = (U * [s[1], s[0]]) @ Vt
+    out = np.empty(2)
+    K.hessian_weights(jac, weights, np.array([0, 1]), out)
+    np.testing.assert_allclose(out, [0.0, np.cos(q2)], atol=1e-14)
+    for args in (
+        (jac[:5], weights, np.array([0, 1]), out),
+        (jac, weights[:, :1], np.array([0, 1]), out),
+        (jac, weights, np.array([0, 2]), out),
+        (jac, weights, np.array([-1]), out),
+        (jac, weights, np.array([0, 1]), np.empty(3)),
+    ):
+        with pytest.raises(ValueError):
+            K.hessian_weights(*args)

@@ -34,4 +34,51 @@ inline void chain_point_jacobian(const double* cdof, i64 n, const i64* dofs, i64
     }
 }
 
+// <dJ/dq_a, W> for every dof a: J = [J_v; J_w] (6, n, row-major) a frame's Jacobian at its
+// point, W (6, n) weights, on a chain of hinges and slides (chain[0:m]: its dofs, root first,
+// each one's axis and anchor moved by the ones before it; a slide's J_w is 0). The columns'
+// derivatives in closed form (the kinematic Hessian; Haviland and Corke 2023, part I):
+// dJ_w,b/dq_a = J_w,a x J_w,b where a comes before b (else 0), dJ_v,b/dq_a = J_w,min(a,b) x
+// J_v,max(a,b): what mj_jacDot gives at the joint velocity e_a. Each term <dJ_b/dq_a, W_b> is
+// a triple product, so out[a] = J_w,a . sum_{b > a} (J_w,b x W_w,b) + J_w,a . sum_{b >= a}
+// (J_v,b x W_v,b) + J_v,a . sum_{b < a} (W_v,b x J_w,b); out's other entries 0.
+inline void hessian_weights(const double* jac, const double* W, i64 n, const i64* chain, i64 m, double* out) {
+    for (i64 k = 0; k < n; ++k) out[k] = 0.0;
+    auto at = [n](const double* M, int r, i64 c) { return M[r * n + c]; };
+    auto cross = [](const double* u, const double* v, double* w) {
+        w[0] = u[1] * v[2] - u[2] * v[1];
+        w[1] = u[2] * v[0] - u[0] * v[2];
+        w[2] = u[0] * v[1] - u[1] * v[0];
+    };
+    double after[3] = {0.0, 0.0, 0.0};  // sum over b > a of J_w,b x W_w,b (a from the last)
+    double on[3] = {0.0, 0.0, 0.0};     // sum over b >= a of J_v,b x W_v,b
+    for (i64 e = m - 1; e >= 0; --e) {
+        const i64 a = chain[e];
+        double jw[3], jv[3], ww[3], wv[3], t[3];
+        for (int r = 0; r < 3; ++r) {
+            jv[r] = at(jac, r, a);
+            jw[r] = at(jac, 3 + r, a);
+            wv[r] = at(W, r, a);
+            ww[r] = at(W, 3 + r, a);
+        }
+        cross(jv, wv, t);
+        for (int r = 0; r < 3; ++r) on[r] += t[r];
+        out[a] = jw[0] * (after[0] + on[0]) + jw[1] * (after[1] + on[1]) + jw[2] * (after[2] + on[2]);
+        cross(jw, ww, t);
+        for (int r = 0; r < 3; ++r) after[r] += t[r];
+    }
+    double before[3] = {0.0, 0.0, 0.0};  // sum over b < a of W_v,b x J_w,b
+    for (i64 e = 0; e < m; ++e) {
+        const i64 a = chain[e];
+        double jw[3], wv[3], t[3];
+        for (int r = 0; r < 3; ++r) {
+            jw[r] = at(jac, 3 + r, a);
+            wv[r] = at(W, r, a);
+        }
+        out[a] += at(jac, 0, a) * before[0] + at(jac, 1, a) * before[1] + at(jac, 2, a) * before[2];
+        cross(wv, jw, t);
+        for (int r = 0; r < 3; ++r) before[r] += t[r];
+    }
+}
+
 }  // namespace qpik::model
