@@ -315,9 +315,9 @@ class StepOptions:
             kinematics and one more solve of the cascade (on the floating Talos of
             ``benchmarks/step_time.py``, about as much as the step itself: one pass
             doubles its time and takes the feet's mean error after a step from 0.23 mm to
-            0.02 mm). Read by :meth:`qpik.IKSolver.step` only (in the compiled step where
-            no collision limit is among the limits, else on the QP path); the compiled
-            engine of :func:`qpik.solve` does not read it.
+            0.02 mm). Read by :meth:`qpik.IKSolver.step` only (in the compiled step,
+            collision and other general rows included, wherever the step takes it; else on
+            the QP path); the compiled engine of :func:`qpik.solve` does not read it.
     """
 
     solver: str = "auto"

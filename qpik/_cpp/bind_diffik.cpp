@@ -165,6 +165,14 @@ bool is_little_endian() {
 using Held2 = nb::ndarray<const double, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 using Held3 = nb::ndarray<const double, nb::numpy, nb::ndim<3>, nb::c_contig, nb::device::cpu>;
 
+// A step's result as Python receives it: (code, dq, v, info (9, L), active (L, nv + p)).
+auto result_tuple(diffik::StepResult& r, i64 L) {
+    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
+    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
+                           to_numpy(std::move(r.info), {9, L_}),
+                           to_numpy(std::move(r.active), {L_, cols}));
+}
+
 // The kernel as Python calls it (qpik.diffik.compiled.Kernel):
 //
 // Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
@@ -986,6 +994,57 @@ class Kernel {
         return r.code;
     }
 
+    // One second-order correction pass of the step run() last made (the gathered step, its
+    // general rows G, h passed again: the same arrays), as correct() makes one of go()'s: from
+    // that step's answer d (nv,) and info (9, L), or the previous pass's; first: the first pass
+    // after run() (the held levels, the uncorrected targets b0 and the weighted errors at q
+    // decided then). The cascade solved again on the same rows and box with the held levels'
+    // targets shifted (from a cold start, each level's sigma resolved). Returns None where no
+    // level is held (the step stands), else (code, d, v, info, active) as run() does (OK: the
+    // corrected step; else the caller answers by the QP path).
+    nb::object correct_run(const In2& G, const In1& h, const In1& d_in, const In2& info_in, bool first,
+                           const std::optional<In1>& shift, i64 max_iter) {
+        require(attached_.has_value() && aux_.has_value(), "Kernel.correct_run: attach and attach_aux first");
+        const i64 M = dim(b_, 0);
+        require(dim(d_in, 0) == n_ && dim(info_in, 0) == 9 && dim(info_in, 1) == L_,
+                "Kernel.correct_run: d must have shape (nv,), info (9, L)");
+        if (shift) require(dim(*shift, 0) == M, "Kernel.correct_run: shift must have shape (M,)");
+        diffik::FusedArgs a = attached_args(G, h);
+        pass_row_ = -1;  // (correct()'s passes start again after a go())
+        if (first) {
+            b0_.resize(static_cast<size_t>(M));
+            for (i64 r = 0; r < M; ++r) b0_[static_cast<size_t>(r)] = a.b[r];
+            diffik::held_levels(a, CVecRef(b0_), d_in.data(), info_in.data(), held_);
+            we0_.assign(static_cast<size_t>(M), 0.0);
+            diffik::weighted_errors(a, held_, we0_.data(), scratch_.local);
+        }
+        require(static_cast<i64>(b0_.size()) == M && static_cast<i64>(held_.size()) == L_,
+                "Kernel.correct_run: no first pass after run()");
+        bool any = false;
+        for (char c : held_) any = any || c != 0;
+        if (!any) return nb::none();  // no level held: the step stands
+        const Attached& u = *aux_;
+        const diffik::FusedArgs x = fill_poses(u.qpos, u.sx, u.sm, u.x, u.xm, u.gx, u.gm, u.subtree_com);
+        we1_.assign(static_cast<size_t>(M), 0.0);
+        diffik::weighted_errors(x, held_, we1_.data(), scratch_.local);
+        auto failed = [](i64 code) { return nb::make_tuple(code, nb::none(), nb::none(), nb::none(), nb::none()); };
+        if (!diffik::shift_targets(a, held_, CVecRef(b0_), we0_.data(), we1_.data(),
+                                   shift ? shift->data() : nullptr, d_in.data()))
+            return failed(diffik::NOT_FINITE);
+        const i64 p = a.G.rows;
+        BVec cold(static_cast<size_t>(L_ * (n_ + p)), 0);
+        diffik::StepResult r;
+        diffik::solve_rows_step_into(a, max_iter, MatRefT<const i8>(cold.data(), L_, n_ + p), false, ws_,
+                                     scratch_, r, false);
+        if (r.code != diffik::OK) return failed(r.code);
+        if (r.v_is_d) r.v = r.d;
+        require(static_cast<i64>(r.d.size()) == n_ && static_cast<i64>(r.v.size()) == n_ &&
+                    static_cast<i64>(r.info.size()) == 9 * L_ &&
+                    static_cast<i64>(r.active.size()) == L_ * r.active_cols,
+                "Kernel.correct_run: unexpected answer shapes");
+        return nb::cast(result_tuple(r, L_));
+    }
+
     // The step's deferred records (the cascade's, or none: the couplings' path and a step
     // that did not solve leave them empty) into row `row` of the defer output.
     void write_deferred(i64 row) {
@@ -1102,13 +1161,6 @@ diffik::StepResult kernel_step(const Kernel& k, const diffik::FusedArgs& a, cons
     return r;
 }
 
-// A step's result as Python receives it: (code, dq, v, info (9, L), active (L, nv + p)).
-auto result_tuple(diffik::StepResult& r, i64 L) {
-    const size_t L_ = static_cast<size_t>(L), cols = static_cast<size_t>(r.active_cols);
-    return std::make_tuple(r.code, to_numpy(std::move(r.d)), to_numpy(std::move(r.v)),
-                           to_numpy(std::move(r.info), {9, L_}),
-                           to_numpy(std::move(r.active), {L_, cols}));
-}
 
 // Kernel.step / Kernel.run.
 auto step_tuple(const Kernel& k, const diffik::FusedArgs& a, const B2& warm, bool canonical,
@@ -1196,6 +1248,11 @@ void bind_diffik(nb::module_& m) {
              "levels' targets shifted by their remainder at the aux MjData, the cascade solved "
              "again, its answers written over the row; returns the code. shift: (M,) the "
              "remainders of the rows of tasks that supply their own (NaN elsewhere), or None.")
+        .def("correct_run", &Kernel::correct_run, nb::arg("G"), nb::arg("h"), nb::arg("d"),
+             nb::arg("info"), nb::arg("first"), nb::arg("shift").none(), nb::arg("max_iter"),
+             "One second-order correction pass of run()'s last step (its G, h again), from its "
+             "answer d and info or the previous pass's; first: the first pass after run(). None "
+             "where no level is held, else (code, d, v, info, active) as run().")
         .def("set_slots", &Kernel::set_slots, nb::arg("views"), nb::arg("scalar"),
              "The slots go()'s values are written into: writable float64 vectors (views of the "
              "plan's arrays, held), scalar[i] True where slot i takes one number for all its entries.")

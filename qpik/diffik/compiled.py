@@ -338,10 +338,9 @@ class CompiledPlan:
             for _task, body, _given, jac, _row in self.coms:
                 mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
 
-    def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
-        """``passes`` second-order corrections of the lean step in row ``row`` of the
-        outputs (:class:`qpik.diffik.correction.LeanCorrection`, on the plan's own
-        configuration at ``q (+) dq``). False where the QP path must answer."""
+    def _correction(self) -> LeanCorrection:
+        """The plan's corrector (:class:`qpik.diffik.correction.LeanCorrection`, on the plan's
+        own configuration at ``q (+) dq``), made on first use."""
         corrector = self._corrector
         if corrector is None:
             aux = Configuration(self.model)
@@ -350,7 +349,12 @@ class CompiledPlan:
                 self.kernel, aux, self.rows_tasks, bool(self.coms), self.arrays["b"].shape[0],
                 self.max_iter or 10 * self.nv + 50,
             )  # fmt: skip
-        return corrector.run(configuration, self._out[1][row], row, dt, passes)
+        return corrector
+
+    def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
+        """``passes`` second-order corrections of the lean step in row ``row`` of the
+        outputs. False where the QP path must answer."""
+        return self._correction().run(configuration, self._out[1][row], row, dt, passes)
 
     def _new_outputs(self) -> None:
         """Fresh rows for the next :data:`OUTPUT_ROWS` lean steps' answers (views of a
@@ -517,11 +521,9 @@ class CompiledPlan:
         :meth:`qpik.IKSolver.step` returns (the same numbers, without the
         :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
         ``skip`` 1 when the first level is the couplings' (reported apart), ``passes`` the
-        second-order correction passes (:attr:`qpik.StepOptions.correction_passes`; the
-        lean step only: with general-row limits the QP path corrects). None where the QP
-        path must answer."""
-        if passes and self.general_limits:
-            return None
+        second-order correction passes (:attr:`qpik.StepOptions.correction_passes`; by the
+        kernel, the lean step's and the gathered one's). None where the QP path must
+        answer."""
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
@@ -534,10 +536,19 @@ class CompiledPlan:
                 )  # fmt: skip
             if row == -1:
                 return None
-        out = self._gathered_step(configuration, dt, damping, core, False, False)
+        out = self._gathered_step(configuration, dt, damping, core, False, not passes)
         if out is None:
             return None
         d, v, info, general, qpos = out
+        if passes:  # (the passes' sigmas resolved: no deferred records)
+            corrected = self._correction().run_gathered(
+                configuration, dt, passes, general, (d, v, info, None)
+            )
+            if corrected is None or (self._relaxable and _INFEASIBLE_CODE in corrected[2][3]):
+                return None  # (the QP path corrects, or relaxes the general rows)
+            d, v, info, active = corrected
+            if active is not None:
+                core.warm_start_from(active)
         return StepResult.lazy(
             v, d, info, skip, _perf_counter() - start,
             lambda: self._limit_rows(qpos, dt, general), deferred=self._deferred,

@@ -10,8 +10,9 @@ rows, damping and limits: what is left is of order ``|dq|^3``.
 - :func:`held_levels`: the levels a step holds (the ones a pass shifts);
 - :func:`qp_corrected`: the corrected step on the QP path (rows from the tasks, the core's
   cascade);
-- :class:`LeanCorrection`: the passes of the compiled lean step (``Kernel.correct``,
-  qpik/_cpp/diffik/fused.hpp, which decides the held levels by the same rule).
+- :class:`LeanCorrection`: the passes of the compiled step (``Kernel.correct`` for the lean
+  step, ``Kernel.correct_run`` for one with general rows; qpik/_cpp/diffik/fused.hpp decides
+  the held levels by the same rule).
 """
 
 from __future__ import annotations
@@ -170,27 +171,57 @@ class LeanCorrection:
         on ``aux``, and has the kernel shift the held levels' targets by their remainder and
         solve again; the tasks that supply their own rows give their errors here. False where
         the QP path must answer."""
-        aux, rows_tasks = self.aux, self.rows_tasks
-        model, data = aux.model, configuration.data
-        qa = aux.data.qpos
-        e0 = None
+        e0: list | None = None
         for _ in range(passes):
-            qa[...] = data.qpos
-            mujoco.mj_integratePos(model, qa, velocity, dt)
-            _copy_mocap(aux, data)
-            shift = None
-            if rows_tasks:  # tasks that supply their rows: their errors here
-                aux.update(qa)
-                if e0 is None:
-                    e0 = _row_errors(rows_tasks, Configuration.sharing(configuration))
-                shift = _row_shift(rows_tasks, e0, _row_errors(rows_tasks, aux), self.rows)
-            else:
-                mujoco.mj_kinematics(model, aux.data)
-                if self.com:
-                    mujoco.mj_comPos(model, aux.data)
+            shift, e0 = self._at(configuration, velocity, dt, e0)
             if self.kernel.correct(row, shift, self.max_iter) != _OK:
                 return False
         return True
+
+    def run_gathered(
+        self, configuration: mink.Configuration, dt: float, passes: int, general: tuple,
+        step: tuple,
+    ) -> tuple | None:  # fmt: skip
+        """``passes`` corrections of the gathered step (``Kernel.correct_run``: a step with
+        general rows, ``general`` its ``(G, h, ...)``) whose answer ``step`` is ``(d, v,
+        info, active)``, as :meth:`run` makes them of the lean step's: the corrected ``(d, v,
+        info, active)`` (the step as it was where no level is held), None where the QP path
+        must answer."""
+        G, h = general[0], general[1]
+        d, v, info, active = step
+        e0: list | None = None
+        for k in range(passes):
+            shift, e0 = self._at(configuration, v, dt, e0)
+            out = self.kernel.correct_run(G, h, d, info, k == 0, shift, self.max_iter)
+            if out is None:  # no level held: the step stands
+                break
+            if out[0] != _OK:
+                return None
+            _, d, v, info, active = out
+        return d, v, info, active
+
+    def _at(
+        self, configuration: mink.Configuration, velocity: np.ndarray, dt: float, e0: list | None
+    ) -> tuple[np.ndarray | None, list | None]:
+        """A pass's kinematics: ``q (+) v dt`` as :meth:`mink.Configuration.integrate` does
+        it, MuJoCo's kinematics there on ``aux``; ``(shift, e0)``: the remainders of the tasks
+        that supply their own rows (None without such tasks) and their errors at ``q`` (made
+        on the first pass)."""
+        aux, rows_tasks = self.aux, self.rows_tasks
+        model, data = aux.model, configuration.data
+        qa = aux.data.qpos
+        qa[...] = data.qpos
+        mujoco.mj_integratePos(model, qa, velocity, dt)
+        _copy_mocap(aux, data)
+        if rows_tasks:  # tasks that supply their rows: their errors here
+            aux.update(qa)
+            if e0 is None:
+                e0 = _row_errors(rows_tasks, Configuration.sharing(configuration))
+            return _row_shift(rows_tasks, e0, _row_errors(rows_tasks, aux), self.rows), e0
+        mujoco.mj_kinematics(model, aux.data)
+        if self.com:
+            mujoco.mj_comPos(model, aux.data)
+        return None, e0
 
 
 def _row_errors(rows_tasks: list, configuration: Configuration) -> list:

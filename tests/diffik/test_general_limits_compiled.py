@@ -55,8 +55,10 @@ def _closed_loop(solver, configuration, steps, kind):
     return worst, names
 
 
-@pytest.mark.parametrize("kind", ["pairs", "model"])
-def test_collision_rows_of_qpik_take_the_compiled_step(kind):
+def _panda_past_a_ball(kind: str = "pairs"):
+    """The Panda whose tool's straight path (0.45 m along y) passes a ball of 6 cm: its
+    model, start configuration, tool task, posture and collision limit (the arm's last links
+    against the ball, or ``kind="model"``: every pair of the model)."""
     base = qpik.load_robot("panda")
     start = qpik.Configuration(base, base.key_qpos[0]).frame_pose("ee")[0]
     goal = start + np.array([0.0, 0.45, 0.0])
@@ -75,6 +77,12 @@ def test_collision_rows_of_qpik_take_the_compiled_step(kind):
     tip.set_target(goal)
     posture = PostureTask(model, cost=0.05)
     posture.set_target(model.key_qpos[0])
+    return model, configuration, tip, posture, avoid
+
+
+@pytest.mark.parametrize("kind", ["pairs", "model"])
+def test_collision_rows_of_qpik_take_the_compiled_step(kind):
+    model, configuration, tip, posture, avoid = _panda_past_a_ball(kind)
     solver = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
     assert solver._plan is not None and solver._plan.general_limits == [avoid]
     worst, names = _closed_loop(solver, configuration, 120, "Collision")
@@ -337,3 +345,41 @@ def test_a_collision_row_on_one_dof_takes_the_compiled_step(kind):
     rows = avoid.compute_qp_inequalities(configuration, DT)
     counts = np.count_nonzero(rows.G[np.isfinite(rows.h)], axis=1)
     assert 1 in counts.tolist()  # (a row in play on one dof)
+
+
+def test_correction_passes_with_collision_rows_take_the_compiled_step(monkeypatch):
+    """With ``correction_passes=1`` and a collision limit (general rows) the corrected step
+    is the kernel's (``Kernel.correct_run``; before, every step went to the QP path's
+    corrected step, several times slower): along the Panda's path past a ball, each step
+    is the QP path's corrected step to round-off, with the same statuses and limits named
+    active, collision rows among them, and no step falls to the QP path."""
+    model, configuration, tip, posture, avoid = _panda_past_a_ball()
+    solver = qpik.IKSolver(
+        model, [[tip], [posture]], [avoid, *joint_limits(model)], correction_passes=1
+    )
+    in_step = {"on": False, "qp": 0}
+    qp_corrected = qpik.IKSolver._corrected
+
+    def counted(self, *args):
+        in_step["qp"] += in_step["on"]
+        return qp_corrected(self, *args)
+
+    monkeypatch.setattr(qpik.IKSolver, "_corrected", counted)
+    plain = qpik.IKSolver(model, [[tip], [posture]], [avoid, *joint_limits(model)])
+    named = corrected = 0
+    for _ in range(120):
+        in_step["on"] = True
+        result = solver.step(configuration, DT)
+        in_step["on"] = False
+        reference = solver.qp_solution(configuration, DT)
+        np.testing.assert_allclose(result.velocity, reference.velocity, rtol=0, atol=1e-9)
+        assert [str(s) for s in result.status] == [str(s) for s in reference.status]
+        expected = qpik.StepResult.of(reference, 0.0)
+        assert sorted(result.active_limits) == sorted(expected.active_limits)
+        np.testing.assert_allclose(result.sigma_min, expected.sigma_min, rtol=1e-8, atol=1e-12)
+        named += any("Collision" in name for name in result.active_limits)
+        corrected += bool(
+            np.abs(result.velocity - plain.step(configuration, DT).velocity).max() > 1e-9
+        )
+        configuration.integrate_inplace(result.velocity, DT)
+    assert in_step["qp"] == 0 and named > 0 and corrected > 20  # (the passes changed the steps)
