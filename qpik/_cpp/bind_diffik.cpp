@@ -938,6 +938,37 @@ class Kernel {
         aux_ = Attached{std::move(owner), qpos, sx, sm, x, xm, gx, gm, subtree_com};
     }
 
+    // A correction pass's targets (correct(), correct_run()): on the first pass after the step
+    // (first), the held levels (diffik::held_levels, from the step's answer d and info (9, L)),
+    // the uncorrected targets b0 and the weighted errors at q; then, where a level is held
+    // (any), the held levels' targets in a.b shifted by their remainder at the attached aux
+    // MjData (shift: the rows of tasks that supply their own, or None). Returns OK, or
+    // NOT_FINITE where a shifted target is not finite.
+    i64 shift_held(diffik::FusedArgs& a, const double* d, const double* info, bool first,
+                   const std::optional<In1>& shift, bool& any) {
+        const i64 M = dim(b_, 0);
+        if (first) {
+            b0_.resize(static_cast<size_t>(M));
+            for (i64 r = 0; r < M; ++r) b0_[static_cast<size_t>(r)] = a.b[r];
+            diffik::held_levels(a, CVecRef(b0_), d, info, held_);
+            we0_.assign(static_cast<size_t>(M), 0.0);
+            diffik::weighted_errors(a, held_, we0_.data(), scratch_.local);
+        }
+        require(static_cast<i64>(b0_.size()) == M && static_cast<i64>(held_.size()) == L_,
+                "Kernel: a correction pass before the first after its step");
+        any = false;
+        for (char c : held_) any = any || c != 0;
+        if (!any) return diffik::OK;
+        const Attached& u = *aux_;
+        const diffik::FusedArgs x = fill_poses(u.qpos, u.sx, u.sm, u.x, u.xm, u.gx, u.gm, u.subtree_com);
+        we1_.assign(static_cast<size_t>(M), 0.0);
+        diffik::weighted_errors(x, held_, we1_.data(), scratch_.local);
+        return diffik::shift_targets(a, held_, CVecRef(b0_), we0_.data(), we1_.data(),
+                                     shift ? shift->data() : nullptr, d)
+                   ? diffik::OK
+                   : diffik::NOT_FINITE;
+    }
+
     // One second-order correction pass of the step go() last wrote into row `row`
     // (qpik.StepOptions.correction_passes): the first pass decides the held levels
     // (diffik::held_levels) and keeps the uncorrected targets b0 and weighted errors at q;
@@ -955,26 +986,14 @@ class Kernel {
         if (shift) require(dim(*shift, 0) == M, "Kernel.correct: shift must have shape (M,)");
         Outputs& o = *out_;
         const Attached& t = *attached_;
-        const Attached& u = *aux_;
         diffik::FusedArgs a = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
         double* d = o.d.data() + row * n_;
-        if (pass_row_ != row) {  // the first pass after go(): held levels, b0, errors at q
-            b0_.resize(static_cast<size_t>(M));
-            for (i64 r = 0; r < M; ++r) b0_[static_cast<size_t>(r)] = a.b[r];
-            diffik::held_levels(a, CVecRef(b0_), d, o.info.data() + row * 9 * L_, held_);
-            we0_.assign(static_cast<size_t>(M), 0.0);
-            diffik::weighted_errors(a, held_, we0_.data(), scratch_.local);
-            pass_row_ = row;
-        }
+        const bool first = pass_row_ != row;  // the first pass after go()
+        pass_row_ = row;
         bool any = false;
-        for (char h : held_) any = any || h != 0;
+        const i64 shifted = shift_held(a, d, o.info.data() + row * 9 * L_, first, shift, any);
         if (!any) return diffik::OK;  // no level held: the step stands
-        const diffik::FusedArgs x = fill_poses(u.qpos, u.sx, u.sm, u.x, u.xm, u.gx, u.gm, u.subtree_com);
-        we1_.assign(static_cast<size_t>(M), 0.0);
-        diffik::weighted_errors(x, held_, we1_.data(), scratch_.local);
-        if (!diffik::shift_targets(a, held_, CVecRef(b0_), we0_.data(), we1_.data(),
-                                   shift ? shift->data() : nullptr, d))
-            return diffik::NOT_FINITE;
+        if (shifted != diffik::OK) return shifted;
         // A cold start: the same answer as from the row's active sets (the cascade ends each
         // level in its canonical re-solve), and fewer instructions (Talos: 2.15M per pass
         // against 2.39M warm).
@@ -1011,26 +1030,11 @@ class Kernel {
         if (shift) require(dim(*shift, 0) == M, "Kernel.correct_run: shift must have shape (M,)");
         diffik::FusedArgs a = attached_args(G, h);
         pass_row_ = -1;  // (correct()'s passes start again after a go())
-        if (first) {
-            b0_.resize(static_cast<size_t>(M));
-            for (i64 r = 0; r < M; ++r) b0_[static_cast<size_t>(r)] = a.b[r];
-            diffik::held_levels(a, CVecRef(b0_), d_in.data(), info_in.data(), held_);
-            we0_.assign(static_cast<size_t>(M), 0.0);
-            diffik::weighted_errors(a, held_, we0_.data(), scratch_.local);
-        }
-        require(static_cast<i64>(b0_.size()) == M && static_cast<i64>(held_.size()) == L_,
-                "Kernel.correct_run: no first pass after run()");
         bool any = false;
-        for (char c : held_) any = any || c != 0;
+        const i64 shifted = shift_held(a, d_in.data(), info_in.data(), first, shift, any);
         if (!any) return nb::none();  // no level held: the step stands
-        const Attached& u = *aux_;
-        const diffik::FusedArgs x = fill_poses(u.qpos, u.sx, u.sm, u.x, u.xm, u.gx, u.gm, u.subtree_com);
-        we1_.assign(static_cast<size_t>(M), 0.0);
-        diffik::weighted_errors(x, held_, we1_.data(), scratch_.local);
         auto failed = [](i64 code) { return nb::make_tuple(code, nb::none(), nb::none(), nb::none(), nb::none()); };
-        if (!diffik::shift_targets(a, held_, CVecRef(b0_), we0_.data(), we1_.data(),
-                                   shift ? shift->data() : nullptr, d_in.data()))
-            return failed(diffik::NOT_FINITE);
+        if (shifted != diffik::OK) return failed(shifted);
         const i64 p = a.G.rows;
         BVec cold(static_cast<size_t>(L_ * (n_ + p)), 0);
         diffik::StepResult r;
