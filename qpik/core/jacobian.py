@@ -35,6 +35,7 @@ __all__ = [
     "condition_number",
     "damped_pseudoinverse",
     "degree_of_redundancy",
+    "entry_scale",
     "joint_limit_distance",
     "joint_limit_distance_gradient",
     "joint_limit_distance_terms",
@@ -46,6 +47,7 @@ __all__ = [
     "rank",
     "as_tol",
     "row_indices",
+    "singular_value_product",
     "singular_values",
     "singularity",
     "solution_set",
@@ -100,7 +102,7 @@ def as_tol(tol: float | None, s: np.ndarray, shape: tuple[int, int], name: str =
     return tol
 
 
-def _scale(J: np.ndarray) -> float:
+def entry_scale(J: np.ndarray) -> float:
     """The largest ``|J_ij|`` (1 for a zero matrix): SVDs run on ``J / scale``, whose
     entries are at most 1, so that neither huge (1e300) nor tiny (1e-300) entries
     overflow or underflow inside LAPACK."""
@@ -111,7 +113,7 @@ def _scale(J: np.ndarray) -> float:
 def _svdvals(J: np.ndarray) -> np.ndarray:
     """Singular values of ``J``, decreasing, computed on the scaled matrix (they are
     ``inf`` only where the true value exceeds the largest float)."""
-    scale = _scale(J)
+    scale = entry_scale(J)
     with np.errstate(over="ignore"):
         return scipy.linalg.svdvals(J / scale) * scale
 
@@ -179,7 +181,7 @@ def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     tol = as_tol(tol, s, J.shape)
     if s[0] <= tol:  # every direction is lost (J = 0 up to tol)
         return np.eye(J.shape[1])
-    scale = _scale(J)  # the basis is that of J / scale; rcond is relative to s[0]
+    scale = entry_scale(J)  # the basis is that of J / scale; rcond is relative to s[0]
     return scipy.linalg.null_space(J / scale, rcond=min(1.0, tol / s[0]))
 
 
@@ -195,7 +197,7 @@ def pseudoinverse(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     ``J qdot = xi``."""
     J = _as_matrix(J)
     tol = as_tol(tol, _svdvals(J), J.shape)
-    scale = _scale(J)  # (J / scale)^+ = scale J^+
+    scale = entry_scale(J)  # (J / scale)^+ = scale J^+
     with np.errstate(over="ignore"):
         pinv = scipy.linalg.pinv(J / scale, atol=tol / scale, rtol=0.0) / scale
     return _finite_result(pinv, "the pseudoinverse")
@@ -218,7 +220,7 @@ def damped_pseudoinverse(J: npt.ArrayLike, damping: float) -> np.ndarray:
     # V diag(s / (s^2 + damping)) U^T from the SVD of the scaled J: the same matrix as
     # J^T (J J^T + damping I)^-1, without forming J J^T (which overflows for |J| ~ 1e160
     # and loses the small singular values to rounding)
-    scale = _scale(J)
+    scale = entry_scale(J)
     U, s, Vt = scipy.linalg.svd(J / scale, full_matrices=False)
     with np.errstate(over="ignore", divide="ignore"):
         s = s * scale
@@ -234,10 +236,15 @@ def manipulability(J: npt.ArrayLike) -> float:
     J = _as_matrix(J)
     if J.shape[0] > J.shape[1]:
         return 0.0
-    s = _svdvals(J)
+    return singular_value_product(_svdvals(J))
+
+
+def singular_value_product(s: np.ndarray) -> float:
+    """The product of singular values ``s`` (0 where one is 0; ``inf`` past the float
+    range), summed in logs: the product of 1e200s would overflow early."""
     if np.any(s == 0.0):
         return 0.0
-    log = float(np.sum(np.log(s)))  # in logs: the product of 1e200s would overflow early
+    log = float(np.sum(np.log(s)))
     return math.exp(log) if log < 709.78 else float("inf")
 
 
@@ -245,7 +252,7 @@ def condition_number(J: npt.ArrayLike) -> float:
     """``sigma_max / sigma_min`` over the ``min(m, n)`` singular values; ``inf`` when
     ``sigma_min`` is 0 (or the ratio exceeds the float range). Large near a singularity."""
     J = _as_matrix(J)
-    s = scipy.linalg.svdvals(J / _scale(J))  # the ratio does not depend on the scale
+    s = scipy.linalg.svdvals(J / entry_scale(J))  # the ratio does not depend on the scale
     with np.errstate(over="ignore"):
         return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
@@ -346,7 +353,7 @@ def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityRepor
     J = _as_matrix(J)
     tol = as_tol(tol, np.zeros(0), J.shape)
     m = J.shape[0]
-    scale = _scale(J)
+    scale = entry_scale(J)
     U, s, _ = scipy.linalg.svd(J / scale)
     with np.errstate(over="ignore"):
         s = _finite_result(s * scale, "a singular value of J")

@@ -4,13 +4,11 @@ MuJoCo's (``mj_jacDot``)."""
 
 from __future__ import annotations
 
-import math
-
 import mujoco
 import numpy as np
 
 from ..core import checks
-from ..core.jacobian import Rows, row_indices
+from ..core.jacobian import Rows, entry_scale, row_indices, singular_value_product
 from .configuration import Configuration, FrameType
 from .kernels import hessian_weights
 from .scratch import scratch_data
@@ -127,15 +125,11 @@ def manipulability_svd(J: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np
     entries of at most 1 (as :func:`qpik.analysis.manipulability` scales it: no overflow
     inside LAPACK). The value is that function's to round-off; :class:`ManipulabilityTask`'s
     error and rows both take it from here."""
-    scale = float(np.abs(J).max()) if J.size else 0.0
-    scale = scale if scale > 0.0 else 1.0
+    scale = entry_scale(J)
     U, s, Vt = np.linalg.svd(J / scale, full_matrices=False)
     with np.errstate(over="ignore"):
         s = s * scale
-    if np.any(s == 0.0):
-        return 0.0, U, s, Vt
-    log = float(np.sum(np.log(s)))  # (in logs: the product of 1e200s would overflow early)
-    return (math.exp(log) if log < 709.78 else float("inf")), U, s, Vt
+    return singular_value_product(s), U, s, Vt
 
 
 def _hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
