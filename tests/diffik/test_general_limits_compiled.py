@@ -383,3 +383,10 @@ def test_correction_passes_with_collision_rows_take_the_compiled_step(monkeypatc
         )
         configuration.integrate_inplace(result.velocity, DT)
     assert in_step["qp"] == 0 and named > 0 and corrected > 20  # (the passes changed the steps)
+    # a fresh solver at the last state, after other solves in this process: bitwise the same
+    used = solver.step(configuration, DT)
+    fresh = qpik.IKSolver(
+        model, [[tip], [posture]], [avoid, *joint_limits(model)], correction_passes=1
+    ).step(configuration, DT)
+    np.testing.assert_array_equal(fresh.velocity, used.velocity)
+    assert fresh.active_limits == used.active_limits
