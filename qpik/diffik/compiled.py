@@ -536,7 +536,7 @@ class CompiledPlan:
                 )  # fmt: skip
             if row == -1:
                 return None
-        out = self._gathered_step(configuration, dt, damping, core, False, not passes)
+        out = self._gathered_step(configuration, dt, damping, core, False, False)
         if out is None:
             return None
         d, v, info, general, qpos = out

@@ -32,6 +32,9 @@ def _closed_loop(solver, configuration, steps, kind):
     names = 0
     for _ in range(steps):
         result = solver.step(configuration, DT)
+        # the step deferred the sigmas it could (its records kept for the result), as the
+        # lean step does: the step is not the one that resolves them all
+        assert solver._plan._deferred is not None
         reference = solver.qp_solution(configuration, DT)
         fast = solver.compiled_velocity(configuration, DT)  # (the sigmas deferred: the same)
         assert fast is not None
