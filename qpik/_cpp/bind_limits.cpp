@@ -1,12 +1,17 @@
 // Bindings of the limits layer (qpik._engine.limits): the conservative culling of collision
 // pairs and the pairs' contact normal rows (limits/collision.hpp), used by
-// qpik.limits.collision. Every shape and geom id is
+// qpik.limits.collision; the support polygon's edges (limits/support.hpp), used by
+// qpik.limits.support. Every shape and geom id is
 // checked here, so a bad argument raises ValueError instead of reading out of bounds.
 #include <cstdint>
+#include <utility>
 #include <vector>
+
+#include <nanobind/stl/pair.h>
 
 #include "bind.hpp"
 #include "limits/collision.hpp"
+#include "limits/support.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -88,4 +93,20 @@ void bind_limits(nb::module_& m) {
         "velocity (mink's): gain (d - d_min) / dt + relaxation where d > d_min, else relaxation;\n"
         "else gain (d - d_min) + relaxation [m]. Returns the fewest nonzero entries of a row (nv\n"
         "where k = 0).");
+    m.def(
+        "support_hull",
+        [](In2 points) {
+            const size_t n = points.shape(0);
+            require(n == 0 || points.shape(1) == 2, "support_hull: points must be (n, 2)");
+            std::vector<double> normals(2 * n), offsets(n);
+            const i64 e = limits::support_hull(points.data(), static_cast<i64>(n), normals.data(), offsets.data());
+            normals.resize(static_cast<size_t>(2 * e));
+            offsets.resize(static_cast<size_t>(e));
+            return std::make_pair(to_numpy(std::move(normals), {static_cast<size_t>(e), 2}),
+                                  to_numpy(std::move(offsets)));
+        },
+        nb::arg("points"),
+        "The convex hull of ground points (n, 2) [m], world x-y: its edges' outward unit normals\n"
+        "(e, 2) and offsets (e,) (inside: normals @ p + offsets <= 0), counter-clockwise from the\n"
+        "lowest-x point; e = 0 where the points span no area or one is not finite.");
 }

@@ -19,7 +19,8 @@ NB_MODULE(_engine, m) {
     bind_model(model);
     nb::module_ tasks = m.def_submodule("tasks", "SE(3) maps and the frame task's rows.");
     bind_tasks(tasks);
-    nb::module_ limits = m.def_submodule("limits", "Culling of collision pairs.");
+    nb::module_ limits = m.def_submodule(
+        "limits", "Culling of collision pairs, their contact rows and the support polygon's hull.");
     bind_limits(limits);
     nb::module_ diffik = m.def_submodule("diffik", "The one-call differential IK step.");
     bind_diffik(diffik);

@@ -1,0 +1,140 @@
+"""The support polygon's compiled hull (``qpik._engine.limits.support_hull``) against SciPy's
+Qhull: the same edges (outward unit normals, offsets) on random point sets, every point
+inside, counter-clockwise from the lowest-x point; no polygon where the points span no area;
+and ``SupportPolygonLimit.hull`` raising its typed error there."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import ConvexHull
+
+import qpik
+from qpik._engine import limits as engine
+from qpik.limits import SupportPolygonLimit
+
+
+def _edges(normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """The edges as rows (n_x, n_y, o), sorted: a set to compare up to order."""
+    rows = np.column_stack([normals, offsets])
+    return rows[np.lexsort(rows.T[::-1])]
+
+
+def _check_ccw(points: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> None:
+    """The edges turn left, the first leaving the lowest-x point (the lowest y among
+    equal x) and the last arriving there."""
+    e = len(normals)
+    for k in range(e):
+        a, b = normals[k], normals[(k + 1) % e]
+        assert a[0] * b[1] - a[1] * b[0] > 0  # the normal turns counter-clockwise
+    lowest = points[np.lexsort((points[:, 1], points[:, 0]))[0]]
+    assert abs(normals[0] @ lowest + offsets[0]) <= 1e-12
+    assert abs(normals[-1] @ lowest + offsets[-1]) <= 1e-12
+    assert normals[0][1] < 0 or (normals[0][1] == 0 and normals[0][0] > 0)  # going right
+
+
+def test_random_sets_give_qhull_s_edges(rng):
+    for trial in range(300):
+        n = int(rng.integers(3, 40))
+        points = rng.normal(size=(n, 2)) * rng.uniform(0.01, 3.0) + rng.normal(size=2)
+        normals, offsets = engine.support_hull(points)
+        hull = ConvexHull(points)
+        ref = _edges(hull.equations[:, :2], hull.equations[:, 2])
+        assert len(offsets) == len(ref), trial
+        np.testing.assert_allclose(_edges(normals, offsets), ref, atol=1e-12, rtol=0)
+        np.testing.assert_allclose(np.hypot(*normals.T), 1.0, atol=1e-15)
+        assert (points @ normals.T + offsets).max() <= 1e-12
+        _check_ccw(points, normals, offsets)
+
+
+def test_two_soles_are_a_hexagon_in_order():
+    # Two 0.2 x 0.1 m soles 0.2 m apart: the hull is the outer rectangle (the inner corners
+    # are inside), its four edges counter-clockwise from the lowest-x, lowest-y corner.
+    sole = np.array([[0.1, 0.05], [0.1, -0.05], [-0.1, 0.05], [-0.1, -0.05]])
+    points = np.vstack([sole + [0.0, 0.1], sole - [0.0, 0.1]])
+    normals, offsets = engine.support_hull(points)
+    np.testing.assert_array_equal(normals, [[0, -1], [1, 0], [0, 1], [-1, 0]])
+    np.testing.assert_allclose(offsets, [-0.15, -0.1, -0.15, -0.1], atol=1e-16, rtol=0)
+
+
+def test_collinear_repeated_and_round_off_points_are_no_vertices():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    # midpoints of edges, a repeated corner, a point off an edge by round-off
+    extra = np.array([[0.5, 0.0], [1.0, 0.5], [0.0, 0.0], [0.3, 1.0 + 1e-17], [0.7, -1e-16]])
+    normals, offsets = engine.support_hull(np.vstack([square, extra]))
+    assert len(offsets) == 4
+    np.testing.assert_allclose(_edges(normals, offsets), _edges(*engine.support_hull(square)))
+
+
+@pytest.mark.parametrize(
+    "points",
+    [
+        np.zeros((0, 2)),
+        np.array([[0.0, 0.0], [1.0, 1.0]]),
+        np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [0.5, 0.5]]),  # collinear
+        np.array([[1.0, 2.0]] * 5),  # one point
+        np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-13]]),  # a sliver: area 5e-14 m^2
+        np.array([[0.0, 0.0], [1.0, 0.0], [0.0, np.nan]]),
+        np.array([[0.0, 0.0], [1.0, 0.0], [np.inf, 1.0]]),
+    ],
+)
+def test_no_area_gives_no_polygon(points):
+    normals, offsets = engine.support_hull(points)
+    assert normals.shape == (0, 2) and offsets.shape == (0,)
+
+
+def test_a_line_of_nearly_equal_x_keeps_its_lowest_point():
+    # x sorted by round-off along x = 0: (0, 2), (1e-155, 0), (5e-48, 1), then (1, 0). The
+    # chain goes down then back up the line; (1e-155, 0) is a corner of the triangle.
+    points = np.array([[0.0, 2.0], [1.0, 0.0], [4.9e-48, 1.0], [1.8e-155, 0.0]])
+    normals, offsets = engine.support_hull(points)
+    assert len(offsets) == 3
+    assert (points @ normals.T + offsets).max() <= 1e-15
+    ref = ConvexHull(points[[0, 1, 3]])
+    np.testing.assert_allclose(
+        _edges(normals, offsets), _edges(ref.equations[:, :2], ref.equations[:, 2]), atol=1e-15
+    )
+
+
+def test_bad_shapes_raise_value_error():
+    with pytest.raises(ValueError, match=r"\(n, 2\)"):
+        engine.support_hull(np.zeros((4, 3)))
+    with pytest.raises(TypeError):
+        engine.support_hull(np.zeros(4))
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(-10, 10, allow_nan=False, allow_infinity=False),
+            st.floats(-10, 10, allow_nan=False, allow_infinity=False),
+        ),
+        min_size=3,
+        max_size=24,
+    )
+)
+def test_any_points_lie_inside_their_hull(coords):
+    points = np.array(coords, dtype=float)
+    normals, offsets = engine.support_hull(points)
+    if not len(offsets):
+        return  # no area (SciPy's Qhull would raise on most such sets)
+    assert np.all(np.isfinite(normals)) and np.all(np.isfinite(offsets))
+    np.testing.assert_allclose(np.hypot(*normals.T), 1.0, atol=1e-14)
+    scale = 1.0 + np.abs(points).max()
+    # a point dropped as turning the chain by less than 1e-10 lies at most that far out
+    assert (points @ normals.T + offsets).max() <= 1e-9 * scale
+    # each edge touches the set: its line passes through a point
+    assert np.abs(points @ normals.T + offsets).min(axis=0).max() <= 1e-12 * scale
+
+
+def test_the_limit_raises_its_typed_error_without_area():
+    xml = """<mujoco><worldbody><body name="b"><freejoint/><geom size="0.1"/>
+      <site name="s1" pos="0 0 0"/><site name="s2" pos="0.1 0 0"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    limit = SupportPolygonLimit(model, ["s1", "s2"])
+    with pytest.raises(qpik.InvalidInput, match="span no area"):
+        limit.hull(qpik.Configuration(model))
