@@ -160,17 +160,39 @@ KERNELS = [
 INFEASIBLE_FIELDS = ("x", "status")
 
 
+def _out_of_reach(case) -> bool:
+    """A recorded cascade with a general row the box keeps below its bound (by far more than
+    round-off): the cascade leaves such a row out (core::rows_in_reach)."""
+    a = {k[3:]: v for k, v in case.items() if k.startswith("in_")}
+    G, h, lb, ub = a["G"], a["h"], a["lb"], a["ub"]
+    if not G.shape[0]:
+        return False
+    with np.errstate(invalid="ignore"):
+        reach = np.where(G > 0, G * ub, np.where(G < 0, G * lb, 0.0)).sum(axis=1)
+    return bool(np.any(h - reach > 1e-6 * (np.abs(h) + np.abs(reach) + 1.0)))
+
+
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_engine_reproduces_the_numba_kernels(recorded, kernel):
     cases = recorded[kernel]
     assert cases
     outputs = equal = 0
     worst = 0.0
+    fewer = 0
     for index, case in enumerate(cases):
         got = _call(kernel, case)
         if kernel in ("solve_qp", "solve_level") and case["out_status"] == K.INFEASIBLE:
             assert got["status"] == K.INFEASIBLE, (kernel, index)
             got = {field: got[field] for field in INFEASIBLE_FIELDS}
+        if kernel == "solve_cascade" and _out_of_reach(case):
+            # The cascade leaves out the general rows that no displacement in the box brings
+            # to their bound (core::rows_in_reach): the dual method no longer passes through
+            # them (cases 500 and 501: 4 -> 2 iterations at level 0, a row 0.56 below its
+            # bound over the whole box), the same answer and active sets otherwise.
+            its = got.pop("its")
+            want = case["out_its"]
+            assert np.all(its <= want), (index, its, want)
+            fewer += int(np.any(its < want))
         for field, value in got.items():
             want = case["out_" + field]
             try:
@@ -183,6 +205,7 @@ def test_engine_reproduces_the_numba_kernels(recorded, kernel):
             worst = max(worst, diff)
     print(
         f"{kernel}: {len(cases)} cases, {equal}/{outputs} outputs bitwise equal, max rel diff {worst:.3g}"
+        + (f"; {fewer} with fewer iterations (a row out of reach left out)" if fewer else "")
     )
 
 

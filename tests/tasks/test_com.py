@@ -209,3 +209,24 @@ def test_talos_half_sitting_com_is_inside_its_feet():
     margin = limit.com_margin(configuration)
     # Feet 0.17 m apart, soles 0.2 x 0.1 m: the CoM sits near the middle of that rectangle.
     assert 0.04 < margin < 0.14
+
+
+def test_a_support_polygon_far_from_the_com_changes_no_bit_of_the_step():
+    # The CoM near the middle of the feet and steps of at most 0.01 rad: no row of the
+    # polygon can bind within the step's box, so the cascade leaves them all out
+    # (core::rows_in_reach); the steps are bitwise those without the limit.
+    model, configuration = _quadruped()
+    speed = mink.VelocityLimit(model, {"yaw": 1.0, "pitch": 1.0})  # [rad/s]
+    levels = [[mink.DofFreezingTask(model, dof_indices=list(range(6)))], [ComTask(cost=1.0)]]
+    levels[1][0].set_target([0.05, 0.02, 0.0])
+    with_limit = qpik.IKSolver(model, levels, [*joint_limits(model), speed,
+                                               SupportPolygonLimit(model, FEET, margin=0.02)])  # fmt: skip
+    without = qpik.IKSolver(model, levels, [*joint_limits(model), speed])
+    other = qpik.Configuration(model, configuration.q)
+    for _ in range(30):
+        a, b = with_limit.step(configuration, 0.01), without.step(other, 0.01)
+        assert a.velocity.tobytes() == b.velocity.tobytes()
+        assert a.status == b.status and a.iterations == b.iterations
+        assert not any("SupportPolygon" in name for name in a.active_limits)
+        configuration.integrate_inplace(a.velocity, 0.01)
+        other.integrate_inplace(b.velocity, 0.01)

@@ -86,6 +86,11 @@ struct NnlsScratch {
 // storage). One per solver, never shared between threads.
 struct Workspace {
     Mat Z, Ztmp;
+    // solve_cascade_into: the general rows in reach of the box (rows_in_reach) and the others
+    IVec g_kept;
+    Mat g_in, g_out;
+    Vec h_in, h_out;
+    std::vector<i8> warm_in, active_in;
     Mat A_flush;  // the cascade's A with its rows' round-off entries zero (flushed_rows)
     // project_level's proved full rank (defer_floor): R's rows kept for deferred_sigma
     bool deferred = false;
@@ -3723,11 +3728,12 @@ inline bool feasible_after_all(const ReducedQP& qp, const LSForm& ls, CMatRef Ak
 }
 }  // namespace detail
 
-inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
+namespace detail {
+inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
-                               bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
-                               bool primal = true, bool defer_sigma = false) {
+                               bool canonical, Workspace& ws, CascadeResult& res, bool residuals,
+                               bool primal, bool defer_sigma) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     // Entries of a task row at or below kFlushEps n times its largest are its round-off (the
     // products that made it: 1e-18 in a row of 6e-4 where a dof moves nothing), zero here: a
@@ -3969,6 +3975,103 @@ inline void solve_cascade_into(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
     if (primal)
         res.primal = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, Z.cref(), d, lb, ub, G, h, {}, {}, {},
                                    0, false, &ws.cs, gsq).primal;
+}
+
+}  // namespace detail
+
+// The general rows that no displacement in the box can bring to their bound: row j where
+// its largest value over the box, reach_j = sum_i max(g_ji lb_i, g_ji ub_i) (every bound
+// finite where g_ji != 0), is below h_j by more than kScreen (S_j + |h_j|) + kScreenAbs |g_j|_1
+// (S_j = sum_i |g_ji| max(|lb_i|, |ub_i|): the sum's size; the second term covers a point
+// off the box by the cascade's snap), and every row with h_j absent (>= kBig). Such a row is
+// met with slack at every point the cascade keeps or tries in the box: it never binds, never
+// enters a working set, and its primal measure is 0 there; the levels are solved as without
+// it (a humanoid's support polygon far from the CoM: 26 dense rows, none in play). Returns
+// how many rows are kept, their indices in `kept`.
+inline constexpr double kScreen = 1e-6;
+inline constexpr double kScreenAbs = 1e-9;
+
+inline i64 rows_in_reach(CMatRef G, CVecRef h, CVecRef lb, CVecRef ub, IVec& kept) {
+    const i64 p = G.rows, n = G.cols;
+    kept.clear();
+    for (i64 j = 0; j < p; ++j) {
+        if (!(h[j] < kBig)) continue;  // absent (h NaN is kept below: the cascade's to judge)
+        const double* gj = G.row(j);
+        double reach = 0.0, size = 0.0, g1 = 0.0;
+        bool bounded = std::isfinite(h[j]);
+        for (i64 i = 0; i < n && bounded; ++i) {
+            const double g = gj[i];
+            if (g == 0.0) continue;
+            const double lo = lb[i], hi = ub[i];
+            if (!(lo > -kBig && hi < kBig) || !std::isfinite(g)) {
+                bounded = false;
+                break;
+            }
+            reach += g > 0.0 ? g * hi : g * lo;
+            size += std::fabs(g) * pymax(std::fabs(lo), std::fabs(hi));
+            g1 += std::fabs(g);
+        }
+        if (bounded && h[j] - reach > kScreen * (size + std::fabs(h[j])) + kScreenAbs * g1) continue;
+        kept.push_back(j);
+    }
+    return static_cast<i64>(kept.size());
+}
+
+// The lexicographic cascade of the levels (A, b, w; starts: each level's first row) under
+// the box lb <= x <= ub and the general rows G x <= h, into res (detail::solve_cascade_rows,
+// the levels one by one). The general rows out of reach of the box (rows_in_reach) are left
+// out of it, and res.active has a zero entry for each of them (L x (n + p) as ever); the
+// final primal measure (primal) covers them too.
+inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
+                               CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
+                               double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
+                               bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
+                               bool primal = true, bool defer_sigma = false) {
+    const i64 p = G.rows, n = lb.size(), L = starts.size() - 1;
+    const i64 q = p ? rows_in_reach(G, h, lb, ub, ws.g_kept) : 0;
+    if (q == p) {
+        detail::solve_cascade_rows(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
+                                   max_iter, tol, warm, canonical, ws, res, residuals, primal, defer_sigma);
+        return;
+    }
+    // The rows kept (and their warm entries), the others apart for the final primal measure.
+    const IVec& kept = ws.g_kept;
+    shape(ws.g_in, q, n);
+    ws.h_in.resize(static_cast<size_t>(q));
+    shape(ws.g_out, p - q, n);
+    ws.h_out.resize(static_cast<size_t>(p - q));
+    ws.warm_in.resize(static_cast<size_t>(L * (n + q)));
+    for (i64 j = 0, k = 0, o = 0; j < p; ++j) {
+        const bool in = k < q && kept[k] == j;
+        double* dst = in ? ws.g_in.row(k) : ws.g_out.row(o);
+        std::memcpy(dst, G.row(j), static_cast<size_t>(n) * sizeof(double));
+        (in ? ws.h_in[k++] : ws.h_out[o++]) = h[j];
+    }
+    for (i64 l = 0; l < L; ++l) {
+        i8* row = ws.warm_in.data() + l * (n + q);
+        for (i64 i = 0; i < n; ++i) row[i] = warm(l, i);
+        for (i64 k = 0; k < q; ++k) row[n + k] = warm(l, n + kept[k]);
+    }
+    detail::solve_cascade_rows(A, b, w, starts, reg, lb, ub, ws.g_in.cref(), CVecRef(ws.h_in), threshold, max_damping,
+                               error_scale, rank_tol, max_iter, tol,
+                               MatRefT<const i8>(ws.warm_in.data(), L, n + q), canonical, ws, res, residuals, primal,
+                               defer_sigma);
+    // res.active back to every row: L x (n + p), a left-out row's entries 0.
+    std::vector<i8>& act = ws.active_in;
+    act.assign(res.active.begin(), res.active.end());
+    res.active.assign(static_cast<size_t>(L * (n + p)), i8{0});
+    for (i64 l = 0; l < L; ++l) {
+        const i8* src = act.data() + l * (n + q);
+        i8* dst = res.active.data() + l * (n + p);
+        std::memcpy(dst, src, static_cast<size_t>(n));
+        for (i64 k = 0; k < q; ++k) dst[n + kept[k]] = src[n + k];
+    }
+    if (primal && p > q) {  // the rows left out, at the answer (0 where they hold, as proved)
+        const Certificate out = certify_level(A.rows_slice(0, 0), b.slice(0, 0), 0.0, CMatRef(nullptr, n, 0),
+                                              res.dq, lb, ub, ws.g_out.cref(), CVecRef(ws.h_out), {}, {}, {}, 0,
+                                              false, &ws.cs);
+        res.primal = pymax(res.primal, out.primal);
+    }
 }
 
 // solve_cascade_into a result of its own.
