@@ -99,6 +99,17 @@ def test_a_line_of_nearly_equal_x_keeps_its_lowest_point():
     )
 
 
+@pytest.mark.parametrize("scale", [2.0**-300, 1e-120, 1.0, 3e90, 2.0**600])
+def test_the_hull_does_not_depend_on_the_unit(rng, scale):
+    # The chain's tests run on the points scaled by a power of two: the same vertices at any
+    # scale (no square overflowing or underflowing), normals the same, offsets scaled.
+    points = rng.normal(size=(30, 2))
+    normals, offsets = engine.support_hull(points)
+    n2, o2 = engine.support_hull(points * scale)
+    np.testing.assert_allclose(n2, normals, atol=1e-15)
+    np.testing.assert_allclose(o2 / scale, offsets, rtol=1e-14, atol=1e-15)
+
+
 def test_bad_shapes_raise_value_error():
     with pytest.raises(ValueError, match=r"\(n, 2\)"):
         engine.support_hull(np.zeros((4, 3)))

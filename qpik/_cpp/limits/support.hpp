@@ -26,62 +26,77 @@ inline constexpr double kTurn = 1e-10;
 // normals (e, 2) and offsets (e,) written into normals / offsets (n rows / entries each);
 // 0 (nothing written) where the points span no area or one is not finite.
 inline i64 support_hull(const double* pts, i64 n, double* normals, double* offsets) {
-    std::vector<i64> order(static_cast<size_t>(n));
+    struct Point {
+        double x, y;
+        i64 index;
+    };
+    // The chain's tests on the points scaled by a power of two (exact) to at most 1 in size:
+    // their squares neither overflow nor depend on the unit.
+    double big = 0.0;
+    for (i64 i = 0; i < 2 * n; ++i) {
+        if (!std::isfinite(pts[i])) return 0;
+        big = std::max(big, std::fabs(pts[i]));
+    }
+    if (n < 3 || !(big > 0.0)) return 0;
+    int exponent = 0;
+    std::frexp(big, &exponent);
+    const double unit = std::ldexp(1.0, -exponent);
+    std::vector<Point> sorted(static_cast<size_t>(n));
     double lo[2] = {kInf, kInf}, hi[2] = {-kInf, -kInf};
     for (i64 i = 0; i < n; ++i) {
-        order[static_cast<size_t>(i)] = i;
-        for (i64 c = 0; c < 2; ++c) {
-            const double v = pts[2 * i + c];
-            if (!std::isfinite(v)) return 0;
-            lo[c] = std::min(lo[c], v);
-            hi[c] = std::max(hi[c], v);
-        }
+        const double x = pts[2 * i] * unit, y = pts[2 * i + 1] * unit;
+        sorted[static_cast<size_t>(i)] = Point{x, y, i};
+        lo[0] = std::min(lo[0], x);
+        hi[0] = std::max(hi[0], x);
+        lo[1] = std::min(lo[1], y);
+        hi[1] = std::max(hi[1], y);
     }
-    if (n < 3) return 0;
     // (x, then y, then the index: a total order, the same sort on every machine)
-    std::sort(order.begin(), order.end(), [pts](i64 a, i64 b) {
-        if (pts[2 * a] != pts[2 * b]) return pts[2 * a] < pts[2 * b];
-        if (pts[2 * a + 1] != pts[2 * b + 1]) return pts[2 * a + 1] < pts[2 * b + 1];
-        return a < b;
+    std::sort(sorted.begin(), sorted.end(), [](const Point& a, const Point& b) {
+        if (a.x != b.x) return a.x < b.x;
+        if (a.y != b.y) return a.y < b.y;
+        return a.index < b.index;
     });
     // o -> a -> b turns left: going on (its two edges' dot product positive), by more than
-    // kTurn (the sine of the turn, from the cross product); going back (the chain reverses
-    // along a line of nearly equal x, its points sorted by round-off in x), by the cross
-    // product's sign alone. There the x differences ax, bx are >= 0 and ay, by have opposite
-    // signs (or one is 0), so the two terms of the cross product have the same sign: it is
-    // exact in sign, and keeps the lowest (the upper chain: highest) of such points.
-    auto left = [pts](i64 o, i64 a, i64 b) {
-        const double ax = pts[2 * a] - pts[2 * o], ay = pts[2 * a + 1] - pts[2 * o + 1];
-        const double bx = pts[2 * b] - pts[2 * a], by = pts[2 * b + 1] - pts[2 * a + 1];
+    // kTurn (the sine of the turn: cross^2 > kTurn^2 |a - o|^2 |b - a|^2, no square root);
+    // going back (the chain reverses along a line of nearly equal x, its points sorted by
+    // round-off in x), by the cross product's sign alone. There the x differences ax, bx are
+    // >= 0 and ay, by have opposite signs (or one is 0), so the two terms of the cross
+    // product have the same sign: it is exact in sign, and keeps the lowest (the upper
+    // chain: highest) of such points.
+    auto left = [](const Point& o, const Point& a, const Point& b) {
+        const double ax = a.x - o.x, ay = a.y - o.y;
+        const double bx = b.x - a.x, by = b.y - a.y;
         const double cross = ax * by - ay * bx;
         if (ax * bx + ay * by <= 0.0) return cross > 0.0;
-        return cross > kTurn * std::hypot(ax, ay) * std::hypot(bx, by);
+        return cross > 0.0 && cross * cross > (kTurn * kTurn) * ((ax * ax + ay * ay) * (bx * bx + by * by));
     };
     // The lower chain left to right, then the upper one back (its turns tested on its own
     // points: from the rightmost on); the last point, the first again, dropped.
-    std::vector<i64> hull(static_cast<size_t>(2 * n));
+    std::vector<Point> chain(static_cast<size_t>(2 * n));
     size_t top = 0;
     for (i64 s = 0; s < n; ++s) {
-        const i64 p = order[static_cast<size_t>(s)];
-        while (top >= 2 && !left(hull[top - 2], hull[top - 1], p)) --top;
-        hull[top++] = p;
+        const Point& p = sorted[static_cast<size_t>(s)];
+        while (top >= 2 && !left(chain[top - 2], chain[top - 1], p)) --top;
+        chain[top++] = p;
     }
     const size_t upper = top + 1;
     for (i64 s = n - 2; s >= 0; --s) {
-        const i64 p = order[static_cast<size_t>(s)];
-        while (top >= upper && !left(hull[top - 2], hull[top - 1], p)) --top;
-        hull[top++] = p;
+        const Point& p = sorted[static_cast<size_t>(s)];
+        while (top >= upper && !left(chain[top - 2], chain[top - 1], p)) --top;
+        chain[top++] = p;
     }
-    hull.resize(top - 1);
-    const i64 e = static_cast<i64>(hull.size());
+    const i64 e = static_cast<i64>(top) - 1;
     if (e < 3) return 0;
-    double area = 0.0;  // twice the area (shoelace)
-    for (i64 k = 0; k < e; ++k) {
-        const i64 a = hull[static_cast<size_t>(k)], b = hull[static_cast<size_t>((k + 1) % e)];
-        area += pts[2 * a] * pts[2 * b + 1] - pts[2 * b] * pts[2 * a + 1];
+    double area = 0.0;  // twice the area (shoelace about the first vertex, scaled points)
+    for (i64 k = 1; k + 1 < e; ++k) {
+        const Point &a = chain[static_cast<size_t>(k)], &b = chain[static_cast<size_t>(k + 1)];
+        area += (a.x - chain[0].x) * (b.y - chain[0].y) - (b.x - chain[0].x) * (a.y - chain[0].y);
     }
     const double extent = std::max(hi[0] - lo[0], hi[1] - lo[1]);
     if (!(area > 2.0 * kTurn * extent * extent)) return 0;
+    std::vector<i64> hull(static_cast<size_t>(e));
+    for (i64 k = 0; k < e; ++k) hull[static_cast<size_t>(k)] = chain[static_cast<size_t>(k)].index;
     for (i64 k = 0; k < e; ++k) {
         const i64 a = hull[static_cast<size_t>(k)], b = hull[static_cast<size_t>((k + 1) % e)];
         const double dx = pts[2 * b] - pts[2 * a], dy = pts[2 * b + 1] - pts[2 * a + 1];
