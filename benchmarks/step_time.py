@@ -765,7 +765,11 @@ def talos_peers(n_steps: int = 300) -> None:
     CoM, hands and posture soft, weights 100, 1, 0.01), and qpik on that same problem (the
     feet a strict level, CoM, hands and posture one weighted level with costs 10, 1, 0.1,
     the square roots of PlaCo's weights); mink + daqp's one weighted level
-    (costs 10, 10, 1, 0.1: the same weights). Task errors are measured by MuJoCo's
+    (costs 10, 10, 1, 0.1: the same weights). With the feet's support polygon besides
+    (2 cm margin, the soles' collision meshes): qpik's four levels with
+    :class:`qpik.limits.SupportPolygonLimit` (its hull made from the feet at every step),
+    and PlaCo's problem with its CoM polygon constraint on the polygon at the start (its
+    corners given once: the feet are held). Task errors are measured by MuJoCo's
     kinematics at each method's configuration after each step.
 
     The feet are held exactly in each step's rows (qpik's level 0, PlaCo's hard task), so
@@ -780,7 +784,9 @@ def talos_peers(n_steps: int = 300) -> None:
     second-order term itself: what it leaves is of third order (a smaller median)."""
     import mujoco
     import placo
+    from scipy.spatial import ConvexHull
 
+    from qpik.limits import SupportPolygonLimit
     from qpik.robots import locate_robot
     from qpik.tasks import ComTask
 
@@ -835,53 +841,73 @@ def talos_peers(n_steps: int = 300) -> None:
     placo_problem = qpik.IKSolver(
         model, [ours_placo[0], ours_placo[1] + ours_placo[2] + ours_placo[3]], limits
     )
+    # The four levels with the feet's support polygon (SupportPolygonLimit, 2 cm margin, the
+    # soles' collision meshes: its hull recomputed from the feet every step), and PlaCo's
+    # problem with its CoM polygon constraint on that polygon at the start (PlaCo takes the
+    # polygon's corners as given; the feet are held, so it stays the same).
+    support = SupportPolygonLimit(model, list(feet), margin=0.02)
+    ours_support = stack("qpik")
+    supported = qpik.IKSolver(model, ours_support, [*limits, support])
     solvers = {
         "qpik": (auto, ours),
         "qpik1": (corrected, ours_corrected),
         "qpikp": (placo_problem, ours_placo),
+        "qpiks": (supported, ours_support),
     }
     flat = [t for level in theirs for t in level]
+    ground = support.support_points(probe)
+    polygon = ground[ConvexHull(ground).vertices]  # counter-clockwise corners
 
-    robot = _placo_robot(urdf)
-    mapping = _PlacoMap(model, robot, floating=True)
-    solver = placo.KinematicsSolver(robot)
-    solver.enable_joint_limits(True)
-    solver.enable_velocity_limits(True)
-    solver.dt = DT
-    placo_feet = []
-    for f, (p, R) in zip(feet, foot_poses):
-        task = solver.add_frame_task(f, _pose(p, R))
-        task.configure(f, "hard", 1.0, 1.0)
-        placo_feet.append(task)
-    placo_com = solver.add_com_task(com0)
-    placo_com.configure("com", "soft", 100.0)
-    placo_hands = []
-    for h, p in zip(hands, hand_starts):
-        task = solver.add_position_task(h, p)
-        task.configure(h, "soft", 1.0)
-        placo_hands.append(task)
-    placo_posture = solver.add_joints_task()
-    placo_posture.set_joints({n: float(home[a]) for n, a in zip(mapping.names, mapping.mj_q)})
-    placo_posture.configure("posture", "soft", 0.01)
-    robot.state.q = mapping.to_placo(home)
-    robot.update_kinematics()
-    gaps = [
-        np.abs(robot.get_T_world_frame(f)[:3, 3] - probe.frame_pose(f, "body")[0]).max()
-        for f in feet + hands
-    ]
-    assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
+    def placo_setup(with_polygon: bool):
+        robot = _placo_robot(urdf)
+        solver = placo.KinematicsSolver(robot)
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        solver.dt = DT
+        for f, (p, R) in zip(feet, foot_poses):
+            task = solver.add_frame_task(f, _pose(p, R))
+            task.configure(f, "hard", 1.0, 1.0)
+        com_task = solver.add_com_task(com0)
+        com_task.configure("com", "soft", 100.0)
+        hand_tasks = []
+        for h, p in zip(hands, hand_starts):
+            task = solver.add_position_task(h, p)
+            task.configure(h, "soft", 1.0)
+            hand_tasks.append(task)
+        posture = solver.add_joints_task()
+        posture.set_joints({n: float(home[a]) for n, a in zip(mapping.names, mapping.mj_q)})
+        posture.configure("posture", "soft", 0.01)
+        if with_polygon:
+            solver.add_com_polygon_constraint([np.array(c) for c in polygon], 0.02)
+        robot.state.q = mapping.to_placo(home)
+        robot.update_kinematics()
+        gaps = [
+            np.abs(robot.get_T_world_frame(f)[:3, 3] - probe.frame_pose(f, "body")[0]).max()
+            for f in feet + hands
+        ]
+        assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
+        return robot, solver, com_task, hand_tasks
 
-    configs = {name: qpik.Configuration(model, home) for name in ("qpik", "qpik1", "qpikp", "mink")}
+    mapping = _PlacoMap(model, _placo_robot(urdf), floating=True)
+    placos = {"placo": placo_setup(False), "placos": placo_setup(True)}
+    robot = placos["placo"][0]
+
+    names = ("qpik", "qpik1", "qpikp", "qpiks", "mink")
+    configs = {name: qpik.Configuration(model, home) for name in names}
     label = {
         "qpik": "qpik IKSolver.step, 4 strict levels",
         "qpik1": "qpik 4 levels + 1 correction",
         "qpikp": "qpik 2 levels: feet / PlaCo's soft",
+        "qpiks": "qpik 4 levels + support polygon",
         "placo": "PlaCo solve(True), feet hard + 3 soft",
+        "placos": "PlaCo, the same + CoM polygon",
         "mink": "mink + daqp, 1 weighted level",
     }
+    binding = dict.fromkeys(label.values(), 0)  # steps where the polygon binds
     times = {name: [] for name in label.values()}
     errors = {name: [] for name in label.values()}
     failed = dict.fromkeys(label.values(), 0)
+    margins: dict = {name: [] for name in label.values()}  # the CoM's margin after each step
     measure = qpik.Configuration(model, home)
     # The dofs whose motion moves the feet: the free joint's and every joint above a sole.
     legs = set()
@@ -897,10 +923,11 @@ def talos_peers(n_steps: int = 300) -> None:
     dq = np.zeros(model.nv)
 
     def step(name, k):
-        if name == "placo":
+        if name in placos:
+            robot, solver, com_task, hand_tasks = placos[name]
             com, hand_targets = targets_at(k)
-            placo_com.target_world = com
-            for task, target in zip(placo_hands, hand_targets):
+            com_task.target_world = com
+            for task, target in zip(hand_tasks, hand_targets):
                 task.target_world = target
             t0 = time.perf_counter()
             try:
@@ -914,7 +941,13 @@ def talos_peers(n_steps: int = 300) -> None:
         set_targets(solvers[name][1] if name in solvers else theirs, k)
         t0 = time.perf_counter()
         if name in solvers:
-            v = solvers[name][0].step(c, DT).velocity
+            result = solvers[name][0].step(c, DT)
+            elapsed = time.perf_counter() - t0
+            v = result.velocity
+            if name == "qpiks":
+                binding[label[name]] += any("SupportPolygon" in a for a in result.active_limits)
+            c.update(c.integrate(v, DT))
+            return elapsed, c.q
         else:
             v = mink.solve_ik(c, flat, DT, "daqp", damping=1e-6, limits=limits)
         elapsed = time.perf_counter() - t0
@@ -943,6 +976,7 @@ def talos_peers(n_steps: int = 300) -> None:
                 for h, t in zip(hands, hand_targets)
             ]
             errors[label[name]].append((foot_err, com_err, *hand_err))
+            margins[label[name]].append(support.com_margin(measure))
     extra = {}
     h = n_steps // 2
     for name, rows in errors.items():
@@ -958,6 +992,12 @@ def talos_peers(n_steps: int = 300) -> None:
             f"{1e6 * np.median(times[name][:h]):.1f} / out of reach "
             f"{1e6 * np.median(times[name][h:]):.1f}"
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
+            + (f"; the polygon binds on {binding[name]} steps" if name == label["qpiks"] else "")
+            + (
+                f"; CoM margin min {1e3 * min(margins[name]):.1f} mm"
+                if name in (label["qpiks"], label["placos"])
+                else ""
+            )
         )
     _report_peers(
         f"\nTalos (erd:talos, floating base, nv = {model.nv}), feet / CoM / hands / posture, "
