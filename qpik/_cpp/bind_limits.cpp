@@ -3,11 +3,13 @@
 // qpik.limits.collision; the support polygon's edges (limits/support.hpp), used by
 // qpik.limits.support. Every shape and geom id is
 // checked here, so a bad argument raises ValueError instead of reading out of bounds.
+#include <cmath>
 #include <cstdint>
 #include <utility>
 #include <vector>
 
 #include <nanobind/stl/pair.h>
+#include <nanobind/stl/vector.h>
 
 #include "bind.hpp"
 #include "limits/collision.hpp"
@@ -109,4 +111,70 @@ void bind_limits(nb::module_& m) {
         "The convex hull of ground points (n, 2) [m], world x-y: its edges' outward unit normals\n"
         "(e, 2) and offsets (e,) (inside: normals @ p + offsets <= 0), counter-clockwise from the\n"
         "lowest-x point; e = 0 where the points span no area or one is not finite.");
+    // The footprints of support_points / support_rows: frames (F, 3) and (F, 9), one (k_f, 3)
+    // array a frame; the points' count.
+    auto check_frames = [](const In2& positions, const In2& rotations, const std::vector<In2>& footprints) {
+        const size_t F = positions.shape(0);
+        require(positions.shape(1) == 3, "support: positions must be (F, 3)");
+        require(rotations.shape(0) == F && rotations.shape(1) == 9, "support: rotations must be (F, 9)");
+        require(footprints.size() == F, "support: one footprint a frame");
+        i64 n = 0;
+        for (const In2& fp : footprints) {
+            require(fp.shape(0) == 0 || fp.shape(1) == 3, "support: a footprint must be (k, 3)");
+            const size_t k = fp.shape(0) * (fp.shape(0) ? fp.shape(1) : 0);
+            for (size_t i = 0; i < k; ++i) require(std::isfinite(fp.data()[i]), "support: a footprint is not finite");
+            n += static_cast<i64>(fp.shape(0));
+        }
+        return n;
+    };
+    auto points_of = [](const In2& positions, const In2& rotations, const std::vector<In2>& footprints,
+                        std::vector<double>& out) {
+        const size_t F = footprints.size();
+        std::vector<const double*> fps(F);
+        std::vector<i64> counts(F);
+        for (size_t f = 0; f < F; ++f) {
+            fps[f] = footprints[f].data();
+            counts[f] = static_cast<i64>(footprints[f].shape(0));
+        }
+        limits::support_points(positions.data(), rotations.data(), static_cast<i64>(F), fps.data(), counts.data(),
+                               out.data());
+    };
+    m.def(
+        "support_points",
+        [check_frames, points_of](In2 positions, In2 rotations, std::vector<In2> footprints) {
+            const i64 n = check_frames(positions, rotations, footprints);
+            std::vector<double> out(static_cast<size_t>(2 * n));
+            points_of(positions, rotations, footprints, out);
+            return to_numpy(std::move(out), {static_cast<size_t>(n), 2});
+        },
+        nb::arg("positions"), nb::arg("rotations"), nb::arg("footprints"),
+        "The footprints' points on the ground (n, 2) [m], world x-y: frame f at positions[f] (3,)\n"
+        "with rotations[f] (9,) (row-major, local to world) carries footprints[f] (k_f, 3) [m] in\n"
+        "its own axes, each landing at p_f + R_f x; frame by frame.");
+    m.def(
+        "support_rows",
+        [check_frames, points_of](In2 positions, In2 rotations, std::vector<In2> footprints, In2 jac, double com_x,
+                                  double com_y, double margin, double gain) {
+            const i64 n = check_frames(positions, rotations, footprints);
+            require(jac.shape(0) >= 2, "support_rows: jac must hold the CoM Jacobian's x and y rows (>= 2, nv)");
+            const i64 nv = static_cast<i64>(jac.shape(1));
+            std::vector<double> pts(static_cast<size_t>(2 * n));
+            points_of(positions, rotations, footprints, pts);
+            std::vector<double> normals(static_cast<size_t>(2 * n)), offsets(static_cast<size_t>(n));
+            std::vector<double> G(static_cast<size_t>(n * nv)), h(static_cast<size_t>(n));
+            i64 fewest = nv;
+            const i64 e = limits::support_rows(pts.data(), n, jac.data(), jac.data() + nv, nv, com_x, com_y, margin,
+                                               gain, normals.data(), offsets.data(), G.data(), h.data(), fewest);
+            G.resize(static_cast<size_t>(e * nv));
+            h.resize(static_cast<size_t>(e));
+            return std::make_tuple(to_numpy(std::move(G), {static_cast<size_t>(e), static_cast<size_t>(nv)}),
+                                   to_numpy(std::move(h)), fewest);
+        },
+        nb::arg("positions"), nb::arg("rotations"), nb::arg("footprints"), nb::arg("jac"), nb::arg("com_x"),
+        nb::arg("com_y"), nb::arg("margin"), nb::arg("gain"),
+        "The support polygon's rows G dq <= h [m] (qpik.limits.SupportPolygonLimit): the hull\n"
+        "(support_hull) of the footprints' ground points (support_points), and per edge a\n"
+        "G_e = a_e^T J_xy (jac's first two rows: the CoM Jacobian's x and y), h_e = gain (-margin -\n"
+        "o_e - a_e^T c_xy); (G (e, nv), h (e,), the fewest nonzero entries of a row), e = 0 where\n"
+        "the points span no area.");
 }

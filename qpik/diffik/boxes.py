@@ -31,6 +31,7 @@ from ..errors import (
     QpikError,
 )
 from ..limits.collision import CollisionAvoidanceLimit, mink_collision_rows
+from ..limits.support import SupportPolygonLimit
 from ..model.configuration import Configuration, joint_names
 from .mink_limits import angular_dofs
 
@@ -591,6 +592,8 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
 
 #: qpik's CollisionAvoidanceLimit's own rows (a subclass that keeps them is read as it is)
 _QPIK_COLLISION_ROWS = CollisionAvoidanceLimit.compute_qp_inequalities
+#: SupportPolygonLimit's own rows (likewise)
+_SUPPORT_ROWS = SupportPolygonLimit.compute_qp_inequalities
 
 
 def _inequalities_of(
@@ -598,8 +601,9 @@ def _inequalities_of(
 ) -> tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None:
     """A limit's rows ``(G, h, numbers, fewest)`` (None when inactive): its
     ``compute_qp_inequalities`` (``numbers`` None: row ``r`` is the limit's row ``r``;
-    ``fewest`` None; for qpik's :class:`~qpik.limits.CollisionAvoidanceLimit` the fewest
-    nonzero entries of a row too), or, for mink's own :class:`mink.CollisionAvoidanceLimit`,
+    ``fewest`` None; for qpik's :class:`~qpik.limits.CollisionAvoidanceLimit` and
+    :class:`~qpik.limits.SupportPolygonLimit` the fewest nonzero entries of a row too, from
+    their ``rows_in_play``), or, for mink's own :class:`mink.CollisionAvoidanceLimit`,
     only the rows of the pairs in range (:func:`qpik.limits.collision.mink_collision_rows`: mink's
     rows, bitwise; its other rows are zero with ``h = inf``), ``numbers`` their row numbers
     in mink's and ``fewest`` the fewest nonzero entries of a row (new arrays: not the
@@ -617,6 +621,13 @@ def _inequalities_of(
             G, h, kept, fewest = limit.rows_in_play(configuration, dt)
             if not kept:
                 return None
+            rows = G, h, None, fewest
+        elif (
+            isinstance(limit, SupportPolygonLimit)
+            and type(limit).compute_qp_inequalities is _SUPPORT_ROWS
+        ):
+            # (its rows and the fewest nonzero entries of a row, in one engine call)
+            G, h, fewest = limit.rows_in_play(configuration, dt)
             rows = G, h, None, fewest
         else:
             constraint = limit.compute_qp_inequalities(configuration, dt)

@@ -50,6 +50,18 @@ from ..model.frames import check_model_type, resolve_frame
 
 __all__ = ["SupportPolygonLimit"]
 
+#: Each kind of contact frame's position and rotation arrays in an MjData.
+_PLACEMENT = {
+    FrameType.SITE: ("site_xpos", "site_xmat"),
+    FrameType.BODY: ("xpos", "xmat"),
+    FrameType.GEOM: ("geom_xpos", "geom_xmat"),
+}
+_BAD_FOOTPRINTS = "footprints must hold one finite (k, 3) array of points [m] per contact frame"
+_NO_AREA = (
+    "the contact frames' footprints span no area (collinear or too few points): "
+    "give a footprint, e.g. a sole's corners, or more contact frames"
+)
+
 
 class SupportPolygonLimit(mink.Limit):
     """The CoM's ground projection stays inside the contacts' support polygon.
@@ -101,9 +113,9 @@ class SupportPolygonLimit(mink.Limit):
         self.model = model
         self.margin = float(margin)
         self.gain = float(gain)
-        self.frames = [
-            tuple(resolve_frame(model, frame, argument="contact_frames"))
-            for frame in contact_frames
+        #: Each contact frame as ``(name, frame type, MuJoCo id)``.
+        self.frames: list[tuple[str, FrameType, int]] = [
+            resolve_frame(model, frame, argument="contact_frames") for frame in contact_frames
         ]
         points = np.zeros((1, 2)) if footprint is None else np.asarray(footprint, dtype=float)
         if points.ndim != 2 or points.shape[1] != 2 or not np.all(np.isfinite(points)):
@@ -122,31 +134,52 @@ class SupportPolygonLimit(mink.Limit):
         else:
             self.body = checks.check_index("body", body, model.nbody)
         self._jac = np.empty((3, model.nv))
+        kinds = {kind for _, kind, _ in self.frames}
+        self._one_kind = _PLACEMENT[kinds.pop()] if len(kinds) == 1 else None
+        self._ids = np.array([fid for _, _, fid in self.frames], dtype=np.intp)
+
+    def _placements(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray, list]:
+        """The contact frames' positions ``(F, 3)`` and rotations ``(F, 9)`` (local to
+        world) in ``data``, and their footprints as the engine takes them."""
+        frames = self.frames
+        if self._one_kind is not None:  # (every frame a body, or every one a site, a geom)
+            position, rotation = self._one_kind
+            positions = getattr(data, position)[self._ids]
+            rotations = getattr(data, rotation)[self._ids]
+        else:
+            positions, rotations = np.empty((len(frames), 3)), np.empty((len(frames), 9))
+            for j, (_, kind, fid) in enumerate(frames):
+                position, rotation = _PLACEMENT[kind]
+                positions[j] = getattr(data, position)[fid]
+                rotations[j] = getattr(data, rotation)[fid]
+        footprints = [
+            f if type(f) is np.ndarray and f.dtype == np.float64 and f.flags.c_contiguous
+            else np.ascontiguousarray(f, dtype=float)
+            for f in self.footprints
+        ]  # fmt: skip
+        if len(footprints) != len(frames) or any(
+            f.ndim != 2 or f.shape[1] != 3 for f in footprints
+        ):
+            raise LimitDefinitionError(_BAD_FOOTPRINTS)
+        return positions, rotations, footprints
 
     def support_points(self, configuration: mink.Configuration) -> np.ndarray:
-        """The footprints' points on the ground ``(n, 2)`` [m], world x-y."""
-        data = configuration.data
-        points = []
-        for (_, kind, fid), footprint in zip(self.frames, self.footprints, strict=True):
-            if kind is FrameType.SITE:
-                position, rotation = data.site_xpos[fid], data.site_xmat[fid]
-            elif kind is FrameType.BODY:
-                position, rotation = data.xpos[fid], data.xmat[fid]
-            else:
-                position, rotation = data.geom_xpos[fid], data.geom_xmat[fid]
-            world = position + footprint @ rotation.reshape(3, 3).T
-            points.append(world[:, :2])
-        return np.vstack(points)
+        """The footprints' points on the ground ``(n, 2)`` [m], world x-y: each frame's
+        footprint point ``p`` at ``x + R p`` (the frame's position and rotation), frame by
+        frame (by the engine: ``_engine.limits.support_points``)."""
+        try:
+            return _engine.support_points(*self._placements(configuration.data))
+        except ValueError as exc:  # (a footprint's point not finite)
+            raise LimitDefinitionError(f"{_BAD_FOOTPRINTS} ({exc})") from exc
 
     def hull(self, configuration: mink.Configuration) -> tuple[np.ndarray, np.ndarray]:
-        """Edges of the support polygon: outward unit normals ``(e, 2)`` and offsets
-        ``(e,)`` (inside: ``normals @ p + offsets <= 0``)."""
+        """Edges of the support polygon, the hull of :meth:`support_points`: outward unit
+        normals ``(e, 2)`` and offsets ``(e,)`` [m] (inside: ``normals @ p + offsets <= 0``),
+        counter-clockwise from the lowest-x point. Raises :class:`~qpik.InvalidInput` where
+        the points span no area."""
         normals, offsets = _engine.support_hull(self.support_points(configuration))
         if not len(offsets):
-            raise InvalidInput(
-                "the contact frames' footprints span no area (collinear or too few points): "
-                "give a footprint, e.g. a sole's corners, or more contact frames"
-            )
+            raise InvalidInput(_NO_AREA)
         return normals, offsets
 
     def com(self, configuration: mink.Configuration) -> np.ndarray:
@@ -159,16 +192,32 @@ class SupportPolygonLimit(mink.Limit):
         normals, offsets = self.hull(configuration)
         return float(-(normals @ self.com(configuration)[:2] + offsets).max())
 
+    def rows_in_play(
+        self, configuration: mink.Configuration, dt: float
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """``(G, h, fewest)``: :meth:`compute_qp_inequalities`' rows and the fewest nonzero
+        entries of a row, in one engine call (``_engine.limits.support_rows``: the points,
+        their hull and the rows ``a_e^T J_xy dq <= gain (-margin - o_e - a_e^T c_xy)``)."""
+        data = configuration.data
+        mujoco.mj_jacSubtreeCom(configuration.model, data, self._jac, self.body)
+        com = data.subtree_com[self.body]
+        try:
+            G, h, fewest = _engine.support_rows(
+                *self._placements(data), self._jac, float(com[0]), float(com[1]),
+                float(self.margin), float(self.gain),
+            )  # fmt: skip
+        except ValueError as exc:  # (a footprint's point not finite)
+            raise LimitDefinitionError(f"{_BAD_FOOTPRINTS} ({exc})") from exc
+        if not len(h):
+            raise InvalidInput(_NO_AREA)
+        return G, h, fewest
+
     def compute_qp_inequalities(
         self, configuration: mink.Configuration, dt: float
     ) -> mink.Constraint:
         """``G dq <= h`` [m], one row per edge of the support polygon (``dt`` unused:
         both sides are displacements)."""
-        normals, offsets = self.hull(configuration)
-        mujoco.mj_jacSubtreeCom(configuration.model, configuration.data, self._jac, self.body)
-        com_xy = configuration.data.subtree_com[self.body, :2]
-        G = normals @ self._jac[:2]
-        h = self.gain * (-self.margin - offsets - normals @ com_xy)
+        G, h, _ = self.rows_in_play(configuration, dt)
         return mink.Constraint(G=G, h=h)
 
 

@@ -149,3 +149,76 @@ def test_the_limit_raises_its_typed_error_without_area():
     limit = SupportPolygonLimit(model, ["s1", "s2"])
     with pytest.raises(qpik.InvalidInput, match="span no area"):
         limit.hull(qpik.Configuration(model))
+
+
+def test_points_and_rows_are_the_formulas_in_numpy(rng):
+    # Frames of every kind (a body, a site, a geom): the engine's ground points, hull and rows
+    # against the same formulas in NumPy.
+    xml = """<mujoco><worldbody><body name="b" pos="0 0 1"><freejoint/>
+      <geom name="g" type="box" size="0.1 0.05 0.02" pos="0.3 0 -1"/>
+      <site name="s" pos="-0.3 0.2 -1"/>
+      <body name="arm"><joint name="j" axis="0 1 0"/><geom size="0.05" pos="0.5 0 0"/></body>
+    </body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    limit = SupportPolygonLimit(
+        model, ["b", "s", "g"], margin=0.01, footprint=[[0.05, 0.02], [-0.05, 0.02], [0.0, -0.03]]
+    )
+    configuration = qpik.Configuration(model)
+    for _ in range(5):
+        q = configuration.q.copy()
+        q[:3] += rng.normal(size=3) * 0.05
+        q[3:7] = rng.normal(size=4) * 0.1 + [1.0, 0.0, 0.0, 0.0]
+        q[3:7] /= np.linalg.norm(q[3:7])
+        q[7] = rng.uniform(-1.0, 1.0)
+        configuration.update(q)
+        data = configuration.data
+        placed = [(data.xpos[1], data.xmat[1]), (data.site_xpos[0], data.site_xmat[0]),
+                  (data.geom_xpos[0], data.geom_xmat[0])]  # fmt: skip
+        numpy_points = np.vstack(
+            [(x + f @ R.reshape(3, 3).T)[:, :2] for (x, R), f in zip(placed, limit.footprints)]
+        )
+        np.testing.assert_allclose(limit.support_points(configuration), numpy_points, atol=1e-15)
+        normals, offsets = limit.hull(configuration)
+        G, h, fewest = limit.rows_in_play(configuration, 0.01)
+        jac = np.empty((3, model.nv))
+        mujoco.mj_jacSubtreeCom(model, data, jac, 1)
+        np.testing.assert_allclose(G, normals @ jac[:2], atol=1e-15)
+        com = data.subtree_com[1, :2]
+        np.testing.assert_allclose(h, 0.95 * (-0.01 - offsets - normals @ com), atol=1e-15)
+        assert fewest == np.count_nonzero(G, axis=1).min()
+        rows = limit.compute_qp_inequalities(configuration, 0.01)
+        assert rows.G.tobytes() == G.tobytes() and rows.h.tobytes() == h.tobytes()
+
+
+def test_the_engine_s_support_calls_check_their_arrays():
+    positions, rotations = np.zeros((2, 3)), np.tile(np.eye(3).ravel(), (2, 1))
+    square = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    with pytest.raises(ValueError, match="one footprint a frame"):
+        engine.support_points(positions, rotations, [square])
+    with pytest.raises(ValueError, match=r"\(F, 9\)"):
+        engine.support_points(positions, rotations[:, :4], [square, square])
+    with pytest.raises(ValueError, match=r"\(k, 3\)"):
+        engine.support_points(positions, rotations, [square, square[:, :2]])
+    with pytest.raises(ValueError, match="jac"):
+        engine.support_rows(positions, rotations, [square, square], np.zeros((1, 4)), 0, 0, 0, 1)
+    G, h, fewest = engine.support_rows(
+        positions, rotations, [square, square[:1]], np.ones((3, 4)), 0.5, 0.5, 0.0, 1.0
+    )
+    assert G.shape == (4, 4) and h.shape == (4,) and fewest == 4
+
+
+def test_footprints_changed_to_a_bad_shape_raise_a_typed_error():
+    xml = """<mujoco><worldbody><body name="b"><freejoint/><geom size="0.1"/>
+      <site name="s1" pos="0 0 0"/><site name="s2" pos="0.3 0 0"/></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    limit = SupportPolygonLimit(model, ["s1", "s2"], footprint=[[0.1, 0.1], [0.1, -0.1]])
+    configuration = qpik.Configuration(model)
+    assert len(limit.hull(configuration)[0]) == 4
+    for bad in (
+        [np.zeros((2, 2)), np.zeros((2, 3))],
+        [np.zeros((2, 3))],
+        [np.full((2, 3), np.nan)] * 2,
+    ):
+        limit.footprints = bad
+        with pytest.raises(qpik.LimitDefinitionError, match="footprints"):
+            limit.hull(configuration)

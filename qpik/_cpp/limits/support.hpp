@@ -109,4 +109,45 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
     return e;
 }
 
+// The footprints' points on the ground (x, y) [m], world: frame f at position pos (F, 3) with
+// rotation rot (F, 9, row-major, local to world) carries counts[f] points fps[f] (k, 3) in
+// its own axes; point k of it lands at pos_f + R_f p_k, of which x and y are written into
+// out (sum counts, 2), frame by frame.
+inline void support_points(const double* pos, const double* rot, i64 F, const double* const* fps,
+                           const i64* counts, double* out) {
+    for (i64 f = 0; f < F; ++f) {
+        const double* R = rot + 9 * f;
+        const double px = pos[3 * f], py = pos[3 * f + 1];
+        const double* fp = fps[f];
+        for (i64 k = 0; k < counts[f]; ++k, fp += 3, out += 2) {
+            out[0] = px + ((R[0] * fp[0] + R[1] * fp[1]) + R[2] * fp[2]);
+            out[1] = py + ((R[3] * fp[0] + R[4] * fp[1]) + R[5] * fp[2]);
+        }
+    }
+}
+
+// The support polygon's rows in displacement units [m], one per edge of the hull of the n
+// ground points pts (support_hull): G_e = a_e^T J_xy (jac: the CoM Jacobian's x and y rows,
+// each nv long) and h_e = gain (-margin - o_e - a_e^T c_xy), into G (n, nv) and h (n,) (the
+// first e rows written); their count e (0: no polygon) and, in fewest, the fewest nonzero
+// entries of a row (nv where e = 0).
+inline i64 support_rows(const double* pts, i64 n, const double* jac_x, const double* jac_y, i64 nv, double cx,
+                        double cy, double margin, double gain, double* normals, double* offsets, double* G,
+                        double* h, i64& fewest) {
+    fewest = nv;
+    const i64 e = support_hull(pts, n, normals, offsets);
+    for (i64 r = 0; r < e; ++r) {
+        const double ax = normals[2 * r], ay = normals[2 * r + 1];
+        double* g = G + r * nv;
+        i64 count = 0;
+        for (i64 v = 0; v < nv; ++v) {
+            g[v] = ax * jac_x[v] + ay * jac_y[v];
+            count += g[v] != 0.0;
+        }
+        fewest = std::min(fewest, count);
+        h[r] = gain * ((-margin - offsets[r]) - (ax * cx + ay * cy));
+    }
+    return e;
+}
+
 }  // namespace qpik::limits
