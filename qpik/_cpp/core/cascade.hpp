@@ -3995,7 +3995,7 @@ inline i64 rows_in_reach(CMatRef G, CVecRef h, CVecRef lb, CVecRef ub, IVec& kep
     const i64 p = G.rows, n = G.cols;
     kept.clear();
     for (i64 j = 0; j < p; ++j) {
-        if (!(h[j] < kBig)) continue;  // absent (h NaN is kept below: the cascade's to judge)
+        if (h[j] >= kBig) continue;  // absent (h NaN is kept below: the cascade's to judge)
         const double* gj = G.row(j);
         double reach = 0.0, size = 0.0, g1 = 0.0;
         bool bounded = std::isfinite(h[j]);
