@@ -48,6 +48,10 @@ struct ReducedQP {
     Mat C;
     Vec lo;
     Vec hi;
+    // H's diagonal as mtm_into made it, before the regularisation was added (hraw_ok: H and
+    // hraw are the current level's; normal_factor makes N = (A Z)^T A Z + s^2 I from them)
+    Vec hraw;
+    bool hraw_ok = false;
 };
 
 namespace detail {
@@ -1479,7 +1483,12 @@ inline double level_damping(CMatRef A, CVecRef b, CVecRef w, const double* d, do
 // H = (A Z)^T A Z with reg on its diagonal (reduced_objective's, the same bits).
 inline void make_h(CMatRef AZ, double reg, ReducedQP& out) {
     mtm_into(AZ, out.H);
-    for (i64 i = 0; i < AZ.cols; ++i) out.H(i, i) += reg;
+    out.hraw.resize(static_cast<size_t>(AZ.cols));
+    for (i64 i = 0; i < AZ.cols; ++i) {
+        out.hraw[i] = out.H(i, i);
+        out.H(i, i) += reg;
+    }
+    out.hraw_ok = true;
 }
 
 // The objective (H, c) of reduced_qp.
@@ -1495,6 +1504,7 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
                               bool defer = false) {
     i64 r = Z.cols;
     if (h_later) *h_later = false;
+    out.hraw_ok = false;  // (until H is made below, or by make_h)
     // A d and Z^T d are kept (ws.Ad, ws.c2) for ls_form, free_answer and exact_level: the
     // same products they would make again.
     Vec& Ad = ws.Ad;
@@ -1564,7 +1574,12 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
         }
         mtm_into(AZ, out.H);
     }
-    for (i64 i = 0; i < r; ++i) out.H(i, i) += reg;
+    out.hraw.resize(static_cast<size_t>(r));
+    for (i64 i = 0; i < r; ++i) {
+        out.hraw[i] = out.H(i, i);
+        out.H(i, i) += reg;
+    }
+    out.hraw_ok = true;
 }
 
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
@@ -2256,7 +2271,17 @@ inline bool normal_factor(const LSForm& ls, const ReducedQP& qp, double rho, i64
         L = made->L.cref();
     } else {
         Mat& N = es.N;  // eqp_ls's N and BW, unused with no rows until the QR
-        mtm_into(AZ, N);
+        if (qp.hraw_ok && qp.H.rows == r && qp.H.cols == r && static_cast<i64>(qp.hraw.size()) == r) {
+            // (A Z)^T A Z from qp.H, made by the same mtm_into of the same A Z: its entries off
+            // the diagonal, and on it mtm_into's before the regularisation (qp.hraw): the same
+            // bits as mtm_into here, without its m r^2 products (s * s != rho by an ulp, or a
+            // floor added to H: its factor not N's)
+            shape(N, r, r);
+            std::memcpy(N.a.data(), qp.H.a.data(), static_cast<size_t>(r * r) * sizeof(double));
+            for (i64 i = 0; i < r; ++i) N(i, i) = qp.hraw[i];
+        } else {
+            mtm_into(AZ, N);
+        }
         for (i64 i = 0; i < r; ++i) N(i, i) += s2;
         Mat& Lm = es.BW;
         Lm.zeros(r, r);
@@ -2401,6 +2426,7 @@ inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
 // eps |B|^2 / s^2 relative on an ill-conditioned one (6e-12 with s = 1e-3, |B| = 0.75:
 // tests/fixtures/core.npz's case 184, r = 5, past that test's 1e-12).
 constexpr i64 kEqCandidateRows = 16;
+static_assert(kEqCandidateRows <= kForwardRows, "eq_candidate solves its rows by forward_rows_into");
 inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
                          const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u) {
     i64 r = ls.B.cols;
@@ -2410,22 +2436,21 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     CMatRef AZ = ls.B.cref().rows_slice(0, m);
     double s = ls.B(m, 0);
     const size_t rs = static_cast<size_t>(r), qs = static_cast<size_t>(q);
-    // V's rows L^-1 n_j (eV: q x r), and rhs_j
+    // V's rows L^-1 n_j (eV: q x r; forward_into's bits, the q solves side by side), and rhs_j
     Mat& V = es.eV;
     shape(V, q, r);
-    Vec& col = es.ecol;
-    col.resize(rs);
+    Vec& col = es.ecol;  // the normals n_j (q x r, by rows)
+    col.resize(qs * rs);
     Vec& w = es.wy;
     Vec& rhs = es.erhs;
     rhs.resize(qs);
     for (i64 j = 0; j < q; ++j) {
         double side = static_cast<double>(sides[j]);
         const double* cj = qp.C.row(rows[j]);
-        for (i64 i = 0; i < r; ++i) col[i] = cj[i] * side;
-        forward_into(L, col, w);
-        std::memcpy(V.row(j), w.data(), rs * sizeof(double));
+        for (i64 i = 0; i < r; ++i) col[j * r + i] = cj[i] * side;
         rhs[j] = rhs_of(CVecRef(qp.lo), CVecRef(qp.hi), rows[j], sides[j]);
     }
+    forward_rows_into(L, col.data(), q, r, V.row(0));
     // S = V V^T (its lower triangle) and its Cholesky factor in place (eS, q x q by rows)
     Vec& S = es.eS;
     S.assign(qs * qs, 0.0);

@@ -619,6 +619,39 @@ inline void forward_into(CMatRef L, const Vec& b, Vec& x) {
     }
 }
 
+// forward_into for q right-hand sides at once: row j of X (q x n, row-major, stride n) is
+// L^-1 (row j of B), each by forward_into's own operations in its order (the same bits); the
+// right-hand sides interleaved, so that their sums' chains run side by side (a triangular
+// solve is bound by its one chain's latency). q <= kForwardRows.
+constexpr i64 kForwardRows = 16;
+inline void forward_rows_into(CMatRef L, const double* B, i64 q, i64 n, double* X) {
+    using namespace simd;
+    v2d acc[kForwardRows];
+    i64 i = 0;
+    for (; i + 2 <= n; i += 2) {
+        const double* l0 = L.row(i);
+        const double* l1 = L.row(i + 1);
+        for (i64 j = 0; j < q; ++j) acc[j] = v2d{B[j * n + i], B[j * n + i + 1]};
+        for (i64 k = 0; k < i; ++k) {
+            const v2d lk = v2d{l0[k], l1[k]};
+            for (i64 j = 0; j < q; ++j) acc[j] -= lk * splat(X[j * n + k]);
+        }
+        for (i64 j = 0; j < q; ++j) {
+            double* x = X + j * n;
+            x[i] = acc[j][0] / l0[i];
+            x[i + 1] = (acc[j][1] - l1[i] * x[i]) / l1[i + 1];
+        }
+    }
+    for (; i < n; ++i) {
+        for (i64 j = 0; j < q; ++j) {
+            double* x = X + j * n;
+            double s = B[j * n + i];
+            for (i64 k = 0; k < i; ++k) s -= L(i, k) * x[k];
+            x[i] = s / L(i, i);
+        }
+    }
+}
+
 inline Vec forward_vec(CMatRef L, const Vec& b) {
     Vec x;
     forward_into(L, b, x);
