@@ -858,8 +858,7 @@ def talos_peers(n_steps: int = 300) -> None:
     ground = support.support_points(probe)
     polygon = ground[ConvexHull(ground).vertices]  # counter-clockwise corners
 
-    def placo_setup(with_polygon: bool):
-        robot = _placo_robot(urdf)
+    def placo_setup(robot, with_polygon: bool):
         solver = placo.KinematicsSolver(robot)
         solver.enable_joint_limits(True)
         solver.enable_velocity_limits(True)
@@ -888,9 +887,9 @@ def talos_peers(n_steps: int = 300) -> None:
         assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
         return robot, solver, com_task, hand_tasks
 
-    mapping = _PlacoMap(model, _placo_robot(urdf), floating=True)
-    placos = {"placo": placo_setup(False), "placos": placo_setup(True)}
-    robot = placos["placo"][0]
+    robot = _placo_robot(urdf)
+    mapping = _PlacoMap(model, robot, floating=True)
+    placos = {"placo": placo_setup(robot, False), "placos": placo_setup(_placo_robot(urdf), True)}
 
     names = ("qpik", "qpik1", "qpikp", "qpiks", "mink")
     configs = {name: qpik.Configuration(model, home) for name in names}
@@ -903,11 +902,12 @@ def talos_peers(n_steps: int = 300) -> None:
         "placos": "PlaCo, the same + CoM polygon",
         "mink": "mink + daqp, 1 weighted level",
     }
-    binding = dict.fromkeys(label.values(), 0)  # steps where the polygon binds
+    binding = 0  # qpik's steps where the polygon binds
     times = {name: [] for name in label.values()}
     errors = {name: [] for name in label.values()}
     failed = dict.fromkeys(label.values(), 0)
-    margins: dict = {name: [] for name in label.values()}  # the CoM's margin after each step
+    # the CoM's margin after each step of the methods that hold the polygon
+    margins: dict = {label["qpiks"]: [], label["placos"]: []}
     measure = qpik.Configuration(model, home)
     # The dofs whose motion moves the feet: the free joint's and every joint above a sole.
     legs = set()
@@ -923,6 +923,7 @@ def talos_peers(n_steps: int = 300) -> None:
     dq = np.zeros(model.nv)
 
     def step(name, k):
+        nonlocal binding
         if name in placos:
             robot, solver, com_task, hand_tasks = placos[name]
             com, hand_targets = targets_at(k)
@@ -942,15 +943,12 @@ def talos_peers(n_steps: int = 300) -> None:
         t0 = time.perf_counter()
         if name in solvers:
             result = solvers[name][0].step(c, DT)
-            elapsed = time.perf_counter() - t0
             v = result.velocity
-            if name == "qpiks":
-                binding[label[name]] += any("SupportPolygon" in a for a in result.active_limits)
-            c.update(c.integrate(v, DT))
-            return elapsed, c.q
         else:
             v = mink.solve_ik(c, flat, DT, "daqp", damping=1e-6, limits=limits)
         elapsed = time.perf_counter() - t0
+        if name == "qpiks":
+            binding += any("SupportPolygon" in a for a in result.active_limits)
         c.update(c.integrate(v, DT))
         return elapsed, c.q
 
@@ -976,7 +974,8 @@ def talos_peers(n_steps: int = 300) -> None:
                 for h, t in zip(hands, hand_targets)
             ]
             errors[label[name]].append((foot_err, com_err, *hand_err))
-            margins[label[name]].append(support.com_margin(measure))
+            if label[name] in margins:
+                margins[label[name]].append(support.com_margin(measure))
     extra = {}
     h = n_steps // 2
     for name, rows in errors.items():
@@ -992,7 +991,7 @@ def talos_peers(n_steps: int = 300) -> None:
             f"{1e6 * np.median(times[name][:h]):.1f} / out of reach "
             f"{1e6 * np.median(times[name][h:]):.1f}"
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
-            + (f"; the polygon binds on {binding[name]} steps" if name == label["qpiks"] else "")
+            + (f"; the polygon binds on {binding} steps" if name == label["qpiks"] else "")
             + (
                 f"; CoM margin min {1e3 * min(margins[name]):.1f} mm"
                 if name in (label["qpiks"], label["placos"])

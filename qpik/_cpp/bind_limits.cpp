@@ -121,7 +121,7 @@ void bind_limits(nb::module_& m) {
         i64 n = 0;
         for (const In2& fp : footprints) {
             require(fp.shape(0) == 0 || fp.shape(1) == 3, "support: a footprint must be (k, 3)");
-            const size_t k = fp.shape(0) * (fp.shape(0) ? fp.shape(1) : 0);
+            const size_t k = fp.shape(0) * fp.shape(1);
             for (size_t i = 0; i < k; ++i) require(std::isfinite(fp.data()[i]), "support: a footprint is not finite");
             n += static_cast<i64>(fp.shape(0));
         }

@@ -46,16 +46,10 @@ from .._engine import limits as _engine
 from ..core import checks
 from ..errors import InvalidArgumentType, InvalidInput, LimitDefinitionError
 from ..model.configuration import FrameType
-from ..model.frames import check_model_type, resolve_frame
+from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, check_model_type, resolve_frame
 
 __all__ = ["SupportPolygonLimit"]
 
-#: Each kind of contact frame's position and rotation arrays in an MjData.
-_PLACEMENT = {
-    FrameType.SITE: ("site_xpos", "site_xmat"),
-    FrameType.BODY: ("xpos", "xmat"),
-    FrameType.GEOM: ("geom_xpos", "geom_xmat"),
-}
 _BAD_FOOTPRINTS = "footprints must hold one finite (k, 3) array of points [m] per contact frame"
 _NO_AREA = (
     "the contact frames' footprints span no area (collinear or too few points): "
@@ -135,7 +129,8 @@ class SupportPolygonLimit(mink.Limit):
             self.body = checks.check_index("body", body, model.nbody)
         self._jac = np.empty((3, model.nv))
         kinds = {kind for _, kind, _ in self.frames}
-        self._one_kind = _PLACEMENT[kinds.pop()] if len(kinds) == 1 else None
+        one = kinds.pop() if len(kinds) == 1 else None
+        self._one_kind = None if one is None else (FRAME_POSITIONS[one], FRAME_ROTATIONS[one])
         self._ids = np.array([fid for _, _, fid in self.frames], dtype=np.intp)
 
     def _placements(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray, list]:
@@ -149,9 +144,8 @@ class SupportPolygonLimit(mink.Limit):
         else:
             positions, rotations = np.empty((len(frames), 3)), np.empty((len(frames), 9))
             for j, (_, kind, fid) in enumerate(frames):
-                position, rotation = _PLACEMENT[kind]
-                positions[j] = getattr(data, position)[fid]
-                rotations[j] = getattr(data, rotation)[fid]
+                positions[j] = getattr(data, FRAME_POSITIONS[kind])[fid]
+                rotations[j] = getattr(data, FRAME_ROTATIONS[kind])[fid]
         footprints = [
             f if type(f) is np.ndarray and f.dtype == np.float64 and f.flags.c_contiguous
             else np.ascontiguousarray(f, dtype=float)

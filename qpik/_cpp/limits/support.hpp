@@ -95,10 +95,8 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
     }
     const double extent = std::max(hi[0] - lo[0], hi[1] - lo[1]);
     if (!(area > 2.0 * kTurn * extent * extent)) return 0;
-    std::vector<i64> hull(static_cast<size_t>(e));
-    for (i64 k = 0; k < e; ++k) hull[static_cast<size_t>(k)] = chain[static_cast<size_t>(k)].index;
     for (i64 k = 0; k < e; ++k) {
-        const i64 a = hull[static_cast<size_t>(k)], b = hull[static_cast<size_t>((k + 1) % e)];
+        const i64 a = chain[static_cast<size_t>(k)].index, b = chain[static_cast<size_t>((k + 1) % e)].index;
         const double dx = pts[2 * b] - pts[2 * a], dy = pts[2 * b + 1] - pts[2 * a + 1];
         const double len = std::hypot(dx, dy);
         const double nx = dy / len, ny = -dx / len;  // outward: the interior is on the left
