@@ -49,6 +49,14 @@ and the core agree on); also the per-level statuses over every state.
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
     python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
     python benchmarks/step_time.py --peers talos [--talos-steps 300]   # the Talos peers alone
+    python benchmarks/step_time.py --instructions [--count-states 100]  # valgrind's counts
+
+* **Instructions per step** (``--instructions``; needs valgrind): the Panda and Talos peer
+  problems (qpik's strict levels, qpik on PlaCo's problem, PlaCo), each method alone in its
+  own process, the same states for all (Talos: qpik's own closed-loop configurations),
+  counted by valgrind (:func:`count_instructions`): a figure no machine load moves, to
+  compare two versions of qpik by, and qpik's work with PlaCo's (the times above add how
+  fast each code's instructions run). About a minute a method.
 """
 
 from __future__ import annotations
@@ -1012,6 +1020,241 @@ def talos_peers(n_steps: int = 300) -> None:
     _print_update_costs(configs["qpik"], home, robot, mapping)
 
 
+# ----------------------------------------------------------------- instruction counts
+#: The methods of --instructions, per case: (key, label).
+COUNT_METHODS = {
+    "panda": (
+        ("qpik", "qpik IKSolver.step, 2 levels + mimic"),
+        ("qpik2", "qpik IKSolver.step, couplings=False"),
+        ("placo", "PlaCo solve(True), frame hard/posture soft"),
+    ),
+    "talos": (
+        ("qpik", "qpik IKSolver.step, 4 strict levels"),
+        ("qpikp", "qpik 2 levels: feet / PlaCo's soft"),
+        ("placo", "PlaCo solve(True), feet hard + 3 soft"),
+    ),
+}
+
+
+def _count_case(case: str, method: str, n: int):
+    """The states of an --instructions case (``n`` of them) and, for ``method``,
+    ``(set_state(k), step())``: ``set_state`` updates the method's kinematics and targets at
+    state ``k`` (counted in both runs), ``step`` is the call measured. Panda: the erd Panda's
+    pose task over a posture, random states of the ``free`` regime (as :func:`panda_peers`).
+    Talos: the floating erd Talos' feet / CoM / hands / posture of :func:`talos_peers`, at the
+    configurations of qpik's own closed loop (the left hand's target out of reach in the
+    second half), the same states for every method."""
+    import placo
+
+    from qpik.robots import locate_robot
+    from qpik.tasks import ComTask
+
+    rng = np.random.default_rng(0)
+    name = "erd:panda" if case == "panda" else "erd:talos"
+    floating = case == "talos"
+    model = qpik.load_robot(name, floating_base=floating) if floating else qpik.load_robot(name)
+    urdf = locate_robot(name)
+    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+    robot = _placo_robot(urdf)
+    mapping = _PlacoMap(model, robot, floating=floating)
+    configuration = qpik.Configuration(model)
+    if case == "panda":
+        frame = "panda_hand_tcp"
+        home = configuration.mid_q()
+        states = []
+        for _ in range(n):
+            q = np.clip(
+                home + rng.uniform(-0.6, 0.6, model.nv), configuration.lower, configuration.upper
+            )
+            configuration.update(q)
+            p, R = configuration.frame_pose(frame, "body")
+            states.append(
+                (
+                    q,
+                    p + rng.uniform(-1, 1, 3) * 0.001,
+                    R,
+                    np.clip(q + 1e-4, configuration.lower, configuration.upper),
+                )
+            )
+        if method.startswith("qpik"):
+            tasks = (
+                FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
+                PostureTask(model, 0.1),
+            )
+            solver = qpik.IKSolver(
+                model, [[tasks[0]], [tasks[1]]], limits, couplings=method == "qpik"
+            )
+
+            def set_state(k):
+                q, p, R, posture = states[k]
+                configuration.update(q)
+                tasks[0].set_target(
+                    mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p)
+                )
+                tasks[1].set_target(posture)
+
+            return set_state, lambda: solver.step(configuration, DT)
+        solver = placo.KinematicsSolver(robot)
+        solver.mask_fbase(True)
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        solver.dt = DT
+        task = solver.add_frame_task(frame, np.eye(4))
+        task.configure("frame", "hard", 1.0, 1.0)
+        posture_task = solver.add_joints_task()
+        posture_task.configure("posture", "soft", 0.01)
+
+        def set_state(k):
+            q, p, R, posture = states[k]
+            robot.state.q = mapping.to_placo(q)
+            robot.update_kinematics()
+            task.T_world_frame = _pose(p, R)
+            posture_task.set_joints(
+                {j: float(posture[a]) for j, a in zip(mapping.names, mapping.mj_q)}
+            )
+
+        return set_state, lambda: solver.solve(True)
+    home = model.key_qpos[0].copy()
+    feet = ("left_sole_link", "right_sole_link")
+    hands = ("gripper_left_base_link", "gripper_right_base_link")
+    configuration.update(home)
+    foot_poses = [configuration.frame_pose(f, "body") for f in feet]
+    com0 = configuration.data.subtree_com[1].copy()
+    hand_starts = [configuration.frame_pose(h, "body")[0] for h in hands]
+    half = 0.5 * abs(foot_poses[0][0][1] - foot_poses[1][0][1])
+
+    def targets_at(k):
+        com = com0 + np.array([0.0, 0.5 * half * np.sin(2 * np.pi * k / n), 0.0])
+        angle = 2 * np.pi * k / 100
+        circle = 0.05 * np.array([0.0, np.cos(angle) - 1.0, np.sin(angle)])
+        away = np.array([0.6, 0.3, 0.2]) if k >= n // 2 else np.zeros(3)
+        return com, [hand_starts[0] + circle + away, hand_starts[1] + circle]
+
+    def stack(com_cost):
+        foot = [FrameTask(f, "body", position_cost=1.0, orientation_cost=1.0) for f in feet]
+        for t, (p, R) in zip(foot, foot_poses):
+            t.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p))
+        hand = [FrameTask(h, "body", position_cost=1.0, orientation_cost=0.0) for h in hands]
+        posture = PostureTask(model, 0.1)
+        posture.set_target(home)
+        return [foot, [ComTask(com_cost)], hand, [posture]]
+
+    def set_targets(levels, k):
+        com, hand_targets = targets_at(k)
+        levels[1][0].set_target(com)
+        for t, target in zip(levels[2], hand_targets):
+            t.set_target(mink.SE3.from_translation(target))
+
+    # The states: qpik's own closed loop (four strict levels) from half_sitting.
+    levels = stack(1.0)
+    reference = qpik.IKSolver(model, levels, limits)
+    states = []
+    for k in range(n):
+        states.append(configuration.q.copy())
+        set_targets(levels, k)
+        configuration.update(
+            configuration.integrate(reference.step(configuration, DT).velocity, DT)
+        )
+    if method.startswith("qpik"):
+        levels = stack(1.0 if method == "qpik" else 10.0)
+        stacked = levels if method == "qpik" else [levels[0], levels[1] + levels[2] + levels[3]]
+        solver = qpik.IKSolver(model, stacked, limits)
+
+        def set_state(k):
+            configuration.update(states[k])
+            set_targets(levels, k)
+
+        return set_state, lambda: solver.step(configuration, DT)
+    solver = placo.KinematicsSolver(robot)
+    solver.enable_joint_limits(True)
+    solver.enable_velocity_limits(True)
+    solver.dt = DT
+    for f, (p, R) in zip(feet, foot_poses):
+        solver.add_frame_task(f, _pose(p, R)).configure(f, "hard", 1.0, 1.0)
+    com_task = solver.add_com_task(com0)
+    com_task.configure("com", "soft", 100.0)
+    hand_tasks = []
+    for h, p in zip(hands, hand_starts):
+        hand_tasks.append(solver.add_position_task(h, p))
+        hand_tasks[-1].configure(h, "soft", 1.0)
+    posture_task = solver.add_joints_task()
+    posture_task.set_joints({j: float(home[a]) for j, a in zip(mapping.names, mapping.mj_q)})
+    posture_task.configure("posture", "soft", 0.01)
+
+    def set_state(k):
+        robot.state.q = mapping.to_placo(states[k])
+        robot.update_kinematics()
+        com, hand_targets = targets_at(k)
+        com_task.target_world = com
+        for t, target in zip(hand_tasks, hand_targets):
+            t.target_world = target
+
+    return set_state, lambda: solver.solve(True)
+
+
+def _count_child(case: str, method: str, mode: str, n: int) -> None:
+    """The process valgrind counts: the case set up, then ``n`` states, each set and (mode
+    ``step``) stepped; mode ``base`` sets them only (the difference is the steps' count)."""
+    set_state, step = _count_case(case, method, n)
+    set_state(0)  # one step in both runs: the first one's set-up is not counted
+    try:
+        step()
+    except Exception:
+        pass
+    for k in range(n):
+        set_state(k)
+        if mode == "step":
+            try:
+                step()
+            except Exception:  # PlaCo raises where a hard task cannot be met
+                pass
+
+
+def count_instructions(cases: list, n: int) -> None:
+    """Instructions per step of each method, counted by valgrind (callgrind's instruction
+    count of the whole process, the run that steps less the run that only sets the states:
+    the same set-up, the same states and kinematics updates). A count is a property of the
+    code and the inputs, not of the machine's load: the figure to compare two versions by,
+    or qpik with PlaCo (which runs in the same process kind); it is not a time (instructions
+    per cycle differ between codes)."""
+    import os
+    import re
+    import shutil
+    import subprocess
+    import sys
+
+    if shutil.which("valgrind") is None:
+        print("\ninstruction counts skipped: valgrind is not installed")
+        return
+    env = dict(os.environ, PYTHONHASHSEED="0", OPENBLAS_NUM_THREADS="1")
+
+    def collected(case, method, mode):
+        cmd = [
+            "valgrind",
+            "--tool=callgrind",
+            "--callgrind-out-file=/dev/null",
+            sys.executable,
+            __file__,
+            "--count-child",
+            case,
+            method,
+            mode,
+            str(n),
+        ]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stderr
+        found = re.findall(r"Collected\s*:\s*(\d+)", out)
+        return int(found[-1])
+
+    for case in cases:
+        print(f"\ninstructions per step, {case} ({n} states; valgrind, each method alone):")
+        counts = {}
+        for key, label in COUNT_METHODS[case]:
+            counts[label] = (collected(case, key, "step") - collected(case, key, "base")) / n
+        ref = counts[COUNT_METHODS[case][-1][1]]
+        for label, value in counts.items():
+            print(f"  {label:44s} {value:12,.0f}   /PlaCo {value / ref:5.2f}")
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", type=int, default=400)
@@ -1027,7 +1270,22 @@ def main(argv=None) -> None:
     )
     parser.add_argument("--peer-states", type=int, default=400, help="erd:panda states a regime")
     parser.add_argument("--talos-steps", type=int, default=300, help="closed-loop Talos steps")
+    parser.add_argument(
+        "--instructions",
+        action="store_true",
+        help="instructions per step of qpik and PlaCo (Panda, Talos), counted by valgrind "
+        "(a figure no machine load changes), then exit",
+    )
+    parser.add_argument("--count-states", type=int, default=100, help="states a count")
+    parser.add_argument("--count-child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.count_child:
+        case, method, mode, n = args.count_child
+        _count_child(case, method, mode, int(n))
+        return
+    if args.instructions:
+        count_instructions(["panda", "talos"], args.count_states)
+        return
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     model = qpik.load_robot("panda")
