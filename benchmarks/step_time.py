@@ -1226,6 +1226,9 @@ def count_instructions(cases: list, n: int) -> None:
     if shutil.which("valgrind") is None:
         print("\ninstruction counts skipped: valgrind is not installed")
         return
+    if peers_found().get("placo") is None:
+        print("\ninstruction counts skipped: PlaCo is not installed (pip install 'qpik[compare]')")
+        return
     env = dict(os.environ, PYTHONHASHSEED="0", OPENBLAS_NUM_THREADS="1")
 
     def collected(case, method, mode):
@@ -1241,18 +1244,27 @@ def count_instructions(cases: list, n: int) -> None:
             mode,
             str(n),
         ]
-        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stderr
-        found = re.findall(r"Collected\s*:\s*(\d+)", out)
+        run = subprocess.run(cmd, env=env, capture_output=True, text=True)
+        found = re.findall(r"Collected\s*:\s*(\d+)", run.stderr)
+        if run.returncode != 0 or not found:
+            tail = [line for line in run.stderr.splitlines() if not line.startswith("==")][-3:]
+            print(f"  {case} {method} ({mode}): the counted run failed: {' / '.join(tail)}")
+            return None
         return int(found[-1])
 
     for case in cases:
         print(f"\ninstructions per step, {case} ({n} states; valgrind, each method alone):")
         counts = {}
         for key, label in COUNT_METHODS[case]:
-            counts[label] = (collected(case, key, "step") - collected(case, key, "base")) / n
+            step, base = collected(case, key, "step"), collected(case, key, "base")
+            counts[label] = None if step is None or base is None else (step - base) / n
         ref = counts[COUNT_METHODS[case][-1][1]]
         for label, value in counts.items():
-            print(f"  {label:44s} {value:12,.0f}   /PlaCo {value / ref:5.2f}")
+            if value is None:
+                print(f"  {label:44s} {'failed':>12s}")
+                continue
+            ratio = f"/PlaCo {value / ref:5.2f}" if ref else ""
+            print(f"  {label:44s} {value:12,.0f}   {ratio}")
 
 
 def main(argv=None) -> None:
