@@ -494,6 +494,47 @@ def _report_peers(title, times, references, extra=None) -> None:
         print(line)
 
 
+def _panda_states(configuration, home, frame: str, n: int, rng, regime: str) -> list:
+    """``n`` states ``(q, p, R, posture)`` of the Panda peers' regime ``regime``: ``q``
+    uniform within 0.6 rad of ``home`` (clipped to the limits), the frame's target its pose
+    there moved by up to 1 mm and 1 mrad (``both bind``: 0.3 m and 0.5 rad), the posture
+    target ``q`` moved by 1e-4 rad (``both bind``: up to 1.5 rad)."""
+    from scipy.spatial.transform import Rotation
+
+    nv = configuration.model.nv
+    states = []
+    for _ in range(n):
+        q = np.clip(home + rng.uniform(-0.6, 0.6, nv), configuration.lower, configuration.upper)
+        configuration.update(q)
+        p, R = configuration.frame_pose(frame, "body")
+        far = regime == "both bind"
+        p = p + rng.uniform(-1, 1, 3) * (0.3 if far else 0.001)
+        R = Rotation.from_rotvec(rng.uniform(-1, 1, 3) * (0.5 if far else 0.001)).as_matrix() @ R
+        move = rng.uniform(-1.5, 1.5, nv) if far else 1e-4
+        posture = np.clip(q + move, configuration.lower, configuration.upper)
+        states.append((q, p, R, posture))
+    return states
+
+
+def _panda_placo(urdf, frame: str, frame_priority: str):
+    """PlaCo's solver of the Panda peers' problem: the frame task ``frame_priority`` (hard
+    or soft, weight 1), the posture soft with weight 0.01 (mink's cost 0.1, squared), joint
+    and velocity limits; ``(robot, solver, frame task, posture task)``."""
+    import placo
+
+    robot = _placo_robot(urdf)
+    solver = placo.KinematicsSolver(robot)
+    solver.mask_fbase(True)
+    solver.enable_joint_limits(True)
+    solver.enable_velocity_limits(True)
+    solver.dt = DT
+    task = solver.add_frame_task(frame, np.eye(4))
+    task.configure("frame", frame_priority, 1.0, 1.0)
+    posture = solver.add_joints_task()
+    posture.configure("posture", "soft", 0.01)  # mink's cost 0.1, squared
+    return robot, solver, task, posture
+
+
 def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both bind")) -> None:
     """Panda (example-robot-data's URDF, 9 DoF), a pose task over a posture, position and
     velocity limits: qpik's two strict levels, PlaCo (frame task hard, posture soft; and
@@ -501,7 +542,6 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     cost 1, posture cost 0.1), on the same states, interleaved in blocks."""
     import pink
     import pinocchio
-    import placo
     from ik_methods import pinocchio_robot
     from pink.limits import ConfigurationLimit as PinkConfigurationLimit
     from pink.limits import VelocityLimit as PinkVelocityLimit
@@ -538,20 +578,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
                   pink.PostureTask(cost=0.1)]  # fmt: skip
     pink_limits = [PinkConfigurationLimit(robot_pin.model), PinkVelocityLimit(robot_pin.model)]
 
-    def placo_solver(frame_priority: str):
-        robot = _placo_robot(urdf)
-        solver = placo.KinematicsSolver(robot)
-        solver.mask_fbase(True)
-        solver.enable_joint_limits(True)
-        solver.enable_velocity_limits(True)
-        solver.dt = DT
-        task = solver.add_frame_task(frame, np.eye(4))
-        task.configure("frame", frame_priority, 1.0, 1.0)
-        posture = solver.add_joints_task()
-        posture.configure("posture", "soft", 0.01)  # mink's cost 0.1, squared
-        return robot, solver, task, posture
-
-    placos = {"hard": placo_solver("hard"), "soft": placo_solver("soft")}
+    placos = {kind: _panda_placo(urdf, frame, kind) for kind in ("hard", "soft")}
     mapping = _PlacoMap(model, placos["hard"][0], floating=False)
     # The same pose of the frame in both models at the start.
     robot = placos["hard"][0]
@@ -564,25 +591,7 @@ def panda_peers(n_states: int, rng: np.random.Generator, regimes=("free", "both 
     assert gap < 1e-9, f"PlaCo's and MuJoCo's {frame} differ by {gap} m"
 
     def random_states(regime):
-        from scipy.spatial.transform import Rotation
-
-        states = []
-        for _ in range(n_states):
-            q = np.clip(
-                home + rng.uniform(-0.6, 0.6, model.nv), configuration.lower, configuration.upper
-            )
-            configuration.update(q)
-            p, R = configuration.frame_pose(frame, "body")
-            far = regime == "both bind"
-            p = p + rng.uniform(-1, 1, 3) * (0.3 if far else 0.001)
-            R = (
-                Rotation.from_rotvec(rng.uniform(-1, 1, 3) * (0.5 if far else 0.001)).as_matrix()
-                @ R
-            )
-            move = rng.uniform(-1.5, 1.5, model.nv) if far else 1e-4
-            posture = np.clip(q + move, configuration.lower, configuration.upper)
-            states.append((q, p, R, posture))
-        return states
+        return _panda_states(configuration, home, frame, n_states, rng, regime)
 
     def set_state(state):
         q, p, R, posture = state
@@ -762,6 +771,101 @@ def _print_update_costs(configuration, q, robot, mapping, pink_configuration=Non
     )
 
 
+class _TalosScene:
+    """The floating erd Talos problem of :func:`talos_peers` (and of ``--instructions``):
+    the model, its position and velocity limits, ``half_sitting``, the feet held where they
+    start, the CoM swaying between the feet over ``n_steps`` steps, both hands circling
+    (from the middle on the left hand's target 0.6 m away, out of reach), the posture at
+    ``half_sitting``."""
+
+    feet = ("left_sole_link", "right_sole_link")
+    hands = ("gripper_left_base_link", "gripper_right_base_link")
+
+    def __init__(self, n_steps: int):
+        from qpik.robots import locate_robot
+
+        self.n_steps = n_steps
+        self.model = model = qpik.load_robot("erd:talos", floating_base=True)
+        self.urdf = locate_robot("erd:talos")
+        self.home = model.key_qpos[0].copy()
+        self.limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+        self.probe = probe = qpik.Configuration(model, self.home)
+        self.foot_poses = [probe.frame_pose(f, "body") for f in self.feet]
+        self.com0 = probe.data.subtree_com[1].copy()
+        self.hand_starts = [probe.frame_pose(h, "body")[0] for h in self.hands]
+        self.half = 0.5 * abs(self.foot_poses[0][0][1] - self.foot_poses[1][0][1])
+
+    def targets_at(self, k: int):
+        """Step ``k``'s CoM target and the two hands' position targets [m, world]."""
+        com = self.com0 + np.array(
+            [0.0, 0.5 * self.half * np.sin(2 * np.pi * k / self.n_steps), 0.0]
+        )
+        angle = 2 * np.pi * k / 100
+        circle = 0.05 * np.array([0.0, np.cos(angle) - 1.0, np.sin(angle)])
+        away = np.array([0.6, 0.3, 0.2]) if k >= self.n_steps // 2 else np.zeros(3)
+        return com, [self.hand_starts[0] + circle + away, self.hand_starts[1] + circle]
+
+    def stack(self, kind: str = "qpik", com_cost: float | None = None) -> list:
+        """The four levels (feet, CoM, hands, posture) of qpik's tasks (``kind`` "qpik") or
+        mink's (costs 10 on the feet and the CoM: mink weighs, qpik ranks); ``com_cost``
+        overrides the CoM task's cost."""
+        from qpik.tasks import ComTask
+
+        F = FrameTask if kind == "qpik" else mink.FrameTask
+        C = ComTask if kind == "qpik" else mink.ComTask
+        P = PostureTask if kind == "qpik" else mink.PostureTask
+        w = 1.0 if kind == "qpik" else 10.0  # qpik: levels, not weights
+        foot = [F(f, "body", position_cost=w, orientation_cost=w) for f in self.feet]
+        for task, (p, R) in zip(foot, self.foot_poses):
+            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p))
+        hand = [F(h, "body", position_cost=1.0, orientation_cost=0.0) for h in self.hands]
+        posture = P(self.model, 0.1)
+        posture.set_target(self.home)
+        return [foot, [C(w if com_cost is None else com_cost)], hand, [posture]]
+
+    def set_targets(self, levels: list, k: int) -> None:
+        """Step ``k``'s targets on the CoM and hand tasks of ``levels`` (a :meth:`stack`)."""
+        com, hand_targets = self.targets_at(k)
+        levels[1][0].set_target(com)
+        for task, target in zip(levels[2], hand_targets):
+            task.set_target(mink.SE3.from_translation(target))
+
+    def placo(self, robot, mapping, polygon=None):
+        """PlaCo's solver of the problem on ``robot`` at ``half_sitting``: the feet hard; CoM,
+        hands and posture soft (weights 100, 1, 0.01); joint and velocity limits; with
+        ``polygon`` (corners [m]), its CoM polygon constraint (2 cm margin). Returns
+        ``(robot, solver, com_task, hand_tasks)``; PlaCo's frames checked equal to MuJoCo's."""
+        import placo
+
+        solver = placo.KinematicsSolver(robot)
+        solver.enable_joint_limits(True)
+        solver.enable_velocity_limits(True)
+        solver.dt = DT
+        for f, (p, R) in zip(self.feet, self.foot_poses):
+            task = solver.add_frame_task(f, _pose(p, R))
+            task.configure(f, "hard", 1.0, 1.0)
+        com_task = solver.add_com_task(self.com0)
+        com_task.configure("com", "soft", 100.0)
+        hand_tasks = []
+        for h, p in zip(self.hands, self.hand_starts):
+            task = solver.add_position_task(h, p)
+            task.configure(h, "soft", 1.0)
+            hand_tasks.append(task)
+        posture = solver.add_joints_task()
+        posture.set_joints({n: float(self.home[a]) for n, a in zip(mapping.names, mapping.mj_q)})
+        posture.configure("posture", "soft", 0.01)
+        if polygon is not None:
+            solver.add_com_polygon_constraint([np.array(c) for c in polygon], 0.02)
+        robot.state.q = mapping.to_placo(self.home)
+        robot.update_kinematics()
+        gaps = [
+            np.abs(robot.get_T_world_frame(f)[:3, 3] - self.probe.frame_pose(f, "body")[0]).max()
+            for f in self.feet + self.hands
+        ]
+        assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
+        return robot, solver, com_task, hand_tasks
+
+
 def talos_peers(n_steps: int = 300) -> None:
     """Talos (example-robot-data, floating base), feet held (6-D) / CoM swaying between the
     feet / both hands (position; from the middle on the left hand's target is 0.6 m away, out
@@ -791,50 +895,15 @@ def talos_peers(n_steps: int = 300) -> None:
     keep a first-order error besides (a larger median). The corrected qpik row removes the
     second-order term itself: what it leaves is of third order (a smaller median)."""
     import mujoco
-    import placo
     from scipy.spatial import ConvexHull
 
     from qpik.limits import SupportPolygonLimit
-    from qpik.robots import locate_robot
     from qpik.tasks import ComTask
 
-    model = qpik.load_robot("erd:talos", floating_base=True)
-    urdf = locate_robot("erd:talos")
-    home = model.key_qpos[0].copy()
-    feet = ("left_sole_link", "right_sole_link")
-    hands = ("gripper_left_base_link", "gripper_right_base_link")
-    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
-    probe = qpik.Configuration(model, home)
-    foot_poses = [probe.frame_pose(f, "body") for f in feet]
-    com0 = probe.data.subtree_com[1].copy()
-    hand_starts = [probe.frame_pose(h, "body")[0] for h in hands]
-    half = 0.5 * abs(foot_poses[0][0][1] - foot_poses[1][0][1])
-
-    def targets_at(k):
-        com = com0 + np.array([0.0, 0.5 * half * np.sin(2 * np.pi * k / n_steps), 0.0])
-        angle = 2 * np.pi * k / 100
-        circle = 0.05 * np.array([0.0, np.cos(angle) - 1.0, np.sin(angle)])
-        away = np.array([0.6, 0.3, 0.2]) if k >= n_steps // 2 else np.zeros(3)
-        return com, [hand_starts[0] + circle + away, hand_starts[1] + circle]
-
-    def stack(kind):
-        F = FrameTask if kind == "qpik" else mink.FrameTask
-        C = ComTask if kind == "qpik" else mink.ComTask
-        P = PostureTask if kind == "qpik" else mink.PostureTask
-        w = 1.0 if kind == "qpik" else 10.0  # qpik: levels, not weights
-        foot = [F(f, "body", position_cost=w, orientation_cost=w) for f in feet]
-        for task, (p, R) in zip(foot, foot_poses):
-            task.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p))
-        hand = [F(h, "body", position_cost=1.0, orientation_cost=0.0) for h in hands]
-        posture = P(model, 0.1)
-        posture.set_target(home)
-        return [foot, [C(w)], hand, [posture]]
-
-    def set_targets(levels, k):
-        com, hand_targets = targets_at(k)
-        levels[1][0].set_target(com)
-        for task, target in zip(levels[2], hand_targets):
-            task.set_target(mink.SE3.from_translation(target))
+    scene = _TalosScene(n_steps)
+    model, home, limits, probe = scene.model, scene.home, scene.limits, scene.probe
+    feet, hands, foot_poses = scene.feet, scene.hands, scene.foot_poses
+    targets_at, stack, set_targets = scene.targets_at, scene.stack, scene.set_targets
 
     ours, theirs = stack("qpik"), stack("mink")
     auto = qpik.IKSolver(model, ours, limits)
@@ -866,38 +935,12 @@ def talos_peers(n_steps: int = 300) -> None:
     ground = support.support_points(probe)
     polygon = ground[ConvexHull(ground).vertices]  # counter-clockwise corners
 
-    def placo_setup(robot, with_polygon: bool):
-        solver = placo.KinematicsSolver(robot)
-        solver.enable_joint_limits(True)
-        solver.enable_velocity_limits(True)
-        solver.dt = DT
-        for f, (p, R) in zip(feet, foot_poses):
-            task = solver.add_frame_task(f, _pose(p, R))
-            task.configure(f, "hard", 1.0, 1.0)
-        com_task = solver.add_com_task(com0)
-        com_task.configure("com", "soft", 100.0)
-        hand_tasks = []
-        for h, p in zip(hands, hand_starts):
-            task = solver.add_position_task(h, p)
-            task.configure(h, "soft", 1.0)
-            hand_tasks.append(task)
-        posture = solver.add_joints_task()
-        posture.set_joints({n: float(home[a]) for n, a in zip(mapping.names, mapping.mj_q)})
-        posture.configure("posture", "soft", 0.01)
-        if with_polygon:
-            solver.add_com_polygon_constraint([np.array(c) for c in polygon], 0.02)
-        robot.state.q = mapping.to_placo(home)
-        robot.update_kinematics()
-        gaps = [
-            np.abs(robot.get_T_world_frame(f)[:3, 3] - probe.frame_pose(f, "body")[0]).max()
-            for f in feet + hands
-        ]
-        assert max(gaps) < 1e-9, f"PlaCo's and MuJoCo's frames differ by {max(gaps)} m"
-        return robot, solver, com_task, hand_tasks
-
-    robot = _placo_robot(urdf)
+    robot = _placo_robot(scene.urdf)
     mapping = _PlacoMap(model, robot, floating=True)
-    placos = {"placo": placo_setup(robot, False), "placos": placo_setup(_placo_robot(urdf), True)}
+    placos = {
+        "placo": scene.placo(robot, mapping),
+        "placos": scene.placo(_placo_robot(scene.urdf), mapping, polygon),
+    }
 
     names = ("qpik", "qpik1", "qpikp", "qpiks", "mink")
     configs = {name: qpik.Configuration(model, home) for name in names}
@@ -1039,43 +1082,19 @@ COUNT_METHODS = {
 def _count_case(case: str, method: str, n: int):
     """The states of an --instructions case (``n`` of them) and, for ``method``,
     ``(set_state(k), step())``: ``set_state`` updates the method's kinematics and targets at
-    state ``k`` (counted in both runs), ``step`` is the call measured. Panda: the erd Panda's
-    pose task over a posture, random states of the ``free`` regime (as :func:`panda_peers`).
-    Talos: the floating erd Talos' feet / CoM / hands / posture of :func:`talos_peers`, at the
-    configurations of qpik's own closed loop (the left hand's target out of reach in the
-    second half), the same states for every method."""
-    import placo
-
+    state ``k`` (counted in both runs), ``step`` is the call measured. Panda: the peers'
+    problem of :func:`panda_peers`, states of its ``free`` regime. Talos: the problem of
+    :func:`talos_peers` (:class:`_TalosScene`), at the configurations of qpik's own closed
+    loop of its four levels, the same states for every method."""
     from qpik.robots import locate_robot
-    from qpik.tasks import ComTask
 
-    rng = np.random.default_rng(0)
-    name = "erd:panda" if case == "panda" else "erd:talos"
-    floating = case == "talos"
-    model = qpik.load_robot(name, floating_base=floating) if floating else qpik.load_robot(name)
-    urdf = locate_robot(name)
-    limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
-    robot = _placo_robot(urdf)
-    mapping = _PlacoMap(model, robot, floating=floating)
-    configuration = qpik.Configuration(model)
     if case == "panda":
         frame = "panda_hand_tcp"
-        home = configuration.mid_q()
-        states = []
-        for _ in range(n):
-            q = np.clip(
-                home + rng.uniform(-0.6, 0.6, model.nv), configuration.lower, configuration.upper
-            )
-            configuration.update(q)
-            p, R = configuration.frame_pose(frame, "body")
-            states.append(
-                (
-                    q,
-                    p + rng.uniform(-1, 1, 3) * 0.001,
-                    R,
-                    np.clip(q + 1e-4, configuration.lower, configuration.upper),
-                )
-            )
+        model = qpik.load_robot("erd:panda")
+        limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
+        configuration = qpik.Configuration(model)
+        rng = np.random.default_rng(0)
+        states = _panda_states(configuration, configuration.mid_q(), frame, n, rng, "free")
         if method.startswith("qpik"):
             tasks = (
                 FrameTask(frame, "body", position_cost=1.0, orientation_cost=1.0),
@@ -1094,15 +1113,8 @@ def _count_case(case: str, method: str, n: int):
                 tasks[1].set_target(posture)
 
             return set_state, lambda: solver.step(configuration, DT)
-        solver = placo.KinematicsSolver(robot)
-        solver.mask_fbase(True)
-        solver.enable_joint_limits(True)
-        solver.enable_velocity_limits(True)
-        solver.dt = DT
-        task = solver.add_frame_task(frame, np.eye(4))
-        task.configure("frame", "hard", 1.0, 1.0)
-        posture_task = solver.add_joints_task()
-        posture_task.configure("posture", "soft", 0.01)
+        robot, solver, task, posture_task = _panda_placo(locate_robot("erd:panda"), frame, "hard")
+        mapping = _PlacoMap(model, robot, floating=False)
 
         def set_state(k):
             q, p, R, posture = states[k]
@@ -1114,77 +1126,36 @@ def _count_case(case: str, method: str, n: int):
             )
 
         return set_state, lambda: solver.solve(True)
-    home = model.key_qpos[0].copy()
-    feet = ("left_sole_link", "right_sole_link")
-    hands = ("gripper_left_base_link", "gripper_right_base_link")
-    configuration.update(home)
-    foot_poses = [configuration.frame_pose(f, "body") for f in feet]
-    com0 = configuration.data.subtree_com[1].copy()
-    hand_starts = [configuration.frame_pose(h, "body")[0] for h in hands]
-    half = 0.5 * abs(foot_poses[0][0][1] - foot_poses[1][0][1])
-
-    def targets_at(k):
-        com = com0 + np.array([0.0, 0.5 * half * np.sin(2 * np.pi * k / n), 0.0])
-        angle = 2 * np.pi * k / 100
-        circle = 0.05 * np.array([0.0, np.cos(angle) - 1.0, np.sin(angle)])
-        away = np.array([0.6, 0.3, 0.2]) if k >= n // 2 else np.zeros(3)
-        return com, [hand_starts[0] + circle + away, hand_starts[1] + circle]
-
-    def stack(com_cost):
-        foot = [FrameTask(f, "body", position_cost=1.0, orientation_cost=1.0) for f in feet]
-        for t, (p, R) in zip(foot, foot_poses):
-            t.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p))
-        hand = [FrameTask(h, "body", position_cost=1.0, orientation_cost=0.0) for h in hands]
-        posture = PostureTask(model, 0.1)
-        posture.set_target(home)
-        return [foot, [ComTask(com_cost)], hand, [posture]]
-
-    def set_targets(levels, k):
-        com, hand_targets = targets_at(k)
-        levels[1][0].set_target(com)
-        for t, target in zip(levels[2], hand_targets):
-            t.set_target(mink.SE3.from_translation(target))
-
+    scene = _TalosScene(n)
+    model = scene.model
+    configuration = qpik.Configuration(model, scene.home)
     # The states: qpik's own closed loop (four strict levels) from half_sitting.
-    levels = stack(1.0)
-    reference = qpik.IKSolver(model, levels, limits)
+    levels = scene.stack()
+    reference = qpik.IKSolver(model, levels, scene.limits)
     states = []
     for k in range(n):
         states.append(configuration.q.copy())
-        set_targets(levels, k)
-        configuration.update(
-            configuration.integrate(reference.step(configuration, DT).velocity, DT)
-        )
+        scene.set_targets(levels, k)
+        velocity = reference.step(configuration, DT).velocity
+        configuration.update(configuration.integrate(velocity, DT))
     if method.startswith("qpik"):
-        levels = stack(1.0 if method == "qpik" else 10.0)
+        levels = scene.stack(com_cost=1.0 if method == "qpik" else 10.0)
         stacked = levels if method == "qpik" else [levels[0], levels[1] + levels[2] + levels[3]]
-        solver = qpik.IKSolver(model, stacked, limits)
+        solver = qpik.IKSolver(model, stacked, scene.limits)
 
         def set_state(k):
             configuration.update(states[k])
-            set_targets(levels, k)
+            scene.set_targets(levels, k)
 
         return set_state, lambda: solver.step(configuration, DT)
-    solver = placo.KinematicsSolver(robot)
-    solver.enable_joint_limits(True)
-    solver.enable_velocity_limits(True)
-    solver.dt = DT
-    for f, (p, R) in zip(feet, foot_poses):
-        solver.add_frame_task(f, _pose(p, R)).configure(f, "hard", 1.0, 1.0)
-    com_task = solver.add_com_task(com0)
-    com_task.configure("com", "soft", 100.0)
-    hand_tasks = []
-    for h, p in zip(hands, hand_starts):
-        hand_tasks.append(solver.add_position_task(h, p))
-        hand_tasks[-1].configure(h, "soft", 1.0)
-    posture_task = solver.add_joints_task()
-    posture_task.set_joints({j: float(home[a]) for j, a in zip(mapping.names, mapping.mj_q)})
-    posture_task.configure("posture", "soft", 0.01)
+    robot = _placo_robot(scene.urdf)
+    mapping = _PlacoMap(model, robot, floating=True)
+    robot, solver, com_task, hand_tasks = scene.placo(robot, mapping)
 
     def set_state(k):
         robot.state.q = mapping.to_placo(states[k])
         robot.update_kinematics()
-        com, hand_targets = targets_at(k)
+        com, hand_targets = scene.targets_at(k)
         com_task.target_world = com
         for t, target in zip(hand_tasks, hand_targets):
             t.target_world = target
