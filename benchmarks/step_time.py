@@ -56,7 +56,7 @@ and the core agree on); also the per-level statuses over every state.
   own process, the same states for all (Talos: qpik's own closed-loop configurations),
   counted by valgrind (:func:`count_instructions`): a figure no machine load moves, to
   compare two versions of qpik by, and qpik's work with PlaCo's (the times above add how
-  fast each code's instructions run). About a minute a method.
+  fast each code's instructions run). About two minutes a method (two counted runs each).
 """
 
 from __future__ import annotations
