@@ -830,6 +830,13 @@ class _TalosScene:
         for task, target in zip(levels[2], hand_targets):
             task.set_target(mink.SE3.from_translation(target))
 
+    def set_placo_targets(self, com_task, hand_tasks, k: int) -> None:
+        """Step ``k``'s targets on PlaCo's CoM and hand tasks (of :meth:`placo`)."""
+        com, hand_targets = self.targets_at(k)
+        com_task.target_world = com
+        for task, target in zip(hand_tasks, hand_targets):
+            task.target_world = target
+
     def placo(self, robot, mapping, polygon=None):
         """PlaCo's solver of the problem on ``robot`` at ``half_sitting``: the feet hard; CoM,
         hands and posture soft (weights 100, 1, 0.01); joint and velocity limits; with
@@ -977,10 +984,7 @@ def talos_peers(n_steps: int = 300) -> None:
         nonlocal binding
         if name in placos:
             robot, solver, com_task, hand_tasks = placos[name]
-            com, hand_targets = targets_at(k)
-            com_task.target_world = com
-            for task, target in zip(hand_tasks, hand_targets):
-                task.target_world = target
+            scene.set_placo_targets(com_task, hand_tasks, k)
             t0 = time.perf_counter()
             try:
                 solver.solve(True)
@@ -1155,10 +1159,7 @@ def _count_case(case: str, method: str, n: int):
     def set_state(k):
         robot.state.q = mapping.to_placo(states[k])
         robot.update_kinematics()
-        com, hand_targets = scene.targets_at(k)
-        com_task.target_world = com
-        for t, target in zip(hand_tasks, hand_targets):
-            t.target_world = target
+        scene.set_placo_targets(com_task, hand_tasks, k)
 
     return set_state, lambda: solver.solve(True)
 
