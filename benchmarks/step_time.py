@@ -498,22 +498,52 @@ def _panda_states(configuration, home, frame: str, n: int, rng, regime: str) -> 
     """``n`` states ``(q, p, R, posture)`` of the Panda peers' regime ``regime``: ``q``
     uniform within 0.6 rad of ``home`` (clipped to the limits), the frame's target its pose
     there moved by up to 1 mm and 1 mrad (``both bind``: 0.3 m and 0.5 rad), the posture
-    target ``q`` moved by 1e-4 rad (``both bind``: up to 1.5 rad)."""
+    target ``q`` moved by 1e-4 rad (``both bind``: up to 1.5 rad). Both ``q`` and the
+    posture target keep the URDF's finger mimic (:func:`_on_mimics`): a state the robot
+    can be in, as a closed loop's are."""
     from scipy.spatial.transform import Rotation
 
-    nv = configuration.model.nv
+    model = configuration.model
+    nv = model.nv
     states = []
     for _ in range(n):
         q = np.clip(home + rng.uniform(-0.6, 0.6, nv), configuration.lower, configuration.upper)
+        q = _on_mimics(model, q)
         configuration.update(q)
         p, R = configuration.frame_pose(frame, "body")
         far = regime == "both bind"
         p = p + rng.uniform(-1, 1, 3) * (0.3 if far else 0.001)
         R = Rotation.from_rotvec(rng.uniform(-1, 1, 3) * (0.5 if far else 0.001)).as_matrix() @ R
         move = rng.uniform(-1.5, 1.5, nv) if far else 1e-4
-        posture = np.clip(q + move, configuration.lower, configuration.upper)
+        posture = _on_mimics(model, np.clip(q + move, configuration.lower, configuration.upper))
         states.append((q, p, R, posture))
     return states
+
+
+def _on_mimics(model, q: np.ndarray) -> np.ndarray:
+    """``q`` ``(nq,)`` with each active joint equality between two joints met (a URDF
+    mimic): the first joint's coordinate set from the second's by the equality's
+    polynomial, ``q1 - q1_0 = sum_k c_k (q2 - q2_0)^k`` (MuJoCo's joint equality, ``_0``
+    at ``qpos0``). Random draws, each joint on its own, leave the Panda's two fingers up to
+    4 cm apart, where the mimic holds them together: qpik's default level then spends the
+    step closing that gap, a start no robot or closed loop gives it."""
+    import mujoco
+
+    from qpik.model.couplings import model_couplings
+
+    q = np.array(q, dtype=float)
+    for e in range(model.neq):
+        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or model.eq_obj2id[e] < 0:
+            continue
+        if not model.eq_active0[e]:
+            continue
+        a1 = model.jnt_qposadr[model.eq_obj1id[e]]
+        a2 = model.jnt_qposadr[model.eq_obj2id[e]]
+        s = q[a2] - model.qpos0[a2]
+        q[a1] = model.qpos0[a1] + np.polyval(model.eq_data[e, 4::-1], s)
+    couplings = model_couplings(model)
+    assert couplings is None or couplings.error(q) < 1e-12, "a mimic left unmet"
+    return q
 
 
 def _panda_placo(urdf, frame: str, frame_priority: str):
