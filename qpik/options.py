@@ -71,11 +71,19 @@ class DampingLaw:
         error_scale: if set, ``lambda^2`` is further scaled by ``min(1, |b - A d| /
             error_scale)``: damping fades as the level's error vanishes (Sugihara 2011);
             :func:`qpik.solve` uses this, velocity control does not.
+        lower_trust: if above 0 (at most 1), the levels below a damped level move each dof
+            with both bounds finite at most ``lower_trust * sigma / singular_threshold``
+            times half its box's width from that level's answer (still within its box):
+            near the singularity the damped level's null space turns between two steps, and
+            lower levels taking their full step in it make a closed loop cycle (a posture
+            below a task whose target is out of reach). 0 (the default) leaves their box as
+            it is. A dof held by the smaller box reports that bound's limit as active.
     """
 
     singular_threshold: float = 0.05
     max_damping: float = 0.05
     error_scale: float | None = None
+    lower_trust: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("singular_threshold", "max_damping"):
@@ -92,6 +100,14 @@ class DampingLaw:
             raise InvalidInput(
                 f"DampingLaw.error_scale must be None or in (0, 1e6], got {self.error_scale!r}"
             )
+        trust = self.lower_trust
+        if not (
+            isinstance(trust, (int, float))
+            and not isinstance(trust, bool)
+            and math.isfinite(trust)
+            and 0 <= trust <= 1
+        ):
+            raise InvalidInput(f"DampingLaw.lower_trust must be in [0, 1], got {trust!r}")
 
     def __call__(self, sigma: float, error_norm: float | None = None) -> float:
         """``lambda^2`` (for a level of unit cost) at smallest singular value ``sigma``."""

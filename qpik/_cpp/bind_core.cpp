@@ -639,7 +639,8 @@ void bind_core(nb::module_& m) {
         "solve_levels",
         [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,
-           nb::handle x_h, nb::handle active_h, nb::handle kinds_h, core::Workspace* ws) -> nb::object {
+           nb::handle x_h, nb::handle active_h, nb::handle kinds_h, core::Workspace* ws,
+           double lower_trust) -> nb::object {
             // The whole solve from the levels themselves (objects with A, b, regularization,
             // weights): checks (as HierarchyProblem.validate), stacking and the cascade in one
             // call, the answer written into x and active (preallocated by the caller) and
@@ -651,6 +652,7 @@ void bind_core(nb::module_& m) {
             // conversion (the caller then validates in Python, which names the field), or
             // when a level did not settle (MAX_ITER, NUMERICAL: the caller's fallback).
             nb::object none = nb::none();
+            if (!(lower_trust >= 0.0 && lower_trust <= 1.0)) return none;  // (NaN too: the checks name it)
             PyBuf lb, ub, G, h, xo, act;
             if (!lb.get(lb_h.ptr(), 'd', 1) || !ub.get(ub_h.ptr(), 'd', 1) || !G.get(G_h.ptr(), 'd', 2) ||
                 !h.get(h_h.ptr(), 'd', 1))
@@ -775,7 +777,7 @@ void bind_core(nb::module_& m) {
                 A.cref(), CVecRef(b), CVecRef(w), VecRefT<const i64>(starts.data(), L + 1), CVecRef(reg),
                 CVecRef(lbp, n), CVecRef(ubp, n), CMatRef(Gp, p, n), CVecRef(hp, p), threshold, max_damping,
                 error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(warm, L, n + p), true, wsr, r, true, true,
-                true);
+                true, lower_trust);
             for (i64 k = 0; k < L; ++k)
                 if (r.status[k] == core::MAX_ITER || r.status[k] == core::NUMERICAL) return none;
             std::memcpy(xo.data<double>(), r.dq.data(), static_cast<size_t>(n) * sizeof(double));
@@ -786,7 +788,7 @@ void bind_core(nb::module_& m) {
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
-        "workspace"_a.none() = nb::none(),
+        "workspace"_a.none() = nb::none(), "lower_trust"_a = 0.0,
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
         "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
@@ -800,7 +802,7 @@ void bind_core(nb::module_& m) {
         "solve_cascade",
         [](In2 A, In1 b, In1 w, InI64_1 starts, In1 reg, In1 lb, In1 ub, In2 G, In1 h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, InI8_2 warm,
-           bool canonical, core::Workspace* ws) {
+           bool canonical, core::Workspace* ws, double lower_trust) {
             i64 M = rows(A), n = len(lb), p = rows(G);
             need(cols(A) == n, "solve_cascade: A must have shape (M, n) with lb (n,)");
             need(len(b) == M && len(w) == M, "solve_cascade: b and w must have shape (M,)");
@@ -817,10 +819,13 @@ void bind_core(nb::module_& m) {
                  "solve_cascade: warm must have shape (L, n + p)");
             std::optional<core::Workspace> local;  // only when the caller keeps none (its storage: ws)
             if (!ws) local.emplace();
-            core::CascadeResult r = core::solve_cascade(
-                cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb), cvec(ub), cmat(G),
-                cvec(h), threshold, max_damping, error_scale, rank_tol, max_iter, tol,
-                MatRefT<const i8>(warm.data(), L, n + p), canonical, ws ? *ws : *local);
+            need(std::isfinite(lower_trust) && lower_trust >= 0.0 && lower_trust <= 1.0,
+                 "solve_cascade: lower_trust must be in [0, 1]");
+            core::CascadeResult r;
+            core::solve_cascade_into(cmat(A), cvec(b), cvec(w), VecRefT<const i64>(s, L + 1), cvec(reg), cvec(lb),
+                                     cvec(ub), cmat(G), cvec(h), threshold, max_damping, error_scale, rank_tol,
+                                     max_iter, tol, MatRefT<const i8>(warm.data(), L, n + p), canonical,
+                                     ws ? *ws : *local, r, true, true, false, lower_trust);
             size_t Ls = static_cast<size_t>(L), w2 = static_cast<size_t>(n + p);
             return nb::make_tuple(to_numpy(std::move(r.dq)), to_numpy(std::move(r.status)),
                                   to_numpy(std::move(r.sigma)), to_numpy(std::move(r.lam2)),
@@ -830,7 +835,7 @@ void bind_core(nb::module_& m) {
         },
         "A"_a, "b"_a, "w"_a, "starts"_a, "reg"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a,
         "error_scale"_a, "rank_tol"_a, "max_iter"_a, "tol"_a, "warm"_a, "canonical"_a,
-        "workspace"_a.none() = nb::none(),
+        "workspace"_a.none() = nb::none(), "lower_trust"_a = 0.0,
         "All levels of a hierarchy in one call: (dq, status, sigma, lam2, iterations, active, residuals, "
         "certificate (L, 4): primal, stationarity, dual, complementarity, primal at the final dq).");
 }

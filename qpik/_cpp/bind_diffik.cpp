@@ -85,7 +85,7 @@ diffik::FusedArgs make_args(Out2& A, Out1& b, Out1& w, const I1& starts, const I
     check_dofs(ivec(cfg_dof), n, "fused: a cfg_dof entry is out of range");
     require(dim(vel_limit, 0) == dim(vel_dof, 0), "fused: vel_limit must have len(vel_dof) entries");
     check_dofs(ivec(vel_dof), n, "fused: a vel_dof entry is out of range");
-    require(dim(settings, 0) >= diffik::kSettings, "fused: settings must have 7 entries");
+    require(dim(settings, 0) >= diffik::kSettings, "fused: settings must have 7 entries (an 8th: lower_trust)");
 
     diffik::FusedArgs a;
     a.A = mat(A);
@@ -380,7 +380,7 @@ class Kernel {
         vel_dof_.assign(vel_dof);
         require(dim(vel_limit, 0) == vel_dof_.rows, "Kernel: vel_limit must have len(vel_dof) entries");
         check_dofs(vel_dof_.vec(), n, "Kernel: a vel_dof entry is out of range");
-        require(dim(settings, 0) >= diffik::kSettings, "Kernel: settings must have 7 entries");
+        require(dim(settings, 0) >= diffik::kSettings, "Kernel: settings must have 7 entries (an 8th: lower_trust)");
     }
 
     // The arguments of one call, after checking MuJoCo's arrays against the plan.

@@ -380,19 +380,6 @@ class HierarchySolver(SolverSettings):
         self._workspaces.clear()
 
     @property
-    def damping_settings(self) -> tuple[float, float, float]:
-        """:attr:`damping_law` as the kernels take it: ``(singular_threshold, max_damping,
-        error_scale)``, ``error_scale`` 0 for none; ``(1, 0, 0)`` without a law."""
-        law = self.damping_law
-        if law is None:
-            return 1.0, 0.0, 0.0
-        return (
-            float(law.singular_threshold),
-            float(law.max_damping),
-            float(law.error_scale) if law.error_scale is not None else 0.0,
-        )
-
-    @property
     def active_sets(self) -> np.ndarray | None:
         """The active sets of the last solve, ``(L, n + p)`` int8 (+1 at a lower bound, -1
         at an upper bound; box rows first, then the general rows); None before the first
@@ -457,7 +444,7 @@ class HierarchySolver(SolverSettings):
                     problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
                     max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
                     self._last_active() if self.warm_start else None, None, None, _KINDS,
-                    self._cascade_workspace,
+                    self._cascade_workspace, self.lower_trust,
                 )  # fmt: skip
             except TypeError:  # an argument of a type it does not take (None): the checks name it
                 result = None
@@ -506,7 +493,7 @@ class HierarchySolver(SolverSettings):
         x, status, sigma, lam2, its, active, residuals, cert, primal = K.solve_cascade(
             A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale,
             self.rank_tolerance, self.max_iter or 10 * (n + p) + 50, self.tolerance, warm,
-            warm_start, self._cascade_workspace,
+            warm_start, self._cascade_workspace, self.lower_trust,
         )  # fmt: skip
         result = self._result((x, status, sigma, lam2, its, active, residuals, cert, primal), L)
         if result is None:
@@ -533,6 +520,14 @@ class HierarchySolver(SolverSettings):
         )  # fmt: skip
 
     # ------------------------------------------------------------------ level by level
+    def _box_below(self, k, d, lb, ub, lam2s, status, sigma, threshold):
+        """Level ``k``'s box: below a damped level ``k - 1``, with
+        :attr:`qpik.DampingLaw.lower_trust`, shrunk around ``d`` (the kernel's trust_box)."""
+        trust = self.lower_trust
+        if trust and k and lam2s[k - 1] > 0.0 and status[k - 1] == LevelStatus.SOLVED:
+            return K.trust_box(d, trust * min(1.0, sigma[k - 1] / threshold), lb, ub)
+        return lb, ub
+
     def _solve_levels(self, A, b, w, starts, reg, lb, ub, G, h, warm, *, fallback: bool):
         """The cascade in Python, one level at a time, with a backend per level: the
         forced backend, or (``fallback``) the exact kernel then OSQP where it fails."""
@@ -551,6 +546,7 @@ class HierarchySolver(SolverSettings):
         Z = np.eye(n)
         for k in range(L):
             s0, s1 = int(starts[k]), int(starts[k + 1])
+            lb, ub = self._box_below(k, d, lb, ub, lam2s, status, sigma, threshold)
             if s1 > s0:  # rows pinned on their bounds by the levels above: equalities
                 Z = K.drop_pinned(Z, d, lb, ub, G, h)
             if s1 == s0 or Z.shape[1] == 0:

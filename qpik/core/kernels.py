@@ -138,3 +138,17 @@ __all__ = [
     "sigma_from_bytes", "solve_cascade", "solve_level",
     "solve_levels", "solve_qp", "tighten",
 ]  # fmt: skip
+
+
+def trust_box(
+    d: np.ndarray, s: float, lb: np.ndarray, ub: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The box of the levels below a damped level (:attr:`qpik.DampingLaw.lower_trust`), as
+    the kernel's ``trust_box`` makes it: each dof with both bounds finite within
+    ``s (ub - lb) / 2`` of ``d`` and within its box (``d`` kept inside); the others' box as
+    it is."""
+    finite = (np.abs(lb) < _BIG) & (np.abs(ub) < _BIG)
+    half = s * (0.5 * (ub - lb))
+    tlb = np.minimum(np.maximum(lb, d - half), d)
+    tub = np.maximum(np.minimum(ub, d + half), d)
+    return np.where(finite, tlb, lb), np.where(finite, tub, ub)

@@ -62,6 +62,25 @@ class SolverSettings:
         self._workspaces: dict = {}  # (a backend's workspaces were made for the old settings)
 
     @property
+    def damping_settings(self) -> tuple[float, float, float]:
+        """:attr:`damping_law` as the kernels take it: ``(singular_threshold, max_damping,
+        error_scale)``, ``error_scale`` 0 for none; ``(1, 0, 0)`` without a law."""
+        law = self.damping_law
+        if law is None:
+            return 1.0, 0.0, 0.0
+        return (
+            float(law.singular_threshold),
+            float(law.max_damping),
+            float(law.error_scale) if law.error_scale is not None else 0.0,
+        )
+
+    @property
+    def lower_trust(self) -> float:
+        """:attr:`qpik.DampingLaw.lower_trust` of :attr:`damping_law` (0 without a law)."""
+        law = self.damping_law
+        return 0.0 if law is None else float(law.lower_trust)
+
+    @property
     def solver(self) -> str:
         """The QP backend of the levels where a limit binds: ``"auto"`` (the exact compiled
         active set) or a name of :data:`qpik.core.SOLVERS` (its optional extra installed)."""

@@ -48,6 +48,7 @@ from .layout import (
     DAMPING,
     DT,
     ERROR_SCALE,
+    LOWER_TRUST,
     RANK_TOL,
     THRESHOLD,
     TOL,
@@ -310,6 +311,7 @@ class CompiledPlan:
         cold starts), else -1 (IKSolver.step compares them)."""
         settings, law = self.arrays["settings"], core.damping_law
         settings[THRESHOLD : ERROR_SCALE + 1] = core.damping_settings
+        settings[LOWER_TRUST] = core.lower_trust
         settings[RANK_TOL], settings[TOL] = core.rank_tolerance, core.tolerance
         if core.max_iter != self.max_iter:
             self.max_iter, self._corrector = core.max_iter, None

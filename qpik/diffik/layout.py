@@ -167,7 +167,7 @@ def plan_arrays(
         "cfg_data": np.asarray(boxes.cfg_data, dtype=float).reshape(-1, 3),
         "vel_dof": np.asarray(vel_dof, dtype=i64),
         "vel_limit": np.asarray(vel_limit, dtype=float),
-        "settings": np.zeros(7),
+        "settings": np.zeros(8),
         "com_jac": np.zeros((C, 3, nv)),
         "com_body": np.asarray([body for _, body, _ in layout.coms], dtype=i64),
         "com_data": np.zeros((C, 8)),
@@ -410,7 +410,7 @@ def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
 
 
 #: ``settings`` entries of the kernel.
-DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL = range(7)
+DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL, LOWER_TRUST = range(8)
 
 
 def _put(view: np.ndarray, value) -> None:

@@ -103,6 +103,7 @@ def _solve_options(reader: Reader, options: dict[str, Any], mode: str) -> SolveO
             singular_threshold=options.get("singular_threshold", law.singular_threshold),
             max_damping=options.get("max_damping", law.max_damping),
             error_scale=law.error_scale,
+            lower_trust=law.lower_trust,
         )
     try:
         return base.replace(**overrides)

@@ -18,8 +18,9 @@ velocity limits, dt = 10 ms):
   apart, and the posture's step flips with it. Each level is solved and certified; the
   closed loop is what shakes (the floating Talos: hands level at sigma 0.01-0.02, posture
   velocities flipping sign on half of the steps, and every step paying for a new active
-  set). Expected to fail until the cascade makes lower levels continuous near a held level's
-  singularity (issue 20's stop 54 note gives the measurements).
+  set). ``DampingLaw(lower_trust=1)`` holds the levels below a damped level near its answer,
+  in proportion to its smallest singular value, and the loop comes to rest (third test); by
+  default (``lower_trust=0``) it still cycles, an expected failure until the default changes.
 """
 
 from __future__ import annotations
@@ -37,9 +38,12 @@ STEPS = 200
 TAIL = 50  # the steps measured, at the end of the loop
 
 
-def _closed_loop(with_posture: bool, lm_damping: float) -> tuple[float, float]:
+def _closed_loop(
+    with_posture: bool, lm_damping: float, lower_trust: float = 0.0, solvers: list | None = None
+) -> tuple[float, float]:
     """The rms joint velocity [rad/s] of the last TAIL steps, and the share of joints whose
-    velocity flips sign (both above 0.2 rad/s) from one of those steps to the next."""
+    velocity flips sign (both above 0.2 rad/s) from one of those steps to the next.
+    ``solvers``, when given, receives ``(solver, configuration)`` for the caller's checks."""
     model = qpik.load_robot("panda")
     configuration = qpik.Configuration(model, qpik.Configuration(model).mid_q())
     hand = FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0, lm_damping=lm_damping)
@@ -51,7 +55,10 @@ def _closed_loop(with_posture: bool, lm_damping: float) -> tuple[float, float]:
     )
     levels = [[hand], [posture]] if with_posture else [[hand]]
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
-    solver = qpik.IKSolver(model, levels, limits)
+    law = qpik.DampingLaw(lower_trust=lower_trust)
+    solver = qpik.IKSolver(model, levels, limits, damping_law=law)
+    if solvers is not None:
+        solvers.append((solver, configuration))
     velocities = []
     for _ in range(STEPS):
         v = np.array(solver.step(configuration, 0.01).velocity)
@@ -76,3 +83,25 @@ def test_one_level_with_lm_damping_comes_to_rest():
 def test_posture_below_a_damped_unreachable_task_comes_to_rest():
     rms, flips = _closed_loop(with_posture=True, lm_damping=1.0)
     assert rms < 0.1, f"rms {rms:.2f} rad/s, {flips:.0%} of joint velocities flip each step"
+
+
+def test_lower_trust_brings_the_posture_below_to_rest():
+    rms, flips = _closed_loop(with_posture=True, lm_damping=1.0, lower_trust=1.0)
+    assert rms < 0.1, f"rms {rms:.2f} rad/s"
+    assert flips == 0.0
+
+
+def test_lower_trust_compiled_step_and_qp_path_agree():
+    """With the trust on, the compiled step and the QP path (the core's HierarchySolver)
+    give the same step at the end of the loop, and each level is solved."""
+    kept: list = []
+    _closed_loop(with_posture=True, lm_damping=1.0, lower_trust=1.0, solvers=kept)
+    solver, configuration = kept[0]
+    step = solver.step(configuration, 0.01)
+    qp = solver.qp_solution(configuration, 0.01)
+    assert np.abs(np.asarray(step.velocity) - np.asarray(qp.velocity)).max() < 1e-10
+    assert all(str(s) == "solved" for s in step.status)
+    assert step.damping[0] > 0.0  # the task level is damped there: the trust is in play
+    solver.damping_law = qpik.DampingLaw()
+    free = solver.step(configuration, 0.01)
+    assert np.abs(np.asarray(free.velocity) - np.asarray(step.velocity)).max() > 0.1

@@ -115,6 +115,8 @@ struct Workspace {
     // reduced_qp, ls_form, the cascade; gsq: |G_j|^2 per general row (row_sq_of)
     Mat GZ;
     Vec gsq;
+    // the box of the levels below a damped level (lower_trust: trust_box)
+    Vec trust_lb, trust_ub;
     // the feasibility check of a level-0 infeasibility claim (feasible_after_all)
     Mat eye;
     Vec zeros;
@@ -3754,11 +3756,36 @@ inline bool feasible_after_all(const ReducedQP& qp, const LSForm& ls, CMatRef Ak
 }  // namespace detail
 
 namespace detail {
+// The box of the levels below a level damped at sigma < threshold, with lower_trust = K > 0
+// (DampingLaw.lower_trust): each dof i with both bounds finite kept within s (ub_i - lb_i) / 2
+// of d_i, the answer so far, s = K min(1, sigma / threshold), and within its box; a dof with an
+// infinite bound keeps its box. d is in the box (snapped), so it stays in the new one: every
+// level below still has d, the levels above' answer, as a feasible point. (Near a singularity
+// the null space of the damped level turns by O(1) between two configurations one step apart,
+// and the levels below, moving their full step in it, make a closed loop cycle: a step they
+// take there is held to where that null space is still the one they were solved in.)
+inline void trust_box(const Vec& d, double s, CVecRef lb, CVecRef ub, Vec& tlb, Vec& tub) {
+    const i64 n = lb.size();
+    tlb.resize(static_cast<size_t>(n));
+    tub.resize(static_cast<size_t>(n));
+    for (i64 i = 0; i < n; ++i) {
+        const double lo = lb[i], hi = ub[i], di = d[i];
+        if (!(std::fabs(lo) < kBig && std::fabs(hi) < kBig)) {
+            tlb[i] = lo;
+            tub[i] = hi;
+            continue;
+        }
+        const double half = s * (0.5 * (hi - lo));
+        tlb[i] = pymin(pymax(lo, di - half), di);
+        tub[i] = pymax(pymin(hi, di + half), di);
+    }
+}
+
 inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
                                bool canonical, Workspace& ws, CascadeResult& res, bool residuals,
-                               bool primal, bool defer_sigma) {
+                               bool primal, bool defer_sigma, double lower_trust = 0.0) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
     // Entries of a task row at or below kFlushEps n times its largest are its round-off (the
     // products that made it: 1e-18 in a row of 6e-4 where a dof moves nothing), zero here: a
@@ -3809,6 +3836,13 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         if (starts[k + 1] > starts[k]) last = k;
     for (i64 k = 0; k < L; ++k) {
         i64 s0 = starts[k], s1 = starts[k + 1];
+        // Below a damped level, with lower_trust: the box shrunk around d (trust_box).
+        if (lower_trust > 0.0 && k > 0 && res.lam2[k - 1] > 0.0 && res.status[k - 1] == SOLVED &&
+            res.sigma[k - 1] < threshold) {
+            trust_box(d, lower_trust * pymin(1.0, res.sigma[k - 1] / threshold), lb, ub, ws.trust_lb, ws.trust_ub);
+            lb = CVecRef(ws.trust_lb);
+            ub = CVecRef(ws.trust_ub);
+        }
         // The rows the levels above pinned on their bounds become equalities, eliminated
         // from Z (see drop_pinned): this level and the ones below move only where they can.
         if (s1 > s0 && drop_pinned(Z, d, lb, ub, G, h, ws, gsq)) z_eye = false;
@@ -4051,12 +4085,12 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
                                CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
                                double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
                                bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
-                               bool primal = true, bool defer_sigma = false) {
+                               bool primal = true, bool defer_sigma = false, double lower_trust = 0.0) {
     const i64 p = G.rows, n = lb.size(), L = starts.size() - 1;
     const i64 q = p ? rows_in_reach(G, h, lb, ub, ws.g_kept) : 0;
     if (q == p) {
         detail::solve_cascade_rows(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
-                                   max_iter, tol, warm, canonical, ws, res, residuals, primal, defer_sigma);
+                                   max_iter, tol, warm, canonical, ws, res, residuals, primal, defer_sigma, lower_trust);
         return;
     }
     // The rows kept (and their warm entries), the others apart for the final primal measure.
@@ -4080,7 +4114,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
     detail::solve_cascade_rows(A, b, w, starts, reg, lb, ub, ws.g_in.cref(), CVecRef(ws.h_in), threshold, max_damping,
                                error_scale, rank_tol, max_iter, tol,
                                MatRefT<const i8>(ws.warm_in.data(), L, n + q), canonical, ws, res, residuals, primal,
-                               defer_sigma);
+                               defer_sigma, lower_trust);
     // res.active back to every row: L x (n + p), a left-out row's entries 0.
     std::vector<i8>& act = ws.active_in;
     act.assign(res.active.begin(), res.active.end());

@@ -184,7 +184,8 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
                         CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold,
                         double max_damping, double error_scale, double rank_tol, i64 max_iter,
                         double tol, MatRefT<const i8> warm, bool canonical, core::Workspace& ws,
-                        CoupleScratch& s, core::CascadeResult& out, bool defer = false) {
+                        CoupleScratch& s, core::CascadeResult& out, bool defer = false,
+                        double lower_trust = 0.0) {
     using namespace couple_detail;
     const i64 n = A.cols, L = starts.size() - 1, M = A.rows;
     if (G.rows != 0 || L < 2 || n < 2) return false;
@@ -354,7 +355,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
         s.Ar.cref(), CVecRef(s.br), w.slice(m0, M), VecRefT<const i64>(s.startsr), reg.slice(1, L),
         CVecRef(s.lbr), CVecRef(s.ubr), CMatRef(nullptr, 0, nr), h, threshold, max_damping,
         error_scale, rank_tol, max_iter, tol, MatRefT<const i8>(s.warmr.data(), L - 1, nr),
-        canonical, ws, low, false, false, defer);
+        canonical, ws, low, false, false, defer, lower_trust);
     if (low.status[0] == core::INFEASIBLE) return false;  // the general path's handling
     // A level below not certified in y (kept_previous, a numerical failure): the general
     // path's cascade on x, whose round-off differs, may certify it (erd Baxter's gripper

@@ -25,8 +25,11 @@ namespace qpik::diffik {
 // Result codes: anything but OK sends the step to the general path.
 enum Code : i64 { OK = 0, NOT_FINITE = 1, CONFLICT = 2, UNSETTLED = 3 };
 // Entries of `settings`.
-enum Setting : i64 { DT = 0, DAMPING = 1, THRESHOLD = 2, MAX_DAMPING = 3, ERROR_SCALE = 4, RANK_TOL = 5, TOL = 6 };
-constexpr i64 kSettings = 7;
+enum Setting : i64 {
+    DT = 0, DAMPING = 1, THRESHOLD = 2, MAX_DAMPING = 3, ERROR_SCALE = 4, RANK_TOL = 5, TOL = 6,
+    LOWER_TRUST = 7  // DampingLaw.lower_trust (0: off; see core::detail::trust_box)
+};
+constexpr i64 kSettings = 7;  // (LOWER_TRUST optional: 0 where absent)
 constexpr double kPi = 3.14159265358979323846;  // MuJoCo's mjPI
 constexpr i64 kFrameData = 15;  // target wxyz_xyz (7), cost (6), gain, lm_damping
 // A world-frame pose task's row of frame_data (kinds POSE_*; the table then has at least
@@ -643,12 +646,14 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
                      CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
                      a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
-                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c, defer)) {
+                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c, defer,
+                     (a.settings.size() > LOWER_TRUST ? a.settings[LOWER_TRUST] : 0.0))) {
         core::solve_cascade_into(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
                                  CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
                                  a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
                                  a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                 a.settings[TOL], warm, canonical, ws, c, true, false, defer);
+                                 a.settings[TOL], warm, canonical, ws, c, true, false, defer,
+                                 (a.settings.size() > LOWER_TRUST ? a.settings[LOWER_TRUST] : 0.0));
     }
     // (c.primal is not read here: the general path leaves it uncomputed)
     out.d.assign(c.dq.begin(), c.dq.end());
