@@ -145,10 +145,11 @@ def trust_box(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The box of the levels below a damped level (:attr:`qpik.DampingLaw.lower_trust`), as
     the kernel's ``trust_box`` makes it: each dof with both bounds finite within
-    ``s (ub - lb) / 2`` of ``d`` and within its box (``d`` kept inside); the others' box as
-    it is."""
+    ``s (ub - lb) / 2`` of ``d`` put in its box, and within its box; the others' box as it
+    is."""
     finite = (np.abs(lb) < _BIG) & (np.abs(ub) < _BIG)
     half = s * (0.5 * (ub - lb))
-    tlb = np.minimum(np.maximum(lb, d - half), d)
-    tub = np.maximum(np.minimum(ub, d + half), d)
+    c = np.minimum(np.maximum(d, lb), ub)
+    tlb = np.maximum(lb, c - half)
+    tub = np.minimum(ub, c + half)
     return np.where(finite, tlb, lb), np.where(finite, tub, ub)

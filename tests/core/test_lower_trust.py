@@ -88,3 +88,11 @@ def test_trust_box_keeps_an_unbounded_dof_and_the_point():
 def test_lower_trust_out_of_range_is_refused(value):
     with pytest.raises(qpik.InvalidInput, match="lower_trust"):
         qpik.DampingLaw(lower_trust=value)
+
+
+def test_trust_box_stays_inside_the_box_for_a_point_just_outside():
+    lb, ub = np.array([-1.0, -1.0]), np.array([1.0, 1.0])
+    d = np.array([1.0 + 1e-15, -1.0 - 1e-15])  # round-off outside
+    tlb, tub = K.trust_box(d, 0.5, lb, ub)
+    assert np.all(lb <= tlb) and np.all(tub <= ub) and np.all(tlb <= tub)
+    assert np.array_equal(tlb, [0.5, -1.0]) and np.array_equal(tub, [1.0, -0.5])

@@ -3758,9 +3758,10 @@ inline bool feasible_after_all(const ReducedQP& qp, const LSForm& ls, CMatRef Ak
 namespace detail {
 // The box of the levels below a level damped at sigma < threshold, with lower_trust = K > 0
 // (DampingLaw.lower_trust): each dof i with both bounds finite kept within s (ub_i - lb_i) / 2
-// of d_i, the answer so far, s = K min(1, sigma / threshold), and within its box; a dof with an
-// infinite bound keeps its box. d is in the box (snapped), so it stays in the new one: every
-// level below still has d, the levels above' answer, as a feasible point. (Near a singularity
+// of c_i, d_i (the answer so far) put in its box, s = K min(1, sigma / threshold), and within
+// its box; a dof with an infinite bound keeps its box. The new box is inside the old and holds
+// c, so every level below still has the levels above' answer as a feasible point (d itself
+// where it is in the box, as the cascade keeps it, to round-off). (Near a singularity
 // the null space of the damped level turns by O(1) between two configurations one step apart,
 // and the levels below, moving their full step in it, make a closed loop cycle: a step they
 // take there is held to where that null space is still the one they were solved in.)
@@ -3776,8 +3777,9 @@ inline void trust_box(const Vec& d, double s, CVecRef lb, CVecRef ub, Vec& tlb, 
             continue;
         }
         const double half = s * (0.5 * (hi - lo));
-        tlb[i] = pymin(pymax(lo, di - half), di);
-        tub[i] = pymax(pymin(hi, di + half), di);
+        const double c = pymin(pymax(di, lo), hi);
+        tlb[i] = pymax(lo, c - half);
+        tub[i] = pymin(hi, c + half);
     }
 }
 
