@@ -96,3 +96,41 @@ def test_trust_box_stays_inside_the_box_for_a_point_just_outside():
     tlb, tub = K.trust_box(d, 0.5, lb, ub)
     assert np.all(lb <= tlb) and np.all(tub <= ub) and np.all(tlb <= tub)
     assert np.array_equal(tlb, [0.5, -1.0]) and np.array_equal(tub, [1.0, -0.5])
+
+
+def _random_hierarchies(count: int = 48):
+    from exactness_oracle import problems
+
+    for problem in problems(2026, count):
+        if not problem.feasible:
+            continue
+        levels = [Level(A, b, rho) for A, b, rho in problem.levels]
+        yield problem.kind, HierarchyProblem(levels, problem.lb, problem.ub, problem.G, problem.h)
+
+
+def test_random_hierarchies_keep_the_levels_down_to_the_first_damped_one():
+    """On the oracle's random hierarchies (feasible kinds): with the trust, every level is
+    still solved and certified and the limits met; the task values of the levels down to
+    the first damped one are those without it (the trust acts only below it); a hierarchy
+    with no damped level gets the same answer bit for bit."""
+    from exactness_oracle import scaled_violation
+
+    damped = 0
+    for kind, problem in _random_hierarchies():
+        off, on = _solve(problem, 0.0), _solve(problem, 1.0)
+        assert all(str(s) == "solved" for s in on.status) == all(
+            str(s) == "solved" for s in off.status
+        ), kind
+        if not all(str(s) == "solved" for s in on.status):
+            continue
+        assert all(c.holds for c in on.certificate), (kind, on.certificate)
+        assert scaled_violation(on.x, problem.lb, problem.ub, problem.G, problem.h) <= 1e-9
+        first = next((k for k, lam in enumerate(off.damping) if lam > 0.0), None)
+        if first is None or first == len(problem.levels) - 1:
+            assert np.array_equal(on.x, off.x), kind
+            continue
+        damped += 1
+        for level in problem.levels[: first + 1]:
+            a, b = level.A @ on.x, level.A @ off.x
+            assert np.abs(a - b).max() <= 1e-8 * (1.0 + np.abs(b).max()), kind
+    assert damped >= 3  # the trust was in play on some of them
