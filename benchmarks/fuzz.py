@@ -910,6 +910,7 @@ SCHEMA_SOLVER = {
     "beta": (0.0, 100.0, True, False),
     "singular_threshold": (0.0, 1e3, False, False),
     "max_damping": (0.0, 1e6, False, False),
+    "lower_trust": (0.0, 1.0, False, False),
     "damping": (0.0, 1e6, False, False),
     "stall_window": (1, 100_000, False, True),
 }

@@ -73,6 +73,7 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     max_step = [0.2, 0.5]              # trust region [m, rad], or false (solve mode)
     singular_threshold = 0.05          # adaptive damping (DampingLaw), both modes
     max_damping = 0.05                 #   (adaptive_damping = false switches it off)
+    lower_trust = 0.0                  #   levels below a damped one held near it (0 to 1)
     damping = 1e-6                     # constant Tikhonov term, both modes
 
     [track]                            # mode = "track" only

@@ -59,6 +59,7 @@ RANGES: dict[str, tuple[float, float, bool]] = {
     "solver.max_step": (0.0, MAX_LENGTH, True),  # [m, rad]
     "solver.singular_threshold": (0.0, 1e3, False),
     "solver.max_damping": (0.0, 1e6, False),
+    "solver.lower_trust": (0.0, 1.0, False),
     "solver.damping": (0.0, 1e6, False),
     "solver.stall_window": (1, 100_000, False),
     "track.dt": (1e-9, 1e3, False),  # [s]

@@ -27,6 +27,7 @@ _SOLVER_KEYS: dict[str, type] = {
     "max_step": list,
     "singular_threshold": float,
     "max_damping": float,
+    "lower_trust": float,
     "adaptive_damping": bool,
     "damping": float,
     "stall_window": int,
@@ -98,12 +99,12 @@ def _solve_options(reader: Reader, options: dict[str, Any], mode: str) -> SolveO
     law = base.damping_law or DampingLaw()
     if not options.get("adaptive_damping", True):
         overrides["damping_law"] = None
-    elif "singular_threshold" in options or "max_damping" in options:
+    elif any(key in options for key in ("singular_threshold", "max_damping", "lower_trust")):
         overrides["damping_law"] = DampingLaw(
             singular_threshold=options.get("singular_threshold", law.singular_threshold),
             max_damping=options.get("max_damping", law.max_damping),
             error_scale=law.error_scale,
-            lower_trust=law.lower_trust,
+            lower_trust=options.get("lower_trust", law.lower_trust),
         )
     try:
         return base.replace(**overrides)

@@ -288,6 +288,8 @@ def _with_task_option(line: str) -> str:
         (_with_task_option("cost = -inf"), "levels[0].tasks[0].cost"),
         (_with_solver("max_damping = nan"), "solver.max_damping"),
         (_with_solver("max_damping = -1"), "solver.max_damping"),
+        (_with_solver("lower_trust = 1.5"), "solver.lower_trust"),
+        (_with_solver("lower_trust = -0.5"), "solver.lower_trust"),
         (_with_solver("singular_threshold = inf"), "solver.singular_threshold"),
         (_with_solver("damping = -1e-6"), "solver.damping"),
         (_with_solver("tol_position = -1"), "solver.tol_position"),

@@ -50,6 +50,10 @@ def test_damping_law_fields_and_switch(tmp_path):
     law = tuned.solve_options.damping_law
     assert (law.singular_threshold, law.max_damping) == (0.1, 0.2)
     assert law.error_scale == qpik.PRESETS["default"].damping_law.error_scale  # kept
+    assert law.lower_trust == 0.0
+    trusted = load(tmp_path, tables="[solver]\nlower_trust = 1.0\n").solve_options.damping_law
+    assert trusted.lower_trust == 1.0
+    assert trusted.max_damping == qpik.PRESETS["default"].damping_law.max_damping
     off = load(tmp_path, tables="[solver]\nadaptive_damping = false\n")
     assert off.solve_options.damping_law is None and off.damping_law() is None
 
