@@ -77,7 +77,8 @@ class DampingLaw:
             near the singularity the damped level's null space turns between two steps, and
             lower levels taking their full step in it make a closed loop cycle (a posture
             below a task whose target is out of reach). 0 (the default) leaves their box as
-            it is. A dof held by the smaller box reports that bound's limit as active.
+            it is. The smaller box is no limit: ``StepResult.active_limits`` names only
+            the limits the step meets.
     """
 
     singular_threshold: float = 0.05
