@@ -102,6 +102,7 @@ def test_lower_trust_compiled_step_and_qp_path_agree():
     assert np.abs(np.asarray(step.velocity) - np.asarray(qp.velocity)).max() < 1e-10
     assert all(str(s) == "solved" for s in step.status)
     assert step.damping[0] > 0.0  # the task level is damped there: the trust is in play
+    assert step.active_limits == []  # the trust's box holds the posture; it is no limit
     solver.damping_law = qpik.DampingLaw()
     free = solver.step(configuration, 0.01)
     assert np.abs(np.asarray(free.velocity) - np.asarray(step.velocity)).max() > 0.1
