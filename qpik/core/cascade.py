@@ -361,7 +361,7 @@ class HierarchySolver(SolverSettings):
         self.solver = solver
         self.damping_law = damping_law
         self._settings_law: object = _UNSET_LAW  # the law _settings was computed for
-        self._settings: tuple[float, float, float] = (1.0, 0.0, 0.0)
+        self._settings: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
         self.rank_tolerance = rank_tolerance
         self.max_iter = max_iter
         self.tolerance = tolerance
@@ -435,16 +435,18 @@ class HierarchySolver(SolverSettings):
             # not a list or tuple of levels, not float64 C-contiguous arrays - or a level did
             # not settle: then the path below, which names the argument or falls back).
             if self.damping_law is self._settings_law:  # (a DampingLaw is frozen)
-                threshold, max_damping, error_scale = self._settings
+                threshold, max_damping, error_scale, trust = self._settings
             else:
-                threshold, max_damping, error_scale = self._settings = self.damping_settings
+                threshold, max_damping, error_scale = self.damping_settings
+                trust = self.lower_trust
+                self._settings = (threshold, max_damping, error_scale, trust)
                 self._settings_law = self.damping_law
             try:
                 result = K.solve_levels(
                     problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
                     max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
                     self._last_active() if self.warm_start else None, None, None, _KINDS,
-                    self._cascade_workspace, self.lower_trust,
+                    self._cascade_workspace, trust,
                 )  # fmt: skip
             except TypeError:  # an argument of a type it does not take (None): the checks name it
                 result = None
