@@ -641,19 +641,18 @@ inline void solve_rows_step_into(const FusedArgs& a, i64 max_iter, MatRefT<const
     const CMatRef G = a.G.rows ? a.G : CMatRef(nullptr, 0, n);
     core::CascadeResult& c = s.cascade;
     c.deferred.clear();  // (couple_step writes it only where it answers)
+    const double trust = a.settings.size() > LOWER_TRUST ? a.settings[LOWER_TRUST] : 0.0;
     // A first level of pair couplings (a mimic) by its exact fast path (couple.hpp), else
     // the general cascade.
     if (!couple_step(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts, CVecRef(rows.reg),
                      CVecRef(rows.box.lb), CVecRef(rows.box.ub), G, a.h, a.settings[THRESHOLD],
                      a.settings[MAX_DAMPING], a.settings[ERROR_SCALE], a.settings[RANK_TOL],
-                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c, defer,
-                     (a.settings.size() > LOWER_TRUST ? a.settings[LOWER_TRUST] : 0.0))) {
+                     max_iter, a.settings[TOL], warm, canonical, ws, s.couple, c, defer, trust)) {
         core::solve_cascade_into(CMatRef(a.A), CVecRef(a.b), CVecRef(a.w), a.starts,
                                  CVecRef(rows.reg), CVecRef(rows.box.lb), CVecRef(rows.box.ub), G,
                                  a.h, a.settings[THRESHOLD], a.settings[MAX_DAMPING],
                                  a.settings[ERROR_SCALE], a.settings[RANK_TOL], max_iter,
-                                 a.settings[TOL], warm, canonical, ws, c, true, false, defer,
-                                 (a.settings.size() > LOWER_TRUST ? a.settings[LOWER_TRUST] : 0.0));
+                                 a.settings[TOL], warm, canonical, ws, c, true, false, defer, trust);
     }
     // (c.primal is not read here: the general path leaves it uncomputed)
     out.d.assign(c.dq.begin(), c.dq.end());
