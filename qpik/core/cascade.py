@@ -317,9 +317,6 @@ _KINDS = (
 )
 
 
-_UNSET_LAW = object()
-
-
 class HierarchySolver(SolverSettings):
     """Solves :class:`HierarchyProblem` s. By default every level starts cold, so the same
     problem gives bitwise the same result whatever was solved before; backend workspaces
@@ -360,8 +357,6 @@ class HierarchySolver(SolverSettings):
         self.backend_options = backend_options
         self.solver = solver
         self.damping_law = damping_law
-        self._settings_law: object = _UNSET_LAW  # the law _settings was computed for
-        self._settings: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
         self.rank_tolerance = rank_tolerance
         self.max_iter = max_iter
         self.tolerance = tolerance
@@ -429,25 +424,20 @@ class HierarchySolver(SolverSettings):
 
     def solve(self, problem: HierarchyProblem, *, validate: bool = True) -> HierarchyResult:
         """Solve the cascade. ``validate=False`` skips the shape/finiteness checks."""
-        if self.solver == "auto":
+        args = self._call_args
+        if args is None:  # (settings changed since the last solve: SolverSettings._changed)
+            args = self._call_args = self._solve_levels_args()
+        if args:  # the solver "auto"
             # One compiled call: the checks, the stacking, the cascade and the result object
             # with its arrays (None where an argument fails a check or needs a conversion -
             # not a list or tuple of levels, not float64 C-contiguous arrays - or a level did
             # not settle: then the path below, which names the argument or falls back).
-            if self.damping_law is self._settings_law:  # (a DampingLaw is frozen)
-                threshold, max_damping, error_scale, trust = self._settings
-            else:
-                threshold, max_damping, error_scale = self.damping_settings
-                trust = self.lower_trust
-                self._settings = (threshold, max_damping, error_scale, trust)
-                self._settings_law = self.damping_law
             try:
+                if self._warm_start:  # (args[6]: the warm active sets, None in args)
+                    args = (*args[:6], self._last_active(), *args[7:])
                 result = K.solve_levels(
-                    problem.levels, problem.lb, problem.ub, problem.G, problem.h, threshold,
-                    max_damping, error_scale, self.rank_tolerance, self.max_iter, self.tolerance,
-                    self._last_active() if self.warm_start else None, None, None, _KINDS,
-                    self._cascade_workspace, trust,
-                )  # fmt: skip
+                    problem.levels, problem.lb, problem.ub, problem.G, problem.h, *args
+                )
             except TypeError:  # an argument of a type it does not take (None): the checks name it
                 result = None
             if result is not None:
@@ -462,6 +452,19 @@ class HierarchySolver(SolverSettings):
             np.ascontiguousarray(problem.ub, dtype=float),
             np.ascontiguousarray(problem.G, dtype=float),
             np.ascontiguousarray(problem.h, dtype=float),
+        )  # fmt: skip
+
+    def _solve_levels_args(self) -> tuple:
+        """The arguments of the compiled ``solve_levels`` after the problem's five, from the
+        settings (read once per change of them, not at every solve: :meth:`solve` keeps them
+        until :meth:`SolverSettings._changed`); ``()`` for a forced backend. The warm
+        active sets (index 6) are None here: a warm solve puts its own in."""
+        if self._solver != "auto":
+            return ()
+        threshold, max_damping, error_scale = self.damping_settings
+        return (
+            threshold, max_damping, error_scale, self._rank_tolerance, self._max_iter,
+            self._tolerance, None, None, None, _KINDS, self._cascade_workspace, self.lower_trust,
         )  # fmt: skip
 
     def solve_arrays(

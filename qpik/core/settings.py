@@ -41,6 +41,8 @@ class SolverSettings:
     #: A new number at every assignment of a setting, never one another solver had (the
     #: plans that copy the settings compare it).
     settings_version: int = 0
+    #: A solver's arguments made from the settings, None once they change (``_changed``).
+    _call_args: tuple | None = None
 
     def __getstate__(self) -> dict:
         """The settings (copies and pickles), without the backend workspaces (OSQP's do not
@@ -48,6 +50,7 @@ class SolverSettings:
         (a :class:`qpik.core.HierarchySolver`'s): a copy starts cold, which changes no answer."""
         state = self.__dict__.copy()
         state["_workspaces"] = {}
+        state["_call_args"] = None
         for warm in ("_warm", "_warm_row"):
             if warm in state:
                 state[warm] = None
@@ -56,9 +59,11 @@ class SolverSettings:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self.settings_version = next(_VERSIONS)  # (a copy's settings are its own)
+        self._call_args = None  # (made again from the copy's settings and workspace)
 
     def _changed(self) -> None:
         self.settings_version = next(_VERSIONS)
+        self._call_args = None
         self._workspaces: dict = {}  # (a backend's workspaces were made for the old settings)
 
     @property

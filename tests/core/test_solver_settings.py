@@ -65,6 +65,57 @@ def test_a_setting_changed_after_a_solve_is_the_next_solves():
     assert solver.settings_version > 0
 
 
+def _near_singular_problem() -> HierarchyProblem:
+    """Level 0 two nearly parallel rows (smallest singular value ~7e-5: damped by the
+    default law, exact without one), level 1 a posture; a box that binds."""
+    rng = np.random.default_rng(1)
+    A0 = np.zeros((2, 5))
+    A0[0, 0], A0[1, 0], A0[1, 1] = 1.0, 1.0, 1e-4
+    levels = [Level(A0, np.array([0.2, 0.21])), Level(np.eye(5), rng.normal(size=5))]
+    return HierarchyProblem(
+        levels, lb=-0.3 * np.ones(5), ub=0.3 * np.ones(5), G=np.zeros((0, 5)), h=np.zeros(0)
+    )
+
+
+def test_the_solves_arguments_follow_every_setting_and_copy():
+    """HierarchySolver.solve keeps the compiled call's arguments made from its settings
+    between solves (SolverSettings._call_args); every assignment makes them again: after
+    each change the answer is, bit for bit, that of a fresh solver built with the settings
+    so far, and a copy solves with its own (its own workspace, its own later changes)."""
+    import copy
+
+    problem = _near_singular_problem()
+    solver = HierarchySolver()
+    damped = solver.solve(problem).x.copy()
+    changes = [
+        ("damping_law", None),
+        ("damping_law", DampingLaw(singular_threshold=0.3, max_damping=0.2, lower_trust=1.0)),
+        ("rank_tolerance", 1e-3),
+        ("tolerance", 1e-10),
+        ("max_iter", 40),
+        ("warm_start", True),
+        ("warm_start", False),
+    ]
+    settings: dict = {}
+    answers = []
+    for name, value in changes:
+        setattr(solver, name, value)
+        settings[name] = value
+        got = solver.solve(problem)
+        expected = HierarchySolver(**settings).solve(problem)
+        np.testing.assert_array_equal(got.x, expected.x)
+        assert got.status == expected.status
+        answers.append(got.x.copy())
+    assert np.abs(answers[0] - damped).max() > 1e-3  # (the law's change took effect)
+    assert np.abs(answers[1] - answers[0]).max() > 1e-3
+    twin = copy.deepcopy(solver)
+    np.testing.assert_array_equal(twin.solve(problem).x, answers[-1])
+    assert twin._call_args is not None and twin._call_args[10] is twin._cascade_workspace
+    assert twin._cascade_workspace is not solver._cascade_workspace
+    twin.damping_law = None
+    np.testing.assert_array_equal(solver.solve(problem).x, answers[-1])  # (unchanged)
+
+
 def _panda_far():
     """The bundled Panda at its home pose, a frame target 0.3 m away over a posture 0.5 rad
     away (both levels bind), its position and velocity limits."""
