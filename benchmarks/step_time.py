@@ -49,6 +49,7 @@ and the core agree on); also the per-level statuses over every state.
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
     python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
     python benchmarks/step_time.py --peers talos [--talos-steps 300]   # the Talos peers alone
+        [--talos-methods qpik,placo]   # only those methods (keys: TALOS_METHODS)
     python benchmarks/step_time.py --instructions [--count-states 100]  # valgrind's counts
 
 * **Instructions per step** (``--instructions``; needs valgrind): the Panda and Talos peer
@@ -903,7 +904,11 @@ class _TalosScene:
         return robot, solver, com_task, hand_tasks
 
 
-def talos_peers(n_steps: int = 300) -> None:
+#: The methods of the Talos peer section (``--talos-methods``), by key.
+TALOS_METHODS = ("qpik", "qpik1", "qpikp", "qpiks", "placo", "placos", "mink")
+
+
+def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
     """Talos (example-robot-data, floating base), feet held (6-D) / CoM swaying between the
     feet / both hands (position; from the middle on the left hand's target is 0.6 m away, out
     of reach) / posture, position and velocity limits, each method in its own closed loop at
@@ -930,7 +935,12 @@ def talos_peers(n_steps: int = 300) -> None:
     of ``feet error / |dq_legs|^2``: where that median is alike, a larger feet error comes
     from larger steps, not from a less exact one. mink's feet are weighted, not held, and
     keep a first-order error besides (a larger median). The corrected qpik row removes the
-    second-order term itself: what it leaves is of third order (a smaller median)."""
+    second-order term itself: what it leaves is of third order (a smaller median).
+
+    ``methods`` (keys of :data:`TALOS_METHODS`, ``--talos-methods``): only those, interleaved
+    the same way (the others' rows left out; a ratio column only where its reference ran),
+    e.g. qpik's four levels and PlaCo alone, to see whether one of them is slower in a run as
+    a whole."""
     import mujoco
     from scipy.spatial import ConvexHull
 
@@ -1037,7 +1047,9 @@ def talos_peers(n_steps: int = 300) -> None:
         c.update(c.integrate(v, DT))
         return elapsed, c.q
 
-    order = list(label)
+    order = [name for name in label if methods is None or name in methods]
+    for name in set(label) - set(order):
+        del times[label[name]], errors[label[name]]
     for k in range(n_steps):
         com, hand_targets = targets_at(k)
         for i in range(len(order)):
@@ -1091,7 +1103,7 @@ def talos_peers(n_steps: int = 300) -> None:
         "target is 0.6 m out of reach in the second half; |dq_legs|: the step's free-joint "
         "and leg entries [m, rad]: the feet error after a step is its second-order term)",
         {name: 1e6 * np.array(t) for name, t in times.items()},
-        {label["placo"]: "PlaCo", label["mink"]: "mink"},
+        {label[k]: short for k, short in (("placo", "PlaCo"), ("mink", "mink")) if k in order},
         extra,
     )
     _print_update_costs(configs["qpik"], home, robot, mapping)
@@ -1285,6 +1297,12 @@ def main(argv=None) -> None:
     parser.add_argument("--peer-states", type=int, default=400, help="erd:panda states a regime")
     parser.add_argument("--talos-steps", type=int, default=300, help="closed-loop Talos steps")
     parser.add_argument(
+        "--talos-methods",
+        default=",".join(TALOS_METHODS),
+        help="the Talos peer section's methods, comma-separated keys of "
+        f"{', '.join(TALOS_METHODS)} (default: all), e.g. qpik,placo",
+    )
+    parser.add_argument(
         "--instructions",
         action="store_true",
         help="instructions per step of qpik and PlaCo (Panda, Talos), counted by valgrind "
@@ -1323,7 +1341,11 @@ def main(argv=None) -> None:
     if args.peers != "talos":
         panda_peers(args.peer_states, rng)
     if not args.no_talos or args.peers == "talos":
-        talos_peers(args.talos_steps)
+        methods = tuple(m for m in args.talos_methods.split(",") if m)
+        unknown = sorted(set(methods) - set(TALOS_METHODS))
+        if unknown or not methods:
+            parser.error(f"--talos-methods: unknown {unknown}; known: {', '.join(TALOS_METHODS)}")
+        talos_peers(args.talos_steps, methods)
 
 
 if __name__ == "__main__":
