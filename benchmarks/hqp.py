@@ -253,6 +253,7 @@ def run(count: int, repeat: int) -> None:
     for name, ps in sets.items():
         optima = [optimum(p) for p in ps]
         uncertified = sum(source != "qpik certified" for _, source in optima)
+        per_problem: dict = {}  # solver -> its time on each problem
         for solver_name, make in SOLVERS.items():
             times, worse, excess, viol, failed = [], 0, 0.0, 0.0, 0
             for p, (x_opt, _) in zip(ps, optima):
@@ -268,6 +269,7 @@ def run(count: int, repeat: int) -> None:
                 worse += w
                 excess = max(excess, e)
                 viol = max(viol, scaled_violation(x, p.lb, p.ub, p.G, p.h))
+            per_problem[solver_name] = times
             print(
                 f"{name:42s} {solver_name:13s} {1e6 * statistics.median(times):10.1f} "
                 f"{worse:4d}/{len(ps):<3d}{excess:10.2e} {viol:9.1e}"
@@ -275,6 +277,15 @@ def run(count: int, repeat: int) -> None:
             )
         if uncertified:
             print(f"{'':42s} ({uncertified} optima not from qpik's certificate)")
+        ratio = statistics.median(
+            a / b for a, b in zip(per_problem["qpik core"], per_problem["daqp hier"])
+        )
+        goal = (
+            ""
+            if name.startswith("random")
+            else (f" (issue 21's goal <= 1.00: {'met' if ratio <= 1.0 else 'not met'})")
+        )
+        print(f"{'':42s} qpik core / daqp hier, median of the problems' ratios: {ratio:.3f}{goal}")
 
 
 def main() -> None:
