@@ -59,7 +59,6 @@ class SolverSettings:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self.settings_version = next(_VERSIONS)  # (a copy's settings are its own)
-        self._call_args = None  # (made again from the copy's settings and workspace)
 
     def _changed(self) -> None:
         self.settings_version = next(_VERSIONS)
