@@ -117,7 +117,7 @@ def start_ray(args, targets, methods: dict, report: dict):
     try:
         import ray
     except ImportError:
-        print("ray: not installed (pip install 'qpik[cluster]'): skipped")
+        print("ray: not installed (pip install -e '.[cluster]'): skipped")
         return None
     cpus = max(args.workers)
     start, _ = timed(lambda: ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False))

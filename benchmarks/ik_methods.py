@@ -1,7 +1,7 @@
 """The methods of the IK success benchmark (:mod:`ik_bench`), each bound to a robot and a
 frame: qpik (:func:`qpik.IKSession.solve`, and ``oneshot``: :func:`qpik.solve` called with
 the model each time, no session), the lecture's IGM with the pseudoinverse or damped
-least squares (:mod:`qpik.baselines`), mink and pink. mink and pink run their
+least squares (:mod:`qpik.igm.baselines`), mink and pink. mink and pink run their
 ``solve_ik`` as the step rule of the same restart loop (:func:`qpik.igm.baselines.igm`), so the
 comparison isolates the step rule; pink runs on the robot as pinocchio loads it
 (:class:`PinocchioRobot` maps the joint orders and checks the two models agree).
@@ -22,7 +22,7 @@ agree with MuJoCo's to 1e-9 at four configurations):
   criteria). It has no time budget: the harness judges its wall time.
 
 Both skip (:class:`MethodUnavailable`) a robot that is not a URDF (the bundled MJCF ones),
-or when their package is missing (``pip install 'qpik[compare]'``).
+or when their package is missing (``pip install -e '.[compare]'``).
 """
 
 from __future__ import annotations
@@ -180,7 +180,7 @@ def _method(parts: Callable[..., dict]) -> MethodFactory:
 
 
 def _igm(igm_function: Callable) -> Callable[..., dict]:
-    """The parts of a baseline loop of :mod:`qpik.baselines` (its step is its own)."""
+    """The parts of a baseline loop of :mod:`qpik.igm.baselines` (its step is its own)."""
     return lambda model, frame, frame_type, robot: {"igm_function": igm_function}
 
 
@@ -402,7 +402,7 @@ def _pink(model: mujoco.MjModel, frame: str, frame_type: FrameType, robot: str |
         from pink.limits import ConfigurationLimit
     except ImportError as exc:
         raise MethodUnavailable(
-            "pink", robot, f"{exc.name} is not installed: pip install 'qpik[compare]'"
+            "pink", robot, f"{exc.name} is not installed: pip install -e '.[compare]'"
         ) from exc
     if robot is None:
         raise MethodUnavailable("pink", robot, "it loads the robot file, and got no robot name")
@@ -545,7 +545,7 @@ def _tracik(
         import pytracik
     except ImportError as exc:
         raise MethodUnavailable(
-            "tracik", robot, "pytracik is not installed: pip install 'qpik[compare]'"
+            "tracik", robot, "pytracik is not installed: pip install -e '.[compare]'"
         ) from exc
     chain = urdf_chain("tracik", robot, model, frame, frame_type)
     text = chain.source.read_text()
@@ -598,7 +598,7 @@ def _rtb_lm(
         import xacrodoc.packages
     except ImportError as exc:
         raise MethodUnavailable(
-            "rtb_lm", robot, f"{exc.name} is not installed: pip install 'qpik[compare]'"
+            "rtb_lm", robot, f"{exc.name} is not installed: pip install -e '.[compare]'"
         ) from exc
     chain = urdf_chain("rtb_lm", robot, model, frame, frame_type)
     # The Toolbox expands the URDF with xacro, which must resolve package:// URIs.
@@ -669,7 +669,7 @@ def peer_methods() -> list[str]:
 
 def available_methods() -> list[str]:
     """The methods that can run here (``mink`` needs mink and qpsolvers, ``pink`` pink and
-    pinocchio: ``pip install 'qpik[compare]'``)."""
+    pinocchio: ``pip install -e '.[compare]'``)."""
     names = ["qpik", "pinv", "dls"]
     try:
         import mink  # noqa: F401

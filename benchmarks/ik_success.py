@@ -38,7 +38,7 @@ how much of a core it was given.
         --n 1000 --skip-second                       # issue 20: qpik beside TRAC-IK, ik_LM
 
 Methods (default): ``qpik`` (IKSession.solve), ``oneshot`` (qpik.solve, no session) and the
-whole-IK peers installed (``pip install 'qpik[compare]'``): ``tracik`` (TRAC-IK, pytracik)
+whole-IK peers installed (``pip install -e '.[compare]'``): ``tracik`` (TRAC-IK, pytracik)
 and ``rtb_lm`` (the Robotics Toolbox's C++ ik_LM), built from the same URDF file as qpik's
 ``erd:`` robot and judged by the same checks (benchmarks/ik_methods.py); they skip the
 bundled MJCF robots. Issue 20's goals are printed after issue 11's. TRAC-IK runs two
@@ -280,7 +280,7 @@ def main(argv=None) -> dict:
     missing = [name for name in bench.PEERS if name not in found]
     print(
         f"peers found: {', '.join(found) or 'none'}"
-        + (f"; missing (pip install 'qpik[compare]'): {', '.join(missing)}" if missing else "")
+        + (f"; missing (pip install -e '.[compare]'): {', '.join(missing)}" if missing else "")
         + f"; methods run: {', '.join(args.methods)}"
     )
     if args.first_use:

@@ -23,7 +23,7 @@ levels, by 1.8e-7 and 7.7e-7, at a lower objective than the feasible optimum tha
 and the core agree on); also the per-level statuses over every state.
 
 * **Issue 20, the peers** (``--peers on|off|only|talos``; each skipped with a line when PlaCo,
-  pink, pinocchio or daqp is missing: ``pip install 'qpik[compare]'``):
+  pink, pinocchio or daqp is missing: ``pip install -e '.[compare]'``):
 
   - *Panda beside PlaCo and pink*: example-robot-data's Panda (the same URDF loaded by
     qpik's MuJoCo model, PlaCo and pink; poses checked equal), a pose task on
@@ -1241,7 +1241,7 @@ def count_instructions(cases: list, n: int) -> None:
         print("\ninstruction counts skipped: valgrind is not installed")
         return
     if peers_found().get("placo") is None:
-        print("\ninstruction counts skipped: PlaCo is not installed (pip install 'qpik[compare]')")
+        print("\ninstruction counts skipped: PlaCo is not installed (pip install -e '.[compare]')")
         return
     env = dict(os.environ, PYTHONHASHSEED="0", OPENBLAS_NUM_THREADS="1")
 
@@ -1336,7 +1336,7 @@ def main(argv=None) -> None:
     found = peers_found()
     missing = [name for name, version in found.items() if version is None]
     if missing:
-        print(f"\npeers skipped: {', '.join(missing)} not installed (pip install 'qpik[compare]')")
+        print(f"\npeers skipped: {', '.join(missing)} not installed (pip install -e '.[compare]')")
         return
     if args.peers != "talos":
         panda_peers(args.peer_states, rng)

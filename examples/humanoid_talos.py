@@ -19,8 +19,8 @@ The robot starts in ``half_sitting``. Per run it prints the feet error (the wors
 all steps; goal 1e-5 m), the hands' final errors, the smallest CoM margin, the median and
 worst step time, and the joint position and velocity violations (goal 0).
 
-Run: ``python examples/humanoid_talos.py [--steps N]`` (needs ``pip install
-'qpik[robots]'``).
+Run: ``python examples/humanoid_talos.py [--steps N]`` (needs the ``robots`` extra: from
+the checkout, ``pip install -e '.[robots]'``).
 """
 
 from __future__ import annotations

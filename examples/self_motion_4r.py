@@ -1,10 +1,12 @@
 """The 4R self-motion: the tip holds still while the joints move in the null space.
 
 A textbook self-motion: from q1 = (0.76, 0.90, 0.69, 1.19) the tip of the 4-link planar arm
-is at p_e = (-1, 2). Level 0 holds it there (v_e = 0); level 1 lowers the joint-limit
-distance, so that ``qdot = J^+ xi + N(q) zeta`` moves the joints toward mid-range without
-moving the tip. The problem is tasks/planar_4r_self_motion.toml, run here with a chosen
-number of steps; ``--plot`` saves the figure of the run.
+is at p_e = (-1, 2) (to 2 decimals; the problem's target is where q1 puts it exactly). Level
+0 holds it there (v_e = 0); level 1 lowers the joint-limit distance w(q) (0 with every joint
+at mid-range, 1/8 at the limits: :func:`qpik.analysis.joint_limit_distance`), so that ``qdot
+= J^+ xi + N(q) zeta`` moves the joints toward mid-range without moving the tip. The problem
+is tasks/planar_4r_self_motion.toml, run here with a chosen number of steps; ``--plot``
+saves the figure of the run.
 
 Run: python examples/self_motion_4r.py [--steps N] [--plot OUT.png]
 """
@@ -32,7 +34,7 @@ def main(argv=None) -> int:
     trace = result.trace
     configuration = problem.start_configuration()
     lower, upper = configuration.lower, configuration.upper
-    print(f"{'t [s]':>6} {'q':>34} {'tip error [m]':>14} {'limit distance':>15}")
+    print(f"{'t [s]':>6} {'q':>34} {'tip error [m]':>14} {'w(q)':>15}")
     for i in range(0, len(trace.q), max(1, len(trace.q) // 8)):
         q = trace.q[i]
         print(

@@ -647,7 +647,7 @@ PRESETS: Final[Mapping[str, SolveOptions]] = MappingProxyType(
 # ---------------------------------------------------------------------- keywords
 class LoopKeywords(TypedDict, total=False):
     """The option keywords of every full-IK loop, :func:`qpik.solve`'s and the baselines'
-    (:func:`qpik.baselines.igm`): the :class:`SolveOptions` fields of the same names, which
+    (:func:`qpik.igm.baselines.igm`): the :class:`SolveOptions` fields of the same names, which
     document them."""
 
     tol_position: float

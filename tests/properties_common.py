@@ -1,4 +1,4 @@
-"""Invariants shared by the property tests (tests/test_properties_*.py, issue 13).
+"""Invariants shared by the property tests (tests/*/test_properties_*.py, issue 13).
 
 Every public entry point, on any input, either raises a :class:`qpik.QpikError` or returns
 a valid result: finite numbers, joints within their limits, ``converged`` only when an

@@ -292,7 +292,7 @@ def solve_file(
     **keywords: Unpack[BatchKeywords],
 ) -> BatchRun:
     """Solve a targets file (see :func:`load_targets`) for ``frame`` and write the results
-    to ``out`` (``.npz``, or ``.parquet`` with pyarrow: ``pip install 'qpik[cluster]'``)
+    to ``out`` (``.npz``, or ``.parquet`` with pyarrow: ``pip install -e '.[cluster]'``)
     chunk by chunk; a rerun with the same ``out`` resumes.
 
     Each finished chunk is saved at once, atomically, in the folder ``out + ".chunks"``;

@@ -117,7 +117,7 @@ class BatchOptions:
         workers: processes (``None``: ``os.cpu_count()``; for Ray, every CPU of the
             cluster); ``1`` solves in this process.
         backend: ``"process"`` (a process pool on this machine) or ``"ray"`` (needs
-            ``pip install 'qpik[cluster]'``).
+            ``pip install -e '.[cluster]'``).
         address: Ray address of an existing cluster (``"auto"``, ``"ray://host:10001"``);
             ``None`` joins the running Ray session or starts a local one.
         progress: a progress bar with rate and ETA on stderr (tqdm), shown on runs longer

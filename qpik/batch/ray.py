@@ -1,6 +1,6 @@
 """Batches on a Ray cluster (``solve_many(..., backend="ray")``): :func:`ray_init` connects,
 and :func:`iter_ray` runs a batch's chunks as Ray tasks, a few per CPU ahead. Ray comes with
-the ``cluster`` extra (``pip install 'qpik[cluster]'``); the workers of a remote cluster
+the ``cluster`` extra (``pip install -e '.[cluster]'``); the workers of a remote cluster
 need qpik (and the robot files given by path) installed on every node.
 """
 

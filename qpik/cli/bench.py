@@ -46,8 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "interleaved. Protocol trac-ik (default): success = position <= 1e-5 m and "
         "rotation vector <= 1e-5 rad on each axis, joints within limits, within 5 ms, "
         "TRAC-IK's published figures beside; coarse: 1e-4 m and 1e-3 rad (norms) within "
-        "50 ms. Prints a table; --json writes every number. Runs from a source checkout "
-        "(the harness is benchmarks/ik_bench.py).",
+        "50 ms. Prints a table; --json writes every number. Needs the editable install of "
+        "a source checkout (pip install -e .: the harness is benchmarks/ik_bench.py).",
         epilog="example: qpik bench --robots ur5e panda --n 200 --methods qpik dls "
         "--json bench.json",
     )

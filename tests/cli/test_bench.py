@@ -202,7 +202,7 @@ def test_pink_missing_is_skipped_with_the_extra_named(monkeypatch):
     )
     entry = results["robots"]["planar_2r"]
     assert list(entry["methods"]) == ["qpik"]
-    assert "qpik[compare]" in entry["skipped"]["pink"]
+    assert "pip install -e '.[compare]'" in entry["skipped"]["pink"]
     assert "pink skipped on planar_2r" in bench.format_table(results)
 
 
