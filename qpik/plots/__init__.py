@@ -29,6 +29,8 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..core import checks
 from . import curves as _curves
 from .base import FLOOR as FLOOR  # the constants, readable as qpik.plots.X
@@ -49,9 +51,33 @@ if TYPE_CHECKING:  # matplotlib is optional and imported lazily
     from matplotlib.figure import Figure
 
     from ..problem import ProblemResult
+    from ..problem.report import Problem
 
 
 # ----------------------------------------------------------------------------- figure
+def level_targets(problem: Problem) -> list[tuple[str, np.ndarray]]:
+    """The position targets [m, world] of the levels' frame tasks on frames that no goal
+    names (a lower level's own target, the feet a humanoid holds where they start), as
+    ``(label, position)`` with the label ``"L<level> <frame> target"``; what
+    :func:`plot_result` marks beside the goals' targets."""
+    goal_frames = {f.frame for g in problem.goals for f in g.frames}
+    out = []
+    for level, tasks in enumerate(problem.build_stack(problem.start_configuration())):
+        for task in tasks:
+            frame = getattr(task, "frame_name", None)
+            if frame is None or frame in goal_frames:
+                continue
+            target = getattr(task, "target", None)
+            if isinstance(target, np.ndarray) and target.shape == (3,):
+                position = target
+            elif getattr(task, "transform_target_to_world", None) is not None:
+                position = task.transform_target_to_world.translation()
+            else:  # an orientation's target, or none set
+                continue
+            out.append((f"L{level} {frame} target", np.array(position, dtype=float)))
+    return out
+
+
 def plot_result(
     result: ProblemResult, path: str | os.PathLike | None = None, dpi: int = 80
 ) -> Figure:
@@ -83,12 +109,17 @@ def plot_result(
     plot_frame_errors(result, fig.add_subplot(grid[0, 1]))
     frames = list(dict.fromkeys((f.frame, f.frame_type) for g in problem.goals for f in g.frames))
     targets = [f.target.position for g in problem.goals for f in g.frames]
+    others = level_targets(problem)
     if planar:
-        plot_planar_arm(model, result.path, targets, *frames[0], fig.add_subplot(grid[:, 2]))
+        plot_planar_arm(
+            model, result.path, targets, *frames[0], fig.add_subplot(grid[:, 2]),
+            task_targets=others,
+        )  # fmt: skip
     else:
         plot_robot(
-            model, result.path, targets, frames, fig.add_subplot(grid[:, 2], projection="3d")
-        )
+            model, result.path, targets, frames, fig.add_subplot(grid[:, 2], projection="3d"),
+            task_targets=others,
+        )  # fmt: skip
     index = result.goal_index
     plot_joints(model, result.path, fig.add_subplot(grid[1, 0]), time, index, xlabel)
     with_rotation = all(f.target.rotation is not None for g in problem.goals for f in g.frames)
@@ -121,6 +152,7 @@ __all__ = [
     "plot_planar_arm",
     "plot_result",
     "plot_robot",
+    "level_targets",
     "plot_singular_values",
     "plot_task_errors",
     "pyplot",

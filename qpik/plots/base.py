@@ -116,6 +116,19 @@ def check_targets(targets) -> np.ndarray:
     return array
 
 
+def check_task_targets(task_targets) -> list[tuple[str, np.ndarray]]:
+    """``task_targets``: ``(label, position (3,) [m])`` pairs (maybe none)."""
+    expected = "a sequence of (label, [x, y, z]) pairs (m)"
+    if isinstance(task_targets, (str, bytes, set, frozenset, dict)):
+        raise InvalidArgumentType("task_targets", expected, checks.type_name(task_targets))
+    out = []
+    for k, item in enumerate(task_targets):
+        if not isinstance(item, (tuple, list)) or len(item) != 2 or not isinstance(item[0], str):
+            raise InvalidArgumentType(f"task_targets[{k}]", expected, checks.type_name(item))
+        out.append((item[0], checks.check_vector(f"task_targets[{k}]", item[1], 3)))
+    return out
+
+
 def check_along(name: str, value, n: int) -> np.ndarray | None:
     """``time`` or ``goal_index``: ``None`` or one finite number per configuration."""
     if value is None:
@@ -157,7 +170,7 @@ def legend_below(ax: Axes, ncol: int = 2) -> None:
         labels,
         loc="upper center",
         bbox_to_anchor=(0.5, -0.16),
-        fontsize="x-small",
+        fontsize="small",
         ncol=ncol,
         frameon=False,
     )

@@ -45,16 +45,16 @@ def plot_error_curves(
     title: str = "",
 ) -> Axes:
     """:class:`qpik.problem.ErrorCurve` s on a log scale, one colour per task or frame
-    (``group``): position-like parts [m] solid, rotation parts [rad] dashed, unitless
-    errors dash-dotted; ``tolerances`` ``{unit: value}`` as grey lines of the same styles
-    (for the units present)."""
+    (``group``): position-like parts [m] solid, rotation parts [rad] dashed, joint-space
+    errors [rad or m] dotted, unitless ones dash-dotted (named ``[-]``); ``tolerances``
+    ``{unit: value}`` as grey lines of the same styles (for the units present)."""
     ax = axes(ax)
     colors = palette()
     groups = list(dict.fromkeys(curve.group or curve.label for curve in curves))
     for curve in curves:
         xs = np.arange(len(curve.values)) if x is None else x
         color = colors[groups.index(curve.group or curve.label) % len(colors)]
-        unit = f" [{curve.unit}]" if curve.unit else ""
+        unit = f" [{curve.unit or '-'}]"
         ax.semilogy(
             xs,
             np.maximum(curve.values, FLOOR),
@@ -69,14 +69,26 @@ def plot_error_curves(
             ax.axhline(value, color="0.45", lw=0.9, ls=STYLE[unit], label=f"tolerance [{unit}]")
     if curves:
         goal_starts(ax, np.arange(len(curves[0].values)) if x is None else x, goal_index)
-    ax.set_ylabel("error: [m] solid, [rad] dashed")
+    ax.set_ylabel(_ylabel(units))
     ax.set_title(title)
     ax.grid(True, which="major", alpha=0.3)
     legend_below(ax, ncol=1 if len(curves) > 6 else 2)
     return ax
 
 
-STYLE = {"m": "-", "rad": "--", "": "-."}
+STYLE = {"m": "-", "rad": "--", "rad or m": ":", "": "-."}
+_STYLE_NAMES = {
+    "m": "[m] solid",
+    "rad": "[rad] dashed",
+    "rad or m": "[rad or m] dotted",
+    "": "[-] dash-dot",
+}
+
+
+def _ylabel(units: set) -> str:
+    """The y label: each unit present and its line style (``[m] solid`` where none)."""
+    present = [name for unit, name in _STYLE_NAMES.items() if unit in units] or ["[m] solid"]
+    return "error: " + ", ".join(present)
 
 
 def plot_task_errors(result: ProblemResult, ax: Axes | None = None) -> Axes:

@@ -25,8 +25,12 @@ from .base import (
     check_frames,
     check_path,
     check_targets,
+    check_task_targets,
     legend_below,
 )
+
+#: Markers of the levels' own targets (task_targets), in turn.
+_TASK_MARKERS = ("o", "s", "D", "^", "v", "P")
 
 
 # ----------------------------------------------------------------------------- robot
@@ -69,6 +73,66 @@ def robot_segments(
     return np.array(segments).reshape(-1, 2, 3)
 
 
+def world_geoms(model: mujoco.MjModel) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """The scene's solid geoms fixed in the world (body 0: a problem file's
+    ``[[obstacles]]``, :func:`qpik.scene.add_obstacle`'s): ``(type, size (3,), position (3,)
+    [m, world], rotation (3, 3))`` of each visible sphere, capsule, cylinder, ellipsoid or
+    box (planes, meshes and height fields left out)."""
+    import mujoco
+
+    kinds = {
+        int(mujoco.mjtGeom.mjGEOM_SPHERE),
+        int(mujoco.mjtGeom.mjGEOM_CAPSULE),
+        int(mujoco.mjtGeom.mjGEOM_CYLINDER),
+        int(mujoco.mjtGeom.mjGEOM_ELLIPSOID),
+        int(mujoco.mjtGeom.mjGEOM_BOX),
+    }
+    out = []
+    for g in range(model.ngeom):
+        kind = int(model.geom_type[g])
+        if int(model.geom_bodyid[g]) != 0 or kind not in kinds or model.geom_rgba[g, 3] <= 0:
+            continue
+        rotation = np.empty(9)
+        mujoco.mju_quat2Mat(rotation, model.geom_quat[g])
+        out.append(
+            (kind, model.geom_size[g].copy(), model.geom_pos[g].copy(), rotation.reshape(3, 3))
+        )
+    return out
+
+
+def geom_surface(kind: int, size: np.ndarray, position, rotation, n: int = 14) -> np.ndarray:
+    """Points ``(3, n, 2 n)`` [m, world] of a geom's surface (sphere, ellipsoid, capsule,
+    cylinder: their axes along the geom's z) or, for a box, its 8 corners ``(3, 2, 4)``."""
+    import mujoco
+
+    if kind == int(mujoco.mjtGeom.mjGEOM_BOX):
+        signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        local = (signs * size).T.reshape(3, 2, 4)
+    else:
+        u = np.linspace(0.0, 2.0 * np.pi, 2 * n)
+        v = np.linspace(0.0, np.pi, n)
+        cos_u, sin_u = np.cos(u)[None, :], np.sin(u)[None, :]
+        if kind == int(mujoco.mjtGeom.mjGEOM_CYLINDER):  # radius size[0], half-length size[1]
+            t = np.linspace(-1.0, 1.0, n)[:, None]
+            ones = np.ones_like(t)
+            local = np.array(
+                [size[0] * ones * cos_u, size[0] * ones * sin_u, size[1] * t * (0 * u + 1)]
+            )
+        else:
+            ring, height = np.sin(v)[:, None], np.cos(v)[:, None] * np.ones_like(u)[None, :]
+            x, y = ring * cos_u, ring * sin_u
+            if kind == int(mujoco.mjtGeom.mjGEOM_ELLIPSOID):
+                local = np.array([size[0] * x, size[1] * y, size[2] * height])
+            elif kind == int(mujoco.mjtGeom.mjGEOM_CAPSULE):  # half-spheres on a cylinder
+                local = np.array(
+                    [size[0] * x, size[0] * y, size[0] * height + np.sign(height) * size[1]]
+                )
+            else:  # sphere
+                local = size[0] * np.array([x, y, height])
+    points = np.tensordot(rotation, local, axes=1)
+    return points + np.reshape(position, (3,) + (1,) * (points.ndim - 1))
+
+
 def pick_indices(n: int, intermediate: int) -> np.ndarray:
     return np.unique(np.linspace(0, n - 1, intermediate + 2).round().astype(int))
 
@@ -90,15 +154,21 @@ def plot_robot(
     ax: Axes | None = None,
     intermediate: int = 2,
     view: tuple[float, float] = (12.0, -70.0),
+    task_targets: Sequence[tuple[str, np.ndarray]] = (),
 ) -> Axes:
     """The robot in 3D (matplotlib, from MuJoCo's body positions: a segment from each body
     to each child) at the start (grey), ``intermediate`` configurations along ``path``
     (light blue) and the final one (dark blue), with the traces of ``frames`` (orange)
-    and the ``targets`` [m, world] (red crosses). ``view``: (elevation, azimuth) [deg].
-    Needs no GL (no offscreen rendering): it works on machines without a display."""
+    and the ``targets`` [m, world] (red crosses). ``task_targets``: other targets to mark,
+    ``(label, position [m, world])`` (a lower level's frame target, say), each its own
+    marker. The scene's solid geoms fixed in the world are drawn too
+    (:func:`world_geoms`: a problem file's ``[[obstacles]]``). ``view``: (elevation,
+    azimuth) [deg]. Needs no GL (no offscreen rendering): it works on machines without a
+    display."""
     check_model_type("model", model)
     path = check_path(model, path)
     target_points = check_targets(targets)
+    others = check_task_targets(task_targets)
     frames = check_frames("frames", frames)
     check_ax(ax, three_d=True)
     intermediate = checks.check_integer("intermediate", intermediate, 0, 10_000)
@@ -138,6 +208,28 @@ def plot_robot(
             label="target" if k == 0 else None,
         )
         points.append(np.reshape(target, (1, 3)))
+    for k, (label, target) in enumerate(others):
+        marker = _TASK_MARKERS[k % len(_TASK_MARKERS)]
+        ax3d.plot(*np.reshape(target, (3, 1)), marker, color="tab:purple", ms=7, mfc="none",
+                  mew=2, label=label)  # fmt: skip
+        points.append(np.reshape(target, (1, 3)))
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    for k, (geom_type, size, position, rotation) in enumerate(world_geoms(model)):
+        surface = geom_surface(geom_type, size, position, rotation)
+        label = "obstacle" if k == 0 else None
+        if surface.shape[1:] == (2, 4):  # a box: its six faces
+            c = surface.reshape(3, 8).T
+            faces = [c[[0, 1, 3, 2]], c[[4, 5, 7, 6]], c[[0, 1, 5, 4]], c[[2, 3, 7, 6]],
+                     c[[0, 2, 6, 4]], c[[1, 3, 7, 5]]]  # fmt: skip
+            ax3d.add_collection3d(
+                Poly3DCollection(
+                    faces, facecolor=(0.8, 0.2, 0.2, 0.25), edgecolor="0.4", lw=0.5, label=label
+                )  # fmt: skip
+            )
+        else:
+            ax3d.plot_surface(*surface, color="tab:red", alpha=0.25, lw=0, label=label)
+        points.append(surface.reshape(3, -1).T)
     equal_3d(ax3d, np.vstack(points))
     ax3d.view_init(float(elevation), float(azimuth))
     ax3d.set_xlabel("x [m]", fontsize="small")
@@ -174,12 +266,16 @@ def plot_planar_arm(
     frame_type: str | FrameType = "site",
     ax: Axes | None = None,
     intermediate: int = 3,
+    task_targets: Sequence[tuple[str, np.ndarray]] = (),
 ) -> Axes:
     """A planar arm seen from above at the start (light), ``intermediate`` configurations
-    along ``path`` and the final one (dark), with the tip's trace and the targets."""
+    along ``path`` and the final one (dark), with the tip's trace and the targets (red
+    crosses); ``task_targets``: other targets to mark, ``(label, position [m, world])`` (a
+    lower level's frame target, say), each its own marker."""
     check_model_type("model", model)
     path = check_path(model, path)
     target_points = check_targets(targets)
+    others = check_task_targets(task_targets)
     frame = checks.check_frame_name("frame", frame)
     frame_type = check_frame_type("frame_type", frame_type)
     check_ax(ax)
@@ -210,6 +306,10 @@ def plot_planar_arm(
             mew=2,
             label="target" if k == 0 else None,
         )
+    for k, (label, target) in enumerate(others):
+        marker = _TASK_MARKERS[k % len(_TASK_MARKERS)]
+        ax.plot(target[0], target[1], marker, color="tab:purple", ms=9, mfc="none", mew=2,
+                label=label)  # fmt: skip
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -220,9 +220,11 @@ class StaticsReport:
 @dataclass
 class ErrorCurve:
     """One curve of errors along a path: ``label``, ``level`` (task level, or -1 for a
-    goal frame), ``unit`` (``"m"``, ``"rad"`` or ``""``), ``values (k,)`` (NaN where it
-    does not apply, e.g. a frame not in the goal being reached) and ``group`` (the task
-    or frame it belongs to: its position and rotation parts share it)."""
+    goal frame), ``unit`` (``"m"``, ``"rad"``, ``"rad or m"`` for a joint-space error
+    such as a posture's, or ``""`` for a unitless one such as the joint-limit distance),
+    ``values (k,)`` (NaN where it does not apply, e.g. a frame not in the goal being
+    reached) and ``group`` (the task or frame it belongs to: its position and rotation parts
+    share it)."""
 
     label: str
     level: int
@@ -233,15 +235,18 @@ class ErrorCurve:
 
 def _task_error_parts(task, configuration: Configuration) -> list[tuple[str, float]]:
     """``(unit, norm)`` per part of a task's error ``e(q)``: a 6-row frame error as its
-    position [m] and rotation [rad] halves, 3 rows of a frame task in their unit, else
-    ``|e|`` unitless (costs are not applied)."""
+    position [m] and rotation [rad] halves, 3 rows of a frame task in their unit, a
+    posture's joint-space error [rad or m], else ``|e|`` unitless (costs are not applied)."""
     error = np.asarray(task.compute_error(configuration), dtype=float)
     frame = getattr(task, "frame_name", None)
     if frame is not None and error.shape == (6,):
         return [("m", float(np.linalg.norm(error[:3]))), ("rad", float(np.linalg.norm(error[3:])))]
-    unit = {"PositionTask": "m", "OrientationTask": "rad", "ComTask": "m"}.get(
-        type(task).__name__, ""
-    )
+    unit = {
+        "PositionTask": "m",
+        "OrientationTask": "rad",
+        "ComTask": "m",
+        "PostureTask": "rad or m",
+    }.get(type(task).__name__, "")
     return [(unit, float(np.linalg.norm(error)))]
 
 

@@ -3,6 +3,8 @@ the 3D robot picture from body positions (issue 15)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -158,3 +160,42 @@ def test_robot_picture_of_a_floating_base_leaves_the_world_out():
     ax = fig.add_subplot(projection="3d")
     plots.plot_robot(model, np.tile(configuration.q, (3, 1)), targets=[np.ones(3)], ax=ax)
     assert [t.get_text() for t in ax.get_legend().get_texts()][:2] == ["start", "intermediate"]
+
+
+def test_the_levels_own_targets_and_the_scenes_obstacles_are_drawn(tmp_path):
+    """A lower level's frame target (no goal names its frame) is marked on the robot panel
+    with its label, and a problem file's obstacle is drawn there: what the figure is about
+    in tasks/planar_4r_priorities.toml and tasks/panda_obstacle_avoidance.toml."""
+    tasks = Path(__file__).resolve().parents[2] / "tasks"
+    priorities = qpik.load_problem(tasks / "planar_4r_priorities.toml")
+    (label, position), *rest = plots.level_targets(priorities)
+    assert not rest and label == "L1 link3 target"
+    np.testing.assert_array_equal(position, [0.0, 2.0, 0.0])
+    priorities.steps = 5
+    fig = plots.plot_result(priorities.solve())
+    arm = next(ax for ax in fig.axes if "top view" in ax.get_title())
+    marks = [line for line in arm.get_lines() if line.get_label() == "L1 link3 target"]
+    assert len(marks) == 1 and list(marks[0].get_xydata()[0]) == [0.0, 2.0]
+
+    obstacle = qpik.load_problem(tasks / "panda_obstacle_avoidance.toml")
+    obstacle.steps = 5
+    fig = plots.plot_result(obstacle.solve())
+    robot = next(ax for ax in fig.axes if ax.name == "3d")
+    drawn = [c for c in robot.collections if c.get_label() == "obstacle"]
+    assert len(drawn) == 1
+    ((kind, size, centre, rotation),) = plots.robot.world_geoms(obstacle.model)
+    corners = np.array(plots.robot.geom_surface(kind, size, centre, rotation)).reshape(3, -1)
+    np.testing.assert_allclose(np.linalg.norm(corners.T - centre, axis=1), size[0], atol=1e-12)
+    # the posture's error is joint space: its legend names the unit
+    ax = Figure().add_subplot()
+    plots.plot_task_errors(obstacle.solve(), ax)
+    assert any(line.get_label() == "L1 posture [rad or m]" for line in ax.get_lines())
+    assert ax.get_ylabel() == "error: [m] solid, [rad or m] dotted"
+
+
+def test_task_targets_of_a_wrong_form_are_refused():
+    model = qpik.load_robot("planar_2r")
+    path = np.zeros((2, model.nq))
+    for bad in ("L1 target", [("L1", [0.0, 1.0])], [(1, [0.0, 1.0, 0.0])], [("L1", [np.nan] * 3)]):
+        with pytest.raises(qpik.QpikError, match="task_targets"):
+            plots.plot_planar_arm(model, path, task_targets=bad)
