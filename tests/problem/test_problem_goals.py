@@ -226,7 +226,7 @@ def test_task_and_frame_errors_follow_the_path(tmp_path, mode, extra):
         "L1 posture",
     ]
     assert all(len(c.values) == len(path) for c in tasks)
-    assert tasks[0].unit == "m" and tasks[2].unit == ""
+    assert tasks[0].unit == "m" and tasks[2].unit == "rad or m"  # (a posture: joint space)
     frames = result.frame_errors()
     assert [c.label for c in frames] == ["ee position", "link4 position"]
     for curve in frames:
