@@ -439,9 +439,11 @@ def plot_reachability(
     the same way, cut at the reach-bound centre's y to show the inside. Saved to ``path``
     when given (bare ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib
     (``qpik[plots]``)."""
-    from ..plots import pyplot, require_matplotlib
+    from ..plots import check_figure_path, pyplot, require_matplotlib
 
     require_matplotlib()
+    if path is not None:
+        path = check_figure_path("path", path)
     grid = rmap.grid
     nx, ny, nz = rmap.shape
     # Slices spread over the heights where something is reached (else over the whole box).

@@ -38,9 +38,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     problem = load_problem(args.file)
     if args.plot is not None:
-        from ..plots import require_matplotlib
+        from ..plots import check_figure_path
 
-        require_matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
+        # fail before solving: the extra named if matplotlib is missing, or the extension
+        check_figure_path("--plot", args.plot)
     result = problem.solve()
     with report_stream(args.json):
         _report(args, problem, result)

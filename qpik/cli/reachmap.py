@@ -76,9 +76,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
-        from ..plots import require_matplotlib
+        from ..plots import check_figure_path
 
-        require_matplotlib()  # fail before solving, naming the extra, if matplotlib is missing
+        # fail before solving: the extra named if matplotlib is missing, or the extension
+        check_figure_path("--plot", args.plot)
     options = solve_options_from_args(args)
     if args.collision is not None:
         model, _q0 = resolve_robot(args.robot)

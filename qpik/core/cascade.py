@@ -218,6 +218,20 @@ class HierarchyProblem:
             raise InvalidInput("limits contain NaN")
         if np.isnan(h).any():
             raise InvalidInput("h contains NaN")
+        # -inf / +inf mean "no bound" only on the side they leave open: lb = +inf, ub = -inf
+        # or h = -inf is a bound nothing meets (not an infeasible level to report, a box or
+        # a row that cannot be meant), as is lb > ub.
+        for name, values, wrong in (("lb", lb, np.inf), ("ub", ub, -np.inf), ("h", h, -np.inf)):
+            bad = np.flatnonzero(values == wrong)
+            if bad.size:
+                raise InvalidInput(
+                    f"{name}[{bad[0]}] is {values[bad[0]]}: no x meets it "
+                    f"({'+inf' if wrong > 0 else '-inf'} is no bound only on the other side)"
+                )
+        crossed = np.flatnonzero(lb > ub)
+        if crossed.size:
+            i = crossed[0]
+            raise InvalidInput(f"lb[{i}] = {lb[i]} > ub[{i}] = {ub[i]}: an empty box")
         if not isinstance(self.levels, (list, tuple)):
             raise InvalidInput(f"levels must be a list of Level, got {type(self.levels).__name__}")
         for k, level in enumerate(self.levels):

@@ -335,10 +335,22 @@ def check_level(k: int, level: Any, n: int) -> None:
         )
     if not (np.isfinite(A).all() and np.isfinite(b).all()):
         raise InvalidInput(f"level {k} ({level.name}): A or b is not finite")
-    if not (math.isfinite(level.regularization) and level.regularization >= 0):
+    reg = level.regularization
+    if not (is_real(reg) and math.isfinite(reg) and reg >= 0):
         raise InvalidInput(
-            f"level {k} ({level.name}): regularization must be finite and >= 0, "
-            f"got {level.regularization}"
+            f"level {k} ({level.name}): regularization must be a finite number >= 0, got {reg!r}"
         )
-    if level.weights is not None and np.shape(level.weights) != (A.shape[0],):
-        raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
+    if level.weights is not None:
+        try:
+            weights = np.asarray(level.weights, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInput(
+                f"level {k} ({level.name}): weights must be ({A.shape[0]},) numbers"
+            ) from None
+        if weights.shape != (A.shape[0],):
+            raise InvalidInput(f"level {k} ({level.name}): weights must be ({A.shape[0]},)")
+        if not (np.isfinite(weights).all() and (weights >= 0).all()):
+            raise InvalidInput(
+                f"level {k} ({level.name}): weights (the rows' costs) must be finite and "
+                f">= 0, got {weights}"
+            )

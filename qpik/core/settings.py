@@ -126,7 +126,8 @@ class SolverSettings:
 
     @property
     def max_iter(self) -> int:
-        """The cap on active-set changes per level (an int ``>= 0``; 0: ``10 (n + p) + 50``)."""
+        """The cap on active-set changes per level (an int from 0 to 10**9; 0: ``10 (n + p) +
+        50``)."""
         return self._max_iter
 
     @max_iter.setter
@@ -135,8 +136,8 @@ class SolverSettings:
             number = operator.index(value)
         except TypeError:
             number = -1
-        if isinstance(value, bool) or number < 0:
-            raise InvalidOption("max_iter", value, "an int >= 0 (0: the default cap)")
+        if isinstance(value, bool) or not 0 <= number <= 10**9:
+            raise InvalidOption("max_iter", value, "an int from 0 to 10**9 (0: the default cap)")
         self._max_iter = number
         self._changed()
 

@@ -35,7 +35,7 @@ from ..core import checks
 from . import curves as _curves
 from .base import FLOOR as FLOOR  # the constants, readable as qpik.plots.X
 from .base import MAX_NAMED as MAX_NAMED
-from .base import PathAxis, is_planar, pyplot, require_matplotlib
+from .base import PathAxis, check_figure_path, is_planar, pyplot, require_matplotlib
 from .curves import (
     joint_curves,
     plot_error_curves,
@@ -89,7 +89,7 @@ def plot_result(
     GUI, pyplot's state untouched); returns the figure."""
     _curves.check_result(result)
     if path is not None:
-        path = checks.check_path("path", path)
+        path = check_figure_path("path", path)
     checks.check_real("dpi", dpi, 0.0, 10_000.0, open_minimum=True)
     require_matplotlib()
     problem = result.problem
@@ -143,6 +143,7 @@ def plot_result(
 
 __all__ = [
     "PathAxis",
+    "check_figure_path",
     "is_planar",
     "joint_curves",
     "plot_error_curves",

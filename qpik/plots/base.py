@@ -3,6 +3,7 @@ checks of the arguments, axes, colours, legends and goal markers."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TypedDict
 
@@ -32,6 +33,25 @@ def require_matplotlib():
     except ImportError as exc:
         raise MissingExtra("plotting", "plots", "matplotlib") from exc
     return matplotlib
+
+
+def check_figure_path(name: str, value) -> str:
+    """``value`` as the path of a figure file (``str`` or ``os.PathLike``) whose extension
+    matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...); else :class:`InvalidInput` (a
+    path of another type: :class:`InvalidArgumentType`) naming ``name``. Needs matplotlib
+    (:class:`qpik.errors.MissingExtra` without it): check before a long computation."""
+    path = checks.check_path(name, value)
+    require_matplotlib()
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = sorted(FigureCanvasBase.get_supported_filetypes())
+    suffix = os.path.splitext(path)[1].lower().lstrip(".")
+    if suffix not in formats:
+        raise InvalidInput(
+            f"{name} {path!r}: a figure file ending in one of "
+            f"{', '.join('.' + f for f in formats)} (its extension names the format)"
+        )
+    return path
 
 
 def pyplot():

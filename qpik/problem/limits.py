@@ -9,6 +9,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..errors import QpikError
+from ..limits import SupportPolygonLimit
 from ..model.configuration import Configuration, joint_names
 from .reader import MAX_LENGTH, Reader, describe
 
@@ -85,10 +87,13 @@ def _velocity_table(reader: Reader, value: dict, model: mujoco.MjModel) -> np.nd
     return velocity
 
 
-def read_support(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str, Any] | None:
+def read_support(
+    reader: Reader, data: dict, model: mujoco.MjModel, start: Configuration | None = None
+) -> dict[str, Any] | None:
     """``[limits.support]``: the centre of mass's ground projection stays within the
     support polygon of ``frames`` (their ``footprint`` corners [m] in each frame's x-y
-    axes, default its origin), ``margin`` [m] inside."""
+    axes, default its origin), ``margin`` [m] inside. With ``start``, the polygon is made
+    there once, so that one that spans no area fails on load, naming the table."""
     limits = data.get("limits", {})
     if "support" not in limits:
         return None
@@ -118,4 +123,10 @@ def read_support(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[str,
                 for i, p in enumerate(points)
             ]
         )
+    if start is not None:
+        frame_list = [(name, kind) for name in frames]
+        try:
+            SupportPolygonLimit(model, frame_list, out["margin"], out.get("footprint")).hull(start)
+        except QpikError as exc:
+            raise reader.fail(where, str(exc)) from exc
     return out

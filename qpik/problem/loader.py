@@ -271,7 +271,7 @@ def load_problem(path: str | os.PathLike) -> Problem:
         steps=steps,
         stop_at_goal=stop_at_goal,
         statics=_read_statics(reader, data, model) if "statics" in data else None,
-        support=read_support(reader, data, model),
+        support=read_support(reader, data, model, start),
         collision=read_collision(reader, data, model),
         solve_options=solve_options,
     )

@@ -142,6 +142,27 @@ def test_plot_without_matplotlib_names_the_extra(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.parametrize("command", ["reach", "reachmap"])
+def test_a_plot_file_of_no_figure_format_exits_2_before_solving(tmp_path, capsys, command):
+    """``--plot out.txt``: exit 2 naming --plot and the formats, before the solve (not a
+    crash after it, reported as a bug)."""
+    import time
+
+    out = tmp_path / "out.txt"
+    if command == "reach":
+        argv = ["reach", str(TASKS["panda_pose_reach"]), "--plot", str(out), "--quiet"]
+    else:
+        argv = ["reachmap", "ur5e", "--frame", "ee", "--region", "0", "0", "0", "1", "1", "1",
+                "--resolution", "0.05", "--out", str(tmp_path / "m.npz"), "--plot", str(out),
+                "--quiet"]  # fmt: skip
+    start = time.perf_counter()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--plot" in err and ".png" in err and err.count("\n") == 1
+    assert not out.exists() and not (tmp_path / "m.npz").exists()
+    assert time.perf_counter() - start < 30  # (a reachmap of 8,000 voxels would take minutes)
+
+
 def test_a_command_imports_no_other_command():
     """main() registers only the command its arguments name: ``qpik reach`` imports neither
     the batch nor the reachmap command (nor qpik.batch), about 30 ms of a 0.45 s first run

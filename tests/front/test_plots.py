@@ -199,3 +199,11 @@ def test_task_targets_of_a_wrong_form_are_refused():
     for bad in ("L1 target", [("L1", [0.0, 1.0])], [(1, [0.0, 1.0, 0.0])], [("L1", [np.nan] * 3)]):
         with pytest.raises(qpik.QpikError, match="task_targets"):
             plots.plot_planar_arm(model, path, task_targets=bad)
+
+
+def test_a_figure_path_of_no_figure_format_is_refused(planar, tmp_path):
+    with pytest.raises(qpik.errors.InvalidInput, match=r"path .*\.png"):
+        plots.plot_result(planar, tmp_path / "figure.txt")
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="path"):
+        plots.plot_result(planar, 3)
+    assert plots.check_figure_path("path", tmp_path / "a.PDF").endswith("a.PDF")

@@ -149,6 +149,8 @@ SUPPORT_ERRORS = [
     ),
     ("frames = ['link7']\nframe_type = 'body'\nfeet = 2", "limits.support.feet", "unknown field"),
     ("margin = 0.1", "limits.support.frames", "missing"),
+    # one frame, one footprint point: a polygon of no area, found on load at the start
+    ("frames = ['link7']\nframe_type = 'body'\nfootprint = [[0, 0]]", "limits.support", "no area"),
 ]
 
 
