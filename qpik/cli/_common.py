@@ -156,14 +156,20 @@ STDOUT = "-"
 JSON_HELP = "write the {} as JSON to OUT ('-': standard output, the report then on stderr)"
 
 
-def write_json(path: str, text: str) -> None:
+def write_json(path: str, text: str, option: str = "--json") -> None:
     """Write JSON ``text`` (and a newline) to ``path``, or to standard output when ``path``
-    is ``-``."""
+    is ``-``; a file that cannot be written raises an ``OSError`` whose message names
+    ``option`` and the path (the command's exit 2)."""
     if path == STDOUT:
         sys.stdout.write(text + "\n")
         sys.stdout.flush()
     else:
-        Path(path).write_text(text + "\n")
+        try:
+            Path(path).write_text(text + "\n")
+        except OSError as exc:
+            raise OSError(
+                f"{option} {path!r}: cannot write the JSON: {exc.strerror or exc}"
+            ) from exc
 
 
 @contextlib.contextmanager
