@@ -489,7 +489,8 @@ def plot_reachability(
     # image is None only for slices=0 (no panel): matplotlib then draws a plain colorbar
     fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")  # type: ignore[arg-type]
     ax3 = fig.add_subplot(spec[0, panels + 1], projection="3d")
-    # The far half (y >= the base's y) only, so the cut shows the inside of the workspace.
+    # The far half only (the voxels that reach y >= the base's y: centres at y >= base - half
+    # a voxel), so the cut shows the inside of the workspace.
     cut = rmap.centers[:, 1] >= rmap.base[1] - half
     if not cut.any():
         cut[:] = True
@@ -519,7 +520,8 @@ def plot_reachability(
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
     ax3.set_title(
-        f"voxels reached, y >= {rmap.base[1]:.2f} m ({int(shown.sum())}/{int(cut.sum())})",
+        f"voxels reached, centres at y >= {rmap.base[1] - half:.3g} m "
+        f"({int(shown.sum())}/{int(cut.sum())})",
         fontsize="small",
     )
     fig.suptitle(

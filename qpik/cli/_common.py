@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -170,6 +172,35 @@ def write_json(path: str, text: str, option: str = "--json") -> None:
             raise OSError(
                 f"{option} {path!r}: cannot write the JSON: {exc.strerror or exc}"
             ) from exc
+
+
+@contextlib.contextmanager
+def c_warnings_as_lines(command: str) -> Iterator[None]:
+    """What C code (MuJoCo's compiler: ``WARNING: <mimic> on joint ... ignored``) writes
+    to the process's stderr while the block runs, caught and printed after it as the
+    command's one-line warnings, ``qpik COMMAND: warning: TEXT`` (blank lines dropped).
+    Python's own writes to ``sys.stderr`` inside the block are caught the same way."""
+    sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr descriptor (pythonw): nothing to catch
+        yield
+        return
+    with tempfile.TemporaryFile(mode="w+b") as caught:
+        os.dup2(caught.fileno(), 2)
+        try:
+            yield
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            caught.seek(0)
+            text = caught.read().decode(errors="replace")
+    for line in text.splitlines():
+        line = line.strip()
+        if line:
+            line = line.removeprefix("WARNING: ").removeprefix("Warning: ")
+            print(f"qpik {command}: warning: {line}", file=sys.stderr)
 
 
 @contextlib.contextmanager

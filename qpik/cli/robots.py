@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import warnings
 
+from ..errors import InvalidOption
 from ..model.configuration import FrameType, frame_names, joint_names
 from ..model.robots import (
     erd_robots,
@@ -14,6 +15,7 @@ from ..model.robots import (
     robot_path,
     tool_frame,
 )
+from ._common import c_warnings_as_lines
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,6 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.erd:
         return _run_erd(args.details)
+    if args.details:
+        raise InvalidOption(
+            "--details",
+            True,
+            "used with --erd",
+            "--details applies with --erd only (the bundled robots are always listed in full)",
+        )
     for name in list_robots():
         model = load_robot(name)
         print(f"{name}: {model.nv} DoF  ({robot_path(name).name})")
@@ -61,7 +70,7 @@ def _run_erd(details: bool) -> int:
     for name, path in robots.items():
         line = f"  erd:{name:<{width}} {path.relative_to(base)}"
         if details:
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), c_warnings_as_lines("robots"):
                 warnings.simplefilter("ignore")
                 model = load_robot(f"erd:{name}")
             tool = tool_frame(model)

@@ -108,6 +108,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -214,24 +215,7 @@ class HierarchyProblem:
             raise InvalidInput(f"ub must have shape ({n},) as lb, got {ub.shape}")
         if G.shape[1] != n or h.shape != (G.shape[0],):
             raise InvalidInput(f"G must be (p, {n}) and h (p,), got {G.shape}, {h.shape}")
-        if np.isnan(lb).any() or np.isnan(ub).any() or not np.isfinite(G).all():
-            raise InvalidInput("limits contain NaN")
-        if np.isnan(h).any():
-            raise InvalidInput("h contains NaN")
-        # -inf / +inf mean "no bound" only on the side they leave open: lb = +inf, ub = -inf
-        # or h = -inf is a bound nothing meets (not an infeasible level to report, a box or
-        # a row that cannot be meant), as is lb > ub.
-        for name, values, wrong in (("lb", lb, np.inf), ("ub", ub, -np.inf), ("h", h, -np.inf)):
-            bad = np.flatnonzero(values == wrong)
-            if bad.size:
-                raise InvalidInput(
-                    f"{name}[{bad[0]}] is {values[bad[0]]}: no x meets it "
-                    f"({'+inf' if wrong > 0 else '-inf'} is no bound only on the other side)"
-                )
-        crossed = np.flatnonzero(lb > ub)
-        if crossed.size:
-            i = crossed[0]
-            raise InvalidInput(f"lb[{i}] = {lb[i]} > ub[{i}] = {ub[i]}: an empty box")
+        checks.check_bounds_met(lb, ub, G, h)
         if not isinstance(self.levels, (list, tuple)):
             raise InvalidInput(f"levels must be a list of Level, got {type(self.levels).__name__}")
         for k, level in enumerate(self.levels):
@@ -691,7 +675,7 @@ def solve_hierarchy(
     ub: np.ndarray,
     G: np.ndarray | None = None,
     h: np.ndarray | None = None,
-    **options,
+    **options: Any,
 ) -> HierarchyResult:
     """One-shot :class:`HierarchySolver` (``options`` are its arguments)."""
     try:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,7 +83,7 @@ class LevelCertificate:
         ]  # fmt: skip
 
     @classmethod
-    def from_array(cls, row) -> LevelCertificate:
+    def from_array(cls, row: Sequence[float] | np.ndarray) -> LevelCertificate:
         """From ``(primal, stationarity, dual, complementarity)``."""
         return cls(*(float(v) for v in row))
 

@@ -321,6 +321,29 @@ def check_keywords(where: str, given: dict[str, Any], allowed: Any) -> dict[str,
     return given
 
 
+def check_bounds_met(lb: np.ndarray, ub: np.ndarray, G: np.ndarray, h: np.ndarray) -> None:
+    """Limits with no NaN (and ``G`` finite) that some ``x`` can meet (the box's shapes
+    checked before): -inf / +inf mean "no bound" only on the side they leave
+    open, so ``lb = +inf``, ``ub = -inf`` or ``h = -inf`` is a bound nothing meets (a box
+    or a row that cannot be meant, not an infeasible level to report), as is ``lb > ub``;
+    raises :class:`qpik.InvalidInput` naming the first such entry."""
+    if np.isnan(lb).any() or np.isnan(ub).any() or not np.isfinite(G).all():
+        raise InvalidInput("limits contain NaN")
+    if np.isnan(h).any():
+        raise InvalidInput("h contains NaN")
+    for name, values, wrong in (("lb", lb, np.inf), ("ub", ub, -np.inf), ("h", h, -np.inf)):
+        bad = np.flatnonzero(values == wrong)
+        if bad.size:
+            raise InvalidInput(
+                f"{name}[{bad[0]}] is {values[bad[0]]}: no x meets it "
+                f"({'+inf' if wrong > 0 else '-inf'} is no bound only on the other side)"
+            )
+    crossed = np.flatnonzero(lb > ub)
+    if crossed.size:
+        i = crossed[0]
+        raise InvalidInput(f"lb[{i}] = {lb[i]} > ub[{i}] = {ub[i]}: an empty box")
+
+
 def check_level(k: int, level: Any, n: int) -> None:
     """Shapes and finiteness of :class:`qpik.core.Level` ``k`` of a problem on ``n``
     variables; raises :class:`qpik.InvalidInput` naming it."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
+from types import ModuleType
 from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
@@ -25,7 +26,7 @@ FLOOR = 1e-12
 MAX_NAMED = 10
 
 
-def require_matplotlib():
+def require_matplotlib() -> ModuleType:
     """The ``matplotlib`` module, or :class:`qpik.errors.MissingExtra` naming the ``plots``
     extra."""
     try:
@@ -54,7 +55,7 @@ def check_figure_path(name: str, value) -> str:
     return path
 
 
-def pyplot():
+def pyplot() -> ModuleType:
     """``matplotlib.pyplot`` (:class:`qpik.errors.MissingExtra` without matplotlib)."""
     require_matplotlib()
     import matplotlib.pyplot as plt

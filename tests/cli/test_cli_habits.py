@@ -247,3 +247,24 @@ def test_statics_help_says_what_it_does_outside_the_limits(capsys):
         main(["statics", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "outside the joint limits is answered too, with a one-line warning" in out
+
+
+def test_robots_details_without_erd_is_refused(capsys):
+    assert main(["robots", "--details"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "qpik robots: error: --details applies with --erd only (the bundled robots are "
+        "always listed in full)\n"
+    )
+
+
+def test_what_c_code_writes_to_stderr_becomes_one_line_warnings(capfd):
+    """MuJoCo's compiler writes ``WARNING: ...`` and a blank line straight to the process's
+    stderr (a URDF mimic it ignores, say): the command prints it in its own warning format."""
+    import os
+
+    from qpik.cli._common import c_warnings_as_lines
+
+    with c_warnings_as_lines("robots"):
+        os.write(2, b"WARNING: <mimic> on joint 'q2' ignored\n\n")
+    assert capfd.readouterr().err == "qpik robots: warning: <mimic> on joint 'q2' ignored\n"
