@@ -663,11 +663,14 @@ void bind_core(nb::module_& m) {
             const double* ubp = ub.data<double>();
             const double* Gp = G.data<double>();
             const double* hp = h.data<double>();
+            // (NaN, lb > ub, lb = +inf, ub = -inf or h = -inf: bounds nothing meets, which
+            // HierarchyProblem.validate names)
+            constexpr double inf = std::numeric_limits<double>::infinity();
             for (i64 i = 0; i < n; ++i)
-                if (std::isnan(lbp[i]) || std::isnan(ubp[i])) return none;
+                if (!(lbp[i] <= ubp[i]) || lbp[i] == inf || ubp[i] == -inf) return none;
             if (!all_finite(Gp, p * n)) return none;
             for (i64 i = 0; i < p; ++i)
-                if (std::isnan(hp[i])) return none;
+                if (std::isnan(hp[i]) || hp[i] == -inf) return none;
             if (!PyList_Check(levels_h.ptr()) && !PyTuple_Check(levels_h.ptr())) return none;
             i64 L = static_cast<i64>(PySequence_Fast_GET_SIZE(levels_h.ptr()));
             if (L == 0) return none;
@@ -741,6 +744,11 @@ void bind_core(nb::module_& m) {
                     reg[k] = r;
                     bool has_w = !ww.is_none();
                     if (has_w && (!wb.get(ww.ptr(), 'd', 1) || wb.shape(0) != ab.shape(0))) return none;
+                    if (has_w) {  // the rows' costs: finite and >= 0 (else validate names them)
+                        const double* wv0 = wb.data<double>();
+                        for (i64 i = 0; i < ab.shape(0); ++i)
+                            if (!(wv0[i] >= 0.0 && wv0[i] < std::numeric_limits<double>::infinity())) return none;
+                    }
                     i64 mk = ab.shape(0);
                     starts[k + 1] = starts[k] + mk;
                     // A's storage grows (kept rows copied) only past its capacity
