@@ -15,10 +15,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..errors import InvalidConfiguration
 from ..model import KinematicChain, ReachBound, chain_support, joint_limit_arrays, kernels
-from ..model.configuration import Configuration, FrameType
+from ..model.configuration import Configuration, FrameType, quaternion_joints, unit_quaternions
 from ..model.couplings import default_start, model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
+from ..model.robots import check_kinematic_model
 from .kernels import start_box
 from .targets import FrameKey
 
@@ -65,7 +67,8 @@ class PreparedRobot:
     """What a session reads from a model once: joint limits, the mid-range start, the
     bounds the compiled engine takes and, per target frame, its chain and reach bound (on
     first use). It holds no reference to the model (the one-shot cache keys it by a weak
-    reference to the model, :class:`PreparedRobots`)."""
+    reference to the model, :class:`PreparedRobots`). Raises as
+    :func:`qpik.model.robots.check_kinematic_model` for a model no solve can use."""
 
     __slots__ = (
         "bounds_free",
@@ -76,6 +79,7 @@ class PreparedRobot:
         "lower",
         "memo",
         "mid",
+        "quaternions",
         "start_box",
         "support",
         "unheld",
@@ -83,7 +87,12 @@ class PreparedRobot:
     )
 
     def __init__(self, model: mujoco.MjModel) -> None:
+        # a model edited in place into one no solve can use (a NaN body_pos, an empty joint
+        # range) raises here, naming the field, rather than solving to a NaN or wrong answer
+        check_kinematic_model(model)
         self.support = chain_support(model)
+        #: (qpos address, joint name) of the free and ball joints' quaternions (start check)
+        self.quaternions = quaternion_joints(model)
         if self.support is None:
             lower, upper = joint_limit_arrays(model)
         else:
@@ -115,6 +124,17 @@ class PreparedRobot:
         for name, value in state.items():
             setattr(self, name, value)
         self.start_box = start_box(self.lower, self.upper, 1e-6)
+
+    def checked_start(self, q: np.ndarray) -> np.ndarray:
+        """The start ``q0`` (float64, ``(nq,)``) of a model with ball or free joints checked:
+        :class:`qpik.InvalidConfiguration` naming ``q0`` for an entry that is not finite or
+        a zero quaternion; ``q`` itself, or a copy with a quaternion MuJoCo would not
+        normalise right (``[1e200, 1e200, 0, 0]``) normalised
+        (:func:`qpik.model.configuration.unit_quaternions`)."""
+        if not np.isfinite(q).all():
+            i = int(np.flatnonzero(~np.isfinite(q))[0])
+            raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
+        return unit_quaternions(q, self.quaternions, "q0") if self.quaternions else q
 
     def frame(self, model: mujoco.MjModel, key: FrameKey) -> PreparedFrame:
         """The :class:`PreparedFrame` of ``key`` on ``model`` (the model this was read from)."""

@@ -267,9 +267,9 @@ class IKSession:
         defaults to the session's)."""
         start_time = time.perf_counter()
         watch = self._watch
-        if watch is not None and not watch.unchanged():  # the model edited in place
-            self._watch = model_watch(self._model)
-            self._setup(self._model, self._robot_q, self._defaults, PreparedRobot(self._model))
+        if watch is not None and not watch.unchanged():  # edited in place (refused: watch kept)
+            self._watch, prepared = model_watch(self._model), PreparedRobot(self._model)
+            self._setup(self._model, self._robot_q, self._defaults, prepared)
         return self._solve(targets, options, keywords, start_time)
 
     def _solve(
@@ -478,9 +478,7 @@ class IKSession:
                     where=where,
                 )
             return q
-        if not np.isfinite(q).all():
-            i = int(np.flatnonzero(~np.isfinite(q))[0])
-            raise InvalidConfiguration(f"q0[{i}] is {q[i]}; every entry must be finite", i)
+        q = self._prepared.checked_start(q)  # finite; quaternions nonzero, normalised if need be
         if check:
             try:
                 check_within_limits(self.model, q, self._lower, self._upper)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import Any, NoReturn
 
 import mink
 import mujoco
@@ -51,6 +51,59 @@ __all__ = [
 #: Joint types with one qpos and one dof (compared as ints: model arrays hold ints).
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 _FLOAT64 = np.dtype(np.float64)
+#: Squared norms of a quaternion that MuJoCo normalises as it should (its ``mju_normalize4``
+#: reads a norm below 1e-15 as the identity, and a squared norm that overflows as well).
+_QUAT_SQUARED_NORMS = (1e-20, 1e20)
+
+
+def quaternion_joints(model: mujoco.MjModel) -> tuple[tuple[int, str], ...]:
+    """``(qpos address, joint name)`` of the quaternion ``(w, x, y, z)`` of every free and
+    ball joint of ``model``, in joint order."""
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    types = model.jnt_type
+    return tuple(
+        (
+            int(model.jnt_qposadr[j]) + (3 if types[j] == free else 0),
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, int(j)) or f"joint{j}",
+        )
+        for j in np.flatnonzero((types == free) | (types == ball))
+    )
+
+
+def unit_quaternions(
+    q: np.ndarray,
+    quaternions: tuple[tuple[int, str], ...],
+    where: str,
+    values: list[float] | None = None,
+) -> np.ndarray:
+    """``q`` (finite, float64) with every quaternion of ``quaternions``
+    (:func:`quaternion_joints`) readable as a rotation: ``q`` itself (not copied) when
+    MuJoCo normalises each one right, else a copy with those it would not (a norm that
+    underflows or overflows, ``[1e200, 1e200, 0, 0]``) normalised, scaled by their largest
+    entry first. ``values``: ``q.tolist()`` when the caller has it. Raises
+    :class:`InvalidConfiguration` naming ``where`` and the joint for a zero quaternion (no
+    rotation at all: MuJoCo would read it as the identity)."""
+    if values is None:
+        values = q.tolist()
+    low, high = _QUAT_SQUARED_NORMS
+    out = q
+    for adr, joint in quaternions:
+        w, x, y, z = values[adr : adr + 4]
+        if low < w * w + x * x + y * y + z * z < high:  # (no ** : 1e200 ** 2 raises)
+            continue
+        quat = q[adr : adr + 4]
+        scale = float(np.max(np.abs(quat)))
+        if scale == 0.0:
+            raise InvalidConfiguration(
+                f"{where}[{adr}:{adr + 4}], the quaternion (w, x, y, z) of joint {joint!r}, "
+                "is zero: it is no rotation (a nonzero quaternion is normalised)",
+                index=adr,
+            )
+        if out is q:
+            out = q.copy()
+        unit = quat / scale
+        out[adr : adr + 4] = unit / np.linalg.norm(unit)
+    return out
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -225,27 +278,40 @@ class Configuration(mink.Configuration):
         return q
 
     def update(self, q: npt.ArrayLike | None = None) -> None:
-        """Set ``q`` (validated: length ``nq``, finite) and run forward kinematics (what
+        """Set ``q`` (validated: length ``nq``, finite, the quaternions of free and ball
+        joints nonzero; one whose norm MuJoCo's normalisation would underflow or overflow is
+        stored normalised) and run forward kinematics (what
         :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
         model with equalities, ``mj_makeConstraint``)."""
         model, data = self.model, self.data
-        # (data, model, data.qpos, (nq,), neq > 0), kept while model and data are these
-        # (MuJoCo's arrays never move)
+        # (data, model, data.qpos, (nq,), neq > 0, quaternion_joints), kept while model and
+        # data are these (MuJoCo's arrays never move)
         kept = self.__dict__.get("_update_kept")
         if kept is None or kept[0] is not data or kept[1] is not model:
-            kept = self._update_kept = (data, model, data.qpos, (model.nq,), model.neq > 0)
+            kept = self._update_kept = (
+                data,
+                model,
+                data.qpos,
+                (model.nq,),
+                model.neq > 0,
+                quaternion_joints(model),
+            )
         if q is not None:
             # A float64 vector of nq finite entries (its sum finite: no NaN, no inf, with no
             # floating-point warning; one whose sum overflows is judged by _validated) is
             # taken as it is.
-            if not (
-                type(q) is np.ndarray
-                and q.dtype is _FLOAT64
-                and q.shape == kept[3]
-                and math.isfinite(sum(q.tolist()))
-            ):
-                q = self._validated(q)
-            kept[2][:] = q
+            values, checked = None, None
+            if type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == kept[3]:
+                values = q.tolist()
+                if math.isfinite(sum(values)):
+                    checked = q
+                else:
+                    values = None
+            if checked is None:
+                checked = self._validated(q)
+            if kept[5]:  # free and ball joints: a zero quaternion raises, tiny/huge ones scaled
+                checked = unit_quaternions(checked, kept[5], "configuration q", values)
+            kept[2][:] = checked
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         if kept[4]:
@@ -337,12 +403,39 @@ class Configuration(mink.Configuration):
         return jac
 
     def integrate(self, velocity: npt.ArrayLike, dt: float) -> np.ndarray:
-        """Configuration reached from ``q`` moving at ``velocity`` ``(nv,)`` for ``dt`` [s]."""
-        return super().integrate(self._validated_velocity(velocity), check_real("dt", dt))
+        """Configuration reached from ``q`` moving at ``velocity`` ``(nv,)`` for ``dt`` [s].
+        Raises :class:`InvalidConfiguration` naming the velocity when the result is not
+        finite (a finite velocity too large to integrate: ``1e300`` rad/s of a free joint)."""
+        v = self._validated_velocity(velocity)
+        dt = check_real("dt", dt)
+        q = super().integrate(v, dt)
+        if not math.isfinite(sum(q.tolist())):  # (a sum that overflows: checked entrywise)
+            bad = np.flatnonzero(~np.isfinite(q))
+            if bad.size:
+                self._integration_overflow(v, dt, q, int(bad[0]))
+        return q
 
     def integrate_inplace(self, velocity: npt.ArrayLike, dt: float) -> None:
-        """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics."""
-        super().integrate_inplace(self._validated_velocity(velocity), check_real("dt", dt))
+        """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics.
+        Raises as :meth:`integrate` does, ``q`` then unchanged."""
+        self.data.qpos[:] = self.integrate(velocity, dt)  # (finite, unit quaternions)
+        self.update()
+
+    def _integration_overflow(self, v: np.ndarray, dt: float, q: np.ndarray, i: int) -> NoReturn:
+        """Raise :class:`InvalidConfiguration` for ``q`` = ``q + v dt`` whose entry ``i`` is
+        not finite, naming the velocity entries of that entry's joint."""
+        model = self.model
+        j = int(np.searchsorted(model.jnt_qposadr, i, side="right")) - 1
+        dof = int(model.jnt_dofadr[j])
+        ndof = {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}
+        width = ndof.get(int(model.jnt_type[j]), 1)
+        entries = f"v[{dof}]" if width == 1 else f"v[{dof}:{dof + width}]"
+        raise InvalidConfiguration(
+            f"velocity entries {entries} = {v[dof : dof + width].tolist()} (joint "
+            f"{self._qpos_joint[i]!r}) for dt = {dt:g} s give q[{i}] = {q[i]}: the velocity "
+            "is too large to integrate (the result must be finite)",
+            index=dof,
+        )
 
     def _validated_velocity(self, velocity: npt.ArrayLike) -> np.ndarray:
         expected = f"{self.model.nv} numbers"

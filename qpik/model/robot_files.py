@@ -51,10 +51,11 @@ from typing import cast
 import mujoco
 import numpy as np
 
+from ..core import checks
 from ..errors import RobotFileError
 from .frames import FRAME_OBJECTS, excluded_body_pairs
 
-__all__ = ["ROOT_JOINT", "find_srdf", "robot_spec"]
+__all__ = ["LENGTH_FIELDS", "ROOT_JOINT", "check_lengths", "find_srdf", "robot_spec"]
 
 #: Mesh formats MuJoCo reads.
 _READABLE_MESHES = {".stl", ".obj", ".msh"}
@@ -83,6 +84,9 @@ def robot_spec(
     except ValueError as exc:  # MuJoCo's parse and compile errors
         raise RobotFileError(str(path), str(exc).strip()) from exc
     _check_finite(model, path)
+    check_lengths(model, str(path))
+    if root.tag == "robot":
+        _check_urdf_limits(root, path)
     if velocities:
         _add_velocity_numeric(spec, model, velocities)
     srdf_path = _srdf_path(srdf, root, path)
@@ -188,6 +192,27 @@ def _check_finite(model: mujoco.MjModel, path: Path) -> None:
             )
 
 
+#: The model arrays of positions [m] that :func:`check_lengths` bounds.
+LENGTH_FIELDS = ("body_pos", "body_ipos", "jnt_pos", "site_pos", "geom_pos")
+
+
+def check_lengths(model: mujoco.MjModel, where: str) -> None:
+    """Raise :class:`RobotFileError` naming ``where`` for a position of :data:`LENGTH_FIELDS`
+    (body, joint, site, geom, centre of mass) that is not finite or farther than
+    :data:`qpik.core.checks.MAX_LENGTH` [m] from its parent (MuJoCo's dynamics overflow:
+    NaN gravity torques)."""
+    for name in LENGTH_FIELDS:
+        values = np.asarray(getattr(model, name))
+        bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
+        if bad.any():
+            row = int(np.argwhere(bad)[0][0])
+            raise RobotFileError(
+                where,
+                f"{name}[{row}] = {values[row].tolist()}: positions must be finite and within "
+                f"{checks.MAX_LENGTH:g} m",
+            )
+
+
 def _resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
     """Resolve a URDF mesh reference (relative, absolute, ``package://`` or ``file://``)."""
     if filename.startswith("file://"):
@@ -249,6 +274,29 @@ def _prepare_urdf(root: ET.Element, path: Path) -> str:
         angle="radian",
     )
     return ET.tostring(root, encoding="unicode")
+
+
+def _check_urdf_limits(root: ET.Element, path: Path) -> None:
+    """Raise :class:`RobotFileError` naming the file and the joint for a revolute or
+    prismatic joint whose ``<limit lower upper>`` is empty (lower above upper): MuJoCo would
+    load it unlimited, where the same range in MJCF is an error. (Numbers that do not parse
+    are MuJoCo's to report; equal bounds MuJoCo ignores, with its warning.)"""
+    for joint in root.iter("joint"):
+        limit = joint.find("limit")
+        if joint.get("type") not in ("revolute", "prismatic") or limit is None:
+            continue
+        try:
+            lower = float(limit.get("lower", "0"))
+            upper = float(limit.get("upper", "0"))
+        except ValueError:
+            continue
+        if lower > upper:
+            raise RobotFileError(
+                str(path),
+                f'joint {joint.get("name", "?")!r}: <limit lower="{limit.get("lower")}" '
+                f'upper="{limit.get("upper")}"> is empty (lower above upper); swap them, '
+                "or make the joint continuous for no limit",
+            )
 
 
 def _drop_bad_meshes(spec: mujoco.MjSpec, path: Path) -> None:

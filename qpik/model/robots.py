@@ -47,8 +47,14 @@ import mujoco
 import numpy as np
 
 from ..core import checks
-from ..errors import MissingExtra, RobotFileError, UnknownRobot
-from .robot_files import ROOT_JOINT, find_srdf, robot_spec  # noqa: F401 (re-exported)
+from ..errors import InfeasibleLimits, InvalidInput, MissingExtra, RobotFileError, UnknownRobot
+from .robot_files import (  # noqa: F401 (find_srdf, robot_spec: re-exported)
+    LENGTH_FIELDS,
+    ROOT_JOINT,
+    check_lengths,
+    find_srdf,
+    robot_spec,
+)
 
 __all__ = [
     "ERD_ROBOTS",
@@ -59,6 +65,7 @@ __all__ = [
     "TCP_NAMES",
     "TOOL_LINKS",
     "ToolFrame",
+    "check_kinematic_model",
     "erd_path",
     "erd_robots",
     "erd_robots_folder",
@@ -233,7 +240,7 @@ def load_robot(
 
 
 #: The model arrays of positions [m] that :func:`check_model` bounds.
-_LENGTHS = ("body_pos", "body_ipos", "jnt_pos", "site_pos", "geom_pos")
+_LENGTHS = LENGTH_FIELDS
 
 
 def check_model(model: mujoco.MjModel, where: str) -> None:
@@ -242,16 +249,7 @@ def check_model(model: mujoco.MjModel, where: str) -> None:
     farther than :data:`qpik.core.checks.MAX_LENGTH` [m] from its parent (MuJoCo's dynamics
     overflow: NaN gravity torques), a mass or inertia that is not finite, or a custom
     numeric ``velocity_limit`` whose length is not ``nv``."""
-    for name in _LENGTHS:
-        values = np.asarray(getattr(model, name))
-        bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
-        if bad.any():
-            row = int(np.argwhere(bad)[0][0])
-            raise RobotFileError(
-                where,
-                f"{name}[{row}] = {values[row].tolist()}: positions must be finite and within "
-                f"{checks.MAX_LENGTH:g} m",
-            )
+    check_lengths(model, where)
     for name in ("body_mass", "body_inertia"):
         if not np.isfinite(getattr(model, name)).all():
             raise RobotFileError(where, f"{name} has a NaN or inf entry")
@@ -263,6 +261,77 @@ def check_model(model: mujoco.MjModel, where: str) -> None:
             f"the custom numeric velocity_limit has {int(model.numeric_size[nid])} values; "
             f"it needs one per dof ({model.nv})",
         )
+
+
+#: The model arrays a solve computes with (those :data:`qpik.igm.prepared.FINGERPRINT_FIELDS`
+#: watches), checked by :func:`check_kinematic_model`, each with the object its rows name
+#: (``None``: a qpos entry's joint); the positions [m] of :data:`_LENGTHS` are bounded.
+_KINEMATIC_FIELDS: tuple[tuple[str, mujoco.mjtObj | None], ...] = (
+    ("qpos0", None),
+    ("jnt_axis", mujoco.mjtObj.mjOBJ_JOINT),
+    ("jnt_pos", mujoco.mjtObj.mjOBJ_JOINT),
+    ("body_pos", mujoco.mjtObj.mjOBJ_BODY),
+    ("body_quat", mujoco.mjtObj.mjOBJ_BODY),
+    ("site_pos", mujoco.mjtObj.mjOBJ_SITE),
+    ("site_quat", mujoco.mjtObj.mjOBJ_SITE),
+    ("geom_pos", mujoco.mjtObj.mjOBJ_GEOM),
+    ("geom_quat", mujoco.mjtObj.mjOBJ_GEOM),
+    ("eq_data", mujoco.mjtObj.mjOBJ_EQUALITY),
+    ("tendon_length0", mujoco.mjtObj.mjOBJ_TENDON),
+    ("wrap_prm", mujoco.mjtObj.mjOBJ_UNKNOWN),
+)
+
+
+def check_kinematic_model(model: mujoco.MjModel, where: str = "robot") -> None:
+    """Raise a :class:`qpik.QpikError` naming ``where`` (the argument the model came in), the
+    model field and its joint, body, site or geom, for a model a solve cannot compute with
+    (an ``MjModel`` edited in place after it was loaded): :class:`qpik.InvalidInput` for a
+    number that is not finite (a position also beyond :data:`qpik.core.checks.MAX_LENGTH`
+    [m]) or a limited joint's NaN range, :class:`qpik.InfeasibleLimits` for a limited hinge
+    or slide joint whose range is empty (lower above upper). Costs a few tens of
+    microseconds: run it where a model is read (:class:`qpik.igm.prepared.PreparedRobot`),
+    not per step."""
+    for name, obj in _KINEMATIC_FIELDS:
+        values = np.asarray(getattr(model, name))
+        if name in _LENGTHS:
+            bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
+            need = f"finite and within {checks.MAX_LENGTH:g} m"
+        else:
+            bad = ~np.isfinite(values)
+            need = "finite"
+        if bad.any():
+            row = int(np.argwhere(bad)[0][0])
+            raise InvalidInput(
+                f"{where}: the model's {name} of {_row_label(model, name, obj, row)} is "
+                f"{values[row].tolist()}; the numbers a solve reads from the model must be "
+                f"{need} (an array edited in place?)"
+            )
+    for j in np.flatnonzero(model.jnt_limited):
+        lower, upper = (float(x) for x in model.jnt_range[j])
+        label = _row_label(model, "jnt_range", mujoco.mjtObj.mjOBJ_JOINT, int(j))
+        if np.isnan(lower) or np.isnan(upper):
+            raise InvalidInput(
+                f"{where}: the model's jnt_range of {label} is [{lower}, {upper}]; a limited "
+                "joint's range must not be NaN"
+            )
+        if lower > upper and int(model.jnt_type[j]) in _SCALAR_JOINTS:
+            raise InfeasibleLimits(
+                f"{where}: the model's jnt_range of {label} is [{lower:.6g}, {upper:.6g}], "
+                "empty (lower above upper): no configuration is within its limits"
+            )
+
+
+def _row_label(model: mujoco.MjModel, field: str, obj: mujoco.mjtObj | None, row: int) -> str:
+    """``joint 'elbow'``, ``body #3``, ``qpos0[4] (joint 'elbow')``: what row ``row`` of the
+    model field ``field`` belongs to."""
+    if obj is None:  # a qpos entry: its joint
+        j = int(np.searchsorted(model.jnt_qposadr, row, side="right")) - 1
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
+        return f"entry {row} (joint {name!r})"
+    kind = {"jnt": "joint", "eq": "equality", "wrap": "wrap"}.get(field.split("_")[0])
+    kind = kind or field.split("_")[0]
+    name = None if obj == mujoco.mjtObj.mjOBJ_UNKNOWN else mujoco.mj_id2name(model, obj, row)
+    return f"{kind} {name!r}" if name else f"{kind} #{row}"
 
 
 def _check_axes_and_equalities(model: mujoco.MjModel, where: str) -> None:

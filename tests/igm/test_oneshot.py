@@ -168,3 +168,64 @@ def test_couplings_off_the_chain_are_measured_once_and_reported():
         assert result.coupling_error == couplings.error(result.q) == couplings.error(q0)
     q0[couplings.qadr[0]] += 1e-3  # broken at the start: the "qp" engine restores it
     assert session.solve({frame: [0.4, 0.1, 0.5]}, q0=q0).engine == "qp"
+
+
+def test_a_model_edited_into_an_empty_range_raises_infeasible_limits():
+    """Pins repro_13: a joint range edited in place to an empty one (lower above upper) is an
+    InfeasibleLimits naming the joint, from qpik.solve and from a held IKSession (at every
+    solve until the range is mended), not a converged answer outside the range."""
+    qpik.clear_caches()
+    model = qpik.load_robot("panda")
+    target = {"ee": [0.4, 0.2, 0.5]}
+    model.jnt_range[0] = [0.5, 0.4]
+    with pytest.raises(qpik.InfeasibleLimits, match="joint1"):
+        qpik.solve(model, target, seed=0)
+    model = qpik.load_robot("panda")
+    session = qpik.IKSession(model)
+    session.solve(target, seed=0)
+    model.jnt_range[0] = [1.0, -1.0]
+    for _ in range(2):  # the refused model stays refused
+        with pytest.raises(qpik.InfeasibleLimits, match=r"joint1.*\[1, -1\]"):
+            session.solve(target, seed=0)
+    model.jnt_range[0] = [-1.0, 1.0]
+    result = session.solve(target, seed=0)
+    assert -1.0 <= result.q[0] <= 1.0
+    model.jnt_range[0] = [np.nan, 1.0]  # a NaN range: InvalidInput, naming the joint
+    with pytest.raises(qpik.InvalidInput, match="joint1"):
+        session.solve(target, seed=0)
+
+
+@pytest.mark.parametrize(
+    "field, row, value, named",
+    [
+        ("body_pos", 2, np.nan, "body_pos of body 'link1'"),
+        ("site_pos", 0, np.inf, "site_pos of site 'ee'"),
+        ("jnt_axis", 3, np.nan, "jnt_axis of joint 'joint4'"),
+        ("body_pos", 1, 1e300, "body_pos of body 'link0'"),
+    ],
+)
+def test_a_model_edited_into_nan_geometry_raises_naming_the_field(field, row, value, named):
+    """Pins repro_15: a NaN (or inf, or absurdly large) number edited into the model's
+    geometry is an InvalidInput naming the field and its body, site or joint, raised
+    before any solve runs, never an answer with a NaN error."""
+    qpik.clear_caches()
+    model = qpik.load_robot("panda")
+    getattr(model, field)[row] = value
+    with pytest.raises(qpik.InvalidInput, match=named):
+        qpik.solve(model, {"ee": [0.4, 0.2, 0.5]}, seed=0)
+    with pytest.raises(qpik.InvalidInput, match=named):
+        qpik.IKSession(model)
+
+
+def test_a_start_quaternion_is_checked_and_normalised():
+    """Pins repro_04 through qpik.solve: a q0 whose free-joint quaternion is zero raises
+    InvalidConfiguration naming q0 and the joint; [1e200, 1e200, 0, 0] solves as [1, 1, 0, 0]."""
+    model = qpik.load_robot("panda", floating_base=True)
+    arm = [0, 0, 0, -1, 0, 1, 0]
+    target = {"ee": [0.4, 0.2, 0.5]}
+    with pytest.raises(qpik.InvalidConfiguration, match=r"q0\[3:7\].*'root_joint'"):
+        qpik.solve(model, target, q0=np.r_[0, 0, 0, 0, 0, 0, 0, arm], seed=0)
+    unit = qpik.solve(model, target, q0=np.r_[0, 0, 0, 0.5**0.5, 0.5**0.5, 0, 0, arm], seed=0)
+    huge = qpik.solve(model, target, q0=np.r_[0, 0, 0, 1e200, 1e200, 0, 0, arm], seed=0)
+    assert huge.converged == unit.converged
+    np.testing.assert_allclose(huge.q, unit.q, atol=1e-9)

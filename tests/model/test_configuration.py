@@ -279,3 +279,67 @@ def test_check_within_limits_is_check_limits_without_mjdata():
         assert got == expected
         raised += expected is not None
     assert 20 < raised < 180  # both outcomes exercised
+
+
+@pytest.mark.parametrize("joint", ["root", "wrist"])
+def test_quaternions_zero_raise_and_tiny_or_huge_ones_are_normalised(joint):
+    """Pins repro_04: a free or ball joint's zero quaternion is an InvalidConfiguration naming
+    q and the joint (MuJoCo reads it as the identity); one whose norm MuJoCo's normalisation
+    would underflow or overflow ([1e200, 1e200, 0, 0]) is the rotation it scales."""
+    model = mujoco.MjModel.from_xml_string(BALL)
+    adr = model.joint(joint).qposadr[0] + (3 if joint == "root" else 0)
+    q = _ball_q(model, 0.3)
+    q[adr : adr + 4] = [1.0, 1.0, 0.0, 0.0]  # 90 deg about x
+    reference = qpik.Configuration(model, q).frame_pose("fore", "body")
+    for scale in (1e200, 1e-200, 5e-324):
+        scaled = q.copy()
+        scaled[adr : adr + 4] *= scale
+        configuration = qpik.Configuration(model, scaled)
+        for got, want in zip(configuration.frame_pose("fore", "body"), reference):
+            np.testing.assert_allclose(got, want, atol=1e-12)
+        np.testing.assert_array_equal(scaled[adr : adr + 2], [scale, scale])  # not written to
+        np.testing.assert_allclose(configuration.q[adr : adr + 4], [0.5**0.5, 0.5**0.5, 0, 0])
+    q[adr : adr + 4] = 0.0
+    with pytest.raises(qpik.InvalidConfiguration, match=rf"q\[{adr}:{adr + 4}\].*'{joint}'"):
+        qpik.Configuration(model, q)
+    configuration = qpik.Configuration(model)
+    before = configuration.q
+    with pytest.raises(qpik.InvalidConfiguration, match="is zero"):
+        configuration.update(q)
+    np.testing.assert_array_equal(configuration.q, before)  # left unchanged
+
+
+def test_floating_panda_quaternion_of_1e200_is_the_unit_ones_rotation():
+    """Pins repro_04 on the floating-base panda: [1e200, 1e200, 0, 0] and [1e-200, ...] are
+    the rotation of [1, 1, 0, 0]; [0, 0, 0, 0] raises naming root_joint."""
+    model = qpik.load_robot("panda", floating_base=True)
+    arm = [0, 0, 0, -1, 0, 1, 0]
+    want = qpik.Configuration(model, np.r_[0, 0, 0, 1, 1, 0, 0, arm]).frame_pose("ee")[0]
+    for scale in (1e200, 1e-200):
+        q = np.r_[0, 0, 0, scale, scale, 0, 0, arm]
+        got = qpik.Configuration(model, q).frame_pose("ee")[0]
+        np.testing.assert_allclose(got, want, atol=1e-12)
+    with pytest.raises(qpik.InvalidConfiguration, match=r"q\[3:7\].*'root_joint'"):
+        qpik.Configuration(model, np.r_[0, 0, 0, 0, 0, 0, 0, arm])
+
+
+def test_integrate_to_a_non_finite_q_raises_and_leaves_q():
+    """Pins repro_05: a finite velocity too large to integrate (1e300 rad/s of a free joint:
+    a NaN quaternion; 1e300 x 1e10 on a hinge: inf) raises InvalidConfiguration naming the
+    velocity, and integrate_inplace then leaves q as it was."""
+    floating = qpik.Configuration(qpik.load_robot("panda", floating_base=True))
+    v = np.zeros(floating.model.nv)
+    v[3] = 1e300
+    before = floating.q
+    with pytest.raises(qpik.InvalidConfiguration, match=r"velocity entries v\[0:6\].*root_joint"):
+        floating.integrate(v, 1.0)
+    with pytest.raises(qpik.InvalidConfiguration, match="too large to integrate"):
+        floating.integrate_inplace(v, 1.0)
+    np.testing.assert_array_equal(floating.q, before)
+    assert np.isfinite(floating.frame_pose("ee")[0]).all()
+    arm = qpik.Configuration(qpik.load_robot("panda"))
+    with pytest.raises(qpik.InvalidConfiguration, match=r"velocity entries v\[0\]") as info:
+        arm.integrate(np.full(7, 1e300), 1e10)
+    assert info.value.index == 0
+    v = np.full(7, 0.1)  # an ordinary step still integrates
+    np.testing.assert_allclose(arm.integrate(v, 0.5), arm.q + 0.05)

@@ -366,3 +366,24 @@ def test_resolve_robot_is_the_one_resolver(tmp_path):
     assert locate_robot("arm.xml", relative_to=tmp_path) == tmp_path / "arm.xml"
     assert resolve_robot("arm.xml", relative_to=tmp_path)[0].nq == 2
     assert locate_robot("planar_2r", relative_to=tmp_path) == robot_path("planar_2r")
+
+
+@pytest.mark.filterwarnings("ignore:.*collision mesh")  # (the URDF's .dae mesh, dropped)
+def test_urdf_empty_joint_limit_is_a_robot_file_error(tmp_path):
+    """Pins repro_14: a URDF <limit lower="1.0" upper="-1.0"> is a RobotFileError naming the
+    file and the joint (MuJoCo would load the joint unlimited; the same range in MJCF is an
+    error too)."""
+    path = tmp_path / "inverted.urdf"
+    path.write_text(URDF.replace('lower="-2" upper="2"', 'lower="1.0" upper="-1.0"'))
+    with pytest.raises(qpik.RobotFileError, match="shoulder") as info:
+        qpik.load_robot(path)
+    assert info.value.path == str(path) and "lower above upper" in str(info.value)
+    mjcf = tmp_path / "inverted.xml"
+    mjcf.write_text(
+        '<mujoco><worldbody><body><joint name="j1" limited="true" range="1 -1"/>'
+        '<geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(qpik.RobotFileError):
+        qpik.load_robot(mjcf)
+    path.write_text(URDF.replace('lower="-2" upper="2"', 'lower="-1.0" upper="1.0"'))
+    assert qpik.load_robot(path).jnt_limited[0]  # an ordinary range still loads limited
