@@ -618,9 +618,15 @@ class Kernel {
                 PyErr_Clear();
                 return false;
             }
-            const bool ok = src.pick.empty() ? load_one(slots_[i + 2], o) : load_picked(slots_[i + 2], o, src.pick);
+            const Slot& t = slots_[i + 2];
+            const bool ok = src.pick.empty() ? load_one(t, o) : load_picked(t, o, src.pick);
             Py_DECREF(o);
             if (!ok) return false;
+            // A target pose (inner name: its wxyz_xyz) whose quaternion is zero is no rotation:
+            // the caller's general way reports it (InvalidTarget, tasks.checked).
+            if (src.inner.is_valid() && t.size >= 4 && t.p[0] == 0.0 && t.p[t.stride] == 0.0 &&
+                t.p[2 * t.stride] == 0.0 && t.p[3 * t.stride] == 0.0)
+                return false;
         }
         return true;
     }

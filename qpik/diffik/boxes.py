@@ -33,6 +33,7 @@ from ..errors import (
 from ..limits.collision import CollisionAvoidanceLimit, mink_collision_rows
 from ..limits.support import SupportPolygonLimit
 from ..model.configuration import Configuration, joint_names
+from .limit_inputs import check_limit_model, constraint_rows, limit_name
 from .mink_limits import angular_dofs
 
 __all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure", "relaxable"]
@@ -42,19 +43,6 @@ TRUST_REGION = "trust region"
 
 #: A box contribution ``(limit name, dofs, bounds)``: one side of one limit's box.
 Contribution = tuple[str, np.ndarray, np.ndarray]
-
-
-def limit_name(limit: Any) -> str:
-    """The name of ``limit``'s class in messages and active-limit names; for a private class
-    of qpik's, its first public base's (``model_collision_limit`` gives a private subclass of
-    ``CollisionAvoidanceLimit``: named so); for a view of part of a mink limit
-    (:mod:`.mink_limits`), the limit's class."""
-    cls = type(limit)
-    if getattr(cls, "VIEW", False):  # (a view of part of a mink limit: .mink_limits)
-        return cls.__mro__[1].__name__
-    if cls.__name__.startswith("_") and cls.__module__.startswith("qpik."):
-        return next((c.__name__ for c in cls.__mro__ if not c.__name__.startswith("_")), "")
-    return cls.__name__
 
 
 def limit_values(limit: Any) -> Any:
@@ -328,7 +316,7 @@ class LimitBoxes:
             raise InvalidArgumentType("limits", "a list of limits", checks.type_name(limits))
         self.limits = list(limits)
         for limit in self.limits:
-            _check_limit(limit)
+            _check_limit(limit, model)
             box = BOX_LIMITS.get(type(limit))
             if box is not None:
                 # its values as a step reads them (attributes set after the limit was built:
@@ -630,12 +618,9 @@ def _inequalities_of(
             G, h, fewest = limit.rows_in_play(configuration, dt)
             rows = G, h, None, fewest
         else:
-            constraint = limit.compute_qp_inequalities(configuration, dt)
-            if constraint.inactive:
+            rows = constraint_rows(limit, limit.compute_qp_inequalities(configuration, dt))
+            if rows is None:
                 return None
-            G = constraint.G if constraint.G.ndim == 2 else np.atleast_2d(constraint.G)
-            h = constraint.h if constraint.h.ndim == 1 else np.atleast_1d(constraint.h)
-            rows = G, h, None, None
     except (ValueError, TypeError, IndexError) as exc:  # (an attribute set to what does not fit)
         if isinstance(exc, QpikError):
             raise
@@ -651,10 +636,13 @@ def _inequalities_of(
     return rows
 
 
-def _check_limit(limit) -> None:
-    """A limit object (it has ``compute_qp_inequalities``) whose position ranges are not
-    empty; raises :class:`qpik.InvalidInput` or :class:`qpik.InfeasibleLimits`."""
+def _check_limit(limit, model: mujoco.MjModel) -> None:
+    """A limit object (it has ``compute_qp_inequalities``) for ``model``
+    (:func:`.limit_inputs.check_limit_model`) whose position ranges are not empty; raises
+    :class:`qpik.InvalidInput`, :class:`qpik.LimitDefinitionError` or
+    :class:`qpik.InfeasibleLimits`."""
     if not hasattr(limit, "compute_qp_inequalities"):
         raise InvalidInput(f"limits must be mink/qpik limits, got {limit!r}")
+    check_limit_model(limit, model)
     if isinstance(limit, mink.ConfigurationLimit) and len(limit.indices):
         limit_bounds(limit, _qpos_addresses(limit))

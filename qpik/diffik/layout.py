@@ -27,6 +27,7 @@ from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
+from ..tasks.checked import CheckedTask, check_gain, check_pose_target, gain_is_valid
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
@@ -37,7 +38,7 @@ from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
-    "TaskLayout", "com_chains", "limit_layout", "plan_arrays", "task_layout",
+    "TaskLayout", "com_chains", "gain_guards", "limit_layout", "plan_arrays", "task_layout",
     "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
@@ -426,15 +427,36 @@ def _put(view: np.ndarray, value) -> None:
     view[...] = array
 
 
+def _gain(task):
+    """A task's gain as written into its data row: :class:`qpik.InvalidGain` naming the
+    task where it is a number outside [0, 1] (set after the task was built: mink's tasks
+    take any; qpik's check it where it is set), as it is otherwise (what does not fit a
+    row's entry is NumPy's error, reported by :func:`_unfit`)."""
+    gain = task.gain
+    if type(gain) is not float or not 0.0 <= gain <= 1.0:
+        check_gain(task, gain)
+    return gain
+
+
+#: The target attribute of the frame-like tasks, in messages.
+_POSE_NAMES: dict[type, str] = {
+    FrameTask: "transform_target_to_world",
+    mink.FrameTask: "transform_target_to_world",
+    RelativeFrameTask: "transform_target_to_root",
+    mink.RelativeFrameTask: "transform_target_to_root",
+}
+
+
 def write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
     data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
     if pose is None:
         raise TargetNotSet(type(task).__name__)
+    check_pose_target(task, pose, _POSE_NAMES.get(type(task), "target"))
     row, target, cost = views
     _put(target, pose.wxyz_xyz)
     _put(cost, task.cost)
-    row[13] = task.gain
+    row[13] = _gain(task)
     row[14] = task.lm_damping
 
 
@@ -449,7 +471,7 @@ def write_world_pose_row(views: tuple, task, names: tuple) -> None:
             raise TargetNotSet(type(task).__name__)
         _put(view, np.reshape(value, -1))  # (no broadcasting: a number is not a vector)
     _put(cost, task.cost)
-    row[POSE_COST + 6] = task.gain
+    row[POSE_COST + 6] = _gain(task)
     row[POSE_COST + 7] = task.lm_damping
 
 
@@ -497,7 +519,7 @@ def write_posture_row(views: tuple, task, damping: bool) -> None:
                 raise TargetNotSet(type(task).__name__)
             _put(target_view, target)
         _put(cost_view, task.cost)
-        row[-2] = task.gain
+        row[-2] = _gain(task)
         row[-1] = task.lm_damping
     except (ValueError, TypeError) as exc:
         raise _unfit(task, exc) from exc
@@ -517,6 +539,26 @@ def plan_guards(frames: Sequence, relatives: Sequence, coms: Sequence) -> list[t
     guards = [(f[0], n, getattr(f[0], n)) for f in frames for n in _FRAME_ATTRIBUTES]
     guards += [(r[0], n, getattr(r[0], n)) for r in relatives for n in _RELATIVE_ATTRIBUTES]
     return guards + [(c[0], "body", c[2]) for c in coms if c[2] is not None]
+
+
+#: A gain guard's value where the task's gain is not valid: equal to no gain, so the kernel
+#: declines every step until the gain is changed, and :meth:`CompiledPlan.gather` reports it.
+_INVALID_GAIN = object()
+
+
+def gain_guards(tasks: Sequence) -> list[tuple]:
+    """``(task, "gain", gain)`` of each task of ``tasks`` of mink's own classes (which take
+    any gain where it is set; qpik's tasks check theirs there, :class:`CheckedTask`), a
+    gain outside [0, 1] as a value no gain equals: the kernel reads the gains as they are
+    (``Kernel.load_sources``), so a step where one of these changed is declined
+    (``Kernel.set_guards``, as :func:`plan_guards`' attributes) and ``gather`` writes it,
+    checked (:func:`_gain`: :class:`qpik.InvalidGain` naming the task)."""
+    guards = []
+    for task in tasks:
+        if not isinstance(task, CheckedTask):
+            gain = task.gain
+            guards.append((task, "gain", gain if gain_is_valid(gain) else _INVALID_GAIN))
+    return guards
 
 
 def guards_hold(guards: list[tuple]) -> bool:
@@ -570,7 +612,7 @@ def write_com_row(views: tuple, task) -> None:
             raise TargetNotSet(type(task).__name__)
         _put(target_view, target)
         _put(cost_view, task.cost)
-        row[6] = task.gain
+        row[6] = _gain(task)
         row[7] = task.lm_damping
     except (ValueError, TypeError) as exc:
         raise _unfit(task, exc) from exc

@@ -1,6 +1,6 @@
 """mink's limits whose rows the compiled step takes in parts (:func:`.layout.limit_layout`):
-a view of each part (``VIEW``), named as the limit (:func:`.boxes.limit_name` gives a view
-its first base's name, so that the active limits are named as on the QP path). They read
+a view of each part (``VIEW``), named as the limit (:func:`.limit_inputs.limit_name` gives a
+view its first base's name, so that the active limits are named as on the QP path). They read
 mink 1.3's attributes of the limit; where one is missing, :func:`.layout.limit_layout`
 leaves the limit to the QP path.
 
@@ -34,7 +34,7 @@ class BallJointRows(mink.ConfigurationLimit):
     :meth:`compact_rows` gives the rows in play directly (:meth:`.boxes.LimitBoxes.general_rows`
     takes them); where the limit lacks mink 1.3's ball-joint attributes, the limit's own
     ``compute_qp_inequalities`` with its box rows emptied (``h = inf``) is read instead.
-    Named as the limit (:func:`.boxes.limit_name`: its first public base)."""
+    Named as the limit (:func:`.limit_inputs.limit_name`: its first public base)."""
 
     VIEW = True
 
@@ -113,7 +113,7 @@ class FreeJointAngular(mink.FreeJointVelocityLimit, mink.VelocityLimit):
         return self.source.angular_max
 
 
-#: The name the QP path gives the limit (its class's: .boxes.limit_name).
+#: The name the QP path gives the limit (its class's: .limit_inputs.limit_name).
 _NAME = mink.FreeJointVelocityLimit.__name__
 
 

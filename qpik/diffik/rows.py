@@ -22,6 +22,7 @@ from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError
 from ..model.configuration import Configuration
 from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
 from ..tasks import AxisAlignTask, BaseTask, LookAtTask
+from ..tasks.checked import CheckedTask, check_gain, check_pose_target
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
 
@@ -188,6 +189,30 @@ def _raise_rows_failure(exc: Exception, label: str) -> NoReturn:
     raise TaskDefinitionError(f"{label} failed ({exc})") from exc
 
 
+#: The target attribute of mink's frame-like tasks (and their subclasses), by class.
+_POSE_TARGETS = (
+    (mink.FrameTask, "transform_target_to_world"),
+    (mink.RelativeFrameTask, "transform_target_to_root"),
+)
+
+
+def _check_read_values(task: BaseTask) -> None:
+    """The values of ``task`` that mink's own classes take unchecked where they are set
+    (qpik's check them there: :class:`qpik.tasks.checked.CheckedTask`): a gain outside
+    [0, 1] (:class:`qpik.InvalidGain`), a frame target that is not an SE3 or whose
+    quaternion is zero (:class:`qpik.InvalidTarget`), named with the task."""
+    if isinstance(task, CheckedTask):
+        return
+    gain = getattr(task, "gain", 1.0)
+    if type(gain) is not float or not 0.0 <= gain <= 1.0:
+        check_gain(task, gain)
+    for cls, name in _POSE_TARGETS:
+        if isinstance(task, cls):
+            target = getattr(task, name, None)
+            if target is not None:  # (None: the task's own TargetNotSet)
+                check_pose_target(task, target, name)
+
+
 def task_rows(
     task: BaseTask, configuration: Configuration
 ) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
@@ -201,6 +226,7 @@ def task_rows(
             return task.rows_now(configuration)
         except (mink.MinkError, ValueError, TypeError) as exc:
             _raise_rows_failure(exc, task.label)
+    _check_read_values(task)
     compiled = _COMPILED_RESIDUALS.get(type(task))
     residual = None if compiled is None else compiled(task, configuration)
     if residual is not None:

@@ -29,11 +29,12 @@ from ..errors import (
 )
 from ..model.com import subtree_com_chain, subtree_com_jacobian
 from ..model.configuration import frame_names
+from .checked import CheckedTask
 
 __all__ = ["ComTask"]
 
 
-class ComTask(mink.Task):
+class ComTask(mink.Task, CheckedTask):
     """Drive the centre of mass of a subtree to a world-frame target [m].
 
     Args:

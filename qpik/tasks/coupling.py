@@ -14,9 +14,10 @@ import numpy as np
 from .._engine.tasks import linear_residual
 from ..errors import TaskDefinitionError, check_task_numbers, mink_errors_as_qpik
 from ..model.couplings import Couplings, model_couplings
+from .checked import CheckedTask
 
 
-class CouplingTask(mink.Task):
+class CouplingTask(mink.Task, CheckedTask):
     """Hold the model's couplings: error ``r(q)`` (one row per coupling,
     :meth:`qpik.model.Couplings.residual`), Jacobian ``dr/dq`` (exact).
 

@@ -26,6 +26,7 @@ from ..model.frames import (
     FRAME_ROTATIONS,
     check_frame_type,
 )
+from .checked import CheckedTask, check_pose_target
 
 __all__ = ["FrameTask", "frame_terms"]
 
@@ -51,8 +52,10 @@ def frame_terms(task: mink.FrameTask, configuration) -> tuple | None:
     (qpik's), from MuJoCo and mink's SE3 arithmetic (:func:`frame_error_jlog`): the
     world-aligned Jacobian (6, nv), the frame's rotation (row-major 9), ``jlog(T_tb)`` and
     the body-twist error; ``None`` for a frame type only mink's generic path knows."""
-    if task.transform_target_to_world is None:
+    target = task.transform_target_to_world
+    if target is None:
         raise TargetNotSet(task.__class__.__name__)
+    check_pose_target(task, target, "transform_target_to_world")  # (mink's: set unchecked)
     kind: Any = _frame_type_name(task.frame_type)  # (a FrameType's value: its str keys)
     if kind not in FRAME_OBJECTS:
         return None
@@ -62,11 +65,11 @@ def frame_terms(task: mink.FrameTask, configuration) -> tuple | None:
     xmat = getattr(data, FRAME_ROTATIONS[kind])[fid]
     jac = np.empty((6, model.nv))
     FRAME_JACOBIANS[kind](model, data, jac[:3], jac[3:], fid)
-    error, jlog = frame_error_jlog(xmat, xpos, task.transform_target_to_world.wxyz_xyz)
+    error, jlog = frame_error_jlog(xmat, xpos, target.wxyz_xyz)
     return jac, xmat, jlog, error
 
 
-class FrameTask(mink.FrameTask):
+class FrameTask(mink.FrameTask, CheckedTask):
     """mink's :class:`~mink.FrameTask` (error: the body twist ``log(T_bt)`` of the frame to
     its target, expressed in the frame's local axes [m, rad]; Jacobian ``-jlog(T_tb)
     {}_B J``), computed from MuJoCo directly."""
@@ -77,6 +80,15 @@ class FrameTask(mink.FrameTask):
             super().__init__(*args, **kwargs)
         checks.check_frame_name("frame_name", self.frame_name)
         check_frame_type(type(self).__name__, "frame_type", self.frame_type)
+
+    def set_target(self, transform_target_to_world: mink.SE3) -> None:
+        """The target pose of the frame in the world frame, a :class:`mink.SE3` (copied, as
+        mink's); anything else, or an SE3 whose quaternion is zero, raises
+        :class:`qpik.InvalidTarget` naming the task
+        (:func:`qpik.tasks.checked.check_pose_target`)."""
+        check_pose_target(self, transform_target_to_world, "set_target's target")
+        # (checked: stored as mink's set_target stores it, without CheckedTask's check again)
+        object.__setattr__(self, "transform_target_to_world", transform_target_to_world.copy())
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
         terms = frame_terms(self, configuration)

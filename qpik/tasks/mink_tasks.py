@@ -33,6 +33,7 @@ from ..errors import (
     qpik_errors,
 )
 from ..model.frames import check_frame_type
+from .checked import CheckedTask
 
 __all__ = [
     "AxisAlignTask",
@@ -128,12 +129,12 @@ def _with_qpik_errors(cls: _C) -> _C:
 
 
 @_with_qpik_errors
-class AxisAlignTask(mink.AxisAlignTask):
+class AxisAlignTask(mink.AxisAlignTask, CheckedTask):
     """mink's :class:`mink.AxisAlignTask`, with qpik's errors."""
 
 
 @_with_qpik_errors
-class DofFreezingTask(mink.DofFreezingTask):
+class DofFreezingTask(mink.DofFreezingTask, CheckedTask):
     """mink's :class:`mink.DofFreezingTask`, with qpik's errors: ``model`` must be an
     ``MjModel`` and ``dof_indices`` distinct ints in ``[0, nv)``
     (:func:`qpik.core.checks.check_indices`)."""
@@ -147,7 +148,7 @@ class DofFreezingTask(mink.DofFreezingTask):
 
 
 @_with_qpik_errors
-class EqualityConstraintTask(mink.EqualityConstraintTask):
+class EqualityConstraintTask(mink.EqualityConstraintTask, CheckedTask):
     """mink's :class:`mink.EqualityConstraintTask`, with qpik's errors (``equalities``
     other than ``None`` or a sequence of equality ids and names is named)."""
 
@@ -175,12 +176,12 @@ class EqualityConstraintTask(mink.EqualityConstraintTask):
 
 
 @_with_qpik_errors
-class LookAtTask(mink.LookAtTask):
+class LookAtTask(mink.LookAtTask, CheckedTask):
     """mink's :class:`mink.LookAtTask`, with qpik's errors."""
 
 
 @_with_qpik_errors
-class RelativeFrameTask(mink.RelativeFrameTask):
+class RelativeFrameTask(mink.RelativeFrameTask, CheckedTask):
     """mink's :class:`mink.RelativeFrameTask`, with qpik's errors (a frame or root type
     that is not ``"body"``, ``"site"`` or ``"geom"`` raises :class:`qpik.UnknownFrameType`
     at once; a step before ``set_target`` raises :class:`qpik.TargetNotSet`; a target that
@@ -213,7 +214,7 @@ class RelativeFrameTask(mink.RelativeFrameTask):
 
 
 @_with_qpik_errors
-class KineticEnergyRegularizationTask(mink.KineticEnergyRegularizationTask):
+class KineticEnergyRegularizationTask(mink.KineticEnergyRegularizationTask, CheckedTask):
     """mink's :class:`mink.KineticEnergyRegularizationTask`, with qpik's errors (a step
     before :meth:`set_dt` raises :class:`qpik.IntegrationTimestepNotSet`), a finite cost
     >= 0 and a checked ``dt``."""

@@ -17,6 +17,7 @@ from ..core import checks
 from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
 from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
+from .checked import CheckedTask
 
 # Their rows come from one compiled routine (qpik/_cpp/tasks/pose.hpp, pose_rows_into), the
 # one the compiled step calls for them too (kinds 7 to 9 of qpik.diffik.layout.POSE_KINDS):
@@ -136,7 +137,7 @@ class _CompiledRows:
         return self._rows(configuration, self.cost, float(self.gain), float(self.lm_damping))
 
 
-class _FrameRowsTask(_CompiledRows, mink.Task):  # type: ignore[misc]  # (see the note above)
+class _FrameRowsTask(_CompiledRows, mink.Task, CheckedTask):  # type: ignore[misc]  # (see the note above)
     """A task on three rows of one frame's pose (see the subclasses)."""
 
     k = 3
@@ -227,7 +228,7 @@ class OrientationTask(_FrameRowsTask):
         return target
 
 
-class PoseTask(_CompiledRows, mink.Task):  # type: ignore[misc]  # (see the note above)
+class PoseTask(_CompiledRows, mink.Task, CheckedTask):  # type: ignore[misc]  # (see the note above)
     """Bring a frame to a target pose, errors in the world frame.
 
     Error ``e = [p(q) - p_target; log(R(q) R_target^T)]`` (6,) [m, rad]; Jacobian

@@ -9,11 +9,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import TargetNotSet, mink_errors_as_qpik, qpik_errors
+from .checked import CheckedTask
 
 __all__ = ["DampingTask", "PostureTask"]
 
 
-class PostureTask(mink.PostureTask):
+class PostureTask(mink.PostureTask, CheckedTask):
     """mink's :class:`~mink.PostureTask` (error ``q ⊖ q*``, Jacobian the identity, free
     joints' rows zeroed), with hinge/slide-only models computed as ``q - q*`` and a cached
     identity."""
@@ -56,7 +57,7 @@ class PostureTask(mink.PostureTask):
         return self.cost[:, None] * self._jacobian, weighted_error, mu
 
 
-class DampingTask(mink.DampingTask):
+class DampingTask(mink.DampingTask, CheckedTask):
     """mink's :class:`~mink.DampingTask` (a posture task toward the current
     configuration: it penalises the displacement), whose definition errors are qpik's
     typed errors (each also mink's)."""

@@ -23,6 +23,7 @@ from ..core.jacobian import (
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
 from ..model.gradients import manipulability_gradient, manipulability_svd, manipulability_terms
+from .checked import CheckedTask
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
 # their compute_* methods narrow mink's ``configuration: mink.Configuration`` (hence the
@@ -41,7 +42,7 @@ def _scalar_joints(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-class JointLimitDistanceTask(mink.Task):
+class JointLimitDistanceTask(mink.Task, CheckedTask):
     """Keep joints away from their limits.
 
     Error ``w(q)``: :func:`qpik.analysis.joint_limit_distance` over the hinge and slide
@@ -134,7 +135,7 @@ class JointLimitDistanceTask(mink.Task):
         )
 
 
-class ManipulabilityTask(mink.Task):
+class ManipulabilityTask(mink.Task, CheckedTask):
     """Raise the manipulability ``m(q) = sqrt(det J J^T)`` of a frame.
 
     Error ``e = -m(q)``; ``J dq = -gain * e`` asks each step for an increase of ``gain * m``

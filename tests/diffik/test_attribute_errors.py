@@ -3,7 +3,8 @@ does not fit its rows: TaskDefinitionError naming the task, on the compiled step
 step declines such a value and the gathered step reports it) and on the QP path, never
 NumPy's ValueError from inside the plan. Frame and pose tasks are checked in
 tests/tasks/test_pose_compiled.py; these are the CoM, posture, damping and relative-frame
-tasks (qpik's and mink's)."""
+tasks (qpik's and mink's). Below them: a gain out of [0, 1] (InvalidGain) and a frame
+target that is not a rotation (InvalidTarget), set after the solver was built."""
 
 from __future__ import annotations
 
@@ -335,3 +336,119 @@ def test_a_frame_changed_after_the_build_is_the_one_the_step_tracks(cls):
     solver.step(configuration, DT)
     np.testing.assert_array_equal(solver.step(configuration, DT).velocity, before)
     assert solver._plan._plain_data is configuration.data
+
+
+def _mink_frame(configuration, offset=(0.001, 0.0, 0.0)):
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    p, R = configuration.frame_pose("ee")
+    rotation = mink.SO3.from_matrix(R)
+    task.set_target(mink.SE3.from_rotation_and_translation(rotation, p + np.asarray(offset)))
+    return task
+
+
+def _gain_limits(model, kind):
+    if kind == "none":
+        return []
+    if kind == "box":
+        return [mink.ConfigurationLimit(model)]
+    return [mink.ConfigurationLimit(model), qpik.limits.model_collision_limit(model)]
+
+
+@pytest.mark.parametrize("solver", ["auto", "osqp"])
+@pytest.mark.parametrize("limits", ["none", "box", "general rows"])
+def test_a_gain_set_out_of_range_after_the_build_is_invalid_gain(solver, limits):
+    """A task gain changed after the solver was built to what the constructors refuse
+    (-1, 2, NaN): InvalidGain at assignment for qpik's tasks (the solver used it as is
+    before: a velocity -1 or 2 times the gain-1 one), at the next step for mink's own
+    classes (their gains are guarded on the compiled step, checked where they are written
+    and on the QP path), on every path; a valid new gain is used, as by a new solver."""
+    from qpik.errors import InvalidGain
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    ours = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    ours.set_target(_mink_frame(configuration).transform_target_to_world)
+    ik = qpik.IKSolver(model, [[ours]], _gain_limits(model, limits), solver=solver)
+    ik.step(configuration, DT)
+    for gain in (-1.0, 2.0):
+        with pytest.raises(InvalidGain, match="FrameTask 'ee'"):
+            ours.gain = gain
+    assert ours.gain == 1.0
+    frame = _mink_frame(configuration)
+    posture = mink.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    ik = qpik.IKSolver(model, [[frame], [posture]], _gain_limits(model, limits), solver=solver)
+    ik.step(configuration, DT)
+    ik.step(configuration, DT)  # (the lane, where it applies)
+    for task, label in ((frame, "FrameTask 'ee'"), (posture, "PostureTask")):
+        for gain in (-1.0, 2.0, np.nan):
+            task.gain = gain
+            with pytest.raises(InvalidGain, match=label):
+                ik.step(configuration, DT)
+            with pytest.raises(InvalidGain, match=label):
+                ik.qp_solution(configuration, DT)
+        task.gain = 0.5
+        fresh = qpik.IKSolver(model, ik.levels, ik.limits, solver=solver)
+        np.testing.assert_allclose(
+            ik.step(configuration, DT).velocity,
+            fresh.step(configuration, DT).velocity,
+            rtol=0,
+            atol=1e-9,
+        )
+        # the new gain is the guard's now: the kernel takes the steps from here again
+        assert [g[2] for g in ik._plan._gain_guards if g[0] is task] == [0.5]
+        task.gain = 1.0
+
+
+@pytest.mark.parametrize("solver", ["auto", "osqp"])
+def test_a_mink_frame_target_that_is_not_an_se3_is_invalid_target(solver):
+    """mink's FrameTask.set_target takes anything: a 4x4 matrix as its target raised
+    AttributeError ('wxyz_xyz') from the plan's gather; now InvalidTarget naming the task,
+    on the compiled step and on the QP path."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    frame = _mink_frame(configuration)
+    ik = qpik.IKSolver(model, [[frame]], solver=solver)
+    ik.step(configuration, DT)
+    frame.set_target(np.eye(4))
+    with pytest.raises(qpik.InvalidTarget, match="FrameTask 'ee'.*mink.SE3"):
+        ik.step(configuration, DT)
+    with pytest.raises(qpik.InvalidTarget, match="FrameTask 'ee'.*mink.SE3"):
+        ik.qp_solution(configuration, DT)
+
+
+def test_a_mink_frame_target_with_a_zero_quaternion_is_invalid_target_where_qpik_reads_it():
+    """mink's FrameTask with a zero-quaternion target (no rotation; its orientation error
+    reads 0): InvalidTarget naming the task where qpik's Python reads the target (the QP
+    path, a forced backend's compiled rows). qpik's own FrameTask refuses it at set_target
+    (tests/tasks/test_tasks.py)."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    p = configuration.frame_pose("ee")[0]
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target(mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p]))
+    ik = qpik.IKSolver(model, [[frame]])
+    with pytest.raises(qpik.InvalidTarget, match="zero quaternion"):
+        ik.qp_solution(configuration, DT)
+    with pytest.raises(qpik.InvalidTarget, match="zero quaternion"):
+        qpik.IKSolver(model, [[frame]], solver="osqp").step(configuration, DT)
+
+
+def test_a_mink_frame_target_with_a_zero_quaternion_on_the_default_step():
+    """The default solver's compiled step with mink's own FrameTask and a zero-quaternion
+    target: the kernel declines it (Kernel.load_sources: code -1) and the general way names
+    it (InvalidTarget), also after steps that took the lean way with a valid target."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    p = configuration.frame_pose("ee")[0]
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    frame.set_target(mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p]))
+    with pytest.raises(qpik.InvalidTarget):
+        qpik.IKSolver(model, [[frame]]).step(configuration, DT)
+    frame.set_target(mink.SE3(np.r_[1.0, 0.0, 0.0, 0.0, p]))
+    solver = qpik.IKSolver(model, [[frame]])
+    for _ in range(3):
+        solver.step(configuration, DT)
+    frame.set_target(mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p]))
+    with pytest.raises(qpik.InvalidTarget):
+        solver.step(configuration, DT)

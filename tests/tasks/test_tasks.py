@@ -104,3 +104,60 @@ def test_world_frame_tasks_take_mink_lie_groups():
         pose.set_target(position)
     with pytest.raises(qpik.InvalidTarget, match="one mink.SE3"):
         pose.set_target(mink.SE3.identity(), rotation)
+
+
+def test_frame_task_target_must_be_an_se3_with_a_rotation():
+    """qpik's FrameTask.set_target (and an assignment of its target) refuses what is not a
+    mink.SE3 (np.eye(4): AttributeError from the step's plan before) and an SE3 whose
+    quaternion is zero (read as orientation met, error 0, before): InvalidTarget naming the
+    task; RelativeFrameTask's zero quaternion likewise. A NaN target is still the step's to
+    report (tests/diffik/test_fused.py)."""
+    import mink
+
+    from qpik.tasks import FrameTask, RelativeFrameTask
+
+    configuration = configuration_of("panda", configuration_of("panda").mid_q())
+    p = configuration.frame_pose("ee")[0]
+    task = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    with pytest.raises(qpik.InvalidTarget, match="FrameTask 'ee'.*mink.SE3"):
+        task.set_target(np.eye(4))
+    with pytest.raises(qpik.InvalidTarget, match="FrameTask 'ee'.*zero quaternion"):
+        task.set_target(mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p]))
+    with pytest.raises(qpik.InvalidTarget, match="zero quaternion"):
+        task.transform_target_to_world = mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p])
+    assert task.transform_target_to_world is None  # (nothing kept)
+    task.set_target(mink.SE3(np.r_[2.0, 0.0, 0.0, 0.0, p]))  # (a scaled quaternion: a rotation)
+    task.set_target(mink.SE3.from_translation(np.array([np.nan, 0.0, 0.5])))
+    relative = RelativeFrameTask("ee", "site", "link0", "body", 1.0, 1.0)
+    with pytest.raises(qpik.InvalidTarget, match="RelativeFrameTask 'ee'.*zero quaternion"):
+        relative.set_target(mink.SE3(np.r_[0.0, 0.0, 0.0, 0.0, p]))
+
+
+@pytest.mark.parametrize("gain", [-1.0, 2.0, np.nan, np.float32(1.5), 3])
+def test_a_gain_assigned_to_a_qpik_task_is_checked(gain):
+    """A gain assigned after the task was built is checked as the constructor checks it
+    (the solver reads it at every step; a gain of -1 or 2 was used as is before):
+    InvalidGain naming the task, the task's gain unchanged. What is not one number (an
+    array, a string) is left to the step (tests/diffik/test_attribute_errors.py)."""
+    from qpik.tasks import ComTask, DampingTask, FrameTask, PostureTask, RelativeFrameTask
+
+    model = qpik.load_robot("panda")
+    tasks = [
+        FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0),
+        PostureTask(model, cost=0.1),
+        DampingTask(model, cost=0.1),
+        ComTask(),
+        RelativeFrameTask("ee", "site", "link0", "body", 1.0, 1.0),
+        PositionTask("ee"),
+        PoseTask("ee"),
+        JointLimitDistanceTask(),
+        ManipulabilityTask("ee"),
+    ]
+    for task in tasks:
+        before = task.gain
+        with pytest.raises(qpik.InvalidGain, match=type(task).__name__):
+            task.gain = gain
+        assert task.gain is before
+        for valid in (0.0, 0.5, 1, True, np.float32(0.25)):
+            task.gain = valid
+            assert task.gain is valid

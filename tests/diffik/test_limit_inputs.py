@@ -1,0 +1,117 @@
+"""Limits given to an IKSolver that do not fit it: a limit built for another robot's model
+(LimitDefinitionError at construction, where its ranges were applied to the solver's joints
+before), and a limit whose own rows are not finite or not a Constraint at all
+(LimitDefinitionError naming it at the step, where NaN rows were dropped and None or
+strings raised AttributeError from inside the plan)."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+
+import qpik
+from qpik.errors import LimitDefinitionError
+from qpik.tasks import FrameTask, PostureTask
+
+DT = 0.01
+
+
+def _panda():
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    posture = PostureTask(model, cost=1.0)
+    target = model.key_qpos[0].copy()
+    target[0] = 5.0  # beyond joint1's range [-2.8973, 2.8973]
+    posture.set_target(target)
+    return model, configuration, posture
+
+
+def test_a_limit_built_for_another_model_is_refused():
+    """A position, velocity or collision limit built from another robot's model (a UR5e's
+    for a Panda solver, a Panda's for a UR5e's) is refused when the solver is built; a limit
+    built from a second load of the solver's own robot file is the same robot (same
+    answer as the solver's own model's)."""
+    model, configuration, posture = _panda()
+    ur5e = qpik.load_robot("ur5e")
+    for limit in (
+        qpik.limits.ConfigurationLimit(ur5e),
+        mink.ConfigurationLimit(ur5e),
+        qpik.limits.model_collision_limit(ur5e),
+    ):
+        with pytest.raises(LimitDefinitionError, match="another model"):
+            qpik.IKSolver(model, [[posture]], [limit])
+    with pytest.raises(LimitDefinitionError, match="another model"):
+        qpik.IKSolver(
+            ur5e, [[PostureTask(ur5e, cost=1.0)]], [qpik.limits.velocity_limit_from_model(model)]
+        )
+    same_file = qpik.load_robot("panda")
+    ours = qpik.IKSolver(model, [[posture]], [qpik.limits.ConfigurationLimit(model)])
+    theirs = qpik.IKSolver(model, [[posture]], [qpik.limits.ConfigurationLimit(same_file)])
+    np.testing.assert_array_equal(
+        ours.step(configuration, DT).velocity, theirs.step(configuration, DT).velocity
+    )
+    for _ in range(300):  # the Panda's own range holds
+        configuration.integrate_inplace(theirs.step(configuration, DT).velocity, DT)
+    assert configuration.q[0] <= model.jnt_range[0][1] + 1e-9
+
+
+class _Rows(mink.Limit):
+    def __init__(self, constraint):
+        self.constraint = constraint
+
+    def compute_qp_inequalities(self, configuration, dt):
+        return self.constraint
+
+
+def _frame_solver(limits, **keywords):
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    ee = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    p, R = configuration.frame_pose("ee")
+    ee.set_target(mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R), p + [0.05, 0, 0]))
+    return qpik.IKSolver(model, [[ee]], limits, **keywords), configuration
+
+
+@pytest.mark.parametrize("solver", ["auto", "osqp"])
+@pytest.mark.parametrize(
+    ("G", "h", "match"),
+    [
+        (np.eye(7)[:1], np.array([np.nan]), "not finite"),
+        (np.full((1, 7), np.nan), np.array([0.0]), "not finite"),
+        (np.r_[[np.inf], np.zeros(6)][None], np.array([0.0]), "not finite"),
+        ("a", "b", "arrays of numbers"),
+        (None, np.array([1.0]), "not finite"),
+    ],
+)
+def test_a_limit_whose_rows_are_not_finite_is_refused(solver, G, h, match):
+    """A limit whose compute_qp_inequalities gives NaN (in h or G), an infinite G entry or
+    rows that are not numbers: LimitDefinitionError naming the limit (the step answered as
+    if the limit were absent before, or raised AttributeError)."""
+    ik, configuration = _frame_solver([_Rows(mink.limits.Constraint(G=G, h=h))], solver=solver)
+    with pytest.raises(LimitDefinitionError, match=f"_Rows.*{match}"):
+        ik.step(configuration, DT)
+
+
+@pytest.mark.parametrize("returned", [None, (np.eye(7), np.ones(7)), "rows"])
+def test_a_limit_that_returns_no_constraint_is_refused(returned):
+    """A limit whose compute_qp_inequalities returns no Constraint (None, a tuple, a
+    string): LimitDefinitionError naming it (AttributeError 'inactive' before)."""
+    ik, configuration = _frame_solver([_Rows(returned)])
+    with pytest.raises(LimitDefinitionError, match="_Rows: compute_qp_inequalities returned"):
+        ik.step(configuration, DT)
+
+
+def test_rows_that_never_bind_and_inactive_limits_are_answered():
+    """What a limit may give: h = +inf (a row that never binds, as mink's collision rows out
+    of range), an inactive Constraint (G and h None), rows as lists: the step answers as
+    without the limit (a finite row that does not bind)."""
+    free, configuration = _frame_solver([])
+    reference = free.step(configuration, DT).velocity
+    for constraint in (
+        mink.limits.Constraint(G=np.eye(7)[:2], h=np.array([np.inf, np.inf])),
+        mink.limits.Constraint(),
+        mink.limits.Constraint(G=[[0.0] * 6 + [1.0]], h=[1e3]),
+    ):
+        ik, configuration = _frame_solver([_Rows(constraint)])
+        np.testing.assert_allclose(ik.step(configuration, DT).velocity, reference, atol=1e-12)
