@@ -353,7 +353,7 @@ class IKSolver:
         ``coupling_residual`` the coupling level's. With
         :attr:`qpik.StepOptions.correction_passes`, the held levels' second-order remainder
         at ``configuration.integrate(velocity, dt)`` is shifted out of their targets and the
-        step solved again, that many times (:meth:`_corrected`; the compiled step does it in
+        step solved again, that many times (the compiled step does it in
         its kernel)."""
         start = _perf_counter()
         plan, core = self._plan, self._core

@@ -296,11 +296,13 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         checks.check_bool("respect_contype", respect_contype)
         if not 0.0 < gain <= 1.0:
             raise LimitDefinitionError(f"gain must be in (0, 1], got {gain}")
-        if not np.isfinite(minimum_distance_from_collisions):
-            raise LimitDefinitionError(
-                "minimum_distance_from_collisions must be finite, got "
-                f"{minimum_distance_from_collisions}"
-            )
+        for name, value in (
+            ("minimum_distance_from_collisions", minimum_distance_from_collisions),
+            ("collision_detection_distance", collision_detection_distance),
+            ("bound_relaxation", bound_relaxation),
+        ):
+            if not np.isfinite(value):
+                raise LimitDefinitionError(f"{name} must be finite, got {value}")
         if not collision_detection_distance > minimum_distance_from_collisions:
             raise LimitDefinitionError(
                 f"collision_detection_distance ({collision_detection_distance}) must exceed "

@@ -221,3 +221,14 @@ def test_collision_and_support_rows_appear_in_the_built_qp():
     np.testing.assert_array_equal(problem.h, rows.h)
     far = qpik.Configuration(model, [-1.0, 0.0])  # out of detection range: no row at all
     assert qpik.IKSolver(model, [[posture]], [limit]).build(far, DT).G.shape[0] == 0
+
+
+@pytest.mark.parametrize(
+    "name", ["minimum_distance_from_collisions", "collision_detection_distance", "bound_relaxation"]
+)
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+def test_a_distance_or_relaxation_that_is_not_finite_is_refused(name, value):
+    model = qpik.load_robot("panda")
+    scene = add_obstacle(model, "sphere", 0.05, [0.5, 0.0, 0.5], name="ball")
+    with pytest.raises(qpik.LimitDefinitionError, match=f"{name} must be finite|{name}"):
+        CollisionAvoidanceLimit(scene, [(ARM, ["ball"])], **{name: value})
