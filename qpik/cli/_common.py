@@ -71,7 +71,8 @@ def non_negative_int(text: str) -> int:
 def configuration_from_args(args: argparse.Namespace) -> Configuration:
     """Load ``args.robot`` and set ``args.q`` (or the keyframe ``args.key``); pick the
     frame (``args.frame``, ``args.frame_type``) when the command has one."""
-    model = load_robot(args.robot, floating_base=getattr(args, "floating_base", False))
+    with c_warnings_as_lines(getattr(args, "command", None) or "qpik"):
+        model = load_robot(args.robot, floating_base=getattr(args, "floating_base", False))
     q = args.q
     key = getattr(args, "key", None)
     if key is not None:
@@ -179,7 +180,8 @@ def c_warnings_as_lines(command: str) -> Iterator[None]:
     """What C code (MuJoCo's compiler: ``WARNING: <mimic> on joint ... ignored``) writes
     to the process's stderr while the block runs, caught and printed after it as the
     command's one-line warnings, ``qpik COMMAND: warning: TEXT`` (blank lines dropped).
-    Python's own writes to ``sys.stderr`` inside the block are caught the same way."""
+    Python's own writes to ``sys.stderr`` inside the block are caught too, and printed
+    after it as they are where they are already the command's lines (``qpik ...``)."""
     sys.stderr.flush()
     try:
         saved = os.dup(2)
@@ -198,7 +200,9 @@ def c_warnings_as_lines(command: str) -> Iterator[None]:
             text = caught.read().decode(errors="replace")
     for line in text.splitlines():
         line = line.strip()
-        if line:
+        if line.startswith("qpik "):  # a line of the command's own (a Python warning shown)
+            print(line, file=sys.stderr)
+        elif line:
             line = line.removeprefix("WARNING: ").removeprefix("Warning: ")
             print(f"qpik {command}: warning: {line}", file=sys.stderr)
 

@@ -10,7 +10,7 @@ from ..igm.session import solve
 from ..model.configuration import Configuration
 from ..model.robots import load_robot, tool_frame
 from ..options import PRESETS
-from ._common import non_negative_int
+from ._common import c_warnings_as_lines, non_negative_int
 
 #: The default preset's orientation tolerance per unit of position tolerance [rad/m].
 _ORIENTATION_PER_METRE = PRESETS["default"].tol_orientation / PRESETS["default"].tol_position
@@ -44,7 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    model = load_robot(args.robot)
+    with c_warnings_as_lines("demo"):
+        model = load_robot(args.robot)
     configuration = Configuration(model)
     goal_q = configuration.random_q(np.random.default_rng(args.seed))
     configuration.update(goal_q)

@@ -8,7 +8,7 @@ import sys
 from ..model.configuration import FrameType
 from ..model.robots import tool_frame
 from ..problem import load_problem
-from ._common import JSON_HELP, report_stream, write_json
+from ._common import JSON_HELP, c_warnings_as_lines, report_stream, write_json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    problem = load_problem(args.file)
+    with c_warnings_as_lines("reach"):
+        problem = load_problem(args.file)
     if args.plot is not None:
         from ..plots import check_figure_path
 

@@ -9,7 +9,7 @@ import numpy as np
 from ..batch.reachability_map import reachability
 from ..limits import ConfigurationLimit, model_collision_limit
 from ..model.configuration import resolve_robot
-from ._common import add_solve_arguments, solve_options_from_args
+from ._common import add_solve_arguments, c_warnings_as_lines, solve_options_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
         check_figure_path("--plot", args.plot)
     options = solve_options_from_args(args)
     if args.collision is not None:
-        model, _q0 = resolve_robot(args.robot)
+        with c_warnings_as_lines("reachmap"):
+            model, _q0 = resolve_robot(args.robot)
         collision = model_collision_limit(
             model,
             scene=args.collision in ("scene", "all"),
