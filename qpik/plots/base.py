@@ -140,7 +140,7 @@ def check_targets(targets) -> np.ndarray:
 def check_task_targets(task_targets) -> list[tuple[str, np.ndarray]]:
     """``task_targets``: ``(label, position (3,) [m])`` pairs (maybe none)."""
     expected = "a sequence of (label, [x, y, z]) pairs (m)"
-    if isinstance(task_targets, (str, bytes, set, frozenset, dict)):
+    if not isinstance(task_targets, Sequence) or isinstance(task_targets, (str, bytes)):
         raise InvalidArgumentType("task_targets", expected, checks.type_name(task_targets))
     out = []
     for k, item in enumerate(task_targets):

@@ -196,7 +196,14 @@ def test_the_levels_own_targets_and_the_scenes_obstacles_are_drawn(tmp_path):
 def test_task_targets_of_a_wrong_form_are_refused():
     model = qpik.load_robot("planar_2r")
     path = np.zeros((2, model.nq))
-    for bad in ("L1 target", [("L1", [0.0, 1.0])], [(1, [0.0, 1.0, 0.0])], [("L1", [np.nan] * 3)]):
+    for bad in (
+        "L1 target",
+        lambda: 1,
+        {"L1": [0, 0, 0]},
+        [("L1", [0.0, 1.0])],
+        [(1, [0.0, 1.0, 0.0])],
+        [("L1", [np.nan] * 3)],
+    ):
         with pytest.raises(qpik.QpikError, match="task_targets"):
             plots.plot_planar_arm(model, path, task_targets=bad)
 
