@@ -327,8 +327,10 @@ def check_bounds_met(lb: np.ndarray, ub: np.ndarray, G: np.ndarray, h: np.ndarra
     open, so ``lb = +inf``, ``ub = -inf`` or ``h = -inf`` is a bound nothing meets (a box
     or a row that cannot be meant, not an infeasible level to report), as is ``lb > ub``;
     raises :class:`qpik.InvalidInput` naming the first such entry."""
-    if np.isnan(lb).any() or np.isnan(ub).any() or not np.isfinite(G).all():
-        raise InvalidInput("limits contain NaN")
+    if np.isnan(lb).any() or np.isnan(ub).any():
+        raise InvalidInput("lb or ub contains NaN")
+    if not np.isfinite(G).all():
+        raise InvalidInput("G has a NaN or infinite entry (its rows must be finite)")
     if np.isnan(h).any():
         raise InvalidInput("h contains NaN")
     for name, values, wrong in (("lb", lb, np.inf), ("ub", ub, -np.inf), ("h", h, -np.inf)):

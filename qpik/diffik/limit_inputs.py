@@ -82,15 +82,29 @@ def same_robot(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:
     return joint_names(a) == joint_names(b)
 
 
+def _difference(own: mujoco.MjModel, model: mujoco.MjModel) -> str:
+    """What first differs between a limit's model and the solver's, in words."""
+    if (own.nq, own.nv, own.njnt) != (model.nq, model.nv, model.njnt):
+        return (
+            f"nq={own.nq}, nv={own.nv}, {own.njnt} joints against nq={model.nq}, "
+            f"nv={model.nv}, {model.njnt} joints"
+        )
+    for name in ("jnt_type", "jnt_qposadr", "jnt_dofadr", "jnt_limited"):
+        if not np.array_equal(getattr(own, name), getattr(model, name)):
+            j = int(np.flatnonzero(getattr(own, name) != getattr(model, name))[0])
+            return f"joint {j}'s {name} differs"
+    names = [(a, b) for a, b in zip(joint_names(own), joint_names(model)) if a != b]
+    return f"joint {names[0][0]!r} where the solver's model has {names[0][1]!r}" if names else "?"
+
+
 def check_limit_model(limit, model: mujoco.MjModel) -> None:
     """LimitDefinitionError where ``limit`` holds a model (``limit.model``: mink's position
     and collision limits, qpik's) of another robot than ``model`` (:func:`same_robot`)."""
     own = getattr(limit, "model", None)
     if isinstance(own, mujoco.MjModel) and not same_robot(own, model):
         raise LimitDefinitionError(
-            f"{limit_name(limit)} was built for another model (nq={own.nq}, nv={own.nv}, "
-            f"{own.njnt} joints) than the solver's (nq={model.nq}, nv={model.nv}, "
-            f"{model.njnt} joints): build it from the solver's model"
+            f"{limit_name(limit)} was built for another model than the solver's "
+            f"({_difference(own, model)}): build it from the solver's model"
         )
     # mink's limits without a model (VelocityLimit): their projection's width is their
     # model's nv, and their dof indices must be the solver's

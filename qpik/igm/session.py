@@ -122,6 +122,7 @@ from .targets import (
     RobotLike,
     Target,
     TargetLike,
+    check_distinct_frames,
     parse_target,
     pose_errors,
     worst_errors,
@@ -285,11 +286,10 @@ class IKSession:
         seed = keywords.pop("seed", UNSET)
         settings, kernel_options = self._options(options, keywords)
         rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
-        # The lean lane: one (position, rotation) target of a frame the compiled engine
-        # already solved with these options (its plan made for them), on a robot with no
-        # coupling, no unheld equality and hinge/slide chains, limits "joint": the target
-        # and start checked, and the engine run, in one compiled call (_lean), the same bits
-        # as the general path below, which answers (or raises) wherever that call declines.
+        # The lean lane: one (position, rotation) target of a frame the compiled engine already
+        # solved with these options, a robot with no coupling, no unheld equality, hinge/slide
+        # chains, limits "joint": checks and engine in one compiled call (_lean), bit for bit
+        # the general path below, which answers (or raises) wherever that call declines.
         memo = self._memo[0]
         if memo is not None and memo[2] is settings and memo[-1] is True and stack is None:
             result = self._lean(targets, q0, settings, kernel_options, rng_state, start_time)
@@ -407,6 +407,8 @@ class IKSession:
             except (KeyError, TypeError):
                 frame = self._frame(key)
             frames.append((frame, parse_target(value)))
+        if len(frames) > 1:  # (one frame named twice: 'ee' and ('ee', 'site'))
+            check_distinct_frames([f for f, _ in frames], list(targets))
         return frames
 
     def _compiled_applies(

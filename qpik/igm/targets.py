@@ -33,6 +33,7 @@ __all__ = [
     "RobotLike",
     "Target",
     "TargetLike",
+    "check_distinct_frames",
     "parse_target",
     "pose_errors",
     "worst_errors",
@@ -74,14 +75,24 @@ _FORMS = "a target is a position (3,), (position, rotation), a 4x4 matrix or an 
 _FLOAT64 = np.dtype(np.float64)
 
 
+def _real(value) -> np.ndarray:
+    """``value`` as a float64 array where it holds real numbers (ints or floats); a complex
+    value (whose imaginary part a float conversion drops), strings, booleans or objects
+    raise ``ValueError``."""
+    raw = np.asarray(value)
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"real numbers, got {raw.dtype.name} values")
+    return np.array(raw, dtype=float)
+
+
 def _array(value, shape: tuple[int, ...], what: str) -> np.ndarray:
     if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == shape:
         return value.copy()  # the common case, at the cost of a copy
     try:
-        array = np.array(value, dtype=float)
+        array = _real(value)
     except (TypeError, ValueError) as exc:
         raise InvalidTarget(
-            f"{what} must be finite numbers of shape {shape}, got {value!r}"
+            f"{what} must be finite numbers of shape {shape}, got {value!r} ({exc})"
         ) from exc
     if array.shape != shape:
         raise InvalidTarget(
@@ -99,9 +110,9 @@ def _parts(value: TargetLike) -> tuple:
     if isinstance(value, mink.SE3):
         return value.translation(), value.rotation().as_matrix()
     try:
-        array = np.asarray(value, dtype=float)
+        array = _real(value)
     except (TypeError, ValueError) as exc:
-        raise InvalidTarget(f"{_FORMS}; got {value!r}") from exc
+        raise InvalidTarget(f"{_FORMS}; got {value!r} ({exc})") from exc
     if array.shape == (4, 4):
         if not np.allclose(array[3], [0, 0, 0, 1]):
             raise InvalidTarget("a 4x4 target's last row must be (0, 0, 0, 1)")
@@ -164,3 +175,17 @@ def pose_errors(position: np.ndarray, rotation: np.ndarray, target: Target) -> t
 def worst_errors(errors: Mapping[str, tuple[float, float]]) -> tuple[float, float]:
     """The largest position error [m] and the largest orientation error [rad] over frames."""
     return max(p for p, _ in errors.values()), max(o for _, o in errors.values())
+
+
+def check_distinct_frames(frames: list, keys: list) -> None:
+    """:class:`qpik.InvalidTarget` where two of ``keys`` name one frame (``'ee'`` and
+    ``('ee', 'site')``: two targets for it, which a solve would treat as a conflict);
+    ``frames``: their resolved frames (``name`` and ``kind``), in the same order."""
+    seen: dict = {}
+    for frame, key in zip(frames, keys):
+        first = seen.setdefault((frame.name, frame.kind), key)
+        if first is not key:
+            raise InvalidTarget(
+                f"targets name the frame {frame.kind.value} {frame.name!r} twice ({first!r} "
+                f"and {key!r}): give it one target"
+            )

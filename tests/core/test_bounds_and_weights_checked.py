@@ -36,6 +36,7 @@ def problem(lb=None, ub=None, G=None, h=None, **level):
         ({"lb": [np.inf] * 3, "ub": [np.inf] * 3}, r"lb\[0\] is inf"),
         ({"lb": [0, 2, 0], "ub": [1, 1, 1]}, r"lb\[1\] = 2.0 > ub\[1\] = 1.0"),
         ({"G": [[1.0, 0.0, 0.0]], "h": [-np.inf]}, r"h\[0\] is -inf"),
+        ({"G": [[np.inf, 0.0, 0.0]], "h": [1.0]}, "G has a NaN or infinite entry"),
         ({"weights": np.array([1.0, np.nan])}, "weights"),
         ({"weights": np.array([-1.0, -1.0])}, "weights"),
         ({"weights": np.array([np.inf, 1.0])}, "weights"),

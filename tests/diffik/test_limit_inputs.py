@@ -115,3 +115,20 @@ def test_rows_that_never_bind_and_inactive_limits_are_answered():
     ):
         ik, configuration = _frame_solver([_Rows(constraint)])
         np.testing.assert_allclose(ik.step(configuration, DT).velocity, reference, atol=1e-12)
+
+
+def test_a_position_limit_of_a_model_with_other_joint_names_says_which():
+    """The same robot with two joint names swapped: its position limit is refused, and the
+    message names the joint that differs (not two identical size summaries)."""
+    import mujoco
+
+    model = qpik.load_robot("ur5e")
+    path = qpik.robots.robot_path("ur5e")
+    text = path.read_text()
+    for a, b in (('"wrist_3_joint"', '"TMP"'), ('"shoulder_pan_joint"', '"wrist_3_joint"'),
+                 ('"TMP"', '"shoulder_pan_joint"')):  # fmt: skip
+        text = text.replace(a, b)
+    swapped = mujoco.MjModel.from_xml_string(text, {})
+    posture = PostureTask(model, cost=1.0)
+    with pytest.raises(LimitDefinitionError, match="joint 'wrist_3_joint' where the solver"):
+        qpik.IKSolver(model, [[posture]], [qpik.limits.ConfigurationLimit(swapped)])

@@ -229,3 +229,27 @@ def test_a_start_quaternion_is_checked_and_normalised():
     huge = qpik.solve(model, target, q0=np.r_[0, 0, 0, 1e200, 1e200, 0, 0, arm], seed=0)
     assert huge.converged == unit.converged
     np.testing.assert_allclose(huge.q, unit.q, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "target",
+    [
+        np.array([0.4 + 0.3j, 0.1, 0.4]),  # (a float conversion drops the imaginary part)
+        [0.4, 0.1j, 0.4],
+        np.array(["0.4", "0.1", "0.4"]),
+        (np.array([0.4 + 0j, 0.1, 0.4]), np.eye(3)),
+        np.array([True, False, True]),
+    ],
+)
+def test_a_target_of_no_real_numbers_is_refused(target):
+    """Complex, string or boolean targets are InvalidTarget, not converted (a complex one
+    was solved at its real part, reported converged, with only numpy's ComplexWarning)."""
+    with pytest.raises(qpik.InvalidTarget, match="real numbers"):
+        qpik.solve("ur5e", {"ee": target}, seed=0)
+
+
+def test_one_frame_named_twice_is_refused():
+    """'ee' and ('ee', 'site') name one frame: two targets for it were solved as a conflict
+    (reason at_limit); now InvalidTarget naming both keys."""
+    with pytest.raises(qpik.InvalidTarget, match=r"twice \('ee' and \('ee', 'site'\)\)"):
+        qpik.IKSession("panda").solve({"ee": [0.4, 0.2, 0.5], ("ee", "site"): [0.3, 0.0, 0.6]})
