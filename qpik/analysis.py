@@ -57,6 +57,7 @@ from .core.jacobian import (
     singularity,
     solution_set,
 )
+from .errors import InvalidInput
 from .model.configuration import Configuration, FrameType
 from .model.gradients import check_configuration, manipulability_gradient
 from .model.rotations import orientation_error
@@ -267,6 +268,10 @@ def analyze(
         singular_tol: Threshold of the singular flag (near-singularity).
     """
     check_configuration(configuration)
+    if configuration.model.nv == 0:
+        raise InvalidInput(
+            "configuration: its model has no degree of freedom (nv = 0): no Jacobian to analyse"
+        )
     kind = FrameType.parse(frame_type)
     idx = row_indices(rows)
     J = configuration.frame_jacobian(frame, kind)[list(idx)]

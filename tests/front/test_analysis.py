@@ -550,3 +550,14 @@ def test_a_free_or_ball_joint_takes_mj_jacdot():
         model = mujoco.MjModel.from_xml_string(xml)
         body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)])
         assert gradients._hinge_slide_chain(model, body) is None
+
+
+def test_a_model_with_no_degree_of_freedom_is_named():
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><body name="b"><geom size=".1"/><site name="s"/></body>'
+        "</worldbody></mujoco>"
+    )
+    with pytest.raises(qpik.errors.InvalidInput, match=r"no degree of freedom \(nv = 0\)"):
+        an.analyze(qpik.Configuration(model), "s")
