@@ -44,6 +44,7 @@ from ..errors import (
     ReadOnlyAttribute,
 )
 from ..model.configuration import Configuration
+from ..model.robots import check_kinematic_model
 from ..options import MAX_DAMPING, UNSET, StepFieldKeywords, StepOptions, check_number
 from .boxes import LimitBoxes, LimitRows, relaxable
 from .compiled import OK as _OK
@@ -150,6 +151,7 @@ class IKSolver:
     ):
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
+        check_kinematic_model(model, "model")  # (NaN geometry, an empty range: named here)
         options = _step_options(options, dict(keywords))
         self._options = options
         backend_options = options.backend_options

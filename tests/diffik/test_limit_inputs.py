@@ -132,3 +132,10 @@ def test_a_position_limit_of_a_model_with_other_joint_names_says_which():
     posture = PostureTask(model, cost=1.0)
     with pytest.raises(LimitDefinitionError, match="joint 'wrist_3_joint' where the solver"):
         qpik.IKSolver(model, [[posture]], [qpik.limits.ConfigurationLimit(swapped)])
+
+
+def test_a_model_with_nan_geometry_is_named_when_the_solver_is_built():
+    model = qpik.load_robot("panda")
+    model.body_pos[2] = np.nan  # (an array edited in place)
+    with pytest.raises(qpik.errors.InvalidInput, match="model: the model's body_pos of body"):
+        qpik.IKSolver(model, [[PostureTask(model, cost=1.0)]])
