@@ -26,14 +26,15 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
-from ..errors import InvalidInput, MissingExtra
+from ..errors import InvalidArgumentType, InvalidInput, MissingExtra
 from ..igm.targets import Target
 from ..model.configuration import Configuration, FrameType
 from ..model.robots import load_robot, tool_frame
 from ..problem import Problem, load_problem
 from ..tasks import OrientationTask, PositionTask, PostureTask
 from .geometry import GeomMesh, geom_meshes
-from .live import LevelReport, LiveSolve, SolveReport
+from .live import LevelReport, LiveSolve, SolveReport, check_max_iterations, goal_keys
+from .server import check_host, check_port, start_server
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "Viewer", "import_viser"]
 
@@ -119,22 +120,32 @@ class Viewer:
             problem brings its own (and ignores this).
         limits: limits holding at every step (default: the problem's, or the joint
             position limits).
-        goals: frames that get a handle: names or ``(name, frame_type)``; default: the
-            problem's goal frames, or every frame a task of ``levels`` regulates.
+        goals: frames that get a handle: names or ``(name, frame_type)`` (one name alone:
+            that frame); default: the problem's goal frames, or every frame a task of
+            ``levels`` regulates.
         q0: start configuration ``(nq,)`` (default: the problem's, the configuration's,
-            or the model's first keyframe, else ``qpos0``).
+            or the model's first keyframe, else ``qpos0``), clipped into the joint limits
+            (as :meth:`set_q` clips).
 
     Keyword Args:
-        host: interface to listen on (default ``127.0.0.1``: this machine only).
-        port: TCP port (default 8080; 0 picks a free one; a busy one: the next free one).
+        host: interface to listen on, a str (default ``127.0.0.1``: this machine only).
+        port: TCP port, an int in [0, 65535] (default 8080; 0 picks a free one; a busy
+            one: the next free one).
         collision: draw the collision geoms too (translucent; a checkbox toggles them).
-        max_iterations: IK steps per drag solve at most (default 20).
+        max_iterations: IK steps per drag solve at most, an int in [0, 100000] (the range
+            of :attr:`qpik.SolveOptions.max_iters`; default 20).
         label: the page's title (default: the problem's name, or the model's).
         solve_start: solve toward the goals before serving (default True).
 
     The server starts at once and runs in background threads until :meth:`close` (or the
     end of a ``with`` block); :meth:`serve` blocks while it serves. Solving from Python
     (:meth:`set_target`) updates every connected page.
+
+    Raises :class:`qpik.InvalidOption` (or :class:`qpik.InvalidArgumentType` for the
+    wrong type) for a keyword out of range, a ``host`` this machine cannot listen on
+    (unresolvable, another machine's address) or a port it may not bind, and
+    :class:`qpik.InvalidInput` when the server does not start within
+    :data:`qpik.viewer.server.SERVER_START_TIMEOUT` seconds.
     """
 
     def __init__(
@@ -148,17 +159,20 @@ class Viewer:
         **serving: Unpack[Serving],
     ):
         checks.check_keywords("Viewer", dict(serving), Serving)
-        host = serving.get("host", DEFAULT_HOST)
-        port = serving.get("port", DEFAULT_PORT)
-        collision = serving.get("collision", False)
-        max_iterations = serving.get("max_iterations", 20)
+        host = check_host(serving.get("host", DEFAULT_HOST))
+        port = check_port(serving.get("port", DEFAULT_PORT))
+        collision = checks.check_bool("collision", serving.get("collision", False))
+        max_iterations = check_max_iterations(serving.get("max_iterations", 20))
         label = serving.get("label")
-        solve_start = serving.get("solve_start", True)
+        if label is not None and not isinstance(label, str):
+            raise InvalidArgumentType("label", "a str or None", checks.type_name(label))
+        solve_start = checks.check_bool("solve_start", serving.get("solve_start", True))
         viser = import_viser()
         self.started_at = time.perf_counter()
         self.problem: Problem | None = None
         self.live = self._make_live(source, levels, limits, goals, q0, max_iterations)
         self.model: mujoco.MjModel = self.live.model
+        self.live.set_q(self._within_limits(self.live.q))
         self._lock = threading.RLock()
         self._pending: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._pending_lock = threading.Lock()
@@ -174,13 +188,15 @@ class Viewer:
         if solve_start:
             self.live.solve(max_iterations=max(200, max_iterations))
         name = label or (self.problem.name if self.problem is not None else _model_name(self.model))
-        self.server: Any = viser.ViserServer(
-            host=host, port=port, label=f"qpik: {name}", verbose=False
-        )
+        self.server: Any = start_server(viser, host, port, f"qpik: {name}")
         self.host = host
-        self._build_scene(collision)
-        self._build_gui(name)
-        self._redraw(self.live.solve(max_iterations=0) if not solve_start else self._report())
+        try:
+            self._build_scene(collision)
+            self._build_gui(name)
+            self._redraw(self.live.solve(max_iterations=0) if not solve_start else self._report())
+        except BaseException:
+            self.server.stop()
+            raise
         self._worker = threading.Thread(target=self._work, name="qpik-viewer", daemon=True)
         self._worker.start()
 
@@ -450,7 +466,10 @@ class Viewer:
                 if self._playing:
                     continue
                 for name, (position, wxyz) in pending.items():
-                    self.live.set_target(name, position, wxyz)
+                    try:
+                        self.live.set_target(name, position, wxyz)
+                    except InvalidInput:  # a malformed pose from a page: ignore that update
+                        continue
                 report = self.live.solve()
                 if pending:
                     self.drag_times.append(report.solve_time)
@@ -480,13 +499,13 @@ class Viewer:
         """Pose of a goal frame at the current ``q``: position ``(3,)`` [m] and rotation
         ``(3, 3)``, world frame."""
         with self._lock:
-            goal = self.live.goals[frame]
+            goal = self.live.goal(frame)
             position, matrix = self.live.configuration.frame_pose(frame, goal.frame_type)
             return position.copy(), matrix.copy()
 
     def target(self, frame: str) -> Target:
         """The current target of goal frame ``frame`` (world frame)."""
-        return self.live.goals[frame].target
+        return self.live.goal(frame).target
 
     def set_target(
         self,
@@ -507,10 +526,9 @@ class Viewer:
         Returns the :class:`~qpik.viewer.SolveReport`; every connected page is updated
         (handle, robot, panels).
         """
-        if frame not in self.live.goals:
-            raise InvalidInput(
-                f"frame {frame!r} has no handle; goal frames: {', '.join(self.live.goals)}"
-            )
+        self.live.goal(frame)
+        if max_iterations is not None:
+            check_max_iterations(max_iterations)
         with self._lock:
             target = self.live.set_target(frame, position, rotation)
             handle = self._handles[frame]
@@ -527,10 +545,19 @@ class Viewer:
         return list(self.live.goals)
 
     def set_q(self, q: npt.ArrayLike) -> None:
-        """Show configuration ``q`` ``(nq,)`` (the next drag solves from it)."""
+        """Show configuration ``q`` ``(nq,)`` (the next drag solves from it), clipped into
+        the joint limits as the start ``q0`` is (the limits hold at every step, and the
+        joint sliders span them); not ``nq`` finite numbers:
+        :class:`qpik.InvalidConfiguration`."""
+        q = self.live.configuration._validated(q)
         with self._lock:
-            self.live.set_q(q)
+            self.live.set_q(self._within_limits(q))
             self._redraw(self.live.solve(max_iterations=0))
+
+    def _within_limits(self, q: np.ndarray) -> np.ndarray:
+        """``q`` clipped into the joint position limits (unlimited joints unchanged)."""
+        configuration = self.live.configuration
+        return np.clip(q, configuration.lower, configuration.upper)
 
     def play(self, background: bool = False, realtime: bool = True) -> None:
         """Run a track-mode problem: from ``q0``, ``steps`` IK steps of ``dt`` toward each
@@ -603,6 +630,7 @@ class Viewer:
 def default_stack(configuration: Configuration) -> list[list[Any]]:
     """The viewer's stack for a bare model: the tool frame's position and orientation in
     level 0 (:func:`qpik.robots.tool_frame`), the start posture in level 1."""
+    checks.check_instance("configuration", configuration, Configuration, "a qpik.Configuration")
     model = configuration.model
     tool = tool_frame(model)
     position = PositionTask(tool.name, frame_type=tool.frame_type)
@@ -620,9 +648,12 @@ def live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) ->
         start.update(np.asarray(q0, dtype=float))
     levels = problem.build_stack(start)
     frames = problem.goals[0].frames
-    keys = goals if goals is not None else [(f.frame, f.frame_type) for f in frames]
+    keys = goal_keys(
+        problem.model, goals if goals is not None else [(f.frame, f.frame_type) for f in frames]
+    )
+    names = {name for name, _ in keys}
     options = problem.solve_options
-    names = [
+    level_names = [
         [f"{s.type} {s.frame}" if s.frame else s.type for s in level] for level in problem.levels
     ]
     return LiveSolve(
@@ -631,14 +662,14 @@ def live_of_problem(problem: Problem, limits, goals, q0, max_iterations: int) ->
         problem.build_limits() if limits is None else limits,
         keys,
         start.q,
-        targets={f.frame: f.target for f in frames},
+        targets={f.frame: f.target for f in frames if f.frame in names},
         dt=problem.dt if problem.mode == "track" else 1.0,
         step_options=options.step,
         tol_position=options.tol_position,
         tol_orientation=options.tol_orientation,
         max_iterations=max_iterations,
         max_step=options.max_step,
-        level_names=names,
+        level_names=level_names,
     )
 
 

@@ -21,6 +21,8 @@ from typing import Literal
 import mujoco
 import numpy as np
 
+from ..core import checks
+
 __all__ = ["GeomMesh", "collision_geoms", "geom_meshes", "primitive_mesh", "visual_geoms"]
 
 #: Geom types drawn as tessellated primitives or as the model's meshes.
@@ -89,7 +91,12 @@ def geom_meshes(
         which: ``"visual"``: the visual geoms, or the collision geoms of a *body* that has
             no visual geom (so that every body is drawn once; the world's geoms, such as
             obstacles, are always drawn); ``"collision"``: the collision geoms only.
+
+    A ``model`` that is not an ``MjModel`` raises :class:`qpik.InvalidArgumentType`,
+    another ``which`` :class:`qpik.InvalidOption`.
     """
+    checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
+    checks.check_choice("which", which, ("visual", "collision"))
     if which == "collision":
         ids = collision_geoms(model)
     else:

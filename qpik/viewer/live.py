@@ -31,7 +31,7 @@ error stays above tolerance when the solve ends).
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypedDict, Unpack
 
@@ -41,13 +41,14 @@ import numpy.typing as npt
 
 from ..core import checks
 from ..diffik.solver import IKSolver, StepResult, normalize_stack
+from ..errors import InvalidArgumentType, InvalidInput, InvalidOption, InvalidTarget
 from ..igm.qp_engine import set_frame_target
-from ..igm.targets import Target
+from ..igm.targets import Target, parse_target
 from ..limits import joint_limits
 from ..model.configuration import Configuration, FrameType
 from ..model.frames import resolve_frame
 from ..model.rotations import orientation_angle
-from ..options import StepOptions
+from ..options import MAX_ITERS_LIMIT, StepOptions, check_integer, check_number
 from ..tasks import OrientationTask, PoseTask, PositionTask
 
 __all__ = ["GoalFrame", "LevelReport", "LiveSolve", "SolveReport", "describe_task"]
@@ -183,21 +184,29 @@ class LiveSolve:
         levels: task stack (see :func:`qpik.diffik.solver.normalize_stack`), level 0 first;
             tasks on goal frames receive the targets.
         limits: limits holding at every step (default: the joint position limits).
-        goals: the frames with a draggable target: names or ``(name, frame_type)``;
-            default: every frame regulated by a frame, position, orientation or pose task.
+        goals: the frames with a draggable target: names or ``(name, frame_type)`` (one
+            name alone: that frame); default: every frame regulated by a frame, position,
+            orientation or pose task.
         q0: start configuration ``(nq,)`` (default: the model's ``qpos0``).
-        targets: start targets ``{frame: Target}`` (default: each frame's pose at ``q0``).
+        targets: start targets ``{goal frame: target}`` (a :class:`qpik.Target` or what
+            :func:`qpik.igm.targets.parse_target` takes; default: each frame's pose at
+            ``q0``); a frame that is not a goal: :class:`qpik.InvalidOption`.
         step_options: :class:`qpik.StepOptions` of the steps.
-        level_names: the names of each level's tasks in the panel (default: described
-            from the tasks).
+        level_names: the names of each level's tasks in the panel, one sequence of str
+            per level (default: described from the tasks).
 
     Keyword Args:
         dt: the step's time [s] (velocity limits bound a step to ``v_max dt``).
-        tol_position: [m]; ``tol_orientation``: [rad], when a goal frame is reached.
-        max_iterations: steps per drag solve at most.
-        max_step: trust region ``(metres, radians)``: what one step may ask of a goal
-            frame at most; ``None``: no trust region.
-        settle: a step with ``|dq|_inf`` below this [rad or m] has settled.
+        tol_position: [m]; ``tol_orientation``: [rad], when a goal frame is reached
+            (finite, > 0).
+        max_iterations: steps per drag solve at most (an int in [0, 100000]).
+        max_step: trust region ``(metres, radians)``, both finite and > 0: what one step
+            may ask of a goal frame at most; ``None``: no trust region.
+        settle: a step with ``|dq|_inf`` below this [rad or m] has settled (finite, > 0).
+
+    The settings take the ranges :class:`qpik.SolveOptions` gives the same names
+    (``max_iterations`` is its ``max_iters``); out of range: :class:`qpik.InvalidOption`
+    naming the setting.
     """
 
     def __init__(
@@ -213,30 +222,28 @@ class LiveSolve:
         **settings: Unpack[LiveSettings],
     ):
         checks.check_keywords("LiveSolve", dict(settings), LiveSettings)
-        dt = settings.get("dt", 1.0)
-        tol_position = settings.get("tol_position", 1e-4)
-        tol_orientation = settings.get("tol_orientation", 1e-3)
-        max_iterations = settings.get("max_iterations", 20)
-        max_step = settings.get("max_step", (0.2, 0.5))
-        settle = settings.get("settle", 1e-4)
+        checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
+        self.dt = checks.check_dt(settings.get("dt", 1.0))
+        self.tol_position = check_number("tol_position", settings.get("tol_position", 1e-4))
+        self.tol_orientation = check_number(
+            "tol_orientation", settings.get("tol_orientation", 1e-3)
+        )
+        self.max_iterations = check_max_iterations(settings.get("max_iterations", 20))
+        self.max_step = check_max_step(settings.get("max_step", (0.2, 0.5)))
+        self.settle = check_number("settle", settings.get("settle", 1e-4))
         self.model = model
         self.configuration = Configuration(model, q0)
         self.levels: list[list[Any]] = normalize_stack(levels)
         self.limits = list(joint_limits(model) if limits is None else limits)
-        self.dt = float(dt)
-        self.tol_position = float(tol_position)
-        self.tol_orientation = float(tol_orientation)
-        self.max_iterations = int(max_iterations)
-        self.max_step = None if max_step is None else (float(max_step[0]), float(max_step[1]))
-        self.settle = float(settle)
         self.solver = IKSolver(model, self.levels, self.limits, options=step_options)
         self._correction: IKSolver | None = None
         self.level_names = (
-            [list(names) for names in level_names]
+            _check_level_names(level_names, len(self.levels))
             if level_names is not None
             else [[describe_task(t) for t in level] for level in self.levels]
         )
-        keys = goal_frames_of(self.levels) if goals is None else [_key(model, g) for g in goals]
+        keys = goal_frames_of(self.levels) if goals is None else goal_keys(model, goals)
+        given = _check_targets(targets, [name for name, _ in keys])
         self.goals: dict[str, GoalFrame] = {}
         for name, kind in keys:
             in_levels = [
@@ -252,11 +259,11 @@ class LiveSolve:
             )
             position, matrix = self.configuration.frame_pose(name, kind)
             target = Target(position.copy(), matrix.copy() if rotation else None)
-            if targets is not None and name in targets:
-                given = targets[name]
+            if name in given:
+                start = given[name]
                 target = Target(
-                    np.asarray(given.position, float).copy(),
-                    None if given.rotation is None or not rotation else given.rotation.copy(),
+                    start.position.copy(),
+                    None if start.rotation is None or not rotation else start.rotation.copy(),
                 )
             self.goals[name] = GoalFrame(name, kind, in_levels, rotation, target)
             set_frame_target(self.levels, name, target)
@@ -284,19 +291,36 @@ class LiveSolve:
         """Move the target of goal frame ``frame``: ``position`` ``(3,)`` [m] and, for a
         frame whose orientation is regulated, ``rotation`` (a 3x3 matrix, or a ``(4,)``
         quaternion ``w, x, y, z``), both in the world frame. A rotation left out keeps the
-        current target's. Returns the new target (no solve: call :meth:`solve`)."""
-        goal = self.goals[frame]
+        current target's. Returns the new target (no solve: call :meth:`solve`).
+
+        Raises :class:`qpik.InvalidOption` for a frame without a handle and
+        :class:`qpik.InvalidTarget` for a position that is not 3 finite numbers or a
+        rotation that is neither a rotation matrix nor a nonzero quaternion."""
+        goal = self.goal(frame)
         matrix = goal.target.rotation
         if rotation is not None and goal.rotation:
-            r = np.asarray(rotation, dtype=float)
-            if r.shape == (4,):
-                m = np.empty(9)
-                mujoco.mju_quat2Mat(m, r / np.linalg.norm(r))
-                r = m.reshape(3, 3)
-            matrix = r.reshape(3, 3).copy()
-        goal.target = Target(np.asarray(position, dtype=float).reshape(3).copy(), matrix)
+            matrix = _rotation_matrix(rotation)
+        point = checks.check_vector("position", position, 3, error=InvalidTarget)
+        goal.target = parse_target(point if matrix is None else (point, matrix))
         set_frame_target(self.levels, frame, goal.target)
         return goal.target
+
+    def goal(self, frame: str) -> GoalFrame:
+        """The goal frame ``frame`` (:attr:`goals`); :class:`qpik.InvalidOption` naming
+        ``frame`` when it has no handle (:class:`qpik.InvalidArgumentType` when it is not
+        a str)."""
+        if not isinstance(frame, str):
+            raise InvalidArgumentType("frame", "a goal frame name (a str)", checks.type_name(frame))
+        goal = self.goals.get(frame)
+        if goal is None:
+            names = ", ".join(self.goals) or "(none)"
+            raise InvalidOption(
+                "frame",
+                frame,
+                f"a goal frame ({names})",
+                f"frame {frame!r} has no handle; goal frames: {names}",
+            )
+        return goal
 
     def goal_errors(self) -> dict[str, tuple[float, float]]:
         """``{frame: (position error [m], orientation error [rad])}`` at the current ``q``
@@ -372,7 +396,9 @@ class LiveSolve:
     def solve(self, max_iterations: int | None = None) -> SolveReport:
         """Steps until the goals are within tolerance and the step has settled, or
         ``max_iterations`` (default :attr:`max_iterations`) steps; returns the report."""
-        limit = self.max_iterations if max_iterations is None else int(max_iterations)
+        limit = (
+            self.max_iterations if max_iterations is None else check_max_iterations(max_iterations)
+        )
         start = time.perf_counter()
         last: StepResult | None = None
         steps = 0
@@ -457,3 +483,113 @@ def _key(model: mujoco.MjModel, goal: str | tuple[str, FrameType | str]) -> tupl
     a pair."""
     name, kind, _ = resolve_frame(model, goal, argument="goals")
     return name, FrameType.parse(kind)
+
+
+def goal_keys(model: mujoco.MjModel, goals: Any) -> list[tuple[str, FrameType]]:
+    """The goal frames ``goals``: a sequence of names or ``(name, frame_type)`` pairs, or
+    one name alone (a str is one frame, not a sequence of one-letter names)."""
+    if isinstance(goals, str):
+        return [_key(model, goals)]
+    if isinstance(goals, (bytes, dict)) or not checks.is_iterable(goals):
+        raise InvalidArgumentType(
+            "goals", "a frame name or a sequence of frames", checks.type_name(goals)
+        )
+    return [_key(model, g) for g in goals]
+
+
+def check_max_iterations(value: Any, name: str = "max_iterations") -> int:
+    """IK steps per drag solve: an int in ``[0, MAX_ITERS_LIMIT]``, the range of
+    :attr:`qpik.SolveOptions.max_iters`; else :class:`qpik.InvalidOption`."""
+    return check_integer(name, value, 0, MAX_ITERS_LIMIT)
+
+
+def check_max_step(value: Any) -> tuple[float, float] | None:
+    """The trust region ``(metres, radians)``, both finite and > 0, or ``None``: what
+    :class:`qpik.SolveOptions` accepts as ``max_step``; else :class:`qpik.InvalidOption`."""
+    if value is None:
+        return None
+    if isinstance(value, np.ndarray) and value.shape == (2,):
+        value = tuple(value.tolist())
+    if not (isinstance(value, (tuple, list)) and len(value) == 2):
+        raise InvalidOption("max_step", value, "(metres, radians) or None")
+    return (
+        check_number("max_step[0] (metres)", value[0]),
+        check_number("max_step[1] (radians)", value[1]),
+    )
+
+
+def _check_level_names(level_names: Any, count: int) -> list[list[str]]:
+    """``level_names``: one sequence of task names (str) per level."""
+    expected = f"{count} sequences of task names (one per level)"
+    if isinstance(level_names, (str, bytes, dict)) or not checks.is_iterable(level_names):
+        raise InvalidArgumentType("level_names", expected, checks.type_name(level_names))
+    names = list(level_names)
+    if len(names) != count:
+        raise InvalidInput(
+            f"level_names has {len(names)} entries, expected {count} (one per level)"
+        )
+    out = []
+    for k, level in enumerate(names):
+        if isinstance(level, (str, bytes, dict)) or not checks.is_iterable(level):
+            raise InvalidArgumentType(
+                f"level_names[{k}]", "a sequence of task names (str)", checks.type_name(level)
+            )
+        level = list(level)
+        for i, task in enumerate(level):
+            if not isinstance(task, str):
+                raise InvalidArgumentType(
+                    f"level_names[{k}][{i}]", "a task name (str)", checks.type_name(task)
+                )
+        out.append(level)
+    return out
+
+
+def _check_targets(targets: Any, goals: list[str]) -> dict[str, Target]:
+    """``targets``: ``{goal frame: target}`` (a :class:`qpik.Target`, or anything
+    :func:`qpik.igm.targets.parse_target` takes), every key a goal frame."""
+    if targets is None:
+        return {}
+    if not isinstance(targets, Mapping):
+        raise InvalidArgumentType(
+            "targets", "a dict {goal frame: Target}", checks.type_name(targets)
+        )
+    out = {}
+    for name, value in targets.items():
+        if name not in goals:
+            raise InvalidOption(
+                "targets",
+                name,
+                f"goal frames ({', '.join(goals) or 'none'})",
+                f"targets has a target for {name!r}, which is not a goal frame; goal "
+                f"frames: {', '.join(goals) or '(none)'}",
+            )
+        try:
+            out[name] = parse_target(value)
+        except InvalidTarget as exc:
+            raise InvalidTarget(f"targets[{name!r}]: {exc}") from None
+    return out
+
+
+def _rotation_matrix(rotation: Any) -> np.ndarray:
+    """A rotation given as a 3x3 matrix or a ``(4,)`` quaternion ``w, x, y, z`` (nonzero,
+    normalised here), as a 3x3 matrix; anything else :class:`qpik.InvalidTarget`."""
+    try:
+        r = np.asarray(rotation, dtype=float)
+    except (TypeError, ValueError):
+        r = None
+    if r is None or r.dtype.kind != "f" or r.shape not in ((4,), (3, 3)):
+        shape = getattr(r, "shape", None)
+        raise InvalidTarget(
+            "rotation must be a 3x3 rotation matrix or a (4,) quaternion w, x, y, z, got "
+            + (f"shape {shape}" if shape is not None else checks.type_name(rotation))
+        )
+    if not np.isfinite(r).all():
+        raise InvalidTarget(f"rotation must be finite, got {r.tolist()}")
+    if r.shape == (4,):
+        norm = float(np.linalg.norm(r))
+        if not norm > 1e-9:
+            raise InvalidTarget(f"rotation quaternion must be nonzero, got {r.tolist()}")
+        m = np.empty(9)
+        mujoco.mju_quat2Mat(m, r / norm)
+        r = m.reshape(3, 3)
+    return r.copy()
