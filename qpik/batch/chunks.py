@@ -153,21 +153,32 @@ def _stacked_arrays(
         flags = [type(value) is tuple and len(value) == 2 for value in values]
         n = len(values)
         if all(flags):
-            P = np.array([value[0] for value in values], dtype=float)
-            R = np.array([value[1] for value in values], dtype=float)
+            P = _real_stack([value[0] for value in values])
+            R = _real_stack([value[1] for value in values])
             posed = None
         elif not any(flags):
-            P, R, posed = np.array(values, dtype=float), None, None
+            P, R, posed = _real_stack(values), None, None
         else:
             eye = np.eye(3)
-            P = np.array([v[0] if f else v for v, f in zip(values, flags)], dtype=float)
-            R = np.array([v[1] if f else eye for v, f in zip(values, flags)], dtype=float)
+            P = _real_stack([v[0] if f else v for v, f in zip(values, flags)])
+            R = _real_stack([v[1] if f else eye for v, f in zip(values, flags)])
             posed = np.array(flags)
     except (KeyError, TypeError, ValueError):
         return None
     if P.shape != (n, 3) or (R is not None and R.shape != (n, 3, 3)):
         return None
     return key, P, R, posed
+
+
+def _real_stack(values: list) -> np.ndarray:
+    """``values`` stacked as a float64 array when they hold real numbers only (ints or
+    floats); complex numbers (whose imaginary parts a float cast would drop), strings,
+    booleans or objects raise ``ValueError``: the batch is then checked target by target,
+    and :func:`qpik.igm.targets.parse_target` names the bad one."""
+    raw = np.array(values)
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"real numbers, got {raw.dtype.name} values")
+    return raw.astype(float, copy=False)
 
 
 def _only_value(targets: Any, key: Any) -> Any:

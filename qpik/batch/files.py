@@ -10,7 +10,9 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import time
+import warnings
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -19,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from ..core import checks
 from ..errors import InvalidInput, MissingExtra, ProblemFileError
 from ..igm.result import IKResult
 from ..igm.targets import FrameKey, RobotLike
@@ -108,7 +111,7 @@ def load_targets(path: str | os.PathLike) -> TargetArrays:
     optionally ``qw, qx, qy, qz`` (a header line naming them, or 3 or 7 unnamed columns).
     World frame. Malformed files raise :class:`qpik.ProblemFileError` naming the field."""
 
-    path = os.fspath(path)
+    path = checks.check_path("targets", path)
     if not os.path.isfile(path):
         raise ProblemFileError(path, "TARGETS", "no such file")
     if path.lower().endswith(".csv"):
@@ -138,37 +141,92 @@ def load_targets(path: str | os.PathLike) -> TargetArrays:
 def _read_npz(path: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of an npz targets file."""
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if "positions" not in data:
-                raise ProblemFileError(
-                    path, "positions", f"an (N, 3) array [m]; the file has {sorted(data)}"
-                )
-            positions = np.asarray(data["positions"], dtype=float)
-            quaternions = None
-            if "quaternions" in data:
-                quaternions = np.asarray(data["quaternions"], dtype=float)
+        with open(path, "rb") as stream:  # closed whatever np.load raises
+            return _npz_targets(path, np.load(stream, allow_pickle=False))
     except ProblemFileError:
         raise
     except Exception as exc:  # not a zip, pickled objects, ...
         raise ProblemFileError(path, "TARGETS", f"an .npz or .csv file ({exc})") from None
+
+
+def _npz_targets(path: str, loaded: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """Positions and quaternions of what ``np.load`` read from an npz targets file."""
+    if not isinstance(loaded, np.lib.npyio.NpzFile):
+        raise ProblemFileError(
+            path, "TARGETS", "an .npz archive with a positions array, not a bare .npy array"
+        )
+    with loaded as data:
+        if "positions" not in data:
+            raise ProblemFileError(
+                path, "positions", f"an (N, 3) array [m]; the file has {sorted(data)}"
+            )
+        positions = _real_array(path, "positions", data["positions"])
+        quaternions = None
+        if "quaternions" in data:
+            quaternions = _real_array(path, "quaternions", data["quaternions"])
     return positions, quaternions
+
+
+def _real_array(path: str, field: str, array: np.ndarray) -> np.ndarray:
+    """``array``, an entry of a targets file, as floats: real numbers only (a complex,
+    string or boolean array raises :class:`qpik.ProblemFileError`, naming the field;
+    casting would drop imaginary parts or read text silently)."""
+    if array.dtype.kind not in "iuf":
+        raise ProblemFileError(path, field, f"an array of real numbers, got dtype {array.dtype}")
+    return np.asarray(array, dtype=float)
 
 
 def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of a CSV targets file."""
-    with open(path) as stream:
-        first = stream.readline()
+    lines = _csv_lines(path)
+    if not lines:
+        raise ProblemFileError(path, "CSV", "a header x,y,z[,qw,qx,qy,qz] or rows of numbers")
+    first_number, first = lines[0]
     try:
         [float(cell) for cell in first.split(",")]
         header = False
     except ValueError:
         header = True
+    rows = lines[1:] if header else lines
+    if not rows:
+        raise ProblemFileError(
+            path, "CSV", f"at least one row of targets after the header (line {first_number})"
+        )
+    width = len(rows[0][1].split(","))
+    columns = [c.strip().lower() for c in first.split(",")] if header else []
+    if header and len(columns) != width:
+        raise ProblemFileError(
+            path,
+            f"CSV line {rows[0][0]}",
+            f"{len(columns)} values, one per column of the header (line {first_number}: "
+            f"{first.strip()!r}), got {width}",
+        )
+    for number, line in rows:
+        cells = line.split(",")
+        if len(cells) != width:
+            raise ProblemFileError(
+                path,
+                f"CSV line {number}",
+                f"{width} values as on line {rows[0][0]}, got {len(cells)}: {line.strip()!r}",
+            )
     try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1 if header else 0, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            table = np.loadtxt(
+                path,
+                delimiter=",",
+                skiprows=first_number if header else 0,
+                ndmin=2,
+                encoding="utf-8-sig",
+            )
     except ValueError as exc:
-        raise ProblemFileError(path, "CSV", f"numbers separated by commas ({exc})") from None
+        raise _bad_cell(path, rows) or ProblemFileError(
+            path, "CSV", f"numbers separated by commas ({exc})"
+        ) from None
+    if table.shape != (len(rows), width):  # loadtxt read the lines otherwise
+        raise ProblemFileError(path, "CSV", f"{len(rows)} rows of {width} numbers")
     if header:
-        return _named_columns(path, table, [c.strip().lower() for c in first.split(",")])
+        return _named_columns(path, table, columns)
     if table.shape[1] not in (3, 7):
         raise ProblemFileError(
             path, "CSV", f"3 (x y z) or 7 (x y z qw qx qy qz) columns, got {table.shape[1]}"
@@ -176,10 +234,51 @@ def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
     return table[:, :3], (table[:, 3:] if table.shape[1] == 7 else None)
 
 
+def _bad_cell(path: str, rows: list[tuple[int, str]]) -> ProblemFileError | None:
+    """The error naming the first cell of ``rows`` that is not a number (``None`` if all
+    are numbers)."""
+    for number, line in rows:
+        for column, cell in enumerate(line.split(","), start=1):
+            try:
+                float(cell)
+            except ValueError:
+                return ProblemFileError(
+                    path, f"CSV line {number}", f"a number in column {column}, got {cell.strip()!r}"
+                )
+    return None
+
+
+def _csv_lines(path: str) -> list[tuple[int, str]]:
+    """The lines of a CSV file that hold something, as ``(line number, text)`` (1-based;
+    blank lines and ``#`` comments left out, as :func:`numpy.loadtxt` does); a file that
+    is not UTF-8 text raises :class:`qpik.ProblemFileError` naming the line."""
+    with open(path, "rb") as stream:
+        raw = stream.read()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        bad_line = raw[: exc.start].count(b"\n") + 1
+        raise ProblemFileError(
+            path, "CSV", f"UTF-8 text; byte {exc.start} (line {bad_line}) is not valid UTF-8"
+        ) from None
+    if "\0" in text:
+        nul_line = text[: text.index("\0")].count("\n") + 1
+        raise ProblemFileError(path, "CSV", f"text without NUL bytes; line {nul_line} has one")
+    kept = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        content = line.split("#", 1)[0]
+        if content.strip():
+            kept.append((number, content))
+    return kept
+
+
 def _named_columns(
     path: str, table: np.ndarray, columns: list[str]
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """The columns ``x, y, z`` and, when all are present, ``qw, qx, qy, qz``."""
+    repeated = sorted({c for c in columns if columns.count(c) > 1})
+    if repeated:
+        raise ProblemFileError(path, "CSV header", f"each column named once; {repeated} repeat")
     missing = [c for c in ("x", "y", "z") if c not in columns]
     if missing:
         raise ProblemFileError(path, "CSV header", f"columns x, y, z; missing {missing}")
@@ -302,13 +401,18 @@ def solve_file(
     ``"pending"``) and ``done`` ``(N,)``. When every chunk is done, the folder is removed.
     A rerun skips the chunks already done; it refuses (``InvalidInput``) to mix runs whose
     targets, robot, frame, seed, chunk size or options differ, unless ``overwrite``.
-    ``max_chunks`` stops after that many new chunks (resume later). Target ``i`` is solved
-    with :func:`target_seed(seed, i) <qpik.batch.worker.target_seed>`: the file's rows are
-    the same as :func:`qpik.solve_many`'s, however the run was split. ``options`` and the
-    keywords: as for :func:`qpik.solve_many` (``chunk_size`` defaults to 128 here;
+    ``max_chunks`` (an int >= 0) stops after that many new chunks (resume later; ``0``
+    solves nothing: it checks the inputs and writes ``out`` with every row pending).
+    Target ``i`` is solved with :func:`target_seed(seed, i)
+    <qpik.batch.worker.target_seed>`: the file's rows are the same as
+    :func:`qpik.solve_many`'s, however the run was split. ``options`` and the keywords:
+    as for :func:`qpik.solve_many` (``chunk_size`` defaults to 128 here;
     ``pool_threshold`` and ``histories`` do not apply).
     """
     start_time = time.perf_counter()
+    if max_chunks is not None:
+        max_chunks = checks.check_integer("max_chunks", max_chunks, 0, sys.maxsize)
+    checks.check_bool("overwrite", overwrite)
     out = _check_out(out)
     arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
     unused = ("pool_threshold", "histories")
@@ -331,7 +435,7 @@ def solve_file(
     before = len(results.done)
     todo = [s for s in range(0, n, chunk_size) if s not in results.done]
     if max_chunks is not None:
-        todo = todo[: max(0, int(max_chunks))]
+        todo = todo[:max_chunks]
     results.begin(todo)
     solved = targets_solved = 0
     bar = progress_bar(n, batch.run.progress, initial=int(results.table["done"].sum()))
@@ -352,7 +456,7 @@ def solve_file(
 
 def _check_out(out: str | os.PathLike) -> str:
     """``out`` as a str ending in ``.npz`` or ``.parquet`` (pyarrow then importable)."""
-    out = os.fspath(out)
+    out = checks.check_path("out", out)
     if not out.endswith((".npz", ".parquet")):
         raise InvalidInput(f"out must be an .npz or .parquet file, got {out!r}")
     if out.endswith(".parquet"):

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import itertools
 import math
 import os
 import sys
@@ -76,12 +77,14 @@ __all__ = [
     "Chunk",
     "WorkerError",
     "check_chunk_size",
+    "check_run",
     "chunk_starts",
     "check_seed",
     "check_targets",
     "check_workers",
     "iter_prepared",
     "iter_solve",
+    "max_process_workers",
     "prepare_robot",
     "progress_bar",
     "ray_init",
@@ -89,6 +92,7 @@ __all__ = [
     "solve_many",
     "stream_chunks",
     "target_seed",
+    "WORKERS_PER_CORE",
 ]
 
 #: Where a batch runs: ``"process"`` (a pool on this machine) or ``"ray"`` (a Ray cluster).
@@ -96,6 +100,10 @@ BACKENDS = ("process", "ray")
 
 #: Chunks submitted ahead of the workers, per worker (bounds memory on huge batches).
 _AHEAD = 3
+#: The most processes a pool starts per core of this machine (``os.cpu_count()``): a
+#: larger ``workers`` is capped to it (IK is CPU-bound: more would only compete for the
+#: cores, and a typo such as ``workers=10**6`` would fork until the machine gives up).
+WORKERS_PER_CORE = 4
 #: The default chunks are guided (:func:`chunk_starts`): each takes a share of what is left,
 #: between these sizes. Each chunk costs the caller a round trip (pickling, the pool's
 #: bookkeeping), which competes with the workers for the cores: large chunks while much is
@@ -115,7 +123,10 @@ class BatchOptions:
             <target_seed>`, so the results are bitwise the same whatever ``workers``,
             ``chunk_size`` or ``backend`` (``None``: fresh entropy). Default ``0``.
         workers: processes (``None``: ``os.cpu_count()``; for Ray, every CPU of the
-            cluster); ``1`` solves in this process.
+            cluster); ``1`` solves in this process. A process pool starts at most one
+            worker per chunk of the batch and at most :data:`WORKERS_PER_CORE` per core
+            of this machine (more would only compete for the cores): a larger count is
+            harmless, capped to that.
         backend: ``"process"`` (a process pool on this machine) or ``"ray"`` (needs
             ``pip install -e '.[cluster]'``).
         address: Ray address of an existing cluster (``"auto"``, ``"ray://host:10001"``);
@@ -125,7 +136,8 @@ class BatchOptions:
         chunk_size: targets per task (default: guided, each task a share of the targets
             left, from 1024 down to 16 at the end; a file's run: 128).
         pool_threshold: [s] a batch whose serial time, estimated from its first solve,
-            is below this is solved in this process (no workers start).
+            is below this is solved in this process (no workers start); a number >= 0
+            (``0``: always a pool when ``workers > 1``; ``math.inf``: never).
         histories: keep each result's per-iteration ``residual_history``,
             ``error_history`` and ``path``; by default they are left empty (a batch then
             moves several times less data between processes).
@@ -183,7 +195,34 @@ def check_workers(workers: int | None, backend: str = "process") -> int | None:
             return 1
     if workers is None:
         return (os.cpu_count() or 1) if backend == "process" else None
+    if backend == "process":
+        return min(int(workers), max_process_workers())
     return int(workers)
+
+
+def max_process_workers() -> int:
+    """The most workers a process pool starts: :data:`WORKERS_PER_CORE` per core."""
+    return WORKERS_PER_CORE * max(1, os.cpu_count() or 1)
+
+
+def check_run(run: BatchOptions) -> BatchOptions:
+    """``run`` with its flags and ``pool_threshold`` checked (the seed, the workers, the
+    backend and the chunk size have their own checks): a non-bool ``progress`` or
+    ``histories``, or a ``pool_threshold`` that is not a number raise
+    :class:`qpik.InvalidArgumentType`; a negative or NaN ``pool_threshold``
+    :class:`qpik.InvalidOption` (``math.inf`` is allowed: never a pool)."""
+    progress = checks.check_bool("progress", run.progress)
+    histories = checks.check_bool("histories", run.histories)
+    threshold = run.pool_threshold
+    if not (checks.is_real(threshold) and float(threshold) == math.inf):
+        threshold = checks.check_real("pool_threshold", threshold, 0.0, unit="s")
+    if run.address is not None and not isinstance(run.address, str):
+        raise InvalidArgumentType(
+            "address", "a Ray address (a str) or None", type(run.address).__name__
+        )
+    return dataclasses.replace(
+        run, progress=progress, histories=histories, pool_threshold=float(threshold)
+    )
 
 
 def check_chunk_size(chunk_size: int | None, optional: bool = False) -> None:
@@ -256,7 +295,7 @@ class Batch:
                 raise InvalidInput(
                     f"{name!r} does not apply here; it is not an option of this call"
                 )
-        run = BatchOptions(**{**defaults, **own})
+        run = check_run(BatchOptions(**{**defaults, **own}))
         entropy = check_seed(run.seed)
         workers = check_workers(run.workers, run.backend)
         check_chunk_size(run.chunk_size, optional=True)
@@ -320,7 +359,14 @@ def iter_prepared(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, 
 
 
 def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, list[IKResult]]]:
-    """Chunks solved by a process pool, a few per worker submitted ahead."""
+    """Chunks solved by a process pool, a few per worker submitted ahead; the pool has no
+    more workers than there are chunks (the first ``workers`` are read to know)."""
+    source = iter(chunks)
+    first = list(itertools.islice(source, batch.workers or 1))
+    if not first:
+        return
+    workers = min(batch.workers or 1, len(first))
+    source = itertools.chain(first, source)
     local_setup = batch.local_setup()
     local = ChunkSolver(local_setup)
     context = _mp_context()
@@ -329,7 +375,7 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
 
     pool_class, broken = _pool_classes()
     executor = pool_class(
-        max_workers=batch.workers,
+        max_workers=workers,
         mp_context=context,
         initializer=init_worker,
         # A forked worker has the model already (no file to read again), and takes this
@@ -338,11 +384,10 @@ def _iter_pool(batch: Batch, chunks: Iterable[Chunk]) -> Iterator[tuple[int, lis
     )
     try:
         pending: set[Future] = set()
-        source = iter(chunks)
         with _frozen_heap(forked):  # the first submission forks the workers
-            _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
+            _submit_ahead(source, pending, _AHEAD * workers, executor)
         while True:
-            _submit_ahead(source, pending, _AHEAD * (batch.workers or 1), executor)
+            _submit_ahead(source, pending, _AHEAD * workers, executor)
             if not pending:
                 return
             done, pending = wait(pending, return_when=FIRST_COMPLETED)

@@ -28,7 +28,6 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -37,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
-from ..errors import InvalidInput
+from ..errors import InvalidArgumentType, InvalidInput, InvalidOption
 from ..igm.prepared import PREPARED
 from ..igm.qp_engine import check_limits_model
 from ..igm.targets import FrameKey, RobotLike, parse_target
@@ -45,6 +44,7 @@ from ..limits import checked_pairs, collision_limits
 from ..model.configuration import FrameType
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
+from .map_file import MAP_ARRAYS, read_map_file
 from .pool import Batch, BatchKeywords, prepare_robot, stream_chunks
 
 if TYPE_CHECKING:
@@ -157,11 +157,24 @@ def _reach_bounds(model: mujoco.MjModel, frame: FrameKey) -> list[tuple[np.ndarr
     return bounds
 
 
+def _real_array(name: str, value: Any, expected: str) -> np.ndarray:
+    """:func:`qpik.core.checks.check_array`, real numbers only: complex numbers (whose
+    imaginary part a float cast drops), strings or booleans raise
+    :class:`qpik.InvalidArgumentType` naming ``name``."""
+    try:
+        dtype = np.asarray(value).dtype
+    except (TypeError, ValueError):  # ragged: check_array says so
+        dtype = np.dtype(object)
+    if dtype.kind in "cbUSV":
+        raise InvalidArgumentType(name, f"{expected} of real numbers", f"{dtype.name} values")
+    return checks.check_array(name, value, expected)
+
+
 def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[int, int, int]]:
     """Voxel centres ``(V, 3)`` (C order over the (x, y, z) indices) and the grid shape:
     voxels of edge ``resolution`` [m], as many as fit in the region along each axis (at
     least one), the grid centred in the region."""
-    region = checks.check_array("region", region, "a (2, 3) array of opposite corners [m]")
+    region = _real_array("region", region, "a (2, 3) array of opposite corners [m]")
     if region.shape != (2, 3) or not np.isfinite(region).all():
         raise InvalidInput(
             f"region must be a finite (2, 3) array of opposite corners [m], got shape "
@@ -192,22 +205,21 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
     return grid, (int(counts[0]), int(counts[1]), int(counts[2]))
 
 
-#: The array fields of a :class:`ReachabilityMap`, saved as arrays of its ``.npz``.
-_MAP_ARRAYS = ("centers", "fraction", "reached", "skipped", "orientations", "region", "base")
-#: Its other fields, saved in the JSON ``meta`` entry, with the type each is read back as
-#: (``solve_options`` aside: saved as the ``repr`` of each value).
-_MAP_META: dict[str, Callable[[Any], Any]] = {
-    "shape": tuple,
-    "resolution": float,
-    "frame": str,
-    "robot": str,
-    "reach": float,
-    "seed": int,
-    "elapsed": float,
-    "engines": dict,
-    "collision_pairs": lambda pairs: [(str(a), str(b)) for a, b in pairs],
-    "collision_distance": lambda d: None if d is None else float(d),
-}
+#: The fields of a :class:`ReachabilityMap` saved in the JSON ``meta`` entry of its
+#: ``.npz`` (besides ``solve_options``, saved as the ``repr`` of each value); its arrays
+#: are :data:`qpik.batch.map_file.MAP_ARRAYS`, and :mod:`qpik.batch.map_file` reads both.
+_MAP_META = (
+    "shape",
+    "resolution",
+    "frame",
+    "robot",
+    "reach",
+    "seed",
+    "elapsed",
+    "engines",
+    "collision_pairs",
+    "collision_distance",
+)
 
 
 @dataclass
@@ -291,17 +303,17 @@ class ReachabilityMap:
         meta: dict[str, Any] = {name: getattr(self, name) for name in _MAP_META}
         meta["shape"] = list(self.shape)
         meta["solve_options"] = {k: repr(v) for k, v in self.solve_options.items()}
-        arrays = {name: getattr(self, name) for name in _MAP_ARRAYS}
+        arrays = {name: getattr(self, name) for name in MAP_ARRAYS}
         np.savez(path, **arrays, meta=np.array(json.dumps(meta)))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ReachabilityMap:
-        """Read a map written by :meth:`save`."""
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {name: data[name] for name in _MAP_ARRAYS}
-        values = {name: kind(meta[name]) for name, kind in _MAP_META.items() if name in meta}
-        return cls(**arrays, **values, solve_options=dict(meta["solve_options"]))
+        """Read a map written by :meth:`save`. The file is checked: a missing or unreadable
+        file, a file that is not such a map, a field missing or of the wrong type, shape
+        or range (``fraction`` in [0, 1] and equal to ``reached``'s mean, finite
+        ``centers`` ``(V, 3)`` on the grid of ``shape`` and ``resolution``, ...) raise
+        :class:`qpik.ProblemFileError` naming the file and the field."""
+        return cls(**read_map_file(checks.check_path("path", path)))
 
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
         """See :func:`plot_reachability`."""
@@ -331,7 +343,7 @@ def _rotations(orientations: int | npt.ArrayLike) -> np.ndarray:
         return np.zeros((0, 3, 3))  # position only
     if isinstance(orientations, (int, np.integer)) and not isinstance(orientations, bool):
         return so3_grid(int(orientations))
-    rotations = checks.check_array("orientations", orientations, "a count or a (K, 3, 3) array")
+    rotations = _real_array("orientations", orientations, "a count or a (K, 3, 3) array")
     if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or len(rotations) == 0:
         raise InvalidInput(
             f"orientations must be a count or a (K, 3, 3) array, got shape {rotations.shape}"
@@ -431,17 +443,31 @@ def reachability(
     )
 
 
+def _check_slices(slices: Any) -> int:
+    """``slices`` as an int >= 0 (0: the 3D scatter alone); else
+    :class:`qpik.InvalidArgumentType` or :class:`qpik.InvalidOption`."""
+    expected = "an int >= 0 (the number of z slices; 0: none)"
+    if isinstance(slices, (bool, np.bool_)) or not isinstance(slices, (int, np.integer)):
+        raise InvalidArgumentType("slices", expected, checks.type_name(slices))
+    if slices < 0:
+        raise InvalidOption("slices", slices, expected)
+    return int(slices)
+
+
 def plot_reachability(
     rmap: ReachabilityMap, path: str | os.PathLike | None = None, *, slices: int = 4, dpi: int = 90
 ) -> Figure:
     """A figure of a map: ``slices`` horizontal slices (constant z, x right, y up, colour
     = fraction reached) and a 3D scatter of the voxels reached at least once, coloured
     the same way, cut at the reach-bound centre's y to show the inside. Saved to ``path``
-    when given (bare ``Figure``, Agg canvas: pyplot's state untouched); needs matplotlib
-    (``qpik[plots]``)."""
+    when given (bare ``Figure``, Agg canvas: pyplot's state untouched, ``dpi`` in
+    [1, 2400]); needs matplotlib (``qpik[plots]``). ``slices`` is an int >= 0 (0: the 3D
+    scatter alone; at most one slice per voxel layer is drawn)."""
     from ..plots import check_figure_path, pyplot, require_matplotlib
 
     require_matplotlib()
+    slices = _check_slices(slices)
+    checks.check_real("dpi", dpi, 1.0, 2400.0)
     if path is not None:
         path = check_figure_path("path", path)
     grid = rmap.grid

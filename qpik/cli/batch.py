@@ -7,7 +7,7 @@ import signal
 import sys
 
 from ..batch.files import BatchRun, solve_file
-from ._common import add_solve_arguments, solve_options_from_args
+from ._common import add_solve_arguments, non_negative_int, solve_options_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -57,7 +57,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="batch seed (0)")
     add_solve_arguments(parser, "target")
     parser.add_argument(
-        "--max-chunks", type=int, metavar="K", help="solve at most K chunks now; rerun to resume"
+        "--max-chunks",
+        type=non_negative_int,
+        metavar="K",
+        help="solve at most K chunks now; rerun to resume (0: only check the inputs and "
+        "write RESULTS, every row pending)",
     )
     parser.add_argument(
         "--overwrite", action="store_true", help="discard an earlier run over --out"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 import numpy as np
 
@@ -65,13 +66,25 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--min-distance",
-        type=float,
+        type=non_negative_distance,
         default=0.005,
         metavar="M",
-        help="with --collision: the distance [m] every pair keeps (0.005)",
+        help="with --collision: the distance [m] every pair keeps, >= 0 (0.005)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
+
+
+def non_negative_distance(text: str) -> float:
+    """An argparse type: a finite distance [m] >= 0 (a negative minimum distance would let
+    the robot's geoms penetrate by that much and still count as clear)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a distance [m] >= 0, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(f"expected a finite distance [m] >= 0, got {text}")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:

@@ -94,10 +94,11 @@ def test_pool_is_used_and_tiny_batches_stay_in_process(monkeypatch):
     monkeypatch.setattr(batch, "ProcessPoolExecutor", Recorder)
     qpik.solve_many("ur5e", TARGETS[:3], seed=0, workers=2, progress=False)
     assert started == []  # three fast targets: a pool costs more than it saves
-    qpik.solve_many("ur5e", TARGETS[:4], seed=0, workers=2, pool_threshold=0.0, progress=False)
+    options = dict(seed=0, pool_threshold=0.0, chunk_size=1, progress=False)
+    qpik.solve_many("ur5e", TARGETS[:4], workers=2, **options)  # 3 chunks after target 0
     assert started == [2]
     monkeypatch.setattr(batch.os, "cpu_count", lambda: 3)
-    qpik.solve_many("ur5e", TARGETS[:4], seed=0, pool_threshold=0.0, progress=False)
+    qpik.solve_many("ur5e", TARGETS[:4], **options)
     assert started == [2, 3]  # workers=None: every core
 
 
