@@ -187,7 +187,7 @@ def check_vector(
     try:
         if value is None or isinstance(value, (str, bytes, dict)):
             raise TypeError(value)
-        array = np.asarray(value, dtype=float)
+        array = float_array(value)
     except (TypeError, ValueError):
         if error is InvalidInput:
             raise InvalidArgumentType(name, expected, type_name(value)) from None
@@ -203,6 +203,16 @@ def check_vector(
     return array
 
 
+def float_array(value: Any) -> np.ndarray:
+    """``value`` as a float64 array; complex numbers (whose imaginary parts a float cast
+    drops) and strings (which it would parse) raise ``TypeError``, as what is not numbers
+    at all does (``ValueError`` for a ragged nesting)."""
+    array = value if type(value) is np.ndarray else np.asarray(value)
+    if array.dtype.kind in "cUSV":
+        raise TypeError(f"{array.dtype.name} values are not real numbers")
+    return array.astype(float, copy=False)
+
+
 def check_array(name: str, value: Any, expected: str, ndim: int | None = None) -> np.ndarray:
     """``value`` as a float array of any shape (the caller checks it), or of ``ndim``
     dimensions; not numbers at all: :class:`InvalidArgumentType` saying ``name`` must be
@@ -210,7 +220,7 @@ def check_array(name: str, value: Any, expected: str, ndim: int | None = None) -
     if value is None or isinstance(value, (str, bytes, dict)):
         raise InvalidArgumentType(name, expected, type_name(value))
     try:
-        array = np.asarray(value, dtype=float)
+        array = float_array(value)
     except (TypeError, ValueError):
         raise InvalidArgumentType(name, expected, type_name(value)) from None
     if ndim is not None and array.ndim != ndim:

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
-from ..core.checks import check_real, type_name
+from ..core.checks import check_real, float_array, type_name
 from ..errors import (
     InvalidArgumentType,
     InvalidConfiguration,
@@ -257,8 +257,8 @@ class Configuration(mink.Configuration):
     # ------------------------------------------------------------------ state
     def _validated(self, q: npt.ArrayLike) -> np.ndarray:
         try:
-            q = np.asarray(q, dtype=float)
-        except (TypeError, ValueError) as exc:  # strings, ragged lists, objects
+            q = float_array(q)  # (complex numbers and strings refused, not cast)
+        except (TypeError, ValueError) as exc:  # ragged lists, objects
             raise InvalidConfiguration(
                 f"configuration q is not a vector of {self.model.nq} numbers: {exc}"
             ) from None
@@ -443,7 +443,7 @@ class Configuration(mink.Configuration):
         if velocity is None or isinstance(velocity, (str, bytes, dict)) or kind not in "biuf":
             raise InvalidArgumentType("velocity", expected, type_name(velocity))
         try:
-            v = np.asarray(velocity, dtype=float)
+            v = float_array(velocity)
         except (TypeError, ValueError):
             raise InvalidArgumentType("velocity", expected, type_name(velocity)) from None
         if v.shape != (self.model.nv,):

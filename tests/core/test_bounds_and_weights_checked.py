@@ -21,7 +21,7 @@ def problem(lb=None, ub=None, G=None, h=None, **level):
     n = 3
     return HierarchyProblem(
         [Level(A, b, **level)],
-        -10 * np.ones(n) if lb is None else np.asarray(lb, float),
+        -10 * np.ones(n) if lb is None else np.asarray(lb),
         10 * np.ones(n) if ub is None else np.asarray(ub, float),
         np.zeros((0, n)) if G is None else np.asarray(G, float),
         np.zeros(0) if h is None else np.asarray(h, float),
@@ -66,3 +66,11 @@ def test_max_iter_beyond_the_engines_range_is_refused_when_set():
     with pytest.raises(qpik.errors.InvalidOption, match="max_iter"):
         HierarchySolver(max_iter=2**70)
     assert HierarchySolver(max_iter=10**9).max_iter == 10**9
+
+
+def test_complex_or_text_limits_are_refused_not_cast():
+    """A complex bound (a float cast drops its imaginary part, with only numpy's warning)
+    or a text one (a cast would parse it) is not numbers: InvalidArgumentType naming it."""
+    for lb in (np.array([-1.0, -1.0 + 1.0j, -1.0]), np.array(["-1", "-1", "-1"])):
+        with pytest.raises(qpik.errors.InvalidArgumentType, match="lb"):
+            HierarchySolver().solve(problem(lb=lb))

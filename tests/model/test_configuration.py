@@ -343,3 +343,14 @@ def test_integrate_to_a_non_finite_q_raises_and_leaves_q():
     assert info.value.index == 0
     v = np.full(7, 0.1)  # an ordinary step still integrates
     np.testing.assert_allclose(arm.integrate(v, 0.5), arm.q + 0.05)
+
+
+def test_a_complex_or_text_configuration_or_velocity_is_refused_not_cast():
+    model = qpik.load_robot("panda")
+    for q in (np.zeros(model.nq, complex), np.array(["0"] * model.nq), [0.0] * 6 + [1j]):
+        with pytest.raises(qpik.InvalidConfiguration, match="not real numbers"):
+            qpik.Configuration(model, q)
+    configuration = qpik.Configuration(model)
+    with pytest.raises(qpik.errors.InvalidArgumentType, match="velocity"):
+        configuration.integrate([0.0] * 6 + [1j], 0.01)
+    np.testing.assert_array_equal(qpik.Configuration(model, np.zeros(model.nq, int)).q, 0.0)
