@@ -259,6 +259,18 @@ class StepResult:
             )
         return d[name]
 
+    def __getstate__(self) -> dict:
+        """What a copy or a pickle takes: every field read now (a :meth:`lazy` or
+        :meth:`lean` result reads its own from the solver's live arrays and plan, which are
+        neither copied nor pickled) and the active limits named; the copy keeps no tie to
+        the solver."""
+        for name in ("displacement", "residuals", "coupling_residual"):
+            getattr(self, name)
+        self.active_limits  # noqa: B018 (named now, kept in _active_limits)
+        state = {k: v for k, v in self.__dict__.items() if k not in ("_src", "_info")}
+        state["_limits"] = None
+        return state
+
     @property
     def active_limits(self) -> list[str]:
         """The limits that bind at the final ``dq``, e.g.

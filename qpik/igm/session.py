@@ -112,7 +112,7 @@ from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolv
 from . import kernels
 from .kernels import kernel_options as _kernel_options
 from .prepared import PREPARED, PreparedFrame, PreparedRobot, model_watch
-from .qp_engine import QPProblem, borrowed_tasks, iterate, joint_position_limits
+from .qp_engine import QPProblem, borrowed_tasks, iterate, lent_scratch
 from .restarts import Clock, Seed
 from .restarts import rng_state as _rng_state
 from .result import IKResult, LazyRows, Reason
@@ -196,8 +196,8 @@ class IKSession:
         # the "qp" engine's scratch configuration and joint limits (made on first use)
         self._lent: tuple[Configuration, list] | None = None
 
-    def __getstate__(self) -> dict:  # (the watch is compiled: made again from the model)
-        return {**self.__dict__, "_watch": None}
+    def __getstate__(self) -> dict:  # (the watch is compiled: made again from the model;
+        return {**self.__dict__, "_watch": None, "_lent": None}  # the scratch, on first use)
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state, _watch=model_watch(state["_model"]))
@@ -222,14 +222,6 @@ class IKSession:
     @options.setter
     def options(self, value: SolveOptions | str | None) -> None:
         self._defaults = resolve(value)
-
-    def _qp_problem(self, frames: list, stack: Any, settings: SolveOptions) -> QPProblem:
-        """A "qp"-engine problem with this session's scratch configuration and joint
-        limits lent (0.7 ms of each solve on a humanoid)."""
-        if self._lent is None:
-            self._lent = (Configuration(self.model), joint_position_limits(self.model))
-        scratch, joint_limits = self._lent
-        return QPProblem(self.model, frames, stack, settings, scratch, joint_limits)
 
     @classmethod
     def _from_prepared(
@@ -338,9 +330,12 @@ class IKSession:
                 result.levels_met = self._levels_met(frames, stack, settings, q_start)
                 return self._check_unheld(result, settings)
         plain = [(f.name, f.kind, target) for f, target in frames]
-        problem = self._qp_problem(plain, stack, settings)
-        clock = Clock(start_time, settings.time_budget)
-        return self._check_unheld(iterate(problem, q_start, clock, rng_state, settings), settings)
+        with lent_scratch(self.__dict__, self.model) as (scratch, limits):
+            problem = QPProblem(self.model, plain, stack, settings, scratch, limits)
+            result = iterate(
+                problem, q_start, Clock(start_time, settings.time_budget), rng_state, settings
+            )
+        return self._check_unheld(result, settings)
 
     def _check_unheld(self, result: IKResult, settings: SolveOptions) -> IKResult:
         """``result`` with :attr:`IKResult.constraint_error` filled in, and not converged
@@ -497,11 +492,12 @@ class IKSession:
         ``secondary`` level, or ``stack``), whether ``q`` meets it: one entry per level, as
         an answer the engine iterated gives."""
         plain = [(f.name, f.kind, target) for f, target in frames]
-        problem = self._qp_problem(plain, stack, settings)
-        with borrowed_tasks(problem.levels):
-            problem.set_targets()
-            problem.configuration.update(q)
-            _coupling, measures = problem.level_measures(problem.configuration, settings)
+        with lent_scratch(self.__dict__, self.model) as (scratch, limits):
+            problem = QPProblem(self.model, plain, stack, settings, scratch, limits)
+            with borrowed_tasks(problem.levels):
+                problem.set_targets()
+                problem.configuration.update(q)
+                _coupling, measures = problem.level_measures(problem.configuration, settings)
         return tuple(bool(m <= 1.0) for m in measures)
 
     def _answer_unreachable(

@@ -242,6 +242,14 @@ class Configuration(mink.Configuration):
             mujoco.mj_copyData(self.data, model, source.data)
             self.update(self.data.qpos.copy() if q is None else q)  # validated
 
+    def __getstate__(self) -> dict:
+        """The state a copy or a pickle takes: without :meth:`update`'s kept views of the
+        model and data (a deep copy would copy ``data.qpos``'s view apart from the copied
+        data, and ``update`` would then write where nothing reads)."""
+        state = dict(self.__dict__)
+        state.pop("_update_kept", None)
+        return state
+
     @classmethod
     def sharing(cls, source: mink.Configuration) -> Configuration:
         """A :class:`Configuration` that reads and writes ``source``'s model and data in

@@ -139,3 +139,24 @@ def test_a_model_with_nan_geometry_is_named_when_the_solver_is_built():
     model.body_pos[2] = np.nan  # (an array edited in place)
     with pytest.raises(qpik.errors.InvalidInput, match="model: the model's body_pos of body"):
         qpik.IKSolver(model, [[PostureTask(model, cost=1.0)]])
+
+
+def test_a_step_result_copies_and_pickles_with_every_field():
+    """A lean step's result (its fields read from the solver's live arrays on first access)
+    pickles and deep-copies with every field, equal to the original's, and keeps no tie to
+    the solver (was an untyped TypeError: 'cannot pickle Kernel object')."""
+    import copy
+    import pickle
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    posture = PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0] * 0.9)
+    solver = qpik.IKSolver(model, [[posture]], qpik.limits.joint_limits(model))
+    step = solver.step(configuration, 0.01)
+    for twin in (pickle.loads(pickle.dumps(step)), copy.deepcopy(step)):
+        np.testing.assert_array_equal(twin.velocity, step.velocity)
+        np.testing.assert_array_equal(twin.displacement, step.displacement)
+        assert twin.status == step.status and twin.certificate == step.certificate
+        assert twin.active_limits == step.active_limits
+        assert twin.residuals == step.residuals and twin.sigma_min == step.sigma_min

@@ -354,3 +354,22 @@ def test_a_complex_or_text_configuration_or_velocity_is_refused_not_cast():
     with pytest.raises(qpik.errors.InvalidArgumentType, match="velocity"):
         configuration.integrate([0.0] * 6 + [1j], 0.01)
     np.testing.assert_array_equal(qpik.Configuration(model, np.zeros(model.nq, int)).q, 0.0)
+
+
+def test_a_copied_or_unpickled_configuration_updates_as_a_new_one():
+    """A deep copy or pickle of a Configuration that has been updated: its update(q) moves
+    its own q and kinematics (update's kept views of data were copied apart from the data,
+    so the copy's update wrote where nothing read)."""
+    import copy
+    import pickle
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    configuration.update(model.key_qpos[0] * 0.5)
+    q1 = model.key_qpos[0] * 0.9
+    fresh = qpik.Configuration(model, q1)
+    for twin in (copy.deepcopy(configuration), pickle.loads(pickle.dumps(configuration))):
+        twin.update(q1)
+        np.testing.assert_array_equal(twin.q, q1)
+        np.testing.assert_array_equal(twin.frame_pose("ee")[0], fresh.frame_pose("ee")[0])
+    np.testing.assert_array_equal(configuration.q, model.key_qpos[0] * 0.5)  # (untouched)
