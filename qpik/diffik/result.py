@@ -274,7 +274,9 @@ class StepResult:
     @property
     def active_limits(self) -> list[str]:
         """The limits that bind at the final ``dq``, e.g.
-        ``"joint4 upper (ConfigurationLimit)"`` (named on first access)."""
+        ``"joint4 upper (ConfigurationLimit)"``. Named on first access, from the limit
+        objects as they are then (a control loop that never reads it pays nothing): read it
+        (or copy the result, which names them) before changing a limit's values."""
         if self._active_limits is None:
             limits = self._limits() if self._limits is not None else None
             self._active_limits = limits.active(self.displacement) if limits else []
