@@ -270,10 +270,19 @@ def check_limits_model(model: mujoco.MjModel, limits: Sequence | str | None) -> 
 
 
 def joint_position_limits(model: mujoco.MjModel) -> list:
-    """The limits of ``limits="joint"``: the model's joint position limits."""
-    from ..limits import ConfigurationLimit  # on first use (it imports scipy.spatial)
+    """The limits of ``limits="joint"``: the model's joint position limits, a limited ball
+    joint's range included (:class:`qpik.limits.BallJointLimit`; ``ConfigurationLimit``
+    bounds hinge and slide joints only)."""
+    from ..limits import (  # on first use (it imports scipy.spatial)
+        BallJointLimit,
+        ConfigurationLimit,
+        limited_ball_joints,
+    )
 
-    return [ConfigurationLimit(model)]
+    limits: list = [ConfigurationLimit(model)]
+    if limited_ball_joints(model):
+        limits.append(BallJointLimit(model))
+    return limits
 
 
 def _limits(model: mujoco.MjModel, options: SolveOptions) -> list:

@@ -112,6 +112,7 @@ TCP_NAMES: tuple[str, ...] = (
     "pinch_site",
     "pinch",
     "grasp_site",
+    "grasp_center",
     "gripper_site",
     "eef_site",
     "ee_site",
@@ -568,6 +569,9 @@ def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _name_matches(name: str, known: str) -> bool:
+    """Whether ``name`` is ``known`` or ends with it after ``/`` or ``_``, in any case
+    (Spot's site ``EE``, a link ``Left_Palm``)."""
+    name = name.lower()
     return name == known or name.endswith("/" + known) or name.endswith("_" + known)
 
 

@@ -387,3 +387,25 @@ def test_urdf_empty_joint_limit_is_a_robot_file_error(tmp_path):
         qpik.load_robot(mjcf)
     path.write_text(URDF.replace('lower="-2" upper="2"', 'lower="-1.0" upper="1.0"'))
     assert qpik.load_robot(path).jnt_limited[0]  # an ordinary range still loads limited
+
+
+@pytest.mark.parametrize(
+    "site, expected",
+    [("EE", "EE"), ("link_grasp_center", "link_grasp_center"), ("Arm/EE", "Arm/EE")],
+)
+def test_tool_site_names_match_in_any_case_and_grasp_centres(site, expected):
+    """Spot's site is ``EE`` and Stretch's ``link_grasp_center`` (Menagerie): they are the
+    tool frame, not a wrist link or a marker body found on a longer chain."""
+    import mujoco
+
+    from qpik.robots import tool_frame
+
+    model = mujoco.MjModel.from_xml_string(
+        f"""<mujoco><worldbody><body name="link1"><joint name="j1" axis="0 0 1"/>
+          <geom size=".05"/><body name="link2" pos="0 0 .3"><joint name="j2"/>
+          <geom size=".05"/><body name="aruco_top_wrist" pos="0 0 .3"><joint name="j3"/>
+          <geom size=".02"/></body><site name="{site}" pos="0 0 .2"/></body></body>
+        </worldbody></mujoco>"""
+    )
+    frame = tool_frame(model)
+    assert (frame.frame_type, frame.name) == ("site", expected), frame
