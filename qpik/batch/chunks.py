@@ -18,6 +18,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..core.checks import float_array
 from ..errors import InvalidTarget
 from ..igm.result import IKResult, Reason
 from ..igm.targets import MAX_TARGET_DISTANCE, FrameKey, TargetLike, parse_target
@@ -172,13 +173,10 @@ def _stacked_arrays(
 
 def _real_stack(values: list) -> np.ndarray:
     """``values`` stacked as a float64 array when they hold real numbers only (ints or
-    floats); complex numbers (whose imaginary parts a float cast would drop), strings,
-    booleans or objects raise ``ValueError``: the batch is then checked target by target,
+    floats, :func:`qpik.core.checks.float_array`); complex numbers, strings or booleans
+    raise ``TypeError``: the batch is then checked target by target,
     and :func:`qpik.igm.targets.parse_target` names the bad one."""
-    raw = np.array(values)
-    if raw.dtype.kind not in "iuf":
-        raise ValueError(f"real numbers, got {raw.dtype.name} values")
-    return raw.astype(float, copy=False)
+    return float_array(np.array(values), booleans=False)  # (TypeError where they are not)
 
 
 def _only_value(targets: Any, key: Any) -> Any:

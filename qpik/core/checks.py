@@ -203,13 +203,14 @@ def check_vector(
     return array
 
 
-def float_array(value: Any) -> np.ndarray:
+def float_array(value: Any, booleans: bool = True) -> np.ndarray:
     """``value`` as a float64 array; complex numbers (whose imaginary parts a float cast
-    drops) and strings (which it would parse) raise ``TypeError``, as what is not numbers
-    at all does (``ValueError`` for a ragged nesting)."""
+    drops), strings (which it would parse) and, with ``booleans=False``, booleans raise
+    ``TypeError`` saying they are not real numbers, as what is not numbers at all does
+    (``ValueError`` for a ragged nesting). The one real-numbers conversion of qpik."""
     array = value if type(value) is np.ndarray else np.asarray(value)
-    if array.dtype.kind in "cUSV":
-        raise TypeError(f"{array.dtype.name} values are not real numbers")
+    if array.dtype.kind in ("cUSV" if booleans else "bcUSV"):
+        raise TypeError(f"real numbers, got {array.dtype.name} values")
     return array.astype(float, copy=False)
 
 
@@ -360,8 +361,8 @@ def check_level(k: int, level: Any, n: int) -> None:
     """Shapes and finiteness of :class:`qpik.core.Level` ``k`` of a problem on ``n``
     variables; raises :class:`qpik.InvalidInput` naming it."""
     try:
-        A = np.asarray(level.A, dtype=float)
-        b = np.asarray(level.b, dtype=float)
+        A = float_array(level.A)
+        b = float_array(level.b)
     except (TypeError, ValueError):
         raise InvalidInput(f"level {k} ({level.name}): A and b must be arrays of numbers") from None
     if A.ndim != 2 or A.shape[1] != n or b.shape != (A.shape[0],):
@@ -377,7 +378,7 @@ def check_level(k: int, level: Any, n: int) -> None:
         )
     if level.weights is not None:
         try:
-            weights = np.asarray(level.weights, dtype=float)
+            weights = float_array(level.weights)
         except (TypeError, ValueError):
             raise InvalidInput(
                 f"level {k} ({level.name}): weights must be ({A.shape[0]},) numbers"

@@ -11,6 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..core.checks import float_array
 from ..errors import LimitDefinitionError
 from ..model.configuration import joint_names
 
@@ -47,9 +48,9 @@ def constraint_rows(limit, constraint: Any) -> tuple[np.ndarray, np.ndarray, Non
         return None
     try:
         if type(G) is not np.ndarray or G.dtype.kind != "f":
-            G = np.asarray(G, dtype=float)
+            G = float_array(G)  # (complex or text rows refused, not cast)
         if type(h) is not np.ndarray or h.dtype.kind != "f":
-            h = np.asarray(h, dtype=float)
+            h = float_array(h)
     except (TypeError, ValueError) as exc:
         raise LimitDefinitionError(
             f"{limit_name(limit)}: its rows G and h must be arrays of numbers, got "

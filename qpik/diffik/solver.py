@@ -26,6 +26,7 @@ hierarchy (:class:`qpik.core.HierarchyProblem`) for inspection.
 
 from __future__ import annotations
 
+import contextvars
 import copy
 import time
 from collections.abc import Callable, Sequence
@@ -119,6 +120,15 @@ _FIXED = {
 }
 
 
+#: True while a caller that has checked its model itself builds solvers (the "qp" engine,
+#: whose :class:`qpik.igm.prepared.PreparedRobot` checked the model and watches it for
+#: edits): :class:`IKSolver` then skips :func:`qpik.model.robots.check_kinematic_model`
+#: (40-100 us, per solve on that engine).
+MODEL_CHECKED: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "qpik_model_checked", default=False
+)
+
+
 class IKSolver:
     """Differential IK with strict priorities.
 
@@ -151,7 +161,8 @@ class IKSolver:
     ):
         if not isinstance(model, mujoco.MjModel):
             raise InvalidInput(f"model must be a mujoco.MjModel, got {type(model).__name__}")
-        check_kinematic_model(model, "model")  # (NaN geometry, an empty range: named here)
+        if not MODEL_CHECKED.get():  # (NaN geometry, an empty range: named here)
+            check_kinematic_model(model, "model")
         options = _step_options(options, dict(keywords))
         self._options = options
         backend_options = options.backend_options

@@ -17,7 +17,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..diffik.solver import IKSolver, normalize_stack
+from ..diffik.solver import MODEL_CHECKED, IKSolver, normalize_stack
 from ..errors import InvalidOption, InvalidTarget
 from ..limits import BallJointLimit, collision_clearance, collision_limits
 from ..model.chain import bodies_chain_joints, body_chain_joints, chain_qpos_mask
@@ -99,13 +99,14 @@ def lent_scratch(owner: dict, model: mujoco.MjModel) -> Iterator[tuple[Configura
     lent (one ``dict.pop``, atomic): a concurrent solve of the same session makes its own,
     so neither writes the other's (the answers are the same bits either way: nothing of a
     solve is kept in it for the next)."""
-    lent = owner.pop("_lent", None)
+    lent, prepared = owner.pop("_lent", None), owner.get("_prepared")
     if lent is None:
         lent = (Configuration(model), joint_position_limits(model))
     try:
         yield lent
     finally:
-        owner["_lent"] = lent
+        if owner.get("_prepared") is prepared:  # (not made again meanwhile: an edited model)
+            owner["_lent"] = lent
 
 
 @contextlib.contextmanager
@@ -325,7 +326,11 @@ class QPProblem:
         step = options.step
         if step.backend_options is None and step.solver in IGM_BACKEND_OPTIONS:
             step = step.replace(backend_options=IGM_BACKEND_OPTIONS[step.solver])
-        self.solver = IKSolver(model, levels, self.limits, options=step)
+        checked = MODEL_CHECKED.set(True)  # (its session's preparation checked the model)
+        try:
+            self.solver = IKSolver(model, levels, self.limits, options=step)
+        finally:
+            MODEL_CHECKED.reset(checked)
         target_frames = {name for name, _, _ in self.frames}
         # The tasks that move toward the targets, at whatever level (the trust region
         # scales their gains): the default stack's level 0, one per frame in frame order;
@@ -357,9 +362,14 @@ class QPProblem:
     def level0_solver(self) -> IKSolver:
         """An :class:`IKSolver` of level 0 alone (and the couplings), same limits."""
         if self._level0_solver is None:
-            self._level0_solver = IKSolver(
-                self.configuration.model, self.levels[:1], self.limits, options=self._step_options
-            )
+            checked = MODEL_CHECKED.set(True)
+            try:
+                self._level0_solver = IKSolver(
+                    self.configuration.model, self.levels[:1], self.limits,
+                    options=self._step_options,
+                )  # fmt: skip
+            finally:
+                MODEL_CHECKED.reset(checked)
         return self._level0_solver
 
     def level_measures(

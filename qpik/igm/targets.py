@@ -21,6 +21,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from ..core.checks import float_array
 from ..errors import InvalidTarget
 from ..model import kernels
 from ..model.configuration import Configuration, FrameType
@@ -76,13 +77,9 @@ _FLOAT64 = np.dtype(np.float64)
 
 
 def _real(value) -> np.ndarray:
-    """``value`` as a float64 array where it holds real numbers (ints or floats); a complex
-    value (whose imaginary part a float conversion drops), strings, booleans or objects
-    raise ``ValueError``."""
-    raw = np.asarray(value)
-    if raw.dtype.kind not in "iuf":
-        raise ValueError(f"real numbers, got {raw.dtype.name} values")
-    return np.array(raw, dtype=float)
+    """``value`` as a new float64 array of real numbers (:func:`qpik.core.checks.float_array`,
+    booleans refused too: no position is a truth value)."""
+    return np.array(float_array(value, booleans=False), dtype=float)
 
 
 def _array(value, shape: tuple[int, ...], what: str) -> np.ndarray:

@@ -426,8 +426,15 @@ class Configuration(mink.Configuration):
     def integrate_inplace(self, velocity: npt.ArrayLike, dt: float) -> None:
         """Move ``q`` at ``velocity`` ``(nv,)`` for ``dt`` [s] and rerun forward kinematics.
         Raises as :meth:`integrate` does, ``q`` then unchanged."""
-        self.data.qpos[:] = self.integrate(velocity, dt)  # (finite, unit quaternions)
-        self.update()
+        v = self._validated_velocity(velocity)
+        dt = check_real("dt", dt)
+        # |v| dt far below the float range (any real step): MuJoCo's integration in place,
+        # q finite; else through integrate, which checks the result before it is stored.
+        if max(map(abs, v.tolist()), default=0.0) * abs(dt) < 1e150:
+            super().integrate_inplace(v, dt)
+        else:
+            self.data.qpos[:] = self.integrate(v, dt)
+            self.update()
 
     def _integration_overflow(self, v: np.ndarray, dt: float, q: np.ndarray, i: int) -> NoReturn:
         """Raise :class:`InvalidConfiguration` for ``q`` = ``q + v dt`` whose entry ``i`` is

@@ -240,10 +240,6 @@ def load_robot(
     return _load_file(path, floating_base=floating_base, srdf=srdf)
 
 
-#: The model arrays of positions [m] that :func:`check_model` bounds.
-_LENGTHS = LENGTH_FIELDS
-
-
 def check_model(model: mujoco.MjModel, where: str) -> None:
     """Raise :class:`RobotFileError` naming ``where`` for a model qpik cannot compute
     with: a position (body, joint, site, geom, centre of mass) that is not finite or
@@ -266,7 +262,7 @@ def check_model(model: mujoco.MjModel, where: str) -> None:
 
 #: The model arrays a solve computes with (those :data:`qpik.igm.prepared.FINGERPRINT_FIELDS`
 #: watches), checked by :func:`check_kinematic_model`, each with the object its rows name
-#: (``None``: a qpos entry's joint); the positions [m] of :data:`_LENGTHS` are bounded.
+#: (``None``: a qpos entry's joint); the positions [m] of :data:`LENGTH_FIELDS` are bounded.
 _KINEMATIC_FIELDS: tuple[tuple[str, mujoco.mjtObj | None], ...] = (
     ("qpos0", None),
     ("jnt_axis", mujoco.mjtObj.mjOBJ_JOINT),
@@ -294,7 +290,7 @@ def check_kinematic_model(model: mujoco.MjModel, where: str = "robot") -> None:
     not per step."""
     for name, obj in _KINEMATIC_FIELDS:
         values = np.asarray(getattr(model, name))
-        if name in _LENGTHS:
+        if name in LENGTH_FIELDS:
             bad = ~(np.abs(values) <= checks.MAX_LENGTH)  # NaN too
             need = f"finite and within {checks.MAX_LENGTH:g} m"
         else:

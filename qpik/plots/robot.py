@@ -113,11 +113,10 @@ def geom_surface(kind: int, size: np.ndarray, position, rotation, n: int = 14) -
         v = np.linspace(0.0, np.pi, n)
         cos_u, sin_u = np.cos(u)[None, :], np.sin(u)[None, :]
         if kind == int(mujoco.mjtGeom.mjGEOM_CYLINDER):  # radius size[0], half-length size[1]
-            t = np.linspace(-1.0, 1.0, n)[:, None]
-            ones = np.ones_like(t)
-            local = np.array(
-                [size[0] * ones * cos_u, size[0] * ones * sin_u, size[1] * t * (0 * u + 1)]
-            )
+            shape = (n, 2 * n)
+            t = np.broadcast_to(np.linspace(-1.0, 1.0, n)[:, None], shape)
+            x, y = (np.broadcast_to(size[0] * c, shape) for c in (cos_u, sin_u))
+            local = np.array([x, y, size[1] * t])
         else:
             ring, height = np.sin(v)[:, None], np.cos(v)[:, None] * np.ones_like(u)[None, :]
             x, y = ring * cos_u, ring * sin_u

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
-from ..errors import InvalidArgumentType, InvalidInput, MissingExtra
+from ..errors import InvalidArgumentType, InvalidInput, MissingExtra, QpikError
 from ..igm.targets import Target
 from ..model.configuration import Configuration, FrameType
 from ..model.robots import load_robot, tool_frame
@@ -468,7 +468,7 @@ class Viewer:
                 for name, (position, wxyz) in pending.items():
                     try:
                         self.live.set_target(name, position, wxyz)
-                    except InvalidInput:  # a malformed pose from a page: ignore that update
+                    except QpikError:  # a malformed pose from a page: ignore that update
                         continue
                 report = self.live.solve()
                 if pending:

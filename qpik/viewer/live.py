@@ -574,10 +574,10 @@ def _rotation_matrix(rotation: Any) -> np.ndarray:
     """A rotation given as a 3x3 matrix or a ``(4,)`` quaternion ``w, x, y, z`` (nonzero,
     normalised here), as a 3x3 matrix; anything else :class:`qpik.InvalidTarget`."""
     try:
-        r = np.asarray(rotation, dtype=float)
+        r = checks.float_array(rotation, booleans=False)  # (no complex, text or booleans)
     except (TypeError, ValueError):
         r = None
-    if r is None or r.dtype.kind != "f" or r.shape not in ((4,), (3, 3)):
+    if r is None or r.shape not in ((4,), (3, 3)):
         shape = getattr(r, "shape", None)
         raise InvalidTarget(
             "rotation must be a 3x3 rotation matrix or a (4,) quaternion w, x, y, z, got "

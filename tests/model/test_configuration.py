@@ -348,7 +348,7 @@ def test_integrate_to_a_non_finite_q_raises_and_leaves_q():
 def test_a_complex_or_text_configuration_or_velocity_is_refused_not_cast():
     model = qpik.load_robot("panda")
     for q in (np.zeros(model.nq, complex), np.array(["0"] * model.nq), [0.0] * 6 + [1j]):
-        with pytest.raises(qpik.InvalidConfiguration, match="not real numbers"):
+        with pytest.raises(qpik.InvalidConfiguration, match="real numbers, got"):
             qpik.Configuration(model, q)
     configuration = qpik.Configuration(model)
     with pytest.raises(qpik.errors.InvalidArgumentType, match="velocity"):
