@@ -576,6 +576,7 @@ class Kernel {
             src.obj = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 0));
             src.name = nb::borrow(PyTuple_GET_ITEM(item.ptr(), 1));
             require(PyUnicode_Check(src.name.ptr()), "Kernel.set_sources: a name is not a str");
+            src.gain = PyUnicode_CompareWithASCIIString(src.name.ptr(), "gain") == 0;
             if (PyTuple_GET_SIZE(item.ptr()) == 3) {
                 nb::handle third = PyTuple_GET_ITEM(item.ptr(), 2);
                 if (PyUnicode_Check(third.ptr())) {
@@ -627,6 +628,9 @@ class Kernel {
             if (src.inner.is_valid() && t.size >= 4 && t.p[0] == 0.0 && t.p[t.stride] == 0.0 &&
                 t.p[2 * t.stride] == 0.0 && t.p[3 * t.stride] == 0.0)
                 return false;
+            // A gain outside [0, 1] (or NaN), set after the build on a task that takes any
+            // (mink's own classes): the caller's general way reports it (InvalidGain).
+            if (src.gain && t.size == 1 && !(t.p[0] >= 0.0 && t.p[0] <= 1.0)) return false;
         }
         return true;
     }
@@ -1118,6 +1122,7 @@ class Kernel {
     std::vector<Slot> slots_;
     struct Source {
         nb::object obj, name, inner;
+        bool gain = false;  // a gain (name "gain"): loaded only where it is in [0, 1]
         std::vector<i64> pick;  // entries of a vector value (empty: the value as it is)
     };
     std::vector<Source> sources_;

@@ -53,7 +53,6 @@ from .layout import (
     THRESHOLD,
     TOL,
     com_chains,
-    gain_guards,
     guards_hold,
     plan_guards,
     write_com_row,
@@ -153,10 +152,10 @@ class CompiledPlan:
         self._config_limits = [c[0] for c in self.config_limits]
         #: the frames and subtrees the plan resolved, checked each step (plan_guards)
         self._guards = plan_guards(self.frames, self.relatives, self.coms)
-        #: the gains of its tasks of mink's own classes, guarded too (gain_guards): a step
-        #: where one changed is gathered, its gain checked (a C attribute read per step)
-        self._gain_guards = gain_guards(self._kernel_tasks())
-        self.kernel.set_guards(self._guards + self._gain_guards)
+        # (a task's gain outside [0, 1], set after the build on one of mink's own classes,
+        # which take any: the kernel declines the step, Kernel::load_range, and gather's
+        # writing of it raises InvalidGain)
+        self.kernel.set_guards(self._guards)
         self.kernel.set_slots(*lean_slots(self))
         sources, self._limit_first = lean_sources(self)
         self.kernel.set_sources(sources)
@@ -211,18 +210,9 @@ class CompiledPlan:
             self._gather_gains()
             if self.linears and not self._gather_linears():
                 return None
-            if self._gain_guards and not guards_hold(self._gain_guards):
-                # (a mink task's gain changed, and was checked as it was written above)
-                self._gain_guards = gain_guards(self._kernel_tasks())
-                self.kernel.set_guards(self._guards + self._gain_guards)
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
         return poses
-
-    def _kernel_tasks(self) -> list:
-        """The tasks whose values the kernel reads itself (``Kernel.set_sources``)."""
-        return [entry[0] for group in (self.frames, self.postures, self.coms, self.relatives)
-                for entry in group]  # fmt: skip
 
     def _attach(self, data: mujoco.MjData) -> tuple:
         """The kernel's MuJoCo arguments of ``data`` (:meth:`_poses`), attached to the

@@ -27,7 +27,7 @@ from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
-from ..tasks.checked import CheckedTask, check_gain, check_pose_target, gain_is_valid
+from ..tasks.checked import check_gain, check_pose_target
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
@@ -38,7 +38,7 @@ from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
-    "TaskLayout", "com_chains", "gain_guards", "limit_layout", "plan_arrays", "task_layout",
+    "TaskLayout", "com_chains", "limit_layout", "plan_arrays", "task_layout",
     "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
@@ -539,26 +539,6 @@ def plan_guards(frames: Sequence, relatives: Sequence, coms: Sequence) -> list[t
     guards = [(f[0], n, getattr(f[0], n)) for f in frames for n in _FRAME_ATTRIBUTES]
     guards += [(r[0], n, getattr(r[0], n)) for r in relatives for n in _RELATIVE_ATTRIBUTES]
     return guards + [(c[0], "body", c[2]) for c in coms if c[2] is not None]
-
-
-#: A gain guard's value where the task's gain is not valid: equal to no gain, so the kernel
-#: declines every step until the gain is changed, and :meth:`CompiledPlan.gather` reports it.
-_INVALID_GAIN = object()
-
-
-def gain_guards(tasks: Sequence) -> list[tuple]:
-    """``(task, "gain", gain)`` of each task of ``tasks`` of mink's own classes (which take
-    any gain where it is set; qpik's tasks check theirs there, :class:`CheckedTask`), a
-    gain outside [0, 1] as a value no gain equals: the kernel reads the gains as they are
-    (``Kernel.load_sources``), so a step where one of these changed is declined
-    (``Kernel.set_guards``, as :func:`plan_guards`' attributes) and ``gather`` writes it,
-    checked (:func:`_gain`: :class:`qpik.InvalidGain` naming the task)."""
-    guards = []
-    for task in tasks:
-        if not isinstance(task, CheckedTask):
-            gain = task.gain
-            guards.append((task, "gain", gain if gain_is_valid(gain) else _INVALID_GAIN))
-    return guards
 
 
 def guards_hold(guards: list[tuple]) -> bool:

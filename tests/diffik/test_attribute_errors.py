@@ -395,8 +395,9 @@ def test_a_gain_set_out_of_range_after_the_build_is_invalid_gain(solver, limits)
             rtol=0,
             atol=1e-9,
         )
-        # the new gain is the guard's now: the kernel takes the steps from here again
-        assert [g[2] for g in ik._plan._gain_guards if g[0] is task] == [0.5]
+        # a valid new gain: the kernel takes the step itself (its lean result), no guard
+        if solver == "auto" and limits != "general rows":
+            assert "_src" in ik.step(configuration, DT).__dict__
         task.gain = 1.0
 
 
