@@ -254,13 +254,7 @@ def _csv_lines(path: str) -> list[tuple[int, str]]:
     is not UTF-8 text raises :class:`qpik.ProblemFileError` naming the line."""
     with open(path, "rb") as stream:
         raw = stream.read()
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        bad_line = raw[: exc.start].count(b"\n") + 1
-        raise ProblemFileError(
-            path, "CSV", f"UTF-8 text; byte {exc.start} (line {bad_line}) is not valid UTF-8"
-        ) from None
+    text = checks.utf8_text(raw, path, "CSV", "UTF-8 text")
     if "\0" in text:
         nul_line = text[: text.index("\0")].count("\n") + 1
         raise ProblemFileError(path, "CSV", f"text without NUL bytes; line {nul_line} has one")

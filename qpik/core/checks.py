@@ -41,6 +41,7 @@ from ..errors import (
     InvalidArgumentType,
     InvalidInput,
     InvalidOption,
+    ProblemFileError,
 )
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "DT_MIN",
     "MAX_LENGTH",
     "check_array",
+    "utf8_text",
     "check_bool",
     "check_choice",
     "check_dt",
@@ -240,6 +242,20 @@ def check_matrix(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     if not np.isfinite(array).all():
         raise InvalidInput(f"{name} must be finite, got {array.tolist()}")
     return array
+
+
+def utf8_text(raw: bytes, path: str, field: str, what: str) -> str:
+    """The bytes of the file ``path`` as UTF-8 text, a byte-order mark dropped; else
+    :class:`qpik.ProblemFileError` naming ``field``, expecting ``what``, and the first
+    byte that is not UTF-8 with its line."""
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise ProblemFileError(
+            path, field, f"{what}; byte {exc.start} (line {line}) is not valid UTF-8"
+        ) from None
+    return text.removeprefix("\ufeff")
 
 
 def check_path(name: str, value: Any) -> str:

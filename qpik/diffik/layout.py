@@ -27,7 +27,7 @@ from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
 from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
-from ..tasks.checked import check_gain, check_pose_target
+from ..tasks.checked import check_gain, check_pose_target, pose_target_name
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
@@ -433,18 +433,8 @@ def _gain(task):
     take any; qpik's check it where it is set), as it is otherwise (what does not fit a
     row's entry is NumPy's error, reported by :func:`_unfit`)."""
     gain = task.gain
-    if type(gain) is not float or not 0.0 <= gain <= 1.0:
-        check_gain(task, gain)
+    check_gain(task, gain)
     return gain
-
-
-#: The target attribute of the frame-like tasks, in messages.
-_POSE_NAMES: dict[type, str] = {
-    FrameTask: "transform_target_to_world",
-    mink.FrameTask: "transform_target_to_world",
-    RelativeFrameTask: "transform_target_to_root",
-    mink.RelativeFrameTask: "transform_target_to_root",
-}
 
 
 def write_pose_row(views: tuple, task, pose) -> None:
@@ -452,7 +442,7 @@ def write_pose_row(views: tuple, task, pose) -> None:
     data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
     if pose is None:
         raise TargetNotSet(type(task).__name__)
-    check_pose_target(task, pose, _POSE_NAMES.get(type(task), "target"))
+    check_pose_target(task, pose, pose_target_name(task))
     row, target, cost = views
     _put(target, pose.wxyz_xyz)
     _put(cost, task.cost)

@@ -22,7 +22,7 @@ from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError
 from ..model.configuration import Configuration
 from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
 from ..tasks import AxisAlignTask, BaseTask, LookAtTask
-from ..tasks.checked import CheckedTask, check_gain, check_pose_target
+from ..tasks.checked import POSE_TARGETS, CheckedTask, check_gain, check_pose_target
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
 
@@ -189,13 +189,6 @@ def _raise_rows_failure(exc: Exception, label: str) -> NoReturn:
     raise TaskDefinitionError(f"{label} failed ({exc})") from exc
 
 
-#: The target attribute of mink's frame-like tasks (and their subclasses), by class.
-_POSE_TARGETS = (
-    (mink.FrameTask, "transform_target_to_world"),
-    (mink.RelativeFrameTask, "transform_target_to_root"),
-)
-
-
 def _check_read_values(task: BaseTask) -> None:
     """The values of ``task`` that mink's own classes take unchecked where they are set
     (qpik's check them there: :class:`qpik.tasks.checked.CheckedTask`): a gain outside
@@ -203,10 +196,8 @@ def _check_read_values(task: BaseTask) -> None:
     quaternion is zero (:class:`qpik.InvalidTarget`), named with the task."""
     if isinstance(task, CheckedTask):
         return
-    gain = getattr(task, "gain", 1.0)
-    if type(gain) is not float or not 0.0 <= gain <= 1.0:
-        check_gain(task, gain)
-    for cls, name in _POSE_TARGETS:
+    check_gain(task, getattr(task, "gain", 1.0))
+    for cls, name in POSE_TARGETS:
         if isinstance(task, cls):
             target = getattr(task, name, None)
             if target is not None:  # (None: the task's own TargetNotSet)

@@ -19,6 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from ..core import checks
 from ..errors import ProblemFileError, QpikError
 from ..model.configuration import Configuration, FrameType
 from ..model.frames import frame_id
@@ -106,14 +107,7 @@ def read_toml(path: Path) -> dict:
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
         reason = getattr(exc, "strerror", None) or exc
         raise ProblemFileError(name, "(file)", f"a readable TOML file ({reason})") from exc
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[: exc.start].count(b"\n") + 1
-        raise ProblemFileError(
-            name, "(file)", f"UTF-8 text (TOML); byte {exc.start} (line {line}) is not valid UTF-8"
-        ) from None
-    text = text.removeprefix("\ufeff")  # a byte-order mark is harmless
+    text = checks.utf8_text(raw, name, "(file)", "UTF-8 text (TOML)")  # (a BOM is harmless)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

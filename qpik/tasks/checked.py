@@ -20,7 +20,15 @@ import numpy as np
 
 from ..errors import InvalidGain, InvalidTarget
 
-__all__ = ["CheckedTask", "check_gain", "check_pose_target", "gain_is_valid", "task_label"]
+__all__ = [
+    "POSE_TARGETS",
+    "CheckedTask",
+    "check_gain",
+    "check_pose_target",
+    "gain_is_valid",
+    "pose_target_name",
+    "task_label",
+]
 
 
 def task_label(task: Any) -> str:
@@ -79,8 +87,21 @@ def check_pose_target(task: Any, target: Any, name: str) -> None:
         )
 
 
-#: The target attribute of the frame-like tasks (checked where it is set).
-_POSE_TARGETS = frozenset({"transform_target_to_world", "transform_target_to_root"})
+#: The target attribute of each frame-like task class (mink's, and so qpik's subclasses).
+POSE_TARGETS: tuple[tuple[type, str], ...] = (
+    (mink.FrameTask, "transform_target_to_world"),
+    (mink.RelativeFrameTask, "transform_target_to_root"),
+)
+_POSE_TARGET_NAMES = frozenset(name for _, name in POSE_TARGETS)
+
+
+def pose_target_name(task: Any) -> str:
+    """The attribute holding ``task``'s target pose (:data:`POSE_TARGETS`; ``"target"`` for
+    another class), for messages."""
+    for cls, name in POSE_TARGETS:
+        if isinstance(task, cls):
+            return name
+    return "target"
 
 
 class CheckedTask:
@@ -95,6 +116,6 @@ class CheckedTask:
     def __setattr__(self, name: str, value: Any) -> None:
         if name == "gain":
             check_gain(self, value)
-        elif name in _POSE_TARGETS and value is not None:
+        elif name in _POSE_TARGET_NAMES and value is not None:
             check_pose_target(self, value, name)
         super().__setattr__(name, value)
