@@ -212,13 +212,8 @@ def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            table = np.loadtxt(
-                path,
-                delimiter=",",
-                skiprows=first_number if header else 0,
-                ndmin=2,
-                encoding="utf-8-sig",
-            )
+            # (the rows as read above, comments and blank lines out: the file read once)
+            table = np.loadtxt([line for _, line in rows], delimiter=",", ndmin=2)
     except ValueError as exc:
         raise _bad_cell(path, rows) or ProblemFileError(
             path, "CSV", f"numbers separated by commas ({exc})"
