@@ -7,17 +7,20 @@ benchmarks; the steps know nothing of joint limits (the loop clips into them).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..errors import InvalidInput, InvalidOption
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import orientation_error
 from ..options import PRESETS, LoopKeywords
-from .restarts import Attempt, Clock, StallWindow, run_attempts
+from .restarts import Attempt, Clock, StallWindow, rng_state, run_attempts
 from .result import IGM_REASONS, Outcome, Reason
+from .targets import parse_target
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -122,15 +125,25 @@ class _Loop:
         return float(np.linalg.norm(c[:3])), float(np.linalg.norm(c[3:])) if c.size > 3 else 0.0
 
     def score(self) -> float:
-        """``|p| / tol_position + |theta| / tol_orientation``: converged at <= 1."""
+        """``|p| / tol_position + |theta| / tol_orientation``: the progress measure of the
+        stall rule and of the ranking of attempts (the compiled engine's)."""
         position, orientation = self.errors()
         return (
             position / self.options["tol_position"] + orientation / self.options["tol_orientation"]
         )
 
+    def converged(self) -> bool:
+        """Whether the frame is within ``tol_position`` and within ``tol_orientation``
+        (each error within its own tolerance, as :func:`qpik.solve` decides)."""
+        position, orientation = self.errors()
+        o = self.options
+        return position <= o["tol_position"] and orientation <= o["tol_orientation"]
+
     def outcome(self, reason: Reason) -> Attempt:
-        score = self.score()
-        return Attempt(score <= 1.0, score, reason, (self.work.q, self.errors()))
+        converged = self.converged()
+        if converged and reason is not Reason.CONVERGED:
+            reason = Reason.CONVERGED
+        return Attempt(converged, self.score(), reason, (self.work.q, self.errors()))
 
     def attempt(self, clock: Clock) -> Attempt:
         """Iterate from the work configuration's current ``q``."""
@@ -139,7 +152,7 @@ class _Loop:
         current = self.score()
         stall = StallWindow(current, o["stall_window"])
         for _ in range(o["max_iters"]):
-            if current <= 1.0:
+            if self.converged():
                 break
             if clock.out_of_time():
                 return self.outcome(Reason.TIME_BUDGET)
@@ -156,7 +169,7 @@ class _Loop:
             current = self.score()
             if stall.update(current):
                 return self.outcome(Reason.STALLED)
-        return self.outcome(Reason.CONVERGED if current <= 1.0 else Reason.MAX_ITERS)
+        return self.outcome(Reason.MAX_ITERS)  # (CONVERGED where the frame is within both)
 
 
 class IGMKeywords(LoopKeywords, total=False):
@@ -206,11 +219,21 @@ def igm(
     frame_type = FrameType.parse(given.pop("frame_type", FrameType.SITE))
     q0 = given.pop("q0", None)
     seed = given.pop("seed", None)
-    clip = bool(given.pop("clip", True))
+    clip = given.pop("clip", True)
+    if not isinstance(clip, (bool, np.bool_)):
+        raise InvalidOption("clip", clip, "True or False")
     settings = PRESETS["default"].replace(**given)
+    if not isinstance(configuration, Configuration):
+        raise InvalidInput(f"configuration must be a qpik.Configuration, got {configuration!r}")
+    # The target as qpik.solve checks it (InvalidTarget: shape, finite, a rotation).
+    target = parse_target(
+        target_position if target_rotation is None else (target_position, target_rotation)
+    )
+    target_position, target_rotation = target.position, target.rotation
     clock = Clock(time.perf_counter(), settings.time_budget)
     work = Configuration(configuration.model, configuration.q if q0 is None else q0)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    # (a seed as qpik.solve takes it: an int >= 0, a Generator, a SeedSequence or None)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(rng_state(seed))
     options = {
         "tol_position": settings.tol_position,
         "tol_orientation": settings.tol_orientation,
@@ -264,6 +287,11 @@ def pseudoinverse_igm(
     the limits after each step, random restarts as in :func:`igm` (whose keywords it
     takes). Near a singularity the step is unbounded (see :func:`pseudoinverse_step`)."""
 
+    if isinstance(rcond, bool) or not (
+        isinstance(rcond, (int, float, np.floating)) and 0 <= rcond < 1
+    ):
+        raise InvalidOption("rcond", rcond, "a number in [0, 1)")
+
     def rule(_configuration: Configuration, J: np.ndarray, c: np.ndarray) -> np.ndarray:
         return pseudoinverse_step(J, c, rcond)
 
@@ -282,6 +310,11 @@ def damped_least_squares_igm(
     """The damped least-squares IGM: the loop of :func:`pseudoinverse_igm` with the step
     ``J^T (J J^T + damping^2 I)^-1 c`` (:func:`damped_least_squares_step`); ``damping`` is
     constant, in the task's mixed units ([m] and [rad])."""
+
+    if isinstance(damping, bool) or not (
+        isinstance(damping, (int, float, np.floating)) and 0 < damping < math.inf
+    ):
+        raise InvalidOption("damping", damping, "a finite number > 0")
 
     def rule(_configuration: Configuration, J: np.ndarray, c: np.ndarray) -> np.ndarray:
         return damped_least_squares_step(J, c, damping)

@@ -24,7 +24,7 @@ from ..model.chain import bodies_chain_joints, body_chain_joints, chain_qpos_mas
 from ..model.configuration import Configuration, FrameType
 from ..model.couplings import model_couplings
 from ..options import IGM_BACKEND_OPTIONS, SolveOptions
-from ..tasks import FrameTask, JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
+from ..tasks import JointLimitDistanceTask, OrientationTask, PoseTask, PositionTask
 from .kernels import BACKTRACKS
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
@@ -56,7 +56,8 @@ FrameTarget = tuple[str, FrameType, Target]
 #: The attributes a solve may change on a caller's task (targets, and the gain that the
 #: trust region scales).
 _BORROWED = ("target", "target_position", "target_rotation", "transform_target_to_world", "gain")
-_FRAME_TASKS = (PositionTask, OrientationTask, PoseTask, FrameTask)
+#: (mink's FrameTask: qpik's and mink's own, in a caller's stack)
+_FRAME_TASKS = (PositionTask, OrientationTask, PoseTask, mink.FrameTask)
 
 
 def set_frame_target(levels: Sequence[Sequence], frame: str, target: Target) -> bool:
@@ -76,7 +77,7 @@ def _set_task_target(task: Any, frame: str, target: Target) -> None:
     elif isinstance(task, OrientationTask):
         if target.rotation is not None:
             task.set_target(target.rotation)
-    elif isinstance(task, (PoseTask, FrameTask)):
+    elif isinstance(task, (PoseTask, mink.FrameTask)):
         if target.rotation is None:
             raise InvalidTarget(
                 f"frame {frame!r} has a pose task in the stack but a position-only target"
@@ -193,7 +194,7 @@ def _task_joints(model: mujoco.MjModel, task: Any) -> set[int] | None:
     """The joints a task's rows can move (``None``: any joint): a frame task's chain (a
     relative frame task's two chains), the limited hinge and slide joints of
     :class:`JointLimitDistanceTask`; any other task may move any joint."""
-    if isinstance(task, (*_FRAME_TASKS, mink.FrameTask)):
+    if isinstance(task, _FRAME_TASKS):
         return body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
     if isinstance(task, mink.RelativeFrameTask):
         joints = body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))

@@ -363,7 +363,10 @@ class IKSession:
         memo = self._memo[0]
         if memo is not None and memo[0] is base:
             try:
-                if memo[1] == keywords:
+                # (and by type: True == 1 and 50.0 == 50, where only the int is valid)
+                if memo[1] == keywords and all(
+                    type(memo[1][k]) is type(v) for k, v in keywords.items()
+                ):
                     return memo[2], memo[3]
             except (TypeError, ValueError):  # values that do not compare plainly (arrays)
                 pass

@@ -61,6 +61,48 @@ def test_igm_out_of_reach_reports_why_and_stays_within_limits():
     assert configuration_of("planar_2r", result.q).within_limits(tol=0.0)
 
 
+@pytest.mark.parametrize("igm", [pseudoinverse_igm, damped_least_squares_igm])
+def test_igm_baselines_converge_where_each_error_is_within_its_tolerance(igm):
+    """Converged means each error within its own tolerance, as qpik.solve decides (not their
+    scaled sum): a start 0.7 of each tolerance away is converged at once, by both."""
+    import qpik
+
+    configuration = configuration_of("ur5e", qpik.load_robot("ur5e").key_qpos[0])
+    p, R = configuration.frame_pose("ee")
+    target = (p + [7e-5, 0.0, 0.0], mink.SO3.exp(np.array([0.0, 0.0, 7e-4])).as_matrix() @ R)
+    ours = igm(configuration, "ee", *target, max_iters=0, restarts=0)
+    solved = qpik.solve(configuration.model, {"ee": target}, q0=configuration.q, max_iters=0)
+    assert ours.converged and ours.reason == "converged" and ours.iterations == 0
+    assert solved.converged
+
+
+@pytest.mark.parametrize(
+    "args, keywords, error",
+    [
+        (([np.nan, 0.0, 0.0],), {}, "InvalidTarget"),
+        (([1.0, 1.0],), {}, "InvalidTarget"),
+        (("abc",), {}, "InvalidTarget"),
+        (([1.0, 1.0, 0.0], 2.0 * np.eye(3)), {}, "InvalidTarget"),
+        (([1.0, 1.0, 0.0],), {"seed": -1}, "InvalidInput"),
+        (([1.0, 1.0, 0.0],), {"seed": "x"}, "InvalidInput"),
+        (([1.0, 1.0, 0.0],), {"rcond": -1.0}, "InvalidOption"),
+        (([1.0, 1.0, 0.0],), {"rcond": np.nan}, "InvalidOption"),
+        (([1.0, 1.0, 0.0],), {"clip": "yes"}, "InvalidOption"),
+    ],
+)
+def test_igm_baselines_bad_input_is_typed(args, keywords, error):
+    import qpik
+
+    configuration = configuration_of("planar_2r", [0.3, 0.5])
+    with pytest.raises(getattr(qpik.errors, error)):
+        pseudoinverse_igm(configuration, "ee", *args, **keywords)
+    with pytest.raises(qpik.errors.InvalidInput, match="configuration"):
+        pseudoinverse_igm("planar_2r", "ee", [1.0, 1.0, 0.0])
+    for damping in (-1.0, 0.0, np.nan, True):
+        with pytest.raises(qpik.errors.InvalidOption, match="damping"):
+            damped_least_squares_igm(configuration, "ee", [1.0, 1.0, 0.0], damping=damping)
+
+
 def test_pinv_step_at_the_2r_singularity_is_huge():
     """Near the stretched 2R (q2 = 1e-3), asking for motion along the arm costs a joint step
     of order 1 / q2 with the pseudoinverse; damped least squares stays bounded."""

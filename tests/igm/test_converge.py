@@ -128,6 +128,30 @@ def test_custom_stack_gets_the_targets(rng):
         qpik.solve(model, {"flange": position}, stack=[[frame]])
 
 
+def test_a_minks_own_frame_task_in_a_stack_gets_the_targets(rng):
+    """mink's FrameTask (not qpik's subclass) is set the solve's target too: one with a
+    stale target of its own is not driven there, one without a target does not raise."""
+    model = qpik.load_robot("panda")
+    position, rotation = reachable_pose("panda", rng)
+    posture = mink.PostureTask(model, cost=0.01)
+    posture.set_target(qpik.Configuration(model).mid_q())
+    stale = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    stale.set_target_from_configuration(qpik.Configuration(model))
+    unset = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    reference = qpik.tasks.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    answers = [
+        qpik.solve(model, {"ee": (position, rotation)}, stack=[[task], [posture]], seed=3)
+        for task in (stale, unset, reference)
+    ]
+    for result in answers:
+        assert result.converged, result
+        reached = qpik.Configuration(model, result.q).frame_pose("ee")[0]
+        assert np.linalg.norm(reached - position) <= 1e-3
+    np.testing.assert_array_equal(answers[0].q, answers[2].q)
+    # the caller's task gets its own target back after the solve
+    assert unset.transform_target_to_world is None
+
+
 def test_bad_inputs():
     with pytest.raises(qpik.InvalidTarget, match="finite"):
         qpik.solve("panda", {"ee": [0.3, np.nan, 0.5]})
@@ -384,6 +408,28 @@ def test_every_reachable_target_is_iterated(rng):
 def test_bad_options_name_the_argument(kwargs, name):
     with pytest.raises(qpik.InvalidInput, match=name):
         qpik.solve("planar_2r", {"ee": [1.0, 1.0, 0.0]}, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "good, bad",
+    [
+        (dict(max_iters=1), dict(max_iters=True)),
+        (dict(max_iters=50), dict(max_iters=50.0)),
+        (dict(restarts=0), dict(restarts=False)),
+        (dict(stall_window=1), dict(stall_window=True)),
+    ],
+)
+def test_an_option_is_checked_whatever_was_solved_before(good, bad):
+    """A value equal to the last solve's (True == 1, 50.0 == 50) but of a type refused is
+    refused in a session that solved with the valid one too (the options memo compares
+    types as well)."""
+    session = qpik.IKSession("ur5e")
+    session.solve({"ee": [0.4, 0.1, 0.3]}, seed=0, **good)
+    for fresh in (False, True):
+        with pytest.raises(qpik.InvalidOption, match=next(iter(bad))):
+            (qpik.IKSession("ur5e") if fresh else session).solve(
+                {"ee": [0.4, 0.1, 0.3]}, seed=0, **bad
+            )
 
 
 @pytest.mark.parametrize("key", [None, 3, ("ee",), (1, "site"), ("ee", "site", 0), b"ee"])
