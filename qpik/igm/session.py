@@ -691,8 +691,9 @@ def solve(
     """
     if isinstance(robot, mujoco.MjModel):
         session = IKSession._from_prepared(robot, None, PREPARED.get(robot))
-    elif isinstance(robot, Configuration):
-        session = IKSession._from_prepared(robot.model, robot.q, PREPARED.get(robot.model))
+    elif isinstance(robot, Configuration):  # (its mocap poses kept: resolve_robot)
+        model, q = resolve_robot(robot)
+        session = IKSession._from_prepared(model, q, PREPARED.get(model))
     else:
         session = IKSession(robot)
     # The clock (solve_time, time_budget) starts once the robot is loaded, as a session's.

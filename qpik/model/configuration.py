@@ -8,6 +8,7 @@ limit accepts it. It adds validated updates, world-aligned frame Jacobians
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 from typing import Any, NoReturn
@@ -546,7 +547,11 @@ def resolve_robot(
         robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
             caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
             :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
-            with :func:`load_robot` (``q`` ``None``).
+            with :func:`load_robot` (``q`` ``None``). A configuration whose mocap bodies
+            are posed elsewhere than its model's defaults (``data.mocap_pos`` /
+            ``mocap_quat`` set: an arm on a moved mocap base) gives a copy of its model
+            with those poses as the defaults, so that a solve works where the
+            configuration has the robot.
         relative_to: the folder a relative path is read from (default: the working
             directory).
         floating_base: passed to :func:`load_robot` for a file.
@@ -555,7 +560,7 @@ def resolve_robot(
     :func:`load_robot`'s errors.
     """
     if isinstance(robot, Configuration):
-        return robot.model, robot.q
+        return _with_mocap_poses(robot), robot.q
     if isinstance(robot, mujoco.MjModel):
         return robot, None
     if isinstance(robot, (str, os.PathLike)):
@@ -565,3 +570,23 @@ def resolve_robot(
         "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
         f"qpik.Configuration, got {type(robot).__name__}"
     )
+
+
+def _with_mocap_poses(configuration: Configuration) -> mujoco.MjModel:
+    """The configuration's model, or, where its mocap bodies are posed elsewhere than the
+    model's defaults, a copy of it with the configuration's mocap poses as the defaults
+    (``body_pos`` / ``body_quat`` of the mocap bodies, which MuJoCo copies into a new
+    ``MjData``'s ``mocap_pos`` / ``mocap_quat``)."""
+    model, data = configuration.model, configuration.data
+    if model.nmocap == 0:
+        return model
+    bodies = np.flatnonzero(model.body_mocapid >= 0)
+    order = model.body_mocapid[bodies]
+    if np.array_equal(model.body_pos[bodies], data.mocap_pos[order]) and np.array_equal(
+        model.body_quat[bodies], data.mocap_quat[order]
+    ):
+        return model
+    posed = copy.copy(model)
+    posed.body_pos[bodies] = data.mocap_pos[order]
+    posed.body_quat[bodies] = data.mocap_quat[order]
+    return posed

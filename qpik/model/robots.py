@@ -156,6 +156,7 @@ TOOL_LINKS: tuple[str, ...] = (
     "end_effector",
     "j2s6s200_end_effector",
     "gripperStator",
+    "gripper_frame_link",
     "panda_hand",
 )
 
@@ -546,22 +547,37 @@ def gripper_joints(model: mujoco.MjModel) -> list[int]:
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
-def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per body: arm joints from the world (hinge/slide, not a gripper's), depth, and
-    whether a gripper joint moves it (on it or on an ancestor)."""
+def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per body: arm joints from the world (hinge/slide, not a gripper's), depth, whether
+    a gripper joint moves it (on it or on an ancestor), and whether the arm goes on below
+    it (exactly one of its children's subtrees holds arm joints: a ``wrist_link`` above the
+    wrist's roll joint, where a palm has a subtree per finger). A robot whose every joint
+    is a gripper's (a finger, a hand alone) is its own arm: its joints are arm joints."""
     grippers = set(gripper_joints(model))
+    scalar = [j for j in range(model.njnt) if int(model.jnt_type[j]) in _SCALAR_JOINTS]
+    if scalar and grippers >= set(scalar):
+        grippers = set()
     joints = np.zeros(model.nbody, dtype=int)
     depth = np.zeros(model.nbody, dtype=int)
     moved = np.zeros(model.nbody, dtype=bool)
+    own_arm = np.zeros(model.nbody, dtype=int)  # arm joints on the body itself
     for b in range(1, model.nbody):  # parents come before children
         parent = model.body_parentid[b]
         own = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
-        joints[b] = joints[parent] + sum(
+        own_arm[b] = sum(
             int(model.jnt_type[j]) in _SCALAR_JOINTS and j not in grippers for j in own
         )
+        joints[b] = joints[parent] + own_arm[b]
         depth[b] = depth[parent] + 1
         moved[b] = moved[parent] or any(j in grippers for j in own)
-    return joints, depth, moved
+    holds = own_arm > 0  # an arm joint in the body's subtree
+    branches = np.zeros(model.nbody, dtype=int)  # children whose subtree holds one
+    for b in range(model.nbody - 1, 0, -1):  # children come after parents
+        if holds[b]:
+            parent = model.body_parentid[b]
+            holds[parent] = True
+            branches[parent] += 1
+    return joints, depth, moved, branches == 1
 
 
 def _name_matches(name: str, known: str) -> bool:
@@ -571,9 +587,12 @@ def _name_matches(name: str, known: str) -> bool:
     return name == known or name.endswith("/" + known) or name.endswith("_" + known)
 
 
-def _named_tool(model: mujoco.MjModel, joints, moved) -> ToolFrame | None:
+def _named_tool(model: mujoco.MjModel, joints, moved, goes_on) -> ToolFrame | None:
     """The site or body whose name is a known tool centre point's, flange's or hand's (in
-    that order; on the longest chain first), never one a gripper joint moves."""
+    that order; on the longest chain first), never one a gripper joint moves, nor one no arm
+    joint moves (an arm's or a hand's base) where some body is; a wrist's name not where the
+    arm goes on below it (``goes_on``: so101's ``wrist_link``, above its wrist roll; a palm
+    has its fingers below it)."""
     site_body = model.site_bodyid
     sites = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s) or "" for s in range(model.nsite)
@@ -582,9 +601,17 @@ def _named_tool(model: mujoco.MjModel, joints, moved) -> ToolFrame | None:
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or "" for b in range(model.nbody)
     ]
 
-    def best(names: list[str], owner, known: str) -> int | None:
+    moving = bool(joints.max() > 0)
+
+    def best(names: list[str], owner, known: str, hand: bool) -> int | None:
         hits = [i for i, n in enumerate(names) if n and _name_matches(n, known)]
-        hits = [i for i in hits if not moved[owner(i)]]
+        hits = [
+            i
+            for i in hits
+            if not moved[owner(i)]
+            and (joints[owner(i)] > 0 or not moving)
+            and not (hand and goes_on[owner(i)])
+        ]
         if not hits:
             return None
         return max(hits, key=lambda i: (joints[owner(i)], -i))
@@ -597,10 +624,12 @@ def _named_tool(model: mujoco.MjModel, joints, moved) -> ToolFrame | None:
         (hands, "a hand's name"),
     ):
         for known in names:
-            site = best(sites, lambda s: int(site_body[s]), known)
+            # (a wrist's name, not where the arm goes on below it: its roll joint)
+            hand = names is hands and known.startswith("wrist")
+            site = best(sites, lambda s: int(site_body[s]), known, hand)
             if site is not None:
                 return ToolFrame(sites[site], "site", f"the site with {what} ({known!r})")
-            body = best(bodies, lambda b: b, known)
+            body = best(bodies, lambda b: b, known, hand)
             if body is not None and body > 0:
                 return ToolFrame(bodies[body], "body", f"the body with {what} ({known!r})")
     return None
@@ -630,14 +659,14 @@ def tool_frame(model: mujoco.MjModel) -> ToolFrame:
     :class:`qpik.errors.RobotFileError` for a model with no body."""
     if model.nbody < 2:
         raise RobotFileError("<model>", "the model has no body to use as a tool frame")
-    joints, depth, moved = _chains(model)
+    joints, depth, moved, goes_on = _chains(model)
     if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee") >= 0:
         return ToolFrame("ee", "site", "the site named ee")
-    named = _named_tool(model, joints, moved)
+    named = _named_tool(model, joints, moved, goes_on)
     if named is not None:
         return named
     for name in TOOL_LINKS:
         b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if b > 0 and not moved[b]:
+        if b > 0 and not moved[b] and joints[b] > 0:
             return ToolFrame(name, "body", "a known tool link (no site 'ee')")
     return _chain_end(model, joints, depth, moved)

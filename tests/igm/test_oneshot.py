@@ -287,3 +287,31 @@ def test_a_limited_ball_joints_range_holds_in_a_default_solve():
         target = (data.site_xpos[0].copy(), data.site_xmat[0].reshape(3, 3).copy())
         result = qpik.solve(model, {"tip": target}, seed=i)
         assert angle(np.asarray(result.q)[:4]) <= 1.2 + 1e-9, (i, result.reason)
+
+
+def test_a_configurations_mocap_poses_are_where_the_solve_works():
+    """An arm on a mocap base that the configuration moved (data.mocap_pos) is solved
+    there (qpik.solve and IKSession given the configuration): the answer reaches the
+    target in that configuration's world, and the caller's model is left as it was."""
+    import mujoco
+
+    xml = """<mujoco><compiler angle="radian"/><worldbody><body name="base" mocap="true">
+      <body name="l1"><joint name="j1" axis="0 0 1" range="-3 3"/><geom size="0.02"/>
+       <body name="l2" pos="1 0 0"><joint name="j2" axis="0 0 1" range="-3 3"/>
+        <geom size="0.02"/><site name="ee" pos="1 0 0"/></body></body></body>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model)
+    configuration.data.mocap_pos[0] = [5.0, 0.0, 0.0]
+    configuration.update(np.array([0.3, 0.4]))
+    target = np.array([6.0, 0.8, 0.0])  # 1.28 m from the moved base (reach 2 m)
+    check = qpik.Configuration(model)
+    check.data.mocap_pos[0] = [5.0, 0.0, 0.0]
+    for result in (
+        qpik.solve(configuration, {"ee": target}, seed=0),
+        qpik.IKSession(configuration).solve({"ee": target}, seed=0),
+    ):
+        assert result.converged, result
+        check.update(result.q)
+        assert np.linalg.norm(check.frame_pose("ee")[0] - target) <= 1e-4
+    assert model.body_pos[1].tolist() == [0.0, 0.0, 0.0]

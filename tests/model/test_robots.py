@@ -409,3 +409,56 @@ def test_tool_site_names_match_in_any_case_and_grasp_centres(site, expected):
     )
     frame = tool_frame(model)
     assert (frame.frame_type, frame.name) == ("site", expected), frame
+
+
+def _chain_mjcf(bodies: list[tuple[str, str | None, str]]) -> str:
+    """An MJCF of nested bodies ``(name, joint name or None, parent name)`` ('world': the
+    world body), hinges about z, each 0.1 m from its parent."""
+    children: dict[str, list] = {}
+    for name, joint, parent in bodies:
+        children.setdefault(parent, []).append((name, joint))
+
+    def body(name: str, joint: str | None) -> str:
+        inner = f'<joint name="{joint}" axis="0 0 1" range="-1 1"/>' if joint else ""
+        inner += '<geom size="0.01"/>'
+        inner += "".join(body(c, j) for c, j in children.get(name, []))
+        return f'<body name="{name}" pos="0.1 0 0">{inner}</body>'
+
+    world = "".join(body(c, j) for c, j in children.get("world", []))
+    return f"<mujoco><worldbody>{world}</worldbody></mujoco>"
+
+
+def test_tool_frame_is_moved_by_the_arm_and_ends_it():
+    """Pins the h9 audit's tool frames: a robot whose every joint has a finger's name (erd
+    finger_edu) is its own arm, its tip the tool (was its base, which no joint moves: rank
+    0); a link named wrist above the wrist's roll joint is not the tool (erd so101: was
+    wrist_link, one joint short); a hand alone (Allegro) is tooled at a fingertip, not at
+    its palm that nothing moves; a palm with fingers below it stays a humanoid's tool."""
+    import mujoco
+
+    finger = _chain_mjcf(
+        [
+            ("finger_base_link", None, "world"),
+            ("finger_upper_link", "finger_base_to_upper_joint", "finger_base_link"),
+            ("finger_middle_link", "finger_upper_to_middle_joint", "finger_upper_link"),
+            ("finger_tip_link", "finger_middle_to_lower_joint", "finger_middle_link"),
+        ]
+    )
+    tool = qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(finger))
+    assert tool.name == "finger_tip_link" and "longest chain" in tool.reason
+    arm = [
+        ("base", None, "world"),
+        ("upper_arm_link", "shoulder", "base"),
+        ("wrist_link", "wrist_flex", "upper_arm_link"),
+        ("gripper_link", "wrist_roll", "wrist_link"),
+        ("jaw", "gripper", "gripper_link"),
+    ]
+    assert qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(_chain_mjcf(arm))).name == (
+        "gripper_link"
+    )
+    fingers = [(f"f{i}_{k}", f"f{i}_j{k}", f"f{i}_{k - 1}" if k else "palm") for i in range(3) for k in range(2)]  # fmt: skip
+    hand = _chain_mjcf([("palm", None, "world"), *fingers])
+    tool = qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(hand))
+    assert tool.name != "palm" and tool.name.endswith("_1")
+    humanoid = _chain_mjcf([("torso", None, "world"), ("palm", "wrist_yaw", "torso"), *fingers])
+    assert qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(humanoid)).name == "palm"
