@@ -11,6 +11,7 @@ speed, not the answer.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -24,9 +25,11 @@ from . import kernels as K
 __all__ = [
     "BACKENDS",
     "OSQP_DEFAULTS",
+    "OSQP_SETTINGS",
     "OSQPWorkspace",
     "QPSolution",
     "QPWorkspace",
+    "check_osqp_settings",
     "made_exact",
     "make_workspace",
     "working_set_with_violated",
@@ -50,6 +53,69 @@ OSQP_DEFAULTS: dict[str, Any] = {
     "adaptive_rho_interval": 50,
     "scaling": 10,
 }
+
+#: The OSQP settings a caller may give (``backend_options``), each with the values OSQP's
+#: own ``validate_settings`` accepts: ``(kind, low, high, open)`` (open: both ends
+#: excluded); kind ``"int"``,
+#: ``"bool"`` or ``"float"``. Checked when the workspace is made (:func:`check_osqp_settings`),
+#: so that no solve starts from a setting OSQP would refuse at its setup (it prints an
+#: error and fails; the step would then quietly fall back to the dual method).
+OSQP_SETTINGS: dict[str, tuple[str, float, float, bool]] = {
+    "eps_abs": ("float", 0.0, math.inf, False),
+    "eps_rel": ("float", 0.0, math.inf, False),
+    "eps_prim_inf": ("float", 0.0, math.inf, False),
+    "eps_dual_inf": ("float", 0.0, math.inf, False),
+    "max_iter": ("int", 1, 2**31 - 1, False),
+    "polishing": ("bool", 0, 1, False),
+    "warm_starting": ("bool", 0, 1, False),
+    "verbose": ("bool", 0, 1, False),
+    "adaptive_rho": ("bool", 0, 1, False),
+    "scaled_termination": ("bool", 0, 1, False),
+    "check_termination": ("int", 0, 2**31 - 1, False),
+    "adaptive_rho_interval": ("int", 0, 2**31 - 1, False),
+    "scaling": ("int", 0, 2**31 - 1, False),
+    "rho": ("float", 0.0, math.inf, True),
+    "sigma": ("float", 0.0, math.inf, True),
+    "alpha": ("float", 0.0, 2.0, True),
+    "delta": ("float", 0.0, math.inf, True),
+    "adaptive_rho_tolerance": ("float", 1.0, math.inf, False),
+    "time_limit": ("float", 0.0, math.inf, False),
+}
+
+
+def check_osqp_settings(options: dict | None) -> None:
+    """:class:`qpik.InvalidInput` naming the setting for an unknown OSQP setting or a value
+    outside what OSQP accepts (:data:`OSQP_SETTINGS`; ``eps_abs`` and ``eps_rel`` not both
+    0; a bool where OSQP takes 0 or 1, an int where it takes an integer)."""
+    given = options or {}
+    unknown = set(given) - set(OSQP_SETTINGS)
+    if unknown:
+        raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
+    for name, value in given.items():
+        kind, low, high, open_low = OSQP_SETTINGS[name]
+        if kind == "bool":
+            ok = isinstance(value, (bool, np.bool_)) or (
+                isinstance(value, (int, np.integer)) and value in (0, 1)
+            )
+            expected = "True or False"
+        elif kind == "int":
+            ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+            ok = ok and low <= value <= high
+            expected = f"an integer in [{low}, {high}]"
+        else:
+            ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+                value, bool
+            )
+            inside = low < value < high if open_low else low <= value <= high
+            ok = ok and inside and not (math.isinf(value) and high < math.inf)
+            bracket = "(" if open_low else "["
+            end = ")" if open_low or high == math.inf else "]"
+            expected = f"a number in {bracket}{low:g}, {high:g}{end}"
+        if not ok:
+            raise InvalidInput(f"OSQP setting {name!r} must be {expected}, got {value!r}")
+    settings = {**OSQP_DEFAULTS, **given}
+    if settings["eps_abs"] == 0 and settings["eps_rel"] == 0:
+        raise InvalidInput("OSQP settings eps_abs and eps_rel cannot both be 0")
 
 
 @dataclass
@@ -88,12 +154,7 @@ class OSQPWorkspace:
 
         self._osqp = osqp
         self.n, self.m = n, m
-        unknown = set(options or {}) - set(OSQP_DEFAULTS) - {
-            "rho", "sigma", "alpha", "time_limit", "delta", "adaptive_rho_interval",
-            "adaptive_rho_tolerance", "scaled_termination", "eps_prim_inf", "eps_dual_inf",
-        }  # fmt: skip
-        if unknown:
-            raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
+        check_osqp_settings(options)
         self.settings = {**OSQP_DEFAULTS, **(options or {})}
         rows, cols = np.triu_indices(n)
         order = np.lexsort((rows, cols))
@@ -197,8 +258,25 @@ class QPSolversWorkspace:
             x = None
         status = "solved" if x is not None else "infeasible_or_failed"
         return QPSolution(
-            None if x is None else np.asarray(x), status, 0, time.perf_counter() - start
+            None if x is None else np.asarray(x),
+            status,
+            _iterations(solution.extras),
+            time.perf_counter() - start,
         )
+
+
+def _iterations(extras: Any) -> int:
+    """The backend's iteration count where qpsolvers passes it on (quadprog's
+    ``iterations``, proxqp's ``info.iter``); 0 where it does not (daqp, clarabel)."""
+    if not isinstance(extras, dict):
+        return 0
+    count = extras.get("iterations")
+    if count is None and extras.get("info") is not None:
+        count = getattr(extras["info"], "iter", None)
+    try:
+        return int(np.ravel(count)[0]) if count is not None else 0
+    except (TypeError, ValueError, IndexError):
+        return 0
 
 
 #: Packages behind the qpsolvers backends, for error messages.

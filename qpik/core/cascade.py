@@ -187,7 +187,7 @@ class HierarchyProblem:
     def stacked(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(A, b, w, starts, reg)``: the levels' rows stacked as the kernel takes them."""
         n = self.n
-        As = [np.asarray(level.A, dtype=float).reshape(-1, n) for level in self.levels]
+        As = [checks.level_rows(level.A, n) for level in self.levels]
         sizes = [a.shape[0] for a in As]
         starts = np.zeros(len(As) + 1, dtype=np.int64)
         np.cumsum(sizes, out=starts[1:])
@@ -239,7 +239,7 @@ class HierarchyResult:
             forced backend's, whose workspace is kept warm between solves, so that its
             count is a speed figure that depends on what was solved before, unlike every
             other field; or, where the exact cascade did not settle, those of OSQP from a
-            fresh workspace).
+            fresh workspace; 0 for daqp and clarabel, whose counts qpsolvers does not pass).
         active: per level, the active set of its QP: (n + p,) int8, +1 at a lower bound,
             -1 at an upper bound (box rows first, then the general rows).
         backend: per level, which backend produced the answer.

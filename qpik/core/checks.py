@@ -406,3 +406,12 @@ def check_level(k: int, level: Any, n: int) -> None:
                 f"level {k} ({level.name}): weights (the rows' costs) must be finite and "
                 f">= 0, got {weights}"
             )
+
+
+def level_rows(A: Any, n: int) -> np.ndarray:
+    """A level's checked ``A`` as a float64 ``(m, n)`` array (a 1-D row of ``n`` as one
+    row); with ``n = 0``, its ``m`` empty rows (numpy cannot infer ``m`` from no entries)."""
+    a = np.asarray(A, dtype=float)
+    if n == 0:
+        return a.reshape(a.shape[0] if a.ndim == 2 else 0, 0)
+    return a.reshape(-1, n)

@@ -175,6 +175,8 @@ class SolverSettings:
     def backend_options(self, value: dict | None) -> None:
         if value is not None and not isinstance(value, dict):
             raise InvalidOption("backend_options", value, "a dict of backend settings or None")
+        if getattr(self, "_solver", None) == "osqp":  # (its names and values, checked here)
+            backends.check_osqp_settings(value)
         self._backend_options = dict(value or {})
         self._changed()
 

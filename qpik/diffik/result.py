@@ -117,7 +117,8 @@ class StepResult:
             ``"infeasible"``: level 0's limits admit no displacement, ``"kept_previous"``,
             ``"max_iter"``, ``"not_reached"``, ...).
         iterations: per level, active-set changes (or the forced backend's iterations,
-            which depend on its warm workspace: a speed figure, unlike every other field).
+            which depend on its warm workspace: a speed figure, unlike every other field;
+            0 for daqp and clarabel, whose counts qpsolvers does not pass on).
         solve_time: wall time of the whole step [s].
         certificate: per level, its :class:`~qpik.core.LevelCertificate` (the largest
             scaled violation of primal feasibility, stationarity, dual signs and

@@ -554,3 +554,57 @@ def test_warm_start_gives_the_cold_bits_on_damped_levels(rng):
     # each problem after the others (warm starts from their active sets) and again after itself
     free = warm_solves_give_cold_bits(problems, rounds=2)
     assert free > 40  # levels where nothing binds, cold and warm
+
+
+@pytest.mark.parametrize(
+    "options, name",
+    [
+        ({"eps_abs": -1.0}, "eps_abs"),
+        ({"max_iter": "many"}, "max_iter"),
+        ({"max_iter": 0}, "max_iter"),
+        ({"rho": float("nan")}, "rho"),
+        ({"scaling": -3}, "scaling"),
+        ({"alpha": 2.0}, "alpha"),
+        ({"polishing": "yes"}, "polishing"),
+        ({"eps_abs": 0.0, "eps_rel": 0.0}, "eps_abs and eps_rel"),
+        ({"bogus": 1}, "bogus"),
+    ],
+)
+def test_osqp_settings_outside_what_osqp_takes_are_refused_when_set(options, name):
+    """Pins h8's audit: a value OSQP's setup would refuse (it printed an error at every
+    binding step and the dual method answered quietly) is an InvalidInput naming the
+    setting, when the solver is made and when its options are set after."""
+    with pytest.raises(qpik.InvalidInput, match=name):
+        HierarchySolver("osqp", backend_options=options)
+    solver = HierarchySolver("osqp")
+    with pytest.raises(qpik.InvalidInput, match=name):
+        solver.backend_options = options
+    with pytest.raises(qpik.InvalidInput, match=name):
+        qpik.IKSolver(
+            qpik.load_robot("planar_2r"),
+            [qpik.tasks.PostureTask(qpik.load_robot("planar_2r"), 1.0)],
+            options=qpik.StepOptions(solver="osqp", backend_options=options),
+        )
+    HierarchySolver("osqp", backend_options={"eps_abs": 1e-6, "polishing": 1, "rho": 0.5})
+
+
+def test_a_problem_of_no_variable_is_solved_by_every_path():
+    """Pins h8's audit: n = 0 (A of shape (1, 0)) raised numpy's reshape error on the
+    Python path (forced backends, non-float64 input)."""
+    for A in (np.zeros((1, 0)), np.zeros((1, 0), dtype=np.float32)):
+        problem = HierarchyProblem(
+            [Level(A, np.ones(1))], np.zeros(0), np.zeros(0), np.zeros((0, 0)), np.zeros(0)
+        )
+        for solver in ("auto", "osqp", "quadprog"):
+            result = HierarchySolver(solver).solve(problem)
+            assert result.status == [LevelStatus.SOLVED] and result.x.shape == (0,)
+
+
+def test_a_qpsolvers_backend_reports_its_iterations_where_it_gives_them():
+    """quadprog's own count (was 0 for every qpsolvers backend)."""
+    n = 3
+    problem = HierarchyProblem(
+        [Level(np.eye(n), 5 * np.ones(n))], -np.ones(n), np.ones(n), np.zeros((0, n)),
+        np.zeros(0),
+    )  # fmt: skip
+    assert HierarchySolver("quadprog").solve(problem).iterations[0] > 0
