@@ -83,11 +83,16 @@ OSQP_SETTINGS: dict[str, tuple[str, float, float, bool]] = {
 }
 
 
-def check_osqp_settings(options: dict | None) -> None:
-    """:class:`qpik.InvalidInput` naming the setting for an unknown OSQP setting or a value
-    outside what OSQP accepts (:data:`OSQP_SETTINGS`; ``eps_abs`` and ``eps_rel`` not both
-    0; a bool where OSQP takes 0 or 1, an int where it takes an integer)."""
-    given = options or {}
+#: OSQP's earlier names of settings, which it still takes (mink passes ``polish``).
+OSQP_ALIASES: dict[str, str] = {"polish": "polishing", "warm_start": "warm_starting"}
+
+
+def check_osqp_settings(options: dict | None) -> dict[str, Any]:
+    """``options`` checked, by OSQP's names (:data:`OSQP_ALIASES` renamed): an unknown OSQP
+    setting or a value outside what OSQP accepts (:data:`OSQP_SETTINGS`; ``eps_abs`` and
+    ``eps_rel`` not both 0; a bool where OSQP takes 0 or 1, an int where it takes an
+    integer) is a :class:`qpik.InvalidInput` naming the setting."""
+    given = {OSQP_ALIASES.get(name, name): value for name, value in (options or {}).items()}
     unknown = set(given) - set(OSQP_SETTINGS)
     if unknown:
         raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
@@ -116,6 +121,7 @@ def check_osqp_settings(options: dict | None) -> None:
     settings = {**OSQP_DEFAULTS, **given}
     if settings["eps_abs"] == 0 and settings["eps_rel"] == 0:
         raise InvalidInput("OSQP settings eps_abs and eps_rel cannot both be 0")
+    return given
 
 
 @dataclass
@@ -154,8 +160,7 @@ class OSQPWorkspace:
 
         self._osqp = osqp
         self.n, self.m = n, m
-        check_osqp_settings(options)
-        self.settings = {**OSQP_DEFAULTS, **(options or {})}
+        self.settings = {**OSQP_DEFAULTS, **check_osqp_settings(options)}
         rows, cols = np.triu_indices(n)
         order = np.lexsort((rows, cols))
         self._h_rows, self._h_cols = rows[order], cols[order]

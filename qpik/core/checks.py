@@ -415,3 +415,12 @@ def level_rows(A: Any, n: int) -> np.ndarray:
     if n == 0:
         return a.reshape(a.shape[0] if a.ndim == 2 else 0, 0)
     return a.reshape(-1, n)
+
+
+def as_float_dt(dt: Any) -> Any:
+    """A real ``dt`` that is not a Python float (``np.float64``, as ``np.diff`` of time
+    stamps gives; an int) as that float: the same step, on the paths that take a float
+    only. Anything else (a bool, a string, an array) as given, for the checks to name."""
+    if isinstance(dt, (int, np.integer, np.floating)) and not isinstance(dt, (bool, np.bool_)):
+        return float(dt)
+    return dt

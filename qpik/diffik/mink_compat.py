@@ -226,6 +226,37 @@ def _raise_unsolved(ik: IKSolver, status: Sequence[LevelStatus]) -> None:
         raise error
 
 
+def _limit_value(limit: Any) -> tuple | None:
+    """A limit's value, by which :class:`SolverCache` also finds a kept solver (mink's
+    ``ConfigurationLimit`` and ``VelocityLimit`` exactly: a control loop that builds
+    ``[mink.ConfigurationLimit(model)]`` at each call): its class and the arrays and
+    numbers its rows are computed from; None for any other limit (found by identity only)."""
+    kind = type(limit)
+    if kind is mink.ConfigurationLimit:
+        balls = getattr(limit, "_ball_max_angle", None)
+        return (
+            kind, id(limit.model), float(limit.gain), limit.lower.tobytes(),
+            limit.upper.tobytes(), limit.indices.tobytes(),
+            None if balls is None else np.asarray(balls).tobytes(),
+        )  # fmt: skip
+    if kind is mink.VelocityLimit:
+        return (
+            kind, limit.indices.tobytes(), limit.limit.tobytes(), limit.projection_matrix.shape
+        )  # fmt: skip
+    return None
+
+
+def _value_key(key: tuple, limits: Any) -> tuple | None:
+    """``key`` (a :class:`SolverCache` key) with its limits by value (:func:`_limit_value`),
+    None where a limit has none."""
+    if type(limits) not in (list, tuple) or not limits:
+        return None
+    values = tuple(map(_limit_value, limits))
+    if None in values:
+        return None
+    return (*key[:2], values, *key[3:])
+
+
 def _level_ids(tasks: list | tuple) -> tuple:
     """The ids of ``tasks`` level by level, as :meth:`SolverCache.get` keys them: a flat list
     is one level; a list with a list or tuple among its items has a level per item (a task
@@ -260,6 +291,9 @@ class SolverCache:
 
     def __init__(self) -> None:
         self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
+        #: the key of a kept entry by its limits' values (_value_key): where a call's limit
+        #: objects are new but equal to a kept entry's, that entry's solver answers
+        self._values: dict[tuple | None, tuple] = {}
         #: the solvers of calls with constraints, by the call's objects (keep_constrained)
         self._constrained: dict[tuple, tuple[tuple, IKSolver]] = {}
         #: the constraint and damping tasks of :func:`_constrained_solver` (its entries: by
@@ -270,6 +304,7 @@ class SolverCache:
     def clear(self) -> None:
         """Forget every kept solver (and the constraint tasks kept for them)."""
         self._entries.clear()
+        self._values.clear()
         self._constrained.clear()
         self.constraint_tasks.clear()
 
@@ -361,6 +396,10 @@ class SolverCache:
         objects, checked when the entry was built. The step is the kept solver's (the
         compiled step on ``configuration`` read in place, or the QP path), and the velocity
         the step's ``dq / dt``: bitwise :func:`solve_ik`'s full path."""
+        if type(dt) is not float:  # (np.float64, an int: the same step as its float's)
+            dt = checks.as_float_dt(dt)
+        if type(damping) is not float:
+            damping = checks.as_float_dt(damping)
         if type(dt) is not float or type(damping) is not float or not 0.0 <= damping < math.inf:
             return None
         key = self._fast_key(configuration, tasks, limits, solver, damping, constraints)
@@ -369,7 +408,10 @@ class SolverCache:
         entries = self._entries if key[-1] == "" else self._constrained
         entry = entries.pop(key, None)
         if entry is None:
-            return None
+            key = self._values.get(_value_key(key, limits), key)  # (equal limits, new objects)
+            entry = entries.pop(key, None)
+            if entry is None:
+                return None
         entries[key] = entry  # most recently used last
         ik = entry[1]
         model = configuration.model
@@ -416,10 +458,18 @@ class SolverCache:
         )
         entry = self._entries.pop(key, None)
         if entry is None:
+            value_key = _value_key(key, limits)
+            key = self._values.get(value_key, key)  # (equal limits, new objects)
+            entry = self._entries.pop(key, None)
+        if entry is None:
             ik = _new_solver(configuration, levels, solver, damping, limits, backend_options)
             entry = ((model, levels, limits), ik)  # held: their ids stay theirs
             if len(self._entries) >= self.size:
                 self._entries.pop(next(iter(self._entries)))
+            if value_key is not None:
+                if len(self._values) >= 4 * self.size:
+                    self._values.clear()  # (keys of entries gone: a miss, then made again)
+                self._values[value_key] = key
         self._entries[key] = entry  # most recently used last
         return entry[1]
 

@@ -56,9 +56,8 @@ class BallJointRows(mink.ConfigurationLimit):
 
     def compact_rows(self, configuration: mink.Configuration, dt: float):
         """``(G, h, names)`` of the ball rows in play (an empty row, at the identity, left
-        out where it holds), None where a row bounds one dof (the QP path folds it into the
-        box) or an empty row fails, NotImplemented without mink's attributes (the generic
-        rows then)."""
+        out where it holds; a row on one dof kept), None where an empty row fails,
+        NotImplemented without mink's attributes (the generic rows then)."""
         if self._balls is None:
             return NotImplemented
         q, phi, gain = configuration.q, self._phi, self.limit.gain
@@ -67,9 +66,10 @@ class BallJointRows(mink.ConfigurationLimit):
             mujoco.mju_quat2Vel(phi, q[padr : padr + 4], 1.0)
             angle = float(np.sqrt(phi.dot(phi)))  # (np.linalg.norm's arithmetic)
             if angle > 1e-9:
+                # (a rotation about one coordinate axis gives a row on one dof: a general
+                # row of the compiled step, as _multi_dof_rows keeps one; the QP path folds
+                # it into the box, the same feasible set)
                 axis = phi / angle
-                if np.count_nonzero(axis) == 1:
-                    return None
                 rows.append((vadr, axis))
                 h.append(gain * (top - angle))
                 names.append(self._names[i])

@@ -369,6 +369,8 @@ class IKSolver:
         step solved again, that many times (the compiled step does it in
         its kernel)."""
         start = _perf_counter()
+        if type(dt) is not float:  # (np.float64, an int: the same step as its float's)
+            dt = checks.as_float_dt(dt)
         plan, core = self._plan, self._core
         # The plain lane: the default solver's step by a plain plan (no CoM
         # or row-supplying task, no general rows), without correction passes, when each
@@ -446,6 +448,8 @@ class IKSolver:
         couplings' first), None where the plan does not apply or the QP path must answer.
         ``configuration`` (qpik's or mink's) is read in place. With
         :attr:`qpik.StepOptions.correction_passes`: None (:meth:`qp_solution` corrects)."""
+        if type(dt) is not float:  # (np.float64, an int: the same step as its float's)
+            dt = checks.as_float_dt(dt)
         if self._passes or not self._compiled_step_applies(configuration, dt):
             return None
         return self._compiled_step(configuration, dt)
@@ -457,6 +461,8 @@ class IKSolver:
         by the compiled plan in one call, bitwise :meth:`step`'s; None where :meth:`step`
         would take another way (the caller then asks :meth:`compiled_solution`), and with
         :attr:`qpik.StepOptions.correction_passes`."""
+        if type(dt) is not float:  # (np.float64, an int: the same step as its float's)
+            dt = checks.as_float_dt(dt)
         if self._plan is None or self._passes or not self._compiled_step_applies(configuration, dt):
             return None
         core = self._core

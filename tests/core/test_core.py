@@ -586,6 +586,16 @@ def test_osqp_settings_outside_what_osqp_takes_are_refused_when_set(options, nam
             options=qpik.StepOptions(solver="osqp", backend_options=options),
         )
     HierarchySolver("osqp", backend_options={"eps_abs": 1e-6, "polishing": 1, "rho": 0.5})
+    # OSQP's earlier names, which it (and mink's callers) still use
+    solver = HierarchySolver("osqp", backend_options={"polish": True, "warm_start": False})
+    with pytest.raises(qpik.InvalidInput, match="polishing"):
+        HierarchySolver("osqp", backend_options={"polish": "yes"})
+    n = 2
+    problem = HierarchyProblem(
+        [Level(np.eye(n), 5 * np.ones(n))], -np.ones(n), np.ones(n), np.zeros((0, n)),
+        np.zeros(0),
+    )  # fmt: skip
+    np.testing.assert_array_equal(solver.solve(problem).x, [1.0, 1.0])
 
 
 def test_a_problem_of_no_variable_is_solved_by_every_path():
