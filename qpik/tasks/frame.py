@@ -18,7 +18,7 @@ import numpy as np
 
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
-from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik
+from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik, qpik_errors
 from ..model.frames import (
     FRAME_JACOBIANS,
     FRAME_OBJECTS,
@@ -89,6 +89,17 @@ class FrameTask(mink.FrameTask, CheckedTask):
         check_pose_target(self, transform_target_to_world, "set_target's target")
         # (checked: stored as mink's set_target stores it, without CheckedTask's check again)
         object.__setattr__(self, "transform_target_to_world", transform_target_to_world.copy())
+
+    def compute_error(self, configuration) -> np.ndarray:
+        """mink's error (see the class); before a target is set, :class:`qpik.TargetNotSet`
+        (mink's error, translated: every error qpik raises is a :class:`qpik.QpikError`)."""
+        with qpik_errors():
+            return super().compute_error(configuration)
+
+    def compute_jacobian(self, configuration) -> np.ndarray:
+        """mink's Jacobian (see the class); before a target is set, :class:`qpik.TargetNotSet`."""
+        with qpik_errors():
+            return super().compute_jacobian(configuration)
 
     def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
         terms = frame_terms(self, configuration)

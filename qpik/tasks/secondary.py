@@ -1,8 +1,10 @@
 """Secondary objectives, meant for lower priority levels (the ``zeta`` of
 ``qdot = J^+ xi + N(q) zeta``).
 
-Both are scalar tasks: the error is a scalar measure ``w(q)``, the Jacobian its gradient
-``dw/dq`` (1, nv), so ``J dq = -gain * w`` moves ``q`` along the gradient. Placed below a
+Both are scalar tasks: the error is a scalar measure ``w(q)`` that the task lowers (the
+joint-limit distance; the inverse manipulability ``1 / m``, so that ``m`` rises), the
+Jacobian its gradient ``dw/dq`` (1, nv), so ``J dq = -gain * w`` moves ``q`` down the
+gradient of ``w``. Placed below a
 frame task, the QP restricts that motion to the null space of the frame task, as in the
 general solution ``qdot = J^+ xi + N(q) zeta``.
 """
@@ -22,7 +24,7 @@ from ..core.jacobian import (
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
-from ..model.gradients import manipulability_gradient, manipulability_svd, manipulability_terms
+from ..model.gradients import manipulability_svd, manipulability_terms
 from .checked import CheckedTask
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
@@ -138,12 +140,19 @@ class JointLimitDistanceTask(mink.Task, CheckedTask):
 class ManipulabilityTask(mink.Task, CheckedTask):
     """Raise the manipulability ``m(q) = sqrt(det J J^T)`` of a frame.
 
-    Error ``e = -m(q)``; ``J dq = -gain * e`` asks each step for an increase of ``gain * m``
-    along the gradient of ``m``. ``rows`` selects the rows of the frame's world-aligned
-    Jacobian ``[v; omega]``: ``"pose"`` (6), ``"position"`` (3), ``"orientation"`` (3) or
-    a sequence of row names / indices (see :mod:`qpik.analysis`); anything else raises
-    :class:`qpik.InvalidInput` here, at construction. The error and its Jacobian use the
-    same rows.
+    Error ``e = 1 / m(q)`` (the inverse manipulability: it falls as ``m`` rises, toward 0),
+    Jacobian its gradient ``de/dq = -(dm/dq) / m^2`` (1, nv); ``J dq = -gain * e`` asks each
+    step for ``dm/dq dq = gain * m``: an increase of ``gain * m`` along the gradient of
+    ``m``. Where ``m`` is 0 (an exact singularity of the rows, or more rows than dofs, where
+    ``m`` is 0 for every ``q``) or so small that ``1 / m^2`` overflows, no step raises it to
+    first order: ``e = 0`` and a zero row (the task is idle there); near a maximum of ``m``
+    (its gradient vanishing) no step meets the increase asked, and the level's damping law
+    and the step's trust region (:attr:`qpik.StepOptions.max_joint_speed`) bound the steps
+    there (with neither, they grow as ``m / |dm/dq|``). ``rows`` selects the
+    rows of the frame's world-aligned Jacobian ``[v; omega]``: ``"pose"`` (6),
+    ``"position"`` (3), ``"orientation"`` (3) or a sequence of row names / indices (see
+    :mod:`qpik.analysis`); anything else raises :class:`qpik.InvalidInput` here, at
+    construction. The error and its Jacobian use the same rows.
     """
 
     k = 1
@@ -191,19 +200,20 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         self._rows = value
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-
+        """``1 / m(q)`` (1,), 0 where ``m`` is 0 (see the class)."""
         jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
         rows = jacobian[self._row_index]
         if rows.shape[0] > rows.shape[1]:
-            return np.array([-0.0])  # (w is 0 for every q: m > n)
-        return np.array([-manipulability_svd(rows)[0]])  # (its rows' value: the same bits)
+            return np.array([0.0])  # (m is 0 for every q: more rows than dofs)
+        # (its rows' value: the same bits as compute_qp_residual's)
+        return _inverse(manipulability_svd(rows)[0], None)[0]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
-
-        gradient = manipulability_gradient(
+        """``-(dm/dq) / m^2`` (1, nv), zero where ``m`` is 0 (see the class)."""
+        value, gradient = manipulability_terms(
             configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
-        return -np.asarray(gradient)[None, :]
+        return _inverse(value, gradient)[1]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
@@ -213,4 +223,16 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         value, gradient = manipulability_terms(
             configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
-        return self._weighted_residual(np.array([-value]), -gradient[None, :])
+        return self._weighted_residual(*_inverse(value, gradient))
+
+
+def _inverse(value: float, gradient: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(e (1,), de/dq (1, nv))`` of the inverse manipulability ``e = 1 / m`` from ``m``
+    and its gradient (``gradient`` None: the error alone, an empty Jacobian); 0 and a zero
+    row where ``m`` is 0 or ``1 / m^2`` is not a finite number."""
+    scale = 1.0 / (value * value) if value > 0.0 else np.inf
+    if gradient is None:
+        return np.array([1.0 / value if np.isfinite(scale) else 0.0]), np.zeros((1, 0))
+    if not np.isfinite(scale):
+        return np.array([0.0]), np.zeros((1, gradient.shape[0]))
+    return np.array([1.0 / value]), (-scale * gradient)[None, :]

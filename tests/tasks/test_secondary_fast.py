@@ -218,3 +218,51 @@ def test_a_damping_that_overflows_is_a_typed_error(solver_name, kind):
             continue
         assert np.isfinite(result.velocity).all()
         assert np.isfinite(result.damping).all() and np.isfinite(result.residuals).all()
+
+
+@pytest.mark.parametrize(
+    "robot, q0, rows", [("planar_2r", [0.3, 0.7], [0, 1]), ("panda", None, "position")]
+)
+def test_the_manipulability_task_raises_manipulability(robot, q0, rows):
+    """Pins h11's audit: the task lowered m (its error -m driven to 0: toward a
+    singularity). Its error is now 1 / m, so each unconstrained step raises m by about
+    gain * m, as documented, and a loop of steps ends at a larger m (planar 2R: the
+    elbow at 90 degrees, m = l1 l2 = 1)."""
+    from qpik.analysis import manipulability
+    from qpik.tasks import ManipulabilityTask
+
+    model = qpik.load_robot(robot)
+    configuration = qpik.Configuration(model, model.key_qpos[0] if q0 is None else q0)
+    task = ManipulabilityTask("ee", rows=rows)
+
+    def m(c):
+        return manipulability(c.frame_jacobian("ee", "site")[task._row_index])
+
+    assert task.compute_error(configuration)[0] == pytest.approx(1.0 / m(configuration))
+    start = m(configuration)
+    free = qpik.IKSolver(model, [[task]], max_joint_speed=None).step(configuration, 0.01)
+    after = qpik.Configuration(model, configuration.integrate(free.velocity, 0.01))
+    assert m(after) == pytest.approx(start * (1.0 + task.gain), rel=0.05)
+    # (near m's maximum no step meets the asked increase: the defaults' trust region and
+    # damping bound the steps there)
+    solver = qpik.IKSolver(model, [[task]])
+    for _ in range(200):
+        configuration.integrate_inplace(solver.step(configuration, 0.01).velocity, 0.01)
+    assert m(configuration) > 1.4 * start
+    if robot == "planar_2r":
+        assert m(configuration) == pytest.approx(1.0, abs=1e-3)
+
+
+def test_the_manipulability_task_is_idle_where_m_is_zero():
+    """At an exact singularity (the 2R arm stretched) and with more rows than dofs (m = 0 for
+    every q): error 0 and a zero row, never inf or NaN."""
+    from qpik.tasks import ManipulabilityTask
+
+    model = qpik.load_robot("planar_2r")
+    for q, rows in (([0.3, 0.0], [0, 1]), ([0.3, 0.7], "pose")):
+        configuration = qpik.Configuration(model, q)
+        task = ManipulabilityTask("ee", rows=rows)
+        assert task.compute_error(configuration).tolist() == [0.0]
+        assert np.all(task.compute_jacobian(configuration) == 0.0)
+        A, b, _ = task.compute_qp_residual(configuration)
+        assert np.all(A == 0.0) and np.all(b == 0.0)

@@ -161,3 +161,27 @@ def test_a_gain_assigned_to_a_qpik_task_is_checked(gain):
         for valid in (0.0, 0.5, 1, True, np.float32(0.25)):
             task.gain = valid
             assert task.gain is valid
+
+
+def test_frame_tasks_take_a_mink_configuration_and_raise_qpiks_errors():
+    """Pins h11's audit: PositionTask, OrientationTask and PoseTask read a mink.Configuration
+    as qpik's (was an AttributeError: no frame_pose, no frame_id), with the same error and
+    Jacobian; FrameTask before set_target raises qpik.TargetNotSet (was mink's, not a
+    QpikError)."""
+    import mink
+
+    from qpik.tasks import FrameTask, OrientationTask, PoseTask, PositionTask
+
+    model = qpik.load_robot("panda")
+    theirs = mink.Configuration(model, model.key_qpos[0])
+    ours = qpik.Configuration(model, model.key_qpos[0])
+    for task in (PositionTask("ee"), OrientationTask("ee"), PoseTask("ee")):
+        task.set_target_from_configuration(theirs)
+        np.testing.assert_array_equal(task.compute_error(theirs), task.compute_error(ours))
+        np.testing.assert_array_equal(task.compute_jacobian(theirs), task.compute_jacobian(ours))
+        with pytest.raises(qpik.InvalidInput, match="configuration"):
+            task.compute_error(model.key_qpos[0])
+    unset = FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    for method in (unset.compute_error, unset.compute_jacobian):
+        with pytest.raises(qpik.TargetNotSet):
+            method(ours)
