@@ -54,6 +54,7 @@ from .layout import (
     TOL,
     com_chains,
     guards_hold,
+    is_user_limit,
     plan_guards,
     write_com_row,
     write_frame_row,
@@ -147,8 +148,12 @@ class CompiledPlan:
         #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
         self._velocity_rows: list = []
         self._active_rows: list = []
-        #: general rows that qpik.diffik.recovery may relax where level 0 is infeasible
-        self._relaxable = any(relaxable(limit) for limit in self.general_limits)
+        #: where level 0 is infeasible, the QP path answers: it relaxes the general rows
+        #: that qpik.diffik.recovery may relax, and names a user limit's rows that leave no
+        #: displacement (its one-dof rows folded into the box: qpik.InfeasibleLimits)
+        self._relaxable = any(
+            relaxable(limit) or is_user_limit(limit) for limit in self.general_limits
+        )
         self._config_limits = [c[0] for c in self.config_limits]
         #: the frames and subtrees the plan resolved, checked each step (plan_guards)
         self._guards = plan_guards(self.frames, self.relatives, self.coms)

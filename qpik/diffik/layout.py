@@ -395,10 +395,33 @@ def limit_layout(model: mujoco.MjModel, limits: Sequence) -> LimitLayout | None:
                 general_limits.append(linear)
         elif isinstance(limit, GENERAL_LIMITS) and not getattr(limit, "recoverable", False):
             general_limits.append(limit)
+        elif is_user_limit(limit):
+            general_limits.append(limit)  # (its rows from its own method, each step)
         else:
             return None
     return LimitLayout(
         cfg_dof, cfg_qadr, cfg_data, config_limits, vel_dof, vel_limit, general_limits, vel_limits
+    )
+
+
+#: Limits whose rows the QP path reads as bounds of boxes (a subclass of one of them, too):
+#: not a user limit of general rows (:func:`is_user_limit`).
+_BOX_KINDS = (mink.ConfigurationLimit, mink.VelocityLimit, mink.FreeJointVelocityLimit)
+
+
+def is_user_limit(limit: object) -> bool:
+    """A limit of the user's own class (a ``mink.Limit`` subclass qpik does not know, or
+    any object with ``compute_qp_inequalities``) whose rows are hard general rows: not one
+    of mink's box limits or a subclass of one, not ``recoverable`` (rows that steer back
+    into a region, which the QP path computes) and not ``relaxable_rows``. The compiled step
+    takes its rows as it takes the collision rows (:meth:`LimitBoxes.general_rows`: its
+    ``compute_qp_inequalities`` each step, a row on one dof kept as a general row, an empty
+    row no displacement meets sending the step to the QP path, which names it)."""
+    return (
+        callable(getattr(limit, "compute_qp_inequalities", None))
+        and not isinstance(limit, _BOX_KINDS)
+        and not getattr(limit, "recoverable", False)
+        and not getattr(limit, "relaxable_rows", False)
     )
 
 

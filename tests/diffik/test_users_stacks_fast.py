@@ -100,3 +100,33 @@ def test_the_kinetic_energy_task_takes_the_cholesky_rows():
     ours = qpik.solve_ik(configuration, stack, 0.01, "daqp", limits=limits)
     theirs = mink.solve_ik(configuration, stack, 0.01, "daqp", limits=limits)
     np.testing.assert_allclose(ours, theirs, atol=1e-8)
+
+
+class ShoulderCap(mink.Limit):
+    """A limit of one's own (docs/guides/mink.md's): joint 2 at most 0.5 rad/s, and a
+    two-dof row."""
+
+    def compute_qp_inequalities(self, configuration, dt):
+        G = np.zeros((2, configuration.model.nv))
+        G[0, 1] = 1.0
+        G[1, 2:4] = [1.0, -1.0]
+        return mink.Constraint(G=G, h=np.array([0.5 * dt, 0.3 * dt]))
+
+
+def test_a_limit_of_ones_own_takes_the_compiled_step():
+    """Its rows are hard general rows of the compiled step (h10's audit: the QP path, 2.5x
+    mink's time): the same velocity as the QP path's to round-off, its rows met."""
+    model, configuration, tasks = _arm()
+    tasks[0].set_target(
+        tasks[0].transform_target_to_world @ mink.SE3.from_translation(np.array([0.2, 0.1, 0.1]))
+    )
+    limits = [mink.ConfigurationLimit(model), ShoulderCap()]
+    solver = qpik.IKSolver(model, [tasks], limits)
+    fast = solver.compiled_velocity(configuration, 0.01)
+    assert fast is not None
+    general = solver.qp_solution(configuration, 0.01)
+    np.testing.assert_allclose(fast[0], general.velocity, atol=1e-9)
+    assert fast[0][1] <= 0.5 + 1e-12 and fast[0][2] - fast[0][3] <= 0.3 + 1e-12
+    assert abs(fast[0][1] - 0.5) <= 1e-12 or abs(fast[0][2] - fast[0][3] - 0.3) <= 1e-12
+    step = solver.step(configuration, 0.01)
+    assert np.array_equal(step.velocity, fast[0]) and step.ok
