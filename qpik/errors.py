@@ -43,6 +43,7 @@ __all__ = [
     "NoSolutionFound",
     "ProblemFileError",
     "QpikError",
+    "RayConnectionError",
     "ReadOnlyAttribute",
     "RobotFileError",
     "SceneError",
@@ -74,6 +75,27 @@ class MissingExtra(QpikError, ImportError):
             f"{feature} needs the package {package!r}, of the qpik[{extra}] extra: from a qpik "
             f'checkout, pip install -e ".[{extra}]" (or pip install {package})'
         )
+
+
+class RayConnectionError(QpikError, ConnectionError):
+    """No Ray cluster could be joined at a Ray address (``address=`` of the batch entry
+    points, ``--ray`` of the command line). Fields: ``address``, ``reason`` (Ray's own
+    message, its first sentence) and ``forms`` (the addresses accepted, as the message
+    lists them)."""
+
+    def __init__(self, address: str | None, reason: str, forms: str = ""):
+        self.address = address
+        self.reason = reason
+        self.forms = forms
+        super().__init__(
+            f"no Ray cluster could be joined at address {address!r} ({reason}): start one "
+            "(ray start --head) or give the address of a running one"
+            + (f": {forms}" if forms else "")
+            + "; --ray ADDRESS on the command line, address= in Python"
+        )
+
+    def __reduce__(self):
+        return type(self), (self.address, self.reason, self.forms)
 
 
 class InvalidInput(QpikError, ValueError):

@@ -1,18 +1,17 @@
 """Batches on disk, behind ``qpik batch``: targets files in (:func:`load_targets`: ``.npz``
-or ``.csv``, positions [m] and optional quaternions ``w x y z``, world frame), results files
-out (:func:`solve_file`: ``.npz`` or Parquet), written chunk by chunk and resumed. The
-solving itself is :mod:`qpik.batch.pool`'s.
+or ``.csv``, positions [m] and optional quaternions ``w x y z``, world frame; read and
+checked in :mod:`qpik.batch.target_files`), results files out (:func:`solve_file`: ``.npz``
+or Parquet), written chunk by chunk and resumed. The solving itself is
+:mod:`qpik.batch.pool`'s.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
 import sys
 import time
-import warnings
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -22,13 +21,19 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import checks
-from ..errors import InvalidInput, MissingExtra, ProblemFileError
+from ..errors import InvalidInput, MissingExtra
 from ..igm.result import IKResult
 from ..igm.targets import FrameKey, RobotLike
 from ..model.frames import resolve_frame
 from ..options import SolveOptions
-from .chunks import Chunk
 from .pool import Batch, BatchKeywords, iter_prepared, progress_bar
+from .ray import ray_init
+from .target_files import (
+    TargetArrays,
+    check_target_arrays,
+    load_targets,
+    rotations_from_quaternions,
+)
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
@@ -37,6 +42,7 @@ __all__ = [
     "RESULT_FIELDS",
     "BatchRun",
     "TargetArrays",
+    "check_out_not_targets",
     "load_targets",
     "rotations_from_quaternions",
     "solve_file",
@@ -53,231 +59,6 @@ RESULT_FIELDS: dict[str, npt.DTypeLike] = {
     "restarts_used": np.int64,
     "time": float,
 }
-
-
-@dataclass(frozen=True)
-class TargetArrays:
-    """Targets of one frame, as arrays: positions ``(N, 3)`` [m] and optionally rotation
-    matrices ``(N, 3, 3)``, both in the world frame."""
-
-    positions: np.ndarray
-    rotations: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return len(self.positions)
-
-    def chunk(self, frame: FrameKey, start: int, stop: int) -> Chunk:
-        """Targets ``start:stop`` as ``{frame: target}`` mappings."""
-        if self.rotations is None:
-            targets = [{frame: p} for p in self.positions[start:stop]]
-        else:
-            targets = [
-                {frame: (p, r)}
-                for p, r in zip(self.positions[start:stop], self.rotations[start:stop])
-            ]
-        return Chunk(start, targets)
-
-    def fingerprint(self) -> str:
-        """A hash of the targets (resuming checks that they did not change)."""
-
-        digest = hashlib.sha256(np.ascontiguousarray(self.positions, dtype=float).tobytes())
-        if self.rotations is not None:
-            digest.update(np.ascontiguousarray(self.rotations, dtype=float).tobytes())
-        return digest.hexdigest()[:16]
-
-
-def rotations_from_quaternions(quaternions: np.ndarray, source: str = "quaternions") -> np.ndarray:
-    """Rotation matrices ``(N, 3, 3)`` from unit quaternions ``(N, 4)`` in MuJoCo's
-    order ``w x y z``. A quaternion whose norm is not 1 within 1e-3 raises (it is most
-    likely in another order or not a rotation); within that, it is normalised."""
-    from scipy.spatial.transform import Rotation
-
-    quaternions = np.asarray(quaternions, dtype=float)
-    if quaternions.ndim != 2 or quaternions.shape[1] != 4:
-        raise InvalidInput(f"{source}: expected shape (N, 4) (w x y z), got {quaternions.shape}")
-    norms = np.linalg.norm(quaternions, axis=1)
-    bad = np.flatnonzero(~np.isfinite(norms) | (np.abs(norms - 1.0) > 1e-3))
-    if bad.size:
-        raise InvalidInput(
-            f"{source}[{bad[0]}] = {quaternions[bad[0]]} is not a unit quaternion (w x y z); "
-            f"{bad.size} row(s) are not"
-        )
-    return Rotation.from_quat(quaternions / norms[:, None], scalar_first=True).as_matrix()
-
-
-def load_targets(path: str | os.PathLike) -> TargetArrays:
-    """Read a targets file: an ``.npz`` with ``positions`` ``(N, 3)`` [m] and optionally
-    ``quaternions`` ``(N, 4)`` (``w x y z``), or a ``.csv`` with columns ``x, y, z`` and
-    optionally ``qw, qx, qy, qz`` (a header line naming them, or 3 or 7 unnamed columns).
-    World frame. Malformed files raise :class:`qpik.ProblemFileError` naming the field."""
-
-    path = checks.check_path("targets", path)
-    if not os.path.isfile(path):
-        raise ProblemFileError(path, "TARGETS", "no such file")
-    if path.lower().endswith(".csv"):
-        positions, quaternions = _read_csv(path)
-    else:
-        positions, quaternions = _read_npz(path)
-    if positions.ndim != 2 or positions.shape[1] != 3:
-        raise ProblemFileError(path, "positions", f"shape (N, 3) [m], got {positions.shape}")
-    bad = np.flatnonzero(~np.isfinite(positions).all(axis=1))
-    if bad.size:
-        raise ProblemFileError(path, "positions", f"finite values; row {bad[0]} is not")
-    rotations = None
-    if quaternions is not None:
-        if quaternions.shape != (len(positions), 4):
-            raise ProblemFileError(
-                path,
-                "quaternions",
-                f"shape ({len(positions)}, 4) (w x y z), got {quaternions.shape}",
-            )
-        try:
-            rotations = rotations_from_quaternions(quaternions)
-        except InvalidInput as exc:
-            raise ProblemFileError(path, "quaternions", str(exc)) from None
-    return TargetArrays(positions, rotations)
-
-
-def _read_npz(path: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of an npz targets file."""
-    try:
-        with open(path, "rb") as stream:  # closed whatever np.load raises
-            return _npz_targets(path, np.load(stream, allow_pickle=False))
-    except ProblemFileError:
-        raise
-    except Exception as exc:  # not a zip, pickled objects, ...
-        raise ProblemFileError(path, "TARGETS", f"an .npz or .csv file ({exc})") from None
-
-
-def _npz_targets(path: str, loaded: Any) -> tuple[np.ndarray, np.ndarray | None]:
-    """Positions and quaternions of what ``np.load`` read from an npz targets file."""
-    if not isinstance(loaded, np.lib.npyio.NpzFile):
-        raise ProblemFileError(
-            path, "TARGETS", "an .npz archive with a positions array, not a bare .npy array"
-        )
-    with loaded as data:
-        if "positions" not in data:
-            raise ProblemFileError(
-                path, "positions", f"an (N, 3) array [m]; the file has {sorted(data)}"
-            )
-        positions = _real_array(path, "positions", data["positions"])
-        quaternions = None
-        if "quaternions" in data:
-            quaternions = _real_array(path, "quaternions", data["quaternions"])
-    return positions, quaternions
-
-
-def _real_array(path: str, field: str, array: np.ndarray) -> np.ndarray:
-    """``array``, an entry of a targets file, as floats: real numbers only (a complex,
-    string or boolean array raises :class:`qpik.ProblemFileError`, naming the field;
-    casting would drop imaginary parts or read text silently)."""
-    if array.dtype.kind not in "iuf":
-        raise ProblemFileError(path, field, f"an array of real numbers, got dtype {array.dtype}")
-    return np.asarray(array, dtype=float)
-
-
-def _read_csv(path: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """Positions ``(N, 3)`` and quaternions ``(N, 4)`` or ``None`` of a CSV targets file."""
-    lines = _csv_lines(path)
-    if not lines:
-        raise ProblemFileError(path, "CSV", "a header x,y,z[,qw,qx,qy,qz] or rows of numbers")
-    first_number, first = lines[0]
-    try:
-        [float(cell) for cell in first.split(",")]
-        header = False
-    except ValueError:
-        header = True
-    rows = lines[1:] if header else lines
-    if not rows:
-        raise ProblemFileError(
-            path, "CSV", f"at least one row of targets after the header (line {first_number})"
-        )
-    width = len(rows[0][1].split(","))
-    columns = [c.strip().lower() for c in first.split(",")] if header else []
-    if header and len(columns) != width:
-        raise ProblemFileError(
-            path,
-            f"CSV line {rows[0][0]}",
-            f"{len(columns)} values, one per column of the header (line {first_number}: "
-            f"{first.strip()!r}), got {width}",
-        )
-    for number, line in rows:
-        cells = line.split(",")
-        if len(cells) != width:
-            raise ProblemFileError(
-                path,
-                f"CSV line {number}",
-                f"{width} values as on line {rows[0][0]}, got {len(cells)}: {line.strip()!r}",
-            )
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            # (the rows as read above, comments and blank lines out: the file read once)
-            table = np.loadtxt([line for _, line in rows], delimiter=",", ndmin=2)
-    except ValueError as exc:
-        raise _bad_cell(path, rows) or ProblemFileError(
-            path, "CSV", f"numbers separated by commas ({exc})"
-        ) from None
-    if table.shape != (len(rows), width):  # loadtxt read the lines otherwise
-        raise ProblemFileError(path, "CSV", f"{len(rows)} rows of {width} numbers")
-    if header:
-        return _named_columns(path, table, columns)
-    if table.shape[1] not in (3, 7):
-        raise ProblemFileError(
-            path, "CSV", f"3 (x y z) or 7 (x y z qw qx qy qz) columns, got {table.shape[1]}"
-        )
-    return table[:, :3], (table[:, 3:] if table.shape[1] == 7 else None)
-
-
-def _bad_cell(path: str, rows: list[tuple[int, str]]) -> ProblemFileError | None:
-    """The error naming the first cell of ``rows`` that is not a number (``None`` if all
-    are numbers)."""
-    for number, line in rows:
-        for column, cell in enumerate(line.split(","), start=1):
-            try:
-                float(cell)
-            except ValueError:
-                return ProblemFileError(
-                    path, f"CSV line {number}", f"a number in column {column}, got {cell.strip()!r}"
-                )
-    return None
-
-
-def _csv_lines(path: str) -> list[tuple[int, str]]:
-    """The lines of a CSV file that hold something, as ``(line number, text)`` (1-based;
-    blank lines and ``#`` comments left out, as :func:`numpy.loadtxt` does); a file that
-    is not UTF-8 text raises :class:`qpik.ProblemFileError` naming the line."""
-    with open(path, "rb") as stream:
-        raw = stream.read()
-    text = checks.utf8_text(raw, path, "CSV", "UTF-8 text")
-    if "\0" in text:
-        nul_line = text[: text.index("\0")].count("\n") + 1
-        raise ProblemFileError(path, "CSV", f"text without NUL bytes; line {nul_line} has one")
-    kept = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        content = line.split("#", 1)[0]
-        if content.strip():
-            kept.append((number, content))
-    return kept
-
-
-def _named_columns(
-    path: str, table: np.ndarray, columns: list[str]
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """The columns ``x, y, z`` and, when all are present, ``qw, qx, qy, qz``."""
-    repeated = sorted({c for c in columns if columns.count(c) > 1})
-    if repeated:
-        raise ProblemFileError(path, "CSV header", f"each column named once; {repeated} repeat")
-    missing = [c for c in ("x", "y", "z") if c not in columns]
-    if missing:
-        raise ProblemFileError(path, "CSV header", f"columns x, y, z; missing {missing}")
-    positions = table[:, [columns.index(c) for c in ("x", "y", "z")]]
-    quaternion_columns = ("qw", "qx", "qy", "qz")
-    present = [c in columns for c in quaternion_columns]
-    if any(present) and not all(present):
-        raise ProblemFileError(path, "CSV header", "all of qw, qx, qy, qz or none")
-    quaternions = table[:, [columns.index(c) for c in quaternion_columns]] if all(present) else None
-    return positions, quaternions
 
 
 @dataclass
@@ -381,7 +162,9 @@ def solve_file(
 ) -> BatchRun:
     """Solve a targets file (see :func:`load_targets`) for ``frame`` and write the results
     to ``out`` (``.npz``, or ``.parquet`` with pyarrow: ``pip install -e '.[cluster]'``)
-    chunk by chunk; a rerun with the same ``out`` resumes.
+    chunk by chunk; a rerun with the same ``out`` resumes. ``targets`` may also be a
+    :class:`TargetArrays`, checked as a file is (:func:`check_target_arrays`), before any
+    solve; ``out`` may not be the targets file (``InvalidInput``, whatever ``overwrite``).
 
     Each finished chunk is saved at once, atomically, in the folder ``out + ".chunks"``;
     ``out`` itself is rewritten every few seconds and at the end, with every row: ``q``
@@ -403,7 +186,11 @@ def solve_file(
         max_chunks = checks.check_integer("max_chunks", max_chunks, 0, sys.maxsize)
     checks.check_bool("overwrite", overwrite)
     out = _check_out(out)
-    arrays = targets if isinstance(targets, TargetArrays) else load_targets(targets)
+    if isinstance(targets, TargetArrays):
+        arrays = check_target_arrays(targets)
+    else:
+        check_out_not_targets(out, targets)
+        arrays = load_targets(targets)
     unused = ("pool_threshold", "histories")
     batch = Batch.prepare(robot, options, keywords, unused, chunk_size=128)
     chunk_size = batch.run.chunk_size or 128
@@ -425,13 +212,15 @@ def solve_file(
     todo = [s for s in range(0, n, chunk_size) if s not in results.done]
     if max_chunks is not None:
         todo = todo[:max_chunks]
+    if len(todo) <= 1:
+        batch = batch.with_workers(1)
+    if todo and batch.run.backend == "ray":  # a cluster that does not answer: no folder left
+        ray_init(batch.run.address, batch.workers)
     results.begin(todo)
     solved = targets_solved = 0
     bar = progress_bar(n, batch.run.progress, initial=int(results.table["done"].sum()))
     try:
         chunks = (arrays.chunk(frame, s, min(s + chunk_size, n)) for s in todo)
-        if len(todo) <= 1:
-            batch = batch.with_workers(1)
         for start, chunk in iter_prepared(batch, chunks):
             results.add(start, chunk)
             solved += 1
@@ -451,6 +240,24 @@ def _check_out(out: str | os.PathLike) -> str:
     if out.endswith(".parquet"):
         _pyarrow()  # before solving, naming the extra
     return out
+
+
+def check_out_not_targets(out: str, targets: Any, name: str = "out") -> None:
+    """:class:`qpik.InvalidInput` naming ``name`` when ``out`` is the targets file itself
+    (the same path, a link to it or a hard link: a results file over it, or
+    ``overwrite``, would destroy the targets)."""
+    if not isinstance(targets, (str, os.PathLike)) or not isinstance(os.fspath(targets), str):
+        return  # load_targets names a targets argument of another type
+    path = os.fspath(targets)
+    same = os.path.realpath(out) == os.path.realpath(path)
+    if not same and os.path.exists(out) and os.path.exists(path):
+        same = os.path.samefile(out, path)  # a hard link
+    if same:
+        flag = "--overwrite" if name.startswith("--") else "overwrite=True"
+        raise InvalidInput(
+            f"{name} {out!r} is the targets file {path!r}: the results would replace the "
+            f"targets (refused even with {flag}); write them to another file"
+        )
 
 
 def _described(options: SolveOptions | str | None, solve_options: Mapping[str, Any]) -> dict:

@@ -58,7 +58,7 @@ from ..igm.targets import FrameKey, RobotLike, TargetLike
 from ..model.configuration import resolve_robot
 from ..options import SolveOptions, resolve
 from .chunks import Chunk, check_targets, pack_chunk, stack_targets, unpack_results
-from .ray import iter_ray, ray_init
+from .ray import check_address, iter_ray, ray_init
 from .worker import (
     ChunkSolver,
     WorkerError,
@@ -220,18 +220,26 @@ def check_run(run: BatchOptions) -> BatchOptions:
         raise InvalidArgumentType(
             "address", "a Ray address (a str) or None", type(run.address).__name__
         )
+    if run.backend == "ray":
+        check_address(run.address)  # before anything starts: a malformed address, a missing extra
     return dataclasses.replace(
         run, progress=progress, histories=histories, pool_threshold=float(threshold)
     )
 
 
-def check_chunk_size(chunk_size: int | None, optional: bool = False) -> None:
-    """:class:`qpik.InvalidInput` unless ``chunk_size`` is an int >= 1 (or ``None`` when
+def check_chunk_size(chunk_size: int | None, optional: bool = False) -> int | None:
+    """``chunk_size`` as an int (a numpy integer too, as for ``workers``);
+    :class:`qpik.InvalidInput` unless it is an integer >= 1, not a bool (or ``None`` when
     ``optional``)."""
     if chunk_size is None and optional:
-        return
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+        return None
+    if (
+        isinstance(chunk_size, (bool, np.bool_))
+        or not isinstance(chunk_size, (int, np.integer))
+        or chunk_size < 1
+    ):
         raise InvalidInput(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    return int(chunk_size)
 
 
 def prepare_robot(robot: RobotLike) -> tuple[Any, mujoco.MjModel, np.ndarray | None]:
@@ -298,7 +306,7 @@ class Batch:
         run = check_run(BatchOptions(**{**defaults, **own}))
         entropy = check_seed(run.seed)
         workers = check_workers(run.workers, run.backend)
-        check_chunk_size(run.chunk_size, optional=True)
+        run = dataclasses.replace(run, chunk_size=check_chunk_size(run.chunk_size, True))
         spec, model, q0 = prepare_robot(robot)
         call = solve_call(options, given)
         setup = WorkerSetup(spec, entropy, call, run.histories, q0)

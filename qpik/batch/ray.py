@@ -6,15 +6,55 @@ need qpik (and the robot files given by path) installed on every node.
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Iterable, Iterator
 from typing import Any
 
-from ..errors import MissingExtra
+from ..errors import InvalidInput, MissingExtra, RayConnectionError
 from ..igm.result import IKResult
 from .chunks import Chunk, Failure
 from .worker import WORKER, ChunkSolver, WorkerSetup, raise_failures
 
-__all__ = ["iter_ray", "ray_init"]
+__all__ = ["RayConnectionError", "check_address", "iter_ray", "ray_init"]
+
+#: What an address may be, as the errors say it.
+_ADDRESS_FORMS = (
+    "'auto' (the Ray cluster running on this machine), 'ray://HOST:PORT' (a Ray Client "
+    "server, port 10001 by default), 'HOST:PORT' (a cluster's head, from one of its nodes) "
+    "or 'local' (start Ray here)"
+)
+
+
+def check_address(address: str | None) -> None:
+    """Check a Ray address before anything runs: ``None``, ``"auto"``, ``"local"``,
+    ``"ray://HOST:PORT"`` or ``"HOST:PORT"`` (port 1 to 65535), else
+    :class:`qpik.InvalidInput`; a ``ray://`` address without Ray Client's dependencies
+    (``pip install "ray[client]"``) raises :class:`qpik.MissingExtra`."""
+    if address is None or address in ("auto", "local"):
+        return
+    client = address.startswith("ray://")
+    host, colon, port = address.removeprefix("ray://").rpartition(":")
+    valid = (
+        bool(colon and host.strip("[]"))
+        and not any(c.isspace() or c == "/" for c in host)
+        and port.isdigit()
+        and 0 < int(port) < 65536
+    )
+    if not valid:
+        raise InvalidInput(f"Ray address {address!r} is not one of: {_ADDRESS_FORMS}")
+    if client and not _has_ray_client():
+        error = MissingExtra(f"the Ray Client address {address!r}", "cluster", "ray[client]")
+        error.msg = (  # what str() shows of an ImportError
+            f"the Ray Client address {address!r} needs Ray's client dependencies (grpcio), "
+            'which the cluster extra does not install: pip install "ray[client]"'
+        )
+        error.args = (error.msg,)
+        raise error
+
+
+def _has_ray_client() -> bool:
+    """Whether Ray Client's dependencies are installed (Ray checks for ``grpc``)."""
+    return importlib.util.find_spec("grpc") is not None
 
 
 def _ray() -> Any:
@@ -27,9 +67,10 @@ def _ray() -> Any:
 
 def ray_init(address: str | None = None, workers: int | None = None) -> Any:
     """Connect to Ray: the running session if there is one, else ``address`` (``"auto"``,
-    ``"ray://host:10001"``, ...), else a local Ray with ``workers`` CPUs. Returns the
-    ``ray`` module. A local Ray started here stays up for later batches (``ray.shutdown()``
-    stops it)."""
+    ``"ray://host:10001"``, ...: :func:`check_address`), else a local Ray with ``workers``
+    CPUs. Returns the ``ray`` module. A local Ray started here stays up for later batches
+    (``ray.shutdown()`` stops it). No cluster at ``address``: :class:`RayConnectionError`."""
+    check_address(address)
     ray = _ray()
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
@@ -37,8 +78,19 @@ def ray_init(address: str | None = None, workers: int | None = None) -> Any:
             kwargs["num_cpus"] = workers
         else:
             kwargs["address"] = address
-        ray.init(**kwargs)
+        try:
+            ray.init(**kwargs)
+        except (ConnectionError, TimeoutError) as exc:  # Ray's own advice names its CLI
+            raise RayConnectionError(address, _first_sentence(exc), _ADDRESS_FORMS) from exc
+        except ValueError as exc:  # an address that Ray reads otherwise than check_address
+            raise InvalidInput(f"Ray address {address!r}: {_first_sentence(exc)}") from exc
     return ray
+
+
+def _first_sentence(exc: BaseException) -> str:
+    """The first sentence of an error's message (Ray's next ones advise its own flags)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text.split(". ", 1)[0].rstrip(".")
 
 
 def iter_ray(

@@ -27,7 +27,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import textwrap
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -53,6 +55,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "ReachabilityMap",
+    "map_path",
     "plot_reachability",
     "reach_bound",
     "reachability",
@@ -240,7 +243,9 @@ class ReachabilityMap:
         region: the box asked for, ``(2, 3)`` [m].
         frame: the frame; robot: what the robot was given as (name or path).
         base, reach: the :func:`reach_bound` sphere (centre [m], radius [m]).
-        seed: the batch seed; elapsed: wall time [s]; solve_options: the IK options.
+        seed: the batch seed; elapsed: wall time [s]; solve_options: the IK options
+            given: the solve keywords, and ``options`` (a preset's name or a
+            :class:`qpik.SolveOptions`) when given.
         engines: the IK solves per engine (``{"compiled": 480}``: :attr:`qpik.IKResult.engine`).
         collision_pairs: the geom pairs (names) that the solves' collision limits checked:
             a pose reached only in collision (a pair closer than ``d_min -
@@ -298,26 +303,43 @@ class ReachabilityMap:
             f"{self.solves} IK solves in {self.elapsed:.1f} s\n{_collision_text(self)}"
         )
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Save as ``.npz`` (arrays, plus a JSON ``meta`` entry for the rest)."""
+    def save(self, path: str | os.PathLike) -> str:
+        """Save as ``.npz`` (arrays, plus a JSON ``meta`` entry for the rest) at
+        :func:`map_path` of ``path``: ``.npz`` is appended to a path without it, as
+        :func:`numpy.savez` does (``save("m")`` writes ``m.npz``, which ``load("m")``
+        reads). Returns the path written."""
+        path = map_path(path)
         meta: dict[str, Any] = {name: getattr(self, name) for name in _MAP_META}
         meta["shape"] = list(self.shape)
         meta["solve_options"] = {k: repr(v) for k, v in self.solve_options.items()}
         arrays = {name: getattr(self, name) for name in MAP_ARRAYS}
         np.savez(path, **arrays, meta=np.array(json.dumps(meta)))
+        return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> ReachabilityMap:
-        """Read a map written by :meth:`save`. The file is checked: a missing or unreadable
-        file, a file that is not such a map, a field missing or of the wrong type, shape
-        or range (``fraction`` in [0, 1] and equal to ``reached``'s mean, finite
-        ``centers`` ``(V, 3)`` on the grid of ``shape`` and ``resolution``, ...) raise
-        :class:`qpik.ProblemFileError` naming the file and the field."""
-        return cls(**read_map_file(checks.check_path("path", path)))
+        """Read a map written by :meth:`save`: the file ``path``, or where there is none,
+        ``path + ".npz"`` (what ``save(path)`` wrote, :func:`map_path`). The file is
+        checked: a missing or unreadable file, a file that is not such a map, a field
+        missing or of the wrong type, shape or range (``fraction`` in [0, 1] and equal to
+        ``reached``'s mean, finite ``centers`` ``(V, 3)`` on the grid of ``shape`` and
+        ``resolution``, ...) raise :class:`qpik.ProblemFileError` naming the file and the
+        field."""
+        path = checks.check_path("path", path)
+        if not os.path.exists(path) and os.path.exists(map_path(path)):
+            path = map_path(path)
+        return cls(**read_map_file(path))
 
     def plot(self, path: str | os.PathLike | None = None, slices: int = 4) -> Figure:
         """See :func:`plot_reachability`."""
         return plot_reachability(self, path, slices=slices)
+
+
+def map_path(path: str | os.PathLike) -> str:
+    """The file :meth:`ReachabilityMap.save` writes for ``path``: ``path`` when it ends
+    in ``.npz``, else ``path + ".npz"`` (:func:`numpy.savez`'s rule)."""
+    path = checks.check_path("path", path)
+    return path if path.endswith(".npz") else path + ".npz"
 
 
 def _collision_text(rmap: ReachabilityMap) -> str:
@@ -435,12 +457,24 @@ def reachability(
         seed=batch.setup.entropy,
         elapsed=time.perf_counter() - start_time,
         engines=engines,
-        solve_options=dict(batch.keywords),
+        solve_options=_recorded_options(options, batch.keywords),
         collision_pairs=checked_pairs(collisions),
         collision_distance=min(
             (float(c.minimum_distance_from_collisions) for c in collisions), default=None
         ),
     )
+
+
+def _recorded_options(
+    options: SolveOptions | str | None, keywords: Mapping[str, Any]
+) -> dict[str, Any]:
+    """The solve options a map records: the keywords given and, when given, ``options``
+    (a preset's name, or the :class:`qpik.SolveOptions`: its ``repr`` names every
+    field)."""
+    recorded = dict(keywords)
+    if options is not None:
+        recorded["options"] = options
+    return recorded
 
 
 def _check_slices(slices: Any) -> int:
@@ -550,12 +584,18 @@ def plot_reachability(
         f"({int(shown.sum())}/{int(cut.sum())})",
         fontsize="small",
     )
-    fig.suptitle(
+    title = (
         f"reachability of {rmap.frame!r} on {rmap.robot}: {_orientation_text(rmap)}, "
-        f"{rmap.resolution:g} m voxels (+: reach-bound centre)",
-        fontsize="medium",
+        f"{rmap.resolution:g} m voxels (+: reach-bound centre)"
     )
-    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.12, top=0.86, wspace=0.35)
+    # Wrapped to the figure's width (about 11 characters an inch at this size): a narrow
+    # figure (few slices) would clip one long line at both edges.
+    lines = textwrap.wrap(title, width=int(figsize[0] * 11))
+    fig.suptitle("\n".join(lines), fontsize="medium")
+    top = 0.86 - 0.05 * (len(lines) - 1)
+    # Margins of the labels outside the panels (the first one's y label, the 3D z label).
+    left, right = max(0.07, 0.85 / figsize[0]), 1.0 - 0.6 / figsize[0]
+    fig.subplots_adjust(left=left, right=right, bottom=0.12, top=top, wspace=0.35)
     if path is not None:
         fig.savefig(path, dpi=dpi)
     return fig

@@ -175,6 +175,25 @@ def write_json(path: str, text: str, option: str = "--json") -> None:
             ) from exc
 
 
+def check_writable(option: str, path: str) -> None:
+    """:class:`qpik.InvalidInput` naming ``option`` when the file ``path`` cannot be
+    written: a folder, in a folder that does not exist or that this user may not write
+    in, or an existing file it may not write. Checked before a long computation (its
+    result would be lost)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        problem = "is a folder, not a file"
+    elif not os.path.isdir(folder):
+        problem = f"its folder {folder!r} does not exist"
+    elif not os.access(folder, os.W_OK | os.X_OK):
+        problem = f"its folder {folder!r} is not writable"
+    elif os.path.exists(path) and not os.access(path, os.W_OK):
+        problem = "the file exists and is not writable"
+    else:
+        return
+    raise InvalidInput(f"{option} {path!r}: cannot write there: {problem}")
+
+
 @contextlib.contextmanager
 def c_warnings_as_lines(command: str) -> Iterator[None]:
     """What C code (MuJoCo's compiler: ``WARNING: <mimic> on joint ... ignored``) writes

@@ -6,7 +6,7 @@ import argparse
 import signal
 import sys
 
-from ..batch.files import BatchRun, solve_file
+from ..batch.files import BatchRun, check_out_not_targets, solve_file
 from ._common import add_solve_arguments, non_negative_int, solve_options_from_args
 
 
@@ -51,8 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--ray",
         metavar="ADDRESS",
-        help="run on Ray: 'auto' (the running cluster), 'ray://HOST:PORT', or 'local' to "
-        "start one here (needs the cluster extra: pip install -e '.[cluster]')",
+        help="run on Ray: 'auto' (the cluster running here), 'ray://HOST:PORT' (Ray Client: "
+        "pip install 'ray[client]'), 'HOST:PORT' (from a cluster's node), or 'local' to start "
+        "one here (needs the cluster extra: pip install -e '.[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="batch seed (0)")
     add_solve_arguments(parser, "target")
@@ -72,6 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     options = solve_options_from_args(args)
+    check_out_not_targets(args.out, args.targets, "--out")
     previous = _terminate_like_interrupt()
     try:
         run_ = solve_file(

@@ -8,7 +8,13 @@ import sys
 from ..model.configuration import FrameType
 from ..model.robots import tool_frame
 from ..problem import load_problem
-from ._common import JSON_HELP, c_warnings_as_lines, report_stream, write_json
+from ._common import (
+    JSON_HELP,
+    c_warnings_as_lines,
+    check_writable,
+    report_stream,
+    write_json,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,8 +47,10 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         from ..plots import check_figure_path
 
-        # fail before solving: the extra named if matplotlib is missing, or the extension
+        # fail before solving: the extra named if matplotlib is missing, the extension, a
+        # program the format needs, a folder that cannot be written
         check_figure_path("--plot", args.plot)
+        check_writable("--plot", args.plot)
     result = problem.solve()
     with report_stream(args.json):
         _report(args, problem, result)

@@ -7,10 +7,16 @@ import math
 
 import numpy as np
 
-from ..batch.reachability_map import reachability
+from ..batch.reachability_map import map_path, reachability
+from ..errors import InvalidInput
 from ..limits import ConfigurationLimit, model_collision_limit
 from ..model.configuration import resolve_robot
-from ._common import add_solve_arguments, c_warnings_as_lines, solve_options_from_args
+from ._common import (
+    add_solve_arguments,
+    c_warnings_as_lines,
+    check_writable,
+    solve_options_from_args,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,13 +52,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="K",
         help="orientations per voxel, spread over SO(3) (16); 0: positions only",
     )
-    parser.add_argument("--out", required=True, metavar="MAP.npz", help="where to save the map")
+    parser.add_argument(
+        "--out",
+        required=True,
+        metavar="MAP.npz",
+        help="where to save the map (.npz appended when missing, as numpy does)",
+    )
     parser.add_argument("--plot", metavar="MAP.png", help="save a figure (needs matplotlib)")
     parser.add_argument("--workers", type=int, metavar="N", help="processes (every core)")
     parser.add_argument(
         "--ray",
         metavar="ADDRESS",
-        help="run on Ray: 'auto', 'ray://HOST:PORT' or 'local' (the cluster extra: "
+        help="run on Ray: 'auto', 'ray://HOST:PORT' (Ray Client: pip install "
+        "'ray[client]'), 'HOST:PORT' or 'local', as qpik batch --ray (the cluster extra: "
         "pip install -e '.[cluster]')",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the IK restarts (0)")
@@ -67,12 +79,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--min-distance",
         type=non_negative_distance,
-        default=0.005,
         metavar="M",
-        help="with --collision: the distance [m] every pair keeps, >= 0 (0.005)",
+        help=f"with --collision (an error without it): the distance [m] every pair keeps, "
+        f">= 0 ({DEFAULT_MIN_DISTANCE:g})",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
+
+
+#: ``--min-distance``'s default [m].
+DEFAULT_MIN_DISTANCE = 0.005
 
 
 def non_negative_distance(text: str) -> float:
@@ -88,21 +104,32 @@ def non_negative_distance(text: str) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    # Fail before solving: the map's file (saved as numpy does: .npz appended), the figure's
+    # (the extra named if matplotlib is missing, the extension, a program it needs), each
+    # folder writable; an option that would be ignored.
+    out = map_path(args.out)
+    check_writable("--out", out)
     if args.plot is not None:
         from ..plots import check_figure_path
 
-        # fail before solving: the extra named if matplotlib is missing, or the extension
         check_figure_path("--plot", args.plot)
+        check_writable("--plot", args.plot)
+    if args.min_distance is not None and args.collision is None:
+        raise InvalidInput(
+            "--min-distance is the distance the collision pairs keep: it needs --collision "
+            "(scene, self or all)"
+        )
     options = solve_options_from_args(args)
     if args.collision is not None:
         with c_warnings_as_lines("reachmap"):
             model, _q0 = resolve_robot(args.robot)
+        distance = DEFAULT_MIN_DISTANCE if args.min_distance is None else args.min_distance
         collision = model_collision_limit(
             model,
             scene=args.collision in ("scene", "all"),
             self_collision=args.collision in ("self", "all"),
-            minimum_distance_from_collisions=args.min_distance,
-            collision_detection_distance=args.min_distance + 0.05,
+            minimum_distance_from_collisions=distance,
+            collision_detection_distance=distance + 0.05,
         )
         options["limits"] = [ConfigurationLimit(model), collision]
     rmap = reachability(
@@ -118,10 +145,10 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         **options,
     )
-    rmap.save(args.out)
+    written = rmap.save(out)
     if args.plot is not None:
         rmap.plot(args.plot)
     if not args.quiet:
         print(rmap.summary())
-        print(f"saved {args.out}" + (f" and {args.plot}" if args.plot else ""))
+        print(f"saved {written}" + (f" and {args.plot}" if args.plot else ""))
     return 0

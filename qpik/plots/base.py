@@ -38,7 +38,8 @@ def require_matplotlib() -> ModuleType:
 
 def check_figure_path(name: str, value) -> str:
     """``value`` as the path of a figure file (``str`` or ``os.PathLike``) whose extension
-    matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...); else :class:`InvalidInput` (a
+    matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...) with what this machine has
+    (:func:`missing_tool`: ``.pgf`` needs a TeX program); else :class:`InvalidInput` (a
     path of another type: :class:`InvalidArgumentType`) naming ``name``. Needs matplotlib
     (:class:`qpik.errors.MissingExtra` without it): check before a long computation."""
     path = checks.check_path(name, value)
@@ -52,7 +53,54 @@ def check_figure_path(name: str, value) -> str:
             f"{name} {path!r}: a figure file ending in one of "
             f"{', '.join('.' + f for f in formats)} (its extension names the format)"
         )
+    missing = missing_tool(suffix)
+    if missing is not None:
+        raise InvalidInput(
+            f"{name} {path!r}: the .{suffix} format needs {missing}; install it or choose "
+            ".png, .pdf or .svg"
+        )
     return path
+
+
+#: The formats matplotlib writes through Agg and Pillow (which may lack a codec).
+_PILLOW_FEATURES = {"jpg": "jpg", "jpeg": "jpg", "webp": "webp", "avif": "avif"}
+_RASTER = ("png", "jpg", "jpeg", "tif", "tiff", "gif", "webp", "avif", "raw", "rgba")
+
+
+def missing_tool(suffix: str) -> str | None:
+    """What a figure format needs that this machine lacks, said in words (``None`` when
+    nothing is missing): a program that matplotlib runs (``.pgf``: the TeX of
+    ``rcParams['pgf.texsystem']``; ``rcParams['text.usetex']``: latex, and dvipng or
+    dvips and Ghostscript; ``rcParams['ps.usedistiller']``: Ghostscript or xpdf's
+    pdftops), or Pillow's codec (``.jpg``, ``.webp``, ``.avif``). Checked before a long
+    computation, as the figure's file name is, so that it does not fail once drawn."""
+    import shutil
+
+    rc = require_matplotlib().rcParams
+    programs: list[tuple[str, str]] = []  # (program, why)
+    if suffix == "pgf":
+        programs.append((rc["pgf.texsystem"], "rcParams['pgf.texsystem']"))
+    if rc["text.usetex"]:
+        programs.append(("latex", "rcParams['text.usetex']"))
+        if suffix in _RASTER:
+            programs.append(("dvipng", "rcParams['text.usetex']"))
+        elif suffix in ("ps", "eps"):
+            programs += [("dvips", "rcParams['text.usetex']"), ("gs", "rcParams['text.usetex']")]
+    distiller = rc["ps.usedistiller"] if suffix in ("ps", "eps") else None
+    if distiller in ("ghostscript", "xpdf"):
+        programs.append(("gs", "rcParams['ps.usedistiller']"))
+        if distiller == "xpdf":
+            programs.append(("pdftops", "rcParams['ps.usedistiller']"))
+    for program, why in programs:
+        if shutil.which(program) is None:
+            return f"the program {program!r} ({why}), not found on PATH"
+    feature = _PILLOW_FEATURES.get(suffix)
+    if feature is not None:
+        from PIL import features
+
+        if not features.check(feature):
+            return f"Pillow built with {feature} support (matplotlib writes .{suffix} by Pillow)"
+    return None
 
 
 def pyplot() -> ModuleType:
@@ -197,13 +245,32 @@ def legend_below(ax: Axes, ncol: int = 2) -> None:
     )
 
 
+def lone_points(values: np.ndarray) -> dict:
+    """The keywords of ``ax.plot`` that mark with a dot each point of a curve ``values``
+    (``(k,)``, or ``(k, d)``: a point per row) that no line reaches: finite, its
+    neighbours not (a path of one configuration, a value between blanks). A line alone
+    would draw nothing there; ``{}`` when every point is on a line."""
+    finite = np.isfinite(np.asarray(values, dtype=float))
+    if finite.ndim > 1:
+        finite = finite.all(axis=tuple(range(1, finite.ndim)))
+    before = np.concatenate(([False], finite[:-1]))
+    after = np.concatenate((finite[1:], [False]))
+    lone = np.flatnonzero(finite & ~before & ~after)
+    if lone.size == 0:
+        return {}
+    return {"marker": "o", "markevery": lone.tolist(), "ms": 4}
+
+
 def goal_starts(ax: Axes, x: np.ndarray, goal_index: np.ndarray | None) -> None:
     """Dotted vertical lines where a new goal (waypoint) begins, named at the top; and
-    whole-number ticks when ``x`` counts iterations."""
+    whole-number ticks when ``x`` counts iterations (a path of one point: the x axis
+    from one before it to one after)."""
     if np.issubdtype(np.asarray(x).dtype, np.integer):
         from matplotlib.ticker import MaxNLocator
 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        if len(x) and np.min(x) == np.max(x):
+            ax.set_xlim(float(x[0]) - 1.0, float(x[0]) + 1.0)
     if goal_index is None:
         return
     transform = ax.get_xaxis_transform()  # x in data, y in axes fraction

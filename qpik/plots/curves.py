@@ -31,6 +31,7 @@ from .base import (
     check_path,
     goal_starts,
     legend_below,
+    lone_points,
     palette,
 )
 
@@ -55,13 +56,15 @@ def plot_error_curves(
         xs = np.arange(len(curve.values)) if x is None else x
         color = colors[groups.index(curve.group or curve.label) % len(colors)]
         unit = f" [{curve.unit or '-'}]"
+        values = np.maximum(curve.values, FLOOR)
         ax.semilogy(
             xs,
-            np.maximum(curve.values, FLOOR),
+            values,
             STYLE[curve.unit],
             color=color,
             lw=1.3,
             label=curve.label + unit,
+            **lone_points(values),
         )
     units = {curve.unit for curve in curves}
     for unit, value in (tolerances or {}).items():
@@ -169,12 +172,16 @@ def plot_level_errors(
             "k:",
             lw=1.5,
             label="goal position error [m]",
+            **lone_points(goal_error),
         )
     levels = max((len(row) for row in history), default=0)
     for level in range(levels):
         values = np.array([row[level] if level < len(row) else np.nan for row in history])
         ax.semilogy(
-            np.arange(1, len(values) + 1), np.maximum(values, FLOOR), label=f"level {level}"
+            np.arange(1, len(values) + 1),
+            np.maximum(values, FLOOR),
+            label=f"level {level}",
+            **lone_points(values),
         )
     ax.set_xlabel(xlabel)
     goal_starts(ax, np.arange(1, len(history) + 1), None)

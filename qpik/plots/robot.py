@@ -27,6 +27,7 @@ from .base import (
     check_targets,
     check_task_targets,
     legend_below,
+    lone_points,
 )
 
 #: Markers of the levels' own targets (task_targets), in turn.
@@ -185,7 +186,9 @@ def plot_robot(
         segments = robot_segments(model, configuration, frames)
         last = rank == len(picks) - 1
         label: str | None
-        if rank == 0:
+        if len(picks) == 1:  # a path of one configuration: the start is the answer
+            color, width, label = (0.05, 0.2, 0.6, 1.0), 2.4, "start = final"
+        elif rank == 0:
             color, width, label = (0.55, 0.55, 0.55, 0.9), 1.8, "start"
         elif last:
             color, width, label = (0.05, 0.2, 0.6, 1.0), 2.4, "final"
@@ -195,7 +198,8 @@ def plot_robot(
         ax3d.add_collection3d(lines)
         points.append(segments.reshape(-1, 3))
     for k, trace in enumerate(frame_trace(configuration, path, frames)):
-        ax3d.plot(*trace.T, color="tab:orange", lw=1, label="frame path" if k == 0 else None)
+        label = "frame path" if k == 0 else None
+        ax3d.plot(*trace.T, color="tab:orange", lw=1, label=label, **lone_points(trace))
         points.append(trace)
     for k, target in enumerate(target_points):
         ax3d.plot(
@@ -283,15 +287,19 @@ def plot_planar_arm(
     configuration.frame_id(frame, frame_type)  # an unknown frame: UnknownFrame, before drawing
     ax = axes(ax)
     (tip,) = frame_trace(configuration, path, [(frame, frame_type)])
-    ax.plot(tip[:, 0], tip[:, 1], color="tab:orange", lw=1, label="tip path")
+    ax.plot(tip[:, 0], tip[:, 1], color="tab:orange", lw=1, label="tip path", **lone_points(tip))
     picks = pick_indices(len(path), intermediate)
     for rank, index in enumerate(picks):
         configuration.update(path[index])
         joints = [np.zeros(3)] + [configuration.data.xpos[b].copy() for b in range(1, model.nbody)]
         joints.append(configuration.frame_pose(frame, frame_type)[0])
         points = np.array(joints)
-        shade = min(1.0, 0.25 + 0.75 * rank / max(len(picks) - 1, 1))
-        label = "start" if index == 0 else ("final" if index == len(path) - 1 else None)
+        label: str | None
+        if len(picks) == 1:  # a path of one configuration: the start is the answer
+            shade, label = 1.0, "start = final"
+        else:
+            shade = min(1.0, 0.25 + 0.75 * rank / (len(picks) - 1))
+            label = "start" if index == 0 else ("final" if index == len(path) - 1 else None)
         ax.plot(
             points[:, 0], points[:, 1], "-o", color=(0.1, 0.3, 0.7, shade), lw=3, ms=4, label=label
         )

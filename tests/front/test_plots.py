@@ -214,3 +214,67 @@ def test_a_figure_path_of_no_figure_format_is_refused(planar, tmp_path):
     with pytest.raises(qpik.errors.InvalidArgumentType, match="path"):
         plots.plot_result(planar, 3)
     assert plots.check_figure_path("path", tmp_path / "a.PDF").endswith("a.PDF")
+
+
+UNREACHABLE = """
+robot = "planar_2r"
+q0 = [0.3, 0.3]
+[[levels]]
+[[levels.tasks]]
+type = "position"
+frame = "ee"
+[target]
+position = [3.0, 0.0, 0.0]
+"""
+
+
+def test_a_path_of_one_configuration_is_drawn_with_markers(tmp_path):
+    """An unreachable target is refused at the start: a path of one configuration, whose
+    error panels showed nothing (a line of one point is invisible) and whose arm was
+    labelled "start" in the light shade."""
+    path = tmp_path / "unreachable.toml"
+    path.write_text(UNREACHABLE)
+    result = qpik.load_problem(path).solve()
+    assert len(result.path) == 1 and not result.converged
+    fig = plots.plot_result(result, tmp_path / "unreachable.png")
+    for ax in fig.axes[:2]:  # the task and frame error panels
+        curves = [line for line in ax.get_lines() if len(line.get_xdata()) == 1]
+        assert curves, ax.get_title()
+        for line in curves:
+            assert line.get_marker() not in ("None", None, "") and line.get_markevery() == [0]
+        assert ax.get_xlim() == (-1.0, 1.0)  # whole-number ticks around the one iterate
+    arm = next(ax for ax in fig.axes if "top view" in ax.get_title())
+    labels = [line.get_label() for line in arm.get_lines()]
+    assert "start = final" in labels
+    tip = next(line for line in arm.get_lines() if line.get_label() == "tip path")
+    assert tip.get_markevery() == [0]
+    # a curve whose points all lie on lines has no markers, as before
+    assert plots.base.lone_points(np.array([1.0, 2.0, np.nan, 3.0, 4.0])) == {}
+    assert plots.base.lone_points(np.array([1.0, np.nan, 3.0, np.nan]))["markevery"] == [0, 2]
+
+
+@pytest.mark.parametrize("slices", [0, 1, 4])
+def test_a_map_figure_keeps_its_title_and_labels_inside(tmp_path, slices):
+    """``slices=0`` made a 5-inch figure whose one-line title was clipped at both edges."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    rmap = qpik.reachability(
+        "ur5e",
+        "ee",
+        region=[[-0.5, -0.5, 0.0], [0.5, 0.5, 0.6]],
+        resolution=0.25,
+        orientations=0,
+        workers=1,
+        progress=False,
+    )
+    fig = rmap.plot(tmp_path / "map.png", slices=slices)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    inside = fig.bbox
+    title = next(text for text in fig.texts if text.get_text().startswith("reachability"))
+    texts = [title] + [ax.yaxis.label for ax in fig.axes[:1]]
+    for text in texts:
+        box = text.get_window_extent(renderer)
+        assert box.x0 >= inside.x0 and box.x1 <= inside.x1, text.get_text()
+        assert box.y1 <= inside.y1, text.get_text()
