@@ -232,18 +232,28 @@ def _limit_value(limit: Any) -> tuple | None:
     ``[mink.ConfigurationLimit(model)]`` at each call): its class and the arrays and
     numbers its rows are computed from; None for any other limit (found by identity only)."""
     kind = type(limit)
-    if kind is mink.ConfigurationLimit:
-        balls = getattr(limit, "_ball_max_angle", None)
-        return (
-            kind, id(limit.model), float(limit.gain), limit.lower.tobytes(),
-            limit.upper.tobytes(), limit.indices.tobytes(),
-            None if balls is None else np.asarray(balls).tobytes(),
-        )  # fmt: skip
-    if kind is mink.VelocityLimit:
-        return (
-            kind, limit.indices.tobytes(), limit.limit.tobytes(), limit.projection_matrix.shape
-        )  # fmt: skip
-    return None
+    arrays = _LIMIT_VALUES.get(kind)
+    if arrays is None:
+        return None
+    try:  # (an attribute edited into what no solver takes: found by identity, then named)
+        values = [getattr(limit, name) for name in arrays]
+        if not all(type(v) is np.ndarray for v in values):
+            return None
+        gain = getattr(limit, "gain", None)
+        if gain is not None and type(gain) is not float:
+            return None
+        return (kind, id(getattr(limit, "model", None)), gain, *(
+            (v.dtype.str, v.shape, v.tobytes()) for v in values
+        ))  # fmt: skip
+    except AttributeError:
+        return None
+
+
+#: The arrays a limit's rows are computed from, per class of :func:`_limit_value`.
+_LIMIT_VALUES: dict[type, tuple[str, ...]] = {
+    mink.ConfigurationLimit: ("lower", "upper", "indices", "_ball_max_angle"),
+    mink.VelocityLimit: ("indices", "limit", "projection_matrix"),
+}
 
 
 def _value_key(key: tuple, limits: Any) -> tuple | None:
