@@ -633,7 +633,23 @@ def _inequalities_of(
                 f"{limit_name(limit)}: rows G of shape {G.shape} and h of shape {h.shape}; "
                 f"G must be (p, {nv}) and h (p,)"
             )
+        if G.size:
+            largest = np.abs(G).max(axis=1)
+            negligible = (largest <= NEGLIGIBLE_ROW) & (largest > 0.0)
+            if negligible.any():  # (a new array: the limit's own stays as it gave it)
+                G = G.copy()
+                G[negligible] = 0.0
+                rows = (G, h, rows[2], None)  # (the fewest nonzero entries: counted again)
     return rows
+
+
+#: A limit's row whose every entry is at most this in size carries no direction (a
+#: collision pair whose geoms touch: the normal between two coincident points is round-off,
+#: 1e-18, and the row "do not come closer" then pointed anywhere, made the step fail or
+#: stopped a dof): it is a zero row, met where ``h >= 0`` and left out, and where
+#: ``h < 0`` a row no displacement meets (the step then reports or relaxes it). Rows are in
+#: the limit's units per unit of ``dq`` (m or rad): 1e-12 is far below any real row.
+NEGLIGIBLE_ROW = 1e-12
 
 
 def _check_limit(limit, model: mujoco.MjModel) -> None:

@@ -428,14 +428,22 @@ class IKSolver:
                 )  # fmt: skip
             if result is not None:
                 return result
+        return self._general_step(configuration, dt, start)
+
+    def _general_step(self, configuration: Configuration, dt: float, start: float) -> StepResult:
+        """:meth:`step` where its lane and plan do not answer: the corrected step, a forced
+        backend's compiled step, or the QP path (a mink configuration read in place through
+        qpik's view, as qpik's tasks read it)."""
         checks.check_instance(
             "configuration", configuration, mink.Configuration, "a qpik.Configuration"
         )
+        if not isinstance(configuration, Configuration):
+            configuration = Configuration.sharing(configuration)
         solution = None
         passes = self._passes
         if passes:  # the corrected step: the QP path's (see _corrected)
             solution = self._corrected(configuration, dt, passes)
-        elif core.solver != "auto" and self._compiled_step_applies(configuration, dt):
+        elif self._core.solver != "auto" and self._compiled_step_applies(configuration, dt):
             solution = self._compiled_step(configuration, dt)
             if solution is not None and self._recoverable(solution):
                 solution = None  # the QP path relaxes the general rows (qpik.diffik.recovery)

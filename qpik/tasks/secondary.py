@@ -143,12 +143,14 @@ class ManipulabilityTask(mink.Task, CheckedTask):
     Error ``e = 1 / m(q)`` (the inverse manipulability: it falls as ``m`` rises, toward 0),
     Jacobian its gradient ``de/dq = -(dm/dq) / m^2`` (1, nv); ``J dq = -gain * e`` asks each
     step for ``dm/dq dq = gain * m``: an increase of ``gain * m`` along the gradient of
-    ``m``. Where ``m`` is 0 (an exact singularity of the rows, or more rows than dofs, where
-    ``m`` is 0 for every ``q``) or so small that ``1 / m^2`` overflows, no step raises it to
-    first order: ``e = 0`` and a zero row (the task is idle there); near a maximum of ``m``
-    (its gradient vanishing) no step meets the increase asked, and the level's damping law
-    and the step's trust region (:attr:`qpik.StepOptions.max_joint_speed`) bound the steps
-    there (with neither, they grow as ``m / |dm/dq|``). ``rows`` selects the
+    ``m``. Where ``m`` is 0 (more rows than dofs, where ``m`` is 0 for every ``q``; an
+    exact singularity; a smallest singular value at most :data:`RANK_FLOOR` = 1e-9 of the
+    largest, where ``m`` is round-off and ``1 / m`` noise) or ``1 / m^2`` overflows, no
+    step raises it to first order: ``e = 0`` and a zero row (the task is idle there). Near
+    a maximum of ``m`` (its gradient vanishing) no step meets the increase asked, and the
+    level's damping law and the step's trust region
+    (:attr:`qpik.StepOptions.max_joint_speed`) bound the steps there (with neither, they
+    grow as ``m / |dm/dq|``). ``rows`` selects the
     rows of the frame's world-aligned Jacobian ``[v; omega]``: ``"pose"`` (6),
     ``"position"`` (3), ``"orientation"`` (3) or a sequence of row names / indices (see
     :mod:`qpik.analysis`); anything else raises :class:`qpik.InvalidInput` here, at
@@ -199,31 +201,47 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         self._row_index = list(row_indices(value))  # raises for an unknown choice
         self._rows = value
 
+    def _value(self, configuration: Configuration) -> float:
+        """``m(q)``, or 0 where the rows are of deficient rank to round-off (more rows than
+        dofs, or a singular value at most :data:`RANK_FLOOR` of the largest: ``m`` is then
+        round-off, and ``1 / m`` would be noise of any size)."""
+        rows = configuration.frame_jacobian(self.frame_name, self.frame_type)[self._row_index]
+        if rows.shape[0] > rows.shape[1]:
+            return 0.0  # (m is 0 for every q: more rows than dofs)
+        value, _, singular, _ = manipulability_svd(rows)
+        if not (singular.size and singular.min() > RANK_FLOOR * singular.max()):
+            return 0.0
+        return value
+
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``1 / m(q)`` (1,), 0 where ``m`` is 0 (see the class)."""
-        jacobian = configuration.frame_jacobian(self.frame_name, self.frame_type)
-        rows = jacobian[self._row_index]
-        if rows.shape[0] > rows.shape[1]:
-            return np.array([0.0])  # (m is 0 for every q: more rows than dofs)
-        # (its rows' value: the same bits as compute_qp_residual's)
-        return _inverse(manipulability_svd(rows)[0], None)[0]
+        return _inverse(self._value(configuration), None)[0]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``-(dm/dq) / m^2`` (1, nv), zero where ``m`` is 0 (see the class)."""
-        value, gradient = manipulability_terms(
-            configuration, self.frame_name, self.frame_type.value, rows=self.rows
-        )
-        return _inverse(value, gradient)[1]
+        return self._terms(configuration)[1]
 
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        """mink's weighted residual of the error and Jacobian from one frame Jacobian
-        (:func:`qpik.model.gradients.manipulability_terms`)."""
+        """mink's weighted residual of the error and Jacobian (the value and gradient of
+        :func:`qpik.model.gradients.manipulability_terms`)."""
+        return self._weighted_residual(*self._terms(configuration))
+
+    def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """``(e, de/dq)``: from :func:`qpik.model.gradients.manipulability_terms` where
+        :meth:`_value` is not 0 (the same ``m``: one value of the same rows)."""
+        if self._value(configuration) == 0.0:
+            return _inverse(0.0, np.zeros(configuration.model.nv))
         value, gradient = manipulability_terms(
             configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
-        return self._weighted_residual(*_inverse(value, gradient))
+        return _inverse(value, gradient)
+
+
+#: :class:`ManipulabilityTask` is idle where its rows' smallest singular value is at most
+#: this much of the largest (their rank deficient to round-off).
+RANK_FLOOR = 1e-9
 
 
 def _inverse(value: float, gradient: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:

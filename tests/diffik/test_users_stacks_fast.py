@@ -130,3 +130,24 @@ def test_a_limit_of_ones_own_takes_the_compiled_step():
     assert abs(fast[0][1] - 0.5) <= 1e-12 or abs(fast[0][2] - fast[0][3] - 0.3) <= 1e-12
     step = solver.step(configuration, 0.01)
     assert np.array_equal(step.velocity, fast[0]) and step.ok
+
+
+class _OwnConfigurationLimit(mink.ConfigurationLimit):
+    """A subclass of mink's box limit: its steps take the QP path."""
+
+
+def test_the_qp_path_reads_a_mink_configuration_as_qpiks_tasks_do():
+    """Pins h12's audit: on the QP path (here a subclass of mink's ConfigurationLimit; in the
+    audit, support rows to relax), qpik's own tasks were handed the mink.Configuration and
+    raised AttributeError ('lower') or InvalidArgumentType; the same step as a
+    qpik.Configuration's."""
+    from qpik.tasks import JointLimitDistanceTask, ManipulabilityTask
+
+    model = qpik.load_robot("panda")
+    q = model.key_qpos[0]
+    for task in (JointLimitDistanceTask(cost=0.1), ManipulabilityTask("ee", "site", cost=0.1)):
+        solver = qpik.IKSolver(model, [[task]], [_OwnConfigurationLimit(model)])
+        assert solver.compiled_velocity(qpik.Configuration(model, q), 0.01) is None
+        ours = solver.step(qpik.Configuration(model, q), 0.01)
+        theirs = solver.step(mink.Configuration(model, q), 0.01)
+        assert np.array_equal(ours.velocity, theirs.velocity) and theirs.ok

@@ -232,3 +232,43 @@ def test_a_distance_or_relaxation_that_is_not_finite_is_refused(name, value):
     scene = add_obstacle(model, "sphere", 0.05, [0.5, 0.0, 0.5], name="ball")
     with pytest.raises(qpik.LimitDefinitionError, match=f"{name} must be finite|{name}"):
         CollisionAvoidanceLimit(scene, [(ARM, ["ball"])], **{name: value})
+
+
+def test_a_pair_whose_geoms_touch_gives_no_direction_and_blocks_nothing():
+    """Pins h12's audit: at the Panda's home, link5 and link7 touch; their row's normal is
+    round-off (|G| ~ 5e-18, h = 0), and the step failed (numerical_failure, NoSolutionFound
+    from solve_ik) where dq = 0 meets every limit and mink steps. Such a row is a zero row
+    (boxes.NEGLIGIBLE_ROW): met, left out; the step is the one without the pair."""
+    import mink
+
+    from qpik.diffik.boxes import NEGLIGIBLE_ROW
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    task = mink.FrameTask("link7", "body", position_cost=1.0, orientation_cost=1.0)
+    task.set_target(
+        configuration.get_transform_frame_to_world("link7", "body")
+        @ mink.SE3.from_translation(np.array([0.02, -0.03, 0.01]))
+    )
+    names = [model.joint(i).name for i in range(5)]
+    velocity = mink.VelocityLimit(model, dict(zip(names, [0.4, 0.5, 1.1, 0.9, 0.2])))
+    touching = mink.CollisionAvoidanceLimit(
+        model, [(["link5"], ["link7"])], minimum_distance_from_collisions=0.005,
+        collision_detection_distance=0.01,
+    )  # fmt: skip
+    row = touching.compute_qp_inequalities(configuration, 0.001)
+    assert 0.0 < np.abs(row.G).max() <= NEGLIGIBLE_ROW and row.h.tolist() == [0.0]
+    for limits in ([velocity, touching], [velocity]):
+        solver = qpik.IKSolver(model, [[task]], limits)
+        step = solver.step(configuration, 0.001)
+        assert step.ok, step.status
+    with_pair = qpik.solve_ik(configuration, [task], 0.001, "daqp", limits=[velocity, touching])
+    without = qpik.solve_ik(configuration, [task], 0.001, "daqp", limits=[velocity])
+    np.testing.assert_allclose(with_pair, without, atol=1e-9)
+    ours = qpik.solve_ik(
+        configuration, [task], 0.001, "daqp", damping=1e-6, limits=[velocity, touching]
+    )
+    theirs = mink.solve_ik(
+        configuration, [task], 0.001, "daqp", damping=1e-6, limits=[velocity, touching]
+    )
+    np.testing.assert_allclose(ours, theirs, atol=1e-8)

@@ -254,14 +254,20 @@ def test_the_manipulability_task_raises_manipulability(robot, q0, rows):
 
 
 def test_the_manipulability_task_is_idle_where_m_is_zero():
-    """At an exact singularity (the 2R arm stretched) and with more rows than dofs (m = 0 for
-    every q): error 0 and a zero row, never inf or NaN."""
+    """At an exact singularity (the 2R arm stretched), with more rows than dofs (m = 0 for
+    every q) and with rows of rank deficient to round-off (6 pose rows of a link 3 joints
+    move: m is round-off, 1 / m was noise of 1e16 and its row 1e32, h12's audit): error 0
+    and a zero row, never inf or NaN."""
     from qpik.tasks import ManipulabilityTask
 
     model = qpik.load_robot("planar_2r")
-    for q, rows in (([0.3, 0.0], [0, 1]), ([0.3, 0.7], "pose")):
-        configuration = qpik.Configuration(model, q)
-        task = ManipulabilityTask("ee", rows=rows)
+    panda = qpik.load_robot("panda")
+    link3 = qpik.Configuration(panda, panda.key_qpos[0])  # (3 joints move link3's 6 rows)
+    cases = [(model, [0.3, 0.0], [0, 1], "ee"), (model, [0.3, 0.7], "pose", "ee")]
+    for robot, q, rows, frame in [*cases, (panda, link3.q, "pose", "link3")]:
+        configuration = qpik.Configuration(robot, q)
+        kind = "body" if frame == "link3" else "site"
+        task = ManipulabilityTask(frame, kind, rows=rows)
         assert task.compute_error(configuration).tolist() == [0.0]
         assert np.all(task.compute_jacobian(configuration) == 0.0)
         A, b, _ = task.compute_qp_residual(configuration)
