@@ -81,30 +81,32 @@ def unit_quaternions(
     (:func:`quaternion_joints`) readable as a rotation: ``q`` itself (not copied) when
     MuJoCo normalises each one right, else a copy with those it would not (a norm that
     underflows or overflows, ``[1e200, 1e200, 0, 0]``) normalised, scaled by their largest
-    entry first. ``values``: ``q.tolist()`` when the caller has it. Raises
-    :class:`InvalidConfiguration` naming ``where`` and the joint for a zero quaternion (no
-    rotation at all: MuJoCo would read it as the identity)."""
+    entry first, and a zero quaternion the identity ``(1, 0, 0, 0)``, as MuJoCo reads it
+    (``mju_normalize4``) and mink's configurations take it: ``np.zeros(model.nq)`` is a
+    configuration with every floating base and ball joint at the identity, in mink's own
+    tests too. ``values``: ``q.tolist()`` when the caller has it. (``where`` names ``q``
+    in the messages of the callers' other checks.)"""
     if values is None:
         values = q.tolist()
     low, high = _QUAT_SQUARED_NORMS
     out = q
-    for adr, joint in quaternions:
+    for adr, _joint in quaternions:
         w, x, y, z = values[adr : adr + 4]
         if low < w * w + x * x + y * y + z * z < high:  # (no ** : 1e200 ** 2 raises)
             continue
         quat = q[adr : adr + 4]
         scale = float(np.max(np.abs(quat)))
-        if scale == 0.0:
-            raise InvalidConfiguration(
-                f"{where}[{adr}:{adr + 4}], the quaternion (w, x, y, z) of joint {joint!r}, "
-                "is zero: it is no rotation (a nonzero quaternion is normalised)",
-                index=adr,
-            )
         if out is q:
             out = q.copy()
+        if scale == 0.0:
+            out[adr : adr + 4] = _IDENTITY_QUATERNION
+            continue
         unit = quat / scale
         out[adr : adr + 4] = unit / np.linalg.norm(unit)
     return out
+
+
+_IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)
 
 
 def joint_names(model: mujoco.MjModel) -> list[str]:
@@ -318,7 +320,7 @@ class Configuration(mink.Configuration):
                     values = None
             if checked is None:
                 checked = self._validated(q)
-            if kept[5]:  # free and ball joints: a zero quaternion raises, tiny/huge ones scaled
+            if kept[5]:  # free and ball joints: a zero quaternion is the identity, tiny/huge scaled
                 checked = unit_quaternions(checked, kept[5], "configuration q", values)
             kept[2][:] = checked
         mujoco.mj_kinematics(model, data)

@@ -218,13 +218,15 @@ def test_a_model_edited_into_nan_geometry_raises_naming_the_field(field, row, va
 
 
 def test_a_start_quaternion_is_checked_and_normalised():
-    """Pins repro_04 through qpik.solve: a q0 whose free-joint quaternion is zero raises
-    InvalidConfiguration naming q0 and the joint; [1e200, 1e200, 0, 0] solves as [1, 1, 0, 0]."""
+    """Pins repro_04 through qpik.solve: a q0 whose free-joint quaternion is zero starts at
+    the identity, as MuJoCo and mink read it (the same answer as [1, 0, 0, 0]);
+    [1e200, 1e200, 0, 0] solves as [1, 1, 0, 0]."""
     model = qpik.load_robot("panda", floating_base=True)
     arm = [0, 0, 0, -1, 0, 1, 0]
     target = {"ee": [0.4, 0.2, 0.5]}
-    with pytest.raises(qpik.InvalidConfiguration, match=r"q0\[3:7\].*'root_joint'"):
-        qpik.solve(model, target, q0=np.r_[0, 0, 0, 0, 0, 0, 0, arm], seed=0)
+    zero = qpik.solve(model, target, q0=np.r_[0, 0, 0, 0, 0, 0, 0, arm], seed=0)
+    identity = qpik.solve(model, target, q0=np.r_[0, 0, 0, 1, 0, 0, 0, arm], seed=0)
+    np.testing.assert_array_equal(zero.q, identity.q)
     unit = qpik.solve(model, target, q0=np.r_[0, 0, 0, 0.5**0.5, 0.5**0.5, 0, 0, arm], seed=0)
     huge = qpik.solve(model, target, q0=np.r_[0, 0, 0, 1e200, 1e200, 0, 0, arm], seed=0)
     assert huge.converged == unit.converged
