@@ -127,9 +127,9 @@ class PreparedRobot:
 
     def checked_start(self, q: np.ndarray) -> np.ndarray:
         """The start ``q0`` (float64, ``(nq,)``) of a model with ball or free joints checked:
-        :class:`qpik.InvalidConfiguration` naming ``q0`` for an entry that is not finite or
-        a zero quaternion; ``q`` itself, or a copy with a quaternion MuJoCo would not
-        normalise right (``[1e200, 1e200, 0, 0]``) normalised
+        :class:`qpik.InvalidConfiguration` naming ``q0`` for an entry that is not finite;
+        ``q`` itself, or a copy with a quaternion MuJoCo would not normalise right
+        (``[1e200, 1e200, 0, 0]``) normalised and a zero one the identity
         (:func:`qpik.model.configuration.unit_quaternions`)."""
         if not np.isfinite(q).all():
             i = int(np.flatnonzero(~np.isfinite(q))[0])

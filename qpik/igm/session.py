@@ -678,16 +678,15 @@ def solve(
     (:class:`qpik.InvalidOption` for an option, an unknown keyword included).
 
     Cost of a one-shot call: given an ``MjModel`` (or a :class:`qpik.Configuration`), the
-    robot's preparation (joint limits, mid-range start, the target frame's kinematic
-    chain and reach bound) is kept per model in one cache, :data:`qpik.igm.prepared.PREPARED`
-    (:class:`qpik.igm.prepared.PreparedRobots`), so a call costs what a held
-    :class:`IKSession`'s ``solve`` does. The cache holds the model weakly (an entry goes
-    with its model), checks at each call that the model's arrays it was prepared from
-    (:data:`qpik.igm.prepared.FINGERPRINT_FIELDS`) are unchanged (a model edited in place
-    is prepared anew), and gives bitwise the answers of a fresh :class:`IKSession`;
+    robot's preparation (joint limits, mid-range start, the frame's chain, reach bound) is
+    kept per model in one cache, :data:`qpik.igm.prepared.PREPARED`, so a call on the
+    compiled engine costs what a held :class:`IKSession`'s ``solve`` does (the "qp"
+    engine's solver, and a configuration's moved mocap bodies, are made anew at each call).
+    The cache holds the model weakly, checks at each call that the arrays it was prepared
+    from (:data:`qpik.igm.prepared.FINGERPRINT_FIELDS`) are unchanged (a model edited in
+    place is prepared anew), and gives bitwise a fresh :class:`IKSession`'s answers;
     :func:`qpik.clear_caches` empties it. A robot given by name or path is loaded and
-    prepared at each call: to solve many targets on one robot, load it once (or hold an
-    :class:`IKSession`).
+    prepared at each call: to solve many targets on one robot, hold an :class:`IKSession`.
     """
     if isinstance(robot, mujoco.MjModel):
         session = IKSession._from_prepared(robot, None, PREPARED.get(robot))

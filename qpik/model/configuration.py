@@ -289,9 +289,10 @@ class Configuration(mink.Configuration):
         return q
 
     def update(self, q: npt.ArrayLike | None = None) -> None:
-        """Set ``q`` (validated: length ``nq``, finite, the quaternions of free and ball
-        joints nonzero; one whose norm MuJoCo's normalisation would underflow or overflow is
-        stored normalised) and run forward kinematics (what
+        """Set ``q`` (validated: length ``nq``, finite; a quaternion of a free or ball joint
+        whose norm MuJoCo's normalisation would underflow or overflow is stored normalised,
+        a zero one as the identity ``(1, 0, 0, 0)``, as MuJoCo reads it) and run forward
+        kinematics (what
         :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
         model with equalities, ``mj_makeConstraint``)."""
         model, data = self.model, self.data

@@ -585,6 +585,8 @@ def test_osqp_settings_outside_what_osqp_takes_are_refused_when_set(options, nam
             [qpik.tasks.PostureTask(qpik.load_robot("planar_2r"), 1.0)],
             options=qpik.StepOptions(solver="osqp", backend_options=options),
         )
+    with pytest.raises(qpik.InvalidInput, match=name):  # (full IK, either engine)
+        qpik.solve("planar_2r", {"ee": [1.0, 1.0, 0.0]}, solver="osqp", backend_options=options)
     HierarchySolver("osqp", backend_options={"eps_abs": 1e-6, "polishing": 1, "rho": 0.5})
     # OSQP's earlier names, which it (and mink's callers) still use
     solver = HierarchySolver("osqp", backend_options={"polish": True, "warm_start": False})
