@@ -151,3 +151,35 @@ def test_the_qp_path_reads_a_mink_configuration_as_qpiks_tasks_do():
         ours = solver.step(qpik.Configuration(model, q), 0.01)
         theirs = solver.step(mink.Configuration(model, q), 0.01)
         assert np.array_equal(ours.velocity, theirs.velocity) and theirs.ok
+
+
+class _FarRow(mink.Limit):
+    """dq_0 <= 1 rad: out of reach of the trust region's box (|dq_0| <= pi dt)."""
+
+    def compute_qp_inequalities(self, configuration, dt):
+        G = np.zeros((1, configuration.model.nv))
+        G[0, 0] = 1.0
+        return mink.Constraint(G=G, h=np.array([1.0]))
+
+
+def test_a_row_out_of_reach_leaves_the_answer_bitwise_on_a_model_with_couplings():
+    """Pins h13's audit: docs/concepts/levels.md says a general row no displacement in the
+    box brings to its bound leaves the answer bitwise the one without it; on erd:panda (its
+    finger mimic: a coupling level, solved by couple.hpp's exact fast path) the row sent the
+    step to the general path, 1e-9 rad/s off."""
+    from conftest import load_or_skip
+
+    model = load_or_skip("erd:panda")
+    q = model.qpos0.copy()
+    q[:7] = [0.3, -0.4, 0.2, -2.0, 0.1, 1.6, 0.5]
+    configuration = qpik.Configuration(model, q)
+    task = mink.FrameTask("panda_link7", "body", position_cost=1.0, orientation_cost=1.0)
+    task.set_target(
+        mink.SE3.from_translation(np.array([0.05, -0.1, 0.08]))
+        @ configuration.get_transform_frame_to_world("panda_link7", "body")
+    )
+    limits = [mink.ConfigurationLimit(model)]
+    without = qpik.IKSolver(model, [[task]], limits).step(configuration, 0.01)
+    with_row = qpik.IKSolver(model, [[task]], [*limits, _FarRow()]).step(configuration, 0.01)
+    assert np.array_equal(without.velocity, with_row.velocity)
+    assert with_row.status == without.status and with_row.ok

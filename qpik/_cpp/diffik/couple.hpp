@@ -187,8 +187,13 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
                         CoupleScratch& s, core::CascadeResult& out, bool defer = false,
                         double lower_trust = 0.0) {
     using namespace couple_detail;
-    const i64 n = A.cols, L = starts.size() - 1, M = A.rows;
-    if (G.rows != 0 || L < 2 || n < 2) return false;
+    const i64 n = A.cols, L = starts.size() - 1, M = A.rows, p = G.rows;
+    // General rows out of reach of the box never bind: solve_cascade_into leaves them out
+    // (its answer bitwise the one without them), and so does this path (their active entries
+    // 0); a row in reach: the general path.
+    if (p != 0 && core::rows_in_reach(G, h, lb, ub, ws.g_kept) != 0) return false;
+    if (L < 2 || n < 2) return false;
+    const i64 cols = n + p;  // (the active sets' row length, as the general path's)
     const i64 m0 = starts[1];
     if (m0 == 0 || !find_pairs(A, w, m0, lb, ub, s)) return false;
     // sigma: the rows of diag(1/w) A_0 are orthogonal (disjoint dofs): their norms are its
@@ -407,7 +412,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
     out.certificate[1] = cert.stationarity;
     out.certificate[2] = cert.dual;
     out.certificate[3] = cert.complementarity;
-    fill_as(out.active, static_cast<size_t>(L * n), i8{0});
+    fill_as(out.active, static_cast<size_t>(L * cols), i8{0});
     for (size_t q = 0; q < rows.size(); ++q)
         if (u[q] > 0.0) out.active[static_cast<size_t>(rows[q])] = static_cast<i8>(sides[q]);
     for (i64 k = 1; k < L; ++k) {
@@ -427,7 +432,7 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
                 at = v > 0 ? p.lo_dof : p.hi_dof;
                 side = v > 0 ? p.lo_side : p.hi_side;
             }
-            out.active[static_cast<size_t>(k * n + at)] = static_cast<i8>(side);
+            out.active[static_cast<size_t>(k * cols + at)] = static_cast<i8>(side);
         }
     }
     core::detail::level_residuals_into(A, b, starts, out.dq, s.rr, out.residuals);
