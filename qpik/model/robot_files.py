@@ -425,6 +425,15 @@ def _add_free_joint(spec: mujoco.MjSpec, path: Path) -> None:
         )
     joint = root.add_freejoint()
     joint.name = ROOT_JOINT
+    # the file's keyframes name the fixed-base coordinates: the free joint's come first,
+    # the root body's pose in the file (its qpos0) and no velocity (else MuJoCo would read
+    # the arm's values as the base's)
+    base = [*map(float, root.pos), *map(float, root.quat)]
+    for key in spec.keys:
+        if len(key.qpos):
+            key.qpos = base + list(key.qpos)
+        if len(key.qvel):
+            key.qvel = [0.0] * 6 + list(key.qvel)
     # the free joint's 6 dofs come first (the root body is the first): a velocity_limit
     # numeric the file carries (one value per dof) gets 6 zeros (no limit) in front
     for numeric in spec.numerics:

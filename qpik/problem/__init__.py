@@ -54,9 +54,11 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     [limits.support]                   # optional: the CoM's ground projection stays in
     frames = ["left_sole_link", "right_sole_link"]   # the support polygon of these frames
     frame_type = "body"                #   (site by default)
-    margin = 0.02                      #   [m] inside every edge
+    margin = 0.02                      #   [m] inside every edge (at most the polygon's
+                                       #   inscribed radius at q0, checked on load)
     footprint = [[0.1, 0.05], [0.1, -0.05], [-0.1, 0.05], [-0.1, -0.05]]  # [m], each
-                                       #   frame's x-y axes (default: its origin)
+                                       #   frame's x-y axes (default: the contact body's
+                                       #   collision geometry)
 
     [solver]                           # all optional: a qpik.SolveOptions preset and
     preset = "default"                 #   overrides of its fields (problem.solve_options);
@@ -68,7 +70,8 @@ Schema (units: metres, radians, seconds; positions and rotations in the world fr
     restarts = 20                      # random restarts (solve mode)
     seed = 0                           # default 0: the same restarts every run
     time_budget = 1.0                  # [s] per goal (solve mode)
-    alpha = 1.0                        # gain of the goal tasks (solve mode)
+    alpha = 1.0                        # gain of the goal tasks without their own gain
+                                       #   (solve mode)
     beta = 1.0                         # step scale (solve mode)
     max_step = [0.2, 0.5]              # trust region [m, rad], or false (solve mode)
     singular_threshold = 0.05          # adaptive damping (DampingLaw), both modes
@@ -96,7 +99,10 @@ rows), ``posture`` (:class:`mink.PostureTask`), ``joint_limit_distance``
 (:class:`~qpik.tasks.ManipulabilityTask`, with ``rows = "pose" | "position"``),
 ``damping`` (:class:`mink.DampingTask`) and ``com`` (:class:`mink.ComTask`, target
 ``position``). A task target left out holds the start value (the frame's start pose, the
-start posture, the start centre of mass); a task on a goal frame gets the goal. A goal
+start posture, the start centre of mass, at ``q0`` for every goal and waypoint, in both
+modes); a task on a goal frame (its name and type) gets the goal, and every part of a goal
+must be steered (a position by a frame or position task, a rotation by a frame or
+orientation task). A goal
 may name several frames (``frames = [...]``): they are reached together (both hands),
 while tasks on other frames (the feet) hold their start pose.
 
@@ -116,7 +122,7 @@ clamped onto it. The file must be UTF-8 (a byte-order mark is allowed).
 Modes (:data:`MODES`). ``solve``: each goal (the target, or each waypoint in turn, from the
 previous result) is one :func:`qpik.solve` with ``stack`` = the levels and the goal's frames as
 targets; in a solve the gain of the level-0 position and orientation tasks on the goal
-frames is the solver's ``alpha``.
+frames is the solver's ``alpha`` where the task gives no ``gain`` of its own.
 ``track``: :class:`qpik.IKSolver` steps of ``dt`` from ``q0`` toward each goal in turn,
 ``steps`` steps each, under the limits (a velocity limit bounds each step to
 ``v_max dt``); the result is a :class:`TrackTrace`. Either way the problem has converged

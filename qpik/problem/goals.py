@@ -19,9 +19,10 @@ or several frames reached together (both hands of a humanoid)::
     frame_type = "body"
     position = [0.3, -0.4, 1.0]
 
-Each frame of a goal must be regulated by a ``frame``, ``position`` or ``orientation``
-task of the stack (those tasks receive the goal); a frame regulated by a ``frame`` task
-needs a rotation.
+Each frame of a goal (its name and type) must be regulated by a ``frame``, ``position`` or
+``orientation`` task of the stack (those tasks receive the goal); a frame regulated by a
+``frame`` task needs a rotation, and every part of a goal must be steered by some task (a
+position by a frame or position task, a rotation by a frame or orientation task).
 """
 
 from __future__ import annotations
@@ -175,12 +176,30 @@ def _read_frame_goal(
         frame, kind = first.frame, first.frame_type
     position = reader.position(table, "position", where)
     rotation = reader.rotation(table, where)
-    regulating = [s for level in levels for s in level if s.kind.goal and s.frame == frame]
+    regulating = [
+        s
+        for level in levels
+        for s in level
+        if s.kind.goal and s.frame == frame and s.frame_type == kind
+    ]
     if not regulating:
         raise reader.fail(
             f"{where}.frame",
             f"a frame regulated by a frame, position or orientation task; no task regulates "
-            f"{frame!r}",
+            f"the {kind.value} {frame!r}",
+        )
+    types = {s.type for s in regulating}
+    if not types & {"frame", "position"}:
+        raise reader.fail(
+            f"{where}.position",
+            f"a position no task steers: only an orientation task regulates {frame!r} (its "
+            "position would be measured, never reached); regulate it with a frame task",
+        )
+    if rotation is not None and not types & {"frame", "orientation"}:
+        raise reader.fail(
+            f"{where}.rpy",
+            f"a rotation no task steers: only a position task regulates {frame!r} (it would "
+            "be measured, never reached); drop it, or regulate the frame with a frame task",
         )
     if rotation is None and any(s.type == "frame" for s in regulating):
         raise reader.fail(

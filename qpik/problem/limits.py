@@ -103,6 +103,10 @@ def read_support(
     if not frames or not all(isinstance(f, str) for f in frames):
         raise reader.fail(f"{where}.frames", f"expected frame names, got {describe(frames)}")
     frame_type = table.get("frame_type", "site")
+    if frame_type not in ("site", "body", "geom"):  # (named as the table's own field)
+        raise reader.fail(
+            f"{where}.frame_type", f"one of 'site', 'body', 'geom', got {describe(frame_type)}"
+        )
     kinds = [
         reader.frame({"frame": name, "frame_type": frame_type}, f"{where}.frames[{i}]", model)[1]
         for i, name in enumerate(frames)
@@ -126,7 +130,30 @@ def read_support(
     if start is not None:
         frame_list = [(name, kind) for name in frames]
         try:
-            SupportPolygonLimit(model, frame_list, out["margin"], out.get("footprint")).hull(start)
+            normals, offsets = SupportPolygonLimit(
+                model, frame_list, out["margin"], out.get("footprint")
+            ).hull(start)
         except QpikError as exc:
             raise reader.fail(where, str(exc)) from exc
+        radius = _inscribed_radius(normals, offsets)
+        if out["margin"] > radius:
+            raise reader.fail(
+                f"{where}.margin",
+                f"a margin the support polygon holds: {out['margin']:g} m is wider than the "
+                f"largest circle inside it at the start ({radius:.4g} m), so no ground point of "
+                "the centre of mass would be inside",
+            )
     return out
+
+
+def _inscribed_radius(normals: np.ndarray, offsets: np.ndarray) -> float:
+    """The radius [m] of the largest circle inside the polygon ``normals @ p + offsets <=
+    0`` (unit outward normals): ``max r`` with ``normals @ p + r <= -offsets``, a small
+    linear program."""
+    from scipy.optimize import linprog
+
+    A = np.hstack([normals, np.ones((len(offsets), 1))])
+    answer = linprog(
+        [0.0, 0.0, -1.0], A_ub=A, b_ub=-offsets, bounds=[(None, None), (None, None), (0, None)]
+    )
+    return float(answer.x[2]) if answer.status == 0 else 0.0

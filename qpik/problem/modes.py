@@ -2,7 +2,8 @@
 
 * ``solve``: each goal (the target, or each waypoint in turn, from the previous result)
   is one :func:`qpik.solve` with ``stack`` = the levels and every frame of the goal as a
-  target; the gain of the level-0 tasks on the goal frames is the solver's ``alpha``.
+  target; the gain of the level-0 tasks on the goal frames is the solver's ``alpha`` (where
+  the task gives no gain of its own), and left-out task targets hold ``q0`` at every goal.
 * ``track``: :class:`qpik.IKSolver` steps of ``dt`` from ``q0`` toward each goal in turn,
   ``steps`` steps each, under the limits (a velocity limit bounds each step to
   ``v_max dt``); the result carries a :class:`~qpik.problem.report.TrackTrace`.
@@ -40,9 +41,15 @@ def run_solve(problem: Problem) -> ModeOutcome:
     """``mode = "solve"``: one :func:`qpik.solve` per goal, each from the previous answer."""
     q = problem.q0
     results = []
+    # Targets left out hold the problem's start (q0) at every goal, as in track mode.
+    start = Configuration(problem.model, q)
+    alpha = problem.solve_options.alpha
     for goal in problem.goals:
-        start = Configuration(problem.model, q)
-        stack = [[spec.build(problem.model, start) for spec in level] for level in problem.levels]
+        frames = {frame.frame for frame in goal.frames}
+        stack = [
+            [_goal_gain(spec, spec.build(problem.model, start), k, frames, alpha) for spec in level]
+            for k, level in enumerate(problem.levels)
+        ]
         result = solve(
             problem.model,
             goal.targets(),
@@ -57,6 +64,15 @@ def run_solve(problem: Problem) -> ModeOutcome:
     if not failed:
         return results, None, True, "converged"
     return results, None, False, f"{_failed_goal(problem, failed[0])}: {results[failed[0]].reason}"
+
+
+def _goal_gain(spec, task, level: int, frames: set, alpha: float):
+    """``task``, with the solver's ``alpha`` as its gain where it is a level-0 task on a
+    goal frame (the reference: the gain of the goal tasks in a solve) and its own ``gain``
+    is not given in the file."""
+    if level == 0 and spec.kind.goal and spec.frame in frames and "gain" not in spec.options:
+        task.gain = alpha
+    return task
 
 
 def _measured(problem: Problem, goal: Goal, result: IKResult) -> IKResult:

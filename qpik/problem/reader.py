@@ -194,7 +194,7 @@ class Reader:
             raise self.fail(
                 name,
                 f"expected {expected}, each within [-{bound:g}, {bound:g}]; "
-                f"entry {i} is {array[i]!r}",
+                f"entry {i} is {float(array[i])!r}",
             )
         return array
 

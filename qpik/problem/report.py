@@ -209,7 +209,12 @@ class StaticsReport:
         if pay is not None and pay.feasible:
             lines.append(
                 f"  max payload along {np.array2string(pay.direction, precision=2)}: "
-                f"{pay.force:.1f} N ({pay.force / 9.81:.2f} kg), limited by {pay.limiting_joint}"
+                f"{pay.force:.1f} N ({pay.force / 9.81:.2f} kg), "
+                + (
+                    f"limited by {pay.limiting_joint}"
+                    if pay.limiting_joint is not None
+                    else "unbounded: no joint's torque grows with a load along it"
+                )
             )
         elif pay is not None:
             lines.append("  max payload: none (the pose cannot be held)")

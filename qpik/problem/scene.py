@@ -13,7 +13,8 @@
 over the pairs the model's own geometry lets collide (:func:`qpik.limits.collision_pairs`):
 ``scene`` (robot against the world's geoms: obstacles, floor; default true), ``self``
 (robot against itself, adjacent bodies excluded; default false), or explicit
-``pairs = [[["link7", "hand"], ["ball"]], ...]`` (geom groups, any contact bits) instead;
+``pairs = [[["link7", "hand"], ["ball"]], ...]`` (geom groups, any contact bits) instead
+(then without ``scene`` and ``self``, which it replaces);
 ``min_distance`` [m] (default 0.005), ``detection_distance`` [m] (default 0.05, above
 ``min_distance``), ``gain`` in (0, 1] (default 0.85).
 """
@@ -97,6 +98,13 @@ def read_collision(reader: Reader, data: dict, model: mujoco.MjModel) -> dict[st
         if key in table:
             out[key] = float(reader.number(table[key], f"{where}.{key}", rule))
     if "pairs" in table:
+        for chooser in ("self", "scene"):  # (they choose the model's pairs: none with pairs)
+            if chooser in table:
+                raise reader.fail(
+                    f"{where}.{chooser}",
+                    f"absent where pairs are given ({chooser} chooses the model's own pairs, "
+                    "which pairs replaces): give pairs, or self / scene",
+                )
         pairs = reader.get(table, "pairs", where, list, "a list of [[geoms], [geoms]] pairs")
         for i, pair in enumerate(pairs):
             ok = (

@@ -462,3 +462,23 @@ def test_tool_frame_is_moved_by_the_arm_and_ends_it():
     assert tool.name != "palm" and tool.name.endswith("_1")
     humanoid = _chain_mjcf([("torso", None, "world"), ("palm", "wrist_yaw", "torso"), *fingers])
     assert qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(humanoid)).name == "palm"
+
+
+@pytest.mark.parametrize("name", ["ur5e", "panda"])
+def test_a_floating_base_keeps_the_files_keyframes_on_their_joints(name):
+    """Pins h16's audit: with floating_base=True a file's keyframe (MJCF <key>) was read in
+    the new coordinates, its arm values written onto the free joint (the base turned, every
+    arm joint 0; panda's then outside its limits). The free joint's entries come first: the
+    root body's pose, no velocity; the tool is where the fixed-base keyframe puts it."""
+    fixed = qpik.load_robot(name)
+    floating = qpik.load_robot(name, floating_base=True)
+    assert floating.nkey == fixed.nkey >= 1
+    for k in range(fixed.nkey):
+        np.testing.assert_array_equal(floating.key_qpos[k][7:], fixed.key_qpos[k])
+        np.testing.assert_array_equal(floating.key_qpos[k][:7], [0, 0, 0, 1, 0, 0, 0])
+        np.testing.assert_array_equal(floating.key_qvel[k][6:], fixed.key_qvel[k])
+        on_base = qpik.Configuration(floating, floating.key_qpos[k]).frame_pose("ee")
+        for got, want in zip(
+            on_base, qpik.Configuration(fixed, fixed.key_qpos[k]).frame_pose("ee")
+        ):
+            np.testing.assert_allclose(got, want, atol=1e-12)

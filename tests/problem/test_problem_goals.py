@@ -112,7 +112,7 @@ GOAL_ERRORS = [
     (
         "frames = [{frame = 'ee', position = [0.4, 0, 0.4]}, {frame = 'link2', frame_type = 'body', position = [0, 0, 0.4]}]",
         "target.frames[1].frame",
-        "no task regulates 'link2'",
+        "no task regulates the body 'link2'",
     ),
     (
         "frames = [{frame = 'ee', position = [0.4, 0, 0.4], speed = 1}]",
