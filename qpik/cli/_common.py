@@ -40,7 +40,8 @@ def add_robot_arguments(parser: argparse.ArgumentParser, *, frame: bool = True) 
     parser.add_argument(
         "--key",
         metavar="NAME",
-        help="start from the model's keyframe NAME (an SRDF state such as half_sitting)",
+        help="start from the model's keyframe NAME (an SRDF state such as half_sitting), or "
+        "#K for its K-th keyframe (0 first: an unnamed one)",
     )
     if frame:
         parser.add_argument(
@@ -77,8 +78,10 @@ def configuration_from_args(args: argparse.Namespace) -> Configuration:
     key = getattr(args, "key", None)
     if key is not None:
         kid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, key)
+        if kid < 0 and key.startswith("#") and key[1:].isdigit() and int(key[1:]) < model.nkey:
+            kid = int(key[1:])  # (by its index: an unnamed keyframe has no name to give)
         if kid < 0:
-            keys = [model.key(k).name for k in range(model.nkey)]
+            keys = [model.key(k).name or f"#{k} (unnamed)" for k in range(model.nkey)]
             raise InvalidInput(f"--key {key!r}: keyframes are: {', '.join(keys) or '(none)'}")
         if q is not None:
             raise InvalidInput("give --q or --key, not both")

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..igm.session import solve
 from ..model.configuration import Configuration
+from ..model.couplings import closed_chain_start
 from ..model.robots import load_robot, tool_frame
 from ..options import PRESETS
 from ._common import c_warnings_as_lines, non_negative_int
@@ -48,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
         model = load_robot(args.robot)
     configuration = Configuration(model)
     goal_q = configuration.random_q(np.random.default_rng(args.seed))
+    # a closed linkage's joints (connect or weld constraints, which random_q does not meet)
+    # back at qpos0, where that meets them: a target the robot can take
+    goal_q = closed_chain_start(model, goal_q, configuration.lower, configuration.upper)
     configuration.update(goal_q)
     tool = tool_frame(model)
     frame = (tool.name, tool.frame_type)

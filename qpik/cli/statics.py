@@ -23,7 +23,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="print the joint torques a force/torque at a frame produces, and holding torques",
         description="Statics at rest: tau = J^T [f; t] for a wrench at the frame origin (the "
         "torque it produces at the joints), the torque gravity produces, and the motor "
-        "torques that hold the robot still against both (-(gravity + tau))." + OUTSIDE_LIMITS_NOTE,
+        "torques that hold the robot still against both (-(gravity + tau); a model's joint "
+        "springs at rest are cancelled too, and printed)." + OUTSIDE_LIMITS_NOTE,
         epilog="example: qpik statics ur5e --q 0 -1.57 1.57 0 0 0 --force 0 0 -20",
     )
     add_robot_arguments(parser)
@@ -58,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
         configuration, args.frame, args.force, args.torque, args.frame_type, expressed_in
     )
     gravity = gravity_torques(configuration)
-    holding = holding_torques(configuration) - tau  # -(gravity + tau)
+    holding = holding_torques(configuration) - tau  # -(gravity + springs + tau)
+    springs = -(holding + gravity + tau)  # the model's passive forces at rest (joint springs)
     try:
         limits = joint_torque_limits(configuration)
     except InvalidInput:
@@ -73,6 +75,10 @@ def run(args: argparse.Namespace) -> int:
     print("joint torques [N m]: tau = J^T [f; t] (produced by the wrench), gravity (produced")
     print("by gravity), holding = -(gravity + tau) (what the motors apply to stay still)")
     dofs = [joint_names(configuration.model)[j] for j in configuration.model.dof_jntid]
+    sprung = [(dof, value) for dof, value in zip(dofs, springs.tolist()) if abs(value) > 5e-9]
+    if sprung:  # (holding cancels them too: holding = -(gravity + springs + tau))
+        listed = ", ".join(f"{dof} {value:.4f}" for dof, value in sprung)
+        print(f"  and the model's joint springs at rest, which holding cancels too: {listed}")
     _print_table(dofs, tau, gravity, holding, limits)
     return 0
 

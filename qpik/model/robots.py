@@ -523,9 +523,10 @@ class ToolFrame:
 def gripper_joints(model: mujoco.MjModel) -> list[int]:
     """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name
     holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``, ``gripper_left_joint``,
-    ``left_driver_joint``), or whose body's name does when no joint lies below that body (a
-    finger link's unnamed joint; a wrist joint on a ``gripper_link`` with fingers below it
-    is the arm's)."""
+    ``left_driver_joint``; not ``gripper`` with a wrist's axis word, ``LeftGripperYaw``: a
+    wrist joint that turns the gripper), or whose body's name does when no joint lies below
+    that body (a finger link's unnamed joint; a wrist joint on a ``gripper_link`` with
+    fingers below it is the arm's)."""
     below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
     for b in range(model.nbody - 1, 0, -1):  # children come after parents
         if below[b] or model.body_jntnum[b]:
@@ -537,14 +538,18 @@ def gripper_joints(model: mujoco.MjModel) -> list[int]:
         body = int(model.jnt_bodyid[j])
         name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower()
         body_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "").lower()
-        if any(word in name for word in GRIPPER_WORDS) or (
-            not below[body] and any(word in body_name for word in GRIPPER_WORDS)
-        ):
+        words = [word for word in GRIPPER_WORDS if word in name]
+        if words == ["gripper"] and any(axis in name for axis in _WRIST_AXES):
+            continue  # (a wrist joint that turns the gripper: erd Alex's LeftGripperYaw)
+        if words or (not below[body] and any(word in body_name for word in GRIPPER_WORDS)):
             found.append(j)
     return found
 
 
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+#: Axis words of a wrist joint: a joint named for the gripper and one of them turns the
+#: gripper (the arm's), not a finger.
+_WRIST_AXES = ("yaw", "roll", "pitch")
 
 
 def _chains(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

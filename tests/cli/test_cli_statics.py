@@ -78,3 +78,52 @@ def test_statics_requires_a_force(capsys):
         main(["statics", "planar_2r"])
     assert info.value.code == 2
     assert "--force" in capsys.readouterr().err
+
+
+SPRUNG = """<mujoco><compiler angle="radian"/><worldbody><body name="l1">
+  <joint name="j1" axis="0 1 0" range="-2 2"/><geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+  <body name="l2" pos="0.3 0 0"><joint name="j2" axis="0 1 0" range="-2 2" stiffness="5" springref="0.4"/>
+   <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/><site name="ee" pos="0.3 0 0"/></body>
+  </body></worldbody><keyframe><key qpos="0.1 0.2"/></keyframe></mujoco>"""
+
+
+def test_statics_names_the_springs_holding_cancels_and_an_unnamed_keyframe(tmp_path, capsys):
+    """h15's audit: holding = -(gravity + tau) did not add up on a model with joint springs
+    (holding cancels them too): they are printed; an unnamed keyframe is listed as #K and
+    chosen by --key #K (it showed as an empty name no one could give)."""
+    path = tmp_path / "sprung.xml"
+    path.write_text(SPRUNG)
+    assert main(["statics", str(path), "--key", "#0", "--force", "0", "0", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "q = [0.1 0.2]" in out
+    (line,) = [ln for ln in out.splitlines() if "springs at rest" in ln]
+    gravity, holding = (float(x) for x in _row(out, "j2")[2:4])
+    spring = float(line.split("j2")[1])
+    assert holding == pytest.approx(-(gravity + spring), abs=2e-4)
+    assert spring == pytest.approx(-5.0 * (0.2 - 0.4), abs=1e-4)
+    assert main(["statics", str(path), "--key", "nope", "--force", "0", "0", "0"]) == 2
+    assert "#0 (unnamed)" in capsys.readouterr().err
+
+
+def test_demo_takes_a_target_a_closed_linkage_can_reach(capsys):
+    """h15's audit: on a gripper whose linkage connect constraints close (Menagerie's xArm
+    hand), the demo's random target broke the constraints (random_q knows none) and every
+    seed failed (reason constraint, exit 1): its linkage joints are now at qpos0, where the
+    constraints hold. Here the trimmed xArm7 with its gripper."""
+    from pathlib import Path
+
+    import qpik
+    from qpik.model.couplings import closed_chain_start, unheld_equalities, unheld_equality_errors
+
+    path = Path(__file__).resolve().parents[1] / "data" / "menagerie" / "xarm7.xml"
+    model = qpik.load_robot(path)
+    unheld = unheld_equalities(model)
+    assert unheld.size
+    configuration = qpik.Configuration(model)
+    for seed in range(3):
+        q = configuration.random_q(np.random.default_rng(seed))
+        fixed = closed_chain_start(model, q, configuration.lower, configuration.upper)
+        assert max(unheld_equality_errors(model, fixed, unheld)) < max(
+            unheld_equality_errors(model, q, unheld)
+        )
+        assert main(["demo", "--robot", str(path), "--seed", str(seed)]) == 0

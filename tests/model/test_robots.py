@@ -456,6 +456,9 @@ def test_tool_frame_is_moved_by_the_arm_and_ends_it():
     assert qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(_chain_mjcf(arm))).name == (
         "gripper_link"
     )
+    # a wrist joint named for the gripper and an axis (erd Alex's LeftGripperYaw) is the arm's
+    yaw = [*arm[:3], ("wrist_roll_link", "LeftWristRoll", "wrist_link"), ("nub", "LeftGripperYaw", "wrist_roll_link")]  # fmt: skip
+    assert qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(_chain_mjcf(yaw))).name == "nub"
     fingers = [(f"f{i}_{k}", f"f{i}_j{k}", f"f{i}_{k - 1}" if k else "palm") for i in range(3) for k in range(2)]  # fmt: skip
     hand = _chain_mjcf([("palm", None, "world"), *fingers])
     tool = qpik.robots.tool_frame(mujoco.MjModel.from_xml_string(hand))
