@@ -509,7 +509,10 @@ def plot_reachability(
     # Slices spread over the heights where something is reached (else over the whole box).
     occupied = np.flatnonzero(grid.max(axis=(0, 1)) > 0)
     low, high = (occupied[0], occupied[-1]) if occupied.size else (0, nz - 1)
-    levels = np.unique(np.linspace(low, high, min(slices, high - low + 1)).round().astype(int))
+    count = min(slices, high - low + 1)
+    # (one slice: the middle layer, not the lowest: linspace(low, high, 1) is [low])
+    spread = [(low + high) / 2] if count == 1 else np.linspace(low, high, count)
+    levels = np.unique(np.round(spread).astype(int))
     panels = len(levels)
     figsize = (3.2 * panels + 5.0, 4.4)
     if path is not None:
@@ -518,7 +521,10 @@ def plot_reachability(
         fig = Figure(figsize=figsize)
     else:
         fig = pyplot().figure(figsize=figsize)
-    spec = fig.add_gridspec(1, panels + 2, width_ratios=[1.0] * panels + [0.08, 1.9])
+    # (no slice: the colourbar right of the 3D view, whose x ticks it would cover on its left)
+    ratios = [1.0] * panels + [0.08, 1.9] if panels else [1.9, 0.08]
+    spec = fig.add_gridspec(1, panels + 2, width_ratios=ratios, wspace=0.2 if panels else 0.35)
+    bar_column, view_column = (panels, panels + 1) if panels else (1, 0)
     centers = rmap.centers.reshape(nx, ny, nz, 3)
     half = rmap.resolution / 2.0
     extent = (
@@ -545,10 +551,10 @@ def plot_reachability(
         if column == 0:
             ax.set_ylabel("y [m]")
         ax.set_aspect("equal")
-    colorbar_ax = fig.add_subplot(spec[0, panels])
+    colorbar_ax = fig.add_subplot(spec[0, bar_column])
     # image is None only for slices=0 (no panel): matplotlib then draws a plain colorbar
     fig.colorbar(image, cax=colorbar_ax, label="fraction of orientations reached")  # type: ignore[arg-type]
-    ax3 = fig.add_subplot(spec[0, panels + 1], projection="3d")
+    ax3 = fig.add_subplot(spec[0, view_column], projection="3d")
     # The far half only (the voxels that reach y >= the base's y: centres at y >= base - half
     # a voxel), so the cut shows the inside of the workspace.
     cut = rmap.centers[:, 1] >= rmap.base[1] - half

@@ -136,7 +136,11 @@ def path_axis(result: ProblemResult) -> tuple[np.ndarray, str]:
     n = len(result.path)
     if result.trace is not None:
         return np.arange(n) * result.trace.dt, "time [s]"
-    return np.arange(n), "iteration (all goals)"
+    restarted = any(r.restarts_used for r in result.results)
+    # (a solve's path is the attempt it returned: after restarts, not its iterations before)
+    return np.arange(n), "iteration of the returned attempts (all goals)" if restarted else (
+        "iteration (all goals)"
+    )
 
 
 def plot_level_errors(

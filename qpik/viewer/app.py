@@ -682,7 +682,10 @@ def _q_text(q: np.ndarray) -> str:
 
 
 def _model_name(model: mujoco.MjModel) -> str:
-    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MODEL, 0) or "model"
+    """The model's own name (``<mujoco model="...">``: the first of MuJoCo's names; its
+    ``mj_id2name(..., mjOBJ_MODEL, 0)`` gives None), else ``"model"``."""
+    name = bytes(model.names[: model.names.find(b"\0")]).decode("utf-8", "replace")
+    return name or "model"
 
 
 def _scene_bounds(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, float]:

@@ -278,3 +278,17 @@ def test_a_map_figure_keeps_its_title_and_labels_inside(tmp_path, slices):
         box = text.get_window_extent(renderer)
         assert box.x0 >= inside.x0 and box.x1 <= inside.x1, text.get_text()
         assert box.y1 <= inside.y1, text.get_text()
+    if slices == 1:  # the one slice is the middle layer (was the lowest: linspace's [low])
+        (panel,) = [ax for ax in fig.axes if ax.get_title().startswith("z = ")]
+        heights = np.unique(rmap.centers[:, 2])
+        middle = heights[(len(heights) - 1) // 2 : len(heights) // 2 + 1]
+        assert float(panel.get_title().split()[2]) == pytest.approx(middle.mean(), abs=0.13)
+
+
+def test_the_viewer_names_the_model_it_shows():
+    """h17's audit: the title read "qpik: model" for every robot (mj_id2name of the model
+    object gives None): the model's own name (<mujoco model=...>)."""
+    from qpik.viewer.app import _model_name
+
+    assert _model_name(qpik.load_robot("panda")) == "panda"
+    assert _model_name(qpik.load_robot("ur5e")) == "ur5e"
