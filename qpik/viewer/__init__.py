@@ -12,7 +12,8 @@
 The page shows the robot (the model's visual geoms: meshes where it has them, primitives
 otherwise; its collision geoms on request), a transform handle on every goal frame and a
 frame marker where the frame actually is, a panel per level (status, residual, damping,
-active limits; red when the level cannot be met), the solve time of the last drag, the
+active limits; red when the level cannot be met, grey while a robot moved by hand is not
+solved for yet), the solve time of the last drag, the
 joints as sliders and ``q`` as a list to copy, a play button for track-mode problems,
 and the support polygon and centre of mass where the problem has one.
 

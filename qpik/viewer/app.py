@@ -48,8 +48,14 @@ _STATE_COLOURS = {
     "met": ("#2e7d32", "#e8f5e9"),
     "compromise": ("#b26a00", "#fff4e0"),
     "unmet": ("#c62828", "#ffebee"),
+    "pending": ("#546e7a", "#eceff1"),
 }
-_STATE_WORDS = {"met": "met", "compromise": "met in part", "unmet": "cannot be met"}
+_STATE_WORDS = {
+    "met": "met",
+    "compromise": "met in part",
+    "unmet": "cannot be met",
+    "pending": "not solved since the robot moved",
+}
 
 
 def import_viser() -> Any:

@@ -23,9 +23,11 @@ which removes that drift.
 
 Each level's state after a solve (:class:`LevelReport`): ``"met"``, ``"compromise"``
 (solved, but a residual remains because a higher level or a limit takes the freedom it
-would need: the expected state of a posture level below a pose) or ``"unmet"`` (the level
+would need: the expected state of a posture level below a pose), ``"unmet"`` (the level
 cannot be met: its QP was not solved, or it holds a goal frame, or it is level 0, and its
-error stays above tolerance when the solve ends).
+error stays above tolerance when the solve ends) or ``"pending"`` (a report of no step, as
+after the robot is moved by hand: a goal not within tolerance, not yet solved for; status
+``"not solved yet"``).
 """
 
 from __future__ import annotations
@@ -88,7 +90,7 @@ class LevelReport:
         residual: the last step's weighted residual ``|A dq - b|`` of the level.
         damping: the last step's ``lambda^2`` (adaptive singularity damping).
         active_limits: the limits binding at the last step (``"joint4 upper ..."``).
-        state: ``"met"``, ``"compromise"`` or ``"unmet"`` (module docstring).
+        state: ``"met"``, ``"compromise"``, ``"unmet"`` or ``"pending"`` (module docstring).
         goal_error: the worst ``(position [m], orientation [rad])`` error of the level's
             goal frames, or ``None`` when it holds none.
     """
@@ -431,7 +433,7 @@ class LiveSolve:
         active = step.active_limits if step is not None else []
         reports = []
         for k in range(len(self.levels)):
-            status = str(step.status[k]) if step is not None else "solved"
+            status = str(step.status[k]) if step is not None else "not solved yet"
             residual = float(step.residuals[k]) if step is not None else 0.0
             damping = float(step.damping[k]) if step is not None else 0.0
             frames = [g for g in self.goals.values() if k in g.levels]
@@ -458,6 +460,11 @@ class LiveSolve:
     def _state(
         self, k: int, status: str, residual: float, goal_error: tuple[float, float] | None
     ) -> str:
+        within = goal_error is None or (
+            goal_error[0] <= self.tol_position and goal_error[1] <= self.tol_orientation
+        )
+        if status == "not solved yet":  # (no step taken: the robot moved by hand, say)
+            return "met" if within else "pending"
         if status != "solved":
             return "unmet"
         if goal_error is not None and (

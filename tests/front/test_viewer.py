@@ -115,6 +115,23 @@ def test_live_solve_marks_an_unreachable_goal_red():
     assert "cannot be met" in html and "#c62828" in html and "qpik-unmet" in html
 
 
+def test_a_robot_moved_by_hand_is_pending_not_unmet():
+    """h17's audit: moving a joint slider (set_q, then a report of no step) marked level 0
+    red, "cannot be met", with status solved and residual 0: it is "pending", status "not
+    solved yet", until the next solve (which meets it)."""
+    live = _panda_live()
+    live.solve()
+    q = live.q
+    q[0] += 0.03
+    live.set_q(q)
+    report = live.solve(max_iterations=0)
+    level = report.levels[0]
+    assert level.state == "pending" and level.ok and level.status == "not solved yet"
+    html = level_html(level)
+    assert "not solved since the robot moved" in html and "qpik-pending" in html
+    assert live.solve().levels[0].state == "met"
+
+
 def test_live_solve_of_a_problem_uses_its_stack_limits_and_goal():
     from qpik.viewer.app import live_of_problem
 
