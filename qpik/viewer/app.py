@@ -50,12 +50,8 @@ _STATE_COLOURS = {
     "unmet": ("#c62828", "#ffebee"),
     "pending": ("#546e7a", "#eceff1"),
 }
-_STATE_WORDS = {
-    "met": "met",
-    "compromise": "met in part",
-    "unmet": "cannot be met",
-    "pending": "not solved since the robot moved",
-}
+_STATE_WORDS = {"met": "met", "compromise": "met in part", "unmet": "cannot be met",
+                "pending": "not solved since the robot moved"}  # fmt: skip
 
 
 def import_viser() -> Any:
