@@ -3763,6 +3763,9 @@ def _schema_data(spec, model, rng) -> dict:
     path = spec["path"]
     value = _schema_value(spec["value"], model, spec, rng)
     head = path[0]
+    if head in ("target", "waypoints") and path[-1] in ("rpy", "quaternion", "matrix"):
+        # (a goal's rotation must be steered: an orientation task beside the position's)
+        data["levels"][0]["tasks"].append({"type": "orientation", "frame": "ee"})
     if head == "track" and spec["mode"] != "track":
         data["track"] = {}
     if head == "levels" and len(path) > 1 and path[1] == 2:
