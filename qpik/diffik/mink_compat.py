@@ -418,8 +418,7 @@ class SolverCache:
         entries = self._entries if key[-1] == "" else self._constrained
         entry = entries.pop(key, None)
         if entry is None:
-            key = self._values.get(_value_key(key, limits), key)  # (equal limits, new objects)
-            entry = entries.pop(key, None)
+            key, entry = self._by_value(entries, key, limits)
             if entry is None:
                 return None
         entries[key] = entry  # most recently used last
@@ -442,6 +441,25 @@ class SolverCache:
         if not (math.isfinite(sum(velocity.tolist())) or np.isfinite(velocity).all()):
             return None  # the full path reports it
         return velocity
+
+    def _by_value(
+        self, entries: dict, key: tuple, limits: Any, value_key: tuple | None = None
+    ) -> tuple[tuple, tuple | None]:
+        """``(key, entry)`` of the kept entry whose limits equal ``limits`` by value (taken
+        out of ``entries``), or ``(key, None)``. The entry's own limit objects are compared
+        as they are now (the kept solver reads them: one edited in place since is not the
+        call's)."""
+        if value_key is None:
+            value_key = _value_key(key, limits)
+        kept_key = None if value_key is None else self._values.get(value_key)
+        entry = None if kept_key is None else entries.pop(kept_key, None)
+        if entry is None or value_key is None or kept_key is None:
+            return key, None
+        held = entry[0][2]
+        if type(held) not in (list, tuple) or tuple(map(_limit_value, held)) != value_key[2]:
+            entries[kept_key] = entry  # (its limits changed since: not this call's)
+            return key, None
+        return kept_key, entry
 
     def get(
         self,
@@ -467,10 +485,10 @@ class SolverCache:
             repr(sorted(backend_options.items())) if backend_options else "",
         )
         entry = self._entries.pop(key, None)
+        value_key = None
         if entry is None:
             value_key = _value_key(key, limits)
-            key = self._values.get(value_key, key)  # (equal limits, new objects)
-            entry = self._entries.pop(key, None)
+            key, entry = self._by_value(self._entries, key, limits, value_key)
         if entry is None:
             ik = _new_solver(configuration, levels, solver, damping, limits, backend_options)
             entry = ((model, levels, limits), ik)  # held: their ids stay theirs

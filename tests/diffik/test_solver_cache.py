@@ -99,6 +99,25 @@ def test_limits_built_anew_at_each_call_find_the_kept_solver(solver):
         model.jnt_range[:] = saved
 
 
+def test_a_kept_limit_changed_since_is_not_taken_for_an_equal_new_one():
+    """A caller holding two equal limit lists A and B: the solver kept for A reads A's
+    objects; where A's velocity limit is then changed, a call with B (its values the old
+    ones) must not get A's solver, which would use the changed values."""
+    model, configuration, task, posture = _setup()
+
+    def limits():
+        return [mink.VelocityLimit(model, {"shoulder_pan_joint": 0.5})]
+
+    qpik.clear_caches()
+    first, second = limits(), limits()
+    qpik.solve_ik(configuration, [task, posture], 0.01, "daqp", limits=first)
+    first[0].limit = np.full_like(first[0].limit, 0.01)  # (the kept solver reads it)
+    answer = qpik.solve_ik(configuration, [task, posture], 0.01, "daqp", limits=second)
+    qpik.clear_caches()
+    fresh = qpik.solve_ik(configuration, [task, posture], 0.01, "daqp", limits=limits())
+    assert np.array_equal(answer, fresh)
+
+
 def test_default_limits_follow_a_model_changed_in_place():
     model, configuration, task, posture = _setup()
     qpik.clear_caches()
