@@ -130,9 +130,10 @@ def has_erd() -> bool:
 requires_erd = pytest.mark.skipif(not has_erd(), reason="needs qpik[robots]")
 
 
-def load_or_skip(name: str):
-    """``qpik.load_robot(name)`` with its warnings silenced (an example-robot-data URDF's
-    dropped collision meshes); the test is skipped where the robot does not load here."""
+def load_or_skip(name: str, **keywords):
+    """``qpik.load_robot(name, **keywords)`` with its warnings silenced (an
+    example-robot-data URDF's dropped collision meshes); the test is skipped where the robot
+    does not load here."""
     import warnings
 
     import pytest
@@ -142,7 +143,7 @@ def load_or_skip(name: str):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # dropped collision meshes
         try:
-            return qpik.load_robot(name)
+            return qpik.load_robot(name, **keywords)
         except qpik.QpikError as exc:
             pytest.skip(f"{name} does not load here: {exc}")
 

@@ -26,7 +26,10 @@ define theirs).
 
 from __future__ import annotations
 
+import contextlib
 import math
+import threading
+import weakref
 from collections.abc import Sequence
 from typing import Any
 
@@ -40,6 +43,8 @@ from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSoluti
 from ..model.configuration import Configuration
 from ..tasks import BaseTask
 from .constraints import ConstraintRows, Tikhonov, equality_rows
+from .limit_values import limit_value as _limit_value
+from .limit_values import value_key as _value_key
 from .solver import IKSolver
 
 __all__ = ["SOLVERS", "SolverCache", "build_ik", "solve_ik"]
@@ -184,6 +189,10 @@ def solve_ik(
     Returns:
         The velocity ``v = dq / dt`` ``(nv,)`` [rad/s or m/s], in the tangent space.
 
+    Threads: ``solve_ik`` may be called from several threads at once (a solver it keeps is
+    stepped by one thread at a time); one :class:`qpik.IKSolver` must not be stepped by
+    several threads at once (hold one per thread, or a :class:`qpik.IKSession`).
+
     Raises:
         qpik.NoSolutionFound: (a :class:`mink.NoSolutionFound`, with mink's message) when
             the highest level cannot be solved; ``status`` and ``level`` say why.
@@ -208,8 +217,9 @@ def solve_ik(
             SOLVERS.keep_constrained(configuration, tasks, limits, solver, damping, constraints, ik)
     else:
         ik, _ = _solver(configuration, tasks, solver, damping, limits, None, kwargs)
-    result = ik.step(configuration, dt)
-    status, displacement = result.status, result.displacement
+    with SOLVERS.stepping(ik):
+        result = ik.step(configuration, dt)
+        status, displacement = result.status, result.displacement.copy()
     _raise_unsolved(ik, status)
     with np.errstate(over="ignore"):
         velocity = displacement / dt
@@ -224,47 +234,6 @@ def _raise_unsolved(ik: IKSolver, status: Sequence[LevelStatus]) -> None:
         error = NoSolutionFound(ik.solver)  # mink's message, word for word
         error.status, error.level = str(status[0]), 0
         raise error
-
-
-def _limit_value(limit: Any) -> tuple | None:
-    """A limit's value, by which :class:`SolverCache` also finds a kept solver (mink's
-    ``ConfigurationLimit`` and ``VelocityLimit`` exactly: a control loop that builds
-    ``[mink.ConfigurationLimit(model)]`` at each call): its class and the arrays and
-    numbers its rows are computed from; None for any other limit (found by identity only)."""
-    kind = type(limit)
-    arrays = _LIMIT_VALUES.get(kind)
-    if arrays is None:
-        return None
-    try:  # (an attribute edited into what no solver takes: found by identity, then named)
-        values = [getattr(limit, name) for name in arrays]
-        if not all(type(v) is np.ndarray for v in values):
-            return None
-        gain = getattr(limit, "gain", None)
-        if gain is not None and type(gain) is not float:
-            return None
-        return (kind, id(getattr(limit, "model", None)), gain, *(
-            (v.dtype.str, v.shape, v.tobytes()) for v in values
-        ))  # fmt: skip
-    except AttributeError:
-        return None
-
-
-#: The arrays a limit's rows are computed from, per class of :func:`_limit_value`.
-_LIMIT_VALUES: dict[type, tuple[str, ...]] = {
-    mink.ConfigurationLimit: ("lower", "upper", "indices", "_ball_max_angle"),
-    mink.VelocityLimit: ("indices", "limit", "projection_matrix"),
-}
-
-
-def _value_key(key: tuple, limits: Any) -> tuple | None:
-    """``key`` (a :class:`SolverCache` key) with its limits by value (:func:`_limit_value`),
-    None where a limit has none."""
-    if type(limits) not in (list, tuple) or not limits:
-        return None
-    values = tuple(map(_limit_value, limits))
-    if None in values:
-        return None
-    return (*key[:2], values, *key[3:])
 
 
 def _level_ids(tasks: list | tuple) -> tuple:
@@ -300,6 +269,12 @@ class SolverCache:
     size = 8
 
     def __init__(self) -> None:
+        #: guards every dict of the cache (solve_ik may be called from several threads);
+        #: a kept solver in use is taken out while its step runs (velocity; the full path
+        #: steps a solver of its own making or one taken so), so no two threads step it
+        self._lock = threading.RLock()
+        #: one lock per kept solver, held while a call steps it (:meth:`stepping`)
+        self._step_locks: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
         self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
         #: the key of a kept entry by its limits' values (_value_key): where a call's limit
         #: objects are new but equal to a kept entry's, that entry's solver answers
@@ -313,10 +288,11 @@ class SolverCache:
 
     def clear(self) -> None:
         """Forget every kept solver (and the constraint tasks kept for them)."""
-        self._entries.clear()
-        self._values.clear()
-        self._constrained.clear()
-        self.constraint_tasks.clear()
+        with self._lock:
+            self._entries.clear()
+            self._values.clear()
+            self._constrained.clear()
+            self.constraint_tasks.clear()
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -359,6 +335,17 @@ class SolverCache:
             tuple(map(id, constraints)),
         )
 
+    @contextlib.contextmanager
+    def stepping(self, ik: IKSolver):
+        """Hold ``ik``'s own lock for the block: a kept solver is stepped by one thread at a
+        time (its compiled plan's buffers are its own), whichever calls find it."""
+        with self._lock:
+            lock = self._step_locks.get(ik)
+            if lock is None:
+                lock = self._step_locks[ik] = threading.Lock()
+        with lock:
+            yield
+
     def keep_constrained(
         self,
         configuration: Any,
@@ -378,11 +365,14 @@ class SolverCache:
         key = self._fast_key(configuration, tasks, limits, solver, damping, constraints)
         if key is None:
             return
-        self._constrained.pop(key, None)
-        if len(self._constrained) >= self.size:
-            self._constrained.pop(next(iter(self._constrained)))
+        if limits is not None and list(map(id, ik.limits)) != list(map(id, limits)):
+            return  # (a solver kept for equal limits: it reads those, not this call's)
         held = (configuration.model, list(tasks), limits, list(constraints))
-        self._constrained[key] = (held, ik)  # most recently used last
+        with self._lock:
+            self._constrained.pop(key, None)
+            if len(self._constrained) >= self.size:
+                self._constrained.pop(next(iter(self._constrained)), None)
+            self._constrained[key] = (held, ik)  # most recently used last
 
     def velocity(
         self,
@@ -416,26 +406,29 @@ class SolverCache:
         if key is None:
             return None
         entries = self._entries if key[-1] == "" else self._constrained
-        entry = entries.pop(key, None)
-        if entry is None:
-            key, entry = self._by_value(entries, key, limits)
+        with self._lock:
+            entry = entries.pop(key, None)
             if entry is None:
-                return None
-        entries[key] = entry  # most recently used last
+                key, entry = self._by_value(entries, key, limits)
+                if entry is None:
+                    return None
+            entries[key] = entry  # most recently used last
         ik = entry[1]
         model = configuration.model
         if not 0.0 < dt < math.inf or model is not ik.model:
             return None
         if safety_break:
             as_configuration(configuration).check_limits(safety_break=True)
-        fast = ik.compiled_velocity(configuration, dt)
-        if fast is not None:
-            velocity, status = fast
-        else:
-            solution = ik.compiled_solution(configuration, dt)
-            if solution is None:
-                solution = ik.qp_solution(as_configuration(configuration), dt)
-            velocity, status = solution.velocity, solution.status
+        with self.stepping(ik):
+            fast = ik.compiled_velocity(configuration, dt)
+            if fast is not None:
+                velocity, status = fast
+                velocity = velocity.copy()  # (its buffer is the solver's: a thread's next call)
+            else:
+                solution = ik.compiled_solution(configuration, dt)
+                if solution is None:
+                    solution = ik.qp_solution(as_configuration(configuration), dt)
+                velocity, status = solution.velocity, solution.status
         _raise_unsolved(ik, status)
         # finite (its sum finite, else every entry checked: a finite v may overflow it)
         if not (math.isfinite(sum(velocity.tolist())) or np.isfinite(velocity).all()):
@@ -484,21 +477,23 @@ class SolverCache:
             float(damping),
             repr(sorted(backend_options.items())) if backend_options else "",
         )
-        entry = self._entries.pop(key, None)
-        value_key = None
-        if entry is None:
-            value_key = _value_key(key, limits)
-            key, entry = self._by_value(self._entries, key, limits, value_key)
-        if entry is None:
+        with self._lock:
+            entry = self._entries.pop(key, None)
+            value_key = None
+            if entry is None:
+                value_key = _value_key(key, limits)
+                key, entry = self._by_value(self._entries, key, limits, value_key)
+        if entry is None:  # (made outside the lock: another thread may make one too)
             ik = _new_solver(configuration, levels, solver, damping, limits, backend_options)
             entry = ((model, levels, limits), ik)  # held: their ids stay theirs
+        with self._lock:
             if len(self._entries) >= self.size:
-                self._entries.pop(next(iter(self._entries)))
+                self._entries.pop(next(iter(self._entries)), None)
             if value_key is not None:
                 if len(self._values) >= 4 * self.size:
                     self._values.clear()  # (keys of entries gone: a miss, then made again)
                 self._values[value_key] = key
-        self._entries[key] = entry  # most recently used last
+            self._entries[key] = entry  # most recently used last
         return entry[1]
 
 

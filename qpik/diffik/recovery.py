@@ -11,7 +11,10 @@ As position limits are recoverable (a start outside them steers back as fast as 
 limits allow), so are the collision rows and the support polygon's
 (:func:`qpik.diffik.boxes.relaxable`; the rows of other limits stay hard): where level 0
 is infeasible, each such row ``g_i dq <= h_i`` is relaxed by the smallest slack ``s`` in
-the least-squares sense (``s_i = 0`` on the hard rows),
+the least-squares sense (``s_i = 0`` on the hard rows; the rows of one limit kind alone
+where relaxing them suffices, the others hard: a collision row a step can meet is not
+relaxed because the support polygon's cannot be; and with the support polygons' contact
+frames held, ``C dq = 0``, where that leaves a step: :func:`contact_rows`),
 
 .. math::
 
@@ -31,13 +34,16 @@ rows stay infeasible (no slack of these rows helps them): the step is then zero,
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import numpy as np
 
 from ..core import HierarchyProblem, HierarchySolver, Level, LevelStatus
+from ..limits import SupportPolygonLimit
+from ..model.configuration import Configuration
 from .boxes import LimitRows
 
-__all__ = ["RELAXATION_MARGINS", "SLACK_STEP_WEIGHT", "least_slack", "relaxed_rows"]
+__all__ = ["RELAXATION_MARGINS", "SLACK_STEP_WEIGHT", "contact_rows", "least_slack", "relaxed_rows"]
 
 #: A relaxed row's bound is ``h_i + s_i + margin * (|g_i| + |h_i|)``, the margins tried in
 #: this order until level 0 of the relaxed step is solved: the slack problem's answer meets
@@ -53,7 +59,23 @@ RELAXATION_MARGINS = (1e-9, 1e-6, 1e-4, 1e-2)
 SLACK_STEP_WEIGHT = 1e-6
 
 
-def least_slack(limits: LimitRows) -> np.ndarray | None:
+def contact_rows(limits: Sequence, configuration: Configuration) -> np.ndarray | None:
+    """The rows ``C`` (6 per contact frame: its world-aligned Jacobian ``[v; omega]``) of
+    the contact frames of the support polygons among ``limits``
+    (:class:`qpik.limits.SupportPolygonLimit`), or None without one: the slack problem holds
+    them, ``C x = 0`` (:func:`least_slack`), as the polygon is made of them and a task of a
+    higher (or the same) level holds them (its docs); relaxed rows that let the feet move
+    give the stack no step that holds them, and the polygon then moves with the feet."""
+    rows = [
+        configuration.frame_jacobian(name, kind)
+        for limit in limits
+        if isinstance(limit, SupportPolygonLimit)
+        for name, kind, _ in limit.frames
+    ]
+    return np.vstack(rows) if rows else None
+
+
+def least_slack(limits: LimitRows, held: np.ndarray | None = None) -> np.ndarray | None:
     """The least-squares slack ``s`` (p,) of the relaxable general rows
     (:attr:`LimitRows.relaxable`; 0 on the others, which stay hard) that makes the rows
     feasible within the box (module docstring), or ``None`` where no row may relax, the
@@ -75,7 +97,53 @@ def least_slack(limits: LimitRows) -> np.ndarray | None:
     feasible slack is taken instead:
     the one that lets the relaxable rows admit the core's step ``x`` (or, where that step
     is outside the box or breaks a hard row, the box's point nearest 0),
-    ``s_i = max(0, g_i x - h_i)``: not the least, but the relaxed rows then admit a step."""
+    ``s_i = max(0, g_i x - h_i)``: not the least, but the relaxed rows then admit a step.
+
+    ``held``: rows ``C`` that the slack problem holds, ``C x = 0`` (a support polygon's
+    contact frames: :func:`contact_rows`), where that leaves a step; else they are left out."""
+    G, h, lb, ub, relax = limits.G, limits.h, limits.lb, limits.ub, limits.relaxable
+    p, n = G.shape
+    if p == 0 or relax is None or not relax.any() or not np.all(lb <= ub):
+        return None
+    if held is not None and held.size:
+        # The held rows, C x = 0 as two hard rows each: the least slack with them, else
+        # (they leave no step within the box and the hard rows) the least slack without.
+        with_held = dataclasses.replace(
+            limits,
+            G=np.vstack([G, held, -held]),
+            h=np.concatenate([h, np.zeros(2 * held.shape[0])]),
+            row_names=[*limits.row_names, *[""] * (2 * held.shape[0])],
+            relaxable=np.concatenate([relax, np.zeros(2 * held.shape[0], dtype=bool)]),
+        )
+        slack = least_slack(with_held)
+        if slack is not None:
+            return slack[:p]
+    # The rows of one limit kind alone where that suffices (the others hard): a collision
+    # row that a step can meet is not relaxed because the support polygon's cannot be.
+    kinds = [_kind(name) for name in limits.row_names]
+    relaxed_kinds = sorted({kinds[i] for i in np.flatnonzero(relax)})
+    if len(relaxed_kinds) > 1:
+        best = None
+        for kind in relaxed_kinds:
+            alone = relax & np.array([k == kind for k in kinds])
+            slack = _least_slack(dataclasses.replace(limits, relaxable=alone))
+            if slack is not None and (best is None or slack @ slack < best @ best):
+                best = slack
+        if best is not None:
+            return best
+    return _least_slack(limits)
+
+
+def _kind(row_name: str) -> str:
+    """The limit class a general row's name gives (``"CollisionAvoidanceLimit row 3"``,
+    ``"joint4 upper (SupportPolygonLimit)"``)."""
+    if " row " in row_name:
+        return row_name.rsplit(" row ", 1)[0]
+    return row_name[row_name.rfind("(") + 1 : -1] if row_name.endswith(")") else row_name
+
+
+def _least_slack(limits: LimitRows) -> np.ndarray | None:
+    """:func:`least_slack` of every relaxable row together (no row held)."""
     G, h, lb, ub, relax = limits.G, limits.h, limits.lb, limits.ub, limits.relaxable
     p, n = G.shape
     if p == 0 or relax is None or not relax.any() or not np.all(lb <= ub):

@@ -53,7 +53,7 @@ from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
 from .layout import guards_hold
 from .plan import make_plan
-from .recovery import RELAXATION_MARGINS, least_slack, relaxed_rows
+from .recovery import RELAXATION_MARGINS, contact_rows, least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
 
@@ -546,7 +546,7 @@ class IKSolver:
         relaxed by their least slack (:meth:`_relaxed`)."""
         tasks, limits = self._recoverable_rows(configuration, dt)
         solution = solve(tasks, limits)
-        slack = self._slack(solution, limits)
+        slack = self._slack(solution, limits, configuration)
         if slack is None:
             return solution
         return self._relaxed(lambda rows: solve(tasks, rows), limits, slack)
@@ -587,12 +587,15 @@ class IKSolver:
             relaxable(limit) for limit in self._limits.limits
         )
 
-    def _slack(self, solution: Solution, limits: LimitRows) -> np.ndarray | None:
+    def _slack(
+        self, solution: Solution, limits: LimitRows, configuration: Configuration
+    ) -> np.ndarray | None:
         """The relaxable general rows' least slack (:func:`qpik.diffik.recovery.least_slack`)
-        where :meth:`_recoverable` holds; else None."""
+        where :meth:`_recoverable` holds, with the support polygons' contact frames held
+        (:func:`qpik.diffik.recovery.contact_rows`); else None."""
         if limits.G.shape[0] == 0 or not self._recoverable(solution):
             return None
-        slack = least_slack(limits)
+        slack = least_slack(limits, contact_rows(self._limits.limits, configuration))
         return slack if slack is not None and slack.any() else None
 
     def _corrected(self, configuration: Configuration, dt: float, passes: int) -> Solution:

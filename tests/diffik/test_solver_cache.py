@@ -154,3 +154,62 @@ def test_sharing_view_shares_model_and_data():
     assert isinstance(view, qpik.Configuration)
     assert qpik.Configuration.sharing(view) is view
     assert np.array_equal(view.lower, qpik.Configuration(model).lower)
+
+
+def test_a_constrained_call_does_not_keep_a_solver_of_other_limits():
+    """h19's audit: a call with constraints= found the solver kept for equal limits (A) and
+    kept it under its own limits' identity (B); A changed afterwards changed B's answer."""
+    model, configuration, task, posture = _setup()
+    freeze = mink.DofFreezingTask(model, dof_indices=[0])
+
+    def limits():
+        return [mink.VelocityLimit(model, {model.joint(i).name: 0.5 for i in range(model.njnt)})]
+
+    qpik.clear_caches()
+    first, second = limits(), limits()
+    qpik.solve_ik(configuration, [task, posture], 0.01, "daqp", limits=first, constraints=[freeze])
+    qpik.solve_ik(configuration, [task, posture], 0.01, "daqp", limits=second, constraints=[freeze])
+    first[0].limit = np.full_like(first[0].limit, 0.01)
+    after = qpik.solve_ik(
+        configuration, [task, posture], 0.01, "daqp", limits=second, constraints=[freeze]
+    )
+    qpik.clear_caches()
+    fresh = qpik.solve_ik(
+        configuration, [task, posture], 0.01, "daqp", limits=second, constraints=[freeze]
+    )
+    assert np.array_equal(after, fresh) and np.abs(fresh).max() > 0.1
+
+
+def test_solve_ik_from_threads_answers_as_one_thread_does():
+    """h19's audit: threads on their own tasks raised KeyError where the cache evicted, and
+    threads sharing task objects (as mink allows) stepped one kept solver at once: wrong
+    velocities. A kept solver is stepped by one thread at a time; the cache is locked."""
+    import threading
+
+    model, configuration, task, posture = _setup()
+
+    def run(out: list, configuration: mink.Configuration) -> None:
+        for k in range(12):
+            levels = [[task], [posture]] if k % 2 else [task, posture]  # (two entries)
+            out.append(qpik.solve_ik(configuration, levels, 0.01, None, limits=None))
+            configuration.integrate_inplace(out[-1], 0.01)  # (each thread its own states)
+            extra = [mink.PostureTask(model, cost=1e-2) for _ in range(3)]  # (evictions)
+            for t in extra:
+                t.set_target_from_configuration(configuration)
+            qpik.solve_ik(configuration, [task, *extra], 0.01)
+
+    alone: list = []
+    qpik.clear_caches()
+    run(alone, mink.Configuration(model, configuration.q))
+    results: list[list] = [[] for _ in range(4)]
+    threads = [
+        threading.Thread(target=run, args=(results[i], mink.Configuration(model, configuration.q)))
+        for i in range(4)
+    ]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for out in results:
+        assert len(out) == len(alone)
+        assert all(np.array_equal(a, b) for a, b in zip(out, alone))

@@ -379,3 +379,59 @@ def test_the_slack_problem_leaves_out_rows_the_box_meets():
     expected = np.maximum(0.0, G @ best.x - h)
     assert 0.5 * slack @ slack <= 0.5 * expected @ expected * (1 + 1e-6) + 1e-15
     np.testing.assert_allclose(slack, expected, rtol=1e-4, atol=1e-7)
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_a_start_outside_the_support_polygon_comes_back_with_the_feet_held():
+    """h18's audit: a CoM outside the polygon (the sole footprint shifted forward) sent the
+    step to the recovery, whose least slack moved the floating base and the legs: the feet
+    held at level 0 slid (0.14 m in one step, 14 m in 300) and the polygon moved with them,
+    the CoM never back. The slack problem now holds the polygon's contact frames: the CoM
+    comes back within a few steps, the feet stay."""
+    from conftest import load_or_skip
+
+    from qpik.limits import SupportPolygonLimit, joint_limits
+    from qpik.tasks import FrameTask, PostureTask
+
+    model = load_or_skip("erd:talos", floating_base=True)
+    q0 = model.key("half_sitting").qpos.copy()
+    configuration = qpik.Configuration(model, q0)
+    feet = ("left_sole_link", "right_sole_link")
+    sole = np.array([[0.1, 0.05], [0.1, -0.05], [-0.1, 0.05], [-0.1, -0.05]])
+    support = SupportPolygonLimit(model, feet, margin=0.02, footprint=sole + [0.15, 0.0])
+    tasks = [FrameTask(n, "body", position_cost=1.0, orientation_cost=1.0) for n in feet]
+    for task in tasks:
+        task.set_target_from_configuration(configuration)
+    posture = PostureTask(model, cost=1e-2)
+    posture.set_target(q0)
+    solver = qpik.IKSolver(model, [tasks, [posture]], [*joint_limits(model, 0.9), support])
+    assert support.com_margin(configuration) < -0.04
+    relaxed = 0
+    for _ in range(10):
+        step = solver.step(configuration, 0.01)
+        relaxed += step.relaxation is not None
+        configuration.integrate_inplace(step.velocity, 0.01)
+        slide = max(np.linalg.norm(t.compute_error(configuration)[:3]) for t in tasks)
+        assert slide < 2e-3  # (the feet's second-order error, not a slide)
+    assert relaxed >= 1
+    assert support.com_margin(configuration) >= 0.02 - 1e-4
+
+
+def test_the_slack_relaxes_only_the_limit_kind_that_needs_it():
+    """h18's audit: where only the support polygon's rows could not be met, the joint least
+    squares slack relaxed collision rows too (by up to 2 mm a step: pairs then
+    penetrated). The rows of one limit kind are relaxed alone where that suffices."""
+    from qpik.diffik.boxes import LimitRows
+
+    rows = LimitRows(
+        lb=np.array([-1.0]),
+        ub=np.array([1.0]),
+        G=np.array([[1.0], [-1.0]]),
+        h=np.array([-2.0, 0.5]),  # x <= -2 (out of the box), x >= -0.5
+        row_names=["SupportPolygonLimit row 0", "CollisionAvoidanceLimit row 0"],
+        sources=list,
+        dof_names=["x"],
+        relaxable=np.array([True, True]),
+    )
+    slack = least_slack(rows)
+    np.testing.assert_allclose(slack, [1.5, 0.0], atol=1e-9)
