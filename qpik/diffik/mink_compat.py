@@ -26,7 +26,6 @@ define theirs).
 
 from __future__ import annotations
 
-import contextlib
 import math
 import threading
 import weakref
@@ -217,7 +216,7 @@ def solve_ik(
             SOLVERS.keep_constrained(configuration, tasks, limits, solver, damping, constraints, ik)
     else:
         ik, _ = _solver(configuration, tasks, solver, damping, limits, None, kwargs)
-    with SOLVERS.stepping(ik):
+    with SOLVERS.step_lock(ik):
         result = ik.step(configuration, dt)
         status, displacement = result.status, result.displacement.copy()
     _raise_unsolved(ik, status)
@@ -335,16 +334,16 @@ class SolverCache:
             tuple(map(id, constraints)),
         )
 
-    @contextlib.contextmanager
-    def stepping(self, ik: IKSolver):
-        """Hold ``ik``'s own lock for the block: a kept solver is stepped by one thread at a
-        time (its compiled plan's buffers are its own), whichever calls find it."""
-        with self._lock:
-            lock = self._step_locks.get(ik)
-            if lock is None:
-                lock = self._step_locks[ik] = threading.Lock()
-        with lock:
-            yield
+    def step_lock(self, ik: IKSolver) -> Any:
+        """``ik``'s own lock: a kept solver is stepped by one thread at a time (its compiled
+        plan's buffers are its own), whichever calls find it; hold it around the step."""
+        lock = self._step_locks.get(ik)
+        if lock is None:
+            with self._lock:
+                lock = self._step_locks.get(ik)
+                if lock is None:
+                    lock = self._step_locks[ik] = threading.Lock()
+        return lock
 
     def keep_constrained(
         self,
@@ -419,7 +418,7 @@ class SolverCache:
             return None
         if safety_break:
             as_configuration(configuration).check_limits(safety_break=True)
-        with self.stepping(ik):
+        with self.step_lock(ik):
             fast = ik.compiled_velocity(configuration, dt)
             if fast is not None:
                 velocity, status = fast
