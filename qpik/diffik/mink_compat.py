@@ -271,15 +271,15 @@ class SolverCache:
         #: guards every dict of the cache (solve_ik may be called from several threads);
         #: a kept solver in use is taken out while its step runs (velocity; the full path
         #: steps a solver of its own making or one taken so), so no two threads step it
-        self._lock = threading.RLock()
+        self._lock = threading.Lock()
         #: one lock per kept solver, held while a call steps it (:meth:`stepping`)
         self._step_locks: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-        self._entries: dict[tuple, tuple[tuple, IKSolver]] = {}
+        self._entries: dict[tuple, tuple[tuple, IKSolver, Any]] = {}
         #: the key of a kept entry by its limits' values (_value_key): where a call's limit
         #: objects are new but equal to a kept entry's, that entry's solver answers
         self._values: dict[tuple | None, tuple] = {}
         #: the solvers of calls with constraints, by the call's objects (keep_constrained)
-        self._constrained: dict[tuple, tuple[tuple, IKSolver]] = {}
+        self._constrained: dict[tuple, tuple[tuple, IKSolver, Any]] = {}
         #: the constraint and damping tasks of :func:`_constrained_solver` (its entries: by
         #: the identity of the constraint tasks, the damping and the number of levels; an
         #: entry holds its tasks), kept as the solvers are
@@ -367,11 +367,12 @@ class SolverCache:
         if limits is not None and list(map(id, ik.limits)) != list(map(id, limits)):
             return  # (a solver kept for equal limits: it reads those, not this call's)
         held = (configuration.model, list(tasks), limits, list(constraints))
+        lock = self.step_lock(ik)  # (before the cache's lock: it takes it to make one)
         with self._lock:
             self._constrained.pop(key, None)
             if len(self._constrained) >= self.size:
                 self._constrained.pop(next(iter(self._constrained)), None)
-            self._constrained[key] = (held, ik)  # most recently used last
+            self._constrained[key] = (held, ik, lock)  # most recently used last
 
     def velocity(
         self,
@@ -412,13 +413,13 @@ class SolverCache:
                 if entry is None:
                     return None
             entries[key] = entry  # most recently used last
-        ik = entry[1]
+        ik, lock = entry[1], entry[2]
         model = configuration.model
         if not 0.0 < dt < math.inf or model is not ik.model:
             return None
         if safety_break:
             as_configuration(configuration).check_limits(safety_break=True)
-        with self.step_lock(ik):
+        with lock:
             fast = ik.compiled_velocity(configuration, dt)
             if fast is not None:
                 velocity, status = fast
@@ -484,7 +485,8 @@ class SolverCache:
                 key, entry = self._by_value(self._entries, key, limits, value_key)
         if entry is None:  # (made outside the lock: another thread may make one too)
             ik = _new_solver(configuration, levels, solver, damping, limits, backend_options)
-            entry = ((model, levels, limits), ik)  # held: their ids stay theirs
+            # held: their ids stay theirs; the solver's step lock (step_lock)
+            entry = ((model, levels, limits), ik, self.step_lock(ik))
         with self._lock:
             if len(self._entries) >= self.size:
                 self._entries.pop(next(iter(self._entries)), None)
