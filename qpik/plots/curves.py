@@ -75,8 +75,19 @@ def plot_error_curves(
     ax.set_ylabel(_ylabel(units))
     ax.set_title(title)
     ax.grid(True, which="major", alpha=0.3)
+    if any(np.any(np.asarray(curve.values) < FLOOR) for curve in curves):
+        floor_note(ax)
     legend_below(ax, ncol=1 if len(curves) > 6 else 2)
     return ax
+
+
+def floor_note(ax: Axes) -> None:
+    """Say on ``ax`` that errors below :data:`FLOOR` are drawn at it (0 has no place on a
+    log scale)."""
+    ax.text(
+        0.99, 0.01, f"below {FLOOR:g}: drawn at {FLOOR:g}", transform=ax.transAxes,
+        ha="right", va="bottom", fontsize="x-small", color="0.4",
+    )  # fmt: skip
 
 
 STYLE = {"m": "-", "rad": "--", "rad or m": ":", "": "-."}
