@@ -85,7 +85,8 @@ def level_html(level: LevelReport) -> str:
     goal = ""
     if level.goal_error is not None:
         p, o = level.goal_error
-        goal = f"<br>goal error: {1000 * p:.2f} mm, {np.degrees(o):.3f}&deg;"
+        turn = "" if np.isnan(o) else f", {np.degrees(o):.3f}&deg;"  # (NaN: position only)
+        goal = f"<br>goal error: {1000 * p:.2f} mm{turn}"
     return (
         f'<div class="qpik-level qpik-{level.state}" data-level="{level.index}" '
         f'style="border-left:5px solid {border};background:{background};'

@@ -32,6 +32,7 @@ after the robot is moved by hand: a goal not within tolerance, not yet solved fo
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -92,7 +93,8 @@ class LevelReport:
         active_limits: the limits binding at the last step (``"joint4 upper ..."``).
         state: ``"met"``, ``"compromise"``, ``"unmet"`` or ``"pending"`` (module docstring).
         goal_error: the worst ``(position [m], orientation [rad])`` error of the level's
-            goal frames, or ``None`` when it holds none.
+            goal frames (orientation NaN where none of them has its orientation
+            regulated), or ``None`` when it holds none.
     """
 
     index: int
@@ -439,9 +441,10 @@ class LiveSolve:
             frames = [g for g in self.goals.values() if k in g.levels]
             goal_error = None
             if frames:
-                goal_error = (
+                turned = [errors[g.name][1] for g in frames if g.rotation]
+                goal_error = (  # (NaN: no frame of the level has its orientation regulated)
                     max(errors[g.name][0] for g in frames),
-                    max(errors[g.name][1] for g in frames),
+                    max(turned) if turned else math.nan,
                 )
             reports.append(
                 LevelReport(
@@ -461,7 +464,7 @@ class LiveSolve:
         self, k: int, status: str, residual: float, goal_error: tuple[float, float] | None
     ) -> str:
         within = goal_error is None or (
-            goal_error[0] <= self.tol_position and goal_error[1] <= self.tol_orientation
+            goal_error[0] <= self.tol_position and not goal_error[1] > self.tol_orientation
         )
         if status == "not solved yet":  # (no step taken: the robot moved by hand, say)
             return "met" if within else "pending"

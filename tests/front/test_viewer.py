@@ -132,6 +132,20 @@ def test_a_robot_moved_by_hand_is_pending_not_unmet():
     assert live.solve().levels[0].state == "met"
 
 
+def test_a_position_only_goal_shows_no_orientation_error():
+    """h17's audit: a position-only goal showed ", 0.000 deg" in its level's goal error."""
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key("home").qpos)
+    stack = [[qpik.tasks.PositionTask("ee")], [qpik.tasks.PostureTask(model, cost=0.01)]]
+    stack[1][0].set_target(configuration.q)
+    live = LiveSolve(model, stack, q0=configuration.q)
+    live.set_target("ee", configuration.frame_pose("ee")[0] + [0.05, 0.0, 0.0])
+    level = live.solve().levels[0]
+    assert np.isnan(level.goal_error[1]) and level.state == "met"
+    html = level_html(level)
+    assert "goal error:" in html and "&deg;" not in html
+
+
 def test_live_solve_of_a_problem_uses_its_stack_limits_and_goal():
     from qpik.viewer.app import live_of_problem
 
