@@ -32,7 +32,7 @@ from ..model.configuration import Configuration, FrameType
 from ..model.robots import load_robot, tool_frame
 from ..problem import Problem, load_problem
 from ..tasks import OrientationTask, PositionTask, PostureTask
-from .geometry import GeomMesh, geom_meshes
+from .geometry import GeomMesh, geom_meshes, ground_height
 from .live import LevelReport, LiveSolve, SolveReport, check_max_iterations, goal_keys
 from .server import check_host, check_port, start_server
 
@@ -234,7 +234,8 @@ class Viewer:
         scene = self.server.scene
         scene.set_up_direction("+z")
         data = self.live.configuration.data
-        scene.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5)
+        scene.add_grid("/ground", width=4.0, height=4.0, cell_size=0.1, section_size=0.5,
+                       position=(0.0, 0.0, ground_height(self.model, data)))  # fmt: skip
         self._bodies: dict[int, Any] = {}
         self._collision_bodies: dict[int, Any] = {}
         self._add_geoms(geom_meshes(self.model, "visual"), "/robot", self._bodies, None)

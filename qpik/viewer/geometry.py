@@ -233,3 +233,16 @@ def _cylinder(radius: float, half_length: float, segments: int) -> tuple[np.ndar
         faces.append([top_c, j, k])
         faces.append([bottom_c, segments + k, segments + j])
     return vertices, np.array(faces, dtype=np.int64)
+
+
+def ground_height(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Where the viewer draws its ground grid [m, world z]: 0, or, for a robot whose geoms
+    hang more than 0.1 m below 0 at ``data`` (a fixed-base humanoid held by its pelvis at
+    the origin), the lowest geom's bottom (its bounding sphere's), so that the robot stands
+    on the grid rather than through it. A model with a plane (a floor) keeps 0."""
+    plane = int(mujoco.mjtGeom.mjGEOM_PLANE)
+    kept = model.geom_type != plane
+    if not kept.all() or not kept.any():  # (a floor plane: the ground is the model's own)
+        return 0.0
+    lowest = float(np.min(data.geom_xpos[kept, 2] - model.geom_rbound[kept]))
+    return lowest if lowest < -0.1 else 0.0

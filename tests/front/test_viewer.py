@@ -266,3 +266,24 @@ def test_viewer_python_api_and_handle_drag():
         with pytest.raises(qpik.QpikError):
             viewer.set_target("nope", position)
         viewer.set_q(viewer.live.configuration.q)
+
+
+def test_the_ground_grid_is_under_a_robot_that_hangs_below_the_origin():
+    """h17's audit: `qpik view erd:talos` (fixed base at the pelvis) drew the robot sunk
+    through the grid at z = 0: the grid goes under its lowest geom; a model with a floor
+    plane, or an arm on the ground, keeps it at 0."""
+    import warnings
+
+    from qpik.viewer.geometry import ground_height
+
+    arm = qpik.load_robot("panda")
+    assert ground_height(arm, qpik.Configuration(arm, arm.key("home").qpos).data) == 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            talos = qpik.load_robot("erd:talos")
+        except qpik.QpikError:
+            pytest.skip("erd:talos does not load here")
+    data = qpik.Configuration(talos, talos.key("half_sitting").qpos).data
+    ground = ground_height(talos, data)
+    assert -1.3 < ground < -1.0  # (the soles about 1.02 m below the pelvis)
