@@ -17,6 +17,7 @@ __all__ = [
     "check_configuration",
     "frame_point",
     "manipulability_gradient",
+    "manipulability_parts",
     "manipulability_svd",
     "manipulability_terms",
 ]
@@ -75,6 +76,18 @@ def manipulability_terms(
     """The manipulability ``w`` of the frame's Jacobian rows
     (:func:`qpik.analysis.manipulability`) and its gradient (:func:`manipulability_gradient`)
     from one Jacobian: what a task needs each step."""
+    value, gradient, _ = manipulability_parts(configuration, frame, frame_type, rows)
+    return value, gradient
+
+
+def manipulability_parts(
+    configuration: Configuration,
+    frame: str | int,
+    frame_type: FrameType | str = "site",
+    rows: Rows = "pose",
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """:func:`manipulability_terms` and the rows' singular values (descending; none where
+    there are more rows than dofs), from the same Jacobian and decomposition."""
     check_configuration(configuration)
     kind = FrameType.parse(frame_type)
     idx = list(row_indices(rows))
@@ -91,7 +104,7 @@ def manipulability_terms(
     jac = np.empty((6, nv))
     mujoco.mj_jac(model, data, jac[:3], jac[3:], point, body)
     if len(idx) > nv:
-        return 0.0, np.zeros(nv)  # (w is 0 for every q: m > n)
+        return 0.0, np.zeros(nv), np.zeros(0)  # (w is 0 for every q: m > n)
     value, U, s, Vt = manipulability_svd(jac[idx])
     singular = s.tolist()
     coefficients = np.empty(len(singular))
@@ -106,7 +119,7 @@ def manipulability_terms(
     np.add.at(weights, idx, (U * coefficients) @ Vt)  # (a row named twice: both terms)
     chain = _hinge_slide_chain(model, body)
     if chain is not None:
-        return value, _chain_gradient(jac, weights, chain, nv)
+        return value, _chain_gradient(jac, weights, chain, nv), s
     gradient = np.empty(nv)
     jac_dot = np.empty((6, nv))
     for k in range(nv):
@@ -115,7 +128,7 @@ def manipulability_terms(
         mujoco.mj_comVel(model, data)
         mujoco.mj_jacDot(model, data, jac_dot[:3], jac_dot[3:], point, body)
         gradient[k] = np.vdot(jac_dot, weights)
-    return value, gradient
+    return value, gradient, s
 
 
 def manipulability_svd(J: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:

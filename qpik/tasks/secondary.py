@@ -24,7 +24,7 @@ from ..core.jacobian import (
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType
-from ..model.gradients import manipulability_svd, manipulability_terms
+from ..model.gradients import manipulability_parts, manipulability_svd
 from .checked import CheckedTask
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
@@ -209,9 +209,7 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         if rows.shape[0] > rows.shape[1]:
             return 0.0  # (m is 0 for every q: more rows than dofs)
         value, _, singular, _ = manipulability_svd(rows)
-        if not (singular.size and singular.min() > RANK_FLOOR * singular.max()):
-            return 0.0
-        return value
+        return _in_rank(value, singular)
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``1 / m(q)`` (1,), 0 where ``m`` is 0 (see the class)."""
@@ -225,23 +223,31 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
         """mink's weighted residual of the error and Jacobian (the value and gradient of
-        :func:`qpik.model.gradients.manipulability_terms`)."""
+        :func:`qpik.model.gradients.manipulability_parts`)."""
         return self._weighted_residual(*self._terms(configuration))
 
     def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
-        """``(e, de/dq)``: from :func:`qpik.model.gradients.manipulability_terms` where
-        :meth:`_value` is not 0 (the same ``m``: one value of the same rows)."""
-        if self._value(configuration) == 0.0:
-            return _inverse(0.0, np.zeros(configuration.model.nv))
-        value, gradient = manipulability_terms(
+        """``(e, de/dq)`` from one Jacobian and its decomposition
+        (:func:`qpik.model.gradients.manipulability_parts`: the value, the gradient, the
+        singular values that decide the rank as :meth:`_value` does)."""
+        value, gradient, singular = manipulability_parts(
             configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
-        return _inverse(value, gradient)
+        return _inverse(_in_rank(value, singular), gradient)
 
 
 #: :class:`ManipulabilityTask` is idle where its rows' smallest singular value is at most
 #: this much of the largest (their rank deficient to round-off).
 RANK_FLOOR = 1e-9
+
+
+def _in_rank(value: float, singular: np.ndarray) -> float:
+    """``value`` (``m``), or 0 where the rows' singular values say their rank is deficient
+    to round-off (none: more rows than dofs; the smallest at most :data:`RANK_FLOOR` of the
+    largest)."""
+    if not (singular.size and singular.min() > RANK_FLOOR * singular.max()):
+        return 0.0
+    return value
 
 
 def _inverse(value: float, gradient: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
