@@ -39,7 +39,7 @@ import qpsolvers
 from ..core import LevelStatus, checks
 from ..core.checks import type_name
 from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
-from ..model.configuration import Configuration
+from ..model.configuration import Configuration, as_configuration
 from ..tasks import BaseTask
 from .constraints import ConstraintRows, Tikhonov, equality_rows
 from .limit_values import limit_value as _limit_value
@@ -63,20 +63,6 @@ class _MinimumNorm(BaseTask):
     def compute_qp_objective(self, configuration: mink.Configuration) -> mink.Objective:
         nv = configuration.model.nv
         return mink.Objective(np.eye(nv), np.zeros(nv))
-
-
-def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
-    """``configuration`` as a :class:`qpik.Configuration`: a mink one is read in place,
-    through a view that shares its model and data (:meth:`qpik.Configuration.sharing`);
-    :class:`qpik.InvalidInput` naming the argument otherwise."""
-    if isinstance(configuration, Configuration):
-        return configuration
-    if isinstance(configuration, mink.Configuration):
-        return Configuration.sharing(configuration)
-    raise InvalidInput(
-        f"{name} must be a qpik.Configuration or a mink.Configuration, "
-        f"got {type(configuration).__name__}"
-    )
 
 
 def _is_list_like(value: Any) -> bool:

@@ -538,6 +538,20 @@ def _scalar_qpos_mask(model: mujoco.MjModel) -> np.ndarray:
     return mask
 
 
+def as_configuration(configuration: Any, name: str = "configuration") -> Configuration:
+    """``configuration`` as a :class:`qpik.Configuration`: a mink one is read in place,
+    through a view that shares its model and data (:meth:`qpik.Configuration.sharing`);
+    :class:`qpik.InvalidInput` naming the argument otherwise."""
+    if isinstance(configuration, Configuration):
+        return configuration
+    if isinstance(configuration, mink.Configuration):
+        return Configuration.sharing(configuration)
+    raise InvalidInput(
+        f"{name} must be a qpik.Configuration or a mink.Configuration, "
+        f"got {type(configuration).__name__}"
+    )
+
+
 def resolve_robot(
     robot: Any,
     *,

@@ -14,8 +14,8 @@ import numpy.typing as npt
 
 from .._engine.tasks import POSE_FULL, POSE_ORIENTATION, POSE_POSITION, pose_rows_into
 from ..core import checks
-from ..errors import InvalidInput, InvalidTarget, TargetNotSet, mink_errors_as_qpik
-from ..model.configuration import Configuration, FrameType
+from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
+from ..model.configuration import Configuration, FrameType, as_configuration
 from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
 from .checked import CheckedTask
 
@@ -47,7 +47,7 @@ def _pose_rows(
     ``mu = lm_damping |b|^2`` (world frame; ``target``: position (3) [m] then rotation
     (row-major 9))."""
     kind = task.frame_type
-    configuration = as_qpik_configuration(configuration)
+    configuration = as_configuration(configuration)
     fid = configuration.frame_id(task.frame_name, kind)
     model, data = configuration.model, configuration.data
     xpos = getattr(data, FRAME_POSITIONS[kind])[fid]
@@ -58,20 +58,6 @@ def _pose_rows(
     A, b = np.empty((k, model.nv)), np.empty(k)
     mu = pose_rows_into(A, b, 0, jac, xpos, xmat, target, part, cost, gain, lm_damping)
     return A, b, mu
-
-
-def as_qpik_configuration(configuration: mink.Configuration) -> Configuration:
-    """``configuration`` as qpik's: a mink one read in place (a view sharing its model and
-    data, :meth:`qpik.Configuration.sharing`); anything else is an
-    :class:`qpik.InvalidInput` naming the argument."""
-    if isinstance(configuration, Configuration):
-        return configuration
-    if isinstance(configuration, mink.Configuration):
-        return Configuration.sharing(configuration)
-    raise InvalidInput(
-        "configuration must be a qpik.Configuration or a mink.Configuration, got "
-        f"{type(configuration).__name__}"
-    )
 
 
 def _numbers(value: npt.ArrayLike, what: str) -> np.ndarray:
@@ -199,7 +185,7 @@ class PositionTask(_FrameRowsTask):
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current position."""
         self.set_target(
-            as_qpik_configuration(configuration).frame_pose(self.frame_name, self.frame_type)[0]
+            as_configuration(configuration).frame_pose(self.frame_name, self.frame_type)[0]
         )
 
     def _target12(self) -> np.ndarray:
@@ -228,7 +214,7 @@ class OrientationTask(_FrameRowsTask):
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current orientation."""
         self.set_target(
-            as_qpik_configuration(configuration).frame_pose(self.frame_name, self.frame_type)[1]
+            as_configuration(configuration).frame_pose(self.frame_name, self.frame_type)[1]
         )
 
     _part = POSE_ORIENTATION
@@ -302,7 +288,7 @@ class PoseTask(_CompiledRows, mink.Task, CheckedTask):  # type: ignore[misc]  # 
     def set_target_from_configuration(self, configuration: Configuration) -> None:
         """Target = the frame's current pose."""
         self.set_target(
-            *as_qpik_configuration(configuration).frame_pose(self.frame_name, self.frame_type)
+            *as_configuration(configuration).frame_pose(self.frame_name, self.frame_type)
         )
 
     @property
