@@ -102,11 +102,7 @@ def read_support(
     frames = reader.get(table, "frames", where, list, "a list of contact frame names")
     if not frames or not all(isinstance(f, str) for f in frames):
         raise reader.fail(f"{where}.frames", f"expected frame names, got {describe(frames)}")
-    frame_type = table.get("frame_type", "site")
-    if frame_type not in ("site", "body", "geom"):  # (named as the table's own field)
-        raise reader.fail(
-            f"{where}.frame_type", f"one of 'site', 'body', 'geom', got {describe(frame_type)}"
-        )
+    frame_type = reader.frame_type(table, where).value  # (named as the table's own field)
     kinds = [
         reader.frame({"frame": name, "frame_type": frame_type}, f"{where}.frames[{i}]", model)[1]
         for i, name in enumerate(frames)

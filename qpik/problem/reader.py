@@ -303,6 +303,14 @@ class Reader:
             raise self.fail(name, f"keyframe {value!r} of the model has non-finite qpos")
         return q
 
+    def frame_type(self, table: dict, where: str) -> FrameType:
+        """``table``'s ``frame_type`` (default ``site``), named ``where.frame_type``."""
+        kind_text = self.get(table, "frame_type", where, str, "site, body or geom", "site")
+        try:
+            return FrameType.parse(kind_text)
+        except QpikError as exc:
+            raise self.fail(f"{where}.frame_type", str(exc)) from exc
+
     def frame(self, table: dict, where: str, model: mujoco.MjModel) -> tuple[str, FrameType]:
         """``frame`` and ``frame_type`` (default ``site``) of ``table``, checked against
         the model; both left out: the robot's tool frame (:func:`qpik.robots.tool_frame`)."""
@@ -310,11 +318,7 @@ class Reader:
             tool = tool_frame(model)
             return tool.name, FrameType(tool.frame_type)
         frame = self.get(table, "frame", where, str, "a frame name (e.g. 'ee')")
-        kind_text = self.get(table, "frame_type", where, str, "site, body or geom", "site")
-        try:
-            kind = FrameType.parse(kind_text)
-        except QpikError as exc:
-            raise self.fail(f"{where}.frame_type", str(exc)) from exc
+        kind = self.frame_type(table, where)
         try:
             frame_id(model, frame, kind)
         except QpikError as exc:  # UnknownFrame: lists the valid names
