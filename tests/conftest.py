@@ -19,6 +19,23 @@ def bundled_robot(request) -> str:
     return request.param
 
 
+@pytest.fixture
+def pool_workers(monkeypatch) -> list:
+    """The ``max_workers`` of every process pool solve_many starts, in order (the pool
+    still runs: the recorder only watches its construction)."""
+    import qpik.batch.pool as batch
+
+    started: list = []
+
+    class Recorder(batch.ProcessPoolExecutor):
+        def __init__(self, *args, **kwargs):
+            started.append(kwargs.get("max_workers"))
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(batch, "ProcessPoolExecutor", Recorder)
+    return started
+
+
 def warm_solves_give_cold_bits(problems: list, rounds: int = 1) -> int:
     """Each problem solved cold, then warm-started after the others (each order, twice in a
     row) by one warm solver per damping law (none, the default): the same answers and active

@@ -83,15 +83,8 @@ def test_serial_equals_process_pool_whatever_the_chunking():
         np.testing.assert_array_equal(alone.q, result.q)
 
 
-def test_pool_is_used_and_tiny_batches_stay_in_process(monkeypatch):
-    started = []
-
-    class Recorder(batch.ProcessPoolExecutor):
-        def __init__(self, *args, **kwargs):
-            started.append(kwargs.get("max_workers"))
-            super().__init__(*args, **kwargs)
-
-    monkeypatch.setattr(batch, "ProcessPoolExecutor", Recorder)
+def test_pool_is_used_and_tiny_batches_stay_in_process(monkeypatch, pool_workers):
+    started = pool_workers
     qpik.solve_many("ur5e", TARGETS[:3], seed=0, workers=2, progress=False)
     assert started == []  # three fast targets: a pool costs more than it saves
     options = dict(seed=0, pool_threshold=0.0, chunk_size=1, progress=False)

@@ -19,15 +19,8 @@ from qpik.cli import main
 POSITIONS = [{"ee": [0.4, 0.1, 0.4]}, {"ee": [0.3, -0.1, 0.5]}, {"ee": [0.35, 0.0, 0.45]}]
 
 
-def test_a_pool_starts_no_more_workers_than_chunks_nor_than_the_cap(monkeypatch):
-    started = []
-
-    class Recorder(batch.ProcessPoolExecutor):
-        def __init__(self, *args, **kwargs):
-            started.append(kwargs.get("max_workers"))
-            super().__init__(*args, **kwargs)
-
-    monkeypatch.setattr(batch, "ProcessPoolExecutor", Recorder)
+def test_a_pool_starts_no_more_workers_than_chunks_nor_than_the_cap(monkeypatch, pool_workers):
+    started = pool_workers
     serial = qpik.solve_many("ur5e", POSITIONS, seed=0, workers=1, progress=False)
     options = dict(seed=0, pool_threshold=0.0, progress=False)
     # Target 0 is solved here; 2 chunks of one target are left: 2 workers, not 10**6.
