@@ -249,16 +249,13 @@ inline PyObject* new_active(i64 L, i64 w) {
 // Interned attribute names of the objects solve_levels reads and builds (made once).
 struct Names {
     PyObject *A, *b, *regularization, *weights;
-    PyObject *x, *status, *residuals, *sigma, *damping, *iterations, *active, *backend, *certificate, *primal;
-    PyObject *stationarity, *dual, *complementarity, *cert_raw, *sigma_raw;
+    PyObject *x, *status, *active, *primal, *raw;
 };
 inline const Names& names() {
     static const Names n = [] {
         auto s = [](const char* v) { return PyUnicode_InternFromString(v); };
-        return Names{s("A"), s("b"), s("regularization"), s("weights"), s("x"), s("status"), s("residuals"),
-                     s("sigma"), s("damping"), s("iterations"), s("active"), s("backend"), s("certificate"),
-                     s("primal"), s("stationarity"), s("dual"), s("complementarity"), s("_cert"),
-                     s("_sigma")};
+        return Names{s("A"), s("b"), s("regularization"), s("weights"), s("x"), s("status"), s("active"),
+                     s("primal"), s("_raw")};
     }();
     return n;
 }
@@ -349,69 +346,45 @@ inline bool all_finite(const double* src, i64 n) {
     return f.ok();
 }
 
-inline PyObject* float_list(const Vec& v, i64 L) {
-    PyObject* out = PyList_New(L);
-    if (!out) return nullptr;
-    for (i64 k = 0; k < L; ++k) {
-        PyObject* item = PyFloat_FromDouble(v[k]);
-        if (!item) {
-            Py_DECREF(out);
-            return nullptr;
-        }
-        PyList_SET_ITEM(out, k, item);
-    }
-    return out;
-}
-
-// The result object of solve_levels (see there); raises the Python error on failure. Its
-// certificates are left to the result class to build on first access: the (L, 4) float64
-// measures as bytes in ``_cert`` (HierarchyResult.__getattr__; the same values).
-inline nb::object result_object(PyTypeObject* result_type, PyObject* fill, PyObject* statuses, PyObject* backend, PyObject* x,
+// The result object of solve_levels (see there); raises the Python error on failure. It
+// carries x, status, active and primal as fields, and the per-level figures as the float64
+// bytes ``_raw`` (L levels): residuals, damping (lambda^2), iterations (whole numbers, exact
+// in a double), the (L, 4) certificate measures, sigma, then, where a level's sigma was
+// deferred (CascadeResult::deferred), the deferred store. The result class builds the lists
+// residuals, damping, iterations, backend, sigma and certificate from them on first access
+// (HierarchyResult.__getattr__; the same values): a caller that reads x and status only
+// never pays for them.
+inline nb::object result_object(PyTypeObject* result_type, PyObject* fill, PyObject* statuses, PyObject* x,
                                 PyObject* active, const core::CascadeResult& r, i64 L) {
     const Names& nm = names();
     PyObject* status = PyList_New(L);
-    PyObject* its = PyList_New(L);
-    PyObject* backends = PyList_New(L);
-    for (i64 k = 0; k < L && status && its && backends; ++k) {
+    for (i64 k = 0; k < L && status; ++k) {
         i64 code = r.status[k] >= 0 && r.status[k] < 6 ? r.status[k] : core::NUMERICAL;
         PyObject* st = PyTuple_GET_ITEM(statuses, code);
         Py_INCREF(st);
         PyList_SET_ITEM(status, k, st);
-        PyList_SET_ITEM(its, k, PyLong_FromLongLong(r.iterations[k]));
-        Py_INCREF(backend);
-        PyList_SET_ITEM(backends, k, backend);
     }
-    if (!status || !its || !backends || PyErr_Occurred()) {
-        Py_XDECREF(status);
-        Py_XDECREF(its);
-        Py_XDECREF(backends);
-        throw nb::python_error();
+    if (!status) throw nb::python_error();
+    bool deferred = false;
+    for (i64 k = 0; k < L && k < static_cast<i64>(r.deferred.size()); ++k) deferred = deferred || r.deferred[k] != -1.0;
+    const size_t l = static_cast<size_t>(L), store = deferred ? r.deferred.size() : 0;
+    PyObject* raw = PyBytes_FromStringAndSize(nullptr, static_cast<Py_ssize_t>((8 * l + store) * sizeof(double)));
+    if (raw) {
+        double* dst = reinterpret_cast<double*>(PyBytes_AS_STRING(raw));
+        for (size_t k = 0; k < l; ++k) {
+            dst[k] = r.residuals[k];
+            dst[l + k] = r.lam2[k];
+            dst[2 * l + k] = static_cast<double>(r.iterations[k]);
+            dst[7 * l + k] = r.sigma[k];
+        }
+        std::memcpy(dst + 3 * l, r.certificate.data(), 4 * l * sizeof(double));
+        if (store) std::memcpy(dst + 8 * l, r.deferred.data(), store * sizeof(double));
     }
     Py_INCREF(x);
     Py_INCREF(active);
-    PyObject* cert = PyBytes_FromStringAndSize(reinterpret_cast<const char*>(r.certificate.data()),
-                                               static_cast<Py_ssize_t>(4 * L * sizeof(double)));
-    // sigma: a list, or where a level's was deferred (CascadeResult::deferred), the bytes of
-    // the (L,) sigma (NaN where deferred) then the store, for the result class to resolve on
-    // first access (``_sigma``: HierarchyResult.__getattr__, resolve_sigma; the same values)
-    bool deferred = false;
-    for (i64 k = 0; k < L && k < static_cast<i64>(r.deferred.size()); ++k) deferred = deferred || r.deferred[k] != -1.0;
-    PyObject* sigma = nullptr;
-    if (deferred) {
-        sigma = PyBytes_FromStringAndSize(nullptr, static_cast<Py_ssize_t>((L + r.deferred.size()) * sizeof(double)));
-        if (sigma) {
-            char* dst = PyBytes_AS_STRING(sigma);
-            std::memcpy(dst, r.sigma.data(), static_cast<size_t>(L) * sizeof(double));
-            std::memcpy(dst + L * sizeof(double), r.deferred.data(), r.deferred.size() * sizeof(double));
-        }
-    } else {
-        sigma = float_list(r.sigma, L);
-    }
-    PyObject* obj = new_filled(
-        result_type, fill, {{nm.x, x}, {nm.status, status}, {nm.residuals, float_list(r.residuals, L)},
-                      {deferred ? nm.sigma_raw : nm.sigma, sigma}, {nm.damping, float_list(r.lam2, L)}, {nm.iterations, its},
-                      {nm.active, active}, {nm.backend, backends}, {nm.cert_raw, cert},
-                      {nm.primal, PyFloat_FromDouble(r.primal)}});
+    PyObject* obj = new_filled(result_type, fill,
+                               {{nm.x, x}, {nm.status, status}, {nm.active, active}, {nm.raw, raw},
+                                {nm.primal, PyFloat_FromDouble(r.primal)}});
     if (!obj) throw nb::python_error();
     return nb::steal(obj);
 }
@@ -693,9 +666,9 @@ void bind_core(nb::module_& m) {
             if (!PyTuple_Check(kinds_h.ptr()) || PyTuple_GET_SIZE(kinds_h.ptr()) < 4 || PyTuple_GET_SIZE(kinds_h.ptr()) > 5)
                 return none;
             PyObject* result_type = PyTuple_GET_ITEM(kinds_h.ptr(), 0);
-            PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (its _cert)
+            PyObject* cert_type = PyTuple_GET_ITEM(kinds_h.ptr(), 1);  // built by kinds[0] (from its _raw)
             PyObject* statuses = PyTuple_GET_ITEM(kinds_h.ptr(), 2);
-            PyObject* backend = PyTuple_GET_ITEM(kinds_h.ptr(), 3);
+            // (kinds[3], the backend label, is the result class's to read: its lists are built there)
             // kinds[4], when given: the function that sets the result's fields (new_filled)
             PyObject* fill = PyTuple_GET_SIZE(kinds_h.ptr()) == 5 ? PyTuple_GET_ITEM(kinds_h.ptr(), 4) : Py_None;
             if (fill != Py_None && !PyCallable_Check(fill)) return none;
@@ -792,18 +765,19 @@ void bind_core(nb::module_& m) {
             std::memcpy(act.data<i8>(), r.active.data(), static_cast<size_t>(L * (n + p)));
             static_assert(sizeof(double) == 8, "the certificate bytes are float64");
             if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
-            return result_object(reinterpret_cast<PyTypeObject*>(result_type), fill, statuses, backend, x_p, act_p, r, L);
+            return result_object(reinterpret_cast<PyTypeObject*>(result_type), fill, statuses, x_p, act_p, r, L);
         },
         "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
         "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
         "workspace"_a.none() = nb::none(), "lower_trust"_a = 0.0,
         "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
-        "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result class: x, status, residuals, sigma, damping, "
-        "iterations, active, backend, certificate, primal; the certificates, kinds[1] (primal, stationarity, dual, "
-        "complementarity), left to it as the (L, 4) float64 bytes _cert), statuses kinds[2][code] and backend kinds[3]; "
-        "kinds[4], when given, sets the fields: kinds[4](obj, x, status, residuals, sigma, damping, iterations, active, "
-        "backend, _cert, primal) on obj = object.__new__(kinds[0]), returning it. None (x and active untouched) when an "
+        "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result "
+        "class) with the fields x, status (kinds[2][code] per level), active, _raw and primal: _raw the float64 bytes of "
+        "the per-level residuals, damping, iterations, the (L, 4) certificate measures (kinds[1]'s fields), sigma and "
+        "the deferred sigma store, from which the result class builds those lists (and backend, kinds[3] per level) on "
+        "first access. kinds[4], when given, sets the fields: kinds[4](obj, x, status, active, _raw, primal) on "
+        "obj = object.__new__(kinds[0]), returning it. None (x and active untouched) when an "
         "argument does not pass or needs a conversion, or when a level ended in MAX_ITER or NUMERICAL.");
 
     m.def(

@@ -265,20 +265,30 @@ class HierarchyResult:
         return all(s is LevelStatus.SOLVED for s in self.status)
 
     def __getattr__(self, name: str):
-        """``certificate`` of a result of the one-call solve, built on first access from
-        its measures (``_cert``: the (L, 4) float64 bytes :func:`K.solve_levels` left; the
-        same values); ``sigma`` where it left levels' deferred (``_sigma``, resolved: the
-        same bits)."""
+        """The per-level lists of :data:`_RAW_FIELDS`, each built on first access from the
+        float64 bytes :func:`K.solve_levels` left (``_raw``: the same values; deferred
+        ``sigma`` resolved, the same bits)."""
         d = self.__dict__
-        if name == "sigma" and "_sigma" in d:  # levels' sigma deferred (K.solve_levels)
-            sigma = d["sigma"] = K.sigma_from_bytes(d.pop("_sigma"), len(d["status"]))
-            return sigma
-        raw = d.get("_cert") if name == "certificate" else None
+        raw = d.get("_raw") if name in _RAW_FIELDS else None
         if raw is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        value = d["certificate"] = certificates(np.frombuffer(raw))
-        del d["_cert"]
+        L, k = len(d["status"]), _RAW_FIELDS[name]
+        values = np.frombuffer(raw)
+        if name == "certificate":
+            value: list = certificates(values[3 * L : 7 * L])
+        elif name == "sigma" and values.shape[0] > 8 * L:  # then levels' deferred sigma
+            value = K.sigma_from_bytes(raw[56 * L :], L)
+        elif name == "backend":
+            value = [_KINDS[3]] * L
+        else:  # residuals, damping, iterations (whole numbers), sigma
+            value = values[k * L : (k + 1) * L].tolist()
+            value = [int(v) for v in value] if name == "iterations" else value
+        d[name] = value
         return value
+
+
+#: The lists built from a one-call result's ``_raw`` (their blocks; backend: a label per level).
+_RAW_FIELDS = dict(residuals=0, damping=1, iterations=2, certificate=3, sigma=7, backend=-1)
 
 
 def _residuals(A, b, starts, x) -> list[float]:
@@ -286,21 +296,13 @@ def _residuals(A, b, starts, x) -> list[float]:
     return [float(np.sqrt(r[s0:s1] @ r[s0:s1])) for s0, s1 in zip(starts[:-1], starts[1:])]
 
 
-def _fill_result(r, x, status, residuals, sigma, damping, iters, active, backend, cert, primal):
+def _fill_result(r, x, status, active, raw, primal):
     """The fields of ``r`` (``object.__new__(HierarchyResult)``) set as :func:`K.solve_levels`
     leaves them, in order (specialised stores: cheaper than the C setattr); returns ``r``."""
     r.x = x
     r.status = status
-    r.residuals = residuals
-    if sigma.__class__ is bytes:  # deferred levels' sigma, resolved on first access
-        r._sigma = sigma
-    else:
-        r.sigma = sigma
-    r.damping = damping
-    r.iterations = iters
     r.active = active
-    r.backend = backend
-    r._cert = cert
+    r._raw = raw
     r.primal = primal
     return r
 
