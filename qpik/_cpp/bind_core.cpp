@@ -608,9 +608,7 @@ void bind_core(nb::module_& m) {
         "reached: which conditions fail there); stationarity 0 for a level with no rows or "
         "no freedom.");
 
-    m.def(
-        "solve_levels",
-        [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
+    auto solve_levels = [](nb::handle levels_h, nb::handle lb_h, nb::handle ub_h, nb::handle G_h, nb::handle h_h, double threshold,
            double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol, nb::handle warm_h,
            nb::handle x_h, nb::handle active_h, nb::handle kinds_h, core::Workspace* ws,
            double lower_trust) -> nb::object {
@@ -766,11 +764,38 @@ void bind_core(nb::module_& m) {
             static_assert(sizeof(double) == 8, "the certificate bytes are float64");
             if (static_cast<i64>(r.certificate.size()) < 4 * L) return none;
             return result_object(reinterpret_cast<PyTypeObject*>(result_type), fill, statuses, x_p, act_p, r, L);
+    };
+    m.def(
+        "solve_levels",
+        [solve_levels](nb::handle levels, nb::handle lb, nb::handle ub, nb::handle G, nb::handle h,
+                       nb::handle settings) -> nb::object {
+            // settings: the tuple (threshold, max_damping, error_scale, rank_tol, max_iter, tol,
+            // warm, x, active, kinds, workspace, lower_trust), made once per change of the
+            // solver's settings (HierarchySolver._solve_levels_args): one plain call a solve,
+            // no argument tuple of 17 to build and convert. A value of another type raises
+            // TypeError (the caller's general path then checks and names it).
+            PyObject* t = settings.ptr();
+            if (!PyTuple_Check(t) || PyTuple_GET_SIZE(t) != 12) throw nb::type_error("solve_levels: settings");
+            auto real = [t](Py_ssize_t i) {
+                PyObject* o = PyTuple_GET_ITEM(t, i);
+                if (!PyFloat_Check(o) && !PyLong_Check(o)) throw nb::type_error("solve_levels: settings");
+                double v = PyFloat_AsDouble(o);
+                if (v == -1.0 && PyErr_Occurred()) throw nb::python_error();
+                return v;
+            };
+            PyObject* it = PyTuple_GET_ITEM(t, 4);
+            if (!PyLong_Check(it)) throw nb::type_error("solve_levels: settings");
+            const long long max_iter = PyLong_AsLongLong(it);
+            if (max_iter == -1 && PyErr_Occurred()) throw nb::python_error();
+            nb::handle wsh = PyTuple_GET_ITEM(t, 10);
+            core::Workspace* ws = nullptr;
+            if (!wsh.is_none() && !nb::try_cast<core::Workspace*>(wsh, ws)) throw nb::type_error("solve_levels: settings");
+            return solve_levels(levels, lb, ub, G, h, real(0), real(1), real(2), real(3), max_iter, real(5),
+                                PyTuple_GET_ITEM(t, 6), PyTuple_GET_ITEM(t, 7), PyTuple_GET_ITEM(t, 8),
+                                PyTuple_GET_ITEM(t, 9), ws, real(11));
         },
-        "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "threshold"_a, "max_damping"_a, "error_scale"_a, "rank_tol"_a,
-        "max_iter"_a, "tol"_a, "warm"_a.none(), "x"_a.none(), "active"_a.none(), "kinds"_a.none(),
-        "workspace"_a.none() = nb::none(), "lower_trust"_a = 0.0,
-        "solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
+        "levels"_a, "lb"_a, "ub"_a, "G"_a, "h"_a, "settings"_a,
+        "solve_levels(levels, lb, ub, G, h, settings): solve_cascade from the levels themselves (a list or tuple of objects with A, b, regularization, weights; float64 "
         "C-contiguous arrays) with HierarchyProblem.validate's checks, dq written into x (n,) and the active sets "
         "into active (L, n + p) int8 (each made here as numpy.empty would when None), returned as kinds[0] (the result "
         "class) with the fields x, status (kinds[2][code] per level), active, _raw and primal: _raw the float64 bytes of "

@@ -436,7 +436,7 @@ class HierarchySolver(SolverSettings):
                 if self._warm_start:  # (args[6]: the warm active sets, None in args)
                     args = (*args[:6], self._last_active(), *args[7:])
                 result = K.solve_levels(
-                    problem.levels, problem.lb, problem.ub, problem.G, problem.h, *args
+                    problem.levels, problem.lb, problem.ub, problem.G, problem.h, args
                 )
             except TypeError:  # an argument of a type it does not take (None): the checks name it
                 result = None

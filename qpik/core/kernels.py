@@ -49,18 +49,20 @@ Signatures:
   sigma, lam2, iterations, active, residuals, certificate, primal)``: ``certificate`` (L, 4) the
   levels' certificates (primal, stationarity, dual, complementarity; see
   :mod:`qpik.core.cascade`), ``primal`` the final answer's largest scaled row violation.
-- ``solve_levels(levels, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol, max_iter,
-  tol, warm, x, active, kinds, workspace=None) -> result | None``: :func:`solve_cascade` from the
+- ``solve_levels(levels, lb, ub, G, h, settings) -> result | None``, ``settings`` the tuple
+  ``(threshold, max_damping, error_scale, rank_tol, max_iter, tol, warm, x, active, kinds,
+  workspace, lower_trust)`` (a solver makes it once per change of its settings; a value of
+  another type raises ``TypeError``): :func:`solve_cascade` from the
   levels themselves (a list or tuple of objects with ``A``, ``b``, ``regularization``,
   ``weights``; arrays read through the buffer protocol, float64 C-contiguous) with the checks of
   ``HierarchyProblem.validate``; dq written into the caller's ``x`` (n,) and the active sets into
-  ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result class, its
-  fields set as its ``__init__`` would: ``x``, ``status`` ``kinds[2][code]``, ``residuals``,
-  ``sigma``, ``damping``, ``iterations``, ``active``, ``backend`` ``kinds[3]``, ``certificate`` of
-  ``kinds[1]``, ``primal``; an optional ``kinds[4]``, ``cascade._fill_result``, sets them in
-  its place). None, nothing written, where an argument fails a check or needs a
-  conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL`` (``max_iter <= 0``: ``10 (n + p) +
-  50``; ``warm`` None: cold).
+  ``active`` ((L, n + p) int8), and the answer returned as ``kinds[0]`` (the result class: ``x``,
+  ``status`` ``kinds[2][code]``, ``active``, ``primal``, and ``_raw``, the bytes its per-level
+  lists are built from on first access: ``residuals``, ``damping``, ``iterations``, ``sigma``,
+  ``certificate`` of ``kinds[1]``, ``backend`` ``kinds[3]``; an optional ``kinds[4]``,
+  ``cascade._fill_result``, sets the fields). None, nothing written, where an argument fails a
+  check or needs a conversion, or a level ended in ``MAX_ITER`` or ``NUMERICAL``
+  (``max_iter <= 0``: ``10 (n + p) + 50``; ``warm`` None: cold).
 - ``CascadeWorkspace()``: the storage of one solver's cascade, passed as ``workspace`` to
   :func:`solve_cascade` / :func:`solve_levels` so that repeated solves of the same sizes
   allocate no matrices (one per solver, never shared between threads; no state but

@@ -37,10 +37,11 @@ def _problem(seed: int = 3, n: int = 7) -> HierarchyProblem:
 def _solve(problem: HierarchyProblem, kinds) -> HierarchyResult:
     s = HierarchySolver()
     t, m, e = s.damping_settings
-    args = (problem.levels, problem.lb, problem.ub, problem.G, problem.h, t, m, e, s.rank_tolerance)
+    settings = (t, m, e, s.rank_tolerance, s.max_iter, s.tolerance, None, None, None, kinds)
     return K.solve_levels(
-        *args, s.max_iter, s.tolerance, None, None, None, kinds, s._cascade_workspace
-    )
+        problem.levels, problem.lb, problem.ub, problem.G, problem.h,
+        (*settings, s._cascade_workspace, 0.0),
+    )  # fmt: skip
 
 
 def _same(a: HierarchyResult, b: HierarchyResult) -> None:
