@@ -136,10 +136,12 @@ def least_slack(limits: LimitRows, held: np.ndarray | None = None) -> np.ndarray
 
 def _kind(row_name: str) -> str:
     """The limit class a general row's name gives (``"CollisionAvoidanceLimit row 3"``,
-    ``"joint4 upper (SupportPolygonLimit)"``)."""
-    if " row " in row_name:
-        return row_name.rsplit(" row ", 1)[0]
-    return row_name[row_name.rfind("(") + 1 : -1] if row_name.endswith(")") else row_name
+    ``"joint4 upper (SupportPolygonLimit)"``). A class name has no space or parenthesis; a
+    joint's name may have both (MuJoCo takes any): the bound's form, which ends in the
+    class in parentheses, is read first, from its last ``(``."""
+    if row_name.endswith(")"):
+        return row_name[row_name.rfind("(") + 1 : -1]
+    return row_name.rsplit(" row ", 1)[0] if " row " in row_name else row_name
 
 
 def _least_slack(limits: LimitRows) -> np.ndarray | None:

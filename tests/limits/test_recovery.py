@@ -435,3 +435,31 @@ def test_the_slack_relaxes_only_the_limit_kind_that_needs_it():
     )
     slack = least_slack(rows)
     np.testing.assert_allclose(slack, [1.5, 0.0], atol=1e-9)
+
+
+def test_a_joint_whose_name_has_row_in_it_keeps_its_limit_kind():
+    """A general row on one dof is named as that bound, ``"<joint> upper (<limit class>)"``,
+    and MuJoCo takes any joint name: a joint named ``"front row hip"`` once made its row of
+    kind ``"front"`` (the name was split at its ``" row "``), so that its limit's rows were
+    relaxed apart from the rest of their kind. The bound's form is read first."""
+    from qpik.diffik.boxes import LimitRows
+
+    rows = LimitRows(
+        lb=np.array([-1.0, -1.0]),
+        ub=np.array([1.0, 1.0]),
+        # x0 <= -2 and x1 <= -1.8 (support rows, out of the box), x0 + x1 >= -1.9 (collision)
+        G=np.array([[1.0, 0.0], [-1.0, -1.0], [0.0, 1.0]]),
+        h=np.array([-2.0, 1.9, -1.8]),
+        row_names=[
+            "SupportPolygonLimit row 0",
+            "CollisionAvoidanceLimit row 0",
+            "front row hip upper (SupportPolygonLimit)",
+        ],
+        sources=list,
+        dof_names=["x", "front row hip"],
+        relaxable=np.array([True, True, True]),
+    )
+    slack = least_slack(rows)
+    # the support rows alone relaxed (both: one kind), the collision row kept hard (relaxing
+    # every row together would give [1, 0.1, 0.8]: the pair 0.1 into its minimum distance)
+    np.testing.assert_allclose(slack, [1.0, 0.0, 0.9], atol=1e-9)
