@@ -272,3 +272,33 @@ def test_the_manipulability_task_is_idle_where_m_is_zero():
         assert np.all(task.compute_jacobian(configuration) == 0.0)
         A, b, _ = task.compute_qp_residual(configuration)
         assert np.all(A == 0.0) and np.all(b == 0.0)
+
+
+@pytest.mark.parametrize(
+    "robot, rows", [("planar_2r", [0, 1]), ("panda", "position"), ("ur5e", "position")]
+)
+def test_lm_damping_settles_the_manipulability_task_at_its_maximum(robot, rows):
+    """As the class documents: with lm_damping = 0 the steps near the maximum of m go back
+    and forth at the trust region's size (no step meets the increase asked); with
+    lm_damping = 30 each step there is a gradient step of log m, and the arm settles at the
+    maximum (the planar 2R: m = l1 l2 = 1)."""
+    import mink
+
+    from qpik.tasks import ManipulabilityTask
+
+    model = qpik.load_robot(robot)
+    last = {}
+    for lm in (0.0, 30.0):
+        configuration = qpik.Configuration(model, model.key_qpos[0] if model.nkey else None)
+        if robot == "planar_2r":
+            configuration.update(np.array([0.3, 0.3]))
+        task = ManipulabilityTask("ee", "site", rows=rows, lm_damping=lm)
+        solver = qpik.IKSolver(model, [[task]], [mink.ConfigurationLimit(model)])
+        for _ in range(600):
+            velocity = solver.step(configuration, 0.01).velocity
+            configuration.integrate_inplace(velocity, 0.01)
+        last[lm] = (np.abs(velocity * 0.01).max(), task._value(configuration))
+    assert last[0.0][0] > 0.01  # the trust region's pi rad/s x 0.01 s, every step
+    assert last[30.0][0] < 1e-12 and last[30.0][1] >= last[0.0][1] - 1e-3
+    if robot == "planar_2r":
+        assert last[30.0][1] == pytest.approx(1.0, abs=1e-9)
