@@ -776,20 +776,25 @@ void bind_core(nb::module_& m) {
             // TypeError (the caller's general path then checks and names it).
             PyObject* t = settings.ptr();
             if (!PyTuple_Check(t) || PyTuple_GET_SIZE(t) != 12) throw nb::type_error("solve_levels: settings");
-            auto real = [t](Py_ssize_t i) {
+            // (an int past a double's or an i64's range: the same TypeError, the error cleared)
+            auto bad = [] {
+                PyErr_Clear();
+                throw nb::type_error("solve_levels: settings");
+            };
+            auto real = [t, &bad](Py_ssize_t i) {
                 PyObject* o = PyTuple_GET_ITEM(t, i);
-                if (!PyFloat_Check(o) && !PyLong_Check(o)) throw nb::type_error("solve_levels: settings");
+                if (!PyFloat_Check(o) && !PyLong_Check(o)) bad();
                 double v = PyFloat_AsDouble(o);
-                if (v == -1.0 && PyErr_Occurred()) throw nb::python_error();
+                if (v == -1.0 && PyErr_Occurred()) bad();
                 return v;
             };
             PyObject* it = PyTuple_GET_ITEM(t, 4);
-            if (!PyLong_Check(it)) throw nb::type_error("solve_levels: settings");
+            if (!PyLong_Check(it)) bad();
             const long long max_iter = PyLong_AsLongLong(it);
-            if (max_iter == -1 && PyErr_Occurred()) throw nb::python_error();
+            if (max_iter == -1 && PyErr_Occurred()) bad();
             nb::handle wsh = PyTuple_GET_ITEM(t, 10);
             core::Workspace* ws = nullptr;
-            if (!wsh.is_none() && !nb::try_cast<core::Workspace*>(wsh, ws)) throw nb::type_error("solve_levels: settings");
+            if (!wsh.is_none() && !nb::try_cast<core::Workspace*>(wsh, ws)) bad();
             return solve_levels(levels, lb, ub, G, h, real(0), real(1), real(2), real(3), max_iter, real(5),
                                 PyTuple_GET_ITEM(t, 6), PyTuple_GET_ITEM(t, 7), PyTuple_GET_ITEM(t, 8),
                                 PyTuple_GET_ITEM(t, 9), ws, real(11));

@@ -274,10 +274,10 @@ class HierarchyResult:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         L, k = len(d["status"]), _RAW_FIELDS[name]
         values = np.frombuffer(raw)
-        if name == "certificate":
-            value: list = certificates(values[3 * L : 7 * L])
+        if name == "certificate":  # (L, 4)
+            value: list = certificates(values[k * L : (k + 4) * L])
         elif name == "sigma" and values.shape[0] > 8 * L:  # then levels' deferred sigma
-            value = K.sigma_from_bytes(raw[56 * L :], L)
+            value = K.sigma_from_bytes(raw[k * L * 8 :], L)  # (its bytes from sigma's on)
         elif name == "backend":
             value = [_KINDS[3]] * L
         else:  # residuals, damping, iterations (whole numbers), sigma

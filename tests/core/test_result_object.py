@@ -209,3 +209,24 @@ def test_resolve_sigma_rejects_a_malformed_store():
     # a well-formed record of R = diag(2, 3): sigma 2
     store = np.array([2.0, -1.0, 0.0, 2.0, 2.0, 1.0, 1e-10, 2.0, 0.0, 0.0, 3.0])
     assert K.resolve_sigma(np.array([nan, 7.0]), store) == [2.0, 7.0]
+
+
+def test_settings_of_another_type_raise_type_error():
+    """K.solve_levels takes the solver's settings as one tuple; an entry of another type,
+    an int past a double's or an int64's range, a tuple of another length or a workspace
+    that is not one raise TypeError (never OverflowError), which HierarchySolver.solve
+    answers by its general path."""
+    p = _problem()
+    args = HierarchySolver()._solve_levels_args()
+    bad = [
+        (10**400, *args[1:]),
+        (*args[:4], 10**30, *args[5:]),
+        (*args[:4], 7.0, *args[5:]),
+        (*args[:10], "workspace", *args[11:]),
+        args[:3],
+        list(args),
+    ]
+    for settings in bad:
+        with pytest.raises(TypeError, match="solve_levels: settings"):
+            K.solve_levels(p.levels, p.lb, p.ub, p.G, p.h, settings)
+    assert K.solve_levels(p.levels, p.lb, p.ub, p.G, p.h, args).ok
