@@ -167,8 +167,9 @@ class HierarchyProblem:
 
     Attributes:
         levels: the levels.
-        lb, ub: (n,) box bounds on ``x`` (``-inf``/``inf`` for none).
-        G, h: (p, n), (p,) general rows ``G x <= h``.
+        lb, ub: (n,) box bounds on ``x`` (``-inf``/``inf``, or a size of 1e20 or more, for
+            none: OSQP's and qpOASES' convention).
+        G, h: (p, n), (p,) general rows ``G x <= h`` (absent where ``h >= 1e20``).
         row_names: optional names of the general rows, for reports.
     """
 
@@ -265,9 +266,8 @@ class HierarchyResult:
         return all(s is LevelStatus.SOLVED for s in self.status)
 
     def __getattr__(self, name: str):
-        """The per-level lists of :data:`_RAW_FIELDS`, each built on first access from the
-        float64 bytes :func:`K.solve_levels` left (``_raw``: the same values; deferred
-        ``sigma`` resolved, the same bits)."""
+        """The lists of :data:`_RAW_FIELDS`, built on first access from ``_raw`` (the bytes
+        :func:`K.solve_levels` left: the same values; a deferred ``sigma`` resolved)."""
         d = self.__dict__
         raw = d.get("_raw") if name in _RAW_FIELDS else None
         if raw is None:

@@ -62,9 +62,26 @@ class Solution:
         return all(s == LevelStatus.SOLVED for s in self.status)
 
 
+def squarable(top: float, count: int) -> bool:
+    """Whether a level's rows, whose largest entry is ``top`` (``count`` entries), square in
+    double precision: at most 1e150, and ``top^2 count`` at most 1e300 (its objective and
+    its certificate square and sum them). The compiled step's test (``Bound::safe``, where
+    the step then takes this path): the same rows refused on both."""
+    return top <= 1e150 and top * top * max(count, 1) <= 1e300
+
+
 def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: float) -> Solution:
     """The core's cascade on a step's rows and limits (the QP path), as a
-    :class:`Solution`; raises :class:`qpik.InvalidTarget` when the answer is not finite."""
+    :class:`Solution`; raises :class:`qpik.InvalidTarget` when a level's rows are too large
+    to square (:func:`squarable`) or the answer is not finite."""
+    for k in range(tasks.starts.shape[0] - 1):
+        part = tasks.A[tasks.starts[k] : tasks.starts[k + 1]]
+        top = float(np.abs(part).max()) if part.size else 0.0
+        if not squarable(top, part.size):
+            raise InvalidTarget(
+                f"priority level {k}: its weighted rows reach {top:.3g}, too large to square "
+                "in floating point (a cost near 1e150 or beyond?)"
+            )
     result = core.solve_arrays(
         tasks.A, tasks.b, tasks.w, tasks.starts, tasks.reg, limits.lb, limits.ub, limits.G,
         limits.h,

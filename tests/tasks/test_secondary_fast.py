@@ -302,3 +302,39 @@ def test_lm_damping_settles_the_manipulability_task_at_its_maximum(robot, rows):
     assert last[30.0][0] < 1e-12 and last[30.0][1] >= last[0.0][1] - 1e-3
     if robot == "planar_2r":
         assert last[30.0][1] == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("cost", [1e151, 1e155])
+@pytest.mark.parametrize("solver_name", ["auto", "quadprog"])
+def test_rows_too_large_to_square_are_refused_on_every_path(cost, solver_name):
+    """Audit (numerical extremes): a FrameTask of cost 1e155 at level 0 (its rows about 1e154,
+    finite, their squares not) was answered 'solved' with its certificate holding, yet the
+    step ignored the task (its error unchanged, the posture level moving instead): the
+    certificate's sizes overflowed to inf and read every measure as 0. As
+    docs/guides/errors.md says, such a cost is refused with InvalidTarget naming the level,
+    on the compiled step and the QP path alike (rows past 1e150: qpik.diffik.result.squarable);
+    a cost of 1 still answers."""
+    import mink
+
+    from qpik.errors import InvalidTarget
+    from qpik.tasks import FrameTask, PostureTask
+
+    model = qpik.load_robot("panda")
+    home = model.key_qpos[0]
+    for c in (1.0, cost):
+        configuration = qpik.Configuration(model, home)
+        p, R = configuration.frame_pose("ee")
+        ee = FrameTask("ee", "site", position_cost=c, orientation_cost=c)
+        target = mink.SO3.from_matrix(R), p + np.array([0.01, -0.02, 0.015])
+        ee.set_target(mink.SE3.from_rotation_and_translation(*target))
+        posture = PostureTask(model, cost=1.0)
+        posture.set_target(home + 0.3)
+        solver = qpik.IKSolver(
+            model, [[ee], [posture]], qpik.limits.joint_limits(model), damping=0.0,
+            solver=solver_name,
+        )  # fmt: skip
+        if c == 1.0:
+            assert solver.step(configuration, 0.01).ok
+            continue
+        with pytest.raises(InvalidTarget, match="priority level 0.*too large to square"):
+            solver.step(configuration, 0.01)

@@ -1427,7 +1427,9 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         if (h[j] < kBig) {
             double scale = gnorm[j] + std::fabs(h[j]);
             double v = gx[j] - h[j];
-            if (v > 0.0) primal = pymax(primal, scale > 0.0 ? v / scale : kInf);
+            // (a row whose |g|^2 or g x overflowed, entries near 1e154: its violation unknown)
+            if (v > 0.0 || std::isnan(v))
+                primal = pymax(primal, scale > 0.0 && scale < kInf && !std::isnan(v) ? v / scale : kInf);
             relative = relative && !(v > kRowsRelative * (gnorm[j] * xmax + std::fabs(h[j])));
         }
     }
@@ -1756,8 +1758,11 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
         for (i64 c = 0; c < r; ++c) {
             double ss = pymax(pymax(ssc[c], hsc[c]), size_floor * floor);
             if (q > 0) ss = pymax(ss, pymin(msc[c], big));
-            if (ss > 0.0) st = pymax(st, std::fabs(sc[c]) / ss);
-            else if (sc[c] != 0.0 || std::isnan(sc[c])) st = kInf;
+            // A component or its scale that overflowed (rows near 1e154: their products past
+            // the double range) proves nothing: |sc| / inf would read 0, and pymax drops a NaN.
+            if (!(ss < kInf) || std::isnan(sc[c])) st = kInf;
+            else if (ss > 0.0) st = pymax(st, std::fabs(sc[c]) / ss);
+            else if (sc[c] != 0.0) st = kInf;
         }
         return st;
     };
@@ -1824,8 +1829,9 @@ inline Certificate certify_level(CMatRef A, CVecRef b, double rho, CMatRef Z, co
                 for (i64 i = 0; i < n; ++i) s0 += Z(i, c) * v0[i];
             }
             double ss = pymax(pymax(ssc[c], hsc[c]), size_floor * floor);
-            if (ss > 0.0) stat0 = pymax(stat0, std::fabs(s0) / ss);
-            else if (s0 != 0.0 || std::isnan(s0)) stat0 = kInf;
+            if (!(ss < kInf) || std::isnan(s0)) stat0 = kInf;  // (an overflow, as above)
+            else if (ss > 0.0) stat0 = pymax(stat0, std::fabs(s0) / ss);
+            else if (s0 != 0.0) stat0 = kInf;
         }
         if (stat0 <= kCertify) {
             cert.stationarity = stat0;

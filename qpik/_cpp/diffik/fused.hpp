@@ -541,6 +541,10 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
             if (n > 1) ts.add_rep(a.A(r, d == 0 ? 1 : 0), n - 1);
         }
     }
+    // A's rows square in double precision (their largest at most 1e150, max^2 count at most
+    // 1e300: the level's objective and certificate square them), else the general path,
+    // which refuses them (InvalidTarget, qpik.diffik.rows._squarable: the same test).
+    const bool squarable = ts.safe(true);
     for (i64 r = 0; r < a.G.rows; ++r) {  // general limit rows: finite, or the general path
         ts.add(a.h[r]);
         ts.add_n(a.G.row(r), n);
@@ -563,7 +567,7 @@ inline i64 fused_rows_into(const FusedArgs& a, Scratch& s) {
     }
     double reg_sum = 0.0;
     for (i64 k = 0; k < L; ++k) reg_sum += res.reg[k];
-    if (!(finite && std::isfinite(reg_sum))) {
+    if (!(finite && std::isfinite(reg_sum) && squarable)) {
         res.code = NOT_FINITE;
     } else if (res.box.bad >= 0) {
         res.code = CONFLICT;
