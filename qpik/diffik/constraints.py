@@ -82,13 +82,25 @@ def equality_rows(
     return J, b
 
 
+#: The weight of every constraint row (:meth:`ConstraintRows.rows_now`): the core judges a
+#: level's rank and singular values on ``diag(1 / w) A`` (:class:`qpik.core.Level`), so the
+#: constraints' singular values read 2^40 times theirs - far above any damping law's
+#: threshold for every direction the rank keeps (at least ``rank_tolerance`` times the
+#: largest, which unit rows make at least 1) - and the adaptive damping never applies to
+#: them, as mink's equality constraints get none; a power of two, so the rank is decided
+#: on exactly scaled numbers, as with weight 1.
+UNDAMPED_WEIGHT = 2.0**-40
+
+
 class ConstraintRows(SuppliedRows):
     """mink's constraint tasks (``solve_ik(constraints=...)``) as one task whose rows are
     their equalities ``J dq = -gain e`` (:func:`equality_rows`, costs not applied), each
-    row scaled to unit norm (the same equalities: a row's units then neither trigger the
-    adaptive damping nor meet the core's round-off floor), with no LM term: the level above
-    the tasks' in :func:`qpik.solve_ik`'s solver, which holds them exactly where they can
-    be met. ``k``: their number of rows at the configuration it was made at."""
+    row scaled to unit norm (the same equalities: a row's units then do not meet the
+    core's round-off floor), with no LM term and no adaptive damping (their weights
+    :data:`UNDAMPED_WEIGHT`, even where the rows are nearly dependent: a frame constraint
+    near a singularity): the level above the tasks' in :func:`qpik.solve_ik`'s solver,
+    which holds them exactly where they can be met. ``k``: their number of rows at the
+    configuration it was made at."""
 
     label = "constraints: their rows"
 
@@ -129,7 +141,7 @@ class ConstraintRows(SuppliedRows):
 
     def rows_now(self, configuration: mink.Configuration) -> tuple:
         A, b = self._unit_rows(configuration)
-        return A, b, None, np.ones(A.shape[0])
+        return A, b, None, np.full(A.shape[0], UNDAMPED_WEIGHT)
 
 
 class Tikhonov(SuppliedRows):

@@ -205,11 +205,22 @@ def _check_read_values(task: BaseTask) -> None:
                 check_pose_target(task, target, name)
 
 
+#: The part of an objective's ``c`` outside its ``H``'s range (relative to ``|c|``) beyond
+#: which :func:`_objective_rows` refuses it: a least-squares task's ``c = -J^T W e`` has one
+#: of its round-off only (at most about 1e-6 of it along a direction the eigenvalue cutoff
+#: drops).
+_OUTSIDE_RANGE = 1e-5
+
+
 def _objective_rows(
-    H: np.ndarray, c: np.ndarray
+    H: np.ndarray, c: np.ndarray, name: str = "a task"
 ) -> tuple[np.ndarray, np.ndarray, None, np.ndarray]:
     """Rows ``(A, b)`` of an objective ``(H, c)`` (``H`` symmetric, finite): ``A^T A = H``,
-    ``A^T b = -c`` on ``H``'s range, one row per dof (unit weights, no LM term)."""
+    ``A^T b = -c``, one row per dof (unit weights, no LM term). A ``c`` with a part outside
+    ``H``'s range (a linear term where ``H`` is 0, as a gradient step ``c = -grad``) has no
+    such rows - a level of least squares cannot hold it, and mink's QP answers it only
+    through its damping - so it raises :class:`qpik.TaskDefinitionError` naming the task
+    (``name``) rather than being dropped."""
     # H positive definite with room (every Cholesky pivot^2 above the cutoff below): its
     # factor's rows, H = L L^T, A = L^T, L b = -c (a mass matrix: 43 dofs in about 8 us,
     # where the eigendecomposition below takes 100 us).
@@ -222,6 +233,14 @@ def _objective_rows(
     # every step to the QP path). A zero row adds nothing to the level's objective.
     values, vectors = np.linalg.eigh(H)
     keep = values > 1e-12 * max(1.0, float(values.max(initial=0.0)))
+    outside = float(np.linalg.norm(vectors[:, ~keep].T @ c))
+    if outside > _OUTSIDE_RANGE * float(np.linalg.norm(c)):
+        raise TaskDefinitionError(
+            f"{name}: its objective's linear term c has a part outside H's range ({outside:.3g}"
+            f" of |c| = {float(np.linalg.norm(c)):.3g}: a linear term where H is 0), which a "
+            "level of least squares cannot hold; give the task rows (compute_qp_residual) or "
+            "an H whose range covers c"
+        )
     root = np.sqrt(np.where(keep, values, 0.0))
     A = root[:, None] * vectors.T
     b = np.zeros(len(values))
@@ -290,7 +309,7 @@ def task_rows(
                 f"{type(task).__name__}: its objective (H, c) is not finite (a cost, gain or "
                 "time step out of range?)"
             )
-        return _objective_rows(symmetric, c)
+        return _objective_rows(symmetric, c, type(task).__name__)
     assert residual is not None  # objective is None only when a residual was given
     jacobian, error, task_mu = residual
     # (a NaN: its error is, which the finiteness checks report as the target's)

@@ -1073,7 +1073,10 @@ def test_frame_task_constraint_rows_by_the_engine_are_minks(rng, frame_type):
             norms = np.linalg.norm(J, axis=1)
             np.testing.assert_allclose(A, J / norms[:, None], rtol=0, atol=1e-12)
             np.testing.assert_allclose(b, -0.7 * e / norms, rtol=0, atol=1e-12 * (1 + abs(b).max()))
-            assert mu is None and np.array_equal(weights, np.ones(6))
+            # (weights UNDAMPED_WEIGHT: their rank judged as with 1, no adaptive damping)
+            assert mu is None and np.array_equal(
+                weights, np.full(6, constraints_module.UNDAMPED_WEIGHT)
+            )
 
     class Shifted(mink.FrameTask):  # its own error: the engine's rows must not be taken
         def compute_error(self, configuration):
@@ -1086,3 +1089,70 @@ def test_frame_task_constraint_rows_by_the_engine_are_minks(rng, frame_type):
     np.testing.assert_allclose(
         b, -1.0 * task.compute_error(configuration) / np.linalg.norm(J, axis=1)
     )
+
+
+@pytest.mark.parametrize("solver", [None, "daqp"])
+def test_constraints_near_a_singularity_are_held_exactly(solver):
+    """Audit (mink at every level): constraints= are held exactly, with no damping, as the
+    docs say; a mink FrameTask as the constraint at a Panda configuration where its unit
+    rows' smallest singular value is 0.0165 (below the damping law's 0.05) got the adaptive
+    damping (2.2e-3), and the constraint was missed by 1.27e-2 of |b| 3e-2 while mink's QP,
+    solved exactly, meets it. qpik now meets it to round-off, as quadprog on mink's QP."""
+    import qpsolvers
+
+    model = qpik.load_robot("panda")
+    q = [0.7142743740176092, -0.7304759657586889, -2.3938873363793935, -2.8770456343290203,
+         1.6337481552629087, 3.2679796737033096, 0.5561204996344504]  # fmt: skip
+    configuration = mink.Configuration(model)
+    configuration.update(np.array(q))
+    frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    offset = mink.SE3.exp(np.array([0.01, -0.02, 0.015, 0.02, 0.01, -0.03]))
+    frame.set_target(configuration.get_transform_frame_to_world("ee", "site") @ offset)
+    posture = mink.PostureTask(model, cost=0.1)
+    posture.set_target(model.key_qpos[0])
+    problem = mink.build_ik(
+        configuration, [posture], 0.01, damping=1e-3, limits=[], constraints=[frame]
+    )
+    exact = qpsolvers.solve_problem(problem, solver="quadprog").x
+    assert np.abs(problem.A @ exact - problem.b).max() < 1e-14
+    qpik.clear_caches()
+    velocity = qpik.solve_ik(
+        configuration, [posture], 0.01, solver, damping=1e-3, limits=[], constraints=[frame]
+    )
+    assert np.abs(problem.A @ (velocity * 0.01) - problem.b).max() < 1e-14
+    np.testing.assert_allclose(velocity * 0.01, exact, atol=1e-10)
+
+
+def test_an_objective_whose_linear_term_leaves_h_range_is_refused():
+    """Audit (mink at every level): a task of one's own that gives only mink's objective
+    (H, c), with c partly outside H's range (H = diag(1, 0, ...), c = (-2e-3, -1e-3, 0, ...);
+    or H = 0, a pure gradient step), lost that part of c silently: qpik answered v_1 = 0
+    where mink's QP, solved exactly, gives 10. A level of least squares cannot hold such a
+    term: TaskDefinitionError naming the task, on every path; an H that covers c still
+    answers mink's exact optimum."""
+    import qpsolvers
+
+    class Bias(mink.tasks.BaseTask):
+        def __init__(self, full: bool):
+            self.full = full
+
+        def compute_qp_objective(self, configuration):
+            nv = configuration.model.nv
+            H = np.eye(nv) if self.full else np.diag([1.0] + [0.0] * (nv - 1))
+            c = np.zeros(nv)
+            c[0], c[1] = -2e-3, -1e-3
+            return mink.Objective(H, c)
+
+    model = qpik.load_robot("panda")
+    configuration = mink.Configuration(model)
+    configuration.update(model.key_qpos[0])
+    for solver in (None, "daqp"):
+        qpik.clear_caches()
+        with pytest.raises(qpik.errors.TaskDefinitionError, match="Bias.*outside H's range"):
+            qpik.solve_ik(configuration, [Bias(False)], 0.01, solver, damping=1e-2)
+    with pytest.raises(qpik.errors.TaskDefinitionError, match="Bias"):
+        qpik.IKSolver(model, [[Bias(False)]]).step(qpik.Configuration(model), 0.01)
+    problem = mink.build_ik(configuration, [Bias(True)], 0.01, damping=1e-2)
+    exact = qpsolvers.solve_problem(problem, solver="quadprog").x / 0.01
+    velocity = qpik.solve_ik(configuration, [Bias(True)], 0.01, damping=1e-2)
+    np.testing.assert_allclose(velocity, exact, atol=1e-9)
