@@ -35,7 +35,10 @@ class PreparedFrame:
     compiled engine then takes ``q`` as is). ``coupled``: a coupling of the model
     (:class:`qpik.model.Couplings`) moves a joint of the chain."""
 
-    __slots__ = ("bounds", "chain", "coupled", "index", "kind", "name", "packed", "plan", "reach")
+    __slots__ = (
+        "bounds", "chain", "coupled", "index", "kind", "name", "packed", "plan", "reach",
+        "reach_free",
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -43,8 +46,12 @@ class PreparedFrame:
         kind: FrameType,
         chain: KinematicChain | None,
         reach: ReachBound | None,
+        reach_free: ReachBound | None = None,
     ) -> None:
         self.name, self.kind, self.chain, self.reach = name, kind, chain, reach
+        #: the reach bound with no joint limits (an unlimited slide: no bound), for solves
+        #: whose limits are not the model's joint limits (``limits=None`` or a list)
+        self.reach_free = reach if reach_free is None else reach_free
         self.packed: KinematicChain | None = None
         self.index: np.ndarray | None = None
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
@@ -145,14 +152,16 @@ class PreparedRobot:
         if cached is not None:
             return cached
         name, kind, _ = resolve_frame(model, key, argument="targets")
-        chain = reach = None
+        chain = reach = reach_free = None
         try:
             chain = KinematicChain.from_model(model, name, kind)
         except ValueError:  # a ball or free joint (or a mocap body) on the chain
             pass
         if chain is not None:
             reach = chain.reach_bound(self.lower, self.upper)
-        entry = PreparedFrame(name, kind, chain, reach)
+            unlimited = np.full(self.lower.shape[0], np.inf)
+            reach_free = chain.reach_bound(-unlimited, unlimited)
+        entry = PreparedFrame(name, kind, chain, reach, reach_free)
         if chain is not None:
             if self.couplings is not None:
                 entry.coupled = bool(np.isin(chain.dofs, self.couplings.dofs).any())

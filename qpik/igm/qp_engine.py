@@ -28,7 +28,16 @@ from ..tasks import JointLimitDistanceTask, OrientationTask, PoseTask, PositionT
 from .kernels import BACKTRACKS
 from .restarts import Attempt, Clock, StallWindow, run_attempts
 from .result import IKResult, Reason
-from .targets import Target, pose_errors, worst_errors
+from .targets import (
+    STEERS_POSITION,
+    STEERS_ROTATION,
+    Target,
+    pose_errors,
+    regulating_tasks,
+    set_frame_target,
+    set_task_target,
+    worst_errors,
+)
 
 __all__ = [
     "QPProblem",
@@ -58,38 +67,6 @@ FrameTarget = tuple[str, FrameType, Target]
 _BORROWED = ("target", "target_position", "target_rotation", "transform_target_to_world", "gain")
 #: (mink's FrameTask: qpik's and mink's own, in a caller's stack)
 _FRAME_TASKS = (PositionTask, OrientationTask, PoseTask, mink.FrameTask)
-
-
-def set_frame_target(levels: Sequence[Sequence], frame: str, target: Target) -> bool:
-    """Set ``target`` on every task of ``levels`` that regulates ``frame`` (position,
-    orientation, pose and mink frame tasks); returns whether any task does."""
-    matched = False
-    for task in (t for level in levels for t in level):
-        if getattr(task, "frame_name", None) == frame:
-            matched = True
-            _set_task_target(task, frame, target)
-    return matched
-
-
-def _set_task_target(task: Any, frame: str, target: Target) -> None:
-    if isinstance(task, PositionTask):
-        task.set_target(target.position)
-    elif isinstance(task, OrientationTask):
-        if target.rotation is not None:
-            task.set_target(target.rotation)
-    elif isinstance(task, (PoseTask, mink.FrameTask)):
-        if target.rotation is None:
-            raise InvalidTarget(
-                f"frame {frame!r} has a pose task in the stack but a position-only target"
-            )
-        if isinstance(task, PoseTask):
-            task.set_target(target.position, target.rotation)
-        else:
-            task.set_target(
-                mink.SE3.from_rotation_and_translation(
-                    mink.SO3.from_matrix(target.rotation), target.position
-                )
-            )
 
 
 @contextlib.contextmanager
@@ -423,10 +400,28 @@ class QPProblem:
         Called inside :func:`borrowed_tasks`; remembers the gains the trust region scales."""
         if not self.custom_stack:  # one task per frame
             for task, (name, _kind, target) in zip(self.primary, self.frames):
-                _set_task_target(task, name, target)
-        for name, _kind, target in self.frames if self.custom_stack else ():
-            if not set_frame_target(self.levels, name, target):
-                raise InvalidTarget(f"no task in the given stack regulates frame {name!r}")
+                set_task_target(task, name, target)
+        for name, kind, target in self.frames if self.custom_stack else ():
+            tasks = regulating_tasks(self.levels, name, kind)
+            label = f"the {FrameType.parse(kind).value} {name!r}"
+            if not tasks:
+                raise InvalidTarget(f"no task in the given stack regulates {label}")
+            # (as problem files: a part of the target no task steers would be measured,
+            # never reached, and the solve would run its every restart)
+            if not any(isinstance(t, STEERS_POSITION) for t in tasks):
+                raise InvalidTarget(
+                    f"a position no task steers: only an orientation task regulates {label} "
+                    "(its position would be measured, never reached); regulate it with a "
+                    "position, pose or frame task"
+                )
+            if target.rotation is not None and not any(
+                isinstance(t, STEERS_ROTATION) for t in tasks
+            ):
+                raise InvalidTarget(
+                    f"a rotation no task steers: only a position task regulates {label}; give "
+                    "it a position-only target, or regulate it with a pose or frame task"
+                )
+            set_frame_target(self.levels, name, target, kind)
         self.base_gains = [task.gain for task in self.primary]
 
     def clamp_gains(

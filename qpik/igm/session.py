@@ -323,9 +323,9 @@ class IKSession:
         # several levels (the others are still solved: level 0 may hold other frames).
         single = stack is None or len(normalize_stack(stack)) == 1
         for _frame, target in frames if single else ():
-            if _frame.reach is not None and _frame.reach.excludes(
-                target.position, settings.tol_position
-            ):
+            # (the joint limits' bound only where they hold: else the one without them)
+            reach = _frame.reach if settings.limits == "joint" else _frame.reach_free
+            if reach is not None and reach.excludes(target.position, settings.tol_position):
                 result = self._answer_unreachable(frames, q_start, start_time)
                 result.levels_met = self._levels_met(frames, stack, settings, q_start)
                 return self._check_unheld(result, settings)
@@ -541,13 +541,14 @@ class IKSession:
             chain = frame.packed
             assert frame.bounds is not None
             bounds = frame.bounds[0] if joint else frame.bounds[1]
-        assert chain is not None and frame.reach is not None
+        reach = frame.reach if joint else frame.reach_free  # (limits None: no joint limits)
+        assert chain is not None and reach is not None
         compiled = kernels.igm_plan(
             chain.compiled,
             frame.index,
             self._mid.shape[0],
             bounds,
-            frame.reach.array,
+            reach.array,
             options,
             int_options,
         )

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TypeAlias
+from typing import Any, TypeAlias
 
 import mink
 import mujoco
@@ -22,10 +22,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core.checks import float_array
-from ..errors import InvalidTarget
+from ..errors import InvalidTarget, UnknownFrameType
 from ..model import kernels
 from ..model.configuration import Configuration, FrameType
 from ..model.rotations import ORTHONORMAL_TOLERANCE, nearest_rotation, orientation_angle
+from ..tasks import OrientationTask, PoseTask, PositionTask
 from .kernels import target_ok
 
 __all__ = [
@@ -34,9 +35,14 @@ __all__ = [
     "RobotLike",
     "Target",
     "TargetLike",
+    "STEERS_POSITION",
+    "STEERS_ROTATION",
     "check_distinct_frames",
     "parse_target",
     "pose_errors",
+    "regulating_tasks",
+    "set_frame_target",
+    "set_task_target",
     "worst_errors",
 ]
 
@@ -185,4 +191,66 @@ def check_distinct_frames(frames: list, keys: list) -> None:
             raise InvalidTarget(
                 f"targets name the frame {frame.kind.value} {frame.name!r} twice ({first!r} "
                 f"and {key!r}): give it one target"
+            )
+
+
+#: The tasks that take a frame's target (:func:`set_frame_target`): what each steers.
+STEERS_POSITION = (PositionTask, PoseTask, mink.FrameTask)
+STEERS_ROTATION = (OrientationTask, PoseTask, mink.FrameTask)
+
+
+def regulating_tasks(
+    levels: Sequence[Sequence], frame: str, kind: FrameType | str | None = None
+) -> list:
+    """The tasks of ``levels`` that take ``frame``'s target (position, orientation, pose
+    and mink frame tasks of that frame name, and of that frame type where ``kind`` is
+    given: a body and a geom of the same name are two frames)."""
+    out = []
+    for task in (t for level in levels for t in level):
+        if getattr(task, "frame_name", None) != frame:
+            continue
+        if not isinstance(task, (*STEERS_POSITION, OrientationTask)):
+            continue  # (a frame-named task that takes no target: a look-at task, say)
+        if kind is not None:
+            try:
+                same = FrameType.parse(task.frame_type) is FrameType.parse(kind)
+            except (AttributeError, UnknownFrameType):
+                same = False
+            if not same:
+                continue
+        out.append(task)
+    return out
+
+
+def set_frame_target(
+    levels: Sequence[Sequence], frame: str, target: Target, kind: FrameType | str | None = None
+) -> bool:
+    """Set ``target`` on every task of ``levels`` that regulates ``frame`` (of type
+    ``kind`` where given: :func:`regulating_tasks`); returns whether any task does."""
+    tasks = regulating_tasks(levels, frame, kind)
+    for task in tasks:
+        set_task_target(task, frame, target)
+    return bool(tasks)
+
+
+def set_task_target(task: Any, frame: str, target: Target) -> None:
+    """Set ``target`` on one task that takes it (:func:`regulating_tasks`' kinds); a pose
+    task given a position-only target raises :class:`qpik.InvalidTarget`."""
+    if isinstance(task, PositionTask):
+        task.set_target(target.position)
+    elif isinstance(task, OrientationTask):
+        if target.rotation is not None:
+            task.set_target(target.rotation)
+    elif isinstance(task, (PoseTask, mink.FrameTask)):
+        if target.rotation is None:
+            raise InvalidTarget(
+                f"frame {frame!r} has a pose task in the stack but a position-only target"
+            )
+        if isinstance(task, PoseTask):
+            task.set_target(target.position, target.rotation)
+        else:
+            task.set_target(
+                mink.SE3.from_rotation_and_translation(
+                    mink.SO3.from_matrix(target.rotation), target.position
+                )
             )

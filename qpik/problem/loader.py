@@ -111,7 +111,7 @@ class Problem:
         start = start if start is not None else self.start_configuration()
         levels = [[spec.build(self.model, start) for spec in level] for level in self.levels]
         for frame in self.goals[0].frames:
-            set_frame_target(levels, frame.frame, frame.target)
+            set_frame_target(levels, frame.frame, frame.target, frame.frame_type)
         return levels
 
     def build_limits(self) -> list:

@@ -138,7 +138,7 @@ def run_track(problem: Problem) -> ModeOutcome:
     reached: list[bool] = []
     for index, goal in enumerate(problem.goals):
         for frame in goal.frames:
-            set_frame_target(levels, frame.frame, frame.target)
+            set_frame_target(levels, frame.frame, frame.target, frame.frame_type)
         error = goal.worst_error(configuration)
         for _ in range(problem.steps):
             if problem.stop_at_goal and within(error):

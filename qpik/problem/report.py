@@ -361,7 +361,7 @@ class ProblemResult:
             if index[k] != current:
                 current = int(index[k])
                 for frame in problem.goals[current].frames:
-                    set_frame_target(levels, frame.frame, frame.target)
+                    set_frame_target(levels, frame.frame, frame.target, frame.frame_type)
             configuration.update(q)
             for level, tasks in enumerate(levels):
                 for j, task in enumerate(tasks):

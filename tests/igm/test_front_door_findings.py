@@ -1,0 +1,79 @@
+"""The full-IK front door audit's findings (a new user's calls of qpik.solve): each once
+gave an answer the docs do not describe."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import qpik
+from qpik.tasks import OrientationTask, PoseTask, PositionTask
+
+_SLIDE_ARM = """<mujoco><compiler angle="radian" autolimits="true"/><worldbody>
+<body name="carriage"><joint name="s" type="slide" axis="1 0 0" range="0 0.2"/>
+ <geom type="box" size=".05 .05 .05"/>
+ <body name="arm"><joint name="h" type="hinge" axis="0 0 1" range="-3 3"/>
+  <geom type="capsule" fromto="0 0 0 0.5 0 0" size=".02"/><site name="ee" pos="0.5 0 0"/></body>
+</body></worldbody></mujoco>"""
+
+
+def _site(model, q, name="ee"):
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    return data.site_xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)].copy()
+
+
+@pytest.mark.parametrize("engine", ["auto", "qp"])
+def test_limits_none_reaches_past_a_slide_s_range(engine):
+    """limits=None: a target 1.5 m out needs the slide at 1.0, outside its range [0, 0.2];
+    the joint-limited reach bound (the slide's half travel) answered it 'unreachable' at
+    once. It converges now (checked by MuJoCo's kinematics); with the joint limits it is
+    still unreachable."""
+    model = mujoco.MjModel.from_xml_string(_SLIDE_ARM)
+    target = np.array([1.5, 0.0, 0.0])
+    free = qpik.solve(model, {"ee": target}, seed=0, limits=None, engine=engine)
+    assert free.converged and np.linalg.norm(_site(model, free.q) - target) < 1e-6
+    limited = qpik.solve(model, {"ee": target}, seed=0, engine=engine)
+    assert not limited.converged and limited.reason is qpik.Reason.UNREACHABLE
+
+
+def test_a_custom_stack_s_task_takes_only_its_own_frame_type():
+    """A target on body 'hand' went to a stack task on geom 'hand' (matched by name only):
+    the solve stalled after 1,107 iterations. It is refused now; one task per frame type
+    takes each of two targets of the same name, and the pair converges."""
+    model = qpik.load_robot("panda")
+    target = np.array([0.4, 0.2, 0.5])
+    with pytest.raises(qpik.InvalidTarget, match="regulates the body 'hand'"):
+        qpik.solve(model, {("hand", "body"): target}, stack=[[PositionTask("hand", "geom")]])
+    first = qpik.solve(model, {("hand", "body"): target}, seed=0)
+    data = mujoco.MjData(model)
+    data.qpos[:] = first.q
+    mujoco.mj_kinematics(model, data)
+    geom = data.geom_xpos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "hand")].copy()
+    stack = [[PositionTask("hand", "body"), PositionTask("hand", "geom")]]
+    both = qpik.solve(
+        model, {("hand", "body"): target, ("hand", "geom"): geom}, stack=stack, seed=0
+    )
+    assert both.converged and both.iterations < 20
+
+
+@pytest.mark.parametrize(
+    "task, target, match",
+    [
+        (PositionTask, "pose", "a rotation no task steers"),
+        (OrientationTask, "pose", "a position no task steers"),
+        (OrientationTask, "position", "a position no task steers"),
+        (PoseTask, "position", "position-only target"),
+    ],
+)
+def test_a_target_part_no_task_steers_is_refused(task, target, match):
+    """A (p, R) target on a frame only a PositionTask regulates ran 2,120 iterations and
+    88 restarts to 'stalled' (the rotation measured, never steered); an OrientationTask
+    alone, 813 iterations to 'at_limit'. Refused at once now, as problem files refuse it."""
+    model = qpik.load_robot("panda")
+    p, R = np.array([0.4, 0.2, 0.5]), np.diag([1.0, -1.0, -1.0])
+    goal = (p, R) if target == "pose" else p
+    with pytest.raises(qpik.InvalidTarget, match=match):
+        qpik.solve(model, {"ee": goal}, stack=[[task("ee")]], seed=0)
