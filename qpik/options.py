@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -57,6 +58,12 @@ __all__ = [
 SOLVERS = ("auto", "osqp", "daqp", "quadprog", "proxqp", "clarabel")
 
 
+def _real(value: Any) -> bool:
+    """A number the damping law takes: a real (NumPy's too), not a bool (a flag set where a
+    number was meant: ``True`` read as 1 would damp every level)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 @dataclass(frozen=True)
 class DampingLaw:
     """Adaptive damping from the smallest singular value ``sigma`` of a level:
@@ -89,12 +96,12 @@ class DampingLaw:
     def __post_init__(self) -> None:
         for name in ("singular_threshold", "max_damping"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            if not (_real(value) and math.isfinite(value) and value >= 0):
                 raise InvalidInput(f"DampingLaw.{name} must be finite and >= 0, got {value!r}")
         if self.singular_threshold > 1e6 or self.max_damping > 1e6:
             raise InvalidInput("DampingLaw values above 1e6 are not meaningful")
         if self.error_scale is not None and not (
-            isinstance(self.error_scale, (int, float))
+            _real(self.error_scale)
             and math.isfinite(self.error_scale)
             and 0 < self.error_scale <= 1e6
         ):
@@ -102,12 +109,7 @@ class DampingLaw:
                 f"DampingLaw.error_scale must be None or in (0, 1e6], got {self.error_scale!r}"
             )
         trust = self.lower_trust
-        if not (
-            isinstance(trust, (int, float))
-            and not isinstance(trust, bool)
-            and math.isfinite(trust)
-            and 0 <= trust <= 1
-        ):
+        if not (_real(trust) and math.isfinite(trust) and 0 <= trust <= 1):
             raise InvalidInput(f"DampingLaw.lower_trust must be in [0, 1], got {trust!r}")
 
     def __call__(self, sigma: float, error_norm: float | None = None) -> float:
@@ -287,7 +289,10 @@ class StepOptions:
             tracking about 5-20 %, floating Talos about 20 %).
         backend_options: keyword options of the backend (e.g. OSQP's ``eps_abs``), or
             ``None`` (the backend's defaults). Kept as a read-only mapping; not part of
-            the hash.
+            the hash. OSQP's are checked here (names and ranges); a qpsolvers backend's
+            names at its first solve (an option it does not take: :class:`qpik.InvalidInput`
+            naming it), their values by the backend. The solver ``"auto"`` runs no backend
+            and reads none of them.
         max_joint_speed: the step's trust region [rad/s or m/s]: every dof that no
             velocity limit of the stack bounds (MJCF models, Menagerie's among them, state
             none) is held to ``|dq_i| <= max_joint_speed * dt``, a hard box bound merged

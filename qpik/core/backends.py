@@ -12,6 +12,7 @@ speed, not the answer.
 from __future__ import annotations
 
 import math
+import re
 import time
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -111,8 +112,10 @@ def check_osqp_settings(options: dict | None) -> dict[str, Any]:
             ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
                 value, bool
             )
-            inside = low < value < high if open_low else low <= value <= high
-            ok = ok and inside and not (math.isinf(value) and high < math.inf)
+            # (compared only where it is a number: a str or None is named below, not a
+            # bare TypeError from the comparison)
+            inside = ok and (low < value < high if open_low else low <= value <= high)
+            ok = inside and not (math.isinf(value) and high < math.inf)
             bracket = "(" if open_low else "["
             end = ")" if open_low or high == math.inf else "]"
             expected = f"a number in {bracket}{low:g}, {high:g}{end}"
@@ -256,6 +259,13 @@ class QPSolversWorkspace:
         )
         try:
             solution = self._qpsolvers.solve_problem(problem, solver=self.name, **self.options)
+        except TypeError as exc:  # an option the backend does not know: the caller's to fix
+            unknown = re.search(r"unexpected keyword argument '([^']+)'", str(exc))
+            if unknown is None:
+                return QPSolution(None, f"error: {exc}", 0, time.perf_counter() - start)
+            raise InvalidInput(
+                f"backend_options: {self.name} takes no option {unknown.group(1)!r}"
+            ) from None
         except Exception as exc:  # backends raise many kinds
             return QPSolution(None, f"error: {exc}", 0, time.perf_counter() - start)
         x = solution.x if solution.found else None

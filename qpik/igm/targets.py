@@ -125,14 +125,25 @@ def _parts(value: TargetLike) -> tuple:
     raise InvalidTarget(f"{_FORMS}; got an array of shape {array.shape}")
 
 
-def parse_target(value: TargetLike) -> Target:
+def parse_target(value: TargetLike, frame: FrameKey | None = None) -> Target:
     """A :class:`Target` from a position ``(3,)``, a ``(position, rotation)`` pair, a 4x4
     homogeneous matrix, a ``mink.SE3`` or a ``Target``; NaN / malformed input raises
-    :class:`qpik.InvalidTarget`. The rotation is checked once, in one compiled call
+    :class:`qpik.InvalidTarget` (its message beginning with ``frame`` where given: the
+    frame of several whose target it is). The rotation is checked once, in one compiled call
     (``|R R^T - I| <= 1e-6``, ``det R > 0``), and the target is the rotation nearest to
     it (:func:`qpik.model.rotations.nearest_rotation`, which keeps a matrix orthonormal
     within :data:`qpik.model.rotations.ORTHONORMAL_TOLERANCE`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
+    if frame is None:
+        return _parse_target(value)
+    try:
+        return _parse_target(value)
+    except InvalidTarget as exc:
+        raise InvalidTarget(f"target of {frame!r}: {exc}") from None
+
+
+def _parse_target(value: TargetLike) -> Target:
+    """:func:`parse_target` of one target."""
     if type(value) is tuple and len(value) == 2:
         # The common (position, rotation) pair of float64 arrays, valid and orthonormal:
         # checked in one compiled call; anything else takes the general path.

@@ -190,3 +190,23 @@ def test_settings_versions_are_never_shared_between_solvers():
     before = a.settings_version
     a.warm_start = False  # (the same value: still a new version)
     assert a.settings_version not in (before, b.settings_version)
+
+
+def test_backend_options_of_a_wrong_type_or_name_are_typed_errors():
+    """Audit (options): OSQP values of a wrong type ("1e-3", None) raised a bare TypeError
+    from the range comparison; an option a qpsolvers backend does not take made it fail on
+    every level without a word. Both are InvalidInput naming the option now."""
+    import qpik
+    from qpik.tasks import PositionTask
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    tip = PositionTask("ee")
+    tip.set_target(configuration.frame_pose("ee")[0] + [0.3, 0.0, 0.0])
+    for value in ("1e-3", None, [1e-3]):
+        with pytest.raises(qpik.InvalidInput, match="eps_abs"):
+            qpik.IKSolver(model, [[tip]], solver="osqp", backend_options={"eps_abs": value})
+    pytest.importorskip("daqp")
+    solver = qpik.IKSolver(model, [[tip]], solver="daqp", backend_options={"bogus_key": 1})
+    with pytest.raises(qpik.InvalidInput, match="daqp takes no option 'bogus_key'"):
+        solver.step(configuration, 0.01)

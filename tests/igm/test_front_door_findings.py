@@ -77,3 +77,22 @@ def test_a_target_part_no_task_steers_is_refused(task, target, match):
     goal = (p, R) if target == "pose" else p
     with pytest.raises(qpik.InvalidTarget, match=match):
         qpik.solve(model, {"ee": goal}, stack=[[task("ee")]], seed=0)
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0.0, 0.0], [1.0, 2.0], None])
+def test_a_bad_target_among_several_names_its_frame(bad):
+    """With several frames, a malformed target's InvalidTarget did not say whose it was."""
+    model = qpik.load_robot("panda")
+    targets = {"ee": [0.4, 0.2, 0.5], ("hand", "body"): bad, ("link4", "body"): [0.1, 0, 0.5]}
+    with pytest.raises(qpik.InvalidTarget, match=r"target of \('hand', 'body'\)"):
+        qpik.solve(model, targets, seed=0)
+
+
+def test_damping_law_takes_no_bool_for_a_number():
+    """DampingLaw(max_damping=True) was taken as 1.0 (lower_trust refused True): a flag
+    where a number was meant is refused on every field; NumPy's reals are taken."""
+    for name in ("singular_threshold", "max_damping", "error_scale", "lower_trust"):
+        for flag in (True, np.bool_(True)):
+            with pytest.raises(qpik.InvalidInput, match=name):
+                qpik.DampingLaw(**{name: flag})
+    assert qpik.DampingLaw(singular_threshold=np.float32(0.05)).singular_threshold == 0.05
