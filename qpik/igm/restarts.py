@@ -163,7 +163,9 @@ def run_attempts(
         outcome = attempt()
         if best is None or outcome.beats(best):
             best = outcome
-        reason = outcome.reason
+        # (an attempt converged, whatever ended its loop: a level-0 finish after a
+        # multi-level stack's iterations ran out can converge it, its reason still theirs)
+        reason = Reason.CONVERGED if outcome.converged else outcome.reason
         timed_out = clock.out_of_time()
         exhausted = budget is not None and spent is not None and spent() >= budget
         if reason is Reason.CONVERGED or used >= restarts or timed_out or exhausted:

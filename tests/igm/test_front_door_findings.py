@@ -96,3 +96,26 @@ def test_damping_law_takes_no_bool_for_a_number():
             with pytest.raises(qpik.InvalidInput, match=name):
                 qpik.DampingLaw(**{name: flag})
     assert qpik.DampingLaw(singular_threshold=np.float32(0.05)).singular_threshold == 0.05
+
+
+def test_a_converged_attempt_of_a_multi_level_stack_ends_the_restarts():
+    """A two-level stack with max_iters=1: the first attempt converged in its level-0
+    finish, yet every restart ran (restarts=20: 428 iterations, 20 restarts used, the
+    first attempt returned). The solve now ends at the first converged attempt, and
+    max_iters bounds an attempt at max_iters + 20 (the documented level-0 finish)."""
+    import mink
+
+    model = qpik.load_robot("panda")
+    home = model.key_qpos[0]
+    target = (np.array([0.45, 0.25, 0.40]), np.diag([1.0, -1.0, -1.0]))
+    answers = []
+    for restarts in (0, 5, 20):
+        posture = mink.PostureTask(model, cost=0.1)
+        posture.set_target(home)
+        stack = [[PositionTask("ee"), OrientationTask("ee")], [posture]]
+        result = qpik.solve(
+            model, {"ee": target}, q0=home, stack=stack, seed=0, max_iters=1, restarts=restarts
+        )
+        assert result.converged and result.restarts_used == 0 and result.iterations <= 21
+        answers.append(result.q)
+    assert all(np.array_equal(q, answers[0]) for q in answers)
