@@ -133,7 +133,14 @@ def ball_rows(phi: np.ndarray, rho: float, subdivisions: int = 0) -> tuple[np.nd
     normals, offsets = unit_polytope(subdivisions)
     faces = normals @ frame  # the polytope's vertex (1, 0, 0) turned onto a
     rows = [faces]
-    bounds = [rho * offsets - faces @ phi]
+    along = faces @ phi
+    bound = rho * offsets - along
+    # A start on the range sits on a vertex of the polytope: the faces meeting there have
+    # bound 0, its round-off (1e-16 rad) left below 0 made the start infeasible by that
+    # much, which no level's answer then proved (numerical_failure, a zero step). Within
+    # round-off of 0 they are 0.
+    tight = (bound < 0.0) & (bound >= -1e-12 * (rho * np.abs(offsets) + np.abs(along)))
+    bounds = [np.where(tight, 0.0, bound)]
     if 2.0 * rho > math.pi:
         rows += [np.eye(3), -np.eye(3)]
         bounds += [np.full(6, math.pi / math.sqrt(3.0))]

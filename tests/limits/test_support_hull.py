@@ -222,3 +222,44 @@ def test_footprints_changed_to_a_bad_shape_raise_a_typed_error():
         limit.footprints = bad
         with pytest.raises(qpik.LimitDefinitionError, match="footprints"):
             limit.hull(configuration)
+
+
+def test_a_com_on_the_shrunk_edge_makes_no_negative_round_off_bound():
+    """Audit (limits): with the CoM exactly on the margin's edge, a support row's bound is 0,
+    and its round-off (-2.6e-17 m) made the start infeasible by that much: 277 of 300 steps
+    of a humanoid pushing its CoM outward ended numerical_failure with a zero step. A bound
+    within round-off of 0 is 0 now (support_rows), on the compiled step and here alike."""
+    import warnings
+
+    import qpik
+    from qpik.limits import SupportPolygonLimit
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        talos = qpik.load_robot("erd:talos", floating_base=True)
+    feet = ["left_sole_link", "right_sole_link"]
+    configuration = qpik.Configuration(talos, talos.key("half_sitting").qpos)
+    _, h0, _ = SupportPolygonLimit(talos, feet, margin=0.0).rows_in_play(configuration, 0.01)
+    edge = float(h0.min()) / SupportPolygonLimit(talos, feet).gain
+    negatives = 0
+    for k in range(-8, 9):  # margins a few ulps around the CoM's distance to the edge
+        margin = edge * (1.0 + k * 2.220446049250313e-16)
+        _, h, _ = SupportPolygonLimit(talos, feet, margin=margin).rows_in_play(configuration, 0.01)
+        negatives += int((h < 0).sum())
+        assert h.min() >= 0.0 or h.min() < -1e-12  # never a round-off negative bound
+    assert negatives < 17 * len(h0)  # (margins past the edge do cut it by more)
+
+
+def test_a_ball_on_its_range_makes_no_negative_round_off_bound():
+    """The same for a ball joint on its range: its start sits on a vertex of the polytope,
+    whose faces' bounds are 0; their round-off (-1e-16 rad) made 297 of 300 steps end
+    numerical_failure. Within round-off of 0 they are 0 now (ball_rows)."""
+    from qpik.limits.ball import ball_rows
+
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        rho = rng.uniform(0.2, 3.0)
+        _, bounds = ball_rows(axis * rho, rho, int(rng.integers(0, 3)))
+        assert bounds.min() >= 0.0 or bounds.min() < -1e-12

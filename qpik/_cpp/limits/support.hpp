@@ -124,6 +124,10 @@ inline void support_points(const double* pos, const double* rot, i64 F, const do
     }
 }
 
+// Below this fraction of the size of the terms a bound is made of, a negative bound is the
+// round-off of 0 (a start exactly on the shrunk edge) and is taken as 0.
+constexpr double kRoundOffTight = 1e-12;
+
 // The support polygon's rows in displacement units [m], one per edge of the hull of the n
 // ground points pts (support_hull): G_e = a_e^T J_xy (jac: the CoM Jacobian's x and y rows,
 // each nv long) and h_e = gain (-margin - o_e - a_e^T c_xy), into G (n, nv) and h (n,) (the
@@ -143,7 +147,14 @@ inline i64 support_rows(const double* pts, i64 n, const double* jac_x, const dou
             count += g[v] != 0.0;
         }
         fewest = std::min(fewest, count);
-        h[r] = gain * ((-margin - offsets[r]) - (ax * cx + ay * cy));
+        const double ac = ax * cx + ay * cy;
+        double hr = gain * ((-margin - offsets[r]) - ac);
+        // A CoM on the shrunk edge: h is 0, and its round-off (a few 1e-17 m) left below 0
+        // made the start point infeasible by that much, which no level's answer then proved
+        // (numerical_failure, a zero step). Within round-off of 0 it is 0.
+        if (hr < 0.0 && hr >= -kRoundOffTight * gain * (std::fabs(margin) + std::fabs(offsets[r]) + std::fabs(ac)))
+            hr = 0.0;
+        h[r] = hr;
     }
     return e;
 }
