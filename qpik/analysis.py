@@ -180,7 +180,8 @@ class KinematicReport:
         rank: Numerical rank (``tol``).
         redundancy: Degree of redundancy ``dim N(J) = nv - rank``.
         manipulability: ``sqrt(det J J^T)``.
-        condition_number: ``sigma_max / sigma_min`` (``inf`` at a singularity).
+        condition_number: ``sigma_max / sigma_min`` (``inf`` at a singularity, and with
+            more rows than dofs: some task direction no joint moves).
         singular: Smallest task-space singular value ``<= singular_tol``.
         singular_tol: The threshold used for ``singular``.
         lost_directions: ``(m, k)`` task directions that cannot be produced (when singular).
@@ -288,7 +289,9 @@ def analyze(
         rank=r,
         redundancy=J.shape[1] - r,
         manipulability=manipulability(J),
-        condition_number=condition_number(J),
+        # (more rows than dofs: the task space's smallest singular value is 0, as the
+        # report's manipulability and singular flag read it)
+        condition_number=condition_number(J) if J.shape[0] <= J.shape[1] else float("inf"),
         singular=report.singular,
         singular_tol=report.tol,
         lost_directions=report.lost_directions,

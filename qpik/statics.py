@@ -375,10 +375,13 @@ def joint_torque_limits(configuration: Configuration) -> np.ndarray:
     """Joint torque limits ``(nv, 2)`` [N m or N], lower and upper, from the actuators and
     the joints' effort ranges.
 
-    Each joint-driven actuator contributes ``gear * forcerange`` when it is force-limited,
-    else ``gear * gain * ctrlrange`` for a motor (fixed gain, no bias); several actuators
-    on one dof add up. A joint's own ``actuatorfrcrange`` (MuJoCo clamps the total actuator
-    force on the joint to it; a URDF's ``<limit effort>`` becomes it) caps that sum, and is
+    Each joint-driven actuator contributes ``gear * force``: for a motor (fixed gain, no
+    bias) with a ctrl range, ``force = gain * ctrlrange``, clipped to its ``forcerange``
+    when it is force-limited too (MuJoCo clamps the force there, and no control makes
+    more than ``gain * ctrl``); for another force-limited actuator, its ``forcerange``.
+    Several actuators on one dof add up. A joint's own ``actuatorfrcrange`` (MuJoCo
+    clamps the total actuator force on the joint to it; a URDF's ``<limit effort>``
+    becomes it) caps that sum, and is
     the limit of a hinge or slide joint that no actuator drives (URDF models have no
     actuators). A dof with neither (a free base, a passive joint) gets ``[0, 0]``. Raises
     :class:`InvalidInput` for an actuator whose range cannot be read this way (pass
@@ -400,14 +403,18 @@ def joint_torque_limits(configuration: Configuration) -> np.ndarray:
             raise InvalidInput(
                 f"actuator {label!r} drives multi-dof joint {names[joint]!r}; pass torque_limits"
             )
-        if model.actuator_forcelimited[a]:
-            force = model.actuator_forcerange[a].copy()
-        elif (
+        motor = (
             model.actuator_ctrllimited[a]
             and int(model.actuator_gaintype[a]) == int(mujoco.mjtGain.mjGAIN_FIXED)
             and int(model.actuator_biastype[a]) == int(mujoco.mjtBias.mjBIAS_NONE)
-        ):
-            force = model.actuator_gainprm[a, 0] * model.actuator_ctrlrange[a]
+        )
+        if motor:
+            force = np.sort(model.actuator_gainprm[a, 0] * model.actuator_ctrlrange[a])
+            if model.actuator_forcelimited[a]:
+                low, high = model.actuator_forcerange[a]
+                force = np.clip(force, low, high)
+        elif model.actuator_forcelimited[a]:
+            force = model.actuator_forcerange[a].copy()
         else:
             raise InvalidInput(
                 f"actuator {label!r} has no force range and is not a ctrl-limited motor; "

@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     )
     gravity = gravity_torques(configuration)
     holding = holding_torques(configuration) - tau  # -(gravity + springs + tau)
-    springs = -(holding + gravity + tau)  # the model's passive forces at rest (joint springs)
+    passive = -(holding + gravity + tau)  # the model's passive forces at rest (springs, gravcomp)
     try:
         limits = joint_torque_limits(configuration)
     except InvalidInput:
@@ -75,10 +75,13 @@ def run(args: argparse.Namespace) -> int:
     print("joint torques [N m]: tau = J^T [f; t] (produced by the wrench), gravity (produced")
     print("by gravity), holding = -(gravity + tau) (what the motors apply to stay still)")
     dofs = [joint_names(configuration.model)[j] for j in configuration.model.dof_jntid]
-    sprung = [(dof, value) for dof, value in zip(dofs, springs.tolist()) if abs(value) > 5e-9]
-    if sprung:  # (holding cancels them too: holding = -(gravity + springs + tau))
-        listed = ", ".join(f"{dof} {value:.4f}" for dof, value in sprung)
-        print(f"  and the model's joint springs at rest, which holding cancels too: {listed}")
+    acting = [(dof, value) for dof, value in zip(dofs, passive.tolist()) if abs(value) > 5e-9]
+    if acting:  # (holding cancels them too)
+        listed = ", ".join(f"{dof} {value:.4f}" for dof, value in acting)
+        print(
+            "  passive: the model's passive forces at rest (joint springs, gravity "
+            f"compensation), which holding cancels too: {listed}"
+        )
     _print_table(dofs, tau, gravity, holding, limits)
     return 0
 

@@ -96,7 +96,7 @@ def test_statics_names_the_springs_holding_cancels_and_an_unnamed_keyframe(tmp_p
     assert main(["statics", str(path), "--key", "#0", "--force", "0", "0", "0"]) == 0
     out = capsys.readouterr().out
     assert "q = [0.1 0.2]" in out
-    (line,) = [ln for ln in out.splitlines() if "springs at rest" in ln]
+    (line,) = [ln for ln in out.splitlines() if "passive forces at rest" in ln]
     gravity, holding = (float(x) for x in _row(out, "j2")[2:4])
     spring = float(line.split("j2")[1])
     assert holding == pytest.approx(-(gravity + spring), abs=2e-4)

@@ -561,3 +561,16 @@ def test_a_model_with_no_degree_of_freedom_is_named():
     )
     with pytest.raises(qpik.errors.InvalidInput, match=r"no degree of freedom \(nv = 0\)"):
         an.analyze(qpik.Configuration(model), "s")
+
+
+def test_the_report_s_condition_number_is_inf_with_more_rows_than_dofs():
+    """Audit (analysis): the planar 2R's six pose rows were reported singular (rank 2 < 6,
+    manipulability 0) with a condition number of 4.7 (the two dofs' singular values only);
+    the report's condition number is inf there, as it documents at a singularity."""
+    model = qpik.load_robot("planar_2r")
+    configuration = qpik.Configuration(model, np.array([0.3, 0.7]))
+    report = qpik.analysis.analyze(configuration, "ee", rows="pose")
+    assert report.singular and report.manipulability == 0.0
+    assert report.condition_number == np.inf
+    planar = qpik.analysis.analyze(configuration, "ee", rows=["vx", "vy"])
+    assert np.isfinite(planar.condition_number) and not planar.singular

@@ -479,3 +479,24 @@ def test_erd_ur5_statics_uses_the_urdf_efforts():
             np.testing.assert_array_equal(limits[dof], [-effort, effort])
     payload = statics.max_payload(configuration, "tool0", [0, 0, -1], frame_type="body")
     assert payload.feasible and 0 < payload.force < np.inf and payload.holds_gravity
+
+
+def test_a_force_limited_motor_with_a_tighter_ctrl_range_is_limited_by_its_ctrl():
+    """Audit (statics): a motor with gear 3, ctrlrange [-2, 2] and forcerange [-100, 100]
+    was taken as +-300 N m (gear x forcerange), and max_payload as 295 N; MuJoCo's own
+    qfrc_actuator at the clamped controls is +-6 N m, and the joint holds 1.095 N. The
+    limit is gear x (gain x ctrlrange clipped to forcerange) now, MuJoCo's at the extremes."""
+    xml = """<mujoco><option gravity="0 0 -9.81"/><worldbody><body name="l">
+      <joint name="j" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 1 0 0" size=".01" mass="0.5"/>
+      <site name="tip" pos="1 0 0"/></body></worldbody>
+      <actuator><motor joint="j" gear="3" ctrlrange="-2 2" forcerange="-100 100"/></actuator>
+    </mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model)
+    limits = qpik.statics.joint_torque_limits(configuration)
+    data = mujoco.MjData(model)
+    for k, ctrl in enumerate((-1e9, 1e9)):
+        data.ctrl[:] = ctrl
+        mujoco.mj_forward(model, data)
+        assert limits[0, k] == pytest.approx(data.qfrc_actuator[0])
