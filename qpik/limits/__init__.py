@@ -202,6 +202,20 @@ def velocity_limit_from_model(
     return VelocityLimit(model, velocities)
 
 
+def _without_ball_rows(limit: mink.ConfigurationLimit) -> None:
+    """Leave out mink's own ball-joint rows of ``limit`` (mink 1.3: a first-order row along
+    the rotation axis, ``a^T dq <= gain (range - angle)``), where :class:`BallJointLimit`
+    holds the ranges: a start past a range made that row ask for the whole way back in one
+    step, more than the velocity limits or the trust region allow, and, on two or more
+    dofs, it is a general row no recovery relaxes - every step infeasible, the joint stuck.
+    A mink without those attributes is left as it is."""
+    if hasattr(limit, "_ball_qposadr") and hasattr(limit, "_ball_max_angle"):
+        empty = np.zeros(0, dtype=np.int64)
+        limit._ball_qposadr = empty
+        limit._ball_dofadr = empty.copy()
+        limit._ball_max_angle = np.zeros(0)
+
+
 def joint_limits(model: mujoco.MjModel, velocity_scale: float | None = 1.0) -> list[Limit]:
     """Position limits, plus a :class:`VelocityLimit` whenever the model declares velocity
     limits (``velocity_limit``: bundled models, and URDF ``<limit velocity>`` imported by
@@ -210,8 +224,10 @@ def joint_limits(model: mujoco.MjModel, velocity_scale: float | None = 1.0) -> l
     ball joint (its range then holds for a step of any size, trust region off too)."""
     if velocity_scale is not None:
         velocity_scale = checks.check_real("velocity_scale", velocity_scale, 0.0, open_minimum=True)
-    limits: list[Limit] = [ConfigurationLimit(model)]
+    configuration_limit = ConfigurationLimit(model)
+    limits: list[Limit] = [configuration_limit]
     if limited_ball_joints(model):
+        _without_ball_rows(configuration_limit)
         limits.append(BallJointLimit(model))
     if velocity_scale is not None:
         velocity = velocity_limit_from_model(model, velocity_scale)

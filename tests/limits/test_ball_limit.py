@@ -221,3 +221,37 @@ def test_the_ball_rows_take_the_compiled_step():
             named += any("BallJointLimit" in name for name in result.active_limits)
             configuration.update(configuration.integrate(result.velocity, 0.05))
     assert named >= 10
+
+
+def test_joint_limits_bring_a_ball_started_past_its_range_back():
+    """Audit (limits): a limited ball joint (range 60 deg) started at 80 deg about the axis
+    (1, 1, 0) never came back under joint_limits(model): mink's ConfigurationLimit row along
+    the rotation axis asked for the whole way back in one step, more than the trust region
+    allows, and on two dofs it is a general row no recovery relaxes - 200 of 200 steps
+    infeasible, the angle at 80. joint_limits leaves mink's ball rows out where
+    BallJointLimit holds the range: the joint comes back, every step solved."""
+    import collections
+
+    from qpik.limits import joint_limits
+    from qpik.tasks import PositionTask
+
+    xml = """<mujoco><worldbody><body name="base">
+      <joint name="ball" type="ball" range="0 60" limited="true"/>
+      <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.02" mass="1"/>
+      <body name="tip" pos="0 0 0.3"><site name="tip"/>
+      <geom type="sphere" size="0.02" mass="0.1"/></body></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    axis = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
+    a = np.radians(80.0)
+    configuration = qpik.Configuration(model, np.r_[np.cos(a / 2), np.sin(a / 2) * axis])
+    tip = PositionTask("tip", "site", gain=1.0)
+    tip.set_target([0.0, 0.0, 0.3])
+    solver = qpik.IKSolver(model, [[tip]], joint_limits(model))
+    statuses: collections.Counter = collections.Counter()
+    for _ in range(200):
+        result = solver.step(configuration, 0.01)
+        configuration.integrate_inplace(result.velocity, 0.01)
+        statuses[result.status[0].value] += 1
+    phi = np.zeros(3)
+    mujoco.mju_quat2Vel(phi, configuration.q[:4] / np.linalg.norm(configuration.q[:4]), 1.0)
+    assert statuses == {"solved": 200} and np.degrees(np.linalg.norm(phi)) < 1.0
