@@ -31,6 +31,7 @@ from .result import IKResult, Reason
 from .targets import (
     STEERS_POSITION,
     STEERS_ROTATION,
+    TARGET_TASKS,
     Target,
     pose_errors,
     regulating_tasks,
@@ -65,8 +66,6 @@ FrameTarget = tuple[str, FrameType, Target]
 #: The attributes a solve may change on a caller's task (targets, and the gain that the
 #: trust region scales).
 _BORROWED = ("target", "target_position", "target_rotation", "transform_target_to_world", "gain")
-#: (mink's FrameTask: qpik's and mink's own, in a caller's stack)
-_FRAME_TASKS = (PositionTask, OrientationTask, PoseTask, mink.FrameTask)
 
 
 @contextlib.contextmanager
@@ -171,7 +170,7 @@ def _task_joints(model: mujoco.MjModel, task: Any) -> set[int] | None:
     """The joints a task's rows can move (``None``: any joint): a frame task's chain (a
     relative frame task's two chains), the limited hinge and slide joints of
     :class:`JointLimitDistanceTask`; any other task may move any joint."""
-    if isinstance(task, _FRAME_TASKS):
+    if isinstance(task, TARGET_TASKS):
         return body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
     if isinstance(task, mink.RelativeFrameTask):
         joints = body_chain_joints(model, _frame_body(model, task.frame_name, task.frame_type))
@@ -317,7 +316,7 @@ class QPProblem:
             t
             for level in (levels[:1] if stack is None else levels)
             for t in level
-            if isinstance(t, _FRAME_TASKS)
+            if isinstance(t, TARGET_TASKS)
             and (stack is None or getattr(t, "frame_name", None) in target_frames)
         ]
         # Level-0 tasks checked for convergence besides the target frames.

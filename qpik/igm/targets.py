@@ -37,6 +37,7 @@ __all__ = [
     "TargetLike",
     "STEERS_POSITION",
     "STEERS_ROTATION",
+    "TARGET_TASKS",
     "check_distinct_frames",
     "parse_target",
     "pose_errors",
@@ -134,11 +135,11 @@ def parse_target(value: TargetLike, frame: FrameKey | None = None) -> Target:
     it (:func:`qpik.model.rotations.nearest_rotation`, which keeps a matrix orthonormal
     within :data:`qpik.model.rotations.ORTHONORMAL_TOLERANCE`); positions farther than
     :data:`MAX_TARGET_DISTANCE` from the world origin are rejected."""
-    if frame is None:
-        return _parse_target(value)
     try:
         return _parse_target(value)
     except InvalidTarget as exc:
+        if frame is None:
+            raise
         raise InvalidTarget(f"target of {frame!r}: {exc}") from None
 
 
@@ -205,7 +206,8 @@ def check_distinct_frames(frames: list, keys: list) -> None:
             )
 
 
-#: The tasks that take a frame's target (:func:`set_frame_target`): what each steers.
+#: The tasks that take a frame's target (:func:`set_frame_target`), and what each steers.
+TARGET_TASKS = (PositionTask, OrientationTask, PoseTask, mink.FrameTask)
 STEERS_POSITION = (PositionTask, PoseTask, mink.FrameTask)
 STEERS_ROTATION = (OrientationTask, PoseTask, mink.FrameTask)
 
@@ -220,7 +222,7 @@ def regulating_tasks(
     for task in (t for level in levels for t in level):
         if getattr(task, "frame_name", None) != frame:
             continue
-        if not isinstance(task, (*STEERS_POSITION, OrientationTask)):
+        if not isinstance(task, TARGET_TASKS):
             continue  # (a frame-named task that takes no target: a look-at task, say)
         if kind is not None:
             try:
