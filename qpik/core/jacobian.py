@@ -172,17 +172,27 @@ def rank(J: npt.ArrayLike, tol: float | None = None) -> int:
     return int(np.count_nonzero(s > as_tol(tol, s, J.shape)))
 
 
+def _ranked_svd(
+    J: np.ndarray, tol: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, float]:
+    """``(U, s, Vt, r, tol)``: the full SVD of ``J`` (its vectors; ``s`` the singular
+    values of :func:`singular_values`, which every function here decides the rank on, so
+    that :func:`rank`, :func:`null_space`, :func:`pseudoinverse` and :func:`singularity`
+    agree even where ``tol`` equals a singular value to the last bit) and the rank ``r``:
+    the number of values ``> tol``."""
+    s = _svdvals(J)
+    tol = as_tol(tol, s, J.shape)
+    U, _, Vt = scipy.linalg.svd(J / entry_scale(J))
+    return U, s, Vt, int(np.count_nonzero(s > tol)), tol
+
+
 def null_space(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     """Orthonormal basis ``(n, n - r)`` of the null space N(J): joint velocities that
     produce no task velocity. Its columns are the right singular vectors of the singular
     values ``<= tol`` (and of the ``n - m`` missing ones when ``m < n``)."""
     J = _as_matrix(J)
-    s = _svdvals(J)
-    tol = as_tol(tol, s, J.shape)
-    if s[0] <= tol:  # every direction is lost (J = 0 up to tol)
-        return np.eye(J.shape[1])
-    scale = entry_scale(J)  # the basis is that of J / scale; rcond is relative to s[0]
-    return scipy.linalg.null_space(J / scale, rcond=min(1.0, tol / s[0]))
+    _, _, Vt, r, _ = _ranked_svd(J, tol)
+    return np.ascontiguousarray(Vt[r:].T)
 
 
 def degree_of_redundancy(J: npt.ArrayLike, tol: float | None = None) -> int:
@@ -196,10 +206,9 @@ def pseudoinverse(J: npt.ArrayLike, tol: float | None = None) -> np.ndarray:
     treated as zero. ``J^+ xi`` is the least-norm (least-squares) solution of
     ``J qdot = xi``."""
     J = _as_matrix(J)
-    tol = as_tol(tol, _svdvals(J), J.shape)
-    scale = entry_scale(J)  # (J / scale)^+ = scale J^+
-    with np.errstate(over="ignore"):
-        pinv = scipy.linalg.pinv(J / scale, atol=tol / scale, rtol=0.0) / scale
+    U, s, Vt, r, _ = _ranked_svd(J, tol)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        pinv = (Vt[:r].T / s[:r]) @ U[:, :r].T
     return _finite_result(pinv, "the pseudoinverse")
 
 
@@ -353,10 +362,8 @@ def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityRepor
     J = _as_matrix(J)
     tol = as_tol(tol, np.zeros(0), J.shape)
     m = J.shape[0]
-    scale = entry_scale(J)
-    U, s, _ = scipy.linalg.svd(J / scale)
-    with np.errstate(over="ignore"):
-        s = _finite_result(s * scale, "a singular value of J")
+    U, s, Vt, r, _ = _ranked_svd(J, tol)
+    s = _finite_result(s, "a singular value of J")
     task_s = np.zeros(m)
     task_s[: s.size] = s  # m > n: the m - n missing singular values are 0
     lost = U[:, task_s <= tol]
@@ -364,9 +371,9 @@ def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityRepor
         sigma_min=float(task_s[-1]),
         singular=bool(task_s[-1] <= tol),
         tol=tol,
-        rank=int(np.count_nonzero(s > tol)),
+        rank=r,
         lost_directions=lost,
-        null_motions=null_space(J, tol),
+        null_motions=np.ascontiguousarray(Vt[r:].T),
     )
 
 

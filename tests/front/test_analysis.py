@@ -574,3 +574,22 @@ def test_the_report_s_condition_number_is_inf_with_more_rows_than_dofs():
     assert report.condition_number == np.inf
     planar = qpik.analysis.analyze(configuration, "ee", rows=["vx", "vy"])
     assert np.isfinite(planar.condition_number) and not planar.singular
+
+
+def test_a_tol_equal_to_a_singular_value_splits_no_function():
+    """Audit (analysis): with tol equal to a singular value (J's smallest, as
+    singular_values returns it), rank said 1 while null_space was (3, 1), pseudoinverse
+    inverted the value and singularity's rank was 2 - each recomputed the SVD with another
+    routine, and the strict > tol test fell differently in the last bit (on 3,000 random
+    matrices: 647 pseudoinverses, 735 null spaces). They share one rank decision now."""
+    rng = np.random.default_rng(0)
+    for _ in range(400):
+        m, n = (int(k) for k in rng.integers(1, 7, 2))
+        J = rng.normal(size=(m, n))
+        tol = float(an.singular_values(J)[-1])
+        r = an.rank(J, tol)
+        report = an.singularity(J, tol)
+        P = an.pseudoinverse(J, tol)
+        assert r + an.null_space(J, tol).shape[1] == n == r + an.degree_of_redundancy(J, tol)
+        assert report.rank == r and report.null_motions.shape[1] == n - r
+        assert np.linalg.matrix_rank(P, tol=1e-9 * max(1.0, np.abs(P).max())) == r
