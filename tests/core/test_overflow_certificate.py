@@ -69,18 +69,15 @@ def test_a_general_row_whose_norm_overflows_is_not_certified(scale):
             assert not result.ok and not result.certificate[0].holds
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known defect (limits audit): a feasible level 0 whose start violates two "
-    "support rows by 2.2e-9 and 4.1e-10 ends numerical_failure; quadprog meets it exactly",
-)
 def test_a_start_a_few_nm_outside_two_support_rows_is_solved():
-    """A floating Talos pushing its CoM diagonally out of its shrunk support polygon, with
-    no feet correction, ends 2.2 nm outside two of its edges; the feet level (12 rows, 38
-    dofs, reg 1e-6) with those rows is feasible and quadprog solves it (violation 1e-24,
-    |x| 2.8e-9), but the cascade ends it numerical_failure with the start kept (a zero
-    step on 287 of 300 steps of that loop). Its answer flips with 1e-11 changes of h. Kept
-    as the problem itself (tests/data/exactness/known_support_nm_outside.npz) until fixed."""
+    """Audit (limits): a floating Talos pushing its CoM diagonally out of its shrunk
+    support polygon, with no feet correction, ends 2.2 nm outside two of its edges; the
+    feet level (12 rows, 38 dofs, reg 1e-6) with those rows is feasible and quadprog solves
+    it (violation 1e-24, |x| 2.8e-9), but the cascade ended it numerical_failure with the
+    start kept (a zero step on 287 of 300 steps of that loop): the dual method stopped on a
+    row its tolerance (1e-12) took as met, which the certificate, relative to the answer's
+    nanometre size, did not. Where no candidate certifies, the level is tried once more with
+    no tolerance (tests/data/exactness/known_support_nm_outside.npz)."""
     from pathlib import Path
 
     z = np.load(Path(__file__).parents[1] / "data" / "exactness" / "known_support_nm_outside.npz")

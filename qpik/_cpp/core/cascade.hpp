@@ -3962,6 +3962,24 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             exact = detail::exact_level(sol, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z, cert,
                                         final_rows, final_sides, &ws.cs, stops ? &ws.free_z : nullptr,
                                         stops ? &tried : nullptr, gsq, ztd, z_eye, &ws.qps);
+            if (!exact && tol > 0.0 && (sol.status == SOLVED || sol.status == NUMERICAL)) {
+                // The dual method stopped on rows its tolerance took as met, which the
+                // certificate, relative to the answer's size (rows_relative), does not: at
+                // nanometre scales (a start a few nm outside two support rows, a box bound at
+                // 0) no candidate then holds, though the level is feasible. Once more with no
+                // tolerance, every violated row entering the working set; only where the first
+                // try certified nothing (every certified answer is as before, bit for bit).
+                QPResult again = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo),
+                                             CVecRef(qp.hi), VecRefT<const i8>(warm.row(k), n + p), max_iter, 0.0,
+                                             k > 0, false, true, ws.qps, false);
+                if (again.status == SOLVED &&
+                    detail::exact_level(again, ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, max_iter, k > 0, z,
+                                        cert, final_rows, final_sides, &ws.cs, nullptr, nullptr, gsq, ztd, z_eye,
+                                        &ws.qps)) {
+                    exact = true;
+                    res.iterations[k] += again.iterations;
+                }
+            }
             if (!exact) {
                 // No candidate certified: the certificate of the point the level keeps (x = d,
                 // no working set). Where it holds, d is itself an optimum (the level's gradient
