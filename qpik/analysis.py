@@ -253,7 +253,7 @@ def analyze(
     rows: Rows = "pose",
     *,
     tol: float | None = None,
-    singular_tol: float = SINGULAR_TOL,
+    singular_tol: float | None = SINGULAR_TOL,
 ) -> KinematicReport:
     """Analyse the Jacobian of ``frame`` at the configuration's current ``q``.
 
@@ -266,7 +266,8 @@ def analyze(
             ``wy``): they lower the rank and show up as lost directions; pick the rows
             the robot can move (``("vx", "vy")``) to analyse the planar task.
         tol: Singular-value threshold of the rank (default: numpy's, exact rank).
-        singular_tol: Threshold of the singular flag (near-singularity).
+        singular_tol: Threshold of the singular flag (near-singularity); ``None``:
+            numpy's default, as ``tol``'s.
     """
     check_configuration(configuration)
     if configuration.model.nv == 0:
@@ -278,7 +279,8 @@ def analyze(
     J = configuration.frame_jacobian(frame, kind)[list(idx)]
     s = singular_values(J)
     r = rank(J, tol)
-    report = singularity(J, as_tol(singular_tol, np.zeros(0), J.shape, "singular_tol"))
+    # (None: numpy's default relative to the largest singular value, as rank's)
+    report = singularity(J, as_tol(singular_tol, s, J.shape, "singular_tol"))
     return KinematicReport(
         frame=frame,
         frame_type=kind.value,

@@ -357,12 +357,12 @@ class SingularityReport:
     null_motions: np.ndarray
 
 
-def singularity(J: npt.ArrayLike, tol: float = SINGULAR_TOL) -> SingularityReport:
-    """Singularity analysis of ``J`` with an absolute threshold ``tol`` on singular values."""
+def singularity(J: npt.ArrayLike, tol: float | None = SINGULAR_TOL) -> SingularityReport:
+    """Singularity analysis of ``J`` with an absolute threshold ``tol`` on singular values
+    (``None``: numpy's default, relative to the largest, as :func:`rank` takes it)."""
     J = _as_matrix(J)
-    tol = as_tol(tol, np.zeros(0), J.shape)
     m = J.shape[0]
-    U, s, Vt, r, _ = _ranked_svd(J, tol)
+    U, s, Vt, r, tol = _ranked_svd(J, tol)  # (None: numpy's default, as rank's)
     s = _finite_result(s, "a singular value of J")
     task_s = np.zeros(m)
     task_s[: s.size] = s  # m > n: the m - n missing singular values are 0

@@ -561,14 +561,14 @@ def resolve_robot(
     """The one resolver of what qpik's entry points accept as a robot: ``(model, q)``.
 
     Args:
-        robot: a :class:`qpik.Configuration` (its model, and a copy of its ``q``: the
-            caller's start), a ``mujoco.MjModel`` (as is, ``q`` ``None``), or anything
-            :func:`locate_robot` resolves (a bundled name, ``"erd:NAME"``, a path), loaded
-            with :func:`load_robot` (``q`` ``None``). A configuration whose mocap bodies
-            are posed elsewhere than its model's defaults (``data.mocap_pos`` /
-            ``mocap_quat`` set: an arm on a moved mocap base) gives a copy of its model
-            with those poses as the defaults, so that a solve works where the
-            configuration has the robot.
+        robot: a :class:`qpik.Configuration` or a ``mink.Configuration`` (its model,
+            and a copy of its ``q``: the caller's start), a ``mujoco.MjModel`` (as is,
+            ``q`` ``None``), or anything :func:`locate_robot` resolves (a bundled name,
+            ``"erd:NAME"``, a path), loaded with :func:`load_robot` (``q`` ``None``). A
+            configuration whose mocap bodies are posed elsewhere than its model's defaults
+            (``data.mocap_pos`` / ``mocap_quat`` set: an arm on a moved mocap base) gives a
+            copy of its model with those poses as the defaults, so that a solve works
+            where the configuration has the robot.
         relative_to: the folder a relative path is read from (default: the working
             directory).
         floating_base: passed to :func:`load_robot` for a file.
@@ -576,7 +576,8 @@ def resolve_robot(
     Raises :class:`qpik.InvalidInput` naming ``robot`` for anything else, and
     :func:`load_robot`'s errors.
     """
-    if isinstance(robot, Configuration):
+    if isinstance(robot, mink.Configuration):  # (qpik's, or mink's read in place)
+        robot = as_configuration(robot, "robot")
         return _with_mocap_poses(robot), robot.q
     if isinstance(robot, mujoco.MjModel):
         return robot, None
@@ -585,7 +586,7 @@ def resolve_robot(
         return load_robot(path, floating_base=floating_base), None
     raise InvalidInput(
         "robot must be a robot name, 'erd:NAME', a path, a mujoco.MjModel or a "
-        f"qpik.Configuration, got {type(robot).__name__}"
+        f"qpik.Configuration (or mink's), got {type(robot).__name__}"
     )
 
 

@@ -119,3 +119,31 @@ def test_a_converged_attempt_of_a_multi_level_stack_ends_the_restarts():
         assert result.converged and result.restarts_used == 0 and result.iterations <= 21
         answers.append(result.q)
     assert all(np.array_equal(q, answers[0]) for q in answers)
+
+
+def test_a_mink_configuration_is_a_robot_and_its_start():
+    """Audit (full IK): qpik.solve(mink.Configuration) was refused with 'robot must be ... a
+    qpik.Configuration, got Configuration'. It is read in place as qpik's: its model and a
+    copy of its q as the start, the same bits as a qpik.Configuration of that q."""
+    import mink
+
+    model = qpik.load_robot("panda")
+    configuration = mink.Configuration(model)
+    configuration.update(model.key_qpos[0])
+    target = {"ee": [0.4, 0.2, 0.5]}
+    result = qpik.solve(configuration, target, seed=0)
+    same = qpik.solve(qpik.Configuration(model, model.key_qpos[0]), target, seed=0)
+    assert result.converged and np.array_equal(result.q, same.q)
+    assert np.array_equal(configuration.q, model.key_qpos[0])  # (the caller's, untouched)
+    assert qpik.IKSession(configuration).solve(target, seed=0).converged
+
+
+def test_singular_tol_none_is_numpy_s_default():
+    """Audit (analysis): analyze(singular_tol=None) took the smallest float as the
+    threshold (its default computed from no singular values); None is numpy's default,
+    relative to the largest singular value, as rank's tol."""
+    from qpik import analysis
+
+    J = np.array([[1.0, 0.0], [0.0, 1e-17]])
+    report = analysis.singularity(J, None)
+    assert report.singular and report.tol == pytest.approx(2 * np.finfo(float).eps)
