@@ -179,9 +179,9 @@ def _grid(region: npt.ArrayLike, resolution: float) -> tuple[np.ndarray, tuple[i
     least one), the grid centred in the region."""
     region = _real_array("region", region, "a (2, 3) array of opposite corners [m]")
     if region.shape != (2, 3) or not np.isfinite(region).all():
+        got = f"shape {region.shape}" if region.shape != (2, 3) else f"{region.tolist()}"
         raise InvalidInput(
-            f"region must be a finite (2, 3) array of opposite corners [m], got shape "
-            f"{region.shape}"
+            f"region must be a finite (2, 3) array of opposite corners [m], got {got}"
         )
     if (
         isinstance(resolution, bool)

@@ -51,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
         # program the format needs, a folder that cannot be written
         check_figure_path("--plot", args.plot)
         check_writable("--plot", args.plot)
+    if args.json is not None and args.json != "-":  # (as --plot: before the solve)
+        check_writable("--json", args.json)
     result = problem.solve()
     with report_stream(args.json):
         _report(args, problem, result)

@@ -88,3 +88,19 @@ def test_reach_plot_in_a_missing_folder_exits_2_before_solving(tmp_path, monkeyp
     figure = tmp_path / "missing" / "r.png"
     assert main(["reach", str(tmp_path / "p.toml"), "--plot", str(figure), "--quiet"]) == 2
     assert "--plot" in capsys.readouterr().err
+
+
+def test_reach_json_in_a_missing_folder_exits_2_before_solving(tmp_path, monkeypatch, capsys):
+    """Audit (CLI): --json into a folder that does not exist was found only after the
+    solve (its report printed, the result lost); it is checked first, as --plot is."""
+    import qpik.problem
+
+    (tmp_path / "p.toml").write_text(PLANAR)
+    solved = []
+    original = qpik.problem.Problem.solve
+    monkeypatch.setattr(
+        qpik.problem.Problem, "solve", lambda self: solved.append(1) or original(self)
+    )
+    out = tmp_path / "missing" / "r.json"
+    assert main(["reach", str(tmp_path / "p.toml"), "--json", str(out), "--quiet"]) == 2
+    assert "--json" in capsys.readouterr().err and not solved

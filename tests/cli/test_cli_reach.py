@@ -196,5 +196,5 @@ def test_a_json_path_that_cannot_be_written_names_the_option(tmp_path, capsys):
     argv = ["reach", str(TASKS["planar_2r_singularity"]), "--json", str(tmp_path), "--quiet"]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert err.startswith("qpik reach: error: --json ") and "Is a directory" in err
+    assert err.startswith("qpik reach: error: --json ") and "is a folder, not a file" in err
     assert err.count("\n") == 1
