@@ -32,7 +32,7 @@ from ..errors import (
 )
 from ..limits.collision import CollisionAvoidanceLimit, mink_collision_rows
 from ..limits.support import SupportPolygonLimit
-from ..model.configuration import Configuration, joint_names
+from ..model.configuration import Configuration, dof_names
 from .limit_inputs import check_limit_model, constraint_rows, limit_name
 from .mink_limits import angular_dofs
 
@@ -323,9 +323,9 @@ class LimitBoxes:
                 # the same typed errors here as at a step)
                 _box_of(box, limit, model.qpos0, 1.0)
         nv = model.nv
-        names = joint_names(model)
-        #: Each dof's joint name (in messages and active-limit names).
-        self.dof_names = [names[model.dof_jntid[i]] for i in range(nv)]
+        #: Each dof's name (in messages and active-limit names): its joint's, ``[k]`` added
+        #: on a joint of several dofs (:func:`qpik.model.configuration.dof_names`).
+        self.dof_names = dof_names(model)
         #: The trust region: the dofs that no velocity limit bounds, and their speed bound
         #: [rad/s or m/s] (empty when ``max_joint_speed`` is None).
         self.trust_dofs, self.trust_speeds = _trust_region(nv, self.limits, max_joint_speed)

@@ -19,7 +19,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..model.configuration import joint_names
+from ..model.configuration import dof_names
 
 __all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear", "angular_dofs"]
 
@@ -166,7 +166,7 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
         for i, _k, _positive in key:
             for r in (i, i + 3):
                 dof = int(np.flatnonzero(G[r])[0])
-                joint = joint_names(model)[int(model.dof_jntid[dof])]  # (as .boxes names dofs)
+                joint = dof_names(model)[dof]  # (as .boxes names dofs)
                 side = "upper" if G[r, dof] > 0.0 else "lower"
                 names[r] = f"{joint} {side} ({_NAME})"
         return names

@@ -123,8 +123,10 @@ class StepResult:
     """What one differential IK step computed.
 
     Attributes:
-        velocity: joint velocity ``(nv,)`` [rad/s or m/s] (``displacement / dt``).
-        displacement: ``dq = velocity * dt`` ``(nv,)``.
+        velocity: joint velocity ``(nv,)`` [rad/s or m/s]: ``displacement / dt``, bit for
+            bit.
+        displacement: ``dq`` ``(nv,)``, the step the QP solved (``velocity * dt`` to
+            rounding: 1 ulp).
         residuals: per level, the norm of its weighted residual ``|A_k dq - b_k|`` at the
             final ``dq``, over all its rows (zero Jacobian rows included).
         sigma_min: per level, the smallest singular value that drove its damping (inf

@@ -1156,3 +1156,28 @@ def test_an_objective_whose_linear_term_leaves_h_range_is_refused():
     exact = qpsolvers.solve_problem(problem, solver="quadprog").x / 0.01
     velocity = qpik.solve_ik(configuration, [Bias(True)], 0.01, damping=1e-2)
     np.testing.assert_allclose(velocity, exact, atol=1e-9)
+
+
+def test_active_limits_name_each_dof_of_a_multi_dof_joint():
+    """Audit (API): on the floating Talos with its six base dofs at the trust region,
+    active_limits held 'root_joint upper (trust region)' three times and '... lower' three
+    times, not saying which dof binds; a joint of several dofs is named per dof now,
+    'root_joint[k]', on the compiled step and the QP path alike (the same names)."""
+    import warnings
+
+    from qpik.tasks import ComTask
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = qpik.load_robot("erd:talos", floating_base=True)
+    configuration = qpik.Configuration(model, model.key("half_sitting").qpos)
+    com = ComTask(cost=1.0, gain=1.0)
+    com.set_target(configuration.data.subtree_com[1] + np.array([1.0, 1.0, 1.0]))
+    names = []
+    for solver in ("auto", "quadprog"):
+        step = qpik.IKSolver(model, [[com]], solver=solver).step(configuration, 0.01)
+        root = [name for name in step.active_limits if name.startswith("root_joint")]
+        assert root and len(root) == len(set(root))
+        assert all(name.startswith("root_joint[") for name in root)
+        names.append(step.active_limits)
+    assert names[0] == names[1]
