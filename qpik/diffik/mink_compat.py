@@ -44,6 +44,7 @@ from ..tasks import BaseTask
 from .constraints import ConstraintRows, Tikhonov, equality_rows
 from .limit_values import limit_value as _limit_value
 from .limit_values import value_key as _value_key
+from .result import SQUARABLE
 from .solver import IKSolver
 
 __all__ = ["SOLVERS", "SolverCache", "build_ik", "solve_ik"]
@@ -640,16 +641,12 @@ def build_ik(
     return problems[0] if flat else problems
 
 
-#: Beyond this entry size a level's rows would overflow when squared into ``P``.
-_SQUARABLE = 1e150
-
-
 def _squarable(A: np.ndarray, b: np.ndarray, regularization: float) -> tuple[Any, Any, float]:
     """A level's rows and regularisation, scaled down by ``s`` (the objective by ``s^2``,
     which leaves its minimiser unchanged) when an entry is too large to square into a
     finite ``P`` (a cost near 1e150 or beyond); unchanged otherwise."""
     largest = max(float(np.abs(A).max(initial=0.0)), float(np.abs(b).max(initial=0.0)))
-    if not largest > _SQUARABLE or not math.isfinite(largest):
+    if not largest > SQUARABLE or not math.isfinite(largest):
         return A, b, regularization
     return A / largest, b / largest, regularization / largest / largest
 

@@ -62,12 +62,17 @@ class Solution:
         return all(s == LevelStatus.SOLVED for s in self.status)
 
 
+#: Beyond this entry size a level's rows overflow when squared (its objective, its
+#: certificate, a QP's ``P = A^T A``).
+SQUARABLE = 1e150
+
+
 def squarable(top: float, count: int) -> bool:
     """Whether a level's rows, whose largest entry is ``top`` (``count`` entries), square in
     double precision: at most 1e150, and ``top^2 count`` at most 1e300 (its objective and
     its certificate square and sum them). The compiled step's test (``Bound::safe``, where
     the step then takes this path): the same rows refused on both."""
-    return top <= 1e150 and top * top * max(count, 1) <= 1e300
+    return top <= SQUARABLE and top * top * max(count, 1) <= 1e300
 
 
 def solve_rows(core: HierarchySolver, tasks: TaskRows, limits: LimitRows, dt: float) -> Solution:
