@@ -85,3 +85,8 @@ def test_a_start_a_few_nm_outside_two_support_rows_is_solved():
     problem = HierarchyProblem([level], z["lb"], z["ub"], z["G"], z["h"])
     result = HierarchySolver(damping_law=None).solve(problem)
     assert result.ok and float(np.max(z["G"] @ result.x - z["h"])) <= 1e-12
+    # the retry's answer is the same bits fresh, after other solves, and in another solver
+    again = HierarchySolver(damping_law=None)
+    again.solve(_two_levels(1.0)[0])
+    assert again.solve(problem).x.tobytes() == result.x.tobytes()
+    assert HierarchySolver(damping_law=None).solve(problem).x.tobytes() == result.x.tobytes()
