@@ -83,13 +83,13 @@ at the returned point ``x = d + Z z``:
 
 A level is ``solved`` only when all four are ``<= CERTIFICATE_TOLERANCE`` (1e-9). Otherwise
 it falls back to an independent primal active-set method (equality-constrained
-least-squares steps from the feasible point ``z = 0``, i.e. the level above's answer), and
-certifies that; only when neither holds does the level report another status (level 0:
-``numerical_failure``; lower levels: ``kept_previous``), with the certificate of its best
-candidate saying which condition failed. After a level, ``d <- d + Z z`` (projected, never
-clipped, so the levels above keep ``A_j x`` to round-off); the final answer's round-off
-outside the box (at most ``1e-12 (1 + |bound|)``) is put back on the bound, and its rows are
-rechecked (:attr:`HierarchyResult.primal`).
+least-squares steps from ``z = 0``, the level above's answer; again where that fails, rows
+within 1e-6 of the working set's span never blocking) and certifies that; only when none
+holds does the level report another status (level 0: ``numerical_failure``; lower levels:
+``kept_previous``), with the certificate of its best candidate saying which condition
+failed. After a level, ``d <- d + Z z`` (projected, never clipped, so the levels above
+keep ``A_j x`` to round-off); the answer's round-off outside the box (at most 1e-12
+(1 + |bound|)) is put back on the bound, its rows rechecked (``HierarchyResult.primal``).
 
 **Infeasibility** (level 0) is checked before it is reported: the dual method on the identity
 Hessian seeks a point meeting every row (a nearly singular ``H``'s floor can mislead it); where

@@ -250,6 +250,66 @@ def test_panda_two_levels_binding_states():
         assert np.abs(result.velocity - z["v_optimal"][i]).max() <= 1e-8, i
 
 
+def test_panda_posture_past_nearly_dependent_pins():
+    """The Panda state of hqp_near_dependent_pins.npz through the IK layer: a position task
+    holds joints 4-6 on their bounds (their rows positively dependent to 1e-10 only in its
+    null space); the posture level is solved, certified, at the optimum an independent
+    search finds (joints 1-3 along the near-null direction, joint 7 on its bound), not kept
+    where joint 7 alone could still improve it."""
+    import qpik
+    from qpik.limits import joint_limits
+    from qpik.robots import load_robot
+    from qpik.tasks import PositionTask, PostureTask
+
+    model = load_robot("panda")
+    q = [-1.6202376897713093, -0.8550034029203649, 2.8453624570313085, -0.08605481417479821,
+         -2.8731425420294743, 3.318064166059803, -2.858446600070438]  # fmt: skip
+    configuration = qpik.Configuration(model, np.array(q))
+    tip = PositionTask("ee", cost=1.9199280550279667)
+    tip.set_target([0.05143328338138253, 0.7779001576496033, 0.7797989794119744])
+    posture = PostureTask(model, cost=0.9430265124362203)
+    posture.set_target(
+        np.array([-0.47927935530251453, 0.5128726418357692, -1.906906880745661,
+                  -0.3668760792674264, -0.4223895836334721, 2.8188388447875043,
+                  0.5229992070324441])
+    )  # fmt: skip
+    solver = qpik.IKSolver(model, [[tip], [posture]], joint_limits(model))
+    result = solver.step(configuration, 0.01)
+    assert result.ok and all(c.holds for c in result.certificate), result.status
+    problem = solver.build(configuration, 0.01)
+    level = problem.levels[1]
+    d = result.displacement
+
+    def objective(x):
+        return 0.5 * np.sum((level.A @ x - level.b) ** 2) + 0.5 * level.regularization * x @ x
+
+    # Level 0's task value kept; the box met to the certificate's tolerance.
+    A0 = problem.levels[0].A
+    assert np.abs(A0 @ d - A0 @ solver_level0(problem)).max() <= 1e-12
+    assert scaled_violation(d, problem.lb, problem.ub, problem.G, problem.h) <= 1e-9
+    # Joint 7 alone on its bound (its column of A_0 is 0): what kept_previous missed.
+    joint7 = d.copy()
+    joint7[:6] = solver_level0(problem)[:6]
+    joint7[6] = problem.ub[6]
+    assert objective(d) <= objective(joint7) - 0.1
+    # The independent search: joints 1-3 along A_0's near-null direction, joint 7 at its bound.
+    v = np.linalg.svd(A0[:, :3])[2][2]
+    best = np.inf
+    for t in np.linspace(-0.05, 0.05, 4001):
+        x = joint7.copy()
+        x[:3] += t * v
+        if np.all(x[:3] >= problem.lb[:3]) and np.all(x[:3] <= problem.ub[:3]):
+            best = min(best, objective(x))
+    assert objective(d) <= best + 1e-6
+
+
+def solver_level0(problem: HierarchyProblem) -> np.ndarray:
+    """Level 0 of ``problem`` solved alone by the core (its answer: the levels below keep
+    its task value)."""
+    alone = HierarchyProblem(problem.levels[:1], problem.lb, problem.ub, problem.G, problem.h)
+    return HierarchySolver().solve(alone).x
+
+
 @pytest.mark.parametrize("name", ["hqp_degenerate_vertex.npz", "hqp_degenerate_vertex_2.npz"])
 def test_degenerate_vertex_with_unbounded_dofs(name):
     """The degenerate-vertex reproducers with every dof that no level's answer brings near

@@ -1810,6 +1810,10 @@ inline void independent_rows(CMatRef C, const IVec& rows, const IVec& sides, i64
     }
 }
 
+// exact_level's second primal active set (after the first's candidate failed): a row within
+// this of the working set's span never blocks (kNearDependent in the first).
+constexpr double kNearDependentRetry = 1e-6;
+
 // One level made exact: the dual active set's rows (sol) re-solved on their canonical
 // active set without regularisation, then certified; else the primal active set from a
 // feasible point, certified. Returns true with z, the working set and the certificate when
@@ -1965,9 +1969,29 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             return false;
         }
     }
+    Vec& again = es.xagain;
+    again = start;
     bool pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter);
     if (pok) {
         if (certify(start)) {
+            z = start;
+            return true;
+        }
+    }
+    // Tight rows nearly dependent at a degenerate vertex: a row whose normal lies just
+    // outside kNearDependent of the working set's span (1.2e-8 at a Panda's posture level,
+    // three dofs on their bounds whose rows of Z are positively dependent to 1e-10) blocks
+    // the step at once and joins the set, whose multipliers (1e10) then cancel beyond any
+    // certificate; the level was kept where moving one free dof to its bound lowered its
+    // objective (tests/data/exactness/hqp_near_dependent_pins.npz). Once more from the same
+    // start with such rows (within kNearDependentRetry) never blocking: each candidate is
+    // certified as any other (a row so passed is met to its certificate's tolerance or the
+    // candidate fails), so only a level no candidate certified changes.
+    if (kNearDependentRetry > kNearDependent) {
+        start = again;
+        pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter,
+                                kNearDependentRetry);
+        if (pok && certify(start)) {
             z = start;
             return true;
         }

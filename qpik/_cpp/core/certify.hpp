@@ -863,7 +863,7 @@ struct CertScratch {
     Vec rres, rsize, radx;              // certify_level's kept rows
     IVec keep;
     IVec xrows, xsides;                 // exact_level (qpik/_cpp/core/cascade.hpp)
-    Vec xu, xx, xZz, xzc, xzref, xstart;
+    Vec xu, xx, xZz, xzc, xzref, xstart, xagain;
     Vec xbest;                          // exact_level's feasible candidate of least worst measure,
     bool has_best = false;              // for certified_by_refined_multipliers (cascade.hpp)
     Mat nM;                             // ... its signed row normals (t, r)
@@ -1205,7 +1205,8 @@ inline double ls_gradient_size(const LSForm& ls, const Vec& z) {
 
 // A primal active-set method for min 1/2 |B z - f|^2 s.t. lo <= C z <= hi from a feasible
 // z (the independent fallback of a level): equality-constrained least-squares steps
-// (eqp_ls), the blocking row added, the most negative multiplier dropped. Returns true
+// (eqp_ls), the blocking row added, the most negative multiplier dropped; a row within
+// near_dependent of the working set's span never blocks (see below). Returns true
 // with (z, rows, sides, u) at a KKT point, false after max_iter or a dependent set.
 // A multiplier counts as negative only beyond the round-off of the gradient it balances
 // (kDropRoundOff ls_gradient_size, not relative to the largest multiplier alone): where the
@@ -1215,7 +1216,7 @@ inline double ls_gradient_size(const LSForm& ls, const Vec& z) {
 // real one is kept (7e-14 of it on a near-singular level, whose objective dropping it
 // lowers by 1e-8 relative).
 inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef hi, Vec& z, IVec& act_row,
-                              IVec& act_side, Vec& u, i64 max_iter) {
+                              IVec& act_side, Vec& u, i64 max_iter, double near_dependent = kNearDependent) {
     i64 m = C.rows, r = C.cols;
     act_row.clear();
     act_side.clear();
@@ -1269,7 +1270,7 @@ inline bool primal_active_set(const LSForm& ls, CMatRef C, CVecRef lo, CVecRef h
                     for (i64 t = 0; t < r; ++t) acc += W(t, j) * ci[t];
                     out += acc * acc;
                 }
-                if (out <= kNearDependent * kNearDependent * norms[i] * norms[i]) continue;
+                if (out <= near_dependent * near_dependent * norms[i] * norms[i]) continue;
                 alpha = a;
                 block = i;
                 block_side = side;
