@@ -6,6 +6,12 @@ met exactly and the posture uses only the one-dimensional null space. With both 
 weighted level (mink's default), the posture pulls the end effector off its target: the
 weighted solve trades pose error for posture.
 
+The weighted pose error does not go to zero, and its iterations approach the trade-off
+slowly (Gauss-Newton on a residual that stays: about 100 iterations to 0.117 m here), so the
+stall rule, which watches the pose error alone (``stall_window``, 5 by default), is given
+every iteration: with the default, the solve stops "stalled" after 5 at 0.150 m, 28 % short
+of the trade-off.
+
 Run: python examples/reach_7dof_priorities.py [--max-iters N]
 """
 
@@ -47,7 +53,13 @@ def main(argv=None) -> int:
     print(f"target: position {TARGET[0]} m, ee pointing down, yaw 0.5 rad; start: home")
     for name, stack in stacks(model, home).items():
         result = qpik.solve(
-            model, {"ee": target}, q0=home, stack=stack, max_iters=args.max_iters, restarts=0
+            model,
+            {"ee": target},
+            q0=home,
+            stack=stack,
+            max_iters=args.max_iters,
+            restarts=0,
+            stall_window=args.max_iters,
         )
         print(
             f"{name:>20}: {result.reason:>9}, {result.iterations:3d} iterations, position error "

@@ -2,9 +2,11 @@
 
 The textbook planar 2R example: l1 = l2 = 1, q1 = pi/4, and q2 shrinking toward 0, where
 det J = l1 l2 sin q2 vanishes. Asked for the same small tip velocity xi (1 cm/s along the
-lost direction) the inverse ``J^-1 xi`` grows like 1 / sin q2 (about 1000x at
-q2 = 0.001), while qpik's step (a PositionTask solved by IKSolver, with its adaptive
-damping) stays bounded and still moves the tip along the directions that remain.
+lost direction) the inverse ``J^-1 xi`` grows like 1 / sin q2 (|J^-1 xi| / |xi| is
+sqrt(5) / (2 sin(q2 / 2)), 2236 at q2 = 0.001), while qpik's step (a PositionTask solved by
+IKSolver, with its adaptive damping) stays bounded: asked only along the lost direction,
+the tip then nearly stops (about 1e-6 m/s of the 1e-2 m/s asked at q2 = 0.001) instead of
+the joints spinning.
 
 Run: python examples/singularity_2r.py [--steps N]
 """

@@ -219,6 +219,8 @@ def damped_pseudoinverse(J: npt.ArrayLike, damping: float) -> np.ndarray:
     notation ``J^T (J J^T + lambda^2 I)^-1``). Each singular value ``s`` of ``J`` maps to
     ``s / (s^2 + damping) <= 1 / (2 sqrt(damping))``, so the result stays bounded at and
     near singularities: ``||J_damped^+||_2 <= 1 / (2 sqrt(damping))`` for every ``J``.
+    (:func:`qpik.igm.baselines.damped_least_squares_step` takes the textbook's ``lambda``
+    instead: its ``damping`` is the square root of this one.)
     """
     J = _as_matrix(J)
     damping = checks.check_real("damping", damping)

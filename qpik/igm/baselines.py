@@ -48,7 +48,9 @@ def pseudoinverse_step(J: np.ndarray, xi: np.ndarray, rcond: float = 1e-15) -> n
 
 def damped_least_squares_step(J: np.ndarray, xi: np.ndarray, damping: float) -> np.ndarray:
     """Damped least squares: ``qdot = J^T (J J^T + damping^2 I)^-1 xi``; its norm is at
-    most ``|xi| / (2 damping)``."""
+    most ``|xi| / (2 damping)``. ``damping`` is the textbook's ``lambda`` here, where
+    :func:`qpik.analysis.damped_pseudoinverse` and the IK layer take ``lambda^2`` (mink's
+    convention): this step is ``damped_pseudoinverse(J, damping**2) @ xi``."""
     m = J.shape[0]
     return J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(m), xi)
 

@@ -131,3 +131,18 @@ def test_pose_error_rotation_matches_so3_log(rng):
         np.testing.assert_allclose(c[:3], 0.1, atol=1e-12)
         assert np.linalg.norm(c[3:]) == pytest.approx(angle, abs=1e-9)
         np.testing.assert_allclose(mink.SO3.exp(c[3:]).as_matrix() @ rotation, target, atol=1e-9)
+
+
+def test_damped_least_squares_step_takes_lambda_where_the_pseudoinverse_takes_its_square():
+    """The two damping conventions, as both docstrings state: the baseline's ``damping`` is
+    the textbook's lambda, :func:`qpik.analysis.damped_pseudoinverse`'s is lambda^2 (mink's);
+    checked against the closed form J^T (J J^T + lambda^2 I)^-1 xi."""
+    from qpik.analysis import damped_pseudoinverse
+    from qpik.igm.baselines import damped_least_squares_step
+
+    rng = np.random.default_rng(4)
+    J, xi = rng.normal(size=(2, 4)), rng.normal(size=2)
+    lam = 0.05
+    closed = J.T @ np.linalg.solve(J @ J.T + lam**2 * np.eye(2), xi)
+    np.testing.assert_allclose(damped_least_squares_step(J, xi, lam), closed, rtol=1e-12)
+    np.testing.assert_allclose(damped_pseudoinverse(J, lam**2) @ xi, closed, rtol=1e-10)
