@@ -7,6 +7,7 @@ or Parquet), written chunk by chunk and resumed. The solving itself is
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -17,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import mujoco
 import numpy as np
 import numpy.typing as npt
 
@@ -172,7 +174,9 @@ def solve_file(
     [rad], ``iterations``, ``restarts_used``, ``time`` [s] (unsolved rows: NaN, ``False``,
     ``"pending"``) and ``done`` ``(N,)``. When every chunk is done, the folder is removed.
     A rerun skips the chunks already done; it refuses (``InvalidInput``) to mix runs whose
-    targets, robot, frame, seed, chunk size or options differ, unless ``overwrite``.
+    targets, robot (its name, and its compiled content: :func:`model_fingerprint`, so an
+    edited file of the same name is another robot), frame, seed, chunk size or options
+    differ, unless ``overwrite``.
     ``max_chunks`` (an int >= 0) stops after that many new chunks (resume later; ``0``
     solves nothing: it checks the inputs and writes ``out`` with every row pending).
     Target ``i`` is solved with :func:`target_seed(seed, i)
@@ -199,6 +203,7 @@ def solve_file(
     n = len(arrays)
     meta = {
         "robot": spec if isinstance(spec, str) else f"MjModel(nq={model.nq})",
+        "model": model_fingerprint(model),
         "frame": list(frame) if isinstance(frame, tuple) else frame,
         "targets": arrays.fingerprint(),
         "n": n,
@@ -230,6 +235,15 @@ def solve_file(
         bar.close()
         results.end(solved)
     return results.report(before, solved, targets_solved, time.perf_counter() - start_time)
+
+
+def model_fingerprint(model: mujoco.MjModel) -> str:
+    """A digest of ``model``'s whole compiled content (its MJB bytes, ``mj_saveModel``): the
+    same for the same file loaded again, another for any edit (a joint range, a body's
+    pose), so that a results file is not resumed with another robot under the same name."""
+    buffer = np.empty(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return hashlib.sha256(buffer.tobytes()).hexdigest()[:32]
 
 
 def _check_out(out: str | os.PathLike) -> str:
@@ -290,6 +304,8 @@ class _ResultsFile:
         if previous is not None:
             old_meta, self.done = previous
             different = [k for k in meta if old_meta.get(k) != meta[k]]
+            if different == ["model"]:
+                different = ["model (the robot's content: its file edited since?)"]
             if different:
                 raise InvalidInput(
                     f"{out} holds a run with different {', '.join(different)}: pass another "

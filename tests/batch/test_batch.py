@@ -3,6 +3,7 @@ errors; results written chunk by chunk and resumed."""
 
 from __future__ import annotations
 
+import shutil
 import sys
 
 import mujoco
@@ -16,6 +17,8 @@ from qpik.batch import iter_solve, load_targets, solve_file
 from qpik.batch.chunks import Chunk
 from qpik.batch.worker import target_seed
 from qpik.cli import main
+from qpik.errors import InvalidInput
+from qpik.robots import robot_path
 
 
 def pose_targets(robot: str, count: int, seed: int = 0, frame: str = "ee") -> list[dict]:
@@ -270,6 +273,32 @@ def test_batch_file_resumes_without_redoing_chunks(tmp_path, monkeypatch):
     assert data["reason"].tolist() == [r.reason for r in expected]
     np.testing.assert_array_equal(data["position_error"], [r.position_error for r in expected])
     assert (data["time"] > 0).all()
+
+
+def test_batch_file_refuses_to_resume_with_an_edited_robot(tmp_path):
+    """The same robot name (a file, or a model object) with other content: an interrupted
+    run is not resumed with it (the rows would mix two robots); a reload of the same file
+    is the same robot and resumes."""
+    write_targets(tmp_path / "t.npz")
+    arm = tmp_path / "arm.xml"
+    shutil.copy(robot_path("ur5e"), arm)
+    out = tmp_path / "r.npz"
+    solve_file(str(arm), "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1, max_chunks=1)
+    text = arm.read_text()
+    assert 'range="-3.14159265 3.14159265"' in text  # the elbow
+    arm.write_text(text.replace('range="-3.14159265 3.14159265"', 'range="-0.5 0.5"', 1))
+    with pytest.raises(InvalidInput, match="different model"):
+        solve_file(str(arm), "ee", tmp_path / "t.npz", out, chunk_size=3, workers=1)
+    edited = qpik.load_robot("ur5e")
+    edited.jnt_range[2] = [-0.5, 0.5]
+    out2 = tmp_path / "r2.npz"
+    solve_file(qpik.load_robot("ur5e"), "ee", tmp_path / "t.npz", out2, chunk_size=3, workers=1,
+               max_chunks=1)  # fmt: skip
+    with pytest.raises(InvalidInput, match="different model"):
+        solve_file(edited, "ee", tmp_path / "t.npz", out2, chunk_size=3, workers=1)
+    resumed = solve_file(qpik.load_robot("ur5e"), "ee", tmp_path / "t.npz", out2, chunk_size=3,
+                         workers=1)  # fmt: skip
+    assert resumed.chunks_before == 1 and resumed.complete
 
 
 def test_batch_cli_interrupted_then_resumed_with_workers(tmp_path, monkeypatch, capsys):
