@@ -1,6 +1,7 @@
 // Bindings of the igm layer (qpik._engine.igm): the full-IK loop, its box QP, the
 // SplitMix64 stream and the smallest singular value of a level.
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -54,7 +55,7 @@ static void check_igm_shapes(const T1& target_p, const T2& target_R, const B& bo
     require(target_R.shape(0) == 3 && target_R.shape(1) == 3, "target_R must be (3, 3)");
     require(bounds.shape(0) == 4 && static_cast<i64>(bounds.shape(1)) == nq, "bounds must be (4, nq)");
     require(reach.shape(0) == 4, "reach must be (4,)");
-    require(options.shape(0) >= 11, "options must hold 11 floats");
+    require(options.shape(0) >= 11, "options must hold 11 or 12 floats");
     require(int_options.shape(0) == 4 || int_options.shape(0) == 5, "int_options must hold 4 or 5 ints");
 }
 
@@ -63,6 +64,16 @@ static void check_igm_args(const T1& target_p, const T2& target_R, const B& boun
                            const O& options, const IO& int_options, const S& rng_state, i64 nq) {
     check_igm_shapes(target_p, target_R, bounds, reach, options, int_options, nq);
     require(rng_state.shape(0) == 1, "rng_state must be a uint64 array of shape (1,)");
+}
+
+// The IGM's float options with entry 11 (the rank tolerance) present: 11 floats (the
+// layout before it) read with 0 there, no structural cut (igm::structural_sigma);
+// qpik.igm.kernels.kernel_options writes 12. buf: where such a copy is made.
+static const double* igm_options(const double* options, i64 count, std::array<double, 12>& buf) {
+    if (count >= 12) return options;
+    std::copy(options, options + count, buf.begin());
+    buf[11] = 0.0;
+    return buf.data();
 }
 
 // igm_solve with its scratch allocated here (2 (max_iters + 1) iterates of nq and of 3, left
@@ -98,8 +109,9 @@ static void igm_with_scratch(IgmScratch& s, nb::handle chain, In1 target_p, In2 
                              std::uint64_t& rng_state, double deadline) {
     ChainArgs holder;
     const model::Chain& c = chain_arg(chain, nq, nq, holder);
+    std::array<double, 12> buf{};
     igm_with_scratch(s, c, target_p.data(), target_R.data(), truthy(has_rot), q0, nq, cmat(bounds), reach.data(),
-                     options.data(), int_options.data(),
+                     igm_options(options.data(), static_cast<i64>(options.shape(0)), buf), int_options.data(),
                      igm::iteration_budget(int_options.data(), static_cast<i64>(int_options.shape(0))), rng_state,
                      deadline);
 }
@@ -180,13 +192,14 @@ struct IgmPlan {
         chain_ref = nb::borrow(chain_obj);
         require(bounds_.shape(0) == 4 && static_cast<i64>(bounds_.shape(1)) == nq, "bounds must be (4, nq)");
         require(reach_.shape(0) == 4, "reach must be (4,)");
-        require(options_.shape(0) >= 11, "options must hold 11 floats");
+        require(options_.shape(0) >= 11, "options must hold 11 or 12 floats");
         require(int_options_.shape(0) == 4 || int_options_.shape(0) == 5, "int_options must hold 4 or 5 ints");
         i64 max_iters = int_options_.data()[0];
         require(max_iters >= 0 && max_iters < (i64(1) << 40), "max_iters must be >= 0");
         bounds.assign(bounds_.data(), bounds_.data() + 4 * nq);
         reach.assign(reach_.data(), reach_.data() + 4);
         options.assign(options_.data(), options_.data() + options_.shape(0));
+        if (options.size() < 12) options.resize(12, 0.0);  // (igm_options: no structural cut)
         int_options.assign(int_options_.data(), int_options_.data() + int_options_.shape(0));
     }
 };
@@ -361,8 +374,9 @@ void bind_igm(nb::module_& m) {
             const model::Chain& c = chain_arg(chain, nq, nq, holder);
             igm::Target target{target_p.data(), target_R.data(), truthy(has_rot)};
             igm::Record rec{path.data(), hist.data(), static_cast<i64>(path.shape(1)), nq};
-            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(), options.data(),
-                           int_options.data(),
+            std::array<double, 12> buf{};
+            igm::igm_solve(c, target, q0.data(), nq, cmat(bounds), reach.data(),
+                           igm_options(options.data(), static_cast<i64>(options.shape(0)), buf), int_options.data(),
                            igm::iteration_budget(int_options.data(), static_cast<i64>(int_options.shape(0))),
                            rng_state.data()[0], deadline, rec, info.data());
         },

@@ -127,7 +127,9 @@ uniform = _igm.uniform
 #:   (UNREACHABLE).
 #: * ``options`` (float64): tol_position, tol_orientation, alpha, beta, max_step_position,
 #:   max_step_orientation (inf: none), singular_threshold, max_damping, error_scale (<= 0:
-#:   none), damping, limit_gain.
+#:   none), damping, limit_gain, rank_tolerance (singular values at or below it times
+#:   ``max(1, sigma_max)`` are structural zeros, not a singularity, as in the cascade; a
+#:   caller's 11 floats read 0 there: no such cut).
 #: * ``int_options`` (int64): max_iters, restarts, stall_window, check_time (0/1), and
 #:   optionally the iteration budget (:attr:`qpik.SolveOptions.iteration_budget`: no new
 #:   attempt starts once the solve's iterations reach it; -1 or absent: none).
@@ -212,6 +214,7 @@ def kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
             law.error_scale if law is not None and law.error_scale is not None else 0.0,
             s.damping,
             LIMIT_GAIN,
+            s.step.rank_tolerance,
         ]
     )
     budget = s.iteration_budget

@@ -721,3 +721,25 @@ def test_a_target_on_the_workspace_boundary_converges_in_one_attempt():
         )  # fmt: skip
         assert result.converged, (result.reason, result.position_error, result.iterations)
         assert result.position_error <= 1e-5 and result.orientation_error <= 1e-5
+
+
+def test_both_engines_take_the_same_steps_from_an_exactly_singular_start():
+    """The bundled UR5e from its default start q = 0, where its frame rows have a singular
+    value of 3.7e-17 (of 2.1): a structural zero by the cascade's rank rule, not a
+    singularity to damp. Both engines take the same steps (the compiled one followed the
+    Gram matrix's least eigenvalue and damped fully: its first iterate was 0.234 rad off)."""
+    import mujoco
+
+    model = qpik.load_robot("ur5e")
+    data = mujoco.MjData(model)
+    data.qpos[:] = [0.3, -1.2, 1.4, -0.8, 1.1, 0.4]
+    mujoco.mj_kinematics(model, data)
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "ee")
+    target = {"ee": (data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy())}
+    assert np.allclose(qpik.Configuration(model).mid_q(), 0.0)
+    results = [qpik.solve(model, target, seed=0, engine=e, restarts=0) for e in ("compiled", "qp")]
+    first = [np.asarray(r.path)[1] for r in results]
+    assert np.abs(first[0] - first[1]).max() <= 1e-9
+    assert all(r.converged for r in results)
+    assert results[0].iterations == results[1].iterations
+    assert np.abs(np.asarray(results[0].q) - np.asarray(results[1].q)).max() <= 1e-9

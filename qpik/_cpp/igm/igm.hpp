@@ -353,6 +353,84 @@ inline double smallest_singular_value_in(CMatRef A, i64 m, i64 nv, MatRef G, dou
     return std::sqrt(gram_smallest_eigenvalue(G, n));
 }
 
+// The cascade's rank rule (project_level, qpik/_cpp/core/cascade.hpp): singular values of a
+// level at or below rank_tol max(1, sigma_max) are structural zeros, not a singularity, and
+// the damping law reads the least one above that cut. The Gram matrix cannot tell them
+// apart (its least eigenvalue carries eps sigma_max^2 of round-off), so where it gave a
+// sigma below the damping threshold, the singular values of A[:m] are found by one-sided
+// Jacobi rotations (Hestenes, as core::min_singular) of its smaller side: where some are
+// structural zeros (a UR5e's frame rows at q = 0: 3.7e-17 of 2.1), the least above the cut
+// is returned (inf where none is), else sigma as given (the same bits as without this).
+// rank_tol <= 0: sigma as given (no cut). Only a sigma the Gram matrix cannot tell from a
+// structural zero is looked at: at most max(1e-6, 10 rank_tol) max(1, |A|_F) (the Gram's
+// least eigenvalue carries about eps |A|^2, so its sigma is within 1e-7 |A| of the true one,
+// and a larger one leaves every singular value above the cut).
+inline double structural_sigma(CMatRef A, i64 m, double sigma, double rank_tol) {
+    if (!(rank_tol > 0.0)) return sigma;
+    const i64 nc = A.cols;
+    double frob = 0.0;
+    for (i64 i = 0; i < m; ++i)
+        for (i64 k = 0; k < nc; ++k) frob += A(i, k) * A(i, k);
+    frob = std::sqrt(frob);
+    if (sigma > core::pymax(1e-6, 10.0 * rank_tol) * core::pymax(1.0, frob)) return sigma;
+    const bool by_rows = m <= nc;
+    const i64 p = by_rows ? m : nc, len = by_rows ? nc : m;
+    if (p == 0) return sigma;
+    std::vector<double> U(static_cast<size_t>(p * len));
+    for (i64 i = 0; i < p; ++i)
+        for (i64 k = 0; k < len; ++k) U[static_cast<size_t>(i * len + k)] = by_rows ? A(i, k) : A(k, i);
+    // A vector of norm below eps |A|_F is round-off: no rotation with it is needed (one with
+    // an exact zero's remains would never meet the relative test below).
+    const double negligible = (2.220446049250313e-16 * frob) * (2.220446049250313e-16 * frob);
+    for (int sweep = 0; sweep < 60; ++sweep) {
+        bool rotated = false;
+        for (i64 i = 0; i < p - 1; ++i) {
+            for (i64 j = i + 1; j < p; ++j) {
+                double* ui_ = U.data() + i * len;
+                double* uj_ = U.data() + j * len;
+                double alpha = 0.0, beta = 0.0, gamma = 0.0;
+                for (i64 k = 0; k < len; ++k) {
+                    alpha += ui_[k] * ui_[k];
+                    beta += uj_[k] * uj_[k];
+                    gamma += ui_[k] * uj_[k];
+                }
+                if (alpha <= negligible || beta <= negligible) continue;
+                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
+                rotated = true;
+                const double zeta = (beta - alpha) / (2.0 * gamma);
+                const double t = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
+                const double cs = 1.0 / std::sqrt(1.0 + t * t);
+                const double sn = cs * t;
+                for (i64 k = 0; k < len; ++k) {
+                    const double ui = ui_[k], uj = uj_[k];
+                    ui_[k] = cs * ui - sn * uj;
+                    uj_[k] = sn * ui + cs * uj;
+                }
+            }
+        }
+        if (!rotated) break;
+    }
+    std::vector<double> values(static_cast<size_t>(p));
+    double largest = 0.0;
+    for (i64 i = 0; i < p; ++i) {
+        double norm = 0.0;
+        for (i64 k = 0; k < len; ++k) norm += U[static_cast<size_t>(i * len + k)] * U[static_cast<size_t>(i * len + k)];
+        values[static_cast<size_t>(i)] = std::sqrt(norm);
+        largest = core::pymax(largest, values[static_cast<size_t>(i)]);
+    }
+    const double cut = rank_tol * core::pymax(1.0, largest);
+    bool structural = false;
+    double least = kInf;
+    for (double v : values) {
+        if (!(v > cut)) {
+            structural = true;
+        } else if (v < least) {
+            least = v;
+        }
+    }
+    return structural ? least : sigma;
+}
+
 // ------------------------------------------------------------------------ the IGM
 struct Target {
     const double* p;  // (3,)
@@ -507,6 +585,7 @@ inline Regularisation regularisation(const Mat& A, const double* b, i64 m, Mat& 
     double threshold = options[6];
     if (!(threshold > 0.0)) return {options[9], kInf};
     double sigma = smallest_singular_value_in(A.cref(), m, A.cols, gram.ref(), threshold, rows, L.ref());
+    if (sigma < threshold) sigma = structural_sigma(A.cref(), m, sigma, options[11]);
     return damping_law(sigma, b, m, options);
 }
 
@@ -549,6 +628,7 @@ inline Regularisation regularisation_gram(const Mat& A, const double* b, i64 m, 
             for (i64 c = 0; c < r; ++c) gram(a, c) = G(rows[a], rows[c]);
         if (!core::cholesky_into(gram.cref(), r, threshold * threshold, L.ref())) {
             sigma = std::sqrt(gram_smallest_eigenvalue(gram.ref(), r));
+            if (sigma < threshold) sigma = structural_sigma(A.cref(), m, sigma, options[11]);
         }
     }
     return damping_law(sigma, b, m, options);
@@ -671,6 +751,7 @@ inline bool row_step_fixed(QPWork& qw, const double* options, Regularisation& rg
             for (int i = 0; i < M; ++i)
                 for (int c = 0; c < M; ++c) qw.gram(i, c) = G[i * 6 + c];
             sigma = std::sqrt(gram_smallest_eigenvalue(qw.gram.ref(), M));
+            if (sigma < threshold) sigma = structural_sigma(qw.A.cref(), M, sigma, options[11]);
         }
         rg = damping_law(sigma, b, M, options);
     }
