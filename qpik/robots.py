@@ -4,6 +4,7 @@ frame of an arm (the public path over :mod:`qpik.model.robots`)."""
 from .model.configuration import resolve_robot
 from .model.robots import (
     ERD_ROBOTS,
+    FINGER_NAMES,
     FLANGE_NAMES,
     GRIPPER_WORDS,
     HAND_NAMES,
@@ -28,6 +29,7 @@ from .model.robots import (
 __all__ = [
     "resolve_robot",
     "ERD_ROBOTS",
+    "FINGER_NAMES",
     "FLANGE_NAMES",
     "GRIPPER_WORDS",
     "HAND_NAMES",

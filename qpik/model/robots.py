@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass
 from importlib import metadata, resources
 from pathlib import Path
@@ -58,6 +59,7 @@ from .robot_files import (  # noqa: F401 (find_srdf, robot_spec: re-exported)
 
 __all__ = [
     "ERD_ROBOTS",
+    "FINGER_NAMES",
     "FLANGE_NAMES",
     "GRIPPER_WORDS",
     "HAND_NAMES",
@@ -173,6 +175,13 @@ GRIPPER_WORDS: tuple[str, ...] = (
     "claw",
     "pad",
 )
+
+#: Names of a hand's fingers that mark its joints as a gripper's when they are a whole word
+#: of the joint's (or body's) name, split at every character that is not a letter or a
+#: digit (``Left_index_q1``), and the model's joints name two fingers at least (these or
+#: ``thumb``): as part of a longer word (``spring``, ``bearing``) or alone in a model
+#: (erd ``human``'s ``middle_lumbar_Z``, the body's midline) they mean nothing.
+FINGER_NAMES: tuple[str, ...] = ("index", "middle", "ring", "pinky", "little")
 
 
 def robots_dir() -> Path:
@@ -523,27 +532,39 @@ class ToolFrame:
 def gripper_joints(model: mujoco.MjModel) -> list[int]:
     """Ids of the joints that belong to a gripper or a hand: hinge or slide joints whose name
     holds one of :data:`GRIPPER_WORDS` (``panda_finger_joint1``, ``gripper_left_joint``,
-    ``left_driver_joint``; not ``gripper`` with a wrist's axis word, ``LeftGripperYaw``: a
-    wrist joint that turns the gripper), or whose body's name does when no joint lies below
-    that body (a finger link's unnamed joint; a wrist joint on a ``gripper_link`` with
-    fingers below it is the arm's)."""
+    ``left_driver_joint``) or has one of :data:`FINGER_NAMES` as a word in a model whose
+    joints name two fingers (``Left_index_q1``), but not ``gripper`` with a wrist's axis
+    word (``LeftGripperYaw``: a wrist joint that turns the gripper); or whose body's name
+    does when no joint lies below that body (a finger link's unnamed joint; a wrist joint on
+    a ``gripper_link`` with fingers below it is the arm's)."""
     below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
     for b in range(model.nbody - 1, 0, -1):  # children come after parents
         if below[b] or model.body_jntnum[b]:
             below[model.body_parentid[b]] = True
     found = []
+    named = [(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower() for j in
+             range(model.njnt)]  # fmt: skip
+    hand = len(set().union(*map(_fingers, named))) >= 2  # (FINGER_NAMES count: two named)
     for j in range(model.njnt):
         if int(model.jnt_type[j]) not in _SCALAR_JOINTS:
             continue
         body = int(model.jnt_bodyid[j])
-        name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").lower()
+        name = named[j]
         body_name = (mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or "").lower()
         words = [word for word in GRIPPER_WORDS if word in name]
         if words == ["gripper"] and any(axis in name for axis in _WRIST_AXES):
             continue  # (a wrist joint that turns the gripper: erd Alex's LeftGripperYaw)
-        if words or (not below[body] and any(word in body_name for word in GRIPPER_WORDS)):
+        by_body = not below[body] and (
+            any(word in body_name for word in GRIPPER_WORDS) or (hand and bool(_fingers(body_name)))
+        )
+        if words or (hand and _fingers(name)) or by_body:
             found.append(j)
     return found
+
+
+def _fingers(name: str) -> set[str]:
+    """The fingers (:data:`FINGER_NAMES`, ``thumb``) whole words of a lower-case ``name``."""
+    return {w for w in re.split(r"[^a-z0-9]+", name) if w in FINGER_NAMES or w == "thumb"}
 
 
 _SCALAR_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))

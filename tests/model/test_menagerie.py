@@ -120,6 +120,32 @@ def test_tool_frame_is_never_a_finger(tmp_path):
     assert "a hand's name" in tool.reason
 
 
+@requires_erd
+def test_a_hands_fingers_named_index_to_pinky_are_never_the_tool_frame():
+    """erd Alex with Psyonic hands: fingers named Left_index_q1 ... Left_pinky_q2 (only the
+    thumb has a gripper word): the tool frame is no finger (before: Left_index_anchor, moved
+    by two finger joints), the palm the fingers branch from; erd human's midline joints
+    (middle_lumbar_Z: one finger word alone) stay the body's, its tool frame a hand."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dropped meshes
+        model = qpik.load_robot("erd:alex_psyonic_hands")
+    tool = tool_frame(model)
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, tool.name)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    mujoco.mj_jacBody(model, data, jacp, jacr, body)
+    fingers = gripper_joints(model)
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in fingers]
+    assert {"Left_index_q1", "Left_pinky_q2", "Left_thumb_q1"} <= set(names)
+    dofs = [int(model.jnt_dofadr[j]) for j in fingers]
+    assert np.abs(jacp[:, dofs]).max() == 0.0 and np.abs(jacr[:, dofs]).max() == 0.0
+    assert tool.name == "Left_thumb_base"  # (its fixed child: where every finger attaches)
+    human = qpik.load_robot("erd:human")
+    assert gripper_joints(human) == []
+    assert tool_frame(human).name == "left_hand"
+
+
 def test_prefixed_names_match_and_the_site_wins_over_the_body(tmp_path):
     text = ARM_WITH_FINGERS.format(hand="arm_flange", finger_site="marker").replace(
         '<geom type="box" size="0.02 0.05 0.02"/>',
