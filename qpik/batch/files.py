@@ -81,6 +81,8 @@ class BatchRun:
     reasons: dict[str, int] | None = None
 
     def summary(self) -> str:
+        """What the run did, as ``qpik batch`` prints it: chunks and targets done (before
+        this run and now), the rate [targets/s], and the reasons counted."""
         solved = self.chunks_solved
         lines = [
             f"{self.out}: {self.chunks_before + solved}/{self.chunks} chunks of {self.total} "

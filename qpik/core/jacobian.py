@@ -72,6 +72,8 @@ Rows = Literal["pose", "position", "orientation"] | Sequence[int | str]
 # ---------------------------------------------------------------------- validation
 def _as_matrix(J: npt.ArrayLike, name: str = "J") -> np.ndarray:
     """``J`` as a finite 2-D float array with at least one row and one column."""
+    if np.iscomplexobj(J):
+        raise InvalidInput(f"{name} is complex; a real matrix is expected")
     try:
         J = np.asarray(J, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -404,7 +404,7 @@ class IKSession:
                 frame = prepared[key]  # the frame's preparation, once read (self._frame)
             except (KeyError, TypeError):
                 frame = self._frame(key)
-            frames.append((frame, parse_target(value, key if len(targets) > 1 else None)))
+            frames.append((frame, parse_target(value, key)))
         if len(frames) > 1:  # (one frame named twice: 'ee' and ('ee', 'site'))
             check_distinct_frames([f for f, _ in frames], list(targets))
         return frames

@@ -118,6 +118,8 @@ def _parts(value: TargetLike) -> tuple:
     except (TypeError, ValueError) as exc:
         raise InvalidTarget(f"{_FORMS}; got {value!r} ({exc})") from exc
     if array.shape == (4, 4):
+        if not np.isfinite(array).all():
+            raise InvalidTarget(f"a 4x4 target must be finite numbers, got {array!r}")
         if not np.allclose(array[3], [0, 0, 0, 1]):
             raise InvalidTarget("a 4x4 target's last row must be (0, 0, 0, 1)")
         return array[:3, 3], array[:3, :3]

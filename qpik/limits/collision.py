@@ -256,7 +256,8 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
             geoms by name or id; every geom of the first group is checked against every
             geom of the second.
         gain: fraction in (0, 1] of the margin above ``d_min`` the pair may close per step.
-        minimum_distance_from_collisions: ``d_min`` [m].
+        minimum_distance_from_collisions: ``d_min`` [m] (signed, as MuJoCo's distances: a
+            negative one lets the pair penetrate that deep, as mink takes it).
         collision_detection_distance: pairs farther apart than this [m] get no row.
         bound_relaxation: added to every row's right side [m].
         broadphase: cull the pairs provably out of range before computing distances
@@ -448,7 +449,9 @@ class CollisionAvoidanceLimit(mink.CollisionAvoidanceLimit):
         return out
 
 
-def geom_distance(configuration: mink.Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0):
+def geom_distance(
+    configuration: mink.Configuration, geom1: Geom, geom2: Geom, cap: float = 1.0
+) -> float:
     """Signed distance [m] between two geoms at the configuration (MuJoCo's
     ``mj_geomDistance``: negative when they penetrate, ``cap`` when farther apart)."""
     checks.check_instance(

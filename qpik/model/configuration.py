@@ -495,7 +495,11 @@ class Configuration(mink.Configuration):
         return Configuration(self.model, self.q)
 
     def random_q(self, rng: np.random.Generator | None = None) -> np.ndarray:
-        """A configuration drawn uniformly within the limits (unlimited joints: [-pi, pi])."""
+        """A configuration ``(nq,)``: each hinge and slide joint drawn uniformly within its
+        limits [rad or m] (unlimited: [-pi, pi]), ball and free joints at ``qpos0``; ``rng``
+        a numpy ``Generator`` (None: fresh entropy)."""
+        if rng is not None:
+            checks.check_instance("rng", rng, np.random.Generator, "a numpy Generator or None")
         rng = rng or np.random.default_rng()
         lo = np.where(np.isfinite(self._lower), self._lower, -np.pi)
         hi = np.where(np.isfinite(self._upper), self._upper, np.pi)

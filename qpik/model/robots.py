@@ -176,11 +176,9 @@ GRIPPER_WORDS: tuple[str, ...] = (
     "pad",
 )
 
-#: Names of a hand's fingers that mark its joints as a gripper's when they are a whole word
-#: of the joint's (or body's) name, split at every character that is not a letter or a
-#: digit (``Left_index_q1``), and the model's joints name two fingers at least (these or
-#: ``thumb``): as part of a longer word (``spring``, ``bearing``) or alone in a model
-#: (erd ``human``'s ``middle_lumbar_Z``, the body's midline) they mean nothing.
+#: Fingers' names: a joint (or body) is a gripper's where one is a whole word of its name
+#: (``Left_index_q1``) and the model's joints name two fingers (these or ``thumb``); part
+#: of a word (``spring``) or alone in a model (erd human's ``middle_lumbar_Z``) they are not.
 FINGER_NAMES: tuple[str, ...] = ("index", "middle", "ring", "pinky", "little")
 
 
@@ -419,6 +417,7 @@ def locate_robot(
     Raises :class:`UnknownRobot` (listing the bundled names) for an unknown name; a path is
     returned whether or not it exists (:func:`load_robot` then raises
     :class:`RobotFileError` naming it)."""
+    checks.check_instance("robot", source, (str, bytes, os.PathLike), "a robot name or a path")
     text = os.fspath(source)
     if isinstance(text, bytes):
         text = os.fsdecode(text)
@@ -537,6 +536,7 @@ def gripper_joints(model: mujoco.MjModel) -> list[int]:
     word (``LeftGripperYaw``: a wrist joint that turns the gripper); or whose body's name
     does when no joint lies below that body (a finger link's unnamed joint; a wrist joint on
     a ``gripper_link`` with fingers below it is the arm's)."""
+    checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
     below = np.zeros(model.nbody, dtype=bool)  # a joint on some body below b
     for b in range(model.nbody - 1, 0, -1):  # children come after parents
         if below[b] or model.body_jntnum[b]:
@@ -683,6 +683,7 @@ def tool_frame(model: mujoco.MjModel) -> ToolFrame:
     named ``ee``; else a site or body with a known tool centre point's, flange's or hand's
     name; else a known tool link; else the end of the longest chain. Raises
     :class:`qpik.errors.RobotFileError` for a model with no body."""
+    checks.check_instance("model", model, mujoco.MjModel, "a mujoco.MjModel")
     if model.nbody < 2:
         raise RobotFileError("<model>", "the model has no body to use as a tool frame")
     joints, depth, moved, goes_on = _chains(model)

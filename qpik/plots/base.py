@@ -36,7 +36,7 @@ def require_matplotlib() -> ModuleType:
     return matplotlib
 
 
-def check_figure_path(name: str, value) -> str:
+def check_figure_path(name: str, value: object) -> str:
     """``value`` as the path of a figure file (``str`` or ``os.PathLike``) whose extension
     matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...) with what this machine has
     (:func:`missing_tool`: ``.pgf`` needs a TeX program); else :class:`InvalidInput` (a

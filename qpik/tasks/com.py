@@ -57,6 +57,11 @@ class ComTask(mink.Task, CheckedTask):
         numbers = {"gain": gain, "lm_damping": lm_damping}
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(cost=np.zeros(self.k), gain=gain, lm_damping=lm_damping)
+        if isinstance(body, (bool, np.bool_)) or not isinstance(body, (str, int, np.integer)):
+            raise TaskDefinitionError(
+                f"ComTask: body must be a body name or id (an int), got {checks.type_name(body)}"
+                f" {body!r}"
+            )
         self.body = body
         self.target_com: np.ndarray | None = None
         #: (model, body id, its subtree's per-dof chain) of the last compute_jacobian

@@ -64,11 +64,13 @@ class CouplingTask(mink.Task, CheckedTask):
         return self._form.copy(), self._constant.copy()
 
     def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
+        """The couplings' residual ``(k,)`` at the configuration's ``q`` (0 where met)."""
         if self._form is not None:  # the configuration's q is already checked
             return linear_residual(self._form, configuration.q)
         return self.couplings.residual(configuration.q)
 
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
+        """The residual's Jacobian ``(k, nv)`` (a copy; constant for linear couplings)."""
         if self._constant is not None:
             return self._constant.copy()
         return self.couplings.jacobian(configuration.q)

@@ -15,10 +15,11 @@ from typing import Any
 
 import mink
 import numpy as np
+import numpy.typing as npt
 
 from .._engine.tasks import frame_error_jlog, frame_rows_into
 from ..core import checks
-from ..errors import TargetNotSet, arguments_of, mink_errors_as_qpik, qpik_errors
+from ..errors import TargetNotSet, mink_errors_as_qpik, qpik_errors
 from ..model.frames import (
     FRAME_JACOBIANS,
     FRAME_OBJECTS,
@@ -74,10 +75,30 @@ class FrameTask(mink.FrameTask, CheckedTask):
     its target, expressed in the frame's local axes [m, rad]; Jacobian ``-jlog(T_tb)
     {}_B J``), computed from MuJoCo directly."""
 
-    def __init__(self, *args, **kwargs):
-        arguments = arguments_of(mink.FrameTask.__init__, self, *args, **kwargs)
+    def __init__(
+        self,
+        frame_name: str | int,
+        frame_type: str,
+        position_cost: npt.ArrayLike,
+        orientation_cost: npt.ArrayLike,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        """``frame_name`` (a name, or an id) of ``frame_type`` (``"site"``, ``"body"`` or
+        ``"geom"``); ``position_cost`` [1/m] and ``orientation_cost`` [1/rad]: one number
+        or ``(3,)`` each, >= 0; ``gain`` in [0, 1]; ``lm_damping`` >= 0 (mink's)."""
+        arguments = {
+            "frame_name": frame_name,
+            "frame_type": frame_type,
+            "position_cost": position_cost,
+            "orientation_cost": orientation_cost,
+            "gain": gain,
+            "lm_damping": lm_damping,
+        }
         with mink_errors_as_qpik(type(self).__name__, arguments):
-            super().__init__(*args, **kwargs)
+            super().__init__(
+                frame_name, frame_type, position_cost, orientation_cost, gain, lm_damping
+            )
         checks.check_frame_name("frame_name", self.frame_name)
         check_frame_type(type(self).__name__, "frame_type", self.frame_type)
 
@@ -90,18 +111,20 @@ class FrameTask(mink.FrameTask, CheckedTask):
         # (checked: stored as mink's set_target stores it, without CheckedTask's check again)
         object.__setattr__(self, "transform_target_to_world", transform_target_to_world.copy())
 
-    def compute_error(self, configuration) -> np.ndarray:
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
         """mink's error (see the class); before a target is set, :class:`qpik.TargetNotSet`
         (mink's error, translated: every error qpik raises is a :class:`qpik.QpikError`)."""
         with qpik_errors():
             return super().compute_error(configuration)
 
-    def compute_jacobian(self, configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         """mink's Jacobian (see the class); before a target is set, :class:`qpik.TargetNotSet`."""
         with qpik_errors():
             return super().compute_jacobian(configuration)
 
-    def _error_and_jacobian(self, configuration) -> tuple[np.ndarray, np.ndarray]:
+    def _error_and_jacobian(
+        self, configuration: mink.Configuration
+    ) -> tuple[np.ndarray, np.ndarray]:
         terms = frame_terms(self, configuration)
         if terms is None:
             return super()._error_and_jacobian(configuration)
@@ -113,7 +136,9 @@ class FrameTask(mink.FrameTask, CheckedTask):
         np.matmul(rotation_t, jac[3:], out=local[3:])
         return error, -(jlog @ local)
 
-    def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
+    def compute_qp_residual(
+        self, configuration: mink.Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
         """``(diag(cost) J, -gain diag(cost) e, mu)`` in one compiled call after MuJoCo's."""
         terms = frame_terms(self, configuration)
         if terms is None:

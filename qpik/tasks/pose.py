@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from .._engine.tasks import POSE_FULL, POSE_ORIENTATION, POSE_POSITION, pose_rows_into
 from ..core import checks
-from ..errors import InvalidTarget, TargetNotSet, mink_errors_as_qpik
+from ..errors import InvalidTarget, TargetNotSet, TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType, as_configuration
 from ..model.frames import FRAME_JACOBIANS, FRAME_POSITIONS, FRAME_ROTATIONS
 from .checked import CheckedTask
@@ -104,7 +104,7 @@ def _entries(value, shape: tuple[int, ...], what: str) -> np.ndarray:
 def _cost_vector(cost: npt.ArrayLike, name: str) -> np.ndarray:
     vector = np.broadcast_to(np.asarray(cost, dtype=float), (3,)).copy()
     if not np.all(np.isfinite(vector)) or np.any(vector < 0):
-        raise InvalidTarget(f"{name} must be finite and >= 0, got {vector}")
+        raise TaskDefinitionError(f"{name} must be finite and >= 0, got {vector}")
     return vector
 
 

@@ -19,7 +19,15 @@ class PostureTask(mink.PostureTask, CheckedTask):
     joints' rows zeroed), with hinge/slide-only models computed as ``q - q*`` and a cached
     identity."""
 
-    def __init__(self, model: mujoco.MjModel, cost, gain: float = 1.0, lm_damping: float = 0.0):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        cost: npt.ArrayLike,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+    ):
+        """On ``model``'s configuration; ``cost`` [1/rad or 1/m]: one number or ``(nv,)``,
+        >= 0; ``gain`` in [0, 1]; ``lm_damping`` >= 0 (mink's)."""
         arguments = {"model": model, "cost": cost, "gain": gain, "lm_damping": lm_damping}
         with mink_errors_as_qpik(type(self).__name__, arguments):
             super().__init__(model, cost, gain, lm_damping)
@@ -35,17 +43,23 @@ class PostureTask(mink.PostureTask, CheckedTask):
         with qpik_errors():
             super().set_target(target_q)
 
-    def compute_error(self, configuration) -> np.ndarray:
+    def compute_error(self, configuration: mink.Configuration) -> np.ndarray:
+        """``q ⊖ q*`` ``(nv,)`` [rad or m] (``q - q*`` on hinge and slide joints);
+        :class:`qpik.TargetNotSet` before a target is set."""
         if self.target_q is None:
             raise TargetNotSet(self.__class__.__name__)
         if self._scalar:
             return configuration.data.qpos - self.target_q
         return super().compute_error(configuration)
 
-    def compute_jacobian(self, configuration) -> np.ndarray:
+    def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
+        """The identity ``(nv, nv)``, free joints' rows zeroed (a copy)."""
         return self._jacobian.copy()
 
-    def compute_qp_residual(self, configuration) -> tuple[np.ndarray, np.ndarray, float]:
+    def compute_qp_residual(
+        self, configuration: mink.Configuration
+    ) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(diag(cost) J, -gain diag(cost) e, lm_damping |b|^2)``: the task's rows."""
         error = self.compute_error(configuration)
         weighted_error = self.cost * (-self.gain * error)
         # |b|^2 summed in order, as the fused step's posture_rows sums it (a BLAS dot's
@@ -62,6 +76,7 @@ class DampingTask(mink.DampingTask, CheckedTask):
     configuration: it penalises the displacement), whose definition errors are qpik's
     typed errors (each also mink's)."""
 
-    def __init__(self, model: mujoco.MjModel, cost):
+    def __init__(self, model: mujoco.MjModel, cost: npt.ArrayLike):
+        """On ``model``; ``cost`` [1/rad or 1/m]: one number or ``(nv,)``, >= 0."""
         with mink_errors_as_qpik(type(self).__name__, {"model": model, "cost": cost}):
             super().__init__(model, cost)

@@ -44,6 +44,13 @@ def _scalar_joints(model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
+def _check_cost(what: str, cost: np.ndarray) -> None:
+    """:class:`TaskDefinitionError` naming the cost unless it is finite and >= 0 (mink's
+    Task takes any)."""
+    if not (np.all(np.isfinite(cost)) and np.all(cost >= 0.0)):
+        raise TaskDefinitionError(f"{what}: cost must be finite and >= 0, got {cost[0]!r}")
+
+
 class JointLimitDistanceTask(mink.Task, CheckedTask):
     """Keep joints away from their limits.
 
@@ -60,6 +67,7 @@ class JointLimitDistanceTask(mink.Task, CheckedTask):
         numbers = {"cost": cost, "gain": gain, "lm_damping": lm_damping}
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
+        _check_cost(type(self).__name__, self.cost)
         self._joints: tuple[mujoco.MjModel, np.ndarray, np.ndarray] | None = None
         #: (the limits' bytes, limited_joints()) of the last limits seen (see _rows)
         self._midranges: tuple | None = None
@@ -179,6 +187,7 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         numbers = {"cost": cost, "gain": gain, "lm_damping": lm_damping}
         with mink_errors_as_qpik(type(self).__name__, numbers):
             super().__init__(np.array([float(cost)]), gain, lm_damping)
+        _check_cost(type(self).__name__, self.cost)
 
         self.frame_name: str | int = checks.check_instance(
             "frame_name", frame_name, (str, int), "a frame name (or id)"

@@ -301,3 +301,56 @@ def test_ball_joint_limit_names_a_wrong_subdivisions_first(subdivisions) -> None
     assert isinstance(info.value, TypeError)
     with pytest.raises(qpik.LimitDefinitionError, match="subdivisions"):
         qpik.limits.BallJointLimit(model, subdivisions=3)
+
+
+# --------------------------------------------------------------------------------------
+# An audit of the public API's docstrings and bad input (2026-12-05): each value below was
+# taken silently or raised an untyped error from deep inside; each is now a typed QpikError
+# naming the argument.
+def _bad_public_calls():
+    from qpik.analysis import singular_values
+    from qpik.robots import gripper_joints, locate_robot, tool_frame
+    from qpik.tasks import ComTask, JointLimitDistanceTask, ManipulabilityTask, PositionTask
+
+    configuration = qpik.Configuration(qpik.load_robot("planar_2r"))
+    return [
+        (lambda: ManipulabilityTask("ee", cost=float("nan")), qpik.TaskDefinitionError, "cost"),
+        (lambda: ManipulabilityTask("ee", cost=-1.0), qpik.TaskDefinitionError, "cost"),
+        (lambda: JointLimitDistanceTask(cost=float("nan")), qpik.TaskDefinitionError, "cost"),
+        (lambda: PositionTask("ee", cost=-1.0), qpik.TaskDefinitionError, "position cost"),
+        (lambda: configuration.random_q("x"), qpik.InvalidArgumentType, "rng"),
+        (lambda: configuration.random_q(5), qpik.InvalidArgumentType, "rng"),
+        (lambda: tool_frame("x"), qpik.InvalidArgumentType, "model"),
+        (lambda: gripper_joints(None), qpik.InvalidArgumentType, "model"),
+        (lambda: locate_robot(5), qpik.InvalidArgumentType, "robot"),
+        (lambda: ComTask(body=[1]), qpik.TaskDefinitionError, "body"),
+        (lambda: ComTask(body=1.7), qpik.TaskDefinitionError, "body"),
+        (lambda: singular_values(np.ones((2, 2)) * 1j), qpik.InvalidInput, "complex"),
+        (lambda: qpik.solve("planar_2r", {"ee": [np.nan, 0, 0]}), qpik.InvalidTarget, "'ee'"),
+        (
+            lambda: qpik.solve("planar_2r", {"ee": np.full((4, 4), np.nan)}),
+            qpik.InvalidTarget,
+            "'ee'.*finite",
+        ),
+    ]
+
+
+@pytest.mark.parametrize("index", range(14))
+def test_public_calls_name_their_bad_argument(index: int) -> None:
+    call, error, words = _bad_public_calls()[index]
+    with pytest.raises(error, match=words):
+        call()
+
+
+def test_random_q_leaves_ball_joints_at_qpos0_as_documented() -> None:
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(
+        '<mujoco><compiler angle="radian"/><worldbody><body><joint type="ball" range="0 1"'
+        ' limited="true"/><geom size=".1"/><body><joint type="hinge" range="-0.5 0.25"/>'
+        '<geom size=".1"/></body></body></worldbody></mujoco>'
+    )
+    for seed in range(20):
+        q = qpik.Configuration(model).random_q(np.random.default_rng(seed))
+        assert q[:4].tolist() == [1.0, 0.0, 0.0, 0.0]  # the ball joint at qpos0
+        assert -0.5 <= q[4] <= 0.25  # the hinge within its range

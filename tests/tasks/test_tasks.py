@@ -59,7 +59,7 @@ def test_bad_targets():
         PositionTask("ee").set_target([0.0, np.nan, 1.0])
     with pytest.raises(qpik.InvalidTarget, match="not a rotation"):
         OrientationTask("ee").set_target(np.diag([1.0, 1.0, -1.0]))
-    with pytest.raises(qpik.InvalidTarget, match=">= 0"):
+    with pytest.raises(qpik.TaskDefinitionError, match="position cost.*>= 0"):
         PositionTask("ee", cost=-1.0)
 
 
