@@ -550,6 +550,8 @@ def plot_reachability(
         ax.set_xlabel("x [m]")
         if column == 0:
             ax.set_ylabel("y [m]")
+        else:  # (the same y extent as the first slice: its labels would run into that one)
+            ax.tick_params(labelleft=False)
         ax.set_aspect("equal")
     colorbar_ax = fig.add_subplot(spec[0, bar_column])
     # image is None only for slices=0 (no panel): matplotlib then draws a plain colorbar

@@ -40,9 +40,13 @@ def check_figure_path(name: str, value: object) -> str:
     """``value`` as the path of a figure file (``str`` or ``os.PathLike``) whose extension
     matplotlib writes (``.png``, ``.pdf``, ``.svg``, ...) with what this machine has
     (:func:`missing_tool`: ``.pgf`` needs a TeX program); else :class:`InvalidInput` (a
-    path of another type: :class:`InvalidArgumentType`) naming ``name``. Needs matplotlib
-    (:class:`qpik.errors.MissingExtra` without it): check before a long computation."""
+    path of another type: :class:`InvalidArgumentType`) naming ``name``, as is a path whose
+    folder does not exist. Needs matplotlib (:class:`qpik.errors.MissingExtra` without
+    it): check before a long computation."""
     path = checks.check_path(name, value)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InvalidInput(f"{name} {path!r}: its folder {folder!r} does not exist")
     require_matplotlib()
     from matplotlib.backend_bases import FigureCanvasBase
 
@@ -230,10 +234,14 @@ def palette() -> list[str]:
 
 
 def legend_below(ax: Axes, ncol: int = 2) -> None:
-    """The legend under the axes (off the data), if anything is labelled."""
+    """The legend under the axes (off the data), if anything is labelled; a curve drawn
+    under a later one (a humanoid's left and right feet, an arm at rest by mid-path) says
+    so in its entry, which would otherwise show a line
+    nowhere to be seen (within a pixel of it as drawn)."""
     handles, labels = ax.get_legend_handles_labels()
     if not handles:
         return
+    labels = _hidden_noted(ax, handles, labels)
     ax.legend(
         handles,
         labels,
@@ -243,6 +251,39 @@ def legend_below(ax: Axes, ncol: int = 2) -> None:
         ncol=ncol,
         frameon=False,
     )
+
+
+def _hidden_noted(ax: Axes, handles: list, labels: list[str]) -> list[str]:
+    """``labels``, each line's that a later line covers on the drawn axes (the same x, its
+    points within a pixel of the later one's, as the axes' current limits place them)
+    followed by ``(under <the later one's label>)``."""
+    out = list(labels)
+    ax.get_xlim(), ax.get_ylim()  # (the limits autoscaled now: the transform is current)
+    data = []
+    for handle in handles:
+        get = getattr(handle, "get_data", None)
+        points = None
+        if get is not None:
+            x, y = (np.asarray(v, dtype=float) for v in get())
+            if x.ndim == 1 and x.shape == y.shape and len(x) and handle.get_visible():
+                with np.errstate(all="ignore"):
+                    pixels = ax.transData.transform(np.column_stack([x, y]))
+                points = (x, pixels[:, 1])
+        data.append(points)
+    for i, first in enumerate(data):
+        for j in range(i + 1, len(data)):
+            later = data[j]
+            if first is None or later is None or first[0].shape != later[0].shape:
+                continue
+            if not np.array_equal(first[0], later[0], equal_nan=True):
+                continue
+            a, b = first[1], later[1]
+            shown = np.isfinite(a) & np.isfinite(b)
+            if np.array_equal(np.isfinite(a), np.isfinite(b)) and shown.any():
+                if np.abs(a[shown] - b[shown]).max() <= 1.0:
+                    out[i] = f"{labels[i]} (under {labels[j]})"
+                    break
+    return out
 
 
 def lone_points(values: np.ndarray) -> dict:

@@ -168,7 +168,7 @@ def plot_level_errors(
     if (
         isinstance(residual_history, (str, bytes, dict, set))
         or not isinstance(residual_history, (Sequence, np.ndarray))
-        or np.ndim(residual_history) == 0
+        or (isinstance(residual_history, np.ndarray) and residual_history.ndim == 0)
     ):
         raise InvalidArgumentType("residual_history", expected, checks.type_name(residual_history))
     history = [
@@ -363,6 +363,10 @@ def plot_singular_values(
     names = ", ".join(name for name, _ in frames)
     ax.set_xlabel(xlabel or ("time [s]" if time is not None else "configuration"))
     ax.set_title(f"singular values of J ({rows} rows)\n{names}", fontsize="medium")
+    # (J maps joint rates to the frame's: [m/rad] for position rows of hinge joints, [1]
+    # for orientation rows, [m/m] for slides; the manipulability is their product)
+    unit = {"position": "[m/rad]", "planar": "[m/rad]", "orientation": "[rad/rad]"}
+    ax.set_ylabel(f"σ_i {unit.get(rows, '[m/rad or rad/rad]')}; manipulability: ∏ σ_i")
     ax.grid(True, alpha=0.3)
     legend_below(ax, ncol=4)
     return ax

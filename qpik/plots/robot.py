@@ -300,6 +300,8 @@ def plot_planar_arm(
         else:
             shade = min(1.0, 0.25 + 0.75 * rank / (len(picks) - 1))
             label = "start" if index == 0 else ("final" if index == len(path) - 1 else None)
+            if label is None and rank == 1:  # (the first intermediate one names them all)
+                label = "intermediate"
         ax.plot(
             points[:, 0], points[:, 1], "-o", color=(0.1, 0.3, 0.7, shade), lw=3, ms=4, label=label
         )

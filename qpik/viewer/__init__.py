@@ -30,9 +30,10 @@ the port can move the targets.
 
 from __future__ import annotations
 
-from .app import DEFAULT_HOST, DEFAULT_PORT, Viewer, default_stack, import_viser, level_html
+from .app import DEFAULT_HOST, DEFAULT_PORT, Viewer, default_stack, import_viser
 from .geometry import GeomMesh, geom_meshes
 from .live import GoalFrame, LevelReport, LiveSolve, SolveReport
+from .panels import level_html
 
 __all__ = [
     "DEFAULT_HOST",

@@ -33,7 +33,8 @@ from ..model.robots import load_robot, tool_frame
 from ..problem import Problem, load_problem
 from ..tasks import OrientationTask, PositionTask, PostureTask
 from .geometry import GeomMesh, geom_meshes, ground_height
-from .live import LevelReport, LiveSolve, SolveReport, check_max_iterations, goal_keys
+from .live import LiveSolve, SolveReport, check_max_iterations, goal_keys
+from .panels import level_html
 from .server import check_host, check_port, start_server
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "Viewer", "import_viser"]
@@ -42,16 +43,6 @@ __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "Viewer", "import_viser"]
 DEFAULT_HOST = "127.0.0.1"
 #: The default port (viser takes the next free one when it is busy).
 DEFAULT_PORT = 8080
-
-#: Colours of a level's state (border, background) in the panel.
-_STATE_COLOURS = {
-    "met": ("#2e7d32", "#e8f5e9"),
-    "compromise": ("#b26a00", "#fff4e0"),
-    "unmet": ("#c62828", "#ffebee"),
-    "pending": ("#546e7a", "#eceff1"),
-}
-_STATE_WORDS = {"met": "met", "compromise": "met in part", "unmet": "cannot be met",
-                "pending": "not solved since the robot moved"}  # fmt: skip
 
 
 def import_viser() -> Any:
@@ -72,31 +63,6 @@ def _wxyz(matrix: np.ndarray) -> np.ndarray:
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, np.asarray(matrix, dtype=float).reshape(9))
     return quat
-
-
-def level_html(level: LevelReport) -> str:
-    """A level's panel as HTML: state, status, residual, damping, the number of active
-    limits (the limits bind the final step of every level alike; the summary lists
-    them); a red border and background when it cannot be met."""
-    border, background = _STATE_COLOURS[level.state]
-    tasks = html.escape(", ".join(level.tasks) or "(no task)")
-    count = len(level.active_limits)
-    limits = f"{count} (listed above)" if count else "none"
-    goal = ""
-    if level.goal_error is not None:
-        p, o = level.goal_error
-        turn = "" if np.isnan(o) else f", {np.degrees(o):.3f}&deg;"  # (NaN: position only)
-        goal = f"<br>goal error: {1000 * p:.2f} mm{turn}"
-    return (
-        f'<div class="qpik-level qpik-{level.state}" data-level="{level.index}" '
-        f'style="border-left:5px solid {border};background:{background};'
-        f'padding:4px 8px;margin:2px 0;font-size:0.85em;line-height:1.35">'
-        f'<b style="color:{border}">Level {level.index}: {_STATE_WORDS[level.state]}</b><br>'
-        f"tasks: {tasks}<br>"
-        f"status: <b>{html.escape(level.status)}</b><br>"
-        f"residual: {level.residual:.3g} &middot; damping: {level.damping:.3g}{goal}<br>"
-        f"active limits: {limits}</div>"
-    )
 
 
 class Serving(TypedDict, total=False):
@@ -402,11 +368,17 @@ class Viewer:
             self._draw_support()
             for widget, level in zip(self._level_html, report.levels):
                 widget.content = level_html(level)
-            worst = max(report.goal_errors.values(), default=(0.0, 0.0))
+            # The worst position and the worst angle, each over the goals (of those whose
+            # orientation is regulated: none, no angle), not the angle of the worst position.
+            errors = report.goal_errors
+            worst = max((e[0] for e in errors.values()), default=0.0)
+            goals = self.live.goals
+            turned = [e[1] for n, e in errors.items() if n in goals and goals[n].rotation]
+            angle = f", {np.degrees(max(turned)):.3f}&deg;" if turned else ""
             self._solve_md.content = (
                 f"solve time: **{1000 * report.solve_time:.2f} ms** ({report.steps} steps, "
                 f"{'converged' if report.converged else 'not converged'}); goal error "
-                f"{1000 * worst[0]:.2f} mm, {np.degrees(worst[1]):.3f}&deg;"
+                f"{1000 * worst:.2f} mm{angle}"
             )
             active = report.levels[0].active_limits if report.levels else []
             self._limits_md.content = "active limits: " + (
@@ -528,8 +500,9 @@ class Viewer:
             max_iterations: IK steps at most (default: the viewer's).
 
         Returns the :class:`~qpik.viewer.SolveReport`; every connected page is updated
-        (handle, robot, panels).
+        (handle, robot, panels). On a closed viewer: :class:`qpik.InvalidInput`.
         """
+        self._check_open("set_target")
         self.live.goal(frame)
         if max_iterations is not None:
             check_max_iterations(max_iterations)
@@ -552,7 +525,8 @@ class Viewer:
         """Show configuration ``q`` ``(nq,)`` (the next drag solves from it), clipped into
         the joint limits as the start ``q0`` is (the limits hold at every step, and the
         joint sliders span them); not ``nq`` finite numbers:
-        :class:`qpik.InvalidConfiguration`."""
+        :class:`qpik.InvalidConfiguration`; on a closed viewer: :class:`qpik.InvalidInput`."""
+        self._check_open("set_q")
         q = self.live.configuration._validated(q)
         with self._lock:
             self.live.set_q(self._within_limits(q))
@@ -596,9 +570,18 @@ class Viewer:
         finally:
             self._playing = False
 
+    def _check_open(self, what: str) -> None:
+        """:class:`qpik.InvalidInput` naming ``what`` once :meth:`close` has run."""
+        if self._stop.is_set():
+            raise InvalidInput(f"{what}: the viewer is closed (close() ran); make a new one")
+
     def serve(self, seconds: float | None = None) -> None:
-        """Serve until ``seconds`` [s] have passed (``None``: until Ctrl-C), then close."""
+        """Serve until ``seconds`` [s] (a number >= 0) have passed (``None``: until Ctrl-C),
+        then close; another ``seconds``: :class:`qpik.InvalidInput` naming it (the viewer
+        is closed all the same)."""
         try:
+            if seconds is not None:
+                seconds = checks.check_real("seconds", seconds, 0.0, unit="s")
             deadline = None if seconds is None else time.monotonic() + float(seconds)
             while deadline is None or time.monotonic() < deadline:
                 remaining = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())

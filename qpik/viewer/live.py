@@ -88,8 +88,9 @@ class LevelReport:
     Attributes:
         index: 0 is the highest priority; ``tasks``: what it holds, in words.
         status: the last step's :class:`qpik.LevelStatus` value (``"solved"``, ...).
-        residual: the last step's weighted residual ``|A dq - b|`` of the level.
-        damping: the last step's ``lambda^2`` (adaptive singularity damping).
+        residual: the last step's weighted residual ``|A dq - b|`` of the level (NaN when
+            not solved since the robot moved).
+        damping: the last step's ``lambda^2`` (adaptive singularity damping; NaN likewise).
         active_limits: the limits binding at the last step (``"joint4 upper ..."``).
         state: ``"met"``, ``"compromise"``, ``"unmet"`` or ``"pending"`` (module docstring).
         goal_error: the worst ``(position [m], orientation [rad])`` error of the level's
@@ -436,8 +437,9 @@ class LiveSolve:
         reports = []
         for k in range(len(self.levels)):
             status = str(step.status[k]) if step is not None else "not solved yet"
-            residual = float(step.residuals[k]) if step is not None else 0.0
-            damping = float(step.damping[k]) if step is not None else 0.0
+            # (NaN before a solve since the robot moved: no residual to show)
+            residual = float(step.residuals[k]) if step is not None else math.nan
+            damping = float(step.damping[k]) if step is not None else math.nan
             frames = [g for g in self.goals.values() if k in g.levels]
             goal_error = None
             if frames:
@@ -467,7 +469,9 @@ class LiveSolve:
             goal_error[0] <= self.tol_position and not goal_error[1] > self.tol_orientation
         )
         if status == "not solved yet":  # (no step taken: the robot moved by hand, say)
-            return "met" if within else "pending"
+            # met only where a goal frame's error shows it: a level without one (a posture)
+            # is not known met until a solve
+            return "met" if within and goal_error is not None else "pending"
         if status != "solved":
             return "unmet"
         if goal_error is not None and (

@@ -292,3 +292,30 @@ def test_the_viewer_names_the_model_it_shows():
 
     assert _model_name(qpik.load_robot("panda")) == "panda"
     assert _model_name(qpik.load_robot("ur5e")) == "ur5e"
+
+
+def test_a_curve_under_another_says_so_in_the_legend():
+    """An audit of the figures: a curve drawn exactly under a later one (a humanoid's left
+    and right feet) left a legend entry whose line is nowhere; its entry now says which
+    curve covers it, and a curve apart from the others keeps its plain label."""
+    from qpik.plots.base import legend_below
+
+    ax = Figure().add_subplot()
+    x = np.arange(10.0)
+    ax.semilogy(x, 10.0**-x, label="left foot")
+    ax.semilogy(x, 10.0**-x * (1 + 1e-4), label="right foot")
+    ax.semilogy(x, 10.0 ** (-x / 2), label="hand")
+    legend_below(ax)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["left foot (under right foot)", "right foot", "hand"]
+
+
+def test_level_errors_take_rows_of_different_lengths_and_paths_need_their_folder(tmp_path):
+    from qpik.plots import plot_level_errors
+    from qpik.plots.base import check_figure_path
+
+    ax = plot_level_errors([[1.0, 2.0], [3.0]], ax=Figure().add_subplot())
+    assert len(ax.lines) == 2
+    with pytest.raises(qpik.InvalidInput, match="folder"):
+        check_figure_path("path", tmp_path / "missing" / "x.png")
+    assert check_figure_path("path", tmp_path / "x.png").endswith("x.png")

@@ -132,6 +132,46 @@ def test_a_robot_moved_by_hand_is_pending_not_unmet():
     assert live.solve().levels[0].state == "met"
 
 
+def test_a_level_without_a_goal_is_pending_after_the_robot_moved():
+    """An audit of the viewer: after a joint slider (set_q) the posture level, which holds
+    no goal frame, showed green "met" with a residual of 0 made up: it is pending, its
+    residual and damping shown as a dash (NaN), until the next solve."""
+    live = _panda_live()
+    live.solve()
+    q = live.q
+    q[0] += 0.5
+    live.set_q(q)
+    report = live.solve(max_iterations=0)
+    posture = report.levels[-1]
+    assert posture.goal_error is None and posture.state == "pending"
+    assert np.isnan(posture.residual) and np.isnan(posture.damping)
+    html = level_html(posture)
+    assert "residual: &ndash;" in html and "nan" not in html
+    assert live.solve().levels[-1].state in ("met", "compromise")
+
+
+def test_the_summary_shows_the_worst_angle_and_a_closed_viewer_refuses_calls():
+    """The summary's goal error: the worst position and the worst angle over the goals (it
+    showed the angle of the frame with the worst position); a closed viewer's set_target
+    and set_q, and serve(seconds="x"), are typed errors."""
+    pytest.importorskip("viser")
+    from qpik.viewer import Viewer
+
+    with Viewer("panda", port=0) as viewer:
+        position, rotation = viewer.frame_pose("ee")
+        tilted = rotation @ np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])  # 90 deg
+        report = viewer.set_target("ee", position, tilted, max_iterations=0)
+        text = viewer._solve_md.content
+        worst = max(e[1] for e in report.goal_errors.values())
+        assert f"{np.degrees(worst):.3f}&deg;" in text
+    with pytest.raises(qpik.InvalidInput, match="closed"):
+        viewer.set_target("ee", position)
+    with pytest.raises(qpik.InvalidInput, match="closed"):
+        viewer.set_q(viewer.live.configuration.q)
+    with pytest.raises(qpik.QpikError, match="seconds"):
+        Viewer("panda", port=0).serve("x")
+
+
 def test_a_position_only_goal_shows_no_orientation_error():
     """h17's audit: a position-only goal showed ", 0.000 deg" in its level's goal error."""
     model = qpik.load_robot("panda")
