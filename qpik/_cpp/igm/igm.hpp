@@ -353,82 +353,85 @@ inline double smallest_singular_value_in(CMatRef A, i64 m, i64 nv, MatRef G, dou
     return std::sqrt(gram_smallest_eigenvalue(G, n));
 }
 
-// The cascade's rank rule (project_level, qpik/_cpp/core/cascade.hpp): singular values of a
-// level at or below rank_tol max(1, sigma_max) are structural zeros, not a singularity, and
-// the damping law reads the least one above that cut. The Gram matrix cannot tell them
-// apart (its least eigenvalue carries eps sigma_max^2 of round-off), so where it gave a
-// sigma below the damping threshold, the singular values of A[:m] are found by one-sided
-// Jacobi rotations (Hestenes, as core::min_singular) of its smaller side: where some are
-// structural zeros (a UR5e's frame rows at q = 0: 3.7e-17 of 2.1), the least above the cut
-// is returned (inf where none is), else sigma as given (the same bits as without this).
-// rank_tol <= 0: sigma as given (no cut). Only a sigma the Gram matrix cannot tell from a
-// structural zero is looked at: at most max(1e-6, 10 rank_tol) max(1, |A|_F) (the Gram's
-// least eigenvalue carries about eps |A|^2, so its sigma is within 1e-7 |A| of the true one,
-// and a larger one leaves every singular value above the cut).
+// The cascade's rank rule (project_level, qpik/_cpp/core/cascade.hpp): directions of a level
+// whose singular values are at or below rank_tol max(1, sigma_max) are structural zeros, not
+// a singularity, and the damping law reads the least singular value above that cut. The
+// Gram matrix cannot tell them apart (its least eigenvalue carries eps sigma_max^2 of
+// round-off: a structural zero's 1e-17 reads as 1e-8), so where it gave a sigma below the
+// damping threshold and within 1e-7 max(1, |A|_F) (a larger one leaves every singular value
+// above the cut), A[:m]'s vectors (rows, or columns where m > cols; p <= 6 of them) are
+// orthogonalised in turn, largest remaining first, twice each (Gram-Schmidt with pivoting
+// and reorthogonalisation: A's vectors = Lo W, Lo lower triangular, W orthonormal rows): a
+// vector's remainder then has the absolute accuracy eps |A|, and the remainders at or below
+// the cut (rank_tol max(1, |A|_F), within sqrt(p) of sigma_max's; no singular value falls in
+// between where it is a structural zero's 1e-17 or a singularity's 1e-7 and more) are the
+// structural zeros. Where there are some (a UR5e's frame rows at q = 0: 3.7e-17 of 2.1; a
+// Jaco2's at mid-range: three), the least singular value of the kept columns of Lo is
+// returned (the least above the cut; inf where none is kept); else sigma as given, the same
+// bits as without this. rank_tol <= 0, or more than 6 vectors: sigma as given.
 inline double structural_sigma(CMatRef A, i64 m, double sigma, double rank_tol) {
     if (!(rank_tol > 0.0)) return sigma;
     const i64 nc = A.cols;
-    double frob = 0.0;
+    double frob2 = 0.0;
     for (i64 i = 0; i < m; ++i)
-        for (i64 k = 0; k < nc; ++k) frob += A(i, k) * A(i, k);
-    frob = std::sqrt(frob);
-    if (sigma > core::pymax(1e-6, 10.0 * rank_tol) * core::pymax(1.0, frob)) return sigma;
+        for (i64 k = 0; k < nc; ++k) frob2 += A(i, k) * A(i, k);
+    if (!(frob2 > 0.0) || !(frob2 < kInf)) return sigma;
+    const double scale = core::pymax(1.0, std::sqrt(frob2));
+    if (sigma > core::pymax(1e-7, 10.0 * rank_tol) * scale) return sigma;
     const bool by_rows = m <= nc;
     const i64 p = by_rows ? m : nc, len = by_rows ? nc : m;
-    if (p == 0) return sigma;
-    std::vector<double> U(static_cast<size_t>(p * len));
+    if (p > 6 || len > 64) return sigma;
+    double V[6 * 64], Lo[36] = {}, W[6 * 64];
     for (i64 i = 0; i < p; ++i)
-        for (i64 k = 0; k < len; ++k) U[static_cast<size_t>(i * len + k)] = by_rows ? A(i, k) : A(k, i);
-    // A vector of norm below eps |A|_F is round-off: no rotation with it is needed (one with
-    // an exact zero's remains would never meet the relative test below).
-    const double negligible = (2.220446049250313e-16 * frob) * (2.220446049250313e-16 * frob);
-    for (int sweep = 0; sweep < 60; ++sweep) {
-        bool rotated = false;
-        for (i64 i = 0; i < p - 1; ++i) {
-            for (i64 j = i + 1; j < p; ++j) {
-                double* ui_ = U.data() + i * len;
-                double* uj_ = U.data() + j * len;
-                double alpha = 0.0, beta = 0.0, gamma = 0.0;
-                for (i64 k = 0; k < len; ++k) {
-                    alpha += ui_[k] * ui_[k];
-                    beta += uj_[k] * uj_[k];
-                    gamma += ui_[k] * uj_[k];
-                }
-                if (alpha <= negligible || beta <= negligible) continue;
-                if (gamma == 0.0 || std::fabs(gamma) <= 1e-15 * std::sqrt(alpha * beta)) continue;
-                rotated = true;
-                const double zeta = (beta - alpha) / (2.0 * gamma);
-                const double t = (zeta >= 0.0 ? 1.0 : -1.0) / (std::fabs(zeta) + std::sqrt(1.0 + zeta * zeta));
-                const double cs = 1.0 / std::sqrt(1.0 + t * t);
-                const double sn = cs * t;
-                for (i64 k = 0; k < len; ++k) {
-                    const double ui = ui_[k], uj = uj_[k];
-                    ui_[k] = cs * ui - sn * uj;
-                    uj_[k] = sn * ui + cs * uj;
-                }
+        for (i64 k = 0; k < len; ++k) V[i * len + k] = by_rows ? A(i, k) : A(k, i);
+    // Remainders R = V (orthogonalised in place); Lo[i][j] = <V_i, W_j> summed over both passes
+    bool used[6] = {};
+    i64 order[6];
+    const double cut = rank_tol * scale;
+    i64 kept = 0;
+    for (i64 step = 0; step < p; ++step) {
+        i64 best = -1;
+        double best2 = -1.0;
+        for (i64 i = 0; i < p; ++i) {
+            if (used[i]) continue;
+            double n2 = 0.0;
+            for (i64 k = 0; k < len; ++k) n2 += V[i * len + k] * V[i * len + k];
+            if (n2 > best2) {
+                best2 = n2;
+                best = i;
             }
         }
-        if (!rotated) break;
+        used[best] = true;
+        order[step] = best;
+        const double norm = std::sqrt(best2);
+        if (!(norm > cut)) break;  // every remainder left is at most this: structural zeros
+        double* w = W + step * len;
+        for (i64 k = 0; k < len; ++k) w[k] = V[best * len + k] / norm;
+        Lo[best * 6 + step] = norm;
+        for (int pass = 0; pass < 2; ++pass) {
+            for (i64 i = 0; i < p; ++i) {
+                if (used[i]) continue;
+                double t = 0.0;
+                for (i64 k = 0; k < len; ++k) t += V[i * len + k] * w[k];
+                for (i64 k = 0; k < len; ++k) V[i * len + k] -= t * w[k];
+                Lo[i * 6 + step] += t;
+            }
+        }
+        kept = step + 1;
     }
-    std::vector<double> values(static_cast<size_t>(p));
-    double largest = 0.0;
-    for (i64 i = 0; i < p; ++i) {
-        double norm = 0.0;
-        for (i64 k = 0; k < len; ++k) norm += U[static_cast<size_t>(i * len + k)] * U[static_cast<size_t>(i * len + k)];
-        values[static_cast<size_t>(i)] = std::sqrt(norm);
-        largest = core::pymax(largest, values[static_cast<size_t>(i)]);
-    }
-    const double cut = rank_tol * core::pymax(1.0, largest);
-    bool structural = false;
-    double least = kInf;
-    for (double v : values) {
-        if (!(v > cut)) {
-            structural = true;
-        } else if (v < least) {
-            least = v;
+    if (kept == p) return sigma;  // no structural zero: as given
+    if (kept == 0) return kInf;
+    // The least singular value of Lo's kept columns (p x kept): of M = their Gram matrix
+    double M[36];
+    for (i64 a = 0; a < kept; ++a) {
+        for (i64 c = a; c < kept; ++c) {
+            double t = 0.0;
+            for (i64 i = 0; i < p; ++i) t += Lo[i * 6 + a] * Lo[i * 6 + c];
+            M[a * kept + c] = M[c * kept + a] = t;
         }
     }
-    return structural ? least : sigma;
+    (void)order;
+    return std::sqrt(core::pymax(0.0, gram_smallest_eigenvalue(MatRef(M, kept, kept), kept)));
 }
 
 // ------------------------------------------------------------------------ the IGM
