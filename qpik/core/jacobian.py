@@ -72,11 +72,13 @@ Rows = Literal["pose", "position", "orientation"] | Sequence[int | str]
 # ---------------------------------------------------------------------- validation
 def _as_matrix(J: npt.ArrayLike, name: str = "J") -> np.ndarray:
     """``J`` as a finite 2-D float array with at least one row and one column."""
-    if np.iscomplexobj(J):
-        raise InvalidInput(f"{name} is complex; a real matrix is expected")
     try:
+        if np.iscomplexobj(np.asarray(J)):  # (a ragged list fails here: named below)
+            raise InvalidInput(f"{name} is complex; a real matrix is expected")
         J = np.asarray(J, dtype=float)
     except (TypeError, ValueError) as exc:
+        if isinstance(exc, InvalidInput):
+            raise
         raise InvalidInput(f"{name} is not a numeric matrix: {exc}") from None
     if J.ndim != 2 or J.shape[0] == 0 or J.shape[1] == 0:
         raise InvalidInput(f"{name} has shape {J.shape}, expected a 2-D (m, n) array, m, n >= 1")

@@ -192,6 +192,7 @@ def solve_ik(
         if velocity is not None:
             return velocity
     configuration = as_configuration(configuration)
+    configuration._validated(configuration.q)  # (a mink one filled with NaN: named)
     _check_step(dt, damping)
     configuration.check_limits(safety_break=safety_break)
     constraint_tasks = _constraints(constraints)  # (an iterable, read once)

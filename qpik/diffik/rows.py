@@ -374,6 +374,7 @@ def stack_rows(
     levels: Sequence[Sequence[BaseTask]], configuration: Configuration, nv: int, damping: float
 ) -> TaskRows:
     """The :class:`TaskRows` of ``levels`` at ``configuration``; raises
+    :class:`qpik.InvalidConfiguration` where its ``q`` is not finite, else
     :class:`qpik.InvalidTarget` naming the first level whose rows are not finite."""
     A_parts, b_parts, w_parts = [], [], []
     L = len(levels)
@@ -395,12 +396,17 @@ def stack_rows(
     if not (math.isfinite(square) and math.isfinite(float(A.sum()))) or not (
         math.isfinite(float(reg.sum()))
     ):
-        _raise_not_finite(levels, rows)
+        _raise_not_finite(levels, rows, configuration)
     return rows
 
 
-def _raise_not_finite(levels: Sequence[Sequence[BaseTask]], rows: TaskRows) -> None:
-    """Name the first level whose rows or regularisation are not finite."""
+def _raise_not_finite(
+    levels: Sequence[Sequence[BaseTask]], rows: TaskRows, configuration: Configuration
+) -> None:
+    """Name the configuration where its ``q`` is not finite (a mink one filled with NaN:
+    :class:`qpik.InvalidConfiguration`), else the first level whose rows or regularisation
+    are not finite."""
+    configuration._validated(configuration.q)
     for k, tasks in enumerate(levels):
         s0, s1 = rows.starts[k], rows.starts[k + 1]
         finite = np.isfinite(rows.A[s0:s1]).all() and np.isfinite(rows.b[s0:s1]).all()

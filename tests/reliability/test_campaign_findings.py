@@ -326,6 +326,7 @@ def _bad_public_calls():
         (lambda: ComTask(body=[1]), qpik.TaskDefinitionError, "body"),
         (lambda: ComTask(body=1.7), qpik.TaskDefinitionError, "body"),
         (lambda: singular_values(np.ones((2, 2)) * 1j), qpik.InvalidInput, "complex"),
+        (lambda: singular_values([[1.0, 2.0], [3.0]]), qpik.InvalidInput, "numeric matrix"),
         (lambda: qpik.solve("planar_2r", {"ee": [np.nan, 0, 0]}), qpik.InvalidTarget, "'ee'"),
         (
             lambda: qpik.solve("planar_2r", {"ee": np.full((4, 4), np.nan)}),
@@ -335,7 +336,7 @@ def _bad_public_calls():
     ]
 
 
-@pytest.mark.parametrize("index", range(14))
+@pytest.mark.parametrize("index", range(15))
 def test_public_calls_name_their_bad_argument(index: int) -> None:
     call, error, words = _bad_public_calls()[index]
     with pytest.raises(error, match=words):
@@ -354,3 +355,28 @@ def test_random_q_leaves_ball_joints_at_qpos0_as_documented() -> None:
         q = qpik.Configuration(model).random_q(np.random.default_rng(seed))
         assert q[:4].tolist() == [1.0, 0.0, 0.0, 0.0]  # the ball joint at qpos0
         assert -0.5 <= q[4] <= 0.25  # the hinge within its range
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf")])
+@pytest.mark.parametrize("with_task", [True, False])
+def test_a_mink_configuration_of_nan_is_named_by_solve_ik(bad: float, with_task: bool) -> None:
+    """docs/guides/mink.md: a configuration with NaN or inf entries raises
+    InvalidConfiguration; through qpik.solve_ik on a mink.Configuration it raised
+    InvalidTarget (a task) or returned a velocity (no task), and a kept solver's call after a
+    valid one must name it too."""
+    import mink
+
+    model = qpik.load_robot("panda")
+    configuration = mink.Configuration(model)
+    configuration.update(model.key_qpos[0])
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    task.set_target(mink.SE3.identity())
+    tasks = [task] if with_task else []
+    limits = [mink.ConfigurationLimit(model)]
+    qpik.solve_ik(configuration, tasks, 0.01, "daqp", limits=limits)  # (a kept solver)
+    q = configuration.q.copy()
+    q[2] = bad
+    configuration.update(q)
+    for _ in range(2):
+        with pytest.raises(qpik.InvalidConfiguration, match=r"q\[2\]"):
+            qpik.solve_ik(configuration, tasks, 0.01, "daqp", limits=limits)
