@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
 import sys
 import time
@@ -101,10 +102,61 @@ class BatchRun:
 
 
 def _atomic_savez(path: str, **arrays) -> None:
-    """Write an npz so that a reader never sees half a file (temporary file, rename)."""
-    tmp = f"{path}.tmp{os.getpid()}.npz"
+    """Write an npz so that a reader never sees half a file (temporary file, rename). The
+    temporary file is hidden (``.NAME.tmpPID.npz``): one a full disk or a kill leaves behind
+    is no chunk file, and the next run removes it (:func:`_remove_leftovers`)."""
+    folder, name = os.path.split(path)
+    tmp = os.path.join(folder, f".{name}{_TMP}{os.getpid()}.npz")
     np.savez(tmp, **arrays)
     os.replace(tmp, path)
+
+
+#: The mark of a temporary file of :func:`_atomic_savez` / :func:`_atomic_json`.
+_TMP = ".tmp"
+#: A finished chunk's file in a run's folder: ``chunk_<start, 10 digits>.npz``.
+_CHUNK = re.compile(r"chunk_(\d{10})\.npz")
+
+
+def _atomic_json(path: str, value: Any) -> None:
+    """Write JSON so that a reader never sees half a file (hidden temporary file, rename)."""
+    folder, name = os.path.split(path)
+    tmp = os.path.join(folder, f".{name}{_TMP}{os.getpid()}")
+    with open(tmp, "w") as stream:
+        json.dump(value, stream, indent=1)
+    os.replace(tmp, path)
+
+
+def _remove_leftovers(folder: str, name: str) -> None:
+    """Remove the temporary files a killed or full-disk write of ``name`` in ``folder``
+    (the results file, or any file of a run's chunk folder when ``name`` is ``""``) left:
+    ``.NAME.tmpPID...``, and the ``NAME.tmpPID.npz`` of versions before 0.2."""
+    try:
+        names = os.listdir(folder or ".")
+    except OSError:
+        return
+    for entry in names:
+        hidden = entry.startswith(f".{name}") and _TMP in entry
+        old = bool(name) and entry.startswith(f"{name}{_TMP}") and entry.endswith(".npz")
+        old = old or (not name and entry.startswith("chunk_") and _TMP in entry)
+        writer = re.search(r"\.tmp(\d+)", entry)
+        if (hidden or old) and not (writer and _alive(int(writer.group(1)))):
+            try:  # (a live writer's file is left: another run on the same out, say)
+                os.remove(os.path.join(folder, entry))
+            except OSError:
+                pass
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` runs (this one's writes never leave a file to remove)."""
+    if pid == os.getpid():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError, OverflowError):
+        return True
+    return True
 
 
 def _pyarrow():
@@ -212,7 +264,7 @@ def solve_file(
         "nq": int(model.nq),
         "seed": batch.setup.entropy,
         "chunk_size": chunk_size,
-        "options": _described(options, batch.keywords),
+        "options": _described(batch),
     }
     results = _ResultsFile(out, meta, overwrite)
     before = len(results.done)
@@ -276,11 +328,12 @@ def check_out_not_targets(out: str, targets: Any, name: str = "out") -> None:
         )
 
 
-def _described(options: SolveOptions | str | None, solve_options: Mapping[str, Any]) -> dict:
-    """The options of a run as the results file records them (a rerun must match)."""
-    described = {k: repr(v) for k, v in sorted(solve_options.items())}
-    if options is not None:
-        described["options"] = repr(options)
+def _described(batch: Batch) -> dict:
+    """The options of a run as the results file records them (a rerun must match): the
+    resolved :class:`qpik.SolveOptions` every solve gets (``--preset default`` and no
+    preset, or a default value given, are the same run), and ``q0`` / ``stack`` as given."""
+    described = {k: repr(v) for k, v in sorted(batch.setup.call.items()) if k != "options"}
+    described["options"] = repr(batch.options)
     return described
 
 
@@ -325,8 +378,7 @@ class _ResultsFile:
         if todo:
             os.makedirs(self.folder, exist_ok=True)
             if not os.path.exists(self.meta_path):
-                with open(self.meta_path, "w") as stream:
-                    json.dump(self.meta, stream, indent=1)
+                _atomic_json(self.meta_path, self.meta)
 
     def add(self, start: int, results: Sequence[IKResult]) -> None:
         """Save a finished chunk at once; rewrite ``out`` every few seconds (at least 20
@@ -406,10 +458,23 @@ def _meta_arrays(meta: Mapping[str, Any]) -> dict[str, np.ndarray]:
 def _previous_run(out: str, folder: str, meta_path: str, table: dict[str, np.ndarray]):
     """``(meta, finished chunk starts)`` of an earlier run over ``out`` (``None`` if there
     was none); the finished rows are copied into ``table`` (when its shape matches)."""
+    _remove_leftovers(os.path.dirname(out), os.path.basename(out))
     meta, done = _saved_file(out, table)
+    if os.path.isdir(folder):
+        _remove_leftovers(folder, "")
     if os.path.exists(meta_path):
-        with open(meta_path) as stream:
-            meta = json.load(stream)
+        try:
+            with open(meta_path) as stream:
+                meta = json.load(stream)
+        except (OSError, ValueError) as exc:
+            if any(_CHUNK.fullmatch(name) for name in os.listdir(folder)):
+                raise InvalidInput(
+                    f"{meta_path} is not readable ({exc}): the run's chunks cannot be told "
+                    "apart from another run's; pass --overwrite (overwrite=True) to start "
+                    "again"
+                ) from None
+            os.remove(meta_path)  # (written before any chunk, then the run stopped)
+            return None if meta is None else (meta, done)
         _saved_chunks(folder, table, done)
     return None if meta is None else (meta, done)
 
@@ -442,9 +507,10 @@ def _saved_chunks(folder: str, table: dict[str, np.ndarray], done: set[int]) -> 
     """Add the chunk files of ``folder`` not in ``done`` to ``table`` and ``done``."""
     n = len(table["done"])
     for name in sorted(os.listdir(folder)):
-        if not (name.startswith("chunk_") and name.endswith(".npz")):
+        match = _CHUNK.fullmatch(name)
+        if match is None:
             continue
-        start = int(name[6:-4])
+        start = int(match.group(1))
         if start in done or start >= n:
             continue
         with np.load(os.path.join(folder, name), allow_pickle=False) as data:

@@ -65,6 +65,9 @@ __all__ = [
 #: The most orientations per voxel a map takes (a count beyond is a typo, and its memory
 #: would run out).
 MAX_ORIENTATIONS = 100_000
+#: The most IK solves a map takes, voxels times orientations (a flag each: 1 GB; hours of
+#: solves on a few cores); each within its own cap, their product can still be 8e11.
+MAX_SOLVES = 1_000_000_000
 
 
 def so3_grid(count: int) -> np.ndarray:
@@ -395,10 +398,13 @@ def reachability(
             is the IK start).
         frame: a site, body or geom name (or ``(name, frame_type)``).
         region: ``(2, 3)`` opposite corners of the box to map [m], world frame.
-        resolution: voxel edge [m]; the grid is centred in the region.
+        resolution: voxel edge [m]; the grid is centred in the region (at most 10
+            million voxels).
         orientations: a count ``K`` (spread evenly over SO(3), :func:`so3_grid`) or
             ``(K, 3, 3)`` rotation matrices (world frame); ``0``: positions only (one
-            target per voxel, no orientation: ``fraction`` is 0 or 1).
+            target per voxel, no orientation: ``fraction`` is 0 or 1). At most
+            :data:`MAX_ORIENTATIONS`, and voxels times orientations at most
+            :data:`MAX_SOLVES` (else :class:`qpik.InvalidInput`, before any solve).
         options: the :class:`qpik.SolveOptions` (or a preset name) of every solve.
         **keywords: as for :func:`qpik.solve_many`: how the batch runs (``workers``,
             ``backend``, ``address``, ``seed``, ``progress``, ...), and the keywords of
@@ -414,6 +420,13 @@ def reachability(
     check_limits_model(batch.model, batch.options.limits)
     centers, shape = _grid(region, resolution)
     rotations = _rotations(orientations)
+    solves = float(len(centers)) * max(1, len(rotations))
+    if not solves <= MAX_SOLVES:
+        raise InvalidInput(
+            f"region / resolution gives {len(centers)} voxels and orientations "
+            f"{max(1, len(rotations))} per voxel: {solves:.3g} IK solves (more than "
+            f"{MAX_SOLVES:.0e}); use a coarser resolution or fewer orientations"
+        )
     margin = batch.options.tol_position  # [m]: a voxel this close to the bound may converge
     skipped = np.zeros(len(centers), dtype=bool)
     bounds = _reach_bounds(batch.model, frame)

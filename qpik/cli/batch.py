@@ -7,7 +7,11 @@ import signal
 import sys
 
 from ..batch.files import BatchRun, check_out_not_targets, solve_file
+from ..batch.worker import WorkerError
 from ._common import add_solve_arguments, non_negative_int, solve_options_from_args
+
+#: The exit status of a run a worker's death ended (EX_TEMPFAIL: rerun to resume).
+EXIT_WORKER_DIED = 75
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and optionally qw,qx,qy,qz. Finished chunks are kept in RESULTS.chunks/ until the "
         "end: rerunning the same command resumes without redoing them. Exit status: 0 every "
         "target solved (converged or not), 2 invalid input, 3 stopped early (--max-chunks), "
-        "130 interrupted; rerun to resume (it says how many targets it skips).",
+        "75 a worker process died (killed), 130 interrupted; rerun to resume (it says how "
+        "many targets it skips).",
         epilog="examples: qpik batch targets.npz --robot ur5e --frame ee --out results.npz; "
         "qpik batch targets.csv --robot erd:panda --frame panda_hand --out r.npz --workers 2; "
         "qpik batch targets.npz --robot ur5e --frame ee --out r.npz --ray auto",
@@ -98,6 +103,13 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
+    except WorkerError as exc:  # (a worker killed: the OOM killer, say; not the input's fault)
+        print(
+            f"qpik batch: error: {exc}; finished chunks are kept in {args.out}.chunks/: run "
+            "the same command again to resume",
+            file=sys.stderr,
+        )
+        return EXIT_WORKER_DIED
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)

@@ -3,6 +3,7 @@ errors; results written chunk by chunk and resumed."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import sys
 
@@ -580,3 +581,58 @@ def test_guided_chunks_cover_the_targets_once_largest_first(n, workers):
     assert [e - s for s, e in chunk_starts(1, n, workers, 7)][:-1] == [7] * max(
         0, len(range(1, n, 7)) - 1
     )
+
+
+def test_a_resume_survives_what_a_crash_leaves_and_hears_the_same_options(tmp_path, capsys):
+    """An audit of batches: a chunk's temporary file left by a kill or a full disk
+    (chunk_0000000003.npz.tmp4242.npz: it matched the chunk files' pattern) made every
+    resume exit 70; an empty meta.json (written in place) too; and a resume with
+    --preset default after no preset was refused as other options. Now the leftovers are
+    removed, an unreadable meta.json with chunks is named (2), without chunks it is
+    written again, and the resolved options are compared."""
+    write_targets(tmp_path / "t.npz")
+    out = tmp_path / "r.npz"
+    argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
+    argv += ["--out", str(out), "--chunk-size", "3", "--quiet", "--workers", "1"]
+    assert main(argv + ["--max-chunks", "1"]) == 3
+    chunks = tmp_path / "r.npz.chunks"
+    first = chunks / "chunk_0000000000.npz"
+    (chunks / "chunk_0000000003.npz.tmp4242.npz").write_bytes(first.read_bytes()[:100])
+    (chunks / ".chunk_0000000003.npz.tmp4243.npz").write_bytes(first.read_bytes()[:100])
+    (tmp_path / ".r.npz.tmp4244.npz").write_bytes(b"")
+    assert main(argv + ["--max-chunks", "1", "--preset", "default"]) == 3
+    assert sorted(p.name for p in chunks.iterdir()) == [
+        "chunk_0000000000.npz",
+        "chunk_0000000003.npz",
+        "meta.json",
+    ]
+    assert not (tmp_path / ".r.npz.tmp4244.npz").exists()
+    (chunks / "meta.json").write_text("")
+    assert main(argv) == 2
+    assert "meta.json is not readable" in capsys.readouterr().err
+    assert main(argv + ["--overwrite"]) == 0
+    reference = tmp_path / "ref.npz"
+    assert main(argv[:6] + ["--out", str(reference), "--chunk-size", "3", "--quiet"]) == 0
+    np.testing.assert_array_equal(np.load(out)["q"], np.load(reference)["q"])
+
+
+def test_a_dead_worker_exits_75_with_the_resume_hint(tmp_path, monkeypatch, capsys):
+    import qpik.cli.batch as batch_command
+
+    def dies(*args, **kwargs):
+        raise batch_command.WorkerError("a worker process died (killed)")
+
+    write_targets(tmp_path / "t.npz")
+    monkeypatch.setattr(batch_command, "solve_file", dies)
+    argv = ["batch", str(tmp_path / "t.npz"), "--robot", "ur5e", "--frame", "ee"]
+    assert main(argv + ["--out", str(tmp_path / "r.npz"), "--quiet"]) == 75
+    assert "run the same command again to resume" in capsys.readouterr().err
+
+
+def test_a_map_of_more_solves_than_its_cap_is_refused_before_solving():
+    from qpik.batch import reachability
+    from qpik.batch.reachability_map import MAX_SOLVES
+
+    region = [[0.3, -0.1, 0.3], [0.5, 0.1, 0.5]]
+    with pytest.raises(InvalidInput, match=re.escape(f"more than {MAX_SOLVES:.0e}")):
+        reachability("ur5e", "ee", region=region, resolution=0.001, orientations=100_000)
