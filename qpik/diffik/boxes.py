@@ -38,6 +38,10 @@ from .mink_limits import angular_dofs
 
 __all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure", "relaxable"]
 
+#: A general row whose ``h`` is at least this bounds nothing (the QP's and OSQP's infinity:
+#: :data:`qpik.core.kernels._BIG`).
+_ABSENT = 1e20
+
 #: The name of the step's trust region in :attr:`qpik.StepResult.active_limits`.
 TRUST_REGION = "trust region"
 
@@ -263,7 +267,10 @@ class LimitRows:
                 )
                 active.append(f"{self.dof_names[int(i)]} {side} ({source})")
         if self.G.shape[0]:
-            for j in np.flatnonzero(self.G @ d >= self.h - 1e-7):
+            # (a row whose h is 1e20 or more bounds nothing: absent from the QP, not named)
+            with np.errstate(over="ignore", invalid="ignore"):
+                binding = (self.G @ d >= self.h - 1e-7) & (self.h < _ABSENT)
+            for j in np.flatnonzero(binding):
                 active.append(self.row_names[int(j)])
         return active
 

@@ -445,8 +445,13 @@ class IKSolver:
             solution = self._corrected(configuration, dt, passes)
         elif self._core.solver != "auto" and self._compiled_step_applies(configuration, dt):
             solution = self._compiled_step(configuration, dt)
-            if solution is not None and self._recoverable(solution):
-                solution = None  # the QP path relaxes the general rows (qpik.diffik.recovery)
+            if solution is not None and (
+                self._recoverable(solution) or LevelStatus.NUMERICAL in solution.status
+            ):
+                # the QP path relaxes the general rows (qpik.diffik.recovery); and a backend
+                # that failed on the kernel's rows answers on the QP path's, a one-dof row
+                # folded into the box (a user row scaled by 1e10: what "auto" answers)
+                solution = None
         if solution is None:
             solution = self._qp_step(configuration, dt)
         return StepResult.of(solution, time.perf_counter() - start, self._coupling_level)

@@ -380,3 +380,40 @@ def test_a_mink_configuration_of_nan_is_named_by_solve_ik(bad: float, with_task:
     for _ in range(2):
         with pytest.raises(qpik.InvalidConfiguration, match=r"q\[2\]"):
             qpik.solve_ik(configuration, tasks, 0.01, "daqp", limits=limits)
+
+
+def test_a_scaled_user_row_gets_the_same_answer_from_every_backend_and_a_dropped_row_is_not_named():
+    """An audit of the docs: a user limit's one-dof row scaled by 1e10 (h = 1e7) was solved
+    by solver="auto" and ended numerical_failure with a forced backend (the compiled step
+    gave the backend the row unfolded); and a row of h = 1e22, dropped as documented, was
+    still named in active_limits while the step went past it."""
+    import mink
+
+    class Scaled(mink.Limit):
+        def __init__(self, model, scale, h):
+            self.scale, self.h, self.nv = scale, h, model.nv
+
+        def compute_qp_inequalities(self, configuration, dt):
+            G = np.zeros((1, self.nv))
+            G[0, 0] = self.scale
+            return mink.Constraint(G=G, h=np.array([self.h]))
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    posture = qpik.tasks.PostureTask(model, cost=1.0)
+    target = model.key_qpos[0].copy()
+    target[:2] += 1.0
+    posture.set_target(target)
+    answers = []
+    for solver in ("auto", "daqp", "quadprog", "osqp"):
+        limits = [mink.ConfigurationLimit(model), Scaled(model, 1e10, 1e7)]
+        step = qpik.IKSolver(model, [[posture]], limits, solver=solver).step(configuration, 0.01)
+        assert step.ok, (solver, step.status)
+        answers.append(step.displacement)
+    for other in answers[1:]:
+        np.testing.assert_allclose(other, answers[0], atol=1e-9)
+    assert answers[0][0] == pytest.approx(1e-3)
+    limits = [mink.ConfigurationLimit(model), Scaled(model, 1e25, 1e22)]
+    step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
+    assert step.displacement[0] > 1e-3  # (the row bounds nothing: h >= 1e20)
+    assert not any("Scaled" in name for name in step.active_limits), step.active_limits
