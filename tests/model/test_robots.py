@@ -485,3 +485,41 @@ def test_a_floating_base_keeps_the_files_keyframes_on_their_joints(name):
             on_base, qpik.Configuration(fixed, fixed.key_qpos[k]).frame_pose("ee")
         ):
             np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def test_a_placeholder_velocity_limit_leaves_the_trust_region_on():
+    """A URDF's 1000 rad/s "no limit" (erd solo12 and bolt) made a velocity limit at that
+    speed: no trust region, a 7.5 rad turn in one 10 ms step. Speeds of PLACEHOLDER_SPEED
+    or more are left out (the trust region holds the dof); real ones are kept."""
+    from qpik.limits import PLACEHOLDER_SPEED, joint_limits, velocity_limit_from_model
+
+    xml = (
+        '<mujoco><custom><numeric name="velocity_limit" data="1000 2"/></custom><worldbody>'
+        '<body><joint name="a" range="-3 3"/><geom size=".1"/><body><joint name="b" '
+        'range="-3 3"/><geom size=".1"/></body></body></worldbody></mujoco>'
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert PLACEHOLDER_SPEED <= 1000
+    velocity = velocity_limit_from_model(model)
+    assert velocity is not None and list(velocity.indices) == [1]
+    configuration = qpik.Configuration(model)
+    posture = qpik.tasks.PostureTask(model, cost=1.0)
+    posture.set_target(np.array([2.5, 2.5]))
+    step = qpik.IKSolver(model, [[posture]], joint_limits(model)).step(configuration, 0.01)
+    np.testing.assert_allclose(np.abs(step.displacement), [math.pi * 0.01, 2.0 * 0.01])
+    assert "a upper (trust region)" in step.active_limits
+
+
+@requires_erd
+def test_erd_solo12_steps_within_the_trust_region():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = qpik.load_robot("erd:solo12", floating_base=True)
+    configuration = qpik.Configuration(model)
+    posture = qpik.tasks.PostureTask(model, cost=1.0)
+    target = configuration.q.copy()
+    target[7:] += 3.0
+    posture.set_target(target)
+    limits = qpik.limits.joint_limits(model)
+    step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
+    assert np.abs(step.displacement).max() <= math.pi * 0.01 + 1e-12
