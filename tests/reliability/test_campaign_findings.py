@@ -413,6 +413,17 @@ def test_a_scaled_user_row_gets_the_same_answer_from_every_backend_and_a_dropped
     for other in answers[1:]:
         np.testing.assert_allclose(other, answers[0], atol=1e-9)
     assert answers[0][0] == pytest.approx(1e-3)
+
+    # The same row over two dofs (a general row, not folded): norm 1.4e10, solved.
+    class Pair(Scaled):
+        def compute_qp_inequalities(self, configuration, dt):
+            G = np.zeros((1, self.nv))
+            G[0, :2] = self.scale
+            return mink.Constraint(G=G, h=np.array([self.h]))
+
+    limits = [mink.ConfigurationLimit(model), Pair(model, 1e10, 1e7)]
+    step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
+    assert step.ok and step.displacement[:2].sum() == pytest.approx(1e-3)
     limits = [mink.ConfigurationLimit(model), Scaled(model, 1e25, 1e22)]
     step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
     assert step.displacement[0] > 1e-3  # (the row bounds nothing: h >= 1e20)

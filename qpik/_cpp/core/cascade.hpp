@@ -89,6 +89,8 @@ struct NnlsScratch {
 // capacity: each buffer is sized and filled before it is read (the same bits as fresh
 // storage). One per solver, never shared between threads.
 struct Workspace {
+    Mat G_eq;  // solve_cascade_rows' equilibrated general rows (detail::equilibrated_rows)
+    Vec h_eq;
     Mat Z, Ztmp;
     // solve_cascade_into: the general rows in reach of the box (rows_in_reach) and the others
     IVec g_kept;
@@ -3807,12 +3809,44 @@ inline void trust_box(const Vec& d, double s, CVecRef lb, CVecRef ub, Vec& tlb, 
     }
 }
 
+// General rows of a norm outside [kRowNormLow, kRowNormHigh] (a user's rows written in other
+// units) are divided by their norm, h with them (an absent h, kBig or more, kept): the same
+// feasible set, and every measure of the certificate is relative to |g| already; the dual
+// method's tolerances and the re-solves' systems are in the rows' units, and a row of norm
+// 1e10 over two dofs (h = 1e7) left its level numerical_failure on every backend (norm 1e9
+// was solved). Rows within the range, every row of the usual problems, are used as they
+// are (the same bits). Returns whether G and h were copied into Gs and hs.
+constexpr double kRowNormLow = 1e-6, kRowNormHigh = 1e6;
+inline bool equilibrated_rows(CMatRef G, CVecRef h, Mat& Gs, Vec& hs) {
+    const i64 p = G.rows, n = G.cols;
+    bool any = false;
+    for (i64 j = 0; j < p && !any; ++j) {
+        const double nn = std::sqrt(row_sq_of(G, j));
+        any = std::isfinite(nn) && nn > 0.0 && (nn < kRowNormLow || nn > kRowNormHigh) && h[j] < kBig;
+    }
+    if (!any) return false;
+    shape(Gs, p, n);  // every entry written
+    hs.resize(static_cast<size_t>(p));
+    for (i64 j = 0; j < p; ++j) {
+        const double nn = std::sqrt(row_sq_of(G, j));
+        const bool scale = std::isfinite(nn) && nn > 0.0 && (nn < kRowNormLow || nn > kRowNormHigh) && h[j] < kBig;
+        const double* gj = G.row(j);
+        double* out = Gs.row(j);
+        for (i64 i = 0; i < n; ++i) out[i] = scale ? gj[i] / nn : gj[i];
+        hs[static_cast<size_t>(j)] = scale ? h[j] / nn : h[j];
+    }
+    return true;
+}
+
 inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const i64> starts, CVecRef reg,
-                               CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double threshold, double max_damping,
-                               double error_scale, double rank_tol, i64 max_iter, double tol, MatRefT<const i8> warm,
-                               bool canonical, Workspace& ws, CascadeResult& res, bool residuals,
-                               bool primal, bool defer_sigma, double lower_trust = 0.0) {
+                               CVecRef lb, CVecRef ub, CMatRef G_in, CVecRef h_in, double threshold,
+                               double max_damping, double error_scale, double rank_tol, i64 max_iter, double tol,
+                               MatRefT<const i8> warm, bool canonical, Workspace& ws, CascadeResult& res,
+                               bool residuals, bool primal, bool defer_sigma, double lower_trust = 0.0) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
+    const bool equilibrated = equilibrated_rows(G_in, h_in, ws.G_eq, ws.h_eq);
+    const CMatRef G = equilibrated ? ws.G_eq.cref() : G_in;
+    const CVecRef h = equilibrated ? CVecRef(ws.h_eq) : h_in;
     // Entries of a task row at or below kFlushEps n times its largest are its round-off (the
     // products that made it: 1e-18 in a row of 6e-4 where a dof moves nothing), zero here: a
     // level of small rank would otherwise keep them, amplified by 1 / sigma, in the direction
