@@ -3817,24 +3817,33 @@ inline void trust_box(const Vec& d, double s, CVecRef lb, CVecRef ub, Vec& tlb, 
 // was solved). Rows within the range, every row of the usual problems, are used as they
 // are (the same bits). Returns whether G and h were copied into Gs and hs.
 constexpr double kRowNormLow = 1e-6, kRowNormHigh = 1e6;
-inline bool equilibrated_rows(CMatRef G, CVecRef h, Mat& Gs, Vec& hs) {
+// sq: each row's |g_j|^2 (row_sq_of, as the cascade keeps them in ws.gsq), written; where
+// rows were scaled, those of Gs.
+inline bool equilibrated_rows(CMatRef G, CVecRef h, Mat& Gs, Vec& hs, Vec& sq) {
     const i64 p = G.rows, n = G.cols;
+    shape(sq, static_cast<size_t>(p));
     bool any = false;
-    for (i64 j = 0; j < p && !any; ++j) {
-        const double nn = std::sqrt(row_sq_of(G, j));
-        any = std::isfinite(nn) && nn > 0.0 && (nn < kRowNormLow || nn > kRowNormHigh) && h[j] < kBig;
+    for (i64 j = 0; j < p; ++j) {
+        sq[j] = row_sq_of(G, j);
+        const double nn2 = sq[j];
+        any = any || (std::isfinite(nn2) && nn2 > 0.0 && (nn2 < kRowNormLow * kRowNormLow ||
+                                                           nn2 > kRowNormHigh * kRowNormHigh) &&
+                      h[j] < kBig);
     }
     if (!any) return false;
     shape(Gs, p, n);  // every entry written
     hs.resize(static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
-        const double nn = std::sqrt(row_sq_of(G, j));
-        const bool scale = std::isfinite(nn) && nn > 0.0 && (nn < kRowNormLow || nn > kRowNormHigh) && h[j] < kBig;
+        const double nn2 = sq[j];
+        const bool scale = std::isfinite(nn2) && nn2 > 0.0 &&
+                           (nn2 < kRowNormLow * kRowNormLow || nn2 > kRowNormHigh * kRowNormHigh) && h[j] < kBig;
+        const double nn = std::sqrt(nn2);
         const double* gj = G.row(j);
         double* out = Gs.row(j);
         for (i64 i = 0; i < n; ++i) out[i] = scale ? gj[i] / nn : gj[i];
         hs[static_cast<size_t>(j)] = scale ? h[j] / nn : h[j];
     }
+    for (i64 j = 0; j < p; ++j) sq[j] = row_sq_of(Gs.cref(), j);
     return true;
 }
 
@@ -3844,7 +3853,7 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
                                MatRefT<const i8> warm, bool canonical, Workspace& ws, CascadeResult& res,
                                bool residuals, bool primal, bool defer_sigma, double lower_trust = 0.0) {
     (void)canonical;  // every answer ends in the canonical exact re-solve (warm or cold)
-    const bool equilibrated = equilibrated_rows(G_in, h_in, ws.G_eq, ws.h_eq);
+    const bool equilibrated = equilibrated_rows(G_in, h_in, ws.G_eq, ws.h_eq, ws.gsq);
     const CMatRef G = equilibrated ? ws.G_eq.cref() : G_in;
     const CVecRef h = equilibrated ? CVecRef(ws.h_eq) : h_in;
     // Entries of a task row at or below kFlushEps n times its largest are its round-off (the
@@ -3879,9 +3888,7 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         if (d[i] > ub[i]) d[i] = ub[i];
     }
     // |G_j|^2 of every general row, summed once (the same sums drop_pinned, reduced_rows,
-    // dual_stops_at_once and certify_level would each make).
-    shape(ws.gsq, static_cast<size_t>(p));
-    for (i64 j = 0; j < p; ++j) ws.gsq[j] = row_sq_of(G, j);
+    // dual_stops_at_once and certify_level would each make): equilibrated_rows wrote them.
     const double* gsq = ws.gsq.data();
     Mat& Z = ws.Z;
     Z.set_eye(n);
