@@ -258,6 +258,8 @@ def _hidden_noted(ax: Axes, handles: list, labels: list[str]) -> list[str]:
     points within a pixel of the later one's, as the axes' current limits place them)
     followed by ``(under <the later one's label>)``."""
     out = list(labels)
+    if hasattr(ax, "get_zlim"):  # (3D axes: a line's x, y say nothing of where it is drawn)
+        return out
     ax.get_xlim(), ax.get_ylim()  # (the limits autoscaled now: the transform is current)
     data = []
     for handle in handles:
