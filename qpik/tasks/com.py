@@ -115,8 +115,8 @@ class ComTask(mink.Task, CheckedTask):
     def compute_jacobian(self, configuration: mink.Configuration) -> np.ndarray:
         """``J_c = d c / d q`` ``(3, nv)`` [m per unit of dq], world frame: the subtree's
         mass-weighted dof columns in O(nv) (:mod:`qpik.model.com`, as the compiled step
-        computes them; ``mj_jacSubtreeCom``'s to round-off), or ``mj_jacSubtreeCom`` itself
-        for a massless subtree."""
+        computes them; ``mj_jacSubtreeCom``'s to round-off); for a massless subtree, whose
+        CoM MuJoCo puts at the body's inertial frame origin, that point's Jacobian."""
         model = configuration.model
         body = self._body_id(configuration)
         jacobian = np.empty((self.k, model.nv))
@@ -124,6 +124,10 @@ class ComTask(mink.Task, CheckedTask):
         if cached is None or cached[0] is not model or cached[1] != body:
             cached = self._chain = (model, body, subtree_com_chain(model, body))
         if cached[2] is None:
-            mujoco.mj_jacSubtreeCom(model, configuration.data, jacobian, body)
+            # A massless subtree: MuJoCo's CoM is the body's inertial frame origin (its
+            # subtree_com), and mj_jacSubtreeCom divides by the mass (NaN): the Jacobian of
+            # that point on the body instead
+            data = configuration.data
+            mujoco.mj_jac(model, data, jacobian, None, data.subtree_com[body].copy(), body)
             return jacobian
         return subtree_com_jacobian(configuration.data, cached[2], jacobian)

@@ -23,7 +23,7 @@ from ..core.jacobian import (
     row_indices,
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
-from ..model.configuration import Configuration, FrameType
+from ..model.configuration import Configuration, FrameType, as_configuration
 from ..model.gradients import manipulability_parts, manipulability_svd
 from .checked import CheckedTask
 
@@ -103,7 +103,9 @@ class JointLimitDistanceTask(mink.Task, CheckedTask):
     ) -> tuple[np.ndarray, np.ndarray, float]:
         """``(A (1, nv), b (1,), mu)`` in one compiled call, the limited joints kept while the
         limits are the same (by their bytes); where a value is not finite,
-        :func:`joint_limit_distance_terms` raises the typed error."""
+        :func:`joint_limit_distance_terms` raises the typed error. A mink configuration is
+        read through qpik's view of it."""
+        configuration = as_configuration(configuration)
         key = (configuration.lower.tobytes(), configuration.upper.tobytes())
         kept = self._midranges
         if kept is None or kept[0] != key:
@@ -221,7 +223,9 @@ class ManipulabilityTask(mink.Task, CheckedTask):
     def _value(self, configuration: Configuration) -> float:
         """``m(q)``, or 0 where the rows are of deficient rank to round-off (more rows than
         dofs, or a singular value at most :data:`RANK_FLOOR` of the largest: ``m`` is then
-        round-off, and ``1 / m`` would be noise of any size)."""
+        round-off, and ``1 / m`` would be noise of any size). A mink configuration is read
+        through qpik's view of it."""
+        configuration = as_configuration(configuration)
         rows = configuration.frame_jacobian(self.frame_name, self.frame_type)[self._row_index]
         if rows.shape[0] > rows.shape[1]:
             return 0.0  # (m is 0 for every q: more rows than dofs)
@@ -248,7 +252,7 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         (:func:`qpik.model.gradients.manipulability_parts`: the value, the gradient, the
         singular values that decide the rank as :meth:`_value` does)."""
         value, gradient, singular = manipulability_parts(
-            configuration, self.frame_name, self.frame_type.value, rows=self.rows
+            as_configuration(configuration), self.frame_name, self.frame_type.value, rows=self.rows
         )
         return _inverse(_in_rank(value, singular), gradient)
 

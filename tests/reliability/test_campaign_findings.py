@@ -428,3 +428,44 @@ def test_a_scaled_user_row_gets_the_same_answer_from_every_backend_and_a_dropped
     step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
     assert step.displacement[0] > 1e-3  # (the row bounds nothing: h >= 1e20)
     assert not any("Scaled" in name for name in step.active_limits), step.active_limits
+
+
+def test_a_com_task_on_a_massless_subtree_and_secondary_tasks_on_mink_configurations():
+    """An audit of every task's error and Jacobian: ComTask(body=...) on a subtree of no
+    mass (the UR5e's tool0) had a NaN Jacobian (mj_jacSubtreeCom divides by the mass), and
+    the step blamed the target; JointLimitDistanceTask and ManipulabilityTask called with a
+    mink.Configuration raised AttributeError."""
+    import mink
+    import mujoco
+
+    from qpik.tasks import ComTask, JointLimitDistanceTask, ManipulabilityTask
+
+    model = qpik.load_robot("ur5e")
+    q = np.array([0.3, -1.2, 1.1, -0.4, 0.7, 0.2])
+    configuration = qpik.Configuration(model, q)
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "tool0")
+    assert model.body_subtreemass[body] == 0.0
+    task = ComTask(body="tool0")
+    task.set_target(configuration.data.subtree_com[body] + [0.01, 0.0, 0.0])
+    jacobian = task.compute_jacobian(configuration)
+    finite_difference = np.zeros((3, model.nv))
+    for i in range(model.nv):
+        step = np.zeros(model.nv)
+        step[i] = 1e-6
+        configuration.update(q + step)
+        plus = task.compute_error(configuration)
+        configuration.update(q - step)
+        minus = task.compute_error(configuration)
+        finite_difference[:, i] = (plus - minus) / 2e-6
+    configuration.update(q)
+    np.testing.assert_allclose(jacobian, finite_difference, atol=1e-8)
+    assert qpik.IKSolver(model, [[task]], []).step(configuration, 0.01).ok
+    theirs = mink.Configuration(model, q)
+    ours = qpik.Configuration(model, q)
+    for secondary in (JointLimitDistanceTask(), ManipulabilityTask("ee")):
+        np.testing.assert_array_equal(
+            secondary.compute_error(theirs), secondary.compute_error(ours)
+        )
+        np.testing.assert_array_equal(
+            secondary.compute_jacobian(theirs), secondary.compute_jacobian(ours)
+        )
