@@ -106,10 +106,11 @@ class Outcome:
 
 @dataclass
 class IKResult(Outcome):
-    """The outcome of :func:`qpik.solve`: the fields of :class:`Outcome` (``q`` always
-    within the joint limits; ``converged`` when every frame and every level-0 task is
-    within tolerance and ``q`` breaks none of the model's equality constraints (see
-    ``constraint_error``); ``reason`` one of :data:`REASONS`), and:
+    """The outcome of :func:`qpik.solve`: the fields of :class:`Outcome` (``q`` within the
+    limits the solve kept: the joint limits by default, none with ``limits=None``;
+    ``converged`` when every frame and every level-0 task is within tolerance and ``q``
+    breaks none of the model's equality constraints (see ``constraint_error``); ``reason``
+    one of :data:`REASONS`), and:
 
     Attributes:
         frame_errors: per frame, ``(position_error [m], orientation_error [rad])``.
