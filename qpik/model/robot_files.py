@@ -148,6 +148,7 @@ _FIELD_OBJECTS = {
     "jnt": mujoco.mjtObj.mjOBJ_JOINT,
     "dof": mujoco.mjtObj.mjOBJ_DOF,
     "actuator": mujoco.mjtObj.mjOBJ_ACTUATOR,
+    "key": mujoco.mjtObj.mjOBJ_KEY,
 }
 _FINITE_FIELDS = (
     "body_pos",
@@ -172,6 +173,7 @@ _FINITE_FIELDS = (
     "actuator_ctrlrange",
     "actuator_forcerange",
     "qpos0",
+    "key_qpos",  # an MJCF <key qpos> or an SRDF <group_state> value of NaN or inf
 )
 
 
@@ -277,12 +279,46 @@ def _prepare_urdf(root: ET.Element, path: Path) -> str:
 
 
 def _check_urdf_limits(root: ET.Element, path: Path) -> None:
-    """Raise :class:`RobotFileError` naming the file and the joint for a revolute or
-    prismatic joint whose ``<limit lower upper>`` is empty (lower above upper): MuJoCo would
-    load it unlimited, where the same range in MJCF is an error. (Numbers that do not parse
-    are MuJoCo's to report; equal bounds MuJoCo ignores, with its warning.)"""
-    for joint in root.iter("joint"):
+    """Raise :class:`RobotFileError` naming the file and the joint for what MuJoCo would load
+    as another robot without an error: a revolute or prismatic joint whose ``<limit lower
+    upper>`` is empty (lower above upper: MuJoCo loads it unlimited, where the same range in
+    MJCF is an error); a joint name used twice (the second joint loses its name, and its
+    velocity limit goes to the first); a ``<limit velocity>`` that is not a number >= 0 or
+    an ``effort`` of NaN (dropped: no limit). A ``<mimic>`` of a joint that does not exist or
+    does not move (MuJoCo drops the coupling) and equal bounds (which MuJoCo reads as no
+    limit) get a warning naming the joint. (Other numbers that do not parse are MuJoCo's to
+    report.)"""
+    # (the robot's own joints: a <transmission> names its joint in a <joint> element too)
+    joints = {joint.get("name"): joint.get("type") for joint in root.findall("joint")}
+    seen: set[str | None] = set()
+    for joint in root.findall("joint"):
+        name = joint.get("name")
+        if name in seen:
+            raise RobotFileError(str(path), f"joint name {name!r} is used by two joints")
+        seen.add(name)
+        mimic = joint.find("mimic")
+        if mimic is not None and joints.get(mimic.get("joint")) not in (
+            "revolute", "continuous", "prismatic",
+        ):  # fmt: skip
+            other = mimic.get("joint")
+            why = "does not exist" if other not in joints else f"is {joints[other]}"
+            warnings.warn(  # (erd Alex's Psyonic hands ship such a mimic: loaded, not refused)
+                f"{path}: joint {name!r}: <mimic joint={other!r}> names a joint that {why}: "
+                "the coupling is dropped (the joint moves freely)",
+                stacklevel=5,
+            )
         limit = joint.find("limit")
+        if limit is not None and joint.get("type") not in ("fixed", "floating", "planar"):
+            for key in ("velocity", "effort"):
+                text = limit.get(key)
+                try:
+                    bad = text is not None and not float(text) >= 0.0
+                except ValueError:
+                    bad = key == "velocity"  # (an effort that does not parse: MuJoCo's)
+                if bad:
+                    raise RobotFileError(
+                        str(path), f'joint {name!r}: <limit {key}="{text}"> is not a number >= 0'
+                    )
         if joint.get("type") not in ("revolute", "prismatic") or limit is None:
             continue
         try:
@@ -296,6 +332,12 @@ def _check_urdf_limits(root: ET.Element, path: Path) -> None:
                 f'joint {joint.get("name", "?")!r}: <limit lower="{limit.get("lower")}" '
                 f'upper="{limit.get("upper")}"> is empty (lower above upper); swap them, '
                 "or make the joint continuous for no limit",
+            )
+        if lower == upper:
+            warnings.warn(
+                f"{path}: joint {joint.get('name', '?')!r} has lower = upper = {lower:g}, "
+                "which MuJoCo reads as no limit: make it a fixed joint to lock it",
+                stacklevel=5,
             )
 
 
@@ -517,13 +559,20 @@ def _add_srdf_keyframes(
 
 
 def _srdf_values(joint: ET.Element, state: str, path: Path) -> list[float]:
-    """The numbers of an SRDF ``<joint value="...">``."""
+    """The numbers of an SRDF ``<joint value="...">`` (finite)."""
     try:
-        return [float(x) for x in joint.get("value", "").split()]
+        values = [float(x) for x in joint.get("value", "").split()]
     except ValueError as exc:
         raise RobotFileError(
             str(path), f"group_state {state!r}: joint {joint.get('name')!r}: {exc}"
         ) from exc
+    if not all(np.isfinite(values)):
+        raise RobotFileError(
+            str(path),
+            f"group_state {state!r}: joint {joint.get('name')!r}: value "
+            f"{joint.get('value')!r} is not finite",
+        )
+    return values
 
 
 _FREE, _BALL = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)

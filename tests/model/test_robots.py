@@ -523,3 +523,61 @@ def test_erd_solo12_steps_within_the_trust_region():
     limits = qpik.limits.joint_limits(model)
     step = qpik.IKSolver(model, [[posture]], limits).step(configuration, 0.01)
     assert np.abs(step.displacement).max() <= math.pi * 0.01 + 1e-12
+
+
+_URDF = """<robot name="r">
+  <link name="base"/><link name="a"/><link name="b"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" velocity="{v1}" effort="{e1}"/></joint>
+  <joint name="{n2}" type="{t2}"><parent link="a"/><child link="b"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 0 1"/><limit lower="{lo2}" upper="{hi2}" velocity="0.2" effort="1"/>{mimic}</joint>
+</robot>"""
+
+
+def _urdf(tmp_path, **fields):
+    values = dict(v1="1", e1="1", n2="j2", t2="prismatic", lo2="-0.1", hi2="0.1", mimic="")
+    values.update(fields)
+    path = tmp_path / "r.urdf"
+    path.write_text(_URDF.format(**values))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("fields", "words"),
+    [
+        ({"n2": "j1"}, "joint name 'j1' is used by two joints"),
+        ({"v1": "abc"}, 'velocity="abc"'),
+        ({"v1": "nan"}, 'velocity="nan"'),
+        ({"v1": "-3"}, 'velocity="-3"'),
+        ({"e1": "nan"}, 'effort="nan"'),
+    ],
+)
+def test_a_urdf_mujoco_would_load_as_another_robot_is_refused(tmp_path, fields, words):
+    """An audit of robot files: a joint name used twice (the second joint lost its name and
+    the first took its 0.2 rad/s), a velocity that is not a number >= 0 and an effort of
+    NaN (both dropped: no limit) loaded without an error."""
+    with pytest.raises(qpik.RobotFileError, match=words):
+        qpik.load_robot(_urdf(tmp_path, **fields))
+    assert qpik.Configuration(qpik.load_robot(_urdf(tmp_path))).velocity_limits().tolist() == [
+        1.0,
+        0.2,
+    ]
+
+
+def test_a_dropped_mimic_and_equal_bounds_are_named_in_a_warning(tmp_path):
+    mimic = '<mimic joint="nope" multiplier="1"/>'
+    with pytest.warns(UserWarning, match="<mimic joint='nope'> names a joint that does not"):
+        model = qpik.load_robot(_urdf(tmp_path, t2="revolute", lo2="-1", hi2="1", mimic=mimic))
+    assert model.neq == 0
+    with pytest.warns(UserWarning, match="lower = upper = 0"):
+        qpik.load_robot(_urdf(tmp_path, lo2="0", hi2="0"))
+
+
+def test_non_finite_keyframes_are_refused(tmp_path):
+    path = tmp_path / "k.xml"
+    path.write_text(
+        '<mujoco><worldbody><body><joint name="j"/><geom size=".1"/></body></worldbody>'
+        '<keyframe><key name="k1" qpos="nan"/></keyframe></mujoco>'
+    )
+    with pytest.raises(qpik.RobotFileError, match="key_qpos of key 'k1' is not finite"):
+        qpik.load_robot(path)
