@@ -138,7 +138,7 @@ def _remove_leftovers(folder: str, name: str) -> None:
         hidden = entry.startswith(f".{name}") and _TMP in entry
         old = bool(name) and entry.startswith(f"{name}{_TMP}") and entry.endswith(".npz")
         old = old or (not name and entry.startswith("chunk_") and _TMP in entry)
-        writer = re.search(r"\.tmp(\d+)", entry)
+        writer = re.search(re.escape(_TMP) + r"(\d+)", entry)
         if (hidden or old) and not (writer and _alive(int(writer.group(1)))):
             try:  # (a live writer's file is left: another run on the same out, say)
                 os.remove(os.path.join(folder, entry))

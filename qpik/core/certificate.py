@@ -111,7 +111,7 @@ def primal_violation(
 ) -> float:
     """The largest scaled row violation at ``x``: a box row by ``1 + |bound|``, a general
     row ``g x <= h`` by ``|g| + |h|`` (the certificate's ``primal``)."""
-    big = 1e20
+    big = K.ABSENT_BOUND
     worst = 0.0
     with np.errstate(invalid="ignore"):
         lo = lb > -big

@@ -93,7 +93,8 @@ KEPT_PREVIOUS = 3
 NUMERICAL = 4
 NOT_REACHED = 5
 
-_BIG = 1e20  # bounds beyond this are treated as absent
+#: A bound of this size or more is absent (the compiled kernels' kBig, qp.hpp).
+ABSENT_BOUND = 1e20
 _DEGENERATE = 1e-9  # multipliers / slacks this small make an active set degenerate
 _ROUNDOFF = 1e-11  # violations this small at a degenerate vertex are round-off
 _DEPENDENT = 1e-10  # a normal this close to the working set's span depends on it
@@ -133,7 +134,7 @@ assert (SOLVED, MAX_ITER, INFEASIBLE, KEPT_PREVIOUS, NUMERICAL, NOT_REACHED) == 
 )  # fmt: skip
 
 __all__ = [
-    "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
+    "ABSENT_BOUND", "SOLVED", "MAX_ITER", "INFEASIBLE", "KEPT_PREVIOUS", "NUMERICAL", "NOT_REACHED",
     "CascadeWorkspace", "active_guess", "certified_level", "certify_point", "cholesky_into",
     "damping_of", "drop_pinned", "hypot_inline",
     "level_damping", "merge_boxes", "project_level", "reduced_qp", "resolve_sigma",
@@ -149,7 +150,7 @@ def trust_box(
     the kernel's ``trust_box`` makes it: each dof with both bounds finite within
     ``s (ub - lb) / 2`` of ``d`` put in its box, and within its box; the others' box as it
     is."""
-    finite = (np.abs(lb) < _BIG) & (np.abs(ub) < _BIG)
+    finite = (np.abs(lb) < ABSENT_BOUND) & (np.abs(ub) < ABSENT_BOUND)
     half = s * (0.5 * (ub - lb))
     c = np.minimum(np.maximum(d, lb), ub)
     tlb = np.maximum(lb, c - half)

@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from ..core import checks
-from ..core.kernels import merge_boxes, tighten
+from ..core.kernels import ABSENT_BOUND, merge_boxes, tighten
 from ..errors import (
     InfeasibleLimits,
     InvalidArgumentType,
@@ -37,10 +37,6 @@ from .limit_inputs import check_limit_model, constraint_rows, limit_name
 from .mink_limits import angular_dofs
 
 __all__ = ["BOX_LIMITS", "TRUST_REGION", "LimitBoxes", "LimitRows", "RowStructure", "relaxable"]
-
-#: A general row whose ``h`` is at least this bounds nothing (the QP's and OSQP's infinity:
-#: :data:`qpik.core.kernels._BIG`).
-_ABSENT = 1e20
 
 #: The name of the step's trust region in :attr:`qpik.StepResult.active_limits`.
 TRUST_REGION = "trust region"
@@ -267,9 +263,9 @@ class LimitRows:
                 )
                 active.append(f"{self.dof_names[int(i)]} {side} ({source})")
         if self.G.shape[0]:
-            # (a row whose h is 1e20 or more bounds nothing: absent from the QP, not named)
+            # (a row whose h is ABSENT_BOUND or more bounds nothing: absent from the QP, not named)
             with np.errstate(over="ignore", invalid="ignore"):
-                binding = (self.G @ d >= self.h - 1e-7) & (self.h < _ABSENT)
+                binding = (self.G @ d >= self.h - 1e-7) & (self.h < ABSENT_BOUND)
             for j in np.flatnonzero(binding):
                 active.append(self.row_names[int(j)])
         return active

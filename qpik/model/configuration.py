@@ -122,12 +122,11 @@ def dof_names(model: mujoco.MjModel) -> list[str]:
     """For every dof, a name: its joint's (:func:`joint_names`), with the dof's index in the
     joint, ``[k]``, where the joint has several (a free joint's six, a ball's three)."""
     names = joint_names(model)
+    widths = {mujoco.mjtJoint.mjJNT_FREE: 6, mujoco.mjtJoint.mjJNT_BALL: 3}
     out = []
     for i in range(model.nv):
         joint = int(model.dof_jntid[i])
-        width = {mujoco.mjtJoint.mjJNT_FREE: 6, mujoco.mjtJoint.mjJNT_BALL: 3}.get(
-            mujoco.mjtJoint(int(model.jnt_type[joint])), 1
-        )
+        width = widths.get(mujoco.mjtJoint(int(model.jnt_type[joint])), 1)
         k = i - int(model.jnt_dofadr[joint])
         out.append(names[joint] if width == 1 else f"{names[joint]}[{k}]")
     return out

@@ -1989,14 +1989,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
     // start with such rows (within kNearDependentRetry) never blocking: each candidate is
     // certified as any other (a row so passed is met to its certificate's tolerance or the
     // candidate fails), so only a level no candidate certified changes.
-    if (kNearDependentRetry > kNearDependent) {
-        start = again;
-        pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter,
-                                kNearDependentRetry);
-        if (pok && certify(start)) {
-            z = start;
-            return true;
-        }
+    static_assert(kNearDependentRetry > kNearDependent, "the retry must pass more rows than the first try");
+    start = again;
+    pok = primal_active_set(ls, qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi), start, rows, sides, u, max_iter,
+                            kNearDependentRetry);
+    if (pok && certify(start)) {
+        z = start;
+        return true;
     }
     return false;
 }
@@ -3822,22 +3821,23 @@ constexpr double kRowNormLow = 1e-6, kRowNormHigh = 1e6;
 inline bool equilibrated_rows(CMatRef G, CVecRef h, Mat& Gs, Vec& hs, Vec& sq) {
     const i64 p = G.rows, n = G.cols;
     shape(sq, static_cast<size_t>(p));
+    // a finite nonzero row with a finite bound and a norm outside [kRowNormLow, kRowNormHigh]
+    const auto scaled = [&](i64 j) {
+        const double nn2 = sq[j];
+        return std::isfinite(nn2) && nn2 > 0.0 &&
+               (nn2 < kRowNormLow * kRowNormLow || nn2 > kRowNormHigh * kRowNormHigh) && h[j] < kBig;
+    };
     bool any = false;
     for (i64 j = 0; j < p; ++j) {
         sq[j] = row_sq_of(G, j);
-        const double nn2 = sq[j];
-        any = any || (std::isfinite(nn2) && nn2 > 0.0 && (nn2 < kRowNormLow * kRowNormLow ||
-                                                           nn2 > kRowNormHigh * kRowNormHigh) &&
-                      h[j] < kBig);
+        any = any || scaled(j);
     }
     if (!any) return false;
     shape(Gs, p, n);  // every entry written
     hs.resize(static_cast<size_t>(p));
     for (i64 j = 0; j < p; ++j) {
-        const double nn2 = sq[j];
-        const bool scale = std::isfinite(nn2) && nn2 > 0.0 &&
-                           (nn2 < kRowNormLow * kRowNormLow || nn2 > kRowNormHigh * kRowNormHigh) && h[j] < kBig;
-        const double nn = std::sqrt(nn2);
+        const bool scale = scaled(j);
+        const double nn = std::sqrt(sq[j]);
         const double* gj = G.row(j);
         double* out = Gs.row(j);
         for (i64 i = 0; i < n; ++i) out[i] = scale ? gj[i] / nn : gj[i];

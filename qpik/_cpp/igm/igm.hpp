@@ -386,7 +386,6 @@ inline double structural_sigma(CMatRef A, i64 m, double sigma, double rank_tol) 
         for (i64 k = 0; k < len; ++k) V[i * len + k] = by_rows ? A(i, k) : A(k, i);
     // Remainders R = V (orthogonalised in place); Lo[i][j] = <V_i, W_j> summed over both passes
     bool used[6] = {};
-    i64 order[6];
     const double cut = rank_tol * scale;
     i64 kept = 0;
     for (i64 step = 0; step < p; ++step) {
@@ -402,7 +401,6 @@ inline double structural_sigma(CMatRef A, i64 m, double sigma, double rank_tol) 
             }
         }
         used[best] = true;
-        order[step] = best;
         const double norm = std::sqrt(best2);
         if (!(norm > cut)) break;  // every remainder left is at most this: structural zeros
         double* w = W + step * len;
@@ -430,7 +428,6 @@ inline double structural_sigma(CMatRef A, i64 m, double sigma, double rank_tol) 
             M[a * kept + c] = M[c * kept + a] = t;
         }
     }
-    (void)order;
     return std::sqrt(core::pymax(0.0, gram_smallest_eigenvalue(MatRef(M, kept, kept), kept)));
 }
 
