@@ -289,9 +289,11 @@ class StepOptions:
             tracking about 5-20 %, floating Talos about 20 %).
         backend_options: keyword options of the backend (e.g. OSQP's ``eps_abs``), or
             ``None`` (the backend's defaults). Kept as a read-only mapping; not part of
-            the hash. OSQP's are checked here (names and ranges); a qpsolvers backend's
-            names at its first solve (an option it does not take: :class:`qpik.InvalidInput`
-            naming it), their values by the backend. The solver ``"auto"`` runs no backend
+            the hash. OSQP's, DAQP's and quadprog's names and values are checked
+            when a solver or solve takes them
+            (:func:`qpik.core.backends.check_backend_options`: :class:`qpik.InvalidInput`
+            naming the setting); proxqp's and clarabel's names at their first solve, their
+            values by the backend. The solver ``"auto"`` runs no backend
             and reads none of them.
         max_joint_speed: the step's trust region [rad/s or m/s]: every dof that no
             velocity limit of the stack bounds (MJCF models, Menagerie's among them, state

@@ -28,8 +28,10 @@ __all__ = [
     "OSQP_DEFAULTS",
     "OSQP_SETTINGS",
     "OSQPWorkspace",
+    "QPSOLVERS_SETTINGS",
     "QPSolution",
     "QPWorkspace",
+    "check_backend_options",
     "check_osqp_settings",
     "made_exact",
     "make_workspace",
@@ -88,17 +90,49 @@ OSQP_SETTINGS: dict[str, tuple[str, float, float, bool]] = {
 OSQP_ALIASES: dict[str, str] = {"polish": "polishing", "warm_start": "warm_starting"}
 
 
-def check_osqp_settings(options: dict | None) -> dict[str, Any]:
-    """``options`` checked, by OSQP's names (:data:`OSQP_ALIASES` renamed): an unknown OSQP
-    setting or a value outside what OSQP accepts (:data:`OSQP_SETTINGS`; ``eps_abs`` and
-    ``eps_rel`` not both 0; a bool where OSQP takes 0 or 1, an int where it takes an
-    integer) is a :class:`qpik.InvalidInput` naming the setting."""
-    given = {OSQP_ALIASES.get(name, name): value for name, value in (options or {}).items()}
-    unknown = set(given) - set(OSQP_SETTINGS)
-    if unknown:
-        raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
+#: The settings of the qpsolvers backends whose keywords qpik checks, in
+#: :data:`OSQP_SETTINGS`' form: DAQP's (``daqp.solve``'s keywords, the tolerances positive;
+#: the constraint senses, break points and starts are qpik's to set, not a caller's) and
+#: quadprog's (``factorized``, False only: qpik passes the Hessian). Checked when the
+#: workspace is made (:func:`check_backend_options`): a value the backend would refuse at
+#: its first solve, or silently read as another (DAQP takes ``True`` for an iteration
+#: limit of 1), is an :class:`qpik.InvalidInput` naming it. proxqp's and clarabel's many
+#: settings are left to the backend (an unknown name: :class:`qpik.InvalidInput` at the
+#: first solve).
+QPSOLVERS_SETTINGS: dict[str, dict[str, tuple[str, float, float, bool]]] = {
+    "daqp": {
+        "primal_tol": ("float", 0.0, math.inf, True),
+        "dual_tol": ("float", 0.0, math.inf, True),
+        "zero_tol": ("float", 0.0, math.inf, True),
+        "pivot_tol": ("float", 0.0, math.inf, True),
+        "progress_tol": ("float", 0.0, math.inf, True),
+        "cycle_tol": ("int", 0, 2**31 - 1, False),
+        "iter_limit": ("int", 1, 2**31 - 1, False),
+        "fval_bound": ("float", 0.0, math.inf, True),
+        "eps_prox": ("float", 0.0, math.inf, False),
+        "eta_prox": ("float", 0.0, math.inf, True),
+        "rho_soft": ("float", 0.0, math.inf, True),
+        "w_soft": ("float", 0.0, math.inf, False),
+        "rel_subopt": ("float", 0.0, math.inf, False),
+        "abs_subopt": ("float", 0.0, math.inf, False),
+        "sing_tol": ("float", 0.0, math.inf, True),
+        "refactor_tol": ("float", 0.0, math.inf, True),
+        "time_limit": ("float", 0.0, math.inf, False),
+        "eq_reduction": ("bool", 0, 1, False),
+        "presolve": ("bool", 0, 1, False),
+    },
+    "quadprog": {"factorized": ("bool", 0, 1, False)},
+}
+
+
+def _check_values(
+    backend: str, table: dict[str, tuple[str, float, float, bool]], given: dict[str, Any]
+) -> None:
+    """Each of ``given``'s values (its names all in ``table``) checked against its entry:
+    a bool where the backend takes 0 or 1, an int where it takes an integer, a number in
+    the entry's range; else :class:`qpik.InvalidInput` naming ``backend``'s setting."""
     for name, value in given.items():
-        kind, low, high, open_low = OSQP_SETTINGS[name]
+        kind, low, high, open_low = table[name]
         if kind == "bool":
             ok = isinstance(value, (bool, np.bool_)) or (
                 isinstance(value, (int, np.integer)) and value in (0, 1)
@@ -120,11 +154,46 @@ def check_osqp_settings(options: dict | None) -> dict[str, Any]:
             end = ")" if open_low or high == math.inf else "]"
             expected = f"a number in {bracket}{low:g}, {high:g}{end}"
         if not ok:
-            raise InvalidInput(f"OSQP setting {name!r} must be {expected}, got {value!r}")
+            raise InvalidInput(f"{backend} setting {name!r} must be {expected}, got {value!r}")
+
+
+def check_osqp_settings(options: dict | None) -> dict[str, Any]:
+    """``options`` checked, by OSQP's names (:data:`OSQP_ALIASES` renamed): an unknown OSQP
+    setting or a value outside what OSQP accepts (:data:`OSQP_SETTINGS`; ``eps_abs`` and
+    ``eps_rel`` not both 0; a bool where OSQP takes 0 or 1, an int where it takes an
+    integer) is a :class:`qpik.InvalidInput` naming the setting."""
+    given = {OSQP_ALIASES.get(name, name): value for name, value in (options or {}).items()}
+    unknown = set(given) - set(OSQP_SETTINGS)
+    if unknown:
+        raise InvalidInput(f"unknown OSQP settings: {', '.join(sorted(unknown))}")
+    _check_values("OSQP", OSQP_SETTINGS, given)
     settings = {**OSQP_DEFAULTS, **given}
     if settings["eps_abs"] == 0 and settings["eps_rel"] == 0:
         raise InvalidInput("OSQP settings eps_abs and eps_rel cannot both be 0")
     return given
+
+
+def check_backend_options(solver: str, options: dict | None) -> None:
+    """``options`` (``backend_options``) checked for the backend ``solver``: OSQP's by
+    :func:`check_osqp_settings`; DAQP's and quadprog's names and values by
+    :data:`QPSOLVERS_SETTINGS` (an unknown name: :class:`qpik.InvalidInput`
+    ``"backend_options: daqp takes no option 'x'"``, as at a solve); the other backends'
+    at their first solve."""
+    if solver == "osqp":
+        check_osqp_settings(options)
+        return
+    table = QPSOLVERS_SETTINGS.get(solver)
+    if table is None or not options:
+        return
+    for name in options:
+        if name not in table:
+            raise InvalidInput(f"backend_options: {solver} takes no option {name!r}")
+    _check_values(solver, table, dict(options))
+    if solver == "quadprog" and options.get("factorized"):
+        # (qpik passes quadprog the Hessian itself, not the inverse of its factor)
+        raise InvalidInput(
+            "quadprog setting 'factorized' must be False: qpik passes the Hessian itself"
+        )
 
 
 @dataclass
@@ -243,6 +312,7 @@ class QPSolversWorkspace:
         self._qpsolvers = qpsolvers
         self.name = name
         self.n, self.m = n, m
+        check_backend_options(name, options)
         self.options = dict(options or {})
         self.setups = 0
 

@@ -175,8 +175,8 @@ class SolverSettings:
     def backend_options(self, value: dict | None) -> None:
         if value is not None and not isinstance(value, dict):
             raise InvalidOption("backend_options", value, "a dict of backend settings or None")
-        if getattr(self, "_solver", None) == "osqp":  # (its names and values, checked here)
-            backends.check_osqp_settings(value)
+        # (a forced backend's names and values, checked here: OSQP's, DAQP's, quadprog's)
+        backends.check_backend_options(getattr(self, "_solver", "auto"), value)
         self._backend_options = dict(value or {})
         self._changed()
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .._engine import igm as _igm
-from ..core.backends import check_osqp_settings
+from ..core.backends import check_backend_options
 
 if TYPE_CHECKING:
     from ..options import SolveOptions
@@ -194,11 +194,11 @@ assert (PROGRESS, RESTART_SPREAD, BLOCKED, NEAR_TARGET) == (
 
 def kernel_options(s: SolveOptions) -> tuple[np.ndarray, np.ndarray]:
     """The float and int option arrays of :func:`igm_solve` for the options ``s`` (their
-    OSQP settings checked where ``s.step`` names OSQP, so that a solve of either engine
-    refuses what OSQP would: :func:`qpik.core.backends.check_osqp_settings`)."""
+    backend settings checked for the backend ``s.step`` names, so that a solve of either
+    engine refuses what the backend would: :func:`qpik.core.backends.check_backend_options`)."""
     step = s.step
-    if step.solver == "osqp" and step.backend_options:
-        check_osqp_settings(dict(step.backend_options))
+    if step.backend_options:
+        check_backend_options(step.solver, dict(step.backend_options))
     law = s.damping_law
     max_step = s.max_step if s.max_step is not None else (np.inf, np.inf)
     options = np.array(

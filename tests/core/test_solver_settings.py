@@ -207,6 +207,64 @@ def test_backend_options_of_a_wrong_type_or_name_are_typed_errors():
         with pytest.raises(qpik.InvalidInput, match="eps_abs"):
             qpik.IKSolver(model, [[tip]], solver="osqp", backend_options={"eps_abs": value})
     pytest.importorskip("daqp")
-    solver = qpik.IKSolver(model, [[tip]], solver="daqp", backend_options={"bogus_key": 1})
     with pytest.raises(qpik.InvalidInput, match="daqp takes no option 'bogus_key'"):
-        solver.step(configuration, 0.01)
+        qpik.IKSolver(model, [[tip]], solver="daqp", backend_options={"bogus_key": 1})
+
+
+@pytest.mark.parametrize(
+    ("solver", "options", "match"),
+    [
+        ("daqp", {"eps_prox": "abc"}, "daqp setting 'eps_prox' must be a number"),
+        ("daqp", {"iter_limit": True}, "daqp setting 'iter_limit' must be an integer"),
+        ("daqp", {"iter_limit": 0}, "daqp setting 'iter_limit' must be an integer"),
+        ("daqp", {"primal_tol": -1e-6}, "daqp setting 'primal_tol' must be a number in \\(0"),
+        ("daqp", {"primal_tol": float("nan")}, "daqp setting 'primal_tol'"),
+        ("daqp", {"sense": [0]}, "daqp takes no option 'sense'"),
+        ("quadprog", {"factorized": "x"}, "quadprog setting 'factorized' must be True or False"),
+        ("quadprog", {"factorized": True}, "'factorized' must be False"),
+    ],
+)
+def test_daqp_and_quadprog_values_are_checked_when_the_solver_is_made(solver, options, match):
+    """Audit (options, left open before): DAQP's and quadprog's option values went to the
+    backend unchecked (DAQP read ``iter_limit=True`` as 1; quadprog's ``factorized=True``
+    would read qpik's Hessian as the inverse of its factor). Each is an InvalidInput naming
+    the setting when the solver is made, by IKSolver, by HierarchySolver's setting and by a
+    full-IK solve alike; the values the backend takes still solve."""
+    import qpik
+    from qpik.core import HierarchySolver
+    from qpik.tasks import PositionTask
+
+    pytest.importorskip(solver)
+    model = qpik.load_robot("panda")
+    tip = PositionTask("ee")
+    with pytest.raises(qpik.InvalidInput, match=match):
+        qpik.IKSolver(model, [[tip]], solver=solver, backend_options=options)
+    core = HierarchySolver(solver=solver)
+    with pytest.raises(qpik.InvalidInput, match=match):
+        core.backend_options = options
+    assert core.backend_options == {}
+    step = qpik.StepOptions(solver=solver, backend_options=options)
+    target = qpik.Configuration(model, model.key_qpos[0]).frame_pose("ee")[0]
+    with pytest.raises(qpik.InvalidInput, match=match):
+        qpik.solve(model, {"ee": target}, options=qpik.SolveOptions(step=step))
+
+
+def test_daqp_and_quadprog_values_they_take_still_solve():
+    import qpik
+    from qpik.tasks import PositionTask
+
+    model = qpik.load_robot("panda")
+    configuration = qpik.Configuration(model, model.key_qpos[0])
+    tip = PositionTask("ee")
+    tip.set_target(configuration.frame_pose("ee")[0] + [0.3, 0.0, 0.0])
+    reference = qpik.IKSolver(model, [[tip]]).step(configuration, 0.01).velocity
+    for solver, options in (
+        ("daqp", {"primal_tol": 1e-9, "iter_limit": 500, "presolve": 0}),
+        ("quadprog", {"factorized": False}),
+    ):
+        pytest.importorskip(solver)
+        result = qpik.IKSolver(model, [[tip]], solver=solver, backend_options=options).step(
+            configuration, 0.01
+        )
+        assert result.ok
+        np.testing.assert_allclose(result.velocity, reference, atol=1e-9)
