@@ -121,7 +121,8 @@ QPSOLVERS_SETTINGS: dict[str, dict[str, tuple[str, float, float, bool]]] = {
         "eq_reduction": ("bool", 0, 1, False),
         "presolve": ("bool", 0, 1, False),
     },
-    "quadprog": {"factorized": ("bool", 0, 1, False)},
+    # (qpik passes quadprog the Hessian itself, not the inverse of its factor)
+    "quadprog": {"factorized": ("bool", 0, 0, False)},
 }
 
 
@@ -129,15 +130,17 @@ def _check_values(
     backend: str, table: dict[str, tuple[str, float, float, bool]], given: dict[str, Any]
 ) -> None:
     """Each of ``given``'s values (its names all in ``table``) checked against its entry:
-    a bool where the backend takes 0 or 1, an int where it takes an integer, a number in
-    the entry's range; else :class:`qpik.InvalidInput` naming ``backend``'s setting."""
+    a bool where the backend takes 0 or 1 (a range ``(0, 0)``: False only), an int where it
+    takes an integer, a number in the entry's range; else :class:`qpik.InvalidInput` naming
+    ``backend``'s setting."""
     for name, value in given.items():
         kind, low, high, open_low = table[name]
-        if kind == "bool":
+        if kind == "bool":  # (low, high: 0, 1 for either; 0, 0 for False only)
             ok = isinstance(value, (bool, np.bool_)) or (
                 isinstance(value, (int, np.integer)) and value in (0, 1)
             )
-            expected = "True or False"
+            ok = ok and low <= value <= high
+            expected = "True or False" if low < high else repr(bool(low))
         elif kind == "int":
             ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
             ok = ok and low <= value <= high
@@ -189,11 +192,6 @@ def check_backend_options(solver: str, options: dict | None) -> None:
         if name not in table:
             raise InvalidInput(f"backend_options: {solver} takes no option {name!r}")
     _check_values(solver, table, dict(options))
-    if solver == "quadprog" and options.get("factorized"):
-        # (qpik passes quadprog the Hessian itself, not the inverse of its factor)
-        raise InvalidInput(
-            "quadprog setting 'factorized' must be False: qpik passes the Hessian itself"
-        )
 
 
 @dataclass

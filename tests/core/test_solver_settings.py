@@ -220,8 +220,8 @@ def test_backend_options_of_a_wrong_type_or_name_are_typed_errors():
         ("daqp", {"primal_tol": -1e-6}, "daqp setting 'primal_tol' must be a number in \\(0"),
         ("daqp", {"primal_tol": float("nan")}, "daqp setting 'primal_tol'"),
         ("daqp", {"sense": [0]}, "daqp takes no option 'sense'"),
-        ("quadprog", {"factorized": "x"}, "quadprog setting 'factorized' must be True or False"),
-        ("quadprog", {"factorized": True}, "'factorized' must be False"),
+        ("quadprog", {"factorized": "x"}, "quadprog setting 'factorized' must be False, got 'x'"),
+        ("quadprog", {"factorized": True}, "quadprog setting 'factorized' must be False, got True"),
     ],
 )
 def test_daqp_and_quadprog_values_are_checked_when_the_solver_is_made(solver, options, match):
