@@ -44,7 +44,9 @@ and the core agree on); also the per-level statuses over every state.
     (:func:`talos_peers`): times and task errors of qpik's four levels, PlaCo (feet hard,
     the rest soft) and mink + daqp (one weighted level, the same weights); and qpik on
     PlaCo's problem (the feet a strict level, the rest one weighted level below it with
-    PlaCo's weights).
+    PlaCo's weights). Per half (in reach, out of reach), how each closed loop moves: its
+    joint speeds' rms and the share of steps where a joint's speed changes sign
+    (:func:`_chatter`: a loop shaking between two corners of its velocity box).
 
     python benchmarks/step_time.py [--states 400] [--talos-states 200] [--no-talos]
     python benchmarks/step_time.py --peers only [--peer-states 400] [--talos-steps 300]
@@ -908,6 +910,23 @@ class _TalosScene:
 TALOS_METHODS = ("qpik", "qpik1", "qpikp", "qpiks", "placo", "placos", "mink")
 
 
+#: A joint speed [rad/s or m/s] above which _chatter counts a sign change between two steps.
+CHATTER_SPEED = 0.2
+
+
+def _chatter(v: np.ndarray) -> tuple[float, float]:
+    """``v`` (steps, nv): a closed loop's joint speeds over a stretch of steps. Their rms
+    [rad/s, m/s], and the share [%] of the pairs (dof, two consecutive steps) where the dof's
+    speed changes sign with both speeds above :data:`CHATTER_SPEED`: about 0 for a loop that
+    tracks smoothly or comes to rest, up to 100 on a dof that shakes between two vertices of
+    its velocity box."""
+    if len(v) < 2:
+        return float("nan"), float("nan")
+    both = (np.abs(v[1:]) > CHATTER_SPEED) & (np.abs(v[:-1]) > CHATTER_SPEED)
+    flips = np.mean(both & (np.sign(v[1:]) != np.sign(v[:-1])))
+    return float(np.sqrt(np.mean(v**2))), float(100 * flips)
+
+
 def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
     """Talos (example-robot-data, floating base), feet held (6-D) / CoM swaying between the
     feet / both hands (position; from the middle on the left hand's target is 0.6 m away, out
@@ -1018,6 +1037,8 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
     legs = np.array(sorted(legs))
     previous = dict.fromkeys(label, home)
     steps = {name: [] for name in label.values()}
+    # each step's joint velocities [rad/s, m/s] (the step's mj_differentiatePos over DT)
+    speeds: dict = {name: [] for name in label.values()}
     dq = np.zeros(model.nv)
 
     def step(name, k):
@@ -1059,6 +1080,7 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             mujoco.mj_differentiatePos(model, dq, 1.0, previous[name], q)
             previous[name] = q.copy()
             steps[label[name]].append(np.linalg.norm(dq[legs]))
+            speeds[label[name]].append(dq / DT)
             measure.update(q)
             foot_err = max(
                 max(1e3 * np.linalg.norm(measure.frame_pose(f, "body")[0] - p),
@@ -1087,6 +1109,10 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             f"{np.median(a[moved, 0] / s[moved] ** 2):.0f}; median us in reach "
             f"{1e6 * np.median(times[name][:h]):.1f} / out of reach "
             f"{1e6 * np.median(times[name][h:]):.1f}"
+            + "; joint speed rms, sign changes: in reach {:.2f}, {:.1f} % / out of reach "
+            "{:.2f}, {:.1f} %".format(
+                *_chatter(np.array(speeds[name][:h])), *_chatter(np.array(speeds[name][h:]))
+            )
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
             + (f"; the polygon binds on {binding} steps" if name == label["qpiks"] else "")
             + (
