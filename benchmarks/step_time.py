@@ -1036,9 +1036,8 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             body = model.body_parentid[body]
     legs = np.array(sorted(legs))
     previous = dict.fromkeys(label, home)
-    steps = {name: [] for name in label.values()}
-    # each step's joint velocities [rad/s, m/s] (the step's mj_differentiatePos over DT)
-    speeds: dict = {name: [] for name in label.values()}
+    # each step's displacement (mj_differentiatePos from the configuration before)
+    steps: dict = {name: [] for name in label.values()}
     dq = np.zeros(model.nv)
 
     def step(name, k):
@@ -1079,8 +1078,7 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             times[label[name]].append(elapsed)
             mujoco.mj_differentiatePos(model, dq, 1.0, previous[name], q)
             previous[name] = q.copy()
-            steps[label[name]].append(np.linalg.norm(dq[legs]))
-            speeds[label[name]].append(dq / DT)
+            steps[label[name]].append(dq.copy())
             measure.update(q)
             foot_err = max(
                 max(1e3 * np.linalg.norm(measure.frame_pose(f, "body")[0] - p),
@@ -1099,7 +1097,9 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
     h = n_steps // 2
     for name, rows in errors.items():
         a = np.array(rows)
-        s = np.array(steps[name])
+        moves = np.array(steps[name])
+        s = np.linalg.norm(moves[:, legs], axis=1)
+        speeds = moves / DT
         moved = s > 1e-6
         extra[name] = (
             f"feet {a[:, 0].mean():.3f} (max {a[:, 0].max():.3f}), CoM {a[:, 1].mean():.2f} "
@@ -1110,9 +1110,7 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             f"{1e6 * np.median(times[name][:h]):.1f} / out of reach "
             f"{1e6 * np.median(times[name][h:]):.1f}"
             + "; joint speed rms, sign changes: in reach {:.2f}, {:.1f} % / out of reach "
-            "{:.2f}, {:.1f} %".format(
-                *_chatter(np.array(speeds[name][:h])), *_chatter(np.array(speeds[name][h:]))
-            )
+            "{:.2f}, {:.1f} %".format(*_chatter(speeds[:h]), *_chatter(speeds[h:]))
             + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
             + (f"; the polygon binds on {binding} steps" if name == label["qpiks"] else "")
             + (
