@@ -233,7 +233,10 @@ def mink_collision_rows(
     are not left out (mink's other rows are zero, with ``h = inf``), computed by mink's own
     arithmetic (``mj_geomDistance``, mink's contact normal Jacobian; ``h`` in mink's units,
     a velocity bound ``gain (d - d_min) / dt``; :meth:`PairCulling.contact_rows`), so
-    bitwise mink's; the pairs out of range
+    bitwise mink's where its final product ``n @ (J_2 - J_1)`` sums its three terms in
+    order; NumPy hands that product to its BLAS, whose kernel on some CPUs fuses
+    multiply-adds (OpenBLAS's SkylakeX ``dgemv``), and there mink's rows differ from these
+    by an ulp. These rows are the same on every machine. The pairs out of range
     are culled first by :class:`PairCulling` instead of mink's bounding spheres (every pair
     is checked when ``limit.broadphase`` is False, as mink does)."""
     return _culling(limit).contact_rows(limit, configuration.data, dt, True)

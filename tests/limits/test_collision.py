@@ -8,6 +8,7 @@ import mink
 import mujoco
 import numpy as np
 import pytest
+from mink_contact_rows import assert_rows_near_minks, minks_blas_rows, use_minks_arithmetic
 
 import qpik
 from qpik.limits import CollisionAvoidanceLimit, geom_distance, joint_limits
@@ -40,7 +41,11 @@ def _two_link():
     return mujoco.MjModel.from_xml_string(TWO_LINK)
 
 
-def test_rows_are_minks_times_dt_and_push_back_inside_d_min():
+def test_rows_are_minks_times_dt_and_push_back_inside_d_min(monkeypatch):
+    """The rows are mink's (bitwise with mink's own loop summing its final product term by
+    term; within ulps of its BLAS product: tests/mink_contact_rows.py) and its right sides
+    times dt."""
+    use_minks_arithmetic(monkeypatch)
     model = _two_link()
     configuration = qpik.Configuration(model, [0.3, 0.2])
     kwargs = dict(minimum_distance_from_collisions=0.05, collision_detection_distance=0.5)
@@ -52,6 +57,7 @@ def test_rows_are_minks_times_dt_and_push_back_inside_d_min():
         finite = np.isfinite(b.h)
         assert a.G.shape[0] == finite.sum() >= 1
         np.testing.assert_array_equal(a.G, b.G[finite])
+        assert_rows_near_minks(a.G, minks_blas_rows(theirs, configuration, dt).G[finite])
         np.testing.assert_allclose(a.h, b.h[finite] * dt, rtol=1e-14)
         # rows_in_play: the same rows, the pairs in range and a row's fewest nonzero entries
         G, h, pairs, fewest = ours.rows_in_play(configuration, dt)

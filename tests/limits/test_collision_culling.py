@@ -1,8 +1,9 @@
 """The compiled culling of collision pairs (qpik/_cpp/limits/collision.hpp): its distance
 bounds never exceed MuJoCo's mj_geomDistance (the reference) on every geom type, so the
 rows of mink's CollisionAvoidanceLimit computed from the culled pairs
-(qpik.limits.collision.mink_collision_rows) are bitwise mink's own, unculled rows; the
-solve_ik answers stay bitwise those of the unculled limit."""
+(qpik.limits.collision.mink_collision_rows) are bitwise mink's own, unculled rows (mink's
+loop with its final product summed term by term, and within ulps of its BLAS product:
+tests/mink_contact_rows.py); the solve_ik answers stay bitwise those of the unculled limit."""
 
 from __future__ import annotations
 
@@ -10,7 +11,12 @@ import mink
 import mujoco
 import numpy as np
 import pytest
-from mink.limits.collision_avoidance_limit import compute_contact_normal_jacobian
+from mink_contact_rows import (
+    assert_rows_near_minks,
+    contact_normal_jacobian,
+    minks_blas_rows,
+    use_minks_arithmetic,
+)
 
 import qpik
 from qpik._engine import limits as engine
@@ -100,9 +106,10 @@ def test_bounds_never_exceed_mujocos_distance(rng):
 
 
 @pytest.mark.parametrize("broadphase", [True, False])
-def test_mink_rows_are_minks_bitwise(rng, broadphase):
+def test_mink_rows_are_minks_bitwise(rng, broadphase, monkeypatch):
     """mink_collision_rows gives the rows of mink's limit that are in play, bitwise, on
     random configurations of every pair of geom types (penetrating ones included)."""
+    use_minks_arithmetic(monkeypatch)
     model = _shapes()
     geoms = list(range(model.ngeom))
     kwargs = dict(minimum_distance_from_collisions=0.01, collision_detection_distance=0.08)
@@ -118,6 +125,7 @@ def test_mink_rows_are_minks_bitwise(rng, broadphase):
         assert kept == in_play.tolist()
         np.testing.assert_array_equal(G, reference.G[in_play])
         np.testing.assert_array_equal(h, reference.h[in_play])
+        assert_rows_near_minks(G, minks_blas_rows(every, configuration, 0.01).G[in_play])
         seen += len(kept)
     assert seen > 100
 
@@ -220,7 +228,7 @@ def test_a_limits_culling_goes_with_the_limit():
     assert key not in collision._CULLINGS
 
 
-def test_panda_contact_rows_are_minks_bitwise(rng):
+def test_panda_contact_rows_are_minks_bitwise(rng, monkeypatch):
     """The contact rows made by the compiled engine (PairCulling.contact_rows: MuJoCo's
     mj_jac arithmetic along each body's dof chain) are mink's bitwise, for mink's limit and
     qpik's own, on the bundled Panda's links against each other and an obstacle, over random
@@ -228,6 +236,7 @@ def test_panda_contact_rows_are_minks_bitwise(rng):
     from qpik.limits import CollisionAvoidanceLimit
     from qpik.scene import add_obstacle
 
+    use_minks_arithmetic(monkeypatch)
     model = add_obstacle(qpik.load_robot("panda"), "sphere", 0.08, [0.45, 0.0, 0.45], name="ball")
     links = ["link3", "link4", "link5", "link6", "link7", "hand"]
     pairs = [(links[3:], links[:2]), (links, ["ball"])]
@@ -245,6 +254,7 @@ def test_panda_contact_rows_are_minks_bitwise(rng):
         assert kept == in_play.tolist()
         np.testing.assert_array_equal(G, reference.G[in_play])
         np.testing.assert_array_equal(h, reference.h[in_play])
+        assert_rows_near_minks(G, minks_blas_rows(theirs, configuration, 0.01).G[in_play])
         # qpik's own limit (its pairs in its own order): mink's function on each pair in range
         expected, bounds = [], []
         for g1, g2 in ours.geom_id_pairs:
@@ -252,7 +262,7 @@ def test_panda_contact_rows_are_minks_bitwise(rng):
             d = mujoco.mj_geomDistance(model, configuration.data, g1, g2, 0.25, fromto)
             if d >= 0.25 - 1e-12:
                 continue
-            row = compute_contact_normal_jacobian(
+            row = contact_normal_jacobian(
                 model, configuration.data, g1, g2, fromto, np.empty(3), *np.empty((2, 3, model.nv))
             )
             expected.append((-1.0 if d >= 0 else 1.0) * row)
