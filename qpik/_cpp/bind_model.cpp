@@ -1,6 +1,7 @@
 // Bindings of the model layer (qpik._engine.model): chain kinematics and rotations.
 #include "bind.hpp"
 #include "bind_chain.hpp"
+#include "detmath.hpp"
 #include "model/chain.hpp"
 #include "model/com.hpp"
 #include "model/jac.hpp"
@@ -187,4 +188,23 @@ void bind_model(nb::module_& m) {
             model::so3_ljacinv(out.data(), phi.data());
         },
         "phi"_a, "out"_a.noconvert(), "Inverse left Jacobian of SO(3) at rotation vector phi, into out.");
+
+    m.def(
+        "sincos",
+        [](In1 x, Out1 s, Out1 c) {
+            require(s.shape(0) == x.shape(0) && c.shape(0) == x.shape(0), "s and c must have x's shape (n,)");
+            for (size_t i = 0; i < x.shape(0); ++i) dm::sincos(x.data()[i], s.data()[i], c.data()[i]);
+        },
+        "x"_a, "s"_a.noconvert(), "c"_a.noconvert(),
+        "The engine's sin and cos of each x [rad] into s and c (detmath.hpp: the same bits on every "
+        "machine, within about an ulp).");
+
+    m.def(
+        "atan2",
+        [](In1 y, In1 x, Out1 out) {
+            require(x.shape(0) == y.shape(0) && out.shape(0) == y.shape(0), "y, x and out must have one shape (n,)");
+            for (size_t i = 0; i < y.shape(0); ++i) out.data()[i] = dm::atan2(y.data()[i], x.data()[i]);
+        },
+        "y"_a, "x"_a, "out"_a.noconvert(),
+        "The engine's atan2 of each (y, x) [rad] into out (detmath.hpp: C99's special values).");
 }

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "../common.hpp"
+#include "../detmath.hpp"
 #include "../core/cascade.hpp"
 #include "../tasks/frame.hpp"
 #include "../tasks/pose.hpp"
@@ -180,7 +181,7 @@ inline void ball_difference(double* res, const double* qa_raw, const double* qb_
     model::se3_detail::quat_mul(dif, neg, qa);
     double axis[3] = {dif[1], dif[2], dif[3]};
     const double sin_half = mj_normalize3(axis);
-    double speed = 2.0 * std::atan2(sin_half, dif[0]);
+    double speed = 2.0 * dm::atan2(sin_half, dif[0]);
     if (speed > kPi) speed -= 2.0 * kPi;
     res[0] = axis[0] * speed;
     res[1] = axis[1] * speed;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "../common.hpp"
+#include "../detmath.hpp"
 
 namespace qpik::model {
 
@@ -39,8 +40,8 @@ struct Chain {
 // Rotation matrix of `angle` [rad] about unit `axis` (Rodrigues), into out (3x3).
 inline void axis_rotation(const double* axis, double angle, double* out) {
     double x = axis[0], y = axis[1], z = axis[2];
-    double c = std::cos(angle);
-    double s = std::sin(angle);
+    double c, s;
+    dm::sincos(angle, s, c);
     double t = 1.0 - c;
     out[0] = t * x * x + c;
     out[1] = t * x * y - s * z;
@@ -304,8 +305,8 @@ inline void fast_fk_jac(const FastChain& f, const double* q, MatRef axes, MatRef
         }
         double value = q[J.qadr] - J.qpos0;
         if (J.hinge) {
-            double c = std::cos(value);
-            double s = std::sin(value);
+            double c, s;
+            dm::sincos(value, s, c);
             if (J.axis_index >= 0) {
                 rotate_about_axis(R, J.turn_a, J.turn_b, c, J.axis_sign * s);
             } else {

@@ -12,6 +12,7 @@
 #include <cmath>
 
 #include "../common.hpp"
+#include "../detmath.hpp"
 #include "so3.hpp"
 
 namespace qpik::model {
@@ -134,7 +135,9 @@ inline void se3_log(double* tangent, const double* T) {
         for (int i = 0; i < 9; ++i) vinv[i] = -0.5 * skw[i] + skw2[i] / 12.0;
     } else {
         const double half = 0.5 * theta;
-        const double coeff = (1.0 - 0.5 * theta * std::cos(half) / std::sin(half)) / t2;
+        double sh, ch;
+        dm::sincos(half, sh, ch);
+        const double coeff = (1.0 - 0.5 * theta * ch / sh) / t2;
 #pragma GCC unroll 9
         for (int i = 0; i < 9; ++i) vinv[i] = -0.5 * skw[i] + coeff * skw2[i];
     }
@@ -262,8 +265,7 @@ inline void get_q(double* Q, const double* c) {
     const double t2 = theta * theta;
     double st = 0.0, ct = 1.0;
     if (!(t2 < kLieEps)) {
-        st = std::sin(theta);
-        ct = std::cos(theta);
+        dm::sincos(theta, st, ct);
     }
     get_q_at(Q, c, theta, st, ct);
 }
@@ -288,8 +290,7 @@ inline void se3_jlog(double* jlog, const double* T) {
     const double theta = std::sqrt(dot3(neg + 3, neg + 3));
     double st = 0.0, ct = 1.0;
     if (!(theta * theta < kLieEps)) {
-        st = std::sin(theta);
-        ct = std::cos(theta);
+        dm::sincos(theta, st, ct);
     }
     get_q_at(Q, neg, theta, st, ct);
     so3_ljacinv_at(lji, neg + 3, theta, st, ct);

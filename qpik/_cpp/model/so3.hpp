@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "../common.hpp"
+#include "../detmath.hpp"
 
 namespace qpik::model {
 
@@ -27,7 +28,7 @@ inline double rotation_log(const double* R, double* out) {
     double v2 = 0.5 * (r(1, 0) - r(0, 1));
     double s = std::sqrt(v0 * v0 + v1 * v1 + v2 * v2);
     double c = 0.5 * (r(0, 0) + r(1, 1) + r(2, 2) - 1.0);
-    double theta = std::atan2(s, c);
+    double theta = dm::atan2(s, c);
     if (c > -0.9) {
         if (s < 1e-300) {
             out[0] = 0.0;
@@ -116,7 +117,7 @@ inline void so3_log(double* omega, const double* wxyz) {
         omega[2] = 0.0;
         return;
     }
-    const double angle = 2.0 * std::atan2(norm, w);
+    const double angle = 2.0 * dm::atan2(norm, w);
     omega[0] = angle * x;
     omega[1] = angle * y;
     omega[2] = angle * z;
@@ -163,8 +164,7 @@ inline void so3_ljacinv(double* out, const double* omega) {
     const double t2 = theta * theta;
     double st = 0.0, ct = 1.0;
     if (!(t2 < kLieEps)) {
-        st = std::sin(theta);
-        ct = std::cos(theta);
+        dm::sincos(theta, st, ct);
     }
     so3_ljacinv_at(out, omega, theta, st, ct);
 }
