@@ -35,13 +35,20 @@ def make_tasks(configuration, rng):
 
 @pytest.mark.parametrize("robot", ["ur5e", "panda"])
 def test_task_jacobians_match_finite_differences(robot, rng):
+    """Each task's Jacobian against central differences of its error, to 2e-5 plus 1e-8 of
+    its largest entry: the manipulability's gradient reaches 2e4 near a singularity, where
+    the differences' round-off (2e-5 there) depends on the BLAS kernel NumPy picks for the
+    CPU (the test failed under OPENBLAS_CORETYPE=Sandybridge with a fixed 2e-5)."""
     configuration = configuration_of(robot)
     for _ in range(5):
         configuration.update(configuration.random_q(rng))
         for task in make_tasks(configuration, rng):
             J = task.compute_jacobian(configuration)
             np.testing.assert_allclose(
-                J, numeric_jacobian(task, configuration), atol=2e-5, err_msg=type(task).__name__
+                J,
+                numeric_jacobian(task, configuration),
+                atol=2e-5 + 1e-8 * np.abs(J).max(),
+                err_msg=type(task).__name__,
             )
 
 
