@@ -244,6 +244,23 @@ def test_special_values():
     assert np.isnan(_atan2([math.nan, 1.0], [1.0, math.nan])).all()
 
 
+def test_symmetries_and_bounds():
+    """sin is odd and cos even bit for bit (the reductions are symmetric), both within
+    [-1, 1]; atan2 is odd in y and within [-pi, pi]."""
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.uniform(-10.0, 10.0, 50000),
+                        rng.uniform(-1.0, 1.0, 20000) * 10.0 ** rng.uniform(-300, 308, 20000)])  # fmt: skip
+    s, c = _sincos(x)
+    s_neg, c_neg = _sincos(-x)
+    assert np.array_equal(s, -s_neg) and np.array_equal(c, c_neg)
+    assert (np.abs(s) <= 1.0).all() and (np.abs(c) <= 1.0).all()
+    assert np.abs(s * s + c * c - 1.0).max() <= 4 * np.finfo(float).eps
+    y = rng.normal(size=50000) * 10.0 ** rng.uniform(-5, 5, 50000)
+    a = _atan2(y, x[:50000])
+    assert np.array_equal(a, -_atan2(-y, x[:50000]))
+    assert (np.abs(a) <= math.pi).all()
+
+
 def test_agrees_with_the_c_library_to_an_ulp():
     """Beside glibc's (or the platform's) functions: never more than one ulp apart."""
     rng = np.random.default_rng(2)
