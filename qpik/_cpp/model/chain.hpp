@@ -37,11 +37,10 @@ struct Chain {
     const double* frame_rot = nullptr;  // (3, 3)
 };
 
-// Rotation matrix of `angle` [rad] about unit `axis` (Rodrigues), into out (3x3).
-inline void axis_rotation(const double* axis, double angle, double* out) {
+// Rotation matrix about unit `axis` of the angle whose cosine and sine are c, s (Rodrigues),
+// into out (3x3).
+inline void axis_rotation_cs(const double* axis, double c, double s, double* out) {
     double x = axis[0], y = axis[1], z = axis[2];
-    double c, s;
-    dm::sincos(angle, s, c);
     double t = 1.0 - c;
     out[0] = t * x * x + c;
     out[1] = t * x * y - s * z;
@@ -52,6 +51,13 @@ inline void axis_rotation(const double* axis, double angle, double* out) {
     out[6] = t * x * z - s * y;
     out[7] = t * y * z + s * x;
     out[8] = t * z * z + c;
+}
+
+// Rotation matrix of `angle` [rad] about unit `axis` (Rodrigues), into out (3x3).
+inline void axis_rotation(const double* axis, double angle, double* out) {
+    double c, s;
+    dm::sincos(angle, s, c);
+    axis_rotation_cs(axis, c, s, out);
 }
 
 // Rotation matrices (k, 3, 3) of unit quaternions (k, 4) (w, x, y, z).
@@ -310,7 +316,7 @@ inline void fast_fk_jac(const FastChain& f, const double* q, MatRef axes, MatRef
             if (J.axis_index >= 0) {
                 rotate_about_axis(R, J.turn_a, J.turn_b, c, J.axis_sign * s);
             } else {
-                axis_rotation(J.axis, value, rot);
+                axis_rotation_cs(J.axis, c, s, rot);  // (the sine and cosine above)
                 matmul3(R, rot, tmp);
                 copy3(tmp, R);
             }
