@@ -37,7 +37,7 @@ __all__ = ["Attempt", "Clock", "Seed", "StallWindow", "rng_state", "run_attempts
 #: Bit generators whose raw output is their next 64-bit draw: for these,
 #: ``bit_generator.random_raw()`` is ``integers(0, 2**64 - 1, dtype=np.uint64,
 #: endpoint=True)`` (one draw; the generator advances alike), without its argument handling.
-_RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
+RAW_UINT64 = (np.random.PCG64, np.random.PCG64DXSM, np.random.SFC64, np.random.Philox)
 #: What a solve's ``seed`` may be (see :func:`qpik.solve`).
 Seed = int | np.random.Generator | np.random.SeedSequence | None
 
@@ -48,7 +48,7 @@ def rng_state(seed: Seed) -> int:
     if seed is None:  # 64 bits from the OS (a SeedSequence's hashing costs ~25 us a call)
         return int.from_bytes(os.urandom(8), "little")
     if isinstance(seed, np.random.Generator):
-        if type(seed.bit_generator) in _RAW_UINT64:  # the same draw, ~10x cheaper
+        if type(seed.bit_generator) in RAW_UINT64:  # the same draw, ~10x cheaper
             return seed.bit_generator.random_raw()
         return int(seed.integers(0, 2**64 - 1, dtype=np.uint64, endpoint=True))
     if isinstance(seed, np.random.SeedSequence):

@@ -113,7 +113,7 @@ from . import kernels
 from .kernels import kernel_options as _kernel_options
 from .prepared import PREPARED, PreparedFrame, PreparedRobot, model_watch
 from .qp_engine import QPProblem, borrowed_tasks, iterate, lent_scratch
-from .restarts import Clock, Seed
+from .restarts import RAW_UINT64, Clock, Seed
 from .restarts import rng_state as _rng_state
 from .result import IKResult, LazyRows, Reason
 from .targets import (
@@ -136,6 +136,7 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 LIMIT_GAIN = kernels.LIMIT_GAIN
 #: The reasons of the compiled engine, by code.
 _REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
+_Generator = np.random.Generator
 
 
 class SolveArguments(SolveKeywords, total=False):
@@ -276,14 +277,14 @@ class IKSession:
         q0 = keywords.pop("q0", None)
         stack = keywords.pop("stack", None)
         seed = keywords.pop("seed", UNSET)
-        settings, kernel_options = self._options(options, keywords)
-        rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
-        # The lean lane: one (position, rotation) target of a frame the compiled engine already
-        # solved with these options, a robot with no coupling, no unheld equality, hinge/slide
-        # chains, limits "joint": checks and engine in one compiled call (_lean), bit for bit
-        # the general path below, which answers (or raises) wherever that call declines.
-        memo = self._memo[0]
-        if memo is not None and memo[2] is settings and memo[-1] is True and stack is None:
+        settings, kernel_options, lean = self._options(options, keywords)
+        if type(seed) is _Generator and type(seed.bit_generator) in RAW_UINT64:
+            rng_state = seed.bit_generator.random_raw()  # (rng_state's draw)
+        else:
+            rng_state = _rng_state(settings.seed if isinstance(seed, Unset) else seed)
+        # (Few calls and checks on this path: a solve between a planner's other work runs with
+        # cold caches, where each costs several times what it costs in a loop of solves.)
+        if lean and stack is None:
             result = self._lean(targets, q0, settings, kernel_options, rng_state, start_time)
             if result is not None:
                 return result
@@ -356,28 +357,32 @@ class IKSession:
     # ---------------------------------------------------------------- helpers
     def _options(
         self, options: SolveOptions | str | None, keywords: Mapping[str, Any]
-    ) -> tuple[SolveOptions, tuple[np.ndarray, np.ndarray]]:
+    ) -> tuple[SolveOptions, tuple[np.ndarray, np.ndarray], bool]:
         """The options of a solve (``keywords``: the option keywords given), validated once
-        for a run of solves with the same ones, with the compiled engine's option arrays."""
-        base = self.options if options is None else resolve(options)
+        for a run of solves with the same ones, with the compiled engine's option arrays and
+        whether the lean lane (:meth:`_lean`) may take the solve."""
+        base = self._defaults if options is None else resolve(options)
         memo = self._memo[0]
-        if memo is not None and memo[0] is base:
-            try:
-                # (and by type: True == 1 and 50.0 == 50, where only the int is valid)
-                if memo[1] == keywords and all(
-                    type(memo[1][k]) is type(v) for k, v in keywords.items()
-                ):
-                    return memo[2], memo[3]
-            except (TypeError, ValueError):  # values that do not compare plainly (arrays)
-                pass
+        try:
+            # The last options' keywords: the same values, and of the same types (True == 1
+            # and 50.0 == 50, where only the int is valid), compared in compiled code.
+            if (
+                memo is not None
+                and memo[0] is base
+                and keywords == memo[1]
+                and tuple(map(type, map(keywords.__getitem__, memo[4]))) == memo[5]
+            ):
+                return memo[2], memo[3], memo[6]
+        except (TypeError, ValueError):  # values that do not compare plainly (arrays)
+            pass
         settings = base.replace(**keywords)
-        derived = (settings, _kernel_options(settings))
+        kernel_options = _kernel_options(settings)
         try:
             hash(tuple(keywords.items()))
         except TypeError:  # a list of limits, say: not remembered
-            return derived
+            return settings, kernel_options, False
         prepared = self._prepared
-        lean = (  # the options and robot of the lean lane (_solve)
+        lean = (  # the options and robot of the lean lane (_lean)
             settings.limits == "joint"
             and not settings.secondary
             and settings.engine != "qp"
@@ -385,8 +390,9 @@ class IKSession:
             and prepared.couplings is None
             and prepared.unheld.size == 0
         )
-        self._memo[0] = (base, dict(keywords), *derived, lean)
-        return derived
+        keys, types = tuple(keywords), tuple(map(type, keywords.values()))
+        self._memo[0] = (base, dict(keywords), settings, kernel_options, keys, types, lean)
+        return settings, kernel_options, lean
 
     def _targets(
         self, targets: Mapping[FrameKey, TargetLike]
@@ -565,8 +571,10 @@ class IKSession:
         rng_state: int,
         start_time: float,
     ) -> IKResult | None:
-        """:meth:`_solve`'s lean lane (see there): its answer, or None where the general
-        path must answer (nothing run, nothing changed)."""
+        """:meth:`_solve`'s lean lane: one (position, rotation) target of a frame the compiled
+        engine solved with these options, a robot with no coupling, no unheld equality,
+        hinge/slide chains, limits "joint": checks and engine in one compiled call, bit for
+        bit the general path, which answers (or raises) wherever this returns None."""
         if type(targets) is not dict or len(targets) != 1:
             return None
         ((key, value),) = targets.items()
@@ -617,22 +625,12 @@ class IKSession:
         code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
         converged = code == 0
         return IKResult(
-            q,
-            converged,
-            _REASONS_BY_CODE[code],
-            iterations,
-            restarts_used,
-            position_error,
-            orientation_error,
-            time.perf_counter() - start_time,
-            {name: (position_error, orientation_error)},
-            LazyRows(history, list, 1, 2),
-            LazyRows(history, tuple, 0, 0, 2),
-            path,
-            "compiled",
-            (converged,),
+            q, converged, _REASONS_BY_CODE[code], iterations, restarts_used, position_error,
+            orientation_error, time.perf_counter() - start_time,
+            {name: (position_error, orientation_error)}, LazyRows(history, list, 1, 2),
+            LazyRows(history, tuple, 0, 0, 2), path, "compiled", (converged,),
             coupling if coupling is not None else self._coupling_error(q),
-        )
+        )  # fmt: skip
 
     def _coupling_error(self, q: np.ndarray) -> float:
         couplings = self._prepared.couplings

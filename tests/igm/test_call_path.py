@@ -167,6 +167,39 @@ def test_the_lean_lane_gives_the_general_paths_answers(monkeypatch):
     assert len(calls) == len(runs) * 14
 
 
+def test_the_lean_lanes_option_check_is_the_options_memos(monkeypatch):
+    """The lane reads its options from the session's memo only for the same keywords, of the
+    same types and values (in any order): an equal value of another type (np.float64 for a
+    float) goes through the options' checks (then the lane again); every answer is a fresh
+    session's."""
+    from qpik.igm import kernels
+
+    model = qpik.load_robot("ur5e")
+    session = qpik.IKSession(model)
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(6)))
+    target = {"ee": configuration.frame_pose("ee")}
+    calls = []
+    real = kernels.igm_lean_run
+    monkeypatch.setattr(kernels, "igm_lean_run", lambda *args: calls.append(1) or real(*args))
+    runs = (
+        {"tol_position": 1e-6, "restarts": 3},
+        {"restarts": 3, "tol_position": 1e-6},
+        {"restarts": 3, "tol_position": np.float64(1e-6)},
+        {"tol_position": 1e-6, "restarts": 3},
+    )
+    for keywords in runs:
+        for seed in (1, np.random.default_rng(1)):
+            got = session.solve(target, seed=seed, **keywords)
+            fresh = np.random.default_rng(1) if isinstance(seed, np.random.Generator) else 1
+            _same(got, _general(qpik.IKSession(model), monkeypatch, target, seed=fresh, **keywords))
+    # Lane calls per run of two solves: the first run's second (its first makes the plan);
+    # both of the second (the memo's options, in another order: the same plan); then new
+    # options (np.float64), whose first solve makes their plan; then the first run's again,
+    # against the memo of the third (types differ): its options made again, and their plan.
+    assert len(calls) == 1 + 2 + 1 + 1
+
+
 @pytest.mark.parametrize(
     "q0, error",
     [
