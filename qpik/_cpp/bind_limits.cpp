@@ -160,13 +160,13 @@ void bind_limits(nb::module_& m) {
             const i64 nv = static_cast<i64>(jac.shape(1));
             std::vector<double> pts(static_cast<size_t>(2 * n));
             points_of(positions, rotations, footprints, pts);
+            // (the hull first: G and h sized by its edges, not by the points)
             std::vector<double> normals(static_cast<size_t>(2 * n)), offsets(static_cast<size_t>(n));
-            std::vector<double> G(static_cast<size_t>(n * nv)), h(static_cast<size_t>(n));
+            const i64 e = limits::support_hull(pts.data(), n, normals.data(), offsets.data());
+            std::vector<double> G(static_cast<size_t>(e * nv)), h(static_cast<size_t>(e));
             i64 fewest = nv;
-            const i64 e = limits::support_rows(pts.data(), n, jac.data(), jac.data() + nv, nv, com_x, com_y, margin,
-                                               gain, normals.data(), offsets.data(), G.data(), h.data(), fewest);
-            G.resize(static_cast<size_t>(e * nv));
-            h.resize(static_cast<size_t>(e));
+            limits::support_rows(normals.data(), offsets.data(), e, jac.data(), jac.data() + nv, nv, com_x, com_y,
+                                 margin, gain, G.data(), h.data(), fewest);
             return std::make_tuple(to_numpy(std::move(G), {static_cast<size_t>(e), static_cast<size_t>(nv)}),
                                    to_numpy(std::move(h)), fewest);
         },

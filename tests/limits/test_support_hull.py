@@ -263,3 +263,27 @@ def test_a_ball_on_its_range_makes_no_negative_round_off_bound():
         rho = rng.uniform(0.2, 3.0)
         _, bounds = ball_rows(axis * rho, rho, int(rng.integers(0, 3)))
         assert bounds.min() >= 0.0 or bounds.min() < -1e-12
+
+
+def test_points_inside_leave_the_hull_bitwise_as_it_was(rng):
+    # The engine leaves out, before its sort, the points well inside the octagon of the
+    # extreme points (the inner sides of two mesh soles): the hull is the one of the points
+    # without them, bit for bit, and Qhull's edges.
+    for trial in range(200):
+        k = int(rng.integers(20, 160))
+        t = np.sort(rng.uniform(0.0, 2.0 * np.pi, k))
+        sole = np.column_stack(
+            [0.11 * np.sign(np.cos(t)) * np.abs(np.cos(t)) ** 0.2,
+             0.06 * np.sign(np.sin(t)) * np.abs(np.sin(t)) ** 0.2]
+        )  # fmt: skip
+        yaw = rng.uniform(-0.4, 0.4)
+        turn = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+        far = rng.normal(size=2) * [1.0, 1e3][trial % 2]  # (far from 0: differences first)
+        points = np.vstack([sole + [0.0, 0.1], sole @ turn.T + [rng.uniform(-0.1, 0.1), -0.1]])
+        points = np.vstack([points, rng.uniform(-0.05, 0.05, size=(k, 2))]) + far
+        normals, offsets = engine.support_hull(points)
+        rim = points[np.sort(ConvexHull(points).vertices)]
+        rim_normals, rim_offsets = engine.support_hull(rim)
+        np.testing.assert_array_equal(normals, rim_normals)
+        np.testing.assert_array_equal(offsets, rim_offsets)
+        assert (points @ normals.T + offsets).max() <= 1e-9 * (1.0 + np.abs(far).max())

@@ -94,6 +94,7 @@ struct Workspace {
     Mat Z, Ztmp;
     // solve_cascade_into: the general rows in reach of the box (rows_in_reach) and the others
     IVec g_kept;
+    Vec reach_cols;  // rows_in_reach's per-column bounds (3 n)
     Mat g_in, g_out;
     Vec h_in, h_out;
     std::vector<i8> warm_in, active_in;
@@ -4135,27 +4136,37 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
 inline constexpr double kScreen = 1e-6;
 inline constexpr double kScreenAbs = 1e-9;
 
-inline i64 rows_in_reach(CMatRef G, CVecRef h, CVecRef lb, CVecRef ub, IVec& kept) {
+inline i64 rows_in_reach(CMatRef G, CVecRef h, CVecRef lb, CVecRef ub, IVec& kept, Vec& cols) {
     const i64 p = G.rows, n = G.cols;
     kept.clear();
+    // Per column, once: its bounds where both are finite (else 0 and 0, and the column marked
+    // open), and max(|lb_i|, |ub_i|).
+    cols.resize(static_cast<size_t>(3 * n));
+    double *lo = cols.data(), *hi = lo + n, *big = hi + n;
+    for (i64 i = 0; i < n; ++i) {
+        const bool closed = lb[i] > -kBig && ub[i] < kBig;
+        lo[i] = closed ? lb[i] : 0.0;
+        hi[i] = closed ? ub[i] : 0.0;
+        big[i] = closed ? pymax(std::fabs(lb[i]), std::fabs(ub[i])) : -1.0;  // (-1: open)
+    }
     for (i64 j = 0; j < p; ++j) {
         if (h[j] >= kBig) continue;  // absent (h NaN is kept below: the cascade's to judge)
         const double* gj = G.row(j);
+        // The sums in index order, as term by term over the nonzero entries: an entry 0
+        // adds +-0 (its column's bounds finite here), which leaves each sum as it was (none
+        // is ever -0). A non-finite entry makes the test below fail (inf or NaN sums), as
+        // it keeps its row; an open column under a nonzero entry keeps it too.
         double reach = 0.0, size = 0.0, g1 = 0.0;
-        bool bounded = std::isfinite(h[j]);
-        for (i64 i = 0; i < n && bounded; ++i) {
-            const double g = gj[i];
-            if (g == 0.0) continue;
-            const double lo = lb[i], hi = ub[i];
-            if (!(lo > -kBig && hi < kBig) || !std::isfinite(g)) {
-                bounded = false;
-                break;
-            }
-            reach += g > 0.0 ? g * hi : g * lo;
-            size += std::fabs(g) * pymax(std::fabs(lo), std::fabs(hi));
-            g1 += std::fabs(g);
+        bool open = false;
+        for (i64 i = 0; i < n; ++i) {
+            const double g = gj[i], a = std::fabs(g);
+            reach += g > 0.0 ? g * hi[i] : g * lo[i];
+            size += a * pymax(big[i], 0.0);
+            g1 += a;
+            open |= (g != 0.0) & (big[i] < 0.0);
         }
-        if (bounded && h[j] - reach > kScreen * (size + std::fabs(h[j])) + kScreenAbs * g1) continue;
+        if (!open && std::isfinite(h[j]) && h[j] - reach > kScreen * (size + std::fabs(h[j])) + kScreenAbs * g1)
+            continue;
         kept.push_back(j);
     }
     return static_cast<i64>(kept.size());
@@ -4172,7 +4183,7 @@ inline void solve_cascade_into(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i6
                                bool canonical, Workspace& ws, CascadeResult& res, bool residuals = true,
                                bool primal = true, bool defer_sigma = false, double lower_trust = 0.0) {
     const i64 p = G.rows, n = lb.size(), L = starts.size() - 1;
-    const i64 q = p ? rows_in_reach(G, h, lb, ub, ws.g_kept) : 0;
+    const i64 q = p ? rows_in_reach(G, h, lb, ub, ws.g_kept, ws.reach_cols) : 0;
     if (q == p) {
         detail::solve_cascade_rows(A, b, w, starts, reg, lb, ub, G, h, threshold, max_damping, error_scale, rank_tol,
                                    max_iter, tol, warm, canonical, ws, res, residuals, primal, defer_sigma, lower_trust);

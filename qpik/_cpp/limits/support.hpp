@@ -1,6 +1,8 @@
 // The support polygon's edges: the convex hull of a few ground points (x, y) [m] by Andrew's
-// monotone chain, for qpik.limits.SupportPolygonLimit. A humanoid's two soles make eight
-// points; scipy's Qhull spends about 90 us on its set-up for them, this about 1 us.
+// monotone chain, for qpik.limits.SupportPolygonLimit. A humanoid's two box soles make eight
+// points; scipy's Qhull spends about 90 us on its set-up for them, this about 1 us. Mesh
+// soles make hundreds (Talos: 156 hull vertices a foot); those well inside the octagon of
+// the extreme points (drop_inside) are left out before the sort.
 //
 // The hull runs counter-clockwise from the lowest-x point (the lowest y among equal x). A
 // point is dropped from the chain where the chain goes on through it turning by less than
@@ -25,11 +27,61 @@ inline constexpr double kTurn = 1e-10;
 // The hull of the n points pts (n, 2) row-major: its edge count e (at most n) with the edges'
 // normals (e, 2) and offsets (e,) written into normals / offsets (n rows / entries each);
 // 0 (nothing written) where the points span no area or one is not finite.
+struct HullPoint {
+    double x, y;
+    i64 index;
+};
+
+// Below this distance, as a fraction of the points' extent, a point is not taken as inside
+// the octagon of drop_inside: far above the round-off of its tests (a few 1e-16 of the
+// extent), and ten times the chain's own slack kTurn.
+inline constexpr double kInside = 1e-9;
+
+// The points of pts (the first in `sorted`, each with its index) that may be vertices of
+// their hull, moved to the front of `sorted` in their order; their count returned. A point
+// at least kInside extent inside the convex polygon of the extreme points ext (vertex
+// indices, in the hull's counter-clockwise order, repeats allowed) is inside the hull by as
+// much: the chain would pop it, and a point that far inside never turns the chain where a
+// vertex is (the chain's answer is the same without it). (Akl and Toussaint's heuristic: on
+// a humanoid's two soles, the inner sides of both feet.)
+inline i64 drop_inside(std::vector<HullPoint>& sorted, const i64* ext, double extent) {
+    typedef double v2d __attribute__((vector_size(16)));
+    typedef long long v2i __attribute__((vector_size(16)));
+    const i64 n = static_cast<i64>(sorted.size());
+    // The octagon's edges two at a time (lanes), a missing one (repeated vertex) always met:
+    // a zero edge with a negative bound.
+    v2d ax[4], ay[4], ex[4], ey[4], tol[4];
+    for (int k = 0; k < 4; ++k) ax[k] = ay[k] = ex[k] = ey[k] = v2d{0.0, 0.0}, tol[k] = v2d{-1.0, -1.0};
+    int edges = 0;
+    for (int d = 0; d < 8; ++d) {
+        const HullPoint& a = sorted[static_cast<size_t>(ext[d])];
+        const HullPoint& b = sorted[static_cast<size_t>(ext[(d + 1) % 8])];
+        const double dx = b.x - a.x, dy = b.y - a.y;
+        if (dx == 0.0 && dy == 0.0) continue;  // (the same point twice: no edge)
+        ax[edges / 2][edges % 2] = a.x;
+        ay[edges / 2][edges % 2] = a.y;
+        ex[edges / 2][edges % 2] = dx;
+        ey[edges / 2][edges % 2] = dy;
+        tol[edges / 2][edges % 2] = kInside * extent * std::sqrt(dx * dx + dy * dy);
+        ++edges;
+    }
+    if (edges < 3) return n;
+    i64 kept = 0;
+    for (i64 i = 0; i < n; ++i) {  // (no branch on the tests: a point is copied either way)
+        const HullPoint p = sorted[static_cast<size_t>(i)];
+        const v2d px = {p.x, p.x}, py = {p.y, p.y};
+        // inside: to the left of every edge, e x (p - a) > tol (the differences first: their
+        // round-off is relative to the extent, whatever the points' distance from 0)
+        v2i in = (ex[0] * (py - ay[0]) - ey[0] * (px - ax[0])) > tol[0];
+        for (int k = 1; k < 4; ++k) in &= (ex[k] * (py - ay[k]) - ey[k] * (px - ax[k])) > tol[k];
+        sorted[static_cast<size_t>(kept)] = p;
+        kept += 1 + (in[0] & in[1]);  // (a lane's true is -1)
+    }
+    return kept;
+}
+
 inline i64 support_hull(const double* pts, i64 n, double* normals, double* offsets) {
-    struct Point {
-        double x, y;
-        i64 index;
-    };
+    using Point = HullPoint;
     // The chain's tests on the points scaled by a power of two (exact) to at most 1 in size:
     // their squares neither overflow nor depend on the unit.
     double big = 0.0;
@@ -43,6 +95,15 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
     const double unit = std::ldexp(1.0, -exponent);
     std::vector<Point> sorted(static_cast<size_t>(n));
     double lo[2] = {kInf, kInf}, hi[2] = {-kInf, -kInf};
+    // The first point of largest d . p for each of eight directions d, 45 degrees apart
+    // counter-clockwise from +x (x, x + y, y, y - x, -x, -x - y, -y, x - y): the octagon
+    // they make is inside the hull, its vertices in the hull's order.
+    // (lanes: (x, y), (x + y, y - x) and their negatives; each lane's first largest, its
+    // index held as a double: exact below 2^53)
+    typedef double v2d __attribute__((vector_size(16)));
+    typedef long long v2i __attribute__((vector_size(16)));
+    const v2d none = {-kInf, -kInf};
+    v2d best[4] = {none, none, none, none}, at[4] = {};
     for (i64 i = 0; i < n; ++i) {
         const double x = pts[2 * i] * unit, y = pts[2 * i + 1] * unit;
         sorted[static_cast<size_t>(i)] = Point{x, y, i};
@@ -50,9 +111,21 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
         hi[0] = std::max(hi[0], x);
         lo[1] = std::min(lo[1], y);
         hi[1] = std::max(hi[1], y);
+        const v2d xy = {x, y}, turned = {x + y, y - x}, index = {static_cast<double>(i), static_cast<double>(i)};
+        const v2d key[4] = {xy, turned, -xy, -turned};
+        for (int k = 0; k < 4; ++k) {
+            const v2i more = key[k] > best[k];
+            best[k] = more ? key[k] : best[k];
+            at[k] = more ? index : at[k];
+        }
     }
+    // counter-clockwise from +x: x, x + y, y, y - x, -x, -x - y, -y, x - y
+    const i64 ext[8] = {static_cast<i64>(at[0][0]), static_cast<i64>(at[1][0]), static_cast<i64>(at[0][1]),
+                        static_cast<i64>(at[1][1]), static_cast<i64>(at[2][0]), static_cast<i64>(at[3][0]),
+                        static_cast<i64>(at[2][1]), static_cast<i64>(at[3][1])};
+    n = drop_inside(sorted, ext, std::max(hi[0] - lo[0], hi[1] - lo[1]));
     // (x, then y, then the index: a total order, the same sort on every machine)
-    std::sort(sorted.begin(), sorted.end(), [](const Point& a, const Point& b) {
+    std::sort(sorted.begin(), sorted.begin() + n, [](const Point& a, const Point& b) {
         if (a.x != b.x) return a.x < b.x;
         if (a.y != b.y) return a.y < b.y;
         return a.index < b.index;
@@ -128,16 +201,14 @@ inline void support_points(const double* pos, const double* rot, i64 F, const do
 // round-off of 0 (a start exactly on the shrunk edge) and is taken as 0.
 constexpr double kRoundOffTight = 1e-12;
 
-// The support polygon's rows in displacement units [m], one per edge of the hull of the n
-// ground points pts (support_hull): G_e = a_e^T J_xy (jac: the CoM Jacobian's x and y rows,
-// each nv long) and h_e = gain (-margin - o_e - a_e^T c_xy), into G (n, nv) and h (n,) (the
-// first e rows written); their count e (0: no polygon) and, in fewest, the fewest nonzero
-// entries of a row (nv where e = 0).
-inline i64 support_rows(const double* pts, i64 n, const double* jac_x, const double* jac_y, i64 nv, double cx,
-                        double cy, double margin, double gain, double* normals, double* offsets, double* G,
-                        double* h, i64& fewest) {
+// The support polygon's rows in displacement units [m], one per edge of its hull (e edges,
+// support_hull's normals (e, 2) and offsets (e,)): G_e = a_e^T J_xy (jac: the CoM Jacobian's
+// x and y rows, each nv long) and h_e = gain (-margin - o_e - a_e^T c_xy), into G (e, nv)
+// and h (e,); in fewest, the fewest nonzero entries of a row (nv where e = 0).
+inline void support_rows(const double* normals, const double* offsets, i64 e, const double* jac_x,
+                         const double* jac_y, i64 nv, double cx, double cy, double margin, double gain, double* G,
+                         double* h, i64& fewest) {
     fewest = nv;
-    const i64 e = support_hull(pts, n, normals, offsets);
     for (i64 r = 0; r < e; ++r) {
         const double ax = normals[2 * r], ay = normals[2 * r + 1];
         double* g = G + r * nv;
@@ -156,7 +227,6 @@ inline i64 support_rows(const double* pts, i64 n, const double* jac_x, const dou
             hr = 0.0;
         h[r] = hr;
     }
-    return e;
 }
 
 }  // namespace qpik::limits
