@@ -154,7 +154,7 @@ void bind_limits(nb::module_& m) {
     m.def(
         "support_rows",
         [check_frames, points_of](In2 positions, In2 rotations, std::vector<In2> footprints, In2 jac, double com_x,
-                                  double com_y, double margin, double gain) {
+                                  double com_y, double margin, double gain, double negligible) {
             const i64 n = check_frames(positions, rotations, footprints);
             require(jac.shape(0) >= 2, "support_rows: jac must hold the CoM Jacobian's x and y rows (>= 2, nv)");
             const i64 nv = static_cast<i64>(jac.shape(1));
@@ -166,15 +166,16 @@ void bind_limits(nb::module_& m) {
             std::vector<double> G(static_cast<size_t>(e * nv)), h(static_cast<size_t>(e));
             i64 fewest = nv;
             limits::support_rows(normals.data(), offsets.data(), e, jac.data(), jac.data() + nv, nv, com_x, com_y,
-                                 margin, gain, G.data(), h.data(), fewest);
+                                 margin, gain, G.data(), h.data(), fewest, negligible);
             return std::make_tuple(to_numpy(std::move(G), {static_cast<size_t>(e), static_cast<size_t>(nv)}),
                                    to_numpy(std::move(h)), fewest);
         },
         nb::arg("positions"), nb::arg("rotations"), nb::arg("footprints"), nb::arg("jac"), nb::arg("com_x"),
-        nb::arg("com_y"), nb::arg("margin"), nb::arg("gain"),
+        nb::arg("com_y"), nb::arg("margin"), nb::arg("gain"), nb::arg("negligible") = 0.0,
         "The support polygon's rows G dq <= h [m] (qpik.limits.SupportPolygonLimit): the hull\n"
         "(support_hull) of the footprints' ground points (support_points), and per edge a\n"
         "G_e = a_e^T J_xy (jac's first two rows: the CoM Jacobian's x and y), h_e = gain (-margin -\n"
         "o_e - a_e^T c_xy); (G (e, nv), h (e,), the fewest nonzero entries of a row), e = 0 where\n"
-        "the points span no area.");
+        "the points span no area. A row whose entries are all at most `negligible` in size is made\n"
+        "zero (qpik.limits.collision.NEGLIGIBLE_ROW; 0: none).");
 }

@@ -30,7 +30,7 @@ from ..errors import (
     LimitDefinitionError,
     QpikError,
 )
-from ..limits.collision import CollisionAvoidanceLimit, mink_collision_rows
+from ..limits.collision import NEGLIGIBLE_ROW, CollisionAvoidanceLimit, mink_collision_rows
 from ..limits.support import SupportPolygonLimit
 from ..model.configuration import Configuration, dof_names
 from .limit_inputs import check_limit_model, constraint_rows, limit_name
@@ -585,6 +585,7 @@ def _unfolded(limit, configuration: Configuration, dt: float, side: _Collected) 
 _QPIK_COLLISION_ROWS = CollisionAvoidanceLimit.compute_qp_inequalities
 #: SupportPolygonLimit's own rows (likewise)
 _SUPPORT_ROWS = SupportPolygonLimit.compute_qp_inequalities
+_SUPPORT_ROWS_IN_PLAY = SupportPolygonLimit.rows_in_play
 
 
 def _inequalities_of(
@@ -600,6 +601,7 @@ def _inequalities_of(
     in mink's and ``fewest`` the fewest nonzero entries of a row (new arrays: not the
     limit's own)."""
     rows: tuple[np.ndarray, np.ndarray, list[int] | None, int | None] | None
+    flushed = False  # (its negligible rows already zero)
     try:
         if type(limit) is mink.CollisionAvoidanceLimit:
             rows = mink_collision_rows(limit, configuration, dt)
@@ -617,9 +619,11 @@ def _inequalities_of(
             isinstance(limit, SupportPolygonLimit)
             and type(limit).compute_qp_inequalities is _SUPPORT_ROWS
         ):
-            # (its rows and the fewest nonzero entries of a row, in one engine call)
+            # (its rows and the fewest nonzero entries of a row, in one engine call, which
+            # also makes its negligible rows zero)
             G, h, fewest = limit.rows_in_play(configuration, dt)
             rows = G, h, None, fewest
+            flushed = type(limit).rows_in_play is _SUPPORT_ROWS_IN_PLAY
         else:
             rows = constraint_rows(limit, limit.compute_qp_inequalities(configuration, dt))
             if rows is None:
@@ -636,7 +640,7 @@ def _inequalities_of(
                 f"{limit_name(limit)}: rows G of shape {G.shape} and h of shape {h.shape}; "
                 f"G must be (p, {nv}) and h (p,)"
             )
-        if G.size:
+        if G.size and not flushed:
             largest = np.abs(G).max(axis=1)
             negligible = (largest <= NEGLIGIBLE_ROW) & (largest > 0.0)
             if negligible.any():  # (a new array: the limit's own stays as it gave it)
@@ -644,15 +648,6 @@ def _inequalities_of(
                 G[negligible] = 0.0
                 rows = (G, h, rows[2], None)  # (the fewest nonzero entries: counted again)
     return rows
-
-
-#: A limit's row whose every entry is at most this in size carries no direction (a
-#: collision pair whose geoms touch: the normal between two coincident points is round-off,
-#: 1e-18, and the row "do not come closer" then pointed anywhere, made the step fail or
-#: stopped a dof): it is a zero row, met where ``h >= 0`` and left out, and where
-#: ``h < 0`` a row no displacement meets (the step then reports or relaxes it). Rows are in
-#: the limit's units per unit of ``dq`` (m or rad): 1e-12 is far below any real row.
-NEGLIGIBLE_ROW = 1e-12
 
 
 def _check_limit(limit, model: mujoco.MjModel) -> None:

@@ -41,6 +41,15 @@ from ..errors import CollisionPairError, InvalidArgumentType, LimitDefinitionErr
 from ..model.configuration import frame_names
 from ..model.frames import check_model_type, frame_chains
 
+#: A limit's row whose every entry is at most this in size carries no direction (a
+#: collision pair whose geoms touch: the normal between two coincident points is round-off,
+#: 1e-18, and the row "do not come closer" then pointed anywhere, made the step fail or
+#: stopped a dof): it is a zero row, met where ``h >= 0`` and left out, and where
+#: ``h < 0`` a row no displacement meets (the step then reports or relaxes it). Rows are in
+#: the limit's units per unit of ``dq`` (m or rad): 1e-12 is far below any real row.
+#: (:mod:`qpik.diffik.boxes` flushes such rows; the engine's support rows flush their own.)
+NEGLIGIBLE_ROW = 1e-12
+
 __all__ = [
     "CULLING_SLACK",
     "CollisionAvoidanceLimit",

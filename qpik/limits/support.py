@@ -47,6 +47,7 @@ from ..core import checks
 from ..errors import InvalidArgumentType, InvalidInput, LimitDefinitionError
 from ..model.configuration import FrameType
 from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, check_model_type, resolve_frame
+from .collision import NEGLIGIBLE_ROW
 
 __all__ = ["SupportPolygonLimit"]
 
@@ -191,14 +192,15 @@ class SupportPolygonLimit(mink.Limit):
     ) -> tuple[np.ndarray, np.ndarray, int]:
         """``(G, h, fewest)``: :meth:`compute_qp_inequalities`' rows and the fewest nonzero
         entries of a row, in one engine call (``_engine.limits.support_rows``: the points,
-        their hull and the rows ``a_e^T J_xy dq <= gain (-margin - o_e - a_e^T c_xy)``)."""
+        their hull and the rows ``a_e^T J_xy dq <= gain (-margin - o_e - a_e^T c_xy)``; a
+        row of entries at most :data:`~qpik.limits.collision.NEGLIGIBLE_ROW` made zero)."""
         data = configuration.data
         mujoco.mj_jacSubtreeCom(configuration.model, data, self._jac, self.body)
         com = data.subtree_com[self.body]
         try:
             G, h, fewest = _engine.support_rows(
                 *self._placements(data), self._jac, float(com[0]), float(com[1]),
-                float(self.margin), float(self.gain),
+                float(self.margin), float(self.gain), NEGLIGIBLE_ROW,
             )  # fmt: skip
         except ValueError as exc:  # (a footprint's point not finite)
             raise LimitDefinitionError(f"{_BAD_FOOTPRINTS} ({exc})") from exc

@@ -287,3 +287,30 @@ def test_points_inside_leave_the_hull_bitwise_as_it_was(rng):
         np.testing.assert_array_equal(normals, rim_normals)
         np.testing.assert_array_equal(offsets, rim_offsets)
         assert (points @ normals.T + offsets).max() <= 1e-9 * (1.0 + np.abs(far).max())
+
+
+def test_support_rows_make_negligible_rows_zero_as_the_step_s_rule(rng):
+    # The engine flushes the polygon's rows whose entries are all at most NEGLIGIBLE_ROW
+    # (a CoM the joints barely move), as qpik.diffik.boxes does for every other limit's rows;
+    # the fewest nonzero entries are counted after it.
+    from qpik.limits.collision import NEGLIGIBLE_ROW
+
+    sole = np.array([[0.1, 0.05, 0.0], [0.1, -0.05, 0.0], [-0.1, 0.05, 0.0], [-0.1, -0.05, 0.0]])
+    positions = np.array([[0.0, 0.1, 0.0], [0.0, -0.1, 0.0]])
+    rotations = np.tile(np.eye(3).ravel(), (2, 1))
+    for scale in (1.0, 1e-13, 1e-20):
+        jac = rng.normal(size=(3, 9)) * scale
+        jac[:, 0] = 0.0
+        raw, h_raw, _ = engine.support_rows(
+            positions, rotations, [sole, sole], jac, 0.0, 0.0, 0.01, 0.9
+        )
+        G, h, fewest = engine.support_rows(
+            positions, rotations, [sole, sole], jac, 0.0, 0.0, 0.01, 0.9, NEGLIGIBLE_ROW
+        )
+        largest = np.abs(raw).max(axis=1)
+        expected = raw.copy()
+        expected[(largest <= NEGLIGIBLE_ROW) & (largest > 0.0)] = 0.0
+        np.testing.assert_array_equal(G, expected)
+        np.testing.assert_array_equal(h, h_raw)
+        assert fewest == np.count_nonzero(expected, axis=1).min()
+        assert (fewest == 0) == (scale < 1e-12)

@@ -204,18 +204,26 @@ constexpr double kRoundOffTight = 1e-12;
 // The support polygon's rows in displacement units [m], one per edge of its hull (e edges,
 // support_hull's normals (e, 2) and offsets (e,)): G_e = a_e^T J_xy (jac: the CoM Jacobian's
 // x and y rows, each nv long) and h_e = gain (-margin - o_e - a_e^T c_xy), into G (e, nv)
-// and h (e,); in fewest, the fewest nonzero entries of a row (nv where e = 0).
+// and h (e,); in fewest, the fewest nonzero entries of a row (nv where e = 0). A row whose
+// every entry is at most `negligible` in size is made zero (qpik.limits.collision.NEGLIGIBLE_ROW:
+// a CoM that the joints barely move carries no direction; 0: none).
 inline void support_rows(const double* normals, const double* offsets, i64 e, const double* jac_x,
                          const double* jac_y, i64 nv, double cx, double cy, double margin, double gain, double* G,
-                         double* h, i64& fewest) {
+                         double* h, i64& fewest, double negligible = 0.0) {
     fewest = nv;
     for (i64 r = 0; r < e; ++r) {
         const double ax = normals[2 * r], ay = normals[2 * r + 1];
         double* g = G + r * nv;
         i64 count = 0;
+        double largest = 0.0;
         for (i64 v = 0; v < nv; ++v) {
             g[v] = ax * jac_x[v] + ay * jac_y[v];
             count += g[v] != 0.0;
+            largest = std::max(largest, std::fabs(g[v]));
+        }
+        if (largest > 0.0 && largest <= negligible) {
+            std::fill(g, g + nv, 0.0);
+            count = 0;
         }
         fewest = std::min(fewest, count);
         const double ac = ax * cx + ay * cy;
