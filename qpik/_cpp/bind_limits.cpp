@@ -21,6 +21,26 @@ using namespace qpik::bind;
 
 void bind_limits(nb::module_& m) {
     m.def(
+        "negligible_rows",
+        [](In2 G, double tol) {
+            const i64 p = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));
+            i64 count = 0;
+            for (i64 r = 0; r < p; ++r) {
+                const double* g = G.data() + r * n;
+                double largest = 0.0;  // (NaN once an entry is: as NumPy's max)
+                for (i64 j = 0; j < n; ++j) {
+                    const double a = std::fabs(g[j]);
+                    largest = (a > largest || a != a) && largest == largest ? a : largest;
+                }
+                count += largest > 0.0 && largest <= tol;
+            }
+            return count;
+        },
+        nb::arg("G"), nb::arg("tol"),
+        "How many rows of G (p, n) are negligible: their largest |entry| in (0, tol] (a NaN entry\n"
+        "makes its row's largest NaN, not negligible), as qpik.diffik.boxes takes them\n"
+        "(np.abs(G).max(axis=1)) without NumPy's temporaries.");
+    m.def(
         "collision_candidates",
         [](In<i64, 2> pairs, In<std::int32_t, 1> geom_type, In2 geom_size, In2 geom_aabb, In1 geom_rbound, In2 geom_xpos,
            In2 geom_xmat, double threshold, Out<i64, 1> out) {

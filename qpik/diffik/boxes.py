@@ -21,6 +21,7 @@ import mink
 import mujoco
 import numpy as np
 
+from .._engine import limits as _limits_engine
 from ..core import checks
 from ..core.kernels import ABSENT_BOUND, merge_boxes, tighten
 from ..errors import (
@@ -640,7 +641,15 @@ def _inequalities_of(
                 f"{limit_name(limit)}: rows G of shape {G.shape} and h of shape {h.shape}; "
                 f"G must be (p, {nv}) and h (p,)"
             )
-        if G.size and not flushed:
+        if (
+            G.size
+            and not flushed
+            and (
+                G.dtype != np.float64
+                or not G.flags.c_contiguous
+                or _limits_engine.negligible_rows(G, NEGLIGIBLE_ROW)
+            )
+        ):  # (the engine counts them without NumPy's temporaries: 0.3 us, NumPy's 5 us)
             largest = np.abs(G).max(axis=1)
             negligible = (largest <= NEGLIGIBLE_ROW) & (largest > 0.0)
             if negligible.any():  # (a new array: the limit's own stays as it gave it)

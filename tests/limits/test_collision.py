@@ -244,10 +244,10 @@ def test_a_pair_whose_geoms_touch_gives_no_direction_and_blocks_nothing():
     """Pins h12's audit: at the Panda's home, link5 and link7 touch; their row's normal is
     round-off (|G| ~ 5e-18, h = 0), and the step failed (numerical_failure, NoSolutionFound
     from solve_ik) where dq = 0 meets every limit and mink steps. Such a row is a zero row
-    (boxes.NEGLIGIBLE_ROW): met, left out; the step is the one without the pair."""
+    (qpik.limits.collision.NEGLIGIBLE_ROW): met, left out; the step is the one without the pair."""
     import mink
 
-    from qpik.diffik.boxes import NEGLIGIBLE_ROW
+    from qpik.limits.collision import NEGLIGIBLE_ROW
 
     model = qpik.load_robot("panda")
     configuration = qpik.Configuration(model, model.key_qpos[0])
@@ -278,3 +278,19 @@ def test_a_pair_whose_geoms_touch_gives_no_direction_and_blocks_nothing():
         configuration, [task], 0.001, "daqp", damping=1e-6, limits=[velocity, touching]
     )
     np.testing.assert_allclose(ours, theirs, atol=1e-8)
+
+
+def test_the_engine_counts_negligible_rows_as_numpy_takes_them(rng):
+    # boxes' check counts negligible rows (largest |entry| in (0, NEGLIGIBLE_ROW]) in the
+    # engine, then flushes them with NumPy: the count is NumPy's, NaN and inf included.
+    from qpik._engine import limits as engine
+    from qpik.limits.collision import NEGLIGIBLE_ROW
+
+    for _ in range(300):
+        p, n = int(rng.integers(0, 6)), int(rng.integers(1, 9))
+        G = rng.normal(size=(p, n)) * 10.0 ** rng.integers(-22, 2, size=(p, 1))
+        G[rng.random((p, n)) < 0.3] = 0.0
+        G[rng.random((p, n)) < 0.05] = rng.choice([np.nan, np.inf, -np.inf, 1e-12, -1e-12])
+        largest = np.abs(G).max(axis=1) if p else np.zeros(0)
+        expected = int(((largest <= NEGLIGIBLE_ROW) & (largest > 0.0)).sum())
+        assert engine.negligible_rows(G, NEGLIGIBLE_ROW) == expected
