@@ -940,6 +940,40 @@ class Kernel {
         return r.code;
     }
 
+    // The gathered step's cascade in one call, as go() makes it, on the values load_sources()
+    // has put into the slots: the Jacobians (make_jacobians), then the tasks' rows, the box
+    // and the general rows G (p, nv), h (p,) from a cold start (as run() with zero active
+    // sets and canonical false), the answers (dq, v, info, qpos, the deferred sigmas' records)
+    // written into row `row` of the attached outputs. Returns (code, active): active (L, nv + p)
+    // int8, a new array, where the code is OK, else None (nothing written).
+    nb::tuple rows_into(i64 row, const In2& G, const In1& h, i64 max_iter) {
+        require(out_.has_value(), "Kernel.rows_into: no outputs attached (Kernel.attach_out)");
+        Outputs& o = *out_;
+        require(row >= 0 && row < o.K, "Kernel.rows_into: row out of range");
+        require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel.rows_into: G must be (p, nv) and h (p,)");
+        last_row_ = -1;
+        pass_row_ = -1;
+        diffik::FusedArgs a = attached_args(G, h);
+        make_jacobians();
+        const i64 p = dim(G, 0), cols = n_ + p;
+        cold_rows_.assign(static_cast<size_t>(L_ * cols), 0);
+        diffik::StepResult& r = step_;  // kept: its vectors' storage reused
+        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(cold_rows_.data(), L_, cols), false, ws_, scratch_, r,
+                                true);
+        if (r.code != diffik::OK) return nb::make_tuple(r.code, nb::none());
+        write_deferred(row);
+        require(r.active_cols == cols && static_cast<i64>(r.d.size()) == n_ &&
+                    static_cast<i64>(r.info.size()) == 9 * L_,
+                "Kernel.rows_into: unexpected answer shapes");
+        const Vec& v = r.v_is_d ? r.d : r.v;
+        std::memcpy(o.d.data() + row * n_, r.d.data(), sizeof(double) * n_);
+        std::memcpy(o.v.data() + row * n_, v.data(), sizeof(double) * n_);
+        std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
+        std::memcpy(o.qpos.data() + row * nq_, attached_->qpos.data(), sizeof(double) * nq_);
+        BVec active(r.active.begin(), r.active.end());
+        return nb::make_tuple(r.code, to_numpy(std::move(active), {static_cast<size_t>(L_), static_cast<size_t>(cols)}));
+    }
+
     // The arrays of a second MjData (MuJoCo's kinematics at q (+) dq), held for correct()
     // as attach() holds the step's.
     void attach_aux(nb::object owner, const In1& qpos, const In2& sx, const In2& sm, const In2& x,
@@ -1139,7 +1173,7 @@ class Kernel {
         i64 K = 0;
     };
     std::optional<Outputs> out_;
-    BVec cold_;
+    BVec cold_, cold_rows_;
     std::optional<Out3> jac_w_;
     DofChains frame_chains_;
     struct Chains {
@@ -1328,6 +1362,11 @@ void bind_diffik(nb::module_& m) {
              "returns -1 (nothing solved) where a value is not what its slot takes as it is, is "
              "None or raised (the caller's general way reports it), else the step's code (answers "
              "written only when OK). warm: None for a cold start.")
+        .def("rows_into", &Kernel::rows_into, nb::arg("row"), nb::arg("G"), nb::arg("h"), nb::arg("max_iter"),
+             "After load_sources(): the Jacobians, the rows, the box, the general rows G dq <= h "
+             "(p, nv) and the cascade from a cold start (run()'s answer), the answers written into "
+             "row `row` of the attached outputs as go() writes them; returns (code, active (L, nv + "
+             "p) int8) where the code is OK, else (code, None).")
         .def("go_cold", &Kernel::go_cold,
              "go_cold(dt, damping, row, max_iter): go(dt, damping, row, None, False, max_iter) "
              "(a cold start), its arguments positional only (the plain lane of IKSolver.step).")

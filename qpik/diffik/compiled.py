@@ -84,6 +84,9 @@ _NO_DATA = object()  # never an MjData: CompiledPlan._plain_data while no lane s
 #: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
 OUTPUT_ROWS = 64
 
+#: :meth:`CompiledPlan._rows_result`'s "the gathered step answers".
+_GATHER = object()
+
 # The compiled kernel: its arguments are documented where it is bound
 # (qpik/_cpp/bind_diffik.cpp, above the Kernel class).
 Kernel = _engine.Kernel
@@ -436,13 +439,7 @@ class CompiledPlan:
         return self._gathered_step(configuration, dt, damping, core, forced, resolve)
 
     def _gathered_step(
-        self,
-        configuration: mink.Configuration,
-        dt: float,
-        damping: float,
-        core,
-        forced: bool,
-        resolve: bool = True,
+        self, configuration, dt: float, damping: float, core, forced: bool, resolve: bool = True
     ) -> tuple | None:
         """:meth:`_solve` by gathering the step's arrays in Python (:meth:`gather`): where
         the lean step does not apply (general-row limits, a value it does not take as it
@@ -527,13 +524,11 @@ class CompiledPlan:
         skip: int,
         passes: int = 0,
     ) -> StepResult | None:
-        """:meth:`step` with the default solver as the :class:`StepResult` that
-        :meth:`qpik.IKSolver.step` returns (the same numbers, without the
-        :class:`Solution` in between): ``start`` the step's ``time.perf_counter()``,
-        ``skip`` 1 when the first level is the couplings' (reported apart), ``passes`` the
-        second-order correction passes (:attr:`qpik.StepOptions.correction_passes`; by the
-        kernel, the lean step's and the gathered one's). None where the QP path must
-        answer."""
+        """:meth:`step` with the default solver as :meth:`qpik.IKSolver.step`'s
+        :class:`StepResult` (the same numbers, no :class:`Solution` between): ``start`` the
+        step's ``time.perf_counter()``, ``skip`` 1 when level 0 is the couplings' (reported
+        apart), ``passes`` the correction passes (:attr:`qpik.StepOptions.correction_passes`,
+        by the kernel). None where the QP path must answer."""
         if not self.general_limits:  # the lean step, its answers in row `row` of _out
             row = self._lean(configuration, dt, damping, core)
             if row >= 0:
@@ -546,6 +541,10 @@ class CompiledPlan:
                 )  # fmt: skip
             if row == -1:
                 return None
+        elif not passes and not core.warm_start:  # the general rows' step in one kernel call
+            result = self._rows_result(configuration, dt, damping, core, start, skip)
+            if result is not _GATHER:
+                return result
         out = self._gathered_step(configuration, dt, damping, core, False, False)
         if out is None:
             return None
@@ -562,6 +561,43 @@ class CompiledPlan:
         return StepResult.lazy(
             v, d, info, skip, _perf_counter() - start,
             lambda: self._limit_rows(qpos, dt, general), deferred=self._deferred,
+        )  # fmt: skip
+
+    def _rows_result(
+        self, configuration, dt: float, damping: float, core, start: float, skip: int
+    ) -> StepResult | None | object:
+        """:meth:`step_result` with general rows, a cold start and no passes: the gathered
+        step's answer, its values loaded by the kernel and the cascade's answers written into
+        the lean step's output rows (``Kernel.rows_into``); :data:`_GATHER` where a value does
+        not load as it is (the gathered step writes it, or reports it)."""
+        kernel = self.kernel
+        if not kernel.load_sources(dt, damping):
+            return _GATHER
+        data = configuration.data
+        self._attach(data)
+        self._jacobians(data)
+        if self.rows_tasks and not self._gather_rows(configuration):
+            return None
+        if core.settings_version != self._synced:
+            self.sync(core)
+        general = self._general(configuration, dt)
+        if general is None:
+            return None
+        G, h, _ = general
+        row = self._row
+        if row == OUTPUT_ROWS:
+            self._new_outputs()
+            row = 0
+        cap = self.max_iter or 10 * (self.nv + len(h)) + 50
+        code, active = kernel.rows_into(row, G, h, cap)
+        self._row, out = row + 1, self._out
+        if code or (self._relaxable and _INFEASIBLE_CODE in out[2][row, 3].tolist()):
+            return None  # (the QP path relaxes the rows where level 0 is infeasible)
+        core.warm_start_from(active)
+        qpos = out[4][row]
+        return StepResult.lazy(
+            self._velocity_rows[row], out[0][row], out[2], skip, _perf_counter() - start,
+            lambda: self._limit_rows(qpos, dt, general), row=row, deferred=out[5][row],
         )  # fmt: skip
 
     def _one_call(
@@ -592,13 +628,7 @@ class CompiledPlan:
         )
 
     def _kernel_step(
-        self,
-        poses: tuple,
-        configuration: mink.Configuration,
-        dt: float,
-        core,
-        forced: bool,
-        resolve: bool = True,
+        self, poses: tuple, configuration, dt: float, core, forced: bool, resolve: bool = True
     ) -> tuple | None:
         """The kernel's step: ``(dq, v, info, general rows)``, None where the QP path must
         answer (``forced``: also where a level was not solved); ``core``'s active sets

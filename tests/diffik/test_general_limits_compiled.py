@@ -34,7 +34,10 @@ def _closed_loop(solver, configuration, steps, kind):
         result = solver.step(configuration, DT)
         # the step deferred the sigmas it could (its records kept for the result), as the
         # lean step does: the step is not the one that resolves them all
-        assert solver._plan._deferred is not None
+        info, row, _skip, deferred = result.__dict__["_info"]
+        assert deferred is not None
+        # in one kernel call, into the lean step's output rows (Kernel.rows_into)
+        assert row is not None and info is solver._plan._out[2]
         reference = solver.qp_solution(configuration, DT)
         fast = solver.compiled_velocity(configuration, DT)  # (the sigmas deferred: the same)
         assert fast is not None
