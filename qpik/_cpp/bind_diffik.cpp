@@ -912,7 +912,6 @@ class Kernel {
         require(out_.has_value(), "Kernel.go: no outputs attached (Kernel.attach_out)");
         Outputs& o = *out_;
         require(row >= 0 && row < o.K, "Kernel.go: row out of range");
-        const Attached& t = *attached_;
         make_jacobians();
         const diffik::FusedArgs& a = go_args_;  // fill_poses of the attached arrays (attach)
         const i8* w = nullptr;
@@ -926,18 +925,25 @@ class Kernel {
         diffik::StepResult& r = step_;  // kept: its vectors' storage reused
         diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r, true);
         if (r.code != diffik::OK) return r.code;
+        write_answers(row, r, n_, "Kernel.go: unexpected answer shapes");
+        std::memcpy(o.active.data() + row * L_ * n_, r.active.data(), L_ * n_);
+        last_row_ = row;
+        return r.code;
+    }
+
+    // A step's answers (dq, v, info, the attached qpos, the deferred sigmas' records) into
+    // row `row` of the attached outputs, its active sets checked to have `cols` columns.
+    void write_answers(i64 row, const diffik::StepResult& r, i64 cols, const char* shapes) {
+        Outputs& o = *out_;
         write_deferred(row);
-        require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
+        require(r.active_cols == cols && static_cast<i64>(r.d.size()) == n_ &&
                     static_cast<i64>(r.info.size()) == 9 * L_,
-                "Kernel.go: unexpected answer shapes");
+                shapes);
         const Vec& v = r.v_is_d ? r.d : r.v;
         std::memcpy(o.d.data() + row * n_, r.d.data(), sizeof(double) * n_);
         std::memcpy(o.v.data() + row * n_, v.data(), sizeof(double) * n_);
         std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
-        std::memcpy(o.active.data() + row * L_ * n_, r.active.data(), L_ * n_);
-        std::memcpy(o.qpos.data() + row * nq_, t.qpos.data(), sizeof(double) * nq_);
-        last_row_ = row;
-        return r.code;
+        std::memcpy(o.qpos.data() + row * nq_, attached_->qpos.data(), sizeof(double) * nq_);
     }
 
     // The gathered step's cascade in one call, as go() makes it, on the values load_sources()
@@ -948,8 +954,7 @@ class Kernel {
     // int8, a new array, where the code is OK, else None (nothing written).
     nb::tuple rows_into(i64 row, const In2& G, const In1& h, i64 max_iter) {
         require(out_.has_value(), "Kernel.rows_into: no outputs attached (Kernel.attach_out)");
-        Outputs& o = *out_;
-        require(row >= 0 && row < o.K, "Kernel.rows_into: row out of range");
+        require(row >= 0 && row < out_->K, "Kernel.rows_into: row out of range");
         require(dim(G, 1) == n_ && dim(h, 0) == dim(G, 0), "Kernel.rows_into: G must be (p, nv) and h (p,)");
         last_row_ = -1;
         pass_row_ = -1;
@@ -961,15 +966,7 @@ class Kernel {
         diffik::fused_step_into(a, max_iter, MatRefT<const i8>(cold_rows_.data(), L_, cols), false, ws_, scratch_, r,
                                 true);
         if (r.code != diffik::OK) return nb::make_tuple(r.code, nb::none());
-        write_deferred(row);
-        require(r.active_cols == cols && static_cast<i64>(r.d.size()) == n_ &&
-                    static_cast<i64>(r.info.size()) == 9 * L_,
-                "Kernel.rows_into: unexpected answer shapes");
-        const Vec& v = r.v_is_d ? r.d : r.v;
-        std::memcpy(o.d.data() + row * n_, r.d.data(), sizeof(double) * n_);
-        std::memcpy(o.v.data() + row * n_, v.data(), sizeof(double) * n_);
-        std::memcpy(o.info.data() + row * 9 * L_, r.info.data(), sizeof(double) * 9 * L_);
-        std::memcpy(o.qpos.data() + row * nq_, attached_->qpos.data(), sizeof(double) * nq_);
+        write_answers(row, r, cols, "Kernel.rows_into: unexpected answer shapes");
         BVec active(r.active.begin(), r.active.end());
         return nb::make_tuple(r.code, to_numpy(std::move(active), {static_cast<size_t>(L_), static_cast<size_t>(cols)}));
     }
