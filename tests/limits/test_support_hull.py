@@ -298,9 +298,10 @@ def test_support_rows_make_negligible_rows_zero_as_the_step_s_rule(rng):
     sole = np.array([[0.1, 0.05, 0.0], [0.1, -0.05, 0.0], [-0.1, 0.05, 0.0], [-0.1, -0.05, 0.0]])
     positions = np.array([[0.0, 0.1, 0.0], [0.0, -0.1, 0.0]])
     rotations = np.tile(np.eye(3).ravel(), (2, 1))
-    for scale in (1.0, 1e-13, 1e-20):
-        jac = rng.normal(size=(3, 9)) * scale
+    for scale in (1.0, 1e-13, 1e-20, np.nan):
+        jac = rng.normal(size=(3, 9)) * (1e-13 if np.isnan(scale) else scale)
         jac[:, 0] = 0.0
+        jac[0, 1] = scale if np.isnan(scale) else jac[0, 1]  # (a NaN row is not negligible)
         raw, h_raw, _ = engine.support_rows(
             positions, rotations, [sole, sole], jac, 0.0, 0.0, 0.01, 0.9
         )
@@ -313,4 +314,4 @@ def test_support_rows_make_negligible_rows_zero_as_the_step_s_rule(rng):
         np.testing.assert_array_equal(G, expected)
         np.testing.assert_array_equal(h, h_raw)
         assert fewest == np.count_nonzero(expected, axis=1).min()
-        assert (fewest == 0) == (scale < 1e-12)
+        assert (fewest == 0) == (scale < 1e-12)  # (False for NaN)

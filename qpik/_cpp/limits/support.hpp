@@ -219,7 +219,8 @@ inline void support_rows(const double* normals, const double* offsets, i64 e, co
         for (i64 v = 0; v < nv; ++v) {
             g[v] = ax * jac_x[v] + ay * jac_y[v];
             count += g[v] != 0.0;
-            largest = std::max(largest, std::fabs(g[v]));
+            const double a = std::fabs(g[v]);
+            largest = (a > largest || a != a) && largest == largest ? a : largest;  // (NaN stays)
         }
         if (largest > 0.0 && largest <= negligible) {
             std::fill(g, g + nv, 0.0);
