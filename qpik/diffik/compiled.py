@@ -15,12 +15,12 @@ arrays) into the plan's ``A, b, w``, its LM term into ``user_mu``, laid out by i
 count (``task.k``, else its ``cost`` vector's length, else ``nv``; another shape sends the
 step to the QP path). Python does only what needs MuJoCo or the task objects; the kernel
 computes the other tasks' rows, the limits' box and the whole cascade
-(``qpik/_cpp/diffik/fused.hpp``). Without general-row limits a step is lean
-(:meth:`CompiledPlan._lean`): the kernel reads the tasks' values from the task objects
-(held, ``Kernel.set_sources``) and writes them into the plan's arrays itself, it computes
-the frame tasks' Jacobians itself (bitwise MuJoCo's ``mj_jac``), and it writes its answers
-into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at a time (views of that
-row, never written again): a :class:`~qpik.diffik.result.Solution`, or
+(``qpik/_cpp/diffik/fused.hpp``). A step is one kernel call (:meth:`CompiledPlan._lean`;
+with general-row limits, a cold start and no passes, :meth:`CompiledPlan._rows_step`, the
+limits' rows passed in): the kernel reads the tasks' values from the task objects (held,
+``Kernel.set_sources``), computes the frame tasks' Jacobians (bitwise MuJoCo's ``mj_jac``)
+and writes its answers into a row of output arrays allocated :data:`OUTPUT_ROWS` steps at
+a time (views of that row, never written again): a :class:`~qpik.diffik.result.Solution`, or
 :meth:`qpik.IKSolver.step`'s :class:`~qpik.diffik.result.StepResult` itself. It computes
 what the QP path computes, bit for bit where that path's arithmetic is qpik's, to round-off
 where it is mink's; anything unusual (a non-finite row, conflicting limits, an active set
@@ -127,9 +127,8 @@ class CompiledPlan:
         self.nv, self.levels = self.model.nv, self.cold.shape[0]
         self._data: mujoco.MjData | None = None  # the MjData whose arrays _pose_args views
         self._pose_args: tuple = ()
-        self.no_rows, self.no_h = np.zeros((0, self.model.nv)), np.zeros(0)
-        #: the last gathered step's records of the sigmas it deferred (_kernel_step)
-        self._deferred: np.ndarray | None = None
+        self.no_rows, self.no_h = np.zeros((0, self.nv)), np.zeros(0)
+        self._deferred: np.ndarray | None = None  # (_kernel_step's deferred sigmas' records)
         self.colds[0] = self.cold
         self._out: tuple = ()  # the outputs _lean steps write into (_new_outputs)
         self._row = OUTPUT_ROWS
@@ -388,10 +387,9 @@ class CompiledPlan:
         self._row = 0
 
     def _lean(self, configuration: mink.Configuration, dt: float, damping: float, core) -> int:
-        """The step of a plan without general rows in one kernel call that also writes the
-        tasks' values (:meth:`_sources`): the row of ``self._out`` that holds its answers,
-        ``-1`` where the QP path must answer, ``-2`` where :meth:`gather` must write the
-        values (then nothing was solved)."""
+        """The step without general rows in one kernel call that also reads the tasks'
+        values: the row of ``self._out`` holding its answers, ``-1`` where the QP path must
+        answer, ``-2`` where :meth:`gather` must write the values (nothing solved)."""
         data = configuration.data
         if data is not self._chain_data or self.coms:
             self._jacobians(data)
@@ -414,13 +412,7 @@ class CompiledPlan:
         return row if code == OK else -1
 
     def _solve(
-        self,
-        configuration: mink.Configuration,
-        dt: float,
-        damping: float,
-        core,
-        forced: bool,
-        resolve: bool = True,
+        self, configuration, dt: float, damping: float, core, forced: bool, resolve: bool = True
     ) -> tuple | None:
         """The kernel's step: ``(dq, v, info, general rows, qpos)`` (deferred sigma resolved;
         ``resolve=False``: left NaN), None where the QP path must answer (``forced``: also
@@ -436,16 +428,24 @@ class CompiledPlan:
                 return d[row], v[row], info, (self.no_rows, self.no_h, []), qpos[row]
             if row == -1:
                 return None
+        elif not core.warm_start:  # (the general rows' step in one kernel call)
+            got = self._rows_step(configuration, dt, damping, core, forced)
+            if got is None:
+                return None
+            if got is not _GATHER:
+                row, general = got
+                d, v, info, _active, qpos, defer = self._out
+                info = resolved_info(info[row], defer[row]) if resolve else info[row]
+                return d[row], v[row], info, general, qpos[row]
         return self._gathered_step(configuration, dt, damping, core, forced, resolve)
 
     def _gathered_step(
         self, configuration, dt: float, damping: float, core, forced: bool, resolve: bool = True
     ) -> tuple | None:
-        """:meth:`_solve` by gathering the step's arrays in Python (:meth:`gather`): where
-        the lean step does not apply (general-row limits, a value it does not take as it
-        is). ``resolve=False``: the sigma of each level whose rank the cascade proves full
-        left NaN in the info (as the lean step defers it; nothing else changes)."""
-        # (the values read by the kernel where it takes them as they are: Kernel.load_sources)
+        """:meth:`_solve` by gathering the step's arrays in Python (:meth:`gather`; the
+        values the kernel takes as they are read by it, ``Kernel.load_sources``).
+        ``resolve=False``: the sigma of each level whose rank the cascade proves full left
+        NaN in the info (as the lean step defers it; nothing else changes)."""
         poses = self.gather(configuration, self.kernel.load_sources(dt, damping))
         if poses is None:
             return None
@@ -493,14 +493,13 @@ class CompiledPlan:
         core: HierarchySolver,
         exact: HierarchySolver | None = None,
     ) -> Solution | None:
-        """One step at ``configuration`` for ``dt`` [s] with the constant ``damping``,
-        solved as ``core`` solves: with the default solver in one kernel call; with a forced
-        backend, the kernel's rows and box, then ``core``'s cascade. ``exact`` (an exact
-        solver, for a forced backend whose answer is only the displacement): its answer is
-        kept when it solves every level (the forced backend's answer, polished by that same
-        exact solve, is equal to round-off), and no backend is called. None where the QP
+        """One step at ``configuration`` for ``dt`` [s] with the constant ``damping``, as
+        ``core`` solves: the default solver in one kernel call; a forced backend on the
+        kernel's rows and box. ``exact`` (an exact solver, for a forced backend that answers
+        the displacement only): its answer is kept when it solves every level (the backend's,
+        polished by that solve, is equal to round-off), no backend called. None where the QP
         path must answer (a non-finite row, conflicting limits, an unsettled active set, a
-        collision row on one dof, a task changed beyond its plan)."""
+        task changed beyond its plan)."""
         if core.solver == "auto":
             return self._one_call(configuration, dt, damping, core)
         if exact is not None:
@@ -563,13 +562,11 @@ class CompiledPlan:
             lambda: self._limit_rows(qpos, dt, general), deferred=self._deferred,
         )  # fmt: skip
 
-    def _rows_result(
-        self, configuration, dt: float, damping: float, core, start: float, skip: int
-    ) -> StepResult | None | object:
-        """:meth:`step_result` with general rows, a cold start and no passes: the gathered
-        step's answer, its values loaded by the kernel and the cascade's answers written into
-        the lean step's output rows (``Kernel.rows_into``); :data:`_GATHER` where a value does
-        not load as it is (the gathered step writes it, or reports it)."""
+    def _rows_step(self, configuration, dt: float, damping: float, core, forced: bool = False):
+        """The gathered step from a cold start in one kernel call (``Kernel.rows_into``,
+        answers in the lean step's output rows): ``(row, general rows)``; None where the QP
+        path must answer (``forced``: also where a level was not solved); :data:`_GATHER`
+        where a value does not load as it is (the gathered step writes it, or reports it)."""
         kernel = self.kernel
         if not kernel.load_sources(dt, damping):
             return _GATHER
@@ -590,10 +587,27 @@ class CompiledPlan:
             row = 0
         cap = self.max_iter or 10 * (self.nv + len(h)) + 50
         code, active = kernel.rows_into(row, G, h, cap)
-        self._row, out = row + 1, self._out
-        if code or (self._relaxable and _INFEASIBLE_CODE in out[2][row, 3].tolist()):
-            return None  # (the QP path relaxes the rows where level 0 is infeasible)
+        self._row = row + 1
+        if code:
+            return None
+        status = self._out[2][row, 3].tolist()
+        if (forced and any(s != _SOLVED_CODE for s in status)) or (
+            self._relaxable and _INFEASIBLE_CODE in status  # (the QP path relaxes the rows)
+        ):
+            return None
         core.warm_start_from(active)
+        return row, general
+
+    def _rows_result(
+        self, configuration, dt: float, damping: float, core, start: float, skip: int
+    ) -> StepResult | None | object:
+        """:meth:`step_result` with general rows, a cold start and no passes
+        (:meth:`_rows_step`): its :class:`StepResult`, None or :data:`_GATHER`."""
+        got = self._rows_step(configuration, dt, damping, core)
+        if got is None or got is _GATHER:
+            return got
+        row, general = got
+        out = self._out
         qpos = out[4][row]
         return StepResult.lazy(
             self._velocity_rows[row], out[0][row], out[2], skip, _perf_counter() - start,
@@ -601,12 +615,7 @@ class CompiledPlan:
         )  # fmt: skip
 
     def _one_call(
-        self,
-        configuration: mink.Configuration,
-        dt: float,
-        damping: float,
-        core,
-        forced: bool = False,
+        self, configuration, dt: float, damping: float, core, forced: bool = False
     ) -> Solution | None:
         """The whole step in one kernel call, warm started from ``core``'s active sets
         (which it then updates). ``forced``: kept only when every level was solved."""
@@ -658,12 +667,7 @@ class CompiledPlan:
         return d, v, info, general
 
     def velocity(
-        self,
-        configuration: mink.Configuration,
-        dt: float,
-        damping: float,
-        core: HierarchySolver,
-        exact: bool,
+        self, configuration, dt: float, damping: float, core: HierarchySolver, exact: bool
     ) -> tuple[np.ndarray, list[LevelStatus]] | None:
         """The step's velocity ``dq / dt`` and its levels' statuses by one kernel call (as
         :meth:`step`, without the rest of its :class:`Solution`); None where :meth:`step` goes
@@ -671,9 +675,7 @@ class CompiledPlan:
         if core.solver != "auto" and not exact:
             return None
         out = self._solve(configuration, dt, damping, core, core.solver != "auto", False)
-        if out is None:
-            return None
-        return out[1], [_STATUS_OF_CODE[s] for s in out[2][3].tolist()]
+        return None if out is None else (out[1], [_STATUS_OF_CODE[s] for s in out[2][3].tolist()])
 
     def _rows_then_cascade(
         self, poses: tuple, configuration: mink.Configuration, dt: float, core, exact

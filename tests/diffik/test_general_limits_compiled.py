@@ -48,6 +48,7 @@ def _closed_loop(solver, configuration, steps, kind):
         whole = solver._plan._gathered_step(configuration, DT, solver._damping, core, False)
         assert whole is not None
         np.testing.assert_array_equal(np.array(result.sigma_min), whole[2][1])
+        np.testing.assert_array_equal(whole[1], result.velocity)  # (one call: the same bits)
         np.testing.assert_allclose(
             result.sigma_min, expected_sigma(reference), rtol=1e-8, atol=1e-12
         )
