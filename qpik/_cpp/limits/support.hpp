@@ -107,18 +107,20 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
     for (i64 i = 0; i < n; ++i) {
         const double x = pts[2 * i] * unit, y = pts[2 * i + 1] * unit;
         sorted[static_cast<size_t>(i)] = Point{x, y, i};
-        lo[0] = std::min(lo[0], x);
-        hi[0] = std::max(hi[0], x);
-        lo[1] = std::min(lo[1], y);
-        hi[1] = std::max(hi[1], y);
         const v2d xy = {x, y}, turned = {x + y, y - x}, index = {static_cast<double>(i), static_cast<double>(i)};
         const v2d key[4] = {xy, turned, -xy, -turned};
+#pragma GCC unroll 4
         for (int k = 0; k < 4; ++k) {
             const v2i more = key[k] > best[k];
             best[k] = more ? key[k] : best[k];
             at[k] = more ? index : at[k];
         }
     }
+    // the extent: the largest x and y, and the smallest (-(-x)'s largest: exact)
+    lo[0] = -best[2][0];
+    lo[1] = -best[2][1];
+    hi[0] = best[0][0];
+    hi[1] = best[0][1];
     // counter-clockwise from +x: x, x + y, y, y - x, -x, -x - y, -y, x - y
     const i64 ext[8] = {static_cast<i64>(at[0][0]), static_cast<i64>(at[1][0]), static_cast<i64>(at[0][1]),
                         static_cast<i64>(at[1][1]), static_cast<i64>(at[2][0]), static_cast<i64>(at[3][0]),
