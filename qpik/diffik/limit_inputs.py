@@ -35,8 +35,9 @@ def constraint_rows(limit, constraint: Any) -> tuple[np.ndarray, np.ndarray, Non
     """The rows ``(G, h, None, None)`` of what a limit's own ``compute_qp_inequalities``
     returned (None where inactive: ``G`` and ``h`` None, as mink's ``Constraint`` says):
     LimitDefinitionError naming the limit where it is not a ``Constraint`` (None, say), its
-    ``G`` and ``h`` are not arrays of numbers, or a row holds NaN (``G`` must be finite;
-    ``h`` may be ``+inf``, a row that never binds, as mink's collision rows out of range)."""
+    ``G`` and ``h`` are not arrays of numbers, or a row holds NaN or ``h = -inf`` (``G``
+    must be finite; ``h`` may be ``+inf``, a row that never binds, as mink's collision rows
+    out of range; ``-inf`` bounds nothing: no displacement meets it)."""
     try:
         G, h = constraint.G, constraint.h
     except AttributeError:
@@ -58,11 +59,11 @@ def constraint_rows(limit, constraint: Any) -> tuple[np.ndarray, np.ndarray, Non
         ) from None
     G = G if G.ndim == 2 else np.atleast_2d(G)
     h = h if h.ndim == 1 else np.atleast_1d(h)
-    if not np.isfinite(G).all() or np.isnan(h).any():
+    if not np.isfinite(G).all() or not (h > -np.inf).all():  # (False for NaN and -inf)
         raise LimitDefinitionError(
-            f"{limit_name(limit)}: its rows are not finite (G must be finite and h not NaN; "
-            f"{int(np.count_nonzero(~np.isfinite(G)))} entries of G, "
-            f"{int(np.count_nonzero(np.isnan(h)))} of h)"
+            f"{limit_name(limit)}: its rows are not finite (G must be finite and h neither "
+            f"NaN nor -inf; {int(np.count_nonzero(~np.isfinite(G)))} entries of G, "
+            f"{int(np.count_nonzero(~(h > -np.inf)))} of h)"
         )
     return G, h, None, None
 

@@ -80,14 +80,17 @@ def _frame_solver(limits, **keywords):
         (np.eye(7)[:1], np.array([np.nan]), "not finite"),
         (np.full((1, 7), np.nan), np.array([0.0]), "not finite"),
         (np.r_[[np.inf], np.zeros(6)][None], np.array([0.0]), "not finite"),
+        (np.eye(7)[:1], np.array([-np.inf]), "not finite"),
+        (np.eye(7)[:1] + np.eye(7)[1:2], np.array([-np.inf]), "not finite"),
         ("a", "b", "arrays of numbers"),
         (None, np.array([1.0]), "not finite"),
     ],
 )
 def test_a_limit_whose_rows_are_not_finite_is_refused(solver, G, h, match):
-    """A limit whose compute_qp_inequalities gives NaN (in h or G), an infinite G entry or
-    rows that are not numbers: LimitDefinitionError naming the limit (the step answered as
-    if the limit were absent before, or raised AttributeError)."""
+    """A limit whose compute_qp_inequalities gives NaN (in h or G), an infinite G entry,
+    h = -inf or rows that are not numbers: LimitDefinitionError naming the limit (the step
+    answered as if the limit were absent before, raised AttributeError, or, for -inf,
+    reported numerical_failure)."""
     ik, configuration = _frame_solver([_Rows(mink.limits.Constraint(G=G, h=h))], solver=solver)
     with pytest.raises(LimitDefinitionError, match=f"_Rows.*{match}"):
         ik.step(configuration, DT)
