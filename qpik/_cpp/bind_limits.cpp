@@ -21,6 +21,29 @@ using namespace qpik::bind;
 
 void bind_limits(nb::module_& m) {
     m.def(
+        "bad_entries",
+        [](In2 G, In1 h) {
+            const i64 rows = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));
+            const i64 p = static_cast<i64>(h.shape(0));
+            i64 bad_g = 0, bad_h = 0, fewest = n;
+            for (i64 r = 0; r < rows; ++r) {
+                const double* g = G.data() + r * n;
+                i64 nonzero = 0;
+                for (i64 j = 0; j < n; ++j) {
+                    bad_g += !std::isfinite(g[j]);
+                    nonzero += g[j] != 0.0;
+                }
+                fewest = std::min(fewest, nonzero);
+            }
+            for (i64 i = 0; i < p; ++i) bad_h += !(h.data()[i] > -kInf);
+            return std::make_tuple(bad_g, bad_h, fewest);
+        },
+        nb::arg("G"), nb::arg("h"),
+        "A limit's rows G dq <= h checked as qpik.diffik.limit_inputs takes them: how many\n"
+        "entries of G (p, n) are not finite, how many of h are NaN or -inf (NumPy's isfinite and\n"
+        "h > -inf, without its temporaries), and the fewest nonzero entries of a row (n where p\n"
+        "= 0).");
+    m.def(
         "negligible_rows",
         [](In2 G, double tol) {
             const i64 p = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));

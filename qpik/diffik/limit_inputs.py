@@ -11,6 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from .._engine import limits as _limits_engine
 from ..core.checks import float_array
 from ..errors import LimitDefinitionError
 from ..model.configuration import joint_names
@@ -31,9 +32,13 @@ def limit_name(limit: Any) -> str:
     return cls.__name__
 
 
-def constraint_rows(limit, constraint: Any) -> tuple[np.ndarray, np.ndarray, None, None] | None:
-    """The rows ``(G, h, None, None)`` of what a limit's own ``compute_qp_inequalities``
-    returned (None where inactive: ``G`` and ``h`` None, as mink's ``Constraint`` says):
+def constraint_rows(
+    limit, constraint: Any
+) -> tuple[np.ndarray, np.ndarray, None, int | None] | None:
+    """The rows ``(G, h, None, fewest)`` of what a limit's own ``compute_qp_inequalities``
+    returned (None where inactive: ``G`` and ``h`` None, as mink's ``Constraint`` says;
+    ``fewest``: the fewest nonzero entries of a row where every row has two or more, ``G``
+    and ``h`` then copies; else None and the limit's arrays as they are):
     LimitDefinitionError naming the limit where it is not a ``Constraint`` (None, say), its
     ``G`` and ``h`` are not arrays of numbers, or a row holds NaN or ``h = -inf`` (``G``
     must be finite; ``h`` may be ``+inf``, a row that never binds, as mink's collision rows
@@ -59,12 +64,24 @@ def constraint_rows(limit, constraint: Any) -> tuple[np.ndarray, np.ndarray, Non
         ) from None
     G = G if G.ndim == 2 else np.atleast_2d(G)
     h = h if h.ndim == 1 else np.atleast_1d(h)
-    if not np.isfinite(G).all() or not (h > -np.inf).all():  # (False for NaN and -inf)
+    fewest = None
+    if (
+        G.dtype == np.float64
+        and h.dtype == np.float64
+        and G.flags.c_contiguous
+        and h.flags.c_contiguous
+    ):  # (counted by the engine, without NumPy's temporaries: the same counts)
+        bad_g, bad_h, fewest = _limits_engine.bad_entries(G, h)
+    else:
+        bad_g, bad_h = np.count_nonzero(~np.isfinite(G)), np.count_nonzero(~(h > -np.inf))
+    if bad_g or bad_h:
         raise LimitDefinitionError(
             f"{limit_name(limit)}: its rows are not finite (G must be finite and h neither "
-            f"NaN nor -inf; {int(np.count_nonzero(~np.isfinite(G)))} entries of G, "
-            f"{int(np.count_nonzero(~(h > -np.inf)))} of h)"
+            f"NaN nor -inf; {int(bad_g)} entries of G, {int(bad_h)} of h)"
         )
+    if fewest is not None and fewest >= 2 and G.shape[0]:
+        # (every row on two dofs or more: new arrays, the limit's own left as it gave them)
+        return G.copy(), h.copy(), None, fewest
     return G, h, None, None
 
 

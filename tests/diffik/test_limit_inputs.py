@@ -163,3 +163,20 @@ def test_a_step_result_copies_and_pickles_with_every_field():
         assert twin.status == step.status and twin.certificate == step.certificate
         assert twin.active_limits == step.active_limits
         assert twin.residuals == step.residuals and twin.sigma_min == step.sigma_min
+
+
+def test_the_engine_counts_bad_entries_as_numpy_does(rng):
+    # constraint_rows counts a limit's bad entries in the engine (C-ordered float64 rows):
+    # G's entries that are not finite, h's NaN and -inf, as NumPy's isfinite and h > -inf,
+    # and the fewest nonzero entries of a row (NaN and inf count as nonzero).
+    from qpik._engine import limits as engine
+
+    for _ in range(200):
+        p, n = int(rng.integers(0, 5)), int(rng.integers(1, 8))
+        G, h = rng.normal(size=(p, n)), rng.normal(size=p)
+        for a in (G, h):
+            a[rng.random(a.shape) < 0.1] = rng.choice([np.nan, np.inf, -np.inf])
+        G[rng.random(G.shape) < 0.3] = 0.0
+        fewest = int(np.count_nonzero(G, axis=1).min()) if p else n
+        expected = (np.count_nonzero(~np.isfinite(G)), np.count_nonzero(~(h > -np.inf)), fewest)
+        assert engine.bad_entries(G, h) == expected
