@@ -21,6 +21,30 @@ using namespace qpik::bind;
 
 void bind_limits(nb::module_& m) {
     m.def(
+        "free_joint_rows",
+        [](In1 xmat, In<i64, 1> lin_dofs, i64 nv, double dt, In1 linear_max) {
+            require(xmat.shape(0) == 9, "free_joint_rows: xmat must be (9,)");
+            require(lin_dofs.shape(0) == 3 && linear_max.shape(0) == 3,
+                    "free_joint_rows: lin_dofs and linear_max must be (3,)");
+            require(nv >= 0, "free_joint_rows: nv must be >= 0");
+            for (size_t j = 0; j < 3; ++j)
+                require(lin_dofs.data()[j] >= 0 && lin_dofs.data()[j] < nv, "free_joint_rows: a dof is out of range");
+            std::vector<double> G(static_cast<size_t>(6 * nv), 0.0), h(6);
+            const double* x = xmat.data();  // R row-major: row r of R^T is column r of R
+            for (i64 r = 0; r < 3; ++r) {
+                double* up = G.data() + r * nv;
+                for (i64 j = 0; j < 3; ++j) up[lin_dofs.data()[j]] = x[3 * j + r];
+                double* down = G.data() + (3 + r) * nv;
+                for (i64 k = 0; k < nv; ++k) down[k] = -up[k];
+                h[static_cast<size_t>(r)] = h[static_cast<size_t>(3 + r)] = dt * linear_max.data()[r];
+            }
+            return std::make_pair(to_numpy(std::move(G), {6, static_cast<size_t>(nv)}), to_numpy(std::move(h)));
+        },
+        nb::arg("xmat"), nb::arg("lin_dofs"), nb::arg("nv"), nb::arg("dt"), nb::arg("linear_max"),
+        "mink's FreeJointVelocityLimit's linear rows G dq <= h, bitwise as it computes them: R^T\n"
+        "(R the base's xmat (9,), row-major) on the three linear dofs, then its negation (every\n"
+        "entry, zeros to -0); h = dt linear_max, twice. G (6, nv), h (6,).");
+    m.def(
         "bad_entries",
         [](In2 G, In1 h) {
             const i64 rows = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));

@@ -19,6 +19,7 @@ import mink
 import mujoco
 import numpy as np
 
+from .._engine import limits as _limits_engine
 from ..model.configuration import dof_names
 
 __all__ = ["BallJointRows", "FreeJointAngular", "FreeJointLinear", "angular_dofs"]
@@ -175,6 +176,18 @@ class FreeJointLinear(mink.FreeJointVelocityLimit):
         """``(G, h)`` as mink computes them: ``R^T`` on the linear dofs, its negation below
         (every entry of the lower rows negated, zeros to -0), ``dt linear_max`` twice."""
         limit = self.source
+        dofs = limit._lin_dofs
+        if type(dofs) is np.ndarray and dofs.dtype.kind in "iu":
+            try:  # (in the engine: the same operations, without NumPy's temporaries)
+                return _limits_engine.free_joint_rows(
+                    configuration.data.xmat[limit.base_body_id],
+                    dofs.astype(np.int64, copy=False),
+                    configuration.model.nv,
+                    dt,
+                    np.asarray(limit.linear_max, dtype=float),
+                )
+            except (TypeError, ValueError):  # (what it does not take: NumPy's way says why)
+                pass
         G = np.zeros((6, configuration.model.nv))
         G[:3, limit._lin_dofs] = configuration.data.xmat[limit.base_body_id].reshape(3, 3).T
         np.negative(G[:3], out=G[3:])

@@ -1181,3 +1181,39 @@ def test_active_limits_name_each_dof_of_a_multi_dof_joint():
         assert all(name.startswith("root_joint[") for name in root)
         names.append(step.active_limits)
     assert names[0] == names[1]
+
+
+def test_free_joint_linear_rows_are_minks_bitwise(rng):
+    """The free joint's linear rows, made by the engine (_engine.limits.free_joint_rows), are
+    mink's FreeJointVelocityLimit rows bit for bit (signs of zero included) at random base
+    orientations, bounds and steps; an attribute the engine does not take (float dofs) is
+    answered by NumPy's way, as before."""
+    from qpik.diffik.mink_limits import FreeJointLinear
+
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="base")
+    body.add_freejoint()
+    body.add_geom(size=[0.1, 0.1, 0.1], type=mujoco.mjtGeom.mjGEOM_BOX)
+    arm = body.add_body(name="arm", pos=[0, 0, 0.2])
+    arm.add_joint(name="hinge", axis=[0, 1, 0])
+    arm.add_geom(size=[0.05, 0.2, 0], type=mujoco.mjtGeom.mjGEOM_CAPSULE)
+    model = spec.compile()
+    configuration = mink.Configuration(model)
+    lin = np.r_[0:3, 6:9]  # (mink's rows: linear then angular, twice)
+    for trial in range(200):
+        q = configuration.q.copy()
+        q[3:7] = rng.normal(size=4) * (trial % 7 != 0)  # (an identity base too)
+        q[3:7] = q[3:7] / np.linalg.norm(q[3:7]) if q[3:7].any() else [1, 0, 0, 0]
+        configuration.update(q)
+        limit = mink.FreeJointVelocityLimit(
+            model, max_linear_velocity=float(rng.uniform(0.01, 2.0)), max_angular_velocity=0.3
+        )
+        dt = float(rng.uniform(1e-3, 0.1))
+        ref = limit.compute_qp_inequalities(configuration, dt)
+        G, h = FreeJointLinear(limit)._rows(configuration, dt)
+        for ours, theirs in ((G, ref.G[lin]), (h, ref.h[lin])):
+            np.testing.assert_array_equal(ours, theirs)
+            np.testing.assert_array_equal(np.signbit(ours), np.signbit(theirs))
+    limit._lin_dofs = limit._lin_dofs.astype(float)  # (NumPy's way: its IndexError)
+    with pytest.raises(IndexError):
+        FreeJointLinear(limit)._rows(configuration, dt)
