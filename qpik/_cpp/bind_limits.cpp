@@ -45,48 +45,33 @@ void bind_limits(nb::module_& m) {
         "(R the base's xmat (9,), row-major) on the three linear dofs, then its negation (every\n"
         "entry, zeros to -0); h = dt linear_max, twice. G (6, nv), h (6,).");
     m.def(
-        "bad_entries",
-        [](In2 G, In1 h) {
+        "row_stats",
+        [](In2 G, In1 h, double tol) {
             const i64 rows = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));
             const i64 p = static_cast<i64>(h.shape(0));
-            i64 bad_g = 0, bad_h = 0, fewest = n;
+            i64 bad_g = 0, bad_h = 0, fewest = n, negligible = 0;
             for (i64 r = 0; r < rows; ++r) {
                 const double* g = G.data() + r * n;
                 i64 nonzero = 0;
-                for (i64 j = 0; j < n; ++j) {
-                    bad_g += !std::isfinite(g[j]);
-                    nonzero += g[j] != 0.0;
-                }
-                fewest = std::min(fewest, nonzero);
-            }
-            for (i64 i = 0; i < p; ++i) bad_h += !(h.data()[i] > -kInf);
-            return std::make_tuple(bad_g, bad_h, fewest);
-        },
-        nb::arg("G"), nb::arg("h"),
-        "A limit's rows G dq <= h checked as qpik.diffik.limit_inputs takes them: how many\n"
-        "entries of G (p, n) are not finite, how many of h are NaN or -inf (NumPy's isfinite and\n"
-        "h > -inf, without its temporaries), and the fewest nonzero entries of a row (n where p\n"
-        "= 0).");
-    m.def(
-        "negligible_rows",
-        [](In2 G, double tol) {
-            const i64 p = static_cast<i64>(G.shape(0)), n = static_cast<i64>(G.shape(1));
-            i64 count = 0;
-            for (i64 r = 0; r < p; ++r) {
-                const double* g = G.data() + r * n;
                 double largest = 0.0;  // (NaN once an entry is: as NumPy's max)
                 for (i64 j = 0; j < n; ++j) {
                     const double a = std::fabs(g[j]);
+                    bad_g += !std::isfinite(g[j]);
+                    nonzero += g[j] != 0.0;
                     largest = (a > largest || a != a) && largest == largest ? a : largest;
                 }
-                count += largest > 0.0 && largest <= tol;
+                fewest = std::min(fewest, nonzero);
+                negligible += largest > 0.0 && largest <= tol;
             }
-            return count;
+            for (i64 i = 0; i < p; ++i) bad_h += !(h.data()[i] > -kInf);
+            return std::make_tuple(bad_g, bad_h, fewest, negligible);
         },
-        nb::arg("G"), nb::arg("tol"),
-        "How many rows of G (p, n) are negligible: their largest |entry| in (0, tol] (a NaN entry\n"
-        "makes its row's largest NaN, not negligible), as qpik.diffik.boxes takes them\n"
-        "(np.abs(G).max(axis=1)) without NumPy's temporaries.");
+        nb::arg("G"), nb::arg("h"), nb::arg("tol"),
+        "A limit's rows G dq <= h (p, n) as qpik.diffik takes them, counted without NumPy's\n"
+        "temporaries: the entries of G that are not finite and those of h that are NaN or -inf\n"
+        "(NumPy's isfinite and h > -inf), the fewest nonzero entries of a row (n where p = 0), and\n"
+        "the negligible rows, whose largest |entry| is in (0, tol] (a NaN entry makes its row's\n"
+        "largest NaN: NumPy's max).");
     m.def(
         "collision_candidates",
         [](In<i64, 2> pairs, In<std::int32_t, 1> geom_type, In2 geom_size, In2 geom_aabb, In1 geom_rbound, In2 geom_xpos,

@@ -14,6 +14,7 @@ import numpy as np
 from .._engine import limits as _limits_engine
 from ..core.checks import float_array
 from ..errors import LimitDefinitionError
+from ..limits.collision import NEGLIGIBLE_ROW
 from ..model.configuration import joint_names
 
 __all__ = ["check_limit_model", "constraint_rows", "limit_name", "same_robot"]
@@ -71,7 +72,7 @@ def constraint_rows(
         and G.flags.c_contiguous
         and h.flags.c_contiguous
     ):  # (counted by the engine, without NumPy's temporaries: the same counts)
-        bad_g, bad_h, fewest = _limits_engine.bad_entries(G, h)
+        bad_g, bad_h, fewest, _ = _limits_engine.row_stats(G, h, NEGLIGIBLE_ROW)
     else:
         bad_g, bad_h = np.count_nonzero(~np.isfinite(G)), np.count_nonzero(~(h > -np.inf))
     if bad_g or bad_h:

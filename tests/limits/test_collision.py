@@ -282,7 +282,8 @@ def test_a_pair_whose_geoms_touch_gives_no_direction_and_blocks_nothing():
 
 def test_the_engine_counts_negligible_rows_as_numpy_takes_them(rng):
     # boxes' check counts negligible rows (largest |entry| in (0, NEGLIGIBLE_ROW]) in the
-    # engine, then flushes them with NumPy: the count is NumPy's, NaN and inf included.
+    # engine (row_stats), then flushes them with NumPy: the count is NumPy's, NaN and inf
+    # included.
     from qpik._engine import limits as engine
     from qpik.limits.collision import NEGLIGIBLE_ROW
 
@@ -293,4 +294,4 @@ def test_the_engine_counts_negligible_rows_as_numpy_takes_them(rng):
         G[rng.random((p, n)) < 0.05] = rng.choice([np.nan, np.inf, -np.inf, 1e-12, -1e-12])
         largest = np.abs(G).max(axis=1) if p else np.zeros(0)
         expected = int(((largest <= NEGLIGIBLE_ROW) & (largest > 0.0)).sum())
-        assert engine.negligible_rows(G, NEGLIGIBLE_ROW) == expected
+        assert engine.row_stats(G, np.zeros(p), NEGLIGIBLE_ROW)[3] == expected
