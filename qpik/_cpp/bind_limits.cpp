@@ -102,13 +102,13 @@ void bind_limits(nb::module_& m) {
         "into out (P,) int64; returns how many.");
     m.def(
         "contact_normal_rows",
-        [](In2 cdof, In2 subtree_com, In<i64, 1> starts, In<i64, 1> dofs, In<i64, 1> roots, In<i64, 1> which,
-           In2 fromto, In1 dist, double gain, double d_min, double relaxation, double dt, bool velocity, Out2 G,
-           Out1 h) {
+        [](In2 cdof, In2 subtree_com, In<i64, 1> starts, In<i64, 1> dofs, In<i64, 1> roots,
+           const std::vector<i64>& which, In2 fromto, const std::vector<double>& dist, double gain, double d_min,
+           double relaxation, double dt, bool velocity) {
             const i64 n = static_cast<i64>(cdof.shape(0));
             const i64 nbody = static_cast<i64>(subtree_com.shape(0));
             const i64 C = static_cast<i64>(roots.shape(0));
-            const i64 k = static_cast<i64>(which.shape(0));
+            const i64 k = static_cast<i64>(which.size());
             require(cdof.shape(1) == 6, "contact_normal_rows: cdof must be (nv, 6)");
             require(subtree_com.shape(1) == 3, "contact_normal_rows: subtree_com must be (nbody, 3)");
             require(C % 2 == 0 && static_cast<i64>(starts.shape(0)) == C + 1,
@@ -123,30 +123,31 @@ void bind_limits(nb::module_& m) {
             for (i64 e = 0; e < D; ++e)
                 require(dofs.data()[e] >= 0 && dofs.data()[e] < n, "contact_normal_rows: a dof is out of range");
             for (i64 r = 0; r < k; ++r)
-                require(which.data()[r] >= 0 && 2 * which.data()[r] < C, "contact_normal_rows: a pair is out of range");
+                require(which[r] >= 0 && which[r] < C / 2, "contact_normal_rows: a pair is out of range");
             require(fromto.shape(0) >= static_cast<size_t>(k) && fromto.shape(1) == 6,
                     "contact_normal_rows: fromto must be (k, 6)");
-            require(dist.shape(0) >= static_cast<size_t>(k), "contact_normal_rows: dist must hold k entries");
-            require(G.shape(0) == static_cast<size_t>(k) && static_cast<i64>(G.shape(1)) == n,
-                    "contact_normal_rows: G must be (k, nv)");
-            require(h.shape(0) == static_cast<size_t>(k), "contact_normal_rows: h must be (k,)");
-            std::vector<double> jac(static_cast<size_t>(6 * n));
-            return limits::contact_normal_rows(cdof.data(), subtree_com.data(), n, st, dofs.data(), roots.data(),
-                                               which.data(), fromto.data(), dist.data(), k, gain, d_min, relaxation,
-                                               dt, velocity, jac.data(), G.data(), h.data());
+            require(dist.size() >= static_cast<size_t>(k), "contact_normal_rows: dist must hold k entries");
+            std::vector<double> jac(static_cast<size_t>(6 * n)), G(static_cast<size_t>(k * n)),
+                h(static_cast<size_t>(k));
+            const i64 fewest = limits::contact_normal_rows(cdof.data(), subtree_com.data(), n, st, dofs.data(),
+                                                           roots.data(), which.data(), fromto.data(), dist.data(), k,
+                                                           gain, d_min, relaxation, dt, velocity, jac.data(),
+                                                           G.data(), h.data());
+            return std::make_tuple(to_numpy(std::move(G), {static_cast<size_t>(k), static_cast<size_t>(n)}),
+                                   to_numpy(std::move(h)), fewest);
         },
         nb::arg("cdof"), nb::arg("subtree_com"), nb::arg("starts"), nb::arg("dofs"), nb::arg("roots"),
         nb::arg("which"), nb::arg("fromto"), nb::arg("dist"), nb::arg("gain"), nb::arg("d_min"),
-        nb::arg("relaxation"), nb::arg("dt"), nb::arg("velocity"), nb::arg("G").noconvert(), nb::arg("h").noconvert(),
-        "The contact normal rows of geom pairs into G (k, nv), as mink's\n"
+        nb::arg("relaxation"), nb::arg("dt"), nb::arg("velocity"),
+        "The contact normal rows G (k, nv) of geom pairs, as mink's\n"
         "compute_contact_normal_jacobian makes them and its limits sign them: row r of pair\n"
         "which[r] (chains 2p, 2p + 1 of starts / dofs / roots: geom 1's body, geom 2's; qpik.model.frames.\n"
         "frame_chains), mj_geomDistance's dist[r] and fromto[r]: sign n^T (J2 - J1), n the unit\n"
         "normal from geom 1's point to geom 2's, J1 and J2 mj_jac at those points from the MjData's\n"
-        "cdof and subtree_com, sign -1 where dist >= 0, else +1. The right sides into h (k,):\n"
+        "cdof and subtree_com, sign -1 where dist >= 0, else +1. The right sides h (k,):\n"
         "velocity (mink's): gain (d - d_min) / dt + relaxation where d > d_min, else relaxation;\n"
-        "else gain (d - d_min) + relaxation [m]. Returns the fewest nonzero entries of a row (nv\n"
-        "where k = 0).");
+        "else gain (d - d_min) + relaxation [m]. Returns (G, h, the fewest nonzero entries of a\n"
+        "row: nv where k = 0); which (k,) and dist (k,) are sequences (lists).");
     m.def(
         "support_hull",
         [](In2 points) {

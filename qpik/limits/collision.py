@@ -160,12 +160,10 @@ class PairCulling:
                 continue
             dist.append(d)
             kept.append(idx)
-        G, h = np.empty((len(kept), model.nv)), np.empty(len(kept))
-        fewest = _engine.contact_normal_rows(
-            data.cdof, data.subtree_com, *chains[1:], np.array(kept, dtype=np.int64),
-            self._fromto, np.array(dist, dtype=float), float(limit.gain),
+        G, h, fewest = _engine.contact_normal_rows(
+            data.cdof, data.subtree_com, *chains[1:], kept, self._fromto, dist, float(limit.gain),
             float(limit.minimum_distance_from_collisions), float(limit.bound_relaxation),
-            float(dt), mink_units, G, h,
+            float(dt), mink_units,
         )  # fmt: skip
         return G, h, kept, fewest
 

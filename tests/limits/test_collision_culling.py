@@ -282,28 +282,29 @@ def test_contact_normal_rows_refuse_bad_arguments():
     n, cdof, com = 3, np.zeros((3, 6)), np.zeros((2, 3))
     args = dict(
         starts=np.array([0, 1, 2]), dofs=np.array([0, 1]), roots=np.array([0, 1]),
-        which=np.array([0]), fromto=np.zeros((1, 6)), dist=np.zeros(1),
-        G=np.empty((1, n)), h=np.empty(1),
+        which=[0], fromto=np.zeros((1, 6)), dist=[0.0],
     )  # fmt: skip
 
     def call(**given):
         a = {**args, **given}
         return engine.contact_normal_rows(
             cdof, com, a["starts"], a["dofs"], a["roots"], a["which"], a["fromto"], a["dist"],
-            0.85, 0.005, 0.0, 0.01, True, a["G"], a["h"],
+            0.85, 0.005, 0.0, 0.01, True,
         )  # fmt: skip
 
-    assert call() == 0  # a zero row (cdof 0): no nonzero entry
+    G, h, fewest = call()
+    assert G.shape == (1, n) and h.shape == (1,) and fewest == 0  # (cdof 0: a zero row)
     bad = {
         "dofs": np.array([0, 3]),
         "roots": np.array([0, 2]),
-        "which": np.array([1]),
+        "which": [1],
         "starts": np.array([0, 2, 1]),
         "fromto": np.zeros((1, 5)),
-        "dist": np.zeros(0),
-        "G": np.empty((1, n + 1)),
-        "h": np.empty(2),
+        "dist": [],
     }
     for name, value in bad.items():
         with pytest.raises(ValueError):
             call(**{name: value})
+    for which in ([2**62], [-1]):  # (no overflow in the check)
+        with pytest.raises(ValueError):
+            call(which=which)
