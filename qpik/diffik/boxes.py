@@ -629,6 +629,7 @@ def _inequalities_of(
             rows = constraint_rows(limit, limit.compute_qp_inequalities(configuration, dt))
             if rows is None:
                 return None
+            flushed = rows[3] is not None  # (counted by constraint_rows: none negligible)
     except (ValueError, TypeError, IndexError) as exc:  # (an attribute set to what does not fit)
         if isinstance(exc, QpikError):
             raise

@@ -38,8 +38,9 @@ def constraint_rows(
 ) -> tuple[np.ndarray, np.ndarray, None, int | None] | None:
     """The rows ``(G, h, None, fewest)`` of what a limit's own ``compute_qp_inequalities``
     returned (None where inactive: ``G`` and ``h`` None, as mink's ``Constraint`` says;
-    ``fewest``: the fewest nonzero entries of a row where every row has two or more, ``G``
-    and ``h`` then copies; else None and the limit's arrays as they are):
+    ``fewest``: the fewest nonzero entries of a row where the engine counted them and found
+    no negligible row (:data:`~qpik.limits.collision.NEGLIGIBLE_ROW`), ``G`` and ``h`` then
+    copies where it is two or more; else None, and the limit's arrays as they are):
     LimitDefinitionError naming the limit where it is not a ``Constraint`` (None, say), its
     ``G`` and ``h`` are not arrays of numbers, or a row holds NaN or ``h = -inf`` (``G``
     must be finite; ``h`` may be ``+inf``, a row that never binds, as mink's collision rows
@@ -65,14 +66,14 @@ def constraint_rows(
         ) from None
     G = G if G.ndim == 2 else np.atleast_2d(G)
     h = h if h.ndim == 1 else np.atleast_1d(h)
-    fewest = None
+    fewest = negligible = None
     if (
         G.dtype == np.float64
         and h.dtype == np.float64
         and G.flags.c_contiguous
         and h.flags.c_contiguous
     ):  # (counted by the engine, without NumPy's temporaries: the same counts)
-        bad_g, bad_h, fewest, _ = _limits_engine.row_stats(G, h, NEGLIGIBLE_ROW)
+        bad_g, bad_h, fewest, negligible = _limits_engine.row_stats(G, h, NEGLIGIBLE_ROW)
     else:
         bad_g, bad_h = np.count_nonzero(~np.isfinite(G)), np.count_nonzero(~(h > -np.inf))
     if bad_g or bad_h:
@@ -80,10 +81,11 @@ def constraint_rows(
             f"{limit_name(limit)}: its rows are not finite (G must be finite and h neither "
             f"NaN nor -inf; {int(bad_g)} entries of G, {int(bad_h)} of h)"
         )
-    if fewest is not None and fewest >= 2 and G.shape[0]:
-        # (every row on two dofs or more: new arrays, the limit's own left as it gave them)
+    if negligible != 0 or fewest is None:  # (not counted, or a row to flush: the caller's)
+        return G, h, None, None
+    if fewest >= 2:  # (every row on two dofs or more: new arrays, the limit's own kept)
         return G.copy(), h.copy(), None, fewest
-    return G, h, None, None
+    return G, h, None, fewest
 
 
 def same_robot(a: mujoco.MjModel, b: mujoco.MjModel) -> bool:

@@ -180,3 +180,20 @@ def test_the_engine_counts_bad_entries_as_numpy_does(rng):
         fewest = int(np.count_nonzero(G, axis=1).min()) if p else n
         expected = (np.count_nonzero(~np.isfinite(G)), np.count_nonzero(~(h > -np.inf)), fewest)
         assert engine.row_stats(G, h, 1e-12)[:3] == expected
+
+
+def test_a_user_limit_s_negligible_row_is_left_out_and_its_arrays_kept():
+    # A user limit's row of entries at most NEGLIGIBLE_ROW (h = 0) is a zero row, met and
+    # left out: the step is bitwise the one with only its other row (the engine counts it,
+    # NumPy flushes it); the limit's own arrays are never written.
+    G = np.zeros((2, 7))
+    G[0, :2] = 1.0, 1.0
+    G[1, 2:4] = 1e-13, -1e-13
+    h = np.array([0.01, 0.0])
+    G0, h0 = G.copy(), h.copy()
+    ik, configuration = _frame_solver([_Rows(mink.limits.Constraint(G=G, h=h))])
+    step = ik.step(configuration, DT)
+    bare, _ = _frame_solver([_Rows(mink.limits.Constraint(G=G0[:1].copy(), h=h0[:1].copy()))])
+    np.testing.assert_array_equal(step.velocity, bare.step(configuration, DT).velocity)
+    np.testing.assert_array_equal(G, G0)
+    np.testing.assert_array_equal(h, h0)
