@@ -53,12 +53,11 @@ void bind_limits(nb::module_& m) {
             for (i64 r = 0; r < rows; ++r) {
                 const double* g = G.data() + r * n;
                 i64 nonzero = 0;
-                double largest = 0.0;  // (NaN once an entry is: as NumPy's max)
+                double largest = 0.0;
                 for (i64 j = 0; j < n; ++j) {
-                    const double a = std::fabs(g[j]);
                     bad_g += !std::isfinite(g[j]);
                     nonzero += g[j] != 0.0;
-                    largest = (a > largest || a != a) && largest == largest ? a : largest;
+                    largest = limits::numpy_max_abs(largest, g[j]);
                 }
                 fewest = std::min(fewest, nonzero);
                 negligible += largest > 0.0 && largest <= tol;

@@ -84,7 +84,7 @@ _NO_DATA = object()  # never an MjData: CompiledPlan._plain_data while no lane s
 #: Rows of the output arrays a lean step writes into (:meth:`CompiledPlan._new_outputs`).
 OUTPUT_ROWS = 64
 
-#: :meth:`CompiledPlan._rows_result`'s "the gathered step answers".
+#: :meth:`CompiledPlan._rows_step`'s "the gathered step answers".
 _GATHER = object()
 
 # The compiled kernel: its arguments are documented where it is bound

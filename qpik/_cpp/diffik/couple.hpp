@@ -188,14 +188,14 @@ inline bool couple_step(CMatRef A, CVecRef b, CVecRef w, VecRefT<const i64> star
                         double lower_trust = 0.0) {
     using namespace couple_detail;
     const i64 n = A.cols, L = starts.size() - 1, M = A.rows, p = G.rows;
-    // General rows out of reach of the box never bind: solve_cascade_into leaves them out
-    // (its answer bitwise the one without them), and so does this path (their active entries
-    // 0); a row in reach: the general path.
     // (the cheap structural tests first: a stack without couplings leaves at once)
     if (L < 2 || n < 2) return false;
     const i64 cols = n + p;  // (the active sets' row length, as the general path's)
     const i64 m0 = starts[1];
     if (m0 == 0 || !find_pairs(A, w, m0, lb, ub, s)) return false;
+    // General rows out of reach of the box never bind: solve_cascade_into leaves them out
+    // (its answer bitwise the one without them), and so does this path (their active entries
+    // 0); a row in reach: the general path.
     if (p != 0 && core::rows_in_reach(G, h, lb, ub, ws.g_kept, ws.reach_cols) != 0) return false;
     // sigma: the rows of diag(1/w) A_0 are orthogonal (disjoint dofs): their norms are its
     // singular values; each must be a rank direction.

@@ -19,14 +19,19 @@
 #include <vector>
 
 #include "../common.hpp"
+#include "../core/linalg.hpp"
 
 namespace qpik::limits {
 
 inline constexpr double kTurn = 1e-10;
 
-// The hull of the n points pts (n, 2) row-major: its edge count e (at most n) with the edges'
-// normals (e, 2) and offsets (e,) written into normals / offsets (n rows / entries each);
-// 0 (nothing written) where the points span no area or one is not finite.
+// The largest of `largest` and |x| as NumPy's max takes it (a NaN, once met, stays): the
+// step of a row's largest entry for the negligible-row rule (qpik.diffik.boxes).
+inline double numpy_max_abs(double largest, double x) {
+    const double a = std::fabs(x);
+    return (a > largest || a != a) && largest == largest ? a : largest;
+}
+
 struct HullPoint {
     double x, y;
     i64 index;
@@ -45,8 +50,8 @@ inline constexpr double kInside = 1e-9;
 // vertex is (the chain's answer is the same without it). (Akl and Toussaint's heuristic: on
 // a humanoid's two soles, the inner sides of both feet.)
 inline i64 drop_inside(std::vector<HullPoint>& sorted, const i64* ext, double extent) {
-    typedef double v2d __attribute__((vector_size(16)));
-    typedef long long v2i __attribute__((vector_size(16)));
+    using core::simd::v2d;
+    using core::simd::v2i;
     const i64 n = static_cast<i64>(sorted.size());
     // The octagon's edges two at a time (lanes), a missing one (repeated vertex) always met:
     // a zero edge with a negative bound.
@@ -80,6 +85,9 @@ inline i64 drop_inside(std::vector<HullPoint>& sorted, const i64* ext, double ex
     return kept;
 }
 
+// The hull of the n points pts (n, 2) row-major: its edge count e (at most n) with the edges'
+// normals (e, 2) and offsets (e,) written into normals / offsets (n rows / entries each);
+// 0 (nothing written) where the points span no area or one is not finite.
 inline i64 support_hull(const double* pts, i64 n, double* normals, double* offsets) {
     using Point = HullPoint;
     // The chain's tests on the points scaled by a power of two (exact) to at most 1 in size:
@@ -94,14 +102,13 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
     std::frexp(big, &exponent);
     const double unit = std::ldexp(1.0, -exponent);
     std::vector<Point> sorted(static_cast<size_t>(n));
-    double lo[2] = {kInf, kInf}, hi[2] = {-kInf, -kInf};
     // The first point of largest d . p for each of eight directions d, 45 degrees apart
     // counter-clockwise from +x (x, x + y, y, y - x, -x, -x - y, -y, x - y): the octagon
     // they make is inside the hull, its vertices in the hull's order.
     // (lanes: (x, y), (x + y, y - x) and their negatives; each lane's first largest, its
     // index held as a double: exact below 2^53)
-    typedef double v2d __attribute__((vector_size(16)));
-    typedef long long v2i __attribute__((vector_size(16)));
+    using core::simd::v2d;
+    using core::simd::v2i;
     const v2d none = {-kInf, -kInf};
     v2d best[4] = {none, none, none, none}, at[4] = {};
     for (i64 i = 0; i < n; ++i) {
@@ -116,16 +123,14 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
             at[k] = more ? index : at[k];
         }
     }
-    // the extent: the largest x and y, and the smallest (-(-x)'s largest: exact)
-    lo[0] = -best[2][0];
-    lo[1] = -best[2][1];
-    hi[0] = best[0][0];
-    hi[1] = best[0][1];
+    // the extent: the largest x less the smallest, max x + max(-x) (exactly max x - min x),
+    // and y's alike
+    const double extent = std::max(best[0][0] + best[2][0], best[0][1] + best[2][1]);
     // counter-clockwise from +x: x, x + y, y, y - x, -x, -x - y, -y, x - y
     const i64 ext[8] = {static_cast<i64>(at[0][0]), static_cast<i64>(at[1][0]), static_cast<i64>(at[0][1]),
                         static_cast<i64>(at[1][1]), static_cast<i64>(at[2][0]), static_cast<i64>(at[3][0]),
                         static_cast<i64>(at[2][1]), static_cast<i64>(at[3][1])};
-    n = drop_inside(sorted, ext, std::max(hi[0] - lo[0], hi[1] - lo[1]));
+    n = drop_inside(sorted, ext, extent);
     // (x, then y, then the index: a total order, the same sort on every machine)
     std::sort(sorted.begin(), sorted.begin() + n, [](const Point& a, const Point& b) {
         if (a.x != b.x) return a.x < b.x;
@@ -168,7 +173,6 @@ inline i64 support_hull(const double* pts, i64 n, double* normals, double* offse
         const Point &a = chain[static_cast<size_t>(k)], &b = chain[static_cast<size_t>(k + 1)];
         area += (a.x - chain[0].x) * (b.y - chain[0].y) - (b.x - chain[0].x) * (a.y - chain[0].y);
     }
-    const double extent = std::max(hi[0] - lo[0], hi[1] - lo[1]);
     if (!(area > 2.0 * kTurn * extent * extent)) return 0;
     for (i64 k = 0; k < e; ++k) {
         const i64 a = chain[static_cast<size_t>(k)].index, b = chain[static_cast<size_t>((k + 1) % e)].index;
@@ -221,8 +225,7 @@ inline void support_rows(const double* normals, const double* offsets, i64 e, co
         for (i64 v = 0; v < nv; ++v) {
             g[v] = ax * jac_x[v] + ay * jac_y[v];
             count += g[v] != 0.0;
-            const double a = std::fabs(g[v]);
-            largest = (a > largest || a != a) && largest == largest ? a : largest;  // (NaN stays)
+            largest = numpy_max_abs(largest, g[v]);
         }
         if (largest > 0.0 && largest <= negligible) {
             std::fill(g, g + nv, 0.0);
