@@ -96,6 +96,41 @@ def test_collision_rows_of_qpik_take_the_compiled_step(kind):
     assert worst <= 1e-9 and names > 0  # (steps that a collision row bounds)
 
 
+def test_the_one_call_step_with_collision_rows_answers_as_a_fresh_solver():
+    """The one-call step with general rows (Kernel.rows_into, its answers in the output rows
+    the lean step shares) gives each state's answer bit for bit whatever ran before: the
+    closed loop's steps, the same states in reverse in a second solver (its output rows
+    turned over more than once), and each state in a fresh solver; qpik.solve_ik alike."""
+    model, configuration, tip, posture, avoid = _panda_past_a_ball()
+    stack, limits = [[tip], [posture]], [avoid, *joint_limits(model)]
+    loop = qpik.IKSolver(model, stack, limits)
+    states, answers, seen = [], [], 0
+    for _ in range(150):  # (more steps than OUTPUT_ROWS: the rows are allocated again)
+        states.append(configuration.q.copy())
+        result = loop.step(configuration, DT)
+        answers.append(result.velocity.copy())
+        seen += any("Collision" in name for name in result.active_limits)
+        configuration.integrate_inplace(result.velocity, DT)
+    assert seen > 0  # (states where a collision row binds)
+    other = qpik.IKSolver(model, stack, limits)
+    for q, v in zip(states[::-1], answers[::-1]):
+        configuration.update(q)
+        np.testing.assert_array_equal(other.step(configuration, DT).velocity, v)
+    for k in range(0, 150, 37):
+        configuration.update(states[k])
+        fresh = qpik.IKSolver(model, stack, limits).step(configuration, DT)
+        np.testing.assert_array_equal(fresh.velocity, answers[k])
+        tasks = [tip, posture]
+        first = qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits)
+        for j in (k, 149 - k):  # (another state between: the kept solver's rows turn)
+            configuration.update(states[j])
+            qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits)
+        configuration.update(states[k])
+        np.testing.assert_array_equal(
+            qpik.solve_ik(configuration, tasks, DT, "daqp", limits=limits), first
+        )
+
+
 @pytest.mark.skipif(not has_erd(), reason="needs example-robot-data (the robots extra)")
 def test_the_support_polygon_takes_the_compiled_step():
     model = qpik.load_robot("erd:talos", floating_base=True)
