@@ -53,6 +53,7 @@ and the core agree on); also the per-level statuses over every state.
     python benchmarks/step_time.py --peers talos [--talos-steps 300]   # the Talos peers alone
         [--talos-methods qpik,placo]   # only those methods (keys: TALOS_METHODS)
     python benchmarks/step_time.py --instructions [--count-states 100]  # valgrind's counts
+    python benchmarks/step_time.py --cache [--count-states 100]  # hot / flushed / interleaved
 
 * **Instructions per step** (``--instructions``; needs valgrind): the Panda and Talos peer
   problems (qpik's strict levels, qpik on PlaCo's problem, PlaCo), each method alone in its
@@ -1305,6 +1306,75 @@ def count_instructions(cases: list, n: int) -> None:
             print(f"  {label:44s} {value:12,.0f}   {ratio}")
 
 
+#: Bytes written between the timed steps of --cache's "flushed" regime: twice this machine
+#: class's L2 (2 MiB a core), so that neither the step's code nor its data is left in L1 or
+#: L2 (the last-level cache, hundreds of MiB on a server, is not flushed).
+FLUSH_BYTES = 4 * 2**20
+
+
+def cache_regimes(cases: list, n: int, reps: int = 2) -> None:
+    """Median time per step of the --instructions methods (qpik's strict levels, qpik on
+    PlaCo's problem where there is one, PlaCo) at the same states in three cache states:
+    ``hot`` (each method's steps back to back: its code and data stay in L1/L2), ``flushed``
+    (FLUSH_BYTES written between the state's update and the step: both start in the last-level
+    cache) and ``interleaved`` (at each state every method's step in turn, the order rotating:
+    each starts after the others ran, as in :func:`panda_peers` and :func:`talos_peers`).
+    Where the ratio to PlaCo is about 1 hot and above 1 flushed, the gap is the step's
+    footprint (code and data brought back from the last-level cache), not its instructions;
+    where it is above 1 hot too, the instructions (or their dependence chains)."""
+    if peers_found().get("placo") is None:
+        print("\ncache regimes skipped: PlaCo is not installed (pip install -e '.[compare]')")
+        return
+    buffer = np.zeros(FLUSH_BYTES // 8)
+
+    def timed(set_state, step, k, flush=False):
+        set_state(k)
+        if flush:
+            buffer[:] += 1.0
+        t0 = time.perf_counter()
+        try:
+            step()
+        except Exception:  # PlaCo raises where a hard task cannot be met
+            pass
+        return time.perf_counter() - t0
+
+    for case in cases:
+        methods = COUNT_METHODS[case]
+        runs = {label: _count_case(case, key, n) for key, label in methods}
+        for set_state, step in runs.values():  # (set-up outside the timings)
+            timed(set_state, step, 0)
+        halves = {"": range(n)} if case == "panda" else {
+            " in reach": range(n // 2), " out of reach": range(n // 2, n)
+        }  # fmt: skip
+        times = {(label, regime, half): [] for label in runs for regime in ("hot", "flushed",
+                 "interleaved") for half in halves}  # fmt: skip
+        labels = list(runs)
+        for _ in range(reps):
+            for half, ks in halves.items():
+                for label, (set_state, step) in runs.items():
+                    for regime, flush in (("hot", False), ("flushed", True)):
+                        times[(label, regime, half)] += [
+                            timed(set_state, step, k, flush) for k in ks
+                        ]
+                for i, k in enumerate(ks):
+                    for j in range(len(labels)):
+                        label = labels[(i + j) % len(labels)]
+                        times[(label, "interleaved", half)].append(timed(*runs[label], k))
+        what = "free regime" if case == "panda" else "qpik's closed-loop states"
+        print(f"\ncache regimes, {case} ({n} states, {what}; median us a step, x {reps}; "
+              f"ratio to PlaCo's in the same regime):")  # fmt: skip
+        for half in halves:
+            print(f"  {'method' + half:44s} {'hot':>14s} {'flushed':>14s} {'interleaved':>14s}")
+            ref = labels[-1]
+            for label in labels:
+                cells = []
+                for regime in ("hot", "flushed", "interleaved"):
+                    value = 1e6 * np.median(times[(label, regime, half)])
+                    base = 1e6 * np.median(times[(ref, regime, half)])
+                    cells.append(f"{value:7.1f} ({value / base:4.2f})")
+                print(f"  {label:44s} " + " ".join(f"{c:>14s}" for c in cells))
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--states", type=int, default=400)
@@ -1332,6 +1402,12 @@ def main(argv=None) -> None:
         help="instructions per step of qpik and PlaCo (Panda, Talos), counted by valgrind "
         "(a figure no machine load changes), then exit",
     )
+    parser.add_argument(
+        "--cache",
+        action="store_true",
+        help="the --instructions methods' times hot, after a cache flush and interleaved "
+        "(where the gap to PlaCo lies: instructions or footprint), then exit",
+    )
     parser.add_argument("--count-states", type=int, default=100, help="states a count")
     parser.add_argument("--count-child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -1341,6 +1417,9 @@ def main(argv=None) -> None:
         return
     if args.instructions:
         count_instructions(["panda", "talos"], args.count_states)
+        return
+    if args.cache:
+        cache_regimes(["panda", "talos"], args.count_states * 3)
         return
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
