@@ -133,6 +133,9 @@ struct Workspace {
     detail::NnlsScratch nnls;
     IVec state, others, pinned;
     IVec pin_keep, pin_touched;  // drop_pinned's coordinates no pinned normal touches, and the others
+    // primal_guess: its working set (rows, sides), multipliers, candidate and row products
+    IVec pg_rows, pg_sides;
+    Vec pg_u, pg_z, pg_cz, pg_norm;
     BVec box_pinned;
     Mat pin_gram, pin_factor;  // the independence test's Gram matrix and its factor
     Mat N;
@@ -2556,6 +2559,148 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     return true;
 }
 
+// A cold level whose dual method would not stop at once (its unconstrained minimiser x0 =
+// ws.qps.x, H's factor in ws.qps.L, violates a row), before the dual method: the working set
+// guessed from x0, as a primal-dual active set, checked at each try by the final candidate of
+// exact_level itself. It starts from the rows x0 violates (each on the side it leaves, the
+// test of rows_hold_at's decide); at each try eq_candidate gives the minimiser with the set held
+// as equalities and its multipliers, the set loses its row of the most negative multiplier
+// where one is negative, else gains the row most violated at the candidate (scaled as
+// decide's), else the candidate is certified as exact_level certifies its own (certify_level
+// with the set's rows and multipliers). At most kGuessTries tries; false (nothing written but
+// scratch) where the set leaves eq_candidate's reach, a try makes no candidate, or the tries
+// end without a certified one: the dual method then solves the level as before. Where it
+// holds, the answer is exact_level's on the same set (the same eq_candidate, certify_level
+// and final set: its rows of positive multiplier), which is the dual method's final set
+// wherever the optimal set is unique (rho > 0: the minimiser is unique; a row of zero
+// multiplier at the optimum may be in one set and not the other, the same point to
+// round-off), so the level's answer is the one the dual method and exact_level would give,
+// a function of the level's problem alone. tries: the candidates made.
+constexpr i64 kGuessTries = 6;
+inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk, double rho, CMatRef Z,
+                         const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol, const double* gsq,
+                         bool z_eye, Workspace& ws, Certificate& cert, IVec& final_rows, IVec& final_sides,
+                         i64& tries) {
+    tries = 0;
+    const i64 n = Z.rows, r = Z.cols, p = G.rows, rows_all = n + p;
+    if (qp.C.rows != rows_all || qp.C.cols != r || r < kRegFoldMin) return false;
+    const QPScratch& qs = ws.qps;
+    if (qs.L.rows != r || static_cast<i64>(qs.x.size()) != r) return false;
+    for (i64 i = 0; i < r; ++i)
+        if (!std::isfinite(qs.x[i])) return false;
+    CertScratch& es = ws.cs;
+    IVec& rows = ws.pg_rows;
+    IVec& sides = ws.pg_sides;
+    Vec& u = ws.pg_u;
+    Vec& zc = ws.pg_z;
+    Vec& cz = ws.pg_cz;
+    Vec& norm = ws.pg_norm;
+    rows.clear();
+    sides.clear();
+    shape(norm, static_cast<size_t>(rows_all));
+    shape(cz, static_cast<size_t>(rows_all));
+    // Each row's norm (0: no constraint, reduced_rows' infinite bounds); C x at x = x0 below.
+    // The side row i leaves at the point whose products are cz, by how much (scaled as decide):
+    // +1 below lo, -1 above hi, 0 where it holds to tol.
+    auto leaves = [&](i64 i, double& by) -> i64 {
+        by = 0.0;
+        const double lo = qp.lo[i], hi = qp.hi[i];
+        if (!(norm[i] > 0.0) || (lo <= -kBig && hi >= kBig)) return 0;
+        if (lo > -kBig) {
+            const double v = (lo - cz[i]) / norm[i];
+            if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) {
+                by = v / (1.0 + std::fabs(lo));
+                return 1;
+            }
+        }
+        if (hi < kBig) {
+            const double v = (cz[i] - hi) / norm[i];
+            if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) {
+                by = v / (1.0 + std::fabs(hi));
+                return -1;
+            }
+        }
+        return 0;
+    };
+    // (a set past eq_candidate's reach ends the guess at once: most often a level far from its
+    // target, whose x0 leaves most of its box)
+    const i64 most_rows = std::min<i64>(kEqCandidateRows, r - 1);
+    for (i64 i = 0; i < rows_all; ++i) {
+        const double* ci = qp.C.row(i);
+        norm[i] = std::sqrt(dot(ci, ci, r));
+        cz[i] = dot(ci, qs.x.data(), r);
+        double by;
+        const i64 side = leaves(i, by);
+        if (side == 0) continue;
+        if (!std::isfinite(by) || static_cast<i64>(rows.size()) == most_rows) return false;
+        rows.push_back(i);
+        sides.push_back(side);
+    }
+    for (tries = 0; tries < kGuessTries;) {
+        const i64 q = static_cast<i64>(rows.size());
+        if (q == 0 || q > kEqCandidateRows || q >= r) return false;
+        ++tries;
+        if (!eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, &qs, es, zc, u)) return false;
+        // the most negative multiplier leaves the set
+        i64 worst = -1;
+        double least = 0.0;
+        for (i64 j = 0; j < q; ++j) {
+            if (!std::isfinite(u[j])) return false;
+            if (u[j] < least) {
+                least = u[j];
+                worst = j;
+            }
+        }
+        if (worst >= 0) {
+            rows.erase(rows.begin() + worst);
+            sides.erase(sides.begin() + worst);
+            continue;
+        }
+        // else the row most violated at the candidate joins it (in row order)
+        for (i64 i = 0; i < rows_all; ++i) cz[i] = dot(qp.C.row(i), zc.data(), r);
+        i64 add = -1, add_side = 0;
+        double most = 0.0;
+        for (i64 i = 0, j = 0; i < rows_all; ++i) {
+            if (j < q && rows[j] == i) {
+                ++j;
+                continue;
+            }
+            double by;
+            const i64 side = leaves(i, by);
+            if (side != 0 && !(by <= most)) {
+                if (!std::isfinite(by)) return false;
+                most = by;
+                add = i;
+                add_side = side;
+            }
+        }
+        if (add >= 0) {
+            const auto at = std::lower_bound(rows.begin(), rows.end(), add) - rows.begin();
+            rows.insert(rows.begin() + at, add);
+            sides.insert(sides.begin() + at, add_side);
+            continue;
+        }
+        // every multiplier >= 0 and every row met: certified as exact_level certifies
+        Vec& x = es.xx;
+        zero_fill(x, static_cast<size_t>(n));
+        add_step(Z, d, zc, z_eye, es.xZz, x);
+        Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, q, true, &es, gsq, z_eye,
+                                      &qp.C, max_abs(zc, static_cast<i64>(zc.size())));
+        if (!(c.holds() && c.rows_relative)) return false;
+        cert = c;
+        final_rows.clear();
+        final_sides.clear();
+        for (i64 j = 0; j < q; ++j) {
+            if (u[j] > 0.0) {
+                final_rows.push_back(rows[j]);
+                final_sides.push_back(sides[j]);
+            }
+        }
+        return true;
+    }
+    return false;
+}
+
 // exact_level after a dual method that stopped at once (dual_stops_at_once), and exact_level's
 // own answer for an empty working set (q == 0, cold or warm): of the least-squares minimisers,
 // the one nearest x = 0 (eqp_ls with no rows from zref = -Z^T d), certified; true when its
@@ -4007,6 +4152,26 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             c.stationarity = c.dual = c.complementarity = 0.0;
             return c;
         };
+        // A cold damped level whose unconstrained minimiser leaves a row: the working set
+        // guessed from it first (detail::primal_guess); where its candidate is certified, the
+        // level's answer is exact_level's on that set, and the dual method does not run.
+        i64 tries = 0;
+        if (cold && !stops && factored && rho > 0.0 &&
+            detail::primal_guess(ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, tol, gsq, z_eye, ws, cert,
+                                 final_rows, final_sides, tries)) {
+            res.iterations[k] = tries;
+            double* ck = res.certificate.data() + 4 * k;
+            ck[0] = cert.primal;
+            ck[1] = cert.stationarity;
+            ck[2] = cert.dual;
+            ck[3] = cert.complementarity;
+            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
+            for (size_t j = 0; j < final_rows.size(); ++j)
+                res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
+            res.status[k] = SOLVED;
+            take_null_space();
+            continue;
+        }
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
                                    VecRefT<const i8>(warm.row(k), n + p), max_iter, tol, k > 0, false, true, ws.qps,
                                    factored);
