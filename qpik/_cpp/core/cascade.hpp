@@ -1781,6 +1781,20 @@ inline bool free_answer(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CM
 inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, const IVec& rows,
                          const IVec& sides, i64 q, const QPScratch* made, CertScratch& es, Vec& z, Vec& u);
 
+// The final active set of a certified candidate: the first q rows of its working set (rows,
+// sides) whose multiplier u is positive, in order.
+inline void positive_rows(const IVec& rows, const IVec& sides, const Vec& u, i64 q, IVec& final_rows,
+                          IVec& final_sides) {
+    final_rows.clear();
+    final_sides.clear();
+    for (i64 j = 0; j < q; ++j) {
+        if (u[j] > 0.0) {
+            final_rows.push_back(rows[j]);
+            final_sides.push_back(sides[j]);
+        }
+    }
+}
+
 // The rows of the working set (rows, sides: C's rows, their signs; the first q) that are
 // independent in order: each kept unless its normal side_j C[row_j] lies within kDependent of
 // the span of those kept before it (the test eqp_ls makes of the whole set, on R's diagonal).
@@ -1863,14 +1877,7 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             cert = c;
         }
         if (c.holds() && c.rows_relative) {  // the final active set: the rows with a positive multiplier
-            final_rows.clear();
-            final_sides.clear();
-            for (size_t j = 0; j < rows.size(); ++j) {
-                if (u[j] > 0.0) {
-                    final_rows.push_back(rows[j]);
-                    final_sides.push_back(sides[j]);
-                }
-            }
+            positive_rows(rows, sides, u, static_cast<i64>(rows.size()), final_rows, final_sides);
             return true;
         }
         if (c.primal <= kCertify && c.rows_relative && c.worst() < best_feasible) {
@@ -2688,14 +2695,7 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
                                       &qp.C, max_abs(zc, static_cast<i64>(zc.size())));
         if (!(c.holds() && c.rows_relative)) return false;
         cert = c;
-        final_rows.clear();
-        final_sides.clear();
-        for (i64 j = 0; j < q; ++j) {
-            if (u[j] > 0.0) {
-                final_rows.push_back(rows[j]);
-                final_sides.push_back(sides[j]);
-            }
-        }
+        positive_rows(rows, sides, u, q, final_rows, final_sides);
         return true;
     }
     return false;
@@ -3325,14 +3325,7 @@ inline bool certified_by_refined_multipliers(CMatRef Ak, CVecRef bk, double rho,
     }
     cert = c;
     z = zb;
-    final_rows.clear();
-    final_sides.clear();
-    for (i64 k = 0; k < t; ++k) {
-        if (u[k] > 0.0) {
-            final_rows.push_back(rows[k]);
-            final_sides.push_back(sides[k]);
-        }
-    }
+    positive_rows(rows, sides, u, t, final_rows, final_sides);
     return true;
 }
 
@@ -4160,16 +4153,9 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             detail::primal_guess(ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, tol, gsq, z_eye, ws, cert,
                                  final_rows, final_sides, tries)) {
             res.iterations[k] = tries;
-            double* ck = res.certificate.data() + 4 * k;
-            ck[0] = cert.primal;
-            ck[1] = cert.stationarity;
-            ck[2] = cert.dual;
-            ck[3] = cert.complementarity;
-            std::memcpy(d.data(), ws.cs.xx.data(), static_cast<size_t>(n) * sizeof(double));
             for (size_t j = 0; j < final_rows.size(); ++j)
                 res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
-            res.status[k] = SOLVED;
-            take_null_space();
+            take_free();  // (its certificate, d + Z z from ws.cs.xx, solved, Z for below)
             continue;
         }
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
