@@ -2493,12 +2493,19 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     Vec& S = es.eS;
     S.assign(qs * qs, 0.0);
     for (i64 j = 0; j < q; ++j) {
+        // S(j, k) = V_j . V_k, each sum from +0 in index order (dot4's and dot2's lanes: four or
+        // two k a pass, the same sums)
         const double* vj = V.row(j);
-        for (i64 k = 0; k <= j; ++k) {
+        double* sj = S.data() + j * q;
+        i64 k = 0;
+        for (; k + 4 <= j + 1; k += 4)
+            dot4(V.row(k), V.row(k + 1), V.row(k + 2), V.row(k + 3), vj, r, sj[k], sj[k + 1], sj[k + 2], sj[k + 3]);
+        for (; k + 2 <= j + 1; k += 2) dot2(V.row(k), V.row(k + 1), vj, r, sj[k], sj[k + 1]);
+        for (; k <= j; ++k) {
             const double* vk = V.row(k);
             double acc = 0.0;
             for (i64 i = 0; i < r; ++i) acc += vj[i] * vk[i];
-            S[j * q + k] = acc;
+            sj[k] = acc;
         }
     }
     for (i64 j = 0; j < q; ++j) {
@@ -2521,10 +2528,20 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     du.resize(qs);
     auto step = [&]() {
         forward_into(L, g, w);  // w = L^-1 g
-        for (i64 j = 0; j < q; ++j) {
-            const double* vj = V.row(j);
-            double acc = t[j];
-            for (i64 i = 0; i < r; ++i) acc -= vj[i] * w[i];
+        // du_j = (t_j - V_j . w - sum_k<j S(j, k) du_k) / S(j, j), each term taken from t_j in
+        // order: the first sums for every j first (two j a pass, one a lane), then the rest
+        i64 j = 0;
+        for (; j + 2 <= q; j += 2) {
+            using namespace simd;
+            const double *v0 = V.row(j), *v1 = V.row(j + 1);
+            v2d acc = v2d{t[j], t[j + 1]};
+            for (i64 i = 0; i < r; ++i) acc = acc - v2d{v0[i], v1[i]} * splat(w[i]);
+            du[j] = acc[0];
+            du[j + 1] = acc[1];
+        }
+        for (; j < q; ++j) du[j] = minus_dot(t[j], V.row(j), w.data(), r);
+        for (j = 0; j < q; ++j) {
+            double acc = du[j];
             for (i64 k = 0; k < j; ++k) acc -= S[j * q + k] * du[k];
             du[j] = acc / S[j * q + j];
         }
