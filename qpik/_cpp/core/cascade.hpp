@@ -2621,9 +2621,19 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
     Vec& norm = ws.pg_norm;
     rows.clear();
     sides.clear();
-    shape(norm, static_cast<size_t>(rows_all));
     shape(cz, static_cast<size_t>(rows_all));
-    // Each row's norm (0: no constraint, reduced_rows' infinite bounds); C x at x = x0 below.
+    // Each row's norm (0: no constraint, reduced_rows' infinite bounds) and C x at a point x
+    // (cz), dot's sums (row_norms_into's and dot8's: eight rows a pass, the same sums).
+    row_norms_into(qp.C.cref(), norm);
+    auto products = [&](const double* x) {
+        i64 i = 0;
+        for (; i + 8 <= rows_all; i += 8) {
+            const double* c8[8];
+            for (int k = 0; k < 8; ++k) c8[k] = qp.C.row(i + k);
+            dot8(c8, x, r, cz.data() + i);
+        }
+        for (; i < rows_all; ++i) cz[i] = dot(qp.C.row(i), x, r);
+    };
     // The side row i leaves at the point whose products are cz, by how much (scaled as decide):
     // +1 below lo, -1 above hi, 0 where it holds to tol.
     auto leaves = [&](i64 i, double& by) -> i64 {
@@ -2649,10 +2659,8 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
     // (a set past eq_candidate's reach ends the guess at once: most often a level far from its
     // target, whose x0 leaves most of its box)
     const i64 most_rows = std::min<i64>(kEqCandidateRows, r - 1);
+    products(qs.x.data());
     for (i64 i = 0; i < rows_all; ++i) {
-        const double* ci = qp.C.row(i);
-        norm[i] = std::sqrt(dot(ci, ci, r));
-        cz[i] = dot(ci, qs.x.data(), r);
         double by;
         const i64 side = leaves(i, by);
         if (side == 0) continue;
@@ -2681,7 +2689,7 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
             continue;
         }
         // else the row most violated at the candidate joins it (in row order)
-        for (i64 i = 0; i < rows_all; ++i) cz[i] = dot(qp.C.row(i), zc.data(), r);
+        products(zc.data());
         i64 add = -1, add_side = 0;
         double most = 0.0;
         for (i64 i = 0, j = 0; i < rows_all; ++i) {
