@@ -134,7 +134,7 @@ struct Workspace {
     IVec state, others, pinned;
     IVec pin_keep, pin_touched;  // drop_pinned's coordinates no pinned normal touches, and the others
     // primal_guess: its working set (rows, sides), multipliers, candidate and row products
-    IVec pg_rows, pg_sides;
+    IVec pg_rows, pg_sides, pg_more, pg_more_sides;
     Vec pg_u, pg_z, pg_cz, pg_norm;
     BVec box_pinned;
     Mat pin_gram, pin_factor;  // the independence test's Gram matrix and its factor
@@ -2587,9 +2587,11 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
 // ws.qps.x, H's factor in ws.qps.L, violates a row), before the dual method: the working set
 // guessed from x0, as a primal-dual active set, checked at each try by the final candidate of
 // exact_level itself. It starts from the rows x0 violates (each on the side it leaves, the
-// test of rows_hold_at's decide); at each try eq_candidate gives the minimiser with the set held
-// as equalities and its multipliers, the set loses its row of the most negative multiplier
-// where one is negative, else gains the row most violated at the candidate (scaled as
+// test of rows_hold_at's decide), where there are at most kGuessRows of them (a level far
+// from its target, whose x0 leaves much of its box, or a weighted level of many rows, needs
+// more tries than the dual method costs); at each try eq_candidate gives the minimiser with
+// the set held as equalities and its multipliers; the set loses every row of negative
+// multiplier where there is one, else gains every row violated at the candidate (scaled as
 // decide's), else the candidate is certified as exact_level certifies its own (certify_level
 // with the set's rows and multipliers). At most kGuessTries tries; false (nothing written but
 // scratch) where the set leaves eq_candidate's reach, a try makes no candidate, or the tries
@@ -2600,6 +2602,7 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
 // multiplier at the optimum may be in one set and not the other, the same point to
 // round-off), so the level's answer is the one the dual method and exact_level would give,
 // a function of the level's problem alone. tries: the candidates made.
+constexpr i64 kGuessRows = 8;
 constexpr i64 kGuessTries = 6;
 inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk, double rho, CMatRef Z,
                          const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol, const double* gsq,
@@ -2656,9 +2659,8 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
         }
         return 0;
     };
-    // (a set past eq_candidate's reach ends the guess at once: most often a level far from its
-    // target, whose x0 leaves most of its box)
-    const i64 most_rows = std::min<i64>(kEqCandidateRows, r - 1);
+    // (more rows than kGuessRows, or past eq_candidate's reach, end the guess at once)
+    const i64 most_rows = std::min<i64>(std::min<i64>(kEqCandidateRows, kGuessRows), r - 1);
     products(qs.x.data());
     for (i64 i = 0; i < rows_all; ++i) {
         double by;
@@ -2673,25 +2675,26 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
         if (q == 0 || q > kEqCandidateRows || q >= r) return false;
         ++tries;
         if (!eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, &qs, es, zc, u)) return false;
-        // the most negative multiplier leaves the set
-        i64 worst = -1;
-        double least = 0.0;
+        // every row of a negative multiplier leaves the set (in order)
+        i64 kept = 0;
         for (i64 j = 0; j < q; ++j) {
             if (!std::isfinite(u[j])) return false;
-            if (u[j] < least) {
-                least = u[j];
-                worst = j;
-            }
+            if (u[j] < 0.0) continue;
+            rows[kept] = rows[j];
+            sides[kept] = sides[j];
+            ++kept;
         }
-        if (worst >= 0) {
-            rows.erase(rows.begin() + worst);
-            sides.erase(sides.begin() + worst);
+        if (kept < q) {
+            rows.resize(static_cast<size_t>(kept));
+            sides.resize(static_cast<size_t>(kept));
             continue;
         }
-        // else the row most violated at the candidate joins it (in row order)
+        // else every row violated at the candidate joins it (in row order)
         products(zc.data());
-        i64 add = -1, add_side = 0;
-        double most = 0.0;
+        IVec& more = ws.pg_more;
+        IVec& more_sides = ws.pg_more_sides;
+        more.clear();
+        more_sides.clear();
         for (i64 i = 0, j = 0; i < rows_all; ++i) {
             if (j < q && rows[j] == i) {
                 ++j;
@@ -2699,17 +2702,17 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
             }
             double by;
             const i64 side = leaves(i, by);
-            if (side != 0 && !(by <= most)) {
-                if (!std::isfinite(by)) return false;
-                most = by;
-                add = i;
-                add_side = side;
-            }
+            if (side == 0) continue;
+            if (!std::isfinite(by)) return false;
+            more.push_back(i);
+            more_sides.push_back(side);
         }
-        if (add >= 0) {
-            const auto at = std::lower_bound(rows.begin(), rows.end(), add) - rows.begin();
-            rows.insert(rows.begin() + at, add);
-            sides.insert(sides.begin() + at, add_side);
+        if (!more.empty()) {
+            for (size_t a = 0; a < more.size(); ++a) {
+                const auto at = std::lower_bound(rows.begin(), rows.end(), more[a]) - rows.begin();
+                rows.insert(rows.begin() + at, more[a]);
+                sides.insert(sides.begin() + at, more_sides[a]);
+            }
             continue;
         }
         // every multiplier >= 0 and every row met: certified as exact_level certifies
