@@ -919,8 +919,7 @@ class Kernel {
             require(warm.rows == L_ && warm.cols == n_, "Kernel.go: warm must have shape (L, nv)");
             w = warm.p;
         } else {
-            if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
-            w = cold_.data();
+            w = cold_sets(L_ * n_);
         }
         diffik::StepResult& r = step_;  // kept: its vectors' storage reused
         diffik::fused_step_into(a, max_iter, MatRefT<const i8>(w, L_, n_), canonical, ws_, scratch_, r, true);
@@ -961,10 +960,9 @@ class Kernel {
         diffik::FusedArgs a = attached_args(G, h);
         make_jacobians();
         const i64 p = dim(G, 0), cols = n_ + p;
-        cold_rows_.assign(static_cast<size_t>(L_ * cols), 0);
         diffik::StepResult& r = step_;  // kept: its vectors' storage reused
-        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(cold_rows_.data(), L_, cols), false, ws_, scratch_, r,
-                                true);
+        diffik::fused_step_into(a, max_iter, MatRefT<const i8>(cold_sets(L_ * cols), L_, cols), false, ws_, scratch_,
+                                r, true);
         if (r.code != diffik::OK) return nb::make_tuple(r.code, nb::none());
         write_answers(row, r, cols, "Kernel.rows_into: unexpected answer shapes");
         BVec active(r.active.begin(), r.active.end());
@@ -1038,9 +1036,8 @@ class Kernel {
         // A cold start: the same answer as from the row's active sets (the cascade ends each
         // level in its canonical re-solve), and fewer instructions (Talos: 2.15M per pass
         // against 2.39M warm).
-        if (static_cast<i64>(cold_.size()) != L_ * n_) cold_.assign(static_cast<size_t>(L_ * n_), 0);
         diffik::StepResult& r = step_;
-        diffik::solve_rows_step_into(a, max_iter, MatRefT<const i8>(cold_.data(), L_, n_), false, ws_,
+        diffik::solve_rows_step_into(a, max_iter, MatRefT<const i8>(cold_sets(L_ * n_), L_, n_), false, ws_,
                                      scratch_, r, true);
         if (r.code != diffik::OK) return r.code;
         require(r.active_cols == n_ && static_cast<i64>(r.d.size()) == n_ &&
@@ -1170,7 +1167,13 @@ class Kernel {
         i64 K = 0;
     };
     std::optional<Outputs> out_;
-    BVec cold_, cold_rows_;
+    // Zero active sets (a cold start), never written: at least as many as the largest start
+    // asked for (cold_sets).
+    BVec cold_;
+    const i8* cold_sets(i64 size) {
+        if (static_cast<i64>(cold_.size()) < size) cold_.assign(static_cast<size_t>(size), 0);
+        return cold_.data();
+    }
     std::optional<Out3> jac_w_;
     DofChains frame_chains_;
     struct Chains {

@@ -134,7 +134,7 @@ struct Workspace {
     IVec state, others, pinned;
     IVec pin_keep, pin_touched;  // drop_pinned's coordinates no pinned normal touches, and the others
     // primal_guess: its working set (rows, sides), multipliers, candidate and row products
-    IVec pg_rows, pg_sides, pg_more, pg_more_sides;
+    IVec pg_rows, pg_sides, pg_next, pg_next_sides;
     Vec pg_u, pg_z, pg_cz, pg_norm;
     BVec box_pinned;
     Mat pin_gram, pin_factor;  // the independence test's Gram matrix and its factor
@@ -2088,6 +2088,29 @@ inline bool stops_finished(const ReducedQP& qp, Workspace& ws, bool& factored) {
     return factor_x0(qp, ws, factored);
 }
 
+// The side a row c leaves at cx = c . x, its norm |c| > 0 and its bounds lo <= cx <= hi (each
+// absent past kBig), to tol relative to the bound: +1 below lo, -1 above hi, 0 where it holds
+// (the dual method's test of a violated row: rows_hold_at's, primal_guess's); `by` the
+// violation (cx's distance past the bound over |c|, infinite where cx is), 0 where it holds.
+inline i64 leaving_side(double lo, double hi, double cx, double norm, double tol, double& by) {
+    by = 0.0;
+    if (lo > -kBig) {
+        const double v = (lo - cx) / norm;
+        if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) {
+            by = v;
+            return 1;
+        }
+    }
+    if (hi < kBig) {
+        const double v = (cx - hi) / norm;
+        if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) {
+            by = v;
+            return -1;
+        }
+    }
+    return 0;
+}
+
 // Whether x0 (r,) violates no row of the level's QP by more than tol (dual_stops_at_once's
 // tests; G Z and G d made and kept, have_gz).
 inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol,
@@ -2172,16 +2195,8 @@ inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
     };
     auto decide = [&](double norm, double cx, double lo, double hi, double size) {
         if (norm <= 1e-20 * size) return false;  // no constraint (reduced_rows)
-        norm = std::sqrt(norm);
-        if (lo > -kBig) {
-            double v = (lo - cx) / norm;
-            if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) return true;
-        }
-        if (hi < kBig) {
-            double v = (cx - hi) / norm;
-            if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) return true;
-        }
-        return false;
+        double by;
+        return leaving_side(lo, hi, cx, std::sqrt(norm), tol, by) != 0;
     };
     // General rows first (the rows a binding level meets most often); G Z and G d are kept for
     // reduced_rows (have_gz).
@@ -2583,25 +2598,24 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     return true;
 }
 
-// A cold level whose dual method would not stop at once (its unconstrained minimiser x0 =
-// ws.qps.x, H's factor in ws.qps.L, violates a row), before the dual method: the working set
-// guessed from x0, as a primal-dual active set, checked at each try by the final candidate of
-// exact_level itself. It starts from the rows x0 violates (each on the side it leaves, the
-// test of rows_hold_at's decide), where there are at most kGuessRows of them (a level far
-// from its target, whose x0 leaves much of its box, or a weighted level of many rows, needs
-// more tries than the dual method costs); at each try eq_candidate gives the minimiser with
-// the set held as equalities and its multipliers; the set loses every row of negative
-// multiplier where there is one, else gains every row violated at the candidate (scaled as
-// decide's), else the candidate is certified as exact_level certifies its own (certify_level
+// A cold level whose dual method would not stop at once (its unconstrained minimiser x0 = ws.qps.x,
+// H's factor in ws.qps.L, violates a row), before the dual method: the working set guessed from x0,
+// as a primal-dual active set, checked at each try by the final candidate of exact_level itself. It
+// starts from the rows x0 violates (each on the side it leaves, leaving_side: the dual method's own
+// test), where there are at most kGuessRows of them (a level far from its target, whose x0 leaves
+// much of its box, or a weighted level of many rows, needs more tries than the dual method costs);
+// at each try eq_candidate gives the minimiser with the set held as equalities and its multipliers;
+// the set loses every row of negative multiplier where there is one, else gains every row violated
+// at the candidate, else the candidate is certified as exact_level certifies its own (certify_level
 // with the set's rows and multipliers). At most kGuessTries tries; false (nothing written but
-// scratch) where the set leaves eq_candidate's reach, a try makes no candidate, or the tries
-// end without a certified one: the dual method then solves the level as before. Where it
-// holds, the answer is exact_level's on the same set (the same eq_candidate, certify_level
-// and final set: its rows of positive multiplier), which is the dual method's final set
-// wherever the optimal set is unique (rho > 0: the minimiser is unique; a row of zero
-// multiplier at the optimum may be in one set and not the other, the same point to
-// round-off), so the level's answer is the one the dual method and exact_level would give,
-// a function of the level's problem alone. tries: the candidates made.
+// scratch) where the set leaves eq_candidate's reach, a try makes no candidate, or the tries end
+// without a certified one: the dual method then solves the level as before. Where it holds, the
+// answer is exact_level's on the same set (the same eq_candidate, certify_level and final set: its
+// rows of positive multiplier), which is the dual method's final set wherever the optimal set is
+// unique (rho > 0: the minimiser is unique; a row of zero multiplier at the optimum may be in one
+// set and not the other, the same point to round-off), so the level's answer is the one the dual
+// method and exact_level would give, a function of the level's problem alone. tries: the candidates
+// made.
 constexpr i64 kGuessRows = 8;
 constexpr i64 kGuessTries = 6;
 inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk, double rho, CMatRef Z,
@@ -2637,43 +2651,33 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
         }
         for (; i < rows_all; ++i) cz[i] = dot(qp.C.row(i), x, r);
     };
-    // The side row i leaves at the point whose products are cz, by how much (scaled as decide):
-    // +1 below lo, -1 above hi, 0 where it holds to tol.
-    auto leaves = [&](i64 i, double& by) -> i64 {
-        by = 0.0;
+    // The side row i leaves at the point whose products are cz (leaving_side; 0 for a row
+    // that is no constraint: norm 0, or both bounds absent); `infinite` set where it leaves
+    // by an infinite amount (the guess then ends: the dual method's to judge).
+    bool infinite = false;
+    auto leaves = [&](i64 i) -> i64 {
         const double lo = qp.lo[i], hi = qp.hi[i];
         if (!(norm[i] > 0.0) || (lo <= -kBig && hi >= kBig)) return 0;
-        if (lo > -kBig) {
-            const double v = (lo - cz[i]) / norm[i];
-            if (v > tol * (1.0 + std::fabs(lo)) && v > 0.0) {
-                by = v / (1.0 + std::fabs(lo));
-                return 1;
-            }
-        }
-        if (hi < kBig) {
-            const double v = (cz[i] - hi) / norm[i];
-            if (v > tol * (1.0 + std::fabs(hi)) && v > 0.0) {
-                by = v / (1.0 + std::fabs(hi));
-                return -1;
-            }
-        }
-        return 0;
+        double by;
+        const i64 side = leaving_side(lo, hi, cz[i], norm[i], tol, by);
+        infinite |= std::isinf(by);
+        return side;
     };
     // (more rows than kGuessRows, or past eq_candidate's reach, end the guess at once)
     const i64 most_rows = std::min<i64>(std::min<i64>(kEqCandidateRows, kGuessRows), r - 1);
     products(qs.x.data());
     for (i64 i = 0; i < rows_all; ++i) {
-        double by;
-        const i64 side = leaves(i, by);
+        const i64 side = leaves(i);
         if (side == 0) continue;
-        if (!std::isfinite(by) || static_cast<i64>(rows.size()) == most_rows) return false;
+        if (infinite || static_cast<i64>(rows.size()) == most_rows) return false;
         rows.push_back(i);
         sides.push_back(side);
     }
     for (tries = 0; tries < kGuessTries;) {
         const i64 q = static_cast<i64>(rows.size());
-        if (q == 0 || q > kEqCandidateRows || q >= r) return false;
         ++tries;
+        // (no candidate for a set outside eq_candidate's reach: empty, past kEqCandidateRows,
+        // or q >= r)
         if (!eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, &qs, es, zc, u)) return false;
         // every row of a negative multiplier leaves the set (in order)
         i64 kept = 0;
@@ -2689,30 +2693,27 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
             sides.resize(static_cast<size_t>(kept));
             continue;
         }
-        // else every row violated at the candidate joins it (in row order)
+        // else every row violated at the candidate joins it: the set made again in row order,
+        // its rows and the violated ones
         products(zc.data());
-        IVec& more = ws.pg_more;
-        IVec& more_sides = ws.pg_more_sides;
-        more.clear();
-        more_sides.clear();
+        IVec& next = ws.pg_next;
+        IVec& next_sides = ws.pg_next_sides;
+        next.clear();
+        next_sides.clear();
         for (i64 i = 0, j = 0; i < rows_all; ++i) {
+            i64 side;
             if (j < q && rows[j] == i) {
-                ++j;
+                side = sides[j++];
+            } else if ((side = leaves(i)) == 0) {
                 continue;
             }
-            double by;
-            const i64 side = leaves(i, by);
-            if (side == 0) continue;
-            if (!std::isfinite(by)) return false;
-            more.push_back(i);
-            more_sides.push_back(side);
+            next.push_back(i);
+            next_sides.push_back(side);
         }
-        if (!more.empty()) {
-            for (size_t a = 0; a < more.size(); ++a) {
-                const auto at = std::lower_bound(rows.begin(), rows.end(), more[a]) - rows.begin();
-                rows.insert(rows.begin() + at, more[a]);
-                sides.insert(sides.begin() + at, more_sides[a]);
-            }
+        if (infinite) return false;
+        if (static_cast<i64>(next.size()) > q) {
+            std::swap(rows, next);
+            std::swap(sides, next_sides);
             continue;
         }
         // every multiplier >= 0 and every row met: certified as exact_level certifies
