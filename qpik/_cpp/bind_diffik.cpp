@@ -335,12 +335,12 @@ class Kernel {
             i64 count = 0, size = 0;
             const i64 U = user_mu_ ? dim(*user_mu_, 0) : 0;
             switch (kind) {
-                case diffik::FRAME: count = F; size = 6; break;
+                case diffik::FRAME: case diffik::FRAME | diffik::UNIT_ROWS: count = F; size = 6; break;
                 case diffik::POSTURE: case diffik::DAMPING_TASK: count = P; size = n; break;
                 case diffik::COM: count = C; size = 3; break;
                 case diffik::RELATIVE: count = R; size = 6; break;
                 case diffik::ROWS: count = U; size = 0; break;  // its rows: the caller's
-                case diffik::LINEAR: count = lin_tasks; break;
+                case diffik::LINEAR: case diffik::LINEAR | diffik::UNIT_ROWS: count = lin_tasks; break;
                 case diffik::JOINT_LIMITS: count = lin_tasks; break;  // (lin_const checked above)
                 case diffik::POSE_POSITION: case diffik::POSE_ORIENTATION: case diffik::POSE_FULL:
                     require(dim(frame_data, 1) == diffik::kPoseData,
@@ -348,10 +348,10 @@ class Kernel {
                     count = F;
                     size = tasks::pose_part_rows(kind - diffik::POSE_BASE);
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 10");
+                default: require(false, "Kernel: a task kind is not 0 to 10, 32 or 38 (a constraint's)");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
-            if (kind == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
+            if ((kind & ~diffik::UNIT_ROWS) == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
                 size = lin_starts_.data[index + 1] - lin_starts_.data[index];
             if (kind == diffik::JOINT_LIMITS) require(size == 1, "Kernel: a joint-limit task has one row");
             require(level >= 0 && level < L, "Kernel: a task level is out of range");

@@ -52,6 +52,7 @@ from .layout import (
     RANK_TOL,
     THRESHOLD,
     TOL,
+    UNIT_ROWS,
     com_chains,
     guards_hold,
     is_user_limit,
@@ -117,8 +118,7 @@ class CompiledPlan:
     law: object = field(default_factory=object)  # the law ``arrays["settings"]`` holds
     #: tasks that supply their own rows: (task, first row, last row), ``user_mu`` in order
     rows_tasks: list = field(default_factory=list)
-    #: linear tasks (qpik's CouplingTask of linear couplings): (task, first column of
-    #: ``lin_data``, the view of its costs there)
+    #: linear tasks (CouplingTask, DofConstraint): (task, first lin_data column, cost view)
     linears: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
     vel_limits: list = field(default_factory=list)  # (limit, first, last vel_limit entry)
@@ -150,9 +150,8 @@ class CompiledPlan:
         #: warm start ``(_out[3], row)``: a lane step indexes lists, creates neither
         self._velocity_rows: list = []
         self._active_rows: list = []
-        #: where level 0 is infeasible, the QP path answers: it relaxes the general rows
-        #: that qpik.diffik.recovery may relax, and names a user limit's rows that leave no
-        #: displacement (its one-dof rows folded into the box: qpik.InfeasibleLimits)
+        #: where level 0 is infeasible, the QP path answers: it relaxes the general rows that
+        #: qpik.diffik.recovery may, and names a user limit's rows that leave no displacement
         self._relaxable = any(
             relaxable(limit) or is_user_limit(limit) for limit in self.general_limits
         )
@@ -365,7 +364,9 @@ class CompiledPlan:
 
     def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
         """``passes`` second-order corrections of the lean step in row ``row`` of the
-        outputs. False where the QP path must answer."""
+        outputs. False where the QP path must answer (and for a constraint's unit rows)."""
+        if (self.arrays["tasks"][:, 0] & UNIT_ROWS).any():
+            return False
         return self._correction().run(configuration, self._out[1][row], row, dt, passes)
 
     def _new_outputs(self) -> None:

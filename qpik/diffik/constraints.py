@@ -9,7 +9,8 @@ step's gathered rows and the QP path alike (:func:`qpik.diffik.rows.task_rows`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import mink
 import numpy as np
@@ -20,7 +21,10 @@ from ..model.configuration import Configuration
 from ..tasks.frame import FrameTask, frame_terms
 from .rows import SuppliedRows
 
-__all__ = ["ConstraintRows", "Tikhonov", "equality_rows"]
+__all__ = [
+    "ConstraintRows", "DofConstraint", "FrameConstraint", "Tikhonov", "constraint_level",
+    "equality_rows",
+]  # fmt: skip
 
 
 def _stacked(
@@ -144,10 +148,95 @@ class ConstraintRows(SuppliedRows):
         return A, b, None, np.full(A.shape[0], UNDAMPED_WEIGHT)
 
 
+class FrameConstraint(ConstraintRows):
+    """One frame task's constraint (:class:`ConstraintRows` of ``[task]``, mink's or qpik's
+    ``FrameTask``, exact types) that the compiled step computes itself (kind ``FRAME`` with
+    ``UNIT_ROWS``, qpik/_cpp/diffik/fused.hpp): the task's frame rows with unit costs and
+    no LM term, each scaled to unit norm, weight :data:`UNDAMPED_WEIGHT` - the rows
+    :meth:`ConstraintRows.rows_now` makes, which the QP path takes. The plan reads the
+    task's target, gain and frame through it (its ``cost`` ones, ``lm_damping`` 0)."""
+
+    cost = _UNIT_COST
+    lm_damping = 0.0
+
+    def __init__(self, task: mink.FrameTask, configuration: Configuration):
+        super().__init__([task], configuration)
+        self.task = task
+
+    @property
+    def transform_target_to_world(self) -> mink.SE3 | None:
+        """The task's target pose in the world frame."""
+        return self.task.transform_target_to_world
+
+    @property
+    def gain(self) -> float:
+        """The task's gain (its rows ``J dq = -gain e``)."""
+        return self.task.gain
+
+    @property
+    def frame_name(self) -> str | int:
+        """The task's frame name (or id)."""
+        return self.task.frame_name
+
+    @property
+    def frame_type(self) -> str:
+        """The task's frame type."""
+        return self.task.frame_type
+
+
+class DofConstraint(ConstraintRows):
+    """mink's ``DofFreezingTask`` as a constraint (:class:`ConstraintRows` of ``[task]``)
+    that the compiled step computes itself (kind ``LINEAR`` with ``UNIT_ROWS``): its
+    constant rows, one unit row per frozen dof (``linear_form``: the task's Jacobian, taken
+    once as mink computes it once, and a zero residual), weight :data:`UNDAMPED_WEIGHT`."""
+
+    lm_damping = 0.0
+
+    def __init__(self, task: mink.DofFreezingTask, configuration: Configuration):
+        super().__init__([task], configuration)
+        self.task = task
+        jacobian = np.array(task.compute_jacobian(configuration), dtype=float)
+        model = configuration.model
+        #: the linear task's form (no residual: mink's error is zero) and Jacobian
+        self.linear_form = (np.zeros((jacobian.shape[0], model.nq + 1)), jacobian)
+        self.cost = np.ones(jacobian.shape[0])
+        self.cost.flags.writeable = False
+
+    @property
+    def gain(self) -> float:
+        """The task's gain (its error is zero: no row depends on it)."""
+        return self.task.gain
+
+
+#: The constraint tasks the compiled step computes itself, by exact type: their wrappers.
+_NATIVE: dict[type, Callable[[Any, Configuration], ConstraintRows]] = {
+    mink.FrameTask: FrameConstraint,
+    FrameTask: FrameConstraint,
+    mink.DofFreezingTask: DofConstraint,
+}
+
+
+def constraint_level(constraints: list, configuration: Configuration) -> list[ConstraintRows]:
+    """The constraints' level of :func:`qpik.solve_ik`: one :class:`ConstraintRows` of them
+    all where none is a task the compiled step computes, else one task each in order (a
+    :class:`FrameConstraint` for a frame task, mink's or qpik's, a :class:`DofConstraint`
+    for mink's ``DofFreezingTask``). Each row is the same either way but for a frame task in
+    a stack of several: its rows are then qpik's frame rows rather than mink's
+    ``compute_jacobian`` (equal to round-off)."""
+    if not any(type(task) in _NATIVE for task in constraints):
+        return [ConstraintRows(constraints, configuration)]
+    return [_NATIVE.get(type(task), _one_task)(task, configuration) for task in constraints]
+
+
+def _one_task(task: mink.Task, configuration: Configuration) -> ConstraintRows:
+    return ConstraintRows([task], configuration)
+
+
 class Tikhonov(SuppliedRows):
     """mink's ``damping`` of a task level as a task with no rows: its LM term, ``damping``,
     the level's constant regularisation (:func:`qpik.solve_ik` with constraints: the
-    solver's own damping is 0 there, so that the constraints' level gets none)."""
+    solver's own damping is 0 there, so that the constraints' level gets none). A compiled
+    plan reads ``damping`` once, when it is built (:func:`qpik.diffik.layout.task_layout`)."""
 
     k = 0
 

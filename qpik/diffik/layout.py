@@ -7,14 +7,16 @@ mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``RelativeFrameTask``, qpik's world-frame ``PositionTask``, ``OrientationTask`` and
 ``PoseTask`` (kinds ``POSE_KINDS``), qpik's ``JointLimitDistanceTask`` (kind
 ``JOINT_LIMITS_KIND``), and qpik's ``CouplingTask`` when every coupling is linear (kind
-``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``). Any other task supplies
-its rows each step (kind ``ROWS_KIND``, laid out by its declared count).
+``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``); :func:`qpik.solve_ik`'s
+frame and DoF-freezing constraints (``FRAME_KIND`` / ``LINEAR_KIND`` with ``UNIT_ROWS``)
+and its levels' damping terms (constants in ``user_mu``). Any other task supplies its rows
+each step (kind ``ROWS_KIND``, laid out by its declared count).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mink
 import mujoco
@@ -33,12 +35,13 @@ from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
 from .boxes import LimitBoxes, limit_bounds, limit_values
+from .constraints import DofConstraint, FrameConstraint, Tikhonov
 from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
-    "TaskLayout", "com_chains", "limit_layout", "plan_arrays", "task_layout",
+    "TaskLayout", "UNIT_ROWS", "com_chains", "limit_layout", "plan_arrays", "task_layout",
     "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
@@ -68,6 +71,10 @@ GENERAL_LIMITS = (mink.CollisionAvoidanceLimit, SupportPolygonLimit, BallJointLi
 #: Task kinds of the plan's ``tasks`` table (qpik/_cpp/diffik/fused.hpp: TaskKind).
 FRAME_KIND, POSTURE_KIND, COM_KIND, RELATIVE_KIND = 0, 1, 2, 3
 DAMPING_KIND, ROWS_KIND, LINEAR_KIND = 4, 5, 6
+#: Added to ``FRAME_KIND`` or ``LINEAR_KIND``: a constraint's rows (:class:`.constraints.
+#: FrameConstraint`, ``DofConstraint``: unit costs, each row scaled to unit norm, weight
+#: ``UNDAMPED_WEIGHT``, no LM term; fused.hpp UNIT_ROWS).
+UNIT_ROWS = 32
 #: qpik's JointLimitDistanceTask (qpik/_cpp/tasks/joint_limits.hpp): one row, its constants
 #: in the linear tasks' table (:func:`joint_limit_constants`), its cost, gain and LM
 #: damping loaded as theirs.
@@ -108,6 +115,9 @@ class TaskLayout:
     starts: list
     rows_tasks: list  # (task, first row, last row) of the tasks that supply their rows
     linears: list  # (task, form (k, nq + 1), jacobian (k, nv)) of the linear tasks
+    #: the levels' constant LM terms (qpik.solve_ik's Tikhonov tasks, no rows): (entry of
+    #: ``tasks``, damping), their ``user_mu`` entries after the row-supplying tasks'
+    mus: list = field(default_factory=list)
 
     @property
     def has_pose(self) -> bool:
@@ -175,7 +185,7 @@ def plan_arrays(
         "rel_jac": np.zeros((R, 12, nv)),
         "rel_frames": np.asarray(rel_frames, dtype=i64).reshape(-1, 4),
         "rel_data": np.zeros((R, 15)),
-        "user_mu": np.zeros(len(layout.rows_tasks)),
+        "user_mu": np.array([0.0] * len(layout.rows_tasks) + [mu for _, mu in layout.mus]),
         "lin_starts": lin_starts,
         "lin_const": lin_const,
         "lin_data": np.zeros((3, int(lin_starts[-1]))),
@@ -258,6 +268,10 @@ def task_layout(model: mujoco.MjModel, levels: Sequence[Sequence]) -> TaskLayout
                 return None
             row += size
         layout.starts.append(row)
+    first = len(layout.rows_tasks)
+    for j, (entry, _damping) in enumerate(layout.mus):
+        code, _, k, row = layout.tasks[entry]
+        layout.tasks[entry] = (code, first + j, k, row)
     return layout
 
 
@@ -267,6 +281,16 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     kind, nv = type(task), model.nv
     if kind in FRAME_TYPES or kind in RELATIVE_TYPES or kind in POSE_KINDS:
         return _place_frame(layout, model, task, k, row)
+    if kind is FrameConstraint:  # its frame rows, unit costs, each row then of unit norm
+        size = _place_frame(layout, model, task, k, row)
+        if size is not None:
+            code, index, level, first = layout.tasks[-1]
+            layout.tasks[-1] = (code | UNIT_ROWS, index, level, first)
+        return size
+    if kind is Tikhonov:  # no rows: its damping, the level's LM term (user_mu, constant)
+        layout.tasks.append((ROWS_KIND, -1, k, row))
+        layout.mus.append((len(layout.tasks) - 1, float(task.damping)))
+        return 0
     if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
         if np.shape(getattr(task, "cost", 0.0)) != (nv,):
             return None
@@ -281,7 +305,7 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         layout.tasks.append((COM_KIND, len(layout.coms), k, row))
         layout.coms.append((task, *entry))
         return 3
-    linear = task.linear_form if kind is CouplingTask else None
+    linear = task.linear_form if kind is CouplingTask or kind is DofConstraint else None
     if kind is JointLimitDistanceTask:
         linear = joint_limit_constants(model, task)
         if linear is None:
@@ -291,7 +315,8 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         return 1
     if linear is not None:
         form, jacobian = linear
-        layout.tasks.append((LINEAR_KIND, len(layout.linears), k, row))
+        code = LINEAR_KIND | (UNIT_ROWS if kind is DofConstraint else 0)
+        layout.tasks.append((code, len(layout.linears), k, row))
         layout.linears.append((task, form, jacobian))
         return form.shape[0]
     size = declared_rows(task, nv)  # rows supplied by the task itself, each step
@@ -463,13 +488,16 @@ def _gain(task):
 def write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
     data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
+    # (a frame constraint's messages name the user's task; its gain is taken as it is, as
+    # mink takes a constraint's: no row of a task of qpik's checks it)
+    named = task.task if type(task) is FrameConstraint else task
     if pose is None:
-        raise TargetNotSet(type(task).__name__)
-    check_pose_target(task, pose, pose_target_name(task))
+        raise TargetNotSet(type(named).__name__)
+    check_pose_target(named, pose, pose_target_name(named))
     row, target, cost = views
     _put(target, pose.wxyz_xyz)
     _put(cost, task.cost)
-    row[13] = _gain(task)
+    row[13] = _gain(task) if named is task else task.gain
     row[14] = task.lm_damping
 
 
@@ -494,6 +522,7 @@ def _unfit(task, exc: Exception) -> Exception:
     an attribute set directly to the wrong shape or type)."""
     if isinstance(exc, QpikError):
         return exc
+    task = task.task if type(task) is FrameConstraint else task  # (the user's task)
     name = getattr(task, "frame_name", None)
     label = type(task).__name__ + ("" if name is None else f" {name!r}")
     return TaskDefinitionError(

@@ -41,7 +41,7 @@ from ..core.checks import type_name
 from ..errors import InvalidArgumentType, InvalidDamping, InvalidInput, NoSolutionFound
 from ..model.configuration import Configuration, as_configuration
 from ..tasks import BaseTask
-from .constraints import ConstraintRows, Tikhonov, equality_rows
+from .constraints import Tikhonov, constraint_level, equality_rows
 from .limit_values import limit_value as _limit_value
 from .limit_values import value_key as _value_key
 from .result import SQUARABLE
@@ -529,7 +529,7 @@ def _constrained_solver(
     backend_options: dict,
 ) -> IKSolver:
     """The solver of a call with constraints (``constraint_tasks``, checked by
-    :func:`_constraints`): their rows (:class:`~qpik.diffik.constraints.ConstraintRows`,
+    :func:`_constraints`): their rows (:func:`~qpik.diffik.constraints.constraint_level`,
     no damping) a level above the task levels, each task level with mink's ``damping`` as
     an LM term (:class:`~qpik.diffik.constraints.Tikhonov`; the solver's own damping 0),
     kept between calls as :class:`SolverCache` keeps solvers (the constraint and damping
@@ -543,7 +543,7 @@ def _constrained_solver(
     kept = SOLVERS.constraint_tasks
     entry = kept.pop(key, None)
     if entry is None:
-        rows = ConstraintRows(constraint_tasks, configuration)
+        rows = constraint_level(constraint_tasks, configuration)
         tikhonov = [Tikhonov(damping) for _ in range(max(len(levels), 1))]
         # (no task: the smallest displacement, one kept task, as _new_solver's)
         entry = (model, constraint_tasks, rows, tikhonov, [_MinimumNorm()] if not levels else [])
@@ -552,7 +552,7 @@ def _constrained_solver(
     kept[key] = entry  # most recently used last
     _, _, rows, tikhonov, minimum = entry
     levels = levels or [minimum]
-    stack = [[rows], *([*level, extra] for level, extra in zip(levels, tikhonov, strict=True))]
+    stack = [rows, *([*level, extra] for level, extra in zip(levels, tikhonov, strict=True))]
     return _solver(configuration, stack, solver, 0.0, limits, None, backend_options)[0]
 
 

@@ -107,6 +107,30 @@ enum TaskKind : i64 {
 };
 constexpr i64 POSE_BASE = 6;
 inline bool is_pose(i64 kind) { return kind >= POSE_POSITION && kind <= POSE_FULL; }
+// A frame or linear task's kind with this bit added: its rows as mink's equality
+// constraints (qpik.diffik.constraints.FrameConstraint and DofConstraint, a level above the
+// tasks in qpik.solve_ik): its rows (costs ones, LM damping 0), then each row scaled to unit
+// norm (unit_rows), with weight kUndampedWeight and no LM term.
+constexpr i64 UNIT_ROWS = 32;
+// The weight of such a row (qpik.diffik.constraints.UNDAMPED_WEIGHT, 2^-40): the damping law
+// reads the level's singular values 2^40 times theirs and never damps it.
+constexpr double kUndampedWeight = 0x1p-40;
+
+// Rows row:row+size of A and b scaled to unit norm, as qpik._engine.tasks.unit_rows scales
+// J and -gain e (s = 1 / |A_r|, |A_r| by its squares summed in order from +0; 1 for a zero
+// row; b_r = (1.0 b_r) s, unit_rows' (-gain e) s with gain -1: the same bits).
+inline void unit_rows_in_place(MatRef A, double* b, i64 row, i64 size) {
+    const i64 n = A.cols;
+    for (i64 r = row; r < row + size; ++r) {
+        double* ar = A.row(r);
+        double sq = 0.0;
+        for (i64 c = 0; c < n; ++c) sq += ar[c] * ar[c];
+        const double norm = std::sqrt(sq);
+        const double s = norm > 0.0 ? 1.0 / norm : 1.0;
+        for (i64 c = 0; c < n; ++c) ar[c] = ar[c] * s;
+        b[r] = (1.0 * b[r]) * s;
+    }
+}
 constexpr i64 kComData = 8;  // target (3), cost (3), gain, lm_damping
 enum PostureDof : i64 { SCALAR_DOF = 0, FREE_DOF = 1, BALL_FIRST = 2, BALL_OTHER = 3 };
 
@@ -331,6 +355,31 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
         const i64 kind = a.tasks(t, 0);
         const i64 i = a.tasks(t, 1);
         const i64 row = a.tasks(t, 3);
+        if (kind == (FRAME | UNIT_ROWS)) {  // a frame constraint: unit rows, no LM term
+            const double* pos;
+            const double* mat;
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
+            const double* data = a.frame_data.row(i);
+            CMatRef jac(a.jac + i * 6 * n, 6, n);
+            frame_rows(a.A, a.b.p, row, jac, pos, mat, data, data + 7, data[13], data[14], local.data());
+            unit_rows_in_place(a.A, a.b.p, row, 6);
+            for (i64 r = 0; r < 6; ++r) diag[static_cast<size_t>(row + r)] = -1;
+            for (i64 r = 0; r < 6; ++r) a.w[row + r] = kUndampedWeight;
+            continue;
+        }
+        if (kind == (LINEAR | UNIT_ROWS)) {  // a linear constraint (mink's DofFreezingTask)
+            const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
+            const i64 stride = a.lin_const.stride;
+            const double* c = a.lin_const.row(r0);
+            if (static_cast<i64>(local.size()) < k) local.resize(static_cast<size_t>(k));
+            tasks::linear_rows_into(a.A, a.b.p, row, CMatRef(c, k, n, stride),
+                                    CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
+                                    a.lin_data.row(0) + r0, a.lin_data(1, r0), 0.0, local.data());
+            unit_rows_in_place(a.A, a.b.p, row, k);
+            for (i64 r = 0; r < k; ++r) diag[static_cast<size_t>(row + r)] = -1;
+            for (i64 r = 0; r < k; ++r) a.w[row + r] = kUndampedWeight;
+            continue;
+        }
         if (kind == ROWS) {  // rows supplied by the task itself: only its LM term here
             reg[a.tasks(t, 2)] += a.user_mu[i];
             continue;
@@ -742,7 +791,9 @@ inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, d
     if (local.size() < static_cast<size_t>(n)) local.resize(static_cast<size_t>(n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
-        if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS) continue;
+        // (a frame constraint, UNIT_ROWS: never corrected here; CompiledPlan declines the
+        // correction of a plan that has one, and the QP path corrects it)
+        if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS || (kind & UNIT_ROWS) != 0) continue;
         if (kind == FRAME) {
             const double *pos, *mat;
             frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
@@ -829,6 +880,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
+            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: size = 0; break;  // (weighted_errors')
             default: size = n;
         }
         for (i64 r = row; r < row + size; ++r) {

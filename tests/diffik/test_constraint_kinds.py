@@ -1,0 +1,183 @@
+"""mink's constraints that the compiled step computes itself (issue 20: the fast path covers
+what users bring): a frame task held as a constraint (FrameConstraint, kind FRAME with
+UNIT_ROWS) and mink's DofFreezingTask (DofConstraint, kind LINEAR with UNIT_ROWS), and each
+task level's Tikhonov term as a constant LM term. Their answers are bitwise those of the
+same rows supplied from Python each step (ConstraintRows, the way before), mink's to
+round-off, and the QP path's to round-off."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+
+import qpik
+from qpik.diffik import mink_compat
+from qpik.diffik.constraints import (
+    ConstraintRows,
+    DofConstraint,
+    FrameConstraint,
+    Tikhonov,
+    constraint_level,
+)
+from qpik.diffik.layout import LINEAR_KIND, ROWS_KIND, UNIT_ROWS
+
+DT = 0.01
+
+
+def _setup():
+    model = qpik.load_robot("panda")
+    configuration = mink.Configuration(model)
+    configuration.update_from_keyframe("home")
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0)
+    posture = mink.PostureTask(model, cost=1e-2)
+    posture.set_target(configuration.q)
+    return model, configuration, task, posture
+
+
+def _constraints(model, configuration, kind: str) -> list:
+    held = mink.FrameTask("link3", "body", position_cost=1.0, orientation_cost=0.0)
+    held.set_target_from_configuration(configuration)
+    turned = qpik.tasks.FrameTask("link2", "body", position_cost=0.0, orientation_cost=1.0)
+    turned.gain = 0.5
+    turned.set_target_from_configuration(configuration)
+    freeze = mink.DofFreezingTask(model, dof_indices=[5, 6])
+    com = mink.ComTask(cost=1.0)  # (not computed by the engine as a constraint: supplied)
+    com.set_target_from_configuration(configuration)
+    return {
+        "frame": [held],
+        "qpik frame, gain 0.5": [turned],
+        "dofs": [freeze],
+        "frame and dofs": [held, freeze],
+        "dofs and CoM": [freeze, com],
+    }[kind]
+
+
+def _stack(own, levels, constraint_rows, damping):
+    tikhonov = [Tikhonov(damping) for _ in levels]
+    return [constraint_rows, *([*level, extra] for level, extra in zip(levels, tikhonov))]
+
+
+KINDS = ["frame", "qpik frame, gain 0.5", "dofs", "frame and dofs", "dofs and CoM"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_constraints_by_the_engine_answer_as_supplied_rows(kind):
+    """A closed loop of qpik.solve_ik with constraints: each velocity bitwise the one of
+    the same stack with every constraint's rows supplied from Python (ConstraintRows, a
+    ROWS task of the plan), equal to mink.solve_ik's and to the QP path's to round-off;
+    the plan computes the frame and DofFreezing constraints itself (UNIT_ROWS kinds) and
+    holds the Tikhonov terms as constants (no task supplies rows but the CoM constraint)."""
+    model, configuration, task, posture = _setup()
+    constraints = _constraints(model, configuration, kind)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    own = mink_compat.as_configuration(configuration)
+    level = constraint_level(constraints, own)
+    native = [type(c) for c in level]
+    supplied_ik = mink_compat._new_solver(
+        own,
+        _stack(own, [[task, posture]], [ConstraintRows([c], own) for c in constraints], 1e-6),
+        "daqp",
+        0.0,
+        [mink.ConfigurationLimit(model)],
+        {},
+    )
+    qpik.clear_caches()
+    moved = 0.0
+    for i in range(60):
+        offset = 0.05 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
+        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        v = qpik.solve_ik(
+            configuration, [task, posture], DT, "daqp", 1e-6,
+            limits=[mink.ConfigurationLimit(model)], constraints=constraints,
+        )  # fmt: skip
+        supplied = supplied_ik.step(own, DT).velocity
+        assert v.tobytes() == supplied.tobytes()
+        theirs = mink.solve_ik(
+            configuration, [task, posture], DT, "daqp", 1e-6,
+            limits=[mink.ConfigurationLimit(model)], constraints=constraints,
+        )  # fmt: skip
+        np.testing.assert_allclose(v, theirs, rtol=0, atol=1e-8)
+        moved = max(moved, float(np.abs(v).max()))
+        configuration.integrate_inplace(v, DT)
+    assert moved > 0.1  # (the loop moves: the constraints leave the arm free directions)
+    ik = mink_compat._constrained_solver(
+        own, [task, posture], "daqp", 1e-6, [mink.ConfigurationLimit(model)], constraints, {}
+    )
+    plan = ik._plan
+    kinds = plan.arrays["tasks"][:, 0].tolist()
+    assert sum(1 for k in kinds if k & UNIT_ROWS) == sum(t is not ConstraintRows for t in native)
+    assert ((LINEAR_KIND | UNIT_ROWS) in kinds) == (DofConstraint in native)
+    assert [type(t) for t, *_ in plan.rows_tasks] == [ConstraintRows] * native.count(ConstraintRows)
+    assert kinds.count(ROWS_KIND) == len(plan.rows_tasks) + 1  # (+ the Tikhonov term)
+    qp = ik.qp_solution(own, DT)
+    np.testing.assert_allclose(ik.compiled_velocity(own, DT)[0], qp.velocity, rtol=0, atol=1e-9)
+
+
+def test_constraint_wrappers_read_their_tasks():
+    """FrameConstraint reads its task's target, gain and frame (so that the plan sees a
+    change), with unit costs and no LM term; DofConstraint takes the task's Jacobian once
+    (mink computes it once) and a zero residual; a level of tasks none of which the engine
+    computes stays one ConstraintRows of them all."""
+    model, configuration, *_ = _setup()
+    own = mink_compat.as_configuration(configuration)
+    held, freeze = _constraints(model, configuration, "frame and dofs")
+    frame, dofs = constraint_level([held, freeze], own)
+    assert type(frame) is FrameConstraint and type(dofs) is DofConstraint
+    held.gain = 0.25
+    assert frame.gain == 0.25 and frame.frame_name == "link3" and frame.frame_type == "body"
+    assert frame.transform_target_to_world is held.transform_target_to_world
+    assert np.array_equal(frame.cost, np.ones(6)) and frame.lm_damping == 0.0
+    form, jacobian = dofs.linear_form
+    assert np.array_equal(jacobian, freeze.compute_jacobian(configuration))
+    assert not form.any() and form.shape == (2, model.nq + 1)
+    with pytest.raises(ValueError):
+        dofs.cost[0] = 2.0  # (read-only: the plan reads it at every step)
+    com = _constraints(model, configuration, "dofs and CoM")[1]
+    (level,) = constraint_level([com], own)
+    assert type(level) is ConstraintRows and level.constraints == [com]
+
+
+def test_a_constraint_level_takes_no_compiled_correction():
+    """A plan with a constraint computed by the engine declines the compiled correction
+    passes (their unit rows would need their scale at the corrected configuration): the QP
+    path corrects the step, and the step is solved."""
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    held = _constraints(model, configuration, "frame")[0]
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    task.set_target(start.multiply(mink.SE3.from_translation(np.array([0.03, 0.0, -0.02]))))
+    stack = _stack(own, [[task, posture]], constraint_level([held], own), 1e-6)
+    options = {"damping": 0.0, "couplings": False, "max_joint_speed": None}
+    limits = [mink.ConfigurationLimit(model)]
+    corrected = qpik.IKSolver(model, stack, limits, correction_passes=1, **options)
+    result = corrected.step(own, DT)
+    assert result.ok and np.abs(result.velocity).max() > 0.1
+    assert not corrected._plan._correct(own, 0, DT, 1)
+    # the QP path's corrected step: the same velocity as a solver that has no plan
+    reference = qpik.IKSolver(model, stack, limits, correction_passes=1, **options)
+    reference._plan = None
+    assert reference.step(own, DT).velocity.tobytes() == result.velocity.tobytes()
+
+
+def test_a_frame_constraint_takes_any_gain_and_names_its_task():
+    """As mink and the rows supplied before: a frame constraint's gain set above 1 after the
+    task was built is taken as it is (the same velocity as the supplied rows', bitwise),
+    and what does not fit its rows is reported naming the user's task, not the wrapper."""
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    task.set_target_from_configuration(configuration)
+    held = _constraints(model, configuration, "frame")[0]
+    held.set_target(held.transform_target_to_world.multiply(
+        mink.SE3.from_translation(np.array([0.01, 0.0, 0.0]))))  # fmt: skip
+    held.gain = 2.0
+    supplied = mink_compat._new_solver(
+        own, _stack(own, [[task, posture]], [ConstraintRows([held], own)], 1e-6), "daqp", 0.0,
+        None, {},
+    )  # fmt: skip
+    v = qpik.solve_ik(configuration, [task, posture], DT, "daqp", 1e-6, constraints=[held])
+    assert np.abs(v).max() > 0.1
+    assert v.tobytes() == supplied.step(own, DT).velocity.tobytes()
+    held.transform_target_to_world = "x"
+    with pytest.raises(qpik.InvalidTarget, match="FrameTask 'link3'"):
+        qpik.solve_ik(configuration, [task, posture], DT, "daqp", 1e-6, constraints=[held])
