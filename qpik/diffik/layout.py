@@ -7,7 +7,8 @@ mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``RelativeFrameTask``, qpik's world-frame ``PositionTask``, ``OrientationTask`` and
 ``PoseTask`` (kinds ``POSE_KINDS``), qpik's ``JointLimitDistanceTask`` (kind
 ``JOINT_LIMITS_KIND``), and qpik's ``CouplingTask`` when every coupling is linear (kind
-``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``); :func:`qpik.solve_ik`'s
+``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``), a DoF-freezing task (kind
+``LINEAR_KIND``, its residual zero); :func:`qpik.solve_ik`'s
 frame and DoF-freezing constraints (``FRAME_KIND`` / ``LINEAR_KIND`` with ``UNIT_ROWS``)
 and its levels' damping terms (constants in ``user_mu``). Any other task supplies its rows
 each step (kind ``ROWS_KIND``, laid out by its declared count).
@@ -28,7 +29,7 @@ from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
-from ..tasks import DampingTask, FrameTask, PostureTask, RelativeFrameTask
+from ..tasks import DampingTask, DofFreezingTask, FrameTask, PostureTask, RelativeFrameTask
 from ..tasks.checked import check_gain, check_pose_target, pose_target_name
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
@@ -57,6 +58,9 @@ RELATIVE_TYPES = (RelativeFrameTask, mink.RelativeFrameTask)
 #: the free joints' columns zeroed, error ``q (-) q*``) and DampingTask (error zero).
 POSTURE_TYPES = (PostureTask, mink.PostureTask)
 DAMPING_TYPES = (DampingTask, mink.DampingTask)
+#: DoF-freezing tasks (mink's and qpik's; rows e_j for the frozen dofs, their error zero:
+#: linear tasks of a zero residual, their Jacobian taken once as mink computes it once).
+DOF_FREEZING_TYPES = (DofFreezingTask, mink.DofFreezingTask)
 #: CoM tasks: qpik's (any subtree) and mink's (the subtree of body 1). Exact types.
 COM_TYPES = (ComTask, mink.ComTask)
 #: Limits of general rows ``G dq <= h`` that a plan takes, their rows from their own
@@ -305,7 +309,7 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         layout.tasks.append((COM_KIND, len(layout.coms), k, row))
         layout.coms.append((task, *entry))
         return 3
-    linear = task.linear_form if kind is CouplingTask or kind is DofConstraint else None
+    linear = _linear_form(model, task)
     if kind is JointLimitDistanceTask:
         linear = joint_limit_constants(model, task)
         if linear is None:
@@ -323,6 +327,19 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     layout.tasks.append((ROWS_KIND, len(layout.rows_tasks), k, row))
     layout.rows_tasks.append((task, row, row + size))
     return size
+
+
+def _linear_form(model: mujoco.MjModel, task) -> tuple | None:
+    """``(form (k, nq + 1), jacobian (k, nv))`` of a task the plan takes as linear (qpik's
+    CouplingTask where its couplings are, a DofConstraint, a DoF-freezing task: its rows
+    constant, its error zero, as mink computes them once), else None."""
+    kind = type(task)
+    if kind is CouplingTask or kind is DofConstraint:
+        return task.linear_form
+    if kind in DOF_FREEZING_TYPES:
+        jacobian = np.array(task.compute_jacobian(None), dtype=float)
+        return np.zeros((jacobian.shape[0], model.nq + 1)), jacobian
+    return None
 
 
 def joint_limit_constants(model: mujoco.MjModel, task) -> tuple | None:

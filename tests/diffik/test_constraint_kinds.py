@@ -181,3 +181,34 @@ def test_a_frame_constraint_takes_any_gain_and_names_its_task():
     held.transform_target_to_world = "x"
     with pytest.raises(qpik.InvalidTarget, match="FrameTask 'link3'"):
         qpik.solve_ik(configuration, [task, posture], DT, "daqp", 1e-6, constraints=[held])
+
+
+class _OwnFreezing(mink.DofFreezingTask):
+    """A subclass: not an exact type the kernel computes, so its rows are supplied."""
+
+
+@pytest.mark.parametrize("make", [mink.DofFreezingTask, qpik.tasks.DofFreezingTask])
+def test_a_dof_freezing_task_is_a_linear_task_of_the_kernel(make):
+    """A DofFreezingTask in a level (mink's or qpik's) is a linear task of the plan (its
+    Jacobian, its zero residual), not rows supplied at each step; with costs, gain and LM
+    damping of its own, each step's velocity is bitwise the one of the same task's rows
+    supplied from Python (a subclass), over a closed loop."""
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    ours, theirs = make(model, dof_indices=[1, 3]), _OwnFreezing(model, dof_indices=[1, 3])
+    for t in (ours, theirs):
+        t.cost = np.array([2.0, 0.5])
+        t.gain, t.lm_damping = 0.7, 0.1
+    solvers = [
+        qpik.IKSolver(model, [[task], [t, posture]], [mink.ConfigurationLimit(model)])
+        for t in (ours, theirs)
+    ]
+    assert not solvers[0]._plan.rows_tasks and solvers[1]._plan.rows_tasks
+    assert LINEAR_KIND in solvers[0]._plan.arrays["tasks"][:, 0].tolist()
+    for i in range(40):
+        offset = 0.05 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
+        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        v, w = (s.step(own, DT).velocity for s in solvers)
+        assert v.tobytes() == w.tobytes()
+        own.update(own.integrate(v, DT))

@@ -451,9 +451,10 @@ def _panda_kind(name: str, model):
 def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     """qpik's pose and secondary tasks and mink's DoF-freezing and kinetic-energy tasks
     (its (H, c) factored as the QP path factors it) under a frame task, above a posture:
-    the compiled step answers, equal to the QP path's. qpik's world-frame pose tasks and its
-    joint-limit distance are computed by the kernel itself (qpik/_cpp/tasks/pose.hpp,
-    joint_limits.hpp: no rows supplied), the others supply their rows."""
+    the compiled step answers, equal to the QP path's. qpik's world-frame pose tasks, its
+    joint-limit distance and the DoF-freezing task (a linear task) are computed by the
+    kernel itself (qpik/_cpp/tasks/pose.hpp, joint_limits.hpp, linear.hpp: no rows
+    supplied), the others supply their rows."""
     model, configuration = panda
     rng = np.random.default_rng(zlib.crc32(kind.encode()))  # (hash() of a str varies by process)
     task = _panda_kind(kind, model)
@@ -464,7 +465,7 @@ def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
         levels = [[task], [frame], [posture]]
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits)
-    computed = ("position", "orientation", "pose", "joint_limit_distance")  # by the kernel
+    computed = ("position", "orientation", "pose", "joint_limit_distance", "dof_freezing")
     assert _supplied(solver) == ([] if kind in computed else [task])
     for _ in range(15):
         _random_state(rng, model, configuration, [frame, posture])
@@ -498,8 +499,8 @@ def test_a_stack_mixing_kinds_at_several_levels(panda, solver_name):
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits, solver=solver_name)
     # (the frame task and qpik's two pose tasks are the kernel's frames, the joint-limit
-    # distance the kernel's too)
-    assert len(_supplied(solver)) == 3 and len(solver._plan.frames) == 3
+    # distance and the DoF freezing the kernel's too)
+    assert len(_supplied(solver)) == 2 and len(solver._plan.frames) == 3
     tasks = [t for level in levels for t in level]
     for _ in range(15):
         _random_state(rng, model, configuration, tasks)
