@@ -8,10 +8,10 @@ mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``PoseTask`` (kinds ``POSE_KINDS``), qpik's ``JointLimitDistanceTask`` (kind
 ``JOINT_LIMITS_KIND``), and qpik's ``CouplingTask`` when every coupling is linear (kind
 ``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``), a DoF-freezing task (kind
-``LINEAR_KIND``, its residual zero); :func:`qpik.solve_ik`'s
-frame and DoF-freezing constraints (``FRAME_KIND`` / ``LINEAR_KIND`` with ``UNIT_ROWS``)
-and its levels' damping terms (constants in ``user_mu``). Any other task supplies its rows
-each step (kind ``ROWS_KIND``, laid out by its declared count).
+``LINEAR_KIND``, its residual zero); :func:`qpik.solve_ik`'s frame and DoF-freezing
+constraints (``FRAME_KIND`` / ``LINEAR_KIND`` with ``UNIT_ROWS``) and its levels' damping
+terms (constants in ``user_mu``). Any other task supplies its rows each step (kind
+``ROWS_KIND``, laid out by its declared count).
 """
 
 from __future__ import annotations
