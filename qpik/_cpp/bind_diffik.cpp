@@ -348,7 +348,13 @@ class Kernel {
                     count = F;
                     size = tasks::pose_part_rows(kind - diffik::POSE_BASE);
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 10, 32 or 38 (a constraint's)");
+                case diffik::LOOK_AT: case diffik::AXIS_ALIGN:
+                    require(dim(frame_data, 1) == diffik::kPoseData,
+                            "Kernel: frame_data must have shape (F, 20) with look-at or axis-align tasks");
+                    count = F;
+                    size = 3;
+                    break;
+                default: require(false, "Kernel: a task kind is not 0 to 12, 32 or 38 (a constraint's)");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             if ((kind & ~diffik::UNIT_ROWS) == diffik::LINEAR || kind == diffik::JOINT_LIMITS)

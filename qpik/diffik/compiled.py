@@ -52,8 +52,8 @@ from .layout import (
     RANK_TOL,
     THRESHOLD,
     TOL,
-    UNIT_ROWS,
     com_chains,
+    corrected_kinds,
     guards_hold,
     is_user_limit,
     plan_guards,
@@ -364,8 +364,8 @@ class CompiledPlan:
 
     def _correct(self, configuration: mink.Configuration, row: int, dt: float, passes: int) -> bool:
         """``passes`` second-order corrections of the lean step in row ``row`` of the
-        outputs. False where the QP path must answer (and for a constraint's unit rows)."""
-        if (self.arrays["tasks"][:, 0] & UNIT_ROWS).any():
+        outputs. False where the QP path must answer (and for kinds it does not correct)."""
+        if not corrected_kinds(self.arrays["tasks"]):
             return False
         return self._correction().run(configuration, self._out[1][row], row, dt, passes)
 

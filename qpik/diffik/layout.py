@@ -29,7 +29,15 @@ from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
-from ..tasks import DampingTask, DofFreezingTask, FrameTask, PostureTask, RelativeFrameTask
+from ..tasks import (
+    AxisAlignTask,
+    DampingTask,
+    DofFreezingTask,
+    FrameTask,
+    LookAtTask,
+    PostureTask,
+    RelativeFrameTask,
+)
 from ..tasks.checked import check_gain, check_pose_target, pose_target_name
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
@@ -42,7 +50,8 @@ from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
     "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
-    "TaskLayout", "UNIT_ROWS", "com_chains", "limit_layout", "plan_arrays", "task_layout",
+    "TaskLayout", "UNIT_ROWS", "com_chains", "corrected_kinds", "limit_layout", "plan_arrays",
+    "task_layout",
     "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
 ]  # fmt: skip
 
@@ -83,24 +92,44 @@ UNIT_ROWS = 32
 #: in the linear tasks' table (:func:`joint_limit_constants`), its cost, gain and LM
 #: damping loaded as theirs.
 JOINT_LIMITS_KIND = 10
-#: qpik's world-frame pose tasks (qpik/_cpp/tasks/pose.hpp), a frame of the ``frames``
-#: table each, by exact type: their kind (7 position, 8 orientation, 9 both) and rows.
+#: qpik's world-frame pose tasks (qpik/_cpp/tasks/pose.hpp), and mink's and qpik's look-at
+#: and axis-align tasks (tasks/look_at.hpp, axis_align.hpp), a frame of the ``frames``
+#: table each, by exact type: their kind (7 position, 8 orientation, 9 both, 11 look-at,
+#: 12 axis-align) and rows.
+LOOK_AT_KIND, AXIS_ALIGN_KIND = 11, 12
 POSE_KINDS: dict[type, tuple[int, int]] = {
     PositionTask: (7, 3),
     OrientationTask: (8, 3),
     PoseTask: (9, 6),
+    LookAtTask: (LOOK_AT_KIND, 3),
+    mink.LookAtTask: (LOOK_AT_KIND, 3),
+    AxisAlignTask: (AXIS_ALIGN_KIND, 3),
+    mink.AxisAlignTask: (AXIS_ALIGN_KIND, 3),
 }
 #: A pose task's data row (``frame_data`` then has ``POSE_DATA`` columns): its targets'
-#: entries by attribute (position 0:3 [m], rotation 3:12 row-major), then its cost at
+#: entries by attribute (position 0:3 [m], rotation 3:12 row-major; a look-at task's point
+#: [m] or an axis-align task's direction 0:3 and the frame's axis 3:6), then its cost at
 #: ``POSE_COST`` (3 or 6 entries), gain and LM damping at ``POSE_COST + 6`` and ``+ 7``.
 POSE_TARGETS: dict[type, tuple[tuple[str, int, int], ...]] = {
     PositionTask: (("target", 0, 3),),
     OrientationTask: (("_rotation_entries", 3, 12),),  # (the target's 9 entries, 1-D)
     PoseTask: (("target_position", 0, 3), ("_rotation_entries", 3, 12)),
+    LookAtTask: (("target_pos", 0, 3), ("axis", 3, 6)),
+    mink.LookAtTask: (("target_pos", 0, 3), ("axis", 3, 6)),
+    AxisAlignTask: (("target_dir", 0, 3), ("axis", 3, 6)),
+    mink.AxisAlignTask: (("target_dir", 0, 3), ("axis", 3, 6)),
 }
 POSE_COST, POSE_DATA = 12, 20
 #: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
 SCALAR_DOF, FREE_DOF, BALL_FIRST, BALL_OTHER = 0, 1, 2, 3
+
+
+def corrected_kinds(tasks: np.ndarray) -> bool:
+    """Whether the kernel's correction passes cover every task of a plan's ``tasks`` table
+    (fused.hpp corrected_kind): not a constraint's unit rows, nor a look-at or axis-align
+    task's (``CompiledPlan`` leaves their correction to the QP path)."""
+    kinds = tasks[:, 0]
+    return not ((kinds & UNIT_ROWS).any() or np.isin(kinds, (LOOK_AT_KIND, AXIS_ALIGN_KIND)).any())
 
 
 @dataclass(frozen=True)

@@ -212,3 +212,59 @@ def test_a_dof_freezing_task_is_a_linear_task_of_the_kernel(make):
         v, w = (s.step(own, DT).velocity for s in solvers)
         assert v.tobytes() == w.tobytes()
         own.update(own.integrate(v, DT))
+
+
+class _OwnLookAt(mink.LookAtTask):
+    """A subclass: its rows supplied (rows._COMPILED_RESIDUALS takes exact types only, so
+    they are mink's own method's)."""
+
+
+def _aim(task, kind: str, rng) -> None:
+    if kind == "look_at":
+        task.set_target(np.array([0.6, 0.0, 0.3]) + rng.normal(0.0, 0.2, 3))
+    else:
+        task.set_target(np.array([0.0, 0.3, 1.0]) + rng.normal(0.0, 0.3, 3))
+
+
+@pytest.mark.parametrize("kind", ["look_at", "axis_align"])
+@pytest.mark.parametrize("owner", ["mink", "qpik"])
+def test_look_at_and_axis_align_are_tasks_of_the_kernel(kind, owner):
+    """mink's and qpik's LookAtTask and AxisAlignTask are frames of the plan (kinds 11 and
+    12: the kernel computes their rows from its own frame Jacobian, by the engine's
+    look_at_residual / axis_align_residual), not rows supplied at each step: over a closed
+    loop with costs, gain and LM damping of their own, each velocity is bitwise the one of
+    the same rows supplied from Python (the QP path's rows, by the same engine functions),
+    equal to the QP path's answer to round-off and to the rows of mink's own method (a
+    subclass) to 1e-9; a plan with one leaves correction passes to the QP path."""
+    from qpik.diffik.layout import AXIS_ALIGN_KIND, LOOK_AT_KIND
+
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    make = {
+        ("mink", "look_at"): mink.LookAtTask,
+        ("qpik", "look_at"): qpik.tasks.LookAtTask,
+        ("mink", "axis_align"): mink.AxisAlignTask,
+        ("qpik", "axis_align"): qpik.tasks.AxisAlignTask,
+    }[owner, kind]
+    rng = np.random.default_rng(3)
+    aim = make("ee", "site", axis=np.array([0.0, 0.2, 1.0]), cost=0.7)
+    aim.cost = np.array([1.0, 0.5, 2.0])  # (per row, set after the build)
+    aim.gain, aim.lm_damping = 0.8, 0.05
+    _aim(aim, kind, rng)
+    frame = mink.FrameTask("link4", "body", position_cost=1.0, orientation_cost=0.0)
+    frame.set_target_from_configuration(configuration)
+    limits = [mink.ConfigurationLimit(model)]
+    ik = qpik.IKSolver(model, [[frame], [aim], [posture]], limits)
+    assert not ik._plan.rows_tasks
+    code = LOOK_AT_KIND if kind == "look_at" else AXIS_ALIGN_KIND
+    assert code in ik._plan.arrays["tasks"][:, 0].tolist()
+    moved = 0.0
+    for _ in range(30):
+        _aim(aim, kind, rng)
+        v = ik.step(own, DT).velocity.copy()
+        qp = ik.qp_solution(own, DT).velocity
+        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        moved = max(moved, float(np.abs(v).max()))
+        own.update(own.integrate(v, DT))
+    assert moved > 0.05
+    assert not ik._plan._correct(own, 0, DT, 1)

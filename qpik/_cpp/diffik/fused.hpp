@@ -19,6 +19,8 @@
 #include "../tasks/pose.hpp"
 #include "../tasks/joint_limits.hpp"
 #include "../tasks/linear.hpp"
+#include "../tasks/look_at.hpp"
+#include "../tasks/axis_align.hpp"
 #include "couple.hpp"
 
 namespace qpik::diffik {
@@ -103,8 +105,15 @@ enum TaskKind : i64 {
     // qpik's JointLimitDistanceTask (tasks/joint_limits.hpp): one row; its constants in row
     // lin_starts[index] of lin_const: half range by dof (0: not counted), mid / half by qpos
     // address, then n (the scalar joints counted); its cost, gain and LM damping in lin_data
-    JOINT_LIMITS = 10
+    JOINT_LIMITS = 10,
+    // mink's (and qpik's) LookAtTask and AxisAlignTask (tasks/look_at.hpp, axis_align.hpp):
+    // three rows; a frame of the frames table, its data row as a pose task's (kPoseData):
+    // target 0:3 (target_pos, target_dir), axis 3:6, cost at kPoseTarget, gain and LM
+    // damping after its six cost entries
+    LOOK_AT = 11, AXIS_ALIGN = 12
 };
+// LookAtTask's floor on |r| (qpik.diffik.rows._EPS: the same rows as the QP path's).
+constexpr double kLookAtEps = 1e-10;
 constexpr i64 POSE_BASE = 6;
 inline bool is_pose(i64 kind) { return kind >= POSE_POSITION && kind <= POSE_FULL; }
 // A frame or linear task's kind with this bit added: its rows as mink's equality
@@ -115,6 +124,13 @@ constexpr i64 UNIT_ROWS = 32;
 // The weight of such a row (qpik.diffik.constraints.UNDAMPED_WEIGHT, 2^-40): the damping law
 // reads the level's singular values 2^40 times theirs and never damps it.
 constexpr double kUndampedWeight = 0x1p-40;
+
+// Whether the kernel's correction passes (weighted_errors, shift_targets) cover a task kind:
+// not a constraint's unit rows, a look-at or an axis-align task's (CompiledPlan._correct
+// leaves such a plan's correction to the QP path: qpik.diffik.layout.corrected_kinds).
+inline bool corrected_kind(i64 kind) {
+    return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN;
+}
 
 // Rows row:row+size of A and b scaled to unit norm, as qpik._engine.tasks.unit_rows scales
 // J and -gain e (s = 1 / |A_r|, |A_r| by its squares summed in order from +0; 1 for a zero
@@ -430,6 +446,22 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
             mu = tasks::pose_rows_into(a.A, a.b.p, row, jac, pos, mat, data, part, cost,
                                        data[tasks::kPoseTarget + 6], data[tasks::kPoseTarget + 7]);
             size = tasks::pose_part_rows(part);
+        } else if (kind == LOOK_AT || kind == AXIS_ALIGN) {
+            const double* pos;
+            const double* mat;
+            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
+            const double* data = a.frame_data.row(i);
+            cost = data + tasks::kPoseTarget;
+            const double gain = data[tasks::kPoseTarget + 6], lm = data[tasks::kPoseTarget + 7];
+            const double* jac = a.jac + i * 6 * n;  // (6, n): jacp, then jacr
+            double* rows = local.data();            // (3, n), then into A's rows
+            mu = kind == LOOK_AT ? tasks::look_at_residual(jac, n, mat, pos, data, data + 3, cost, gain, lm,
+                                                           kLookAtEps, rows, a.b.p + row)
+                                 : tasks::axis_align_residual(jac + 3 * n, n, mat, data, data + 3, cost, gain, lm,
+                                                              rows, a.b.p + row);
+            for (i64 r = 0; r < 3; ++r)
+                std::memcpy(a.A.row(row + r), rows + r * n, static_cast<size_t>(n) * sizeof(double));
+            size = 3;
         } else if (kind == COM) {
             const double* data = a.com_data.row(i);
             cost = data + 3;
@@ -791,9 +823,9 @@ inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, d
     if (local.size() < static_cast<size_t>(n)) local.resize(static_cast<size_t>(n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
-        // (a frame constraint, UNIT_ROWS: never corrected here; CompiledPlan declines the
-        // correction of a plan that has one, and the QP path corrects it)
-        if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS || (kind & UNIT_ROWS) != 0) continue;
+        // (a constraint, UNIT_ROWS, and a look-at or axis-align task: never corrected here;
+        // CompiledPlan declines the correction of a plan that has one: the QP path corrects)
+        if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS || !corrected_kind(kind)) continue;
         if (kind == FRAME) {
             const double *pos, *mat;
             frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
@@ -880,7 +912,9 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
-            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: size = 0; break;  // (weighted_errors')
+            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN:
+                size = 0;  // (never corrected: weighted_errors')
+                break;
             default: size = n;
         }
         for (i64 r = row; r < row + size; ++r) {
