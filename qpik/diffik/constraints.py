@@ -19,6 +19,7 @@ from .._engine.tasks import frame_rows_into, unit_rows
 from ..errors import InvalidInput, TaskDefinitionError
 from ..model.configuration import Configuration
 from ..tasks.frame import FrameTask, frame_terms
+from ..tasks.mink_tasks import DofFreezingTask
 from .rows import SuppliedRows
 
 __all__ = [
@@ -213,14 +214,15 @@ _NATIVE: dict[type, Callable[[Any, Configuration], ConstraintRows]] = {
     mink.FrameTask: FrameConstraint,
     FrameTask: FrameConstraint,
     mink.DofFreezingTask: DofConstraint,
+    DofFreezingTask: DofConstraint,
 }
 
 
 def constraint_level(constraints: list, configuration: Configuration) -> list[ConstraintRows]:
     """The constraints' level of :func:`qpik.solve_ik`: one :class:`ConstraintRows` of them
     all where none is a task the compiled step computes, else one task each in order (a
-    :class:`FrameConstraint` for a frame task, mink's or qpik's, a :class:`DofConstraint`
-    for mink's ``DofFreezingTask``). Each row is the same either way but for a frame task in
+    :class:`FrameConstraint` for a frame task, a :class:`DofConstraint` for a
+    ``DofFreezingTask``, mink's or qpik's). Each row is the same either way but for a frame task in
     a stack of several: its rows are then qpik's frame rows rather than mink's
     ``compute_jacobian`` (equal to round-off)."""
     if not any(type(task) in _NATIVE for task in constraints):

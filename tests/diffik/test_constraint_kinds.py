@@ -41,13 +41,14 @@ def _constraints(model, configuration, kind: str) -> list:
     turned = qpik.tasks.FrameTask("link2", "body", position_cost=0.0, orientation_cost=1.0)
     turned.gain = 0.5
     turned.set_target_from_configuration(configuration)
-    freeze = mink.DofFreezingTask(model, dof_indices=[5, 6])
+    freeze = qpik.tasks.DofFreezingTask(model, dof_indices=[5, 6])
+    theirs = mink.DofFreezingTask(model, dof_indices=[0, 6])
     com = mink.ComTask(cost=1.0)  # (not computed by the engine as a constraint: supplied)
     com.set_target_from_configuration(configuration)
     return {
         "frame": [held],
         "qpik frame, gain 0.5": [turned],
-        "dofs": [freeze],
+        "dofs": [theirs],
         "frame and dofs": [held, freeze],
         "dofs and CoM": [freeze, com],
     }[kind]
