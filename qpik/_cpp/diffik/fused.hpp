@@ -371,26 +371,33 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
         const i64 kind = a.tasks(t, 0);
         const i64 i = a.tasks(t, 1);
         const i64 row = a.tasks(t, 3);
-        if (kind == (FRAME | UNIT_ROWS)) {  // a frame constraint: unit rows, no LM term
+        // A frame task's rows (its data row's costs, gain and LM damping) and their LM term.
+        auto frame_task_rows = [&]() {
             const double* pos;
             const double* mat;
             frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
             const double* data = a.frame_data.row(i);
             CMatRef jac(a.jac + i * 6 * n, 6, n);
-            frame_rows(a.A, a.b.p, row, jac, pos, mat, data, data + 7, data[13], data[14], local.data());
-            unit_rows_in_place(a.A, a.b.p, row, 6);
-            for (i64 r = 0; r < 6; ++r) diag[static_cast<size_t>(row + r)] = -1;
-            for (i64 r = 0; r < 6; ++r) a.w[row + r] = kUndampedWeight;
-            continue;
-        }
-        if (kind == (LINEAR | UNIT_ROWS)) {  // a linear constraint (mink's DofFreezingTask)
+            return frame_rows(a.A, a.b.p, row, jac, pos, mat, data, data + 7, data[13], data[14], local.data());
+        };
+        // A linear task's rows (lin_data's costs and gain; LM damping lm) and their LM term.
+        auto linear_task_rows = [&](double lm) {
             const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
             const i64 stride = a.lin_const.stride;
             const double* c = a.lin_const.row(r0);
             if (static_cast<i64>(local.size()) < k) local.resize(static_cast<size_t>(k));
-            tasks::linear_rows_into(a.A, a.b.p, row, CMatRef(c, k, n, stride),
-                                    CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
-                                    a.lin_data.row(0) + r0, a.lin_data(1, r0), 0.0, local.data());
+            return tasks::linear_rows_into(a.A, a.b.p, row, CMatRef(c, k, n, stride),
+                                           CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
+                                           a.lin_data.row(0) + r0, a.lin_data(1, r0), lm, local.data());
+        };
+        if ((kind & UNIT_ROWS) != 0) {  // a constraint: its rows scaled to unit norm, no LM term
+            i64 k = 6;
+            if (kind == (FRAME | UNIT_ROWS)) {
+                frame_task_rows();  // (its costs ones, its LM damping 0)
+            } else {                // LINEAR | UNIT_ROWS: mink's DofFreezingTask
+                k = a.lin_starts[i + 1] - a.lin_starts[i];
+                linear_task_rows(0.0);
+            }
             unit_rows_in_place(a.A, a.b.p, row, k);
             for (i64 r = 0; r < k; ++r) diag[static_cast<size_t>(row + r)] = -1;
             for (i64 r = 0; r < k; ++r) a.w[row + r] = kUndampedWeight;
@@ -413,27 +420,16 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
         }
         if (kind == LINEAR) {
             const i64 r0 = a.lin_starts[i], k = a.lin_starts[i + 1] - r0;
-            const i64 stride = a.lin_const.stride;
-            const double* c = a.lin_const.row(r0);
             cost = a.lin_data.row(0) + r0;
-            if (static_cast<i64>(local.size()) < k) local.resize(static_cast<size_t>(k));
-            mu = tasks::linear_rows_into(a.A, a.b.p, row, CMatRef(c, k, n, stride),
-                                         CMatRef(c + n, k, a.lin_const.cols - n, stride), a.qpos.p,
-                                         cost, a.lin_data(1, r0), a.lin_data(2, r0), local.data());
+            mu = linear_task_rows(a.lin_data(2, r0));
             for (i64 r = 0; r < k; ++r) a.w[row + r] = cost[r];
             for (i64 r = 0; r < k; ++r) diag[static_cast<size_t>(row + r)] = -1;
             reg[a.tasks(t, 2)] += mu;
             continue;
         }
         if (kind == FRAME) {
-            const double* pos;
-            const double* mat;
-            frame_pose(a, a.frames(i, 0), a.frames(i, 1), pos, mat);
-            const double* data = a.frame_data.row(i);
-            cost = data + 7;
-            CMatRef jac(a.jac + i * 6 * n, 6, n);
-            mu = frame_rows(a.A, a.b.p, row, jac, pos, mat, data, cost, data[13], data[14],
-                            local.data());
+            cost = a.frame_data.row(i) + 7;
+            mu = frame_task_rows();
             size = 6;
         } else if (is_pose(kind)) {
             const double* pos;
