@@ -1,9 +1,10 @@
-"""mink's constraints that the compiled step computes itself (issue 20: the fast path covers
-what users bring): a frame task held as a constraint (FrameConstraint, kind FRAME with
-UNIT_ROWS) and mink's DofFreezingTask (DofConstraint, kind LINEAR with UNIT_ROWS), and each
-task level's Tikhonov term as a constant LM term. Their answers are bitwise those of the
-same rows supplied from Python each step (ConstraintRows, the way before), mink's to
-round-off, and the QP path's to round-off."""
+"""Task kinds the compiled step now computes itself, where their rows were supplied from
+Python at each step (issue 20: the fast path covers what users bring): qpik.solve_ik's
+constraints (a frame task held as one, FrameConstraint, kind FRAME with UNIT_ROWS; a
+DofFreezingTask, DofConstraint, kind LINEAR with UNIT_ROWS) and each task level's Tikhonov
+term as a constant LM term; a DofFreezingTask in a level (kind LINEAR); mink's and qpik's
+LookAtTask and AxisAlignTask (kinds 11 and 12). Their answers are bitwise those of the
+same rows supplied from Python, mink's and the QP path's to round-off."""
 
 from __future__ import annotations
 
