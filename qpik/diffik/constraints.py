@@ -24,7 +24,7 @@ from .rows import SuppliedRows
 
 __all__ = [
     "ConstraintRows", "DofConstraint", "FrameConstraint", "Tikhonov", "constraint_level",
-    "equality_rows",
+    "dof_freezing_form", "equality_rows",
 ]  # fmt: skip
 
 
@@ -149,30 +149,39 @@ class ConstraintRows(SuppliedRows):
         return A, b, None, np.full(A.shape[0], UNDAMPED_WEIGHT)
 
 
-class FrameConstraint(ConstraintRows):
-    """One frame task's constraint (:class:`ConstraintRows` of ``[task]``, mink's or qpik's
-    ``FrameTask``, exact types) that the compiled step computes itself (kind ``FRAME`` with
-    ``UNIT_ROWS``, qpik/_cpp/diffik/fused.hpp): the task's frame rows with unit costs and
-    no LM term, each scaled to unit norm, weight :data:`UNDAMPED_WEIGHT` - the rows
-    :meth:`ConstraintRows.rows_now` makes, which the QP path takes. The plan reads the
-    task's target, gain and frame through it (its ``cost`` ones, ``lm_damping`` 0)."""
+class _OneConstraint(ConstraintRows):
+    """:class:`ConstraintRows` of one task (``task``), whose gain the plan reads through it."""
 
-    cost = _UNIT_COST
     lm_damping = 0.0
 
-    def __init__(self, task: mink.FrameTask, configuration: Configuration):
+    def __init__(self, task: mink.Task, configuration: Configuration):
         super().__init__([task], configuration)
-        self.task = task
 
     @property
-    def transform_target_to_world(self) -> mink.SE3 | None:
-        """The task's target pose in the world frame."""
-        return self.task.transform_target_to_world
+    def task(self) -> Any:
+        """The constraint task (a ``mink.Task``)."""
+        return self.constraints[0]
 
     @property
     def gain(self) -> float:
         """The task's gain (its rows ``J dq = -gain e``)."""
         return self.task.gain
+
+
+class FrameConstraint(_OneConstraint):
+    """One frame task's constraint (mink's or qpik's ``FrameTask``, exact types) that the
+    compiled step computes itself (kind ``FRAME`` with ``UNIT_ROWS``,
+    qpik/_cpp/diffik/fused.hpp): the task's frame rows with unit costs and no LM term, each
+    scaled to unit norm, weight :data:`UNDAMPED_WEIGHT` - the rows
+    :meth:`ConstraintRows.rows_now` makes, which the QP path takes. The plan reads the
+    task's target, gain and frame through it (its ``cost`` ones, ``lm_damping`` 0)."""
+
+    cost = _UNIT_COST
+
+    @property
+    def transform_target_to_world(self) -> mink.SE3 | None:
+        """The task's target pose in the world frame."""
+        return self.task.transform_target_to_world
 
     @property
     def frame_name(self) -> str | int:
@@ -185,28 +194,26 @@ class FrameConstraint(ConstraintRows):
         return self.task.frame_type
 
 
-class DofConstraint(ConstraintRows):
-    """mink's ``DofFreezingTask`` as a constraint (:class:`ConstraintRows` of ``[task]``)
-    that the compiled step computes itself (kind ``LINEAR`` with ``UNIT_ROWS``): its
-    constant rows, one unit row per frozen dof (``linear_form``: the task's Jacobian, taken
-    once as mink computes it once, and a zero residual), weight :data:`UNDAMPED_WEIGHT`."""
+def dof_freezing_form(task: Any, nq: int) -> tuple[np.ndarray, np.ndarray]:
+    """A DoF-freezing task as a linear task of the plan: ``(form (k, nq + 1), jacobian (k,
+    nv))``, its Jacobian as mink computes it (once, at the task's construction: it does not
+    depend on the configuration) and a zero residual (its error is zero)."""
+    jacobian = np.array(task.compute_jacobian(None), dtype=np.float64)
+    return np.zeros((jacobian.shape[0], nq + 1)), jacobian
 
-    lm_damping = 0.0
+
+class DofConstraint(_OneConstraint):
+    """A ``DofFreezingTask`` (mink's or qpik's) as a constraint that the compiled step
+    computes itself (kind ``LINEAR`` with ``UNIT_ROWS``): its constant rows, one unit row
+    per frozen dof (``linear_form``, :func:`dof_freezing_form`), weight
+    :data:`UNDAMPED_WEIGHT`, its costs ones."""
 
     def __init__(self, task: mink.DofFreezingTask, configuration: Configuration):
-        super().__init__([task], configuration)
-        self.task = task
-        jacobian = np.array(task.compute_jacobian(configuration), dtype=float)
-        model = configuration.model
-        #: the linear task's form (no residual: mink's error is zero) and Jacobian
-        self.linear_form = (np.zeros((jacobian.shape[0], model.nq + 1)), jacobian)
-        self.cost = np.ones(jacobian.shape[0])
+        super().__init__(task, configuration)
+        #: the linear task's form and Jacobian (:func:`dof_freezing_form`)
+        self.linear_form = dof_freezing_form(task, configuration.model.nq)
+        self.cost = np.ones(self.linear_form[1].shape[0])
         self.cost.flags.writeable = False
-
-    @property
-    def gain(self) -> float:
-        """The task's gain (its error is zero: no row depends on it)."""
-        return self.task.gain
 
 
 #: The constraint tasks the compiled step computes itself, by exact type: their wrappers.

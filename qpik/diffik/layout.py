@@ -44,7 +44,7 @@ from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
 from .boxes import LimitBoxes, limit_bounds, limit_values
-from .constraints import DofConstraint, FrameConstraint, Tikhonov
+from .constraints import DofConstraint, FrameConstraint, Tikhonov, dof_freezing_form
 from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 
 __all__ = [
@@ -366,8 +366,7 @@ def _linear_form(model: mujoco.MjModel, task) -> tuple | None:
     if kind is CouplingTask or kind is DofConstraint:
         return task.linear_form
     if kind in DOF_FREEZING_TYPES:
-        jacobian = np.array(task.compute_jacobian(None), dtype=float)
-        return np.zeros((jacobian.shape[0], model.nq + 1)), jacobian
+        return dof_freezing_form(task, model.nq)
     return None
 
 
@@ -531,12 +530,17 @@ def _gain(task):
     return gain
 
 
+def _user_task(task):
+    """The task an error names: a frame constraint's own task (the user's), else ``task``."""
+    return task.task if type(task) is FrameConstraint else task
+
+
 def write_pose_row(views: tuple, task, pose) -> None:
     """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
     data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
     # (a frame constraint's messages name the user's task; its gain is taken as it is, as
     # mink takes a constraint's: no row of a task of qpik's checks it)
-    named = task.task if type(task) is FrameConstraint else task
+    named = _user_task(task)
     if pose is None:
         raise TargetNotSet(type(named).__name__)
     check_pose_target(named, pose, pose_target_name(named))
@@ -568,7 +572,7 @@ def _unfit(task, exc: Exception) -> Exception:
     an attribute set directly to the wrong shape or type)."""
     if isinstance(exc, QpikError):
         return exc
-    task = task.task if type(task) is FrameConstraint else task  # (the user's task)
+    task = _user_task(task)
     name = getattr(task, "frame_name", None)
     label = type(task).__name__ + ("" if name is None else f" {name!r}")
     return TaskDefinitionError(
