@@ -2,6 +2,7 @@
 // used by qpik.diffik.compiled). Every shape and index is checked here (a bad plan raises ValueError, never
 // reads out of bounds); the plan's and MuJoCo's arrays are used in place (no copies).
 #include "bind.hpp"
+#include "bind_tree.hpp"
 #include "diffik/fused.hpp"
 #include "model/com.hpp"
 #include "model/jac.hpp"
@@ -178,7 +179,7 @@ auto result_tuple(diffik::StepResult& r, i64 L) {
 // Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 //        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
 //        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None, lin_starts=None,
-//        lin_const=None, lin_data=None)
+//        lin_const=None, lin_data=None, ke_data=None)
 //   One stack's compiled step (built by make_plan). The index arrays are copied and checked
 //   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
 //   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
@@ -192,7 +193,9 @@ auto result_tuple(diffik::StepResult& r, i64 L) {
 //   ``lin_const`` (K, nv + nq + 1), each its constant Jacobian row, its coefficients over
 //   qpos and its offset (held, written once), and the columns ``r0:r1`` of ``lin_data``
 //   (3, K): its rows' costs, then its gain and LM damping in column ``r0`` (written before
-//   each call); the three are optional, together. Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
+//   each call); the three are optional, together. Kind 13, a kinetic-energy task
+//   (tasks/kinetic.hpp): row ``i`` of ``ke_data`` (E, 2) its cost and 1 / dt^2 (written
+//   before each call); its M(q) made by the kernel (set_inertia, attach_inertia). Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
 //   0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
 //   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
 //   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
@@ -256,11 +259,13 @@ class Kernel {
            const I1& cfg_qadr, Held2 cfg_data, const I1& vel_dof, Held1 vel_limit, Held1 settings,
            Held3 com_jac, const I1& com_body, Held2 com_data, Held3 rel_jac, const I2& rel_frames,
            Held2 rel_data, i64 nq, std::optional<Held1> user_mu, std::optional<I1> lin_starts,
-           std::optional<Held2> lin_const, std::optional<Held2> lin_data)
+           std::optional<Held2> lin_const, std::optional<Held2> lin_data,
+           std::optional<Held2> ke_data)
         : A_(A), b_(b), w_(w), jac_(jac), frame_data_(frame_data), posture_data_(posture_data),
           cfg_data_(cfg_data), vel_limit_(vel_limit), settings_(settings), com_jac_(com_jac),
           com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), user_mu_(std::move(user_mu)),
-          lin_const_(std::move(lin_const)), lin_data_(std::move(lin_data)), nq_(nq) {
+          lin_const_(std::move(lin_const)), lin_data_(std::move(lin_data)), ke_data_(std::move(ke_data)),
+          nq_(nq) {
         const i64 n = dim(A, 1), M = dim(A, 0);
         n_ = n;
         require(nq >= n, "Kernel: nq must be >= nv");
@@ -327,6 +332,10 @@ class Kernel {
             require(dim(*lin_data_, 0) == 3 && dim(*lin_data_, 1) == K,
                     "Kernel: lin_data must have shape (3, K), K = lin_starts[-1]");
         }
+        // Kinetic-energy tasks: ke_data (E, 2); M(q) not made yet (NaN: their rows decline)
+        const i64 E = ke_data_ ? dim(*ke_data_, 0) : 0;
+        if (ke_data_) require(dim(*ke_data_, 1) == 2, "Kernel: ke_data must have shape (E, 2)");
+        if (E > 0) inertia_.assign(static_cast<size_t>(n * n), std::numeric_limits<double>::quiet_NaN());
         tasks_.assign(tasks);
         require(dim(tasks, 1) == 4, "Kernel: tasks must have shape (T, 4)");
         for (i64 k = 0; k < tasks_.rows; ++k) {
@@ -348,13 +357,14 @@ class Kernel {
                     count = F;
                     size = tasks::pose_part_rows(kind - diffik::POSE_BASE);
                     break;
+                case diffik::KINETIC: count = E; size = n; break;
                 case diffik::LOOK_AT: case diffik::AXIS_ALIGN:
                     require(dim(frame_data, 1) == diffik::kPoseData,
                             "Kernel: frame_data must have shape (F, 20) with look-at or axis-align tasks");
                     count = F;
                     size = 3;
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 12, 32 or 38 (a constraint's)");
+                default: require(false, "Kernel: a task kind is not 0 to 13, 32 or 38 (a constraint's)");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             if ((kind & ~diffik::UNIT_ROWS) == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
@@ -464,6 +474,10 @@ class Kernel {
             a.lin_starts = lin_starts_.vec();
             a.lin_const = cmat(*lin_const_);
             a.lin_data = cmat(*lin_data_);
+        }
+        if (ke_data_) {
+            a.ke_data = cmat(*ke_data_);
+            a.inertia = inertia_.empty() ? nullptr : inertia_.data();
         }
         return a;
     }
@@ -779,10 +793,36 @@ class Kernel {
         cdof_ = Chains{cdof, subtree_com};
     }
 
+    // The model's tree for the kinetic-energy tasks' inertia matrix (model::inertia_matrix):
+    // per body its parent, per dof its body, parent dof (-1: none), armature and fixed
+    // diagonal (NaN: none).
+    void set_inertia(const In<i64, 1>& body_parent, const In<i64, 1>& dof_body, const In<i64, 1>& dof_parent,
+                     const In1& armature, const In1& fixed) {
+        tree_ = bind::OwnedTree(body_parent, dof_body, dof_parent, armature, fixed,
+                                "Kernel.set_inertia: body_parent (nbody,), dof_body, dof_parent and armature "
+                                "(nv,) must describe a MuJoCo model's tree");
+        require(static_cast<i64>(tree_.dof_body.size()) == n_, "Kernel.set_inertia: the tree must have nv dofs");
+        crb_.assign(10 * tree_.body_parent.size(), 0.0);
+        inertia_in_.reset();
+    }
+
+    // The MjData whose cdof (nv, 6) and cinert (nbody, 10) (mj_comPos) make M(q) at each
+    // step (held; attach again when the MjData changes).
+    void attach_inertia(const In2& cdof, const In2& cinert) {
+        require(!tree_.dof_body.empty() || n_ == 0, "Kernel.attach_inertia: no tree (Kernel.set_inertia)");
+        require(dim(cdof, 0) == n_ && dim(cdof, 1) == 6 &&
+                    dim(cinert, 0) == static_cast<i64>(tree_.body_parent.size()) && dim(cinert, 1) == 10,
+                "Kernel.attach_inertia: cdof must have shape (nv, 6), cinert (nbody, 10)");
+        inertia_in_ = Chains{cdof, cinert};
+    }
+
     // The Jacobians of every chain set (set_chains, set_rel_chains, set_com_chains) into their
     // arrays, from the attached cdof and subtree_com (attach_chains): go()'s, and the gathered
-    // step's (run), bitwise MuJoCo's.
+    // step's (run), bitwise MuJoCo's; and M(q) where kinetic-energy tasks need it.
     void make_jacobians() {
+        if (inertia_in_ && !inertia_.empty())
+            model::inertia_matrix(tree_.view(), inertia_in_->subtree_com.data(), inertia_in_->cdof.data(),
+                                  crb_.data(), inertia_.data());
         if (!(jac_w_ || com_w_ || rel_w_)) return;
         require(cdof_.has_value(), "Kernel.make_jacobians: no cdof attached (Kernel.attach_chains)");
         require(attached_.has_value(), "Kernel.make_jacobians: no MjData attached (Kernel.attach)");
@@ -1136,7 +1176,7 @@ class Kernel {
     Held3 rel_jac_;
     Held2 rel_data_;
     std::optional<Held1> user_mu_;
-    std::optional<Held2> lin_const_, lin_data_;
+    std::optional<Held2> lin_const_, lin_data_, ke_data_;
     struct Attached {
         nb::object owner;
         In1 qpos;
@@ -1186,6 +1226,12 @@ class Kernel {
         In2 cdof, subtree_com;
     };
     std::optional<Chains> cdof_;
+    // The kinetic-energy tasks' M(q) (nv * nv; NaN until made), the tree it is made on, the
+    // attached cdof and cinert (in Chains' two fields) and the composite inertias' scratch.
+    Vec inertia_;
+    bind::OwnedTree tree_;
+    std::optional<Chains> inertia_in_;
+    Vec crb_;
     std::optional<Out3> rel_w_;
     DofChains rel_chains_;
     std::optional<Out3> com_w_;
@@ -1244,7 +1290,7 @@ void bind_diffik(nb::module_& m) {
         .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
                       const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
                       const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>,
-                      std::optional<I1>, std::optional<Held2>, std::optional<Held2>>(),
+                      std::optional<I1>, std::optional<Held2>, std::optional<Held2>, std::optional<Held2>>(),
              nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
              nb::arg("starts"), nb::arg("tasks"), nb::arg("jac").noconvert(), nb::arg("frames"),
              nb::arg("frame_data").noconvert(), nb::arg("posture_data").noconvert(),
@@ -1255,7 +1301,7 @@ void bind_diffik(nb::module_& m) {
              nb::arg("rel_data").noconvert(), nb::arg("nq"),
              nb::arg("user_mu").noconvert() = nb::none(), nb::arg("lin_starts") = nb::none(),
              nb::arg("lin_const").noconvert() = nb::none(),
-             nb::arg("lin_data").noconvert() = nb::none())
+             nb::arg("lin_data").noconvert() = nb::none(), nb::arg("ke_data").noconvert() = nb::none())
         .def(
             "step",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
@@ -1322,6 +1368,13 @@ void bind_diffik(nb::module_& m) {
              "dof chain dofs[starts[k]:starts[k+1]] and its body's root roots[k].")
         .def("attach_chains", &Kernel::attach_chains, nb::arg("cdof"), nb::arg("subtree_com"),
              "The attached MjData's cdof (nv, 6) and subtree_com (nbody, 3), for set_chains.")
+        .def("set_inertia", &Kernel::set_inertia, nb::arg("body_parent"), nb::arg("dof_body"),
+             nb::arg("dof_parent"), nb::arg("armature"), nb::arg("fixed"),
+             "The model's tree (int64 body_parent (nbody,), dof_body, dof_parent (nv,); armature and fixed "
+             "(nv,): a simple dof's constant diagonal dof_M0, NaN for the others) "
+             "whence each step makes the kinetic-energy tasks' inertia matrix M(q).")
+        .def("attach_inertia", &Kernel::attach_inertia, nb::arg("cdof"), nb::arg("cinert"),
+             "The MjData's cdof (nv, 6) and cinert (nbody, 10) (mj_comPos) that M(q) is made from.")
         .def("set_com_chains", &Kernel::set_com_chains, nb::arg("com_jac").noconvert(), nb::arg("point"),
              nb::arg("root"), nb::arg("scale"),
              "Have go() compute the CoM tasks' Jacobians into com_jac (the kernel's own (C, 3, nv) array) from "

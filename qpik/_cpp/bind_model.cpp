@@ -1,6 +1,7 @@
 // Bindings of the model layer (qpik._engine.model): chain kinematics and rotations.
 #include "bind.hpp"
 #include "bind_chain.hpp"
+#include "bind_tree.hpp"
 #include "detmath.hpp"
 #include "model/chain.hpp"
 #include "model/com.hpp"
@@ -141,6 +142,27 @@ void bind_model(nb::module_& m) {
         "<dJ/dq_a, W> for every dof a into out (nv,): jac (6, nv) [v; omega] a frame's Jacobian, "
         "weights (6, nv), chain the dofs of a chain of hinges and slides, root first (the kinematic "
         "Hessian in closed form; 0 off the chain).");
+
+    m.def(
+        "inertia_matrix",
+        [](In2 cinert, In2 cdof, In<i64, 1> body_parent, In<i64, 1> dof_body, In<i64, 1> dof_parent,
+           In1 armature, In1 fixed) {
+            const bind::OwnedTree t(body_parent, dof_body, dof_parent, armature, fixed,
+                                    "inertia_matrix: body_parent (nbody,), dof_body, dof_parent and armature "
+                                    "(nv,) must describe a MuJoCo model's tree");
+            const i64 nbody = static_cast<i64>(body_parent.shape(0)), n = static_cast<i64>(dof_body.shape(0));
+            require(static_cast<i64>(cinert.shape(0)) == nbody && cinert.shape(1) == 10 &&
+                        static_cast<i64>(cdof.shape(0)) == n && cdof.shape(1) == 6,
+                    "inertia_matrix: cinert must be (nbody, 10), cdof (nv, 6)");
+            std::vector<double> crb(static_cast<size_t>(10 * nbody)), M(static_cast<size_t>(n * n));
+            model::inertia_matrix(t.view(), cinert.data(), cdof.data(), crb.data(), M.data());
+            const size_t un = static_cast<size_t>(n);
+            return to_numpy(std::move(M), {un, un});
+        },
+        "cinert"_a, "cdof"_a, "body_parent"_a, "dof_body"_a, "dof_parent"_a, "armature"_a, "fixed"_a,
+        "The joint-space inertia matrix (nv, nv) from an MjData's cinert and cdof (mj_comPos) by the "
+        "composite rigid body algorithm (mj_crb's operations: bitwise MuJoCo's M), the armature added on the "
+        "diagonal; fixed (nv,): a simple dof's constant diagonal (dof_M0), NaN for the others.");
 
     m.def(
         "quat2mat",

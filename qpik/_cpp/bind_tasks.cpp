@@ -11,6 +11,7 @@
 #include "tasks/look_at.hpp"
 #include "tasks/pose.hpp"
 #include "tasks/joint_limits.hpp"
+#include "tasks/kinetic.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -92,6 +93,22 @@ void bind_tasks(nb::module_& m) {
         },
         nb::arg("jlog").noconvert(), nb::arg("T"),
         "jlog(T): the right Jacobian inverse at log(T), into jlog (6, 6).");
+
+    m.def(
+        "kinetic_rows",
+        [](In2 M, double scale) -> nb::object {
+            const i64 n = static_cast<i64>(M.shape(0));
+            require(static_cast<i64>(M.shape(1)) == n, "kinetic_rows: M must be square (nv, nv)");
+            std::vector<double> A(static_cast<size_t>(n * n)), b(static_cast<size_t>(n)), L(A.size());
+            if (!tasks::kinetic_rows_into(MatRef(A.data(), n, n), b.data(), 0, M.data(), n, scale, L.data()))
+                return nb::none();
+            const size_t un = static_cast<size_t>(n);
+            return nb::cast(to_numpy(std::move(A), {un, un}));
+        },
+        nb::arg("M"), nb::arg("scale"),
+        "Rows A (nv, nv) with A^T A = scale M (A = L^T, the Cholesky factor of scale M; b = 0): a "
+        "kinetic-energy task's (zeros where scale is 0); None where scale M is not positive definite "
+        "with every pivot^2 above 1e-12 max(1, max diag) or scale is not a finite number >= 0.");
 
     m.def(
         "frame_error_jlog",

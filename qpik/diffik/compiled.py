@@ -54,19 +54,23 @@ from .layout import (
     TOL,
     com_chains,
     corrected_kinds,
-    guards_hold,
     is_user_limit,
-    plan_guards,
-    write_com_row,
-    write_frame_row,
-    write_limit_bounds,
-    write_limit_values,
-    write_posture_row,
-    write_relative_row,
 )
 from .lean import lean_slots, lean_sources
 from .result import Solution, StepResult, resolved_info, solve_rows
 from .rows import TaskRows, task_rows
+from .writers import (
+    guards_hold,
+    plan_guards,
+    write_com_row,
+    write_frame_row,
+    write_kinetic_rows,
+    write_limit_bounds,
+    write_limit_values,
+    write_linear_rows,
+    write_posture_row,
+    write_relative_row,
+)
 
 __all__ = ["CompiledPlan", "Kernel"]
 
@@ -122,6 +126,8 @@ class CompiledPlan:
     linears: list = field(default_factory=list)
     colds: dict = field(default_factory=dict)  # p -> (L, nv + p) int8 zeros
     vel_limits: list = field(default_factory=list)  # (limit, first, last vel_limit entry)
+    #: kinetic-energy tasks: (task, its ``ke_data`` row: cost, inv_dt_sq)
+    kinetics: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.nv, self.levels = self.model.nv, self.cold.shape[0]
@@ -214,7 +220,9 @@ class CompiledPlan:
             for task, _ff, _rf, _jac, row in self.relatives:
                 write_relative_row(row, task)
             self._gather_gains()
-            if self.linears and not self._gather_linears():
+            if self.linears and not write_linear_rows(self.linears, self.arrays["lin_data"]):
+                return None
+            if self.kinetics and not write_kinetic_rows(self.kinetics):
                 return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
@@ -234,20 +242,6 @@ class CompiledPlan:
     def _update_plain_data(self) -> None:  # after _data or _chain_data changed
         plain = self._plain and self._data is self._chain_data and self._data is not None
         self._plain_data = self._data if plain else _NO_DATA
-
-    def _gather_linears(self) -> bool:
-        """The linear tasks' costs, gains and LM damping; False where one does not fit."""
-        lin = self.arrays["lin_data"]
-        for task, r0, cost_view in self.linears:
-            cost = task.cost
-            if type(cost) is not np.ndarray or cost.shape != cost_view.shape:
-                return False
-            cost_view[...] = cost
-            try:
-                lin[1:, r0] = task.gain, task.lm_damping
-            except (TypeError, ValueError):
-                return False
-        return True
 
     def _gather_rows(self, configuration: mink.Configuration) -> bool:
         """The rows of the tasks that supply them (:func:`task_rows`, the QP path's arrays)
@@ -343,6 +337,8 @@ class CompiledPlan:
         if data is not self._chain_data:
             if self.frames or self._com_chains or self.relatives:
                 self.kernel.attach_chains(data.cdof, data.subtree_com)
+            if self.kinetics:  # (M(q) from its cdof and cinert)
+                self.kernel.attach_inertia(data.cdof, data.cinert)
             self._chain_data = data
             self._update_plain_data()
         if not self._com_chains:

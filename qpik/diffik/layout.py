@@ -8,7 +8,9 @@ mink's ``FrameTask``, ``PostureTask``, ``DampingTask``, ``ComTask``,
 ``PoseTask`` (kinds ``POSE_KINDS``), qpik's ``JointLimitDistanceTask`` (kind
 ``JOINT_LIMITS_KIND``), and qpik's ``CouplingTask`` when every coupling is linear (kind
 ``LINEAR_KIND``: constant Jacobian, residual ``C q - offset``), a DoF-freezing task (kind
-``LINEAR_KIND``, its residual zero); :func:`qpik.solve_ik`'s frame and DoF-freezing
+``LINEAR_KIND``, its residual zero), a kinetic-energy task (kind ``KINETIC_KIND``: the
+factor of ``(cost / dt^2) M(q)``, ``M`` by the kernel); :func:`qpik.solve_ik`'s frame and
+DoF-freezing
 constraints (``FRAME_KIND`` / ``LINEAR_KIND`` with ``UNIT_ROWS``) and its levels' damping
 terms (constants in ``user_mu``). Any other task supplies its rows each step (kind
 ``ROWS_KIND``, laid out by its declared count).
@@ -23,36 +25,38 @@ import mink
 import mujoco
 import numpy as np
 
-from ..errors import LimitDefinitionError, QpikError, TargetNotSet, TaskDefinitionError
+from ..errors import QpikError
 from ..limits.ball import BallJointLimit
 from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
+from ..model.inertia import inertia_tree
 from ..tasks import (
     AxisAlignTask,
     DampingTask,
     DofFreezingTask,
     FrameTask,
+    KineticEnergyRegularizationTask,
     LookAtTask,
     PostureTask,
     RelativeFrameTask,
 )
-from ..tasks.checked import check_gain, check_pose_target, pose_target_name
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
 from ..tasks.secondary import JointLimitDistanceTask
-from .boxes import LimitBoxes, limit_bounds, limit_values
+from .boxes import LimitBoxes
 from .constraints import DofConstraint, FrameConstraint, Tikhonov, dof_freezing_form
 from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
-    "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES", "LimitLayout",
+    "KINETIC_KIND", "POSE_COST", "POSE_DATA", "POSE_KINDS", "POSE_TARGETS", "POSTURE_TYPES",
+    "LimitLayout",
     "TaskLayout", "UNIT_ROWS", "com_chains", "corrected_kinds", "limit_layout", "plan_arrays",
     "task_layout",
-    "joint_limit_constants", "write_frame_row", "write_pose_row", "write_world_pose_row",
+    "joint_limit_constants",
 ]  # fmt: skip
 
 KINDS = {"site": 0, "body": 1, "geom": 2}
@@ -97,6 +101,11 @@ JOINT_LIMITS_KIND = 10
 #: table each, by exact type: their kind (7 position, 8 orientation, 9 both, 11 look-at,
 #: 12 axis-align) and rows.
 LOOK_AT_KIND, AXIS_ALIGN_KIND = 11, 12
+#: mink's and qpik's KineticEnergyRegularizationTask (qpik/_cpp/tasks/kinetic.hpp; exact
+#: types): nv rows, ``L^T`` of ``(cost / dt^2) M(q) = L L^T`` (``M`` made by the kernel,
+#: :mod:`qpik.model.inertia`), its cost and ``inv_dt_sq`` in a row of ``ke_data``.
+KINETIC_KIND = 13
+KINETIC_TYPES = (KineticEnergyRegularizationTask, mink.KineticEnergyRegularizationTask)
 POSE_KINDS: dict[type, tuple[int, int]] = {
     PositionTask: (7, 3),
     OrientationTask: (8, 3),
@@ -126,10 +135,11 @@ SCALAR_DOF, FREE_DOF, BALL_FIRST, BALL_OTHER = 0, 1, 2, 3
 
 def corrected_kinds(tasks: np.ndarray) -> bool:
     """Whether the kernel's correction passes cover every task of a plan's ``tasks`` table
-    (fused.hpp corrected_kind): not a constraint's unit rows, nor a look-at or axis-align
-    task's (``CompiledPlan`` leaves their correction to the QP path)."""
+    (fused.hpp corrected_kind): not a constraint's unit rows, nor a look-at, axis-align or
+    kinetic-energy task's (``CompiledPlan`` leaves their correction to the QP path)."""
     kinds = tasks[:, 0]
-    return not ((kinds & UNIT_ROWS).any() or np.isin(kinds, (LOOK_AT_KIND, AXIS_ALIGN_KIND)).any())
+    others = (LOOK_AT_KIND, AXIS_ALIGN_KIND, KINETIC_KIND)
+    return not ((kinds & UNIT_ROWS).any() or np.isin(kinds, others).any())
 
 
 @dataclass(frozen=True)
@@ -151,6 +161,8 @@ class TaskLayout:
     #: the levels' constant LM terms (qpik.solve_ik's Tikhonov tasks, no rows): (entry of
     #: ``tasks``, damping), their ``user_mu`` entries after the row-supplying tasks'
     mus: list = field(default_factory=list)
+    #: the kinetic-energy tasks, in ``ke_data``'s order
+    kinetics: list = field(default_factory=list)
 
     @property
     def has_pose(self) -> bool:
@@ -222,6 +234,7 @@ def plan_arrays(
         "lin_starts": lin_starts,
         "lin_const": lin_const,
         "lin_data": np.zeros((3, int(lin_starts[-1]))),
+        "ke_data": np.zeros((len(layout.kinetics), 2)),
         "empty3": np.zeros((0, 3)),
         "empty9": np.zeros((0, 9)),
     }
@@ -324,20 +337,8 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         layout.tasks.append((ROWS_KIND, -1, k, row))
         layout.mus.append((len(layout.tasks) - 1, float(task.damping)))
         return 0
-    if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
-        if np.shape(getattr(task, "cost", 0.0)) != (nv,):
-            return None
-        code = DAMPING_KIND if kind in DAMPING_TYPES else POSTURE_KIND
-        layout.tasks.append((code, len(layout.postures), k, row))
-        layout.postures.append(task)
-        return nv
-    if kind in COM_TYPES:
-        entry = com_body(model, task)
-        if entry is None or np.shape(task.cost) != (3,):
-            return None
-        layout.tasks.append((COM_KIND, len(layout.coms), k, row))
-        layout.coms.append((task, *entry))
-        return 3
+    if kind in _MODEL_TYPES or (kind in KINETIC_TYPES and inertia_tree(model) is not None):
+        return _place_model_task(layout, model, task, k, row)
     linear = _linear_form(model, task)
     if kind is JointLimitDistanceTask:
         linear = joint_limit_constants(model, task)
@@ -356,6 +357,35 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     layout.tasks.append((ROWS_KIND, len(layout.rows_tasks), k, row))
     layout.rows_tasks.append((task, row, row + size))
     return size
+
+
+#: The tasks :func:`_place_model_task` places (their rows over the whole model).
+_MODEL_TYPES = (*POSTURE_TYPES, *DAMPING_TYPES, *COM_TYPES)
+
+
+def _place_model_task(
+    layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int
+) -> int | None:
+    """:func:`_place` for a posture, damping, kinetic-energy or CoM task; None where its
+    cost does not have its rows' shape or a CoM task's body is not the model's."""
+    kind, nv = type(task), model.nv
+    if kind in POSTURE_TYPES or kind in DAMPING_TYPES:
+        if np.shape(getattr(task, "cost", 0.0)) != (nv,):
+            return None
+        code = DAMPING_KIND if kind in DAMPING_TYPES else POSTURE_KIND
+        layout.tasks.append((code, len(layout.postures), k, row))
+        layout.postures.append(task)
+        return nv
+    if kind in KINETIC_TYPES:  # (on a model whose M the kernel makes: inertia_tree)
+        layout.tasks.append((KINETIC_KIND, len(layout.kinetics), k, row))
+        layout.kinetics.append(task)
+        return nv
+    entry = com_body(model, task)  # (a CoM task)
+    if entry is None or np.shape(task.cost) != (3,):
+        return None
+    layout.tasks.append((COM_KIND, len(layout.coms), k, row))
+    layout.coms.append((task, *entry))
+    return 3
 
 
 def _linear_form(model: mujoco.MjModel, task) -> tuple | None:
@@ -505,189 +535,6 @@ def limits_a_ball_joint(model: mujoco.MjModel) -> bool:
 
 #: ``settings`` entries of the kernel.
 DT, DAMPING, THRESHOLD, MAX_DAMPING, ERROR_SCALE, RANK_TOL, TOL, LOWER_TRUST = range(8)
-
-
-def _put(view: np.ndarray, value) -> None:
-    """``value`` into ``view``, of ``view``'s shape exactly (no broadcasting: a scalar where
-    a task keeps an array is refused as on the kernel's lean step and at the plan's build,
-    with NumPy's ValueError, which the callers report as the task's)."""
-    if type(value) is np.ndarray and value.shape == view.shape:  # (the usual case, fast)
-        view[...] = value
-        return
-    array = np.asarray(value, dtype=float)
-    if array.shape != view.shape:
-        raise ValueError(f"a value of shape {array.shape} where its rows take {view.shape}")
-    view[...] = array
-
-
-def _gain(task):
-    """A task's gain as written into its data row: :class:`qpik.InvalidGain` naming the
-    task where it is a number outside [0, 1] (set after the task was built: mink's tasks
-    take any; qpik's check it where it is set), as it is otherwise (what does not fit a
-    row's entry is NumPy's error, reported by :func:`_unfit`)."""
-    gain = task.gain
-    check_gain(task, gain)
-    return gain
-
-
-def _user_task(task):
-    """The task an error names: a frame constraint's own task (the user's), else ``task``."""
-    return task.task if type(task) is FrameConstraint else task
-
-
-def write_pose_row(views: tuple, task, pose) -> None:
-    """A frame-like task's target ``pose`` (wxyz_xyz), cost, gain and LM damping into its
-    data row (15; the views of :func:`qpik.diffik.plan.make_plan`)."""
-    # (a frame constraint's messages name the user's task; its gain is taken as it is, as
-    # mink takes a constraint's: no row of a task of qpik's checks it)
-    named = _user_task(task)
-    if pose is None:
-        raise TargetNotSet(type(named).__name__)
-    check_pose_target(named, pose, pose_target_name(named))
-    row, target, cost = views
-    _put(target, pose.wxyz_xyz)
-    _put(cost, task.cost)
-    row[13] = _gain(task) if named is task else task.gain
-    row[14] = task.lm_damping
-
-
-def write_world_pose_row(views: tuple, task, names: tuple) -> None:
-    """A world-frame pose task's targets, cost, gain and LM damping into its data row
-    (``POSE_DATA`` wide; the views of :func:`qpik.diffik.plan.make_plan`, its targets'
-    views in the order of their attribute ``names``, :data:`POSE_TARGETS`)."""
-    row, targets, cost = views
-    for name, view in zip(names, targets, strict=True):
-        value = getattr(task, name)
-        if value is None:
-            raise TargetNotSet(type(task).__name__)
-        _put(view, np.reshape(value, -1))  # (no broadcasting: a number is not a vector)
-    _put(cost, task.cost)
-    row[POSE_COST + 6] = _gain(task)
-    row[POSE_COST + 7] = task.lm_damping
-
-
-def _unfit(task, exc: Exception) -> Exception:
-    """What a task's values that do not fit its rows raise: ``exc`` itself where it is
-    qpik's, else TaskDefinitionError naming the task (NumPy's ValueError or TypeError from
-    an attribute set directly to the wrong shape or type)."""
-    if isinstance(exc, QpikError):
-        return exc
-    task = _user_task(task)
-    name = getattr(task, "frame_name", None)
-    label = type(task).__name__ + ("" if name is None else f" {name!r}")
-    return TaskDefinitionError(
-        f"{label}: its target, cost, gain or lm_damping does not fit its rows ({exc})"
-    )
-
-
-def write_frame_row(views: tuple, task, names: tuple | None) -> None:
-    """A frame's data row: :func:`write_pose_row` of a frame task's target (``names``
-    None), else :func:`write_world_pose_row`."""
-    try:
-        if names is None:
-            write_pose_row(views, task, task.transform_target_to_world)
-        else:
-            write_world_pose_row(views, task, names)
-    except (ValueError, TypeError) as exc:  # an attribute set to what does not fit its rows
-        raise _unfit(task, exc) from exc
-
-
-def write_relative_row(views: tuple, task) -> None:
-    """A relative frame task's data row (:func:`write_pose_row` of its target in its root)."""
-    try:
-        write_pose_row(views, task, task.transform_target_to_root)
-    except (ValueError, TypeError) as exc:
-        raise _unfit(task, exc) from exc
-
-
-def write_posture_row(views: tuple, task, damping: bool) -> None:
-    """A posture or damping task's target (none for a damping task: its error is zero),
-    costs, gain and LM damping into its data row ``views = (row, target, cost)``."""
-    row, target_view, cost_view = views
-    try:
-        if not damping:
-            target = task.target_q
-            if target is None:
-                raise TargetNotSet(type(task).__name__)
-            _put(target_view, target)
-        _put(cost_view, task.cost)
-        row[-2] = _gain(task)
-        row[-1] = task.lm_damping
-    except (ValueError, TypeError) as exc:
-        raise _unfit(task, exc) from exc
-
-
-#: The attributes a plan resolves to frame ids when it is built, per kind of task.
-_FRAME_ATTRIBUTES = ("frame_name", "frame_type")
-_RELATIVE_ATTRIBUTES = (*_FRAME_ATTRIBUTES, "root_name", "root_type")
-
-
-def plan_guards(frames: Sequence, relatives: Sequence, coms: Sequence) -> list[tuple]:
-    """``(task, name, value)`` of every task attribute a plan resolved when it was built
-    (the frame and root attributes it made frame ids of, a CoM task's subtree ``body`` as
-    given), from its ``frames``, ``relatives`` and ``coms`` entries (the task first): a step
-    where one changed is no longer the plan's (:func:`guards_hold`; the kernel checks the
-    same, ``Kernel.set_guards``), and the QP path answers for the task as it is."""
-    guards = [(f[0], n, getattr(f[0], n)) for f in frames for n in _FRAME_ATTRIBUTES]
-    guards += [(r[0], n, getattr(r[0], n)) for r in relatives for n in _RELATIVE_ATTRIBUTES]
-    return guards + [(c[0], "body", c[2]) for c in coms if c[2] is not None]
-
-
-def guards_hold(guards: list[tuple]) -> bool:
-    """Whether every guarded attribute is still its value (the same object, or equal)."""
-    for task, name, value in guards:
-        current = getattr(task, name, None)
-        if current is value:
-            continue
-        try:
-            if not bool(current == value):
-                return False
-        except (ValueError, TypeError):  # (an array, say: not the plan's name)
-            return False
-    return True
-
-
-def write_limit_values(view: np.ndarray, limit, name: str) -> None:
-    """A limit's ``name`` (a position limit's gain, one number for all its entries; a
-    velocity limit's speeds [rad/s or m/s], one per entry) into ``view``, checked as the QP
-    path checks them (:func:`qpik.diffik.boxes.limit_values`): LimitDefinitionError naming
-    the limit where it does not fit or is out of range (nothing read for no entries, as the
-    kernel and the QP path read nothing then)."""
-    if view.size == 0:
-        return
-    value = limit_values(limit)
-    try:
-        if name == "gain":
-            view[...] = float(value)
-        else:
-            _put(view, value)
-    except (ValueError, TypeError) as exc:
-        raise LimitDefinitionError(
-            f"{type(limit).__name__}: its {name} does not fit its rows ({exc})"
-        ) from exc
-
-
-def write_limit_bounds(view: np.ndarray, limit, qadr: np.ndarray) -> None:
-    """A position limit's bounds (``lower``, ``upper`` [rad or m]) at its dofs' qpos entries
-    ``qadr`` into the columns of ``view`` ``(E, 2)``, checked as the QP path checks them
-    (:func:`qpik.diffik.boxes.limit_bounds`: LimitDefinitionError or InfeasibleLimits)."""
-    view[:, 0], view[:, 1] = limit_bounds(limit, qadr)
-
-
-def write_com_row(views: tuple, task) -> None:
-    """A CoM task's target, costs, gain and LM damping into its data row
-    ``views = (row, target, cost)``."""
-    row, target_view, cost_view = views
-    try:
-        target = task.target_com
-        if target is None:
-            raise TargetNotSet(type(task).__name__)
-        _put(target_view, target)
-        _put(cost_view, task.cost)
-        row[6] = _gain(task)
-        row[7] = task.lm_damping
-    except (ValueError, TypeError) as exc:
-        raise _unfit(task, exc) from exc
 
 
 def com_chains(model: mujoco.MjModel, bodies: list[int]) -> list:

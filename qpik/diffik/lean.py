@@ -4,6 +4,7 @@ which view of the plan's arrays each value goes to, and where it comes from."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -49,6 +50,17 @@ def lean_slots(plan: Any) -> tuple[list, list]:
         add(cost_view)
         add(lin[1, r0 : r0 + 1], True)
         add(lin[2, r0 : r0 + 1], True)
+    for _task, row in plan.kinetics:  # its cost and 1 / dt^2
+        add(row[0:1], True)
+        add(row[1:2], True)
+    _limit_slots(plan, add)
+    return views, scalar
+
+
+def _limit_slots(plan: Any, add: Callable) -> None:
+    """:func:`lean_slots`' limits: the position limits' bounds and gains, the velocity
+    limits' speeds, each view passed to ``add(view, scalar)``."""
+    a = plan.arrays
     for _limit, e0, e1 in plan.config_limits:
         if e1 > e0:  # (a model without limited joints: no entries)
             add(a["cfg_data"][e0:e1, 0])
@@ -56,7 +68,6 @@ def lean_slots(plan: Any) -> tuple[list, list]:
         add(a["cfg_data"][e0:e1, 2], True)
     for _limit, v0, v1 in plan.vel_limits:
         add(a["vel_limit"][v0:v1])
-    return views, scalar
 
 
 def lean_sources(plan: Any) -> tuple[list, int]:
@@ -85,6 +96,8 @@ def lean_sources(plan: Any) -> tuple[list, int]:
         task(t, "transform_target_to_root", "wxyz_xyz")
     for t, *_ in plan.linears:
         task(t)
+    for t, _row in plan.kinetics:  # (a time step not set: None, which gather reports)
+        sources.extend(((t, "cost"), (t, "inv_dt_sq")))
     first_limit = len(sources)
     qadr = plan.arrays["cfg_qadr"]
     for limit, e0, e1 in plan.config_limits:  # bounds [rad or m] at each dof's qpos entry

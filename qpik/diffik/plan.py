@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from ..core import HierarchySolver
+from ..model.inertia import inertia_tree
 from .boxes import LimitBoxes
 from .compiled import RANK_TOL, TOL, CompiledPlan, Kernel
 from .layout import (
@@ -96,8 +97,12 @@ def make_plan(
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
         a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
-        a["lin_const"], a["lin_data"],
+        a["lin_const"], a["lin_data"], a["ke_data"],
     )  # fmt: skip
+    if layout.kinetics:  # (the model's tree: the kernel makes M(q) at each step)
+        tree = inertia_tree(model)
+        assert tree is not None  # (task_layout placed them only where it is)
+        kernel.set_inertia(*tree)
     lin_starts = a["lin_starts"].tolist()
     linears = [
         (task, lin_starts[i], a["lin_data"][0, lin_starts[i] : lin_starts[i + 1]])
@@ -107,4 +112,5 @@ def make_plan(
         model, frames, postures, coms, relatives, boxes.config_limits, boxes.general_limits,
         arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
         linears=linears, vel_limits=boxes.vel_limits,
+        kinetics=list(zip(layout.kinetics, a["ke_data"])),
     )  # fmt: skip

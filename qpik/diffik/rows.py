@@ -18,11 +18,12 @@ import mink
 import numpy as np
 import scipy.linalg
 
-from .._engine.tasks import axis_align_residual, look_at_residual
+from .._engine.tasks import axis_align_residual, kinetic_rows, look_at_residual
 from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError, as_qpik_error
 from ..model.configuration import Configuration
 from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
-from ..tasks import AxisAlignTask, BaseTask, LookAtTask
+from ..model.inertia import inertia_matrix, inertia_tree
+from ..tasks import AxisAlignTask, BaseTask, KineticEnergyRegularizationTask, LookAtTask
 from ..tasks.checked import POSE_TARGETS, CheckedTask, check_gain, check_pose_target
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
@@ -163,6 +164,52 @@ _COMPILED_RESIDUALS: dict[type, Callable] = {
 }
 
 
+def kinetic_scale(task: mink.KineticEnergyRegularizationTask) -> float | None:
+    """A kinetic-energy task's ``cost / dt^2`` as mink scales ``M`` by it (``cost *
+    inv_dt_sq``), None where its cost or ``inv_dt_sq`` is not a float (or an int): no time
+    step set, a value of another type (its own methods then report it)."""
+    cost, inv_dt_sq = task.cost, task.inv_dt_sq
+    if not isinstance(cost, (float, int)) or not isinstance(inv_dt_sq, (float, int)):
+        return None
+    if type(cost) is bool or type(inv_dt_sq) is bool:
+        return None
+    return float(cost) * float(inv_dt_sq)
+
+
+def _kinetic_rows(
+    task: mink.KineticEnergyRegularizationTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, None, np.ndarray] | None:
+    """A kinetic-energy task's rows ``(A, b = 0, None, ones)``, ``A^T A = (cost / dt^2)
+    M(q)``, by the compiled engine (:func:`qpik.model.inertia.inertia_matrix`, then the
+    Cholesky factor of ``qpik/_cpp/tasks/kinetic.hpp``): the compiled step's rows, bit for
+    bit; a cost / dt^2 below 0 or not finite raises :class:`qpik.TaskDefinitionError`. None
+    where its objective is left to its own methods: a value :func:`kinetic_scale` does not
+    take, a model whose actuators or tendons add armature, or ``H`` not positive
+    definite to the engine's test (the eigendecomposition then factors it)."""
+    scale = kinetic_scale(task)
+    if scale is not None and not (math.isfinite(scale) and scale >= 0.0):
+        raise TaskDefinitionError(
+            f"{type(task).__name__}: its cost / dt^2 (cost * inv_dt_sq) must be a finite "
+            f"number >= 0, got {scale!r} (a cost or time step set out of range?)"
+        )
+    tree = inertia_tree(configuration.model) if scale is not None else None
+    if tree is None:
+        return None
+    A = kinetic_rows(inertia_matrix(configuration.data, tree), scale)
+    if A is None:
+        return None
+    n = A.shape[0]
+    return A, np.zeros(n), None, np.ones(n)
+
+
+#: The tasks whose rows the engine makes from their objective ``(H, c)`` (mink's class and
+#: qpik's; not a subclass, which may compute its own).
+_COMPILED_OBJECTIVES: dict[type, Callable] = {
+    mink.KineticEnergyRegularizationTask: _kinetic_rows,
+    KineticEnergyRegularizationTask: _kinetic_rows,
+}
+
+
 class SuppliedRows(BaseTask):
     """A task of qpik's own that makes its rows as :func:`task_rows` returns them, already
     checked (shapes, finiteness): :meth:`rows_now` (its errors typed by :func:`task_rows`,
@@ -268,6 +315,27 @@ def _cholesky_rows(
     return np.ascontiguousarray(L.T), b, None, np.ones(H.shape[0])
 
 
+def _engine_rows(task: BaseTask, configuration: Configuration) -> tuple | None:
+    """:func:`task_rows`' answer where the compiled engine makes the task's rows (the
+    compiled step's, bit for bit: :data:`_COMPILED_OBJECTIVES`, :data:`_COMPILED_RESIDUALS`),
+    else None (the task's own methods)."""
+    objective_rows = _COMPILED_OBJECTIVES.get(type(task))
+    if objective_rows is not None:
+        return objective_rows(task, configuration)
+    compiled = _COMPILED_RESIDUALS.get(type(task))
+    residual = None if compiled is None else compiled(task, configuration)
+    if residual is None:
+        return None
+    # (the engine's residual: (3, nv) rows, (3,) error and a float mu, checked inputs; the
+    # cost its (3,) array: the general checks of task_rows would pass)
+    if residual[2] < 0.0:  # (an lm_damping set below 0 directly)
+        raise TaskDefinitionError(
+            f"{type(task).__name__}: its LM damping term must be one number >= 0, got "
+            f"{residual[2]!r} (an lm_damping set to what does not fit?)"
+        )
+    return residual[0], residual[1], residual[2], task.cost  # type: ignore[attr-defined]
+
+
 def task_rows(
     task: BaseTask, configuration: Configuration
 ) -> tuple[np.ndarray, np.ndarray, float | None, np.ndarray]:
@@ -282,21 +350,13 @@ def task_rows(
         except (mink.MinkError, ValueError, TypeError) as exc:
             _raise_rows_failure(exc, task.label)
     _check_read_values(task)
-    compiled = _COMPILED_RESIDUALS.get(type(task))
-    residual = None if compiled is None else compiled(task, configuration)
-    if residual is not None:
-        # (the engine's residual: (3, nv) rows, (3,) error and a float mu, checked inputs;
-        # the cost its (3,) array: the general checks below would pass)
-        if residual[2] < 0.0:  # (an lm_damping set below 0 directly)
-            raise TaskDefinitionError(
-                f"{type(task).__name__}: its LM damping term must be one number >= 0, got "
-                f"{residual[2]!r} (an lm_damping set to what does not fit?)"
-            )
-        return residual[0], residual[1], residual[2], task.cost  # type: ignore[attr-defined]
+    rows = _engine_rows(task, configuration)
+    if rows is not None:
+        return rows
+    residual = objective = None
     try:  # an overflow (a target near 1e150 or beyond): the finiteness checks report it
         with np.errstate(over="ignore"):
-            if residual is None:
-                residual = task.compute_qp_residual(configuration)
+            residual = task.compute_qp_residual(configuration)
             objective = None if residual is not None else task.compute_qp_objective(configuration)
     except (mink.MinkError, ValueError, TypeError) as exc:
         _raise_rows_failure(exc, f"{type(task).__name__}: its rows")

@@ -51,11 +51,11 @@ from .boxes import LimitBoxes, LimitRows, relaxable
 from .compiled import OK as _OK
 from .compiled import OUTPUT_ROWS as _OUTPUT_ROWS
 from .correction import qp_corrected
-from .layout import guards_hold
 from .plan import make_plan
 from .recovery import RELAXATION_MARGINS, contact_rows, least_slack, relaxed_rows
 from .result import Solution, StepResult, solve_rows
 from .rows import Stack, TaskRows, normalize_stack, stack_rows
+from .writers import guards_hold
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack

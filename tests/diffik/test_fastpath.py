@@ -450,11 +450,11 @@ def _panda_kind(name: str, model):
 )  # fmt: skip
 def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     """qpik's pose and secondary tasks and mink's DoF-freezing and kinetic-energy tasks
-    (its (H, c) factored as the QP path factors it) under a frame task, above a posture:
-    the compiled step answers, equal to the QP path's. qpik's world-frame pose tasks, its
-    joint-limit distance and the DoF-freezing task (a linear task) are computed by the
-    kernel itself (qpik/_cpp/tasks/pose.hpp, joint_limits.hpp, linear.hpp: no rows
-    supplied), the others supply their rows."""
+    under a frame task, above a posture: the compiled step answers, equal to the QP
+    path's. qpik's world-frame pose tasks, its joint-limit distance, the DoF-freezing task
+    (a linear task) and the kinetic-energy task (the factor of its (H, c), M(q) by the
+    kernel) are computed by the kernel itself (qpik/_cpp/tasks/pose.hpp, joint_limits.hpp,
+    linear.hpp, kinetic.hpp: no rows supplied), the manipulability task supplies its rows."""
     model, configuration = panda
     rng = np.random.default_rng(zlib.crc32(kind.encode()))  # (hash() of a str varies by process)
     task = _panda_kind(kind, model)
@@ -466,6 +466,7 @@ def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits)
     computed = ("position", "orientation", "pose", "joint_limit_distance", "dof_freezing")
+    computed += ("kinetic_energy",)
     assert _supplied(solver) == ([] if kind in computed else [task])
     for _ in range(15):
         _random_state(rng, model, configuration, [frame, posture])
@@ -499,8 +500,8 @@ def test_a_stack_mixing_kinds_at_several_levels(panda, solver_name):
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits, solver=solver_name)
     # (the frame task and qpik's two pose tasks are the kernel's frames, the joint-limit
-    # distance and the DoF freezing the kernel's too)
-    assert len(_supplied(solver)) == 2 and len(solver._plan.frames) == 3
+    # distance, the DoF freezing and the kinetic energy the kernel's too)
+    assert len(_supplied(solver)) == 1 and len(solver._plan.frames) == 3
     tasks = [t for level in levels for t in level]
     for _ in range(15):
         _random_state(rng, model, configuration, tasks)
@@ -587,7 +588,10 @@ def test_kinetic_energy_task_of_any_cost_is_compiled(panda):
     """mink's KineticEnergyRegularizationTask (an (H, c)-only task) beside a frame task in
     one level, as mink's kinetic_energy_reg example stacks them (its default cost is 0): the
     compiled step answers at every cost, 0 included, as the QP path does (H = 0 gave a
-    factor with no rows, which sent every step to the QP path: 2.2x mink's time per call)."""
+    factor with no rows, which sent every step to the QP path: 2.2x mink's time per call).
+    The kernel computes it (kind 13: zero rows at cost 0), no rows supplied."""
+    from qpik.diffik.layout import KINETIC_KIND
+
     model, configuration = panda
     rng = np.random.default_rng(11)
     frame = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
@@ -595,7 +599,8 @@ def test_kinetic_energy_task_of_any_cost_is_compiled(panda):
     energy.set_dt(DT)
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, [[frame, energy]], limits)
-    assert _supplied(solver) == [energy]
+    assert _supplied(solver) == []
+    assert KINETIC_KIND in solver._plan.arrays["tasks"][:, 0].tolist()
     for cost in (0.0, 1e-5, 0.0, 1e-2):
         energy.cost = cost
         _random_state(rng, model, configuration, [frame])

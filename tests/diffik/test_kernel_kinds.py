@@ -270,3 +270,52 @@ def test_look_at_and_axis_align_are_tasks_of_the_kernel(kind, owner):
         own.update(own.integrate(v, DT))
     assert moved > 0.05
     assert not ik._plan._correct(own, 0, DT, 1)
+
+
+@pytest.mark.parametrize(
+    "make", [mink.KineticEnergyRegularizationTask, qpik.tasks.KineticEnergyRegularizationTask]
+)
+def test_kinetic_energy_is_a_task_of_the_kernel(make):
+    """A KineticEnergyRegularizationTask (mink's or qpik's) is a task of the plan (kind 13:
+    the factor of (cost / dt^2) M(q), M made by the kernel), not rows supplied at each
+    step: over a closed loop each velocity equals the QP path's (whose rows are the same
+    engine routine's, bitwise) to round-off; its rows are M's factor to 1e-12 against
+    MuJoCo's M; in one weighted level, qpik.solve_ik answers as mink.solve_ik to 1e-9; a
+    cost of 0 gives zero rows, one below 0 and a missing time step raise typed errors."""
+    from qpik.diffik.layout import KINETIC_KIND
+    from qpik.diffik.rows import task_rows
+
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    energy = make(cost=2e-3)
+    energy.set_dt(DT)
+    ik = qpik.IKSolver(model, [[task], [energy, posture]], [mink.ConfigurationLimit(model)])
+    assert not ik._plan.rows_tasks
+    assert KINETIC_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
+    moved = 0.0
+    for i in range(30):
+        offset = 0.08 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
+        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        v = ik.step(own, DT).velocity.copy()
+        qp = ik.qp_solution(own, DT).velocity
+        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        A = task_rows(energy, own)[0]
+        M = configuration.get_inertia_matrix()
+        assert np.abs(A.T @ A - 2e-3 / DT**2 * M).max() <= 1e-12 * np.abs(M).max() / DT**2
+        weighted = qpik.solve_ik(configuration, [task, posture, energy], DT, "daqp", 1e-6)
+        theirs = mink.solve_ik(configuration, [task, posture, energy], DT, "daqp", 1e-6)
+        assert np.abs(weighted - theirs).max() <= 1e-9 * max(1.0, np.abs(theirs).max())
+        moved = max(moved, float(np.abs(v).max()))
+        own.update(own.integrate(v, DT))
+    assert moved > 0.05
+    assert not ik._plan._correct(own, 0, DT, 1)  # (its correction: the QP path's)
+    energy.cost = 0.0
+    assert np.array_equal(task_rows(energy, own)[0], np.zeros((model.nv, model.nv)))
+    assert ik.step(own, DT).velocity.shape == (model.nv,)
+    energy.cost = -1.0
+    with pytest.raises(qpik.TaskDefinitionError, match="KineticEnergyRegularizationTask"):
+        ik.step(own, DT)
+    energy.cost, energy.inv_dt_sq = 1e-3, None
+    with pytest.raises(qpik.QpikError, match="set_dt"):
+        ik.step(own, DT)

@@ -21,6 +21,7 @@
 #include "../tasks/linear.hpp"
 #include "../tasks/look_at.hpp"
 #include "../tasks/axis_align.hpp"
+#include "../tasks/kinetic.hpp"
 #include "couple.hpp"
 
 namespace qpik::diffik {
@@ -94,6 +95,11 @@ struct FusedArgs {
     VecRefT<const i64> lin_starts;
     CMatRef lin_const = CMatRef(nullptr, 0, 0);
     CMatRef lin_data = CMatRef(nullptr, 0, 0);
+    // Kinetic-energy tasks (kind 13, KINETIC): ke_data (E, 2) each one's cost and 1 / dt^2
+    // [1/s^2] (its own dt, mink's inv_dt_sq); inertia (nv, nv) the joint-space inertia
+    // matrix M(q) (model/inertia.hpp, made by the kernel from the attached MjData's cinert).
+    CMatRef ke_data = CMatRef(nullptr, 0, 0);
+    const double* inertia = nullptr;
 };
 
 // Task kinds of FusedArgs::tasks.
@@ -110,7 +116,10 @@ enum TaskKind : i64 {
     // three rows; a frame of the frames table, its data row as a pose task's (kPoseData):
     // target 0:3 (target_pos, target_dir), axis 3:6, cost at kPoseTarget, gain and LM
     // damping after its six cost entries
-    LOOK_AT = 11, AXIS_ALIGN = 12
+    LOOK_AT = 11, AXIS_ALIGN = 12,
+    // mink's (and qpik's) KineticEnergyRegularizationTask (tasks/kinetic.hpp): nv rows, A =
+    // L^T of (cost / dt^2) M = L L^T, b = 0, weights 1, no LM term; ke_data row `index`
+    KINETIC = 13
 };
 // LookAtTask's floor on |r| (qpik.diffik.rows._EPS: the same rows as the QP path's).
 constexpr double kLookAtEps = 1e-10;
@@ -129,7 +138,7 @@ constexpr double kUndampedWeight = 0x1p-40;
 // not a constraint's unit rows, a look-at or an axis-align task's (CompiledPlan._correct
 // leaves such a plan's correction to the QP path: qpik.diffik.layout.corrected_kinds).
 inline bool corrected_kind(i64 kind) {
-    return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN;
+    return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN && kind != KINETIC;
 }
 
 // Rows row:row+size of A and b scaled to unit norm, as qpik._engine.tasks.unit_rows scales
@@ -401,6 +410,20 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
             unit_rows_in_place(a.A, a.b.p, row, k);
             for (i64 r = 0; r < k; ++r) diag[static_cast<size_t>(row + r)] = -1;
             for (i64 r = 0; r < k; ++r) a.w[row + r] = kUndampedWeight;
+            continue;
+        }
+        if (kind == KINETIC) {  // (cost / dt^2) M factored; declined: a NaN target, the QP path
+            const double* data = a.ke_data.row(i);
+            if (static_cast<i64>(local.size()) < n * n) local.resize(static_cast<size_t>(n * n));
+            if (!tasks::kinetic_rows_into(a.A, a.b.p, row, a.inertia, n, data[0] * data[1], local.data())) {
+                for (i64 r = row; r < row + n; ++r) {  // (H not factored here: the QP path's rows)
+                    for (i64 c = 0; c < n; ++c) a.A(r, c) = 0.0;
+                    a.b[r] = 0.0;
+                }
+                a.b[row] = std::numeric_limits<double>::quiet_NaN();
+            }
+            for (i64 r = 0; r < n; ++r) diag[static_cast<size_t>(row + r)] = -1;
+            for (i64 r = 0; r < n; ++r) a.w[row + r] = 1.0;
             continue;
         }
         if (kind == ROWS) {  // rows supplied by the task itself: only its LM term here
@@ -908,7 +931,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
-            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN:
+            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN: case KINETIC:
                 size = 0;  // (never corrected: weighted_errors')
                 break;
             default: size = n;
