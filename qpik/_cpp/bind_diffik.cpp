@@ -364,7 +364,13 @@ class Kernel {
                     count = F;
                     size = 3;
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 13, 32 or 38 (a constraint's)");
+                case diffik::MANIPULABILITY:
+                    require(dim(frame_data, 1) == diffik::kPoseData,
+                            "Kernel: frame_data must have shape (F, 20) with manipulability tasks");
+                    count = F;
+                    size = 1;
+                    break;
+                default: require(false, "Kernel: a task kind is not 0 to 14, 32 or 38 (a constraint's)");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             if ((kind & ~diffik::UNIT_ROWS) == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
@@ -474,6 +480,10 @@ class Kernel {
             a.lin_starts = lin_starts_.vec();
             a.lin_const = cmat(*lin_const_);
             a.lin_data = cmat(*lin_data_);
+        }
+        if (frame_chains_.starts.rows > 0) {
+            a.chain_starts = frame_chains_.starts.vec();
+            a.chain_dofs = frame_chains_.dofs.vec();
         }
         if (ke_data_) {
             a.ke_data = cmat(*ke_data_);
@@ -742,6 +752,10 @@ class Kernel {
         frame_chains_.assign(starts, dofs, roots, F, n_, "Kernel.set_chains");
         jac_w_ = jac;
         cdof_.reset();
+        if (attached_) {  // (go()'s arguments view the chains: made again)
+            const Attached& t = *attached_;
+            go_args_ = fill_poses(t.qpos, t.sx, t.sm, t.x, t.xm, t.gx, t.gm, t.subtree_com);
+        }
     }
 
     // go() computes the relative-frame tasks' Jacobians too (as set_chains the frames'):

@@ -12,6 +12,7 @@
 #include "tasks/pose.hpp"
 #include "tasks/joint_limits.hpp"
 #include "tasks/kinetic.hpp"
+#include "tasks/manipulability.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -93,6 +94,31 @@ void bind_tasks(nb::module_& m) {
         },
         nb::arg("jlog").noconvert(), nb::arg("T"),
         "jlog(T): the right Jacobian inverse at log(T), into jlog (6, 6).");
+
+    m.def(
+        "inverse_manipulability",
+        [](In2 jac, In<i64, 1> rows, In<i64, 1> chain) {
+            const i64 n = static_cast<i64>(jac.shape(1)), m = static_cast<i64>(rows.shape(0));
+            const i64 count = static_cast<i64>(chain.shape(0));
+            require(jac.shape(0) == 6, "inverse_manipulability: jac must have shape (6, nv)");
+            for (i64 r = 0; r < m; ++r)
+                require(rows.data()[r] >= 0 && rows.data()[r] < 6, "inverse_manipulability: rows must be in [0, 6)");
+            for (i64 e = 0; e < count; ++e)
+                require(chain.data()[e] >= 0 && chain.data()[e] < n,
+                        "inverse_manipulability: chain's dofs must be in [0, nv)");
+            std::vector<double> scratch(static_cast<size_t>(tasks::manipulability_scratch(m, n))),
+                de(static_cast<size_t>(n)), singular(static_cast<size_t>(m));
+            double value = 0.0;
+            const double e = tasks::inverse_manipulability(jac.data(), n, rows.data(), m, chain.data(), count, 1,
+                                                           scratch.data(), de.data(), &value, singular.data());
+            if (m > n) singular.clear();
+            return std::make_tuple(e, to_numpy(std::move(de)), value, to_numpy(std::move(singular)));
+        },
+        nb::arg("jac"), nb::arg("rows"), nb::arg("chain"),
+        "(e, de/dq (nv,), m, singular values (rows' order)) of a manipulability task: e = 1 / m(q), m the "
+        "manipulability of the rows `rows` of the world-aligned frame Jacobian jac (6, nv) [v; omega], on the "
+        "chain of hinges and slides `chain` (its dofs, root first); e = 0, a zero gradient and m = 0 where the "
+        "task is idle (more rows than dofs, a rank deficient to 1e-9, 1 / m^2 not finite).");
 
     m.def(
         "kinetic_rows",

@@ -31,6 +31,7 @@ from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
+from ..model.gradients import hinge_slide_chain
 from ..model.inertia import inertia_tree
 from ..tasks import (
     AxisAlignTask,
@@ -45,7 +46,7 @@ from ..tasks import (
 from ..tasks.com import ComTask
 from ..tasks.coupling import CouplingTask
 from ..tasks.pose import OrientationTask, PoseTask, PositionTask
-from ..tasks.secondary import JointLimitDistanceTask
+from ..tasks.secondary import JointLimitDistanceTask, ManipulabilityTask
 from .boxes import LimitBoxes
 from .constraints import DofConstraint, FrameConstraint, Tikhonov, dof_freezing_form
 from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
@@ -106,6 +107,11 @@ LOOK_AT_KIND, AXIS_ALIGN_KIND = 11, 12
 #: :mod:`qpik.model.inertia`), its cost and ``inv_dt_sq`` in a row of ``ke_data``.
 KINETIC_KIND = 13
 KINETIC_TYPES = (KineticEnergyRegularizationTask, mink.KineticEnergyRegularizationTask)
+#: qpik's ManipulabilityTask (qpik/_cpp/tasks/manipulability.hpp): one row, a frame of the
+#: ``frames`` table on a chain of hinges and slides (:meth:`ManipulabilityTask.chain`),
+#: the indices of its rows in its data row (their number at 0, then at most
+#: ``MANIPULABILITY_ROWS`` of them).
+MANIPULABILITY_KIND, MANIPULABILITY_ROWS = 14, 11
 POSE_KINDS: dict[type, tuple[int, int]] = {
     PositionTask: (7, 3),
     OrientationTask: (8, 3),
@@ -114,6 +120,7 @@ POSE_KINDS: dict[type, tuple[int, int]] = {
     mink.LookAtTask: (LOOK_AT_KIND, 3),
     AxisAlignTask: (AXIS_ALIGN_KIND, 3),
     mink.AxisAlignTask: (AXIS_ALIGN_KIND, 3),
+    ManipulabilityTask: (MANIPULABILITY_KIND, 1),
 }
 #: A pose task's data row (``frame_data`` then has ``POSE_DATA`` columns): its targets'
 #: entries by attribute (position 0:3 [m], rotation 3:12 row-major; a look-at task's point
@@ -127,6 +134,7 @@ POSE_TARGETS: dict[type, tuple[tuple[str, int, int], ...]] = {
     mink.LookAtTask: (("target_pos", 0, 3), ("axis", 3, 6)),
     AxisAlignTask: (("target_dir", 0, 3), ("axis", 3, 6)),
     mink.AxisAlignTask: (("target_dir", 0, 3), ("axis", 3, 6)),
+    ManipulabilityTask: (),  # (no target: its rows' indices written once, plan_arrays)
 }
 POSE_COST, POSE_DATA = 12, 20
 #: Per-dof kinds of ``posture_map`` (fused.hpp: PostureDof).
@@ -138,7 +146,7 @@ def corrected_kinds(tasks: np.ndarray) -> bool:
     (fused.hpp corrected_kind): not a constraint's unit rows, nor a look-at, axis-align or
     kinetic-energy task's (``CompiledPlan`` leaves their correction to the QP path)."""
     kinds = tasks[:, 0]
-    others = (LOOK_AT_KIND, AXIS_ALIGN_KIND, KINETIC_KIND)
+    others = (LOOK_AT_KIND, AXIS_ALIGN_KIND, KINETIC_KIND, MANIPULABILITY_KIND)
     return not ((kinds & UNIT_ROWS).any() or np.isin(kinds, others).any())
 
 
@@ -203,6 +211,11 @@ def plan_arrays(
     rel_frames = [(*f, *r) for _, f, r in layout.relatives]
     lin_sizes = [form.shape[0] for _, form, _ in layout.linears]
     lin_starts = np.concatenate([[0], np.cumsum(lin_sizes, dtype=i64)]).astype(i64)
+    frame_data = np.zeros((F, POSE_DATA if layout.has_pose else 15))
+    for f, (task, *_) in enumerate(layout.frames):
+        if type(task) is ManipulabilityTask:  # (constants: its rows' number and indices)
+            picked = task.row_indices
+            frame_data[f, 0], frame_data[f, 1 : 1 + len(picked)] = len(picked), picked
     lin_const = np.zeros((int(lin_starts[-1]), nv + nq + 1))
     for (_, form, jacobian), r0, r1 in zip(layout.linears, lin_starts[:-1], lin_starts[1:]):
         lin_const[r0:r1, :nv] = jacobian
@@ -215,7 +228,7 @@ def plan_arrays(
         "tasks": np.asarray(layout.tasks, dtype=i64).reshape(-1, 4),
         "jac": np.zeros((F, 6, nv)),
         "frames": np.asarray(frames, dtype=i64).reshape(-1, 2),
-        "frame_data": np.zeros((F, POSE_DATA if layout.has_pose else 15)),
+        "frame_data": frame_data,
         "posture_data": np.zeros((P, nq + nv + 2)),
         "posture_map": posture_map(model),
         "cfg_dof": np.asarray(boxes.cfg_dof, dtype=i64),
@@ -325,7 +338,9 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
     """Enter ``task`` (level ``k``, first row ``row``) in ``layout``; its row count, None
     where it names what the model lacks."""
     kind, nv = type(task), model.nv
-    if kind in FRAME_TYPES or kind in RELATIVE_TYPES or kind in POSE_KINDS:
+    if kind is ManipulabilityTask and not _manipulability_fits(model, task):
+        pass  # (its rows supplied, below)
+    elif kind in FRAME_TYPES or kind in RELATIVE_TYPES or kind in POSE_KINDS:
         return _place_frame(layout, model, task, k, row)
     if kind is FrameConstraint:  # its frame rows, unit costs, each row then of unit norm
         size = _place_frame(layout, model, task, k, row)
@@ -386,6 +401,18 @@ def _place_model_task(
     layout.tasks.append((COM_KIND, len(layout.coms), k, row))
     layout.coms.append((task, *entry))
     return 3
+
+
+def _manipulability_fits(model: mujoco.MjModel, task: ManipulabilityTask) -> bool:
+    """Whether the kernel computes a manipulability task: its frame the model's, moved by
+    hinges and slides only (:meth:`ManipulabilityTask.chain`), at most
+    ``MANIPULABILITY_ROWS`` rows picked, its cost one number."""
+    frame = frame_entry(model, task.frame_type, task.frame_name)
+    if frame is None or len(task.row_indices) > MANIPULABILITY_ROWS or np.shape(task.cost) != (1,):
+        return False
+    kind, fid = frame
+    body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
+    return hinge_slide_chain(model, body) is not None
 
 
 def _linear_form(model: mujoco.MjModel, task) -> tuple | None:

@@ -87,7 +87,8 @@ def lean_sources(plan: Any) -> tuple[list, int]:
         sources.extend(((t, "cost"), (t, "gain"), (t, "lm_damping")))
 
     for t, *_, names in plan.frames:  # (names: a world-frame pose task's targets)
-        task(t, names or "transform_target_to_world", None if names else "wxyz_xyz")
+        frame = names is None  # (a frame task: its SE3 target's wxyz_xyz)
+        task(t, "transform_target_to_world" if frame else names, "wxyz_xyz" if frame else None)
     for t, _views, damping_task in plan.postures:
         task(t, None if damping_task else "target_q")
     for t, *_ in plan.coms:

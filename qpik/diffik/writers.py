@@ -12,6 +12,7 @@ import numpy as np
 
 from ..errors import LimitDefinitionError, QpikError, TargetNotSet, TaskDefinitionError
 from ..tasks.checked import check_gain, check_pose_target, pose_target_name
+from ..tasks.secondary import ManipulabilityTask
 from .boxes import limit_bounds, limit_values
 from .constraints import FrameConstraint
 from .layout import POSE_COST
@@ -141,11 +142,15 @@ _RELATIVE_ATTRIBUTES = (*_FRAME_ATTRIBUTES, "root_name", "root_type")
 
 def plan_guards(frames: Sequence, relatives: Sequence, coms: Sequence) -> list[tuple]:
     """``(task, name, value)`` of every task attribute a plan resolved when it was built
-    (the frame and root attributes it made frame ids of, a CoM task's subtree ``body`` as
-    given), from its ``frames``, ``relatives`` and ``coms`` entries (the task first): a step
-    where one changed is no longer the plan's (:func:`guards_hold`; the kernel checks the
-    same, ``Kernel.set_guards``), and the QP path answers for the task as it is."""
+    (the frame and root attributes it made frame ids of, a manipulability task's ``rows``,
+    a CoM task's subtree ``body`` as given), from its ``frames``, ``relatives`` and ``coms``
+    entries (the task first): a step where one changed is no longer the plan's
+    (:func:`guards_hold`; the kernel checks the same, ``Kernel.set_guards``), and the QP
+    path answers for the task as it is."""
     guards = [(f[0], n, getattr(f[0], n)) for f in frames for n in _FRAME_ATTRIBUTES]
+    # (a manipulability task's rows: their indices are in its data row, written once)
+    picks = [f[0] for f in frames if type(f[0]) is ManipulabilityTask]
+    guards += [(task, "rows", task.rows) for task in picks]
     guards += [(r[0], n, getattr(r[0], n)) for r in relatives for n in _RELATIVE_ATTRIBUTES]
     return guards + [(c[0], "body", c[2]) for c in coms if c[2] is not None]
 

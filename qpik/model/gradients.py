@@ -15,7 +15,9 @@ from .scratch import scratch_data
 
 __all__ = [
     "check_configuration",
+    "frame_body",
     "frame_point",
+    "hinge_slide_chain",
     "manipulability_gradient",
     "manipulability_parts",
     "manipulability_svd",
@@ -34,6 +36,15 @@ def frame_point(
     if frame_type is FrameType.GEOM:
         return data.geom_xpos[fid].copy(), int(model.geom_bodyid[fid])
     return data.xpos[fid].copy(), fid
+
+
+def frame_body(model: mujoco.MjModel, fid: int, frame_type: FrameType) -> int:
+    """The body a frame (``fid``, of ``frame_type``) moves with."""
+    if frame_type is FrameType.SITE:
+        return int(model.site_bodyid[fid])
+    if frame_type is FrameType.GEOM:
+        return int(model.geom_bodyid[fid])
+    return int(fid)
 
 
 def check_configuration(configuration: Configuration) -> None:
@@ -117,7 +128,7 @@ def manipulability_parts(
     # sum_i c_i u_i^T dJ v_i = <dJ, W>, W = U diag(c) V^T (the rows idx)
     weights = np.zeros((6, nv))
     np.add.at(weights, idx, (U * coefficients) @ Vt)  # (a row named twice: both terms)
-    chain = _hinge_slide_chain(model, body)
+    chain = hinge_slide_chain(model, body)
     if chain is not None:
         return value, _chain_gradient(jac, weights, chain, nv), s
     gradient = np.empty(nv)
@@ -145,7 +156,7 @@ def manipulability_svd(J: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np
     return singular_value_product(s), U, s, Vt
 
 
-def _hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
+def hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
     """The dofs that move ``body`` (root first: each one's axis and anchor move with the ones
     before it), where every one is a hinge's or a slide's; None where a ball or free joint
     moves it (its dofs' axes turn with it: :func:`manipulability_terms` then differentiates by
@@ -169,7 +180,7 @@ def _hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
     return chain
 
 
-#: _hinge_slide_chain's answers by (model, body): the model kept beside its id
+#: hinge_slide_chain's answers by (model, body): the model kept beside its id
 _CHAINS: dict[tuple[int, int], tuple[mujoco.MjModel, np.ndarray | None]] = {}
 
 

@@ -15,7 +15,7 @@ import mink
 import mujoco
 import numpy as np
 
-from .._engine.tasks import joint_limit_distance_row
+from .._engine.tasks import inverse_manipulability, joint_limit_distance_row
 from ..core import checks
 from ..core.jacobian import (
     joint_limit_distance_terms,
@@ -24,7 +24,12 @@ from ..core.jacobian import (
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType, as_configuration
-from ..model.gradients import manipulability_parts, manipulability_svd
+from ..model.gradients import (
+    frame_body,
+    hinge_slide_chain,
+    manipulability_parts,
+    manipulability_svd,
+)
 from .checked import CheckedTask
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
@@ -220,12 +225,31 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         self._row_index = list(row_indices(value))  # raises for an unknown choice
         self._rows = value
 
+    @property
+    def row_indices(self) -> tuple[int, ...]:
+        """The indices of :attr:`rows` into the frame Jacobian's rows ``[v; omega]``."""
+        return tuple(self._row_index)
+
+    def chain(self, configuration: Configuration) -> np.ndarray | None:
+        """The dofs that move the task's frame (root first) where every one is
+        a hinge's or a slide's: the compiled engine then computes the task's error and
+        Jacobian (``qpik/_cpp/tasks/manipulability.hpp``, in the compiled step and in these
+        methods alike); None where a ball or free joint moves it (NumPy's SVD and MuJoCo's
+        ``mj_jacDot``: :func:`qpik.model.gradients.manipulability_parts`). An unknown frame
+        raises :class:`qpik.UnknownFrame`."""
+        kind = self.frame_type
+        fid = configuration.frame_id(self.frame_name, kind)
+        return hinge_slide_chain(configuration.model, frame_body(configuration.model, fid, kind))
+
     def _value(self, configuration: Configuration) -> float:
         """``m(q)``, or 0 where the rows are of deficient rank to round-off (more rows than
         dofs, or a singular value at most :data:`RANK_FLOOR` of the largest: ``m`` is then
         round-off, and ``1 / m`` would be noise of any size). A mink configuration is read
         through qpik's view of it."""
         configuration = as_configuration(configuration)
+        chain = self.chain(configuration)
+        if chain is not None:
+            return self._engine_terms(configuration, chain)[2]
         rows = configuration.frame_jacobian(self.frame_name, self.frame_type)[self._row_index]
         if rows.shape[0] > rows.shape[1]:
             return 0.0  # (m is 0 for every q: more rows than dofs)
@@ -234,6 +258,10 @@ class ManipulabilityTask(mink.Task, CheckedTask):
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``1 / m(q)`` (1,), 0 where ``m`` is 0 (see the class)."""
+        configuration = as_configuration(configuration)
+        chain = self.chain(configuration)
+        if chain is not None:
+            return np.array([self._engine_terms(configuration, chain)[0]])
         return _inverse(self._value(configuration), None)[0]
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
@@ -250,11 +278,31 @@ class ManipulabilityTask(mink.Task, CheckedTask):
     def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """``(e, de/dq)`` from one Jacobian and its decomposition
         (:func:`qpik.model.gradients.manipulability_parts`: the value, the gradient, the
-        singular values that decide the rank as :meth:`_value` does)."""
+        singular values that decide the rank as :meth:`_value` does); the engine's on a
+        chain of hinges and slides (:meth:`chain`)."""
+        configuration = as_configuration(configuration)
+        chain = self.chain(configuration)
+        if chain is not None:
+            e, gradient, _ = self._engine_terms(configuration, chain)
+            return np.array([e]), gradient[None, :]
         value, gradient, singular = manipulability_parts(
-            as_configuration(configuration), self.frame_name, self.frame_type.value, rows=self.rows
+            configuration, self.frame_name, self.frame_type.value, rows=self.rows
         )
         return _inverse(_in_rank(value, singular), gradient)
+
+    def _engine_terms(
+        self, configuration: Configuration, chain: np.ndarray
+    ) -> tuple[float, np.ndarray, float]:
+        """``(e, de/dq (nv,), m)`` by the engine (:meth:`chain` not None): from the frame's
+        Jacobian at the configuration's MjData (MuJoCo's ``mj_jacSite`` / ``mj_jacBody`` /
+        ``mj_jacGeom``, as the compiled step reads it)."""
+        model = configuration.model
+        jac = configuration.frame_jacobian(self.frame_name, self.frame_type)
+        if len(self._row_index) > model.nv:
+            return 0.0, np.zeros(model.nv), 0.0  # (m is 0 for every q: more rows than dofs)
+        rows = np.asarray(self._row_index, dtype=np.int64)
+        e, gradient, value, _ = inverse_manipulability(jac, rows, chain)
+        return e, gradient, value
 
 
 #: :class:`ManipulabilityTask` is idle where its rows' smallest singular value is at most

@@ -453,8 +453,9 @@ def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     under a frame task, above a posture: the compiled step answers, equal to the QP
     path's. qpik's world-frame pose tasks, its joint-limit distance, the DoF-freezing task
     (a linear task) and the kinetic-energy task (the factor of its (H, c), M(q) by the
-    kernel) are computed by the kernel itself (qpik/_cpp/tasks/pose.hpp, joint_limits.hpp,
-    linear.hpp, kinetic.hpp: no rows supplied), the manipulability task supplies its rows."""
+    kernel) and the manipulability task are computed by the kernel itself
+    (qpik/_cpp/tasks/pose.hpp, joint_limits.hpp, linear.hpp, kinetic.hpp,
+    manipulability.hpp): no rows supplied."""
     model, configuration = panda
     rng = np.random.default_rng(zlib.crc32(kind.encode()))  # (hash() of a str varies by process)
     task = _panda_kind(kind, model)
@@ -466,7 +467,7 @@ def test_tasks_that_supply_their_rows_take_the_compiled_step(panda, kind):
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits)
     computed = ("position", "orientation", "pose", "joint_limit_distance", "dof_freezing")
-    computed += ("kinetic_energy",)
+    computed += ("kinetic_energy", "manipulability")
     assert _supplied(solver) == ([] if kind in computed else [task])
     for _ in range(15):
         _random_state(rng, model, configuration, [frame, posture])
@@ -500,8 +501,9 @@ def test_a_stack_mixing_kinds_at_several_levels(panda, solver_name):
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model)]
     solver = qpik.IKSolver(model, levels, limits, solver=solver_name)
     # (the frame task and qpik's two pose tasks are the kernel's frames, the joint-limit
-    # distance, the DoF freezing and the kinetic energy the kernel's too)
-    assert len(_supplied(solver)) == 1 and len(solver._plan.frames) == 3
+    # distance, the DoF freezing and the kinetic energy the kernel's too, the manipulability
+    # task a fourth frame)
+    assert len(_supplied(solver)) == 0 and len(solver._plan.frames) == 4
     tasks = [t for level in levels for t in level]
     for _ in range(15):
         _random_state(rng, model, configuration, tasks)

@@ -319,3 +319,75 @@ def test_kinetic_energy_is_a_task_of_the_kernel(make):
     energy.cost, energy.inv_dt_sq = 1e-3, None
     with pytest.raises(qpik.QpikError, match="set_dt"):
         ik.step(own, DT)
+
+
+def test_manipulability_is_a_task_of_the_kernel():
+    """qpik's ManipulabilityTask on a chain of hinges is a frame of the plan (kind 14: the
+    kernel computes its row from its own frame Jacobian, by the engine's
+    inverse_manipulability), not rows supplied at each step: over a closed loop each
+    velocity equals the QP path's (its rows by the same routine) to round-off; its error
+    and Jacobian equal NumPy's SVD with mj_jacDot's gradient (the former rows,
+    qpik.model.gradients.manipulability_parts) to 1e-11 and central differences of m(q);
+    rows changed after the build make the solver a new plan's (a guard), bitwise a fresh
+    solver's."""
+    from qpik.diffik.layout import MANIPULABILITY_KIND
+    from qpik.model.gradients import manipulability_parts
+
+    model, configuration, task, posture = _setup()
+    own = mink_compat.as_configuration(configuration)
+    start = configuration.get_transform_frame_to_world("ee", "site")
+    manip = qpik.tasks.ManipulabilityTask("ee", "site", cost=0.5, gain=0.2, lm_damping=0.1)
+    ik = qpik.IKSolver(model, [[task], [manip], [posture]], [mink.ConfigurationLimit(model)])
+    assert not ik._plan.rows_tasks
+    assert MANIPULABILITY_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
+    for i in range(25):
+        offset = 0.08 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
+        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        v = ik.step(own, DT).velocity.copy()
+        qp = ik.qp_solution(own, DT).velocity
+        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        e, jacobian = manip.compute_error(own), manip.compute_jacobian(own)
+        value, gradient, _ = manipulability_parts(own, "ee", "site")
+        assert abs(e[0] - 1.0 / value) <= 1e-11 / value
+        expected = -gradient / value**2
+        assert np.abs(jacobian[0] - expected).max() <= 1e-11 * np.abs(expected).max()
+        own.update(own.integrate(v, DT))
+    q, h = own.q.copy(), 1e-6
+    differences = np.empty(model.nv)
+    for k in range(model.nv):
+        values = []
+        for sign in (1.0, -1.0):
+            own.update(q + sign * h * np.eye(model.nv)[k])
+            values.append(1.0 / manip.compute_error(own)[0])
+        differences[k] = (values[0] - values[1]) / (2 * h)
+    own.update(q)
+    value = 1.0 / manip.compute_error(own)[0]
+    np.testing.assert_allclose(-manip.compute_jacobian(own)[0] * value**2, differences, atol=1e-7)
+    manip.rows = "position"  # (after the build: the plan's indices no longer the task's)
+    plan = ik._plan
+    v = ik.step(own, DT).velocity
+    assert ik._plan is not plan  # (a guard: the plan of the task as it is now replaced it)
+    fresh = qpik.IKSolver(model, [[task], [manip], [posture]], [mink.ConfigurationLimit(model)])
+    assert v.tobytes() == fresh.step(own, DT).velocity.tobytes()
+
+
+def test_manipulability_on_a_floating_base_supplies_its_rows():
+    """A manipulability task whose frame a free joint moves (its axes turn with it: the
+    closed-form Hessian does not hold) is not the kernel's: its rows are supplied from its
+    own methods (NumPy's SVD and mj_jacDot), and the step still answers."""
+    xml = """<mujoco><worldbody><body name="base"><freejoint/><geom size=".1"/>
+      <body name="l1" pos="0 0 .1"><joint name="j1" axis="0 0 1"/><geom size=".05"/>
+      <body name="l2" pos=".3 0 0"><joint name="j2" axis="0 1 0"/><geom size=".05"/>
+      <site name="tip" pos=".3 0 0"/></body></body></body></worldbody></mujoco>"""
+    import mujoco
+
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model)
+    configuration.update(np.r_[0, 0, 0, 1, 0, 0, 0, 0.3, 0.7])
+    manip = qpik.tasks.ManipulabilityTask("tip", "site", rows="position")
+    posture = qpik.tasks.PostureTask(model, cost=1e-2)
+    posture.set_target(configuration.q)
+    ik = qpik.IKSolver(model, [[manip], [posture]])
+    assert manip.chain(configuration) is None
+    assert [t for t, *_ in ik._plan.rows_tasks] == [manip]
+    assert np.all(np.isfinite(ik.step(configuration, DT).velocity))

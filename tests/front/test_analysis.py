@@ -526,7 +526,7 @@ def test_manipulability_gradient_in_closed_form_is_mj_jacdots(robot, rng, monkey
         fast += [
             gradients.manipulability_terms(configuration, "ee", "site", r) for r in rows_choices
         ]
-    monkeypatch.setattr(gradients, "_hinge_slide_chain", lambda model, body: None)
+    monkeypatch.setattr(gradients, "hinge_slide_chain", lambda model, body: None)
     k = 0
     for q in states:
         configuration.update(q)
@@ -549,7 +549,7 @@ def test_a_free_or_ball_joint_takes_mj_jacdot():
     for xml, frame in ((FLOATING, "ee"), (BALL, "eye")):
         model = mujoco.MjModel.from_xml_string(xml)
         body = int(model.site_bodyid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)])
-        assert gradients._hinge_slide_chain(model, body) is None
+        assert gradients.hinge_slide_chain(model, body) is None
 
 
 def test_a_model_with_no_degree_of_freedom_is_named():

@@ -22,6 +22,7 @@
 #include "../tasks/look_at.hpp"
 #include "../tasks/axis_align.hpp"
 #include "../tasks/kinetic.hpp"
+#include "../tasks/manipulability.hpp"
 #include "couple.hpp"
 
 namespace qpik::diffik {
@@ -100,6 +101,9 @@ struct FusedArgs {
     // matrix M(q) (model/inertia.hpp, made by the kernel from the attached MjData's cinert).
     CMatRef ke_data = CMatRef(nullptr, 0, 0);
     const double* inertia = nullptr;
+    // Each frame's dofs as mj_jac visits them (leaf first), frame f's dofs
+    // chain_dofs[chain_starts[f]:chain_starts[f + 1]] (Kernel.set_chains; empty: not set).
+    VecRefT<const i64> chain_starts, chain_dofs;
 };
 
 // Task kinds of FusedArgs::tasks.
@@ -119,7 +123,12 @@ enum TaskKind : i64 {
     LOOK_AT = 11, AXIS_ALIGN = 12,
     // mink's (and qpik's) KineticEnergyRegularizationTask (tasks/kinetic.hpp): nv rows, A =
     // L^T of (cost / dt^2) M = L L^T, b = 0, weights 1, no LM term; ke_data row `index`
-    KINETIC = 13
+    KINETIC = 13,
+    // qpik's ManipulabilityTask (tasks/manipulability.hpp): one row; a frame of the frames
+    // table on a chain of hinges and slides, its data row as a pose task's: the number of
+    // rows picked at 0 and their indices into [v; omega] from 1 (at most 11), its cost at
+    // kPoseTarget, gain and LM damping after its six cost entries
+    MANIPULABILITY = 14
 };
 // LookAtTask's floor on |r| (qpik.diffik.rows._EPS: the same rows as the QP path's).
 constexpr double kLookAtEps = 1e-10;
@@ -138,7 +147,8 @@ constexpr double kUndampedWeight = 0x1p-40;
 // not a constraint's unit rows, a look-at or an axis-align task's (CompiledPlan._correct
 // leaves such a plan's correction to the QP path: qpik.diffik.layout.corrected_kinds).
 inline bool corrected_kind(i64 kind) {
-    return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN && kind != KINETIC;
+    return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN && kind != KINETIC &&
+           kind != MANIPULABILITY;
 }
 
 // Rows row:row+size of A and b scaled to unit norm, as qpik._engine.tasks.unit_rows scales
@@ -367,6 +377,31 @@ inline double joint_limits_value(const FusedArgs& a, i64 r0) {
     return tasks::joint_limit_distance_value(a.qpos.p, n, joint_limits_slots(a, r0), a.lin_const(r0, n + nq));
 }
 
+// A manipulability task's row (frame i's Jacobian, its data row `data`: the rows picked, gain
+// and LM damping) into row `row` of A and b; returns its LM term. Without the frame's chain
+// (never set) or with more rows picked than its data row holds: a NaN target (the QP path).
+inline double manipulability_task_row(const FusedArgs& a, i64 i, const double* data, double cost, Vec& local,
+                                      i64 row) {
+    const i64 n = a.A.cols;
+    const i64 m = static_cast<i64>(data[0]);
+    if (a.chain_starts.n <= i + 1 || m < 0 || m > 11) {
+        for (i64 c = 0; c < n; ++c) a.A(row, c) = 0.0;
+        a.b[row] = std::numeric_limits<double>::quiet_NaN();
+        return 0.0;
+    }
+    i64 idx[11];
+    for (i64 r = 0; r < m; ++r) idx[r] = static_cast<i64>(data[1 + r]);
+    const i64 first = a.chain_starts[i], count = a.chain_starts[i + 1] - first;
+    const i64* leaf_last = count > 0 ? a.chain_dofs.p + first + count - 1 : a.chain_dofs.p;
+    const size_t need = static_cast<size_t>(tasks::manipulability_scratch(m, n) + n);
+    if (local.size() < need) local.resize(need);
+    double* de = local.data();
+    const double e = tasks::inverse_manipulability(a.jac + i * 6 * n, n, idx, m, leaf_last, count, -1,
+                                                   local.data() + n, de);
+    const double gain = data[tasks::kPoseTarget + 6], lm = data[tasks::kPoseTarget + 7];
+    return tasks::manipulability_row(e, de, n, cost, gain, lm, a.A.row(row), a.b.p + row);
+}
+
 // Fill every task's rows of A, b, w; each level's LM term sum lm_damping |b_task|^2 into
 // reg (L); local: scratch (sizes only grow). diag (M): per row of A, the column of its
 // diagonal entry where a posture or damping task wrote it last (cost_row: every other entry
@@ -481,6 +516,11 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
             for (i64 r = 0; r < 3; ++r)
                 std::memcpy(a.A.row(row + r), rows + r * n, static_cast<size_t>(n) * sizeof(double));
             size = 3;
+        } else if (kind == MANIPULABILITY) {
+            const double* data = a.frame_data.row(i);
+            cost = data + tasks::kPoseTarget;
+            mu = manipulability_task_row(a, i, data, cost[0], local, row);
+            size = 1;
         } else if (kind == COM) {
             const double* data = a.com_data.row(i);
             cost = data + 3;
@@ -932,6 +972,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
             case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN: case KINETIC:
+            case MANIPULABILITY:
                 size = 0;  // (never corrected: weighted_errors')
                 break;
             default: size = n;

@@ -42,7 +42,10 @@ inline void chain_point_jacobian(const double* cdof, i64 n, const i64* dofs, i64
 // J_v,max(a,b): what mj_jacDot gives at the joint velocity e_a. Each term <dJ_b/dq_a, W_b> is
 // a triple product, so out[a] = J_w,a . sum_{b > a} (J_w,b x W_w,b) + J_w,a . sum_{b >= a}
 // (J_v,b x W_v,b) + J_v,a . sum_{b < a} (W_v,b x J_w,b); out's other entries 0.
-inline void hessian_weights(const double* jac, const double* W, i64 n, const i64* chain, i64 m, double* out) {
+// The chain is read as chain[0], chain[stride], ..., chain[(m - 1) stride] (stride -1 from
+// its last entry: a leaf-first list read root first).
+inline void hessian_weights(const double* jac, const double* W, i64 n, const i64* chain, i64 m, double* out,
+                            i64 stride = 1) {
     for (i64 k = 0; k < n; ++k) out[k] = 0.0;
     auto at = [n](const double* M, int r, i64 c) { return M[r * n + c]; };
     auto cross = [](const double* u, const double* v, double* w) {
@@ -53,7 +56,7 @@ inline void hessian_weights(const double* jac, const double* W, i64 n, const i64
     double after[3] = {0.0, 0.0, 0.0};  // sum over b > a of J_w,b x W_w,b (a from the last)
     double on[3] = {0.0, 0.0, 0.0};     // sum over b >= a of J_v,b x W_v,b
     for (i64 e = m - 1; e >= 0; --e) {
-        const i64 a = chain[e];
+        const i64 a = chain[e * stride];
         double jw[3], jv[3], ww[3], wv[3], t[3];
         for (int r = 0; r < 3; ++r) {
             jv[r] = at(jac, r, a);
@@ -69,7 +72,7 @@ inline void hessian_weights(const double* jac, const double* W, i64 n, const i64
     }
     double before[3] = {0.0, 0.0, 0.0};  // sum over b < a of W_v,b x J_w,b
     for (i64 e = 0; e < m; ++e) {
-        const i64 a = chain[e];
+        const i64 a = chain[e * stride];
         double jw[3], wv[3], t[3];
         for (int r = 0; r < 3; ++r) {
             jw[r] = at(jac, 3 + r, a);
