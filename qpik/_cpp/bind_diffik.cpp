@@ -22,6 +22,7 @@ namespace {
 
 using I1 = nb::ndarray<const i64, nb::numpy, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using I2 = nb::ndarray<const i64, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
+using Int32In1 = nb::ndarray<const std::int32_t, nb::numpy, nb::ndim<1>, nb::c_contig, nb::device::cpu>;
 using B2 = nb::ndarray<const i8, nb::numpy, nb::ndim<2>, nb::c_contig, nb::device::cpu>;
 
 template <class X>
@@ -179,7 +180,7 @@ auto result_tuple(diffik::StepResult& r, i64 L) {
 // Kernel(A, b, w, starts, tasks, jac, frames, frame_data, posture_data, posture_map,
 //        cfg_dof, cfg_qadr, cfg_data, vel_dof, vel_limit, settings, com_jac, com_body,
 //        com_data, rel_jac, rel_frames, rel_data, nq, user_mu=None, lin_starts=None,
-//        lin_const=None, lin_data=None, ke_data=None)
+//        lin_const=None, lin_data=None, ke_data=None, eq_map=None, eq_data=None)
 //   One stack's compiled step (built by make_plan). The index arrays are copied and checked
 //   once; the float arrays are held by reference (float64 C-contiguous, never copied: the
 //   plan writes into them before each call). ``A, b, w`` (M, nv), (M,), (M,) are filled
@@ -195,7 +196,11 @@ auto result_tuple(diffik::StepResult& r, i64 L) {
 //   (3, K): its rows' costs, then its gain and LM damping in column ``r0`` (written before
 //   each call); the three are optional, together. Kind 13, a kinetic-energy task
 //   (tasks/kinetic.hpp): row ``i`` of ``ke_data`` (E, 2) its cost and 1 / dt^2 (written
-//   before each call); its M(q) made by the kernel (set_inertia, attach_inertia). Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
+//   before each call); its M(q) made by the kernel (set_inertia, attach_inertia). Kind 15,
+//   an equality-constraint task (tasks/equality.hpp): row ``i`` of ``eq_map`` (Q, neq + 1)
+//   its planned rows, then its position of each equality (-1: not its), of ``eq_data`` (Q,
+//   neq + 2) its costs by position, gain and LM damping; its rows MuJoCo's, attach_efc.
+//   Frame ``f``: ``jac[f]`` its world-aligned Jacobian (6, nv); ``frames[f]`` (kind
 //   0/1/2 site/body/geom, id) picks its pose; ``frame_data[f]`` = target
 //   ``wxyz_xyz`` (7), cost (6), gain, lm_damping. Posture ``p``: ``posture_data[p]`` =
 //   target (nq), cost (nv), gain, lm_damping; ``posture_map`` (nv, 2): per dof, kind (0
@@ -260,12 +265,12 @@ class Kernel {
            Held3 com_jac, const I1& com_body, Held2 com_data, Held3 rel_jac, const I2& rel_frames,
            Held2 rel_data, i64 nq, std::optional<Held1> user_mu, std::optional<I1> lin_starts,
            std::optional<Held2> lin_const, std::optional<Held2> lin_data,
-           std::optional<Held2> ke_data)
+           std::optional<Held2> ke_data, std::optional<I2> eq_map, std::optional<Held2> eq_data)
         : A_(A), b_(b), w_(w), jac_(jac), frame_data_(frame_data), posture_data_(posture_data),
           cfg_data_(cfg_data), vel_limit_(vel_limit), settings_(settings), com_jac_(com_jac),
           com_data_(com_data), rel_jac_(rel_jac), rel_data_(rel_data), user_mu_(std::move(user_mu)),
           lin_const_(std::move(lin_const)), lin_data_(std::move(lin_data)), ke_data_(std::move(ke_data)),
-          nq_(nq) {
+          eq_data_(std::move(eq_data)), nq_(nq) {
         const i64 n = dim(A, 1), M = dim(A, 0);
         n_ = n;
         require(nq >= n, "Kernel: nq must be >= nv");
@@ -336,6 +341,23 @@ class Kernel {
         const i64 E = ke_data_ ? dim(*ke_data_, 0) : 0;
         if (ke_data_) require(dim(*ke_data_, 1) == 2, "Kernel: ke_data must have shape (E, 2)");
         if (E > 0) inertia_.assign(static_cast<size_t>(n * n), std::numeric_limits<double>::quiet_NaN());
+        // Equality-constraint tasks: eq_map (Q, neq + 1) planned rows >= 0 and positions >= -1,
+        // eq_data (Q, neq + 2)
+        require(eq_map.has_value() == eq_data_.has_value(), "Kernel: eq_map and eq_data come together");
+        i64 Q = 0;
+        if (eq_map) {
+            eq_map_.assign(*eq_map);
+            Q = eq_map_.rows;
+            require(dim(*eq_data_, 0) == Q && dim(*eq_data_, 1) == eq_map_.cols + 1 && eq_map_.cols >= 1,
+                    "Kernel: eq_map must have shape (Q, neq + 1), eq_data (Q, neq + 2)");
+            for (i64 q = 0; q < Q; ++q) {
+                require(eq_map_.mat()(q, 0) >= 0, "Kernel: an equality task's planned rows are negative");
+                for (i64 e = 1; e < eq_map_.cols; ++e) {
+                    const i64 p = eq_map_.mat()(q, e);
+                    require(p >= -1 && p < eq_map_.cols - 1, "Kernel: an equality position is out of range");
+                }
+            }
+        }
         tasks_.assign(tasks);
         require(dim(tasks, 1) == 4, "Kernel: tasks must have shape (T, 4)");
         for (i64 k = 0; k < tasks_.rows; ++k) {
@@ -364,18 +386,20 @@ class Kernel {
                     count = F;
                     size = 3;
                     break;
+                case diffik::EQUALITY: count = Q; break;  // (its size: eq_map's, below)
                 case diffik::MANIPULABILITY:
                     require(dim(frame_data, 1) == diffik::kPoseData,
                             "Kernel: frame_data must have shape (F, 20) with manipulability tasks");
                     count = F;
                     size = 1;
                     break;
-                default: require(false, "Kernel: a task kind is not 0 to 14, 32 or 38 (a constraint's)");
+                default: require(false, "Kernel: a task kind is not 0 to 15, 32 or 38 (a constraint's)");
             }
             require(index >= 0 && index < count, "Kernel: a task index is out of range");
             if ((kind & ~diffik::UNIT_ROWS) == diffik::LINEAR || kind == diffik::JOINT_LIMITS)
                 size = lin_starts_.data[index + 1] - lin_starts_.data[index];
             if (kind == diffik::JOINT_LIMITS) require(size == 1, "Kernel: a joint-limit task has one row");
+            if (kind == diffik::EQUALITY) size = eq_map_.mat()(index, 0);
             require(level >= 0 && level < L, "Kernel: a task level is out of range");
             require(row >= 0 && row + size <= M, "Kernel: a task's rows are out of range of A");
         }
@@ -484,6 +508,11 @@ class Kernel {
         if (frame_chains_.starts.rows > 0) {
             a.chain_starts = frame_chains_.starts.vec();
             a.chain_dofs = frame_chains_.dofs.vec();
+        }
+        if (eq_data_) {
+            a.eq_map = eq_map_.mat();
+            a.eq_data = cmat(*eq_data_);
+            a.efc = efc_.has_value() ? &efc_rows_ : nullptr;
         }
         if (ke_data_) {
             a.ke_data = cmat(*ke_data_);
@@ -805,6 +834,33 @@ class Kernel {
                     max_com_body_ < dim(subtree_com, 0) && rel_chains_.max_root < dim(subtree_com, 0),
                 "Kernel.attach_chains: subtree_com must have shape (nbody, 3), every root in range");
         cdof_ = Chains{cdof, subtree_com};
+    }
+
+    // The MjData's constraint rows (mj_makeConstraint) that the equality-constraint tasks
+    // read at the next steps: efc_J (dense nefc * nv, or sparse with efc_J_rownnz, _rowadr
+    // (nefc) and _colind (its length)), efc_pos, efc_type, efc_id (nefc); checked here (every
+    // index in range). Attach them again after each update of the MjData (their views change
+    // with nefc).
+    void attach_efc(const In1& J, const In1& pos, const Int32In1& type, const Int32In1& id, const Int32In1& rownnz,
+                    const Int32In1& rowadr, const Int32In1& colind, bool sparse) {
+        const i64 nefc = dim(pos, 0), size = dim(J, 0);
+        require(dim(type, 0) == nefc && dim(id, 0) == nefc, "Kernel.attach_efc: efc_type and efc_id must have nefc entries");
+        if (sparse) {
+            require(dim(rownnz, 0) == nefc && dim(rowadr, 0) == nefc && dim(colind, 0) == size,
+                    "Kernel.attach_efc: the sparse rows must have nefc entries, colind efc_J's length");
+            for (i64 r = 0; r < nefc; ++r)
+                require(rownnz.data()[r] >= 0 && rowadr.data()[r] >= 0 &&
+                            static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] <= size,
+                        "Kernel.attach_efc: a sparse row is out of range of efc_J");
+            for (i64 t = 0; t < size; ++t)
+                require(colind.data()[t] >= 0 && colind.data()[t] < n_, "Kernel.attach_efc: a column is out of range");
+        } else {
+            require(size == nefc * n_, "Kernel.attach_efc: a dense efc_J must have nefc * nv entries");
+        }
+        efc_ = Efc{J, pos, type, id, rownnz, rowadr, colind};
+        efc_rows_ = tasks::EfcRows{nefc, n_, sparse, J.data(), pos.data(), type.data(), id.data(),
+                                   rownnz.data(), rowadr.data(), colind.data()};
+        if (attached_) go_args_.efc = &efc_rows_;
     }
 
     // The model's tree for the kinetic-energy tasks' inertia matrix (model::inertia_matrix):
@@ -1190,7 +1246,14 @@ class Kernel {
     Held3 rel_jac_;
     Held2 rel_data_;
     std::optional<Held1> user_mu_;
-    std::optional<Held2> lin_const_, lin_data_, ke_data_;
+    std::optional<Held2> lin_const_, lin_data_, ke_data_, eq_data_;
+    IndexCopy eq_map_;
+    struct Efc {
+        In1 J, pos;
+        Int32In1 type, id, rownnz, rowadr, colind;
+    };
+    std::optional<Efc> efc_;  // (the views attach_efc holds: kept alive with their MjData)
+    tasks::EfcRows efc_rows_;
     struct Attached {
         nb::object owner;
         In1 qpos;
@@ -1304,7 +1367,8 @@ void bind_diffik(nb::module_& m) {
         .def(nb::init<Out2, Out1, Out1, const I1&, const I2&, Held3, const I2&, Held2, Held2,
                       const I2&, const I1&, const I1&, Held2, const I1&, Held1, Held1, Held3,
                       const I1&, Held2, Held3, const I2&, Held2, i64, std::optional<Held1>,
-                      std::optional<I1>, std::optional<Held2>, std::optional<Held2>, std::optional<Held2>>(),
+                      std::optional<I1>, std::optional<Held2>, std::optional<Held2>, std::optional<Held2>,
+                      std::optional<I2>, std::optional<Held2>>(),
              nb::arg("A").noconvert(), nb::arg("b").noconvert(), nb::arg("w").noconvert(),
              nb::arg("starts"), nb::arg("tasks"), nb::arg("jac").noconvert(), nb::arg("frames"),
              nb::arg("frame_data").noconvert(), nb::arg("posture_data").noconvert(),
@@ -1315,7 +1379,8 @@ void bind_diffik(nb::module_& m) {
              nb::arg("rel_data").noconvert(), nb::arg("nq"),
              nb::arg("user_mu").noconvert() = nb::none(), nb::arg("lin_starts") = nb::none(),
              nb::arg("lin_const").noconvert() = nb::none(),
-             nb::arg("lin_data").noconvert() = nb::none(), nb::arg("ke_data").noconvert() = nb::none())
+             nb::arg("lin_data").noconvert() = nb::none(), nb::arg("ke_data").noconvert() = nb::none(),
+             nb::arg("eq_map") = nb::none(), nb::arg("eq_data").noconvert() = nb::none())
         .def(
             "step",
             [](Kernel& k, In1 qpos, In2 sx, In2 sm, In2 x, In2 xm, In2 gx, In2 gm, In2 subtree_com,
@@ -1387,6 +1452,11 @@ void bind_diffik(nb::module_& m) {
              "The model's tree (int64 body_parent (nbody,), dof_body, dof_parent (nv,); armature and fixed "
              "(nv,): a simple dof's constant diagonal dof_M0, NaN for the others) "
              "whence each step makes the kinetic-energy tasks' inertia matrix M(q).")
+        .def("attach_efc", &Kernel::attach_efc, nb::arg("efc_J"), nb::arg("efc_pos"), nb::arg("efc_type"),
+             nb::arg("efc_id"), nb::arg("efc_J_rownnz"), nb::arg("efc_J_rowadr"), nb::arg("efc_J_colind"),
+             nb::arg("sparse"),
+             "The MjData's constraint rows (mj_makeConstraint) the equality-constraint tasks read at the next "
+             "steps (attach again after each update: their views change with nefc).")
         .def("attach_inertia", &Kernel::attach_inertia, nb::arg("cdof"), nb::arg("cinert"),
              "The MjData's cdof (nv, 6) and cinert (nbody, 10) (mj_comPos) that M(q) is made from.")
         .def("set_com_chains", &Kernel::set_com_chains, nb::arg("com_jac").noconvert(), nb::arg("point"),

@@ -13,6 +13,7 @@
 #include "tasks/joint_limits.hpp"
 #include "tasks/kinetic.hpp"
 #include "tasks/manipulability.hpp"
+#include "tasks/equality.hpp"
 
 namespace nb = nanobind;
 using namespace qpik;
@@ -119,6 +120,51 @@ void bind_tasks(nb::module_& m) {
         "manipulability of the rows `rows` of the world-aligned frame Jacobian jac (6, nv) [v; omega], on the "
         "chain of hinges and slides `chain` (its dofs, root first); e = 0, a zero gradient and m = 0 where the "
         "task is idle (more rows than dofs, a rank deficient to 1e-9, 1 / m^2 not finite).");
+
+    m.def(
+        "equality_rows",
+        [](In1 J, In1 pos, In<std::int32_t, 1> type, In<std::int32_t, 1> id, In<std::int32_t, 1> rownnz,
+           In<std::int32_t, 1> rowadr, In<std::int32_t, 1> colind, bool sparse, i64 nv, In<i64, 1> position,
+           In1 cost, double gain, double lm) {
+            const i64 nefc = static_cast<i64>(pos.shape(0)), size = static_cast<i64>(J.shape(0));
+            const i64 neq = static_cast<i64>(position.shape(0));
+            require(nv >= 0 && static_cast<i64>(type.shape(0)) == nefc && static_cast<i64>(id.shape(0)) == nefc,
+                    "equality_rows: efc_type and efc_id must have nefc entries");
+            if (sparse) {
+                require(static_cast<i64>(rownnz.shape(0)) == nefc && static_cast<i64>(rowadr.shape(0)) == nefc &&
+                            static_cast<i64>(colind.shape(0)) == size,
+                        "equality_rows: the sparse rows must have nefc entries, colind efc_J's length");
+                for (i64 r = 0; r < nefc; ++r)
+                    require(rownnz.data()[r] >= 0 && rowadr.data()[r] >= 0 &&
+                                static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] <= size,
+                            "equality_rows: a sparse row is out of range of efc_J");
+                for (i64 t = 0; t < size; ++t)
+                    require(colind.data()[t] >= 0 && colind.data()[t] < nv, "equality_rows: a column is out of range");
+            } else {
+                require(size == nefc * nv, "equality_rows: a dense efc_J must have nefc * nv entries");
+            }
+            for (i64 e = 0; e < neq; ++e)
+                require(position.data()[e] >= -1 && position.data()[e] < static_cast<i64>(cost.shape(0)),
+                        "equality_rows: a position is out of range of cost");
+            const tasks::EfcRows efc{nefc, nv, sparse, J.data(), pos.data(), type.data(), id.data(),
+                                     rownnz.data(), rowadr.data(), colind.data()};
+            std::vector<double> A(static_cast<size_t>(nefc * nv)), b(static_cast<size_t>(nefc)),
+                w(static_cast<size_t>(nefc));
+            double mu = 0.0;
+            const i64 k = tasks::equality_rows_into(MatRef(A.data(), nefc, nv), b.data(), w.data(), 0, nefc, efc,
+                                                    position.data(), neq, cost.data(), gain, lm, mu);
+            A.resize(static_cast<size_t>(k * nv));
+            b.resize(static_cast<size_t>(k));
+            w.resize(static_cast<size_t>(k));
+            return std::make_tuple(to_numpy(std::move(A), {static_cast<size_t>(k), static_cast<size_t>(nv)}),
+                                   to_numpy(std::move(b)), mu, to_numpy(std::move(w)));
+        },
+        nb::arg("efc_J"), nb::arg("efc_pos"), nb::arg("efc_type"), nb::arg("efc_id"), nb::arg("efc_J_rownnz"),
+        nb::arg("efc_J_rowadr"), nb::arg("efc_J_colind"), nb::arg("sparse"), nb::arg("nv"), nb::arg("position"),
+        nb::arg("cost"), nb::arg("gain"), nb::arg("lm"),
+        "An equality-constraint task's weighted rows (A (k, nv), b (k,), lm |b|^2, the rows' costs (k,)) from "
+        "an MjData's constraint rows (mj_makeConstraint): its equalities' rows in efc order (position (neq,): "
+        "each equality's position in the task, -1 where not its; cost by position).");
 
     m.def(
         "kinetic_rows",

@@ -58,18 +58,17 @@ from .layout import (
 )
 from .lean import lean_slots, lean_sources
 from .result import Solution, StepResult, resolved_info, solve_rows
-from .rows import TaskRows, task_rows
+from .rows import TaskRows, efc_arrays, task_rows
 from .writers import (
     guards_hold,
     plan_guards,
     write_com_row,
     write_frame_row,
-    write_kinetic_rows,
     write_limit_bounds,
     write_limit_values,
-    write_linear_rows,
     write_posture_row,
     write_relative_row,
+    write_table_rows,
 )
 
 __all__ = ["CompiledPlan", "Kernel"]
@@ -128,6 +127,8 @@ class CompiledPlan:
     vel_limits: list = field(default_factory=list)  # (limit, first, last vel_limit entry)
     #: kinetic-energy tasks: (task, its ``ke_data`` row: cost, inv_dt_sq)
     kinetics: list = field(default_factory=list)
+    #: equality-constraint tasks: (task, its ``eq_data`` row: costs by position, gain, lm)
+    equalities: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.nv, self.levels = self.model.nv, self.cold.shape[0]
@@ -148,7 +149,7 @@ class CompiledPlan:
         #: attached a configuration, IKSolver.step's plain lane calls the kernel (no correction
         #: passes; it reads _plain_data, law, _row, kernel, _cap, _out...)
         chained = bool(self._com_chains) or not self.coms
-        self._plain = chained and not (self.rows_tasks or self.general_limits)
+        self._plain = chained and not (self.rows_tasks or self.general_limits or self.equalities)
         #: a plain plan's ``_data`` once its chains are that MjData's too (else _NO_DATA):
         #: the lane's one identity test for the three (kept by :meth:`_update_plain_data`)
         self._plain_data: object = _NO_DATA
@@ -220,9 +221,7 @@ class CompiledPlan:
             for task, _ff, _rf, _jac, row in self.relatives:
                 write_relative_row(row, task)
             self._gather_gains()
-            if self.linears and not write_linear_rows(self.linears, self.arrays["lin_data"]):
-                return None
-            if self.kinetics and not write_kinetic_rows(self.kinetics):
+            if not write_table_rows(self):
                 return None
         if self.rows_tasks and not self._gather_rows(configuration):
             return None
@@ -341,6 +340,8 @@ class CompiledPlan:
                 self.kernel.attach_inertia(data.cdof, data.cinert)
             self._chain_data = data
             self._update_plain_data()
+        if self.equalities:  # (MuJoCo's constraint rows: their views change with nefc)
+            self.kernel.attach_efc(*efc_arrays(self.model, data))
         if not self._com_chains:
             for _task, body, _given, jac, _row in self.coms:
                 mujoco.mj_jacSubtreeCom(self.model, data, jac, body)
@@ -388,7 +389,7 @@ class CompiledPlan:
         values: the row of ``self._out`` holding its answers, ``-1`` where the QP path must
         answer, ``-2`` where :meth:`gather` must write the values (nothing solved)."""
         data = configuration.data
-        if data is not self._chain_data or self.coms:
+        if data is not self._chain_data or self.coms or self.equalities:
             self._jacobians(data)
         if self.rows_tasks and not self._gather_rows(configuration):
             return -1

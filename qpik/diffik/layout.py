@@ -37,6 +37,7 @@ from ..tasks import (
     AxisAlignTask,
     DampingTask,
     DofFreezingTask,
+    EqualityConstraintTask,
     FrameTask,
     KineticEnergyRegularizationTask,
     LookAtTask,
@@ -50,6 +51,7 @@ from ..tasks.secondary import JointLimitDistanceTask, ManipulabilityTask
 from .boxes import LimitBoxes
 from .constraints import DofConstraint, FrameConstraint, Tikhonov, dof_freezing_form
 from .mink_limits import BallJointRows, FreeJointAngular, FreeJointLinear
+from .rows import equality_constants
 
 __all__ = [
     "COM_TYPES", "DAMPING_TYPES", "FRAME_TYPES", "GENERAL_LIMITS", "JACOBIANS", "KINDS",
@@ -112,6 +114,14 @@ KINETIC_TYPES = (KineticEnergyRegularizationTask, mink.KineticEnergyRegularizati
 #: the indices of its rows in its data row (their number at 0, then at most
 #: ``MANIPULABILITY_ROWS`` of them).
 MANIPULABILITY_KIND, MANIPULABILITY_ROWS = 14, 11
+#: mink's and qpik's EqualityConstraintTask (qpik/_cpp/tasks/equality.hpp; exact types):
+#: MuJoCo's constraint rows of its equalities (connect 3, weld 6, joint and tendon 1 each),
+#: its planned rows and each equality's position in ``eq_map``, its costs by position, gain
+#: and LM damping in ``eq_data``.
+EQUALITY_KIND = 15
+EQUALITY_TYPES = (EqualityConstraintTask, mink.EqualityConstraintTask)
+#: The rows of each kind of equality (mjtEq: connect, weld, joint, tendon).
+EQUALITY_WIDTHS = {0: 3, 1: 6, 2: 1, 3: 1}
 POSE_KINDS: dict[type, tuple[int, int]] = {
     PositionTask: (7, 3),
     OrientationTask: (8, 3),
@@ -146,7 +156,7 @@ def corrected_kinds(tasks: np.ndarray) -> bool:
     (fused.hpp corrected_kind): not a constraint's unit rows, nor a look-at, axis-align or
     kinetic-energy task's (``CompiledPlan`` leaves their correction to the QP path)."""
     kinds = tasks[:, 0]
-    others = (LOOK_AT_KIND, AXIS_ALIGN_KIND, KINETIC_KIND, MANIPULABILITY_KIND)
+    others = (LOOK_AT_KIND, AXIS_ALIGN_KIND, KINETIC_KIND, MANIPULABILITY_KIND, EQUALITY_KIND)
     return not ((kinds & UNIT_ROWS).any() or np.isin(kinds, others).any())
 
 
@@ -171,6 +181,8 @@ class TaskLayout:
     mus: list = field(default_factory=list)
     #: the kinetic-energy tasks, in ``ke_data``'s order
     kinetics: list = field(default_factory=list)
+    #: the equality-constraint tasks: (task, planned rows, positions (neq,)), in ``eq_map``'s
+    equalities: list = field(default_factory=list)
 
     @property
     def has_pose(self) -> bool:
@@ -248,6 +260,10 @@ def plan_arrays(
         "lin_const": lin_const,
         "lin_data": np.zeros((3, int(lin_starts[-1]))),
         "ke_data": np.zeros((len(layout.kinetics), 2)),
+        "eq_map": np.array(
+            [[rows, *position] for _, rows, position in layout.equalities], dtype=np.int64
+        ).reshape(-1, model.neq + 1),
+        "eq_data": np.zeros((len(layout.equalities), model.neq + 2)),
         "empty3": np.zeros((0, 3)),
         "empty9": np.zeros((0, 9)),
     }
@@ -354,6 +370,10 @@ def _place(layout: TaskLayout, model: mujoco.MjModel, task, k: int, row: int) ->
         return 0
     if kind in _MODEL_TYPES or (kind in KINETIC_TYPES and inertia_tree(model) is not None):
         return _place_model_task(layout, model, task, k, row)
+    if kind in EQUALITY_TYPES and (planned := equality_layout(model, task)) is not None:
+        layout.tasks.append((EQUALITY_KIND, len(layout.equalities), k, row))
+        layout.equalities.append((task, *planned))
+        return planned[0]
     linear = _linear_form(model, task)
     if kind is JointLimitDistanceTask:
         linear = joint_limit_constants(model, task)
@@ -401,6 +421,21 @@ def _place_model_task(
     layout.tasks.append((COM_KIND, len(layout.coms), k, row))
     layout.coms.append((task, *entry))
     return 3
+
+
+def equality_layout(model: mujoco.MjModel, task) -> tuple[int, np.ndarray] | None:
+    """An equality-constraint task's planned rows (its equalities' widths summed: each one
+    active) and each equality's position in it (:func:`.rows.equality_constants`), None
+    where the kernel does not compute it (the task does not hold them as mink 1.3 does, or
+    an equality of another kind, a flex's)."""
+    position = equality_constants(task, model.neq)
+    ids = getattr(task, "_eq_ids", None)
+    if position is None or not isinstance(ids, np.ndarray):
+        return None
+    widths = [EQUALITY_WIDTHS.get(int(model.eq_type[e])) for e in ids.tolist()]
+    if None in widths:
+        return None
+    return sum(widths), position  # type: ignore[arg-type]
 
 
 def _manipulability_fits(model: mujoco.MjModel, task: ManipulabilityTask) -> bool:

@@ -53,6 +53,10 @@ def lean_slots(plan: Any) -> tuple[list, list]:
     for _task, row in plan.kinetics:  # its cost and 1 / dt^2
         add(row[0:1], True)
         add(row[1:2], True)
+    for t, row in plan.equalities:  # its costs by position, gain, LM damping
+        add(row[: len(t._cost)])
+        add(row[-2:-1], True)
+        add(row[-1:], True)
     _limit_slots(plan, add)
     return views, scalar
 
@@ -99,7 +103,16 @@ def lean_sources(plan: Any) -> tuple[list, int]:
         task(t)
     for t, _row in plan.kinetics:  # (a time step not set: None, which gather reports)
         sources.extend(((t, "cost"), (t, "inv_dt_sq")))
+    for t, _row in plan.equalities:  # (mink 1.3's costs by position, _cost)
+        sources.extend(((t, "_cost"), (t, "gain"), (t, "lm_damping")))
     first_limit = len(sources)
+    _limit_sources(plan, sources)
+    return sources, first_limit
+
+
+def _limit_sources(plan: Any, sources: list) -> None:
+    """:func:`lean_sources`' limits, appended to ``sources``: the position limits' bounds
+    [rad or m] at each dof's qpos entry and gains, the velocity limits' speeds."""
     qadr = plan.arrays["cfg_qadr"]
     for limit, e0, e1 in plan.config_limits:  # bounds [rad or m] at each dof's qpos entry
         if e1 > e0:
@@ -107,4 +120,3 @@ def lean_sources(plan: Any) -> tuple[list, int]:
             sources.extend(((limit, "lower", picked), (limit, "upper", picked)))
         sources.append((limit, "gain"))
     sources.extend((limit, "limit") for limit, *_ in plan.vel_limits)
-    return sources, first_limit

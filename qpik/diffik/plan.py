@@ -97,7 +97,7 @@ def make_plan(
         a["posture_data"], a["posture_map"], a["cfg_dof"], a["cfg_qadr"], a["cfg_data"],
         a["vel_dof"], a["vel_limit"], a["settings"], a["com_jac"], a["com_body"], a["com_data"],
         a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
-        a["lin_const"], a["lin_data"], a["ke_data"],
+        a["lin_const"], a["lin_data"], a["ke_data"], a["eq_map"], a["eq_data"],
     )  # fmt: skip
     if layout.kinetics:  # (the model's tree: the kernel makes M(q) at each step)
         tree = inertia_tree(model)
@@ -113,4 +113,5 @@ def make_plan(
         arrays, used, cold, core.max_iter or 0, kernel, limits, rows_tasks=layout.rows_tasks,
         linears=linears, vel_limits=boxes.vel_limits,
         kinetics=list(zip(layout.kinetics, a["ke_data"])),
+        equalities=[(task, a["eq_data"][q]) for q, (task, _, _) in enumerate(layout.equalities)],
     )  # fmt: skip

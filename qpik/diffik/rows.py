@@ -15,15 +15,22 @@ from dataclasses import dataclass
 from typing import NoReturn, cast
 
 import mink
+import mujoco
 import numpy as np
 import scipy.linalg
 
-from .._engine.tasks import axis_align_residual, kinetic_rows, look_at_residual
+from .._engine.tasks import axis_align_residual, equality_rows, kinetic_rows, look_at_residual
 from ..errors import InvalidInput, InvalidTarget, QpikError, TaskDefinitionError, as_qpik_error
 from ..model.configuration import Configuration
 from ..model.frames import FRAME_POSITIONS, FRAME_ROTATIONS, FrameType
 from ..model.inertia import inertia_matrix, inertia_tree
-from ..tasks import AxisAlignTask, BaseTask, KineticEnergyRegularizationTask, LookAtTask
+from ..tasks import (
+    AxisAlignTask,
+    BaseTask,
+    EqualityConstraintTask,
+    KineticEnergyRegularizationTask,
+    LookAtTask,
+)
 from ..tasks.checked import POSE_TARGETS, CheckedTask, check_gain, check_pose_target
 
 __all__ = ["Stack", "TaskRows", "level_rows", "normalize_stack", "stack_rows", "task_rows"]
@@ -202,11 +209,55 @@ def _kinetic_rows(
     return A, np.zeros(n), None, np.ones(n)
 
 
-#: The tasks whose rows the engine makes from their objective ``(H, c)`` (mink's class and
-#: qpik's; not a subclass, which may compute its own).
-_COMPILED_OBJECTIVES: dict[type, Callable] = {
+def efc_arrays(model: mujoco.MjModel, data: mujoco.MjData) -> tuple:
+    """The MjData's constraint rows as the engine reads them (``qpik/_cpp/tasks/
+    equality.hpp``): ``(efc_J, efc_pos, efc_type, efc_id, efc_J_rownnz, efc_J_rowadr,
+    efc_J_colind, sparse)``, as ``mj_makeConstraint`` left them (which
+    :meth:`mink.Configuration.update` runs on a model with equalities)."""
+    return (
+        data.efc_J, data.efc_pos, data.efc_type, data.efc_id, data.efc_J_rownnz,
+        data.efc_J_rowadr, data.efc_J_colind, bool(mujoco.mj_isSparse(model)),
+    )  # fmt: skip
+
+
+def equality_constants(task: mink.EqualityConstraintTask, neq: int) -> np.ndarray | None:
+    """Each equality's position in an equality-constraint task (``(neq,)`` int64, -1 where
+    not its: mink 1.3's ``_eq_id_to_pos``), None where the task does not hold it so."""
+    position = getattr(task, "_eq_id_to_pos", None)
+    if not (isinstance(position, np.ndarray) and position.shape == (neq,)):
+        return None
+    return position.astype(np.int64)
+
+
+def _equality_rows(
+    task: mink.EqualityConstraintTask, configuration: Configuration
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
+    """An equality-constraint task's weighted rows ``(cost J, -cost gain e, lm |.|^2,
+    costs)`` from MuJoCo's constraint rows of its equalities (``efc_J``, ``efc_pos``), as
+    mink's ``compute_qp_residual`` makes them, by the compiled engine (``qpik/_cpp/tasks/
+    equality.hpp``: the compiled step's rows, bit for bit; mink's squares summed by BLAS,
+    to round-off). None where the task does not hold its values as mink 1.3 does (its own
+    methods then serve)."""
+    model = configuration.model
+    position = equality_constants(task, model.neq)
+    cost = getattr(task, "_cost", None)
+    gain, lm = task.gain, task.lm_damping
+    if position is None or not (isinstance(cost, np.ndarray) and cost.dtype == float):
+        return None
+    if cost.ndim != 1 or type(gain) not in (float, int) or type(lm) not in (float, int):
+        return None
+    efc = efc_arrays(model, configuration.data)
+    A, b, mu, w = equality_rows(*efc, model.nv, position, cost, float(gain), float(lm))
+    return A, b, mu, w
+
+
+#: The tasks whose rows the engine makes (mink's class and qpik's; not a subclass, which
+#: may compute its own): the factor of an objective ``(H, c)``, MuJoCo's constraint rows.
+_ENGINE_ROWS: dict[type, Callable] = {
     mink.KineticEnergyRegularizationTask: _kinetic_rows,
     KineticEnergyRegularizationTask: _kinetic_rows,
+    mink.EqualityConstraintTask: _equality_rows,
+    EqualityConstraintTask: _equality_rows,
 }
 
 
@@ -317,9 +368,9 @@ def _cholesky_rows(
 
 def _engine_rows(task: BaseTask, configuration: Configuration) -> tuple | None:
     """:func:`task_rows`' answer where the compiled engine makes the task's rows (the
-    compiled step's, bit for bit: :data:`_COMPILED_OBJECTIVES`, :data:`_COMPILED_RESIDUALS`),
+    compiled step's, bit for bit: :data:`_ENGINE_ROWS`, :data:`_COMPILED_RESIDUALS`),
     else None (the task's own methods)."""
-    objective_rows = _COMPILED_OBJECTIVES.get(type(task))
+    objective_rows = _ENGINE_ROWS.get(type(task))
     if objective_rows is not None:
         return objective_rows(task, configuration)
     compiled = _COMPILED_RESIDUALS.get(type(task))

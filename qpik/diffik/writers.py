@@ -19,9 +19,10 @@ from .layout import POSE_COST
 from .rows import kinetic_scale
 
 __all__ = [
-    "guards_hold", "plan_guards", "user_task", "write_com_row", "write_frame_row",
-    "write_kinetic_rows", "write_limit_bounds", "write_limit_values", "write_linear_rows",
-    "write_pose_row", "write_posture_row", "write_relative_row", "write_world_pose_row",
+    "guards_hold", "plan_guards", "user_task", "write_com_row", "write_equality_rows",
+    "write_frame_row", "write_kinetic_rows", "write_limit_bounds", "write_limit_values",
+    "write_linear_rows", "write_pose_row", "write_posture_row", "write_relative_row",
+    "write_table_rows", "write_world_pose_row",
 ]  # fmt: skip
 
 
@@ -237,3 +238,31 @@ def write_kinetic_rows(kinetics: Sequence) -> bool:
             return False
         row[:] = task.cost, task.inv_dt_sq
     return True
+
+
+def write_equality_rows(equalities: Sequence) -> bool:
+    """The equality-constraint tasks' costs by position (mink's ``_cost``), gains and LM
+    damping (``equalities``: ``(task, its eq_data row)``); a gain outside [0, 1] raises
+    :class:`qpik.InvalidGain`; False where a value does not fit (the QP path then answers,
+    and reports it)."""
+    for task, row in equalities:
+        cost = getattr(task, "_cost", None)
+        if not (isinstance(cost, np.ndarray) and cost.ndim == 1 and cost.shape[0] <= row.size - 2):
+            return False
+        try:
+            row[: cost.shape[0]] = cost
+            row[-2], row[-1] = _gain(task), task.lm_damping
+        except (TypeError, ValueError):
+            return False
+    return True
+
+
+def write_table_rows(plan) -> bool:
+    """A plan's linear, kinetic-energy and equality-constraint tasks' values
+    (:func:`write_linear_rows`, :func:`write_kinetic_rows`, :func:`write_equality_rows`);
+    False where one does not fit."""
+    if plan.linears and not write_linear_rows(plan.linears, plan.arrays["lin_data"]):
+        return False
+    if plan.kinetics and not write_kinetic_rows(plan.kinetics):
+        return False
+    return not plan.equalities or write_equality_rows(plan.equalities)

@@ -515,8 +515,11 @@ def test_a_stack_mixing_kinds_at_several_levels(panda, solver_name):
 def test_couplings_and_equality_constraints_take_the_compiled_step():
     """qpik's coupling level (the model's joint and tendon equalities) and mink's
     EqualityConstraintTask (every equality, the connect constraint's 3 rows among them):
-    the compiled step answers, equal to the QP path's."""
+    the compiled step answers, equal to the QP path's. The coupling level supplies its rows;
+    the equality task is the kernel's (kind 15: MuJoCo's constraint rows read by it)."""
     import mujoco
+
+    from qpik.diffik.layout import EQUALITY_KIND
 
     model = mujoco.MjModel.from_xml_string(COUPLED)
     configuration = qpik.Configuration(model)
@@ -529,7 +532,9 @@ def test_couplings_and_equality_constraints_take_the_compiled_step():
         solver = qpik.IKSolver(model, levels, limits)
         supplied = _supplied(solver)
         assert isinstance(supplied[0], qpik.tasks.CouplingTask)  # the coupling level
-        assert (equality in supplied) is (levels[0] == [equality])
+        assert equality not in supplied
+        kinds = solver._plan.arrays["tasks"][:, 0].tolist()
+        assert (EQUALITY_KIND in kinds) is (levels[0] == [equality])
         for _ in range(10):
             q = rng.uniform(-0.5, 0.5, model.nq) * 0.5
             configuration.update(q)

@@ -391,3 +391,75 @@ def test_manipulability_on_a_floating_base_supplies_its_rows():
     assert manip.chain(configuration) is None
     assert [t for t, *_ in ik._plan.rows_tasks] == [manip]
     assert np.all(np.isfinite(ik.step(configuration, DT).velocity))
+
+
+_LOOP = """<mujoco><option jacobian="{jacobian}"/><worldbody>
+<body name="a1"><joint name="a1" axis="0 0 1"/><geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/>
+ <body name="a2" pos=".3 0 0"><joint name="a2" axis="0 0 1"/>
+  <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/><site name="tipa" pos=".3 0 0"/></body></body>
+<body name="b1" pos=".4 0 0"><joint name="b1" axis="0 0 1"/><geom type="capsule" fromto="0 0 0 0 .3 0" size=".02"/>
+ <body name="b2" pos="0 .3 0"><joint name="b2" axis="0 0 1"/>
+  <geom type="capsule" fromto="0 0 0 -.2 .1 0" size=".02"/></body></body>
+<body name="w1" pos="0 1 0"><joint name="w1" axis="1 0 0"/><joint name="w2" axis="0 1 0"/>
+ <geom type="capsule" fromto="0 0 0 0 0 .3" size=".02"/></body>
+<body name="f" pos="0 1 .5"><joint name="fx" type="slide" axis="1 0 0"/><joint name="fz" axis="0 0 1"/>
+ <geom size=".05"/></body>
+</worldbody><equality>
+<connect name="loop" body1="a2" body2="b2" anchor=".3 0 0"/>
+<weld name="weld" body1="f" body2="w1" solref="0.02 1"/>
+<joint name="couple" joint1="w1" joint2="a1" polycoef="0 0.5 0 0 0"/>
+</equality></mujoco>"""
+
+
+@pytest.mark.parametrize("jacobian", ["dense", "sparse"])
+@pytest.mark.parametrize("owner", ["mink", "qpik"])
+def test_equality_constraints_are_a_task_of_the_kernel(jacobian, owner):
+    """mink's and qpik's EqualityConstraintTask (connect, weld and joint equalities; MuJoCo's
+    dense and sparse Jacobians) are a task of the plan (kind 15: the kernel reads MuJoCo's
+    constraint rows, efc_J and efc_pos), not rows supplied at each step: its rows equal
+    mink's compute_qp_residual (A and b bitwise, the LM term to round-off); over a closed
+    loop each velocity equals the QP path's (the same engine routine's rows) to round-off;
+    qpik.solve_ik answers as mink.solve_ik to 1e-9; an equality switched off (fewer rows
+    than planned) sends the step to the QP path, which answers with the rows there are."""
+    import mujoco
+
+    from qpik.diffik.layout import EQUALITY_KIND
+    from qpik.diffik.rows import task_rows
+
+    model = mujoco.MjModel.from_xml_string(_LOOP.format(jacobian=jacobian))
+    configuration = mink.Configuration(model)
+    configuration.update(np.array([0.5, 0.5, 1.5, 0.5, 0.1, 0.2, 0.3, 0.1]))
+    make = mink.EqualityConstraintTask if owner == "mink" else qpik.tasks.EqualityConstraintTask
+    equality = make(model, cost=[2.0, 1.0, 0.5], gain=0.8, lm_damping=0.05)
+    posture = mink.PostureTask(model, cost=1e-2)
+    target = configuration.q + 0.3
+    posture.set_target(target)
+    ik = qpik.IKSolver(model, [[equality], [posture]])
+    assert not ik._plan.rows_tasks
+    assert EQUALITY_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
+    assert ik._plan.arrays["eq_map"][0, 0] == 3 + 6 + 1
+    own = mink_compat.as_configuration(configuration)
+    start = float(np.abs(equality.compute_error(configuration)).max())
+    for _ in range(30):
+        A, b, mu, w = task_rows(equality, own)
+        J, e, theirs = equality.compute_qp_residual(configuration)
+        assert A.tobytes() == J.tobytes() and b.tobytes() == e.tobytes()
+        assert abs(mu - theirs) <= 1e-15 * max(1.0, theirs)
+        assert np.array_equal(w, equality.cost)
+        v = ik.step(configuration, DT).velocity.copy()
+        qp = ik.qp_solution(own, DT).velocity
+        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        ours = qpik.solve_ik(configuration, [equality, posture], DT, "daqp", 1e-6)
+        mink_v = mink.solve_ik(configuration, [equality, posture], DT, "daqp", 1e-6)
+        assert np.abs(ours - mink_v).max() <= 1e-9 * max(1.0, np.abs(mink_v).max())
+        configuration.integrate_inplace(v, DT)
+    assert np.abs(equality.compute_error(configuration)).max() < 1e-3 < start  # (held)
+    configuration.data.eq_active[1] = 0  # (the weld off: 4 rows where the plan has 10)
+    configuration.update()
+    calls = []
+    qp_step = ik._qp_step
+    ik._qp_step = lambda *a: calls.append(1) or qp_step(*a)  # type: ignore[method-assign]
+    v = ik.step(configuration, DT).velocity
+    del ik._qp_step
+    assert calls and np.abs(v - ik.qp_solution(own, DT).velocity).max() <= 1e-9
+    assert task_rows(equality, own)[0].shape == (4, model.nv)

@@ -23,6 +23,7 @@
 #include "../tasks/axis_align.hpp"
 #include "../tasks/kinetic.hpp"
 #include "../tasks/manipulability.hpp"
+#include "../tasks/equality.hpp"
 #include "couple.hpp"
 
 namespace qpik::diffik {
@@ -104,6 +105,13 @@ struct FusedArgs {
     // Each frame's dofs as mj_jac visits them (leaf first), frame f's dofs
     // chain_dofs[chain_starts[f]:chain_starts[f + 1]] (Kernel.set_chains; empty: not set).
     VecRefT<const i64> chain_starts, chain_dofs;
+    // Equality-constraint tasks (kind 15, EQUALITY): eq_map (Q, neq + 1) each one's planned
+    // rows, then its position of each equality of the model (-1: not its); eq_data (Q, neq
+    // + 2) its costs by position, gain, LM damping; efc the MjData's constraint rows
+    // (Kernel.attach_efc; null: not attached, every such task declines).
+    MatRefT<const i64> eq_map;
+    CMatRef eq_data = CMatRef(nullptr, 0, 0);
+    const tasks::EfcRows* efc = nullptr;
 };
 
 // Task kinds of FusedArgs::tasks.
@@ -128,7 +136,10 @@ enum TaskKind : i64 {
     // table on a chain of hinges and slides, its data row as a pose task's: the number of
     // rows picked at 0 and their indices into [v; omega] from 1 (at most 11), its cost at
     // kPoseTarget, gain and LM damping after its six cost entries
-    MANIPULABILITY = 14
+    MANIPULABILITY = 14,
+    // mink's (and qpik's) EqualityConstraintTask (tasks/equality.hpp): its planned rows, from
+    // the attached MjData's equality constraint rows; eq_map / eq_data row `index`
+    EQUALITY = 15
 };
 // LookAtTask's floor on |r| (qpik.diffik.rows._EPS: the same rows as the QP path's).
 constexpr double kLookAtEps = 1e-10;
@@ -148,7 +159,7 @@ constexpr double kUndampedWeight = 0x1p-40;
 // leaves such a plan's correction to the QP path: qpik.diffik.layout.corrected_kinds).
 inline bool corrected_kind(i64 kind) {
     return (kind & UNIT_ROWS) == 0 && kind != LOOK_AT && kind != AXIS_ALIGN && kind != KINETIC &&
-           kind != MANIPULABILITY;
+           kind != MANIPULABILITY && kind != EQUALITY;
 }
 
 // Rows row:row+size of A and b scaled to unit norm, as qpik._engine.tasks.unit_rows scales
@@ -459,6 +470,27 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
             }
             for (i64 r = 0; r < n; ++r) diag[static_cast<size_t>(row + r)] = -1;
             for (i64 r = 0; r < n; ++r) a.w[row + r] = 1.0;
+            continue;
+        }
+        if (kind == EQUALITY) {  // MuJoCo's rows; not its planned count: a NaN target, the QP path
+            const i64 planned = a.eq_map(i, 0), neq = a.eq_map.cols - 1, cols = a.eq_data.cols;
+            const double* data = a.eq_data.row(i);
+            double mu_t = 0.0;
+            const i64 k = a.efc == nullptr ? -1
+                                           : tasks::equality_rows_into(a.A, a.b.p, a.w.p, row, planned, *a.efc,
+                                                                       a.eq_map.row(i) + 1, neq, data,
+                                                                       data[cols - 2], data[cols - 1], mu_t);
+            if (k != planned) {
+                for (i64 r = row; r < row + planned; ++r) {
+                    for (i64 c = 0; c < n; ++c) a.A(r, c) = 0.0;
+                    a.b[r] = 0.0;
+                    a.w[r] = 1.0;
+                }
+                if (planned > 0) a.b[row] = std::numeric_limits<double>::quiet_NaN();
+                mu_t = 0.0;
+            }
+            for (i64 r = 0; r < planned; ++r) diag[static_cast<size_t>(row + r)] = -1;
+            reg[a.tasks(t, 2)] += mu_t;
             continue;
         }
         if (kind == ROWS) {  // rows supplied by the task itself: only its LM term here
@@ -972,7 +1004,7 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
             case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN: case KINETIC:
-            case MANIPULABILITY:
+            case MANIPULABILITY: case EQUALITY:
                 size = 0;  // (never corrected: weighted_errors')
                 break;
             default: size = n;
