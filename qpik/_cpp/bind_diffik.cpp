@@ -839,28 +839,30 @@ class Kernel {
     // The MjData's constraint rows (mj_makeConstraint) that the equality-constraint tasks
     // read at the next steps: efc_J (dense nefc * nv, or sparse with efc_J_rownnz, _rowadr
     // (nefc) and _colind (its length)), efc_pos, efc_type, efc_id (nefc); checked here (every
-    // index in range). Attach them again after each update of the MjData (their views change
-    // with nefc).
-    void attach_efc(const In1& J, const In1& pos, const Int32In1& type, const Int32In1& id, const Int32In1& rownnz,
+    // index in range; false, and none attached, where they do not: the tasks then decline).
+    // Attach them again after each update of the MjData (their views change with nefc).
+    bool attach_efc(const In1& J, const In1& pos, const Int32In1& type, const Int32In1& id, const Int32In1& rownnz,
                     const Int32In1& rowadr, const Int32In1& colind, bool sparse) {
+        efc_.reset();  // (until these check: every equality-constraint task declines)
+        if (attached_) go_args_.efc = nullptr;
         const i64 nefc = dim(pos, 0), size = dim(J, 0);
-        require(dim(type, 0) == nefc && dim(id, 0) == nefc, "Kernel.attach_efc: efc_type and efc_id must have nefc entries");
+        if (dim(type, 0) != nefc || dim(id, 0) != nefc) return false;
         if (sparse) {
-            require(dim(rownnz, 0) == nefc && dim(rowadr, 0) == nefc && dim(colind, 0) == size,
-                    "Kernel.attach_efc: the sparse rows must have nefc entries, colind efc_J's length");
+            if (dim(rownnz, 0) != nefc || dim(rowadr, 0) != nefc || dim(colind, 0) != size) return false;
             for (i64 r = 0; r < nefc; ++r)
-                require(rownnz.data()[r] >= 0 && rowadr.data()[r] >= 0 &&
-                            static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] <= size,
-                        "Kernel.attach_efc: a sparse row is out of range of efc_J");
+                if (rownnz.data()[r] < 0 || rowadr.data()[r] < 0 ||
+                    static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] > size)
+                    return false;
             for (i64 t = 0; t < size; ++t)
-                require(colind.data()[t] >= 0 && colind.data()[t] < n_, "Kernel.attach_efc: a column is out of range");
-        } else {
-            require(size == nefc * n_, "Kernel.attach_efc: a dense efc_J must have nefc * nv entries");
+                if (colind.data()[t] < 0 || colind.data()[t] >= n_) return false;
+        } else if (size < nefc * n_) {  // (MuJoCo may keep efc_J longer: its first nefc * nv)
+            return false;
         }
         efc_ = Efc{J, pos, type, id, rownnz, rowadr, colind};
         efc_rows_ = tasks::EfcRows{nefc, n_, sparse, J.data(), pos.data(), type.data(), id.data(),
                                    rownnz.data(), rowadr.data(), colind.data()};
         if (attached_) go_args_.efc = &efc_rows_;
+        return true;
     }
 
     // The model's tree for the kinetic-energy tasks' inertia matrix (model::inertia_matrix):

@@ -141,7 +141,8 @@ void bind_tasks(nb::module_& m) {
                 for (i64 t = 0; t < size; ++t)
                     require(colind.data()[t] >= 0 && colind.data()[t] < nv, "equality_rows: a column is out of range");
             } else {
-                require(size == nefc * nv, "equality_rows: a dense efc_J must have nefc * nv entries");
+                // (MuJoCo may keep efc_J longer than nefc * nv: its first nefc * nv entries)
+                require(size >= nefc * nv, "equality_rows: a dense efc_J must have nefc * nv entries");
             }
             for (i64 e = 0; e < neq; ++e)
                 require(position.data()[e] >= -1 && position.data()[e] < static_cast<i64>(cost.shape(0)),

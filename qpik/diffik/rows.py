@@ -247,7 +247,10 @@ def _equality_rows(
     if cost.ndim != 1 or type(gain) not in (float, int) or type(lm) not in (float, int):
         return None
     efc = efc_arrays(model, configuration.data)
-    A, b, mu, w = equality_rows(*efc, model.nv, position, cost, float(gain), float(lm))
+    try:
+        A, b, mu, w = equality_rows(*efc, model.nv, position, cost, float(gain), float(lm))
+    except ValueError:  # (MuJoCo's arrays not as they should be: mink's methods report it)
+        return None
     return A, b, mu, w
 
 

@@ -308,10 +308,11 @@ class Configuration(mink.Configuration):
         a zero one as the identity ``(1, 0, 0, 0)``, as MuJoCo reads it) and run forward
         kinematics (what
         :meth:`mink.Configuration.update` runs: ``mj_kinematics``, ``mj_comPos`` and, on a
-        model with equalities, ``mj_makeConstraint``)."""
+        model with equalities, ``mj_makeConstraint``; before it, on a model with a tendon
+        equality, ``mj_tendon``, without which MuJoCo makes no row of a tendon equality)."""
         model, data = self.model, self.data
-        # (data, model, data.qpos, (nq,), neq > 0, quaternion_joints), kept while model and
-        # data are these (MuJoCo's arrays never move)
+        # (data, model, data.qpos, (nq,), neq > 0, quaternion_joints, tendon equalities),
+        # kept while model and data are these (MuJoCo's arrays never move)
         kept = self.__dict__.get("_update_kept")
         if kept is None or kept[0] is not data or kept[1] is not model:
             kept = self._update_kept = (
@@ -321,6 +322,7 @@ class Configuration(mink.Configuration):
                 (model.nq,),
                 model.neq > 0,
                 quaternion_joints(model),
+                bool(np.any(model.eq_type == mujoco.mjtEq.mjEQ_TENDON)),
             )
         if q is not None:
             # A float64 vector of nq finite entries (its sum finite: no NaN, no inf, with no
@@ -341,6 +343,8 @@ class Configuration(mink.Configuration):
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         if kept[4]:
+            if kept[6]:  # (a tendon equality's rows read the tendons' lengths and Jacobians)
+                mujoco.mj_tendon(model, data)
             mujoco.mj_makeConstraint(model, data)
 
     @property

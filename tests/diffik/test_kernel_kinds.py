@@ -463,3 +463,28 @@ def test_equality_constraints_are_a_task_of_the_kernel(jacobian, owner):
     del ik._qp_step
     assert calls and np.abs(v - ik.qp_solution(own, DT).velocity).max() <= 1e-9
     assert task_rows(equality, own)[0].shape == (4, model.nv)
+
+
+def test_a_tendon_equality_is_held_on_a_qpik_configuration():
+    """A tendon equality's rows need the tendons' kinematics (MuJoCo makes no row without
+    mj_tendon): qpik.Configuration.update runs it before mj_makeConstraint, so the task sees
+    the violation (|l1 - l2| = 0.8) and the closed loop of qpik.solve_ik (kind 15) meets it
+    (newer mink's own test of the same model)."""
+    import mujoco
+
+    xml = """<mujoco><worldbody>
+      <body><joint name="j1" type="slide" axis="1 0 0"/><geom size=".05" mass=".1"/></body>
+      <body pos="0 1 0"><joint name="j2" type="slide" axis="1 0 0"/><geom size=".05" mass=".1"/></body>
+      </worldbody><tendon><fixed name="t1"><joint joint="j1" coef="1"/></fixed>
+      <fixed name="t2"><joint joint="j2" coef="1"/></fixed></tendon>
+      <equality><tendon name="coupling" tendon1="t1" tendon2="t2"/></equality></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    configuration = qpik.Configuration(model, np.array([0.5, -0.3]))
+    task = qpik.tasks.EqualityConstraintTask(model=model, cost=1.0)
+    assert abs(abs(float(task.compute_error(configuration)[0])) - 0.8) < 1e-12
+    for _ in range(100):
+        velocity = qpik.solve_ik(configuration, [task], dt=0.1, solver="daqp", damping=1e-8)
+        configuration.integrate_inplace(velocity, 0.1)
+    lengths = configuration.data.ten_length
+    assert abs(lengths[0] - lengths[1]) < 1e-6
+    np.testing.assert_allclose(task.compute_error(configuration), 0.0, atol=1e-6)
