@@ -94,3 +94,18 @@ def test_a_bad_tree_raises():
             engine_model.inertia_matrix(data.cinert, data.cdof, *changed)
     with pytest.raises(ValueError):
         engine_model.inertia_matrix(data.cinert[:3], data.cdof, *tree)
+
+
+def test_a_chain_of_slides_has_its_closed_form_inertia():
+    """Three slides along one axis carrying 1, 2 and 3 kg: M in closed form (each joint
+    moves every mass below it: M_ij = the mass below both), exactly."""
+    xml = """<mujoco><worldbody><body><joint type="slide" axis="1 0 0"/>
+      <geom type="box" size=".1 .1 .1" mass="1"/><body><joint type="slide" axis="1 0 0"/>
+      <geom type="box" size=".1 .1 .1" mass="2"/><body><joint type="slide" axis="1 0 0"/>
+      <geom type="box" size=".1 .1 .1" mass="3"/></body></body></body></worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_comPos(model, data)
+    expected = np.array([[6.0, 5.0, 3.0], [5.0, 5.0, 3.0], [3.0, 3.0, 3.0]])
+    np.testing.assert_array_equal(inertia_matrix(data, inertia_tree(model)), expected)
