@@ -272,6 +272,17 @@ def test_look_at_and_axis_align_are_tasks_of_the_kernel(kind, owner):
     assert not ik._plan._correct(own, 0, DT, 1)
 
 
+def _moved_step(ik, own, task, start, i: int) -> np.ndarray:
+    """Turn ``i`` of a closed loop: the frame task's target moved along a curve, the
+    step's velocity, equal to the QP path's (bitwise, or to 1e-9)."""
+    offset = 0.08 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
+    task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+    v = ik.step(own, DT).velocity.copy()
+    qp = ik.qp_solution(own, DT).velocity
+    assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+    return v
+
+
 @pytest.mark.parametrize(
     "make", [mink.KineticEnergyRegularizationTask, qpik.tasks.KineticEnergyRegularizationTask]
 )
@@ -295,11 +306,7 @@ def test_kinetic_energy_is_a_task_of_the_kernel(make):
     assert KINETIC_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
     moved = 0.0
     for i in range(30):
-        offset = 0.08 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
-        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
-        v = ik.step(own, DT).velocity.copy()
-        qp = ik.qp_solution(own, DT).velocity
-        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        v = _moved_step(ik, own, task, start, i)
         A = task_rows(energy, own)[0]
         M = configuration.get_inertia_matrix()
         assert np.abs(A.T @ A - 2e-3 / DT**2 * M).max() <= 1e-12 * np.abs(M).max() / DT**2
@@ -341,11 +348,7 @@ def test_manipulability_is_a_task_of_the_kernel():
     assert not ik._plan.rows_tasks
     assert MANIPULABILITY_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
     for i in range(25):
-        offset = 0.08 * np.array([np.sin(i / 4), np.cos(i / 5) - 1, np.sin(i / 3)])
-        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
-        v = ik.step(own, DT).velocity.copy()
-        qp = ik.qp_solution(own, DT).velocity
-        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        v = _moved_step(ik, own, task, start, i)
         e, jacobian = manip.compute_error(own), manip.compute_jacobian(own)
         value, gradient, _ = manipulability_parts(own, "ee", "site")
         assert abs(e[0] - 1.0 / value) <= 1e-11 / value
