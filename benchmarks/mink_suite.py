@@ -270,6 +270,113 @@ def run_timing(calls: int) -> None:
     )
     _timing_free_joint(min(calls, 300))
     _timing_constraints(min(calls, 1000))
+    _timing_tasks(min(calls, 1000))
+
+
+#: A closed loop (two arms joined at their tips: a connect equality), a weld and a joint
+#: equality, for the EqualityConstraintTask row of :func:`_timing_tasks`.
+_EQUALITY_XML = """<mujoco><worldbody>
+<body name="a1"><joint name="a1" axis="0 0 1"/>
+ <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/>
+ <body name="a2" pos=".3 0 0"><joint name="a2" axis="0 0 1"/>
+  <geom type="capsule" fromto="0 0 0 .3 0 0" size=".02"/><site name="tip" pos=".3 0 0"/></body>
+</body>
+<body name="b1" pos=".4 0 0"><joint name="b1" axis="0 0 1"/>
+ <geom type="capsule" fromto="0 0 0 0 .3 0" size=".02"/>
+ <body name="b2" pos="0 .3 0"><joint name="b2" axis="0 0 1"/>
+  <geom type="capsule" fromto="0 0 0 -.2 .1 0" size=".02"/></body>
+</body>
+<body name="w1" pos="0 1 0"><joint name="w1" axis="1 0 0"/><joint name="w2" axis="0 1 0"/>
+ <geom type="capsule" fromto="0 0 0 0 0 .3" size=".02"/></body>
+<body name="f" pos="0 1 .5"><joint name="fx" type="slide" axis="1 0 0"/>
+ <joint name="fz" axis="0 0 1"/><geom size=".05"/></body>
+</worldbody><equality>
+<connect name="loop" body1="a2" body2="b2" anchor=".3 0 0"/>
+<weld name="weld" body1="f" body2="w1"/>
+<joint name="couple" joint1="w1" joint2="a1" polycoef="0 0.5 0 0 0"/>
+</equality></mujoco>"""
+
+
+def _task_case(label: str, model, configuration):
+    """One row of :func:`_timing_tasks`: the task beside a frame task and a posture."""
+    import mink
+    import numpy as np
+
+    import qpik
+
+    if label == "EqualityConstraintTask":
+        return mink.EqualityConstraintTask(model, cost=[2.0, 1.0, 0.5], gain=0.8)
+    if label == "KineticEnergyRegularizationTask":
+        task = mink.KineticEnergyRegularizationTask(cost=1e-3)
+        task.set_dt(0.01)
+        return task
+    if label == "DofFreezingTask (level)":
+        return mink.DofFreezingTask(model, dof_indices=[0, 1])
+    if label == "LookAtTask":
+        task = mink.LookAtTask("ee", "site", axis=np.array([0.0, 0.0, 1.0]), cost=0.5)
+        task.set_target(np.array([0.6, 0.1, 0.2]))
+        return task
+    if label == "AxisAlignTask":
+        task = mink.AxisAlignTask("ee", "site", axis=np.array([0.0, 0.0, 1.0]), cost=0.5)
+        task.set_target(np.array([0.0, 0.3, -1.0]))
+        return task
+    return qpik.tasks.ManipulabilityTask("ee", "site", cost=0.1, lm_damping=30.0)
+
+
+def _timing_tasks(calls: int) -> None:
+    """Per-call time of each task kind the compiled step computes beside mink's own
+    (bundled Panda, a frame task and a posture, one weighted level, position limits, DAQP;
+    the EqualityConstraintTask on a 4-arm model with a connect, a weld and a joint
+    equality, with the posture), in closed loop on mink's answer; qpik's
+    ManipulabilityTask, which mink lacks, solved by mink.solve_ik through the task's own
+    methods."""
+    import mink
+    import mujoco
+    import numpy as np
+
+    import qpik
+
+    print(f"\ntask kinds, {calls} closed-loop calls each (one weighted level; DAQP)")
+    print(f"{'task':<34}{'mink [us]':>11}{'qpik [us]':>11}{'ratio':>8}{'max |dv|':>11}")
+    labels = (
+        "LookAtTask", "AxisAlignTask", "DofFreezingTask (level)",
+        "KineticEnergyRegularizationTask", "ManipulabilityTask (qpik's)",
+        "EqualityConstraintTask",
+    )  # fmt: skip
+    for label in labels:
+        looped = label == "EqualityConstraintTask"
+        if looped:
+            model = mujoco.MjModel.from_xml_string(_EQUALITY_XML)
+        else:
+            model = qpik.load_robot("panda")
+        configuration = mink.Configuration(model)
+        if looped:
+            configuration.update(np.array([0.5, 0.5, 1.5, 0.5, 0.1, 0.2, 0.3, 0.1]))
+        else:
+            configuration.update_from_keyframe("home")
+        frame = "tip" if looped else "ee"
+        turn = 0.0 if looped else 1.0
+        task = mink.FrameTask(frame, "site", position_cost=1.0, orientation_cost=turn)
+        start = configuration.get_transform_frame_to_world(frame, "site")
+        posture = mink.PostureTask(model, cost=1e-2)
+        posture.set_target(configuration.q)
+        stack = [task, posture, _task_case(label, model, configuration)]
+        limits = [mink.ConfigurationLimit(model)]
+        times: dict[str, list[float]] = {"mink": [], "qpik": []}
+        worst = 0.0
+        for i in range(calls):
+            offset = 0.05 * np.array([np.sin(i / 40), np.cos(i / 50) - 1, np.sin(i / 30)])
+            task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+            answers = {}
+            for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
+                solve = mink.solve_ik if name == "mink" else qpik.solve_ik
+                t0 = time.perf_counter()
+                answers[name] = solve(configuration, stack, 0.01, "daqp", 1e-6, limits=limits)
+                times[name].append(time.perf_counter() - t0)
+            worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+            configuration.integrate_inplace(answers["mink"], 0.01)
+        m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+        print(f"{label:<34}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
 
 
 def _timing_constraints(calls: int) -> None:
