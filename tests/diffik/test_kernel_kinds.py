@@ -491,3 +491,43 @@ def test_a_tendon_equality_is_held_on_a_qpik_configuration():
     lengths = configuration.data.ten_length
     assert abs(lengths[0] - lengths[1]) < 1e-6
     np.testing.assert_allclose(task.compute_error(configuration), 0.0, atol=1e-6)
+
+
+def test_the_new_kinds_answer_the_same_bits_whatever_ran_before():
+    """A solver with a kinetic-energy, a manipulability and a DoF-freezing task (kinds 13,
+    14 and LINEAR) gives, at a state, bitwise the velocity of a fresh solver there after
+    steps at other states (the kernel's scratch reused: nothing of a previous step read),
+    and so does one with an equality-constraint task (kind 15)."""
+    import mujoco
+
+    def panda_solver():
+        model, configuration, task, posture = _setup()
+        energy = qpik.tasks.KineticEnergyRegularizationTask(cost=1e-3)
+        energy.set_dt(DT)
+        manip = qpik.tasks.ManipulabilityTask("ee", "site", cost=0.2, lm_damping=1.0)
+        freeze = qpik.tasks.DofFreezingTask(model, dof_indices=[6])
+        levels = [[task], [manip, energy], [freeze, posture]]
+        start = configuration.get_transform_frame_to_world("ee", "site")
+        task.set_target(start.multiply(mink.SE3.from_translation(np.array([0.05, -0.1, 0.02]))))
+        return qpik.IKSolver(model, levels, [mink.ConfigurationLimit(model)]), configuration
+
+    def loop_solver():
+        model = mujoco.MjModel.from_xml_string(_LOOP.format(jacobian="sparse"))
+        configuration = mink.Configuration(model)
+        equality = qpik.tasks.EqualityConstraintTask(model, cost=1.0, lm_damping=0.1)
+        posture = mink.PostureTask(model, cost=1e-2)
+        posture.set_target(np.full(model.nq, 0.4))
+        return qpik.IKSolver(model, [[equality], [posture]]), configuration
+
+    rng = np.random.default_rng(5)
+    for make in (panda_solver, loop_solver):
+        ik, configuration = make()
+        q = configuration.q + rng.uniform(-0.3, 0.3, configuration.model.nq)
+        fresh, fresh_configuration = make()
+        fresh_configuration.update(q)
+        expected = fresh.step(fresh_configuration, DT).velocity.tobytes()
+        for _ in range(5):  # (other states first)
+            configuration.update(q + rng.uniform(-0.5, 0.5, q.size))
+            ik.step(configuration, DT)
+        configuration.update(q)
+        assert ik.step(configuration, DT).velocity.tobytes() == expected
