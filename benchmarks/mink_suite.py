@@ -362,21 +362,37 @@ def _timing_tasks(calls: int) -> None:
         posture.set_target(configuration.q)
         stack = [task, posture, _task_case(label, model, configuration)]
         limits = [mink.ConfigurationLimit(model)]
-        times: dict[str, list[float]] = {"mink": [], "qpik": []}
-        worst = 0.0
-        for i in range(calls):
-            offset = 0.05 * np.array([np.sin(i / 40), np.cos(i / 50) - 1, np.sin(i / 30)])
-            task.set_target(start.multiply(mink.SE3.from_translation(offset)))
-            answers = {}
-            for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
-                solve = mink.solve_ik if name == "mink" else qpik.solve_ik
-                t0 = time.perf_counter()
-                answers[name] = solve(configuration, stack, 0.01, "daqp", 1e-6, limits=limits)
-                times[name].append(time.perf_counter() - t0)
-            worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
-            configuration.integrate_inplace(answers["mink"], 0.01)
-        m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+        m, q, worst = _closed_loop(configuration, task, start, calls, stack, limits=limits)
         print(f"{label:<34}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
+
+
+def _closed_loop(
+    configuration, task, start, calls: int, tasks: list, **kwargs
+) -> tuple[float, float, float]:
+    """``(mink's median [us], qpik's, the largest |dv|)`` of ``calls`` closed-loop calls of
+    mink.solve_ik and qpik.solve_ik in turn (which goes first alternating) on ``tasks``
+    (dt 0.01 s, DAQP, damping 1e-6, ``kwargs``), the frame task's target moved along a curve
+    about ``start``, mink's answer integrated."""
+    import mink
+    import numpy as np
+
+    import qpik
+
+    times: dict[str, list[float]] = {"mink": [], "qpik": []}
+    worst = 0.0
+    for i in range(calls):
+        offset = 0.05 * np.array([np.sin(i / 40), np.cos(i / 50) - 1, np.sin(i / 30)])
+        task.set_target(start.multiply(mink.SE3.from_translation(offset)))
+        answers = {}
+        for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
+            solve = mink.solve_ik if name == "mink" else qpik.solve_ik
+            t0 = time.perf_counter()
+            answers[name] = solve(configuration, tasks, 0.01, "daqp", 1e-6, **kwargs)
+            times[name].append(time.perf_counter() - t0)
+        worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
+        configuration.integrate_inplace(answers["mink"], 0.01)
+    m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+    return m, q, worst
 
 
 def _timing_constraints(calls: int) -> None:
@@ -386,7 +402,6 @@ def _timing_constraints(calls: int) -> None:
     constraints as a level above the tasks' (the compiled step, their rows scaled to unit
     norm at each call)."""
     import mink
-    import numpy as np
 
     import qpik
 
@@ -407,23 +422,9 @@ def _timing_constraints(calls: int) -> None:
         else:
             held = mink.DofFreezingTask(model, dof_indices=[0, 1])
         limits = [mink.ConfigurationLimit(model)]
-        times: dict[str, list[float]] = {"mink": [], "qpik": []}
-        worst = 0.0
-        for i in range(calls):
-            offset = 0.05 * np.array([np.sin(i / 40), np.cos(i / 50) - 1, np.sin(i / 30)])
-            task.set_target(start.multiply(mink.SE3.from_translation(offset)))
-            answers = {}
-            for name in ("mink", "qpik") if i % 2 == 0 else ("qpik", "mink"):
-                solve = mink.solve_ik if name == "mink" else qpik.solve_ik
-                t0 = time.perf_counter()
-                answers[name] = solve(
-                    configuration, [task, posture], 0.01, "daqp", 1e-6, limits=limits,
-                    constraints=[held],
-                )  # fmt: skip
-                times[name].append(time.perf_counter() - t0)
-            worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
-            configuration.integrate_inplace(answers["mink"], 0.01)
-        m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
+        m, q, worst = _closed_loop(
+            configuration, task, start, calls, [task, posture], limits=limits, constraints=[held]
+        )
         print(f"{label:<28}{m:>11.1f}{q:>11.1f}{q / m:>8.2f}{worst:>11.2e}")
 
 
