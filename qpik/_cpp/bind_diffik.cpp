@@ -509,6 +509,7 @@ class Kernel {
             a.chain_starts = frame_chains_.starts.vec();
             a.chain_dofs = frame_chains_.dofs.vec();
         }
+        if (!dof_threshold_.empty()) a.dof_threshold = dof_threshold_.data();
         if (eq_data_) {
             a.eq_map = eq_map_.mat();
             a.eq_data = cmat(*eq_data_);
@@ -863,6 +864,18 @@ class Kernel {
                                    rownnz.data(), rowadr.data(), colind.data()};
         if (attached_) go_args_.efc = &efc_rows_;
         return true;
+    }
+
+    // Each dof's threshold (nv,) for the manipulability tasks whose frame a ball or free joint
+    // moves (model::hessian_weights_any: t[b] in [0, nv], a dof a moves column b's axis where
+    // a < t[b]).
+    void set_dof_thresholds(const In<i64, 1>& threshold) {
+        require(dim(threshold, 0) == n_, "Kernel.set_dof_thresholds: threshold must have shape (nv,)");
+        for (i64 i = 0; i < n_; ++i)
+            require(threshold.data()[i] >= 0 && threshold.data()[i] <= n_,
+                    "Kernel.set_dof_thresholds: a threshold is out of [0, nv]");
+        dof_threshold_.assign(threshold.data(), threshold.data() + n_);
+        if (attached_) go_args_.dof_threshold = dof_threshold_.data();
     }
 
     // The model's tree for the kinetic-energy tasks' inertia matrix (model::inertia_matrix):
@@ -1308,6 +1321,7 @@ class Kernel {
     // The kinetic-energy tasks' M(q) (nv * nv; NaN until made), the tree it is made on, the
     // attached cdof and cinert (in Chains' two fields) and the composite inertias' scratch.
     Vec inertia_;
+    std::vector<i64> dof_threshold_;  // (set_dof_thresholds; empty: not set)
     bind::OwnedTree tree_;
     std::optional<Chains> inertia_in_;
     Vec crb_;
@@ -1459,6 +1473,9 @@ void bind_diffik(nb::module_& m) {
              nb::arg("sparse"),
              "The MjData's constraint rows (mj_makeConstraint) the equality-constraint tasks read at the next "
              "steps (attach again after each update: their views change with nefc).")
+        .def("set_dof_thresholds", &Kernel::set_dof_thresholds, nb::arg("threshold"),
+             "Each dof's threshold (nv,) for the manipulability tasks whose frame a ball or free joint moves "
+             "(qpik.model.gradients.motion_chain).")
         .def("attach_inertia", &Kernel::attach_inertia, nb::arg("cdof"), nb::arg("cinert"),
              "The MjData's cdof (nv, 6) and cinert (nbody, 10) (mj_comPos) that M(q) is made from.")
         .def("set_com_chains", &Kernel::set_com_chains, nb::arg("com_jac").noconvert(), nb::arg("point"),

@@ -4,6 +4,8 @@
 #include <cmath>
 
 #include "bind.hpp"
+
+#include <nanobind/stl/optional.h>
 #include "model/se3.hpp"
 #include "tasks/frame.hpp"
 #include "tasks/linear.hpp"
@@ -98,28 +100,34 @@ void bind_tasks(nb::module_& m) {
 
     m.def(
         "inverse_manipulability",
-        [](In2 jac, In<i64, 1> rows, In<i64, 1> chain) {
+        [](In2 jac, In<i64, 1> rows, In<i64, 1> chain, std::optional<In<i64, 1>> threshold) {
             const i64 n = static_cast<i64>(jac.shape(1)), m = static_cast<i64>(rows.shape(0));
             const i64 count = static_cast<i64>(chain.shape(0));
+            if (threshold)
+                require(static_cast<i64>(threshold->shape(0)) == n,
+                        "inverse_manipulability: threshold must have shape (nv,)");
             require(jac.shape(0) == 6, "inverse_manipulability: jac must have shape (6, nv)");
             for (i64 r = 0; r < m; ++r)
                 require(rows.data()[r] >= 0 && rows.data()[r] < 6, "inverse_manipulability: rows must be in [0, 6)");
             for (i64 e = 0; e < count; ++e)
                 require(chain.data()[e] >= 0 && chain.data()[e] < n,
                         "inverse_manipulability: chain's dofs must be in [0, nv)");
+            require(count <= n, "inverse_manipulability: the chain has more dofs than nv");
             std::vector<double> scratch(static_cast<size_t>(tasks::manipulability_scratch(m, n))),
                 de(static_cast<size_t>(n)), singular(static_cast<size_t>(m));
             double value = 0.0;
             const double e = tasks::inverse_manipulability(jac.data(), n, rows.data(), m, chain.data(), count, 1,
-                                                           scratch.data(), de.data(), &value, singular.data());
+                                                           scratch.data(), de.data(), &value, singular.data(),
+                                                           threshold ? threshold->data() : nullptr);
             if (m > n) singular.clear();
             return std::make_tuple(e, to_numpy(std::move(de)), value, to_numpy(std::move(singular)));
         },
-        nb::arg("jac"), nb::arg("rows"), nb::arg("chain"),
+        nb::arg("jac"), nb::arg("rows"), nb::arg("chain"), nb::arg("threshold") = nb::none(),
         "(e, de/dq (nv,), m, singular values (rows' order)) of a manipulability task: e = 1 / m(q), m the "
         "manipulability of the rows `rows` of the world-aligned frame Jacobian jac (6, nv) [v; omega], on the "
-        "chain of hinges and slides `chain` (its dofs, root first); e = 0, a zero gradient and m = 0 where the "
-        "task is idle (more rows than dofs, a rank deficient to 1e-9, 1 / m^2 not finite).");
+        "frame's chain `chain` (its dofs, root first): of hinges and slides where threshold is None, else any, "
+        "threshold (nv,) each dof's (qpik.model.gradients.motion_chain); e = 0, a zero gradient and m = 0 where "
+        "the task is idle (more rows than dofs, a rank deficient to 1e-9, 1 / m^2 not finite).");
 
     m.def(
         "equality_rows",

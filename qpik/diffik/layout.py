@@ -31,7 +31,7 @@ from ..limits.support import SupportPolygonLimit
 from ..model.com import subtree_com_chain
 from ..model.configuration import limit_vectors
 from ..model.frames import FRAME_JACOBIANS, FRAME_OBJECTS, FrameType
-from ..model.gradients import hinge_slide_chain
+from ..model.gradients import motion_chain
 from ..model.inertia import inertia_tree
 from ..tasks import (
     AxisAlignTask,
@@ -110,9 +110,9 @@ LOOK_AT_KIND, AXIS_ALIGN_KIND = 11, 12
 KINETIC_KIND = 13
 KINETIC_TYPES = (KineticEnergyRegularizationTask, mink.KineticEnergyRegularizationTask)
 #: qpik's ManipulabilityTask (qpik/_cpp/tasks/manipulability.hpp): one row, a frame of the
-#: ``frames`` table on a chain of hinges and slides (:meth:`ManipulabilityTask.chain`),
-#: the indices of its rows in its data row (their number at 0, then at most
-#: ``MANIPULABILITY_ROWS`` of them).
+#: ``frames`` table, the indices of its rows in its data row (their number at 0, then at
+#: most ``MANIPULABILITY_ROWS`` of them), at ``POSE_COST + 1`` 1 where a ball or free joint
+#: moves the frame (the kernel's dof thresholds, :meth:`ManipulabilityTask.chain`).
 MANIPULABILITY_KIND, MANIPULABILITY_ROWS = 14, 11
 #: mink's and qpik's EqualityConstraintTask (qpik/_cpp/tasks/equality.hpp; exact types):
 #: MuJoCo's constraint rows of its equalities (connect 3, weld 6, joint and tendon 1 each),
@@ -224,10 +224,12 @@ def plan_arrays(
     lin_sizes = [form.shape[0] for _, form, _ in layout.linears]
     lin_starts = np.concatenate([[0], np.cumsum(lin_sizes, dtype=i64)]).astype(i64)
     frame_data = np.zeros((F, POSE_DATA if layout.has_pose else 15))
-    for f, (task, *_) in enumerate(layout.frames):
+    for f, (task, *frame) in enumerate(layout.frames):
         if type(task) is ManipulabilityTask:  # (constants: its rows' number and indices)
             picked = task.row_indices
             frame_data[f, 0], frame_data[f, 1 : 1 + len(picked)] = len(picked), picked
+            # (1: a ball or free joint moves it, the kernel's dof thresholds)
+            frame_data[f, POSE_COST + 1] = manipulability_thresholds(model, frame) is not None
     lin_const = np.zeros((int(lin_starts[-1]), nv + nq + 1))
     for (_, form, jacobian), r0, r1 in zip(layout.linears, lin_starts[:-1], lin_starts[1:]):
         lin_const[r0:r1, :nv] = jacobian
@@ -439,15 +441,20 @@ def equality_layout(model: mujoco.MjModel, task) -> tuple[int, np.ndarray] | Non
 
 
 def _manipulability_fits(model: mujoco.MjModel, task: ManipulabilityTask) -> bool:
-    """Whether the kernel computes a manipulability task: its frame the model's, moved by
-    hinges and slides only (:meth:`ManipulabilityTask.chain`), at most
+    """Whether the kernel computes a manipulability task: its frame the model's, at most
     ``MANIPULABILITY_ROWS`` rows picked, its cost one number."""
     frame = frame_entry(model, task.frame_type, task.frame_name)
-    if frame is None or len(task.row_indices) > MANIPULABILITY_ROWS or np.shape(task.cost) != (1,):
-        return False
+    return not (
+        frame is None or len(task.row_indices) > MANIPULABILITY_ROWS or np.shape(task.cost) != (1,)
+    )
+
+
+def manipulability_thresholds(model: mujoco.MjModel, frame: tuple[int, int]) -> np.ndarray | None:
+    """The dofs' Hessian thresholds where a ball or free joint moves a manipulability task's
+    frame ``(kind, id)`` (:func:`qpik.model.gradients.motion_chain`), else None."""
     kind, fid = frame
     body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
-    return hinge_slide_chain(model, body) is not None
+    return motion_chain(model, body)[1]
 
 
 def _linear_form(model: mujoco.MjModel, task) -> tuple | None:

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core import HierarchySolver
 from ..model.inertia import inertia_tree
+from ..tasks.secondary import ManipulabilityTask
 from .boxes import LimitBoxes
 from .compiled import RANK_TOL, TOL, CompiledPlan, Kernel
 from .layout import (
@@ -22,6 +23,7 @@ from .layout import (
     POSE_KINDS,
     POSE_TARGETS,
     limit_layout,
+    manipulability_thresholds,
     plan_arrays,
     task_layout,
 )
@@ -99,6 +101,13 @@ def make_plan(
         a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
         a["lin_const"], a["lin_data"], a["ke_data"], a["eq_map"], a["eq_data"],
     )  # fmt: skip
+    for task, *frame in layout.frames:  # (a manipulability task's frame on a ball or free joint)
+        thresholds = (
+            manipulability_thresholds(model, frame) if type(task) is ManipulabilityTask else None
+        )
+        if thresholds is not None:
+            kernel.set_dof_thresholds(thresholds)
+            break
     if layout.kinetics:  # (the model's tree: the kernel makes M(q) at each step)
         tree = inertia_tree(model)
         assert tree is not None  # (task_layout placed them only where it is)

@@ -22,6 +22,7 @@ __all__ = [
     "manipulability_parts",
     "manipulability_svd",
     "manipulability_terms",
+    "motion_chain",
 ]
 
 
@@ -178,6 +179,59 @@ def hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
         _CHAINS.clear()
     _CHAINS[key] = (model, chain)
     return chain
+
+
+def motion_chain(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(dofs, thresholds)``: the dofs that move ``body`` (root first, int64) and, where a
+    ball or free joint is among them, each dof's threshold ``t`` (nv,) int64 of the
+    kinematic Hessian that ``mj_jacDot`` differentiates (the engine's
+    ``hessian_weights_any``): dof ``a`` turns column ``b``'s axis exactly where ``a < t[b]``
+    (``t[b] = b`` for a hinge or a slide: the dofs before it; its body's last dof + 1 for a
+    ball's or a free joint's rotational dof, whose axes turn with their own joint; 0 for a
+    free joint's translational dof, whose axes stay the world's). ``thresholds`` is None on
+    a chain of hinges and slides (:func:`hinge_slide_chain`: the engine's
+    ``hessian_weights``)."""
+    simple = hinge_slide_chain(model, body)
+    if simple is not None:
+        return simple, None
+    key = id(model), body
+    cached = _MOTION.get(key)
+    if cached is not None and cached[0] is model:
+        return cached[1]
+    dofs: list[int] = []
+    b = body
+    while b > 0:
+        start, count = int(model.body_dofadr[b]), int(model.body_dofnum[b])
+        dofs.extend(range(start, start + count))
+        b = int(model.body_parentid[b])
+    answer = np.array(sorted(dofs), dtype=np.int64), _dof_thresholds(model)
+    if len(_MOTION) >= 64:
+        _MOTION.clear()
+    _MOTION[key] = (model, answer)
+    return answer
+
+
+#: motion_chain's answers where a ball or free joint moves the body, by (model, body)
+_MOTION: dict[tuple[int, int], tuple[mujoco.MjModel, tuple[np.ndarray, np.ndarray]]] = {}
+
+
+def _dof_thresholds(model: mujoco.MjModel) -> np.ndarray:
+    """:func:`motion_chain`'s thresholds (nv,) of every dof of ``model``."""
+    thresholds = np.arange(model.nv, dtype=np.int64)
+    free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
+    for j in range(model.njnt):
+        kind, first, body = (
+            int(model.jnt_type[j]),
+            int(model.jnt_dofadr[j]),
+            int(model.jnt_bodyid[j]),
+        )
+        end = int(model.body_dofadr[body] + model.body_dofnum[body])
+        if kind == free:
+            thresholds[first : first + 3] = 0
+            thresholds[first + 3 : first + 6] = end
+        elif kind == ball:
+            thresholds[first : first + 3] = end
+    return thresholds
 
 
 #: hinge_slide_chain's answers by (model, body): the model kept beside its id

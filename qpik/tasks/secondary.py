@@ -24,12 +24,7 @@ from ..core.jacobian import (
 )
 from ..errors import TaskDefinitionError, mink_errors_as_qpik
 from ..model.configuration import Configuration, FrameType, as_configuration
-from ..model.gradients import (
-    frame_body,
-    hinge_slide_chain,
-    manipulability_parts,
-    manipulability_svd,
-)
+from ..model.gradients import frame_body, motion_chain
 from .checked import CheckedTask
 
 # These tasks read what only qpik.Configuration has (frame_pose, frame_jacobian, lower, upper), so
@@ -230,39 +225,27 @@ class ManipulabilityTask(mink.Task, CheckedTask):
         """The indices of :attr:`rows` into the frame Jacobian's rows ``[v; omega]``."""
         return tuple(self._row_index)
 
-    def chain(self, configuration: Configuration) -> np.ndarray | None:
-        """The dofs that move the task's frame (root first) where every one is
-        a hinge's or a slide's: the compiled engine then computes the task's error and
-        Jacobian (``qpik/_cpp/tasks/manipulability.hpp``, in the compiled step and in these
-        methods alike); None where a ball or free joint moves it (NumPy's SVD and MuJoCo's
-        ``mj_jacDot``: :func:`qpik.model.gradients.manipulability_parts`). An unknown frame
-        raises :class:`qpik.UnknownFrame`."""
+    def chain(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray | None]:
+        """``(dofs, thresholds)``: the dofs that move the task's frame (root first) and, where
+        a ball or free joint is among them, each dof's threshold of the kinematic Hessian
+        (:func:`qpik.model.gradients.motion_chain`; None on a chain of hinges and slides).
+        The compiled engine computes the task's error and Jacobian from them
+        (``qpik/_cpp/tasks/manipulability.hpp``, in the compiled step and in these methods
+        alike). An unknown frame raises :class:`qpik.UnknownFrame`."""
         kind = self.frame_type
         fid = configuration.frame_id(self.frame_name, kind)
-        return hinge_slide_chain(configuration.model, frame_body(configuration.model, fid, kind))
+        return motion_chain(configuration.model, frame_body(configuration.model, fid, kind))
 
     def _value(self, configuration: Configuration) -> float:
         """``m(q)``, or 0 where the rows are of deficient rank to round-off (more rows than
         dofs, or a singular value at most :data:`RANK_FLOOR` of the largest: ``m`` is then
         round-off, and ``1 / m`` would be noise of any size). A mink configuration is read
         through qpik's view of it."""
-        configuration = as_configuration(configuration)
-        chain = self.chain(configuration)
-        if chain is not None:
-            return self._engine_terms(configuration, chain)[2]
-        rows = configuration.frame_jacobian(self.frame_name, self.frame_type)[self._row_index]
-        if rows.shape[0] > rows.shape[1]:
-            return 0.0  # (m is 0 for every q: more rows than dofs)
-        value, _, singular, _ = manipulability_svd(rows)
-        return _in_rank(value, singular)
+        return self._engine_terms(as_configuration(configuration))[2]
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``1 / m(q)`` (1,), 0 where ``m`` is 0 (see the class)."""
-        configuration = as_configuration(configuration)
-        chain = self.chain(configuration)
-        if chain is not None:
-            return np.array([self._engine_terms(configuration, chain)[0]])
-        return _inverse(self._value(configuration), None)[0]
+        return np.array([self._engine_terms(as_configuration(configuration))[0]])
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:  # type: ignore[override]
         """``-(dm/dq) / m^2`` (1, nv), zero where ``m`` is 0 (see the class)."""
@@ -271,61 +254,32 @@ class ManipulabilityTask(mink.Task, CheckedTask):
     def compute_qp_residual(  # type: ignore[override]
         self, configuration: Configuration
     ) -> tuple[np.ndarray, np.ndarray, float]:
-        """mink's weighted residual of the error and Jacobian (the value and gradient of
-        :func:`qpik.model.gradients.manipulability_parts`)."""
+        """mink's weighted residual of the error and Jacobian (:meth:`_terms`)."""
         return self._weighted_residual(*self._terms(configuration))
 
     def _terms(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray]:
-        """``(e, de/dq)`` from one Jacobian and its decomposition
-        (:func:`qpik.model.gradients.manipulability_parts`: the value, the gradient, the
-        singular values that decide the rank as :meth:`_value` does); the engine's on a
-        chain of hinges and slides (:meth:`chain`)."""
-        configuration = as_configuration(configuration)
-        chain = self.chain(configuration)
-        if chain is not None:
-            e, gradient, _ = self._engine_terms(configuration, chain)
-            return np.array([e]), gradient[None, :]
-        value, gradient, singular = manipulability_parts(
-            configuration, self.frame_name, self.frame_type.value, rows=self.rows
-        )
-        return _inverse(_in_rank(value, singular), gradient)
+        """``(e (1,), de/dq (1, nv))`` from one Jacobian and its decomposition, by the
+        engine (:meth:`_engine_terms`)."""
+        e, gradient, _ = self._engine_terms(as_configuration(configuration))
+        return np.array([e]), gradient[None, :]
 
-    def _engine_terms(
-        self, configuration: Configuration, chain: np.ndarray
-    ) -> tuple[float, np.ndarray, float]:
-        """``(e, de/dq (nv,), m)`` by the engine (:meth:`chain` not None): from the frame's
-        Jacobian at the configuration's MjData (MuJoCo's ``mj_jacSite`` / ``mj_jacBody`` /
-        ``mj_jacGeom``, as the compiled step reads it)."""
+    def _engine_terms(self, configuration: Configuration) -> tuple[float, np.ndarray, float]:
+        """``(e, de/dq (nv,), m)`` by the engine (``inverse_manipulability``): from the
+        frame's Jacobian at the configuration's MjData (MuJoCo's ``mj_jacSite`` /
+        ``mj_jacBody`` / ``mj_jacGeom``, as the compiled step reads it) and its chain
+        (:meth:`chain`). Equal to NumPy's SVD with ``mj_jacDot``'s gradient
+        (:func:`qpik.model.gradients.manipulability_parts`) to round-off."""
         model = configuration.model
+        dofs, thresholds = self.chain(configuration)
         jac = configuration.frame_jacobian(self.frame_name, self.frame_type)
         if len(self._row_index) > model.nv:
             return 0.0, np.zeros(model.nv), 0.0  # (m is 0 for every q: more rows than dofs)
         rows = np.asarray(self._row_index, dtype=np.int64)
-        e, gradient, value, _ = inverse_manipulability(jac, rows, chain)
+        e, gradient, value, _ = inverse_manipulability(jac, rows, dofs, thresholds)
         return e, gradient, value
 
 
 #: :class:`ManipulabilityTask` is idle where its rows' smallest singular value is at most
-#: this much of the largest (their rank deficient to round-off).
+#: this much of the largest (their rank deficient to round-off; the engine's kRankFloor,
+#: ``qpik/_cpp/tasks/manipulability.hpp``).
 RANK_FLOOR = 1e-9
-
-
-def _in_rank(value: float, singular: np.ndarray) -> float:
-    """``value`` (``m``), or 0 where the rows' singular values say their rank is deficient
-    to round-off (none: more rows than dofs; the smallest at most :data:`RANK_FLOOR` of the
-    largest)."""
-    if not (singular.size and singular.min() > RANK_FLOOR * singular.max()):
-        return 0.0
-    return value
-
-
-def _inverse(value: float, gradient: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """``(e (1,), de/dq (1, nv))`` of the inverse manipulability ``e = 1 / m`` from ``m``
-    and its gradient (``gradient`` None: the error alone, an empty Jacobian); 0 and a zero
-    row where ``m`` is 0 or ``1 / m^2`` is not a finite number."""
-    scale = 1.0 / (value * value) if value > 0.0 else np.inf
-    if gradient is None:
-        return np.array([1.0 / value if np.isfinite(scale) else 0.0]), np.zeros((1, 0))
-    if not np.isfinite(scale):
-        return np.array([0.0]), np.zeros((1, gradient.shape[0]))
-    return np.array([1.0 / value]), (-scale * gradient)[None, :]

@@ -374,26 +374,50 @@ def test_manipulability_is_a_task_of_the_kernel():
     assert v.tobytes() == fresh.step(own, DT).velocity.tobytes()
 
 
-def test_manipulability_on_a_floating_base_supplies_its_rows():
-    """A manipulability task whose frame a free joint moves (its axes turn with it: the
-    closed-form Hessian does not hold) is not the kernel's: its rows are supplied from its
-    own methods (NumPy's SVD and mj_jacDot), and the step still answers."""
-    xml = """<mujoco><worldbody><body name="base"><freejoint/><geom size=".1"/>
-      <body name="l1" pos="0 0 .1"><joint name="j1" axis="0 0 1"/><geom size=".05"/>
-      <body name="l2" pos=".3 0 0"><joint name="j2" axis="0 1 0"/><geom size=".05"/>
-      <site name="tip" pos=".3 0 0"/></body></body></body></worldbody></mujoco>"""
+def test_manipulability_on_a_floating_base_is_the_kernels_too():
+    """A manipulability task whose frame free and ball joints move (besides hinges and
+    slides, a ball after a hinge on one body) is a task of the kernel too: the kinematic
+    Hessian of any chain (hessian_weights_any, each dof's threshold from
+    qpik.model.gradients.motion_chain) gives mj_jacDot's gradient (the former rows: NumPy's
+    SVD and one mj_jacDot per dof, manipulability_parts) to 1e-11, for the pose and the
+    position rows, and over a closed loop the step equals the QP path's."""
     import mujoco
 
+    from qpik.diffik.layout import MANIPULABILITY_KIND
+    from qpik.model.gradients import manipulability_parts
+
+    xml = """<mujoco><worldbody><body name="base" pos="0 0 .1"><freejoint/><geom size=".1"/>
+      <body name="l1" pos="0 0 .1"><joint type="ball"/>
+        <geom type="capsule" fromto="0 0 0 0 0 .3" size=".03"/>
+      <body name="l2" pos="0 0 .3"><joint axis="0 1 0"/><joint type="slide" axis="1 0 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 .3" size=".03"/>
+      <body name="l3" pos="0 0 .3"><joint axis="1 0 0"/><joint type="ball"/><geom size=".03"/>
+        <site name="tip" pos=".05 .02 .1"/></body></body></body></body></worldbody></mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)
     configuration = qpik.Configuration(model)
-    configuration.update(np.r_[0, 0, 0, 1, 0, 0, 0, 0.3, 0.7])
-    manip = qpik.tasks.ManipulabilityTask("tip", "site", rows="position")
+    rng = np.random.default_rng(9)
+    for rows in ("pose", "position"):
+        manip = qpik.tasks.ManipulabilityTask("tip", "site", rows=rows, cost=0.5, lm_damping=1.0)
+        assert manip.chain(configuration)[1] is not None  # (a ball or free joint moves it)
+        for _ in range(20):
+            q = model.qpos0 + rng.uniform(-0.7, 0.7, model.nq)
+            mujoco.mj_normalizeQuat(model, q)
+            configuration.update(q)
+            value, gradient, _ = manipulability_parts(configuration, "tip", "site", rows=rows)
+            expected = -gradient / value**2
+            jacobian = manip.compute_jacobian(configuration)[0]
+            assert np.abs(jacobian - expected).max() <= 1e-11 * np.abs(expected).max()
+            assert abs(manip.compute_error(configuration)[0] - 1.0 / value) <= 1e-11 / value
     posture = qpik.tasks.PostureTask(model, cost=1e-2)
     posture.set_target(configuration.q)
     ik = qpik.IKSolver(model, [[manip], [posture]])
-    assert manip.chain(configuration) is None
-    assert [t for t, *_ in ik._plan.rows_tasks] == [manip]
-    assert np.all(np.isfinite(ik.step(configuration, DT).velocity))
+    assert not ik._plan.rows_tasks
+    assert MANIPULABILITY_KIND in ik._plan.arrays["tasks"][:, 0].tolist()
+    for _ in range(30):
+        v = ik.step(configuration, DT).velocity.copy()
+        qp = ik.qp_solution(configuration, DT).velocity
+        assert v.tobytes() == qp.tobytes() or np.abs(v - qp).max() <= 1e-9
+        configuration.integrate_inplace(v, DT)
 
 
 _LOOP = """<mujoco><option jacobian="{jacobian}"/><worldbody>

@@ -105,6 +105,9 @@ struct FusedArgs {
     // Each frame's dofs as mj_jac visits them (leaf first), frame f's dofs
     // chain_dofs[chain_starts[f]:chain_starts[f + 1]] (Kernel.set_chains; empty: not set).
     VecRefT<const i64> chain_starts, chain_dofs;
+    // Each dof's threshold for manipulability tasks on chains with ball or free joints
+    // (model::hessian_weights_any; Kernel.set_dof_thresholds; null: not set).
+    const i64* dof_threshold = nullptr;
     // Equality-constraint tasks (kind 15, EQUALITY): eq_map (Q, neq + 1) each one's planned
     // rows, then its position of each equality of the model (-1: not its); eq_data (Q, neq
     // + 2) its costs by position, gain, LM damping; efc the MjData's constraint rows
@@ -135,7 +138,8 @@ enum TaskKind : i64 {
     // qpik's ManipulabilityTask (tasks/manipulability.hpp): one row; a frame of the frames
     // table on a chain of hinges and slides, its data row as a pose task's: the number of
     // rows picked at 0 and their indices into [v; omega] from 1 (at most 11), its cost at
-    // kPoseTarget, gain and LM damping after its six cost entries
+    // kPoseTarget, at kPoseTarget + 1 a flag: 1 where a ball or free joint moves the frame
+    // (dof_threshold's Hessian), gain and LM damping after its six cost entries
     MANIPULABILITY = 14,
     // mink's (and qpik's) EqualityConstraintTask (tasks/equality.hpp): its planned rows, from
     // the attached MjData's equality constraint rows; eq_map / eq_data row `index`
@@ -395,7 +399,8 @@ inline double manipulability_task_row(const FusedArgs& a, i64 i, const double* d
                                       i64 row) {
     const i64 n = a.A.cols;
     const i64 m = static_cast<i64>(data[0]);
-    if (a.chain_starts.n <= i + 1 || m < 0 || m > 11) {
+    const bool any_joint = data[tasks::kPoseTarget + 1] != 0.0;
+    if (a.chain_starts.n <= i + 1 || m < 0 || m > 11 || (any_joint && a.dof_threshold == nullptr)) {
         for (i64 c = 0; c < n; ++c) a.A(row, c) = 0.0;
         a.b[row] = std::numeric_limits<double>::quiet_NaN();
         return 0.0;
@@ -408,7 +413,8 @@ inline double manipulability_task_row(const FusedArgs& a, i64 i, const double* d
     if (local.size() < need) local.resize(need);
     double* de = local.data();
     const double e = tasks::inverse_manipulability(a.jac + i * 6 * n, n, idx, m, leaf_last, count, -1,
-                                                   local.data() + n, de);
+                                                   local.data() + n, de, nullptr, nullptr,
+                                                   any_joint ? a.dof_threshold : nullptr);
     const double gain = data[tasks::kPoseTarget + 6], lm = data[tasks::kPoseTarget + 7];
     return tasks::manipulability_row(e, de, n, cost, gain, lm, a.A.row(row), a.b.p + row);
 }

@@ -84,4 +84,54 @@ inline void hessian_weights(const double* jac, const double* W, i64 n, const i64
     }
 }
 
+// hessian_weights on any chain of MuJoCo joints (free and ball joints too): what mj_jacDot
+// gives at each joint velocity e_a (its cdof_dot: mj_comVel's for hinges and slides, the
+// body's whole velocity crossed with cdof for a ball's or a free joint's rotational dofs,
+// zero for a free joint's translational ones; and the point's own velocity). Column b's
+// axis moves with dof a exactly where a < threshold[b] (threshold (nv,) by dof: b itself
+// for a hinge or slide, its body's last dof + 1 for a ball's or a free joint's rotational
+// dof, 0 for a free joint's translational dof: qpik.model.gradients.motion_chain). Then
+// dJ_w,b/dq_a = J_w,a x J_w,b there (else 0) and dJ_v,b/dq_a = J_w,a x J_v,b there, else
+// J_w,b x J_v,a, so out[a] = J_w,a . sum_{b: a < t_b} (J_w,b x W_w,b + J_v,b x W_v,b) +
+// J_v,a . sum_{b: a >= t_b} (W_v,b x J_w,b); out's other entries 0. O(m^2) in the chain's
+// length; the chain read as in hessian_weights.
+inline void hessian_weights_any(const double* jac, const double* W, i64 n, const i64* chain, i64 m, double* out,
+                                i64 stride, const i64* threshold, double* scratch /* 6 m */) {
+    for (i64 k = 0; k < n; ++k) out[k] = 0.0;
+    auto at = [n](const double* M, int r, i64 c) { return M[r * n + c]; };
+    auto cross = [](const double* u, const double* v, double* w) {
+        w[0] = u[1] * v[2] - u[2] * v[1];
+        w[1] = u[2] * v[0] - u[0] * v[2];
+        w[2] = u[0] * v[1] - u[1] * v[0];
+    };
+    double* P = scratch;      // (m, 3): J_w,b x W_w,b + J_v,b x W_v,b
+    double* Q = scratch + 3 * m;  // (m, 3): W_v,b x J_w,b
+    for (i64 e = 0; e < m; ++e) {
+        const i64 b = chain[e * stride];
+        double jw[3], jv[3], ww[3], wv[3], t1[3], t2[3];
+        for (int r = 0; r < 3; ++r) {
+            jv[r] = at(jac, r, b);
+            jw[r] = at(jac, 3 + r, b);
+            wv[r] = at(W, r, b);
+            ww[r] = at(W, 3 + r, b);
+        }
+        cross(jw, ww, t1);
+        cross(jv, wv, t2);
+        for (int r = 0; r < 3; ++r) P[3 * e + r] = t1[r] + t2[r];
+        cross(wv, jw, Q + 3 * e);
+    }
+    for (i64 ea = 0; ea < m; ++ea) {
+        const i64 a = chain[ea * stride];
+        double moved[3] = {0.0, 0.0, 0.0}, still[3] = {0.0, 0.0, 0.0};
+        for (i64 e = 0; e < m; ++e) {
+            const i64 b = chain[e * stride];
+            double* sum = a < threshold[b] ? moved : still;
+            const double* term = a < threshold[b] ? P + 3 * e : Q + 3 * e;
+            for (int r = 0; r < 3; ++r) sum[r] += term[r];
+        }
+        out[a] = (at(jac, 3, a) * moved[0] + at(jac, 4, a) * moved[1] + at(jac, 5, a) * moved[2]) +
+                 (at(jac, 0, a) * still[0] + at(jac, 1, a) * still[1] + at(jac, 2, a) * still[2]);
+    }
+}
+
 }  // namespace qpik::model

@@ -1,8 +1,9 @@
 // qpik's ManipulabilityTask: error e = 1 / m(q), m = sqrt(det J J^T) of the rows `idx` of a
 // frame's world-aligned Jacobian [v; omega], and its Jacobian de/dq = -(dm/dq) / m^2, with
 // dm/dq_a = <dJ/dq_a, W>, W = U diag(c) V^T (c_i = prod_{j != i} s_j) from the SVD J = U S
-// V^T, dJ/dq by the kinematic Hessian in closed form on a chain of hinges and slides
-// (model/jac.hpp hessian_weights). The task is idle (e = 0, a zero row) where m is 0 to
+// V^T, dJ/dq by the kinematic Hessian in closed form (model/jac.hpp: hessian_weights on a
+// chain of hinges and slides, hessian_weights_any where a ball or free joint moves the frame:
+// what mj_jacDot gives). The task is idle (e = 0, a zero row) where m is 0 to
 // round-off: more rows than dofs, the smallest singular value at most kRankFloor of the
 // largest (qpik.tasks.secondary.RANK_FLOOR), or 1 / m^2 not a finite number. One routine
 // for the compiled step (diffik/fused.hpp) and the task's own methods on the QP path
@@ -87,16 +88,18 @@ inline double exponent_product(const double* s, i64 m) {
     return std::ldexp(mant, static_cast<int>(expo));
 }
 
-inline i64 manipulability_scratch(i64 m, i64 n) { return (m + 7) * n + m * m + 2 * m; }
+inline i64 manipulability_scratch(i64 m, i64 n) { return (m + 7) * n + m * m + 2 * m + 6 * n; }
 
 // e = 1 / m(q) (returned) and de/dq into de (n) of the rows idx[0:m] of jac (6, n), the frame's
-// dofs chain[0], chain[stride], ... (count of them, root first: hessian_weights' order);
+// dofs chain[0], chain[stride], ... (count of them, root first: hessian_weights' order; a
+// chain of hinges and slides where threshold is null, else any chain, its dofs' thresholds
+// those of model::hessian_weights_any);
 // 0 and a zero row where the task is idle (see above). scratch: at least
 // manipulability_scratch(m, n) doubles. value (optional): m(q) where the task is not idle, else 0; singular (optional, m):
 // the singular values, rows' order.
 inline double inverse_manipulability(const double* jac, i64 n, const i64* idx, i64 m, const i64* chain, i64 count,
                                      i64 stride, double* scratch, double* de, double* value = nullptr,
-                                     double* singular = nullptr) {
+                                     double* singular = nullptr, const i64* threshold = nullptr) {
     for (i64 j = 0; j < n; ++j) de[j] = 0.0;
     if (value != nullptr) *value = 0.0;
     if (m > n || m == 0) return 0.0;
@@ -106,6 +109,7 @@ inline double inverse_manipulability(const double* jac, i64 n, const i64* idx, i
     double* Q = grad + n;         // (m, m)
     double* s = Q + m * m;        // (m)
     double* c = s + m;            // (m)
+    double* hs = c + m;           // (6 n): hessian_weights_any's
     double scale = 0.0;
     for (i64 i = 0; i < m; ++i)
         for (i64 j = 0; j < n; ++j) scale = std::max(scale, std::fabs(jac[idx[i] * n + j]));
@@ -140,7 +144,10 @@ inline double inverse_manipulability(const double* jac, i64 n, const i64* idx, i
             for (i64 j = 0; j < n; ++j) wr[j] += f * vi[j];
         }
     }
-    model::hessian_weights(jac, W, n, chain, count, grad, stride);
+    if (threshold == nullptr)
+        model::hessian_weights(jac, W, n, chain, count, grad, stride);
+    else
+        model::hessian_weights_any(jac, W, n, chain, count, grad, stride, threshold, hs);
     for (i64 j = 0; j < n; ++j) de[j] = -inv2 * grad[j];
     return 1.0 / m_q;
 }
