@@ -433,18 +433,36 @@ def _timing_free_joint(calls: int) -> None:
     from example-robot-data: feet, CoM, a hand and posture in one weighted level; position,
     velocity and free-joint velocity limits; DAQP), in closed loop (mink's answer
     integrated, so that the base turns): qpik's compiled step takes the limit's angular
-    bounds into its box and its linear rows as general rows."""
-    import mink
-    import numpy as np
+    bounds into its box and its linear rows as general rows. Then the same with two
+    secondary objectives added: qpik's ManipulabilityTask on the other hand (its chain
+    through the free joint: the kernel's Hessian of any chain; mink.solve_ik through the
+    task's own methods) and mink's KineticEnergyRegularizationTask."""
 
     import qpik
-    from qpik.limits import velocity_limit_from_model
 
     try:
         model = qpik.load_robot("erd:talos", floating_base=True)
     except qpik.QpikError as exc:  # (the robots extra: example-robot-data)
         print(f"\nfree-joint velocity limit: skipped ({exc})")
         return
+    for extra in (False, True):
+        m, q, worst = _free_joint_loop(model, calls, extra)
+        what = " + manipulability + kinetic energy" if extra else ""
+        print(
+            f"\nfloating Talos (erd:talos), feet + CoM + hand + posture{what}, "
+            f"FreeJointVelocityLimit, {calls} closed-loop calls, DAQP: mink {m:.1f} us, "
+            f"qpik {q:.1f} us, ratio {q / m:.2f}, max |dv| {worst:.2e}"
+        )
+
+
+def _free_joint_loop(model, calls: int, extra: bool) -> tuple[float, float, float]:
+    """:func:`_timing_free_joint`'s closed loop: ``(mink's median [us], qpik's, max |dv|)``."""
+    import mink
+    import numpy as np
+
+    import qpik
+    from qpik.limits import velocity_limit_from_model
+
     home = model.key("half_sitting").qpos.copy()
     configuration = mink.Configuration(model, home)
     feet = [
@@ -460,6 +478,13 @@ def _timing_free_joint(calls: int) -> None:
     posture = mink.PostureTask(model, 0.1)
     posture.set_target(home)
     tasks = [*feet, com, hand, posture]
+    if extra:
+        reach = qpik.tasks.ManipulabilityTask(
+            "gripper_right_base_link", "body", rows="position", cost=0.01, lm_damping=30.0
+        )
+        energy = mink.KineticEnergyRegularizationTask(cost=1e-4)
+        energy.set_dt(0.01)
+        tasks += [reach, energy]
     free = mink.FreeJointVelocityLimit(model, max_linear_velocity=0.2, max_angular_velocity=0.3)
     limits = [mink.ConfigurationLimit(model), velocity_limit_from_model(model), free]
     times: dict[str, list[float]] = {"mink": [], "qpik": []}
@@ -478,11 +503,7 @@ def _timing_free_joint(calls: int) -> None:
         worst = max(worst, float(np.abs(answers["mink"] - answers["qpik"]).max()))
         configuration.integrate_inplace(answers["mink"], 0.01)
     m, q = (1e6 * float(np.median(times[k])) for k in ("mink", "qpik"))
-    print(
-        f"\nfloating Talos (erd:talos), feet + CoM + hand + posture, FreeJointVelocityLimit, "
-        f"{calls} closed-loop calls, DAQP: mink {m:.1f} us, qpik {q:.1f} us, ratio {q / m:.2f}, "
-        f"max |dv| {worst:.2e}"
-    )
+    return m, q, worst
 
 
 # ----------------------------------------------------------------- mink's example scripts
