@@ -166,12 +166,7 @@ def hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
     cached = _CHAINS.get(key)
     if cached is not None and cached[0] is model:
         return cached[1]
-    dofs: list[int] = []
-    b = body
-    while b > 0:
-        start, count = int(model.body_dofadr[b]), int(model.body_dofnum[b])
-        dofs.extend(range(start + count - 1, start - 1, -1))
-        b = int(model.body_parentid[b])
+    dofs = _body_dofs(model, body)
     kinds = {int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)}
     simple = all(int(model.jnt_type[model.dof_jntid[d]]) in kinds for d in dofs)
     chain = np.array(sorted(dofs), dtype=np.int64) if simple else None
@@ -179,6 +174,17 @@ def hinge_slide_chain(model: mujoco.MjModel, body: int) -> np.ndarray | None:
         _CHAINS.clear()
     _CHAINS[key] = (model, chain)
     return chain
+
+
+def _body_dofs(model: mujoco.MjModel, body: int) -> list[int]:
+    """The dofs of ``body`` and of every body above it (unsorted)."""
+    dofs: list[int] = []
+    b = body
+    while b > 0:
+        start, count = int(model.body_dofadr[b]), int(model.body_dofnum[b])
+        dofs.extend(range(start, start + count))
+        b = int(model.body_parentid[b])
+    return dofs
 
 
 def motion_chain(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarray | None]:
@@ -198,13 +204,7 @@ def motion_chain(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarr
     cached = _MOTION.get(key)
     if cached is not None and cached[0] is model:
         return cached[1]
-    dofs: list[int] = []
-    b = body
-    while b > 0:
-        start, count = int(model.body_dofadr[b]), int(model.body_dofnum[b])
-        dofs.extend(range(start, start + count))
-        b = int(model.body_parentid[b])
-    answer = np.array(sorted(dofs), dtype=np.int64), _dof_thresholds(model)
+    answer = np.array(sorted(_body_dofs(model, body)), dtype=np.int64), _dof_thresholds(model)
     if len(_MOTION) >= 64:
         _MOTION.clear()
     _MOTION[key] = (model, answer)

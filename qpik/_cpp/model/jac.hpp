@@ -34,6 +34,28 @@ inline void chain_point_jacobian(const double* cdof, i64 n, const i64* dofs, i64
     }
 }
 
+namespace detail {
+
+// w = u x v.
+inline void hessian_cross(const double* u, const double* v, double* w) {
+    w[0] = u[1] * v[2] - u[2] * v[1];
+    w[1] = u[2] * v[0] - u[0] * v[2];
+    w[2] = u[0] * v[1] - u[1] * v[0];
+}
+
+// Column a of J = [J_v; J_w] and of W (6, n): jv, jw, wv, ww (3 each).
+inline void hessian_columns(const double* jac, const double* W, i64 n, i64 a, double* jv, double* jw, double* wv,
+                            double* ww) {
+    for (int r = 0; r < 3; ++r) {
+        jv[r] = jac[r * n + a];
+        jw[r] = jac[(3 + r) * n + a];
+        wv[r] = W[r * n + a];
+        ww[r] = W[(3 + r) * n + a];
+    }
+}
+
+}  // namespace detail
+
 // <dJ/dq_a, W> for every dof a: J = [J_v; J_w] (6, n, row-major) a frame's Jacobian at its
 // point, W (6, n) weights, on a chain of hinges and slides (chain[0:m]: its dofs, root first,
 // each one's axis and anchor moved by the ones before it; a slide's J_w is 0). The columns'
@@ -48,22 +70,13 @@ inline void hessian_weights(const double* jac, const double* W, i64 n, const i64
                             i64 stride = 1) {
     for (i64 k = 0; k < n; ++k) out[k] = 0.0;
     auto at = [n](const double* M, int r, i64 c) { return M[r * n + c]; };
-    auto cross = [](const double* u, const double* v, double* w) {
-        w[0] = u[1] * v[2] - u[2] * v[1];
-        w[1] = u[2] * v[0] - u[0] * v[2];
-        w[2] = u[0] * v[1] - u[1] * v[0];
-    };
+    const auto cross = detail::hessian_cross;
     double after[3] = {0.0, 0.0, 0.0};  // sum over b > a of J_w,b x W_w,b (a from the last)
     double on[3] = {0.0, 0.0, 0.0};     // sum over b >= a of J_v,b x W_v,b
     for (i64 e = m - 1; e >= 0; --e) {
         const i64 a = chain[e * stride];
         double jw[3], jv[3], ww[3], wv[3], t[3];
-        for (int r = 0; r < 3; ++r) {
-            jv[r] = at(jac, r, a);
-            jw[r] = at(jac, 3 + r, a);
-            wv[r] = at(W, r, a);
-            ww[r] = at(W, 3 + r, a);
-        }
+        detail::hessian_columns(jac, W, n, a, jv, jw, wv, ww);
         cross(jv, wv, t);
         for (int r = 0; r < 3; ++r) on[r] += t[r];
         out[a] = jw[0] * (after[0] + on[0]) + jw[1] * (after[1] + on[1]) + jw[2] * (after[2] + on[2]);
@@ -99,22 +112,13 @@ inline void hessian_weights_any(const double* jac, const double* W, i64 n, const
                                 i64 stride, const i64* threshold, double* scratch /* 6 m */) {
     for (i64 k = 0; k < n; ++k) out[k] = 0.0;
     auto at = [n](const double* M, int r, i64 c) { return M[r * n + c]; };
-    auto cross = [](const double* u, const double* v, double* w) {
-        w[0] = u[1] * v[2] - u[2] * v[1];
-        w[1] = u[2] * v[0] - u[0] * v[2];
-        w[2] = u[0] * v[1] - u[1] * v[0];
-    };
+    const auto cross = detail::hessian_cross;
     double* P = scratch;      // (m, 3): J_w,b x W_w,b + J_v,b x W_v,b
     double* Q = scratch + 3 * m;  // (m, 3): W_v,b x J_w,b
     for (i64 e = 0; e < m; ++e) {
         const i64 b = chain[e * stride];
         double jw[3], jv[3], ww[3], wv[3], t1[3], t2[3];
-        for (int r = 0; r < 3; ++r) {
-            jv[r] = at(jac, r, b);
-            jw[r] = at(jac, 3 + r, b);
-            wv[r] = at(W, r, b);
-            ww[r] = at(W, 3 + r, b);
-        }
+        detail::hessian_columns(jac, W, n, b, jv, jw, wv, ww);
         cross(jw, ww, t1);
         cross(jv, wv, t2);
         for (int r = 0; r < 3; ++r) P[3 * e + r] = t1[r] + t2[r];
