@@ -846,22 +846,13 @@ class Kernel {
                     const Int32In1& rowadr, const Int32In1& colind, bool sparse) {
         efc_.reset();  // (until these check: every equality-constraint task declines)
         if (attached_) go_args_.efc = nullptr;
-        const i64 nefc = dim(pos, 0), size = dim(J, 0);
-        if (dim(type, 0) != nefc || dim(id, 0) != nefc) return false;
-        if (sparse) {
-            if (dim(rownnz, 0) != nefc || dim(rowadr, 0) != nefc || dim(colind, 0) != size) return false;
-            for (i64 r = 0; r < nefc; ++r)
-                if (rownnz.data()[r] < 0 || rowadr.data()[r] < 0 ||
-                    static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] > size)
-                    return false;
-            for (i64 t = 0; t < size; ++t)
-                if (colind.data()[t] < 0 || colind.data()[t] >= n_) return false;
-        } else if (size < nefc * n_) {  // (MuJoCo may keep efc_J longer: its first nefc * nv)
+        const tasks::EfcRows rows{dim(pos, 0), n_, sparse, J.data(), pos.data(), type.data(), id.data(),
+                                  rownnz.data(), rowadr.data(), colind.data()};
+        if (!tasks::efc_rows_fit(rows, dim(J, 0), dim(type, 0), dim(id, 0), dim(rownnz, 0), dim(rowadr, 0),
+                                 dim(colind, 0)))
             return false;
-        }
         efc_ = Efc{J, pos, type, id, rownnz, rowadr, colind};
-        efc_rows_ = tasks::EfcRows{nefc, n_, sparse, J.data(), pos.data(), type.data(), id.data(),
-                                   rownnz.data(), rowadr.data(), colind.data()};
+        efc_rows_ = rows;
         if (attached_) go_args_.efc = &efc_rows_;
         return true;
     }

@@ -136,27 +136,16 @@ void bind_tasks(nb::module_& m) {
            In1 cost, double gain, double lm) {
             const i64 nefc = static_cast<i64>(pos.shape(0)), size = static_cast<i64>(J.shape(0));
             const i64 neq = static_cast<i64>(position.shape(0));
-            require(nv >= 0 && static_cast<i64>(type.shape(0)) == nefc && static_cast<i64>(id.shape(0)) == nefc,
-                    "equality_rows: efc_type and efc_id must have nefc entries");
-            if (sparse) {
-                require(static_cast<i64>(rownnz.shape(0)) == nefc && static_cast<i64>(rowadr.shape(0)) == nefc &&
-                            static_cast<i64>(colind.shape(0)) == size,
-                        "equality_rows: the sparse rows must have nefc entries, colind efc_J's length");
-                for (i64 r = 0; r < nefc; ++r)
-                    require(rownnz.data()[r] >= 0 && rowadr.data()[r] >= 0 &&
-                                static_cast<i64>(rowadr.data()[r]) + rownnz.data()[r] <= size,
-                            "equality_rows: a sparse row is out of range of efc_J");
-                for (i64 t = 0; t < size; ++t)
-                    require(colind.data()[t] >= 0 && colind.data()[t] < nv, "equality_rows: a column is out of range");
-            } else {
-                // (MuJoCo may keep efc_J longer than nefc * nv: its first nefc * nv entries)
-                require(size >= nefc * nv, "equality_rows: a dense efc_J must have nefc * nv entries");
-            }
+            require(nv >= 0, "equality_rows: nv must be >= 0");
+            const tasks::EfcRows efc{nefc, nv, sparse, J.data(), pos.data(), type.data(), id.data(),
+                                     rownnz.data(), rowadr.data(), colind.data()};
+            const auto len = [](const auto& x) { return static_cast<i64>(x.shape(0)); };
+            require(tasks::efc_rows_fit(efc, size, len(type), len(id), len(rownnz), len(rowadr), len(colind)),
+                    "equality_rows: MuJoCo's constraint arrays do not fit (efc_type and efc_id nefc entries; "
+                    "sparse, each row within efc_J and its columns in [0, nv); dense, efc_J nefc * nv long)");
             for (i64 e = 0; e < neq; ++e)
                 require(position.data()[e] >= -1 && position.data()[e] < static_cast<i64>(cost.shape(0)),
                         "equality_rows: a position is out of range of cost");
-            const tasks::EfcRows efc{nefc, nv, sparse, J.data(), pos.data(), type.data(), id.data(),
-                                     rownnz.data(), rowadr.data(), colind.data()};
             std::vector<double> A(static_cast<size_t>(nefc * nv)), b(static_cast<size_t>(nefc)),
                 w(static_cast<size_t>(nefc));
             double mu = 0.0;

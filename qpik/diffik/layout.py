@@ -229,7 +229,7 @@ def plan_arrays(
             picked = task.row_indices
             frame_data[f, 0], frame_data[f, 1 : 1 + len(picked)] = len(picked), picked
             # (1: a ball or free joint moves it, the kernel's dof thresholds)
-            frame_data[f, POSE_COST + 1] = manipulability_thresholds(model, frame) is not None
+            frame_data[f, POSE_COST + 1] = free_or_ball_chain(model, frame)
     lin_const = np.zeros((int(lin_starts[-1]), nv + nq + 1))
     for (_, form, jacobian), r0, r1 in zip(layout.linears, lin_starts[:-1], lin_starts[1:]):
         lin_const[r0:r1, :nv] = jacobian
@@ -449,12 +449,12 @@ def _manipulability_fits(model: mujoco.MjModel, task: ManipulabilityTask) -> boo
     )
 
 
-def manipulability_thresholds(model: mujoco.MjModel, frame: tuple[int, int]) -> np.ndarray | None:
-    """The dofs' Hessian thresholds where a ball or free joint moves a manipulability task's
-    frame ``(kind, id)`` (:func:`qpik.model.gradients.motion_chain`), else None."""
+def free_or_ball_chain(model: mujoco.MjModel, frame: tuple[int, int]) -> bool:
+    """Whether a ball or free joint moves a manipulability task's frame ``(kind, id)`` (the
+    kernel then takes the dofs' Hessian thresholds: :func:`qpik.model.gradients.motion_chain`)."""
     kind, fid = frame
     body = fid if kind == 1 else int((model.site_bodyid, model.geom_bodyid)[kind // 2][fid])
-    return motion_chain(model, body)[1]
+    return motion_chain(model, body)[1] is not None
 
 
 def _linear_form(model: mujoco.MjModel, task) -> tuple | None:

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from ..core import HierarchySolver
+from ..model.gradients import dof_thresholds
 from ..model.inertia import inertia_tree
 from ..tasks.secondary import ManipulabilityTask
 from .boxes import LimitBoxes
@@ -23,7 +24,6 @@ from .layout import (
     POSE_KINDS,
     POSE_TARGETS,
     limit_layout,
-    manipulability_thresholds,
     plan_arrays,
     task_layout,
 )
@@ -101,13 +101,11 @@ def make_plan(
         a["rel_jac"], a["rel_frames"], a["rel_data"], model.nq, a["user_mu"], a["lin_starts"],
         a["lin_const"], a["lin_data"], a["ke_data"], a["eq_map"], a["eq_data"],
     )  # fmt: skip
-    for task, *frame in layout.frames:  # (a manipulability task's frame on a ball or free joint)
-        thresholds = (
-            manipulability_thresholds(model, frame) if type(task) is ManipulabilityTask else None
-        )
-        if thresholds is not None:
-            kernel.set_dof_thresholds(thresholds)
-            break
+    if any(  # (a manipulability task whose frame a ball or free joint moves: plan_arrays' flag)
+        type(task) is ManipulabilityTask and a["frame_data"][f, POSE_COST + 1]
+        for f, (task, *_) in enumerate(layout.frames)
+    ):
+        kernel.set_dof_thresholds(dof_thresholds(model))
     if layout.kinetics:  # (the model's tree: the kernel makes M(q) at each step)
         tree = inertia_tree(model)
         assert tree is not None  # (task_layout placed them only where it is)

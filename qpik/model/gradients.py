@@ -10,11 +10,13 @@ import numpy as np
 from ..core import checks
 from ..core.jacobian import Rows, entry_scale, row_indices, singular_value_product
 from .configuration import Configuration, FrameType
+from .frames import FRAME_POSITIONS
 from .kernels import hessian_weights
 from .scratch import scratch_data
 
 __all__ = [
     "check_configuration",
+    "dof_thresholds",
     "frame_body",
     "frame_point",
     "hinge_slide_chain",
@@ -31,12 +33,8 @@ def frame_point(
 ) -> tuple[np.ndarray, int]:
     """World position of the frame origin in ``data`` and the body it moves with."""
     fid = configuration.frame_id(frame, frame_type)
-    model = configuration.model
-    if frame_type is FrameType.SITE:
-        return data.site_xpos[fid].copy(), int(model.site_bodyid[fid])
-    if frame_type is FrameType.GEOM:
-        return data.geom_xpos[fid].copy(), int(model.geom_bodyid[fid])
-    return data.xpos[fid].copy(), fid
+    point = getattr(data, FRAME_POSITIONS[frame_type])[fid].copy()
+    return point, frame_body(configuration.model, fid, frame_type)
 
 
 def frame_body(model: mujoco.MjModel, fid: int, frame_type: FrameType) -> int:
@@ -204,7 +202,7 @@ def motion_chain(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarr
     cached = _MOTION.get(key)
     if cached is not None and cached[0] is model:
         return cached[1]
-    answer = np.array(sorted(_body_dofs(model, body)), dtype=np.int64), _dof_thresholds(model)
+    answer = np.array(sorted(_body_dofs(model, body)), dtype=np.int64), dof_thresholds(model)
     if len(_MOTION) >= 64:
         _MOTION.clear()
     _MOTION[key] = (model, answer)
@@ -215,8 +213,9 @@ def motion_chain(model: mujoco.MjModel, body: int) -> tuple[np.ndarray, np.ndarr
 _MOTION: dict[tuple[int, int], tuple[mujoco.MjModel, tuple[np.ndarray, np.ndarray]]] = {}
 
 
-def _dof_thresholds(model: mujoco.MjModel) -> np.ndarray:
-    """:func:`motion_chain`'s thresholds (nv,) of every dof of ``model``."""
+def dof_thresholds(model: mujoco.MjModel) -> np.ndarray:
+    """:func:`motion_chain`'s thresholds (nv,) int64 of every dof of ``model`` (a model's
+    own: the same for every chain in it)."""
     thresholds = np.arange(model.nv, dtype=np.int64)
     free, ball = int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJoint.mjJNT_BALL)
     for j in range(model.njnt):

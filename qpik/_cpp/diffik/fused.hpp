@@ -392,6 +392,18 @@ inline double joint_limits_value(const FusedArgs& a, i64 r0) {
     return tasks::joint_limit_distance_value(a.qpos.p, n, joint_limits_slots(a, r0), a.lin_const(r0, n + nq));
 }
 
+// A task's rows row:row+size that the kernel does not make at this step (a kinetic-energy
+// task's H not factored, an equality task's rows not its planned count, a manipulability
+// task without its chain): zero, with a NaN target in the first, which sends the step to
+// the QP path (fused_rows_into: NOT_FINITE), whose rows the task's own routine makes.
+inline void decline_rows(const FusedArgs& a, i64 row, i64 size) {
+    for (i64 r = row; r < row + size; ++r) {
+        for (i64 c = 0; c < a.A.cols; ++c) a.A(r, c) = 0.0;
+        a.b[r] = 0.0;
+    }
+    if (size > 0) a.b[row] = std::numeric_limits<double>::quiet_NaN();
+}
+
 // A manipulability task's row (frame i's Jacobian, its data row `data`: the rows picked, gain
 // and LM damping) into row `row` of A and b; returns its LM term. Without the frame's chain
 // (never set) or with more rows picked than its data row holds: a NaN target (the QP path).
@@ -401,8 +413,7 @@ inline double manipulability_task_row(const FusedArgs& a, i64 i, const double* d
     const i64 m = static_cast<i64>(data[0]);
     const bool any_joint = data[tasks::kPoseTarget + 1] != 0.0;
     if (a.chain_starts.n <= i + 1 || m < 0 || m > 11 || (any_joint && a.dof_threshold == nullptr)) {
-        for (i64 c = 0; c < n; ++c) a.A(row, c) = 0.0;
-        a.b[row] = std::numeric_limits<double>::quiet_NaN();
+        decline_rows(a, row, 1);
         return 0.0;
     }
     i64 idx[11];
@@ -467,13 +478,8 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
         if (kind == KINETIC) {  // (cost / dt^2) M factored; declined: a NaN target, the QP path
             const double* data = a.ke_data.row(i);
             if (static_cast<i64>(local.size()) < n * n) local.resize(static_cast<size_t>(n * n));
-            if (!tasks::kinetic_rows_into(a.A, a.b.p, row, a.inertia, n, data[0] * data[1], local.data())) {
-                for (i64 r = row; r < row + n; ++r) {  // (H not factored here: the QP path's rows)
-                    for (i64 c = 0; c < n; ++c) a.A(r, c) = 0.0;
-                    a.b[r] = 0.0;
-                }
-                a.b[row] = std::numeric_limits<double>::quiet_NaN();
-            }
+            if (!tasks::kinetic_rows_into(a.A, a.b.p, row, a.inertia, n, data[0] * data[1], local.data()))
+                decline_rows(a, row, n);  // (H not factored here: the QP path's rows)
             for (i64 r = 0; r < n; ++r) diag[static_cast<size_t>(row + r)] = -1;
             for (i64 r = 0; r < n; ++r) a.w[row + r] = 1.0;
             continue;
@@ -487,12 +493,8 @@ inline void assemble_rows(const FusedArgs& a, i64 L, Vec& reg, Vec& local, IVec&
                                                                        a.eq_map.row(i) + 1, neq, data,
                                                                        data[cols - 2], data[cols - 1], mu_t);
             if (k != planned) {
-                for (i64 r = row; r < row + planned; ++r) {
-                    for (i64 c = 0; c < n; ++c) a.A(r, c) = 0.0;
-                    a.b[r] = 0.0;
-                    a.w[r] = 1.0;
-                }
-                if (planned > 0) a.b[row] = std::numeric_limits<double>::quiet_NaN();
+                decline_rows(a, row, planned);
+                for (i64 r = row; r < row + planned; ++r) a.w[r] = 1.0;
                 mu_t = 0.0;
             }
             for (i64 r = 0; r < planned; ++r) diag[static_cast<size_t>(row + r)] = -1;

@@ -31,6 +31,22 @@ struct EfcRows {
     const std::int32_t* colind = nullptr;
 };
 
+// Whether efc's arrays hold rows as equality_rows_into reads them, given their lengths
+// (efc_J's `size`; efc_type's, efc_id's, and the sparse rownnz, rowadr and colind arrays'):
+// efc_type and efc_id nefc entries; sparse, every row within efc_J and its columns in [0,
+// nv); dense, efc_J at least nefc * nv long (MuJoCo may keep it longer: its first nefc * nv).
+inline bool efc_rows_fit(const EfcRows& efc, i64 size, i64 ntype, i64 nid, i64 nrownnz, i64 nrowadr, i64 ncolind) {
+    if (ntype != efc.nefc || nid != efc.nefc) return false;
+    if (!efc.sparse) return size >= efc.nefc * efc.nv;
+    if (nrownnz != efc.nefc || nrowadr != efc.nefc || ncolind != size) return false;
+    for (i64 r = 0; r < efc.nefc; ++r)
+        if (efc.rownnz[r] < 0 || efc.rowadr[r] < 0 || static_cast<i64>(efc.rowadr[r]) + efc.rownnz[r] > size)
+            return false;
+    for (i64 t = 0; t < size; ++t)
+        if (efc.colind[t] < 0 || efc.colind[t] >= efc.nv) return false;
+    return true;
+}
+
 // The task's rows into rows row:row+k of A and b, their costs into w (k returned; at most
 // max_rows written, -1 where more rows belong to the task): position[e] is the task's
 // position of equality e (neq entries, -1: not the task's), cost[position] its cost. mu
