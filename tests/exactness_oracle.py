@@ -334,6 +334,19 @@ def lexicographic(problem: Problem):
     return xs, certified
 
 
+def reference_answer(hierarchy, kind: str = "tight_boxes") -> np.ndarray:
+    """The reference's final answer to ``hierarchy`` (any object with ``levels`` of ``A``,
+    ``b`` and ``regularization``, ``lb``, ``ub``, ``G`` and ``h``: a
+    :class:`qpik.core.HierarchyProblem`, read as arrays), every level certified."""
+    problem = Problem(
+        [(level.A, level.b, level.regularization) for level in hierarchy.levels],
+        hierarchy.lb, hierarchy.ub, hierarchy.G, hierarchy.h, kind, True,
+    )  # fmt: skip
+    xs, certified = lexicographic(problem)
+    assert all(certified)
+    return xs[-1]
+
+
 def level_reference(problem: Problem, k: int, x_held: np.ndarray):
     """Level ``k`` alone, the levels above held at ``x_held``'s task values (``A_j x =
     A_j x_held``, j < k) and the limits kept, from ``x_held`` (feasible): ``(x, certified)``

@@ -1830,6 +1830,12 @@ inline void independent_rows(CMatRef C, const IVec& rows, const IVec& sides, i64
     }
 }
 
+// The level's candidate on a working set (set_candidate, below exact_level): the row-space
+// form on a row-space level of box rows, else eq_candidate's.
+inline bool set_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, CMatRef Z, const double* d,
+                          CVecRef lb, CVecRef ub, const IVec& rows, const IVec& sides, i64 q, const QPScratch* made,
+                          CertScratch& es, Vec& z, Vec& u);
+
 // exact_level's second primal active set (after the first's candidate failed): a row within
 // this of the working set's span never blocks (kNearDependent in the first).
 constexpr double kNearDependentRetry = 1e-6;
@@ -1920,11 +1926,13 @@ inline bool exact_level(const QPResult& sol, const LSForm& ls, const ReducedQP& 
             }
             best = cert.worst();
         }
-        if (!have_dual && q > 0 && eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, made, es, zc, u)) {
+        if (!have_dual && q > 0 &&
+            set_candidate(ls, qp, rho, Ak.rows, Z, d.data(), lb, ub, rows, sides, q, made, es, zc, u)) {
             // A damped level with a few active rows: the normal equations' candidate first
-            // (eq_candidate), taken only where its certificate holds; else the QR re-solve
-            // below as before (this candidate's certificate not kept: the same cert, best and
-            // start as without it).
+            // (set_candidate: eq_candidate's, or its row-space form on a level of few rows),
+            // taken only where its certificate holds; else the QR re-solve below as before
+            // (this candidate's certificate not kept: the same cert, best and start as
+            // without it).
             Certificate kept = cert;
             double kept_best = best;
             if (certify(zc)) {
@@ -2393,13 +2401,12 @@ inline bool normal_candidate(const LSForm& ls, const ReducedQP& qp, double rho, 
 constexpr i64 kRowSpaceFew = 8;
 inline bool row_space_level(i64 m, i64 r) { return m < r && (2 * m <= r || m <= kRowSpaceFew); }
 
-// refine false: the first solve alone (K's factor left in es.BW for row_space_refine, which
-// then makes the same bits as refine true).
-inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z);
-inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z, bool refine = true) {
-    i64 r = ls.B.cols;
-    if (!ls.reg || m <= 0 || !row_space_level(m, r) || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
-        return false;
+// The row-space form's factor: with M = A Z (B's first m rows) and s = sqrt(rho) (B's row m),
+// K = M M^T + s^2 I (m x m, its lower triangle) and its Cholesky factor into Lm; false where
+// normal_factor's trace bound fails (trace M M^T + r s^2 > kNormalCond s^2) or the factor
+// does not exist. row_space_candidate's and row_space_set_candidate's.
+inline bool row_space_factor(const LSForm& ls, i64 m, Mat& K, Mat& Lm) {
+    const i64 r = ls.B.cols;
     CMatRef M = ls.B.cref().rows_slice(0, m);
     const double s = ls.B(m, 0);
     const double s2 = s * s;
@@ -2409,16 +2416,27 @@ inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z
         for (i64 j = 0; j < r; ++j) trace += mi[j] * mi[j];
     }
     if (!(s2 > 0.0) || !(trace + static_cast<double>(r) * s2 <= kNormalCond * s2)) return false;
-    Mat& K = es.N;  // (normal_factor's storage: free_answer takes one candidate or the other)
     K.zeros(m, m);
     for (i64 i = 0; i < m; ++i) {
         for (i64 j = 0; j <= i; ++j) K(i, j) = dot(M.row(i), M.row(j), r);
         K(i, i) += s2;
     }
-    Mat& Lm = es.BW;
     Lm.zeros(m, m);
-    if (!cholesky_into(K.cref(), m, 0.0, Lm.ref())) return false;
-    CMatRef L = Lm.cref();
+    return cholesky_into(K.cref(), m, 0.0, Lm.ref());
+}
+
+// refine false: the first solve alone (K's factor left in es.BW for row_space_refine, which
+// then makes the same bits as refine true).
+inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z);
+inline bool row_space_candidate(const LSForm& ls, i64 m, CertScratch& es, Vec& z, bool refine = true) {
+    i64 r = ls.B.cols;
+    if (!ls.reg || m <= 0 || !row_space_level(m, r) || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
+        return false;
+    // (K in normal_factor's storage: free_answer takes one candidate or the other)
+    if (!row_space_factor(ls, m, es.N, es.BW)) return false;
+    CMatRef M = ls.B.cref().rows_slice(0, m);
+    const double s = ls.B(m, 0);
+    CMatRef L = es.BW.cref();
     // out = g2 / s + M^T K^-1 (g1 - M g2 / s): the minimiser for the right-hand side [g1; g2]
     auto solve = [&](const double* g1, const double* g2, Vec& out) {
         out.resize(static_cast<size_t>(r));
@@ -2460,6 +2478,49 @@ inline void row_space_refine(const LSForm& ls, i64 m, CertScratch& es, Vec& z) {
     backward_into(L, es.wy, es.g);
     for (i64 i = 0; i < m; ++i) axpy(g.data(), -es.g[i], M.row(i), r);
     for (i64 j = 0; j < r; ++j) z[j] = z[j] + g[j] / s2;
+}
+
+// The Schur complement S (q x q by rows, its lower triangle) factored in place (Cholesky);
+// false where a pivot is not finite or below S_jj / kNormalCond (a row within about 1e-5 of
+// the others' span in the metric S is made in): eq_candidate's and row_space_set_candidate's.
+inline bool schur_factor(Vec& S, i64 q) {
+    for (i64 j = 0; j < q; ++j) {
+        double sjj = S[j * q + j], dj = sjj;
+        for (i64 k = 0; k < j; ++k) dj -= S[j * q + k] * S[j * q + k];
+        if (!(std::isfinite(sjj) && dj > 0.0 && sjj <= kNormalCond * dj)) return false;
+        double ljj = std::sqrt(dj);
+        S[j * q + j] = ljj;
+        for (i64 i = j + 1; i < q; ++i) {
+            double a = S[i * q + j];
+            for (i64 k = 0; k < j; ++k) a -= S[i * q + k] * S[j * q + k];
+            S[i * q + j] = a / ljj;
+        }
+    }
+    return true;
+}
+
+// du = S^-1 du in place, by schur_factor's factor (forward, then backward substitution).
+inline void schur_solve(const Vec& S, i64 q, Vec& du) {
+    for (i64 j = 0; j < q; ++j) {
+        double acc = du[j];
+        for (i64 k = 0; k < j; ++k) acc -= S[j * q + k] * du[k];
+        du[j] = acc / S[j * q + j];
+    }
+    for (i64 j = q - 1; j >= 0; --j) {
+        double acc = du[j];
+        for (i64 k = j + 1; k < q; ++k) acc -= S[k * q + j] * du[k];
+        du[j] = acc / S[j * q + j];
+    }
+}
+
+// The refinement's right-hand side from B's own residual at z: g = B^T (f - B z) (res: f - B z's
+// first m entries), B = [M; s I] (ls_form): eq_candidate's and row_space_set_candidate's.
+inline void residual_gradient(const LSForm& ls, CMatRef M, i64 m, double s, const Vec& z, Vec& res, Vec& g) {
+    const i64 r = ls.B.cols;
+    mv_into(M, z.data(), res);
+    for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - res[i];
+    mtv_into(M, res.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * (ls.f[m + j] - s * z[j]);
 }
 
 // exact_level's candidate on a damped level with a few active rows (0 < q <= kEqCandidateRows):
@@ -2523,18 +2584,7 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
             sj[k] = acc;
         }
     }
-    for (i64 j = 0; j < q; ++j) {
-        double sjj = S[j * q + j], dj = sjj;
-        for (i64 k = 0; k < j; ++k) dj -= S[j * q + k] * S[j * q + k];
-        if (!(std::isfinite(sjj) && dj > 0.0 && sjj <= kNormalCond * dj)) return false;
-        double ljj = std::sqrt(dj);
-        S[j * q + j] = ljj;
-        for (i64 i = j + 1; i < q; ++i) {
-            double a = S[i * q + j];
-            for (i64 k = 0; k < j; ++k) a -= S[i * q + k] * S[j * q + k];
-            S[i * q + j] = a / ljj;
-        }
-    }
+    if (!schur_factor(S, q)) return false;
     // One step: (dz, du) solving H dz - N du = g, N^T dz = t (g: es.g, t: es.et)
     Vec& g = es.g;
     Vec& t = es.et;
@@ -2555,16 +2605,7 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
             du[j + 1] = acc[1];
         }
         for (; j < q; ++j) du[j] = minus_dot(t[j], V.row(j), w.data(), r);
-        for (j = 0; j < q; ++j) {
-            double acc = du[j];
-            for (i64 k = 0; k < j; ++k) acc -= S[j * q + k] * du[k];
-            du[j] = acc / S[j * q + j];
-        }
-        for (i64 j = q - 1; j >= 0; --j) {
-            double acc = du[j];
-            for (i64 k = j + 1; k < q; ++k) acc -= S[k * q + j] * du[k];
-            du[j] = acc / S[j * q + j];
-        }
+        schur_solve(S, q, du);
         for (i64 j = 0; j < q; ++j) axpy(w.data(), du[j], V.row(j), r);  // w + V du
         backward_into(L, w, dz);
     };
@@ -2576,11 +2617,7 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     z.assign(dz.begin(), dz.end());
     u.assign(du.begin(), du.end());
     // refined from B's residual: g = B^T (f - B z) + N u, t = rhs - N^T z
-    Vec& res = es.e;
-    mv_into(AZ, z.data(), res);
-    for (i64 i = 0; i < m; ++i) res[i] = ls.f[i] - res[i];
-    mtv_into(AZ, res.data(), g);
-    for (i64 j = 0; j < r; ++j) g[j] += s * (ls.f[m + j] - s * z[j]);
+    residual_gradient(ls, AZ, m, s, z, es.e, g);
     for (i64 j = 0; j < q; ++j) {
         double side = static_cast<double>(sides[j]);
         const double* cj = qp.C.row(rows[j]);
@@ -2595,6 +2632,132 @@ inline bool eq_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 
     step();
     for (i64 i = 0; i < r; ++i) z[i] = z[i] + dz[i];
     for (i64 j = 0; j < q; ++j) u[j] = u[j] + du[j];
+    return true;
+}
+
+// eq_candidate's minimiser and multipliers in the row-space form of row_space_candidate, on a
+// level of few rows (row_space_level, r >= kRegFoldMin) whose working set holds box rows only
+// (n_j = side_j Z_i, rhs_j from lb - d or ub - d as reduced_rows and rhs_of make them): with
+// M = A Z (m x r), s^2 = rho, N = M^T M + s^2 I is never formed or factored; its inverse is
+// applied as (v - M^T K^-1 M v) / s^2, K = M M^T + s^2 I (m x m, its Cholesky factor). With
+// P = N^-1 [n_1 .. n_q] and the Schur complement S = [n_j]^T P (q x q, its factor, eq_candidate's
+// pivot test), each step solves N dz - [n_j] du = g, [n_j]^T dz = t as dz = N^-1 g + P du,
+// du = S^-1 (t - [n_j]^T N^-1 g); first g = B^T f, t = rhs, then one step of refinement from
+// B's own residual (eq_candidate's). The same minimiser as eq_candidate to round-off (the
+// same conditions: normal_factor's trace bound), at a cost of a few m-row solves rather than
+// N's r x r product and factor: a humanoid's CoM (m = 3, r = 26) or feet (12, 38). A function
+// of B, f, Z, d, the bounds and the rows alone (set_candidate takes it on every path, cold or
+// warm: the same bits). False (no candidate) where a condition fails, a factor does not exist
+// or an entry is not finite.
+inline bool row_space_set_candidate(const LSForm& ls, i64 m, CMatRef Z, const double* d, CVecRef lb, CVecRef ub,
+                                    const IVec& rows, const IVec& sides, i64 q, CertScratch& es, Vec& z, Vec& u) {
+    const i64 r = ls.B.cols, n = Z.rows;
+    if (!ls.reg || m <= 0 || !row_space_level(m, r) || r < kRegFoldMin || q <= 0 || q > kEqCandidateRows ||
+        q >= r || Z.cols != r || ls.B.rows != m + r || static_cast<i64>(ls.f.size()) != m + r)
+        return false;
+    for (i64 j = 0; j < q; ++j)
+        if (rows[j] < 0 || rows[j] >= n) return false;  // (a general row: eq_candidate's)
+    if (!row_space_factor(ls, m, es.rK, es.rL)) return false;
+    CMatRef M = ls.B.cref().rows_slice(0, m);
+    const double s = ls.B(m, 0);
+    const double s2 = s * s;
+    CMatRef L = es.rL.cref();
+    // out = N^-1 v = (v - M^T K^-1 M v) / s^2 (out and v distinct)
+    auto ninv = [&](const double* v, double* out) {
+        Vec& e = es.re;
+        e.resize(static_cast<size_t>(m));
+        for (i64 i = 0; i < m; ++i) e[i] = dot(M.row(i), v, r);
+        forward_into(L, e, es.ry);
+        backward_into(L, es.ry, es.rw);
+        for (i64 j = 0; j < r; ++j) out[j] = v[j];
+        for (i64 i = 0; i < m; ++i) axpy(out, -es.rw[i], M.row(i), r);
+        for (i64 j = 0; j < r; ++j) out[j] = out[j] / s2;
+    };
+    // the normals (rows of Nn) and right-hand sides
+    Mat& Nn = es.rN;
+    shape(Nn, q, r);  // every entry written
+    Vec& rhs = es.rrhs;
+    rhs.resize(static_cast<size_t>(q));
+    for (i64 j = 0; j < q; ++j) {
+        const i64 i = rows[j];
+        const double side = static_cast<double>(sides[j]);
+        const double* zi = Z.row(i);
+        double* nj = Nn.row(j);
+        for (i64 c = 0; c < r; ++c) nj[c] = zi[c] * side;
+        const double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
+        const double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        rhs[j] = sides[j] > 0 ? lo : -hi;
+        if (!std::isfinite(rhs[j])) return false;
+    }
+    Mat& P = es.rP;
+    shape(P, q, r);  // every entry written
+    for (i64 j = 0; j < q; ++j) ninv(Nn.row(j), P.row(j));
+    // S = [n_j]^T P (its lower triangle) and its Cholesky factor in place (q x q by rows)
+    const size_t qs = static_cast<size_t>(q);
+    Vec& S = es.rS;
+    S.assign(qs * qs, 0.0);
+    for (i64 j = 0; j < q; ++j)
+        for (i64 k = 0; k <= j; ++k) S[j * q + k] = dot(Nn.row(j), P.row(k), r);
+    if (!schur_factor(S, q)) return false;
+    Vec& g = es.rg;
+    Vec& t = es.rt;
+    Vec& dz = es.rdz;
+    Vec& du = es.rdu;
+    dz.resize(static_cast<size_t>(r));
+    du.resize(qs);
+    auto step = [&]() {
+        ninv(g.data(), dz.data());
+        for (i64 j = 0; j < q; ++j) du[j] = t[j] - dot(Nn.row(j), dz.data(), r);
+        schur_solve(S, q, du);
+        for (i64 j = 0; j < q; ++j) axpy(dz.data(), du[j], P.row(j), r);
+    };
+    // (z, u) from zero: g = B^T f, t = rhs
+    mtv_into(M, ls.f.data(), g);
+    for (i64 j = 0; j < r; ++j) g[j] += s * ls.f[m + j];
+    t.assign(rhs.begin(), rhs.end());
+    step();
+    z.assign(dz.begin(), dz.end());
+    u.assign(du.begin(), du.end());
+    // refined from B's residual: g = B^T (f - B z) + [n_j] u, t = rhs - [n_j]^T z
+    residual_gradient(ls, M, m, s, z, es.rresid, g);
+    for (i64 j = 0; j < q; ++j) {
+        const double* nj = Nn.row(j);
+        axpy(g.data(), u[j], nj, r);
+        t[j] = rhs[j] - dot(nj, z.data(), r);
+    }
+    step();
+    for (i64 i = 0; i < r; ++i) z[i] = z[i] + dz[i];
+    for (i64 j = 0; j < q; ++j) u[j] = u[j] + du[j];
+    return finite_block(z.data(), 1, r, r) && finite_block(u.data(), 1, q, q);
+}
+
+// The level's candidate on a working set, the same on every path (exact_level's, primal_guess's,
+// row_space_guess's): row_space_set_candidate's where it makes one, else eq_candidate's.
+inline bool set_candidate(const LSForm& ls, const ReducedQP& qp, double rho, i64 m, CMatRef Z, const double* d,
+                          CVecRef lb, CVecRef ub, const IVec& rows, const IVec& sides, i64 q, const QPScratch* made,
+                          CertScratch& es, Vec& z, Vec& u) {
+    if (row_space_set_candidate(ls, m, Z, d, lb, ub, rows, sides, q, es, z, u)) return true;
+    return eq_candidate(ls, qp, rho, m, rows, sides, q, made, es, z, u);
+}
+
+// A guessed set's candidate zc (its multipliers u >= 0, every row met) certified as exact_level
+// certifies one (certify_level at x = d + Z zc into es.xx, with the set's rows and multipliers;
+// C: the level's rows in null-space coordinates where made, else nullptr: the same bits);
+// where it holds, its certificate and final set (the rows of positive multiplier).
+// primal_guess's and row_space_guess's.
+inline bool guess_certified(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d, CVecRef lb, CVecRef ub,
+                            CMatRef G, CVecRef h, const IVec& rows, const IVec& sides, const Vec& u, const Vec& zc,
+                            const double* gsq, bool z_eye, const Mat* C, CertScratch& es, Certificate& cert,
+                            IVec& final_rows, IVec& final_sides) {
+    const i64 q = static_cast<i64>(rows.size());
+    Vec& x = es.xx;
+    zero_fill(x, static_cast<size_t>(Z.rows));
+    add_step(Z, d, zc, z_eye, es.xZz, x);
+    Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, q, true, &es, gsq, z_eye, C,
+                                  max_abs(zc, static_cast<i64>(zc.size())));
+    if (!(c.holds() && c.rows_relative)) return false;
+    cert = c;
+    positive_rows(rows, sides, u, q, final_rows, final_sides);
     return true;
 }
 
@@ -2678,7 +2841,7 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
         ++tries;
         // (no candidate for a set outside eq_candidate's reach: empty, past kEqCandidateRows,
         // or q >= r)
-        if (!eq_candidate(ls, qp, rho, Ak.rows, rows, sides, q, &qs, es, zc, u)) return false;
+        if (!set_candidate(ls, qp, rho, Ak.rows, Z, d.data(), lb, ub, rows, sides, q, &qs, es, zc, u)) return false;
         // every row of a negative multiplier leaves the set (in order)
         i64 kept = 0;
         for (i64 j = 0; j < q; ++j) {
@@ -2717,15 +2880,131 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
             continue;
         }
         // every multiplier >= 0 and every row met: certified as exact_level certifies
-        Vec& x = es.xx;
-        zero_fill(x, static_cast<size_t>(n));
-        add_step(Z, d, zc, z_eye, es.xZz, x);
-        Certificate c = certify_level(Ak, bk, rho, Z, x, lb, ub, G, h, rows, sides, u, q, true, &es, gsq, z_eye,
-                                      &qp.C, max_abs(zc, static_cast<i64>(zc.size())));
-        if (!(c.holds() && c.rows_relative)) return false;
-        cert = c;
-        positive_rows(rows, sides, u, q, final_rows, final_sides);
-        return true;
+        return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, u, zc, gsq, z_eye, &qp.C, es, cert,
+                               final_rows, final_sides);
+    }
+    return false;
+}
+
+// A cold level of few rows (row_space_level, r >= kRegFoldMin) whose row-space candidate z0
+// (row_space_candidate's first solve, ws.rz) leaves a row of the box: primal_guess's working
+// set, guessed from z0 in the row-space form (row_space_set_candidate), before H, its factor
+// and the level's rows in null-space coordinates are made. It starts from the box rows z0
+// leaves (each on the side it leaves, leaving_side's test), at most kGuessRows of them; each
+// try makes the set's candidate and multipliers; the set loses every row of negative
+// multiplier where there is one, else gains every box row violated at the candidate (in row
+// order), else the candidate is certified as exact_level certifies it (certify_level with the
+// set's rows and multipliers). At most kGuessTries tries; false (nothing written but scratch)
+// where a general row is violated, the set leaves the candidate's reach, a try makes no
+// candidate, or the tries end uncertified: the level then goes on as before (H, the dual
+// stop, primal_guess, the dual method). Where it holds, the answer is exact_level's on the same
+// set (set_candidate takes the row-space form there: the same candidate, certificate and final
+// set, its rows of positive multiplier), so the level's answer is the one every other path
+// gives it: a humanoid's CoM level with a gripper on its bound (Talos), or its feet level with
+// the legs at their limits, in a few m-row solves. have_gz: ws.GZ and ws.Gd hold G Z and G d
+// (rows_hold_at). tries: the candidates made.
+inline bool row_space_guess(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const Vec& d,
+                            CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol, const double* gsq, bool z_eye,
+                            bool have_gz, Workspace& ws, const Vec& z0, Certificate& cert, IVec& final_rows,
+                            IVec& final_sides, i64& tries) {
+    tries = 0;
+    const i64 n = Z.rows, r = Z.cols, p = G.rows, m = Ak.rows;
+    if (!ls.reg || !row_space_level(m, r) || r < kRegFoldMin || static_cast<i64>(z0.size()) != r) return false;
+    if (p > 0 && !(have_gz && ws.GZ.rows == p && ws.GZ.cols == r && static_cast<i64>(ws.Gd.size()) == p))
+        return false;
+    CertScratch& es = ws.cs;
+    IVec& rows = ws.pg_rows;
+    IVec& sides = ws.pg_sides;
+    Vec& u = ws.pg_u;
+    Vec& zc = ws.pg_z;
+    Vec& norm = ws.pg_norm;  // |Z_i| and |G_j Z| (0: no constraint, reduced_rows' test)
+    shape(norm, static_cast<size_t>(n + p));
+    for (i64 i = 0; i < n; ++i) {
+        const double nn = dot(Z.row(i), Z.row(i), r);
+        norm[i] = nn <= 1e-20 ? 0.0 : std::sqrt(nn);
+    }
+    for (i64 j = 0; j < p; ++j) {
+        const double nn = dot(ws.GZ.row(j), ws.GZ.row(j), r);
+        const double size = gsq ? gsq[j] : row_sq_of(G, j);
+        norm[n + j] = nn <= 1e-20 * size ? 0.0 : std::sqrt(nn);
+    }
+    // The side row i leaves at z (0: it holds, or no constraint); `general` set where a general
+    // row leaves (the guess then ends: the general path's to judge), `infinite` where one
+    // leaves by an infinite amount.
+    bool general = false, infinite = false;
+    auto leaves = [&](i64 i, const double* z) -> i64 {
+        if (!(norm[i] > 0.0)) return 0;
+        double lo, hi, cx;
+        if (i < n) {
+            lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
+            hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+            cx = dot(Z.row(i), z, r);
+        } else {
+            lo = -kInf;
+            hi = h[i - n] - ws.Gd[i - n];
+            cx = dot(ws.GZ.row(i - n), z, r);
+        }
+        if (lo <= -kBig && hi >= kBig) return 0;
+        double by;
+        const i64 side = leaving_side(lo, hi, cx, norm[i], tol, by);
+        infinite |= std::isinf(by);
+        if (side != 0 && i >= n) general = true;
+        return side;
+    };
+    const i64 most_rows = std::min<i64>(std::min<i64>(kEqCandidateRows, kGuessRows), r - 1);
+    rows.clear();
+    sides.clear();
+    for (i64 i = 0; i < n + p; ++i) {
+        const i64 side = leaves(i, z0.data());
+        if (side == 0) continue;
+        if (general || infinite || static_cast<i64>(rows.size()) == most_rows) return false;
+        rows.push_back(i);
+        sides.push_back(side);
+    }
+    if (rows.empty()) return false;
+    for (tries = 0; tries < kGuessTries;) {
+        const i64 q = static_cast<i64>(rows.size());
+        ++tries;
+        if (!row_space_set_candidate(ls, m, Z, d.data(), lb, ub, rows, sides, q, es, zc, u)) return false;
+        // every row of a negative multiplier leaves the set (in order)
+        i64 kept = 0;
+        for (i64 j = 0; j < q; ++j) {
+            if (u[j] < 0.0) continue;
+            rows[kept] = rows[j];
+            sides[kept] = sides[j];
+            ++kept;
+        }
+        if (kept < q) {
+            if (kept == 0) return false;  // (the free answer: row_space_candidate's, which failed)
+            rows.resize(static_cast<size_t>(kept));
+            sides.resize(static_cast<size_t>(kept));
+            continue;
+        }
+        // else every row violated at the candidate joins it: the set made again in row order
+        IVec& next = ws.pg_next;
+        IVec& next_sides = ws.pg_next_sides;
+        next.clear();
+        next_sides.clear();
+        for (i64 i = 0, j = 0; i < n + p; ++i) {
+            i64 side;
+            if (j < q && rows[j] == i) {
+                side = sides[j++];
+            } else if ((side = leaves(i, zc.data())) == 0) {
+                continue;
+            }
+            next.push_back(i);
+            next_sides.push_back(side);
+        }
+        if (general || infinite) return false;
+        if (static_cast<i64>(next.size()) > q) {
+            if (static_cast<i64>(next.size()) > most_rows) return false;
+            std::swap(rows, next);
+            std::swap(sides, next_sides);
+            continue;
+        }
+        // every multiplier >= 0 and every row met: certified as exact_level certifies
+        return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, u, zc, gsq, z_eye, nullptr, es, cert,
+                               final_rows, final_sides);
     }
     return false;
 }
@@ -4142,12 +4421,26 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             bool gz = false;
             // (the rows tested at the first solve; refined only where they hold: the same bits
             // as row_space_candidate's)
-            if (detail::row_space_candidate(ls, Ak.rows, ws.cs, rz, false) &&
-                detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye, gsq, rz) &&
+            const bool made_rz = detail::row_space_candidate(ls, Ak.rows, ws.cs, rz, false);
+            const bool hold = made_rz && detail::rows_hold_at(Z.cref(), d.data(), lb, ub, G, h, tol, ws, gz, z_eye,
+                                                              gsq, rz);
+            if (hold &&
                 (detail::row_space_refine(ls, Ak.rows, ws.cs, rz), detail::finite_block(rz.data(), 1, r, r)) &&
                 detail::free_answer(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, z, cert, ws.cs, gsq, ztd, z_eye, &qp,
                                     nullptr, &rz)) {
                 take_free();
+                continue;
+            }
+            // Where rz leaves box rows: the working set guessed from them in the row-space form
+            // (row_space_guess), before H is made; its answer is exact_level's on its set.
+            i64 tries = 0;
+            if (made_rz && !hold && detail::finite_block(rz.data(), 1, r, r) &&
+                detail::row_space_guess(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, tol, gsq, z_eye, gz, ws, rz,
+                                        cert, final_rows, final_sides, tries)) {
+                res.iterations[k] = tries;
+                for (size_t j = 0; j < final_rows.size(); ++j)
+                    res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
+                take_free();  // (its certificate, d + Z z from ws.cs.xx, solved, Z for below)
                 continue;
             }
             if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);

@@ -874,6 +874,8 @@ struct CertScratch {
     Mat BT;                             // eqp_ls's B^T
     Mat eV;                             // exact_level's eq_candidate (qpik/_cpp/core/cascade.hpp)
     Vec eS, erhs, et, edz, edu, ecol;
+    Mat rK, rL, rN, rP;                 // row_space_set_candidate (qpik/_cpp/core/cascade.hpp)
+    Vec rS, rrhs, rg, rt, rdz, rdu, re, ry, rw, rresid;
 };
 
 namespace detail {
