@@ -1590,6 +1590,12 @@ inline void reduced_objective(CMatRef A, CVecRef b, CMatRef AZ, CMatRef Z, const
     out.hraw_ok = true;
 }
 
+// Box row i's bounds in null-space coordinates at d (the level's rows C z with C's row i Z's
+// row i): lb_i - d_i and ub_i - d_i, an absent bound (beyond kBig) infinite. reduced_rows',
+// rows_hold_at's and the row-space guess's.
+inline double box_lo(CVecRef lb, const double* d, i64 i) { return lb[i] > -kBig ? lb[i] - d[i] : -kInf; }
+inline double box_hi(CVecRef ub, const double* d, i64 i) { return ub[i] < kBig ? ub[i] - d[i] : kInf; }
+
 // The rows (C, lo, hi) of reduced_qp. have_gz: ws.GZ and ws.Gd already hold G Z and G d
 // (computed as below, by dual_stops_at_once).
 // z_eye: Z is exactly the identity (a box row's norm is then 1: +0 plus 1 and 0 * 0 terms).
@@ -1606,8 +1612,8 @@ inline void reduced_rows(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
         for (i64 i = 0; i < n; ++i) std::memcpy(out.C.row(i), Z.row(i), static_cast<size_t>(r) * sizeof(double));
     }
     for (i64 i = 0; i < n; ++i) {
-        out.lo[i] = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
-        out.hi[i] = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        out.lo[i] = box_lo(lb, d, i);
+        out.hi[i] = box_hi(ub, d, i);
     }
     if (p) {
         Mat& GZ = ws.GZ;
@@ -2234,8 +2240,8 @@ inline bool rows_hold_at(CMatRef Z, const double* d, CVecRef lb, CVecRef ub, CMa
         if (violated(GZ, 0, p, general)) return false;
     }
     auto box = [&](i64 i, double norm, double cx) {
-        double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
-        double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+        double lo = box_lo(lb, d, i);
+        double hi = box_hi(ub, d, i);
         return decide(norm, cx, lo, hi, 1.0);
     };
     i64 i = 0;
@@ -2684,9 +2690,7 @@ inline bool row_space_set_candidate(const LSForm& ls, i64 m, CMatRef Z, const do
         const double* zi = Z.row(i);
         double* nj = Nn.row(j);
         for (i64 c = 0; c < r; ++c) nj[c] = zi[c] * side;
-        const double lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
-        const double hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
-        rhs[j] = sides[j] > 0 ? lo : -hi;
+        rhs[j] = sides[j] > 0 ? box_lo(lb, d, i) : -box_hi(ub, d, i);
         if (!std::isfinite(rhs[j])) return false;
     }
     Mat& P = es.rP;
@@ -2761,6 +2765,90 @@ inline bool guess_certified(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const
     return true;
 }
 
+// primal_guess's bounds: the rows a guess starts from, and its tries.
+constexpr i64 kGuessRows = 8;
+constexpr i64 kGuessTries = 6;
+
+// The start and the tries of a guessed working set (primal_guess's and row_space_guess's), in
+// ws.pg_rows / ws.pg_sides. guess_start: the rows a point leaves (leaves(i): the side row i
+// leaves, 0 where it holds), in row order; false where stop() after one, where there are none,
+// or where there would be more than most_rows. guess_settle: each try makes the set's
+// candidate and multipliers (candidate(q) into zc and u); the set loses every row of negative
+// multiplier where there is one (in order; false where none is left or a multiplier is not
+// finite), else gains every row violated at the candidate (at(zc), then leaves(i); made again
+// in row order; false where stop() or more than grow_cap rows), else it has settled: true. At
+// most kGuessTries tries (tries: the candidates made); false where a candidate is not made.
+template <class Leaves, class Stop>
+inline bool guess_start(Workspace& ws, i64 rows_all, i64 most_rows, const Leaves& leaves, const Stop& stop) {
+    IVec& rows = ws.pg_rows;
+    IVec& sides = ws.pg_sides;
+    rows.clear();
+    sides.clear();
+    for (i64 i = 0; i < rows_all; ++i) {
+        const i64 side = leaves(i);
+        if (side == 0) continue;
+        if (stop() || static_cast<i64>(rows.size()) == most_rows) return false;
+        rows.push_back(i);
+        sides.push_back(side);
+    }
+    return !rows.empty();
+}
+
+template <class Candidate, class At, class Leaves, class Stop>
+inline bool guess_settle(Workspace& ws, i64 rows_all, i64 grow_cap, i64& tries, const Candidate& candidate,
+                         const At& at, const Leaves& leaves, const Stop& stop) {
+    IVec& rows = ws.pg_rows;
+    IVec& sides = ws.pg_sides;
+    const Vec& u = ws.pg_u;
+    const Vec& zc = ws.pg_z;
+    for (tries = 0; tries < kGuessTries;) {
+        const i64 q = static_cast<i64>(rows.size());
+        ++tries;
+        if (!candidate(q)) return false;
+        // every row of a negative multiplier leaves the set (in order)
+        i64 kept = 0;
+        for (i64 j = 0; j < q; ++j) {
+            if (!std::isfinite(u[j])) return false;
+            if (u[j] < 0.0) continue;
+            rows[kept] = rows[j];
+            sides[kept] = sides[j];
+            ++kept;
+        }
+        if (kept < q) {
+            if (kept == 0) return false;  // (no set left: the free answer, which was not taken)
+            rows.resize(static_cast<size_t>(kept));
+            sides.resize(static_cast<size_t>(kept));
+            continue;
+        }
+        // else every row violated at the candidate joins it: the set made again in row order,
+        // its rows and the violated ones
+        at(zc);
+        IVec& next = ws.pg_next;
+        IVec& next_sides = ws.pg_next_sides;
+        next.clear();
+        next_sides.clear();
+        for (i64 i = 0, j = 0; i < rows_all; ++i) {
+            i64 side;
+            if (j < q && rows[j] == i) {
+                side = sides[j++];
+            } else if ((side = leaves(i)) == 0) {
+                continue;
+            }
+            next.push_back(i);
+            next_sides.push_back(side);
+        }
+        if (stop()) return false;
+        if (static_cast<i64>(next.size()) > q) {
+            if (static_cast<i64>(next.size()) > grow_cap) return false;
+            std::swap(rows, next);
+            std::swap(sides, next_sides);
+            continue;
+        }
+        return true;  // every multiplier >= 0 and every row met
+    }
+    return false;
+}
+
 // A cold level whose dual method would not stop at once (its unconstrained minimiser x0 = ws.qps.x,
 // H's factor in ws.qps.L, violates a row), before the dual method: the working set guessed from x0,
 // as a primal-dual active set, checked at each try by the final candidate of exact_level itself. It
@@ -2779,8 +2867,6 @@ inline bool guess_certified(CMatRef Ak, CVecRef bk, double rho, CMatRef Z, const
 // set and not the other, the same point to round-off), so the level's answer is the one the dual
 // method and exact_level would give, a function of the level's problem alone. tries: the candidates
 // made.
-constexpr i64 kGuessRows = 8;
-constexpr i64 kGuessTries = 6;
 inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVecRef bk, double rho, CMatRef Z,
                          const Vec& d, CVecRef lb, CVecRef ub, CMatRef G, CVecRef h, double tol, const double* gsq,
                          bool z_eye, Workspace& ws, Certificate& cert, IVec& final_rows, IVec& final_sides,
@@ -2799,8 +2885,6 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
     Vec& zc = ws.pg_z;
     Vec& cz = ws.pg_cz;
     Vec& norm = ws.pg_norm;
-    rows.clear();
-    sides.clear();
     shape(cz, static_cast<size_t>(rows_all));
     // Each row's norm (0: no constraint, reduced_rows' infinite bounds) and C x at a point x
     // (cz), dot's sums (row_norms_into's and dot8's: eight rows a pass, the same sums).
@@ -2826,64 +2910,20 @@ inline bool primal_guess(const LSForm& ls, const ReducedQP& qp, CMatRef Ak, CVec
         infinite |= std::isinf(by);
         return side;
     };
-    // (more rows than kGuessRows, or past eq_candidate's reach, end the guess at once)
+    // (more rows than kGuessRows, or past eq_candidate's reach, end the guess at once; the set
+    // then grows as far as a candidate is made: empty, past kEqCandidateRows or q >= r, none)
     const i64 most_rows = std::min<i64>(std::min<i64>(kEqCandidateRows, kGuessRows), r - 1);
+    auto stop = [&]() { return infinite; };
     products(qs.x.data());
-    for (i64 i = 0; i < rows_all; ++i) {
-        const i64 side = leaves(i);
-        if (side == 0) continue;
-        if (infinite || static_cast<i64>(rows.size()) == most_rows) return false;
-        rows.push_back(i);
-        sides.push_back(side);
-    }
-    for (tries = 0; tries < kGuessTries;) {
-        const i64 q = static_cast<i64>(rows.size());
-        ++tries;
-        // (no candidate for a set outside eq_candidate's reach: empty, past kEqCandidateRows,
-        // or q >= r)
-        if (!set_candidate(ls, qp, rho, Ak.rows, Z, d.data(), lb, ub, rows, sides, q, &qs, es, zc, u)) return false;
-        // every row of a negative multiplier leaves the set (in order)
-        i64 kept = 0;
-        for (i64 j = 0; j < q; ++j) {
-            if (!std::isfinite(u[j])) return false;
-            if (u[j] < 0.0) continue;
-            rows[kept] = rows[j];
-            sides[kept] = sides[j];
-            ++kept;
-        }
-        if (kept < q) {
-            rows.resize(static_cast<size_t>(kept));
-            sides.resize(static_cast<size_t>(kept));
-            continue;
-        }
-        // else every row violated at the candidate joins it: the set made again in row order,
-        // its rows and the violated ones
-        products(zc.data());
-        IVec& next = ws.pg_next;
-        IVec& next_sides = ws.pg_next_sides;
-        next.clear();
-        next_sides.clear();
-        for (i64 i = 0, j = 0; i < rows_all; ++i) {
-            i64 side;
-            if (j < q && rows[j] == i) {
-                side = sides[j++];
-            } else if ((side = leaves(i)) == 0) {
-                continue;
-            }
-            next.push_back(i);
-            next_sides.push_back(side);
-        }
-        if (infinite) return false;
-        if (static_cast<i64>(next.size()) > q) {
-            std::swap(rows, next);
-            std::swap(sides, next_sides);
-            continue;
-        }
-        // every multiplier >= 0 and every row met: certified as exact_level certifies
-        return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, u, zc, gsq, z_eye, &qp.C, es, cert,
-                               final_rows, final_sides);
-    }
-    return false;
+    if (!guess_start(ws, rows_all, most_rows, leaves, stop)) return false;
+    auto candidate = [&](i64 q) {
+        return set_candidate(ls, qp, rho, Ak.rows, Z, d.data(), lb, ub, rows, sides, q, &qs, es, zc, u);
+    };
+    auto at = [&](const Vec& z) { products(z.data()); };
+    if (!guess_settle(ws, rows_all, rows_all, tries, candidate, at, leaves, stop)) return false;
+    // certified as exact_level certifies
+    return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, u, zc, gsq, z_eye, &qp.C, es, cert,
+                           final_rows, final_sides);
 }
 
 // A cold level of few rows (row_space_level, r >= kRegFoldMin) whose row-space candidate z0
@@ -2908,17 +2948,13 @@ inline bool row_space_guess(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho
                             bool have_gz, Workspace& ws, const Vec& z0, Certificate& cert, IVec& final_rows,
                             IVec& final_sides, i64& tries) {
     tries = 0;
-    const i64 n = Z.rows, r = Z.cols, p = G.rows, m = Ak.rows;
+    const i64 n = Z.rows, r = Z.cols, p = G.rows, m = Ak.rows, rows_all = n + p;
     if (!ls.reg || !row_space_level(m, r) || r < kRegFoldMin || static_cast<i64>(z0.size()) != r) return false;
     if (p > 0 && !(have_gz && ws.GZ.rows == p && ws.GZ.cols == r && static_cast<i64>(ws.Gd.size()) == p))
         return false;
     CertScratch& es = ws.cs;
-    IVec& rows = ws.pg_rows;
-    IVec& sides = ws.pg_sides;
-    Vec& u = ws.pg_u;
-    Vec& zc = ws.pg_z;
     Vec& norm = ws.pg_norm;  // |Z_i| and |G_j Z| (0: no constraint, reduced_rows' test)
-    shape(norm, static_cast<size_t>(n + p));
+    shape(norm, static_cast<size_t>(rows_all));
     for (i64 i = 0; i < n; ++i) {
         const double nn = dot(Z.row(i), Z.row(i), r);
         norm[i] = nn <= 1e-20 ? 0.0 : std::sqrt(nn);
@@ -2928,16 +2964,17 @@ inline bool row_space_guess(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho
         const double size = gsq ? gsq[j] : row_sq_of(G, j);
         norm[n + j] = nn <= 1e-20 * size ? 0.0 : std::sqrt(nn);
     }
-    // The side row i leaves at z (0: it holds, or no constraint); `general` set where a general
-    // row leaves (the guess then ends: the general path's to judge), `infinite` where one
-    // leaves by an infinite amount.
+    // The side row i leaves at the point z (0: it holds, or no constraint); `general` set where
+    // a general row leaves (the guess then ends: the general path's to judge), `infinite` where
+    // one leaves by an infinite amount.
     bool general = false, infinite = false;
-    auto leaves = [&](i64 i, const double* z) -> i64 {
+    const double* z = z0.data();
+    auto leaves = [&](i64 i) -> i64 {
         if (!(norm[i] > 0.0)) return 0;
         double lo, hi, cx;
         if (i < n) {
-            lo = lb[i] > -kBig ? lb[i] - d[i] : -kInf;
-            hi = ub[i] < kBig ? ub[i] - d[i] : kInf;
+            lo = box_lo(lb, d.data(), i);
+            hi = box_hi(ub, d.data(), i);
             cx = dot(Z.row(i), z, r);
         } else {
             lo = -kInf;
@@ -2951,62 +2988,19 @@ inline bool row_space_guess(const LSForm& ls, CMatRef Ak, CVecRef bk, double rho
         if (side != 0 && i >= n) general = true;
         return side;
     };
+    auto stop = [&]() { return general || infinite; };
     const i64 most_rows = std::min<i64>(std::min<i64>(kEqCandidateRows, kGuessRows), r - 1);
-    rows.clear();
-    sides.clear();
-    for (i64 i = 0; i < n + p; ++i) {
-        const i64 side = leaves(i, z0.data());
-        if (side == 0) continue;
-        if (general || infinite || static_cast<i64>(rows.size()) == most_rows) return false;
-        rows.push_back(i);
-        sides.push_back(side);
-    }
-    if (rows.empty()) return false;
-    for (tries = 0; tries < kGuessTries;) {
-        const i64 q = static_cast<i64>(rows.size());
-        ++tries;
-        if (!row_space_set_candidate(ls, m, Z, d.data(), lb, ub, rows, sides, q, es, zc, u)) return false;
-        // every row of a negative multiplier leaves the set (in order)
-        i64 kept = 0;
-        for (i64 j = 0; j < q; ++j) {
-            if (u[j] < 0.0) continue;
-            rows[kept] = rows[j];
-            sides[kept] = sides[j];
-            ++kept;
-        }
-        if (kept < q) {
-            if (kept == 0) return false;  // (the free answer: row_space_candidate's, which failed)
-            rows.resize(static_cast<size_t>(kept));
-            sides.resize(static_cast<size_t>(kept));
-            continue;
-        }
-        // else every row violated at the candidate joins it: the set made again in row order
-        IVec& next = ws.pg_next;
-        IVec& next_sides = ws.pg_next_sides;
-        next.clear();
-        next_sides.clear();
-        for (i64 i = 0, j = 0; i < n + p; ++i) {
-            i64 side;
-            if (j < q && rows[j] == i) {
-                side = sides[j++];
-            } else if ((side = leaves(i, zc.data())) == 0) {
-                continue;
-            }
-            next.push_back(i);
-            next_sides.push_back(side);
-        }
-        if (general || infinite) return false;
-        if (static_cast<i64>(next.size()) > q) {
-            if (static_cast<i64>(next.size()) > most_rows) return false;
-            std::swap(rows, next);
-            std::swap(sides, next_sides);
-            continue;
-        }
-        // every multiplier >= 0 and every row met: certified as exact_level certifies
-        return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, u, zc, gsq, z_eye, nullptr, es, cert,
-                               final_rows, final_sides);
-    }
-    return false;
+    if (!guess_start(ws, rows_all, most_rows, leaves, stop)) return false;
+    IVec& rows = ws.pg_rows;
+    IVec& sides = ws.pg_sides;
+    auto candidate = [&](i64 q) {
+        return row_space_set_candidate(ls, m, Z, d.data(), lb, ub, rows, sides, q, es, ws.pg_z, ws.pg_u);
+    };
+    auto at = [&](const Vec& zc) { z = zc.data(); };
+    if (!guess_settle(ws, rows_all, most_rows, tries, candidate, at, leaves, stop)) return false;
+    // certified as exact_level certifies
+    return guess_certified(Ak, bk, rho, Z, d, lb, ub, G, h, rows, sides, ws.pg_u, ws.pg_z, gsq, z_eye, nullptr, es,
+                           cert, final_rows, final_sides);
 }
 
 // exact_level after a dual method that stopped at once (dual_stops_at_once), and exact_level's
@@ -4416,6 +4410,14 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             res.status[k] = SOLVED;
             take_null_space();
         };
+        // The level solved by a guessed set (row_space_guess, primal_guess): its candidates made
+        // as its iterations, its final set, then take_free's.
+        auto take_guess = [&](i64 tries) {
+            res.iterations[k] = tries;
+            for (size_t j = 0; j < final_rows.size(); ++j)
+                res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
+            take_free();  // (its certificate, d + Z z from ws.cs.xx, solved, Z for below)
+        };
         if (row_space) {
             Vec& rz = ws.rz;
             bool gz = false;
@@ -4434,13 +4436,10 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
             // Where rz leaves box rows: the working set guessed from them in the row-space form
             // (row_space_guess), before H is made; its answer is exact_level's on its set.
             i64 tries = 0;
-            if (made_rz && !hold && detail::finite_block(rz.data(), 1, r, r) &&
+            if (made_rz && !hold &&
                 detail::row_space_guess(ls, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, tol, gsq, z_eye, gz, ws, rz,
                                         cert, final_rows, final_sides, tries)) {
-                res.iterations[k] = tries;
-                for (size_t j = 0; j < final_rows.size(); ++j)
-                    res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
-                take_free();  // (its certificate, d + Z z from ws.cs.xx, solved, Z for below)
+                take_guess(tries);
                 continue;
             }
             if (h_later) make_h(pr.AZ.cref(), ws.h_reg, qp);
@@ -4474,10 +4473,7 @@ inline void solve_cascade_rows(CMatRef A_in, CVecRef b, CVecRef w, VecRefT<const
         if (cold && !stops && factored && rho > 0.0 &&
             detail::primal_guess(ls, qp, Ak, bk, rho, Z.cref(), d, lb, ub, G, h, tol, gsq, z_eye, ws, cert,
                                  final_rows, final_sides, tries)) {
-            res.iterations[k] = tries;
-            for (size_t j = 0; j < final_rows.size(); ++j)
-                res.active[k * (n + p) + final_rows[j]] = static_cast<i8>(final_sides[j]);
-            take_free();  // (its certificate, d + Z z from ws.cs.xx, solved, Z for below)
+            take_guess(tries);
             continue;
         }
         QPResult sol = solve_level(qp.H.cref(), CVecRef(qp.c), qp.C.cref(), CVecRef(qp.lo), CVecRef(qp.hi),
