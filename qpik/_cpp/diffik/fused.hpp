@@ -922,8 +922,9 @@ inline void weighted_errors(const FusedArgs& a, const std::vector<char>& held, d
     if (local.size() < static_cast<size_t>(n)) local.resize(static_cast<size_t>(n));
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
-        // (a constraint, UNIT_ROWS, and a look-at or axis-align task: never corrected here;
-        // CompiledPlan declines the correction of a plan that has one: the QP path corrects)
+        // (a kind corrected_kind leaves out, a constraint's unit rows among them: never
+        // corrected here; CompiledPlan declines the correction of a plan that has one: the QP
+        // path corrects)
         if (!held[static_cast<size_t>(a.tasks(t, 2))] || kind == ROWS || !corrected_kind(kind)) continue;
         if (kind == FRAME) {
             const double *pos, *mat;
@@ -1002,7 +1003,8 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
     bool finite = true;
     for (i64 t = 0; t < a.tasks.rows; ++t) {
         const i64 kind = a.tasks(t, 0), i = a.tasks(t, 1), row = a.tasks(t, 3);
-        if (!held[static_cast<size_t>(a.tasks(t, 2))]) continue;
+        // (a kind the correction does not cover: never corrected, weighted_errors')
+        if (!held[static_cast<size_t>(a.tasks(t, 2))] || !corrected_kind(kind)) continue;
         i64 size;
         switch (kind) {
             case FRAME: case RELATIVE: size = 6; break;
@@ -1011,10 +1013,6 @@ inline bool shift_targets(const FusedArgs& a, const std::vector<char>& held, CVe
             case LINEAR: size = a.lin_starts[i + 1] - a.lin_starts[i]; break;
             case JOINT_LIMITS: size = 1; break;
             case ROWS: size = 0; break;  // below, from the caller's shift
-            case FRAME | UNIT_ROWS: case LINEAR | UNIT_ROWS: case LOOK_AT: case AXIS_ALIGN: case KINETIC:
-            case MANIPULABILITY: case EQUALITY:
-                size = 0;  // (never corrected: weighted_errors')
-                break;
             default: size = n;
         }
         for (i64 r = row; r < row + size; ++r) {
