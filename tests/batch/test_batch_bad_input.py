@@ -248,7 +248,9 @@ def _variants(arrays):
         "missing centers": ({k: v for k, v in good.items() if k != "centers"}, "centers"),
         "nan fraction": ({**good, "fraction": np.full(8, np.nan)}, "fraction"),
         "fraction above 1": ({**good, "fraction": fraction + 2.0}, "fraction"),
-        "fraction not reached's": ({**good, "fraction": 1.0 - fraction}, "fraction"),
+        # (0.5 from each entry, within [0, 1): unlike 1 - fraction, never the same array,
+        # a map whose every voxel has half its orientations reached included)
+        "fraction not reached's": ({**good, "fraction": (fraction + 0.5) % 1.0}, "fraction"),
         "short fraction": ({**good, "fraction": fraction[:3]}, "fraction"),
         "centers 2-d": ({**good, "centers": np.zeros((3, 2))}, "centers"),
         "centers text": ({**good, "centers": good["centers"].astype(str)}, "centers"),
