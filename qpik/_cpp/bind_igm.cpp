@@ -279,6 +279,260 @@ static nb::tuple run_plan(const IgmPlan& plan, const double* target_p, const dou
     return session_tuple(held.run(), q_full, plan.nfull, index_p, plan.nq);
 }
 
+// IKSession's lean solve in one compiled call (qpik.igm.session.IKSession._solve's lane):
+// the options memo's test, _lean's tests, the draw of the restarts' RNG state, the run and
+// _compiled_result's IKResult, with no Python frame between the call and the engine (a solve
+// between a planner's other work runs with cold caches, where the interpreter's frames and
+// its objects' lines cost several times what the run's first iterations do). Made by the
+// session for its options memo (memo: base, keywords, settings, kernel options, keys, types,
+// lean), for that memo only. solve() answers None, having drawn nothing and run nothing,
+// wherever any test fails: the general path then answers (or raises) as it always did.
+struct SessionLane {
+    nb::object base, memo_kw, kernel_options, frames, box_obj, budget, mid, seed_default;
+    const StartBox* box = nullptr;
+    // (IKResult, LazyRows, the reasons by code, Generator, the raw-uint64 bit generators,
+    // rng_state, time.perf_counter, list, tuple)
+    nb::object result_type, rows_type, reasons, generator, raw_types, rng_state, perf_counter, list_type,
+        tuple_type;
+    double orthonormal_tolerance = 0.0, max_distance = 0.0;
+    nb::object hist_columns, error_columns, engine;  // slice(2, None), slice(0, 2), "compiled"
+    nb::object k_q0, k_seed, k_stack, a_plan, a_name, a_bit_generator, a_random_raw, a_array, a_kind, a_first,
+        a_columns;
+    std::array<nb::object, 16> fields;  // IKResult's fields in its __init__'s order
+    std::array<nb::object, 4> slot_set;  // LazyRows's slots' member descriptors
+    nb::object empty;                   // ()
+
+    SessionLane(nb::handle base_, nb::dict memo_kw_, nb::handle kernel_options_, nb::dict frames_,
+                nb::handle box_, nb::handle budget_, nb::handle mid_, nb::handle seed_default_, nb::tuple consts,
+                double orthonormal_tolerance_, double max_distance_)
+        : base(nb::borrow(base_)), memo_kw(memo_kw_), kernel_options(nb::borrow(kernel_options_)),
+          frames(frames_), box_obj(nb::borrow(box_)), budget(nb::borrow(budget_)), mid(nb::borrow(mid_)),
+          seed_default(nb::borrow(seed_default_)), orthonormal_tolerance(orthonormal_tolerance_),
+          max_distance(max_distance_) {
+        require(consts.size() == 9, "consts must be (IKResult, LazyRows, reasons, Generator, raw types, "
+                                    "rng_state, perf_counter, list, tuple)");
+        box = &nb::cast<const StartBox&>(box_obj);
+        require(budget.is_none() || PyFloat_CheckExact(budget.ptr()), "budget must be None or a float");
+        result_type = consts[0];
+        rows_type = consts[1];
+        reasons = consts[2];
+        generator = consts[3];
+        raw_types = consts[4];
+        rng_state = consts[5];
+        perf_counter = consts[6];
+        list_type = consts[7];
+        tuple_type = consts[8];
+        require(PyType_Check(result_type.ptr()) && PyType_Check(rows_type.ptr()) && PyTuple_Check(reasons.ptr()) &&
+                    PyTuple_Check(raw_types.ptr()),
+                "consts: IKResult and LazyRows must be types, reasons and raw types tuples");
+        hist_columns = nb::steal(PySlice_New(nb::int_(2).ptr(), Py_None, nullptr));
+        error_columns = nb::steal(PySlice_New(nb::int_(0).ptr(), nb::int_(2).ptr(), nullptr));
+        engine = intern("compiled");
+        k_q0 = intern("q0");
+        k_seed = intern("seed");
+        k_stack = intern("stack");
+        a_plan = intern("plan");
+        a_name = intern("name");
+        a_bit_generator = intern("bit_generator");
+        a_random_raw = intern("random_raw");
+        a_array = intern("_array");
+        a_kind = intern("_kind");
+        a_first = intern("_first");
+        a_columns = intern("_columns");
+        empty = nb::steal(PyTuple_New(0));
+        const nb::object slots[4] = {a_array, a_kind, a_first, a_columns};
+        for (size_t i = 0; i < 4; ++i) {
+            // (the slot's member descriptor in LazyRows's own dict)
+            PyObject* d = PyDict_GetItemWithError(reinterpret_cast<PyTypeObject*>(rows_type.ptr())->tp_dict,
+                                                  slots[i].ptr());
+            require(d != nullptr && Py_TYPE(d)->tp_descr_set != nullptr, "LazyRows must have its four slots");
+            slot_set[i] = nb::borrow(d);
+        }
+        static const char* names[16] = {"q", "converged", "reason", "iterations", "restarts_used",
+                                        "position_error", "orientation_error", "solve_time", "frame_errors",
+                                        "residual_history", "error_history", "path", "engine", "levels_met",
+                                        "coupling_error", "constraint_error"};
+        for (int i = 0; i < 16; ++i) fields[static_cast<size_t>(i)] = intern(names[i]);
+    }
+
+    static nb::object intern(const char* s) { return nb::steal(PyUnicode_InternFromString(s)); }
+
+    // Whether key is the interned special name k (the same string: identity, else equality).
+    static bool is_key(PyObject* key, const nb::object& k) {
+        return key == k.ptr() || (PyUnicode_CheckExact(key) && PyUnicode_Compare(key, k.ptr()) == 0);
+    }
+
+    // A LazyRows(history, kind, first, start, stop) with the slots its __init__ sets, each
+    // stored through its member descriptor (slot_set: LazyRows._array, ._kind, ._first,
+    // ._columns, looked up once).
+    nb::object rows(nb::handle history, nb::handle kind, long first, const nb::object& columns) const {
+        nb::object r = nb::steal(PyBaseObject_Type.tp_new(reinterpret_cast<PyTypeObject*>(rows_type.ptr()),
+                                                          empty.ptr(), nullptr));
+        if (!r.is_valid()) throw nb::python_error();
+        nb::object f = nb::int_(first);
+        PyObject* values[4] = {history.ptr(), kind.ptr(), f.ptr(), columns.ptr()};
+        for (size_t i = 0; i < 4; ++i) {
+            PyObject* d = slot_set[i].ptr();
+            if (Py_TYPE(d)->tp_descr_set(d, r.ptr(), values[i])) throw nb::python_error();
+        }
+        return r;
+    }
+
+    // The keywords (**keywords of the solve) against the memo, q0, seed and stack aside
+    // (_options's test: the same keys, each value equal and of the same type); false where
+    // they differ or a comparison raises (the general path compares again).
+    bool keywords_match(PyObject* kw, PyObject** q0, PyObject** seed) const {
+        Py_ssize_t pos = 0, matched = 0;
+        PyObject *key, *value;
+        while (PyDict_Next(kw, &pos, &key, &value)) {
+            if (is_key(key, k_q0)) {
+                *q0 = value;
+                continue;
+            }
+            if (is_key(key, k_seed)) {
+                *seed = value;
+                continue;
+            }
+            if (is_key(key, k_stack)) {
+                if (value != Py_None) return false;
+                continue;
+            }
+            PyObject* kept = PyDict_GetItemWithError(memo_kw.ptr(), key);
+            if (kept == nullptr || Py_TYPE(kept) != Py_TYPE(value)) {
+                PyErr_Clear();
+                return false;
+            }
+            int equal = PyObject_RichCompareBool(value, kept, Py_EQ);
+            if (equal != 1) {
+                PyErr_Clear();
+                return false;
+            }
+            ++matched;
+        }
+        return matched == PyDict_GET_SIZE(memo_kw.ptr());
+    }
+
+    // The restarts' RNG state of the solve (_solve's draw): one draw from a Generator over a
+    // raw-uint64 bit generator, else rng_state(seed), settings.seed where none was given.
+    // false (nothing drawn) where rng_state raises: the general path raises it.
+    bool draw(PyObject* seed, std::uint64_t& state) const {
+        nb::object drawn;
+        if (seed != nullptr && Py_TYPE(seed) == reinterpret_cast<PyTypeObject*>(generator.ptr())) {
+            nb::object bits = nb::steal(PyObject_GetAttr(seed, a_bit_generator.ptr()));
+            if (!bits.is_valid()) throw nb::python_error();
+            int raw = PySequence_Contains(raw_types.ptr(), reinterpret_cast<PyObject*>(Py_TYPE(bits.ptr())));
+            if (raw < 0) throw nb::python_error();
+            if (raw) {
+                drawn = nb::steal(PyObject_CallMethodNoArgs(bits.ptr(), a_random_raw.ptr()));
+                if (!drawn.is_valid()) throw nb::python_error();
+            }
+        }
+        if (!drawn.is_valid()) {
+            PyObject* arg = seed == nullptr ? seed_default.ptr() : seed;
+            drawn = nb::steal(PyObject_CallOneArg(rng_state.ptr(), arg));
+            if (!drawn.is_valid()) {
+                PyErr_Clear();
+                return false;
+            }
+        }
+        state = PyLong_AsUnsignedLongLong(drawn.ptr());
+        if (state == static_cast<std::uint64_t>(-1) && PyErr_Occurred()) throw nb::python_error();
+        return true;
+    }
+
+    nb::object solve(nb::handle defaults, nb::handle robot_q, nb::handle targets, nb::handle keywords,
+                     double start_time) const {
+        if (!defaults.is(base) || !PyDict_CheckExact(targets.ptr()) || PyDict_GET_SIZE(targets.ptr()) != 1 ||
+            !PyDict_CheckExact(keywords.ptr()))
+            return nb::none();
+        PyObject *q0 = nullptr, *seed = nullptr;
+        if (!keywords_match(keywords.ptr(), &q0, &seed)) return nb::none();
+        // _lean: one (position, rotation) target of a frame whose plan has these options
+        Py_ssize_t pos = 0;
+        PyObject *key, *value;
+        PyDict_Next(targets.ptr(), &pos, &key, &value);
+        // (strong references: the calls into Python below may change the dicts they came from)
+        const nb::object key_ref = nb::borrow(key), value_ref = nb::borrow(value);
+        PyObject* frame = PyDict_GetItemWithError(frames.ptr(), key);
+        if (frame == nullptr) {
+            PyErr_Clear();  // (an unhashable key)
+            return nb::none();
+        }
+        const nb::object frame_ref = nb::borrow(frame);
+        if (!PyTuple_CheckExact(value) || PyTuple_GET_SIZE(value) != 2) return nb::none();
+        nb::object plan = nb::steal(PyObject_GetAttr(frame, a_plan.ptr()));
+        if (!plan.is_valid()) throw nb::python_error();
+        if (!PyTuple_CheckExact(plan.ptr()) || PyTuple_GET_SIZE(plan.ptr()) != 4 ||
+            PyTuple_GET_ITEM(plan.ptr(), 0) != kernel_options.ptr() || PyTuple_GET_ITEM(plan.ptr(), 1) != Py_True)
+            return nb::none();
+        const IgmPlan* compiled = nullptr;
+        if (!nb::try_cast(nb::handle(PyTuple_GET_ITEM(plan.ptr(), 3)), compiled, false) || compiled == nullptr)
+            return nb::none();
+        if (q0 == nullptr || q0 == Py_None) q0 = robot_q.is_none() ? mid.ptr() : robot_q.ptr();
+        const nb::object q0_ref = nb::borrow(q0), seed_ref = nb::borrow(seed);
+        int timed = PyObject_IsTrue(PyTuple_GET_ITEM(plan.ptr(), 2));
+        if (timed < 0) throw nb::python_error();
+        const double deadline = timed && !budget.is_none() ? start_time + PyFloat_AS_DOUBLE(budget.ptr()) : kInf;
+        // igm_lean_run's tests, then the draw and the run
+        In1 p, q;
+        In2 R;
+        if (!nb::try_cast(nb::handle(PyTuple_GET_ITEM(value, 0)), p, false) ||
+            !nb::try_cast(nb::handle(PyTuple_GET_ITEM(value, 1)), R, false) || !nb::try_cast(nb::handle(q0), q, false))
+            return nb::none();
+        if (!target_pair_ok(p, R, orthonormal_tolerance, max_distance)) return nb::none();
+        size_t n = q.shape(0);
+        if (static_cast<i64>(n) != compiled->nfull || box->lower.size() != n) return nb::none();
+        Vec q_full(q.data(), q.data() + n);
+        i64 index;
+        if (start_defect_code(q_full.data(), box->lower.data(), box->upper.data(), n, box->tol, index) != 0)
+            return nb::none();
+        std::uint64_t state = 0;
+        if (!draw(seed, state)) return nb::none();
+        nb::tuple run = run_plan(*compiled, p.data(), R.data(), true, q_full.data(), state, deadline);
+        // _compiled_result(run, frame.name, start_time, 0.0)
+        nb::object name = nb::steal(PyObject_GetAttr(frame, a_name.ptr()));
+        if (!name.is_valid()) throw nb::python_error();
+        const i64 code = nb::cast<i64>(run[0]);
+        const bool converged = code == 0;
+        require(code >= 0 && code < static_cast<i64>(PyTuple_GET_SIZE(reasons.ptr())), "unknown reason code");
+        nb::object now = nb::steal(PyObject_CallNoArgs(perf_counter.ptr()));
+        if (!now.is_valid()) throw nb::python_error();
+        nb::object solve_time = nb::float_(PyFloat_AsDouble(now.ptr()) - start_time);
+        nb::object errors = nb::make_tuple(run[6], run[7]);
+        nb::dict frame_errors;
+        frame_errors[name] = errors;
+        nb::object history = run[5];
+        nb::object zero = nb::float_(0.0);
+        nb::object values[16] = {run[3],
+                                 nb::borrow(converged ? Py_True : Py_False),
+                                 nb::borrow(PyTuple_GET_ITEM(reasons.ptr(), code)),
+                                 run[1],
+                                 run[2],
+                                 run[6],
+                                 run[7],
+                                 solve_time,
+                                 frame_errors,
+                                 rows(history, list_type, 1, hist_columns),
+                                 rows(history, tuple_type, 0, error_columns),
+                                 run[4],
+                                 engine,
+                                 nb::make_tuple(nb::borrow(converged ? Py_True : Py_False)),
+                                 zero,
+                                 zero};
+        // The instance's attributes as one dict, given as its __dict__ (no per-field lookup
+        // of the class's descriptors: a dataclass has none for its fields).
+        nb::object result = nb::steal(PyBaseObject_Type.tp_new(reinterpret_cast<PyTypeObject*>(result_type.ptr()),
+                                                               empty.ptr(), nullptr));
+        if (!result.is_valid()) throw nb::python_error();
+        nb::object attributes = nb::steal(_PyDict_NewPresized(16));
+        if (!attributes.is_valid()) throw nb::python_error();
+        for (size_t i = 0; i < 16; ++i)
+            if (PyDict_SetItem(attributes.ptr(), fields[i].ptr(), values[i].ptr())) throw nb::python_error();
+        if (PyObject_GenericSetDict(result.ptr(), attributes.ptr(), nullptr)) throw nb::python_error();
+        return result;
+    }
+};
+
 void bind_igm(nb::module_& m) {
     m.attr("CONVERGED") = igm::CONVERGED;
     m.attr("MAX_ITERS") = igm::MAX_ITERS;
@@ -492,6 +746,18 @@ void bind_igm(nb::module_& m) {
         "Whether (position, rotation) are float64 C-contiguous (3,) and (3, 3) arrays, finite, the "
         "rotation orthonormal within orthonormal_tolerance and the position within max_distance of "
         "the origin (each coordinate).");
+
+    nb::class_<SessionLane>(m, "_SessionLane",
+                            "IKSession's lean solve in one call, for one options memo (see "
+                            "qpik.igm.session.IKSession._solve).")
+        .def(nb::init<nb::handle, nb::dict, nb::handle, nb::dict, nb::handle, nb::handle, nb::handle, nb::handle,
+                      nb::tuple, double, double>(),
+             "base"_a, "memo_keywords"_a, "kernel_options"_a, "frames"_a, "start_box"_a, "budget"_a.none(),
+             "mid"_a, "seed"_a.none(), "consts"_a, "orthonormal_tolerance"_a, "max_distance"_a)
+        .def("solve", &SessionLane::solve, "defaults"_a, "robot_q"_a.none(), "targets"_a, "keywords"_a,
+             "start_time"_a,
+             "The solve's IKResult, or None (nothing drawn, nothing run) where the general path must "
+             "answer.");
 
     nb::class_<StartBox>(m, "_StartBox",
                          "A start's joint-limit box (lower, upper, tol), copied once; check(q) is "

@@ -168,6 +168,12 @@ igm_plan_run = _igm._igm_plan_run
 #: copy, as it does); else ``None``, nothing run (:class:`qpik.IKSession`'s lean lane: the
 #: general path then answers or raises).
 igm_lean_run = _igm._igm_lean_run
+#: ``session_lane(base, memo_keywords, kernel_options, frames, start_box, budget, mid, seed,
+#: consts, orthonormal_tolerance, max_distance)``: :class:`qpik.IKSession`'s lean solve in one
+#: compiled call for one options memo (``IKSession._make_lane``); its ``solve(defaults,
+#: robot_q, targets, keywords, start_time)`` returns the :class:`qpik.IKResult`, or ``None``
+#: (nothing drawn or run) where the session's general path answers.
+session_lane = _igm._SessionLane
 #: ``target_ok(position, rotation, orthonormal_tolerance, max_distance) -> bool``: whether
 #: a target pair is float64 C-contiguous arrays (3,) and (3, 3), finite, whose rotation is
 #: orthonormal within ``orthonormal_tolerance`` (``max |R R^T - I|``, ``det R > 0``) and whose

@@ -9,6 +9,7 @@ holds its own.
 from __future__ import annotations
 
 import threading
+import time
 import weakref
 from typing import Any
 
@@ -21,10 +22,28 @@ from ..model.configuration import Configuration, FrameType, quaternion_joints, u
 from ..model.couplings import default_start, model_couplings, unheld_equalities
 from ..model.frames import resolve_frame
 from ..model.robots import check_kinematic_model
+from . import kernels as igm_kernels
 from .kernels import start_box
-from .targets import FrameKey
+from .restarts import RAW_UINT64, rng_state
+from .result import IKResult, LazyRows, Reason
+from .targets import MAX_TARGET_DISTANCE, ORTHONORMAL_TOLERANCE, FrameKey
 
-__all__ = ["FINGERPRINT_FIELDS", "PREPARED", "PreparedFrame", "PreparedRobot", "PreparedRobots"]
+__all__ = [
+    "FINGERPRINT_FIELDS",
+    "PREPARED",
+    "REASONS_BY_CODE",
+    "PreparedFrame",
+    "PreparedRobot",
+    "PreparedRobots",
+]
+
+#: The :class:`Reason` of each of the compiled engine's reason codes.
+REASONS_BY_CODE = tuple(Reason(name) for name in igm_kernels.REASON_NAMES)
+#: What the compiled lane (:meth:`PreparedRobot.make_lane`) makes its answers with.
+_LANE_CONSTS = (
+    IKResult, LazyRows, REASONS_BY_CODE, np.random.Generator, tuple(RAW_UINT64), rng_state,
+    time.perf_counter, list, tuple,
+)  # fmt: skip
 
 
 class PreparedFrame:
@@ -83,6 +102,7 @@ class PreparedRobot:
         "coupling_memo",
         "couplings",
         "frames",
+        "lane",
         "lower",
         "memo",
         "mid",
@@ -122,15 +142,58 @@ class PreparedRobot:
         self.mid = default_start(model, lower, upper, self.unheld)
         self.frames: dict = {}  # frame key -> PreparedFrame
         self.memo: list = [None]  # the options memo of the sessions using this preparation
+        #: the sessions' lean solve in one compiled call, for memo[0] (IKSession._solve)
+        self.lane: Any = None
 
     def __getstate__(self) -> dict:
-        # Pickled (and deep-copied) without the compiled start box, rebuilt from the limits.
-        return {name: getattr(self, name) for name in self.__slots__ if name != "start_box"}
+        # Pickled (and deep-copied) without the compiled start box, rebuilt from the limits,
+        # and without the compiled lane, made again by the next solve.
+        kept = (name for name in self.__slots__ if name not in ("start_box", "lane"))
+        return {name: getattr(self, name) for name in kept}
 
     def __setstate__(self, state: dict) -> None:
         for name, value in state.items():
             setattr(self, name, value)
         self.start_box = start_box(self.lower, self.upper, 1e-6)
+        self.lane = None
+
+    def plan(self, frame: PreparedFrame, joint: bool, kernel_options: tuple) -> tuple:
+        """The compiled engine's fixed arguments for ``frame`` (its chain, bounds, reach
+        bound; the joint limits with ``joint``, else none) under ``kernel_options``
+        (``qpik.igm.kernels.kernel_options``'s arrays), checked and copied once into a
+        :func:`qpik.igm.kernels.igm_plan`, kept on the frame (``frame.plan``) while the
+        solves' options are the same object."""
+        options, int_options = kernel_options
+        if frame.index is None:  # the chain's joints are all of q
+            chain = frame.chain
+            bounds = self.bounds_joint if joint else self.bounds_free
+        else:  # the chain's joints only: the others stay where they are
+            chain = frame.packed
+            assert frame.bounds is not None
+            bounds = frame.bounds[0] if joint else frame.bounds[1]
+        reach = frame.reach if joint else frame.reach_free  # (limits None: no joint limits)
+        assert chain is not None and reach is not None
+        compiled = igm_kernels.igm_plan(
+            chain.compiled, frame.index, self.mid.shape[0], bounds, reach.array, options,
+            int_options,
+        )  # fmt: skip
+        plan = (kernel_options, joint, bool(int_options[3]), compiled)
+        frame.plan = plan
+        return plan
+
+    def make_lane(self, memo: tuple) -> Any:
+        """The sessions' lean solve in one compiled call (``qpik._engine.igm._SessionLane``)
+        for the options memo ``memo`` (``IKSession._options``'s entry, its lane taken):
+        ``IKSession._solve``'s memo test, ``_lean``'s tests and run and
+        ``_compiled_result``'s result, bit for bit. Its ``solve`` returns ``None`` (nothing
+        drawn, nothing run) wherever the general path must answer."""
+        base, keywords, settings, kernel_options = memo[:4]
+        budget = settings.time_budget
+        return igm_kernels.session_lane(
+            base, keywords, kernel_options, self.frames, self.start_box,
+            None if budget is None else float(budget), self.mid, settings.seed, _LANE_CONSTS,
+            ORTHONORMAL_TOLERANCE, MAX_TARGET_DISTANCE,
+        )  # fmt: skip
 
     def checked_start(self, q: np.ndarray) -> np.ndarray:
         """The start ``q0`` (float64, ``(nq,)``) of a model with ball or free joints checked:

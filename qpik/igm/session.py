@@ -111,7 +111,7 @@ from ..model.rotations import ORTHONORMAL_TOLERANCE
 from ..options import PRESETS, UNSET, SolveKeywords, SolveOptions, Unset, resolve
 from . import kernels
 from .kernels import kernel_options as _kernel_options
-from .prepared import PREPARED, PreparedFrame, PreparedRobot, model_watch
+from .prepared import PREPARED, REASONS_BY_CODE, PreparedFrame, PreparedRobot, model_watch
 from .qp_engine import QPProblem, borrowed_tasks, iterate, lent_scratch
 from .restarts import RAW_UINT64, Clock, Seed
 from .restarts import rng_state as _rng_state
@@ -135,7 +135,6 @@ __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 
 LIMIT_GAIN = kernels.LIMIT_GAIN
 #: The reasons of the compiled engine, by code.
-_REASONS_BY_CODE = tuple(Reason(name) for name in kernels.REASON_NAMES)
 _Generator = np.random.Generator
 
 
@@ -273,7 +272,24 @@ class IKSession:
         keywords: SolveCall,
         start_time: float,
     ) -> IKResult:
-        """:meth:`solve` from the start of its clock (``keywords``: its own, changed)."""
+        """:meth:`solve` from the start of its clock (``keywords``: its own, changed): the
+        compiled lane of the options memo where it answers (``PreparedRobot.make_lane``),
+        else :meth:`_general`."""
+        lane = self._prepared.lane
+        if lane is not None and options is None:
+            result = lane.solve(self._defaults, self._robot_q, targets, keywords, start_time)
+            if result is not None:
+                return result
+        return self._general(targets, options, keywords, start_time)
+
+    def _general(
+        self,
+        targets: Mapping[FrameKey, TargetLike],
+        options: SolveOptions | str | None,
+        keywords: SolveCall,
+        start_time: float,
+    ) -> IKResult:
+        """:meth:`_solve` where the compiled lane does not answer."""
         q0 = keywords.pop("q0", None)
         stack = keywords.pop("stack", None)
         seed = keywords.pop("seed", UNSET)
@@ -392,6 +408,7 @@ class IKSession:
         )
         keys, types = tuple(keywords), tuple(map(type, keywords.values()))
         self._memo[0] = (base, dict(keywords), settings, kernel_options, keys, types, lean)
+        self._prepared.lane = None  # (made for this memo by the next lean solve: make_lane)
         return settings, kernel_options, lean
 
     def _targets(
@@ -534,34 +551,6 @@ class IKSession:
             coupling_error=self._coupling_error(q),
         )
 
-    def _plan(self, frame: PreparedFrame, joint: bool, kernel_options: tuple) -> tuple:
-        """The compiled engine's fixed arguments for ``frame`` (its chain, bounds, reach
-        bound) under ``kernel_options`` (:func:`_kernel_options`'s arrays), checked and
-        copied once into a :func:`qpik.igm.kernels.igm_plan` (kept on the frame while the
-        solves' options are the same object)."""
-        options, int_options = kernel_options
-        if frame.index is None:  # the chain's joints are all of q
-            chain = frame.chain
-            bounds = self._bounds_joint if joint else self._bounds_free
-        else:  # the chain's joints only: the others stay where they are
-            chain = frame.packed
-            assert frame.bounds is not None
-            bounds = frame.bounds[0] if joint else frame.bounds[1]
-        reach = frame.reach if joint else frame.reach_free  # (limits None: no joint limits)
-        assert chain is not None and reach is not None
-        compiled = kernels.igm_plan(
-            chain.compiled,
-            frame.index,
-            self._mid.shape[0],
-            bounds,
-            reach.array,
-            options,
-            int_options,
-        )
-        plan = (kernel_options, joint, bool(int_options[3]), compiled)
-        frame.plan = plan
-        return plan
-
     def _lean(
         self,
         targets: Mapping[FrameKey, TargetLike],
@@ -597,6 +586,8 @@ class IKSession:
         )  # fmt: skip
         if run is None:
             return None
+        if self._prepared.lane is None:  # (the lane of these options: the next solves')
+            self._prepared.lane = self._prepared.make_lane(self._memo[0])
         return self._compiled_result(run, frame.name, start_time, 0.0)  # (no coupling)
 
     def _solve_compiled(
@@ -609,7 +600,7 @@ class IKSession:
         kernel_options, rng_state = kernel_inputs
         plan = frame.plan
         if plan is None or plan[0] is not kernel_options or plan[1] is not joint:
-            plan = self._plan(frame, joint, kernel_options)
+            plan = self._prepared.plan(frame, joint, kernel_options)
         deadline = start_time + settings.time_budget if plan[2] else np.inf
         run = kernels.igm_plan_run(
             plan[3], target.position, target.rotation, q_start, rng_state, deadline
@@ -625,7 +616,7 @@ class IKSession:
         code, iterations, restarts_used, q, path, history, position_error, orientation_error = run
         converged = code == 0
         return IKResult(
-            q, converged, _REASONS_BY_CODE[code], iterations, restarts_used, position_error,
+            q, converged, REASONS_BY_CODE[code], iterations, restarts_used, position_error,
             orientation_error, time.perf_counter() - start_time,
             {name: (position_error, orientation_error)}, LazyRows(history, list, 1, 2),
             LazyRows(history, tuple, 0, 0, 2), path, "compiled", (converged,),

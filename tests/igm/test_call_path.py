@@ -140,20 +140,40 @@ def _general(session: qpik.IKSession, monkeypatch, targets, **keywords) -> qpik.
         return session.solve(targets, **keywords)
 
 
+def _count_lean(monkeypatch, calls: list) -> None:
+    """Count the solves the lean lane answers (``calls``): by ``_lean``'s
+    ``kernels.igm_lean_run``, or by the compiled lane ``_make_lane`` makes
+    (``kernels.session_lane``) where it answers."""
+    from qpik.igm import kernels
+
+    real_run, real_lane = kernels.igm_lean_run, kernels.session_lane
+
+    class Counted:
+        def __init__(self, *args):
+            self.lane = real_lane(*args)
+
+        def solve(self, *args):
+            result = self.lane.solve(*args)
+            if result is not None:
+                calls.append(2)
+            return result
+
+    monkeypatch.setattr(kernels, "igm_lean_run", lambda *args: calls.append(1) or real_run(*args))
+    monkeypatch.setattr(kernels, "session_lane", Counted)
+
+
 def test_the_lean_lane_gives_the_general_paths_answers(monkeypatch):
     """IKSession's lean lane (one (position, rotation) target, a plan made for the options,
     limits 'joint'): the general path's answers bit for bit, with int and Generator seeds, q0
     given or not, a time budget or not; and the lane is taken (one compiled call) on every
-    solve but the first of a run with the same options (which makes the plan)."""
-    from qpik.igm import kernels
-
+    solve but the first of a run with the same options (which makes the plan): by ``_lean``
+    on the second, which makes the compiled lane, and by that lane on the others."""
     model = qpik.load_robot("ur5e")
     lean, general = qpik.IKSession(model), qpik.IKSession(model)
     configuration = qpik.Configuration(model)
     rng = np.random.default_rng(3)
-    calls = []
-    real = kernels.igm_lean_run
-    monkeypatch.setattr(kernels, "igm_lean_run", lambda *args: calls.append(1) or real(*args))
+    calls: list = []
+    _count_lean(monkeypatch, calls)
     runs = ({}, {"tol_position": 1e-6}, {"time_budget": 10.0, "restarts": 3})
     for keywords in runs:
         for k in range(15):
@@ -164,7 +184,7 @@ def test_the_lean_lane_gives_the_general_paths_answers(monkeypatch):
             a = lean.solve({"ee": target}, q0=q0, seed=seeds[0], **keywords)
             b = _general(general, monkeypatch, {"ee": target}, q0=q0, seed=seeds[1], **keywords)
             _same(a, b)
-    assert len(calls) == len(runs) * 14
+    assert calls == [1] + [2] * 13 + [1] + [2] * 13 + [1] + [2] * 13
 
 
 def test_the_lean_lanes_option_check_is_the_options_memos(monkeypatch):
@@ -172,16 +192,13 @@ def test_the_lean_lanes_option_check_is_the_options_memos(monkeypatch):
     same types and values (in any order): an equal value of another type (np.float64 for a
     float) goes through the options' checks (then the lane again); every answer is a fresh
     session's."""
-    from qpik.igm import kernels
-
     model = qpik.load_robot("ur5e")
     session = qpik.IKSession(model)
     configuration = qpik.Configuration(model)
     configuration.update(configuration.random_q(np.random.default_rng(6)))
     target = {"ee": configuration.frame_pose("ee")}
-    calls = []
-    real = kernels.igm_lean_run
-    monkeypatch.setattr(kernels, "igm_lean_run", lambda *args: calls.append(1) or real(*args))
+    calls: list = []
+    _count_lean(monkeypatch, calls)
     runs = (
         {"tol_position": 1e-6, "restarts": 3},
         {"restarts": 3, "tol_position": 1e-6},
@@ -197,7 +214,8 @@ def test_the_lean_lanes_option_check_is_the_options_memos(monkeypatch):
     # both of the second (the memo's options, in another order: the same plan); then new
     # options (np.float64), whose first solve makes their plan; then the first run's again,
     # against the memo of the third (types differ): its options made again, and their plan.
-    assert len(calls) == 1 + 2 + 1 + 1
+    # (by _lean, which makes the compiled lane: 1; by that lane: 2)
+    assert calls == [1] + [2, 2] + [1] + [1]
 
 
 @pytest.mark.parametrize(
@@ -212,7 +230,7 @@ def test_the_lean_lane_leaves_bad_starts_to_the_general_path(q0, error):
     model = qpik.load_robot("ur5e")
     session = qpik.IKSession(model)
     target = qpik.Configuration(model).frame_pose("ee")
-    session.solve({"ee": target})  # the plan made
+    _warm(session, {"ee": target})
     with pytest.raises(error):
         session.solve({"ee": target}, q0=q0)
 
@@ -225,7 +243,7 @@ def test_the_lean_lane_leaves_other_targets_and_starts_to_the_general_path(monke
     configuration = qpik.Configuration(model)
     configuration.update(configuration.random_q(np.random.default_rng(1)))
     p, R = configuration.frame_pose("ee")
-    session.solve({"ee": (p, R)}, seed=0)  # the plan made
+    _warm(session, {"ee": (p, R)})
     for target, q0 in (((p, R + 1e-12), None), ((p.tolist(), R), None), ((p, R), [0.1] * 6)):
         expected = _general(reference, monkeypatch, {"ee": target}, q0=q0, seed=5)
         _same(session.solve({"ee": target}, q0=q0, seed=5), expected)
@@ -242,10 +260,104 @@ def test_the_lean_lane_starts_from_a_configurations_q(monkeypatch):
     start = qpik.Configuration(model, configuration.random_q(np.random.default_rng(5)))
     target = {"ee": configuration.frame_pose("ee")}
     session = qpik.IKSession(start)
-    for _ in range(2):  # the first solve makes the plan, the second takes the lane
+    for _ in range(3):  # the plan made, then the compiled lane, which answers the third
         a, b = session.solve(target, seed=2), qpik.solve(start, target, seed=2)
+    assert session._prepared.lane is not None
     _same(a, _general(qpik.IKSession(start), monkeypatch, target, seed=2))
     _same(b, a)
+
+
+def _warm(session: qpik.IKSession, targets: dict, **keywords) -> None:
+    """Two solves of ``targets``: the first makes the frame's plan, the second (by
+    ``_lean``) the compiled lane of these options, which takes the solves after them."""
+    for _ in range(2):
+        session.solve(targets, **keywords)
+    assert session._prepared.lane is not None
+
+
+@pytest.mark.parametrize(
+    "seed",
+    [
+        7,
+        2**64 + 5,
+        np.int64(7),
+        np.random.SeedSequence(9),
+        np.random.Generator(np.random.MT19937(4)),
+        np.random.Generator(np.random.PCG64(4)),
+        np.random.Generator(np.random.Philox(4)),
+    ],
+    ids=["int", "int past 2**64", "np.int64", "SeedSequence", "MT19937", "PCG64", "Philox"],
+)
+def test_the_compiled_lane_draws_every_seeds_state_as_the_general_path(seed, monkeypatch):
+    """Every kind of seed (a Generator of a raw-uint64 bit generator: one draw in the lane;
+    the others through rng_state) gives the general path's answer, and advances a
+    Generator by the same draw."""
+    import copy
+
+    model = qpik.load_robot("ur5e")
+    session = qpik.IKSession(model)
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(8)))
+    target = {"ee": configuration.frame_pose("ee")}
+    calls: list = []
+    _count_lean(monkeypatch, calls)
+    _warm(session, target, restarts=4)
+    twin = copy.deepcopy(seed)
+    got = session.solve(target, seed=seed, restarts=4)
+    assert calls == [1, 2]  # (the second solve by _lean, this one by the compiled lane)
+    want = _general(qpik.IKSession(model), monkeypatch, target, seed=twin, restarts=4)
+    _same(got, want)
+    if isinstance(seed, np.random.Generator):
+        assert seed.integers(2**62) == twin.integers(2**62)  # (the same state after)
+
+
+@pytest.mark.parametrize(
+    "keywords, error",
+    [
+        ({"seed": -1}, qpik.InvalidInput),
+        ({"seed": 1.5}, qpik.InvalidInput),
+        ({"tol_position": -1.0}, qpik.InvalidOption),
+        ({"no_such_option": 1}, qpik.InvalidOption),
+        ({"q0": np.zeros(7)}, qpik.InvalidConfiguration),
+    ],
+)
+def test_the_compiled_lane_leaves_bad_arguments_to_the_general_path(keywords, error, monkeypatch):
+    """Arguments the lane does not take raise the general path's typed errors, and the
+    lane still answers the next plain solve."""
+    model = qpik.load_robot("ur5e")
+    session = qpik.IKSession(model)
+    target = {"ee": qpik.Configuration(model).frame_pose("ee")}
+    calls: list = []
+    _count_lean(monkeypatch, calls)
+    _warm(session, target, seed=0)
+    with pytest.raises(error):
+        session.solve(target, **keywords)
+    plain = session.solve(target, seed=0, stack=None)
+    assert calls[-1] == 2 and calls.count(2) == 1  # (only the plain solve by the lane)
+    _same(plain, qpik.IKSession(model).solve(target, seed=0))
+
+
+def test_the_compiled_lane_follows_a_model_edited_in_place_and_pickling():
+    """A model edited in place after the lane was made: the solve is a fresh session's (the
+    watch makes a new preparation, with no lane); a pickled session (the lane not pickled)
+    solves as before."""
+    import pickle
+
+    model = qpik.load_robot("ur5e")
+    session = qpik.IKSession(model)
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(2)))
+    target = {"ee": configuration.frame_pose("ee")}
+    _warm(session, target, seed=1)
+    before = session.solve(target, seed=1)
+    copy = pickle.loads(pickle.dumps(session))
+    assert copy._prepared.lane is None
+    for _ in range(3):
+        _same(copy.solve(target, seed=1), before)
+    model.jnt_range[1] = [-0.5, 0.5]
+    edited = session.solve(target, seed=1)
+    _same(edited, qpik.IKSession(model).solve(target, seed=1))
+    assert edited.q[1] >= -0.5 - 1e-12 and edited.q[1] <= 0.5 + 1e-12
 
 
 def test_the_qp_engines_lent_scratch_gives_a_fresh_runs_bits():
