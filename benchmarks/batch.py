@@ -279,4 +279,6 @@ def print_projection(one: float | None, projected: dict, total: int) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

@@ -5171,4 +5171,6 @@ def cross_process(results: list[tuple]) -> list[tuple]:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

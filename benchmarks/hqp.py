@@ -297,4 +297,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

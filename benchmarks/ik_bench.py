@@ -190,7 +190,7 @@ def default_robots() -> list[str]:
             continue
         robot = f"erd:{name}"
         try:
-            model = _load_quietly(robot)
+            model = load_quietly(robot)
             frame, frame_type = robot_frame(robot, model)
         except (QpikError, ValueError):
             continue
@@ -200,7 +200,9 @@ def default_robots() -> list[str]:
     return robots
 
 
-def _load_quietly(name: str) -> mujoco.MjModel:
+def load_quietly(name: str) -> mujoco.MjModel:
+    """:func:`qpik.load_robot` of ``name`` without its warnings (dropped collision meshes:
+    the kinematics are the same); raises its typed errors."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # dropped collision meshes: kinematics unchanged
         return load_robot(name)
@@ -421,7 +423,7 @@ def _bind(model, frame, frame_type, robot, methods, criterion):
 
 def _run_robot(robot, robot_index, methods, n, seed, criterion, progress) -> dict:
     """One robot's entry of the results: every method on the same ``n`` targets."""
-    model = _load_quietly(robot)
+    model = load_quietly(robot)
     frame, frame_type = robot_frame(robot, model)
     configuration = Configuration(model)
     configuration.frame_id(frame, frame_type)  # unknown frame: a clear error, early

@@ -61,6 +61,8 @@ from pathlib import Path
 import ik_bench as bench  # benchmarks/ik_bench.py (this folder is on sys.path)
 import numpy as np
 
+from qpik import QpikError
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -273,6 +275,11 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", metavar="OUT", help="write the results as JSON to OUT")
     args = parser.parse_args(argv)
     robots = args.robots or bench.default_robots()
+    for robot in robots:  # an unknown robot or a bad file: its typed error, before any run
+        try:
+            bench.load_quietly(robot)
+        except QpikError as exc:
+            parser.error(f"--robots {robot}: {exc}")
     with os.popen("uptime") as stream:
         load = stream.read().strip()
     print(f"machine: {os.cpu_count()} cores; {load}")
@@ -349,4 +356,6 @@ def _print_cpu(results: dict) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

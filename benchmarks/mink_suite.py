@@ -1073,4 +1073,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

@@ -452,4 +452,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import bench_cli  # benchmarks/bench_cli.py (this folder is on sys.path)
+
+    bench_cli.run(main)

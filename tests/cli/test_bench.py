@@ -277,3 +277,29 @@ def test_peer_goals_verdicts():
         for line in lines
     )
     assert any(line.startswith("beside: erd:ur5: TRAC-IK 99.00%") for line in lines)
+
+
+@pytest.mark.parametrize(
+    "script, arguments, named",
+    [
+        ("ik_success.py", ["--robots", "no_such_robot", "--n", "1"], "no_such_robot"),
+        ("batch.py", ["--robot", "ur5e", "--frame", "no_such_site", "--n", "1"], "no_such_site"),
+        ("real_robots.py", ["no_such_folder"], "no_such_folder"),
+    ],
+)
+def test_benchmark_scripts_end_bad_arguments_with_one_line_and_status_2(
+    script, arguments, named, tmp_path
+):
+    """A benchmark script given an unknown robot, frame or folder prints one line naming it
+    (``SCRIPT: error: ...``, benchmarks/bench_cli.py) and exits with status 2, as the
+    qpik command line does: no traceback."""
+    import subprocess
+
+    run = subprocess.run(
+        [sys.executable, str(BENCHMARKS / script), *arguments],
+        capture_output=True, text=True, cwd=tmp_path, timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert "Traceback" not in run.stderr and named in lines[-1]
+    assert lines[-1].startswith(f"{script}: error:")
