@@ -404,3 +404,51 @@ def _floating_arms():
         + "</body></worldbody></mujoco>"
     )
     return mujoco.MjModel.from_xml_string(xml)
+
+
+def test_the_compiled_lane_answers_mixed_calls_as_fresh_sessions(monkeypatch):
+    """A warm session's solves over a mix of frame keys, target forms, starts, seeds and
+    options (good and bad, in a seeded random order): each answer, or each typed error, is a
+    fresh session's (the general path), bit for bit."""
+    import random
+
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(1)))
+    p, R = configuration.frame_pose("ee")
+    # (the lane's calls several times over in each list, so that it takes about a third)
+    keys = ["ee", "ee", ("ee", "site"), "nope"]
+    targets = [(p, R)] * 6 + [(p.tolist(), R), (p, R[:, ::-1]), (p.astype(np.float32), R), p]
+    starts = [None, configuration.mid_q(), configuration.mid_q() + 0.1] * 2
+    starts += [np.full(6, 10.0), np.zeros(5), [0.1] * 6]
+    seeds = [0, 7, 2**70, np.random.SeedSequence(3), -1]
+    options = [{}] * 4 + [
+        {"stack": None},
+        {"restarts": 3},
+        {"restarts": 3.0},
+        {"tol_position": "x"},
+    ]
+    session = qpik.IKSession(model)
+    calls: list = []
+    _count_lean(monkeypatch, calls)
+    _warm(session, {"ee": (p, R)}, seed=0)
+    rng = random.Random(0)
+
+    def outcome(solver, keywords):
+        try:
+            result = solver.solve({rng_key: rng_target}, **keywords)
+        except qpik.QpikError as exc:
+            return type(exc).__name__
+        return result.q.tobytes(), result.path.tobytes(), result.iterations, result.reason
+
+    answered = 0
+    for _ in range(120):
+        rng_key, rng_target = rng.choice(keys), rng.choice(targets)
+        keywords = {"q0": rng.choice(starts), "seed": rng.choice(seeds), **rng.choice(options)}
+        _warm(session, {"ee": (p, R)}, seed=0)  # (the lane of the default options again)
+        before = calls.count(2)
+        got = outcome(session, keywords)
+        by_lane = calls.count(2) > before
+        assert got == outcome(qpik.IKSession(model), keywords)
+        answered += by_lane
+    assert answered >= 10  # (17 of the 120: the others are not the lane's to take)
