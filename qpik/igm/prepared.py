@@ -76,7 +76,7 @@ class PreparedFrame:
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None  # (joint, free), packed
         self.coupled = False
         #: (kernel options, joint limits?, time checked?, compiled plan) of the last compiled
-        #: solve (:meth:`qpik.IKSession._plan`), reused while the options are the same object
+        #: solve (:meth:`PreparedRobot.plan`), reused while the options are the same object
         self.plan: tuple | None = None
 
     def __getstate__(self) -> dict:
