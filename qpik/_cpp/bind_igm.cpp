@@ -279,6 +279,23 @@ static nb::tuple run_plan(const IgmPlan& plan, const double* target_p, const dou
     return session_tuple(held.run(), q_full, plan.nfull, index_p, plan.nq);
 }
 
+// _igm_lean_run's tests of a target (position, rotation) and a start q_obj for plan: float64
+// C-contiguous arrays of the shapes it takes, target_pair_ok, and the start within box
+// (start_defect_code, which clips it into q_full, a copy); false where one fails.
+static bool lean_inputs(const IgmPlan& plan, nb::handle position, nb::handle rotation, nb::handle q_obj,
+                        const StartBox& box, double orthonormal_tolerance, double max_distance, In1& p, In2& R,
+                        Vec& q_full) {
+    In1 q;
+    if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false) || !nb::try_cast(q_obj, q, false))
+        return false;
+    if (!target_pair_ok(p, R, orthonormal_tolerance, max_distance)) return false;
+    size_t n = q.shape(0);
+    if (static_cast<i64>(n) != plan.nfull || box.lower.size() != n) return false;
+    q_full.assign(q.data(), q.data() + n);
+    i64 index;
+    return start_defect_code(q_full.data(), box.lower.data(), box.upper.data(), n, box.tol, index) == 0;
+}
+
 // IKSession's lean solve in one compiled call (qpik.igm.session.IKSession._solve's lane):
 // the options memo's test, _lean's tests, the draw of the restarts' RNG state, the run and
 // _compiled_result's IKResult, with no Python frame between the call and the engine (a solve
@@ -296,8 +313,7 @@ struct SessionLane {
         tuple_type;
     double orthonormal_tolerance = 0.0, max_distance = 0.0;
     nb::object hist_columns, error_columns, engine;  // slice(2, None), slice(0, 2), "compiled"
-    nb::object k_q0, k_seed, k_stack, a_plan, a_name, a_bit_generator, a_random_raw, a_array, a_kind, a_first,
-        a_columns;
+    nb::object k_q0, k_seed, k_stack, a_plan, a_name, a_bit_generator, a_random_raw;
     std::array<nb::object, 16> fields;  // IKResult's fields in its __init__'s order
     std::array<nb::object, 4> slot_set;  // LazyRows's slots' member descriptors
     nb::object empty;                   // ()
@@ -335,16 +351,11 @@ struct SessionLane {
         a_name = intern("name");
         a_bit_generator = intern("bit_generator");
         a_random_raw = intern("random_raw");
-        a_array = intern("_array");
-        a_kind = intern("_kind");
-        a_first = intern("_first");
-        a_columns = intern("_columns");
         empty = nb::steal(PyTuple_New(0));
-        const nb::object slots[4] = {a_array, a_kind, a_first, a_columns};
+        static const char* slots[4] = {"_array", "_kind", "_first", "_columns"};
         for (size_t i = 0; i < 4; ++i) {
             // (the slot's member descriptor in LazyRows's own dict)
-            PyObject* d = PyDict_GetItemWithError(reinterpret_cast<PyTypeObject*>(rows_type.ptr())->tp_dict,
-                                                  slots[i].ptr());
+            PyObject* d = PyDict_GetItemString(reinterpret_cast<PyTypeObject*>(rows_type.ptr())->tp_dict, slots[i]);
             require(d != nullptr && Py_TYPE(d)->tp_descr_set != nullptr, "LazyRows must have its four slots");
             slot_set[i] = nb::borrow(d);
         }
@@ -452,7 +463,7 @@ struct SessionLane {
         PyObject *key, *value;
         PyDict_Next(targets.ptr(), &pos, &key, &value);
         // (strong references: the calls into Python below may change the dicts they came from)
-        const nb::object key_ref = nb::borrow(key), value_ref = nb::borrow(value);
+        const nb::object value_ref = nb::borrow(value);
         PyObject* frame = PyDict_GetItemWithError(frames.ptr(), key);
         if (frame == nullptr) {
             PyErr_Clear();  // (an unhashable key)
@@ -474,17 +485,11 @@ struct SessionLane {
         if (timed < 0) throw nb::python_error();
         const double deadline = timed && !budget.is_none() ? start_time + PyFloat_AS_DOUBLE(budget.ptr()) : kInf;
         // igm_lean_run's tests, then the draw and the run
-        In1 p, q;
+        In1 p;
         In2 R;
-        if (!nb::try_cast(nb::handle(PyTuple_GET_ITEM(value, 0)), p, false) ||
-            !nb::try_cast(nb::handle(PyTuple_GET_ITEM(value, 1)), R, false) || !nb::try_cast(nb::handle(q0), q, false))
-            return nb::none();
-        if (!target_pair_ok(p, R, orthonormal_tolerance, max_distance)) return nb::none();
-        size_t n = q.shape(0);
-        if (static_cast<i64>(n) != compiled->nfull || box->lower.size() != n) return nb::none();
-        Vec q_full(q.data(), q.data() + n);
-        i64 index;
-        if (start_defect_code(q_full.data(), box->lower.data(), box->upper.data(), n, box->tol, index) != 0)
+        Vec q_full;
+        if (!lean_inputs(*compiled, PyTuple_GET_ITEM(value, 0), PyTuple_GET_ITEM(value, 1), q0, *box,
+                         orthonormal_tolerance, max_distance, p, R, q_full))
             return nb::none();
         std::uint64_t state = 0;
         if (!draw(seed, state)) return nb::none();
@@ -709,17 +714,10 @@ void bind_igm(nb::module_& m) {
             // _igm_plan_run on the whole configuration. Anything else (another dtype or shape,
             // a target or start _target_ok or check would not pass): None, nothing run, and the
             // session's general path answers (or raises) as it always did.
-            In1 p, q;
+            In1 p;
             In2 R;
-            if (!nb::try_cast(position, p, false) || !nb::try_cast(rotation, R, false) ||
-                !nb::try_cast(q_obj, q, false))
-                return nb::none();
-            if (!target_pair_ok(p, R, orthonormal_tolerance, max_distance)) return nb::none();
-            size_t n = q.shape(0);
-            if (static_cast<i64>(n) != plan.nfull || box.lower.size() != n) return nb::none();
-            Vec q_full(q.data(), q.data() + n);
-            i64 index;
-            if (start_defect_code(q_full.data(), box.lower.data(), box.upper.data(), n, box.tol, index) != 0)
+            Vec q_full;
+            if (!lean_inputs(plan, position, rotation, q_obj, box, orthonormal_tolerance, max_distance, p, R, q_full))
                 return nb::none();
             return run_plan(plan, p.data(), R.data(), true, q_full.data(), rng_state, deadline);
         },

@@ -170,7 +170,7 @@ igm_plan_run = _igm._igm_plan_run
 igm_lean_run = _igm._igm_lean_run
 #: ``session_lane(base, memo_keywords, kernel_options, frames, start_box, budget, mid, seed,
 #: consts, orthonormal_tolerance, max_distance)``: :class:`qpik.IKSession`'s lean solve in one
-#: compiled call for one options memo (``IKSession._make_lane``); its ``solve(defaults,
+#: compiled call for one options memo (``PreparedRobot.make_lane``); its ``solve(defaults,
 #: robot_q, targets, keywords, start_time)`` returns the :class:`qpik.IKResult`, or ``None``
 #: (nothing drawn or run) where the session's general path answers.
 session_lane = _igm._SessionLane

@@ -134,7 +134,6 @@ if TYPE_CHECKING:
 __all__ = ["IKSession", "Seed", "SolveArguments", "SolveCall", "solve"]
 
 LIMIT_GAIN = kernels.LIMIT_GAIN
-#: The reasons of the compiled engine, by code.
 _Generator = np.random.Generator
 
 
