@@ -33,6 +33,10 @@ import statistics
 import time
 
 import numpy as np
+from bench_cli import (  # benchmarks/bench_cli.py (this folder is on sys.path)
+    at_least,
+    positive_float,
+)
 
 import qpik
 
@@ -72,12 +76,12 @@ def parse(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", default="ur5e")
     parser.add_argument("--frame", default="ee")
-    parser.add_argument("--n", type=int, default=1000, help="reachable targets (1000)")
-    parser.add_argument("--rounds", type=int, default=3, help="timed rounds (3)")
-    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    parser.add_argument("--n", type=at_least(1), default=1000, help="reachable targets (1000)")
+    parser.add_argument("--rounds", type=at_least(1), default=3, help="timed rounds (3)")
+    parser.add_argument("--workers", type=at_least(1), nargs="+", default=[1, 2])
     parser.add_argument("--no-ray", action="store_true", help="skip the Ray comparison")
-    parser.add_argument("--map-resolution", type=float, default=0.2, help="[m] (0.2)")
-    parser.add_argument("--map-orientations", type=int, default=8, help="K (8)")
+    parser.add_argument("--map-resolution", type=positive_float, default=0.2, help="[m] (0.2)")
+    parser.add_argument("--map-orientations", type=at_least(1), default=8, help="K (8)")
     return parser.parse_args(argv)
 
 

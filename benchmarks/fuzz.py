@@ -64,6 +64,7 @@ import hashlib
 import io
 import math
 import multiprocessing as mp
+import multiprocessing.connection
 import os
 import random
 import sys
@@ -72,6 +73,12 @@ import time
 import traceback
 from collections import Counter, defaultdict
 from pathlib import Path
+
+from bench_cli import (  # benchmarks/bench_cli.py (this folder is on sys.path)
+    at_least,
+    nonnegative_float,
+    positive_float,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 BAD = ("untyped", "nonfinite", "limits", "claim", "misreport", "message", "accepted", "refused")
@@ -5049,12 +5056,14 @@ WEIGHTS = {
 
 def parse(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--n", type=int, default=2000, help="number of cases (2000)")
-    parser.add_argument("--seed", type=int, default=0, help="campaign seed (0)")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes (2)")
-    parser.add_argument("--timeout", type=float, default=60.0, help="per-case limit [s] (60)")
+    parser.add_argument("--n", type=at_least(0), default=2000, help="number of cases (2000)")
+    parser.add_argument("--seed", type=at_least(0), default=0, help="campaign seed (0)")
+    parser.add_argument("--workers", type=at_least(1), default=2, help="worker processes (2)")
     parser.add_argument(
-        "--hang", type=float, default=HANG, help="CPU seconds that make a case a hang (5)"
+        "--timeout", type=positive_float, default=60.0, help="per-case limit [s] (60)"
+    )
+    parser.add_argument(
+        "--hang", type=positive_float, default=HANG, help="CPU seconds that make a case a hang (5)"
     )
     parser.add_argument("--categories", nargs="+", choices=CATEGORIES, default=list(CATEGORIES))
     parser.add_argument(
@@ -5064,11 +5073,11 @@ def parse(argv=None) -> argparse.Namespace:
     )
     parser.add_argument(
         "--memory",
-        type=float,
+        type=nonnegative_float,
         default=8.0,
         help="address-space limit of each worker [GiB] (8; 0: none)",
     )
-    parser.add_argument("--show", type=int, default=40, help="bad cases listed (40)")
+    parser.add_argument("--show", type=at_least(0), default=40, help="bad cases listed (40)")
     parser.add_argument("--list", action="store_true", help="list the categories")
     parser.add_argument("--verbose", action="store_true", help="let workers print (OSQP, ...)")
     return parser.parse_args(argv)

@@ -42,6 +42,7 @@ from pathlib import Path
 
 import daqp
 import numpy as np
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from exactness_oracle import (  # noqa: E402
@@ -290,8 +291,8 @@ def run(count: int, repeat: int) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--count", type=int, default=40, help="problems per set")
-    parser.add_argument("--repeat", type=int, default=20, help="timed calls per problem")
+    parser.add_argument("--count", type=at_least(1), default=40, help="problems per set")
+    parser.add_argument("--repeat", type=at_least(1), default=20, help="timed calls per problem")
     args = parser.parse_args()
     run(args.count, args.repeat)
 

@@ -60,6 +60,7 @@ from pathlib import Path
 
 import ik_bench as bench  # benchmarks/ik_bench.py (this folder is on sys.path)
 import numpy as np
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
 
 from qpik import QpikError
 
@@ -253,7 +254,7 @@ def fixed_cost(robot: str = "panda", repeats: int = 2000) -> dict:
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", help="robots (default: bench.default_robots())")
-    parser.add_argument("--n", type=int, default=bench.DEFAULT_N, help="targets per robot")
+    parser.add_argument("--n", type=at_least(1), default=bench.DEFAULT_N, help="targets per robot")
     parser.add_argument(
         "--methods",
         nargs="+",
@@ -262,7 +263,7 @@ def main(argv=None) -> dict:
         help="methods (default: qpik, oneshot and the peers installed: tracik rtb_lm; "
         "baselines: pinv dls mink pink)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the targets")
+    parser.add_argument("--seed", type=at_least(0), default=0, help="seed of the targets")
     parser.add_argument("--skip-second", action="store_true", help="only the headline")
     parser.add_argument(
         "--first-use",

@@ -55,6 +55,8 @@ import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
+
 #: Loaded with ``-p`` into each pytest run, before test modules are imported.
 _PLUGIN = '''
 """Set up one run of mink's suite: qpik patched in (QPIK_MINK_PATCH=1), and robot
@@ -1051,10 +1053,10 @@ def main(argv: list[str] | None = None) -> int:
         help="load models with the installed robot_descriptions package (may download)",
     )
     parser.add_argument("--timing", action="store_true", help="per-call times vs mink")
-    parser.add_argument("--calls", type=int, default=2000, help="calls per timing row")
+    parser.add_argument("--calls", type=at_least(1), default=2000, help="calls per timing row")
     parser.add_argument("-k", dest="keyword", help="pytest -k expression")
     parser.add_argument("--examples", type=Path, help="mink's examples/ folder (a checkout)")
-    parser.add_argument("--iterations", type=int, default=300, help="loop turns per script")
+    parser.add_argument("--iterations", type=at_least(1), default=300, help="loop turns per script")
     parser.add_argument("--only", help="comma-separated script names (without .py)")
     args = parser.parse_args(argv)
     if args.tests is None and not args.timing and args.examples is None:

@@ -53,6 +53,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
 from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -400,7 +401,9 @@ def _moves(model: mujoco.MjModel, frame: tuple[str, str]) -> bool:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", type=Path, help="a folder in MuJoCo Menagerie's layout")
-    parser.add_argument("--n", type=int, default=100, help="IK targets per arm (default 100)")
+    parser.add_argument(
+        "--n", type=at_least(1), default=100, help="IK targets per arm (default 100)"
+    )
     parser.add_argument("--only", default="", help="comma-separated model stems")
     args = parser.parse_args(argv)
     only = {s for s in args.only.split(",") if s}

@@ -71,6 +71,7 @@ import time
 import mink
 import numpy as np
 import qpsolvers
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
 
 import qpik
 from qpik.core import kernels as K
@@ -1377,10 +1378,10 @@ def cache_regimes(cases: list, n: int, reps: int = 2) -> None:
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--states", type=int, default=400)
-    parser.add_argument("--talos-states", type=int, default=400)
+    parser.add_argument("--states", type=at_least(1), default=400)
+    parser.add_argument("--talos-states", type=at_least(1), default=400)
     parser.add_argument("--no-talos", action="store_true")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=at_least(0), default=0)
     parser.add_argument(
         "--peers",
         choices=["on", "off", "only", "talos"],
@@ -1388,8 +1389,12 @@ def main(argv=None) -> None:
         help="issue 20's sections beside PlaCo and pink (erd:panda, Talos floating): on "
         "(after qpik's own), off, only them, or talos (only the floating-Talos one)",
     )
-    parser.add_argument("--peer-states", type=int, default=400, help="erd:panda states a regime")
-    parser.add_argument("--talos-steps", type=int, default=300, help="closed-loop Talos steps")
+    parser.add_argument(
+        "--peer-states", type=at_least(1), default=400, help="erd:panda states a regime"
+    )
+    parser.add_argument(
+        "--talos-steps", type=at_least(2), default=300, help="closed-loop Talos steps"
+    )
     parser.add_argument(
         "--talos-methods",
         default=",".join(TALOS_METHODS),
@@ -1408,7 +1413,7 @@ def main(argv=None) -> None:
         help="the --instructions methods' times hot, after a cache flush and interleaved "
         "(where the gap to PlaCo lies: instructions or footprint), then exit",
     )
-    parser.add_argument("--count-states", type=int, default=100, help="states a count")
+    parser.add_argument("--count-states", type=at_least(1), default=100, help="states a count")
     parser.add_argument("--count-child", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.count_child:

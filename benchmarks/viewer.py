@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
 
 import qpik
 from qpik.problem import load_problem
@@ -87,7 +88,7 @@ def _wait_for_robot(browser, timeout: float = 120.0) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--moves", type=int, default=400, help="target moves per stack")
+    parser.add_argument("--moves", type=at_least(1), default=400, help="target moves per stack")
     parser.add_argument("--no-browser", action="store_true", help="skip the first-frame time")
     args = parser.parse_args(argv)
 

@@ -285,12 +285,18 @@ def test_peer_goals_verdicts():
         ("ik_success.py", ["--robots", "no_such_robot", "--n", "1"], "no_such_robot"),
         ("batch.py", ["--robot", "ur5e", "--frame", "no_such_site", "--n", "1"], "no_such_site"),
         ("real_robots.py", ["no_such_folder"], "no_such_folder"),
+        ("step_time.py", ["--talos-steps", "0"], "argument --talos-steps: must be at least 2"),
+        ("batch.py", ["--n", "0"], "argument --n: must be at least 1, got 0"),
+        ("fuzz.py", ["--workers", "0"], "argument --workers: must be at least 1"),
+        ("fuzz.py", ["--timeout", "nan"], "argument --timeout: must be a finite number"),
+        ("ik_success.py", ["--seed", "-1"], "argument --seed: must be at least 0"),
     ],
 )
 def test_benchmark_scripts_end_bad_arguments_with_one_line_and_status_2(
     script, arguments, named, tmp_path
 ):
-    """A benchmark script given an unknown robot, frame or folder prints one line naming it
+    """A benchmark script given an unknown robot, frame or folder, or a count or a duration
+    out of range (``bench_cli.at_least``, ``positive_float``), prints one line naming it
     (``SCRIPT: error: ...``, benchmarks/bench_cli.py) and exits with status 2, as the
     qpik command line does: no traceback."""
     import subprocess
