@@ -132,8 +132,6 @@ def solve_daqp_hierarchical(p: Problem):
     ends = [n + m]
     for A_k, _, _ in p.levels:
         ends.append(ends[-1] + A_k.shape[0])
-    if m == 0:
-        ends = ends[1:] if ends[0] == n else ends
     breaks = np.array(ends, dtype=np.int32)
     A = np.ascontiguousarray(A)
 

@@ -909,7 +909,7 @@ class _TalosScene:
 
 
 #: The methods of the Talos peer section (``--talos-methods``), by key.
-TALOS_METHODS = ("qpik", "qpik1", "qpikp", "qpiks", "placo", "placos", "mink")
+TALOS_METHODS = ("qpik", "qpik1", "qpikp", "qpiks", "placo", "placos", "daqph", "mink")
 
 
 #: A joint speed [rad/s or m/s] above which _chatter counts a sign change between two steps.
@@ -940,7 +940,10 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
     CoM, hands and posture soft, weights 100, 1, 0.01), and qpik on that same problem (the
     feet a strict level, CoM, hands and posture one weighted level with costs 10, 1, 0.1,
     the square roots of PlaCo's weights); mink + daqp's one weighted level
-    (costs 10, 10, 1, 0.1: the same weights). With the feet's support polygon besides
+    (costs 10, 10, 1, 0.1: the same weights); DAQP's hierarchical mode on qpik's four
+    levels' rows (:func:`_daqp_hierarchical`: the strict hierarchy solved by the field's
+    dedicated solver, no certificate; its time is ``daqp.solve``'s alone, the rows made by
+    :meth:`qpik.IKSolver.build` not counted). With the feet's support polygon besides
     (2 cm margin, the soles' collision meshes): qpik's four levels with
     :class:`qpik.limits.SupportPolygonLimit` (its hull made from the feet at every step),
     and PlaCo's problem with its CoM polygon constraint on the polygon at the start (its
@@ -1010,7 +1013,10 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
         "placos": scene.placo(_placo_robot(scene.urdf), mapping, polygon),
     }
 
-    names = ("qpik", "qpik1", "qpikp", "qpiks", "mink")
+    # DAQP's hierarchical mode on the rows of qpik's four levels (IKSolver.build, not timed)
+    ours_daqp = stack("qpik")
+    daqp_rows = qpik.IKSolver(model, ours_daqp, limits)
+    names = ("qpik", "qpik1", "qpikp", "qpiks", "daqph", "mink")
     configs = {name: qpik.Configuration(model, home) for name in names}
     label = {
         "qpik": "qpik IKSolver.step, 4 strict levels",
@@ -1019,6 +1025,7 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
         "qpiks": "qpik 4 levels + support polygon",
         "placo": "PlaCo solve(True), feet hard + 3 soft",
         "placos": "PlaCo, the same + CoM polygon",
+        "daqph": "DAQP hierarchical, qpik's 4 levels",
         "mink": "mink + daqp, 1 weighted level",
     }
     binding = 0  # qpik's steps where the polygon binds
@@ -1056,6 +1063,17 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             robot.update_kinematics()
             return elapsed, mapping.to_mujoco(robot.state.q, model.nq)
         c = configs[name]
+        if name == "daqph":
+            set_targets(ours_daqp, k)
+            solve = _daqp_hierarchical(daqp_rows.build(c, DT))
+            t0 = time.perf_counter()
+            x, exitflag = solve()
+            elapsed = time.perf_counter() - t0
+            if exitflag < 0:
+                failed[label[name]] += 1
+                x = np.zeros(model.nv)
+            c.update(c.integrate(x / DT, DT))
+            return elapsed, c.q
         set_targets(solvers[name][1] if name in solvers else theirs, k)
         t0 = time.perf_counter()
         if name in solvers:
@@ -1113,7 +1131,7 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
             f"{1e6 * np.median(times[name][h:]):.1f}"
             + "; joint speed rms, sign changes: in reach {:.2f}, {:.1f} % / out of reach "
             "{:.2f}, {:.1f} %".format(*_chatter(speeds[:h]), *_chatter(speeds[h:]))
-            + (f"; PlaCo raised on {failed[name]} steps" if failed[name] else "")
+            + (f"; {name.split()[0]} failed on {failed[name]} steps" if failed[name] else "")
             + (f"; the polygon binds on {binding} steps" if name == label["qpiks"] else "")
             + (
                 f"; CoM margin min {1e3 * min(margins[name]):.1f} mm"
@@ -1133,6 +1151,34 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
         extra,
     )
     _print_update_costs(configs["qpik"], home, robot, mapping)
+
+
+def _daqp_hierarchical(problem: qpik.core.HierarchyProblem):
+    """``solve() -> (dq, exitflag)``: ``problem`` (a :meth:`qpik.IKSolver.build`) by DAQP's
+    hierarchical mode (``daqp.solve(None, None, A, bu, bl, sense, break_points=...)``, as
+    benchmarks/hqp.py calls it): the limits as its first level (the box as simple bounds,
+    then ``G dq <= h``), each task level's weighted rows as soft equalities. DAQP minimises
+    each level's row-normalised slacks, so its answer is a strict hierarchy's but not qpik's
+    objective's; infinite bounds are its 1e30."""
+    import daqp
+
+    n, m = problem.n, problem.G.shape[0]
+    levels = problem.levels
+    A = np.ascontiguousarray(np.vstack([problem.G] + [level.A for level in levels]), dtype=float)
+    targets = [level.b for level in levels]
+    bu = np.clip(np.concatenate([problem.ub, problem.h, *targets]), -1e30, 1e30)
+    bl = np.clip(np.concatenate([problem.lb, np.full(m, -1e30), *targets]), -1e30, 1e30)
+    sense = np.zeros(bu.shape[0], dtype=np.int32)
+    ends = [n + m]
+    for level in levels:
+        ends.append(ends[-1] + level.A.shape[0])
+    breaks = np.array(ends, dtype=np.int32)  # (the limits their own level, m = 0 too)
+
+    def solve() -> tuple[np.ndarray, int]:
+        x, _, exitflag, _ = daqp.solve(None, None, A, bu, bl, sense, break_points=breaks)
+        return np.asarray(x, dtype=float), int(exitflag)
+
+    return solve
 
 
 # ----------------------------------------------------------------- instruction counts

@@ -309,3 +309,62 @@ def test_benchmark_scripts_end_bad_arguments_with_one_line_and_status_2(
     lines = run.stderr.strip().splitlines()
     assert "Traceback" not in run.stderr and named in lines[-1]
     assert lines[-1].startswith(f"{script}: error:")
+
+
+def test_step_time_daqp_hierarchical_row_holds_the_top_level():
+    """benchmarks/step_time.py's ``DAQP hierarchical`` row (``_daqp_hierarchical``): DAQP's
+    hierarchical mode on the rows of :meth:`qpik.IKSolver.build`. On the bundled Panda with
+    a reachable position task above a posture, both solvers meet the top level within the
+    box (DAQP minimises row-normalised slacks, so only what every strict hierarchy must
+    agree on is compared: the level-0 task value, and the box). The limits are DAQP's
+    first level even where there is no general row (its levels are all soft: with the box
+    in level 0's range, a level-0 target beyond the box moved the box instead)."""
+    pytest.importorskip("daqp")
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import step_time
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    from qpik import Configuration, IKSolver
+    from qpik.tasks import FrameTask, PostureTask
+
+    model = load_robot("panda")
+    configuration = Configuration(model)
+    configuration.update(configuration.mid_q())
+    frame = FrameTask("ee", "site", position_cost=1.0, orientation_cost=0.0)
+    position, rotation = configuration.frame_pose("ee", "site")
+    import mink
+
+    target = mink.SE3.from_rotation_and_translation(
+        mink.SO3.from_matrix(rotation), position + [0.002, -0.001, 0.001]
+    )
+    frame.set_target(target)
+    posture = PostureTask(model, 0.1)
+    posture.set_target(configuration.q + 0.05)
+    solver = IKSolver(model, [[frame], [posture]], [mink.ConfigurationLimit(model)])
+    dt = 0.01
+    problem = solver.build(configuration, dt)
+    x, exitflag = step_time._daqp_hierarchical(problem)()
+    assert exitflag >= 0
+    ours = solver.step(configuration, dt).velocity * dt
+    top = problem.levels[0]
+    scale = np.abs(top.b).max()
+    # (qpik's step is damped, DAQP holds a met level through its soft slacks, rho_soft:
+    # both to about 1e-5 of the target here)
+    np.testing.assert_allclose(top.A @ ours, top.b, rtol=0, atol=1e-4 * scale)
+    np.testing.assert_allclose(top.A @ x, top.b, rtol=0, atol=1e-4 * scale)
+    assert np.all(x >= problem.lb - 1e-9) and np.all(x <= problem.ub + 1e-9)
+    # a target beyond the step's box: both stop on the box, about as close to the target
+    frame.set_target(
+        mink.SE3.from_rotation_and_translation(
+            mink.SO3.from_matrix(rotation), position + [0.02, -0.01, 0.01]
+        )
+    )
+    problem = solver.build(configuration, dt)
+    x, exitflag = step_time._daqp_hierarchical(problem)()
+    assert exitflag >= 0
+    ours = solver.step(configuration, dt).velocity * dt
+    top = problem.levels[0]
+    assert np.all(x >= problem.lb - 1e-9) and np.all(x <= problem.ub + 1e-9)
+    miss, ours_miss = np.linalg.norm(top.A @ x - top.b), np.linalg.norm(top.A @ ours - top.b)
+    assert ours_miss > 1e-3 and ours_miss <= miss <= 1.1 * ours_miss
