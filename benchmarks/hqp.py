@@ -43,6 +43,7 @@ from pathlib import Path
 import daqp
 import numpy as np
 from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
+from daqp_hier import daqp_hierarchical  # benchmarks/daqp_hier.py
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from exactness_oracle import (  # noqa: E402
@@ -123,22 +124,8 @@ def solve_core(p: Problem, solver: HierarchySolver = _CORE):
 
 
 def solve_daqp_hierarchical(p: Problem):
-    n, m = p.n, p.G.shape[0]
-    A = np.vstack([p.G] + [A for A, _, _ in p.levels]).astype(float)
-    b_levels = [b for _, b, _ in p.levels]
-    bu = np.concatenate([p.ub, p.h] + b_levels).astype(float)
-    bl = np.concatenate([p.lb, np.full(m, -1e30)] + b_levels).astype(float)
-    sense = np.zeros(bu.shape[0], dtype=np.int32)
-    ends = [n + m]
-    for A_k, _, _ in p.levels:
-        ends.append(ends[-1] + A_k.shape[0])
-    breaks = np.array(ends, dtype=np.int32)
-    A = np.ascontiguousarray(A)
-
-    def run():
-        return daqp.solve(None, None, A, bu, bl, sense, break_points=breaks)[0]
-
-    return run
+    solve = daqp_hierarchical(p.lb, p.ub, p.G, p.h, [(A, b) for A, b, _ in p.levels])
+    return lambda: solve()[0]
 
 
 def solve_quadprog_levels(p: Problem):

@@ -72,6 +72,7 @@ import mink
 import numpy as np
 import qpsolvers
 from bench_cli import at_least  # benchmarks/bench_cli.py (this folder is on sys.path)
+from daqp_hier import daqp_hierarchical  # benchmarks/daqp_hier.py (daqp imported when called)
 
 import qpik
 from qpik.core import kernels as K
@@ -1155,27 +1156,13 @@ def talos_peers(n_steps: int = 300, methods: tuple | None = None) -> None:
 
 def _daqp_hierarchical(problem: qpik.core.HierarchyProblem):
     """``solve() -> (dq, exitflag)``: ``problem`` (a :meth:`qpik.IKSolver.build`) by DAQP's
-    hierarchical mode (``daqp.solve(None, None, A, bu, bl, sense, break_points=...)``, as
-    benchmarks/hqp.py calls it): the limits as its first level (the box as simple bounds,
-    then ``G dq <= h``), each task level's weighted rows as soft equalities. DAQP minimises
-    each level's row-normalised slacks, so its answer is a strict hierarchy's but not qpik's
-    objective's; infinite bounds are its 1e30."""
-    import daqp
-
-    n, m = problem.n, problem.G.shape[0]
-    levels = problem.levels
-    A = np.ascontiguousarray(np.vstack([problem.G] + [level.A for level in levels]), dtype=float)
-    targets = [level.b for level in levels]
-    bu = np.clip(np.concatenate([problem.ub, problem.h, *targets]), -1e30, 1e30)
-    bl = np.clip(np.concatenate([problem.lb, np.full(m, -1e30), *targets]), -1e30, 1e30)
-    sense = np.zeros(bu.shape[0], dtype=np.int32)
-    ends = [n + m]
-    for level in levels:
-        ends.append(ends[-1] + level.A.shape[0])
-    breaks = np.array(ends, dtype=np.int32)  # (the limits their own level, m = 0 too)
+    hierarchical mode (:func:`daqp_hier.daqp_hierarchical`, as benchmarks/hqp.py calls it:
+    the limits its first level, each task level's weighted rows soft equalities)."""
+    levels = [(level.A, level.b) for level in problem.levels]
+    daqp_solve = daqp_hierarchical(problem.lb, problem.ub, problem.G, problem.h, levels)
 
     def solve() -> tuple[np.ndarray, int]:
-        x, _, exitflag, _ = daqp.solve(None, None, A, bu, bl, sense, break_points=breaks)
+        x, _, exitflag, _ = daqp_solve()
         return np.asarray(x, dtype=float), int(exitflag)
 
     return solve
