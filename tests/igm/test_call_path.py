@@ -133,6 +133,15 @@ def _same(a: qpik.IKResult, b: qpik.IKResult) -> None:
     )  # fmt: skip
 
 
+def _ur5e_pose(seed: int) -> tuple:
+    """The UR5e and its ``ee`` pose ``(p, R)`` at a random configuration drawn with ``seed``
+    (a reachable target)."""
+    model = qpik.load_robot("ur5e")
+    configuration = qpik.Configuration(model)
+    configuration.update(configuration.random_q(np.random.default_rng(seed)))
+    return model, configuration.frame_pose("ee")
+
+
 def _general(session: qpik.IKSession, monkeypatch, targets, **keywords) -> qpik.IKResult:
     """``session.solve`` with the lean lane turned off (the general path)."""
     with monkeypatch.context() as patch:
@@ -192,11 +201,9 @@ def test_the_lean_lanes_option_check_is_the_options_memos(monkeypatch):
     same types and values (in any order): an equal value of another type (np.float64 for a
     float) goes through the options' checks (then the lane again); every answer is a fresh
     session's."""
-    model = qpik.load_robot("ur5e")
+    model, pose = _ur5e_pose(6)
     session = qpik.IKSession(model)
-    configuration = qpik.Configuration(model)
-    configuration.update(configuration.random_q(np.random.default_rng(6)))
-    target = {"ee": configuration.frame_pose("ee")}
+    target = {"ee": pose}
     calls: list = []
     _count_lean(monkeypatch, calls)
     runs = (
@@ -238,11 +245,8 @@ def test_the_lean_lane_leaves_bad_starts_to_the_general_path(q0, error):
 def test_the_lean_lane_leaves_other_targets_and_starts_to_the_general_path(monkeypatch):
     """Lists, a skewed rotation (projected by the general path), a list start, a NaN target:
     the answers (or errors) of the general path."""
-    model = qpik.load_robot("ur5e")
+    model, (p, R) = _ur5e_pose(1)
     session, reference = qpik.IKSession(model), qpik.IKSession(model)
-    configuration = qpik.Configuration(model)
-    configuration.update(configuration.random_q(np.random.default_rng(1)))
-    p, R = configuration.frame_pose("ee")
     _warm(session, {"ee": (p, R)})
     for target, q0 in (((p, R + 1e-12), None), ((p.tolist(), R), None), ((p, R), [0.1] * 6)):
         expected = _general(reference, monkeypatch, {"ee": target}, q0=q0, seed=5)
@@ -294,11 +298,9 @@ def test_the_compiled_lane_draws_every_seeds_state_as_the_general_path(seed, mon
     Generator by the same draw."""
     import copy
 
-    model = qpik.load_robot("ur5e")
+    model, pose = _ur5e_pose(8)
     session = qpik.IKSession(model)
-    configuration = qpik.Configuration(model)
-    configuration.update(configuration.random_q(np.random.default_rng(8)))
-    target = {"ee": configuration.frame_pose("ee")}
+    target = {"ee": pose}
     calls: list = []
     _count_lean(monkeypatch, calls)
     _warm(session, target, restarts=4)
@@ -343,11 +345,9 @@ def test_the_compiled_lane_follows_a_model_edited_in_place_and_pickling():
     solves as before."""
     import pickle
 
-    model = qpik.load_robot("ur5e")
+    model, pose = _ur5e_pose(2)
     session = qpik.IKSession(model)
-    configuration = qpik.Configuration(model)
-    configuration.update(configuration.random_q(np.random.default_rng(2)))
-    target = {"ee": configuration.frame_pose("ee")}
+    target = {"ee": pose}
     _warm(session, target, seed=1)
     before = session.solve(target, seed=1)
     copy = pickle.loads(pickle.dumps(session))
@@ -412,14 +412,12 @@ def test_the_compiled_lane_answers_mixed_calls_as_fresh_sessions(monkeypatch):
     fresh session's (the general path), bit for bit."""
     import random
 
-    model = qpik.load_robot("ur5e")
-    configuration = qpik.Configuration(model)
-    configuration.update(configuration.random_q(np.random.default_rng(1)))
-    p, R = configuration.frame_pose("ee")
+    model, (p, R) = _ur5e_pose(1)
     # (the lane's calls several times over in each list, so that it takes about a third)
     keys = ["ee", "ee", ("ee", "site"), "nope"]
     targets = [(p, R)] * 6 + [(p.tolist(), R), (p, R[:, ::-1]), (p.astype(np.float32), R), p]
-    starts = [None, configuration.mid_q(), configuration.mid_q() + 0.1] * 2
+    mid = qpik.Configuration(model).mid_q()
+    starts = [None, mid, mid + 0.1] * 2
     starts += [np.full(6, 10.0), np.zeros(5), [0.1] * 6]
     seeds = [0, 7, 2**70, np.random.SeedSequence(3), -1]
     options = [{}] * 4 + [
